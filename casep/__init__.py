@@ -1,0 +1,73 @@
+"""casep: guidance instrumentation error separation for a platform inertial navigation system.
+
+The difference between telemetered and tracked velocity, ``dv = v_tel - v_trk``, is
+explained as a linear function of instrument error coefficients ``D``:
+``dv(t) = S_V(t) D``. casep builds ``S_V`` exactly from a symbolic error model (CasADi),
+estimates ``D``, says how well each coefficient can be known and shows it.
+
+Conventions
+-----------
+Frames
+    Platform frame = launch-inertial frame of the stabilised platform: x downrange
+    (horizontal at launch), y up (local vertical at launch), z completes the right-handed
+    triad (cross-range).
+Inputs
+    ``t`` in s (strictly increasing, need not be uniform); specific force ``f`` in m/s^2
+    (what accelerometers sense: gravity is not in it); ``dv`` in m/s, telemetry minus
+    tracking, used as given (never re-referenced to its first sample).
+Error model
+    Inside the error equations the specific force is in g: ``W = f / G0``,
+    ``G0 = 9.80665`` m/s^2. Platform drift ``phi(t) = phi0 + int phidot dt``; specific-force
+    error ``dWdot = [f x] phi + Delta`` with
+    ``[f x] = [[0, -f_z, f_y], [f_z, 0, -f_x], [-f_y, f_x, 0]]`` (i.e. ``f x phi``);
+    ``dv = dv0 + int dWdot dt``.
+Units
+    SI inside every computation (rad, rad/s, m/s^2, m/s). Coefficients are declared,
+    reported and read in natural units (deg/h, deg/h/g, mg, mg/g, ug/g, ug/g^2, arcsec):
+    see :mod:`casep.units`. ``S_V`` columns are per natural unit.
+Arrays
+    A flight's ``S_V`` is ``(N, 3, n)``: sample, axis (x, y, z), coefficient in model order;
+    ``S.reshape(3 * N, n)`` is the stacked regression with rows x, y, z per sample.
+Column names (flight files)
+    ``t, f_x, f_y, f_z`` and ``dv_x, dv_y, dv_z`` (or ``v_tel_x/y/z`` and ``v_trk_x/y/z``).
+
+Main entry points
+-----------------
+:func:`load_model`, :func:`build_sv`, :func:`read_flight`, :func:`solve_ols`,
+:func:`separate`; the command line ``casep`` (:mod:`casep.cli`).
+"""
+
+__version__ = "0.1.0"
+
+from .flight import FlightData, FlightDataError, read_flight, read_flight_csv
+from .linalg import ReducedSystem, analyze_rank, reduce_qr
+from .model import ErrorModel, ModelDefinitionError
+from .model_loader import available_models, build_model, load_model, model_dirs
+from .ols import solve_ols
+from .result import EstimateResult
+from .separate import separate
+from .sv import SVBuilder, build_sv
+from .units import G0
+
+__all__ = [
+    "__version__",
+    "G0",
+    "ErrorModel",
+    "ModelDefinitionError",
+    "build_model",
+    "load_model",
+    "available_models",
+    "model_dirs",
+    "SVBuilder",
+    "build_sv",
+    "FlightData",
+    "FlightDataError",
+    "read_flight",
+    "read_flight_csv",
+    "ReducedSystem",
+    "reduce_qr",
+    "analyze_rank",
+    "solve_ols",
+    "EstimateResult",
+    "separate",
+]

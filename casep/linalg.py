@@ -1,0 +1,223 @@
+"""Scaled QR reduction of the stacked regression and its rank analysis.
+
+Every solver works on the column-scaled system ``Z = S / c`` (``c_j`` = Euclidean norm of
+column j in natural units; a zero column keeps ``c_j = 0`` and is reported as such). The
+tall problem (3N x n) is reduced once, by Householder QR of ``[Z | y]`` processed in row
+blocks (TSQR: ``R <- qr([R; block])``, orthogonal at every step, so as accurate as one QR):
+
+    [Z | y] = Q [[R, q], [0, rho]]      =>   ||y - Z x||^2 = ||q - R x||^2 + rho^2
+
+so every later solve (OLS, ridge, bounded QP, PCR, MAP) works on the n x n system
+``(R, q)`` and never touches the 3N rows again. The rank analysis is an SVD of the small
+``R = U diag(s) V^T``: columns with ``s_i <= rcond * s_0`` span the exact null space; a
+coefficient is *estimable* iff its unit vector is orthogonal to that null space (the
+classical estimable-function criterion), i.e. iff its row of ``V_null`` is zero.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["ReducedSystem", "reduce_qr", "RankAnalysis", "analyze_rank", "DEFAULT_BLOCK_ROWS"]
+
+#: Rows per TSQR block: bounds the temporary copy to ~block x (n + 1) doubles.
+DEFAULT_BLOCK_ROWS = 65536
+_NULL_ROW_TOL = 1e-8  # a coefficient is in the null space when its V_null row norm exceeds this
+
+
+@dataclass(frozen=True)
+class ReducedSystem:
+    """The n x n equivalent of a tall column-scaled least-squares problem.
+
+    Attributes
+    ----------
+    R : (n, n) ndarray
+        Upper-triangular factor of ``Z = S / scale`` (zero columns left at zero).
+    qty : (n,) ndarray
+        ``Q^T y`` restricted to the span of Q's first n columns.
+    rho2 : float
+        ``||y||^2 - ||Q^T y||^2``: residual sum of squares outside that span.
+    scale : (n,) ndarray
+        Column norms of S in natural units (0 for a zero column).
+    m : int
+        Number of rows of S (3N).
+    """
+
+    R: np.ndarray
+    qty: np.ndarray
+    rho2: float
+    scale: np.ndarray
+    m: int
+
+    @property
+    def n(self) -> int:
+        """Number of coefficients."""
+        return int(self.scale.size)
+
+
+def reduce_qr(S: np.ndarray, y: np.ndarray, *, block_rows: int = DEFAULT_BLOCK_ROWS) -> ReducedSystem:
+    """Column-scale ``S`` and reduce ``min ||y - S x||`` to an n x n triangular system.
+
+    Parameters
+    ----------
+    S : (m, n) or (N, 3, n) array_like
+        Regression matrix in natural units; (N, 3, n) is flattened to (3N, n).
+    y : (m,) or (N, 3) array_like
+        Observations (dv), flattened the same way.
+    block_rows : int, optional
+        Rows per TSQR block.
+
+    Returns
+    -------
+    ReducedSystem
+    """
+    S = np.asarray(S, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if S.ndim == 3:
+        S = S.reshape(-1, S.shape[-1])
+    if S.ndim != 2:
+        raise ValueError(f"`S` must be 2-D (m, n) or 3-D (N, 3, n), got {S.ndim}-D")
+    y = y.reshape(-1)
+    m, n = S.shape
+    if y.size != m:
+        raise ValueError(f"`y` has {y.size} values but `S` has {m} rows")
+    if n < 1:
+        raise ValueError("`S` has no columns")
+    if not isinstance(block_rows, (int, np.integer)) or block_rows < 1:
+        raise ValueError(f"`block_rows` must be a positive int, got {block_rows!r}")
+    if not np.all(np.isfinite(y)):
+        raise ValueError(f"`y` is not finite at row {int(np.flatnonzero(~np.isfinite(y))[0])}")
+    # Column norms by blocks (avoids a second full-size temporary).
+    sq = np.zeros(n)
+    for s in range(0, m, block_rows):
+        blk = S[s : s + block_rows]
+        sq += np.einsum("ij,ij->j", blk, blk)
+    if not np.all(np.isfinite(sq)):
+        j = int(np.flatnonzero(~np.isfinite(sq))[0])
+        raise ValueError(f"`S` column {j} is not finite")
+    scale = np.sqrt(sq)
+    inv = np.where(scale > 0, 1.0 / np.where(scale > 0, scale, 1.0), 0.0)
+    Racc = np.zeros((0, n + 1))
+    work = np.empty((min(block_rows, m) + n + 1, n + 1))
+    for s in range(0, m, block_rows):
+        blk = S[s : s + block_rows]
+        k0 = Racc.shape[0]
+        k = k0 + blk.shape[0]
+        M = work[:k]
+        M[:k0] = Racc
+        np.multiply(blk, inv, out=M[k0:, :n])  # Z = S / c
+        M[k0:, n] = y[s : s + blk.shape[0]]
+        Racc = np.linalg.qr(M, mode="r")  # Householder; R of [R_prev; block]
+    Rfull = np.zeros((n + 1, n + 1))
+    Rfull[: Racc.shape[0]] = Racc[: n + 1]
+    return ReducedSystem(R=np.triu(Rfull[:n, :n]), qty=Rfull[:n, n].copy(), rho2=float(Rfull[n, n] ** 2),
+                         scale=scale, m=m)
+
+
+@dataclass(frozen=True)
+class RankAnalysis:
+    """SVD-based rank analysis of a :class:`ReducedSystem`.
+
+    Attributes
+    ----------
+    U, s, Vt : ndarray
+        SVD of ``R`` (scaled coordinates).
+    rank : int
+        Number of singular values above ``rcond * s[0]``.
+    rcond : float
+        Relative threshold used.
+    zero : (n,) bool ndarray
+        Columns that are identically zero in S.
+    dependent : (n,) bool ndarray
+        Non-zero columns that take part in an exact linear dependency.
+    partners : dict[int, list[int]]
+        For each dependent column, the other columns of its dependency, strongest first.
+    """
+
+    U: np.ndarray
+    s: np.ndarray
+    Vt: np.ndarray
+    rank: int
+    rcond: float
+    zero: np.ndarray
+    dependent: np.ndarray
+    partners: dict
+
+    @property
+    def estimable(self) -> np.ndarray:
+        """Coefficients that the data determine individually."""
+        return ~(self.zero | self.dependent)
+
+    def pinv_factors(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(V_r, 1 / s_r)``: the rank-r pseudo-inverse ``R^+ = V_r diag(1/s_r) U_r^T``."""
+        r = self.rank
+        return self.Vt[:r].T, 1.0 / self.s[:r]
+
+
+def analyze_rank(red: ReducedSystem, rcond: float | None = None) -> RankAnalysis:
+    """Find the numerical rank, the zero columns and the exactly dependent ones.
+
+    Parameters
+    ----------
+    red : ReducedSystem
+    rcond : float, optional
+        Singular values ``<= rcond * s_max`` count as zero. Default ``max(m, n) * eps``,
+        as LAPACK's rank rules: exact dependencies computed in floating point land near
+        1e-16 * s_max, while the worst real collinearity of a boost flight (equilibrated
+        condition number ~1e6) is ten orders of magnitude above it.
+    """
+    n, m = red.n, red.m
+    if rcond is None:
+        rcond = max(m, n) * np.finfo(float).eps
+    elif not np.isfinite(rcond) or rcond < 0 or rcond >= 1:
+        raise ValueError(f"`rcond` must be in [0, 1), got {rcond}")
+    U, s, Vt = np.linalg.svd(red.R)
+    smax = s[0] if s.size else 0.0
+    rank = int(np.sum(s > rcond * smax)) if smax > 0 else 0
+    zero = red.scale == 0.0
+    Vnull = Vt[rank:].T  # (n, n - rank): exact null space of Z
+    row_norm = np.linalg.norm(Vnull, axis=1) if Vnull.size else np.zeros(n)
+    dependent = (row_norm > _NULL_ROW_TOL) & ~zero
+    partners: dict[int, list[int]] = {}
+    for j in np.flatnonzero(dependent):
+        w = Vnull @ Vnull[j]  # null-space component tied to coefficient j
+        w[j] = 0.0
+        w[zero] = 0.0
+        big = np.flatnonzero(np.abs(w) > 1e-6 * max(np.abs(w).max(), 1e-300))
+        partners[int(j)] = [int(k) for k in big[np.argsort(-np.abs(w[big]))]]
+    return RankAnalysis(U=U, s=s, Vt=Vt, rank=rank, rcond=float(rcond), zero=zero,
+                        dependent=dependent, partners=partners)
+
+
+def condition_numbers(red: ReducedSystem, ra: RankAnalysis) -> dict[str, float | None]:
+    """2-norm condition numbers of S over its non-zero columns.
+
+    ``condition_number`` is for S in natural units, ``condition_number_equilibrated`` for
+    the columns scaled to unit norm (never centred: the model has no intercept). Zero
+    columns are left out (they are reported as unidentifiable); ``None`` stands for an
+    infinite value, i.e. exactly dependent non-zero columns.
+    """
+    keep = ~ra.zero
+    if not np.any(keep):
+        return {"condition_number": None, "condition_number_equilibrated": None}
+    out: dict[str, float | None] = {}
+    for key, M in (("condition_number", red.R[:, keep] * red.scale[keep]),
+                   ("condition_number_equilibrated", red.R[:, keep])):
+        s = np.linalg.svd(M, compute_uv=False)
+        out[key] = float(s[0] / s[-1]) if s[-1] > ra.rcond * s[0] else None
+    return out
+
+
+def unidentifiable_reasons(ra: RankAnalysis, names: tuple[str, ...] | list[str]) -> dict[str, str]:
+    """Why each zero or exactly dependent coefficient gets no estimate, keyed by name."""
+    reasons: dict[str, str] = {}
+    for j in np.flatnonzero(ra.zero):
+        reasons[names[j]] = "zero column: this flight does not excite the term"
+    for j in np.flatnonzero(ra.dependent):
+        twins = [names[k] for k in ra.partners.get(int(j), [])]
+        with_ = ", ".join(twins[:6]) + (", ..." if len(twins) > 6 else "")
+        reasons[names[j]] = ("exactly dependent on " + with_ + ": only their combination is determined"
+                             if twins else "exactly dependent columns: only a combination is determined")
+    return reasons

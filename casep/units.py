@@ -1,0 +1,77 @@
+"""Natural units of instrument error coefficients and their SI factors.
+
+Inside casep everything is SI (rad, rad/s, m/s, m/s^2). Error coefficients are declared,
+reported and read from files in the natural units analysts use (deg/h, mg, ug/g, arcsec).
+A coefficient's SI factor converts its natural-unit value into the SI value of the term it
+multiplies. Specific force enters the error models in g (``W = f / G0``), so a coefficient
+in ``mg/g`` multiplies ``W`` (in g) and yields ``1e-3 * G0`` m/s^2 per unit: its SI factor
+is ``1e-3 * G0``, the same as ``mg``.
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["G0", "DEG_PER_HOUR", "ARCSEC", "UNITS", "si_factor"]
+
+#: Standard gravity, m/s^2 (the "g" of every unit below).
+G0 = 9.80665
+#: One degree per hour in rad/s.
+DEG_PER_HOUR = math.pi / 180.0 / 3600.0
+#: One arcsecond in rad.
+ARCSEC = math.pi / 180.0 / 3600.0
+
+_MG = 1e-3 * G0  # one milli-g in m/s^2
+_UG = 1e-6 * G0  # one micro-g in m/s^2
+
+#: Known natural units -> SI factor. ``/g`` and ``/g^2`` do not change the factor because
+#: the specific force they divide by is already expressed in g inside the error model.
+UNITS: dict[str, float] = {
+    # gyro drift rates -> rad/s
+    "deg/h": DEG_PER_HOUR,
+    "deg/h/g": DEG_PER_HOUR,
+    "deg/h/g^2": DEG_PER_HOUR,
+    "rad/s": 1.0,
+    "rad/s/g": 1.0,
+    "rad/s/g^2": 1.0,
+    # accelerometer errors -> m/s^2
+    "mg": _MG,
+    "mg/g": _MG,
+    "mg/g^2": _MG,
+    "ug": _UG,
+    "ug/g": _UG,
+    "ug/g^2": _UG,
+    "m/s^2": 1.0,
+    # angles -> rad
+    "arcsec": ARCSEC,
+    "arcmin": 60.0 * ARCSEC,
+    "deg": math.pi / 180.0,
+    "mrad": 1e-3,
+    "rad": 1.0,
+    # velocities -> m/s
+    "m/s": 1.0,
+}
+
+
+def si_factor(unit: str) -> float:
+    """Return the SI factor of a natural unit.
+
+    Parameters
+    ----------
+    unit : str
+        A key of :data:`UNITS`, e.g. ``"deg/h"`` or ``"ug/g^2"``.
+
+    Returns
+    -------
+    float
+        Multiply a value in `unit` by this to get SI.
+    """
+    if not isinstance(unit, str):
+        raise TypeError(f"`unit` must be a str, got {type(unit).__name__}")
+    try:
+        return UNITS[unit]
+    except KeyError:
+        known = ", ".join(sorted(UNITS))
+        raise ValueError(
+            f"unknown unit `{unit}`. Use one of: {known}; or pass `si_factor` explicitly"
+        ) from None
