@@ -1,0 +1,117 @@
+"""Least squares on the scaled QR-reduced system (casep.ols, casep.linalg)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import casep
+from casep.synthetic import excitation_force, inject_errors
+
+
+def test_noise_free_recovery_all_36(platform36, truth36, flight_tf):
+    t, f = flight_tf
+    S = casep.build_sv(platform36, t, f)
+    res = casep.solve_ols(S, S @ truth36, names=platform36.names)
+    assert res.status == 1 and res.rank == 36
+    rel = np.abs(res.estimate - truth36) / np.abs(truth36)
+    assert rel.max() <= 1e-6, dict(zip(platform36.names, rel))
+
+
+def test_matches_independent_lstsq_and_covariance(rng):
+    # Well-conditioned random problem: numpy's SVD lstsq and sigma^2 (S^T S)^-1.
+    S = rng.standard_normal((300, 5)) * np.array([1e-3, 1.0, 1e4, 2.0, 5e-2])
+    x = rng.standard_normal(5)
+    y = S @ x + 0.1 * rng.standard_normal(300)
+    res = casep.solve_ols(S, y)
+    ref, rss, *_ = np.linalg.lstsq(S, y, rcond=None)
+    # Column scales span 1e7: the unscaled reference itself is only good to ~1e-9.
+    np.testing.assert_allclose(res.estimate, ref, rtol=1e-8)
+    s2 = rss[0] / (300 - 5)
+    np.testing.assert_allclose(res.sigma, np.sqrt(s2), rtol=1e-10)
+    np.testing.assert_allclose(res.covariance, s2 * np.linalg.inv(S.T @ S), rtol=1e-8)
+    np.testing.assert_allclose(res.residuals, y - S @ ref, atol=1e-9)  # |S_j| up to 1e4 * 17
+
+
+def test_tsqr_blocks_equal_one_qr(rng):
+    S = rng.standard_normal((1000, 6))
+    y = rng.standard_normal(1000)
+    a = casep.reduce_qr(S, y, block_rows=1000)
+    b = casep.reduce_qr(S, y, block_rows=37)
+    # R is unique up to row signs.
+    sa, sb = np.sign(np.diag(a.R)), np.sign(np.diag(b.R))
+    np.testing.assert_allclose(a.R * sa[:, None], b.R * sb[:, None], atol=1e-12)
+    np.testing.assert_allclose(a.qty * sa, b.qty * sb, atol=1e-12)
+    np.testing.assert_allclose(a.rho2, b.rho2, rtol=1e-10)
+
+
+def test_zero_and_duplicate_columns_reported_others_estimated(rng):
+    S = rng.standard_normal((400, 5))
+    S[:, 1] = 0.0  # zero column
+    S[:, 4] = 2.5 * S[:, 3]  # exact twin of column 3
+    x = np.array([1.0, 7.0, -2.0, 0.5, 0.2])
+    y = S @ x + 0.01 * rng.standard_normal(400)
+    res = casep.solve_ols(S, y, names=["a", "b", "c", "d", "e"])
+    assert res.status == 2 and res.success
+    assert np.isnan(res.estimate[[1, 3, 4]]).all() and np.isnan(res.std[[1, 3, 4]]).all()
+    assert "zero column" in res.reasons["b"]
+    assert "exactly dependent on e" in res.reasons["d"] and "exactly dependent on d" in res.reasons["e"]
+    # The identifiable ones equal OLS with the twin merged into one column.
+    ref = np.linalg.lstsq(S[:, [0, 2, 3]], y, rcond=None)[0]
+    np.testing.assert_allclose(res.estimate[[0, 2]], ref[:2], rtol=1e-10)
+    rows = {r["name"]: r for r in res.coefficient_rows()}
+    assert rows["b"]["estimate"] is None and rows["a"]["estimate"] is not None
+
+
+def test_pitch_plane_flight_exactly_the_zero_columns(platform36, truth36):
+    t = np.arange(0.0, 180.0, 0.05)
+    f = excitation_force(t, cross_range=False)
+    S = casep.build_sv(platform36, t, f)
+    res = casep.solve_ols(S, S @ truth36, names=platform36.names)
+    expected = {"Kg1xz", "Kg1yz", "Kg1z", "Kg2z", "Ka1xz", "Ka2xz", "Ka1yz", "Ka2yz",
+                "Ka1z", "Ka2z", "Ka2zx", "Ka2zy"}
+    assert set(res.diagnostics["unidentifiable"]) == expected
+    assert all("zero column" in res.reasons[n] for n in expected)
+    ok = res.identifiable
+    np.testing.assert_allclose(res.estimate[ok], truth36[ok], rtol=1e-6)
+
+
+@pytest.mark.montecarlo
+def test_std_is_honest_monte_carlo(platform36, truth36, rng):
+    """RMS of (estimate - truth) / std over seeded runs is near 1 for every coefficient."""
+    t = np.arange(0.0, 60.0, 0.2)  # small flight: 300 samples
+    f = excitation_force(t, duration=60.0)
+    S = casep.build_sv(platform36, t, f)
+    clean = S @ truth36
+    runs = 200
+    z = np.empty((runs, 36))
+    for k in range(runs):
+        res = casep.solve_ols(S, clean + 0.1 * rng.standard_normal(clean.shape))
+        z[k] = (res.estimate - truth36) / res.std
+    rms = np.sqrt(np.mean(z**2, axis=0))
+    pooled = np.sqrt(np.mean(z**2))
+    assert 0.85 <= pooled <= 1.15, pooled
+    assert np.all((rms > 0.75) & (rms < 1.25)), rms
+    assert abs(np.mean(z)) < 0.1  # unbiased
+
+
+def test_bad_arguments(rng):
+    S = rng.standard_normal((10, 2))
+    with pytest.raises(ValueError, match="`y` has 9 values but `S` has 10 rows"):
+        casep.solve_ols(S, np.zeros(9))
+    with pytest.raises(ValueError, match="`names` has 1 entries"):
+        casep.solve_ols(S, np.zeros(10), names=["a"])
+    with pytest.raises(ValueError, match="`sigma` must be finite and > 0"):
+        casep.solve_ols(S, np.zeros(10), sigma=-1.0)
+    with pytest.raises(ValueError, match="no degree of freedom"):
+        casep.solve_ols(S[:2], np.zeros(2))
+    with pytest.raises(ValueError, match="`y` is not finite at row 3"):
+        y = np.zeros(10)
+        y[3] = np.inf
+        casep.solve_ols(S, y)
+
+
+def test_inject_errors_requires_rng(platform36, truth36, flight_tf):
+    t, f = flight_tf
+    with pytest.raises(ValueError, match="`rng` is required"):
+        inject_errors(platform36, t, f, truth36, sigma=0.1)
