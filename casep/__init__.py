@@ -39,7 +39,7 @@ Main entry points
 
 __version__ = "0.1.0"
 
-from .flight import FlightData, FlightDataError, read_flight, read_flight_csv
+from .flight import FlightData, FlightDataError, read_flight, read_flight_csv, write_flight_csv
 from .linalg import ReducedSystem, analyze_rank, reduce_qr
 from .model import ErrorModel, ModelDefinitionError
 from .model_loader import available_models, build_model, load_model, model_dirs
@@ -64,6 +64,7 @@ __all__ = [
     "FlightDataError",
     "read_flight",
     "read_flight_csv",
+    "write_flight_csv",
     "ReducedSystem",
     "reduce_qr",
     "analyze_rank",

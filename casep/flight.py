@@ -17,7 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FlightData", "FlightDataError", "read_flight", "read_flight_csv", "min_samples"]
+from ._io import atomic_open
+
+__all__ = ["FlightData", "FlightDataError", "read_flight", "read_flight_csv", "write_flight_csv", "min_samples"]
 
 AXES = ("x", "y", "z")
 FORCE_COLUMNS = tuple(f"f_{a}" for a in AXES)
@@ -244,3 +246,31 @@ def read_flight_csv(path: str | os.PathLike) -> FlightData:
 def read_flight(path: str | os.PathLike) -> FlightData:
     """Read a flight file, choosing the reader by extension (``.csv``; anything else as CSV)."""
     return read_flight_csv(path)
+
+
+def write_flight_csv(flight: FlightData, path: str | os.PathLike, *, comments: list[str] | None = None) -> None:
+    """Write a flight as CSV (``t, f_x, f_y, f_z, dv_x, dv_y, dv_z``), atomically.
+
+    Parameters
+    ----------
+    flight : FlightData
+    path : str or path-like
+    comments : list of str, optional
+        Lines written first, each prefixed with ``# ``.
+
+    Notes
+    -----
+    Values use ``repr`` precision (17 significant digits), so reading the file back gives
+    the same floats. The file is written to a temporary name and renamed, so a failure
+    leaves no half-written file.
+    """
+    if not isinstance(flight, FlightData):
+        raise TypeError(f"`flight` must be a FlightData, got {type(flight).__name__}")
+    path = Path(path)
+    data = np.column_stack([flight.t, flight.f, flight.dv])
+    header = ",".join(("t",) + FORCE_COLUMNS + DV_COLUMNS)
+    with atomic_open(path) as fh:
+        for line in comments or []:
+            fh.write(f"# {line}\n")
+        fh.write(header + "\n")
+        np.savetxt(fh, data, delimiter=",", fmt="%.17g")

@@ -5,12 +5,12 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from ._io import atomic_open
 
 __all__ = ["EstimateResult", "write_json_atomic", "format_number"]
 
@@ -170,16 +170,6 @@ class EstimateResult:
 
 def write_json_atomic(data: dict[str, Any], path: str | os.PathLike) -> None:
     """Write JSON to `path` through a temporary file and a rename: never half-written."""
-    path = Path(path)
     text = json.dumps(data, indent=2, allow_nan=False) + "\n"
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    with atomic_open(path) as fh:
+        fh.write(text)

@@ -1,0 +1,105 @@
+"""The command line (casep.cli): output, JSON and exit status 2 on bad input."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import casep
+from casep.cli import main
+from casep.synthetic import excitation_force, inject_errors
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "data" / "example_flight.csv"
+HEADER = "t,f_x,f_y,f_z,dv_x,dv_y,dv_z"
+
+
+@pytest.fixture(scope="module")
+def good_csv(tmp_path_factory, platform36, truth36):
+    t = np.arange(0.0, 120.0, 0.1)
+    f = excitation_force(t, duration=120.0)
+    dv = inject_errors(platform36, t, f, truth36)
+    p = tmp_path_factory.mktemp("cli") / "clean.csv"
+    casep.write_flight_csv(casep.FlightData(t, f, dv), p)
+    return p
+
+
+def test_separate_writes_spec_json(good_csv, tmp_path, capsys, truth36):
+    out = tmp_path / "r.json"
+    assert main(["separate", str(good_csv), "--method", "ols", "--model", "platform36", "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "Kg0x" in text and "deg/h" in text and "condition number" in text
+    data = json.loads(out.read_text())
+    assert data["model"] == "platform36" and data["method"] == "ols" and data["n_samples"] == 1200
+    assert data["denoise"] is None and set(data["residual_rms"]) == {"x", "y", "z"}
+    names = [c["name"] for c in data["coefficients"]]
+    assert names == list(casep.load_model("platform36").names)
+    est = np.array([c["estimate"] for c in data["coefficients"]])
+    np.testing.assert_allclose(est, truth36, rtol=1e-5)  # noise-free file, 17-digit CSV
+    assert all(c["std"] is not None for c in data["coefficients"])
+    assert data["diagnostics"]["condition_number_equilibrated"] > 1e3
+
+
+def test_pitch_plane_json_has_null_with_reason(tmp_path, platform36, truth36):
+    t = np.arange(0.0, 60.0, 0.1)
+    f = excitation_force(t, duration=60.0, cross_range=False)
+    p = tmp_path / "pitch.csv"
+    casep.write_flight_csv(casep.FlightData(t, f, inject_errors(platform36, t, f, truth36)), p)
+    out = tmp_path / "r.json"
+    assert main(["separate", str(p), "--json", str(out)]) == 0
+    rows = {c["name"]: c for c in json.loads(out.read_text())["coefficients"]}
+    assert rows["Kg1xz"]["estimate"] is None and rows["Kg1xz"]["std"] is None
+    assert "zero column" in rows["Kg1xz"]["reason"]
+    assert rows["Ka0x"]["estimate"] is not None
+
+
+@pytest.mark.parametrize(
+    "body, expect",
+    [
+        ("t,f_x,f_y,dv_x,dv_y,dv_z\n0,1,2,4,5,6\n", "column `f_z`"),
+        (f"{HEADER}\n0,1,2,3,4,5,6\n1,1,2,3,4,5,x\n", "column `dv_z`, row 2 (line 3): non-numeric"),
+        (f"{HEADER}\n0,1,2,3,4,5,6\n1,1,2,3,4,nan,6\n", "column `dv_y`, row 2 (line 3): NaN"),
+        (f"{HEADER}\n0,1,2,3,4,5,6\n1,1,-inf,3,4,5,6\n", "column `f_y`, row 2 (line 3): infinite"),
+        (f"{HEADER}\n0,1,2,3,4,5,6\n0,1,2,3,4,5,6\n", "column `t`, row 2 (line 3): time 0 s does not increase"),
+        (f"{HEADER}\n" + "".join(f"{k},1,2,3,4,5,6\n" for k in range(5)), "column `t`, row 5: 5 samples are too few"),
+    ],
+)
+def test_bad_input_exit_2_one_line_no_output(tmp_path, capsys, body, expect):
+    p = tmp_path / "bad.csv"
+    p.write_text(body)
+    out = tmp_path / "r.json"
+    assert main(["separate", str(p), "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("casep: error: ") and str(p) in err
+    assert expect in err
+    assert not out.exists() and list(tmp_path.iterdir()) == [p]
+
+
+def test_bad_usage_exit_2(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["separate", str(EXAMPLE), "--method", "nope"])
+    assert e.value.code == 2
+    assert main(["separate", str(EXAMPLE), "--model", "nope"]) == 2
+    assert "unknown model `nope`" in capsys.readouterr().err
+
+
+def test_console_entry_point_on_example(tmp_path):
+    out = tmp_path / "r.json"
+    proc = subprocess.run([sys.executable, "-m", "casep", "separate", str(EXAMPLE), "--json", str(out)],
+                          capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(out.read_text())
+    assert data["n_samples"] == 1801
+    # The example carries 0.1 m/s white noise: the estimated sigma and residual RMS show it.
+    assert 0.09 < data["sigma"] < 0.11
+    assert all(0.09 < v < 0.11 for v in data["residual_rms"].values())
+
+
+def test_models_command(capsys):
+    assert main(["models"]) == 0
+    out = capsys.readouterr().out
+    assert "platform36" in out and "39 coefficients" in out
