@@ -192,6 +192,18 @@ class ErrorModel:
         """Set the velocity error at t0, dv0(D), m/s, 3 x 1; independent of f."""
         self._set_output("initial_velocity_error", dv0)
 
+    def output(self, slot: str) -> ca.SX:
+        """Current expression of an output slot (zeros if unset), e.g. to add a term to it.
+
+        Parameters
+        ----------
+        slot : {"gyro_drift", "accel_error", "initial_misalignment", "initial_velocity_error"}
+        """
+        if slot not in OUTPUTS:
+            raise ValueError(f"unknown output `{slot}`; use one of {', '.join(OUTPUTS)}")
+        expr = self._outputs[slot]
+        return ca.SX.zeros(3, 1) if expr is None else expr
+
     def _set_output(self, slot: str, expr: ca.SX | Sequence) -> None:
         self._check_unlocked()
         if not isinstance(expr, (ca.SX, ca.DM)):

@@ -50,3 +50,28 @@ def test_file_without_build(tmp_path):
     p.write_text("def build():\n    return 3\n")
     with pytest.raises(ModelDefinitionError, match="returned int"):
         casep.load_model(p)
+
+
+def test_extension_adds_a_term_and_is_recovered(tmp_path, truth36, flight_tf):
+    import numpy as np
+
+    (tmp_path / "platform37_gsens.py").write_text(textwrap.dedent(
+        """
+        import casadi as ca
+        import casep
+
+        def build():
+            m = casep.build_model("platform36")
+            m.name = "platform37_gsens"
+            c = m.declare(Kg3x="deg/h/g^2")  # gyro x drift in Wx*Wy
+            m.set_gyro_drift(m.output("gyro_drift") + ca.vertcat(c.Kg3x * m.W[0] * m.W[1], 0, 0))
+            return m
+        """
+    ))
+    m = casep.load_model(tmp_path / "platform37_gsens.py")
+    assert m.names[-1] == "Kg3x" and 36 in m.numeric("gyro_columns")
+    t, f = flight_tf
+    D = np.concatenate([truth36, [0.05]])
+    S = casep.build_sv(m, t, f)
+    res = casep.solve_ols(S, S @ D)
+    np.testing.assert_allclose(res.estimate, D, rtol=1e-6)

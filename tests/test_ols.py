@@ -115,3 +115,38 @@ def test_inject_errors_requires_rng(platform36, truth36, flight_tf):
     t, f = flight_tf
     with pytest.raises(ValueError, match="`rng` is required"):
         inject_errors(platform36, t, f, truth36, sigma=0.1)
+
+
+def test_platform39_phi0_aliasing_and_recovery(platform39, truth36, flight_tf, rng):
+    """phi0 is exactly aliased with the antisymmetric accelerometer misalignments.
+
+    f x (0, 0, phi) = (f_y phi, -f_x phi, 0) is the signature of Ka1xy * Wy - Ka1yx * Wx, so
+    col(phi0z) = (arcsec / 1e-6) (col(Ka1xy) - col(Ka1yx)), and likewise for x and y. casep must
+    report the nine as not separable; with the six misalignments known (ground calibration),
+    phi0 is recovered.
+    """
+    from casep.units import ARCSEC
+
+    t, f = flight_tf
+    S = casep.build_sv(platform39, t, f)
+    ix = platform39.index
+    k = ARCSEC / 1e-6
+    for phi, a, b in (("phi0z", "Ka1xy", "Ka1yx"), ("phi0y", "Ka1zx", "Ka1xz"), ("phi0x", "Ka1yz", "Ka1zy")):
+        np.testing.assert_allclose(S[:, :, ix(phi)], k * (S[:, :, ix(a)] - S[:, :, ix(b)]),
+                                   rtol=1e-12, atol=1e-12 * np.abs(S[:, :, ix(phi)]).max())
+    D = np.concatenate([truth36, [30.0, -45.0, 15.0]])  # phi0 in arcsec
+    res = casep.solve_ols(S, S @ D, names=platform39.names)
+    aliased = {"Ka1xy", "Ka1yx", "Ka1zx", "Ka1xz", "Ka1yz", "Ka1zy", "phi0x", "phi0y", "phi0z"}
+    assert res.status == 2 and set(res.diagnostics["unidentifiable"]) == aliased
+    assert "Ka1xy" in res.reasons["phi0z"] and "Ka1yx" in res.reasons["phi0z"]
+    ok = res.identifiable
+    np.testing.assert_allclose(res.estimate[ok], D[ok], rtol=1e-6)
+    # Misalignments known: move their contribution to the left-hand side, drop their columns.
+    known = [ix(n) for n in ("Ka1xy", "Ka1yx", "Ka1zx", "Ka1xz", "Ka1yz", "Ka1zy")]
+    free = [j for j in range(39) if j not in known]
+    y = S @ D - S[:, :, known] @ D[known]
+    fit = casep.solve_ols(S[:, :, free], y)
+    assert fit.status == 1
+    np.testing.assert_allclose(fit.estimate[-3:], D[36:], rtol=1e-6)
+    noisy = casep.solve_ols(S[:, :, free], y + 0.1 * rng.standard_normal(y.shape))
+    assert np.all(np.abs(noisy.estimate[-3:] - D[36:]) < 4 * noisy.std[-3:])
