@@ -39,7 +39,13 @@ Main entry points
 
 __version__ = "0.1.0"
 
-from .flight import FlightData, FlightDataError, read_flight, read_flight_csv, write_flight_csv
+from .flight import FlightData, FlightDataError
+from .flight_io import (
+    apparent_velocity_to_force,
+    read_flight,
+    read_flight_pair,
+    write_flight,
+)
 from .linalg import ReducedSystem, analyze_rank, reduce_qr
 from .model import ErrorModel, ModelDefinitionError
 from .model_loader import available_models, build_model, load_model, model_dirs
@@ -63,8 +69,9 @@ __all__ = [
     "FlightData",
     "FlightDataError",
     "read_flight",
-    "read_flight_csv",
-    "write_flight_csv",
+    "write_flight",
+    "read_flight_pair",
+    "apparent_velocity_to_force",
     "ReducedSystem",
     "reduce_qr",
     "analyze_rank",

@@ -12,8 +12,8 @@ __all__ = ["atomic_open"]
 
 
 @contextlib.contextmanager
-def atomic_open(path: str | os.PathLike) -> Iterator[IO[str]]:
-    """Open `path` for text writing so that it appears whole or not at all.
+def atomic_open(path: str | os.PathLike, *, binary: bool = False) -> Iterator[IO]:
+    """Open `path` for (text or binary) writing so that it appears whole or not at all.
 
     The data go to a temporary file in the same folder, renamed over `path` when the
     block ends without error; on error the temporary file is removed and `path` is left
@@ -22,7 +22,8 @@ def atomic_open(path: str | os.PathLike) -> Iterator[IO[str]]:
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+        opened = os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", encoding="utf-8", newline="\n")
+        with opened as fh:
             yield fh
         umask = os.umask(0)
         os.umask(umask)

@@ -1,4 +1,5 @@
-"""Command line: ``casep separate``, ``casep models``. Thin wrappers over the public API.
+"""Command line: ``casep separate``, ``casep simulate``, ``casep models``. Thin wrappers over
+the public API.
 
 Exit status: 0 success, 2 bad usage or bad input (one line on stderr), 1 anything else.
 """
@@ -14,7 +15,10 @@ from .flight import FlightDataError
 from .model import ModelDefinitionError
 from .model_loader import available_models, load_model
 from .result import write_json_atomic
+from .flight_io import read_flight, read_flight_pair
+from .scenarios import SCENARIOS
 from .separate import METHODS, separate
+from .simulate import simulate_flight, write_simulation
 
 __all__ = ["main"]
 
@@ -45,18 +49,43 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--sigma", type=_positive_float, default=None,
                    help="noise std, m/s (default: estimated from the residuals)")
     s.add_argument("--json", metavar="OUT", default=None, help="write the result JSON here")
+    s.add_argument("--tracking", metavar="FILE", default=None,
+                   help="tracking file (t, v_trk_*) at its own rate; FLIGHT is then the telemetry file "
+                        "(t, f_* or W_*, v_tel_*)")
+    g = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
+    g.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
+    g.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    g.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
+    g.add_argument("-o", "--output", required=True, metavar="FILE",
+                   help="flight file (.csv, or .parquet); truth goes to <stem>.truth.json beside it")
     m = sub.add_parser("models", help="list the available error models")
     m.add_argument("--verbose", "-v", action="store_true", help="list each model's coefficients")
     return p
 
 
 def _cmd_separate(args: argparse.Namespace) -> int:
-    res = separate(args.flight, args.model, args.method, sigma=args.sigma)
+    flight = read_flight_pair(args.flight, args.tracking) if args.tracking else read_flight(args.flight)
+    res = separate(flight, args.model, args.method, sigma=args.sigma)
     if args.json:
         write_json_atomic(res.to_dict(), args.json)
     print(res.table())
     if args.json:
         print(f"result written to {args.json}")
+    return 0
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    if args.seed < 0:
+        raise ValueError(f"`--seed` must be >= 0, got {args.seed}")
+    sim = simulate_flight(args.scenario, seed=args.seed, rate=args.rate)
+    flight_path, side = write_simulation(sim, args.output)
+    s = sim.trajectory.summary()
+    print(f"scenario {sim.scenario.name}: {sim.flight.n_samples} samples at {sim.scenario.rate:g} Hz, "
+          f"{s['duration_s']:.1f} s powered flight")
+    print(f"lift-off {s['liftoff_specific_force_g']:.2f} g, max {s['max_specific_force_g']:.2f} g; burnout "
+          f"{s['burnout_speed_m_s'] / 1e3:.2f} km/s at {s['burnout_altitude_m'] / 1e3:.0f} km, "
+          f"flight-path angle {s['burnout_flight_path_deg']:.1f} deg")
+    print(f"wrote {flight_path} and {side}")
     return 0
 
 
@@ -74,7 +103,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     args = _parser().parse_args(argv)
     try:
-        return {"separate": _cmd_separate, "models": _cmd_models}[args.command](args)
+        return {"separate": _cmd_separate, "simulate": _cmd_simulate, "models": _cmd_models}[args.command](args)
     except (FlightDataError, ModelDefinitionError, ValueError, TypeError, OSError) as exc:
         print(f"casep: error: {exc}", file=sys.stderr)
         return 2

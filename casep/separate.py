@@ -5,7 +5,8 @@ from __future__ import annotations
 import dataclasses
 import os
 
-from .flight import FlightData, check_enough_samples, read_flight
+from .flight import FlightData, check_enough_samples
+from .flight_io import read_flight
 from .model import ErrorModel
 from .model_loader import load_model
 from .ols import solve_ols

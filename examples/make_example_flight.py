@@ -29,7 +29,7 @@ def main() -> None:
     truth = np.array([TABLE1_TRUTH[n] for n in model.names])
     dv = inject_errors(model, t, f, truth, sigma=TABLE1_NOISE_SIGMA, rng=np.random.default_rng(SEED))
     OUT.parent.mkdir(parents=True, exist_ok=True)
-    casep.write_flight_csv(
+    casep.write_flight(
         casep.FlightData(t, f, dv),
         OUT,
         comments=[

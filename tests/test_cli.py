@@ -24,7 +24,7 @@ def good_csv(tmp_path_factory, platform36, truth36):
     f = excitation_force(t, duration=120.0)
     dv = inject_errors(platform36, t, f, truth36)
     p = tmp_path_factory.mktemp("cli") / "clean.csv"
-    casep.write_flight_csv(casep.FlightData(t, f, dv), p)
+    casep.write_flight(casep.FlightData(t, f, dv), p)
     return p
 
 
@@ -48,7 +48,7 @@ def test_pitch_plane_json_has_null_with_reason(tmp_path, platform36, truth36):
     t = np.arange(0.0, 60.0, 0.1)
     f = excitation_force(t, duration=60.0, cross_range=False)
     p = tmp_path / "pitch.csv"
-    casep.write_flight_csv(casep.FlightData(t, f, inject_errors(platform36, t, f, truth36)), p)
+    casep.write_flight(casep.FlightData(t, f, inject_errors(platform36, t, f, truth36)), p)
     out = tmp_path / "r.json"
     assert main(["separate", str(p), "--json", str(out)]) == 0
     rows = {c["name"]: c for c in json.loads(out.read_text())["coefficients"]}
@@ -103,3 +103,15 @@ def test_models_command(capsys):
     assert main(["models"]) == 0
     out = capsys.readouterr().out
     assert "platform36" in out and "39 coefficients" in out
+
+
+def test_separate_two_files(tmp_path, capsys):
+    from casep.simulate import simulate_two_rate
+
+    d = simulate_two_rate("paper", seed=2, telemetry_rate=20.0, tracking_rate=5.0)
+    d.write(tmp_path / "tel.csv", tmp_path / "trk.parquet")
+    out = tmp_path / "r.json"
+    assert main(["separate", str(tmp_path / "tel.csv"), "--tracking", str(tmp_path / "trk.parquet"),
+                 "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["n_samples"] == int(np.sum((d.t_tel >= d.t_trk[0]) & (d.t_tel <= d.t_trk[-1])))

@@ -1,0 +1,178 @@
+"""Simulated flights with injected instrument errors and tracking noise.
+
+``dv = S_V(t) D_true + n(t)``: the model's S_V on the sampled specific force times the true
+coefficients, plus tracking noise from the scenario's :class:`~casep.noise.NoiseModel`;
+gap windows remove rows afterwards (the instrument errors keep accumulating through a gap).
+For two-rate data, telemetry velocity is ``v_tel = v_true + S_V D_true`` at telemetry times
+and tracking is ``v_trk(t_k) = v_true(t_k - offset) + n(t_k)`` at its own times.
+
+All randomness comes from ``numpy.random.default_rng(seed)``: the same seed gives the same
+bytes, another seed other noise.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ._io import atomic_open
+from .flight import FlightData
+from .flight_io import write_flight, write_table
+from .model import ErrorModel
+from .model_loader import load_model
+from .scenarios import Scenario, get_scenario
+from .sv import build_sv
+from .trajectory import BoostTrajectory, simulate_boost
+
+__all__ = ["SimulatedFlight", "simulate_flight", "write_simulation", "truth_path", "TwoRateData",
+           "simulate_two_rate"]
+
+
+@dataclass(frozen=True)
+class SimulatedFlight:
+    """A simulated flight with everything needed to check an estimate against the truth."""
+
+    flight: FlightData
+    trajectory: BoostTrajectory
+    model: ErrorModel
+    truth: np.ndarray  # natural units, model order
+    noise: np.ndarray  # the tracking noise added, (N, 3) m/s, after gap removal
+    scenario: Scenario
+    seed: int
+
+    def truth_dict(self) -> dict:
+        """The ``<name>.truth.json`` sidecar of ``interfaces.md``."""
+        return {
+            "model": self.model.name,
+            "coefficients": {n: float(v) for n, v in zip(self.model.names, self.truth)},
+            "units": dict(zip(self.model.names, self.model.units)),
+            "noise": self.scenario.noise.to_dict(),
+            "trajectory": {"scenario": self.scenario.name, "description": self.scenario.description,
+                           "rate_hz": self.scenario.rate, "vehicle": self.scenario.vehicle.to_dict(),
+                           "summary": self.trajectory.summary()},
+            "seed": self.seed,
+        }
+
+
+def _truth_vector(model: ErrorModel, truth: dict) -> np.ndarray:
+    unknown = sorted(set(truth) - set(model.names))
+    if unknown:
+        raise ValueError(f"truth names {', '.join(unknown)} are not coefficients of model `{model.name}`")
+    return np.array([float(truth.get(n, 0.0)) for n in model.names])
+
+
+def _check_seed(seed: int) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"`seed` must be a non-negative int, got {seed!r}")
+    return int(seed)
+
+
+def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: float | None = None) -> SimulatedFlight:
+    """Simulate one flight of a scenario.
+
+    Parameters
+    ----------
+    scenario : str or Scenario, optional
+        ``"paper"``, ``"paper-pitch"``, ``"paper-ar1"`` or a :class:`Scenario`.
+    seed : int, optional
+        Seed of the noise generator.
+    rate : float, optional
+        Sample rate, Hz (default: the scenario's).
+
+    Returns
+    -------
+    SimulatedFlight
+    """
+    seed = _check_seed(seed)
+    sc = get_scenario(scenario).with_rate(rate)
+    traj = simulate_boost(sc.vehicle, sc.rate)
+    model = load_model(sc.model)
+    truth = _truth_vector(model, sc.truth)
+    rng = np.random.default_rng(seed)
+    clean = build_sv(model, traj.t, traj.specific_force) @ truth  # S_V D_true
+    noise = sc.noise.sample(traj.t, rng)
+    keep = sc.noise.keep_mask(traj.t)
+    flight = FlightData(traj.t[keep], traj.specific_force[keep], clean[keep] + noise[keep],
+                        source=f"simulated:{sc.name}:seed{seed}", meta={"scenario": sc.name, "seed": seed})
+    return SimulatedFlight(flight=flight, trajectory=traj, model=model, truth=truth, noise=noise[keep],
+                           scenario=sc, seed=seed)
+
+
+def truth_path(path: str | os.PathLike) -> Path:
+    """Sidecar path: ``flight.csv`` -> ``flight.truth.json``."""
+    path = Path(path)
+    return path.with_name(path.stem + ".truth.json")
+
+
+def write_simulation(sim: SimulatedFlight, path: str | os.PathLike) -> tuple[Path, Path]:
+    """Write the flight file (CSV or Parquet by extension) and its truth sidecar."""
+    path = Path(path)
+    sc = sim.scenario
+    write_flight(sim.flight, path, comments=[
+        f"casep simulated flight: scenario {sc.name} ({sc.description})",
+        f"model {sim.model.name}, seed {sim.seed}, rate {sc.rate:g} Hz; truth in the .truth.json sidecar",
+    ])
+    side = truth_path(path)
+    with atomic_open(side) as fh:
+        fh.write(json.dumps(sim.truth_dict(), indent=2) + "\n")
+    return path, side
+
+
+@dataclass(frozen=True)
+class TwoRateData:
+    """Telemetry and tracking of one simulated flight at their own rates."""
+
+    t_tel: np.ndarray
+    f: np.ndarray  # specific force at telemetry times, m/s^2
+    W: np.ndarray  # accumulated apparent velocity (trapezoid of f), m/s
+    v_tel: np.ndarray
+    t_trk: np.ndarray
+    v_trk: np.ndarray
+    truth: np.ndarray
+    model: ErrorModel
+
+    def write(self, telemetry: str | os.PathLike, tracking: str | os.PathLike, *, apparent: bool = False) -> None:
+        """Telemetry file (``t``, ``f_*`` or ``W_*``, ``v_tel_*``) and tracking file (``t``, ``v_trk_*``)."""
+        cols = {"t": self.t_tel}
+        src, prefix = (self.W, "W") if apparent else (self.f, "f")
+        cols.update({f"{prefix}_{a}": src[:, i] for i, a in enumerate("xyz")})
+        cols.update({f"v_tel_{a}": self.v_tel[:, i] for i, a in enumerate("xyz")})
+        write_table(telemetry, cols)
+        write_table(tracking, {"t": self.t_trk, **{f"v_trk_{a}": self.v_trk[:, i] for i, a in enumerate("xyz")}})
+
+
+def simulate_two_rate(scenario: str | Scenario = "paper", *, seed: int = 0, telemetry_rate: float = 100.0,
+                      tracking_rate: float = 20.0, time_offset: float = 0.0) -> TwoRateData:
+    """Telemetry and tracking of a scenario at different rates, with a tracking time offset.
+
+    Parameters
+    ----------
+    scenario : str or Scenario
+    seed : int
+    telemetry_rate, tracking_rate : float
+        Hz.
+    time_offset : float
+        Tracking time tags lag the truth by this much, s: ``v_trk(t) = v_true(t - offset)``.
+    """
+    seed = _check_seed(seed)
+    if not np.isfinite(tracking_rate) or tracking_rate <= 0:
+        raise ValueError(f"`tracking_rate` must be finite and > 0 Hz, got {tracking_rate}")
+    if not np.isfinite(time_offset):
+        raise ValueError(f"`time_offset` must be finite, got {time_offset}")
+    sc = get_scenario(scenario).with_rate(telemetry_rate)
+    traj = simulate_boost(sc.vehicle, sc.rate)
+    model = load_model(sc.model)
+    truth = _truth_vector(model, sc.truth)
+    rng = np.random.default_rng(seed)
+    v_tel = traj.velocity + build_sv(model, traj.t, traj.specific_force) @ truth
+    dt = np.diff(traj.t)[:, None]
+    W = np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (traj.specific_force[1:] + traj.specific_force[:-1]) * dt, 0)])
+    lo, hi = max(traj.t[0], traj.t[0] + time_offset), min(traj.t[-1], traj.t[-1] + time_offset)
+    t_trk = np.arange(np.ceil(lo * tracking_rate), np.floor(hi * tracking_rate) + 1) / tracking_rate
+    _, v_true = traj.sample(t_trk - time_offset)
+    v_trk = v_true + sc.noise.sample(t_trk, rng)
+    return TwoRateData(traj.t, traj.specific_force, W, v_tel, t_trk, v_trk, truth, model)

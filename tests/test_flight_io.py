@@ -1,0 +1,182 @@
+"""Flight file reading and writing (casep.flight_io) and FlightData validation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import casep
+from casep.flight import FlightDataError
+
+HEADER = "t,f_x,f_y,f_z,dv_x,dv_y,dv_z"
+
+
+def _write(tmp_path, text, name="f.csv"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_round_trip_exact(tmp_path, rng):
+    t = np.cumsum(rng.uniform(0.01, 0.02, 50))
+    fl = casep.FlightData(t, rng.standard_normal((50, 3)) * 30, rng.standard_normal((50, 3)))
+    p = tmp_path / "rt.csv"
+    casep.write_flight(fl, p, comments=["made in a test"])
+    back = casep.read_flight(p)
+    for a in ("t", "f", "dv"):
+        np.testing.assert_array_equal(getattr(back, a), getattr(fl, a))
+    assert p.read_text().startswith("# made in a test\n" + HEADER)
+
+
+def test_comments_blank_lines_extra_columns(tmp_path):
+    p = _write(tmp_path, "# a comment\n\nt,f_x,f_y,f_z,dv_x,dv_y,dv_z,extra\n# mid\n0,1,2,3,4,5,6,x\n\n1,1,2,3,4,5,7,y\n")
+    fl = casep.read_flight(p)
+    np.testing.assert_array_equal(fl.dv[:, 2], [6.0, 7.0])
+
+
+def test_v_tel_v_trk_variant(tmp_path):
+    p = _write(tmp_path, "t,f_x,f_y,f_z,v_tel_x,v_tel_y,v_tel_z,v_trk_x,v_trk_y,v_trk_z\n"
+                         "0,1,2,3,10,20,30,9.5,20.25,31\n1,1,2,3,11,21,31,10,21,30\n")
+    np.testing.assert_allclose(casep.read_flight(p).dv, [[0.5, -0.25, -1.0], [1.0, 0.0, 1.0]])
+
+
+@pytest.mark.parametrize(
+    "body, column, row, line, what",
+    [
+        (f"{HEADER}\n0,1,2,3,4,5,6\n1,1,abc,3,4,5,6\n", "f_y", 2, 3, "non-numeric value 'abc'"),
+        (f"# c\n{HEADER}\n0,1,2,3,4,5,6\n\n1,1,2,3,4,,6\n", "dv_y", 2, 5, "empty value"),
+        (f"{HEADER}\n0,1,2,3,4,5,6\n1,1,2,nan,4,5,6\n", "f_z", 2, 3, "NaN value"),
+        (f"{HEADER}\n0,1,2,3,4,5,6\n1,1,2,3,inf,5,6\n", "dv_x", 2, 3, "infinite value"),
+        (f"{HEADER}\n0,1,2,3,4,5,6\n2,1,2,3,4,5,6\n2,1,2,3,4,5,6\n", "t", 3, 4, "does not increase"),
+        (f"{HEADER}\n0,1,2,3,4,5,6\n-1,1,2,3,4,5,6\n", "t", 2, 3, "does not increase"),
+    ],
+)
+def test_bad_cells_name_column_and_row(tmp_path, body, column, row, line, what):
+    p = _write(tmp_path, body)
+    with pytest.raises(FlightDataError) as err:
+        casep.read_flight(p)
+    e = err.value
+    assert (e.column, e.row, e.line) == (column, row, line)
+    assert str(p) in str(e) and f"column `{column}`" in str(e) and f"row {row} (line {line})" in str(e)
+    assert what in str(e)
+
+
+@pytest.mark.parametrize(
+    "header, missing",
+    [("t,f_x,f_y,dv_x,dv_y,dv_z", "f_z"), ("t,f_x,f_y,f_z,dv_x,dv_y", "dv_z"),
+     ("f_x,f_y,f_z,dv_x,dv_y,dv_z", "t"),
+     ("t,f_x,f_y,f_z,v_tel_x,v_tel_y,v_tel_z,v_trk_x,v_trk_y", "v_trk_z")],
+)
+def test_missing_column_named(tmp_path, header, missing):
+    n = header.count(",") + 1
+    p = _write(tmp_path, header + "\n" + ",".join(["1"] * n) + "\n")
+    with pytest.raises(FlightDataError, match=f"column `{missing}`, header \\(line 1\\): missing column"):
+        casep.read_flight(p)
+
+
+def test_empty_and_missing_files(tmp_path):
+    with pytest.raises(FlightDataError, match="file does not exist"):
+        casep.read_flight(tmp_path / "nope.csv")
+    with pytest.raises(FlightDataError, match="no header row"):
+        casep.read_flight(_write(tmp_path, ""))
+    with pytest.raises(FlightDataError, match="header but no data rows"):
+        casep.read_flight(_write(tmp_path, HEADER + "\n"))
+
+
+
+
+def test_parquet_round_trip_and_bad_cell(tmp_path, rng):
+    t = np.cumsum(rng.uniform(0.01, 0.02, 40))
+    fl = casep.FlightData(t, rng.standard_normal((40, 3)), rng.standard_normal((40, 3)))
+    p = tmp_path / "rt.parquet"
+    casep.write_flight(fl, p)
+    back = casep.read_flight(p)
+    np.testing.assert_array_equal(back.dv, fl.dv)
+    assert back.meta["format"] == "parquet"
+    from casep.flight_io import write_table
+
+    cols = {"t": t, "f_x": t, "f_y": t, "f_z": t, "dv_x": t, "dv_y": t, "dv_z": t.copy()}
+    cols["dv_z"][7] = np.nan
+    write_table(tmp_path / "bad.parquet", cols)
+    with pytest.raises(FlightDataError, match=r"column `dv_z`, row 8: NaN value"):
+        casep.read_flight(tmp_path / "bad.parquet")
+
+
+def test_apparent_velocity_to_force_analytic():
+    # W(t) = a t^2 / 2 + b sin(w t): f = a t + b w cos(w t); non-uniform grid.
+    t = np.cumsum(np.r_[0.0, 0.01 + 0.004 * np.sin(np.arange(1999))])
+    a, b, w = np.array([3.0, 20.0, -1.0]), np.array([2.0, -1.0, 0.5]), 0.7
+    W = np.outer(t**2 / 2, a) + np.outer(np.sin(w * t), b)
+    f = np.outer(t, a) + np.outer(w * np.cos(w * t), b)
+    err = np.abs(casep.apparent_velocity_to_force(t, W) - f).max()
+    assert err < 1e-4 * np.abs(f).max()  # second order: ~ dt^2 |f''| / 6
+
+
+def test_apparent_velocity_column_in_file(tmp_path):
+    t = np.arange(0.0, 10.0, 0.1)
+    W = np.column_stack([2.0 * t, 9.0 * t + 0.5 * t**2, -t])  # f = (2, 9 + t, -1)
+    from casep.flight_io import write_table
+
+    write_table(tmp_path / "w.csv", {"t": t, "W_x": W[:, 0], "W_y": W[:, 1], "W_z": W[:, 2],
+                                     "dv_x": t, "dv_y": t, "dv_z": t})
+    fl = casep.read_flight(tmp_path / "w.csv")
+    np.testing.assert_allclose(fl.f, np.column_stack([2.0 + 0 * t, 9.0 + t, -1.0 + 0 * t]), atol=1e-9)
+    assert fl.meta["force"] == "W"
+
+
+def _pair(tmp_path, t_tel, t_trk, v, dv, f=None):
+    from casep.flight_io import write_table
+
+    f = np.ones((t_tel.size, 3)) if f is None else f
+    tel = {"t": t_tel, "f_x": f[:, 0], "f_y": f[:, 1], "f_z": f[:, 2]}
+    tel.update({f"v_tel_{a}": v(t_tel)[:, i] + dv[:, i] for i, a in enumerate("xyz")})
+    write_table(tmp_path / "tel.csv", tel)
+    write_table(tmp_path / "trk.csv", {"t": t_trk, **{f"v_trk_{a}": v(t_trk)[:, i] for i, a in enumerate("xyz")}})
+    return tmp_path / "tel.csv", tmp_path / "trk.csv"
+
+
+def test_two_rate_interpolation_against_analytic_velocity(tmp_path):
+    # Boost-like velocity: v = (50 t^2 / 2 / 20, 40 t, 3 sin(0.2 t)) m/s sampled at 20 Hz,
+    # telemetry at 100 Hz over a wider span; dv is a known ramp.
+    def v(t):
+        return np.column_stack([1.25 * t**2, 40.0 * t, 3.0 * np.sin(0.2 * t)])
+
+    t_tel = np.arange(0.0, 60.0, 0.01)
+    t_trk = np.arange(1.0, 50.0, 0.05)
+    dv = np.column_stack([1e-3 * t_tel, -2e-3 * t_tel, 5e-4 * t_tel])
+    tel, trk = _pair(tmp_path, t_tel, t_trk, v, dv)
+    fl = casep.read_flight_pair(tel, trk)
+    inside = (t_tel >= 1.0) & (t_tel <= t_trk[-1])
+    np.testing.assert_array_equal(fl.t, t_tel[inside])
+    np.testing.assert_allclose(fl.dv, dv[inside], atol=1e-9)  # cubic spline: exact for t^2, ~1e-10 for sin
+    assert fl.meta["telemetry_dropped"] == int((~inside).sum())
+    lin = casep.read_flight_pair(tel, trk, interpolation="linear")
+    # Linear interpolation of 1.25 t^2 errs by up to a dt^2 / 8 = 2.5 * 0.05^2 / 8.
+    assert 1e-4 < np.abs(lin.dv[:, 0] - dv[inside, 0]).max() <= 2.5 * 0.05**2 / 8 + 1e-9
+
+
+def test_two_rate_bad_inputs(tmp_path):
+    t = np.arange(0.0, 5.0, 0.1)
+    tel, trk = _pair(tmp_path, t, t + 100.0, lambda x: np.zeros((x.size, 3)), np.zeros((t.size, 3)))
+    with pytest.raises(FlightDataError, match="share fewer than 2 telemetry samples"):
+        casep.read_flight_pair(tel, trk)
+    (tmp_path / "trk2.csv").write_text("t,v_trk_x,v_trk_y\n0,1,2\n")
+    with pytest.raises(FlightDataError, match=r"trk2.csv: column `v_trk_z`, header \(line 1\): missing column"):
+        casep.read_flight_pair(tel, tmp_path / "trk2.csv")
+    (tmp_path / "trk3.csv").write_text("t,v_trk_x,v_trk_y,v_trk_z\n0,1,2,3\n1,1,2,3\n0.5,1,2,3\n")
+    with pytest.raises(FlightDataError, match=r"trk3.csv: column `t`, row 3 \(line 4\): time 0.5 s does not increase"):
+        casep.read_flight_pair(tel, tmp_path / "trk3.csv")
+    with pytest.raises(ValueError, match="`interpolation` must be"):
+        casep.read_flight_pair(tel, trk, interpolation="spline")
+
+
+def test_writer_leaves_nothing_on_failure(tmp_path):
+    fl = casep.FlightData([0.0, 1.0], np.zeros((2, 3)), np.zeros((2, 3)))
+    with pytest.raises(TypeError):
+        casep.write_flight("not a flight", tmp_path / "x.csv")
+    from casep.flight_io import write_table
+
+    with pytest.raises(ValueError):
+        write_table(tmp_path / "y.csv", {"t": [0.0, 1.0], "a": [1.0]})  # ragged: fails before writing
+    casep.write_flight(fl, tmp_path / "ok.csv")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ok.csv"]
