@@ -148,7 +148,8 @@ class Vehicle:
 
 
 #: Two-stage vehicle of the built-in scenarios (measured with ``simulate_boost``, 100 Hz):
-#: 1.78 g at lift-off, 5.2 g at stage-1 burnout (100 s), 5-s coast, 5.0 g at stage-2 burnout;
+#: 1.78 g at lift-off, 5.24 g before stage-1 tail-off (98 s), 5-s coast, 5.0 g before stage-2
+#: tail-off;
 #: 195 s powered flight; burnout 4.13 km/s at 195 km altitude, flight-path angle 25 deg.
 DEFAULT_VEHICLE = Vehicle(
     liftoff_mass=40_000.0,
