@@ -33,8 +33,10 @@ Column names (flight files)
 
 Main entry points
 -----------------
-:func:`load_model`, :func:`build_sv`, :func:`read_flight`, :func:`solve_ols`,
-:func:`separate`; the command line ``casep`` (:mod:`casep.cli`).
+:func:`load_model`, :func:`build_sv`, :func:`read_flight`, the estimators
+:func:`solve_ols`, :func:`solve_rls` (RLS/RELS), :func:`solve_ridge`, :func:`solve_bounded`,
+:func:`solve_pcr`, :func:`solve_map` (all returning :class:`EstimateResult`), :func:`separate`;
+the command line ``casep`` (:mod:`casep.cli`).
 """
 
 __version__ = "0.1.0"
@@ -49,7 +51,12 @@ from .flight_io import (
 from .linalg import ReducedSystem, analyze_rank, reduce_qr
 from .model import ErrorModel, ModelDefinitionError
 from .model_loader import available_models, build_model, load_model, model_dirs
+from .bounded import solve_bounded
+from .map_estimator import solve_map
 from .ols import solve_ols
+from .pcr import solve_pcr
+from .ridge import solve_ridge
+from .rls import solve_rls
 from .result import EstimateResult
 from .separate import separate
 from .sv import SVBuilder, build_sv
@@ -76,6 +83,11 @@ __all__ = [
     "reduce_qr",
     "analyze_rank",
     "solve_ols",
+    "solve_rls",
+    "solve_ridge",
+    "solve_bounded",
+    "solve_pcr",
+    "solve_map",
     "EstimateResult",
     "separate",
 ]

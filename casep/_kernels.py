@@ -54,3 +54,80 @@ def sv_integrate_chunk(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_pr
                 S_prev[i, j] += (I_prev[i, j] + Icur[i, j]) * h
                 I_prev[i, j] = Icur[i, j]
                 out[k, i, j] = S_prev[i, j]
+
+
+@numba.njit(cache=True, nogil=True)
+def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history):  # pragma: no cover
+    """Recursive (extended) least squares with Bierman's UD scalar updates, in place.
+
+    H (N, 3, p): scaled regressors; y (N, 3); x (p + n_c): estimate; U (p + n_c, p + n_c)
+    unit upper-triangular stored *transposed* (Ut[j, i] = U[i, j], rows contiguous);
+    D (p + n_c): P = U diag(D) U^T. Per sample: P <- P / forgetting, then one scalar update
+    per axis with measurement variance 1 / weight. The last n_c entries of x are the
+    noise-model coefficients; their regressors are each axis' last n_c residuals
+    (a-posteriori when `posterior`, else a-priori). Every `stride` samples x is copied to
+    history[k // stride]. Returns the residuals (N, 3): a-priori innovations
+    y - h x_{k-1} (the sequence the recursion whitens).
+    """
+    N = H.shape[0]
+    p = H.shape[2]
+    n = p + n_c
+    h = np.zeros(n)
+    f = np.zeros(n)
+    b = np.zeros(n)
+    past = np.zeros((3, n_c + 1))  # last residuals per axis, newest first
+    innov = np.zeros((N, 3))
+    r = 1.0 / weight
+    inv_lam = 1.0 / forgetting
+    for k in range(N):
+        if forgetting != 1.0:
+            for j in range(n):
+                D[j] *= inv_lam  # P <- P / lambda
+        for axis in range(3):
+            for j in range(p):
+                h[j] = H[k, axis, j]
+            for j in range(n_c):
+                h[p + j] = past[axis, j]
+            # innovation dz = y - h x
+            dz = y[k, axis]
+            for j in range(n):
+                dz -= h[j] * x[j]
+            innov[k, axis] = dz
+            # f = U^T h ; b = D f
+            for j in range(n):
+                s = h[j]
+                for i in range(j):
+                    s += U[j, i] * h[i]
+                f[j] = s
+                b[j] = D[j] * s
+            # Bierman: sweep j = 0..n-1
+            alpha = r
+            gamma = 1.0 / alpha
+            for j in range(n):
+                beta = alpha
+                alpha = alpha + f[j] * b[j]
+                lam = -f[j] * gamma
+                gamma = 1.0 / alpha
+                D[j] = beta * gamma * D[j]
+                bj = b[j]
+                for i in range(j):
+                    u = U[j, i]
+                    U[j, i] = u + b[i] * lam
+                    b[i] = b[i] + bj * u
+            # x <- x + K dz, K = b / alpha
+            g = dz * gamma
+            for j in range(n):
+                x[j] += g * b[j]
+            if n_c > 0:
+                e = dz
+                if posterior:
+                    e = y[k, axis]
+                    for j in range(n):
+                        e -= h[j] * x[j]
+                for j in range(n_c - 1, 0, -1):
+                    past[axis, j] = past[axis, j - 1]
+                past[axis, 0] = e
+        if stride > 0 and k % stride == 0:
+            for j in range(n):
+                history[k // stride, j] = x[j]
+    return innov

@@ -7,12 +7,15 @@ Exit status: 0 success, 2 bad usage or bad input (one line on stderr), 1 anythin
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from typing import Sequence
 
 from . import __version__
 from .flight import FlightDataError
 from .model import ModelDefinitionError
+from .bounded import parse_bounds
+from .map_estimator import parse_prior
 from .model_loader import available_models, load_model
 from .result import write_json_atomic
 from .flight_io import read_flight, read_flight_pair
@@ -38,6 +41,43 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _lambda(text: str) -> float | str:
+    if text in ("gcv", "lcurve"):
+        return text
+    v = _positive_float(text)
+    return v
+
+
+def _forgetting(text: str) -> float:
+    v = _positive_float(text)
+    if v > 1:
+        raise argparse.ArgumentTypeError(f"must be in (0, 1], got {text}")
+    return v
+
+
+def _order(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
+    return v
+
+
+def _load_json(path: str, option: str) -> dict:
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = json.load(fh)
+    except OSError as exc:
+        raise ValueError(f"{option} {path}: cannot read ({exc.strerror})") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{option} {path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{option} {path}: must hold a JSON object keyed by coefficient name")
+    return data
+
+
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="casep", description="Guidance instrumentation error separation.")
     p.add_argument("--version", action="version", version=f"casep {__version__}")
@@ -48,6 +88,15 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--method", default="ols", choices=METHODS, help="estimator (default ols)")
     s.add_argument("--sigma", type=_positive_float, default=None,
                    help="noise std, m/s (default: estimated from the residuals)")
+    s.add_argument("--p0", type=_positive_float, default=1e6, help="RLS/RELS P0 = p0 I, natural units (default 1e6)")
+    s.add_argument("--weight", type=_positive_float, default=1.0, help="RLS/RELS weight w (default 1)")
+    s.add_argument("--forgetting", type=_forgetting, default=1.0, help="RLS/RELS forgetting factor (default 1)")
+    s.add_argument("--noise-order", type=_order, default=1, help="RELS noise-model order (default 1)")
+    s.add_argument("--lambda", dest="lam", type=_lambda, default="gcv", metavar="gcv|lcurve|VALUE",
+                   help="ridge parameter for unit-norm columns, or its rule (default gcv)")
+    s.add_argument("--bounds", metavar="FILE", help='bounded: JSON {"Kg0x": [lo, hi] or value, ...}, natural units')
+    s.add_argument("--prior", metavar="FILE", help='map: JSON {"Kg0x": {"mean": m, "std": s}, ...}, natural units')
+    s.add_argument("--components", type=_order, default=None, help="pcr: number of components to keep")
     s.add_argument("--json", metavar="OUT", default=None, help="write the result JSON here")
     s.add_argument("--tracking", metavar="FILE", default=None,
                    help="tracking file (t, v_trk_*) at its own rate; FLIGHT is then the telemetry file "
@@ -64,8 +113,20 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _cmd_separate(args: argparse.Namespace) -> int:
+    model = load_model(args.model)
+    bounds = prior = None
+    if args.bounds:
+        bounds = _load_json(args.bounds, "--bounds")
+        parse_bounds(bounds, model.names, source=f"--bounds {args.bounds}")
+    if args.prior:
+        prior = _load_json(args.prior, "--prior")
+        parse_prior(prior, model.names, source=f"--prior {args.prior}")
+    if args.method == "rels" and args.noise_order < 1:
+        raise ValueError(f"--noise-order must be >= 1 for rels, got {args.noise_order}")
     flight = read_flight_pair(args.flight, args.tracking) if args.tracking else read_flight(args.flight)
-    res = separate(flight, args.model, args.method, sigma=args.sigma)
+    res = separate(flight, model, args.method, sigma=args.sigma, p0=args.p0, weight=args.weight,
+                   forgetting=args.forgetting, noise_order=args.noise_order, lam=args.lam, bounds=bounds,
+                   prior=prior, n_components=args.components)
     if args.json:
         write_json_atomic(res.to_dict(), args.json)
     print(res.table())

@@ -25,20 +25,10 @@ from typing import Sequence
 
 import numpy as np
 
-from .linalg import analyze_rank, condition_numbers, reduce_qr, unidentifiable_reasons
+from ._estimator import finish, prepare
 from .result import EstimateResult
 
 __all__ = ["solve_ols"]
-
-
-def _labels(n: int, names, units, si_factors) -> tuple[tuple[str, ...], tuple[str, ...], np.ndarray]:
-    names = tuple(f"c{j}" for j in range(n)) if names is None else tuple(names)
-    units = ("",) * n if units is None else tuple(units)
-    si = np.ones(n) if si_factors is None else np.asarray(si_factors, dtype=float)
-    for label, seq in (("names", names), ("units", units), ("si_factors", si)):
-        if len(seq) != n:
-            raise ValueError(f"`{label}` has {len(seq)} entries but `S` has {n} columns")
-    return names, units, si
 
 
 def solve_ols(
@@ -72,51 +62,15 @@ def solve_ols(
         ``status`` 1: every coefficient estimated; 2: some are not identifiable on this
         data (reported NaN with a reason); -1: none is.
     """
-    S_arr = np.asarray(S, dtype=float)
-    if S_arr.ndim not in (2, 3):
-        raise ValueError(f"`S` must be (m, n) or (N, 3, n), got {S_arr.ndim}-D")
-    n = S_arr.shape[-1]
-    names, units, si = _labels(n, names, units, si_factors)
-    if sigma is not None and (not np.isfinite(sigma) or sigma <= 0):
-        raise ValueError(f"`sigma` must be finite and > 0, got {sigma}")
-    y_arr = np.asarray(y, dtype=float)
-    red = reduce_qr(S_arr, y_arr)
-    ra = analyze_rank(red, rcond)
-    m, r = red.m, ra.rank
-    if m <= r:
-        raise ValueError(f"`S` has {m} rows, not more than its rank {r}: no degree of freedom for the noise")
+    pb = prepare(S, y, names, units, si_factors, sigma, rcond)
+    ra, red = pb.ra, pb.red
+    r = ra.rank
     V, inv_s = ra.pinv_factors()
     Uq = ra.U.T @ red.qty
-    xz = V @ (inv_s * Uq[:r])  # x_Z = V_r diag(1/s_r) U_r^T q
-    inv_c = np.where(red.scale > 0, 1.0 / np.where(red.scale > 0, red.scale, 1.0), 0.0)
-    x_all = xz * inv_c  # natural units, minimum-norm solution
-    rss = red.rho2 + float(np.sum(Uq[r:] ** 2))  # RSS = rho^2 + ||U_{r+}^T q||^2
-    sigma_hat = float(np.sqrt(rss / (m - r)))  # sigma^2 = RSS / (m - r)
-    sig = sigma_hat if sigma is None else float(sigma)
+    inv_c = pb.inv_c
+    x = (V @ (inv_s * Uq[:r])) * inv_c  # x_Z = V_r diag(1/s_r) U_r^T q, then / c
+    sig = pb.ols_sigma() if pb.sigma is None else pb.sigma  # sigma^2 = RSS / (m - r)
     W = V * inv_s  # V_r diag(1/s_r)
     cov = sig**2 * (W @ W.T) * np.outer(inv_c, inv_c)
-    ok = ra.estimable
-    est = np.where(ok, x_all, np.nan)
-    cov[~ok, :] = np.nan
-    cov[:, ~ok] = np.nan
-    std = np.sqrt(np.diag(cov))
-    residuals = y_arr.reshape(-1) - S_arr.reshape(m, n) @ x_all
-    reasons = unidentifiable_reasons(ra, names)
-    n_ok = int(ok.sum())
-    if n_ok == n:
-        status, message = 1, f"all {n} coefficients estimated"
-    elif n_ok:
-        status, message = 2, (f"{n - n_ok} of {n} coefficients not identifiable on this data "
-                              "(zero or exactly dependent columns); the other estimated")
-    else:
-        status, message = -1, "no coefficient is identifiable on this data"
-    diagnostics = {**condition_numbers(red, ra), "sigma": sig, "rank": r,
-                   "unidentifiable": [names[j] for j in np.flatnonzero(~ok)]}
-    N = m // 3 if S_arr.ndim == 3 else m
-    return EstimateResult(
-        method="ols", names=names, units=units, estimate=est, std=std, covariance=cov,
-        reasons=reasons, residuals=residuals.reshape(S_arr.shape[:-1]) if S_arr.ndim == 3 else residuals,
-        sigma=sig, rank=r, status=status, message=message, success=status > 0, si_factors=si,
-        settings={"rcond": ra.rcond, "sigma": "estimated" if sigma is None else float(sigma)},
-        diagnostics=diagnostics, n_samples=N,
-    )
+    return finish(pb, "ols", x, cov, sig,
+                  settings={"rcond": ra.rcond, "sigma": "estimated" if pb.sigma is None else pb.sigma})

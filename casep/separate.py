@@ -4,19 +4,25 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from typing import Mapping
 
+from .bounded import solve_bounded
 from .flight import FlightData, check_enough_samples
 from .flight_io import read_flight
+from .map_estimator import solve_map
 from .model import ErrorModel
 from .model_loader import load_model
 from .ols import solve_ols
+from .pcr import DEFAULT_MAX_CONDITION_INDEX, solve_pcr
 from .result import EstimateResult
+from .ridge import solve_ridge
+from .rls import DEFAULT_P0, solve_rls
 from .sv import build_sv
 
 __all__ = ["separate", "METHODS"]
 
-#: Estimators available through :func:`separate`.
-METHODS = ("ols",)
+#: Estimators available through :func:`separate` and ``casep separate --method``.
+METHODS = ("ols", "rls", "rels", "ridge", "bounded", "pcr", "map")
 
 
 def separate(
@@ -25,6 +31,15 @@ def separate(
     method: str = "ols",
     *,
     sigma: float | None = None,
+    p0: float = DEFAULT_P0,
+    weight: float = 1.0,
+    forgetting: float = 1.0,
+    noise_order: int = 1,
+    lam: float | str = "gcv",
+    bounds: Mapping | None = None,
+    prior: Mapping | None = None,
+    n_components: int | None = None,
+    max_condition_index: float = DEFAULT_MAX_CONDITION_INDEX,
 ) -> EstimateResult:
     """Estimate a model's error coefficients from one flight.
 
@@ -34,10 +49,22 @@ def separate(
         The flight, or a flight file to read.
     model : str, path or ErrorModel, optional
         Model name (``"platform36"``), model file, or model object.
-    method : {"ols"}, optional
-        Estimator.
+    method : {"ols", "rls", "rels", "ridge", "bounded", "pcr", "map"}, optional
+        Estimator: :func:`~casep.solve_ols`, :func:`~casep.solve_rls` (``rels`` with
+        `noise_order`), :func:`~casep.solve_ridge`, :func:`~casep.solve_bounded`,
+        :func:`~casep.solve_pcr`, :func:`~casep.solve_map`.
     sigma : float, optional
-        Known noise standard deviation, m/s (default: estimated from the residuals).
+        Known noise standard deviation, m/s (default: estimated).
+    p0, weight, forgetting, noise_order
+        RLS/RELS options (``noise_order`` only for ``rels``; default 1).
+    lam : float or {"gcv", "lcurve"}
+        Ridge parameter or rule.
+    bounds : mapping
+        Required for ``bounded``: ``{name: [lo, hi] | value}``, natural units.
+    prior : mapping
+        Required for ``map``: ``{name: {"mean": m, "std": s}}``, natural units.
+    n_components, max_condition_index
+        PCR truncation.
 
     Returns
     -------
@@ -45,11 +72,30 @@ def separate(
     """
     if method not in METHODS:
         raise ValueError(f"`method` must be one of {', '.join(METHODS)}, got {method!r}")
+    if method == "bounded" and bounds is None:
+        raise ValueError("`bounds` is required for method `bounded`. Use: --bounds FILE with {\"Kg0x\": [lo, hi], ...}")
+    if method == "map" and prior is None:
+        raise ValueError("`prior` is required for method `map`. Use: --prior FILE with {\"Kg0x\": {\"mean\": m, \"std\": s}}")
     if not isinstance(flight, FlightData):
         flight = read_flight(flight)
     model = load_model(model)
     check_enough_samples(flight, model.n_coefficients, model.name)
     S = build_sv(model, flight.t, flight.f)
-    res = solve_ols(S, flight.dv, names=model.names, units=model.units, si_factors=model.si_factors,
-                    sigma=sigma)
+    labels = {"names": model.names, "units": model.units, "si_factors": model.si_factors, "sigma": sigma}
+    dv = flight.dv
+    if method == "ols":
+        res = solve_ols(S, dv, **labels)
+    elif method in ("rls", "rels"):
+        order = noise_order if method == "rels" else 0
+        if method == "rels" and (isinstance(order, bool) or not isinstance(order, int) or order < 1):
+            raise ValueError(f"`noise_order` must be an int >= 1 for method `rels`, got {noise_order!r}")
+        res = solve_rls(S, dv, p0=p0, weight=weight, forgetting=forgetting, noise_order=order, **labels)
+    elif method == "ridge":
+        res = solve_ridge(S, dv, lam=lam, **labels)
+    elif method == "bounded":
+        res = solve_bounded(S, dv, bounds, **labels)
+    elif method == "pcr":
+        res = solve_pcr(S, dv, n_components=n_components, max_condition_index=max_condition_index, **labels)
+    else:
+        res = solve_map(S, dv, prior, **labels)
     return dataclasses.replace(res, model=model.name, n_samples=flight.n_samples)

@@ -1,0 +1,167 @@
+"""What every estimator shares: argument checks, the scaled QR reduction, and the result.
+
+An estimator calls :func:`prepare` (validates ``S``, ``y``, labels and ``sigma``, reduces the
+column-scaled system once and analyses its rank), solves in scaled coordinates, and hands
+its natural-unit estimate and covariance to :func:`finish`, which computes the residuals
+and the diagnostics and marks zero or exactly dependent coefficients as not identifiable
+where the method leaves them undetermined.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from .linalg import RankAnalysis, ReducedSystem, analyze_rank, condition_numbers, reduce_qr, unidentifiable_reasons
+from .result import EstimateResult
+
+__all__ = ["Problem", "prepare", "finish", "check_positive", "inverse_scale"]
+
+
+def check_positive(name: str, value: float | None, *, allow_none: bool = True, allow_zero: bool = False,
+                   upper: float | None = None) -> float | None:
+    """Validate a positive finite scalar option, naming it in the error."""
+    if value is None:
+        if allow_none:
+            return None
+        raise ValueError(f"`{name}` is required")
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"`{name}` must be a number, got {type(value).__name__}")
+    v = float(value)
+    ok = np.isfinite(v) and (v >= 0 if allow_zero else v > 0) and (upper is None or v <= upper)
+    if not ok:
+        low = "[0" if allow_zero else "(0"
+        want = f"in {low}, {upper:g}]" if upper is not None else (">= 0" if allow_zero else "> 0")
+        raise ValueError(f"`{name}` must be finite and {want}, got {value}")
+    return v
+
+
+def inverse_scale(scale: np.ndarray) -> np.ndarray:
+    """1 / scale, with 0 for zero columns."""
+    safe = np.where(scale > 0, scale, 1.0)
+    return np.where(scale > 0, 1.0 / safe, 0.0)
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A validated regression ``y = S D + e`` with its scaled QR reduction."""
+
+    S: np.ndarray  # (m, n) natural units
+    y: np.ndarray  # (m,)
+    shape: tuple  # original leading shape of y, e.g. (N, 3)
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    si_factors: np.ndarray
+    red: ReducedSystem
+    ra: RankAnalysis
+    sigma: float | None  # given noise std, or None
+
+    @property
+    def m(self) -> int:
+        return self.red.m
+
+    @property
+    def n(self) -> int:
+        return self.red.n
+
+    @property
+    def inv_c(self) -> np.ndarray:
+        return inverse_scale(self.red.scale)
+
+    def ols_sigma(self) -> float:
+        """Residual std of the least-squares fit, RSS / (m - rank)."""
+        Uq = self.ra.U.T @ self.red.qty
+        rss = self.red.rho2 + float(np.sum(Uq[self.ra.rank:] ** 2))
+        return float(np.sqrt(rss / (self.m - self.ra.rank)))
+
+
+def prepare(S: np.ndarray, y: np.ndarray, names: Sequence[str] | None, units: Sequence[str] | None,
+            si_factors: Sequence[float] | None, sigma: float | None, rcond: float | None = None) -> Problem:
+    """Validate arguments, flatten ``(N, 3, n)`` to ``(3N, n)``, reduce and rank-analyse."""
+    S_arr = np.asarray(S, dtype=float)
+    if S_arr.ndim not in (2, 3):
+        raise ValueError(f"`S` must be (m, n) or (N, 3, n), got {S_arr.ndim}-D")
+    n = S_arr.shape[-1]
+    y_arr = np.asarray(y, dtype=float)
+    shape = S_arr.shape[:-1]
+    if y_arr.shape != shape and y_arr.size != int(np.prod(shape)):
+        raise ValueError(f"`y` has {y_arr.size} values but `S` has {int(np.prod(shape))} rows")
+    names_t = tuple(f"c{j}" for j in range(n)) if names is None else tuple(names)
+    units_t = ("",) * n if units is None else tuple(units)
+    si = np.ones(n) if si_factors is None else np.asarray(si_factors, dtype=float)
+    for label, seq in (("names", names_t), ("units", units_t), ("si_factors", si)):
+        if len(seq) != n:
+            raise ValueError(f"`{label}` has {len(seq)} entries but `S` has {n} columns")
+    sigma = check_positive("sigma", sigma)
+    S2 = S_arr.reshape(-1, n)
+    y2 = y_arr.reshape(-1)
+    red = reduce_qr(S2, y2)
+    ra = analyze_rank(red, rcond)
+    if red.m <= ra.rank:
+        raise ValueError(f"`S` has {red.m} rows, not more than its rank {ra.rank}: no degree of freedom for the noise")
+    return Problem(S2, y2, shape, names_t, units_t, si, red, ra, sigma)
+
+
+def finish(
+    pb: Problem,
+    method: str,
+    x: np.ndarray,
+    cov: np.ndarray | None,
+    sigma: float,
+    *,
+    settings: dict[str, Any],
+    undetermined: np.ndarray | None = None,
+    reasons: dict[str, str] | None = None,
+    status: int | None = None,
+    message: str | None = None,
+    diagnostics: dict[str, Any] | None = None,
+    history: np.ndarray | None = None,
+    residuals: np.ndarray | None = None,
+) -> EstimateResult:
+    """Build the :class:`EstimateResult` of an estimator.
+
+    Parameters
+    ----------
+    x : (n,) natural-unit estimate used for the residuals (every entry finite).
+    cov : (n, n) natural-unit covariance, or None when the method defines none.
+    undetermined : (n,) bool, optional
+        Coefficients to report without an estimate (default: zero or exactly dependent
+        columns, which the method leaves undetermined).
+    reasons : dict, optional
+        Extra ``name -> reason`` entries (merged over the rank-analysis reasons).
+    """
+    n = pb.n
+    und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
+    res = pb.y - pb.S @ x if residuals is None else residuals
+    est = np.where(und, np.nan, x)
+    std = None
+    if cov is not None:
+        cov = np.array(cov, dtype=float)
+        cov[und, :] = np.nan
+        cov[:, und] = np.nan
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        std[und] = np.nan
+    all_reasons = {k: v for k, v in unidentifiable_reasons(pb.ra, pb.names).items() if und[pb.names.index(k)]}
+    all_reasons.update(reasons or {})
+    n_ok = int((~und).sum())
+    if status is None:
+        if n_ok == n:
+            status, message = 1, message or f"all {n} coefficients estimated"
+        elif n_ok:
+            status = 2
+            message = message or (f"{n - n_ok} of {n} coefficients not identifiable on this data "
+                                  "(zero or exactly dependent columns); the other estimated")
+        else:
+            status, message = -1, message or "no coefficient is identifiable on this data"
+    diag = {**condition_numbers(pb.red, pb.ra), "sigma": float(sigma), "rank": pb.ra.rank,
+            "unidentifiable": [pb.names[j] for j in np.flatnonzero(und)]}
+    diag.update(diagnostics or {})
+    N = pb.shape[0] if len(pb.shape) == 2 else pb.m
+    return EstimateResult(
+        method=method, names=pb.names, units=pb.units, estimate=est, std=std, covariance=cov,
+        reasons=all_reasons, residuals=res.reshape(pb.shape), sigma=float(sigma), rank=pb.ra.rank,
+        status=status, message=message or "", success=status > 0, si_factors=pb.si_factors,
+        settings=settings, diagnostics=diag, n_samples=N, history=history,
+    )
