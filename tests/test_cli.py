@@ -115,3 +115,68 @@ def test_separate_two_files(tmp_path, capsys):
                  "--json", str(out)]) == 0
     data = json.loads(out.read_text())
     assert data["n_samples"] == int(np.sum((d.t_tel >= d.t_trk[0]) & (d.t_tel <= d.t_trk[-1])))
+
+
+@pytest.mark.parametrize("method, extra", [
+    ("rls", ["--p0", "1e6", "--weight", "1", "--forgetting", "1"]),
+    ("rels", ["--noise-order", "2"]),
+    ("ridge", ["--lambda", "gcv"]),
+    ("ridge", ["--lambda", "1e-3"]),
+    ("pcr", ["--components", "20"]),
+])
+def test_every_method_writes_json(good_csv, tmp_path, method, extra):
+    out = tmp_path / "r.json"
+    assert main(["separate", str(good_csv), "--method", method, "--json", str(out), *extra]) == 0
+    data = json.loads(out.read_text())
+    assert data["method"] == method and len(data["coefficients"]) == 36
+
+
+def test_bounded_and_map_from_files(good_csv, tmp_path, truth36):
+    names = casep.load_model("platform36").names
+    bfile, pfile = tmp_path / "b.json", tmp_path / "p.json"
+    bfile.write_text(json.dumps({n: [v - 1.0, v + 1.0] for n, v in zip(names, truth36)} | {"Kg0x": 0.5}))
+    pfile.write_text(json.dumps({n: {"mean": v, "std": 0.1 * abs(v)} for n, v in zip(names, truth36)}))
+    out = tmp_path / "r.json"
+    assert main(["separate", str(good_csv), "--method", "bounded", "--bounds", str(bfile), "--json", str(out)]) == 0
+    rows = {c["name"]: c for c in json.loads(out.read_text())["coefficients"]}
+    assert rows["Kg0x"]["estimate"] == 0.5 and rows["Kg0x"]["std"] is None
+    assert main(["separate", str(good_csv), "--method", "map", "--prior", str(pfile), "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    est = np.array([c["estimate"] for c in data["coefficients"]])
+    np.testing.assert_allclose(est, truth36, rtol=1e-4)  # noise-free data, prior centred on the truth
+
+
+@pytest.mark.parametrize("content, args, expect", [
+    ('{"Kzz": [0, 1]}', ["--method", "bounded", "--bounds"], "unknown coefficient `Kzz`"),
+    ('{"Kg0x": [2, 1]}', ["--method", "bounded", "--bounds"], "`Kg0x` has lo > hi"),
+    ('{"Kg0x": {"mean": 0, "std": -1}}', ["--method", "map", "--prior"], "`Kg0x` std must be > 0"),
+    ('{"Kg0x": ', ["--method", "map", "--prior"], "not valid JSON"),
+    ('[1, 2]', ["--method", "map", "--prior"], "must hold a JSON object"),
+])
+def test_bad_option_files_exit_2(good_csv, tmp_path, capsys, content, args, expect):
+    f = tmp_path / "opt.json"
+    f.write_text(content)
+    out = tmp_path / "r.json"
+    assert main(["separate", str(good_csv), *args, str(f), "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert expect in err and str(f) in err and err.count("\n") == 1
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("args, expect", [
+    (["--method", "rls", "--forgetting", "1.5"], "must be in (0, 1]"),
+    (["--method", "rls", "--p0", "-1"], "must be finite and > 0"),
+    (["--method", "ridge", "--lambda", "aic"], "not a number"),
+    (["--method", "rels", "--noise-order", "-2"], "must be >= 0"),
+])
+def test_bad_option_values_exit_2(good_csv, capsys, args, expect):
+    with pytest.raises(SystemExit) as e:
+        main(["separate", str(good_csv), *args])
+    assert e.value.code == 2 and expect in capsys.readouterr().err
+
+
+def test_missing_required_option_files(good_csv, capsys):
+    assert main(["separate", str(good_csv), "--method", "bounded"]) == 2
+    assert "`bounds` is required" in capsys.readouterr().err
+    assert main(["separate", str(good_csv), "--method", "rels", "--noise-order", "0"]) == 2
+    assert "--noise-order must be >= 1 for rels" in capsys.readouterr().err

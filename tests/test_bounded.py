@@ -1,0 +1,84 @@
+"""Bounded least squares (casep.bounded): box, KKT, no-active equals OLS, fixed values."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import casep
+from casep.bounded import parse_bounds
+
+
+@pytest.fixture(scope="module")
+def small(platform36, truth36):
+    from casep.simulate import simulate_flight
+
+    sim = simulate_flight("paper", seed=3, rate=10.0)
+    S = casep.build_sv(platform36, sim.flight.t, sim.flight.f)
+    return S, np.array(sim.flight.dv), platform36.names
+
+
+def _kkt(res, S, y, lo, hi, fixed):
+    """Gradient of ||y - S x||^2 per coefficient in scaled coordinates: sign checks."""
+    S2 = S.reshape(-1, S.shape[-1])
+    c = np.linalg.norm(S2, axis=0)
+    g = (S2 / c).T @ (S2 @ res.estimate - y.reshape(-1))  # d/dz of 0.5 ||r||^2
+    gn = g / np.linalg.norm(y)
+    act = res.diagnostics["active_bounds"]
+    names = res.names
+    for j, nm in enumerate(names):
+        kind = act.get(nm)
+        if kind is None:
+            assert abs(gn[j]) < 1e-6, (nm, gn[j])
+        elif kind == "lower":
+            assert gn[j] > -1e-6, (nm, gn[j])
+        elif kind == "upper":
+            assert gn[j] < 1e-6, (nm, gn[j])
+
+
+def test_solution_in_box_and_kkt(small, truth36):
+    S, y, names = small
+    box = {n: [v - 2 * abs(v), v + 2 * abs(v)] for n, v in zip(names, truth36)}
+    res = casep.solve_bounded(S, y, box, names=names)
+    lo, hi, fixed = parse_bounds(box, names)
+    assert np.all(res.estimate >= lo - 1e-12) and np.all(res.estimate <= hi + 1e-12)
+    assert len(res.diagnostics["active_bounds"]) > 0  # 0.1 m/s noise pushes many to the box
+    _kkt(res, S, y, lo, hi, fixed)
+    for nm in res.diagnostics["active_bounds"]:
+        j = names.index(nm)
+        assert res.std[j] != res.std[j] and "bound" in res.reasons[nm]  # std NaN, reason given
+
+
+def test_equals_ols_when_no_bound_is_active(small):
+    S, y, names = small
+    ols = casep.solve_ols(S, y, names=names)
+    box = {n: [e - 100 * s, e + 100 * s] for n, e, s in zip(names, ols.estimate, ols.std)}
+    res = casep.solve_bounded(S, y, box, names=names)
+    assert res.diagnostics["active_bounds"] == {}
+    assert np.max(np.abs(res.estimate - ols.estimate) / ols.std) < 1e-4
+    np.testing.assert_allclose(res.std, ols.std, rtol=1e-4)
+
+
+def test_fixed_coefficients_stay_fixed_and_rest_is_conditional_ols(small):
+    S, y, names = small
+    res = casep.solve_bounded(S, y, {"Kg0x": 0.5, "Ka1xz": [50.0, 50.0]}, names=names)
+    j, k = names.index("Kg0x"), names.index("Ka1xz")
+    assert res.estimate[j] == 0.5 and res.estimate[k] == 50.0
+    assert res.diagnostics["active_bounds"] == {"Kg0x": "fixed", "Ka1xz": "fixed"}
+    free = [i for i in range(36) if i not in (j, k)]
+    S2 = S.reshape(-1, 36)
+    ref = casep.solve_ols(S2[:, free], y.reshape(-1) - S2[:, [j, k]] @ np.array([0.5, 50.0]))
+    assert np.max(np.abs(res.estimate[free] - ref.estimate) / ref.std) < 1e-4
+    np.testing.assert_allclose(res.std[free], ref.std, rtol=1e-4)
+
+
+def test_parse_errors(small):
+    S, y, names = small
+    with pytest.raises(ValueError, match="unknown coefficient `Kxx`"):
+        casep.solve_bounded(S, y, {"Kxx": [0, 1]}, names=names)
+    with pytest.raises(ValueError, match=r"`Kg0x` has lo > hi \(2 > 1\)"):
+        casep.solve_bounded(S, y, {"Kg0x": [2, 1]}, names=names)
+    with pytest.raises(ValueError, match="must be \\[lo, hi\\] or a number"):
+        casep.solve_bounded(S, y, {"Kg0x": "wide"}, names=names)
+    lo, hi, fixed = parse_bounds({"Kg0x": [None, 3.0]}, names)
+    assert lo[0] == -np.inf and hi[0] == 3.0 and not fixed[0]
