@@ -15,6 +15,7 @@ from . import __version__
 from .flight import FlightDataError
 from .model import ModelDefinitionError
 from .bounded import parse_bounds
+from .denoise import EXTENSIONS, MODES, RULES, SCALINGS
 from .map_estimator import parse_prior
 from .model_loader import available_models, load_model
 from .result import write_json_atomic
@@ -97,6 +98,15 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--bounds", metavar="FILE", help='bounded: JSON {"Kg0x": [lo, hi] or value, ...}, natural units')
     s.add_argument("--prior", metavar="FILE", help='map: JSON {"Kg0x": {"mean": m, "std": s}, ...}, natural units')
     s.add_argument("--components", type=_order, default=None, help="pcr: number of components to keep")
+    s.add_argument("--denoise", choices=("none", "wavelet"), default="none", help="de-noise dv first (default none)")
+    s.add_argument("--wavelet", default=None, help="wavelet (default sym8)")
+    s.add_argument("--level", type=_order, default=None, help="decomposition level (default: largest "
+                   "without boundary domination)")
+    s.add_argument("--threshold-rule", choices=RULES, default=None, help="threshold rule (default sqtwolog)")
+    s.add_argument("--threshold-mode", choices=MODES, default=None, help="threshold mode (default soft)")
+    s.add_argument("--extension", choices=tuple(EXTENSIONS), default=None,
+                   help="boundary extension (default symmetric)")
+    s.add_argument("--noise-scaling", choices=SCALINGS, default=None, help="noise scaling (default sln)")
     s.add_argument("--json", metavar="OUT", default=None, help="write the result JSON here")
     s.add_argument("--tracking", metavar="FILE", default=None,
                    help="tracking file (t, v_trk_*) at its own rate; FLIGHT is then the telemetry file "
@@ -123,10 +133,16 @@ def _cmd_separate(args: argparse.Namespace) -> int:
         parse_prior(prior, model.names, source=f"--prior {args.prior}")
     if args.method == "rels" and args.noise_order < 1:
         raise ValueError(f"--noise-order must be >= 1 for rels, got {args.noise_order}")
+    wopts = {k: v for k, v in (("wavelet", args.wavelet), ("level", args.level), ("rule", args.threshold_rule),
+                                ("mode", args.threshold_mode), ("extension", args.extension),
+                                ("scaling", args.noise_scaling)) if v is not None}
+    if wopts and args.denoise != "wavelet":
+        raise ValueError(f"wavelet options ({', '.join(wopts)}) need --denoise wavelet")
     flight = read_flight_pair(args.flight, args.tracking) if args.tracking else read_flight(args.flight)
     res = separate(flight, model, args.method, sigma=args.sigma, p0=args.p0, weight=args.weight,
                    forgetting=args.forgetting, noise_order=args.noise_order, lam=args.lam, bounds=bounds,
-                   prior=prior, n_components=args.components)
+                   prior=prior, n_components=args.components, denoise=args.denoise,
+                   wavelet_options=wopts or None)
     if args.json:
         write_json_atomic(res.to_dict(), args.json)
     print(res.table())

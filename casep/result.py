@@ -160,6 +160,12 @@ class EstimateResult:
         lines.append(f"method {self.method}, model {self.model}, {self.n_samples} samples, rank {self.rank}/"
                      f"{len(self.names)}, sigma {self.sigma:.4g} m/s")
         lines.append("residual RMS (m/s): " + ", ".join(f"{a} {rms[a]:.4g}" for a in AXES))
+        if self.denoise:
+            d = self.denoise
+            lines.append(f"de-noised: {d.get('wavelet')} level {d.get('level')}, {d.get('threshold_rule')} "
+                         f"{d.get('threshold_mode')}, {d.get('extension')} extension; raw noise sigma "
+                         + ", ".join(f"{a} {d['sigma'][a]:.4g}" for a in AXES)
+                         + " m/s (residuals after de-noising understate the noise)")
         cn = self.diagnostics.get("condition_number_equilibrated")
         if cn is not None:
             lines.append(f"condition number: {self.diagnostics.get('condition_number') or float('inf'):.3g} "

@@ -6,7 +6,10 @@ import dataclasses
 import os
 from typing import Mapping
 
+import numpy as np
+
 from .bounded import solve_bounded
+from .denoise import denoise as wavelet_denoise
 from .flight import FlightData, check_enough_samples
 from .flight_io import read_flight
 from .map_estimator import solve_map
@@ -40,6 +43,8 @@ def separate(
     prior: Mapping | None = None,
     n_components: int | None = None,
     max_condition_index: float = DEFAULT_MAX_CONDITION_INDEX,
+    denoise: str | None = None,
+    wavelet_options: Mapping | None = None,
 ) -> EstimateResult:
     """Estimate a model's error coefficients from one flight.
 
@@ -65,6 +70,18 @@ def separate(
         Required for ``map``: ``{name: {"mean": m, "std": s}}``, natural units.
     n_components, max_condition_index
         PCR truncation.
+    denoise : {None, "none", "wavelet"}, optional
+        De-noise dv per axis before estimation (:func:`casep.denoise.denoise`).
+    wavelet_options : mapping, optional
+        Keyword arguments of :func:`casep.denoise.denoise` (wavelet, level, rule, mode,
+        extension, scaling).
+
+    Notes
+    -----
+    After de-noising, the residuals no longer measure the noise (thresholding removes most
+    of it from dv but not from the estimate), so unless `sigma` is given the std use the
+    noise sigma the wavelet transform estimates from the raw finest details (RMS over the
+    axes). The result records the de-noising settings and the per-axis sigma.
 
     Returns
     -------
@@ -81,8 +98,19 @@ def separate(
     model = load_model(model)
     check_enough_samples(flight, model.n_coefficients, model.name)
     S = build_sv(model, flight.t, flight.f)
-    labels = {"names": model.names, "units": model.units, "si_factors": model.si_factors, "sigma": sigma}
     dv = flight.dv
+    den, sigma_from_wavelet = None, False
+    if denoise not in (None, "none", "wavelet"):
+        raise ValueError(f"`denoise` must be 'none' or 'wavelet', got {denoise!r}")
+    if denoise == "wavelet":
+        den = wavelet_denoise(dv, **dict(wavelet_options or {}))
+        dv = den.dv
+        if sigma is None:
+            sigma = float(np.sqrt(np.mean(den.sigma**2)))  # raw-noise sigma, not post-de-noising residuals
+            sigma_from_wavelet = True
+    elif wavelet_options:
+        raise ValueError("`wavelet_options` given without `denoise='wavelet'`")
+    labels = {"names": model.names, "units": model.units, "si_factors": model.si_factors, "sigma": sigma}
     if method == "ols":
         res = solve_ols(S, dv, **labels)
     elif method in ("rls", "rels"):
@@ -98,4 +126,9 @@ def separate(
         res = solve_pcr(S, dv, n_components=n_components, max_condition_index=max_condition_index, **labels)
     else:
         res = solve_map(S, dv, prior, **labels)
+    if den is not None:
+        settings = dict(res.settings)
+        if sigma_from_wavelet:
+            settings["sigma"] = f"wavelet estimate {sigma:.6g}"
+        res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings)
     return dataclasses.replace(res, model=model.name, n_samples=flight.n_samples)
