@@ -119,14 +119,21 @@ def _wavelet(name: str) -> pywt.Wavelet:
 
 
 def denoise_signal(x: np.ndarray, *, wavelet: str = "sym8", level: int | None = None, rule: str = "sqtwolog",
-                   mode: str = "soft", extension: str = "symmetric", scaling: str = "sln") -> tuple[np.ndarray, float]:
-    """De-noise one 1-D signal; returns it and the noise std estimated from its finest details."""
+                   mode: str = "soft", extension: str = "symmetric", scaling: str = "sln",
+                   threshold: float | None = None) -> tuple[np.ndarray, float]:
+    """De-noise one 1-D signal; returns it and the noise std estimated from its finest details.
+
+    `threshold`, when given, replaces the rule: a fixed threshold in units of each level's
+    noise sigma (0 keeps every coefficient: perfect reconstruction).
+    """
     x = np.asarray(x, dtype=float)
     w = _wavelet(wavelet)
     _check_choice("rule", rule, RULES)
     _check_choice("mode", mode, MODES)
     _check_choice("extension", extension, EXTENSIONS)
     _check_choice("scaling", scaling, SCALINGS)
+    if threshold is not None and (not np.isfinite(threshold) or threshold < 0):
+        raise ValueError(f"`threshold` must be finite and >= 0, got {threshold}")
     top = max_level(x.size, wavelet)
     if level is None:
         level = max(top, 1)
@@ -148,7 +155,9 @@ def denoise_signal(x: np.ndarray, *, wavelet: str = "sym8", level: int | None = 
             out.append(np.zeros_like(d))
             continue
         s = 1.0 if scaling == "one" else sigma1 if scaling == "sln" else mad_sigma(d)
-        if s <= 0 or s < np.sqrt(np.finfo(float).eps) * np.max(np.abs(d), initial=0.0):
+        if threshold is not None:
+            thr = s * threshold
+        elif s <= 0 or s < np.sqrt(np.finfo(float).eps) * np.max(np.abs(d), initial=0.0):
             thr = 0.0  # no noise to speak of at this level
         elif rule in ("sqtwolog", "minimaxi"):
             thr = s * select_threshold(np.empty(n_all), rule)
@@ -174,7 +183,8 @@ class DenoiseResult:
 
 
 def denoise(dv: np.ndarray, *, wavelet: str = "sym8", level: int | None = None, rule: str = "sqtwolog",
-            mode: str = "soft", extension: str = "symmetric", scaling: str = "sln") -> DenoiseResult:
+            mode: str = "soft", extension: str = "symmetric", scaling: str = "sln",
+            threshold: float | None = None) -> DenoiseResult:
     """De-noise each axis of the velocity error ``dv`` (N, 3).
 
     Parameters
@@ -189,6 +199,8 @@ def denoise(dv: np.ndarray, *, wavelet: str = "sym8", level: int | None = None, 
     mode : {"soft", "hard", "forced", "garrote"}, optional
     extension : {"zero", "periodic", "symmetric", "reflect"}, optional
     scaling : {"one", "sln", "mln"}, optional
+    threshold : float, optional
+        Fixed threshold in noise-sigma units, replacing `rule`.
 
     Returns
     -------
@@ -206,9 +218,11 @@ def denoise(dv: np.ndarray, *, wavelet: str = "sym8", level: int | None = None, 
             if i:  # warn once, not per axis
                 warnings.simplefilter("ignore", CasepWarning)
             y, s = denoise_signal(dv[:, i], wavelet=wavelet, level=lvl, rule=rule, mode=mode,
-                                  extension=extension, scaling=scaling)
+                                  extension=extension, scaling=scaling, threshold=threshold)
         cols.append(y)
         sig.append(s)
     settings = {"wavelet": wavelet, "level": lvl, "threshold_rule": rule, "threshold_mode": mode,
                 "extension": extension, "scaling": scaling}
+    if threshold is not None:
+        settings["threshold"] = float(threshold)
     return DenoiseResult(np.column_stack(cols), np.array(sig), settings)
