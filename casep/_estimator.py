@@ -14,6 +14,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
+import warnings
+
+from .diagnostics import ILL_CONDITIONED, collinearity
+from .exceptions import IllConditionedWarning
 from .linalg import RankAnalysis, ReducedSystem, analyze_rank, condition_numbers, reduce_qr, unidentifiable_reasons
 from .result import EstimateResult
 
@@ -157,7 +161,12 @@ def finish(
             status, message = -1, message or "no coefficient is identifiable on this data"
     diag = {**condition_numbers(pb.red, pb.ra), "sigma": float(sigma), "rank": pb.ra.rank,
             "unidentifiable": [pb.names[j] for j in np.flatnonzero(und)]}
+    diag.update(_collinearity_summary(pb, float(sigma)))
     diag.update(diagnostics or {})
+    note = _ill_conditioning_note(pb, diag)
+    if note:
+        diag["warning"] = note
+        warnings.warn(f"{method}: {note}", IllConditionedWarning, stacklevel=3)
     N = pb.shape[0] if len(pb.shape) == 2 else pb.m
     return EstimateResult(
         method=method, names=pb.names, units=pb.units, estimate=est, std=std, covariance=cov,
@@ -165,3 +174,40 @@ def finish(
         status=status, message=message or "", success=status > 0, si_factors=pb.si_factors,
         settings=settings, diagnostics=diag, n_samples=N, history=history,
     )
+
+
+def _collinearity_summary(pb: Problem, sigma: float) -> dict[str, Any]:
+    """White-noise CRLB std (sigma^2 (S^T S)^-1), uncentred VIF and near-dependency groups."""
+    col = collinearity(pb.red, pb.ra)
+    V, inv_s = pb.ra.pinv_factors()
+    W = V * inv_s
+    inv_c = pb.inv_c
+    crlb = sigma * np.sqrt(np.sum(W**2, axis=1)) * inv_c  # sqrt(diag(sigma^2 (S^T S)^+))
+    ok = pb.ra.estimable
+
+    def f(v):
+        return float(v) if np.isfinite(v) else None
+
+    return {
+        "crlb_std": {n: (f(crlb[j]) if ok[j] else None) for j, n in enumerate(pb.names)},
+        "vif": {n: f(col["vif"][j]) for j, n in enumerate(pb.names)},
+        "groups": [[pb.names[j] for j in g] for g in col["groups"]],
+    }
+
+
+def _ill_conditioning_note(pb: Problem, diag: dict[str, Any]) -> str | None:
+    ce = diag.get("condition_number_equilibrated")
+    bad = ce is None or ce > ILL_CONDITIONED
+    und = diag["unidentifiable"]
+    if not bad and not und:
+        return None
+    parts = []
+    if ce is None:
+        parts.append("exactly dependent columns")
+    elif ce > ILL_CONDITIONED:
+        parts.append(f"equilibrated condition number {ce:.3g} (> {ILL_CONDITIONED:g})")
+    if diag["groups"]:
+        parts.append("near-dependencies " + "; ".join("[" + ", ".join(g) + "]" for g in diag["groups"]))
+    if und:
+        parts.append(f"{len(und)} unidentifiable: " + ", ".join(und))
+    return "ill-conditioned regression: " + "; ".join(parts) + ". See `casep diagnose`."

@@ -1,5 +1,5 @@
-"""Command line: ``casep separate``, ``casep simulate``, ``casep models``. Thin wrappers over
-the public API.
+"""Command line: ``casep separate``, ``casep diagnose``, ``casep simulate``, ``casep models``.
+Thin wrappers over the public API.
 
 Exit status: 0 success, 2 bad usage or bad input (one line on stderr), 1 anything else.
 """
@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
+from pathlib import Path
 from typing import Sequence
 
 from . import __version__
@@ -16,10 +18,14 @@ from .flight import FlightDataError
 from .model import ModelDefinitionError
 from .bounded import parse_bounds
 from .denoise import EXTENSIONS, MODES, RULES, SCALINGS
+from .exceptions import CasepWarning, IllConditionedWarning
 from .map_estimator import parse_prior
 from .model_loader import available_models, load_model
 from .result import write_json_atomic
+from .diagnostics import diagnose
+from .flight import check_enough_samples
 from .flight_io import read_flight, read_flight_pair
+from .sv import build_sv
 from .scenarios import SCENARIOS
 from .separate import METHODS, separate
 from .simulate import simulate_flight, write_simulation
@@ -117,6 +123,18 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
     g.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="flight file (.csv, or .parquet); truth goes to <stem>.truth.json beside it")
+    d = sub.add_parser("diagnose", help="what the flight can and cannot determine")
+    d.add_argument("flight", help="flight file")
+    d.add_argument("--tracking", metavar="FILE", default=None, help="tracking file (two-file input)")
+    d.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
+    d.add_argument("--sigma", type=_positive_float, default=None, help="noise std, m/s (default: estimated)")
+    d.add_argument("--tau", type=_positive_float, default=None,
+                   help="Gauss-Markov correlation time, s: AR(1) bound instead of white")
+    d.add_argument("--prior", metavar="FILE", help="prior JSON (map format): Bayesian bound and scales")
+    d.add_argument("--scales", metavar="FILE", help='JSON {"Kg0x": typical magnitude, ...} for the "weak" verdict')
+    d.add_argument("--json", metavar="OUT", default=None, help="write the diagnostics JSON here")
+    d.add_argument("--figures", metavar="DIR", default=None,
+                   help="write singular_values.png and variance_decomposition.png here")
     m = sub.add_parser("models", help="list the available error models")
     m.add_argument("--verbose", "-v", action="store_true", help="list each model's coefficients")
     return p
@@ -151,6 +169,42 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_diagnose(args: argparse.Namespace) -> int:
+    model = load_model(args.model)
+    prior_std = scales = None
+    if args.prior:
+        prior = _load_json(args.prior, "--prior")
+        prior_std = parse_prior(prior, model.names, source=f"--prior {args.prior}")[1]
+    if args.scales:
+        scales = _load_json(args.scales, "--scales")
+        for k, v in scales.items():
+            if k not in model.names:
+                raise ValueError(f"--scales {args.scales}: unknown coefficient `{k}`")
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not v > 0:
+                raise ValueError(f"--scales {args.scales}: `{k}` must be a number > 0, got {v!r}")
+    if args.figures and not Path(args.figures).is_dir():
+        raise ValueError(f"--figures {args.figures}: not a directory")
+    flight = read_flight_pair(args.flight, args.tracking) if args.tracking else read_flight(args.flight)
+    check_enough_samples(flight, model.n_coefficients, model.name)
+    S = build_sv(model, flight.t, flight.f)
+    diag = diagnose(S, flight.dv, names=model.names, units=model.units, sigma=args.sigma,
+                    t=flight.t if args.tau else None, tau=args.tau, prior_std=prior_std, scales=scales)
+    if args.json:
+        write_json_atomic({"casep_version": __version__, "model": model.name, "n_samples": flight.n_samples,
+                           "diagnostics": diag.to_dict()}, args.json)
+    print(f"model {model.name}, {flight.n_samples} samples")
+    print(diag.report())
+    if args.figures:
+        from .plots import plot_singular_values, plot_variance_decomposition
+
+        a = plot_singular_values(diag, Path(args.figures) / "singular_values.png")
+        b = plot_variance_decomposition(diag, Path(args.figures) / "variance_decomposition.png")
+        print(f"figures: {a}, {b}")
+    if args.json:
+        print(f"diagnostics written to {args.json}")
+    return 0
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.seed < 0:
         raise ValueError(f"`--seed` must be >= 0, got {args.seed}")
@@ -179,11 +233,22 @@ def _cmd_models(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     args = _parser().parse_args(argv)
+    commands = {"separate": _cmd_separate, "diagnose": _cmd_diagnose, "simulate": _cmd_simulate,
+                "models": _cmd_models}
     try:
-        return {"separate": _cmd_separate, "simulate": _cmd_simulate, "models": _cmd_models}[args.command](args)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", CasepWarning)
+            status = commands[args.command](args)
     except (FlightDataError, ModelDefinitionError, ValueError, TypeError, OSError) as exc:
         print(f"casep: error: {exc}", file=sys.stderr)
         return 2
+    # casep's warnings become lines of the report (the ill-conditioning one is in the table).
+    for w in caught:
+        if issubclass(w.category, CasepWarning) and not issubclass(w.category, IllConditionedWarning):
+            print(f"warning: {w.message}")
+        elif not issubclass(w.category, CasepWarning):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return status
 
 
 if __name__ == "__main__":  # pragma: no cover

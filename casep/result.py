@@ -171,6 +171,8 @@ class EstimateResult:
             lines.append(f"condition number: {self.diagnostics.get('condition_number') or float('inf'):.3g} "
                          f"(natural units), {cn:.3g} (columns equilibrated)")
         lines.append(self.message)
+        if self.diagnostics.get("warning"):
+            lines.append("warning: " + self.diagnostics["warning"])
         return "\n".join(lines)
 
 
