@@ -10,7 +10,8 @@ zero columns are left out (they are unidentifiable by definition).
   indices ``eta_k = s_0 / s_k``.
 - Belsley-Kuh-Welsch variance-decomposition proportions:
   ``phi_jk = V_jk^2 / s_k^2``, ``pi_kj = phi_jk / sum_k phi_jk`` (share of Var(z_j) due to
-  dimension k; each coefficient's proportions sum to 1).
+  dimension k; each coefficient's proportions sum to 1). Where singular values tie, the
+  basis of the tied subspace is made canonical (pivoted QR) so the proportions are defined.
 - Uncentred VIF: ``VIF_j = [(Z^T Z)^-1]_jj = sum_k V_jk^2 / s_k^2`` (1 for orthogonal columns).
 - Near-dependency groups: for each dimension with ``eta_k > 30``, the coefficients with
   ``pi_kj > 0.5`` (two or more).
@@ -46,6 +47,29 @@ GROUP_INDEX = 30.0
 GROUP_PROPORTION = 0.5
 
 
+def _canonical_ties(s: np.ndarray, Vt: np.ndarray, rel: float = 1e-9) -> np.ndarray:
+    """Make the basis of tied singular values canonical (as axis-aligned as possible).
+
+    Within a cluster of equal singular values the SVD basis is arbitrary, and so would be the
+    variance proportions. Pivoted QR of the cluster's rows rotates them to an echelon form
+    in the coordinates: for orthogonal columns (one cluster) the proportions become the
+    identity, as Belsley et al. intend.
+    """
+    from scipy.linalg import qr
+
+    Vt = Vt.copy()
+    k = 0
+    while k < s.size:
+        m = k + 1
+        while m < s.size and abs(s[m] - s[k]) <= rel * max(s[0], 1e-300):
+            m += 1
+        if m - k > 1:
+            Q, _, _ = qr(Vt[k:m], mode="economic", pivoting=True)  # B^T P = Q R, B^T = rows k..m-1
+            Vt[k:m] = Q.T @ Vt[k:m]  # new rows R P^T: echelon in the coordinates
+        k = m
+    return Vt
+
+
 def collinearity(red: ReducedSystem, ra: RankAnalysis) -> dict[str, Any]:
     """BKW proportions, condition indices, uncentred VIF and groups (indices into the columns).
 
@@ -60,6 +84,7 @@ def collinearity(red: ReducedSystem, ra: RankAnalysis) -> dict[str, Any]:
     if keep.size == 0:
         return out
     _, s, Vt = np.linalg.svd(red.R[:, keep])
+    Vt = _canonical_ties(s, Vt)
     tol = ra.rcond * s[0]
     live = s > tol
     safe = np.where(live, s, 1.0)
@@ -213,6 +238,7 @@ class Diagnostics:
             "singular_values": [float(v) for v in self.singular_values],
             "condition_indices": [f(v) for v in self.condition_indices],
             "estimable_combinations": self.combinations,
+            "correlation": [[f(v) for v in row] for row in self.correlation],
             "scales": self.scales,
         }
 

@@ -84,7 +84,7 @@ def _cvxpy_ridge(R: np.ndarray, q: np.ndarray, lam: float) -> np.ndarray:
 
     z = cp.Variable(R.shape[1])
     prob = cp.Problem(cp.Minimize(cp.sum_squares(R @ z - q) + lam * cp.sum_squares(z)))
-    prob.solve(solver=cp.CLARABEL, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
+    prob.solve(solver=cp.CLARABEL, tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10)
     if prob.status != cp.OPTIMAL:
         raise RuntimeError(f"cvxpy/Clarabel ridge did not converge: {prob.status}")
     return np.asarray(z.value, dtype=float)
