@@ -140,3 +140,40 @@ def test_separate_records_settings_and_uses_raw_sigma(platform36):
     assert 0.09 < res.sigma < 0.11  # the raw noise, not the ~0.005 m/s left after de-noising
     assert max(res.residual_rms.values()) < 0.05
     assert res.to_dict()["denoise"]["method"] == "wavelet"
+
+
+@pytest.mark.montecarlo
+def test_monte_carlo_denoising_does_not_help_ols(platform36):
+    """Reduced form of benchmarks/mc_denoise.py: the README's claims, at 20 Hz and 30 runs."""
+    from casep.diagnostics import crlb_covariance
+    from casep.noise import NoiseModel
+    from casep.simulate import simulate_flight
+
+    sim = simulate_flight("paper", seed=0, rate=20.0)
+    t = sim.flight.t
+    S = casep.build_sv(platform36, t, sim.flight.f)
+    clean = S @ sim.truth
+    k = platform36.index("Ka0y")
+    out = {}
+    for kind in ("white", "ar1"):
+        noise = NoiseModel(kind, 0.1, tau=1.0 if kind == "ar1" else None)
+        bound = np.sqrt(np.diag(crlb_covariance(S, 0.1, t=t if kind == "ar1" else None,
+                                                tau=1.0 if kind == "ar1" else None)))
+        rng = np.random.default_rng(2)
+        raw, den, z = [], [], []
+        for _ in range(30):
+            y = clean + noise.sample(t, rng)
+            r = casep.solve_ols(S, y)
+            d = denoise(y)
+            raw.append(r.estimate - sim.truth)
+            den.append(casep.solve_ols(S, d.dv, sigma=float(np.sqrt(np.mean(d.sigma**2)))).estimate - sim.truth)
+            z.append((r.estimate - sim.truth) / r.std)
+        out[kind] = (np.sqrt(np.mean(np.square(raw), 0)) / bound, np.sqrt(np.mean(np.square(den), 0)) / bound,
+                     np.sqrt(np.mean(np.square(z))))
+    raw_w, den_w, z_w = out["white"]
+    assert 0.8 < np.median(raw_w) < 1.2 and 0.8 < z_w < 1.2  # OLS reaches the CRLB, honest std
+    assert np.median(den_w) > 0.95 * np.median(raw_w)  # de-noising does not help
+    assert den_w[k] > 2.0 * raw_w[k]  # and hurts Ka0y (shrunk signal)
+    raw_a, den_a, z_a = out["ar1"]
+    assert 0.8 < np.median(raw_a) < 1.2  # OLS is near the Gauss-Markov (GLS) bound
+    assert z_a > 3.0  # but its white-noise std is overconfident
