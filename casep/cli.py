@@ -21,6 +21,7 @@ from .denoise import EXTENSIONS, MODES, RULES, SCALINGS
 from .exceptions import CasepWarning, IllConditionedWarning
 from .map_estimator import parse_prior
 from .model_loader import available_models, load_model
+from .montecarlo import METHOD_HELP
 from .result import write_json_atomic
 from .diagnostics import diagnose
 from .flight import check_enough_samples
@@ -135,6 +136,16 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--json", metavar="OUT", default=None, help="write the diagnostics JSON here")
     d.add_argument("--figures", metavar="DIR", default=None,
                    help="write singular_values.png and variance_decomposition.png here")
+    mc = sub.add_parser("montecarlo", help="seeded Monte Carlo of the estimators against the CRLB")
+    mc.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
+    mc.add_argument("--runs", type=_order, default=100, help="noise draws (default 100)")
+    mc.add_argument("--methods", default="ols,rls,rels", help=f"comma-separated: {METHOD_HELP} (default ols,rls,rels)")
+    mc.add_argument("--seed", type=_order, default=0, help="root seed (default 0)")
+    mc.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
+    mc.add_argument("--workers", type=_order, default=None, help="processes for per-run methods (default: all cores)")
+    mc.add_argument("--json", metavar="OUT", default=None, help="write the Monte Carlo JSON here")
+    mc.add_argument("--csv", metavar="OUT", default=None, help="write a CSV table here")
+    mc.add_argument("--figure", metavar="PNG", default=None, help="write RMS/CRLB per coefficient here")
     m = sub.add_parser("models", help="list the available error models")
     m.add_argument("--verbose", "-v", action="store_true", help="list each model's coefficients")
     return p
@@ -205,6 +216,30 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_montecarlo(args: argparse.Namespace) -> int:
+    from .montecarlo import run_montecarlo, write_figure
+
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    if args.runs < 1:
+        raise ValueError(f"--runs must be >= 1, got {args.runs}")
+    if args.workers is not None and args.workers < 1:
+        raise ValueError(f"--workers must be >= 1, got {args.workers}")
+    res = run_montecarlo(args.scenario, runs=args.runs, methods=methods, seed=args.seed, rate=args.rate,
+                         workers=args.workers)
+    print(f"scenario {res.scenario}, {res.runs} runs, seed {res.seed}")
+    print(res.summary())
+    if args.json:
+        res.write_json(args.json)
+    if args.csv:
+        res.write_csv(args.csv)
+    if args.figure:
+        write_figure(res, args.figure)
+    for label, path in (("JSON", args.json), ("CSV", args.csv), ("figure", args.figure)):
+        if path:
+            print(f"{label} written to {path}")
+    return 0
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.seed < 0:
         raise ValueError(f"`--seed` must be >= 0, got {args.seed}")
@@ -234,7 +269,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     args = _parser().parse_args(argv)
     commands = {"separate": _cmd_separate, "diagnose": _cmd_diagnose, "simulate": _cmd_simulate,
-                "models": _cmd_models}
+                "montecarlo": _cmd_montecarlo, "models": _cmd_models}
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", CasepWarning)

@@ -1,0 +1,63 @@
+"""Benchmark: Monte Carlo of OLS on the paper flight, batched against a naive per-run loop.
+
+Batched: one QR of the scaled S_V and a matrix of right-hand sides (casep.run_montecarlo).
+Naive: per run, draw the noise and call casep.solve_ols (its own QR each time), timed on
+`--naive-runs` runs and scaled. Same noise in both (per-run seeds), one run of this script.
+Target (issue 7): 1000 OLS runs of a 20k-sample flight in under 5 s.
+
+Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_montecarlo.py [--runs 1000] [--naive-runs 50]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+import warnings
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+import casep  # noqa: E402
+from casep.exceptions import IllConditionedWarning  # noqa: E402
+from casep.montecarlo import run_montecarlo  # noqa: E402
+from casep.simulate import simulate_flight  # noqa: E402
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=1000)
+    ap.add_argument("--naive-runs", type=int, default=50)
+    args = ap.parse_args()
+    warnings.simplefilter("ignore", IllConditionedWarning)
+    run_montecarlo("paper", runs=2, methods=["ols"], seed=1)  # warm-up (imports, JIT cache)
+    t0 = time.perf_counter()
+    res = run_montecarlo("paper", runs=args.runs, methods=["ols"], seed=1)
+    t_batched = time.perf_counter() - t0
+    sim = simulate_flight("paper", seed=1)
+    S = casep.build_sv(sim.model, sim.trajectory.t, sim.trajectory.specific_force)
+    clean = S @ sim.truth
+    seqs = np.random.SeedSequence(1).spawn(args.runs)
+    t0 = time.perf_counter()
+    naive = []
+    for k in range(args.naive_runs):
+        y = clean + sim.scenario.noise.sample(sim.trajectory.t, np.random.default_rng(seqs[k]))
+        naive.append(casep.solve_ols(S, y).estimate)
+    t_naive = (time.perf_counter() - t0) * args.runs / args.naive_runs
+    dev = np.max(np.abs(np.array(naive) - res.estimates["ols"][: args.naive_runs]) / res.stats("ols")["rms"])
+    n = sim.trajectory.t.size
+    print(f"Monte Carlo of OLS, paper flight ({n} samples), {args.runs} runs, "
+          f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']}")
+    print(f"{'path':<44} {'time (s)':>9} {'runs/s':>8} {'time / batched':>15}")
+    print(f"{'batched (one QR, matrix of right-hand sides)':<44} {t_batched:>9.2f} {args.runs / t_batched:>8.0f} {1.0:>15.1f}")
+    print(f"{f'naive per-run solve_ols ({args.naive_runs} runs, scaled)':<44} {t_naive:>9.2f} "
+          f"{args.runs / t_naive:>8.0f} {t_naive / t_batched:>15.1f}")
+    print(f"max |batched - naive| / RMS error on the first {args.naive_runs} runs: {dev:.1e}")
+    print(f"OLS median efficiency {np.median(res.stats('ols')['efficiency']):.3f}, "
+          f"median coverage95 {np.median(res.stats('ols')['coverage95']):.3f}")
+    print(f"target: 1000 runs of a 20k-sample flight < 5 s: {'met' if t_batched < 5 * args.runs / 1000 else 'NOT met'}")
+
+
+if __name__ == "__main__":
+    main()

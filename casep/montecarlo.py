@@ -1,0 +1,404 @@
+"""Seeded Monte Carlo of the estimators against the Cramer-Rao bound.
+
+The scenario's trajectory (hence S_V and the true dv) is the same in every run; run k adds
+tracking noise drawn from ``numpy.random.default_rng(SeedSequence(seed).spawn(runs)[k])``,
+so a run's data do not depend on how runs are batched or distributed over processes.
+
+Methods whose estimate is a fixed linear function of the data (``ols``, ``rls`` with no
+forgetting, ``ridge:<lambda>``, ``pcr``, ``map`` with the scenario's sigma) are solved for
+all runs at once: with ``Z = S / c = Q R`` (one QR) and ``R``'s SVD, each is
+``z = M Q^T y (+ z0)``, applied to a matrix of right-hand sides in blocks. The others
+(``rels``, ``ridge`` with GCV, ``bounded``, ``wavelet+<method>``) call the public solver per
+run in a process pool using every core. Both paths report the same numbers as the solvers
+(tested).
+
+Statistics per method and coefficient (natural units): ``bias`` = mean error, ``rms``,
+``crlb_std`` (white: sigma^2 (S^T S)^-1; Gauss-Markov scenarios: the GLS bound),
+``efficiency`` = crlb_std / rms, ``coverage95`` = share of runs with
+``|error| <= 1.96 std`` (std as each run reports it; null when the method gives none).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import sys
+import time
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from ._io import atomic_open
+from .diagnostics import crlb_covariance
+from .exceptions import IllConditionedWarning
+from .paper import demo_bounds, demo_prior
+from .scenarios import Scenario, get_scenario
+from .simulate import simulate_flight
+
+__all__ = ["MonteCarloResult", "run_montecarlo", "METHOD_HELP", "BATCHED"]
+
+#: Methods solved for all runs with one factorisation.
+BATCHED = ("ols", "rls", "pcr", "map")
+METHOD_HELP = ("ols, rls, rels, ridge (GCV), ridge:<lambda>, pcr, map, bounded, and wavelet+<method> "
+               "(de-noised first)")
+_BLOCK = 128  # runs per block of right-hand sides
+
+
+def _noise(scenario: Scenario, t: np.ndarray, seq: np.random.SeedSequence) -> np.ndarray:
+    return scenario.noise.sample(t, np.random.default_rng(seq))
+
+
+def _check_method(m: str) -> str:
+    base = m.split("+", 1)[1] if m.startswith("wavelet+") else m
+    if base.startswith("ridge:"):
+        try:
+            lam = float(base.split(":", 1)[1])
+        except ValueError:
+            raise ValueError(f"method `{m}`: ridge:<lambda> needs a number") from None
+        if not lam > 0:
+            raise ValueError(f"method `{m}`: lambda must be > 0")
+    elif base not in ("ols", "rls", "rels", "ridge", "pcr", "map", "bounded"):
+        raise ValueError(f"unknown method `{m}`. Use: {METHOD_HELP}")
+    return m
+
+
+# --------------------------------------------------------------------------- per-run path
+def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float) -> tuple[np.ndarray, np.ndarray | None]:
+    """One run through the public solvers: natural-unit estimate and reported std."""
+    from . import solve_bounded, solve_map, solve_ols, solve_pcr, solve_ridge, solve_rls
+    from .denoise import denoise
+
+    given = None
+    if method.startswith("wavelet+"):
+        d = denoise(y)
+        y, method = d.dv, method.split("+", 1)[1]
+        given = float(np.sqrt(np.mean(d.sigma**2)))  # as casep separate does
+    kw = {"names": names, "sigma": given}
+    if method == "ols":
+        r = solve_ols(S, y, **kw)
+    elif method == "rls":
+        r = solve_rls(S, y, **kw)
+    elif method == "rels":
+        r = solve_rls(S, y, noise_order=1, **kw)
+    elif method == "ridge":
+        r = solve_ridge(S, y, **kw)
+    elif method.startswith("ridge:"):
+        r = solve_ridge(S, y, lam=float(method.split(":", 1)[1]), **kw)
+    elif method == "pcr":
+        r = solve_pcr(S, y, **kw)
+    elif method == "map":
+        r = solve_map(S, y, demo_prior(names), names=names, sigma=given or sigma)
+    else:
+        r = solve_bounded(S, y, demo_bounds(names), **kw)
+    return r.estimate, r.std
+
+
+_WORKER: dict[str, Any] = {}
+
+
+def _worker_init(S, clean, t, scenario, names, sigma):
+    warnings.simplefilter("ignore", IllConditionedWarning)
+    _WORKER.update(S=S, clean=clean, t=t, scenario=scenario, names=names, sigma=sigma)
+
+
+def _worker_run(args):
+    method, seq = args
+    w = _WORKER
+    y = w["clean"] + _noise(w["scenario"], w["t"], seq)
+    return _solve(method, w["S"], y, w["names"], w["sigma"])
+
+
+# ---------------------------------------------------------------------------- batched path
+@dataclass(frozen=True)
+class _Linear:
+    """z = M (Q^T y) + z0 in scaled coordinates; std = sigma_k * std_unit (or fixed)."""
+
+    M: np.ndarray  # (n, n) acting on Q^T y
+    z0: np.ndarray
+    std_unit: np.ndarray  # natural units, per unit sigma (or absolute if sigma_fixed)
+    dof: float | None  # None: std fixed (sigma given)
+    undetermined: np.ndarray
+
+
+def _linear_maps(S2: np.ndarray, names, sigma: float, methods: Sequence[str]):
+    """QR of the scaled S once, and the linear map of each batched method."""
+    from .linalg import analyze_rank, reduce_qr
+    from .map_estimator import parse_prior
+    from .pcr import DEFAULT_MAX_CONDITION_INDEX
+    from .rls import DEFAULT_P0
+
+    m, n = S2.shape
+    red = reduce_qr(S2, np.zeros(m))
+    ra = analyze_rank(red)
+    c = red.scale
+    cs = np.where(c > 0, c, 1.0)
+    Q, R = np.linalg.qr(S2 / cs, mode="reduced")
+    U, s, Vt = np.linalg.svd(R)
+    r = int(np.sum(s > ra.rcond * s[0]))
+    est = ra.estimable
+    maps: dict[str, _Linear] = {}
+    for meth in methods:
+        if meth == "ols":  # z = V_r diag(1/s_r) U_r^T Q^T y
+            W = Vt[:r].T / s[:r]
+            maps[meth] = _Linear(W @ U[:, :r].T, np.zeros(n), np.sqrt(np.sum(W**2, 1)) / cs, m - r, ~est)
+        elif meth == "rls":  # z = (R^T R + diag(1/(p0 c^2)))^-1 R^T Q^T y, live columns only
+            live = c > 0
+            A = np.vstack([R[:, live], np.diag(1.0 / (np.sqrt(DEFAULT_P0) * c[live]))])
+            Ua, sa, Vta = np.linalg.svd(A, full_matrices=False)
+            Ainv = (Vta.T / sa) @ Ua.T  # A^+ (p x (n + p))
+            M = np.zeros((n, n))
+            M[np.ix_(live, np.arange(n))] = Ainv[:, :n]
+            P = (Vta.T / sa**2) @ Vta  # (A^T A)^-1 = P_N, scaled
+            std = np.zeros(n)
+            std[live] = np.sqrt(np.diag(P)) / c[live]
+            maps[meth] = _Linear(M, np.zeros(n), std, m - int(live.sum()), ~est)
+        elif meth.startswith("ridge:"):
+            lam = float(meth.split(":", 1)[1])
+            G = Vt.T * (s / (s**2 + lam))  # z = V diag(s/(s^2+lam)) U^T Q^T y
+            trh = float(np.sum(s**2 / (s**2 + lam)))
+            maps[meth] = _Linear(G @ U.T, np.zeros(n), np.sqrt(np.sum(G**2, 1)) / cs, m - trh, ~est)
+        elif meth == "pcr":
+            k = int(np.sum(s[:r] >= s[0] / DEFAULT_MAX_CONDITION_INDEX))
+            W = Vt[:k].T / s[:k]
+            maps[meth] = _Linear(W @ U[:, :k].T, np.zeros(n), np.sqrt(np.sum(W**2, 1)) / cs, m - k, ~est)
+        elif meth == "map":
+            mu, tau = parse_prior(demo_prior(names), names)
+            has = np.isfinite(tau)
+            A = np.vstack([R / sigma, np.diag(1.0 / (cs * tau))[has]])
+            Ua, sa, Vta = np.linalg.svd(A, full_matrices=False)
+            ra_ = int(np.sum(sa > ra.rcond * sa[0]))
+            Ainv = (Vta[:ra_].T / sa[:ra_]) @ Ua[:, :ra_].T
+            W = Vta[:ra_].T / sa[:ra_]
+            null = Vta[ra_:].T
+            und = np.linalg.norm(null, axis=1) > 1e-8 if null.size else np.zeros(n, bool)
+            maps[meth] = _Linear(Ainv[:, :n] / sigma, Ainv[:, n:] @ (mu / tau)[has], np.sqrt(np.sum(W**2, 1)) / cs,
+                                 None, und)
+    return Q, cs, maps
+
+
+def _batched(maps, Q, cs, S2, clean2, scenario, t, seqs, progress) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    runs = len(seqs)
+    out = {k: (np.empty((runs, cs.size)), np.empty((runs, cs.size))) for k in maps}
+    m = S2.shape[0]
+    for b0 in range(0, runs, _BLOCK):
+        idx = range(b0, min(b0 + _BLOCK, runs))
+        Y = np.empty((m, len(idx)))
+        for j, k in enumerate(idx):
+            Y[:, j] = clean2 + _noise(scenario, t, seqs[k]).reshape(-1)
+        QtY = Q.T @ Y
+        for name, L in maps.items():
+            Zs = L.M @ QtY + L.z0[:, None]
+            X = Zs / cs[:, None]
+            if L.dof is None:
+                std = np.broadcast_to(L.std_unit[:, None], X.shape)
+            else:
+                resid = Y - S2 @ X
+                sig = np.sqrt(np.sum(resid**2, axis=0) / L.dof)
+                std = L.std_unit[:, None] * sig[None, :]
+            X = np.where(L.undetermined[:, None], np.nan, X)
+            out[name][0][list(idx)] = X.T
+            out[name][1][list(idx)] = np.where(L.undetermined[:, None], np.nan, std).T
+        progress(len(idx))
+    return out
+
+
+# ---------------------------------------------------------------------------------- result
+@dataclass(frozen=True)
+class MonteCarloResult:
+    """Per-method, per-coefficient Monte Carlo statistics (see module notes)."""
+
+    scenario: str
+    runs: int
+    seed: int
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    truth: np.ndarray
+    crlb_std: np.ndarray
+    estimates: dict[str, np.ndarray]  # method -> (runs, n)
+    stds: dict[str, np.ndarray | None]
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    def stats(self, method: str) -> dict[str, np.ndarray]:
+        """bias, rms, efficiency, coverage95 arrays of one method (NaN where undefined)."""
+        E = self.estimates[method] - self.truth
+        with np.errstate(invalid="ignore", divide="ignore"):
+            bias = np.mean(E, axis=0)
+            rms = np.sqrt(np.mean(E**2, axis=0))
+            eff = self.crlb_std / rms
+            sd = self.stds.get(method)
+            cov = np.mean(np.abs(E) <= 1.96 * sd, axis=0) if sd is not None else np.full(E.shape[1], np.nan)
+            cov = np.where(np.isfinite(rms) & (sd is not None), cov, np.nan)
+        return {"bias": bias, "rms": rms, "efficiency": eff, "coverage95": cov}
+
+    def to_dict(self) -> dict[str, Any]:
+        """The Monte Carlo JSON of ``interfaces.md``."""
+        def f(v):
+            return float(v) if np.isfinite(v) else None
+
+        methods = {}
+        for meth in self.estimates:
+            st = self.stats(meth)
+            methods[meth] = {"seconds": self.seconds.get(meth), "coefficients": [
+                {"name": n, "unit": u, "true": float(tr), "bias": f(st["bias"][j]), "rms": f(st["rms"][j]),
+                 "crlb_std": f(self.crlb_std[j]), "efficiency": f(st["efficiency"][j]),
+                 "coverage95": f(st["coverage95"][j])}
+                for j, (n, u, tr) in enumerate(zip(self.names, self.units, self.truth))]}
+        return {"scenario": self.scenario, "runs": self.runs, "seed": self.seed, "methods": methods}
+
+    def write_json(self, path) -> None:
+        with atomic_open(path) as fh:
+            fh.write(json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n")
+
+    def write_csv(self, path) -> None:
+        with atomic_open(path) as fh:
+            w = csv.writer(fh, lineterminator="\n")
+            w.writerow(["method", "name", "unit", "true", "bias", "rms", "crlb_std", "efficiency", "coverage95"])
+            for meth, d in self.to_dict()["methods"].items():
+                for row in d["coefficients"]:
+                    w.writerow([meth] + ["" if row[k] is None else row[k] for k in
+                                         ("name", "unit", "true", "bias", "rms", "crlb_std", "efficiency",
+                                          "coverage95")])
+
+    def summary(self) -> str:
+        """One line per method: median efficiency and coverage over the coefficients."""
+        lines = [f"{'method':<18} {'median RMS/CRLB':>15} {'median efficiency':>17} {'median coverage95':>17}"
+                 f" {'seconds':>8}"]
+        for meth in self.estimates:
+            st = self.stats(meth)
+            ratio = 1.0 / st["efficiency"]
+            cov = st["coverage95"]
+            cov_s = f"{np.nanmedian(cov):.3f}" if np.any(np.isfinite(cov)) else "-"
+            lines.append(f"{meth:<18} {np.nanmedian(ratio):>15.3f} {np.nanmedian(st['efficiency']):>17.3f} "
+                         f"{cov_s:>17} {self.seconds.get(meth, float('nan')):>8.2f}")
+        return "\n".join(lines)
+
+
+class _Progress:
+    def __init__(self, total: int, enabled: bool) -> None:
+        self.total, self.done, self.enabled = total, 0, enabled
+
+    def __call__(self, k: int) -> None:
+        self.done += k
+        if self.enabled:
+            w = 30
+            fill = int(w * self.done / max(self.total, 1))
+            sys.stderr.write(f"\r[{'#' * fill}{'.' * (w - fill)}] {self.done}/{self.total} runs")
+            if self.done >= self.total:
+                sys.stderr.write("\n")
+            sys.stderr.flush()
+
+
+def run_montecarlo(
+    scenario: str | Scenario = "paper",
+    *,
+    runs: int = 100,
+    methods: Sequence[str] = ("ols", "rls", "rels"),
+    seed: int = 0,
+    rate: float | None = None,
+    workers: int | None = None,
+    progress: bool | None = None,
+    batched: bool = True,
+) -> MonteCarloResult:
+    """Run `runs` noise draws of a scenario through each method.
+
+    Parameters
+    ----------
+    scenario : str or Scenario
+    runs : int
+    methods : sequence of str
+        See :data:`METHOD_HELP`.
+    seed : int
+        Root of the per-run seed sequence.
+    rate : float, optional
+        Sample rate, Hz (default: the scenario's).
+    workers : int, optional
+        Processes for the per-run methods (default: all cores; 1 runs in this process).
+    progress : bool, optional
+        Progress bar on stderr (default: when stderr is a terminal).
+    batched : bool, optional
+        Use the one-factorisation path for the linear methods (False: per run, for checks).
+    """
+    if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
+        raise ValueError(f"`runs` must be an int >= 1, got {runs!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"`seed` must be an int >= 0, got {seed!r}")
+    methods = [_check_method(m) for m in methods]
+    if not methods:
+        raise ValueError("`methods` is empty")
+    sc = get_scenario(scenario).with_rate(rate)
+    sim = simulate_flight(sc, seed=seed)
+    model, t = sim.model, sim.trajectory.t
+    from .sv import build_sv
+
+    S = build_sv(model, t, sim.trajectory.specific_force)
+    clean = S @ sim.truth
+    sigma = sc.noise.sigma
+    tau = sc.noise.tau if sc.noise.kind == "ar1" else None
+    crlb = np.sqrt(np.diag(crlb_covariance(S, sigma, t=t if tau else None, tau=tau)))
+    seqs = np.random.SeedSequence(seed).spawn(runs)
+    names = model.names
+    show = sys.stderr.isatty() if progress is None else progress
+    lin = [m for m in methods if batched and (m in BATCHED or m.startswith("ridge:"))]
+    other = [m for m in methods if m not in lin]
+    bar = _Progress(runs * (bool(lin) + len(other)), show)
+    est: dict[str, np.ndarray] = {}
+    std: dict[str, np.ndarray | None] = {}
+    secs: dict[str, float] = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        if lin:
+            t0 = time.perf_counter()
+            S2 = S.reshape(-1, S.shape[-1])
+            Q, cs, maps = _linear_maps(S2, names, sigma, lin)
+            res = _batched(maps, Q, cs, S2, clean.reshape(-1), sc, t, seqs, bar)
+            dt = time.perf_counter() - t0
+            for m_ in lin:
+                est[m_], std[m_] = res[m_]
+                secs[m_] = dt / len(lin)
+        n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
+        for m_ in other:
+            t0 = time.perf_counter()
+            jobs = [(m_, seqs[k]) for k in range(runs)]
+            if n_workers > 1 and runs > 1:
+                with ProcessPoolExecutor(max_workers=n_workers, initializer=_worker_init,
+                                         initargs=(S, clean, t, sc, names, sigma)) as ex:
+                    outs = []
+                    for o in ex.map(_worker_run, jobs, chunksize=max(1, runs // (4 * n_workers))):
+                        outs.append(o)
+                        bar(1)
+            else:
+                _worker_init(S, clean, t, sc, names, sigma)
+                outs = []
+                for j in jobs:
+                    outs.append(_worker_run(j))
+                    bar(1)
+            est[m_] = np.array([o[0] for o in outs])
+            std[m_] = None if outs[0][1] is None else np.array([o[1] for o in outs])
+            secs[m_] = time.perf_counter() - t0
+    ordered = {m_: est[m_] for m_ in methods}
+    return MonteCarloResult(scenario=sc.name, runs=runs, seed=seed, names=names, units=model.units,
+                            truth=sim.truth, crlb_std=crlb, estimates=ordered, stds={m_: std[m_] for m_ in methods},
+                            seconds=secs)
+
+
+def write_figure(res: MonteCarloResult, path: str | os.PathLike) -> Path:
+    """RMS error / CRLB std per coefficient and method (log scale)."""
+    from .plots import _pyplot, _save
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(max(9, 0.3 * len(res.names)), 4.5))
+    x = np.arange(len(res.names))
+    for meth in res.estimates:
+        ax.semilogy(x, 1.0 / res.stats(meth)["efficiency"], "o-", ms=3, lw=1, label=meth)
+    ax.axhline(1.0, color="k", lw=1, ls="--")
+    ax.set_xticks(x, res.names, rotation=90, fontsize=7)
+    ax.set_ylabel("RMS error / CRLB std")
+    ax.set_title(f"Monte Carlo, scenario {res.scenario}, {res.runs} runs (1 = efficient)")
+    ax.legend(fontsize=8, ncol=3)
+    ax.grid(True, which="both", alpha=0.3)
+    return _save(fig, path)
