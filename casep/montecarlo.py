@@ -15,7 +15,8 @@ run in a process pool using every core. Both paths report the same numbers as th
 Statistics per method and coefficient (natural units): ``bias`` = mean error, ``rms``,
 ``crlb_std`` (white: sigma^2 (S^T S)^-1; Gauss-Markov scenarios: the GLS bound),
 ``efficiency`` = crlb_std / rms, ``coverage95`` = share of runs with
-``|error| <= 1.96 std`` (std as each run reports it; null when the method gives none).
+``|error| <= 1.96 std`` among the runs that report a std for that coefficient (bounded least
+squares reports none on a bound; null when the method gives none).
 """
 
 from __future__ import annotations
@@ -231,8 +232,12 @@ class MonteCarloResult:
             rms = np.sqrt(np.mean(E**2, axis=0))
             eff = self.crlb_std / rms
             sd = self.stds.get(method)
-            cov = np.mean(np.abs(E) <= 1.96 * sd, axis=0) if sd is not None else np.full(E.shape[1], np.nan)
-            cov = np.where(np.isfinite(rms) & (sd is not None), cov, np.nan)
+            if sd is None:
+                cov = np.full(E.shape[1], np.nan)
+            else:  # over the runs that report an interval (bounded: not on a bound)
+                has = np.isfinite(sd) & np.isfinite(E)
+                hit = (np.abs(E) <= 1.96 * np.where(has, sd, 0.0)) & has
+                cov = np.where(has.any(axis=0), hit.sum(axis=0) / np.maximum(has.sum(axis=0), 1), np.nan)
         return {"bias": bias, "rms": rms, "efficiency": eff, "coverage95": cov}
 
     def to_dict(self) -> dict[str, Any]:

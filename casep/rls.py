@@ -127,7 +127,7 @@ def solve_rls(
     x = np.zeros(p + nc)
     U = np.zeros((p + nc, p + nc))  # unit upper triangular, stored transposed
     D = np.concatenate([p0 * cl**2, np.full(nc, p0)])  # P_0 = p0 diag(c^2) in scaled coords
-    hist = np.zeros((N // history_stride + 1, p + nc))
+    hist = np.zeros((-(-N // history_stride), p + nc))  # rows for samples 0, stride, 2 stride, ... < N
     innov = rels_ud(H, Y, x, U, D, weight, forgetting, nc, residuals == "posterior", history_stride, hist)
     Ut = U.T + np.eye(p + nc)  # U = Ut.T with unit diagonal: P = U diag(D) U^T
     L = Ut * np.sqrt(D)

@@ -1,0 +1,54 @@
+"""Every example runs (reduced size) and says what it should."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _run(name: str, tmp_path: Path, *extra: str) -> str:
+    proc = subprocess.run([sys.executable, str(EXAMPLES / name), "--quick", *extra], capture_output=True, text=True,
+                          cwd=tmp_path, timeout=600, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return proc.stdout
+
+
+def test_reproduce_table1(tmp_path):
+    out = _run("reproduce_table1.py", tmp_path, "--out", str(tmp_path))
+    assert "CRLB std" in out and "wavelet+RELS" in out and (tmp_path / "report.md").exists()
+
+
+def test_add_error_term(tmp_path):
+    out = _run("add_error_term.py", tmp_path, "--out", str(tmp_path))
+    assert "Kg3x: true 0.05, estimate" in out and (tmp_path / "platform37_gsens.py").exists()
+
+
+def test_collinearity_ridge_qp(tmp_path):
+    out = _run("collinearity_ridge_qp.py", tmp_path)
+    assert "near-dependencies" in out and "closed form vs cvxpy/Clarabel" in out
+    diff = float(out.split("max rel. diff ")[1].split()[0])
+    assert diff < 1e-5
+
+
+def test_two_rate_workflow(tmp_path):
+    out = _run("two_rate_workflow.py", tmp_path, "--out", str(tmp_path))
+    assert "20 ms offset" in out and (tmp_path / "tracking.parquet").exists()
+
+
+@pytest.mark.montecarlo
+def test_monte_carlo_study(tmp_path):
+    out = _run("monte_carlo_study.py", tmp_path, "--out", str(tmp_path))
+    assert "median efficiency" in out and (tmp_path / "mc.csv").exists() and (tmp_path / "mc.png").exists()
+
+
+def test_make_example_flight_is_reproducible(tmp_path):
+    fresh = tmp_path / "example_flight.csv"
+    proc = subprocess.run([sys.executable, str(EXAMPLES / "make_example_flight.py"), "--out", str(fresh)],
+                          capture_output=True, text=True, timeout=300, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert fresh.read_bytes() == (EXAMPLES / "data" / "example_flight.csv").read_bytes()  # byte for byte
