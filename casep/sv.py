@@ -27,9 +27,12 @@ the chunk in one pass, carrying the running integrals to the next chunk. Memory 
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from ._kernels import sv_integrate_chunk
+from .exceptions import CasepWarning
 from .model import ErrorModel
 
 __all__ = ["build_sv", "SVBuilder", "DEFAULT_CHUNK"]
@@ -128,6 +131,7 @@ class SVBuilder:
         dt[0] = 0.0  # S_V(t0) = V0, Phi(t0) = Phi0
         np.subtract(t[1:], t[:-1], out=dt[1:])
         half_dt = 0.5 * dt
+        _warn_gaps(dt)
         # Carries between chunks: running integrals and the last integrands.
         phi = self._phi0.copy()  # (3, ng)
         G_prev = np.zeros_like(phi)
@@ -144,6 +148,24 @@ class SVBuilder:
             sv_integrate_chunk(self._G[:k], self._A[:k], f[s:e], half_dt[s:e], self._gcols,
                                self._acols, phi, G_prev, I_prev, S_prev, out[s:e])
         return out
+
+
+#: A step longer than this many times the median step counts as a data gap.
+GAP_FACTOR = 10.0
+
+
+def _warn_gaps(dt: np.ndarray) -> None:
+    if dt.size < 3:
+        return
+    med = float(np.median(dt[1:]))
+    big = np.flatnonzero(dt[1:] > GAP_FACTOR * med) + 1
+    if big.size:
+        k = int(big[np.argmax(dt[big])])
+        warnings.warn(
+            f"`t` has {big.size} gap(s) longer than {GAP_FACTOR:g}x the median step {med:.3g} s (largest "
+            f"{dt[k]:.3g} s before row {k}): S_V is integrated across them by the trapezoid rule, which is "
+            "inaccurate where the specific force changes inside a gap",
+            CasepWarning, stacklevel=3)
 
 
 def build_sv(model: ErrorModel, t: np.ndarray, f: np.ndarray, *, chunk: int = DEFAULT_CHUNK) -> np.ndarray:

@@ -137,3 +137,11 @@ def test_bad_arguments(platform36):
     m = casep.build_model("platform36")
     with pytest.raises(ValueError, match="not set up"):
         casep.SVBuilder(m)
+
+
+def test_data_gap_warns_with_numbers(platform36):
+    from casep.exceptions import CasepWarning
+
+    t = np.r_[np.arange(0.0, 10.0, 0.01), np.arange(12.0, 20.0, 0.01)]  # 2 s dropout
+    with pytest.warns(CasepWarning, match=r"1 gap\(s\) longer than 10x the median step 0.01 s \(largest 2.01 s before row 1000\)"):
+        casep.build_sv(platform36, t, excitation_force(t))
