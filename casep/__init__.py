@@ -35,7 +35,8 @@ Main entry points
 -----------------
 :func:`load_model`, :func:`build_sv`, :func:`read_flight`, the estimators
 :func:`solve_ols`, :func:`solve_rls` (RLS/RELS), :func:`solve_ridge`, :func:`solve_bounded`,
-:func:`solve_pcr`, :func:`solve_map` (all returning :class:`EstimateResult`), :func:`separate`;
+:func:`solve_pcr`, :func:`solve_map`, :func:`solve_gls` (all returning :class:`EstimateResult`),
+:func:`separate`;
 the command line ``casep`` (:mod:`casep.cli`).
 """
 
@@ -52,6 +53,7 @@ from .linalg import ReducedSystem, analyze_rank, reduce_qr
 from .model import ErrorModel, ModelDefinitionError
 from .model_loader import available_models, build_model, load_model, model_dirs
 from .bounded import solve_bounded
+from .gls import solve_gls
 from .map_estimator import solve_map
 from .ols import solve_ols
 from .pcr import solve_pcr
@@ -88,6 +90,7 @@ __all__ = [
     "solve_bounded",
     "solve_pcr",
     "solve_map",
+    "solve_gls",
     "EstimateResult",
     "separate",
 ]

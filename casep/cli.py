@@ -56,6 +56,10 @@ def _lambda(text: str) -> float | str:
     return v
 
 
+def _tau(text: str) -> float | str:
+    return text if text == "auto" else _positive_float(text)
+
+
 def _forgetting(text: str) -> float:
     v = _positive_float(text)
     if v > 1:
@@ -105,6 +109,8 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--bounds", metavar="FILE", help='bounded: JSON {"Kg0x": [lo, hi] or value, ...}, natural units')
     s.add_argument("--prior", metavar="FILE", help='map: JSON {"Kg0x": {"mean": m, "std": s}, ...}, natural units')
     s.add_argument("--components", type=_order, default=None, help="pcr: number of components to keep")
+    s.add_argument("--tau", type=_tau, default="auto", metavar="auto|SECONDS",
+                   help="gls: Gauss-Markov correlation time, or auto (REML; default)")
     s.add_argument("--denoise", choices=("none", "wavelet"), default="none", help="de-noise dv first (default none)")
     s.add_argument("--wavelet", default=None, help="wavelet (default sym8)")
     s.add_argument("--level", type=_order, default=None, help="decomposition level (default: largest "
@@ -175,7 +181,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     res = separate(flight, model, args.method, sigma=args.sigma, p0=args.p0, weight=args.weight,
                    forgetting=args.forgetting, noise_order=args.noise_order, lam=args.lam, bounds=bounds,
                    prior=prior, n_components=args.components, denoise=args.denoise,
-                   wavelet_options=wopts or None)
+                   wavelet_options=wopts or None, tau=args.tau)
     if args.json:
         write_json_atomic(res.to_dict(), args.json)
     print(res.table())

@@ -8,7 +8,7 @@ Methods whose estimate is a fixed linear function of the data (``ols``, ``rls`` 
 forgetting, ``ridge:<lambda>``, ``pcr``, ``map`` with the scenario's sigma) are solved for
 all runs at once: with ``Z = S / c = Q R`` (one QR) and ``R``'s SVD, each is
 ``z = M Q^T y (+ z0)``, applied to a matrix of right-hand sides in blocks. The others
-(``rels``, ``ridge`` with GCV, ``bounded``, ``wavelet+<method>``) call the public solver per
+(``rels``, ``ridge`` with GCV, ``bounded``, ``gls``, ``wavelet+<method>``) call the public solver per
 run in a process pool using every core. Both paths report the same numbers as the solvers
 (tested).
 
@@ -45,8 +45,8 @@ __all__ = ["MonteCarloResult", "run_montecarlo", "METHOD_HELP", "BATCHED"]
 
 #: Methods solved for all runs with one factorisation.
 BATCHED = ("ols", "rls", "pcr", "map")
-METHOD_HELP = ("ols, rls, rels, ridge (GCV), ridge:<lambda>, pcr, map, bounded, and wavelet+<method> "
-               "(de-noised first)")
+METHOD_HELP = ("ols, rls, rels, ridge (GCV), ridge:<lambda>, pcr, map, bounded, gls (REML tau), and "
+               "wavelet+<method> (de-noised first)")
 _BLOCK = 128  # runs per block of right-hand sides
 
 
@@ -63,15 +63,16 @@ def _check_method(m: str) -> str:
             raise ValueError(f"method `{m}`: ridge:<lambda> needs a number") from None
         if not lam > 0:
             raise ValueError(f"method `{m}`: lambda must be > 0")
-    elif base not in ("ols", "rls", "rels", "ridge", "pcr", "map", "bounded"):
+    elif base not in ("ols", "rls", "rels", "ridge", "pcr", "map", "bounded", "gls"):
         raise ValueError(f"unknown method `{m}`. Use: {METHOD_HELP}")
     return m
 
 
 # --------------------------------------------------------------------------- per-run path
-def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float) -> tuple[np.ndarray, np.ndarray | None]:
+def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float,
+           t: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     """One run through the public solvers: natural-unit estimate and reported std."""
-    from . import solve_bounded, solve_map, solve_ols, solve_pcr, solve_ridge, solve_rls
+    from . import solve_bounded, solve_gls, solve_map, solve_ols, solve_pcr, solve_ridge, solve_rls
     from .denoise import denoise
 
     given = None
@@ -94,6 +95,8 @@ def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float) -> tu
         r = solve_pcr(S, y, **kw)
     elif method == "map":
         r = solve_map(S, y, demo_prior(names), names=names, sigma=given or sigma)
+    elif method == "gls":
+        r = solve_gls(S, y, t, **kw)
     else:
         r = solve_bounded(S, y, demo_bounds(names), **kw)
     return r.estimate, r.std
@@ -111,7 +114,7 @@ def _worker_run(args):
     method, seq = args
     w = _WORKER
     y = w["clean"] + _noise(w["scenario"], w["t"], seq)
-    return _solve(method, w["S"], y, w["names"], w["sigma"])
+    return _solve(method, w["S"], y, w["names"], w["sigma"], w["t"])
 
 
 # ---------------------------------------------------------------------------- batched path

@@ -12,6 +12,7 @@ from .bounded import solve_bounded
 from .denoise import denoise as wavelet_denoise
 from .flight import FlightData, check_enough_samples
 from .flight_io import read_flight
+from .gls import solve_gls
 from .map_estimator import solve_map
 from .model import ErrorModel
 from .model_loader import load_model
@@ -25,7 +26,7 @@ from .sv import build_sv
 __all__ = ["separate", "METHODS"]
 
 #: Estimators available through :func:`separate` and ``casep separate --method``.
-METHODS = ("ols", "rls", "rels", "ridge", "bounded", "pcr", "map")
+METHODS = ("ols", "rls", "rels", "ridge", "bounded", "pcr", "map", "gls")
 
 
 def separate(
@@ -45,6 +46,7 @@ def separate(
     max_condition_index: float = DEFAULT_MAX_CONDITION_INDEX,
     denoise: str | None = None,
     wavelet_options: Mapping | None = None,
+    tau: float | str = "auto",
 ) -> EstimateResult:
     """Estimate a model's error coefficients from one flight.
 
@@ -54,10 +56,11 @@ def separate(
         The flight, or a flight file to read.
     model : str, path or ErrorModel, optional
         Model name (``"platform36"``), model file, or model object.
-    method : {"ols", "rls", "rels", "ridge", "bounded", "pcr", "map"}, optional
+    method : {"ols", "rls", "rels", "ridge", "bounded", "pcr", "map", "gls"}, optional
         Estimator: :func:`~casep.solve_ols`, :func:`~casep.solve_rls` (``rels`` with
         `noise_order`), :func:`~casep.solve_ridge`, :func:`~casep.solve_bounded`,
-        :func:`~casep.solve_pcr`, :func:`~casep.solve_map`.
+        :func:`~casep.solve_pcr`, :func:`~casep.solve_map`, :func:`~casep.solve_gls`
+        (Gauss-Markov noise of correlation time `tau`, "auto" = REML).
     sigma : float, optional
         Known noise standard deviation, m/s (default: estimated).
     p0, weight, forgetting, noise_order
@@ -124,6 +127,8 @@ def separate(
         res = solve_bounded(S, dv, bounds, **labels)
     elif method == "pcr":
         res = solve_pcr(S, dv, n_components=n_components, max_condition_index=max_condition_index, **labels)
+    elif method == "gls":
+        res = solve_gls(S, dv, flight.t, tau=tau, **labels)
     else:
         res = solve_map(S, dv, prior, **labels)
     if den is not None:
