@@ -32,6 +32,7 @@ import numpy as np
 from ._estimator import finish, prepare
 from .diagnostics import ar1_whiten
 from .linalg import reduce_qr
+from .ols import least_squares
 from .result import EstimateResult
 
 __all__ = ["solve_gls", "estimate_tau"]
@@ -114,14 +115,7 @@ def solve_gls(
             raise ValueError(f"`tau` must be finite and > 0 s, got {tau}")
         tau_used, rule = float(tau), "given"
     pb = prepare(*_whiten(S, y.reshape(S.shape[0], 3), t, tau_used), names, units, si_factors, sigma, rcond)
-    ra, red = pb.ra, pb.red
-    V, inv_s = ra.pinv_factors()
-    Uq = ra.U.T @ red.qty
-    inv_c = pb.inv_c
-    x = (V @ (inv_s * Uq[: ra.rank])) * inv_c
-    sig = pb.ols_sigma() if pb.sigma is None else pb.sigma  # whitened residual std = stationary sigma
-    W = V * inv_s
-    cov = sig**2 * (W @ W.T) * np.outer(inv_c, inv_c)
+    x, cov, sig = least_squares(pb)  # sigma: whitened residual std = stationary sigma
     fit = y.reshape(S.shape[0], 3) - S @ x  # dv - S_V D_hat, not whitened
     return finish(pb, "gls", x, cov, sig, residuals=fit.reshape(-1),
                   settings={"tau": tau_used, "tau_rule": rule, "sigma": "estimated" if pb.sigma is None else pb.sigma})

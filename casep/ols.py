@@ -25,7 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ._estimator import finish, prepare
+from ._estimator import Problem, finish, prepare
 from .result import EstimateResult
 
 __all__ = ["solve_ols"]
@@ -63,14 +63,19 @@ def solve_ols(
         data (reported NaN with a reason); -1: none is.
     """
     pb = prepare(S, y, names, units, si_factors, sigma, rcond)
+    x, cov, sig = least_squares(pb)
+    return finish(pb, "ols", x, cov, sig,
+                  settings={"rcond": pb.ra.rcond, "sigma": "estimated" if pb.sigma is None else pb.sigma})
+
+
+def least_squares(pb: Problem) -> tuple[np.ndarray, np.ndarray, float]:
+    """Minimum-norm LS solution, covariance and sigma of a prepared problem (natural units)."""
     ra, red = pb.ra, pb.red
-    r = ra.rank
     V, inv_s = ra.pinv_factors()
     Uq = ra.U.T @ red.qty
     inv_c = pb.inv_c
-    x = (V @ (inv_s * Uq[:r])) * inv_c  # x_Z = V_r diag(1/s_r) U_r^T q, then / c
+    x = (V @ (inv_s * Uq[: ra.rank])) * inv_c  # x_Z = V_r diag(1/s_r) U_r^T q, then / c
     sig = pb.ols_sigma() if pb.sigma is None else pb.sigma  # sigma^2 = RSS / (m - r)
     W = V * inv_s  # V_r diag(1/s_r)
     cov = sig**2 * (W @ W.T) * np.outer(inv_c, inv_c)
-    return finish(pb, "ols", x, cov, sig,
-                  settings={"rcond": ra.rcond, "sigma": "estimated" if pb.sigma is None else pb.sigma})
+    return x, cov, sig
