@@ -38,8 +38,9 @@ from ._io import atomic_open
 from .diagnostics import crlb_covariance
 from .exceptions import IllConditionedWarning
 from .paper import demo_bounds, demo_prior
-from .scenarios import Scenario, get_scenario
-from .simulate import simulate_flight
+from .scenarios import Scenario
+from .simulate import scenario_setup
+from .sv import build_sv
 
 __all__ = ["MonteCarloResult", "run_montecarlo", "METHOD_HELP", "BATCHED"]
 
@@ -338,13 +339,10 @@ def run_montecarlo(
     methods = [_check_method(m) for m in methods]
     if not methods:
         raise ValueError("`methods` is empty")
-    sc = get_scenario(scenario).with_rate(rate)
-    sim = simulate_flight(sc, seed=seed)
-    model, t = sim.model, sim.trajectory.t
-    from .sv import build_sv
-
-    S = build_sv(model, t, sim.trajectory.specific_force)
-    clean = S @ sim.truth
+    sc, traj, model, truth = scenario_setup(scenario, rate)  # every run shares the trajectory
+    t = traj.t
+    S = build_sv(model, t, traj.specific_force)
+    clean = S @ truth
     sigma = sc.noise.sigma
     tau = sc.noise.tau if sc.noise.kind == "ar1" else None
     crlb = np.sqrt(np.diag(crlb_covariance(S, sigma, t=t if tau else None, tau=tau)))
@@ -390,7 +388,7 @@ def run_montecarlo(
             secs[m_] = time.perf_counter() - t0
     ordered = {m_: est[m_] for m_ in methods}
     return MonteCarloResult(scenario=sc.name, runs=runs, seed=seed, names=names, units=model.units,
-                            truth=sim.truth, crlb_std=crlb, estimates=ordered, stds={m_: std[m_] for m_ in methods},
+                            truth=truth, crlb_std=crlb, estimates=ordered, stds={m_: std[m_] for m_ in methods},
                             seconds=secs)
 
 

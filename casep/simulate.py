@@ -28,7 +28,7 @@ from .scenarios import Scenario, get_scenario
 from .sv import build_sv
 from .trajectory import BoostTrajectory, simulate_boost
 
-__all__ = ["SimulatedFlight", "simulate_flight", "write_simulation", "truth_path", "TwoRateData",
+__all__ = ["SimulatedFlight", "simulate_flight", "scenario_setup", "write_simulation", "truth_path", "TwoRateData",
            "simulate_two_rate"]
 
 
@@ -65,6 +65,14 @@ def _truth_vector(model: ErrorModel, truth: dict) -> np.ndarray:
     return np.array([float(truth.get(n, 0.0)) for n in model.names])
 
 
+def scenario_setup(scenario: str | Scenario, rate: float | None = None
+                   ) -> tuple[Scenario, BoostTrajectory, ErrorModel, np.ndarray]:
+    """The noise-free part of a scenario: scenario at `rate`, trajectory, model, true coefficients."""
+    sc = get_scenario(scenario).with_rate(rate)
+    model = load_model(sc.model)
+    return sc, simulate_boost(sc.vehicle, sc.rate), model, _truth_vector(model, sc.truth)
+
+
 def _check_seed(seed: int) -> int:
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"`seed` must be a non-negative int, got {seed!r}")
@@ -88,10 +96,7 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
     SimulatedFlight
     """
     seed = _check_seed(seed)
-    sc = get_scenario(scenario).with_rate(rate)
-    traj = simulate_boost(sc.vehicle, sc.rate)
-    model = load_model(sc.model)
-    truth = _truth_vector(model, sc.truth)
+    sc, traj, model, truth = scenario_setup(scenario, rate)
     rng = np.random.default_rng(seed)
     clean = build_sv(model, traj.t, traj.specific_force) @ truth  # S_V D_true
     noise = sc.noise.sample(traj.t, rng)
@@ -163,10 +168,7 @@ def simulate_two_rate(scenario: str | Scenario = "paper", *, seed: int = 0, tele
         raise ValueError(f"`tracking_rate` must be finite and > 0 Hz, got {tracking_rate}")
     if not np.isfinite(time_offset):
         raise ValueError(f"`time_offset` must be finite, got {time_offset}")
-    sc = get_scenario(scenario).with_rate(telemetry_rate)
-    traj = simulate_boost(sc.vehicle, sc.rate)
-    model = load_model(sc.model)
-    truth = _truth_vector(model, sc.truth)
+    sc, traj, model, truth = scenario_setup(scenario, telemetry_rate)
     rng = np.random.default_rng(seed)
     v_tel = traj.velocity + build_sv(model, traj.t, traj.specific_force) @ truth
     dt = np.diff(traj.t)[:, None]
