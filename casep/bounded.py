@@ -38,15 +38,21 @@ __all__ = ["solve_bounded", "parse_bounds"]
 _ACTIVE_TOL = 1e-6  # relative, in scaled coordinates
 
 
+def _at_bounds(z, lo, hi, fixed):
+    """Masks of the non-fixed coordinates sitting on their lower / upper bound, and the tolerances."""
+    tol_lo = _ACTIVE_TOL * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
+    tol_hi = _ACTIVE_TOL * (1.0 + np.abs(np.where(np.isfinite(hi), hi, 0.0)))
+    on_lo = ~fixed & np.isfinite(lo) & (z - lo <= tol_lo)
+    on_hi = ~fixed & np.isfinite(hi) & (hi - z <= tol_hi)
+    return on_lo, on_hi, tol_lo, tol_hi
+
+
 def _polish(R, q, z0, lo, hi, fixed, rcond):
     """Exact least squares on Clarabel's active set; kept if feasible and KKT holds.
 
     Returns the polished solution and True, or `z0` and False.
     """
-    tol_lo = _ACTIVE_TOL * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
-    tol_hi = _ACTIVE_TOL * (1.0 + np.abs(np.where(np.isfinite(hi), hi, 0.0)))
-    on_lo = ~fixed & np.isfinite(lo) & (z0 - lo <= tol_lo)
-    on_hi = ~fixed & np.isfinite(hi) & (hi - z0 <= tol_hi)
+    on_lo, on_hi, tol_lo, tol_hi = _at_bounds(z0, lo, hi, fixed)
     z = z0.copy()
     z[fixed] = lo[fixed]
     z[on_lo] = lo[on_lo]
@@ -155,8 +161,7 @@ def solve_bounded(
                       CasepWarning, stacklevel=2)
     x = zv / cs
     x = np.where(fixed, lo, x)
-    at_lo = fin_lo & (zv - lo_s <= _ACTIVE_TOL * (1.0 + np.abs(np.where(fin_lo, lo_s, 0.0))))
-    at_hi = fin_hi & (hi_s - zv <= _ACTIVE_TOL * (1.0 + np.abs(np.where(fin_hi, hi_s, 0.0))))
+    at_lo, at_hi, _, _ = _at_bounds(zv, lo_s, hi_s, fixed)
     x = np.where(at_lo, lo, np.where(at_hi, hi, x))
     active = {pb.names[j]: ("fixed" if fixed[j] else "lower" if at_lo[j] else "upper")
               for j in np.flatnonzero(fixed | at_lo | at_hi)}
