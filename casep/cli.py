@@ -90,6 +90,20 @@ def _load_json(path: str, option: str) -> dict:
     return data
 
 
+def _read(args: argparse.Namespace):
+    """The flight of a command: one file, or telemetry + `--tracking`."""
+    return read_flight_pair(args.flight, args.tracking) if args.tracking else read_flight(args.flight)
+
+
+def _prior(args: argparse.Namespace, names) -> dict | None:
+    """The `--prior` file, loaded and checked against the model's coefficients."""
+    if not args.prior:
+        return None
+    prior = _load_json(args.prior, "--prior")
+    parse_prior(prior, names, source=f"--prior {args.prior}")
+    return prior
+
+
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="casep", description="Guidance instrumentation error separation.")
     p.add_argument("--version", action="version", version=f"casep {__version__}")
@@ -163,13 +177,11 @@ def _parser() -> argparse.ArgumentParser:
 
 def _cmd_separate(args: argparse.Namespace) -> int:
     model = load_model(args.model)
-    bounds = prior = None
+    bounds = None
     if args.bounds:
         bounds = _load_json(args.bounds, "--bounds")
         parse_bounds(bounds, model.names, source=f"--bounds {args.bounds}")
-    if args.prior:
-        prior = _load_json(args.prior, "--prior")
-        parse_prior(prior, model.names, source=f"--prior {args.prior}")
+    prior = _prior(args, model.names)
     if args.method == "rels" and args.noise_order < 1:
         raise ValueError(f"--noise-order must be >= 1 for rels, got {args.noise_order}")
     wopts = {k: v for k, v in (("wavelet", args.wavelet), ("level", args.level), ("rule", args.threshold_rule),
@@ -177,7 +189,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
                                 ("scaling", args.noise_scaling)) if v is not None}
     if wopts and args.denoise != "wavelet":
         raise ValueError(f"wavelet options ({', '.join(wopts)}) need --denoise wavelet")
-    flight = read_flight_pair(args.flight, args.tracking) if args.tracking else read_flight(args.flight)
+    flight = _read(args)
     res = separate(flight, model, args.method, sigma=args.sigma, p0=args.p0, weight=args.weight,
                    forgetting=args.forgetting, noise_order=args.noise_order, lam=args.lam, bounds=bounds,
                    prior=prior, n_components=args.components, denoise=args.denoise,
@@ -192,10 +204,9 @@ def _cmd_separate(args: argparse.Namespace) -> int:
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
     model = load_model(args.model)
-    prior_std = scales = None
-    if args.prior:
-        prior = _load_json(args.prior, "--prior")
-        prior_std = parse_prior(prior, model.names, source=f"--prior {args.prior}")[1]
+    prior = _prior(args, model.names)
+    prior_std = None if prior is None else parse_prior(prior, model.names)[1]
+    scales = None
     if args.scales:
         scales = _load_json(args.scales, "--scales")
         for k, v in scales.items():
@@ -205,7 +216,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
                 raise ValueError(f"--scales {args.scales}: `{k}` must be a number > 0, got {v!r}")
     if args.figures and not Path(args.figures).is_dir():
         raise ValueError(f"--figures {args.figures}: not a directory")
-    flight = read_flight_pair(args.flight, args.tracking) if args.tracking else read_flight(args.flight)
+    flight = _read(args)
     check_enough_samples(flight, model.n_coefficients, model.name)
     S = build_sv(model, flight.t, flight.f)
     diag = diagnose(S, flight.dv, names=model.names, units=model.units, sigma=args.sigma,

@@ -211,7 +211,8 @@ def denoise(dv: np.ndarray, *, wavelet: str = "sym8", level: int | None = None, 
         raise ValueError(f"`dv` must have shape (N, 3), got {dv.shape}")
     if dv.shape[0] < 2:
         raise ValueError(f"`dv` needs at least 2 samples, got {dv.shape[0]}")
-    lvl = max(max_level(dv.shape[0], wavelet), 1) if level is None and wavelet in pywt.wavelist(kind="discrete") else level
+    _wavelet(wavelet)  # validate before choosing the default level
+    lvl = max(max_level(dv.shape[0], wavelet), 1) if level is None else level
     cols, sig = [], []
     for i in range(3):
         with warnings.catch_warnings():
