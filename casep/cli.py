@@ -24,11 +24,9 @@ from .model_loader import available_models, load_model
 from .montecarlo import METHOD_HELP
 from .result import write_json_atomic
 from .diagnostics import diagnose
-from .flight import check_enough_samples
 from .flight_io import read_flight, read_flight_pair
-from .sv import build_sv
 from .scenarios import SCENARIOS
-from .separate import METHODS, separate
+from .separate import METHODS, regression_rows, separate
 from .simulate import simulate_flight, write_simulation
 
 __all__ = ["main"]
@@ -217,14 +215,13 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if args.figures and not Path(args.figures).is_dir():
         raise ValueError(f"--figures {args.figures}: not a directory")
     flight = _read(args)
-    check_enough_samples(flight, model.n_coefficients, model.name)
-    S = build_sv(model, flight.t, flight.f)
-    diag = diagnose(S, flight.dv, names=model.names, units=model.units, sigma=args.sigma,
-                    t=flight.t if args.tau else None, tau=args.tau, prior_std=prior_std, scales=scales)
+    S, dv, t = regression_rows(flight, model)
+    diag = diagnose(S, dv, names=model.names, units=model.units, sigma=args.sigma,
+                    t=t if args.tau else None, tau=args.tau, prior_std=prior_std, scales=scales)
     if args.json:
-        write_json_atomic({"casep_version": __version__, "model": model.name, "n_samples": flight.n_samples,
+        write_json_atomic({"casep_version": __version__, "model": model.name, "n_samples": flight.n_observed,
                            "diagnostics": diag.to_dict()}, args.json)
-    print(f"model {model.name}, {flight.n_samples} samples")
+    print(f"model {model.name}, {flight.n_observed} samples")
     print(diag.report())
     if args.figures:
         from .plots import plot_singular_values, plot_variance_decomposition

@@ -11,14 +11,17 @@ lines (CSV), extra columns ignored.
   dv = v_tel - v_trk).
 
 Two files (:func:`read_flight_pair`): a telemetry file (``t``, force or apparent velocity,
-``v_tel_*``) and a tracking file at its own rate (``t``, ``v_trk_*``). Tracking is
-interpolated onto the telemetry times inside the common time span (cubic spline by
-default, linear on request); telemetry samples outside it are dropped.
+``v_tel_*``) and a tracking file at its own rate (``t``, ``v_trk_*``). The flight keeps every
+telemetry sample from the first one to the end of tracking (S_V is integrated from the
+first telemetry sample); tracking is interpolated onto the telemetry times inside its span
+(cubic spline by default, linear on request), and those samples are the ``observed`` ones.
 
 Every reader raises :class:`~casep.flight.FlightDataError` naming the file, the column and
 the row (data rows count from 1 after the header; CSV errors give the file line too) for a
-missing column, an empty, non-numeric, NaN or infinite value, or time that does not
-strictly increase. Writers are atomic: a failure leaves no half-written file.
+missing or repeated column, a column that is not numeric (bool, date-time, text in Parquet;
+the dtype is named), an empty, non-numeric, NaN or infinite value, a magnitude above
+:data:`~casep.flight.MAX_ABS_VALUE`, or time that does not strictly increase. Writers are
+atomic: a failure leaves no half-written file.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 from ._io import atomic_open
-from .flight import AXES, DV_COLUMNS, FORCE_COLUMNS, FlightData, FlightDataError
+from .flight import AXES, DV_COLUMNS, FORCE_COLUMNS, FlightData, FlightDataError, too_large
 
 __all__ = [
     "read_flight", "read_flight_pair", "write_flight",
@@ -41,6 +44,8 @@ APPARENT_COLUMNS = tuple(f"W_{a}" for a in AXES)
 VTEL_COLUMNS = tuple(f"v_tel_{a}" for a in AXES)
 VTRK_COLUMNS = tuple(f"v_trk_{a}" for a in AXES)
 PARQUET_SUFFIXES = (".parquet", ".pq")
+#: Every column a reader may use: a repeated one is refused.
+KNOWN_COLUMNS = ("t",) + FORCE_COLUMNS + APPARENT_COLUMNS + DV_COLUMNS + VTEL_COLUMNS + VTRK_COLUMNS
 
 
 def _is_parquet(path: Path) -> bool:
@@ -68,6 +73,25 @@ def _csv_line_locator(path: Path) -> Callable[[int], int | None]:
     return line_of
 
 
+def _csv_header(path: Path) -> list[str]:
+    """The header's names as pandas sees them (first line that is not blank or a ``#`` comment,
+    text after ``#`` dropped), before pandas renames a repeated ``dv_x`` to ``dv_x.1``."""
+    import csv
+
+    with open(path, encoding="utf-8", errors="replace", newline="") as fh:
+        for text in fh:
+            text = text.split("#", 1)[0]
+            if text.strip():
+                return [c.strip() for c in next(csv.reader([text], skipinitialspace=True))]
+    return []
+
+
+def _parquet_header(path: Path) -> list[str]:
+    import pyarrow.parquet as pq
+
+    return list(pq.read_schema(path).names)
+
+
 class _Table:
     """A file read into a DataFrame, with error helpers that locate rows."""
 
@@ -76,10 +100,15 @@ class _Table:
 
         self.path = Path(path)
         self.src = str(self.path)
-        if not self.path.is_file():
+        if self.path.is_dir():
+            raise FlightDataError(self.src, "is a directory, not a flight file")
+        if not self.path.exists():
             raise FlightDataError(self.src, "file does not exist")
+        if not self.path.is_file():
+            raise FlightDataError(self.src, "not a regular file (a device, FIFO or socket?)")
         if _is_parquet(self.path):
             try:
+                header = _parquet_header(self.path)
                 frame = pd.read_parquet(self.path)
             except ImportError:
                 raise FlightDataError(self.src, "reading Parquet needs pyarrow: pip install pyarrow") from None
@@ -88,6 +117,7 @@ class _Table:
             self.line_of: Callable[[int], int | None] = lambda row: None
         else:
             try:
+                header = _csv_header(self.path)
                 frame = pd.read_csv(self.path, comment="#", skip_blank_lines=True, keep_default_na=False,
                                     na_values=[""], skipinitialspace=True)
             except pd.errors.EmptyDataError:
@@ -97,9 +127,18 @@ class _Table:
             except UnicodeDecodeError as exc:
                 raise FlightDataError(self.src, f"not a UTF-8 text file ({exc.reason})") from None
             self.line_of = _csv_line_locator(self.path)
+        self._refuse_repeated(header)
         frame.columns = [str(c).strip() for c in frame.columns]
         self.frame = frame
         self.columns = set(frame.columns)
+
+    def _refuse_repeated(self, header: list[str]) -> None:
+        """A column casep reads must appear once (pandas would silently rename the second)."""
+        for col in KNOWN_COLUMNS:
+            at = [i + 1 for i, name in enumerate(header) if name == col]
+            if len(at) > 1:
+                raise self.error(f"column name repeated (header positions {', '.join(map(str, at))}): "
+                                 "keep one", col, "header")
 
     def error(self, message: str, column: str | None = None, row: int | str | None = None) -> FlightDataError:
         line = self.line_of(0 if row == "header" else row) if row is not None else None
@@ -116,14 +155,29 @@ class _Table:
         if self.frame.shape[0] == 0:
             raise self.error("file has a header but no data rows", cols[0], "header")
 
+    def _check_dtype(self, col: str) -> None:
+        """Numeric (int, unsigned or float) columns only: a bool, date-time, complex or (in
+        Parquet) text column is refused, naming its dtype. A CSV text column goes on to the
+        per-cell check, which names the first cell that is not a number."""
+        dtype = self.frame[col].dtype
+        if dtype.kind in "iuf" or (dtype.kind == "O" and not _is_parquet(self.path)):
+            return
+        hint = {"M": "; give time in seconds (e.g. seconds since lift-off)",
+                "m": "; give time in seconds", "b": "; give numbers"}.get(dtype.kind, "")
+        raise self.error(f"column has dtype {dtype}, not a number{hint}", col, "header")
+
     def numeric(self, col: str) -> np.ndarray:
         """Column as float64, or the error at its first bad cell."""
         import pandas as pd
 
+        self._check_dtype(col)
         raw = self.frame[col]
         values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
         bad = np.flatnonzero(~np.isfinite(values))
         if not bad.size:
+            big = too_large(values)
+            if big is not None:
+                raise self.error(big[1], col, big[0] + 1)
             return values
         r = int(bad[0])
         cell = raw.iloc[r]
@@ -187,7 +241,9 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     Returns
     -------
     FlightData
-        ``meta`` records the file format and which force and velocity columns were used.
+        ``meta`` records the file format, which force and velocity columns were used and,
+        with ``v_tel_*`` columns, the telemetry speed at the first sample
+        (``start_speed_m_s``, for :func:`casep.flight.late_start_evidence`).
 
     Raises
     ------
@@ -203,8 +259,11 @@ def read_flight(path: str | os.PathLike) -> FlightData:
         dv, dv_from = tab.vectors(DV_COLUMNS), "dv"
     else:
         tab.require(VTEL_COLUMNS + VTRK_COLUMNS, ". Use: v_tel_x/y/z with v_trk_x/y/z, or dv_x, dv_y, dv_z")
-        dv, dv_from = tab.vectors(VTEL_COLUMNS) - tab.vectors(VTRK_COLUMNS), "v_tel - v_trk"
+        v_tel = tab.vectors(VTEL_COLUMNS)
+        dv, dv_from = v_tel - tab.vectors(VTRK_COLUMNS), "v_tel - v_trk"
     meta = {"format": "parquet" if _is_parquet(tab.path) else "csv", "force": force_from, "dv": dv_from}
+    if dv_from != "dv":
+        meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
     return FlightData(t, f, dv, source=tab.src, meta=meta)
 
 
@@ -226,7 +285,12 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     Returns
     -------
     FlightData
-        On the telemetry samples inside the tracking span; ``meta`` records the spans.
+        Every telemetry sample from the first one to the end of tracking: S_V is integrated
+        from the first telemetry sample, so the instrument errors before tracking starts are
+        kept. dv is observed (``observed``) at the telemetry samples inside the tracking
+        span and NaN before it. ``meta`` records the spans (s), the samples before tracking
+        (``unobserved``) and after it (``telemetry_dropped``), and the telemetry speed at the
+        first sample (``start_speed_m_s``).
 
     Notes
     -----
@@ -250,17 +314,24 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     if inside.sum() < 2:
         raise tel.error(f"telemetry time [{t_tel[0]:g}, {t_tel[-1]:g}] s and tracking time "
                         f"[{t_trk[0]:g}, {t_trk[-1]:g}] s share fewer than 2 telemetry samples", "t")
-    t = t_tel[inside]
+    keep = t_tel <= t_trk[-1]  # from the first telemetry sample to the end of tracking
+    t, observed = t_tel[keep], inside[keep]
+    dv = np.full((t.size, 3), np.nan)  # not observed before tracking starts
     if interpolation == "cubic":
         from scipy.interpolate import CubicSpline
 
-        v_at = CubicSpline(t_trk, v_trk, axis=0)(t)
+        v_at = CubicSpline(t_trk, v_trk, axis=0)(t[observed])
     else:
-        v_at = np.column_stack([np.interp(t, t_trk, v_trk[:, i]) for i in range(3)])
+        v_at = np.column_stack([np.interp(t[observed], t_trk, v_trk[:, i]) for i in range(3)])
+    dv[observed] = v_tel[keep][observed] - v_at  # dv = v_tel - v_trk at telemetry times
     meta = {"format": "pair", "force": force_from, "dv": f"v_tel - v_trk ({interpolation} interpolation)",
-            "telemetry": tel.src, "tracking": trk.src, "span_s": [float(t[0]), float(t[-1])],
-            "telemetry_dropped": int((~inside).sum())}
-    return FlightData(t, f[inside], v_tel[inside] - v_at, source=f"{tel.src} + {trk.src}", meta=meta)
+            "telemetry": tel.src, "tracking": trk.src,
+            "telemetry_span_s": [float(t_tel[0]), float(t_tel[-1])],
+            "tracking_span_s": [float(t_trk[0]), float(t_trk[-1])],
+            "span_s": [float(t[0]), float(t[-1])], "observed_span_s": [float(t[observed][0]), float(t[observed][-1])],
+            "unobserved": int((~observed).sum()), "telemetry_dropped": int((~keep).sum()),
+            "start_speed_m_s": float(np.linalg.norm(v_tel[0]))}
+    return FlightData(t, f[keep], dv, source=f"{tel.src} + {trk.src}", meta=meta, observed=observed)
 
 
 def write_table(path: str | os.PathLike, columns: dict[str, np.ndarray], *,
@@ -301,6 +372,9 @@ def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[
     """Write a flight (``t, f_x, f_y, f_z, dv_x, dv_y, dv_z``) as CSV or Parquet, atomically."""
     if not isinstance(flight, FlightData):
         raise TypeError(f"`flight` must be a FlightData, got {type(flight).__name__}")
+    if flight.n_observed < flight.n_samples:
+        raise ValueError(f"{path}: the flight has {flight.n_samples - flight.n_observed} samples without tracking, "
+                         "which the one-file format cannot hold; keep the telemetry and tracking files")
     cols = {"t": flight.t}
     cols.update({c: flight.f[:, i] for i, c in enumerate(FORCE_COLUMNS)})
     cols.update({c: flight.dv[:, i] for i, c in enumerate(DV_COLUMNS)})

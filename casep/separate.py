@@ -10,7 +10,7 @@ import numpy as np
 
 from .bounded import solve_bounded
 from .denoise import denoise as wavelet_denoise
-from .flight import FlightData, check_enough_samples
+from .flight import FlightData, check_dv_not_zero, check_enough_samples, warn_late_start
 from .flight_io import read_flight
 from .gls import solve_gls
 from .map_estimator import solve_map
@@ -23,10 +23,25 @@ from .ridge import solve_ridge
 from .rls import DEFAULT_P0, solve_rls
 from .sv import build_sv
 
-__all__ = ["separate", "METHODS"]
+__all__ = ["separate", "regression_rows", "METHODS"]
 
 #: Estimators available through :func:`separate` and ``casep separate --method``.
 METHODS = ("ols", "rls", "rels", "ridge", "bounded", "pcr", "map", "gls")
+
+
+def regression_rows(flight: FlightData, model: ErrorModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The regression of a flight: ``(S_V, dv, t)`` at the observed samples.
+
+    S_V is integrated over every sample, from the first telemetry sample where the model has
+    dv = 0 and phi = 0, then the rows where tracking observes dv are kept. Shared by
+    :func:`separate` and ``casep diagnose``: both first refuse too few observed samples and
+    an all-zero dv, and warn when the flight starts after lift-off without the initial terms
+    in the model (:func:`casep.flight.warn_late_start`).
+    """
+    check_enough_samples(flight, model.n_coefficients, model.name)
+    check_dv_not_zero(flight)
+    warn_late_start(flight, model)
+    return flight.observed_rows(build_sv(model, flight.t, flight.f))
 
 
 def separate(
@@ -99,9 +114,7 @@ def separate(
     if not isinstance(flight, FlightData):
         flight = read_flight(flight)
     model = load_model(model)
-    check_enough_samples(flight, model.n_coefficients, model.name)
-    S = build_sv(model, flight.t, flight.f)
-    dv = flight.dv
+    S, dv, t = regression_rows(flight, model)
     den, sigma_from_wavelet = None, False
     if denoise not in (None, "none", "wavelet"):
         raise ValueError(f"`denoise` must be 'none' or 'wavelet', got {denoise!r}")
@@ -128,7 +141,7 @@ def separate(
     elif method == "pcr":
         res = solve_pcr(S, dv, n_components=n_components, max_condition_index=max_condition_index, **labels)
     elif method == "gls":
-        res = solve_gls(S, dv, flight.t, tau=tau, **labels)
+        res = solve_gls(S, dv, t, tau=tau, **labels)
     else:
         res = solve_map(S, dv, prior, **labels)
     if den is not None:
@@ -136,4 +149,4 @@ def separate(
         if sigma_from_wavelet:
             settings["sigma"] = f"wavelet estimate {sigma:.6g}"
         res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings)
-    return dataclasses.replace(res, model=model.name, n_samples=flight.n_samples)
+    return dataclasses.replace(res, model=model.name, n_samples=flight.n_observed)

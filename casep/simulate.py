@@ -151,7 +151,8 @@ class TwoRateData:
 
 
 def simulate_two_rate(scenario: str | Scenario = "paper", *, seed: int = 0, telemetry_rate: float = 100.0,
-                      tracking_rate: float = 20.0, time_offset: float = 0.0) -> TwoRateData:
+                      tracking_rate: float = 20.0, time_offset: float = 0.0,
+                      tracking_start: float | None = None) -> TwoRateData:
     """Telemetry and tracking of a scenario at different rates, with a tracking time offset.
 
     Parameters
@@ -162,6 +163,9 @@ def simulate_two_rate(scenario: str | Scenario = "paper", *, seed: int = 0, tele
         Hz.
     time_offset : float
         Tracking time tags lag the truth by this much, s: ``v_trk(t) = v_true(t - offset)``.
+    tracking_start : float, optional
+        First tracking time, s (default: from lift-off): ranges rarely track from t = 0.
+        Telemetry still starts at lift-off.
     """
     seed = _check_seed(seed)
     if not np.isfinite(tracking_rate) or tracking_rate <= 0:
@@ -174,6 +178,10 @@ def simulate_two_rate(scenario: str | Scenario = "paper", *, seed: int = 0, tele
     dt = np.diff(traj.t)[:, None]
     W = np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (traj.specific_force[1:] + traj.specific_force[:-1]) * dt, 0)])
     lo, hi = max(traj.t[0], traj.t[0] + time_offset), min(traj.t[-1], traj.t[-1] + time_offset)
+    if tracking_start is not None:
+        if not lo <= tracking_start < hi:
+            raise ValueError(f"`tracking_start` must be in [{lo:g}, {hi:g}) s, got {tracking_start}")
+        lo = tracking_start
     t_trk = np.arange(np.ceil(lo * tracking_rate), np.floor(hi * tracking_rate) + 1) / tracking_rate
     _, v_true = traj.sample(t_trk - time_offset)
     v_trk = v_true + sc.noise.sample(t_trk, rng)

@@ -146,13 +146,19 @@ def test_two_rate_interpolation_against_analytic_velocity(tmp_path):
     dv = np.column_stack([1e-3 * t_tel, -2e-3 * t_tel, 5e-4 * t_tel])
     tel, trk = _pair(tmp_path, t_tel, t_trk, v, dv)
     fl = casep.read_flight_pair(tel, trk)
-    inside = (t_tel >= 1.0) & (t_tel <= t_trk[-1])
-    np.testing.assert_array_equal(fl.t, t_tel[inside])
-    np.testing.assert_allclose(fl.dv, dv[inside], atol=1e-9)  # cubic spline: exact for t^2, ~1e-10 for sin
-    assert fl.meta["telemetry_dropped"] == int((~inside).sum())
+    # Telemetry is kept from its first sample (S_V integrates from there) to the end of
+    # tracking; dv is observed inside the tracking span only.
+    keep = t_tel <= t_trk[-1]
+    inside = keep & (t_tel >= 1.0)
+    np.testing.assert_array_equal(fl.t, t_tel[keep])
+    np.testing.assert_array_equal(fl.observed, inside[keep])
+    assert np.isnan(fl.dv[~fl.observed]).all()
+    np.testing.assert_allclose(fl.dv[fl.observed], dv[inside], atol=1e-9)  # cubic spline: exact for t^2, ~1e-10 for sin
+    assert fl.meta["telemetry_dropped"] == int((~keep).sum()) and fl.meta["unobserved"] == 100
+    assert fl.meta["observed_span_s"] == [1.0, 49.95] and fl.meta["span_s"] == [0.0, 49.95]
     lin = casep.read_flight_pair(tel, trk, interpolation="linear")
     # Linear interpolation of 1.25 t^2 errs by up to a dt^2 / 8 = 2.5 * 0.05^2 / 8.
-    assert 1e-4 < np.abs(lin.dv[:, 0] - dv[inside, 0]).max() <= 2.5 * 0.05**2 / 8 + 1e-9
+    assert 1e-4 < np.abs(lin.dv[lin.observed, 0] - dv[inside, 0]).max() <= 2.5 * 0.05**2 / 8 + 1e-9
 
 
 def test_two_rate_bad_inputs(tmp_path):
