@@ -330,6 +330,9 @@ def diagnose(
             raise ValueError("`sigma` or `y` is required (the bound scales with the noise std)")
         Uq = ra.U.T @ red.qty
         sigma = float(np.sqrt((red.rho2 + np.sum(Uq[ra.rank:] ** 2)) / (red.m - ra.rank)))
+        if not sigma > 0:  # all-zero y (flights: casep.flight.check_dv_not_zero) or an exact fit
+            raise ValueError("`y` is " + ("0 everywhere" if not np.any(yy) else "fitted exactly (residuals 0)")
+                             + ": sigma cannot be estimated from it; give `sigma`")
         source = "estimated from least-squares residuals"
     else:
         if not np.isfinite(sigma) or sigma <= 0:

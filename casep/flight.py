@@ -251,9 +251,9 @@ def check_dv_not_zero(flight: FlightData) -> None:
     """
     dv = flight.dv[flight._observed_index()]
     if not np.any(dv):
-        raise FlightDataError(flight.source, f"the velocity error ({_dv_columns(flight)}) is exactly 0 at all "
-                                             f"{dv.shape[0]} observed samples: nothing to estimate (an unfilled "
-                                             "column, or telemetry compared with itself?)", "dv")
+        raise FlightDataError(flight.source, f"the velocity error (columns {_dv_columns(flight)}) is exactly 0 at "
+                                             f"all {dv.shape[0]} observed samples: nothing to estimate (an unfilled "
+                                             "column, or telemetry compared with itself?)")
 
 
 def _dv_at_start(t: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:

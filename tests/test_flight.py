@@ -25,3 +25,90 @@ def test_enough_samples_rule():
     with pytest.raises(FlightDataError, match="s.csv: column `t`, row 13: 13 samples are too few for model `m`"):
         check_enough_samples(fl, 36, "m")
     check_enough_samples(casep.FlightData(np.arange(14.0), np.zeros((14, 3)), np.zeros((14, 3))), 36, "m")
+
+
+def test_observed_mask_selects_regression_rows():
+    t = np.arange(10.0)
+    dv = np.ones((10, 3))
+    dv[:4] = np.nan  # not observed: may be NaN
+    obs = t >= 4
+    fl = casep.FlightData(t, np.ones((10, 3)), dv, observed=obs)
+    assert (fl.n_samples, fl.n_observed) == (10, 6)
+    S = np.arange(10 * 3 * 2, dtype=float).reshape(10, 3, 2)
+    S2, dv2, t2 = fl.observed_rows(S)
+    np.testing.assert_array_equal(S2, S[4:])
+    np.testing.assert_array_equal(t2, t[4:])
+    assert np.isfinite(dv2).all() and np.shares_memory(S2, S)  # contiguous: a view, no copy
+    with pytest.raises(FlightDataError, match=r"column `dv_x`, row 4: value nan is not finite"):
+        casep.FlightData(t, np.ones((10, 3)), dv, observed=t >= 3)
+    with pytest.raises(FlightDataError, match="`observed` must be a boolean array of shape"):
+        casep.FlightData(t, np.ones((10, 3)), dv, observed=obs.astype(int))
+    with pytest.raises(FlightDataError, match="no sample is observed"):
+        casep.FlightData(t, np.ones((10, 3)), dv, observed=np.zeros(10, bool))
+    with pytest.raises(FlightDataError, match=r"6 samples observed \(tracking covers 6 of 10\) are too few"):
+        check_enough_samples(fl, 36, "m")
+
+
+def test_values_beyond_magnitude_limit_refused():
+    f = np.ones((3, 3))
+    f[2, 1] = 1e200
+    with pytest.raises(FlightDataError, match=r"column `f_y`, row 3: value 1e\+200 exceeds the magnitude limit 1e\+30"):
+        casep.FlightData([0.0, 1.0, 2.0], f, np.ones((3, 3)))
+
+
+def test_all_zero_dv_one_rule_for_separate_and_diagnose(tmp_path, capsys):
+    """separate() used to return sigma 0 and std 0, diagnose a message about `sigma`."""
+    from casep.cli import main
+    from casep.simulate import simulate_flight
+
+    fl = simulate_flight("paper", seed=1, rate=10.0).flight
+    zero = casep.FlightData(fl.t, fl.f, np.zeros_like(fl.dv), source="zero.csv")
+    rule = r"zero.csv: the velocity error \(columns dv_x, dv_y, dv_z\) is exactly 0 at all \d+ observed samples"
+    with pytest.raises(FlightDataError, match=rule):
+        casep.separate(zero)
+    p = tmp_path / "zero.csv"
+    casep.write_flight(zero, p)
+    for cmd in ("separate", "diagnose"):
+        assert main([cmd, str(p)]) == 2
+        assert "is exactly 0 at all" in capsys.readouterr().err
+    from casep.diagnostics import diagnose
+
+    with pytest.raises(ValueError, match="`y` is 0 everywhere: sigma cannot be estimated"):
+        diagnose(np.ones((20, 3, 2)), np.zeros((20, 3)))
+
+
+def _cut(fl, t0):
+    k = fl.t >= t0
+    return casep.FlightData(fl.t[k], fl.f[k], fl.dv[k], source=f"cut at {t0:g} s")
+
+
+@pytest.mark.parametrize("rate", [20.0, 100.0])
+def test_late_start_warning_on_flight_cut_at_20s(rate, platform36):
+    from casep.flight import LateStartWarning, late_start_evidence
+    from casep.simulate import simulate_flight
+
+    fl = simulate_flight("paper", seed=3, rate=rate).flight
+    assert late_start_evidence(fl) == {}
+    cut = _cut(fl, 20.0)
+    ev = late_start_evidence(cut)
+    # dv(20 s) of the paper truth is (-0.36, -0.20, 0.21) m/s against 0.1 m/s noise.
+    np.testing.assert_allclose(ev["dv0"], [-0.36, -0.20, 0.21], atol=0.1)
+    with pytest.warns(LateStartWarning) as rec:
+        casep.separate(cut, platform36)
+    msg = str(rec[0].message)
+    assert "cut at 20 s: the flight seems to start after lift-off (t0 = 20 s)" in msg
+    assert "initial velocity error dv0" in msg and "initial platform misalignment phi0" in msg
+    assert "platform36_dv0" in msg and "platform39_misalignment" in msg and "chi-square" in msg
+    with pytest.warns(LateStartWarning, match="has no initial platform misalignment phi0") as rec:
+        casep.separate(cut, "platform36_dv0")
+    assert "dv0 (" not in str(rec[0].message)
+
+
+@pytest.mark.parametrize("scenario", ["paper", "paper-pitch", "paper-ar1"])
+def test_no_late_start_alarm_on_flights_from_liftoff(scenario):
+    from casep.flight import late_start_evidence
+    from casep.simulate import simulate_flight
+
+    for seed in range(6):
+        fl = simulate_flight(scenario, seed=seed, rate=20.0 if seed % 2 else 100.0).flight
+        assert late_start_evidence(fl) == {}, (scenario, seed)
