@@ -107,14 +107,9 @@ class _Table:
         if not self.path.is_file():
             raise FlightDataError(self.src, "not a regular file (a device, FIFO or socket?)")
         if _is_parquet(self.path):
-            try:
-                header = _parquet_header(self.path)
-                frame = pd.read_parquet(self.path)
-            except ImportError:
-                raise FlightDataError(self.src, "reading Parquet needs pyarrow: pip install pyarrow") from None
-            except Exception as exc:  # pyarrow raises its own error types
-                raise FlightDataError(self.src, f"not a readable Parquet file ({exc})") from None
             self.line_of: Callable[[int], int | None] = lambda row: None
+            self._refuse_repeated(self._parquet(_parquet_header))  # before pandas, which fails on them
+            frame = self._parquet(pd.read_parquet)
         else:
             try:
                 header = _csv_header(self.path)
@@ -127,10 +122,19 @@ class _Table:
             except UnicodeDecodeError as exc:
                 raise FlightDataError(self.src, f"not a UTF-8 text file ({exc.reason})") from None
             self.line_of = _csv_line_locator(self.path)
-        self._refuse_repeated(header)
+            self._refuse_repeated(header)
         frame.columns = [str(c).strip() for c in frame.columns]
         self.frame = frame
         self.columns = set(frame.columns)
+
+    def _parquet(self, reader: Callable):
+        """``reader(path)``, with pyarrow's errors as :class:`FlightDataError`."""
+        try:
+            return reader(self.path)
+        except ImportError:
+            raise FlightDataError(self.src, "reading Parquet needs pyarrow: pip install pyarrow") from None
+        except Exception as exc:  # pyarrow raises its own error types
+            raise FlightDataError(self.src, f"not a readable Parquet file ({exc})") from None
 
     def _refuse_repeated(self, header: list[str]) -> None:
         """A column casep reads must appear once (pandas would silently rename the second)."""

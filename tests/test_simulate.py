@@ -111,3 +111,13 @@ def test_bad_arguments(tmp_path, capsys):
     assert "`--seed` must be >= 0" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
     assert set(SCENARIOS) == {"paper", "paper-pitch", "paper-ar1"}
+
+
+def test_two_rate_tracking_start():
+    d = simulate_two_rate("paper", seed=1, telemetry_rate=20.0, tracking_rate=10.0, tracking_start=10.0)
+    assert d.t_tel[0] == 0.0 and d.t_trk[0] == 10.0 and np.all(np.diff(d.t_trk) > 0)
+    full = simulate_two_rate("paper", seed=1, telemetry_rate=20.0, tracking_rate=10.0)
+    np.testing.assert_array_equal(d.t_trk, full.t_trk[full.t_trk >= 10.0])
+    for bad in (-1.0, 1e9, float("nan")):
+        with pytest.raises(ValueError, match="`tracking_start` must be in"):
+            simulate_two_rate("paper", telemetry_rate=20.0, tracking_start=bad)
