@@ -21,12 +21,33 @@ from .exceptions import IllConditionedWarning
 from .linalg import RankAnalysis, ReducedSystem, analyze_rank, condition_numbers, reduce_qr, unidentifiable_reasons
 from .result import EstimateResult
 
-__all__ = ["Problem", "prepare", "finish", "check_positive", "inverse_scale"]
+__all__ = ["Problem", "prepare", "finish", "check_positive", "inverse_scale", "OPTION_RANGES"]
+
+
+#: Plausible ranges ``name -> (low, high, low_inclusive, why)`` of the scalar options, applied by
+#: :func:`check_positive` wherever the option is checked (solvers and command line alike).
+OPTION_RANGES: dict[str, tuple[float, float, bool, str]] = {
+    # A noise std above 1 km/s is a unit mistake (mm/s, ft) or not a velocity at all:
+    # the whole powered flight of the paper gains ~3 km/s.
+    "sigma": (0.0, 1e3, False, "m/s; a velocity noise std above 1 km/s is not a tracking noise"),
+    # Correlation times beyond ~3 h exceed any boost flight; exp(-dt/tau) -> 1 loses all digits.
+    "tau": (0.0, 1e4, False, "s; a correlation time above 1e4 s exceeds any flight"),
+    # w is a measurement precision 1/variance; beyond 1e+-12 (m/s)^-2, w^-1/2 is 1e-6 m/s .. 1e6 m/s.
+    "weight": (1e-12, 1e12, True, "(m/s)^-2; 1 / weight is the measurement variance"),
+    # P0 = p0 I in natural units. Measured on the paper flight (20 Hz, U-D recursion on unit-norm
+    # columns): |RLS - OLS| is 5e-5 OLS std at p0 = 1e30, 5e-2 at 1e40 and 930 at 1e50 (garbage).
+    "p0": (0.0, 1e30, False, "natural units^2; above 1e30 the RLS recursion loses its digits "
+                             "(p0 = 1e20 is already least squares)"),
+}
 
 
 def check_positive(name: str, value: float | None, *, allow_none: bool = True, allow_zero: bool = False,
                    upper: float | None = None) -> float | None:
-    """Validate a positive finite scalar option, naming it in the error."""
+    """Validate a positive finite scalar option, naming it in the error.
+
+    An option of :data:`OPTION_RANGES` (``sigma``, ``tau``, ``weight``, ``p0``) must also lie
+    in its range there; the message gives the range and why.
+    """
     if value is None:
         if allow_none:
             return None
@@ -39,6 +60,10 @@ def check_positive(name: str, value: float | None, *, allow_none: bool = True, a
         low = "[0" if allow_zero else "(0"
         want = f"in {low}, {upper:g}]" if upper is not None else (">= 0" if allow_zero else "> 0")
         raise ValueError(f"`{name}` must be finite and {want}, got {value}")
+    if name in OPTION_RANGES:
+        lo, hi, closed, why = OPTION_RANGES[name]
+        if not ((v >= lo if closed else v > lo) and v <= hi):
+            raise ValueError(f"`{name}` must be in {'[' if closed else '('}{lo:g}, {hi:g}] ({why}), got {value}")
     return v
 
 

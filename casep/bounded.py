@@ -31,6 +31,7 @@ import numpy as np
 
 from ._estimator import finish, prepare
 from .exceptions import CasepWarning
+from .model import unknown_coefficient_message
 from .result import EstimateResult
 
 __all__ = ["solve_bounded", "parse_bounds"]
@@ -82,7 +83,7 @@ def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"
     lo, hi = np.full(n, -np.inf), np.full(n, np.inf)
     for name, spec in bounds.items():
         if name not in names:
-            raise ValueError(f"{source}: unknown coefficient `{name}`; the model has {', '.join(names)}")
+            raise ValueError(unknown_coefficient_message(name, names, source))
         j = list(names).index(name)
         if isinstance(spec, (int, float)) and not isinstance(spec, bool):
             a = b = float(spec)
@@ -96,6 +97,9 @@ def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"
             raise ValueError(f"{source}: `{name}` must be [lo, hi] or a number, got {spec!r}")
         if np.isnan(a) or np.isnan(b):
             raise ValueError(f"{source}: `{name}` has a NaN bound")
+        if a == np.inf or b == -np.inf:  # -inf below / +inf above are open sides, like null
+            raise ValueError(f"{source}: `{name}` bound {spec!r} leaves no finite value: bounds and fixed values "
+                             "must be finite (null, or -Infinity below / Infinity above, for an open side)")
         if a > b:
             raise ValueError(f"{source}: `{name}` has lo > hi ({a:g} > {b:g})")
         lo[j], hi[j] = a, b

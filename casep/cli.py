@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import warnings
 from pathlib import Path
@@ -15,8 +16,9 @@ from typing import Sequence
 
 from . import __version__
 from .flight import FlightDataError
-from .model import ModelDefinitionError
+from .model import ModelDefinitionError, unknown_coefficient_message
 from .bounded import parse_bounds
+from ._estimator import check_positive
 from .denoise import EXTENSIONS, MODES, RULES, SCALINGS
 from .exceptions import CasepWarning, IllConditionedWarning
 from .map_estimator import parse_prior
@@ -49,6 +51,23 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _ranged(name: str):
+    """Argparse type for the option `name` of :data:`casep._estimator.OPTION_RANGES`: the API's check and message."""
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        try:
+            return check_positive(name, v, allow_none=False)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parse.__name__ = name
+    return parse
+
+
 def _lambda(text: str) -> float | str:
     if text in ("gcv", "lcurve"):
         return text
@@ -57,7 +76,7 @@ def _lambda(text: str) -> float | str:
 
 
 def _tau(text: str) -> float | str:
-    return text if text == "auto" else _positive_float(text)
+    return text if text == "auto" else _ranged("tau")(text)
 
 
 def _forgetting(text: str) -> float:
@@ -112,10 +131,10 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("flight", help="flight CSV file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..)")
     s.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
     s.add_argument("--method", default="ols", choices=METHODS, help="estimator (default ols)")
-    s.add_argument("--sigma", type=_positive_float, default=None,
+    s.add_argument("--sigma", type=_ranged("sigma"), default=None,
                    help="noise std, m/s (default: estimated from the residuals)")
-    s.add_argument("--p0", type=_positive_float, default=1e6, help="RLS/RELS P0 = p0 I, natural units (default 1e6)")
-    s.add_argument("--weight", type=_positive_float, default=1.0, help="RLS/RELS weight w (default 1)")
+    s.add_argument("--p0", type=_ranged("p0"), default=1e6, help="RLS/RELS P0 = p0 I, natural units (default 1e6)")
+    s.add_argument("--weight", type=_ranged("weight"), default=1.0, help="RLS/RELS weight w (default 1)")
     s.add_argument("--forgetting", type=_forgetting, default=1.0, help="RLS/RELS forgetting factor (default 1)")
     s.add_argument("--noise-order", type=_order, default=1, help="RELS noise-model order (default 1)")
     s.add_argument("--lambda", dest="lam", type=_lambda, default="gcv", metavar="gcv|lcurve|VALUE",
@@ -148,8 +167,8 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("flight", help="flight file")
     d.add_argument("--tracking", metavar="FILE", default=None, help="tracking file (two-file input)")
     d.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
-    d.add_argument("--sigma", type=_positive_float, default=None, help="noise std, m/s (default: estimated)")
-    d.add_argument("--tau", type=_positive_float, default=None,
+    d.add_argument("--sigma", type=_ranged("sigma"), default=None, help="noise std, m/s (default: estimated)")
+    d.add_argument("--tau", type=_ranged("tau"), default=None,
                    help="Gauss-Markov correlation time, s: AR(1) bound instead of white")
     d.add_argument("--prior", metavar="FILE", help="prior JSON (map format): Bayesian bound and scales")
     d.add_argument("--scales", metavar="FILE", help='JSON {"Kg0x": typical magnitude, ...} for the "weak" verdict')
@@ -211,9 +230,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         scales = _load_json(args.scales, "--scales")
         for k, v in scales.items():
             if k not in model.names:
-                raise ValueError(f"--scales {args.scales}: unknown coefficient `{k}`")
-            if not isinstance(v, (int, float)) or isinstance(v, bool) or not v > 0:
-                raise ValueError(f"--scales {args.scales}: `{k}` must be a number > 0, got {v!r}")
+                raise ValueError(unknown_coefficient_message(k, model.names, f"--scales {args.scales}"))
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not (v > 0 and math.isfinite(v)):
+                raise ValueError(f"--scales {args.scales}: `{k}` must be a finite number > 0, got {v!r}")
     if args.figures and not Path(args.figures).is_dir():
         raise ValueError(f"--figures {args.figures}: not a directory")
     flight = _read(args)

@@ -26,8 +26,9 @@ def test_prior_only_equals_the_prior(paper_problem, platform36):
     res = casep.solve_map(np.zeros_like(S), y, prior, sigma=0.1, names=platform36.names)
     np.testing.assert_allclose(res.estimate, mu, rtol=1e-12)
     np.testing.assert_allclose(res.std, tau, rtol=1e-12)
-    # Data of negligible weight (sigma huge): the same.
-    res = casep.solve_map(S, y, prior, sigma=1e9, names=platform36.names)
+    # Data of negligible weight: the same. (S, y) / 1e6 with sigma 1e3 is the data with sigma 1e9
+    # (sigma itself is capped at 1e3 m/s, OPTION_RANGES).
+    res = casep.solve_map(S * 1e-6, y * 1e-6, prior, sigma=1e3, names=platform36.names)
     np.testing.assert_allclose(res.estimate, mu, rtol=1e-6, atol=1e-9)
 
 
