@@ -97,9 +97,13 @@ def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"
             raise ValueError(f"{source}: `{name}` must be [lo, hi] or a number, got {spec!r}")
         if np.isnan(a) or np.isnan(b):
             raise ValueError(f"{source}: `{name}` has a NaN bound")
-        if a == np.inf or b == -np.inf:  # -inf below / +inf above are open sides, like null
-            raise ValueError(f"{source}: `{name}` bound {spec!r} leaves no finite value: bounds and fixed values "
-                             "must be finite (null, or -Infinity below / Infinity above, for an open side)")
+        # -Infinity below / Infinity above are open sides, like null; any other infinity is refused.
+        if isinstance(spec, (int, float)) and not np.isfinite(a):
+            raise ValueError(f"{source}: `{name}` fixed value must be finite, got {a:g}")
+        for side, v, bad in (("lower", a, np.inf), ("upper", b, -np.inf)):
+            if v == bad:
+                raise ValueError(f"{source}: `{name}` {side} bound {v:g} leaves no finite value: bounds must be "
+                                 "finite (null, or -Infinity below / Infinity above, for an open side)")
         if a > b:
             raise ValueError(f"{source}: `{name}` has lo > hi ({a:g} > {b:g})")
         lo[j], hi[j] = a, b

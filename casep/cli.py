@@ -1,14 +1,19 @@
 """Command line: ``casep separate``, ``casep diagnose``, ``casep simulate``, ``casep models``.
 Thin wrappers over the public API.
 
-Exit status: 0 success, 2 bad usage or bad input (one line on stderr), 1 anything else.
+Exit status: 0 success, 2 bad usage or bad input (one line on stderr), 1 anything else;
+141 (quietly, like any Unix tool ended by SIGPIPE) when the reader of stdout closes early
+(``casep models | head -1``). ``casep models`` exits 0 when at least one model loads and
+reports each model file that does not as a ``warning:`` line.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -316,15 +321,57 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_models(args: argparse.Namespace) -> int:
-    for name in available_models():
-        model = load_model(name)
+    """List the models; a file that fails to load is a `warning:` line naming it and why.
+
+    Exit 0 when at least one model loads (the broken ones are reported), 2 when none does.
+    """
+    names = available_models()
+    broken = 0
+    for name in names:
+        try:
+            model = load_model(name)
+        except ModelDefinitionError as exc:
+            broken += 1
+            warnings.warn(f"model `{name}` not listed: {exc}", CasepWarning, stacklevel=1)
+            continue
         print(f"{name:<28} {model.n_coefficients:>3} coefficients  {model.description}")
         if args.verbose:
             for nm, unit in zip(model.names, model.units):
                 print(f"    {nm:<10} {unit}")
+    if broken and broken == len(names):
+        print(f"casep: error: none of the {broken} model files loads (see the warnings)", file=sys.stderr)
+        return 2
     return 0
 
 
+#: Exit status when the reader of stdout goes away (``casep ... | head``): 128 + SIGPIPE, what the
+#: shell reports for any Unix tool ended by the broken pipe, so ``set -o pipefail`` sees the same.
+EXIT_BROKEN_PIPE = 141
+
+
+def _quiet_on_broken_pipe(run):
+    """Wrap `run` so a closed stdout ends it quietly with :data:`EXIT_BROKEN_PIPE`.
+
+    The Python recipe (docs, "Note on SIGPIPE"): flush inside the guard so buffered output
+    fails here, then point stdout at /dev/null so the interpreter's final flush is silent.
+    """
+
+    @functools.wraps(run)
+    def guarded(argv: Sequence[str] | None = None) -> int:
+        try:
+            status = run(argv)
+            sys.stdout.flush()
+            return status
+        except BrokenPipeError:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            os.close(devnull)
+            return EXIT_BROKEN_PIPE
+
+    return guarded
+
+
+@_quiet_on_broken_pipe
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     args = _parser().parse_args(argv)
@@ -334,6 +381,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", CasepWarning)
             status = commands[args.command](args)
+    except BrokenPipeError:
+        raise  # the reader left: quiet exit, see _quiet_on_broken_pipe
     except (FlightDataError, ModelDefinitionError, ValueError, TypeError, OSError) as exc:
         print(f"casep: error: {exc}", file=sys.stderr)
         return 2

@@ -75,3 +75,34 @@ def test_prior_errors(paper_problem, platform36):
         casep.solve_map(S, y, {"Kg0x": {"mean": 0, "std": -1}}, names=nm)
     with pytest.raises(ValueError, match="must be \\{\"mean\": m, \"std\": s\\}"):
         casep.solve_map(S, y, {"Kg0x": [0, 1]}, names=nm)
+
+
+# --- issue 17: prior names and values ---------------------------------------------------------
+
+def test_parse_prior_unknown_name_suggests(platform36):
+    from casep.map_estimator import parse_prior
+
+    with pytest.raises(ValueError, match=r"`prior`: unknown coefficient `KaOy` \(did you mean `Ka0y`\?\)"):
+        parse_prior({"KaOy": {"mean": 0, "std": 1}}, platform36.names)
+
+
+@pytest.mark.parametrize("spec, expect", [
+    ({"mean": 0.0, "std": float("nan")}, "std must be > 0"),
+    ({"mean": 0.0, "std": 0.0}, "std must be > 0"),
+    ({"mean": 0.0, "std": -1.0}, "std must be > 0"),
+    ({"mean": 0.0, "std": 1e-320}, "std must be > 0"),   # 1 / std overflows: no usable precision
+    ({"mean": float("inf"), "std": 1.0}, "mean must be finite"),
+    ({"mean": float("nan"), "std": 1.0}, "mean must be finite"),
+])
+def test_parse_prior_rejects_bad_values_naming_the_coefficient(platform36, spec, expect):
+    from casep.map_estimator import parse_prior
+
+    with pytest.raises(ValueError, match=f"`Kg0x` {expect}"):
+        parse_prior({"Kg0x": spec}, platform36.names)
+
+
+def test_parse_prior_infinite_std_is_flat(platform36):
+    from casep.map_estimator import parse_prior
+
+    mu, tau = parse_prior({"Kg0x": {"mean": 1.0, "std": float("inf")}}, platform36.names)
+    assert np.isinf(tau).all()
