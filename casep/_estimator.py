@@ -35,9 +35,10 @@ OPTION_RANGES: dict[str, tuple[float, float, bool, str]] = {
     # w is a measurement precision 1/variance; beyond 1e+-12 (m/s)^-2, w^-1/2 is 1e-6 m/s .. 1e6 m/s.
     "weight": (1e-12, 1e12, True, "(m/s)^-2; 1 / weight is the measurement variance"),
     # P0 = p0 I in natural units. Measured on the paper flight (20 Hz, U-D recursion on unit-norm
-    # columns): |RLS - OLS| is 5e-5 OLS std at p0 = 1e30, 5e-2 at 1e40 and 930 at 1e50 (garbage).
-    "p0": (0.0, 1e30, False, "natural units^2; above 1e30 the RLS recursion loses its digits "
-                             "(p0 = 1e20 is already least squares)"),
+    # columns): |RLS - OLS| is 6e-5 OLS std at p0 = 1e14, 8e-9 at 1e20, 5e-5 at 1e30, 5e-2 at 1e40
+    # and 930 at 1e50 (garbage; the error grows like p0 * eps).
+    "p0": (0.0, 1e30, False, "natural units^2; beyond it the RLS recursion loses its digits, and "
+                             "1e14 already gives least squares on the paper flight"),
 }
 
 
