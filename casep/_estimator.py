@@ -28,7 +28,8 @@ __all__ = ["Problem", "prepare", "finish", "check_positive", "inverse_scale", "O
 #: :func:`check_positive` wherever the option is checked (solvers and command line alike).
 OPTION_RANGES: dict[str, tuple[float, float, bool, str]] = {
     # A noise std above 1 km/s is a unit mistake (mm/s, ft) or not a velocity at all:
-    # the whole powered flight of the paper gains ~3 km/s.
+    # the whole powered flight of the paper gains ~3 km/s. (No lower end beyond > 0: a noise-free
+    # simulation may state a tiny sigma; the std underflow to 0 only below ~1e-150 m/s.)
     "sigma": (0.0, 1e3, False, "m/s; a velocity noise std above 1 km/s is not a tracking noise"),
     # Correlation times beyond ~3 h exceed any boost flight; exp(-dt/tau) -> 1 loses all digits.
     "tau": (0.0, 1e4, False, "s; a correlation time above 1e4 s exceeds any flight"),
