@@ -138,8 +138,10 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--method", default="ols", choices=METHODS, help="estimator (default ols)")
     s.add_argument("--sigma", type=_ranged("sigma"), default=None,
                    help="noise std, m/s (default: estimated from the residuals)")
-    s.add_argument("--p0", type=_ranged("p0"), default=1e6, help="RLS/RELS P0 = p0 I, natural units, in (0, 1e30] (default 1e6)")
-    s.add_argument("--weight", type=_ranged("weight"), default=1.0, help="RLS/RELS weight w, in [1e-12, 1e12] (default 1)")
+    s.add_argument("--p0", type=_ranged("p0"), default=1e6,
+                   help="RLS/RELS P0 = p0 I, natural units, in (0, 1e30] (default 1e6)")
+    s.add_argument("--weight", type=_ranged("weight"), default=1.0,
+                   help="RLS/RELS weight w, in [1e-12, 1e12] (default 1)")
     s.add_argument("--forgetting", type=_forgetting, default=1.0, help="RLS/RELS forgetting factor (default 1)")
     s.add_argument("--noise-order", type=_order, default=1, help="RELS noise-model order (default 1)")
     s.add_argument("--lambda", dest="lam", type=_lambda, default="gcv", metavar="gcv|lcurve|VALUE",
