@@ -34,7 +34,10 @@ flight.
       :class:`~casep.exceptions.NoiseFreeWarning`, the std reflect rounding only.
     - **Outliers**: a spike of size A at row k leaves ``d_k = r_k - (r_{k-1} + r_{k+1})/2 = A``
       while smooth model errors leave ``d ~ r'' dt^2 / 2``; rows where ``|d_k|`` exceeds
-      10 robust (MAD) sigma of d are named, with their size in robust residual sigma.
+      10 robust (MAD) sigma of d and of r are named, with their size in noise sigma
+      (``MAD(d) / sqrt(1.5)``: the sample-to-sample scatter, which the outlier's pull on the
+      fit does not inflate). The check runs on the raw dv (after de-noising, the residuals of the
+      thresholded dv are sparse and heavy-tailed, not noise).
     - **Tracking time offset**: see :func:`time_offset_test`.
 """
 
@@ -85,7 +88,7 @@ def _spikes(x: np.ndarray) -> np.ndarray:
 
 
 def _unit_hint(value: float, lo: float, hi: float, candidates: tuple[tuple[str, float], ...]) -> str:
-    """The first `candidates` (text, factor) that bring ``value * factor`` into ``[lo, hi]``."""
+    """The `candidates` (text, factor) that bring ``value * factor`` into ``[lo, hi]``."""
     fits = [text for text, k in candidates if lo <= value * k <= hi]
     return f" Is it {' or '.join(fits)}?" if fits else ""
 
@@ -341,18 +344,20 @@ def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5) -> 
     hits = []
     for i in range(3):
         s_d, s_r = _robust_sigma(d[:, i]), _robust_sigma(r[:, i])
-        if s_d <= 0.0:
+        if max(s_d, s_r) <= 0.0:
             continue
-        z = np.abs(d[:, i]) / s_d
+        # in robust sigma of d, and at least as many of r (correlated noise has s_d << s_r)
+        z = np.abs(d[:, i]) / max(s_d, s_r)
         # a spike A at row k gives d = A at k and -A/2 at k +- 1: keep the local maxima only
         peak = (z > OUTLIER_Z) & (z >= np.roll(z, 1)) & (z >= np.roll(z, -1))
         for j in np.flatnonzero(peak):
             k = j + 1  # row of r (0-based)
-            hits.append((float(z[j]), k, i, float(d[j, i]), float(d[j, i] / s_r) if s_r > 0 else np.inf))
+            noise = s_d / np.sqrt(1.5)  # white-noise sigma from the spike statistic, blind to smooth misfit
+            hits.append((float(z[j]), k, i, float(d[j, i]), float(d[j, i] / noise) if noise > 0 else np.inf))
     if not hits:
         return
     hits.sort(reverse=True)
-    rows = "; ".join(f"row {k + 1} (t = {t[k]:.6g} s) dv_{'xyz'[i]} {size:+.3g} m/s = {zr:+.3g} residual sigma"
+    rows = "; ".join(f"row {k + 1} (t = {t[k]:.6g} s) dv_{'xyz'[i]} {size:+.3g} m/s = {zr:+.3g} noise sigma"
                      for _, k, i, size, zr in hits[:top])
     more = f" and {len(hits) - top} more" if len(hits) > top else ""
     _warn(f"{source}: {len(hits)} outlier(s) in dv: {rows}{more}. They bias every coefficient: remove or "

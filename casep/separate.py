@@ -133,7 +133,7 @@ def separate(
         res = solve_gls(S, dv, flight.t, tau=tau, **labels)
     else:
         res = solve_map(S, dv, prior, **labels)
-    check_fit(S, dv, res, t=flight.t, f=flight.f, source=flight.source)  # noise-free, outliers, time offset
+    check_fit(S, flight.dv, res, t=flight.t, f=flight.f, source=flight.source)  # noise-free, outliers, time offset
     if den is not None:
         settings = dict(res.settings)
         if sigma_from_wavelet:
