@@ -34,7 +34,7 @@ flight.
       :class:`~casep.exceptions.NoiseFreeWarning`, the std reflect rounding only.
     - **Outliers**: a spike of size A at row k leaves ``d_k = r_k - (r_{k-1} + r_{k+1})/2 = A``
       while smooth model errors leave ``d ~ r'' dt^2 / 2``; rows where ``|d_k|`` exceeds
-      10 robust (MAD) sigma of d and of r are named, with their size in noise sigma
+      10 robust (MAD) sigma of d and of r, and 1 cm/s, are named, with their size in noise sigma
       (``MAD(d) / sqrt(1.5)``: the sample-to-sample scatter, which the outlier's pull on the
       fit does not inflate). The check runs on the raw dv (after de-noising, the residuals of the
       thresholded dv are sparse and heavy-tailed, not noise).
@@ -68,8 +68,10 @@ DV_NOISE_HIGH = 5.0  # m/s: tracking noise is 0.01-1 m/s
 NOISE_FREE = 1e-9  # residual RMS / max |dv| at or below this: rounding only
 OUTLIER_Z = 10.0  # robust sigma of the spike statistic; Gaussian P(|z| > 10) ~ 1.5e-23
 OFFSET_T = 5.0  # |t| of the offset / jerk terms; Gaussian P(|t| > 5) ~ 6e-7
-OFFSET_MIN = 1e-4  # s: a smaller offset moves dv by < 1 cm/s at 100 m/s^2, never worth a warning
-JERK_MIN = 1e-6  # s^2: the jerk term of a centred smoother of ~5 ms; smaller is irrelevant
+EFFECT_MIN = 1e-3  # m/s: RMS of a term's part outside span S_V below which it cannot matter against
+#                   any tracking noise (keeps noise-free data, where every effect is "significant", quiet)
+NOISE_FLOOR = 1e-3  # m/s: an outlier must exceed OUTLIER_Z times at least this (interpolation ripple
+#                    of noise-free two-rate data at staging is ~1e-4 m/s)
 MAD_SIGMA = 1.482602218505602  # sigma = MAD / Phi^-1(3/4) for Gaussian data
 
 
@@ -204,6 +206,8 @@ class TimeOffsetTest:
         Coefficient of ``a(t)`` (s; a tracking time offset dt_trk), its std and t-statistic.
     jerk, jerk_std, jerk_t : float
         Coefficient of ``da/dt`` (s^2), its std and t-statistic (NaN when not testable).
+    offset_rms, jerk_rms : float
+        RMS over the 3N rows of each term's part outside span S_V, m/s: its practical size.
     inflation : float
         Variance factor ``(1 + rho) / (1 - rho)`` for the residuals' lag-1 correlation.
     """
@@ -215,6 +219,8 @@ class TimeOffsetTest:
     jerk_std: float
     jerk_t: float
     inflation: float
+    offset_rms: float = 0.0
+    jerk_rms: float = 0.0
 
 
 def kinematic_acceleration(t: np.ndarray, f: np.ndarray) -> np.ndarray:
@@ -259,7 +265,9 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
     S = np.asarray(S, dtype=float)
     N = S.shape[0]
     S2 = S.reshape(3 * N, -1)
-    S2 = S2[:, np.any(S2 != 0.0, axis=0)]  # zero columns would leave arbitrary Householder vectors
+    nonzero = np.any(S2 != 0.0, axis=0)
+    if not np.all(nonzero):
+        S2 = S2[:, nonzero]  # zero columns would leave arbitrary Householder vectors
     a = kinematic_acceleration(t, f)
     jerk = np.gradient(a, np.asarray(t, dtype=float), axis=0) if N >= 2 else np.zeros_like(a)
     X = np.column_stack([a.reshape(-1), jerk.reshape(-1)])
@@ -277,7 +285,7 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
     if np.min(np.abs(np.diag(R22))) < 1e-6:  # ||x_perp|| / ||x|| (unit-norm columns): no separation
         return None
     coef_all = np.linalg.lstsq(red.R, red.qty, rcond=None)[0]  # augmented fit, scaled coordinates
-    e = (y - (A / np.where(red.scale > 0, red.scale, 1.0)) @ coef_all).reshape(N, 3)
+    e = (y - A @ (coef_all / np.where(red.scale > 0, red.scale, 1.0))).reshape(N, 3)  # augmented residuals
     rho = np.array([np.dot(e[1:, i], e[:-1, i]) / max(np.dot(e[:, i], e[:, i]), 1e-300) for i in range(3)])
     rho = np.clip(rho, 0.0, 0.999)
     kappa = float(np.max((1.0 + rho) / (1.0 - rho)))  # AR(1) long-run variance factor
@@ -285,9 +293,11 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
     beta = np.linalg.solve(R22, q2) / red.scale[-k:]  # natural units
     Rinv = np.linalg.inv(R22)
     std = np.sqrt(s2 * kappa * np.sum(Rinv**2, axis=1)) / red.scale[-k:]  # diag (R22^T R22)^-1
+    effect = np.abs(beta) * red.scale[-k:] / np.sqrt(np.sum(Rinv**2, axis=1) * 3 * N)  # |b| ||x_perp|| / sqrt(m)
     out = [beta[0], std[0], beta[0] / std[0]]
     out += [beta[1], std[1], beta[1] / std[1]] if k == 2 else [np.nan] * 3
-    return TimeOffsetTest(*(float(v) for v in out), inflation=kappa)
+    return TimeOffsetTest(*(float(v) for v in out), inflation=kappa, offset_rms=float(effect[0]),
+                          jerk_rms=float(effect[1]) if k == 2 else 0.0)
 
 
 def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.ndarray,
@@ -326,11 +336,13 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
     test = time_offset_test(S, r, t, f)
     if test is None:
         return
-    if abs(test.offset_t) > OFFSET_T and abs(test.offset) > OFFSET_MIN:
+    offset = abs(test.offset_t) > OFFSET_T and test.offset_rms > EFFECT_MIN
+    if offset:
         _warn(f"{source}: residuals track the kinematic acceleration a = f + g: a tracking time offset of "
               f"{1e3 * test.offset:.3g} +- {1e3 * test.offset_std:.2g} ms would explain them "
               f"(t = {test.offset_t:.3g}); model it (dt_trk) or align the time tags.", TimeOffsetWarning)
-    if abs(test.jerk_t) > OFFSET_T and abs(test.jerk) > JERK_MIN:
+    # An offset dt also gives the jerk term -dt^2/2 (second order of v(t - dt)): one warning then.
+    if not offset and abs(test.jerk_t) > OFFSET_T and test.jerk_rms > EFFECT_MIN:
         _warn(f"{source}: residuals track the jerk da/dt: coefficient {test.jerk:.3g} +- {test.jerk_std:.2g} s^2 "
               f"(t = {test.jerk_t:.3g}); tracking smoothing or interpolation that distorts the velocity?",
               TimeOffsetWarning)
@@ -344,10 +356,8 @@ def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5) -> 
     hits = []
     for i in range(3):
         s_d, s_r = _robust_sigma(d[:, i]), _robust_sigma(r[:, i])
-        if max(s_d, s_r) <= 0.0:
-            continue
         # in robust sigma of d, and at least as many of r (correlated noise has s_d << s_r)
-        z = np.abs(d[:, i]) / max(s_d, s_r)
+        z = np.abs(d[:, i]) / max(s_d, s_r, NOISE_FLOOR)
         # a spike A at row k gives d = A at k and -A/2 at k +- 1: keep the local maxima only
         peak = (z > OUTLIER_Z) & (z >= np.roll(z, 1)) & (z >= np.roll(z, -1))
         for j in np.flatnonzero(peak):
