@@ -248,6 +248,10 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
     read as a signal. By Frisch-Waugh-Lovell the test does not depend on the estimate
     that produced `r` (any D_hat leaves the same projection off span S).
 
+    Cost: one QR of the 3N x (n + 2) matrix, about one OLS solve (0.04 s against 0.03 s on
+    the paper flight at 100 Hz, 19 501 samples), small beside building S_V and reading the
+    file, and negligible beside GLS, RLS or the bounded QP.
+
     Parameters
     ----------
     S : (N, 3, n) array_like
