@@ -31,6 +31,7 @@ from .model_loader import available_models, load_model
 from .montecarlo import METHOD_HELP
 from .result import write_json_atomic
 from .diagnostics import diagnose
+from .checks import check_flight
 from .flight import check_enough_samples
 from .flight_io import read_flight, read_flight_pair
 from .sv import build_sv
@@ -244,6 +245,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         raise ValueError(f"--figures {args.figures}: not a directory")
     flight = _read(args)
     check_enough_samples(flight, model.n_coefficients, model.name)
+    check_flight(flight)  # unit mistakes, impossible data (casep.checks)
     S = build_sv(model, flight.t, flight.f)
     diag = diagnose(S, flight.dv, names=model.names, units=model.units, sigma=args.sigma,
                     t=flight.t if args.tau else None, tau=args.tau, prior_std=prior_std, scales=scales)

@@ -9,6 +9,7 @@ from typing import Mapping
 import numpy as np
 
 from .bounded import solve_bounded
+from .checks import check_fit, check_flight
 from .denoise import denoise as wavelet_denoise
 from .flight import FlightData, check_enough_samples
 from .flight_io import read_flight
@@ -100,6 +101,7 @@ def separate(
         flight = read_flight(flight)
     model = load_model(model)
     check_enough_samples(flight, model.n_coefficients, model.name)
+    check_flight(flight)  # unit mistakes, impossible data (casep.checks)
     S = build_sv(model, flight.t, flight.f)
     dv = flight.dv
     den, sigma_from_wavelet = None, False
@@ -131,6 +133,7 @@ def separate(
         res = solve_gls(S, dv, flight.t, tau=tau, **labels)
     else:
         res = solve_map(S, dv, prior, **labels)
+    check_fit(S, flight.dv, res, t=flight.t, f=flight.f, source=flight.source)  # noise-free, outliers, time offset
     if den is not None:
         settings = dict(res.settings)
         if sigma_from_wavelet:
