@@ -85,10 +85,15 @@ def test_own_descriptor_is_written_through_not_replaced(tmp_path):
                 os.close(fd)
 
 
+@pytest.mark.skipif(os.geteuid() != 0, reason="making a device node needs root")
 def test_character_device_stays(tmp_path):
-    with atomic_open("/dev/null") as fh:
+    # A private null device (never the system's /dev/null: a faulty writer would replace it).
+    dev = tmp_path / "null"
+    os.mknod(dev, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+    with atomic_open(dev) as fh:
         fh.write("discarded\n")
-    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
+    assert stat.S_ISCHR(os.lstat(dev).st_mode)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["null"]
 
 
 def test_existing_mode_is_kept(tmp_path):
