@@ -29,7 +29,8 @@ from .exceptions import CasepWarning, IllConditionedWarning
 from .map_estimator import parse_prior
 from .model_loader import available_models, load_model
 from .montecarlo import METHOD_HELP
-from .result import write_json_atomic
+from ._io import check_outputs
+from .result import write_csv, write_json_atomic, write_mat
 from .diagnostics import diagnose
 from .checks import check_flight
 from .flight import check_enough_samples
@@ -162,6 +163,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="boundary extension (default symmetric)")
     s.add_argument("--noise-scaling", choices=SCALINGS, default=None, help="noise scaling (default sln)")
     s.add_argument("--json", metavar="OUT", default=None, help="write the result JSON here")
+    s.add_argument("--mat", metavar="OUT", default=None,
+                   help="write the result as a MATLAB/Octave .mat file (names, estimates, std, covariance, ...)")
+    s.add_argument("--csv", metavar="OUT", default=None,
+                   help="write one row per coefficient here (name, unit, estimate, std, reason)")
     s.add_argument("--tracking", metavar="FILE", default=None,
                    help="tracking file (t, v_trk_*) at its own rate; FLIGHT is then the telemetry file "
                         "(t, f_* or W_*, v_tel_*)")
@@ -202,7 +207,16 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _inputs(args: argparse.Namespace, *names: str) -> list:
+    """The input files a command reads (an output must be none of them)."""
+    files = [getattr(args, n, None) for n in names]
+    model = getattr(args, "model", None)
+    return files + ([model] if model and Path(model).is_file() else [])
+
+
 def _cmd_separate(args: argparse.Namespace) -> int:
+    check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv},
+                  inputs=_inputs(args, "flight", "tracking", "bounds", "prior"))
     model = load_model(args.model)
     bounds = None
     if args.bounds:
@@ -223,13 +237,27 @@ def _cmd_separate(args: argparse.Namespace) -> int:
                    wavelet_options=wopts or None, tau=args.tau)
     if args.json:
         write_json_atomic(res.to_dict(), args.json)
+    _write_exports(res, args)
     print(res.table())
     if args.json:
         print(f"result written to {args.json}")
+    for label, path in (("MAT file", args.mat), ("CSV", args.csv)):
+        if path:
+            print(f"{label} written to {path}")
     return 0
 
 
+def _write_exports(res, args: argparse.Namespace) -> None:
+    """`--mat` and `--csv` of `separate`."""
+    if args.mat:
+        write_mat(res, args.mat)
+    if args.csv:
+        write_csv(res, args.csv)
+
+
 def _cmd_diagnose(args: argparse.Namespace) -> int:
+    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "prior", "scales"),
+                  folders={"--figures": args.figures})
     model = load_model(args.model)
     prior = _prior(args, model.names)
     prior_std = None if prior is None else parse_prior(prior, model.names)[1]
@@ -241,8 +269,6 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
                 raise ValueError(unknown_coefficient_message(k, model.names, f"--scales {args.scales}"))
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not (v > 0 and math.isfinite(v)):
                 raise ValueError(f"--scales {args.scales}: `{k}` must be a finite number > 0, got {v!r}")
-    if args.figures and not Path(args.figures).is_dir():
-        raise ValueError(f"--figures {args.figures}: not a directory")
     flight = _read(args)
     check_enough_samples(flight, model.n_coefficients, model.name)
     check_flight(flight)  # unit mistakes, impossible data (casep.checks)
@@ -257,6 +283,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if args.figures:
         from .plots import plot_singular_values, plot_variance_decomposition
 
+        Path(args.figures).mkdir(parents=True, exist_ok=True)  # like demo --out
         a = plot_singular_values(diag, Path(args.figures) / "singular_values.png")
         b = plot_variance_decomposition(diag, Path(args.figures) / "variance_decomposition.png")
         print(f"figures: {a}, {b}")
@@ -288,6 +315,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def _cmd_montecarlo(args: argparse.Namespace) -> int:
     from .montecarlo import run_montecarlo, write_figure
 
+    check_outputs({"--json": args.json, "--csv": args.csv, "--figure": args.figure})
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     if args.runs < 1:
         raise ValueError(f"--runs must be >= 1, got {args.runs}")
@@ -310,6 +338,9 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    from .simulate import truth_path
+
+    check_outputs({"-o": args.output, "-o (truth sidecar)": truth_path(args.output)})
     if args.seed < 0:
         raise ValueError(f"`--seed` must be >= 0, got {args.seed}")
     sim = simulate_flight(args.scenario, seed=args.seed, rate=args.rate)
