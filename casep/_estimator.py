@@ -123,6 +123,7 @@ def finish(
     diagnostics: dict[str, Any] | None = None,
     history: np.ndarray | None = None,
     residuals: np.ndarray | None = None,
+    history_std: np.ndarray | None = None,
 ) -> EstimateResult:
     """Build the :class:`EstimateResult` of an estimator.
 
@@ -135,6 +136,15 @@ def finish(
         columns, which the method leaves undetermined).
     reasons : dict, optional
         Extra ``name -> reason`` entries (merged over the rank-analysis reasons).
+
+    Notes
+    -----
+    Whatever the method, a result is marked failed (``success`` False) when it cannot be
+    trusted on its face (:func:`_failure`): status -2 when an estimate, a std or a residual
+    is not finite; status -3 when its residual RMS exceeds both ``MISFIT_FACTOR`` times the
+    least-squares residual std of the same data (the smallest misfit the model allows) and
+    the RMS of ``y`` itself (the estimate explains the data worse than ``D = 0``), as an
+    RLS/RELS run that wound up does.
     """
     n = pb.n
     und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
@@ -159,6 +169,9 @@ def finish(
                                   "(zero or exactly dependent columns); the other estimated")
         else:
             status, message = -1, message or "no coefficient is identifiable on this data"
+    failure = _failure(pb, method, est, std, res)
+    if failure is not None:
+        status, message = failure
     diag = {**condition_numbers(pb.red, pb.ra), "sigma": float(sigma), "rank": pb.ra.rank,
             "unidentifiable": [pb.names[j] for j in np.flatnonzero(und)]}
     diag.update(_collinearity_summary(pb, float(sigma)))
@@ -172,8 +185,32 @@ def finish(
         method=method, names=pb.names, units=pb.units, estimate=est, std=std, covariance=cov,
         reasons=all_reasons, residuals=res.reshape(pb.shape), sigma=float(sigma), rank=pb.ra.rank,
         status=status, message=message or "", success=status > 0, si_factors=pb.si_factors,
-        settings=settings, diagnostics=diag, n_samples=N, history=history,
+        settings=settings, diagnostics=diag, n_samples=N, history=history, history_std=history_std,
     )
+
+
+#: A residual RMS above this many least-squares residual std (and above RMS(y)) fails a result.
+MISFIT_FACTOR = 10.0
+
+
+def _failure(pb: Problem, method: str, est: np.ndarray, std: np.ndarray | None,
+             res: np.ndarray) -> tuple[int, str] | None:
+    """``(status, message)`` of a result that cannot be trusted, or None (see :func:`finish`)."""
+    bad = [pb.names[j] for j in np.flatnonzero(~np.isfinite(est) & pb.ra.estimable)]
+    if std is not None:
+        bad += [pb.names[j] for j in np.flatnonzero(np.isfinite(est) & ~np.isfinite(std))]
+    if bad or not np.all(np.isfinite(res)):
+        what = f"non-finite estimate or std for {', '.join(dict.fromkeys(bad))}" if bad else "non-finite residuals"
+        return -2, f"failed: {method} produced {what}; the result is not usable"
+    rms = float(np.sqrt(np.mean(res**2)))
+    rms_y = float(np.sqrt(np.mean(pb.y**2)))
+    ls = pb.ols_sigma()  # sqrt(min_D |y - S D|^2 / (m - rank)): the misfit the model allows
+    if rms > MISFIT_FACTOR * ls and rms > rms_y:
+        hint = " (forgetting too strong for this flight?)" if method in ("rls", "rels") else ""
+        return -3, (f"failed: {method} residual RMS {rms:.3g} m/s is {rms / ls:.3g} x the least-squares residual "
+                    f"std {ls:.3g} m/s and above the RMS of dv {rms_y:.3g} m/s: the estimate does not fit the "
+                    f"data{hint}")
+    return None
 
 
 def _collinearity_summary(pb: Problem, sigma: float) -> dict[str, Any]:

@@ -57,7 +57,7 @@ def sv_integrate_chunk(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_pr
 
 
 @numba.njit(cache=True, nogil=True)
-def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history):  # pragma: no cover
+def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, history_var):  # pragma: no cover
     """Recursive (extended) least squares with Bierman's UD scalar updates, in place.
 
     H (N, 3, p): scaled regressors; y (N, 3); x (p + n_c): estimate; U (p + n_c, p + n_c)
@@ -65,8 +65,9 @@ def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history):
     D (p + n_c): P = U diag(D) U^T. Per sample: P <- P / forgetting, then one scalar update
     per axis with measurement variance 1 / weight. The last n_c entries of x are the
     noise-model coefficients; their regressors are each axis' last n_c residuals
-    (a-posteriori when `posterior`, else a-priori). Every `stride` samples x is copied to
-    history[k // stride]. Returns the residuals (N, 3): a-priori innovations
+    (a-posteriori when `posterior`, else a-priori). With forgetting, each D_j is capped at
+    its initial value (see :mod:`casep.rls`). Every `stride` samples x is copied to
+    history[k // stride] and diag(P) to history_var[k // stride]. Returns the residuals (N, 3): a-priori innovations
     y - h x_{k-1} (the sequence the recursion whitens).
     """
     N = H.shape[0]
@@ -79,10 +80,11 @@ def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history):
     innov = np.zeros((N, 3))
     r = 1.0 / weight
     inv_lam = 1.0 / forgetting
+    D0 = D.copy()
     for k in range(N):
         if forgetting != 1.0:
             for j in range(n):
-                D[j] *= inv_lam  # P <- P / lambda
+                D[j] = min(D[j] * inv_lam, D0[j])  # P <- P / lambda, D_j capped at its prior value
         for axis in range(3):
             for j in range(p):
                 h[j] = H[k, axis, j]
@@ -128,6 +130,13 @@ def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history):
                     past[axis, j] = past[axis, j - 1]
                 past[axis, 0] = e
         if stride > 0 and k % stride == 0:
+            row = k // stride
             for j in range(n):
-                history[k // stride, j] = x[j]
+                history[row, j] = x[j]
+            # diag(P)_i = sum_{j >= i} U_ij^2 D_j  (U unit upper triangular, stored transposed)
+            for i in range(n):
+                s = D[i]
+                for j in range(i + 1, n):
+                    s += U[j, i] * U[j, i] * D[j]
+                history_var[row, i] = s
     return innov

@@ -32,6 +32,24 @@ norms, so ``P_0`` becomes ``p0 diag(c^2)``) in Bierman's U-D factorised form
 ``P = U diag(d) U^T``, which keeps P symmetric positive definite even at p0 = 1e6 on this
 ill-conditioned problem; compiled with numba (:func:`casep._kernels.rels_ud`).
 
+Wind-up safeguard (``lambda < 1``): dividing P by ``lambda`` at every sample makes P grow
+as ``lambda^-k`` in every direction the data do not excite, and on this ill-conditioned
+problem the estimate then winds up (1e16 at ``lambda = 0.9``). The forgetting step is
+therefore bounded on the U-D factors::
+
+    D_j <- min(D_j / lambda, D_0,j),      D_0 = p0 diag(c^2)  (the prior, scaled coordinates)
+
+``D_j`` is the conditional variance of ``theta_j`` given ``theta_{j+1..n}`` (the Schur
+complements of P), so no conditional variance, and ``det P``, ever exceeds its prior value,
+and a direction that is never excited stays at ``P_0`` instead of growing without bound: the
+covariance upper bounding that is the classical remedy for estimator wind-up with
+exponential forgetting (Astrom & Wittenmark, *Adaptive Control*, estimator windup and its
+remedies; bounded-covariance / constant-trace forgetting). With ``lambda = 1`` it never acts
+(the measurement updates only decrease D). It is a bound, not a cure: with a memory of
+``1 / (1 - lambda)`` samples shorter than the problem needs the estimate is still poor, and
+:func:`casep._estimator.finish` then marks the result failed (residual RMS far above the
+least-squares one) rather than reporting it as a success.
+
 Standard deviations: ``sqrt(diag(sigma^2 w P_N))``, the posterior std of the Gaussian model
 with noise variance ``sigma^2`` and prior covariance ``sigma^2 w P_0`` (how RLS reads P_0);
 ``sigma`` is estimated from the final residuals (the whitened innovations for RELS) unless
@@ -98,7 +116,9 @@ def solve_rls(
     -------
     EstimateResult
         ``method`` "rls" or "rels"; ``history`` (natural-unit estimates after samples
-        0, stride, 2 stride, ...; the MA coefficients last);
+        0, stride, 2 stride, ...; the MA coefficients last) and ``history_std`` (their std
+        ``sqrt(diag(sigma^2 w P_k))`` with the final sigma; diag(P_k) from the U-D factors as
+        ``sum_j U_ij^2 D_j``, computed at the history rows only);
         ``diagnostics["noise_model"]`` the MA coefficients and their std for RELS.
     """
     S_arr = np.asarray(S, dtype=float)
@@ -128,7 +148,9 @@ def solve_rls(
     U = np.zeros((p + nc, p + nc))  # unit upper triangular, stored transposed
     D = np.concatenate([p0 * cl**2, np.full(nc, p0)])  # P_0 = p0 diag(c^2) in scaled coords
     hist = np.zeros((-(-N // history_stride), p + nc))  # rows for samples 0, stride, 2 stride, ... < N
-    innov = rels_ud(H, Y, x, U, D, weight, forgetting, nc, residuals == "posterior", history_stride, hist)
+    hist_var = np.zeros_like(hist)  # diag(P) at the same rows, scaled coordinates
+    innov = rels_ud(H, Y, x, U, D, weight, forgetting, nc, residuals == "posterior", history_stride, hist,
+                    hist_var)
     Ut = U.T + np.eye(p + nc)  # U = Ut.T with unit diagonal: P = U diag(D) U^T
     L = Ut * np.sqrt(D)
     P = L @ L.T
@@ -154,6 +176,7 @@ def solve_rls(
     history = np.zeros((hist.shape[0], n + nc))
     history[:, np.flatnonzero(live)] = hist_nat[:, :p]
     history[:, n:] = hist_nat[:, p:]
+    history_std = _history_std(hist_var, sig**2 * weight, live, cl, n)
     diagnostics = {"effective_prior_std": float(sig * np.sqrt(weight * p0))}
     if nc:
         diagnostics["noise_model"] = {
@@ -166,5 +189,15 @@ def solve_rls(
         settings={"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": nc,
                   "residuals": residuals, "history_stride": history_stride,
                   "sigma": "estimated" if pb.sigma is None else pb.sigma},
-        diagnostics=diagnostics, history=history, residuals=fit,
+        diagnostics=diagnostics, history=history, residuals=fit, history_std=history_std,
     )
+
+
+def _history_std(hist_var: np.ndarray, scale2: float, live: np.ndarray, cl: np.ndarray, n: int) -> np.ndarray:
+    """Natural-unit std at the history rows: sqrt(sigma^2 w diag(P_k)) / c (NaN for zero columns)."""
+    p = int(live.sum())
+    std_s = np.sqrt(scale2 * np.clip(hist_var, 0.0, None))  # sqrt(diag(sigma^2 w P_k)), scaled coordinates
+    out = np.full((hist_var.shape[0], n + hist_var.shape[1] - p), np.nan)
+    out[:, np.flatnonzero(live)] = std_s[:, :p] / cl  # theta = theta_scaled / c
+    out[:, n:] = std_s[:, p:]  # MA coefficients are unscaled
+    return out
