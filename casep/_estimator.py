@@ -141,10 +141,12 @@ def finish(
     -----
     Whatever the method, a result is marked failed (``success`` False) when it cannot be
     trusted on its face (:func:`_failure`): status -2 when an estimate, a std or a residual
-    is not finite; status -3 when its residual RMS exceeds both ``MISFIT_FACTOR`` times the
-    least-squares residual std of the same data (the smallest misfit the model allows) and
-    the RMS of ``y`` itself (the estimate explains the data worse than ``D = 0``), as an
-    RLS/RELS run that wound up does.
+    is not finite; status -3 when its residual RMS exceeds ``MISFIT_FACTOR`` (3) times the
+    least-squares residual std of the same data (the smallest misfit the model allows: the
+    residual power is then 9 times the least one, far outside what noise explains with
+    constant coefficients), as an RLS/RELS run with too strong forgetting or bounds or a prior
+    the data contradict give, unless it is below ``MISFIT_FLOOR`` (1e-3) times the RMS of
+    ``y`` (a fit to 0.1 % of noise-free data is not a failure).
     """
     n = pb.n
     und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
@@ -189,8 +191,10 @@ def finish(
     )
 
 
-#: A residual RMS above this many least-squares residual std (and above RMS(y)) fails a result.
-MISFIT_FACTOR = 10.0
+#: A residual RMS above this many least-squares residual std fails a result ...
+MISFIT_FACTOR = 3.0
+#: ... unless it is below this fraction of the RMS of the data.
+MISFIT_FLOOR = 1e-3
 
 
 def _failure(pb: Problem, method: str, est: np.ndarray, std: np.ndarray | None,
@@ -205,11 +209,11 @@ def _failure(pb: Problem, method: str, est: np.ndarray, std: np.ndarray | None,
     rms = float(np.sqrt(np.mean(res**2)))
     rms_y = float(np.sqrt(np.mean(pb.y**2)))
     ls = pb.ols_sigma()  # sqrt(min_D |y - S D|^2 / (m - rank)): the misfit the model allows
-    if rms > MISFIT_FACTOR * ls and rms > rms_y:
-        hint = " (forgetting too strong for this flight?)" if method in ("rls", "rels") else ""
+    if rms > MISFIT_FACTOR * ls and rms > MISFIT_FLOOR * rms_y:
+        hint = {"rls": " (forgetting too strong for this flight?)", "rels": " (forgetting too strong for this flight?)",
+                "bounded": " (bounds the data contradict?)", "map": " (a prior the data contradict?)"}.get(method, "")
         return -3, (f"failed: {method} residual RMS {rms:.3g} m/s is {rms / ls:.3g} x the least-squares residual "
-                    f"std {ls:.3g} m/s and above the RMS of dv {rms_y:.3g} m/s: the estimate does not fit the "
-                    f"data{hint}")
+                    f"std {ls:.3g} m/s: the estimate does not fit the data{hint}")
     return None
 
 

@@ -5,7 +5,8 @@ Notes
 Samples are processed in time order; at each sample the three axes are sequential scalar
 measurements ``z = h theta + e`` with variance ``1 / w`` (the paper's weight)::
 
-    P     <- P / lambda                                   (forgetting, once per sample)
+    P     <- P / lambda                                   (forgetting, once per sample;
+                                                           stabilized: see the wind-up safeguard)
     K     =  P h^T (1 / w + h P h^T)^-1
     theta <- theta + K (z - h theta)
     P     <- P - K h P
@@ -32,23 +33,31 @@ norms, so ``P_0`` becomes ``p0 diag(c^2)``) in Bierman's U-D factorised form
 ``P = U diag(d) U^T``, which keeps P symmetric positive definite even at p0 = 1e6 on this
 ill-conditioned problem; compiled with numba (:func:`casep._kernels.rels_ud`).
 
-Wind-up safeguard (``lambda < 1``): dividing P by ``lambda`` at every sample makes P grow
-as ``lambda^-k`` in every direction the data do not excite, and on this ill-conditioned
-problem the estimate then winds up (1e16 at ``lambda = 0.9``). The forgetting step is
-therefore bounded on the U-D factors::
+Wind-up safeguard (``lambda < 1``): plain exponential forgetting, ``P <- P / lambda``, makes
+P grow as ``lambda^-k`` in every direction the data do not excite, and on this
+ill-conditioned problem the estimate winds up (1e16 at ``lambda = 0.9`` on the 20 Hz paper
+flight). casep therefore uses *stabilized forgetting* (Kulhavy & Zarrop, "On a general
+concept of forgetting", Int. J. Control 58(4), 1993; Kulhavy, "Restricted exponential
+forgetting in real-time identification", Automatica 23(5), 1987): what is forgotten is
+replaced by the prior, not by nothing::
 
-    D_j <- min(D_j / lambda, D_0,j),      D_0 = p0 diag(c^2)  (the prior, scaled coordinates)
+    P^-1 <- lambda P^-1 + (1 - lambda) P_0^-1          (once per sample, before the data)
+    theta: the same blend of the information vectors, prior mean 0
 
-``D_j`` is the conditional variance of ``theta_j`` given ``theta_{j+1..n}`` (the Schur
-complements of P), so no conditional variance, and ``det P``, ever exceeds its prior value,
-and a direction that is never excited stays at ``P_0`` instead of growing without bound: the
-covariance upper bounding that is the classical remedy for estimator wind-up with
-exponential forgetting (Astrom & Wittenmark, *Adaptive Control*, estimator windup and its
-remedies; bounded-covariance / constant-trace forgetting). With ``lambda = 1`` it never acts
-(the measurement updates only decrease D). It is a bound, not a cure: with a memory of
-``1 / (1 - lambda)`` samples shorter than the problem needs the estimate is still poor, and
-:func:`casep._estimator.finish` then marks the result failed (residual RMS far above the
-least-squares one) rather than reporting it as a success.
+implemented as the division of D by ``lambda`` followed by one U-D pseudo-measurement
+``0 = theta_j + v_j``, ``Var v_j = P_0,jj / (1 - lambda)``, per coefficient (about 4x the
+work of a sample's data). Unrolled, it is the exact minimiser of the regularised
+exponentially weighted least squares::
+
+    theta_N = argmin  w sum_k lambda^(N-1-k) |y_k - S_k theta|^2 + theta^T P_0^-1 theta
+    P_N     = (P_0^-1 + w sum_k lambda^(N-1-k) S_k^T S_k)^-1   <=  P_0
+
+so P never exceeds the prior (a direction the data do not excite returns to ``P_0``
+instead of growing without bound) and the estimate stays bounded. ``lambda = 1`` is
+untouched. A bound is not a cure: with a memory of ``1 / (1 - lambda)`` samples far
+shorter than this problem needs, the estimate is mostly the prior and
+:func:`casep._estimator.finish` marks the result failed when its residual RMS is several
+times the least-squares one.
 
 Standard deviations: ``sqrt(diag(sigma^2 w P_N))``, the posterior std of the Gaussian model
 with noise variance ``sigma^2`` and prior covariance ``sigma^2 w P_0`` (how RLS reads P_0);
@@ -102,7 +111,8 @@ def solve_rls(
     weight : float, optional
         The paper's ``w``: measurement variance ``1 / w`` (default 1).
     forgetting : float, optional
-        Forgetting factor ``lambda`` in (0, 1] (default 1: none).
+        Forgetting factor ``lambda`` in (0, 1] (default 1: none); stabilized towards the
+        prior so that P never exceeds P_0 (see Notes of the module).
     noise_order : int, optional
         RELS noise-model order ``n_c >= 0`` (0: plain RLS).
     residuals : {"posterior", "prior"}, optional
