@@ -140,13 +140,14 @@ def finish(
     Notes
     -----
     Whatever the method, a result is marked failed (``success`` False) when it cannot be
-    trusted on its face (:func:`_failure`): status -2 when an estimate, a std or a residual
-    is not finite; status -3 when its residual RMS exceeds ``MISFIT_FACTOR`` (3) times the
+    trusted on its face (:func:`_failure`): status -2 when an estimate or a residual is not
+    finite or a std infinite; status -3 when its residual RMS exceeds ``MISFIT_FACTOR`` (3) times the
     least-squares residual std of the same data (the smallest misfit the model allows: the
     residual power is then 9 times the least one, far outside what noise explains with
     constant coefficients), as an RLS/RELS run with too strong forgetting or bounds or a prior
-    the data contradict give, unless it is below ``MISFIT_FLOOR`` (1e-3) times the RMS of
-    ``y`` (a fit to 0.1 % of noise-free data is not a failure).
+    the data contradict give, unless it is below ``MISFIT_FLOOR`` (2 %) of the RMS of ``y``:
+    on (nearly) noise-free data the least-squares std is ~0 and a deliberately biased
+    estimator (ridge, MAP, bounded) fitting dv to 1 % is not a failure.
     """
     n = pb.n
     und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
@@ -171,7 +172,7 @@ def finish(
                                   "(zero or exactly dependent columns); the other estimated")
         else:
             status, message = -1, message or "no coefficient is identifiable on this data"
-    failure = _failure(pb, method, est, std, res)
+    failure = _failure(pb, method, np.where(und, 0.0, x), std, res)
     if failure is not None:
         status, message = failure
     diag = {**condition_numbers(pb.red, pb.ra), "sigma": float(sigma), "rank": pb.ra.rank,
@@ -194,15 +195,19 @@ def finish(
 #: A residual RMS above this many least-squares residual std fails a result ...
 MISFIT_FACTOR = 3.0
 #: ... unless it is below this fraction of the RMS of the data.
-MISFIT_FLOOR = 1e-3
+MISFIT_FLOOR = 0.02
 
 
-def _failure(pb: Problem, method: str, est: np.ndarray, std: np.ndarray | None,
+def _failure(pb: Problem, method: str, x: np.ndarray, std: np.ndarray | None,
              res: np.ndarray) -> tuple[int, str] | None:
-    """``(status, message)`` of a result that cannot be trusted, or None (see :func:`finish`)."""
-    bad = [pb.names[j] for j in np.flatnonzero(~np.isfinite(est) & pb.ra.estimable)]
+    """``(status, message)`` of a result that cannot be trusted, or None (see :func:`finish`).
+
+    `x`: the estimate, 0 where reported undetermined. A NaN std is a std the method does
+    not define (a coefficient at a bound); an infinite one is a failure.
+    """
+    bad = [pb.names[j] for j in np.flatnonzero(~np.isfinite(x))]
     if std is not None:
-        bad += [pb.names[j] for j in np.flatnonzero(np.isfinite(est) & ~np.isfinite(std))]
+        bad += [pb.names[j] for j in np.flatnonzero(np.isinf(std))]
     if bad or not np.all(np.isfinite(res)):
         what = f"non-finite estimate or std for {', '.join(dict.fromkeys(bad))}" if bad else "non-finite residuals"
         return -2, f"failed: {method} produced {what}; the result is not usable"

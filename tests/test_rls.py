@@ -179,8 +179,12 @@ def test_finish_marks_non_finite_and_misfit_results_failed(rng):
     assert good.success and good.status == 1
     nonfinite = finish(pb, "test", np.array([1.0, np.inf, 0.5]), np.eye(n), 0.1, **kw)
     assert not nonfinite.success and nonfinite.status == -2 and "c1" in nonfinite.message
-    nan_std = finish(pb, "test", np.array([1.0, -1.0, 0.5]), np.diag([1.0, np.nan, 1.0]), 0.1, **kw)
-    assert not nan_std.success and nan_std.status == -2
+    inf_std = finish(pb, "test", np.array([1.0, -1.0, 0.5]), np.diag([1.0, np.inf, 1.0]), 0.1, **kw)
+    assert not inf_std.success and inf_std.status == -2
+    # NaN std = not defined by the method (bounded: a coefficient at its bound): not a failure
+    assert finish(pb, "test", np.array([1.0, -1.0, 0.5]), np.diag([1.0, np.nan, 1.0]), 0.1, **kw).success
+    nan_res = finish(pb, "test", np.array([1.0, -1.0, 0.5]), None, 0.1, residuals=np.full(3 * N, np.nan), **kw)
+    assert nan_res.status == -2 and "non-finite residuals" in nan_res.message
     huge = finish(pb, "test", np.array([1e3, -1.0, 0.5]), np.eye(n), 0.1, **kw)
     assert not huge.success and huge.status == -3 and "does not fit the data" in huge.message
     # The threshold: residual RMS 3 x the least-squares residual std (a bias b in c0 adds b^2 to
