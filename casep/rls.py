@@ -45,8 +45,8 @@ replaced by the prior, not by nothing::
     theta: the same blend of the information vectors, prior mean 0
 
 implemented as the division of D by ``lambda`` followed by one U-D pseudo-measurement
-``0 = theta_j + v_j``, ``Var v_j = P_0,jj / (1 - lambda)``, per coefficient (about 4x the
-work of a sample's data). Unrolled, it is the exact minimiser of the regularised
+``0 = theta_j + v_j``, ``Var v_j = P_0,jj / (1 - lambda)``, per coefficient (measured: 0.07 s -> 0.7 s for the
+19,501-sample 100 Hz paper flight). Unrolled, it is the exact minimiser of the regularised
 exponentially weighted least squares::
 
     theta_N = argmin  w sum_k lambda^(N-1-k) |y_k - S_k theta|^2 + theta^T P_0^-1 theta
