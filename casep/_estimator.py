@@ -150,6 +150,7 @@ def finish(
     diagnostics: dict[str, Any] | None = None,
     history: np.ndarray | None = None,
     residuals: np.ndarray | None = None,
+    history_std: np.ndarray | None = None,
 ) -> EstimateResult:
     """Build the :class:`EstimateResult` of an estimator.
 
@@ -162,6 +163,18 @@ def finish(
         columns, which the method leaves undetermined).
     reasons : dict, optional
         Extra ``name -> reason`` entries (merged over the rank-analysis reasons).
+
+    Notes
+    -----
+    Whatever the method, a result is marked failed (``success`` False) when it cannot be
+    trusted on its face (:func:`_failure`): status -2 when an estimate or a residual is not
+    finite or a std infinite; status -3 when its residual RMS exceeds ``MISFIT_FACTOR`` (3) times the
+    least-squares residual std of the same data (the smallest misfit the model allows: the
+    residual power is then 9 times the least one, far outside what noise explains with
+    constant coefficients), as an RLS/RELS run with too strong forgetting or bounds or a prior
+    the data contradict give, unless it is below ``MISFIT_FLOOR`` (2 %) of the RMS of ``y``:
+    on (nearly) noise-free data the least-squares std is ~0 and a deliberately biased
+    estimator (ridge, MAP, bounded) fitting dv to 1 % is not a failure.
     """
     n = pb.n
     und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
@@ -186,6 +199,9 @@ def finish(
                                   "(zero or exactly dependent columns); the other estimated")
         else:
             status, message = -1, message or "no coefficient is identifiable on this data"
+    failure = _failure(pb, method, np.where(und, 0.0, x), std, res)
+    if failure is not None:
+        status, message = failure
     diag = {**condition_numbers(pb.red, pb.ra), "sigma": float(sigma), "rank": pb.ra.rank,
             "unidentifiable": [pb.names[j] for j in np.flatnonzero(und)]}
     diag.update(_collinearity_summary(pb, float(sigma)))
@@ -199,8 +215,38 @@ def finish(
         method=method, names=pb.names, units=pb.units, estimate=est, std=std, covariance=cov,
         reasons=all_reasons, residuals=res.reshape(pb.shape), sigma=float(sigma), rank=pb.ra.rank,
         status=status, message=message or "", success=status > 0, si_factors=pb.si_factors,
-        settings=settings, diagnostics=diag, n_samples=N, history=history,
+        settings=settings, diagnostics=diag, n_samples=N, history=history, history_std=history_std,
     )
+
+
+#: A residual RMS above this many least-squares residual std fails a result ...
+MISFIT_FACTOR = 3.0
+#: ... unless it is below this fraction of the RMS of the data.
+MISFIT_FLOOR = 0.02
+
+
+def _failure(pb: Problem, method: str, x: np.ndarray, std: np.ndarray | None,
+             res: np.ndarray) -> tuple[int, str] | None:
+    """``(status, message)`` of a result that cannot be trusted, or None (see :func:`finish`).
+
+    `x`: the estimate, 0 where reported undetermined. A NaN std is a std the method does
+    not define (a coefficient at a bound); an infinite one is a failure.
+    """
+    bad = [pb.names[j] for j in np.flatnonzero(~np.isfinite(x))]
+    if std is not None:
+        bad += [pb.names[j] for j in np.flatnonzero(np.isinf(std))]
+    if bad or not np.all(np.isfinite(res)):
+        what = f"non-finite estimate or std for {', '.join(dict.fromkeys(bad))}" if bad else "non-finite residuals"
+        return -2, f"failed: {method} produced {what}; the result is not usable"
+    rms = float(np.sqrt(np.mean(res**2)))
+    rms_y = float(np.sqrt(np.mean(pb.y**2)))
+    ls = pb.ols_sigma()  # sqrt(min_D |y - S D|^2 / (m - rank)): the misfit the model allows
+    if rms > MISFIT_FACTOR * ls and rms > MISFIT_FLOOR * rms_y:
+        hint = {"rls": " (forgetting too strong for this flight?)", "rels": " (forgetting too strong for this flight?)",
+                "bounded": " (bounds the data contradict?)", "map": " (a prior the data contradict?)"}.get(method, "")
+        return -3, (f"failed: {method} residual RMS {rms:.3g} m/s is {rms / ls:.3g} x the least-squares residual "
+                    f"std {ls:.3g} m/s: the estimate does not fit the data{hint}")
+    return None
 
 
 def _collinearity_summary(pb: Problem, sigma: float) -> dict[str, Any]:

@@ -1,7 +1,8 @@
 """Command line: ``casep separate``, ``casep diagnose``, ``casep simulate``, ``casep models``.
 Thin wrappers over the public API.
 
-Exit status: 0 success, 2 bad usage or bad input (one line on stderr), 1 anything else;
+Exit status: 0 success, 2 bad usage or bad input (one line on stderr), 1 anything else, including
+a `separate` result that is not successful (``success`` false: table and JSON still written);
 141 (quietly, like any Unix tool ended by SIGPIPE) when the reader of stdout closes early
 (``casep models | head -1``). ``casep models`` exits 0 when at least one model loads and
 reports each model file that does not as a ``warning:`` line.
@@ -167,6 +168,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="write the result as a MATLAB/Octave .mat file (names, estimates, std, covariance, ...)")
     s.add_argument("--csv", metavar="OUT", default=None,
                    help="write one row per coefficient here (name, unit, estimate, std, reason)")
+    s.add_argument("--figures", metavar="DIR", default=None,
+                   help="write residuals, estimates (and RLS/RELS history) PNG figures into DIR (created)")
+    s.add_argument("--report", metavar="FILE", default=None,
+                   help="write a self-contained HTML report (table, settings, diagnostics, figures) here")
     s.add_argument("--tracking", metavar="FILE", default=None,
                    help="tracking file (t, v_trk_*) at its own rate; FLIGHT is then the telemetry file "
                         "(t, f_* or W_*, v_tel_*)")
@@ -215,8 +220,8 @@ def _inputs(args: argparse.Namespace, *names: str) -> list:
 
 
 def _cmd_separate(args: argparse.Namespace) -> int:
-    check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv},
-                  inputs=_inputs(args, "flight", "tracking", "bounds", "prior"))
+    check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
+                  inputs=_inputs(args, "flight", "tracking", "bounds", "prior"), folders={"--figures": args.figures})
     model = load_model(args.model)
     bounds = None
     if args.bounds:
@@ -231,10 +236,14 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     if wopts and args.denoise != "wavelet":
         raise ValueError(f"wavelet options ({', '.join(wopts)}) need --denoise wavelet")
     flight = _read(args)
-    res = separate(flight, model, args.method, sigma=args.sigma, p0=args.p0, weight=args.weight,
-                   forgetting=args.forgetting, noise_order=args.noise_order, lam=args.lam, bounds=bounds,
-                   prior=prior, n_components=args.components, denoise=args.denoise,
-                   wavelet_options=wopts or None, tau=args.tau)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", CasepWarning)
+        res = separate(flight, model, args.method, sigma=args.sigma, p0=args.p0, weight=args.weight,
+                       forgetting=args.forgetting, noise_order=args.noise_order, lam=args.lam, bounds=bounds,
+                       prior=prior, n_components=args.components, denoise=args.denoise,
+                       wavelet_options=wopts or None, tau=args.tau)
+    for w in caught:  # on to main(), which prints them
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if args.json:
         write_json_atomic(res.to_dict(), args.json)
     _write_exports(res, args)
@@ -244,7 +253,39 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     for label, path in (("MAT file", args.mat), ("CSV", args.csv)):
         if path:
             print(f"{label} written to {path}")
-    return 0
+    _write_separate_outputs(args, res, flight, bounds, prior, caught)
+    return _result_status(res)
+
+
+def _write_separate_outputs(args: argparse.Namespace, res, flight, bounds, prior, caught) -> None:
+    """`--figures DIR` and `--report FILE` of `separate` (matplotlib imported only when asked)."""
+    if not (args.figures or args.report):
+        return
+    from .plots import separate_figures
+    from .report import write_report
+
+    files = None
+    if args.figures:
+        files = separate_figures(res, args.figures, flight.t, prior=prior, bounds=bounds)
+        print(f"figures: {', '.join(str(f) for f in files)}")
+    if args.report:
+        lines = [str(w.message) for w in caught if issubclass(w.category, CasepWarning)
+                 and not issubclass(w.category, IllConditionedWarning)]
+        write_report(res, args.report, flight=flight, figures=files, prior=prior, bounds=bounds, warnings=lines,
+                     source=args.flight)
+        print(f"report written to {args.report}")
+
+
+def _result_status(res) -> int:
+    """Exit status of a computed result: 0, or 1 (message on stderr) when it is not successful.
+
+    The table and the JSON are still written: the JSON records ``success: false`` and the
+    message, which is what a script or a later look at the run needs.
+    """
+    if res.success:
+        return 0
+    print(f"casep: result not successful: {res.message}", file=sys.stderr)
+    return 1
 
 
 def _write_exports(res, args: argparse.Namespace) -> None:

@@ -150,6 +150,9 @@ class EstimateResult:
         De-noising settings and per-axis noise sigma, or None.
     history : ndarray or None
         Estimate after each sample for recursive methods, natural units.
+    history_std : ndarray or None
+        Standard deviation at the ``history`` rows (recursive methods), natural units,
+        ``sqrt(diag(sigma^2 w P_k))`` with the final ``sigma``.
     """
 
     method: str
@@ -172,6 +175,7 @@ class EstimateResult:
     n_samples: int = 0
     denoise: dict[str, Any] | None = None
     history: np.ndarray | None = None
+    history_std: np.ndarray | None = None
 
     @property
     def identifiable(self) -> np.ndarray:
