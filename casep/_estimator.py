@@ -21,12 +21,35 @@ from .exceptions import IllConditionedWarning
 from .linalg import RankAnalysis, ReducedSystem, analyze_rank, condition_numbers, reduce_qr, unidentifiable_reasons
 from .result import EstimateResult
 
-__all__ = ["Problem", "prepare", "finish", "check_positive", "inverse_scale"]
+__all__ = ["Problem", "prepare", "finish", "check_positive", "inverse_scale", "OPTION_RANGES"]
+
+
+#: Plausible ranges ``name -> (low, high, low_inclusive, why)`` of the scalar options, applied by
+#: :func:`check_positive` wherever the option is checked (solvers and command line alike).
+OPTION_RANGES: dict[str, tuple[float, float, bool, str]] = {
+    # A noise std above 1 km/s is a unit mistake (mm/s, ft) or not a velocity at all:
+    # the whole powered flight of the paper gains ~3 km/s. (No lower end beyond > 0: a noise-free
+    # simulation may state a tiny sigma; the std underflow to 0 only below ~1e-150 m/s.)
+    "sigma": (0.0, 1e3, False, "m/s; a velocity noise std above 1 km/s is not a tracking noise"),
+    # Correlation times beyond ~3 h exceed any boost flight; exp(-dt/tau) -> 1 loses all digits.
+    "tau": (0.0, 1e4, False, "s; a correlation time above 1e4 s exceeds any flight"),
+    # w is a measurement precision 1/variance; beyond 1e+-12 (m/s)^-2, w^-1/2 is 1e-6 m/s .. 1e6 m/s.
+    "weight": (1e-12, 1e12, True, "(m/s)^-2; 1 / weight is the measurement variance"),
+    # P0 = p0 I in natural units. Measured on the paper flight (20 Hz, U-D recursion on unit-norm
+    # columns): |RLS - OLS| is 6e-5 OLS std at p0 = 1e14, 8e-9 at 1e20, 5e-5 at 1e30, 5e-2 at 1e40
+    # and 930 at 1e50 (garbage; the error grows like p0 * eps).
+    "p0": (0.0, 1e30, False, "natural units^2; beyond it the RLS recursion loses its digits, and "
+                             "1e14 already gives least squares on the paper flight"),
+}
 
 
 def check_positive(name: str, value: float | None, *, allow_none: bool = True, allow_zero: bool = False,
                    upper: float | None = None) -> float | None:
-    """Validate a positive finite scalar option, naming it in the error."""
+    """Validate a positive finite scalar option, naming it in the error.
+
+    An option of :data:`OPTION_RANGES` (``sigma``, ``tau``, ``weight``, ``p0``) must also lie
+    in its range there; the message gives the range and why.
+    """
     if value is None:
         if allow_none:
             return None
@@ -39,6 +62,10 @@ def check_positive(name: str, value: float | None, *, allow_none: bool = True, a
         low = "[0" if allow_zero else "(0"
         want = f"in {low}, {upper:g}]" if upper is not None else (">= 0" if allow_zero else "> 0")
         raise ValueError(f"`{name}` must be finite and {want}, got {value}")
+    if name in OPTION_RANGES:
+        lo, hi, closed, why = OPTION_RANGES[name]
+        if not ((v >= lo if closed else v > lo) and v <= hi):
+            raise ValueError(f"`{name}` must be in {'[' if closed else '('}{lo:g}, {hi:g}] ({why}), got {value}")
     return v
 
 
@@ -123,6 +150,7 @@ def finish(
     diagnostics: dict[str, Any] | None = None,
     history: np.ndarray | None = None,
     residuals: np.ndarray | None = None,
+    history_std: np.ndarray | None = None,
 ) -> EstimateResult:
     """Build the :class:`EstimateResult` of an estimator.
 
@@ -135,6 +163,18 @@ def finish(
         columns, which the method leaves undetermined).
     reasons : dict, optional
         Extra ``name -> reason`` entries (merged over the rank-analysis reasons).
+
+    Notes
+    -----
+    Whatever the method, a result is marked failed (``success`` False) when it cannot be
+    trusted on its face (:func:`_failure`): status -2 when an estimate or a residual is not
+    finite or a std infinite; status -3 when its residual RMS exceeds ``MISFIT_FACTOR`` (3) times the
+    least-squares residual std of the same data (the smallest misfit the model allows: the
+    residual power is then 9 times the least one, far outside what noise explains with
+    constant coefficients), as an RLS/RELS run with too strong forgetting or bounds or a prior
+    the data contradict give, unless it is below ``MISFIT_FLOOR`` (2 %) of the RMS of ``y``:
+    on (nearly) noise-free data the least-squares std is ~0 and a deliberately biased
+    estimator (ridge, MAP, bounded) fitting dv to 1 % is not a failure.
     """
     n = pb.n
     und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
@@ -159,6 +199,9 @@ def finish(
                                   "(zero or exactly dependent columns); the other estimated")
         else:
             status, message = -1, message or "no coefficient is identifiable on this data"
+    failure = _failure(pb, method, np.where(und, 0.0, x), std, res)
+    if failure is not None:
+        status, message = failure
     diag = {**condition_numbers(pb.red, pb.ra), "sigma": float(sigma), "rank": pb.ra.rank,
             "unidentifiable": [pb.names[j] for j in np.flatnonzero(und)]}
     diag.update(_collinearity_summary(pb, float(sigma)))
@@ -172,8 +215,38 @@ def finish(
         method=method, names=pb.names, units=pb.units, estimate=est, std=std, covariance=cov,
         reasons=all_reasons, residuals=res.reshape(pb.shape), sigma=float(sigma), rank=pb.ra.rank,
         status=status, message=message or "", success=status > 0, si_factors=pb.si_factors,
-        settings=settings, diagnostics=diag, n_samples=N, history=history,
+        settings=settings, diagnostics=diag, n_samples=N, history=history, history_std=history_std,
     )
+
+
+#: A residual RMS above this many least-squares residual std fails a result ...
+MISFIT_FACTOR = 3.0
+#: ... unless it is below this fraction of the RMS of the data.
+MISFIT_FLOOR = 0.02
+
+
+def _failure(pb: Problem, method: str, x: np.ndarray, std: np.ndarray | None,
+             res: np.ndarray) -> tuple[int, str] | None:
+    """``(status, message)`` of a result that cannot be trusted, or None (see :func:`finish`).
+
+    `x`: the estimate, 0 where reported undetermined. A NaN std is a std the method does
+    not define (a coefficient at a bound); an infinite one is a failure.
+    """
+    bad = [pb.names[j] for j in np.flatnonzero(~np.isfinite(x))]
+    if std is not None:
+        bad += [pb.names[j] for j in np.flatnonzero(np.isinf(std))]
+    if bad or not np.all(np.isfinite(res)):
+        what = f"non-finite estimate or std for {', '.join(dict.fromkeys(bad))}" if bad else "non-finite residuals"
+        return -2, f"failed: {method} produced {what}; the result is not usable"
+    rms = float(np.sqrt(np.mean(res**2)))
+    rms_y = float(np.sqrt(np.mean(pb.y**2)))
+    ls = pb.ols_sigma()  # sqrt(min_D |y - S D|^2 / (m - rank)): the misfit the model allows
+    if rms > MISFIT_FACTOR * ls and rms > MISFIT_FLOOR * rms_y:
+        hint = {"rls": " (forgetting too strong for this flight?)", "rels": " (forgetting too strong for this flight?)",
+                "bounded": " (bounds the data contradict?)", "map": " (a prior the data contradict?)"}.get(method, "")
+        return -3, (f"failed: {method} residual RMS {rms:.3g} m/s is {rms / ls:.3g} x the least-squares residual "
+                    f"std {ls:.3g} m/s: the estimate does not fit the data{hint}")
+    return None
 
 
 def _collinearity_summary(pb: Problem, sigma: float) -> dict[str, Any]:

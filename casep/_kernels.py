@@ -57,17 +57,57 @@ def sv_integrate_chunk(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_pr
 
 
 @numba.njit(cache=True, nogil=True)
-def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history):  # pragma: no cover
+def _bierman(U, D, x, h, f, b, r, dz, start):  # pragma: no cover
+    """One scalar measurement ``z = h x + e``, Var e = r, innovation dz = z - h x: Bierman's U-D update.
+
+    U (n, n) unit upper triangular stored transposed, D (n,), x (n,) updated in place;
+    f, b (n,) work arrays. ``h[j] = 0`` for ``j < start`` (skipped: exact).
+    """
+    n = x.size
+    # f = U^T h ; b = D f
+    for j in range(n):
+        s = 0.0
+        if j >= start:
+            s = h[j]
+            for i in range(start, j):
+                s += U[j, i] * h[i]
+        f[j] = s
+        b[j] = D[j] * s
+    # Bierman: sweep j = start..n-1 (the steps j < start change nothing)
+    alpha = r
+    gamma = 1.0 / alpha
+    for j in range(start, n):
+        beta = alpha
+        alpha = alpha + f[j] * b[j]
+        lam = -f[j] * gamma
+        gamma = 1.0 / alpha
+        D[j] = beta * gamma * D[j]
+        bj = b[j]
+        for i in range(j):
+            u = U[j, i]
+            U[j, i] = u + b[i] * lam
+            b[i] = b[i] + bj * u
+    # x <- x + K dz, K = b / alpha
+    g = dz * gamma
+    for j in range(n):
+        x[j] += g * b[j]
+
+
+@numba.njit(cache=True, nogil=True)
+def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, history_var):  # pragma: no cover
     """Recursive (extended) least squares with Bierman's UD scalar updates, in place.
 
     H (N, 3, p): scaled regressors; y (N, 3); x (p + n_c): estimate; U (p + n_c, p + n_c)
     unit upper-triangular stored *transposed* (Ut[j, i] = U[i, j], rows contiguous);
-    D (p + n_c): P = U diag(D) U^T. Per sample: P <- P / forgetting, then one scalar update
-    per axis with measurement variance 1 / weight. The last n_c entries of x are the
+    D (p + n_c): P = U diag(D) U^T, on entry the diagonal prior P_0 = diag(D) (U = I, x = 0).
+    Per sample, when forgetting < 1, stabilized forgetting: P <- P / forgetting, then n
+    pseudo-measurements ``x_j = 0`` of variance D_0,j / (1 - forgetting), i.e.
+    P^-1 <- forgetting P^-1 + (1 - forgetting) P_0^-1 (see :mod:`casep.rls`); then one scalar
+    update per axis with measurement variance 1 / weight. The last n_c entries of x are the
     noise-model coefficients; their regressors are each axis' last n_c residuals
     (a-posteriori when `posterior`, else a-priori). Every `stride` samples x is copied to
-    history[k // stride]. Returns the residuals (N, 3): a-priori innovations
-    y - h x_{k-1} (the sequence the recursion whitens).
+    history[k // stride] and diag(P) to history_var[k // stride]. Returns the residuals
+    (N, 3): a-priori innovations y - h x_{k-1} (the sequence the recursion whitens).
     """
     N = H.shape[0]
     p = H.shape[2]
@@ -75,14 +115,21 @@ def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history):
     h = np.zeros(n)
     f = np.zeros(n)
     b = np.zeros(n)
+    e_j = np.zeros(n)
     past = np.zeros((3, n_c + 1))  # last residuals per axis, newest first
     innov = np.zeros((N, 3))
     r = 1.0 / weight
     inv_lam = 1.0 / forgetting
+    D0 = D.copy()
     for k in range(N):
         if forgetting != 1.0:
             for j in range(n):
                 D[j] *= inv_lam  # P <- P / lambda
+            for j in range(n):
+                # + (1 - lambda) P_0^-1: pseudo-measurement 0 = e_j^T x + v, Var v = D_0,j / (1 - lambda)
+                e_j[j] = 1.0
+                _bierman(U, D, x, e_j, f, b, D0[j] / (1.0 - forgetting), -x[j], j)
+                e_j[j] = 0.0
         for axis in range(3):
             for j in range(p):
                 h[j] = H[k, axis, j]
@@ -93,31 +140,7 @@ def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history):
             for j in range(n):
                 dz -= h[j] * x[j]
             innov[k, axis] = dz
-            # f = U^T h ; b = D f
-            for j in range(n):
-                s = h[j]
-                for i in range(j):
-                    s += U[j, i] * h[i]
-                f[j] = s
-                b[j] = D[j] * s
-            # Bierman: sweep j = 0..n-1
-            alpha = r
-            gamma = 1.0 / alpha
-            for j in range(n):
-                beta = alpha
-                alpha = alpha + f[j] * b[j]
-                lam = -f[j] * gamma
-                gamma = 1.0 / alpha
-                D[j] = beta * gamma * D[j]
-                bj = b[j]
-                for i in range(j):
-                    u = U[j, i]
-                    U[j, i] = u + b[i] * lam
-                    b[i] = b[i] + bj * u
-            # x <- x + K dz, K = b / alpha
-            g = dz * gamma
-            for j in range(n):
-                x[j] += g * b[j]
+            _bierman(U, D, x, h, f, b, r, dz, 0)
             if n_c > 0:
                 e = dz
                 if posterior:
@@ -128,6 +151,13 @@ def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history):
                     past[axis, j] = past[axis, j - 1]
                 past[axis, 0] = e
         if stride > 0 and k % stride == 0:
+            row = k // stride
             for j in range(n):
-                history[k // stride, j] = x[j]
+                history[row, j] = x[j]
+            # diag(P)_i = sum_{j >= i} U_ij^2 D_j  (U unit upper triangular, stored transposed)
+            for i in range(n):
+                s = D[i]
+                for j in range(i + 1, n):
+                    s += U[j, i] * U[j, i] * D[j]
+                history_var[row, i] = s
     return innov

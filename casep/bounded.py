@@ -31,6 +31,7 @@ import numpy as np
 
 from ._estimator import finish, prepare
 from .exceptions import CasepWarning
+from .model import unknown_coefficient_message
 from .result import EstimateResult
 
 __all__ = ["solve_bounded", "parse_bounds"]
@@ -82,7 +83,7 @@ def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"
     lo, hi = np.full(n, -np.inf), np.full(n, np.inf)
     for name, spec in bounds.items():
         if name not in names:
-            raise ValueError(f"{source}: unknown coefficient `{name}`; the model has {', '.join(names)}")
+            raise ValueError(unknown_coefficient_message(name, names, source))
         j = list(names).index(name)
         if isinstance(spec, (int, float)) and not isinstance(spec, bool):
             a = b = float(spec)
@@ -96,6 +97,13 @@ def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"
             raise ValueError(f"{source}: `{name}` must be [lo, hi] or a number, got {spec!r}")
         if np.isnan(a) or np.isnan(b):
             raise ValueError(f"{source}: `{name}` has a NaN bound")
+        # -Infinity below / Infinity above are open sides, like null; any other infinity is refused.
+        if isinstance(spec, (int, float)) and not np.isfinite(a):
+            raise ValueError(f"{source}: `{name}` fixed value must be finite, got {a:g}")
+        for side, v, bad in (("lower", a, np.inf), ("upper", b, -np.inf)):
+            if v == bad:
+                raise ValueError(f"{source}: `{name}` {side} bound {v:g} leaves no finite value: bounds must be "
+                                 "finite (null, or -Infinity below / Infinity above, for an open side)")
         if a > b:
             raise ValueError(f"{source}: `{name}` has lo > hi ({a:g} > {b:g})")
         lo[j], hi[j] = a, b
@@ -126,7 +134,11 @@ def solve_bounded(
     Returns
     -------
     EstimateResult
-        ``diagnostics["active_bounds"]``: ``{name: "lower" | "upper" | "fixed"}``.
+        ``diagnostics["active_bounds"]``: ``{name: "lower" | "upper" | "fixed"}``;
+        ``diagnostics["active_set"]``: counts (at_lower, at_upper, fixed, free, undetermined);
+        ``diagnostics["std_kind"]``: "conditional" when a bound is active or a value fixed (the std
+        of the free coefficients are then conditional on the active set and understated), else
+        "sampling". ``message`` states the counts and what the std mean.
     """
     import cvxpy as cp
 
@@ -189,7 +201,25 @@ def solve_bounded(
     cov[:, std_mask] = np.nan
     box = {k: [float(a) if np.isfinite(a) else None, float(b) if np.isfinite(b) else None]
            for k, a, b in zip(pb.names, lo, hi) if np.isfinite(a) or np.isfinite(b)}
+    counts = {"at_lower": int(at_lo.sum()), "at_upper": int(at_hi.sum()), "fixed": int(fixed.sum()),
+              "free": int(pb.n - std_mask.sum()), "undetermined": int(undetermined.sum())}
     return finish(pb, "bounded", x, cov, sig, undetermined=undetermined, reasons=reasons,
+                  message=_active_set_message(counts, pb.n),
                   settings={"bounds": box, "solver": "cvxpy+clarabel",
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
-                  diagnostics={"active_bounds": active, "solver_status": prob.status, "polished": polished})
+                  diagnostics={"active_bounds": active, "active_set": counts,
+                               "std_kind": "conditional" if std_mask.any() else "sampling",
+                               "solver_status": prob.status, "polished": polished})
+
+
+def _active_set_message(counts: dict[str, int], n: int) -> str:
+    """How many coefficients sit on a bound / are fixed / are free, and what the std mean."""
+    at = counts["at_lower"] + counts["at_upper"]
+    msg = (f"{at} of {n} coefficients at a bound ({counts['at_lower']} lower, {counts['at_upper']} upper), "
+           f"{counts['fixed']} fixed, {counts['free']} free")
+    if counts["undetermined"]:
+        msg += f" ({counts['undetermined']} of them not identifiable on this data)"
+    if at + counts["fixed"]:
+        return msg + ("; coefficients at a bound or fixed have no std; the std of the free ones are conditional "
+                      "on this active set (understated: the uncertainty of which bounds are active is ignored)")
+    return msg + "; no bound active: the unconstrained least-squares estimate and its std"

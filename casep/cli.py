@@ -1,13 +1,20 @@
 """Command line: ``casep separate``, ``casep diagnose``, ``casep simulate``, ``casep models``.
 Thin wrappers over the public API.
 
-Exit status: 0 success, 2 bad usage or bad input (one line on stderr), 1 anything else.
+Exit status: 0 success, 2 bad usage or bad input (one line on stderr), 1 anything else, including
+a `separate` result that is not successful (``success`` false: table and JSON still written);
+141 (quietly, like any Unix tool ended by SIGPIPE) when the reader of stdout closes early
+(``casep models | head -1``). ``casep models`` exits 0 when at least one model loads and
+reports each model file that does not as a ``warning:`` line.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import json
+import math
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -15,14 +22,16 @@ from typing import Sequence
 
 from . import __version__
 from .flight import FlightDataError
-from .model import ModelDefinitionError
+from .model import ModelDefinitionError, unknown_coefficient_message
 from .bounded import parse_bounds
+from ._estimator import check_positive
 from .denoise import EXTENSIONS, MODES, RULES, SCALINGS
 from .exceptions import CasepWarning, IllConditionedWarning
 from .map_estimator import parse_prior
 from .model_loader import available_models, load_model
 from .montecarlo import METHOD_HELP
-from .result import write_json_atomic
+from ._io import check_outputs
+from .result import write_csv, write_json_atomic, write_mat
 from .diagnostics import diagnose
 from .flight_io import read_flight, read_flight_pair
 from .scenarios import SCENARIOS
@@ -47,6 +56,23 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _ranged(name: str):
+    """Argparse type for the option `name` of :data:`casep._estimator.OPTION_RANGES`: the API's check and message."""
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        try:
+            return check_positive(name, v, allow_none=False)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parse.__name__ = name
+    return parse
+
+
 def _lambda(text: str) -> float | str:
     if text in ("gcv", "lcurve"):
         return text
@@ -55,7 +81,7 @@ def _lambda(text: str) -> float | str:
 
 
 def _tau(text: str) -> float | str:
-    return text if text == "auto" else _positive_float(text)
+    return text if text == "auto" else _ranged("tau")(text)
 
 
 def _forgetting(text: str) -> float:
@@ -110,10 +136,12 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("flight", help="flight CSV file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..)")
     s.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
     s.add_argument("--method", default="ols", choices=METHODS, help="estimator (default ols)")
-    s.add_argument("--sigma", type=_positive_float, default=None,
+    s.add_argument("--sigma", type=_ranged("sigma"), default=None,
                    help="noise std, m/s (default: estimated from the residuals)")
-    s.add_argument("--p0", type=_positive_float, default=1e6, help="RLS/RELS P0 = p0 I, natural units (default 1e6)")
-    s.add_argument("--weight", type=_positive_float, default=1.0, help="RLS/RELS weight w (default 1)")
+    s.add_argument("--p0", type=_ranged("p0"), default=1e6,
+                   help="RLS/RELS P0 = p0 I, natural units, in (0, 1e30] (default 1e6)")
+    s.add_argument("--weight", type=_ranged("weight"), default=1.0,
+                   help="RLS/RELS weight w, in [1e-12, 1e12] (default 1)")
     s.add_argument("--forgetting", type=_forgetting, default=1.0, help="RLS/RELS forgetting factor (default 1)")
     s.add_argument("--noise-order", type=_order, default=1, help="RELS noise-model order (default 1)")
     s.add_argument("--lambda", dest="lam", type=_lambda, default="gcv", metavar="gcv|lcurve|VALUE",
@@ -133,6 +161,14 @@ def _parser() -> argparse.ArgumentParser:
                    help="boundary extension (default symmetric)")
     s.add_argument("--noise-scaling", choices=SCALINGS, default=None, help="noise scaling (default sln)")
     s.add_argument("--json", metavar="OUT", default=None, help="write the result JSON here")
+    s.add_argument("--mat", metavar="OUT", default=None,
+                   help="write the result as a MATLAB/Octave .mat file (names, estimates, std, covariance, ...)")
+    s.add_argument("--csv", metavar="OUT", default=None,
+                   help="write one row per coefficient here (name, unit, estimate, std, reason)")
+    s.add_argument("--figures", metavar="DIR", default=None,
+                   help="write residuals, estimates (and RLS/RELS history) PNG figures into DIR (created)")
+    s.add_argument("--report", metavar="FILE", default=None,
+                   help="write a self-contained HTML report (table, settings, diagnostics, figures) here")
     s.add_argument("--tracking", metavar="FILE", default=None,
                    help="tracking file (t, v_trk_*) at its own rate; FLIGHT is then the telemetry file "
                         "(t, f_* or W_*, v_tel_*)")
@@ -146,8 +182,8 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("flight", help="flight file")
     d.add_argument("--tracking", metavar="FILE", default=None, help="tracking file (two-file input)")
     d.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
-    d.add_argument("--sigma", type=_positive_float, default=None, help="noise std, m/s (default: estimated)")
-    d.add_argument("--tau", type=_positive_float, default=None,
+    d.add_argument("--sigma", type=_ranged("sigma"), default=None, help="noise std, m/s (default: estimated)")
+    d.add_argument("--tau", type=_ranged("tau"), default=None,
                    help="Gauss-Markov correlation time, s: AR(1) bound instead of white")
     d.add_argument("--prior", metavar="FILE", help="prior JSON (map format): Bayesian bound and scales")
     d.add_argument("--scales", metavar="FILE", help='JSON {"Kg0x": typical magnitude, ...} for the "weak" verdict')
@@ -173,7 +209,16 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _inputs(args: argparse.Namespace, *names: str) -> list:
+    """The input files a command reads (an output must be none of them)."""
+    files = [getattr(args, n, None) for n in names]
+    model = getattr(args, "model", None)
+    return files + ([model] if model and Path(model).is_file() else [])
+
+
 def _cmd_separate(args: argparse.Namespace) -> int:
+    check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
+                  inputs=_inputs(args, "flight", "tracking", "bounds", "prior"), folders={"--figures": args.figures})
     model = load_model(args.model)
     bounds = None
     if args.bounds:
@@ -188,19 +233,69 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     if wopts and args.denoise != "wavelet":
         raise ValueError(f"wavelet options ({', '.join(wopts)}) need --denoise wavelet")
     flight = _read(args)
-    res = separate(flight, model, args.method, sigma=args.sigma, p0=args.p0, weight=args.weight,
-                   forgetting=args.forgetting, noise_order=args.noise_order, lam=args.lam, bounds=bounds,
-                   prior=prior, n_components=args.components, denoise=args.denoise,
-                   wavelet_options=wopts or None, tau=args.tau)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", CasepWarning)
+        res = separate(flight, model, args.method, sigma=args.sigma, p0=args.p0, weight=args.weight,
+                       forgetting=args.forgetting, noise_order=args.noise_order, lam=args.lam, bounds=bounds,
+                       prior=prior, n_components=args.components, denoise=args.denoise,
+                       wavelet_options=wopts or None, tau=args.tau)
+    for w in caught:  # on to main(), which prints them
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if args.json:
         write_json_atomic(res.to_dict(), args.json)
+    _write_exports(res, args)
     print(res.table())
     if args.json:
         print(f"result written to {args.json}")
-    return 0
+    for label, path in (("MAT file", args.mat), ("CSV", args.csv)):
+        if path:
+            print(f"{label} written to {path}")
+    _write_separate_outputs(args, res, flight, bounds, prior, caught)
+    return _result_status(res)
+
+
+def _write_separate_outputs(args: argparse.Namespace, res, flight, bounds, prior, caught) -> None:
+    """`--figures DIR` and `--report FILE` of `separate` (matplotlib imported only when asked)."""
+    if not (args.figures or args.report):
+        return
+    from .plots import separate_figures
+    from .report import write_report
+
+    files = None
+    if args.figures:
+        files = separate_figures(res, args.figures, flight.t, prior=prior, bounds=bounds)
+        print(f"figures: {', '.join(str(f) for f in files)}")
+    if args.report:
+        lines = [str(w.message) for w in caught if issubclass(w.category, CasepWarning)
+                 and not issubclass(w.category, IllConditionedWarning)]
+        write_report(res, args.report, flight=flight, figures=files, prior=prior, bounds=bounds, warnings=lines,
+                     source=args.flight)
+        print(f"report written to {args.report}")
+
+
+def _result_status(res) -> int:
+    """Exit status of a computed result: 0, or 1 (message on stderr) when it is not successful.
+
+    The table and the JSON are still written: the JSON records ``success: false`` and the
+    message, which is what a script or a later look at the run needs.
+    """
+    if res.success:
+        return 0
+    print(f"casep: result not successful: {res.message}", file=sys.stderr)
+    return 1
+
+
+def _write_exports(res, args: argparse.Namespace) -> None:
+    """`--mat` and `--csv` of `separate`."""
+    if args.mat:
+        write_mat(res, args.mat)
+    if args.csv:
+        write_csv(res, args.csv)
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
+    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "prior", "scales"),
+                  folders={"--figures": args.figures})
     model = load_model(args.model)
     prior = _prior(args, model.names)
     prior_std = None if prior is None else parse_prior(prior, model.names)[1]
@@ -209,11 +304,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
         scales = _load_json(args.scales, "--scales")
         for k, v in scales.items():
             if k not in model.names:
-                raise ValueError(f"--scales {args.scales}: unknown coefficient `{k}`")
-            if not isinstance(v, (int, float)) or isinstance(v, bool) or not v > 0:
-                raise ValueError(f"--scales {args.scales}: `{k}` must be a number > 0, got {v!r}")
-    if args.figures and not Path(args.figures).is_dir():
-        raise ValueError(f"--figures {args.figures}: not a directory")
+                raise ValueError(unknown_coefficient_message(k, model.names, f"--scales {args.scales}"))
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not (v > 0 and math.isfinite(v)):
+                raise ValueError(f"--scales {args.scales}: `{k}` must be a finite number > 0, got {v!r}")
     flight = _read(args)
     S, dv, t = regression_rows(flight, model)
     diag = diagnose(S, dv, names=model.names, units=model.units, sigma=args.sigma,
@@ -226,6 +319,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if args.figures:
         from .plots import plot_singular_values, plot_variance_decomposition
 
+        Path(args.figures).mkdir(parents=True, exist_ok=True)  # like demo --out
         a = plot_singular_values(diag, Path(args.figures) / "singular_values.png")
         b = plot_variance_decomposition(diag, Path(args.figures) / "variance_decomposition.png")
         print(f"figures: {a}, {b}")
@@ -257,6 +351,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def _cmd_montecarlo(args: argparse.Namespace) -> int:
     from .montecarlo import run_montecarlo, write_figure
 
+    check_outputs({"--json": args.json, "--csv": args.csv, "--figure": args.figure})
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     if args.runs < 1:
         raise ValueError(f"--runs must be >= 1, got {args.runs}")
@@ -279,6 +374,9 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    from .simulate import truth_path
+
+    check_outputs({"-o": args.output, "-o (truth sidecar)": truth_path(args.output)})
     if args.seed < 0:
         raise ValueError(f"`--seed` must be >= 0, got {args.seed}")
     sim = simulate_flight(args.scenario, seed=args.seed, rate=args.rate)
@@ -294,15 +392,57 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_models(args: argparse.Namespace) -> int:
-    for name in available_models():
-        model = load_model(name)
+    """List the models; a file that fails to load is a `warning:` line naming it and why.
+
+    Exit 0 when at least one model loads (the broken ones are reported), 2 when none does.
+    """
+    names = available_models()
+    broken = 0
+    for name in names:
+        try:
+            model = load_model(name)
+        except ModelDefinitionError as exc:
+            broken += 1
+            warnings.warn(f"model `{name}` not listed: {exc}", CasepWarning, stacklevel=1)
+            continue
         print(f"{name:<28} {model.n_coefficients:>3} coefficients  {model.description}")
         if args.verbose:
             for nm, unit in zip(model.names, model.units):
                 print(f"    {nm:<10} {unit}")
+    if broken and broken == len(names):
+        print(f"casep: error: none of the {broken} model files loads (see the warnings)", file=sys.stderr)
+        return 2
     return 0
 
 
+#: Exit status when the reader of stdout goes away (``casep ... | head``): 128 + SIGPIPE, what the
+#: shell reports for any Unix tool ended by the broken pipe, so ``set -o pipefail`` sees the same.
+EXIT_BROKEN_PIPE = 141
+
+
+def _quiet_on_broken_pipe(run):
+    """Wrap `run` so a closed stdout ends it quietly with :data:`EXIT_BROKEN_PIPE`.
+
+    The Python recipe (docs, "Note on SIGPIPE"): flush inside the guard so buffered output
+    fails here, then point stdout at /dev/null so the interpreter's final flush is silent.
+    """
+
+    @functools.wraps(run)
+    def guarded(argv: Sequence[str] | None = None) -> int:
+        try:
+            status = run(argv)
+            sys.stdout.flush()
+            return status
+        except BrokenPipeError:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            os.close(devnull)
+            return EXIT_BROKEN_PIPE
+
+    return guarded
+
+
+@_quiet_on_broken_pipe
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     args = _parser().parse_args(argv)
@@ -312,6 +452,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", CasepWarning)
             status = commands[args.command](args)
+    except BrokenPipeError:
+        raise  # the reader left: quiet exit, see _quiet_on_broken_pipe
     except (FlightDataError, ModelDefinitionError, ValueError, TypeError, OSError) as exc:
         print(f"casep: error: {exc}", file=sys.stderr)
         return 2

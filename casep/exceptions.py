@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-__all__ = ["CasepWarning", "IllConditionedWarning"]
+__all__ = ["CasepWarning", "IllConditionedWarning", "PlausibilityWarning", "NoiseFreeWarning",
+           "OutlierWarning", "TimeOffsetWarning"]
 
 
 class CasepWarning(UserWarning):
@@ -11,3 +12,20 @@ class CasepWarning(UserWarning):
 
 class IllConditionedWarning(CasepWarning):
     """The regression is ill-conditioned: the message gives the number and the coefficients."""
+
+
+class PlausibilityWarning(CasepWarning):
+    """A flight outside the range of boost flights in SI units (likely a unit mistake): the
+    message gives the figure, the plausible range and the unit that would explain it."""
+
+
+class NoiseFreeWarning(CasepWarning):
+    """The residuals are at the rounding level of dv: the reported std reflect rounding only."""
+
+
+class OutlierWarning(CasepWarning):
+    """Isolated dv values far outside the noise: the message names the rows and their size."""
+
+
+class TimeOffsetWarning(CasepWarning):
+    """The residuals track the kinematic acceleration (or its derivative): a tracking time offset."""

@@ -27,6 +27,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ._estimator import finish, prepare
+from .model import unknown_coefficient_message
 from .result import EstimateResult
 
 __all__ = ["solve_map", "parse_prior"]
@@ -40,7 +41,7 @@ def parse_prior(prior: Mapping, names: Sequence[str], source: str = "`prior`") -
     mu, tau = np.zeros(n), np.full(n, np.inf)
     for name, spec in prior.items():
         if name not in names:
-            raise ValueError(f"{source}: unknown coefficient `{name}`; the model has {', '.join(names)}")
+            raise ValueError(unknown_coefficient_message(name, names, source))
         if not isinstance(spec, Mapping) or "mean" not in spec or "std" not in spec:
             raise ValueError(f"{source}: `{name}` must be {{\"mean\": m, \"std\": s}}, got {spec!r}")
         try:
@@ -49,7 +50,7 @@ def parse_prior(prior: Mapping, names: Sequence[str], source: str = "`prior`") -
             raise ValueError(f"{source}: `{name}` mean and std must be numbers, got {spec!r}") from None
         if not np.isfinite(m_):
             raise ValueError(f"{source}: `{name}` mean must be finite, got {m_}")
-        if np.isnan(s_) or s_ <= 0:
+        if np.isnan(s_) or s_ <= 0 or (np.isfinite(s_) and not np.isfinite(1.0 / s_)):
             raise ValueError(f"{source}: `{name}` std must be > 0 (inf for no prior), got {s_:g}")
         j = list(names).index(name)
         mu[j], tau[j] = m_, s_

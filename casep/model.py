@@ -31,6 +31,7 @@ out per natural unit of each coefficient.
 
 from __future__ import annotations
 
+import difflib
 import keyword
 import re
 from types import SimpleNamespace
@@ -41,7 +42,7 @@ import numpy as np
 
 from .units import G0, si_factor as _unit_si_factor
 
-__all__ = ["ErrorModel", "ModelDefinitionError", "OUTPUTS"]
+__all__ = ["ErrorModel", "ModelDefinitionError", "OUTPUTS", "unknown_coefficient_message", "suggest_names"]
 
 #: Output slots of a model: name -> (SI unit, setter name, depends on specific force?).
 OUTPUTS: dict[str, tuple[str, str, bool]] = {
@@ -59,6 +60,47 @@ _PROBES = np.array([[0.0, 0.0, 0.0], [13.1, -7.3, 21.7], [-4.9, 55.2, 3.3], [71.
 
 class ModelDefinitionError(ValueError):
     """An error model is declared inconsistently (raised by :meth:`ErrorModel.setup`)."""
+
+
+# Characters typed for one another in coefficient names: letter O / digit 0, letter l or I / digit 1.
+_CONFUSABLE = str.maketrans({"o": "0", "l": "1", "i": "1"})
+
+
+def _fold(name: str) -> str:
+    """Case- and look-alike-insensitive key of a name (``KaOy``, ``kaoy`` and ``Ka0y`` share one)."""
+    return name.lower().translate(_CONFUSABLE)
+
+
+def suggest_names(name: str, names: Sequence[str], n: int = 3) -> list[str]:
+    """Names of `names` the user probably meant by `name`, best first (maybe none).
+
+    Names equal to `name` up to case and the O/0, l/1, I/1 confusions come first; otherwise
+    :func:`difflib.get_close_matches` (ratio >= 0.6) on the folded names.
+    """
+    folded: dict[str, str] = {}
+    for nm in names:
+        folded.setdefault(_fold(nm), nm)
+    key = _fold(str(name))
+    if key in folded:
+        return [folded[key]]
+    return [folded[k] for k in difflib.get_close_matches(key, list(folded), n=n, cutoff=0.6)]
+
+
+def unknown_coefficient_message(name: str, names: Sequence[str], source: str) -> str:
+    """One-line error for a coefficient name that `names` lacks, with a "did you mean".
+
+    Parameters
+    ----------
+    name : str
+        The name as the user gave it.
+    names : sequence of str
+        The model's coefficient names.
+    source : str
+        Where the name was read, e.g. ``"--prior p.json"`` or ``"model `platform36`"``.
+    """
+    close = suggest_names(name, names)
+    hint = f" (did you mean {' or '.join(f'`{c}`' for c in close)}?)" if close else ""
+    return f"{source}: unknown coefficient `{name}`{hint}; the model has {', '.join(names)}"
 
 
 class ErrorModel:
@@ -405,7 +447,7 @@ class ErrorModel:
         try:
             return self._names.index(name)
         except ValueError:
-            raise KeyError(f"model `{self.name}` has no coefficient `{name}`") from None
+            raise KeyError(unknown_coefficient_message(name, self._names, f"model `{self.name}`")) from None
 
     def to_si(self, values: np.ndarray) -> np.ndarray:
         """Convert coefficient values (last axis in model order) from natural units to SI."""

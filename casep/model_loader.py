@@ -4,17 +4,28 @@ A model is named either by a path to a ``.py`` file or by a name looked up, in o
 folders of the ``CASEP_MODEL_PATH`` environment variable (``os.pathsep``-separated) and in
 casep's built-in model folder. Files are loaded with
 :func:`importlib.util.spec_from_file_location`; ``sys.path`` is never touched.
+
+A model file is Python and **runs as code** with the rights of the user: casep loads one only
+from its built-in model folder, a folder of ``CASEP_MODEL_PATH`` or a path given explicitly
+(``--model path/to/file.py``), never from the current directory by name. Treat a model file
+like any script you run.
+
+A file that does not compile, raises or calls ``sys.exit`` while loading or in ``build()``
+gives a one-line :class:`ModelFileError` (a :class:`casep.ModelDefinitionError`; the command
+line prints it and exits 2) naming the file and the line: the SyntaxError's line, or the
+deepest line of the traceback inside the model file.
 """
 
 from __future__ import annotations
 
 import importlib.util
 import os
+import traceback
 from pathlib import Path
 
 from .model import ErrorModel, ModelDefinitionError
 
-__all__ = ["build_model", "load_model", "model_dirs", "available_models", "find_model_file"]
+__all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file"]
 
 
 def model_dirs() -> list[Path]:
@@ -64,28 +75,69 @@ def find_model_file(model: str | os.PathLike) -> Path:
     )
 
 
+class ModelFileError(ModelDefinitionError):
+    """A model file fails to load: the message names the file and, where known, the line."""
+
+
+def _where(path: Path, exc: BaseException) -> str:
+    """``model file <path>, line <n>``: the line of `exc` in `path` (its deepest frame there)."""
+    line = None
+    if isinstance(exc, SyntaxError) and exc.filename and Path(exc.filename).resolve() == path.resolve():
+        line = exc.lineno
+    else:
+        target = path.resolve()
+        for frame, lineno in traceback.walk_tb(exc.__traceback__):
+            if Path(frame.f_code.co_filename).resolve() == target:
+                line = lineno  # keep the deepest
+    return f"model file {path}" + (f", line {line}" if line else "")
+
+
+def _describe(exc: BaseException) -> str:
+    """One line: ``NameError: name 'ca' is not defined`` (a SyntaxError without its location)."""
+    if isinstance(exc, SystemExit):
+        return f"SystemExit({exc.code!r}): a model file must not exit; build() must return a casep.ErrorModel"
+    msg = exc.msg if isinstance(exc, SyntaxError) else str(exc)
+    msg = " ".join(str(msg).split())
+    return f"{type(exc).__name__}: {msg}" if msg else type(exc).__name__
+
+
+def _run_file(path: Path) -> ErrorModel:
+    """Execute the model file and its ``build()``; any failure becomes a one-line ModelFileError."""
+    spec = importlib.util.spec_from_file_location(f"casep_model_{path.stem}", path)
+    if spec is None or spec.loader is None:
+        raise ModelFileError(f"model file {path}: cannot be loaded as Python")
+    module = importlib.util.module_from_spec(spec)
+    stage = "loading"
+    try:
+        spec.loader.exec_module(module)
+        build = getattr(module, "build", None)
+        if not callable(build):
+            raise ModelFileError(f"model file {path}: Missing: build(). Use: def build() -> casep.ErrorModel")
+        stage = "build()"
+        result = build()
+    except ModelFileError:
+        raise  # from this file, or from a model it extends (that one names its own file)
+    except (Exception, SystemExit) as exc:  # KeyboardInterrupt still interrupts
+        where = _where(path, exc)
+        raise ModelFileError(f"{where}{', in build()' if stage == 'build()' else ''}: {_describe(exc)}") from exc
+    if not isinstance(result, ErrorModel):
+        raise ModelFileError(f"model file {path}: build() returned {type(result).__name__}, not casep.ErrorModel")
+    return result
+
+
 def build_model(model: str | os.PathLike) -> ErrorModel:
     """Run a model file's ``build()`` and return the model *unlocked*.
 
     Use this to extend a model in another model file; :func:`load_model` for use.
+
+    Raises
+    ------
+    ModelFileError
+        (a :class:`ModelDefinitionError`) when the file does not compile, raises or exits
+        while loading or in ``build()``, or returns something else than an ErrorModel: one line
+        naming the file and the line of the file where it failed.
     """
-    path = find_model_file(model)
-    spec = importlib.util.spec_from_file_location(f"casep_model_{path.stem}", path)
-    if spec is None or spec.loader is None:
-        raise ValueError(f"model file `{path}` cannot be loaded as Python")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    build = getattr(module, "build", None)
-    if not callable(build):
-        raise ModelDefinitionError(
-            f"model file `{path}`: Missing: build(). Use: def build() -> casep.ErrorModel"
-        )
-    result = build()
-    if not isinstance(result, ErrorModel):
-        raise ModelDefinitionError(
-            f"model file `{path}`: build() returned {type(result).__name__}, not casep.ErrorModel"
-        )
-    return result
+    return _run_file(find_model_file(model))
 
 
 def load_model(model: str | os.PathLike | ErrorModel) -> ErrorModel:
@@ -103,4 +155,11 @@ def load_model(model: str | os.PathLike | ErrorModel) -> ErrorModel:
     """
     if isinstance(model, ErrorModel):
         return model.setup()
-    return build_model(model).setup()
+    path = find_model_file(model)
+    built = _run_file(path)
+    try:
+        return built.setup()
+    except ModelFileError:
+        raise
+    except ModelDefinitionError as exc:  # setup()'s checks name the term; add the file
+        raise ModelFileError(f"model file {path}: {exc}") from exc

@@ -9,6 +9,7 @@ from typing import Mapping
 import numpy as np
 
 from .bounded import solve_bounded
+from .checks import check_fit, check_flight
 from .denoise import denoise as wavelet_denoise
 from .flight import FlightData, check_dv_not_zero, check_enough_samples, warn_late_start
 from .flight_io import read_flight
@@ -39,6 +40,7 @@ def regression_rows(flight: FlightData, model: ErrorModel) -> tuple[np.ndarray, 
     in the model (:func:`casep.flight.warn_late_start`).
     """
     check_enough_samples(flight, model.n_coefficients, model.name)
+    check_flight(flight)  # unit mistakes, impossible data (casep.checks)
     check_dv_not_zero(flight)
     warn_late_start(flight, model)
     return flight.observed_rows(build_sv(model, flight.t, flight.f))
@@ -144,6 +146,8 @@ def separate(
         res = solve_gls(S, dv, t, tau=tau, **labels)
     else:
         res = solve_map(S, dv, prior, **labels)
+    obs = flight.observed  # the raw dv, t and f of the rows the estimate used
+    check_fit(S, flight.dv[obs], res, t=t, f=flight.f[obs], source=flight.source)  # noise-free, outliers, time offset
     if den is not None:
         settings = dict(res.settings)
         if sigma_from_wavelet:

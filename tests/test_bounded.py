@@ -82,3 +82,35 @@ def test_parse_errors(small):
         casep.solve_bounded(S, y, {"Kg0x": "wide"}, names=names)
     lo, hi, fixed = parse_bounds({"Kg0x": [None, 3.0]}, names)
     assert lo[0] == -np.inf and hi[0] == 3.0 and not fixed[0]
+
+
+def test_message_and_table_state_active_set_and_conditional_std(small, truth36):
+    S, y, names = small
+    box = {n: [v - 2 * abs(v), v + 2 * abs(v)] for n, v in zip(names, truth36)}
+    box["Kg0x"] = 0.5  # one fixed
+    res = casep.solve_bounded(S, y, box, names=names)
+    kinds = list(res.diagnostics["active_bounds"].values())
+    n_lo, n_hi = kinds.count("lower"), kinds.count("upper")
+    assert kinds.count("fixed") == 1 and n_lo + n_hi > 0
+    n_free = 36 - len(kinds)
+    assert res.diagnostics["active_set"] == {"at_lower": n_lo, "at_upper": n_hi, "fixed": 1, "free": n_free,
+                                             "undetermined": 0}
+    assert int(np.sum(np.isfinite(res.std))) == n_free  # std only for the free ones
+    assert "all 36 coefficients estimated" not in res.message
+    assert res.message.startswith(f"{n_lo + n_hi} of 36 coefficients at a bound ({n_lo} lower, {n_hi} upper), "
+                                  f"1 fixed, {n_free} free")
+    assert "conditional on this active set (understated" in res.message
+    assert res.std_kind == "conditional" and res.to_dict()["std_kind"] == "conditional"
+    table = res.table()
+    assert res.message in table.splitlines()
+    assert (f"active set {n_lo} at lower, {n_hi} at upper bound, 1 fixed, {n_free} free" in table
+            and "std conditional on the active set (understated)" in table)
+
+
+def test_no_active_bound_says_so(small):
+    S, y, names = small
+    ols = casep.solve_ols(S, y, names=names)
+    box = {n: [e - 100 * s, e + 100 * s] for n, e, s in zip(names, ols.estimate, ols.std)}
+    res = casep.solve_bounded(S, y, box, names=names)
+    assert res.message.startswith("0 of 36 coefficients at a bound (0 lower, 0 upper), 0 fixed, 36 free")
+    assert "no bound active" in res.message and res.std_kind == "sampling"

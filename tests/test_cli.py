@@ -180,3 +180,164 @@ def test_missing_required_option_files(good_csv, capsys):
     assert "`bounds` is required" in capsys.readouterr().err
     assert main(["separate", str(good_csv), "--method", "rels", "--noise-order", "0"]) == 2
     assert "--noise-order must be >= 1 for rels" in capsys.readouterr().err
+
+
+# --- issue 17, defect 11: option values are finite and in a plausible range -----------------------
+
+_RANGE_CASES = [  # (option, value, command, extra args)
+    ("sigma", "1e300", "separate", []),
+    ("sigma", "2000", "separate", []),
+    ("sigma", "inf", "separate", []),
+    ("sigma", "nan", "separate", []),
+    ("sigma", "1e300", "diagnose", []),
+    ("tau", "1e300", "separate", ["--method", "gls"]),
+    ("tau", "2e4", "diagnose", []),
+    ("weight", "1e300", "separate", ["--method", "rls"]),
+    ("weight", "1e-13", "separate", ["--method", "rls"]),
+    ("weight", "inf", "separate", ["--method", "rls"]),
+    ("p0", "1e50", "separate", ["--method", "rls"]),
+    ("p0", "1e31", "separate", ["--method", "rels"]),
+    ("p0", "inf", "separate", ["--method", "rls"]),
+    ("p0", "0", "separate", ["--method", "rls"]),
+]
+
+
+@pytest.mark.parametrize("option, value, command, extra", _RANGE_CASES)
+def test_out_of_range_option_exit_2_one_line(good_csv, capsys, option, value, command, extra):
+    with pytest.raises(SystemExit) as e:
+        main([command, str(good_csv), *extra, f"--{option}", value])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and err.count("\n") == 1
+    assert f"argument --{option}: `{option}` must be" in err
+
+
+@pytest.mark.parametrize("option, value", sorted({(o, v) for o, v, _, _ in _RANGE_CASES if o != "tau"}))
+def test_out_of_range_option_api_same_message(paper_problem, platform36, capsys, good_csv, option, value):
+    """The solvers refuse the value with the message the CLI prints (one table of ranges)."""
+    S, y, _ = paper_problem
+    kw = {"p0": 1.0} if option == "p0" else {}  # the others need a valid p0 of their own: default
+    with pytest.raises(ValueError) as e:
+        casep.solve_rls(S, y, **{**kw, option: float(value)}, names=platform36.names)
+    api = str(e.value)
+    assert api.startswith(f"`{option}` must be")
+    with pytest.raises(SystemExit):
+        main(["separate", str(good_csv), "--method", "rls", f"--{option}", value])
+    assert api in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("option, value", [("sigma", 1e3), ("weight", 1e-12), ("weight", 1e12), ("p0", 1e30)])
+def test_option_range_ends_are_accepted(paper_problem, platform36, option, value):
+    S, y, truth = paper_problem
+    res = casep.solve_rls(S, y, **{option: value}, names=platform36.names)
+    assert np.all(np.isfinite(res.estimate))
+
+
+def test_p0_at_its_bound_is_still_least_squares(paper_problem, platform36):
+    """p0 = 1e30 (the upper end) must still agree with OLS: the bound sits below where RLS breaks."""
+    S, y, _ = paper_problem
+    ols = casep.solve_ols(S, y, names=platform36.names)
+    rls = casep.solve_rls(S, y, p0=1e30, names=platform36.names)
+    assert np.max(np.abs(rls.estimate - ols.estimate) / ols.std) < 1e-3
+    np.testing.assert_allclose(rls.std, ols.std, rtol=1e-6)
+
+
+@pytest.mark.parametrize("content, expect", [
+    ('{"Kg0x": Infinity}', "`Kg0x` fixed value must be finite, got inf"),
+    ('{"Kg0x": [Infinity, null]}', "`Kg0x` lower bound inf leaves no finite value"),
+    ('{"Kg0x": [null, -Infinity]}', "`Kg0x` upper bound -inf leaves no finite value"),
+    ('{"Kg0x": [NaN, 1]}', "`Kg0x` has a NaN bound"),
+    ('{"KaOy": [0, 1]}', "unknown coefficient `KaOy` (did you mean `Ka0y`?)"),
+])
+def test_bad_bounds_values_exit_2(good_csv, tmp_path, capsys, content, expect):
+    f = tmp_path / "b.json"
+    f.write_text(content)
+    assert main(["separate", str(good_csv), "--method", "bounded", "--bounds", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert expect in err and f"--bounds {f}" in err and err.count("\n") == 1
+
+
+def test_infinite_bound_on_its_own_side_is_open(platform36):
+    lo, hi, fixed = casep.bounded.parse_bounds({"Kg0x": [-np.inf, np.inf], "Kg0y": [None, 2.0]}, platform36.names)
+    j, k = platform36.index("Kg0x"), platform36.index("Kg0y")
+    assert lo[j] == -np.inf and hi[j] == np.inf and lo[k] == -np.inf and hi[k] == 2.0 and not fixed.any()
+
+
+@pytest.mark.parametrize("content, expect", [
+    ('{"Kg0x": Infinity}', "`Kg0x` must be a finite number > 0, got inf"),
+    ('{"Kg0x": NaN}', "`Kg0x` must be a finite number > 0, got nan"),
+    ('{"Kg0x": 0}', "`Kg0x` must be a finite number > 0, got 0"),
+    ('{"KaOy": 1}', "unknown coefficient `KaOy` (did you mean `Ka0y`?)"),
+])
+def test_bad_scales_exit_2(good_csv, tmp_path, capsys, content, expect):
+    f = tmp_path / "s.json"
+    f.write_text(content)
+    assert main(["diagnose", str(good_csv), "--scales", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert expect in err and f"--scales {f}" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("content, expect", [
+    ('{"KaOy": {"mean": 0, "std": 1}}', "unknown coefficient `KaOy` (did you mean `Ka0y`?)"),
+    ('{"Kg0x": {"mean": Infinity, "std": 1}}', "`Kg0x` mean must be finite"),
+    ('{"Kg0x": {"mean": 0, "std": NaN}}', "`Kg0x` std must be > 0"),
+])
+def test_bad_prior_values_exit_2(good_csv, tmp_path, capsys, content, expect):
+    f = tmp_path / "p.json"
+    f.write_text(content)
+    assert main(["separate", str(good_csv), "--method", "map", "--prior", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert expect in err and f"--prior {f}" in err and err.count("\n") == 1
+
+
+# --- issue 17, defects 9 and 11: model files -----------------------------------------------------
+
+def test_broken_model_file_exit_2_one_line(good_csv, tmp_path, capsys):
+    path = tmp_path / "x.py"
+    path.write_text("import casep\n\ndef build():\n    m = casep.build_model('platform36')\n    return ca.vertcat(1)\n")
+    assert main(["separate", str(good_csv), "--model", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"casep: error: model file {path}, line 5, in build(): NameError: name 'ca' is not defined\n"
+
+
+def test_sys_exit_in_build_is_an_error_not_success(good_csv, tmp_path, capsys):
+    path = tmp_path / "quits.py"
+    path.write_text("import sys\n\ndef build():\n    sys.exit(0)\n")
+    out = tmp_path / "r.json"
+    assert main(["separate", str(good_csv), "--model", str(path), "--json", str(out)]) == 2
+    assert f"model file {path}, line 4, in build(): SystemExit(0)" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_models_lists_the_others_and_reports_the_broken_one(tmp_path, monkeypatch, capsys):
+    (tmp_path / "aaa_broken.py").write_text("def build(:\n")
+    (tmp_path / "mine.py").write_text("import casep\n\ndef build():\n    m = casep.build_model('platform36')\n"
+                                      "    m.name = 'mine'\n    return m\n")
+    monkeypatch.setenv("CASEP_MODEL_PATH", str(tmp_path))
+    assert main(["models"]) == 0
+    out = capsys.readouterr().out
+    assert "platform36" in out and "platform39_misalignment" in out and "mine " in out
+    assert (f"warning: model `aaa_broken` not listed: model file {tmp_path / 'aaa_broken.py'}, line 1: "
+            "SyntaxError:") in out
+
+
+def test_models_exit_2_when_none_loads(tmp_path, monkeypatch, capsys):
+    (tmp_path / "bad.py").write_text("raise ImportError('gone')\n")
+    monkeypatch.setenv("CASEP_MODEL_PATH", str(tmp_path))
+    monkeypatch.setattr("casep.cli.available_models", lambda: ["bad"])
+    assert main(["models"]) == 2
+    cap = capsys.readouterr()
+    assert "none of the 1 model files loads" in cap.err
+    assert "model file" in cap.out and "line 1: ImportError: gone" in cap.out
+
+
+# --- issue 17, defect 11: a reader that closes early ends casep quietly --------------------------
+
+def test_broken_pipe_is_quiet():
+    """`casep models -v | head -0`: the read end is closed before casep writes a byte."""
+    proc = subprocess.Popen([sys.executable, "-m", "casep", "models", "-v"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    proc.stdout.close()
+    err = proc.stderr.read()
+    proc.stderr.close()
+    assert proc.wait(timeout=120) == 141  # 128 + SIGPIPE, as the shell reports for any Unix tool
+    assert err == b""

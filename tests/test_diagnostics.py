@@ -167,4 +167,6 @@ def test_cli_diagnose_ar1_and_bad_inputs(tmp_path, capsys):
     (tmp_path / "s.json").write_text('{"Kq": 1}')
     assert main(["diagnose", str(tmp_path / "f.csv"), "--scales", str(tmp_path / "s.json")]) == 2
     assert "unknown coefficient `Kq`" in capsys.readouterr().err
-    assert main(["diagnose", str(tmp_path / "f.csv"), "--figures", str(tmp_path / "nodir")]) == 2
+    # --figures creates a missing folder (test_result.py); a file in its place is refused
+    assert main(["diagnose", str(tmp_path / "f.csv"), "--figures", str(tmp_path / "s.json")]) == 2
+    assert "exists and is not a folder" in capsys.readouterr().err

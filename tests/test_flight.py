@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import casep
+from casep.exceptions import CasepWarning
 from casep.flight import FlightDataError, check_enough_samples, min_samples
 
 
@@ -93,15 +94,19 @@ def test_late_start_warning_on_flight_cut_at_20s(rate, platform36):
     ev = late_start_evidence(cut)
     # dv(20 s) of the paper truth is (-0.36, -0.20, 0.21) m/s against 0.1 m/s noise.
     np.testing.assert_allclose(ev["dv0"], [-0.36, -0.20, 0.21], atol=0.1)
-    with pytest.warns(LateStartWarning) as rec:
+    # (the unmodelled dv0 and phi0 also leave residuals the time-offset check may flag)
+    with pytest.warns(CasepWarning) as rec:
         casep.separate(cut, platform36)
-    msg = str(rec[0].message)
+    late = [str(w.message) for w in rec if w.category is LateStartWarning]
+    assert len(late) == 1
+    msg = late[0]
     assert "cut at 20 s: the flight seems to start after lift-off (t0 = 20 s)" in msg
     assert "initial velocity error dv0" in msg and "initial platform misalignment phi0" in msg
     assert "platform36_dv0" in msg and "platform39_misalignment" in msg and "chi-square" in msg
-    with pytest.warns(LateStartWarning, match="has no initial platform misalignment phi0") as rec:
+    with pytest.warns(CasepWarning) as rec:
         casep.separate(cut, "platform36_dv0")
-    assert "dv0 (" not in str(rec[0].message)
+    late = [str(w.message) for w in rec if w.category is LateStartWarning]
+    assert len(late) == 1 and "has no initial platform misalignment phi0" in late[0] and "dv0 (" not in late[0]
 
 
 @pytest.mark.parametrize("scenario", ["paper", "paper-pitch", "paper-ar1"])

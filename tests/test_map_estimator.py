@@ -26,8 +26,9 @@ def test_prior_only_equals_the_prior(paper_problem, platform36):
     res = casep.solve_map(np.zeros_like(S), y, prior, sigma=0.1, names=platform36.names)
     np.testing.assert_allclose(res.estimate, mu, rtol=1e-12)
     np.testing.assert_allclose(res.std, tau, rtol=1e-12)
-    # Data of negligible weight (sigma huge): the same.
-    res = casep.solve_map(S, y, prior, sigma=1e9, names=platform36.names)
+    # Data of negligible weight: the same. (S, y) / 1e6 with sigma 1e3 is the data with sigma 1e9
+    # (sigma itself is capped at 1e3 m/s, OPTION_RANGES).
+    res = casep.solve_map(S * 1e-6, y * 1e-6, prior, sigma=1e3, names=platform36.names)
     np.testing.assert_allclose(res.estimate, mu, rtol=1e-6, atol=1e-9)
 
 
@@ -74,3 +75,34 @@ def test_prior_errors(paper_problem, platform36):
         casep.solve_map(S, y, {"Kg0x": {"mean": 0, "std": -1}}, names=nm)
     with pytest.raises(ValueError, match="must be \\{\"mean\": m, \"std\": s\\}"):
         casep.solve_map(S, y, {"Kg0x": [0, 1]}, names=nm)
+
+
+# --- issue 17: prior names and values ---------------------------------------------------------
+
+def test_parse_prior_unknown_name_suggests(platform36):
+    from casep.map_estimator import parse_prior
+
+    with pytest.raises(ValueError, match=r"`prior`: unknown coefficient `KaOy` \(did you mean `Ka0y`\?\)"):
+        parse_prior({"KaOy": {"mean": 0, "std": 1}}, platform36.names)
+
+
+@pytest.mark.parametrize("spec, expect", [
+    ({"mean": 0.0, "std": float("nan")}, "std must be > 0"),
+    ({"mean": 0.0, "std": 0.0}, "std must be > 0"),
+    ({"mean": 0.0, "std": -1.0}, "std must be > 0"),
+    ({"mean": 0.0, "std": 1e-320}, "std must be > 0"),   # 1 / std overflows: no usable precision
+    ({"mean": float("inf"), "std": 1.0}, "mean must be finite"),
+    ({"mean": float("nan"), "std": 1.0}, "mean must be finite"),
+])
+def test_parse_prior_rejects_bad_values_naming_the_coefficient(platform36, spec, expect):
+    from casep.map_estimator import parse_prior
+
+    with pytest.raises(ValueError, match=f"`Kg0x` {expect}"):
+        parse_prior({"Kg0x": spec}, platform36.names)
+
+
+def test_parse_prior_infinite_std_is_flat(platform36):
+    from casep.map_estimator import parse_prior
+
+    mu, tau = parse_prior({"Kg0x": {"mean": 1.0, "std": float("inf")}}, platform36.names)
+    assert np.isinf(tau).all()

@@ -132,3 +132,38 @@ def test_declaration_errors():
     assert m.coefficient("K2", "furlong/fortnight", si_factor=1.66e-4) is not None
     with pytest.raises(ValueError, match="must be 3 x 1"):
         m.set_accel_error(ca.SX.zeros(2, 1))
+
+
+# --- issue 17, defect 9: "did you mean" for coefficient names -----------------------------------
+
+@pytest.mark.parametrize("typo, meant", [
+    ("KaOy", "Ka0y"),   # letter O for digit 0
+    ("KgOz", "Kg0z"),
+    ("KalX", "Ka1x"),   # letter l for digit 1, wrong case
+    ("KaIx", "Ka1x"),   # capital I for digit 1
+    ("kg0x", "Kg0x"),   # case only
+    ("Ka1Xy", "Ka1xy"),
+    ("Ka2zz", "Ka2z"),  # no look-alike: difflib's closest
+])
+def test_suggest_names_ranks_the_meant_name_first(platform36, typo, meant):
+    from casep.model import suggest_names
+
+    assert suggest_names(typo, platform36.names)[0] == meant
+
+
+def test_difflib_alone_misranks_the_o_zero_confusion(platform36):
+    """Why the look-alike folding exists: plain difflib puts Ka2y before Ka0y for KaOy."""
+    import difflib
+
+    assert difflib.get_close_matches("KaOy", platform36.names, n=3)[0] != "Ka0y"
+
+
+def test_unknown_coefficient_message_and_index(platform36):
+    from casep.model import unknown_coefficient_message
+
+    msg = unknown_coefficient_message("KaOy", platform36.names, "--prior p.json")
+    assert msg.startswith("--prior p.json: unknown coefficient `KaOy` (did you mean `Ka0y`?); the model has Kg0x")
+    assert "did you mean" not in unknown_coefficient_message("zzzz", platform36.names, "x")
+    with pytest.raises(KeyError, match=r"model `platform36`: unknown coefficient `KaOy` \(did you mean `Ka0y`\?\)"):
+        platform36.index("KaOy")
+    assert platform36.index("Ka0y") == list(platform36.names).index("Ka0y")

@@ -75,3 +75,56 @@ def test_extension_adds_a_term_and_is_recovered(tmp_path, truth36, flight_tf):
     S = casep.build_sv(m, t, f)
     res = casep.solve_ols(S, S @ D)
     np.testing.assert_allclose(res.estimate, D, rtol=1e-6)
+
+
+# --- issue 17, defect 11: a broken model file is one line naming the file and the line ----------
+
+_BROKEN = {
+    # name: (source, line reported, text expected after "line N...: ")
+    "syntax": ("import casep\n\ndef build(:\n    pass\n", 3, "SyntaxError: "),
+    "import": ("import casep\nimport casep_no_such_module_xyz\n", 2, "ModuleNotFoundError: No module named"),
+    "name": ("import casep\n\ndef build():\n    m = casep.build_model('platform36')\n    return ca.vertcat(1)\n",
+             5, "NameError: name 'ca' is not defined"),
+    # The deepest frame inside the file: the helper's line, not build()'s call of it.
+    "deep": ("def helper(x):\n    return 1 / x\n\n\ndef build():\n    return helper(0)\n",
+             2, "ZeroDivisionError: division by zero"),
+    "exit0": ("import sys\n\ndef build():\n    sys.exit(0)\n", 4, "SystemExit(0): a model file must not exit"),
+    "exit_at_import": ("import sys\nsys.exit('bye')\n", 2, "SystemExit('bye')"),
+    "raise_at_import": ("x = 1\nraise RuntimeError('no\\nway')\n", 2, "RuntimeError: no way"),
+}
+
+
+@pytest.mark.parametrize("kind", list(_BROKEN))
+def test_broken_model_file_is_one_line_naming_file_and_line(tmp_path, kind):
+    src, line, text = _BROKEN[kind]
+    path = tmp_path / f"broken_{kind}.py"
+    path.write_text(src)
+    with pytest.raises(ModelDefinitionError) as e:
+        casep.load_model(path)
+    msg = str(e.value)
+    assert msg.startswith(f"model file {path}, line {line}")
+    assert text in msg and "\n" not in msg
+
+
+def test_broken_base_model_is_named_not_the_extension(tmp_path, monkeypatch):
+    (tmp_path / "base_bad.py").write_text("def build():\n    return undefined_name\n")
+    ext = tmp_path / "ext.py"
+    ext.write_text("import casep\n\ndef build():\n    return casep.build_model('base_bad')\n")
+    monkeypatch.setenv("CASEP_MODEL_PATH", str(tmp_path))
+    with pytest.raises(ModelDefinitionError, match=r"model file .*base_bad\.py, line 2, in build\(\): NameError"):
+        casep.load_model(ext)
+
+
+def test_setup_error_names_the_model_file(tmp_path):
+    path = tmp_path / "unused.py"
+    path.write_text("import casep\n\ndef build():\n    m = casep.build_model('platform36')\n"
+                    "    m.declare(Kzz='mg')\n    return m\n")
+    with pytest.raises(ModelDefinitionError, match=rf"^model file {path}: .*`Kzz` declared but used in no output"):
+        casep.load_model(path)
+
+
+def test_keyboard_interrupt_in_build_is_not_swallowed(tmp_path):
+    path = tmp_path / "ctrl_c.py"
+    path.write_text("def build():\n    raise KeyboardInterrupt\n")
+    with pytest.raises(KeyboardInterrupt):
+        casep.load_model(path)

@@ -1,0 +1,86 @@
+"""Self-contained HTML report and the CLI's --figures / --report / exit status (issue 17, defects 8, 11)."""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import casep
+from casep.cli import main
+from casep.report import write_report
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "data" / "example_flight.csv"
+
+
+@pytest.fixture(scope="module")
+def paper_csv(tmp_path_factory):
+    from casep.simulate import simulate_flight
+
+    sim = simulate_flight("paper", seed=1, rate=20.0)
+    p = tmp_path_factory.mktemp("report") / "paper20.csv"
+    casep.write_flight(sim.flight, p)
+    return p
+
+
+def _external_references(text: str) -> list[str]:
+    """Anything a browser would fetch: src/href not a data: URI, url(...), @import."""
+    refs = re.findall(r'(?:src|href)\s*=\s*"(?!data:)([^"]*)"', text)
+    return refs + re.findall(r"url\(|@import|<link|<script", text)
+
+
+def test_report_is_self_contained_with_table_and_images(tmp_path):
+    flight = casep.read_flight(EXAMPLE)
+    res = casep.separate(flight, "platform36", "rls")
+    path = write_report(res, tmp_path / "r.html", flight=flight, warnings=["a <suspicious> thing"], source="x.csv")
+    text = path.read_text(encoding="utf-8")
+    assert text.startswith("<!DOCTYPE html>") and text.rstrip().endswith("</html>")
+    assert '<table id="coefficients">' in text
+    assert all(f"<td>{n}</td>" in text for n in res.names)
+    assert f"{res.estimate[0]:.6g}" in text
+    images = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', text)
+    assert len(images) == 3  # residuals, estimates, history
+    assert all(base64.b64decode(b)[:8] == b"\x89PNG\r\n\x1a\n" for b in images)
+    assert _external_references(text) == []
+    assert "a &lt;suspicious&gt; thing" in text  # escaped
+    assert "<th>p0</th>" in text and "<th>forgetting</th>" in text  # settings table
+    assert f"status {res.status}: {res.message}" in text
+    assert list(tmp_path.iterdir()) == [path]  # temporary figures removed
+
+
+def test_cli_figures_and_report(tmp_path, capsys):
+    figs, rep, out = tmp_path / "new" / "figs", tmp_path / "r.html", tmp_path / "r.json"
+    assert main(["separate", str(EXAMPLE), "--method", "rels", "--figures", str(figs), "--report", str(rep),
+                 "--json", str(out)]) == 0
+    assert sorted(p.name for p in figs.iterdir()) == ["estimates.png", "history.png", "residuals.png"]
+    assert all(p.stat().st_size > 1000 for p in figs.iterdir())
+    text = rep.read_text(encoding="utf-8")
+    assert text.count("data:image/png;base64,") == 3 and _external_references(text) == []
+    o = capsys.readouterr().out
+    assert f"report written to {rep}" in o and "figures:" in o
+
+
+def test_cli_report_folder_missing_exit_2_nothing_computed(tmp_path, capsys):
+    out = tmp_path / "r.json"
+    assert main(["separate", str(EXAMPLE), "--json", str(out), "--report", str(tmp_path / "no" / "r.html")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("casep: error: --report") and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_cli_wound_up_rls_exit_1_json_says_failed(paper_csv, tmp_path, capsys):
+    # Before: estimates 1e16, residual RMS 1e11 m/s, "success": true and exit 0.
+    out = tmp_path / "r.json"
+    assert main(["separate", str(paper_csv), "--method", "rls", "--forgetting", "0.9", "--json", str(out)]) == 1
+    data = json.loads(out.read_text())
+    assert data["success"] is False and data["status"] == -3
+    assert all(np.isfinite(c["estimate"]) for c in data["coefficients"])
+    cap = capsys.readouterr()
+    assert "does not fit the data" in cap.out
+    assert cap.err.startswith("casep: result not successful: failed: rls residual RMS")
+    assert main(["separate", str(paper_csv), "--method", "rls", "--json", str(out)]) == 0  # lambda = 1 unchanged
+    assert json.loads(out.read_text())["success"] is True
