@@ -263,7 +263,7 @@ def _write_separate_outputs(args: argparse.Namespace, res, flight, bounds, prior
 
     files = None
     if args.figures:
-        files = separate_figures(res, args.figures, flight.t, prior=prior, bounds=bounds)
+        files = separate_figures(res, args.figures, flight.t[flight.observed], prior=prior, bounds=bounds)
         print(f"figures: {', '.join(str(f) for f in files)}")
     if args.report:
         lines = [str(w.message) for w in caught if issubclass(w.category, CasepWarning)

@@ -108,7 +108,8 @@ def too_large(values: np.ndarray) -> tuple[int, str] | None:
     if not big.size:
         return None
     r = int(big[0])
-    return r, f"value {values[r]:g} exceeds the magnitude limit {MAX_ABS_VALUE:g} (SI units; the computation would overflow)"
+    return r, (f"value {values[r]:g} exceeds the magnitude limit {MAX_ABS_VALUE:g} "
+               "(SI units; the computation would overflow)")
 
 
 def _check_column(src: str, col: str, values: np.ndarray, rows: np.ndarray | None = None) -> None:

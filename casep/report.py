@@ -134,7 +134,7 @@ def write_report(result: EstimateResult, path: str | os.PathLike, *, flight=None
     else:
         from .plots import separate_figures
 
-        t = None if flight is None else np.asarray(flight.t)
+        t = None if flight is None else np.asarray(flight.t[flight.observed])  # the rows of the residuals
         with tempfile.TemporaryDirectory(prefix="casep-report-") as tmp:
             files = separate_figures(result, tmp, t, prior=prior, bounds=bounds)
             text = report_html(result, files, warnings=warnings, source=source)

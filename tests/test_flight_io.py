@@ -316,3 +316,20 @@ def test_pair_cut_after_liftoff_warns_with_speed(tmp_path):
         casep.separate(cut)
     late = [str(w.message) for w in rec if w.category is LateStartWarning]
     assert len(late) == 1 and re.search(r"telemetry speed at the first sample is 17\d\.?\d* m/s", late[0])
+
+
+def test_cli_pair_with_late_tracking_counts_observed_samples(tmp_path, capsys):
+    import json
+
+    from casep.cli import main
+    from casep.simulate import simulate_two_rate
+
+    d = simulate_two_rate("paper", seed=6, telemetry_rate=10.0, tracking_rate=10.0, tracking_start=10.0)
+    tel, trk = tmp_path / "tel.csv", tmp_path / "trk.csv"
+    d.write(tel, trk, apparent=True)
+    n_obs = int(np.sum(d.t_tel >= 10.0))
+    assert main(["separate", str(tel), "--tracking", str(trk), "--json", str(tmp_path / "r.json")]) == 0
+    assert json.loads((tmp_path / "r.json").read_text())["n_samples"] == n_obs
+    assert main(["diagnose", str(tel), "--tracking", str(trk), "--tau", "1"]) == 0
+    out = capsys.readouterr().out
+    assert f"model platform36, {n_obs} samples" in out and "warning: " not in out.replace("warning: ill-cond", "")
