@@ -28,7 +28,7 @@ def test_enough_samples_rule():
     check_enough_samples(casep.FlightData(np.arange(14.0), np.zeros((14, 3)), np.zeros((14, 3))), 36, "m")
 
 
-def test_observed_mask_selects_regression_rows():
+def test_observed_mask_selects_regression_rows(tmp_path):
     t = np.arange(10.0)
     dv = np.ones((10, 3))
     dv[:4] = np.nan  # not observed: may be NaN
@@ -48,6 +48,9 @@ def test_observed_mask_selects_regression_rows():
         casep.FlightData(t, np.ones((10, 3)), dv, observed=np.zeros(10, bool))
     with pytest.raises(FlightDataError, match=r"6 samples observed \(tracking covers 6 of 10\) are too few"):
         check_enough_samples(fl, 36, "m")
+    with pytest.raises(ValueError, match="4 samples without tracking, which the one-file format cannot hold"):
+        casep.write_flight(fl, tmp_path / "x.csv")
+    assert not list(tmp_path.iterdir())
 
 
 def test_values_beyond_magnitude_limit_refused():
