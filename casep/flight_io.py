@@ -268,6 +268,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     meta = {"format": "parquet" if _is_parquet(tab.path) else "csv", "force": force_from, "dv": dv_from}
     if dv_from != "dv":
         meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
+        meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.checks
     return FlightData(t, f, dv, source=tab.src, meta=meta)
 
 
@@ -334,7 +335,8 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
             "tracking_span_s": [float(t_trk[0]), float(t_trk[-1])],
             "span_s": [float(t[0]), float(t[-1])], "observed_span_s": [float(t[observed][0]), float(t[observed][-1])],
             "unobserved": int((~observed).sum()), "telemetry_dropped": int((~keep).sum()),
-            "start_speed_m_s": float(np.linalg.norm(v_tel[0]))}
+            "start_speed_m_s": float(np.linalg.norm(v_tel[0])),
+            "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.checks
     return FlightData(t, f[keep], dv, source=f"{tel.src} + {trk.src}", meta=meta, observed=observed)
 
 

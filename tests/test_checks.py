@@ -247,3 +247,24 @@ def test_cli_impossible_flight_exit_2(tmp_path, capsys, paper20):
     err = capsys.readouterr().err
     assert err.startswith("casep: error: ") and err.count("\n") == 1 and str(p) in err and "f_x" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("factor, hint", [(1 / 0.3048, "ft/s"), (100.0, "cm/s"), (1e-3, "km/s")])
+def test_velocity_columns_in_other_units_warn(tmp_path, factor, hint):
+    """v_tel/v_trk in ft/s (or cm/s, km/s) while f is in m/s^2: the telemetered velocity change
+    disagrees with int (f + g) dt by the unit factor (0.9986 in SI on the paper boost)."""
+    from casep.flight_io import write_table
+    from casep.simulate import simulate_two_rate
+
+    d = simulate_two_rate("paper", seed=1, telemetry_rate=20.0, tracking_rate=20.0)
+    cols = {"t": d.t_tel, **{f"f_{a}": d.f[:, i] for i, a in enumerate("xyz")}}
+    v_trk = np.column_stack([np.interp(d.t_tel, d.t_trk, d.v_trk[:, i]) for i in range(3)])
+    good, bad = tmp_path / "si.csv", tmp_path / "bad.csv"
+    for path, k in ((good, 1.0), (bad, factor)):
+        write_table(path, {**cols, **{f"v_tel_{a}": k * d.v_tel[:, i] for i, a in enumerate("xyz")},
+                           **{f"v_trk_{a}": k * v_trk[:, i] for i, a in enumerate("xyz")}})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PlausibilityWarning)
+        check_flight(casep.read_flight(good))  # SI: silent
+    with pytest.warns(PlausibilityWarning, match=hint):
+        check_flight(casep.read_flight(bad))
