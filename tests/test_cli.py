@@ -241,52 +241,39 @@ def test_p0_at_its_bound_is_still_least_squares(paper_problem, platform36):
     np.testing.assert_allclose(rls.std, ols.std, rtol=1e-6)
 
 
-@pytest.mark.parametrize("content, expect", [
-    ('{"Kg0x": Infinity}', "`Kg0x` fixed value must be finite, got inf"),
-    ('{"Kg0x": [Infinity, null]}', "`Kg0x` lower bound inf leaves no finite value"),
-    ('{"Kg0x": [null, -Infinity]}', "`Kg0x` upper bound -inf leaves no finite value"),
-    ('{"Kg0x": [NaN, 1]}', "`Kg0x` has a NaN bound"),
-    ('{"KaOy": [0, 1]}', "unknown coefficient `KaOy` (did you mean `Ka0y`?)"),
+_BOUNDED = ("separate", "--method", "bounded", "--bounds")
+_SCALES = ("diagnose", "--scales")
+_MAP = ("separate", "--method", "map", "--prior")
+
+
+@pytest.mark.parametrize("command, content, expect", [
+    (_BOUNDED, '{"Kg0x": Infinity}', "`Kg0x` fixed value must be finite, got inf"),
+    (_BOUNDED, '{"Kg0x": [Infinity, null]}', "`Kg0x` lower bound inf leaves no finite value"),
+    (_BOUNDED, '{"Kg0x": [null, -Infinity]}', "`Kg0x` upper bound -inf leaves no finite value"),
+    (_BOUNDED, '{"Kg0x": [NaN, 1]}', "`Kg0x` has a NaN bound"),
+    (_BOUNDED, '{"KaOy": [0, 1]}', "unknown coefficient `KaOy` (did you mean `Ka0y`?)"),
+    (_SCALES, '{"Kg0x": Infinity}', "`Kg0x` must be a finite number > 0, got inf"),
+    (_SCALES, '{"Kg0x": NaN}', "`Kg0x` must be a finite number > 0, got nan"),
+    (_SCALES, '{"Kg0x": 0}', "`Kg0x` must be a finite number > 0, got 0"),
+    (_SCALES, '{"KaOy": 1}', "unknown coefficient `KaOy` (did you mean `Ka0y`?)"),
+    (_MAP, '{"KaOy": {"mean": 0, "std": 1}}', "unknown coefficient `KaOy` (did you mean `Ka0y`?)"),
+    (_MAP, '{"Kg0x": {"mean": Infinity, "std": 1}}', "`Kg0x` mean must be finite"),
+    (_MAP, '{"Kg0x": {"mean": 0, "std": NaN}}', "`Kg0x` std must be > 0"),
 ])
-def test_bad_bounds_values_exit_2(good_csv, tmp_path, capsys, content, expect):
-    f = tmp_path / "b.json"
+def test_bad_coefficient_file_values_exit_2(good_csv, tmp_path, capsys, command, content, expect):
+    """--bounds, --scales and --prior: non-finite values and misspelt names, one line, exit 2."""
+    f = tmp_path / "values.json"
     f.write_text(content)
-    assert main(["separate", str(good_csv), "--method", "bounded", "--bounds", str(f)]) == 2
+    cmd, *opts = command
+    assert main([cmd, str(good_csv), *opts, str(f)]) == 2
     err = capsys.readouterr().err
-    assert expect in err and f"--bounds {f}" in err and err.count("\n") == 1
+    assert expect in err and f"{opts[-1]} {f}" in err and err.count("\n") == 1
 
 
 def test_infinite_bound_on_its_own_side_is_open(platform36):
     lo, hi, fixed = casep.bounded.parse_bounds({"Kg0x": [-np.inf, np.inf], "Kg0y": [None, 2.0]}, platform36.names)
     j, k = platform36.index("Kg0x"), platform36.index("Kg0y")
     assert lo[j] == -np.inf and hi[j] == np.inf and lo[k] == -np.inf and hi[k] == 2.0 and not fixed.any()
-
-
-@pytest.mark.parametrize("content, expect", [
-    ('{"Kg0x": Infinity}', "`Kg0x` must be a finite number > 0, got inf"),
-    ('{"Kg0x": NaN}', "`Kg0x` must be a finite number > 0, got nan"),
-    ('{"Kg0x": 0}', "`Kg0x` must be a finite number > 0, got 0"),
-    ('{"KaOy": 1}', "unknown coefficient `KaOy` (did you mean `Ka0y`?)"),
-])
-def test_bad_scales_exit_2(good_csv, tmp_path, capsys, content, expect):
-    f = tmp_path / "s.json"
-    f.write_text(content)
-    assert main(["diagnose", str(good_csv), "--scales", str(f)]) == 2
-    err = capsys.readouterr().err
-    assert expect in err and f"--scales {f}" in err and err.count("\n") == 1
-
-
-@pytest.mark.parametrize("content, expect", [
-    ('{"KaOy": {"mean": 0, "std": 1}}', "unknown coefficient `KaOy` (did you mean `Ka0y`?)"),
-    ('{"Kg0x": {"mean": Infinity, "std": 1}}', "`Kg0x` mean must be finite"),
-    ('{"Kg0x": {"mean": 0, "std": NaN}}', "`Kg0x` std must be > 0"),
-])
-def test_bad_prior_values_exit_2(good_csv, tmp_path, capsys, content, expect):
-    f = tmp_path / "p.json"
-    f.write_text(content)
-    assert main(["separate", str(good_csv), "--method", "map", "--prior", str(f)]) == 2
-    err = capsys.readouterr().err
-    assert expect in err and f"--prior {f}" in err and err.count("\n") == 1
 
 
 # --- issue 17, defects 9 and 11: model files -----------------------------------------------------
