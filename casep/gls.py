@@ -218,6 +218,12 @@ def _lattice_vertex(v: Sequence[float]) -> float:
     u = np.arange(-2.0, 3.0)
     use = np.isfinite(v) if np.all(np.isfinite(v)) else np.abs(u) <= 1
     P = np.polynomial.Polynomial.fit(u[use], v[use], int(use.sum()) - 1, domain=[-1, 1], window=[-1, 1])
-    roots = P.deriv().roots()
-    cand = [0.0] + [float(z.real) for z in roots if abs(z.imag) < 1e-12 and -1.0 <= z.real <= 1.0]
+    d1, d2 = P.deriv(), P.deriv(2)
+    cand = [0.0]
+    for z in d1.roots():
+        z = float(z.real)
+        for _ in range(3):  # Newton on P' = 0: roots of a cubic with a tiny leading term are loose
+            z -= d1(z) / d2(z) if d2(z) != 0 else 0.0
+        if -1.0 <= z <= 1.0:
+            cand.append(z)
     return min(cand, key=lambda z: P(z))
