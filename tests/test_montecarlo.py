@@ -72,20 +72,26 @@ def test_bad_arguments(capsys):
 
 
 def test_gls_chunks_match_public_solver():
-    """GLS runs share one REML lattice per chunk: the same numbers as solve_gls per run (tau to
-    1e-3 relative moves the estimates by well under 1e-2 std), for any number of workers."""
+    """GLS runs share one REML lattice per chunk: tau within 1e-3 relative and estimates within
+    1e-3 std of solve_gls per run, exactly solve_gls at that tau, the same for any `workers`."""
     import casep
+    from casep.gls import estimate_tau_many
     from casep.simulate import scenario_setup
 
     runs, seed = 3, 4
     a = run_montecarlo("paper-ar1", runs=runs, methods=["gls"], seed=seed, rate=5.0, workers=1)
     sc, traj, model, truth = scenario_setup("paper-ar1", 5.0)
     S = casep.build_sv(model, traj.t, traj.specific_force)
-    for k, seq in enumerate(np.random.SeedSequence(seed).spawn(runs)):
-        y = S @ truth + sc.noise.sample(traj.t, np.random.default_rng(seq))
-        r = casep.solve_gls(S, y, traj.t)
-        assert np.max(np.abs(a.estimates["gls"][k] - r.estimate) / r.std) < 1e-2
+    Y = np.stack([S @ truth + sc.noise.sample(traj.t, np.random.default_rng(q))
+                  for q in np.random.SeedSequence(seed).spawn(runs)], axis=-1)
+    taus = estimate_tau_many(S, Y, traj.t)  # one chunk
+    for k in range(runs):
+        r = casep.solve_gls(S, Y[..., k], traj.t)  # its own REML search
+        assert abs(taus[k] / r.settings["tau"] - 1) < 1e-3
+        assert np.max(np.abs(a.estimates["gls"][k] - r.estimate) / r.std) < 1e-3
         np.testing.assert_allclose(a.stds["gls"][k], r.std, rtol=1e-3)
+        g = casep.solve_gls(S, Y[..., k], traj.t, tau=float(taus[k]))  # at the shared lattice's tau
+        assert np.max(np.abs(a.estimates["gls"][k] - g.estimate) / g.std) < 1e-6
     b = run_montecarlo("paper-ar1", runs=runs, methods=["gls"], seed=seed, rate=5.0, workers=2)
     np.testing.assert_array_equal(a.estimates["gls"], b.estimates["gls"])
 
