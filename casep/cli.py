@@ -204,6 +204,8 @@ def _parser() -> argparse.ArgumentParser:
     mc.add_argument("--json", metavar="OUT", default=None, help="write the Monte Carlo JSON here")
     mc.add_argument("--csv", metavar="OUT", default=None, help="write a CSV table here")
     mc.add_argument("--figure", metavar="PNG", default=None, help="write RMS/CRLB per coefficient here")
+    mc.add_argument("--progress", action=argparse.BooleanOptionalAction, default=True,
+                    help="progress on stderr: a bar on a terminal, else a line with the ETA every 5 s (default on)")
     m = sub.add_parser("models", help="list the available error models")
     m.add_argument("--verbose", "-v", action="store_true", help="list each model's coefficients")
     return p
@@ -349,7 +351,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_montecarlo(args: argparse.Namespace) -> int:
-    from .montecarlo import run_montecarlo, write_figure
+    from .montecarlo import Terminated, run_montecarlo, sigterm_raises, write_figure
 
     check_outputs({"--json": args.json, "--csv": args.csv, "--figure": args.figure})
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
@@ -357,8 +359,13 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
         raise ValueError(f"--runs must be >= 1, got {args.runs}")
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers must be >= 1, got {args.workers}")
-    res = run_montecarlo(args.scenario, runs=args.runs, methods=methods, seed=args.seed, rate=args.rate,
-                         workers=args.workers)
+    try:
+        with sigterm_raises():
+            res = run_montecarlo(args.scenario, runs=args.runs, methods=methods, seed=args.seed, rate=args.rate,
+                                 workers=args.workers, progress=args.progress)
+    except (KeyboardInterrupt, Terminated) as exc:  # workers already ended; nothing written
+        print("casep: interrupted", file=sys.stderr)
+        return 143 if isinstance(exc, Terminated) else 130
     print(f"scenario {res.scenario}, {res.runs} runs, seed {res.seed}")
     print(res.summary())
     if args.json:

@@ -22,12 +22,16 @@ squares reports none on a bound; null when the method gives none).
 from __future__ import annotations
 
 import csv
+import ctypes
 import json
+import multiprocessing
 import os
+import signal
 import sys
+import threading
 import time
 import warnings
-from concurrent.futures import ProcessPoolExecutor
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
@@ -42,13 +46,14 @@ from .scenarios import Scenario
 from .simulate import scenario_setup
 from .sv import build_sv
 
-__all__ = ["MonteCarloResult", "run_montecarlo", "METHOD_HELP", "BATCHED"]
+__all__ = ["MonteCarloResult", "run_montecarlo", "METHOD_HELP", "BATCHED", "Terminated", "sigterm_raises"]
 
 #: Methods solved for all runs with one factorisation.
 BATCHED = ("ols", "rls", "pcr", "map")
 METHOD_HELP = ("ols, rls, rels, ridge (GCV), ridge:<lambda>, pcr, map, bounded, gls (REML tau), and "
                "wavelet+<method> (de-noised first)")
 _BLOCK = 128  # runs per block of right-hand sides
+_GLS_CHUNK = 16  # runs sharing one REML lattice (casep.gls.estimate_tau_many)
 
 
 def _noise(scenario: Scenario, t: np.ndarray, seq: np.random.SeedSequence) -> np.ndarray:
@@ -70,17 +75,24 @@ def _check_method(m: str) -> str:
 
 
 # --------------------------------------------------------------------------- per-run path
-def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float,
-           t: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-    """One run through the public solvers: natural-unit estimate and reported std."""
-    from . import solve_bounded, solve_gls, solve_map, solve_ols, solve_pcr, solve_ridge, solve_rls
+def _denoised(method: str, y: np.ndarray) -> tuple[str, np.ndarray, float | None]:
+    """``wavelet+<m>``: the de-noised dv and its sigma, as casep separate does; else as given."""
+    if not method.startswith("wavelet+"):
+        return method, y, None
     from .denoise import denoise
 
-    given = None
-    if method.startswith("wavelet+"):
-        d = denoise(y)
-        y, method = d.dv, method.split("+", 1)[1]
-        given = float(np.sqrt(np.mean(d.sigma**2)))  # as casep separate does
+    d = denoise(y)
+    return method.split("+", 1)[1], d.dv, float(np.sqrt(np.mean(d.sigma**2)))
+
+
+def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float, t: np.ndarray,
+           given: float | None = None, tau: float | str = "auto") -> tuple[np.ndarray, np.ndarray | None]:
+    """One run of a (de-noised) method through the public solvers: estimate and reported std.
+
+    `given` is the sigma handed to the solver (None: estimated), `tau` the GLS correlation time.
+    """
+    from . import solve_bounded, solve_gls, solve_map, solve_ols, solve_pcr, solve_ridge, solve_rls
+
     kw = {"names": names, "sigma": given}
     if method == "ols":
         r = solve_ols(S, y, **kw)
@@ -97,13 +109,45 @@ def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float,
     elif method == "map":
         r = solve_map(S, y, demo_prior(names), names=names, sigma=given or sigma)
     elif method == "gls":
-        r = solve_gls(S, y, t, **kw)
+        r = solve_gls(S, y, t, tau=tau, **kw)
     else:
         r = solve_bounded(S, y, demo_bounds(names), **kw)
     return r.estimate, r.std
 
 
 _WORKER: dict[str, Any] = {}
+#: Thread-count variables of the BLAS/OpenMP libraries, set to 1 for the worker processes.
+_THREAD_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
+               "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def _exit_with_parent(parent: int) -> None:
+    """End this worker when process `parent` ends, even by SIGKILL (no orphans left waiting).
+
+    Linux: the kernel sends SIGKILL on the parent's death (prctl PR_SET_PDEATHSIG); elsewhere,
+    and as a fallback, a daemon thread polls the parent id every 0.5 s.
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:  # the parent died before the line above
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="casep-parent-watch", daemon=True).start()
+
+
+def _pool_worker_init(parent: int, *args) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and ends the workers
+    _exit_with_parent(parent)
+    _worker_init(*args)
 
 
 def _worker_init(S, clean, t, scenario, names, sigma):
@@ -111,11 +155,62 @@ def _worker_init(S, clean, t, scenario, names, sigma):
     _WORKER.update(S=S, clean=clean, t=t, scenario=scenario, names=names, sigma=sigma)
 
 
-def _worker_run(args):
-    method, seq = args
+def _worker_run(args) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """A chunk of runs of one method; GLS estimates tau for the whole chunk at once."""
+    from .gls import estimate_tau_many
+
+    method, seqs = args
     w = _WORKER
-    y = w["clean"] + _noise(w["scenario"], w["t"], seq)
-    return _solve(method, w["S"], y, w["names"], w["sigma"], w["t"])
+    runs = [_denoised(method, w["clean"] + _noise(w["scenario"], w["t"], seq)) for seq in seqs]
+    if runs[0][0] == "gls":  # one REML lattice for the chunk, then the public solver at each tau
+        taus = estimate_tau_many(w["S"], np.stack([y for _, y, _ in runs], axis=-1), w["t"])
+    else:
+        taus = ["auto"] * len(runs)
+    return [_solve(m, w["S"], y, w["names"], w["sigma"], w["t"], given, tau)
+            for (m, y, given), tau in zip(runs, taus)]
+
+
+@contextmanager
+def _worker_pool(n_workers: int, initargs: tuple):
+    """A spawn-context process pool of single-threaded-BLAS workers that die with this process.
+
+    Spawned (not forked) so that the thread variables take effect at the workers' numpy
+    import: one BLAS thread per worker (several per worker oversubscribe the cores, measured
+    30x slower on 2 cores). On any exception, KeyboardInterrupt included, the workers are
+    terminated at once rather than awaited.
+    """
+    ctx = multiprocessing.get_context("spawn")
+    saved = {k: os.environ.get(k) for k in _THREAD_ENV}
+    main = threading.current_thread() is threading.main_thread()
+    old_int = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None  # children inherit SIG_IGN
+    try:
+        os.environ.update({k: "1" for k in _THREAD_ENV})
+        pool = ctx.Pool(n_workers, initializer=_pool_worker_init, initargs=(os.getpid(), *initargs))
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+        if main:
+            signal.signal(signal.SIGINT, old_int)
+    try:
+        yield pool
+    except BaseException:
+        pool.terminate()
+        raise
+    else:
+        pool.close()
+        pool.join()
+
+
+def _chunks(method: str, runs: int, n_workers: int) -> list[range]:
+    """Runs per job: GLS in chunks that depend on `runs` only (same numbers for any `workers`)."""
+    if method.split("+")[-1] == "gls":
+        size = -(-runs // -(-runs // _GLS_CHUNK))  # <= _GLS_CHUNK, as even as possible
+    else:
+        size = max(1, runs // (4 * n_workers))
+    return [range(k, min(k + size, runs)) for k in range(0, runs, size)]
 
 
 # ---------------------------------------------------------------------------- batched path
@@ -288,18 +383,70 @@ class MonteCarloResult:
 
 
 class _Progress:
-    def __init__(self, total: int, enabled: bool) -> None:
-        self.total, self.done, self.enabled = total, 0, enabled
+    """Progress of the Monte Carlo on stderr, counted in runs of the current stage.
+
+    A stage is one per-run method, or all batched linear methods together (one pass over the
+    runs). ``mode`` "bar": a bar redrawn in place (terminals); "lines": a plain line every
+    `every` seconds and one at the end (logs, pipes); None: silent.
+    """
+
+    def __init__(self, runs: int, stages: Sequence[str], mode: str | None, every: float = 5.0) -> None:
+        self.runs, self.stages, self.mode, self.every = runs, list(stages), mode, every
+        self.stage, self.done = 0, 0
+        self.t0 = self.last = time.monotonic()
+        self.drawn = False
+
+    def next_stage(self) -> None:
+        self.stage, self.done = self.stage + 1, 0
 
     def __call__(self, k: int) -> None:
         self.done += k
-        if self.enabled:
-            w = 30
-            fill = int(w * self.done / max(self.total, 1))
-            sys.stderr.write(f"\r[{'#' * fill}{'.' * (w - fill)}] {self.done}/{self.total} runs")
-            if self.done >= self.total:
-                sys.stderr.write("\n")
-            sys.stderr.flush()
+        now = time.monotonic()
+        if self.mode == "bar":
+            self._write("\r" + self._bar() + self._text(now, short=True))
+            self.drawn = True
+        elif self.mode == "lines" and (now - self.last >= self.every or self._finished()):
+            self._write(f"montecarlo: {self._text(now)}\n")
+            self.last = now
+        if self.mode == "bar" and self._finished():
+            self.close()
+
+    def close(self) -> None:
+        """End the bar's line (also on interruption)."""
+        if self.drawn:
+            self._write("\n")
+            self.drawn = False
+
+    def _finished(self) -> bool:
+        return self.stage == len(self.stages) - 1 and self.done >= self.runs
+
+    def _bar(self, width: int = 24) -> str:
+        fill = int(width * self.done / max(self.runs, 1))
+        return f"[{'#' * fill}{'.' * (width - fill)}] "
+
+    def _text(self, now: float, short: bool = False) -> str:
+        frac = (self.stage * self.runs + self.done) / (len(self.stages) * self.runs)  # share of all work
+        el = now - self.t0
+        eta = f"ETA {el * (1 - frac) / frac:.0f} s" if frac > 0 else "ETA -"
+        which = f"{self.stages[self.stage]} {self.done}/{self.runs} runs"
+        if len(self.stages) > 1:
+            which += f" (method {self.stage + 1} of {len(self.stages)}"
+            which += ")" if short else f", {100 * frac:.0f} % of all)"
+        else:
+            which += "" if short else f" ({100 * frac:.0f} %)"
+        return f"{which}, {el:.0f} s elapsed, {eta}" + ("  " if short else "")
+
+    @staticmethod
+    def _write(text: str) -> None:
+        sys.stderr.write(text)
+        sys.stderr.flush()
+
+
+def _progress_mode(progress: bool | None) -> str | None:
+    tty = sys.stderr.isatty()
+    if progress is None:
+        return "bar" if tty else None
+    return ("bar" if tty else "lines") if progress else None
 
 
 def run_montecarlo(
@@ -328,7 +475,8 @@ def run_montecarlo(
     workers : int, optional
         Processes for the per-run methods (default: all cores; 1 runs in this process).
     progress : bool, optional
-        Progress bar on stderr (default: when stderr is a terminal).
+        Progress on stderr: True, a bar on a terminal and a plain line with the ETA every 5 s
+        otherwise; False, none; default: the bar on a terminal only.
     batched : bool, optional
         Use the one-factorisation path for the linear methods (False: per run, for checks).
     """
@@ -348,14 +496,15 @@ def run_montecarlo(
     crlb = np.sqrt(np.diag(crlb_covariance(S, sigma, t=t if tau else None, tau=tau)))
     seqs = np.random.SeedSequence(seed).spawn(runs)
     names = model.names
-    show = sys.stderr.isatty() if progress is None else progress
     lin = [m for m in methods if batched and (m in BATCHED or m.startswith("ridge:"))]
     other = [m for m in methods if m not in lin]
-    bar = _Progress(runs * (bool(lin) + len(other)), show)
+    bar = _Progress(runs, ([",".join(lin)] if lin else []) + other, _progress_mode(progress))
     est: dict[str, np.ndarray] = {}
     std: dict[str, np.ndarray | None] = {}
     secs: dict[str, float] = {}
-    with warnings.catch_warnings():
+    n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
+    with warnings.catch_warnings(), ExitStack() as stack:
+        stack.callback(bar.close)
         warnings.simplefilter("ignore", IllConditionedWarning)
         if lin:
             t0 = time.perf_counter()
@@ -366,30 +515,54 @@ def run_montecarlo(
             for m_ in lin:
                 est[m_], std[m_] = res[m_]
                 secs[m_] = dt / len(lin)
-        n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
-        for m_ in other:
+            if other:
+                bar.next_stage()
+        initargs = (S, clean, t, sc, names, sigma)
+        if other and n_workers > 1 and runs > 1:
+            run_jobs = stack.enter_context(_worker_pool(n_workers, initargs)).imap
+        else:
+            _worker_init(*initargs)
+            run_jobs = map
+        for i, m_ in enumerate(other):
             t0 = time.perf_counter()
-            jobs = [(m_, seqs[k]) for k in range(runs)]
-            if n_workers > 1 and runs > 1:
-                with ProcessPoolExecutor(max_workers=n_workers, initializer=_worker_init,
-                                         initargs=(S, clean, t, sc, names, sigma)) as ex:
-                    outs = []
-                    for o in ex.map(_worker_run, jobs, chunksize=max(1, runs // (4 * n_workers))):
-                        outs.append(o)
-                        bar(1)
-            else:
-                _worker_init(S, clean, t, sc, names, sigma)
-                outs = []
-                for j in jobs:
-                    outs.append(_worker_run(j))
-                    bar(1)
+            outs = []
+            for o in run_jobs(_worker_run, [(m_, [seqs[k] for k in c]) for c in _chunks(m_, runs, n_workers)]):
+                outs.extend(o)
+                bar(len(o))
             est[m_] = np.array([o[0] for o in outs])
             std[m_] = None if outs[0][1] is None else np.array([o[1] for o in outs])
             secs[m_] = time.perf_counter() - t0
+            if i + 1 < len(other):
+                bar.next_stage()
     ordered = {m_: est[m_] for m_ in methods}
     return MonteCarloResult(scenario=sc.name, runs=runs, seed=seed, names=names, units=model.units,
                             truth=truth, crlb_std=crlb, estimates=ordered, stds={m_: std[m_] for m_ in methods},
                             seconds=secs)
+
+
+class Terminated(BaseException):
+    """SIGTERM received (see :func:`sigterm_raises`); like KeyboardInterrupt, not an Exception."""
+
+
+@contextmanager
+def sigterm_raises():
+    """Within: SIGTERM raises :class:`Terminated` in the main thread (elsewhere a no-op).
+
+    So that ``casep montecarlo`` ends its workers and exits 143 with one line instead of
+    dying with them orphaned.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise Terminated
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
 
 
 def write_figure(res: MonteCarloResult, path: str | os.PathLike) -> Path:

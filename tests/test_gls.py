@@ -84,3 +84,71 @@ def test_bad_arguments(paper_problem):
         casep.solve_gls(S, y, t, tau="ml")
     with pytest.raises(ValueError, match="`t` must have"):
         casep.solve_gls(S, y, t[:-1])
+
+
+def _paper_ar1_runs(k, seed=11, rate=10.0):
+    from casep.simulate import scenario_setup
+
+    sc, traj, model, truth = scenario_setup("paper-ar1", rate)
+    S = casep.build_sv(model, traj.t, traj.specific_force)
+    rng = np.random.default_rng(seed)
+    Y = np.stack([S @ truth + sc.noise.sample(traj.t, rng) for _ in range(k)], axis=-1)
+    return S, Y, traj.t
+
+
+def test_batched_tau_matches_per_run_reml():
+    """One REML lattice for 8 runs: tau within 2e-5 relative of a tight per-run search and 1e-3 of
+    estimate_tau (whose search stops at 1e-4 in ln tau), with far fewer factorisations."""
+    from unittest import mock
+
+    from scipy.optimize import minimize_scalar
+
+    from casep import gls
+
+    S, Y, t = _paper_ar1_runs(8, rate=5.0)
+    calls = []
+
+    def counting(S_, Y_, t_, tau):
+        calls.append(Y_.shape[-1])
+        return neg2(S_, Y_, t_, tau)
+
+    neg2 = gls._neg2_reml
+    with mock.patch.object(gls, "_neg2_reml", counting):
+        taus = gls.estimate_tau_many(S, Y, t)
+        n_batch = len(calls)
+        per_run = [estimate_tau(S, Y[..., r], t) for r in range(Y.shape[-1])]
+    assert n_batch < 0.5 * (len(calls) - n_batch)  # factorisations: shared lattice vs one search per run
+    for r in range(Y.shape[-1]):
+        tight = np.exp(minimize_scalar(lambda x: float(neg2(S, Y[..., r:r + 1], t, float(np.exp(x)))[0]),
+                                       bounds=gls._tau_bounds(t), method="bounded", options={"xatol": 1e-10}).x)
+        assert abs(taus[r] / tight - 1) < 2e-5, (r, taus[r], tight)
+        assert abs(taus[r] / per_run[r] - 1) < 1e-3
+    assert 0.7 < np.median(taus) < 1.4  # truth 1 s
+
+
+def test_neg2_reml_columns_equal_single_runs():
+    """Each column of the one-factorisation objective equals the objective of that run alone."""
+    from casep.gls import _neg2_reml
+
+    S, Y, t = _paper_ar1_runs(3, rate=5.0)
+    many = _neg2_reml(S, Y, t, 0.8)
+    one = [_neg2_reml(S, Y[..., r:r + 1], t, 0.8)[0] for r in range(3)]
+    np.testing.assert_allclose(many, one, rtol=0, atol=1e-8)
+
+
+def test_lattice_vertex_exact_for_polynomials():
+    from casep.gls import _lattice_vertex
+
+    u = np.arange(-3.0, 4.0)
+    assert _lattice_vertex((u - 0.3) ** 2) == pytest.approx(0.3, abs=1e-12)  # parabola
+    q = (u + 0.45) ** 2 + 0.05 * (u + 0.45) ** 4 + 1e-3 * u**6
+    z = np.linspace(-1, 1, 200001)
+    zq = z[np.argmin((z + 0.45) ** 2 + 0.05 * (z + 0.45) ** 4 + 1e-3 * z**6)]
+    assert _lattice_vertex(q) == pytest.approx(zq, abs=1e-5)  # degree 6, exact through 7 points
+    v = (u - 0.2) ** 2 + 0.1 * (u - 0.2) ** 3
+    v[:2] = np.nan  # beyond an end of the interval: the cubic through the five left
+    z3 = z[np.argmin((z - 0.2) ** 2 + 0.1 * (z - 0.2) ** 3)]
+    assert _lattice_vertex(v) == pytest.approx(z3, abs=1e-5)
+    v = (u + 1.0) ** 2
+    v[:3] = np.nan  # the middle value is the interval's end
+    assert _lattice_vertex(v) == 0.0

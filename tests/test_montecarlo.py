@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -63,3 +69,162 @@ def test_bad_arguments(capsys):
         run_montecarlo(runs=0)
     assert main(["montecarlo", "--runs", "2", "--methods", "ols,ridge:abc"]) == 2
     assert "ridge:<lambda> needs a number" in capsys.readouterr().err
+
+
+def test_gls_chunks_match_public_solver():
+    """GLS runs share one REML lattice per chunk: tau within 1e-3 relative and estimates within
+    1e-3 std of solve_gls per run, exactly solve_gls at that tau, the same for any `workers`."""
+    import casep
+    from casep.gls import estimate_tau_many
+    from casep.simulate import scenario_setup
+
+    runs, seed = 3, 4
+    a = run_montecarlo("paper-ar1", runs=runs, methods=["gls"], seed=seed, rate=5.0, workers=1)
+    sc, traj, model, truth = scenario_setup("paper-ar1", 5.0)
+    S = casep.build_sv(model, traj.t, traj.specific_force)
+    Y = np.stack([S @ truth + sc.noise.sample(traj.t, np.random.default_rng(q))
+                  for q in np.random.SeedSequence(seed).spawn(runs)], axis=-1)
+    taus = estimate_tau_many(S, Y, traj.t)  # one chunk
+    for k in range(runs):
+        r = casep.solve_gls(S, Y[..., k], traj.t)  # its own REML search
+        assert abs(taus[k] / r.settings["tau"] - 1) < 1e-3
+        assert np.max(np.abs(a.estimates["gls"][k] - r.estimate) / r.std) < 1e-3
+        np.testing.assert_allclose(a.stds["gls"][k], r.std, rtol=1e-3)
+        g = casep.solve_gls(S, Y[..., k], traj.t, tau=float(taus[k]))  # at the shared lattice's tau
+        assert np.max(np.abs(a.estimates["gls"][k] - g.estimate) / g.std) < 1e-6
+    b = run_montecarlo("paper-ar1", runs=runs, methods=["gls"], seed=seed, rate=5.0, workers=2)
+    np.testing.assert_array_equal(a.estimates["gls"], b.estimates["gls"])
+
+
+def test_progress_lines_off_a_terminal_count_runs_per_method(capsys):
+    """Defect 6: no progress at all when stderr was not a terminal; the bar said 20/40 for 20 runs."""
+    assert main(["montecarlo", "--scenario", "paper", "--runs", "3", "--rate", "5", "--methods", "ols,rls,bounded",
+                 "--workers", "1", "--progress"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[-1].startswith("montecarlo: bounded 3/3 runs (method 2 of 2, 100 % of all)")
+    assert "s elapsed, ETA 0 s" in err[-1]
+    assert main(["montecarlo", "--scenario", "paper", "--runs", "3", "--rate", "5", "--methods", "ols",
+                 "--workers", "1", "--no-progress"]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_progress_bar_total_is_runs(monkeypatch, capsys):
+    from casep.montecarlo import _Progress
+
+    p = _Progress(20, ["ols,rls", "rels"], "bar")
+    p(20)
+    assert "ols,rls 20/20 runs (method 1 of 2)" in capsys.readouterr().err
+    p.next_stage()
+    p(5)
+    out = capsys.readouterr().err
+    assert "rels 5/20 runs (method 2 of 2)" in out and "/40" not in out
+    p(15)
+    assert capsys.readouterr().err.endswith("\n")  # the bar's line ends with the last run
+
+
+def test_workers_have_one_blas_thread_and_parent_env_is_kept(monkeypatch):
+    """Spawned workers import numpy with one BLAS/OpenMP thread each (oversubscription made a
+    2-core Monte Carlo ~6-30x slower); the parent's environment is left as it was."""
+    from casep.montecarlo import _THREAD_ENV, _worker_pool
+
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "7")
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    with _worker_pool(1, (np.zeros((1, 3, 1)), np.zeros((1, 3)), np.zeros(1), None, ("a",), 1.0)) as pool:
+        seen = pool.apply(_env_of, (_THREAD_ENV,))
+    assert seen == {k: "1" for k in _THREAD_ENV}
+    assert os.environ["OPENBLAS_NUM_THREADS"] == "7" and "OMP_NUM_THREADS" not in os.environ
+
+
+def _env_of(keys):
+    return {k: os.environ.get(k) for k in keys}
+
+
+# ------------------------------------------------------------------ shutdown (defect 11)
+def _children(pid: int) -> list[int]:
+    """Direct children of `pid`, from /proc (psutil is not a dependency)."""
+    from pathlib import Path
+
+    out = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                stat = (d / "stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                out.append(int(d.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    from pathlib import Path
+
+    try:
+        return (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@contextlib.contextmanager
+def _montecarlo_running():
+    """A CLI Monte Carlo with 2 workers at work; yields (process, its children); kills leftovers."""
+    proc = subprocess.Popen([sys.executable, "-m", "casep", "montecarlo", "--scenario", "paper", "--rate", "10",
+                             "--methods", "bounded", "--runs", "200", "--workers", "2", "--no-progress"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    children: list[int] = []
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and len(children) < 2:
+            assert proc.poll() is None, proc.communicate()
+            children = _children(proc.pid)  # 2 workers (and the spawn resource tracker)
+            time.sleep(0.1)
+        assert len(children) >= 2, "the workers did not start"
+        time.sleep(1.5)  # let them import and take work
+        children = _children(proc.pid)
+        yield proc, children
+    finally:
+        for pid in [proc.pid] + children:  # only what this test started
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+        proc.communicate()
+
+
+def _cmdline(pid: int) -> bytes:
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as fh:
+            return fh.read()
+    except OSError:
+        return b""
+
+
+def _gone_within(pids, seconds: float) -> bool:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if not any(_alive(p) for p in pids):
+            return True
+        time.sleep(0.1)
+    return False
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("sig, status", [("SIGTERM", 143), ("SIGINT", 130)])
+def test_signal_ends_parent_and_workers_cleanly(sig, status):
+    """Defect 11: SIGTERM orphaned the workers (hanging forever); Ctrl-C took 73 s and a traceback."""
+    with _montecarlo_running() as (proc, children):
+        proc.send_signal(getattr(signal, sig))
+        try:
+            out, err = proc.communicate(timeout=8)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"{sig}: the parent did not exit within 8 s")
+        assert proc.returncode == status, err
+        assert err.strip() == "casep: interrupted" and "Traceback" not in err
+        assert out == ""  # no half-written report
+        assert _gone_within(children, 5), f"{sig}: workers left behind"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_sigkill_of_parent_ends_workers():
+    with _montecarlo_running() as (proc, children):
+        proc.kill()
+        proc.wait()
+        assert _gone_within(children, 5), "workers orphaned by SIGKILL of the parent"
