@@ -116,9 +116,6 @@ def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float, t: np
 
 
 _WORKER: dict[str, Any] = {}
-#: Thread-count variables of the BLAS/OpenMP libraries, set to 1 for the worker processes.
-_THREAD_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
-               "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
 _PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
@@ -145,8 +142,14 @@ def _exit_with_parent(parent: int) -> None:
 
 
 def _pool_worker_init(parent: int, *args) -> None:
+    from threadpoolctl import threadpool_limits
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and ends the workers
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the parent's handler (forked): terminate() ends us
     _exit_with_parent(parent)
+    # One BLAS/OpenMP thread per worker, for the worker's life: several per worker oversubscribe
+    # the cores (measured 6-30x slower on 2 cores).
+    _WORKER["blas_limit"] = threadpool_limits(limits=1)
     _worker_init(*args)
 
 
@@ -172,26 +175,20 @@ def _worker_run(args) -> list[tuple[np.ndarray, np.ndarray | None]]:
 
 @contextmanager
 def _worker_pool(n_workers: int, initargs: tuple):
-    """A spawn-context process pool of single-threaded-BLAS workers that die with this process.
+    """A process pool of single-threaded-BLAS workers that die with this process.
 
-    Spawned (not forked) so that the thread variables take effect at the workers' numpy
-    import: one BLAS thread per worker (several per worker oversubscribe the cores, measured
-    30x slower on 2 cores). On any exception, KeyboardInterrupt included, the workers are
-    terminated at once rather than awaited.
+    Forked, not spawned: a spawned worker re-imports the caller's main script, which re-runs
+    an unguarded notebook-style script (``examples/*.py``) in every worker. The BLAS thread
+    limit is set in each worker by threadpoolctl (:func:`_pool_worker_init`). On any
+    exception, KeyboardInterrupt included, the workers are terminated at once rather than
+    awaited.
     """
-    ctx = multiprocessing.get_context("spawn")
-    saved = {k: os.environ.get(k) for k in _THREAD_ENV}
+    ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
     main = threading.current_thread() is threading.main_thread()
     old_int = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None  # children inherit SIG_IGN
     try:
-        os.environ.update({k: "1" for k in _THREAD_ENV})
         pool = ctx.Pool(n_workers, initializer=_pool_worker_init, initargs=(os.getpid(), *initargs))
     finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
         if main:
             signal.signal(signal.SIGINT, old_int)
     try:
