@@ -29,7 +29,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ._estimator import finish, prepare
+from ._estimator import check_positive, finish, prepare
 from .diagnostics import ar1_whiten
 from .ols import least_squares
 from .result import EstimateResult
@@ -132,9 +132,7 @@ def solve_gls(
             raise ValueError(f"`tau` must be a number > 0 or 'auto', got {tau!r}")
         tau_used, rule = estimate_tau(S, y.reshape(S.shape[0], 3), t), "reml"
     else:
-        if isinstance(tau, bool) or not np.isfinite(tau) or tau <= 0:
-            raise ValueError(f"`tau` must be finite and > 0 s, got {tau}")
-        tau_used, rule = float(tau), "given"
+        tau_used, rule = check_positive("tau", tau, allow_none=False), "given"  # OPTION_RANGES["tau"]
     pb = prepare(*_whiten(S, y.reshape(S.shape[0], 3), t, tau_used), names, units, si_factors, sigma, rcond)
     x, cov, sig = least_squares(pb)  # sigma: whitened residual std = stationary sigma
     fit = y.reshape(S.shape[0], 3) - S @ x  # dv - S_V D_hat, not whitened

@@ -225,6 +225,19 @@ def test_out_of_range_option_api_same_message(paper_problem, platform36, capsys,
     assert api in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("value", ["1e12", "1e300", "0", "-1"])
+def test_gls_tau_range_api_same_message(paper_problem, platform36, capsys, good_csv, value):
+    """solve_gls(tau=...) shares the range table with `--tau` (1e12 gave sigma ~2e5, 1e300 a
+    misleading "`y` is not finite")."""
+    S, y, _ = paper_problem
+    t = np.arange(S.shape[0]) * 0.05
+    with pytest.raises(ValueError) as e:
+        casep.solve_gls(S, y, t, tau=float(value), names=platform36.names)
+    with pytest.raises(SystemExit):
+        main(["separate", str(good_csv), "--method", "gls", "--tau", value])
+    assert str(e.value).startswith("`tau` must be") and str(e.value) in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("option, value", [("sigma", 1e3), ("weight", 1e-12), ("weight", 1e12), ("p0", 1e30)])
 def test_option_range_ends_are_accepted(paper_problem, platform36, option, value):
     S, y, truth = paper_problem
