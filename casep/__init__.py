@@ -14,7 +14,9 @@ Frames
 Inputs
     ``t`` in s (strictly increasing, need not be uniform); specific force ``f`` in m/s^2
     (what accelerometers sense: gravity is not in it); ``dv`` in m/s, telemetry minus
-    tracking, used as given (never re-referenced to its first sample).
+    tracking, used as given (never re-referenced to its first sample). Where tracking is
+    absent (before it starts) dv is NaN and ``FlightData.observed`` is False: S_V is
+    integrated from the first telemetry sample, the regression uses the observed rows.
 Error model
     Inside the error equations the specific force is in g: ``W = f / G0``,
     ``G0 = 9.80665`` m/s^2. Platform drift ``phi(t) = phi0 + int phidot dt``; specific-force
@@ -36,7 +38,8 @@ Main entry points
 :func:`load_model`, :func:`build_sv`, :func:`read_flight`, the estimators
 :func:`solve_ols`, :func:`solve_rls` (RLS/RELS), :func:`solve_ridge`, :func:`solve_bounded`,
 :func:`solve_pcr`, :func:`solve_map`, :func:`solve_gls` (all returning :class:`EstimateResult`),
-:func:`separate`;
+:func:`separate`; the checks :func:`check_flight` (before) and :func:`check_fit` (after an
+estimate), whose warnings are :class:`CasepWarning` subclasses;
 the command line ``casep`` (:mod:`casep.cli`).
 """
 
@@ -63,6 +66,10 @@ from .result import EstimateResult
 from .separate import separate
 from .sv import SVBuilder, build_sv
 from .units import G0
+from .checks import check_fit, check_flight
+from .exceptions import (CasepWarning, IllConditionedWarning, NoiseFreeWarning, OutlierWarning,
+                         PlausibilityWarning, TimeOffsetWarning)
+from .flight import LateStartWarning
 
 __all__ = [
     "__version__",
@@ -93,4 +100,13 @@ __all__ = [
     "solve_gls",
     "EstimateResult",
     "separate",
+    "check_flight",
+    "check_fit",
+    "CasepWarning",
+    "IllConditionedWarning",
+    "PlausibilityWarning",
+    "TimeOffsetWarning",
+    "OutlierWarning",
+    "NoiseFreeWarning",
+    "LateStartWarning",
 ]
