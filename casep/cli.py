@@ -34,7 +34,7 @@ from ._io import check_outputs
 from .result import write_csv, write_json_atomic, write_mat
 from .diagnostics import diagnose
 from .flight_io import read_flight, read_flight_pair
-from .scenarios import SCENARIOS
+from .scenarios import SCENARIOS, get_scenario
 from .separate import METHODS, regression_rows, separate
 from .simulate import simulate_flight, write_simulation
 
@@ -117,6 +117,15 @@ def _load_json(path: str, option: str) -> dict:
 def _read(args: argparse.Namespace):
     """The flight of a command: one file, or telemetry + `--tracking`."""
     return read_flight_pair(args.flight, args.tracking) if args.tracking else read_flight(args.flight)
+
+
+def _bounds(args: argparse.Namespace, names) -> dict | None:
+    """The `--bounds` file, loaded and checked against the model's coefficients."""
+    if not args.bounds:
+        return None
+    bounds = _load_json(args.bounds, "--bounds")
+    parse_bounds(bounds, names, source=f"--bounds {args.bounds}")
+    return bounds
 
 
 def _prior(args: argparse.Namespace, names) -> dict | None:
@@ -204,6 +213,10 @@ def _parser() -> argparse.ArgumentParser:
     mc.add_argument("--json", metavar="OUT", default=None, help="write the Monte Carlo JSON here")
     mc.add_argument("--csv", metavar="OUT", default=None, help="write a CSV table here")
     mc.add_argument("--figure", metavar="PNG", default=None, help="write RMS/CRLB per coefficient here")
+    mc.add_argument("--prior", metavar="FILE", default=None,
+                    help='map: JSON {"Kg0x": {"mean": m, "std": s}, ...} (default: the demo ground-calibration prior)')
+    mc.add_argument("--bounds", metavar="FILE", default=None,
+                    help='bounded: JSON {"Kg0x": [lo, hi] or value, ...} (default: the demo spec-sheet box)')
     mc.add_argument("--progress", action=argparse.BooleanOptionalAction, default=True,
                     help="progress on stderr: a bar on a terminal, else a line with the ETA every 5 s (default on)")
     m = sub.add_parser("models", help="list the available error models")
@@ -222,10 +235,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
                   inputs=_inputs(args, "flight", "tracking", "bounds", "prior"), folders={"--figures": args.figures})
     model = load_model(args.model)
-    bounds = None
-    if args.bounds:
-        bounds = _load_json(args.bounds, "--bounds")
-        parse_bounds(bounds, model.names, source=f"--bounds {args.bounds}")
+    bounds = _bounds(args, model.names)
     prior = _prior(args, model.names)
     if args.method == "rels" and args.noise_order < 1:
         raise ValueError(f"--noise-order must be >= 1 for rels, got {args.noise_order}")
@@ -353,7 +363,10 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def _cmd_montecarlo(args: argparse.Namespace) -> int:
     from .montecarlo import Terminated, run_montecarlo, sigterm_raises, write_figure
 
-    check_outputs({"--json": args.json, "--csv": args.csv, "--figure": args.figure})
+    check_outputs({"--json": args.json, "--csv": args.csv, "--figure": args.figure},
+                  inputs=_inputs(args, "prior", "bounds"))
+    names = load_model(get_scenario(args.scenario).model).names
+    prior, bounds = _prior(args, names), _bounds(args, names)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     if args.runs < 1:
         raise ValueError(f"--runs must be >= 1, got {args.runs}")
@@ -362,7 +375,7 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
     try:
         with sigterm_raises():
             res = run_montecarlo(args.scenario, runs=args.runs, methods=methods, seed=args.seed, rate=args.rate,
-                                 workers=args.workers, progress=args.progress)
+                                 workers=args.workers, progress=args.progress, prior=prior, bounds=bounds)
     except (KeyboardInterrupt, Terminated) as exc:  # workers already ended; nothing written
         print("casep: interrupted", file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130

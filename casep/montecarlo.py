@@ -34,13 +34,15 @@ import warnings
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from ._io import atomic_open
+from .bounded import parse_bounds
 from .diagnostics import crlb_covariance
 from .exceptions import IllConditionedWarning
+from .map_estimator import parse_prior
 from .paper import demo_bounds, demo_prior
 from .scenarios import Scenario
 from .simulate import scenario_setup
@@ -86,10 +88,12 @@ def _denoised(method: str, y: np.ndarray) -> tuple[str, np.ndarray, float | None
 
 
 def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float, t: np.ndarray,
-           given: float | None = None, tau: float | str = "auto") -> tuple[np.ndarray, np.ndarray | None]:
+           given: float | None = None, tau: float | str = "auto", *, prior: Mapping | None = None,
+           bounds: Mapping | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """One run of a (de-noised) method through the public solvers: estimate and reported std.
 
-    `given` is the sigma handed to the solver (None: estimated), `tau` the GLS correlation time.
+    `given` is the sigma handed to the solver (None: estimated), `tau` the GLS correlation time,
+    `prior` and `bounds` those of ``map`` and ``bounded`` (default: the paper's demo values).
     """
     from . import solve_bounded, solve_gls, solve_map, solve_ols, solve_pcr, solve_ridge, solve_rls
 
@@ -107,11 +111,11 @@ def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float, t: np
     elif method == "pcr":
         r = solve_pcr(S, y, **kw)
     elif method == "map":
-        r = solve_map(S, y, demo_prior(names), names=names, sigma=given or sigma)
+        r = solve_map(S, y, prior or demo_prior(names), names=names, sigma=given or sigma)
     elif method == "gls":
         r = solve_gls(S, y, t, tau=tau, **kw)
     else:
-        r = solve_bounded(S, y, demo_bounds(names), **kw)
+        r = solve_bounded(S, y, bounds or demo_bounds(names), **kw)
     return r.estimate, r.std
 
 
@@ -153,9 +157,9 @@ def _pool_worker_init(parent: int, *args) -> None:
     _worker_init(*args)
 
 
-def _worker_init(S, clean, t, scenario, names, sigma):
+def _worker_init(S, clean, t, scenario, names, sigma, prior=None, bounds=None):
     warnings.simplefilter("ignore", IllConditionedWarning)
-    _WORKER.update(S=S, clean=clean, t=t, scenario=scenario, names=names, sigma=sigma)
+    _WORKER.update(S=S, clean=clean, t=t, scenario=scenario, names=names, sigma=sigma, prior=prior, bounds=bounds)
 
 
 def _worker_run(args) -> list[tuple[np.ndarray, np.ndarray | None]]:
@@ -169,7 +173,7 @@ def _worker_run(args) -> list[tuple[np.ndarray, np.ndarray | None]]:
         taus = estimate_tau_many(w["S"], np.stack([y for _, y, _ in runs], axis=-1), w["t"])
     else:
         taus = ["auto"] * len(runs)
-    return [_solve(m, w["S"], y, w["names"], w["sigma"], w["t"], given, tau)
+    return [_solve(m, w["S"], y, w["names"], w["sigma"], w["t"], given, tau, prior=w["prior"], bounds=w["bounds"])
             for (m, y, given), tau in zip(runs, taus)]
 
 
@@ -222,10 +226,9 @@ class _Linear:
     undetermined: np.ndarray
 
 
-def _linear_maps(S2: np.ndarray, names, sigma: float, methods: Sequence[str]):
+def _linear_maps(S2: np.ndarray, names, sigma: float, methods: Sequence[str], prior: Mapping | None = None):
     """QR of the scaled S once, and the linear map of each batched method."""
     from .linalg import analyze_rank, reduce_qr
-    from .map_estimator import parse_prior
     from .pcr import DEFAULT_MAX_CONDITION_INDEX
     from .rls import DEFAULT_P0
 
@@ -264,7 +267,7 @@ def _linear_maps(S2: np.ndarray, names, sigma: float, methods: Sequence[str]):
             W = Vt[:k].T / s[:k]
             maps[meth] = _Linear(W @ U[:, :k].T, np.zeros(n), np.sqrt(np.sum(W**2, 1)) / cs, m - k, ~est)
         elif meth == "map":
-            mu, tau = parse_prior(demo_prior(names), names)
+            mu, tau = parse_prior(prior or demo_prior(names), names)
             has = np.isfinite(tau)
             A = np.vstack([R / sigma, np.diag(1.0 / (cs * tau))[has]])
             Ua, sa, Vta = np.linalg.svd(A, full_matrices=False)
@@ -456,6 +459,8 @@ def run_montecarlo(
     workers: int | None = None,
     progress: bool | None = None,
     batched: bool = True,
+    prior: Mapping | None = None,
+    bounds: Mapping | None = None,
 ) -> MonteCarloResult:
     """Run `runs` noise draws of a scenario through each method.
 
@@ -476,6 +481,11 @@ def run_montecarlo(
         otherwise; False, none; default: the bar on a terminal only.
     batched : bool, optional
         Use the one-factorisation path for the linear methods (False: per run, for checks).
+    prior, bounds : mapping, optional
+        The prior of ``map`` (``{name: {"mean": m, "std": s}}``) and the bounds of ``bounded``
+        (``{name: [lo, hi] | value}``), natural units, as ``casep separate --prior/--bounds``
+        take them. Default: the paper's demo values (:func:`casep.paper.demo_prior`,
+        :func:`casep.paper.demo_bounds`).
     """
     if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
         raise ValueError(f"`runs` must be an int >= 1, got {runs!r}")
@@ -485,6 +495,10 @@ def run_montecarlo(
     if not methods:
         raise ValueError("`methods` is empty")
     sc, traj, model, truth = scenario_setup(scenario, rate)  # every run shares the trajectory
+    if prior is not None:
+        parse_prior(prior, model.names)  # checked once, before any run
+    if bounds is not None:
+        parse_bounds(bounds, model.names)
     t = traj.t
     S = build_sv(model, t, traj.specific_force)
     clean = S @ truth
@@ -506,7 +520,7 @@ def run_montecarlo(
         if lin:
             t0 = time.perf_counter()
             S2 = S.reshape(-1, S.shape[-1])
-            Q, cs, maps = _linear_maps(S2, names, sigma, lin)
+            Q, cs, maps = _linear_maps(S2, names, sigma, lin, prior)
             res = _batched(maps, Q, cs, S2, clean.reshape(-1), sc, t, seqs, bar)
             dt = time.perf_counter() - t0
             for m_ in lin:
@@ -514,7 +528,7 @@ def run_montecarlo(
                 secs[m_] = dt / len(lin)
             if other:
                 bar.next_stage()
-        initargs = (S, clean, t, sc, names, sigma)
+        initargs = (S, clean, t, sc, names, sigma, prior, bounds)
         if other and n_workers > 1 and runs > 1:
             run_jobs = stack.enter_context(_worker_pool(n_workers, initargs)).imap
         else:
