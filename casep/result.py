@@ -233,6 +233,7 @@ class EstimateResult:
             "estimates": [r["estimate"] for r in rows],
             "std": [r["std"] for r in rows],
             "std_kind": self.std_kind,
+            "covariance": self.covariance_rows(),
             "residual_rms": self.residual_rms,
             "sigma": _json_float(self.sigma),
             "rank": int(self.rank),
@@ -242,6 +243,20 @@ class EstimateResult:
             "settings": self.settings,
             "diagnostics": self.diagnostics,
         }
+
+    def covariance_rows(self) -> list[list[float | None]] | None:
+        """The n x n covariance in natural units, model order, as nested lists for JSON.
+
+        Rows and columns of coefficients without an estimate (and any entry that is not
+        finite) are null; None when the method defines no covariance (``interfaces.md``,
+        "Result JSON: covariance").
+        """
+        if self.covariance is None:
+            return None
+        C = np.array(self.covariance, dtype=float)
+        C[~self.identifiable, :] = np.nan
+        C[:, ~self.identifiable] = np.nan
+        return [[_json_float(v) for v in row] for row in C]
 
     def to_pandas(self):
         """Coefficient table as a :class:`pandas.DataFrame` indexed by name."""

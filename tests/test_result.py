@@ -182,3 +182,30 @@ def test_diagnose_figures_creates_folder(flight_csv, tmp_path, capsys):
     assert main(["diagnose", str(flight_csv), "--figures", str(figs)]) == 0
     assert (figs / "singular_values.png").stat().st_size > 0
     assert (figs / "variance_decomposition.png").stat().st_size > 0
+
+
+def test_json_covariance_natural_units_with_null_rows(tmp_path, platform36, truth36):
+    """interfaces.md "Result JSON: covariance": n x n, model order, natural units; null rows and
+    columns for coefficients without an estimate; its diagonal is std^2."""
+    import json
+
+    from casep.synthetic import excitation_force, inject_errors
+
+    t = np.arange(0.0, 60.0, 0.1)
+    f = excitation_force(t, duration=60.0, cross_range=False)  # pitch plane: zero columns
+    rng = np.random.default_rng(3)
+    dv = inject_errors(platform36, t, f, truth36) + 0.1 * rng.standard_normal((t.size, 3))
+    S = casep.build_sv(platform36, t, f)
+    with pytest.warns(casep.IllConditionedWarning):
+        res = casep.solve_ols(S, dv, names=platform36.names, units=platform36.units)
+    data = json.loads(json.dumps(res.to_dict(), allow_nan=False))
+    C = data["covariance"]
+    n = len(platform36.names)
+    assert len(C) == n and all(len(r) == n for r in C)
+    missing = [j for j, r in enumerate(data["coefficients"]) if r["estimate"] is None]
+    assert missing and all(C[j][k] is None and C[k][j] is None for j in missing for k in range(n))
+    ok = [j for j in range(n) if j not in missing]
+    diag = np.array([C[j][j] for j in ok])
+    np.testing.assert_allclose(np.sqrt(diag), [data["std"][j] for j in ok], rtol=1e-12)
+    M = np.array([[C[j][k] for k in ok] for j in ok])
+    np.testing.assert_allclose(M, M.T, rtol=1e-12, atol=0)
