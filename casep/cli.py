@@ -187,6 +187,10 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
     g.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="flight file (.csv, or .parquet); truth goes to <stem>.truth.json beside it")
+    g.add_argument("--model", default=None, help="error model to inject, name or .py file (default: the scenario's)")
+    g.add_argument("--truth", metavar="FILE", default=None,
+                   help='true coefficients, JSON {"Kg0x": value, ...} natural units, or a .truth.json sidecar '
+                        "(default: the scenario's; names not given are 0)")
     d = sub.add_parser("diagnose", help="what the flight can and cannot determine")
     d.add_argument("flight", help="flight file")
     d.add_argument("--tracking", metavar="FILE", default=None, help="tracking file (two-file input)")
@@ -396,10 +400,18 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from .simulate import truth_path
 
-    check_outputs({"-o": args.output, "-o (truth sidecar)": truth_path(args.output)})
+    check_outputs({"-o": args.output, "-o (truth sidecar)": truth_path(args.output)},
+                  inputs=_inputs(args, "truth"))
     if args.seed < 0:
         raise ValueError(f"`--seed` must be >= 0, got {args.seed}")
-    sim = simulate_flight(args.scenario, seed=args.seed, rate=args.rate)
+    truth = None
+    if args.truth:  # {"Kg0x": v, ...} or a sidecar {"coefficients": {...}}, checked against the model
+        from .simulate import _truth_vector
+
+        truth = _load_json(args.truth, "--truth")
+        truth = truth["coefficients"] if isinstance(truth.get("coefficients"), dict) else truth
+        _truth_vector(load_model(args.model or get_scenario(args.scenario).model), truth, f"--truth {args.truth}")
+    sim = simulate_flight(args.scenario, seed=args.seed, rate=args.rate, model=args.model, truth=truth)
     flight_path, side = write_simulation(sim, args.output)
     s = sim.trajectory.summary()
     print(f"scenario {sim.scenario.name}: {sim.flight.n_samples} samples at {sim.scenario.rate:g} Hz, "

@@ -342,8 +342,11 @@ def warn_late_start(flight: FlightData, model) -> dict:
         sd = ", ".join(f"{v:.2g}" for v in ev["dv0_std"])
         what.append(f"dv at the first sample, extrapolated from the first {ev['window_s']:.3g} s, is ({vec}) m/s "
                     f"+- ({sd}) (chi-square {ev['chi2']:.3g}, 3 dof), where the model has dv(t0) = 0")
+    # dv(t0) != 0 alone with dv0 in the model: an initial velocity error at lift-off looks the same.
+    maybe = (" (or it starts at lift-off with an initial velocity error, which the model's dv0 terms take; "
+             "then ignore this)" if "speed_m_s" not in ev and np.any(model.numeric("dv0")) else "")
     warnings.warn(LateStartWarning(
-        f"{flight.source}: the flight seems to start after lift-off (t0 = {flight.t[0]:.6g} s): "
+        f"{flight.source}: the flight seems to start after lift-off{maybe} (t0 = {flight.t[0]:.6g} s): "
         f"{'; '.join(what)}. Model `{model.name}` has no {' and no '.join(m[0] for m in missing)}: errors "
         f"accumulated before t0 will bias the estimates. Use data from lift-off, or a model with the initial "
         f"terms: --model {' or '.join(m[1] for m in missing)} (models/README.md shows how to combine them)."),

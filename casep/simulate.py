@@ -12,6 +12,7 @@ bytes, another seed other noise.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from dataclasses import dataclass
@@ -22,7 +23,7 @@ import numpy as np
 from ._io import atomic_open
 from .flight import FlightData
 from .flight_io import write_flight, write_table
-from .model import ErrorModel
+from .model import ErrorModel, unknown_coefficient_message
 from .model_loader import load_model
 from .scenarios import Scenario, get_scenario
 from .sv import build_sv
@@ -58,11 +59,15 @@ class SimulatedFlight:
         }
 
 
-def _truth_vector(model: ErrorModel, truth: dict) -> np.ndarray:
-    unknown = sorted(set(truth) - set(model.names))
-    if unknown:
-        raise ValueError(f"truth names {', '.join(unknown)} are not coefficients of model `{model.name}`")
-    return np.array([float(truth.get(n, 0.0)) for n in model.names])
+def _truth_vector(model: ErrorModel, truth: dict, source: str = "truth") -> np.ndarray:
+    for name in truth:
+        if name not in model.names:
+            raise ValueError(unknown_coefficient_message(name, model.names, f"{source} (model `{model.name}`)"))
+    values = np.array([truth.get(n, 0.0) for n in model.names], dtype=object)
+    for n, v in zip(model.names, values):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+            raise ValueError(f"{source}: `{n}` must be a finite number (natural units), got {v!r}")
+    return values.astype(float)
 
 
 def scenario_setup(scenario: str | Scenario, rate: float | None = None
@@ -79,7 +84,8 @@ def _check_seed(seed: int) -> int:
     return int(seed)
 
 
-def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: float | None = None) -> SimulatedFlight:
+def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: float | None = None,
+                    model: str | os.PathLike | None = None, truth: dict | None = None) -> SimulatedFlight:
     """Simulate one flight of a scenario.
 
     Parameters
@@ -90,13 +96,23 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
         Seed of the noise generator.
     rate : float, optional
         Sample rate, Hz (default: the scenario's).
+    model : str or path, optional
+        Error model to inject instead of the scenario's (name or model file).
+    truth : dict, optional
+        ``{name: value}`` true coefficients in natural units instead of the scenario's
+        (coefficients not named are 0; required in practice with another `model`, whose
+        names the scenario's truth need not share).
 
     Returns
     -------
     SimulatedFlight
     """
     seed = _check_seed(seed)
-    sc, traj, model, truth = scenario_setup(scenario, rate)
+    sc = get_scenario(scenario)
+    if model is not None or truth is not None:
+        sc = dataclasses.replace(sc, model=sc.model if model is None else os.fspath(model),
+                                 truth=sc.truth if truth is None else dict(truth))
+    sc, traj, model, truth = scenario_setup(sc, rate)
     rng = np.random.default_rng(seed)
     clean = build_sv(model, traj.t, traj.specific_force) @ truth  # S_V D_true
     noise = sc.noise.sample(traj.t, rng)

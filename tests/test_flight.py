@@ -110,6 +110,7 @@ def test_late_start_warning_on_flight_cut_at_20s(rate, platform36):
         casep.separate(cut, "platform36_dv0")
     late = [str(w.message) for w in rec if w.category is LateStartWarning]
     assert len(late) == 1 and "has no initial platform misalignment phi0" in late[0] and "dv0 (" not in late[0]
+    assert "or it starts at lift-off with an initial velocity error" in late[0]  # dv evidence alone
 
 
 @pytest.mark.parametrize("scenario", ["paper", "paper-pitch", "paper-ar1"])

@@ -121,3 +121,35 @@ def test_two_rate_tracking_start():
     for bad in (-1.0, 1e9, float("nan")):
         with pytest.raises(ValueError, match="`tracking_start` must be in"):
             simulate_two_rate("paper", telemetry_rate=20.0, tracking_start=bad)
+
+
+def test_simulate_any_model_and_truth(tmp_path, capsys):
+    """`casep simulate --model FILE --truth FILE` (issue 10): another model's truth is injected
+    (the dv0 terms come back within 5 std) and the sidecar names model and truth."""
+    import json
+
+    from casep.cli import main
+    from casep.paper import TABLE1_TRUTH
+
+    truth = {**TABLE1_TRUTH, "dv0x": 0.3, "dv0y": -0.2, "dv0z": 0.1}
+    tfile = tmp_path / "truth.json"
+    tfile.write_text(json.dumps(truth))
+    out = tmp_path / "f.csv"
+    assert main(["simulate", "--rate", "20", "--seed", "2", "--model", "platform36_dv0", "--truth", str(tfile),
+                 "-o", str(out)]) == 0
+    side = json.loads(out.with_name("f.truth.json").read_text())
+    assert side["model"] == "platform36_dv0" and side["coefficients"]["dv0x"] == 0.3
+    with pytest.warns(casep.LateStartWarning, match="or it starts at lift-off with an initial velocity error"):
+        res = casep.separate(out, "platform36_dv0", "ols")  # dv(t0) != 0 by design here
+    for n in ("dv0x", "dv0y", "dv0z"):
+        j = res.names.index(n)
+        assert abs(res.estimate[j] - truth[n]) < 5 * res.std[j], n
+    # a sidecar is accepted as --truth; a misspelt name is refused with a suggestion
+    assert main(["simulate", "--rate", "20", "--model", "platform36_dv0", "--truth", str(out.with_name("f.truth.json")),
+                 "-o", str(tmp_path / "g.csv")]) == 0
+    tfile.write_text(json.dumps({"dv0X": 1.0}))
+    capsys.readouterr()
+    assert main(["simulate", "--rate", "20", "--model", "platform36_dv0", "--truth", str(tfile), "-o",
+                 str(tmp_path / "h.csv")]) == 2
+    err = capsys.readouterr().err
+    assert f"--truth {tfile}" in err and "did you mean `dv0x`" in err and not (tmp_path / "h.csv").exists()
