@@ -326,7 +326,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     flight = _read(args)
     S, dv, t = regression_rows(flight, model)
     diag = diagnose(S, dv, names=model.names, units=model.units, sigma=args.sigma,
-                    t=t if args.tau else None, tau=args.tau, prior_std=prior_std, scales=scales)
+                    t=t if args.tau else None, tau=args.tau, prior_std=prior_std,
+                    scales=model.scales if scales is None else scales)
     if args.json:
         write_json_atomic({"casep_version": __version__, "model": model.name, "n_samples": flight.n_observed,
                            "diagnostics": diag.to_dict()}, args.json)

@@ -154,7 +154,8 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
         for label, method, opts in DEMO_METHODS:
             results[label] = separate(sim.flight, model, method, **opts, **extra.get(method, {}))
     S = build_sv(model, sim.flight.t, sim.flight.f)
-    diag = diagnose(S, sim.flight.dv, names=model.names, units=model.units, sigma=sim.scenario.noise.sigma)
+    diag = diagnose(S, sim.flight.dv, names=model.names, units=model.units, sigma=sim.scenario.noise.sigma,
+                    scales=model.scales)
     crlb = diag.crlb_std
     table = _table(sim, results, crlb, markdown=False)
     files: list[Path] = []

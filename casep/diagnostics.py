@@ -270,16 +270,14 @@ class Diagnostics:
 
 
 def _scales(names: Sequence[str], prior_std: np.ndarray | None, scales: Mapping | None) -> dict[str, float]:
-    from .paper import TABLE1_TRUTH
-
+    """The yardstick of the "weak" verdict: prior std where given, else `scales` (a model's
+    declared typical magnitudes, :attr:`casep.ErrorModel.scales`, or the user's)."""
     out: dict[str, float] = {}
     for j, n in enumerate(names):
         if prior_std is not None and np.isfinite(prior_std[j]):
             out[n] = float(prior_std[j])
         elif scales is not None and n in scales:
             out[n] = float(scales[n])
-        elif scales is None and n in TABLE1_TRUTH and TABLE1_TRUTH[n] != 0:
-            out[n] = abs(float(TABLE1_TRUTH[n]))
     return out
 
 
@@ -312,7 +310,9 @@ def diagnose(
     prior_std : (n,) array_like, optional
         Prior std per coefficient (inf: none): Bayesian bound, and the scale for "weak".
     scales : mapping, optional
-        ``name -> typical magnitude`` for the "weak" verdict (default: Table 1 magnitudes).
+        ``name -> typical magnitude`` for the "weak" verdict, e.g. a model's declared
+        :attr:`casep.ErrorModel.scales` (default none: only the prior std, where given, makes a
+        coefficient "weak").
     """
     S = np.asarray(S, dtype=float)
     if S.ndim != 3 or S.shape[1] != 3:

@@ -143,6 +143,7 @@ class ErrorModel:
         self._units: list[str] = []
         self._factors: list[float] = []
         self._descriptions: list[str] = []
+        self._scales: dict[str, float | None] = {}
         self._symbols: list[ca.SX] = []
         self._outputs: dict[str, ca.SX | None] = dict.fromkeys(OUTPUTS)
         self._locked = False
@@ -161,7 +162,8 @@ class ErrorModel:
         return self._W
 
     def coefficient(
-        self, name: str, unit: str, *, si_factor: float | None = None, description: str = ""
+        self, name: str, unit: str, *, si_factor: float | None = None, description: str = "",
+        scale: float | None = None,
     ) -> ca.SX:
         """Declare one error coefficient and return its SI-valued expression.
 
@@ -176,6 +178,9 @@ class ErrorModel:
             SI value of one natural unit; required when `unit` is not a known unit.
         description : str, optional
             Free text for reports.
+        scale : float, optional
+            Typical magnitude in the natural unit (a spec-sheet value): the yardstick of the
+            "weak" verdict of :func:`casep.diagnostics.diagnose` (CRLB std above it).
 
         Returns
         -------
@@ -195,28 +200,40 @@ class ErrorModel:
             factor = float(si_factor)
             if not np.isfinite(factor) or factor <= 0.0:
                 raise ValueError(f"`si_factor` of `{name}` must be finite and > 0, got {si_factor}")
+        if scale is not None and (isinstance(scale, bool) or not isinstance(scale, (int, float))
+                                  or not np.isfinite(scale) or scale <= 0):
+            raise ValueError(f"`scale` of `{name}` must be a finite number > 0, got {scale!r}")
         sym = ca.SX.sym(name)  # valued in the natural unit
         self._names.append(name)
         self._units.append(unit)
         self._factors.append(factor)
         self._descriptions.append(description)
+        self._scales[name] = None if scale is None else float(scale)
         self._symbols.append(sym)
         return sym * factor
 
-    def declare(self, **units: str) -> SimpleNamespace:
+    def declare(self, **units: str | tuple[str, float]) -> SimpleNamespace:
         """Declare several coefficients at once, in the order given.
 
         Parameters
         ----------
-        **units : str
-            ``Name="unit"`` pairs, e.g. ``declare(Kg0x="deg/h", Kg1x="deg/h/g")``.
+        **units : str or (str, float)
+            ``Name="unit"`` or ``Name=("unit", scale)`` with the typical magnitude `scale`
+            (see :meth:`coefficient`), e.g. ``declare(Kg0x=("deg/h", 0.5), Kg1x="deg/h/g")``.
 
         Returns
         -------
         types.SimpleNamespace
             Attribute per coefficient holding its SI-valued expression.
         """
-        return SimpleNamespace(**{n: self.coefficient(n, u) for n, u in units.items()})
+        def one(name, spec):
+            if isinstance(spec, tuple):
+                if len(spec) != 2:
+                    raise ValueError(f"`{name}` must be \"unit\" or (\"unit\", scale), got {spec!r}")
+                return self.coefficient(name, spec[0], scale=spec[1])
+            return self.coefficient(name, spec)
+
+        return SimpleNamespace(**{n: one(n, u) for n, u in units.items()})
 
     def set_gyro_drift(self, phidot: ca.SX | Sequence) -> None:
         """Set the platform drift rate phidot(f, D), rad/s, 3 x 1 (x, y, z)."""
@@ -399,6 +416,11 @@ class ErrorModel:
     def units(self) -> tuple[str, ...]:
         """Natural unit of each coefficient."""
         return tuple(self._units)
+
+    @property
+    def scales(self) -> dict[str, float]:
+        """Typical magnitude per coefficient, natural units, for those declared with one."""
+        return {n: v for n, v in self._scales.items() if v is not None}
 
     @property
     def descriptions(self) -> tuple[str, ...]:

@@ -28,7 +28,7 @@ S = casep.build_sv(model, sim.flight.t, sim.flight.f)
 dv = sim.flight.dv
 
 #%% Diagnostics: what the flight can tell
-d = diagnose(S, dv, names=model.names, units=model.units)
+d = diagnose(S, dv, names=model.names, units=model.units, scales=model.scales)
 print(d.report())
 
 #%% Ridge: closed form vs cvxpy + Clarabel (same lambda)

@@ -110,7 +110,7 @@ def test_pitch_plane_exactly_zero_columns_unidentifiable(platform36):
 
 def test_weak_verdict_uses_scales(paper_problem, platform36):
     S, y, _ = paper_problem
-    d = diagnose(S, y, names=platform36.names)  # default scales: Table 1 magnitudes
+    d = diagnose(S, y, names=platform36.names, scales=platform36.scales)  # declared: Table 1 magnitudes
     assert d.identifiability["Ka0x"] == "identifiable" and d.identifiability["Kg1xy"] == "weak"
     loose = diagnose(S, y, names=platform36.names, scales={n: 1e9 for n in platform36.names})
     assert all(v == "identifiable" for v in loose.identifiability.values())

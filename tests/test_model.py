@@ -167,3 +167,21 @@ def test_unknown_coefficient_message_and_index(platform36):
     with pytest.raises(KeyError, match=r"model `platform36`: unknown coefficient `KaOy` \(did you mean `Ka0y`\?\)"):
         platform36.index("KaOy")
     assert platform36.index("Ka0y") == list(platform36.names).index("Ka0y")
+
+
+def test_declared_scales_and_their_checks():
+    """Typical magnitudes live in the model (issue 10): declare(name=(unit, scale))."""
+    m = casep.ErrorModel("s")
+    c = m.declare(Ka0x=("mg", 2.0), Ka1x="mg/g")
+    m.set_accel_error([c.Ka0x + c.Ka1x * m.W[0], 0, 0])
+    m.setup()
+    assert m.scales == {"Ka0x": 2.0}
+    p36 = casep.load_model("platform36")
+    from casep.paper import TABLE1_TRUTH
+
+    assert p36.scales == {n: abs(v) for n, v in TABLE1_TRUTH.items()}  # the paper's magnitudes
+    for bad in (0.0, -1.0, float("inf"), "big", True):
+        with pytest.raises(ValueError, match="`scale` of `Kb`"):
+            casep.ErrorModel("t").declare(Kb=("mg", bad))
+    with pytest.raises(ValueError, match="unit"):
+        casep.ErrorModel("t").declare(Kb=("mg", 1.0, 2.0))
