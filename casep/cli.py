@@ -35,6 +35,7 @@ from .result import write_csv, write_json_atomic, write_mat
 from .diagnostics import diagnose
 from .flight_io import read_flight, read_flight_pair
 from .scenarios import SCENARIOS, get_scenario
+from .registry import OPTIONS, check_method_options
 from .separate import METHODS, regression_rows, separate
 from .simulate import simulate_flight, write_simulation
 
@@ -147,18 +148,18 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--method", default="ols", choices=METHODS, help="estimator (default ols)")
     s.add_argument("--sigma", type=_ranged("sigma"), default=None,
                    help="noise std, m/s (default: estimated from the residuals)")
-    s.add_argument("--p0", type=_ranged("p0"), default=1e6,
+    s.add_argument("--p0", type=_ranged("p0"), default=None,
                    help="RLS/RELS P0 = p0 I, natural units, in (0, 1e30] (default 1e6)")
-    s.add_argument("--weight", type=_ranged("weight"), default=1.0,
+    s.add_argument("--weight", type=_ranged("weight"), default=None,
                    help="RLS/RELS weight w, in [1e-12, 1e12] (default 1)")
-    s.add_argument("--forgetting", type=_forgetting, default=1.0, help="RLS/RELS forgetting factor (default 1)")
-    s.add_argument("--noise-order", type=_order, default=1, help="RELS noise-model order (default 1)")
-    s.add_argument("--lambda", dest="lam", type=_lambda, default="gcv", metavar="gcv|lcurve|VALUE",
+    s.add_argument("--forgetting", type=_forgetting, default=None, help="RLS/RELS forgetting factor (default 1)")
+    s.add_argument("--noise-order", type=_order, default=None, help="RELS noise-model order (default 1)")
+    s.add_argument("--lambda", dest="lam", type=_lambda, default=None, metavar="gcv|lcurve|VALUE",
                    help="ridge parameter for unit-norm columns, or its rule (default gcv)")
     s.add_argument("--bounds", metavar="FILE", help='bounded: JSON {"Kg0x": [lo, hi] or value, ...}, natural units')
     s.add_argument("--prior", metavar="FILE", help='map: JSON {"Kg0x": {"mean": m, "std": s}, ...}, natural units')
-    s.add_argument("--components", type=_order, default=None, help="pcr: number of components to keep")
-    s.add_argument("--tau", type=_tau, default="auto", metavar="auto|SECONDS",
+    s.add_argument("--components", dest="n_components", type=_order, default=None, help="pcr: number of components to keep")
+    s.add_argument("--tau", type=_tau, default=None, metavar="auto|SECONDS",
                    help="gls: Gauss-Markov correlation time, or auto (REML; default)")
     s.add_argument("--denoise", choices=("none", "wavelet"), default="none", help="de-noise dv first (default none)")
     s.add_argument("--wavelet", default=None, help="wavelet (default sym8)")
@@ -223,6 +224,8 @@ def _parser() -> argparse.ArgumentParser:
                     help='bounded: JSON {"Kg0x": [lo, hi] or value, ...} (default: the demo spec-sheet box)')
     mc.add_argument("--progress", action=argparse.BooleanOptionalAction, default=True,
                     help="progress on stderr: a bar on a terminal, else a line with the ETA every 5 s (default on)")
+    me = sub.add_parser("methods", help="list the estimators, their options and capabilities")
+    me.add_argument("--json", action="store_true", help="print the registry as JSON")
     m = sub.add_parser("models", help="list the available error models")
     m.add_argument("--verbose", "-v", action="store_true", help="list each model's coefficients")
     return p
@@ -239,10 +242,14 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
                   inputs=_inputs(args, "flight", "tracking", "bounds", "prior"), folders={"--figures": args.figures})
     model = load_model(args.model)
+    # Options of the method only (casep.registry): one given for another method is an error.
+    given = {k: getattr(args, k) for k in OPTIONS if getattr(args, k) is not None}  # files: their names
+    check_method_options(args.method, given)
+    opts = {k: v for k, v in given.items() if k not in ("bounds", "prior")}
     bounds = _bounds(args, model.names)
     prior = _prior(args, model.names)
-    if args.method == "rels" and args.noise_order < 1:
-        raise ValueError(f"--noise-order must be >= 1 for rels, got {args.noise_order}")
+    if args.method == "rels" and opts.get("noise_order", 1) < 1:
+        raise ValueError(f"--noise-order must be >= 1 for rels, got {opts['noise_order']}")
     wopts = {k: v for k, v in (("wavelet", args.wavelet), ("level", args.level), ("rule", args.threshold_rule),
                                 ("mode", args.threshold_mode), ("extension", args.extension),
                                 ("scaling", args.noise_scaling)) if v is not None}
@@ -251,10 +258,8 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     flight = _read(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", CasepWarning)
-        res = separate(flight, model, args.method, sigma=args.sigma, p0=args.p0, weight=args.weight,
-                       forgetting=args.forgetting, noise_order=args.noise_order, lam=args.lam, bounds=bounds,
-                       prior=prior, n_components=args.components, denoise=args.denoise,
-                       wavelet_options=wopts or None, tau=args.tau)
+        res = separate(flight, model, args.method, sigma=args.sigma, bounds=bounds, prior=prior,
+                       denoise=args.denoise, wavelet_options=wopts or None, **opts)
     for w in caught:  # on to main(), which prints them
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if args.json:
@@ -424,6 +429,25 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_methods(args: argparse.Namespace) -> int:
+    from .registry import describe
+
+    table = describe()
+    if args.json:
+        print(json.dumps(table, indent=2))
+        return 0
+    for m in table:
+        caps = [c for c, on in (("recursive", m["recursive"]), ("needs time", m["needs_time"]),
+                                ("batched in montecarlo", m["batched_in_montecarlo"])) if on]
+        print(f"{m['name']:<8} {m['summary']}; std {m['std_kind']}" + (f"; {', '.join(caps)}" if caps else ""))
+        for o in m["options"]:
+            d = o["default"]
+            req = " (required)" if o["name"] in m["required"] else f" (default {d:g})" if isinstance(d, float) \
+                else f" (default {d})"
+            print(f"    {o['flag']:<14} {o['rule']}{req}: {o['help']}")
+    return 0
+
+
 def _cmd_models(args: argparse.Namespace) -> int:
     """List the models; a file that fails to load is a `warning:` line naming it and why.
 
@@ -480,7 +504,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     args = _parser().parse_args(argv)
     commands = {"separate": _cmd_separate, "diagnose": _cmd_diagnose, "simulate": _cmd_simulate,
-                "montecarlo": _cmd_montecarlo, "demo": _cmd_demo, "models": _cmd_models}
+                "montecarlo": _cmd_montecarlo, "demo": _cmd_demo, "models": _cmd_models, "methods": _cmd_methods}
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", CasepWarning)

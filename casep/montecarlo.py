@@ -43,6 +43,7 @@ from .bounded import parse_bounds
 from .diagnostics import crlb_covariance
 from .exceptions import IllConditionedWarning
 from .map_estimator import parse_prior
+from .registry import METHODS as _REGISTRY
 from .paper import demo_bounds, demo_prior
 from .scenarios import Scenario
 from .simulate import scenario_setup
@@ -51,7 +52,7 @@ from .sv import build_sv
 __all__ = ["MonteCarloResult", "run_montecarlo", "METHOD_HELP", "BATCHED", "Terminated", "sigterm_raises"]
 
 #: Methods solved for all runs with one factorisation.
-BATCHED = ("ols", "rls", "pcr", "map")
+BATCHED = tuple(k for k, m in _REGISTRY.items() if m.batched)
 METHOD_HELP = ("ols, rls, rels, ridge (GCV), ridge:<lambda>, pcr, map, bounded, gls (REML tau), and "
                "wavelet+<method> (de-noised first)")
 _BLOCK = 128  # runs per block of right-hand sides

@@ -19,6 +19,7 @@ from .model import ErrorModel
 from .model_loader import load_model
 from .ols import solve_ols
 from .pcr import DEFAULT_MAX_CONDITION_INDEX, solve_pcr
+from .registry import METHODS as _REGISTRY, OPTIONS, check_method_options
 from .result import EstimateResult
 from .ridge import solve_ridge
 from .rls import DEFAULT_P0, solve_rls
@@ -26,8 +27,8 @@ from .sv import build_sv
 
 __all__ = ["separate", "regression_rows", "METHODS"]
 
-#: Estimators available through :func:`separate` and ``casep separate --method``.
-METHODS = ("ols", "rls", "rels", "ridge", "bounded", "pcr", "map", "gls")
+#: Estimators available through :func:`separate` and ``casep separate --method`` (the registry's).
+METHODS = tuple(_REGISTRY)
 
 
 def regression_rows(flight: FlightData, model: ErrorModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -107,12 +108,11 @@ def separate(
     -------
     EstimateResult
     """
-    if method not in METHODS:
-        raise ValueError(f"`method` must be one of {', '.join(METHODS)}, got {method!r}")
-    if method == "bounded" and bounds is None:
-        raise ValueError("`bounds` is required for method `bounded`. Use: --bounds FILE with {\"Kg0x\": [lo, hi], ...}")
-    if method == "map" and prior is None:
-        raise ValueError("`prior` is required for method `map`. Use: --prior FILE with {\"Kg0x\": {\"mean\": m, \"std\": s}}")
+    # One rule table (casep.registry): an option the method does not take is an error, not ignored.
+    given = {k: v for k, v in (("p0", p0), ("weight", weight), ("forgetting", forgetting),
+                               ("noise_order", noise_order), ("lam", lam), ("bounds", bounds), ("prior", prior),
+                               ("n_components", n_components), ("tau", tau)) if v != OPTIONS[k].default}
+    check_method_options(method, given)
     if not isinstance(flight, FlightData):
         flight = read_flight(flight)
     model = load_model(model)

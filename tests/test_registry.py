@@ -1,0 +1,89 @@
+"""The estimator registry (casep.registry): one table read by separate(), the CLI and Monte Carlo."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import casep
+from casep.cli import main
+from casep.registry import METHODS, OPTIONS, check_method_options
+from casep.synthetic import excitation_force, inject_errors
+
+# A value for every option, other than its default (files: a mapping), for the "not taken" checks.
+_VALUES = {"p0": 1e4, "weight": 2.0, "forgetting": 0.999, "noise_order": 2, "lam": 1e-3, "bounds": {"Kg0x": 0.5},
+           "prior": {"Kg0x": {"mean": 0.5, "std": 0.1}}, "n_components": 20, "tau": 1.0}
+
+
+@pytest.fixture(scope="module")
+def clean_flight(platform36, truth36):
+    t = np.arange(0.0, 120.0, 0.1)
+    f = excitation_force(t, duration=120.0)
+    return casep.FlightData(t, f, inject_errors(platform36, t, f, truth36))
+
+
+def test_registry_is_what_separate_and_montecarlo_use():
+    from casep.montecarlo import BATCHED
+    from casep.separate import METHODS as SEPARATE_METHODS
+
+    assert tuple(METHODS) == SEPARATE_METHODS
+    assert set(BATCHED) == {k for k, m in METHODS.items() if m.batched}
+    assert set(_VALUES) == set(OPTIONS)
+    for m in METHODS.values():
+        assert callable(getattr(casep, m.solver)) and set(m.required) <= set(m.options) <= set(OPTIONS)
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+def test_option_of_another_method_is_an_error_naming_both(method, clean_flight, platform36):
+    for name in OPTIONS:
+        if name in METHODS[method].options:
+            continue
+        with pytest.raises(ValueError) as e:
+            check_method_options(method, {name: _VALUES[name]})
+        assert OPTIONS[name].flag in str(e.value) and f"method `{method}`" in str(e.value)
+        with pytest.raises(ValueError, match=f"is not taken by method `{method}`"):
+            casep.separate(clean_flight, platform36, method, **{name: _VALUES[name]},
+                           **{r: _VALUES[r] for r in METHODS[method].required})
+
+
+@pytest.mark.parametrize("method", [m for m in METHODS if METHODS[m].required])
+def test_required_options(method):
+    with pytest.raises(ValueError, match=f"is required for method `{method}`"):
+        check_method_options(method, {})
+
+
+def test_cli_refuses_option_of_another_method(tmp_path, clean_flight, capsys):
+    p = tmp_path / "f.csv"
+    casep.write_flight(clean_flight, p)
+    out = tmp_path / "r.json"
+    assert main(["separate", str(p), "--method", "ols", "--lambda", "5", "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--lambda" in err and "method `ols`" in err and "ridge" in err and not out.exists()
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+def test_every_method_runs_through_separate_with_its_defaults(method, clean_flight, platform36, truth36):
+    """Conformance (reduced): each registered method, defaults only (required files: the truth
+    as prior / fixed box), returns the result contract; OLS and GLS recover the noise-free truth."""
+    extra = {"bounds": {n: [v - abs(v) - 1, v + abs(v) + 1] for n, v in zip(platform36.names, truth36)},
+             "prior": {n: {"mean": v, "std": abs(v) + 1} for n, v in zip(platform36.names, truth36)}}
+    res = casep.separate(clean_flight, platform36, method, **{r: extra[r] for r in METHODS[method].required})
+    assert res.method == method and res.model == "platform36"
+    # bounded with no active bound is least squares: its std are then plain sampling std
+    assert res.std_kind == ("sampling" if method == "bounded" else METHODS[method].std_kind)
+    data = json.loads(json.dumps(res.to_dict(), allow_nan=False))
+    assert data["names"] == list(platform36.names) and len(data["estimates"]) == 36
+    if method in ("ols", "gls"):
+        np.testing.assert_allclose(res.estimate, truth36, rtol=1e-5)
+
+
+def test_methods_command_lists_the_registry(capsys):
+    assert main(["methods", "--json"]) == 0
+    table = json.loads(capsys.readouterr().out)
+    assert [m["name"] for m in table] == list(METHODS)
+    ridge = next(m for m in table if m["name"] == "ridge")
+    assert ridge["options"][0]["flag"] == "--lambda" and ridge["std_kind"] == "sampling"
+    assert main(["methods"]) == 0
+    assert "--noise-order" in capsys.readouterr().out
