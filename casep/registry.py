@@ -19,7 +19,7 @@ from typing import Any, Mapping
 
 from .result import STD_KINDS
 
-__all__ = ["Option", "Method", "OPTIONS", "METHODS", "check_method_options", "describe"]
+__all__ = ["Option", "Method", "OPTIONS", "METHODS", "check_method_options", "describe", "run_method"]
 
 
 @dataclass(frozen=True)
@@ -45,6 +45,7 @@ class Method:
     recursive: bool = False
     needs_time: bool = False
     batched: bool = False
+    fixed: tuple[tuple[str, Any], ...] = ()  # solver keywords this method always sets
 
     @property
     def std_kind(self) -> str:
@@ -69,7 +70,7 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
 METHODS: dict[str, Method] = {m.name: m for m in (
     Method("ols", "solve_ols", "least squares on the scaled QR reduction", batched=True),
     Method("rls", "solve_rls", "recursive least squares, paper Eq. (14), Bierman U-D",
-           ("p0", "weight", "forgetting"), recursive=True, batched=True),
+           ("p0", "weight", "forgetting"), recursive=True, batched=True, fixed=(("noise_order", 0),)),
     Method("rels", "solve_rls", "recursive extended least squares (MA noise model)",
            ("p0", "weight", "forgetting", "noise_order"), recursive=True),
     Method("ridge", "solve_ridge", "ridge regression (GCV, L-curve or given lambda)", ("lam",)),
@@ -124,3 +125,33 @@ def describe() -> list[dict[str, Any]]:
                     "required": list(m.required), "recursive": m.recursive, "needs_time": m.needs_time,
                     "batched_in_montecarlo": m.batched, "std_kind": m.std_kind})
     return out
+
+
+def run_method(method: str, S, y, t, options: Mapping[str, Any], **labels) -> Any:
+    """Solve with a registered method: its public solver, its options, the labels.
+
+    Parameters
+    ----------
+    method : str
+        A key of :data:`METHODS`.
+    S, y, t : array_like
+        Regression ``(N, 3, n)``, velocity error ``(N, 3)`` and sample times ``(N,)``.
+    options : mapping
+        The method's options (keys of its :attr:`Method.options`; missing ones take the
+        :data:`OPTIONS` default; required ones go to the solver positionally).
+    **labels
+        ``names``, ``units``, ``si_factors``, ``sigma`` and solver extras (e.g. PCR's
+        ``max_condition_index``).
+
+    Returns
+    -------
+    EstimateResult
+    """
+    import casep
+
+    check_method_options(method, {k: v for k, v in options.items() if v is not None})
+    m = METHODS[method]
+    args = [S, y] + ([t] if m.needs_time else []) + [options[r] for r in m.required]
+    kw = {o: options.get(o, OPTIONS[o].default) for o in m.options if o not in m.required}
+    kw = {k: v for k, v in kw.items() if v is not None}
+    return getattr(casep, m.solver)(*args, **kw, **dict(m.fixed), **labels)

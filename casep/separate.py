@@ -8,21 +8,16 @@ from typing import Mapping
 
 import numpy as np
 
-from .bounded import solve_bounded
 from .checks import check_fit, check_flight
 from .denoise import denoise as wavelet_denoise
 from .flight import FlightData, check_dv_not_zero, check_enough_samples, warn_late_start
 from .flight_io import read_flight
-from .gls import solve_gls
-from .map_estimator import solve_map
 from .model import ErrorModel
 from .model_loader import load_model
-from .ols import solve_ols
-from .pcr import DEFAULT_MAX_CONDITION_INDEX, solve_pcr
-from .registry import METHODS as _REGISTRY, OPTIONS, check_method_options
+from .pcr import DEFAULT_MAX_CONDITION_INDEX
+from .registry import METHODS as _REGISTRY, OPTIONS, check_method_options, run_method
 from .result import EstimateResult
-from .ridge import solve_ridge
-from .rls import DEFAULT_P0, solve_rls
+from .rls import DEFAULT_P0
 from .sv import build_sv
 
 __all__ = ["separate", "regression_rows", "METHODS"]
@@ -129,23 +124,14 @@ def separate(
     elif wavelet_options:
         raise ValueError("`wavelet_options` given without `denoise='wavelet'`")
     labels = {"names": model.names, "units": model.units, "si_factors": model.si_factors, "sigma": sigma}
-    if method == "ols":
-        res = solve_ols(S, dv, **labels)
-    elif method in ("rls", "rels"):
-        order = noise_order if method == "rels" else 0
-        if method == "rels" and (isinstance(order, bool) or not isinstance(order, int) or order < 1):
-            raise ValueError(f"`noise_order` must be an int >= 1 for method `rels`, got {noise_order!r}")
-        res = solve_rls(S, dv, p0=p0, weight=weight, forgetting=forgetting, noise_order=order, **labels)
-    elif method == "ridge":
-        res = solve_ridge(S, dv, lam=lam, **labels)
-    elif method == "bounded":
-        res = solve_bounded(S, dv, bounds, **labels)
-    elif method == "pcr":
-        res = solve_pcr(S, dv, n_components=n_components, max_condition_index=max_condition_index, **labels)
-    elif method == "gls":
-        res = solve_gls(S, dv, t, tau=tau, **labels)
-    else:
-        res = solve_map(S, dv, prior, **labels)
+    if method == "rels" and (isinstance(noise_order, bool) or not isinstance(noise_order, int) or noise_order < 1):
+        raise ValueError(f"`noise_order` must be an int >= 1 for method `rels`, got {noise_order!r}")
+    options = {"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": noise_order, "lam": lam,
+               "bounds": bounds, "prior": prior, "n_components": n_components, "tau": tau}
+    if method == "pcr":
+        labels["max_condition_index"] = max_condition_index
+    res = run_method(method, S, dv, t, {k: v for k, v in options.items() if k in _REGISTRY[method].options},
+                     **labels)
     obs = flight.observed  # the raw dv, t and f of the rows the estimate used
     check_fit(S, flight.dv[obs], res, t=t, f=flight.f[obs], source=flight.source)  # noise-free, outliers, time offset
     if den is not None:
