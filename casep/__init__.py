@@ -57,6 +57,7 @@ from .model import ErrorModel, ModelDefinitionError
 from .model_loader import available_models, build_model, load_model, model_dirs
 from .bounded import solve_bounded
 from .gls import solve_gls
+from .huber import solve_huber
 from .map_estimator import solve_map
 from .ols import solve_ols
 from .pcr import solve_pcr
@@ -98,6 +99,7 @@ __all__ = [
     "solve_pcr",
     "solve_map",
     "solve_gls",
+    "solve_huber",
     "EstimateResult",
     "separate",
     "check_flight",

@@ -53,7 +53,7 @@ __all__ = ["MonteCarloResult", "run_montecarlo", "METHOD_HELP", "BATCHED", "Term
 
 #: Methods solved for all runs with one factorisation.
 BATCHED = tuple(k for k, m in _REGISTRY.items() if m.batched)
-METHOD_HELP = ("ols, rls, rels, ridge (GCV), ridge:<lambda>, pcr, map, bounded, gls (REML tau), and "
+METHOD_HELP = ("ols, rls, rels, ridge (GCV), ridge:<lambda>, pcr, map, bounded, gls (REML tau), huber, and "
                "wavelet+<method> (de-noised first)")
 _BLOCK = 128  # runs per block of right-hand sides
 _GLS_CHUNK = 16  # runs sharing one REML lattice (casep.gls.estimate_tau_many)
@@ -72,7 +72,7 @@ def _check_method(m: str) -> str:
             raise ValueError(f"method `{m}`: ridge:<lambda> needs a number") from None
         if not lam > 0:
             raise ValueError(f"method `{m}`: lambda must be > 0")
-    elif base not in ("ols", "rls", "rels", "ridge", "pcr", "map", "bounded", "gls"):
+    elif base not in _REGISTRY:
         raise ValueError(f"unknown method `{m}`. Use: {METHOD_HELP}")
     return m
 
@@ -96,27 +96,18 @@ def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float, t: np
     `given` is the sigma handed to the solver (None: estimated), `tau` the GLS correlation time,
     `prior` and `bounds` those of ``map`` and ``bounded`` (default: the paper's demo values).
     """
-    from . import solve_bounded, solve_gls, solve_map, solve_ols, solve_pcr, solve_ridge, solve_rls
+    from .registry import run_method
 
-    kw = {"names": names, "sigma": given}
-    if method == "ols":
-        r = solve_ols(S, y, **kw)
-    elif method == "rls":
-        r = solve_rls(S, y, **kw)
-    elif method == "rels":
-        r = solve_rls(S, y, noise_order=1, **kw)
-    elif method == "ridge":
-        r = solve_ridge(S, y, **kw)
-    elif method.startswith("ridge:"):
-        r = solve_ridge(S, y, lam=float(method.split(":", 1)[1]), **kw)
-    elif method == "pcr":
-        r = solve_pcr(S, y, **kw)
+    opts: dict[str, Any] = {}
+    if method.startswith("ridge:"):
+        method, opts = "ridge", {"lam": float(method.split(":", 1)[1])}
     elif method == "map":
-        r = solve_map(S, y, prior or demo_prior(names), names=names, sigma=given or sigma)
+        opts, given = {"prior": prior or demo_prior(names)}, given or sigma  # MAP with the known sigma
+    elif method == "bounded":
+        opts = {"bounds": bounds or demo_bounds(names)}
     elif method == "gls":
-        r = solve_gls(S, y, t, tau=tau, **kw)
-    else:
-        r = solve_bounded(S, y, bounds or demo_bounds(names), **kw)
+        opts = {"tau": tau}
+    r = run_method(method, S, y, t, opts, names=names, sigma=given)  # the registry's solver and defaults
     return r.estimate, r.std
 
 

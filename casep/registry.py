@@ -50,7 +50,7 @@ class Method:
     @property
     def std_kind(self) -> str:
         """What the reported std mean (``sampling``, ``posterior`` or ``conditional``)."""
-        return STD_KINDS[self.name]
+        return STD_KINDS.get(self.name, "sampling")
 
 
 #: Method-specific options (``sigma`` and the de-noising options apply to every method).
@@ -81,6 +81,7 @@ METHODS: dict[str, Method] = {m.name: m for m in (
            batched=True),
     Method("gls", "solve_gls", "least squares in Gauss-Markov noise (AR(1) whitening)", ("tau",),
            needs_time=True),
+    Method("huber", "solve_huber", "robust (Huber) least squares by IRLS, outliers flagged"),
 )}
 
 
