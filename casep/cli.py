@@ -120,22 +120,17 @@ def _read(args: argparse.Namespace):
     return read_flight_pair(args.flight, args.tracking) if args.tracking else read_flight(args.flight)
 
 
-def _bounds(args: argparse.Namespace, names) -> dict | None:
-    """The `--bounds` file, loaded and checked against the model's coefficients."""
-    if not args.bounds:
-        return None
-    bounds = _load_json(args.bounds, "--bounds")
-    parse_bounds(bounds, names, source=f"--bounds {args.bounds}")
-    return bounds
+_COEFFICIENT_FILES = {"bounds": parse_bounds, "prior": parse_prior}  # option -> its parser
 
 
-def _prior(args: argparse.Namespace, names) -> dict | None:
-    """The `--prior` file, loaded and checked against the model's coefficients."""
-    if not args.prior:
+def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | None:
+    """The `--bounds` or `--prior` file, loaded and checked against the model's coefficients."""
+    path = getattr(args, option)
+    if not path:
         return None
-    prior = _load_json(args.prior, "--prior")
-    parse_prior(prior, names, source=f"--prior {args.prior}")
-    return prior
+    data = _load_json(path, f"--{option}")
+    _COEFFICIENT_FILES[option](data, names, source=f"--{option} {path}")
+    return data
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -246,8 +241,8 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     given = {k: getattr(args, k) for k in OPTIONS if getattr(args, k) is not None}  # files: their names
     check_method_options(args.method, given)
     opts = {k: v for k, v in given.items() if k not in ("bounds", "prior")}
-    bounds = _bounds(args, model.names)
-    prior = _prior(args, model.names)
+    bounds = _coefficient_file(args, "bounds", model.names)
+    prior = _coefficient_file(args, "prior", model.names)
     if args.method == "rels" and opts.get("noise_order", 1) < 1:
         raise ValueError(f"--noise-order must be >= 1 for rels, got {opts['noise_order']}")
     wopts = {k: v for k, v in (("wavelet", args.wavelet), ("level", args.level), ("rule", args.threshold_rule),
@@ -318,7 +313,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "prior", "scales"),
                   folders={"--figures": args.figures})
     model = load_model(args.model)
-    prior = _prior(args, model.names)
+    prior = _coefficient_file(args, "prior", model.names)
     prior_std = None if prior is None else parse_prior(prior, model.names)[1]
     scales = None
     if args.scales:
@@ -376,7 +371,7 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
     check_outputs({"--json": args.json, "--csv": args.csv, "--figure": args.figure},
                   inputs=_inputs(args, "prior", "bounds"))
     names = load_model(get_scenario(args.scenario).model).names
-    prior, bounds = _prior(args, names), _bounds(args, names)
+    prior, bounds = _coefficient_file(args, "prior", names), _coefficient_file(args, "bounds", names)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     if args.runs < 1:
         raise ValueError(f"--runs must be >= 1, got {args.runs}")
