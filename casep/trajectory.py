@@ -37,7 +37,6 @@ import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from .units import G0
 
@@ -298,6 +297,8 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0) -> B
     -------
     BoostTrajectory
     """
+    from scipy.integrate import solve_ivp  # here, not at import: the CLI and separate() never need it
+
     if not isinstance(vehicle, Vehicle):
         raise TypeError(f"`vehicle` must be a Vehicle, got {type(vehicle).__name__}")
     if not np.isfinite(rate) or rate <= 0:
