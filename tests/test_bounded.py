@@ -114,3 +114,18 @@ def test_no_active_bound_says_so(small):
     res = casep.solve_bounded(S, y, box, names=names)
     assert res.message.startswith("0 of 36 coefficients at a bound (0 lower, 0 upper), 0 fixed, 36 free")
     assert "no bound active" in res.message and res.std_kind == "sampling"
+
+
+def test_narrow_interval_counts_each_coefficient_once(paper_problem, platform36):
+    """A box narrower than the activity tolerance is 'at' both ends: it counts once (as lower, the
+    value it takes), so the counts add up to n (review: '39 of 36 at a bound')."""
+    import warnings
+
+    S, y, truth = paper_problem
+    bounds = {n: [v, v + 1e-12 * (1 + abs(v))] for n, v in zip(platform36.names, truth)}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = casep.solve_bounded(S, y, bounds, names=platform36.names)
+    c = res.diagnostics["active_set"]
+    assert c["at_lower"] + c["at_upper"] + c["fixed"] + c["free"] + c["undetermined"] <= 36
+    assert f"{c['at_lower'] + c['at_upper']} of 36" in res.message and "of 36 coefficients at a bound" in res.message
