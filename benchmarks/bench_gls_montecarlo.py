@@ -1,7 +1,7 @@
 """Benchmark: GLS (REML tau) Monte Carlo runs, per-run public solver against the shared REML lattice.
 
 Per run: ``casep.solve_gls(S, y, t)`` (its own bounded REML search, ~15 factorisations).
-Shared: what ``run_montecarlo`` does for a chunk of runs: ``casep.gls.estimate_tau_many``
+Shared: what ``run_montecarlo`` does for a chunk of runs: ``casep.estimators.gls.estimate_tau_many``
 (one lattice of ln tau, one factorisation per lattice point for all runs of the chunk) and
 then ``solve_gls(S, y, t, tau=tau_k)``. Same noise in both; one process, one BLAS thread.
 Also prints the largest |tau difference| (relative) and estimate difference (in std).
@@ -22,8 +22,8 @@ import numpy as np  # noqa: E402
 
 import casep  # noqa: E402
 from casep.exceptions import IllConditionedWarning  # noqa: E402
-from casep.gls import estimate_tau_many  # noqa: E402
-from casep.simulate import scenario_setup  # noqa: E402
+from casep.estimators.gls import estimate_tau_many  # noqa: E402
+from casep.simulation.simulate import scenario_setup  # noqa: E402
 
 
 def main() -> None:

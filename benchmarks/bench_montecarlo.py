@@ -21,8 +21,8 @@ import numpy as np  # noqa: E402
 
 import casep  # noqa: E402
 from casep.exceptions import IllConditionedWarning  # noqa: E402
-from casep.montecarlo import run_montecarlo  # noqa: E402
-from casep.simulate import simulate_flight  # noqa: E402
+from casep.workflows.montecarlo import run_montecarlo  # noqa: E402
+from casep.simulation.simulate import simulate_flight  # noqa: E402
 
 
 def main() -> None:

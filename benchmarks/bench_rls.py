@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 
 import casep  # noqa: E402
 from casep._kernels import rels_ud  # noqa: E402
-from casep.simulate import simulate_flight  # noqa: E402
+from casep.simulation.simulate import simulate_flight  # noqa: E402
 
 
 def casep_run(Z, y, p0, nc):

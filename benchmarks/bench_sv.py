@@ -24,7 +24,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 import casep  # noqa: E402
-from casep.synthetic import excitation_force  # noqa: E402
+from casep.simulation.synthetic import excitation_force  # noqa: E402
 from casep.units import DEG_PER_HOUR, G0  # noqa: E402
 
 

@@ -43,34 +43,34 @@ estimate), whose warnings are :class:`CasepWarning` subclasses;
 the command line ``casep`` (:mod:`casep.cli`).
 """
 
-__version__ = "0.1.0"
+from casep._version import __version__
 
-from .flight import FlightData, FlightDataError
-from .flight_io import (
+from casep.io.flight import FlightData, FlightDataError
+from casep.io.files import (
     apparent_velocity_to_force,
     read_flight,
     read_flight_pair,
     write_flight,
 )
-from .linalg import ReducedSystem, analyze_rank, reduce_qr
-from .model import ErrorModel, ModelDefinitionError
-from .model_loader import available_models, build_model, load_model, model_dirs
-from .bounded import solve_bounded
-from .gls import solve_gls
-from .huber import solve_huber
-from .map_estimator import solve_map
-from .ols import solve_ols
-from .pcr import solve_pcr
-from .ridge import solve_ridge
-from .rls import solve_rls
-from .result import EstimateResult
-from .separate import separate
-from .sv import SVBuilder, build_sv
-from .units import G0
-from .checks import check_fit, check_flight
-from .exceptions import (CasepWarning, IllConditionedWarning, NoiseFreeWarning, OutlierWarning,
+from casep.analysis.linalg import ReducedSystem, analyze_rank, reduce_qr
+from casep.model._model import ErrorModel, ModelDefinitionError
+from casep.model.loader import available_models, build_model, load_model, model_dirs
+from casep.estimators.bounded import solve_bounded
+from casep.estimators.gls import solve_gls
+from casep.estimators.huber import solve_huber
+from casep.estimators.map import solve_map
+from casep.estimators.ols import solve_ols
+from casep.estimators.pcr import solve_pcr
+from casep.estimators.ridge import solve_ridge
+from casep.estimators.rls import solve_rls
+from casep.estimators.result import EstimateResult
+from casep.workflows.separate import separate
+from casep.model.sv import SVBuilder, build_sv
+from casep.units import G0
+from casep.analysis.checks import check_fit, check_flight
+from casep.exceptions import (CasepWarning, IllConditionedWarning, NoiseFreeWarning, OutlierWarning,
                          PlausibilityWarning, TimeOffsetWarning)
-from .flight import LateStartWarning
+from casep.io.flight import LateStartWarning
 
 __all__ = [
     "__version__",

@@ -1,7 +1,7 @@
 """Compiled inner loops (numba, ``cache=True``): the sequential parts numpy cannot fuse.
 
 Kept free of Python objects so that numba compiles them in nopython mode; the callers in
-:mod:`casep.sv` validate every argument.
+:mod:`casep.model.sv` validate every argument.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ __all__ = ["sv_integrate_chunk"]
 
 @numba.njit(cache=True, nogil=True)
 def sv_integrate_chunk(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_prev, out):  # pragma: no cover
-    """Trapezoid-integrate one chunk of S_V in place (see :mod:`casep.sv` for the equations).
+    """Trapezoid-integrate one chunk of S_V in place (see :mod:`casep.model.sv` for the equations).
 
     G (K, 3, ng), A (K, 3, na): Jacobians per sample; f (K, 3); half_dt (K,) = dt_k / 2;
     phi (3, ng), G_prev (3, ng), I_prev (3, n), S_prev (3, n): carries, updated in place;
@@ -102,7 +102,7 @@ def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, 
     D (p + n_c): P = U diag(D) U^T, on entry the diagonal prior P_0 = diag(D) (U = I, x = 0).
     Per sample, when forgetting < 1, stabilized forgetting: P <- P / forgetting, then n
     pseudo-measurements ``x_j = 0`` of variance D_0,j / (1 - forgetting), i.e.
-    P^-1 <- forgetting P^-1 + (1 - forgetting) P_0^-1 (see :mod:`casep.rls`); then one scalar
+    P^-1 <- forgetting P^-1 + (1 - forgetting) P_0^-1 (see :mod:`casep.estimators.rls`); then one scalar
     update per axis with measurement variance 1 / weight. The last n_c entries of x are the
     noise-model coefficients; their regressors are each axis' last n_c residuals
     (a-posteriori when `posterior`, else a-priori). Every `stride` samples x is copied to

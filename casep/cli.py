@@ -20,24 +20,24 @@ import warnings
 from pathlib import Path
 from typing import Sequence
 
-from . import __version__
-from .flight import FlightDataError
-from .model import ModelDefinitionError, unknown_coefficient_message
-from .bounded import parse_bounds
-from ._estimator import check_positive
-from .denoise import EXTENSIONS, MODES, RULES, SCALINGS
-from .exceptions import CasepWarning, IllConditionedWarning
-from .map_estimator import parse_prior
-from .model_loader import available_models, load_model
-from .montecarlo import METHOD_HELP
-from ._io import check_outputs
-from .result import write_csv, write_json_atomic, write_mat
-from .diagnostics import diagnose
-from .flight_io import read_flight, read_flight_pair
-from .scenarios import SCENARIOS, get_scenario
-from .registry import OPTIONS, check_method_options
-from .separate import METHODS, regression_rows, separate
-from .simulate import simulate_flight, write_simulation
+from casep._version import __version__
+from casep.io.flight import FlightDataError
+from casep.model._model import ModelDefinitionError, unknown_coefficient_message
+from casep.estimators.bounded import parse_bounds
+from casep.estimators._base import check_positive
+from casep.analysis.denoise import EXTENSIONS, MODES, RULES, SCALINGS
+from casep.exceptions import CasepWarning, IllConditionedWarning
+from casep.estimators.map import parse_prior
+from casep.model.loader import available_models, load_model
+from casep.workflows.montecarlo import METHOD_HELP
+from casep.io._atomic import check_outputs
+from casep.estimators.result import write_csv, write_json_atomic, write_mat
+from casep.analysis.diagnostics import diagnose
+from casep.io.files import read_flight, read_flight_pair
+from casep.simulation.scenarios import SCENARIOS, get_scenario
+from casep.estimators.registry import OPTIONS, check_method_options
+from casep.workflows.separate import METHODS, regression_rows, separate
+from casep.simulation.simulate import simulate_flight, write_simulation
 
 __all__ = ["main"]
 
@@ -58,7 +58,7 @@ def _positive_float(text: str) -> float:
 
 
 def _ranged(name: str):
-    """Argparse type for the option `name` of :data:`casep._estimator.OPTION_RANGES`: the API's check and message."""
+    """Argparse type for the option `name` of :data:`casep.estimators._base.OPTION_RANGES`: the API's check and message."""
 
     def parse(text: str) -> float:
         try:
@@ -274,8 +274,8 @@ def _write_separate_outputs(args: argparse.Namespace, res, flight, bounds, prior
     """`--figures DIR` and `--report FILE` of `separate` (matplotlib imported only when asked)."""
     if not (args.figures or args.report):
         return
-    from .plots import separate_figures
-    from .report import write_report
+    from casep.reporting.plots import separate_figures
+    from casep.reporting.report import write_report
 
     files = None
     if args.figures:
@@ -334,7 +334,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     print(f"model {model.name}, {flight.n_observed} samples")
     print(diag.report())
     if args.figures:
-        from .plots import plot_singular_values, plot_variance_decomposition
+        from casep.reporting.plots import plot_singular_values, plot_variance_decomposition
 
         Path(args.figures).mkdir(parents=True, exist_ok=True)  # like demo --out
         a = plot_singular_values(diag, Path(args.figures) / "singular_values.png")
@@ -346,7 +346,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from .demo import _summary_lines, run_demo
+    from casep.workflows.demo import _summary_lines, run_demo
 
     res = run_demo(args.out, seed=args.seed, rate=args.rate)
     sim = res.sim
@@ -366,7 +366,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_montecarlo(args: argparse.Namespace) -> int:
-    from .montecarlo import Terminated, run_montecarlo, sigterm_raises, write_figure
+    from casep.workflows.montecarlo import Terminated, run_montecarlo, sigterm_raises, write_figure
 
     check_outputs({"--json": args.json, "--csv": args.csv, "--figure": args.figure},
                   inputs=_inputs(args, "prior", "bounds"))
@@ -399,7 +399,7 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from .simulate import truth_path
+    from casep.simulation.simulate import truth_path
 
     check_outputs({"-o": args.output, "-o (truth sidecar)": truth_path(args.output)},
                   inputs=_inputs(args, "truth"))
@@ -407,7 +407,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise ValueError(f"`--seed` must be >= 0, got {args.seed}")
     truth = None
     if args.truth:  # {"Kg0x": v, ...} or a sidecar {"coefficients": {...}}, checked against the model
-        from .simulate import _truth_vector
+        from casep.simulation.simulate import _truth_vector
 
         truth = _load_json(args.truth, "--truth")
         truth = truth["coefficients"] if isinstance(truth.get("coefficients"), dict) else truth
@@ -425,7 +425,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_methods(args: argparse.Namespace) -> int:
-    from .registry import describe
+    from casep.estimators.registry import describe
 
     table = describe()
     if args.json:

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 import casep
-from casep.simulate import simulate_flight
-from casep.synthetic import inject_errors
+from casep.simulation.simulate import simulate_flight
+from casep.simulation.synthetic import inject_errors
 
 ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 ap.add_argument("--out", default=None, help="folder for the model file")

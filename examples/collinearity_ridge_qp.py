@@ -13,9 +13,9 @@ import argparse
 import numpy as np
 
 import casep
-from casep.diagnostics import diagnose
-from casep.paper import demo_bounds
-from casep.simulate import simulate_flight
+from casep.analysis.diagnostics import diagnose
+from casep.simulation.paper import demo_bounds
+from casep.simulation.simulate import simulate_flight
 
 ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 ap.add_argument("--quick", action="store_true", help="10 Hz instead of 100 Hz (for CI)")

@@ -1,7 +1,7 @@
 """Make ``examples/data/example_flight.csv``: the flight the README's first command separates.
 
 #%% What it is
-# An analytic boost-like specific force (casep.synthetic.excitation_force: 1.6 g rising to
+# An analytic boost-like specific force (casep.simulation.synthetic.excitation_force: 1.6 g rising to
 # ~5 g, pitched over, small cross-range oscillation) for 180 s at 10 Hz, the paper's Table 1
 # error coefficients (platform36) and white tracking noise of 0.1 m/s per axis, seed 1.
 # It is a test signal, not a trajectory.
@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 import casep
-from casep.paper import TABLE1_NOISE_SIGMA, TABLE1_TRUTH
-from casep.synthetic import excitation_force, inject_errors
+from casep.simulation.paper import TABLE1_NOISE_SIGMA, TABLE1_TRUTH
+from casep.simulation.synthetic import excitation_force, inject_errors
 
 #%% Build and write
 SEED = 1
@@ -37,7 +37,7 @@ def main() -> None:
         casep.FlightData(t, f, dv),
         out,
         comments=[
-            "casep example flight: analytic excitation (casep.synthetic.excitation_force), 180 s at 10 Hz",
+            "casep example flight: analytic excitation (casep.simulation.synthetic.excitation_force), 180 s at 10 Hz",
             f"truth: paper Table 1 (platform36); white noise {TABLE1_NOISE_SIGMA} m/s per axis; seed {SEED}",
             "made by examples/make_example_flight.py",
         ],

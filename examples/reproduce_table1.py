@@ -13,7 +13,7 @@ import tempfile
 import numpy as np
 
 import casep
-from casep.demo import run_demo
+from casep.workflows.demo import run_demo
 
 ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 ap.add_argument("--out", default=None, help="folder for figures and report.md")

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 import casep
-from casep.simulate import simulate_two_rate
+from casep.simulation.simulate import simulate_two_rate
 
 ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 ap.add_argument("--out", default=None, help="folder for the two files")

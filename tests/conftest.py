@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import casep
-from casep.paper import TABLE1_TRUTH
-from casep.synthetic import excitation_force
+from casep.simulation.paper import TABLE1_TRUTH
+from casep.simulation.synthetic import excitation_force
 
 
 @pytest.fixture
@@ -40,7 +40,7 @@ def flight_tf() -> tuple[np.ndarray, np.ndarray]:
 @pytest.fixture(scope="session")
 def paper_problem(platform36):
     """S_V, dv and truth of the paper scenario at 20 Hz (seed 1)."""
-    from casep.simulate import simulate_flight
+    from casep.simulation.simulate import simulate_flight
 
     sim = simulate_flight("paper", seed=1, rate=20.0)
     S = casep.build_sv(platform36, sim.flight.t, sim.flight.f)

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 import casep
-from casep.bounded import parse_bounds
+from casep.estimators.bounded import parse_bounds
 
 
 @pytest.fixture(scope="module")
 def small(platform36, truth36):
-    from casep.simulate import simulate_flight
+    from casep.simulation.simulate import simulate_flight
 
     sim = simulate_flight("paper", seed=3, rate=10.0)
     S = casep.build_sv(platform36, sim.flight.t, sim.flight.f)

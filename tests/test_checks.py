@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 
 import casep
-from casep.checks import GRAVITY_LAUNCH, check_flight, time_offset_test
+from casep.analysis.checks import GRAVITY_LAUNCH, check_flight, time_offset_test
 from casep.cli import main
 from casep.exceptions import (CasepWarning, IllConditionedWarning, NoiseFreeWarning, OutlierWarning,
                               PlausibilityWarning, TimeOffsetWarning)
-from casep.flight import FlightDataError
-from casep.noise import NoiseModel
-from casep.scenarios import get_scenario
-from casep.simulate import scenario_setup, simulate_flight, simulate_two_rate
-from casep.synthetic import excitation_force, inject_errors
+from casep.io.flight import FlightDataError
+from casep.simulation.noise import NoiseModel
+from casep.simulation.scenarios import get_scenario
+from casep.simulation.simulate import scenario_setup, simulate_flight, simulate_two_rate
+from casep.simulation.synthetic import excitation_force, inject_errors
 from casep.units import G0
 
 EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "examples" / "data").glob("*.csv"))
@@ -253,8 +253,8 @@ def test_cli_impossible_flight_exit_2(tmp_path, capsys, paper20):
 def test_velocity_columns_in_other_units_warn(tmp_path, factor, hint):
     """v_tel/v_trk in ft/s (or cm/s, km/s) while f is in m/s^2: the telemetered velocity change
     disagrees with int (f + g) dt by the unit factor (0.9986 in SI on the paper boost)."""
-    from casep.flight_io import write_table
-    from casep.simulate import simulate_two_rate
+    from casep.io.files import write_table
+    from casep.simulation.simulate import simulate_two_rate
 
     d = simulate_two_rate("paper", seed=1, telemetry_rate=20.0, tracking_rate=20.0)
     cols = {"t": d.t_tel, **{f"f_{a}": d.f[:, i] for i, a in enumerate("xyz")}}

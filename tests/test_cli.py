@@ -12,7 +12,7 @@ import pytest
 
 import casep
 from casep.cli import main
-from casep.synthetic import excitation_force, inject_errors
+from casep.simulation.synthetic import excitation_force, inject_errors
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "data" / "example_flight.csv"
 HEADER = "t,f_x,f_y,f_z,dv_x,dv_y,dv_z"
@@ -106,7 +106,7 @@ def test_models_command(capsys):
 
 
 def test_separate_two_files(tmp_path, capsys):
-    from casep.simulate import simulate_two_rate
+    from casep.simulation.simulate import simulate_two_rate
 
     d = simulate_two_rate("paper", seed=2, telemetry_rate=20.0, tracking_rate=5.0)
     d.write(tmp_path / "tel.csv", tmp_path / "trk.parquet")
@@ -284,7 +284,7 @@ def test_bad_coefficient_file_values_exit_2(good_csv, tmp_path, capsys, command,
 
 
 def test_infinite_bound_on_its_own_side_is_open(platform36):
-    lo, hi, fixed = casep.bounded.parse_bounds({"Kg0x": [-np.inf, np.inf], "Kg0y": [None, 2.0]}, platform36.names)
+    lo, hi, fixed = casep.estimators.bounded.parse_bounds({"Kg0x": [-np.inf, np.inf], "Kg0y": [None, 2.0]}, platform36.names)
     j, k = platform36.index("Kg0x"), platform36.index("Kg0y")
     assert lo[j] == -np.inf and hi[j] == np.inf and lo[k] == -np.inf and hi[k] == 2.0 and not fixed.any()
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from casep.cli import main
-from casep.demo import DEMO_METHODS, run_demo
+from casep.workflows.demo import DEMO_METHODS, run_demo
 
 
 def test_demo_reduced(tmp_path, capsys):
@@ -30,7 +30,7 @@ def test_demo_results_are_consistent():
     assert max(r["wavelet+RELS"].residual_rms.values()) < 0.5 * min(r["LS"].residual_rms.values())
     assert r["wavelet+RELS"].denoise is not None and 0.08 < r["wavelet+RELS"].sigma < 0.12
     # bounded stays inside its documented box; MAP is pulled towards its prior.
-    from casep.paper import demo_bounds
+    from casep.simulation.paper import demo_bounds
 
     box = demo_bounds(res.sim.model.names)
     est = r["bounded"].estimate

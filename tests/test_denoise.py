@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import casep
-from casep.denoise import (EXTENSIONS, MODES, denoise, denoise_signal, extend, mad_sigma, max_level,
+from casep.analysis.denoise import (EXTENSIONS, MODES, denoise, denoise_signal, extend, mad_sigma, max_level,
                            select_threshold)
 from casep.exceptions import CasepWarning
 
@@ -130,7 +130,7 @@ def test_bad_arguments():
 
 
 def test_separate_records_settings_and_uses_raw_sigma(platform36):
-    from casep.simulate import simulate_flight
+    from casep.simulation.simulate import simulate_flight
 
     sim = simulate_flight("paper", seed=3, rate=20.0)
     res = casep.separate(sim.flight, "platform36", "ols", denoise="wavelet",
@@ -145,9 +145,9 @@ def test_separate_records_settings_and_uses_raw_sigma(platform36):
 @pytest.mark.montecarlo
 def test_monte_carlo_denoising_does_not_help_ols(platform36):
     """Reduced form of benchmarks/mc_denoise.py: the README's claims, at 20 Hz and 30 runs."""
-    from casep.diagnostics import crlb_covariance
-    from casep.noise import NoiseModel
-    from casep.simulate import simulate_flight
+    from casep.analysis.diagnostics import crlb_covariance
+    from casep.simulation.noise import NoiseModel
+    from casep.simulation.simulate import simulate_flight
 
     sim = simulate_flight("paper", seed=0, rate=20.0)
     t = sim.flight.t

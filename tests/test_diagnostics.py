@@ -10,7 +10,7 @@ from scipy.linalg import toeplitz
 
 import casep
 from casep.cli import main
-from casep.diagnostics import crlb_covariance, diagnose
+from casep.analysis.diagnostics import crlb_covariance, diagnose
 from casep.exceptions import IllConditionedWarning
 
 
@@ -64,7 +64,7 @@ def test_small_case_against_independent_formulas(rng):
 @pytest.mark.montecarlo
 def test_crlb_equals_monte_carlo_spread_of_ols(platform36, truth36, rng):
     t = np.arange(0.0, 60.0, 0.2)
-    S = casep.build_sv(platform36, t, casep.synthetic.excitation_force(t, duration=60.0))
+    S = casep.build_sv(platform36, t, casep.simulation.synthetic.excitation_force(t, duration=60.0))
     crlb = np.sqrt(np.diag(crlb_covariance(S, 0.1)))
     est = np.array([casep.solve_ols(S, S @ truth36 + 0.1 * rng.standard_normal((t.size, 3))).estimate
                     for _ in range(300)])
@@ -99,7 +99,7 @@ def test_bayesian_bound_equals_map_posterior(paper_problem, platform36):
 
 
 def test_pitch_plane_exactly_zero_columns_unidentifiable(platform36):
-    from casep.simulate import simulate_flight
+    from casep.simulation.simulate import simulate_flight
 
     sim = simulate_flight("paper-pitch", seed=0, rate=10.0)
     S = casep.build_sv(platform36, sim.flight.t, sim.flight.f)

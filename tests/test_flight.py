@@ -7,7 +7,7 @@ import pytest
 
 import casep
 from casep.exceptions import CasepWarning
-from casep.flight import FlightDataError, check_enough_samples, min_samples
+from casep.io.flight import FlightDataError, check_enough_samples, min_samples
 
 
 def test_flightdata_validates_arrays():
@@ -63,7 +63,7 @@ def test_values_beyond_magnitude_limit_refused():
 def test_all_zero_dv_one_rule_for_separate_and_diagnose(tmp_path, capsys):
     """separate() used to return sigma 0 and std 0, diagnose a message about `sigma`."""
     from casep.cli import main
-    from casep.simulate import simulate_flight
+    from casep.simulation.simulate import simulate_flight
 
     fl = simulate_flight("paper", seed=1, rate=10.0).flight
     zero = casep.FlightData(fl.t, fl.f, np.zeros_like(fl.dv), source="zero.csv")
@@ -75,7 +75,7 @@ def test_all_zero_dv_one_rule_for_separate_and_diagnose(tmp_path, capsys):
     for cmd in ("separate", "diagnose"):
         assert main([cmd, str(p)]) == 2
         assert "is exactly 0 at all" in capsys.readouterr().err
-    from casep.diagnostics import diagnose
+    from casep.analysis.diagnostics import diagnose
 
     with pytest.raises(ValueError, match="`y` is 0 everywhere: sigma cannot be estimated"):
         diagnose(np.ones((20, 3, 2)), np.zeros((20, 3)))
@@ -88,8 +88,8 @@ def _cut(fl, t0):
 
 @pytest.mark.parametrize("rate", [20.0, 100.0])
 def test_late_start_warning_on_flight_cut_at_20s(rate, platform36):
-    from casep.flight import LateStartWarning, late_start_evidence
-    from casep.simulate import simulate_flight
+    from casep.io.flight import LateStartWarning, late_start_evidence
+    from casep.simulation.simulate import simulate_flight
 
     fl = simulate_flight("paper", seed=3, rate=rate).flight
     assert late_start_evidence(fl) == {}
@@ -115,8 +115,8 @@ def test_late_start_warning_on_flight_cut_at_20s(rate, platform36):
 
 @pytest.mark.parametrize("scenario", ["paper", "paper-pitch", "paper-ar1"])
 def test_no_late_start_alarm_on_flights_from_liftoff(scenario):
-    from casep.flight import late_start_evidence
-    from casep.simulate import simulate_flight
+    from casep.io.flight import late_start_evidence
+    from casep.simulation.simulate import simulate_flight
 
     for seed in range(6):
         fl = simulate_flight(scenario, seed=seed, rate=20.0 if seed % 2 else 100.0).flight

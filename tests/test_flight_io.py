@@ -9,7 +9,7 @@ import pytest
 
 import casep
 from casep.exceptions import CasepWarning, IllConditionedWarning
-from casep.flight import FlightDataError
+from casep.io.flight import FlightDataError
 
 HEADER = "t,f_x,f_y,f_z,dv_x,dv_y,dv_z"
 
@@ -96,7 +96,7 @@ def test_parquet_round_trip_and_bad_cell(tmp_path, rng):
     back = casep.read_flight(p)
     np.testing.assert_array_equal(back.dv, fl.dv)
     assert back.meta["format"] == "parquet"
-    from casep.flight_io import write_table
+    from casep.io.files import write_table
 
     cols = {"t": t, "f_x": t, "f_y": t, "f_z": t, "dv_x": t, "dv_y": t, "dv_z": t.copy()}
     cols["dv_z"][7] = np.nan
@@ -118,7 +118,7 @@ def test_apparent_velocity_to_force_analytic():
 def test_apparent_velocity_column_in_file(tmp_path):
     t = np.arange(0.0, 10.0, 0.1)
     W = np.column_stack([2.0 * t, 9.0 * t + 0.5 * t**2, -t])  # f = (2, 9 + t, -1)
-    from casep.flight_io import write_table
+    from casep.io.files import write_table
 
     write_table(tmp_path / "w.csv", {"t": t, "W_x": W[:, 0], "W_y": W[:, 1], "W_z": W[:, 2],
                                      "dv_x": t, "dv_y": t, "dv_z": t})
@@ -128,7 +128,7 @@ def test_apparent_velocity_column_in_file(tmp_path):
 
 
 def _pair(tmp_path, t_tel, t_trk, v, dv, f=None):
-    from casep.flight_io import write_table
+    from casep.io.files import write_table
 
     f = np.ones((t_tel.size, 3)) if f is None else f
     tel = {"t": t_tel, "f_x": f[:, 0], "f_y": f[:, 1], "f_z": f[:, 2]}
@@ -183,7 +183,7 @@ def test_writer_leaves_nothing_on_failure(tmp_path):
     fl = casep.FlightData([0.0, 1.0], np.zeros((2, 3)), np.zeros((2, 3)))
     with pytest.raises(TypeError):
         casep.write_flight("not a flight", tmp_path / "x.csv")
-    from casep.flight_io import write_table
+    from casep.io.files import write_table
 
     with pytest.raises(ValueError):
         write_table(tmp_path / "y.csv", {"t": [0.0, 1.0], "a": [1.0]})  # ragged: fails before writing
@@ -203,7 +203,7 @@ def test_tracking_from_10s_recovers_truth(tmp_path):
     sample. Telemetry and tracking both at 20 Hz on the same times (no interpolation), so the
     noise is white and the OLS std honest: every coefficient within 4.5 std (36 normal
     z-scores exceed 4.5 with probability 2.4e-4)."""
-    from casep.simulate import simulate_two_rate
+    from casep.simulation.simulate import simulate_two_rate
 
     d = simulate_two_rate("paper", seed=2, telemetry_rate=20.0, tracking_rate=20.0, tracking_start=10.0)
     fl = _write_pair(d, tmp_path)
@@ -228,11 +228,11 @@ def test_split_pair_noise_free_end_to_end(tmp_path):
     linear interpolation (0.3 CRLB std) would fail it."""
     import dataclasses
 
-    from casep.diagnostics import crlb_covariance
-    from casep.noise import NoiseModel
-    from casep.scenarios import get_scenario
-    from casep.separate import regression_rows
-    from casep.simulate import simulate_two_rate
+    from casep.analysis.diagnostics import crlb_covariance
+    from casep.simulation.noise import NoiseModel
+    from casep.simulation.scenarios import get_scenario
+    from casep.workflows.separate import regression_rows
+    from casep.simulation.simulate import simulate_two_rate
 
     quiet = dataclasses.replace(get_scenario("paper"), noise=NoiseModel("white", 0.0))
     d = simulate_two_rate(quiet, seed=0, telemetry_rate=100.0, tracking_rate=20.0, tracking_start=10.0)
@@ -301,9 +301,9 @@ def test_directory_as_flight(tmp_path):
 
 
 def test_pair_cut_after_liftoff_warns_with_speed(tmp_path):
-    from casep.flight import LateStartWarning
-    from casep.flight_io import write_table
-    from casep.simulate import simulate_two_rate
+    from casep.io.flight import LateStartWarning
+    from casep.io.files import write_table
+    from casep.simulation.simulate import simulate_two_rate
 
     d = simulate_two_rate("paper", seed=5, telemetry_rate=20.0, tracking_rate=20.0)
     normal = _write_pair(d, tmp_path)
@@ -322,7 +322,7 @@ def test_cli_pair_with_late_tracking_counts_observed_samples(tmp_path, capsys):
     import json
 
     from casep.cli import main
-    from casep.simulate import simulate_two_rate
+    from casep.simulation.simulate import simulate_two_rate
 
     d = simulate_two_rate("paper", seed=6, telemetry_rate=10.0, tracking_rate=10.0, tracking_start=10.0)
     tel, trk = tmp_path / "tel.csv", tmp_path / "trk.csv"

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import casep
-from casep.gls import estimate_tau
+from casep.estimators.gls import estimate_tau
 
 
 def test_known_tau_equals_dense_gls(rng):
@@ -28,8 +28,8 @@ def test_known_tau_equals_dense_gls(rng):
 
 @pytest.mark.montecarlo
 def test_reml_tau_and_honest_coverage(platform36):
-    from casep.noise import NoiseModel
-    from casep.simulate import simulate_flight
+    from casep.simulation.noise import NoiseModel
+    from casep.simulation.simulate import simulate_flight
 
     sim = simulate_flight("paper-ar1", seed=0, rate=10.0)
     t = sim.flight.t
@@ -87,7 +87,7 @@ def test_bad_arguments(paper_problem):
 
 
 def _paper_ar1_runs(k, seed=11, rate=10.0):
-    from casep.simulate import scenario_setup
+    from casep.simulation.simulate import scenario_setup
 
     sc, traj, model, truth = scenario_setup("paper-ar1", rate)
     S = casep.build_sv(model, traj.t, traj.specific_force)
@@ -103,7 +103,7 @@ def test_batched_tau_matches_per_run_reml():
 
     from scipy.optimize import minimize_scalar
 
-    from casep import gls
+    from casep.estimators import gls
 
     S, Y, t = _paper_ar1_runs(8, rate=5.0)
     calls = []
@@ -128,7 +128,7 @@ def test_batched_tau_matches_per_run_reml():
 
 def test_neg2_reml_columns_equal_single_runs():
     """Each column of the one-factorisation objective equals the objective of that run alone."""
-    from casep.gls import _neg2_reml
+    from casep.estimators.gls import _neg2_reml
 
     S, Y, t = _paper_ar1_runs(3, rate=5.0)
     many = _neg2_reml(S, Y, t, 0.8)
@@ -137,7 +137,7 @@ def test_neg2_reml_columns_equal_single_runs():
 
 
 def test_lattice_vertex_exact_for_polynomials():
-    from casep.gls import _lattice_vertex
+    from casep.estimators.gls import _lattice_vertex
 
     u = np.arange(-3.0, 4.0)
     assert _lattice_vertex((u - 0.3) ** 2) == pytest.approx(0.3, abs=1e-12)  # parabola

@@ -1,4 +1,4 @@
-"""Robust (Huber) least squares: casep.huber.solve_huber."""
+"""Robust (Huber) least squares: casep.estimators.huber.solve_huber."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from casep.exceptions import IllConditionedWarning
 
 @pytest.fixture(scope="module")
 def paper20():
-    from casep.simulate import simulate_flight
+    from casep.simulation.simulate import simulate_flight
 
     sim = simulate_flight("paper", seed=1, rate=20.0)
     S = casep.build_sv(sim.model, sim.flight.t, sim.flight.f)
@@ -55,7 +55,7 @@ def test_huber_monte_carlo_with_glitches(paper20, rng):
     clean-data CRLB (median over coefficients) where OLS is several times worse; its std cover
     ~95 %; every injected glitch is flagged and few clean rows are (30 seeded runs, 20 Hz)."""
     S, clean, truth, m = paper20
-    crlb = casep.diagnostics.crlb_covariance(S, 0.1)
+    crlb = casep.analysis.diagnostics.crlb_covariance(S, 0.1)
     crlb = np.sqrt(np.diag(crlb))
     eh, eo, hits, flagged_ok, false_flags = [], [], [], 0, 0
     import warnings
@@ -84,7 +84,7 @@ def test_huber_monte_carlo_with_glitches(paper20, rng):
 
 def test_huber_is_registered_and_validates(paper20):
     S, clean, truth, m = paper20
-    from casep.registry import METHODS
+    from casep.estimators.registry import METHODS
 
     assert "huber" in METHODS and METHODS["huber"].std_kind == "sampling"
     with pytest.raises(ValueError, match="`c` must be"):

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import casep
-from casep._io import atomic_open, check_output, check_output_dir, check_outputs
+from casep.io._atomic import atomic_open, check_output, check_output_dir, check_outputs
 from casep.cli import main
-from casep.synthetic import excitation_force, inject_errors
+from casep.simulation.synthetic import excitation_force, inject_errors
 
 
 @pytest.fixture(scope="module")
@@ -183,7 +183,7 @@ def test_separate_refuses_output_onto_flight(flight_csv, tmp_path, capsys, optio
 
 
 def test_separate_refuses_output_onto_tracking_file(tmp_path, capsys):
-    from casep.simulate import simulate_two_rate
+    from casep.simulation.simulate import simulate_two_rate
 
     d = simulate_two_rate("paper", seed=2, telemetry_rate=20.0, tracking_rate=5.0)
     tel, trk = tmp_path / "tel.csv", tmp_path / "trk.csv"
@@ -214,9 +214,9 @@ def _forbid(monkeypatch, target: str):
     (["separate", "{flight}", "--csv", "{missing}/r.csv"], "casep.cli.separate"),
     (["diagnose", "{flight}", "--json", "{missing}/d.json"], "casep.cli.diagnose"),
     (["simulate", "-o", "{missing}/f.csv"], "casep.cli.simulate_flight"),
-    (["montecarlo", "--runs", "2", "--json", "{missing}/mc.json"], "casep.montecarlo.run_montecarlo"),
-    (["montecarlo", "--runs", "2", "--csv", "{missing}/mc.csv"], "casep.montecarlo.run_montecarlo"),
-    (["montecarlo", "--runs", "2", "--figure", "{missing}/mc.png"], "casep.montecarlo.run_montecarlo"),
+    (["montecarlo", "--runs", "2", "--json", "{missing}/mc.json"], "casep.workflows.montecarlo.run_montecarlo"),
+    (["montecarlo", "--runs", "2", "--csv", "{missing}/mc.csv"], "casep.workflows.montecarlo.run_montecarlo"),
+    (["montecarlo", "--runs", "2", "--figure", "{missing}/mc.png"], "casep.workflows.montecarlo.run_montecarlo"),
 ])
 def test_missing_output_folder_exit_2_before_any_work(flight_csv, tmp_path, capsys, monkeypatch, argv, forbidden):
     _forbid(monkeypatch, forbidden)

@@ -35,7 +35,7 @@ def test_prior_only_equals_the_prior(paper_problem, platform36):
 @pytest.mark.montecarlo
 def test_posterior_std_matches_monte_carlo(platform36, rng):
     """Truth drawn from the prior each run: z = (estimate - truth) / std has RMS near 1."""
-    from casep.simulate import simulate_flight
+    from casep.simulation.simulate import simulate_flight
 
     sim = simulate_flight("paper", seed=0, rate=10.0)
     S = casep.build_sv(platform36, sim.flight.t, sim.flight.f)
@@ -54,7 +54,7 @@ def test_posterior_std_matches_monte_carlo(platform36, rng):
 
 
 def test_aliased_phi0_becomes_determined_with_a_misalignment_prior(platform39, truth36):
-    from casep.synthetic import excitation_force
+    from casep.simulation.synthetic import excitation_force
 
     t = np.arange(0.0, 180.0, 0.1)
     S = casep.build_sv(platform39, t, excitation_force(t))
@@ -80,7 +80,7 @@ def test_prior_errors(paper_problem, platform36):
 # --- issue 17: prior names and values ---------------------------------------------------------
 
 def test_parse_prior_unknown_name_suggests(platform36):
-    from casep.map_estimator import parse_prior
+    from casep.estimators.map import parse_prior
 
     with pytest.raises(ValueError, match=r"`prior`: unknown coefficient `KaOy` \(did you mean `Ka0y`\?\)"):
         parse_prior({"KaOy": {"mean": 0, "std": 1}}, platform36.names)
@@ -95,14 +95,14 @@ def test_parse_prior_unknown_name_suggests(platform36):
     ({"mean": float("nan"), "std": 1.0}, "mean must be finite"),
 ])
 def test_parse_prior_rejects_bad_values_naming_the_coefficient(platform36, spec, expect):
-    from casep.map_estimator import parse_prior
+    from casep.estimators.map import parse_prior
 
     with pytest.raises(ValueError, match=f"`Kg0x` {expect}"):
         parse_prior({"Kg0x": spec}, platform36.names)
 
 
 def test_parse_prior_infinite_std_is_flat(platform36):
-    from casep.map_estimator import parse_prior
+    from casep.estimators.map import parse_prior
 
     mu, tau = parse_prior({"Kg0x": {"mean": 1.0, "std": float("inf")}}, platform36.names)
     assert np.isinf(tau).all()

@@ -15,7 +15,7 @@ import pytest
 
 import casep
 from casep.cli import main
-from casep.montecarlo import run_montecarlo
+from casep.workflows.montecarlo import run_montecarlo
 
 
 @pytest.mark.montecarlo
@@ -76,8 +76,8 @@ def test_gls_chunks_match_public_solver():
     """GLS runs share one REML lattice per chunk: tau within 1e-3 relative and estimates within
     1e-3 std of solve_gls per run, exactly solve_gls at that tau, the same for any `workers`."""
     import casep
-    from casep.gls import estimate_tau_many
-    from casep.simulate import scenario_setup
+    from casep.estimators.gls import estimate_tau_many
+    from casep.simulation.simulate import scenario_setup
 
     runs, seed = 3, 4
     a = run_montecarlo("paper-ar1", runs=runs, methods=["gls"], seed=seed, rate=5.0, workers=1)
@@ -110,7 +110,7 @@ def test_progress_lines_off_a_terminal_count_runs_per_method(capsys):
 
 
 def test_progress_bar_total_is_runs(monkeypatch, capsys):
-    from casep.montecarlo import _Progress
+    from casep.workflows.montecarlo import _Progress
 
     p = _Progress(20, ["ols,rls", "rels"], "bar")
     p(20)
@@ -128,7 +128,7 @@ def test_workers_have_one_blas_thread_and_parent_is_unchanged():
     slower); the parent's thread pools are left as they were."""
     from threadpoolctl import threadpool_info
 
-    from casep.montecarlo import _worker_pool
+    from casep.workflows.montecarlo import _worker_pool
 
     before = [p["num_threads"] for p in threadpool_info()]
     with _worker_pool(1, (np.zeros((1, 3, 1)), np.zeros((1, 3)), np.zeros(1), None, ("a",), 1.0)) as pool:
@@ -239,7 +239,7 @@ def test_prior_and_bounds_files_replace_the_demo_values(tmp_path, capsys):
     bounded use the given files; batched MAP equals the per-run public solver with that prior."""
     import json
 
-    from casep.paper import TABLE1_TRUTH
+    from casep.simulation.paper import TABLE1_TRUTH
 
     names = casep.load_model("platform36").names
     prior = {n: {"mean": 0.0, "std": 2.0 * max(abs(TABLE1_TRUTH[n]), 1e-3)} for n in names}

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from casep.noise import NoiseModel, ar1_noise
+from casep.simulation.noise import NoiseModel, ar1_noise
 
 
 def _lag1(x):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import casep
-from casep.synthetic import excitation_force, inject_errors
+from casep.simulation.synthetic import excitation_force, inject_errors
 
 
 def test_noise_free_recovery_all_36(platform36, truth36, flight_tf):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import casep
-from casep.plots import best_determined, estimate_scales, plot_history, separate_figures
+from casep.reporting.plots import best_determined, estimate_scales, plot_history, separate_figures
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "data" / "example_flight.csv"
 PNG = b"\x89PNG\r\n\x1a\n"

@@ -9,8 +9,8 @@ import pytest
 
 import casep
 from casep.cli import main
-from casep.registry import METHODS, OPTIONS, check_method_options
-from casep.synthetic import excitation_force, inject_errors
+from casep.estimators.registry import METHODS, OPTIONS, check_method_options
+from casep.simulation.synthetic import excitation_force, inject_errors
 
 # A value for every option, other than its default (files: a mapping), for the "not taken" checks.
 _VALUES = {"p0": 1e4, "weight": 2.0, "forgetting": 0.999, "noise_order": 2, "lam": 1e-3, "bounds": {"Kg0x": 0.5},
@@ -25,8 +25,8 @@ def clean_flight(platform36, truth36):
 
 
 def test_registry_is_what_separate_and_montecarlo_use():
-    from casep.montecarlo import BATCHED
-    from casep.separate import METHODS as SEPARATE_METHODS
+    from casep.workflows.montecarlo import BATCHED
+    from casep.workflows.separate import METHODS as SEPARATE_METHODS
 
     assert tuple(METHODS) == SEPARATE_METHODS
     assert set(BATCHED) == {k for k, m in METHODS.items() if m.batched}

@@ -12,14 +12,14 @@ import pytest
 
 import casep
 from casep.cli import main
-from casep.report import write_report
+from casep.reporting.report import write_report
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "data" / "example_flight.csv"
 
 
 @pytest.fixture(scope="module")
 def paper_csv(tmp_path_factory):
-    from casep.simulate import simulate_flight
+    from casep.simulation.simulate import simulate_flight
 
     sim = simulate_flight("paper", seed=1, rate=20.0)
     p = tmp_path_factory.mktemp("report") / "paper20.csv"

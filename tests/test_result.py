@@ -10,8 +10,8 @@ import pytest
 
 import casep
 from casep.cli import main
-from casep.result import write_csv, write_mat
-from casep.synthetic import excitation_force, inject_errors
+from casep.estimators.result import write_csv, write_mat
+from casep.simulation.synthetic import excitation_force, inject_errors
 
 SIGMA = 0.01  # m/s, white noise of the test flight
 
@@ -189,7 +189,7 @@ def test_json_covariance_natural_units_with_null_rows(tmp_path, platform36, trut
     columns for coefficients without an estimate; its diagonal is std^2."""
     import json
 
-    from casep.synthetic import excitation_force, inject_errors
+    from casep.simulation.synthetic import excitation_force, inject_errors
 
     t = np.arange(0.0, 60.0, 0.1)
     f = excitation_force(t, duration=60.0, cross_range=False)  # pitch plane: zero columns

@@ -7,7 +7,7 @@ import pytest
 from conftest import augmented_lstsq
 
 import casep
-from casep.ridge import gcv_curve
+from casep.estimators.ridge import gcv_curve
 
 
 def test_closed_form_equals_augmented_lstsq_and_cvxpy(paper_problem):

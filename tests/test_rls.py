@@ -88,7 +88,7 @@ def test_prior_residual_variant_runs_and_differs_little(paper_problem):
 
 
 def test_zero_columns_stay_out(platform36, truth36):
-    from casep.simulate import simulate_flight
+    from casep.simulation.simulate import simulate_flight
 
     sim = simulate_flight("paper-pitch", seed=0, rate=10.0)
     S = casep.build_sv(platform36, sim.flight.t, sim.flight.f)
@@ -168,7 +168,7 @@ def test_unexcited_direction_stays_at_prior_under_forgetting(rng):
 
 
 def test_finish_marks_non_finite_and_misfit_results_failed(rng):
-    from casep._estimator import finish, prepare
+    from casep.estimators._base import finish, prepare
 
     N, n = 200, 3
     S = rng.standard_normal((N, 3, n))

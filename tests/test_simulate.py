@@ -9,8 +9,8 @@ import pytest
 
 import casep
 from casep.cli import main
-from casep.scenarios import SCENARIOS, get_scenario
-from casep.simulate import simulate_flight, simulate_two_rate, truth_path, write_simulation
+from casep.simulation.scenarios import SCENARIOS, get_scenario
+from casep.simulation.simulate import simulate_flight, simulate_two_rate, truth_path, write_simulation
 
 
 def _lag1(x):
@@ -129,7 +129,7 @@ def test_simulate_any_model_and_truth(tmp_path, capsys):
     import json
 
     from casep.cli import main
-    from casep.paper import TABLE1_TRUTH
+    from casep.simulation.paper import TABLE1_TRUTH
 
     truth = {**TABLE1_TRUTH, "dv0x": 0.3, "dv0y": -0.2, "dv0z": 0.1}
     tfile = tmp_path / "truth.json"

@@ -7,7 +7,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import casep
-from casep.synthetic import excitation_force
+from casep.simulation.synthetic import excitation_force
 from casep.units import ARCSEC, DEG_PER_HOUR, G0
 
 MG, UG = 1e-3 * G0, 1e-6 * G0

@@ -1,0 +1,17 @@
+"""What the data can tell: the scaled QR reduction and rank analysis, collinearity diagnostics,
+plausibility checks of a flight and of a fit, wavelet de-noising.
+
+Depends on :mod:`casep.io` (the flight) and :mod:`casep.units`; never on an estimator.
+
+- :mod:`casep.analysis.linalg`: TSQR reduction of the column-scaled regression, rank analysis
+- :mod:`casep.analysis.diagnostics`: condition indices, variance decomposition, VIF, CRLB
+- :mod:`casep.analysis.checks`: ``check_flight`` (units, impossible data), ``check_fit``
+- :mod:`casep.analysis.denoise`: wavelet de-noising of dv
+"""
+
+from casep.analysis.checks import check_fit, check_flight
+from casep.analysis.diagnostics import Diagnostics, diagnose
+from casep.analysis.linalg import RankAnalysis, ReducedSystem, analyze_rank, reduce_qr
+
+__all__ = ["check_fit", "check_flight", "Diagnostics", "diagnose", "RankAnalysis", "ReducedSystem",
+           "analyze_rank", "reduce_qr"]

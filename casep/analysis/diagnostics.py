@@ -1,0 +1,375 @@
+"""Collinearity and identifiability: what a flight can and cannot tell.
+
+Notes
+-----
+All quantities use the column-equilibrated regression ``Z = S diag(c)^-1`` (unit-norm
+columns, *never centred*: the model has no intercept), reduced by QR, ``R = U diag(s) V^T``;
+zero columns are left out (they are unidentifiable by definition).
+
+- Condition number of S in natural units and of Z; singular values ``s``; condition
+  indices ``eta_k = s_0 / s_k``.
+- Belsley-Kuh-Welsch variance-decomposition proportions:
+  ``phi_jk = V_jk^2 / s_k^2``, ``pi_kj = phi_jk / sum_k phi_jk`` (share of Var(z_j) due to
+  dimension k; each coefficient's proportions sum to 1). Where singular values tie, the
+  basis of the tied subspace is made canonical (pivoted QR) so the proportions are defined.
+- Uncentred VIF: ``VIF_j = [(Z^T Z)^-1]_jj = sum_k V_jk^2 / s_k^2`` (1 for orthogonal columns).
+- Near-dependency groups: for each dimension with ``eta_k > 30``, the coefficients with
+  ``pi_kj > 0.5`` (two or more).
+- Cramer-Rao bound for white noise of std sigma: ``Cov >= sigma^2 (S^T S)^-1``. For
+  first-order Gauss-Markov noise (stationary std sigma, correlation time tau) the bound is the
+  GLS covariance ``(S^T Sigma^-1 S)^-1``, computed by whitening each axis in time:
+  ``w_0 = e_0 / sigma``, ``w_k = (e_k - a_k e_{k-1}) / (sigma sqrt(1 - a_k^2))``,
+  ``a_k = exp(-(t_k - t_{k-1}) / tau)``. With a Gaussian prior of std tau_j the Bayesian bound
+  is ``(Fisher + diag(1 / tau_j^2))^-1``.
+- Identifiability: *unidentifiable* (zero or exactly dependent column), *weak* (CRLB std
+  larger than the coefficient's scale: its prior std, a given scale, or by default its
+  Table 1 magnitude), else *identifiable*.
+- Estimable combinations: the best-determined directions ``v_k`` of the scaled problem,
+  written as ``sum_j w_j D_j`` with ``w_j = v_kj c_j`` normalised so the largest ``|w_j|`` is 1;
+  std ``sigma / (s_k max_j |v_kj c_j|)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from casep.analysis.linalg import RankAnalysis, ReducedSystem, analyze_rank, condition_numbers, reduce_qr, unidentifiable_reasons
+
+__all__ = ["Diagnostics", "diagnose", "crlb_covariance", "collinearity", "ar1_whiten", "ILL_CONDITIONED",
+           "GROUP_INDEX", "GROUP_PROPORTION"]
+
+#: Equilibrated condition number above which estimators warn.
+ILL_CONDITIONED = 1e3
+GROUP_INDEX = 30.0
+GROUP_PROPORTION = 0.5
+
+
+def _canonical_ties(s: np.ndarray, Vt: np.ndarray, rel: float = 1e-9) -> np.ndarray:
+    """Make the basis of tied singular values canonical (as axis-aligned as possible).
+
+    Within a cluster of equal singular values the SVD basis is arbitrary, and so would be the
+    variance proportions. Pivoted QR of the cluster's rows rotates them to an echelon form
+    in the coordinates: for orthogonal columns (one cluster) the proportions become the
+    identity, as Belsley et al. intend.
+    """
+    from scipy.linalg import qr
+
+    Vt = Vt.copy()
+    k = 0
+    while k < s.size:
+        m = k + 1
+        while m < s.size and abs(s[m] - s[k]) <= rel * max(s[0], 1e-300):
+            m += 1
+        if m - k > 1:
+            Q, _, _ = qr(Vt[k:m], mode="economic", pivoting=True)  # B^T P = Q R, B^T = rows k..m-1
+            Vt[k:m] = Q.T @ Vt[k:m]  # new rows R P^T: echelon in the coordinates
+        k = m
+    return Vt
+
+
+def collinearity(red: ReducedSystem, ra: RankAnalysis) -> dict[str, Any]:
+    """BKW proportions, condition indices, uncentred VIF and groups (indices into the columns).
+
+    Returns keys ``s`` (singular values of the non-zero columns), ``eta`` (condition indices,
+    inf for a zero singular value), ``proportions`` (dims x n, NaN on zero columns), ``vif``
+    (n, inf for dependent, NaN for zero columns), ``groups`` (lists of column indices).
+    """
+    n = red.n
+    keep = np.flatnonzero(~ra.zero)
+    out = {"s": np.zeros(0), "eta": np.zeros(0), "proportions": np.full((0, n), np.nan),
+           "vif": np.full(n, np.nan), "groups": []}
+    if keep.size == 0:
+        return out
+    _, s, Vt = np.linalg.svd(red.R[:, keep])
+    Vt = _canonical_ties(s, Vt)
+    tol = ra.rcond * s[0]
+    live = s > tol
+    safe = np.where(live, s, 1.0)
+    eta = np.where(live, s[0] / safe, np.inf)
+    phi = np.where(live[:, None], Vt**2 / safe[:, None] ** 2, 0.0)  # phi_jk = V_jk^2 / s_k^2, as (k, j)
+    # A zero singular value gives infinite variance to the columns that load on it.
+    inf_load = ~live[:, None] & (np.abs(Vt) > 1e-8)
+    tot = phi.sum(axis=0)
+    dependent = inf_load.any(axis=0)
+    tot = np.where(dependent, np.inf, tot)
+    prop = np.where(dependent, inf_load / np.maximum(inf_load.sum(axis=0), 1), phi / np.where(tot > 0, tot, 1.0))
+    # Columns in an exact dependency load on a zero singular value: infinite VIF, proportion 1 there.
+    dims = len(s)
+    P = np.full((dims, n), np.nan)
+    P[:, keep] = prop
+    vif = np.full(n, np.nan)
+    vif[keep] = tot  # (Z^T Z)^-1_jj = sum_k V_jk^2 / s_k^2
+    groups: list[list[int]] = []
+    for k in range(dims):
+        if eta[k] > GROUP_INDEX:
+            members = [int(keep[j]) for j in np.flatnonzero(prop[k] > GROUP_PROPORTION)]
+            if len(members) >= 2 and members not in groups:
+                groups.append(members)
+    out.update(s=s, eta=eta, proportions=P, vif=vif, groups=groups)
+    return out
+
+
+def ar1_whiten(S: np.ndarray, t: np.ndarray, sigma: float, tau: float) -> np.ndarray:
+    """Whiten (N, 3, n) regressors for first-order Gauss-Markov noise (see module notes)."""
+    t = np.asarray(t, dtype=float)
+    if t.shape != (S.shape[0],):
+        raise ValueError(f"`t` must have {S.shape[0]} samples, got shape {t.shape}")
+    if not np.isfinite(tau) or tau <= 0:
+        raise ValueError(f"`tau` must be finite and > 0 s, got {tau}")
+    a = np.exp(-np.diff(t) / tau)[:, None, None]
+    W = np.empty_like(S)
+    W[0] = S[0] / sigma
+    W[1:] = (S[1:] - a * S[:-1]) / (sigma * np.sqrt(1.0 - a**2))
+    return W
+
+
+def crlb_covariance(S: np.ndarray, sigma: float, *, t: np.ndarray | None = None, tau: float | None = None,
+                    prior_std: np.ndarray | None = None, rcond: float | None = None) -> np.ndarray:
+    """Cramer-Rao bound covariance in natural units (NaN rows for unidentifiable coefficients).
+
+    Parameters
+    ----------
+    S : (N, 3, n) array_like
+        Regression in natural units.
+    sigma : float
+        Noise std (white), or stationary std of the Gauss-Markov noise, m/s.
+    t, tau : optional
+        Sample times and correlation time for the Gauss-Markov bound.
+    prior_std : (n,) array_like, optional
+        Prior std per coefficient (inf for none): the Bayesian bound.
+    """
+    S = np.asarray(S, dtype=float)
+    if not np.isfinite(sigma) or sigma <= 0:
+        raise ValueError(f"`sigma` must be finite and > 0, got {sigma}")
+    if tau is not None:
+        if t is None:
+            raise ValueError("`t` is required with `tau` (Gauss-Markov bound)")
+        F = ar1_whiten(S, t, sigma, tau).reshape(-1, S.shape[-1])
+    else:
+        F = S.reshape(-1, S.shape[-1]) / sigma
+    n = F.shape[1]
+    red = reduce_qr(F, np.zeros(F.shape[0]))
+    c = np.where(red.scale > 0, red.scale, 1.0)
+    A = red.R
+    if prior_std is not None:
+        ps = np.asarray(prior_std, dtype=float)
+        if ps.shape != (n,) or np.any(ps <= 0) or np.any(np.isnan(ps)):
+            raise ValueError(f"`prior_std` must be {n} values > 0 (inf for none)")
+        has = np.isfinite(ps)
+        A = np.vstack([A, np.diag(1.0 / (c * ps))[has]])  # prior rows in scaled coordinates
+    _, s, Vt = np.linalg.svd(A, full_matrices=False)
+    tol = (max(F.shape) * np.finfo(float).eps if rcond is None else rcond) * s[0]
+    r = int(np.sum(s > tol))
+    W = Vt[:r].T / s[:r]
+    cov = (W @ W.T) / np.outer(c, c)
+    null = Vt[r:].T
+    und = np.linalg.norm(null, axis=1) > 1e-8 if null.size else np.zeros(n, bool)
+    cov[und, :] = np.nan
+    cov[:, und] = np.nan
+    return cov
+
+
+def _combination(v: np.ndarray, c: np.ndarray, names: Sequence[str], top: int = 5) -> tuple[dict[str, float], float]:
+    w = v * c
+    big = np.max(np.abs(w))
+    w = w / big
+    order = np.argsort(-np.abs(w))[:top]
+    return {names[j]: float(round(w[j], 4)) for j in order if abs(w[j]) >= 1e-3}, float(big)
+
+
+@dataclass(frozen=True)
+class Diagnostics:
+    """What the flight determines, per coefficient and per combination (see module notes)."""
+
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    condition_number: float | None
+    condition_number_equilibrated: float | None
+    singular_values: np.ndarray
+    condition_indices: np.ndarray
+    proportions: np.ndarray
+    vif: np.ndarray
+    sigma: float
+    sigma_source: str
+    noise: dict
+    crlb_covariance: np.ndarray
+    identifiability: dict[str, str]
+    reasons: dict[str, str]
+    groups: list[list[str]]
+    combinations: list[dict]
+    scales: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def crlb_std(self) -> np.ndarray:
+        """Cramer-Rao std per coefficient, natural units (NaN where unidentifiable)."""
+        return np.sqrt(np.diag(self.crlb_covariance))
+
+    @property
+    def correlation(self) -> np.ndarray:
+        """Correlation matrix of the estimates at the bound."""
+        sd = self.crlb_std
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self.crlb_covariance / np.outer(sd, sd)
+
+    @property
+    def unidentifiable(self) -> list[str]:
+        return [n for n in self.names if self.identifiability[n] == "unidentifiable"]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``diagnostics`` JSON of ``interfaces.md`` (plus details)."""
+        def f(v):
+            return float(v) if v is not None and np.isfinite(v) else None
+
+        return {
+            "condition_number": self.condition_number,
+            "condition_number_equilibrated": self.condition_number_equilibrated,
+            "sigma": float(self.sigma),
+            "sigma_source": self.sigma_source,
+            "noise": self.noise,
+            "crlb_std": {n: f(s) for n, s in zip(self.names, self.crlb_std)},
+            "vif": {n: f(v) for n, v in zip(self.names, self.vif)},
+            "unidentifiable": self.unidentifiable,
+            "groups": self.groups,
+            "identifiability": dict(self.identifiability),
+            "reasons": dict(self.reasons),
+            "singular_values": [float(v) for v in self.singular_values],
+            "condition_indices": [f(v) for v in self.condition_indices],
+            "estimable_combinations": self.combinations,
+            "correlation": [[f(v) for v in row] for row in self.correlation],
+            "scales": self.scales,
+        }
+
+    def report(self) -> str:
+        """Readable terminal report."""
+        cn = self.condition_number
+        ce = self.condition_number_equilibrated
+        lines = [f"condition number: {cn:.3g} (natural units), {ce:.3g} (columns equilibrated)"
+                 if cn and ce else "condition number: infinite (exactly dependent columns)",
+                 f"noise: {self.noise.get('model', 'white')}, sigma {self.sigma:.4g} m/s ({self.sigma_source})", "",
+                 f"{'coefficient':<12} {'unit':<10} {'CRLB std':>12} {'scale':>10} {'VIF':>10}  verdict"]
+        for j, (n, u) in enumerate(zip(self.names, self.units)):
+            sd = self.crlb_std[j]
+            sc = self.scales.get(n)
+            lines.append(f"{n:<12} {u:<10} {sd:>12.4g} {(f'{sc:.3g}' if sc else '-'):>10} "
+                         f"{self.vif[j]:>10.3g}  {self.identifiability[n]}"
+                         + (f" ({self.reasons[n]})" if n in self.reasons else ""))
+        counts = {k: sum(v == k for v in self.identifiability.values()) for k in ("identifiable", "weak", "unidentifiable")}
+        lines += ["", f"identifiable {counts['identifiable']}, weak {counts['weak']}, "
+                      f"unidentifiable {counts['unidentifiable']} of {len(self.names)}"]
+        if self.groups:
+            lines.append(f"near-dependencies (condition index > {GROUP_INDEX:g}, proportion > {GROUP_PROPORTION}):")
+            lines += ["  " + ", ".join(g) for g in self.groups]
+        lines.append("best-determined combinations (std in the units of the leading coefficient):")
+        for cmb in self.combinations:
+            terms = " ".join(f"{'+' if w >= 0 else '-'} {abs(w):.3g} {n}" for n, w in cmb["combination"].items())
+            lines.append(f"  {terms.lstrip('+ ')}   std {cmb['std']:.3g}")
+        return "\n".join(lines)
+
+
+def _scales(names: Sequence[str], prior_std: np.ndarray | None, scales: Mapping | None) -> dict[str, float]:
+    """The yardstick of the "weak" verdict: prior std where given, else `scales` (a model's
+    declared typical magnitudes, :attr:`casep.ErrorModel.scales`, or the user's)."""
+    out: dict[str, float] = {}
+    for j, n in enumerate(names):
+        if prior_std is not None and np.isfinite(prior_std[j]):
+            out[n] = float(prior_std[j])
+        elif scales is not None and n in scales:
+            out[n] = float(scales[n])
+    return out
+
+
+def diagnose(
+    S: np.ndarray,
+    y: np.ndarray | None = None,
+    *,
+    names: Sequence[str] | None = None,
+    units: Sequence[str] | None = None,
+    sigma: float | None = None,
+    t: np.ndarray | None = None,
+    tau: float | None = None,
+    prior_std: np.ndarray | None = None,
+    scales: Mapping | None = None,
+    n_combinations: int = 6,
+    rcond: float | None = None,
+) -> Diagnostics:
+    """Collinearity and identifiability diagnostics of a regression ``y = S D + e``.
+
+    Parameters
+    ----------
+    S : (N, 3, n) array_like
+        Regression in natural units.
+    y : (N, 3) array_like, optional
+        Velocity error; used to estimate sigma when `sigma` is not given.
+    sigma : float, optional
+        Noise std, m/s.
+    t, tau : optional
+        Sample times and correlation time: Gauss-Markov CRLB instead of white.
+    prior_std : (n,) array_like, optional
+        Prior std per coefficient (inf: none): Bayesian bound, and the scale for "weak".
+    scales : mapping, optional
+        ``name -> typical magnitude`` for the "weak" verdict, e.g. a model's declared
+        :attr:`casep.ErrorModel.scales` (default none: only the prior std, where given, makes a
+        coefficient "weak").
+    """
+    S = np.asarray(S, dtype=float)
+    if S.ndim != 3 or S.shape[1] != 3:
+        raise ValueError(f"`S` must be (N, 3, n), got shape {S.shape}")
+    n = S.shape[-1]
+    names = tuple(f"c{j}" for j in range(n)) if names is None else tuple(names)
+    units = ("",) * n if units is None else tuple(units)
+    if len(names) != n or len(units) != n:
+        raise ValueError(f"`names` and `units` must have {n} entries")
+    yy = np.zeros(S.shape[:2]) if y is None else np.asarray(y, dtype=float)
+    red = reduce_qr(S, yy)
+    ra = analyze_rank(red, rcond)
+    if sigma is None:
+        if y is None:
+            raise ValueError("`sigma` or `y` is required (the bound scales with the noise std)")
+        Uq = ra.U.T @ red.qty
+        sigma = float(np.sqrt((red.rho2 + np.sum(Uq[ra.rank:] ** 2)) / (red.m - ra.rank)))
+        if not sigma > 0:  # all-zero y (flights: casep.io.flight.check_dv_not_zero) or an exact fit
+            raise ValueError("`y` is " + ("0 everywhere" if not np.any(yy) else "fitted exactly (residuals 0)")
+                             + ": sigma cannot be estimated from it; give `sigma`")
+        source = "estimated from least-squares residuals"
+    else:
+        if not np.isfinite(sigma) or sigma <= 0:
+            raise ValueError(f"`sigma` must be finite and > 0, got {sigma}")
+        source = "given"
+    col = collinearity(red, ra)
+    cov = crlb_covariance(S, sigma, t=t, tau=tau, prior_std=prior_std, rcond=rcond)
+    sd = np.sqrt(np.diag(cov))
+    reasons = unidentifiable_reasons(ra, names)
+    sc = _scales(names, None if prior_std is None else np.asarray(prior_std, float), scales)
+    verdict: dict[str, str] = {}
+    for j, nm in enumerate(names):
+        if not np.isfinite(sd[j]):
+            verdict[nm] = "unidentifiable"
+        elif nm in sc and sd[j] > sc[nm]:
+            verdict[nm] = "weak"
+            reasons[nm] = f"CRLB std {sd[j]:.3g} > scale {sc[nm]:.3g}"
+        else:
+            verdict[nm] = "identifiable"
+            reasons.pop(nm, None)
+    keep = np.flatnonzero(~ra.zero)
+    combos = []
+    if keep.size:
+        _, s, Vt = np.linalg.svd(red.R[:, keep])
+        c = red.scale[keep]
+        for k in range(min(n_combinations, int(np.sum(s > ra.rcond * s[0])))):
+            w, big = _combination(Vt[k], c, [names[j] for j in keep])
+            combos.append({"combination": w, "std": float(sigma / (s[k] * big)),
+                           "condition_index": float(s[0] / s[k])})
+    cn = condition_numbers(red, ra)
+    noise = {"model": "white"} if tau is None else {"model": "ar1", "tau": float(tau)}
+    if prior_std is not None:
+        noise["prior"] = "Bayesian bound with the given prior std"
+    return Diagnostics(
+        names=names, units=units, condition_number=cn["condition_number"],
+        condition_number_equilibrated=cn["condition_number_equilibrated"], singular_values=col["s"],
+        condition_indices=col["eta"], proportions=col["proportions"], vif=col["vif"], sigma=float(sigma),
+        sigma_source=source, noise=noise, crlb_covariance=cov, identifiability=verdict, reasons=reasons,
+        groups=[[names[j] for j in g] for g in col["groups"]], combinations=combos, scales=sc,
+    )

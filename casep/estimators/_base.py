@@ -1,0 +1,286 @@
+"""What every estimator shares: argument checks, the scaled QR reduction, and the result.
+
+An estimator calls :func:`prepare` (validates ``S``, ``y``, labels and ``sigma``, reduces the
+column-scaled system once and analyses its rank), solves in scaled coordinates, and hands
+its natural-unit estimate and covariance to :func:`finish`, which computes the residuals
+and the diagnostics and marks zero or exactly dependent coefficients as not identifiable
+where the method leaves them undetermined.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+import warnings
+
+from casep.analysis.diagnostics import ILL_CONDITIONED, collinearity
+from casep.exceptions import IllConditionedWarning
+from casep.analysis.linalg import RankAnalysis, ReducedSystem, analyze_rank, condition_numbers, reduce_qr, unidentifiable_reasons
+from casep.estimators.result import EstimateResult
+
+__all__ = ["Problem", "prepare", "finish", "check_positive", "inverse_scale", "OPTION_RANGES"]
+
+
+#: Plausible ranges ``name -> (low, high, low_inclusive, why)`` of the scalar options, applied by
+#: :func:`check_positive` wherever the option is checked (solvers and command line alike).
+OPTION_RANGES: dict[str, tuple[float, float, bool, str]] = {
+    # A noise std above 1 km/s is a unit mistake (mm/s, ft) or not a velocity at all:
+    # the whole powered flight of the paper gains ~3 km/s. (No lower end beyond > 0: a noise-free
+    # simulation may state a tiny sigma; the std underflow to 0 only below ~1e-150 m/s.)
+    "sigma": (0.0, 1e3, False, "m/s; a velocity noise std above 1 km/s is not a tracking noise"),
+    # Correlation times beyond ~3 h exceed any boost flight; exp(-dt/tau) -> 1 loses all digits.
+    "tau": (0.0, 1e4, False, "s; a correlation time above 1e4 s exceeds any flight"),
+    # w is a measurement precision 1/variance; beyond 1e+-12 (m/s)^-2, w^-1/2 is 1e-6 m/s .. 1e6 m/s.
+    "weight": (1e-12, 1e12, True, "(m/s)^-2; 1 / weight is the measurement variance"),
+    # P0 = p0 I in natural units. Measured on the paper flight (20 Hz, U-D recursion on unit-norm
+    # columns): |RLS - OLS| is 6e-5 OLS std at p0 = 1e14, 8e-9 at 1e20, 5e-5 at 1e30, 5e-2 at 1e40
+    # and 930 at 1e50 (garbage; the error grows like p0 * eps).
+    "p0": (0.0, 1e30, False, "natural units^2; beyond it the RLS recursion loses its digits, and "
+                             "1e14 already gives least squares on the paper flight"),
+}
+
+
+def check_positive(name: str, value: float | None, *, allow_none: bool = True, allow_zero: bool = False,
+                   upper: float | None = None) -> float | None:
+    """Validate a positive finite scalar option, naming it in the error.
+
+    An option of :data:`OPTION_RANGES` (``sigma``, ``tau``, ``weight``, ``p0``) must also lie
+    in its range there; the message gives the range and why.
+    """
+    if value is None:
+        if allow_none:
+            return None
+        raise ValueError(f"`{name}` is required")
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"`{name}` must be a number, got {type(value).__name__}")
+    v = float(value)
+    ok = np.isfinite(v) and (v >= 0 if allow_zero else v > 0) and (upper is None or v <= upper)
+    if not ok:
+        low = "[0" if allow_zero else "(0"
+        want = f"in {low}, {upper:g}]" if upper is not None else (">= 0" if allow_zero else "> 0")
+        raise ValueError(f"`{name}` must be finite and {want}, got {value}")
+    if name in OPTION_RANGES:
+        lo, hi, closed, why = OPTION_RANGES[name]
+        if not ((v >= lo if closed else v > lo) and v <= hi):
+            raise ValueError(f"`{name}` must be in {'[' if closed else '('}{lo:g}, {hi:g}] ({why}), got {value}")
+    return v
+
+
+def inverse_scale(scale: np.ndarray) -> np.ndarray:
+    """1 / scale, with 0 for zero columns."""
+    safe = np.where(scale > 0, scale, 1.0)
+    return np.where(scale > 0, 1.0 / safe, 0.0)
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A validated regression ``y = S D + e`` with its scaled QR reduction."""
+
+    S: np.ndarray  # (m, n) natural units
+    y: np.ndarray  # (m,)
+    shape: tuple  # original leading shape of y, e.g. (N, 3)
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    si_factors: np.ndarray
+    red: ReducedSystem
+    ra: RankAnalysis
+    sigma: float | None  # given noise std, or None
+
+    @property
+    def m(self) -> int:
+        return self.red.m
+
+    @property
+    def n(self) -> int:
+        return self.red.n
+
+    @property
+    def inv_c(self) -> np.ndarray:
+        return inverse_scale(self.red.scale)
+
+    def ols_sigma(self) -> float:
+        """Residual std of the least-squares fit, RSS / (m - rank)."""
+        Uq = self.ra.U.T @ self.red.qty
+        rss = self.red.rho2 + float(np.sum(Uq[self.ra.rank:] ** 2))
+        return float(np.sqrt(rss / (self.m - self.ra.rank)))
+
+
+def prepare(S: np.ndarray, y: np.ndarray, names: Sequence[str] | None, units: Sequence[str] | None,
+            si_factors: Sequence[float] | None, sigma: float | None, rcond: float | None = None) -> Problem:
+    """Validate arguments, flatten ``(N, 3, n)`` to ``(3N, n)``, reduce and rank-analyse."""
+    S_arr = np.asarray(S, dtype=float)
+    if S_arr.ndim not in (2, 3):
+        raise ValueError(f"`S` must be (m, n) or (N, 3, n), got {S_arr.ndim}-D")
+    n = S_arr.shape[-1]
+    y_arr = np.asarray(y, dtype=float)
+    shape = S_arr.shape[:-1]
+    if y_arr.shape != shape and y_arr.size != int(np.prod(shape)):
+        raise ValueError(f"`y` has {y_arr.size} values but `S` has {int(np.prod(shape))} rows")
+    names_t = tuple(f"c{j}" for j in range(n)) if names is None else tuple(names)
+    units_t = ("",) * n if units is None else tuple(units)
+    si = np.ones(n) if si_factors is None else np.asarray(si_factors, dtype=float)
+    for label, seq in (("names", names_t), ("units", units_t), ("si_factors", si)):
+        if len(seq) != n:
+            raise ValueError(f"`{label}` has {len(seq)} entries but `S` has {n} columns")
+    sigma = check_positive("sigma", sigma)
+    S2 = S_arr.reshape(-1, n)
+    y2 = y_arr.reshape(-1)
+    red = reduce_qr(S2, y2)
+    ra = analyze_rank(red, rcond)
+    if red.m <= ra.rank:
+        raise ValueError(f"`S` has {red.m} rows, not more than its rank {ra.rank}: no degree of freedom for the noise")
+    return Problem(S2, y2, shape, names_t, units_t, si, red, ra, sigma)
+
+
+def finish(
+    pb: Problem,
+    method: str,
+    x: np.ndarray,
+    cov: np.ndarray | None,
+    sigma: float,
+    *,
+    settings: dict[str, Any],
+    undetermined: np.ndarray | None = None,
+    reasons: dict[str, str] | None = None,
+    status: int | None = None,
+    message: str | None = None,
+    diagnostics: dict[str, Any] | None = None,
+    history: np.ndarray | None = None,
+    residuals: np.ndarray | None = None,
+    history_std: np.ndarray | None = None,
+) -> EstimateResult:
+    """Build the :class:`EstimateResult` of an estimator.
+
+    Parameters
+    ----------
+    x : (n,) natural-unit estimate used for the residuals (every entry finite).
+    cov : (n, n) natural-unit covariance, or None when the method defines none.
+    undetermined : (n,) bool, optional
+        Coefficients to report without an estimate (default: zero or exactly dependent
+        columns, which the method leaves undetermined).
+    reasons : dict, optional
+        Extra ``name -> reason`` entries (merged over the rank-analysis reasons).
+
+    Notes
+    -----
+    Whatever the method, a result is marked failed (``success`` False) when it cannot be
+    trusted on its face (:func:`_failure`): status -2 when an estimate or a residual is not
+    finite or a std infinite; status -3 when its residual RMS exceeds ``MISFIT_FACTOR`` (3) times the
+    least-squares residual std of the same data (the smallest misfit the model allows: the
+    residual power is then 9 times the least one, far outside what noise explains with
+    constant coefficients), as an RLS/RELS run with too strong forgetting or bounds or a prior
+    the data contradict give, unless it is below ``MISFIT_FLOOR`` (2 %) of the RMS of ``y``:
+    on (nearly) noise-free data the least-squares std is ~0 and a deliberately biased
+    estimator (ridge, MAP, bounded) fitting dv to 1 % is not a failure.
+    """
+    n = pb.n
+    und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
+    res = pb.y - pb.S @ x if residuals is None else residuals
+    est = np.where(und, np.nan, x)
+    std = None
+    if cov is not None:
+        cov = np.array(cov, dtype=float)
+        cov[und, :] = np.nan
+        cov[:, und] = np.nan
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        std[und] = np.nan
+    all_reasons = {k: v for k, v in unidentifiable_reasons(pb.ra, pb.names).items() if und[pb.names.index(k)]}
+    all_reasons.update(reasons or {})
+    n_ok = int((~und).sum())
+    if status is None:
+        if n_ok == n:
+            status, message = 1, message or f"all {n} coefficients estimated"
+        elif n_ok:
+            status = 2
+            message = message or (f"{n - n_ok} of {n} coefficients not identifiable on this data "
+                                  "(zero or exactly dependent columns); the other estimated")
+        else:
+            status, message = -1, message or "no coefficient is identifiable on this data"
+    failure = _failure(pb, method, np.where(und, 0.0, x), std, res)
+    if failure is not None:
+        status, message = failure
+    diag = {**condition_numbers(pb.red, pb.ra), "sigma": float(sigma), "rank": pb.ra.rank,
+            "unidentifiable": [pb.names[j] for j in np.flatnonzero(und)]}
+    diag.update(_collinearity_summary(pb, float(sigma)))
+    diag.update(diagnostics or {})
+    note = _ill_conditioning_note(pb, diag)
+    if note:
+        diag["warning"] = note
+        warnings.warn(f"{method}: {note}", IllConditionedWarning, stacklevel=3)
+    N = pb.shape[0] if len(pb.shape) == 2 else pb.m
+    return EstimateResult(
+        method=method, names=pb.names, units=pb.units, estimate=est, std=std, covariance=cov,
+        reasons=all_reasons, residuals=res.reshape(pb.shape), sigma=float(sigma), rank=pb.ra.rank,
+        status=status, message=message or "", success=status > 0, si_factors=pb.si_factors,
+        settings=settings, diagnostics=diag, n_samples=N, history=history, history_std=history_std,
+    )
+
+
+#: A residual RMS above this many least-squares residual std fails a result ...
+MISFIT_FACTOR = 3.0
+#: ... unless it is below this fraction of the RMS of the data.
+MISFIT_FLOOR = 0.02
+
+
+def _failure(pb: Problem, method: str, x: np.ndarray, std: np.ndarray | None,
+             res: np.ndarray) -> tuple[int, str] | None:
+    """``(status, message)`` of a result that cannot be trusted, or None (see :func:`finish`).
+
+    `x`: the estimate, 0 where reported undetermined. A NaN std is a std the method does
+    not define (a coefficient at a bound); an infinite one is a failure.
+    """
+    bad = [pb.names[j] for j in np.flatnonzero(~np.isfinite(x))]
+    if std is not None:
+        bad += [pb.names[j] for j in np.flatnonzero(np.isinf(std))]
+    if bad or not np.all(np.isfinite(res)):
+        what = f"non-finite estimate or std for {', '.join(dict.fromkeys(bad))}" if bad else "non-finite residuals"
+        return -2, f"failed: {method} produced {what}; the result is not usable"
+    rms = float(np.sqrt(np.mean(res**2)))
+    rms_y = float(np.sqrt(np.mean(pb.y**2)))
+    ls = pb.ols_sigma()  # sqrt(min_D |y - S D|^2 / (m - rank)): the misfit the model allows
+    if rms > MISFIT_FACTOR * ls and rms > MISFIT_FLOOR * rms_y:
+        hint = {"rls": " (forgetting too strong for this flight?)", "rels": " (forgetting too strong for this flight?)",
+                "bounded": " (bounds the data contradict?)", "map": " (a prior the data contradict?)"}.get(method, "")
+        return -3, (f"failed: {method} residual RMS {rms:.3g} m/s is {rms / ls:.3g} x the least-squares residual "
+                    f"std {ls:.3g} m/s: the estimate does not fit the data{hint}")
+    return None
+
+
+def _collinearity_summary(pb: Problem, sigma: float) -> dict[str, Any]:
+    """White-noise CRLB std (sigma^2 (S^T S)^-1), uncentred VIF and near-dependency groups."""
+    col = collinearity(pb.red, pb.ra)
+    V, inv_s = pb.ra.pinv_factors()
+    W = V * inv_s
+    inv_c = pb.inv_c
+    crlb = sigma * np.sqrt(np.sum(W**2, axis=1)) * inv_c  # sqrt(diag(sigma^2 (S^T S)^+))
+    ok = pb.ra.estimable
+
+    def f(v):
+        return float(v) if np.isfinite(v) else None
+
+    return {
+        "crlb_std": {n: (f(crlb[j]) if ok[j] else None) for j, n in enumerate(pb.names)},
+        "vif": {n: f(col["vif"][j]) for j, n in enumerate(pb.names)},
+        "groups": [[pb.names[j] for j in g] for g in col["groups"]],
+    }
+
+
+def _ill_conditioning_note(pb: Problem, diag: dict[str, Any]) -> str | None:
+    ce = diag.get("condition_number_equilibrated")
+    bad = ce is None or ce > ILL_CONDITIONED
+    und = diag["unidentifiable"]
+    if not bad and not und:
+        return None
+    parts = []
+    if ce is None:
+        parts.append("exactly dependent columns")
+    elif ce > ILL_CONDITIONED:
+        parts.append(f"equilibrated condition number {ce:.3g} (> {ILL_CONDITIONED:g})")
+    if diag["groups"]:
+        parts.append("near-dependencies " + "; ".join("[" + ", ".join(g) + "]" for g in diag["groups"]))
+    if und:
+        parts.append(f"{len(und)} unidentifiable: " + ", ".join(und))
+    return "ill-conditioned regression: " + "; ".join(parts) + ". See `casep diagnose`."

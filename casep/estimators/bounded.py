@@ -1,0 +1,225 @@
+"""Box-bounded least squares with optional fixed coefficients (cvxpy + Clarabel).
+
+Notes
+-----
+In scaled coordinates ``z = c * D`` the problem is the n x n reduced one::
+
+    min_z ||q - R z||^2     s.t.  c_j lo_j <= z_j <= c_j hi_j,   z_k = c_k v_k (fixed)
+
+solved by cvxpy with the Clarabel interior-point solver. The 3N-row problem is never given to
+cvxpy (its set-up alone would dominate). On this ill-conditioned problem an interior point
+is accurate to ~1e-3 std only, so the solution is *polished*: least squares is solved
+exactly (SVD) on the free coefficients with the active ones at their bounds, and the
+polished point is kept when it is feasible and satisfies the KKT conditions below
+(``diagnostics["polished"]``). A bound is *active* when the solution sits on it
+(within ``1e-7 (1 + |bound|)`` in natural units, relative to the column scale). The
+standard deviations of the free coefficients are conditional on the active set::
+
+    Cov(D_F) = sigma^2 (S_F^T S_F)^-1,   sigma^2 = RSS / (m - |F|)
+
+and null for coefficients on a bound or fixed (their value is set by the constraint).
+Optimality (KKT): with gradient ``g = R^T (R z - q)``, ``g_j = 0`` for free coefficients,
+``g_j >= 0`` at a lower and ``g_j <= 0`` at an upper bound.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from casep.estimators._base import finish, prepare
+from casep.exceptions import CasepWarning
+from casep.model._model import unknown_coefficient_message
+from casep.estimators.result import EstimateResult
+
+__all__ = ["solve_bounded", "parse_bounds"]
+
+_ACTIVE_TOL = 1e-6  # relative, in scaled coordinates
+
+
+def _at_bounds(z, lo, hi, fixed):
+    """Masks of the non-fixed coordinates sitting on their lower / upper bound, and the tolerances."""
+    tol_lo = _ACTIVE_TOL * (1.0 + np.abs(np.where(np.isfinite(lo), lo, 0.0)))
+    tol_hi = _ACTIVE_TOL * (1.0 + np.abs(np.where(np.isfinite(hi), hi, 0.0)))
+    on_lo = ~fixed & np.isfinite(lo) & (z - lo <= tol_lo)
+    on_hi = ~fixed & np.isfinite(hi) & (hi - z <= tol_hi)
+    return on_lo, on_hi, tol_lo, tol_hi
+
+
+def _polish(R, q, z0, lo, hi, fixed, rcond):
+    """Exact least squares on Clarabel's active set; kept if feasible and KKT holds.
+
+    Returns the polished solution and True, or `z0` and False.
+    """
+    on_lo, on_hi, tol_lo, tol_hi = _at_bounds(z0, lo, hi, fixed)
+    z = z0.copy()
+    z[fixed] = lo[fixed]
+    z[on_lo] = lo[on_lo]
+    z[on_hi] = hi[on_hi]
+    free = ~(fixed | on_lo | on_hi)
+    if free.any():
+        rhs = q - R[:, ~free] @ z[~free]
+        U, s, Vt = np.linalg.svd(R[:, free], full_matrices=False)
+        r = int(np.sum(s > rcond * s[0])) if s.size and s[0] > 0 else 0
+        z[free] = Vt[:r].T @ ((U[:, :r].T @ rhs) / s[:r])
+    g = R.T @ (R @ z - q)  # gradient of 0.5 ||R z - q||^2
+    gtol = 1e-8 * max(np.linalg.norm(R.T @ q), 1e-300)
+    ok = (np.all(z[free] >= lo[free] - tol_lo[free]) and np.all(z[free] <= hi[free] + tol_hi[free])
+          and np.all(g[on_lo] >= -gtol) and np.all(g[on_hi] <= gtol) and np.all(np.abs(g[free]) <= gtol))
+    return (z, True) if ok else (z0, False)
+
+
+def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"):
+    """Turn ``{name: [lo, hi] | value}`` into lo, hi arrays (natural units) and a fixed mask.
+
+    ``null`` / None for either end means unbounded on that side; a single number, or
+    ``lo == hi``, fixes the coefficient.
+    """
+    if not isinstance(bounds, Mapping):
+        raise TypeError(f"{source} must be a mapping of coefficient name to [lo, hi], got {type(bounds).__name__}")
+    n = len(names)
+    lo, hi = np.full(n, -np.inf), np.full(n, np.inf)
+    for name, spec in bounds.items():
+        if name not in names:
+            raise ValueError(unknown_coefficient_message(name, names, source))
+        j = list(names).index(name)
+        if isinstance(spec, (int, float)) and not isinstance(spec, bool):
+            a = b = float(spec)
+        elif isinstance(spec, (list, tuple)) and len(spec) == 2:
+            try:
+                a = -np.inf if spec[0] is None else float(spec[0])
+                b = np.inf if spec[1] is None else float(spec[1])
+            except (TypeError, ValueError):
+                raise ValueError(f"{source}: `{name}` must be [lo, hi] with numbers or null, got {spec!r}") from None
+        else:
+            raise ValueError(f"{source}: `{name}` must be [lo, hi] or a number, got {spec!r}")
+        if np.isnan(a) or np.isnan(b):
+            raise ValueError(f"{source}: `{name}` has a NaN bound")
+        # -Infinity below / Infinity above are open sides, like null; any other infinity is refused.
+        if isinstance(spec, (int, float)) and not np.isfinite(a):
+            raise ValueError(f"{source}: `{name}` fixed value must be finite, got {a:g}")
+        for side, v, bad in (("lower", a, np.inf), ("upper", b, -np.inf)):
+            if v == bad:
+                raise ValueError(f"{source}: `{name}` {side} bound {v:g} leaves no finite value: bounds must be "
+                                 "finite (null, or -Infinity below / Infinity above, for an open side)")
+        if a > b:
+            raise ValueError(f"{source}: `{name}` has lo > hi ({a:g} > {b:g})")
+        lo[j], hi[j] = a, b
+    return lo, hi, lo == hi
+
+
+def solve_bounded(
+    S: np.ndarray,
+    y: np.ndarray,
+    bounds: Mapping,
+    *,
+    sigma: float | None = None,
+    names: Sequence[str] | None = None,
+    units: Sequence[str] | None = None,
+    si_factors: Sequence[float] | None = None,
+    rcond: float | None = None,
+) -> EstimateResult:
+    """Least squares with per-coefficient bounds and fixed values.
+
+    Parameters
+    ----------
+    S, y : array_like
+        Regression (natural units) and velocity error, as :func:`casep.solve_ols`.
+    bounds : mapping
+        ``{name: [lo, hi]}`` in natural units (None for an open side), or ``{name: value}``
+        to fix a coefficient. Names are those of `names`.
+
+    Returns
+    -------
+    EstimateResult
+        ``diagnostics["active_bounds"]``: ``{name: "lower" | "upper" | "fixed"}``;
+        ``diagnostics["active_set"]``: counts (at_lower, at_upper, fixed, free, undetermined);
+        ``diagnostics["std_kind"]``: "conditional" when a bound is active or a value fixed (the std
+        of the free coefficients are then conditional on the active set and understated), else
+        "sampling". ``message`` states the counts and what the std mean.
+    """
+    import cvxpy as cp
+
+    pb = prepare(S, y, names, units, si_factors, sigma, rcond)
+    lo, hi, fixed = parse_bounds(bounds, pb.names)
+    c = pb.red.scale
+    zero = c == 0
+    # A zero column has no scale: keep it in natural units (its z is D itself).
+    cs = np.where(zero, 1.0, c)
+    R = pb.red.R
+    z = cp.Variable(pb.n)
+    cons = []
+    fin_lo = np.isfinite(lo) & ~fixed
+    fin_hi = np.isfinite(hi) & ~fixed
+    if fin_lo.any():
+        cons.append(z[np.flatnonzero(fin_lo)] >= (lo * cs)[fin_lo])
+    if fin_hi.any():
+        cons.append(z[np.flatnonzero(fin_hi)] <= (hi * cs)[fin_hi])
+    if fixed.any():
+        cons.append(z[np.flatnonzero(fixed)] == (lo * cs)[fixed])
+    prob = cp.Problem(cp.Minimize(cp.sum_squares(R @ z - pb.red.qty)), cons)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Solution may be inaccurate")  # handled below
+        prob.solve(solver=cp.CLARABEL, tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10)
+    if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
+        raise RuntimeError(f"cvxpy/Clarabel bounded least squares failed: {prob.status}")
+    lo_s = lo * cs
+    hi_s = hi * cs
+    zv, polished = _polish(R, pb.red.qty, np.asarray(z.value, dtype=float), lo_s, hi_s, fixed, pb.ra.rcond)
+    if prob.status == cp.OPTIMAL_INACCURATE and not polished:
+        warnings.warn("bounded: Clarabel reports an inaccurate solution and the active-set polish failed",
+                      CasepWarning, stacklevel=2)
+    x = zv / cs
+    x = np.where(fixed, lo, x)
+    at_lo, at_hi, _, _ = _at_bounds(zv, lo_s, hi_s, fixed)
+    x = np.where(at_lo, lo, np.where(at_hi, hi, x))
+    active = {pb.names[j]: ("fixed" if fixed[j] else "lower" if at_lo[j] else "upper")
+              for j in np.flatnonzero(fixed | at_lo | at_hi)}
+    free = ~(fixed | at_lo | at_hi) & ~zero
+    # Conditional covariance of the free coefficients: sigma^2 (Z_F^T Z_F)^-1, via the SVD of R_F.
+    RF = R[:, free]
+    Uf, sf, Vtf = np.linalg.svd(RF, full_matrices=False)
+    keep = sf > pb.ra.rcond * (sf[0] if sf.size else 1.0)
+    resid = pb.y - pb.S @ x
+    rss = float(resid @ resid)
+    nfree = int(keep.sum())
+    sig = float(np.sqrt(rss / max(pb.m - nfree, 1))) if pb.sigma is None else pb.sigma
+    W = Vtf[keep].T / sf[keep]
+    cov = np.full((pb.n, pb.n), np.nan)
+    inv = 1.0 / c[free]
+    cov[np.ix_(free, free)] = sig**2 * (W @ W.T) * np.outer(inv, inv)
+    # Flat directions among the free coefficients stay undetermined; constrained ones are set.
+    null_rows = np.linalg.norm(Vtf[~keep].T, axis=1) > 1e-8 if (~keep).any() else np.zeros(free.sum(), bool)
+    undetermined = zero & ~(fixed | at_lo | at_hi)
+    undetermined[np.flatnonzero(free)[null_rows]] = True
+    reasons = {name: ("fixed to its given value" if kind == "fixed" else f"at its {kind} bound: std undefined")
+               for name, kind in active.items()}
+    std_mask = fixed | at_lo | at_hi
+    cov[std_mask, :] = np.nan
+    cov[:, std_mask] = np.nan
+    box = {k: [float(a) if np.isfinite(a) else None, float(b) if np.isfinite(b) else None]
+           for k, a, b in zip(pb.names, lo, hi) if np.isfinite(a) or np.isfinite(b)}
+    counts = {"at_lower": int((at_lo & ~fixed).sum()), "at_upper": int((at_hi & ~at_lo & ~fixed).sum()), "fixed": int(fixed.sum()),
+              "free": int(pb.n - std_mask.sum()), "undetermined": int(undetermined.sum())}
+    return finish(pb, "bounded", x, cov, sig, undetermined=undetermined, reasons=reasons,
+                  message=_active_set_message(counts, pb.n),
+                  settings={"bounds": box, "solver": "cvxpy+clarabel",
+                            "sigma": "estimated" if pb.sigma is None else pb.sigma},
+                  diagnostics={"active_bounds": active, "active_set": counts,
+                               "std_kind": "conditional" if std_mask.any() else "sampling",
+                               "solver_status": prob.status, "polished": polished})
+
+
+def _active_set_message(counts: dict[str, int], n: int) -> str:
+    """How many coefficients sit on a bound / are fixed / are free, and what the std mean."""
+    at = counts["at_lower"] + counts["at_upper"]
+    msg = (f"{at} of {n} coefficients at a bound ({counts['at_lower']} lower, {counts['at_upper']} upper), "
+           f"{counts['fixed']} fixed, {counts['free']} free")
+    if counts["undetermined"]:
+        msg += f" ({counts['undetermined']} of them not identifiable on this data)"
+    if at + counts["fixed"]:
+        return msg + ("; coefficients at a bound or fixed have no std; the std of the free ones are conditional "
+                      "on this active set (understated: the uncertainty of which bounds are active is ignored)")
+    return msg + "; no bound active: the unconstrained least-squares estimate and its std"

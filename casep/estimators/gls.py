@@ -1,0 +1,238 @@
+"""Generalised least squares for first-order Gauss-Markov (AR(1)) tracking noise.
+
+Notes
+-----
+Each axis' noise is stationary Gauss-Markov with correlation time ``tau``. With
+``a_k = exp(-(t_k - t_{k-1}) / tau)`` the whitening of :func:`casep.analysis.diagnostics.ar1_whiten`
+(``w_0 = e_0``, ``w_k = (e_k - a_k e_{k-1}) / sqrt(1 - a_k^2)``) turns the noise white, so
+least squares on the whitened ``S`` and ``dv`` is the GLS estimate with its honest
+covariance ``sigma^2 (S^T Sigma^-1 S)^-1``, which attains the Gauss-Markov Cramer-Rao bound.
+
+``tau="auto"`` estimates ``tau`` by restricted maximum likelihood (REML), which accounts
+for the degrees of freedom the regression absorbs (the lag-1 autocorrelation of OLS
+residuals underestimates tau by ~13 % here, and iterating does not help)::
+
+    -2 l_R(tau) = (m - p) ln RSS_w(tau) + 3 sum_k ln(1 - a_k^2) + ln det(S_w^T S_w) + const
+
+with ``S_w``, ``RSS_w`` from the unit-sigma whitening; minimised over ``ln tau`` in
+[median(dt) / 5, duration]. A ``tau`` at the lower end is white noise in effect (GLS = OLS).
+Measured (60 runs, paper-ar1 at 20 Hz, tau 1 s): tau 0.99 +- 0.06, coverage of the 95 %
+intervals 0.947 (OLS with white-noise std: 0.24).
+
+Why it matters (``README``, Monte Carlo): with tau = 1 s at 100 Hz the white-noise std of
+OLS cover the truth in 11 % of runs instead of 95 %.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from casep.estimators._base import check_positive, finish, prepare
+from casep.analysis.diagnostics import ar1_whiten
+from casep.estimators.ols import least_squares
+from casep.estimators.result import EstimateResult
+
+__all__ = ["solve_gls", "estimate_tau"]
+
+
+def _whiten(S: np.ndarray, y: np.ndarray, t: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    return ar1_whiten(S, t, 1.0, tau), ar1_whiten(y[:, :, None], t, 1.0, tau)[:, :, 0]
+
+
+def _tau_bounds(t: np.ndarray) -> tuple[float, float]:
+    """Search interval of ln tau: [ln(median(dt) / 5), ln(duration)]."""
+    return float(np.log(np.median(np.diff(t)) / 5.0)), float(np.log(t[-1] - t[0]))
+
+
+def _neg2_reml(S: np.ndarray, Y: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
+    """-2 l_R(tau) + const of each column of ``Y`` (module notes), one factorisation for all.
+
+    Parameters
+    ----------
+    S : (N, 3, p) regression; Y : (N, 3, k) velocity errors, one run per column.
+
+    Notes
+    -----
+    One QR of ``[Z  Y_w]`` (``Z``: whitened ``S`` scaled to unit columns, zero columns
+    dropped): the diagonal of its leading block gives ``ln det(S_w^T S_w)`` and the column
+    norms of its trailing block ``R_22`` the residual sums ``RSS_w`` of every run, with no
+    cancellation.
+    """
+    N, _, p = S.shape
+    a = np.exp(-np.diff(t) / tau)  # a_k = exp(-dt_k / tau)
+    Sw = ar1_whiten(S, t, 1.0, tau).reshape(-1, p)
+    c = np.sqrt(np.einsum("ij,ij->j", Sw, Sw))  # column norms of S_w
+    live = c > 0
+    Yw = ar1_whiten(Y, t, 1.0, tau).reshape(-1, Y.shape[-1])
+    q = int(live.sum())
+    R = np.linalg.qr(np.hstack([Sw[:, live] / c[live], Yw]), mode="r")  # [Z Y_w] = Q R
+    d = np.abs(np.diag(R)[:q])
+    ok = d > 0
+    logdet = 2.0 * np.sum(np.log(d[ok])) + 2.0 * np.sum(np.log(c[live][ok]))  # ln det(S_w^T S_w)
+    rss = np.einsum("ij,ij->j", R[q:, q:], R[q:, q:])  # ||(I - P_Z) y_w||^2 = column norms of R_22
+    return (3 * N - p) * np.log(rss) + 3.0 * np.sum(np.log1p(-(a**2))) + logdet
+
+
+def estimate_tau(S: np.ndarray, y: np.ndarray, t: np.ndarray) -> float:
+    """REML estimate of the Gauss-Markov correlation time (see module notes), s."""
+    from scipy.optimize import minimize_scalar
+
+    Y = np.asarray(y, dtype=float).reshape(S.shape[0], 3, 1)
+    res = minimize_scalar(lambda x: float(_neg2_reml(S, Y, t, float(np.exp(x)))[0]), bounds=_tau_bounds(t),
+                          method="bounded", options={"xatol": 1e-4})
+    return float(np.exp(res.x))
+
+
+def solve_gls(
+    S: np.ndarray,
+    y: np.ndarray,
+    t: np.ndarray,
+    *,
+    tau: float | str = "auto",
+    sigma: float | None = None,
+    names: Sequence[str] | None = None,
+    units: Sequence[str] | None = None,
+    si_factors: Sequence[float] | None = None,
+    rcond: float | None = None,
+) -> EstimateResult:
+    """GLS estimate of ``D`` under Gauss-Markov noise of correlation time `tau`.
+
+    Parameters
+    ----------
+    S : (N, 3, n) array_like
+        Regression in natural units, samples in time order.
+    y : (N, 3) array_like
+        Velocity error, m/s.
+    t : (N,) array_like
+        Sample times, s.
+    tau : float or "auto", optional
+        Correlation time, s, or its REML estimate (default).
+    sigma : float, optional
+        Stationary noise std, m/s (default: from the whitened residuals).
+
+    Returns
+    -------
+    EstimateResult
+        ``method`` "gls"; residuals are ``dv - S_V D_hat`` (not whitened); diagnostics
+        (condition numbers, CRLB) are those of the whitened regression.
+    """
+    S = np.asarray(S, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if S.ndim != 3 or S.shape[1] != 3:
+        raise ValueError(f"`S` must be (N, 3, n) in time order, got shape {S.shape}")
+    t = np.asarray(t, dtype=float)
+    if t.shape != (S.shape[0],):
+        raise ValueError(f"`t` must have {S.shape[0]} samples, got shape {t.shape}")
+    if np.any(np.diff(t) <= 0):
+        raise ValueError("`t` must be strictly increasing")
+    if isinstance(tau, str):
+        if tau != "auto":
+            raise ValueError(f"`tau` must be a number > 0 or 'auto', got {tau!r}")
+        tau_used, rule = estimate_tau(S, y.reshape(S.shape[0], 3), t), "reml"
+    else:
+        tau_used, rule = check_positive("tau", tau, allow_none=False), "given"  # OPTION_RANGES["tau"]
+    pb = prepare(*_whiten(S, y.reshape(S.shape[0], 3), t, tau_used), names, units, si_factors, sigma, rcond)
+    x, cov, sig = least_squares(pb)  # sigma: whitened residual std = stationary sigma
+    fit = y.reshape(S.shape[0], 3) - S @ x  # dv - S_V D_hat, not whitened
+    return finish(pb, "gls", x, cov, sig, residuals=fit.reshape(-1),
+                  settings={"tau": tau_used, "tau_rule": rule, "sigma": "estimated" if pb.sigma is None else pb.sigma})
+
+
+#: Lattice of the batched REML search: coarse step in ln tau, its subdivision, and the
+#: half-width (fine steps) of each run's window around its predicted minimum.
+_COARSE_STEP, _FINE_DIV, _WINDOW = 1.0, 8, 3
+
+
+def estimate_tau_many(S: np.ndarray, Y: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """REML estimates of tau for many runs sharing ``S`` and ``t`` (Monte Carlo), s.
+
+    Parameters
+    ----------
+    S : (N, 3, p) array_like
+        Regression in natural units.
+    Y : (N, 3, k) array_like
+        Velocity errors of k runs, m/s.
+    t : (N,) array_like
+        Sample times, s.
+
+    Returns
+    -------
+    (k,) ndarray
+        Within ~1e-6 relative of each run's REML optimum (measured on paper-ar1; tested to
+        2e-5), closer than :func:`estimate_tau`, whose search stops at 1e-4 in ln tau.
+
+    Notes
+    -----
+    The whitening and factorisation at a given tau serve every run (:func:`_neg2_reml`), so
+    the runs share one lattice of ln tau instead of each running its own search: every
+    ``_COARSE_STEP`` over the whole interval, then the ``_FINE_DIV`` times finer lattice around
+    the minimum each run's coarse values predict, widened until the run's lattice minimum is
+    inside (the runs' minima cluster, so few points are added), then the minimum of the
+    degree-6 polynomial through the seven lattice values around each run's lattice minimum.
+    A minimum on an end of the interval is taken as that end, as the bounded search does.
+    """
+    S = np.asarray(S, dtype=float)
+    Y = np.asarray(Y, dtype=float)
+    lo, hi = _tau_bounds(t)
+    nf = _FINE_DIV * max(1, int(np.ceil((hi - lo) / _COARSE_STEP)))
+    step = (hi - lo) / nf  # x_j = lo + j step, j = 0..nf
+    f: dict[int, np.ndarray] = {}
+
+    def ensure(js) -> None:
+        for j in sorted(set(js) - f.keys()):
+            f[j] = _neg2_reml(S, Y, t, float(np.exp(lo + j * step)))
+
+    k = Y.shape[-1]
+
+    def around(j: int, w: int) -> range:  # lattice indices j-w..j+w inside the interval
+        return range(max(0, j - w), min(nf, j + w) + 1)
+
+    def values(j: int, r: int) -> list[float]:  # run r's values at j-3..j+3 (NaN: not there)
+        return [float(f[i][r]) if i in f else np.nan for i in range(j - 3, j + 4)]
+
+    ensure(range(0, nf + 1, _FINE_DIV))
+    coarse = np.array(sorted(f))
+    ic = np.argmin(np.array([f[j] for j in coarse]), axis=0)  # each run's coarse minimum
+    centre = [int(coarse[i]) + int(round(_FINE_DIV * _lattice_vertex(
+        [f[int(coarse[i + d])][r] if 0 <= i + d < coarse.size else np.nan for d in range(-3, 4)])))
+        for r, i in enumerate(ic)]  # its predicted fine-lattice minimum
+    best = list(centre)
+    for _ in range(nf + 1):  # widen each run's window until its lattice minimum is inside
+        ensure(j for c in set(centre) for j in around(c, _WINDOW))
+        moved = False
+        for r in range(k):
+            js = around(centre[r], _WINDOW)
+            best[r] = min(js, key=lambda j: f[j][r])
+            if best[r] in (js[0], js[-1]) and 0 < best[r] < nf:
+                centre[r], moved = best[r], True
+        if not moved:
+            break
+    ensure(j for b in set(best) for j in around(b, 3))  # the seven values of the vertex
+    return np.exp([lo + (b + _lattice_vertex(values(b, r))) * step for r, b in enumerate(best)])
+
+
+def _lattice_vertex(v: Sequence[float]) -> float:
+    """Offset (in steps, within [-1, 1]) of the minimum of the polynomial through lattice values.
+
+    `v` holds the values at offsets -h..h (odd length, NaN beyond an end of the interval):
+    the polynomial through all the finite ones (degree 2h inside the interval), 0 when the
+    middle value is an end of the interval.
+    """
+    v = np.asarray(v, dtype=float)
+    h = v.size // 2
+    if not (np.isfinite(v[h - 1]) and np.isfinite(v[h + 1])):
+        return 0.0  # minimum on an end of the interval
+    u = np.arange(-h, h + 1.0)
+    use = np.isfinite(v)  # contiguous: NaN only beyond an end
+    P = np.polynomial.Polynomial.fit(u[use], v[use], int(use.sum()) - 1, domain=[-1, 1], window=[-1, 1])
+    d1, d2 = P.deriv(), P.deriv(2)
+    cand = [0.0]
+    for z in d1.roots():
+        z = float(z.real)
+        for _ in range(3):  # Newton on P' = 0: roots with a tiny leading term are loose
+            z -= d1(z) / d2(z) if d2(z) != 0 else 0.0
+        if -1.0 <= z <= 1.0:
+            cand.append(z)
+    return min(cand, key=lambda z: P(z))

@@ -1,0 +1,393 @@
+"""The result type shared by every estimator, with its table and JSON forms."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from casep.io._atomic import atomic_open
+
+__all__ = ["EstimateResult", "write_json_atomic", "write_mat", "write_csv", "format_number", "STD_KINDS"]
+
+AXES = ("x", "y", "z")
+
+# What the reported std mean, per method (``diagnostics["std_kind"]`` overrides):
+# "sampling": spread of the estimate over noise draws (biased methods: around their mean);
+# "posterior": std of the posterior under the method's prior (MAP, RLS/RELS with P0);
+# "conditional": given the active set of the bounds (understated; bounded).
+STD_KINDS = {"ols": "sampling", "gls": "sampling", "ridge": "sampling", "pcr": "sampling",
+             "map": "posterior", "rls": "posterior", "rels": "posterior", "bounded": "conditional"}
+
+
+def format_number(v: float | None, width: int = 12) -> str:
+    """Right-aligned ``%.6g`` with ``-`` for a missing value."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-".rjust(width)
+    return f"{v:.6g}".rjust(width)
+
+
+def _json_float(v: float) -> float | None:
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def _sigma_text(v: Any) -> str:
+    if v is None or v == "estimated":
+        return "sigma estimated from the residuals"
+    if isinstance(v, (int, float)):
+        return f"sigma given {v:.4g} m/s"
+    return f"sigma {v}"
+
+
+def _range(values: list[float]) -> str:
+    vals = [v for v in values if v is not None]
+    if not vals:
+        return "-"
+    lo, hi = min(vals), max(vals)
+    return f"{lo:.3g}" if lo == hi else f"{lo:.3g} .. {hi:.3g}"
+
+
+def _ols_settings(s: dict, d: dict, n: int) -> list[str]:
+    return [f"rcond {s['rcond']:.3g}"] if "rcond" in s else []
+
+
+def _gls_settings(s: dict, d: dict, n: int) -> list[str]:
+    how = "REML estimate" if s.get("tau_rule") == "reml" else "given"
+    return [f"Gauss-Markov tau {s['tau']:.4g} s ({how})"]
+
+
+def _ridge_settings(s: dict, d: dict, n: int) -> list[str]:
+    rule = {"gcv": "GCV", "lcurve": "L-curve corner"}.get(s.get("lambda_rule"), s.get("lambda_rule"))
+    out = [f"lambda {s['lambda']:.4g} on unit-norm columns ({rule})"]
+    if d.get("effective_dof") is not None:
+        out.append(f"effective dof {d['effective_dof']:.3g} of {n}")
+    return out
+
+
+def _rls_settings(s: dict, d: dict, n: int) -> list[str]:
+    out = [f"p0 {s['p0']:.4g}, weight {s['weight']:.4g}, forgetting {s['forgetting']:.6g}"]
+    if d.get("effective_prior_std") is not None:
+        out.append(f"effective prior std {d['effective_prior_std']:.4g} (natural units)")
+    nm = d.get("noise_model")
+    if nm:
+        ma = ", ".join(f"c{j + 1} {c:.4g} +- {e:.2g}" for j, (c, e) in enumerate(zip(nm["ma_coefficients"],
+                                                                                      nm["ma_std"])))
+        out.append(f"MA({len(nm['ma_coefficients'])}) noise model {ma}; innovation RMS {nm['innovation_rms']:.4g} m/s")
+    return out
+
+
+def _pcr_settings(s: dict, d: dict, n: int) -> list[str]:
+    dropped = d.get("dropped_directions", [])
+    out = [f"{s['n_components']} of {n} components kept ({s.get('rule')})"]
+    if dropped:
+        out.append(f"{len(dropped)} dropped (condition index {_range([x['condition_index'] for x in dropped])})")
+    return out
+
+
+def _map_settings(s: dict, d: dict, n: int) -> list[str]:
+    prior = s.get("prior", {})
+    out = [f"Gaussian prior on {len(prior)} of {n} coefficients (others flat)"]
+    if 0 < len(prior) <= 4:
+        out.append(", ".join(f"{k} {v['mean']:.4g} +- {v['std']:.4g}" for k, v in prior.items()))
+    return out
+
+
+def _bounded_settings(s: dict, d: dict, n: int) -> list[str]:
+    act = d.get("active_bounds", {})
+    kinds = list(act.values())
+    return [f"bounds on {len(s.get('bounds', {}))} of {n} coefficients; active set {kinds.count('lower')} at "
+            f"lower, {kinds.count('upper')} at upper bound, {kinds.count('fixed')} fixed, {n - len(act)} free"]
+
+
+_SETTINGS_TEXT = {"ols": _ols_settings, "gls": _gls_settings, "ridge": _ridge_settings, "rls": _rls_settings,
+                  "rels": _rls_settings, "pcr": _pcr_settings, "map": _map_settings, "bounded": _bounded_settings}
+
+
+@dataclass(frozen=True)
+class EstimateResult:
+    """Estimated error coefficients with their uncertainty and how they were obtained.
+
+    Attributes
+    ----------
+    method : str
+        ``"ols"``, ``"rels"``, ...
+    names, units : tuple of str
+        Coefficient names and natural units, model order.
+    estimate : (n,) ndarray
+        Estimates in natural units; NaN where the coefficient is not identifiable.
+    std : (n,) ndarray or None
+        Standard deviations in natural units (NaN where not identifiable), or None when
+        the method defines none.
+    covariance : (n, n) ndarray or None
+        Covariance in natural units (NaN rows/columns where not identifiable).
+    reasons : dict
+        ``name -> reason`` for every coefficient reported without an estimate.
+    residuals : (N, 3) ndarray
+        ``dv - S_V D_hat`` per sample and axis, m/s.
+    sigma : float
+        Noise standard deviation used for ``std`` (estimated or given), m/s.
+    rank : int
+        Numerical rank of the regression.
+    status, message, success
+        Outcome, as scipy.optimize results.
+    si_factors : (n,) ndarray
+        SI value of one natural unit per coefficient.
+    settings : dict
+        The options used.
+    diagnostics : dict
+        Condition numbers and identifiability (see ``interfaces.md``).
+    model : str
+        Model name.
+    n_samples : int
+        Samples used.
+    denoise : dict or None
+        De-noising settings and per-axis noise sigma, or None.
+    history : ndarray or None
+        Estimate after each sample for recursive methods, natural units.
+    history_std : ndarray or None
+        Standard deviation at the ``history`` rows (recursive methods), natural units,
+        ``sqrt(diag(sigma^2 w P_k))`` with the final ``sigma``.
+    """
+
+    method: str
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    estimate: np.ndarray
+    std: np.ndarray | None
+    covariance: np.ndarray | None
+    reasons: dict[str, str]
+    residuals: np.ndarray
+    sigma: float
+    rank: int
+    status: int
+    message: str
+    success: bool
+    si_factors: np.ndarray
+    settings: dict[str, Any] = field(default_factory=dict)
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+    model: str = ""
+    n_samples: int = 0
+    denoise: dict[str, Any] | None = None
+    history: np.ndarray | None = None
+    history_std: np.ndarray | None = None
+
+    @property
+    def identifiable(self) -> np.ndarray:
+        """True where an estimate is reported."""
+        return np.isfinite(self.estimate)
+
+    @property
+    def estimate_si(self) -> np.ndarray:
+        """Estimates in SI (rad/s, m/s^2, rad, m/s per the model's SI factors)."""
+        return self.estimate * self.si_factors
+
+    @property
+    def std_kind(self) -> str:
+        """``"sampling"``, ``"posterior"`` or ``"conditional"``: what `std` means (see ``STD_KINDS``)."""
+        return self.diagnostics.get("std_kind") or STD_KINDS.get(self.method, "sampling")
+
+    @property
+    def residual_rms(self) -> dict[str, float]:
+        """RMS of the residuals per axis, m/s."""
+        r = np.asarray(self.residuals).reshape(-1, 3)
+        return {a: float(np.sqrt(np.mean(r[:, i] ** 2))) for i, a in enumerate(AXES)}
+
+    def coefficient_rows(self) -> list[dict[str, Any]]:
+        """One dict per coefficient: name, unit, estimate, std (None where undefined), reason."""
+        rows = []
+        for j, (name, unit) in enumerate(zip(self.names, self.units)):
+            est = _json_float(self.estimate[j])
+            std = None if self.std is None or est is None else _json_float(self.std[j])
+            row: dict[str, Any] = {"name": name, "unit": unit, "estimate": est, "std": std}
+            if name in self.reasons:
+                row["reason"] = self.reasons[name]
+            rows.append(row)
+        return rows
+
+    def to_dict(self) -> dict[str, Any]:
+        """The result JSON of ``interfaces.md`` as a dict.
+
+        Besides ``coefficients`` (one object per coefficient), the flat parallel arrays
+        ``names``, ``units``, ``estimates`` and ``std`` (null only where a value is missing)
+        decode as numeric arrays with NaN in MATLAB/Octave ``jsondecode``, where null inside
+        the array of objects turns ``coefficients`` into a cell array.
+        """
+        from casep._version import __version__
+
+        rows = self.coefficient_rows()
+        return {
+            "casep_version": __version__,
+            "model": self.model,
+            "method": self.method,
+            "denoise": self.denoise,
+            "n_samples": int(self.n_samples),
+            "coefficients": rows,
+            "names": [r["name"] for r in rows],
+            "units": [r["unit"] for r in rows],
+            "estimates": [r["estimate"] for r in rows],
+            "std": [r["std"] for r in rows],
+            "std_kind": self.std_kind,
+            "covariance": self.covariance_rows(),
+            "residual_rms": self.residual_rms,
+            "sigma": _json_float(self.sigma),
+            "rank": int(self.rank),
+            "status": int(self.status),
+            "success": bool(self.success),
+            "message": self.message,
+            "settings": self.settings,
+            "diagnostics": self.diagnostics,
+        }
+
+    def covariance_rows(self) -> list[list[float | None]] | None:
+        """The n x n covariance in natural units, model order, as nested lists for JSON.
+
+        Rows and columns of coefficients without an estimate (and any entry that is not
+        finite) are null; None when the method defines no covariance (``interfaces.md``,
+        "Result JSON: covariance").
+        """
+        if self.covariance is None:
+            return None
+        C = np.array(self.covariance, dtype=float)
+        C[~self.identifiable, :] = np.nan
+        C[:, ~self.identifiable] = np.nan
+        return [[_json_float(v) for v in row] for row in C]
+
+    def to_pandas(self):
+        """Coefficient table as a :class:`pandas.DataFrame` indexed by name."""
+        import pandas as pd
+
+        return pd.DataFrame(self.coefficient_rows()).set_index("name")
+
+    def settings_line(self) -> str:
+        """One line with the settings the method chose or was given (tau, lambda, MA model, ...)."""
+        describe = _SETTINGS_TEXT.get(self.method)
+        try:
+            parts = describe(self.settings, self.diagnostics, len(self.names)) if describe else []
+        except (KeyError, TypeError, ValueError):  # a result built by hand with partial settings
+            parts = []
+        if describe is None:
+            parts = [f"{k} {v}" for k, v in self.settings.items() if isinstance(v, (int, float, str)) and k != "sigma"]
+        parts.append(_sigma_text(self.settings.get("sigma")))
+        parts.append(f"std {self.std_kind}" + (" on the active set (understated)"
+                                                 if self.std_kind == "conditional" else ""))
+        return "settings: " + "; ".join(parts)
+
+    def table(self) -> str:
+        """Readable fixed-width table: name, unit, estimate, std, and why a value is missing."""
+        lines = [f"{'coefficient':<12} {'unit':<10} {'estimate':>12} {'std':>12}  note"]
+        for row in self.coefficient_rows():
+            note = row.get("reason", "")
+            lines.append(f"{row['name']:<12} {row['unit']:<10} {format_number(row['estimate'])} "
+                         f"{format_number(row['std'])}  {note}".rstrip())
+        rms = self.residual_rms
+        lines.append("")
+        lines.append(f"method {self.method}, model {self.model}, {self.n_samples} samples, rank {self.rank}/"
+                     f"{len(self.names)}, sigma {self.sigma:.4g} m/s")
+        lines.append(self.settings_line())
+        lines.append("residual RMS (m/s): " + ", ".join(f"{a} {rms[a]:.4g}" for a in AXES))
+        if self.denoise:
+            d = self.denoise
+            lines.append(f"de-noised: {d.get('wavelet')} level {d.get('level')}, {d.get('threshold_rule')} "
+                         f"{d.get('threshold_mode')}, {d.get('extension')} extension; raw noise sigma "
+                         + ", ".join(f"{a} {d['sigma'][a]:.4g}" for a in AXES)
+                         + " m/s (residuals after de-noising understate the noise)")
+        cn = self.diagnostics.get("condition_number_equilibrated")
+        if cn is not None:
+            lines.append(f"condition number: {self.diagnostics.get('condition_number') or float('inf'):.3g} "
+                         f"(natural units), {cn:.3g} (columns equilibrated)")
+        lines.append(self.message)
+        if self.diagnostics.get("warning"):
+            lines.append("warning: " + self.diagnostics["warning"])
+        return "\n".join(lines)
+
+
+def write_json_atomic(data: dict[str, Any], path: str | os.PathLike) -> None:
+    """Write JSON to `path` through a temporary file and a rename: never half-written."""
+    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+    with atomic_open(path) as fh:
+        fh.write(text)
+
+
+def _nan_array(a: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray:
+    return np.full(shape, np.nan) if a is None else np.asarray(a, dtype=float)
+
+
+def _mat_value(v: Any) -> Any:
+    """A JSON-like value as scipy.io.savemat stores it, or None to leave it out.
+
+    Numbers -> double (null -> NaN), strings -> char, lists of numbers -> double vectors,
+    lists of strings -> cellstr, dicts with MATLAB-valid keys -> struct.
+    """
+    if v is None:
+        return np.nan
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, float, np.integer, np.floating)):
+        return float(v)
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (list, tuple)):
+        if all(x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in v):
+            return np.array([np.nan if x is None else float(x) for x in v], dtype=float)
+        if all(isinstance(x, str) for x in v):
+            return np.array(list(v), dtype=object)
+        return None
+    if isinstance(v, dict):
+        out = {k: mv for k, x in v.items()
+               if isinstance(k, str) and k.isidentifier() and k[0].isalpha() and (mv := _mat_value(x)) is not None}
+        return out or None
+    return None
+
+
+def write_mat(res: EstimateResult, path: str | os.PathLike) -> None:
+    """Write the result as a MATLAB/Octave ``.mat`` file (scipy.io.savemat), atomically.
+
+    Variables: ``names``, ``units`` (cellstr); ``estimates``, ``std`` (n x 1 double, NaN
+    where missing), ``covariance`` (n x n, NaN rows/columns where missing), ``residuals``
+    (N x 3, m/s), ``history`` (recursive methods), scalars ``sigma``, ``rank``, ``status``,
+    ``success``, strings ``method``, ``model``, ``message``, ``std_kind``, ``reasons``
+    (cellstr, "" where none) and the structs ``settings``, ``diagnostics``, ``denoise``
+    where their fields are simple (numbers, strings, flat lists, nested such structs).
+    """
+    from scipy.io import savemat
+
+    n = len(res.names)
+    data: dict[str, Any] = {
+        "names": np.array(res.names, dtype=object),
+        "units": np.array(res.units, dtype=object),
+        "estimates": np.asarray(res.estimate, dtype=float),
+        "std": _nan_array(res.std, (n,)),
+        "covariance": _nan_array(res.covariance, (n, n)),
+        "residuals": np.asarray(res.residuals, dtype=float).reshape(-1, 3),
+        "reasons": np.array([res.reasons.get(nm, "") for nm in res.names], dtype=object),
+        "sigma": float(res.sigma), "rank": float(res.rank), "status": float(res.status),
+        "success": bool(res.success), "n_samples": float(res.n_samples),
+        "method": res.method, "model": res.model, "message": res.message, "std_kind": res.std_kind,
+    }
+    if res.history is not None:
+        data["history"] = np.asarray(res.history, dtype=float)
+    for key in ("settings", "diagnostics", "denoise"):
+        value = _mat_value(getattr(res, key))
+        if isinstance(value, dict):
+            data[key] = value
+    with atomic_open(path, binary=True) as fh:
+        savemat(fh, data, long_field_names=True, oned_as="column", do_compression=True)
+
+
+def write_csv(res: EstimateResult, path: str | os.PathLike) -> None:
+    """Write one row per coefficient (name, unit, estimate, std, reason) atomically.
+
+    Missing values are empty cells; numbers keep 17 significant digits.
+    """
+    with atomic_open(path) as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(["name", "unit", "estimate", "std", "reason"])
+        for row in res.coefficient_rows():
+            w.writerow([row["name"], row["unit"]] + ["" if row[k] is None else repr(float(row[k]))
+                                                     for k in ("estimate", "std")] + [row.get("reason", "")])

@@ -1,0 +1,387 @@
+"""Reading and writing flight files: CSV and Parquet, one file or telemetry + tracking.
+
+Formats (``../shared/spec/interfaces.md``): a header row, one row per sample, ``#`` comment
+lines (CSV), extra columns ignored.
+
+- time ``t`` (s, strictly increasing);
+- specific force ``f_x, f_y, f_z`` (m/s^2), or telemetered apparent velocity ``W_x, W_y, W_z``
+  (m/s, accumulated specific force), turned into ``f = dW/dt`` by second-order finite
+  differences on the (possibly non-uniform) time grid (:func:`apparent_velocity_to_force`);
+- velocity error ``dv_x, dv_y, dv_z`` (m/s), or ``v_tel_x/y/z`` and ``v_trk_x/y/z`` (then
+  dv = v_tel - v_trk).
+
+Two files (:func:`read_flight_pair`): a telemetry file (``t``, force or apparent velocity,
+``v_tel_*``) and a tracking file at its own rate (``t``, ``v_trk_*``). The flight keeps every
+telemetry sample from the first one to the end of tracking (S_V is integrated from the
+first telemetry sample); tracking is interpolated onto the telemetry times inside its span
+(cubic spline by default, linear on request), and those samples are the ``observed`` ones.
+
+Every reader raises :class:`~casep.io.flight.FlightDataError` naming the file, the column and
+the row (data rows count from 1 after the header; CSV errors give the file line too) for a
+missing or repeated column, a column that is not numeric (bool, date-time, text in Parquet;
+the dtype is named), an empty, non-numeric, NaN or infinite value, a magnitude above
+:data:`~casep.io.flight.MAX_ABS_VALUE`, or time that does not strictly increase. Writers are
+atomic: a failure leaves no half-written file.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from casep.io._atomic import atomic_open
+from casep.io.flight import AXES, DV_COLUMNS, FORCE_COLUMNS, FlightData, FlightDataError, too_large
+
+__all__ = [
+    "read_flight", "read_flight_pair", "write_flight",
+    "write_table", "apparent_velocity_to_force",
+]
+
+APPARENT_COLUMNS = tuple(f"W_{a}" for a in AXES)
+VTEL_COLUMNS = tuple(f"v_tel_{a}" for a in AXES)
+VTRK_COLUMNS = tuple(f"v_trk_{a}" for a in AXES)
+PARQUET_SUFFIXES = (".parquet", ".pq")
+#: Every column a reader may use: a repeated one is refused.
+KNOWN_COLUMNS = ("t",) + FORCE_COLUMNS + APPARENT_COLUMNS + DV_COLUMNS + VTEL_COLUMNS + VTRK_COLUMNS
+
+
+def _is_parquet(path: Path) -> bool:
+    return path.suffix.lower() in PARQUET_SUFFIXES
+
+
+def _csv_line_locator(path: Path) -> Callable[[int], int | None]:
+    """Map a data row (1-based; 0 = header) to its file line, skipping comments and blanks."""
+
+    def line_of(row: int) -> int | None:
+        seen = -1
+        try:
+            with open(path, encoding="utf-8", errors="replace") as fh:
+                for lineno, text in enumerate(fh, 1):
+                    s = text.strip()
+                    if not s or s.startswith("#"):
+                        continue
+                    seen += 1
+                    if seen == row:
+                        return lineno
+        except OSError:
+            return None
+        return None
+
+    return line_of
+
+
+def _csv_header(path: Path) -> list[str]:
+    """The header's names as pandas sees them (first line that is not blank or a ``#`` comment,
+    text after ``#`` dropped), before pandas renames a repeated ``dv_x`` to ``dv_x.1``."""
+    import csv
+
+    with open(path, encoding="utf-8", errors="replace", newline="") as fh:
+        for text in fh:
+            text = text.split("#", 1)[0]
+            if text.strip():
+                return [c.strip() for c in next(csv.reader([text], skipinitialspace=True))]
+    return []
+
+
+def _parquet_header(path: Path) -> list[str]:
+    import pyarrow.parquet as pq
+
+    return list(pq.read_schema(path).names)
+
+
+class _Table:
+    """A file read into a DataFrame, with error helpers that locate rows."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        import pandas as pd
+
+        self.path = Path(path)
+        self.src = str(self.path)
+        if self.path.is_dir():
+            raise FlightDataError(self.src, "is a directory, not a flight file")
+        if not self.path.exists():
+            raise FlightDataError(self.src, "file does not exist")
+        if not self.path.is_file():
+            raise FlightDataError(self.src, "not a regular file (a device, FIFO or socket?)")
+        if _is_parquet(self.path):
+            self.line_of: Callable[[int], int | None] = lambda row: None
+            self._refuse_repeated(self._parquet(_parquet_header))  # before pandas, which fails on them
+            frame = self._parquet(pd.read_parquet)
+        else:
+            try:
+                header = _csv_header(self.path)
+                frame = pd.read_csv(self.path, comment="#", skip_blank_lines=True, keep_default_na=False,
+                                    na_values=[""], skipinitialspace=True)
+            except pd.errors.EmptyDataError:
+                raise FlightDataError(self.src, "file has no header row and no data") from None
+            except pd.errors.ParserError as exc:
+                raise FlightDataError(self.src, f"malformed CSV: {exc}".strip()) from None
+            except UnicodeDecodeError as exc:
+                raise FlightDataError(self.src, f"not a UTF-8 text file ({exc.reason})") from None
+            self.line_of = _csv_line_locator(self.path)
+            self._refuse_repeated(header)
+        frame.columns = [str(c).strip() for c in frame.columns]
+        self.frame = frame
+        self.columns = set(frame.columns)
+
+    def _parquet(self, reader: Callable):
+        """``reader(path)``, with pyarrow's errors as :class:`FlightDataError`."""
+        try:
+            return reader(self.path)
+        except ImportError:
+            raise FlightDataError(self.src, "reading Parquet needs pyarrow: pip install pyarrow") from None
+        except Exception as exc:  # pyarrow raises its own error types
+            raise FlightDataError(self.src, f"not a readable Parquet file ({exc})") from None
+
+    def _refuse_repeated(self, header: list[str]) -> None:
+        """A column casep reads must appear once (pandas would silently rename the second)."""
+        for col in KNOWN_COLUMNS:
+            at = [i + 1 for i, name in enumerate(header) if name == col]
+            if len(at) > 1:
+                raise self.error(f"column name repeated (header positions {', '.join(map(str, at))}): "
+                                 "keep one", col, "header")
+
+    def error(self, message: str, column: str | None = None, row: int | str | None = None) -> FlightDataError:
+        line = self.line_of(0 if row == "header" else row) if row is not None else None
+        return FlightDataError(self.src, message, column, row, line)
+
+    def has(self, cols: tuple[str, ...]) -> bool:
+        return all(c in self.columns for c in cols)
+
+    def require(self, cols: tuple[str, ...], hint: str = "") -> None:
+        for c in cols:
+            if c not in self.columns:
+                raise self.error(f"missing column (header has: {', '.join(self.frame.columns)}){hint}",
+                                 c, "header")
+        if self.frame.shape[0] == 0:
+            raise self.error("file has a header but no data rows", cols[0], "header")
+
+    def _check_dtype(self, col: str) -> None:
+        """Numeric (int, unsigned or float) columns only: a bool, date-time, complex or (in
+        Parquet) text column is refused, naming its dtype. A CSV text column goes on to the
+        per-cell check, which names the first cell that is not a number."""
+        dtype = self.frame[col].dtype
+        if dtype.kind in "iuf" or (dtype.kind == "O" and not _is_parquet(self.path)):
+            return
+        hint = {"M": "; give time in seconds (e.g. seconds since lift-off)",
+                "m": "; give time in seconds", "b": "; give numbers"}.get(dtype.kind, "")
+        raise self.error(f"column has dtype {dtype}, not a number{hint}", col, "header")
+
+    def numeric(self, col: str) -> np.ndarray:
+        """Column as float64, or the error at its first bad cell."""
+        import pandas as pd
+
+        self._check_dtype(col)
+        raw = self.frame[col]
+        values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if not bad.size:
+            big = too_large(values)
+            if big is not None:
+                raise self.error(big[1], col, big[0] + 1)
+            return values
+        r = int(bad[0])
+        cell = raw.iloc[r]
+        if isinstance(cell, str):
+            text = cell.strip().lower().lstrip("+-")
+            what = ("NaN value" if text == "nan" else f"infinite value {cell}" if np.isinf(values[r])
+                    else f"non-numeric value {cell!r}")
+        elif isinstance(cell, (float, np.floating)) and np.isinf(cell):
+            what = f"infinite value {cell}"
+        elif isinstance(cell, (float, np.floating)) and _is_parquet(self.path):
+            what = "NaN value"
+        else:
+            what = "empty value"  # CSV: only empty cells become NaN (keep_default_na=False)
+        raise self.error(what, col, r + 1)
+
+    def vectors(self, cols: tuple[str, ...]) -> np.ndarray:
+        return np.column_stack([self.numeric(c) for c in cols])
+
+    def time(self) -> np.ndarray:
+        t = self.numeric("t")
+        step = np.flatnonzero(np.diff(t) <= 0)
+        if step.size:
+            k = int(step[0]) + 1
+            raise self.error(f"time {t[k]:.10g} s does not increase (previous row: {t[k - 1]:.10g} s)", "t", k + 1)
+        return t
+
+
+def apparent_velocity_to_force(t: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """Specific force ``f = dW/dt`` (m/s^2) from accumulated apparent velocity ``W`` (m/s).
+
+    Second-order finite differences on the non-uniform grid (:func:`numpy.gradient` with
+    coordinates, second-order one-sided at the ends): error O(dt^2 f'').
+    """
+    t = np.asarray(t, dtype=float)
+    W = np.asarray(W, dtype=float)
+    if W.shape != (t.size, 3):
+        raise ValueError(f"`W` must have shape ({t.size}, 3), got {W.shape}")
+    if t.size < 3:
+        raise ValueError(f"`t` needs at least 3 samples to differentiate `W`, got {t.size}")
+    return np.gradient(W, t, axis=0, edge_order=2)
+
+
+def _force(tab: _Table, t: np.ndarray) -> tuple[np.ndarray, str]:
+    if tab.has(FORCE_COLUMNS) or not any(c in tab.columns for c in APPARENT_COLUMNS):
+        tab.require(FORCE_COLUMNS, ". Use: f_x, f_y, f_z (m/s^2), or W_x, W_y, W_z (apparent velocity, m/s)")
+        return tab.vectors(FORCE_COLUMNS), "f"
+    tab.require(APPARENT_COLUMNS, ". Use: W_x, W_y, W_z (apparent velocity, m/s), or f_x, f_y, f_z")
+    if t.size < 3:
+        raise tab.error("apparent velocity needs at least 3 samples to differentiate", "W_x", t.size)
+    return apparent_velocity_to_force(t, tab.vectors(APPARENT_COLUMNS)), "W"
+
+
+def read_flight(path: str | os.PathLike) -> FlightData:
+    """Read a one-file flight (CSV, or Parquet by extension ``.parquet``/``.pq``).
+
+    Parameters
+    ----------
+    path : str or path-like
+        Columns ``t``, ``f_*`` or ``W_*``, and ``dv_*`` or ``v_tel_*`` with ``v_trk_*``.
+
+    Returns
+    -------
+    FlightData
+        ``meta`` records the file format, which force and velocity columns were used and,
+        with ``v_tel_*`` columns, the telemetry speed at the first sample
+        (``start_speed_m_s``, for :func:`casep.io.flight.late_start_evidence`).
+
+    Raises
+    ------
+    FlightDataError
+        Naming file, column and row of the first problem.
+    """
+    tab = _Table(path)
+    tab.require(("t",))
+    t = tab.time()
+    f, force_from = _force(tab, t)
+    if tab.has(DV_COLUMNS) or not any(c in tab.columns for c in VTEL_COLUMNS):
+        tab.require(DV_COLUMNS, ". Use: dv_x, dv_y, dv_z, or v_tel_x/y/z with v_trk_x/y/z")
+        dv, dv_from = tab.vectors(DV_COLUMNS), "dv"
+    else:
+        tab.require(VTEL_COLUMNS + VTRK_COLUMNS, ". Use: v_tel_x/y/z with v_trk_x/y/z, or dv_x, dv_y, dv_z")
+        v_tel = tab.vectors(VTEL_COLUMNS)
+        dv, dv_from = v_tel - tab.vectors(VTRK_COLUMNS), "v_tel - v_trk"
+    meta = {"format": "parquet" if _is_parquet(tab.path) else "csv", "force": force_from, "dv": dv_from}
+    if dv_from != "dv":
+        meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
+        meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.checks
+    return FlightData(t, f, dv, source=tab.src, meta=meta)
+
+
+def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, *,
+                     interpolation: str = "cubic") -> FlightData:
+    """Combine a telemetry file and a tracking file recorded at different rates.
+
+    Parameters
+    ----------
+    telemetry : path
+        ``t``, ``f_*`` or ``W_*``, ``v_tel_*``.
+    tracking : path
+        ``t``, ``v_trk_*``, at its own times.
+    interpolation : {"cubic", "linear"}, optional
+        How tracking velocity is carried to telemetry times: not-a-knot cubic spline
+        (error O(dt^4 v'''''), default) or linear (error ~ a dt^2 / 8: 0.016 m/s at
+        50 m/s^2 and 20 Hz, not negligible against 0.1 m/s noise).
+
+    Returns
+    -------
+    FlightData
+        Every telemetry sample from the first one to the end of tracking: S_V is integrated
+        from the first telemetry sample, so the instrument errors before tracking starts are
+        kept. dv is observed (``observed``) at the telemetry samples inside the tracking
+        span and NaN before it. ``meta`` records the spans (s), the samples before tracking
+        (``unobserved``) and after it (``telemetry_dropped``), and the telemetry speed at the
+        first sample (``start_speed_m_s``).
+
+    Notes
+    -----
+    Interpolation also smooths and correlates the tracking noise between tracking samples:
+    the residuals of a fit are then not white at the telemetry rate.
+    """
+    if interpolation not in ("cubic", "linear"):
+        raise ValueError(f"`interpolation` must be 'cubic' or 'linear', got {interpolation!r}")
+    tel, trk = _Table(telemetry), _Table(tracking)
+    tel.require(("t",))
+    trk.require(("t",) + VTRK_COLUMNS, ". Use: t, v_trk_x, v_trk_y, v_trk_z")
+    tel.require(VTEL_COLUMNS, ". Use: v_tel_x, v_tel_y, v_tel_z")
+    t_tel = tel.time()
+    f, force_from = _force(tel, t_tel)
+    v_tel = tel.vectors(VTEL_COLUMNS)
+    t_trk = trk.time()
+    v_trk = trk.vectors(VTRK_COLUMNS)
+    if t_trk.size < (4 if interpolation == "cubic" else 2):
+        raise trk.error(f"{t_trk.size} tracking samples are too few for {interpolation} interpolation", "t", t_trk.size)
+    inside = (t_tel >= t_trk[0]) & (t_tel <= t_trk[-1])
+    if inside.sum() < 2:
+        raise tel.error(f"telemetry time [{t_tel[0]:g}, {t_tel[-1]:g}] s and tracking time "
+                        f"[{t_trk[0]:g}, {t_trk[-1]:g}] s share fewer than 2 telemetry samples", "t")
+    keep = t_tel <= t_trk[-1]  # from the first telemetry sample to the end of tracking
+    t, observed = t_tel[keep], inside[keep]
+    dv = np.full((t.size, 3), np.nan)  # not observed before tracking starts
+    if interpolation == "cubic":
+        from scipy.interpolate import CubicSpline
+
+        v_at = CubicSpline(t_trk, v_trk, axis=0)(t[observed])
+    else:
+        v_at = np.column_stack([np.interp(t[observed], t_trk, v_trk[:, i]) for i in range(3)])
+    dv[observed] = v_tel[keep][observed] - v_at  # dv = v_tel - v_trk at telemetry times
+    meta = {"format": "pair", "force": force_from, "dv": f"v_tel - v_trk ({interpolation} interpolation)",
+            "telemetry": tel.src, "tracking": trk.src,
+            "telemetry_span_s": [float(t_tel[0]), float(t_tel[-1])],
+            "tracking_span_s": [float(t_trk[0]), float(t_trk[-1])],
+            "span_s": [float(t[0]), float(t[-1])], "observed_span_s": [float(t[observed][0]), float(t[observed][-1])],
+            "unobserved": int((~observed).sum()), "telemetry_dropped": int((~keep).sum()),
+            "start_speed_m_s": float(np.linalg.norm(v_tel[0])),
+            "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.checks
+    return FlightData(t, f[keep], dv, source=f"{tel.src} + {trk.src}", meta=meta, observed=observed)
+
+
+def write_table(path: str | os.PathLike, columns: dict[str, np.ndarray], *,
+                comments: list[str] | None = None) -> None:
+    """Write named 1-D columns as CSV (``%.17g``, exact round trip) or Parquet, atomically.
+
+    Parameters
+    ----------
+    path : path
+        ``.parquet`` / ``.pq`` writes Parquet (needs pyarrow), anything else CSV.
+    columns : dict of str -> (N,) array
+        Column name to values, in order.
+    comments : list of str, optional
+        CSV only: lines written first as ``# ...`` (Parquet keeps them as metadata).
+    """
+    path = Path(path)
+    names = list(columns)
+    data = np.column_stack([np.asarray(columns[c], dtype=float) for c in names])
+    if _is_parquet(path):
+        try:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+        except ImportError:
+            raise ValueError(f"{path}: writing Parquet needs pyarrow: pip install pyarrow") from None
+        table = pa.table({c: data[:, i] for i, c in enumerate(names)},
+                         metadata={"comments": "\n".join(comments or [])})
+        with atomic_open(path, binary=True) as fh:
+            pq.write_table(table, fh)
+        return
+    with atomic_open(path) as fh:
+        for line in comments or []:
+            fh.write(f"# {line}\n")
+        fh.write(",".join(names) + "\n")
+        np.savetxt(fh, data, delimiter=",", fmt="%.17g")
+
+
+def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[str] | None = None) -> None:
+    """Write a flight (``t, f_x, f_y, f_z, dv_x, dv_y, dv_z``) as CSV or Parquet, atomically."""
+    if not isinstance(flight, FlightData):
+        raise TypeError(f"`flight` must be a FlightData, got {type(flight).__name__}")
+    if flight.n_observed < flight.n_samples:
+        raise ValueError(f"{path}: the flight has {flight.n_samples - flight.n_observed} samples without tracking, "
+                         "which the one-file format cannot hold; keep the telemetry and tracking files")
+    cols = {"t": flight.t}
+    cols.update({c: flight.f[:, i] for i, c in enumerate(FORCE_COLUMNS)})
+    cols.update({c: flight.dv[:, i] for i, c in enumerate(DV_COLUMNS)})
+    write_table(path, cols, comments=comments)

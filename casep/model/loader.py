@@ -1,0 +1,165 @@
+"""Find and load model files (``models/*.py``, each with one ``build()`` function).
+
+A model is named either by a path to a ``.py`` file or by a name looked up, in order, in the
+folders of the ``CASEP_MODEL_PATH`` environment variable (``os.pathsep``-separated) and in
+casep's built-in model folder. Files are loaded with
+:func:`importlib.util.spec_from_file_location`; ``sys.path`` is never touched.
+
+A model file is Python and **runs as code** with the rights of the user: casep loads one only
+from its built-in model folder, a folder of ``CASEP_MODEL_PATH`` or a path given explicitly
+(``--model path/to/file.py``), never from the current directory by name. Treat a model file
+like any script you run.
+
+A file that does not compile, raises or calls ``sys.exit`` while loading or in ``build()``
+gives a one-line :class:`ModelFileError` (a :class:`casep.ModelDefinitionError`; the command
+line prints it and exits 2) naming the file and the line: the SyntaxError's line, or the
+deepest line of the traceback inside the model file.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import traceback
+from pathlib import Path
+
+from casep.model._model import ErrorModel, ModelDefinitionError
+
+__all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file"]
+
+
+def model_dirs() -> list[Path]:
+    """Folders searched for a model given by name, in search order."""
+    dirs = [Path(p) for p in os.environ.get("CASEP_MODEL_PATH", "").split(os.pathsep) if p]
+    here = Path(__file__).resolve().parents[1]  # the casep package
+    # Installed wheel: casep/models; source checkout or editable install: <repo>/models.
+    for cand in (here / "models", here.parent / "models"):
+        if cand.is_dir() and cand not in dirs:
+            dirs.append(cand)
+    return dirs
+
+
+def available_models() -> list[str]:
+    """Names of the models found in :func:`model_dirs` (first one wins on a clash)."""
+    seen: list[str] = []
+    for d in model_dirs():
+        for p in sorted(d.glob("*.py")):
+            if not p.name.startswith("_") and p.stem not in seen:
+                seen.append(p.stem)
+    return seen
+
+
+def find_model_file(model: str | os.PathLike) -> Path:
+    """Resolve a model name or path to its file.
+
+    Raises
+    ------
+    ValueError
+        When nothing matches; the message lists the available models.
+    """
+    if not isinstance(model, (str, os.PathLike)):
+        raise TypeError(f"`model` must be a name or a path, got {type(model).__name__}")
+    text = os.fspath(model)
+    if text.endswith(".py") or os.sep in text or (os.altsep and os.altsep in text):
+        path = Path(text)
+        if not path.is_file():
+            raise ValueError(f"model file `{text}` does not exist")
+        return path
+    for d in model_dirs():
+        path = d / f"{text}.py"
+        if path.is_file():
+            return path
+    raise ValueError(
+        f"unknown model `{text}`. Use one of: {', '.join(available_models()) or '(none found)'}; "
+        "or a path to a .py file with a build() function"
+    )
+
+
+class ModelFileError(ModelDefinitionError):
+    """A model file fails to load: the message names the file and, where known, the line."""
+
+
+def _where(path: Path, exc: BaseException) -> str:
+    """``model file <path>, line <n>``: the line of `exc` in `path` (its deepest frame there)."""
+    line = None
+    if isinstance(exc, SyntaxError) and exc.filename and Path(exc.filename).resolve() == path.resolve():
+        line = exc.lineno
+    else:
+        target = path.resolve()
+        for frame, lineno in traceback.walk_tb(exc.__traceback__):
+            if Path(frame.f_code.co_filename).resolve() == target:
+                line = lineno  # keep the deepest
+    return f"model file {path}" + (f", line {line}" if line else "")
+
+
+def _describe(exc: BaseException) -> str:
+    """One line: ``NameError: name 'ca' is not defined`` (a SyntaxError without its location)."""
+    if isinstance(exc, SystemExit):
+        return f"SystemExit({exc.code!r}): a model file must not exit; build() must return a casep.ErrorModel"
+    msg = exc.msg if isinstance(exc, SyntaxError) else str(exc)
+    msg = " ".join(str(msg).split())
+    return f"{type(exc).__name__}: {msg}" if msg else type(exc).__name__
+
+
+def _run_file(path: Path) -> ErrorModel:
+    """Execute the model file and its ``build()``; any failure becomes a one-line ModelFileError."""
+    spec = importlib.util.spec_from_file_location(f"casep_model_{path.stem}", path)
+    if spec is None or spec.loader is None:
+        raise ModelFileError(f"model file {path}: cannot be loaded as Python")
+    module = importlib.util.module_from_spec(spec)
+    stage = "loading"
+    try:
+        spec.loader.exec_module(module)
+        build = getattr(module, "build", None)
+        if not callable(build):
+            raise ModelFileError(f"model file {path}: Missing: build(). Use: def build() -> casep.ErrorModel")
+        stage = "build()"
+        result = build()
+    except ModelFileError:
+        raise  # from this file, or from a model it extends (that one names its own file)
+    except (Exception, SystemExit) as exc:  # KeyboardInterrupt still interrupts
+        where = _where(path, exc)
+        raise ModelFileError(f"{where}{', in build()' if stage == 'build()' else ''}: {_describe(exc)}") from exc
+    if not isinstance(result, ErrorModel):
+        raise ModelFileError(f"model file {path}: build() returned {type(result).__name__}, not casep.ErrorModel")
+    return result
+
+
+def build_model(model: str | os.PathLike) -> ErrorModel:
+    """Run a model file's ``build()`` and return the model *unlocked*.
+
+    Use this to extend a model in another model file; :func:`load_model` for use.
+
+    Raises
+    ------
+    ModelFileError
+        (a :class:`ModelDefinitionError`) when the file does not compile, raises or exits
+        while loading or in ``build()``, or returns something else than an ErrorModel: one line
+        naming the file and the line of the file where it failed.
+    """
+    return _run_file(find_model_file(model))
+
+
+def load_model(model: str | os.PathLike | ErrorModel) -> ErrorModel:
+    """Load a model by name or path and set it up (an :class:`ErrorModel` is set up as is).
+
+    Parameters
+    ----------
+    model : str, path or ErrorModel
+        ``"platform36"``, ``"models/my_model.py"`` or a declared model.
+
+    Returns
+    -------
+    ErrorModel
+        Locked, with its Jacobian functions built.
+    """
+    if isinstance(model, ErrorModel):
+        return model.setup()
+    path = find_model_file(model)
+    built = _run_file(path)
+    try:
+        return built.setup()
+    except ModelFileError:
+        raise
+    except ModelDefinitionError as exc:  # setup()'s checks name the term; add the file
+        raise ModelFileError(f"model file {path}: {exc}") from exc

@@ -1,0 +1,211 @@
+"""Figures (matplotlib, non-interactive Agg backend). Each function writes one PNG and returns its path."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from typing import Mapping
+
+import numpy as np
+
+from casep.analysis.diagnostics import GROUP_INDEX, Diagnostics
+from casep.estimators.result import AXES, EstimateResult
+
+__all__ = ["plot_singular_values", "plot_variance_decomposition", "plot_residuals", "plot_estimates",
+           "plot_history", "separate_figures", "estimate_scales"]
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: str | os.PathLike) -> Path:
+    path = Path(path)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    return path
+
+
+def plot_singular_values(diag: Diagnostics, path: str | os.PathLike) -> Path:
+    """Singular-value spectrum of the equilibrated regression with condition indices."""
+    plt = _pyplot()
+    s = diag.singular_values
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.semilogy(np.arange(1, s.size + 1), s, "o-", ms=4)
+    ax.axhline(s[0] / GROUP_INDEX, color="tab:orange", ls="--", lw=1, label=f"condition index {GROUP_INDEX:g}")
+    ax.axhline(s[0] / 1e3, color="tab:red", ls=":", lw=1, label="condition index 1000")
+    ax.set_xlabel("dimension k")
+    ax.set_ylabel("singular value s_k (unit-norm columns)")
+    ce = diag.condition_number_equilibrated
+    ax.set_title(f"Singular values; equilibrated condition number {ce:.3g}" if ce else "Singular values (rank deficient)")
+    ax.legend(loc="lower left")
+    ax.grid(True, which="both", alpha=0.3)
+    return _save(fig, path)
+
+
+def plot_variance_decomposition(diag: Diagnostics, path: str | os.PathLike) -> Path:
+    """Heat map of Belsley-Kuh-Welsch variance-decomposition proportions."""
+    plt = _pyplot()
+    P = np.nan_to_num(diag.proportions, nan=0.0)
+    fig, ax = plt.subplots(figsize=(max(8, 0.28 * len(diag.names)), 6))
+    im = ax.imshow(P, aspect="auto", cmap="viridis", vmin=0, vmax=1, interpolation="nearest")
+    ax.set_xticks(range(len(diag.names)), diag.names, rotation=90, fontsize=7)
+    eta = diag.condition_indices
+    ax.set_yticks(range(P.shape[0]), [f"{e:.0f}" if np.isfinite(e) else "inf" for e in eta], fontsize=7)
+    ax.set_ylabel("condition index of dimension")
+    ax.set_title("Variance-decomposition proportions (columns equilibrated, not centred)")
+    fig.colorbar(im, ax=ax, label="proportion of Var(estimate)")
+    return _save(fig, path)
+
+
+def _sample_times(result: EstimateResult, t: np.ndarray | None) -> tuple[np.ndarray, str]:
+    """Time of each residual row (s), or the sample index when `t` does not match."""
+    n = np.asarray(result.residuals).reshape(-1, 3).shape[0]
+    if t is not None and np.asarray(t).shape == (n,):
+        return np.asarray(t, dtype=float), "time (s)"
+    return np.arange(n, dtype=float), "sample"
+
+
+def plot_residuals(result: EstimateResult, path: str | os.PathLike, t: np.ndarray | None = None) -> Path:
+    """Residuals ``dv - S_V D_hat`` against time, one panel per axis, with +- 2 sigma lines."""
+    plt = _pyplot()
+    r = np.asarray(result.residuals).reshape(-1, 3)
+    x, xlabel = _sample_times(result, t)
+    fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True)
+    rms = result.residual_rms
+    for i, ax in enumerate(axes):
+        ax.plot(x, r[:, i], lw=0.5)
+        for sgn in (-2, 2):
+            ax.axhline(sgn * result.sigma, color="tab:red", lw=0.8, ls="--")
+        ax.set_ylabel(f"{AXES[i]} (m/s)")
+        ax.set_title(f"RMS {rms[AXES[i]]:.4g} m/s", fontsize=8, loc="right")
+        ax.grid(alpha=0.3)
+    axes[0].set_title(f"{result.method} residuals dv - S_V D_hat (dashed: +- 2 sigma = {2 * result.sigma:.3g} m/s)",
+                      fontsize=10, loc="left")
+    axes[-1].set_xlabel(xlabel)
+    return _save(fig, path)
+
+
+def estimate_scales(result: EstimateResult, prior: Mapping | None = None,
+                    bounds: Mapping | None = None) -> tuple[np.ndarray, list[str]]:
+    """Per-coefficient scale for the normalised estimate plot and what it is.
+
+    The prior std where a prior is given; else the half-width ``(hi - lo) / 2`` of a
+    two-sided box; else the coefficient's own std (the estimate then plots as its t-ratio).
+    NaN where none is defined.
+    """
+    n = len(result.names)
+    scale = np.full(n, np.nan) if result.std is None else np.where(result.std > 0, result.std, np.nan)
+    kind = ["own std"] * n
+    if bounds is not None:
+        from casep.estimators.bounded import parse_bounds
+
+        lo, hi, _ = parse_bounds(bounds, result.names)
+        box = np.isfinite(lo) & np.isfinite(hi) & (hi > lo)
+        scale = np.where(box, (hi - lo) / 2, scale)  # half-width of the box
+        kind = ["bound half-width" if box[j] else kind[j] for j in range(n)]
+    if prior is not None:
+        from casep.estimators.map import parse_prior
+
+        _, tau = parse_prior(prior, result.names)
+        has = np.isfinite(tau)
+        scale = np.where(has, tau, scale)
+        kind = ["prior std" if has[j] else kind[j] for j in range(n)]
+    return scale, kind
+
+
+def plot_estimates(result: EstimateResult, path: str | os.PathLike, *, prior: Mapping | None = None,
+                   bounds: Mapping | None = None) -> Path:
+    """Estimates +- 2 std, each divided by its scale (:func:`estimate_scales`), against the prior or box."""
+    plt = _pyplot()
+    n = len(result.names)
+    scale, kind = estimate_scales(result, prior, bounds)
+    x = np.arange(n)
+    z = result.estimate / scale  # estimate / scale
+    err = None if result.std is None else 2 * result.std / scale  # 2 std / scale
+    fig, ax = plt.subplots(figsize=(max(8, 0.3 * n), 4.5))
+    if prior is not None:
+        from casep.estimators.map import parse_prior
+
+        mu, tau = parse_prior(prior, result.names)
+        has = np.isfinite(tau)
+        ax.errorbar(x[has] + 0.2, (mu / scale)[has], yerr=2.0, fmt="s", color="0.5", ms=3, capsize=2,
+                    label="prior mean +- 2 prior std")
+    if bounds is not None:
+        from casep.estimators.bounded import parse_bounds
+
+        lo, hi, _ = parse_bounds(bounds, result.names)
+        for v, mk in ((lo, "^"), (hi, "v")):
+            ok = np.isfinite(v)
+            ax.plot(x[ok], (v / scale)[ok], mk, color="tab:red", ms=4, ls="none")
+        ax.plot([], [], "v", color="tab:red", ms=4, ls="none", label="bounds")
+    ax.errorbar(x, z, yerr=err, fmt="o", ms=3, capsize=2, label=f"{result.method} estimate +- 2 std")
+    ax.axhline(0.0, color="k", lw=0.6)
+    ax.set_xticks(x, [f"{nm}" for nm in result.names], rotation=90, fontsize=7)
+    kinds = sorted(set(kind))
+    ax.set_ylabel("value / scale")
+    ax.set_title(f"Estimates normalised by {', '.join(kinds)} (missing: not identifiable)", fontsize=10)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    return _save(fig, path)
+
+
+def best_determined(result: EstimateResult, count: int = 6) -> np.ndarray:
+    """Indices of the `count` coefficients with the largest |estimate| / std."""
+    if result.std is None:
+        return np.array([], dtype=int)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.abs(result.estimate) / result.std
+    ratio = np.where(np.isfinite(ratio), ratio, -1.0)
+    order = np.argsort(-ratio, kind="stable")
+    return order[ratio[order] >= 0][:count]
+
+
+def plot_history(result: EstimateResult, path: str | os.PathLike, t: np.ndarray | None = None,
+                 count: int = 6) -> Path:
+    """RLS/RELS estimate history of the best-determined coefficients with +- 2 std bands."""
+    if result.history is None or result.history_std is None:
+        raise ValueError(f"`result` of method {result.method} has no estimate and std history")
+    plt = _pyplot()
+    stride = int(result.settings.get("history_stride", 1))
+    x_all, xlabel = _sample_times(result, t)
+    rows = np.arange(result.history.shape[0]) * stride
+    x = x_all[rows]
+    idx = best_determined(result, count)
+    ncol = 3
+    nrow = max(1, -(-idx.size // ncol))
+    fig, axes = plt.subplots(nrow, ncol, figsize=(11, 2.6 * nrow), sharex=True, squeeze=False)
+    for ax, j in zip(axes.flat, idx):
+        h, s = result.history[:, j], result.history_std[:, j]
+        ax.fill_between(x, h - 2 * s, h + 2 * s, color="tab:blue", alpha=0.2, lw=0)
+        ax.plot(x, h, lw=1)
+        e, sd = result.estimate[j], result.std[j]
+        ax.set_ylim(e - 15 * sd, e + 15 * sd)  # the final +- 15 std: early P_0-sized bands are off scale
+        ax.set_title(f"{result.names[j]} ({result.units[j]})", fontsize=9)
+        ax.grid(alpha=0.3)
+    for ax in list(axes.flat)[idx.size:]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel(xlabel)
+    fig.suptitle(f"{result.method} estimate history +- 2 std (largest |estimate| / std)", fontsize=10)
+    return _save(fig, path)
+
+
+def separate_figures(result: EstimateResult, out: str | os.PathLike, t: np.ndarray | None = None, *,
+                     prior: Mapping | None = None, bounds: Mapping | None = None) -> list[Path]:
+    """The figures of one separation in folder `out` (created): residuals, estimates, history."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    files = [plot_residuals(result, out / "residuals.png", t),
+             plot_estimates(result, out / "estimates.png", prior=prior, bounds=bounds)]
+    if result.history is not None and result.history_std is not None:
+        files.append(plot_history(result, out / "history.png", t))
+    return files

@@ -1,0 +1,84 @@
+"""Built-in simulation scenarios (``casep simulate --scenario NAME``).
+
+=============== ==========================================================================
+``paper``        Table 1 truth (platform36), white tracking noise 0.1 m/s, 100 Hz, the
+                 default two-stage vehicle (:data:`casep.simulation.trajectory.DEFAULT_VEHICLE`) with
+                 a small yaw manoeuvre: psi(t) = 2 deg sin(2 pi (t - 20 s) / 80 s) for
+                 20 s <= t <= 180 s (two periods), so the z-axis terms see excitation.
+``paper-pitch``  The same without the yaw manoeuvre: a pitch-plane flight, f_z = 0, so the
+                 12 coefficients driven only by W_z have zero columns.
+``paper-ar1``    ``paper`` with first-order Gauss-Markov tracking noise: sigma 0.1 m/s,
+                 correlation time 1 s (lag-1 correlation 0.990 at 100 Hz).
+=============== ==========================================================================
+
+The paper does not publish its trajectory; these are documented stand-ins with the figures
+the paper's class of vehicle has (see :mod:`casep.simulation.trajectory`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+from casep.simulation.noise import NoiseModel
+from casep.simulation.paper import TABLE1_NOISE_SIGMA, TABLE1_TRUTH
+from casep.simulation.trajectory import DEFAULT_VEHICLE, Vehicle, YawManoeuvre
+
+__all__ = ["Scenario", "SCENARIOS", "get_scenario"]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A reproducible simulated flight: vehicle, rate, error model, truth and noise.
+
+    Parameters
+    ----------
+    name, description : str
+    vehicle : Vehicle
+    rate : float
+        Telemetry sample rate, Hz.
+    model : str
+        Error model name.
+    truth : dict
+        Coefficient name -> true value, natural units (missing names are 0).
+    noise : NoiseModel
+        Tracking noise.
+    """
+
+    name: str
+    description: str
+    vehicle: Vehicle = DEFAULT_VEHICLE
+    rate: float = 100.0
+    model: str = "platform36"
+    truth: dict = field(default_factory=lambda: dict(TABLE1_TRUTH))
+    noise: NoiseModel = field(default_factory=lambda: NoiseModel("white", TABLE1_NOISE_SIGMA))
+
+    def with_rate(self, rate: float | None) -> "Scenario":
+        """The same scenario at another sample rate (None keeps it)."""
+        return self if rate is None else dataclasses.replace(self, rate=float(rate))
+
+
+_PAPER_YAW = YawManoeuvre(amplitude=2.0, period=80.0, start=20.0, end=180.0)
+
+SCENARIOS: dict[str, Scenario] = {
+    s.name: s
+    for s in (
+        Scenario("paper", "Table 1 truth, white noise 0.1 m/s, 100 Hz, pitch programme + small yaw manoeuvre",
+                 vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=_PAPER_YAW)),
+        Scenario("paper-pitch", "as paper, no yaw manoeuvre (pitch-plane flight, f_z = 0)",
+                 vehicle=DEFAULT_VEHICLE),
+        Scenario("paper-ar1", "as paper, Gauss-Markov noise sigma 0.1 m/s, tau 1 s",
+                 vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=_PAPER_YAW),
+                 noise=NoiseModel("ar1", TABLE1_NOISE_SIGMA, tau=1.0)),
+    )
+}
+
+
+def get_scenario(name: str | Scenario) -> Scenario:
+    """Look up a built-in scenario by name (a :class:`Scenario` is returned as is)."""
+    if isinstance(name, Scenario):
+        return name
+    try:
+        return SCENARIOS[name]
+    except KeyError:
+        raise ValueError(f"unknown scenario `{name}`. Use one of: {', '.join(SCENARIOS)}") from None

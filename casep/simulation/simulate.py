@@ -1,0 +1,204 @@
+"""Simulated flights with injected instrument errors and tracking noise.
+
+``dv = S_V(t) D_true + n(t)``: the model's S_V on the sampled specific force times the true
+coefficients, plus tracking noise from the scenario's :class:`~casep.simulation.noise.NoiseModel`;
+gap windows remove rows afterwards (the instrument errors keep accumulating through a gap).
+For two-rate data, telemetry velocity is ``v_tel = v_true + S_V D_true`` at telemetry times
+and tracking is ``v_trk(t_k) = v_true(t_k - offset) + n(t_k)`` at its own times.
+
+All randomness comes from ``numpy.random.default_rng(seed)``: the same seed gives the same
+bytes, another seed other noise.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from casep.io._atomic import atomic_open
+from casep.io.flight import FlightData
+from casep.io.files import write_flight, write_table
+from casep.model._model import ErrorModel, unknown_coefficient_message
+from casep.model.loader import load_model
+from casep.simulation.scenarios import Scenario, get_scenario
+from casep.model.sv import build_sv
+from casep.simulation.trajectory import BoostTrajectory, simulate_boost
+
+__all__ = ["SimulatedFlight", "simulate_flight", "scenario_setup", "write_simulation", "truth_path", "TwoRateData",
+           "simulate_two_rate"]
+
+
+@dataclass(frozen=True)
+class SimulatedFlight:
+    """A simulated flight with everything needed to check an estimate against the truth."""
+
+    flight: FlightData
+    trajectory: BoostTrajectory
+    model: ErrorModel
+    truth: np.ndarray  # natural units, model order
+    noise: np.ndarray  # the tracking noise added, (N, 3) m/s, after gap removal
+    scenario: Scenario
+    seed: int
+
+    def truth_dict(self) -> dict:
+        """The ``<name>.truth.json`` sidecar of ``interfaces.md``."""
+        return {
+            "model": self.model.name,
+            "coefficients": {n: float(v) for n, v in zip(self.model.names, self.truth)},
+            "units": dict(zip(self.model.names, self.model.units)),
+            "noise": self.scenario.noise.to_dict(),
+            "trajectory": {"scenario": self.scenario.name, "description": self.scenario.description,
+                           "rate_hz": self.scenario.rate, "vehicle": self.scenario.vehicle.to_dict(),
+                           "summary": self.trajectory.summary()},
+            "seed": self.seed,
+        }
+
+
+def _truth_vector(model: ErrorModel, truth: dict, source: str = "truth") -> np.ndarray:
+    for name in truth:
+        if name not in model.names:
+            raise ValueError(unknown_coefficient_message(name, model.names, f"{source} (model `{model.name}`)"))
+    values = np.array([truth.get(n, 0.0) for n in model.names], dtype=object)
+    for n, v in zip(model.names, values):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+            raise ValueError(f"{source}: `{n}` must be a finite number (natural units), got {v!r}")
+    return values.astype(float)
+
+
+def scenario_setup(scenario: str | Scenario, rate: float | None = None
+                   ) -> tuple[Scenario, BoostTrajectory, ErrorModel, np.ndarray]:
+    """The noise-free part of a scenario: scenario at `rate`, trajectory, model, true coefficients."""
+    sc = get_scenario(scenario).with_rate(rate)
+    model = load_model(sc.model)
+    return sc, simulate_boost(sc.vehicle, sc.rate), model, _truth_vector(model, sc.truth)
+
+
+def _check_seed(seed: int) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"`seed` must be a non-negative int, got {seed!r}")
+    return int(seed)
+
+
+def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: float | None = None,
+                    model: str | os.PathLike | None = None, truth: dict | None = None) -> SimulatedFlight:
+    """Simulate one flight of a scenario.
+
+    Parameters
+    ----------
+    scenario : str or Scenario, optional
+        ``"paper"``, ``"paper-pitch"``, ``"paper-ar1"`` or a :class:`Scenario`.
+    seed : int, optional
+        Seed of the noise generator.
+    rate : float, optional
+        Sample rate, Hz (default: the scenario's).
+    model : str or path, optional
+        Error model to inject instead of the scenario's (name or model file).
+    truth : dict, optional
+        ``{name: value}`` true coefficients in natural units instead of the scenario's
+        (coefficients not named are 0; required in practice with another `model`, whose
+        names the scenario's truth need not share).
+
+    Returns
+    -------
+    SimulatedFlight
+    """
+    seed = _check_seed(seed)
+    sc = get_scenario(scenario)
+    if model is not None or truth is not None:
+        sc = dataclasses.replace(sc, model=sc.model if model is None else os.fspath(model),
+                                 truth=sc.truth if truth is None else dict(truth))
+    sc, traj, model, truth = scenario_setup(sc, rate)
+    rng = np.random.default_rng(seed)
+    clean = build_sv(model, traj.t, traj.specific_force) @ truth  # S_V D_true
+    noise = sc.noise.sample(traj.t, rng)
+    keep = sc.noise.keep_mask(traj.t)
+    flight = FlightData(traj.t[keep], traj.specific_force[keep], clean[keep] + noise[keep],
+                        source=f"simulated:{sc.name}:seed{seed}", meta={"scenario": sc.name, "seed": seed})
+    return SimulatedFlight(flight=flight, trajectory=traj, model=model, truth=truth, noise=noise[keep],
+                           scenario=sc, seed=seed)
+
+
+def truth_path(path: str | os.PathLike) -> Path:
+    """Sidecar path: ``flight.csv`` -> ``flight.truth.json``."""
+    path = Path(path)
+    return path.with_name(path.stem + ".truth.json")
+
+
+def write_simulation(sim: SimulatedFlight, path: str | os.PathLike) -> tuple[Path, Path]:
+    """Write the flight file (CSV or Parquet by extension) and its truth sidecar."""
+    path = Path(path)
+    sc = sim.scenario
+    write_flight(sim.flight, path, comments=[
+        f"casep simulated flight: scenario {sc.name} ({sc.description})",
+        f"model {sim.model.name}, seed {sim.seed}, rate {sc.rate:g} Hz; truth in the .truth.json sidecar",
+    ])
+    side = truth_path(path)
+    with atomic_open(side) as fh:
+        fh.write(json.dumps(sim.truth_dict(), indent=2) + "\n")
+    return path, side
+
+
+@dataclass(frozen=True)
+class TwoRateData:
+    """Telemetry and tracking of one simulated flight at their own rates."""
+
+    t_tel: np.ndarray
+    f: np.ndarray  # specific force at telemetry times, m/s^2
+    W: np.ndarray  # accumulated apparent velocity (trapezoid of f), m/s
+    v_tel: np.ndarray
+    t_trk: np.ndarray
+    v_trk: np.ndarray
+    truth: np.ndarray
+    model: ErrorModel
+
+    def write(self, telemetry: str | os.PathLike, tracking: str | os.PathLike, *, apparent: bool = False) -> None:
+        """Telemetry file (``t``, ``f_*`` or ``W_*``, ``v_tel_*``) and tracking file (``t``, ``v_trk_*``)."""
+        cols = {"t": self.t_tel}
+        src, prefix = (self.W, "W") if apparent else (self.f, "f")
+        cols.update({f"{prefix}_{a}": src[:, i] for i, a in enumerate("xyz")})
+        cols.update({f"v_tel_{a}": self.v_tel[:, i] for i, a in enumerate("xyz")})
+        write_table(telemetry, cols)
+        write_table(tracking, {"t": self.t_trk, **{f"v_trk_{a}": self.v_trk[:, i] for i, a in enumerate("xyz")}})
+
+
+def simulate_two_rate(scenario: str | Scenario = "paper", *, seed: int = 0, telemetry_rate: float = 100.0,
+                      tracking_rate: float = 20.0, time_offset: float = 0.0,
+                      tracking_start: float | None = None) -> TwoRateData:
+    """Telemetry and tracking of a scenario at different rates, with a tracking time offset.
+
+    Parameters
+    ----------
+    scenario : str or Scenario
+    seed : int
+    telemetry_rate, tracking_rate : float
+        Hz.
+    time_offset : float
+        Tracking time tags lag the truth by this much, s: ``v_trk(t) = v_true(t - offset)``.
+    tracking_start : float, optional
+        First tracking time, s (default: from lift-off): ranges rarely track from t = 0.
+        Telemetry still starts at lift-off.
+    """
+    seed = _check_seed(seed)
+    if not np.isfinite(tracking_rate) or tracking_rate <= 0:
+        raise ValueError(f"`tracking_rate` must be finite and > 0 Hz, got {tracking_rate}")
+    if not np.isfinite(time_offset):
+        raise ValueError(f"`time_offset` must be finite, got {time_offset}")
+    sc, traj, model, truth = scenario_setup(scenario, telemetry_rate)
+    rng = np.random.default_rng(seed)
+    v_tel = traj.velocity + build_sv(model, traj.t, traj.specific_force) @ truth
+    dt = np.diff(traj.t)[:, None]
+    W = np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (traj.specific_force[1:] + traj.specific_force[:-1]) * dt, 0)])
+    lo, hi = max(traj.t[0], traj.t[0] + time_offset), min(traj.t[-1], traj.t[-1] + time_offset)
+    if tracking_start is not None:
+        if not lo <= tracking_start < hi:
+            raise ValueError(f"`tracking_start` must be in [{lo:g}, {hi:g}) s, got {tracking_start}")
+        lo = tracking_start
+    t_trk = np.arange(np.ceil(lo * tracking_rate), np.floor(hi * tracking_rate) + 1) / tracking_rate
+    _, v_true = traj.sample(t_trk - time_offset)
+    v_trk = v_true + sc.noise.sample(t_trk, rng)
+    return TwoRateData(traj.t, traj.specific_force, W, v_tel, t_trk, v_trk, truth, model)

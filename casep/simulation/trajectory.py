@@ -1,0 +1,357 @@
+"""Boost-phase point-mass (3-DOF) trajectory in the launch-inertial frame.
+
+Assumptions (every one is a choice, stated here and in the README):
+
+- **Frame**: launch-inertial, origin at the launch point; x downrange (horizontal at
+  launch), y up (local vertical at launch), z cross-range, right-handed. The Earth does
+  not rotate in this frame (launch-site velocity and Coriolis terms are left out: they
+  change the trajectory, not the error-separation problem).
+- **Earth**: sphere of radius ``R_E = 6 371 000`` m, centre at ``(0, -R_E, 0)``;
+  inverse-square gravity ``g = -mu r / |r|^3`` with ``mu = 3.986004418e14`` m^3/s^2;
+  altitude ``h = |r| - R_E``.
+- **Atmosphere**: U.S. Standard Atmosphere 1976 below 84.852 km geopotential (seven layers,
+  hydrostatic), exponential above with the last layer's scale height; speed of sound
+  ``sqrt(1.4 R T)``.
+- **Aerodynamics**: axial drag only, ``D = q S C_A(M)`` along the body axis, with a
+  tabulated ``C_A(M)`` (0.30 subsonic, 0.55 peak at Mach 1.1, 0.25 at Mach 5+).
+- **Propulsion**: per stage a constant thrust ``T`` and specific impulse ``Isp``, mass flow
+  ``T / (Isp g0)``, linear ignition ramp and linear tail-off, and a coast after burnout;
+  the spent stage's dry mass drops at burnout. Stage 1 ignites on the pad (hold-down), so the
+  flight starts at full thrust.
+- **Attitude**: the body axis points along pitch ``theta`` (from x towards y) and yaw
+  ``psi`` (out of plane, towards +z): ``e_b = (cos psi cos theta, cos psi sin theta, sin psi)``.
+  Pitch programme: vertical rise, a pitch-over kick at constant rate, then a gravity turn
+  (``theta`` follows the velocity's in-plane pitch, the kick's angle of attack decaying with
+  time constant ``tau``). Optional yaw manoeuvre ``psi(t) = A sin(2 pi (t - t_a) / P)`` on
+  ``[t_a, t_b]``, so that the z-axis terms of the error model see some excitation.
+- **Sensed specific force**: ``f = (T - D) e_b / m`` (gravity is not sensed).
+
+:func:`simulate_boost` integrates the equations with an adaptive Runge-Kutta method (DOP853,
+rtol 1e-10) piece by piece between thrust discontinuities and evaluates ``f`` exactly from
+the state at the sample times (never by differencing).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from casep.units import G0
+
+__all__ = ["Stage", "Vehicle", "PitchProgramme", "YawManoeuvre", "BoostTrajectory", "simulate_boost",
+           "atmosphere", "DEFAULT_VEHICLE", "MU_EARTH", "R_EARTH"]
+
+MU_EARTH = 3.986004418e14  # m^3/s^2
+R_EARTH = 6_371_000.0  # m
+_R_AIR = 287.05287  # J/(kg K)
+
+# U.S. Standard Atmosphere 1976: base geopotential height (m), lapse rate (K/m).
+_H_BASE = np.array([0.0, 11_000.0, 20_000.0, 32_000.0, 47_000.0, 51_000.0, 71_000.0, 84_852.0])
+_LAPSE = np.array([-0.0065, 0.0, 0.001, 0.0028, 0.0, -0.0028, -0.002])
+_T_BASE = np.empty(8)
+_P_BASE = np.empty(8)
+_T_BASE[0], _P_BASE[0] = 288.15, 101_325.0
+for _i in range(7):
+    _dh = _H_BASE[_i + 1] - _H_BASE[_i]
+    _T_BASE[_i + 1] = _T_BASE[_i] + _LAPSE[_i] * _dh
+    if _LAPSE[_i] == 0.0:
+        _P_BASE[_i + 1] = _P_BASE[_i] * math.exp(-G0 * _dh / (_R_AIR * _T_BASE[_i]))
+    else:
+        _P_BASE[_i + 1] = _P_BASE[_i] * (_T_BASE[_i + 1] / _T_BASE[_i]) ** (-G0 / (_LAPSE[_i] * _R_AIR))
+
+_MACH = np.array([0.0, 0.8, 1.1, 1.5, 2.0, 3.0, 5.0, 10.0])
+_CA = np.array([0.30, 0.32, 0.55, 0.48, 0.40, 0.32, 0.25, 0.25])
+
+
+def atmosphere(h: float) -> tuple[float, float]:
+    """Density (kg/m^3) and speed of sound (m/s) at geometric altitude `h` (m)."""
+    hg = R_EARTH * h / (R_EARTH + h)  # geopotential height
+    if hg < 0.0:
+        hg = 0.0
+    if hg >= _H_BASE[-1]:
+        T = _T_BASE[-1]
+        rho_top = _P_BASE[-1] / (_R_AIR * T)
+        return rho_top * math.exp(-(hg - _H_BASE[-1]) * G0 / (_R_AIR * T)), math.sqrt(1.4 * _R_AIR * T)
+    i = int(np.searchsorted(_H_BASE, hg, side="right") - 1)
+    L, Tb, Pb = _LAPSE[i], _T_BASE[i], _P_BASE[i]
+    T = Tb + L * (hg - _H_BASE[i])
+    if L == 0.0:
+        P = Pb * math.exp(-G0 * (hg - _H_BASE[i]) / (_R_AIR * Tb))
+    else:
+        P = Pb * (T / Tb) ** (-G0 / (L * _R_AIR))
+    return P / (_R_AIR * T), math.sqrt(1.4 * _R_AIR * T)
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage. Thrust N, Isp s, burn s (ignition ramp to end of tail-off), dry mass kg
+    dropped at burnout, ramps s, coast s after burnout (before the next ignition)."""
+
+    thrust: float
+    isp: float
+    burn: float
+    dry_mass: float
+    ignition: float = 0.5
+    tail_off: float = 2.0
+    coast: float = 0.0
+
+
+@dataclass(frozen=True)
+class PitchProgramme:
+    """Vertical rise (s), pitch-over kick rate (deg/s) and length (s), AoA decay (s)."""
+
+    vertical: float = 8.0
+    kick_rate: float = 1.0
+    kick: float = 6.0
+    tau: float = 6.0
+
+
+@dataclass(frozen=True)
+class YawManoeuvre:
+    """``psi(t) = amplitude sin(2 pi (t - start) / period)`` (deg) for start <= t <= end."""
+
+    amplitude: float = 2.0
+    period: float = 80.0
+    start: float = 20.0
+    end: float = 180.0
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """Lift-off mass kg (all stages and payload), reference area m^2, stages in order."""
+
+    liftoff_mass: float
+    area: float
+    stages: tuple[Stage, ...]
+    pitch: PitchProgramme = field(default_factory=PitchProgramme)
+    yaw: YawManoeuvre | None = None
+
+    def __post_init__(self) -> None:
+        if not self.stages:
+            raise ValueError("`stages` is empty")
+        for k, s in enumerate(self.stages):
+            for name in ("thrust", "isp", "burn"):
+                v = getattr(s, name)
+                if not np.isfinite(v) or v <= 0:
+                    raise ValueError(f"stage {k + 1} `{name}` must be finite and > 0, got {v}")
+            if s.ignition + s.tail_off > s.burn:
+                raise ValueError(f"stage {k + 1}: `ignition` + `tail_off` exceed `burn`")
+        if self.liftoff_mass <= sum(s.dry_mass for s in self.stages):
+            raise ValueError("`liftoff_mass` must exceed the sum of the stages' dry masses")
+
+    def to_dict(self) -> dict:
+        """Plain-dict form for the truth sidecar."""
+        return asdict(self)
+
+
+#: Two-stage vehicle of the built-in scenarios (measured with ``simulate_boost``, 100 Hz):
+#: 1.78 g at lift-off, 5.24 g before stage-1 tail-off (98 s), 5-s coast, 5.0 g before stage-2
+#: tail-off;
+#: 195 s powered flight; burnout 4.13 km/s at 195 km altitude, flight-path angle 25 deg.
+DEFAULT_VEHICLE = Vehicle(
+    liftoff_mass=40_000.0,
+    area=2.0,
+    stages=(
+        Stage(thrust=700_000.0, isp=265.0, burn=100.0, dry_mass=3_100.0, ignition=0.0, tail_off=2.0, coast=5.0),
+        Stage(thrust=200_000.0, isp=290.0, burn=90.0, dry_mass=0.0, ignition=0.5, tail_off=2.0, coast=0.0),
+    ),
+    pitch=PitchProgramme(vertical=8.0, kick_rate=1.6, kick=8.0, tau=6.0),
+)
+
+
+@dataclass(frozen=True)
+class BoostTrajectory:
+    """Sampled boost trajectory.
+
+    Attributes
+    ----------
+    t : (N,) s; position, velocity : (N, 3) m, m/s (launch-inertial); specific_force :
+    (N, 3) m/s^2 as the platform senses it; mass : (N,) kg; altitude : (N,) m;
+    events : dict of event name -> time (s); vehicle : Vehicle.
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    specific_force: np.ndarray
+    mass: np.ndarray
+    altitude: np.ndarray
+    events: dict
+    vehicle: Vehicle
+    _segments: list = field(repr=False, compare=False, default_factory=list)
+
+    def sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """True position and velocity at arbitrary `times` within the flight (dense output)."""
+        times = np.asarray(times, dtype=float)
+        pos = np.empty((times.size, 3))
+        vel = np.empty((times.size, 3))
+        done = np.zeros(times.size, dtype=bool)
+        for t0, t1, sol in self._segments:
+            sel = (times >= t0) & (times <= t1) & ~done
+            if np.any(sel):
+                x = sol(times[sel])
+                pos[sel], vel[sel] = x[0:3].T, x[3:6].T
+                done |= sel
+        if not np.all(done):
+            bad = times[~done][0]
+            raise ValueError(f"`times` contains {bad} s, outside the flight [{self.t[0]}, {self.t[-1]}] s")
+        return pos, vel
+
+    def summary(self) -> dict:
+        """Burnout speed, altitude, flight-path angle and specific-force figures."""
+        g = np.linalg.norm(self.specific_force, axis=1) / G0
+        v = self.velocity[-1]
+        return {
+            "duration_s": float(self.t[-1] - self.t[0]),
+            "burnout_speed_m_s": float(np.linalg.norm(v)),
+            "burnout_altitude_m": float(self.altitude[-1]),
+            "burnout_flight_path_deg": float(np.degrees(np.arctan2(v[1], math.hypot(v[0], v[2])))),
+            "downrange_m": float(self.position[-1, 0]),
+            "crossrange_m": float(self.position[-1, 2]),
+            "liftoff_specific_force_g": float(g[0]),
+            "max_specific_force_g": float(g.max()),
+            "events_s": dict(self.events),
+        }
+
+
+def _thrust_profile(vehicle: Vehicle):
+    """Piecewise thrust schedule: list of (t_start, t_end, stage index, kind)."""
+    pieces, events, t = [], {}, 0.0
+    for k, s in enumerate(vehicle.stages):
+        n = k + 1
+        events[f"stage{n}_ignition"] = t
+        t_full, t_tail, t_end = t + s.ignition, t + s.burn - s.tail_off, t + s.burn
+        if s.ignition > 0:
+            pieces.append((t, t_full, k, "ramp_up"))
+        pieces.append((t_full, t_tail, k, "full"))
+        if s.tail_off > 0:
+            pieces.append((t_tail, t_end, k, "tail_off"))
+        events[f"stage{n}_burnout"] = t_end
+        if s.coast > 0 and k + 1 < len(vehicle.stages):
+            pieces.append((t_end, t_end + s.coast, k, "coast"))
+            t = t_end + s.coast
+        else:
+            t = t_end
+    return pieces, events
+
+
+def _thrust(stage: Stage, kind: str, t: float, t0: float, t1: float) -> float:
+    if kind == "full":
+        return stage.thrust
+    if kind == "ramp_up":
+        return stage.thrust * (t - t0) / (t1 - t0)
+    if kind == "tail_off":
+        return stage.thrust * (t1 - t) / (t1 - t0)
+    return 0.0
+
+
+def _attitude(vehicle: Vehicle, t: float, v: np.ndarray, state: dict) -> np.ndarray:
+    p = vehicle.pitch
+    half_pi = 0.5 * math.pi
+    t_kick_end = p.vertical + p.kick
+    if t < p.vertical:
+        theta = half_pi
+    elif t < t_kick_end:
+        theta = half_pi - math.radians(p.kick_rate) * (t - p.vertical)
+    else:
+        theta_v = math.atan2(v[1], v[0])  # in-plane velocity pitch
+        theta = theta_v + state["aoa0"] * math.exp(-(t - t_kick_end) / p.tau)
+    psi = 0.0
+    y = vehicle.yaw
+    if y is not None and y.start <= t <= y.end:
+        psi = math.radians(y.amplitude) * math.sin(2.0 * math.pi * (t - y.start) / y.period)
+    cp = math.cos(psi)
+    return np.array([cp * math.cos(theta), cp * math.sin(theta), math.sin(psi)])
+
+
+def _forces(vehicle, stage, kind, t, t0, t1, x, state):
+    """Specific force (m/s^2, sensed), gravity (m/s^2) and mass flow (kg/s)."""
+    pos, vel, m = x[0:3], x[3:6], x[6]
+    r = pos + np.array([0.0, R_EARTH, 0.0])
+    rn = math.sqrt(r @ r)
+    grav = -MU_EARTH * r / rn**3
+    h = rn - R_EARTH
+    rho, a = atmosphere(h)
+    speed = math.sqrt(vel @ vel)
+    ca = float(np.interp(speed / a, _MACH, _CA))
+    drag = 0.5 * rho * speed**2 * vehicle.area * ca  # axial drag, N
+    T = _thrust(stage, kind, t, t0, t1)
+    e_b = _attitude(vehicle, t, vel, state)
+    f = (T - drag) / m * e_b  # f = (T - D) e_b / m: gravity is not sensed
+    return f, grav, -T / (stage.isp * G0)
+
+
+def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0) -> BoostTrajectory:
+    """Fly `vehicle` through its powered flight and sample it at `rate` Hz.
+
+    Parameters
+    ----------
+    vehicle : Vehicle, optional
+        Stages, mass, pitch programme, optional yaw manoeuvre.
+    rate : float, optional
+        Sample rate, Hz (samples at ``k / rate`` from lift-off to the last burnout).
+
+    Returns
+    -------
+    BoostTrajectory
+    """
+    from scipy.integrate import solve_ivp  # here, not at import: the CLI and separate() never need it
+
+    if not isinstance(vehicle, Vehicle):
+        raise TypeError(f"`vehicle` must be a Vehicle, got {type(vehicle).__name__}")
+    if not np.isfinite(rate) or rate <= 0:
+        raise ValueError(f"`rate` must be finite and > 0 Hz, got {rate}")
+    pieces, events = _thrust_profile(vehicle)
+    t_final = pieces[-1][1]
+    n = int(math.floor(t_final * rate + 1e-9)) + 1
+    t_out = np.arange(n) / rate
+    x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, vehicle.liftoff_mass])
+    state = {"aoa0": 0.0}
+    p = vehicle.pitch
+    t_kick_end = p.vertical + p.kick
+    pos, vel, f_out, mass = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n))
+    segments = []
+    # Split pieces further at the end of the kick (attitude law switches there).
+    cuts = []
+    for t0, t1, k, kind in pieces:
+        if t0 < t_kick_end < t1:
+            cuts += [(t0, t_kick_end, k, kind), (t_kick_end, t1, k, kind)]
+        else:
+            cuts.append((t0, t1, k, kind))
+    dropped: set[int] = set()
+    for t0, t1, k, kind in cuts:
+        stage = vehicle.stages[k]
+        for j in range(k + (kind == "coast")):
+            if j not in dropped:  # separation: the spent stage's dry mass goes at its burnout
+                x[6] -= vehicle.stages[j].dry_mass
+                dropped.add(j)
+        if abs(t0 - t_kick_end) < 1e-12:
+            v = x[3:6]
+            theta_kick = 0.5 * math.pi - math.radians(p.kick_rate) * p.kick
+            state["aoa0"] = theta_kick - math.atan2(v[1], v[0])
+
+        def rhs(t, y, stage=stage, kind=kind, t0=t0, t1=t1):
+            f, grav, mdot = _forces(vehicle, stage, kind, t, t0, t1, y, state)
+            return np.concatenate([y[3:6], f + grav, [mdot]])
+
+        sol = solve_ivp(rhs, (t0, t1), x, method="DOP853", rtol=1e-10, atol=1e-8, dense_output=True)
+        if not sol.success:  # pragma: no cover - DOP853 on a smooth piece
+            raise RuntimeError(f"trajectory integration failed on [{t0}, {t1}] s: {sol.message}")
+        segments.append((t0, t1, sol.sol))
+        last = cuts[-1][1] == t1
+        sel = (t_out >= t0) & ((t_out < t1) | (last & (t_out <= t1 + 1e-9)))
+        idx = np.flatnonzero(sel)
+        ys = sol.sol(np.minimum(t_out[idx], t1))
+        for i, y in zip(idx, ys.T):
+            f_out[i] = _forces(vehicle, stage, kind, t_out[i], t0, t1, y, state)[0]
+        pos[idx], vel[idx], mass[idx] = ys[0:3].T, ys[3:6].T, ys[6]
+        x = sol.y[:, -1].copy()
+    r = pos + np.array([0.0, R_EARTH, 0.0])
+    alt = np.linalg.norm(r, axis=1) - R_EARTH
+    out = BoostTrajectory(t=t_out, position=pos, velocity=vel, specific_force=f_out, mass=mass, altitude=alt,
+                          events=events, vehicle=vehicle, _segments=segments)
+    if not (np.all(np.isfinite(f_out)) and np.all(np.isfinite(pos))):  # pragma: no cover
+        raise RuntimeError("trajectory produced non-finite values")
+    return out

@@ -1,0 +1,214 @@
+"""``casep demo``: the paper's scenario end to end (Table 1, Figures 3-4, and what they mean).
+
+Simulates the ``paper`` scenario and separates it with LS, RLS (p0 = 1e6, as the paper),
+RELS (n_c = 1), wavelet + RELS (the paper's proposed method: sym8, symmetric extension,
+universal soft threshold), ridge (GCV), bounded least squares (box = +- the spec-sheet
+magnitude of each coefficient, :func:`casep.simulation.paper.demo_bounds`) and MAP (a
+ground-calibration-like prior, :func:`casep.simulation.paper.demo_prior`). Prints Table 1 in the
+paper's layout with the Cramer-Rao std, and with an output folder writes the figures and
+a self-contained Markdown report.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from casep.analysis.diagnostics import Diagnostics, diagnose
+from casep.exceptions import IllConditionedWarning
+from casep.simulation.paper import demo_bounds, demo_prior
+from casep.estimators.result import EstimateResult
+from casep.workflows.separate import separate
+from casep.simulation.simulate import SimulatedFlight, simulate_flight
+from casep.model.sv import build_sv
+
+__all__ = ["DemoResult", "run_demo", "DEMO_METHODS"]
+
+#: (column label, method, options) of the demo, in table order.
+DEMO_METHODS = (
+    ("LS", "ols", {}),
+    ("RLS", "rls", {}),
+    ("RELS", "rels", {"noise_order": 1}),
+    ("wavelet+RELS", "rels", {"noise_order": 1, "denoise": "wavelet"}),
+    ("ridge", "ridge", {"lam": "gcv"}),
+    ("bounded", "bounded", {}),
+    ("MAP", "map", {}),
+)
+
+
+@dataclass(frozen=True)
+class DemoResult:
+    """Everything the demo computed."""
+
+    sim: SimulatedFlight
+    results: dict[str, EstimateResult]
+    diagnostics: Diagnostics
+    table: str
+    files: tuple[Path, ...] = ()
+
+
+def _fmt(v: float) -> str:
+    if not np.isfinite(v):
+        return "-"
+    return f"{v:.4g}"
+
+
+def _table(sim: SimulatedFlight, results: dict[str, EstimateResult], crlb: np.ndarray, markdown: bool) -> str:
+    labels = list(results)
+    head = ["coefficient", "unit", "true"] + labels + ["CRLB std"]
+    rows = []
+    for j, (n, u) in enumerate(zip(sim.model.names, sim.model.units)):
+        rows.append([n, u, _fmt(sim.truth[j])] + [_fmt(results[k].estimate[j]) for k in labels] + [_fmt(crlb[j])])
+    if markdown:
+        out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        out += ["| " + " | ".join(r) + " |" for r in rows]
+        return "\n".join(out)
+    widths = [max(len(r[i]) for r in rows + [head]) for i in range(len(head))]
+    line = lambda r: "  ".join(c.ljust(w) if i < 2 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths)))  # noqa: E731
+    return "\n".join([line(head), "  ".join("-" * w for w in widths)] + [line(r) for r in rows])
+
+
+def _summary_lines(sim, results, crlb) -> list[str]:
+    lines = []
+    for label, r in results.items():
+        z = np.abs(r.estimate - sim.truth) / crlb
+        rms = r.residual_rms
+        lines.append(f"{label:<13} residual RMS x {rms['x']:.3g} y {rms['y']:.3g} z {rms['z']:.3g} m/s; "
+                     f"median |error|/CRLB {np.nanmedian(z):.2f}; within 2 CRLB std: "
+                     f"{int(np.sum(z <= 2))}/{z.size}")
+    return lines
+
+
+def _figures(out: Path, sim, results, diag, crlb) -> list[Path]:
+    from casep.reporting.plots import _pyplot, _save, plot_singular_values
+
+    plt = _pyplot()
+    t = sim.flight.t
+    files = []
+    for fname, label, title in (("fig3_residuals_ls.png", "LS", "Figure 3 analogue: velocity residuals of LS"),
+                                ("fig4_residuals_wavelet_rels.png", "wavelet+RELS",
+                                 "Figure 4 analogue: residuals of wavelet+RELS (w.r.t. the de-noised dv)")):
+        r = results[label].residuals
+        fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True)
+        for i, ax in enumerate(axes):
+            ax.plot(t, r[:, i], lw=0.5)
+            ax.set_ylabel(f"{'xyz'[i]} (m/s)")
+            ax.grid(alpha=0.3)
+        axes[0].set_title(title, fontsize=10)
+        axes[-1].set_xlabel("time (s)")
+        files.append(_save(fig, out / fname))
+    fig, ax = plt.subplots(figsize=(11, 4.5))
+    x = np.arange(len(sim.model.names))
+    for k, (label, r) in enumerate(results.items()):
+        ax.semilogy(x + (k - 3) * 0.08, np.abs(r.estimate - sim.truth) / crlb, "o", ms=3, label=label)
+    ax.axhline(1.0, color="k", lw=1, ls="--")
+    ax.axhline(2.0, color="k", lw=0.8, ls=":")
+    ax.set_xticks(x, sim.model.names, rotation=90, fontsize=7)
+    ax.set_ylabel("|estimate - true| / CRLB std")
+    ax.set_title("Error of each coefficient against its Cramer-Rao std (one flight)")
+    ax.legend(fontsize=7, ncol=4)
+    ax.grid(True, which="both", alpha=0.3)
+    files.append(_save(fig, out / "coefficient_errors.png"))
+    rels = results["RELS"]
+    H = rels.history[:, : len(sim.model.names)]
+    stride = rels.settings["history_stride"]
+    th = t[np.arange(H.shape[0]) * stride]
+    best = np.argsort(crlb / np.maximum(np.abs(sim.truth), 1e-300))[:6]
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for j in best:
+        ax.plot(th, (H[:, j] - sim.truth[j]) / crlb[j], lw=1, label=sim.model.names[j])
+    ax.axhspan(-2, 2, color="0.9", zorder=0)
+    ax.set_ylim(-10, 10)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("(estimate - true) / final CRLB std")
+    ax.set_title("RELS convergence of the six best-determined coefficients")
+    ax.legend(fontsize=8, ncol=3)
+    ax.grid(alpha=0.3)
+    files.append(_save(fig, out / "rels_convergence.png"))
+    files.append(plot_singular_values(diag, out / "singular_values.png"))
+    return files
+
+
+def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float = 100.0) -> DemoResult:
+    """Run the demo; write figures and ``report.md`` to `out` when given.
+
+    Parameters
+    ----------
+    out : path, optional
+        Output folder (created if missing).
+    seed : int, optional
+        Noise seed of the simulated flight.
+    rate : float, optional
+        Sample rate, Hz (the paper scenario uses 100).
+    """
+    sim = simulate_flight("paper", seed=seed, rate=rate)
+    model = sim.model
+    extra = {"bounded": {"bounds": demo_bounds(model.names)}, "map": {"prior": demo_prior(model.names)}}
+    results: dict[str, EstimateResult] = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)  # reported once, through the diagnostics
+        for label, method, opts in DEMO_METHODS:
+            results[label] = separate(sim.flight, model, method, **opts, **extra.get(method, {}))
+    S = build_sv(model, sim.flight.t, sim.flight.f)
+    diag = diagnose(S, sim.flight.dv, names=model.names, units=model.units, sigma=sim.scenario.noise.sigma,
+                    scales=model.scales)
+    crlb = diag.crlb_std
+    table = _table(sim, results, crlb, markdown=False)
+    files: list[Path] = []
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        files = _figures(out, sim, results, diag, crlb)
+        files.append(_write_report(out, sim, results, diag, crlb, files))
+    return DemoResult(sim=sim, results=results, diagnostics=diag, table=table, files=tuple(files))
+
+
+def _write_report(out: Path, sim, results, diag, crlb, figures: list[Path]) -> Path:
+    from casep.io._atomic import atomic_open
+
+    s = sim.trajectory.summary()
+    ce = diag.condition_number_equilibrated
+    lines = [
+        "# casep demo: the paper's scenario",
+        "",
+        f"Simulated `paper` scenario (seed {sim.seed}, {sim.flight.n_samples} samples at {sim.scenario.rate:g} Hz): "
+        f"{s['duration_s']:.0f} s powered flight, burnout {s['burnout_speed_m_s'] / 1e3:.2f} km/s at "
+        f"{s['burnout_altitude_m'] / 1e3:.0f} km; Table 1 coefficients; white tracking noise 0.1 m/s; "
+        f"yaw manoeuvre of 2 deg. Equilibrated condition number {ce:.3g}; "
+        f"{sum(v == 'identifiable' for v in diag.identifiability.values())} of {len(diag.names)} coefficients "
+        "identifiable alone at this noise level (CRLB std below their Table 1 magnitude).",
+        "",
+        "Methods: LS; RLS with P0 = 1e6 I (the paper's); RELS with an MA(1) noise model; wavelet + RELS "
+        "(sym8, symmetric extension, universal soft threshold: the paper's proposal); ridge with GCV; "
+        "bounded least squares with each coefficient within +- its spec-sheet magnitude; MAP with a "
+        "ground-calibration-like prior (std half the spec magnitude, mean off the truth by half a std).",
+        "",
+        "## Table 1",
+        "",
+        _table(sim, results, crlb, markdown=True),
+        "",
+        "## What the columns say",
+        "",
+    ]
+    lines += ["- " + ln for ln in _summary_lines(sim, results, crlb)]
+    lines += [
+        "",
+        "The residuals of wavelet + RELS are small (Figure 4 analogue) because they are taken against the "
+        "de-noised data; that says nothing about the coefficients. RLS/RELS look better than LS on the badly "
+        "determined coefficients because P0 = 1e6 I is a prior in natural units, not because of the recursion "
+        "(see the README's Monte Carlo tables). Single-flight errors scatter: judge methods by "
+        "`casep montecarlo`.",
+        "",
+        "## Figures",
+        "",
+    ]
+    lines += [f"![{p.stem}]({p.name})" for p in figures]
+    lines += ["", "Re-run: `casep demo --out DIR` (seed and rate: `--seed`, `--rate`).", ""]
+    path = out / "report.md"
+    with atomic_open(path) as fh:
+        fh.write("\n".join(lines))
+    return path
