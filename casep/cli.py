@@ -33,7 +33,7 @@ from casep.workflows.montecarlo import METHOD_HELP
 from casep.io._atomic import check_outputs
 from casep.estimators.result import write_csv, write_json_atomic, write_mat
 from casep.analysis.diagnostics import diagnose
-from casep.io.files import read_flight, read_flight_pair
+from casep.io.files import read_flight, read_flight_pair, read_json_table
 from casep.simulation.scenarios import SCENARIOS, get_scenario
 from casep.estimators.registry import OPTIONS, check_method_options
 from casep.workflows.separate import METHODS, regression_rows, separate
@@ -102,19 +102,6 @@ def _order(text: str) -> int:
     return v
 
 
-def _load_json(path: str, option: str) -> dict:
-    try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
-    except OSError as exc:
-        raise ValueError(f"{option} {path}: cannot read ({exc.strerror})") from None
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{option} {path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"{option} {path}: must hold a JSON object keyed by coefficient name")
-    return data
-
-
 def _read(args: argparse.Namespace):
     """The flight of a command: one file, or telemetry + `--tracking`."""
     return read_flight_pair(args.flight, args.tracking) if args.tracking else read_flight(args.flight)
@@ -128,7 +115,7 @@ def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | No
     path = getattr(args, option)
     if not path:
         return None
-    data = _load_json(path, f"--{option}")
+    data = read_json_table(path, f"--{option}")
     _COEFFICIENT_FILES[option](data, names, source=f"--{option} {path}")
     return data
 
@@ -243,8 +230,6 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     opts = {k: v for k, v in given.items() if k not in ("bounds", "prior")}
     bounds = _coefficient_file(args, "bounds", model.names)
     prior = _coefficient_file(args, "prior", model.names)
-    if args.method == "rels" and opts.get("noise_order", 1) < 1:
-        raise ValueError(f"--noise-order must be >= 1 for rels, got {opts['noise_order']}")
     wopts = {k: v for k, v in (("wavelet", args.wavelet), ("level", args.level), ("rule", args.threshold_rule),
                                 ("mode", args.threshold_mode), ("extension", args.extension),
                                 ("scaling", args.noise_scaling)) if v is not None}
@@ -317,7 +302,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     prior_std = None if prior is None else parse_prior(prior, model.names)[1]
     scales = None
     if args.scales:
-        scales = _load_json(args.scales, "--scales")
+        scales = read_json_table(args.scales, "--scales")
         for k, v in scales.items():
             if k not in model.names:
                 raise ValueError(unknown_coefficient_message(k, model.names, f"--scales {args.scales}"))
@@ -409,7 +394,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.truth:  # {"Kg0x": v, ...} or a sidecar {"coefficients": {...}}, checked against the model
         from casep.simulation.simulate import _truth_vector
 
-        truth = _load_json(args.truth, "--truth")
+        truth = read_json_table(args.truth, "--truth")
         truth = truth["coefficients"] if isinstance(truth.get("coefficients"), dict) else truth
         _truth_vector(load_model(args.model or get_scenario(args.scenario).model), truth, f"--truth {args.truth}")
     sim = simulate_flight(args.scenario, seed=args.seed, rate=args.rate, model=args.model, truth=truth)

@@ -179,7 +179,7 @@ def test_missing_required_option_files(good_csv, capsys):
     assert main(["separate", str(good_csv), "--method", "bounded"]) == 2
     assert "`bounds` is required" in capsys.readouterr().err
     assert main(["separate", str(good_csv), "--method", "rels", "--noise-order", "0"]) == 2
-    assert "--noise-order must be >= 1 for rels" in capsys.readouterr().err
+    assert "option `noise_order` (--noise-order) of method `rels` must be int >= 1, got 0" in capsys.readouterr().err
 
 
 # --- issue 17, defect 11: option values are finite and in a plausible range -----------------------

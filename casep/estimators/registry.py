@@ -14,23 +14,151 @@ conditional; see :data:`casep.estimators.result.STD_KINDS`).
 
 from __future__ import annotations
 
+import math
+import os
 from dataclasses import dataclass
 from typing import Any, Mapping
 
+import numpy as np
+
 from casep.estimators.result import STD_KINDS
 
-__all__ = ["Option", "Method", "OPTIONS", "METHODS", "check_method_options", "describe", "run_method"]
+__all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Method", "OPTIONS", "METHODS", "check_method_options", "describe", "run_method"]
+
+
+class Rule:
+    """A declared rule an option value must satisfy (scikit-learn's ``_parameter_constraints`` idea).
+
+    ``accepts(value)`` for Python values; ``parse(text)`` for command-line text (ValueError if
+    the text is not of the rule's kind); ``str(rule)`` is how the rule reads in messages and
+    ``casep methods``.
+    """
+
+    def accepts(self, value: Any) -> bool:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def parse(self, text: str) -> Any:  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class Interval(Rule):
+    """A finite int or float in an interval; ``closed`` in {"both", "left", "right", "neither"}."""
+
+    kind: type
+    low: float | None
+    high: float | None = None
+    closed: str = "both"
+    unit: str = ""
+
+    def accepts(self, value: Any) -> bool:
+        if isinstance(value, bool):
+            return False
+        if self.kind is int:
+            if not isinstance(value, (int, np.integer)):
+                return False
+        elif not isinstance(value, (int, float, np.integer, np.floating)):
+            return False
+        v = float(value)
+        if not math.isfinite(v):
+            return False
+        lo_ok = self.low is None or (v >= self.low if self.closed in ("both", "left") else v > self.low)
+        hi_ok = self.high is None or (v <= self.high if self.closed in ("both", "right") else v < self.high)
+        return lo_ok and hi_ok
+
+    def parse(self, text: str) -> Any:
+        try:
+            return int(text) if self.kind is int else float(text)
+        except ValueError:
+            raise ValueError(f"not {'an integer' if self.kind is int else 'a number'}: {text!r}") from None
+
+    def __str__(self) -> str:
+        name = self.kind.__name__
+        unit = f" {self.unit}" if self.unit else ""
+        if self.high is None:
+            return f"{name} {'>=' if self.closed in ('both', 'left') else '>'} {self.low:g}{unit}"
+        lb = "[" if self.closed in ("both", "left") else "("
+        rb = "]" if self.closed in ("both", "right") else ")"
+        return f"{name} in {lb}{self.low:g}, {self.high:g}{rb}{unit}"
+
+
+@dataclass(frozen=True)
+class Choices(Rule):
+    """One of a few strings."""
+
+    values: tuple[str, ...]
+
+    def accepts(self, value: Any) -> bool:
+        return isinstance(value, str) and value in self.values
+
+    def parse(self, text: str) -> Any:
+        if text not in self.values:
+            raise ValueError(f"not one of {', '.join(self.values)}: {text!r}")
+        return text
+
+    def __str__(self) -> str:
+        return " | ".join(self.values)
+
+
+@dataclass(frozen=True)
+class CoefficientTable(Rule):
+    """A mapping keyed by coefficient name (in the API) or a JSON file of one (on the command line).
+
+    The entries are checked against the model's coefficients by the solver's parser
+    (:func:`casep.estimators.bounded.parse_bounds`, :func:`casep.estimators.map.parse_prior`),
+    which is the only place that knows the names.
+    """
+
+    form: str
+
+    def accepts(self, value: Any) -> bool:
+        return isinstance(value, (Mapping, str, os.PathLike))  # a table, or its JSON file
+
+    def parse(self, text: str) -> Any:
+        return text  # a path: the command line reads and checks the file
+
+    def __str__(self) -> str:
+        return f"JSON file {self.form}"
 
 
 @dataclass(frozen=True)
 class Option:
-    """One method option: keyword of :func:`casep.separate`, CLI flag, default and rule."""
+    """One method option: keyword of :func:`casep.separate`, CLI flag, default, rules.
+
+    A value is valid when one of `rules` accepts it (``None`` means "the default").
+    """
 
     name: str
     flag: str
     default: Any
-    rule: str
+    rules: tuple[Rule, ...]
     help: str
+
+    @property
+    def rule(self) -> str:
+        """The rules as text, e.g. ``gcv | lcurve | float > 0``."""
+        return " | ".join(str(r) for r in self.rules)
+
+    def validate(self, value: Any, method: str | None = None) -> Any:
+        """`value` if a rule accepts it, else ValueError naming the option (and method)."""
+        if value is None or any(r.accepts(value) for r in self.rules):
+            return value
+        of = f" of method `{method}`" if method else ""
+        raise ValueError(f"option `{self.name}` ({self.flag}){of} must be {self.rule}, got {value!r}")
+
+    def parse(self, text: str) -> Any:
+        """Command-line text -> a valid value (ValueError naming the rule otherwise)."""
+        errors = []
+        for r in self.rules:
+            try:
+                v = r.parse(text)
+            except ValueError as exc:
+                errors.append(str(exc))
+                continue
+            if r.accepts(v) or isinstance(r, CoefficientTable):
+                return v
+            errors.append(f"{text} is outside {r}")
+        raise ValueError(f"{self.flag} must be {self.rule}, got {text!r}")
 
 
 @dataclass(frozen=True)
@@ -55,15 +183,19 @@ class Method:
 
 #: Method-specific options (``sigma`` and the de-noising options apply to every method).
 OPTIONS: dict[str, Option] = {o.name: o for o in (
-    Option("p0", "--p0", 1e6, "float in (0, 1e30]", "P0 = p0 I, natural units (a prior variance)"),
-    Option("weight", "--weight", 1.0, "float in [1e-12, 1e12]", "measurement weight w (variance 1/w)"),
-    Option("forgetting", "--forgetting", 1.0, "float in (0, 1]", "forgetting factor (stabilized)"),
-    Option("noise_order", "--noise-order", 1, "int >= 1", "MA order of the noise model"),
-    Option("lam", "--lambda", "gcv", "gcv | lcurve | float > 0", "ridge parameter on unit-norm columns, or its rule"),
-    Option("bounds", "--bounds", None, "JSON file {name: [lo, hi] | value}", "box bounds and fixed values"),
-    Option("prior", "--prior", None, "JSON file {name: {mean, std}}", "Gaussian prior per coefficient"),
-    Option("n_components", "--components", None, "int >= 1", "principal components kept (default: CI <= 1000)"),
-    Option("tau", "--tau", "auto", "auto | float in (0, 1e4] s", "Gauss-Markov correlation time (auto: REML)"),
+    # Ranges as casep.estimators._base.OPTION_RANGES (the solvers' own checks), with the reasons there.
+    Option("p0", "--p0", 1e6, (Interval(float, 0, 1e30, "right"),), "P0 = p0 I, natural units (a prior variance)"),
+    Option("weight", "--weight", 1.0, (Interval(float, 1e-12, 1e12),), "measurement weight w (variance 1/w)"),
+    Option("forgetting", "--forgetting", 1.0, (Interval(float, 0, 1, "right"),), "forgetting factor (stabilized)"),
+    Option("noise_order", "--noise-order", 1, (Interval(int, 1),), "MA order of the noise model"),
+    Option("lam", "--lambda", "gcv", (Choices(("gcv", "lcurve")), Interval(float, 0, None, "neither")),
+           "ridge parameter on unit-norm columns, or its rule"),
+    Option("bounds", "--bounds", None, (CoefficientTable("{name: [lo, hi] | value}"),), "box bounds and fixed values"),
+    Option("prior", "--prior", None, (CoefficientTable("{name: {mean, std}}"),), "Gaussian prior per coefficient"),
+    Option("n_components", "--components", None, (Interval(int, 1),),
+           "principal components kept (default: CI <= 1000)"),
+    Option("tau", "--tau", "auto", (Choices(("auto",)), Interval(float, 0, 1e4, "right", "s")),
+           "Gauss-Markov correlation time (auto: REML)"),
 )}
 
 #: Every estimator, in the order of ``casep methods``.
@@ -98,7 +230,8 @@ def check_method_options(method: str, given: Mapping[str, Any]) -> None:
     Raises
     ------
     ValueError
-        Naming the option (with its CLI flag), the method, and the methods that take it.
+        Naming the option (with its CLI flag), the method, and the methods that take it; or
+        naming the option, the method and its rule when a value breaks the option's rules.
     """
     if method not in METHODS:
         raise ValueError(f"`method` must be one of {', '.join(METHODS)}, got {method!r}")
@@ -110,6 +243,8 @@ def check_method_options(method: str, given: Mapping[str, Any]) -> None:
             raise ValueError(f"option {flag} (`{name}`) is not taken by method `{method}`; it is an option of "
                              f"{', '.join(takers) or 'no method'}. Use: --method {takers[0] if takers else '...'}, "
                              "or leave the option out")
+    for name, value in given.items():
+        OPTIONS[name].validate(value, method)
     for name in m.required:
         if given.get(name) is None:
             raise ValueError(f"`{name}` is required for method `{method}`. Use: {OPTIONS[name].flag} "

@@ -26,6 +26,8 @@ atomic: a failure leaves no half-written file.
 
 from __future__ import annotations
 
+import json
+
 import os
 from pathlib import Path
 from typing import Callable
@@ -36,6 +38,7 @@ from casep.io._atomic import atomic_open
 from casep.io.flight import AXES, DV_COLUMNS, FORCE_COLUMNS, FlightData, FlightDataError, too_large
 
 __all__ = [
+    "read_json_table",
     "read_flight", "read_flight_pair", "write_flight",
     "write_table", "apparent_velocity_to_force",
 ]
@@ -385,3 +388,21 @@ def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[
     cols.update({c: flight.f[:, i] for i, c in enumerate(FORCE_COLUMNS)})
     cols.update({c: flight.dv[:, i] for i, c in enumerate(DV_COLUMNS)})
     write_table(path, cols, comments=comments)
+
+
+def read_json_table(path: str | os.PathLike, option: str) -> dict:
+    """A JSON object keyed by coefficient name (``--bounds``, ``--prior``, ``--truth``, ``--scales``).
+
+    Errors name the option and the file (``ValueError``); the entries are checked by the
+    caller, which knows the model's coefficients.
+    """
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = json.load(fh)
+    except OSError as exc:
+        raise ValueError(f"{option} {path}: cannot read ({exc.strerror})") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{option} {path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{option} {path}: must hold a JSON object keyed by coefficient name")
+    return data

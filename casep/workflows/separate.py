@@ -11,7 +11,7 @@ import numpy as np
 from casep.analysis.checks import check_fit, check_flight
 from casep.analysis.denoise import denoise as wavelet_denoise
 from casep.io.flight import FlightData, check_dv_not_zero, check_enough_samples, warn_late_start
-from casep.io.files import read_flight
+from casep.io.files import read_flight, read_json_table
 from casep.model._model import ErrorModel
 from casep.model.loader import load_model
 from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
@@ -80,10 +80,10 @@ def separate(
         RLS/RELS options (``noise_order`` only for ``rels``; default 1).
     lam : float or {"gcv", "lcurve"}
         Ridge parameter or rule.
-    bounds : mapping
-        Required for ``bounded``: ``{name: [lo, hi] | value}``, natural units.
-    prior : mapping
-        Required for ``map``: ``{name: {"mean": m, "std": s}}``, natural units.
+    bounds : mapping or path
+        Required for ``bounded``: ``{name: [lo, hi] | value}``, natural units (or its JSON file).
+    prior : mapping or path
+        Required for ``map``: ``{name: {"mean": m, "std": s}}``, natural units (or its JSON file).
     n_components, max_condition_index
         PCR truncation.
     denoise : {None, "none", "wavelet"}, optional
@@ -108,6 +108,11 @@ def separate(
                                ("noise_order", noise_order), ("lam", lam), ("bounds", bounds), ("prior", prior),
                                ("n_components", n_components), ("tau", tau)) if v != OPTIONS[k].default}
     check_method_options(method, given)
+    # A bounds or prior table may be given as its JSON file (as on the command line).
+    if isinstance(bounds, (str, os.PathLike)):
+        bounds = read_json_table(bounds, "bounds")
+    if isinstance(prior, (str, os.PathLike)):
+        prior = read_json_table(prior, "prior")
     if not isinstance(flight, FlightData):
         flight = read_flight(flight)
     model = load_model(model)
