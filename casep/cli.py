@@ -1,6 +1,12 @@
 """Command line: ``casep separate``, ``casep diagnose``, ``casep simulate``, ``casep models``.
 Thin wrappers over the public API.
 
+The method options of ``casep separate`` (and ``--prior``/``--bounds`` of ``casep montecarlo``)
+are generated from the estimator registry (:data:`casep.estimators.registry.OPTIONS`): one
+argument group per set of methods, flag, help, default and rule from the table, the rule's
+:meth:`~casep.estimators.registry.Option.parse` as the argparse type. Module level imports only
+the standard library, the version and the registry; each command imports what it needs.
+
 Exit status: 0 success, 2 bad usage or bad input (one line on stderr), 1 anything else, including
 a `separate` result that is not successful (``success`` false: table and JSON still written);
 141 (quietly, like any Unix tool ended by SIGPIPE) when the reader of stdout closes early

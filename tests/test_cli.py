@@ -406,3 +406,16 @@ def test_cli_imports_lazily():
             "print(','.join(m for m in heavy if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == ""
+
+
+@pytest.mark.parametrize("package", ["casep", "casep.estimators", "casep.analysis", "casep.model", "casep.simulation"])
+def test_lazy_public_names_resolve(package):
+    """Every name in a lazily resolved package's __all__ is importable (the tables of casep._lazy)."""
+    import importlib
+
+    mod = importlib.import_module(package)
+    for name in mod.__all__:
+        assert getattr(mod, name) is not None, name
+    assert set(mod.__all__) <= set(dir(mod))
+    with pytest.raises(AttributeError, match="no attribute 'not_a_name'"):
+        getattr(mod, "not_a_name")
