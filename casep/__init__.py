@@ -43,34 +43,35 @@ estimate), whose warnings are :class:`CasepWarning` subclasses;
 the command line ``casep`` (:mod:`casep.cli`).
 """
 
+from casep._lazy import attach
 from casep._version import __version__
 
-from casep.io.flight import FlightData, FlightDataError
-from casep.io.files import (
-    apparent_velocity_to_force,
-    read_flight,
-    read_flight_pair,
-    write_flight,
-)
-from casep.analysis.linalg import ReducedSystem, analyze_rank, reduce_qr
-from casep.model._model import ErrorModel, ModelDefinitionError
-from casep.model.loader import available_models, build_model, load_model, model_dirs
-from casep.estimators.bounded import solve_bounded
-from casep.estimators.gls import solve_gls
-from casep.estimators.huber import solve_huber
-from casep.estimators.map import solve_map
-from casep.estimators.ols import solve_ols
-from casep.estimators.pcr import solve_pcr
-from casep.estimators.ridge import solve_ridge
-from casep.estimators.rls import solve_rls
-from casep.estimators.result import EstimateResult
-from casep.workflows.separate import separate
-from casep.model.sv import SVBuilder, build_sv
-from casep.units import G0
-from casep.analysis.checks import check_fit, check_flight
-from casep.exceptions import (CasepWarning, IllConditionedWarning, NoiseFreeWarning, OutlierWarning,
-                         PlausibilityWarning, TimeOffsetWarning)
-from casep.io.flight import LateStartWarning
+# The public names are imported on first use (PEP 562), so that ``import casep.cli`` (and
+# ``casep --help``) does not pay for CasADi, numba and SciPy: module -> names it provides.
+_LAZY_MODULES: dict[str, tuple[str, ...]] = {
+    "casep.io.flight": ("FlightData", "FlightDataError", "LateStartWarning"),
+    "casep.io.files": ("apparent_velocity_to_force", "read_flight", "read_flight_pair", "write_flight"),
+    "casep.analysis.linalg": ("ReducedSystem", "analyze_rank", "reduce_qr"),
+    "casep.model._model": ("ErrorModel", "ModelDefinitionError"),
+    "casep.model.loader": ("available_models", "build_model", "load_model", "model_dirs"),
+    "casep.estimators.bounded": ("solve_bounded",),
+    "casep.estimators.gls": ("solve_gls",),
+    "casep.estimators.huber": ("solve_huber",),
+    "casep.estimators.map": ("solve_map",),
+    "casep.estimators.ols": ("solve_ols",),
+    "casep.estimators.pcr": ("solve_pcr",),
+    "casep.estimators.ridge": ("solve_ridge",),
+    "casep.estimators.rls": ("solve_rls",),
+    "casep.estimators.result": ("EstimateResult",),
+    "casep.workflows.separate": ("separate",),
+    "casep.model.sv": ("SVBuilder", "build_sv"),
+    "casep.units": ("G0",),
+    "casep.analysis.checks": ("check_fit", "check_flight"),
+    "casep.exceptions": ("CasepWarning", "IllConditionedWarning", "NoiseFreeWarning", "OutlierWarning",
+                         "PlausibilityWarning", "TimeOffsetWarning"),
+}
+__getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), (
+    "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units"))
 
 __all__ = [
     "__version__",

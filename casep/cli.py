@@ -1,6 +1,12 @@
 """Command line: ``casep separate``, ``casep diagnose``, ``casep simulate``, ``casep models``.
 Thin wrappers over the public API.
 
+The method options of ``casep separate`` (and ``--prior``/``--bounds`` of ``casep montecarlo``)
+are generated from the estimator registry (:data:`casep.estimators.registry.OPTIONS`): one
+argument group per set of methods, flag, help, default and rule from the table, the rule's
+:meth:`~casep.estimators.registry.Option.parse` as the argparse type. Module level imports only
+the standard library, the version and the registry; each command imports what it needs.
+
 Exit status: 0 success, 2 bad usage or bad input (one line on stderr), 1 anything else, including
 a `separate` result that is not successful (``success`` false: table and JSON still written);
 141 (quietly, like any Unix tool ended by SIGPIPE) when the reader of stdout closes early
@@ -21,23 +27,11 @@ from pathlib import Path
 from typing import Sequence
 
 from casep._version import __version__
-from casep.io.flight import FlightDataError
-from casep.model._model import ModelDefinitionError, unknown_coefficient_message
-from casep.estimators.bounded import parse_bounds
-from casep.estimators._base import check_positive
-from casep.analysis.denoise import EXTENSIONS, MODES, RULES, SCALINGS
+from casep.estimators.registry import METHODS, OPTIONS, CoefficientTable, Interval, Option, check_method_options
 from casep.exceptions import CasepWarning, IllConditionedWarning
-from casep.estimators.map import parse_prior
-from casep.model.loader import available_models, load_model
-from casep.workflows.montecarlo import METHOD_HELP
-from casep.io._atomic import check_outputs
-from casep.estimators.result import write_csv, write_json_atomic, write_mat
-from casep.analysis.diagnostics import diagnose
-from casep.io.files import read_flight, read_flight_pair, read_json_table
-from casep.simulation.scenarios import SCENARIOS, get_scenario
-from casep.estimators.registry import OPTIONS, check_method_options
-from casep.workflows.separate import METHODS, regression_rows, separate
-from casep.simulation.simulate import simulate_flight, write_simulation
+
+# Only the standard library, the version and the registry (light: numpy) are imported here, so
+# that building the parser and `casep --help` stay cheap; each command imports what it needs.
 
 __all__ = ["main"]
 
@@ -58,9 +52,12 @@ def _positive_float(text: str) -> float:
 
 
 def _ranged(name: str):
-    """Argparse type for the option `name` of :data:`casep.estimators._base.OPTION_RANGES`: the API's check and message."""
+    """Argparse type for the common option `name` (``sigma``) of :data:`casep.estimators._base.OPTION_RANGES`:
+    the API's check and message."""
 
     def parse(text: str) -> float:
+        from casep.estimators._base import check_positive
+
         try:
             v = float(text)
         except ValueError:
@@ -74,24 +71,6 @@ def _ranged(name: str):
     return parse
 
 
-def _lambda(text: str) -> float | str:
-    if text in ("gcv", "lcurve"):
-        return text
-    v = _positive_float(text)
-    return v
-
-
-def _tau(text: str) -> float | str:
-    return text if text == "auto" else _ranged("tau")(text)
-
-
-def _forgetting(text: str) -> float:
-    v = _positive_float(text)
-    if v > 1:
-        raise argparse.ArgumentTypeError(f"must be in (0, 1], got {text}")
-    return v
-
-
 def _order(text: str) -> int:
     try:
         v = int(text)
@@ -102,25 +81,93 @@ def _order(text: str) -> int:
     return v
 
 
+def _rule_type(option: Option, rules=None):
+    """Argparse type of a registry option: :meth:`Option.parse`, so a bad value is an error stating the rule.
+
+    `rules` restricts the option to some of its rules (``diagnose --tau`` takes a number only).
+    """
+    opt = option if rules is None else Option(option.name, option.flag, option.default, rules, option.help)
+
+    def parse(text: str):
+        try:
+            return opt.parse(text)
+        except ValueError as exc:  # "--p0 must be ...": argparse names the argument already
+            raise argparse.ArgumentTypeError(str(exc).removeprefix(f"{opt.flag} ")) from None
+
+    parse.__name__ = option.name  # argparse names the type in some messages
+    return parse
+
+
+def _metavar(option: Option) -> str:
+    """``gcv|lcurve|VALUE``, ``INT``, ``FILE``: what the rules take, for the usage line."""
+    words = []
+    for r in option.rules:
+        if isinstance(r, CoefficientTable):
+            words.append("FILE")
+        elif isinstance(r, Interval):
+            words.append("INT" if r.kind is int else "VALUE")
+        else:
+            words.extend(getattr(r, "values", ()))
+    return "|".join(words)
+
+
+def _option_help(option: Option, default: str | None = None) -> str:
+    """Help of a registry option: its help, rule and default (or "required")."""
+    required = [m for m, meth in METHODS.items() if option.name in meth.required]
+    d = option.default
+    if default is None and (d is not None or required):
+        default = "required" if d is None else f"default {d:g}" if isinstance(d, float) else f"default {d}"
+    return f"{option.help}; {option.rule}" + (f" ({default})" if default else "")
+
+
+def _method_option_groups(parser: argparse.ArgumentParser) -> None:
+    """One argument group per set of methods taking the same options, generated from the registry.
+
+    Options shared by several methods (RLS and RELS) are in one group titled by all of them
+    (``rls / rels options``); flag, help, default and rule come from
+    :data:`casep.estimators.registry.OPTIONS`; the argparse type is :meth:`Option.parse`.
+    """
+    groups: dict[tuple[str, ...], list[str]] = {}
+    for name in OPTIONS:
+        takers = tuple(m for m, meth in METHODS.items() if name in meth.options)
+        groups.setdefault(takers, []).append(name)
+    for takers, names in groups.items():
+        g = parser.add_argument_group(f"{' / '.join(takers) or 'unused'} options")
+        for name in names:
+            _add_option(g, OPTIONS[name])
+
+
+def _add_option(group, option: Option, default: str | None = None) -> None:
+    """The argument of a registry option (dest: its name; None when not given)."""
+    group.add_argument(option.flag, dest=option.name, type=_rule_type(option), default=None,
+                       metavar=_metavar(option), help=_option_help(option, default))
+
+
 def _read(args: argparse.Namespace):
     """The flight of a command: one file, or telemetry + `--tracking`."""
+    from casep.io.files import read_flight, read_flight_pair
+
     return read_flight_pair(args.flight, args.tracking) if args.tracking else read_flight(args.flight)
-
-
-_COEFFICIENT_FILES = {"bounds": parse_bounds, "prior": parse_prior}  # option -> its parser
 
 
 def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | None:
     """The `--bounds` or `--prior` file, loaded and checked against the model's coefficients."""
+    from casep.estimators.bounded import parse_bounds
+    from casep.estimators.map import parse_prior
+    from casep.io.files import read_json_table
+
     path = getattr(args, option)
     if not path:
         return None
     data = read_json_table(path, f"--{option}")
-    _COEFFICIENT_FILES[option](data, names, source=f"--{option} {path}")
+    {"bounds": parse_bounds, "prior": parse_prior}[option](data, names, source=f"--{option} {path}")
     return data
 
 
 def _parser() -> argparse.ArgumentParser:
+    from casep.analysis.denoise import EXTENSIONS, MODES, RULES, SCALINGS
+    from casep.simulation.scenarios import SCENARIOS
+
     p = _Parser(prog="casep", description="Guidance instrumentation error separation.")
     p.add_argument("--version", action="version", version=f"casep {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -130,19 +177,6 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--method", default="ols", choices=METHODS, help="estimator (default ols)")
     s.add_argument("--sigma", type=_ranged("sigma"), default=None,
                    help="noise std, m/s (default: estimated from the residuals)")
-    s.add_argument("--p0", type=_ranged("p0"), default=None,
-                   help="RLS/RELS P0 = p0 I, natural units, in (0, 1e30] (default 1e6)")
-    s.add_argument("--weight", type=_ranged("weight"), default=None,
-                   help="RLS/RELS weight w, in [1e-12, 1e12] (default 1)")
-    s.add_argument("--forgetting", type=_forgetting, default=None, help="RLS/RELS forgetting factor (default 1)")
-    s.add_argument("--noise-order", type=_order, default=None, help="RELS noise-model order (default 1)")
-    s.add_argument("--lambda", dest="lam", type=_lambda, default=None, metavar="gcv|lcurve|VALUE",
-                   help="ridge parameter for unit-norm columns, or its rule (default gcv)")
-    s.add_argument("--bounds", metavar="FILE", help='bounded: JSON {"Kg0x": [lo, hi] or value, ...}, natural units')
-    s.add_argument("--prior", metavar="FILE", help='map: JSON {"Kg0x": {"mean": m, "std": s}, ...}, natural units')
-    s.add_argument("--components", dest="n_components", type=_order, default=None, help="pcr: number of components to keep")
-    s.add_argument("--tau", type=_tau, default=None, metavar="auto|SECONDS",
-                   help="gls: Gauss-Markov correlation time, or auto (REML; default)")
     s.add_argument("--denoise", choices=("none", "wavelet"), default="none", help="de-noise dv first (default none)")
     s.add_argument("--wavelet", default=None, help="wavelet (default sym8)")
     s.add_argument("--level", type=_order, default=None, help="decomposition level (default: largest "
@@ -164,6 +198,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--tracking", metavar="FILE", default=None,
                    help="tracking file (t, v_trk_*) at its own rate; FLIGHT is then the telemetry file "
                         "(t, f_* or W_*, v_tel_*)")
+    _method_option_groups(s)
     g = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
     g.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
     g.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
@@ -179,8 +214,9 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--tracking", metavar="FILE", default=None, help="tracking file (two-file input)")
     d.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
     d.add_argument("--sigma", type=_ranged("sigma"), default=None, help="noise std, m/s (default: estimated)")
-    d.add_argument("--tau", type=_ranged("tau"), default=None,
-                   help="Gauss-Markov correlation time, s: AR(1) bound instead of white")
+    d.add_argument("--tau", type=_rule_type(OPTIONS["tau"], [r for r in OPTIONS["tau"].rules if isinstance(r, Interval)]),
+                   default=None, metavar="SECONDS", help="Gauss-Markov correlation time, s: AR(1) bound instead of "
+                   "white; " + " | ".join(str(r) for r in OPTIONS["tau"].rules if isinstance(r, Interval)))
     d.add_argument("--prior", metavar="FILE", help="prior JSON (map format): Bayesian bound and scales")
     d.add_argument("--scales", metavar="FILE", help='JSON {"Kg0x": typical magnitude, ...} for the "weak" verdict')
     d.add_argument("--json", metavar="OUT", default=None, help="write the diagnostics JSON here")
@@ -193,17 +229,19 @@ def _parser() -> argparse.ArgumentParser:
     mc = sub.add_parser("montecarlo", help="seeded Monte Carlo of the estimators against the CRLB")
     mc.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
     mc.add_argument("--runs", type=_order, default=100, help="noise draws (default 100)")
-    mc.add_argument("--methods", default="ols,rls,rels", help=f"comma-separated: {METHOD_HELP} (default ols,rls,rels)")
+    mc.add_argument("--methods", default="ols,rls,rels",
+                    help=f"comma-separated: {', '.join(METHODS)}, ridge:<lambda> (fixed), wavelet+<method> (de-noised "
+                         "first) (default ols,rls,rels)")
     mc.add_argument("--seed", type=_order, default=0, help="root seed (default 0)")
     mc.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
     mc.add_argument("--workers", type=_order, default=None, help="processes for per-run methods (default: all cores)")
     mc.add_argument("--json", metavar="OUT", default=None, help="write the Monte Carlo JSON here")
     mc.add_argument("--csv", metavar="OUT", default=None, help="write a CSV table here")
     mc.add_argument("--figure", metavar="PNG", default=None, help="write RMS/CRLB per coefficient here")
-    mc.add_argument("--prior", metavar="FILE", default=None,
-                    help='map: JSON {"Kg0x": {"mean": m, "std": s}, ...} (default: the demo ground-calibration prior)')
-    mc.add_argument("--bounds", metavar="FILE", default=None,
-                    help='bounded: JSON {"Kg0x": [lo, hi] or value, ...} (default: the demo spec-sheet box)')
+    takers = [m for o in ("prior", "bounds") for m, meth in METHODS.items() if o in meth.options]
+    mg = mc.add_argument_group(f"{' / '.join(takers)} options (other methods: the registry's defaults)")
+    _add_option(mg, OPTIONS["prior"], "default: the demo ground-calibration prior")
+    _add_option(mg, OPTIONS["bounds"], "default: the demo spec-sheet box")
     mc.add_argument("--progress", action=argparse.BooleanOptionalAction, default=True,
                     help="progress on stderr: a bar on a terminal, else a line with the ETA every 5 s (default on)")
     me = sub.add_parser("methods", help="list the estimators, their options and capabilities")
@@ -221,6 +259,11 @@ def _inputs(args: argparse.Namespace, *names: str) -> list:
 
 
 def _cmd_separate(args: argparse.Namespace) -> int:
+    from casep.estimators.result import write_json_atomic
+    from casep.io._atomic import check_outputs
+    from casep.model.loader import load_model
+    from casep.workflows.separate import separate
+
     check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
                   inputs=_inputs(args, "flight", "tracking", "bounds", "prior"), folders={"--figures": args.figures})
     model = load_model(args.model)
@@ -288,6 +331,8 @@ def _result_status(res) -> int:
 
 def _write_exports(res, args: argparse.Namespace) -> None:
     """`--mat` and `--csv` of `separate`."""
+    from casep.estimators.result import write_csv, write_mat
+
     if args.mat:
         write_mat(res, args.mat)
     if args.csv:
@@ -295,6 +340,15 @@ def _write_exports(res, args: argparse.Namespace) -> None:
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
+    from casep.analysis.diagnostics import diagnose
+    from casep.estimators.map import parse_prior
+    from casep.estimators.result import write_json_atomic
+    from casep.io._atomic import check_outputs
+    from casep.io.files import read_json_table
+    from casep.model._model import unknown_coefficient_message
+    from casep.model.loader import load_model
+    from casep.workflows.separate import regression_rows
+
     check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "prior", "scales"),
                   folders={"--figures": args.figures})
     model = load_model(args.model)
@@ -351,6 +405,9 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_montecarlo(args: argparse.Namespace) -> int:
+    from casep.io._atomic import check_outputs
+    from casep.model.loader import load_model
+    from casep.simulation.scenarios import get_scenario
     from casep.workflows.montecarlo import Terminated, run_montecarlo, sigterm_raises, write_figure
 
     check_outputs({"--json": args.json, "--csv": args.csv, "--figure": args.figure},
@@ -384,7 +441,11 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from casep.simulation.simulate import truth_path
+    from casep.io._atomic import check_outputs
+    from casep.io.files import read_json_table
+    from casep.model.loader import load_model
+    from casep.simulation.scenarios import get_scenario
+    from casep.simulation.simulate import simulate_flight, truth_path, write_simulation
 
     check_outputs({"-o": args.output, "-o (truth sidecar)": truth_path(args.output)},
                   inputs=_inputs(args, "truth"))
@@ -433,6 +494,9 @@ def _cmd_models(args: argparse.Namespace) -> int:
 
     Exit 0 when at least one model loads (the broken ones are reported), 2 when none does.
     """
+    from casep.model._model import ModelDefinitionError
+    from casep.model.loader import available_models, load_model
+
     names = available_models()
     broken = 0
     for name in names:
@@ -491,7 +555,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             status = commands[args.command](args)
     except BrokenPipeError:
         raise  # the reader left: quiet exit, see _quiet_on_broken_pipe
-    except (FlightDataError, ModelDefinitionError, ValueError, TypeError, OSError) as exc:
+    except (ValueError, TypeError, OSError) as exc:  # FlightDataError, ModelDefinitionError among them
         print(f"casep: error: {exc}", file=sys.stderr)
         return 2
     # casep's warnings become lines of the report (the ill-conditioning one is in the table).

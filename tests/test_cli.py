@@ -12,6 +12,7 @@ import pytest
 
 import casep
 from casep.cli import main
+from casep.estimators.registry import OPTIONS, Interval
 from casep.simulation.synthetic import excitation_force, inject_errors
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "data" / "example_flight.csv"
@@ -163,11 +164,14 @@ def test_bad_option_files_exit_2(good_csv, tmp_path, capsys, content, args, expe
     assert not out.exists()
 
 
-@pytest.mark.parametrize("args, expect", [
-    (["--method", "rls", "--forgetting", "1.5"], "must be in (0, 1]"),
-    (["--method", "rls", "--p0", "-1"], "must be finite and > 0"),
-    (["--method", "ridge", "--lambda", "aic"], "not a number"),
-    (["--method", "rels", "--noise-order", "-2"], "must be >= 0"),
+@pytest.mark.parametrize("args, expect", [  # issue 10: the argparse type is the registry's rule (Option.parse)
+    (["--method", "rls", "--forgetting", "1.5"], "argument --forgetting: must be float in (0, 1], got '1.5'"),
+    (["--method", "rls", "--p0", "-1"], "argument --p0: must be float in (0, 1e+30], got '-1'"),
+    (["--method", "ridge", "--lambda", "aic"], "argument --lambda: must be gcv | lcurve | float > 0, got 'aic'"),
+    (["--method", "rels", "--noise-order", "-2"], "argument --noise-order: must be int >= 1, got '-2'"),
+    (["--method", "rels", "--noise-order", "1.5"], "argument --noise-order: must be int >= 1, got '1.5'"),
+    (["--method", "pcr", "--components", "0"], "argument --components: must be int >= 1, got '0'"),
+    (["--method", "gls", "--tau", "soon"], "argument --tau: must be auto | float in (0, 10000] s, got 'soon'"),
 ])
 def test_bad_option_values_exit_2(good_csv, capsys, args, expect):
     with pytest.raises(SystemExit) as e:
@@ -178,8 +182,10 @@ def test_bad_option_values_exit_2(good_csv, capsys, args, expect):
 def test_missing_required_option_files(good_csv, capsys):
     assert main(["separate", str(good_csv), "--method", "bounded"]) == 2
     assert "`bounds` is required" in capsys.readouterr().err
-    assert main(["separate", str(good_csv), "--method", "rels", "--noise-order", "0"]) == 2
-    assert "option `noise_order` (--noise-order) of method `rels` must be int >= 1, got 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:  # issue 10: refused by the registry's rule as the argparse type
+        main(["separate", str(good_csv), "--method", "rels", "--noise-order", "0"])
+    assert e.value.code == 2
+    assert "argument --noise-order: must be int >= 1, got '0'" in capsys.readouterr().err
 
 
 # --- issue 17, defect 11: option values are finite and in a plausible range -----------------------
@@ -208,12 +214,18 @@ def test_out_of_range_option_exit_2_one_line(good_csv, capsys, option, value, co
         main([command, str(good_csv), *extra, f"--{option}", value])
     err = capsys.readouterr().err
     assert e.value.code == 2 and err.count("\n") == 1
-    assert f"argument --{option}: `{option}` must be" in err
+    if option == "sigma":  # a common option: the solvers' check and message
+        assert f"argument --{option}: `{option}` must be" in err
+    else:  # a method option: the registry's rule (diagnose --tau: its number rule only)
+        rule = " | ".join(str(r) for r in OPTIONS[option].rules if command == "separate" or isinstance(r, Interval))
+        assert f"argument --{option}: must be {rule}, got '{value}'" in err
 
 
 @pytest.mark.parametrize("option, value", sorted({(o, v) for o, v, _, _ in _RANGE_CASES if o != "tau"}))
 def test_out_of_range_option_api_same_message(paper_problem, platform36, capsys, good_csv, option, value):
-    """The solvers refuse the value with the message the CLI prints (one table of ranges)."""
+    """The solvers and the CLI refuse the same values: sigma with the same message (one check),
+    the registry's options (p0, weight) by its rule, whose interval is the solvers' range
+    (test_registry_rules_are_the_solvers_ranges)."""
     S, y, _ = paper_problem
     kw = {"p0": 1.0} if option == "p0" else {}  # the others need a valid p0 of their own: default
     with pytest.raises(ValueError) as e:
@@ -222,7 +234,19 @@ def test_out_of_range_option_api_same_message(paper_problem, platform36, capsys,
     assert api.startswith(f"`{option}` must be")
     with pytest.raises(SystemExit):
         main(["separate", str(good_csv), "--method", "rls", f"--{option}", value])
-    assert api in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert (api if option == "sigma" else f"must be {OPTIONS[option].rule}, got '{value}'") in err
+
+
+@pytest.mark.parametrize("option", ["p0", "weight", "tau"])
+def test_registry_rules_are_the_solvers_ranges(option):
+    """One range per option: the registry's Interval (CLI) is the solvers' OPTION_RANGES entry."""
+    from casep.estimators._base import OPTION_RANGES
+
+    lo, hi, low_inclusive, _ = OPTION_RANGES[option]
+    (rule,) = [r for r in OPTIONS[option].rules if isinstance(r, Interval)]
+    assert (rule.low, rule.high) == (lo, hi)
+    assert rule.closed == ("both" if low_inclusive else "right")
 
 
 @pytest.mark.parametrize("value", ["1e12", "1e300", "0", "-1"])
@@ -235,7 +259,8 @@ def test_gls_tau_range_api_same_message(paper_problem, platform36, capsys, good_
         casep.solve_gls(S, y, t, tau=float(value), names=platform36.names)
     with pytest.raises(SystemExit):
         main(["separate", str(good_csv), "--method", "gls", "--tau", value])
-    assert str(e.value).startswith("`tau` must be") and str(e.value) in capsys.readouterr().err
+    assert str(e.value).startswith("`tau` must be")  # same range: test_registry_rules_are_the_solvers_ranges
+    assert f"argument --tau: must be {OPTIONS['tau'].rule}, got '{value}'" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("option, value", [("sigma", 1e3), ("weight", 1e-12), ("weight", 1e12), ("p0", 1e30)])
@@ -323,7 +348,7 @@ def test_models_lists_the_others_and_reports_the_broken_one(tmp_path, monkeypatc
 def test_models_exit_2_when_none_loads(tmp_path, monkeypatch, capsys):
     (tmp_path / "bad.py").write_text("raise ImportError('gone')\n")
     monkeypatch.setenv("CASEP_MODEL_PATH", str(tmp_path))
-    monkeypatch.setattr("casep.cli.available_models", lambda: ["bad"])
+    monkeypatch.setattr("casep.model.loader.available_models", lambda: ["bad"])  # the CLI imports it lazily
     assert main(["models"]) == 2
     cap = capsys.readouterr()
     assert "none of the 1 model files loads" in cap.err
@@ -341,3 +366,56 @@ def test_broken_pipe_is_quiet():
     proc.stderr.close()
     assert proc.wait(timeout=120) == 141  # 128 + SIGPIPE, as the shell reports for any Unix tool
     assert err == b""
+
+
+# --- issue 10: the CLI reads the registry, imports lazily ------------------------------------------
+
+def test_separate_help_has_one_group_per_method_set_from_the_registry(capsys):
+    """Every registry option is in `separate --help`, once, in the group of the methods that take
+    it (shared RLS/RELS options in "rls / rels options"), with its rule and default."""
+    from casep.estimators.registry import METHODS
+
+    with pytest.raises(SystemExit) as e:
+        main(["separate", "--help"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    for name, opt in OPTIONS.items():
+        takers = " / ".join(m for m, meth in METHODS.items() if name in meth.options)
+        group = out[out.index(f"\n{takers} options:\n"):]
+        group = group[: group.find("\n\n") if "\n\n" in group else None]
+        assert f"  {opt.flag} " in group, (name, takers)
+        assert out.count(f"  {opt.flag} ") == 1
+    flat = " ".join(out.split())  # help lines are wrapped
+    assert "rls / rels options:" in out and "float in (0, 1] (default 1)" in flat
+    assert "--bounds FILE box bounds and fixed values; JSON file {name: [lo, hi] | value} (required)" in flat
+
+
+def test_montecarlo_takes_prior_and_bounds_from_the_registry(capsys):
+    with pytest.raises(SystemExit):
+        main(["montecarlo", "--help"])
+    flat = " ".join(capsys.readouterr().out.split())
+    assert f"--prior FILE {OPTIONS['prior'].help}; {OPTIONS['prior'].rule} (default: the demo" in flat
+    assert f"--bounds FILE {OPTIONS['bounds'].help}; {OPTIONS['bounds'].rule} (default: the demo" in flat
+
+
+def test_cli_imports_lazily():
+    """`import casep.cli` (what `casep --help` costs) loads neither CasADi, numba, SciPy, pandas,
+    matplotlib nor an estimator; a command imports them when it runs."""
+    code = ("import sys, casep.cli; heavy = ('casadi', 'numba', 'scipy', 'pandas', 'matplotlib', 'pywt', "
+            "'casep.estimators.ols', 'casep.workflows.separate', 'casep.model.sv'); "
+            "print(','.join(m for m in heavy if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == ""
+
+
+@pytest.mark.parametrize("package", ["casep", "casep.estimators", "casep.analysis", "casep.model", "casep.simulation"])
+def test_lazy_public_names_resolve(package):
+    """Every name in a lazily resolved package's __all__ is importable (the tables of casep._lazy)."""
+    import importlib
+
+    mod = importlib.import_module(package)
+    for name in mod.__all__:
+        assert getattr(mod, name) is not None, name
+    assert set(mod.__all__) <= set(dir(mod))
+    with pytest.raises(AttributeError, match="no attribute 'not_a_name'"):
+        getattr(mod, "not_a_name")

@@ -262,3 +262,24 @@ def test_prior_and_bounds_files_replace_the_demo_values(tmp_path, capsys):
     bfile.write_text(json.dumps({"KaOy": [0, 1]}))
     assert main(["montecarlo", "--runs", "2", "--rate", "10", "--methods", "bounded", "--bounds", str(bfile)]) == 2
     assert "did you mean `Ka0y`" in capsys.readouterr().err
+
+
+def test_batched_methods_use_the_estimators_linear_maps():
+    """Issue 10: the batched path applies the estimators' own linear maps (no second
+    implementation of their formulas): the maps it builds are those of the public functions."""
+    from casep.estimators.map import map_linear_map
+    from casep.estimators.ols import LinearMap, ols_linear_map
+    from casep.estimators.rls import rls_linear_map
+    from casep.model.sv import build_sv
+    from casep.simulation.paper import demo_prior
+    from casep.simulation.simulate import scenario_setup
+    from casep.workflows.montecarlo import _linear_maps
+
+    sc, traj, model, _ = scenario_setup("paper", 5.0)
+    S2 = build_sv(model, traj.t, traj.specific_force).reshape(-1, model.n_coefficients)
+    maps = _linear_maps(S2, model.names, sc.noise.sigma, ["ols", "rls", "map", "ridge:1e-4"])
+    assert all(isinstance(m, LinearMap) for m in maps.values())
+    np.testing.assert_array_equal(maps["ols"].K, ols_linear_map(S2).K)
+    np.testing.assert_array_equal(maps["rls"].K, rls_linear_map(S2).K)
+    np.testing.assert_array_equal(maps["map"].b, map_linear_map(S2, demo_prior(model.names), sc.noise.sigma,
+                                                                names=model.names).b)

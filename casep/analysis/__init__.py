@@ -9,9 +9,14 @@ Depends on :mod:`casep.io` (the flight) and :mod:`casep.units`; never on an esti
 - :mod:`casep.analysis.denoise`: wavelet de-noising of dv
 """
 
-from casep.analysis.checks import check_fit, check_flight
-from casep.analysis.diagnostics import Diagnostics, diagnose
-from casep.analysis.linalg import RankAnalysis, ReducedSystem, analyze_rank, reduce_qr
+
+from casep._lazy import attach
+
+# Imported on first use (PEP 562), see casep._lazy.
+__getattr__, __dir__ = attach(__name__, {
+    "casep.analysis.checks": ("check_fit", "check_flight"),
+    "casep.analysis.diagnostics": ("Diagnostics", "diagnose"),
+    "casep.analysis.linalg": ("RankAnalysis", "ReducedSystem", "analyze_rank", "reduce_qr")}, globals())
 
 __all__ = ["check_fit", "check_flight", "Diagnostics", "diagnose", "RankAnalysis", "ReducedSystem",
            "analyze_rank", "reduce_qr"]

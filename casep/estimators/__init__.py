@@ -11,16 +11,15 @@ and its test.
   ``map``, ``gls``, ``huber``
 """
 
-from casep.estimators.bounded import solve_bounded
-from casep.estimators.gls import solve_gls
-from casep.estimators.huber import solve_huber
-from casep.estimators.map import solve_map
-from casep.estimators.ols import solve_ols
-from casep.estimators.pcr import solve_pcr
-from casep.estimators.registry import METHODS, describe
-from casep.estimators.result import EstimateResult
-from casep.estimators.ridge import solve_ridge
-from casep.estimators.rls import solve_rls
+from casep._lazy import attach
+
+# Imported on first use (PEP 562): the registry is read without importing every solver.
+__getattr__, __dir__ = attach(__name__, {
+    "casep.estimators.bounded": ("solve_bounded",), "casep.estimators.gls": ("solve_gls",),
+    "casep.estimators.huber": ("solve_huber",), "casep.estimators.map": ("solve_map",),
+    "casep.estimators.ols": ("solve_ols",), "casep.estimators.pcr": ("solve_pcr",),
+    "casep.estimators.ridge": ("solve_ridge",), "casep.estimators.rls": ("solve_rls",),
+    "casep.estimators.registry": ("METHODS", "describe"), "casep.estimators.result": ("EstimateResult",)}, globals())
 
 __all__ = ["solve_bounded", "solve_gls", "solve_huber", "solve_map", "solve_ols", "solve_pcr", "solve_ridge",
            "solve_rls", "METHODS", "describe", "EstimateResult"]

@@ -97,3 +97,55 @@ def solve_map(
                   settings={"prior": {n: {"mean": float(m), "std": float(t)} for n, m, t in zip(pb.names, mu, tau)
                                       if np.isfinite(t)},
                             "sigma": "estimated" if pb.sigma is None else pb.sigma})
+
+
+# ------------------------------------------------------------------ linear map (batched Monte Carlo)
+__all__ += ["map_linear_map"]
+
+
+def map_linear_map(S: np.ndarray, prior: Mapping, sigma: float, *, names: Sequence[str] | None = None,
+                   rcond: float | None = None):
+    """The linear map of :func:`solve_map` with a given noise std: ``D = K y + b``.
+
+    The posterior mean is the least-squares solution of the stacked system of the module
+    Notes, ``z = A^+ [Q^T y / sigma; mu / tau]``, so ``K = diag(1/c) A^+[:, :n] Q^T / sigma``
+    and ``b = diag(1/c) A^+[:, n:] (mu / tau)``.
+
+    Parameters
+    ----------
+    S : (N, 3, n) or (m, n) array_like
+        Regression matrix in natural units.
+    prior : mapping
+        ``{name: {"mean": m, "std": s}}`` in natural units (see :func:`parse_prior`).
+    sigma : float
+        Noise std, m/s (the map is linear in ``y`` only for a given sigma).
+    names : sequence of str, optional
+        Coefficient names the prior refers to (default ``c0, c1, ...``).
+    rcond : float, optional
+        Rank threshold, as :func:`solve_map`.
+
+    Returns
+    -------
+    casep.estimators.ols.LinearMap
+        The posterior covariance at `sigma`, ``dof`` None.
+    """
+    from casep.estimators._base import check_positive
+    from casep.estimators.ols import LinearMap, scaled_factors
+
+    sigma = check_positive("sigma", sigma, allow_none=False)
+    pb, Q, U, s, Vt = scaled_factors(S, rcond)
+    names = pb.names if names is None else tuple(names)
+    mu, tau = parse_prior(prior, names)
+    cs = np.where(pb.red.scale > 0, pb.red.scale, 1.0)
+    has = np.isfinite(tau)
+    A = np.vstack([((U * s) @ Vt) / sigma, np.diag(1.0 / (cs * tau))[has]])  # [R / sigma; prior rows]
+    Ua, sa, Vta = np.linalg.svd(A, full_matrices=False)
+    r = int(np.sum(sa > pb.ra.rcond * sa[0]))
+    W = Vta[:r].T / sa[:r]
+    Ainv = W @ Ua[:, :r].T  # A^+
+    K = (Ainv[:, :pb.n] @ Q.T) / (sigma * cs[:, None])
+    b = (Ainv[:, pb.n:] @ (mu / tau)[has]) / cs
+    cov = (W @ W.T) / np.outer(cs, cs)  # posterior covariance, natural units
+    null = Vta[r:].T
+    undetermined = np.linalg.norm(null, axis=1) > 1e-8 if null.size else np.zeros(pb.n, bool)
+    return LinearMap(K, b, cov, None, undetermined)

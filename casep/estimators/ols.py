@@ -79,3 +79,85 @@ def least_squares(pb: Problem) -> tuple[np.ndarray, np.ndarray, float]:
     W = V * inv_s  # V_r diag(1/s_r)
     cov = sig**2 * (W @ W.T) * np.outer(inv_c, inv_c)
     return x, cov, sig
+
+
+# ------------------------------------------------------------------ linear map (batched Monte Carlo)
+from dataclasses import dataclass  # noqa: E402  (this section is self-contained)
+
+__all__ += ["LinearMap", "ols_linear_map", "scaled_factors"]
+
+@dataclass(frozen=True)
+class LinearMap:
+    """An estimator that is a fixed linear function of the data: ``D = K y + b`` (natural units).
+
+    Attributes
+    ----------
+    K : (n, m) ndarray
+        Acts on the stacked data ``y`` (rows x, y, z per sample, as ``S.reshape(-1, n)``).
+    b : (n,) ndarray
+        Offset (the prior's pull for MAP; zero otherwise).
+    cov : (n, n) ndarray
+        Covariance the solver reports: for noise std 1 when ``dof`` is set (multiply by
+        ``sigma^2``, ``sigma^2 = ||y - S D||^2 / dof`` as the solver estimates it), else for
+        the sigma the map was built with.
+    dof : float or None
+        Residual degrees of freedom of the solver's sigma estimate; None when sigma is given.
+    undetermined : (n,) bool ndarray
+        Coefficients the solver reports without an estimate (NaN).
+    """
+
+    K: np.ndarray
+    b: np.ndarray
+    cov: np.ndarray
+    dof: float | None
+    undetermined: np.ndarray
+
+    def apply(self, S: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Estimates and std for data columns ``Y`` (m, runs): ``(n, runs)`` each, NaN where undetermined."""
+        X = self.K @ Y + self.b[:, None]  # D = K y + b, every run at once
+        sd = np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
+        if self.dof is None:
+            std = np.repeat(sd[:, None], Y.shape[1], axis=1)
+        else:
+            sig = np.sqrt(np.sum((Y - S @ X) ** 2, axis=0) / self.dof)  # sigma^2 = RSS / dof, per run
+            std = sd[:, None] * sig[None, :]
+        und = self.undetermined[:, None]
+        return np.where(und, np.nan, X), np.where(und, np.nan, std)
+
+
+def scaled_factors(S: np.ndarray, rcond: float | None = None):
+    """The problem of `S` (no data), ``Q`` of ``Z = S diag(1/c) = Q R`` and the SVD of that ``R``.
+
+    Returns ``(pb, Q, U, s, Vt)``: `pb` is :func:`casep.estimators._base.prepare`'s problem
+    (scale, rank and rcond as the solvers use them), ``R = U diag(s) Vt``.
+    """
+    S_arr = np.asarray(S, dtype=float)
+    pb = prepare(S_arr, np.zeros(S_arr.shape[:-1]), None, None, None, None, rcond)
+    cs = np.where(pb.red.scale > 0, pb.red.scale, 1.0)
+    Q, R = np.linalg.qr(pb.S / cs, mode="reduced")  # Z = Q R
+    U, s, Vt = np.linalg.svd(R)
+    return pb, Q, U, s, Vt
+
+
+def ols_linear_map(S: np.ndarray, *, rcond: float | None = None) -> LinearMap:
+    """The linear map of :func:`solve_ols`: ``D = K y``, ``Cov = sigma^2 K K^T``.
+
+    Parameters
+    ----------
+    S : (N, 3, n) or (m, n) array_like
+        Regression matrix in natural units.
+    rcond : float, optional
+        Rank threshold, as :func:`solve_ols`.
+
+    Returns
+    -------
+    LinearMap
+        ``K = diag(1/c) V_r diag(1/s_r) U_r^T Q^T`` (minimum-norm LS), covariance per unit
+        noise variance, ``dof = m - r``.
+    """
+    pb, Q, U, s, Vt = scaled_factors(S, rcond)
+    r = pb.ra.rank
+    W = Vt[:r].T / s[:r]  # V_r diag(1/s_r)
+    K = (W @ (Q @ U[:, :r]).T) * pb.inv_c[:, None]  # x_Z = V_r diag(1/s_r) U_r^T Q^T y, then / c
+    cov = (W @ W.T) * np.outer(pb.inv_c, pb.inv_c)
+    return LinearMap(K, np.zeros(pb.n), cov, float(pb.m - r), ~pb.ra.estimable)

@@ -90,3 +90,42 @@ def solve_pcr(
                   settings={"n_components": k, "rule": rule,
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
                   diagnostics={"dropped_directions": dropped})
+
+
+# ------------------------------------------------------------------ linear map (batched Monte Carlo)
+__all__ += ["pcr_linear_map"]
+
+
+def pcr_linear_map(S: np.ndarray, *, n_components: int | None = None,
+                   max_condition_index: float = DEFAULT_MAX_CONDITION_INDEX, rcond: float | None = None):
+    """The linear map of :func:`solve_pcr`: ``D = diag(1/c) V_k diag(1/s_k) U_k^T Q^T y``.
+
+    Parameters
+    ----------
+    S : (N, 3, n) or (m, n) array_like
+        Regression matrix in natural units.
+    n_components, max_condition_index, rcond : optional
+        As :func:`solve_pcr` (the same ``k`` directions are kept).
+
+    Returns
+    -------
+    casep.estimators.ols.LinearMap
+        Covariance ``V_k diag(1/s_k^2) V_k^T`` (natural units) per unit noise variance,
+        ``dof = m - k``.
+    """
+    from casep.estimators.ols import LinearMap, scaled_factors
+
+    max_condition_index = check_positive("max_condition_index", max_condition_index, allow_none=False)
+    pb, Q, U, s, Vt = scaled_factors(S, rcond)
+    r, s_ref = pb.ra.rank, pb.ra.s  # the solver's singular values decide k
+    if n_components is None:
+        k = int(np.sum(s_ref[:r] >= s_ref[0] / max_condition_index))
+    elif isinstance(n_components, bool) or not isinstance(n_components, (int, np.integer)) \
+            or not 1 <= n_components <= r:
+        raise ValueError(f"`n_components` must be an int in [1, {r}] (the rank of `S`), got {n_components!r}")
+    else:
+        k = int(n_components)
+    W = Vt[:k].T / s[:k]  # V_k diag(1/s_k)
+    K = (W @ (Q @ U[:, :k]).T) * pb.inv_c[:, None]
+    cov = (W @ W.T) * np.outer(pb.inv_c, pb.inv_c)
+    return LinearMap(K, np.zeros(pb.n), cov, float(pb.m - k), ~pb.ra.estimable)

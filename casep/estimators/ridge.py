@@ -147,3 +147,27 @@ def solve_ridge(
                   settings={"lambda": float(lam), "lambda_rule": rule, "solver": solver,
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
                   diagnostics={"effective_dof": float(trh[0])})
+
+
+# ------------------------------------------------------------------ linear map (batched Monte Carlo)
+__all__ += ["ridge_linear_map"]
+
+
+def ridge_linear_map(S: np.ndarray, lam: float, *, rcond: float | None = None):
+    """The linear map of :func:`solve_ridge` at a given lambda: ``D = diag(1/c) V diag(s/(s^2+lambda)) U^T Q^T y``.
+
+    Returns
+    -------
+    casep.estimators.ols.LinearMap
+        Covariance ``G G^T`` per unit noise variance (``G = diag(1/c) V diag(s/(s^2+lambda))``),
+        ``dof = m - tr H``.
+    """
+    from casep.estimators.ols import LinearMap, scaled_factors
+
+    lam = check_positive("lam", lam, allow_none=False)
+    pb, Q, U, s, Vt = scaled_factors(S, rcond)
+    G = Vt.T * (s / (s**2 + lam))  # z = V diag(s / (s^2 + lambda)) U^T Q^T y
+    K = (G @ (Q @ U).T) * pb.inv_c[:, None]
+    cov = (G @ G.T) * np.outer(pb.inv_c, pb.inv_c)
+    trh = float(np.sum(s**2 / (s**2 + lam)))  # tr H
+    return LinearMap(K, np.zeros(pb.n), cov, pb.m - trh, ~pb.ra.estimable)

@@ -211,3 +211,51 @@ def _history_std(hist_var: np.ndarray, scale2: float, live: np.ndarray, cl: np.n
     out[:, np.flatnonzero(live)] = std_s[:, :p] / cl  # theta = theta_scaled / c
     out[:, n:] = std_s[:, p:]  # MA coefficients are unscaled
     return out
+
+
+# ------------------------------------------------------------------ linear map (batched Monte Carlo)
+__all__ += ["rls_linear_map"]
+
+
+def rls_linear_map(S: np.ndarray, *, p0: float = DEFAULT_P0, weight: float = 1.0, rcond: float | None = None):
+    """The linear map of :func:`solve_rls` without forgetting and without noise model.
+
+    With ``lambda = 1`` and ``noise_order = 0`` the recursion ends at the closed form
+    ``theta_N = (P_0^-1 + w S^T S)^-1 w S^T y`` (module Notes), a fixed linear map of ``y``.
+    Computed without normal equations on the scaled system (``z = c D``, ``Z = S / c = Q R``,
+    zero columns left out as the recursion does) as the least-squares solution of::
+
+        [ sqrt(w) R              ] z = [ sqrt(w) Q^T y ]
+        [ diag(1 / (sqrt(p0) c)) ]     [ 0             ]
+
+    Parameters
+    ----------
+    S : (N, 3, n) or (m, n) array_like
+        Regression matrix in natural units.
+    p0, weight : float, optional
+        As :func:`solve_rls`.
+    rcond : float, optional
+        Rank threshold for the reported undetermined coefficients.
+
+    Returns
+    -------
+    casep.estimators.ols.LinearMap
+        Covariance ``w P_N`` per unit noise variance, ``dof = m - p`` (``p`` nonzero columns).
+    """
+    from casep.estimators.ols import LinearMap, scaled_factors
+
+    p0 = check_positive("p0", p0, allow_none=False)
+    weight = check_positive("weight", weight, allow_none=False)
+    pb, Q, U, s, Vt = scaled_factors(S, rcond)
+    c = pb.red.scale
+    live = c > 0
+    R = (U * s) @ Vt  # R of Z = Q R
+    A = np.vstack([np.sqrt(weight) * R[:, live], np.diag(1.0 / (np.sqrt(p0) * c[live]))])
+    Ua, sa, Vta = np.linalg.svd(A, full_matrices=False)  # A has full column rank (prior rows)
+    Ainv = (Vta.T / sa) @ Ua[:pb.n].T  # columns of A^+ acting on sqrt(w) Q^T y
+    K = np.zeros((pb.n, pb.m))
+    K[live] = np.sqrt(weight) * (Ainv @ Q.T) / c[live][:, None]  # z = A^+ [sqrt(w) Q^T y; 0], D = z / c
+    P = (Vta.T / sa**2) @ Vta  # (A^T A)^-1 = P_N, scaled coordinates
+    cov = np.zeros((pb.n, pb.n))
+    cov[np.ix_(live, live)] = weight * P / np.outer(c[live], c[live])  # w P_N per unit sigma^2
+    return LinearMap(K, np.zeros(pb.n), cov, float(pb.m - int(live.sum())), ~pb.ra.estimable)

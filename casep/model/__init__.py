@@ -7,9 +7,14 @@ Depends only on :mod:`casep.units`, :mod:`casep.exceptions` and the compiled ker
 - :mod:`casep.model.sv`: S_V integrated chunk by chunk from the model's Jacobians
 """
 
-from casep.model._model import ErrorModel, ModelDefinitionError
-from casep.model.loader import ModelFileError, available_models, build_model, load_model, model_dirs
-from casep.model.sv import SVBuilder, build_sv
+
+from casep._lazy import attach
+
+# Imported on first use (PEP 562), see casep._lazy.
+__getattr__, __dir__ = attach(__name__, {
+    "casep.model._model": ("ErrorModel", "ModelDefinitionError"),
+    "casep.model.loader": ("ModelFileError", "available_models", "build_model", "load_model", "model_dirs"),
+    "casep.model.sv": ("SVBuilder", "build_sv")}, globals())
 
 __all__ = ["ErrorModel", "ModelDefinitionError", "ModelFileError", "available_models", "build_model",
            "load_model", "model_dirs", "SVBuilder", "build_sv"]

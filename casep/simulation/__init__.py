@@ -9,7 +9,12 @@ an estimator.
 - :mod:`casep.simulation.synthetic`, :mod:`casep.simulation.noise`, :mod:`casep.simulation.paper`
 """
 
-from casep.simulation.scenarios import SCENARIOS, Scenario, get_scenario
-from casep.simulation.simulate import SimulatedFlight, simulate_flight
+
+from casep._lazy import attach
+
+# Imported on first use (PEP 562), see casep._lazy.
+__getattr__, __dir__ = attach(__name__, {
+    "casep.simulation.scenarios": ("SCENARIOS", "Scenario", "get_scenario"),
+    "casep.simulation.simulate": ("SimulatedFlight", "simulate_flight")}, globals())
 
 __all__ = ["SCENARIOS", "Scenario", "get_scenario", "SimulatedFlight", "simulate_flight"]

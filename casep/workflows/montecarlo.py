@@ -6,8 +6,9 @@ so a run's data do not depend on how runs are batched or distributed over proces
 
 Methods whose estimate is a fixed linear function of the data (``ols``, ``rls`` with no
 forgetting, ``ridge:<lambda>``, ``pcr``, ``map`` with the scenario's sigma) are solved for
-all runs at once: with ``Z = S / c = Q R`` (one QR) and ``R``'s SVD, each is
-``z = M Q^T y (+ z0)``, applied to a matrix of right-hand sides in blocks. The others
+all runs at once through the estimator's own linear map ``D = K y + b``
+(:func:`casep.estimators.ols.ols_linear_map` and its siblings, tested equal to the solvers),
+applied to a matrix of right-hand sides in blocks; S_V is built once per flight. The others
 (``rels``, ``ridge`` with GCV, ``bounded``, ``gls``, ``wavelet+<method>``) call the public solver per
 run in a process pool using every core. Both paths report the same numbers as the solvers
 (tested).
@@ -207,94 +208,41 @@ def _chunks(method: str, runs: int, n_workers: int) -> list[range]:
 
 
 # ---------------------------------------------------------------------------- batched path
-@dataclass(frozen=True)
-class _Linear:
-    """z = M (Q^T y) + z0 in scaled coordinates; std = sigma_k * std_unit (or fixed)."""
+def _linear_maps(S: np.ndarray, names, sigma: float, methods: Sequence[str], prior: Mapping | None = None) -> dict:
+    """The estimators' own linear maps (``D = K y + b``) of the batched methods, registry defaults.
 
-    M: np.ndarray  # (n, n) acting on Q^T y
-    z0: np.ndarray
-    std_unit: np.ndarray  # natural units, per unit sigma (or absolute if sigma_fixed)
-    dof: float | None  # None: std fixed (sigma given)
-    undetermined: np.ndarray
+    ``ols``, ``rls`` (no forgetting, the registry's p0 and weight), ``pcr`` (default
+    truncation), ``map`` (at the scenario's sigma, as the per-run path gives it) and
+    ``ridge:<lambda>``: see :class:`casep.estimators.ols.LinearMap`.
+    """
+    from casep.estimators.map import map_linear_map
+    from casep.estimators.ols import ols_linear_map
+    from casep.estimators.pcr import pcr_linear_map
+    from casep.estimators.registry import OPTIONS
+    from casep.estimators.ridge import ridge_linear_map
+    from casep.estimators.rls import rls_linear_map
 
-
-def _linear_maps(S2: np.ndarray, names, sigma: float, methods: Sequence[str], prior: Mapping | None = None):
-    """QR of the scaled S once, and the linear map of each batched method."""
-    from casep.analysis.linalg import analyze_rank, reduce_qr
-    from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
-    from casep.estimators.rls import DEFAULT_P0
-
-    m, n = S2.shape
-    red = reduce_qr(S2, np.zeros(m))
-    ra = analyze_rank(red)
-    c = red.scale
-    cs = np.where(c > 0, c, 1.0)
-    Q, R = np.linalg.qr(S2 / cs, mode="reduced")
-    U, s, Vt = np.linalg.svd(R)
-    r = int(np.sum(s > ra.rcond * s[0]))
-    est = ra.estimable
-    maps: dict[str, _Linear] = {}
-    for meth in methods:
-        if meth == "ols":  # z = V_r diag(1/s_r) U_r^T Q^T y
-            W = Vt[:r].T / s[:r]
-            maps[meth] = _Linear(W @ U[:, :r].T, np.zeros(n), np.sqrt(np.sum(W**2, 1)) / cs, m - r, ~est)
-        elif meth == "rls":  # z = (R^T R + diag(1/(p0 c^2)))^-1 R^T Q^T y, live columns only
-            live = c > 0
-            A = np.vstack([R[:, live], np.diag(1.0 / (np.sqrt(DEFAULT_P0) * c[live]))])
-            Ua, sa, Vta = np.linalg.svd(A, full_matrices=False)
-            Ainv = (Vta.T / sa) @ Ua.T  # A^+ (p x (n + p))
-            M = np.zeros((n, n))
-            M[np.ix_(live, np.arange(n))] = Ainv[:, :n]
-            P = (Vta.T / sa**2) @ Vta  # (A^T A)^-1 = P_N, scaled
-            std = np.zeros(n)
-            std[live] = np.sqrt(np.diag(P)) / c[live]
-            maps[meth] = _Linear(M, np.zeros(n), std, m - int(live.sum()), ~est)
-        elif meth.startswith("ridge:"):
-            lam = float(meth.split(":", 1)[1])
-            G = Vt.T * (s / (s**2 + lam))  # z = V diag(s/(s^2+lam)) U^T Q^T y
-            trh = float(np.sum(s**2 / (s**2 + lam)))
-            maps[meth] = _Linear(G @ U.T, np.zeros(n), np.sqrt(np.sum(G**2, 1)) / cs, m - trh, ~est)
-        elif meth == "pcr":
-            k = int(np.sum(s[:r] >= s[0] / DEFAULT_MAX_CONDITION_INDEX))
-            W = Vt[:k].T / s[:k]
-            maps[meth] = _Linear(W @ U[:, :k].T, np.zeros(n), np.sqrt(np.sum(W**2, 1)) / cs, m - k, ~est)
-        elif meth == "map":
-            mu, tau = parse_prior(prior or demo_prior(names), names)
-            has = np.isfinite(tau)
-            A = np.vstack([R / sigma, np.diag(1.0 / (cs * tau))[has]])
-            Ua, sa, Vta = np.linalg.svd(A, full_matrices=False)
-            ra_ = int(np.sum(sa > ra.rcond * sa[0]))
-            Ainv = (Vta[:ra_].T / sa[:ra_]) @ Ua[:, :ra_].T
-            W = Vta[:ra_].T / sa[:ra_]
-            null = Vta[ra_:].T
-            und = np.linalg.norm(null, axis=1) > 1e-8 if null.size else np.zeros(n, bool)
-            maps[meth] = _Linear(Ainv[:, :n] / sigma, Ainv[:, n:] @ (mu / tau)[has], np.sqrt(np.sum(W**2, 1)) / cs,
-                                 None, und)
-    return Q, cs, maps
+    build = {"ols": lambda: ols_linear_map(S),
+             "rls": lambda: rls_linear_map(S, p0=OPTIONS["p0"].default, weight=OPTIONS["weight"].default),
+             "pcr": lambda: pcr_linear_map(S),
+             "map": lambda: map_linear_map(S, prior or demo_prior(names), sigma, names=names)}
+    return {m: ridge_linear_map(S, float(m.split(":", 1)[1])) if m.startswith("ridge:") else build[m]()
+            for m in methods}
 
 
-def _batched(maps, Q, cs, S2, clean2, scenario, t, seqs, progress) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    runs = len(seqs)
-    out = {k: (np.empty((runs, cs.size)), np.empty((runs, cs.size))) for k in maps}
-    m = S2.shape[0]
+def _batched(maps, S2, clean2, scenario, t, seqs, progress) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Every run of every linear method, `_BLOCK` right-hand sides at a time."""
+    runs, n = len(seqs), S2.shape[1]
+    out = {k: (np.empty((runs, n)), np.empty((runs, n))) for k in maps}
     for b0 in range(0, runs, _BLOCK):
         idx = range(b0, min(b0 + _BLOCK, runs))
-        Y = np.empty((m, len(idx)))
+        Y = np.empty((S2.shape[0], len(idx)))
         for j, k in enumerate(idx):
             Y[:, j] = clean2 + _noise(scenario, t, seqs[k]).reshape(-1)
-        QtY = Q.T @ Y
-        for name, L in maps.items():
-            Zs = L.M @ QtY + L.z0[:, None]
-            X = Zs / cs[:, None]
-            if L.dof is None:
-                std = np.broadcast_to(L.std_unit[:, None], X.shape)
-            else:
-                resid = Y - S2 @ X
-                sig = np.sqrt(np.sum(resid**2, axis=0) / L.dof)
-                std = L.std_unit[:, None] * sig[None, :]
-            X = np.where(L.undetermined[:, None], np.nan, X)
-            out[name][0][list(idx)] = X.T
-            out[name][1][list(idx)] = np.where(L.undetermined[:, None], np.nan, std).T
+        for name, lm in maps.items():
+            X, std = lm.apply(S2, Y)  # D = K y + b and the solver's std, all runs of the block
+            out[name][0][b0:b0 + len(idx)] = X.T
+            out[name][1][b0:b0 + len(idx)] = std.T
         progress(len(idx))
     return out
 
@@ -512,8 +460,8 @@ def run_montecarlo(
         if lin:
             t0 = time.perf_counter()
             S2 = S.reshape(-1, S.shape[-1])
-            Q, cs, maps = _linear_maps(S2, names, sigma, lin, prior)
-            res = _batched(maps, Q, cs, S2, clean.reshape(-1), sc, t, seqs, bar)
+            maps = _linear_maps(S2, names, sigma, lin, prior)
+            res = _batched(maps, S2, clean.reshape(-1), sc, t, seqs, bar)
             dt = time.perf_counter() - t0
             for m_ in lin:
                 est[m_], std[m_] = res[m_]
