@@ -508,8 +508,10 @@ def _cmd_models(args: argparse.Namespace) -> int:
             continue
         print(f"{name:<28} {model.n_coefficients:>3} coefficients  {model.description}")
         if args.verbose:
-            for nm, unit in zip(model.names, model.units):
-                print(f"    {nm:<10} {unit}")
+            for nm, unit, own in zip(model.names, model.units, model.per_flight):
+                print(f"    {nm:<10} {unit}" + ("  (per flight)" if own else ""))
+            if model.signals:
+                print(f"    signals: {', '.join(model.signals)}")
     if broken and broken == len(names):
         print(f"casep: error: none of the {broken} model files loads (see the warnings)", file=sys.stderr)
         return 2

@@ -50,6 +50,11 @@ UNITS: dict[str, float] = {
     "rad": 1.0,
     # velocities -> m/s
     "m/s": 1.0,
+    # model signals: time offsets -> s, lever arms -> m, drift ramps -> rad/s per s
+    "ms": 1e-3,
+    "s": 1.0,
+    "m": 1.0,
+    "deg/h/s": DEG_PER_HOUR,
 }
 
 

@@ -6,7 +6,12 @@ Phi0 = d phi0 / dD and V0 = d dv0 / dD::
 
     Phi(t) = Phi0 + int_{t0}^{t} G dt              (3 x n, d phi / dD)
     I(t)   = [f(t) x] Phi(t) + A(t)                 (3 x n, d dWdot / dD)
-    S_V(t) = V0 + int_{t0}^{t} I dt                 (3 x n, d dv / dD)
+    S_V(t) = V0 + int_{t0}^{t} I dt + V_d(t)        (3 x n, d dv / dD)
+
+with V_d(t) = d dv_d / dD the Jacobian of the model's direct velocity error (added per
+sample, not integrated). G, A and V_d may depend on the time since the first sample
+``t - t_0`` and on flight columns (the model's ``signals``), which are evaluated with f in
+the same chunks.
 
 Both integrals use the cumulative trapezoid rule on the sample times (need not be uniform),
 with dt_k = t_k - t_{k-1}::
@@ -28,6 +33,7 @@ the chunk in one pass, carrying the running integrals to the next chunk. Memory 
 from __future__ import annotations
 
 import warnings
+from typing import Mapping
 
 import numpy as np
 
@@ -90,6 +96,7 @@ class SVBuilder:
         self.chunk = int(chunk)
         self._gcols = model.numeric("gyro_columns")
         self._acols = model.numeric("accel_columns")
+        self._vcols = model.numeric("velocity_columns")
         self._phi0 = model.numeric("phi0")[:, self._gcols]  # (3, ng)
         self._dv0 = model.numeric("dv0")  # (3, n)
         ng, na = self._gcols.size, self._acols.size
@@ -99,11 +106,19 @@ class SVBuilder:
         self._fin = np.zeros((C, 3))  # CasADi sees 3 x C column-major
         self._G = np.zeros((C, 3, ng))  # per sample (dphidot/dD)^T, ng x 3 column-major
         self._A = np.zeros((C, 3, na))
+        self._V = np.zeros((C, 3, self._vcols.size))  # direct velocity-error Jacobian
+        self._tin = np.zeros(C)  # t - t_0, s
+        self._sin = np.zeros((C, len(model.signals)))  # signal columns, file units
         self._buf.set_arg(0, memoryview(self._fin))
+        self._buf.set_arg(1, memoryview(self._tin))
+        if self._sin.shape[1]:
+            self._buf.set_arg(2, memoryview(self._sin))
         self._buf.set_res(0, memoryview(self._G))
         self._buf.set_res(1, memoryview(self._A))
+        self._buf.set_res(2, memoryview(self._V))
 
-    def build(self, t: np.ndarray, f: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    def build(self, t: np.ndarray, f: np.ndarray, out: np.ndarray | None = None, *,
+              signals: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
         """Integrate S_V over a flight.
 
         Parameters
@@ -114,6 +129,8 @@ class SVBuilder:
             Platform specific force, m/s^2.
         out : (N, 3, n) ndarray, optional
             Where to write the result (float64, C-contiguous).
+        signals : mapping of str -> (N,) array_like, optional
+            Flight columns by name (file units): every one of ``model.signals`` is required.
 
         Returns
         -------
@@ -122,6 +139,7 @@ class SVBuilder:
             ``S.reshape(3 * N, n)`` is the stacked regression matrix (x, y, z per sample).
         """
         t, f = _check_time_force(t, f)
+        sig = _signal_matrix(self.model, signals, t.size)
         N, n = t.size, self.model.n_coefficients
         if out is None:
             out = np.empty((N, 3, n))
@@ -142,12 +160,37 @@ class SVBuilder:
             e = min(s + C, N)
             k = e - s
             self._fin[:k] = f[s:e]
+            self._tin[:k] = t[s:e] - t[0]  # m.t: time since the first sample
+            self._sin[:k] = sig[s:e]
             if k < C:
                 self._fin[k:] = 0.0
             self._eval()  # CasADi: G, A of the chunk into self._G, self._A
             sv_integrate_chunk(self._G[:k], self._A[:k], f[s:e], half_dt[s:e], self._gcols,
                                self._acols, phi, G_prev, I_prev, S_prev, out[s:e])
+            if self._vcols.size:
+                out[s:e, :, self._vcols] += self._V[:k]  # + V_d: direct term, not integrated
         return out
+
+
+def _signal_matrix(model: ErrorModel, signals: Mapping[str, np.ndarray] | None, n: int) -> np.ndarray:
+    """(N, n_signals) float array of the model's signal columns, checked (present, shape, finite)."""
+    names = model.signals
+    signals = {} if signals is None else signals
+    missing = [c for c in names if c not in signals]
+    if missing:
+        raise ValueError(f"model `{model.name}` needs flight column(s) {', '.join(f'`{c}`' for c in missing)}, "
+                         f"which the flight lacks (it has: {', '.join(signals) or 'no extra columns'})")
+    out = np.empty((n, len(names)))
+    for j, c in enumerate(names):
+        v = np.asarray(signals[c], dtype=float)
+        if v.shape != (n,):
+            raise ValueError(f"signal `{c}` must have shape ({n},), got {v.shape}")
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
+            raise ValueError(f"model `{model.name}`: signal column `{c}` is not finite at row {bad[0] + 1} "
+                             f"(value {v[bad[0]]:g}; rows count from 1)")
+        out[:, j] = v
+    return out
 
 
 #: A step longer than this many times the median step counts as a data gap.
@@ -168,6 +211,7 @@ def _warn_gaps(dt: np.ndarray) -> None:
             CasepWarning, stacklevel=3)
 
 
-def build_sv(model: ErrorModel, t: np.ndarray, f: np.ndarray, *, chunk: int = DEFAULT_CHUNK) -> np.ndarray:
+def build_sv(model: ErrorModel, t: np.ndarray, f: np.ndarray, *, chunk: int = DEFAULT_CHUNK,
+             signals: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
     """S_V of a flight for a set-up model: ``(N, 3, n)`` array, see :class:`SVBuilder`."""
-    return SVBuilder(model, chunk).build(t, f)
+    return SVBuilder(model, chunk).build(t, f, signals=signals)
