@@ -8,7 +8,10 @@ lines (CSV), extra columns ignored.
   (m/s, accumulated specific force), turned into ``f = dW/dt`` by second-order finite
   differences on the (possibly non-uniform) time grid (:func:`apparent_velocity_to_force`);
 - velocity error ``dv_x, dv_y, dv_z`` (m/s), or ``v_tel_x/y/z`` and ``v_trk_x/y/z`` (then
-  dv = v_tel - v_trk).
+  dv = v_tel - v_trk);
+- any other numeric column (``a_*``, ``r_*``, ``v_*``, attitude, body rate, temperature, ...)
+  is kept as a *signal* (``FlightData.signals``, file units) for model files that use it; a
+  column with text in it is ignored. Its values are checked when a model uses it.
 
 Two files (:func:`read_flight_pair`): a telemetry file (``t``, force or apparent velocity,
 ``v_tel_*``) and a tracking file at its own rate (``t``, ``v_trk_*``). The flight keeps every
@@ -200,6 +203,24 @@ class _Table:
             what = "empty value"  # CSV: only empty cells become NaN (keep_default_na=False)
         raise self.error(what, col, r + 1)
 
+    def signals(self, rows: np.ndarray | slice = slice(None)) -> dict[str, np.ndarray]:
+        """Every numeric column that is not a known one, as float64 (NaN kept), at `rows`."""
+        import pandas as pd
+
+        out = {}
+        for col in self.frame.columns:
+            if col in KNOWN_COLUMNS or col in out:
+                continue
+            raw = self.frame[col]
+            if raw.dtype.kind in "iuf":
+                out[col] = raw.to_numpy(dtype=float)[rows]
+            elif raw.dtype.kind == "O" and not _is_parquet(self.path):
+                values = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+                text = raw[np.isnan(values)].dropna().astype(str).str.strip().str.lower().str.lstrip("+-")
+                if text.isin(["nan", "inf", "infinity", ""]).all():  # numbers, NaN or empty cells
+                    out[col] = values[rows]
+        return out
+
     def vectors(self, cols: tuple[str, ...]) -> np.ndarray:
         return np.column_stack([self.numeric(c) for c in cols])
 
@@ -243,7 +264,8 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     Parameters
     ----------
     path : str or path-like
-        Columns ``t``, ``f_*`` or ``W_*``, and ``dv_*`` or ``v_tel_*`` with ``v_trk_*``.
+        Columns ``t``, ``f_*`` or ``W_*``, and ``dv_*`` or ``v_tel_*`` with ``v_trk_*``; any
+        other numeric column becomes a signal (``FlightData.signals``).
 
     Returns
     -------
@@ -272,7 +294,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     if dv_from != "dv":
         meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
         meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.checks
-    return FlightData(t, f, dv, source=tab.src, meta=meta)
+    return FlightData(t, f, dv, source=tab.src, meta=meta, signals=tab.signals())
 
 
 def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, *,
@@ -282,7 +304,8 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     Parameters
     ----------
     telemetry : path
-        ``t``, ``f_*`` or ``W_*``, ``v_tel_*``.
+        ``t``, ``f_*`` or ``W_*``, ``v_tel_*``; its other numeric columns become signals
+        (the tracking file's other columns are not read).
     tracking : path
         ``t``, ``v_trk_*``, at its own times.
     interpolation : {"cubic", "linear"}, optional
@@ -340,7 +363,8 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
             "unobserved": int((~observed).sum()), "telemetry_dropped": int((~keep).sum()),
             "start_speed_m_s": float(np.linalg.norm(v_tel[0])),
             "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.checks
-    return FlightData(t, f[keep], dv, source=f"{tel.src} + {trk.src}", meta=meta, observed=observed)
+    return FlightData(t, f[keep], dv, source=f"{tel.src} + {trk.src}", meta=meta, observed=observed,
+                      signals=tel.signals(keep))
 
 
 def write_table(path: str | os.PathLike, columns: dict[str, np.ndarray], *,
@@ -378,7 +402,7 @@ def write_table(path: str | os.PathLike, columns: dict[str, np.ndarray], *,
 
 
 def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[str] | None = None) -> None:
-    """Write a flight (``t, f_x, f_y, f_z, dv_x, dv_y, dv_z``) as CSV or Parquet, atomically."""
+    """Write a flight (``t, f_x, f_y, f_z, dv_x, dv_y, dv_z``, then its signals) as CSV or Parquet, atomically."""
     if not isinstance(flight, FlightData):
         raise TypeError(f"`flight` must be a FlightData, got {type(flight).__name__}")
     if flight.n_observed < flight.n_samples:
@@ -387,6 +411,7 @@ def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[
     cols = {"t": flight.t}
     cols.update({c: flight.f[:, i] for i, c in enumerate(FORCE_COLUMNS)})
     cols.update({c: flight.dv[:, i] for i, c in enumerate(DV_COLUMNS)})
+    cols.update(flight.signals)
     write_table(path, cols, comments=comments)
 
 

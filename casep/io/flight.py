@@ -142,6 +142,10 @@ class FlightData:
     observed : (N,) array_like of bool, optional
         Samples where dv is observed (tracking exists); default all. S_V is integrated over
         every sample, the regression uses the observed ones. dv may be NaN elsewhere.
+    signals : dict of str -> (N,) array_like, optional
+        Other numeric flight columns by name, in the file's unit (``a_*``, ``r_*``, ``v_*``,
+        attitude, temperature, ...): what model files read with ``m.signal(name)``. Stored
+        as read (NaN allowed); checked when a model uses them (:meth:`model_signals`).
     """
 
     t: np.ndarray
@@ -150,6 +154,7 @@ class FlightData:
     source: str = "<memory>"
     meta: dict = field(default_factory=dict, compare=False)
     observed: np.ndarray | None = None
+    signals: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
         src = self.source
@@ -172,6 +177,44 @@ class FlightData:
         for name, arr in (("t", t), ("f", f), ("dv", dv), ("observed", obs)):
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
+        object.__setattr__(self, "signals", self._checked_signals(t.size))
+
+    def _checked_signals(self, n: int) -> dict[str, np.ndarray]:
+        if not isinstance(self.signals, dict):
+            raise FlightDataError(self.source, f"`signals` must be a dict of column name -> array, got "
+                                               f"{type(self.signals).__name__}", "signals")
+        out = {}
+        for name, values in self.signals.items():
+            arr = np.array(values, dtype=float)
+            if not isinstance(name, str) or arr.shape != (n,):
+                raise FlightDataError(self.source, f"signal must be a named array of shape ({n},), got "
+                                                   f"{arr.shape}", str(name))
+            arr.setflags(write=False)
+            out[name] = arr
+        return out
+
+    def model_signals(self, names: tuple[str, ...], model: str) -> dict[str, np.ndarray]:
+        """The columns `names` that model `model` uses, checked: present and finite.
+
+        Raises
+        ------
+        FlightDataError
+            Naming the file, the model and the column that is missing, or the first row where
+            a column is not finite.
+        """
+        out = {}
+        for c in names:
+            if c not in self.signals:
+                have = ", ".join(self.signals) or "none"
+                raise FlightDataError(self.source, f"missing column that model `{model}` needs (the flight's "
+                                                   f"extra columns: {have})", c)
+            values = self.signals[c]
+            r = _first_bad_row(values)
+            if r is not None:
+                raise FlightDataError(self.source, f"value {values[r]:g} is not finite (a signal that model "
+                                                   f"`{model}` uses)", c, r + 1)
+            out[c] = values
+        return out
 
     def _observed_mask(self, n: int) -> np.ndarray:
         if self.observed is None:

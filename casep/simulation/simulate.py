@@ -6,6 +6,18 @@ gap windows remove rows afterwards (the instrument errors keep accumulating thro
 For two-rate data, telemetry velocity is ``v_tel = v_true + S_V D_true`` at telemetry times
 and tracking is ``v_trk(t_k) = v_true(t_k - offset) + n(t_k)`` at its own times.
 
+Every simulated flight carries, beside ``t, f_*, dv_*``, the columns of ``interfaces.md``
+(0.2) that model files may use as signals (:data:`SIGNAL_COLUMNS`): ``a_*`` the true
+kinematic acceleration (specific force + gravity, m/s^2) at t; ``r_*`` and ``v_*`` the tracked
+position and velocity (launch-inertial frame, m and m/s) with ``v_tel = v_* + dv`` exactly;
+``att_pitch, att_yaw, att_roll`` the attitude (rad, body-to-platform ``C = Rz(pitch) Ry(-yaw)
+Rx(roll)``, roll 0 in this 3-DOF simulation) and ``omega_x, omega_y, omega_z`` the body rate
+(rad/s, body frame), both true at t. Tracking may be given a time offset ``dt`` (its time tags
+late: ``v_trk(t) = v_point(t - dt)``, exact, not linearised) and a lever arm ``l`` (the tracked
+point at ``C l`` from the platform, body frame: ``r_point = r + C l``,
+``v_point = v + C (omega_b x l)``). Before lift-off the vehicle is at rest on the pad; after
+burnout it is extrapolated ballistically (constant gravity), for offsets of a few ms.
+
 All randomness comes from ``numpy.random.default_rng(seed)``: the same seed gives the same
 bytes, another seed other noise.
 """
@@ -27,10 +39,75 @@ from casep.model._model import ErrorModel, unknown_coefficient_message
 from casep.model.loader import load_model
 from casep.simulation.scenarios import Scenario, get_scenario
 from casep.model.sv import build_sv
-from casep.simulation.trajectory import BoostTrajectory, simulate_boost
+from casep.simulation.trajectory import BoostTrajectory, body_to_platform, simulate_boost
 
-__all__ = ["SimulatedFlight", "simulate_flight", "scenario_setup", "write_simulation", "truth_path", "TwoRateData",
+__all__ = ["SIGNAL_COLUMNS", "trajectory_signals", "SimulatedFlight", "simulate_flight", "scenario_setup", "write_simulation", "truth_path", "TwoRateData",
            "simulate_two_rate"]
+
+
+#: Signal columns of every simulated flight: name -> unit (see the module notes).
+SIGNAL_COLUMNS = {**{f"a_{a}": "m/s^2" for a in "xyz"}, **{f"r_{a}": "m" for a in "xyz"},
+                  **{f"v_{a}": "m/s" for a in "xyz"}, "att_pitch": "rad", "att_yaw": "rad", "att_roll": "rad",
+                  **{f"omega_{a}": "rad/s" for a in "xyz"}}
+
+
+def _tracked_point(traj: BoostTrajectory, times: np.ndarray, lever: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Position and velocity of the tracked point (lever arm `lever`, m, body frame) at `times`."""
+    t0, t1 = traj.t[0], traj.t[-1]
+    inside = (times >= t0) & (times <= t1)
+    pos, vel = np.zeros((times.size, 3)), np.zeros((times.size, 3))  # before lift-off: at rest on the pad
+    att, rate = np.zeros((times.size, 3)), np.zeros((times.size, 3))
+    att[:, 0] = traj.attitude[0, 0]
+    if np.array_equal(times, traj.t):  # the sample times: no dense-output evaluation needed
+        pos, vel, att, rate = traj.position.copy(), traj.velocity.copy(), traj.attitude, traj.body_rate
+    elif inside.any():
+        k = traj.kinematics(times[inside])
+        pos[inside], vel[inside], att[inside], rate[inside] = (k["position"], k["velocity"], k["attitude"],
+                                                                k["body_rate"])
+    late = times > t1
+    if late.any():  # after burnout: ballistic, r + v dt + g dt^2 / 2 with gravity g at burnout
+        g = traj.acceleration[-1] - traj.specific_force[-1]
+        d = (times[late] - t1)[:, None]
+        pos[late] = traj.position[-1] + traj.velocity[-1] * d + 0.5 * g * d**2
+        vel[late] = traj.velocity[-1] + g * d
+        att[late], rate[late] = traj.attitude[-1], traj.body_rate[-1]
+    if np.any(lever):
+        C = body_to_platform(att[:, 0], att[:, 1], att[:, 2])
+        pos = pos + C @ lever  # r_point = r + C l
+        vel = vel + np.einsum("kij,kj->ki", C, np.cross(rate, lever))  # v_point = v + C (omega_b x l)
+    return pos, vel
+
+
+def trajectory_signals(traj: BoostTrajectory, *, time_offset: float = 0.0,
+                       lever_arm: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """The :data:`SIGNAL_COLUMNS` of a trajectory, noise-free, at its sample times.
+
+    Parameters
+    ----------
+    traj : BoostTrajectory
+    time_offset : float, optional
+        Tracking time tags late by this much, s: ``r_*, v_*`` are the tracked point's at t - offset.
+    lever_arm : (3,) array_like, optional
+        Tracked point from the platform, m, body frame.
+    """
+    lever = np.zeros(3) if lever_arm is None else np.asarray(lever_arm, dtype=float)
+    pos, vel = _tracked_point(traj, traj.t - time_offset, lever)
+    cols = {}
+    for prefix, arr in (("a", traj.acceleration), ("r", pos), ("v", vel)):
+        cols.update({f"{prefix}_{a}": arr[:, i] for i, a in enumerate("xyz")})
+    cols.update(att_pitch=traj.attitude[:, 0], att_yaw=traj.attitude[:, 1], att_roll=traj.attitude[:, 2])
+    cols.update({f"omega_{a}": traj.body_rate[:, i] for i, a in enumerate("xyz")})
+    return cols
+
+
+def _check_tracking(time_offset: float, lever_arm) -> tuple[float, np.ndarray]:
+    if isinstance(time_offset, bool) or not isinstance(time_offset, (int, float)) or not np.isfinite(time_offset) \
+            or abs(time_offset) > 1.0:
+        raise ValueError(f"`time_offset` must be a finite number of seconds within +-1 s, got {time_offset!r}")
+    lever = np.zeros(3) if lever_arm is None else np.asarray(lever_arm, dtype=float)
+    if lever.shape != (3,) or not np.all(np.isfinite(lever)):
+        raise ValueError(f"`lever_arm` must be 3 finite numbers (m, body frame), got {lever_arm!r}")
+    return float(time_offset), lever
 
 
 @dataclass(frozen=True)
@@ -44,6 +121,7 @@ class SimulatedFlight:
     noise: np.ndarray  # the tracking noise added, (N, 3) m/s, after gap removal
     scenario: Scenario
     seed: int
+    tracking: dict = dataclasses.field(default_factory=dict)  # injected time offset (ms), lever arm (m)
 
     def truth_dict(self) -> dict:
         """The ``<name>.truth.json`` sidecar of ``interfaces.md``."""
@@ -56,6 +134,8 @@ class SimulatedFlight:
                            "rate_hz": self.scenario.rate, "vehicle": self.scenario.vehicle.to_dict(),
                            "summary": self.trajectory.summary()},
             "seed": self.seed,
+            "tracking": {"time_offset_ms": 0.0, "lever_arm_m": [0.0, 0.0, 0.0], **self.tracking},
+            "signals": SIGNAL_COLUMNS,
         }
 
 
@@ -85,7 +165,8 @@ def _check_seed(seed: int) -> int:
 
 
 def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: float | None = None,
-                    model: str | os.PathLike | None = None, truth: dict | None = None) -> SimulatedFlight:
+                    model: str | os.PathLike | None = None, truth: dict | None = None,
+                    time_offset: float = 0.0, lever_arm: np.ndarray | None = None) -> SimulatedFlight:
     """Simulate one flight of a scenario.
 
     Parameters
@@ -102,6 +183,10 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
         ``{name: value}`` true coefficients in natural units instead of the scenario's
         (coefficients not named are 0; required in practice with another `model`, whose
         names the scenario's truth need not share).
+    time_offset : float, optional
+        Tracking time tags late by this much, s: ``v_trk(t) = v_point(t - offset)`` (exact).
+    lever_arm : (3,) array_like, optional
+        Tracked point from the platform, m, body frame.
 
     Returns
     -------
@@ -112,15 +197,23 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
     if model is not None or truth is not None:
         sc = dataclasses.replace(sc, model=sc.model if model is None else os.fspath(model),
                                  truth=sc.truth if truth is None else dict(truth))
+    time_offset, lever = _check_tracking(time_offset, lever_arm)
     sc, traj, model, truth = scenario_setup(sc, rate)
     rng = np.random.default_rng(seed)
-    clean = build_sv(model, traj.t, traj.specific_force) @ truth  # S_V D_true
+    sig = trajectory_signals(traj, time_offset=time_offset, lever_arm=lever)
+    tracked = np.column_stack([sig[f"v_{a}"] for a in "xyz"])
+    # dv = v_tel - v_trk = (v + S_V D) - (v_point(t - dt) - n) = S_V D + (v - v_point(t - dt)) + n
+    clean = build_sv(model, traj.t, traj.specific_force, signals=sig) @ truth + (traj.velocity - tracked)
     noise = sc.noise.sample(traj.t, rng)
     keep = sc.noise.keep_mask(traj.t)
+    for i, a in enumerate("xyz"):
+        sig[f"v_{a}"] = tracked[:, i] - noise[:, i]  # tracked velocity as measured: v_tel = v_* + dv
     flight = FlightData(traj.t[keep], traj.specific_force[keep], clean[keep] + noise[keep],
-                        source=f"simulated:{sc.name}:seed{seed}", meta={"scenario": sc.name, "seed": seed})
+                        source=f"simulated:{sc.name}:seed{seed}", meta={"scenario": sc.name, "seed": seed},
+                        signals={k: v[keep] for k, v in sig.items()})
     return SimulatedFlight(flight=flight, trajectory=traj, model=model, truth=truth, noise=noise[keep],
-                           scenario=sc, seed=seed)
+                           scenario=sc, seed=seed,
+                           tracking={"time_offset_ms": time_offset * 1e3, "lever_arm_m": lever.tolist()})
 
 
 def truth_path(path: str | os.PathLike) -> Path:
@@ -155,13 +248,16 @@ class TwoRateData:
     v_trk: np.ndarray
     truth: np.ndarray
     model: ErrorModel
+    acceleration: np.ndarray | None = None  # kinematic acceleration at telemetry times, m/s^2
 
     def write(self, telemetry: str | os.PathLike, tracking: str | os.PathLike, *, apparent: bool = False) -> None:
-        """Telemetry file (``t``, ``f_*`` or ``W_*``, ``v_tel_*``) and tracking file (``t``, ``v_trk_*``)."""
+        """Telemetry file (``t``, ``f_*`` or ``W_*``, ``v_tel_*``, ``a_*``) and tracking file (``t``, ``v_trk_*``)."""
         cols = {"t": self.t_tel}
         src, prefix = (self.W, "W") if apparent else (self.f, "f")
         cols.update({f"{prefix}_{a}": src[:, i] for i, a in enumerate("xyz")})
         cols.update({f"v_tel_{a}": self.v_tel[:, i] for i, a in enumerate("xyz")})
+        if self.acceleration is not None:  # a signal for time-offset models (platform36_timeoffset)
+            cols.update({f"a_{a}": self.acceleration[:, i] for i, a in enumerate("xyz")})
         write_table(telemetry, cols)
         write_table(tracking, {"t": self.t_trk, **{f"v_trk_{a}": self.v_trk[:, i] for i, a in enumerate("xyz")}})
 
@@ -201,4 +297,4 @@ def simulate_two_rate(scenario: str | Scenario = "paper", *, seed: int = 0, tele
     t_trk = np.arange(np.ceil(lo * tracking_rate), np.floor(hi * tracking_rate) + 1) / tracking_rate
     _, v_true = traj.sample(t_trk - time_offset)
     v_trk = v_true + sc.noise.sample(t_trk, rng)
-    return TwoRateData(traj.t, traj.specific_force, W, v_tel, t_trk, v_trk, truth, model)
+    return TwoRateData(traj.t, traj.specific_force, W, v_tel, t_trk, v_trk, truth, model, traj.acceleration)

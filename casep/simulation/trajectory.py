@@ -25,6 +25,11 @@ Assumptions (every one is a choice, stated here and in the README):
   time constant ``tau``). Optional yaw manoeuvre ``psi(t) = A sin(2 pi (t - t_a) / P)`` on
   ``[t_a, t_b]``, so that the z-axis terms of the error model see some excitation.
 - **Sensed specific force**: ``f = (T - D) e_b / m`` (gravity is not sensed).
+- **Attitude and body rate** (for lever-arm terms): roll is zero; the body-to-platform
+  rotation is ``C = Rz(theta) Ry(-psi)`` (body x axis = ``e_b``), its rate
+  ``omega_p = theta_dot e_z - psi_dot Rz(theta) e_y`` (platform frame) and the body rate
+  ``omega_b = C^T omega_p``; ``theta_dot`` and ``psi_dot`` are exact derivatives of the attitude
+  law (in the gravity turn, of the velocity's pitch, from the kinematic acceleration).
 
 :func:`simulate_boost` integrates the equations with an adaptive Runge-Kutta method (DOP853,
 rtol 1e-10) piece by piece between thrust discontinuities and evaluates ``f`` exactly from
@@ -40,7 +45,7 @@ import numpy as np
 
 from casep.units import G0
 
-__all__ = ["Stage", "Vehicle", "PitchProgramme", "YawManoeuvre", "BoostTrajectory", "simulate_boost",
+__all__ = ["body_to_platform", "Stage", "Vehicle", "PitchProgramme", "YawManoeuvre", "BoostTrajectory", "simulate_boost",
            "atmosphere", "DEFAULT_VEHICLE", "MU_EARTH", "R_EARTH"]
 
 MU_EARTH = 3.986004418e14  # m^3/s^2
@@ -169,7 +174,9 @@ class BoostTrajectory:
     ----------
     t : (N,) s; position, velocity : (N, 3) m, m/s (launch-inertial); specific_force :
     (N, 3) m/s^2 as the platform senses it; mass : (N,) kg; altitude : (N,) m;
-    events : dict of event name -> time (s); vehicle : Vehicle.
+    events : dict of event name -> time (s); vehicle : Vehicle; acceleration : (N, 3)
+    kinematic acceleration (specific force + gravity), m/s^2; attitude : (N, 3) pitch theta,
+    yaw psi, roll (0), rad; body_rate : (N, 3) omega_b, rad/s, body frame (see the module notes).
     """
 
     t: np.ndarray
@@ -180,7 +187,11 @@ class BoostTrajectory:
     altitude: np.ndarray
     events: dict
     vehicle: Vehicle
+    acceleration: np.ndarray | None = None
+    attitude: np.ndarray | None = None
+    body_rate: np.ndarray | None = None
     _segments: list = field(repr=False, compare=False, default_factory=list)
+    _aoa0: float = field(repr=False, compare=False, default=0.0)
 
     def sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """True position and velocity at arbitrary `times` within the flight (dense output)."""
@@ -188,7 +199,7 @@ class BoostTrajectory:
         pos = np.empty((times.size, 3))
         vel = np.empty((times.size, 3))
         done = np.zeros(times.size, dtype=bool)
-        for t0, t1, sol in self._segments:
+        for t0, t1, sol, *_ in self._segments:
             sel = (times >= t0) & (times <= t1) & ~done
             if np.any(sel):
                 x = sol(times[sel])
@@ -198,6 +209,32 @@ class BoostTrajectory:
             bad = times[~done][0]
             raise ValueError(f"`times` contains {bad} s, outside the flight [{self.t[0]}, {self.t[-1]}] s")
         return pos, vel
+
+    def kinematics(self, times: np.ndarray) -> dict[str, np.ndarray]:
+        """True state at arbitrary `times` within the flight (dense output, exact attitude law).
+
+        Returns ``{"position", "velocity", "acceleration", "attitude", "body_rate"}``, each
+        (M, 3), in the units of the class attributes.
+        """
+        times = np.atleast_1d(np.asarray(times, dtype=float))
+        out = {k: np.full((times.size, 3), np.nan) for k in ("position", "velocity", "acceleration",
+                                                               "attitude", "body_rate")}
+        state = {"aoa0": self._aoa0}
+        done = np.zeros(times.size, dtype=bool)
+        last_t1 = self._segments[-1][1]
+        for t0, t1, sol, k, kind in self._segments:  # a piece owns [t0, t1), the last one [t0, t1]
+            idx = np.flatnonzero((times >= t0) & ((times < t1) | ((t1 == last_t1) & (times <= t1))) & ~done)
+            for i in idx:
+                y = sol(times[i])
+                f, grav, _ = _forces(self.vehicle, self.vehicle.stages[k], kind, times[i], t0, t1, y, state)
+                rows = dict(zip(out, (y[0:3], y[3:6], f + grav)))
+                rows["attitude"], rows["body_rate"] = _attitude_rates(self.vehicle, times[i], y[3:6], f + grav, state)
+                for key, value in rows.items():
+                    out[key][i] = value
+            done[idx] = True
+        if not np.all(done):
+            raise ValueError(f"`times` contains {times[~done][0]} s, outside the flight [{self.t[0]}, {self.t[-1]}] s")
+        return out
 
     def summary(self) -> dict:
         """Burnout speed, altitude, flight-path angle and specific-force figures."""
@@ -247,21 +284,58 @@ def _thrust(stage: Stage, kind: str, t: float, t0: float, t1: float) -> float:
     return 0.0
 
 
-def _attitude(vehicle: Vehicle, t: float, v: np.ndarray, state: dict) -> np.ndarray:
+def _angles(vehicle: Vehicle, t: float, v: np.ndarray, a: np.ndarray | None, state: dict
+            ) -> tuple[float, float, float, float]:
+    """Pitch theta, yaw psi (rad) and, when the kinematic acceleration `a` is given, their
+    time derivatives (rad/s; else NaN)."""
     p = vehicle.pitch
     half_pi = 0.5 * math.pi
     t_kick_end = p.vertical + p.kick
+    theta_dot = psi_dot = 0.0 if a is not None else math.nan
     if t < p.vertical:
         theta = half_pi
     elif t < t_kick_end:
         theta = half_pi - math.radians(p.kick_rate) * (t - p.vertical)
+        theta_dot = -math.radians(p.kick_rate) if a is not None else math.nan
     else:
         theta_v = math.atan2(v[1], v[0])  # in-plane velocity pitch
-        theta = theta_v + state["aoa0"] * math.exp(-(t - t_kick_end) / p.tau)
+        decay = state["aoa0"] * math.exp(-(t - t_kick_end) / p.tau)
+        theta = theta_v + decay
+        if a is not None:  # d atan2(vy, vx)/dt = (vx ay - vy ax) / (vx^2 + vy^2); d decay/dt = -decay / tau
+            theta_dot = (v[0] * a[1] - v[1] * a[0]) / (v[0] ** 2 + v[1] ** 2) - decay / p.tau
     psi = 0.0
     y = vehicle.yaw
     if y is not None and y.start <= t <= y.end:
-        psi = math.radians(y.amplitude) * math.sin(2.0 * math.pi * (t - y.start) / y.period)
+        w = 2.0 * math.pi / y.period
+        psi = math.radians(y.amplitude) * math.sin(w * (t - y.start))
+        if a is not None:
+            psi_dot = math.radians(y.amplitude) * w * math.cos(w * (t - y.start))
+    return theta, psi, theta_dot, psi_dot
+
+
+def body_to_platform(theta: np.ndarray, psi: np.ndarray, roll: np.ndarray | None = None) -> np.ndarray:
+    """C = Rz(theta) Ry(-psi) Rx(roll), (..., 3, 3): body-to-platform rotation (body x = e_b)."""
+    theta, psi = np.asarray(theta, dtype=float), np.asarray(psi, dtype=float)
+    roll = np.zeros_like(theta) if roll is None else np.asarray(roll, dtype=float)
+    ct, st, cp, sp, cr, sr = np.cos(theta), np.sin(theta), np.cos(psi), np.sin(psi), np.cos(roll), np.sin(roll)
+    one, zero = np.ones_like(ct), np.zeros_like(ct)
+    Rz = np.stack([np.stack([ct, -st, zero], -1), np.stack([st, ct, zero], -1), np.stack([zero, zero, one], -1)], -2)
+    Ry = np.stack([np.stack([cp, zero, -sp], -1), np.stack([zero, one, zero], -1), np.stack([sp, zero, cp], -1)], -2)
+    Rx = np.stack([np.stack([one, zero, zero], -1), np.stack([zero, cr, -sr], -1), np.stack([zero, sr, cr], -1)], -2)
+    return Rz @ Ry @ Rx
+
+
+def _attitude_rates(vehicle: Vehicle, t: float, v: np.ndarray, a: np.ndarray, state: dict
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(pitch, yaw, roll = 0) in rad and the body rate omega_b (rad/s, body frame)."""
+    theta, psi, theta_dot, psi_dot = _angles(vehicle, t, v, a, state)
+    # omega_p = theta_dot e_z - psi_dot Rz(theta) e_y  (C = Rz(theta) Ry(-psi))
+    omega_p = np.array([psi_dot * math.sin(theta), -psi_dot * math.cos(theta), theta_dot])
+    return np.array([theta, psi, 0.0]), body_to_platform(theta, psi).T @ omega_p  # omega_b = C^T omega_p
+
+
+def _attitude(vehicle: Vehicle, t: float, v: np.ndarray, state: dict) -> np.ndarray:
+    theta, psi, _, _ = _angles(vehicle, t, v, None, state)
     cp = math.cos(psi)
     return np.array([cp * math.cos(theta), cp * math.sin(theta), math.sin(psi)])
 
@@ -312,6 +386,7 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0) -> B
     p = vehicle.pitch
     t_kick_end = p.vertical + p.kick
     pos, vel, f_out, mass = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n))
+    acc, att, rate = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
     segments = []
     # Split pieces further at the end of the kick (attitude law switches there).
     cuts = []
@@ -339,19 +414,22 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0) -> B
         sol = solve_ivp(rhs, (t0, t1), x, method="DOP853", rtol=1e-10, atol=1e-8, dense_output=True)
         if not sol.success:  # pragma: no cover - DOP853 on a smooth piece
             raise RuntimeError(f"trajectory integration failed on [{t0}, {t1}] s: {sol.message}")
-        segments.append((t0, t1, sol.sol))
+        segments.append((t0, t1, sol.sol, k, kind))
         last = cuts[-1][1] == t1
         sel = (t_out >= t0) & ((t_out < t1) | (last & (t_out <= t1 + 1e-9)))
         idx = np.flatnonzero(sel)
         ys = sol.sol(np.minimum(t_out[idx], t1))
         for i, y in zip(idx, ys.T):
-            f_out[i] = _forces(vehicle, stage, kind, t_out[i], t0, t1, y, state)[0]
+            f_out[i], grav, _ = _forces(vehicle, stage, kind, t_out[i], t0, t1, y, state)
+            acc[i] = f_out[i] + grav  # kinematic acceleration = specific force + gravity
+            att[i], rate[i] = _attitude_rates(vehicle, t_out[i], y[3:6], acc[i], state)
         pos[idx], vel[idx], mass[idx] = ys[0:3].T, ys[3:6].T, ys[6]
         x = sol.y[:, -1].copy()
     r = pos + np.array([0.0, R_EARTH, 0.0])
     alt = np.linalg.norm(r, axis=1) - R_EARTH
     out = BoostTrajectory(t=t_out, position=pos, velocity=vel, specific_force=f_out, mass=mass, altitude=alt,
-                          events=events, vehicle=vehicle, _segments=segments)
+                          events=events, vehicle=vehicle, acceleration=acc, attitude=att, body_rate=rate,
+                          _segments=segments, _aoa0=state["aoa0"])
     if not (np.all(np.isfinite(f_out)) and np.all(np.isfinite(pos))):  # pragma: no cover
         raise RuntimeError("trajectory produced non-finite values")
     return out

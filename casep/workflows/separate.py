@@ -39,7 +39,8 @@ def regression_rows(flight: FlightData, model: ErrorModel) -> tuple[np.ndarray, 
     check_flight(flight)  # unit mistakes, impossible data (casep.checks)
     check_dv_not_zero(flight)
     warn_late_start(flight, model)
-    return flight.observed_rows(build_sv(model, flight.t, flight.f))
+    return flight.observed_rows(build_sv(model, flight.t, flight.f,
+                                         signals=flight.model_signals(model.signals, model.name)))
 
 
 def separate(
