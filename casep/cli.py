@@ -209,6 +209,11 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--truth", metavar="FILE", default=None,
                    help='true coefficients, JSON {"Kg0x": value, ...} natural units, or a .truth.json sidecar '
                         "(default: the scenario's; names not given are 0)")
+    g.add_argument("--tracking-offset", type=float, default=0.0, metavar="MS",
+                   help="tracking time tags late by MS milliseconds: v_trk(t) = v_true(t - MS) (default 0)")
+    g.add_argument("--lever-arm", type=float, nargs=3, default=None, metavar=("LX", "LY", "LZ"),
+                   help="tracked point from the platform, m, body frame (default 0 0 0); the flight file's "
+                        "att_pitch/att_yaw/att_roll (rad) and omega_x/y/z (rad/s, body) columns describe the attitude")
     d = sub.add_parser("diagnose", help="what the flight can and cannot determine")
     d.add_argument("flight", help="flight file")
     d.add_argument("--tracking", metavar="FILE", default=None, help="tracking file (two-file input)")
@@ -458,7 +463,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         truth = read_json_table(args.truth, "--truth")
         truth = truth["coefficients"] if isinstance(truth.get("coefficients"), dict) else truth
         _truth_vector(load_model(args.model or get_scenario(args.scenario).model), truth, f"--truth {args.truth}")
-    sim = simulate_flight(args.scenario, seed=args.seed, rate=args.rate, model=args.model, truth=truth)
+    sim = simulate_flight(args.scenario, seed=args.seed, rate=args.rate, model=args.model, truth=truth,
+                          time_offset=args.tracking_offset * 1e-3, lever_arm=args.lever_arm)  # ms -> s
     flight_path, side = write_simulation(sim, args.output)
     s = sim.trajectory.summary()
     print(f"scenario {sim.scenario.name}: {sim.flight.n_samples} samples at {sim.scenario.rate:g} Hz, "

@@ -377,6 +377,8 @@ def warn_late_start(flight: FlightData, model) -> dict:
     missing = [(term, use) for key, term, use in _INITIAL_TERMS if not np.any(model.numeric(key))]
     if not ev or not missing:
         return ev
+    if "speed_m_s" not in ev and np.size(model.numeric("velocity_columns")):
+        return ev  # dv(t0) != 0 at lift-off is what a direct velocity term (a time offset: a(t0) dt) gives
     what = []
     if "speed_m_s" in ev:
         what.append(f"the telemetry speed at the first sample is {ev['speed_m_s']:.4g} m/s (> {PAD_SPEED:g} m/s)")

@@ -103,7 +103,8 @@ def trajectory_signals(traj: BoostTrajectory, *, time_offset: float = 0.0,
 def _check_tracking(time_offset: float, lever_arm) -> tuple[float, np.ndarray]:
     if isinstance(time_offset, bool) or not isinstance(time_offset, (int, float)) or not np.isfinite(time_offset) \
             or abs(time_offset) > 1.0:
-        raise ValueError(f"`time_offset` must be a finite number of seconds within +-1 s, got {time_offset!r}")
+        raise ValueError(f"`time_offset` must be a finite number of seconds within +-1 s (--tracking-offset "
+                         f"within +-1000 ms), got {time_offset!r} s")
     lever = np.zeros(3) if lever_arm is None else np.asarray(lever_arm, dtype=float)
     if lever.shape != (3,) or not np.all(np.isfinite(lever)):
         raise ValueError(f"`lever_arm` must be 3 finite numbers (m, body frame), got {lever_arm!r}")
