@@ -314,3 +314,19 @@ def test_simulate_cli_offset_and_lever_arm(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "casep", "simulate", "--tracking-offset", "5000", "-o",
                           str(tmp_path / "g.csv")], capture_output=True, text=True)
     assert bad.returncode == 2 and "--tracking-offset" in bad.stderr
+
+
+def test_two_rate_example_dt_trk_removes_the_ka0y_bias(tmp_path):
+    from pathlib import Path
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "two_rate_workflow.py"
+    out = subprocess.run([sys.executable, str(example), "--quick", "--out", str(tmp_path)], capture_output=True,
+                         text=True, timeout=600, check=True).stdout
+    line = next(ln for ln in out.splitlines() if ln.startswith("Ka0y"))
+    before, after = (float(x) for x in line.split("bias/std ")[1].split(";")[0].split(" -> "))
+    vs_ref = float(line.split("fitted - no offset ")[1].split()[0])
+    assert before < -10.0  # unmodelled 20 ms: Ka0y many std off
+    assert abs(vs_ref) < 1.0  # dt_trk fitted: as if there were no offset
+    dt = next(ln for ln in out.splitlines() if ln.startswith("dt_trk")).split()
+    est, std = float(dt[2]), float(dt[4])
+    assert abs(est - 20.0) < 4.0 * std
