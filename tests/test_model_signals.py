@@ -330,3 +330,12 @@ def test_two_rate_example_dt_trk_removes_the_ka0y_bias(tmp_path):
     dt = next(ln for ln in out.splitlines() if ln.startswith("dt_trk")).split()
     est, std = float(dt[2]), float(dt[4])
     assert abs(est - 20.0) < 4.0 * std
+
+
+def test_model_signals_paper_example_runs(tmp_path):
+    from pathlib import Path
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "model_signals_paper.py"
+    out = subprocess.run([sys.executable, str(example), "--quick"], capture_output=True, text=True, timeout=600,
+                         check=True, cwd=tmp_path).stdout
+    assert "dt_trk" in out and "VIF" in out and "lever arm (1.5, -0.4, 0.3) m: new terms [1.5, -0.4, 0.3]" in out
