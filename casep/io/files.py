@@ -1,7 +1,7 @@
 """Reading and writing flight files: CSV and Parquet, one file or telemetry + tracking.
 
 Formats (``../shared/spec/interfaces.md``): a header row, one row per sample, ``#`` comment
-lines (CSV), extra columns ignored.
+lines (CSV), other numeric columns kept as signals (below), text columns ignored.
 
 - time ``t`` (s, strictly increasing);
 - specific force ``f_x, f_y, f_z`` (m/s^2), or telemetered apparent velocity ``W_x, W_y, W_z``
