@@ -33,7 +33,7 @@ the chunk in one pass, carrying the running integrals to the next chunk. Memory 
 from __future__ import annotations
 
 import warnings
-from typing import Mapping
+from typing import Iterator, Mapping
 
 import numpy as np
 
@@ -145,6 +145,30 @@ class SVBuilder:
             out = np.empty((N, 3, n))
         elif out.shape != (N, 3, n) or out.dtype != np.float64 or not out.flags.c_contiguous:
             raise ValueError(f"`out` must be a C-contiguous float64 array of shape {(N, 3, n)}")
+        for _ in self._integrate(t, f, sig, max(N, 1), out):  # one block: the whole flight, into `out`
+            pass
+        return out
+
+    def blocks(self, t: np.ndarray, f: np.ndarray, rows: int = 65536, *,
+               signals: Mapping[str, np.ndarray] | None = None) -> Iterator[tuple[int, int, np.ndarray]]:
+        """Integrate S_V over a flight block by block, never holding it whole.
+
+        Yields ``(start, stop, S[start:stop])`` in time order. The block array is reused between
+        yields (copy it to keep it). Same numbers as :meth:`build`: same recursion, same chunks
+        (`rows` is rounded to whole chunks).
+        """
+        t, f = _check_time_force(t, f)
+        sig = _signal_matrix(self.model, signals, t.size)
+        if isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1:
+            raise ValueError(f"`rows` must be a positive int, got {rows!r}")
+        rows = max(self.chunk, int(rows) // self.chunk * self.chunk)
+        buf = np.empty((min(rows, t.size), 3, self.model.n_coefficients))
+        yield from self._integrate(t, f, sig, rows, buf)
+
+    def _integrate(self, t: np.ndarray, f: np.ndarray, sig: np.ndarray, rows: int,
+                   buf: np.ndarray) -> Iterator[tuple[int, int, np.ndarray]]:
+        """The trapezoid recursions over CasADi chunks, `rows` samples per yield, written into `buf`."""
+        N, n = t.size, self.model.n_coefficients
         dt = np.empty(N)
         dt[0] = 0.0  # S_V(t0) = V0, Phi(t0) = Phi0
         np.subtract(t[1:], t[:-1], out=dt[1:])
@@ -156,20 +180,23 @@ class SVBuilder:
         I_prev = np.zeros((3, n))
         S_prev = self._dv0.copy()  # (3, n)
         C = self.chunk
-        for s in range(0, N, C):
-            e = min(s + C, N)
-            k = e - s
-            self._fin[:k] = f[s:e]
-            self._tin[:k] = t[s:e] - t[0]  # m.t: time since the first sample
-            self._sin[:k] = sig[s:e]
-            if k < C:
-                self._fin[k:] = 0.0
-            self._eval()  # CasADi: G, A of the chunk into self._G, self._A
-            sv_integrate_chunk(self._G[:k], self._A[:k], f[s:e], half_dt[s:e], self._gcols,
-                               self._acols, phi, G_prev, I_prev, S_prev, out[s:e])
-            if self._vcols.size:
-                out[s:e, :, self._vcols] += self._V[:k]  # + V_d: direct term, not integrated
-        return out
+        for b0 in range(0, N, rows):
+            b1 = min(b0 + rows, N)
+            for s in range(b0, b1, C):
+                e = min(s + C, b1)
+                k = e - s
+                o = buf[s - b0:e - b0]
+                self._fin[:k] = f[s:e]
+                self._tin[:k] = t[s:e] - t[0]  # m.t: time since the first sample
+                self._sin[:k] = sig[s:e]
+                if k < C:
+                    self._fin[k:] = 0.0
+                self._eval()  # CasADi: G, A of the chunk into self._G, self._A
+                sv_integrate_chunk(self._G[:k], self._A[:k], f[s:e], half_dt[s:e], self._gcols,
+                                   self._acols, phi, G_prev, I_prev, S_prev, o)
+                if self._vcols.size:
+                    o[:, :, self._vcols] += self._V[:k]  # + V_d: direct term, not integrated
+            yield b0, b1, buf[: b1 - b0]
 
 
 def _signal_matrix(model: ErrorModel, signals: Mapping[str, np.ndarray] | None, n: int) -> np.ndarray:
