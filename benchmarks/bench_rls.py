@@ -32,7 +32,8 @@ def casep_run(Z, y, p0, nc):
     x = np.zeros(n + nc)
     U = np.zeros((n + nc, n + nc))
     D = np.full(n + nc, p0)
-    rels_ud(Z, y, x, U, D, 1.0, 1.0, nc, True, 0, np.zeros((1, n + nc)), np.zeros((1, n + nc)))
+    rels_ud(Z, y, x, U, D, 1.0, 1.0, nc, True, 0, np.zeros((1, n + nc)), np.zeros((1, n + nc)), D.copy(),
+            np.zeros((3, nc + 1)), 0)
     return x[:n]
 
 

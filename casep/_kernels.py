@@ -94,7 +94,8 @@ def _bierman(U, D, x, h, f, b, r, dz, start):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
-def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, history_var):  # pragma: no cover
+def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, history_var, D0, past,
+            k0):  # pragma: no cover
     """Recursive (extended) least squares with Bierman's UD scalar updates, in place.
 
     H (N, 3, p): scaled regressors; y (N, 3); x (p + n_c): estimate; U (p + n_c, p + n_c)
@@ -108,6 +109,10 @@ def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, 
     (a-posteriori when `posterior`, else a-priori). Every `stride` samples x is copied to
     history[k // stride] and diag(P) to history_var[k // stride]. Returns the residuals
     (N, 3): a-priori innovations y - h x_{k-1} (the sequence the recursion whitens).
+
+    Resumable over blocks of samples: x, U, D and `past` (3, n_c + 1: each axis' last
+    residuals, newest first) carry the state; D0 is the prior diagonal (forgetting pulls
+    towards it) and k0 the index of this block's first sample in the flight (history rows).
     """
     N = H.shape[0]
     p = H.shape[2]
@@ -116,11 +121,9 @@ def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, 
     f = np.zeros(n)
     b = np.zeros(n)
     e_j = np.zeros(n)
-    past = np.zeros((3, n_c + 1))  # last residuals per axis, newest first
     innov = np.zeros((N, 3))
     r = 1.0 / weight
     inv_lam = 1.0 / forgetting
-    D0 = D.copy()
     for k in range(N):
         if forgetting != 1.0:
             for j in range(n):
@@ -150,8 +153,8 @@ def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, 
                 for j in range(n_c - 1, 0, -1):
                     past[axis, j] = past[axis, j - 1]
                 past[axis, 0] = e
-        if stride > 0 and k % stride == 0:
-            row = k // stride
+        if stride > 0 and (k0 + k) % stride == 0:
+            row = (k0 + k) // stride
             for j in range(n):
                 history[row, j] = x[j]
             # diag(P)_i = sum_{j >= i} U_ij^2 D_j  (U unit upper triangular, stored transposed)

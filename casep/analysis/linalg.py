@@ -17,10 +17,11 @@ classical estimable-function criterion), i.e. iff its row of ``V_null`` is zero.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Iterable
 
 import numpy as np
 
-__all__ = ["ReducedSystem", "reduce_qr", "RankAnalysis", "analyze_rank", "DEFAULT_BLOCK_ROWS"]
+__all__ = ["ReducedSystem", "reduce_qr", "reduce_qr_blocks", "RankAnalysis", "analyze_rank", "DEFAULT_BLOCK_ROWS"]
 
 #: Rows per TSQR block: bounds the temporary copy to ~block x (n + 1) doubles.
 DEFAULT_BLOCK_ROWS = 65536
@@ -114,6 +115,52 @@ def reduce_qr(S: np.ndarray, y: np.ndarray, *, block_rows: int = DEFAULT_BLOCK_R
     Rfull[: Racc.shape[0]] = Racc[: n + 1]
     return ReducedSystem(R=np.triu(Rfull[:n, :n]), qty=Rfull[:n, n].copy(), rho2=float(Rfull[n, n] ** 2),
                          scale=scale, m=m)
+
+
+def reduce_qr_blocks(blocks: Iterable[tuple[np.ndarray, np.ndarray]], n: int) -> ReducedSystem:
+    """:func:`reduce_qr` of a regression given block by block (rows never held whole).
+
+    Parameters
+    ----------
+    blocks : iterable of (S_block, y_block)
+        Row blocks in natural units, ``(k, n)`` or ``(k, 3, n)`` with ``(k,)`` or ``(k, 3)``.
+    n : int
+        Number of columns.
+
+    Notes
+    -----
+    One pass: TSQR of the unscaled ``[S | y]`` (``R <- qr([R; block])``), then the column
+    scaling afterwards. Householder QR commutes with column scaling (``S = Q R`` gives
+    ``S diag(c)^-1 = Q (R diag(c)^-1)``) and is column-wise backward stable, so the scaled
+    factor is as accurate as scaling first; the column norms of S are those of R.
+    """
+    Racc = np.zeros((0, n + 1))
+    m = 0
+    for S_blk, y_blk in blocks:
+        S_blk = np.asarray(S_blk, dtype=float).reshape(-1, n)
+        y_blk = np.asarray(y_blk, dtype=float).reshape(-1)
+        if y_blk.size != S_blk.shape[0]:
+            raise ValueError(f"a block has {y_blk.size} values of `y` for {S_blk.shape[0]} rows of `S`")
+        if not np.all(np.isfinite(y_blk)):
+            raise ValueError(f"`y` is not finite at row {m + int(np.flatnonzero(~np.isfinite(y_blk))[0])}")
+        if not np.all(np.isfinite(S_blk)):
+            raise ValueError(f"`S` is not finite at row {m + int(np.flatnonzero(~np.isfinite(S_blk).all(axis=1))[0])}")
+        M = np.empty((Racc.shape[0] + S_blk.shape[0], n + 1))
+        M[: Racc.shape[0]] = Racc
+        M[Racc.shape[0]:, :n] = S_blk
+        M[Racc.shape[0]:, n] = y_blk
+        Racc = np.linalg.qr(M, mode="r")  # Householder; R of [R_prev; block]
+        m += S_blk.shape[0]
+    if m == 0:
+        raise ValueError("`S` has no rows")
+    Rfull = np.zeros((n + 1, n + 1))
+    Rfull[: Racc.shape[0]] = Racc[: n + 1]
+    R = np.triu(Rfull[:n, :n])
+    scale = np.linalg.norm(R, axis=0)  # ||S e_j|| = ||R e_j||
+    inv = np.where(scale > 0, 1.0 / np.where(scale > 0, scale, 1.0), 0.0)
+    R = R * inv  # R diag(c)^-1: the factor of Z = S / c
+    R[:, scale == 0] = 0.0
+    return ReducedSystem(R=R, qty=Rfull[:n, n].copy(), rho2=float(Rfull[n, n] ** 2), scale=scale, m=m)
 
 
 @dataclass(frozen=True)

@@ -18,10 +18,11 @@ import warnings
 
 from casep.analysis.diagnostics import ILL_CONDITIONED, collinearity
 from casep.exceptions import IllConditionedWarning
-from casep.analysis.linalg import RankAnalysis, ReducedSystem, analyze_rank, condition_numbers, reduce_qr, unidentifiable_reasons
+from casep.analysis.problem import Problem as RegressionProblem
+from casep.analysis.linalg import RankAnalysis, ReducedSystem, condition_numbers, unidentifiable_reasons
 from casep.estimators.result import EstimateResult
 
-__all__ = ["Problem", "prepare", "finish", "check_positive", "inverse_scale", "OPTION_RANGES"]
+__all__ = ["Prepared", "prepare", "rows_of", "finish", "check_positive", "inverse_scale", "OPTION_RANGES"]
 
 
 #: Plausible ranges ``name -> (low, high, low_inclusive, why)`` of the scalar options, applied by
@@ -76,18 +77,43 @@ def inverse_scale(scale: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class Problem:
-    """A validated regression ``y = S D + e`` with its scaled QR reduction."""
+class Prepared:
+    """A validated :class:`casep.analysis.problem.Problem` as a solver sees it: reduction, rank, sigma."""
 
-    S: np.ndarray  # (m, n) natural units
-    y: np.ndarray  # (m,)
-    shape: tuple  # original leading shape of y, e.g. (N, 3)
-    names: tuple[str, ...]
-    units: tuple[str, ...]
-    si_factors: np.ndarray
-    red: ReducedSystem
+    problem: RegressionProblem
     ra: RankAnalysis
     sigma: float | None  # given noise std, or None
+
+    @property
+    def red(self) -> ReducedSystem:
+        return self.problem.red
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.problem.names
+
+    @property
+    def units(self) -> tuple[str, ...]:
+        return self.problem.units
+
+    @property
+    def si_factors(self) -> np.ndarray:
+        return self.problem.si_factors
+
+    @property
+    def shape(self) -> tuple:
+        """Leading shape of y, e.g. (N, 3)."""
+        return self.problem.y.shape if self.problem.y is not None else (self.m,)
+
+    @property
+    def S(self) -> np.ndarray:
+        """(m, n) natural units: the whole S (materialised when the problem regenerates it)."""
+        return self.problem.sv().reshape(-1, self.n)
+
+    @property
+    def y(self) -> np.ndarray:
+        """(m,) observations."""
+        return self.problem.y.reshape(-1)
 
     @property
     def m(self) -> int:
@@ -101,6 +127,10 @@ class Problem:
     def inv_c(self) -> np.ndarray:
         return inverse_scale(self.red.scale)
 
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """(m,) ``y - S x``, block by block."""
+        return self.problem.residuals(x).reshape(-1)
+
     def ols_sigma(self) -> float:
         """Residual std of the least-squares fit, RSS / (m - rank)."""
         Uq = self.ra.U.T @ self.red.qty
@@ -108,35 +138,46 @@ class Problem:
         return float(np.sqrt(rss / (self.m - self.ra.rank)))
 
 
-def prepare(S: np.ndarray, y: np.ndarray, names: Sequence[str] | None, units: Sequence[str] | None,
-            si_factors: Sequence[float] | None, sigma: float | None, rcond: float | None = None) -> Problem:
-    """Validate arguments, flatten ``(N, 3, n)`` to ``(3N, n)``, reduce and rank-analyse."""
-    S_arr = np.asarray(S, dtype=float)
-    if S_arr.ndim not in (2, 3):
-        raise ValueError(f"`S` must be (m, n) or (N, 3, n), got {S_arr.ndim}-D")
-    n = S_arr.shape[-1]
-    y_arr = np.asarray(y, dtype=float)
-    shape = S_arr.shape[:-1]
-    if y_arr.shape != shape and y_arr.size != int(np.prod(shape)):
-        raise ValueError(f"`y` has {y_arr.size} values but `S` has {int(np.prod(shape))} rows")
-    names_t = tuple(f"c{j}" for j in range(n)) if names is None else tuple(names)
-    units_t = ("",) * n if units is None else tuple(units)
-    si = np.ones(n) if si_factors is None else np.asarray(si_factors, dtype=float)
-    for label, seq in (("names", names_t), ("units", units_t), ("si_factors", si)):
-        if len(seq) != n:
-            raise ValueError(f"`{label}` has {len(seq)} entries but `S` has {n} columns")
+def rows_of(S: np.ndarray | RegressionProblem, y: np.ndarray | None, t: np.ndarray | None,
+            names: Sequence[str] | None, units: Sequence[str] | None, si_factors: Sequence[float] | None):
+    """``(S, y, t, names, units, si_factors)`` as arrays, for the methods that need the rows whole.
+
+    A Problem gives its S (materialised once, see :meth:`~casep.analysis.problem.Problem.sv`),
+    y, t and labels; arrays pass through.
+    """
+    if isinstance(S, RegressionProblem):
+        if y is not None:
+            raise ValueError("`y` must be omitted when `S` is a Problem (the problem holds it)")
+        pb = S
+        return pb.sv(), pb.y, (pb.t if t is None else t), pb.names, pb.units, pb.si_factors
+    return S, y, t, names, units, si_factors
+
+
+def prepare(S: np.ndarray | RegressionProblem, y: np.ndarray | None, names: Sequence[str] | None,
+            units: Sequence[str] | None, si_factors: Sequence[float] | None, sigma: float | None,
+            rcond: float | None = None) -> Prepared:
+    """Validate arguments once: a :class:`~casep.analysis.problem.Problem` as given (its reduction
+    and rank analysis reused), or arrays ``S`` ``(N, 3, n)``/``(m, n)`` and ``y`` made into one."""
     sigma = check_positive("sigma", sigma)
-    S2 = S_arr.reshape(-1, n)
-    y2 = y_arr.reshape(-1)
-    red = reduce_qr(S2, y2)
-    ra = analyze_rank(red, rcond)
-    if red.m <= ra.rank:
-        raise ValueError(f"`S` has {red.m} rows, not more than its rank {ra.rank}: no degree of freedom for the noise")
-    return Problem(S2, y2, shape, names_t, units_t, si, red, ra, sigma)
+    if isinstance(S, RegressionProblem):
+        if y is not None:
+            raise ValueError("`y` must be omitted when `S` is a Problem (the problem holds it)")
+        pb = S
+        for label, given, have in (("names", names, pb.names), ("units", units, pb.units)):
+            if given is not None and tuple(given) != have:
+                raise ValueError(f"`{label}` differ from the Problem's")
+    else:
+        if y is None:
+            raise ValueError("`y` is required with an array `S`")
+        pb = RegressionProblem.from_arrays(S, y, names=names, units=units, si_factors=si_factors)
+    ra = pb.rank(rcond)
+    if pb.red.m <= ra.rank:
+        raise ValueError(f"`S` has {pb.red.m} rows, not more than its rank {ra.rank}: no degree of freedom for the noise")
+    return Prepared(pb, ra, sigma)
 
 
 def finish(
-    pb: Problem,
+    pb: Prepared,
     method: str,
     x: np.ndarray,
     cov: np.ndarray | None,
@@ -178,7 +219,7 @@ def finish(
     """
     n = pb.n
     und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
-    res = pb.y - pb.S @ x if residuals is None else residuals
+    res = pb.residuals(x) if residuals is None else np.asarray(residuals, dtype=float).reshape(-1)
     est = np.where(und, np.nan, x)
     std = None
     if cov is not None:
@@ -225,7 +266,7 @@ MISFIT_FACTOR = 3.0
 MISFIT_FLOOR = 0.02
 
 
-def _failure(pb: Problem, method: str, x: np.ndarray, std: np.ndarray | None,
+def _failure(pb: Prepared, method: str, x: np.ndarray, std: np.ndarray | None,
              res: np.ndarray) -> tuple[int, str] | None:
     """``(status, message)`` of a result that cannot be trusted, or None (see :func:`finish`).
 
@@ -239,7 +280,7 @@ def _failure(pb: Problem, method: str, x: np.ndarray, std: np.ndarray | None,
         what = f"non-finite estimate or std for {', '.join(dict.fromkeys(bad))}" if bad else "non-finite residuals"
         return -2, f"failed: {method} produced {what}; the result is not usable"
     rms = float(np.sqrt(np.mean(res**2)))
-    rms_y = float(np.sqrt(np.mean(pb.y**2)))
+    rms_y = float(np.sqrt((pb.red.qty @ pb.red.qty + pb.red.rho2) / pb.m))  # ||y||^2 = ||Q^T y||^2 + rho^2
     ls = pb.ols_sigma()  # sqrt(min_D |y - S D|^2 / (m - rank)): the misfit the model allows
     if rms > MISFIT_FACTOR * ls and rms > MISFIT_FLOOR * rms_y:
         hint = {"rls": " (forgetting too strong for this flight?)", "rels": " (forgetting too strong for this flight?)",
@@ -249,7 +290,7 @@ def _failure(pb: Problem, method: str, x: np.ndarray, std: np.ndarray | None,
     return None
 
 
-def _collinearity_summary(pb: Problem, sigma: float) -> dict[str, Any]:
+def _collinearity_summary(pb: Prepared, sigma: float) -> dict[str, Any]:
     """White-noise CRLB std (sigma^2 (S^T S)^-1), uncentred VIF and near-dependency groups."""
     col = collinearity(pb.red, pb.ra)
     V, inv_s = pb.ra.pinv_factors()
@@ -268,7 +309,7 @@ def _collinearity_summary(pb: Problem, sigma: float) -> dict[str, Any]:
     }
 
 
-def _ill_conditioning_note(pb: Problem, diag: dict[str, Any]) -> str | None:
+def _ill_conditioning_note(pb: Prepared, diag: dict[str, Any]) -> str | None:
     ce = diag.get("condition_number_equilibrated")
     bad = ce is None or ce > ILL_CONDITIONED
     und = diag["unidentifiable"]

@@ -182,7 +182,7 @@ def solve_bounded(
     RF = R[:, free]
     Uf, sf, Vtf = np.linalg.svd(RF, full_matrices=False)
     keep = sf > pb.ra.rcond * (sf[0] if sf.size else 1.0)
-    resid = pb.y - pb.S @ x
+    resid = pb.residuals(x)
     rss = float(resid @ resid)
     nfree = int(keep.sum())
     sig = float(np.sqrt(rss / max(pb.m - nfree, 1))) if pb.sigma is None else pb.sigma

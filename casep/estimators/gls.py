@@ -29,7 +29,7 @@ from typing import Sequence
 
 import numpy as np
 
-from casep.estimators._base import check_positive, finish, prepare
+from casep.estimators._base import check_positive, finish, prepare, rows_of
 from casep.analysis.diagnostics import ar1_whiten
 from casep.estimators.ols import least_squares
 from casep.estimators.result import EstimateResult
@@ -118,10 +118,13 @@ def solve_gls(
         ``method`` "gls"; residuals are ``dv - S_V D_hat`` (not whitened); diagnostics
         (condition numbers, CRLB) are those of the whitened regression.
     """
+    S, y, t, names, units, si_factors = rows_of(S, y, t, names, units, si_factors)  # a Problem: its S whole
     S = np.asarray(S, dtype=float)
     y = np.asarray(y, dtype=float)
     if S.ndim != 3 or S.shape[1] != 3:
         raise ValueError(f"`S` must be (N, 3, n) in time order, got shape {S.shape}")
+    if t is None:
+        raise ValueError("`t` is required (the sample times)")
     t = np.asarray(t, dtype=float)
     if t.shape != (S.shape[0],):
         raise ValueError(f"`t` must have {S.shape[0]} samples, got shape {t.shape}")

@@ -25,7 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
-from casep.estimators._base import Problem, finish, prepare
+from casep.estimators._base import Prepared, finish, prepare
 from casep.estimators.result import EstimateResult
 
 __all__ = ["solve_ols"]
@@ -68,7 +68,7 @@ def solve_ols(
                   settings={"rcond": pb.ra.rcond, "sigma": "estimated" if pb.sigma is None else pb.sigma})
 
 
-def least_squares(pb: Problem) -> tuple[np.ndarray, np.ndarray, float]:
+def least_squares(pb: Prepared) -> tuple[np.ndarray, np.ndarray, float]:
     """Minimum-norm LS solution, covariance and sigma of a prepared problem (natural units)."""
     ra, red = pb.ra, pb.red
     V, inv_s = ra.pinv_factors()

@@ -71,6 +71,7 @@ from typing import Sequence
 
 import numpy as np
 
+from casep.analysis.problem import Problem as RegressionProblem
 from casep.estimators._base import check_positive, finish, prepare
 from casep._kernels import rels_ud
 from casep.estimators.result import EstimateResult
@@ -131,9 +132,10 @@ def solve_rls(
         ``sum_j U_ij^2 D_j``, computed at the history rows only);
         ``diagnostics["noise_model"]`` the MA coefficients and their std for RELS.
     """
-    S_arr = np.asarray(S, dtype=float)
-    if S_arr.ndim != 3 or S_arr.shape[1] != 3:
-        raise ValueError(f"`S` must be (N, 3, n) in time order for a recursive method, got shape {S_arr.shape}")
+    if not isinstance(S, RegressionProblem):
+        S = np.asarray(S, dtype=float)
+        if S.ndim != 3 or S.shape[1] != 3:
+            raise ValueError(f"`S` must be (N, 3, n) in time order for a recursive method, got shape {S.shape}")
     p0 = check_positive("p0", p0, allow_none=False)
     weight = check_positive("weight", weight, allow_none=False)
     forgetting = check_positive("forgetting", forgetting, allow_none=False, upper=1.0)
@@ -141,32 +143,38 @@ def solve_rls(
         raise ValueError(f"`noise_order` must be an int >= 0, got {noise_order!r}")
     if residuals not in ("posterior", "prior"):
         raise ValueError(f"`residuals` must be 'posterior' or 'prior', got {residuals!r}")
-    N = S_arr.shape[0]
+    pb = prepare(S, y, names, units, si_factors, sigma, rcond)
+    if len(pb.shape) != 2 or pb.shape[1] != 3:
+        raise ValueError(f"the problem's rows must be (N, 3) samples x axes for a recursive method, got {pb.shape}")
+    N = pb.shape[0]
     if history_stride is None:
         history_stride = max(1, -(-N // _MAX_HISTORY))
     elif isinstance(history_stride, bool) or not isinstance(history_stride, (int, np.integer)) or history_stride < 1:
         raise ValueError(f"`history_stride` must be a positive int, got {history_stride!r}")
-    pb = prepare(S_arr, y, names, units, si_factors, sigma, rcond)
     n, nc = pb.n, int(noise_order)
     c = pb.red.scale
     live = c > 0  # zero columns stay out of the recursion (estimate = prior mean, reported null)
     cl = c[live]
     p = int(live.sum())
-    H = np.ascontiguousarray(S_arr[:, :, live] / cl)  # scaled regressors
-    Y = np.ascontiguousarray(pb.y.reshape(N, 3))
     x = np.zeros(p + nc)
     U = np.zeros((p + nc, p + nc))  # unit upper triangular, stored transposed
     D = np.concatenate([p0 * cl**2, np.full(nc, p0)])  # P_0 = p0 diag(c^2) in scaled coords
+    D0 = D.copy()  # the prior, which stabilized forgetting pulls towards
+    past = np.zeros((3, nc + 1))  # each axis' last residuals (RELS regressors), carried across blocks
     hist = np.zeros((-(-N // history_stride), p + nc))  # rows for samples 0, stride, 2 stride, ... < N
     hist_var = np.zeros_like(hist)  # diag(P) at the same rows, scaled coordinates
-    innov = rels_ud(H, Y, x, U, D, weight, forgetting, nc, residuals == "posterior", history_stride, hist,
-                    hist_var)
+    innov_ss = 0.0
+    for sl, S_b, y_b in pb.problem.blocks():  # S_V block by block (regenerated, never whole)
+        H = np.ascontiguousarray(S_b[:, :, live] / cl)  # scaled regressors
+        innov = rels_ud(H, np.ascontiguousarray(y_b), x, U, D, weight, forgetting, nc, residuals == "posterior",
+                        history_stride, hist, hist_var, D0, past, sl.start)
+        innov_ss += float(np.sum(innov**2))
     Ut = U.T + np.eye(p + nc)  # U = Ut.T with unit diagonal: P = U diag(D) U^T
     L = Ut * np.sqrt(D)
     P = L @ L.T
     x_nat = np.zeros(n)
     x_nat[live] = x[:p] / cl
-    fit = pb.y - pb.S @ x_nat  # dv - S_V D_hat
+    fit = pb.residuals(x_nat)  # dv - S_V D_hat, block by block
     if nc:
         from scipy.signal import lfilter
 
@@ -192,7 +200,7 @@ def solve_rls(
         diagnostics["noise_model"] = {
             "ma_coefficients": [float(v) for v in x[p:]],
             "ma_std": [float(np.sqrt(cov_s[p + j, p + j])) for j in range(nc)],
-            "innovation_rms": float(np.sqrt(np.mean(innov**2))),
+            "innovation_rms": float(np.sqrt(innov_ss / (3 * N))),
         }
     return finish(
         pb, method, x_nat, cov, sig,

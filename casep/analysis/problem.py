@@ -1,0 +1,235 @@
+"""The regression of a flight, built once: S_V (or the means to regenerate it), its reduction, its rank.
+
+A :class:`Problem` is what every solver and the diagnostics take (arrays still work). It is
+built once per flight and model (``casep demo`` solves seven methods on one Problem), and
+it does not need S_V whole: the scaled QR reduction is accumulated block by block while
+S_V is integrated (:meth:`casep.model.sv.SVBuilder.blocks`), and whatever needs the rows
+again (residuals, the recursive methods, the residual checks) regenerates them block by
+block. So the memory of ``casep separate --method ols|rls`` and ``casep diagnose`` does not
+grow with ``N x 3 x n`` but with ``N`` (the flight's own columns and the residuals); S_V is
+kept whole only when asked (``keep_sv=True``) or when a method needs it
+(:meth:`Problem.sv`: GLS, Huber, the batched Monte Carlo).
+
+Rows are ``(N, 3)`` samples x axes; ``S.reshape(3 N, n)`` is the stacked regression
+(:mod:`casep` conventions).
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+from typing import Callable, Iterator, Sequence
+
+import numpy as np
+
+from casep.analysis.linalg import RankAnalysis, ReducedSystem, analyze_rank, reduce_qr, reduce_qr_blocks
+
+__all__ = ["Problem", "DEFAULT_BLOCK_ROWS"]
+
+#: Samples per regenerated block of S_V (65536 x 3 x 36 doubles = 57 MB).
+DEFAULT_BLOCK_ROWS = 65536
+
+
+class Problem:
+    """A validated regression ``y = S D + e`` with its scaled QR reduction and rank analysis.
+
+    Build it with :meth:`from_flight`, :meth:`from_arrays` or :meth:`from_reduction`; pass it
+    to any solver in place of ``S`` (``solve_ols(problem)``) or to
+    :func:`casep.analysis.diagnostics.diagnose`.
+
+    Attributes
+    ----------
+    names, units : tuple of str
+        Coefficient names and natural units, model order.
+    si_factors : (n,) ndarray
+        SI value of one natural unit per coefficient.
+    model : str or None
+        Model name (set on the results).
+    y : ndarray or None
+        Observed velocity error, ``(N, 3)`` (or ``(m,)`` for a 2-D ``S``); None for a
+        reduction-only problem.
+    t : (N,) ndarray or None
+        Times of the rows, s.
+    red : ReducedSystem
+        The column-scaled QR reduction (computed once).
+    source : str
+        Where the rows came from (file name), for messages.
+    """
+
+    def __init__(self, *, names: Sequence[str], units: Sequence[str], si_factors: Sequence[float],
+                 red: ReducedSystem, y: np.ndarray | None = None, t: np.ndarray | None = None,
+                 model: str | None = None, source: str = "<memory>", S: np.ndarray | None = None,
+                 regenerate: Callable[[int], Iterator[tuple[slice, np.ndarray, np.ndarray]]] | None = None,
+                 f: np.ndarray | None = None) -> None:
+        self.names = tuple(names)
+        self.units = tuple(units)
+        self.si_factors = np.asarray(si_factors, dtype=float)
+        self.red = red
+        self.y = y
+        self.t = t
+        self.f = f
+        self.model = model
+        self.source = source
+        self._S = S
+        self._regenerate = regenerate
+        self._ranks: dict[float | None, RankAnalysis] = {}
+        n = red.n
+        for label, seq in (("names", self.names), ("units", self.units), ("si_factors", self.si_factors)):
+            if len(seq) != n:
+                raise ValueError(f"`{label}` has {len(seq)} entries but `S` has {n} columns")
+
+    # ----------------------------------------------------------------- constructors
+    @classmethod
+    def from_arrays(cls, S: np.ndarray, y: np.ndarray, t: np.ndarray | None = None, *,
+                    names: Sequence[str] | None = None, units: Sequence[str] | None = None,
+                    si_factors: Sequence[float] | None = None, model: str | None = None,
+                    f: np.ndarray | None = None) -> "Problem":
+        """A problem from ``S`` ``(N, 3, n)`` or ``(m, n)`` and ``y`` ``(N, 3)`` or ``(m,)`` (kept whole)."""
+        S_arr = np.asarray(S, dtype=float)
+        if S_arr.ndim not in (2, 3):
+            raise ValueError(f"`S` must be (m, n) or (N, 3, n), got {S_arr.ndim}-D")
+        n = S_arr.shape[-1]
+        y_arr = np.asarray(y, dtype=float)
+        shape = S_arr.shape[:-1]
+        if y_arr.size != int(np.prod(shape)):
+            raise ValueError(f"`y` has {y_arr.size} values but `S` has {int(np.prod(shape))} rows")
+        y_arr = y_arr.reshape(shape)
+        if t is not None:
+            t = np.asarray(t, dtype=float)
+            if t.shape != shape[:1]:
+                raise ValueError(f"`t` must have shape {shape[:1]}, got {t.shape}")
+        names = tuple(f"c{j}" for j in range(n)) if names is None else tuple(names)
+        units = ("",) * n if units is None else tuple(units)
+        si = np.ones(n) if si_factors is None else np.asarray(si_factors, dtype=float)
+        return cls(names=names, units=units, si_factors=si, red=reduce_qr(S_arr, y_arr), y=y_arr, t=t,
+                   model=model, S=S_arr, f=f)
+
+    @classmethod
+    def from_reduction(cls, red: ReducedSystem, *, names: Sequence[str], units: Sequence[str],
+                       si_factors: Sequence[float], model: str | None = None,
+                       source: str = "<reduction>") -> "Problem":
+        """A problem known only by its reduction (no rows: no residuals, no recursive methods)."""
+        return cls(names=names, units=units, si_factors=si_factors, red=red, model=model, source=source)
+
+    @classmethod
+    def from_flight(cls, flight, model, *, keep_sv: bool = False,
+                    block_rows: int = DEFAULT_BLOCK_ROWS) -> "Problem":
+        """The regression of a flight for a set-up model, S_V integrated once.
+
+        S_V is integrated over every sample from the first telemetry sample (where the model
+        has dv = 0 and phi = 0); the rows where tracking observes dv are the regression
+        (:attr:`casep.io.flight.FlightData.observed`).
+
+        Parameters
+        ----------
+        flight : FlightData
+        model : ErrorModel
+            Set up.
+        keep_sv : bool, optional
+            Keep S_V whole (default: reduce it block by block and regenerate blocks on demand).
+        block_rows : int, optional
+            Samples per block.
+        """
+        from casep.model.sv import SVBuilder
+
+        builder = SVBuilder(model)
+        signals = flight.model_signals(model.signals, model.name)
+        obs = flight.observed
+        dv, t = flight.observed_rows(flight.t)[1:]  # dv[obs], t[obs] (views when contiguous)
+        f_obs = flight.f[obs] if not obs.all() else flight.f
+        common = dict(names=model.names, units=model.units, si_factors=model.si_factors, model=model.name,
+                      source=flight.source)
+        if keep_sv:
+            S = flight.observed_rows(builder.build(flight.t, flight.f, signals=signals))[0]
+            return cls(red=reduce_qr(S, dv), y=dv, t=t, S=S, f=f_obs, **common)
+
+        def regenerate(rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
+            k0 = 0  # observed rows before this block
+            for s, e, blk in builder.blocks(flight.t, flight.f, rows, signals=signals):
+                o = obs[s:e]
+                S_obs = blk if o.all() else blk[o]
+                k1 = k0 + S_obs.shape[0]
+                if k1 > k0:
+                    yield slice(k0, k1), S_obs, dv[k0:k1]
+                k0 = k1
+
+        red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in regenerate(block_rows)), model.n_coefficients)
+        return cls(red=red, y=dv, t=t, regenerate=regenerate, f=f_obs, **common)
+
+    # ----------------------------------------------------------------- properties
+    @property
+    def n(self) -> int:
+        """Number of coefficients."""
+        return self.red.n
+
+    @property
+    def m(self) -> int:
+        """Number of scalar rows (3 N)."""
+        return self.red.m
+
+    @property
+    def has_rows(self) -> bool:
+        """Whether the rows can be had (False for a reduction-only problem)."""
+        return self.y is not None and (self._S is not None or self._regenerate is not None)
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples (rows of ``y``'s first axis)."""
+        return int(self.y.shape[0]) if self.y is not None and self.y.ndim == 2 else self.m
+
+    def rank(self, rcond: float | None = None) -> RankAnalysis:
+        """The rank analysis of the reduction (cached per `rcond`)."""
+        if rcond not in self._ranks:
+            self._ranks[rcond] = analyze_rank(self.red, rcond)
+        return self._ranks[rcond]
+
+    @cached_property
+    def ols_rss(self) -> float:
+        """Least-squares residual sum of squares ``rho^2 + ||U_{r+}^T q||^2`` (default rcond)."""
+        ra = self.rank()
+        Uq = ra.U.T @ self.red.qty
+        return self.red.rho2 + float(np.sum(Uq[ra.rank:] ** 2))
+
+    # ----------------------------------------------------------------- rows
+    def _need_rows(self) -> None:
+        if not self.has_rows:
+            raise ValueError(f"problem `{self.source}` holds only a reduction: this needs its rows "
+                             "(build it with Problem.from_flight or Problem.from_arrays)")
+
+    def blocks(self, rows: int = DEFAULT_BLOCK_ROWS) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
+        """Yield ``(row slice, S block, y block)`` in time order; S_V regenerated when not kept.
+
+        The S block may be reused between yields: copy it to keep it.
+        """
+        self._need_rows()
+        if self._S is not None:
+            N = self._S.shape[0]
+            for s in range(0, N, rows):
+                e = min(s + rows, N)
+                yield slice(s, e), self._S[s:e], self.y[s:e]
+        else:
+            yield from self._regenerate(rows)
+
+    def sv(self) -> np.ndarray:
+        """S whole: kept, or integrated once now and kept (memory N x 3 x n doubles)."""
+        self._need_rows()
+        if self._S is None:
+            S = np.empty(self.y.shape + (self.n,))
+            for sl, S_b, _ in self.blocks():
+                S[sl] = S_b
+            self._S = S
+        return self._S
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """``y - S x`` in the shape of ``y``, block by block (NaN in `x` count as 0)."""
+        self._need_rows()
+        x = np.asarray(x, dtype=float)
+        x = np.where(np.isnan(x), 0.0, x)  # NaN (no estimate) counts as 0; inf stays inf
+        r = np.empty_like(self.y)
+        for sl, S_b, y_b in self.blocks():
+            r[sl] = y_b - S_b @ x
+        return r
+
+    def __repr__(self) -> str:
+        where = "kept" if self._S is not None else ("regenerated" if self._regenerate else "none")
+        return (f"Problem({self.model or 'arrays'!s}, {self.n} coefficients, {self.m} rows, "
+                f"source {self.source!r}, S_V {where})")
