@@ -352,7 +352,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     from casep.io.files import read_json_table
     from casep.model._model import unknown_coefficient_message
     from casep.model.loader import load_model
-    from casep.workflows.separate import regression_rows
+    from casep.analysis.problem import Problem
 
     check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "prior", "scales"),
                   folders={"--figures": args.figures})
@@ -368,9 +368,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not (v > 0 and math.isfinite(v)):
                 raise ValueError(f"--scales {args.scales}: `{k}` must be a finite number > 0, got {v!r}")
     flight = _read(args)
-    S, dv, t = regression_rows(flight, model)
-    diag = diagnose(S, dv, names=model.names, units=model.units, sigma=args.sigma,
-                    t=t if args.tau else None, tau=args.tau, prior_std=prior_std,
+    problem = Problem.from_flight(flight, model)  # reduced block by block: S_V never whole (white bound)
+    diag = diagnose(problem, sigma=args.sigma, tau=args.tau, prior_std=prior_std,
                     scales=model.scales if scales is None else scales)
     if args.json:
         write_json_atomic({"casep_version": __version__, "model": model.name, "n_samples": flight.n_observed,

@@ -3,6 +3,7 @@ plausibility checks of a flight and of a fit, wavelet de-noising.
 
 Depends on :mod:`casep.io` (the flight) and :mod:`casep.units`; never on an estimator.
 
+- :mod:`casep.analysis.problem`: :class:`Problem`, the regression of a flight built once
 - :mod:`casep.analysis.linalg`: TSQR reduction of the column-scaled regression, rank analysis
 - :mod:`casep.analysis.diagnostics`: condition indices, variance decomposition, VIF, CRLB
 - :mod:`casep.analysis.checks`: ``check_flight`` (units, impossible data), ``check_fit``
@@ -16,7 +17,8 @@ from casep._lazy import attach
 __getattr__, __dir__ = attach(__name__, {
     "casep.analysis.checks": ("check_fit", "check_flight"),
     "casep.analysis.diagnostics": ("Diagnostics", "diagnose"),
-    "casep.analysis.linalg": ("RankAnalysis", "ReducedSystem", "analyze_rank", "reduce_qr")}, globals())
+    "casep.analysis.linalg": ("RankAnalysis", "ReducedSystem", "analyze_rank", "reduce_qr", "reduce_qr_blocks"),
+    "casep.analysis.problem": ("Problem",)}, globals())
 
 __all__ = ["check_fit", "check_flight", "Diagnostics", "diagnose", "RankAnalysis", "ReducedSystem",
-           "analyze_rank", "reduce_qr"]
+           "analyze_rank", "reduce_qr", "reduce_qr_blocks", "Problem"]

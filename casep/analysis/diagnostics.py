@@ -150,9 +150,14 @@ def crlb_covariance(S: np.ndarray, sigma: float, *, t: np.ndarray | None = None,
         F = ar1_whiten(S, t, sigma, tau).reshape(-1, S.shape[-1])
     else:
         F = S.reshape(-1, S.shape[-1]) / sigma
-    n = F.shape[1]
-    red = reduce_qr(F, np.zeros(F.shape[0]))
-    c = np.where(red.scale > 0, red.scale, 1.0)
+    return _crlb_from_reduction(reduce_qr(F, np.zeros(F.shape[0])), 1.0, prior_std, rcond)
+
+
+def _crlb_from_reduction(red: ReducedSystem, sigma: float, prior_std: np.ndarray | None,
+                         rcond: float | None) -> np.ndarray:
+    """The bound from the reduction of S (``F = S / sigma`` has the same R, column norms c / sigma)."""
+    n = red.n
+    c = np.where(red.scale > 0, red.scale, 1.0) / sigma
     A = red.R
     if prior_std is not None:
         ps = np.asarray(prior_std, dtype=float)
@@ -161,7 +166,7 @@ def crlb_covariance(S: np.ndarray, sigma: float, *, t: np.ndarray | None = None,
         has = np.isfinite(ps)
         A = np.vstack([A, np.diag(1.0 / (c * ps))[has]])  # prior rows in scaled coordinates
     _, s, Vt = np.linalg.svd(A, full_matrices=False)
-    tol = (max(F.shape) * np.finfo(float).eps if rcond is None else rcond) * s[0]
+    tol = (max(red.m, n) * np.finfo(float).eps if rcond is None else rcond) * s[0]
     r = int(np.sum(s > tol))
     W = Vt[:r].T / s[:r]
     cov = (W @ W.T) / np.outer(c, c)
@@ -314,17 +319,29 @@ def diagnose(
         :attr:`casep.ErrorModel.scales` (default none: only the prior std, where given, makes a
         coefficient "weak").
     """
-    S = np.asarray(S, dtype=float)
-    if S.ndim != 3 or S.shape[1] != 3:
-        raise ValueError(f"`S` must be (N, 3, n), got shape {S.shape}")
-    n = S.shape[-1]
-    names = tuple(f"c{j}" for j in range(n)) if names is None else tuple(names)
-    units = ("",) * n if units is None else tuple(units)
+    from casep.analysis.problem import Problem
+
+    if isinstance(S, Problem):  # its reduction and rank analysis, reused
+        if y is not None:
+            raise ValueError("`y` must be omitted when `S` is a Problem (the problem holds it)")
+        pb = S
+        n, y, red, ra = pb.n, pb.y, pb.red, pb.rank(rcond)
+        names = pb.names if names is None else tuple(names)
+        units = pb.units if units is None else tuple(units)
+        t = pb.t if t is None and tau is not None else t
+        yy = y
+    else:
+        S = np.asarray(S, dtype=float)
+        if S.ndim != 3 or S.shape[1] != 3:
+            raise ValueError(f"`S` must be (N, 3, n), got shape {S.shape}")
+        n = S.shape[-1]
+        names = tuple(f"c{j}" for j in range(n)) if names is None else tuple(names)
+        units = ("",) * n if units is None else tuple(units)
+        yy = np.zeros(S.shape[:2]) if y is None else np.asarray(y, dtype=float)
+        red = reduce_qr(S, yy)
+        ra = analyze_rank(red, rcond)
     if len(names) != n or len(units) != n:
         raise ValueError(f"`names` and `units` must have {n} entries")
-    yy = np.zeros(S.shape[:2]) if y is None else np.asarray(y, dtype=float)
-    red = reduce_qr(S, yy)
-    ra = analyze_rank(red, rcond)
     if sigma is None:
         if y is None:
             raise ValueError("`sigma` or `y` is required (the bound scales with the noise std)")
@@ -339,7 +356,11 @@ def diagnose(
             raise ValueError(f"`sigma` must be finite and > 0, got {sigma}")
         source = "given"
     col = collinearity(red, ra)
-    cov = crlb_covariance(S, sigma, t=t, tau=tau, prior_std=prior_std, rcond=rcond)
+    if tau is None:  # white: the bound from the reduction already made
+        cov = _crlb_from_reduction(red, sigma, prior_std, rcond)
+    else:
+        cov = crlb_covariance(S.sv() if isinstance(S, Problem) else S, sigma, t=t, tau=tau, prior_std=prior_std,
+                              rcond=rcond)
     sd = np.sqrt(np.diag(cov))
     reasons = unidentifiable_reasons(ra, names)
     sc = _scales(names, None if prior_std is None else np.asarray(prior_std, float), scales)

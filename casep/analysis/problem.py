@@ -23,10 +23,13 @@ import numpy as np
 
 from casep.analysis.linalg import RankAnalysis, ReducedSystem, analyze_rank, reduce_qr, reduce_qr_blocks
 
-__all__ = ["Problem", "DEFAULT_BLOCK_ROWS"]
+__all__ = ["Problem", "DEFAULT_BLOCK_ROWS", "SV_KEEP_BYTES"]
 
 #: Samples per regenerated block of S_V (65536 x 3 x 36 doubles = 57 MB).
 DEFAULT_BLOCK_ROWS = 65536
+#: S_V up to this many bytes is kept whole by default (a 100 Hz, 200 s flight of 36 coefficients
+#: is 17 MB); beyond it, it is reduced block by block and regenerated when its rows are needed.
+SV_KEEP_BYTES = 256 * 2**20
 
 
 class Problem:
@@ -111,8 +114,8 @@ class Problem:
         return cls(names=names, units=units, si_factors=si_factors, red=red, model=model, source=source)
 
     @classmethod
-    def from_flight(cls, flight, model, *, keep_sv: bool = False,
-                    block_rows: int = DEFAULT_BLOCK_ROWS) -> "Problem":
+    def from_flight(cls, flight, model, *, keep_sv: bool | None = None, block_rows: int = DEFAULT_BLOCK_ROWS,
+                    checks: bool = True) -> "Problem":
         """The regression of a flight for a set-up model, S_V integrated once.
 
         S_V is integrated over every sample from the first telemetry sample (where the model
@@ -125,17 +128,33 @@ class Problem:
         model : ErrorModel
             Set up.
         keep_sv : bool, optional
-            Keep S_V whole (default: reduce it block by block and regenerate blocks on demand).
+            Keep S_V whole (True), or reduce it block by block and regenerate blocks when rows
+            are needed (False: memory independent of N x n). Default: keep it when it takes at
+            most :data:`SV_KEEP_BYTES`.
         block_rows : int, optional
             Samples per block.
+        checks : bool, optional
+            Refuse too few observed samples and an all-zero dv, check the flight's units and
+            values (:func:`casep.analysis.checks.check_flight`), warn when it starts after
+            lift-off without the model's initial terms (default True).
         """
+        from casep.io.flight import check_dv_not_zero, check_enough_samples, warn_late_start
+        from casep.analysis.checks import check_flight
         from casep.model.sv import SVBuilder
+
+        if checks:
+            check_enough_samples(flight, model.n_coefficients, model.name)
+            check_flight(flight)  # unit mistakes, impossible data
+            check_dv_not_zero(flight)
+            warn_late_start(flight, model)
 
         builder = SVBuilder(model)
         signals = flight.model_signals(model.signals, model.name)
         obs = flight.observed
         dv, t = flight.observed_rows(flight.t)[1:]  # dv[obs], t[obs] (views when contiguous)
         f_obs = flight.f[obs] if not obs.all() else flight.f
+        if keep_sv is None:
+            keep_sv = flight.n_samples * 3 * model.n_coefficients * 8 <= SV_KEEP_BYTES
         common = dict(names=model.names, units=model.units, si_factors=model.si_factors, model=model.name,
                       source=flight.source)
         if keep_sv:
@@ -154,6 +173,23 @@ class Problem:
 
         red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in regenerate(block_rows)), model.n_coefficients)
         return cls(red=red, y=dv, t=t, regenerate=regenerate, f=f_obs, **common)
+
+    def with_y(self, y: np.ndarray) -> "Problem":
+        """The same regression with other observations (e.g. de-noised dv): reduced again, S shared."""
+        self._need_rows()
+        y = np.asarray(y, dtype=float).reshape(self.y.shape)
+        regenerate = None
+        if self._S is None:
+            base = self._regenerate
+
+            def regenerate(rows: int):
+                for sl, S_b, _ in base(rows):
+                    yield sl, S_b, y[sl]
+
+        new = Problem(names=self.names, units=self.units, si_factors=self.si_factors, red=self.red, y=y, t=self.t,
+                      model=self.model, source=self.source, S=self._S, regenerate=regenerate, f=self.f)
+        new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n)
+        return new
 
     # ----------------------------------------------------------------- properties
     @property

@@ -155,7 +155,7 @@ def rows_of(S: np.ndarray | RegressionProblem, y: np.ndarray | None, t: np.ndarr
 
 def prepare(S: np.ndarray | RegressionProblem, y: np.ndarray | None, names: Sequence[str] | None,
             units: Sequence[str] | None, si_factors: Sequence[float] | None, sigma: float | None,
-            rcond: float | None = None) -> Prepared:
+            rcond: float | None = None, model: str | None = None) -> Prepared:
     """Validate arguments once: a :class:`~casep.analysis.problem.Problem` as given (its reduction
     and rank analysis reused), or arrays ``S`` ``(N, 3, n)``/``(m, n)`` and ``y`` made into one."""
     sigma = check_positive("sigma", sigma)
@@ -163,13 +163,15 @@ def prepare(S: np.ndarray | RegressionProblem, y: np.ndarray | None, names: Sequ
         if y is not None:
             raise ValueError("`y` must be omitted when `S` is a Problem (the problem holds it)")
         pb = S
+        if model is not None and pb.model not in (None, model):
+            raise ValueError(f"`model` {model!r} differs from the Problem's {pb.model!r}")
         for label, given, have in (("names", names, pb.names), ("units", units, pb.units)):
             if given is not None and tuple(given) != have:
                 raise ValueError(f"`{label}` differ from the Problem's")
     else:
         if y is None:
             raise ValueError("`y` is required with an array `S`")
-        pb = RegressionProblem.from_arrays(S, y, names=names, units=units, si_factors=si_factors)
+        pb = RegressionProblem.from_arrays(S, y, names=names, units=units, si_factors=si_factors, model=model)
     ra = pb.rank(rcond)
     if pb.red.m <= ra.rank:
         raise ValueError(f"`S` has {pb.red.m} rows, not more than its rank {ra.rank}: no degree of freedom for the noise")
@@ -257,6 +259,7 @@ def finish(
         reasons=all_reasons, residuals=res.reshape(pb.shape), sigma=float(sigma), rank=pb.ra.rank,
         status=status, message=message or "", success=status > 0, si_factors=pb.si_factors,
         settings=settings, diagnostics=diag, n_samples=N, history=history, history_std=history_std,
+        model=pb.problem.model or "",  # set by the problem, not patched afterwards
     )
 
 

@@ -112,8 +112,8 @@ def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"
 
 def solve_bounded(
     S: np.ndarray,
-    y: np.ndarray,
-    bounds: Mapping,
+    y: np.ndarray | None = None,
+    bounds: Mapping | None = None,
     *,
     sigma: float | None = None,
     names: Sequence[str] | None = None,
@@ -142,6 +142,8 @@ def solve_bounded(
     """
     import cvxpy as cp
 
+    if bounds is None:
+        raise ValueError("`bounds` is required for method `bounded`. Use: --bounds FILE or bounds={...}")
     pb = prepare(S, y, names, units, si_factors, sigma, rcond)
     lo, hi, fixed = parse_bounds(bounds, pb.names)
     c = pb.red.scale

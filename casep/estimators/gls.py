@@ -87,8 +87,8 @@ def estimate_tau(S: np.ndarray, y: np.ndarray, t: np.ndarray) -> float:
 
 def solve_gls(
     S: np.ndarray,
-    y: np.ndarray,
-    t: np.ndarray,
+    y: np.ndarray | None = None,
+    t: np.ndarray | None = None,
     *,
     tau: float | str = "auto",
     sigma: float | None = None,
@@ -118,6 +118,7 @@ def solve_gls(
         ``method`` "gls"; residuals are ``dv - S_V D_hat`` (not whitened); diagnostics
         (condition numbers, CRLB) are those of the whitened regression.
     """
+    model = getattr(S, "model", None)
     S, y, t, names, units, si_factors = rows_of(S, y, t, names, units, si_factors)  # a Problem: its S whole
     S = np.asarray(S, dtype=float)
     y = np.asarray(y, dtype=float)
@@ -136,7 +137,8 @@ def solve_gls(
         tau_used, rule = estimate_tau(S, y.reshape(S.shape[0], 3), t), "reml"
     else:
         tau_used, rule = check_positive("tau", tau, allow_none=False), "given"  # OPTION_RANGES["tau"]
-    pb = prepare(*_whiten(S, y.reshape(S.shape[0], 3), t, tau_used), names, units, si_factors, sigma, rcond)
+    pb = prepare(*_whiten(S, y.reshape(S.shape[0], 3), t, tau_used), names, units, si_factors, sigma, rcond,
+                 model=model)
     x, cov, sig = least_squares(pb)  # sigma: whitened residual std = stationary sigma
     fit = y.reshape(S.shape[0], 3) - S @ x  # dv - S_V D_hat, not whitened
     return finish(pb, "gls", x, cov, sig, residuals=fit.reshape(-1),

@@ -41,7 +41,7 @@ _MAX_FLAGS = 50
 
 def solve_huber(
     S: np.ndarray,
-    y: np.ndarray,
+    y: np.ndarray | None = None,
     *,
     c: float = HUBER_C,
     flag: float = 4.0,

@@ -59,8 +59,8 @@ def parse_prior(prior: Mapping, names: Sequence[str], source: str = "`prior`") -
 
 def solve_map(
     S: np.ndarray,
-    y: np.ndarray,
-    prior: Mapping,
+    y: np.ndarray | None = None,
+    prior: Mapping | None = None,
     *,
     sigma: float | None = None,
     names: Sequence[str] | None = None,
@@ -77,6 +77,8 @@ def solve_map(
     sigma : float, optional
         Noise std, m/s (default: the least-squares residual std).
     """
+    if prior is None:
+        raise ValueError("`prior` is required for method `map`. Use: --prior FILE or prior={...}")
     pb = prepare(S, y, names, units, si_factors, sigma, rcond)
     mu, tau = parse_prior(prior, pb.names)
     sig = pb.ols_sigma() if pb.sigma is None else pb.sigma

@@ -33,7 +33,7 @@ __all__ = ["solve_ols"]
 
 def solve_ols(
     S: np.ndarray,
-    y: np.ndarray,
+    y: np.ndarray | None = None,
     *,
     names: Sequence[str] | None = None,
     units: Sequence[str] | None = None,

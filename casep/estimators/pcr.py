@@ -38,7 +38,7 @@ def _combination(v: np.ndarray, names: Sequence[str], top: int = 4) -> dict[str,
 
 def solve_pcr(
     S: np.ndarray,
-    y: np.ndarray,
+    y: np.ndarray | None = None,
     *,
     n_components: int | None = None,
     max_condition_index: float = DEFAULT_MAX_CONDITION_INDEX,

@@ -92,7 +92,7 @@ def _cvxpy_ridge(R: np.ndarray, q: np.ndarray, lam: float) -> np.ndarray:
 
 def solve_ridge(
     S: np.ndarray,
-    y: np.ndarray,
+    y: np.ndarray | None = None,
     *,
     lam: float | str = "gcv",
     solver: str = "svd",

@@ -85,7 +85,7 @@ _MAX_HISTORY = 2000  # rows of estimate history kept by default
 
 def solve_rls(
     S: np.ndarray,
-    y: np.ndarray,
+    y: np.ndarray | None = None,
     *,
     p0: float = DEFAULT_P0,
     weight: float = 1.0,

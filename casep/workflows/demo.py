@@ -24,7 +24,7 @@ from casep.simulation.paper import demo_bounds, demo_prior
 from casep.estimators.result import EstimateResult
 from casep.workflows.separate import separate
 from casep.simulation.simulate import SimulatedFlight, simulate_flight
-from casep.model.sv import build_sv
+from casep.analysis.problem import Problem
 
 __all__ = ["DemoResult", "run_demo", "DEMO_METHODS"]
 
@@ -149,13 +149,12 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
     model = sim.model
     extra = {"bounded": {"bounds": demo_bounds(model.names)}, "map": {"prior": demo_prior(model.names)}}
     results: dict[str, EstimateResult] = {}
+    problem = Problem.from_flight(sim.flight, model, keep_sv=True)  # S_V and its QR once, for every method
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IllConditionedWarning)  # reported once, through the diagnostics
         for label, method, opts in DEMO_METHODS:
-            results[label] = separate(sim.flight, model, method, **opts, **extra.get(method, {}))
-    S = build_sv(model, sim.flight.t, sim.flight.f)
-    diag = diagnose(S, sim.flight.dv, names=model.names, units=model.units, sigma=sim.scenario.noise.sigma,
-                    scales=model.scales)
+            results[label] = separate(problem, model, method, **opts, **extra.get(method, {}))
+    diag = diagnose(problem, sigma=sim.scenario.noise.sigma, scales=model.scales)
     crlb = diag.crlb_std
     table = _table(sim, results, crlb, markdown=False)
     files: list[Path] = []

@@ -8,9 +8,10 @@ from typing import Mapping
 
 import numpy as np
 
-from casep.analysis.checks import check_fit, check_flight
+from casep.analysis.checks import check_fit
 from casep.analysis.denoise import denoise as wavelet_denoise
-from casep.io.flight import FlightData, check_dv_not_zero, check_enough_samples, warn_late_start
+from casep.analysis.problem import Problem
+from casep.io.flight import FlightData
 from casep.io.files import read_flight, read_json_table
 from casep.model._model import ErrorModel
 from casep.model.loader import load_model
@@ -18,7 +19,6 @@ from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
 from casep.estimators.registry import METHODS as _REGISTRY, OPTIONS, check_method_options, run_method
 from casep.estimators.result import EstimateResult
 from casep.estimators.rls import DEFAULT_P0
-from casep.model.sv import build_sv
 
 __all__ = ["separate", "regression_rows", "METHODS"]
 
@@ -27,24 +27,18 @@ METHODS = tuple(_REGISTRY)
 
 
 def regression_rows(flight: FlightData, model: ErrorModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The regression of a flight: ``(S_V, dv, t)`` at the observed samples.
+    """The regression of a flight as arrays: ``(S_V, dv, t)`` at the observed samples.
 
-    S_V is integrated over every sample, from the first telemetry sample where the model has
-    dv = 0 and phi = 0, then the rows where tracking observes dv are kept. Shared by
-    :func:`separate` and ``casep diagnose``: both first refuse too few observed samples and
-    an all-zero dv, and warn when the flight starts after lift-off without the initial terms
-    in the model (:func:`casep.io.flight.warn_late_start`).
+    The :class:`~casep.analysis.problem.Problem` of the flight with S_V kept whole (same checks:
+    :meth:`~casep.analysis.problem.Problem.from_flight`). Prefer the Problem itself: it need
+    not hold S_V.
     """
-    check_enough_samples(flight, model.n_coefficients, model.name)
-    check_flight(flight)  # unit mistakes, impossible data (casep.checks)
-    check_dv_not_zero(flight)
-    warn_late_start(flight, model)
-    return flight.observed_rows(build_sv(model, flight.t, flight.f,
-                                         signals=flight.model_signals(model.signals, model.name)))
+    pb = Problem.from_flight(flight, model, keep_sv=True)
+    return pb.sv(), pb.y, pb.t
 
 
 def separate(
-    flight: FlightData | str | os.PathLike,
+    flight: FlightData | Problem | str | os.PathLike,
     model: str | os.PathLike | ErrorModel = "platform36",
     method: str = "ols",
     *,
@@ -61,13 +55,15 @@ def separate(
     denoise: str | None = None,
     wavelet_options: Mapping | None = None,
     tau: float | str = "auto",
+    options: Mapping | None = None,
 ) -> EstimateResult:
     """Estimate a model's error coefficients from one flight.
 
     Parameters
     ----------
-    flight : FlightData or path
-        The flight, or a flight file to read.
+    flight : FlightData, Problem or path
+        The flight, a flight file to read, or a :class:`~casep.analysis.problem.Problem` built
+        earlier (``casep demo`` solves every method on one; `model` is then its model).
     model : str, path or ErrorModel, optional
         Model name (``"platform36"``), model file, or model object.
     method : {"ols", "rls", "rels", "ridge", "bounded", "pcr", "map", "gls"}, optional
@@ -92,6 +88,9 @@ def separate(
     wavelet_options : mapping, optional
         Keyword arguments of :func:`casep.analysis.denoise.denoise` (wavelet, level, rule, mode,
         extension, scaling).
+    options : mapping, optional
+        The method's options by name, as an alternative to the keywords above
+        (``options={"lam": 0.1}``); :data:`casep.estimators.registry.OPTIONS` lists them.
 
     Notes
     -----
@@ -105,44 +104,56 @@ def separate(
     EstimateResult
     """
     # One rule table (casep.registry): an option the method does not take is an error, not ignored.
-    given = {k: v for k, v in (("p0", p0), ("weight", weight), ("forgetting", forgetting),
-                               ("noise_order", noise_order), ("lam", lam), ("bounds", bounds), ("prior", prior),
-                               ("n_components", n_components), ("tau", tau)) if v != OPTIONS[k].default}
+    kw = {"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": noise_order, "lam": lam,
+          "bounds": bounds, "prior": prior, "n_components": n_components, "tau": tau}
+    for k, v in dict(options or {}).items():
+        if k not in OPTIONS:
+            raise ValueError(f"`options` has unknown option `{k}`; the options are {', '.join(OPTIONS)}")
+        if kw[k] is not OPTIONS[k].default and kw[k] != OPTIONS[k].default:
+            raise ValueError(f"option `{k}` given both as a keyword and in `options`")
+        kw[k] = v
+    given = {k: v for k, v in kw.items() if v is not None and not _is_default(k, v)}
     check_method_options(method, given)
     # A bounds or prior table may be given as its JSON file (as on the command line).
-    if isinstance(bounds, (str, os.PathLike)):
-        bounds = read_json_table(bounds, "bounds")
-    if isinstance(prior, (str, os.PathLike)):
-        prior = read_json_table(prior, "prior")
-    if not isinstance(flight, FlightData):
-        flight = read_flight(flight)
-    model = load_model(model)
-    S, dv, t = regression_rows(flight, model)
-    den, sigma_from_wavelet = None, False
+    for k in ("bounds", "prior"):
+        if isinstance(kw[k], (str, os.PathLike)):
+            kw[k] = read_json_table(kw[k], k)
     if denoise not in (None, "none", "wavelet"):
         raise ValueError(f"`denoise` must be 'none' or 'wavelet', got {denoise!r}")
+    if wavelet_options and denoise != "wavelet":
+        raise ValueError("`wavelet_options` given without `denoise='wavelet'`")
+    if isinstance(flight, Problem):
+        problem = flight
+        if not problem.has_rows:
+            raise ValueError("`flight` is a reduction-only Problem: separate needs the flight's rows")
+    else:
+        if not isinstance(flight, FlightData):
+            flight = read_flight(flight)
+        model = load_model(model)
+        problem = Problem.from_flight(flight, model)  # S_V integrated and reduced once, checks on the way
+    solved, den, sigma_from_wavelet = problem, None, False
     if denoise == "wavelet":
-        den = wavelet_denoise(dv, **dict(wavelet_options or {}))
-        dv = den.dv
+        den = wavelet_denoise(problem.y, **dict(wavelet_options or {}))
+        solved = problem.with_y(den.dv)
         if sigma is None:
             sigma = float(np.sqrt(np.mean(den.sigma**2)))  # raw-noise sigma, not post-de-noising residuals
             sigma_from_wavelet = True
-    elif wavelet_options:
-        raise ValueError("`wavelet_options` given without `denoise='wavelet'`")
-    labels = {"names": model.names, "units": model.units, "si_factors": model.si_factors, "sigma": sigma}
-    if method == "rels" and (isinstance(noise_order, bool) or not isinstance(noise_order, int) or noise_order < 1):
-        raise ValueError(f"`noise_order` must be an int >= 1 for method `rels`, got {noise_order!r}")
-    options = {"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": noise_order, "lam": lam,
-               "bounds": bounds, "prior": prior, "n_components": n_components, "tau": tau}
+    labels = {"sigma": sigma}
     if method == "pcr":
         labels["max_condition_index"] = max_condition_index
-    res = run_method(method, S, dv, t, {k: v for k, v in options.items() if k in _REGISTRY[method].options},
+    res = run_method(method, solved, None, solved.t, {k: v for k, v in kw.items() if k in _REGISTRY[method].options},
                      **labels)
-    obs = flight.observed  # the raw dv, t and f of the rows the estimate used
-    check_fit(S, flight.dv[obs], res, t=t, f=flight.f[obs], source=flight.source)  # noise-free, outliers, time offset
+    check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source)  # raw dv: noise-free, outliers, offset
     if den is not None:
         settings = dict(res.settings)
         if sigma_from_wavelet:
             settings["sigma"] = f"wavelet estimate {sigma:.6g}"
         res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings)
-    return dataclasses.replace(res, model=model.name, n_samples=flight.n_observed)
+    return res
+
+
+def _is_default(name: str, value) -> bool:
+    try:
+        return bool(value == OPTIONS[name].default)
+    except (TypeError, ValueError):  # e.g. a mapping or an array: given
+        return False
