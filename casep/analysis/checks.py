@@ -275,7 +275,7 @@ def _row_blocks(S) -> tuple:
     S = np.asarray(S, dtype=float)
     N = S.shape[0]
 
-    def blocks(rows: int = 65536):
+    def blocks(rows: int = 16384):
         for s in range(0, N, rows):
             yield slice(s, min(s + rows, N)), S[s:s + rows]
 
@@ -334,13 +334,15 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
     blocks, n, nonzero = _row_blocks(S)
     t = np.asarray(t, dtype=float)
     N = t.size
-    a = kinematic_acceleration(t, f)
-    jerk = np.gradient(a, t, axis=0) if N >= 2 else np.zeros_like(a)
-    X = np.stack([a, jerk], axis=-1)  # (N, 3, 2)
-    usable = np.any(X != 0.0, axis=(0, 1))
+    X = np.empty((N, 3, 2))  # [a | da/dt] per sample and axis (built in place: long flights)
+    X[:, :, 0] = kinematic_acceleration(t, f)
+    for i in range(3):
+        X[:, i, 1] = np.gradient(X[:, i, 0], t) if N >= 2 else 0.0
+    usable = np.array([np.any(X[:, :, j] != 0.0) for j in range(2)])
     if not usable[0]:
         return None
-    X = X[:, :, usable]
+    if not usable.all():
+        X = X[:, :, usable]
     p, k = int(nonzero.sum()) + X.shape[2], X.shape[2]
     if 3 * N <= p + 2:
         return None
@@ -356,8 +358,14 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
         return None
     coef_all = np.linalg.lstsq(red.R, red.qty, rcond=None)[0]  # augmented fit, scaled coordinates
     coef = coef_all / np.where(red.scale > 0, red.scale, 1.0)
-    e = np.concatenate([(y_b - A_b @ coef) for A_b, y_b in augmented()]).reshape(N, 3)  # augmented residuals
-    rho = np.array([np.dot(e[1:, i], e[:-1, i]) / max(np.dot(e[:, i], e[:, i]), 1e-300) for i in range(3)])
+    # Lag-1 autocorrelation per axis of the augmented residuals, accumulated block by block
+    num, den, last = np.zeros(3), np.zeros(3), None
+    for A_b, y_b in augmented():
+        e = (y_b - A_b @ coef).reshape(-1, 3)
+        den += np.einsum("ki,ki->i", e, e)
+        num += np.einsum("ki,ki->i", e[1:], e[:-1]) + (last * e[0] if last is not None else 0.0)
+        last = e[-1].copy()
+    rho = num / np.maximum(den, 1e-300)
     rho = np.clip(rho, 0.0, 0.999)
     kappa = float(np.max((1.0 + rho) / (1.0 - rho)))  # AR(1) long-run variance factor
     s2 = red.rho2 / (3 * N - p)

@@ -25,8 +25,9 @@ from casep.analysis.linalg import RankAnalysis, ReducedSystem, analyze_rank, red
 
 __all__ = ["Problem", "DEFAULT_BLOCK_ROWS", "SV_KEEP_BYTES"]
 
-#: Samples per regenerated block of S_V (65536 x 3 x 36 doubles = 57 MB).
-DEFAULT_BLOCK_ROWS = 65536
+#: Samples per regenerated block of S_V (16384 x 3 x 36 doubles = 14 MB; the QR of a block and
+#: its copies take a few times that).
+DEFAULT_BLOCK_ROWS = 16384
 #: S_V up to this many bytes is kept whole by default (a 100 Hz, 200 s flight of 36 coefficients
 #: is 17 MB); beyond it, it is reduced block by block and regenerated when its rows are needed.
 SV_KEEP_BYTES = 256 * 2**20

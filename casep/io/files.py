@@ -98,6 +98,28 @@ def _parquet_header(path: Path) -> list[str]:
     return list(pq.read_schema(path).names)
 
 
+def _read_parquet_frame(path: Path):
+    """A Parquet file as a DataFrame, one column at a time.
+
+    Reading the whole table and converting it holds the data three to four times at once (Arrow
+    buffers, pandas' consolidated block, its copy): 1.3 GB for a 5e6-sample flight of 280 MB.
+    Column by column, each float column is a zero-copy view of its Arrow buffer, so reading
+    costs about the size of the data.
+    """
+    import pandas as pd
+    import pyarrow.parquet as pq
+
+    pf = pq.ParquetFile(path)
+    columns = {}
+    for name in pf.schema_arrow.names:
+        col = pf.read(columns=[name], use_threads=False).column(0)
+        if col.num_chunks == 1 and col.null_count == 0 and str(col.type) in ("double", "float"):
+            columns[name] = col.chunk(0).to_numpy(zero_copy_only=True)
+        else:
+            columns[name] = col.to_pandas()  # other types keep their pandas dtype (checked later)
+    return pd.DataFrame(columns, copy=False)
+
+
 class _Table:
     """A file read into a DataFrame, with error helpers that locate rows."""
 
@@ -115,7 +137,7 @@ class _Table:
         if _is_parquet(self.path):
             self.line_of: Callable[[int], int | None] = lambda row: None
             self._refuse_repeated(self._parquet(_parquet_header))  # before pandas, which fails on them
-            frame = self._parquet(pd.read_parquet)
+            frame = self._parquet(_read_parquet_frame)
         else:
             try:
                 header = _csv_header(self.path)
