@@ -316,7 +316,9 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     if dv_from != "dv":
         meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
         meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.checks
-    return FlightData(t, f, dv, source=tab.src, meta=meta, signals=tab.signals())
+    signals, src = tab.signals(), tab.src
+    del tab  # the file's columns, before FlightData takes its own copies (long flights: one copy at a time)
+    return FlightData(t, f, dv, source=src, meta=meta, signals=signals)
 
 
 def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, *,
