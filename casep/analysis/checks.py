@@ -282,17 +282,20 @@ def _row_blocks(S) -> tuple:
     return blocks, S.shape[-1], np.any(S.reshape(-1, S.shape[-1]) != 0.0, axis=0)
 
 
-def _cached_time_offset_test(S, dv: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray):
+def _shares_problem_test(S, dv: np.ndarray) -> bool:
+    """Whether the residuals are those of S's own Problem (so its one time-offset test applies)."""
+    from casep.analysis.problem import Problem
+
+    return isinstance(S, Problem) and S.y is not None and (dv is S.y or np.array_equal(dv, S.y))
+
+
+def _problem_time_offset_test(problem, t: np.ndarray, f: np.ndarray):
     """:func:`time_offset_test`, once per Problem: by Frisch-Waugh-Lovell it depends on the residuals
     only through their part off span S, which is dv's whatever the estimate, so every method solved
     on one Problem (``casep demo``) shares one test."""
-    from casep.analysis.problem import Problem
-
-    if not (isinstance(S, Problem) and S.y is not None and np.array_equal(dv, S.y)):
-        return time_offset_test(S, r, t, f)
-    if not hasattr(S, "_time_offset_test"):
-        S._time_offset_test = time_offset_test(S, S.y, t, f)  # r -> dv: same projection off span S
-    return S._time_offset_test
+    if not hasattr(problem, "_time_offset_test"):
+        problem._time_offset_test = time_offset_test(problem, problem.y, t, f)  # r -> dv: same projection
+    return problem._time_offset_test
 
 
 def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray) -> TimeOffsetTest | None:
@@ -335,7 +338,8 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
     t = np.asarray(t, dtype=float)
     N = t.size
     X = np.empty((N, 3, 2))  # [a | da/dt] per sample and axis (built in place: long flights)
-    X[:, :, 0] = kinematic_acceleration(t, f)
+    X[:, :, 0] = f  # a = f + g (kinematic_acceleration), in place
+    X[:, :, 0] += GRAVITY_LAUNCH
     for i in range(3):
         X[:, i, 1] = np.gradient(X[:, i, 0], t) if N >= 2 else 0.0
     usable = np.array([np.any(X[:, :, j] != 0.0) for j in range(2)])
@@ -415,7 +419,11 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
               "the data carry no noise, so the std reflect rounding only.", NoiseFreeWarning)
         return
     _check_outliers(r, t, source)
-    test = _cached_time_offset_test(S, dv, r, t, f)
+    if _shares_problem_test(S, dv):
+        del r  # long flights: the shared test reads dv, not the residuals
+        test = _problem_time_offset_test(S, t, f)
+    else:
+        test = time_offset_test(S, r, t, f)
     if test is None:
         return
     offset = abs(test.offset_t) > OFFSET_T and test.offset_rms > EFFECT_MIN
