@@ -194,6 +194,7 @@ def finish(
     history: np.ndarray | None = None,
     residuals: np.ndarray | None = None,
     history_std: np.ndarray | None = None,
+    sigma_source: str | None = None,
 ) -> EstimateResult:
     """Build the :class:`EstimateResult` of an estimator.
 
@@ -260,6 +261,7 @@ def finish(
         status=status, message=message or "", success=status > 0, si_factors=pb.si_factors,
         settings=settings, diagnostics=diag, n_samples=N, history=history, history_std=history_std,
         model=pb.problem.model or "",  # set by the problem, not patched afterwards
+        sigma_source=sigma_source or ("given" if pb.sigma is not None else "estimated"),
     )
 
 

@@ -120,4 +120,4 @@ def solve_huber(
                   settings={"c": c, "iterations": it, "scale": float(scale), "flag_sigma": flag,
                             "outliers_flagged": int(big.size),
                             "sigma": "robust (MAD) scale" if pb.sigma is None else pb.sigma},
-                  diagnostics={"outliers": outliers})
+                  diagnostics={"outliers": outliers}, sigma_source=None if pb.sigma is not None else "robust")

@@ -14,6 +14,7 @@ conditional; see :data:`casep.estimators.result.STD_KINDS`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from dataclasses import dataclass
@@ -21,7 +22,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from casep.estimators.result import STD_KINDS
+from casep.estimators.result import EXTRAS_TYPES, STD_KINDS
 
 __all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Method", "OPTIONS", "METHODS", "check_method_options", "describe", "run_method"]
 
@@ -272,7 +273,9 @@ def describe() -> list[dict[str, Any]]:
                     "options": [{"name": o, "flag": OPTIONS[o].flag, "default": OPTIONS[o].default,
                                  "rule": OPTIONS[o].rule, "help": OPTIONS[o].help} for o in m.options],
                     "required": list(m.required), "recursive": m.recursive, "needs_time": m.needs_time,
-                    "batched_in_montecarlo": m.batched, "std_kind": m.std_kind})
+                    "batched_in_montecarlo": m.batched, "std_kind": m.std_kind,
+                    "extras": {"type": EXTRAS_TYPES[m.name].__name__,
+                               "fields": [f.name for f in dataclasses.fields(EXTRAS_TYPES[m.name])]}})
     return out
 
 

@@ -6,6 +6,7 @@ import csv
 import json
 import math
 import os
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -13,7 +14,7 @@ import numpy as np
 
 from casep.io._atomic import atomic_open
 
-__all__ = ["EstimateResult", "write_json_atomic", "write_mat", "write_csv", "format_number", "STD_KINDS"]
+__all__ = ["EstimateResult", "SIGMA_SOURCES", "EXTRAS_TYPES", "write_json_atomic", "write_mat", "write_csv", "format_number", "STD_KINDS"]
 
 AXES = ("x", "y", "z")
 
@@ -22,7 +23,114 @@ AXES = ("x", "y", "z")
 # "posterior": std of the posterior under the method's prior (MAP, RLS/RELS with P0);
 # "conditional": given the active set of the bounds (understated; bounded).
 STD_KINDS = {"ols": "sampling", "gls": "sampling", "ridge": "sampling", "pcr": "sampling",
-             "map": "posterior", "rls": "posterior", "rels": "posterior", "bounded": "conditional"}
+             "map": "posterior", "rls": "posterior", "rels": "posterior", "bounded": "conditional",
+             "huber": "sampling"}
+
+#: Where ``sigma`` came from: "estimated" (residual std of the fit: RSS / (m - rank), or the
+#: whitened residuals for GLS/RELS), "given" (the caller's), "wavelet" (the wavelet transform's
+#: estimate from the raw finest details, when dv was de-noised), "robust" (Huber's MAD scale).
+SIGMA_SOURCES = ("estimated", "given", "wavelet", "robust")
+
+
+# --------------------------------------------------------------------- typed per-method extras
+@dataclass(frozen=True)
+class OLSExtras:
+    rcond: float
+
+
+@dataclass(frozen=True)
+class RLSExtras:
+    """RLS/RELS: the prior scale, weight, forgetting, and the RELS MA noise model (empty for RLS)."""
+
+    p0: float
+    weight: float
+    forgetting: float
+    noise_order: int
+    ma_coefficients: tuple[float, ...] = ()
+    ma_std: tuple[float, ...] = ()
+    innovation_rms: float | None = None
+
+
+@dataclass(frozen=True)
+class RidgeExtras:
+    lam: float
+    rule: str
+    effective_dof: float
+
+
+@dataclass(frozen=True)
+class BoundedExtras:
+    bounds: dict
+    active_bounds: dict
+
+
+@dataclass(frozen=True)
+class PCRExtras:
+    n_components: int
+    rule: str
+    dropped_directions: list
+
+
+@dataclass(frozen=True)
+class MAPExtras:
+    prior: dict
+
+
+@dataclass(frozen=True)
+class GLSExtras:
+    tau: float
+    tau_rule: str
+
+
+@dataclass(frozen=True)
+class HuberExtras:
+    c: float
+    iterations: int
+    scale: float
+    outliers: dict
+
+
+def _extras(res: "EstimateResult"):
+    """The typed extras of a result, from what its solver recorded (settings, diagnostics)."""
+    s, d = res.settings, res.diagnostics
+    m = res.method
+    if m == "ols":
+        return OLSExtras(float(s.get("rcond", math.nan)))
+    if m in ("rls", "rels"):
+        nm = d.get("noise_model") or {}
+        return RLSExtras(float(s["p0"]), float(s["weight"]), float(s["forgetting"]), int(s["noise_order"]),
+                         tuple(nm.get("ma_coefficients", ())), tuple(nm.get("ma_std", ())), nm.get("innovation_rms"))
+    if m == "ridge":
+        return RidgeExtras(float(s["lambda"]), str(s["lambda_rule"]), float(d["effective_dof"]))
+    if m == "bounded":
+        return BoundedExtras(dict(s.get("bounds", {})), dict(d.get("active_bounds", {})))
+    if m == "pcr":
+        return PCRExtras(int(s["n_components"]), str(s["rule"]), list(d.get("dropped_directions", [])))
+    if m == "map":
+        return MAPExtras(dict(s.get("prior", {})))
+    if m == "gls":
+        return GLSExtras(float(s["tau"]), str(s["tau_rule"]))
+    if m == "huber":
+        return HuberExtras(float(s["c"]), int(s["iterations"]), float(s["scale"]), dict(d.get("outliers", {})))
+    return None
+
+
+#: The extras type of each method (``casep methods --json``).
+EXTRAS_TYPES = {"ols": OLSExtras, "rls": RLSExtras, "rels": RLSExtras, "ridge": RidgeExtras,
+                "bounded": BoundedExtras, "pcr": PCRExtras, "map": MAPExtras, "gls": GLSExtras, "huber": HuberExtras}
+
+
+def _jsonable(v: Any) -> Any:
+    """Tuples and numpy scalars as JSON values."""
+    if isinstance(v, dict):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, (np.floating, float)):
+        return _json_float(float(v))
+    if isinstance(v, np.integer):
+        return int(v)
+    return v
 
 
 def format_number(v: float | None, width: int = 12) -> str:
@@ -176,6 +284,21 @@ class EstimateResult:
     denoise: dict[str, Any] | None = None
     history: np.ndarray | None = None
     history_std: np.ndarray | None = None
+    sigma_source: str = "estimated"
+    stored_residual_rms: dict[str, float] | None = None  # from a JSON (which has no residuals)
+
+    @property
+    def extras(self):
+        """Typed per-method outputs (:data:`EXTRAS_TYPES`), e.g. ``res.extras.lam`` for ridge."""
+        return _extras(self)
+
+    @property
+    def history_names(self) -> tuple[str, ...] | None:
+        """Names of the ``history`` columns: the coefficients, then the RELS MA terms ``ma1``, ..."""
+        if self.history is None:
+            return None
+        extra = np.asarray(self.history).shape[1] - len(self.names)
+        return tuple(self.names) + tuple(f"ma{j + 1}" for j in range(extra))
 
     @property
     def identifiable(self) -> np.ndarray:
@@ -195,6 +318,8 @@ class EstimateResult:
     @property
     def residual_rms(self) -> dict[str, float]:
         """RMS of the residuals per axis, m/s."""
+        if self.stored_residual_rms is not None and np.asarray(self.residuals).size == 0:
+            return dict(self.stored_residual_rms)
         r = np.asarray(self.residuals).reshape(-1, 3)
         return {a: float(np.sqrt(np.mean(r[:, i] ** 2))) for i, a in enumerate(AXES)}
 
@@ -230,9 +355,11 @@ class EstimateResult:
             "coefficients": rows,
             "names": [r["name"] for r in rows],
             "units": [r["unit"] for r in rows],
+            "si_factors": [_json_float(v) for v in np.asarray(self.si_factors, dtype=float)],
             "estimates": [r["estimate"] for r in rows],
             "std": [r["std"] for r in rows],
             "std_kind": self.std_kind,
+            "sigma_source": self.sigma_source,
             "covariance": self.covariance_rows(),
             "residual_rms": self.residual_rms,
             "sigma": _json_float(self.sigma),
@@ -242,7 +369,41 @@ class EstimateResult:
             "message": self.message,
             "settings": self.settings,
             "diagnostics": self.diagnostics,
+            "extras": _jsonable(dataclasses.asdict(self.extras)) if self.extras is not None else None,
+            "history_names": list(self.history_names) if self.history_names is not None else None,
         }
+
+    @classmethod
+    def from_json(cls, source: "str | os.PathLike | dict") -> "EstimateResult":
+        """A result back from its JSON (a file or the dict of :meth:`to_dict`).
+
+        Everything the JSON holds comes back (estimates, std, covariance, labels, sigma and its
+        source, status, settings, diagnostics); the per-sample residuals and the history are not
+        in the JSON, so the result has none (``residual_rms`` then reads the stored values).
+        """
+        if isinstance(source, dict):
+            d = source
+        else:
+            with open(source, encoding="utf-8") as fh:
+                d = json.load(fh)
+
+        def arr(v):
+            return np.array([np.nan if x is None else x for x in v], dtype=float)
+
+        rows = d["coefficients"]
+        cov = d.get("covariance")
+        return cls(
+            method=d["method"], names=tuple(d["names"]), units=tuple(d["units"]), estimate=arr(d["estimates"]),
+            std=arr(d["std"]) if d.get("std") is not None else None,
+            covariance=np.array([arr(r) for r in cov]) if cov is not None else None,
+            reasons={r["name"]: r["reason"] for r in rows if "reason" in r},
+            residuals=np.zeros((0, 3)), sigma=math.nan if d["sigma"] is None else float(d["sigma"]),
+            rank=int(d["rank"]), status=int(d["status"]), message=d["message"], success=bool(d["success"]),
+            si_factors=np.array(d.get("si_factors") or [math.nan] * len(rows), dtype=float),
+            settings=d.get("settings") or {}, diagnostics=d.get("diagnostics") or {}, model=d.get("model", ""),
+            n_samples=int(d.get("n_samples", 0)), denoise=d.get("denoise"),
+            sigma_source=d.get("sigma_source", "estimated"), stored_residual_rms=d.get("residual_rms"),
+        )
 
     def covariance_rows(self) -> list[list[float | None]] | None:
         """The n x n covariance in natural units, model order, as nested lists for JSON.

@@ -148,7 +148,8 @@ def separate(
         settings = dict(res.settings)
         if sigma_from_wavelet:
             settings["sigma"] = f"wavelet estimate {sigma:.6g}"
-        res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings)
+        res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings,
+                                  sigma_source="wavelet" if sigma_from_wavelet else res.sigma_source)
     return res
 
 
