@@ -268,9 +268,7 @@ def kinematic_acceleration(t: np.ndarray, f: np.ndarray) -> np.ndarray:
 
 def _row_blocks(S) -> tuple:
     """``(blocks(), n, nonzero)``: (row slice, S block (k, 3, n)) in time order, for an array or a Problem."""
-    from casep.analysis.problem import Problem
-
-    if isinstance(S, Problem):
+    if _is_problem(S):
         return (lambda: ((sl, S_b) for sl, S_b, _ in S.blocks())), S.n, S.red.scale > 0
     S = np.asarray(S, dtype=float)
     N = S.shape[0]
@@ -282,11 +280,14 @@ def _row_blocks(S) -> tuple:
     return blocks, S.shape[-1], np.any(S.reshape(-1, S.shape[-1]) != 0.0, axis=0)
 
 
+def _is_problem(S) -> bool:
+    """A :class:`casep.analysis.problem.Problem` (by its interface: problem.py imports this module)."""
+    return hasattr(S, "blocks") and hasattr(S, "red") and hasattr(S, "has_rows")
+
+
 def _shares_problem_test(S, dv: np.ndarray) -> bool:
     """Whether the residuals are those of S's own Problem (so its one time-offset test applies)."""
-    from casep.analysis.problem import Problem
-
-    return isinstance(S, Problem) and S.y is not None and (dv is S.y or np.array_equal(dv, S.y))
+    return _is_problem(S) and S.y is not None and (dv is S.y or np.array_equal(dv, S.y))
 
 
 def _problem_time_offset_test(problem, t: np.ndarray, f: np.ndarray):
