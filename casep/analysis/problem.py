@@ -16,7 +16,6 @@ Rows are ``(N, 3)`` samples x axes; ``S.reshape(3 N, n)`` is the stacked regress
 
 from __future__ import annotations
 
-from functools import cached_property
 from typing import Callable, Iterator, Sequence
 
 import numpy as np
@@ -219,10 +218,9 @@ class Problem:
             self._ranks[rcond] = analyze_rank(self.red, rcond)
         return self._ranks[rcond]
 
-    @cached_property
-    def ols_rss(self) -> float:
-        """Least-squares residual sum of squares ``rho^2 + ||U_{r+}^T q||^2`` (default rcond)."""
-        ra = self.rank()
+    def ls_rss(self, rcond: float | None = None) -> float:
+        """Least-squares residual sum of squares ``rho^2 + ||U_{r+}^T q||^2`` (the part of q off range R)."""
+        ra = self.rank(rcond)
         Uq = ra.U.T @ self.red.qty
         return self.red.rho2 + float(np.sum(Uq[ra.rank:] ** 2))
 

@@ -133,9 +133,7 @@ class Prepared:
 
     def ols_sigma(self) -> float:
         """Residual std of the least-squares fit, RSS / (m - rank)."""
-        Uq = self.ra.U.T @ self.red.qty
-        rss = self.red.rho2 + float(np.sum(Uq[self.ra.rank:] ** 2))
-        return float(np.sqrt(rss / (self.m - self.ra.rank)))
+        return float(np.sqrt(self.problem.ls_rss(self.ra.rcond) / (self.m - self.ra.rank)))
 
 
 def rows_of(S: np.ndarray | RegressionProblem, y: np.ndarray | None, t: np.ndarray | None,
