@@ -1,0 +1,135 @@
+"""Several flights in one estimate (issue 12, first step: the Python API for the reduction-based methods).
+
+Each flight becomes its own :class:`~casep.analysis.problem.Problem` (its checks, its S_V, its QR);
+its noise sigma is estimated from its own least-squares residuals (or given); the flights are
+combined by :func:`casep.estimators.joint.joint_reduction` into one whitened reduced system over
+``theta = [shared, per-flight(1), ..., per-flight(K)]`` (per-flight: the model's
+``declare(..., per_flight=True)`` coefficients), which any registered method that needs only the
+reduction solves (OLS, ridge, bounded, PCR, MAP). Residuals are each flight's own, divided by its
+sigma (the whitened system the joint fit minimises).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from casep.analysis.problem import Problem
+from casep.estimators.joint import JointLayout, joint_reduction
+from casep.estimators.registry import METHODS, check_method_options, run_method
+from casep.estimators.result import EstimateResult
+
+__all__ = ["JointProblem", "separate_flights", "JOINT_METHODS"]
+
+#: Methods that solve from the reduction alone, so from the stacked flights.
+JOINT_METHODS = ("ols", "ridge", "bounded", "pcr", "map")
+
+
+class JointProblem(Problem):
+    """Several flights' problems as one whitened problem over the joint parameters."""
+
+    def __init__(self, problems: Sequence[Problem], sigmas: Sequence[float], layout: JointLayout) -> None:
+        red = joint_reduction([p.red for p in problems], sigmas, layout)
+        units = layout.expand(problems[0].units)
+        si = layout.expand(list(problems[0].si_factors))
+        y = np.concatenate([p.y.reshape(-1) / s for p, s in zip(problems, sigmas)])  # whitened
+        super().__init__(names=layout.joint_names, units=units, si_factors=si, red=red, y=y,
+                         model=problems[0].model, source=" + ".join(p.source for p in problems))
+        self.problems = tuple(problems)
+        self.sigmas = tuple(float(s) for s in sigmas)
+        self.layout = layout
+
+    @property
+    def has_rows(self) -> bool:
+        return all(p.has_rows for p in self.problems)
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """Each flight's ``(y_k - S_k P_k x) / sigma_k``, stacked: the joint fit's whitened residuals."""
+        x = np.asarray(x, dtype=float)
+        return np.concatenate([p.residuals(x[self.layout.columns(k)]).reshape(-1) / s
+                               for k, (p, s) in enumerate(zip(self.problems, self.sigmas))])
+
+    def blocks(self, rows: int = 0):
+        raise ValueError("a several-flights problem has no single row sequence: recursive and row-based "
+                         f"methods are not available jointly (use one of {', '.join(JOINT_METHODS)})")
+
+    def flight_estimates(self, x: np.ndarray) -> list[np.ndarray]:
+        """Flight k's coefficients in model order (shared + its own per-flight ones)."""
+        x = np.asarray(x, dtype=float)
+        return [x[self.layout.columns(k)] for k in range(self.layout.n_flights)]
+
+
+def _labels(problems: Sequence[Problem]) -> tuple[str, ...]:
+    names = [Path(p.source).name or f"flight{k + 1}" for k, p in enumerate(problems)]
+    if len(set(names)) < len(names):
+        names = [f"{n}#{k + 1}" for k, n in enumerate(names)]
+    return tuple(names)
+
+
+def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: float | Sequence[float] | None = None,
+                     options: Mapping[str, Any] | None = None) -> tuple[EstimateResult, JointProblem]:
+    """One estimate of the shared coefficients from several flights; per-flight ones per flight.
+
+    Parameters
+    ----------
+    flights : sequence of FlightData, Problem or path
+        Two or more flights of the same model.
+    model : str, path or ErrorModel
+    method : {"ols", "ridge", "bounded", "pcr", "map"}
+        A method that solves from the reduction.
+    sigma : float or sequence of float, optional
+        Noise std per flight (one value for all), m/s; default: each flight's own least-squares
+        residual std ``sqrt(RSS_k / (m_k - rank_k))``.
+    options : mapping, optional
+        The method's options (registry names).
+
+    Returns
+    -------
+    (EstimateResult, JointProblem)
+        The result over the joint parameters (names ``name`` for shared, ``name[file]`` per flight;
+        std from the whitened system, so ``sigma`` is 1 and ``sigma_source`` "given"); the problem
+        (its ``sigmas``, ``layout`` and ``flight_estimates``).
+    """
+    from casep.io.files import read_flight
+    from casep.io.flight import FlightData
+    from casep.model.loader import load_model
+
+    if method not in JOINT_METHODS:
+        raise ValueError(f"method `{method}` cannot be estimated jointly yet; use one of {', '.join(JOINT_METHODS)}")
+    if len(flights) < 2:
+        raise ValueError(f"`flights` must hold two or more flights, got {len(flights)}")
+    model = load_model(model)
+    problems = []
+    for fl in flights:
+        if isinstance(fl, Problem):
+            problems.append(fl)
+            continue
+        problems.append(Problem.from_flight(fl if isinstance(fl, FlightData) else read_flight(fl), model))
+    sig = _sigmas(problems, sigma)
+    layout = JointLayout(model.names, model.per_flight, _labels(problems))
+    jp = JointProblem(problems, sig, layout)
+    opts = dict(options or {})
+    check_method_options(method, {k: v for k, v in opts.items() if v is not None})
+    if method == "map" and "prior" in opts:  # the prior is on the model's names: shared ones as given
+        opts["prior"] = {k: v for k, v in opts["prior"].items() if k in layout.joint_names}
+    if method == "bounded" and "bounds" in opts:
+        opts["bounds"] = {k: v for k, v in opts["bounds"].items() if k in layout.joint_names}
+    res = run_method(method, jp, None, None, {k: v for k, v in opts.items() if k in METHODS[method].options},
+                     sigma=1.0)
+    return res, jp
+
+
+def _sigmas(problems: Sequence[Problem], sigma) -> list[float]:
+    """Each flight's noise std: given, or its own least-squares residual std."""
+    if sigma is None:
+        return [float(np.sqrt(p.ls_rss() / (p.m - p.rank().rank))) for p in problems]
+    values = [sigma] * len(problems) if np.ndim(sigma) == 0 else list(sigma)
+    if len(values) != len(problems):
+        raise ValueError(f"`sigma` has {len(values)} values for {len(problems)} flights")
+    for k, v in enumerate(values):
+        if not (isinstance(v, (int, float, np.floating)) and np.isfinite(v) and v > 0):
+            raise ValueError(f"`sigma` of flight {k + 1} must be finite and > 0, got {v!r}")
+    return [float(v) for v in values]
