@@ -22,7 +22,7 @@ from casep.estimators.joint import JointLayout, joint_reduction
 from casep.estimators.registry import METHODS, check_method_options, run_method
 from casep.estimators.result import EstimateResult
 
-__all__ = ["JointProblem", "separate_flights", "JOINT_METHODS"]
+__all__ = ["JointProblem", "separate_flights", "flights_summary", "JOINT_METHODS"]
 
 #: Methods that solve from the reduction alone, so from the stacked flights.
 JOINT_METHODS = ("ols", "ridge", "bounded", "pcr", "map")
@@ -133,3 +133,50 @@ def _sigmas(problems: Sequence[Problem], sigma) -> list[float]:
         if not (isinstance(v, (int, float, np.floating)) and np.isfinite(v) and v > 0):
             raise ValueError(f"`sigma` of flight {k + 1} must be finite and > 0, got {v!r}")
     return [float(v) for v in values]
+
+
+def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
+    """The ``flights`` entries of the result JSON (``interfaces.md``, "Several flights") and the
+    consistency of the flights on the shared coefficients.
+
+    Per flight: file, samples, sigma, residual RMS per axis under the joint estimate, its per-flight
+    coefficients. Consistency (:mod:`casep.estimators.joint`): per shared coefficient, chi-square of
+    the flights' own OLS estimates about their weighted mean (flights where it is estimable alone);
+    overall, the Chow test of the joint fit against the separate fits.
+    """
+    from casep.estimators.joint import coefficient_consistency, flight_rss, overall_consistency
+    from casep.estimators.ols import solve_ols
+
+    lay = jp.layout
+    x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
+    pf = np.flatnonzero(lay.per_flight)
+    flights, own, rss_joint = [], [], []
+    for k, (p, s) in enumerate(zip(jp.problems, jp.sigmas)):
+        r = p.residuals(x[lay.columns(k)]).reshape(-1, 3)
+        rss_joint.append(float(np.sum(r**2)))
+        cols = lay.columns(k)[pf]
+        flights.append({
+            "file": p.source, "n_samples": int(p.n_samples), "sigma": s,
+            "residual_rms": {a: float(np.sqrt(np.mean(r[:, i] ** 2))) for i, a in enumerate("xyz")},
+            "coefficients": [{"name": lay.names[j], "unit": p.units[j], "estimate": _num(res.estimate[c]),
+                              "std": _num(res.std[c]) if res.std is not None else None}
+                             for j, c in zip(pf, cols)],
+        })
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # each flight alone: ill-conditioned, said by the joint result
+            own.append(solve_ols(p, sigma=s))
+    per = {}
+    for j in lay.shared:
+        test = coefficient_consistency(np.array([o.estimate[j] for o in own]), np.array([o.std[j] ** 2 for o in own]))
+        if test is not None:
+            per[lay.names[j]] = test.to_dict()
+    own_rss = [flight_rss(p.red) for p in jp.problems]
+    overall = overall_consistency(rss_joint, [o[0] for o in own_rss], jp.sigmas, [o[1] for o in own_rss], res.rank)
+    return {"flights": flights,
+            "consistency": {"overall": overall.to_dict() if overall else None, "per_coefficient": per}}
+
+
+def _num(v: float) -> float | None:
+    return float(v) if np.isfinite(v) else None
