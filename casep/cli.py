@@ -172,7 +172,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"casep {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     s = sub.add_parser("separate", help="estimate the error coefficients of a flight file")
-    s.add_argument("flight", help="flight CSV file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..)")
+    s.add_argument("flight", nargs="+", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "
+                   "several files: one estimate of the shared coefficients, per-flight ones per flight "
+                   "(methods ols, ridge, bounded, pcr, map)")
     s.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
     s.add_argument("--method", default="ols", choices=METHODS, help="estimator (default ols)")
     s.add_argument("--sigma", type=_ranged("sigma"), default=None,
@@ -258,7 +260,10 @@ def _parser() -> argparse.ArgumentParser:
 
 def _inputs(args: argparse.Namespace, *names: str) -> list:
     """The input files a command reads (an output must be none of them)."""
-    files = [getattr(args, n, None) for n in names]
+    files = []
+    for n in names:
+        v = getattr(args, n, None)
+        files += v if isinstance(v, list) else [v]
     model = getattr(args, "model", None)
     return files + ([model] if model and Path(model).is_file() else [])
 
@@ -283,6 +288,9 @@ def _cmd_separate(args: argparse.Namespace) -> int:
                                 ("scaling", args.noise_scaling)) if v is not None}
     if wopts and args.denoise != "wavelet":
         raise ValueError(f"wavelet options ({', '.join(wopts)}) need --denoise wavelet")
+    if len(args.flight) > 1:
+        return _separate_flights(args, model, opts, bounds, prior)
+    args.flight = args.flight[0]
     flight = _read(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", CasepWarning)
@@ -301,6 +309,55 @@ def _cmd_separate(args: argparse.Namespace) -> int:
             print(f"{label} written to {path}")
     _write_separate_outputs(args, res, flight, bounds, prior, caught)
     return _result_status(res)
+
+
+def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior) -> int:
+    """`casep separate A B ...`: several flights in one estimate (casep.workflows.flights)."""
+    from casep.estimators.result import write_json_atomic
+    from casep.io.files import read_flight
+    from casep.workflows.flights import JOINT_METHODS, flights_summary, separate_flights
+
+    for flag, value in (("--tracking", args.tracking), ("--denoise wavelet", args.denoise == "wavelet" or None),
+                        ("--figures", args.figures), ("--report", args.report), ("--mat", args.mat),
+                        ("--csv", args.csv)):
+        if value:
+            raise ValueError(f"{flag} is not available with several flights yet; give one flight, or leave it out")
+    if args.method not in JOINT_METHODS:
+        raise ValueError(f"--method {args.method} cannot estimate several flights jointly yet. "
+                         f"Use: --method {' | '.join(JOINT_METHODS)}")
+    options = {**opts, **({"bounds": bounds} if bounds else {}), **({"prior": prior} if prior else {})}
+    flights = [read_flight(f) for f in args.flight]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", CasepWarning)
+        res, jp = separate_flights(flights, model, args.method, sigma=args.sigma, options=options)
+        summary = flights_summary(res, jp)
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    print(res.table())
+    ov = summary["consistency"]["overall"]
+    for f in summary["flights"]:
+        print(f"{f['file']}: {f['n_samples']} samples, sigma {f['sigma']:.4g} m/s")
+    if ov:
+        print(f"consistency of the flights (Chow test): chi2 {ov['chi2']:.4g}, {ov['dof']} dof, p {ov['p_value']:.3g}"
+              + ("  <- the flights disagree: an unmodelled error in one of them?" if ov["p_value"] < 1e-3 else ""))
+    if args.json:
+        write_json_atomic(_joint_json(res, jp, summary), args.json)
+        print(f"result written to {args.json}")
+    return _result_status(res)
+
+
+def _joint_json(res, jp, summary: dict) -> dict:
+    """The result JSON with `coefficients` of the shared coefficients and a `flights` list (interfaces.md)."""
+    d = res.to_dict()
+    keep = [i for i, n in enumerate(res.names) if n in jp.layout.names]  # shared: the model's own names
+    for key in ("coefficients", "names", "units", "estimates", "std", "si_factors"):
+        if d.get(key) is not None:
+            d[key] = [d[key][i] for i in keep]
+    if d.get("covariance") is not None:
+        d["covariance"] = [[d["covariance"][i][j] for j in keep] for i in keep]
+    d["flights"] = summary["flights"]
+    d["consistency"] = summary["consistency"]
+    return d
 
 
 def _write_separate_outputs(args: argparse.Namespace, res, flight, bounds, prior, caught) -> None:

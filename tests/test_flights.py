@@ -99,3 +99,26 @@ def test_consistency_flags_a_flight_with_an_unmodelled_error(two):
     assert out["consistency"]["overall"]["p_value"] < 1e-6
     per = out["consistency"]["per_coefficient"]
     assert per["Ka0y"]["p_value"] < 1e-6
+
+
+def test_cli_several_flights_json(two, tmp_path):
+    import json
+
+    from casep.cli import main
+    from casep.io.files import write_flight
+
+    paths = []
+    for k, sim in enumerate(two):
+        p = tmp_path / f"f{k}.csv"
+        write_flight(sim.flight, p)
+        paths.append(str(p))
+    out = tmp_path / "joint.json"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["separate", *paths, "--model", "platform36_timeoffset", "--json", str(out)]) == 0
+    d = json.loads(out.read_text())
+    assert len(d["coefficients"]) == 36 and "dt_trk" not in d["names"]  # the shared ones
+    assert [f["file"] for f in d["flights"]] == paths
+    assert abs(d["flights"][0]["coefficients"][0]["estimate"] - 20.0) < 5 * d["flights"][0]["coefficients"][0]["std"]
+    assert len(d["covariance"]) == 36 and d["consistency"]["overall"]["dof"] > 0
+    assert main(["separate", *paths, "--model", "platform36_timeoffset", "--method", "rels"]) == 2

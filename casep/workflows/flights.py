@@ -35,7 +35,7 @@ class JointProblem(Problem):
         red = joint_reduction([p.red for p in problems], sigmas, layout)
         units = layout.expand(problems[0].units)
         si = layout.expand(list(problems[0].si_factors))
-        y = np.concatenate([p.y.reshape(-1) / s for p, s in zip(problems, sigmas)])  # whitened
+        y = np.concatenate([p.y.reshape(-1, 3) / s for p, s in zip(problems, sigmas)])  # whitened, (N, 3)
         super().__init__(names=layout.joint_names, units=units, si_factors=si, red=red, y=y,
                          model=problems[0].model, source=" + ".join(p.source for p in problems))
         self.problems = tuple(problems)
