@@ -251,6 +251,9 @@ def _parser() -> argparse.ArgumentParser:
     _add_option(mg, OPTIONS["bounds"], "default: the demo spec-sheet box")
     mc.add_argument("--progress", action=argparse.BooleanOptionalAction, default=True,
                     help="progress on stderr: a bar on a terminal, else a line with the ETA every 5 s (default on)")
+    fu = sub.add_parser("fuse", help="combine results saved earlier (JSON with covariance) into one estimate")
+    fu.add_argument("results", nargs="+", metavar="RESULT.json", help="two or more results of one model")
+    fu.add_argument("--json", metavar="OUT", default=None, help="write the fused result JSON here")
     me = sub.add_parser("methods", help="list the estimators, their options and capabilities")
     me.add_argument("--json", action="store_true", help="print the registry as JSON")
     m = sub.add_parser("models", help="list the available error models")
@@ -358,6 +361,28 @@ def _joint_json(res, jp, summary: dict) -> dict:
     d["flights"] = summary["flights"]
     d["consistency"] = summary["consistency"]
     return d
+
+
+def _cmd_fuse(args: argparse.Namespace) -> int:
+    """`casep fuse R1.json R2.json ...` (casep.workflows.flights.fuse)."""
+    from casep.estimators.result import EstimateResult, write_json_atomic
+    from casep.io._atomic import check_outputs
+    from casep.io.files import read_json_table
+    from casep.workflows.flights import fuse
+
+    check_outputs({"--json": args.json}, inputs=list(args.results))
+    results = []
+    for path in args.results:
+        data = read_json_table(path, "RESULT")
+        if "coefficients" not in data or "covariance" not in data:
+            raise ValueError(f"{path}: not a casep result JSON with a covariance (casep separate --json)")
+        results.append(EstimateResult.from_json(data))
+    res = fuse(results)
+    print(res.table())
+    if args.json:
+        write_json_atomic(res.to_dict(), args.json)
+        print(f"result written to {args.json}")
+    return 0
 
 
 def _write_separate_outputs(args: argparse.Namespace, res, flight, bounds, prior, caught) -> None:
@@ -612,7 +637,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     args = _parser().parse_args(argv)
     commands = {"separate": _cmd_separate, "diagnose": _cmd_diagnose, "simulate": _cmd_simulate,
-                "montecarlo": _cmd_montecarlo, "demo": _cmd_demo, "models": _cmd_models, "methods": _cmd_methods}
+                "montecarlo": _cmd_montecarlo, "demo": _cmd_demo, "models": _cmd_models, "methods": _cmd_methods,
+                "fuse": _cmd_fuse}
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", CasepWarning)

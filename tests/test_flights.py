@@ -152,3 +152,57 @@ def test_monte_carlo_joint_ols_efficiency_and_coverage(two, rng):
     ratio = np.sqrt(np.mean(z**2))
     assert 0.9 <= ratio <= 1.1, ratio
     assert 0.93 <= np.mean(cover) <= 0.97, np.mean(cover)
+
+
+def test_fusing_two_saved_results_equals_the_joint_estimate(two, tmp_path):
+    """Sequential combination: flight A's result, then B's, fused = A and B estimated together."""
+    from casep.estimators.result import EstimateResult, write_json_atomic
+    from casep.workflows.flights import fuse
+
+    a, b = two
+    p36 = casep.load_model("platform36")  # no per-flight coefficient: shared = all
+    flights = []
+    for sim in (a, b):
+        S = casep.build_sv(p36, sim.flight.t, sim.flight.f)
+        flights.append(casep.FlightData(t=sim.flight.t, f=sim.flight.f, dv=S @ np.asarray(sim.truth)[:-1]
+                                        + 0.1 * np.random.default_rng(len(flights)).standard_normal((S.shape[0], 3)),
+                                        source=f"{len(flights)}.csv"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        joint, jp = separate_flights(flights, p36, "ols")
+        singles = [casep.solve_ols(casep.Problem.from_flight(f, p36), sigma=s) for f, s in zip(flights, jp.sigmas)]
+    saved = []
+    for k, r in enumerate(singles):  # through the JSON, as `casep fuse` reads them
+        write_json_atomic(r.to_dict(), tmp_path / f"r{k}.json")
+        saved.append(EstimateResult.from_json(tmp_path / f"r{k}.json"))
+    fused = fuse(saved)
+    # Through covariances (condition ~1e10 in natural units, ~cond^2 of the regression): agreement to a
+    # small fraction of each std, not to rounding; the joint fit itself works on square-root factors.
+    assert np.max(np.abs(fused.estimate - joint.estimate) / joint.std) < 1e-3
+    np.testing.assert_allclose(fused.std, joint.std, rtol=1e-4)
+    other = dataclasses.replace(saved[1], model="platform39_misalignment")
+    with pytest.raises(ValueError, match="platform36.*platform39_misalignment"):
+        fuse([saved[0], other])
+
+
+def test_cli_fuse(tmp_path):
+    from casep.cli import main
+    from casep.io.files import write_flight
+
+    paths = []
+    for k, scen in enumerate(("paper", "paper", "paper-pitch")):
+        sim = simulate_flight(scen, seed=k, rate=10.0)
+        write_flight(sim.flight, tmp_path / f"f{k}.csv")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            assert main(["separate", str(tmp_path / f"f{k}.csv"), "--json", str(tmp_path / f"r{k}.json")]) == 0
+        paths.append(str(tmp_path / f"r{k}.json"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["fuse", paths[0], paths[1], "--json", str(tmp_path / "fused.json")]) == 0
+        # a pitch-plane flight leaves 12 coefficients without an estimate: refused, with the reason
+        assert main(["fuse", paths[0], paths[2]]) == 2
+    import json
+
+    d = json.loads((tmp_path / "fused.json").read_text())
+    assert d["method"] == "fused" and len(d["coefficients"]) == 36 and d["success"]

@@ -22,7 +22,7 @@ from casep.estimators.joint import JointLayout, joint_reduction
 from casep.estimators.registry import METHODS, check_method_options, run_method
 from casep.estimators.result import EstimateResult
 
-__all__ = ["JointProblem", "separate_flights", "flights_summary", "JOINT_METHODS"]
+__all__ = ["JointProblem", "separate_flights", "flights_summary", "fuse", "JOINT_METHODS"]
 
 #: Methods that solve from the reduction alone, so from the stacked flights.
 JOINT_METHODS = ("ols", "ridge", "bounded", "pcr", "map")
@@ -180,3 +180,58 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
 
 def _num(v: float) -> float | None:
     return float(v) if np.isfinite(v) else None
+
+
+def fuse(results: Sequence[EstimateResult]) -> EstimateResult:
+    """Combine results saved earlier (Gaussian, with covariance) into one estimate of their shared
+    coefficients: ``Lambda = sum_k C_k^-1``, ``D = Lambda^-1 sum_k C_k^-1 D_k``.
+
+    Each result's coefficients of its model are used with their marginal covariance (a per-flight
+    coefficient ``name[file]`` of a several-flights result is left out: marginalising a Gaussian
+    is taking its block). For independent flights this is the joint estimate exactly (the
+    marginal likelihood of the shared coefficients factorises), so fusing two OLS results equals
+    estimating both flights at once with the same sigmas. Computed in coordinates scaled by each
+    coefficient's fused std (no squared condition number of natural units).
+
+    Raises
+    ------
+    ValueError
+        Results of different models (naming both), a result without covariance, or a coefficient
+        without an estimate (its information is not in the covariance).
+    """
+    import dataclasses
+
+    if len(results) < 2:
+        raise ValueError(f"fuse needs two or more results, got {len(results)}")
+    first = results[0]
+    for r in results[1:]:
+        if r.model != first.model:
+            raise ValueError(f"results of different models: `{first.model}` and `{r.model}`; fuse only results "
+                             "of one model")
+    names = [n for n in first.names if "[" not in n]
+    infos, etas = [], []
+    for k, r in enumerate(results):
+        if r.covariance is None:
+            raise ValueError(f"result {k + 1} ({r.method}) has no covariance: it cannot be fused")
+        idx = [list(r.names).index(n) for n in names]
+        x, C = r.estimate[idx], r.covariance[np.ix_(idx, idx)]
+        if not np.all(np.isfinite(x)) or not np.all(np.isfinite(C)):
+            bad = [n for n, v in zip(names, x) if not np.isfinite(v)]
+            raise ValueError(f"result {k + 1} has coefficients without an estimate ({', '.join(bad) or 'covariance'}): "
+                             "their information is not in the result; estimate the flights together instead")
+        d = np.sqrt(np.diag(C))
+        Ci = np.linalg.inv(C / np.outer(d, d)) / np.outer(d, d)  # C^-1 via the correlation matrix
+        infos.append(Ci)
+        etas.append(Ci @ x)
+    Lam = sum(infos)
+    s = np.sqrt(np.diag(Lam))
+    cov = np.linalg.inv(Lam / np.outer(s, s)) / np.outer(s, s)
+    est = cov @ sum(etas)
+    idx0 = [list(first.names).index(n) for n in names]
+    return dataclasses.replace(
+        first, method="fused", names=tuple(names), units=tuple(first.units[i] for i in idx0),
+        estimate=est, std=np.sqrt(np.diag(cov)), covariance=cov, reasons={}, residuals=np.zeros((0, 3)),
+        si_factors=np.asarray(first.si_factors)[idx0], history=None, history_std=None, status=1,
+        message=f"{len(results)} results fused", success=True, sigma_source="given",
+        settings={"fused": [r.settings.get("source", r.method) for r in results]},
+        n_samples=int(sum(r.n_samples for r in results)), stored_residual_rms=None)
