@@ -234,4 +234,4 @@ def fuse(results: Sequence[EstimateResult]) -> EstimateResult:
         si_factors=np.asarray(first.si_factors)[idx0], history=None, history_std=None, status=1,
         message=f"{len(results)} results fused", success=True, sigma_source="given",
         settings={"fused": [r.settings.get("source", r.method) for r in results]},
-        n_samples=int(sum(r.n_samples for r in results)), stored_residual_rms=None)
+        n_samples=int(sum(r.n_samples for r in results)), stored_residual_rms={a: None for a in "xyz"})
