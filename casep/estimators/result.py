@@ -451,7 +451,8 @@ class EstimateResult:
         lines.append(f"method {self.method}, model {self.model}, {self.n_samples} samples, rank {self.rank}/"
                      f"{len(self.names)}, sigma {self.sigma:.4g} m/s")
         lines.append(self.settings_line())
-        lines.append("residual RMS (m/s): " + ", ".join(f"{a} {rms[a]:.4g}" for a in AXES))
+        if all(rms[a] is not None for a in AXES):  # a fused result has no residuals
+            lines.append("residual RMS (m/s): " + ", ".join(f"{a} {rms[a]:.4g}" for a in AXES))
         if self.denoise:
             d = self.denoise
             lines.append(f"de-noised: {d.get('wavelet')} level {d.get('level')}, {d.get('threshold_rule')} "
