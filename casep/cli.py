@@ -217,7 +217,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="tracked point from the platform, m, body frame (default 0 0 0); the flight file's "
                         "att_pitch/att_yaw/att_roll (rad) and omega_x/y/z (rad/s, body) columns describe the attitude")
     d = sub.add_parser("diagnose", help="what the flight can and cannot determine")
-    d.add_argument("flight", help="flight file")
+    d.add_argument("flight", nargs="+", help="flight file; several: what each determines alone and jointly")
     d.add_argument("--tracking", metavar="FILE", default=None, help="tracking file (two-file input)")
     d.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
     d.add_argument("--sigma", type=_ranged("sigma"), default=None, help="noise std, m/s (default: estimated)")
@@ -385,6 +385,36 @@ def _cmd_fuse(args: argparse.Namespace) -> int:
     return 0
 
 
+def _diagnose_flights(args: argparse.Namespace, model, prior_std, scales) -> int:
+    """`casep diagnose A B ...`: per coefficient, the CRLB of each flight alone and of all jointly."""
+    from casep.estimators.result import format_number, write_json_atomic
+    from casep.io.files import read_flight
+    from casep.workflows.flights import diagnose_flights
+
+    for flag, value in (("--tracking", args.tracking), ("--tau", args.tau), ("--figures", args.figures)):
+        if value:
+            raise ValueError(f"{flag} is not available with several flights yet; give one flight, or leave it out")
+    d = diagnose_flights([read_flight(f) for f in args.flight], model, sigma=args.sigma, prior_std=prior_std,
+                         scales=scales)
+    k = len(d["flights"])
+    print(f"model {model.name}, {k} flights: CRLB std alone and jointly (verdict: + identifiable, ~ weak, "
+          "- unidentifiable)" + ("; joint bound with the prior" if prior_std is not None else ""))
+    mark = {"identifiable": "+", "weak": "~", "unidentifiable": "-"}
+    print(f"{'coefficient':12s} {'unit':9s}" + "".join(f" {'flight ' + str(i + 1):>14s}" for i in range(k))
+          + f" {'joint':>14s}")
+    for r in d["coefficients"]:
+        cells = [f"{format_number(v, 12)} {mark[w]}" for v, w in zip(r["crlb_alone"], r["verdict_alone"])]
+        print(f"{r['name']:12s} {r['unit']:9s}" + "".join(f" {c:>14s}" for c in cells)
+              + f" {format_number(r['crlb_joint'], 12)} {mark[r['verdict_joint']]}")
+    for i, (f, s) in enumerate(zip(d["flights"], d["sigmas"])):
+        print(f"flight {i + 1}: {f}, sigma {s:.4g} m/s, identifiable alone {d['identifiable_alone'][i]}")
+    print(f"identifiable jointly: {d['identifiable_joint']} of {len(d['coefficients'])}")
+    if args.json:
+        write_json_atomic({"model": model.name, **d}, args.json)
+        print(f"diagnostics written to {args.json}")
+    return 0
+
+
 def _write_separate_outputs(args: argparse.Namespace, res, flight, bounds, prior, caught) -> None:
     """`--figures DIR` and `--report FILE` of `separate` (matplotlib imported only when asked)."""
     if not (args.figures or args.report):
@@ -449,6 +479,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
                 raise ValueError(unknown_coefficient_message(k, model.names, f"--scales {args.scales}"))
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not (v > 0 and math.isfinite(v)):
                 raise ValueError(f"--scales {args.scales}: `{k}` must be a finite number > 0, got {v!r}")
+    if len(args.flight) > 1:
+        return _diagnose_flights(args, model, prior_std, scales)
+    args.flight = args.flight[0]
     flight = _read(args)
     problem = Problem.from_flight(flight, model)  # reduced block by block: S_V never whole (white bound)
     diag = diagnose(problem, sigma=args.sigma, tau=args.tau, prior_std=prior_std,

@@ -206,3 +206,33 @@ def test_cli_fuse(tmp_path):
 
     d = json.loads((tmp_path / "fused.json").read_text())
     assert d["method"] == "fused" and len(d["coefficients"]) == 36 and d["success"]
+
+
+def test_diagnose_flights_joint_bound_against_summed_information(tmp_path):
+    """Joint CRLB = sqrt(diag((sum_k S_k^T S_k / sigma_k^2)^-1)) built directly; never above a flight's own."""
+    from casep.cli import main
+    from casep.io.files import write_flight
+    from casep.workflows.flights import diagnose_flights
+
+    sims = [simulate_flight(s, seed=k, rate=10.0) for k, s in enumerate(("paper", "paper-azimuth"))]
+    m = sims[0].model
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        d = diagnose_flights([s.flight for s in sims], m, sigma=[0.1, 0.3])
+    info = sum(casep.build_sv(m, s.flight.t, s.flight.f).reshape(-1, m.n_coefficients).T
+               @ casep.build_sv(m, s.flight.t, s.flight.f).reshape(-1, m.n_coefficients) / sg**2
+               for s, sg in zip(sims, (0.1, 0.3)))
+    c = np.sqrt(np.diag(info))
+    ref = np.sqrt(np.diag(np.linalg.inv(info / np.outer(c, c)))) / c  # equilibrated inverse
+    got = np.array([r["crlb_joint"] for r in d["coefficients"]])
+    np.testing.assert_allclose(got, ref, rtol=1e-6)
+    alone = np.array([[np.inf if v is None else v for v in r["crlb_alone"]] for r in d["coefficients"]])
+    assert np.all(got <= alone.min(axis=1) * (1 + 1e-9))
+    assert d["identifiable_joint"] >= max(d["identifiable_alone"])
+    paths = []
+    for k, s in enumerate(sims):
+        write_flight(s.flight, tmp_path / f"f{k}.csv")
+        paths.append(str(tmp_path / f"f{k}.csv"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["diagnose", *paths, "--json", str(tmp_path / "d.json")]) == 0

@@ -9,6 +9,10 @@
                  12 coefficients driven only by W_z have zero columns.
 ``paper-ar1``    ``paper`` with first-order Gauss-Markov tracking noise: sigma 0.1 m/s,
                  correlation time 1 s (lag-1 correlation 0.990 at 100 Hz).
+``paper-yaw-late`` the yaw manoeuvre in stage 2 only: 2 deg, period 45 s, 105-195 s (two periods).
+``paper-pitch-low`` a depressed trajectory: pitch-over kick at 2.4 deg/s (paper: 1.6) for 8 s.
+``paper-azimuth`` ``paper`` flown 10 deg off the platform's x axis (constant yaw offset): a
+                 cross-range component of the specific force throughout.
 =============== ==========================================================================
 
 The paper does not publish its trajectory; these are documented stand-ins with the figures
@@ -70,6 +74,13 @@ SCENARIOS: dict[str, Scenario] = {
         Scenario("paper-ar1", "as paper, Gauss-Markov noise sigma 0.1 m/s, tau 1 s",
                  vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=_PAPER_YAW),
                  noise=NoiseModel("ar1", TABLE1_NOISE_SIGMA, tau=1.0)),
+        Scenario("paper-yaw-late", "as paper, yaw manoeuvre in stage 2 only (2 deg, 45 s period, 105-195 s)",
+                 vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=YawManoeuvre(2.0, 45.0, 105.0, 195.0))),
+        Scenario("paper-pitch-low", "as paper, depressed trajectory (pitch-over kick 2.4 deg/s for 8 s)",
+                 vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=_PAPER_YAW,
+                                             pitch=dataclasses.replace(DEFAULT_VEHICLE.pitch, kick_rate=2.4))),
+        Scenario("paper-azimuth", "as paper, flown 10 deg off the platform x axis (cross-range component)",
+                 vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=dataclasses.replace(_PAPER_YAW, offset=10.0))),
     )
 }
 

@@ -115,12 +115,17 @@ class PitchProgramme:
 
 @dataclass(frozen=True)
 class YawManoeuvre:
-    """``psi(t) = amplitude sin(2 pi (t - start) / period)`` (deg) for start <= t <= end."""
+    """``psi(t) = offset + amplitude sin(2 pi (t - start) / period)`` (deg), the sine for start <= t <= end.
+
+    ``offset`` (deg, whole flight): a flight azimuth off the platform's x axis, so the trajectory has
+    a cross-range component.
+    """
 
     amplitude: float = 2.0
     period: float = 80.0
     start: float = 20.0
     end: float = 180.0
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -303,11 +308,11 @@ def _angles(vehicle: Vehicle, t: float, v: np.ndarray, a: np.ndarray | None, sta
         theta = theta_v + decay
         if a is not None:  # d atan2(vy, vx)/dt = (vx ay - vy ax) / (vx^2 + vy^2); d decay/dt = -decay / tau
             theta_dot = (v[0] * a[1] - v[1] * a[0]) / (v[0] ** 2 + v[1] ** 2) - decay / p.tau
-    psi = 0.0
     y = vehicle.yaw
+    psi = math.radians(y.offset) if y is not None else 0.0
     if y is not None and y.start <= t <= y.end:
         w = 2.0 * math.pi / y.period
-        psi = math.radians(y.amplitude) * math.sin(w * (t - y.start))
+        psi += math.radians(y.amplitude) * math.sin(w * (t - y.start))
         if a is not None:
             psi_dot = math.radians(y.amplitude) * w * math.cos(w * (t - y.start))
     return theta, psi, theta_dot, psi_dot

@@ -22,7 +22,7 @@ from casep.estimators.joint import JointLayout, joint_reduction
 from casep.estimators.registry import METHODS, check_method_options, run_method
 from casep.estimators.result import EstimateResult
 
-__all__ = ["JointProblem", "separate_flights", "flights_summary", "fuse", "JOINT_METHODS"]
+__all__ = ["JointProblem", "separate_flights", "flights_summary", "fuse", "diagnose_flights", "JOINT_METHODS"]
 
 #: Methods that solve from the reduction alone, so from the stacked flights.
 JOINT_METHODS = ("ols", "ridge", "bounded", "pcr", "map")
@@ -235,3 +235,56 @@ def fuse(results: Sequence[EstimateResult]) -> EstimateResult:
         message=f"{len(results)} results fused", success=True, sigma_source="given",
         settings={"fused": [r.settings.get("source", r.method) for r in results]},
         n_samples=int(sum(r.n_samples for r in results)), stored_residual_rms={a: None for a in "xyz"})
+
+
+def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float] | None = None,
+                     prior_std: np.ndarray | None = None, scales: Mapping | None = None) -> dict[str, Any]:
+    """What each flight determines alone and what they determine together.
+
+    Per shared coefficient: the CRLB std of each flight alone (its own sigma) and of the flights
+    jointly (weighted by 1/sigma_k^2), and the verdicts (identifiable / weak / unidentifiable, as
+    :func:`casep.analysis.diagnostics.diagnose`, "weak" against the model's declared magnitudes);
+    with `prior_std` (model order), the joint bound is Bayesian.
+
+    Returns
+    -------
+    dict
+        ``{"flights": [labels], "sigmas": [...], "coefficients": [{"name", "unit", "crlb_alone": [..],
+        "verdict_alone": [..], "crlb_joint", "verdict_joint"}], "identifiable_alone": [counts],
+        "identifiable_joint": count}``
+    """
+    from casep.analysis.diagnostics import diagnose
+    from casep.io.files import read_flight
+    from casep.io.flight import FlightData
+    from casep.model.loader import load_model
+
+    model = load_model(model)
+    problems = [fl if isinstance(fl, Problem) else
+                Problem.from_flight(fl if isinstance(fl, FlightData) else read_flight(fl), model) for fl in flights]
+    sig = _sigmas(problems, sigma)
+    scales = dict(model.scales if scales is None else scales)
+    alone = [diagnose(p, sigma=s, scales=scales) for p, s in zip(problems, sig)]
+    out: dict[str, Any] = {"flights": list(_labels(problems)), "sigmas": sig}
+    if len(problems) >= 2:
+        layout = JointLayout(model.names, model.per_flight, _labels(problems))
+        jp = JointProblem(problems, sig, layout)
+        jscales = {n: scales[n.split("[")[0]] for n in layout.joint_names if n.split("[")[0] in scales}
+        jprior = None
+        if prior_std is not None:
+            jprior = np.array(layout.expand(list(np.asarray(prior_std, dtype=float))), dtype=float)
+        joint = diagnose(jp, sigma=1.0, scales=jscales, prior_std=jprior)  # whitened: sigma 1
+    else:
+        joint = diagnose(problems[0], sigma=sig[0], scales=scales,
+                         prior_std=None if prior_std is None else np.asarray(prior_std, dtype=float))
+    rows = []
+    for j in np.flatnonzero(~model.per_flight):
+        name = model.names[j]
+        rows.append({"name": name, "unit": model.units[j],
+                     "crlb_alone": [_num(a.crlb_std[j]) for a in alone],
+                     "verdict_alone": [a.identifiability[name] for a in alone],
+                     "crlb_joint": _num(joint.crlb_std[list(joint.names).index(name)]),
+                     "verdict_joint": joint.identifiability[name]})
+    out["coefficients"] = rows
+    out["identifiable_alone"] = [sum(r["verdict_alone"][k] == "identifiable" for r in rows) for k in range(len(alone))]
+    out["identifiable_joint"] = sum(r["verdict_joint"] == "identifiable" for r in rows)
+    return out
