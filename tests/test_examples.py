@@ -61,3 +61,12 @@ def test_make_example_flight_is_reproducible(tmp_path):
     assert new_lines[: header + 1] == ref_lines[: header + 1]
     np.testing.assert_allclose(np.loadtxt(new_lines[header + 1:], delimiter=","),
                                np.loadtxt(ref_lines[header + 1:], delimiter=","), rtol=1e-9, atol=1e-9)
+
+
+def test_several_flights_example(tmp_path):
+    out = _run("several_flights.py", tmp_path)
+    rows = [line for line in out.splitlines() if line.startswith("| paper")]
+    counts = [[int(c) for c in line.strip("|").split("|")[1:]] for line in rows]
+    assert len(rows) == 9 and all(1 <= a <= b <= 36 for a, b in counts)  # a prior never determines less
+    assert counts[-1][0] > counts[0][0]  # four flights determine more than one
+

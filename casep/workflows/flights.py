@@ -178,6 +178,17 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
             "consistency": {"overall": overall.to_dict() if overall else None, "per_coefficient": per}}
 
 
+def _verdict(diag, name: str, scales: Mapping, with_prior: bool) -> str:
+    """The joint verdict. With a prior, diagnose's own yardstick is the prior std (is the data worth
+    anything?); here the question is whether the coefficient is known to better than its declared
+    magnitude, prior included: posterior std below `scales[name]`."""
+    v = diag.identifiability[name]
+    if not with_prior or v == "unidentifiable" or name not in scales:
+        return v
+    std = diag.crlb_std[list(diag.names).index(name)]
+    return "identifiable" if std <= scales[name] else "weak"
+
+
 def _num(v: float) -> float | None:
     return float(v) if np.isfinite(v) else None
 
@@ -244,7 +255,8 @@ def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float]
     Per shared coefficient: the CRLB std of each flight alone (its own sigma) and of the flights
     jointly (weighted by 1/sigma_k^2), and the verdicts (identifiable / weak / unidentifiable, as
     :func:`casep.analysis.diagnostics.diagnose`, "weak" against the model's declared magnitudes);
-    with `prior_std` (model order), the joint bound is Bayesian.
+    with `prior_std` (model order), the joint bound is Bayesian and its verdict asks whether the
+    posterior std is below the declared magnitude.
 
     Returns
     -------
@@ -283,7 +295,7 @@ def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float]
                      "crlb_alone": [_num(a.crlb_std[j]) for a in alone],
                      "verdict_alone": [a.identifiability[name] for a in alone],
                      "crlb_joint": _num(joint.crlb_std[list(joint.names).index(name)]),
-                     "verdict_joint": joint.identifiability[name]})
+                     "verdict_joint": _verdict(joint, name, scales, prior_std is not None)})
     out["coefficients"] = rows
     out["identifiable_alone"] = [sum(r["verdict_alone"][k] == "identifiable" for r in rows) for k in range(len(alone))]
     out["identifiable_joint"] = sum(r["verdict_joint"] == "identifiable" for r in rows)
