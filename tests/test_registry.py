@@ -87,3 +87,16 @@ def test_methods_command_lists_the_registry(capsys):
     assert ridge["options"][0]["flag"] == "--lambda" and ridge["std_kind"] == "sampling"
     assert main(["methods"]) == 0
     assert "--noise-order" in capsys.readouterr().out
+
+
+def test_std_kind_is_a_declared_field_matching_std_kinds():
+    """Method.std_kind is a declared field, equal to the result module's STD_KINDS, and validated."""
+    import dataclasses
+    import pytest as _pytest
+    from casep.estimators.registry import METHODS, Method
+    from casep.estimators.result import STD_KINDS
+    assert "std_kind" in {f.name for f in dataclasses.fields(Method)}
+    for name, m in METHODS.items():
+        assert m.std_kind == STD_KINDS.get(name, "sampling"), name
+    with _pytest.raises(ValueError, match="std_kind"):
+        Method("fake", "solve_ols", "fake", std_kind="exact")

@@ -22,7 +22,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from casep.estimators.result import EXTRAS_TYPES, STD_KINDS
+from casep.estimators.result import EXTRAS_TYPES
 
 __all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Method", "OPTIONS", "METHODS", "check_method_options", "describe", "run_method"]
 
@@ -175,11 +175,13 @@ class Method:
     needs_time: bool = False
     batched: bool = False
     fixed: tuple[tuple[str, Any], ...] = ()  # solver keywords this method always sets
+    #: What the reported std mean (``sampling``, ``posterior`` or ``conditional``; see STD_KINDS).
+    std_kind: str = "sampling"
 
-    @property
-    def std_kind(self) -> str:
-        """What the reported std mean (``sampling``, ``posterior`` or ``conditional``)."""
-        return STD_KINDS.get(self.name, "sampling")
+    def __post_init__(self) -> None:
+        if self.std_kind not in ("sampling", "posterior", "conditional"):
+            raise ValueError(f"method {self.name}: std_kind must be sampling, posterior or conditional, "
+                             f"got {self.std_kind!r}")
 
 
 #: Method-specific options (``sigma`` and the de-noising options apply to every method).
@@ -203,15 +205,16 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
 METHODS: dict[str, Method] = {m.name: m for m in (
     Method("ols", "solve_ols", "least squares on the scaled QR reduction", batched=True),
     Method("rls", "solve_rls", "recursive least squares, paper Eq. (14), Bierman U-D",
-           ("p0", "weight", "forgetting"), recursive=True, batched=True, fixed=(("noise_order", 0),)),
+           ("p0", "weight", "forgetting"), recursive=True, batched=True, fixed=(("noise_order", 0),),
+           std_kind="posterior"),
     Method("rels", "solve_rls", "recursive extended least squares (MA noise model)",
-           ("p0", "weight", "forgetting", "noise_order"), recursive=True),
+           ("p0", "weight", "forgetting", "noise_order"), recursive=True, std_kind="posterior"),
     Method("ridge", "solve_ridge", "ridge regression (GCV, L-curve or given lambda)", ("lam",)),
     Method("bounded", "solve_bounded", "box-bounded least squares (Clarabel + exact polish)", ("bounds",),
-           required=("bounds",)),
+           required=("bounds",), std_kind="conditional"),
     Method("pcr", "solve_pcr", "principal-component regression", ("n_components",), batched=True),
     Method("map", "solve_map", "maximum a posteriori with a Gaussian prior", ("prior",), required=("prior",),
-           batched=True),
+           batched=True, std_kind="posterior"),
     Method("gls", "solve_gls", "least squares in Gauss-Markov noise (AR(1) whitening)", ("tau",),
            needs_time=True),
     Method("huber", "solve_huber", "robust (Huber) least squares by IRLS, outliers flagged"),
