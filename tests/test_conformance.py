@@ -16,7 +16,7 @@ import casep
 from casep.analysis.problem import Problem
 from casep.estimators import registry
 from casep.estimators.registry import METHODS, OPTIONS, Choices, CoefficientTable, Interval, check_method_options
-from casep.estimators.result import EXTRAS_TYPES, SIGMA_SOURCES, STD_KINDS, EstimateResult
+from casep.estimators.result import EXTRAS_TYPES, SIGMA_SOURCES, EstimateResult
 from casep.model.sv import build_sv
 from casep.simulation.simulate import simulate_flight
 
@@ -59,6 +59,21 @@ def test_option_of_another_method_is_an_error(method):
     other = next(o for o in OPTIONS if o not in METHODS[method].options)
     with pytest.raises(ValueError, match=f"`{other}`.*`{method}`"):
         check_method_options(method, {other: OPTIONS[other].default if OPTIONS[other].default is not None else 1})
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+def test_option_of_another_method_through_separate(method, clean_flight):
+    """Through ``separate`` too, for every option the method does not take (a valid, non-default value)."""
+    given = {r: _good_value(OPTIONS[r]) for r in METHODS[method].required}
+    for other in (o for o in OPTIONS if o not in METHODS[method].options):
+        with pytest.raises(ValueError, match=f"`{other}`.*`{method}`"):
+            casep.separate(clean_flight[0], "platform36", method, **given, **{other: _good_value(OPTIONS[other])})
+
+
+def _good_value(option):
+    """A value the option's rules accept that is not its default."""
+    candidates = (2, 0.5, 0.99, 3.0, {"Kg0x": [-1.0, 1.0]}, {"Kg0x": {"mean": 0.0, "std": 1.0}})
+    return next(v for v in candidates if any(r.accepts(v) for r in option.rules) and v != option.default)
 
 
 @pytest.fixture(scope="module")
@@ -126,10 +141,21 @@ def _check_contract(res):
     np.testing.assert_allclose(Cs, Cs.T, rtol=1e-10, atol=1e-300)
     assert np.min(np.linalg.eigvalsh((Cs + Cs.T) / 2) / np.max(np.diag(Cs))) > -1e-9  # PSD
     np.testing.assert_allclose(np.sqrt(np.diag(Cs)), res.std[ok], rtol=1e-9)
-    assert isinstance(res.extras, EXTRAS_TYPES[res.method])
+    assert isinstance(res.extras, METHODS[res.method].extras_type)
+    assert dataclasses.is_dataclass(res.extras) and type(res.extras).__dataclass_params__.frozen
     if METHODS[res.method].recursive:
         assert res.history is not None and len(res.history_names) == res.history.shape[1]
         assert res.history_names[:n] == res.names
+        noise_terms = res.history_names[n:]
+        assert len(noise_terms) == res.extras.noise_order == len(res.extras.ma_coefficients)
+        if noise_terms:  # RELS: the last history row ends with the final MA coefficients
+            np.testing.assert_allclose(res.history[-1, n:], res.extras.ma_coefficients, rtol=1e-12)
+    else:
+        assert res.history is None and res.history_names is None
+    data = json.loads(json.dumps(res.to_dict(), allow_nan=False))
+    assert data["std_kind"] == res.std_kind and data["sigma_source"] == res.sigma_source
+    assert data["extras"] == json.loads(json.dumps(dataclasses.asdict(res.extras)))
+    assert data["history_names"] == (list(res.history_names) if res.history_names is not None else None)
 
 
 @pytest.mark.parametrize("method", list(METHODS))
@@ -145,16 +171,38 @@ def test_json_round_trip(method, results, tmp_path):
     np.testing.assert_allclose(back.std, res.std, rtol=1e-15)
     np.testing.assert_allclose(back.covariance, res.covariance, rtol=1e-15)
     np.testing.assert_allclose(back.si_factors, res.si_factors, rtol=1e-15)
-    assert back.extras == res.extras or dataclasses.asdict(back.extras) == json.loads(
-        json.dumps(res.to_dict()["extras"]))
+    assert type(back.extras) is type(res.extras)
+    assert back.to_dict()["extras"] == res.to_dict()["extras"]
+    if not any(isinstance(v, (dict, list)) and not isinstance(v, tuple) for v in dataclasses.asdict(res.extras).values()):
+        assert back.extras == res.extras  # scalars and tuples: equal as objects
     assert back.to_dict()["residual_rms"] == res.to_dict()["residual_rms"]
 
 
 def test_the_contract_check_catches_a_violation(monkeypatch, results):
-    """A method registered with the wrong std_kind fails the contract check: the machinery can fail."""
+    """The contract check can fail: a fake method registered with another std_kind, or with another
+    extras type, or a recursive method whose history lacks its names, is caught."""
     bad = dataclasses.replace(results["ols"], method="fake")
+    _check_contract_fake = _check_contract
+    monkeypatch.setitem(registry.METHODS, "fake", registry.Method("fake", "solve_ols", "a fake", std_kind="posterior"))
+    monkeypatch.setitem(EXTRAS_TYPES, "fake", EXTRAS_TYPES["ols"])
+    with pytest.raises(AssertionError):  # std_kind "sampling" where "posterior" is declared
+        _check_contract_fake(bad)
     monkeypatch.setitem(registry.METHODS, "fake", registry.Method("fake", "solve_ols", "a fake"))
-    monkeypatch.setitem(STD_KINDS, "fake", "posterior")
+    _check_contract_fake(bad)  # now conforming: the check passes
     monkeypatch.setitem(EXTRAS_TYPES, "fake", EXTRAS_TYPES["ridge"])
-    with pytest.raises(AssertionError):
-        _check_contract(bad)
+    with pytest.raises(AssertionError):  # OLSExtras where RidgeExtras is declared
+        _check_contract_fake(bad)
+    monkeypatch.setitem(EXTRAS_TYPES, "fake", EXTRAS_TYPES["ols"])
+    monkeypatch.setitem(registry.METHODS, "fake", registry.Method("fake", "solve_ols", "a fake", recursive=True))
+    with pytest.raises(AssertionError):  # declared recursive, no history
+        _check_contract_fake(bad)
+
+
+def test_result_rejects_an_unknown_std_kind_sigma_source_or_extras_type(results):
+    res = results["ridge"]
+    with pytest.raises(ValueError, match="std_kind"):
+        dataclasses.replace(res, std_kind="exact")
+    with pytest.raises(ValueError, match="sigma_source"):
+        dataclasses.replace(res, sigma_source="guessed")
+    with pytest.raises(ValueError, match="RidgeExtras"):
+        dataclasses.replace(res, extras=results["ols"].extras)

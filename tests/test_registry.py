@@ -85,5 +85,23 @@ def test_methods_command_lists_the_registry(capsys):
     assert [m["name"] for m in table] == list(METHODS)
     ridge = next(m for m in table if m["name"] == "ridge")
     assert ridge["options"][0]["flag"] == "--lambda" and ridge["std_kind"] == "sampling"
+    assert ridge["extras"] == {"type": "RidgeExtras", "fields": ["lam", "rule", "effective_dof"]}
+    assert "posterior" in next(m for m in table if m["name"] == "map")["std_kind_meaning"]
     assert main(["methods"]) == 0
     assert "--noise-order" in capsys.readouterr().out
+
+
+def test_std_kind_is_a_declared_field_and_extras_a_declared_type():
+    """Method.std_kind is a declared, validated field; each method declares its extras dataclass."""
+    import dataclasses
+    import pytest as _pytest
+    from casep.estimators.registry import METHODS, Method
+    from casep.estimators.result import STD_KIND_MEANINGS
+    assert "std_kind" in {f.name for f in dataclasses.fields(Method)}
+    declared = {"ols": "sampling", "gls": "sampling", "ridge": "sampling", "pcr": "sampling", "huber": "sampling",
+                "map": "posterior", "rls": "posterior", "rels": "posterior", "bounded": "conditional"}
+    for name, m in METHODS.items():
+        assert m.std_kind in STD_KIND_MEANINGS and m.std_kind == declared.get(name, m.std_kind), name
+        assert dataclasses.is_dataclass(m.extras_type) and m.extras_type.__dataclass_params__.frozen, name
+    with _pytest.raises(ValueError, match="std_kind"):
+        Method("fake", "solve_ols", "fake", std_kind="exact")

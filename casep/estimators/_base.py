@@ -193,6 +193,8 @@ def finish(
     residuals: np.ndarray | None = None,
     history_std: np.ndarray | None = None,
     sigma_source: str | None = None,
+    std_kind: str | None = None,
+    extras: Any = None,
 ) -> EstimateResult:
     """Build the :class:`EstimateResult` of an estimator.
 
@@ -205,6 +207,12 @@ def finish(
         columns, which the method leaves undetermined).
     reasons : dict, optional
         Extra ``name -> reason`` entries (merged over the rank-analysis reasons).
+    sigma_source : str, optional
+        Where `sigma` came from (default "given" when the caller gave it, else "estimated").
+    std_kind : str, optional
+        What the std mean (default: the registry's ``Method.std_kind`` of `method`).
+    extras : dataclass, optional
+        The method's typed extras (``EXTRAS_TYPES[method]``).
 
     Notes
     -----
@@ -260,7 +268,16 @@ def finish(
         settings=settings, diagnostics=diag, n_samples=N, history=history, history_std=history_std,
         model=pb.problem.model or "",  # set by the problem, not patched afterwards
         sigma_source=sigma_source or ("given" if pb.sigma is not None else "estimated"),
+        std_kind=std_kind or _declared_std_kind(method), extras=extras,
     )
+
+
+def _declared_std_kind(method: str) -> str:
+    """The registry's ``Method.std_kind`` of `method` ("sampling" for an unregistered name)."""
+    from casep.estimators.registry import METHODS  # the registry imports the solvers lazily
+
+    m = METHODS.get(method)
+    return m.std_kind if m is not None else "sampling"
 
 
 #: A residual RMS above this many least-squares residual std fails a result ...

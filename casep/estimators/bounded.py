@@ -32,7 +32,7 @@ import numpy as np
 from casep.estimators._base import finish, prepare
 from casep.exceptions import CasepWarning
 from casep.model._model import unknown_coefficient_message
-from casep.estimators.result import EstimateResult
+from casep.estimators.result import BoundedExtras, EstimateResult
 
 __all__ = ["solve_bounded", "parse_bounds"]
 
@@ -136,7 +136,7 @@ def solve_bounded(
     EstimateResult
         ``diagnostics["active_bounds"]``: ``{name: "lower" | "upper" | "fixed"}``;
         ``diagnostics["active_set"]``: counts (at_lower, at_upper, fixed, free, undetermined);
-        ``diagnostics["std_kind"]``: "conditional" when a bound is active or a value fixed (the std
+        ``std_kind``: "conditional" when a bound is active or a value fixed (the std
         of the free coefficients are then conditional on the active set and understated), else
         "sampling". ``message`` states the counts and what the std mean.
     """
@@ -210,8 +210,9 @@ def solve_bounded(
                   settings={"bounds": box, "solver": "cvxpy+clarabel",
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
                   diagnostics={"active_bounds": active, "active_set": counts,
-                               "std_kind": "conditional" if std_mask.any() else "sampling",
-                               "solver_status": prob.status, "polished": polished})
+                               "solver_status": prob.status, "polished": polished},
+                  std_kind="conditional" if std_mask.any() else "sampling",
+                  extras=BoundedExtras(dict(box), dict(active)))
 
 
 def _active_set_message(counts: dict[str, int], n: int) -> str:

@@ -32,7 +32,7 @@ import numpy as np
 from casep.estimators._base import check_positive, finish, prepare, rows_of
 from casep.analysis.diagnostics import ar1_whiten
 from casep.estimators.ols import least_squares
-from casep.estimators.result import EstimateResult
+from casep.estimators.result import EstimateResult, GLSExtras
 
 __all__ = ["solve_gls", "estimate_tau"]
 
@@ -142,7 +142,8 @@ def solve_gls(
     x, cov, sig = least_squares(pb)  # sigma: whitened residual std = stationary sigma
     fit = y.reshape(S.shape[0], 3) - S @ x  # dv - S_V D_hat, not whitened
     return finish(pb, "gls", x, cov, sig, residuals=fit.reshape(-1),
-                  settings={"tau": tau_used, "tau_rule": rule, "sigma": "estimated" if pb.sigma is None else pb.sigma})
+                  settings={"tau": tau_used, "tau_rule": rule, "sigma": "estimated" if pb.sigma is None else pb.sigma},
+                  extras=GLSExtras(float(tau_used), rule))
 
 
 #: Lattice of the batched REML search: coarse step in ln tau, its subdivision, and the

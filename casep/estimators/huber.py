@@ -29,7 +29,7 @@ import numpy as np
 
 from casep.estimators._base import check_positive, finish, prepare
 from casep.estimators.ols import least_squares
-from casep.estimators.result import EstimateResult
+from casep.estimators.result import EstimateResult, HuberExtras
 
 __all__ = ["solve_huber", "HUBER_C"]
 
@@ -120,4 +120,5 @@ def solve_huber(
                   settings={"c": c, "iterations": it, "scale": float(scale), "flag_sigma": flag,
                             "outliers_flagged": int(big.size),
                             "sigma": "robust (MAD) scale" if pb.sigma is None else pb.sigma},
-                  diagnostics={"outliers": outliers}, sigma_source=None if pb.sigma is not None else "robust")
+                  diagnostics={"outliers": outliers}, sigma_source=None if pb.sigma is not None else "robust",
+                  extras=HuberExtras(float(c), int(it), float(scale), outliers))

@@ -28,7 +28,7 @@ import numpy as np
 
 from casep.estimators._base import finish, prepare
 from casep.model._model import unknown_coefficient_message
-from casep.estimators.result import EstimateResult
+from casep.estimators.result import EstimateResult, MAPExtras
 
 __all__ = ["solve_map", "parse_prior"]
 
@@ -95,10 +95,9 @@ def solve_map(
     cov = (W @ W.T) / np.outer(cs, cs)  # posterior covariance, natural units
     null = Vt[r:].T
     undetermined = np.linalg.norm(null, axis=1) > 1e-8 if null.size else np.zeros(pb.n, bool)
-    return finish(pb, "map", z / cs, cov, sig, undetermined=undetermined,
-                  settings={"prior": {n: {"mean": float(m), "std": float(t)} for n, m, t in zip(pb.names, mu, tau)
-                                      if np.isfinite(t)},
-                            "sigma": "estimated" if pb.sigma is None else pb.sigma})
+    prior = {n: {"mean": float(m), "std": float(t)} for n, m, t in zip(pb.names, mu, tau) if np.isfinite(t)}
+    return finish(pb, "map", z / cs, cov, sig, undetermined=undetermined, extras=MAPExtras(prior),
+                  settings={"prior": prior, "sigma": "estimated" if pb.sigma is None else pb.sigma})
 
 
 # ------------------------------------------------------------------ linear map (batched Monte Carlo)

@@ -26,7 +26,7 @@ from typing import Sequence
 import numpy as np
 
 from casep.estimators._base import Prepared, finish, prepare
-from casep.estimators.result import EstimateResult
+from casep.estimators.result import EstimateResult, OLSExtras
 
 __all__ = ["solve_ols"]
 
@@ -64,7 +64,7 @@ def solve_ols(
     """
     pb = prepare(S, y, names, units, si_factors, sigma, rcond)
     x, cov, sig = least_squares(pb)
-    return finish(pb, "ols", x, cov, sig,
+    return finish(pb, "ols", x, cov, sig, extras=OLSExtras(float(pb.ra.rcond)),
                   settings={"rcond": pb.ra.rcond, "sigma": "estimated" if pb.sigma is None else pb.sigma})
 
 

@@ -24,7 +24,7 @@ from typing import Sequence
 import numpy as np
 
 from casep.estimators._base import check_positive, finish, prepare
-from casep.estimators.result import EstimateResult
+from casep.estimators.result import EstimateResult, PCRExtras
 
 __all__ = ["solve_pcr", "DEFAULT_MAX_CONDITION_INDEX"]
 
@@ -89,7 +89,8 @@ def solve_pcr(
     return finish(pb, "pcr", z * inv_c, cov, sig,
                   settings={"n_components": k, "rule": rule,
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
-                  diagnostics={"dropped_directions": dropped})
+                  diagnostics={"dropped_directions": dropped},
+                  extras=PCRExtras(k, rule, dropped, None if n_components is not None else float(max_condition_index)))
 
 
 # ------------------------------------------------------------------ linear map (batched Monte Carlo)

@@ -9,7 +9,7 @@ Each :class:`Method` names its public solver, the options it takes (keywords of
 ``recursive`` (processes samples in time order, has an estimate history), ``needs_time``
 (uses the sample times), ``batched`` (a fixed linear map of the data, solved for all runs at
 once by ``casep montecarlo``) and ``std_kind`` (what its std mean: sampling, posterior or
-conditional; see :data:`casep.estimators.result.STD_KINDS`).
+conditional; see :data:`casep.estimators.result.STD_KIND_MEANINGS`).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from casep.estimators.result import EXTRAS_TYPES, STD_KINDS
+from casep.estimators.result import EXTRAS_TYPES, STD_KIND_MEANINGS
 
 __all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Method", "OPTIONS", "METHODS", "check_method_options", "describe", "run_method"]
 
@@ -175,11 +175,19 @@ class Method:
     needs_time: bool = False
     batched: bool = False
     fixed: tuple[tuple[str, Any], ...] = ()  # solver keywords this method always sets
+    #: What the reported std mean (``sampling``, ``posterior`` or ``conditional``; see
+    #: ``STD_KIND_MEANINGS``); the default ``std_kind`` of the method's results.
+    std_kind: str = "sampling"
+
+    def __post_init__(self) -> None:
+        if self.std_kind not in STD_KIND_MEANINGS:
+            raise ValueError(f"method {self.name}: std_kind must be {', '.join(STD_KIND_MEANINGS)}, "
+                             f"got {self.std_kind!r}")
 
     @property
-    def std_kind(self) -> str:
-        """What the reported std mean (``sampling``, ``posterior`` or ``conditional``)."""
-        return STD_KINDS.get(self.name, "sampling")
+    def extras_type(self) -> type | None:
+        """The dataclass of the method's ``EstimateResult.extras`` (``EXTRAS_TYPES``)."""
+        return EXTRAS_TYPES.get(self.name)
 
 
 #: Method-specific options (``sigma`` and the de-noising options apply to every method).
@@ -203,15 +211,16 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
 METHODS: dict[str, Method] = {m.name: m for m in (
     Method("ols", "solve_ols", "least squares on the scaled QR reduction", batched=True),
     Method("rls", "solve_rls", "recursive least squares, paper Eq. (14), Bierman U-D",
-           ("p0", "weight", "forgetting"), recursive=True, batched=True, fixed=(("noise_order", 0),)),
+           ("p0", "weight", "forgetting"), recursive=True, batched=True, fixed=(("noise_order", 0),),
+           std_kind="posterior"),
     Method("rels", "solve_rls", "recursive extended least squares (MA noise model)",
-           ("p0", "weight", "forgetting", "noise_order"), recursive=True),
+           ("p0", "weight", "forgetting", "noise_order"), recursive=True, std_kind="posterior"),
     Method("ridge", "solve_ridge", "ridge regression (GCV, L-curve or given lambda)", ("lam",)),
     Method("bounded", "solve_bounded", "box-bounded least squares (Clarabel + exact polish)", ("bounds",),
-           required=("bounds",)),
+           required=("bounds",), std_kind="conditional"),
     Method("pcr", "solve_pcr", "principal-component regression", ("n_components",), batched=True),
     Method("map", "solve_map", "maximum a posteriori with a Gaussian prior", ("prior",), required=("prior",),
-           batched=True),
+           batched=True, std_kind="posterior"),
     Method("gls", "solve_gls", "least squares in Gauss-Markov noise (AR(1) whitening)", ("tau",),
            needs_time=True),
     Method("huber", "solve_huber", "robust (Huber) least squares by IRLS, outliers flagged"),
@@ -274,8 +283,9 @@ def describe() -> list[dict[str, Any]]:
                                  "rule": OPTIONS[o].rule, "help": OPTIONS[o].help} for o in m.options],
                     "required": list(m.required), "recursive": m.recursive, "needs_time": m.needs_time,
                     "batched_in_montecarlo": m.batched, "std_kind": m.std_kind,
-                    "extras": {"type": EXTRAS_TYPES[m.name].__name__,
-                               "fields": [f.name for f in dataclasses.fields(EXTRAS_TYPES[m.name])]}})
+                    "std_kind_meaning": STD_KIND_MEANINGS[m.std_kind],
+                    "extras": None if m.extras_type is None else
+                    {"type": m.extras_type.__name__, "fields": [f.name for f in dataclasses.fields(m.extras_type)]}})
     return out
 
 

@@ -14,33 +14,50 @@ import numpy as np
 
 from casep.io._atomic import atomic_open
 
-__all__ = ["EstimateResult", "SIGMA_SOURCES", "EXTRAS_TYPES", "write_json_atomic", "write_mat", "write_csv", "format_number", "STD_KINDS"]
+__all__ = ["EstimateResult", "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "EXTRAS_TYPES", "OLSExtras",
+           "RLSExtras", "RidgeExtras", "BoundedExtras", "PCRExtras", "MAPExtras", "GLSExtras", "HuberExtras",
+           "write_json_atomic", "write_mat", "write_csv", "format_number"]
 
 AXES = ("x", "y", "z")
 
-# What the reported std mean, per method (``diagnostics["std_kind"]`` overrides):
-# "sampling": spread of the estimate over noise draws (biased methods: around their mean);
-# "posterior": std of the posterior under the method's prior (MAP, RLS/RELS with P0);
-# "conditional": given the active set of the bounds (understated; bounded).
-STD_KINDS = {"ols": "sampling", "gls": "sampling", "ridge": "sampling", "pcr": "sampling",
-             "map": "posterior", "rls": "posterior", "rels": "posterior", "bounded": "conditional",
-             "huber": "sampling"}
+#: What the reported ``std`` mean (``EstimateResult.std_kind``, set by each solver; the
+#: registry's ``Method.std_kind`` declares each method's kind):
+STD_KIND_MEANINGS = {
+    "sampling": "spread of the estimate over noise draws (for a biased method: around its mean)",
+    "posterior": "std of the posterior under the method's prior (MAP's prior; RLS/RELS's P0)",
+    "conditional": "given the active set of the bounds: understated (bounded, when a bound is active)",
+}
 
-#: Where ``sigma`` came from: "estimated" (residual std of the fit: RSS / (m - rank), or the
-#: whitened residuals for GLS/RELS), "given" (the caller's), "wavelet" (the wavelet transform's
-#: estimate from the raw finest details, when dv was de-noised), "robust" (Huber's MAD scale).
-SIGMA_SOURCES = ("estimated", "given", "wavelet", "robust")
+#: Where ``sigma`` came from (``EstimateResult.sigma_source``):
+#: "estimated": residual std of the fit, sqrt(RSS / (m - rank)), of the whitened residuals for GLS/RELS;
+#: "given": the caller's ``sigma``;
+#: "wavelet": the wavelet transform's estimate from the raw finest details (set by ``separate``
+#: when dv was de-noised and no sigma was given);
+#: "robust": Huber's MAD scale of the residuals.
+#: No method estimates sigma from a prior, so there is no "prior"/"posterior" source.
+SIGMA_SOURCE_MEANINGS = {
+    "estimated": "residual std of the fit (whitened residuals for GLS/RELS)",
+    "given": "given by the caller",
+    "wavelet": "wavelet estimate from the raw finest details (dv de-noised, no sigma given)",
+    "robust": "Huber's MAD scale of the residuals",
+}
+SIGMA_SOURCES = tuple(SIGMA_SOURCE_MEANINGS)
 
 
 # --------------------------------------------------------------------- typed per-method extras
+# Each solver builds its own and passes it to ``finish(extras=...)``; natural units throughout.
 @dataclass(frozen=True)
 class OLSExtras:
+    """OLS: the relative singular-value cut of the rank decision."""
+
     rcond: float
 
 
 @dataclass(frozen=True)
 class RLSExtras:
-    """RLS/RELS: the prior scale, weight, forgetting, and the RELS MA noise model (empty for RLS)."""
+    """RLS/RELS: prior scale ``p0`` (P0 = p0 I, scaled coordinates), measurement weight,
+    forgetting factor, MA order, and the RELS noise model ``v(k) = e(k) - sum_j c_j v(k-j)``
+    (coefficients, their posterior std, innovation RMS in m/s; empty/None for RLS)."""
 
     p0: float
     weight: float
@@ -53,6 +70,8 @@ class RLSExtras:
 
 @dataclass(frozen=True)
 class RidgeExtras:
+    """Ridge: lambda (scaled coordinates), the rule that chose it, effective dof tr(H)."""
+
     lam: float
     rule: str
     effective_dof: float
@@ -60,64 +79,62 @@ class RidgeExtras:
 
 @dataclass(frozen=True)
 class BoundedExtras:
+    """Bounded: the box (``name -> [low, high]``) and the bounds active at the solution."""
+
     bounds: dict
     active_bounds: dict
 
 
 @dataclass(frozen=True)
 class PCRExtras:
+    """PCR: components kept, the rule, the condition-index cut (None when `n_components` was
+    given) and the dropped directions (condition index, leading loadings)."""
+
     n_components: int
     rule: str
     dropped_directions: list
+    max_condition_index: float | None = None
 
 
 @dataclass(frozen=True)
 class MAPExtras:
+    """MAP: the Gaussian prior, ``name -> {"mean", "std"}`` (coefficients not listed: flat)."""
+
     prior: dict
 
 
 @dataclass(frozen=True)
 class GLSExtras:
+    """GLS: the Gauss-Markov correlation time tau (s) and where it came from ("given", "reml")."""
+
     tau: float
     tau_rule: str
 
 
 @dataclass(frozen=True)
 class HuberExtras:
+    """Huber: tuning constant c (in scale units), IRLS iterations, the MAD scale (m/s) and
+    the flagged outlier rows (count, threshold, largest studentized residuals)."""
+
     c: float
     iterations: int
     scale: float
     outliers: dict
 
 
-def _extras(res: "EstimateResult"):
-    """The typed extras of a result, from what its solver recorded (settings, diagnostics)."""
-    s, d = res.settings, res.diagnostics
-    m = res.method
-    if m == "ols":
-        return OLSExtras(float(s.get("rcond", math.nan)))
-    if m in ("rls", "rels"):
-        nm = d.get("noise_model") or {}
-        return RLSExtras(float(s["p0"]), float(s["weight"]), float(s["forgetting"]), int(s["noise_order"]),
-                         tuple(nm.get("ma_coefficients", ())), tuple(nm.get("ma_std", ())), nm.get("innovation_rms"))
-    if m == "ridge":
-        return RidgeExtras(float(s["lambda"]), str(s["lambda_rule"]), float(d["effective_dof"]))
-    if m == "bounded":
-        return BoundedExtras(dict(s.get("bounds", {})), dict(d.get("active_bounds", {})))
-    if m == "pcr":
-        return PCRExtras(int(s["n_components"]), str(s["rule"]), list(d.get("dropped_directions", [])))
-    if m == "map":
-        return MAPExtras(dict(s.get("prior", {})))
-    if m == "gls":
-        return GLSExtras(float(s["tau"]), str(s["tau_rule"]))
-    if m == "huber":
-        return HuberExtras(float(s["c"]), int(s["iterations"]), float(s["scale"]), dict(d.get("outliers", {})))
-    return None
-
-
 #: The extras type of each method (``casep methods --json``).
 EXTRAS_TYPES = {"ols": OLSExtras, "rls": RLSExtras, "rels": RLSExtras, "ridge": RidgeExtras,
                 "bounded": BoundedExtras, "pcr": PCRExtras, "map": MAPExtras, "gls": GLSExtras, "huber": HuberExtras}
+
+
+def _extras_from_dict(method: str, d: dict | None):
+    """The typed extras of `method` back from their JSON object (lists -> declared tuples)."""
+    cls = EXTRAS_TYPES.get(method)
+    if d is None or cls is None:
+        return None
+    kw = {f.name: (tuple(d[f.name]) if str(f.type).startswith("tuple") else d[f.name])
+          for f in dataclasses.fields(cls) if f.name in d}
+    return cls(**kw)
 
 
 def _jsonable(v: Any) -> Any:
@@ -260,7 +277,18 @@ class EstimateResult:
         Estimate after each sample for recursive methods, natural units.
     history_std : ndarray or None
         Standard deviation at the ``history`` rows (recursive methods), natural units,
-        ``sqrt(diag(sigma^2 w P_k))`` with the final ``sigma``.
+        ``sqrt(diag(sigma^2 w P_k))`` with the final ``sigma``. Columns named by
+        :attr:`history_names` (the coefficients, then the RELS MA terms ``ma1``, ...).
+    sigma_source : str
+        Where ``sigma`` came from (:data:`SIGMA_SOURCE_MEANINGS`).
+    stored_residual_rms : dict or None
+        Residual RMS per axis read from a JSON (which holds no per-sample residuals).
+    std_kind : str
+        What ``std`` mean (:data:`STD_KIND_MEANINGS`): set by the solver, by default the
+        registry's ``Method.std_kind``.
+    extras : dataclass or None
+        Typed per-method outputs, an instance of ``EXTRAS_TYPES[method]`` (e.g.
+        ``res.extras.lam`` for ridge); None for a result of no registered method (fused).
     """
 
     method: str
@@ -286,11 +314,18 @@ class EstimateResult:
     history_std: np.ndarray | None = None
     sigma_source: str = "estimated"
     stored_residual_rms: dict[str, float] | None = None  # from a JSON (which has no residuals)
+    std_kind: str = "sampling"
+    extras: Any = None
 
-    @property
-    def extras(self):
-        """Typed per-method outputs (:data:`EXTRAS_TYPES`), e.g. ``res.extras.lam`` for ridge."""
-        return _extras(self)
+    def __post_init__(self) -> None:
+        if self.std_kind not in STD_KIND_MEANINGS:
+            raise ValueError(f"`std_kind` must be one of {', '.join(STD_KIND_MEANINGS)}, got {self.std_kind!r}")
+        if self.sigma_source not in SIGMA_SOURCES:
+            raise ValueError(f"`sigma_source` must be one of {', '.join(SIGMA_SOURCES)}, got {self.sigma_source!r}")
+        cls = EXTRAS_TYPES.get(self.method)
+        if self.extras is not None and cls is not None and not isinstance(self.extras, cls):
+            raise ValueError(f"`extras` of a {self.method} result must be {cls.__name__}, "
+                             f"got {type(self.extras).__name__}")
 
     @property
     def history_names(self) -> tuple[str, ...] | None:
@@ -309,11 +344,6 @@ class EstimateResult:
     def estimate_si(self) -> np.ndarray:
         """Estimates in SI (rad/s, m/s^2, rad, m/s per the model's SI factors)."""
         return self.estimate * self.si_factors
-
-    @property
-    def std_kind(self) -> str:
-        """``"sampling"``, ``"posterior"`` or ``"conditional"``: what `std` means (see ``STD_KINDS``)."""
-        return self.diagnostics.get("std_kind") or STD_KINDS.get(self.method, "sampling")
 
     @property
     def residual_rms(self) -> dict[str, float]:
@@ -403,6 +433,7 @@ class EstimateResult:
             settings=d.get("settings") or {}, diagnostics=d.get("diagnostics") or {}, model=d.get("model", ""),
             n_samples=int(d.get("n_samples", 0)), denoise=d.get("denoise"),
             sigma_source=d.get("sigma_source", "estimated"), stored_residual_rms=d.get("residual_rms"),
+            std_kind=d.get("std_kind", "sampling"), extras=_extras_from_dict(d["method"], d.get("extras")),
         )
 
     def covariance_rows(self) -> list[list[float | None]] | None:

@@ -28,7 +28,7 @@ from typing import Sequence
 import numpy as np
 
 from casep.estimators._base import check_positive, finish, prepare
-from casep.estimators.result import EstimateResult
+from casep.estimators.result import EstimateResult, RidgeExtras
 
 __all__ = ["solve_ridge", "gcv_curve", "lcurve_corner"]
 
@@ -146,7 +146,8 @@ def solve_ridge(
     return finish(pb, "ridge", z * inv_c, cov, sig,
                   settings={"lambda": float(lam), "lambda_rule": rule, "solver": solver,
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
-                  diagnostics={"effective_dof": float(trh[0])})
+                  diagnostics={"effective_dof": float(trh[0])},
+                  extras=RidgeExtras(float(lam), rule, float(trh[0])))
 
 
 # ------------------------------------------------------------------ linear map (batched Monte Carlo)

@@ -74,7 +74,7 @@ import numpy as np
 from casep.analysis.problem import Problem as RegressionProblem
 from casep.estimators._base import check_positive, finish, prepare
 from casep._kernels import rels_ud
-from casep.estimators.result import EstimateResult
+from casep.estimators.result import EstimateResult, RLSExtras
 
 __all__ = ["solve_rls", "DEFAULT_P0"]
 
@@ -208,6 +208,9 @@ def solve_rls(
                   "residuals": residuals, "history_stride": history_stride,
                   "sigma": "estimated" if pb.sigma is None else pb.sigma},
         diagnostics=diagnostics, history=history, residuals=fit, history_std=history_std,
+        extras=RLSExtras(float(p0), float(weight), float(forgetting), int(nc),
+                         **{k: (tuple(v) if isinstance(v, list) else v)
+                            for k, v in diagnostics.get("noise_model", {}).items()}),
     )
 
 
