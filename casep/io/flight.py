@@ -395,7 +395,7 @@ def warn_late_start(flight: FlightData, model) -> dict:
         f"{'; '.join(what)}. Model `{model.name}` has no {' and no '.join(m[0] for m in missing)}: errors "
         f"accumulated before t0 will bias the estimates. Use data from lift-off, or a model with the initial "
         f"terms: --model {' or '.join(m[1] for m in missing)} (models/README.md shows how to combine them). "
-        f"A tracking time offset also gives dv(t0) != 0 (dv = a(t) dt_trk): if a time-offset warning follows, "
-        f"model the offset instead (platform36_timeoffset)."),
+        f"A tracking time offset also gives dv(t0) != 0 (dv = a(t) dt_trk): `casep separate` (casep.check_fit) "
+        f"tests the residuals for one; if it finds one, model the offset instead (platform36_timeoffset)."),
         stacklevel=3)
     return ev
