@@ -125,3 +125,23 @@ def test_reduction_only_problem_refuses_rows():
         pb.residuals(np.zeros(2))
     with pytest.raises(ValueError, match="`y` must be omitted"):
         casep.solve_ols(Problem.from_arrays(np.eye(4, 2) + 1.0, np.ones(4)), np.ones(4))
+
+
+def test_problem_from_arrays_equals_arrays_to_1e12_for_every_method(sim):
+    """Same S, same one-shot QR: a Problem and the arrays give the same numbers (1e-12 relative)."""
+    S = build_sv(sim.model, sim.flight.t, sim.flight.f)
+    labels = {"names": sim.model.names, "units": sim.model.units, "si_factors": sim.model.si_factors}
+    opts = {"bounded": {"bounds": {"Kg0x": [-50.0, 50.0]}}, "map": {"prior": {"Kg0x": {"mean": 0.0, "std": 10.0}}},
+            "gls": {"tau": 1.0}, "rels": {"noise_order": 1}}
+    for method in METHODS:
+        pb = Problem.from_arrays(S, sim.flight.dv, sim.flight.t, model=sim.model.name, **labels)
+        with np.errstate(all="ignore"):
+            a = run_method(method, S, sim.flight.dv, sim.flight.t, opts.get(method, {}), **labels)
+            b = run_method(method, pb, None, pb.t, opts.get(method, {}))
+        ok = np.isfinite(a.estimate)
+        np.testing.assert_array_equal(ok, np.isfinite(b.estimate), err_msg=method)
+        scale = np.max(np.abs(a.estimate[ok]))
+        np.testing.assert_allclose(b.estimate[ok], a.estimate[ok], rtol=1e-12, atol=1e-12 * scale, err_msg=method)
+        np.testing.assert_allclose(b.std[ok], a.std[ok], rtol=1e-12, err_msg=method)
+        np.testing.assert_allclose(b.residuals, a.residuals, rtol=0, atol=1e-12 * np.max(np.abs(a.residuals)),
+                                   err_msg=method)
