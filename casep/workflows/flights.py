@@ -113,10 +113,11 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     jp = JointProblem(problems, sig, layout)
     opts = dict(options or {})
     check_method_options(method, {k: v for k, v in opts.items() if v is not None})
-    if method == "map" and "prior" in opts:  # the prior is on the model's names: shared ones as given
-        opts["prior"] = {k: v for k, v in opts["prior"].items() if k in layout.joint_names}
-    if method == "bounded" and "bounds" in opts:
-        opts["bounds"] = {k: v for k, v in opts["bounds"].items() if k in layout.joint_names}
+    for key in ("prior", "bounds"):  # on shared coefficients only (a per-flight one is refused, not dropped)
+        per = [k for k in (opts.get(key) or {}) if k in model.names and model.per_flight[model.names.index(k)]]
+        if per:
+            raise ValueError(f"`{key}` names per-flight coefficient(s) {', '.join(per)}: not supported with several "
+                             "flights yet; give it for the shared coefficients only")
     res = run_method(method, jp, None, None, {k: v for k, v in opts.items() if k in METHODS[method].options},
                      sigma=1.0)
     return res, jp
