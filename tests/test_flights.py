@@ -68,7 +68,7 @@ def test_bad_input():
     with pytest.raises(ValueError, match="two or more"):
         separate_flights([a.flight], a.model)
     with pytest.raises(ValueError, match="jointly"):
-        separate_flights([a.flight, a.flight], a.model, "rls")
+        separate_flights([a.flight, a.flight], a.model, "lasso")
 
 
 def test_consistency_flags_a_flight_with_an_unmodelled_error(two):
@@ -121,7 +121,7 @@ def test_cli_several_flights_json(two, tmp_path):
     assert [f["file"] for f in d["flights"]] == paths
     assert abs(d["flights"][0]["coefficients"][0]["estimate"] - 20.0) < 5 * d["flights"][0]["coefficients"][0]["std"]
     assert len(d["covariance"]) == 36 and d["consistency"]["overall"]["dof"] > 0
-    assert main(["separate", *paths, "--model", "platform36_timeoffset", "--method", "rels"]) == 2
+    assert main(["separate", *paths, "--model", "platform36_timeoffset", "--denoise", "wavelet"]) == 2
 
 
 def test_monte_carlo_joint_ols_efficiency_and_coverage(two, rng):
@@ -236,3 +236,118 @@ def test_diagnose_flights_joint_bound_against_summed_information(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         assert main(["diagnose", *paths, "--json", str(tmp_path / "d.json")]) == 0
+
+
+def _quiet(fn, *args, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # one boost flight alone is ill-conditioned: said elsewhere
+        return fn(*args, **kw)
+
+
+def test_posterior_of_one_flight_as_prior_of_the_next_gives_the_joint_estimate(two):
+    """Sequential fusion: OLS on flight 1, its posterior (shared coefficients, full covariance) as the
+    MAP prior of flight 2 = both flights at once, estimates and std (the Gaussian likelihoods multiply;
+    flight 1's per-flight dt_trk is marginalised by taking the covariance block)."""
+    from casep.analysis.problem import Problem
+    from casep.estimators.map import prior_from_result, solve_map
+    from casep.estimators.ols import solve_ols
+
+    a, b = two
+    m = a.model
+    pa, pb = Problem.from_flight(a.flight, m), Problem.from_flight(b.flight, m)
+    joint, _ = _quiet(separate_flights, [pa, pb], m, "ols", sigma=[0.05, 0.2])
+    shared = [n for n in m.names if not m.per_flight[m.names.index(n)]]
+    first = _quiet(solve_ols, pa, sigma=0.05)
+    prior = prior_from_result(first, names=shared)
+    assert set(prior["correlation"]["names"]) == set(shared)
+    second = _quiet(solve_map, pb, prior=prior, sigma=0.2)
+    idx = [list(joint.names).index(n) for n in shared]
+    own = [list(second.names).index(n) for n in shared]
+    err = np.abs(second.estimate[own] - joint.estimate[idx]) / joint.std[idx]
+    assert np.max(err) < 1e-6, np.max(err)
+    np.testing.assert_allclose(second.std[own], joint.std[idx], rtol=1e-6)
+    # flight 2's own time offset is the joint one too
+    np.testing.assert_allclose(second.estimate[m.index("dt_trk")], joint.estimate[-1], rtol=1e-6)
+
+
+def test_rls_in_sequence_over_flights_equals_the_joint_bayesian_estimate(two):
+    """RLS over flight 1's then flight 2's whitened rows is the exact Bayesian recursion: the MAP of
+    the joint whitened problem with prior N(0, p0) on every joint coefficient (per-flight included)."""
+    from casep.estimators.map import solve_map
+
+    a, b = two
+    p0 = 1e4
+    res, jp = _quiet(separate_flights, [a.flight, b.flight], a.model, "rls", options={"p0": p0})
+    assert res.method == "rls" and res.history is not None
+    prior = {n: {"mean": 0.0, "std": float(np.sqrt(p0))} for n in jp.names}
+    ref = _quiet(solve_map, jp, prior=prior, sigma=1.0)
+    np.testing.assert_allclose(res.estimate, ref.estimate, rtol=1e-7, atol=1e-9 * np.max(np.abs(ref.estimate)))
+    np.testing.assert_allclose(res.std, ref.std, rtol=1e-6)
+    # the history runs over both flights, flight 2's rows after flight 1's
+    assert jp.segment_starts == (0, a.flight.n_observed)
+
+
+def test_gls_jointly_whitens_each_flight_with_its_own_tau(two):
+    """Independent construction: each flight's rows AR(1)-whitened with its tau (ar1_whiten from
+    diagnostics), divided by its whitened LS residual std, stacked, solved by column-scaled lstsq."""
+    from casep.analysis.diagnostics import ar1_whiten
+
+    a, b = two
+    model = a.model
+    taus = [0.5, 2.0]
+    res, jp = _quiet(separate_flights, [a.flight, b.flight], model, "gls", options={"tau": 1.0})
+    assert res.method == "gls" and list(res.settings["tau"].values()) == [1.0, 1.0]
+    res, jp = _quiet(separate_flights, [a.flight, b.flight], model, "gls", sigma=[0.05, 0.2], options={"tau": taus[0]})
+    n, j = model.n_coefficients, model.index("dt_trk")
+    rows = []
+    for k, sim in enumerate((a, b)):
+        fl = sim.flight
+        S = casep.build_sv(model, fl.t, fl.f, signals=fl.model_signals(model.signals, model.name))
+        Sw = ar1_whiten(S, fl.t, 1.0, taus[0]).reshape(-1, n)
+        yw = ar1_whiten(fl.dv[:, :, None], fl.t, 1.0, taus[0]).reshape(-1)
+        big = np.zeros((Sw.shape[0], n + 1))
+        shared = [c for c in range(n) if c != j]
+        big[:, :n - 1], big[:, n - 1 + k] = Sw[:, shared], Sw[:, j]
+        rows.append((big / [0.05, 0.2][k], yw / [0.05, 0.2][k]))
+    A = np.vstack([r[0] for r in rows])
+    y = np.concatenate([r[1] for r in rows])
+    c = np.linalg.norm(A, axis=0)
+    ref = np.linalg.lstsq(A / c, y, rcond=None)[0] / c
+    np.testing.assert_allclose(res.estimate, ref, rtol=1e-7, atol=1e-9 * np.max(np.abs(ref)))
+    # REML per flight: each flight's tau is its own GLS tau
+    auto, _ = _quiet(separate_flights, [a.flight, b.flight], model, "gls")
+    own = [_quiet(casep.separate, f, model, "gls").settings["tau"] for f in (a.flight, b.flight)]
+    np.testing.assert_allclose(list(auto.settings["tau"].values()), own, rtol=1e-9)
+
+
+def test_huber_jointly_flags_an_outlier_in_one_flight_and_resists_it(two):
+    a, b = two
+    dv = b.flight.dv.copy()
+    dv[200:220, 1] += 100 * 0.2  # 20 samples 100 sigma off in flight 2
+    bad = dataclasses.replace(b.flight, dv=dv)
+    ols, _ = _quiet(separate_flights, [a.flight, b.flight], a.model, "ols")
+    hub, _ = _quiet(separate_flights, [a.flight, bad], a.model, "huber")
+    spoilt, _ = _quiet(separate_flights, [a.flight, bad], a.model, "ols")
+    rows = hub.diagnostics["outliers"]["largest"]
+    assert hub.diagnostics["outliers"]["count"] >= 20
+    assert {(r["sample"], r["axis"]) for r in rows[:20]} == {(a.flight.n_observed + i, "y") for i in range(200, 220)}
+    assert 5 * np.max(np.abs(hub.estimate - ols.estimate) / ols.std) < np.max(np.abs(spoilt.estimate - ols.estimate) / ols.std)
+
+
+def test_rels_jointly_restarts_the_noise_memory_at_each_flight(two):
+    """RELS over two flights: the MA regressors restart at flight 2's first sample. The same stacked
+    whitened rows as one plain problem (memory carried over from flight 1's end) give a different
+    answer, so the restart is in effect; on white noise both stay near joint RLS (MA(1) near 0)."""
+    from casep.analysis.problem import Problem
+    from casep.estimators.rls import solve_rls
+
+    a, b = two
+    opts = {"noise_order": 1, "p0": 1e4}
+    res, jp = _quiet(separate_flights, [a.flight, b.flight], a.model, "rels", options=opts)
+    assert res.method == "rels" and abs(res.diagnostics["noise_model"]["ma_coefficients"][0]) < 0.05
+    plain = Problem.from_arrays(jp.sv(), jp.y, names=jp.names, units=jp.units, si_factors=jp.si_factors)
+    carried = _quiet(solve_rls, plain, noise_order=1, p0=1e4, sigma=1.0)
+    assert not np.array_equal(carried.estimate, res.estimate)
+    rls, _ = _quiet(separate_flights, [a.flight, b.flight], a.model, "rls", options={"p0": 1e4})  # same prior
+    assert np.max(np.abs(res.estimate - rls.estimate) / rls.std) < 0.1
+    assert np.max(np.abs(carried.estimate - res.estimate) / rls.std) < 0.01

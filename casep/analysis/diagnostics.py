@@ -127,7 +127,8 @@ def ar1_whiten(S: np.ndarray, t: np.ndarray, sigma: float, tau: float) -> np.nda
 
 
 def crlb_covariance(S: np.ndarray, sigma: float, *, t: np.ndarray | None = None, tau: float | None = None,
-                    prior_std: np.ndarray | None = None, rcond: float | None = None) -> np.ndarray:
+                    prior_std: np.ndarray | None = None, rcond: float | None = None,
+                    prior_information: np.ndarray | None = None) -> np.ndarray:
     """Cramer-Rao bound covariance in natural units (NaN rows for unidentifiable coefficients).
 
     Parameters
@@ -140,6 +141,9 @@ def crlb_covariance(S: np.ndarray, sigma: float, *, t: np.ndarray | None = None,
         Sample times and correlation time for the Gauss-Markov bound.
     prior_std : (n,) array_like, optional
         Prior std per coefficient (inf for none): the Bayesian bound.
+    prior_information : (k, n) array_like, optional
+        A correlated prior's square-root information rows ``W`` (``W^T W = Cov^-1``, natural
+        units; :func:`casep.estimators.map.prior_information`), used instead of `prior_std`.
     """
     S = np.asarray(S, dtype=float)
     if not np.isfinite(sigma) or sigma <= 0:
@@ -150,16 +154,21 @@ def crlb_covariance(S: np.ndarray, sigma: float, *, t: np.ndarray | None = None,
         F = ar1_whiten(S, t, sigma, tau).reshape(-1, S.shape[-1])
     else:
         F = S.reshape(-1, S.shape[-1]) / sigma
-    return _crlb_from_reduction(reduce_qr(F, np.zeros(F.shape[0])), 1.0, prior_std, rcond)
+    return _crlb_from_reduction(reduce_qr(F, np.zeros(F.shape[0])), 1.0, prior_std, rcond, prior_information)
 
 
 def _crlb_from_reduction(red: ReducedSystem, sigma: float, prior_std: np.ndarray | None,
-                         rcond: float | None) -> np.ndarray:
+                         rcond: float | None, prior_information: np.ndarray | None = None) -> np.ndarray:
     """The bound from the reduction of S (``F = S / sigma`` has the same R, column norms c / sigma)."""
     n = red.n
     c = np.where(red.scale > 0, red.scale, 1.0) / sigma
     A = red.R
-    if prior_std is not None:
+    if prior_information is not None:
+        Wp = np.asarray(prior_information, dtype=float)
+        if Wp.ndim != 2 or Wp.shape[1] != n or not np.all(np.isfinite(Wp)):
+            raise ValueError(f"`prior_information` must be finite (k, {n}) rows")
+        A = np.vstack([A, Wp / c])  # W D = W diag(1/c) (c D): prior rows in scaled coordinates
+    elif prior_std is not None:
         ps = np.asarray(prior_std, dtype=float)
         if ps.shape != (n,) or np.any(ps <= 0) or np.any(np.isnan(ps)):
             raise ValueError(f"`prior_std` must be {n} values > 0 (inf for none)")
@@ -299,6 +308,7 @@ def diagnose(
     scales: Mapping | None = None,
     n_combinations: int = 6,
     rcond: float | None = None,
+    prior_information: np.ndarray | None = None,
 ) -> Diagnostics:
     """Collinearity and identifiability diagnostics of a regression ``y = S D + e``.
 
@@ -318,6 +328,9 @@ def diagnose(
         ``name -> typical magnitude`` for the "weak" verdict, e.g. a model's declared
         :attr:`casep.ErrorModel.scales` (default none: only the prior std, where given, makes a
         coefficient "weak").
+    prior_information : (k, n) array_like, optional
+        A correlated prior's square-root information rows (see :func:`crlb_covariance`): the
+        Bayesian bound uses them instead of `prior_std` (which stays the "weak" yardstick).
     """
     from casep.analysis.problem import Problem
 
@@ -357,10 +370,10 @@ def diagnose(
         source = "given"
     col = collinearity(red, ra)
     if tau is None:  # white: the bound from the reduction already made
-        cov = _crlb_from_reduction(red, sigma, prior_std, rcond)
+        cov = _crlb_from_reduction(red, sigma, prior_std, rcond, prior_information)
     else:
         cov = crlb_covariance(S.sv() if isinstance(S, Problem) else S, sigma, t=t, tau=tau, prior_std=prior_std,
-                              rcond=rcond)
+                              rcond=rcond, prior_information=prior_information)
     sd = np.sqrt(np.diag(cov))
     reasons = unidentifiable_reasons(ra, names)
     sc = _scales(names, None if prior_std is None else np.asarray(prior_std, float), scales)

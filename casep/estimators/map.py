@@ -1,4 +1,4 @@
-"""Maximum a posteriori (MAP) estimate with a Gaussian prior per coefficient.
+"""Maximum a posteriori (MAP) estimate with a Gaussian prior per coefficient (or a correlated one).
 
 Notes
 -----
@@ -18,6 +18,19 @@ computed without normal equations as the least-squares solution of the stacked s
 by SVD; the posterior covariance is ``V diag(1/s^2) V^T`` of that stacked matrix.
 Coefficients that neither the data nor a prior determine (zero or dependent columns with a
 flat prior) are reported without an estimate.
+
+A correlated prior (a group ``G`` of coefficients with std ``tau_G`` and correlation matrix
+``Rho = L L^T``, for instance the posterior of earlier flights, :func:`prior_from_result`) enters
+the same way, by square-root information rows ``W = L^-1 diag(1 / tau_G)`` with
+``W^T W = Cov_G^-1``::
+
+    [ W diag(1 / c_G) ] z_G = [ W mu_G ]
+
+so the posterior of flights 1..k used as the prior of flight k+1 gives the joint estimate of all
+k+1 flights (the Gaussian likelihoods multiply).
+
+Prior mapping: ``{name: {"mean": m, "std": s}, ..., "correlation": {"names": [...], "matrix":
+[[...]]}}``; the optional ``correlation`` entry names coefficients that all have a mean and std.
 """
 
 from __future__ import annotations
@@ -30,16 +43,31 @@ from casep.estimators._base import finish, prepare
 from casep.model._model import unknown_coefficient_message
 from casep.estimators.result import EstimateResult, MAPExtras
 
-__all__ = ["solve_map", "parse_prior"]
+__all__ = ["solve_map", "parse_prior", "prior_information", "prior_from_result"]
+
+#: The key of a prior mapping that holds a correlation block (not a coefficient name).
+CORRELATION = "correlation"
 
 
 def parse_prior(prior: Mapping, names: Sequence[str], source: str = "`prior`") -> tuple[np.ndarray, np.ndarray]:
-    """``{name: {"mean": m, "std": s}}`` to mean and std arrays (std inf where absent)."""
+    """``{name: {"mean": m, "std": s}}`` to mean and (marginal) std arrays (std inf where absent).
+
+    A ``"correlation"`` entry is checked too (see :func:`prior_information`, which uses it).
+    """
+    mu, tau, _ = _parse(prior, names, source)
+    return mu, tau
+
+
+def _parse(prior: Mapping, names: Sequence[str], source: str):
     if not isinstance(prior, Mapping):
         raise TypeError(f"{source} must be a mapping of coefficient name to {{'mean', 'std'}}")
     n = len(names)
     mu, tau = np.zeros(n), np.full(n, np.inf)
+    corr = None
     for name, spec in prior.items():
+        if name == CORRELATION and name not in names:
+            corr = spec
+            continue
         if name not in names:
             raise ValueError(unknown_coefficient_message(name, names, source))
         if not isinstance(spec, Mapping) or "mean" not in spec or "std" not in spec:
@@ -54,7 +82,94 @@ def parse_prior(prior: Mapping, names: Sequence[str], source: str = "`prior`") -
             raise ValueError(f"{source}: `{name}` std must be > 0 (inf for no prior), got {s_:g}")
         j = list(names).index(name)
         mu[j], tau[j] = m_, s_
-    return mu, tau
+    if corr is None:
+        return mu, tau, None
+    where = f"{source}: `{CORRELATION}`"
+    if not isinstance(corr, Mapping) or "names" not in corr or "matrix" not in corr:
+        raise ValueError(f"{where} must be {{\"names\": [...], \"matrix\": [[...]]}}")
+    group = list(corr["names"])
+    for g in group:
+        if g not in names:
+            raise ValueError(unknown_coefficient_message(g, names, where))
+        if not np.isfinite(tau[list(names).index(g)]):
+            raise ValueError(f"{where} names `{g}`, which has no finite mean and std in the prior")
+    if len(set(group)) < len(group):
+        raise ValueError(f"{where}: `names` repeat a coefficient")
+    try:
+        rho = np.array(corr["matrix"], dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: `matrix` must be a square array of numbers") from None
+    k = len(group)
+    if rho.shape != (k, k) or not np.all(np.isfinite(rho)):
+        raise ValueError(f"{where}: `matrix` must be {k} x {k} finite numbers, got shape {rho.shape}")
+    if np.max(np.abs(rho - rho.T), initial=0.0) > 1e-9 or np.max(np.abs(np.diag(rho) - 1.0), initial=0.0) > 1e-9:
+        raise ValueError(f"{where}: `matrix` must be symmetric with a unit diagonal (a correlation matrix)")
+    try:
+        L = np.linalg.cholesky((rho + rho.T) / 2)  # Rho = L L^T
+    except np.linalg.LinAlgError:
+        raise ValueError(f"{where}: `matrix` is not positive definite (smallest eigenvalue "
+                         f"{np.linalg.eigvalsh((rho + rho.T) / 2)[0]:.3g})") from None
+    return mu, tau, ([list(names).index(g) for g in group], L)
+
+
+def prior_information(prior: Mapping, names: Sequence[str], source: str = "`prior`"
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Square-root information of a Gaussian prior, natural units.
+
+    Returns
+    -------
+    (W, b, mu, tau)
+        Rows ``W`` (k, n) and right-hand side ``b = W mu`` (k,) with ``W^T W = Cov^-1`` on the
+        coefficients the prior covers (zero columns elsewhere: flat); the mean and marginal std.
+        Independent coefficients give ``e_j / tau_j``; a correlation group ``G`` gives
+        ``L^-1 diag(1 / tau_G)`` with ``Rho = L L^T``.
+    """
+    from scipy.linalg import solve_triangular
+
+    mu, tau, corr = _parse(prior, names, source)
+    n = len(names)
+    grouped = np.zeros(n, bool)
+    blocks = []
+    if corr is not None:
+        idx, L = corr
+        grouped[idx] = True
+        Wg = np.zeros((len(idx), n))
+        Wg[:, idx] = solve_triangular(L, np.diag(1.0 / tau[idx]), lower=True)  # L^-1 diag(1/tau_G)
+        blocks.append(Wg)
+    single = np.flatnonzero(np.isfinite(tau) & ~grouped)
+    Ws = np.zeros((single.size, n))
+    Ws[np.arange(single.size), single] = 1.0 / tau[single]  # e_j / tau_j
+    W = np.vstack([Ws, *blocks])
+    return W, W @ mu, mu, tau
+
+
+def prior_from_result(result, names: Sequence[str] | None = None) -> dict:
+    """The Gaussian posterior of a result (estimate and covariance) as a prior mapping.
+
+    Parameters
+    ----------
+    result : EstimateResult
+        With a covariance (e.g. OLS or MAP); coefficients without an estimate are left flat, as are
+        a several-flights result's per-flight coefficients (``name[file]``).
+    names : sequence of str, optional
+        Keep only these coefficients (marginalising: the covariance block).
+
+    Returns
+    -------
+    dict
+        ``{name: {"mean", "std"}, ..., "correlation": {"names", "matrix"}}`` in natural units, for
+        :func:`solve_map` (``prior=``) or as a ``--prior`` JSON file.
+    """
+    if result.covariance is None:
+        raise ValueError(f"the {result.method} result has no covariance: it cannot be used as a prior")
+    keep = [j for j, n in enumerate(result.names) if "[" not in n and (names is None or n in names)
+            and np.isfinite(result.estimate[j]) and np.isfinite(result.covariance[j, j]) and result.covariance[j, j] > 0]
+    C = result.covariance[np.ix_(keep, keep)]
+    sd = np.sqrt(np.diag(C))
+    rho = C / np.outer(sd, sd)
+    out: dict = {result.names[j]: {"mean": float(result.estimate[j]), "std": float(s)} for j, s in zip(keep, sd)}
+    out[CORRELATION] = {"names": [result.names[j] for j in keep], "matrix": rho.tolist()}
+    return out
 
 
 def solve_map(
@@ -79,15 +194,15 @@ def solve_map(
     """
     if prior is None:
         raise ValueError("`prior` is required for method `map`. Use: --prior FILE or prior={...}")
+    prior_arg = prior
     pb = prepare(S, y, names, units, si_factors, sigma, rcond)
-    mu, tau = parse_prior(prior, pb.names)
+    Wp, bp, mu, tau = prior_information(prior, pb.names)
     sig = pb.ols_sigma() if pb.sigma is None else pb.sigma
     c = pb.red.scale
     cs = np.where(c > 0, c, 1.0)  # zero columns: z_j = D_j
-    has = np.isfinite(tau)
-    P = np.diag(1.0 / (cs * tau))[has]  # prior rows: z_j / (c_j tau_j) = mu_j / tau_j
+    P = Wp / cs  # prior rows in z = c D: W diag(1/c) z = W mu
     A = np.vstack([pb.red.R / sig, P])
-    b = np.concatenate([pb.red.qty / sig, (mu / tau)[has]])
+    b = np.concatenate([pb.red.qty / sig, bp])
     Ua, s, Vt = np.linalg.svd(A, full_matrices=False)
     r = int(np.sum(s > pb.ra.rcond * s[0]))
     z = Vt[:r].T @ ((Ua[:, :r].T @ b) / s[:r])
@@ -96,6 +211,8 @@ def solve_map(
     null = Vt[r:].T
     undetermined = np.linalg.norm(null, axis=1) > 1e-8 if null.size else np.zeros(pb.n, bool)
     prior = {n: {"mean": float(m), "std": float(t)} for n, m, t in zip(pb.names, mu, tau) if np.isfinite(t)}
+    if CORRELATION in prior_arg and CORRELATION not in pb.names:
+        prior[CORRELATION] = prior_arg[CORRELATION]
     return finish(pb, "map", z / cs, cov, sig, undetermined=undetermined, extras=MAPExtras(prior),
                   settings={"prior": prior, "sigma": "estimated" if pb.sigma is None else pb.sigma})
 
@@ -136,16 +253,15 @@ def map_linear_map(S: np.ndarray, prior: Mapping, sigma: float, *, names: Sequen
     sigma = check_positive("sigma", sigma, allow_none=False)
     pb, Q, U, s, Vt = scaled_factors(S, rcond)
     names = pb.names if names is None else tuple(names)
-    mu, tau = parse_prior(prior, names)
+    Wp, bp, _, _ = prior_information(prior, names)
     cs = np.where(pb.red.scale > 0, pb.red.scale, 1.0)
-    has = np.isfinite(tau)
-    A = np.vstack([((U * s) @ Vt) / sigma, np.diag(1.0 / (cs * tau))[has]])  # [R / sigma; prior rows]
+    A = np.vstack([((U * s) @ Vt) / sigma, Wp / cs])  # [R / sigma; prior rows W diag(1/c)]
     Ua, sa, Vta = np.linalg.svd(A, full_matrices=False)
     r = int(np.sum(sa > pb.ra.rcond * sa[0]))
     W = Vta[:r].T / sa[:r]
     Ainv = W @ Ua[:, :r].T  # A^+
     K = (Ainv[:, :pb.n] @ Q.T) / (sigma * cs[:, None])
-    b = (Ainv[:, pb.n:] @ (mu / tau)[has]) / cs
+    b = (Ainv[:, pb.n:] @ bp) / cs
     cov = (W @ W.T) / np.outer(cs, cs)  # posterior covariance, natural units
     null = Vta[r:].T
     undetermined = np.linalg.norm(null, axis=1) > 1e-8 if null.size else np.zeros(pb.n, bool)

@@ -164,7 +164,10 @@ def solve_rls(
     hist = np.zeros((-(-N // history_stride), p + nc))  # rows for samples 0, stride, 2 stride, ... < N
     hist_var = np.zeros_like(hist)  # diag(P) at the same rows, scaled coordinates
     innov_ss = 0.0
+    restart = set(getattr(pb.problem, "segment_starts", ())) - {0}  # several flights: each its own noise
     for sl, S_b, y_b in pb.problem.blocks():  # S_V block by block (regenerated, never whole)
+        if sl.start in restart:
+            past[:] = 0.0  # RELS: a new flight's noise does not continue the last one's
         H = np.ascontiguousarray(S_b[:, :, live] / cl)  # scaled regressors
         innov = rels_ud(H, np.ascontiguousarray(y_b), x, U, D, weight, forgetting, nc, residuals == "posterior",
                         history_stride, hist, hist_var, D0, past, sl.start)

@@ -1,12 +1,16 @@
-"""Several flights in one estimate (issue 12, first step: the Python API for the reduction-based methods).
+"""Several flights in one estimate.
 
 Each flight becomes its own :class:`~casep.analysis.problem.Problem` (its checks, its S_V, its QR);
 its noise sigma is estimated from its own least-squares residuals (or given); the flights are
 combined by :func:`casep.estimators.joint.joint_reduction` into one whitened reduced system over
 ``theta = [shared, per-flight(1), ..., per-flight(K)]`` (per-flight: the model's
-``declare(..., per_flight=True)`` coefficients), which any registered method that needs only the
-reduction solves (OLS, ridge, bounded, PCR, MAP). Residuals are each flight's own, divided by its
-sigma (the whitened system the joint fit minimises).
+``declare(..., per_flight=True)`` coefficients), which the reduction-based methods solve (OLS,
+ridge, bounded, PCR, MAP). The same whitened problem also gives its rows flight after flight
+(:meth:`JointProblem.blocks`: flight k's ``S_k P_k / sigma_k``, ``y_k / sigma_k``), so RLS and RELS
+run the flights in sequence (the RELS noise memory restarts at each flight) and Huber weighs the
+stacked whitened rows (its scale estimated, about 1). GLS whitens each flight with its own
+Gauss-Markov correlation time (REML per flight, or given) before the flights are combined.
+Residuals are each flight's own, divided by its sigma (the whitened system the joint fit minimises).
 """
 
 from __future__ import annotations
@@ -17,21 +21,34 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from casep.analysis.problem import Problem
+from casep.analysis.problem import DEFAULT_BLOCK_ROWS, Problem
 from casep.estimators.joint import JointLayout, joint_reduction
 from casep.estimators.registry import METHODS, check_method_options, run_method
 from casep.estimators.result import EstimateResult
 
 __all__ = ["JointProblem", "separate_flights", "flights_summary", "fuse", "diagnose_flights", "JOINT_METHODS"]
 
-#: Methods that solve from the reduction alone, so from the stacked flights.
-JOINT_METHODS = ("ols", "ridge", "bounded", "pcr", "map")
+#: Methods that estimate several flights jointly (all of the registry's).
+JOINT_METHODS = ("ols", "ridge", "bounded", "pcr", "map", "rls", "rels", "huber", "gls")
 
 
 class JointProblem(Problem):
-    """Several flights' problems as one whitened problem over the joint parameters."""
+    """Several flights' problems as one whitened problem over the joint parameters.
 
-    def __init__(self, problems: Sequence[Problem], sigmas: Sequence[float], layout: JointLayout) -> None:
+    Parameters
+    ----------
+    problems : sequence of Problem
+        One per flight, same model.
+    sigmas : sequence of float
+        Each flight's noise std, m/s: its rows are divided by it.
+    layout : JointLayout
+    raw : sequence of Problem, optional
+        The flights as read, when `problems` are transformed (GLS: AR(1)-whitened); the summary's
+        residuals are theirs.
+    """
+
+    def __init__(self, problems: Sequence[Problem], sigmas: Sequence[float], layout: JointLayout,
+                 raw: Sequence[Problem] | None = None) -> None:
         red = joint_reduction([p.red for p in problems], sigmas, layout)
         units = layout.expand(problems[0].units)
         si = layout.expand(list(problems[0].si_factors))
@@ -39,22 +56,34 @@ class JointProblem(Problem):
         super().__init__(names=layout.joint_names, units=units, si_factors=si, red=red, y=y,
                          model=problems[0].model, source=" + ".join(p.source for p in problems))
         self.problems = tuple(problems)
+        self.raw = tuple(raw) if raw is not None else self.problems
         self.sigmas = tuple(float(s) for s in sigmas)
         self.layout = layout
+        sizes = [p.y.reshape(-1, 3).shape[0] for p in problems]
+        #: First sample of each flight in the stacked rows (RELS restarts its noise memory there).
+        self.segment_starts = tuple(int(v) for v in np.cumsum([0] + sizes[:-1]))
 
     @property
     def has_rows(self) -> bool:
         return all(p.has_rows for p in self.problems)
+
+    def blocks(self, rows: int = DEFAULT_BLOCK_ROWS):
+        """Yield ``(row slice, S block, y block)``: flight after flight, each block
+        ``S_k P_k / sigma_k`` (its coefficients placed in the joint columns, zero elsewhere) and
+        ``y_k / sigma_k``. The S block is reused between yields."""
+        n = self.n
+        for k, (p, s, start) in enumerate(zip(self.problems, self.sigmas, self.segment_starts)):
+            cols = self.layout.columns(k)
+            for sl, S_b, y_b in p.blocks(rows):
+                out = np.zeros(S_b.shape[:-1] + (n,))
+                out[..., cols] = S_b / s  # S_k P_k / sigma_k
+                yield slice(start + sl.start, start + sl.stop), out, y_b / s
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """Each flight's ``(y_k - S_k P_k x) / sigma_k``, stacked: the joint fit's whitened residuals."""
         x = np.asarray(x, dtype=float)
         return np.concatenate([p.residuals(x[self.layout.columns(k)]).reshape(-1) / s
                                for k, (p, s) in enumerate(zip(self.problems, self.sigmas))])
-
-    def blocks(self, rows: int = 0):
-        raise ValueError("a several-flights problem has no single row sequence: recursive and row-based "
-                         f"methods are not available jointly (use one of {', '.join(JOINT_METHODS)})")
 
     def flight_estimates(self, x: np.ndarray) -> list[np.ndarray]:
         """Flight k's coefficients in model order (shared + its own per-flight ones)."""
@@ -98,7 +127,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     from casep.model.loader import load_model
 
     if method not in JOINT_METHODS:
-        raise ValueError(f"method `{method}` cannot be estimated jointly yet; use one of {', '.join(JOINT_METHODS)}")
+        raise ValueError(f"method `{method}` cannot be estimated jointly; use one of {', '.join(JOINT_METHODS)}")
     if len(flights) < 2:
         raise ValueError(f"`flights` must hold two or more flights, got {len(flights)}")
     model = load_model(model)
@@ -108,9 +137,6 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
             problems.append(fl)
             continue
         problems.append(Problem.from_flight(fl if isinstance(fl, FlightData) else read_flight(fl), model))
-    sig = _sigmas(problems, sigma)
-    layout = JointLayout(model.names, model.per_flight, _labels(problems))
-    jp = JointProblem(problems, sig, layout)
     opts = dict(options or {})
     check_method_options(method, {k: v for k, v in opts.items() if v is not None})
     for key in ("prior", "bounds"):  # on shared coefficients only (a per-flight one is refused, not dropped)
@@ -118,9 +144,45 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         if per:
             raise ValueError(f"`{key}` names per-flight coefficient(s) {', '.join(per)}: not supported with several "
                              "flights yet; give it for the shared coefficients only")
-    res = run_method(method, jp, None, None, {k: v for k, v in opts.items() if k in METHODS[method].options},
-                     sigma=1.0)
+    raw = problems
+    taus = None
+    if method == "gls":  # each flight whitened by its own Gauss-Markov correlation time, then combined as OLS
+        problems, taus = _gls_whitened(problems, opts.get("tau", "auto"))
+    sig = _sigmas(problems, sigma)
+    layout = JointLayout(model.names, model.per_flight, _labels(raw))
+    jp = JointProblem(problems, sig, layout, raw=raw)
+    solver = "ols" if method == "gls" else method
+    res = run_method(solver, jp, None, None, {k: v for k, v in opts.items() if k in METHODS[solver].options},
+                     sigma=None if method == "huber" else 1.0)  # whitened: sigma 1 (Huber: its scale, about 1)
+    if taus is not None:
+        import dataclasses
+
+        from casep.estimators.result import GLSExtras
+
+        rule = "given" if not isinstance(opts.get("tau", "auto"), str) else "reml"
+        res = dataclasses.replace(
+            res, method="gls", extras=GLSExtras(float(np.mean(taus)), rule),
+            settings={"tau": dict(zip(layout.labels, taus)), "tau_rule": rule, "sigma": "per flight"},
+            message=res.message + f"; GLS: each flight whitened by its own tau ({rule})")
     return res, jp
+
+
+def _gls_whitened(problems: Sequence[Problem], tau) -> tuple[list[Problem], list[float]]:
+    """Each flight's rows whitened by its Gauss-Markov correlation time (REML per flight, or `tau`)."""
+    from casep.estimators.gls import _whiten, estimate_tau
+
+    out, taus = [], []
+    for p in problems:
+        if p.t is None:
+            raise ValueError(f"flight `{p.source}` has no sample times: GLS needs them")
+        S, y = p.sv(), p.y.reshape(-1, 3)
+        tk = estimate_tau(S, y, p.t) if isinstance(tau, str) else float(tau)
+        Sw, yw = _whiten(S, y, p.t, tk)
+        q = Problem.from_arrays(Sw, yw, p.t, names=p.names, units=p.units, si_factors=p.si_factors, model=p.model)
+        q.source = p.source
+        out.append(q)
+        taus.append(float(tk))
+    return out, taus
 
 
 def _sigmas(problems: Sequence[Problem], sigma) -> list[float]:
@@ -152,9 +214,10 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
     x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
     pf = np.flatnonzero(lay.per_flight)
     flights, own, rss_joint = [], [], []
-    for k, (p, s) in enumerate(zip(jp.problems, jp.sigmas)):
-        r = p.residuals(x[lay.columns(k)]).reshape(-1, 3)
-        rss_joint.append(float(np.sum(r**2)))
+    for k, (p, w, s) in enumerate(zip(jp.raw, jp.problems, jp.sigmas)):
+        r = p.residuals(x[lay.columns(k)]).reshape(-1, 3)  # dv - S_V D: the flight's own residuals, m/s
+        rw = w.residuals(x[lay.columns(k)]).reshape(-1, 3)  # what the fit weighs (GLS: AR(1)-whitened)
+        rss_joint.append(float(np.sum(rw**2)))
         cols = lay.columns(k)[pf]
         flights.append({
             "file": p.source, "n_samples": int(p.n_samples), "sigma": s,
@@ -167,7 +230,7 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # each flight alone: ill-conditioned, said by the joint result
-            own.append(solve_ols(p, sigma=s))
+            own.append(solve_ols(w, sigma=s))
     per = {}
     for j in lay.shared:
         test = coefficient_consistency(np.array([o.estimate[j] for o in own]), np.array([o.std[j] ** 2 for o in own]))
