@@ -147,7 +147,23 @@ def _read(args: argparse.Namespace):
     """The flight of a command: one file, or telemetry + `--tracking`."""
     from casep.io.files import read_flight, read_flight_pair
 
-    return read_flight_pair(args.flight, args.tracking) if args.tracking else read_flight(args.flight)
+    tracking = args.tracking or []
+    if len(tracking) > 1:
+        raise ValueError(f"--tracking given {len(tracking)} times for one flight; give it once per flight")
+    return read_flight_pair(args.flight, tracking[0]) if tracking else read_flight(args.flight)
+
+
+def _read_flights(args: argparse.Namespace) -> list:
+    """Several flights, each a file or (with `--tracking` once per flight, in flight order) a pair."""
+    from casep.io.files import read_flight, read_flight_pair
+
+    tracking = args.tracking or []
+    if tracking and len(tracking) != len(args.flight):
+        raise ValueError(f"--tracking given {len(tracking)} times for {len(args.flight)} flights: give it once per "
+                         "flight, in the order of the flights (telemetry A --tracking TA, B --tracking TB)")
+    if tracking:
+        return [read_flight_pair(f, t) for f, t in zip(args.flight, tracking)]
+    return [read_flight(f) for f in args.flight]
 
 
 def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | None:
@@ -160,6 +176,16 @@ def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | No
     if not path:
         return None
     data = read_json_table(path, f"--{option}")
+    if option == "prior" and "coefficients" in data and "covariance" in data:  # a result JSON: its posterior
+        from casep.estimators.map import prior_from_result
+        from casep.estimators.result import EstimateResult
+
+        res = EstimateResult.from_json(data)
+        model = getattr(args, "model", None)
+        if res.model and model and Path(str(model)).stem != res.model:
+            raise ValueError(f"--prior {path}: a result of model `{res.model}`, but the model here is "
+                             f"`{Path(str(model)).stem}`; use a result of the same model")
+        data = prior_from_result(res)
     {"bounds": parse_bounds, "prior": parse_prior}[option](data, names, source=f"--{option} {path}")
     return data
 
@@ -197,9 +223,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="write residuals, estimates (and RLS/RELS history) PNG figures into DIR (created)")
     s.add_argument("--report", metavar="FILE", default=None,
                    help="write a self-contained HTML report (table, settings, diagnostics, figures) here")
-    s.add_argument("--tracking", metavar="FILE", default=None,
+    s.add_argument("--tracking", metavar="FILE", default=None, action="append",
                    help="tracking file (t, v_trk_*) at its own rate; FLIGHT is then the telemetry file "
-                        "(t, f_* or W_*, v_tel_*)")
+                        "(t, f_* or W_*, v_tel_*); several flights: once per flight, in their order")
     _method_option_groups(s)
     g = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
     g.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
@@ -218,13 +244,15 @@ def _parser() -> argparse.ArgumentParser:
                         "att_pitch/att_yaw/att_roll (rad) and omega_x/y/z (rad/s, body) columns describe the attitude")
     d = sub.add_parser("diagnose", help="what the flight can and cannot determine")
     d.add_argument("flight", nargs="+", help="flight file; several: what each determines alone and jointly")
-    d.add_argument("--tracking", metavar="FILE", default=None, help="tracking file (two-file input)")
+    d.add_argument("--tracking", metavar="FILE", default=None, action="append",
+                   help="tracking file (two-file input); several flights: once per flight, in their order")
     d.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
     d.add_argument("--sigma", type=_ranged("sigma"), default=None, help="noise std, m/s (default: estimated)")
     d.add_argument("--tau", type=_rule_type(OPTIONS["tau"], [r for r in OPTIONS["tau"].rules if isinstance(r, Interval)]),
                    default=None, metavar="SECONDS", help="Gauss-Markov correlation time, s: AR(1) bound instead of "
                    "white; " + " | ".join(str(r) for r in OPTIONS["tau"].rules if isinstance(r, Interval)))
-    d.add_argument("--prior", metavar="FILE", help="prior JSON (map format): Bayesian bound and scales")
+    d.add_argument("--prior", metavar="FILE", help="prior JSON (map format, or a result JSON: its estimate and "
+                   "covariance): Bayesian bound and scales")
     d.add_argument("--scales", metavar="FILE", help='JSON {"Kg0x": typical magnitude, ...} for the "weak" verdict')
     d.add_argument("--json", metavar="OUT", default=None, help="write the diagnostics JSON here")
     d.add_argument("--figures", metavar="DIR", default=None,
@@ -317,10 +345,9 @@ def _cmd_separate(args: argparse.Namespace) -> int:
 def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior) -> int:
     """`casep separate A B ...`: several flights in one estimate (casep.workflows.flights)."""
     from casep.estimators.result import write_json_atomic
-    from casep.io.files import read_flight
     from casep.workflows.flights import JOINT_METHODS, flights_summary, separate_flights
 
-    for flag, value in (("--tracking", args.tracking), ("--denoise wavelet", args.denoise == "wavelet" or None),
+    for flag, value in (("--denoise wavelet", args.denoise == "wavelet" or None),
                         ("--figures", args.figures), ("--report", args.report), ("--mat", args.mat),
                         ("--csv", args.csv)):
         if value:
@@ -329,7 +356,7 @@ def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior
         raise ValueError(f"--method {args.method} cannot estimate several flights jointly yet. "
                          f"Use: --method {' | '.join(JOINT_METHODS)}")
     options = {**opts, **({"bounds": bounds} if bounds else {}), **({"prior": prior} if prior else {})}
-    flights = [read_flight(f) for f in args.flight]
+    flights = _read_flights(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", CasepWarning)
         res, jp = separate_flights(flights, model, args.method, sigma=args.sigma, options=options)
@@ -385,20 +412,17 @@ def _cmd_fuse(args: argparse.Namespace) -> int:
     return 0
 
 
-def _diagnose_flights(args: argparse.Namespace, model, prior_std, scales) -> int:
+def _diagnose_flights(args: argparse.Namespace, model, prior, scales) -> int:
     """`casep diagnose A B ...`: per coefficient, the CRLB of each flight alone and of all jointly."""
     from casep.estimators.result import format_number, write_json_atomic
-    from casep.io.files import read_flight
     from casep.workflows.flights import diagnose_flights
 
-    for flag, value in (("--tracking", args.tracking), ("--tau", args.tau), ("--figures", args.figures)):
-        if value:
-            raise ValueError(f"{flag} is not available with several flights yet; give one flight, or leave it out")
-    d = diagnose_flights([read_flight(f) for f in args.flight], model, sigma=args.sigma, prior_std=prior_std,
-                         scales=scales)
+    if args.tau:
+        raise ValueError("--tau is not available with several flights yet; give one flight, or leave it out")
+    d = diagnose_flights(_read_flights(args), model, sigma=args.sigma, prior=prior, scales=scales)
     k = len(d["flights"])
     print(f"model {model.name}, {k} flights: CRLB std alone and jointly (verdict: + identifiable, ~ weak, "
-          "- unidentifiable)" + ("; joint bound with the prior" if prior_std is not None else ""))
+          "- unidentifiable)" + ("; joint bound with the prior" if prior is not None else ""))
     mark = {"identifiable": "+", "weak": "~", "unidentifiable": "-"}
     print(f"{'coefficient':12s} {'unit':9s}" + "".join(f" {'flight ' + str(i + 1):>14s}" for i in range(k))
           + f" {'joint':>14s}")
@@ -412,6 +436,11 @@ def _diagnose_flights(args: argparse.Namespace, model, prior_std, scales) -> int
     if args.json:
         write_json_atomic({"model": model.name, **d}, args.json)
         print(f"diagnostics written to {args.json}")
+    if args.figures:
+        from casep.reporting.plots import plot_flights_crlb
+
+        Path(args.figures).mkdir(parents=True, exist_ok=True)
+        print(f"figure: {plot_flights_crlb(d, Path(args.figures) / 'flights_crlb.png', scales=scales or model.scales)}")
     return 0
 
 
@@ -458,7 +487,7 @@ def _write_exports(res, args: argparse.Namespace) -> None:
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
     from casep.analysis.diagnostics import diagnose
-    from casep.estimators.map import parse_prior
+    from casep.estimators.map import parse_prior, prior_information
     from casep.estimators.result import write_json_atomic
     from casep.io._atomic import check_outputs
     from casep.io.files import read_json_table
@@ -471,6 +500,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     prior = _coefficient_file(args, "prior", model.names)
     prior_std = None if prior is None else parse_prior(prior, model.names)[1]
+    prior_rows = None if prior is None or "correlation" not in prior else prior_information(prior, model.names)[0]
     scales = None
     if args.scales:
         scales = read_json_table(args.scales, "--scales")
@@ -480,11 +510,11 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not (v > 0 and math.isfinite(v)):
                 raise ValueError(f"--scales {args.scales}: `{k}` must be a finite number > 0, got {v!r}")
     if len(args.flight) > 1:
-        return _diagnose_flights(args, model, prior_std, scales)
+        return _diagnose_flights(args, model, prior, scales)
     args.flight = args.flight[0]
     flight = _read(args)
     problem = Problem.from_flight(flight, model)  # reduced block by block: S_V never whole (white bound)
-    diag = diagnose(problem, sigma=args.sigma, tau=args.tau, prior_std=prior_std,
+    diag = diagnose(problem, sigma=args.sigma, tau=args.tau, prior_std=prior_std, prior_information=prior_rows,
                     scales=model.scales if scales is None else scales)
     if args.json:
         write_json_atomic({"casep_version": __version__, "model": model.name, "n_samples": flight.n_observed,

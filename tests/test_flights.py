@@ -1,6 +1,7 @@
 """Several flights in one estimate (casep.workflows.flights): against an independent weighted stack."""
 
 import dataclasses
+from pathlib import Path
 import warnings
 
 import numpy as np
@@ -236,6 +237,9 @@ def test_diagnose_flights_joint_bound_against_summed_information(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         assert main(["diagnose", *paths, "--json", str(tmp_path / "d.json")]) == 0
+        assert main(["diagnose", *paths, "--figures", str(tmp_path / "fig")]) == 0
+    png = (tmp_path / "fig" / "flights_crlb.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
 
 
 def _quiet(fn, *args, **kw):
@@ -351,3 +355,68 @@ def test_rels_jointly_restarts_the_noise_memory_at_each_flight(two):
     rls, _ = _quiet(separate_flights, [a.flight, b.flight], a.model, "rls", options={"p0": 1e4})  # same prior
     assert np.max(np.abs(res.estimate - rls.estimate) / rls.std) < 0.1
     assert np.max(np.abs(carried.estimate - res.estimate) / rls.std) < 0.01
+
+
+def test_cli_telemetry_and_tracking_pairs_per_flight(tmp_path):
+    """`--tracking` once per flight: each pair read as in the one-flight case; the joint estimate equals
+    separate_flights on the pairs read by read_flight_pair; a count mismatch is exit 2 naming both counts."""
+    import json
+
+    from casep.cli import main
+    from casep.io.files import read_flight_pair
+    from casep.simulation.simulate import simulate_two_rate
+
+    files = []
+    for k, sc in enumerate(("paper", "paper-azimuth")):
+        d = simulate_two_rate(sc, seed=k + 1, telemetry_rate=20.0, tracking_rate=10.0)
+        tel, trk = tmp_path / f"tel{k}.csv", tmp_path / f"trk{k}.csv"
+        d.write(tel, trk)
+        files.append((str(tel), str(trk)))
+    out = tmp_path / "j.json"
+    args = ["separate", files[0][0], files[1][0], "--tracking", files[0][1], "--tracking", files[1][1],
+            "--json", str(out)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(args) == 0
+        res, _ = separate_flights([read_flight_pair(*f) for f in files], "platform36", "ols")
+    got = json.loads(out.read_text())
+    np.testing.assert_allclose(got["estimates"], res.estimate, rtol=1e-12)
+    assert [f["file"] for f in got["flights"]] == [f"{a} + {b}" for a, b in files]
+    assert main(["separate", files[0][0], files[1][0], "--tracking", files[0][1]]) == 2
+    assert main(["diagnose", files[0][0], files[1][0], "--tracking", files[0][1], "--tracking", files[1][1]]) == 0
+
+
+def test_cli_prior_from_a_result_json_continues_the_estimate(two, tmp_path):
+    """`separate B --method map --prior RESULT_A.json` (the result's estimate and covariance as prior)
+    = `separate A B` on the shared coefficients (model without per-flight terms; same sigmas given);
+    `diagnose B --prior RESULT_A.json` gives the MAP std as its Bayesian bound; a result of another
+    model is refused naming both."""
+    import json
+
+    from casep.cli import main
+    from casep.io.files import write_flight
+
+    sims = [simulate_flight("paper", seed=5, rate=10.0), simulate_flight("paper-azimuth", seed=6, rate=10.0)]
+    paths = []
+    for k, s in enumerate(sims):
+        write_flight(s.flight, tmp_path / f"f{k}.csv")
+        paths.append(str(tmp_path / f"f{k}.csv"))
+    r0, r1, rj = (str(tmp_path / n) for n in ("r0.json", "r1.json", "rj.json"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["separate", paths[0], "--sigma", "0.1", "--json", r0]) == 0
+        assert main(["separate", paths[1], "--method", "map", "--prior", r0, "--sigma", "0.1", "--json", r1]) == 0
+        assert main(["separate", *paths, "--sigma", "0.1", "--json", rj]) == 0
+        assert main(["diagnose", paths[1], "--prior", r0, "--sigma", "0.1", "--json", str(tmp_path / "d.json")]) == 0
+    seq, joint = (json.loads(Path(p).read_text()) for p in (r1, rj))
+    std = np.array(joint["std"])
+    assert np.max(np.abs(np.array(seq["estimates"]) - joint["estimates"]) / std) < 1e-6
+    np.testing.assert_allclose(seq["std"], std, rtol=1e-6)
+    diag = json.loads((tmp_path / "d.json").read_text())["diagnostics"]
+    np.testing.assert_allclose([diag["crlb_std"][n] for n in seq["names"]], seq["std"], rtol=1e-6)
+    write_flight(two[0].flight, tmp_path / "t.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["separate", str(tmp_path / "t.csv"), "--model", "platform36_timeoffset",
+                     "--json", str(tmp_path / "rt.json")]) == 0
+    assert main(["separate", paths[1], "--method", "map", "--prior", str(tmp_path / "rt.json")]) == 2

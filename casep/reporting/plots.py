@@ -13,7 +13,7 @@ from casep.analysis.diagnostics import GROUP_INDEX, Diagnostics
 from casep.estimators.result import AXES, EstimateResult
 
 __all__ = ["plot_singular_values", "plot_variance_decomposition", "plot_residuals", "plot_estimates",
-           "plot_history", "separate_figures", "estimate_scales"]
+           "plot_history", "separate_figures", "estimate_scales", "plot_flights_crlb"]
 
 
 def _pyplot():
@@ -63,6 +63,47 @@ def plot_variance_decomposition(diag: Diagnostics, path: str | os.PathLike) -> P
     ax.set_ylabel("condition index of dimension")
     ax.set_title("Variance-decomposition proportions (columns equilibrated, not centred)")
     fig.colorbar(im, ax=ax, label="proportion of Var(estimate)")
+    return _save(fig, path)
+
+
+def plot_flights_crlb(d: Mapping, path: str | os.PathLike, scales: Mapping | None = None) -> Path:
+    """What each flight determines alone and what the flights determine jointly.
+
+    One row per shared coefficient: the CRLB std of each flight alone and of all jointly
+    (:func:`casep.workflows.flights.diagnose_flights`), divided by the coefficient's declared
+    magnitude (`scales`; a ratio below 1 means the data know it to better than its typical size);
+    log scale; undetermined bounds drawn at the right edge with a cross.
+    """
+    plt = _pyplot()
+    rows = d["coefficients"]
+    k = len(d["flights"])
+    names = [r["name"] for r in rows]
+    scale = np.array([float((scales or {}).get(n, 1.0)) for n in names])
+    alone = np.array([[np.nan if v is None else v for v in r["crlb_alone"]] for r in rows], dtype=float) / scale[:, None]
+    joint = np.array([np.nan if r["crlb_joint"] is None else r["crlb_joint"] for r in rows], dtype=float) / scale
+    finite = np.concatenate([alone[np.isfinite(alone)], joint[np.isfinite(joint)]])
+    hi = 10 ** np.ceil(np.log10(finite.max())) if finite.size else 10.0
+    lo = 10 ** np.floor(np.log10(finite.min())) if finite.size else 0.1
+    fig, ax = plt.subplots(figsize=(8, max(4, 0.22 * len(rows) + 1.5)))
+    y = np.arange(len(rows))
+    h = 0.8 / (k + 1)
+    for i in range(k):
+        v = alone[:, i]
+        ax.barh(y - 0.4 + h * (i + 0.5), np.where(np.isfinite(v), v, hi), height=h, left=lo, alpha=0.6,
+                label=f"flight {i + 1} alone: {d['flights'][i]}")
+        ax.plot(np.full(int((~np.isfinite(v)).sum()), hi), (y - 0.4 + h * (i + 0.5))[~np.isfinite(v)], "kx", ms=3)
+    ax.barh(y - 0.4 + h * (k + 0.5), np.where(np.isfinite(joint), joint, hi), height=h, left=lo, color="k",
+            label=f"{k} flights jointly")
+    ax.axvline(1.0, color="tab:red", ls="--", lw=1, label="declared magnitude" if scales else "1")
+    ax.set_xscale("log")
+    ax.set_xlim(lo, hi * 1.5)
+    ax.set_yticks(y, names, fontsize=7)
+    ax.invert_yaxis()
+    ax.set_xlabel("CRLB std / declared magnitude" if scales else "CRLB std (natural units)")
+    ax.set_title(f"What each flight determines: identifiable alone {d['identifiable_alone']}, "
+                 f"jointly {d['identifiable_joint']}")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+    ax.grid(True, axis="x", which="both", alpha=0.3)
     return _save(fig, path)
 
 

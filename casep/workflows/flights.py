@@ -92,7 +92,8 @@ class JointProblem(Problem):
 
 
 def _labels(problems: Sequence[Problem]) -> tuple[str, ...]:
-    names = [Path(p.source).name or f"flight{k + 1}" for k, p in enumerate(problems)]
+    names = [" + ".join(Path(part).name for part in p.source.split(" + ")) or f"flight{k + 1}"
+             for k, p in enumerate(problems)]  # a telemetry + tracking pair: both names
     if len(set(names)) < len(names):
         names = [f"{n}#{k + 1}" for k, n in enumerate(names)]
     return tuple(names)
@@ -313,14 +314,17 @@ def fuse(results: Sequence[EstimateResult]) -> EstimateResult:
 
 
 def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float] | None = None,
-                     prior_std: np.ndarray | None = None, scales: Mapping | None = None) -> dict[str, Any]:
+                     prior_std: np.ndarray | None = None, scales: Mapping | None = None,
+                     prior: Mapping | None = None) -> dict[str, Any]:
     """What each flight determines alone and what they determine together.
 
     Per shared coefficient: the CRLB std of each flight alone (its own sigma) and of the flights
     jointly (weighted by 1/sigma_k^2), and the verdicts (identifiable / weak / unidentifiable, as
     :func:`casep.analysis.diagnostics.diagnose`, "weak" against the model's declared magnitudes);
     with `prior_std` (model order), the joint bound is Bayesian and its verdict asks whether the
-    posterior std is below the declared magnitude.
+    posterior std is below the declared magnitude. `prior` (the MAP format, correlations allowed,
+    e.g. :func:`casep.estimators.map.prior_from_result` of earlier flights) is used instead of
+    `prior_std`.
 
     Returns
     -------
@@ -335,6 +339,13 @@ def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float]
     from casep.model.loader import load_model
 
     model = load_model(model)
+    Wp = None
+    if prior is not None:
+        from casep.estimators.map import prior_information
+
+        if prior_std is not None:
+            raise ValueError("give `prior` or `prior_std`, not both")
+        Wp, _, _, prior_std = prior_information(prior, model.names)
     problems = [fl if isinstance(fl, Problem) else
                 Problem.from_flight(fl if isinstance(fl, FlightData) else read_flight(fl), model) for fl in flights]
     sig = _sigmas(problems, sigma)
@@ -345,12 +356,18 @@ def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float]
         layout = JointLayout(model.names, model.per_flight, _labels(problems))
         jp = JointProblem(problems, sig, layout)
         jscales = {n: scales[n.split("[")[0]] for n in layout.joint_names if n.split("[")[0] in scales}
-        jprior = None
+        jprior = jrows = None
         if prior_std is not None:
             jprior = np.array(layout.expand(list(np.asarray(prior_std, dtype=float))), dtype=float)
-        joint = diagnose(jp, sigma=1.0, scales=jscales, prior_std=jprior)  # whitened: sigma 1
+        if Wp is not None:
+            if np.any(Wp[:, layout.per_flight]):
+                raise ValueError("a prior with correlations on per-flight coefficients is not supported with "
+                                 "several flights; give it for the shared coefficients only")
+            jrows = np.zeros((Wp.shape[0], layout.n_params))
+            jrows[:, layout.columns(0)[layout.shared]] = Wp[:, layout.shared]  # shared columns
+        joint = diagnose(jp, sigma=1.0, scales=jscales, prior_std=jprior, prior_information=jrows)  # whitened
     else:
-        joint = diagnose(problems[0], sigma=sig[0], scales=scales,
+        joint = diagnose(problems[0], sigma=sig[0], scales=scales, prior_information=Wp,
                          prior_std=None if prior_std is None else np.asarray(prior_std, dtype=float))
     rows = []
     for j in np.flatnonzero(~model.per_flight):
