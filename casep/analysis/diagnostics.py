@@ -36,7 +36,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from casep.analysis.linalg import RankAnalysis, ReducedSystem, analyze_rank, condition_numbers, reduce_qr, unidentifiable_reasons
+from casep.analysis.linalg import (RankAnalysis, ReducedSystem, analyze_rank, condition_numbers, least_squares_rss,
+                                  reduce_qr, unidentifiable_reasons)
 
 __all__ = ["Diagnostics", "diagnose", "crlb_covariance", "collinearity", "ar1_whiten", "ILL_CONDITIONED",
            "GROUP_INDEX", "GROUP_PROPORTION"]
@@ -358,8 +359,7 @@ def diagnose(
     if sigma is None:
         if y is None:
             raise ValueError("`sigma` or `y` is required (the bound scales with the noise std)")
-        Uq = ra.U.T @ red.qty
-        sigma = float(np.sqrt((red.rho2 + np.sum(Uq[ra.rank:] ** 2)) / (red.m - ra.rank)))
+        sigma = float(np.sqrt(least_squares_rss(red, ra) / (red.m - ra.rank)))
         if not sigma > 0:  # all-zero y (flights: casep.io.flight.check_dv_not_zero) or an exact fit
             raise ValueError("`y` is " + ("0 everywhere" if not np.any(yy) else "fitted exactly (residuals 0)")
                              + ": sigma cannot be estimated from it; give `sigma`")

@@ -21,7 +21,7 @@ from typing import Iterable
 
 import numpy as np
 
-__all__ = ["ReducedSystem", "reduce_qr", "reduce_qr_blocks", "RankAnalysis", "analyze_rank", "DEFAULT_BLOCK_ROWS"]
+__all__ = ["ReducedSystem", "reduce_qr", "reduce_qr_blocks", "RankAnalysis", "analyze_rank", "least_squares_rss", "DEFAULT_BLOCK_ROWS"]
 
 #: Rows per TSQR block: bounds the temporary copy to ~block x (n + 1) doubles.
 DEFAULT_BLOCK_ROWS = 65536
@@ -268,3 +268,13 @@ def unidentifiable_reasons(ra: RankAnalysis, names: tuple[str, ...] | list[str])
         reasons[names[j]] = ("exactly dependent on " + with_ + ": only their combination is determined"
                              if twins else "exactly dependent columns: only a combination is determined")
     return reasons
+
+
+def least_squares_rss(red: ReducedSystem, ra: RankAnalysis) -> float:
+    """Least-squares residual sum of squares of a reduction at the rank of `ra`.
+
+    ``RSS = rho^2 + ||U_{r+}^T q||^2``: the part of ``y`` outside the columns (``rho^2``) plus the
+    part of ``q = Q^T y`` outside the range of ``R`` (``U`` from the SVD of the scaled ``R``).
+    """
+    Uq = ra.U.T @ red.qty
+    return red.rho2 + float(np.sum(Uq[ra.rank:] ** 2))

@@ -1,14 +1,15 @@
 """The regression of a flight, built once: S_V (or the means to regenerate it), its reduction, its rank.
 
 A :class:`Problem` is what every solver and the diagnostics take (arrays still work). It is
-built once per flight and model (``casep demo`` solves seven methods on one Problem), and
-it does not need S_V whole: the scaled QR reduction is accumulated block by block while
-S_V is integrated (:meth:`casep.model.sv.SVBuilder.blocks`), and whatever needs the rows
-again (residuals, the recursive methods, the residual checks) regenerates them block by
-block. So the memory of ``casep separate --method ols|rls`` and ``casep diagnose`` does not
-grow with ``N x 3 x n`` but with ``N`` (the flight's own columns and the residuals); S_V is
-kept whole only when asked (``keep_sv=True``) or when a method needs it
-(:meth:`Problem.sv`: GLS, Huber, the batched Monte Carlo).
+built once per flight and model (``casep demo`` solves seven methods on one Problem). S_V is kept
+whole when it fits in :data:`SV_KEEP_BYTES` (256 MB by default: a 100 Hz, 200 s flight of 36
+coefficients is 17 MB), or when asked (``keep_sv=True``). Beyond that it is never whole: the scaled
+QR reduction is accumulated block by block while S_V is integrated
+(:meth:`casep.model.sv.SVBuilder.blocks`), and whatever needs the rows again (residuals, the
+recursive methods, the residual checks) regenerates them block by block, so the memory of
+``casep separate --method ols|rls`` and ``casep diagnose`` grows with ``N`` (the flight's own
+columns and the residuals), not with ``N x 3 x n``; only the methods that need S whole
+(:meth:`Problem.sv`: GLS, Huber, the batched Monte Carlo) materialise it.
 
 Rows are ``(N, 3)`` samples x axes; ``S.reshape(3 N, n)`` is the stacked regression
 (:mod:`casep` conventions).
@@ -20,7 +21,8 @@ from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
-from casep.analysis.linalg import RankAnalysis, ReducedSystem, analyze_rank, reduce_qr, reduce_qr_blocks
+from casep.analysis.linalg import (RankAnalysis, ReducedSystem, analyze_rank, least_squares_rss, reduce_qr,
+                                  reduce_qr_blocks)
 
 __all__ = ["Problem", "DEFAULT_BLOCK_ROWS", "SV_KEEP_BYTES"]
 
@@ -220,9 +222,7 @@ class Problem:
 
     def ls_rss(self, rcond: float | None = None) -> float:
         """Least-squares residual sum of squares ``rho^2 + ||U_{r+}^T q||^2`` (the part of q off range R)."""
-        ra = self.rank(rcond)
-        Uq = ra.U.T @ self.red.qty
-        return self.red.rho2 + float(np.sum(Uq[ra.rank:] ** 2))
+        return least_squares_rss(self.red, self.rank(rcond))
 
     # ----------------------------------------------------------------- rows
     def _need_rows(self) -> None:

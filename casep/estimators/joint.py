@@ -45,7 +45,7 @@ from typing import Sequence
 import numpy as np
 from scipy import stats
 
-from casep.analysis.linalg import ReducedSystem, analyze_rank, reduce_qr
+from casep.analysis.linalg import ReducedSystem, analyze_rank, least_squares_rss, reduce_qr
 
 __all__ = ["JointLayout", "joint_reduction", "flight_rss", "coefficient_consistency", "overall_consistency",
            "stack_sqrt_information"]
@@ -123,8 +123,7 @@ def flight_rss(red: ReducedSystem, rcond: float | None = None) -> tuple[float, i
     ``RSS = rho^2 + ||U_{r+}^T q||^2`` (the part of q outside the range of R).
     """
     ra = analyze_rank(red, rcond)
-    Uq = ra.U.T @ red.qty
-    return red.rho2 + float(np.sum(Uq[ra.rank:] ** 2)), ra.rank
+    return least_squares_rss(red, ra), ra.rank
 
 
 def joint_reduction(reds: Sequence[ReducedSystem], sigmas: Sequence[float], layout: JointLayout) -> ReducedSystem:

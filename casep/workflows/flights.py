@@ -309,7 +309,8 @@ def fuse(results: Sequence[EstimateResult]) -> EstimateResult:
         estimate=est, std=np.sqrt(np.diag(cov)), covariance=cov, reasons={}, residuals=np.zeros((0, 3)),
         si_factors=np.asarray(first.si_factors)[idx0], history=None, history_std=None, status=1,
         message=f"{len(results)} results fused", success=True, sigma_source="given", extras=None,
-        settings={"fused": [r.settings.get("source", r.method) for r in results]},
+        settings={"fused": [{"method": r.method, "n_samples": int(r.n_samples),
+                             "sigma": float(r.sigma) if np.isfinite(r.sigma) else None} for r in results]},
         n_samples=int(sum(r.n_samples for r in results)), stored_residual_rms={a: None for a in "xyz"})
 
 
