@@ -11,8 +11,9 @@ from casep._lazy import attach
 # Imported on first use (PEP 562), see casep._lazy.
 __getattr__, __dir__ = attach(__name__, {
     "casep.impact.ballistic": ("BallisticError", "impact", "impact_point", "impact_jacobian", "impact_point_ode"),
-    "casep.impact.miss": ("ImpactAnalysis", "impact_analysis", "burnout_state", "sp_at", "position_sensitivity")},
+    "casep.impact.miss": ("ImpactAnalysis", "impact_analysis", "burnout_state", "position_sensitivity", "cumulative_sp",
+                           "read_trajectory")},
     globals())
 
 __all__ = ["BallisticError", "impact", "impact_point", "impact_jacobian", "impact_point_ode", "ImpactAnalysis",
-           "impact_analysis", "burnout_state", "sp_at", "position_sensitivity"]
+           "impact_analysis", "burnout_state", "position_sensitivity", "cumulative_sp", "read_trajectory"]
