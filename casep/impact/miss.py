@@ -303,6 +303,8 @@ class ImpactAnalysis:
         ``impact(x_b - dx_b) - impact(x_b)``, m.
     groups : tuple of Group
         Contributions per near-dependency group (a coefficient may be in several groups).
+    coefficient_std : (n,) ndarray or None
+        Std of each coefficient used (natural units; NaN without estimate, 0 for a per-flight value).
     """
 
     names: tuple[str, ...]
@@ -328,6 +330,7 @@ class ImpactAnalysis:
     model: str
     method: str
     flight: str
+    coefficient_std: np.ndarray | None = None
     trajectory: str | None = None
     result: str = "<memory>"
     reasons: dict = field(default_factory=dict)
@@ -515,7 +518,10 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
         sensitivity=G, contributions=contributions, miss=miss, cov=cov, nonlinear=nonlinear, groups=tuple(groups),
         group_source=gsource, covariance_source=coef.covariance_source, model=model.name, method=res.method,
         flight=flight.source, trajectory=None if trajectory is None else target.source, result=rsource,
-        reasons=coef.reasons)
+        reasons=coef.reasons,
+        coefficient_std=None if coef.covariance is None else np.where(
+            known, np.sqrt(np.clip(np.diag(np.nan_to_num(coef.covariance)), 0.0, None)),
+            np.where(have, 0.0, np.nan)))
 
 
 def _flight_type():
