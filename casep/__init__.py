@@ -39,7 +39,7 @@ Main entry points
 :func:`solve_ols`, :func:`solve_rls` (RLS/RELS), :func:`solve_ridge`, :func:`solve_bounded`,
 :func:`solve_pcr`, :func:`solve_map`, :func:`solve_gls` (all returning :class:`EstimateResult`),
 :func:`separate`; the impact miss of an estimate :func:`impact_analysis`
-(:mod:`casep.impact`, also ``EstimateResult.impact``); the checks :func:`check_flight` (before) and :func:`check_fit` (after an
+(:mod:`casep.impact`); the checks :func:`check_flight` (before) and :func:`check_fit` (after an
 estimate), whose warnings are :class:`CasepWarning` subclasses;
 the command line ``casep`` (:mod:`casep.cli`).
 """

@@ -189,7 +189,7 @@ def test_null_estimates_contribute_nothing(tmp_path):
     sim = simulate_flight("paper-pitch", seed=2, rate=5.0)
     res = casep.solve_ols(casep.Problem.from_flight(sim.flight, sim.model))
     assert (~res.identifiable).sum() == 12
-    a = res.impact(sim.flight)
+    a = impact_analysis(sim.flight, res)
     d = json.loads(json.dumps(a.to_json(), allow_nan=False))
     rows = {r["name"]: r for r in d["contributions"]}
     missing = [n for n, ok in zip(res.names, res.identifiable) if not ok]

@@ -436,17 +436,6 @@ class EstimateResult:
             std_kind=d.get("std_kind", "sampling"), extras=_extras_from_dict(d["method"], d.get("extras")),
         )
 
-    def impact(self, flight, model=None, trajectory=None, **options):
-        """The impact miss this estimate causes on `flight` (or on another `trajectory`).
-
-        Same as :func:`casep.impact.miss.impact_analysis` ``(flight, self, model, trajectory)``:
-        miss sensitivities, predicted miss with its covariance, contributions per coefficient and
-        per near-dependency group, nonlinear miss (``interfaces.md`` "Impact point").
-        """
-        from casep.impact.miss import impact_analysis
-
-        return impact_analysis(flight, self, model, trajectory, **options)
-
     def covariance_rows(self) -> list[list[float | None]] | None:
         """The n x n covariance in natural units, model order, as nested lists for JSON.
 

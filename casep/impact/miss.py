@@ -82,7 +82,7 @@ def read_trajectory(path: str | os.PathLike):
     none, and the impact analysis does not use them (dv is then stored as zeros and
     ``meta["dv"]`` says ``"absent"``).
     """
-    from casep.io.files import DV_COLUMNS, VTEL_COLUMNS, _force, _Table, read_flight
+    from casep.io.files import DV_COLUMNS, VTEL_COLUMNS, _force, _is_parquet, _Table, read_flight
     from casep.io.flight import FlightData
 
     tab = _Table(path)
@@ -93,7 +93,8 @@ def read_trajectory(path: str | os.PathLike):
     t = tab.time()
     f, force_from = _force(tab, t)
     return FlightData(t, f, np.zeros((t.size, 3)), source=tab.src, signals=tab.signals(),
-                      meta={"format": "csv", "force": force_from, "dv": "absent"})
+                      meta={"format": "parquet" if _is_parquet(tab.path) else "csv", "force": force_from,
+                            "dv": "absent"})
 
 
 # ----------------------------------------------------------------------------- S_P
