@@ -38,7 +38,8 @@ Main entry points
 :func:`load_model`, :func:`build_sv`, :func:`read_flight`, the estimators
 :func:`solve_ols`, :func:`solve_rls` (RLS/RELS), :func:`solve_ridge`, :func:`solve_bounded`,
 :func:`solve_pcr`, :func:`solve_map`, :func:`solve_gls` (all returning :class:`EstimateResult`),
-:func:`separate`; the checks :func:`check_flight` (before) and :func:`check_fit` (after an
+:func:`separate`; the impact miss of an estimate :func:`impact_analysis`
+(:mod:`casep.impact`); the checks :func:`check_flight` (before) and :func:`check_fit` (after an
 estimate), whose warnings are :class:`CasepWarning` subclasses;
 the command line ``casep`` (:mod:`casep.cli`).
 """
@@ -68,12 +69,13 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.workflows.flights": ("separate_flights", "diagnose_flights", "fuse"),
     "casep.model.sv": ("SVBuilder", "build_sv"),
     "casep.units": ("G0",),
+    "casep.impact.miss": ("ImpactAnalysis", "impact_analysis"),
     "casep.analysis.checks": ("check_fit", "check_flight"),
     "casep.exceptions": ("CasepWarning", "IllConditionedWarning", "NoiseFreeWarning", "OutlierWarning",
                          "PlausibilityWarning", "TimeOffsetWarning"),
 }
 __getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), (
-    "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units"))
+    "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units", "impact"))
 
 __all__ = [
     "__version__",
@@ -110,6 +112,8 @@ __all__ = [
     "diagnose_flights",
     "fuse",
     "prior_from_result",
+    "impact_analysis",
+    "ImpactAnalysis",
     "check_flight",
     "check_fit",
     "CasepWarning",

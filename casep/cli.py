@@ -286,6 +286,7 @@ def _parser() -> argparse.ArgumentParser:
     me.add_argument("--json", action="store_true", help="print the registry as JSON")
     m = sub.add_parser("models", help="list the available error models")
     m.add_argument("--verbose", "-v", action="store_true", help="list each model's coefficients")
+    _impact_parser(sub)
     return p
 
 
@@ -533,6 +534,57 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------- casep impact (issue 13)
+def _impact_parser(sub) -> None:
+    """`casep impact FLIGHT --result RESULT.json [--trajectory OTHER.csv] [--json OUT] [--figures DIR]`."""
+    im = sub.add_parser("impact", help="the impact miss that the estimated instrument errors cause, and its budget")
+    im.add_argument("flight", help="flight file the result was estimated on (t, f_*, r_*, v_*; last row = burnout)")
+    im.add_argument("--result", required=True, metavar="RESULT.json", help="result JSON of casep separate --json")
+    im.add_argument("--trajectory", metavar="OTHER", default=None,
+                    help="apply the result to another trajectory's S_V and burnout state (t, f_*, r_*, v_*)")
+    im.add_argument("--model", default=None, help="model name or .py file (default: the result's)")
+    im.add_argument("--per-flight", metavar="NAME=VALUE", action="append", default=None,
+                    help="value (natural units) of a per-flight coefficient a several-flight result does not "
+                         "hold (default 0); repeat for several")
+    im.add_argument("--top", type=_order, default=None, help="table: only the TOP largest contributions")
+    im.add_argument("--json", metavar="OUT", default=None, help="write the impact JSON here")
+    im.add_argument("--figures", metavar="DIR", default=None,
+                    help="write miss_budget.png and impact_ellipse.png into DIR (created)")
+
+
+def _cmd_impact(args: argparse.Namespace) -> int:
+    from casep.estimators.result import write_json_atomic
+    from casep.impact.miss import impact_analysis, read_trajectory
+    from casep.io._atomic import check_outputs
+    from casep.io.files import read_flight
+
+    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "result", "trajectory"),
+                  folders={"--figures": args.figures})
+    per_flight = {}
+    for item in args.per_flight or ():
+        name, eq, value = item.partition("=")
+        try:
+            per_flight[name.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"--per-flight {item}: give NAME=VALUE (natural units)") from None
+        if not eq or not math.isfinite(per_flight[name.strip()]):
+            raise ValueError(f"--per-flight {item}: give NAME=VALUE with a finite value (natural units)")
+    flight = read_flight(args.flight)
+    other = read_trajectory(args.trajectory) if args.trajectory else None
+    a = impact_analysis(flight, args.result, args.model, other, per_flight=per_flight or None)
+    if args.json:
+        write_json_atomic(a.to_json(), args.json)
+    print(a.table(top=args.top))
+    if args.figures:
+        from casep.reporting.plots import impact_figures
+
+        print(f"figures: {', '.join(str(f) for f in impact_figures(a, args.figures))}")
+    if args.json:
+        print(f"impact written to {args.json}")
+    return 0
+# ---------------------------------------------------------------- end casep impact
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from casep.workflows.demo import _summary_lines, run_demo
 
@@ -701,7 +753,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     commands = {"separate": _cmd_separate, "diagnose": _cmd_diagnose, "simulate": _cmd_simulate,
                 "montecarlo": _cmd_montecarlo, "demo": _cmd_demo, "models": _cmd_models, "methods": _cmd_methods,
-                "fuse": _cmd_fuse}
+                "fuse": _cmd_fuse, "impact": _cmd_impact}
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", CasepWarning)

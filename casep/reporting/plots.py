@@ -13,7 +13,8 @@ from casep.analysis.diagnostics import GROUP_INDEX, Diagnostics
 from casep.estimators.result import AXES, EstimateResult
 
 __all__ = ["plot_singular_values", "plot_variance_decomposition", "plot_residuals", "plot_estimates",
-           "plot_history", "separate_figures", "estimate_scales", "plot_flights_crlb"]
+           "plot_history", "separate_figures", "estimate_scales", "plot_flights_crlb", "plot_miss_budget",
+           "plot_impact_ellipse", "impact_figures"]
 
 
 def _pyplot():
@@ -250,3 +251,82 @@ def separate_figures(result: EstimateResult, out: str | os.PathLike, t: np.ndarr
     if result.history is not None and result.history_std is not None:
         files.append(plot_history(result, out / "history.png", t))
     return files
+
+
+# ----------------------------------------------------------------------------- impact (issue 13)
+def plot_miss_budget(analysis, path: str | os.PathLike, top: int = 15) -> Path:
+    """Miss budget: contribution of each coefficient to the downrange and crossrange miss (bars, m).
+
+    The `top` largest coefficients (by |downrange| + |crossrange|), each with the 1-sigma error bar
+    ``|G_j| std_j`` of its own estimate, then one bar per near-dependency group, then the total
+    (linear prediction) with the std from ``G Cov G^T``. Contributions of strongly correlated
+    coefficients cancel: the groups and the total are the numbers to read.
+    """
+    plt = _pyplot()
+    a = analysis
+    c = np.nan_to_num(a.contributions, nan=0.0)
+    order = np.argsort(-np.abs(c).sum(axis=0), kind="stable")[:top]
+    sd = None
+    if a.coefficient_std is not None:  # 1 sigma of each contribution alone: |G_j| std_j (0 without estimate)
+        sd = np.abs(a.sensitivity) * np.nan_to_num(a.coefficient_std, nan=0.0)
+    labels = [a.names[j] for j in order] + [f"group {k + 1}" for k in range(len(a.groups))] + ["total (linear)"]
+    fig, axes = plt.subplots(1, 2, figsize=(11, max(4.0, 0.32 * len(labels) + 1.5)), sharey=True)
+    y = np.arange(len(labels))[::-1]
+    for i, (ax, what) in enumerate(zip(axes, ("downrange", "crossrange"))):
+        vals = np.concatenate([c[i, order], [g.contribution[i] for g in a.groups], [a.miss[i]]])
+        err = None
+        if sd is not None:
+            gsd = [np.nan if g.std is None else g.std[i] for g in a.groups]
+            err = np.concatenate([sd[i, order], gsd, [a.std[i]]])
+        colors = ["tab:blue"] * len(order) + ["tab:orange"] * len(a.groups) + ["tab:red"]
+        ax.barh(y, vals, xerr=err, color=colors, ecolor="0.3", capsize=2)
+        ax.axvline(0.0, color="0.3", lw=0.8)
+        ax.set_xscale("symlog", linthresh=max(1.0, float(np.nanmax(np.abs(vals))) * 1e-3))
+        ax.set_xlabel(f"{what} miss, m")
+        tot = f"{a.miss[i]:.4g}" + (f" +- {a.std[i]:.3g}" if a.std is not None else "")
+        ax.set_title(f"{what}: total {tot} m (nonlinear {a.nonlinear[i]:.4g} m)", fontsize=9)
+        ax.grid(True, axis="x", alpha=0.3)
+    axes[0].set_yticks(y, labels, fontsize=8)
+    fig.suptitle(f"Miss budget, {a.model} ({a.method}): blue coefficients, orange near-dependency groups, "
+                 "red total; bars 1 sigma", fontsize=9)
+    return _save(fig, path)
+
+
+def plot_impact_ellipse(analysis, path: str | os.PathLike) -> Path:
+    """Impact-point error: predicted miss (linear and nonlinear) with its 1-sigma and 95 % ellipses.
+
+    Axes are the miss in downrange and crossrange (m) from the nominal impact point (the origin).
+    Left: the miss against the nominal impact; right: zoomed on the prediction, where the ellipses
+    are visible. The 95 % ellipse is ``sqrt(5.991)`` sigma (chi-square, 2 degrees of freedom).
+    """
+    plt = _pyplot()
+    a = analysis
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.5))
+    for k_ax, ax in enumerate(axes):
+        if a.cov is not None:
+            w, V = np.linalg.eigh(a.cov)
+            th = np.linspace(0.0, 2 * np.pi, 241)
+            circle = np.vstack([np.cos(th), np.sin(th)])
+            for k, label, ls in ((1.0, "1 sigma", "-"), (np.sqrt(5.991), "95 %", "--")):
+                e = V @ (np.sqrt(np.clip(w, 0.0, None))[:, None] * circle) * k  # V sqrt(L) unit circle
+                ax.plot(a.miss[0] + e[0], a.miss[1] + e[1], ls, color="tab:blue", lw=1.2, label=label)
+        ax.plot(*a.miss, "o", color="tab:blue", label="predicted (linear)")
+        ax.plot(*a.nonlinear, "x", color="tab:red", ms=9, label="nonlinear (perturbed state flown)")
+        if k_ax == 0:
+            ax.plot(0.0, 0.0, "+", color="k", ms=12, label="nominal impact")
+            ax.set_title(f"Impact point error, {a.model} ({a.method})", fontsize=10)
+        else:
+            ax.set_title("zoom on the prediction", fontsize=10)
+        ax.set_xlabel("downrange miss, m")
+        ax.set_ylabel("crossrange miss, m")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, loc="best")
+    return _save(fig, path)
+
+
+def impact_figures(analysis, out: str | os.PathLike) -> list[Path]:
+    """`casep impact --figures DIR`: miss_budget.png and impact_ellipse.png in `out` (created)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    return [plot_miss_budget(analysis, out / "miss_budget.png"), plot_impact_ellipse(analysis, out / "impact_ellipse.png")]

@@ -1,0 +1,19 @@
+"""The miss that the instrument errors cause: impact point of the burnout state by vacuum
+ballistic flight and the miss budget of an estimate (issue 13, ``interfaces.md`` "Impact point").
+
+- :mod:`casep.impact.ballistic`: closed-form Kepler impact point and its exact Jacobian
+- :mod:`casep.impact.miss`: S_P, miss sensitivities, predicted miss with covariance,
+  contributions per coefficient and per near-dependency group, nonlinear miss
+"""
+
+from casep._lazy import attach
+
+# Imported on first use (PEP 562), see casep._lazy.
+__getattr__, __dir__ = attach(__name__, {
+    "casep.impact.ballistic": ("BallisticError", "impact", "impact_point", "impact_jacobian", "impact_point_ode"),
+    "casep.impact.miss": ("ImpactAnalysis", "impact_analysis", "burnout_state", "position_sensitivity", "cumulative_sp",
+                           "read_trajectory")},
+    globals())
+
+__all__ = ["BallisticError", "impact", "impact_point", "impact_jacobian", "impact_point_ode", "ImpactAnalysis",
+           "impact_analysis", "burnout_state", "position_sensitivity", "cumulative_sp", "read_trajectory"]
