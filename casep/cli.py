@@ -185,7 +185,7 @@ def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | No
         if res.model and model and Path(str(model)).stem != res.model:
             raise ValueError(f"--prior {path}: a result of model `{res.model}`, but the model here is "
                              f"`{Path(str(model)).stem}`; use a result of the same model")
-        data = prior_from_result(res)
+        data = prior_from_result(res, model=model)  # per-flight coefficients (dt_trk) left flat
     {"bounds": parse_bounds, "prior": parse_prior}[option](data, names, source=f"--{option} {path}")
     return data
 
@@ -369,8 +369,11 @@ def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior
     for f in summary["flights"]:
         print(f"{f['file']}: {f['n_samples']} samples, sigma {f['sigma']:.4g} m/s")
     if ov:
-        print(f"consistency of the flights (Chow test): chi2 {ov['chi2']:.4g}, {ov['dof']} dof, p {ov['p_value']:.3g}"
+        print(f"consistency of the flights (Chow test, F form): chi2 {ov['chi2']:.4g}, {ov['dof']} dof, "
+              f"p {ov['p_value']:.3g}"
               + ("  <- the flights disagree: an unmodelled error in one of them?" if ov["p_value"] < 1e-3 else ""))
+    if summary["consistency"].get("note"):
+        print("note: " + summary["consistency"]["note"])
     if args.json:
         write_json_atomic(_joint_json(res, jp, summary), args.json)
         print(f"result written to {args.json}")
@@ -405,7 +408,7 @@ def _cmd_fuse(args: argparse.Namespace) -> int:
         if "coefficients" not in data or "covariance" not in data:
             raise ValueError(f"{path}: not a casep result JSON with a covariance (casep separate --json)")
         results.append(EstimateResult.from_json(data))
-    res = fuse(results)
+    res = fuse(results, labels=list(args.results))
     print(res.table())
     if args.json:
         write_json_atomic(res.to_dict(), args.json)
@@ -586,7 +589,7 @@ def _cmd_impact(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from casep.workflows.demo import _summary_lines, run_demo
+    from casep.workflows.demo import _summary_lines, impact_lines, run_demo
 
     res = run_demo(args.out, seed=args.seed, rate=args.rate)
     sim = res.sim
@@ -599,6 +602,9 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     print(f"equilibrated condition number {d.condition_number_equilibrated:.3g}; "
           f"identifiable alone: {', '.join(n for n, v in d.identifiability.items() if v == 'identifiable')}")
     for line in _summary_lines(sim, res.results, d.crlb_std):
+        print(line)
+    print()
+    for line in impact_lines(res.impact, res.true_miss):
         print(line)
     print()
     print(f"report and figures in {args.out}/ (report.md)")

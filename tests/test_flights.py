@@ -335,6 +335,8 @@ def test_huber_jointly_flags_an_outlier_in_one_flight_and_resists_it(two):
     rows = hub.diagnostics["outliers"]["largest"]
     assert hub.diagnostics["outliers"]["count"] >= 20
     assert {(r["sample"], r["axis"]) for r in rows[:20]} == {(a.flight.n_observed + i, "y") for i in range(200, 220)}
+    label = hub.names[-1].split("[")[1].rstrip("]")  # flight 2's label, as in its dt_trk[...]
+    assert {(r["flight"], r["flight_sample"]) for r in rows[:20]} == {(label, i) for i in range(200, 220)}
     assert 5 * np.max(np.abs(hub.estimate - ols.estimate) / ols.std) < np.max(np.abs(spoilt.estimate - ols.estimate) / ols.std)
 
 
@@ -420,3 +422,61 @@ def test_cli_prior_from_a_result_json_continues_the_estimate(two, tmp_path):
         assert main(["separate", str(tmp_path / "t.csv"), "--model", "platform36_timeoffset",
                      "--json", str(tmp_path / "rt.json")]) == 0
     assert main(["separate", paths[1], "--method", "map", "--prior", str(tmp_path / "rt.json")]) == 2
+
+
+def test_per_flight_coefficients_are_not_fused_or_carried_as_a_prior(two):
+    """A single-flight result of platform36_timeoffset holds its own dt_trk: fusing two such results,
+    or using one as the prior of the next flight, must leave dt_trk out (each flight has its own),
+    and then equals the joint estimate of the shared coefficients."""
+    from casep.analysis.problem import Problem
+    from casep.estimators.map import prior_from_result, solve_map
+    from casep.estimators.ols import solve_ols
+    from casep.workflows.flights import fuse
+
+    a, b = two
+    m = a.model
+    pa, pb = Problem.from_flight(a.flight, m), Problem.from_flight(b.flight, m)
+    ra, rb = _quiet(solve_ols, pa, sigma=0.05), _quiet(solve_ols, pb, sigma=0.2)
+    joint, _ = _quiet(separate_flights, [pa, pb], m, "ols", sigma=[0.05, 0.2])
+    fused = fuse([ra, rb], labels=["A", "B"])
+    assert "dt_trk" not in fused.names and [f["file"] for f in fused.settings["fused"]] == ["A", "B"]
+    idx = [list(joint.names).index(n) for n in fused.names]
+    # 1e-4 std: inverting the marginal covariances (correlations up to 1 - 1e-10) costs digits
+    assert np.max(np.abs(fused.estimate - joint.estimate[idx]) / joint.std[idx]) < 1e-4
+    prior = prior_from_result(ra)
+    assert "dt_trk" not in prior and "dt_trk" not in prior["correlation"]["names"]
+    chained = _quiet(solve_map, pb, prior=prior, sigma=0.2)
+    own = [list(chained.names).index(n) for n in fused.names]
+    assert np.max(np.abs(chained.estimate[own] - joint.estimate[idx]) / joint.std[idx]) < 1e-4
+    assert "Gaussian prior on 36 of 37 coefficients" in chained.table()
+    with pytest.raises(ValueError, match="count twice"):
+        fuse([ra, ra], labels=["A", "A again"])
+
+
+def test_the_same_flight_twice_is_refused(two, tmp_path):
+    from casep.cli import main
+    from casep.io.files import write_flight
+
+    a, _ = two
+    with pytest.raises(ValueError, match="count twice"):
+        separate_flights([a.flight, a.flight], a.model)
+    write_flight(a.flight, tmp_path / "a.csv")
+    assert main(["separate", str(tmp_path / "a.csv"), str(tmp_path / "a.csv"), "--model", "platform36_timeoffset"]) == 2
+
+
+def test_chow_test_does_not_depend_on_the_method_or_a_common_sigma_error(two):
+    """The overall test compares least-squares fits (not the chosen method's) in its F form, so PCR,
+    MAP and OLS report the same statistic, and sigmas given twice too large leave it unchanged."""
+    from casep.workflows.flights import flights_summary
+
+    a, b = two
+    prior = {"Kg0x": {"mean": 0.0, "std": 1.0}}
+    stats = []
+    for method, opts, sigma in (("ols", {}, None), ("pcr", {}, None), ("map", {"prior": prior}, None),
+                                ("ols", {}, [0.05, 0.2]), ("ols", {}, [0.1, 0.4])):
+        res, jp = _quiet(separate_flights, [a.flight, b.flight], a.model, method, sigma=sigma, options=opts)
+        stats.append(flights_summary(res, jp)["consistency"]["overall"])
+        assert res.sigma_source == "whitened"
+    for s in stats[1:3]:
+        assert s["chi2"] == pytest.approx(stats[0]["chi2"], rel=1e-9) and s["p_value"] == pytest.approx(stats[0]["p_value"])
+    assert stats[4]["chi2"] == pytest.approx(stats[3]["chi2"], rel=1e-9)  # both sigmas x 2: F unchanged

@@ -202,14 +202,26 @@ def coefficient_consistency(estimates: np.ndarray, variances: np.ndarray) -> Con
 
 
 def overall_consistency(rss_joint: Sequence[float], rss_own: Sequence[float], sigmas: Sequence[float],
-                        ranks_own: Sequence[int], rank_joint: int) -> Consistency | None:
-    """Chow test of all shared coefficients at once (module notes); None when it has no degree of freedom."""
+                        ranks_own: Sequence[int], rank_joint: int, resid_dof: int | None = None) -> Consistency | None:
+    """Chow test of all shared coefficients at once (module notes); None when it has no degree of freedom.
+
+    With `resid_dof` (``sum_k (m_k - r_k)``), the F form: the statistic is divided by the separate
+    fits' whitened residual variance ``s^2 = sum_k RSS_k / sigma_k^2 / resid_dof`` and referred to
+    ``F(q, resid_dof)`` (reported as ``chi2 = q F``), so a common error in the sigmas does not
+    change it; with each sigma_k estimated from flight k's own residuals ``s^2 = 1`` and it is the
+    chi-square form.
+    """
     s2 = np.asarray(sigmas, dtype=float) ** 2
     chi2 = float(np.sum((np.asarray(rss_joint) - np.asarray(rss_own)) / s2))
     dof = int(np.sum(ranks_own)) - int(rank_joint)
     if dof < 1:
         return None
-    return Consistency(max(chi2, 0.0), dof, float(stats.chi2.sf(max(chi2, 0.0), dof)))
+    chi2 = max(chi2, 0.0)
+    if resid_dof is None:
+        return Consistency(chi2, dof, float(stats.chi2.sf(chi2, dof)))
+    scale = float(np.sum(np.asarray(rss_own) / s2)) / resid_dof  # s^2 of the separate fits
+    F = chi2 / dof / scale  # ((RSS_joint - RSS_own) / q) / s^2
+    return Consistency(F * dof, dof, float(stats.f.sf(F, dof, resid_dof)))
 
 
 def stack_sqrt_information(factors: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:

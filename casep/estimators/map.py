@@ -43,7 +43,7 @@ from casep.estimators._base import finish, prepare
 from casep.model._model import unknown_coefficient_message
 from casep.estimators.result import EstimateResult, MAPExtras
 
-__all__ = ["solve_map", "parse_prior", "prior_information", "prior_from_result"]
+__all__ = ["solve_map", "parse_prior", "prior_information", "prior_from_result", "per_flight_names"]
 
 #: The key of a prior mapping that holds a correlation block (not a coefficient name).
 CORRELATION = "correlation"
@@ -143,16 +143,44 @@ def prior_information(prior: Mapping, names: Sequence[str], source: str = "`prio
     return W, W @ mu, mu, tau
 
 
-def prior_from_result(result, names: Sequence[str] | None = None) -> dict:
+def per_flight_names(result, model=None) -> set[str]:
+    """The coefficients of a result that belong to one flight (the model's ``per_flight=True`` ones,
+    and a several-flights result's ``name[file]``): they are not shared with another flight.
+
+    `model` (ErrorModel or name) defaults to the result's own; a result whose model cannot be found
+    is an error (guessing would silently treat a flight's own time offset as shared).
+    """
+    from casep.model.loader import load_model
+
+    if model is None:
+        if not result.model:
+            raise ValueError("the result names no model: give `model` to tell its per-flight coefficients")
+        try:
+            model = load_model(result.model)
+        except (ValueError, OSError) as exc:
+            raise ValueError(f"the result's model `{result.model}` cannot be loaded ({exc}); give `model` "
+                             "(--model) to tell its per-flight coefficients") from None
+    else:
+        model = load_model(model)
+    own = {n for n, pf in zip(model.names, model.per_flight) if pf}
+    return own | {n for n in result.names if "[" in n}
+
+
+def prior_from_result(result, names: Sequence[str] | None = None, model=None) -> dict:
     """The Gaussian posterior of a result (estimate and covariance) as a prior mapping.
 
     Parameters
     ----------
     result : EstimateResult
-        With a covariance (e.g. OLS or MAP); coefficients without an estimate are left flat, as are
-        a several-flights result's per-flight coefficients (``name[file]``).
+        With a covariance (e.g. OLS or MAP); coefficients without an estimate are left flat, and so
+        are per-flight coefficients (the model's ``per_flight=True`` ones, e.g. ``dt_trk``, and a
+        several-flights result's ``name[file]``: another flight does not share them; marginalising
+        them is taking the covariance block of the others).
     names : sequence of str, optional
         Keep only these coefficients (marginalising: the covariance block).
+    model : ErrorModel or str, optional
+        The result's model, to tell its per-flight coefficients (default: loaded by the result's
+        model name).
 
     Returns
     -------
@@ -162,7 +190,8 @@ def prior_from_result(result, names: Sequence[str] | None = None) -> dict:
     """
     if result.covariance is None:
         raise ValueError(f"the {result.method} result has no covariance: it cannot be used as a prior")
-    keep = [j for j, n in enumerate(result.names) if "[" not in n and (names is None or n in names)
+    own = per_flight_names(result, model)
+    keep = [j for j, n in enumerate(result.names) if n not in own and (names is None or n in names)
             and np.isfinite(result.estimate[j]) and np.isfinite(result.covariance[j, j]) and result.covariance[j, j] > 0]
     C = result.covariance[np.ix_(keep, keep)]
     sd = np.sqrt(np.diag(C))

@@ -40,6 +40,8 @@ SIGMA_SOURCE_MEANINGS = {
     "given": "given by the caller",
     "wavelet": "wavelet estimate from the raw finest details (dv de-noised, no sigma given)",
     "robust": "Huber's MAD scale of the residuals",
+    "whitened": "several flights: each flight's rows divided by its own sigma (flights[].sigma), so 1 here",
+    "fused": "fused results: each input's own sigma (settings.fused)",
 }
 SIGMA_SOURCES = tuple(SIGMA_SOURCE_MEANINGS)
 
@@ -216,8 +218,10 @@ def _pcr_settings(s: dict, d: dict, n: int) -> list[str]:
 
 
 def _map_settings(s: dict, d: dict, n: int) -> list[str]:
-    prior = s.get("prior", {})
-    out = [f"Gaussian prior on {len(prior)} of {n} coefficients (others flat)"]
+    prior = {k: v for k, v in s.get("prior", {}).items() if k != "correlation"}
+    corr = s.get("prior", {}).get("correlation")
+    out = [f"Gaussian prior on {len(prior)} of {n} coefficients (others flat)"
+           + (f", correlated over {len(corr['names'])}" if corr else "")]
     if 0 < len(prior) <= 4:
         out.append(", ".join(f"{k} {v['mean']:.4g} +- {v['std']:.4g}" for k, v in prior.items()))
     return out

@@ -431,7 +431,8 @@ class ImpactAnalysis:
 
 
 def impact_analysis(flight, result, model=None, trajectory=None, *,
-                    per_flight: Mapping[str, float] | None = None) -> ImpactAnalysis:
+                    per_flight: Mapping[str, float] | None = None,
+                    burnout_sensitivity: tuple[np.ndarray, np.ndarray] | None = None) -> ImpactAnalysis:
     """Miss sensitivities, predicted miss with covariance, contributions and nonlinear miss.
 
     Parameters
@@ -449,6 +450,10 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
     per_flight : mapping, optional
         Values (natural units) of per-flight coefficients that the result does not hold
         (several-flight results); default 0.
+    burnout_sensitivity : (S_P(t_b), S_V(t_b)), optional
+        The target's ``(3, n)`` burnout sensitivities when already at hand (e.g. from a Problem
+        that keeps S_V: ``np.trapezoid(S, t, axis=0)``, ``S[-1]``); default: integrated here by
+        :func:`position_sensitivity`.
 
     Returns
     -------
@@ -484,7 +489,12 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
     t_b, r_b, v_b = burnout_state(target)
     nominal = np.array(impact(r_b, v_b))  # impact(x_b)
     J = impact_jacobian(r_b, v_b)  # d impact / d x_b, 2 x 6
-    sp, sv = position_sensitivity(model, target)  # S_P(t_b), S_V(t_b): 3 x n
+    if burnout_sensitivity is None:
+        sp, sv = position_sensitivity(model, target)  # S_P(t_b), S_V(t_b): 3 x n
+    else:
+        sp, sv = (np.asarray(a, dtype=float) for a in burnout_sensitivity)
+        if sp.shape != (3, model.n_coefficients) or sv.shape != (3, model.n_coefficients):
+            raise ValueError(f"`burnout_sensitivity` must be two (3, {model.n_coefficients}) arrays")
     B = np.vstack([sp, sv])  # dx_b = B D
     G = -J @ B  # miss per natural unit: miss ~ -J dx_b
     have = np.isfinite(coef.estimate)  # estimated, or per-flight value

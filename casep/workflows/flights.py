@@ -15,6 +15,7 @@ Residuals are each flight's own, divided by its sigma (the whitened system the j
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -132,12 +133,16 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     if len(flights) < 2:
         raise ValueError(f"`flights` must hold two or more flights, got {len(flights)}")
     model = load_model(model)
-    problems = []
+    problems, paired = [], []
     for fl in flights:
         if isinstance(fl, Problem):
             problems.append(fl)
+            paired.append(False)
             continue
-        problems.append(Problem.from_flight(fl if isinstance(fl, FlightData) else read_flight(fl), model))
+        fl = fl if isinstance(fl, FlightData) else read_flight(fl)
+        paired.append(fl.meta.get("format") == "pair")  # tracking interpolated onto telemetry times
+        problems.append(Problem.from_flight(fl, model))
+    _refuse_repeats(problems)
     opts = dict(options or {})
     check_method_options(method, {k: v for k, v in opts.items() if v is not None})
     for key in ("prior", "bounds"):  # on shared coefficients only (a per-flight one is refused, not dropped)
@@ -152,20 +157,46 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     sig = _sigmas(problems, sigma)
     layout = JointLayout(model.names, model.per_flight, _labels(raw))
     jp = JointProblem(problems, sig, layout, raw=raw)
+    jp.paired = tuple(paired)
     solver = "ols" if method == "gls" else method
     res = run_method(solver, jp, None, None, {k: v for k, v in opts.items() if k in METHODS[solver].options},
                      sigma=None if method == "huber" else 1.0)  # whitened: sigma 1 (Huber: its scale, about 1)
-    if taus is not None:
-        import dataclasses
+    import dataclasses
 
+    res = dataclasses.replace(res, sigma_source="whitened",
+                              settings={**res.settings, "sigma": "per flight" if sigma is None else "given per flight"})
+    if method == "huber" and res.diagnostics.get("outliers"):
+        starts = np.asarray(jp.segment_starts)
+        rows = []
+        for r in res.diagnostics["outliers"]["largest"]:
+            k = int(np.searchsorted(starts, r["sample"], side="right") - 1)  # the flight of the stacked sample
+            rows.append({**r, "flight": layout.labels[k], "flight_sample": int(r["sample"] - starts[k])})
+        res = dataclasses.replace(res, diagnostics={**res.diagnostics,
+                                                    "outliers": {**res.diagnostics["outliers"], "largest": rows}})
+    if taus is not None:
         from casep.estimators.result import GLSExtras
 
         rule = "given" if not isinstance(opts.get("tau", "auto"), str) else "reml"
         res = dataclasses.replace(
             res, method="gls", extras=GLSExtras(float(np.mean(taus)), rule),
-            settings={"tau": dict(zip(layout.labels, taus)), "tau_rule": rule, "sigma": "per flight"},
+            settings={"tau": dict(zip(layout.labels, taus)), "tau_rule": rule, "sigma": res.settings["sigma"]},
             message=res.message + f"; GLS: each flight whitened by its own tau ({rule})")
     return res, jp
+
+
+def _refuse_repeats(problems: Sequence[Problem]) -> None:
+    """The same flight twice would count its information twice (std too small by sqrt 2)."""
+    seen: dict[str, int] = {}
+    for k, p in enumerate(problems):
+        key = " + ".join(os.path.realpath(part) if os.path.exists(part) else part for part in p.source.split(" + "))
+        if key in seen and key != "<memory>":
+            raise ValueError(f"flight {k + 1} ({p.source}) is flight {seen[key] + 1} again: its information would "
+                             "count twice; give each flight once")
+        seen[key] = k
+        for j, q in enumerate(problems[:k]):
+            if q.y is not None and p.y is not None and q.y.shape == p.y.shape and np.array_equal(q.y, p.y):
+                raise ValueError(f"flights {j + 1} ({q.source}) and {k + 1} ({p.source}) hold the same data: its "
+                                 "information would count twice; give each flight once")
 
 
 def _gls_whitened(problems: Sequence[Problem], tau) -> tuple[list[Problem], list[float]]:
@@ -211,13 +242,19 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
     from casep.estimators.joint import coefficient_consistency, flight_rss, overall_consistency
     from casep.estimators.ols import solve_ols
 
+    import warnings
+
     lay = jp.layout
     x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # conditioning: said by the result
+        x_ls = solve_ols(jp, sigma=1.0).estimate  # the Chow test compares least-squares fits, whatever the method
+    x_ls = np.where(np.isfinite(x_ls), x_ls, 0.0)
     pf = np.flatnonzero(lay.per_flight)
     flights, own, rss_joint = [], [], []
     for k, (p, w, s) in enumerate(zip(jp.raw, jp.problems, jp.sigmas)):
         r = p.residuals(x[lay.columns(k)]).reshape(-1, 3)  # dv - S_V D: the flight's own residuals, m/s
-        rw = w.residuals(x[lay.columns(k)]).reshape(-1, 3)  # what the fit weighs (GLS: AR(1)-whitened)
+        rw = w.residuals(x_ls[lay.columns(k)]).reshape(-1, 3)  # joint LS fit as weighed (GLS: AR(1)-whitened)
         rss_joint.append(float(np.sum(rw**2)))
         cols = lay.columns(k)[pf]
         flights.append({
@@ -227,8 +264,6 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
                               "std": _num(res.std[c]) if res.std is not None else None}
                              for j, c in zip(pf, cols)],
         })
-        import warnings
-
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # each flight alone: ill-conditioned, said by the joint result
             own.append(solve_ols(w, sigma=s))
@@ -238,9 +273,17 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
         if test is not None:
             per[lay.names[j]] = test.to_dict()
     own_rss = [flight_rss(p.red) for p in jp.problems]
-    overall = overall_consistency(rss_joint, [o[0] for o in own_rss], jp.sigmas, [o[1] for o in own_rss], res.rank)
-    return {"flights": flights,
-            "consistency": {"overall": overall.to_dict() if overall else None, "per_coefficient": per}}
+    rank_ls = jp.rank().rank
+    resid_dof = int(sum(p.m - o[1] for p, o in zip(jp.problems, own_rss)))
+    overall = overall_consistency(rss_joint, [o[0] for o in own_rss], jp.sigmas, [o[1] for o in own_rss], rank_ls,
+                                  resid_dof=resid_dof)  # F form: a common error in the sigmas cancels
+    cons: dict[str, Any] = {"overall": overall.to_dict() if overall else None, "per_coefficient": per}
+    paired = [lab for lab, pr in zip(lay.labels, getattr(jp, "paired", ())) if pr]
+    if paired and res.method != "gls":
+        cons["note"] = (f"tracking interpolated onto telemetry times in {', '.join(paired)}: its noise is correlated, "
+                        "so white-noise std and these tests are optimistic (false alarms); use --method gls, or "
+                        "equal rates")
+    return {"flights": flights, "consistency": cons}
 
 
 def _verdict(diag, name: str, scales: Mapping, with_prior: bool) -> str:
@@ -258,43 +301,68 @@ def _num(v: float) -> float | None:
     return float(v) if np.isfinite(v) else None
 
 
-def fuse(results: Sequence[EstimateResult]) -> EstimateResult:
+def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None, model=None) -> EstimateResult:
     """Combine results saved earlier (Gaussian, with covariance) into one estimate of their shared
     coefficients: ``Lambda = sum_k C_k^-1``, ``D = Lambda^-1 sum_k C_k^-1 D_k``.
 
-    Each result's coefficients of its model are used with their marginal covariance (a per-flight
-    coefficient ``name[file]`` of a several-flights result is left out: marginalising a Gaussian
-    is taking its block). For independent flights this is the joint estimate exactly (the
-    marginal likelihood of the shared coefficients factorises), so fusing two OLS results equals
-    estimating both flights at once with the same sigmas. Computed in coordinates scaled by each
-    coefficient's fused std (no squared condition number of natural units).
+    Each result's shared coefficients are used with their marginal covariance: per-flight
+    coefficients (the model's ``per_flight=True`` ones such as ``dt_trk``, and a several-flights
+    result's ``name[file]``) are left out, as each flight has its own (marginalising a Gaussian is
+    taking its block). For independent flights this is the joint estimate exactly (the marginal
+    likelihood of the shared coefficients factorises), so fusing two OLS results equals estimating
+    both flights at once with the same sigmas. Computed in coordinates scaled by each
+    coefficient's fused std (no squared condition number of natural units). The inputs must be of
+    different flights: the same result twice is refused (its information would count twice); a
+    flight inside two results (a joint result and one of its flights) cannot be told from the
+    numbers, so the inputs are recorded in ``settings["fused"]``.
+
+    Parameters
+    ----------
+    results : sequence of EstimateResult
+    labels : sequence of str, optional
+        Names of the results (their files) for messages and ``settings``.
+    model : ErrorModel or str, optional
+        The results' model (default: loaded by name), to tell the per-flight coefficients.
 
     Raises
     ------
     ValueError
-        Results of different models (naming both), a result without covariance, or a coefficient
-        without an estimate (its information is not in the covariance).
+        Results of different models (naming both), a result without covariance, a coefficient
+        without an estimate (its information is not in the covariance), the same result twice.
     """
     import dataclasses
 
+    from casep.estimators.map import per_flight_names
+
     if len(results) < 2:
         raise ValueError(f"fuse needs two or more results, got {len(results)}")
+    labels = [f"result {k + 1}" for k in range(len(results))] if labels is None else [str(v) for v in labels]
     first = results[0]
-    for r in results[1:]:
+    for r, lab in zip(results[1:], labels[1:]):
         if r.model != first.model:
-            raise ValueError(f"results of different models: `{first.model}` and `{r.model}`; fuse only results "
-                             "of one model")
-    names = [n for n in first.names if "[" not in n]
+            raise ValueError(f"results of different models: `{first.model}` ({labels[0]}) and `{r.model}` ({lab}); "
+                             "fuse only results of one model")
+    own = per_flight_names(first, model)
+    names = [n for n in first.names if n not in own]
     infos, etas = [], []
-    for k, r in enumerate(results):
+    seen: list[tuple[np.ndarray, np.ndarray]] = []
+    for r, lab in zip(results, labels):
         if r.covariance is None:
-            raise ValueError(f"result {k + 1} ({r.method}) has no covariance: it cannot be fused")
+            raise ValueError(f"{lab} ({r.method}) has no covariance: it cannot be fused")
+        missing = [n for n in names if n not in r.names]
+        if missing:
+            raise ValueError(f"{lab} lacks coefficient(s) {', '.join(missing)} of {labels[0]}")
         idx = [list(r.names).index(n) for n in names]
         x, C = r.estimate[idx], r.covariance[np.ix_(idx, idx)]
         if not np.all(np.isfinite(x)) or not np.all(np.isfinite(C)):
             bad = [n for n, v in zip(names, x) if not np.isfinite(v)]
-            raise ValueError(f"result {k + 1} has coefficients without an estimate ({', '.join(bad) or 'covariance'}): "
-                             "their information is not in the result; estimate the flights together instead")
+            raise ValueError(f"{lab} has coefficients without an estimate ({', '.join(bad) or 'covariance'}): "
+                             "their information is not in the result; estimate the flights together, or chain them "
+                             "with --prior RESULT.json")
+        for k, (xs, Cs) in enumerate(seen):
+            if np.array_equal(xs, x) and np.array_equal(Cs, C):
+                raise ValueError(f"{lab} is the same estimate as {labels[k]}: its information would count twice")
+        seen.append((x, C))
         d = np.sqrt(np.diag(C))
         Ci = np.linalg.inv(C / np.outer(d, d)) / np.outer(d, d)  # C^-1 via the correlation matrix
         infos.append(Ci)
@@ -308,9 +376,11 @@ def fuse(results: Sequence[EstimateResult]) -> EstimateResult:
         first, method="fused", names=tuple(names), units=tuple(first.units[i] for i in idx0),
         estimate=est, std=np.sqrt(np.diag(cov)), covariance=cov, reasons={}, residuals=np.zeros((0, 3)),
         si_factors=np.asarray(first.si_factors)[idx0], history=None, history_std=None, status=1,
-        message=f"{len(results)} results fused", success=True, sigma_source="given", extras=None,
-        settings={"fused": [{"method": r.method, "n_samples": int(r.n_samples),
-                             "sigma": float(r.sigma) if np.isfinite(r.sigma) else None} for r in results]},
+        message=f"{len(results)} results fused ({', '.join(labels)})", success=True, sigma=math.nan,
+        sigma_source="fused", extras=None, diagnostics={}, rank=len(names),
+        settings={"fused": [{"file": lab, "method": r.method, "n_samples": int(r.n_samples),
+                             "sigma": float(r.sigma) if np.isfinite(r.sigma) else None}
+                            for r, lab in zip(results, labels)], "sigma": "each input's own"},
         n_samples=int(sum(r.n_samples for r in results)), stored_residual_rms={a: None for a in "xyz"})
 
 
