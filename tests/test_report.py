@@ -84,3 +84,18 @@ def test_cli_wound_up_rls_exit_1_json_says_failed(paper_csv, tmp_path, capsys):
     assert cap.err.startswith("casep: result not successful: failed: rls residual RMS")
     assert main(["separate", str(paper_csv), "--method", "rls", "--json", str(out)]) == 0  # lambda = 1 unchanged
     assert json.loads(out.read_text())["success"] is True
+
+
+def test_report_has_the_impact_miss_when_the_flight_has_its_state(paper_csv, tmp_path):
+    """A simulated flight (r_*, v_* columns): the report shows the predicted miss and its std as
+    casep.impact_analysis computes them, and the two impact figures; a flight without them says why."""
+    flight = casep.read_flight(paper_csv)
+    res = casep.separate(flight, "platform36", "ols")
+    text = write_report(res, tmp_path / "r.html", flight=flight).read_text(encoding="utf-8")
+    ia = casep.impact_analysis(flight, res)
+    assert "<h2>Impact miss</h2>" in text
+    assert f"<td>predicted (linear)</td><td>{ia.miss[0]:.1f}</td><td>{ia.std[0]:.1f}</td>" in text
+    assert text.count("data:image/png;base64,") == 4  # residuals, estimates, miss budget, ellipse
+    bare = casep.read_flight(EXAMPLE)
+    text = write_report(casep.separate(bare, "platform36", "ols"), tmp_path / "b.html", flight=bare).read_text()
+    assert "No impact miss: the flight has no r_x" in text

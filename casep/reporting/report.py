@@ -68,8 +68,9 @@ def _image(path: Path) -> str:
 
 
 def report_html(result: EstimateResult, figures: Sequence[str | os.PathLike] = (), *,
-                warnings: Sequence[str] = (), source: str | None = None) -> str:
-    """The report page as a string (see :func:`write_report`)."""
+                warnings: Sequence[str] = (), source: str | None = None, impact=None) -> str:
+    """The report page as a string (see :func:`write_report`); `impact`: an
+    :class:`casep.impact.miss.ImpactAnalysis` of the result, or a sentence why there is none."""
     from casep._version import __version__
 
     state = "ok" if result.success else "failed"
@@ -93,11 +94,43 @@ def report_html(result: EstimateResult, figures: Sequence[str | os.PathLike] = (
     if result.denoise:
         parts += ["<h2>De-noising</h2>", _key_value_table(result.denoise, "denoise")]
     parts += ["<h2>Diagnostics</h2>", _key_value_table(_diagnostics_summary(result), "diagnostics")]
+    if impact is not None:
+        parts += ["<h2>Impact miss</h2>", _impact_html(impact)]
     if figures:
         parts.append("<h2>Figures</h2>")
         parts += [_image(Path(f)) for f in figures]
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"
+
+
+def _impact_of(result: EstimateResult, flight):
+    """The result's impact analysis on its flight, or why there is none (no flight, no r_*/v_*)."""
+    if flight is None:
+        return None
+    from casep.impact.miss import STATE_COLUMNS, impact_analysis
+
+    missing = [c for c in STATE_COLUMNS if c not in flight.signals]
+    if missing:
+        return (f"No impact miss: the flight has no {', '.join(missing)} columns (the burnout state); "
+                "files from casep simulate have them.")
+    return impact_analysis(flight, result, result.model or None)
+
+
+def _impact_html(ia) -> str:
+    """The predicted miss, its std, the nonlinear miss and the group contributions."""
+    if isinstance(ia, str):
+        return f"<p>{_esc(ia)}</p>"
+    sd = ia.std if ia.std is not None else np.full(2, np.nan)
+    rows = [("predicted (linear)", ia.miss, sd), ("nonlinear (perturbed burnout state flown)", ia.nonlinear, None)]
+    rows += [(f"group {', '.join(g.names)}", g.contribution, g.std) for g in ia.groups]
+    body = "".join(
+        f"<tr><td>{_esc(label)}</td><td>{m[0]:.1f}</td><td>{'' if s is None else f'{s[0]:.1f}'}</td>"
+        f"<td>{m[1]:.1f}</td><td>{'' if s is None else f'{s[1]:.1f}'}</td></tr>" for label, m, s in rows)
+    return (f"<p>The instrument-error miss that this estimate implies at impact (vacuum ballistic flight from "
+            f"the burnout state at t = {ia.t_b:.3f} s; <code>casep impact</code>), metres; std: "
+            f"{_esc(ia.covariance_source)}.</p>"
+            "<table><tr><th></th><th>downrange</th><th>std</th><th>crossrange</th><th>std</th></tr>"
+            + body + "</table>")
 
 
 def write_report(result: EstimateResult, path: str | os.PathLike, *, flight=None,
@@ -129,15 +162,18 @@ def write_report(result: EstimateResult, path: str | os.PathLike, *, flight=None
         `path`.
     """
     path = Path(path)
+    impact = _impact_of(result, flight)
     if figures is not None:
-        text = report_html(result, figures, warnings=warnings, source=source)
+        text = report_html(result, figures, warnings=warnings, source=source, impact=impact)
     else:
-        from casep.reporting.plots import separate_figures
+        from casep.reporting.plots import impact_figures, separate_figures
 
         t = None if flight is None else np.asarray(flight.t[flight.observed])  # the rows of the residuals
         with tempfile.TemporaryDirectory(prefix="casep-report-") as tmp:
             files = separate_figures(result, tmp, t, prior=prior, bounds=bounds)
-            text = report_html(result, files, warnings=warnings, source=source)
+            if impact is not None and not isinstance(impact, str):
+                files += impact_figures(impact, tmp)
+            text = report_html(result, files, warnings=warnings, source=source, impact=impact)
     with atomic_open(path) as fh:
         fh.write(text)
     return path
