@@ -150,7 +150,14 @@ def _read(args: argparse.Namespace):
     tracking = args.tracking or []
     if len(tracking) > 1:
         raise ValueError(f"--tracking given {len(tracking)} times for one flight; give it once per flight")
-    return read_flight_pair(args.flight, tracking[0]) if tracking else read_flight(args.flight)
+    return read_flight_pair(args.flight, tracking[0], grid=args.grid) if tracking else read_flight(args.flight)
+
+
+def _add_grid(parser) -> None:
+    parser.add_argument("--grid", choices=("tracking", "telemetry"), default="tracking",
+                        help="with --tracking: form dv at the tracking times (default: one row per tracking "
+                             "sample, white noise, honest std) or at the telemetry times (tracking interpolated: "
+                             "std too small by about sqrt(f_tel / f_trk))")
 
 
 def _read_flights(args: argparse.Namespace) -> list:
@@ -162,7 +169,7 @@ def _read_flights(args: argparse.Namespace) -> list:
         raise ValueError(f"--tracking given {len(tracking)} times for {len(args.flight)} flights: give it once per "
                          "flight, in the order of the flights (telemetry A --tracking TA, B --tracking TB)")
     if tracking:
-        return [read_flight_pair(f, t) for f, t in zip(args.flight, tracking)]
+        return [read_flight_pair(f, t, grid=args.grid) for f, t in zip(args.flight, tracking)]
     return [read_flight(f) for f in args.flight]
 
 
@@ -226,6 +233,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--tracking", metavar="FILE", default=None, action="append",
                    help="tracking file (t, v_trk_*) at its own rate; FLIGHT is then the telemetry file "
                         "(t, f_* or W_*, v_tel_*); several flights: once per flight, in their order")
+    _add_grid(s)
     _method_option_groups(s)
     g = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
     g.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
@@ -246,6 +254,7 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("flight", nargs="+", help="flight file; several: what each determines alone and jointly")
     d.add_argument("--tracking", metavar="FILE", default=None, action="append",
                    help="tracking file (two-file input); several flights: once per flight, in their order")
+    _add_grid(d)
     d.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
     d.add_argument("--sigma", type=_ranged("sigma"), default=None, help="noise std, m/s (default: estimated)")
     d.add_argument("--tau", type=_rule_type(OPTIONS["tau"], [r for r in OPTIONS["tau"].rules if isinstance(r, Interval)]),

@@ -148,7 +148,7 @@ def test_two_rate_interpolation_against_analytic_velocity(tmp_path):
     t_trk = np.arange(1.0, 50.0, 0.05)
     dv = np.column_stack([1e-3 * t_tel, -2e-3 * t_tel, 5e-4 * t_tel])
     tel, trk = _pair(tmp_path, t_tel, t_trk, v, dv)
-    fl = casep.read_flight_pair(tel, trk)
+    fl = casep.read_flight_pair(tel, trk, grid="telemetry")
     # Telemetry is kept from its first sample (S_V integrates from there) to the end of
     # tracking; dv is observed inside the tracking span only.
     keep = t_tel <= t_trk[-1]
@@ -159,9 +159,40 @@ def test_two_rate_interpolation_against_analytic_velocity(tmp_path):
     np.testing.assert_allclose(fl.dv[fl.observed], dv[inside], atol=1e-9)  # cubic spline: exact for t^2, ~1e-10 for sin
     assert fl.meta["telemetry_dropped"] == int((~keep).sum()) and fl.meta["unobserved"] == 100
     assert fl.meta["observed_span_s"] == [1.0, 49.95] and fl.meta["span_s"] == [0.0, 49.95]
-    lin = casep.read_flight_pair(tel, trk, interpolation="linear")
+    lin = casep.read_flight_pair(tel, trk, interpolation="linear", grid="telemetry")
     # Linear interpolation of 1.25 t^2 errs by up to a dt^2 / 8 = 2.5 * 0.05^2 / 8.
     assert 1e-4 < np.abs(lin.dv[lin.observed, 0] - dv[inside, 0]).max() <= 2.5 * 0.05**2 / 8 + 1e-9
+    # Default grid: the tracking times (on the telemetry grid here: no sample inserted), one row each.
+    g = casep.read_flight_pair(tel, trk)
+    np.testing.assert_array_equal(g.t, t_tel[keep])
+    np.testing.assert_allclose(g.t[g.observed], t_trk, atol=1e-12)
+    dv_trk = np.column_stack([1e-3 * t_trk, -2e-3 * t_trk, 5e-4 * t_trk])
+    np.testing.assert_allclose(g.dv[g.observed], dv_trk, atol=1e-8)  # telemetry v interpolated: exact for t^2, ramp
+    assert g.meta["grid"] == "tracking" and g.meta["inserted"] == 0 and g.meta["observed_span_s"] == [1.0, 49.95]
+
+
+def test_tracking_grid_inserts_off_grid_tracking_times(tmp_path):
+    """Tracking times 3 ms off the telemetry grid are inserted as rows of their own, f interpolated
+    linearly (a linear f stays exact), dv formed there; outside the telemetry span they are dropped."""
+    def v(t):
+        return np.column_stack([1.25 * t**2, 40.0 * t, 3.0 * np.sin(0.2 * t)])
+
+    t_tel = np.arange(0.0, 30.0, 0.01)
+    t_trk = np.arange(0.003, 31.0, 0.1)  # last ones after telemetry ends
+    f = np.column_stack([2.0 + 0.1 * t_tel, 9.8 + 0 * t_tel, -t_tel])
+    dv = np.column_stack([1e-3 * t_tel, -2e-3 * t_tel, 5e-4 * t_tel])
+    tel, trk = _pair(tmp_path, t_tel, t_trk, v, dv, f=f)
+    g = casep.read_flight_pair(tel, trk)
+    inside = t_trk <= t_tel[-1]
+    assert g.meta["tracking_dropped"] == int((~inside).sum()) and g.meta["inserted"] == int(inside.sum())
+    np.testing.assert_allclose(g.t[g.observed], t_trk[inside], atol=1e-12)
+    assert g.t.size == t_tel.size + int(inside.sum())  # every telemetry sample, and each tracking time between
+    tt = g.t
+    np.testing.assert_allclose(g.f, np.column_stack([2.0 + 0.1 * tt, 9.8 + 0 * tt, -tt]), atol=1e-9)
+    ti = t_trk[inside]
+    np.testing.assert_allclose(g.dv[g.observed], np.column_stack([1e-3 * ti, -2e-3 * ti, 5e-4 * ti]), atol=1e-8)
+    with pytest.raises(ValueError, match="`grid` must be one of tracking, telemetry"):
+        casep.read_flight_pair(tel, trk, grid="both")
 
 
 def test_two_rate_bad_inputs(tmp_path):
@@ -237,7 +268,9 @@ def test_split_pair_noise_free_end_to_end(tmp_path):
     quiet = dataclasses.replace(get_scenario("paper"), noise=NoiseModel("white", 0.0))
     d = simulate_two_rate(quiet, seed=0, telemetry_rate=100.0, tracking_rate=20.0, tracking_start=10.0)
     fl = _write_pair(d, tmp_path, apparent=True)
-    assert fl.meta["force"] == "W" and not fl.observed[:1000].any() and fl.observed[1000:].all()
+    # rows at the tracking times (every 5th telemetry sample from 10 s: the default tracking grid)
+    assert fl.meta["force"] == "W" and not fl.observed[:1000].any() and fl.observed[1000::5].all()
+    assert fl.observed.sum() == d.t_trk.size
     with pytest.warns(IllConditionedWarning):
         res = casep.separate(fl, "platform36")
     S, _, _ = regression_rows(fl, d.model)
@@ -333,3 +366,38 @@ def test_cli_pair_with_late_tracking_counts_observed_samples(tmp_path, capsys):
     assert main(["diagnose", str(tel), "--tracking", str(trk), "--tau", "1"]) == 0
     out = capsys.readouterr().out
     assert f"model platform36, {n_obs} samples" in out and "warning: " not in out.replace("warning: ill-cond", "")
+
+
+def test_two_rate_ols_coverage_is_honest_on_the_tracking_grid(rng):
+    """Issue 14, item 3: telemetry 20 Hz, tracking 5 Hz, white tracking noise 0.1 m/s, 150 seeded
+    draws through pair_flight. On the tracking grid (default) the OLS 95 % intervals cover the truth
+    93-97 % of the time and RMS z is about 1; on the telemetry grid (tracking interpolated) the std
+    understate the error by about sqrt(20 / 5) = 2 (measured 0.64 coverage, RMS z 2.16)."""
+    import dataclasses
+
+    from casep.analysis.problem import Problem
+    from casep.estimators.ols import ols_linear_map
+    from casep.io.files import pair_flight
+    from casep.simulation.noise import NoiseModel
+    from casep.simulation.scenarios import get_scenario
+    from casep.simulation.simulate import simulate_two_rate
+
+    quiet = dataclasses.replace(get_scenario("paper"), noise=NoiseModel("white", 0.0))
+    d = simulate_two_rate(quiet, seed=0, telemetry_rate=20.0, tracking_rate=5.0)
+    out = {}
+    for grid in ("tracking", "telemetry"):
+        base = Problem.from_flight(pair_flight(d.t_tel, d.f, d.v_tel, d.t_trk, d.v_trk, grid=grid), d.model)
+        S = base.sv().reshape(-1, d.model.n_coefficients)  # the observed rows
+        lm = ols_linear_map(S)  # solve_ols as a linear map (tests/test_linear_maps.py): D = K y, Cov = s^2 C
+        z = []
+        for _ in range(150):
+            fl = pair_flight(d.t_tel, d.f, d.v_tel, d.t_trk, d.v_trk + 0.1 * rng.standard_normal(d.v_trk.shape),
+                             grid=grid)
+            y = fl.dv[fl.observed].reshape(-1)
+            est = lm.K @ y
+            s2 = float(np.sum((y - S @ est) ** 2)) / lm.dof  # OLS sigma^2 = RSS / (m - rank)
+            z.append((est - d.truth) / np.sqrt(np.diag(lm.cov) * s2))
+        z = np.array(z)
+        out[grid] = (np.mean(np.abs(z) < 1.959964), np.sqrt(np.mean(z**2)))
+    assert 0.93 <= out["tracking"][0] <= 0.97 and 0.9 <= out["tracking"][1] <= 1.1, out
+    assert out["telemetry"][0] < 0.8 and out["telemetry"][1] > 1.6, out

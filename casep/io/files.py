@@ -42,7 +42,7 @@ from casep.io.flight import AXES, DV_COLUMNS, FORCE_COLUMNS, FlightData, FlightD
 
 __all__ = [
     "read_json_table",
-    "read_flight", "read_flight_pair", "write_flight",
+    "read_flight", "read_flight_pair", "pair_flight", "PAIR_GRIDS", "write_flight",
     "write_table", "apparent_velocity_to_force",
 ]
 
@@ -321,8 +321,12 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     return FlightData(t, f, dv, source=src, meta=meta, signals=signals)
 
 
+#: Where a telemetry + tracking pair is evaluated (``read_flight_pair(grid=...)``).
+PAIR_GRIDS = ("tracking", "telemetry")
+
+
 def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, *,
-                     interpolation: str = "cubic") -> FlightData:
+                     interpolation: str = "cubic", grid: str = "tracking") -> FlightData:
     """Combine a telemetry file and a tracking file recorded at different rates.
 
     Parameters
@@ -333,27 +337,33 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     tracking : path
         ``t``, ``v_trk_*``, at its own times.
     interpolation : {"cubic", "linear"}, optional
-        How tracking velocity is carried to telemetry times: not-a-knot cubic spline
-        (error O(dt^4 v'''''), default) or linear (error ~ a dt^2 / 8: 0.016 m/s at
-        50 m/s^2 and 20 Hz, not negligible against 0.1 m/s noise).
+        How the velocity of the other source is carried to the grid's times (see `grid`): a
+        not-a-knot cubic spline (error of order dt^4 times the 4th derivative, default) or
+        linear (error ~ a dt^2 / 8: 0.016 m/s at 50 m/s^2 and 20 Hz, not negligible against
+        0.1 m/s noise).
+    grid : {"tracking", "telemetry"}, optional
+        Where dv is formed. ``"tracking"`` (default): at the tracking times, ``dv = v_tel(t_trk) -
+        v_trk``, the (smooth, nearly noise-free) telemetry velocity interpolated; each tracking
+        sample is one row, so its noise stays white and the std are honest. ``"telemetry"``: at
+        the telemetry times, the tracking velocity interpolated, which spreads each tracking
+        sample's noise over ``f_tel / f_trk`` correlated rows: white-noise std then understate the
+        error by about ``sqrt(f_tel / f_trk)`` (casep 0.1's behaviour, kept for comparison).
 
     Returns
     -------
     FlightData
-        Every telemetry sample from the first one to the end of tracking: S_V is integrated
-        from the first telemetry sample, so the instrument errors before tracking starts are
-        kept. dv is observed (``observed``) at the telemetry samples inside the tracking
-        span and NaN before it. ``meta`` records the spans (s), the samples before tracking
-        (``unobserved``) and after it (``telemetry_dropped``), and the telemetry speed at the
-        first sample (``start_speed_m_s``).
-
-    Notes
-    -----
-    Interpolation also smooths and correlates the tracking noise between tracking samples:
-    the residuals of a fit are then not white at the telemetry rate.
+        Every telemetry sample from the first one to the end of tracking (with ``grid="tracking"``
+        the tracking times inserted among them, force and signals linearly interpolated there):
+        S_V is integrated from the first telemetry sample, so the instrument errors before tracking
+        starts are kept. dv is observed (``observed``) at the tracking times (or at the telemetry
+        samples inside the tracking span) and NaN elsewhere. ``meta`` records the grid, the spans
+        (s), the samples before tracking (``unobserved``) and after it (``telemetry_dropped``), and
+        the telemetry speed at the first sample (``start_speed_m_s``).
     """
     if interpolation not in ("cubic", "linear"):
         raise ValueError(f"`interpolation` must be 'cubic' or 'linear', got {interpolation!r}")
+    if grid not in PAIR_GRIDS:
+        raise ValueError(f"`grid` must be one of {', '.join(PAIR_GRIDS)}, got {grid!r}")
     tel, trk = _Table(telemetry), _Table(tracking)
     tel.require(("t",))
     trk.require(("t",) + VTRK_COLUMNS, ". Use: t, v_trk_x, v_trk_y, v_trk_z")
@@ -369,26 +379,78 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     if inside.sum() < 2:
         raise tel.error(f"telemetry time [{t_tel[0]:g}, {t_tel[-1]:g}] s and tracking time "
                         f"[{t_trk[0]:g}, {t_trk[-1]:g}] s share fewer than 2 telemetry samples", "t")
-    keep = t_tel <= t_trk[-1]  # from the first telemetry sample to the end of tracking
-    t, observed = t_tel[keep], inside[keep]
-    dv = np.full((t.size, 3), np.nan)  # not observed before tracking starts
-    if interpolation == "cubic":
-        from scipy.interpolate import CubicSpline
+    return pair_flight(t_tel, f, v_tel, t_trk, v_trk, signals=tel.signals(), interpolation=interpolation,
+                       grid=grid, source=f"{tel.src} + {trk.src}",
+                       meta={"force": force_from, "telemetry": tel.src, "tracking": trk.src})
 
-        v_at = CubicSpline(t_trk, v_trk, axis=0)(t[observed])
+
+def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray, *,
+                signals: dict[str, np.ndarray] | None = None, interpolation: str = "cubic", grid: str = "tracking",
+                source: str = "<memory>", meta: dict | None = None) -> FlightData:
+    """The flight of a telemetry + tracking pair held in arrays (see :func:`read_flight_pair`).
+
+    Parameters
+    ----------
+    t_tel, f, v_tel : arrays
+        Telemetry times (s, increasing), specific force (m/s^2) and velocity (m/s).
+    t_trk, v_trk : arrays
+        Tracking times (s, increasing) and velocity (m/s).
+    signals : dict, optional
+        Other telemetry columns at `t_tel`.
+
+    Notes
+    -----
+    With ``grid="tracking"`` a tracking time within 1e-9 s of a telemetry time is that sample;
+    the others are inserted, with ``f`` and the signals linearly interpolated (S_V integrates
+    ``f`` by the trapezoid rule, so a linearly interpolated sample leaves its first-order terms
+    unchanged). Tracking samples outside the telemetry span are dropped (counted in
+    ``meta["tracking_dropped"]``).
+    """
+    from scipy.interpolate import CubicSpline
+
+    t_tel, t_trk = np.asarray(t_tel, dtype=float), np.asarray(t_trk, dtype=float)
+    f, v_tel, v_trk = (np.asarray(a, dtype=float) for a in (f, v_tel, v_trk))
+    signals = dict(signals or {})
+
+    def carry(t_from, v_from, t_to):  # velocity of one source at the other's times
+        if interpolation == "cubic":
+            return CubicSpline(t_from, v_from, axis=0)(t_to)
+        return np.column_stack([np.interp(t_to, t_from, v_from[:, i]) for i in range(3)])
+
+    keep = t_tel <= t_trk[-1]  # from the first telemetry sample to the end of tracking
+    extra: dict = {}
+    if grid == "telemetry":
+        t, observed = t_tel[keep], (t_tel[keep] >= t_trk[0])
+        dv = np.full((t.size, 3), np.nan)  # not observed before tracking starts
+        dv[observed] = v_tel[keep][observed] - carry(t_trk, v_trk, t[observed])  # v_tel - v_trk(t_tel)
+        f_out = f[keep]
+        sig = {k: v[keep] for k, v in signals.items()}
+        how = f"v_tel - v_trk at telemetry times ({interpolation} interpolation of tracking)"
     else:
-        v_at = np.column_stack([np.interp(t[observed], t_trk, v_trk[:, i]) for i in range(3)])
-    dv[observed] = v_tel[keep][observed] - v_at  # dv = v_tel - v_trk at telemetry times
-    meta = {"format": "pair", "force": force_from, "dv": f"v_tel - v_trk ({interpolation} interpolation)",
-            "telemetry": tel.src, "tracking": trk.src,
+        use = (t_trk >= t_tel[0]) & (t_trk <= t_tel[-1])
+        tt = t_trk[use]
+        t_keep = t_tel[keep]
+        j = np.clip(np.searchsorted(t_keep, tt), 1, t_keep.size - 1)
+        near = np.minimum(np.abs(t_keep[j] - tt), np.abs(t_keep[j - 1] - tt))
+        on = near <= 1e-9
+        t = np.union1d(t_keep, tt[~on])  # telemetry samples and the tracking times between them
+        idx = np.clip(np.searchsorted(t, tt - 1e-9), 0, t.size - 1)  # each tracking time's row
+        observed = np.zeros(t.size, bool)
+        observed[idx] = True
+        dv = np.full((t.size, 3), np.nan)
+        dv[idx] = carry(t_tel, v_tel, tt) - v_trk[use]  # v_tel(t_trk) - v_trk
+        f_out = np.column_stack([np.interp(t, t_tel, f[:, i]) for i in range(3)])
+        sig = {k: np.interp(t, t_tel, v) for k, v in signals.items()}
+        how = f"v_tel - v_trk at tracking times ({interpolation} interpolation of telemetry)"
+        extra = {"tracking_dropped": int((~use).sum()), "inserted": int((~on).sum())}
+    meta = {"format": "pair", "grid": grid, "dv": how, **(meta or {}), **extra,
             "telemetry_span_s": [float(t_tel[0]), float(t_tel[-1])],
             "tracking_span_s": [float(t_trk[0]), float(t_trk[-1])],
             "span_s": [float(t[0]), float(t[-1])], "observed_span_s": [float(t[observed][0]), float(t[observed][-1])],
             "unobserved": int((~observed).sum()), "telemetry_dropped": int((~keep).sum()),
             "start_speed_m_s": float(np.linalg.norm(v_tel[0])),
             "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.checks
-    return FlightData(t, f[keep], dv, source=f"{tel.src} + {trk.src}", meta=meta, observed=observed,
-                      signals=tel.signals(keep))
+    return FlightData(t, f_out, dv, source=source, meta=meta, observed=observed, signals=sig)
 
 
 def write_table(path: str | os.PathLike, columns: dict[str, np.ndarray], *,

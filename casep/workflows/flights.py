@@ -140,7 +140,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
             paired.append(False)
             continue
         fl = fl if isinstance(fl, FlightData) else read_flight(fl)
-        paired.append(fl.meta.get("format") == "pair")  # tracking interpolated onto telemetry times
+        paired.append(fl.meta.get("format") == "pair" and fl.meta.get("grid") == "telemetry")  # interpolated tracking
         problems.append(Problem.from_flight(fl, model))
     _refuse_repeats(problems)
     opts = dict(options or {})
@@ -281,8 +281,8 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
     paired = [lab for lab, pr in zip(lay.labels, getattr(jp, "paired", ())) if pr]
     if paired and res.method != "gls":
         cons["note"] = (f"tracking interpolated onto telemetry times in {', '.join(paired)}: its noise is correlated, "
-                        "so white-noise std and these tests are optimistic (false alarms); use --method gls, or "
-                        "equal rates")
+                        "so white-noise std and these tests are optimistic (false alarms); use the tracking grid "
+                        "(--grid tracking, the default), or --method gls")
     return {"flights": flights, "consistency": cons}
 
 
