@@ -150,7 +150,8 @@ def _read(args: argparse.Namespace):
     tracking = args.tracking or []
     if len(tracking) > 1:
         raise ValueError(f"--tracking given {len(tracking)} times for one flight; give it once per flight")
-    return read_flight_pair(args.flight, tracking[0], grid=args.grid) if tracking else read_flight(args.flight)
+    return (read_flight_pair(args.flight, tracking[0], grid=args.grid, time_offset=args.time_offset) if tracking
+            else read_flight(args.flight))
 
 
 def _add_grid(parser) -> None:
@@ -158,6 +159,23 @@ def _add_grid(parser) -> None:
                         help="with --tracking: form dv at the tracking times (default: one row per tracking "
                              "sample, white noise, honest std) or at the telemetry times (tracking interpolated: "
                              "std too small by about sqrt(f_tel / f_trk))")
+    parser.add_argument("--time-offset", type=_time_offset, default=None, metavar="auto|MS",
+                        help="with --tracking: tracking time tags late by MS milliseconds, shifted back; 'auto': the "
+                             "offset that lines up the velocity increments (then fit dt_trk for the rest); default: "
+                             "none, with a warning when that offset exceeds a tracking sample period")
+
+
+def _time_offset(text: str):
+    """`--time-offset`: 'auto', or milliseconds -> seconds."""
+    if text == "auto":
+        return "auto"
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be 'auto' or milliseconds, got {text!r}") from None
+    if not math.isfinite(v) or abs(v) > 1e5:
+        raise argparse.ArgumentTypeError(f"must be a finite number of milliseconds within +-1e5, got {text!r}")
+    return v * 1e-3  # ms -> s
 
 
 def _read_flights(args: argparse.Namespace) -> list:
@@ -169,7 +187,7 @@ def _read_flights(args: argparse.Namespace) -> list:
         raise ValueError(f"--tracking given {len(tracking)} times for {len(args.flight)} flights: give it once per "
                          "flight, in the order of the flights (telemetry A --tracking TA, B --tracking TB)")
     if tracking:
-        return [read_flight_pair(f, t, grid=args.grid) for f, t in zip(args.flight, tracking)]
+        return [read_flight_pair(f, t, grid=args.grid, time_offset=args.time_offset) for f, t in zip(args.flight, tracking)]
     return [read_flight(f) for f in args.flight]
 
 
@@ -233,7 +251,7 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--tracking", metavar="FILE", default=None, action="append",
                    help="tracking file (t, v_trk_*) at its own rate; FLIGHT is then the telemetry file "
                         "(t, f_* or W_*, v_tel_*); several flights: once per flight, in their order")
-    _add_grid(s)
+    _add_grid(s)  # --grid, --time-offset
     _method_option_groups(s)
     g = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
     g.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
@@ -339,10 +357,15 @@ def _cmd_separate(args: argparse.Namespace) -> int:
                        denoise=args.denoise, wavelet_options=wopts or None, **opts)
     for w in caught:  # on to main(), which prints them
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
     if args.json:
-        write_json_atomic(res.to_dict(), args.json)
+        write_json_atomic({**res.to_dict(), **({"time_alignment": align} if align else {})}, args.json)
     _write_exports(res, args)
     print(res.table())
+    if align and align.get("applied_s"):
+        dt = [res.estimate[i] for i, n in enumerate(res.names) if n == "dt_trk"]
+        total = f"; the flight's offset = shift + dt_trk = {align['applied_s'] * 1e3 + dt[0]:.4g} ms" if dt else ""
+        print(f"tracking time tags shifted back by {align['applied_s'] * 1e3:.4g} ms before the fit{total}")
     if args.json:
         print(f"result written to {args.json}")
     for label, path in (("MAT file", args.mat), ("CSV", args.csv)):

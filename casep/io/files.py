@@ -326,7 +326,8 @@ PAIR_GRIDS = ("tracking", "telemetry")
 
 
 def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, *,
-                     interpolation: str = "cubic", grid: str = "tracking") -> FlightData:
+                     interpolation: str = "cubic", grid: str = "tracking",
+                     time_offset: float | str | None = None) -> FlightData:
     """Combine a telemetry file and a tracking file recorded at different rates.
 
     Parameters
@@ -348,6 +349,13 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
         the telemetry times, the tracking velocity interpolated, which spreads each tracking
         sample's noise over ``f_tel / f_trk`` correlated rows: white-noise std then understate the
         error by about ``sqrt(f_tel / f_trk)`` (casep 0.1's behaviour, kept for comparison).
+    time_offset : float, "auto" or None, optional
+        Tracking time tags late by this many seconds: they are shifted back before the pair is
+        formed. ``"auto"``: the coarse offset that lines up the velocities
+        (:func:`casep.analysis.align.coarse_time_offset`; the model term ``dt_trk`` then finds the
+        rest). None (default): no shift, but the coarse offset is still computed and a
+        :class:`~casep.exceptions.TimeOffsetWarning` gives it when it exceeds a tracking sample
+        period (a first-order ``dt_trk`` is not meant for that). ``meta["time_alignment"]`` records it.
 
     Returns
     -------
@@ -379,9 +387,40 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     if inside.sum() < 2:
         raise tel.error(f"telemetry time [{t_tel[0]:g}, {t_tel[-1]:g}] s and tracking time "
                         f"[{t_trk[0]:g}, {t_trk[-1]:g}] s share fewer than 2 telemetry samples", "t")
-    return pair_flight(t_tel, f, v_tel, t_trk, v_trk, signals=tel.signals(), interpolation=interpolation,
+    align = None
+    if time_offset is None or time_offset == "auto":
+        from casep.analysis.align import coarse_time_offset
+
+        try:
+            align = coarse_time_offset(t_tel, v_tel, t_trk, v_trk, max_offset=min(2.0, 0.25 * (t_trk[-1] - t_trk[0])))
+        except ValueError:
+            if time_offset == "auto":
+                raise
+    if time_offset == "auto":
+        shift = align.tau
+    elif time_offset is None:
+        shift = 0.0
+        if align is not None and align.exceeds_period:
+            import warnings
+
+            from casep.exceptions import TimeOffsetWarning
+
+            warnings.warn(f"{tel.src} + {trk.src}: the tracking time tags look {align.tau * 1e3:.1f} ms late (velocity "
+                          f"increments line up best there: mean squared difference {align.cost:.3g} against {align.cost_at_zero:.3g} "
+                          f"m^2/s^2 unshifted), more than a tracking sample period ({align.tracking_period * 1e3:.4g} ms); "
+                          "align them (--time-offset auto) and let dt_trk estimate the rest", TimeOffsetWarning,
+                          stacklevel=2)
+    else:
+        try:
+            shift = float(time_offset)
+        except (TypeError, ValueError):
+            raise ValueError(f"`time_offset` must be a number of seconds, 'auto' or None, got {time_offset!r}") from None
+        if not np.isfinite(shift):
+            raise ValueError(f"`time_offset` must be finite, got {shift}")
+    extra = {"time_alignment": {**(align.to_dict() if align is not None else {}), "applied_s": shift}}
+    return pair_flight(t_tel, f, v_tel, t_trk - shift, v_trk, signals=tel.signals(), interpolation=interpolation,
                        grid=grid, source=f"{tel.src} + {trk.src}",
-                       meta={"force": force_from, "telemetry": tel.src, "tracking": trk.src})
+                       meta={"force": force_from, "telemetry": tel.src, "tracking": trk.src, **extra})
 
 
 def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray, *,

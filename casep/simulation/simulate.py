@@ -229,7 +229,8 @@ def write_simulation(sim: SimulatedFlight, path: str | os.PathLike) -> tuple[Pat
     sc = sim.scenario
     write_flight(sim.flight, path, comments=[
         f"casep simulated flight: scenario {sc.name} ({sc.description})",
-        f"model {sim.model.name}, seed {sim.seed}, rate {sc.rate:g} Hz; truth in the .truth.json sidecar",
+        f"model {sim.model.name}, seed {sim.seed}, rate {1.0 / float(np.median(np.diff(sim.flight.t))):.6g} Hz; "
+        "truth in the .truth.json sidecar",
     ])
     side = truth_path(path)
     with atomic_open(side) as fh:
