@@ -246,6 +246,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="write one row per coefficient here (name, unit, estimate, std, reason)")
     s.add_argument("--figures", metavar="DIR", default=None,
                    help="write residuals, estimates (and RLS/RELS history) PNG figures into DIR (created)")
+    s.add_argument("--outliers", type=float, nargs="?", const=0.01, default=None, metavar="ALPHA",
+                   help="flag rows by their studentized least-squares residual, with chance ALPHA (default 0.01) of "
+                        "any false flag in a clean flight (white noise); rows named, in the JSON diagnostics")
     s.add_argument("--report", metavar="FILE", default=None,
                    help="write a self-contained HTML report (table, settings, diagnostics, figures) here")
     s.add_argument("--tracking", metavar="FILE", default=None, action="append",
@@ -354,7 +357,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", CasepWarning)
         res = separate(flight, model, args.method, sigma=args.sigma, bounds=bounds, prior=prior,
-                       denoise=args.denoise, wavelet_options=wopts or None, **opts)
+                       denoise=args.denoise, wavelet_options=wopts or None, outliers=args.outliers, **opts)
     for w in caught:  # on to main(), which prints them
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
@@ -362,6 +365,11 @@ def _cmd_separate(args: argparse.Namespace) -> int:
         write_json_atomic({**res.to_dict(), **({"time_alignment": align} if align else {})}, args.json)
     _write_exports(res, args)
     print(res.table())
+    if args.outliers is not None:
+        from casep.analysis.outliers import OutlierFlags
+
+        o = res.diagnostics["outliers_studentized"]
+        print("outliers: " + OutlierFlags(o["rows"], o["threshold"], o["rate"], o["rows_tested"]).summary())
     if align and align.get("applied_s"):
         dt = [res.estimate[i] for i, n in enumerate(res.names) if n == "dt_trk"]
         total = f"; the flight's offset = shift + dt_trk = {align['applied_s'] * 1e3 + dt[0]:.4g} ms" if dt else ""

@@ -54,6 +54,7 @@ def separate(
     max_condition_index: float = DEFAULT_MAX_CONDITION_INDEX,
     denoise: str | None = None,
     wavelet_options: Mapping | None = None,
+    outliers: float | None = None,
     tau: float | str = "auto",
     options: Mapping | None = None,
 ) -> EstimateResult:
@@ -98,6 +99,11 @@ def separate(
     of it from dv but not from the estimate), so unless `sigma` is given the std use the
     noise sigma the wavelet transform estimates from the raw finest details (RMS over the
     axes). The result records the de-noising settings and the per-axis sigma.
+
+    outliers : float, optional
+        Flag rows by their studentized least-squares residual (:func:`casep.analysis.outliers.flag_outliers`)
+        with this chance of any false flag in a clean flight (e.g. 0.01); the flags go to
+        ``diagnostics["outliers_studentized"]``.
 
     Returns
     -------
@@ -144,6 +150,11 @@ def separate(
     res = run_method(method, solved, None, solved.t, {k: v for k, v in kw.items() if k in _REGISTRY[method].options},
                      **labels)
     check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source)  # raw dv: noise-free, outliers, offset
+    if outliers is not None:  # studentized residuals of the least-squares fit (white noise), rows named
+        from casep.analysis.outliers import flag_outliers
+
+        flags = flag_outliers(problem, alpha=outliers)
+        res = dataclasses.replace(res, diagnostics={**res.diagnostics, "outliers_studentized": flags.to_dict()})
     if den is not None:
         settings = dict(res.settings)
         if sigma_from_wavelet:
