@@ -287,6 +287,13 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--json", metavar="OUT", default=None, help="write the diagnostics JSON here")
     d.add_argument("--figures", metavar="DIR", default=None,
                    help="write singular_values.png and variance_decomposition.png here")
+    nz = sub.add_parser("noise", help="Allan deviation of the residuals: white, Gauss-Markov or random-walk noise")
+    nz.add_argument("flight", help="flight file (or telemetry file with --tracking)")
+    nz.add_argument("--tracking", metavar="FILE", default=None, action="append", help="tracking file (two-file input)")
+    _add_grid(nz)
+    nz.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
+    nz.add_argument("--json", metavar="OUT", default=None, help="write the Allan deviation and the fits here")
+    nz.add_argument("--figures", metavar="DIR", default=None, help="write allan.png into DIR (created)")
     dm = sub.add_parser("demo", help="the paper's scenario end to end: Table 1, figures, report")
     dm.add_argument("--out", metavar="DIR", default="casep-demo", help="output folder (default ./casep-demo)")
     dm.add_argument("--seed", type=_order, default=1, help="noise seed (default 1)")
@@ -432,6 +439,42 @@ def _joint_json(res, jp, summary: dict) -> dict:
     d["flights"] = summary["flights"]
     d["consistency"] = summary["consistency"]
     return d
+
+
+def _cmd_noise(args: argparse.Namespace) -> int:
+    """`casep noise FLIGHT`: OLS residuals' Allan deviation and the noise model (casep.analysis.noise_id)."""
+    import numpy as np
+
+    from casep.analysis.noise_id import identify_noise
+    from casep.analysis.problem import Problem
+    from casep.estimators.ols import solve_ols
+    from casep.estimators.result import write_json_atomic
+    from casep.io._atomic import check_outputs
+    from casep.model.loader import load_model
+
+    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking"), folders={"--figures": args.figures})
+    model = load_model(args.model)
+    problem = Problem.from_flight(_read(args), model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CasepWarning)  # conditioning: not the question here
+        res = solve_ols(problem)
+    r = problem.residuals(res.estimate).reshape(-1, 3)
+    step = np.diff(problem.t)
+    dt = float(np.median(step))
+    if np.max(np.abs(step - dt)) > 0.01 * dt:
+        raise ValueError(f"{problem.source}: sample steps vary from {step.min():.4g} to {step.max():.4g} s: the "
+                         "Allan deviation needs a uniform step (gaps?)")
+    noise = identify_noise(r, dt)
+    print(noise.report())
+    if args.json:
+        write_json_atomic({"model": model.name, "source": problem.source, **noise.to_dict()}, args.json)
+        print(f"written to {args.json}")
+    if args.figures:
+        from casep.reporting.plots import plot_allan
+
+        Path(args.figures).mkdir(parents=True, exist_ok=True)
+        print(f"figure: {plot_allan(noise, Path(args.figures) / 'allan.png')}")
+    return 0
 
 
 def _cmd_fuse(args: argparse.Namespace) -> int:
@@ -799,7 +842,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     commands = {"separate": _cmd_separate, "diagnose": _cmd_diagnose, "simulate": _cmd_simulate,
                 "montecarlo": _cmd_montecarlo, "demo": _cmd_demo, "models": _cmd_models, "methods": _cmd_methods,
-                "fuse": _cmd_fuse, "impact": _cmd_impact}
+                "fuse": _cmd_fuse, "impact": _cmd_impact, "noise": _cmd_noise}
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", CasepWarning)

@@ -13,7 +13,7 @@ from casep.analysis.diagnostics import GROUP_INDEX, Diagnostics
 from casep.estimators.result import AXES, EstimateResult
 
 __all__ = ["plot_singular_values", "plot_variance_decomposition", "plot_residuals", "plot_estimates",
-           "plot_history", "separate_figures", "estimate_scales", "plot_flights_crlb", "plot_miss_budget",
+           "plot_history", "separate_figures", "estimate_scales", "plot_flights_crlb", "plot_allan", "plot_miss_budget",
            "plot_impact_ellipse", "impact_figures"]
 
 
@@ -330,3 +330,24 @@ def impact_figures(analysis, out: str | os.PathLike) -> list[Path]:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     return [plot_miss_budget(analysis, out / "miss_budget.png"), plot_impact_ellipse(analysis, out / "impact_ellipse.png")]
+
+
+def plot_allan(noise, path: str | os.PathLike) -> Path:
+    """Allan deviation of the residuals per axis with the fitted noise models
+    (:func:`casep.analysis.noise_id.identify_noise`); the chosen model drawn solid."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for i, a in enumerate("xyz"[: noise.adev.shape[0]]):
+        ax.loglog(noise.taus, noise.adev[i], "o", ms=3, alpha=0.6, label=f"residuals {a}")
+    for k, style in (("white", ":"), ("gauss_markov", "--"), ("random_walk", "-.")):
+        p = noise.fits[k]
+        par = ", ".join(f"{n} {v:.3g}" for n, v in p.items() if n not in ("chi2", "bic"))
+        ls = "-" if k == noise.choice else style
+        lw = 2.0 if k == noise.choice else 1.0
+        ax.loglog(noise.taus, np.sqrt(noise.model_avar(k)), ls, lw=lw, label=f"{k} ({par})")
+    ax.set_xlabel("averaging time tau (s)")
+    ax.set_ylabel("Allan deviation (m/s)")
+    ax.set_title(f"Noise of the residuals: {noise.choice.replace('_', '-')}")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    return _save(fig, path)
