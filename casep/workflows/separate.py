@@ -115,7 +115,7 @@ def separate(
     for k, v in dict(options or {}).items():
         if k not in OPTIONS:
             raise ValueError(f"`options` has unknown option `{k}`; the options are {', '.join(OPTIONS)}")
-        if kw[k] is not OPTIONS[k].default and kw[k] != OPTIONS[k].default:
+        if not _is_default(k, kw[k]):
             raise ValueError(f"option `{k}` given both as a keyword and in `options`")
         kw[k] = v
     given = {k: v for k, v in kw.items() if v is not None and not _is_default(k, v)}
