@@ -81,6 +81,10 @@ class DesignResult:
         return [n for n, v, s in zip(self.names, c, self.scales) if np.isfinite(v) and v < s]
 
     def to_json(self) -> dict:
+        """The ``casep design --json`` document (``interfaces.md`` "Manoeuvre design"; null for NaN)."""
+        return _finite(self._json())
+
+    def _json(self) -> dict:
         def d(a):
             return {n: (None if not np.isfinite(v) else float(v)) for n, v in zip(self.names, a)}
 
@@ -107,6 +111,21 @@ class DesignResult:
             r = a / b if np.isfinite(a) and np.isfinite(b) and b > 0 else math.nan
             lines.append(f"{n:<8} {u:<10} {s:>9.3g} {b:>12.4g} {a:>12.4g} {r:>7.3f}")
         return "\n".join(lines)
+
+
+def _finite(v):
+    """JSON-safe: non-finite floats -> None, numpy scalars and arrays -> Python."""
+    if isinstance(v, dict):
+        return {k: _finite(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return [_finite(x) for x in v]
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return float(v) if np.isfinite(v) else None
+    return v
 
 
 def _solve(problem: DesignProblem, kind: str, max_angle: float, max_rate: float, max_lateral: float,
