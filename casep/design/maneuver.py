@@ -12,8 +12,11 @@ Constraints (all on the offsets, i.e. relative to the nominal attitude):
 - rate: ``|offset_{i+1} - offset_i| / (t_{i+1} - t_i) <= max_rate`` (the offset rate on each segment);
 - lateral acceleration: the body axis turned by the offset through the angle ``gamma`` from the
   nominal one, the thrust and drag acceleration ``|f|`` gains a component ``|f| sin gamma``
-  across the nominal flight direction: ``|f| sin gamma <= max_lateral`` (g) at every sample of the
-  design grid (``cos gamma = e_nominal . e_designed``). At a low ``|f|`` (coast) it does not bind.
+  across the nominal body axis: ``|f| sin gamma <= max_lateral`` (g). Imposed conservatively on the
+  knots (:func:`casep.design.optimize.knot_angle_limits`): each knot's offset size
+  ``sqrt(d_pitch^2 + d_yaw^2)`` at most ``asin(max_lateral / max |f|)`` over its two segments, which bounds
+  ``gamma`` everywhere on them (a box on the knot for one axis, a disc for both). At low ``|f|`` it
+  does not bind.
 """
 
 from __future__ import annotations
@@ -89,10 +92,14 @@ class Maneuver:
             out[axis][1:] = x[a * self.n_free:(a + 1) * self.n_free]
         return out
 
-    def profile(self, x: np.ndarray) -> AttitudeProfile:
-        """The simulator's attitude offsets for design vector `x` (deg)."""
+    def profile(self, x: np.ndarray, base_times=None, base_pitch=None) -> AttitudeProfile:
+        """The simulator's attitude offsets for design vector `x` (deg); with the nominal flight's pitch
+        (`base_times` s, `base_pitch` rad) flown open loop from the first knot on (see
+        :class:`~casep.simulation.trajectory.AttitudeProfile`)."""
         s = self.split(x)
-        return AttitudeProfile(times=self.knots, pitch=tuple(s["pitch"]), yaw=tuple(s["yaw"]))
+        return AttitudeProfile(times=self.knots, pitch=tuple(s["pitch"]), yaw=tuple(s["yaw"]),
+                               base_times=None if base_times is None else tuple(base_times),
+                               base_pitch=None if base_pitch is None else tuple(base_pitch))
 
     def rate_matrix(self) -> np.ndarray:
         """``(len(axes) * n_free, n_variables)``: offset rate (deg/s) on each segment, per axis."""

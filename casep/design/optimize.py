@@ -139,14 +139,16 @@ def _solve(problem: DesignProblem, kind: str, max_angle: float, max_rate: float,
     R = mv.rate_matrix()
     g = [ca.mtimes(ca.DM(R), x)]
     lbg, ubg = [-max_rate] * R.shape[0], [max_rate] * R.shape[0]
-    a = np.abs(problem.axial) / G0
-    # Only where the limit can bind: the largest angle the box allows is max_angle per axis moved.
-    gamma_max = min(0.5 * math.pi, math.radians(max_angle) * math.sqrt(len(mv.axes)))
-    lat = np.flatnonzero((problem.t > mv.knots[0]) & (a * math.sin(gamma_max) > max_lateral))
-    if lat.size:
-        g.append(problem.cos_gamma[lat.tolist()])
-        lbg += np.cos(np.arcsin(max_lateral / a[lat])).tolist()
-        ubg += [1.0] * lat.size
+    gamma = knot_angle_limits(mv, problem.t, np.abs(problem.axial) / G0, max_lateral)  # deg, free knots
+    ub = np.minimum(max_angle, gamma)
+    ub = np.tile(ub, len(mv.axes))
+    if len(mv.axes) == 2:  # sqrt(d_pitch^2 + d_yaw^2) <= gamma at every free knot
+        m = mv.n_free
+        bind = np.flatnonzero(gamma < math.sqrt(2.0) * max_angle)
+        if bind.size:
+            g.append(x[bind.tolist()] ** 2 + x[(bind + m).tolist()] ** 2)
+            lbg += [0.0] * bind.size
+            ubg += (gamma[bind] ** 2).tolist()
     nlp = {"x": x, "f": problem.objective_expr(kind), "g": ca.vertcat(*g)}
     opts = {"print_time": False, "error_on_fail": False,
             "ipopt": {"print_level": 0, "sb": "yes", "hessian_approximation": "exact",
@@ -158,9 +160,9 @@ def _solve(problem: DesignProblem, kind: str, max_angle: float, max_rate: float,
     for k in range(starts):
         x0 = np.zeros(nv) if k == 0 else rng.uniform(-max_angle, max_angle, nv)
         t0 = time.perf_counter()
-        sol = solver(x0=x0, lbx=-max_angle, ubx=max_angle, lbg=lbg, ubg=ubg)
+        sol = solver(x0=np.clip(x0, -ub, ub), lbx=-ub, ubx=ub, lbg=lbg, ubg=ubg)
         st = solver.stats()
-        xs = np.clip(np.array(sol["x"]).ravel(), -max_angle, max_angle)
+        xs = np.clip(np.array(sol["x"]).ravel(), -ub, ub)
         runs.append({"start": k, "x0": "zero (nominal)" if k == 0 else f"uniform(+-max_angle), seed {seed}",
                      "return_status": st["return_status"], "success": bool(st["success"]),
                      "iterations": int(st["iter_count"]), "objective": float(sol["f"]),
@@ -170,8 +172,28 @@ def _solve(problem: DesignProblem, kind: str, max_angle: float, max_rate: float,
     info = {"name": "ipopt (casadi.nlpsol), exact gradient and Hessian (CasADi AD)",
             "starts": [{k: v for k, v in r.items() if k != "x"} for r in runs],
             "best_start": best["start"], "return_status": best["return_status"], "success": best["success"],
-            "lateral_constraints": int(lat.size), "rate_constraints": int(R.shape[0])}
+            "knot_angle_limit_deg": gamma.tolist(), "rate_constraints": int(R.shape[0])}
     return best["x"], info
+
+
+def knot_angle_limits(mv: Maneuver, t: np.ndarray, f_g: np.ndarray, max_lateral: float) -> np.ndarray:
+    """Largest offset angle (deg) at each free knot that keeps ``|f| sin(angle) <= max_lateral`` everywhere.
+
+    On a segment the offset (pitch, yaw) is a convex combination of its end knots' offsets, so its size
+    is at most the larger of theirs; the angle between the designed and the nominal body axis is at most
+    ``sqrt(d_pitch^2 + d_yaw^2)`` (the sphere's metric ``cos^2(psi) d theta^2 + d psi^2``). Hence limiting
+    each knot's offset size to ``asin(max_lateral / max |f|)`` over the segments next to it (the design grid's
+    samples) guarantees the lateral limit at every time (conservative: the limit may be met inside).
+    """
+    k = np.asarray(mv.knots)
+    out = np.full(k.size, 90.0)
+    for i in range(1, k.size):
+        lo, hi = k[i - 1], k[i + 1] if i + 1 < k.size else k[i]
+        sel = (t >= lo) & (t <= hi)
+        fmax = float(np.max(f_g[sel], initial=0.0))
+        if fmax > max_lateral:
+            out[i] = math.degrees(math.asin(max_lateral / fmax))
+    return out[1:]
 
 
 def _burnout_miss_sensitivity(traj, S) -> np.ndarray:
@@ -300,7 +322,14 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
     pred_before = np.sqrt(np.diag(problem.covariance(x_nom)))
     pred_after = np.sqrt(np.diag(problem.covariance(x_best)))
     before, after = problem.value(objective, x_nom), problem.value(objective, x_best)
-    vehicle = dataclasses.replace(sc.vehicle, attitude=mv.profile(x_best))
+    # The designed flight flies the nominal pitch programme open loop (as a function of time, from the
+    # design grid) plus the offsets: the attitude is then the one the design assumed, not the gravity-turn
+    # law's reaction to the manoeuvre.
+    after_first = coarse.t > mv.knots[0] + 1e-9  # the spline starts at the first knot (no kink of the kick in it)
+    base_t = np.concatenate([[mv.knots[0]], coarse.t[after_first]])
+    base_theta = np.concatenate([coarse.kinematics(np.array([mv.knots[0]]))["attitude"][:, 0],
+                                 coarse.attitude[after_first, 0]])
+    vehicle = dataclasses.replace(sc.vehicle, attitude=mv.profile(x_best, base_t, base_theta))
     designed = dataclasses.replace(sc, name=f"{sc.name}-designed", vehicle=vehicle,
                                    description=f"{sc.description}; designed {maneuver} manoeuvre ({objective}-optimal, "
                                                f"max {max_angle:g} deg, {max_rate:g} deg/s, {max_lateral:g} g)")

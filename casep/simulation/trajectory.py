@@ -137,11 +137,19 @@ class AttitudeProfile:
 
     ``times`` (s, strictly increasing), ``pitch`` and ``yaw`` (deg, one per knot): the offset at t
     is the linear interpolation of the knots, the first (last) knot's value before (after) them.
+
+    ``base_times`` (s) and ``base_pitch`` (rad), optional: the nominal pitch programme flown open loop
+    from the first knot on (a cubic spline through these samples, typically the nominal flight's
+    attitude), instead of the gravity-turn law that follows the velocity. With it the flown pitch is
+    exactly base + offset; without it the offset is added to the law, whose feedback on the velocity
+    then turns the flight further.
     """
 
     times: tuple[float, ...]
     pitch: tuple[float, ...]
     yaw: tuple[float, ...]
+    base_times: tuple[float, ...] | None = None
+    base_pitch: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         t = np.asarray(self.times, dtype=float)
@@ -154,6 +162,32 @@ class AttitudeProfile:
         object.__setattr__(self, "times", tuple(float(x) for x in t))
         object.__setattr__(self, "pitch", tuple(float(x) for x in self.pitch))
         object.__setattr__(self, "yaw", tuple(float(x) for x in self.yaw))
+        if (self.base_times is None) != (self.base_pitch is None):
+            raise ValueError("`base_times` and `base_pitch` go together")
+        if self.base_times is not None:
+            bt, bp = np.asarray(self.base_times, dtype=float), np.asarray(self.base_pitch, dtype=float)
+            if bt.ndim != 1 or bt.size < 4 or np.any(np.diff(bt) <= 0) or bp.shape != bt.shape \
+                    or not (np.all(np.isfinite(bt)) and np.all(np.isfinite(bp))):
+                raise ValueError("`base_times` (strictly increasing, 4 or more) and `base_pitch` (rad) must be "
+                                 "finite and of one length")
+            if bt[0] > t[0] or bt[-1] < t[-1]:
+                raise ValueError(f"`base_times` must cover the knots [{t[0]:g}, {t[-1]:g}] s")
+            object.__setattr__(self, "base_times", tuple(float(x) for x in bt))
+            object.__setattr__(self, "base_pitch", tuple(float(x) for x in bp))
+
+    def base(self, t: float) -> tuple[float, float] | None:
+        """Open-loop nominal pitch (rad) and its rate (rad/s) at `t`, or None (law flown) before the
+        first knot or without a base programme."""
+        if self.base_times is None or t < self.times[0]:
+            return None
+        spline = self.__dict__.get("_spline")
+        if spline is None:
+            from scipy.interpolate import CubicSpline
+
+            spline = CubicSpline(self.base_times, self.base_pitch)
+            object.__setattr__(self, "_spline", spline)
+        tc = min(t, self.base_times[-1])
+        return float(spline(tc)), float(spline(tc, 1)) if t <= self.base_times[-1] else 0.0
 
     def offsets(self, t: float) -> tuple[float, float, float, float]:
         """Pitch and yaw offsets (rad) at `t` and their rates (rad/s; the slope of the segment, 0 outside)."""
@@ -359,6 +393,11 @@ def _angles(vehicle: Vehicle, t: float, v: np.ndarray, a: np.ndarray | None, sta
             psi_dot = math.radians(y.amplitude) * w * math.cos(w * (t - y.start))
     if vehicle.attitude is not None:  # designed offsets, added to both laws
         d_theta, d_psi, d_theta_dot, d_psi_dot = vehicle.attitude.offsets(t)
+        base = vehicle.attitude.base(t)
+        if base is not None:  # pitch programme open loop from the first knot on
+            theta = base[0]
+            if a is not None:
+                theta_dot = base[1]
         theta += d_theta
         psi += d_psi
         if a is not None:
