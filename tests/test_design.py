@@ -218,3 +218,16 @@ def test_api_bad_input():
         design("paper", objective="E")
     with pytest.raises(ValueError, match="`max_angle` must be a number > 0"):
         design("paper", max_angle=-1.0)
+
+
+def test_example_runs(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "examples" / "maneuver_design.py"
+    proc = subprocess.run([sys.executable, str(script), "--quick", "--out", str(tmp_path)], capture_output=True,
+                          text=True, cwd=tmp_path, timeout=600, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "max 10.0 deg: A" in proc.stdout and (tmp_path / "maneuver_design.png").exists()
+    assert "reported std / design CRLB in [1.0000, 1.0000]" in proc.stdout
