@@ -608,6 +608,8 @@ def _design_parser(sub) -> None:
                     help="largest offset rate, deg/s (default 2)")
     de.add_argument("--max-lateral", type=float, default=1.0, metavar="G",
                     help="largest lateral specific force |f| sin(offset), g (default 1)")
+    de.add_argument("--coefficients", metavar="NAMES", default=None,
+                    help="comma-separated coefficients that matter: objective A over these only (default all)")
     de.add_argument("--knots", type=int, default=10, help="knots of the piecewise-linear offset (default 10)")
     de.add_argument("--starts", type=int, default=4, help="IPOPT starts (default 4)")
     de.add_argument("--seed", type=_order, default=0, help="seed of the random starts and of -o's noise (default 0)")
@@ -641,7 +643,9 @@ def _cmd_design(args: argparse.Namespace) -> int:
     prior = _coefficient_file(args, "prior", load_model(get_scenario(args.scenario).model).names)
     res = design(args.scenario, maneuver=args.maneuver, objective=args.objective, max_angle=args.max_angle,
                  max_rate=args.max_rate, max_lateral=args.max_lateral, prior=prior, knots=args.knots,
-                 starts=args.starts, seed=args.seed, rate=args.rate)
+                 starts=args.starts, seed=args.seed, rate=args.rate,
+                 coefficients=None if args.coefficients is None else
+                 [c.strip() for c in args.coefficients.split(",") if c.strip()])
     s = res.solver
     print(f"{args.objective}-optimal {args.maneuver} manoeuvre, scenario {args.scenario}: objective "
           f"{res.before:.6g} -> {res.after:.6g} (design model); IPOPT {s['return_status']} (best of "

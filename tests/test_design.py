@@ -231,3 +231,22 @@ def test_example_runs(tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "max 10.0 deg: A" in proc.stdout and (tmp_path / "maneuver_design.png").exists()
     assert "reported std / design CRLB in [1.0000, 1.0000]" in proc.stdout
+
+
+def test_a_objective_over_a_subset(coarse):
+    sc, tr = coarse
+    model = load_model("platform36")
+    scales = np.array([model.scales[n] for n in model.names])
+    w = np.zeros(model.n_coefficients)
+    w[[model.index("Kg0z"), model.index("Ka1z")]] = 1.0
+    mv = Maneuver("yaw", tuple(np.linspace(16.0, 195.0, 3)))
+    dp = DesignProblem(model, tr.t, tr.attitude, tr.specific_force, mv, rate=100.0, sigma=0.1, scales=scales,
+                       weights=w)
+    x = np.array([3.0, -2.0])
+    F = np.array(dp.fisher(x))
+    M = F * np.outer(scales, scales) + 1e-2 * np.eye(model.n_coefficients)
+    C = np.linalg.inv(M)
+    assert dp.value("A", x) == pytest.approx(C[model.index("Kg0z"), model.index("Kg0z")]
+                                             + C[model.index("Ka1z"), model.index("Ka1z")], rel=1e-8)
+    with pytest.raises(ValueError, match="Kg0q"):
+        design("paper", coefficients=["Kg0q"])

@@ -17,7 +17,8 @@ The chain (all symbolic, so IPOPT gets exact gradients by automatic differentiat
    magnitudes, so that an unidentifiable coefficient gives a bounded objective, not an infinite one, and
    the hopeless ones do not drown the rest).
 6. Objectives on the scaled covariance ``C = M^-1`` (Cholesky ``M = L L^T``, written out in CasADi):
-   ``A`` = trace C (sum of the squared CRLB/magnitude ratios), ``D`` = log det C, ``miss`` = variance
+   ``A`` = trace C (sum of the squared CRLB/magnitude ratios; optionally over a subset of the
+   coefficients, "those that matter"), ``D`` = log det C, ``miss`` = variance
    of the predicted impact miss of the *nominal* trajectory, ``sum_r g_r^T C g_r`` over downrange and
    crossrange with ``g = diag(s) G^T``, ``G = -J [S_P; S_V]`` at burnout (:mod:`casep.impact`).
    ``A`` and ``miss`` are minimised as logarithms (same optimum, better scaling).
@@ -47,8 +48,10 @@ OBJECTIVES = ("A", "D", "miss")
 REGULARISATION = 1e-2
 
 
-def _cholesky_objectives(n: int, g_rows: np.ndarray | None) -> ca.Function:
-    """SX function M (n x n, symmetric positive definite) -> (trace M^-1, log det M^-1, sum_r g_r^T M^-1 g_r)."""
+def _cholesky_objectives(n: int, g_rows: np.ndarray | None, weights: np.ndarray | None = None) -> ca.Function:
+    """SX function M (n x n, symmetric positive definite) -> (sum_j w_j [M^-1]_jj, log det M^-1,
+    sum_r g_r^T M^-1 g_r); weights w_j 1 by default (the trace)."""
+    w = np.ones(n) if weights is None else np.asarray(weights, dtype=float)
     M = ca.SX.sym("M", n, n)
     L = [[ca.SX(0) for _ in range(n)] for _ in range(n)]
     for j in range(n):
@@ -75,11 +78,15 @@ def _cholesky_objectives(n: int, g_rows: np.ndarray | None) -> ca.Function:
         return y
 
     trace = 0
-    for j in range(n):  # ||L^-1||_F^2 = trace (L L^T)^-1, column by column (L^-1 is lower triangular)
+    for j in range(n):  # [M^-1]_jj = ||L^-1 e_j||^2 (column j of L^-1, zero above the diagonal)
+        if w[j] == 0:
+            continue
         e = [ca.SX(1) if i == j else ca.SX(0) for i in range(n)]
         y = forward(e)
+        cjj = 0
         for i in range(j, n):
-            trace = trace + y[i] * y[i]
+            cjj = cjj + y[i] * y[i]
+        trace = trace + float(w[j]) * cjj
     miss = 0
     if g_rows is not None:
         for g in g_rows:
@@ -110,11 +117,14 @@ class DesignProblem:
         Prior information (natural units, ``Cov_prior^-1``).
     miss_sensitivity : (2, n) array, optional
         ``G``, metres per natural unit (needed for the ``miss`` objective).
+    weights : (n,) array, optional
+        Weight of each coefficient's scaled variance in the A objective (default 1: the trace; 0/1 to
+        design for a subset, "the coefficients that matter").
     """
 
     def __init__(self, model, t, attitude, force, maneuver: Maneuver, *, rate: float, sigma: float,
                  scales: np.ndarray, prior_information: np.ndarray | None = None,
-                 miss_sensitivity: np.ndarray | None = None) -> None:
+                 miss_sensitivity: np.ndarray | None = None, weights: np.ndarray | None = None) -> None:
         if model.signals:
             raise ValueError(f"model `{model.name}` uses flight columns ({', '.join(model.signals)}): "
                              "casep design supports models of the specific force (and time) only")
@@ -183,7 +193,8 @@ class DesignProblem:
         g_rows = None
         if miss_sensitivity is not None:
             g_rows = np.asarray(miss_sensitivity, dtype=float) * self.scales  # g_r = diag(s) G_r
-        objs = _cholesky_objectives(n, g_rows)(Msc)
+        self.weights = None if weights is None else np.asarray(weights, dtype=float)
+        objs = _cholesky_objectives(n, g_rows, self.weights)(Msc)
         self.has_miss = g_rows is not None
         self.x = x
         self.fisher = ca.Function("fisher", [x], [Fisher], ["x"], ["F"])  # natural units
@@ -249,7 +260,7 @@ def fisher_information(S: np.ndarray, sigma: float) -> np.ndarray:
 
 
 def objective_value(kind: str, F: np.ndarray, scales: np.ndarray, prior_info: np.ndarray | None = None,
-                    miss_sensitivity: np.ndarray | None = None) -> float:
+                    miss_sensitivity: np.ndarray | None = None, weights: np.ndarray | None = None) -> float:
     """Objective `kind` (as reported, not logged) from a Fisher information `F` in natural units:
     the numpy twin of :class:`DesignProblem`'s (same regularisation)."""
     s = np.asarray(scales, dtype=float)
@@ -260,7 +271,8 @@ def objective_value(kind: str, F: np.ndarray, scales: np.ndarray, prior_info: np
     L = np.linalg.cholesky(M)
     if kind == "A":
         Li = np.linalg.inv(L)
-        return float(np.sum(Li**2))
+        w = np.ones(n) if weights is None else np.asarray(weights, dtype=float)
+        return float(np.sum(w * np.sum(Li**2, axis=0)))  # [M^-1]_jj = column norms of L^-1
     if kind == "D":
         return float(-2.0 * np.sum(np.log(np.diag(L))))
     if kind == "miss":

@@ -69,6 +69,7 @@ class DesignResult:
     scenario: Any  # the designed Scenario (simulate it with casep.simulation.simulate.simulate_flight)
     prior: bool
     timing: dict
+    coefficients: tuple[str, ...] | None = None
     verification: dict = field(default_factory=dict)
 
     @property
@@ -90,6 +91,7 @@ class DesignResult:
 
         return {
             "objective": self.objective, "before": self.before, "after": self.after,
+            "coefficients": None if self.coefficients is None else list(self.coefficients),
             "maneuver": self.maneuver.to_dict(self.x),
             "crlb_before": d(self.crlb_before), "crlb_after": d(self.crlb_after),
             "constraints": self.constraints,
@@ -227,7 +229,8 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
            max_lateral: float = DEFAULTS["max_lateral"], prior: Mapping | None = None,
            knots: int = DEFAULTS["knots"], start: float | None = None, design_rate: float = DEFAULTS["design_rate"],
            starts: int = DEFAULTS["starts"], seed: int = DEFAULTS["seed"], max_iter: int = DEFAULTS["max_iter"],
-           model=None, rate: float | None = None, verify: bool = True) -> DesignResult:
+           model=None, rate: float | None = None, verify: bool = True,
+           coefficients: list[str] | tuple[str, ...] | None = None) -> DesignResult:
     """Design the attitude manoeuvre of a scenario's flight that minimises a Cramer-Rao objective.
 
     Parameters
@@ -263,6 +266,8 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
     verify : bool
         Re-simulate the designed flight at the flight's rate for the exact CRLB and the constraints
         as flown (default True).
+    coefficients : sequence of str, optional
+        The coefficients that matter: objective A sums only their scaled variances (default: all).
 
     Returns
     -------
@@ -292,6 +297,19 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
     if not sigma > 0:
         raise ValueError(f"scenario `{sc.name}` has no tracking noise (sigma {sigma}): the bound is zero")
     scales = np.array([model.scales.get(nm, 1.0) for nm in names])
+    weights = None
+    if coefficients is not None:
+        from casep.model._model import unknown_coefficient_message
+
+        chosen = list(coefficients)
+        for nm in chosen:
+            if nm not in names:
+                raise ValueError(unknown_coefficient_message(nm, names, "`coefficients`"))
+        if not chosen:
+            raise ValueError("`coefficients` is empty: name one or more, or leave it out (all)")
+        if objective != "A":
+            raise ValueError(f"`coefficients` selects the terms of objective A, not of `{objective}`")
+        weights = np.array([1.0 if nm in chosen else 0.0 for nm in names])
     info_prior = None
     if prior is not None:
         W = prior_rows(prior, names, "--prior")[0]
@@ -313,7 +331,7 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
     timing["nominal_trajectory"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     problem = DesignProblem(model, coarse.t, coarse.attitude, coarse.specific_force, mv, rate=sc.rate, sigma=sigma,
-                            scales=scales, prior_information=info_prior, miss_sensitivity=G_miss)
+                            scales=scales, prior_information=info_prior, miss_sensitivity=G_miss, weights=weights)
     timing["build"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     x_best, solver = _solve(problem, objective, max_angle, max_rate, max_lateral, starts, seed, max_iter)
@@ -355,8 +373,8 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
         constraints["flown"] = _flown(full, traj, names)
         verification = {
             "rate_hz": sc.rate, "samples": int(traj.t.size),
-            "before": objective_value(objective, F_before, scales, info_prior, G_miss),
-            "after": objective_value(objective, F_after, scales, info_prior, G_miss),
+            "before": objective_value(objective, F_before, scales, info_prior, G_miss, weights),
+            "after": objective_value(objective, F_after, scales, info_prior, G_miss, weights),
             "crlb_prediction_error_max": float(np.max(rel, initial=0.0)),
             "crlb_prediction_error_median": float(np.median(rel)) if rel.size else None,
             "burnout_change": {"speed_m_s": float(np.linalg.norm(traj.velocity[-1]) - np.linalg.norm(full.velocity[-1])),
@@ -371,4 +389,5 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
                         before=before, after=after, crlb_before=crlb_before, crlb_after=crlb_after,
                         predicted_before=pred_before, predicted_after=pred_after, constraints=constraints,
                         solver=solver, scenario=designed, prior=prior is not None, timing=timing,
+                        coefficients=None if coefficients is None else tuple(coefficients),
                         verification=verification)
