@@ -39,7 +39,8 @@ Main entry points
 :func:`solve_ols`, :func:`solve_rls` (RLS/RELS), :func:`solve_ridge`, :func:`solve_bounded`,
 :func:`solve_pcr`, :func:`solve_map`, :func:`solve_gls` (all returning :class:`EstimateResult`),
 :func:`separate`; the impact miss of an estimate :func:`impact_analysis`
-(:mod:`casep.impact`); the checks :func:`check_flight` (before) and :func:`check_fit` (after an
+(:mod:`casep.impact`); the manoeuvre that would determine more coefficients
+:func:`casep.design.design` (:mod:`casep.design`, ``casep design``); the checks :func:`check_flight` (before) and :func:`check_fit` (after an
 estimate), whose warnings are :class:`CasepWarning` subclasses;
 the command line ``casep`` (:mod:`casep.cli`).
 """
@@ -75,7 +76,8 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
                          "PlausibilityWarning", "TimeOffsetWarning"),
 }
 __getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), (
-    "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units", "impact"))
+    "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units", "impact",
+    "design"))
 
 __all__ = [
     "__version__",

@@ -324,6 +324,7 @@ def _parser() -> argparse.ArgumentParser:
     m = sub.add_parser("models", help="list the available error models")
     m.add_argument("--verbose", "-v", action="store_true", help="list each model's coefficients")
     _impact_parser(sub)
+    _design_parser(sub)
     return p
 
 
@@ -671,6 +672,93 @@ def _cmd_impact(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------- end casep impact
 
 
+# ---------------------------------------------------------------- casep design
+def _design_parser(sub) -> None:
+    """`casep design [--scenario paper] [--maneuver yaw|pitch|both] [--objective A|D|miss] [--max-angle DEG]
+    [--max-rate DEG_PER_S] [--prior FILE] [--json OUT] [-o FLIGHT.csv]` (interfaces.md "Manoeuvre design")."""
+    from casep.simulation.scenarios import SCENARIOS
+
+    de = sub.add_parser("design", help="the attitude manoeuvre that minimises the Cramer-Rao bound (IPOPT)")
+    de.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="nominal flight (default paper)")
+    de.add_argument("--maneuver", default="yaw", choices=("yaw", "pitch", "both"),
+                    help="attitude axes the manoeuvre moves (default yaw)")
+    de.add_argument("--objective", default="A", choices=("A", "D", "miss"),
+                    help="A: trace of the covariance scaled by the declared magnitudes; D: its log det; miss: "
+                         "variance of the nominal trajectory's predicted impact miss (default A)")
+    de.add_argument("--max-angle", type=float, default=5.0, metavar="DEG",
+                    help="largest offset from the nominal attitude, deg (default 5)")
+    de.add_argument("--max-rate", type=float, default=2.0, metavar="DEG_PER_S",
+                    help="largest offset rate, deg/s (default 2)")
+    de.add_argument("--max-lateral", type=float, default=1.0, metavar="G",
+                    help="largest lateral specific force |f| sin(offset), g (default 1)")
+    de.add_argument("--coefficients", metavar="NAMES", default=None,
+                    help="comma-separated coefficients that matter: objective A over these only (default all)")
+    de.add_argument("--knots", type=int, default=10, help="knots of the piecewise-linear offset (default 10)")
+    de.add_argument("--starts", type=int, default=4, help="IPOPT starts (default 4)")
+    de.add_argument("--seed", type=_order, default=0, help="seed of the random starts and of -o's noise (default 0)")
+    de.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
+    de.add_argument("--prior", metavar="FILE", default=None,
+                    help='prior JSON {"Kg0x": {"mean": m, "std": s}, ...} (natural units): Bayesian covariance')
+    de.add_argument("--json", metavar="OUT", default=None, help="write the design JSON here")
+    de.add_argument("--figure", metavar="PNG", default=None, help="write the manoeuvre and CRLB before/after here")
+    de.add_argument("-o", "--output", metavar="FLIGHT", default=None,
+                    help="simulate the designed flight into this flight file (truth in <stem>.truth.json)")
+
+
+def _cmd_design(args: argparse.Namespace) -> int:
+    from casep.design.optimize import design
+    from casep.estimators.result import write_json_atomic
+    from casep.io._atomic import check_outputs
+    from casep.model.loader import load_model
+    from casep.simulation.scenarios import get_scenario
+    from casep.simulation.simulate import truth_path
+
+    for flag, v, hi in (("--max-angle", args.max_angle, 45.0), ("--max-rate", args.max_rate, math.inf),
+                        ("--max-lateral", args.max_lateral, math.inf)):
+        if not (math.isfinite(v) and 0 < v <= hi):
+            raise ValueError(f"{flag} must be > 0" + (f" and <= {hi:g}" if math.isfinite(hi) else "") + f", got {v:g}")
+    if args.knots < 2 or args.starts < 1:
+        raise ValueError(f"--knots must be >= 2 and --starts >= 1, got {args.knots} and {args.starts}")
+    outputs = {"--json": args.json, "--figure": args.figure}
+    if args.output:
+        outputs.update({"-o": args.output, "-o (truth sidecar)": truth_path(args.output)})
+    check_outputs(outputs, inputs=_inputs(args, "prior"))
+    prior = _coefficient_file(args, "prior", load_model(get_scenario(args.scenario).model).names)
+    res = design(args.scenario, maneuver=args.maneuver, objective=args.objective, max_angle=args.max_angle,
+                 max_rate=args.max_rate, max_lateral=args.max_lateral, prior=prior, knots=args.knots,
+                 starts=args.starts, seed=args.seed, rate=args.rate,
+                 coefficients=None if args.coefficients is None else
+                 [c.strip() for c in args.coefficients.split(",") if c.strip()])
+    s = res.solver
+    print(f"{args.objective}-optimal {args.maneuver} manoeuvre, scenario {args.scenario}: objective "
+          f"{res.before:.6g} -> {res.after:.6g} (design model); IPOPT {s['return_status']} (best of "
+          f"{len(s['starts'])} starts; {sum(r['success'] for r in s['starts'])} solved), {res.timing['total']:.1f} s")
+    v = res.verification
+    print(f"re-simulated: objective {v['before']:.6g} -> {v['after']:.6g}; CRLB prediction error max "
+          f"{100 * v['crlb_prediction_error_max']:.1f} %")
+    m = res.maneuver.to_dict(res.x)
+    print("knots s:   " + " ".join(f"{t:7.1f}" for t in m["knots_s"]))
+    for axis in res.maneuver.axes:
+        print(f"{axis + ' deg:':<11}" + " ".join(f"{a:7.2f}" for a in m[f"{axis}_deg"]))
+    print(res.table())
+    print(f"identifiable (CRLB < declared magnitude): {len(res.identifiable('before'))} before, "
+          f"{len(res.identifiable('after'))} after: {', '.join(res.identifiable('after')) or 'none'}")
+    if args.json:
+        write_json_atomic(res.to_json(), args.json)
+        print(f"design written to {args.json}")
+    if args.figure:
+        from casep.reporting.plots import plot_design
+
+        print(f"figure written to {plot_design(res, args.figure)}")
+    if args.output:
+        from casep.simulation.simulate import simulate_flight, write_simulation
+
+        flight_path, side = write_simulation(simulate_flight(res.scenario, seed=args.seed), args.output)
+        print(f"designed flight written to {flight_path} and {side}")
+    return 0 if s["success"] else 1
+# ---------------------------------------------------------------- end casep design
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from casep.workflows.demo import _summary_lines, impact_lines, run_demo
 
@@ -842,7 +930,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     commands = {"separate": _cmd_separate, "diagnose": _cmd_diagnose, "simulate": _cmd_simulate,
                 "montecarlo": _cmd_montecarlo, "demo": _cmd_demo, "models": _cmd_models, "methods": _cmd_methods,
-                "fuse": _cmd_fuse, "impact": _cmd_impact, "noise": _cmd_noise}
+                "fuse": _cmd_fuse, "impact": _cmd_impact, "noise": _cmd_noise, "design": _cmd_design}
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", CasepWarning)

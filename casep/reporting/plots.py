@@ -14,7 +14,7 @@ from casep.estimators.result import AXES, EstimateResult
 
 __all__ = ["plot_singular_values", "plot_variance_decomposition", "plot_residuals", "plot_estimates",
            "plot_history", "separate_figures", "estimate_scales", "plot_flights_crlb", "plot_allan", "plot_miss_budget",
-           "plot_impact_ellipse", "impact_figures"]
+           "plot_impact_ellipse", "impact_figures", "plot_design"]
 
 
 def _pyplot():
@@ -350,4 +350,46 @@ def plot_allan(noise, path: str | os.PathLike) -> Path:
     ax.set_title(f"Noise of the residuals: {noise.choice.replace('_', '-')}")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
+    return _save(fig, path)
+
+
+def plot_design(result, path: str | os.PathLike) -> Path:
+    """`casep design --figure`: the designed manoeuvre (offsets at the knots, deg, against time) and the
+    CRLB std per coefficient before and after, as a ratio to the coefficient's declared magnitude
+    (log scale; below 1 = identifiable; an undetermined coefficient is drawn at the top, hollow)."""
+    plt = _pyplot()
+    r = result
+    m = r.maneuver.to_dict(r.x)
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(12, 8), gridspec_kw={"height_ratios": [1, 1.4]})
+    for axis, color in (("pitch", "tab:orange"), ("yaw", "tab:blue")):
+        if axis in r.maneuver.axes:
+            a1.plot(m["knots_s"], m[f"{axis}_deg"], "o-", color=color, label=f"{axis} offset")
+    lim = r.constraints["max_angle_deg"]
+    a1.axhline(lim, color="grey", ls="--", lw=0.8, label=f"+-{lim:g} deg")
+    a1.axhline(-lim, color="grey", ls="--", lw=0.8)
+    a1.set_xlabel("time, s")
+    a1.set_ylabel("offset from nominal attitude, deg")
+    a1.set_title(f"{r.objective}-optimal {r.maneuver.kind} manoeuvre: objective {r.before:.4g} -> {r.after:.4g}",
+                 fontsize=10)
+    a1.grid(True, alpha=0.3)
+    a1.legend(fontsize=8)
+    x = np.arange(len(r.names))
+    before, after = r.crlb_before / r.scales, r.crlb_after / r.scales
+    finite = np.concatenate([before[np.isfinite(before)], after[np.isfinite(after)]])
+    top = 10 ** np.ceil(np.log10(finite.max())) if finite.size else 10.0
+    for vals, off, color, label in ((before, -0.18, "tab:grey", "nominal flight"),
+                                    (after, 0.18, "tab:green", "designed flight")):
+        ok = np.isfinite(vals)
+        a2.plot(x[ok] + off, vals[ok], "o", color=color, label=label)
+        if np.any(~ok):
+            a2.plot(x[~ok] + off, np.full((~ok).sum(), top), "o", mfc="none", color=color)
+    a2.axhline(1.0, color="k", lw=0.8, ls="--", label="declared magnitude")
+    a2.set_yscale("log")
+    a2.set_xticks(x)
+    a2.set_xticklabels(r.names, rotation=90, fontsize=8)
+    a2.set_ylabel("CRLB std / declared magnitude")
+    a2.set_title("Cramer-Rao bound per coefficient" + (" (Bayesian, with the prior)" if r.prior else ""), fontsize=10)
+    a2.grid(True, alpha=0.3, which="both", axis="y")
+    a2.legend(fontsize=8)
+    fig.tight_layout()
     return _save(fig, path)

@@ -24,6 +24,9 @@ Assumptions (every one is a choice, stated here and in the README):
   (``theta`` follows the velocity's in-plane pitch, the kick's angle of attack decaying with
   time constant ``tau``). Optional yaw manoeuvre ``psi(t) = A sin(2 pi (t - t_a) / P)`` on
   ``[t_a, t_b]``, so that the z-axis terms of the error model see some excitation.
+  Optional attitude offsets (:class:`AttitudeProfile`, used by ``casep design``): piecewise-linear
+  pitch and yaw offsets (deg) at knot times, added to the pitch law and the yaw law above (held at
+  the first/last knot's value outside the knots); the integration is cut at the knots (kinks).
 - **Sensed specific force**: ``f = (T - D) e_b / m`` (gravity is not sensed).
 - **Attitude and body rate** (for lever-arm terms): roll is zero; the body-to-platform
   rotation is ``C = Rz(theta) Ry(-psi)`` (body x axis = ``e_b``), its rate
@@ -45,7 +48,7 @@ import numpy as np
 
 from casep.units import G0
 
-__all__ = ["body_to_platform", "Stage", "Vehicle", "PitchProgramme", "YawManoeuvre", "BoostTrajectory", "simulate_boost",
+__all__ = ["body_to_platform", "Stage", "Vehicle", "PitchProgramme", "YawManoeuvre", "AttitudeProfile", "BoostTrajectory", "simulate_boost",
            "atmosphere", "DEFAULT_VEHICLE", "MU_EARTH", "R_EARTH"]
 
 MU_EARTH = 3.986004418e14  # m^3/s^2
@@ -129,6 +132,78 @@ class YawManoeuvre:
 
 
 @dataclass(frozen=True)
+class AttitudeProfile:
+    """Piecewise-linear attitude offsets added to the pitch and yaw laws (a designed manoeuvre).
+
+    ``times`` (s, strictly increasing), ``pitch`` and ``yaw`` (deg, one per knot): the offset at t
+    is the linear interpolation of the knots, the first (last) knot's value before (after) them.
+
+    ``base_times`` (s) and ``base_pitch`` (rad), optional: the nominal pitch programme flown open loop
+    from the first knot on (a cubic spline through these samples, typically the nominal flight's
+    attitude), instead of the gravity-turn law that follows the velocity. With it the flown pitch is
+    exactly base + offset; without it the offset is added to the law, whose feedback on the velocity
+    then turns the flight further.
+    """
+
+    times: tuple[float, ...]
+    pitch: tuple[float, ...]
+    yaw: tuple[float, ...]
+    base_times: tuple[float, ...] | None = None
+    base_pitch: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.times, dtype=float)
+        if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+            raise ValueError(f"`times` must be two or more finite, strictly increasing knot times, got {self.times!r}")
+        for name in ("pitch", "yaw"):
+            v = np.asarray(getattr(self, name), dtype=float)
+            if v.shape != t.shape or not np.all(np.isfinite(v)):
+                raise ValueError(f"`{name}` must be {t.size} finite offsets (deg), got {getattr(self, name)!r}")
+        object.__setattr__(self, "times", tuple(float(x) for x in t))
+        object.__setattr__(self, "pitch", tuple(float(x) for x in self.pitch))
+        object.__setattr__(self, "yaw", tuple(float(x) for x in self.yaw))
+        if (self.base_times is None) != (self.base_pitch is None):
+            raise ValueError("`base_times` and `base_pitch` go together")
+        if self.base_times is not None:
+            bt, bp = np.asarray(self.base_times, dtype=float), np.asarray(self.base_pitch, dtype=float)
+            if bt.ndim != 1 or bt.size < 4 or np.any(np.diff(bt) <= 0) or bp.shape != bt.shape \
+                    or not (np.all(np.isfinite(bt)) and np.all(np.isfinite(bp))):
+                raise ValueError("`base_times` (strictly increasing, 4 or more) and `base_pitch` (rad) must be "
+                                 "finite and of one length")
+            if bt[0] > t[0] or bt[-1] < t[-1]:
+                raise ValueError(f"`base_times` must cover the knots [{t[0]:g}, {t[-1]:g}] s")
+            object.__setattr__(self, "base_times", tuple(float(x) for x in bt))
+            object.__setattr__(self, "base_pitch", tuple(float(x) for x in bp))
+
+    def base(self, t: float) -> tuple[float, float] | None:
+        """Open-loop nominal pitch (rad) and its rate (rad/s) at `t`, or None (law flown) before the
+        first knot or without a base programme."""
+        if self.base_times is None or t < self.times[0]:
+            return None
+        spline = self.__dict__.get("_spline")
+        if spline is None:
+            from scipy.interpolate import CubicSpline
+
+            spline = CubicSpline(self.base_times, self.base_pitch)
+            object.__setattr__(self, "_spline", spline)
+        tc = min(t, self.base_times[-1])
+        return float(spline(tc)), float(spline(tc, 1)) if t <= self.base_times[-1] else 0.0
+
+    def offsets(self, t: float) -> tuple[float, float, float, float]:
+        """Pitch and yaw offsets (rad) at `t` and their rates (rad/s; the slope of the segment, 0 outside)."""
+        times = self.times
+        if t <= times[0] or t >= times[-1]:
+            k = 0 if t <= times[0] else -1
+            return math.radians(self.pitch[k]), math.radians(self.yaw[k]), 0.0, 0.0
+        i = int(np.searchsorted(times, t, side="right")) - 1
+        h = times[i + 1] - times[i]
+        u = (t - times[i]) / h
+        dp, dy = self.pitch[i + 1] - self.pitch[i], self.yaw[i + 1] - self.yaw[i]
+        return (math.radians(self.pitch[i] + u * dp), math.radians(self.yaw[i] + u * dy),
+                math.radians(dp / h), math.radians(dy / h))
+
+
+@dataclass(frozen=True)
 class Vehicle:
     """Lift-off mass kg (all stages and payload), reference area m^2, stages in order."""
 
@@ -137,6 +212,7 @@ class Vehicle:
     stages: tuple[Stage, ...]
     pitch: PitchProgramme = field(default_factory=PitchProgramme)
     yaw: YawManoeuvre | None = None
+    attitude: AttitudeProfile | None = None
 
     def __post_init__(self) -> None:
         if not self.stages:
@@ -315,6 +391,18 @@ def _angles(vehicle: Vehicle, t: float, v: np.ndarray, a: np.ndarray | None, sta
         psi += math.radians(y.amplitude) * math.sin(w * (t - y.start))
         if a is not None:
             psi_dot = math.radians(y.amplitude) * w * math.cos(w * (t - y.start))
+    if vehicle.attitude is not None:  # designed offsets, added to both laws
+        d_theta, d_psi, d_theta_dot, d_psi_dot = vehicle.attitude.offsets(t)
+        base = vehicle.attitude.base(t)
+        if base is not None:  # pitch programme open loop from the first knot on
+            theta = base[0]
+            if a is not None:
+                theta_dot = base[1]
+        theta += d_theta
+        psi += d_psi
+        if a is not None:
+            theta_dot += d_theta_dot
+            psi_dot += d_psi_dot
     return theta, psi, theta_dot, psi_dot
 
 
@@ -397,13 +485,14 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0) -> B
     pos, vel, f_out, mass = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n))
     acc, att, rate = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
     segments = []
-    # Split pieces further at the end of the kick (attitude law switches there).
+    # Split pieces further at the end of the kick (attitude law switches there) and at the knots of
+    # the attitude offsets (kinks).
+    splits = [t_kick_end] + (list(vehicle.attitude.times) if vehicle.attitude is not None else [])
     cuts = []
     for t0, t1, k, kind in pieces:
-        if t0 < t_kick_end < t1:
-            cuts += [(t0, t_kick_end, k, kind), (t_kick_end, t1, k, kind)]
-        else:
-            cuts.append((t0, t1, k, kind))
+        inner = sorted({s for s in splits if t0 + 1e-9 < s < t1 - 1e-9})
+        edges = [t0] + inner + [t1]
+        cuts += [(a, b, k, kind) for a, b in zip(edges[:-1], edges[1:])]
     dropped: set[int] = set()
     for t0, t1, k, kind in cuts:
         stage = vehicle.stages[k]
