@@ -22,7 +22,7 @@ Parameters (:data:`PARAMETERS`; a ``*_scale`` multiplies the scenario's value, n
 ====================== ===========================================================================
 
 A ``*_scale`` must stay positive: a normal one needs ``mean - 6 std > 0``, a uniform one
-``low > 0``. Run k draws from ``default_rng(SeedSequence(seed, spawn_key=(k, 1)))`` in the order
+``low > 0``. Run k draws from ``default_rng(SeedSequence(seed, spawn_key=(k, 0)))`` in the order
 of :data:`PARAMETERS`, so its vehicle depends on the seed and k only.
 """
 

@@ -169,8 +169,8 @@ def _flight(ctx: _Context, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     return S, traj.t, truth, crlb
 
 
-def _task(ctx: _Context, methods: Sequence[str], linear: bool, runs: Sequence[int]) -> dict[str, Any]:
-    """Runs `runs` of `methods` (all linear maps when `linear`, else one per-run method).
+def _task(ctx: _Context, linear: Sequence[str], other: Sequence[str], runs: Sequence[int]) -> dict[str, Any]:
+    """Runs `runs` of the `linear` methods (their linear maps) and the `other` (per-run) methods.
 
     Linear methods are applied to all runs sharing a trajectory at once (the whole task when
     nominal, run by run when dispersed). Returns run ids, true coefficients, CRLB std and per
@@ -180,6 +180,7 @@ def _task(ctx: _Context, methods: Sequence[str], linear: bool, runs: Sequence[in
 
     from casep.estimators.gls import estimate_tau_many
 
+    n = len(ctx.names)
     with threadpool_limits(limits=1), warnings.catch_warnings():
         warnings.simplefilter("ignore", IllConditionedWarning)
         flights = [_flight(ctx, k) for k in runs]
@@ -191,21 +192,20 @@ def _task(ctx: _Context, methods: Sequence[str], linear: bool, runs: Sequence[in
                 if _CACHE.get("token") != ctx.token:
                     _CACHE.clear()
                     _CACHE.update(token=ctx.token, maps=_linear_maps(ctx.S.reshape(-1, ctx.S.shape[-1]), ctx.names,
-                                                                     ctx.sigma, methods, ctx.prior))
+                                                                     ctx.sigma, linear, ctx.prior))
                 groups = [(_CACHE["maps"], ctx.S, list(range(len(runs))))]
             else:
-                groups = [(_linear_maps(S.reshape(-1, S.shape[-1]), ctx.names, ctx.sigma, methods, ctx.prior), S, [j])
+                groups = [(_linear_maps(S.reshape(-1, S.shape[-1]), ctx.names, ctx.sigma, linear, ctx.prior), S, [j])
                           for j, (S, *_rest) in enumerate(flights)]
-            for m in methods:
-                est[m], std[m] = np.empty((len(runs), len(ctx.names))), np.empty((len(runs), len(ctx.names)))
+            for m in linear:
+                est[m], std[m] = np.empty((len(runs), n)), np.empty((len(runs), n))
             for maps, S, idx in groups:
                 S2 = S.reshape(-1, S.shape[-1])
                 Y = np.stack([ys[j].reshape(-1) for j in idx], axis=-1)
                 for m, lm in maps.items():
                     X, sd = lm.apply(S2, Y)  # D = K y + b and the solver's std
                     est[m][idx], std[m][idx] = X.T, sd.T
-        else:
-            (method,) = methods
+        for method in other:
             runs_d = [_denoised(method, y) for y in ys]
             if runs_d[0][0] == "gls" and ctx.dispersions is None:  # one REML lattice for the task
                 taus = estimate_tau_many(ctx.S, np.stack([y for _, y, _ in runs_d], axis=-1), ctx.t)
@@ -229,8 +229,8 @@ def _task_size(method: str, runs: int) -> int:
     return max(1, min(_BLOCK, -(-runs // 16)))
 
 
-def _chunks(method: str, runs: int) -> list[range]:
-    size = _task_size(method, runs)
+def _chunks(methods: Sequence[str], runs: int) -> list[range]:
+    size = min(_task_size(m, runs) for m in methods)
     return [range(k, min(k + size, runs)) for k in range(0, runs, size)]
 
 
@@ -650,9 +650,14 @@ def run_montecarlo(
     ctx = _Context(token=uuid.uuid4().hex, scenario=sc, names=names, sigma=sigma, tau=tau, seed=seed, truth=truth,
                    prior=prior, bounds=bounds, truth_prior=tp, dispersions=dispersions, S=S, t=t, crlb=crlb)
     lin = [m for m in methods if batched and (m in BATCHED or m.startswith("ridge:"))]
-    stages: list[tuple[list[str], bool]] = ([(lin, True)] if lin else []) + [([m], False) for m in methods
-                                                                              if m not in lin]
-    chunks = [_chunks(g[0], runs) for g, _ in stages]
+    other = [m for m in methods if m not in lin]
+    # stages: (linear, per-run) methods; nominal: the linear maps together, then each per-run
+    # method; dispersed: all in one stage (each run's trajectory is simulated once)
+    if dispersions is None:
+        stages = ([(lin, [])] if lin else []) + [([], [m]) for m in other]
+    else:
+        stages = [(lin, other)]
+    chunks = [_chunks(a + b, runs) for a, b in stages]
     store = None
     if out is not None:
         settings = {"scenario": sc.name, "rate": sc.rate, "runs": runs, "seed": seed, "methods": methods,
@@ -662,27 +667,29 @@ def run_montecarlo(
     n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
     if n_workers < 1:
         raise ValueError(f"`workers` must be >= 1, got {workers!r}")
-    bar = _Progress(runs, [",".join(g) for g, _ in stages], _progress_mode(progress))
+    groups = [a + b for a, b in stages]
+    bar = _Progress(runs, [",".join(g) for g in groups], _progress_mode(progress))
     results: list[dict[int, dict]] = [{} for _ in stages]
     if store is not None:
-        for si, (g, _) in enumerate(stages):
+        for si, g in enumerate(groups):
             for ti in range(len(chunks[si])):
                 r = store.load(si, ti, g, names)
                 if r is not None:
                     results[si][ti] = r
     pending = sum(len(chunks[si]) - len(results[si]) for si in range(len(stages)))
-    per_run_work = dispersions is not None or any(not lin_ for _, lin_ in stages)
+    per_run_work = dispersions is not None or bool(other)
     use_dask = dask if dask is not None else bool(scheduler) or (n_workers > 1 and per_run_work and pending > 1)
     secs: dict[str, float] = {}
     with ExitStack() as stack:
         stack.callback(bar.close)
         engine = _Dask(stack, n_workers, scheduler) if use_dask and pending else _InProcess()
-        for si, (group, linear) in enumerate(stages):
+        for si, (linear, per_run) in enumerate(stages):
+            group = groups[si]
             t0 = time.perf_counter()
             done = sum(len(r["runs"]) for r in results[si].values())
             if done:
                 bar(done)
-            jobs = [((si, ti), (group, linear, list(c))) for ti, c in enumerate(chunks[si]) if ti not in results[si]]
+            jobs = [((si, ti), (linear, per_run, list(c))) for ti, c in enumerate(chunks[si]) if ti not in results[si]]
             for (si_, ti), res in engine.run(ctx, jobs):
                 if store is not None:
                     store.save(si_, ti, group, names, res)
@@ -694,7 +701,7 @@ def run_montecarlo(
                 bar.next_stage()
     est: dict[str, np.ndarray] = {}
     std: dict[str, np.ndarray | None] = {}
-    for si, (group, _) in enumerate(stages):
+    for si, group in enumerate(groups):
         parts = [results[si][ti] for ti in range(len(chunks[si]))]
         for m in group:
             est[m] = np.concatenate([p["est"][m] for p in parts])
