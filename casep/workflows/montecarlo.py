@@ -283,9 +283,11 @@ class _Dask:
         if scheduler:
             self.client = stack.enter_context(Client(scheduler, timeout="20s"))
         else:
+            # dashboard_address ":0": the scheduler's HTTP server (no dashboard without bokeh) on a
+            # free port; None still binds 8787 and warns when another cluster holds it
             with _deferred_signals():  # a cluster interrupted while it starts cannot be closed cleanly
                 cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=logging.CRITICAL,
+                                       dashboard_address=":0", silence_logs=logging.CRITICAL,
                                        preload=["casep.workflows._dask_worker"])
                 stack.enter_context(cluster)
                 self.client = stack.enter_context(Client(cluster))
