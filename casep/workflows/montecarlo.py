@@ -1,23 +1,35 @@
-"""Seeded Monte Carlo of the estimators against the Cramer-Rao bound.
+"""Seeded Monte Carlo of the estimators against the Cramer-Rao bound, on Dask.
 
-The scenario's trajectory (hence S_V and the true dv) is the same in every run; run k adds
-tracking noise drawn from ``numpy.random.default_rng(SeedSequence(seed).spawn(runs)[k])``,
-so a run's data do not depend on how runs are batched or distributed over processes.
+Run k draws its tracking noise from ``default_rng(SeedSequence(seed, spawn_key=(k,)))`` (=
+``SeedSequence(seed).spawn(runs)[k]``), its dispersed vehicle (``--dispersions``) from spawn key
+``(k, 0)`` and its true coefficients (``--truth-from-prior``) from ``(k, 1)``: a run's numbers
+depend on the seed and k only, not on how runs are grouped into tasks or which worker runs them.
 
-Methods whose estimate is a fixed linear function of the data (``ols``, ``rls`` with no
-forgetting, ``ridge:<lambda>``, ``pcr``, ``map`` with the scenario's sigma) are solved for
-all runs at once through the estimator's own linear map ``D = K y + b``
-(:func:`casep.estimators.ols.ols_linear_map` and its siblings, tested equal to the solvers),
-applied to a matrix of right-hand sides in blocks; S_V is built once per flight. The others
-(``rels``, ``ridge`` with GCV, ``bounded``, ``gls``, ``wavelet+<method>``) call the public solver per
-run in a process pool using every core. Both paths report the same numbers as the solvers
-(tested).
+Work is cut into **tasks** (chunks of runs whose size depends on `runs` only) in **stages**:
+without dispersions the linear methods together, then each per-run method; with dispersions
+one stage of all methods, so each run's trajectory is simulated and its S_V built once. Tasks
+run in this process (``workers=1``), on a Dask LocalCluster of single-threaded worker
+processes, or on a running cluster (``scheduler``). Methods whose estimate is a fixed linear
+function of the data (``ols``, ``rls`` with no forgetting, ``ridge:<lambda>``, ``pcr``, ``map``
+with the scenario's sigma) apply the estimator's own linear map ``D = K y + b``
+(:func:`casep.estimators.ols.ols_linear_map` and its siblings, tested equal to the solvers) to
+all runs of a task that share a trajectory at once (nominal: the whole task, the maps built
+once per worker; dispersed: run by run). The others (``rels``, ``ridge`` with GCV, ``bounded``,
+``gls``, ``wavelet+<method>``) call the public solver per run; GLS shares one REML lattice per
+task (nominal). Both paths report the same numbers as the solvers (tested).
+
+``out``: each finished task's runs are written as one Parquet part of ``runs.parquet/``
+(columns run, method, coefficient, estimate, std, true, crlb_std), beside ``settings.json``,
+``state.json`` (finished parts) and ``summary.json``; a rerun with the same settings reads the
+finished parts back and runs only the rest, so its summary is that of an uninterrupted run.
 
 Statistics per method and coefficient (natural units): ``bias`` = mean error, ``rms``,
-``crlb_std`` (white: sigma^2 (S^T S)^-1; Gauss-Markov scenarios: the GLS bound),
-``efficiency`` = crlb_std / rms, ``coverage95`` = share of runs with
-``|error| <= 1.96 std`` among the runs that report a std for that coefficient (bounded least
-squares reports none on a bound; null when the method gives none).
+``crlb_std`` (white: sigma^2 (S^T S)^-1; Gauss-Markov scenarios: the GLS bound; dispersed:
+the RMS over the runs of each run's bound), ``efficiency`` = crlb_std / rms, ``coverage95`` =
+share of runs with ``|error| <= 1.96 std`` among the runs that report a std for that
+coefficient (bounded least squares reports none on a bound; null when the method gives none).
+With a truth prior each run's error is against its own drawn truth and ``true`` is the prior
+mean.
 """
 
 from __future__ import annotations
