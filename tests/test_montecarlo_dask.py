@@ -192,3 +192,26 @@ def test_dispersed_vehicle_follows_the_draw():
     assert list(parse_dispersions({"stage1_isp_scale": {"dist": "uniform", "low": 0.99, "high": 1.01},
                                    "thrust_scale": {"dist": "normal", "mean": 1, "std": 0}}, 2)) == \
         ["thrust_scale", "stage1_isp_scale"]  # canonical order, whatever the file's
+
+
+def test_out_nominal_stages_resume_from_missing_parts(tmp_path):
+    """Without dispersions (a batched stage, then a per-run stage): parts removed are rerun, the
+    others read back; the summary and runs.parquet equal the first run's; other methods refused."""
+    import pandas as pd
+
+    kw = dict(runs=10, methods=["ols", "map", "bounded"], seed=4, rate=2.0, workers=1, progress=False)
+    first = run_montecarlo("paper", out=tmp_path, **kw)
+    parts = sorted((tmp_path / "runs.parquet").glob("part-*.parquet"))
+    assert len(parts) == 20  # 10 tasks of the batched stage, 10 of bounded
+    before = pd.read_parquet(tmp_path / "runs.parquet")
+    for p in parts[3:15:2]:
+        p.unlink()
+    again = run_montecarlo("paper", out=tmp_path, **kw)
+    assert _no_seconds(again.to_dict()) == _no_seconds(first.to_dict())
+    assert json.loads((tmp_path / "summary.json").read_text()) == json.loads(json.dumps(again.to_dict()))
+    after = pd.read_parquet(tmp_path / "runs.parquet")
+    pd.testing.assert_frame_equal(after, before)
+    st = json.loads((tmp_path / "state.json").read_text())["finished_tasks"]
+    assert sorted(st) == [p.name for p in parts]
+    with pytest.raises(ValueError, match=r"other settings \(methods: \["):
+        run_montecarlo("paper", out=tmp_path, **{**kw, "methods": ["ols"]})
