@@ -306,7 +306,8 @@ def _parser() -> argparse.ArgumentParser:
                          "first) (default ols,rls,rels)")
     mc.add_argument("--seed", type=_order, default=0, help="root seed (default 0)")
     mc.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
-    mc.add_argument("--workers", type=_order, default=None, help="processes for per-run methods (default: all cores)")
+    mc.add_argument("--workers", type=_order, default=None, help="Dask LocalCluster worker processes, one thread each (default: all cores; 1: runs in this "
+                         "process)")
     mc.add_argument("--json", metavar="OUT", default=None, help="write the Monte Carlo JSON here")
     mc.add_argument("--csv", metavar="OUT", default=None, help="write a CSV table here")
     mc.add_argument("--figure", metavar="PNG", default=None, help="write RMS/CRLB per coefficient here")
@@ -316,6 +317,18 @@ def _parser() -> argparse.ArgumentParser:
     _add_option(mg, OPTIONS["bounds"], "default: the demo spec-sheet box")
     mc.add_argument("--progress", action=argparse.BooleanOptionalAction, default=True,
                     help="progress on stderr: a bar on a terminal, else a line with the ETA every 5 s (default on)")
+    mc.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                    help="run on this running Dask cluster (tcp://host:8786) instead of a LocalCluster of --workers")
+    mc.add_argument("--dispersions", metavar="FILE", default=None,
+                    help='JSON {"thrust_scale": {"dist": "normal", "mean": 1, "std": 0.01}, "launch_azimuth_deg": '
+                         '{"dist": "uniform", "low": -2, "high": 2}, ...}: each run flies its own dispersed trajectory '
+                         "(names: see casep.simulation.dispersions)")
+    mc.add_argument("--truth-from-prior", metavar="FILE", dest="truth_from_prior", default=None,
+                    help='JSON {"Kg0x": {"mean": m, "std": s}, ...}: each run draws its true coefficients from it '
+                         "(also map's prior unless --prior is given)")
+    mc.add_argument("--out", metavar="DIR", default=None,
+                    help="write runs.parquet/ (per-run results, one part per task) and summary.json here; a rerun "
+                         "with the same settings resumes")
     fu = sub.add_parser("fuse", help="combine results saved earlier (JSON with covariance) into one estimate")
     fu.add_argument("results", nargs="+", metavar="RESULT.json", help="two or more results of one model")
     fu.add_argument("--json", metavar="OUT", default=None, help="write the fused result JSON here")
@@ -783,15 +796,31 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_montecarlo(args: argparse.Namespace) -> int:
+    from casep.estimators.map import parse_prior
     from casep.io._atomic import check_outputs
+    from casep.io.files import read_json_table
     from casep.model.loader import load_model
+    from casep.simulation.dispersions import parse_dispersions
     from casep.simulation.scenarios import get_scenario
     from casep.workflows.montecarlo import Terminated, run_montecarlo, sigterm_raises, write_figure
 
     check_outputs({"--json": args.json, "--csv": args.csv, "--figure": args.figure},
-                  inputs=_inputs(args, "prior", "bounds"))
-    names = load_model(get_scenario(args.scenario).model).names
+                  inputs=_inputs(args, "prior", "bounds", "dispersions", "truth_from_prior"))
+    sc = get_scenario(args.scenario)
+    names = load_model(sc.model).names
     prior, bounds = _coefficient_file(args, "prior", names), _coefficient_file(args, "bounds", names)
+    dispersions = truth_prior = None
+    if args.dispersions:
+        dispersions = parse_dispersions(read_json_table(args.dispersions, "--dispersions"), len(sc.vehicle.stages),
+                                        source=f"--dispersions {args.dispersions}")
+    if args.truth_from_prior:
+        where = f"--truth-from-prior {args.truth_from_prior}"
+        truth_prior = read_json_table(args.truth_from_prior, "--truth-from-prior")
+        if "correlation" in truth_prior and "correlation" not in names:
+            raise ValueError(f"{where}: a `correlation` entry is not supported (marginal mean and std only)")
+        parse_prior(truth_prior, names, source=where)
+    if args.out and Path(args.out).exists() and not Path(args.out).is_dir():
+        raise ValueError(f"--out {args.out}: exists and is not a folder")
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     if args.runs < 1:
         raise ValueError(f"--runs must be >= 1, got {args.runs}")
@@ -800,8 +829,10 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
     try:
         with sigterm_raises():
             res = run_montecarlo(args.scenario, runs=args.runs, methods=methods, seed=args.seed, rate=args.rate,
-                                 workers=args.workers, progress=args.progress, prior=prior, bounds=bounds)
-    except (KeyboardInterrupt, Terminated) as exc:  # workers already ended; nothing written
+                                 workers=args.workers, progress=args.progress, prior=prior, bounds=bounds,
+                                 scheduler=args.scheduler, dispersions=dispersions, truth_prior=truth_prior,
+                                 out=args.out)
+    except (KeyboardInterrupt, Terminated) as exc:  # workers already ended; no report (--out: finished parts kept)
         print("casep: interrupted", file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130
     print(f"scenario {res.scenario}, {res.runs} runs, seed {res.seed}")
@@ -815,6 +846,8 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
     for label, path in (("JSON", args.json), ("CSV", args.csv), ("figure", args.figure)):
         if path:
             print(f"{label} written to {path}")
+    if args.out:
+        print(f"per-run results in {Path(args.out) / 'runs.parquet'}, summary in {Path(args.out) / 'summary.json'}")
     return 0
 
 

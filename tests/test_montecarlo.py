@@ -125,14 +125,16 @@ def test_progress_bar_total_is_runs(monkeypatch, capsys):
 
 def test_workers_have_one_blas_thread_and_parent_is_unchanged():
     """Workers run BLAS with one thread each (oversubscription made a 2-core Monte Carlo ~6-30x
-    slower); the parent's thread pools are left as they were."""
+    slower); the parent's thread pools are left as they were. (Issue 16: Dask workers.)"""
+    from contextlib import ExitStack
+
     from threadpoolctl import threadpool_info
 
-    from casep.workflows.montecarlo import _worker_pool
+    from casep.workflows.montecarlo import _Dask
 
     before = [p["num_threads"] for p in threadpool_info()]
-    with _worker_pool(1, (np.zeros((1, 3, 1)), np.zeros((1, 3)), np.zeros(1), None, ("a",), 1.0)) as pool:
-        seen = pool.apply(_blas_threads)
+    with ExitStack() as stack:
+        seen = _Dask(stack, 1, None).client.submit(_blas_threads, pure=False).result()
     assert seen and all(n == 1 for n in seen)
     assert [p["num_threads"] for p in threadpool_info()] == before
 

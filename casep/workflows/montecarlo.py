@@ -1,29 +1,40 @@
-"""Seeded Monte Carlo of the estimators against the Cramer-Rao bound.
+"""Seeded Monte Carlo of the estimators against the Cramer-Rao bound, on Dask.
 
-The scenario's trajectory (hence S_V and the true dv) is the same in every run; run k adds
-tracking noise drawn from ``numpy.random.default_rng(SeedSequence(seed).spawn(runs)[k])``,
-so a run's data do not depend on how runs are batched or distributed over processes.
+Run k draws its tracking noise from ``default_rng(SeedSequence(seed, spawn_key=(k,)))`` (=
+``SeedSequence(seed).spawn(runs)[k]``), its dispersed vehicle (``--dispersions``) from spawn key
+``(k, 0)`` and its true coefficients (``--truth-from-prior``) from ``(k, 1)``: a run's numbers
+depend on the seed and k only, not on how runs are grouped into tasks or which worker runs them.
 
-Methods whose estimate is a fixed linear function of the data (``ols``, ``rls`` with no
-forgetting, ``ridge:<lambda>``, ``pcr``, ``map`` with the scenario's sigma) are solved for
-all runs at once through the estimator's own linear map ``D = K y + b``
-(:func:`casep.estimators.ols.ols_linear_map` and its siblings, tested equal to the solvers),
-applied to a matrix of right-hand sides in blocks; S_V is built once per flight. The others
-(``rels``, ``ridge`` with GCV, ``bounded``, ``gls``, ``wavelet+<method>``) call the public solver per
-run in a process pool using every core. Both paths report the same numbers as the solvers
-(tested).
+Work is cut into **tasks** (chunks of runs whose size depends on `runs` only) in **stages**:
+without dispersions the linear methods together, then each per-run method; with dispersions
+one stage of all methods, so each run's trajectory is simulated and its S_V built once. Tasks
+run in this process (``workers=1``), on a Dask LocalCluster of single-threaded worker
+processes, or on a running cluster (``scheduler``). Methods whose estimate is a fixed linear
+function of the data (``ols``, ``rls`` with no forgetting, ``ridge:<lambda>``, ``pcr``, ``map``
+with the scenario's sigma) apply the estimator's own linear map ``D = K y + b``
+(:func:`casep.estimators.ols.ols_linear_map` and its siblings, tested equal to the solvers) to
+all runs of a task that share a trajectory at once (nominal: the whole task, the maps built
+once per worker; dispersed: run by run). The others (``rels``, ``ridge`` with GCV, ``bounded``,
+``gls``, ``wavelet+<method>``) call the public solver per run; GLS shares one REML lattice per
+task (nominal). Both paths report the same numbers as the solvers (tested).
+
+``out``: each finished task's runs are written as one Parquet part of ``runs.parquet/``
+(columns run, method, coefficient, estimate, std, true, crlb_std), beside ``settings.json``,
+``state.json`` (finished parts) and ``summary.json``; a rerun with the same settings reads the
+finished parts back and runs only the rest, so its summary is that of an uninterrupted run.
 
 Statistics per method and coefficient (natural units): ``bias`` = mean error, ``rms``,
-``crlb_std`` (white: sigma^2 (S^T S)^-1; Gauss-Markov scenarios: the GLS bound),
-``efficiency`` = crlb_std / rms, ``coverage95`` = share of runs with
-``|error| <= 1.96 std`` among the runs that report a std for that coefficient (bounded least
-squares reports none on a bound; null when the method gives none).
+``crlb_std`` (white: sigma^2 (S^T S)^-1; Gauss-Markov scenarios: the GLS bound; dispersed:
+the RMS over the runs of each run's bound), ``efficiency`` = crlb_std / rms, ``coverage95`` =
+share of runs with ``|error| <= 1.96 std`` among the runs that report a std for that
+coefficient (bounded least squares reports none on a bound; null when the method gives none).
+With a truth prior each run's error is against its own drawn truth and ``true`` is the prior
+mean.
 """
 
 from __future__ import annotations
 
 import csv
-import ctypes
 import json
 import multiprocessing
 import os
@@ -31,9 +42,11 @@ import signal
 import sys
 import threading
 import time
+import uuid
 import warnings
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -112,100 +125,282 @@ def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float, t: np
     return r.estimate, r.std
 
 
-_WORKER: dict[str, Any] = {}
-_PR_SET_PDEATHSIG = 1  # linux/prctl.h
+# ------------------------------------------------------------------------------ tasks
+def _run_seq(seed: int, k: int, stream: int | None = None) -> np.random.SeedSequence:
+    """Run k's seed sequence: noise ``(k,)`` (= ``SeedSequence(seed).spawn(runs)[k]``), dispersion
+    ``(k, 0)``, true coefficients ``(k, 1)``: a run's numbers depend on the seed and k only."""
+    return np.random.SeedSequence(seed, spawn_key=(k,) if stream is None else (k, stream))
 
 
-def _exit_with_parent(parent: int) -> None:
-    """End this worker when process `parent` ends, even by SIGKILL (no orphans left waiting).
+@dataclass(frozen=True)
+class _Context:
+    """What every task needs (scattered once to the workers)."""
 
-    Linux: the kernel sends SIGKILL on the parent's death (prctl PR_SET_PDEATHSIG); elsewhere,
-    and as a fallback, a daemon thread polls the parent id every 0.5 s.
+    token: str
+    scenario: Scenario
+    names: tuple[str, ...]
+    sigma: float
+    tau: float | None
+    seed: int
+    truth: np.ndarray  # nominal (the scenario's)
+    prior: Mapping | None = None
+    bounds: Mapping | None = None
+    truth_prior: tuple[np.ndarray, np.ndarray] | None = None  # mean, std (inf: not drawn)
+    dispersions: Mapping | None = None
+    S: np.ndarray | None = None  # nominal trajectory (None when dispersed)
+    t: np.ndarray | None = None
+    crlb: np.ndarray | None = None
+
+
+_CACHE: dict[str, Any] = {}  # per process: the linear maps of the current campaign
+
+
+@lru_cache(maxsize=4)
+def _model(name: str):
+    from casep.model.loader import load_model
+
+    return load_model(name)
+
+
+def _flight(ctx: _Context, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Run k's S_V, times, true coefficients and CRLB std (nominal or dispersed)."""
+    truth = ctx.truth
+    if ctx.truth_prior is not None:
+        mu, sd = ctx.truth_prior
+        fin = np.isfinite(sd)
+        truth = truth.copy()
+        truth[fin] = mu[fin] + sd[fin] * np.random.default_rng(_run_seq(ctx.seed, k, 1)).standard_normal(fin.sum())
+    if ctx.dispersions is None:
+        return ctx.S, ctx.t, truth, ctx.crlb
+    from casep.simulation.dispersions import disperse_vehicle, draw_dispersion
+    from casep.simulation.trajectory import simulate_boost
+
+    values = draw_dispersion(ctx.dispersions, np.random.default_rng(_run_seq(ctx.seed, k, 0)))
+    traj = simulate_boost(disperse_vehicle(ctx.scenario.vehicle, values), ctx.scenario.rate)
+    S = build_sv(_model(ctx.scenario.model), traj.t, traj.specific_force)
+    crlb = np.sqrt(np.diag(crlb_covariance(S, ctx.sigma, t=traj.t if ctx.tau else None, tau=ctx.tau)))
+    return S, traj.t, truth, crlb
+
+
+def _task(ctx: _Context, linear: Sequence[str], other: Sequence[str], runs: Sequence[int]) -> dict[str, Any]:
+    """Runs `runs` of the `linear` methods (their linear maps) and the `other` (per-run) methods.
+
+    Linear methods are applied to all runs sharing a trajectory at once (the whole task when
+    nominal, run by run when dispersed). Returns run ids, true coefficients, CRLB std and per
+    method the estimates and stds, ``(len(runs), n)`` each (std None: the method gives none).
     """
-    if sys.platform.startswith("linux"):
-        try:
-            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
-        except (OSError, AttributeError):
-            pass
-    if os.getppid() != parent:  # the parent died before the line above
-        os._exit(1)
-
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(0.5)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="casep-parent-watch", daemon=True).start()
-
-
-def _pool_worker_init(parent: int, *args) -> None:
     from threadpoolctl import threadpool_limits
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and ends the workers
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the parent's handler (forked): terminate() ends us
-    _exit_with_parent(parent)
-    # One BLAS/OpenMP thread per worker, for the worker's life: several per worker oversubscribe
-    # the cores (measured 6-30x slower on 2 cores).
-    _WORKER["blas_limit"] = threadpool_limits(limits=1)
-    _worker_init(*args)
-
-
-def _worker_init(S, clean, t, scenario, names, sigma, prior=None, bounds=None):
-    warnings.simplefilter("ignore", IllConditionedWarning)
-    _WORKER.update(S=S, clean=clean, t=t, scenario=scenario, names=names, sigma=sigma, prior=prior, bounds=bounds)
-
-
-def _worker_run(args) -> list[tuple[np.ndarray, np.ndarray | None]]:
-    """A chunk of runs of one method; GLS estimates tau for the whole chunk at once."""
     from casep.estimators.gls import estimate_tau_many
 
-    method, seqs = args
-    w = _WORKER
-    runs = [_denoised(method, w["clean"] + _noise(w["scenario"], w["t"], seq)) for seq in seqs]
-    if runs[0][0] == "gls":  # one REML lattice for the chunk, then the public solver at each tau
-        taus = estimate_tau_many(w["S"], np.stack([y for _, y, _ in runs], axis=-1), w["t"])
-    else:
-        taus = ["auto"] * len(runs)
-    return [_solve(m, w["S"], y, w["names"], w["sigma"], w["t"], given, tau, prior=w["prior"], bounds=w["bounds"])
-            for (m, y, given), tau in zip(runs, taus)]
+    n = len(ctx.names)
+    with threadpool_limits(limits=1), warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        flights = [_flight(ctx, k) for k in runs]
+        ys = [S @ tr + _noise(ctx.scenario, t, _run_seq(ctx.seed, k)) for k, (S, t, tr, _) in zip(runs, flights)]
+        est: dict[str, np.ndarray] = {}
+        std: dict[str, np.ndarray | None] = {}
+        if linear:
+            if ctx.dispersions is None:  # one trajectory: every run of the task in one product
+                if _CACHE.get("token") != ctx.token:
+                    _CACHE.clear()
+                    _CACHE.update(token=ctx.token, maps=_linear_maps(ctx.S.reshape(-1, ctx.S.shape[-1]), ctx.names,
+                                                                     ctx.sigma, linear, ctx.prior))
+                groups = [(_CACHE["maps"], ctx.S, list(range(len(runs))))]
+            else:
+                groups = [(_linear_maps(S.reshape(-1, S.shape[-1]), ctx.names, ctx.sigma, linear, ctx.prior), S, [j])
+                          for j, (S, *_rest) in enumerate(flights)]
+            for m in linear:
+                est[m], std[m] = np.empty((len(runs), n)), np.empty((len(runs), n))
+            for maps, S, idx in groups:
+                S2 = S.reshape(-1, S.shape[-1])
+                Y = np.stack([ys[j].reshape(-1) for j in idx], axis=-1)
+                for m, lm in maps.items():
+                    X, sd = lm.apply(S2, Y)  # D = K y + b and the solver's std
+                    est[m][idx], std[m][idx] = X.T, sd.T
+        for method in other:
+            runs_d = [_denoised(method, y) for y in ys]
+            if runs_d[0][0] == "gls" and ctx.dispersions is None:  # one REML lattice for the task
+                taus = estimate_tau_many(ctx.S, np.stack([y for _, y, _ in runs_d], axis=-1), ctx.t)
+            else:
+                taus = ["auto"] * len(runs_d)
+            outs = [_solve(m, S, y, ctx.names, ctx.sigma, t, given, tau, prior=ctx.prior, bounds=ctx.bounds)
+                    for (m, y, given), tau, (S, t, _, _) in zip(runs_d, taus, flights)]
+            est[method] = np.array([o[0] for o in outs])
+            std[method] = None if outs[0][1] is None else np.array([o[1] for o in outs])
+    return {"runs": np.asarray(runs, dtype=np.int64), "truth": np.array([f[2] for f in flights]),
+            "crlb": np.array([f[3] for f in flights]), "est": est, "std": std}
+
+
+def _task_size(method: str, runs: int) -> int:
+    """Runs per task: a function of `runs` only, so the numbers do not depend on the workers.
+
+    GLS: <= 16 runs sharing one REML lattice; others: about 16 tasks, at most 128 runs each.
+    """
+    if method.split("+")[-1] == "gls":
+        return -(-runs // -(-runs // _GLS_CHUNK))  # <= _GLS_CHUNK, as even as possible
+    return max(1, min(_BLOCK, -(-runs // 16)))
+
+
+def _chunks(methods: Sequence[str], runs: int) -> list[range]:
+    size = min(_task_size(m, runs) for m in methods)
+    return [range(k, min(k + size, runs)) for k in range(0, runs, size)]
+
+
+# -------------------------------------------------------------------------- execution
+class _InProcess:
+    """Tasks run here, in order (``workers=1``)."""
+
+    def run(self, ctx, jobs):
+        for key, args in jobs:
+            yield key, _task(ctx, *args)
 
 
 @contextmanager
-def _worker_pool(n_workers: int, initargs: tuple):
-    """A process pool of single-threaded-BLAS workers that die with this process.
-
-    Forked, not spawned: a spawned worker re-imports the caller's main script, which re-runs
-    an unguarded notebook-style script (``examples/*.py``) in every worker. The BLAS thread
-    limit is set in each worker by threadpoolctl (:func:`_pool_worker_init`). On any
-    exception, KeyboardInterrupt included, the workers are terminated at once rather than
-    awaited.
-    """
-    ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn")
-    main = threading.current_thread() is threading.main_thread()
-    old_int = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None  # children inherit SIG_IGN
+def _deferred_signals():
+    """Within: SIGINT and SIGTERM are held, then re-raised to the handlers of before (main thread)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    old = {s: signal.signal(s, lambda signum, frame: got.append(signum)) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        pool = ctx.Pool(n_workers, initializer=_pool_worker_init, initargs=(os.getpid(), *initargs))
+        yield
     finally:
-        if main:
-            signal.signal(signal.SIGINT, old_int)
-    try:
-        yield pool
-    except BaseException:
-        pool.terminate()
-        raise
-    else:
-        pool.close()
-        pool.join()
+        for s, h in old.items():
+            signal.signal(s, h)
+        if got:
+            signal.raise_signal(got[0])
 
 
-def _chunks(method: str, runs: int, n_workers: int) -> list[range]:
-    """Runs per job: GLS in chunks that depend on `runs` only (same numbers for any `workers`)."""
-    if method.split("+")[-1] == "gls":
-        size = -(-runs // -(-runs // _GLS_CHUNK))  # <= _GLS_CHUNK, as even as possible
-    else:
-        size = max(1, runs // (4 * n_workers))
-    return [range(k, min(k + size, runs)) for k in range(0, runs, size)]
+class _Dask:
+    """Tasks on a Dask cluster: a LocalCluster of `workers` single-threaded processes, or `scheduler`.
 
+    The local workers ignore SIGINT (:mod:`casep.workflows._dask_worker`: Ctrl-C reaches the
+    whole process group; this process handles it and closes the cluster) and have one BLAS thread (Dask's pre-spawn
+    environment sets OMP/MKL/OPENBLAS_NUM_THREADS=1; each task also limits it by threadpoolctl,
+    which covers remote workers). They end with this process, even on SIGKILL (Dask's nanny
+    pipe).
+    """
+
+    def __init__(self, stack: ExitStack, workers: int, scheduler: str | None) -> None:
+        import logging
+
+        import dask
+        from distributed import Client, LocalCluster
+
+        # An interrupted cluster's closing can leave asyncio tasks failed on closed comms; asyncio
+        # logs them ("Task exception was never retrieved") on stderr: not ours to show.
+        aio = logging.getLogger("asyncio")
+        stack.callback(aio.setLevel, aio.level)
+        aio.setLevel(logging.CRITICAL)
+        if scheduler:
+            self.client = stack.enter_context(Client(scheduler, timeout="20s"))
+        else:
+            # dashboard_address ":0": the scheduler's HTTP server (no dashboard without bokeh) on a
+            # free port; None still binds 8787 and warns when another cluster holds it
+            # Forked workers inherit casep, NumPy, SciPy and numba's compiled kernels already loaded
+            # here; spawned ones import and compile them again (measured: ~3 s of CPU per worker).
+            # Python >= 3.12 deprecates fork in a threaded process: spawn there.
+            fork = "fork" in multiprocessing.get_all_start_methods() and sys.version_info < (3, 12)
+            with _deferred_signals(), dask.config.set(
+                    {"distributed.worker.multiprocessing-method": "fork" if fork else "spawn"}):
+                cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=":0", silence_logs=logging.CRITICAL,
+                                       preload=["casep.workflows._dask_worker"])
+                stack.enter_context(cluster)
+                self.client = stack.enter_context(Client(cluster))
+        self.ctx_future = None
+
+    def run(self, ctx, jobs):
+        from distributed import as_completed
+
+        if self.ctx_future is None:
+            self.ctx_future = self.client.scatter(ctx, broadcast=True, hash=False)
+        futures = {self.client.submit(_task, self.ctx_future, *args, pure=False): key for key, args in jobs}
+        try:
+            for fut in as_completed(futures):
+                yield futures[fut], fut.result()
+        finally:
+            self.client.cancel(list(futures))
+
+
+# ------------------------------------------------------------------------------ store
+_PART = "part-s{stage:02d}-t{task:05d}.parquet"
+
+
+def _settings_diff(old: Mapping, new: Mapping) -> str:
+    keys = [k for k in dict.fromkeys([*old, *new]) if old.get(k) != new.get(k)]
+    return "; ".join(f"{k}: {json.dumps(old.get(k))[:80]} there, {json.dumps(new.get(k))[:80]} now" for k in keys)
+
+
+class _Store:
+    """``--out DIR``: settings.json, runs.parquet/ (one part per finished task), state.json, summary.json."""
+
+    def __init__(self, out: str | os.PathLike, settings: dict) -> None:
+        self.dir = Path(out)
+        self.parts = self.dir / "runs.parquet"
+        sfile = self.dir / "settings.json"
+        if sfile.exists():
+            old = json.loads(sfile.read_text(encoding="utf-8"))
+            if old != settings:
+                raise ValueError(f"--out {self.dir}: holds a campaign with other settings ({_settings_diff(old, settings)});"
+                                 " use another folder, or the same settings to resume")
+        else:
+            self.dir.mkdir(parents=True, exist_ok=True)
+            with atomic_open(sfile) as fh:
+                fh.write(json.dumps(settings, indent=2) + "\n")
+        self.parts.mkdir(exist_ok=True)
+        self.finished: list[str] = []
+
+    def load(self, stage: int, task: int, methods: Sequence[str], names: Sequence[str]) -> dict | None:
+        """A finished task's results, read back from its part (None: not finished)."""
+        import pyarrow.parquet as pq
+
+        path = self.parts / _PART.format(stage=stage, task=task)
+        if not path.exists():
+            return None
+        tab = pq.read_table(path)
+        n = len(names)
+        runs_col = tab.column("run").to_numpy()
+        m = len(runs_col) // (n * len(methods))
+        res: dict[str, Any] = {"runs": runs_col[: m * n: n].astype(np.int64), "est": {}, "std": {}}
+        res["truth"] = tab.column("true").to_numpy()[: m * n].reshape(m, n)
+        res["crlb"] = tab.column("crlb_std").to_numpy()[: m * n].reshape(m, n)
+        for i, meth in enumerate(methods):
+            sl = slice(i * m * n, (i + 1) * m * n)
+            res["est"][meth] = tab.column("estimate").to_numpy()[sl].reshape(m, n)
+            sd = tab.column("std").slice(sl.start, m * n)
+            res["std"][meth] = None if sd.null_count == m * n else sd.to_numpy(zero_copy_only=False).reshape(m, n)
+        self.finished.append(path.name)
+        return res
+
+    def save(self, stage: int, task: int, methods: Sequence[str], names: Sequence[str], res: dict) -> None:
+        """Write a task's part atomically (temporary name, then renamed), then state.json."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        m, n = len(res["runs"]), len(names)
+        k = len(methods)
+        est = np.concatenate([res["est"][meth].reshape(-1) for meth in methods])
+        sds = [pa.nulls(m * n, pa.float64()) if res["std"][meth] is None else pa.array(res["std"][meth].reshape(-1))
+               for meth in methods]
+        tab = pa.table({
+            "run": np.tile(np.repeat(res["runs"], n), k),
+            "method": pa.array(np.repeat(np.array(methods, dtype=object), m * n).tolist(), pa.string()),
+            "coefficient": pa.array(np.tile(np.array(names, dtype=object), m * k).tolist(), pa.string()),
+            "estimate": est,
+            "std": pa.concat_arrays(sds),
+            "true": np.tile(res["truth"].reshape(-1), k),
+            "crlb_std": np.tile(res["crlb"].reshape(-1), k),
+        })
+        name = _PART.format(stage=stage, task=task)
+        tmp = self.parts / f".{name}.tmp"
+        pq.write_table(tab, tmp)
+        os.replace(tmp, self.parts / name)
+        self.finished.append(name)
+        with atomic_open(self.dir / "state.json") as fh:
+            fh.write(json.dumps({"finished_tasks": sorted(self.finished)}, indent=1) + "\n")
 
 # ---------------------------------------------------------------------------- batched path
 def _linear_maps(S: np.ndarray, names, sigma: float, methods: Sequence[str], prior: Mapping | None = None) -> dict:
@@ -230,23 +425,6 @@ def _linear_maps(S: np.ndarray, names, sigma: float, methods: Sequence[str], pri
             for m in methods}
 
 
-def _batched(maps, S2, clean2, scenario, t, seqs, progress) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Every run of every linear method, `_BLOCK` right-hand sides at a time."""
-    runs, n = len(seqs), S2.shape[1]
-    out = {k: (np.empty((runs, n)), np.empty((runs, n))) for k in maps}
-    for b0 in range(0, runs, _BLOCK):
-        idx = range(b0, min(b0 + _BLOCK, runs))
-        Y = np.empty((S2.shape[0], len(idx)))
-        for j, k in enumerate(idx):
-            Y[:, j] = clean2 + _noise(scenario, t, seqs[k]).reshape(-1)
-        for name, lm in maps.items():
-            X, std = lm.apply(S2, Y)  # D = K y + b and the solver's std, all runs of the block
-            out[name][0][b0:b0 + len(idx)] = X.T
-            out[name][1][b0:b0 + len(idx)] = std.T
-        progress(len(idx))
-    return out
-
-
 # ---------------------------------------------------------------------------------- result
 @dataclass(frozen=True)
 class MonteCarloResult:
@@ -262,10 +440,12 @@ class MonteCarloResult:
     estimates: dict[str, np.ndarray]  # method -> (runs, n)
     stds: dict[str, np.ndarray | None]
     seconds: dict[str, float] = field(default_factory=dict)
+    truths: np.ndarray | None = None  # (runs, n) when each run drew its own (truth from a prior)
+    dispersions: tuple[str, ...] = ()  # the dispersed vehicle/launch parameters (crlb_std: RMS over the runs)
 
     def stats(self, method: str) -> dict[str, np.ndarray]:
         """bias, rms, efficiency, coverage95 arrays of one method (NaN where undefined)."""
-        E = self.estimates[method] - self.truth
+        E = self.estimates[method] - (self.truth if self.truths is None else self.truths)
         with np.errstate(invalid="ignore", divide="ignore"):
             bias = np.mean(E, axis=0)
             rms = np.sqrt(np.mean(E**2, axis=0))
@@ -292,7 +472,13 @@ class MonteCarloResult:
                  "crlb_std": f(self.crlb_std[j]), "efficiency": f(st["efficiency"][j]),
                  "coverage95": f(st["coverage95"][j])}
                 for j, (n, u, tr) in enumerate(zip(self.names, self.units, self.truth))]}
-        return {"scenario": self.scenario, "runs": self.runs, "seed": self.seed, "methods": methods}
+        out: dict[str, Any] = {"scenario": self.scenario, "runs": self.runs, "seed": self.seed}
+        if self.truths is not None:
+            out["truth_from_prior"] = True  # "true": the prior mean; errors against each run's own draw
+        if self.dispersions:
+            out["dispersions"] = list(self.dispersions)
+        out["methods"] = methods
+        return out
 
     def write_json(self, path) -> None:
         with atomic_open(path) as fh:
@@ -401,6 +587,11 @@ def run_montecarlo(
     batched: bool = True,
     prior: Mapping | None = None,
     bounds: Mapping | None = None,
+    scheduler: str | None = None,
+    dispersions: Mapping | None = None,
+    truth_prior: Mapping | None = None,
+    out: str | os.PathLike | None = None,
+    dask: bool | None = None,
 ) -> MonteCarloResult:
     """Run `runs` noise draws of a scenario through each method.
 
@@ -411,11 +602,12 @@ def run_montecarlo(
     methods : sequence of str
         See :data:`METHOD_HELP`.
     seed : int
-        Root of the per-run seed sequence.
+        Root of the per-run seed sequences (see :func:`_run_seq`).
     rate : float, optional
         Sample rate, Hz (default: the scenario's).
     workers : int, optional
-        Processes for the per-run methods (default: all cores; 1 runs in this process).
+        Dask worker processes of the LocalCluster (one thread each; default: all cores). 1 runs
+        the tasks in this process.
     progress : bool, optional
         Progress on stderr: True, a bar on a terminal and a plain line with the ETA every 5 s
         otherwise; False, none; default: the bar on a terminal only.
@@ -425,71 +617,130 @@ def run_montecarlo(
         The prior of ``map`` (``{name: {"mean": m, "std": s}}``) and the bounds of ``bounded``
         (``{name: [lo, hi] | value}``), natural units, as ``casep separate --prior/--bounds``
         take them. Default: the paper's demo values (:func:`casep.simulation.paper.demo_prior`,
-        :func:`casep.simulation.paper.demo_bounds`).
+        :func:`casep.simulation.paper.demo_bounds`), or `truth_prior` for ``map`` when given.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``) to run the tasks on.
+    dispersions : mapping, optional
+        Vehicle and launch dispersions (:mod:`casep.simulation.dispersions`): each run flies
+        its own trajectory.
+    truth_prior : mapping, optional
+        ``{name: {"mean": m, "std": s}}``: each run draws its true coefficients from it
+        (coefficients not in it keep the scenario's value).
+    out : path, optional
+        Folder for per-run results (``runs.parquet/``, one part per task), ``settings.json``,
+        ``state.json`` and ``summary.json``; a rerun with the same settings resumes (finished
+        tasks are read back, not rerun); other settings are refused.
+    dask : bool, optional
+        Force (True) or forbid (False) Dask; default: Dask when `scheduler` is given or
+        `workers` > 1 and there is per-run work (a per-run method or dispersions).
     """
     if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
         raise ValueError(f"`runs` must be an int >= 1, got {runs!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"`seed` must be an int >= 0, got {seed!r}")
+    runs, seed = int(runs), int(seed)
     methods = [_check_method(m) for m in methods]
     if not methods:
         raise ValueError("`methods` is empty")
-    sc, traj, model, truth = scenario_setup(scenario, rate)  # every run shares the trajectory
+    if len(set(methods)) != len(methods):
+        raise ValueError(f"`methods` names a method twice: {', '.join(methods)}")
+    sc, traj, model, truth = scenario_setup(scenario, rate)
+    names = model.names
+    if prior is None and truth_prior is not None:
+        prior = truth_prior  # MAP with the prior the truths are drawn from: Bayesian coverage
     if prior is not None:
-        parse_prior(prior, model.names)  # checked once, before any run
+        parse_prior(prior, names)  # checked once, before any run
     if bounds is not None:
-        parse_bounds(bounds, model.names)
-    t = traj.t
-    S = build_sv(model, t, traj.specific_force)
-    clean = S @ truth
+        parse_bounds(bounds, names)
+    tp = None
+    if truth_prior is not None:
+        if "correlation" in truth_prior and "correlation" not in names:
+            raise ValueError("`truth_prior`: a correlation entry is not supported (marginal means and stds only)")
+        tp = parse_prior(truth_prior, names, "`truth_prior`")
+    if dispersions is not None:
+        from casep.simulation.dispersions import parse_dispersions
+
+        dispersions = parse_dispersions(dispersions, len(sc.vehicle.stages), "`dispersions`")
     sigma = sc.noise.sigma
     tau = sc.noise.tau if sc.noise.kind == "ar1" else None
-    crlb = np.sqrt(np.diag(crlb_covariance(S, sigma, t=t if tau else None, tau=tau)))
-    seqs = np.random.SeedSequence(seed).spawn(runs)
-    names = model.names
+    S = t = crlb = None
+    if dispersions is None:  # every run shares the trajectory
+        t = traj.t
+        S = build_sv(model, t, traj.specific_force)
+        crlb = np.sqrt(np.diag(crlb_covariance(S, sigma, t=t if tau else None, tau=tau)))
+    ctx = _Context(token=uuid.uuid4().hex, scenario=sc, names=names, sigma=sigma, tau=tau, seed=seed, truth=truth,
+                   prior=prior, bounds=bounds, truth_prior=tp, dispersions=dispersions, S=S, t=t, crlb=crlb)
     lin = [m for m in methods if batched and (m in BATCHED or m.startswith("ridge:"))]
     other = [m for m in methods if m not in lin]
-    bar = _Progress(runs, ([",".join(lin)] if lin else []) + other, _progress_mode(progress))
+    # stages: (linear, per-run) methods; nominal: the linear maps together, then each per-run
+    # method; dispersed: all in one stage (each run's trajectory is simulated once)
+    if dispersions is None:
+        stages = ([(lin, [])] if lin else []) + [([], [m]) for m in other]
+    else:
+        stages = [(lin, other)]
+    chunks = [_chunks(a + b, runs) for a, b in stages]
+    store = None
+    if out is not None:
+        settings = {"scenario": sc.name, "rate": sc.rate, "runs": runs, "seed": seed, "methods": methods,
+                    "batched": bool(batched), "prior": prior, "bounds": bounds, "dispersions": dispersions,
+                    "truth_from_prior": truth_prior, "tasks": [len(c) for c in chunks]}
+        store = _Store(out, json.loads(json.dumps(settings)))
+    n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
+    if n_workers < 1:
+        raise ValueError(f"`workers` must be >= 1, got {workers!r}")
+    groups = [a + b for a, b in stages]
+    bar = _Progress(runs, [",".join(g) for g in groups], _progress_mode(progress))
+    results: list[dict[int, dict]] = [{} for _ in stages]
+    if store is not None:
+        for si, g in enumerate(groups):
+            for ti in range(len(chunks[si])):
+                r = store.load(si, ti, g, names)
+                if r is not None:
+                    results[si][ti] = r
+    pending = sum(len(chunks[si]) - len(results[si]) for si in range(len(stages)))
+    per_run_work = dispersions is not None or bool(other)
+    use_dask = dask if dask is not None else bool(scheduler) or (n_workers > 1 and per_run_work and pending > 1)
+    secs: dict[str, float] = {}
+    with ExitStack() as stack:
+        stack.callback(bar.close)
+        engine = _Dask(stack, n_workers, scheduler) if use_dask and pending else _InProcess()
+        for si, (linear, per_run) in enumerate(stages):
+            group = groups[si]
+            t0 = time.perf_counter()
+            done = sum(len(r["runs"]) for r in results[si].values())
+            if done:
+                bar(done)
+            jobs = [((si, ti), (linear, per_run, list(c))) for ti, c in enumerate(chunks[si]) if ti not in results[si]]
+            for (si_, ti), res in engine.run(ctx, jobs):
+                if store is not None:
+                    store.save(si_, ti, group, names, res)
+                results[si][ti] = res
+                bar(len(res["runs"]))
+            for m in group:
+                secs[m] = (time.perf_counter() - t0) / len(group)
+            if si + 1 < len(stages):
+                bar.next_stage()
     est: dict[str, np.ndarray] = {}
     std: dict[str, np.ndarray | None] = {}
-    secs: dict[str, float] = {}
-    n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
-    with warnings.catch_warnings(), ExitStack() as stack:
-        stack.callback(bar.close)
-        warnings.simplefilter("ignore", IllConditionedWarning)
-        if lin:
-            t0 = time.perf_counter()
-            S2 = S.reshape(-1, S.shape[-1])
-            maps = _linear_maps(S2, names, sigma, lin, prior)
-            res = _batched(maps, S2, clean.reshape(-1), sc, t, seqs, bar)
-            dt = time.perf_counter() - t0
-            for m_ in lin:
-                est[m_], std[m_] = res[m_]
-                secs[m_] = dt / len(lin)
-            if other:
-                bar.next_stage()
-        initargs = (S, clean, t, sc, names, sigma, prior, bounds)
-        if other and n_workers > 1 and runs > 1:
-            run_jobs = stack.enter_context(_worker_pool(n_workers, initargs)).imap
-        else:
-            _worker_init(*initargs)
-            run_jobs = map
-        for i, m_ in enumerate(other):
-            t0 = time.perf_counter()
-            outs = []
-            for o in run_jobs(_worker_run, [(m_, [seqs[k] for k in c]) for c in _chunks(m_, runs, n_workers)]):
-                outs.extend(o)
-                bar(len(o))
-            est[m_] = np.array([o[0] for o in outs])
-            std[m_] = None if outs[0][1] is None else np.array([o[1] for o in outs])
-            secs[m_] = time.perf_counter() - t0
-            if i + 1 < len(other):
-                bar.next_stage()
-    ordered = {m_: est[m_] for m_ in methods}
-    return MonteCarloResult(scenario=sc.name, runs=runs, seed=seed, names=names, units=model.units,
-                            truth=truth, crlb_std=crlb, estimates=ordered, stds={m_: std[m_] for m_ in methods},
-                            seconds=secs)
-
+    for si, group in enumerate(groups):
+        parts = [results[si][ti] for ti in range(len(chunks[si]))]
+        for m in group:
+            est[m] = np.concatenate([p["est"][m] for p in parts])
+            std[m] = None if parts[0]["std"][m] is None else np.concatenate([p["std"][m] for p in parts])
+    first = [results[0][ti] for ti in range(len(chunks[0]))]
+    truths = np.concatenate([p["truth"] for p in first])
+    crlbs = np.concatenate([p["crlb"] for p in first])
+    with np.errstate(invalid="ignore"):
+        crlb_std = crlb if dispersions is None else np.sqrt(np.mean(crlbs**2, axis=0))  # RMS over the runs
+    centre = truth if tp is None else np.where(np.isfinite(tp[1]), tp[0], truth)
+    res = MonteCarloResult(scenario=sc.name, runs=runs, seed=seed, names=names, units=model.units,
+                           truth=centre, crlb_std=crlb_std, estimates={m: est[m] for m in methods},
+                           stds={m: std[m] for m in methods}, seconds=secs,
+                           truths=truths if tp is not None else None,
+                           dispersions=tuple(dispersions) if dispersions else ())
+    if store is not None:
+        res.write_json(store.dir / "summary.json")
+    return res
 
 class Terminated(BaseException):
     """SIGTERM received (see :func:`sigterm_raises`); like KeyboardInterrupt, not an Exception."""
