@@ -71,11 +71,12 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.units": ("G0",),
     "casep.impact.miss": ("ImpactAnalysis", "impact_analysis"),
     "casep.analysis.checks": ("check_fit", "check_flight"),
+    "casep.frames": ("LaunchSite",),
     "casep.exceptions": ("CasepWarning", "IllConditionedWarning", "NoiseFreeWarning", "OutlierWarning",
                          "PlausibilityWarning", "TimeOffsetWarning"),
 }
 __getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), (
-    "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units", "impact"))
+    "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units", "impact", "frames"))
 
 __all__ = [
     "__version__",
@@ -124,4 +125,5 @@ __all__ = [
     "OutlierWarning",
     "NoiseFreeWarning",
     "LateStartWarning",
+    "LaunchSite",
 ]
