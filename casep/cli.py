@@ -201,12 +201,14 @@ def _add_frames(parser) -> None:
 def _frame_options(args: argparse.Namespace) -> dict:
     """read_flight_pair's `tracking_frame` and `site` from the command line (a missing site: the reader's error,
     which names the tracking file)."""
-    frame, lsite, t0 = args.tracking_frame, args.launch_site, args.launch_time
+    # getattr: a command whose parser has no frame options (_add_frames) reads launch-frame tracking, as before
+    frame = getattr(args, "tracking_frame", "launch")
+    lsite, t0 = getattr(args, "launch_site", None), getattr(args, "launch_time", None)
     if frame == "launch":
         if lsite is not None or t0 is not None:
             raise ValueError("--launch-site and --launch-time are used only with --tracking-frame ecef or geodetic")
         return {}
-    if not args.tracking:
+    if not getattr(args, "tracking", None):
         raise ValueError(f"--tracking-frame {frame} describes a tracking file: give it with --tracking FILE")
     if (lsite is None) != (t0 is None):
         raise ValueError(f"--tracking-frame {frame} needs both --launch-site LAT LON H AZ and --launch-time T0, "
