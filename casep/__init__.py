@@ -72,12 +72,13 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.units": ("G0",),
     "casep.impact.miss": ("ImpactAnalysis", "impact_analysis"),
     "casep.analysis.checks": ("check_fit", "check_flight"),
+    "casep.frames": ("LaunchSite",),
     "casep.exceptions": ("CasepWarning", "IllConditionedWarning", "NoiseFreeWarning", "OutlierWarning",
                          "PlausibilityWarning", "TimeOffsetWarning"),
 }
 __getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), (
     "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units", "impact",
-    "design"))
+    "design", "frames"))
 
 __all__ = [
     "__version__",
@@ -126,4 +127,5 @@ __all__ = [
     "OutlierWarning",
     "NoiseFreeWarning",
     "LateStartWarning",
+    "LaunchSite",
 ]

@@ -150,8 +150,9 @@ def _read(args: argparse.Namespace):
     tracking = args.tracking or []
     if len(tracking) > 1:
         raise ValueError(f"--tracking given {len(tracking)} times for one flight; give it once per flight")
-    return (read_flight_pair(args.flight, tracking[0], grid=args.grid, time_offset=args.time_offset) if tracking
-            else read_flight(args.flight))
+    frames = _frame_options(args)  # --tracking-frame, --launch-site, --launch-time
+    return (read_flight_pair(args.flight, tracking[0], grid=args.grid, time_offset=args.time_offset, **frames)
+            if tracking else read_flight(args.flight))
 
 
 def _add_grid(parser) -> None:
@@ -178,6 +179,116 @@ def _time_offset(text: str):
     return v * 1e-3  # ms -> s
 
 
+# ---------------------------------------------------------------- tracking frames (issue 14 item 1)
+_FRAMES = ("launch", "ecef", "geodetic")
+
+
+def _add_frames(parser) -> None:
+    """`separate` / `diagnose`: the tracking file's frame and the launch site tying it to the platform frame."""
+    parser.add_argument("--tracking-frame", choices=_FRAMES, default="launch",
+                        help="with --tracking: frame of the tracking file: launch (t, v_trk_*, launch-inertial; "
+                             "default), ecef (t, r_ecef_*, v_ecef_*, WGS84, m, m/s) or geodetic (t, lat, lon, h, "
+                             "v_east, v_north, v_up; deg, deg, m, m/s); ecef and geodetic need --launch-site and "
+                             "--launch-time")
+    parser.add_argument("--launch-site", type=float, nargs=4, default=None, metavar=("LAT", "LON", "H", "AZ"),
+                        help="launch point (geodetic latitude, longitude, deg; height above the WGS84 ellipsoid, m) "
+                             "and azimuth of the platform x axis (deg from north, clockwise)")
+    parser.add_argument("--launch-time", type=float, default=None, metavar="T0",
+                        help="launch time in the tracking file's time scale, s (the launch-inertial frame is the "
+                             "Earth-fixed launch triad at T0)")
+
+
+def _frame_options(args: argparse.Namespace) -> dict:
+    """read_flight_pair's `tracking_frame` and `site` from the command line (a missing site: the reader's error,
+    which names the tracking file)."""
+    # getattr: a command whose parser has no frame options (_add_frames) reads launch-frame tracking, as before
+    frame = getattr(args, "tracking_frame", "launch")
+    lsite, t0 = getattr(args, "launch_site", None), getattr(args, "launch_time", None)
+    if frame == "launch":
+        if lsite is not None or t0 is not None:
+            raise ValueError("--launch-site and --launch-time are used only with --tracking-frame ecef or geodetic")
+        return {}
+    if not getattr(args, "tracking", None):
+        raise ValueError(f"--tracking-frame {frame} describes a tracking file: give it with --tracking FILE")
+    if (lsite is None) != (t0 is None):
+        raise ValueError(f"--tracking-frame {frame} needs both --launch-site LAT LON H AZ and --launch-time T0, "
+                         f"got only {'--launch-site' if t0 is None else '--launch-time'}")
+    from casep.frames import LaunchSite
+
+    return {"tracking_frame": frame, "site": None if lsite is None else LaunchSite(*lsite, t0)}
+
+
+def _add_simulate_frames(parser) -> None:
+    parser.add_argument("--rotating-earth", action="store_true",
+                        help="Earth turning at 7.292115e-5 rad/s (needs --launch-site): the vehicle starts with the "
+                             "pad's velocity, drag relative to the co-rotating air; the flight stays launch-inertial")
+    parser.add_argument("--launch-site", type=float, nargs=4, default=None, metavar=("LAT", "LON", "H", "AZ"),
+                        help="with --rotating-earth: launch point (deg, deg, m above WGS84) and azimuth of x (deg from "
+                             "north, clockwise); lift-off is t = 0 (read back with --launch-time 0)")
+    parser.add_argument("--tracking-frame", choices=_FRAMES, default="launch",
+                        help="with --rotating-earth: ecef or geodetic writes two files, the telemetry (-o: t, f_*, "
+                             "v_tel_*, a_*) and the tracking in that frame (--tracking-output); default launch: the "
+                             "one-file flight")
+    parser.add_argument("--tracking-rate", type=_positive_float, default=20.0, metavar="HZ",
+                        help="with --tracking-frame ecef|geodetic: tracking sample rate (default 20)")
+    parser.add_argument("--tracking-output", metavar="FILE", default=None,
+                        help="with --tracking-frame ecef|geodetic: tracking file (default <stem>.tracking<suffix>)")
+
+
+def _simulate_site(args: argparse.Namespace):
+    """The LaunchSite of `casep simulate` (t0 = 0: lift-off), or None without --rotating-earth."""
+    if not args.rotating_earth:
+        if args.launch_site is not None or args.tracking_frame != "launch":
+            raise ValueError("--launch-site and --tracking-frame ecef|geodetic need --rotating-earth")
+        return None
+    if args.launch_site is None:
+        raise ValueError("--rotating-earth needs --launch-site LAT LON H AZ (deg, deg, m, deg from north)")
+    from casep.frames import LaunchSite
+
+    return LaunchSite(*args.launch_site, 0.0)
+
+
+def _simulate_earth_fixed(args: argparse.Namespace, site, truth) -> int:
+    """`casep simulate --rotating-earth --tracking-frame ecef|geodetic`: telemetry, tracking and truth files."""
+    import dataclasses
+
+    from casep.estimators.result import write_json_atomic
+    from casep.io._atomic import check_outputs
+    from casep.simulation.scenarios import get_scenario
+    from casep.simulation.simulate import simulate_two_rate, truth_path
+
+    out = Path(args.output)
+    trk = Path(args.tracking_output) if args.tracking_output else out.with_name(f"{out.stem}.tracking{out.suffix}")
+    check_outputs({"-o": out, "--tracking-output": trk, "-o (truth sidecar)": truth_path(out)},
+                  inputs=_inputs(args, "truth"))
+    if args.lever_arm is not None:
+        raise ValueError("--lever-arm is not available with --tracking-frame ecef|geodetic yet; leave it out")
+    sc = get_scenario(args.scenario)
+    if args.model is not None or truth is not None:
+        sc = dataclasses.replace(sc, model=args.model or sc.model, truth=sc.truth if truth is None else dict(truth))
+    d = simulate_two_rate(sc, seed=args.seed, telemetry_rate=args.rate or sc.rate,
+                          tracking_rate=args.tracking_rate, time_offset=args.tracking_offset * 1e-3,
+                          rotating_earth=True, site=site)
+    d.write(out, trk, tracking_frame=args.tracking_frame)
+    write_json_atomic({"model": d.model.name, "coefficients": {n: float(v) for n, v in zip(d.model.names, d.truth)},
+                       "units": dict(zip(d.model.names, d.model.units)), "noise": sc.noise.to_dict(),
+                       "trajectory": {"scenario": sc.name, "description": sc.description,
+                                      "rate_hz": args.rate or sc.rate, "vehicle": sc.vehicle.to_dict()},
+                       "seed": args.seed,
+                       "tracking": {"time_offset_ms": args.tracking_offset, "lever_arm_m": [0.0, 0.0, 0.0],
+                                    "rotating_earth": True, "frame": args.tracking_frame, "file": str(trk),
+                                    "rate_hz": args.tracking_rate, "launch_site": site.to_dict()}},
+                      truth_path(out))
+    print(f"scenario {sc.name}, rotating Earth at ({site.lat_deg:g} deg, {site.lon_deg:g} deg, {site.h_m:g} m), "
+          f"azimuth {site.azimuth_deg:g} deg: telemetry {d.t_tel.size} samples, tracking ({args.tracking_frame}) "
+          f"{d.t_trk.size} samples at {args.tracking_rate:g} Hz")
+    print(f"wrote {out}, {trk} and {truth_path(out)}; read back with: casep separate {out} --tracking {trk} "
+          f"--tracking-frame {args.tracking_frame} --launch-site {' '.join(f'{v:g}' for v in args.launch_site)} "
+          "--launch-time 0")
+    return 0
+# ---------------------------------------------------------------- end tracking frames
+
+
 def _read_flights(args: argparse.Namespace) -> list:
     """Several flights, each a file or (with `--tracking` once per flight, in flight order) a pair."""
     from casep.io.files import read_flight, read_flight_pair
@@ -186,8 +297,10 @@ def _read_flights(args: argparse.Namespace) -> list:
     if tracking and len(tracking) != len(args.flight):
         raise ValueError(f"--tracking given {len(tracking)} times for {len(args.flight)} flights: give it once per "
                          "flight, in the order of the flights (telemetry A --tracking TA, B --tracking TB)")
+    frames = _frame_options(args)  # --tracking-frame, --launch-site, --launch-time: the same for every flight
     if tracking:
-        return [read_flight_pair(f, t, grid=args.grid, time_offset=args.time_offset) for f, t in zip(args.flight, tracking)]
+        return [read_flight_pair(f, t, grid=args.grid, time_offset=args.time_offset, **frames)
+                for f, t in zip(args.flight, tracking)]
     return [read_flight(f) for f in args.flight]
 
 
@@ -255,6 +368,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="tracking file (t, v_trk_*) at its own rate; FLIGHT is then the telemetry file "
                         "(t, f_* or W_*, v_tel_*); several flights: once per flight, in their order")
     _add_grid(s)  # --grid, --time-offset
+    _add_frames(s)  # --tracking-frame, --launch-site, --launch-time
     _method_option_groups(s)
     g = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
     g.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
@@ -271,11 +385,13 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--lever-arm", type=float, nargs=3, default=None, metavar=("LX", "LY", "LZ"),
                    help="tracked point from the platform, m, body frame (default 0 0 0); the flight file's "
                         "att_pitch/att_yaw/att_roll (rad) and omega_x/y/z (rad/s, body) columns describe the attitude")
+    _add_simulate_frames(g)  # --rotating-earth, --launch-site, --tracking-frame, --tracking-rate, --tracking-output
     d = sub.add_parser("diagnose", help="what the flight can and cannot determine")
     d.add_argument("flight", nargs="+", help="flight file; several: what each determines alone and jointly")
     d.add_argument("--tracking", metavar="FILE", default=None, action="append",
                    help="tracking file (two-file input); several flights: once per flight, in their order")
     _add_grid(d)
+    _add_frames(d)
     d.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
     d.add_argument("--sigma", type=_ranged("sigma"), default=None, help="noise std, m/s (default: estimated)")
     d.add_argument("--tau", type=_rule_type(OPTIONS["tau"], [r for r in OPTIONS["tau"].rules if isinstance(r, Interval)]),
@@ -858,8 +974,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from casep.simulation.scenarios import get_scenario
     from casep.simulation.simulate import simulate_flight, truth_path, write_simulation
 
-    check_outputs({"-o": args.output, "-o (truth sidecar)": truth_path(args.output)},
-                  inputs=_inputs(args, "truth"))
+    site = _simulate_site(args)  # --rotating-earth --launch-site (tracking frames)
+    if args.tracking_frame == "launch":
+        if args.tracking_output is not None:
+            raise ValueError("--tracking-output needs --tracking-frame ecef|geodetic")
+        check_outputs({"-o": args.output, "-o (truth sidecar)": truth_path(args.output)},
+                      inputs=_inputs(args, "truth"))
     if args.seed < 0:
         raise ValueError(f"`--seed` must be >= 0, got {args.seed}")
     truth = None
@@ -869,8 +989,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         truth = read_json_table(args.truth, "--truth")
         truth = truth["coefficients"] if isinstance(truth.get("coefficients"), dict) else truth
         _truth_vector(load_model(args.model or get_scenario(args.scenario).model), truth, f"--truth {args.truth}")
+    if args.tracking_frame != "launch":
+        return _simulate_earth_fixed(args, site, truth)
     sim = simulate_flight(args.scenario, seed=args.seed, rate=args.rate, model=args.model, truth=truth,
-                          time_offset=args.tracking_offset * 1e-3, lever_arm=args.lever_arm)  # ms -> s
+                          time_offset=args.tracking_offset * 1e-3, lever_arm=args.lever_arm,  # ms -> s
+                          **({"rotating_earth": True, "site": site} if site is not None else {}))
     flight_path, side = write_simulation(sim, args.output)
     s = sim.trajectory.summary()
     print(f"scenario {sim.scenario.name}: {sim.flight.n_samples} samples at {sim.scenario.rate:g} Hz, "

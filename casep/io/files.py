@@ -325,9 +325,61 @@ def read_flight(path: str | os.PathLike) -> FlightData:
 PAIR_GRIDS = ("tracking", "telemetry")
 
 
+# ------------------------------------------------------------------ tracking frames (issue 14 item 1)
+def _check_tracking_frame(tracking: str | os.PathLike, tracking_frame: str, site) -> None:
+    """`tracking_frame` is one of casep.frames.TRACKING_FRAMES; an Earth-fixed one needs a LaunchSite."""
+    from casep.frames import TRACKING_FRAMES, LaunchSite
+
+    if tracking_frame not in TRACKING_FRAMES:
+        raise ValueError(f"`tracking_frame` must be one of {', '.join(TRACKING_FRAMES)}, got {tracking_frame!r}")
+    if tracking_frame == "launch" and site is not None:
+        raise ValueError(f"{tracking}: `site` is used only with an Earth-fixed tracking_frame ('ecef' or 'geodetic'); "
+                         "launch-frame tracking needs no site")
+    if tracking_frame != "launch" and not isinstance(site, LaunchSite):
+        raise ValueError(f"{tracking}: {tracking_frame} tracking needs the launch site and launch time to be turned "
+                         "into the launch-inertial frame: give site=LaunchSite(lat_deg, lon_deg, h_m, azimuth_deg, t0) "
+                         "(CLI: --launch-site LAT LON H AZ --launch-time T0)")
+
+
+def _tracking_velocity(trk: "_Table", t_trk: np.ndarray, tracking_frame: str, site) -> np.ndarray:
+    """The tracking velocity in the launch-inertial frame, m/s (casep.frames), from the file's own time tags."""
+    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS, ecef_to_launch, geodetic_to_launch
+
+    if tracking_frame == "launch":
+        return trk.vectors(VTRK_COLUMNS)
+    if tracking_frame == "ecef":
+        r, v = trk.vectors(ECEF_COLUMNS[1:4]), trk.vectors(ECEF_COLUMNS[4:7])
+        return ecef_to_launch(site, t_trk, r, v)[1]
+    lat, lon, h, ve, vn, vu = (trk.numeric(c) for c in GEODETIC_COLUMNS[1:])
+    for col, values, lim in (("lat", lat, 90.0), ("lon", lon, 360.0)):
+        bad = np.flatnonzero(np.abs(values) > lim)
+        if bad.size:
+            raise trk.error(f"{values[bad[0]]:g} deg is outside +-{lim:g} deg (latitude and longitude in degrees)",
+                            col, int(bad[0]) + 1)
+    return geodetic_to_launch(site, t_trk, lat, lon, h, ve, vn, vu)[1]
+
+
+def _tracking_hint(trk: "_Table", tracking_frame: str) -> str:
+    """What a tracking file lacks, and the frame its columns suggest."""
+    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS
+
+    if tracking_frame == "ecef":
+        return ". Use (ECEF, m, m/s): " + ", ".join(ECEF_COLUMNS)
+    if tracking_frame == "geodetic":
+        return ". Use (deg, deg, m, m/s east/north/up): " + ", ".join(GEODETIC_COLUMNS)
+    for frame, cols in (("ecef", ECEF_COLUMNS), ("geodetic", GEODETIC_COLUMNS)):
+        if trk.has(cols):
+            return (f". Use: t, v_trk_x, v_trk_y, v_trk_z; this file has {frame} columns: read it with "
+                    f"tracking_frame='{frame}' and site=LaunchSite(...) (CLI: --tracking-frame {frame} "
+                    "--launch-site LAT LON H AZ --launch-time T0)")
+    return ". Use: t, v_trk_x, v_trk_y, v_trk_z"
+# ------------------------------------------------------------------ end tracking frames
+
+
 def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, *,
                      interpolation: str = "cubic", grid: str = "tracking",
-                     time_offset: float | str | None = None) -> FlightData:
+                     time_offset: float | str | None = None, tracking_frame: str = "launch",
+                     site=None) -> FlightData:
     """Combine a telemetry file and a tracking file recorded at different rates.
 
     Parameters
@@ -356,6 +408,16 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
         rest). None (default): no shift, but the coarse offset is still computed and a
         :class:`~casep.exceptions.TimeOffsetWarning` gives it when it exceeds a tracking sample
         period (a first-order ``dt_trk`` is not meant for that). ``meta["time_alignment"]`` records it.
+    tracking_frame : {"launch", "ecef", "geodetic"}, optional
+        Frame of the tracking file. ``"launch"`` (default): ``t, v_trk_*``, launch-inertial.
+        ``"ecef"``: ``t, r_ecef_x/y/z, v_ecef_x/y/z`` (m, m/s; WGS84, Earth-fixed, velocity relative
+        to the rotating Earth). ``"geodetic"``: ``t, lat, lon, h, v_east, v_north, v_up`` (deg, deg, m
+        above the ellipsoid, m/s in the local ENU axes). Earth-fixed tracking is turned into the
+        launch-inertial velocity (:mod:`casep.frames`, Earth rotation included) at the file's own
+        time tags, before any `time_offset` shift; ``meta["tracking_frame"]`` records frame and site.
+    site : casep.frames.LaunchSite, optional
+        Launch point, azimuth and launch time (in the tracking file's time scale): required with an
+        Earth-fixed `tracking_frame` (ValueError naming the file otherwise).
 
     Returns
     -------
@@ -372,15 +434,19 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
         raise ValueError(f"`interpolation` must be 'cubic' or 'linear', got {interpolation!r}")
     if grid not in PAIR_GRIDS:
         raise ValueError(f"`grid` must be one of {', '.join(PAIR_GRIDS)}, got {grid!r}")
+    _check_tracking_frame(tracking, tracking_frame, site)
     tel, trk = _Table(telemetry), _Table(tracking)
     tel.require(("t",))
-    trk.require(("t",) + VTRK_COLUMNS, ". Use: t, v_trk_x, v_trk_y, v_trk_z")
+    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS
+
+    trk.require({"launch": ("t",) + VTRK_COLUMNS, "ecef": ECEF_COLUMNS, "geodetic": GEODETIC_COLUMNS}[tracking_frame],
+                _tracking_hint(trk, tracking_frame))
     tel.require(VTEL_COLUMNS, ". Use: v_tel_x, v_tel_y, v_tel_z")
     t_tel = tel.time()
     f, force_from = _force(tel, t_tel)
     v_tel = tel.vectors(VTEL_COLUMNS)
     t_trk = trk.time()
-    v_trk = trk.vectors(VTRK_COLUMNS)
+    v_trk = _tracking_velocity(trk, t_trk, tracking_frame, site)  # launch-inertial
     if t_trk.size < (4 if interpolation == "cubic" else 2):
         raise trk.error(f"{t_trk.size} tracking samples are too few for {interpolation} interpolation", "t", t_trk.size)
     inside = (t_tel >= t_trk[0]) & (t_tel <= t_trk[-1])
@@ -418,9 +484,18 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
         if not np.isfinite(shift):
             raise ValueError(f"`time_offset` must be finite, got {shift}")
     extra = {"time_alignment": {**(align.to_dict() if align is not None else {}), "applied_s": shift}}
-    return pair_flight(t_tel, f, v_tel, t_trk - shift, v_trk, signals=tel.signals(), interpolation=interpolation,
-                       grid=grid, source=f"{tel.src} + {trk.src}",
-                       meta={"force": force_from, "telemetry": tel.src, "tracking": trk.src, **extra})
+    if tracking_frame != "launch":
+        extra["tracking_frame"] = {"frame": tracking_frame, "site": site.to_dict()}
+    flight = pair_flight(t_tel, f, v_tel, t_trk - shift, v_trk, signals=tel.signals(), interpolation=interpolation,
+                         grid=grid, source=f"{tel.src} + {trk.src}",
+                         meta={"force": force_from, "telemetry": tel.src, "tracking": trk.src, **extra})
+    if tracking_frame != "launch":  # the late-start check: speed relative to the pad, not the Earth's rotation
+        from casep.frames import ecef_to_launch
+
+        v_pad = ecef_to_launch(site, [t_tel[0]], [site.r_site], [[0.0, 0.0, 0.0]])[1][0]
+        flight.meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0] - v_pad))
+        flight.meta["tracking_frame"]["pad_velocity_m_s"] = v_pad.tolist()
+    return flight
 
 
 def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray, *,

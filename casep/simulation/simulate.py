@@ -18,6 +18,12 @@ point at ``C l`` from the platform, body frame: ``r_point = r + C l``,
 ``v_point = v + C (omega_b x l)``). Before lift-off the vehicle is at rest on the pad; after
 burnout it is extrapolated ballistically (constant gravity), for offsets of a few ms.
 
+Rotating Earth (``rotating_earth=True, site=LaunchSite(..., t0=0)``, see
+:mod:`casep.simulation.trajectory`): everything above stays launch-inertial (``r_*, v_*`` include
+the Earth's rotation velocity); :meth:`TwoRateData.write` can write the tracking file in ECEF or
+geodetic coordinates instead (``tracking_frame``), which ``read_flight_pair(tracking_frame=...,
+site=...)`` turns back.
+
 All randomness comes from ``numpy.random.default_rng(seed)``: the same seed gives the same
 bytes, another seed other noise.
 """
@@ -64,6 +70,11 @@ def _tracked_point(traj: BoostTrajectory, times: np.ndarray, lever: np.ndarray) 
         k = traj.kinematics(times[inside])
         pos[inside], vel[inside], att[inside], rate[inside] = (k["position"], k["velocity"], k["attitude"],
                                                                 k["body_rate"])
+    early = times < t0
+    if early.any() and traj.site is not None:  # rotating Earth: on the pad, turning with the Earth
+        earth = traj._earth
+        pos[early] = [earth.o + earth.rotate(-earth.o, tk) for tk in times[early]]
+        vel[early] = np.cross(earth.w, pos[early] - earth.o)
     late = times > t1
     if late.any():  # after burnout: ballistic, r + v dt + g dt^2 / 2 with gravity g at burnout
         g = traj.acceleration[-1] - traj.specific_force[-1]
@@ -151,12 +162,16 @@ def _truth_vector(model: ErrorModel, truth: dict, source: str = "truth") -> np.n
     return values.astype(float)
 
 
-def scenario_setup(scenario: str | Scenario, rate: float | None = None
-                   ) -> tuple[Scenario, BoostTrajectory, ErrorModel, np.ndarray]:
-    """The noise-free part of a scenario: scenario at `rate`, trajectory, model, true coefficients."""
+def scenario_setup(scenario: str | Scenario, rate: float | None = None, *, rotating_earth: bool = False,
+                   site=None) -> tuple[Scenario, BoostTrajectory, ErrorModel, np.ndarray]:
+    """The noise-free part of a scenario: scenario at `rate`, trajectory, model, true coefficients.
+
+    `rotating_earth`, `site`: :func:`~casep.simulation.trajectory.simulate_boost`'s rotating-Earth option.
+    """
     sc = get_scenario(scenario).with_rate(rate)
     model = load_model(sc.model)
-    return sc, simulate_boost(sc.vehicle, sc.rate), model, _truth_vector(model, sc.truth)
+    traj = simulate_boost(sc.vehicle, sc.rate, rotating_earth=rotating_earth, site=site)
+    return sc, traj, model, _truth_vector(model, sc.truth)
 
 
 def _check_seed(seed: int) -> int:
@@ -167,7 +182,8 @@ def _check_seed(seed: int) -> int:
 
 def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: float | None = None,
                     model: str | os.PathLike | None = None, truth: dict | None = None,
-                    time_offset: float = 0.0, lever_arm: np.ndarray | None = None) -> SimulatedFlight:
+                    time_offset: float = 0.0, lever_arm: np.ndarray | None = None, rotating_earth: bool = False,
+                    site=None) -> SimulatedFlight:
     """Simulate one flight of a scenario.
 
     Parameters
@@ -188,6 +204,8 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
         Tracking time tags late by this much, s: ``v_trk(t) = v_point(t - offset)`` (exact).
     lever_arm : (3,) array_like, optional
         Tracked point from the platform, m, body frame.
+    rotating_earth, site : optional
+        Rotating Earth at the launch site (:func:`~casep.simulation.trajectory.simulate_boost`).
 
     Returns
     -------
@@ -199,7 +217,7 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
         sc = dataclasses.replace(sc, model=sc.model if model is None else os.fspath(model),
                                  truth=sc.truth if truth is None else dict(truth))
     time_offset, lever = _check_tracking(time_offset, lever_arm)
-    sc, traj, model, truth = scenario_setup(sc, rate)
+    sc, traj, model, truth = scenario_setup(sc, rate, rotating_earth=rotating_earth, site=site)
     rng = np.random.default_rng(seed)
     sig = trajectory_signals(traj, time_offset=time_offset, lever_arm=lever)
     tracked = np.column_stack([sig[f"v_{a}"] for a in "xyz"])
@@ -214,7 +232,9 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
                         signals={k: v[keep] for k, v in sig.items()})
     return SimulatedFlight(flight=flight, trajectory=traj, model=model, truth=truth, noise=noise[keep],
                            scenario=sc, seed=seed,
-                           tracking={"time_offset_ms": time_offset * 1e3, "lever_arm_m": lever.tolist()})
+                           tracking={"time_offset_ms": time_offset * 1e3, "lever_arm_m": lever.tolist(),
+                                     **({"rotating_earth": True, "launch_site": traj.site.to_dict()}
+                                        if traj.site is not None else {})})
 
 
 def truth_path(path: str | os.PathLike) -> Path:
@@ -251,9 +271,25 @@ class TwoRateData:
     truth: np.ndarray
     model: ErrorModel
     acceleration: np.ndarray | None = None  # kinematic acceleration at telemetry times, m/s^2
+    r_trk: np.ndarray | None = None  # tracked position, launch-inertial, m (noise-free)
+    site: object = None  # casep.frames.LaunchSite of a rotating-Earth flight, else None
 
-    def write(self, telemetry: str | os.PathLike, tracking: str | os.PathLike, *, apparent: bool = False) -> None:
-        """Telemetry file (``t``, ``f_*`` or ``W_*``, ``v_tel_*``, ``a_*``) and tracking file (``t``, ``v_trk_*``)."""
+    def write(self, telemetry: str | os.PathLike, tracking: str | os.PathLike, *, apparent: bool = False,
+              tracking_frame: str = "launch") -> None:
+        """Telemetry file (``t``, ``f_*`` or ``W_*``, ``v_tel_*``, ``a_*``) and tracking file.
+
+        The tracking file is ``t, v_trk_*`` (launch-inertial, ``tracking_frame="launch"``), or
+        ``t, r_ecef_*, v_ecef_*`` (``"ecef"``) or ``t, lat, lon, h, v_east, v_north, v_up``
+        (``"geodetic"``) converted by :mod:`casep.frames` with the flight's launch site (a
+        rotating-Earth flight; its ``t0`` is 0: lift-off).
+        """
+        from casep.frames import GEODETIC_COLUMNS, TRACKING_FRAMES, ECEF_COLUMNS, launch_to_ecef, ecef_to_geodetic
+
+        if tracking_frame not in TRACKING_FRAMES:
+            raise ValueError(f"`tracking_frame` must be one of {', '.join(TRACKING_FRAMES)}, got {tracking_frame!r}")
+        if tracking_frame != "launch" and (self.site is None or self.r_trk is None):
+            raise ValueError(f"{tracking_frame} tracking needs a rotating-Earth flight (simulate_two_rate("
+                             "rotating_earth=True, site=LaunchSite(...))): the launch site ties the frames")
         cols = {"t": self.t_tel}
         src, prefix = (self.W, "W") if apparent else (self.f, "f")
         cols.update({f"{prefix}_{a}": src[:, i] for i, a in enumerate("xyz")})
@@ -261,12 +297,21 @@ class TwoRateData:
         if self.acceleration is not None:  # a signal for time-offset models (platform36_timeoffset)
             cols.update({f"a_{a}": self.acceleration[:, i] for i, a in enumerate("xyz")})
         write_table(telemetry, cols)
-        write_table(tracking, {"t": self.t_trk, **{f"v_trk_{a}": self.v_trk[:, i] for i, a in enumerate("xyz")}})
+        if tracking_frame == "launch":
+            write_table(tracking, {"t": self.t_trk, **{f"v_trk_{a}": self.v_trk[:, i] for i, a in enumerate("xyz")}})
+            return
+        r_e, v_e = launch_to_ecef(self.site, self.t_trk, self.r_trk, self.v_trk)
+        values = (*r_e.T, *v_e.T) if tracking_frame == "ecef" else ecef_to_geodetic(r_e, v_e)
+        names = ECEF_COLUMNS if tracking_frame == "ecef" else GEODETIC_COLUMNS
+        write_table(tracking, {"t": self.t_trk, **dict(zip(names[1:], values))}, comments=[
+            f"casep simulated tracking, {tracking_frame} (WGS84), launch site {self.site.to_dict()} "
+            "(t0: lift-off, t = 0)"])
 
 
 def simulate_two_rate(scenario: str | Scenario = "paper", *, seed: int = 0, telemetry_rate: float = 100.0,
                       tracking_rate: float = 20.0, time_offset: float = 0.0,
-                      tracking_start: float | None = None) -> TwoRateData:
+                      tracking_start: float | None = None, rotating_earth: bool = False,
+                      site=None) -> TwoRateData:
     """Telemetry and tracking of a scenario at different rates, with a tracking time offset.
 
     Parameters
@@ -280,13 +325,16 @@ def simulate_two_rate(scenario: str | Scenario = "paper", *, seed: int = 0, tele
     tracking_start : float, optional
         First tracking time, s (default: from lift-off): ranges rarely track from t = 0.
         Telemetry still starts at lift-off.
+    rotating_earth, site : optional
+        Rotating Earth at the launch site (:func:`~casep.simulation.trajectory.simulate_boost`);
+        then :meth:`TwoRateData.write` can write ECEF or geodetic tracking.
     """
     seed = _check_seed(seed)
     if not np.isfinite(tracking_rate) or tracking_rate <= 0:
         raise ValueError(f"`tracking_rate` must be finite and > 0 Hz, got {tracking_rate}")
     if not np.isfinite(time_offset):
         raise ValueError(f"`time_offset` must be finite, got {time_offset}")
-    sc, traj, model, truth = scenario_setup(scenario, telemetry_rate)
+    sc, traj, model, truth = scenario_setup(scenario, telemetry_rate, rotating_earth=rotating_earth, site=site)
     rng = np.random.default_rng(seed)
     v_tel = traj.velocity + build_sv(model, traj.t, traj.specific_force) @ truth
     dt = np.diff(traj.t)[:, None]
@@ -297,6 +345,7 @@ def simulate_two_rate(scenario: str | Scenario = "paper", *, seed: int = 0, tele
             raise ValueError(f"`tracking_start` must be in [{lo:g}, {hi:g}) s, got {tracking_start}")
         lo = tracking_start
     t_trk = np.arange(np.ceil(lo * tracking_rate), np.floor(hi * tracking_rate) + 1) / tracking_rate
-    _, v_true = traj.sample(t_trk - time_offset)
+    r_true, v_true = traj.sample(t_trk - time_offset)
     v_trk = v_true + sc.noise.sample(t_trk, rng)
-    return TwoRateData(traj.t, traj.specific_force, W, v_tel, t_trk, v_trk, truth, model, traj.acceleration)
+    return TwoRateData(traj.t, traj.specific_force, W, v_tel, t_trk, v_trk, truth, model, traj.acceleration,
+                       r_true, traj.site)

@@ -33,6 +33,18 @@ Assumptions (every one is a choice, stated here and in the README):
   ``omega_p = theta_dot e_z - psi_dot Rz(theta) e_y`` (platform frame) and the body rate
   ``omega_b = C^T omega_p``; ``theta_dot`` and ``psi_dot`` are exact derivatives of the attitude
   law (in the gravity turn, of the velocity's pitch, from the kinematic acceleration).
+- **Rotating Earth** (``simulate_boost(..., rotating_earth=True, site=LaunchSite)``, off by
+  default): the equations stay those of the launch-inertial frame (no Coriolis or centrifugal
+  term: the frame is inertial); what changes is the Earth. It turns at ``omega_E`` about the WGS84
+  polar axis (``site.earth_rate`` in launch axes, through ``site.earth_centre``), as
+  :mod:`casep.frames` assumes, and the simulator's sphere turns with it rigidly (its centre starts
+  at ``(0, -R_E, 0)`` and circles the axis), so gravity and altitude follow the rotating sphere. The
+  vehicle starts with the velocity of the pad, ``w x (0 - o)`` (329 m/s east at 45 deg); drag,
+  Mach number and the gravity-turn attitude use the velocity relative to the co-rotating
+  atmosphere ``v_rel = v - w x (r - o)`` (whose rate is ``a - w x v``). The platform is inertial, so
+  the sensed specific force is still ``(T - D) e_b / m``; seen from the Earth the trajectory has the
+  Coriolis and centrifugal accelerations (``casep.frames`` converts; tests check them against the
+  closed forms).
 
 :func:`simulate_boost` integrates the equations with an adaptive Runge-Kutta method (DOP853,
 rtol 1e-10) piece by piece between thrust discontinuities and evaluates ``f`` exactly from
@@ -273,6 +285,12 @@ class BoostTrajectory:
     body_rate: np.ndarray | None = None
     _segments: list = field(repr=False, compare=False, default_factory=list)
     _aoa0: float = field(repr=False, compare=False, default=0.0)
+    _earth: object = field(repr=False, compare=False, default=None)  # _RotatingEarth, or None: not rotating
+
+    @property
+    def site(self):
+        """The :class:`casep.frames.LaunchSite` of a rotating-Earth trajectory, else None."""
+        return None if self._earth is None else self._earth.site
 
     def sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """True position and velocity at arbitrary `times` within the flight (dense output)."""
@@ -300,7 +318,7 @@ class BoostTrajectory:
         times = np.atleast_1d(np.asarray(times, dtype=float))
         out = {k: np.full((times.size, 3), np.nan) for k in ("position", "velocity", "acceleration",
                                                                "attitude", "body_rate")}
-        state = {"aoa0": self._aoa0}
+        state = {"aoa0": self._aoa0, "earth": self._earth}
         done = np.zeros(times.size, dtype=bool)
         last_t1 = self._segments[-1][1]
         for t0, t1, sol, k, kind in self._segments:  # a piece owns [t0, t1), the last one [t0, t1]
@@ -309,7 +327,8 @@ class BoostTrajectory:
                 y = sol(times[i])
                 f, grav, _ = _forces(self.vehicle, self.vehicle.stages[k], kind, times[i], t0, t1, y, state)
                 rows = dict(zip(out, (y[0:3], y[3:6], f + grav)))
-                rows["attitude"], rows["body_rate"] = _attitude_rates(self.vehicle, times[i], y[3:6], f + grav, state)
+                rows["attitude"], rows["body_rate"] = _attitude_rates(self.vehicle, times[i],
+                                                                      *_relative(state, y[0:3], y[3:6], f + grav), state)
                 for key, value in rows.items():
                     out[key][i] = value
             done[idx] = True
@@ -437,14 +456,50 @@ def _attitude(vehicle: Vehicle, t: float, v: np.ndarray, state: dict) -> np.ndar
     return np.array([cp * math.cos(theta), cp * math.sin(theta), math.sin(psi)])
 
 
+class _RotatingEarth:
+    """The simulator's sphere turning rigidly with the Earth, in launch-inertial coordinates (module notes)."""
+
+    def __init__(self, site) -> None:
+        from casep.frames import OMEGA_EARTH
+
+        self.site = site
+        self.w = site.earth_rate  # rad/s, launch axes: C^T (0, 0, omega_E)
+        self.o = site.earth_centre  # WGS84 centre, a point of the axis, m
+        self.k = self.w / OMEGA_EARTH  # unit vector of the axis
+        self.omega = OMEGA_EARTH
+        self.c0 = np.array([0.0, -R_EARTH, 0.0])  # the sphere's centre at lift-off (t = 0)
+
+    def rotate(self, p: np.ndarray, t: float) -> np.ndarray:
+        """`p` (about the axis point) turned by omega_E t about the axis (Rodrigues)."""
+        a = self.omega * t
+        k = self.k
+        return p * math.cos(a) + np.cross(k, p) * math.sin(a) + k * (k @ p) * (1.0 - math.cos(a))
+
+    def centre(self, t: float) -> np.ndarray:
+        return self.o + self.rotate(self.c0 - self.o, t)  # the sphere's centre circles the axis
+
+    def air_velocity(self, pos: np.ndarray) -> np.ndarray:
+        return np.cross(self.w, pos - self.o)  # co-rotating atmosphere: w x (r - o)
+
+
+def _relative(state: dict, pos: np.ndarray, vel: np.ndarray, acc: np.ndarray | None = None):
+    """Velocity (and its rate) relative to the air: v - w x (r - o), a - w x v; the inertial ones without rotation."""
+    earth = state.get("earth")
+    if earth is None:
+        return vel, acc
+    return vel - earth.air_velocity(pos), (None if acc is None else acc - np.cross(earth.w, vel))
+
+
 def _forces(vehicle, stage, kind, t, t0, t1, x, state):
     """Specific force (m/s^2, sensed), gravity (m/s^2) and mass flow (kg/s)."""
     pos, vel, m = x[0:3], x[3:6], x[6]
-    r = pos + np.array([0.0, R_EARTH, 0.0])
+    earth = state.get("earth")
+    r = pos + np.array([0.0, R_EARTH, 0.0]) if earth is None else pos - earth.centre(t)
     rn = math.sqrt(r @ r)
     grav = -MU_EARTH * r / rn**3
     h = rn - R_EARTH
     rho, a = atmosphere(h)
+    vel = _relative(state, pos, vel)[0]  # relative to the (co-rotating) air
     speed = math.sqrt(vel @ vel)
     ca = float(np.interp(speed / a, _MACH, _CA))
     drag = 0.5 * rho * speed**2 * vehicle.area * ca  # axial drag, N
@@ -454,7 +509,8 @@ def _forces(vehicle, stage, kind, t, t0, t1, x, state):
     return f, grav, -T / (stage.isp * G0)
 
 
-def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0) -> BoostTrajectory:
+def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, rotating_earth: bool = False,
+                   site=None) -> BoostTrajectory:
     """Fly `vehicle` through its powered flight and sample it at `rate` Hz.
 
     Parameters
@@ -463,6 +519,11 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0) -> B
         Stages, mass, pitch programme, optional yaw manoeuvre.
     rate : float, optional
         Sample rate, Hz (samples at ``k / rate`` from lift-off to the last burnout).
+    rotating_earth : bool, optional
+        Earth turning at ``omega_E`` (module notes): the vehicle starts with the pad's velocity,
+        drag and attitude use the velocity relative to the co-rotating air. Needs `site`.
+    site : casep.frames.LaunchSite, optional
+        Launch point and azimuth; its ``t0`` must be 0 (the simulated time is from lift-off).
 
     Returns
     -------
@@ -474,12 +535,25 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0) -> B
         raise TypeError(f"`vehicle` must be a Vehicle, got {type(vehicle).__name__}")
     if not np.isfinite(rate) or rate <= 0:
         raise ValueError(f"`rate` must be finite and > 0 Hz, got {rate}")
+    earth = None
+    if rotating_earth:
+        from casep.frames import LaunchSite
+
+        if not isinstance(site, LaunchSite):
+            raise ValueError("`rotating_earth` needs `site`, a casep.frames.LaunchSite (launch point and azimuth)")
+        if site.t0 != 0.0:
+            raise ValueError(f"`site.t0` must be 0 for a simulated flight (its time is from lift-off), got {site.t0}")
+        earth = _RotatingEarth(site)
+    elif site is not None:
+        raise ValueError("`site` is used only with `rotating_earth=True`")
     pieces, events = _thrust_profile(vehicle)
     t_final = pieces[-1][1]
     n = int(math.floor(t_final * rate + 1e-9)) + 1
     t_out = np.arange(n) / rate
     x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, vehicle.liftoff_mass])
-    state = {"aoa0": 0.0}
+    if earth is not None:
+        x[3:6] = earth.air_velocity(np.zeros(3))  # on the pad: the Earth's rotation velocity there
+    state = {"aoa0": 0.0, "earth": earth}
     p = vehicle.pitch
     t_kick_end = p.vertical + p.kick
     pos, vel, f_out, mass = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n))
@@ -501,7 +575,7 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0) -> B
                 x[6] -= vehicle.stages[j].dry_mass
                 dropped.add(j)
         if abs(t0 - t_kick_end) < 1e-12:
-            v = x[3:6]
+            v = _relative(state, x[0:3], x[3:6])[0]
             theta_kick = 0.5 * math.pi - math.radians(p.kick_rate) * p.kick
             state["aoa0"] = theta_kick - math.atan2(v[1], v[0])
 
@@ -520,14 +594,14 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0) -> B
         for i, y in zip(idx, ys.T):
             f_out[i], grav, _ = _forces(vehicle, stage, kind, t_out[i], t0, t1, y, state)
             acc[i] = f_out[i] + grav  # kinematic acceleration = specific force + gravity
-            att[i], rate[i] = _attitude_rates(vehicle, t_out[i], y[3:6], acc[i], state)
+            att[i], rate[i] = _attitude_rates(vehicle, t_out[i], *_relative(state, y[0:3], y[3:6], acc[i]), state)
         pos[idx], vel[idx], mass[idx] = ys[0:3].T, ys[3:6].T, ys[6]
         x = sol.y[:, -1].copy()
-    r = pos + np.array([0.0, R_EARTH, 0.0])
+    r = pos + np.array([0.0, R_EARTH, 0.0]) if earth is None else pos - np.array([earth.centre(t) for t in t_out])
     alt = np.linalg.norm(r, axis=1) - R_EARTH
     out = BoostTrajectory(t=t_out, position=pos, velocity=vel, specific_force=f_out, mass=mass, altitude=alt,
                           events=events, vehicle=vehicle, acceleration=acc, attitude=att, body_rate=rate,
-                          _segments=segments, _aoa0=state["aoa0"])
+                          _segments=segments, _aoa0=state["aoa0"], _earth=earth)
     if not (np.all(np.isfinite(f_out)) and np.all(np.isfinite(pos))):  # pragma: no cover
         raise RuntimeError("trajectory produced non-finite values")
     return out
