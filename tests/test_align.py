@@ -1,4 +1,4 @@
-"""Coarse time alignment of tracking and telemetry (casep.analysis.align, issue 14 item 2)."""
+"""Coarse time alignment of tracking and telemetry (casep.io.align, issue 14 item 2)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import casep
-from casep.analysis.align import coarse_time_offset
+from casep.io.align import coarse_time_offset
 from casep.exceptions import TimeOffsetWarning
 from casep.simulation.simulate import simulate_two_rate
 

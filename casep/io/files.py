@@ -404,7 +404,7 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     time_offset : float, "auto" or None, optional
         Tracking time tags late by this many seconds: they are shifted back before the pair is
         formed. ``"auto"``: the coarse offset that lines up the velocities
-        (:func:`casep.analysis.align.coarse_time_offset`; the model term ``dt_trk`` then finds the
+        (:func:`casep.io.align.coarse_time_offset`; the model term ``dt_trk`` then finds the
         rest). None (default): no shift, but the coarse offset is still computed and a
         :class:`~casep.exceptions.TimeOffsetWarning` gives it when it exceeds a tracking sample
         period (a first-order ``dt_trk`` is not meant for that). ``meta["time_alignment"]`` records it.
@@ -455,7 +455,7 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
                         f"[{t_trk[0]:g}, {t_trk[-1]:g}] s share fewer than 2 telemetry samples", "t")
     align = None
     if time_offset is None or time_offset == "auto":
-        from casep.analysis.align import coarse_time_offset
+        from casep.io.align import coarse_time_offset
 
         try:
             align = coarse_time_offset(t_tel, v_tel, t_trk, v_trk, max_offset=min(2.0, 0.25 * (t_trk[-1] - t_trk[0])))
