@@ -865,13 +865,28 @@ def _cmd_design(args: argparse.Namespace) -> int:
     v = res.verification
     print(f"re-simulated: objective {v['before']:.6g} -> {v['after']:.6g}; CRLB prediction error max "
           f"{100 * v['crlb_prediction_error_max']:.1f} %")
+    gain_d = (res.before - res.after) / abs(res.before) if res.before else 0.0
+    gain_v = (v["before"] - v["after"]) / abs(v["before"]) if v["before"] else 0.0
+    if abs(gain_d - gain_v) > 0.05 * max(abs(gain_v), 1e-12) and abs(gain_d - gain_v) > 0.01:
+        print(f"warning: the design model promised a {100 * gain_d:.1f} % change of the objective, the re-simulated "
+              f"flights give {100 * gain_v:.1f} %: trust the re-simulated value (the JSON's before/after)")
+    b = v["burnout_change"]
+    print(f"the designed flight burns out elsewhere: speed {b['speed_m_s']:+.1f} m/s, altitude {b['altitude_m'] / 1e3:+.2f} "
+          f"km, crossrange {b['crossrange_m'] / 1e3:+.2f} km (no terminal constraint: a test flight, not the mission)")
+    sc_noise = get_scenario(args.scenario).noise
+    if sc_noise.kind != "white":
+        print(f"warning: scenario {args.scenario} has {sc_noise.kind} tracking noise; the design assumes white noise "
+              "of the same sigma")
     m = res.maneuver.to_dict(res.x)
     print("knots s:   " + " ".join(f"{t:7.1f}" for t in m["knots_s"]))
     for axis in res.maneuver.axes:
         print(f"{axis + ' deg:':<11}" + " ".join(f"{a:7.2f}" for a in m[f"{axis}_deg"]))
     print(res.table())
-    print(f"identifiable (CRLB < declared magnitude): {len(res.identifiable('before'))} before, "
+    what = ("posterior std (prior included) < declared magnitude" if args.prior else "CRLB < declared magnitude")
+    print(f"identifiable ({what}): {len(res.identifiable('before'))} before, "
           f"{len(res.identifiable('after'))} after: {', '.join(res.identifiable('after')) or 'none'}")
+    if res.worse():
+        print(f"worse after the design (bound x > 1.05): {', '.join(res.worse())}")
     if args.json:
         write_json_atomic(res.to_json(), args.json)
         print(f"design written to {args.json}")

@@ -250,3 +250,26 @@ def test_a_objective_over_a_subset(coarse):
                                              + C[model.index("Ka1z"), model.index("Ka1z")], rel=1e-8)
     with pytest.raises(ValueError, match="Kg0q"):
         design("paper", coefficients=["Kg0q"])
+
+
+def test_cli_reports_what_the_design_costs(tmp_path, capsys):
+    """Fresh-eyes review: the console says where the designed flight burns out, which bounds get
+    worse, and the JSON's before/after are the re-simulated values (the design model's under
+    `predicted`), with the regularisation recorded when there is no prior."""
+    import json
+
+    from casep.cli import main
+
+    out = tmp_path / "d.json"
+    assert main(["design", "--maneuver", "yaw", "--max-angle", "5", "--knots", "4", "--starts", "1", "--rate", "5",
+                 "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "the designed flight burns out elsewhere" in text and "crossrange" in text
+    d = json.loads(out.read_text())
+    assert d["objective_source"] == "re-simulated flights"
+    assert d["before"] == pytest.approx(d["verification"]["before"]) and d["after"] == pytest.approx(d["verification"]["after"])
+    assert "before" in d["predicted"] and d["regularisation"]["information"] > 0
+    ratio = {n: d["crlb_after"][n] / d["crlb_before"][n] for n in d["crlb_before"]
+             if d["crlb_before"][n] and d["crlb_after"][n]}
+    worse = [n for n, r in ratio.items() if r > 1.05]
+    assert (("worse after the design" in text) == bool(worse)) and all(n in text for n in worse)

@@ -89,13 +89,23 @@ class DesignResult:
         def d(a):
             return {n: (None if not np.isfinite(v) else float(v)) for n, v in zip(self.names, a)}
 
+        v = self.verification or {}
+        from casep.design.objective import REGULARISATION
+
         return {
-            "objective": self.objective, "before": self.before, "after": self.after,
+            # before/after: exact on the re-simulated flights when verified; the design model's values in `predicted`
+            "objective": self.objective, "before": v.get("before", self.before), "after": v.get("after", self.after),
+            "objective_source": "re-simulated flights" if v else "design model",
+            "regularisation": None if self.prior else {
+                "information": REGULARISATION,
+                "note": "without --prior the objective adds information eps I in coefficients scaled by their declared "
+                        "magnitude (a vague prior of std 10 magnitudes), so unidentifiable coefficients are finite"},
             "coefficients": None if self.coefficients is None else list(self.coefficients),
             "maneuver": self.maneuver.to_dict(self.x),
             "crlb_before": d(self.crlb_before), "crlb_after": d(self.crlb_after),
             "constraints": self.constraints,
-            "predicted": {"crlb_before": d(self.predicted_before), "crlb_after": d(self.predicted_after),
+            "predicted": {"before": self.before, "after": self.after,
+                          "crlb_before": d(self.predicted_before), "crlb_after": d(self.predicted_after),
                           "note": "design model: nominal specific force rotated by the offsets on the design grid "
                                   "(the manoeuvre's effect on the trajectory neglected)"},
             "units": dict(zip(self.names, self.units)),
@@ -107,8 +117,14 @@ class DesignResult:
                          "noise_sigma": self.scenario.noise.sigma},
         }
 
+    def worse(self, factor: float = 1.05) -> list[str]:
+        """Coefficients whose bound grows by more than `factor` (a design trades some for others)."""
+        r = self.crlb_after / self.crlb_before
+        return [n for n, v in zip(self.names, r) if np.isfinite(v) and v > factor]
+
     def table(self) -> str:
-        lines = [f"{'name':<8} {'unit':<10} {'scale':>9} {'CRLB before':>12} {'CRLB after':>12} {'ratio':>7}"]
+        kind = "post. std" if self.prior else "CRLB"
+        lines = [f"{'name':<8} {'unit':<10} {'scale':>9} {kind + ' before':>12} {kind + ' after':>12} {'ratio':>7}"]
         for n, u, s, b, a in zip(self.names, self.units, self.scales, self.crlb_before, self.crlb_after):
             r = a / b if np.isfinite(a) and np.isfinite(b) and b > 0 else math.nan
             lines.append(f"{n:<8} {u:<10} {s:>9.3g} {b:>12.4g} {a:>12.4g} {r:>7.3f}")
