@@ -214,3 +214,31 @@ def test_out_nominal_stages_resume_from_missing_parts(tmp_path):
     assert sorted(st) == [p.name for p in parts]
     with pytest.raises(ValueError, match=r"other settings \(methods: \["):
         run_montecarlo("paper", out=tmp_path, **{**kw, "methods": ["ols"]})
+
+
+def test_a_draw_the_vehicle_cannot_fly_is_exit_2_naming_the_run_and_values(tmp_path, capsys):
+    """Fresh-eyes review: isp_scale 0.85 burns stage 2's propellant before its burnout (the integration
+    used to fail with a traceback, or crawl for minutes at 0.7). Now the vehicle is refused before
+    integrating, and the campaign stops with exit 2 naming the run and the drawn values."""
+    from casep.simulation.dispersions import disperse_vehicle
+    from casep.simulation.scenarios import get_scenario
+    from casep.simulation.trajectory import simulate_boost
+
+    with pytest.raises(ValueError, match=r"stage 2 burns \d+ kg of propellant but carries \d+ kg"):
+        simulate_boost(disperse_vehicle(get_scenario("paper").vehicle, {"isp_scale": 0.85}), 1.0)
+    simulate_boost(disperse_vehicle(get_scenario("paper").vehicle, {"isp_scale": 0.9}), 1.0)  # flyable
+    f = tmp_path / "disp.json"
+    f.write_text(json.dumps({"isp_scale": {"dist": "uniform", "low": 0.84, "high": 0.85}}))
+    assert main(["montecarlo", "--runs", "2", "--rate", "1", "--methods", "ols", "--workers", "1",
+                 "--dispersions", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert "run 0: the dispersed vehicle (isp_scale 0.84" in err and "cannot be flown" in err
+
+
+def test_settings_difference_names_the_innermost_key():
+    from casep.workflows.montecarlo import _settings_diff
+
+    old = {"seed": 1, "dispersions": {"launch_azimuth_deg": {"dist": "uniform", "low": -2, "high": 2}}}
+    new = {"seed": 1, "dispersions": {"launch_azimuth_deg": {"dist": "uniform", "low": -2, "high": 3}}}
+    assert _settings_diff(old, new) == "dispersions.launch_azimuth_deg.high: 2 there, 3 now"
+    assert _settings_diff({"seed": 5}, {"seed": 6}) == "seed: 5 there, 6 now"

@@ -509,6 +509,20 @@ def _forces(vehicle, stage, kind, t, t0, t1, x, state):
     return f, grav, -T / (stage.isp * G0)
 
 
+def _check_propellant(vehicle: Vehicle) -> None:
+    """Refuse a vehicle that burns more propellant than it carries (mass -> 0: the integration would
+    fail or crawl). Stage k burns ``thrust (burn - ignition/2 - tail_off/2) / (Isp g0)`` kg (the
+    trapezoid thrust profile); at its burnout the mass must still exceed the dry masses on board."""
+    m = vehicle.liftoff_mass
+    for k, st in enumerate(vehicle.stages):
+        burned = st.thrust * (st.burn - 0.5 * st.ignition - 0.5 * st.tail_off) / (st.isp * G0)
+        dry = sum(s_.dry_mass for s_ in vehicle.stages[k:])
+        if m - burned <= dry:
+            raise ValueError(f"stage {k + 1} burns {burned:.0f} kg of propellant but carries {m - dry:.0f} kg (thrust "
+                             f"{st.thrust:.4g} N, Isp {st.isp:.4g} s, burn {st.burn:.4g} s): not a flyable vehicle")
+        m -= burned + st.dry_mass
+
+
 def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, rotating_earth: bool = False,
                    site=None) -> BoostTrajectory:
     """Fly `vehicle` through its powered flight and sample it at `rate` Hz.
@@ -547,6 +561,7 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, r
     elif site is not None:
         raise ValueError("`site` is used only with `rotating_earth=True`")
     pieces, events = _thrust_profile(vehicle)
+    _check_propellant(vehicle)
     t_final = pieces[-1][1]
     n = int(math.floor(t_final * rate + 1e-9)) + 1
     t_out = np.arange(n) / rate

@@ -176,7 +176,12 @@ def _flight(ctx: _Context, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     from casep.simulation.trajectory import simulate_boost
 
     values = draw_dispersion(ctx.dispersions, np.random.default_rng(_run_seq(ctx.seed, k, 0)))
-    traj = simulate_boost(disperse_vehicle(ctx.scenario.vehicle, values), ctx.scenario.rate)
+    try:
+        traj = simulate_boost(disperse_vehicle(ctx.scenario.vehicle, values), ctx.scenario.rate)
+    except (ValueError, RuntimeError) as exc:  # a draw the vehicle cannot fly: say which run and which values
+        drawn = ", ".join(f"{n} {v:.6g}" for n, v in values.items())
+        raise ValueError(f"run {k}: the dispersed vehicle ({drawn}) cannot be flown: {exc}. Narrow the "
+                         "--dispersions (the same seed draws the same values again)") from None
     S = build_sv(_model(ctx.scenario.model), traj.t, traj.specific_force)
     crlb = np.sqrt(np.diag(crlb_covariance(S, ctx.sigma, t=traj.t if ctx.tau else None, tau=ctx.tau)))
     return S, traj.t, truth, crlb
@@ -329,9 +334,13 @@ class _Dask:
 _PART = "part-s{stage:02d}-t{task:05d}.parquet"
 
 
-def _settings_diff(old: Mapping, new: Mapping) -> str:
-    keys = [k for k in dict.fromkeys([*old, *new]) if old.get(k) != new.get(k)]
-    return "; ".join(f"{k}: {json.dumps(old.get(k))[:80]} there, {json.dumps(new.get(k))[:80]} now" for k in keys)
+def _settings_diff(old: Any, new: Any, path: str = "") -> str:
+    """What differs between two settings, down to the innermost key (``dispersions.launch_azimuth_deg.high:
+    2 there, 3 now``), values cut at 80 characters."""
+    if isinstance(old, Mapping) and isinstance(new, Mapping):
+        keys = [k for k in dict.fromkeys([*old, *new]) if old.get(k) != new.get(k)]
+        return "; ".join(_settings_diff(old.get(k), new.get(k), f"{path}.{k}" if path else str(k)) for k in keys)
+    return f"{path}: {json.dumps(old)[:80]} there, {json.dumps(new)[:80]} now"
 
 
 class _Store:
