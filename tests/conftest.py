@@ -54,3 +54,18 @@ def augmented_lstsq(S2: np.ndarray, y: np.ndarray, prior_precision_sqrt: np.ndar
     A = np.vstack([S2 / c, np.diag(prior_precision_sqrt / c)])
     b = np.concatenate([y, prior_precision_sqrt * prior_mean])
     return np.linalg.lstsq(A, b, rcond=None)[0] / c
+
+
+def noise_free_errors(flight, model, truth, sigma: float = 0.1):
+    """Separate a noise-free flight with platform36 OLS (its ill-conditioning warning expected) and
+    return ``(result, |estimate - truth| / CRLB std at noise sigma)``: how exactly the pipeline recovers
+    the truth, in units of what noise would allow."""
+    from casep.analysis.diagnostics import crlb_covariance
+    from casep.exceptions import IllConditionedWarning
+    from casep.workflows.separate import regression_rows
+
+    with pytest.warns(IllConditionedWarning):
+        res = casep.separate(flight, "platform36")
+    S, _, _ = regression_rows(flight, model)
+    crlb = np.sqrt(np.diag(crlb_covariance(S, sigma)))
+    return res, np.abs(res.estimate - np.asarray(truth)) / crlb

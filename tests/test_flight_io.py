@@ -259,10 +259,9 @@ def test_split_pair_noise_free_end_to_end(tmp_path):
     linear interpolation (0.3 CRLB std) would fail it."""
     import dataclasses
 
-    from casep.analysis.diagnostics import crlb_covariance
+    from conftest import noise_free_errors
     from casep.simulation.noise import NoiseModel
     from casep.simulation.scenarios import get_scenario
-    from casep.workflows.separate import regression_rows
     from casep.simulation.simulate import simulate_two_rate
 
     quiet = dataclasses.replace(get_scenario("paper"), noise=NoiseModel("white", 0.0))
@@ -271,11 +270,7 @@ def test_split_pair_noise_free_end_to_end(tmp_path):
     # rows at the tracking times (every 5th telemetry sample from 10 s: the default tracking grid)
     assert fl.meta["force"] == "W" and not fl.observed[:1000].any() and fl.observed[1000::5].all()
     assert fl.observed.sum() == d.t_trk.size
-    with pytest.warns(IllConditionedWarning):
-        res = casep.separate(fl, "platform36")
-    S, _, _ = regression_rows(fl, d.model)
-    crlb = np.sqrt(np.diag(crlb_covariance(S, 0.1)))
-    err = np.abs(res.estimate - d.truth) / crlb
+    res, err = noise_free_errors(fl, d.model, d.truth)
     assert err.max() < 1e-3, dict(zip(d.model.names, err))
     assert res.sigma < 1e-3
 
