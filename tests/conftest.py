@@ -69,3 +69,18 @@ def noise_free_errors(flight, model, truth, sigma: float = 0.1):
     S, _, _ = regression_rows(flight, model)
     crlb = np.sqrt(np.diag(crlb_covariance(S, sigma)))
     return res, np.abs(res.estimate - np.asarray(truth)) / crlb
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _one_blas_thread_per_xdist_worker():
+    """With pytest-xdist (`-n 2`), each worker process uses one BLAS thread: two workers on two
+    cores, not four threads fighting for them (README: oversubscription made a Monte Carlo 30x slower)."""
+    import os
+
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        yield
+        return
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield

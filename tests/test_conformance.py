@@ -43,7 +43,11 @@ def _bad_values(option):
 CASES = [(m, o, v) for m, meth in METHODS.items() for o in meth.options for v in _bad_values(OPTIONS[o])]
 
 
-@pytest.mark.parametrize("method,option,value", CASES, ids=[f"{m}-{o}-{v!r}"[:60] for m, o, v in CASES])
+def _case_id(m, o, v) -> str:  # stable across processes (pytest-xdist): no object address in it
+    return f"{m}-{o}-{'object()' if type(v) is object else repr(v)}"[:60]
+
+
+@pytest.mark.parametrize("method,option,value", CASES, ids=[_case_id(m, o, v) for m, o, v in CASES])
 def test_bad_option_value_is_an_error_naming_it(method, option, value, clean_flight):
     with pytest.raises((ValueError, TypeError), match=f"`{option}`"):
         check_method_options(method, {option: value})
