@@ -242,3 +242,11 @@ def test_settings_difference_names_the_innermost_key():
     new = {"seed": 1, "dispersions": {"launch_azimuth_deg": {"dist": "uniform", "low": -2, "high": 3}}}
     assert _settings_diff(old, new) == "dispersions.launch_azimuth_deg.high: 2 there, 3 now"
     assert _settings_diff({"seed": 5}, {"seed": 6}) == "seed: 5 there, 6 now"
+
+
+def test_summary_records_the_rate():
+    """Fresh-eyes review: the summary JSON says at which rate the flights were simulated."""
+    from casep.workflows.montecarlo import run_montecarlo
+
+    res = run_montecarlo("paper", runs=2, methods=["ols"], seed=1, rate=2.0)
+    assert res.to_dict()["rate_hz"] == 2.0

@@ -300,7 +300,10 @@ class _Dask:
         stack.callback(aio.setLevel, aio.level)
         aio.setLevel(logging.CRITICAL)
         if scheduler:
-            self.client = stack.enter_context(Client(scheduler, timeout="20s"))
+            try:
+                self.client = stack.enter_context(Client(scheduler, timeout="20s"))
+            except OSError as exc:  # unreachable: say which option
+                raise ValueError(f"--scheduler {scheduler}: no Dask scheduler answers there ({exc})") from None
         else:
             # dashboard_address ":0": the scheduler's HTTP server (no dashboard without bokeh) on a
             # free port; None still binds 8787 and warns when another cluster holds it
@@ -451,6 +454,7 @@ class MonteCarloResult:
     seconds: dict[str, float] = field(default_factory=dict)
     truths: np.ndarray | None = None  # (runs, n) when each run drew its own (truth from a prior)
     dispersions: tuple[str, ...] = ()  # the dispersed vehicle/launch parameters (crlb_std: RMS over the runs)
+    rate: float | None = None  # sample rate of the simulated flights, Hz
 
     def stats(self, method: str) -> dict[str, np.ndarray]:
         """bias, rms, efficiency, coverage95 arrays of one method (NaN where undefined)."""
@@ -482,6 +486,8 @@ class MonteCarloResult:
                  "coverage95": f(st["coverage95"][j])}
                 for j, (n, u, tr) in enumerate(zip(self.names, self.units, self.truth))]}
         out: dict[str, Any] = {"scenario": self.scenario, "runs": self.runs, "seed": self.seed}
+        if self.rate is not None:
+            out["rate_hz"] = float(self.rate)
         if self.truths is not None:
             out["truth_from_prior"] = True  # "true": the prior mean; errors against each run's own draw
         if self.dispersions:
@@ -742,7 +748,7 @@ def run_montecarlo(
     with np.errstate(invalid="ignore"):
         crlb_std = crlb if dispersions is None else np.sqrt(np.mean(crlbs**2, axis=0))  # RMS over the runs
     centre = truth if tp is None else np.where(np.isfinite(tp[1]), tp[0], truth)
-    res = MonteCarloResult(scenario=sc.name, runs=runs, seed=seed, names=names, units=model.units,
+    res = MonteCarloResult(scenario=sc.name, runs=runs, seed=seed, rate=float(sc.rate), names=names, units=model.units,
                            truth=centre, crlb_std=crlb_std, estimates={m: est[m] for m in methods},
                            stds={m: std[m] for m in methods}, seconds=secs,
                            truths=truths if tp is not None else None,
