@@ -46,10 +46,13 @@ class JointProblem(Problem):
     raw : sequence of Problem, optional
         The flights as read, when `problems` are transformed (GLS: AR(1)-whitened); the summary's
         residuals are theirs.
+    interpolated : sequence of bool, optional
+        Flights whose tracking was interpolated onto telemetry times (correlated noise: the
+        summary says its tests are optimistic); default none.
     """
 
     def __init__(self, problems: Sequence[Problem], sigmas: Sequence[float], layout: JointLayout,
-                 raw: Sequence[Problem] | None = None) -> None:
+                 raw: Sequence[Problem] | None = None, interpolated: Sequence[bool] | None = None) -> None:
         red = joint_reduction([p.red for p in problems], sigmas, layout)
         units = layout.expand(problems[0].units)
         si = layout.expand(list(problems[0].si_factors))
@@ -58,6 +61,7 @@ class JointProblem(Problem):
                          model=problems[0].model, source=" + ".join(p.source for p in problems))
         self.problems = tuple(problems)
         self.raw = tuple(raw) if raw is not None else self.problems
+        self.interpolated = tuple(bool(v) for v in interpolated) if interpolated else (False,) * len(problems)
         self.sigmas = tuple(float(s) for s in sigmas)
         self.layout = layout
         sizes = [p.y.reshape(-1, 3).shape[0] for p in problems]
@@ -156,8 +160,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         problems, taus = _gls_whitened(problems, opts.get("tau", "auto"))
     sig = _sigmas(problems, sigma)
     layout = JointLayout(model.names, model.per_flight, _labels(raw))
-    jp = JointProblem(problems, sig, layout, raw=raw)
-    jp.paired = tuple(paired)
+    jp = JointProblem(problems, sig, layout, raw=raw, interpolated=paired)
     solver = "ols" if method == "gls" else method
     res = run_method(solver, jp, None, None, {k: v for k, v in opts.items() if k in METHODS[solver].options},
                      sigma=None if method == "huber" else 1.0)  # whitened: sigma 1 (Huber: its scale, about 1)
@@ -278,7 +281,7 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
     overall = overall_consistency(rss_joint, [o[0] for o in own_rss], jp.sigmas, [o[1] for o in own_rss], rank_ls,
                                   resid_dof=resid_dof)  # F form: a common error in the sigmas cancels
     cons: dict[str, Any] = {"overall": overall.to_dict() if overall else None, "per_coefficient": per}
-    paired = [lab for lab, pr in zip(lay.labels, getattr(jp, "paired", ())) if pr]
+    paired = [lab for lab, pr in zip(lay.labels, jp.interpolated) if pr]
     if paired and res.method != "gls":
         cons["note"] = (f"tracking interpolated onto telemetry times in {', '.join(paired)}: its noise is correlated, "
                         "so white-noise std and these tests are optimistic (false alarms); use the tracking grid "
