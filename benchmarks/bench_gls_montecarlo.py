@@ -21,8 +21,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 import casep  # noqa: E402
-from casep.exceptions import IllConditionedWarning  # noqa: E402
 from casep.estimators.gls import estimate_tau_many  # noqa: E402
+from casep.exceptions import IllConditionedWarning  # noqa: E402
 from casep.simulation.simulate import scenario_setup  # noqa: E402
 
 

@@ -29,9 +29,8 @@ import numpy as np  # noqa: E402
 
 import casep  # noqa: E402
 from casep.exceptions import IllConditionedWarning  # noqa: E402
-from casep.workflows.montecarlo import run_montecarlo  # noqa: E402
 from casep.simulation.simulate import simulate_flight  # noqa: E402
-
+from casep.workflows.montecarlo import run_montecarlo  # noqa: E402
 
 README_METHODS = "ols,rls,rels,wavelet+rels,ridge,pcr,map,bounded"
 README_TARGET_S = 60.0

@@ -704,13 +704,13 @@ def _write_exports(res, args: argparse.Namespace) -> None:
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
     from casep.analysis.diagnostics import diagnose
+    from casep.analysis.problem import Problem
     from casep.estimators.map import parse_prior, prior_information
     from casep.estimators.result import write_json_atomic
     from casep.io._atomic import check_outputs
     from casep.io.files import read_json_table
     from casep.model._model import unknown_coefficient_message
     from casep.model.loader import load_model
-    from casep.analysis.problem import Problem
 
     check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "prior", "scales"),
                   folders={"--figures": args.figures})

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import casep
-from casep.io.align import coarse_time_offset
 from casep.exceptions import TimeOffsetWarning
+from casep.io.align import coarse_time_offset
 from casep.simulation.simulate import simulate_two_rate
 
 

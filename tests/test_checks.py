@@ -13,8 +13,14 @@ import pytest
 import casep
 from casep.analysis.checks import GRAVITY_LAUNCH, check_flight, time_offset_test
 from casep.cli import main
-from casep.exceptions import (CasepWarning, IllConditionedWarning, NoiseFreeWarning, OutlierWarning,
-                              PlausibilityWarning, TimeOffsetWarning)
+from casep.exceptions import (
+    CasepWarning,
+    IllConditionedWarning,
+    NoiseFreeWarning,
+    OutlierWarning,
+    PlausibilityWarning,
+    TimeOffsetWarning,
+)
 from casep.io.flight import FlightDataError
 from casep.simulation.noise import NoiseModel
 from casep.simulation.scenarios import get_scenario

@@ -422,4 +422,4 @@ def test_lazy_public_names_resolve(package):
         assert getattr(mod, name) is not None, name
     assert set(mod.__all__) <= set(dir(mod))
     with pytest.raises(AttributeError, match="no attribute 'not_a_name'"):
-        getattr(mod, "not_a_name")
+        mod.not_a_name

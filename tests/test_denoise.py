@@ -6,8 +6,16 @@ import numpy as np
 import pytest
 
 import casep
-from casep.analysis.denoise import (EXTENSIONS, MODES, denoise, denoise_signal, extend, mad_sigma, max_level,
-                           select_threshold)
+from casep.analysis.denoise import (
+    EXTENSIONS,
+    MODES,
+    denoise,
+    denoise_signal,
+    extend,
+    mad_sigma,
+    max_level,
+    select_threshold,
+)
 from casep.exceptions import CasepWarning
 
 

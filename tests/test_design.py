@@ -22,7 +22,6 @@ from casep.model.loader import load_model
 from casep.model.sv import build_sv
 from casep.simulation.scenarios import get_scenario
 from casep.simulation.trajectory import AttitudeProfile, simulate_boost
-from casep.units import G0
 
 
 @pytest.fixture(scope="module")

@@ -9,8 +9,8 @@ import pytest
 from scipy.linalg import toeplitz
 
 import casep
-from casep.cli import main
 from casep.analysis.diagnostics import crlb_covariance, diagnose
+from casep.cli import main
 from casep.exceptions import IllConditionedWarning
 
 

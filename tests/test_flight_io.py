@@ -260,6 +260,7 @@ def test_split_pair_noise_free_end_to_end(tmp_path):
     import dataclasses
 
     from conftest import noise_free_errors
+
     from casep.simulation.noise import NoiseModel
     from casep.simulation.scenarios import get_scenario
     from casep.simulation.simulate import simulate_two_rate
@@ -329,8 +330,8 @@ def test_directory_as_flight(tmp_path):
 
 
 def test_pair_cut_after_liftoff_warns_with_speed(tmp_path):
-    from casep.io.flight import LateStartWarning
     from casep.io.files import write_table
+    from casep.io.flight import LateStartWarning
     from casep.simulation.simulate import simulate_two_rate
 
     d = simulate_two_rate("paper", seed=5, telemetry_rate=20.0, tracking_rate=20.0)

@@ -1,8 +1,8 @@
 """Several flights in one estimate (casep.workflows.flights): against an independent weighted stack."""
 
 import dataclasses
-from pathlib import Path
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest

@@ -20,8 +20,16 @@ import pytest
 import casep
 from casep.cli import main
 from casep.exceptions import IllConditionedWarning
-from casep.frames import (OMEGA_EARTH, LaunchSite, ecef_to_geodetic, ecef_to_launch, geodetic_to_ecef,
-                          geodetic_to_launch, launch_to_ecef, launch_to_geodetic)
+from casep.frames import (
+    OMEGA_EARTH,
+    LaunchSite,
+    ecef_to_geodetic,
+    ecef_to_launch,
+    geodetic_to_ecef,
+    geodetic_to_launch,
+    launch_to_ecef,
+    launch_to_geodetic,
+)
 from casep.io.flight import FlightDataError
 
 A_WGS84, B_WGS84 = 6378137.0, 6356752.31424518

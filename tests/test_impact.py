@@ -17,8 +17,15 @@ import pytest
 
 import casep
 from casep.cli import main
-from casep.impact.ballistic import (EARTH_CENTRE, BallisticError, ground_coordinates, impact, impact_jacobian,
-                                    impact_point, impact_point_ode)
+from casep.impact.ballistic import (
+    EARTH_CENTRE,
+    BallisticError,
+    ground_coordinates,
+    impact,
+    impact_jacobian,
+    impact_point,
+    impact_point_ode,
+)
 from casep.impact.miss import STATE_COLUMNS, cumulative_sp, impact_analysis, position_sensitivity
 from casep.simulation.trajectory import MU_EARTH, R_EARTH
 

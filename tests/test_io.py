@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import casep
-from casep.io._atomic import atomic_open, check_output, check_output_dir, check_outputs
 from casep.cli import main
+from casep.io._atomic import atomic_open, check_output, check_output_dir, check_outputs
 from casep.simulation.synthetic import excitation_force, inject_errors
 
 

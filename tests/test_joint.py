@@ -5,8 +5,14 @@ import numpy as np
 import pytest
 
 from casep.analysis.linalg import reduce_qr
-from casep.estimators.joint import (JointLayout, coefficient_consistency, flight_rss, joint_reduction,
-                                    overall_consistency, stack_sqrt_information)
+from casep.estimators.joint import (
+    JointLayout,
+    coefficient_consistency,
+    flight_rss,
+    joint_reduction,
+    overall_consistency,
+    stack_sqrt_information,
+)
 
 
 def _solve(red):

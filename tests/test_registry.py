@@ -94,7 +94,9 @@ def test_methods_command_lists_the_registry(capsys):
 def test_std_kind_is_a_declared_field_and_extras_a_declared_type():
     """Method.std_kind is a declared, validated field; each method declares its extras dataclass."""
     import dataclasses
+
     import pytest as _pytest
+
     from casep.estimators.registry import METHODS, Method
     from casep.estimators.result import STD_KIND_MEANINGS
     assert "std_kind" in {f.name for f in dataclasses.fields(Method)}

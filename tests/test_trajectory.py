@@ -7,7 +7,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from casep.simulation.trajectory import DEFAULT_VEHICLE, R_EARTH, Stage, Vehicle, YawManoeuvre, atmosphere, simulate_boost
+from casep.simulation.trajectory import (
+    DEFAULT_VEHICLE,
+    R_EARTH,
+    Stage,
+    Vehicle,
+    YawManoeuvre,
+    atmosphere,
+    simulate_boost,
+)
 from casep.units import G0
 
 

@@ -51,9 +51,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from casep.analysis.linalg import reduce_qr_blocks
 from casep.exceptions import NoiseFreeWarning, OutlierWarning, PlausibilityWarning, TimeOffsetWarning
 from casep.io.flight import FlightData, FlightDataError
-from casep.analysis.linalg import reduce_qr_blocks
 from casep.units import G0
 
 __all__ = ["check_flight", "check_fit", "time_offset_test", "TimeOffsetTest", "GRAVITY_LAUNCH"]

@@ -36,8 +36,15 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from casep.analysis.linalg import (RankAnalysis, ReducedSystem, analyze_rank, condition_numbers, least_squares_rss,
-                                  reduce_qr, unidentifiable_reasons)
+from casep.analysis.linalg import (
+    RankAnalysis,
+    ReducedSystem,
+    analyze_rank,
+    condition_numbers,
+    least_squares_rss,
+    reduce_qr,
+    unidentifiable_reasons,
+)
 
 __all__ = ["Diagnostics", "diagnose", "crlb_covariance", "collinearity", "ar1_whiten", "ILL_CONDITIONED",
            "GROUP_INDEX", "GROUP_PROPORTION"]

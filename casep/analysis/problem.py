@@ -21,8 +21,14 @@ from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
-from casep.analysis.linalg import (RankAnalysis, ReducedSystem, analyze_rank, least_squares_rss, reduce_qr,
-                                  reduce_qr_blocks)
+from casep.analysis.linalg import (
+    RankAnalysis,
+    ReducedSystem,
+    analyze_rank,
+    least_squares_rss,
+    reduce_qr,
+    reduce_qr_blocks,
+)
 
 __all__ = ["Problem", "DEFAULT_BLOCK_ROWS", "SV_KEEP_BYTES"]
 
@@ -140,8 +146,8 @@ class Problem:
             values (:func:`casep.analysis.checks.check_flight`), warn when it starts after
             lift-off without the model's initial terms (default True).
         """
-        from casep.io.flight import check_dv_not_zero, check_enough_samples, warn_late_start
         from casep.analysis.checks import check_flight
+        from casep.io.flight import check_dv_not_zero, check_enough_samples, warn_late_start
         from casep.model.sv import SVBuilder
 
         if checks:

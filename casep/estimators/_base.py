@@ -9,18 +9,17 @@ where the method leaves them undetermined.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
 
-import warnings
-
 from casep.analysis.diagnostics import ILL_CONDITIONED, collinearity
-from casep.exceptions import IllConditionedWarning
-from casep.analysis.problem import Problem as RegressionProblem
 from casep.analysis.linalg import RankAnalysis, ReducedSystem, condition_numbers, unidentifiable_reasons
+from casep.analysis.problem import Problem as RegressionProblem
 from casep.estimators.result import EstimateResult
+from casep.exceptions import IllConditionedWarning
 
 __all__ = ["Prepared", "prepare", "rows_of", "finish", "check_positive", "inverse_scale", "OPTION_RANGES"]
 

@@ -30,9 +30,9 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from casep.estimators._base import finish, prepare
+from casep.estimators.result import BoundedExtras, EstimateResult
 from casep.exceptions import CasepWarning
 from casep.model._model import unknown_coefficient_message
-from casep.estimators.result import BoundedExtras, EstimateResult
 
 __all__ = ["solve_bounded", "parse_bounds"]
 

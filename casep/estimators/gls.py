@@ -29,8 +29,8 @@ from typing import Sequence
 
 import numpy as np
 
-from casep.estimators._base import check_positive, finish, prepare, rows_of
 from casep.analysis.diagnostics import ar1_whiten
+from casep.estimators._base import check_positive, finish, prepare, rows_of
 from casep.estimators.ols import least_squares
 from casep.estimators.result import EstimateResult, GLSExtras
 

@@ -40,8 +40,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from casep.estimators._base import finish, prepare
-from casep.model._model import unknown_coefficient_message
 from casep.estimators.result import EstimateResult, MAPExtras
+from casep.model._model import unknown_coefficient_message
 
 __all__ = ["solve_map", "parse_prior", "prior_information", "prior_from_result", "per_flight_names"]
 

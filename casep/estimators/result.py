@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 import os
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 

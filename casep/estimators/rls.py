@@ -71,9 +71,9 @@ from typing import Sequence
 
 import numpy as np
 
+from casep._kernels import rels_ud
 from casep.analysis.problem import Problem as RegressionProblem
 from casep.estimators._base import check_positive, finish, prepare
-from casep._kernels import rels_ud
 from casep.estimators.result import EstimateResult, RLSExtras
 
 __all__ = ["solve_rls", "DEFAULT_P0"]

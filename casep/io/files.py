@@ -30,7 +30,6 @@ atomic: a failure leaves no half-written file.
 from __future__ import annotations
 
 import json
-
 import os
 from pathlib import Path
 from typing import Callable

@@ -14,9 +14,8 @@ unless the model has the initial terms dv0 and phi0: :func:`warn_late_start` tes
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import warnings
+from dataclasses import dataclass, field
 
 import numpy as np
 

@@ -42,7 +42,8 @@ from typing import Sequence
 import casadi as ca
 import numpy as np
 
-from casep.units import G0, si_factor as _unit_si_factor
+from casep.units import G0
+from casep.units import si_factor as _unit_si_factor
 
 __all__ = ["ErrorModel", "ModelDefinitionError", "OUTPUTS", "unknown_coefficient_message", "suggest_names"]
 

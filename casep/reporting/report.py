@@ -17,8 +17,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from casep.io._atomic import atomic_open
 from casep.estimators.result import AXES, EstimateResult, format_number
+from casep.io._atomic import atomic_open
 
 __all__ = ["write_report", "report_html"]
 

@@ -39,12 +39,12 @@ from pathlib import Path
 import numpy as np
 
 from casep.io._atomic import atomic_open
-from casep.io.flight import FlightData
 from casep.io.files import write_flight, write_table
+from casep.io.flight import FlightData
 from casep.model._model import ErrorModel, unknown_coefficient_message
 from casep.model.loader import load_model
-from casep.simulation.scenarios import Scenario, get_scenario
 from casep.model.sv import build_sv
+from casep.simulation.scenarios import Scenario, get_scenario
 from casep.simulation.trajectory import BoostTrajectory, body_to_platform, simulate_boost
 
 __all__ = ["SIGNAL_COLUMNS", "trajectory_signals", "SimulatedFlight", "simulate_flight", "scenario_setup", "write_simulation", "truth_path", "TwoRateData",
@@ -283,7 +283,7 @@ class TwoRateData:
         (``"geodetic"``) converted by :mod:`casep.frames` with the flight's launch site (a
         rotating-Earth flight; its ``t0`` is 0: lift-off).
         """
-        from casep.frames import GEODETIC_COLUMNS, TRACKING_FRAMES, ECEF_COLUMNS, launch_to_ecef, ecef_to_geodetic
+        from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS, TRACKING_FRAMES, ecef_to_geodetic, launch_to_ecef
 
         if tracking_frame not in TRACKING_FRAMES:
             raise ValueError(f"`tracking_frame` must be one of {', '.join(TRACKING_FRAMES)}, got {tracking_frame!r}")

@@ -10,7 +10,6 @@ terminate ends the worker at once).
 import signal
 import threading
 
-
 _LIMITS = []
 
 

@@ -19,13 +19,13 @@ from pathlib import Path
 import numpy as np
 
 from casep.analysis.diagnostics import Diagnostics, diagnose
-from casep.exceptions import IllConditionedWarning
-from casep.simulation.paper import demo_bounds, demo_prior
-from casep.estimators.result import EstimateResult
-from casep.workflows.separate import separate
-from casep.simulation.simulate import SimulatedFlight, simulate_flight
 from casep.analysis.problem import Problem
+from casep.estimators.result import EstimateResult
+from casep.exceptions import IllConditionedWarning
 from casep.impact.miss import impact_analysis
+from casep.simulation.paper import demo_bounds, demo_prior
+from casep.simulation.simulate import SimulatedFlight, simulate_flight
+from casep.workflows.separate import separate
 
 __all__ = ["DemoResult", "run_demo", "DEMO_METHODS"]
 

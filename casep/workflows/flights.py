@@ -242,10 +242,10 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
     the flights' own OLS estimates about their weighted mean (flights where it is estimable alone);
     overall, the Chow test of the joint fit against the separate fits.
     """
+    import warnings
+
     from casep.estimators.joint import coefficient_consistency, flight_rss, overall_consistency
     from casep.estimators.ols import solve_ols
-
-    import warnings
 
     lay = jp.layout
     x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)

@@ -52,16 +52,16 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from casep.io._atomic import atomic_open
-from casep.estimators.bounded import parse_bounds
 from casep.analysis.diagnostics import crlb_covariance
-from casep.exceptions import IllConditionedWarning
+from casep.estimators.bounded import parse_bounds
 from casep.estimators.map import parse_prior
 from casep.estimators.registry import METHODS as _REGISTRY
+from casep.exceptions import IllConditionedWarning
+from casep.io._atomic import atomic_open
+from casep.model.sv import build_sv
 from casep.simulation.paper import demo_bounds, demo_prior
 from casep.simulation.scenarios import Scenario
 from casep.simulation.simulate import scenario_setup
-from casep.model.sv import build_sv
 
 __all__ = ["MonteCarloResult", "run_montecarlo", "METHOD_HELP", "BATCHED", "Terminated", "sigterm_raises"]
 

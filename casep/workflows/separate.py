@@ -11,14 +11,15 @@ import numpy as np
 from casep.analysis.checks import check_fit
 from casep.analysis.denoise import denoise as wavelet_denoise
 from casep.analysis.problem import Problem
-from casep.io.flight import FlightData
-from casep.io.files import read_flight, read_json_table
-from casep.model._model import ErrorModel
-from casep.model.loader import load_model
 from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
-from casep.estimators.registry import METHODS as _REGISTRY, OPTIONS, check_method_options, run_method
+from casep.estimators.registry import METHODS as _REGISTRY
+from casep.estimators.registry import OPTIONS, check_method_options, run_method
 from casep.estimators.result import EstimateResult
 from casep.estimators.rls import DEFAULT_P0
+from casep.io.files import read_flight, read_json_table
+from casep.io.flight import FlightData
+from casep.model._model import ErrorModel
+from casep.model.loader import load_model
 
 __all__ = ["separate", "regression_rows", "METHODS"]
 
