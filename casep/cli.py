@@ -314,15 +314,14 @@ def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | No
     if not path:
         return None
     data = read_json_table(path, f"--{option}")
-    if option == "prior" and "coefficients" in data and "covariance" in data:  # a result JSON: its posterior
-        from casep.estimators.map import prior_from_result
-        from casep.estimators.result import EstimateResult
+    from casep.io.result_json import looks_like_result
 
-        res = EstimateResult.from_json(data)
+    if option == "prior" and looks_like_result(data):  # a result file (any form): its posterior
+        from casep.estimators.map import prior_from_result
+        from casep.estimators.result import read_result
+
         model = getattr(args, "model", None)
-        if res.model and model and Path(str(model)).stem != res.model:
-            raise ValueError(f"--prior {path}: a result of model `{res.model}`, but the model here is "
-                             f"`{Path(str(model)).stem}`; use a result of the same model")
+        res, model = read_result(path, model, option="--prior")
         data = prior_from_result(res, model=model)  # per-flight coefficients (dt_trk) left flat
     {"bounds": parse_bounds, "prior": parse_prior}[option](data, names, source=f"--{option} {path}")
     return data

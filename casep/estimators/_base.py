@@ -43,6 +43,18 @@ OPTION_RANGES: dict[str, tuple[float, float, bool, str]] = {
 }
 
 
+#: Largest |mean| and std of a prior, and the inverse of the smallest std, natural units: beyond any
+#: instrument error in any unit, and the information 1/std^2 and its products stay finite.
+MAX_PRIOR_VALUE = 1e30
+
+
+def is_number(v) -> bool:
+    """A real number that is not a bool (JSON ``true`` is not a number; nor is ``"0.1"``)."""
+    import numbers
+
+    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
+
+
 def check_positive(name: str, value: float | None, *, allow_none: bool = True, allow_zero: bool = False,
                    upper: float | None = None) -> float | None:
     """Validate a positive finite scalar option, naming it in the error.

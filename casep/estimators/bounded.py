@@ -29,7 +29,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from casep.estimators._base import finish, prepare
+from casep.estimators._base import MAX_PRIOR_VALUE, finish, is_number, prepare
 from casep.estimators.result import BoundedExtras, EstimateResult
 from casep.exceptions import CasepWarning
 from casep.model._model import unknown_coefficient_message
@@ -85,16 +85,21 @@ def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"
         if name not in names:
             raise ValueError(unknown_coefficient_message(name, names, source))
         j = list(names).index(name)
-        if isinstance(spec, (int, float)) and not isinstance(spec, bool):
+        if is_number(spec):
             a = b = float(spec)
         elif isinstance(spec, (list, tuple)) and len(spec) == 2:
-            try:
-                a = -np.inf if spec[0] is None else float(spec[0])
-                b = np.inf if spec[1] is None else float(spec[1])
-            except (TypeError, ValueError):
-                raise ValueError(f"{source}: `{name}` must be [lo, hi] with numbers or null, got {spec!r}") from None
+            for v in spec:  # strict: "1" or true is not a number
+                if v is not None and not is_number(v):
+                    raise ValueError(f"{source}: `{name}` must be [lo, hi] with numbers or null, got {spec!r} "
+                                     f"({type(v).__name__} {v!r})")
+            a = -np.inf if spec[0] is None else float(spec[0])
+            b = np.inf if spec[1] is None else float(spec[1])
         else:
             raise ValueError(f"{source}: `{name}` must be [lo, hi] or a number, got {spec!r}")
+        for side, v in (("lower", a), ("upper", b)):
+            if np.isfinite(v) and abs(v) > MAX_PRIOR_VALUE:
+                raise ValueError(f"{source}: `{name}` {side} bound {v:g} is beyond +-{MAX_PRIOR_VALUE:g} (natural "
+                                 "units): the solver cannot scale it; give null (or -Infinity / Infinity) for an open side")
         if np.isnan(a) or np.isnan(b):
             raise ValueError(f"{source}: `{name}` has a NaN bound")
         # -Infinity below / Infinity above are open sides, like null; any other infinity is refused.

@@ -14,7 +14,7 @@ import numpy as np
 
 from casep.io._atomic import atomic_open
 
-__all__ = ["EstimateResult", "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "EXTRAS_TYPES", "OLSExtras",
+__all__ = ["EstimateResult", "read_result", "result_from_data", "check_result_units", "resolve_result_model", "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "EXTRAS_TYPES", "OLSExtras",
            "RLSExtras", "RidgeExtras", "BoundedExtras", "PCRExtras", "MAPExtras", "GLSExtras", "HuberExtras",
            "write_json_atomic", "write_mat", "write_csv", "format_number"]
 
@@ -293,6 +293,9 @@ class EstimateResult:
     extras : dataclass or None
         Typed per-method outputs, an instance of ``EXTRAS_TYPES[method]`` (e.g.
         ``res.extras.lam`` for ridge); None for a result of no registered method (fused).
+    model_file : str or None
+        The model's file when the model is not found by its name (a model loaded from a path):
+        written to the JSON so that ``impact`` and ``fuse`` find it again.
     """
 
     method: str
@@ -320,6 +323,7 @@ class EstimateResult:
     stored_residual_rms: dict[str, float] | None = None  # from a JSON (which has no residuals)
     std_kind: str = "sampling"
     extras: Any = None
+    model_file: str | None = None
 
     def __post_init__(self) -> None:
         if self.std_kind not in STD_KIND_MEANINGS:
@@ -405,40 +409,40 @@ class EstimateResult:
             "diagnostics": self.diagnostics,
             "extras": _jsonable(dataclasses.asdict(self.extras)) if self.extras is not None else None,
             "history_names": list(self.history_names) if self.history_names is not None else None,
+            **({"model_file": self.model_file} if self.model_file else {}),
         }
 
     @classmethod
-    def from_json(cls, source: "str | os.PathLike | dict") -> "EstimateResult":
-        """A result back from its JSON (a file or the dict of :meth:`to_dict`).
+    def from_json(cls, source: "str | os.PathLike | dict", model=None) -> "EstimateResult":
+        """A result back from its JSON (a file or the dict of :meth:`to_dict`), or from a result file
+        of another tool in one of the forms of ``docs/guide/result-files.md``.
 
-        Everything the JSON holds comes back (estimates, std, covariance, labels, sigma and its
+        Everything casep's JSON holds comes back (estimates, std, covariance, labels, sigma and its
         source, status, settings, diagnostics); the per-sample residuals and the history are not
-        in the JSON, so the result has none (``residual_rms`` then reads the stored values).
+        in the JSON, so the result has none (``residual_rms`` then reads the stored values). A file
+        of another tool that holds only coefficients gets ``method`` "external", ``sigma`` NaN and
+        ``success`` true unless it says otherwise.
+
+        Parameters
+        ----------
+        source : path or dict
+        model : ErrorModel or str, optional
+            Check the result against this model: every coefficient one of its (or a several-flight
+            result's ``name[file]``), in its unit (ValueError naming coefficient and both units).
+
+        Raises
+        ------
+        ValueError
+            Naming the file and the field: a missing or wrongly typed field, the two forms
+            disagreeing, a covariance that is not one (:mod:`casep.io.result_json`).
         """
+        from casep.io.result_json import parse_result_data, read_result_data
+
         if isinstance(source, dict):
-            d = source
+            rd = parse_result_data(source, "result")
         else:
-            with open(source, encoding="utf-8") as fh:
-                d = json.load(fh)
-
-        def arr(v):
-            return np.array([np.nan if x is None else x for x in v], dtype=float)
-
-        rows = d["coefficients"]
-        cov = d.get("covariance")
-        return cls(
-            method=d["method"], names=tuple(d["names"]), units=tuple(d["units"]), estimate=arr(d["estimates"]),
-            std=arr(d["std"]) if d.get("std") is not None else None,
-            covariance=np.array([arr(r) for r in cov]) if cov is not None else None,
-            reasons={r["name"]: r["reason"] for r in rows if "reason" in r},
-            residuals=np.zeros((0, 3)), sigma=math.nan if d["sigma"] is None else float(d["sigma"]),
-            rank=int(d["rank"]), status=int(d["status"]), message=d["message"], success=bool(d["success"]),
-            si_factors=np.array(d.get("si_factors") or [math.nan] * len(rows), dtype=float),
-            settings=d.get("settings") or {}, diagnostics=d.get("diagnostics") or {}, model=d.get("model", ""),
-            n_samples=int(d.get("n_samples", 0)), denoise=d.get("denoise"),
-            sigma_source=d.get("sigma_source", "estimated"), stored_residual_rms=d.get("residual_rms"),
-            std_kind=d.get("std_kind", "sampling"), extras=_extras_from_dict(d["method"], d.get("extras")),
-        )
+            rd = read_result_data(source, "result")
+        return result_from_data(rd, model)
 
     def covariance_rows(self) -> list[list[float | None]] | None:
         """The n x n covariance in natural units, model order, as nested lists for JSON.
@@ -502,6 +506,128 @@ class EstimateResult:
         if self.diagnostics.get("warning"):
             lines.append("warning: " + self.diagnostics["warning"])
         return "\n".join(lines)
+
+
+def result_from_data(rd, model=None) -> EstimateResult:
+    """An :class:`EstimateResult` of a checked result file (:class:`casep.io.result_json.ResultData`).
+
+    `model` (ErrorModel or name): check names and units against it, and take the SI factors from it.
+    """
+    f = rd.fields
+    si = None
+    if model is not None:
+        from casep.model.loader import load_model
+
+        model = load_model(model)
+        check_result_units(rd.names, rd.units, model, rd.source)
+        base = [n.split("[", 1)[0] for n in rd.names]
+        si = np.array([model.si_factors[model.names.index(b)] for b in base], dtype=float)
+    if si is None and f.get("si_factors") is not None and len(f["si_factors"]) == len(rd.names):
+        si = np.array([np.nan if v is None else v for v in f["si_factors"]], dtype=float)
+    if si is None:
+        from casep.units import si_factor
+
+        vals = []
+        for u in rd.units:
+            try:
+                vals.append(si_factor(u))
+            except (KeyError, ValueError):
+                vals.append(math.nan)
+        si = np.array(vals, dtype=float)
+    method = f.get("method") or "external"
+    try:
+        extras = _extras_from_dict(method, f.get("extras"))
+    except (TypeError, KeyError) as exc:
+        raise ValueError(f"{rd.source}: field `extras` does not fit method `{method}` ({exc})") from None
+    rrms = f.get("residual_rms")
+    n_est = int(np.isfinite(rd.estimate).sum())
+    for key, allowed in (("std_kind", STD_KIND_MEANINGS), ("sigma_source", SIGMA_SOURCE_MEANINGS)):
+        if f.get(key) is not None and f[key] not in allowed:
+            raise ValueError(f"{rd.source}: field `{key}` must be one of {', '.join(allowed)}, got {f[key]!r}")
+    return EstimateResult(
+        method=method, names=rd.names, units=rd.units, estimate=rd.estimate, std=rd.std,
+        covariance=rd.covariance, reasons=dict(rd.reasons), residuals=np.zeros((0, 3)),
+        sigma=math.nan if f.get("sigma") is None else float(f["sigma"]),
+        rank=n_est if f.get("rank") is None else int(f["rank"]),
+        status=0 if f.get("status") is None else int(f["status"]),
+        message=f.get("message") or f"read from {rd.source}",
+        success=True if f.get("success") is None else bool(f["success"]),
+        si_factors=si, settings=f.get("settings") or {}, diagnostics=f.get("diagnostics") or {},
+        model=f.get("model") or (model.name if model is not None else ""),
+        n_samples=int(f.get("n_samples") or 0), denoise=f.get("denoise"),
+        sigma_source=f.get("sigma_source") or ("estimated" if f.get("sigma") is not None else "given"),
+        stored_residual_rms=rrms if rrms is not None else {a: None for a in AXES},
+        std_kind=f.get("std_kind") or "sampling", extras=extras, model_file=f.get("model_file"))
+
+
+def check_result_units(names, units, model, source: str) -> None:
+    """Every coefficient of a result is the model's (a several-flight result's ``name[file]``: its base
+    name) and in the model's unit; ValueError naming the coefficient and both units."""
+    from casep.model._model import unknown_coefficient_message
+
+    for n, u in zip(names, units):
+        base = n.split("[", 1)[0]
+        if base not in model.names:
+            raise ValueError(unknown_coefficient_message(base, model.names, f"{source} (model {model.name})"))
+        mu = model.units[model.names.index(base)]
+        if u.strip() != mu:
+            raise ValueError(f"{source}: `{n}` is in {u!r}, but model `{model.name}` declares it in {mu!r}: convert "
+                             "the estimate, std and covariance to the model's unit")
+
+
+def read_result(source, model=None, option: str = "result") -> tuple[EstimateResult, object]:
+    """A result file read with its model: ``(result, model)``.
+
+    The model is `model` when given (ErrorModel, name or path), else the one the result names:
+    by name (built-in, or ``CASEP_MODEL_PATH``), then by the ``model_file`` the result records.
+    A result whose model cannot be found is a ValueError saying exactly what to pass.
+    """
+    from casep.io.result_json import parse_result_data, read_result_data
+    from casep.model.loader import load_model
+
+    if isinstance(source, EstimateResult):
+        rd, res = None, source
+        where = "result <memory>"
+    else:
+        rd = parse_result_data(source, "result <memory>") if isinstance(source, dict) else \
+            read_result_data(source, option)
+        where = rd.source
+    if model is None:
+        name = (rd.model if rd is not None else source.model) or ""
+        mfile = rd.fields.get("model_file") if rd is not None else source.model_file
+        model = resolve_result_model(name, mfile, where)
+    else:
+        model = load_model(model)
+        name = rd.model if rd is not None else source.model
+        if name and name != model.name:
+            raise ValueError(f"{where} is of model `{name}`, not of model `{model.name}`: give --model {name} "
+                             f"(or leave it out), or a result of `{model.name}`")
+    if rd is not None:
+        res = result_from_data(rd, model)
+    else:
+        check_result_units(res.names, res.units, model, where)
+    return res, model
+
+
+def resolve_result_model(name: str, model_file: str | None, where: str):
+    """The model a result names (see :func:`read_result`)."""
+    from casep.model.loader import load_model
+
+    if not name and not model_file:
+        raise ValueError(f"{where} names no model (no `model` field): give the model (CLI --model NAME|FILE.py, "
+                         "API model=...)")
+    errors = []
+    for cand in ([name] if name else []) + ([model_file] if model_file else []):
+        try:
+            return load_model(cand)
+        except ValueError as exc:  # unknown name, missing file; a broken file names itself
+            if "unknown model" not in str(exc) and "does not exist" not in str(exc):
+                raise
+            errors.append(cand)
+    hint = f" (the result records model_file {model_file}, which does not exist)" if model_file else ""
+    raise ValueError(f"{where} is of model `{name or model_file}`, which casep cannot find: it is not a built-in model "
+                     f"nor in CASEP_MODEL_PATH{hint}. Give the model file: --model path/to/{name or 'model'}.py "
+                     "(API: model='path/to/model.py')")
 
 
 def write_json_atomic(data: dict[str, Any], path: str | os.PathLike) -> None:

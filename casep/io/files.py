@@ -29,7 +29,6 @@ atomic: a failure leaves no half-written file.
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 from typing import Callable
@@ -617,16 +616,13 @@ def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[
 def read_json_table(path: str | os.PathLike, option: str) -> dict:
     """A JSON object keyed by coefficient name (``--bounds``, ``--prior``, ``--truth``, ``--scales``).
 
-    Errors name the option and the file (``ValueError``); the entries are checked by the
-    caller, which knows the model's coefficients.
+    Read strictly (:func:`casep.io.result_json.load_json`: a key repeated in one object, or
+    nesting too deep to decode, is refused). Errors name the option and the file (``ValueError``);
+    the entries are checked by the caller, which knows the model's coefficients.
     """
-    try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
-    except OSError as exc:
-        raise ValueError(f"{option} {path}: cannot read ({exc.strerror})") from None
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{option} {path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+    from casep.io.result_json import load_json
+
+    data = load_json(path, option)
     if not isinstance(data, dict):
         raise ValueError(f"{option} {path}: must hold a JSON object keyed by coefficient name")
     return data

@@ -25,7 +25,8 @@ from pathlib import Path
 
 from casep.model._model import ErrorModel, ModelDefinitionError
 
-__all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file"]
+__all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file",
+           "model_file_reference"]
 
 
 def model_dirs() -> list[Path]:
@@ -122,6 +123,10 @@ def _run_file(path: Path) -> ErrorModel:
         raise ModelFileError(f"{where}{', in build()' if stage == 'build()' else ''}: {_describe(exc)}") from exc
     if not isinstance(result, ErrorModel):
         raise ModelFileError(f"model file {path}: build() returned {type(result).__name__}, not casep.ErrorModel")
+    # Where the model came from (results record it when its name alone does not find it) and the
+    # file's docstring (casep models -v); a model extending another keeps the outermost file's.
+    result.source_file = str(path.resolve())
+    result.source_doc = (module.__doc__ or "").strip()
     return result
 
 
@@ -163,3 +168,18 @@ def load_model(model: str | os.PathLike | ErrorModel) -> ErrorModel:
         raise
     except ModelDefinitionError as exc:  # setup()'s checks name the term; add the file
         raise ModelFileError(f"model file {path}: {exc}") from exc
+
+
+def model_file_reference(model: ErrorModel) -> str | None:
+    """The model's file when its name alone does not find that file (a model loaded from a path), else None.
+
+    A result records it (``model_file``) so that a later ``impact`` or ``fuse`` finds the model again.
+    """
+    src = getattr(model, "source_file", None)
+    if not src:
+        return None
+    try:
+        found = find_model_file(model.name)
+    except (ValueError, TypeError):
+        return src
+    return None if str(found.resolve()) == src else src

@@ -166,7 +166,9 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
                      sigma=None if method == "huber" else 1.0)  # whitened: sigma 1 (Huber: its scale, about 1)
     import dataclasses
 
-    res = dataclasses.replace(res, sigma_source="whitened",
+    from casep.model.loader import model_file_reference
+
+    res = dataclasses.replace(res, sigma_source="whitened", model_file=model_file_reference(model),
                               settings={**res.settings, "sigma": "per flight" if sigma is None else "given per flight"})
     if method == "huber" and res.diagnostics.get("outliers"):
         starts = np.asarray(jp.segment_starts)

@@ -162,6 +162,12 @@ def separate(
             settings["sigma"] = f"wavelet estimate {sigma:.6g}"
         res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings,
                                   sigma_source="wavelet" if sigma_from_wavelet else res.sigma_source)
+    if not isinstance(flight, Problem):
+        from casep.model.loader import model_file_reference
+
+        ref = model_file_reference(model)  # a model loaded from a path: impact/fuse find it again
+        if ref:
+            res = dataclasses.replace(res, model_file=ref)
     return res
 
 
