@@ -449,6 +449,7 @@ def _parser() -> argparse.ArgumentParser:
     fu = sub.add_parser("fuse", help="combine results saved earlier (JSON with covariance) into one estimate")
     fu.add_argument("results", nargs="+", metavar="RESULT.json", help="two or more results of one model")
     fu.add_argument("--json", metavar="OUT", default=None, help="write the fused result JSON here")
+    fu.add_argument("--model", default=None, help="model name or .py file (default: the one the results name)")
     me = sub.add_parser("methods", help="list the estimators, their options and capabilities")
     me.add_argument("--json", action="store_true", help="print the registry as JSON")
     m = sub.add_parser("models", help="list the available error models")
@@ -611,24 +612,24 @@ def _cmd_noise(args: argparse.Namespace) -> int:
 
 def _cmd_fuse(args: argparse.Namespace) -> int:
     """`casep fuse R1.json R2.json ...` (casep.workflows.flights.fuse)."""
-    from casep.estimators.result import EstimateResult, write_json_atomic
+    from casep.estimators.result import read_result, write_json_atomic
     from casep.io._atomic import check_outputs
-    from casep.io.files import read_json_table
     from casep.workflows.flights import fuse
 
-    check_outputs({"--json": args.json}, inputs=list(args.results))
-    results = []
-    for path in args.results:
-        data = read_json_table(path, "RESULT")
-        if "coefficients" not in data or "covariance" not in data:
-            raise ValueError(f"{path}: not a casep result JSON with a covariance (casep separate --json)")
-        results.append(EstimateResult.from_json(data))
-    res = fuse(results, labels=list(args.results))
+    check_outputs({"--json": args.json}, inputs=list(args.results) + [args.model])
+    results, model = [], args.model
+    for path in args.results:  # every result form, checked; the model the first names (or --model)
+        res, model = read_result(path, model, option="RESULT")
+        results.append(res)
+    res = fuse(results, labels=list(args.results), model=model)
     print(res.table())
+    c = res.diagnostics["consistency"]
+    ov = c["overall"]
+    print(f"consistency of the results: chi2 {ov['chi2']:.4g}, {ov['dof']} dof, p {ov['p_value']:.3g}")
     if args.json:
         write_json_atomic(res.to_dict(), args.json)
         print(f"result written to {args.json}")
-    return 0
+    return _result_status(res)
 
 
 def _diagnose_flights(args: argparse.Namespace, model, prior, scales) -> int:

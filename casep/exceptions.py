@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 __all__ = ["CasepWarning", "IllConditionedWarning", "PlausibilityWarning", "NoiseFreeWarning",
-           "OutlierWarning", "TimeOffsetWarning"]
+           "OutlierWarning", "TimeOffsetWarning",
+           "ConsistencyWarning"]
 
 
 class CasepWarning(UserWarning):
@@ -29,3 +30,8 @@ class OutlierWarning(CasepWarning):
 
 class TimeOffsetWarning(CasepWarning):
     """The residuals track the kinematic acceleration (or its derivative): a tracking time offset."""
+
+
+class ConsistencyWarning(CasepWarning):
+    """Results (or flights) combined into one estimate disagree beyond their std: the message gives
+    the chi-square, its degrees of freedom, the p-value and the coefficients that disagree most."""

@@ -99,7 +99,8 @@ def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"
         for side, v in (("lower", a), ("upper", b)):
             if np.isfinite(v) and abs(v) > MAX_PRIOR_VALUE:
                 raise ValueError(f"{source}: `{name}` {side} bound {v:g} is beyond +-{MAX_PRIOR_VALUE:g} (natural "
-                                 "units): the solver cannot scale it; give null (or -Infinity / Infinity) for an open side")
+                                 "units): the solver cannot scale it; give null (or -Infinity / Infinity) for an "
+                                 "open side")
         if np.isnan(a) or np.isnan(b):
             raise ValueError(f"{source}: `{name}` has a NaN bound")
         # -Infinity below / Infinity above are open sides, like null; any other infinity is refused.

@@ -81,8 +81,9 @@ def _parse(prior: Mapping, names: Sequence[str], source: str):
             raise ValueError(f"{source}: `{name}` mean must be finite and within +-{MAX_PRIOR_VALUE:g} (natural "
                              f"units), got {m_:g}")
         if np.isnan(s_) or s_ <= 0 or (np.isfinite(s_) and not 1.0 / MAX_PRIOR_VALUE <= s_ <= MAX_PRIOR_VALUE):
-            raise ValueError(f"{source}: `{name}` std must be within [{1.0 / MAX_PRIOR_VALUE:g}, {MAX_PRIOR_VALUE:g}] "
-                             f"(natural units; Infinity, or leaving the coefficient out, for no prior), got {s_:g}")
+            raise ValueError(f"{source}: `{name}` std must be > 0, within [{1.0 / MAX_PRIOR_VALUE:g}, "
+                             f"{MAX_PRIOR_VALUE:g}] (natural units; Infinity, or leaving the coefficient out, for no "
+                             f"prior), got {s_:g}")
         j = list(names).index(name)
         mu[j], tau[j] = m_, s_
     if corr is None:

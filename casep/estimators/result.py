@@ -14,7 +14,8 @@ import numpy as np
 
 from casep.io._atomic import atomic_open
 
-__all__ = ["EstimateResult", "read_result", "result_from_data", "check_result_units", "resolve_result_model", "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "EXTRAS_TYPES", "OLSExtras",
+__all__ = ["EstimateResult", "read_result", "result_from_data", "check_result_units", "resolve_result_model",
+           "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "EXTRAS_TYPES", "OLSExtras",
            "RLSExtras", "RidgeExtras", "BoundedExtras", "PCRExtras", "MAPExtras", "GLSExtras", "HuberExtras",
            "write_json_atomic", "write_mat", "write_csv", "format_number"]
 
@@ -152,11 +153,11 @@ def _jsonable(v: Any) -> Any:
     return v
 
 
-def format_number(v: float | None, width: int = 12) -> str:
-    """Right-aligned ``%.6g`` with ``-`` for a missing value."""
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+def format_number(v: float | None, width: int = 12, fmt: str = ".6g") -> str:
+    """Right-aligned ``%.6g`` (or `fmt`) with ``-`` for a missing value (None, NaN, inf)."""
+    if v is None or not math.isfinite(float(v)):
         return "-".rjust(width)
-    return f"{v:.6g}".rjust(width)
+    return f"{v:{fmt}}".rjust(width)
 
 
 def _json_float(v: float) -> float | None:
@@ -487,11 +488,15 @@ class EstimateResult:
                          f"{format_number(row['std'])}  {note}".rstrip())
         rms = self.residual_rms
         lines.append("")
+        whitened = self.sigma_source == "whitened"  # several flights: rows divided by their sigma, no unit
+        sigma = ("-" if not math.isfinite(self.sigma) else f"{self.sigma:.4g}" if whitened
+                 else f"{self.sigma:.4g} m/s")
         lines.append(f"method {self.method}, model {self.model}, {self.n_samples} samples, rank {self.rank}/"
-                     f"{len(self.names)}, sigma {self.sigma:.4g} m/s")
+                     f"{len(self.names)}, sigma {sigma}" + (" (whitened, dimensionless)" if whitened else ""))
         lines.append(self.settings_line())
         if all(rms[a] is not None for a in AXES):  # a fused result has no residuals
-            lines.append("residual RMS (m/s): " + ", ".join(f"{a} {rms[a]:.4g}" for a in AXES))
+            lines.append(f"residual RMS ({'whitened, dimensionless' if whitened else 'm/s'}): "
+                         + ", ".join(f"{a} {format_number(rms[a], 0, '.4g')}" for a in AXES))
         if self.denoise:
             d = self.denoise
             lines.append(f"de-noised: {d.get('wavelet')} level {d.get('level')}, {d.get('threshold_rule')} "
