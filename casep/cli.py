@@ -51,6 +51,17 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _rate(text: str) -> float:
+    """A sample rate, Hz: (0, casep.simulation.scenarios.MAX_RATE_HZ]."""
+    from casep.simulation.scenarios import check_rate
+
+    v = _positive_float(text)
+    try:
+        return check_rate(v, "rate")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("rate ")) from None
+
+
 def _ranged(name: str):
     """Argparse type for the common option `name` (``sigma``) of :data:`casep.estimators._base.OPTION_RANGES`:
     the API's check and message."""
@@ -166,6 +177,13 @@ def _add_grid(parser) -> None:
                              "none, with a warning when that offset exceeds a tracking sample period")
 
 
+def _positive_int(text: str) -> int:
+    v = _order(text)
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text}")
+    return v
+
+
 def _time_offset(text: str):
     """`--time-offset`: 'auto', or milliseconds -> seconds."""
     if text == "auto":
@@ -229,7 +247,7 @@ def _add_simulate_frames(parser) -> None:
                         help="with --rotating-earth: ecef or geodetic writes two files, the telemetry (-o: t, f_*, "
                              "v_tel_*, a_*) and the tracking in that frame (--tracking-output); default launch: the "
                              "one-file flight")
-    parser.add_argument("--tracking-rate", type=_positive_float, default=20.0, metavar="HZ",
+    parser.add_argument("--tracking-rate", type=_rate, default=20.0, metavar="HZ",
                         help="with --tracking-frame ecef|geodetic: tracking sample rate (default 20)")
     parser.add_argument("--tracking-output", metavar="FILE", default=None,
                         help="with --tracking-frame ecef|geodetic: tracking file (default <stem>.tracking<suffix>)")
@@ -372,7 +390,7 @@ def _parser() -> argparse.ArgumentParser:
     g = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
     g.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
     g.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    g.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
+    g.add_argument("--rate", type=_rate, default=None, help="sample rate, Hz (default: scenario's)")
     g.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="flight file (.csv, or .parquet); truth goes to <stem>.truth.json beside it")
     g.add_argument("--model", default=None, help="error model to inject, name or .py file (default: the scenario's)")
@@ -413,7 +431,7 @@ def _parser() -> argparse.ArgumentParser:
     dm = sub.add_parser("demo", help="the paper's scenario end to end: Table 1, figures, report")
     dm.add_argument("--out", metavar="DIR", default="casep-demo", help="output folder (default ./casep-demo)")
     dm.add_argument("--seed", type=_order, default=1, help="noise seed (default 1)")
-    dm.add_argument("--rate", type=_positive_float, default=100.0, help="sample rate, Hz (default 100)")
+    dm.add_argument("--rate", type=_rate, default=100.0, help="sample rate, Hz (default 100)")
     mc = sub.add_parser("montecarlo", help="seeded Monte Carlo of the estimators against the CRLB")
     mc.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
     mc.add_argument("--runs", type=_order, default=100, help="noise draws (default 100)")
@@ -421,7 +439,7 @@ def _parser() -> argparse.ArgumentParser:
                     help=f"comma-separated: {', '.join(METHODS)}, ridge:<lambda> (fixed), wavelet+<method> (de-noised "
                          "first) (default ols,rls,rels)")
     mc.add_argument("--seed", type=_order, default=0, help="root seed (default 0)")
-    mc.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
+    mc.add_argument("--rate", type=_rate, default=None, help="sample rate, Hz (default: scenario's)")
     mc.add_argument("--workers", type=_order, default=None,
                     help="Dask LocalCluster worker processes, one thread each (default: all cores; 1: runs in this "
                          "process)")
@@ -765,7 +783,7 @@ def _impact_parser(sub) -> None:
     im.add_argument("--per-flight", metavar="NAME=VALUE", action="append", default=None,
                     help="value (natural units) of a per-flight coefficient a several-flight result does not "
                          "hold (default 0); repeat for several")
-    im.add_argument("--top", type=_order, default=None, help="table: only the TOP largest contributions")
+    im.add_argument("--top", type=_positive_int, default=None, help="table: only the TOP (>= 1) largest contributions")
     im.add_argument("--json", metavar="OUT", default=None, help="write the impact JSON here")
     im.add_argument("--figures", metavar="DIR", default=None,
                     help="write miss_budget.png and impact_ellipse.png into DIR (created)")
@@ -828,7 +846,7 @@ def _design_parser(sub) -> None:
     de.add_argument("--knots", type=int, default=10, help="knots of the piecewise-linear offset (default 10)")
     de.add_argument("--starts", type=int, default=4, help="IPOPT starts (default 4)")
     de.add_argument("--seed", type=_order, default=0, help="seed of the random starts and of -o's noise (default 0)")
-    de.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
+    de.add_argument("--rate", type=_rate, default=None, help="sample rate, Hz (default: scenario's)")
     de.add_argument("--prior", metavar="FILE", default=None,
                     help='prior JSON {"Kg0x": {"mean": m, "std": s}, ...} (natural units): Bayesian covariance')
     de.add_argument("--json", metavar="OUT", default=None, help="write the design JSON here")

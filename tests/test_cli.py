@@ -242,7 +242,7 @@ def test_out_of_range_option_api_same_message(paper_problem, platform36, capsys,
     assert (api if option == "sigma" else f"must be {OPTIONS[option].rule}, got '{value}'") in err
 
 
-@pytest.mark.parametrize("option", ["p0", "weight", "tau"])
+@pytest.mark.parametrize("option", ["p0", "weight", "tau", "forgetting"])
 def test_registry_rules_are_the_solvers_ranges(option):
     """One range per option: the registry's Interval (CLI) is the solvers' OPTION_RANGES entry."""
     from casep.estimators._base import OPTION_RANGES

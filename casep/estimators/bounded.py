@@ -116,6 +116,10 @@ def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"
     return lo, hi, lo == hi
 
 
+def _bound_text(v: float) -> str:
+    return "null" if not np.isfinite(v) else f"{v:g}"
+
+
 def solve_bounded(
     S: np.ndarray,
     y: np.ndarray | None = None,
@@ -172,7 +176,17 @@ def solve_bounded(
         warnings.filterwarnings("ignore", message="Solution may be inaccurate")  # handled below
         prob.solve(solver=cp.CLARABEL, tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10)
     if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
-        raise RuntimeError(f"cvxpy/Clarabel bounded least squares failed: {prob.status}")
+        # A box is always feasible: "infeasible" here means bounds so far from the data, in the
+        # scaled coordinates the solver works in (unit-norm columns), that it cannot resolve them.
+        # Name the bounds farthest out; they are the input to fix.
+        far = np.where(np.isfinite(lo) | np.isfinite(hi),
+                       np.fmax(np.abs(np.where(np.isfinite(lo), lo * cs, 0.0)),
+                               np.abs(np.where(np.isfinite(hi), hi * cs, 0.0))), 0.0)
+        worst = [j for j in np.argsort(-far)[:3] if far[j] > 0]
+        named = "; ".join(f"{pb.names[j]} [{_bound_text(lo[j])}, {_bound_text(hi[j])}] {pb.units[j]}" for j in worst)
+        raise ValueError(f"bounded: the solver (cvxpy/Clarabel) reports the problem {prob.status}, although box bounds "
+                         f"always admit a solution: bounds too far from anything the data allow, for it to resolve. "
+                         f"Farthest out: {named}. Check their values and units (natural units)")
     lo_s = lo * cs
     hi_s = hi * cs
     zv, polished = _polish(R, pb.red.qty, np.asarray(z.value, dtype=float), lo_s, hi_s, fixed, pb.ra.rcond)

@@ -196,7 +196,7 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     # Ranges as casep.estimators._base.OPTION_RANGES (the solvers' own checks), with the reasons there.
     Option("p0", "--p0", 1e6, (Interval(float, 0, 1e30, "right"),), "P0 = p0 I, natural units (a prior variance)"),
     Option("weight", "--weight", 1.0, (Interval(float, 1e-12, 1e12),), "measurement weight w (variance 1/w)"),
-    Option("forgetting", "--forgetting", 1.0, (Interval(float, 0, 1, "right"),), "forgetting factor (stabilized)"),
+    Option("forgetting", "--forgetting", 1.0, (Interval(float, 0.5, 1, "both"),), "forgetting factor (stabilized)"),
     Option("noise_order", "--noise-order", 1, (Interval(int, 1),), "MA order of the noise model"),
     Option("lam", "--lambda", "gcv", (Choices(("gcv", "lcurve")), Interval(float, 0, None, "neither")),
            "ridge parameter on unit-norm columns, or its rule"),

@@ -377,9 +377,12 @@ class ImpactAnalysis:
     def table(self, top: int | None = None) -> str:
         """Terminal text: burnout, nominal impact, miss with std, budget per coefficient and per group.
 
-        `top`: only the `top` largest contributions (by |downrange| + |crossrange|); default all.
+        `top`: only the `top` (>= 1) largest contributions (by |downrange| + |crossrange|); default all.
         """
         from casep.estimators.result import format_number
+
+        if top is not None and (isinstance(top, bool) or not isinstance(top, (int, np.integer)) or top < 1):
+            raise ValueError(f"`top` must be an integer >= 1 (or None for all), got {top!r}")
 
         std = self.std
         lines = [f"impact of {self.trajectory or self.flight}: model {self.model}, result of method {self.method}"
