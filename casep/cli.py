@@ -1124,8 +1124,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     commands = {"separate": _cmd_separate, "diagnose": _cmd_diagnose, "simulate": _cmd_simulate,
                 "montecarlo": _cmd_montecarlo, "demo": _cmd_demo, "models": _cmd_models, "methods": _cmd_methods,
                 "fuse": _cmd_fuse, "impact": _cmd_impact, "noise": _cmd_noise, "design": _cmd_design}
+    from contextlib import nullcontext
+
+    from casep.io._atomic import output_group
+
+    # All outputs of a command appear together or none (a failed second output leaves no first);
+    # not for montecarlo, whose --out folder keeps every finished part for a resume.
+    group = nullcontext() if args.command == "montecarlo" else output_group()
     try:
-        with warnings.catch_warnings(record=True) as caught:
+        with warnings.catch_warnings(record=True) as caught, group:
             warnings.simplefilter("always", CasepWarning)
             status = commands[args.command](args)
     except BrokenPipeError:
