@@ -28,7 +28,8 @@ import tempfile
 from pathlib import Path
 from typing import IO, Iterable, Iterator
 
-__all__ = ["atomic_open", "output_group", "read_output", "scratch_files", "check_output", "check_output_dir", "check_outputs"]
+__all__ = ["atomic_open", "output_group", "read_output", "scratch_files", "check_output", "check_output_dir",
+           "check_outputs"]
 
 PathLike = str | os.PathLike
 
