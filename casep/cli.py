@@ -425,6 +425,7 @@ def _parser() -> argparse.ArgumentParser:
     nz.add_argument("flight", help="flight file (or telemetry file with --tracking)")
     nz.add_argument("--tracking", metavar="FILE", default=None, action="append", help="tracking file (two-file input)")
     _add_grid(nz)
+    _add_frames(nz)  # --tracking-frame, --launch-site, --launch-time
     nz.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
     nz.add_argument("--json", metavar="OUT", default=None, help="write the Allan deviation and the fits here")
     nz.add_argument("--figures", metavar="DIR", default=None, help="write allan.png into DIR (created)")
@@ -775,7 +776,13 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 def _impact_parser(sub) -> None:
     """`casep impact FLIGHT --result RESULT.json [--trajectory OTHER.csv] [--json OUT] [--figures DIR]`."""
     im = sub.add_parser("impact", help="the impact miss that the estimated instrument errors cause, and its budget")
-    im.add_argument("flight", help="flight file the result was estimated on (t, f_*, r_*, v_*; last row = burnout)")
+    im.add_argument("flight", help="flight file the result was estimated on (t, f_*, r_*, v_*; last row = burnout), "
+                    "or its telemetry file with --tracking")
+    im.add_argument("--tracking", metavar="FILE", default=None, action="append",
+                    help="tracking file (two-file input, as for separate): Earth-fixed tracking (--tracking-frame "
+                         "ecef|geodetic) also gives the burnout position and velocity")
+    _add_grid(im)
+    _add_frames(im)
     im.add_argument("--result", required=True, metavar="RESULT.json", help="result JSON of casep separate --json")
     im.add_argument("--trajectory", metavar="OTHER", default=None,
                     help="apply the result to another trajectory's S_V and burnout state (t, f_*, r_*, v_*)")
@@ -793,9 +800,8 @@ def _cmd_impact(args: argparse.Namespace) -> int:
     from casep.estimators.result import write_json_atomic
     from casep.impact.miss import impact_analysis, read_trajectory
     from casep.io._atomic import check_outputs
-    from casep.io.files import read_flight
 
-    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "result", "trajectory"),
+    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "result", "trajectory"),
                   folders={"--figures": args.figures})
     per_flight = {}
     for item in args.per_flight or ():
@@ -806,7 +812,7 @@ def _cmd_impact(args: argparse.Namespace) -> int:
             raise ValueError(f"--per-flight {item}: give NAME=VALUE (natural units)") from None
         if not eq or not math.isfinite(per_flight[name.strip()]):
             raise ValueError(f"--per-flight {item}: give NAME=VALUE with a finite value (natural units)")
-    flight = read_flight(args.flight)
+    flight = _read(args)  # one file, or telemetry + --tracking (its frame options as for separate)
     other = read_trajectory(args.trajectory) if args.trajectory else None
     a = impact_analysis(flight, args.result, args.model, other, per_flight=per_flight or None)
     if args.json:
@@ -1080,10 +1086,19 @@ def _cmd_models(args: argparse.Namespace) -> int:
             continue
         print(f"{name:<28} {model.n_coefficients:>3} coefficients  {model.description}")
         if args.verbose:
-            for nm, unit, own in zip(model.names, model.units, model.per_flight):
-                print(f"    {nm:<10} {unit}" + ("  (per flight)" if own else ""))
+            doc = getattr(model, "source_doc", "")
+            if doc:  # the model file's docstring: its equations and conventions
+                print("\n".join("    | " + line if line.strip() else "    |" for line in doc.splitlines()))
+            scales = model.scales
+            print(f"    {'coefficient':<12} {'unit':<10} {'magnitude':>10}  description")
+            for nm, unit, own, what in zip(model.names, model.units, model.per_flight, model.descriptions):
+                mag = f"{scales[nm]:.3g}" if nm in scales else "-"
+                note = "; ".join(x for x in (what, "per flight" if own else "") if x)
+                print(f"    {nm:<12} {unit:<10} {mag:>10}  {note}".rstrip())
             if model.signals:
                 print(f"    signals: {', '.join(model.signals)}")
+            if getattr(model, "source_file", None):
+                print(f"    file: {model.source_file}")
     if broken and broken == len(names):
         print(f"casep: error: none of the {broken} model files loads (see the warnings)", file=sys.stderr)
         return 2

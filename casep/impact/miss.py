@@ -63,10 +63,14 @@ def burnout_state(flight) -> tuple[float, np.ndarray, np.ndarray]:
 
     missing = [c for c in STATE_COLUMNS if c not in flight.signals]
     if missing:
+        pair = isinstance(flight.meta, dict) and flight.meta.get("format") == "pair"
+        how = (": give them in the telemetry file, or read Earth-fixed tracking, which carries the position "
+               "(--tracking-frame ecef|geodetic --launch-site LAT LON H AZ --launch-time T0; API: read_flight_pair("
+               "tracking_frame=..., site=LaunchSite(...)))" if pair else "")
         raise FlightDataError(flight.source, f"missing column{'s' if len(missing) > 1 else ''} "
                                              f"{', '.join(missing)}: the impact point needs the burnout state "
                                              "(r_x, r_y, r_z in m and v_x, v_y, v_z in m/s, launch-inertial "
-                                             "frame, last row = burnout)")
+                                             f"frame, last row = burnout){how}")
     x = np.array([flight.signals[c][-1] for c in STATE_COLUMNS], dtype=float)
     bad = np.flatnonzero(~np.isfinite(x))
     if bad.size:

@@ -77,17 +77,30 @@ def _csv_line_locator(path: Path) -> Callable[[int], int | None]:
     return line_of
 
 
-def _csv_header(path: Path) -> list[str]:
+#: Column separators a CSV flight file may use: comma (casep, MATLAB writetable's default),
+#: semicolon (Excel in locales with a decimal comma), tab (writetable 'Delimiter','tab').
+CSV_SEPARATORS = (",", ";", "\t")
+_SEPARATOR_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
+
+
+def _csv_header(path: Path) -> tuple[list[str], str]:
     """The header's names as pandas sees them (first line that is not blank or a ``#`` comment,
-    text after ``#`` dropped), before pandas renames a repeated ``dv_x`` to ``dv_x.1``."""
+    text after ``#`` dropped), before pandas renames a repeated ``dv_x`` to ``dv_x.1``, and the
+    column separator.
+
+    The separator is the one of :data:`CSV_SEPARATORS` that splits the header into the most names
+    (names are identifiers such as ``t``, ``f_x``, so none contains a separator): read from the
+    header alone, it costs nothing, and the data are then parsed by pandas' C reader with it.
+    """
     import csv
 
     with open(path, encoding="utf-8", errors="replace", newline="") as fh:
         for text in fh:
-            text = text.split("#", 1)[0]
+            text = text.split("#", 1)[0].lstrip("\ufeff")  # a byte-order mark (Excel's "CSV UTF-8")
             if text.strip():
-                return [c.strip() for c in next(csv.reader([text], skipinitialspace=True))]
-    return []
+                sep = max(CSV_SEPARATORS, key=lambda c: (text.count(c), c == ","))  # ties: comma
+                return [c.strip() for c in next(csv.reader([text], delimiter=sep, skipinitialspace=True))], sep
+    return [], ","
 
 
 def _parquet_header(path: Path) -> list[str]:
@@ -132,15 +145,17 @@ class _Table:
             raise FlightDataError(self.src, "file does not exist")
         if not self.path.is_file():
             raise FlightDataError(self.src, "not a regular file (a device, FIFO or socket?)")
+        self.sep = ","
         if _is_parquet(self.path):
             self.line_of: Callable[[int], int | None] = lambda row: None
             self._refuse_repeated(self._parquet(_parquet_header))  # before pandas, which fails on them
             frame = self._parquet(_read_parquet_frame)
         else:
             try:
-                header = _csv_header(self.path)
-                frame = pd.read_csv(self.path, comment="#", skip_blank_lines=True, keep_default_na=False,
-                                    na_values=[""], skipinitialspace=True)
+                header, self.sep = _csv_header(self.path)
+                frame = pd.read_csv(self.path, sep=self.sep, comment="#", skip_blank_lines=True,
+                                    keep_default_na=False, na_values=[""], skipinitialspace=True,
+                                    encoding="utf-8-sig")
             except pd.errors.EmptyDataError:
                 raise FlightDataError(self.src, "file has no header row and no data") from None
             except pd.errors.ParserError as exc:
@@ -180,7 +195,8 @@ class _Table:
     def require(self, cols: tuple[str, ...], hint: str = "") -> None:
         for c in cols:
             if c not in self.columns:
-                raise self.error(f"missing column (header has: {', '.join(self.frame.columns)}){hint}",
+                sep = "" if self.sep == "," else f"; columns read as {_SEPARATOR_NAMES[self.sep]}-separated"
+                raise self.error(f"missing column (header has: {', '.join(self.frame.columns)}{sep}){hint}",
                                  c, "header")
         if self.frame.shape[0] == 0:
             raise self.error("file has a header but no data rows", cols[0], "header")
@@ -215,6 +231,10 @@ class _Table:
             text = cell.strip().lower().lstrip("+-")
             what = ("NaN value" if text == "nan" else f"infinite value {cell}" if np.isinf(values[r])
                     else f"non-numeric value {cell!r}")
+            if self.sep != "," and "," in cell and pd.notna(pd.to_numeric(cell.replace(",", "."), errors="coerce")):
+                what += (f" (a decimal comma? the columns are {_SEPARATOR_NAMES[self.sep]}-separated, numbers "
+                         "need a decimal point: save the file with '.' as decimal separator, e.g. MATLAB "
+                         "writetable, or Excel with the system separators set to '.')")
         elif isinstance(cell, (float, np.floating)) and np.isinf(cell):
             what = f"infinite value {cell}"
         elif isinstance(cell, (float, np.floating)) and _is_parquet(self.path):
@@ -341,20 +361,26 @@ def _check_tracking_frame(tracking: str | os.PathLike, tracking_frame: str, site
 
 def _tracking_velocity(trk: "_Table", t_trk: np.ndarray, tracking_frame: str, site) -> np.ndarray:
     """The tracking velocity in the launch-inertial frame, m/s (casep.frames), from the file's own time tags."""
+    return _tracking_state(trk, t_trk, tracking_frame, site)[1]
+
+
+def _tracking_state(trk: "_Table", t_trk: np.ndarray, tracking_frame: str, site) -> tuple[np.ndarray | None,
+                                                                                           np.ndarray]:
+    """Tracked position (m; None for launch-frame tracking, which has none) and velocity (m/s), launch-inertial."""
     from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS, ecef_to_launch, geodetic_to_launch
 
     if tracking_frame == "launch":
-        return trk.vectors(VTRK_COLUMNS)
+        return None, trk.vectors(VTRK_COLUMNS)
     if tracking_frame == "ecef":
         r, v = trk.vectors(ECEF_COLUMNS[1:4]), trk.vectors(ECEF_COLUMNS[4:7])
-        return ecef_to_launch(site, t_trk, r, v)[1]
+        return ecef_to_launch(site, t_trk, r, v)
     lat, lon, h, ve, vn, vu = (trk.numeric(c) for c in GEODETIC_COLUMNS[1:])
     for col, values, lim in (("lat", lat, 90.0), ("lon", lon, 360.0)):
         bad = np.flatnonzero(np.abs(values) > lim)
         if bad.size:
             raise trk.error(f"{values[bad[0]]:g} deg is outside +-{lim:g} deg (latitude and longitude in degrees)",
                             col, int(bad[0]) + 1)
-    return geodetic_to_launch(site, t_trk, lat, lon, h, ve, vn, vu)[1]
+    return geodetic_to_launch(site, t_trk, lat, lon, h, ve, vn, vu)
 
 
 def _tracking_hint(trk: "_Table", tracking_frame: str) -> str:
@@ -444,7 +470,7 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     f, force_from = _force(tel, t_tel)
     v_tel = tel.vectors(VTEL_COLUMNS)
     t_trk = trk.time()
-    v_trk = _tracking_velocity(trk, t_trk, tracking_frame, site)  # launch-inertial
+    r_trk, v_trk = _tracking_state(trk, t_trk, tracking_frame, site)  # launch-inertial
     if t_trk.size < (4 if interpolation == "cubic" else 2):
         raise trk.error(f"{t_trk.size} tracking samples are too few for {interpolation} interpolation", "t", t_trk.size)
     inside = (t_tel >= t_trk[0]) & (t_tel <= t_trk[-1])
@@ -496,7 +522,32 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
         v_pad = ecef_to_launch(site, [t_tel[0]], [site.r_site], [[0.0, 0.0, 0.0]])[1][0]
         flight.meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0] - v_pad))
         flight.meta["tracking_frame"]["pad_velocity_m_s"] = v_pad.tolist()
+    if r_trk is not None and not any(c in flight.signals for c in STATE_SIGNALS):
+        flight = _with_tracked_state(flight, t_trk - shift, r_trk, v_trk)
     return flight
+
+
+#: Launch-inertial position and velocity columns (m, m/s): the burnout state of casep.impact.
+STATE_SIGNALS = ("r_x", "r_y", "r_z", "v_x", "v_y", "v_z")
+
+
+def _with_tracked_state(flight: FlightData, t_trk: np.ndarray, r: np.ndarray, v: np.ndarray) -> FlightData:
+    """The flight with the tracked position and velocity (Earth-fixed tracking turned launch-inertial) as the
+    signals ``r_*``, ``v_*`` on its time grid: a not-a-knot cubic spline through the tracking samples inside
+    their span, NaN outside (before tracking starts). What the impact analysis reads as the burnout state."""
+    import dataclasses
+
+    from scipy.interpolate import CubicSpline
+
+    t = np.asarray(flight.t)
+    inside = (t >= t_trk[0]) & (t <= t_trk[-1])
+    sig = dict(flight.signals)
+    for name, values in zip(STATE_SIGNALS, np.column_stack([r, v]).T):
+        col = np.full(t.size, np.nan)
+        col[inside] = CubicSpline(t_trk, values)(t[inside])
+        sig[name] = col
+    meta = {**flight.meta, "state_from": "tracking (r_*, v_*: launch-inertial, spline on the flight's times)"}
+    return dataclasses.replace(flight, signals=sig, meta=meta)
 
 
 def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray, *,
