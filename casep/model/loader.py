@@ -18,8 +18,13 @@ deepest line of the traceback inside the model file.
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
+import math
 import os
+import signal
+import threading
+import time
 import traceback
 from pathlib import Path
 
@@ -102,20 +107,75 @@ def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {msg}" if msg else type(exc).__name__
 
 
+#: Longest a model file may take to load and build, s (``CASEP_MODEL_TIMEOUT`` overrides it): the
+#: built-in models take well under a second; a file that loops forever ends with a ModelFileError.
+MODEL_LOAD_TIMEOUT_S = 60.0
+
+
+class _LoadTimeout(Exception):
+    """Raised by the alarm inside a model file that takes too long (never leaves this module)."""
+
+
+def _timeout_s() -> float:
+    text = os.environ.get("CASEP_MODEL_TIMEOUT", "")
+    try:
+        v = float(text) if text else MODEL_LOAD_TIMEOUT_S
+    except ValueError:
+        raise ModelDefinitionError(f"CASEP_MODEL_TIMEOUT must be a number of seconds, got {text!r}") from None
+    if not (v > 0 and math.isfinite(v)):
+        raise ModelDefinitionError(f"CASEP_MODEL_TIMEOUT must be finite and > 0 s, got {text!r}")
+    return v
+
+
+@contextlib.contextmanager
+def _time_limit(seconds: float):
+    """Raise :class:`_LoadTimeout` in this thread after `seconds` (a real-time interval timer, SIGALRM).
+
+    Only on the main thread of a POSIX process (where Python delivers signals); elsewhere (a worker
+    thread, Windows) no limit. The timer and handler in place before are put back, with the time
+    spent here taken off a pending timer. A loop inside a C extension is interrupted only when it
+    returns to Python.
+    """
+    if not hasattr(signal, "setitimer") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def alarm(signum, frame):
+        raise _LoadTimeout
+
+    start = time.monotonic()
+    old_handler = signal.signal(signal.SIGALRM, alarm)
+    old_delay, old_interval = signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old_handler)
+        if old_delay > 0:  # someone else's timer: what is left of it
+            signal.setitimer(signal.ITIMER_REAL, max(old_delay - (time.monotonic() - start), 1e-6), old_interval)
+
+
 def _run_file(path: Path) -> ErrorModel:
-    """Execute the model file and its ``build()``; any failure becomes a one-line ModelFileError."""
+    """Execute the model file and its ``build()``; any failure becomes a one-line ModelFileError,
+    and so does taking longer than :data:`MODEL_LOAD_TIMEOUT_S` (``CASEP_MODEL_TIMEOUT``)."""
     spec = importlib.util.spec_from_file_location(f"casep_model_{path.stem}", path)
     if spec is None or spec.loader is None:
         raise ModelFileError(f"model file {path}: cannot be loaded as Python")
     module = importlib.util.module_from_spec(spec)
     stage = "loading"
+    limit = _timeout_s()
     try:
-        spec.loader.exec_module(module)
-        build = getattr(module, "build", None)
-        if not callable(build):
-            raise ModelFileError(f"model file {path}: Missing: build(). Use: def build() -> casep.ErrorModel")
-        stage = "build()"
-        result = build()
+        with _time_limit(limit):
+            spec.loader.exec_module(module)
+            build = getattr(module, "build", None)
+            if not callable(build):
+                raise ModelFileError(f"model file {path}: Missing: build(). Use: def build() -> casep.ErrorModel")
+            stage = "build()"
+            result = build()
+    except _LoadTimeout as exc:
+        raise ModelFileError(f"{_where(path, exc)}{', in build()' if stage == 'build()' else ''}: still running "
+                             f"after {limit:g} s (an endless loop?); a model file should load in well under a "
+                             "second (limit: CASEP_MODEL_TIMEOUT=SECONDS)") from None
     except ModelFileError:
         raise  # from this file, or from a model it extends (that one names its own file)
     except (Exception, SystemExit) as exc:  # KeyboardInterrupt still interrupts
