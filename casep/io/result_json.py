@@ -199,9 +199,13 @@ class ResultData:
         return self.fields.get("model") or ""
 
 
+#: Keys that make a JSON object a result file rather than a prior mapping (keyed by coefficient name).
+RESULT_KEYS = ("coefficients", "names", "estimates", "covariance", "model")
+
+
 def looks_like_result(data: Any) -> bool:
     """True for a JSON object in one of the result forms (as opposed to a prior mapping)."""
-    return isinstance(data, dict) and any(k in data for k in ("coefficients", "names", "estimates"))
+    return isinstance(data, dict) and any(k in data for k in RESULT_KEYS)
 
 
 def _array(values: list | None) -> np.ndarray | None:
@@ -226,7 +230,7 @@ def parse_result_data(data: Any, where: str = "result") -> ResultData:
     if not isinstance(data, dict):
         raise ValueError(f"{where}: must hold a JSON object (a result: `coefficients` list or `names`/`units`/"
                          f"`estimates`/`std` arrays), got a JSON {type(data).__name__}")
-    if not looks_like_result(data):
+    if not any(k in data for k in ("coefficients", "names", "estimates")):
         raise ValueError(f"{where}: not a result: missing field `coefficients` (a list of {{name, unit, estimate, "
                          "std}}), or the arrays `names`, `units`, `estimates`, `std`; see docs/guide/result-files.md")
     try:
