@@ -74,7 +74,7 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.analysis.checks": ("check_fit", "check_flight"),
     "casep.frames": ("LaunchSite",),
     "casep.exceptions": ("CasepWarning", "IllConditionedWarning", "NoiseFreeWarning", "OutlierWarning",
-                         "PlausibilityWarning", "TimeOffsetWarning"),
+                         "PlausibilityWarning", "TimeOffsetWarning", "ConsistencyWarning"),
 }
 __getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), (
     "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units",
@@ -124,6 +124,7 @@ __all__ = [
     "IllConditionedWarning",
     "PlausibilityWarning",
     "TimeOffsetWarning",
+    "ConsistencyWarning",
     "OutlierWarning",
     "NoiseFreeWarning",
     "LateStartWarning",

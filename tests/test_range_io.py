@@ -450,3 +450,25 @@ def test_impact_launch_frame_pair_says_what_is_missing(earth, tmp_path, capsys):
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(pytest.main([__file__, "-n", "0", "-q"]))
+
+
+def test_api_separate_takes_a_result_file_as_prior(files, tmp_path):
+    """The API reads a result file given as `prior` with the same reader (was: parsed as a prior mapping)."""
+    import warnings
+
+    import casep
+    from casep.io.files import read_flight
+
+    doc = _write(tmp_path / "doc.json", _documented(_load(files / "ra.json")))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", casep.CasepWarning)
+        res = casep.separate(read_flight(files / "b.csv"), "platform36", "map", prior=doc)
+    assert res.success and "correlation" in res.settings["prior"]
+
+
+def test_json_writer_names_a_non_finite_value(tmp_path):
+    from casep.estimators.result import write_json_atomic
+
+    with pytest.raises(ValueError, match=r"non-finite value \(inf\) at `settings.prior.Kg0x.mean`"):
+        write_json_atomic({"settings": {"prior": {"Kg0x": {"mean": float("inf")}}}}, tmp_path / "x.json")
+    assert not (tmp_path / "x.json").exists()

@@ -637,9 +637,31 @@ def resolve_result_model(name: str, model_file: str | None, where: str):
 
 def write_json_atomic(data: dict[str, Any], path: str | os.PathLike) -> None:
     """Write JSON to `path` through a temporary file and a rename: never half-written."""
-    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+    try:
+        text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+    except ValueError:  # NaN or inf somewhere: say where, and what put it there
+        where = _first_non_finite(data)
+        raise ValueError(f"{path}: cannot write a non-finite value ({where[1]!r}) at `{where[0]}`: the input that "
+                         "produced it is out of range (a prior, bound or option far beyond its plausible values?)"
+                         if where else f"{path}: cannot write a non-finite value") from None
     with atomic_open(path) as fh:
         fh.write(text)
+
+
+def _first_non_finite(v: Any, where: str = "") -> tuple[str, float] | None:
+    """The path (``settings.prior.Kg0x.mean``) and value of the first NaN or inf in a JSON-like value."""
+    if isinstance(v, dict):
+        items = v.items()
+    elif isinstance(v, (list, tuple)):
+        items = ((f"[{i}]", x) for i, x in enumerate(v))
+    else:
+        return (where, float(v)) if isinstance(v, float) and not math.isfinite(v) else None
+    for k, x in items:
+        key = k if str(k).startswith("[") else (f"{where}.{k}" if where else str(k))
+        hit = _first_non_finite(x, where + key if str(k).startswith("[") else key)
+        if hit:
+            return hit
+    return None
 
 
 def _nan_array(a: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray:
