@@ -996,12 +996,15 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
         return 143 if isinstance(exc, Terminated) else 130
     print(f"scenario {res.scenario}, {res.runs} runs, seed {res.seed}")
     print(res.summary())
-    if args.json:
-        res.write_json(args.json)
-    if args.csv:
-        res.write_csv(args.csv)
-    if args.figure:
-        write_figure(res, args.figure)
+    from casep.io._atomic import output_group
+
+    with output_group():  # the report files together or none (the --out store keeps its parts regardless)
+        if args.json:
+            res.write_json(args.json)
+        if args.csv:
+            res.write_csv(args.csv)
+        if args.figure:
+            write_figure(res, args.figure)
     for label, path in (("JSON", args.json), ("CSV", args.csv), ("figure", args.figure)):
         if path:
             print(f"{label} written to {path}")

@@ -472,3 +472,19 @@ def test_json_writer_names_a_non_finite_value(tmp_path):
     with pytest.raises(ValueError, match=r"non-finite value \(inf\) at `settings.prior.Kg0x.mean`"):
         write_json_atomic({"settings": {"prior": {"Kg0x": {"mean": float("inf")}}}}, tmp_path / "x.json")
     assert not (tmp_path / "x.json").exists()
+
+
+def test_bounded_result_is_read_by_impact(files, tmp_path, capsys):
+    """A bounded result's coefficients at a bound have an estimate, no std and null covariance rows: legal."""
+    b = _write(tmp_path / "box.json", '{"Kg0x": [-0.1, 0.1], "Ka0x": 0.0}')
+    r = tmp_path / "rb.json"
+    assert main(["separate", str(files / "a.csv"), "--method", "bounded", "--bounds", b, "--json", str(r)]) == 0
+    capsys.readouterr()
+    s, out, err = _run(capsys, "impact", files / "a.csv", "--result", r)
+    assert s == 0 and "predicted miss" in out, err
+
+
+def test_truth_from_prior_std_1e308_refused_before_the_runs(tmp_path, capsys):
+    p = _write(tmp_path / "tp.json", '{"Kg0x": {"mean": 0, "std": 1e308}}')
+    s, _, err = _run(capsys, "montecarlo", "--runs", "1", "--workers", "1", "--truth-from-prior", p)
+    assert s == 2 and "`Kg0x` std must be > 0, within [1e-30, 1e+30]" in err

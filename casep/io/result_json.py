@@ -346,14 +346,18 @@ def check_covariance(cov: Any, names, est: np.ndarray, std: np.ndarray | None, w
         raise ValueError(f"{where}: field `covariance` must be {n} x {n} (one row per coefficient, model order), "
                          f"got {shape}")
     C = np.array([[np.nan if v is None else float(v) for v in r] for r in rows], dtype=float)
+    # Rows and columns that must be numbers: coefficients with an estimate and a std (a bounded
+    # result's coefficient at a bound, or fixed, has an estimate but no std, and no covariance row).
     have = np.isfinite(est)
+    if std is not None and np.any(np.isfinite(std)):
+        have &= np.isfinite(std)
     for i in range(n):
         for j in range(n):
             v = C[i, j]
             if np.isnan(v):
                 if have[i] and have[j]:
                     raise ValueError(f"{where}: field `covariance[{i}][{j}]` ({names[i]}, {names[j]}) is null or "
-                                     "NaN, but both coefficients have an estimate")
+                                     "NaN, but both coefficients have an estimate and a std")
             elif not math.isfinite(v) or abs(v) > MAX_RESULT_VALUE**2:
                 raise ValueError(f"{where}: field `covariance[{i}][{j}]` ({names[i]}, {names[j]}) is {v:g}: give a "
                                  f"finite number within {MAX_RESULT_VALUE**2:g}")
