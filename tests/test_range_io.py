@@ -488,3 +488,12 @@ def test_truth_from_prior_std_1e308_refused_before_the_runs(tmp_path, capsys):
     p = _write(tmp_path / "tp.json", '{"Kg0x": {"mean": 0, "std": 1e308}}')
     s, _, err = _run(capsys, "montecarlo", "--runs", "1", "--workers", "1", "--truth-from-prior", p)
     assert s == 2 and "`Kg0x` std must be > 0, within [1e-30, 1e+30]" in err
+
+
+def test_other_separator_gets_a_hint(tmp_path):
+    from casep.io.files import read_flight
+    from casep.io.flight import FlightDataError
+
+    (tmp_path / "sp.csv").write_text("t f_x f_y f_z dv_x dv_y dv_z\n0 1 2 3 4 5 6\n")
+    with pytest.raises(FlightDataError, match="the header looks space-separated"):
+        read_flight(tmp_path / "sp.csv")

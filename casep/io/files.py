@@ -196,6 +196,11 @@ class _Table:
         for c in cols:
             if c not in self.columns:
                 sep = "" if self.sep == "," else f"; columns read as {_SEPARATOR_NAMES[self.sep]}-separated"
+                if len(self.frame.columns) == 1:  # one name holding them all: another separator
+                    other = next((c for c in (" ", "|", ":") if c in str(self.frame.columns[0]).strip()), None)
+                    if other is not None:
+                        sep += (f"; the header looks {'space' if other == ' ' else repr(other)}-separated: casep "
+                                "reads comma-, semicolon- or tab-separated files")
                 raise self.error(f"missing column (header has: {', '.join(self.frame.columns)}{sep}){hint}",
                                  c, "header")
         if self.frame.shape[0] == 0:
