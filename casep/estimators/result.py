@@ -43,6 +43,7 @@ SIGMA_SOURCE_MEANINGS = {
     "robust": "Huber's MAD scale of the residuals",
     "whitened": "several flights: each flight's rows divided by its own sigma (flights[].sigma), so 1 here",
     "fused": "fused results: each input's own sigma (settings.fused)",
+    "external": "a result file of another tool that states no sigma (docs/guide/result-files.md)",
 }
 SIGMA_SOURCES = tuple(SIGMA_SOURCE_MEANINGS)
 
@@ -474,7 +475,8 @@ class EstimateResult:
             parts = []
         if describe is None:
             parts = [f"{k} {v}" for k, v in self.settings.items() if isinstance(v, (int, float, str)) and k != "sigma"]
-        parts.append(_sigma_text(self.settings.get("sigma")))
+        parts.append("sigma not stated (a result file of another tool)" if self.sigma_source == "external"
+                     else _sigma_text(self.settings.get("sigma")))
         parts.append(f"std {self.std_kind}" + (" on the active set (understated)"
                                                  if self.std_kind == "conditional" else ""))
         return "settings: " + "; ".join(parts)
@@ -560,7 +562,7 @@ def result_from_data(rd, model=None) -> EstimateResult:
         si_factors=si, settings=f.get("settings") or {}, diagnostics=f.get("diagnostics") or {},
         model=f.get("model") or (model.name if model is not None else ""),
         n_samples=int(f.get("n_samples") or 0), denoise=f.get("denoise"),
-        sigma_source=f.get("sigma_source") or ("estimated" if f.get("sigma") is not None else "given"),
+        sigma_source=f.get("sigma_source") or ("estimated" if f.get("sigma") is not None else "external"),
         stored_residual_rms=rrms if rrms is not None else {a: None for a in AXES},
         std_kind=f.get("std_kind") or "sampling", extras=extras, model_file=f.get("model_file"))
 
