@@ -376,7 +376,7 @@ class EstimateResult:
         return rows
 
     def to_dict(self) -> dict[str, Any]:
-        """The result JSON of ``interfaces.md`` as a dict.
+        """The result JSON (``docs/guide/result-files.md``, form 3: both forms) as a dict.
 
         Besides ``coefficients`` (one object per coefficient), the flat parallel arrays
         ``names``, ``units``, ``estimates`` and ``std`` (null only where a value is missing)
@@ -450,8 +450,8 @@ class EstimateResult:
         """The n x n covariance in natural units, model order, as nested lists for JSON.
 
         Rows and columns of coefficients without an estimate (and any entry that is not
-        finite) are null; None when the method defines no covariance (``interfaces.md``,
-        "Result JSON: covariance").
+        finite) are null; None when the method defines no covariance
+        (``docs/guide/result-files.md``).
         """
         if self.covariance is None:
             return None
