@@ -251,8 +251,9 @@ def parse_result_data(data: Any, where: str = "result") -> ResultData:
     else:
         for k in ("names", "units", "estimates", "std"):
             if getattr(f, k) is None:
-                raise ValueError(f"{where}: missing field `{k}` (the flat-array form needs names, units, estimates "
-                                 "and std; or give a `coefficients` list)")
+                what = f"field `{k}` is null" if k in data else f"missing field `{k}`"
+                raise ValueError(f"{where}: {what} (the flat-array form needs names, units, estimates and std "
+                                 "as lists, null entries for no value; or give a `coefficients` list)")
         names, units = tuple(f.names), tuple(f.units)
         est, std = _array(f.estimates), _array(f.std)
         for k, v in (("units", units), ("estimates", est), ("std", std)):
