@@ -201,7 +201,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     Option("lam", "--lambda", "gcv", (Choices(("gcv", "lcurve")), Interval(float, 0, None, "neither")),
            "ridge parameter on unit-norm columns, or its rule"),
     Option("bounds", "--bounds", None, (CoefficientTable("{name: [lo, hi] | value}"),), "box bounds and fixed values"),
-    Option("prior", "--prior", None, (CoefficientTable("{name: {mean, std}}"),), "Gaussian prior per coefficient"),
+    Option("prior", "--prior", None, (CoefficientTable("{name: {mean, std}}"),),
+           "Gaussian prior per coefficient, or a result file (its estimate and covariance; "
+           "docs/guide/result-files.md)"),
     Option("n_components", "--components", None, (Interval(int, 1),),
            "principal components kept (default: CI <= 1000)"),
     Option("tau", "--tau", "auto", (Choices(("auto",)), Interval(float, 0, 1e4, "right", "s")),
