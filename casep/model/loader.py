@@ -112,8 +112,9 @@ def _describe(exc: BaseException) -> str:
 MODEL_LOAD_TIMEOUT_S = 60.0
 
 
-class _LoadTimeout(Exception):
-    """Raised by the alarm inside a model file that takes too long (never leaves this module)."""
+class _LoadTimeout(BaseException):
+    """Raised by the alarm inside a model file that takes too long (never leaves this module); a
+    BaseException, so that an ``except Exception`` in the model file does not swallow it."""
 
 
 def _timeout_s() -> float:
