@@ -33,7 +33,7 @@ from casep.exceptions import CasepWarning, IllConditionedWarning
 # Only the standard library, the version and the registry (light: numpy) are imported here, so
 # that building the parser and `casep --help` stay cheap; each command imports what it needs.
 
-__all__ = ["main"]
+__all__ = ["main", "build_parser"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -326,6 +326,17 @@ def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | No
         data = prior_from_result(res, model=model)  # per-flight coefficients (dt_trk) left flat
     {"bounds": parse_bounds, "prior": parse_prior}[option](data, names, source=f"--{option} {path}")
     return data
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``casep`` argument parser, with every command and option.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        A new parser; the documentation's command-line reference is generated from it.
+    """
+    return _parser()
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -819,7 +830,7 @@ def _design_parser(sub) -> None:
     de.add_argument("--max-rate", type=float, default=2.0, metavar="DEG_PER_S",
                     help="largest offset rate, deg/s (default 2)")
     de.add_argument("--max-lateral", type=float, default=1.0, metavar="G",
-                    help="largest lateral specific force |f| sin(offset), g (default 1)")
+                    help="largest lateral specific force, norm(f) sin(offset), g (default 1)")
     de.add_argument("--coefficients", metavar="NAMES", default=None,
                     help="comma-separated coefficients that matter: objective A over these only (default all)")
     de.add_argument("--knots", type=int, default=10, help="knots of the piecewise-linear offset (default 10)")

@@ -387,7 +387,7 @@ class ImpactAnalysis:
     def table(self, top: int | None = None) -> str:
         """Terminal text: burnout, nominal impact, miss with std, budget per coefficient and per group.
 
-        `top`: only the `top` largest contributions (by |downrange| + |crossrange|); default all.
+        `top`: only the `top` largest contributions (by ``|downrange| + |crossrange|``); default all.
         """
         from casep.estimators.result import format_number
 
