@@ -569,7 +569,7 @@ def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior
 
 
 def _joint_json(res, jp, summary: dict) -> dict:
-    """The result JSON with `coefficients` of the shared coefficients and a `flights` list (interfaces.md)."""
+    """The result JSON with `coefficients` of the shared coefficients and a `flights` list (docs/reference/file-formats.md)."""
     d = res.to_dict()
     keep = [i for i, n in enumerate(res.names) if n in jp.layout.names]  # shared: the model's own names
     for key in ("coefficients", "names", "units", "estimates", "std", "si_factors"):
@@ -815,7 +815,7 @@ def _cmd_impact(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------- casep design
 def _design_parser(sub) -> None:
     """`casep design [--scenario paper] [--maneuver yaw|pitch|both] [--objective A|D|miss] [--max-angle DEG]
-    [--max-rate DEG_PER_S] [--prior FILE] [--json OUT] [-o FLIGHT.csv]` (interfaces.md "Manoeuvre design")."""
+    [--max-rate DEG_PER_S] [--prior FILE] [--json OUT] [-o FLIGHT.csv]` (docs/reference/file-formats.md "Design JSON")."""
     from casep.simulation.scenarios import SCENARIOS
 
     de = sub.add_parser("design", help="the attitude manoeuvre that minimises the Cramer-Rao bound (IPOPT)")

@@ -1,6 +1,6 @@
 """Reading and writing flight files: CSV and Parquet, one file or telemetry + tracking.
 
-Formats (``../shared/spec/interfaces.md``): a header row, one row per sample, ``#`` comment
+Formats (``docs/reference/file-formats.md``): a header row, one row per sample, ``#`` comment
 lines (CSV), other numeric columns kept as signals (below), text columns ignored.
 
 - time ``t`` (s, strictly increasing);
