@@ -171,7 +171,8 @@ def prepare(S: np.ndarray | RegressionProblem, y: np.ndarray | None, names: Sequ
         pb = RegressionProblem.from_arrays(S, y, names=names, units=units, si_factors=si_factors, model=model)
     ra = pb.rank(rcond)
     if pb.red.m <= ra.rank:
-        raise ValueError(f"`S` has {pb.red.m} rows, not more than its rank {ra.rank}: no degree of freedom for the noise")
+        raise ValueError(f"`S` has {pb.red.m} rows, not more than its rank {ra.rank}: "
+                         "no degree of freedom for the noise")
     return Prepared(pb, ra, sigma)
 
 

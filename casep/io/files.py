@@ -471,15 +471,18 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
             from casep.exceptions import TimeOffsetWarning
 
             warnings.warn(f"{tel.src} + {trk.src}: the tracking time tags look {align.tau * 1e3:.1f} ms late (velocity "
-                          f"increments line up best there: mean squared difference {align.cost:.3g} against {align.cost_at_zero:.3g} "
-                          f"m^2/s^2 unshifted), more than a tracking sample period ({align.tracking_period * 1e3:.4g} ms); "
+                          f"increments line up best there: mean squared difference {align.cost:.3g} "
+                          f"against {align.cost_at_zero:.3g} "
+                          f"m^2/s^2 unshifted), more than a tracking sample period "
+                          f"({align.tracking_period * 1e3:.4g} ms); "
                           "align them (--time-offset auto) and let dt_trk estimate the rest", TimeOffsetWarning,
                           stacklevel=2)
     else:
         try:
             shift = float(time_offset)
         except (TypeError, ValueError):
-            raise ValueError(f"`time_offset` must be a number of seconds, 'auto' or None, got {time_offset!r}") from None
+            raise ValueError(f"`time_offset` must be a number of seconds, 'auto' or None, "
+                             f"got {time_offset!r}") from None
         if not np.isfinite(shift):
             raise ValueError(f"`time_offset` must be finite, got {shift}")
     extra = {"time_alignment": {**(align.to_dict() if align is not None else {}), "applied_s": shift}}

@@ -172,7 +172,8 @@ class FlightData:
         step = np.flatnonzero(np.diff(t) <= 0)
         if step.size:
             k = int(step[0]) + 1
-            raise FlightDataError(src, f"time {t[k]:.10g} s does not increase (previous row: {t[k - 1]:.10g} s)", "t", k + 1)
+            raise FlightDataError(src, f"time {t[k]:.10g} s does not increase (previous row: {t[k - 1]:.10g} s)",
+                                  "t", k + 1)
         for name, arr in (("t", t), ("f", f), ("dv", dv), ("observed", obs)):
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)

@@ -150,7 +150,8 @@ def separate(
         labels["max_condition_index"] = max_condition_index
     res = run_method(method, solved, None, solved.t, {k: v for k, v in kw.items() if k in _REGISTRY[method].options},
                      **labels)
-    check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source)  # raw dv: noise-free, outliers, offset
+    # raw dv: noise-free, outliers, offset
+    check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source)
     if outliers is not None:  # studentized residuals of the least-squares fit (white noise), rows named
         from casep.analysis.outliers import flag_outliers
 
