@@ -1,4 +1,4 @@
-"""The result's terminal table, JSON shape and exports (casep.result, `separate --mat/--csv`)."""
+"""The result's terminal table, JSON shape and exports (casep.estimators.result, `separate --mat/--csv`)."""
 
 from __future__ import annotations
 

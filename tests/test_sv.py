@@ -1,4 +1,4 @@
-"""S_V against an independent forward simulation and hand-derived columns (casep.sv)."""
+"""S_V against an independent forward simulation and hand-derived columns (casep.model.sv)."""
 
 from __future__ import annotations
 
