@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import shutil
 from pathlib import Path
 
 #: Public modules in the order their pages appear; ``casep`` itself comes first in the index.
@@ -58,8 +59,13 @@ def _summary(obj) -> str:
 
 
 def write_api_pages(outdir: Path) -> list[str]:
-    """Write one ``.rst`` page per public module into `outdir`; return the page names."""
+    """Write one ``.rst`` page per public module into `outdir`; return the page names.
+
+    Pages and autosummary stubs of names no longer public are removed first, so that a renamed
+    or removed name leaves no orphan page behind (an orphan is a build warning).
+    """
     outdir.mkdir(parents=True, exist_ok=True)
+    shutil.rmtree(outdir / "generated", ignore_errors=True)
     home: dict[int, str] = {}  # id(object) -> full name where it is documented
     pages: dict[str, tuple[list[str], list[str]]] = {}
     for modname in PUBLIC_MODULES:
@@ -90,6 +96,9 @@ def write_api_pages(outdir: Path) -> list[str]:
     texts = {"casep": _page("casep", "casep", documented, linked)}
     for modname in PUBLIC_MODULES:
         texts[modname] = _page(modname, modname, *pages[modname])
+    for stale in outdir.glob("*.rst"):
+        if stale.stem not in texts and stale.stem != "index":
+            stale.unlink()
     for modname, text in texts.items():
         path = outdir / f"{modname}.rst"
         if not path.exists() or path.read_text() != text:  # unchanged pages keep their mtime
