@@ -28,7 +28,6 @@ extensions = [
     "myst_parser",
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
-    "sphinx.ext.mathjax",
     "numpydoc",
     "sphinxarg.ext",
     "casep_api",  # docs/_ext/casep_api.py: one API page per public module, from its __all__
@@ -39,8 +38,9 @@ root_doc = "index"
 exclude_patterns = ["_build", "Thumbs.db", ".DS_Store", "**/.ipynb_checkpoints"]
 templates_path = ["_templates"]
 
-# MyST: $...$ maths, ::: fences, definition lists; headings get anchors for cross-page links.
-myst_enable_extensions = ["dollarmath", "colon_fence", "deflist"]
+# MyST: ::: fences, definition lists; headings get anchors for cross-page links. Equations are
+# written as code (as in the docstrings), so the pages need no MathJax from a CDN to read offline.
+myst_enable_extensions = ["colon_fence", "deflist"]
 myst_heading_anchors = 3
 
 # API reference: stubs generated from the docstrings on every build (reference/api/generated/).
@@ -52,8 +52,6 @@ numpydoc_show_class_members = False  # members are listed by the autosummary cla
 numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
 
-# Offline: MathJax from the theme's bundle would be fetched from a CDN by the browser, not by
-# the build; the build itself touches no network.
 html_theme = "pydata_sphinx_theme"
 html_title = f"casep {release}"
 html_static_path: list[str] = []
