@@ -20,7 +20,7 @@ import casep  # noqa: E402
 
 project = "casep"
 author = "the casep developers"
-copyright = "the casep developers"  # noqa: A001
+copyright = "the casep developers"
 version = casep.__version__
 release = casep.__version__
 
