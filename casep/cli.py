@@ -33,7 +33,7 @@ from casep.exceptions import CasepWarning, IllConditionedWarning
 # Only the standard library, the version and the registry (light: numpy) are imported here, so
 # that building the parser and `casep --help` stay cheap; each command imports what it needs.
 
-__all__ = ["main"]
+__all__ = ["main", "build_parser"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -179,7 +179,7 @@ def _time_offset(text: str):
     return v * 1e-3  # ms -> s
 
 
-# ---------------------------------------------------------------- tracking frames (issue 14 item 1)
+# ---------------------------------------------------------------- tracking frames
 _FRAMES = ("launch", "ecef", "geodetic")
 
 
@@ -326,6 +326,17 @@ def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | No
         data = prior_from_result(res, model=model)  # per-flight coefficients (dt_trk) left flat
     {"bounds": parse_bounds, "prior": parse_prior}[option](data, names, source=f"--{option} {path}")
     return data
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``casep`` argument parser, with every command and option.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        A new parser; the documentation's command-line reference is generated from it.
+    """
+    return _parser()
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -478,7 +489,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
                   inputs=_inputs(args, "flight", "tracking", "bounds", "prior"), folders={"--figures": args.figures})
     model = load_model(args.model)
-    # Options of the method only (casep.registry): one given for another method is an error.
+    # Options of the method only (casep.estimators.registry): one given for another method is an error.
     given = {k: getattr(args, k) for k in OPTIONS if getattr(args, k) is not None}  # files: their names
     check_method_options(args.method, given)
     opts = {k: v for k, v in given.items() if k not in ("bounds", "prior")}
@@ -560,7 +571,10 @@ def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior
 
 
 def _joint_json(res, jp, summary: dict) -> dict:
-    """The result JSON with `coefficients` of the shared coefficients and a `flights` list (interfaces.md)."""
+    """The result JSON with `coefficients` of the shared coefficients and a `flights` list.
+
+    Format: docs/reference/file-formats.md, "Several flights".
+    """
     d = res.to_dict()
     keep = [i for i, n in enumerate(res.names) if n in jp.layout.names]  # shared: the model's own names
     for key in ("coefficients", "names", "units", "estimates", "std", "si_factors"):
@@ -753,7 +767,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     return 0
 
 
-# ---------------------------------------------------------------- casep impact (issue 13)
+# ---------------------------------------------------------------- casep impact
 def _impact_parser(sub) -> None:
     """`casep impact FLIGHT --result RESULT.json [--trajectory OTHER.csv] [--json OUT] [--figures DIR]`."""
     im = sub.add_parser("impact", help="the impact miss that the estimated instrument errors cause, and its budget")
@@ -807,7 +821,10 @@ def _cmd_impact(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------- casep design
 def _design_parser(sub) -> None:
     """`casep design [--scenario paper] [--maneuver yaw|pitch|both] [--objective A|D|miss] [--max-angle DEG]
-    [--max-rate DEG_PER_S] [--prior FILE] [--json OUT] [-o FLIGHT.csv]` (interfaces.md "Manoeuvre design")."""
+    [--max-rate DEG_PER_S] [--prior FILE] [--json OUT] [-o FLIGHT.csv]`.
+
+    Output: docs/reference/file-formats.md, "Design JSON".
+    """
     from casep.simulation.scenarios import SCENARIOS
 
     de = sub.add_parser("design", help="the attitude manoeuvre that minimises the Cramer-Rao bound (IPOPT)")
@@ -822,7 +839,7 @@ def _design_parser(sub) -> None:
     de.add_argument("--max-rate", type=float, default=2.0, metavar="DEG_PER_S",
                     help="largest offset rate, deg/s (default 2)")
     de.add_argument("--max-lateral", type=float, default=1.0, metavar="G",
-                    help="largest lateral specific force |f| sin(offset), g (default 1)")
+                    help="largest lateral specific force, norm(f) sin(offset), g (default 1)")
     de.add_argument("--coefficients", metavar="NAMES", default=None,
                     help="comma-separated coefficients that matter: objective A over these only (default all)")
     de.add_argument("--knots", type=int, default=10, help="knots of the piecewise-linear offset (default 10)")
