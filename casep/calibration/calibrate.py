@@ -1,0 +1,519 @@
+"""The regression of a ground test and :func:`calibrate`.
+
+Rows. Each sensor triad (accelerometer, gyro) is its own regression ``y = S D + e`` over the
+coefficients of its output, solved by the registered estimators (:mod:`casep.estimators`, on a
+:class:`casep.Problem`), so the noise level, the std, outlier handling and the collinearity
+diagnostics are those of a flight. With readings ``u`` and the model's reading
+``u = y0(f, omega) + J(f, omega) D``:
+
+- static segment k (specific force ``f_k = g e_k``, rate ``omega_k``): with the default
+  ``weighting="segments"`` one row per axis, the segment mean ``mean(u) - y0(f_k, omega_k) = J(f_k,
+  omega_k) D``; with ``weighting="samples"`` one row per sample and axis;
+- rotation segment k (gyro only; by angle ``theta`` about axis ``a`` along gravity, over ``T_k =
+  n_k / rate``): the integral. The reading is affine in omega (checked by the model's setup), so
+  ``int u dt = T_k y0(f_k, 0) + [y0(f_k, Theta) - y0(f_k, 0)] + (T_k J(f_k, 0) + [J(f_k, Theta) -
+  J(f_k, 0)]) D`` exactly, ``Theta = theta a`` in rad, whatever the rate profile of the turn.
+
+Weighting. ``segments`` (default): the static rows are segment means of equal weight. A
+hand-held or fixture position is never exactly the nominal one: its error (a tilt of a degree
+moves a 1 g reading by 1.7 %) is shared by every sample of the segment, so the means misfit the
+model far above the sample noise (the imucal session: ~13 raw units against ~0.2 of noise). The
+samples of one segment are then not independent observations: per-sample least squares weights
+long segments more and states a std from the sample noise alone, ~sqrt(n_k) too small. Segment
+means of equal weight, with the noise level estimated from their misfit (``sigma`` of the
+estimators, m - rank degrees of freedom), give a std that contains the positioning error. The
+rotation rows are whitened to the static rows' level by their white-noise std ``s_i sqrt(n_k) /
+rate`` (``s_i``: the pooled within-segment sample std of axis i) over the static level ``sigma_s``
+of a first fit of the static rows alone. ``samples``: every static sample a row, rotation rows
+whitened by ``s_i sqrt(n_k) / rate`` against ``s_i``: the white-noise GLS, which is right only
+when the positions are exact.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from casep.calibration.model import SLOTS, CalibrationModel
+from casep.calibration.session import Segment, Session
+from casep.exceptions import CasepWarning
+from casep.units import G0
+
+__all__ = ["Calibration", "calibrate", "load_calibration_model", "calibration_models", "calibration_model_dirs",
+           "RotationSignWarning", "PositionMisfitWarning", "WEIGHTINGS", "ACC_UNITS", "GYR_UNITS"]
+
+#: Row weighting of the static segments (module notes).
+WEIGHTINGS = ("segments", "samples")
+#: Session units a ``readings="si"`` model converts from: unit -> SI factor.
+ACC_UNITS = {"m/s^2": 1.0, "g": G0, "mg": 1e-3 * G0}
+GYR_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "deg/h": math.pi / 180.0 / 3600.0}
+_SENSOR = {"accel_reading": "accelerometer", "gyro_reading": "gyro"}
+#: A studentized segment misfit above this is warned about.
+MISFIT_Z = 4.0
+
+
+class RotationSignWarning(CasepWarning):
+    """A rotation's gyro reading has the opposite sign of the expected angle (segment and numbers)."""
+
+
+class PositionMisfitWarning(CasepWarning):
+    """A static segment misfits the model far more than the others (segment and numbers)."""
+
+
+# ------------------------------------------------------------------ models
+def calibration_model_dirs() -> list[Path]:
+    """Folders searched for a calibration model by name: ``calibration/`` under each model folder."""
+    from casep.model.loader import model_dirs
+
+    return [d / "calibration" for d in model_dirs() if (d / "calibration").is_dir()]
+
+
+def calibration_models() -> list[str]:
+    """Names of the calibration models found (``ferraris``, ``platform36_ground``, ...)."""
+    seen: list[str] = []
+    for d in calibration_model_dirs():
+        for p in sorted(d.glob("*.py")):
+            if not p.name.startswith("_") and p.stem not in seen:
+                seen.append(p.stem)
+    return seen
+
+
+def load_calibration_model(model: str | os.PathLike | CalibrationModel) -> CalibrationModel:
+    """A calibration model by name (``models/calibration/NAME.py``), path or object, set up.
+
+    Model files are loaded as the flight models' (:mod:`casep.model.loader`: one ``build()``,
+    errors of one line naming the file and the line).
+    """
+    from casep.model._model import ModelDefinitionError
+    from casep.model.loader import ModelFileError, _where
+
+    if isinstance(model, CalibrationModel):
+        return model.setup()
+    text = os.fspath(model)
+    if text.endswith(".py") or os.sep in text:
+        path = Path(text)
+        if not path.is_file():
+            raise ValueError(f"model file `{text}` does not exist")
+    else:
+        path = next((d / f"{text}.py" for d in calibration_model_dirs() if (d / f"{text}.py").is_file()), None)
+        if path is None:
+            raise ValueError(f"unknown calibration model `{text}`. Use one of: {', '.join(calibration_models())}; "
+                             "or a path to a .py file whose build() returns a casep.calibration.CalibrationModel")
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(f"casep_calibration_model_{path.stem}", path)
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+        built = module.build()
+    except ModelFileError:
+        raise
+    except (Exception, SystemExit) as exc:  # one line naming the file and line
+        raise ModelFileError(f"{_where(path, exc)}: {type(exc).__name__}: {exc}") from exc
+    if not isinstance(built, CalibrationModel):
+        raise ModelFileError(f"model file {path}: build() returned {type(built).__name__}, not "
+                             "casep.calibration.CalibrationModel (a flight model is used by casep separate)")
+    try:
+        return built.setup()
+    except ModelDefinitionError as exc:
+        raise ModelFileError(f"model file {path}: {exc}") from exc
+
+
+# ------------------------------------------------------------------ result
+@dataclass
+class Calibration:
+    """The outcome of :func:`calibrate`.
+
+    Attributes
+    ----------
+    result : EstimateResult
+        Every coefficient in model order: estimate, std, covariance (block diagonal: the two
+        sensors are independent regressions), natural units; ``sigma`` NaN (each sensor has its
+        own, :attr:`sensors`).
+    sensors : dict
+        ``"accelerometer"`` / ``"gyro"`` -> that regression's EstimateResult (its sigma in the
+        reading unit, its diagnostics).
+    segments : list of dict
+        Per segment: name, kind, rows, samples, and per sensor the misfit of the segment's row
+        (reading units), the noise std of that row from the sample scatter, their ratio.
+    model : CalibrationModel
+    settings : dict
+    """
+
+    result: Any
+    sensors: dict
+    segments: list
+    model: CalibrationModel
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.result.names
+
+    def value(self, name: str) -> float:
+        return float(self.result.estimate[self.model.index(name)])
+
+    def std(self, name: str) -> float:
+        return float(self.result.std[self.model.index(name)])
+
+    def to_dict(self) -> dict:
+        """The calibration JSON: a casep result (``coefficients``, ``covariance``, ... usable as
+        ``--prior``) plus ``calibration`` (model, flight model, per-sensor fits, segments)."""
+        d = self.result.to_dict()
+        d["calibration"] = {
+            "model": self.model.name, "flight_model": self.model.flight_model, "readings": self.model.readings,
+            "settings": self.settings,
+            "sensors": {k: {"sigma": _f(r.sigma), "sigma_source": r.sigma_source, "status": r.status,
+                            "message": r.message, "names": list(r.names), "diagnostics": r.diagnostics}
+                        for k, r in self.sensors.items()},
+            "segments": self.segments,
+        }
+        return d
+
+    def report(self) -> str:
+        """Readable terminal report: coefficients, per-sensor fit, misfit per segment."""
+        from casep.estimators.result import format_number
+
+        lines = [f"{'coefficient':<12} {'unit':<14} {'estimate':>14} {'std':>12}  note"]
+        for row in self.result.coefficient_rows():
+            lines.append(f"{row['name']:<12} {row['unit']:<14} {format_number(row['estimate'], 14)} "
+                         f"{format_number(row['std'])}  {row.get('reason', '')}".rstrip())
+        lines.append("")
+        s = self.settings
+        lines.append(f"model {self.model.name}, method {self.result.method}, weighting {s['weighting']}, "
+                     f"g {s['gravity']:.6g} m/s^2, {s['rate_hz']:.6g} Hz, readings {s['acc_unit']} / {s['gyr_unit']}")
+        for k, r in self.sensors.items():
+            unit = s["acc_unit"] if k == "accelerometer" else s["gyr_unit"]
+            cn = r.diagnostics.get("condition_number_equilibrated")
+            lines.append(f"{k}: sigma {r.sigma:.4g} {unit if self.model.readings == 'raw' else 'SI'} "
+                         f"({r.sigma_source}, {r.diagnostics.get('rows', '?')} rows, rank {r.rank}/{len(r.names)})"
+                         + (f", condition number {cn:.3g} (equilibrated)" if cn else "") + f"; {r.message}")
+            if r.diagnostics.get("groups"):
+                lines.append("  near-dependencies: " + "; ".join("[" + ", ".join(g) + "]"
+                                                                for g in r.diagnostics["groups"]))
+        lines.append("")
+        lines.append("misfit per segment (row residual per axis; noise: std of the row from the sample scatter)")
+        for seg in self.segments:
+            for sensor, m in seg.get("misfit", {}).items():
+                res = ", ".join(f"{v:+.4g}" for v in m["residual"])
+                noise = ", ".join(f"{v:.3g}" for v in m["noise_std"])
+                lines.append(f"  {seg['name']:<8} {seg['kind']:<8} {sensor:<13} residual [{res}]  noise [{noise}]"
+                             f"  ratio {m['ratio']:.3g}")
+        return "\n".join(lines)
+
+
+def _f(v) -> float | None:
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+# ------------------------------------------------------------------ rows
+def _readings(session: Session, model: CalibrationModel) -> tuple[np.ndarray, np.ndarray, str, str]:
+    """Readings as the model wants them, and their units."""
+    if model.readings == "raw":
+        return session.acc, session.gyr, session.acc_unit, session.gyr_unit
+    out = []
+    for what, unit, table, arr in (("accelerometer", session.acc_unit, ACC_UNITS, session.acc),
+                                   ("gyro", session.gyr_unit, GYR_UNITS, session.gyr)):
+        if unit not in table:
+            raise ValueError(f"model `{model.name}` reads SI; the session's {what} unit is `{unit}`. Use: "
+                             f"--{'acc' if what == 'accelerometer' else 'gyr'}-unit one of {', '.join(table)} "
+                             "(or a raw-readings model such as ferraris)")
+        out.append(arr * table[unit])
+    return out[0], out[1], "m/s^2", "rad/s"
+
+
+def _noise(segs: Sequence[Segment], u: np.ndarray) -> np.ndarray:
+    """Pooled within-segment sample std per axis over the static segments, (3,)."""
+    ss, dof = np.zeros(3), 0
+    for s in segs:
+        x = u[s.rows]
+        ss += ((x - x.mean(axis=0)) ** 2).sum(axis=0)
+        dof += len(s.rows) - 1
+    return np.sqrt(ss / max(dof, 1))
+
+
+def _rotation_row(model, slot, seg: Segment, u: np.ndarray, g: float, rate: float):
+    """(y, J, T) of a rotation segment: the integral over the turn (module notes)."""
+    f = g * seg.gravity
+    theta = np.deg2rad(seg.angle_deg) * seg.axis  # rad
+    T = len(seg.rows) / rate
+    z = np.zeros(3)
+    integral = u[seg.rows].sum(axis=0) / rate  # int u dt, the rectangle rule (imucal's sum / rate)
+    y0 = T * model.known(slot, f, z) + (model.known(slot, f, theta) - model.known(slot, f, z))
+    J0 = model.jacobian(slot, f, z)
+    J = T * J0 + (model.jacobian(slot, f, theta) - J0)
+    return integral - y0, J, T
+
+
+def _check_positions(segs: Sequence[Segment], acc: np.ndarray, unit: str) -> None:
+    """Refuse a static segment whose accelerometer mean points away from its stated gravity.
+
+    The means are centred on their average when the stated directions balance (a Ferraris set),
+    so a raw bias does not count; a segment whose centred mean makes more than 45 deg with its
+    stated direction is mislabelled (the nearest axis is named).
+    """
+    st = [s for s in segs if s.kind == "static"]
+    if len(st) < 2:
+        return
+    means = np.array([acc[s.rows].mean(axis=0) for s in st])
+    dirs = np.array([s.gravity for s in st])
+    centre = means.mean(axis=0) if np.linalg.norm(dirs.sum(axis=0)) < 1e-9 else np.zeros(3)
+    for s, m, e in zip(st, means, dirs):
+        v = m - centre
+        nv = float(np.linalg.norm(v))
+        if nv == 0:
+            continue
+        cos = float(v @ e) / nv
+        if cos < math.cos(math.radians(45.0)):
+            k = int(np.argmax(np.abs(v)))
+            looks = f"{'+' if v[k] > 0 else '-'}{'xyz'[k]}"
+            raise ValueError(f"{s.where}: the accelerometer mean [{', '.join(f'{x:.4g}' for x in m)}] {unit} points "
+                             f"{math.degrees(math.acos(max(-1.0, min(1.0, cos)))):.0f} deg away from the stated "
+                             f"gravity {e.round(3).tolist()} (it looks like gravity along {looks}): a mislabelled "
+                             "position? Fix the label or the segment's gravity")
+
+
+def _split_table(table: Mapping | None, names: Sequence[str]) -> dict | None:
+    """The entries of a prior/bounds mapping for `names` (a correlation block restricted to them)."""
+    if table is None:
+        return None
+    out = {k: v for k, v in table.items() if k in names}
+    corr = table.get("correlation")
+    if isinstance(corr, Mapping) and "names" in corr:
+        idx = [i for i, n in enumerate(corr["names"]) if n in names]
+        if idx:
+            mat = np.asarray(corr["matrix"], dtype=float)[np.ix_(idx, idx)]
+            out["correlation"] = {"names": [corr["names"][i] for i in idx], "matrix": mat.tolist()}
+    return out or None
+
+
+def _positive(v: float, fallback: float) -> float:
+    return float(v) if np.isfinite(v) and v > 0 else float(fallback)
+
+
+def calibrate(session: Session, segments: Sequence[Segment], model: str | os.PathLike | CalibrationModel = "ferraris",
+              method: str = "ols", *, gravity: float = G0, weighting: str = "segments", sigma: float | None = None,
+              options: Mapping[str, Any] | None = None):
+    """Identify the error coefficients of a ground test.
+
+    Parameters
+    ----------
+    session : Session
+    segments : sequence of Segment
+        Static positions and rotations (:mod:`casep.calibration.session`).
+    model : str, path or CalibrationModel
+        ``"ferraris"`` (raw readings, imucal's parameters) or ``"platform36_ground"`` (SI readings,
+        the flight model's names and units), or a model file.
+    method : str
+        A registered estimator (``casep methods``); its options in `options` (``prior`` and
+        ``bounds`` mappings cover both sensors: each regression takes its own names).
+    gravity : float
+        Magnitude of the specific force in the static positions, m/s^2 (default standard
+        gravity; imucal uses 9.81; give the local value).
+    weighting : {"segments", "samples"}
+        Row weighting (module notes).
+    sigma : float, optional
+        Noise std of the (weighted) rows, reading units; default estimated per sensor.
+
+    Returns
+    -------
+    Calibration
+
+    Raises
+    ------
+    ValueError
+        A mislabelled position, a model that needs SI readings from raw ones, an unknown option.
+
+    Warns
+    -----
+    RotationSignWarning
+        A turn whose gyro reading has the opposite sign of its expected angle.
+    PositionMisfitWarning
+        A static segment whose row misfits the model far more than the noise level explains.
+    """
+    import dataclasses
+
+    from casep.analysis.problem import Problem
+    from casep.estimators.registry import METHODS, check_method_options, run_method
+    from casep.estimators.result import EstimateResult
+
+    if weighting not in WEIGHTINGS:
+        raise ValueError(f"`weighting` must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
+    if not (np.isfinite(gravity) and 9.7 < gravity < 9.9):
+        raise ValueError(f"`gravity` must be the local gravity in m/s^2 (9.7 .. 9.9), got {gravity}")
+    model = load_calibration_model(model)
+    options = dict(options or {})
+    check_method_options(method, {k: v for k, v in options.items() if v is not None})
+    if METHODS[method].needs_time:
+        raise ValueError(f"method `{method}` models noise correlated in time; the rows of a ground test (segment "
+                         "means, turn integrals) have no time order. Use: another method")
+    acc, gyr, acc_unit, gyr_unit = _readings(session, model)
+    _check_positions(segments, acc, acc_unit)
+    static = [s for s in segments if s.kind == "static"]
+    rots = [s for s in segments if s.kind == "rotation"]
+    rate = session.rate
+    seg_info = {s.name: {"name": s.name, "kind": s.kind, "rows": [int(s.rows[0]), int(s.rows[-1])],
+                         "samples": len(s.rows), "misfit": {}} for s in segments}
+    sensors: dict[str, EstimateResult] = {}
+    n = model.n_coefficients
+    est, cov = np.full(n, np.nan), np.full((n, n), np.nan)
+    reasons: dict[str, str] = {}
+    for slot in model.slots:
+        sensor = _SENSOR[slot]
+        u = acc if slot == "accel_reading" else gyr
+        cols = model.columns(slot)
+        names = [model.names[j] for j in cols]
+        s_i = _noise(static, u)  # sample noise per axis
+        rows_S, rows_y, rows_sd, rows_seg, rows_t = [], [], [], [], []
+        for s in static:
+            f = gravity * s.gravity
+            w = np.deg2rad(s.omega_dps)
+            J = model.jacobian(slot, f, w)[:, cols]
+            y0 = model.known(slot, f, w)
+            if weighting == "segments":
+                rows_S.append(J)
+                rows_y.append(u[s.rows].mean(axis=0) - y0)
+                rows_sd.append(None)  # the static level, estimated
+                rows_seg.append((s.name, 1))
+                rows_t.append(session.t[s.rows].mean())
+            else:
+                k = len(s.rows)
+                rows_S.append(np.broadcast_to(J, (k, 3, len(cols))).reshape(-1, len(cols)))
+                rows_y.append((u[s.rows] - y0).reshape(-1))
+                rows_sd.append(np.tile(s_i, k))
+                rows_seg.append((s.name, k))
+                rows_t.extend(session.t[s.rows])
+        n_static = len(rows_S)
+        if slot == "gyro_reading":
+            for s in rots:
+                y, J, T = _rotation_row(model, slot, s, u, gravity, rate)
+                rows_S.append(J[:, cols])
+                rows_y.append(y)
+                rows_sd.append(s_i * math.sqrt(len(s.rows)) / rate)  # white noise integrated over the turn
+                rows_seg.append((s.name, 1))
+                rows_t.append(session.t[s.rows].mean())
+        S = np.vstack([np.atleast_2d(x).reshape(-1, len(cols)) for x in rows_S])
+        y = np.concatenate([np.ravel(x) for x in rows_y])
+        # Row std: the static level (segments: sigma_s of the static rows alone) and the rotation rows'.
+        if weighting == "segments":
+            Sst = np.vstack(rows_S[:n_static]).reshape(-1, len(cols))
+            yst = np.concatenate(rows_y[:n_static])
+            pst = Problem.from_arrays(Sst, yst)
+            dof = pst.m - pst.rank().rank
+            noise_mean = float(np.sqrt(np.mean(s_i**2) / np.mean([len(s.rows) for s in static])))
+            level = math.sqrt(pst.ls_rss() / dof) if dof > 0 else noise_mean
+            level = _positive(level, _positive(noise_mean, 1.0))
+            sd = np.concatenate([np.full(3, level) if v is None else np.asarray(v) for v in rows_sd])
+        else:
+            level = _positive(float(np.sqrt(np.mean(s_i**2))), 1.0)
+            sd = np.concatenate([np.asarray(v) for v in rows_sd])
+        sd = np.where(sd > 0, sd, level)
+        wgt = level / sd  # rows scaled to the static level: sigma comes out in reading units
+        m3 = S.shape[0] // 3  # observations of three rows (x, y, z) each
+        pb = Problem.from_arrays((S * wgt[:, None]).reshape(m3, 3, len(cols)), (y * wgt).reshape(m3, 3),
+                                 np.asarray(rows_t, dtype=float), names=names, units=[model.units[j] for j in cols],
+                                 si_factors=model.si_factors[cols], model=model.name)
+        opts = {k: v for k, v in options.items() if v is not None}
+        for key in ("prior", "bounds"):
+            if key in opts:
+                part = _split_table(opts[key], names)
+                if part is None:
+                    opts.pop(key)
+                    if key in METHODS[method].required:
+                        raise ValueError(f"--{key} names none of the {sensor}'s coefficients ({', '.join(names)}); "
+                                         f"method `{method}` needs one for each sensor")
+                else:
+                    opts[key] = part
+        res = run_method(method, pb, None, None, opts, sigma=sigma)
+        res = dataclasses.replace(res, diagnostics={**res.diagnostics, "rows": int(S.shape[0]),
+                                                    "static_level": level, "sample_noise": s_i.tolist()})
+        sensors[sensor] = res
+        est[cols] = res.estimate
+        if res.covariance is not None:
+            cov[np.ix_(cols, cols)] = res.covariance
+        reasons.update(res.reasons)
+        # misfit per segment: residual of the segment's row (unweighted), and its noise std
+        x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
+        r = y - S @ x
+        k0 = 0
+        for (name, k), sdv in zip(rows_seg, rows_sd):
+            rr = r[k0:k0 + 3 * k].reshape(k, 3)
+            k0 += 3 * k
+            seg = next(s for s in segments if s.name == name)
+            if seg.kind == "static":
+                noise = s_i / math.sqrt(len(seg.rows))
+                resid = rr.mean(axis=0)
+            else:
+                noise = np.asarray(sdv)
+                resid = rr[0]
+            ratio = float(np.sqrt(np.mean(resid**2)) / max(float(np.sqrt(np.mean(noise**2))), 1e-300))
+            seg_info[name]["misfit"][sensor] = {"residual": resid.tolist(), "noise_std": noise.tolist(),
+                                                "ratio": ratio, "unit": acc_unit if sensor == "accelerometer"
+                                                else (gyr_unit if seg.kind == "static" else f"{gyr_unit} s")}
+        if weighting == "segments" and n_static and dof > 0:
+            _warn_misfit(static, rows_S[:n_static], r[:3 * n_static], pb, level, sensor,
+                         acc_unit if sensor == "accelerometer" else gyr_unit)
+        if slot == "gyro_reading":
+            _check_rotation_signs(model, rots, gyr, gravity, rate, est, gyr_unit)
+    std = np.sqrt(np.clip(np.diag(cov), 0, None))
+    parts = list(sensors.values())
+    status = min(r.status for r in parts)
+    res_all = EstimateResult(
+        method=method, names=model.names, units=model.units, estimate=est, std=std, covariance=cov,
+        reasons=reasons, residuals=np.zeros((0, 3)), sigma=math.nan, rank=sum(r.rank for r in parts),
+        status=status, message="; ".join(f"{k}: {r.message}" for k, r in sensors.items()),
+        success=all(r.success for r in parts), si_factors=model.si_factors,
+        settings={"method_settings": {k: r.settings for k, r in sensors.items()}},
+        diagnostics={k: r.diagnostics for k, r in sensors.items()}, model=model.name,
+        n_samples=int(sum(len(s.rows) for s in segments)), sigma_source="estimated" if sigma is None else "given",
+        stored_residual_rms={a: None for a in "xyz"}, std_kind=parts[0].std_kind, extras=None)
+    settings = {"weighting": weighting, "gravity": float(gravity), "rate_hz": float(rate),
+                "acc_unit": session.acc_unit if model.readings == "raw" else acc_unit,
+                "gyr_unit": session.gyr_unit if model.readings == "raw" else gyr_unit,
+                "session_units": [session.acc_unit, session.gyr_unit], "source": session.source,
+                "rotation_angles_deg": {s.name: s.angle_deg for s in rots}}
+    return Calibration(res_all, sensors, [seg_info[s.name] for s in segments], model, settings)
+
+
+def _warn_misfit(static, S_rows, r, pb, level, sensor, unit) -> None:
+    """PositionMisfitWarning for a static segment whose studentized row residual exceeds MISFIT_Z."""
+    S = np.vstack(S_rows)
+    # leverage of each static row in the static fit: diag(S (S^T S)^+ S^T)
+    U, sv, _ = np.linalg.svd(S, full_matrices=False)
+    keep = sv > sv[0] * 1e-10 if sv.size else sv > 0
+    h = np.sum(U[:, keep] ** 2, axis=1)
+    z = r / (level * np.sqrt(np.clip(1.0 - h, 1e-12, None)))
+    for k, s in enumerate(static):
+        zk = z[3 * k:3 * k + 3]
+        if np.max(np.abs(zk)) > MISFIT_Z:
+            i = int(np.argmax(np.abs(zk)))
+            warnings.warn(f"{s.where}: the {sensor} mean misfits the model by {r[3 * k + i]:+.4g} {unit} on {'xyz'[i]}, "
+                          f"{abs(zk[i]):.3g} x the level of the other positions ({level:.4g} {unit}): a bad position "
+                          "or a wrong label?", PositionMisfitWarning, stacklevel=3)
+
+
+def _check_rotation_signs(model, rots, gyr, gravity, rate, est, unit) -> None:
+    """RotationSignWarning where the fitted sensitivity about a turn's axis is negative."""
+    x = np.where(np.isfinite(est), est, 0.0)
+    for s in rots:
+        f = gravity * s.gravity
+        a = s.axis
+        z = np.zeros(3)
+        # d reading / d omega along the axis, per rad/s: [y(f, a) - y(f, 0)] . a (the reading is affine in omega)
+        dy = (model.known("gyro_reading", f, a) - model.known("gyro_reading", f, z)
+              + (model.jacobian("gyro_reading", f, a) - model.jacobian("gyro_reading", f, z)) @ x)
+        sens = float(dy @ a) * math.pi / 180.0  # per deg/s
+        if sens < 0:
+            integral = float(gyr[s.rows].sum(axis=0) @ a / rate)
+            warnings.warn(
+                f"{s.where}: the gyro reading about {np.round(a, 3).tolist()} integrates to {integral:+.5g} {unit} s, "
+                f"the opposite sign of the expected angle {s.angle_deg:+g} deg: the fitted scale about that axis is "
+                f"{sens:.5g} {unit} per deg/s. The turn went the other way (--angle {-s.angle_deg:+g}) or the gyro "
+                "axis is inverted", RotationSignWarning, stacklevel=3)
