@@ -15,13 +15,16 @@ __getattr__, __dir__ = attach(__name__, {
     "casep.calibration.model": ("CalibrationModel",),
     "casep.calibration.session": ("Session", "Segment", "SegmentError", "read_session", "read_segments",
                                   "segments_from_labels", "FERRARIS_SEGMENTS"),
-    "casep.calibration.calibrate": ("Calibration", "calibrate", "load_calibration_model", "calibration_models",
+    "casep.calibration.calibrate": ("Calibration", "calibrate", "calibrate_files", "load_calibration_model",
+                                    "calibration_models",
                                     "RotationSignWarning", "PositionMisfitWarning"),
     "casep.calibration.imucal": ("to_imucal", "from_imucal", "read_imucal", "write_imucal", "imucal_prior"),
-    "casep.calibration.consistency": ("Consistency", "consistency", "ground_prior"),
+    "casep.calibration.consistency": ("Consistency", "consistency", "ground_prior", "flight_prior_consistency",
+                                      "ground_versus_flight"),
 }, globals())
 
 __all__ = ["CalibrationModel", "Session", "Segment", "SegmentError", "read_session", "read_segments",
-           "segments_from_labels", "FERRARIS_SEGMENTS", "Calibration", "calibrate", "load_calibration_model",
-           "calibration_models", "RotationSignWarning", "PositionMisfitWarning", "to_imucal", "from_imucal",
-           "read_imucal", "write_imucal", "imucal_prior", "Consistency", "consistency", "ground_prior"]
+           "segments_from_labels", "FERRARIS_SEGMENTS", "Calibration", "calibrate", "calibrate_files",
+           "load_calibration_model", "calibration_models", "RotationSignWarning", "PositionMisfitWarning", "to_imucal", "from_imucal",
+           "read_imucal", "write_imucal", "imucal_prior", "Consistency", "consistency", "ground_prior",
+           "flight_prior_consistency", "ground_versus_flight"]

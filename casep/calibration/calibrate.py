@@ -40,13 +40,13 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from casep.calibration.model import SLOTS, CalibrationModel
+from casep.calibration.model import CalibrationModel
 from casep.calibration.session import Segment, Session
 from casep.exceptions import CasepWarning
 from casep.units import G0
 
-__all__ = ["Calibration", "calibrate", "load_calibration_model", "calibration_models", "calibration_model_dirs",
-           "RotationSignWarning", "PositionMisfitWarning", "WEIGHTINGS", "ACC_UNITS", "GYR_UNITS"]
+__all__ = ["Calibration", "calibrate", "calibrate_files", "load_calibration_model", "calibration_models",
+           "calibration_model_dirs",           "RotationSignWarning", "PositionMisfitWarning", "WEIGHTINGS", "ACC_UNITS", "GYR_UNITS"]
 
 #: Row weighting of the static segments (module notes).
 WEIGHTINGS = ("segments", "samples")
@@ -494,8 +494,8 @@ def _warn_misfit(static, S_rows, r, pb, level, sensor, unit) -> None:
         zk = z[3 * k:3 * k + 3]
         if np.max(np.abs(zk)) > MISFIT_Z:
             i = int(np.argmax(np.abs(zk)))
-            warnings.warn(f"{s.where}: the {sensor} mean misfits the model by {r[3 * k + i]:+.4g} {unit} on {'xyz'[i]}, "
-                          f"{abs(zk[i]):.3g} x the level of the other positions ({level:.4g} {unit}): a bad position "
+            warnings.warn(f"{s.where}: the {sensor} mean misfits the model by {r[3 * k + i]:+.4g} {unit} "
+                          f"on {'xyz'[i]}, {abs(zk[i]):.3g} x the level of the other positions ({level:.4g} {unit}): a bad position "
                           "or a wrong label?", PositionMisfitWarning, stacklevel=3)
 
 
@@ -517,3 +517,59 @@ def _check_rotation_signs(model, rots, gyr, gravity, rate, est, unit) -> None:
                 f"the opposite sign of the expected angle {s.angle_deg:+g} deg: the fitted scale about that axis is "
                 f"{sens:.5g} {unit} per deg/s. The turn went the other way (--angle {-s.angle_deg:+g}) or the gyro "
                 "axis is inverted", RotationSignWarning, stacklevel=3)
+
+
+def calibrate_files(session: str | os.PathLike, *, rate: float | None = None, segments: str | os.PathLike | None = None,
+                    label_column: str | None = None, model: str | os.PathLike = "ferraris", method: str = "ols",
+                    options: Mapping[str, Any] | None = None, acc_columns=None, gyr_columns=None,
+                    acc_unit: str = "a.u.", gyr_unit: str = "a.u.", gravity: float = G0, angle_deg: float = -360.0,
+                    weighting: str = "segments", sigma: float | None = None,
+                    prior_rel_std: float | None = None) -> Calibration:
+    """:func:`calibrate` from files: the session, and its segments from `segments` (JSON) or `label_column`.
+
+    A ``prior`` option may be a path: a map-format JSON, a casep calibration/result JSON (its
+    estimate and covariance), or an imucal calibration JSON (with `prior_rel_std`, imucal states no
+    std: :func:`casep.calibration.imucal.imucal_prior`). ``bounds`` may be a path of a JSON table.
+    """
+    from casep.calibration.session import ACC_COLUMNS, GYR_COLUMNS, read_segments, read_session, segments_from_labels
+
+    if (segments is None) == (label_column is None):
+        raise ValueError("give the segments as --segments FILE or --label-column NAME (one of the two)")
+    ses = read_session(session, rate=rate, acc_columns=acc_columns or ACC_COLUMNS,
+                       gyr_columns=gyr_columns or GYR_COLUMNS, acc_unit=acc_unit, gyr_unit=gyr_unit,
+                       label_column=label_column)
+    segs = (read_segments(segments, ses, angle_deg=angle_deg) if segments is not None
+            else segments_from_labels(ses, angle_deg=angle_deg))
+    options = dict(options or {})
+    for key in ("prior", "bounds"):
+        v = options.get(key)
+        if isinstance(v, (str, os.PathLike)):
+            options[key] = _table_file(v, key, prior_rel_std)
+    return calibrate(ses, segs, model, method, gravity=gravity, weighting=weighting, sigma=sigma, options=options)
+
+
+def _table_file(path, key: str, prior_rel_std: float | None) -> dict:
+    """A --prior/--bounds JSON file as a mapping (prior: map format, a casep result, an imucal calibration)."""
+    from casep.io.files import read_json_table
+
+    data = read_json_table(path, f"--{key}")
+    if key != "prior":
+        return data
+    if "cal_type" in data:  # imucal
+        from casep.calibration.imucal import imucal_prior
+
+        if prior_rel_std is None:
+            raise ValueError(f"--prior {path} is an imucal calibration, which states no std. Use: --prior-rel-std R "
+                             "(e.g. 0.01 for 1 %)")
+        return imucal_prior(data, prior_rel_std)
+    if "coefficients" in data and "covariance" in data:  # a casep result or calibration: its estimate and covariance
+        from casep.calibration.consistency import as_gaussian
+
+        names, _, mean, C, _ = as_gaussian(data)
+        keep = [j for j in range(len(names)) if np.isfinite(mean[j]) and np.isfinite(C[j, j]) and C[j, j] > 0]
+        sd = np.sqrt(np.diag(C)[keep])
+        out: dict = {names[j]: {"mean": float(mean[j]), "std": float(s)} for j, s in zip(keep, sd)}
+        out["correlation"] = {"names": [names[j] for j in keep],
+                              "matrix": (C[np.ix_(keep, keep)] / np.outer(sd, sd)).tolist()}
+        return out
+    return data

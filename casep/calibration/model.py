@@ -124,7 +124,8 @@ class CalibrationModel:
         return self._decl.coefficient(name, unit, **kw)
 
     def declare(self, **units):
-        """Declare several coefficients, ``Name="unit"`` or ``Name=("unit", scale)`` (as :meth:`casep.ErrorModel.declare`)."""
+        """Declare several coefficients, ``Name="unit"`` or ``Name=("unit", scale)`` (as
+        :meth:`casep.ErrorModel.declare`)."""
         self._check_unlocked()
         if "per_flight" in units:
             raise ValueError("a ground test has no flights (per_flight is a flight-model option)")

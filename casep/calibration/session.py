@@ -180,7 +180,8 @@ def read_session(path: str | os.PathLike, *, rate: float | None = None, acc_colu
         raise ValueError("give three accelerometer and three gyro columns (x, y, z)")
     missing = [c for c in cols + ([label_column] if label_column else []) if c not in df.columns]
     if missing:
-        raise ValueError(f"{src}: Missing column(s) {', '.join(missing)}; the file has {', '.join(map(str, df.columns))}. "
+        raise ValueError(f"{src}: Missing column(s) {', '.join(missing)}; the file has "
+                         f"{', '.join(map(str, df.columns))}. "
                          "Use: --acc-columns/--gyr-columns/--label-column NAME")
     data = {}
     for c in cols:
