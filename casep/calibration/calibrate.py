@@ -458,8 +458,8 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
                                                 "ratio": ratio, "unit": acc_unit if sensor == "accelerometer"
                                                 else (gyr_unit if seg.kind == "static" else f"{gyr_unit} s")}
         if weighting == "segments" and n_static and dof > 0:
-            _warn_misfit(static, rows_S[:n_static], r[:3 * n_static], pb, level, sensor,
-                         acc_unit if sensor == "accelerometer" else gyr_unit)
+            _warn_misfit(static, rows_S[:n_static], r[:3 * n_static], level, sensor,
+                         acc_unit if sensor == "accelerometer" else gyr_unit, float(np.max(np.abs(u))))
         if slot == "gyro_reading":
             _check_rotation_signs(model, rots, gyr, gravity, rate, est, gyr_unit)
     std = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -482,13 +482,15 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     return Calibration(res_all, sensors, [seg_info[s.name] for s in segments], model, settings)
 
 
-def _warn_misfit(static, S_rows, r, pb, level, sensor, unit) -> None:
+def _warn_misfit(static, S_rows, r, level, sensor, unit, reading_scale) -> None:
     """PositionMisfitWarning for a static segment whose studentized row residual exceeds MISFIT_Z."""
     S = np.vstack(S_rows)
     # leverage of each static row in the static fit: diag(S (S^T S)^+ S^T)
     U, sv, _ = np.linalg.svd(S, full_matrices=False)
     keep = sv > sv[0] * 1e-10 if sv.size else sv > 0
     h = np.sum(U[:, keep] ** 2, axis=1)
+    # residuals at the rounding level of the rows (a noise-free session) are no misfit
+    level = max(level, 1e-12 * reading_scale, 1e-300)
     z = r / (level * np.sqrt(np.clip(1.0 - h, 1e-12, None)))
     for k, s in enumerate(static):
         zk = z[3 * k:3 * k + 3]
