@@ -458,13 +458,16 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
                                                 "ratio": ratio, "unit": acc_unit if sensor == "accelerometer"
                                                 else (gyr_unit if seg.kind == "static" else f"{gyr_unit} s")}
         if weighting == "segments" and n_static and dof > 0:
-            _warn_misfit(static, rows_S[:n_static], r[:3 * n_static], level, sensor,
+            # the positions judged on the least-squares fit of the static rows alone (whatever the method)
+            r_st = yst - Sst @ np.linalg.lstsq(Sst, yst, rcond=None)[0]
+            _warn_misfit(static, rows_S[:n_static], r_st, level, sensor,
                          acc_unit if sensor == "accelerometer" else gyr_unit, float(np.max(np.abs(u))))
         if slot == "gyro_reading":
             _check_rotation_signs(model, rots, gyr, gravity, rate, est, gyr_unit)
     std = np.sqrt(np.clip(np.diag(cov), 0, None))
     parts = list(sensors.values())
-    status = min(r.status for r in parts)
+    # worst of the two: a failure (<= 0) if either failed, else 2 (some not identifiable) over 1
+    status = min(r.status for r in parts) if any(r.status <= 0 for r in parts) else max(r.status for r in parts)
     res_all = EstimateResult(
         method=method, names=model.names, units=model.units, estimate=est, std=std, covariance=cov,
         reasons=reasons, residuals=np.zeros((0, 3)), sigma=math.nan, rank=sum(r.rank for r in parts),
@@ -490,8 +493,8 @@ def _warn_misfit(static, S_rows, r, level, sensor, unit, reading_scale) -> None:
     keep = sv > sv[0] * 1e-10 if sv.size else sv > 0
     h = np.sum(U[:, keep] ** 2, axis=1)
     # residuals at the rounding level of the rows (a noise-free session) are no misfit
-    level = max(level, 1e-12 * reading_scale, 1e-300)
-    z = r / (level * np.sqrt(np.clip(1.0 - h, 1e-12, None)))
+    floor = 1e-12 * reading_scale
+    z = np.where(np.abs(r) <= floor, 0.0, r / (max(level, floor, 1e-300) * np.sqrt(np.clip(1.0 - h, 1e-12, None))))
     for k, s in enumerate(static):
         zk = z[3 * k:3 * k + 3]
         if np.max(np.abs(zk)) > MISFIT_Z:

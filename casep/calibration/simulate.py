@@ -110,23 +110,22 @@ def simulate_session(model: CalibrationModel, truth: Mapping[str, float] | np.nd
         if seg.kind == "static":
             ax = rng.normal(size=3)
             R = _rotation(ax / np.linalg.norm(ax), math.radians(position_error_deg) * rng.normal())
-            f = np.broadcast_to(gravity * (R @ seg.gravity), (k, 3))
-            w = np.broadcast_to(np.deg2rad(seg.omega_dps), (k, 3))
+            f = gravity * (R @ seg.gravity)
+            w0, a, r = np.deg2rad(seg.omega_dps), np.zeros(3), np.zeros(k)
         else:
             theta = math.radians(seg.angle_deg) * (1.0 + angle_error * rng.normal())
             T = k / rate
             t = np.arange(k) / rate
-            rate_t = theta / T * (1.0 - np.cos(2 * math.pi * t / T))  # rad/s; its rectangle sum / rate = theta
-            f = np.broadcast_to(gravity * seg.gravity, (k, 3))  # the turn is about gravity: f stays
-            w = rate_t[:, None] * seg.axis[None, :]
+            r = theta / T * (1.0 - np.cos(2 * math.pi * t / T))  # rad/s; its rectangle sum / rate = theta
+            f, w0, a = gravity * seg.gravity, np.zeros(3), seg.axis  # the turn is about gravity: f stays
         for slot, out, sd in (("accel_reading", acc, na), ("gyro_reading", gyr, ng)):
             if slot not in model.slots:
                 out.append(np.zeros((k, 3)))
                 continue
-            y = np.empty((k, 3))
-            for i in range(k):
-                y[i] = model.known(slot, f[i], w[i]) + model.jacobian(slot, f[i], w[i]) @ D
-            out.append(y + rng.normal(size=(k, 3)) * sd)
+            # the reading is affine in omega: y(f, w0 + r a) = y(f, w0) + r [y(f, w0 + a) - y(f, w0)]
+            y0 = model.known(slot, f, w0) + model.jacobian(slot, f, w0) @ D
+            y1 = model.known(slot, f, w0 + a) + model.jacobian(slot, f, w0 + a) @ D
+            out.append(y0[None, :] + r[:, None] * (y1 - y0)[None, :] + rng.normal(size=(k, 3)) * sd)
     n = k0
     ses = Session(t=np.arange(n) / rate, acc=np.vstack(acc), gyr=np.vstack(gyr), rate=rate, source="<simulated>",
                   acc_unit="m/s^2" if model.readings == "si" else acc_unit,
