@@ -191,7 +191,7 @@ class Calibration:
         for k, r in self.sensors.items():
             unit = s["acc_unit"] if k == "accelerometer" else s["gyr_unit"]
             cn = r.diagnostics.get("condition_number_equilibrated")
-            lines.append(f"{k}: sigma {r.sigma:.4g} {unit if self.model.readings == 'raw' else 'SI'} "
+            lines.append(f"{k}: sigma {r.sigma:.4g} {unit} "
                          f"({r.sigma_source}, {r.diagnostics.get('rows', '?')} rows, rank {r.rank}/{len(r.names)})"
                          + (f", condition number {cn:.3g} (equilibrated)" if cn else "") + f"; {r.message}")
             if r.diagnostics.get("groups"):
@@ -363,7 +363,8 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
                          "samples": len(s.rows), "misfit": {}} for s in segments}
     sensors: dict[str, EstimateResult] = {}
     n = model.n_coefficients
-    est, cov = np.full(n, np.nan), np.full((n, n), np.nan)
+    # the two sensors are independent regressions: zero covariance between their blocks
+    est, cov = np.full(n, np.nan), np.zeros((n, n))
     reasons: dict[str, str] = {}
     for slot in model.slots:
         sensor = _SENSOR[slot]
@@ -436,8 +437,8 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
                                                     "static_level": level, "sample_noise": s_i.tolist()})
         sensors[sensor] = res
         est[cols] = res.estimate
-        if res.covariance is not None:
-            cov[np.ix_(cols, cols)] = res.covariance
+        # a method that defines no covariance: none for its coefficients either
+        cov[np.ix_(cols, cols)] = res.covariance if res.covariance is not None else np.nan
         reasons.update(res.reasons)
         # misfit per segment: residual of the segment's row (unweighted), and its noise std
         x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
@@ -464,6 +465,9 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
                          acc_unit if sensor == "accelerometer" else gyr_unit, float(np.max(np.abs(u))))
         if slot == "gyro_reading":
             _check_rotation_signs(model, rots, gyr, gravity, rate, est, gyr_unit)
+    und = ~np.isfinite(est)
+    cov[und, :] = np.nan
+    cov[:, und] = np.nan
     std = np.sqrt(np.clip(np.diag(cov), 0, None))
     parts = list(sensors.values())
     # worst of the two: a failure (<= 0) if either failed, else 2 (some not identifiable) over 1
