@@ -26,7 +26,8 @@ PLATFORM_TRUTH = dict(
     Kg2y=0.05, Kg0z=-0.5, Kg1z=0.01, Kg1zx=-0.02, Kg1zy=0.02, Kg2z=0.05,
     Ka0x=-2, Ka1x=0.5, Ka1xy=50, Ka1xz=50, Ka2x=5, Ka2xy=5, Ka2xz=-5, Ka0y=-2, Ka1y=0.5, Ka1yz=50, Ka1yx=50,
     Ka2y=5, Ka2yz=5, Ka2yx=-5, Ka0z=1, Ka1z=0.5, Ka1zx=50, Ka1zy=50, Ka2z=5, Ka2zx=5, Ka2zy=-5,
-    **{f"Sg_{i}{j}": (300.0 if i == j else 20.0 * (1 + 3 * "xyz".index(i) + "xyz".index(j))) for i in "xyz" for j in "xyz"})
+    **{f"Sg_{i}{j}": (300.0 if i == j else 20.0 * (1 + 3 * "xyz".index(i) + "xyz".index(j)))
+       for i in "xyz" for j in "xyz"})
 
 
 @pytest.fixture(scope="module")

@@ -25,6 +25,7 @@ __getattr__, __dir__ = attach(__name__, {
 
 __all__ = ["CalibrationModel", "Session", "Segment", "SegmentError", "read_session", "read_segments",
            "segments_from_labels", "FERRARIS_SEGMENTS", "Calibration", "calibrate", "calibrate_files",
-           "load_calibration_model", "calibration_models", "RotationSignWarning", "PositionMisfitWarning", "to_imucal", "from_imucal",
+           "load_calibration_model", "calibration_models", "RotationSignWarning", "PositionMisfitWarning",
+           "to_imucal", "from_imucal",
            "read_imucal", "write_imucal", "imucal_prior", "Consistency", "consistency", "ground_prior",
            "flight_prior_consistency", "ground_versus_flight"]

@@ -45,8 +45,9 @@ from casep.calibration.session import Segment, Session
 from casep.exceptions import CasepWarning
 from casep.units import G0
 
-__all__ = ["Calibration", "calibrate", "calibrate_files", "load_calibration_model", "calibration_models",
-           "calibration_model_dirs",           "RotationSignWarning", "PositionMisfitWarning", "WEIGHTINGS", "ACC_UNITS", "GYR_UNITS"]
+__all__ = ["Calibration", "calibrate", "load_calibration_model", "calibration_models",
+           "calibration_model_dirs", "calibrate_files", "RotationSignWarning", "PositionMisfitWarning", "WEIGHTINGS",
+           "ACC_UNITS", "GYR_UNITS"]
 
 #: Row weighting of the static segments (module notes).
 WEIGHTINGS = ("segments", "samples")
@@ -504,8 +505,8 @@ def _warn_misfit(static, S_rows, r, level, sensor, unit, reading_scale) -> None:
         if np.max(np.abs(zk)) > MISFIT_Z:
             i = int(np.argmax(np.abs(zk)))
             warnings.warn(f"{s.where}: the {sensor} mean misfits the model by {r[3 * k + i]:+.4g} {unit} "
-                          f"on {'xyz'[i]}, {abs(zk[i]):.3g} x the level of the other positions ({level:.4g} {unit}): a bad position "
-                          "or a wrong label?", PositionMisfitWarning, stacklevel=3)
+                          f"on {'xyz'[i]}, {abs(zk[i]):.3g} x the level of the other positions ({level:.4g} {unit}): "
+                          "a bad position or a wrong label?", PositionMisfitWarning, stacklevel=3)
 
 
 def _check_rotation_signs(model, rots, gyr, gravity, rate, est, unit) -> None:

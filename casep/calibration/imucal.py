@@ -48,7 +48,8 @@ def to_imucal(calibration, *, comment: str | None = None) -> dict:
     res = getattr(calibration, "result", calibration)
     values = {n: float(v) for n, v in zip(res.names, res.estimate)}
     need = ([f"Ma_{i}{j}" for i in _AX for j in _AX] + [f"ba_{i}" for i in _AX]
-            + [f"Mg_{i}{j}" for i in _AX for j in _AX] + [f"Kga_{i}{j}" for i in _AX for j in _AX] + [f"bg_{i}" for i in _AX])
+            + [f"Mg_{i}{j}" for i in _AX for j in _AX] + [f"Kga_{i}{j}" for i in _AX for j in _AX]
+            + [f"bg_{i}" for i in _AX])
     missing = [n for n in need if n not in values or not np.isfinite(values[n])]
     if missing:
         raise ValueError(f"model `{res.model}` has no imucal form: Missing (or not estimated): {', '.join(missing)}. "
