@@ -1119,8 +1119,9 @@ def _calibrate_parser(sub) -> None:
                     help="gravity at the stand, m/s^2 (default 9.80665; imucal uses 9.81)")
     ca.add_argument("--angle", type=float, default=-360.0, metavar="DEG",
                     help="angle of imucal's x_rot/y_rot/z_rot turns, deg (default -360: clockwise, imucal's)")
-    ca.add_argument("--weighting", choices=("segments", "samples"), default="segments",
-                    help="rows: segment means of equal weight (default; positions are never exact) or every sample")
+    ca.add_argument("--weighting", choices=("positions", "segments", "samples"), default="positions",
+                    help="rows: segment means weighted by a position-error (tilt) and noise model (default), "
+                         "segment means of equal weight, or every sample (exact positions)")
     ca.add_argument("--json", metavar="OUT", required=True, help="write the calibration JSON (a casep result)")
     ca.add_argument("--imucal", metavar="OUT", default=None, help="also write imucal's calibration JSON (ferraris)")
 

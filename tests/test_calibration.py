@@ -133,26 +133,31 @@ def test_noise_free_platform_session_recovered_exactly_and_six_positions_say_wha
 # ------------------------------------------------------------------ std: seeded simulation of the test
 @pytest.mark.montecarlo
 def test_std_covers_the_position_error_and_per_sample_std_does_not(ferraris):
-    """Positions tilted by 1 deg rms: the segment-mean std hold (t with 6 dof: 95 % intervals cover ~0.95);
-    per-sample least squares states a std from the sample noise, many times too small for the biases."""
+    """Positions tilted by 1 deg rms: the std of the position-error model hold for every coefficient (t with
+    6 dof: 95 % intervals cover ~0.95); equal weight of the means overstates the std of the diagonal scale
+    factors (the tilt does not move the on-axis reading); per-sample least squares states a std from the
+    sample noise, many times too small for the biases."""
     truth = ferraris_truth(ferraris, seed=4)
     D = np.array([truth[n] for n in ferraris.names])
     q = stats.t.ppf(0.975, 6)  # 18 accelerometer rows - 12 coefficients
-    u = {"segments": [], "samples": []}
+    u = {"positions": [], "segments": [], "samples": []}
     for seed in range(36):
         ses, segs = simulate_session(ferraris, truth, ferraris_design(100, 100), rate=100.0, noise=(3.0, 1.0),
                                      position_error_deg=1.0, seed=seed)
-        for w in u if seed < 8 else ("segments",):  # per sample: 8 sessions show it
+        for w in u if seed < 8 else ("positions",):  # the others: 8 sessions show them
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", PositionMisfitWarning)
                 cal = calibrate(ses, segs, ferraris, weighting=w)
             u[w].append((cal.result.estimate - D) / cal.result.std)
-    seg, smp = np.array(u["segments"]), np.array(u["samples"])
+    pos, seg, smp = np.array(u["positions"]), np.array(u["segments"]), np.array(u["samples"])
     b = [ferraris.index(f"ba_{a}") for a in "xyz"]
-    g = [ferraris.index(n) for n in ferraris.names if n.startswith("Mg_")]
-    assert np.mean(np.abs(seg[:, b]) < q) > 0.88  # 108 draws: binomial sd 0.021 around 0.95
-    assert 0.7 < np.sqrt(np.mean(seg[:, b] ** 2)) < 1.6  # t_6: 1.22 expected
-    assert np.mean(np.abs(seg[:, g]) < q) > 0.88
+    diag = [ferraris.index(f"Ma_{a}{a}") for a in "xyz"]
+    for grp in ("Ma_", "ba_", "Mg_", "Kga_", "bg_"):
+        j = [ferraris.index(n) for n in ferraris.names if n.startswith(grp)]
+        assert np.mean(np.abs(pos[:, j]) < q) > 0.88, grp  # >= 108 draws: binomial sd 0.021 around 0.95
+        assert 0.7 < np.sqrt(np.mean(pos[:, j] ** 2)) < 1.6, grp  # t_6: 1.22 expected
+    assert 0.7 < np.sqrt(np.mean(pos[:, diag] ** 2)) < 1.6
+    assert np.sqrt(np.mean(seg[:, diag] ** 2)) < 0.3  # equal weight: std of the scale factors overstated
     assert np.sqrt(np.mean(smp[:, b] ** 2)) > 5.0  # per-sample std: far too small
 
 
@@ -261,7 +266,7 @@ def test_cli_writes_json_and_imucal_and_methods_apply(tmp_path, noisy_session, f
     text = capsys.readouterr().out
     assert "misfit per segment" in text and "accelerometer: sigma" in text
     d = json.loads(out.read_text())
-    assert d["model"] == "ferraris" and d["calibration"]["settings"]["weighting"] == "segments"
+    assert d["model"] == "ferraris" and d["calibration"]["settings"]["weighting"] == "positions"
     assert len(d["covariance"]) == ferraris.n_coefficients and json.loads(imu.read_text())["cal_type"] == "Ferraris"
     # huber (robust) and ridge run on the same rows; a time-series method is refused
     for method in ("huber", "ridge"):

@@ -50,7 +50,7 @@ __all__ = ["Calibration", "calibrate", "load_calibration_model", "calibration_mo
            "ACC_UNITS", "GYR_UNITS"]
 
 #: Row weighting of the static segments (module notes).
-WEIGHTINGS = ("segments", "samples")
+WEIGHTINGS = ("positions", "segments", "samples")
 #: Session units a ``readings="si"`` model converts from: unit -> SI factor.
 ACC_UNITS = {"m/s^2": 1.0, "g": G0, "mg": 1e-3 * G0}
 GYR_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "deg/h": math.pi / 180.0 / 3600.0}
@@ -192,9 +192,14 @@ class Calibration:
         for k, r in self.sensors.items():
             unit = s["acc_unit"] if k == "accelerometer" else s["gyr_unit"]
             cn = r.diagnostics.get("condition_number_equilibrated")
-            lines.append(f"{k}: sigma {r.sigma:.4g} {unit} "
+            whitened = s["weighting"] == "positions"
+            what = "(rows whitened: 1 = the position and noise model)" if whitened else unit
+            lines.append(f"{k}: sigma {r.sigma:.4g} {what} "
                          f"({r.sigma_source}, {r.diagnostics.get('rows', '?')} rows, rank {r.rank}/{len(r.names)})"
                          + (f", condition number {cn:.3g} (equilibrated)" if cn else "") + f"; {r.message}")
+            if "position_error_deg" in r.diagnostics and k == "accelerometer":
+                lines.append(f"  position error {r.diagnostics['position_error_deg']:.3g} deg rms (estimated from the "
+                             "misfit of the positions)")
             if r.diagnostics.get("groups"):
                 lines.append("  near-dependencies: " + "; ".join("[" + ", ".join(g) + "]"
                                                                 for g in r.diagnostics["groups"]))
@@ -300,7 +305,7 @@ def _positive(v: float, fallback: float) -> float:
 
 
 def calibrate(session: Session, segments: Sequence[Segment], model: str | os.PathLike | CalibrationModel = "ferraris",
-              method: str = "ols", *, gravity: float = G0, weighting: str = "segments", sigma: float | None = None,
+              method: str = "ols", *, gravity: float = G0, weighting: str = "positions", sigma: float | None = None,
               options: Mapping[str, Any] | None = None):
     """Identify the error coefficients of a ground test.
 
@@ -318,7 +323,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     gravity : float
         Magnitude of the specific force in the static positions, m/s^2 (default standard
         gravity; imucal uses 9.81; give the local value).
-    weighting : {"segments", "samples"}
+    weighting : {"positions", "segments", "samples"}
         Row weighting (module notes).
     sigma : float, optional
         Noise std of the (weighted) rows, reading units; default estimated per sensor.
@@ -367,6 +372,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     # the two sensors are independent regressions: zero covariance between their blocks
     est, cov = np.full(n, np.nan), np.zeros((n, n))
     reasons: dict[str, str] = {}
+    tilt = None  # position error, rad rms (weighting "positions")
     for slot in model.slots:
         sensor = _SENSOR[slot]
         u = acc if slot == "accel_reading" else gyr
@@ -379,7 +385,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
             w = np.deg2rad(s.omega_dps)
             J = model.jacobian(slot, f, w)[:, cols]
             y0 = model.known(slot, f, w)
-            if weighting == "segments":
+            if weighting in ("positions", "segments"):
                 rows_S.append(J)
                 rows_y.append(u[s.rows].mean(axis=0) - y0)
                 rows_sd.append(None)  # the static level, estimated
@@ -404,7 +410,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         S = np.vstack([np.atleast_2d(x).reshape(-1, len(cols)) for x in rows_S])
         y = np.concatenate([np.ravel(x) for x in rows_y])
         # Row std: the static level (segments: sigma_s of the static rows alone) and the rotation rows'.
-        if weighting == "segments":
+        if weighting in ("positions", "segments"):
             Sst = np.vstack(rows_S[:n_static]).reshape(-1, len(cols))
             yst = np.concatenate(rows_y[:n_static])
             pst = Problem.from_arrays(Sst, yst)
@@ -418,8 +424,27 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
             sd = np.concatenate([np.asarray(v) for v in rows_sd])
         sd = np.where(sd > 0, sd, level)
         wgt = level / sd  # rows scaled to the static level: sigma comes out in reading units
+        Sw, yw = S * wgt[:, None], y * wgt
+        if weighting == "positions" and n_static:
+            x0 = np.linalg.lstsq(Sw, yw, rcond=None)[0]  # equal-weight fit: the reading's slope in f
+            D0 = np.zeros(model.n_coefficients)
+            D0[cols] = x0
+            Jf = [model.reading_df(slot, gravity * s.gravity, np.deg2rad(s.omega_dps), D0) for s in static]
+            ybar = np.concatenate(rows_y[:n_static])
+            # the turns' white-noise std, floored (like the means) at 1e-12 of the row: a noise-free session
+            y_rot = y[3 * n_static:]
+            sd_rot = np.concatenate([np.asarray(v) for v in rows_sd[n_static:]]) if len(rows_sd) > n_static \
+                else np.zeros(0)
+            sd_rot = np.maximum(sd_rot, 1e-12 * np.max(np.abs(y_rot), initial=0.0) + 1e-300)
+            floor = (1e-12 * float(np.max(np.abs(ybar)))) ** 2 + 1e-300
+            whiten = _position_whitening(static, Jf, s_i, gravity, floor, S[:3 * n_static], ybar,
+                                         S[3 * n_static:], y_rot, sd_rot)
+            if tilt is None:  # estimated on the first sensor (the accelerometer): the same tilts move both
+                tilt = _solve_tilt(whiten, S.shape[0], len(cols))
+            Sw, yw = whiten(tilt)
+            level = _ls_sigma(Sw, yw)
         m3 = S.shape[0] // 3  # observations of three rows (x, y, z) each
-        pb = Problem.from_arrays((S * wgt[:, None]).reshape(m3, 3, len(cols)), (y * wgt).reshape(m3, 3),
+        pb = Problem.from_arrays(Sw.reshape(m3, 3, len(cols)), yw.reshape(m3, 3),
                                  np.asarray(rows_t, dtype=float), names=names, units=[model.units[j] for j in cols],
                                  si_factors=model.si_factors[cols], model=model.name)
         opts = {k: v for k, v in options.items() if v is not None}
@@ -435,7 +460,9 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
                     opts[key] = part
         res = run_method(method, pb, None, None, opts, sigma=sigma)
         res = dataclasses.replace(res, diagnostics={**res.diagnostics, "rows": int(S.shape[0]),
-                                                    "static_level": level, "sample_noise": s_i.tolist()})
+                                                    "static_level": level, "sample_noise": s_i.tolist(),
+                                                    **({"position_error_deg": math.degrees(tilt)}
+                                                       if tilt is not None else {})})
         sensors[sensor] = res
         est[cols] = res.estimate
         # a method that defines no covariance: none for its coefficients either
@@ -459,11 +486,19 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
             seg_info[name]["misfit"][sensor] = {"residual": resid.tolist(), "noise_std": noise.tolist(),
                                                 "ratio": ratio, "unit": acc_unit if sensor == "accelerometer"
                                                 else (gyr_unit if seg.kind == "static" else f"{gyr_unit} s")}
-        if weighting == "segments" and n_static and dof > 0:
-            # the positions judged on the least-squares fit of the static rows alone (whatever the method)
-            r_st = yst - Sst @ np.linalg.lstsq(Sst, yst, rcond=None)[0]
-            _warn_misfit(static, rows_S[:n_static], r_st, level, sensor,
-                         acc_unit if sensor == "accelerometer" else gyr_unit, float(np.max(np.abs(u))))
+        if weighting in ("positions", "segments") and n_static and dof > 0:
+            # the positions judged on the least-squares fit of the rows (whatever the method): static rows alone
+            # (equal weight), or all rows whitened by the position and noise model
+            A, b = (Sw, yw) if weighting == "positions" else (Sst, yst)
+            xs = np.linalg.lstsq(A, b, rcond=None)[0]
+            rr = b - A @ xs
+            # residuals at the rounding level of the readings (a noise-free session) are no misfit
+            rounding = np.abs(yst - Sst @ xs) <= 1e-12 * float(np.max(np.abs(u)))
+            rr[:3 * n_static][rounding] = 0.0
+            _warn_misfit(static, A[:3 * n_static], rr[:3 * n_static], level, sensor,
+                         "(whitened)" if weighting == "positions" else
+                         (acc_unit if sensor == "accelerometer" else gyr_unit),
+                         1.0 if weighting == "positions" else float(np.max(np.abs(u))), A)
         if slot == "gyro_reading":
             _check_rotation_signs(model, rots, gyr, gravity, rate, est, gyr_unit)
     und = ~np.isfinite(est)
@@ -490,13 +525,77 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     return Calibration(res_all, sensors, [seg_info[s.name] for s in segments], model, settings)
 
 
-def _warn_misfit(static, S_rows, r, level, sensor, unit, reading_scale) -> None:
-    """PositionMisfitWarning for a static segment whose studentized row residual exceeds MISFIT_Z."""
-    S = np.vstack(S_rows)
-    # leverage of each static row in the static fit: diag(S (S^T S)^+ S^T)
-    U, sv, _ = np.linalg.svd(S, full_matrices=False)
+def _ls_sigma(S: np.ndarray, y: np.ndarray) -> float:
+    """Least-squares residual std ``sqrt(RSS / (m - rank))`` (0 without degrees of freedom)."""
+    x, _, rank, _ = np.linalg.lstsq(S, y, rcond=None)
+    dof = S.shape[0] - rank
+    r = y - S @ x
+    return float(np.sqrt(r @ r / dof)) if dof > 0 else 0.0
+
+
+def _position_whitening(static, Jf, s_i, g, floor, S_st, y_st, S_rot, y_rot, sd_rot):
+    """``whiten(tilt) -> (S_w, y_w)``: the rows whitened by the position-error and noise covariance.
+
+    A static position tilted by a small rotation ``phi ~ N(0, tilt^2 I)`` senses ``f = g (e + phi x e
+    - |phi x e|^2 e / 2)``: the mean reading of segment k moves by ``J_f (g phi x e)`` (``J_f = dy/df``),
+    whose covariance is ``tilt^2 g^2 J_f P J_f^T``, ``P = I - e e^T`` (tilts do not move the reading
+    along gravity to first order), plus the second-order shortfall along e (variance ``g^2 tilt^4``)
+    and the sample noise of the mean ``diag(s_i^2 / n_k)``:
+    ``V_k = tilt^2 g^2 J_f P J_f^T + g^2 tilt^4 (J_f e)(J_f e)^T + diag(s_i^2 / n_k)``. Rows of segment
+    k are multiplied by ``L_k^-1`` (``V_k = L_k L_k^T``); the turns by 1 / their white-noise std.
+    """
+    blocks = []
+    for s, J in zip(static, Jf):
+        e = s.gravity
+        P = np.eye(3) - np.outer(e, e)
+        Je = J @ e
+        blocks.append((g**2 * J @ P @ J.T, g**2 * np.outer(Je, Je), np.diag(s_i**2 / len(s.rows)) + floor * np.eye(3)))
+    rot_w = 1.0 / sd_rot
+
+    def whiten(tilt: float):
+        Sw, yw = [], []
+        for k, (A, B, N) in enumerate(blocks):
+            L = np.linalg.cholesky(tilt**2 * A + tilt**4 * B + N)
+            Sw.append(np.linalg.solve(L, S_st[3 * k:3 * k + 3]))
+            yw.append(np.linalg.solve(L, y_st[3 * k:3 * k + 3]))
+        return np.vstack(Sw + [S_rot * rot_w[:, None]]), np.concatenate(yw + [y_rot * rot_w])
+
+    return whiten
+
+
+def _solve_tilt(whiten, m: int, n: int) -> float:
+    """The position error (rad rms) at which the whitened least-squares residual std is 1.
+
+    0 when the sample noise alone explains the misfit (or no degree of freedom is left); capped at
+    0.5 rad.
+    """
+    from scipy.optimize import brentq
+
+    if m <= n:
+        return 0.0
+
+    def excess(log_tilt: float) -> float:
+        return _ls_sigma(*whiten(math.exp(log_tilt))) - 1.0
+
+    if _ls_sigma(*whiten(0.0)) <= 1.0:
+        return 0.0
+    lo, hi = math.log(1e-9), math.log(0.5)
+    if excess(lo) <= 0.0:
+        return math.exp(lo)
+    if excess(hi) > 0.0:
+        return 0.5
+    return math.exp(brentq(excess, lo, hi, xtol=1e-10))
+
+
+def _warn_misfit(static, S_static, r, level, sensor, unit, reading_scale, S_fit) -> None:
+    """PositionMisfitWarning for a static segment whose studentized row residual exceeds MISFIT_Z.
+
+    `S_static`, `r`: the static rows and their residuals in the fit of the rows `S_fit` (the static
+    rows first); leverage ``h = diag(S (S^T S)^+ S^T)`` of the fit.
+    """
+    U, sv, _ = np.linalg.svd(S_fit, full_matrices=False)
     keep = sv > sv[0] * 1e-10 if sv.size else sv > 0
-    h = np.sum(U[:, keep] ** 2, axis=1)
+    h = np.sum(U[:, keep] ** 2, axis=1)[:S_static.shape[0]]
     # residuals at the rounding level of the rows (a noise-free session) are no misfit
     floor = 1e-12 * reading_scale
     z = np.where(np.abs(r) <= floor, 0.0, r / (max(level, floor, 1e-300) * np.sqrt(np.clip(1.0 - h, 1e-12, None))))
@@ -505,8 +604,8 @@ def _warn_misfit(static, S_rows, r, level, sensor, unit, reading_scale) -> None:
         if np.max(np.abs(zk)) > MISFIT_Z:
             i = int(np.argmax(np.abs(zk)))
             warnings.warn(f"{s.where}: the {sensor} mean misfits the model by {r[3 * k + i]:+.4g} {unit} "
-                          f"on {'xyz'[i]}, {abs(zk[i]):.3g} x the level of the other positions ({level:.4g} {unit}): "
-                          "a bad position or a wrong label?", PositionMisfitWarning, stacklevel=3)
+                          f"on {'xyz'[i]}, {abs(zk[i]):.3g} x its std from the other positions' level ({level:.4g} "
+                          f"{unit}): a bad position or a wrong label?", PositionMisfitWarning, stacklevel=3)
 
 
 def _check_rotation_signs(model, rots, gyr, gravity, rate, est, unit) -> None:
@@ -533,7 +632,7 @@ def calibrate_files(session: str | os.PathLike, *, rate: float | None = None, se
                     label_column: str | None = None, model: str | os.PathLike = "ferraris", method: str = "ols",
                     options: Mapping[str, Any] | None = None, acc_columns=None, gyr_columns=None,
                     acc_unit: str = "a.u.", gyr_unit: str = "a.u.", gravity: float = G0, angle_deg: float = -360.0,
-                    weighting: str = "segments", sigma: float | None = None,
+                    weighting: str = "positions", sigma: float | None = None,
                     prior_rel_std: float | None = None) -> Calibration:
     """:func:`calibrate` from files: the session, and its segments from `segments` (JSON) or `label_column`.
 

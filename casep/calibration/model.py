@@ -247,6 +247,9 @@ class CalibrationModel:
             self._functions[f"{slot}_known"] = ca.Function(f"{slot}_known", [f, w], [y0], ["f", "omega"], ["y0"])
             self._functions[f"{slot}_jacobian"] = ca.Function(f"{slot}_jacobian", [f, w], [ca.densify(J)],
                                                               ["f", "omega"], ["J"])
+            # d reading / d f (3 x 3): how a wrong specific force (a tilted position) moves the reading
+            self._functions[f"{slot}_df"] = ca.Function(f"{slot}_df", [f, w, D], [ca.densify(ca.jacobian(expr, f))],
+                                                        ["f", "omega", "D"], ["dy_df"])
             self._columns[slot] = np.asarray(cols, dtype=np.intp)
         unused = [nm for nm in d._names if nm not in used_by]
         if unused:
@@ -309,8 +312,8 @@ class CalibrationModel:
 
     @property
     def functions(self) -> dict:
-        """``<slot>_known(f, omega)`` (the reading of an ideal sensor) and ``<slot>_jacobian(f, omega)``
-        (3 x n, per natural unit) for each output set."""
+        """``<slot>_known(f, omega)`` (the reading of an ideal sensor), ``<slot>_jacobian(f, omega)``
+        (3 x n, per natural unit) and ``<slot>_df(f, omega, D)`` (3 x 3) for each output set."""
         self._require_setup()
         return dict(self._functions)
 
@@ -321,6 +324,10 @@ class CalibrationModel:
     def jacobian(self, slot: str, f: np.ndarray, omega: np.ndarray) -> np.ndarray:
         """d reading / dD of `slot` at `f` (m/s^2) and `omega` (rad/s), (3, n) per natural unit."""
         return np.array(self.functions[f"{slot}_jacobian"](f, omega)).reshape(3, self.n_coefficients)
+
+    def reading_df(self, slot: str, f: np.ndarray, omega: np.ndarray, D: np.ndarray) -> np.ndarray:
+        """d reading / d f of `slot` at `f`, `omega` and coefficients `D` (natural units), (3, 3)."""
+        return np.array(self.functions[f"{slot}_df"](f, omega, D)).reshape(3, 3)
 
     def index(self, name: str) -> int:
         """Position of coefficient `name` in the model order."""

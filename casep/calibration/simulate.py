@@ -2,9 +2,10 @@
 
 A session is a sequence of segments, each held for its number of samples at ``rate``:
 
-- static: the true specific force is ``g R_k e_k``, ``e_k`` the nominal direction and ``R_k`` a
-  small rotation by a random angle of std ``position_error_deg`` about a random axis (a hand or
-  fixture position is never exact: the error of the whole segment);
+- static: the true specific force is ``g R_k e_k``, ``e_k`` the nominal direction and ``R_k`` the
+  rotation by a random vector ``phi ~ N(0, tilt^2 I)``, ``tilt = position_error_deg`` (a hand or
+  fixture position is never exact: the error of the whole segment; the model of casep's
+  ``weighting="positions"``);
 - rotation: the sensor turns about its axis (along gravity) by the nominal angle times
   ``(1 + angle_error)`` with a smooth rate ``omega(t) = theta / T (1 - cos(2 pi t / T))``, t in [0, T].
 
@@ -73,7 +74,7 @@ def simulate_session(model: CalibrationModel, truth: Mapping[str, float] | np.nd
     noise : float or (acc, gyr) pair of float or 3-vectors
         White noise std of the readings, reading units.
     position_error_deg, angle_error : float
-        Std of the tilt of each static position (deg) and relative std of each turn's angle.
+        Std of each component of the tilt of a static position (deg) and relative std of each turn's angle.
     seed : int, optional
         Of the random draws (noise, tilts, angle errors).
 
@@ -108,8 +109,9 @@ def simulate_session(model: CalibrationModel, truth: Mapping[str, float] | np.nd
             seg = ferraris_segment(d["name"], rows, float(d.get("angle_deg", -360.0)))
         segs.append(seg)
         if seg.kind == "static":
-            ax = rng.normal(size=3)
-            R = _rotation(ax / np.linalg.norm(ax), math.radians(position_error_deg) * rng.normal())
+            phi = math.radians(position_error_deg) * rng.normal(size=3)  # rotation vector, rad
+            ang = float(np.linalg.norm(phi))
+            R = _rotation(phi / ang, ang) if ang > 0 else np.eye(3)
             f = gravity * (R @ seg.gravity)
             w0, a, r = np.deg2rad(seg.omega_dps), np.zeros(3), np.zeros(k)
         else:
