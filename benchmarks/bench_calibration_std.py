@@ -55,10 +55,11 @@ def main() -> None:
             c = calibrate(s, g, m, gravity=9.81, weighting=w)
             u[w].append((c.result.estimate - truth) / c.result.std)
             err[w].append(c.result.estimate - truth)
-            if w == "segments":
-                sig.append(c.sensors["accelerometer"].sigma)
-    print(f"{a.runs} runs, tilt {a.tilt} deg rms, {time.time() - t0:.0f} s; real accelerometer sigma "
-          f"{real.sensors['accelerometer'].sigma:.3g} a.u., simulated median {np.median(sig):.3g} a.u.")
+            if w == "positions":
+                sig.append(c.sensors["accelerometer"].diagnostics["position_error_deg"])
+    print(f"{a.runs} runs, tilt {a.tilt} deg rms per component, {time.time() - t0:.0f} s; position error estimated "
+          f"on the real session {real.sensors['accelerometer'].diagnostics['position_error_deg']:.3g} deg, on the "
+          f"simulated ones median {np.median(sig):.3g} deg")
     print(f"{'group':<6} {'weighting':<9} {'RMS(err/std)':>13} {'coverage t6 95%':>16} {'RMS err':>10}  "
           "per coefficient RMS(err/std)")
     for grp in ("Ma_", "ba_", "Mg_", "Kga_", "bg_"):
