@@ -508,8 +508,13 @@ def _cmd_separate(args: argparse.Namespace) -> int:
 
         from casep.calibration.consistency import flight_prior_consistency
 
-        cons = flight_prior_consistency(flight, model, prior, sigma=args.sigma)
-        res = dataclasses.replace(res, diagnostics={**res.diagnostics, "prior_consistency": cons.summary()})
+        try:
+            cons = flight_prior_consistency(flight, model, prior, sigma=args.sigma)
+            summary = cons.summary()
+        except ValueError as exc:  # the flight alone determines none of the prior's coefficients
+            summary = {"not_compared": str(exc)}
+            warnings.warn(f"prior not compared with the flight alone: {exc}", CasepWarning, stacklevel=1)
+        res = dataclasses.replace(res, diagnostics={**res.diagnostics, "prior_consistency": summary})
     align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
     if args.json:
         write_json_atomic({**res.to_dict(), **({"time_alignment": align} if align else {})}, args.json)
@@ -1103,14 +1108,15 @@ def _calibrate_parser(sub) -> None:
                      help="column labelling each row's segment (imucal's annotated sessions: part)")
     ca.add_argument("--model", default="ferraris", help="calibration model name (models/calibration) or .py file "
                     "(default ferraris; platform36_ground: the flight model's names and units, SI readings)")
-    ca.add_argument("--method", default="ols", choices=[m for m, meth in METHODS.items() if not meth.needs_time],
+    ca.add_argument("--method", default="ols", choices=[m for m, meth in METHODS.items()
+                                                         if not meth.needs_time and m != "rels"],
                     help="estimator (default ols)")
     for name in ("prior", "bounds", "lam", "n_components", "p0", "weight", "forgetting", "noise_order"):
         _add_option(ca, OPTIONS[name])
     ca.add_argument("--prior-rel-std", type=float, default=None, dest="prior_rel_std", metavar="R",
                     help="with an imucal --prior: its relative std (imucal states none)")
-    ca.add_argument("--sigma", type=float, default=None, help="noise std of the rows, reading units (default "
-                    "estimated per sensor)")
+    ca.add_argument("--sigma", type=float, default=None, help="noise std of the rows (default estimated per sensor): "
+                    "reading units with --weighting segments|samples, 1 = as modelled with positions")
     ca.add_argument("--acc-columns", default="acc_x,acc_y,acc_z", help="accelerometer columns x,y,z")
     ca.add_argument("--gyr-columns", default="gyr_x,gyr_y,gyr_z", help="gyro columns x,y,z")
     ca.add_argument("--acc-unit", default="a.u.", help="accelerometer unit: a.u. (raw), m/s^2, g, mg")

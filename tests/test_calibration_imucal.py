@@ -194,3 +194,18 @@ def test_platform_model_on_real_si_session_is_a_flight_prior(tmp_path):
         if n != "correlation":
             assert v["mean"] == cal.value(n) and v["std"] == pytest.approx(cal.std(n), rel=1e-15)
             assert flight.units[flight.index(n)] == cal.result.units[cal.names.index(n)]
+
+
+def test_robust_and_recursive_estimators_on_the_real_session(real):
+    """Huber (scale: the least-squares sigma, MAD is biased low at 6 dof) and RLS agree with OLS; time-series
+    noise models (GLS, RELS) are refused on segment rows."""
+    ses, segs, cal, _ = real
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RotationSignWarning)
+        hub = calibrate(ses, segs, "ferraris", "huber", gravity=G_IMUCAL)
+        rls = calibrate(ses, segs, "ferraris", "rls", gravity=G_IMUCAL)
+    np.testing.assert_allclose(hub.result.std, cal.result.std, rtol=0.2)
+    assert np.all(np.abs(rls.result.estimate - cal.result.estimate) < 1e-3 * cal.result.std)
+    for method in ("gls", "rels"):
+        with pytest.raises(ValueError, match="no time order"):
+            calibrate(ses, segs, "ferraris", method, gravity=G_IMUCAL)

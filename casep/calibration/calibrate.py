@@ -55,6 +55,8 @@ WEIGHTINGS = ("positions", "segments", "samples")
 ACC_UNITS = {"m/s^2": 1.0, "g": G0, "mg": 1e-3 * G0}
 GYR_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "deg/h": math.pi / 180.0 / 3600.0}
 _SENSOR = {"accel_reading": "accelerometer", "gyro_reading": "gyro"}
+#: Methods whose noise model runs along time (AR(1), MA): meaningless on segment rows.
+TIME_SERIES_METHODS = ("gls", "rels")
 #: A studentized segment misfit above this is warned about.
 MISFIT_Z = 4.0
 
@@ -357,7 +359,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     model = load_calibration_model(model)
     options = dict(options or {})
     check_method_options(method, {k: v for k, v in options.items() if v is not None})
-    if METHODS[method].needs_time:
+    if METHODS[method].needs_time or method in TIME_SERIES_METHODS:
         raise ValueError(f"method `{method}` models noise correlated in time; the rows of a ground test (segment "
                          "means, turn integrals) have no time order. Use: another method")
     acc, gyr, acc_unit, gyr_unit = _readings(session, model)
@@ -458,7 +460,10 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
                                          f"method `{method}` needs one for each sensor")
                 else:
                     opts[key] = part
-        res = run_method(method, pb, None, None, opts, sigma=sigma)
+        # Huber's MAD scale is biased low on a few rows of high leverage (6 dof; the turns are fitted
+        # exactly): it takes the least-squares sigma of the weighted rows as its scale instead
+        use_sigma = sigma if sigma is not None or method != "huber" else _positive(_ls_sigma(Sw, yw), 1.0)
+        res = run_method(method, pb, None, None, opts, sigma=use_sigma)
         res = dataclasses.replace(res, diagnostics={**res.diagnostics, "rows": int(S.shape[0]),
                                                     "static_level": level, "sample_noise": s_i.tolist(),
                                                     **({"position_error_deg": math.degrees(tilt)}
