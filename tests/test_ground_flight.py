@@ -118,10 +118,12 @@ def test_separate_with_ground_prior_reports_consistency_and_fuse_too(ground_cal,
     casep.write_flight(casep.FlightData(t, f, dv), flight_csv)
     gpath = tmp_path / "ground.json"
     gpath.write_text(json.dumps(cal.to_dict()))
-    out = tmp_path / "map.json"
-    assert main(["separate", str(flight_csv), "--method", "map", "--prior", str(gpath), "--json", str(out)]) == 0
+    out, html = tmp_path / "map.json", tmp_path / "map.html"
+    assert main(["separate", str(flight_csv), "--method", "map", "--prior", str(gpath), "--json", str(out),
+                 "--report", str(html)]) == 0
     text = capsys.readouterr().out
     assert "prior versus flight alone" in text and "overall: chi2" in text
+    assert "prior_consistency" in html.read_text()  # in the report's diagnostics table
     pc = json.loads(out.read_text())["diagnostics"]["prior_consistency"]
     assert pc["overall"]["consistent"] and pc["overall"]["dof"] > 10  # same truth: consistent
     # a flight whose Ka0x differs by 20 mg from the ground: flagged
