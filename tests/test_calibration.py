@@ -297,3 +297,18 @@ def test_map_with_a_previous_calibration_as_prior(tmp_path, noisy_session, ferra
     alone = calibrate(ses2, segs2, ferraris)
     j = ferraris.index("ba_x")
     assert post.result.std[j] < min(first.result.std[j], alone.result.std[j])
+
+
+def test_parquet_session_with_time_column_and_segment_list(tmp_path, noisy_session, ferraris):
+    """A Parquet session with `t` (rate from its step) and a JSON segment list give the label-column result."""
+    ses, segs = noisy_session
+    df = pd.DataFrame({"t": ses.t, **{f"acc_{a}": ses.acc[:, i] for i, a in enumerate("xyz")},
+                       **{f"gyr_{a}": ses.gyr[:, i] for i, a in enumerate("xyz")}})
+    df.to_parquet(tmp_path / "s.parquet")
+    (tmp_path / "seg.json").write_text(json.dumps({s.name: {"start": int(s.rows[0]), "end": int(s.rows[-1]) + 1}
+                                                   for s in segs}))
+    out = tmp_path / "c.json"
+    assert main(["calibrate", str(tmp_path / "s.parquet"), "--segments", str(tmp_path / "seg.json"),
+                 "--json", str(out)]) == 0
+    ref = calibrate(ses, segs, ferraris)
+    np.testing.assert_allclose(json.loads(out.read_text())["estimates"], ref.result.estimate, rtol=1e-9)

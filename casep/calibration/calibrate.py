@@ -6,27 +6,25 @@ coefficients of its output, solved by the registered estimators (:mod:`casep.est
 diagnostics are those of a flight. With readings ``u`` and the model's reading
 ``u = y0(f, omega) + J(f, omega) D``:
 
-- static segment k (specific force ``f_k = g e_k``, rate ``omega_k``): with the default
-  ``weighting="segments"`` one row per axis, the segment mean ``mean(u) - y0(f_k, omega_k) = J(f_k,
-  omega_k) D``; with ``weighting="samples"`` one row per sample and axis;
+- static segment k (specific force ``f_k = g e_k``, rate ``omega_k``): one row per axis, the segment
+  mean ``mean(u) - y0(f_k, omega_k) = J(f_k, omega_k) D`` (``weighting="samples"``: one row per
+  sample and axis);
 - rotation segment k (gyro only; by angle ``theta`` about axis ``a`` along gravity, over ``T_k =
   n_k / rate``): the integral. The reading is affine in omega (checked by the model's setup), so
   ``int u dt = T_k y0(f_k, 0) + [y0(f_k, Theta) - y0(f_k, 0)] + (T_k J(f_k, 0) + [J(f_k, Theta) -
   J(f_k, 0)]) D`` exactly, ``Theta = theta a`` in rad, whatever the rate profile of the turn.
 
-Weighting. ``segments`` (default): the static rows are segment means of equal weight. A
-hand-held or fixture position is never exactly the nominal one: its error (a tilt of a degree
-moves a 1 g reading by 1.7 %) is shared by every sample of the segment, so the means misfit the
-model far above the sample noise (the imucal session: ~13 raw units against ~0.2 of noise). The
-samples of one segment are then not independent observations: per-sample least squares weights
-long segments more and states a std from the sample noise alone, ~sqrt(n_k) too small. Segment
-means of equal weight, with the noise level estimated from their misfit (``sigma`` of the
-estimators, m - rank degrees of freedom), give a std that contains the positioning error. The
-rotation rows are whitened to the static rows' level by their white-noise std ``s_i sqrt(n_k) /
-rate`` (``s_i``: the pooled within-segment sample std of axis i) over the static level ``sigma_s``
-of a first fit of the static rows alone. ``samples``: every static sample a row, rotation rows
-whitened by ``s_i sqrt(n_k) / rate`` against ``s_i``: the white-noise GLS, which is right only
-when the positions are exact.
+Weighting. A hand-held or fixture position is never exactly the nominal one: its error is shared by
+every sample of the segment, so the means misfit the model far above the sample noise (imucal's
+session: up to 25 raw units against 0.2). ``positions`` (default): the static means whitened by the
+covariance a tilt ``phi ~ N(0, tilt^2 I)`` of the position gives,
+``V_k = tilt^2 g^2 J_f P_k J_f^T + g^2 tilt^4 (J_f e)(J_f e)^T + diag(s_i^2 / n_k)`` with
+``J_f = dy/df`` (the model's, at an equal-weight first estimate) and ``P_k = I - e e^T`` (a tilt
+moves the readings across gravity, not along it), the turns by their white-noise std
+``s_i sqrt(n_k) / rate`` (``s_i``: pooled within-segment sample std of axis i); ``tilt`` is where the
+whitened least-squares residual std is 1, estimated on the accelerometer and used for the gyro.
+``segments``: the means with equal weight and the noise level from their misfit (the turns scaled to
+that level); ``samples``: every static sample a row, the white-noise GLS (exact positions only).
 """
 
 from __future__ import annotations
