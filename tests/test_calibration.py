@@ -312,3 +312,30 @@ def test_parquet_session_with_time_column_and_segment_list(tmp_path, noisy_sessi
                  "--json", str(out)]) == 0
     ref = calibrate(ses, segs, ferraris)
     np.testing.assert_allclose(json.loads(out.read_text())["estimates"], ref.result.estimate, rtol=1e-9)
+
+
+def test_earth_rate_given_per_segment_is_modelled(platform_ground):
+    """Static segments with the Earth's rate (15 deg/h, projected on the sensor axes) stated: the gyro biases in
+    deg/h are recovered exactly; left out, it would be in them (Kg0 off by the projection)."""
+    earth = 15.041 / 3600.0  # deg/s
+    design = []
+    for k, d in enumerate(ferraris_design(20, 60)[:6] + tilted_design(20)):
+        g = (np.asarray(d["gravity"], dtype=float) if "gravity" in d
+             else np.eye(3)["xyz".index(d["name"][0])] * (1.0 if d["name"][2] == "p" else -1.0))
+        g /= np.linalg.norm(g)
+        # the Earth's rate at 50 deg latitude: vertical part along gravity, horizontal part across it
+        h = np.cross(g, [0.0, 0.0, 1.0] if abs(g[2]) < 0.9 else [1.0, 0.0, 0.0])
+        h /= np.linalg.norm(h)
+        w = earth * (np.sin(np.radians(50)) * g + np.cos(np.radians(50)) * h)
+        design.append({"name": f"s{k}", "kind": "static", "gravity": g.tolist(), "omega_dps": w.tolist(),
+                       "samples": 20})
+    design += ferraris_design(20, 60)[6:]
+    ses, segs = simulate_session(platform_ground, PLATFORM_TRUTH, design, rate=100.0)
+    cal = calibrate(ses, segs, platform_ground)
+    for n in ("Kg0x", "Kg0y", "Kg0z", "Kg1x", "Sg_xx"):
+        assert cal.value(n) == pytest.approx(PLATFORM_TRUTH[n], rel=1e-9)
+    blind = [type(s)(s.name, s.kind, s.rows, s.gravity, s.axis, s.angle_deg) for s in segs]  # omega_dps 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PositionMisfitWarning)
+        off = calibrate(ses, blind, platform_ground)
+    assert max(abs(off.value(n) - PLATFORM_TRUTH[n]) for n in ("Kg0x", "Kg0y", "Kg0z", "Kg1x", "Kg1y")) > 1.0

@@ -70,7 +70,7 @@ def simulate_session(model: CalibrationModel, truth: Mapping[str, float] | np.nd
         Coefficients, natural units (a mapping: missing ones are 0).
     design : sequence of dict
         ``{"name", "samples"}`` for imucal's names (``angle_deg`` for a turn), or with ``kind``,
-        ``gravity`` (and ``axis``, ``angle_deg``) for others.
+        ``gravity`` (and ``omega_dps`` for a static one, ``axis``, ``angle_deg`` for a turn) for others.
     noise : float or (acc, gyr) pair of float or 3-vectors
         White noise std of the readings, reading units.
     position_error_deg, angle_error : float
@@ -100,7 +100,8 @@ def simulate_session(model: CalibrationModel, truth: Mapping[str, float] | np.nd
             g = np.asarray(d["gravity"], dtype=float)
             g = g / np.linalg.norm(g)
             if d["kind"] == "static":
-                seg = Segment(d["name"], "static", rows, gravity=g)
+                seg = Segment(d["name"], "static", rows, gravity=g,
+                              omega_dps=np.asarray(d.get("omega_dps", np.zeros(3)), dtype=float))
             else:
                 ax = np.asarray(d["axis"], dtype=float)
                 seg = Segment(d["name"], "rotation", rows, gravity=g, axis=ax / np.linalg.norm(ax),
