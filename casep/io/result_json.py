@@ -33,7 +33,7 @@ import json
 import math
 import os
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Callable, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
@@ -208,9 +208,7 @@ def looks_like_result(data: Any) -> bool:
     return isinstance(data, dict) and any(k in data for k in RESULT_KEYS)
 
 
-def _array(values: list | None) -> np.ndarray | None:
-    if values is None:
-        return None
+def _array(values: list) -> np.ndarray:
     return np.array([np.nan if v is None else float(v) for v in values], dtype=float)
 
 
@@ -238,6 +236,9 @@ def parse_result_data(data: Any, where: str = "result") -> ResultData:
     except ValidationError as exc:
         raise ValueError(_pydantic_message(exc, where)) from None
     flat = [k for k in ("names", "units", "estimates", "std") if getattr(f, k) is not None]
+    form: Literal["coefficients", "arrays", "both"]
+    names: tuple[str, ...]
+    units: tuple[str, ...]
     if f.coefficients is not None:
         rows = f.coefficients
         names = tuple(r.name for r in rows)
@@ -254,11 +255,12 @@ def parse_result_data(data: Any, where: str = "result") -> ResultData:
                 what = f"field `{k}` is null" if k in data else f"missing field `{k}`"
                 raise ValueError(f"{where}: {what} (the flat-array form needs names, units, estimates and std "
                                  "as lists, null entries for no value; or give a `coefficients` list)")
+        assert f.names is not None and f.units is not None and f.estimates is not None and f.std is not None
         names, units = tuple(f.names), tuple(f.units)
         est, std = _array(f.estimates), _array(f.std)
-        for k, v in (("units", units), ("estimates", est), ("std", std)):
-            if len(v) != len(names):
-                raise ValueError(f"{where}: field `{k}` has {len(v)} entries for {len(names)} names")
+        for k, size in (("units", len(units)), ("estimates", est.size), ("std", std.size)):
+            if size != len(names):
+                raise ValueError(f"{where}: field `{k}` has {size} entries for {len(names)} names")
         reasons = {}
         form = "arrays"
     if not names:
@@ -292,7 +294,7 @@ def _check_forms_agree(f: _ResultFile, names, units, est, std, where: str) -> No
         if fl_names[i] != names[i]:
             raise ValueError(f"{where}: the two forms disagree at entry {i}: `coefficients[{i}].name` is "
                              f"`{names[i]}`, `names[{i}]` is `{fl_names[i]}`; edit both, or delete the flat arrays")
-        checks = []
+        checks: list[tuple[str, str, Any, Any, Callable[[Any, Any], bool]]] = []
         if f.units is not None:
             checks.append(("unit", "units", units[i], f.units[i], lambda a, b: a == b))
         if f.estimates is not None:
@@ -362,7 +364,7 @@ def check_covariance(cov: Any, names, est: np.ndarray, std: np.ndarray | None, w
             elif not math.isfinite(v) or abs(v) > MAX_RESULT_VALUE**2:
                 raise ValueError(f"{where}: field `covariance[{i}][{j}]` ({names[i]}, {names[j]}) is {v:g}: give a "
                                  f"finite number within {MAX_RESULT_VALUE**2:g}")
-    k = np.flatnonzero(have)
+    k = [int(v) for v in np.flatnonzero(have)]
     Ck = C[np.ix_(k, k)]
     d = np.diag(Ck)
     for a, j in enumerate(k):
@@ -373,7 +375,7 @@ def check_covariance(cov: Any, names, est: np.ndarray, std: np.ndarray | None, w
     tol = SYMMETRY_RTOL * np.outer(s, s)
     asym = np.abs(Ck - Ck.T) - tol
     if asym.size and asym.max() > 0:
-        a, b = np.unravel_index(int(np.argmax(asym)), asym.shape)
+        a, b = (int(v) for v in np.unravel_index(int(np.argmax(asym)), asym.shape))
         i, j = k[a], k[b]
         raise ValueError(f"{where}: field `covariance` is not symmetric: [{i}][{j}] ({names[i]}, {names[j]}) is "
                          f"{C[i, j]:.6g}, [{j}][{i}] is {C[j, i]:.6g}")
