@@ -39,6 +39,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from casep.impact.ballistic import impact, impact_jacobian, impact_point
+from casep.model.sv import cumulative_sp  # S_P = int S_V dt (the tracking layer uses it too)
 
 __all__ = ["ImpactAnalysis", "impact_analysis", "burnout_state", "position_sensitivity", "cumulative_sp",
            "read_trajectory", "STATE_COLUMNS", "CORRELATION_GROUP"]
@@ -98,21 +99,6 @@ def read_trajectory(path: str | os.PathLike):
 
 
 # ----------------------------------------------------------------------------- S_P
-def cumulative_sp(S: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """S_P = cumulative trapezoid of S_V over `t`, zero at the first sample: ``(N, 3, n)``.
-
-    Notes
-    -----
-    ``S_P[0] = 0``, ``S_P[k] = S_P[k-1] + (S_V[k-1] + S_V[k]) (t_k - t_{k-1}) / 2``.
-    """
-    S = np.asarray(S, dtype=float)
-    t = np.asarray(t, dtype=float)
-    out = np.zeros_like(S)
-    dt = np.diff(t)[:, None, None]
-    np.cumsum(0.5 * (S[1:] + S[:-1]) * dt, axis=0, out=out[1:])  # trapezoid per step, summed
-    return out
-
-
 def position_sensitivity(model, flight, *, rows: int = 65536) -> tuple[np.ndarray, np.ndarray]:
     """``S_P(t_b)`` and ``S_V(t_b)`` at the flight's last sample, ``(3, n)`` each, per natural unit.
 

@@ -1,0 +1,157 @@
+"""Separation in the measurement domain: telemetry + radar stations -> instrument and station errors.
+
+:func:`separate_radar` reads the inputs, builds the joint regression
+(:class:`casep.tracking.regression.RadarRegression`: relinearised, group noise estimated), hands
+it to any registered estimator as a whitened :class:`~casep.analysis.problem.Problem`, and
+returns a :class:`RadarResult`: the :class:`~casep.estimators.result.EstimateResult` over the
+instrument coefficients and the station terms ``<station>.<term>``, plus the radar summary
+(noise per station and type, residual RMS per group, how the telemetered position was had) and,
+unless asked not to, the diagnostics of :mod:`casep.tracking.diagnostics`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from casep.estimators.registry import OPTIONS, check_method_options, run_method
+from casep.estimators.result import EstimateResult
+from casep.frames import LaunchSite
+from casep.model.loader import load_model
+from casep.model.tracking import load_tracking_model
+from casep.tracking.diagnostics import diagnostics_table, radar_diagnostics
+from casep.tracking.regression import TYPE_UNITS, LinearisedRadar, RadarRegression, Telemetry, read_telemetry
+from casep.tracking.stations import RadarMeasurements, read_radar, read_station
+
+__all__ = ["RadarResult", "separate_radar", "diagnose_radar", "read_radar_inputs"]
+
+
+@dataclass(frozen=True)
+class RadarResult:
+    """The joint estimate and what goes with it."""
+
+    result: EstimateResult
+    linearised: LinearisedRadar
+    summary: dict
+    diagnostics: dict | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The result JSON with a ``radar`` section (``diagnostics.tracking_terms`` lists the station terms)."""
+        d = self.result.to_dict()
+        d["radar"] = {**self.summary, **({"diagnostics": self.diagnostics} if self.diagnostics else {})}
+        return d
+
+    def table(self) -> str:
+        """The result table, the noise and residuals per station and type, and the diagnostics."""
+        res = self.result
+        lines = [res.table().replace(f"sigma {res.sigma:.4g} m/s", f"noise scale {res.sigma:.4g} (1: as estimated "
+                                                                     "per group)"),
+                 "", f"telemetered position: {self.summary['telemetry_position']}",
+                 f"linearisation: {len(self.summary['gauss_newton_steps'])} Gauss-Newton steps, last change "
+                 f"{self.summary['gauss_newton_steps'][-1]:.2g} std"]
+        lines.append("residual RMS: " + ", ".join(f"{k} {v:.4g} {TYPE_UNITS[k.split('.', 1)[1]][0]}"
+                                                  for k, v in self.summary["residual_rms"].items()))
+        if self.diagnostics:
+            lines += ["", diagnostics_table(self.diagnostics)]
+        return "\n".join(lines)
+
+    @property
+    def tracking_names(self) -> tuple[str, ...]:
+        return tuple(self.summary["tracking_terms"])
+
+
+def read_radar_inputs(pairs: Sequence) -> list[RadarMeasurements]:
+    """``[(station.json, measurements.csv), ...]`` (or RadarMeasurements) -> measurements, stations read."""
+    out = []
+    for p in pairs:
+        if isinstance(p, RadarMeasurements):
+            out.append(p)
+            continue
+        if not isinstance(p, (tuple, list)) or len(p) != 2:
+            raise ValueError(f"each radar input must be (station.json, measurements.csv), got {p!r}")
+        out.append(read_radar(p[1], read_station(p[0])))
+    return out
+
+
+def _inputs(telemetry, radars, model, tracking, site):
+    if not isinstance(site, LaunchSite):
+        raise ValueError("`site` (--launch-site LAT LON H AZ --launch-time T0) is required: it ties the "
+                         "launch-inertial frame of the telemetry to the stations on the Earth")
+    model = load_model(model)
+    tracking = load_tracking_model(tracking)
+    tel = telemetry if isinstance(telemetry, Telemetry) else read_telemetry(telemetry, site)
+    return RadarRegression(tel, read_radar_inputs(radars), model, tracking, site)
+
+
+def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, site: LaunchSite,
+                   model: Any = "platform36", tracking: Any = "radar_biases", method: str = "ols", *,
+                   sigma: Mapping | None = None, options: Mapping | None = None,
+                   diagnostics: bool = True) -> RadarResult:
+    """Estimate the instrument coefficients and every station's tracking terms jointly.
+
+    Parameters
+    ----------
+    telemetry : Telemetry or path
+        ``t, f_* (or W_*), v_tel_*`` and optionally ``r_tel_*`` (launch-inertial).
+    radars : sequence
+        ``(station.json, measurements.csv)`` pairs or :class:`RadarMeasurements`.
+    site : LaunchSite
+        Launch point, azimuth and launch time (``t0`` in the radar files' time scale).
+    model, tracking : name, path or model
+        Instrument model (``platform36``) and tracking model (``radar_biases``).
+    method : str
+        Any registered estimator; ``gls`` only with one station (it whitens one time series).
+    sigma : mapping, optional
+        ``{(station, type): std}`` known noise, SI (m, rad, m/s); also read from the station
+        files. The others are estimated per station and type.
+    options : mapping, optional
+        The method's options (``bounds``, ``prior`` with ``S1.range_bias``-style names, ...).
+    diagnostics : bool
+        Add the CRLB fixed/free, mixed groups and station gains (:mod:`casep.tracking.diagnostics`).
+    """
+    reg = _inputs(telemetry, radars, model, tracking, site)
+    opts = dict(options or {})
+    for k in opts:
+        if k not in OPTIONS:
+            raise ValueError(f"`options` has unknown option `{k}`; the options are {', '.join(OPTIONS)}")
+    check_method_options(method, opts)
+    if method == "gls" and len(reg.stations) > 1:
+        raise ValueError("--method gls whitens one time series per axis; with several stations the rows of different "
+                         "stations share times. Use: --method ols (white noise per station and type), or one station")
+    lin = reg.solve(sigma)
+    pb = lin.estimation_problem()
+    all_given = bool(lin.sigma_given.all())
+    res = run_method(method, pb, None, pb.t, opts, sigma=1.0 if all_given else None)
+    x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
+    tracking_terms = list(reg.names[reg.nD:])
+    summary = {
+        "stations": [{**s.meas.station.to_dict(), "file": s.meas.source, "station_file": s.meas.station.source,
+                      "n_samples": int(s.t.size), "types": list(s.types)} for s in reg.stations],
+        "launch_site": reg.site.to_dict(), "telemetry": reg.telemetry.source,
+        "telemetry_position": reg.telemetry.r_source, "instrument_model": reg.model.name,
+        "tracking_model": reg.tracking.name, "tracking_terms": tracking_terms,
+        "noise": lin.noise_table(), "residual_rms": lin.group_residual_rms(x),
+        "gauss_newton_steps": [float(v) for v in lin.history],
+        "noise_scale": float(res.sigma),
+    }
+    res = dataclasses.replace(
+        res, residuals=np.empty((0, 3)), stored_residual_rms=dict.fromkeys("xyz"),
+        diagnostics={**res.diagnostics, "tracking_terms": tracking_terms},
+        settings={**res.settings, "noise": "white per station and type, "
+                  + ("given" if all_given else "estimated (REML-type iteration)")})
+    diag = radar_diagnostics(lin, scales={**reg.model.scales, **{
+        f"{s.meas.station.name}.{k}": v for s in reg.stations for k, v in reg.tracking.scales.items()}}) \
+        if diagnostics else None
+    return RadarResult(res, lin, summary, diag)
+
+
+def diagnose_radar(telemetry, radars: Sequence, site: LaunchSite, model: Any = "platform36",
+                   tracking: Any = "radar_biases", *, sigma: Mapping | None = None) -> dict[str, Any]:
+    """The diagnostics of :mod:`casep.tracking.diagnostics` for these inputs (noise estimated when not given)."""
+    reg = _inputs(telemetry, radars, model, tracking, site)
+    lin = reg.solve(sigma)
+    return radar_diagnostics(lin, scales=reg.model.scales)
