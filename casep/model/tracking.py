@@ -90,6 +90,7 @@ class TrackingModel:
         self._outputs: dict[str, ca.SX | None] = dict.fromkeys(TRACKING_OUTPUTS)
         self._locked = False
         self._jac: ca.Function | None = None
+        self._err: ca.Function | None = None
 
     # ------------------------------------------------------------------ geometry symbols
     @property
@@ -268,6 +269,7 @@ class TrackingModel:
                     f"coefficient (value {value[i]:.6g} at range {probe[0]:g} m). Use: multiply every term by "
                     "exactly one coefficient")
         self._jac = ca.Function("T", [geo], [ca.densify(J)], ["geometry"], ["T"])
+        self._err = ca.Function("errors", [geo, theta], [out], ["geometry", "theta"], ["errors"])
         self._locked = True
         return self
 
@@ -323,6 +325,19 @@ class TrackingModel:
             return np.zeros((0, 4, n))
         T = np.asarray(self._jac(g.T))  # (4, n N): one 4 x n block per sample, side by side
         return T.reshape(4, g.shape[0], n).transpose(1, 0, 2)
+
+    def errors(self, geometry: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """The error expressions themselves at each sample, ``(N, 4)`` SI (theta in natural units).
+
+        Evaluated from the declared expressions, not from ``T``: what the finite-difference check
+        of :meth:`jacobian` compares against.
+        """
+        self._require_setup()
+        g = np.atleast_2d(np.asarray(geometry, dtype=float))
+        th = np.asarray(theta, dtype=float).reshape(-1)
+        if th.size != self.n_coefficients:
+            raise ValueError(f"`theta` must have {self.n_coefficients} values, got {th.size}")
+        return np.asarray(self._err(g.T, th)).T
 
     def __repr__(self) -> str:
         state = "set up" if self._locked else "open"

@@ -10,6 +10,8 @@ its own rate, on times inside the flight::
 
     z(t) = h(r(t - tau), v(t - tau)) + T(g) theta + n,    n ~ N(0, sigma_type^2)
 
+(tags whose instant ``t - tau`` falls outside the flight are not written)
+
 with ``h`` the geometric measurement (:class:`casep.tracking.geometry.RadarGeometry`), ``g`` the
 geometry it gives, ``T`` the tracking model's Jacobian and ``theta`` the station's true errors.
 A tracking-model term named ``time_bias`` (unit ``ms``) is applied exactly as a late time tag
@@ -145,15 +147,17 @@ def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="p
         if idx_time is not None:
             tau = th[idx_time] * trk.si_factors[idx_time]  # s
             th[idx_time] = 0.0  # applied exactly below
-        t_meas = np.clip(t_r - tau, traj.t[0], t_end)  # measured at t - tau (on the pad before lift-off)
+        inside = (t_r - tau >= traj.t[0]) & (t_r - tau <= t_end)  # tags whose instant t - tau was flown
+        t_tag = t_r[inside]
+        t_meas = t_tag - tau  # measured at t - tau
         r, v = traj.sample(t_meas)
         geo, _ = RadarGeometry(site, st).evaluate(t_meas, r, v)
-        T = trk.jacobian(np.column_stack([geo, t_r - t_r[0]]))
+        T = trk.jacobian(np.column_stack([geo, t_tag - t_tag[0]]))
         z = geo[:, :4] + T @ th  # h + T theta
         for j, ty in enumerate(types):
             if noise[ty] > 0:
-                z[:, j] += rng.normal(0.0, noise[ty] * _SI[ty], t_r.size)
-        radars.append(RadarMeasurements(st, t_r, z[:, 0], z[:, 1] % (2 * np.pi), z[:, 2],
+                z[:, j] += rng.normal(0.0, noise[ty] * _SI[ty], t_tag.size)
+        radars.append(RadarMeasurements(st, t_tag, z[:, 0], z[:, 1] % (2 * np.pi), z[:, 2],
                                         z[:, 3] if range_rate else None, f"simulated:{st.name}"))
     return RadarSimulation(tel, tuple(radars), site, mdl, trk, D, tt, {k: noise[k] for k in types}, seed, sc.name)
 

@@ -300,7 +300,7 @@ class RadarRegression:
                     out[(s.meas.station.name, ty)] = float(s.meas.station.sigma[ty])
         return out
 
-    def solve(self, sigma: dict | None = None, *, iterations: int = 10, tol: float = 1e-6):
+    def solve(self, sigma: dict | None = None, *, iterations: int = 10, tol: float = 1e-3):
         """Gauss-Newton on the linearisation point with group noise std re-estimated at each step.
 
         Parameters
@@ -311,7 +311,10 @@ class RadarRegression:
         iterations : int
             At most this many relinearisations.
         tol : float
-            Stop when the change of D is below `tol` times its least-squares std.
+            Stop when the change of D is below `tol` times its least-squares std. Gauss-Newton
+            converges quadratically here (steps of 2.8, 0.76, 2.4e-4, 1.4e-7 std on the test
+            flight), and the estimator's solve is one more step, so the default 1e-3 leaves an
+            error far below 1e-6 std.
 
         Returns
         -------
@@ -348,8 +351,8 @@ class RadarRegression:
 
 
 def estimate_group_sigmas(S: np.ndarray, y: np.ndarray, rows: list[np.ndarray], sigma: np.ndarray,
-                          fixed: np.ndarray, *, floor: np.ndarray, iterations: int = 20,
-                          rtol: float = 1e-4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                          fixed: np.ndarray, *, floor: np.ndarray, iterations: int = 30,
+                          rtol: float = 1e-5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Noise std per group from the weighted least-squares residuals, degrees of freedom corrected.
 
     Iterates ``sigma_g^2 = sum_{i in g} r_i^2 / (m_g - h_g)`` with ``r`` the residuals of the fit
@@ -357,6 +360,11 @@ def estimate_group_sigmas(S: np.ndarray, y: np.ndarray, rows: list[np.ndarray], 
     group's share of the leverages (``F`` the weighted S); at the fixed point the weighted residual
     sum of squares equals ``m - rank``, the REML condition for group variances of a linear model
     at these leverages.
+
+    Each group is reduced once (casep's TSQR, :func:`casep.analysis.linalg.reduce_qr`:
+    ``S_g = Q_g R_g``, ``q_g = Q_g^T y_g``, ``rho_g^2`` the rest); a weighting is then the
+    least-squares problem of the stacked ``R_g / sigma_g`` (``G n`` rows), and the group's residual
+    sum of squares is ``|q_g - R_g x|^2 + rho_g^2``: exact, and independent of the number of rows.
 
     Returns
     -------
@@ -367,42 +375,44 @@ def estimate_group_sigmas(S: np.ndarray, y: np.ndarray, rows: list[np.ndarray], 
     std : (n,) ndarray
         Its std (unit weighted noise).
     """
+    from casep.analysis.linalg import reduce_qr
+
     sigma = np.array(sigma, dtype=float)
-    grams = [S[r].T @ S[r] for r in rows]  # S_g^T S_g: the leverage shares need only these
-    for _ in range(iterations + 1):
-        w = np.empty(y.size)
-        for g, r in enumerate(rows):
-            w[r] = 1.0 / sigma[g]
-        x, cov = _weighted_ls(S * w[:, None], y * w)
-        res = y - S @ x
+    red = []
+    for r in rows:
+        rg = reduce_qr(S[r], y[r])
+        red.append((rg.R * rg.scale[None, :], rg.qty, float(rg.rho2)))  # R of S_g itself (S_g = Q R diag(scale))
+    grams = [R.T @ R for R, _, _ in red]  # S_g^T S_g
+    x = cov = None
+    for _ in range(iterations):
+        x, cov = _stacked_ls(red, sigma)
         new = sigma.copy()
-        for g, r in enumerate(rows):
+        for g, (R, q, rho2) in enumerate(red):
             if fixed[g]:
                 continue
             lev = float(np.sum(grams[g] * cov)) / sigma[g] ** 2  # trace(F_g^T F_g Cov), Cov symmetric
-            dof = max(r.size - lev, 1.0)
-            new[g] = max(math.sqrt(float(np.sum(res[r] ** 2)) / dof), float(floor[g]))
+            dof = max(rows[g].size - lev, 1.0)
+            rss = float(np.sum((q - R @ x) ** 2)) + rho2
+            new[g] = max(math.sqrt(max(rss, 0.0) / dof), float(floor[g]))
         done = np.all(np.abs(new - sigma) <= rtol * sigma)
         sigma = new
         if done:
             break
-    w = np.empty(y.size)
-    for g, r in enumerate(rows):
-        w[r] = 1.0 / sigma[g]
-    x, cov = _weighted_ls(S * w[:, None], y * w)
+    x, cov = _stacked_ls(red, sigma)
     return sigma, x, np.sqrt(np.clip(np.diag(cov), 0, None))
 
 
-def _weighted_ls(Sw: np.ndarray, yw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Least squares on equilibrated columns (casep's TSQR reduction): estimate and covariance (unit noise)."""
-    from casep.analysis.linalg import reduce_qr
-
-    red = reduce_qr(Sw, yw)
-    c = np.where(red.scale > 0, red.scale, 1.0)
-    U, s, Vt = np.linalg.svd(red.R)
-    keep = s > s[0] * max(Sw.shape) * np.finfo(float).eps
-    Wm = Vt[keep].T / s[keep]  # R^+ = V S^-1 U^T on the kept part
-    x = (Wm @ (U[:, keep].T @ red.qty)) / c
+def _stacked_ls(red, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least squares of the stacked group reductions ``[R_g / sigma_g] x = [q_g / sigma_g]``, columns
+    equilibrated, minimum norm on an exact null space: estimate and covariance (unit weighted noise)."""
+    F = np.vstack([R / s for (R, _, _), s in zip(red, sigma)])
+    f = np.concatenate([q / s for (_, q, _), s in zip(red, sigma)])
+    c = np.linalg.norm(F, axis=0)
+    c = np.where(c > 0, c, 1.0)
+    U, sv, Vt = np.linalg.svd(F / c, full_matrices=False)
+    keep = sv > sv[0] * max(F.shape) * np.finfo(float).eps
+    Wm = Vt[keep].T / sv[keep]
+    x = (Wm @ (U[:, keep].T @ f)) / c
     cov = (Wm @ Wm.T) / np.outer(c, c)
     return x, cov
 

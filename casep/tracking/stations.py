@@ -13,7 +13,7 @@ above the local horizon, the plane normal to the WGS84 ellipsoid normal at the s
 optionally ``range_rate`` (m/s). Inside casep the angles are radians.
 
 Legal but suspicious: station coordinates or measured angles that look like radians (every
-angle within +-pi and spanning less than a few degrees) give a :class:`RadianAnglesWarning` with
+azimuth within +-2 pi and every elevation within +-pi/2) give a :class:`RadianAnglesWarning` with
 the numbers; a station whose first predicted range is more than 1 km from the first measured
 one is refused later (:func:`casep.tracking.regression.check_first_sample`).
 """
@@ -230,9 +230,9 @@ def read_radar(path: str | os.PathLike, station: Station | str | os.PathLike) ->
     bad = np.flatnonzero((az < -360.0) | (az > 360.0))
     if bad.size:
         raise tab.error(f"azimuth {az[bad[0]]:g} deg is outside [-360, 360]", "azimuth", int(bad[0]) + 1)
-    # radians read as degrees: every angle within +-2 pi / +-pi/2 and the track spanning less than 1.6 "deg"
-    if t.size >= 2 and np.all(np.abs(az) <= 2 * math.pi) and np.all(np.abs(el) <= math.pi / 2) \
-            and max(np.ptp(az), np.ptp(el)) < 1.6:
+    # radians read as degrees: every azimuth within +-2 pi and every elevation within +-pi/2 "deg" (a
+    # track in degrees that stays within 6.3 deg of north and 1.6 deg of the horizon is rare)
+    if t.size >= 2 and np.all(np.abs(az) <= 2 * math.pi) and np.all(np.abs(el) <= math.pi / 2):
         warnings.warn(f"{tab.src}: azimuth {az.min():.4g}..{az.max():.4g}, elevation {el.min():.4g}..{el.max():.4g} "
                       "look like radians (every value within +-2 pi and +-pi/2); the file must give degrees",
                       RadianAnglesWarning, stacklevel=2)

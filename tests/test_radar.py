@@ -1,0 +1,353 @@
+"""Radar tracking errors in the same estimate (casep.tracking, casep.model.tracking, casep.workflows.radar)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import casadi as ca
+import numpy as np
+import pymap3d
+import pytest
+
+import casep
+from casep.frames import LaunchSite, launch_to_ecef
+from casep.model._model import ModelDefinitionError
+from casep.model.loader import ModelFileError
+from casep.model.tracking import TrackingModel, load_tracking_model
+from casep.simulation.radar import simulate_radar, write_radar_simulation
+from casep.tracking.geometry import RadarGeometry
+from casep.tracking.stations import RadarMeasurements, RadianAnglesWarning, Station, read_radar, read_station
+from casep.units import ARCSEC
+from casep.workflows.radar import separate_radar
+
+SITE = LaunchSite(28.5, -80.6, 3.0, 90.0, 0.0)
+STATIONS = (Station("S1", 28.9, -80.0, 20.0), Station("S2", 28.1, -79.2, 15.0))
+TRUTH = {"S1": {"range_bias": 5.0, "range_scale": 10.0, "azimuth_bias": 15.0, "elevation_bias": -20.0},
+         "S2": {"range_bias": -3.0, "range_scale": -5.0, "azimuth_bias": -10.0, "elevation_bias": 12.0}}
+NOISE = {"range": 3.0, "azimuth": 8.0, "elevation": 8.0}  # m, arcsec
+SIGMA = {(s, ty): v * (ARCSEC if ty != "range" else 1.0) for s in ("S1", "S2") for ty, v in NOISE.items()}
+
+
+@pytest.fixture(scope="module")
+def clean():
+    """A noise-free two-station flight at 20 Hz (telemetry and radar), station errors injected, no time bias."""
+    return simulate_radar(STATIONS, SITE, seed=0, telemetry_rate=20, radar_rate=20, tracking_truth=TRUTH,
+                          noise={"range": 0.0, "azimuth": 0.0, "elevation": 0.0})
+
+
+def _with_noise(sim, rng):
+    """The same flight with fresh white noise of NOISE on every measurement (as simulate_radar adds it)."""
+    out = []
+    for m in sim.radars:
+        n = m.t.size
+        out.append(dataclasses.replace(m, range=m.range + rng.normal(0, NOISE["range"], n),
+                                       azimuth=m.azimuth + rng.normal(0, NOISE["azimuth"] * ARCSEC, n),
+                                       elevation=m.elevation + rng.normal(0, NOISE["elevation"] * ARCSEC, n)))
+    return out
+
+
+# ----------------------------------------------------------------------------- the tracking model
+def test_tracking_model_lifecycle_and_checks():
+    m = TrackingModel("t")
+    c = m.declare(b="m", k=("ppm", 5.0))
+    m.set_range_error(c.b + c.k * m.range)
+    m.setup()
+    assert m.names == ("b", "k") and m.units == ("m", "ppm") and m.scales == {"k": 5.0}
+    with pytest.raises(RuntimeError, match="locked"):
+        m.declare(x="m")
+    bad = TrackingModel("nonlinear")
+    c = bad.declare(b="m")
+    bad.set_range_error(c.b * c.b)
+    with pytest.raises(ModelDefinitionError, match="not linear"):
+        bad.setup()
+    free = TrackingModel("offset")
+    c = free.declare(b="m")
+    free.set_range_error(c.b + 0.01 * free.range)
+    with pytest.raises(ModelDefinitionError, match="without a coefficient"):
+        free.setup()
+    unused = TrackingModel("unused")
+    c = unused.declare(b="m", e="arcsec")
+    unused.set_range_error(c.b)
+    with pytest.raises(ModelDefinitionError, match="`e`.*used in no output"):
+        unused.setup()
+    foreign = TrackingModel("foreign")
+    c = foreign.declare(b="m")
+    foreign.set_range_error(c.b * ca.SX.sym("q"))
+    with pytest.raises(ModelDefinitionError, match="`q`"):
+        foreign.setup()
+
+
+def test_radar_biases_T_against_finite_differences_and_closed_form():
+    m = load_tracking_model("radar_biases")
+    assert m.names == ("range_bias", "range_scale", "azimuth_bias", "elevation_bias", "time_bias")
+    rng = np.random.default_rng(3)
+    g = np.column_stack([rng.uniform(5e4, 5e5, 6), rng.uniform(-3, 3, 6), rng.uniform(0, 1.4, 6),
+                         rng.uniform(-2e3, 2e3, 6), rng.uniform(-1e-2, 1e-2, 6), rng.uniform(-1e-2, 1e-2, 6),
+                         rng.normal(0, 1e5, (6, 3)), rng.uniform(0, 200, 6)])
+    T = m.jacobian(g)
+    theta = rng.normal(0, 3, 5)
+    h = 1e-3
+    for j in range(5):  # central differences of the declared error expressions
+        e = np.zeros(5)
+        e[j] = h
+        fd = (m.errors(g, theta + e) - m.errors(g, theta - e)) / (2 * h)
+        np.testing.assert_allclose(T[:, :, j], fd, rtol=1e-9, atol=1e-18)
+    # closed form of the conventions: (1 + s 1e-6) rho + b; A + a; E + e; tagged late by tau (ms)
+    rho, rho_dot, a_dot, e_dot = g[:, 0], g[:, 3], g[:, 4], g[:, 5]
+    np.testing.assert_allclose(T[:, 0, :], np.column_stack([np.ones(6), 1e-6 * rho, 0 * rho, 0 * rho,
+                                                            -1e-3 * rho_dot]), rtol=1e-14)
+    np.testing.assert_allclose(T[:, 1, 2], ARCSEC, rtol=1e-14)
+    np.testing.assert_allclose(T[:, 2, 4], -1e-3 * e_dot, rtol=1e-14)
+    np.testing.assert_allclose(T[:, 1, 4], -1e-3 * a_dot, rtol=1e-14)
+
+
+def test_radar_biases_is_a_tracking_model_not_an_instrument_model():
+    with pytest.raises(ModelFileError, match="tracking model: use it with --tracking-model"):
+        casep.load_model("radar_biases")
+    with pytest.raises(ModelFileError, match="instrument model"):
+        load_tracking_model("platform36")
+
+
+# ----------------------------------------------------------------------------- geometry
+def _random_states(rng, n=7):
+    r = np.column_stack([rng.uniform(0, 4e5, n), rng.uniform(1e3, 2e5, n), rng.normal(0, 3e4, n)])
+    v = rng.normal(0, 1.5e3, (n, 3))
+    return rng.uniform(0, 250, n), r, v
+
+
+def test_predicted_measurement_against_pymap3d():
+    rng = np.random.default_rng(1)
+    t, r, v = _random_states(rng)
+    site = LaunchSite(28.5, -80.6, 3.0, 75.0, 12.5)
+    for st in STATIONS:
+        geo, _ = RadarGeometry(site, st).evaluate(t, r, v)
+        r_e, v_e = launch_to_ecef(site, t, r, v)  # the frames module, then pymap3d's own aer
+        az, el, rng_ = pymap3d.ecef2aer(r_e[:, 0], r_e[:, 1], r_e[:, 2], st.lat_deg, st.lon_deg, st.h_m)
+        np.testing.assert_allclose(geo[:, 0], rng_, rtol=0, atol=1e-6)
+        d_az = (np.radians(az) - geo[:, 1] + np.pi) % (2 * np.pi) - np.pi
+        assert np.max(np.abs(d_az)) < 1e-9
+        np.testing.assert_allclose(geo[:, 2], np.radians(el), rtol=0, atol=1e-9)
+        # range rate: derivative of pymap3d's range along the ECEF motion (central difference in time)
+        dt = 1e-3
+        rp, _ = launch_to_ecef(site, t + dt, r + v * dt, v)
+        rm, _ = launch_to_ecef(site, t - dt, r - v * dt, v)
+        fd = (np.asarray(pymap3d.ecef2aer(*rp.T, st.lat_deg, st.lon_deg, st.h_m)[2])
+              - np.asarray(pymap3d.ecef2aer(*rm.T, st.lat_deg, st.lon_deg, st.h_m)[2])) / (2 * dt)
+        np.testing.assert_allclose(geo[:, 3], fd, rtol=0, atol=2e-4)
+
+
+def test_H_against_finite_differences():
+    rng = np.random.default_rng(2)
+    t, r, v = _random_states(rng)
+    g = RadarGeometry(SITE, STATIONS[0])
+    _, H = g.evaluate(t, r, v)
+    for j in range(6):
+        h = 1e-2 if j < 3 else 1e-3
+        e = np.zeros(6)
+        e[j] = h
+        gp, _ = g.evaluate(t, r + e[:3], v + e[3:])
+        gm, _ = g.evaluate(t, r - e[:3], v - e[3:])
+        d = gp[:, :4] - gm[:, :4]
+        d[:, 1] = (d[:, 1] + np.pi) % (2 * np.pi) - np.pi
+        fd = d / (2 * h)
+        scale = np.array([1.0, 1e-5, 1e-5, 1e-2])  # m/m, rad/m, rad/m, (m/s)/m: magnitudes of the rows
+        np.testing.assert_allclose(H[:, :, j] / scale, fd / scale, rtol=0, atol=1e-7)
+
+
+# ----------------------------------------------------------------------------- separation
+def _noise_free_errors(sim, radars):
+    rr = separate_radar(sim.telemetry, radars, SITE, sim.model, sim.tracking, "ols",
+                        sigma={k: v for k, v in SIGMA.items() if k[0] in {m.station.name for m in radars}},
+                        diagnostics=False)
+    names = rr.result.names
+    truth = dict(zip(sim.model.names, sim.truth))
+    for m in radars:
+        truth.update({f"{m.station.name}.{k}": sim.tracking_truth[m.station.name].get(k, 0.0)
+                      for k in sim.tracking.names})
+    x = np.array([truth[n] for n in names])
+    return rr, (rr.result.estimate - x) / rr.result.std
+
+
+def test_noise_free_two_stations_recovered_to_1e6_of_crlb(clean):
+    rr, z = _noise_free_errors(clean, list(clean.radars))
+    assert rr.result.success and np.all(np.isfinite(z))
+    assert np.max(np.abs(z)) < 1e-6, dict(zip(rr.result.names, z))
+    assert rr.result.names[-5:] == tuple(f"S2.{n}" for n in clean.tracking.names)
+
+
+def test_noise_free_one_station_recovered_to_1e6_of_crlb(clean):
+    rr, z = _noise_free_errors(clean, [clean.radars[0]])
+    ok = np.isfinite(z)
+    assert ok.sum() >= 30  # one station: what it identifies
+    assert np.max(np.abs(z[ok])) < 1e-6
+
+
+def test_time_bias_applied_exactly_is_recovered_to_first_order():
+    """A 2 ms late time tag simulated exactly (state sampled at t - tau): the first-order term finds it
+    within 1 % of its CRLB std (the second-order remainder tau^2 rho''/2)."""
+    tt = {"S1": {**TRUTH["S1"], "time_bias": 2.0}, "S2": {**TRUTH["S2"], "time_bias": -1.5}}
+    sim = simulate_radar(STATIONS, SITE, seed=0, telemetry_rate=20, radar_rate=20, tracking_truth=tt,
+                         noise={"range": 0.0, "azimuth": 0.0, "elevation": 0.0})
+    rr, z = _noise_free_errors(sim, list(sim.radars))
+    assert np.max(np.abs(z)) < 1e-2, dict(zip(rr.result.names, z))
+
+
+@pytest.mark.montecarlo
+def test_monte_carlo_z_and_coverage(clean):
+    """Range noise 3 m, angle noise 8 arcsec, 20 Hz, two stations; noise std estimated per station and type."""
+    rng = np.random.default_rng(2026)
+    truth = clean.truth_vector()
+    zs = []
+    for _ in range(14):
+        rr = separate_radar(clean.telemetry, _with_noise(clean, rng), SITE, clean.model, clean.tracking, "ols",
+                            diagnostics=False)
+        zs.append((rr.result.estimate - truth) / rr.result.std)
+    z = np.array(zs)
+    nD = clean.model.n_coefficients
+    for part, zz in (("instrument", z[:, :nD]), ("tracking", z[:, nD:])):
+        rms = float(np.sqrt(np.mean(zz**2)))
+        cover = float(np.mean(np.abs(zz) < 1.959964))
+        assert 0.85 <= rms <= 1.15, (part, rms)
+        assert 0.92 <= cover <= 0.98, (part, cover)
+
+
+def test_velocity_and_measurement_domain_agree_on_a_bias_free_flight(clean):
+    """The same flight: dv = v_tel - v_trk (0.1 m/s noise) and the radar measurements (no station errors)."""
+    sim = simulate_radar(STATIONS, SITE, seed=5, telemetry_rate=20, radar_rate=20)
+    tel = sim.telemetry
+    SV = casep.build_sv(sim.model, tel.t, tel.f)
+    rng = np.random.default_rng(11)
+    dv = SV @ sim.truth + rng.normal(0, 0.1, tel.v.shape)  # v_tel - (v + n)
+    vel = casep.separate(casep.FlightData(tel.t, tel.f, dv), sim.model, "ols")
+    rad = separate_radar(tel, sim.radars, SITE, sim.model, sim.tracking, "ols", diagnostics=False).result
+    nD = sim.model.n_coefficients
+    d = (vel.estimate - rad.estimate[:nD]) / np.hypot(vel.std, rad.std[:nD])
+    assert np.max(np.abs(d)) < 4.0
+    assert 0.5 < float(np.sqrt(np.mean(d**2))) < 1.5
+
+
+def test_diagnostics_fixed_free_groups_and_station_gain(clean):
+    rr = separate_radar(clean.telemetry, list(clean.radars), SITE, clean.model, clean.tracking, "ols", sigma=SIGMA)
+    d = rr.diagnostics
+    inst = {r["name"]: r for r in d["instrument"]}
+    assert set(inst) == set(clean.model.names)
+    for r in inst.values():  # freeing parameters never improves a bound
+        assert r["crlb_std_tracking_free"] >= r["crlb_std_tracking_fixed"] * (1 - 1e-9)
+    assert set(d["station_gain"]) == {"S1", "S2"} and d["station_gain"]["S1"]["median_ratio"] > 1.0
+    assert [r["name"] for r in d["tracking"]][:2] == ["S1.range_bias", "S1.range_scale"]
+    assert "CRLB fixed" in rr.table()
+    js = json.loads(json.dumps(rr.to_dict()))
+    assert js["diagnostics"]["tracking_terms"][0] == "S1.range_bias" and js["radar"]["noise"][0]["source"] == "given"
+
+
+def test_every_estimator_runs_on_the_joint_regression(clean):
+    radars = _with_noise(clean, np.random.default_rng(4))
+    opts = {"bounded": {"bounds": {"S1.range_bias": [-100, 100]}},
+            "map": {"prior": {"S1.range_bias": {"mean": 0.0, "std": 50.0}}}}
+    ols = separate_radar(clean.telemetry, radars, SITE, clean.model, clean.tracking, "ols", diagnostics=False).result
+    for method in casep.estimators.registry.METHODS:
+        if method == "gls":
+            with pytest.raises(ValueError, match="several stations"):
+                separate_radar(clean.telemetry, radars, SITE, clean.model, clean.tracking, method, diagnostics=False)
+            res = separate_radar(clean.telemetry, radars[:1], SITE, clean.model, clean.tracking, method,
+                                 diagnostics=False).result
+            ref = separate_radar(clean.telemetry, radars[:1], SITE, clean.model, clean.tracking, "ols",
+                                 diagnostics=False).result
+        else:
+            res = separate_radar(clean.telemetry, radars, SITE, clean.model, clean.tracking, method,
+                                 options=opts.get(method), diagnostics=False).result
+        assert res.success, (method, res.message)
+        j = res.names.index("S1.range_bias")
+        sd = (ref if method == "gls" else ols).std[j]  # one station alone knows the range bias to ~30 m
+        assert abs(res.estimate[j] - 5.0) < 5 * sd, (method, res.estimate[j], sd)
+
+
+# ----------------------------------------------------------------------------- inputs
+def test_station_file_errors_name_file_and_field(tmp_path):
+    p = tmp_path / "s.json"
+    p.write_text(json.dumps({"name": "S1", "lat": 28.0, "h": 3.0}))
+    with pytest.raises(ValueError, match=r"s\.json: field `lon`: missing"):
+        read_station(p)
+    p.write_text(json.dumps({"name": "S1", "lat": 128.0, "lon": 2.0, "h": 3.0}))
+    with pytest.raises(ValueError, match=r"field `lat`"):
+        read_station(p)
+    p.write_text(json.dumps({"name": "S1", "lat": 0.497, "lon": -1.407, "h": 3.0}))
+    with pytest.warns(RadianAnglesWarning, match=r"lat 0.497, lon -1.407 look like radians \(28.48 deg, -80.62 deg\)"):
+        read_station(p)
+
+
+def _write_radar(path, m: RadarMeasurements, *, degrees=True):
+    f = np.degrees if degrees else (lambda a: a)
+    casep.io.files.write_table(path, {"t": m.t, "range": m.range, "azimuth": f(m.azimuth),
+                                      "elevation": f(m.elevation)})
+
+
+def test_radians_in_the_measurement_file_warn_then_fail_on_the_first_sample(clean, tmp_path):
+    m = clean.radars[0]
+    _write_radar(tmp_path / "r.csv", m, degrees=False)
+    with pytest.warns(RadianAnglesWarning, match="look like radians"):
+        rad = read_radar(tmp_path / "r.csv", m.station)
+    with pytest.raises(ValueError, match=r"station `S1`.*first measured azimuth.*angles not in degrees"):
+        separate_radar(clean.telemetry, [rad], SITE, clean.model, clean.tracking, diagnostics=False)
+
+
+def test_wrong_station_is_an_error_naming_it(clean):
+    m = clean.radars[1]
+    moved = dataclasses.replace(m, station=dataclasses.replace(m.station, lat_deg=m.station.lat_deg + 0.05))
+    with pytest.raises(ValueError, match=r"station `S2`.*first measured range.*not a bias"):
+        separate_radar(clean.telemetry, [clean.radars[0], moved], SITE, clean.model, clean.tracking)
+
+
+def test_cli_simulate_separate_diagnose_impact(tmp_path, capsys):
+    from casep.cli import main
+
+    tel = tmp_path / "tel.csv"
+    for s in STATIONS:
+        (tmp_path / f"{s.name}.json").write_text(json.dumps({"name": s.name, "lat": s.lat_deg, "lon": s.lon_deg,
+                                                             "h": s.h_m}))
+    truth = tmp_path / "trk_truth.json"
+    truth.write_text(json.dumps(TRUTH))
+    assert main(["simulate", "-o", str(tel), "--rate", "20", "--rotating-earth", "--launch-site", "28.5", "-80.6",
+                 "3", "90", "--radar-station", str(tmp_path / "S1.json"), "--radar-station", str(tmp_path / "S2.json"),
+                 "--tracking-truth", str(truth)]) == 0
+    out = capsys.readouterr().out
+    assert "tel.S1.csv" in out
+    side = json.loads((tmp_path / "tel.truth.json").read_text())
+    assert side["tracking"]["S1"]["range_bias"] == 5.0
+    args = ["separate", str(tel), "--radar", str(tmp_path / "tel.S1.json"), str(tmp_path / "tel.S1.csv"),
+            "--radar", str(tmp_path / "tel.S2.json"), str(tmp_path / "tel.S2.csv"),
+            "--launch-site", "28.5", "-80.6", "3", "90", "--launch-time", "0", "--json", str(tmp_path / "r.json")]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "S1.range_bias" in out and "telemetered position: r_tel columns" in out
+    res = json.loads((tmp_path / "r.json").read_text())
+    j = res["names"].index("S2.elevation_bias")
+    assert abs(res["estimates"][j] - 12.0) < 5 * res["std"][j]
+    assert main(["diagnose", str(tel), *args[2:-2]]) == 0
+    assert "CRLB free" in capsys.readouterr().out
+    # the miss of the instrument terms only (tracking terms play no part)
+    assert main(["impact", str(tel), "--result", str(tmp_path / "r.json"), "--model", "platform36"]) in (0, 2)
+
+
+def test_cli_bad_station_file_exit_2(tmp_path, capsys):
+    from casep.cli import main
+
+    (tmp_path / "S1.json").write_text(json.dumps({"name": "S1", "lon": 1.0, "h": 3.0}))
+    (tmp_path / "S1.csv").write_text("t,range,azimuth,elevation\n0,1000,10,5\n")
+    (tmp_path / "tel.csv").write_text("t,f_x,f_y,f_z,v_tel_x,v_tel_y,v_tel_z\n0,0,10,0,0,0,0\n1,0,10,0,0,1,0\n")
+    code = main(["separate", str(tmp_path / "tel.csv"), "--radar", str(tmp_path / "S1.json"), str(tmp_path / "S1.csv"),
+                 "--launch-site", "28.5", "-80.6", "3", "90", "--launch-time", "0"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "S1.json: field `lat`: missing" in err
+
+
+def test_write_radar_simulation_round_trip(clean, tmp_path):
+    files = write_radar_simulation(clean, tmp_path / "f.csv")
+    assert {p.name for p in files} >= {"f.csv", "f.S1.json", "f.S1.csv", "f.truth.json"}
+    st = read_station(tmp_path / "f.S1.json")
+    m = read_radar(tmp_path / "f.S1.csv", st)
+    np.testing.assert_allclose(m.range, clean.radars[0].range, rtol=1e-15)
+    assert math.isclose(st.lat_deg, STATIONS[0].lat_deg)
