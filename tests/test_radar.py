@@ -328,7 +328,10 @@ def test_cli_simulate_separate_diagnose_impact(tmp_path, capsys):
     assert main(["diagnose", str(tel), *args[2:-2]]) == 0
     assert "CRLB free" in capsys.readouterr().out
     # the miss of the instrument terms only (tracking terms play no part)
-    assert main(["impact", str(tel), "--result", str(tmp_path / "r.json"), "--model", "platform36"]) in (0, 2)
+    assert main(["impact", str(tel), "--result", str(tmp_path / "r.json"), "--model", "platform36",
+                 "--json", str(tmp_path / "i.json")]) == 0
+    imp = json.loads((tmp_path / "i.json").read_text())
+    assert "S1.range_bias" not in json.dumps(imp) and "Ka0x" in json.dumps(imp)
 
 
 def test_cli_bad_station_file_exit_2(tmp_path, capsys):

@@ -80,14 +80,15 @@ def read_trajectory(path: str | os.PathLike):
     """A flight file for the impact analysis: ``t``, ``f_*`` (or ``W_*``), ``r_*``, ``v_*``.
 
     ``dv_*`` (or ``v_tel_*``/``v_trk_*``) may be absent: a trajectory that was not flown has
-    none, and the impact analysis does not use them (dv is then stored as zeros and
+    none, a radar-tracked flight's telemetry has ``v_tel_*`` only, and the impact analysis does not
+    use them (dv is then stored as zeros and
     ``meta["dv"]`` says ``"absent"``).
     """
     from casep.io.files import DV_COLUMNS, VTEL_COLUMNS, _force, _is_parquet, _Table, read_flight
     from casep.io.flight import FlightData
 
     tab = _Table(path)
-    if tab.has(DV_COLUMNS) or any(c in tab.columns for c in VTEL_COLUMNS):
+    if tab.has(DV_COLUMNS) or (any(c in tab.columns for c in VTEL_COLUMNS) and "v_trk_x" in tab.columns):
         del tab
         return read_flight(path)
     tab.require(("t",))
@@ -168,7 +169,8 @@ def _coefficients(res, model, per_flight: Mapping[str, float] | None, source: st
         if not pf[names.index(k)]:
             raise ValueError(f"per_flight: `{k}` is not a per-flight coefficient of model `{model.name}` "
                              "(its value is the result's estimate)")
-    extra = [n for n in res.names if n not in names]
+    tracking = set((res.diagnostics or {}).get("tracking_terms") or ())  # station errors: no part in the miss
+    extra = [n for n in res.names if n not in names and n not in tracking]
     if extra:
         raise ValueError(f"result {source} has coefficients that model `{model.name}` lacks: {', '.join(extra[:5])}")
     n = len(names)
@@ -452,7 +454,6 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
     ``c_j = G_j D_j``; ``miss = sum_j c_j`` over the coefficients with a value;
     ``cov = G_k Cov_kk G_k^T`` over the estimated ones; ``nonlinear = impact(x_b - B D) - impact(x_b)``.
     """
-    from casep.io.files import read_flight
     from casep.model.loader import load_model
 
     res, rsource = _load_result(result)
@@ -466,7 +467,7 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
             raise ValueError(f"result {rsource} is of model `{res.model}`, not of model `{model.name}`: "
                              f"give --model {res.model} (or leave it out), or a result of `{model.name}`")
     if not isinstance(flight, _flight_type()):
-        flight = read_flight(flight)
+        flight = read_trajectory(flight)  # dv is not used here (a radar-tracked flight's telemetry has none)
     target = flight
     if trajectory is not None:
         target = trajectory if isinstance(trajectory, _flight_type()) else read_trajectory(trajectory)

@@ -132,7 +132,8 @@ def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="p
     SP = cumulative_sp(SV, traj.t)
     v_tel = traj.velocity + SV @ D  # v_tel = v + S_V D
     r_tel = traj.position + SP @ D  # r_tel = r + S_P D
-    keep_sig = {k: v for k, v in sig.items() if k.startswith("a_")}
+    # a_*: kinematic acceleration; r_*, v_*: the true state (the range's best trajectory; casep impact's burnout)
+    keep_sig = {k: v for k, v in sig.items() if k[:2] in ("a_", "r_", "v_")}
     tel = Telemetry(traj.t, traj.specific_force, v_tel, r_tel, "r_tel columns", keep_sig,
                     f"simulated:{sc.name}:seed{seed}")
     rng = np.random.default_rng(seed)
@@ -166,7 +167,8 @@ def write_radar_simulation(sim: RadarSimulation, telemetry: str | os.PathLike,
                            folder: str | os.PathLike | None = None) -> list[Path]:
     """Write the telemetry file, one station JSON and one measurement CSV per station, and the truth.
 
-    Telemetry: ``t, f_*, v_tel_*, r_tel_*, a_*``. Stations: ``<stem>.<S>.json`` and ``<stem>.<S>.csv``
+    Telemetry: ``t, f_*, v_tel_*, r_tel_*`` and the signals ``a_*`` (kinematic acceleration) and
+    ``r_*, v_*`` (the true state: what ``casep impact`` reads as the burnout state). Stations: ``<stem>.<S>.json`` and ``<stem>.<S>.csv``
     beside it (or in `folder`); truth: ``<stem>.truth.json``. Angles in degrees.
     """
     from casep.io._atomic import atomic_open

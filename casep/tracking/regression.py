@@ -453,7 +453,7 @@ class LinearisedRadar:
             units = tuple(units[j] for j in columns)
             si = si[columns]
         return Problem.from_arrays(Sw, yw, t, names=names, units=units, si_factors=si,
-                                   model=f"{reg.model.name}+{reg.tracking.name}")
+                                   model=reg.model.name)
 
     def sample_layout(self) -> tuple[np.ndarray, np.ndarray]:
         """Rows grouped as ``(M, 3)`` "samples" for the estimators that need samples x 3 rows.
@@ -496,7 +496,7 @@ class LinearisedRadar:
         yw = np.append(self.y * w, 0.0)
         index, t = self.sample_layout()
         return Problem.from_arrays(Sw[index], yw[index], t, names=reg.names, units=reg.units,
-                                   si_factors=reg.si_factors, model=f"{reg.model.name}+{reg.tracking.name}")
+                                   si_factors=reg.si_factors, model=reg.model.name)
 
     def noise_table(self) -> list[dict]:
         """Noise std per group in natural units, and whether given or estimated."""

@@ -81,10 +81,11 @@ def _inputs(telemetry, radars, model, tracking, site):
     if not isinstance(site, LaunchSite):
         raise ValueError("`site` (--launch-site LAT LON H AZ --launch-time T0) is required: it ties the "
                          "launch-inertial frame of the telemetry to the stations on the Earth")
+    meas = read_radar_inputs(radars)  # station files first: the smallest inputs, the likeliest mistakes
     model = load_model(model)
     tracking = load_tracking_model(tracking)
     tel = telemetry if isinstance(telemetry, Telemetry) else read_telemetry(telemetry, site)
-    return RadarRegression(tel, read_radar_inputs(radars), model, tracking, site)
+    return RadarRegression(tel, meas, model, tracking, site)
 
 
 def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, site: LaunchSite,
@@ -140,7 +141,7 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
     }
     res = dataclasses.replace(
         res, residuals=np.empty((0, 3)), stored_residual_rms=dict.fromkeys("xyz"),
-        diagnostics={**res.diagnostics, "tracking_terms": tracking_terms},
+        diagnostics={**res.diagnostics, "tracking_terms": tracking_terms, "tracking_model": reg.tracking.name},
         settings={**res.settings, "noise": "white per station and type, "
                   + ("given" if all_given else "estimated (REML-type iteration)")})
     diag = radar_diagnostics(lin, scales={**reg.model.scales, **{
