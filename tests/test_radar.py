@@ -238,6 +238,10 @@ def test_diagnostics_fixed_free_groups_and_station_gain(clean):
     assert set(d["station_gain"]) == {"S1", "S2"} and d["station_gain"]["S1"]["median_ratio"] > 1.0
     assert [r["name"] for r in d["tracking"]][:2] == ["S1.range_bias", "S1.range_scale"]
     assert "CRLB fixed" in rr.table()
+    # the bounds come from the per-group reductions: the same as from every weighted row
+    lin = rr.linearised
+    full = np.sqrt(np.diag(casep.analysis.diagnostics.crlb_covariance(lin.S * lin.weights[:, None], 1.0)))
+    np.testing.assert_allclose([r["crlb_std_tracking_free"] for r in d["instrument"]], full[:36], rtol=1e-7)
     js = json.loads(json.dumps(rr.to_dict()))
     assert js["diagnostics"]["tracking_terms"][0] == "S1.range_bias" and js["radar"]["noise"][0]["source"] == "given"
 
@@ -354,3 +358,43 @@ def test_write_radar_simulation_round_trip(clean, tmp_path):
     m = read_radar(tmp_path / "f.S1.csv", st)
     np.testing.assert_allclose(m.range, clean.radars[0].range, rtol=1e-15)
     assert math.isclose(st.lat_deg, STATIONS[0].lat_deg)
+
+
+def test_a_user_term_in_one_file(clean, tmp_path):
+    """The guide's example: refraction and a survey offset added to radar_biases in a model file of its own."""
+    p = tmp_path / "my_radar.py"
+    p.write_text('''
+import casadi as ca
+import casep
+
+def build():
+    m = casep.build_tracking_model("radar_biases")
+    c = m.declare(refraction=("arcsec", 10.0), survey_up=("m", 2.0))
+    m.set_elevation_error(m.output("elevation") + c.refraction * ca.cos(m.elevation) / ca.sin(m.elevation))
+    m.set_range_error(m.output("range") - c.survey_up * m.enu[2] / m.range)
+    return m
+''')
+    trk = load_tracking_model(str(p))
+    assert trk.names[-2:] == ("refraction", "survey_up")
+    g = np.array([[2e5, 0.3, 0.4, 100.0, 0.0, 0.0, 1e5, 1.5e5, 7e4, 0.0]])
+    T = trk.jacobian(g)
+    assert math.isclose(T[0, 2, 5], ARCSEC * math.cos(0.4) / math.sin(0.4), rel_tol=1e-14)
+    assert math.isclose(T[0, 0, 6], -7e4 / 2e5, rel_tol=1e-14)
+    rr = separate_radar(clean.telemetry, list(clean.radars), SITE, clean.model, str(p), sigma=SIGMA, diagnostics=False)
+    assert "S2.survey_up" in rr.result.names
+
+
+def test_joint_result_as_prior_and_truth_for_design_and_montecarlo(clean):
+    """A radar result as a prior (casep design --prior, casep montecarlo --truth-from-prior, separate --prior):
+    the instrument block only, the station terms marginalised out."""
+    from casep.estimators.map import parse_prior, prior_from_result
+    from casep.estimators.result import EstimateResult
+
+    rr = separate_radar(clean.telemetry, _with_noise(clean, np.random.default_rng(9)), SITE, clean.model,
+                        clean.tracking, sigma=SIGMA, diagnostics=False)
+    res = EstimateResult.from_json(json.loads(json.dumps(rr.to_dict())))
+    prior = prior_from_result(res)
+    assert "S1.range_bias" not in prior and "Ka0x" in prior
+    parse_prior(prior, clean.model.names, source="radar result")
+    j = res.names.index("Ka0x")
+    assert math.isclose(prior["Ka0x"]["std"], res.std[j], rel_tol=1e-12)

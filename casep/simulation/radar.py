@@ -168,8 +168,9 @@ def write_radar_simulation(sim: RadarSimulation, telemetry: str | os.PathLike,
     """Write the telemetry file, one station JSON and one measurement CSV per station, and the truth.
 
     Telemetry: ``t, f_*, v_tel_*, r_tel_*`` and the signals ``a_*`` (kinematic acceleration) and
-    ``r_*, v_*`` (the true state: what ``casep impact`` reads as the burnout state). Stations: ``<stem>.<S>.json`` and ``<stem>.<S>.csv``
-    beside it (or in `folder`); truth: ``<stem>.truth.json``. Angles in degrees.
+    ``r_*, v_*`` (the true state: what ``casep impact`` reads as the burnout state). Stations:
+    ``<stem>.<S>.json`` and ``<stem>.<S>.csv`` beside it (or in `folder`); truth: ``<stem>.truth.json``.
+    Angles in degrees.
     """
     from casep.io._atomic import atomic_open
     from casep.io.files import write_table

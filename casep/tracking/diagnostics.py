@@ -6,6 +6,9 @@ noise std) the Cramer-Rao covariance is ``(F^T F)^-1``. Three questions a range 
 - **tracking fixed vs free**: the CRLB std of each instrument coefficient with the station errors
   known (the ``A`` columns alone) and with them estimated (all columns); their ratio is the price
   of not knowing the stations (1: no aliasing; 10: the tracking terms take 99 % of the information);
+All of them from the per-group reductions ``R_g`` (``S_g = Q_g R_g``, so ``F^T F = sum R_g^T R_g / sigma_g^2``
+on any subset of rows by group and of columns): a few (G n x n) matrices instead of the full rows.
+
 - **mixed near-dependencies**: the Belsley-Kuh-Welsch groups of the joint regression
   (:func:`casep.analysis.diagnostics.diagnose`) that hold both instrument and tracking terms
   (a platform misalignment and an elevation bias that look alike, by name);
@@ -42,9 +45,11 @@ def radar_diagnostics(lin, *, scales: dict | None = None) -> dict[str, Any]:
         aliased), ``tracking`` (name, unit, crlb_std), ``mixed_groups``, ``groups``,
         ``station_gain`` ({station: {median_ratio, max_ratio, ratio: {name: r}}}), ``noise``.
     """
+    from casep.analysis.problem import Problem
+
     reg = lin.regression
     nD = reg.nD
-    F = lin.S * lin.weights[:, None]
+    F = lin.stacked()  # [R_g / sigma_g]: the information of every row in G n rows
     free = _std(F)
     fixed = _std(F[:, :nD])
 
@@ -58,21 +63,20 @@ def radar_diagnostics(lin, *, scales: dict | None = None) -> dict[str, Any]:
                      "crlb_std_tracking_free": f(free[j]), "ratio": f(ratio),
                      "aliased": bool(not np.isfinite(ratio) or ratio > ALIAS_RATIO)})
     trk = [{"name": reg.names[j], "unit": reg.units[j], "crlb_std": f(free[j])} for j in range(nD, reg.n)]
-    diag = diagnose(lin.problem(), sigma=1.0, scales=scales)
+    diag = diagnose(Problem.from_arrays(F, np.zeros(F.shape[0]), names=reg.names, units=reg.units,
+                                        si_factors=reg.si_factors), sigma=1.0, scales=scales)
     tracking_names = set(reg.names[nD:])
     mixed = [g for g in diag.groups if any(n in tracking_names for n in g) and any(n not in tracking_names for n in g)]
     gain: dict[str, Any] = {}
-    rows = reg.group_rows()
     for i, s in enumerate(reg.stations):
         name = s.meas.station.name
         if len(reg.stations) == 1:
             gain[name] = {"median_ratio": None, "max_ratio": None, "ratio": {},
                           "note": "the only station: without it nothing is observed"}
             continue
-        drop = np.concatenate([r for (st, _), r in zip(reg.groups, rows) if st == name])
-        keep_rows = np.setdiff1d(np.arange(F.shape[0]), drop)
+        others = [g for g, (st, _) in enumerate(reg.groups) if st != name]
         keep_cols = [j for j in range(reg.n) if j < nD or not (nD + i * reg.nT <= j < nD + (i + 1) * reg.nT)]
-        without = _std(F[np.ix_(keep_rows, keep_cols)])[:nD]
+        without = _std(lin.stacked(others, keep_cols))[:nD]
         with np.errstate(invalid="ignore", divide="ignore"):
             r = np.where(np.isfinite(without), without / free[:nD], np.inf)
         ok = np.isfinite(free[:nD])

@@ -347,7 +347,7 @@ class RadarRegression:
             warnings.warn("radar residuals at the rounding level: the noise std are floored at the rounding of the "
                           "measurements (a noise-free simulation?); give the noise in the station files",
                           NoiseFreeWarning, stacklevel=2)
-        return LinearisedRadar(self, S, y, t, sig, fixed, D0, history)
+        return LinearisedRadar(self, S, y, t, sig, fixed, D0, history, group_reductions(S, y, rows))
 
 
 def estimate_group_sigmas(S: np.ndarray, y: np.ndarray, rows: list[np.ndarray], sigma: np.ndarray,
@@ -375,13 +375,8 @@ def estimate_group_sigmas(S: np.ndarray, y: np.ndarray, rows: list[np.ndarray], 
     std : (n,) ndarray
         Its std (unit weighted noise).
     """
-    from casep.analysis.linalg import reduce_qr
-
     sigma = np.array(sigma, dtype=float)
-    red = []
-    for r in rows:
-        rg = reduce_qr(S[r], y[r])
-        red.append((rg.R * rg.scale[None, :], rg.qty, float(rg.rho2)))  # R of S_g itself (S_g = Q R diag(scale))
+    red = group_reductions(S, y, rows)
     grams = [R.T @ R for R, _, _ in red]  # S_g^T S_g
     x = cov = None
     for _ in range(iterations):
@@ -400,6 +395,21 @@ def estimate_group_sigmas(S: np.ndarray, y: np.ndarray, rows: list[np.ndarray], 
             break
     x, cov = _stacked_ls(red, sigma)
     return sigma, x, np.sqrt(np.clip(np.diag(cov), 0, None))
+
+
+def group_reductions(S: np.ndarray, y: np.ndarray, rows: list[np.ndarray]) -> list[tuple]:
+    """Per group ``(R_g, q_g, rho_g^2)`` with ``S_g = Q_g R_g``, ``q_g = Q_g^T y_g`` (casep's TSQR).
+
+    ``|y_g - S_g x|^2 = |q_g - R_g x|^2 + rho_g^2`` for every x, and ``S_g^T S_g = R_g^T R_g``, also on
+    any subset of the columns: every bound and fit of the stacked regression follows from these.
+    """
+    from casep.analysis.linalg import reduce_qr
+
+    out = []
+    for r in rows:
+        rg = reduce_qr(S[r], y[r])
+        out.append((rg.R * rg.scale[None, :], rg.qty, float(rg.rho2)))  # R of S_g itself (S_g = Q R diag(scale))
+    return out
 
 
 def _stacked_ls(red, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -429,6 +439,14 @@ class LinearisedRadar:
     sigma_given: np.ndarray  # (G,) bool
     D0: np.ndarray
     history: list
+    reductions: list  # group_reductions(S, y) at this point, unweighted
+
+    def stacked(self, groups=None, columns=None) -> np.ndarray:
+        """The whitened regression reduced to ``[R_g / sigma_g]`` over `groups` (indices; default all):
+        the same information matrix as the full rows, on `columns` (default all)."""
+        groups = range(len(self.sigma)) if groups is None else groups
+        F = np.vstack([self.reductions[g][0] / self.sigma[g] for g in groups])
+        return F if columns is None else F[:, columns]
 
     @property
     def weights(self) -> np.ndarray:
