@@ -478,6 +478,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
 
     if args.radar:
         return _separate_radar(args)
+    _radar_only(args, ("tracking_model",))
     check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
                   inputs=_inputs(args, "flight", "tracking", "bounds", "prior"), folders={"--figures": args.figures})
     model = load_model(args.model)
@@ -719,6 +720,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
     if args.radar:
         return _diagnose_radar(args)
+    _radar_only(args, ("tracking_model",))
     check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "prior", "scales"),
                   folders={"--figures": args.figures})
     model = load_model(args.model)
@@ -883,6 +885,18 @@ def _simulate_radar(args: argparse.Namespace, site) -> int:
     print(f"separate with: casep separate {out} {radar} --launch-site "
           f"{' '.join(f'{v:g}' for v in args.launch_site)} --launch-time 0")
     return 0
+
+
+_RADAR_DEFAULTS = {"tracking_model": "radar_biases", "tracking_truth": None, "radar_rate": 20.0, "range_noise": 3.0,
+                   "angle_noise": 8.0, "radar_range_rate": False}
+
+
+def _radar_only(args: argparse.Namespace, names) -> None:
+    """Radar options given without radar inputs are an error, not ignored."""
+    for n in names:
+        if getattr(args, n) != _RADAR_DEFAULTS[n]:
+            need = "--radar-station" if args.command == "simulate" else "--radar"
+            raise ValueError(f"--{n.replace('_', '-')} is used only with {need}")
 
 
 def _list_tracking_model(name: str, error: str, verbose: bool) -> bool:
@@ -1141,6 +1155,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     site = _simulate_site(args)  # --rotating-earth --launch-site (tracking frames)
     if args.radar_station:
         return _simulate_radar(args, site)
+    _radar_only(args, ("tracking_truth", "radar_rate", "range_noise", "angle_noise", "radar_range_rate"))
     if args.tracking_frame == "launch":
         if args.tracking_output is not None:
             raise ValueError("--tracking-output needs --tracking-frame ecef|geodetic")

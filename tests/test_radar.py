@@ -398,3 +398,12 @@ def test_joint_result_as_prior_and_truth_for_design_and_montecarlo(clean):
     parse_prior(prior, clean.model.names, source="radar result")
     j = res.names.index("Ka0x")
     assert math.isclose(prior["Ka0x"]["std"], res.std[j], rel_tol=1e-12)
+
+
+def test_cli_radar_options_without_radar_are_refused(tmp_path, capsys):
+    from casep.cli import main
+
+    assert main(["separate", str(tmp_path / "x.csv"), "--tracking-model", "radar_biases.py"]) == 2
+    assert "--tracking-model is used only with --radar" in capsys.readouterr().err
+    assert main(["simulate", "-o", str(tmp_path / "x.csv"), "--range-noise", "2"]) == 2
+    assert "--range-noise is used only with --radar-station" in capsys.readouterr().err
