@@ -791,12 +791,13 @@ def _separate_radar(args: argparse.Namespace) -> int:
     from casep.workflows.radar import separate_radar
 
     for flag, value in (("--denoise wavelet", args.denoise == "wavelet" or None), ("--figures", args.figures),
-                        ("--report", args.report), ("--mat", args.mat), ("--csv", args.csv),
-                        ("--outliers", args.outliers), ("--sigma", args.sigma)):
+                        ("--mat", args.mat), ("--csv", args.csv), ("--outliers", args.outliers),
+                        ("--sigma", args.sigma)):
         if value:
             raise ValueError(f"{flag} is not available with --radar (noise: sigma_range/sigma_angle in the station "
                              "files, else estimated per station and type); leave it out")
-    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight") + [f for pair in args.radar for f in pair])
+    check_outputs({"--json": args.json, "--report": args.report},
+                  inputs=_inputs(args, "flight") + [f for pair in args.radar for f in pair])
     site = _radar_site(args)
     options = {k: getattr(args, k) for k in OPTIONS if getattr(args, k) is not None}
     for k in ("bounds", "prior"):
@@ -810,6 +811,10 @@ def _separate_radar(args: argparse.Namespace) -> int:
     if args.json:
         write_json_atomic(rr.to_dict(), args.json)
         print(f"result written to {args.json}")
+    if args.report:
+        from casep.reporting.radar import write_radar_report
+
+        print(f"report written to {write_radar_report(rr, args.report, source=args.flight[0])}")
     return _result_status(rr.result)
 
 

@@ -323,7 +323,9 @@ def test_cli_simulate_separate_diagnose_impact(tmp_path, capsys):
     args = ["separate", str(tel), "--radar", str(tmp_path / "tel.S1.json"), str(tmp_path / "tel.S1.csv"),
             "--radar", str(tmp_path / "tel.S2.json"), str(tmp_path / "tel.S2.csv"),
             "--launch-site", "28.5", "-80.6", "3", "90", "--launch-time", "0", "--json", str(tmp_path / "r.json")]
-    assert main(args) == 0
+    assert main(args + ["--report", str(tmp_path / "r.html")]) == 0
+    page = (tmp_path / "r.html").read_text()
+    assert "Radar stations" in page and "S2.elevation_bias" in page and "CRLB free" in page
     out = capsys.readouterr().out
     assert "S1.range_bias" in out and "telemetered position: r_tel columns" in out
     res = json.loads((tmp_path / "r.json").read_text())
