@@ -409,3 +409,37 @@ def test_cli_radar_options_without_radar_are_refused(tmp_path, capsys):
     assert "--tracking-model is used only with --radar" in capsys.readouterr().err
     assert main(["simulate", "-o", str(tmp_path / "x.csv"), "--range-noise", "2"]) == 2
     assert "--range-noise is used only with --radar-station" in capsys.readouterr().err
+
+
+def test_range_rate_rows_noise_free_and_recursive():
+    """Range rate as a fourth measurement type: noise-free recovery, and RLS on the grouped rows."""
+    sim = simulate_radar(STATIONS, SITE, seed=0, telemetry_rate=20, radar_rate=20, tracking_truth=TRUTH,
+                         noise={"range": 0.0, "azimuth": 0.0, "elevation": 0.0, "range_rate": 0.0}, range_rate=True)
+    assert sim.radars[0].types == ("range", "azimuth", "elevation", "range_rate")
+    sigma = {**SIGMA, **{(s, "range_rate"): 0.05 for s in ("S1", "S2")}}
+    truth = sim.truth_vector()
+    ols = separate_radar(sim.telemetry, list(sim.radars), SITE, sim.model, sim.tracking, sigma=sigma,
+                         diagnostics=False).result
+    assert np.max(np.abs((ols.estimate - truth) / ols.std)) < 1e-6
+    no_rr = separate_radar(sim.telemetry, [dataclasses.replace(m, range_rate=None) for m in sim.radars], SITE,
+                           sim.model, sim.tracking, sigma=SIGMA, diagnostics=False).result
+    j = ols.names.index("S1.range_scale")
+    assert ols.std[j] < no_rr.std[j]  # range rate informs the scale factor
+    rls = separate_radar(sim.telemetry, list(sim.radars), SITE, sim.model, sim.tracking, "rls", sigma=sigma,
+                         options={"p0": 1e20}, diagnostics=False).result
+    assert np.max(np.abs((rls.estimate - truth) / ols.std)) < 1e-3
+
+
+def test_telemetry_without_position_is_integrated_from_the_launch_point(clean, tmp_path):
+    from casep.tracking.regression import read_telemetry
+
+    tel = clean.telemetry
+    casep.io.files.write_table(tmp_path / "t.csv", {"t": tel.t, **{f"f_{a}": tel.f[:, i] for i, a in enumerate("xyz")},
+                                                    **{f"v_tel_{a}": tel.v[:, i] for i, a in enumerate("xyz")}})
+    got = read_telemetry(tmp_path / "t.csv", SITE)
+    assert got.r_source == "v_tel integrated from the launch point"
+    assert np.max(np.abs(got.r - tel.r)) < 0.5  # trapezoid of v at 20 Hz against the exact r + S_P D
+    rr = separate_radar(got, list(clean.radars), SITE, clean.model, clean.tracking, sigma=SIGMA, diagnostics=False)
+    assert rr.summary["telemetry_position"] == "v_tel integrated from the launch point"
+    z = (rr.result.estimate - clean.truth_vector()) / rr.result.std
+    assert np.max(np.abs(z)) < 0.2  # noise-free data: only the integration error of the position
