@@ -73,6 +73,9 @@ def _monte_carlo(sim, runs: int) -> None:
     from casep.units import ARCSEC
     from casep.workflows.radar import separate_radar
 
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1, user_api="blas")  # one BLAS thread, as the timed processes
     warnings.simplefilter("ignore")
     truth = sim.truth_vector()
     rng = np.random.default_rng(2026)

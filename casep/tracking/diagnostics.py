@@ -11,7 +11,9 @@ on any subset of rows by group and of columns): a few (G n x n) matrices instead
 
 - **mixed near-dependencies**: the Belsley-Kuh-Welsch groups of the joint regression
   (:func:`casep.analysis.diagnostics.diagnose`) that hold both instrument and tracking terms
-  (a platform misalignment and an elevation bias that look alike, by name);
+  (a platform misalignment and an elevation bias that look alike, by name), and for each tracking
+  term the instrument terms it is most correlated with at the bound (|rho| >= 0.5) and its own CRLB
+  with the instrument terms known;
 - **the gain of each station**: the CRLB of the instrument coefficients with the station's rows
   and its own terms removed, divided by the CRLB with every station; a ratio of 1 means the
   station adds nothing, inf that some coefficient is not identifiable without it.
@@ -29,6 +31,10 @@ __all__ = ["radar_diagnostics", "diagnostics_table"]
 
 #: Free/fixed CRLB ratio above which an instrument coefficient is said to alias with the tracking terms.
 ALIAS_RATIO = 2.0
+
+
+#: |correlation| at the bound above which a tracking term and an instrument term are named together.
+CORRELATION_NAMED = 0.5
 
 
 def _std(F: np.ndarray) -> np.ndarray:
@@ -50,8 +56,12 @@ def radar_diagnostics(lin, *, scales: dict | None = None) -> dict[str, Any]:
     reg = lin.regression
     nD = reg.nD
     F = lin.stacked()  # [R_g / sigma_g]: the information of every row in G n rows
-    free = _std(F)
+    cov = crlb_covariance(F, 1.0)
+    free = np.sqrt(np.diag(cov))
     fixed = _std(F[:, :nD])
+    trk_alone = _std(F[:, nD:])  # the station terms with the instrument terms known
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(free, free)
 
     def f(v):
         return float(v) if np.isfinite(v) else None
@@ -62,7 +72,13 @@ def radar_diagnostics(lin, *, scales: dict | None = None) -> dict[str, Any]:
         inst.append({"name": reg.names[j], "unit": reg.units[j], "crlb_std_tracking_fixed": f(fixed[j]),
                      "crlb_std_tracking_free": f(free[j]), "ratio": f(ratio),
                      "aliased": bool(not np.isfinite(ratio) or ratio > ALIAS_RATIO)})
-    trk = [{"name": reg.names[j], "unit": reg.units[j], "crlb_std": f(free[j])} for j in range(nD, reg.n)]
+    trk = []
+    for j in range(nD, reg.n):
+        row = corr[j, :nD]
+        top = [int(k) for k in np.argsort(-np.nan_to_num(np.abs(row)))[:3] if abs(row[k]) >= CORRELATION_NAMED]
+        trk.append({"name": reg.names[j], "unit": reg.units[j], "crlb_std": f(free[j]),
+                    "crlb_std_instrument_fixed": f(trk_alone[j - nD]),
+                    "correlated_with": {reg.names[k]: round(float(row[k]), 4) for k in top}})
     diag = diagnose(Problem.from_arrays(F, np.zeros(F.shape[0]), names=reg.names, units=reg.units,
                                         si_factors=reg.si_factors), sigma=1.0, scales=scales)
     tracking_names = set(reg.names[nD:])
@@ -102,10 +118,13 @@ def diagnostics_table(d: dict[str, Any]) -> str:
                      f"{fr if fr is not None else float('inf'):>12.4g} {ra if ra is not None else float('inf'):>8.3g}"
                      + ("  <- aliases with the tracking terms" if r["aliased"] else ""))
     lines.append("")
-    lines.append(f"{'tracking term':<22} {'unit':<8} {'CRLB std':>12}")
+    lines.append(f"{'tracking term':<22} {'unit':<8} {'CRLB std':>12} {'instr. known':>12}  correlated (|rho| >= "
+                 f"{CORRELATION_NAMED:g}) with")
     for r in d["tracking"]:
         sd = r["crlb_std"] if r["crlb_std"] is not None else float("inf")
-        lines.append(f"{r['name']:<22} {r['unit']:<8} {sd:>12.4g}")
+        sk = r["crlb_std_instrument_fixed"] if r["crlb_std_instrument_fixed"] is not None else float("inf")
+        cw = ", ".join(f"{k} {v:+.3f}" for k, v in r["correlated_with"].items())
+        lines.append(f"{r['name']:<22} {r['unit']:<8} {sd:>12.4g} {sk:>12.4g}  {cw}".rstrip())
     if d["mixed_groups"]:
         lines.append("near-dependencies between tracking and instrument terms:")
         lines += ["  " + ", ".join(g) for g in d["mixed_groups"]]
