@@ -458,3 +458,17 @@ def test_azimuth_across_north():
                         diagnostics=False)
     z = (rr.result.estimate - sim.truth_vector()) / rr.result.std
     assert np.max(np.abs(z[np.isfinite(z)])) < 1e-6
+
+
+def test_noise_from_the_station_file(clean):
+    st = read_station({"name": "S1", "lat": 28.9, "lon": -80.0, "h": 20.0, "sigma_range": 3.0, "sigma_angle": 8.0})
+    assert st.sigma == {"range": 3.0, "azimuth": 8 * ARCSEC, "elevation": 8 * ARCSEC}
+    radars = _with_noise(clean, np.random.default_rng(1))
+    radars[0] = dataclasses.replace(radars[0], station=st)
+    rr = separate_radar(clean.telemetry, radars, SITE, clean.model, clean.tracking, diagnostics=False)
+    noise = {(g["station"], g["type"]): g for g in rr.summary["noise"]}
+    assert noise[("S1", "range")]["source"] == "given" and noise[("S1", "range")]["sigma"] == 3.0
+    assert noise[("S1", "azimuth")]["sigma"] == pytest.approx(8.0, rel=1e-12)
+    assert noise[("S2", "range")]["source"] == "estimated"
+    assert noise[("S2", "range")]["sigma"] == pytest.approx(3.0, rel=0.05)  # 3901 samples: 1.1 % std
+    assert noise[("S2", "elevation")]["sigma"] == pytest.approx(8.0, rel=0.05)
