@@ -472,3 +472,11 @@ def test_noise_from_the_station_file(clean):
     assert noise[("S2", "range")]["source"] == "estimated"
     assert noise[("S2", "range")]["sigma"] == pytest.approx(3.0, rel=0.05)  # 3901 samples: 1.1 % std
     assert noise[("S2", "elevation")]["sigma"] == pytest.approx(8.0, rel=0.05)
+
+
+def test_linearisation_that_does_not_settle_warns(clean):
+    from casep.tracking.regression import RadarConvergenceWarning, RadarRegression
+
+    reg = RadarRegression(clean.telemetry, list(clean.radars), clean.model, clean.tracking, SITE)
+    with pytest.warns(RadarConvergenceWarning, match=r"did not settle in 1 Gauss-Newton steps \(last change 1\.47 std"):
+        reg.solve(SIGMA, iterations=1)

@@ -46,7 +46,7 @@ from casep.tracking.stations import MEASUREMENT_TYPES, RadarMeasurements, check_
 from casep.units import ARCSEC
 
 __all__ = ["Telemetry", "read_telemetry", "RadarRegression", "estimate_group_sigmas", "FIRST_RANGE_LIMIT",
-           "TYPE_UNITS", "RadarCoverageWarning"]
+           "TYPE_UNITS", "RadarCoverageWarning", "RadarConvergenceWarning"]
 
 #: A first predicted range further than this from the first measured one is a wrong site, not a bias, m.
 FIRST_RANGE_LIMIT = 1000.0
@@ -61,6 +61,10 @@ _START_SIGMA = {"range": 1.0, "azimuth": 5 * ARCSEC, "elevation": 5 * ARCSEC, "r
 _SIGMA_FLOOR = {"range": 1e-9, "azimuth": 1e-15, "elevation": 1e-15, "range_rate": 1e-10}
 #: Telemetry speed relative to the pad above which its first sample is not on the pad, m/s.
 _PAD_SPEED = 5.0
+
+
+class RadarConvergenceWarning(CasepWarning):
+    """The Gauss-Newton relinearisation did not settle: the message gives the steps (in std)."""
 
 
 class RadarCoverageWarning(CasepWarning):
@@ -234,7 +238,9 @@ class RadarRegression:
                     f"station `{name}` ({s.meas.station.source}, {s.meas.source}): first measured range "
                     f"{s.z[0, 0]:.6g} m vs predicted {geo[0, 0]:.6g} m at t = {s.t[0]:g} s (difference "
                     f"{d_rng:.4g} m > {FIRST_RANGE_LIMIT:g} m): a wrong station position, launch site or launch "
-                    "time, not a bias")
+                    "time, not a bias" + (f" (or a navigation error above 1 km already: this radar starts "
+                                          f"{s.t[0] - self.telemetry.t[0]:.4g} s into the telemetry)"
+                                          if s.t[0] - self.telemetry.t[0] > 10.0 else ""))
             for j, ty in ((1, "azimuth"), (2, "elevation")):
                 d = float(wrap_angle(s.z[0, j] - geo[0, j]))
                 if abs(d) > FIRST_ANGLE_LIMIT:
@@ -342,6 +348,11 @@ class RadarRegression:
             D0 = x[:self.nD]
             if step < tol:
                 break
+        if history[-1] >= tol:
+            warnings.warn(f"radar separation: the linearisation did not settle in {iterations} Gauss-Newton steps "
+                          f"(last change {history[-1]:.3g} std, steps {', '.join(f'{h:.3g}' for h in history)}): the "
+                          "telemetered trajectory is far from the measured one; the estimate is that of the last "
+                          "linearisation", RadarConvergenceWarning, stacklevel=2)
         S, y, t = self.assemble(D0)
         if np.all(sig <= np.array([_SIGMA_FLOOR[g[1]] for g in self.groups]) * 1.0001) and not fixed.all():
             warnings.warn("radar residuals at the rounding level: the noise std are floored at the rounding of the "
