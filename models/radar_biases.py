@@ -23,7 +23,6 @@ def build():
     m.set_range_error(c.range_scale * m.range + c.range_bias - tau * m.range_rate)
     m.set_azimuth_error(c.azimuth_bias - tau * m.azimuth_rate)
     m.set_elevation_error(c.elevation_bias - tau * m.elevation_rate)
-    # range rate of a measurement tagged late: -tau d(rho_dot)/dt is not in the geometry inputs;
-    # the scale applies to the range rate as to the range
-    m.set_range_rate_error(c.range_scale * m.range_rate)
+    # the scale applies to the range rate as to the range; tagged late: -tau d(rho_dot)/dt
+    m.set_range_rate_error(c.range_scale * m.range_rate - tau * m.range_acceleration)
     return m

@@ -85,7 +85,7 @@ def test_radar_biases_T_against_finite_differences_and_closed_form():
     rng = np.random.default_rng(3)
     g = np.column_stack([rng.uniform(5e4, 5e5, 6), rng.uniform(-3, 3, 6), rng.uniform(0, 1.4, 6),
                          rng.uniform(-2e3, 2e3, 6), rng.uniform(-1e-2, 1e-2, 6), rng.uniform(-1e-2, 1e-2, 6),
-                         rng.normal(0, 1e5, (6, 3)), rng.uniform(0, 200, 6)])
+                         rng.uniform(-50, 50, 6), rng.normal(0, 1e5, (6, 3)), rng.uniform(0, 200, 6)])
     T = m.jacobian(g)
     theta = rng.normal(0, 3, 5)
     h = 1e-3
@@ -101,6 +101,8 @@ def test_radar_biases_T_against_finite_differences_and_closed_form():
     np.testing.assert_allclose(T[:, 1, 2], ARCSEC, rtol=1e-14)
     np.testing.assert_allclose(T[:, 2, 4], -1e-3 * e_dot, rtol=1e-14)
     np.testing.assert_allclose(T[:, 1, 4], -1e-3 * a_dot, rtol=1e-14)
+    np.testing.assert_allclose(T[:, 3, :], np.column_stack([0 * rho, 1e-6 * rho_dot, 0 * rho, 0 * rho,
+                                                            -1e-3 * g[:, 6]]), rtol=1e-14)
 
 
 def test_radar_biases_is_a_tracking_model_not_an_instrument_model():
@@ -136,6 +138,20 @@ def test_predicted_measurement_against_pymap3d():
         fd = (np.asarray(pymap3d.ecef2aer(*rp.T, st.lat_deg, st.lon_deg, st.h_m)[2])
               - np.asarray(pymap3d.ecef2aer(*rm.T, st.lat_deg, st.lon_deg, st.h_m)[2])) / (2 * dt)
         np.testing.assert_allclose(geo[:, 3], fd, rtol=0, atol=2e-4)
+
+
+def test_range_acceleration_against_finite_differences():
+    """d(range rate)/dt along a constant-acceleration motion, by central differences in time."""
+    rng = np.random.default_rng(8)
+    t, r, v = _random_states(rng)
+    a = rng.normal(0, 30, r.shape)
+    g = RadarGeometry(SITE, STATIONS[1])
+    geo, _ = g.evaluate(t, r, v, a)
+    h = 1e-3
+    gp, _ = g.evaluate(t + h, r + v * h + 0.5 * a * h**2, v + a * h, a)
+    gm, _ = g.evaluate(t - h, r - v * h + 0.5 * a * h**2, v - a * h, a)
+    np.testing.assert_allclose(geo[:, 6], (gp[:, 3] - gm[:, 3]) / (2 * h), rtol=0, atol=2e-5)
+    assert np.all(np.isnan(g.evaluate(t, r, v)[0][:, 6]))  # no acceleration given: no range acceleration
 
 
 def test_H_against_finite_differences():
@@ -186,12 +202,18 @@ def test_noise_free_one_station_recovered_to_1e6_of_crlb(clean):
 
 def test_time_bias_applied_exactly_is_recovered_to_first_order():
     """A 2 ms late time tag simulated exactly (state sampled at t - tau): the first-order term finds it
-    within 1 % of its CRLB std (the second-order remainder tau^2 rho''/2)."""
+    within 1-2 % of its CRLB std (the second-order remainder tau^2 rho''/2), range rate included."""
     tt = {"S1": {**TRUTH["S1"], "time_bias": 2.0}, "S2": {**TRUTH["S2"], "time_bias": -1.5}}
     sim = simulate_radar(STATIONS, SITE, seed=0, telemetry_rate=20, radar_rate=20, tracking_truth=tt,
-                         noise={"range": 0.0, "azimuth": 0.0, "elevation": 0.0})
-    rr, z = _noise_free_errors(sim, list(sim.radars))
+                         noise={"range": 0.0, "azimuth": 0.0, "elevation": 0.0, "range_rate": 0.0}, range_rate=True)
+    rr, z = _noise_free_errors(sim, [dataclasses.replace(m, range_rate=None) for m in sim.radars])
     assert np.max(np.abs(z)) < 1e-2, dict(zip(rr.result.names, z))
+    # with range rate (the time bias through the range acceleration from the telemetry's a_*)
+    sigma = {**SIGMA, **{(s, "range_rate"): 0.05 for s in ("S1", "S2")}}
+    res = separate_radar(sim.telemetry, list(sim.radars), SITE, sim.model, sim.tracking, sigma=sigma,
+                         diagnostics=False).result
+    z = (res.estimate - sim.truth_vector()) / res.std
+    assert np.max(np.abs(z)) < 2e-2, dict(zip(res.names, z))
 
 
 @pytest.mark.montecarlo
@@ -378,7 +400,7 @@ def build():
 ''')
     trk = load_tracking_model(str(p))
     assert trk.names[-2:] == ("refraction", "survey_up")
-    g = np.array([[2e5, 0.3, 0.4, 100.0, 0.0, 0.0, 1e5, 1.5e5, 7e4, 0.0]])
+    g = np.array([[2e5, 0.3, 0.4, 100.0, 0.0, 0.0, 0.0, 1e5, 1.5e5, 7e4, 0.0]])
     T = trk.jacobian(g)
     assert math.isclose(T[0, 2, 5], ARCSEC * math.cos(0.4) / math.sin(0.4), rel_tol=1e-14)
     assert math.isclose(T[0, 0, 6], -7e4 / 2e5, rel_tol=1e-14)

@@ -9,7 +9,8 @@ error style:
 
 - inputs (CasADi ``SX`` scalars, SI): :attr:`range` rho (m), :attr:`azimuth` A (rad, from
   north, clockwise), :attr:`elevation` E (rad, above the local horizon), their rates
-  :attr:`range_rate`, :attr:`azimuth_rate`, :attr:`elevation_rate` (m/s, rad/s), the
+  :attr:`range_rate`, :attr:`azimuth_rate`, :attr:`elevation_rate` (m/s, rad/s),
+  :attr:`range_acceleration` (m/s^2), the
   station-ENU position of the target :attr:`enu` (m, 3 x 1) and :attr:`t` (s since the station's
   first sample);
 - outputs (measured minus true, SI): :meth:`set_range_error` (m), :meth:`set_azimuth_error`,
@@ -46,13 +47,13 @@ __all__ = ["TrackingModel", "TRACKING_OUTPUTS", "GEOMETRY", "load_tracking_model
 TRACKING_OUTPUTS: dict[str, str] = {"range": "m", "azimuth": "rad", "elevation": "rad", "range_rate": "m/s"}
 #: Geometry inputs of the per-sample function, in order: name -> SI unit.
 GEOMETRY: dict[str, str] = {"range": "m", "azimuth": "rad", "elevation": "rad", "range_rate": "m/s",
-                            "azimuth_rate": "rad/s", "elevation_rate": "rad/s", "east": "m", "north": "m",
-                            "up": "m", "t": "s"}
+                            "azimuth_rate": "rad/s", "elevation_rate": "rad/s", "range_acceleration": "m/s^2",
+                            "east": "m", "north": "m", "up": "m", "t": "s"}
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 # Deterministic geometry probes (SI, GEOMETRY order) used to look for coefficient-free terms.
-_PROBES = np.array([[3.1e5, 0.7, 0.3, 1.2e3, 1e-3, -2e-3, 1.9e5, 2.3e5, 9.1e4, 12.0],
-                    [8.0e4, -2.1, 1.1, -3.0e2, -4e-3, 5e-3, -6.0e4, 3.5e4, 3.9e4, 77.0],
-                    [1.5e6, 3.0, 0.05, 2.5e3, 2e-4, 1e-4, 1.0e5, -1.4e6, 1.2e5, 150.0]])
+_PROBES = np.array([[3.1e5, 0.7, 0.3, 1.2e3, 1e-3, -2e-3, 31.0, 1.9e5, 2.3e5, 9.1e4, 12.0],
+                    [8.0e4, -2.1, 1.1, -3.0e2, -4e-3, 5e-3, -7.5, -6.0e4, 3.5e4, 3.9e4, 77.0],
+                    [1.5e6, 3.0, 0.05, 2.5e3, 2e-4, 1e-4, 12.0, 1.0e5, -1.4e6, 1.2e5, 150.0]])
 
 
 class TrackingModel:
@@ -122,6 +123,11 @@ class TrackingModel:
     def elevation_rate(self) -> ca.SX:
         """dE/dt, rad/s."""
         return self._geo["elevation_rate"]
+
+    @property
+    def range_acceleration(self) -> ca.SX:
+        """d^2 rho / dt^2, m/s^2 (from the telemetered kinematic acceleration)."""
+        return self._geo["range_acceleration"]
 
     @property
     def enu(self) -> ca.SX:
@@ -313,7 +319,7 @@ class TrackingModel:
 
         Parameters
         ----------
-        geometry : (N, 10) array_like
+        geometry : (N, 11) array_like
             Columns in :data:`GEOMETRY` order (SI).
         """
         self._require_setup()

@@ -151,8 +151,8 @@ def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="p
         inside = (t_r - tau >= traj.t[0]) & (t_r - tau <= t_end)  # tags whose instant t - tau was flown
         t_tag = t_r[inside]
         t_meas = t_tag - tau  # measured at t - tau
-        r, v = traj.sample(t_meas)
-        geo, _ = RadarGeometry(site, st).evaluate(t_meas, r, v)
+        k = traj.kinematics(t_meas)
+        geo, _ = RadarGeometry(site, st).evaluate(t_meas, k["position"], k["velocity"], k["acceleration"])
         T = trk.jacobian(np.column_stack([geo, t_tag - t_tag[0]]))
         z = geo[:, :4] + T @ th  # h + T theta
         for j, ty in enumerate(types):

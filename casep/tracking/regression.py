@@ -166,6 +166,7 @@ class _Station:
     SP: np.ndarray  # (N, 3, n)
     SV: np.ndarray
     types: tuple[str, ...]
+    a: np.ndarray  # (N, 3) kinematic acceleration, m/s^2 (the range-acceleration input of T only)
 
 
 class RadarRegression:
@@ -200,6 +201,9 @@ class RadarRegression:
             raise ValueError(f"{tel.source}: model `{model.name}` needs column(s) {', '.join(missing)}")
         SV = build_sv(model, tel.t, tel.f, signals=signals)
         SP = cumulative_sp(SV, tel.t)
+        acols = ("a_x", "a_y", "a_z")  # kinematic acceleration: the file's, else d v_tel / dt (2nd order)
+        acc = (np.column_stack([tel.signals[c] for c in acols]) if all(c in tel.signals for c in acols)
+               else np.gradient(tel.v, tel.t, axis=0, edge_order=2) if tel.t.size >= 3 else np.zeros_like(tel.v))
         self.stations: list[_Station] = []
         for m in radars:
             inside = (m.t >= tel.t[0]) & (m.t <= tel.t[-1])
@@ -214,7 +218,7 @@ class RadarRegression:
             t = m.t[inside]
             st = _Station(m, RadarGeometry(site, m.station), t, m.values()[inside],
                           _hermite(tel.t, tel.r, tel.v, t), _linear(tel.t, tel.v, t),
-                          _hermite(tel.t, SP, SV, t), _linear(tel.t, SV, t), m.types)
+                          _hermite(tel.t, SP, SV, t), _linear(tel.t, SV, t), m.types, _linear(tel.t, acc, t))
             self.stations.append(st)
         self.nD = model.n_coefficients
         self.nT = tracking.n_coefficients
@@ -230,7 +234,7 @@ class RadarRegression:
     def check_first_sample(self) -> None:
         """A station whose first predicted measurement is far from the measured one: a wrong site (error)."""
         for s in self.stations:
-            geo, _ = s.geometry.evaluate(s.t[:1], s.r[:1], s.v[:1])
+            geo, _ = s.geometry.evaluate(s.t[:1], s.r[:1], s.v[:1], s.a[:1])
             d_rng = float(s.z[0, 0] - geo[0, 0])
             name = s.meas.station.name
             if abs(d_rng) > FIRST_RANGE_LIMIT:
@@ -280,7 +284,7 @@ class RadarRegression:
             k = len(s.types)
             r_lin = s.r - s.SP @ D0  # r = r_tel - S_P D0
             v_lin = s.v - s.SV @ D0
-            geo, H = s.geometry.evaluate(s.t, r_lin, v_lin)
+            geo, H = s.geometry.evaluate(s.t, r_lin, v_lin, s.a)
             # A = -(H_r S_P + H_v S_V): (N, k, n_D)
             A = -(np.einsum("kij,kjn->kin", H[:, :k, :3], s.SP) + np.einsum("kij,kjn->kin", H[:, :k, 3:], s.SV))
             resid = s.z - geo[:, :k]
