@@ -496,6 +496,15 @@ def test_noise_from_the_station_file(clean):
     assert noise[("S2", "elevation")]["sigma"] == pytest.approx(8.0, rel=0.05)
 
 
+def test_bad_noise_std_is_refused(clean):
+    with pytest.raises(ValueError, match=r"noise std of S1.range must be a finite number > 0"):
+        separate_radar(clean.telemetry, list(clean.radars), SITE, clean.model, clean.tracking,
+                       sigma={("S1", "range"): 0.0})
+    with pytest.raises(ValueError, match=r"noise given for S3.range, which is not a measurement group"):
+        separate_radar(clean.telemetry, list(clean.radars), SITE, clean.model, clean.tracking,
+                       sigma={("S3", "range"): 3.0})
+
+
 def test_linearisation_that_does_not_settle_warns(clean):
     from casep.tracking.regression import RadarConvergenceWarning, RadarRegression
 

@@ -332,6 +332,10 @@ class RadarRegression:
             The weighted regression at the final linearisation point.
         """
         known = {**self.given_sigmas(), **dict(sigma or {})}
+        for g, v in known.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) or not 0 < v < math.inf:
+                raise ValueError(f"noise std of {g[0]}.{g[1]} must be a finite number > 0 (SI: m, rad, m/s), "
+                                 f"got {v!r}")
         for g in known:
             if g not in self.groups:
                 raise ValueError(f"noise given for {g[0]}.{g[1]}, which is not a measurement group here "
