@@ -854,9 +854,8 @@ def _simulate_radar(args: argparse.Namespace, site) -> int:
     """`casep simulate -o TEL.csv --rotating-earth --launch-site ... --radar-station S1.json ...`."""
     from casep.io._atomic import check_outputs
     from casep.io.files import read_json_table
-    from casep.simulation.radar import simulate_radar, write_radar_simulation
-    from casep.simulation.simulate import truth_path
     from casep.tracking.stations import read_station
+    from casep.workflows.radar import radar_simulation_outputs, simulate_radar_files
 
     if site is None:
         raise ValueError("--radar-station needs --rotating-earth --launch-site LAT LON H AZ (the stations are on the "
@@ -865,29 +864,20 @@ def _simulate_radar(args: argparse.Namespace, site) -> int:
         raise ValueError("--radar-station writes radar files: leave out --tracking-frame, --lever-arm and "
                          "--tracking-offset (a radar time-tag error is the tracking model's time_bias)")
     stations = [read_station(p) for p in args.radar_station]
-    out = Path(args.output)
-    outs = {"-o": out, "-o (truth sidecar)": truth_path(out)}
-    for st in stations:
-        outs[f"--radar-station {st.name} (json)"] = out.with_name(f"{out.stem}.{st.name}.json")
-        outs[f"--radar-station {st.name} (csv)"] = out.with_name(f"{out.stem}.{st.name}.csv")
-    check_outputs(outs, inputs=_inputs(args, "truth", "tracking_truth", "radar_station"))
-    truth = None
-    if args.truth:
-        truth = read_json_table(args.truth, "--truth")
-        truth = truth["coefficients"] if isinstance(truth.get("coefficients"), dict) else truth
-    tt = read_json_table(args.tracking_truth, "--tracking-truth") if args.tracking_truth else None
-    sim = simulate_radar(stations, site, scenario=args.scenario, seed=args.seed, telemetry_rate=args.rate or 100.0,
-                         radar_rate=args.radar_rate, model=args.model, truth=truth, tracking_truth=tt,
-                         noise={"range": args.range_noise, "azimuth": args.angle_noise,
-                                "elevation": args.angle_noise}, range_rate=args.radar_range_rate)
-    files = write_radar_simulation(sim, out)
+    check_outputs(radar_simulation_outputs(args.output, stations),
+                  inputs=_inputs(args, "truth", "tracking_truth", "radar_station"))
+    sim, files = simulate_radar_files(
+        args.output, stations, site, truth=read_json_table(args.truth, "--truth") if args.truth else None,
+        tracking_truth=read_json_table(args.tracking_truth, "--tracking-truth") if args.tracking_truth else None,
+        scenario=args.scenario, seed=args.seed, telemetry_rate=args.rate or 100.0, radar_rate=args.radar_rate,
+        model=args.model, noise={"range": args.range_noise, "azimuth": args.angle_noise, "elevation": args.angle_noise},
+        range_rate=args.radar_range_rate)
     print(f"scenario {sim.scenario}: telemetry {sim.telemetry.t.size} samples, "
           + ", ".join(f"{m.station.name} {m.t.size} samples" for m in sim.radars)
           + f" at {args.radar_rate:g} Hz (range noise {args.range_noise:g} m, angles {args.angle_noise:g} arcsec)")
     print("wrote " + ", ".join(str(f) for f in files))
-    radar = " ".join(f"--radar {out.with_name(f'{out.stem}.{m.station.name}.json')} "
-                     f"{out.with_name(f'{out.stem}.{m.station.name}.csv')}" for m in sim.radars)
-    print(f"separate with: casep separate {out} {radar} --launch-site "
+    radar = " ".join(f"--radar {files[1 + 2 * i]} {files[2 + 2 * i]}" for i in range(len(sim.radars)))
+    print(f"separate with: casep separate {args.output} {radar} --launch-site "
           f"{' '.join(f'{v:g}' for v in args.launch_site)} --launch-time 0")
     return 0
 

@@ -27,7 +27,8 @@ from casep.tracking.diagnostics import diagnostics_table, radar_diagnostics
 from casep.tracking.regression import TYPE_UNITS, LinearisedRadar, RadarRegression, Telemetry, read_telemetry
 from casep.tracking.stations import RadarMeasurements, read_radar, read_station
 
-__all__ = ["RadarResult", "separate_radar", "diagnose_radar", "read_radar_inputs"]
+__all__ = ["RadarResult", "separate_radar", "diagnose_radar", "read_radar_inputs", "simulate_radar_files",
+           "radar_simulation_outputs"]
 
 
 @dataclass(frozen=True)
@@ -156,3 +157,50 @@ def diagnose_radar(telemetry, radars: Sequence, site: LaunchSite, model: Any = "
     reg = _inputs(telemetry, radars, model, tracking, site)
     lin = reg.solve(sigma)
     return radar_diagnostics(lin, scales=reg.model.scales)
+
+
+def radar_simulation_outputs(output: str | os.PathLike, stations: Sequence) -> dict[str, Any]:
+    """The files :func:`simulate_radar_files` writes: ``{label: path}`` (telemetry, truth, per station json/csv)."""
+    from pathlib import Path
+
+    from casep.simulation.simulate import truth_path
+
+    out = Path(output)
+    files: dict[str, Any] = {"-o": out, "-o (truth sidecar)": truth_path(out)}
+    for st in stations:
+        files[f"station {st.name} (json)"] = out.with_name(f"{out.stem}.{st.name}.json")
+        files[f"station {st.name} (csv)"] = out.with_name(f"{out.stem}.{st.name}.csv")
+    return files
+
+
+def simulate_radar_files(output: str | os.PathLike, stations: Sequence, site: LaunchSite, *,
+                         truth: Mapping | None = None, tracking_truth: Mapping | None = None, **options):
+    """Simulate a radar-tracked flight and write it (:func:`casep.simulation.radar.write_radar_simulation`).
+
+    Parameters
+    ----------
+    output : path
+        The telemetry file; the stations' files and the truth go beside it.
+    stations : sequence of Station or station-file paths
+    site : LaunchSite
+        t0 = 0 (lift-off).
+    truth : mapping, optional
+        Instrument truth ``{name: value}`` or a truth sidecar's dict (its ``coefficients``).
+    tracking_truth : mapping, optional
+        ``{station: {term: value}}``.
+    **options
+        :func:`casep.simulation.radar.simulate_radar`'s keywords (scenario, seed, telemetry_rate,
+        radar_rate, model, noise, range_rate, tracking).
+
+    Returns
+    -------
+    (RadarSimulation, list of Path)
+    """
+    from casep.simulation.radar import simulate_radar, write_radar_simulation
+    from casep.tracking.stations import Station
+
+    stations = [s if isinstance(s, Station) else read_station(s) for s in stations]
+    if truth is not None and isinstance(truth.get("coefficients"), dict):
+        truth = truth["coefficients"]
+    sim = simulate_radar(stations, site, truth=truth, tracking_truth=tracking_truth, **options)
+    return sim, write_radar_simulation(sim, output)
