@@ -18,8 +18,9 @@ each group divided by its noise std (given, or estimated: :func:`estimate_group_
 stacked into one ``(m, n_D + n_stations n_T)`` regression ``[A | T_1 | T_2 ...]`` handed to the
 estimators as a :class:`casep.analysis.problem.Problem`. ``D0`` is re-set to the least-squares
 estimate a few times (Gauss-Newton) so that the linearisation point is the estimated true
-trajectory; with a few km of position error at a few hundred km the first step is already
-within a small fraction of the noise.
+trajectory: on the test flight (370 m of position error at burnout, 70-290 km range) the
+linearisation at the telemetered trajectory alone is off by 1.5-3 std of the estimate; the steps
+then shrink quadratically (2.8, 0.76, 2.4e-4 std).
 
 Telemetry quantities are carried to each station's times by cubic Hermite interpolation (position
 with velocity as its derivative, S_P with S_V), velocity and S_V linearly; at radar times that
