@@ -48,9 +48,17 @@ class RadarResult:
 
     def table(self) -> str:
         """The result table, the noise and residuals per station and type, and the diagnostics."""
+        from casep.estimators.result import format_number
+
         res = self.result
-        lines = [res.table().replace(f"sigma {res.sigma:.4g} m/s", f"noise scale {res.sigma:.4g} (1: as estimated "
-                                                                     "per group)"),
+        base = res.table().replace(f"sigma {res.sigma:.4g} m/s", f"noise scale {res.sigma:.4g} (1: as estimated "
+                                                                   "per group)").split("\n")
+        w = max(12, *(len(n) for n in res.names))  # station terms are longer than instrument names
+        rows = [f"{'coefficient':<{w}} {'unit':<10} {'estimate':>12} {'std':>12}  note"]
+        for r in res.coefficient_rows():
+            rows.append(f"{r['name']:<{w}} {r['unit']:<10} {format_number(r['estimate'])} "
+                        f"{format_number(r['std'])}  {r.get('reason', '')}".rstrip())
+        lines = [*rows, *base[base.index(""):],
                  "", f"telemetered position: {self.summary['telemetry_position']}",
                  f"linearisation: {len(self.summary['gauss_newton_steps'])} Gauss-Newton steps, last change "
                  f"{self.summary['gauss_newton_steps'][-1]:.2g} std"]
