@@ -31,7 +31,7 @@ from pathlib import Path
 from casep.model._model import ErrorModel, ModelDefinitionError
 
 __all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file",
-           "model_file_reference"]
+           "model_file_reference", "run_model_file"]
 
 
 def model_dirs() -> list[Path]:
@@ -156,9 +156,13 @@ def _time_limit(seconds: float):
             signal.setitimer(signal.ITIMER_REAL, max(old_delay - (time.monotonic() - start), 1e-6), old_interval)
 
 
-def _run_file(path: Path) -> ErrorModel:
+def run_model_file(path: Path, kind: type = ErrorModel):
     """Execute the model file and its ``build()``; any failure becomes a one-line ModelFileError,
-    and so does taking longer than :data:`MODEL_LOAD_TIMEOUT_S` (``CASEP_MODEL_TIMEOUT``)."""
+    and so does taking longer than :data:`MODEL_LOAD_TIMEOUT_S` (``CASEP_MODEL_TIMEOUT``).
+
+    `kind`: the class ``build()`` must return (:class:`ErrorModel`, or
+    :class:`casep.model.tracking.TrackingModel` for a tracking model file).
+    """
     spec = importlib.util.spec_from_file_location(f"casep_model_{path.stem}", path)
     if spec is None or spec.loader is None:
         raise ModelFileError(f"model file {path}: cannot be loaded as Python")
@@ -182,13 +186,21 @@ def _run_file(path: Path) -> ErrorModel:
     except (Exception, SystemExit) as exc:  # KeyboardInterrupt still interrupts
         where = _where(path, exc)
         raise ModelFileError(f"{where}{', in build()' if stage == 'build()' else ''}: {_describe(exc)}") from exc
-    if not isinstance(result, ErrorModel):
-        raise ModelFileError(f"model file {path}: build() returned {type(result).__name__}, not casep.ErrorModel")
+    if not isinstance(result, kind):
+        uses = {"TrackingModel": "a tracking model: use it with --tracking-model (casep.load_tracking_model)",
+                "ErrorModel": "an instrument model: use it with --model (casep.load_model)"}
+        use = uses.get(type(result).__name__, "")
+        raise ModelFileError(f"model file {path}: build() returned {type(result).__name__}, not casep.{kind.__name__}"
+                             + (f"; it is {use}" if use else ""))
     # Where the model came from (results record it when its name alone does not find it) and the
     # file's docstring (casep models -v); a model extending another keeps the outermost file's.
-    result.source_file = str(path.resolve())
-    result.source_doc = (module.__doc__ or "").strip()
+    if isinstance(result, ErrorModel):
+        result.source_file = str(path.resolve())
+        result.source_doc = (module.__doc__ or "").strip()
     return result
+
+
+_run_file = run_model_file  # the instrument-model case
 
 
 def build_model(model: str | os.PathLike) -> ErrorModel:
