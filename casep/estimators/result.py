@@ -527,9 +527,11 @@ def result_from_data(rd, model=None) -> EstimateResult:
         from casep.model.loader import load_model
 
         model = load_model(model)
-        check_result_units(rd.names, rd.units, model, rd.source)
-        base = [n.split("[", 1)[0] for n in rd.names]
-        si = np.array([model.si_factors[model.names.index(b)] for b in base], dtype=float)
+        skip = _tracking_terms(f.get("diagnostics"))
+        check_result_units(rd.names, rd.units, model, rd.source, skip=skip)
+        if not skip:
+            base = [n.split("[", 1)[0] for n in rd.names]
+            si = np.array([model.si_factors[model.names.index(b)] for b in base], dtype=float)
     if si is None and f.get("si_factors") is not None and len(f["si_factors"]) == len(rd.names):
         si = np.array([np.nan if v is None else v for v in f["si_factors"]], dtype=float)
     if si is None:
@@ -568,12 +570,22 @@ def result_from_data(rd, model=None) -> EstimateResult:
         std_kind=f.get("std_kind") or "sampling", extras=extras, model_file=f.get("model_file"))
 
 
-def check_result_units(names, units, model, source: str) -> None:
+def _tracking_terms(diagnostics) -> set[str]:
+    """Coefficients of a radar-tracked result that belong to its tracking model (station errors), not to
+    the instrument model: ``diagnostics["tracking_terms"]``."""
+    terms = (diagnostics or {}).get("tracking_terms") if isinstance(diagnostics, dict) else None
+    return {str(t) for t in terms} if isinstance(terms, (list, tuple)) else set()
+
+
+def check_result_units(names, units, model, source: str, skip: set[str] | frozenset[str] = frozenset()) -> None:
     """Every coefficient of a result is the model's (a several-flight result's ``name[file]``: its base
-    name) and in the model's unit; ValueError naming the coefficient and both units."""
+    name) and in the model's unit; ValueError naming the coefficient and both units. Names in `skip`
+    (a radar-tracked result's tracking-model terms) are not the instrument model's and are left out."""
     from casep.model._model import unknown_coefficient_message
 
     for n, u in zip(names, units):
+        if n in skip:
+            continue
         base = n.split("[", 1)[0]
         if base not in model.names:
             raise ValueError(unknown_coefficient_message(base, model.names, f"{source} (model {model.name})"))
@@ -613,7 +625,7 @@ def read_result(source, model=None, option: str = "result") -> tuple[EstimateRes
     if rd is not None:
         res = result_from_data(rd, model)
     else:
-        check_result_units(res.names, res.units, model, where)
+        check_result_units(res.names, res.units, model, where, skip=_tracking_terms(res.diagnostics))
     return res, model
 
 
