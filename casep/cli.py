@@ -143,6 +143,64 @@ def _add_option(group, option: Option, default: str | None = None) -> None:
                        metavar=_metavar(option), help=_option_help(option, default))
 
 
+def _add_noise(parser, *, outputs: bool = True) -> None:
+    """The noise-model options every method takes (casep.analysis.noise, casep.workflows.solve)."""
+    g = parser.add_argument_group("noise model (every method)")
+    g.add_argument("--noise", choices=("auto", "gm", "white"), default="auto",
+                   help="tracking noise: auto (default: white or Gauss-Markov per axis by a likelihood-ratio test, "
+                        "said in the output), gm (Gauss-Markov per axis, --tau or REML), white (a whiteness test "
+                        "warns when the residuals contradict it)")
+    g.add_argument("--robust", nargs="?", const="huber", choices=("huber", "bisquare"), default=None,
+                   help="robust fit for any method: glitches removed by a robust filter on the innovations, the rest "
+                        "weighted (default function huber)")
+    if outputs:
+        g.add_argument("--std", choices=("model", "hac"), default="model",
+                       help="model (default) or hac: Newey-West std of a white-noise ols fit")
+        g.add_argument("--exclude-outliers", type=float, nargs="?", const=0.01, default=None, metavar="ALPHA",
+                       help="remove the samples whose studentized residual (whitened rows) is flagged at "
+                            "family-wise chance ALPHA (default 0.01) and fit again; removed samples listed")
+
+
+def _noise_kw(args: argparse.Namespace, opts: dict) -> dict:
+    """separate()'s noise keywords from the options (--tau: the noise model's for every method)."""
+    kw = {"noise": args.noise, "robust": args.robust}
+    for k in ("std", "exclude_outliers"):
+        if getattr(args, k, None) is not None:
+            kw[k] = getattr(args, k)
+    if args.method != "gls" and opts.get("tau") is not None:
+        kw["tau"] = opts.pop("tau")
+    return kw
+
+
+def _print_noise(res) -> None:
+    """The noise model, the robust fit and the removed samples, one line each."""
+    from casep.analysis.noise import NoiseModel
+
+    nd = res.diagnostics.get("noise")
+    if nd:
+        if "note" in nd:
+            print(f"noise: {nd['note']}, tau {nd['axes']['x']['tau_s']:.3g} s ({nd['rule']})")
+        else:
+            axes = nd["axes"]
+            nm = NoiseModel(kind=nd["kind"], tau=tuple(axes[a]["tau_s"] for a in "xyz"),
+                            scale=tuple(axes[a]["scale"] for a in "xyz"), rule=nd["rule"],
+                            lr=tuple(axes[a]["lr"] for a in "xyz") if "lr" in axes["x"] else None,
+                            lr_scale=nd.get("lr_scale"),
+                            sigma=axes["x"].get("std_m_s"))
+            print(nm.line())
+    rb = res.diagnostics.get("robust")
+    if rb:
+        times = ", ".join(f"{r['t']:.2f} s" for r in rb["rejected"][:8])
+        print(f"robust ({rb['function']}): {rb['rejected_count']} sample(s) rejected as glitches"
+              + (f" (t = {times}{', ...' if rb['rejected_count'] > 8 else ''})" if times else "")
+              + f", {rb['downweighted']} row(s) down-weighted, {rb['iterations']} iteration(s)")
+    ex = res.diagnostics.get("excluded")
+    if ex:
+        times = ", ".join(f"{r['t']:.2f} s ({r['axis']})" for r in ex["samples"][:8])
+        print(f"excluded: {ex['count']} sample(s) flagged at alpha {ex['alpha']:g} removed and the fit repeated"
+              + (f": t = {times}{', ...' if ex['count'] > 8 else ''}" if times else ""))
+
+
 def _read(args: argparse.Namespace):
     """The flight of a command: one file, or telemetry + `--tracking`."""
     from casep.io.files import read_flight, read_flight_pair
@@ -369,6 +427,7 @@ def _parser() -> argparse.ArgumentParser:
                         "(t, f_* or W_*, v_tel_*); several flights: once per flight, in their order")
     _add_grid(s)  # --grid, --time-offset
     _add_frames(s)  # --tracking-frame, --launch-site, --launch-time
+    _add_noise(s)  # --noise, --robust, --std, --exclude-outliers
     _method_option_groups(s)
     g = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
     g.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
@@ -480,6 +539,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     # Options of the method only (casep.registry): one given for another method is an error.
     given = {k: getattr(args, k) for k in OPTIONS if getattr(args, k) is not None}  # files: their names
+    nkw = _noise_kw(args, given)  # --tau: the noise model's, for every method
     check_method_options(args.method, given)
     opts = {k: v for k, v in given.items() if k not in ("bounds", "prior")}
     bounds = _coefficient_file(args, "bounds", model.names)
@@ -490,13 +550,13 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     if wopts and args.denoise != "wavelet":
         raise ValueError(f"wavelet options ({', '.join(wopts)}) need --denoise wavelet")
     if len(args.flight) > 1:
-        return _separate_flights(args, model, opts, bounds, prior)
+        return _separate_flights(args, model, opts, bounds, prior, nkw)
     args.flight = args.flight[0]
     flight = _read(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", CasepWarning)
         res = separate(flight, model, args.method, sigma=args.sigma, bounds=bounds, prior=prior,
-                       denoise=args.denoise, wavelet_options=wopts or None, outliers=args.outliers, **opts)
+                       denoise=args.denoise, wavelet_options=wopts or None, outliers=args.outliers, **opts, **nkw)
     for w in caught:  # on to main(), which prints them
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
@@ -504,6 +564,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
         write_json_atomic({**res.to_dict(), **({"time_alignment": align} if align else {})}, args.json)
     _write_exports(res, args)
     print(res.table())
+    _print_noise(res)
     if args.outliers is not None:
         from casep.analysis.outliers import OutlierFlags
 
@@ -522,7 +583,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     return _result_status(res)
 
 
-def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior) -> int:
+def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior, nkw: dict) -> int:
     """`casep separate A B ...`: several flights in one estimate (casep.workflows.flights)."""
     from casep.estimators.result import write_json_atomic
     from casep.workflows.flights import JOINT_METHODS, flights_summary, separate_flights
@@ -539,7 +600,7 @@ def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior
     flights = _read_flights(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", CasepWarning)
-        res, jp = separate_flights(flights, model, args.method, sigma=args.sigma, options=options)
+        res, jp = separate_flights(flights, model, args.method, sigma=args.sigma, options=options, **nkw)
         summary = flights_summary(res, jp)
     for w in caught:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)

@@ -83,6 +83,13 @@ class Problem:
         self._S = S
         self._regenerate = regenerate
         self._ranks: dict[float | None, RankAnalysis] = {}
+        #: The raw problem this one was derived from by :meth:`subset` or :meth:`whitened` (None: raw).
+        self.parent: Problem | None = None
+        #: Indices of this problem's samples among the parent's (None: all of them).
+        self.rows: np.ndarray | None = None
+        #: The noise model the rows are whitened for (None: raw rows).
+        self.noise = None
+        self._unwhitened: Problem | None = None  # the same rows before whitening
         n = red.n
         for label, seq in (("names", self.names), ("units", self.units), ("si_factors", self.si_factors)):
             if len(seq) != n:
@@ -198,6 +205,95 @@ class Problem:
                       model=self.model, source=self.source, S=self._S, regenerate=regenerate, f=self.f)
         new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n)
         return new
+
+    def subset(self, keep: np.ndarray) -> "Problem":
+        """The regression on the samples where `keep` (N,) is True (time order kept; S shared).
+
+        The parent (this problem, or its own parent) and the kept sample indices are recorded:
+        residuals of the whole flight stay available through :attr:`parent`.
+        """
+        self._need_rows()
+        keep = np.asarray(keep, dtype=bool)
+        if keep.shape != (self.n_samples,) or self.y.ndim != 2:
+            raise ValueError(f"`keep` must be a boolean mask of the {self.n_samples} samples, got shape {keep.shape}")
+        idx = np.flatnonzero(keep)
+        y = self.y[idx]
+        t = None if self.t is None else self.t[idx]
+        f = None if self.f is None else self.f[idx]
+        S = regenerate = None
+        if self._S is not None:
+            S = self._S[idx]
+        else:
+            base = self._regenerate
+
+            def regenerate(rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
+                k0 = 0
+                for sl, S_b, _ in base(rows):
+                    o = keep[sl]
+                    k1 = k0 + int(o.sum())
+                    if k1 > k0:
+                        yield slice(k0, k1), S_b[o], y[k0:k1]
+                    k0 = k1
+
+        new = Problem(names=self.names, units=self.units, si_factors=self.si_factors,
+                      red=reduce_qr(S, y) if S is not None else self.red, y=y, t=t, model=self.model,
+                      source=self.source, S=S, regenerate=regenerate, f=f)
+        if S is None:
+            new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n)
+        root = self.parent if self.parent is not None else self
+        new.parent = root
+        new.rows = idx if self.rows is None else self.rows[idx]
+        return new
+
+    def whitened(self, noise, *, weights: np.ndarray | None = None) -> "Problem":
+        """The regression on rows whitened for a noise model (:mod:`casep.analysis.noise`).
+
+        Every estimator solves on the whitened rows as on any problem: least squares there is
+        the GLS estimate, and the std follow the noise model. Residuals of the raw rows:
+        ``problem.raw_residuals(x)``.
+
+        Parameters
+        ----------
+        noise : NoiseModel
+        weights : (N, 3) array_like, optional
+            Robust row weights in (0, 1]: the whitened rows are multiplied by ``sqrt(w)``.
+        """
+        from casep.analysis.noise import whiten, whiten_blocks
+
+        self._need_rows()
+        if self.noise is not None:
+            raise ValueError(f"problem `{self.source}` is whitened already")
+        if self.t is None or self.y.ndim != 2:
+            raise ValueError(f"problem `{self.source}`: whitening needs rows (N, 3) with their times")
+        w = None if weights is None else np.asarray(weights, dtype=float).reshape(self.y.shape)
+        t = self.t
+        if self._S is not None:
+            Sw, yw = whiten(self._S, self.y, t, noise, w)
+            new = Problem(names=self.names, units=self.units, si_factors=self.si_factors, red=reduce_qr(Sw, yw),
+                          y=yw, t=t, model=self.model, source=self.source, S=Sw, f=self.f)
+        else:
+            base = self.blocks
+            yw = np.empty_like(self.y)
+            for sl, _, y_b in whiten_blocks(base(), t, noise, w):
+                yw[sl] = y_b
+
+            def regenerate(rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
+                yield from whiten_blocks(base(rows), t, noise, w)
+
+            new = Problem(names=self.names, units=self.units, si_factors=self.si_factors, red=self.red, y=yw, t=t,
+                          model=self.model, source=self.source, regenerate=regenerate, f=self.f)
+            new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n)
+        new.parent = self.parent if self.parent is not None else self
+        new.rows = self.rows
+        new.noise = noise
+        new._unwhitened = self
+        return new
+
+    def raw_residuals(self, x: np.ndarray, *, all_samples: bool = True) -> np.ndarray:
+        """``dv - S x`` of the raw rows: of every sample of the parent (default), or of this problem's own."""
+        if all_samples and self.parent is not None:
+            return self.parent.residuals(x)
+        return (self._unwhitened if self._unwhitened is not None else self).residuals(x)
 
     # ----------------------------------------------------------------- properties
     @property
