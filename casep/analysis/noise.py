@@ -390,6 +390,11 @@ def fit_noise(problem, kind: str = "auto", tau=None, *, xatol: float = 2e-3) -> 
                           sigma=_sigma(reml, taus_given, sc), extra={"neg2_reml": val})
 
     best, taus, scales = _search_taus(reml, [True, True, True], lo, hi, xatol, free=True)
+    if not np.isfinite(best):
+        if kind == "gm":
+            raise ValueError(f"problem `{problem.source}`: the Gauss-Markov likelihood is not finite anywhere "
+                             "(residuals at the rounding level: noise-free data?); use noise 'white'")
+        return replace(NoiseModel.white(), kind="auto", rule="white: no finite Gauss-Markov likelihood (noise-free?)")
     if kind == "gm":
         return NoiseModel(kind="gm", tau=tuple(taus), scale=scales, rule="reml", sigma=_sigma(reml, taus, scales),
                           extra={"neg2_reml": best})
@@ -399,15 +404,19 @@ def fit_noise(problem, kind: str = "auto", tau=None, *, xatol: float = 2e-3) -> 
     for j in range(3):
         corr = [k != j for k in range(3)]
         val_j = _search_taus(reml, corr, lo, hi, xatol, free=True, start=taus, polish_only=True)[0]
-        lr.append(max(val_j - best, 0.0))  # -2 ln Lambda_a
+        lr.append(max(val_j - best, 0.0) if np.isfinite(val_j) else np.inf)  # -2 ln Lambda_a
     corr = [lr[j] > AUTO_LR for j in range(3)]
     val_free, taus_free, sc_free = _search_taus(reml, corr, lo, hi, xatol, free=True, start=taus, polish_only=True)
     val_one, taus_one, _ = _search_taus(reml, corr, lo, hi, xatol, free=False, start=taus, polish_only=True)
-    lr_scale = max(val_one - val_free, 0.0)
+    lr_scale = max(val_one - val_free, 0.0) if np.isfinite(val_one - val_free) else 0.0
     free = lr_scale > AUTO_LR_SCALE
     chosen, sc, val = (taus_free, sc_free, val_free) if free else (taus_one, (1.0, 1.0, 1.0), val_one)
     return NoiseModel(kind="auto", tau=tuple(chosen), scale=sc, rule="reml", lr=tuple(float(v) for v in lr),
                       lr_scale=float(lr_scale), sigma=_sigma(reml, chosen, sc), extra={"neg2_reml": val})
+
+
+#: What the tau search sees where the likelihood is not finite (a rounding-level residual).
+_NO_LIKELIHOOD = 1e300
 
 
 def _search_taus(reml: _Reml, corr: Sequence[bool], lo: float, hi: float, xatol: float, *, free: bool,
@@ -427,7 +436,8 @@ def _search_taus(reml: _Reml, corr: Sequence[bool], lo: float, hi: float, xatol:
         v, sc = reml.fit_scales(tt, state["scales"], free=free)
         if np.isfinite(v):
             state["scales"] = sc
-        return v
+            return v
+        return _NO_LIKELIHOOD  # the search needs finite values
 
     if not any(corr):
         v, sc = reml.fit_scales([None, None, None], free=free)
@@ -461,7 +471,7 @@ def _search_taus(reml: _Reml, corr: Sequence[bool], lo: float, hi: float, xatol:
                     break
             taus[j] = float(np.exp(x))
     v, sc = reml.fit_scales(taus, state["scales"], free=free)
-    return v, taus, sc
+    return (v if v < _NO_LIKELIHOOD else np.inf), taus, sc
 
 
 def _sigma(reml: _Reml, taus, scales) -> float:
@@ -529,9 +539,12 @@ class WhitenessTest:
         parts = ", ".join(f"{a} Q {self.q[j]:.3g} (p {self.p[j]:.2g})"
                           for j, a in enumerate(AXES) if a in self.rejected)
         factor = ""
-        if self.std_factor is not None:
+        if self.std_factor is not None and self.std_factor >= 1.0:
             factor = (f"; the reported std are about {self.std_factor:.2g}x too small (median over the coefficients "
                       f"of the Gauss-Markov std of the same data / the white std; up to {self.std_factor_max:.2g}x)")
+        elif self.std_factor is not None:
+            factor = ("; a Gauss-Markov noise model does not explain them either (its std are smaller, median "
+                      f"{self.std_factor:.2g}x): a model error rather than noise? (frames, time tags, a missing term)")
         return (f"residuals are not white ({parts}, Ljung-Box on {self.lags} lags){factor}. Use --noise auto "
                 "(or gm), or --std hac")
 
