@@ -1,19 +1,22 @@
 """Solve a problem under its noise model: whitened rows for every estimator, robust if asked.
 
-This is where the noise model of the data meets a method (:func:`solve_problem`): the noise is
-fitted (:func:`casep.analysis.noise.fit_noise`: white, Gauss-Markov per axis, or chosen by a
-likelihood-ratio test), the rows are whitened (:meth:`casep.analysis.problem.Problem.whitened`),
-and the method solves the whitened problem as any other, so its std hold in coloured noise.
+The noise model, the robust weights and the removed samples belong to the data, not to a
+method: :func:`prepare_rows` works them out once for a problem (with least squares, whatever
+method follows), and :func:`solve_problem` hands the resulting rows to any method, so its std
+hold in coloured noise and with glitches, and every method of a comparison sees the same rows.
+
+* Noise: :func:`casep.analysis.noise.fit_noise` (white, Gauss-Markov per axis, or chosen by a
+  likelihood-ratio test), rows whitened by :meth:`casep.analysis.problem.Problem.whitened`.
+* Robust (``robust="huber"|"bisquare"``): iterate least squares on the whitened, weighted rows
+  and the robust filter on the innovations of its residuals
+  (:func:`casep.analysis.robust.robust_filter`: gross glitches removed as gaps, the rest
+  weighted); the correlation time is fitted again on the kept samples (so glitches cannot
+  collapse it); until the kept samples settle and the estimate stops moving.
+* ``exclude_outliers=alpha``: rows flagged by their externally studentized residual on the
+  whitened rows (:func:`casep.analysis.outliers.flag_outliers`, family-wise false-alarm chance
+  ``alpha``); their samples removed and the rows prepared again, until nothing is flagged.
+
 Residuals are reported on the raw rows (``dv - S_V D``) of every sample.
-
-Robust fits (``robust="huber"|"bisquare"``) iterate: fit, robust filter on the innovations of
-the residuals (:func:`casep.analysis.robust.robust_filter`: gross glitches removed as gaps, the
-rest weighted), correlation time fitted again on the kept samples (so glitches cannot collapse
-it), fit again, until the kept samples and weights settle.
-
-``exclude_outliers=alpha`` flags rows by their externally studentized residual on the whitened
-rows (:func:`casep.analysis.outliers.flag_outliers`, family-wise false-alarm chance ``alpha``),
-removes the flagged samples and fits again, until nothing is flagged.
 
 ``std="hac"`` replaces a white-noise least-squares fit's std by the Newey-West sandwich
 (:func:`hac_covariance`).
@@ -35,7 +38,7 @@ from casep.estimators.registry import run_method
 from casep.estimators.result import EstimateResult
 from casep.exceptions import NoiseNotWhiteWarning
 
-__all__ = ["solve_problem", "Solved", "hac_covariance", "STD_CHOICES"]
+__all__ = ["solve_problem", "prepare_rows", "Rows", "Solved", "hac_covariance", "STD_CHOICES"]
 
 STD_CHOICES = ("model", "hac")
 #: Residual RMS below this fraction of the RMS of dv: noise-free data, nothing to fit a noise model on.
@@ -87,10 +90,96 @@ def _noise_free(problem: Problem) -> bool:
     return yy > 0 and rss <= (NOISE_FREE**2) * yy
 
 
+@dataclass
+class Rows:
+    """A problem's rows as every method solves them (:func:`prepare_rows`).
+
+    Attributes
+    ----------
+    problem : Problem
+        The raw problem.
+    solved : Problem
+        Samples removed, whitened for `noise`, weighted.
+    noise : NoiseModel
+    keep : (N,) bool ndarray
+        Samples kept.
+    weights : (N, 3) ndarray or None
+        Robust row weights.
+    robust : dict or None
+        What the robust fit did.
+    excluded : dict or None
+        The samples removed as flagged outliers.
+    asked : str
+        The noise kind asked for.
+    """
+
+    problem: Problem
+    solved: Problem
+    noise: NoiseModel
+    keep: np.ndarray
+    weights: np.ndarray | None = None
+    robust: dict | None = None
+    excluded: dict | None = None
+    asked: str = "auto"
+
+
+def _rows(problem: Problem, keep: np.ndarray, nm: NoiseModel, weights) -> Problem:
+    sub = problem if keep.all() else problem.subset(keep)
+    w = None if weights is None else weights[keep]
+    return sub if (nm.is_white and w is None) else sub.whitened(nm, weights=w)
+
+
+def _ls(pb: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares estimate (0 where undetermined) and std of a problem, no diagnostics."""
+    from casep.estimators._base import prepare
+    from casep.estimators.ols import least_squares
+
+    pp = prepare(pb, None, None, None, None, None)
+    x, cov, _ = least_squares(pp)
+    x = np.where(pp.ra.estimable, x, 0.0)
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    return x, np.where(pp.ra.estimable & (sd > 0), sd, np.inf)
+
+
+def prepare_rows(problem: Problem, noise: str = "auto", tau=None, robust: str | None = None,
+                 exclude_outliers: float | None = None) -> Rows:
+    """The noise model, robust weights and removed samples of a problem (module notes).
+
+    Parameters
+    ----------
+    problem : Problem
+        Raw rows ``(N, 3)`` with their times.
+    noise : {"auto", "gm", "white"}
+    tau : float, three floats or None
+        Given Gauss-Markov correlation time(s), s (``noise="gm"``).
+    robust : {None, "huber", "bisquare"}
+    exclude_outliers : float, optional
+        Family-wise false-alarm chance of the outlier flags whose samples are removed.
+    """
+    check_noise_kind(noise)
+    if robust is not None and robust not in ROBUST_FUNCTIONS:
+        raise ValueError(f"`robust` must be one of {', '.join(ROBUST_FUNCTIONS)}, got {robust!r}")
+    if noise != "white" and _noise_free(problem):
+        nm = dataclasses.replace(NoiseModel.white(), kind=noise, rule="noise-free data: white")
+    else:
+        nm = fit_noise(problem, noise, tau)
+    keep = np.ones(problem.n_samples, dtype=bool)
+    weights = None
+    robust_info = None
+    if robust is not None:
+        nm, keep, weights, robust_info = _robust(problem, nm, noise, tau, robust)
+    solved = _rows(problem, keep, nm, weights)
+    excluded_info = None
+    if exclude_outliers is not None:
+        solved, keep, excluded_info = _exclude(problem, solved, nm, keep, weights, exclude_outliers)
+    return Rows(problem, solved, nm, keep, weights, robust_info, excluded_info, noise)
+
+
 def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | None = None, *,
                   noise: str = "auto", tau=None, robust: str | None = None, std: str = "model",
-                  exclude_outliers: float | None = None, check_white: bool = True, **labels) -> Solved:
-    """Fit `problem`'s noise model and solve it with a registered `method` (module notes).
+                  exclude_outliers: float | None = None, check_white: bool = True, rows: Rows | None = None,
+                  **labels) -> Solved:
+    """Fit `problem`'s noise model (:func:`prepare_rows`) and solve its rows with a registered `method`.
 
     Parameters
     ----------
@@ -100,24 +189,21 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
         A registered method (:data:`casep.estimators.registry.METHODS`).
     options : mapping
         The method's options.
-    noise : {"auto", "gm", "white"}
-    tau : float, three floats or None
-        Given Gauss-Markov correlation time(s), s (``noise="gm"``).
-    robust : {None, "huber", "bisquare"}
+    noise, tau, robust, exclude_outliers
+        As :func:`prepare_rows`.
     std : {"model", "hac"}
         ``hac``: Newey-West std for a white-noise least-squares fit.
-    exclude_outliers : float, optional
-        Family-wise false-alarm chance of the outlier flags whose samples are removed.
     check_white : bool
         With noise "white": test the residuals' whiteness and warn (not for de-noised data).
+    rows : Rows, optional
+        Rows prepared before (:func:`prepare_rows` of this problem): reused, the noise options
+        are then ignored (several methods on one flight share them).
     **labels
         ``sigma`` and solver extras, passed to the method.
     """
     check_noise_kind(noise)
     if std not in STD_CHOICES:
         raise ValueError(f"`std` must be one of {', '.join(STD_CHOICES)}, got {std!r}")
-    if robust is not None and robust not in ROBUST_FUNCTIONS:
-        raise ValueError(f"`robust` must be one of {', '.join(ROBUST_FUNCTIONS)}, got {robust!r}")
     opts = dict(options or {})
     if method == "gls":
         return _solve_gls(problem, opts, noise, tau, robust, std, exclude_outliers, labels)
@@ -127,75 +213,54 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
     if std == "hac" and (noise != "white" or method != "ols"):
         raise ValueError("`std='hac'` is the Newey-West std of a white-noise least-squares fit: use it with "
                          "method ols and noise 'white' (in coloured noise, noise 'auto' or 'gm' gives honest std)")
-    if noise != "white" and _noise_free(problem):
-        nm = dataclasses.replace(NoiseModel.white(), kind=noise, rule="noise-free data: white")
-    else:
-        nm = fit_noise(problem, noise, tau)
+    if rows is None:
+        rows = prepare_rows(problem, noise, tau, robust, exclude_outliers)
+    elif rows.problem is not problem:
+        raise ValueError("`rows` were prepared for another problem")
+    res = run_method(method, rows.solved, None, rows.solved.t, opts, **labels)
+    if std == "hac":
+        res = _with_hac(res, rows.solved)
+    return Solved(_finish(rows, res, check_white), rows.solved, rows.noise, np.flatnonzero(~rows.keep),
+                  rows.weights)
 
+
+def _robust(problem, nm, noise, tau, function):
+    """Least-squares IRLS with the robust filter (module notes): noise model, keep, weights, info."""
     keep = np.ones(problem.n_samples, dtype=bool)
     weights = None
-    robust_info: dict[str, Any] | None = None
-    res, solved = _solve(problem, keep, nm, weights, method, opts, labels)
-    if robust is not None:
-        res, solved, nm, keep, robust_info, weights = _robust(problem, res, solved, nm, method, opts, labels, noise,
-                                                              tau, robust)
-    excluded_info = None
-    if exclude_outliers is not None:
-        res, solved, keep, excluded_info = _exclude(problem, res, solved, nm, keep, method, opts, labels,
-                                                    exclude_outliers)
-    if std == "hac":
-        res = _with_hac(res, solved)
-    return Solved(_finish(problem, res, solved, nm, keep, robust_info, excluded_info, noise, check_white), solved, nm,
-                  np.flatnonzero(~keep), weights)
-
-
-def _solve(problem: Problem, keep: np.ndarray, nm: NoiseModel, weights, method: str, opts, labels):
-    sub = problem if keep.all() else problem.subset(keep)
-    w = None if weights is None else weights[keep]
-    solved = sub if (nm.is_white and w is None) else sub.whitened(nm, weights=w)
-    res = run_method(method, solved, None, solved.t, opts, **labels)
-    return res, solved
-
-
-def _robust(problem, res, solved, nm, method, opts, labels, noise, tau, function):
-    """IRLS with the robust filter (module notes)."""
-    keep = np.ones(problem.n_samples, dtype=bool)
     refits = 0
     history = []
+    x, sd = _ls(_rows(problem, keep, nm, weights))
+    rw = None
     for it in range(1, _MAX_ROBUST_ITER + 1):
-        x = _x(res)
         r = problem.residuals(x)
         rw = robust_filter(r, problem.t, nm, function=function)
-        new_keep = rw.keep
-        if not np.array_equal(new_keep, keep) and noise != "white" and tau is None and refits < 3:
+        if not np.array_equal(rw.keep, keep) and noise != "white" and tau is None and refits < 2:
             # the correlation time on the kept samples only: glitches cannot collapse it
-            nm = fit_noise(problem.subset(new_keep), noise, None)
+            nm = fit_noise(problem.subset(rw.keep), noise, None)
             refits += 1
             rw = robust_filter(r, problem.t, nm, function=function)
-            new_keep = rw.keep
-        changed = not np.array_equal(new_keep, keep)
-        keep = new_keep
-        new_res, solved = _solve(problem, keep, nm, rw.weights, method, opts, labels)
-        std = np.where(np.isfinite(new_res.std), new_res.std, np.inf) if new_res.std is not None else None
-        step = np.abs(_x(new_res) - x)
-        move = float(np.max(step / std)) if std is not None else float(np.max(step))
+        changed = not np.array_equal(rw.keep, keep)
+        keep, weights = rw.keep, rw.weights
+        x_new, sd = _ls(_rows(problem, keep, nm, weights))
+        move = float(np.max(np.abs(x_new - x) / sd))
+        x = x_new
         history.append({"iteration": it, "rejected": int((~keep).sum()), "max_step_std": move})
-        res = new_res
         if not changed and move < 1e-3:
             break
     info = {"function": function, "iterations": len(history), "rejected_count": int((~keep).sum()),
-            "scale": rw.scale, "downweighted": int(np.sum(rw.weights[keep] < 1.0)),
+            "scale": rw.scale if rw is not None else None,
+            "downweighted": int(np.sum(weights[keep] < 1.0)) if weights is not None else 0,
             "noise_refits": refits, "history": history}
-    return res, solved, nm, keep, info, rw.weights
+    return nm, keep, weights, info
 
 
-def _exclude(problem, res, solved, nm, keep, method, opts, labels, alpha):
-    """Remove the samples of flagged rows and fit again until nothing is flagged."""
+def _exclude(problem, solved, nm, keep, weights, alpha):
+    """Remove the samples of flagged rows and prepare the rows again until nothing is flagged."""
     from casep.analysis.outliers import flag_outliers
 
     keep = keep.copy()
     removed: list[dict] = []
-    sample_ids = np.flatnonzero(keep)
     for _ in range(_MAX_EXCLUDE_PASSES):
         flags = flag_outliers(solved, alpha=alpha)
         if not flags.count:
@@ -207,34 +272,34 @@ def _exclude(problem, res, solved, nm, keep, method, opts, labels, alpha):
             if k not in worst or abs(r["t_value"]) > abs(worst[k]["t_value"]):
                 worst[k] = r
         # a glitch shows in its own whitened row and (less) in the next: remove the larger of neighbours
-        ks = sorted(worst)
-        drop = [k for k in ks if not (k - 1 in worst and abs(worst[k - 1]["t_value"]) >= abs(worst[k]["t_value"]))]
+        drop = [k for k in sorted(worst)
+                if not (k - 1 in worst and abs(worst[k - 1]["t_value"]) >= abs(worst[k]["t_value"]))]
         for k in drop:
             keep[k] = False
             removed.append({"sample": k, "t": float(problem.t[k]), "axis": worst[k]["axis"],
                             "t_value": float(worst[k]["t_value"])})
-        res, solved = _solve(problem, keep, nm, None, method, opts, labels)
+        solved = _rows(problem, keep, nm, weights)
     info = {"alpha": alpha, "count": len(removed), "samples": removed}
-    return res, solved, keep, info
+    return solved, keep, info
 
 
-def _finish(problem, res, solved, nm, keep, robust_info, excluded_info, noise, check_white) -> EstimateResult:
+def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResult:
+    problem, keep, nm, noise = rows.problem, rows.keep, rows.noise, rows.asked
     x = _x(res)
     raw = problem.residuals(x)
     diag = dict(res.diagnostics)
     nd = nm.to_dict()
     nd["asked"] = noise
     diag["noise"] = nd
-    if robust_info is not None:
+    if rows.robust is not None:
         rej = np.flatnonzero(~keep)
-        robust_info["rejected"] = [{"sample": int(k), "t": float(problem.t[k])} for k in rej[:200]]
-        diag["robust"] = robust_info
-    if excluded_info is not None:
-        diag["excluded"] = excluded_info
+        diag["robust"] = {**rows.robust, "rejected": [{"sample": int(k), "t": float(problem.t[k])} for k in rej[:200]]}
+    if rows.excluded is not None:
+        diag["excluded"] = rows.excluded
     if nm.is_white and noise == "white" and check_white and problem.t is not None and raw.ndim == 2:
         wt = whiteness_test(raw[keep], problem.t[keep])
         if wt.rejected:
-            factor = _gm_factor(res, solved)
+            factor = _gm_factor(res, rows.solved)
             wt = dataclasses.replace(wt, std_factor=factor[0], std_factor_max=factor[1])
             warnings.warn(f"{res.method}: {wt.message()}", NoiseNotWhiteWarning, stacklevel=3)
         diag["whiteness"] = wt.to_dict()
