@@ -143,13 +143,13 @@ def _add_option(group, option: Option, default: str | None = None) -> None:
                        metavar=_metavar(option), help=_option_help(option, default))
 
 
-def _add_noise(parser, *, outputs: bool = True) -> None:
+def _add_noise(parser, *, outputs: bool = True, default: str = "auto") -> None:
     """The noise-model options every method takes (casep.analysis.noise, casep.workflows.solve)."""
     g = parser.add_argument_group("noise model (every method)")
-    g.add_argument("--noise", choices=("auto", "gm", "white"), default="auto",
-                   help="tracking noise: auto (default: white or Gauss-Markov per axis by a likelihood-ratio test, "
-                        "said in the output), gm (Gauss-Markov per axis, --tau or REML), white (a whiteness test "
-                        "warns when the residuals contradict it)")
+    g.add_argument("--noise", choices=("auto", "gm", "white"), default=default,
+                   help=f"tracking noise (default {default}): auto (white or Gauss-Markov per axis by a "
+                        "likelihood-ratio test, said in the output), gm (Gauss-Markov per axis, --tau or REML), white "
+                        "(with separate, a whiteness test warns when the residuals contradict it)")
     g.add_argument("--robust", nargs="?", const="huber", choices=("huber", "bisquare"), default=None,
                    help="robust fit for any method: glitches removed by a robust filter on the innovations, the rest "
                         "weighted (default function huber)")
@@ -190,15 +190,19 @@ def _print_noise(res) -> None:
             print(nm.line())
     rb = res.diagnostics.get("robust")
     if rb:
-        times = ", ".join(f"{r['t']:.2f} s" for r in rb["rejected"][:8])
+        times = ", ".join(f"row {r['row']} (t = {r['t']:.2f} s)" for r in rb["rejected"][:8])
         print(f"robust ({rb['function']}): {rb['rejected_count']} sample(s) rejected as glitches"
-              + (f" (t = {times}{', ...' if rb['rejected_count'] > 8 else ''})" if times else "")
+              + (f": {times}{', ...' if rb['rejected_count'] > 8 else ''}" if times else "")
               + f", {rb['downweighted']} row(s) down-weighted, {rb['iterations']} iteration(s)")
     ex = res.diagnostics.get("excluded")
     if ex:
-        times = ", ".join(f"{r['t']:.2f} s ({r['axis']})" for r in ex["samples"][:8])
+        times = ", ".join(f"row {r['row']} (t = {r['t']:.2f} s, {r['axis']})" for r in ex["samples"][:8])
         print(f"excluded: {ex['count']} sample(s) flagged at alpha {ex['alpha']:g} removed and the fit repeated"
-              + (f": t = {times}{', ...' if ex['count'] > 8 else ''}" if times else ""))
+              + (f": {times}{', ...' if ex['count'] > 8 else ''}" if times else ""))
+    gaps = res.diagnostics.get("gaps")
+    if gaps:
+        parts = ", ".join(f"{g['length']:.3g} s after t = {g['start']:.2f} s (row {g['row']})" for g in gaps[:6])
+        print(f"tracking gaps: {len(gaps)} longer than 3 sample periods: {parts}{', ...' if len(gaps) > 6 else ''}")
 
 
 def _read(args: argparse.Namespace):
@@ -503,6 +507,9 @@ def _parser() -> argparse.ArgumentParser:
     mc.add_argument("--truth-from-prior", metavar="FILE", dest="truth_from_prior", default=None,
                     help='JSON {"Kg0x": {"mean": m, "std": s}, ...}: each run draws its true coefficients from it '
                          "(also map's prior unless --prior is given)")
+    _add_noise(mc, outputs=False, default="white")
+    mc.add_argument("--tau", dest="noise_tau", type=_positive_float, default=None, metavar="S",
+                    help="Gauss-Markov correlation time the methods assume, s (with --noise gm; default REML)")
     mc.add_argument("--out", metavar="DIR", default=None,
                     help="write runs.parquet/ (per-run results, one part per task) and summary.json here; a rerun "
                          "with the same settings resumes")
@@ -1027,7 +1034,7 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
             res = run_montecarlo(args.scenario, runs=args.runs, methods=methods, seed=args.seed, rate=args.rate,
                                  workers=args.workers, progress=args.progress, prior=prior, bounds=bounds,
                                  scheduler=args.scheduler, dispersions=dispersions, truth_prior=truth_prior,
-                                 out=args.out)
+                                 out=args.out, noise=args.noise, tau=args.noise_tau, robust=args.robust)
     except (KeyboardInterrupt, Terminated) as exc:  # workers already ended; no report (--out: finished parts kept)
         print("casep: interrupted", file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130

@@ -385,7 +385,7 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
 
 
 def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.ndarray,
-              source: str = "<memory>") -> None:
+              source: str = "<memory>", outliers_handled: bool = False) -> None:
     """Residual checks after an estimate: noise-free data, outliers, tracking time offset.
 
     Parameters
@@ -401,6 +401,8 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         Times (s) and specific force (N, 3) of the same rows.
     source : str, optional
         Flight name for the messages.
+    outliers_handled : bool, optional
+        The fit removed or down-weighted its outliers already (a robust fit): no outlier warning.
 
     Warns
     -----
@@ -419,7 +421,8 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         _warn(f"{source}: residual RMS {rms:.3g} m/s is at the rounding level of dv (max |dv| {scale:.3g} m/s): "
               "the data carry no noise, so the std reflect rounding only.", NoiseFreeWarning)
         return
-    _check_outliers(r, t, source)
+    if not outliers_handled:
+        _check_outliers(r, t, source)
     if _shares_problem_test(S, dv):
         del r  # long flights: the shared test reads dv, not the residuals
         test = _problem_time_offset_test(S, t, f)

@@ -134,30 +134,12 @@ def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, fu
 
 
 def _sequential(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: float, thr: float) -> np.ndarray:
-    """Keep mask of the sequential filter: reject a sample whose innovation from the last kept one exceeds thr."""
-    N = e.shape[0]
-    keep = np.ones(N, dtype=bool)
-    taus = [np.inf if tau is None else tau for tau in noise.tau]
-    white = [tau is None for tau in noise.tau]
-    sc = np.asarray(noise.scale, dtype=float)
-    last = -1
-    run = 0
-    for k in range(N):
-        big = False
-        for j in range(3):
-            if white[j] or last < 0:
-                nu = e[k, j] / sc[j]
-            else:
-                dt = t[k] - t[last]
-                a = np.exp(-dt / taus[j])
-                nu = (e[k, j] - a * e[last, j]) / (sc[j] * np.sqrt(-np.expm1(-2.0 * dt / taus[j])))
-            if abs(nu) > thr * s:
-                big = True
-                break
-        if big and run < MAX_RUN:
-            keep[k] = False
-            run += 1
-        else:
-            last = k
-            run = 0
+    """Keep mask of the sequential filter (compiled: :func:`casep._kernels.robust_filter_keep`)."""
+    from casep._kernels import robust_filter_keep
+
+    inv_tau = np.array([0.0 if tau is None else 1.0 / tau for tau in noise.tau])
+    scale = s * np.asarray(noise.scale, dtype=float)
+    keep = np.ones(e.shape[0], dtype=np.bool_)
+    robust_filter_keep(np.ascontiguousarray(e, dtype=float), np.ascontiguousarray(t, dtype=float), inv_tau, scale,
+                       float(thr), MAX_RUN, keep)
     return keep

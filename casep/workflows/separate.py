@@ -187,7 +187,8 @@ def separate(
                         exclude_outliers=exclude_outliers, check_white=den is None, **labels)
     res = out.result
     # raw dv: noise-free, outliers, offset
-    check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source)
+    check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source,
+              outliers_handled=robust is not None or exclude_outliers is not None)
     if outliers is not None:  # studentized residuals on the rows the method solved (whitened), samples named
         from casep.analysis.outliers import flag_outliers
 

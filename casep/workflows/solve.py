@@ -31,7 +31,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from casep.analysis.noise import NoiseModel, check_noise_kind, default_lags, fit_noise, whiteness_test
+from casep.analysis.noise import NoiseModel, check_noise_kind, default_lags, find_gaps, fit_noise, whiteness_test
 from casep.analysis.problem import Problem
 from casep.analysis.robust import ROBUST_FUNCTIONS, robust_filter
 from casep.estimators.registry import run_method
@@ -276,7 +276,7 @@ def _exclude(problem, solved, nm, keep, weights, alpha):
                 if not (k - 1 in worst and abs(worst[k - 1]["t_value"]) >= abs(worst[k]["t_value"]))]
         for k in drop:
             keep[k] = False
-            removed.append({"sample": k, "t": float(problem.t[k]), "axis": worst[k]["axis"],
+            removed.append({"row": k + 1, "t": float(problem.t[k]), "axis": worst[k]["axis"],
                             "t_value": float(worst[k]["t_value"])})
         solved = _rows(problem, keep, nm, weights)
     info = {"alpha": alpha, "count": len(removed), "samples": removed}
@@ -293,9 +293,11 @@ def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResul
     diag["noise"] = nd
     if rows.robust is not None:
         rej = np.flatnonzero(~keep)
-        diag["robust"] = {**rows.robust, "rejected": [{"sample": int(k), "t": float(problem.t[k])} for k in rej[:200]]}
+        diag["robust"] = {**rows.robust, "rejected": [{"row": int(k + 1), "t": float(problem.t[k])} for k in rej[:200]]}
     if rows.excluded is not None:
         diag["excluded"] = rows.excluded
+    if problem.t is not None:
+        diag["gaps"] = find_gaps(problem.t)
     if nm.is_white and noise == "white" and check_white and problem.t is not None and raw.ndim == 2:
         wt = whiteness_test(raw[keep], problem.t[keep])
         if wt.rejected:
@@ -362,10 +364,10 @@ def _gm_factor(res: EstimateResult, solved: Problem) -> tuple[float | None, floa
     if res.std is None or solved.noise is not None or not solved.has_rows:
         return None, None
     try:
-        nm = fit_noise(solved, "gm")
+        rows = prepare_rows(solved, "gm", robust="huber")  # robust: glitches would collapse tau
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # conditioning: said by the result
-            gm = solve_ols(solved.whitened(nm))
+            gm = solve_ols(rows.solved)
     except (ValueError, np.linalg.LinAlgError):
         return None, None
     ok = np.isfinite(res.std) & (res.std > 0) & np.isfinite(gm.std)
