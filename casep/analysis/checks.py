@@ -423,6 +423,8 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         return
     if not outliers_handled:
         _check_outliers(r, t, source)
+    if f is None:  # rows without their specific force (a problem from arrays): no time-offset test
+        return
     if _shares_problem_test(S, dv):
         del r  # long flights: the shared test reads dv, not the residuals
         test = _problem_time_offset_test(S, t, f)

@@ -555,8 +555,10 @@ class WhitenessTest:
             factor = (f"; the reported std are about {self.std_factor:.2g}x too small (median over the coefficients "
                       f"of the Gauss-Markov std of the same data / the white std; up to {self.std_factor_max:.2g}x)")
         elif self.std_factor is not None:
-            factor = ("; a Gauss-Markov noise model does not explain them either (its std are smaller, median "
-                      f"{self.std_factor:.2g}x): a model error rather than noise? (frames, time tags, a missing term)")
+            factor = (f"; a Gauss-Markov model of the same data gives std {self.std_factor:.2g}x the reported ones "
+                      f"(median over the coefficients; up to {self.std_factor_max:.2g}x): the white std are not "
+                      "the right ones, some too large here; if the residuals are a model error (frames, time "
+                      "tags, a missing term) no noise model makes the std right")
         return (f"residuals are not white ({parts}, Ljung-Box on {self.lags} lags){factor}. Use --noise auto "
                 "(or gm), or --std hac")
 
