@@ -485,10 +485,19 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
                              f"got {time_offset!r}") from None
         if not np.isfinite(shift):
             raise ValueError(f"`time_offset` must be finite, got {shift}")
-    extra = {"time_alignment": {**(align.to_dict() if align is not None else {}), "applied_s": shift}}
+    mode = "auto" if time_offset == "auto" else ("none" if time_offset is None else "given")
+    extra = {"time_alignment": {**(align.to_dict() if align is not None else {}), "applied_s": shift, "mode": mode}}
+    signals = tel.signals()
+    if not all(f"a_{a}" in signals for a in "xyz"):
+        # the kinematic acceleration for a time-offset term: d v_tel / dt (cubic spline), exact kinematics
+        from scipy.interpolate import CubicSpline
+
+        acc = CubicSpline(t_tel, v_tel, axis=0).derivative()(t_tel)
+        signals.update({f"a_{a}": acc[:, i] for i, a in enumerate("xyz")})
+        extra["kinematic_acceleration"] = "a_x, a_y, a_z: d v_tel / dt (cubic spline of the telemetry velocity)"
     if tracking_frame != "launch":
         extra["tracking_frame"] = {"frame": tracking_frame, "site": site.to_dict()}
-    flight = pair_flight(t_tel, f, v_tel, t_trk - shift, v_trk, signals=tel.signals(), interpolation=interpolation,
+    flight = pair_flight(t_tel, f, v_tel, t_trk - shift, v_trk, signals=signals, interpolation=interpolation,
                          grid=grid, source=f"{tel.src} + {trk.src}",
                          meta={"force": force_from, "telemetry": tel.src, "tracking": trk.src, **extra})
     if tracking_frame != "launch":  # the late-start check: speed relative to the pad, not the Earth's rotation

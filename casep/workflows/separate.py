@@ -63,6 +63,7 @@ def separate(
     robust: str | None = None,
     std: str = "model",
     exclude_outliers: float | None = None,
+    fit_time_offset: bool | None = None,
 ) -> EstimateResult:
     """Estimate a model's error coefficients from one flight.
 
@@ -126,6 +127,11 @@ def separate(
     exclude_outliers : float, optional
         Remove the samples flagged at this family-wise false-alarm chance and fit again (the
         removed samples in ``diagnostics["excluded"]``).
+    fit_time_offset : bool, optional
+        Add the tracking time offset ``dt_trk`` to the model (:func:`casep.model.loader.with_time_offset`).
+        Default: when the tracking time tags were aligned automatically (``read_flight_pair(...,
+        time_offset="auto")``), so that the alignment's error of a few ms is estimated and in the std
+        instead of biasing the coefficients that correlate with it.
 
     Returns
     -------
@@ -165,6 +171,13 @@ def separate(
     else:
         if not isinstance(flight, FlightData):
             flight = read_flight(flight)
+        align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
+        if fit_time_offset is None:
+            fit_time_offset = bool(align) and align.get("mode") == "auto"
+        if fit_time_offset:
+            from casep.model.loader import with_time_offset
+
+            model = with_time_offset(model)
         model = load_model(model)
         problem = Problem.from_flight(flight, model)  # S_V integrated and reduced once, checks on the way
     solved, den, sigma_from_wavelet = problem, None, False

@@ -122,6 +122,11 @@ class Rows:
     excluded: dict | None = None
     asked: str = "auto"
 
+    @property
+    def sigma(self) -> float | None:
+        """The noise std a method should take on the weighted rows (robust fits), else None (estimated)."""
+        return None if self.robust is None else self.robust.get("sigma_effective")
+
 
 def _rows(problem: Problem, keep: np.ndarray, nm: NoiseModel, weights) -> Problem:
     sub = problem if keep.all() else problem.subset(keep)
@@ -217,7 +222,11 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
         rows = prepare_rows(problem, noise, tau, robust, exclude_outliers)
     elif rows.problem is not problem:
         raise ValueError("`rows` were prepared for another problem")
+    if labels.get("sigma") is None and rows.sigma is not None:
+        labels = {**labels, "sigma": rows.sigma}  # robust: the M-estimator's sigma (module notes)
     res = run_method(method, rows.solved, None, rows.solved.t, opts, **labels)
+    if rows.sigma is not None and res.sigma_source == "given" and labels["sigma"] == rows.sigma:
+        res = dataclasses.replace(res, sigma_source="robust")
     if std == "hac":
         res = _with_hac(res, rows.solved)
     return Solved(_finish(rows, res, check_white), rows.solved, rows.noise, np.flatnonzero(~rows.keep),
@@ -248,11 +257,39 @@ def _robust(problem, nm, noise, tau, function):
         history.append({"iteration": it, "rejected": int((~keep).sum()), "max_step_std": move})
         if not changed and move < 1e-3:
             break
+    sigma = _robust_sigma(rw, keep, function) if rw is not None else None
     info = {"function": function, "iterations": len(history), "rejected_count": int((~keep).sum()),
-            "scale": rw.scale if rw is not None else None,
+            "scale": rw.scale if rw is not None else None, "sigma_effective": sigma,
             "downweighted": int(np.sum(weights[keep] < 1.0)) if weights is not None else 0,
             "noise_refits": refits, "history": history}
     return nm, keep, weights, info
+
+
+def _robust_sigma(rw, keep: np.ndarray, function: str) -> float | None:
+    """The sigma that makes the weighted least-squares covariance the M-estimator's (Huber 1981)::
+
+        Cov = s^2 E[psi^2] / E[psi']^2 (Z^T Z)^-1 ~ sigma_eff^2 (Z^T W Z)^-1,
+        sigma_eff^2 = s^2 mean(psi^2) mean(w) / mean(psi')^2,   psi = w u
+
+    over the kept rows (``Z^T W Z ~ mean(w) Z^T Z``). The weighted residual std alone,
+    ``s^2 mean(w u^2)``, is about 10 % too small for Huber at the Gaussian (0.821 against 1.030).
+    """
+    from casep.analysis.robust import BISQUARE_C, HUBER_C
+
+    u = rw.u[keep].reshape(-1)
+    w = rw.weights[keep].reshape(-1)
+    if not rw.scale > 0 or u.size == 0:
+        return None
+    psi = w * u
+    if function == "huber":
+        dpsi = (np.abs(u) <= HUBER_C).astype(float)
+    else:
+        v = (u / BISQUARE_C) ** 2
+        dpsi = np.where(v < 1.0, (1.0 - v) * (1.0 - 5.0 * v), 0.0)
+    d = float(np.mean(dpsi))
+    if not d > 0:
+        return None
+    return float(rw.scale * np.sqrt(np.mean(psi**2) * np.mean(w)) / d)
 
 
 def _exclude(problem, solved, nm, keep, weights, alpha):
