@@ -73,12 +73,13 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.impact.miss": ("ImpactAnalysis", "impact_analysis"),
     "casep.analysis.checks": ("check_fit", "check_flight"),
     "casep.frames": ("LaunchSite",),
+    "casep.calibration.calibrate": ("calibrate",),
     "casep.exceptions": ("CasepWarning", "IllConditionedWarning", "NoiseFreeWarning", "OutlierWarning",
                          "PlausibilityWarning", "TimeOffsetWarning"),
 }
 __getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), (
     "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units",
-    "impact", "design", "frames"))
+    "impact", "design", "frames", "calibration"))
 
 __all__ = [
     "__version__",
@@ -128,4 +129,5 @@ __all__ = [
     "NoiseFreeWarning",
     "LateStartWarning",
     "LaunchSite",
+    "calibrate",
 ]

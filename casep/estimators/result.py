@@ -270,7 +270,7 @@ class EstimateResult:
     settings : dict
         The options used.
     diagnostics : dict
-        Condition numbers and identifiability (see ``interfaces.md``).
+        Condition numbers and identifiability (see ``docs/reference/file-formats.md``).
     model : str
         Model name.
     n_samples : int
@@ -317,7 +317,8 @@ class EstimateResult:
     history: np.ndarray | None = None
     history_std: np.ndarray | None = None
     sigma_source: str = "estimated"
-    stored_residual_rms: dict[str, float] | None = None  # from a JSON (which has no residuals)
+    # from a JSON (which has no residuals); None per axis: a result with no residuals (fused, ground calibration)
+    stored_residual_rms: dict[str, float | None] | None = None
     std_kind: str = "sampling"
     extras: Any = None
 
@@ -350,7 +351,7 @@ class EstimateResult:
         return self.estimate * self.si_factors
 
     @property
-    def residual_rms(self) -> dict[str, float]:
+    def residual_rms(self) -> dict[str, float | None]:
         """RMS of the residuals per axis, m/s."""
         if self.stored_residual_rms is not None and np.asarray(self.residuals).size == 0:
             return dict(self.stored_residual_rms)
@@ -370,7 +371,7 @@ class EstimateResult:
         return rows
 
     def to_dict(self) -> dict[str, Any]:
-        """The result JSON of ``interfaces.md`` as a dict.
+        """The result JSON of ``docs/reference/file-formats.md`` as a dict.
 
         Besides ``coefficients`` (one object per coefficient), the flat parallel arrays
         ``names``, ``units``, ``estimates`` and ``std`` (null only where a value is missing)
@@ -444,7 +445,7 @@ class EstimateResult:
         """The n x n covariance in natural units, model order, as nested lists for JSON.
 
         Rows and columns of coefficients without an estimate (and any entry that is not
-        finite) are null; None when the method defines no covariance (``interfaces.md``,
+        finite) are null; None when the method defines no covariance (``docs/reference/file-formats.md``,
         "Result JSON: covariance").
         """
         if self.covariance is None:
