@@ -45,7 +45,7 @@ separate axis scales only when they beat one common scale by :data:`AUTO_LR_SCAL
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Iterable, Iterator, Sequence
+from typing import Any, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -156,7 +156,7 @@ class NoiseModel:
 
     def to_dict(self) -> dict:
         """JSON-ready description."""
-        d = {"kind": self.kind, "rule": self.rule,
+        d: dict[str, Any] = {"kind": self.kind, "rule": self.rule,
              "axes": {a: {"model": "white" if self.tau[j] is None else "gauss-markov",
                           "tau_s": self.tau[j], "scale": self.scale[j],
                           **({"std_m_s": self.sigma * self.scale[j]} if self.sigma is not None else {}),
@@ -279,14 +279,14 @@ class _Reml:
             self._cache[key] = (M, ld)
         return self._cache[key]
 
-    def _factor(self, Ms: Sequence[np.ndarray], scales: Sequence[float]) -> np.ndarray | None:
+    def _factor(self, Ms: Sequence[np.ndarray], scales) -> np.ndarray | None:
         G = sum(Ms[j] / scales[j] ** 2 for j in range(3))
         try:
             return np.linalg.cholesky(G).T  # G = T^T T, T upper
         except np.linalg.LinAlgError:
             return None
 
-    def evaluate(self, taus: Sequence[float | None], scales: Sequence[float]) -> tuple[float, np.ndarray | None]:
+    def evaluate(self, taus: Sequence[float | None], scales) -> tuple[float, np.ndarray | None]:
         """(-2 l_R, T) at the given taus and scales."""
         gs = [self.gram(j, taus[j]) for j in range(3)]
         T = self._factor([g[0] for g in gs], scales)
@@ -442,7 +442,7 @@ def _search_taus(reml: _Reml, corr: Sequence[bool], lo: float, hi: float, xatol:
     """
     from scipy.optimize import minimize_scalar
 
-    state = {"scales": None}
+    state: dict[str, Any] = {"scales": None}
 
     def value(tt) -> float:
         v, sc = reml.fit_scales(tt, state["scales"], free=free)
@@ -465,7 +465,7 @@ def _search_taus(reml: _Reml, corr: Sequence[bool], lo: float, hi: float, xatol:
         for j in range(3):
             if not corr[j]:
                 continue
-            x0 = float(np.log(taus[j]))
+            x0 = float(np.log(taus[j] or np.exp(lo)))
             a, b = max(lo, x0 - w), min(hi, x0 + w)
             for _ in range(20):
                 def f(x, j=j):

@@ -328,7 +328,7 @@ def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResul
     nd = nm.to_dict()
     nd["asked"] = noise
     diag["noise"] = nd
-    if rows.robust is not None:
+    if rows.robust is not None and problem.t is not None:
         rej = np.flatnonzero(~keep)
         diag["robust"] = {**rows.robust, "rejected": [{"row": int(k + 1), "t": float(problem.t[k])} for k in rej[:200]]}
     if rows.excluded is not None:
@@ -406,6 +406,8 @@ def _gm_factor(res: EstimateResult, solved: Problem) -> tuple[float | None, floa
             warnings.simplefilter("ignore")  # conditioning: said by the result
             gm = solve_ols(rows.solved)
     except (ValueError, np.linalg.LinAlgError):
+        return None, None
+    if gm.std is None:
         return None, None
     ok = np.isfinite(res.std) & (res.std > 0) & np.isfinite(gm.std)
     if not ok.any():
