@@ -190,18 +190,18 @@ def _print_noise(res) -> None:
             print(nm.line())
     rb = res.diagnostics.get("robust")
     if rb:
-        times = ", ".join(f"row {r['row']} (t = {r['t']:.2f} s)" for r in rb["rejected"][:8])
+        times = ", ".join(r["where"] for r in rb["rejected"][:6])
         print(f"robust ({rb['function']}): {rb['rejected_count']} sample(s) rejected as glitches"
-              + (f": {times}{', ...' if rb['rejected_count'] > 8 else ''}" if times else "")
+              + (f": {times}{', ...' if rb['rejected_count'] > 6 else ''}" if times else "")
               + f", {rb['downweighted']} row(s) down-weighted, {rb['iterations']} iteration(s)")
     ex = res.diagnostics.get("excluded")
     if ex:
-        times = ", ".join(f"row {r['row']} (t = {r['t']:.2f} s, {r['axis']})" for r in ex["samples"][:8])
+        times = ", ".join(f"{r['where']} {r['axis']}" for r in ex["samples"][:6])
         print(f"excluded: {ex['count']} sample(s) flagged at alpha {ex['alpha']:g} removed and the fit repeated"
-              + (f": {times}{', ...' if ex['count'] > 8 else ''}" if times else ""))
+              + (f": {times}{', ...' if ex['count'] > 6 else ''}" if times else ""))
     gaps = res.diagnostics.get("gaps")
     if gaps:
-        parts = ", ".join(f"{g['length']:.3g} s after t = {g['start']:.2f} s (row {g['row']})" for g in gaps[:6])
+        parts = ", ".join(f"{g['length']:.3g} s before {g['where']}" for g in gaps[:6])
         print(f"tracking gaps: {len(gaps)} longer than 3 sample periods: {parts}{', ...' if len(gaps) > 6 else ''}")
 
 

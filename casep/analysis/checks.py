@@ -422,7 +422,7 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
               "the data carry no noise, so the std reflect rounding only.", NoiseFreeWarning)
         return
     if not outliers_handled:
-        _check_outliers(r, t, source)
+        _check_outliers(r, t, source, locate=S.locate if _is_problem(S) and hasattr(S, "locate") else None)
     if f is None:  # rows without their specific force (a problem from arrays): no time-offset test
         return
     if _shares_problem_test(S, dv):
@@ -444,7 +444,7 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
               TimeOffsetWarning)
 
 
-def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5) -> None:
+def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5, locate=None) -> None:
     """Name the rows whose residual spikes above :data:`OUTLIER_Z` robust sigma."""
     if r.shape[0] < 5:
         return
@@ -463,8 +463,14 @@ def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5) -> 
     if not hits:
         return
     hits.sort(reverse=True)
-    rows = "; ".join(f"row {k + 1} (t = {t[k]:.6g} s) dv_{'xyz'[i]} {size:+.3g} m/s = {zr:+.3g} noise sigma"
-                     for _, k, i, size, zr in hits[:top])
+    if locate is not None:  # the file's line and the time, as every other message names a row
+        from casep.io.files import where
+
+        places = [where(loc) for loc in locate([k for _, k, *_ in hits[:top]])]
+    else:
+        places = [f"sample {k + 1} (t = {t[k]:.6g} s)" for _, k, *_ in hits[:top]]
+    rows = "; ".join(f"{p} dv_{'xyz'[i]} {size:+.3g} m/s = {zr:+.3g} noise sigma"
+                     for p, (_, k, i, size, zr) in zip(places, hits[:top]))
     more = f" and {len(hits) - top} more" if len(hits) > top else ""
-    _warn(f"{source}: {len(hits)} outlier(s) in dv: {rows}{more}. They bias every coefficient: remove or "
-          "correct these rows.", OutlierWarning)
+    _warn(f"{source}: {len(hits)} outlier(s) in dv: {rows}{more}. They bias every coefficient: remove them "
+          "(--exclude-outliers), fit robustly (--robust) or correct these rows.", OutlierWarning)

@@ -90,6 +90,8 @@ class Problem:
         #: The noise model the rows are whitened for (None: raw rows).
         self.noise = None
         self._unwhitened: Problem | None = None  # the same rows before whitening
+        #: Where rows come from (file, line, time): ``locate(rows)`` for indices of this problem's rows.
+        self._locate_flight = None  # (flight, observed sample indices) of a problem from a flight
         n = red.n
         for label, seq in (("names", self.names), ("units", self.units), ("si_factors", self.si_factors)):
             if len(seq) != n:
@@ -174,7 +176,9 @@ class Problem:
                       source=flight.source)
         if keep_sv:
             S = flight.observed_rows(builder.build(flight.t, flight.f, signals=signals))[0]
-            return cls(red=reduce_qr(S, dv), y=dv, t=t, S=S, f=f_obs, **common)
+            pb = cls(red=reduce_qr(S, dv), y=dv, t=t, S=S, f=f_obs, **common)
+            pb._locate_flight = (flight, np.flatnonzero(obs))
+            return pb
 
         def regenerate(rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
             k0 = 0  # observed rows before this block
@@ -187,7 +191,9 @@ class Problem:
                 k0 = k1
 
         red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in regenerate(block_rows)), model.n_coefficients)
-        return cls(red=red, y=dv, t=t, regenerate=regenerate, f=f_obs, **common)
+        pb = cls(red=red, y=dv, t=t, regenerate=regenerate, f=f_obs, **common)
+        pb._locate_flight = (flight, np.flatnonzero(obs))
+        return pb
 
     def with_y(self, y: np.ndarray) -> "Problem":
         """The same regression with other observations (e.g. de-noised dv): reduced again, S shared."""
@@ -288,6 +294,24 @@ class Problem:
         new.noise = noise
         new._unwhitened = self
         return new
+
+    def locate(self, rows) -> list[dict]:
+        """Where rows of this problem come from: ``{"sample", "t", "file", "row", "line"}`` each
+        (:func:`casep.io.files.locate_samples`; without a flight: the row and its time only)."""
+        rows = np.asarray(rows, dtype=int).reshape(-1)
+        root = self.parent if self.parent is not None else self
+        idx = rows if self.rows is None else self.rows[rows]  # rows of the root problem
+        if root._locate_flight is None:
+            t = root.t
+            return [{"sample": int(k), "t": float(t[k]) if t is not None else float("nan"), "file": None,
+                     "row": None, "line": None} for k in idx]
+        from casep.io.files import locate_samples
+
+        flight, obs = root._locate_flight
+        out = locate_samples(flight, obs[idx])
+        for d, k in zip(out, idx):
+            d["sample"] = int(k)  # the problem's row, as the results count them
+        return out
 
     def raw_residuals(self, x: np.ndarray, *, all_samples: bool = True) -> np.ndarray:
         """``dv - S x`` of the raw rows: of every sample of the parent (default), or of this problem's own."""

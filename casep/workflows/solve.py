@@ -313,11 +313,18 @@ def _exclude(problem, solved, nm, keep, weights, alpha):
                 if not (k - 1 in worst and abs(worst[k - 1]["t_value"]) >= abs(worst[k]["t_value"]))]
         for k in drop:
             keep[k] = False
-            removed.append({"row": k + 1, "t": float(problem.t[k]), "axis": worst[k]["axis"],
+            removed.append({"sample": k, "t": float(problem.t[k]), "axis": worst[k]["axis"],
                             "t_value": float(worst[k]["t_value"])})
         solved = _rows(problem, keep, nm, weights)
     info = {"alpha": alpha, "count": len(removed), "samples": removed}
     return solved, keep, info
+
+
+def _places(problem: Problem, samples) -> list[dict]:
+    """``{"sample", "t", "file", "row", "line", "where"}`` of rows of `problem` (one numbering everywhere)."""
+    from casep.io.files import where
+
+    return [{**loc, "where": where(loc)} for loc in problem.locate(samples)]
 
 
 def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResult:
@@ -329,12 +336,16 @@ def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResul
     nd["asked"] = noise
     diag["noise"] = nd
     if rows.robust is not None and problem.t is not None:
-        rej = np.flatnonzero(~keep)
-        diag["robust"] = {**rows.robust, "rejected": [{"row": int(k + 1), "t": float(problem.t[k])} for k in rej[:200]]}
+        diag["robust"] = {**rows.robust, "rejected": _places(problem, np.flatnonzero(~keep)[:200])}
     if rows.excluded is not None:
-        diag["excluded"] = rows.excluded
+        ex = rows.excluded
+        locs = _places(problem, [r["sample"] for r in ex["samples"]])
+        diag["excluded"] = {**ex, "samples": [{**r, **loc} for r, loc in zip(ex["samples"], locs)]}
     if problem.t is not None:
-        diag["gaps"] = find_gaps(problem.t)
+        gaps = find_gaps(problem.t)
+        for g, loc in zip(gaps, _places(problem, [g["row"] - 1 for g in gaps])):
+            g.update(loc)  # the first sample after the gap
+        diag["gaps"] = gaps
     if nm.is_white and noise == "white" and check_white and problem.t is not None and raw.ndim == 2:
         wt = whiteness_test(raw[keep], problem.t[keep])
         if wt.rejected:
