@@ -346,3 +346,19 @@ def test_dt_trk_is_fitted_after_automatic_alignment_without_a_columns(tmp_path):
     assert res.model == "platform36+dt_trk" and "dt_trk" not in plain.names
     shift_ms = fl.meta["time_alignment"]["applied_s"] * 1e3
     assert abs(shift_ms + res.estimate[res.names.index("dt_trk")] - 30.0) < 0.1
+
+
+def test_problem_rows_serve_any_solver(range_problem):
+    """problem.rows(): the noise model belongs to the data; a solver called on rows.solved gives what
+    separate() gives with the same noise options."""
+    S, t, truth = range_problem
+    pb = _draw(S, t, truth, np.random.SeedSequence(10), glitches=0.005)
+    rows = pb.rows(robust="huber")
+    assert rows.noise.kind == "auto" and (~rows.keep).sum() > 0 and rows.sigma > 0
+    prior = {"Ka0x": {"mean": 0.0, "std": 1.0}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        direct = casep.solve_map(rows.solved, prior=prior, sigma=rows.sigma)
+        via = casep.separate(pb, method="map", prior=prior, robust="huber")
+    np.testing.assert_allclose(direct.estimate, via.estimate, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(direct.std, via.std, rtol=1e-10)

@@ -86,7 +86,7 @@ class Problem:
         #: The raw problem this one was derived from by :meth:`subset` or :meth:`whitened` (None: raw).
         self.parent: Problem | None = None
         #: Indices of this problem's samples among the parent's (None: all of them).
-        self.rows: np.ndarray | None = None
+        self.sample_index: np.ndarray | None = None
         #: The noise model the rows are whitened for (None: raw rows).
         self.noise = None
         self._unwhitened: Problem | None = None  # the same rows before whitening
@@ -248,7 +248,7 @@ class Problem:
             new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n)
         root = self.parent if self.parent is not None else self
         new.parent = root
-        new.rows = idx if self.rows is None else self.rows[idx]
+        new.sample_index = idx if self.sample_index is None else self.sample_index[idx]
         return new
 
     def whitened(self, noise, *, weights: np.ndarray | None = None) -> "Problem":
@@ -290,7 +290,7 @@ class Problem:
                           model=self.model, source=self.source, regenerate=regenerate, f=self.f)
             new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n)
         new.parent = self.parent if self.parent is not None else self
-        new.rows = self.rows
+        new.sample_index = self.sample_index
         new.noise = noise
         new._unwhitened = self
         return new
@@ -300,7 +300,7 @@ class Problem:
         (:func:`casep.io.files.locate_samples`; without a flight: the row and its time only)."""
         rows = np.asarray(rows, dtype=int).reshape(-1)
         root = self.parent if self.parent is not None else self
-        idx = rows if self.rows is None else self.rows[rows]  # rows of the root problem
+        idx = rows if self.sample_index is None else self.sample_index[rows]  # rows of the root problem
         if root._locate_flight is None:
             t = root.t
             return [{"sample": int(k), "t": float(t[k]) if t is not None else float("nan"), "file": None,
@@ -312,6 +312,17 @@ class Problem:
         for d, k in zip(out, idx):
             d["sample"] = int(k)  # the problem's row, as the results count them
         return out
+
+    def rows(self, noise: str = "auto", tau=None, robust: str | None = None, exclude_outliers: float | None = None):
+        """The rows every method solves: this problem's noise model, robust weights and removed samples.
+
+        :func:`casep.analysis.rows.prepare_rows`; ``rows.solved`` is the problem to hand to any
+        solver (``casep.solve_map(problem.rows().solved, prior=...)``), ``rows.noise`` the noise
+        model.
+        """
+        from casep.analysis.rows import prepare_rows
+
+        return prepare_rows(self, noise, tau, robust, exclude_outliers)
 
     def raw_residuals(self, x: np.ndarray, *, all_samples: bool = True) -> np.ndarray:
         """``dv - S x`` of the raw rows: of every sample of the parent (default), or of this problem's own."""
