@@ -143,6 +143,68 @@ def _add_option(group, option: Option, default: str | None = None) -> None:
                        metavar=_metavar(option), help=_option_help(option, default))
 
 
+def _add_noise(parser, *, outputs: bool = True, default: str = "auto") -> None:
+    """The noise-model options every method takes (casep.analysis.noise, casep.workflows.solve)."""
+    g = parser.add_argument_group("noise model (every method)")
+    g.add_argument("--noise", choices=("auto", "gm", "white"), default=default,
+                   help=f"tracking noise (default {default}): auto (white or Gauss-Markov per axis by a "
+                        "likelihood-ratio test, said in the output), gm (Gauss-Markov per axis, --tau or REML), white "
+                        "(with separate, a whiteness test warns when the residuals contradict it)")
+    g.add_argument("--robust", nargs="?", const="huber", choices=("huber", "bisquare"), default=None,
+                   help="robust fit for any method: glitches removed by a robust filter on the innovations, the rest "
+                        "weighted (default function huber)")
+    if outputs:
+        g.add_argument("--std", choices=("model", "hac"), default="model",
+                       help="model (default) or hac: Newey-West std of a white-noise ols fit")
+        g.add_argument("--exclude-outliers", type=float, nargs="?", const=0.01, default=None, metavar="ALPHA",
+                       help="remove the samples whose studentized residual (whitened rows) is flagged at "
+                            "family-wise chance ALPHA (default 0.01) and fit again; removed samples listed")
+
+
+def _noise_kw(args: argparse.Namespace, opts: dict) -> dict:
+    """separate()'s noise keywords from the options (--tau: the noise model's for every method)."""
+    kw = {"noise": args.noise, "robust": args.robust}
+    for k in ("std", "exclude_outliers"):
+        if getattr(args, k, None) is not None:
+            kw[k] = getattr(args, k)
+    if args.method != "gls" and opts.get("tau") is not None:
+        kw["tau"] = opts.pop("tau")
+    return kw
+
+
+def _print_noise(res) -> None:
+    """The noise model, the robust fit and the removed samples, one line each."""
+    from casep.analysis.noise import NoiseModel
+
+    nd = res.diagnostics.get("noise")
+    if nd:
+        if "note" in nd:
+            print(f"noise: {nd['note']}, tau {nd['axes']['x']['tau_s']:.3g} s ({nd['rule']})")
+        else:
+            axes = nd["axes"]
+            nm = NoiseModel(kind=nd["kind"], tau=tuple(axes[a]["tau_s"] for a in "xyz"),
+                            scale=tuple(axes[a]["scale"] for a in "xyz"), rule=nd["rule"],
+                            lr=tuple(axes[a]["lr"] for a in "xyz") if "lr" in axes["x"] else None,
+                            lr_scale=nd.get("lr_scale"),
+                            sigma=axes["x"].get("std_m_s"))
+            print(nm.line())
+    rb = res.diagnostics.get("robust")
+    if rb:
+        times = ", ".join(r["where"] for r in rb["rejected"][:6])
+        print(f"robust ({rb['function']}): {rb['rejected_count']} sample(s) rejected as glitches"
+              + (f": {times}{', ...' if rb['rejected_count'] > 6 else ''}" if times else "")
+              + f", {rb['downweighted']} row(s) down-weighted, {rb['iterations']} iteration(s)")
+    ex = res.diagnostics.get("excluded")
+    if ex:
+        times = ", ".join(f"{r['where']} {r['axis']}" for r in ex["samples"][:6])
+        print(f"excluded: {ex['count']} sample(s) flagged at alpha {ex['alpha']:g} removed and the fit repeated"
+              + (f": {times}{', ...' if ex['count'] > 6 else ''}" if times else ""))
+    gaps = res.diagnostics.get("gaps")
+    if gaps:
+        parts = ", ".join(f"{g['length']:.3g} s before {g['where']}" for g in gaps[:6])
+        print(f"tracking gaps: {len(gaps)} longer than 3 sample periods: {parts}{', ...' if len(gaps) > 6 else ''}")
+
+
 def _read(args: argparse.Namespace):
     """The flight of a command: one file, or telemetry + `--tracking`."""
     from casep.io.files import read_flight, read_flight_pair
@@ -384,6 +446,7 @@ def _parser() -> argparse.ArgumentParser:
                         "(t, f_* or W_*, v_tel_*); several flights: once per flight, in their order")
     _add_grid(s)  # --grid, --time-offset
     _add_frames(s)  # --tracking-frame, --launch-site, --launch-time
+    _add_noise(s)  # --noise, --robust, --std, --exclude-outliers
     _add_radar(s)  # --radar STATION.json MEAS.csv, --tracking-model
     _method_option_groups(s)
     g = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
@@ -462,6 +525,9 @@ def _parser() -> argparse.ArgumentParser:
     mc.add_argument("--truth-from-prior", metavar="FILE", dest="truth_from_prior", default=None,
                     help='JSON {"Kg0x": {"mean": m, "std": s}, ...}: each run draws its true coefficients from it '
                          "(also map's prior unless --prior is given)")
+    _add_noise(mc, outputs=False, default="white")
+    mc.add_argument("--tau", dest="noise_tau", type=_positive_float, default=None, metavar="S",
+                    help="Gauss-Markov correlation time the methods assume, s (with --noise gm; default REML)")
     mc.add_argument("--out", metavar="DIR", default=None,
                     help="write runs.parquet/ (per-run results, one part per task) and summary.json here; a rerun "
                          "with the same settings resumes")
@@ -502,6 +568,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     # Options of the method only (casep.estimators.registry): one given for another method is an error.
     given = {k: getattr(args, k) for k in OPTIONS if getattr(args, k) is not None}  # files: their names
+    nkw = _noise_kw(args, given)  # --tau: the noise model's, for every method
     check_method_options(args.method, given)
     opts = {k: v for k, v in given.items() if k not in ("bounds", "prior")}
     bounds = _coefficient_file(args, "bounds", model.names)
@@ -512,13 +579,13 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     if wopts and args.denoise != "wavelet":
         raise ValueError(f"wavelet options ({', '.join(wopts)}) need --denoise wavelet")
     if len(args.flight) > 1:
-        return _separate_flights(args, model, opts, bounds, prior)
+        return _separate_flights(args, model, opts, bounds, prior, nkw)
     args.flight = args.flight[0]
     flight = _read(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", CasepWarning)
         res = separate(flight, model, args.method, sigma=args.sigma, bounds=bounds, prior=prior,
-                       denoise=args.denoise, wavelet_options=wopts or None, outliers=args.outliers, **opts)
+                       denoise=args.denoise, wavelet_options=wopts or None, outliers=args.outliers, **opts, **nkw)
     for w in caught:  # on to main(), which prints them
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     cons = None
@@ -539,6 +606,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
         write_json_atomic({**res.to_dict(), **({"time_alignment": align} if align else {})}, args.json)
     _write_exports(res, args)
     print(res.table())
+    _print_noise(res)
     if args.outliers is not None:
         from casep.analysis.outliers import OutlierFlags
 
@@ -559,7 +627,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     return _result_status(res)
 
 
-def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior) -> int:
+def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior, nkw: dict) -> int:
     """`casep separate A B ...`: several flights in one estimate (casep.workflows.flights)."""
     from casep.estimators.result import write_json_atomic
     from casep.workflows.flights import JOINT_METHODS, flights_summary, separate_flights
@@ -576,7 +644,7 @@ def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior
     flights = _read_flights(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", CasepWarning)
-        res, jp = separate_flights(flights, model, args.method, sigma=args.sigma, options=options)
+        res, jp = separate_flights(flights, model, args.method, sigma=args.sigma, options=options, **nkw)
         summary = flights_summary(res, jp)
     for w in caught:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
@@ -834,10 +902,12 @@ def _separate_radar(args: argparse.Namespace) -> int:
 
     for flag, value in (("--denoise wavelet", args.denoise == "wavelet" or None), ("--figures", args.figures),
                         ("--mat", args.mat), ("--csv", args.csv), ("--outliers", args.outliers),
-                        ("--sigma", args.sigma)):
+                        ("--sigma", args.sigma), ("--noise gm", args.noise == "gm" or None),
+                        ("--robust", args.robust), ("--std hac", args.std == "hac" or None),
+                        ("--exclude-outliers", args.exclude_outliers)):
         if value:
-            raise ValueError(f"{flag} is not available with --radar (noise: sigma_range/sigma_angle in the station "
-                             "files, else estimated per station and type); leave it out")
+            raise ValueError(f"{flag} is not available with --radar (noise: white per station and measurement type, "
+                             "sigma_range/sigma_angle in the station files, else estimated); leave it out")
     check_outputs({"--json": args.json, "--report": args.report},
                   inputs=_inputs(args, "flight") + [f for pair in args.radar for f in pair])
     site = _radar_site(args)
@@ -1166,7 +1236,7 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
             res = run_montecarlo(args.scenario, runs=args.runs, methods=methods, seed=args.seed, rate=args.rate,
                                  workers=args.workers, progress=args.progress, prior=prior, bounds=bounds,
                                  scheduler=args.scheduler, dispersions=dispersions, truth_prior=truth_prior,
-                                 out=args.out)
+                                 out=args.out, noise=args.noise, tau=args.noise_tau, robust=args.robust)
     except (KeyboardInterrupt, Terminated) as exc:  # workers already ended; no report (--out: finished parts kept)
         print("casep: interrupted", file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130

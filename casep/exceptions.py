@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 __all__ = ["CasepWarning", "IllConditionedWarning", "PlausibilityWarning", "NoiseFreeWarning",
-           "OutlierWarning", "TimeOffsetWarning"]
+           "OutlierWarning", "TimeOffsetWarning", "NoiseNotWhiteWarning"]
 
 
 class CasepWarning(UserWarning):
@@ -29,3 +29,8 @@ class OutlierWarning(CasepWarning):
 
 class TimeOffsetWarning(CasepWarning):
     """The residuals track the kinematic acceleration (or its derivative): a tracking time offset."""
+
+
+class NoiseNotWhiteWarning(CasepWarning):
+    """A white-noise fit whose residuals are correlated: the message gives the test, its numbers
+    and the factor by which the reported std are too small."""

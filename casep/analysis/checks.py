@@ -385,7 +385,7 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
 
 
 def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.ndarray,
-              source: str = "<memory>") -> None:
+              source: str = "<memory>", outliers_handled: bool = False) -> None:
     """Residual checks after an estimate: noise-free data, outliers, tracking time offset.
 
     Parameters
@@ -401,6 +401,8 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         Times (s) and specific force (N, 3) of the same rows.
     source : str, optional
         Flight name for the messages.
+    outliers_handled : bool, optional
+        The fit removed or down-weighted its outliers already (a robust fit): no outlier warning.
 
     Warns
     -----
@@ -419,7 +421,10 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         _warn(f"{source}: residual RMS {rms:.3g} m/s is at the rounding level of dv (max |dv| {scale:.3g} m/s): "
               "the data carry no noise, so the std reflect rounding only.", NoiseFreeWarning)
         return
-    _check_outliers(r, t, source)
+    if not outliers_handled:
+        _check_outliers(r, t, source, locate=S.locate if _is_problem(S) and hasattr(S, "locate") else None)
+    if f is None:  # rows without their specific force (a problem from arrays): no time-offset test
+        return
     if _shares_problem_test(S, dv):
         del r  # long flights: the shared test reads dv, not the residuals
         test = _problem_time_offset_test(S, t, f)
@@ -439,7 +444,7 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
               TimeOffsetWarning)
 
 
-def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5) -> None:
+def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5, locate=None) -> None:
     """Name the rows whose residual spikes above :data:`OUTLIER_Z` robust sigma."""
     if r.shape[0] < 5:
         return
@@ -458,8 +463,14 @@ def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5) -> 
     if not hits:
         return
     hits.sort(reverse=True)
-    rows = "; ".join(f"row {k + 1} (t = {t[k]:.6g} s) dv_{'xyz'[i]} {size:+.3g} m/s = {zr:+.3g} noise sigma"
-                     for _, k, i, size, zr in hits[:top])
+    if locate is not None:  # the file's line and the time, as every other message names a row
+        from casep.io.files import where
+
+        places = [where(loc) for loc in locate([k for _, k, *_ in hits[:top]])]
+    else:
+        places = [f"sample {k + 1} (t = {t[k]:.6g} s)" for _, k, *_ in hits[:top]]
+    rows = "; ".join(f"{p} dv_{'xyz'[i]} {size:+.3g} m/s = {zr:+.3g} noise sigma"
+                     for p, (_, k, i, size, zr) in zip(places, hits[:top]))
     more = f" and {len(hits) - top} more" if len(hits) > top else ""
-    _warn(f"{source}: {len(hits)} outlier(s) in dv: {rows}{more}. They bias every coefficient: remove or "
-          "correct these rows.", OutlierWarning)
+    _warn(f"{source}: {len(hits)} outlier(s) in dv: {rows}{more}. They bias every coefficient: remove them "
+          "(--exclude-outliers), fit robustly (--robust) or correct these rows.", OutlierWarning)

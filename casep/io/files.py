@@ -42,7 +42,7 @@ from casep.io.flight import AXES, DV_COLUMNS, FORCE_COLUMNS, FlightData, FlightD
 __all__ = [
     "read_json_table",
     "read_flight", "read_flight_pair", "pair_flight", "PAIR_GRIDS", "write_flight",
-    "write_table", "apparent_velocity_to_force",
+    "write_table", "apparent_velocity_to_force", "locate_samples", "where", "csv_lines",
 ]
 
 APPARENT_COLUMNS = tuple(f"W_{a}" for a in AXES)
@@ -76,6 +76,61 @@ def _csv_line_locator(path: Path) -> Callable[[int], int | None]:
         return None
 
     return line_of
+
+
+def csv_lines(path: str | os.PathLike, data_rows) -> dict[int, int]:
+    """File line of each given data row (1-based, after the header; comments and blank lines
+    skipped, as pandas reads them), in one pass over the file: ``{row: line}``."""
+    want = set(int(r) for r in data_rows)
+    out: dict[int, int] = {}
+    if not want:
+        return out
+    last = max(want)
+    seen = -1  # the header is row 0
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for lineno, text in enumerate(fh, 1):
+                st = text.strip()
+                if not st or st.startswith("#"):
+                    continue
+                seen += 1
+                if seen in want:
+                    out[seen] = lineno
+                    if seen >= last:
+                        break
+    except OSError:
+        pass
+    return out
+
+
+def locate_samples(flight: FlightData, samples) -> list[dict]:
+    """Where samples of a flight come from: ``{"sample", "t", "file", "row", "line"}`` each.
+
+    ``row`` is the 1-based data row of the file (after the header), ``line`` its line in a CSV
+    file (comments and blank lines counted; None for Parquet). For a telemetry + tracking pair
+    on the tracking grid the file is the tracking file; on the telemetry grid the telemetry file.
+    """
+    samples = [int(k) for k in samples]
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    src = meta.get("rows_file")
+    index = meta.get("rows_index")  # data row (0-based) of each sample in `src`, when not the identity
+    if src is None:
+        return [{"sample": k, "t": float(flight.t[k]), "file": None, "row": None, "line": None} for k in samples]
+    rows = [int(index[k]) + 1 if index is not None else k + 1 for k in samples]
+    lines = csv_lines(src, rows) if not _is_parquet(Path(src)) else {}
+    return [{"sample": k, "t": float(flight.t[k]), "file": str(src), "row": r, "line": lines.get(r)}
+            for k, r in zip(samples, rows)]
+
+
+def where(loc: dict) -> str:
+    """``line 1703 of f.csv (t = 85.1 s)``, or the row for Parquet, or the sample when no file."""
+    t = f"t = {loc['t']:.6g} s"
+    if loc.get("file") is None:
+        return f"sample {loc['sample'] + 1} ({t})"
+    name = Path(loc["file"]).name
+    if loc.get("line") is not None:
+        return f"line {loc['line']} of {name} ({t})"
+    return f"row {loc['row']} of {name} ({t})"
 
 
 def _csv_header(path: Path) -> list[str]:
@@ -311,7 +366,8 @@ def read_flight(path: str | os.PathLike) -> FlightData:
         tab.require(VTEL_COLUMNS + VTRK_COLUMNS, ". Use: v_tel_x/y/z with v_trk_x/y/z, or dv_x, dv_y, dv_z")
         v_tel = tab.vectors(VTEL_COLUMNS)
         dv, dv_from = v_tel - tab.vectors(VTRK_COLUMNS), "v_tel - v_trk"
-    meta = {"format": "parquet" if _is_parquet(tab.path) else "csv", "force": force_from, "dv": dv_from}
+    meta = {"format": "parquet" if _is_parquet(tab.path) else "csv", "force": force_from, "dv": dv_from,
+            "rows_file": str(tab.path)}  # sample k is data row k + 1 (locate_samples)
     if dv_from != "dv":
         meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
         meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.analysis.checks
@@ -485,12 +541,22 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
                              f"got {time_offset!r}") from None
         if not np.isfinite(shift):
             raise ValueError(f"`time_offset` must be finite, got {shift}")
-    extra = {"time_alignment": {**(align.to_dict() if align is not None else {}), "applied_s": shift}}
+    mode = "auto" if time_offset == "auto" else ("none" if time_offset is None else "given")
+    extra = {"time_alignment": {**(align.to_dict() if align is not None else {}), "applied_s": shift, "mode": mode}}
+    signals = tel.signals()
+    if not all(f"a_{a}" in signals for a in "xyz"):
+        # the kinematic acceleration for a time-offset term: d v_tel / dt (cubic spline), exact kinematics
+        from scipy.interpolate import CubicSpline
+
+        acc = CubicSpline(t_tel, v_tel, axis=0).derivative()(t_tel)
+        signals.update({f"a_{a}": acc[:, i] for i, a in enumerate("xyz")})
+        extra["kinematic_acceleration"] = "a_x, a_y, a_z: d v_tel / dt (cubic spline of the telemetry velocity)"
     if tracking_frame != "launch":
         extra["tracking_frame"] = {"frame": tracking_frame, "site": site.to_dict()}
-    flight = pair_flight(t_tel, f, v_tel, t_trk - shift, v_trk, signals=tel.signals(), interpolation=interpolation,
+    flight = pair_flight(t_tel, f, v_tel, t_trk - shift, v_trk, signals=signals, interpolation=interpolation,
                          grid=grid, source=f"{tel.src} + {trk.src}",
                          meta={"force": force_from, "telemetry": tel.src, "tracking": trk.src, **extra})
+    flight.meta["rows_file"] = str(trk.path if flight.meta.get("rows_side") == "tracking" else tel.path)
     if tracking_frame != "launch":  # the late-start check: speed relative to the pad, not the Earth's rotation
         from casep.frames import ecef_to_launch
 
@@ -542,6 +608,7 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
         f_out = f[keep]
         sig = {k: v[keep] for k, v in signals.items()}
         how = f"v_tel - v_trk at telemetry times ({interpolation} interpolation of tracking)"
+        extra = {"rows_side": "telemetry", "rows_index": np.flatnonzero(keep)}
     else:
         use = (t_trk >= t_tel[0]) & (t_trk <= t_tel[-1])
         tt = t_trk[use]
@@ -558,7 +625,10 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
         f_out = np.column_stack([np.interp(t, t_tel, f[:, i]) for i in range(3)])
         sig = {k: np.interp(t, t_tel, v) for k, v in signals.items()}
         how = f"v_tel - v_trk at tracking times ({interpolation} interpolation of telemetry)"
-        extra = {"tracking_dropped": int((~use).sum()), "inserted": int((~on).sum())}
+        extra = {"tracking_dropped": int((~use).sum()), "inserted": int((~on).sum()), "rows_side": "tracking"}
+        rows_index = np.full(t.size, -1)
+        rows_index[idx] = np.flatnonzero(use)  # the tracking data row of each observed sample
+        extra["rows_index"] = rows_index
     meta = {"format": "pair", "grid": grid, "dv": how, **(meta or {}), **extra,
             "telemetry_span_s": [float(t_tel[0]), float(t_tel[-1])],
             "tracking_span_s": [float(t_trk[0]), float(t_trk[-1])],

@@ -104,11 +104,15 @@ def _denoised(method: str, y: np.ndarray) -> tuple[str, np.ndarray, float | None
 
 def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float, t: np.ndarray,
            given: float | None = None, tau: float | str = "auto", *, prior: Mapping | None = None,
-           bounds: Mapping | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+           bounds: Mapping | None = None, noise: str = "white", noise_tau=None,
+           robust: str | None = None, rows=None) -> tuple[np.ndarray, np.ndarray | None]:
     """One run of a (de-noised) method through the public solvers: estimate and reported std.
 
     `given` is the sigma handed to the solver (None: estimated), `tau` the GLS correlation time,
-    `prior` and `bounds` those of ``map`` and ``bounded`` (default: the paper's demo values).
+    `prior` and `bounds` those of ``map`` and ``bounded`` (default: the paper's demo values);
+    `noise`, `noise_tau` and `robust` the noise model and robust fit
+    (:func:`casep.workflows.solve.solve_problem`; white and not robust: the solver directly);
+    `rows` the run's rows prepared once for every method (:func:`casep.workflows.solve.prepare_rows`).
     """
     from casep.estimators.registry import run_method
 
@@ -121,6 +125,11 @@ def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float, t: np
         opts = {"bounds": bounds or demo_bounds(names)}
     elif method == "gls":
         opts = {"tau": tau}
+    if rows is not None and method != "gls":
+        from casep.workflows.solve import solve_problem
+
+        r = solve_problem(rows.problem, method, opts, noise=noise, rows=rows, sigma=given, check_white=False).result
+        return r.estimate, r.std
     r = run_method(method, S, y, t, opts, names=names, sigma=given)  # the registry's solver and defaults
     return r.estimate, r.std
 
@@ -147,9 +156,12 @@ class _Context:
     bounds: Mapping | None = None
     truth_prior: tuple[np.ndarray, np.ndarray] | None = None  # mean, std (inf: not drawn)
     dispersions: Mapping | None = None
-    S: np.ndarray | None = None  # nominal trajectory (None when dispersed)
+    S: np.ndarray | None = None  # nominal trajectory's tracked rows (None when dispersed)
     t: np.ndarray | None = None
     crlb: np.ndarray | None = None
+    noise: str = "white"  # the noise model the methods assume (casep.analysis.noise)
+    noise_tau: Any = None
+    robust: str | None = None
 
 
 _CACHE: dict[str, Any] = {}  # per process: the linear maps of the current campaign
@@ -182,9 +194,11 @@ def _flight(ctx: _Context, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
         drawn = ", ".join(f"{n} {v:.6g}" for n, v in values.items())
         raise ValueError(f"run {k}: the dispersed vehicle ({drawn}) cannot be flown: {exc}. Narrow the "
                          "--dispersions (the same seed draws the same values again)") from None
-    S = build_sv(_model(ctx.scenario.model), traj.t, traj.specific_force)
-    crlb = np.sqrt(np.diag(crlb_covariance(S, ctx.sigma, t=traj.t if ctx.tau else None, tau=ctx.tau)))
-    return S, traj.t, truth, crlb
+    keep = ctx.scenario.noise.keep_mask(traj.t)  # tracking gaps: no rows there
+    S = build_sv(_model(ctx.scenario.model), traj.t, traj.specific_force)[keep]
+    t = traj.t[keep]
+    crlb = np.sqrt(np.diag(crlb_covariance(S, ctx.sigma, t=t if ctx.tau else None, tau=ctx.tau)))
+    return S, t, truth, crlb
 
 
 def _task(ctx: _Context, linear: Sequence[str], other: Sequence[str], runs: Sequence[int]) -> dict[str, Any]:
@@ -223,14 +237,22 @@ def _task(ctx: _Context, linear: Sequence[str], other: Sequence[str], runs: Sequ
                 for m, lm in maps.items():
                     X, sd = lm.apply(S2, Y)  # D = K y + b and the solver's std
                     est[m][idx], std[m][idx] = X.T, sd.T
+        rows = [None] * len(runs)
+        if ctx.noise != "white" or ctx.robust is not None:  # each run's noise model and weights, for every method
+            from casep.analysis.problem import Problem
+            from casep.workflows.solve import prepare_rows
+
+            rows = [prepare_rows(Problem.from_arrays(S, y, t, names=ctx.names), ctx.noise, ctx.noise_tau, ctx.robust)
+                    for y, (S, t, _, _) in zip(ys, flights)]
         for method in other:
             runs_d = [_denoised(method, y) for y in ys]
             if runs_d[0][0] == "gls" and ctx.dispersions is None:  # one REML lattice for the task
                 taus = estimate_tau_many(ctx.S, np.stack([y for _, y, _ in runs_d], axis=-1), ctx.t)
             else:
                 taus = ["auto"] * len(runs_d)
-            outs = [_solve(m, S, y, ctx.names, ctx.sigma, t, given, tau, prior=ctx.prior, bounds=ctx.bounds)
-                    for (m, y, given), tau, (S, t, _, _) in zip(runs_d, taus, flights)]
+            outs = [_solve(m, S, y, ctx.names, ctx.sigma, t, given, tau, prior=ctx.prior, bounds=ctx.bounds,
+                           noise=ctx.noise, noise_tau=ctx.noise_tau, robust=ctx.robust, rows=rw)
+                    for (m, y, given), tau, (S, t, _, _), rw in zip(runs_d, taus, flights, rows)]
             est[method] = np.array([o[0] for o in outs])
             std[method] = None if outs[0][1] is None else np.array([o[1] for o in outs])
     return {"runs": np.asarray(runs, dtype=np.int64), "truth": np.array([f[2] for f in flights]),
@@ -608,6 +630,9 @@ def run_montecarlo(
     truth_prior: Mapping | None = None,
     out: str | os.PathLike | None = None,
     dask: bool | None = None,
+    noise: str = "white",
+    tau=None,
+    robust: str | None = None,
 ) -> MonteCarloResult:
     """Run `runs` noise draws of a scenario through each method.
 
@@ -649,7 +674,22 @@ def run_montecarlo(
     dask : bool, optional
         Force (True) or forbid (False) Dask; default: Dask when `scheduler` is given or
         `workers` > 1 and there is per-run work (a per-run method or dispersions).
+    noise, tau, robust : optional
+        The noise model every method assumes and the robust fit, as :func:`casep.separate` takes
+        them (default ``"white"``, not robust: the methods as they are, the linear ones batched;
+        otherwise every method runs per run through :func:`casep.workflows.solve.solve_problem`).
+        The scenario's tracking gaps remove rows in every case.
     """
+    from casep.analysis.noise import check_noise_kind
+    from casep.analysis.robust import ROBUST_FUNCTIONS
+
+    check_noise_kind(noise)
+    noise_tau = tau  # (`tau` below is the scenario's, for the CRLB)
+    if (noise != "white" or robust is not None) and any(m.startswith("wavelet+") for m in methods):
+        raise ValueError("wavelet+<method> de-noises dv: it does not combine with `noise` other than 'white' or "
+                         "with `robust`")
+    if robust is not None and robust not in ROBUST_FUNCTIONS:
+        raise ValueError(f"`robust` must be one of {', '.join(ROBUST_FUNCTIONS)}, got {robust!r}")
     if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
         raise ValueError(f"`runs` must be an int >= 1, got {runs!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -681,12 +721,15 @@ def run_montecarlo(
     tau = sc.noise.tau if sc.noise.kind == "ar1" else None
     S = t = crlb = None
     if dispersions is None:  # every run shares the trajectory
-        t = traj.t
-        S = build_sv(model, t, traj.specific_force)
+        keep = sc.noise.keep_mask(traj.t)  # tracking gaps: no rows there
+        t = traj.t[keep]
+        S = build_sv(model, traj.t, traj.specific_force)[keep]
         crlb = np.sqrt(np.diag(crlb_covariance(S, sigma, t=t if tau else None, tau=tau)))
     ctx = _Context(token=uuid.uuid4().hex, scenario=sc, names=names, sigma=sigma, tau=tau, seed=seed, truth=truth,
-                   prior=prior, bounds=bounds, truth_prior=tp, dispersions=dispersions, S=S, t=t, crlb=crlb)
-    lin = [m for m in methods if batched and (m in BATCHED or m.startswith("ridge:"))]
+                   prior=prior, bounds=bounds, truth_prior=tp, dispersions=dispersions, S=S, t=t, crlb=crlb,
+                   noise=noise, noise_tau=noise_tau, robust=robust)
+    per_run_noise = noise != "white" or robust is not None
+    lin = [m for m in methods if batched and not per_run_noise and (m in BATCHED or m.startswith("ridge:"))]
     other = [m for m in methods if m not in lin]
     # stages: (linear, per-run) methods; nominal: the linear maps together, then each per-run
     # method; dispersed: all in one stage (each run's trajectory is simulated once)
@@ -700,6 +743,8 @@ def run_montecarlo(
         settings = {"scenario": sc.name, "rate": sc.rate, "runs": runs, "seed": seed, "methods": methods,
                     "batched": bool(batched), "prior": prior, "bounds": bounds, "dispersions": dispersions,
                     "truth_from_prior": truth_prior, "tasks": [len(c) for c in chunks]}
+        if per_run_noise:  # (absent for the default, so campaigns written before stay resumable)
+            settings["noise"] = {"noise": noise, "tau": noise_tau, "robust": robust}
         store = _Store(out, json.loads(json.dumps(settings)))
     n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
     if n_workers < 1:
