@@ -340,22 +340,25 @@ def _check_tracking_frame(tracking: str | os.PathLike, tracking_frame: str, site
                          "(CLI: --launch-site LAT LON H AZ --launch-time T0)")
 
 
-def _tracking_velocity(trk: "_Table", t_trk: np.ndarray, tracking_frame: str, site) -> np.ndarray:
-    """The tracking velocity in the launch-inertial frame, m/s (casep.frames), from the file's own time tags."""
-    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS, ecef_to_launch, geodetic_to_launch
+def _tracking_velocity(trk: "_Table", t_trk: np.ndarray, tracking_frame: str,
+                       site) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """The tracking velocity in the launch-inertial frame, m/s (casep.frames), from the file's own time tags,
+    and (Earth-fixed frames) the tracked ECEF position and Earth-relative velocity (m, m/s; None for launch)."""
+    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS, ecef_to_launch, geodetic_to_ecef
 
     if tracking_frame == "launch":
-        return trk.vectors(VTRK_COLUMNS)
+        return trk.vectors(VTRK_COLUMNS), None, None
     if tracking_frame == "ecef":
         r, v = trk.vectors(ECEF_COLUMNS[1:4]), trk.vectors(ECEF_COLUMNS[4:7])
-        return ecef_to_launch(site, t_trk, r, v)[1]
-    lat, lon, h, ve, vn, vu = (trk.numeric(c) for c in GEODETIC_COLUMNS[1:])
-    for col, values, lim in (("lat", lat, 90.0), ("lon", lon, 360.0)):
-        bad = np.flatnonzero(np.abs(values) > lim)
-        if bad.size:
-            raise trk.error(f"{values[bad[0]]:g} deg is outside +-{lim:g} deg (latitude and longitude in degrees)",
-                            col, int(bad[0]) + 1)
-    return geodetic_to_launch(site, t_trk, lat, lon, h, ve, vn, vu)[1]
+    else:
+        lat, lon, h, ve, vn, vu = (trk.numeric(c) for c in GEODETIC_COLUMNS[1:])
+        for col, values, lim in (("lat", lat, 90.0), ("lon", lon, 360.0)):
+            bad = np.flatnonzero(np.abs(values) > lim)
+            if bad.size:
+                raise trk.error(f"{values[bad[0]]:g} deg is outside +-{lim:g} deg (latitude and longitude in degrees)",
+                                col, int(bad[0]) + 1)
+        r, v = geodetic_to_ecef(lat, lon, h, ve, vn, vu)
+    return ecef_to_launch(site, t_trk, r, v)[1], r, v
 
 
 def _tracking_hint(trk: "_Table", tracking_frame: str) -> str:
@@ -378,7 +381,7 @@ def _tracking_hint(trk: "_Table", tracking_frame: str) -> str:
 def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, *,
                      interpolation: str = "cubic", grid: str = "tracking",
                      time_offset: float | str | None = None, tracking_frame: str = "launch",
-                     site=None) -> FlightData:
+                     site=None, time_shift: float = 0.0) -> FlightData:
     """Combine a telemetry file and a tracking file recorded at different rates.
 
     Parameters
@@ -416,7 +419,15 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
         time tags, before any `time_offset` shift; ``meta["tracking_frame"]`` records frame and site.
     site : casep.frames.LaunchSite, optional
         Launch point, azimuth and launch time (in the tracking file's time scale): required with an
-        Earth-fixed `tracking_frame` (ValueError naming the file otherwise).
+        Earth-fixed `tracking_frame` (ValueError naming the file otherwise). The set-up checks
+        (:func:`casep.io.flight.setup_evidence`) compare the first tracked position with it and
+        the telemetry velocity at its first sample with its pad velocity; ``meta["setup"]``.
+    time_shift : float, optional
+        How the time scales relate, s: tracking time minus telemetry time for the same instant
+        (tracking in seconds of day, telemetry from lift-off at 12:00:00: 43200). Tracking time
+        tags ``T`` become ``T - time_shift`` in the telemetry's scale; the launch time stays in the
+        tracking scale. Default 0 (one time scale). Telemetry and tracking that do not overlap
+        after it are an error that gives both spans.
 
     Returns
     -------
@@ -444,14 +455,17 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     t_tel = tel.time()
     f, force_from = _force(tel, t_tel)
     v_tel = tel.vectors(VTEL_COLUMNS)
-    t_trk = trk.time()
-    v_trk = _tracking_velocity(trk, t_trk, tracking_frame, site)  # launch-inertial
-    if t_trk.size < (4 if interpolation == "cubic" else 2):
-        raise trk.error(f"{t_trk.size} tracking samples are too few for {interpolation} interpolation", "t", t_trk.size)
+    t_raw = trk.time()  # the tracking file's own time scale (the launch time's)
+    if site is not None:
+        _check_launch_time(trk, t_raw, site)
+    v_trk, r_ecef, v_ecef = _tracking_velocity(trk, t_raw, tracking_frame, site)  # launch-inertial
+    if t_raw.size < (4 if interpolation == "cubic" else 2):
+        raise trk.error(f"{t_raw.size} tracking samples are too few for {interpolation} interpolation", "t", t_raw.size)
+    shift_scale = _time_shift(time_shift)
+    t_trk = t_raw - shift_scale  # the telemetry's time scale
     inside = (t_tel >= t_trk[0]) & (t_tel <= t_trk[-1])
     if inside.sum() < 2:
-        raise tel.error(f"telemetry time [{t_tel[0]:g}, {t_tel[-1]:g}] s and tracking time "
-                        f"[{t_trk[0]:g}, {t_trk[-1]:g}] s share fewer than 2 telemetry samples", "t")
+        raise tel.error(_no_overlap_message(t_tel, t_raw, shift_scale), "t")
     align = None
     if time_offset is None or time_offset == "auto":
         from casep.io.align import coarse_time_offset
@@ -461,20 +475,22 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
         except ValueError:
             if time_offset == "auto":
                 raise
+    import warnings
+
+    from casep.exceptions import SetupWarning, TimeOffsetWarning
+
     if time_offset == "auto":
         shift = align.tau
     elif time_offset is None:
         shift = 0.0
-        if align is not None and align.exceeds_period:
-            import warnings
-
-            from casep.exceptions import TimeOffsetWarning
-
+        if align is not None and align.exceeds_period and align.explains:
+            # only when the shift explains the data: a wrong site or frame leaves a misfit no shift removes
             warnings.warn(f"{tel.src} + {trk.src}: the tracking time tags look {align.tau * 1e3:.1f} ms late (velocity "
-                          f"increments line up best there: mean squared difference {align.cost:.3g} against {align.cost_at_zero:.3g} "
-                          f"m^2/s^2 unshifted), more than a tracking sample period ({align.tracking_period * 1e3:.4g} ms); "
-                          "align them (--time-offset auto) and let dt_trk estimate the rest", TimeOffsetWarning,
-                          stacklevel=2)
+                          f"increments line up best there: mean squared difference {align.cost:.3g} against "
+                          f"{align.cost_at_zero:.3g} m^2/s^2 unshifted, {100 * align.gain:.3g} % of the misfit removed, "
+                          f"F = {align.f_statistic:.3g}), more than a tracking sample period "
+                          f"({align.tracking_period * 1e3:.4g} ms); align them (--time-offset auto) and let dt_trk "
+                          "estimate the rest", TimeOffsetWarning, stacklevel=2)
     else:
         try:
             shift = float(time_offset)
@@ -482,19 +498,66 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
             raise ValueError(f"`time_offset` must be a number of seconds, 'auto' or None, got {time_offset!r}") from None
         if not np.isfinite(shift):
             raise ValueError(f"`time_offset` must be finite, got {shift}")
+        if abs(shift) > MAX_TIME_OFFSET:
+            span = t_trk[-1] - t_trk[0]
+            warnings.warn(SetupWarning(
+                f"{trk.src}: a tracking time offset of {shift:.6g} s ({shift * 1e3:.6g} ms) is far beyond tracking "
+                f"latencies (milliseconds, below {MAX_TIME_OFFSET:g} s; --time-offset is in milliseconds) and is "
+                f"{100 * abs(shift) / span:.3g} % of the {span:.4g} s tracking span. If the two files count time from "
+                "different origins, state it with time_shift (--time-shift SECONDS, manifest time_shift_s)."),
+                stacklevel=2)
     extra = {"time_alignment": {**(align.to_dict() if align is not None else {}), "applied_s": shift}}
     if tracking_frame != "launch":
         extra["tracking_frame"] = {"frame": tracking_frame, "site": site.to_dict()}
     flight = pair_flight(t_tel, f, v_tel, t_trk - shift, v_trk, signals=tel.signals(), interpolation=interpolation,
                          grid=grid, source=f"{tel.src} + {trk.src}",
                          meta={"force": force_from, "telemetry": tel.src, "tracking": trk.src, **extra})
+    if shift_scale:
+        flight.meta["time_shift_s"] = shift_scale
     if tracking_frame != "launch":  # the late-start check: speed relative to the pad, not the Earth's rotation
-        from casep.frames import ecef_to_launch
+        from casep.io.flight import setup_evidence
 
-        v_pad = ecef_to_launch(site, [t_tel[0]], [site.r_site], [[0.0, 0.0, 0.0]])[1][0]
-        flight.meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0] - v_pad))
-        flight.meta["tracking_frame"]["pad_velocity_m_s"] = v_pad.tolist()
+        ev = setup_evidence(site, t_tel, v_tel, t_raw, r_ecef, v_ecef, time_shift=shift_scale)
+        flight.meta["start_speed_m_s"] = ev["pad"]["speed_relative_m_s"]
+        flight.meta["tracking_frame"]["pad_velocity_m_s"] = ev["pad"]["pad_velocity_m_s"]
+        flight.meta["setup"] = ev
     return flight
+
+
+#: A given tracking time offset above this, s, is no latency: a warning suggests `time_shift`.
+MAX_TIME_OFFSET = 2.0
+#: The launch time must lie within this of the tracking file's time tags, s (a day: seconds of day,
+#: of a week's GPS time or since an epoch all put it within hours of the tracking).
+MAX_LAUNCH_TIME_GAP = 86400.0
+
+
+def _time_shift(value) -> float:
+    """`time_shift`: a finite number of seconds."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(value):
+        raise ValueError(f"`time_shift` (tracking time minus telemetry time, s) must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _check_launch_time(trk: "_Table", t_raw: np.ndarray, site) -> None:
+    """The launch time in the tracking file's time scale: within :data:`MAX_LAUNCH_TIME_GAP` of its time tags."""
+    gap = max(t_raw[0] - site.t0, site.t0 - t_raw[-1], 0.0)
+    if gap > MAX_LAUNCH_TIME_GAP:
+        raise trk.error(f"the launch time {site.t0:.10g} s is {gap:.4g} s from the tracking time tags "
+                        f"[{t_raw[0]:.10g}, {t_raw[-1]:.10g}] s (more than {MAX_LAUNCH_TIME_GAP:g} s): give it in the "
+                        "tracking file's time scale (--launch-time, manifest launch_time_s)", "t")
+
+
+def _no_overlap_message(t_tel: np.ndarray, t_raw: np.ndarray, shift: float) -> str:
+    """Telemetry and tracking that do not overlap: both spans, and the shift that would line them up."""
+    after = t_raw[0] - shift - t_tel[0]
+    scale = f" (after time_shift {shift:g} s: [{t_raw[0] - shift:.10g}, {t_raw[-1] - shift:.10g}] s)" if shift else ""
+    return (f"telemetry time [{t_tel[0]:.10g}, {t_tel[-1]:.10g}] s and tracking time [{t_raw[0]:.10g}, "
+            f"{t_raw[-1]:.10g}] s{scale} share fewer than 2 telemetry samples: the tracking starts {after:.6g} s "
+            f"{'after' if after >= 0 else 'before'} the telemetry. Telemetry and tracking must be on one time scale; "
+            "if they count from different origins (seconds of day against seconds from lift-off), state how they "
+            f"relate: time_shift = tracking time - telemetry time (e.g. {t_raw[0] - t_tel[0]:.10g} if both start "
+            "together; CLI --time-shift, manifest time_shift_s)")
 
 
 def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray, *,

@@ -8,7 +8,7 @@ from typing import Mapping
 
 import numpy as np
 
-from casep.analysis.checks import check_fit
+from casep.analysis.checks import check_fit, check_sigma
 from casep.analysis.denoise import denoise as wavelet_denoise
 from casep.analysis.problem import Problem
 from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
@@ -21,7 +21,7 @@ from casep.io.flight import FlightData
 from casep.model._model import ErrorModel
 from casep.model.loader import load_model
 
-__all__ = ["separate", "regression_rows", "METHODS"]
+__all__ = ["separate", "regression_rows", "judge_setup", "METHODS"]
 
 #: Estimators available through :func:`separate` and ``casep separate --method`` (the registry's).
 METHODS = tuple(_REGISTRY)
@@ -151,6 +151,9 @@ def separate(
     res = run_method(method, solved, None, solved.t, {k: v for k, v in kw.items() if k in _REGISTRY[method].options},
                      **labels)
     check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source)  # raw dv: noise-free, outliers, offset
+    if sigma is not None and not sigma_from_wavelet:
+        check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
+    res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model)
     if outliers is not None:  # studentized residuals of the least-squares fit (white noise), rows named
         from casep.analysis.outliers import flag_outliers
 
@@ -170,3 +173,18 @@ def _is_default(name: str, value) -> bool:
         return bool(value == OPTIONS[name].default)
     except (TypeError, ValueError):  # e.g. a mapping or an array: given
         return False
+
+
+def judge_setup(res: EstimateResult, flight: FlightData | None, model) -> EstimateResult:
+    """A result judged against the set-up: failed (status -4) when its flight failed a set-up check
+    (:func:`casep.io.flight.setup_problems`: launch site, azimuth, launch time, time scales), and against
+    the model's declared magnitudes (:func:`casep.estimators._base.check_magnitudes`)."""
+    from casep.estimators._base import STATUS_SETUP, check_magnitudes, failed
+    from casep.io.flight import setup_problems
+
+    problems = setup_problems(flight) if flight is not None else []
+    if problems:
+        res = failed(res, STATUS_SETUP, f"failed: set-up check of {flight.source}: " + "; ".join(problems))
+    if isinstance(model, ErrorModel) and model.name == res.model:
+        res = check_magnitudes(res, model.scales, source=flight.source if flight is not None else "")
+    return res
