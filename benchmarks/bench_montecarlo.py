@@ -86,7 +86,8 @@ def main() -> None:
     print(f"Monte Carlo of OLS, paper flight ({n} samples), {args.runs} runs, "
           f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']}")
     print(f"{'path':<44} {'time (s)':>9} {'runs/s':>8} {'time / batched':>15}")
-    print(f"{'batched (one QR, matrix of right-hand sides)':<44} {t_batched:>9.2f} {args.runs / t_batched:>8.0f} {1.0:>15.1f}")
+    print(f"{'batched (one QR, matrix of right-hand sides)':<44} {t_batched:>9.2f} "
+          f"{args.runs / t_batched:>8.0f} {1.0:>15.1f}")
     print(f"{f'naive per-run solve_ols ({args.naive_runs} runs, scaled)':<44} {t_naive:>9.2f} "
           f"{args.runs / t_naive:>8.0f} {t_naive / t_batched:>15.1f}")
     print(f"max |batched - naive| / RMS error on the first {args.naive_runs} runs: {dev:.1e}")

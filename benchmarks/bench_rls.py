@@ -91,7 +91,8 @@ def main() -> None:
     rows.append(("casep RELS (36 + 3)", N, t, None))
     _, xs = timed(casep_run, Zs, ys, args.p0, 0)
     rows[0] = rows[0][:3] + (np.abs(xs - ref).max() / np.abs(ref).max(),)
-    for name, fn, r in (("padasip FilterRLS", padasip_run, ref), ("sysidentpy RecursiveLeastSquares", sysidentpy_run, ref),
+    for name, fn, r in (("padasip FilterRLS", padasip_run, ref),
+                        ("sysidentpy RecursiveLeastSquares", sysidentpy_run, ref),
                         ("statsmodels RecursiveLS", statsmodels_run, ref)):
         try:
             t, x = timed(fn, Zs, ys, args.p0)
@@ -110,7 +111,8 @@ def main() -> None:
     base = rows[0][1] / rows[0][2]
     print(f"RLS on the paper flight ({N} samples at 100 Hz, 3 scalar rows each), p0 = {args.p0:g}, "
           f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']}")
-    print(f"{'method':<34} {'samples':>8} {'time (s)':>9} {'samples/s':>11} {'casep RLS / it':>15} {'max rel. dev.':>14}")
+    print(f"{'method':<34} {'samples':>8} {'time (s)':>9} {'samples/s':>11} "
+          f"{'casep RLS / it':>15} {'max rel. dev.':>14}")
     for name, n, t, dev in rows:
         rate = n / t
         dev_s = "-" if dev is None else f"{dev:.1e}" if np.isfinite(dev) else "non-finite"

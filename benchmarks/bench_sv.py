@@ -50,9 +50,12 @@ def numpy_build(t: np.ndarray, f: np.ndarray) -> np.ndarray:
     integrand[:, 2, :15] = fx * phi[:, 1] - fy * phi[:, 0]
     del phi
     mg, ug = 1e-3 * G0, 1e-6 * G0
-    integrand[:, 0, 15:22] = np.column_stack([mg * one, mg * wx, ug * wy, ug * wz, ug * wx**2, ug * wx * wy, ug * wx * wz])
-    integrand[:, 1, 22:29] = np.column_stack([mg * one, mg * wy, ug * wz, ug * wx, ug * wy**2, ug * wy * wz, ug * wy * wx])
-    integrand[:, 2, 29:36] = np.column_stack([mg * one, mg * wz, ug * wx, ug * wy, ug * wz**2, ug * wz * wx, ug * wz * wy])
+    integrand[:, 0, 15:22] = np.column_stack([mg * one, mg * wx, ug * wy, ug * wz,
+                                            ug * wx**2, ug * wx * wy, ug * wx * wz])
+    integrand[:, 1, 22:29] = np.column_stack([mg * one, mg * wy, ug * wz, ug * wx,
+                                            ug * wy**2, ug * wy * wz, ug * wy * wx])
+    integrand[:, 2, 29:36] = np.column_stack([mg * one, mg * wz, ug * wx, ug * wy,
+                                            ug * wz**2, ug * wz * wx, ug * wz * wy])
     S = np.zeros((N, 3, 36))
     np.cumsum(0.5 * (integrand[1:] + integrand[:-1]) * dt, axis=0, out=S[1:])
     return S

@@ -40,8 +40,8 @@ Main entry points
 :func:`solve_pcr`, :func:`solve_map`, :func:`solve_gls` (all returning :class:`EstimateResult`),
 :func:`separate`; the impact miss of an estimate :func:`impact_analysis`
 (:mod:`casep.impact`); the manoeuvre that would determine more coefficients
-:func:`casep.design.design` (:mod:`casep.design`, ``casep design``); the checks :func:`check_flight` (before) and :func:`check_fit` (after an
-estimate), whose warnings are :class:`CasepWarning` subclasses;
+:func:`casep.design.design` (:mod:`casep.design`, ``casep design``); the checks :func:`check_flight` (before)
+and :func:`check_fit` (after an estimate), whose warnings are :class:`CasepWarning` subclasses;
 the command line ``casep`` (:mod:`casep.cli`).
 """
 
@@ -77,8 +77,8 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
                          "PlausibilityWarning", "TimeOffsetWarning"),
 }
 __getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), (
-    "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units", "impact",
-    "design", "frames"))
+    "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units",
+    "impact", "design", "frames"))
 
 __all__ = [
     "__version__",

@@ -394,7 +394,8 @@ def _parser() -> argparse.ArgumentParser:
     _add_frames(d)
     d.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
     d.add_argument("--sigma", type=_ranged("sigma"), default=None, help="noise std, m/s (default: estimated)")
-    d.add_argument("--tau", type=_rule_type(OPTIONS["tau"], [r for r in OPTIONS["tau"].rules if isinstance(r, Interval)]),
+    d.add_argument("--tau",
+                   type=_rule_type(OPTIONS["tau"], [r for r in OPTIONS["tau"].rules if isinstance(r, Interval)]),
                    default=None, metavar="SECONDS", help="Gauss-Markov correlation time, s: AR(1) bound instead of "
                    "white; " + " | ".join(str(r) for r in OPTIONS["tau"].rules if isinstance(r, Interval)))
     d.add_argument("--prior", metavar="FILE", help="prior JSON (map format, or a result JSON: its estimate and "
@@ -422,7 +423,8 @@ def _parser() -> argparse.ArgumentParser:
                          "first) (default ols,rls,rels)")
     mc.add_argument("--seed", type=_order, default=0, help="root seed (default 0)")
     mc.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
-    mc.add_argument("--workers", type=_order, default=None, help="Dask LocalCluster worker processes, one thread each (default: all cores; 1: runs in this "
+    mc.add_argument("--workers", type=_order, default=None,
+                    help="Dask LocalCluster worker processes, one thread each (default: all cores; 1: runs in this "
                          "process)")
     mc.add_argument("--json", metavar="OUT", default=None, help="write the Monte Carlo JSON here")
     mc.add_argument("--csv", metavar="OUT", default=None, help="write a CSV table here")
@@ -582,7 +584,8 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     from casep.io._atomic import check_outputs
     from casep.model.loader import load_model
 
-    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking"), folders={"--figures": args.figures})
+    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking"),
+                  folders={"--figures": args.figures})
     model = load_model(args.model)
     problem = Problem.from_flight(_read(args), model)
     with warnings.catch_warnings():
@@ -871,7 +874,8 @@ def _cmd_design(args: argparse.Namespace) -> int:
         print(f"warning: the design model promised a {100 * gain_d:.1f} % change of the objective, the re-simulated "
               f"flights give {100 * gain_v:.1f} %: trust the re-simulated value (the JSON's before/after)")
     b = v["burnout_change"]
-    print(f"the designed flight burns out elsewhere: speed {b['speed_m_s']:+.1f} m/s, altitude {b['altitude_m'] / 1e3:+.2f} "
+    print(f"the designed flight burns out elsewhere: speed {b['speed_m_s']:+.1f} m/s, "
+          f"altitude {b['altitude_m'] / 1e3:+.2f} "
           f"km, crossrange {b['crossrange_m'] / 1e3:+.2f} km (no terminal constraint: a test flight, not the mission)")
     sc_noise = get_scenario(args.scenario).noise
     if sc_noise.kind != "white":

@@ -138,7 +138,8 @@ def _prepare(t, *arrays):
     out = [np.atleast_2d(np.asarray(a, dtype=float)) for a in arrays]
     for a in out:
         if a.shape != (t.size, 3):
-            raise ValueError(f"positions and velocities must have shape ({t.size}, 3) for {t.size} times, got {a.shape}")
+            raise ValueError(f"positions and velocities must have shape ({t.size}, 3) for {t.size} times, "
+                             f"got {a.shape}")
     return t, out
 
 

@@ -56,4 +56,5 @@ print(f"designed flight separated (OLS, {sim.flight.n_samples} samples): reporte
       f"[{np.nanmin(ratio):.4f}, {np.nanmax(ratio):.4f}]")
 for n in best.identifiable("after"):
     j = sim.model.index(n)
-    print(f"  {n:<6} true {sim.truth[j]:9.4g}  estimate {res.estimate[j]:9.4g} +- {res.std[j]:.3g} {sim.model.units[j]}")
+    print(f"  {n:<6} true {sim.truth[j]:9.4g}  estimate {res.estimate[j]:9.4g} +- {res.std[j]:.3g} "
+          f"{sim.model.units[j]}")

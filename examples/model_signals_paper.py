@@ -46,7 +46,8 @@ base = casep.load_model("platform36")
 cond0, std0, _ = crlb(base, sim.flight)
 print(f"paper at {rate:g} Hz, sigma {sigma} m/s")
 print(f"{'model':<24} {'cond (equil.)':>14} {'Ka0x':>7} {'Ka1x':>7} {'Ka0y':>7} {'Ka0z':>7}   new terms")
-print(f"{'platform36':<24} {cond0:>14.3g} " + " ".join(f"{std0[base.index(n)]:>7.3g}" for n in ("Ka0x", "Ka1x", "Ka0y", "Ka0z")))
+print(f"{'platform36':<24} {cond0:>14.3g} "
+      + " ".join(f"{std0[base.index(n)]:>7.3g}" for n in ("Ka0x", "Ka1x", "Ka0y", "Ka0z")))
 for name in ("platform36_timeoffset", "platform36_leverarm"):
     m = casep.load_model(name)
     cond, std, corr = crlb(m, sim.flight)
@@ -78,4 +79,5 @@ for label, kw, model in (("20 ms offset, exact v(t - dt)", {"time_offset": 0.02}
     _, std, _ = crlb(s.model, s.flight)
     j = s.model.index("Ka0y")
     print(f"noise-free, {label}: new terms {np.round(x[36:], 6).tolist()} "
-          f"(CRLB std at {sigma} m/s {np.round(std[36:], 4).tolist()}); Ka0y error {(x[j] - truth['Ka0y']) / std[j]:+.3f} std")
+          f"(CRLB std at {sigma} m/s {np.round(std[36:], 4).tolist()}); "
+          f"Ka0y error {(x[j] - truth['Ka0y']) / std[j]:+.3f} std")

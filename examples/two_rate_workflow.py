@@ -50,8 +50,11 @@ print(f"{'':6} {'true':>7} {'no offset':>18} {'20 ms offset':>18} {'20 ms, dt_tr
 for n in ("Ka0x", "Ka1x", "Ka0y", "Ka0z"):
     j = res.names.index(n)
     print(f"{n:<6} {data.truth[j]:>7.3g} {ref.estimate[j]:>9.3g} +- {ref.std[j]:<5.2g} {res.estimate[j]:>9.3g} +- "
-          f"{res.std[j]:<5.2g} {fit.estimate[j]:>11.3g} +- {fit.std[j]:<5.2g}  (bias/std {(res.estimate[j] - data.truth[j]) / res.std[j]:+.1f} -> "
-          f"{(fit.estimate[j] - data.truth[j]) / fit.std[j]:+.1f}; fitted - no offset {(fit.estimate[j] - ref.estimate[j]) / fit.std[j]:+.2f} std)")
+          f"{res.std[j]:<5.2g} {fit.estimate[j]:>11.3g} +- {fit.std[j]:<5.2g}  "
+          f"(bias/std {(res.estimate[j] - data.truth[j]) / res.std[j]:+.1f} -> "
+          f"{(fit.estimate[j] - data.truth[j]) / fit.std[j]:+.1f}; "
+          f"fitted - no offset {(fit.estimate[j] - ref.estimate[j]) / fit.std[j]:+.2f} std)")
 print(f"dt_trk {20.0:>7.3g} {'':>18} {'':>18} {fit.estimate[k]:>11.4g} +- {fit.std[k]:<5.2g} ms")
 print("An unmodelled 20 ms tracking offset puts a * 0.02 s (up to 1 m/s) into dv: the estimates absorb it "
-      f"(residual RMS {np.mean(list(res.residual_rms.values())):.3g} vs {np.mean(list(ref.residual_rms.values())):.3g} m/s).")
+      f"(residual RMS {np.mean(list(res.residual_rms.values())):.3g} "
+      f"vs {np.mean(list(ref.residual_rms.values())):.3g} m/s).")

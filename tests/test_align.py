@@ -48,7 +48,8 @@ def test_a_large_offset_warns_and_auto_plus_dt_trk_recovers_it(tmp_path):
     d = simulate_two_rate("paper", seed=3, telemetry_rate=20.0, tracking_rate=5.0, time_offset=0.3)
     tel, trk = tmp_path / "tel.csv", tmp_path / "trk.csv"
     d.write(tel, trk)
-    with pytest.warns(TimeOffsetWarning, match=r"look 30\d\.\d ms late .* more than a tracking sample period \(200 ms\)"):
+    with pytest.warns(TimeOffsetWarning,
+                      match=r"look 30\d\.\d ms late .* more than a tracking sample period \(200 ms\)"):
         casep.read_flight_pair(tel, trk)
     fl = casep.read_flight_pair(tel, trk, time_offset="auto")
     shift = fl.meta["time_alignment"]["applied_s"]

@@ -87,7 +87,8 @@ def test_noise_free_two_rate_pair_raises_no_check_warning(tmp_path):
 
 def test_force_in_g_warns_with_the_factor(paper20):
     fl = _replace(paper20.flight, f=paper20.flight.f / G0)
-    with pytest.warns(PlausibilityWarning, match=r"peak specific force .* 5\.24\d* m/s\^2 \(0\.534 g\).*multiply by 9\.80665"):
+    with pytest.warns(PlausibilityWarning,
+                      match=r"peak specific force .* 5\.24\d* m/s\^2 \(0\.534 g\).*multiply by 9\.80665"):
         check_flight(fl)
 
 
@@ -103,7 +104,8 @@ def test_time_in_ms_or_us_warns_with_the_unit(paper20, factor, unit):
 
 def test_dv_in_mm_per_s_warns(paper20):
     fl = _replace(paper20.flight, dv=paper20.flight.dv * 1e3)
-    with pytest.warns(PlausibilityWarning, match=r"column `dv_.`: sample-to-sample noise 1\d\d\.?\d* m/s.*mm/s \(divide by 1000\)"):
+    with pytest.warns(PlausibilityWarning,
+                      match=r"column `dv_.`: sample-to-sample noise 1\d\d\.?\d* m/s.*mm/s \(divide by 1000\)"):
         check_flight(fl)
 
 

@@ -313,7 +313,8 @@ def test_bad_coefficient_file_values_exit_2(good_csv, tmp_path, capsys, command,
 
 
 def test_infinite_bound_on_its_own_side_is_open(platform36):
-    lo, hi, fixed = casep.estimators.bounded.parse_bounds({"Kg0x": [-np.inf, np.inf], "Kg0y": [None, 2.0]}, platform36.names)
+    lo, hi, fixed = casep.estimators.bounded.parse_bounds({"Kg0x": [-np.inf, np.inf], "Kg0y": [None, 2.0]},
+                                                          platform36.names)
     j, k = platform36.index("Kg0x"), platform36.index("Kg0y")
     assert lo[j] == -np.inf and hi[j] == np.inf and lo[k] == -np.inf and hi[k] == 2.0 and not fixed.any()
 
@@ -422,4 +423,4 @@ def test_lazy_public_names_resolve(package):
         assert getattr(mod, name) is not None, name
     assert set(mod.__all__) <= set(dir(mod))
     with pytest.raises(AttributeError, match="no attribute 'not_a_name'"):
-        mod.not_a_name
+        _ = mod.not_a_name

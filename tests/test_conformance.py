@@ -28,7 +28,8 @@ def _bad_values(option):
         if isinstance(r, Interval):
             out += [np.nan, "x" if not any(isinstance(q, Choices) for q in option.rules) else 1j]
             if r.low is not None:
-                out.append((r.low - 1) if r.kind is int else (r.low - abs(r.low) - 1.0 if r.closed in ("both", "left") else r.low))
+                out.append((r.low - 1) if r.kind is int
+                           else (r.low - abs(r.low) - 1.0 if r.closed in ("both", "left") else r.low))
             if r.high is not None:
                 out.append(r.high * 2 + 1)
             if r.kind is int:
@@ -177,7 +178,8 @@ def test_json_round_trip(method, results, tmp_path):
     np.testing.assert_allclose(back.si_factors, res.si_factors, rtol=1e-15)
     assert type(back.extras) is type(res.extras)
     assert back.to_dict()["extras"] == res.to_dict()["extras"]
-    if not any(isinstance(v, (dict, list)) and not isinstance(v, tuple) for v in dataclasses.asdict(res.extras).values()):
+    if not any(isinstance(v, (dict, list)) and not isinstance(v, tuple)
+               for v in dataclasses.asdict(res.extras).values()):
         assert back.extras == res.extras  # scalars and tuples: equal as objects
     assert back.to_dict()["residual_rms"] == res.to_dict()["residual_rms"]
 

@@ -128,7 +128,8 @@ def test_level_warning_and_default():
 def test_bad_arguments():
     x = np.zeros((100, 3))
     for kw, msg in (({"wavelet": "nope"}, "`wavelet` must be a discrete"), ({"rule": "aic"}, "`rule` must be one of"),
-                    ({"mode": "soft2"}, "`mode` must be one of"), ({"extension": "smooth"}, "`extension` must be one of"),
+                    ({"mode": "soft2"}, "`mode` must be one of"),
+                    ({"extension": "smooth"}, "`extension` must be one of"),
                     ({"scaling": "x"}, "`scaling` must be one of"), ({"level": 0}, "`level` must be an int >= 1")):
         with pytest.raises(ValueError, match=msg):
             denoise(x, **kw)

@@ -266,7 +266,8 @@ def test_cli_reports_what_the_design_costs(tmp_path, capsys):
     assert "the designed flight burns out elsewhere" in text and "crossrange" in text
     d = json.loads(out.read_text())
     assert d["objective_source"] == "re-simulated flights"
-    assert d["before"] == pytest.approx(d["verification"]["before"]) and d["after"] == pytest.approx(d["verification"]["after"])
+    assert d["before"] == pytest.approx(d["verification"]["before"]) \
+        and d["after"] == pytest.approx(d["verification"]["after"])
     assert "before" in d["predicted"] and d["regularisation"]["information"] > 0
     ratio = {n: d["crlb_after"][n] / d["crlb_before"][n] for n in d["crlb_before"]
              if d["crlb_before"][n] and d["crlb_after"][n]}

@@ -146,11 +146,13 @@ def test_cli_diagnose_json_and_figures(tmp_path, capsys):
     out = tmp_path / "d.json"
     figs = tmp_path / "figs"
     figs.mkdir()
-    assert main(["diagnose", str(tmp_path / "f.csv"), "--sigma", "0.1", "--json", str(out), "--figures", str(figs)]) == 0
+    assert main(["diagnose", str(tmp_path / "f.csv"), "--sigma", "0.1", "--json", str(out),
+                 "--figures", str(figs)]) == 0
     text = capsys.readouterr().out
     assert "unidentifiable 12 of 36" in text and "near-dependencies" in text
     d = json.loads(out.read_text())["diagnostics"]
-    for key in ("condition_number", "condition_number_equilibrated", "sigma", "crlb_std", "vif", "unidentifiable", "groups"):
+    for key in ("condition_number", "condition_number_equilibrated", "sigma", "crlb_std", "vif", "unidentifiable",
+                "groups"):
         assert key in d
     assert d["sigma"] == 0.1 and d["crlb_std"]["Kg1xz"] is None and len(d["unidentifiable"]) == 12
     corr = np.array(d["correlation"], dtype=float)

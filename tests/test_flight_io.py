@@ -32,7 +32,8 @@ def test_round_trip_exact(tmp_path, rng):
 
 
 def test_comments_blank_lines_extra_columns(tmp_path):
-    p = _write(tmp_path, "# a comment\n\nt,f_x,f_y,f_z,dv_x,dv_y,dv_z,extra\n# mid\n0,1,2,3,4,5,6,x\n\n1,1,2,3,4,5,7,y\n")
+    p = _write(tmp_path, "# a comment\n\nt,f_x,f_y,f_z,dv_x,dv_y,dv_z,extra\n# mid\n"
+                         "0,1,2,3,4,5,6,x\n\n1,1,2,3,4,5,7,y\n")
     fl = casep.read_flight(p)
     np.testing.assert_array_equal(fl.dv[:, 2], [6.0, 7.0])
 

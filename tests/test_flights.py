@@ -48,13 +48,15 @@ def test_joint_ols_equals_weighted_stacked_least_squares(two):
     c = np.linalg.norm(A, axis=0)
     ref = np.linalg.lstsq(A / c, y, rcond=None)[0] / c  # column-scaled: accurate at cond ~1e5
     np.testing.assert_allclose(res.estimate, ref, rtol=1e-8, atol=1e-10 * np.max(np.abs(ref)))
-    assert res.names[-2].startswith("dt_trk[") and res.names[-1].startswith("dt_trk[") and res.names[-1] != res.names[-2]
+    assert res.names[-2].startswith("dt_trk[") and res.names[-1].startswith("dt_trk[") \
+        and res.names[-1] != res.names[-2]
     # each flight's sigma from its own residuals: near the simulated noise
     np.testing.assert_allclose(jp.sigmas, [0.05, 0.2], rtol=0.05)
 
 
 def test_noise_free_recovery_with_per_flight_offsets():
-    a, b = _flight(1, 20.0, 0.0), _flight(2, -7.0, 0.0)  # noise-free (1e-9 m/s would already move Ka terms of CRLB ~300 by 3e-4)
+    # noise-free (1e-9 m/s would already move Ka terms of CRLB ~300 by 3e-4)
+    a, b = _flight(1, 20.0, 0.0), _flight(2, -7.0, 0.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res, jp = separate_flights([a.flight, b.flight], a.model, "ols", sigma=1e-3)
@@ -337,7 +339,8 @@ def test_huber_jointly_flags_an_outlier_in_one_flight_and_resists_it(two):
     assert {(r["sample"], r["axis"]) for r in rows[:20]} == {(a.flight.n_observed + i, "y") for i in range(200, 220)}
     label = hub.names[-1].split("[")[1].rstrip("]")  # flight 2's label, as in its dt_trk[...]
     assert {(r["flight"], r["flight_sample"]) for r in rows[:20]} == {(label, i) for i in range(200, 220)}
-    assert 5 * np.max(np.abs(hub.estimate - ols.estimate) / ols.std) < np.max(np.abs(spoilt.estimate - ols.estimate) / ols.std)
+    assert 5 * np.max(np.abs(hub.estimate - ols.estimate) / ols.std) \
+        < np.max(np.abs(spoilt.estimate - ols.estimate) / ols.std)
 
 
 def test_rels_jointly_restarts_the_noise_memory_at_each_flight(two):
@@ -478,7 +481,8 @@ def test_chow_test_does_not_depend_on_the_method_or_a_common_sigma_error(two):
         stats.append(flights_summary(res, jp)["consistency"]["overall"])
         assert res.sigma_source == "whitened"
     for s in stats[1:3]:
-        assert s["chi2"] == pytest.approx(stats[0]["chi2"], rel=1e-9) and s["p_value"] == pytest.approx(stats[0]["p_value"])
+        assert s["chi2"] == pytest.approx(stats[0]["chi2"], rel=1e-9) \
+            and s["p_value"] == pytest.approx(stats[0]["p_value"])
     assert stats[4]["chi2"] == pytest.approx(stats[3]["chi2"], rel=1e-9)  # both sigmas x 2: F unchanged
 
 

@@ -254,7 +254,8 @@ def test_cli_rotating_earth_geodetic_round_trip(tmp_path, capsys):
     assert res["n_samples"] == 976 and 0.08 < res["residual_rms"]["x"] < 0.12  # the 0.1 m/s tracking noise
     capsys.readouterr()
     for argv, msg in (
-        (["separate", str(tel), "--tracking", str(trk), "--tracking-frame", "geodetic"], "tracking needs the launch site"),
+        (["separate", str(tel), "--tracking", str(trk), "--tracking-frame", "geodetic"],
+         "tracking needs the launch site"),
         (["separate", str(tel), "--tracking", str(trk), "--tracking-frame", "geodetic", "--launch-site", *site],
          "needs both --launch-site"),
         (["separate", str(tel), "--launch-site", *site, "--launch-time", "0"], "used only with --tracking-frame"),

@@ -62,8 +62,9 @@ def test_ols_linear_map_equals_solver(rng, zero_column):
     assert lm.dof == 3 * N - (NCOEF - zero_column)
     # independent: K S = I on the estimable coefficients (an unbiased linear estimator)
     ok = ~lm.undetermined
-    np.testing.assert_allclose((lm.K @ S.reshape(-1, NCOEF))[np.ix_(ok, ok)] * SCALES[ok][:, None] / SCALES[ok][None, :],
-                               np.eye(int(ok.sum())), atol=1e-10)
+    np.testing.assert_allclose(
+        (lm.K @ S.reshape(-1, NCOEF))[np.ix_(ok, ok)] * SCALES[ok][:, None] / SCALES[ok][None, :],
+        np.eye(int(ok.sum())), atol=1e-10)
 
 
 @pytest.mark.parametrize("zero_column", [False, True])

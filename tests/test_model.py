@@ -66,7 +66,7 @@ def test_platform39_adds_misalignment_only(platform36, platform39):
 def test_lifecycle_locked_and_not_setup():
     m = _toy()
     with pytest.raises(RuntimeError, match="not set up. Use: model.setup"):
-        m.functions
+        _ = m.functions
     m.setup()
     with pytest.raises(RuntimeError, match="locked after setup"):
         m.coefficient("Ka0x", "mg")

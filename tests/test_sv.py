@@ -33,8 +33,10 @@ def _phidot_delta(D: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return phidot, delta
 
 
-def _simulate(D: np.ndarray, t: np.ndarray, phi0: np.ndarray = np.zeros(3)) -> np.ndarray:
+def _simulate(D: np.ndarray, t: np.ndarray, phi0: np.ndarray | None = None) -> np.ndarray:
     """dv(t) by integrating phi' = phidot, dv' = f x phi + Delta with an adaptive ODE solver."""
+    if phi0 is None:
+        phi0 = np.zeros(3)
 
     def rhs(tt, x):
         f = excitation_force(np.array([tt]))[0]
@@ -143,5 +145,6 @@ def test_data_gap_warns_with_numbers(platform36):
     from casep.exceptions import CasepWarning
 
     t = np.r_[np.arange(0.0, 10.0, 0.01), np.arange(12.0, 20.0, 0.01)]  # 2 s dropout
-    with pytest.warns(CasepWarning, match=r"1 gap\(s\) longer than 10x the median step 0.01 s \(largest 2.01 s before row 1000\)"):
+    with pytest.warns(CasepWarning,
+                      match=r"1 gap\(s\) longer than 10x the median step 0.01 s \(largest 2.01 s before row 1000\)"):
         casep.build_sv(platform36, t, excitation_force(t))

@@ -278,7 +278,8 @@ class Diagnostics:
             lines.append(f"{n:<12} {u:<10} {sd:>12.4g} {(f'{sc:.3g}' if sc else '-'):>10} "
                          f"{self.vif[j]:>10.3g}  {self.identifiability[n]}"
                          + (f" ({self.reasons[n]})" if n in self.reasons else ""))
-        counts = {k: sum(v == k for v in self.identifiability.values()) for k in ("identifiable", "weak", "unidentifiable")}
+        counts = {k: sum(v == k for v in self.identifiability.values())
+                  for k in ("identifiable", "weak", "unidentifiable")}
         lines += ["", f"identifiable {counts['identifiable']}, weak {counts['weak']}, "
                       f"unidentifiable {counts['unidentifiable']} of {len(self.names)}"]
         if self.groups:

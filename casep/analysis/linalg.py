@@ -21,7 +21,8 @@ from typing import Iterable
 
 import numpy as np
 
-__all__ = ["ReducedSystem", "reduce_qr", "reduce_qr_blocks", "RankAnalysis", "analyze_rank", "least_squares_rss", "DEFAULT_BLOCK_ROWS"]
+__all__ = ["ReducedSystem", "reduce_qr", "reduce_qr_blocks", "RankAnalysis", "analyze_rank", "least_squares_rss",
+           "DEFAULT_BLOCK_ROWS"]
 
 #: Rows per TSQR block: bounds the temporary copy to ~block x (n + 1) doubles.
 DEFAULT_BLOCK_ROWS = 65536

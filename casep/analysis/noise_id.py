@@ -140,7 +140,8 @@ class NoiseIdentification:
         for k in MODELS:
             p = self.fits[k]
             par = ", ".join(f"{n} {v:.4g}" for n, v in p.items() if n not in ("chi2", "bic"))
-            lines.append(f"  {k:<13} {par}; chi2 {p['chi2']:.4g}, BIC {p['bic']:.4g}" + ("  <- chosen" if k == self.choice else ""))
+            lines.append(f"  {k:<13} {par}; chi2 {p['chi2']:.4g}, BIC {p['bic']:.4g}"
+                         + ("  <- chosen" if k == self.choice else ""))
         lines.append(self.recommendation)
         return "\n".join(lines)
 

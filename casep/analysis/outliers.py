@@ -112,7 +112,8 @@ class OutlierFlags:
                 "expected_false": self.expected_false, "rows": self.rows}
 
 
-def flag_outliers(problem, *, alpha: float = 0.01, rate: float | None = None, rcond: float | None = None) -> OutlierFlags:
+def flag_outliers(problem, *, alpha: float = 0.01, rate: float | None = None,
+                  rcond: float | None = None) -> OutlierFlags:
     """Flag rows whose externally studentized residual exceeds a threshold (module notes).
 
     Parameters

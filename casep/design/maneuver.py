@@ -83,7 +83,8 @@ class Maneuver:
         return self.n_free * len(self.axes)
 
     def split(self, x: np.ndarray) -> dict[str, np.ndarray]:
-        """Design vector (deg) -> ``{"pitch": (m,), "yaw": (m,)}`` offsets at all knots (zeros for an axis not moved)."""
+        """Design vector (deg) -> ``{"pitch": (m,), "yaw": (m,)}`` offsets at all knots (zeros for an axis not
+        moved)."""
         x = np.asarray(x, dtype=float).reshape(-1)
         if x.size != self.n_variables:
             raise ValueError(f"design vector must have {self.n_variables} values, got {x.size}")

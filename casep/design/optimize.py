@@ -393,7 +393,8 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
             "after": objective_value(objective, F_after, scales, info_prior, G_miss, weights),
             "crlb_prediction_error_max": float(np.max(rel, initial=0.0)),
             "crlb_prediction_error_median": float(np.median(rel)) if rel.size else None,
-            "burnout_change": {"speed_m_s": float(np.linalg.norm(traj.velocity[-1]) - np.linalg.norm(full.velocity[-1])),
+            "burnout_change": {"speed_m_s": float(np.linalg.norm(traj.velocity[-1])
+                                                  - np.linalg.norm(full.velocity[-1])),
                                "altitude_m": float(traj.altitude[-1] - full.altitude[-1]),
                                "crossrange_m": float(traj.position[-1, 2] - full.position[-1, 2])},
             "note": "designed flight re-simulated (simulate_boost with the offsets) and its S_V built at the flight's "

@@ -171,7 +171,8 @@ def prepare(S: np.ndarray | RegressionProblem, y: np.ndarray | None, names: Sequ
         pb = RegressionProblem.from_arrays(S, y, names=names, units=units, si_factors=si_factors, model=model)
     ra = pb.rank(rcond)
     if pb.red.m <= ra.rank:
-        raise ValueError(f"`S` has {pb.red.m} rows, not more than its rank {ra.rank}: no degree of freedom for the noise")
+        raise ValueError(f"`S` has {pb.red.m} rows, not more than its rank {ra.rank}: "
+                         "no degree of freedom for the noise")
     return Prepared(pb, ra, sigma)
 
 
@@ -403,8 +404,8 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
     if not rows:
         return res
     rows.sort(key=lambda r: -r["ratio"])
-    listed = "; ".join(f"{r['name']} {r['estimate']:.4g} +- {r['std']:.2g} {r['unit']} = {r['ratio']:.3g} x {r['declared']:g}"
-                       for r in rows[:6]) + (f" and {len(rows) - 6} more" if len(rows) > 6 else "")
+    listed = "; ".join(f"{r['name']} {r['estimate']:.4g} +- {r['std']:.2g} {r['unit']} = {r['ratio']:.3g} x "
+                       f"{r['declared']:g}" for r in rows[:6]) + (f" and {len(rows) - 6} more" if len(rows) > 6 else "")
     where = f"{source}: " if source else ""
     res = dataclasses.replace(res, diagnostics={**res.diagnostics, "magnitudes": rows})
     worst = max(r["ratio_low"] for r in rows)

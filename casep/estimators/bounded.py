@@ -203,7 +203,8 @@ def solve_bounded(
     cov[:, std_mask] = np.nan
     box = {k: [float(a) if np.isfinite(a) else None, float(b) if np.isfinite(b) else None]
            for k, a, b in zip(pb.names, lo, hi) if np.isfinite(a) or np.isfinite(b)}
-    counts = {"at_lower": int((at_lo & ~fixed).sum()), "at_upper": int((at_hi & ~at_lo & ~fixed).sum()), "fixed": int(fixed.sum()),
+    counts = {"at_lower": int((at_lo & ~fixed).sum()), "at_upper": int((at_hi & ~at_lo & ~fixed).sum()),
+              "fixed": int(fixed.sum()),
               "free": int(pb.n - std_mask.sum()), "undetermined": int(undetermined.sum())}
     return finish(pb, "bounded", x, cov, sig, undetermined=undetermined, reasons=reasons,
                   message=_active_set_message(counts, pb.n),

@@ -84,7 +84,8 @@ def solve_huber(
     x = least_squares(pb)[0]
     scale = pb.sigma
     it = 0
-    for it in range(1, max_iter + 1):
+    for _it in range(1, max_iter + 1):
+        it = _it  # the iteration count is reported after the loop
         r = b - A @ x
         scale = pb.sigma or float(MAD_SIGMA * np.median(np.abs(r - np.median(r))))  # s = 1.4826 MAD
         if not scale > 0:

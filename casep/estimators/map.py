@@ -192,7 +192,8 @@ def prior_from_result(result, names: Sequence[str] | None = None, model=None) ->
         raise ValueError(f"the {result.method} result has no covariance: it cannot be used as a prior")
     own = per_flight_names(result, model)
     keep = [j for j, n in enumerate(result.names) if n not in own and (names is None or n in names)
-            and np.isfinite(result.estimate[j]) and np.isfinite(result.covariance[j, j]) and result.covariance[j, j] > 0]
+            and np.isfinite(result.estimate[j]) and np.isfinite(result.covariance[j, j])
+            and result.covariance[j, j] > 0]
     C = result.covariance[np.ix_(keep, keep)]
     sd = np.sqrt(np.diag(C))
     rho = C / np.outer(sd, sd)

@@ -24,7 +24,8 @@ import numpy as np
 
 from casep.estimators.result import EXTRAS_TYPES, STD_KIND_MEANINGS
 
-__all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Method", "OPTIONS", "METHODS", "check_method_options", "describe", "run_method"]
+__all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Method", "OPTIONS", "METHODS",
+           "check_method_options", "describe", "run_method"]
 
 
 class Rule:

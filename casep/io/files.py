@@ -485,9 +485,10 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
         shift = 0.0
         if align is not None and align.exceeds_period and align.explains:
             # only when the shift explains the data: a wrong site or frame leaves a misfit no shift removes
-            warnings.warn(f"{tel.src} + {trk.src}: the tracking time tags look {align.tau * 1e3:.1f} ms late (velocity "
-                          f"increments line up best there: mean squared difference {align.cost:.3g} against "
-                          f"{align.cost_at_zero:.3g} m^2/s^2 unshifted, {100 * align.gain:.3g} % of the misfit removed, "
+            warnings.warn(f"{tel.src} + {trk.src}: the tracking time tags look {align.tau * 1e3:.1f} ms late "
+                          f"(velocity increments line up best there: mean squared difference {align.cost:.3g} against "
+                          f"{align.cost_at_zero:.3g} m^2/s^2 unshifted, {100 * align.gain:.3g} % of the misfit "
+                          "removed, "
                           f"F = {align.f_statistic:.3g}), more than a tracking sample period "
                           f"({align.tracking_period * 1e3:.4g} ms); align them (--time-offset auto) and let dt_trk "
                           "estimate the rest", TimeOffsetWarning, stacklevel=2)
@@ -495,7 +496,8 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
         try:
             shift = float(time_offset)
         except (TypeError, ValueError):
-            raise ValueError(f"`time_offset` must be a number of seconds, 'auto' or None, got {time_offset!r}") from None
+            raise ValueError(f"`time_offset` must be a number of seconds, 'auto' or None, "
+                             f"got {time_offset!r}") from None
         if not np.isfinite(shift):
             raise ValueError(f"`time_offset` must be finite, got {shift}")
         if abs(shift) > MAX_TIME_OFFSET:

@@ -186,7 +186,8 @@ class FlightData:
         step = np.flatnonzero(np.diff(t) <= 0)
         if step.size:
             k = int(step[0]) + 1
-            raise FlightDataError(src, f"time {t[k]:.10g} s does not increase (previous row: {t[k - 1]:.10g} s)", "t", k + 1)
+            raise FlightDataError(src, f"time {t[k]:.10g} s does not increase (previous row: {t[k - 1]:.10g} s)",
+                                  "t", k + 1)
         for name, arr in (("t", t), ("f", f), ("dv", dv), ("observed", obs)):
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
@@ -512,15 +513,18 @@ def setup_evidence(site, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray
                         + (f" (azimuth {site.azimuth_deg - turn:.6g} deg, not {site.azimuth_deg:.6g}?)"
                            if abs(turn) > 1e-3 else "")
                         + f", speed ratio {pad['speed_ratio']:.6g}"
-                        + (" (a latitude or height error?)" if abs(pad["speed_ratio"] - 1) > 1e-3 else ""))
+                        + (" (a latitude or height error?)" if abs(pad["speed_ratio"] - 1) > 1e-3
+                           else ""))
             problems.append(f"at the first telemetry sample (t = {t_tel[0]:.10g} s) the telemetry velocity differs by "
-                            f"{np.linalg.norm(e):.4g} m/s from the pad velocity ({np.linalg.norm(v_pad):.6g} m/s) of the "
+                            f"{np.linalg.norm(e):.4g} m/s from the pad velocity ({np.linalg.norm(v_pad):.6g} m/s) "
+                            "of the "
                             f"stated {where}, while the tracking shows the vehicle at {s_trk:.3g} +- {s_std:.2g} m/s "
                             f"relative to the Earth: the two differ by {gap:.4g} m/s (> {tol:.3g} m/s){hint}. The "
                             "launch site, azimuth or launch time does not match the telemetry's frame")
     if abs(t_start - site.t0) > LAUNCH_GAP_TOL:
-        problems.append(f"the telemetry starts {t_start - site.t0:.6g} s after the stated launch time {site.t0:.10g} s "
-                        f"(tracking time scale; time_shift {time_shift:g} s): more than {LAUNCH_GAP_TOL:g} s. State the "
+        problems.append(f"the telemetry starts {t_start - site.t0:.6g} s after the stated launch time "
+                        f"{site.t0:.10g} s (tracking time scale; time_shift {time_shift:g} s): more than "
+                        f"{LAUNCH_GAP_TOL:g} s. State the "
                         "launch time in the tracking file's time scale and how the time scales relate (time_shift)")
     return {"spans": spans, "pad": pad, "first_tracked": first, "problems": problems}
 

@@ -45,7 +45,8 @@ def plot_singular_values(diag: Diagnostics, path: str | os.PathLike) -> Path:
     ax.set_xlabel("dimension k")
     ax.set_ylabel("singular value s_k (unit-norm columns)")
     ce = diag.condition_number_equilibrated
-    ax.set_title(f"Singular values; equilibrated condition number {ce:.3g}" if ce else "Singular values (rank deficient)")
+    ax.set_title(f"Singular values; equilibrated condition number {ce:.3g}" if ce
+                 else "Singular values (rank deficient)")
     ax.legend(loc="lower left")
     ax.grid(True, which="both", alpha=0.3)
     return _save(fig, path)
@@ -79,7 +80,8 @@ def plot_flights_crlb(d: Mapping, path: str | os.PathLike, scales: Mapping | Non
     k = len(d["flights"])
     names = [r["name"] for r in rows]
     scale = np.array([float((scales or {}).get(n, 1.0)) for n in names])
-    alone = np.array([[np.nan if v is None else v for v in r["crlb_alone"]] for r in rows], dtype=float) / scale[:, None]
+    alone = np.array([[np.nan if v is None else v for v in r["crlb_alone"]] for r in rows],
+                     dtype=float) / scale[:, None]
     joint = np.array([np.nan if r["crlb_joint"] is None else r["crlb_joint"] for r in rows], dtype=float) / scale
     finite = np.concatenate([alone[np.isfinite(alone)], joint[np.isfinite(joint)]])
     hi = 10 ** np.ceil(np.log10(finite.max())) if finite.size else 10.0
@@ -328,7 +330,8 @@ def impact_figures(analysis, out: str | os.PathLike) -> list[Path]:
     """`casep impact --figures DIR`: miss_budget.png and impact_ellipse.png in `out` (created)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    return [plot_miss_budget(analysis, out / "miss_budget.png"), plot_impact_ellipse(analysis, out / "impact_ellipse.png")]
+    return [plot_miss_budget(analysis, out / "miss_budget.png"),
+            plot_impact_ellipse(analysis, out / "impact_ellipse.png")]
 
 
 def plot_allan(noise, path: str | os.PathLike) -> Path:

@@ -39,7 +39,8 @@ def _coefficient_table(result: EstimateResult) -> str:
     for r in result.coefficient_rows():
         rows.append(f"<tr><td>{_esc(r['name'])}</td><td>{_esc(r['unit'])}</td>"
                     f"<td class=\"num\">{_esc(format_number(r['estimate'], 0))}</td>"
-                    f"<td class=\"num\">{_esc(format_number(r['std'], 0))}</td><td>{_esc(r.get('reason', ''))}</td></tr>")
+                    f"<td class=\"num\">{_esc(format_number(r['std'], 0))}</td>"
+                    f"<td>{_esc(r.get('reason', ''))}</td></tr>")
     rows.append("</table>")
     return "\n".join(rows)
 

@@ -47,8 +47,8 @@ from casep.model.sv import build_sv
 from casep.simulation.scenarios import Scenario, get_scenario
 from casep.simulation.trajectory import BoostTrajectory, body_to_platform, simulate_boost
 
-__all__ = ["SIGNAL_COLUMNS", "trajectory_signals", "SimulatedFlight", "simulate_flight", "scenario_setup", "write_simulation", "truth_path", "TwoRateData",
-           "simulate_two_rate"]
+__all__ = ["SIGNAL_COLUMNS", "trajectory_signals", "SimulatedFlight", "simulate_flight", "scenario_setup",
+           "write_simulation", "truth_path", "TwoRateData", "simulate_two_rate"]
 
 
 #: Signal columns of every simulated flight: name -> unit (see the module notes).

@@ -60,8 +60,8 @@ import numpy as np
 
 from casep.units import G0
 
-__all__ = ["body_to_platform", "Stage", "Vehicle", "PitchProgramme", "YawManoeuvre", "AttitudeProfile", "BoostTrajectory", "simulate_boost",
-           "atmosphere", "DEFAULT_VEHICLE", "MU_EARTH", "R_EARTH"]
+__all__ = ["body_to_platform", "Stage", "Vehicle", "PitchProgramme", "YawManoeuvre", "AttitudeProfile",
+           "BoostTrajectory", "simulate_boost", "atmosphere", "DEFAULT_VEHICLE", "MU_EARTH", "R_EARTH"]
 
 MU_EARTH = 3.986004418e14  # m^3/s^2
 R_EARTH = 6_371_000.0  # m
@@ -327,8 +327,8 @@ class BoostTrajectory:
                 y = sol(times[i])
                 f, grav, _ = _forces(self.vehicle, self.vehicle.stages[k], kind, times[i], t0, t1, y, state)
                 rows = dict(zip(out, (y[0:3], y[3:6], f + grav)))
-                rows["attitude"], rows["body_rate"] = _attitude_rates(self.vehicle, times[i],
-                                                                      *_relative(state, y[0:3], y[3:6], f + grav), state)
+                rows["attitude"], rows["body_rate"] = _attitude_rates(
+                    self.vehicle, times[i], *_relative(state, y[0:3], y[3:6], f + grav), state)
                 for key, value in rows.items():
                     out[key][i] = value
             done[idx] = True

@@ -356,7 +356,8 @@ class _Store:
         if sfile.exists():
             old = json.loads(sfile.read_text(encoding="utf-8"))
             if old != settings:
-                raise ValueError(f"--out {self.dir}: holds a campaign with other settings ({_settings_diff(old, settings)});"
+                raise ValueError(f"--out {self.dir}: holds a campaign with other settings "
+                                 f"({_settings_diff(old, settings)});"
                                  " use another folder, or the same settings to resume")
         else:
             self.dir.mkdir(parents=True, exist_ok=True)

@@ -150,7 +150,8 @@ def separate(
         labels["max_condition_index"] = max_condition_index
     res = run_method(method, solved, None, solved.t, {k: v for k, v in kw.items() if k in _REGISTRY[method].options},
                      **labels)
-    check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source)  # raw dv: noise-free, outliers, offset
+    # raw dv: noise-free, outliers, offset
+    check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source)
     if sigma is not None and not sigma_from_wavelet:
         check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model)
