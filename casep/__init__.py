@@ -73,8 +73,10 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.impact.miss": ("ImpactAnalysis", "impact_analysis"),
     "casep.analysis.checks": ("check_fit", "check_flight"),
     "casep.frames": ("LaunchSite",),
+    "casep.io.manifest": ("read_manifest", "Manifest"),
     "casep.exceptions": ("CasepWarning", "IllConditionedWarning", "NoiseFreeWarning", "OutlierWarning",
-                         "PlausibilityWarning", "TimeOffsetWarning"),
+                         "PlausibilityWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning",
+                         "NoiseLevelWarning"),
 }
 __getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), (
     "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units",
@@ -128,4 +130,9 @@ __all__ = [
     "NoiseFreeWarning",
     "LateStartWarning",
     "LaunchSite",
+    "read_manifest",
+    "Manifest",
+    "SetupWarning",
+    "MagnitudeWarning",
+    "NoiseLevelWarning",
 ]

@@ -40,6 +40,28 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str):  # one line, exit 2
         self.exit(2, f"{self.prog}: error: {message}\n")
 
+    def parse_known_args(self, args=None, namespace=None):
+        self._refuse_repeated(sys.argv[1:] if args is None else list(args))
+        return super().parse_known_args(args, namespace)
+
+    def _refuse_repeated(self, argv: list[str]) -> None:
+        """An option that takes one value (``--launch-site``, ``--model``) given twice is an error: argparse
+        would keep the last silently. Options that collect (``--tracking``, once per flight) may repeat.
+        Only this parser's own options count (a subcommand's parser checks its own, when argparse hands
+        it the rest of the line)."""
+        seen: dict[int, str] = {}
+        for token in argv:
+            if token == "--":
+                break
+            action = self._option_string_actions.get(token.split("=", 1)[0]) if token.startswith("-") else None
+            if action is None or isinstance(action, (argparse._AppendAction, argparse._CountAction,
+                                                     argparse._HelpAction, argparse._VersionAction)):
+                continue
+            if id(action) in seen:
+                self.error(f"{token.split('=', 1)[0]} given twice: it takes one value (argparse would keep the last "
+                           "silently); flights with their own set-up go in a manifest (--manifest FLIGHTS.toml)")
+            seen[id(action)] = token
+
 
 def _positive_float(text: str) -> float:
     try:
@@ -144,15 +166,52 @@ def _add_option(group, option: Option, default: str | None = None) -> None:
 
 
 def _read(args: argparse.Namespace):
-    """The flight of a command: one file, or telemetry + `--tracking`."""
+    """The flight of a command: one file, telemetry + `--tracking`, or the one flight of `--manifest`."""
     from casep.io.files import read_flight, read_flight_pair
 
+    man = getattr(args, "manifest_obj", None)
+    if man is not None:
+        if len(man.flights) != 1:
+            raise ValueError(f"--manifest {man.source} lists {len(man.flights)} flights; this command reads one")
+        return man.flights[0].read()
     tracking = args.tracking or []
     if len(tracking) > 1:
         raise ValueError(f"--tracking given {len(tracking)} times for one flight; give it once per flight")
     frames = _frame_options(args)  # --tracking-frame, --launch-site, --launch-time
-    return (read_flight_pair(args.flight, tracking[0], grid=args.grid, time_offset=args.time_offset, **frames)
+    return (read_flight_pair(args.flight, tracking[0], grid=args.grid, time_offset=args.time_offset,
+                             time_shift=getattr(args, "time_shift", 0.0), **frames)
             if tracking else read_flight(args.flight))
+
+
+def _manifest(args: argparse.Namespace):
+    """`--manifest FLIGHTS.toml` read (kept as ``args.manifest_obj``; ``args.flight`` its telemetry files), or None.
+
+    The manifest holds each flight's files and set-up: the single-flight options are an error with it, and
+    without it a flight file is needed."""
+    path = getattr(args, "manifest", None)
+    flights = args.flight if isinstance(args.flight, list) else [args.flight] if args.flight else []
+    if not path:
+        if not flights:
+            raise ValueError("give a flight file, or --manifest FLIGHTS.toml")
+        return None
+    given = [flag for flag, on in (
+        ("the flight files", flights), ("--tracking", args.tracking),
+        ("--tracking-frame", getattr(args, "tracking_frame", "launch") != "launch"),
+        ("--launch-site", getattr(args, "launch_site", None) is not None),
+        ("--launch-time", getattr(args, "launch_time", None) is not None),
+        ("--time-shift", getattr(args, "time_shift", 0.0) != 0.0),
+        ("--time-offset", getattr(args, "time_offset", None) is not None),
+        ("--grid", getattr(args, "grid", "tracking") != "tracking")) if on]
+    if given:
+        raise ValueError(f"--manifest {path} lists the flights with their files and set-up: leave out "
+                         f"{', '.join(given)} (they describe one flight given on the command line)")
+    from casep.io.manifest import read_manifest
+
+    man = read_manifest(path)
+    args.manifest_obj = man
+    telemetry = [str(f.telemetry) for f in man.flights]
+    args.flight = telemetry if isinstance(args.flight, list) else telemetry[0]
+    return man
 
 
 def _add_grid(parser) -> None:
@@ -164,6 +223,23 @@ def _add_grid(parser) -> None:
                         help="with --tracking: tracking time tags late by MS milliseconds, shifted back; 'auto': the "
                              "offset that lines up the velocity increments (then fit dt_trk for the rest); default: "
                              "none, with a warning when that offset exceeds a tracking sample period")
+    parser.add_argument("--time-shift", type=_finite_float, default=0.0, metavar="SECONDS",
+                        help="with --tracking: how the time scales relate, tracking time minus telemetry time "
+                             "(tracking in seconds of day, telemetry from lift-off at 12:00:00: 43200); default 0 "
+                             "(one scale)")
+    parser.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
+                        help="TOML manifest listing each flight's telemetry, tracking, frame, site, launch time and "
+                             "time shift (docs/guide/range-data.md), instead of the flight files and these options")
+
+
+def _finite_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    return v
 
 
 def _time_offset(text: str):
@@ -293,13 +369,16 @@ def _read_flights(args: argparse.Namespace) -> list:
     """Several flights, each a file or (with `--tracking` once per flight, in flight order) a pair."""
     from casep.io.files import read_flight, read_flight_pair
 
+    if getattr(args, "manifest_obj", None) is not None:
+        return args.manifest_obj.read()  # each flight with its own frame, site, launch time and time shift
     tracking = args.tracking or []
     if tracking and len(tracking) != len(args.flight):
         raise ValueError(f"--tracking given {len(tracking)} times for {len(args.flight)} flights: give it once per "
                          "flight, in the order of the flights (telemetry A --tracking TA, B --tracking TB)")
     frames = _frame_options(args)  # --tracking-frame, --launch-site, --launch-time: the same for every flight
     if tracking:
-        return [read_flight_pair(f, t, grid=args.grid, time_offset=args.time_offset, **frames)
+        return [read_flight_pair(f, t, grid=args.grid, time_offset=args.time_offset,
+                                 time_shift=getattr(args, "time_shift", 0.0), **frames)
                 for f, t in zip(args.flight, tracking)]
     return [read_flight(f) for f in args.flight]
 
@@ -336,7 +415,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"casep {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     s = sub.add_parser("separate", help="estimate the error coefficients of a flight file")
-    s.add_argument("flight", nargs="+", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "
+    s.add_argument("flight", nargs="*", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "
                    "several files: one estimate of the shared coefficients, per-flight ones per flight "
                    "(methods ols, ridge, bounded, pcr, map)")
     s.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
@@ -387,7 +466,7 @@ def _parser() -> argparse.ArgumentParser:
                         "att_pitch/att_yaw/att_roll (rad) and omega_x/y/z (rad/s, body) columns describe the attitude")
     _add_simulate_frames(g)  # --rotating-earth, --launch-site, --tracking-frame, --tracking-rate, --tracking-output
     d = sub.add_parser("diagnose", help="what the flight can and cannot determine")
-    d.add_argument("flight", nargs="+", help="flight file; several: what each determines alone and jointly")
+    d.add_argument("flight", nargs="*", help="flight file; several: what each determines alone and jointly")
     d.add_argument("--tracking", metavar="FILE", default=None, action="append",
                    help="tracking file (two-file input); several flights: once per flight, in their order")
     _add_grid(d)
@@ -405,7 +484,7 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--figures", metavar="DIR", default=None,
                    help="write singular_values.png and variance_decomposition.png here")
     nz = sub.add_parser("noise", help="Allan deviation of the residuals: white, Gauss-Markov or random-walk noise")
-    nz.add_argument("flight", help="flight file (or telemetry file with --tracking)")
+    nz.add_argument("flight", nargs="?", help="flight file (or telemetry file with --tracking)")
     nz.add_argument("--tracking", metavar="FILE", default=None, action="append", help="tracking file (two-file input)")
     _add_grid(nz)
     nz.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
@@ -465,6 +544,9 @@ def _inputs(args: argparse.Namespace, *names: str) -> list:
     for n in names:
         v = getattr(args, n, None)
         files += v if isinstance(v, list) else [v]
+    man = getattr(args, "manifest_obj", None)
+    if man is not None:  # the manifest and every file it lists
+        files += [man.source] + [str(p) for f in man.flights for p in (f.telemetry, f.tracking, f.result) if p]
     model = getattr(args, "model", None)
     return files + ([model] if model and Path(model).is_file() else [])
 
@@ -475,6 +557,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     from casep.model.loader import load_model
     from casep.workflows.separate import separate
 
+    _manifest(args)  # --manifest FLIGHTS.toml, or the flight files
     check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
                   inputs=_inputs(args, "flight", "tracking", "bounds", "prior"), folders={"--figures": args.figures})
     model = load_model(args.model)
@@ -584,6 +667,7 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     from casep.io._atomic import check_outputs
     from casep.model.loader import load_model
 
+    _manifest(args)  # --manifest FLIGHTS.toml (one flight), or the flight file
     check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking"),
                   folders={"--figures": args.figures})
     model = load_model(args.model)
@@ -715,6 +799,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     from casep.model._model import unknown_coefficient_message
     from casep.model.loader import load_model
 
+    _manifest(args)  # --manifest FLIGHTS.toml, or the flight files
     check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "prior", "scales"),
                   folders={"--figures": args.figures})
     model = load_model(args.model)
