@@ -353,8 +353,9 @@ MAGNITUDE_WARN = 100.0
 #: ... and this many times fails the result (status -5): no instrument is 1e4 times off its spec sheet;
 #: a set-up, unit or model mistake is far likelier.
 MAGNITUDE_FAIL = 1e4
-#: Both judged on ``|estimate| - MAGNITUDE_Z std``: what the data say at least.
-MAGNITUDE_Z = 3.0
+#: Both judged on ``|estimate| - MAGNITUDE_Z std``: what the data say at least (5 std: two-sided
+#: P = 6e-7 per coefficient, so that noise in a poorly determined coefficient is not flagged).
+MAGNITUDE_Z = 5.0
 #: Status of a result whose flight failed a set-up check (casep.io.flight.setup_problems).
 STATUS_SETUP = -4
 #: Status of a result with estimates beyond :data:`MAGNITUDE_FAIL` times their declared magnitudes.
@@ -395,8 +396,9 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
     std = res.std if res.std is not None else np.zeros(len(res.names))
     for name, unit, x, sd in zip(res.names, res.units, res.estimate, std):
         scale = scales.get(name, scales.get(name.split("[")[0]))
-        sd = float(sd) if np.isfinite(sd) else 0.0
-        # |x| - 3 std: what the data say at least, so that a poorly determined coefficient's noise is not flagged
+        if not np.isfinite(sd):
+            continue  # a std the method does not define (a coefficient at a bound): the bound is the user's
+        # |x| - 5 std: what the data say at least, so that a poorly determined coefficient's noise is not flagged
         low = abs(x) - MAGNITUDE_Z * sd
         if scale and np.isfinite(x) and low >= MAGNITUDE_WARN * scale:
             rows.append({"name": name, "estimate": float(x), "std": sd, "unit": unit, "declared": float(scale),
