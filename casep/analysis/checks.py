@@ -472,7 +472,7 @@ def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5) -> 
 
 
 #: A given sigma and the least-squares residual std differing by more than this factor ...
-SIGMA_FACTOR = 2.0
+SIGMA_FACTOR = 3.0
 #: ... with a two-sided chi-square p-value below this: a warning.
 SIGMA_P = 1e-3
 
