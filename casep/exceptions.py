@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 __all__ = ["CasepWarning", "IllConditionedWarning", "PlausibilityWarning", "NoiseFreeWarning",
-           "OutlierWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning", "NoiseLevelWarning"]
+           "OutlierWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning", "NoiseLevelWarning",
+           "GapWarning"]
 
 
 class CasepWarning(UserWarning):
@@ -42,3 +43,7 @@ class MagnitudeWarning(CasepWarning):
 
 class NoiseLevelWarning(CasepWarning):
     """A given noise sigma (or a prior) that the residuals contradict: the message gives the ratio and the test."""
+
+
+class GapWarning(CasepWarning):
+    """A gap in tracking (or telemetry) that interpolation would bridge: the rows inside it are left out."""

@@ -356,6 +356,9 @@ MAGNITUDE_FAIL = 1e4
 #: Both judged on ``|estimate| - MAGNITUDE_Z std``: what the data say at least (5 std: two-sided
 #: P = 6e-7 per coefficient, so that noise in a poorly determined coefficient is not flagged).
 MAGNITUDE_Z = 5.0
+#: Methods whose estimates of poorly determined coefficients the regularisation sets, not the data (and whose
+#: std leave out that bias): beyond :data:`MAGNITUDE_FAIL` they get the warning, not a failure.
+REGULARISED = ("ridge", "pcr", "bounded")
 #: Status of a result whose flight failed a set-up check (casep.io.flight.setup_problems).
 STATUS_SETUP = -4
 #: Status of a result with estimates beyond :data:`MAGNITUDE_FAIL` times their declared magnitudes.
@@ -373,7 +376,8 @@ def failed(res: EstimateResult, status: int, message: str) -> EstimateResult:
 
 def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str = "") -> EstimateResult:
     """Estimates against the model's declared magnitudes: a :class:`~casep.exceptions.MagnitudeWarning` at
-    :data:`MAGNITUDE_WARN` times, a failed result (status :data:`STATUS_MAGNITUDE`) at :data:`MAGNITUDE_FAIL`.
+    :data:`MAGNITUDE_WARN` times, a failed result (status :data:`STATUS_MAGNITUDE`) at :data:`MAGNITUDE_FAIL`
+    (a warning for the :data:`REGULARISED` methods).
 
     Parameters
     ----------
@@ -415,7 +419,9 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
             f"{MAGNITUDE_Z:g} std; {listed}): "
             "a set-up mistake (launch site, azimuth, time scales), a unit mistake or a missing model term is likelier "
             "than such instruments")
-    if worst >= MAGNITUDE_FAIL:
+    if worst >= MAGNITUDE_FAIL and res.method not in REGULARISED:
         return failed(res, STATUS_MAGNITUDE, f"failed: {text} (beyond {MAGNITUDE_FAIL:g} x)")
+    if not res.success:
+        return res  # failed already, for its own reason (recorded in diagnostics["magnitudes"])
     warnings.warn(MagnitudeWarning(where + text), stacklevel=2)
     return res

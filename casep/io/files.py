@@ -597,8 +597,14 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
 
     keep = t_tel <= t_trk[-1]  # from the first telemetry sample to the end of tracking
     extra: dict = {}
+    trk_gaps, tel_gaps = _gaps(t_trk), _gaps(t_tel)
     if grid == "telemetry":
         t, observed = t_tel[keep], (t_tel[keep] >= t_trk[0])
+        in_gap = _inside(t, trk_gaps)
+        if in_gap.any():  # tracking interpolated across a gap invents data: those rows are not observed
+            _warn_gaps("tracking", trk_gaps, int(np.count_nonzero(in_gap & observed)), "telemetry samples", source)
+            observed &= ~in_gap
+            extra["gap_rows_left_out"] = int(np.count_nonzero(in_gap))
         dv = np.full((t.size, 3), np.nan)  # not observed before tracking starts
         dv[observed] = v_tel[keep][observed] - carry(t_trk, v_trk, t[observed])  # v_tel - v_trk(t_tel)
         f_out = f[keep]
@@ -606,6 +612,11 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
         how = f"v_tel - v_trk at telemetry times ({interpolation} interpolation of tracking)"
     else:
         use = (t_trk >= t_tel[0]) & (t_trk <= t_tel[-1])
+        in_gap = _inside(t_trk, tel_gaps) & use
+        if in_gap.any():  # telemetry velocity interpolated across a telemetry gap: those tracking rows left out
+            _warn_gaps("telemetry", tel_gaps, int(np.count_nonzero(in_gap)), "tracking samples", source)
+            use &= ~in_gap
+            extra["gap_rows_left_out"] = int(np.count_nonzero(in_gap))
         tt = t_trk[use]
         t_keep = t_tel[keep]
         j = np.clip(np.searchsorted(t_keep, tt), 1, t_keep.size - 1)
@@ -620,7 +631,9 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
         f_out = np.column_stack([np.interp(t, t_tel, f[:, i]) for i in range(3)])
         sig = {k: np.interp(t, t_tel, v) for k, v in signals.items()}
         how = f"v_tel - v_trk at tracking times ({interpolation} interpolation of telemetry)"
-        extra = {"tracking_dropped": int((~use).sum()), "inserted": int((~on).sum())}
+        extra = {**extra, "tracking_dropped": int((~use).sum()), "inserted": int((~on).sum())}
+    if trk_gaps or tel_gaps:
+        extra["gaps_s"] = {"tracking": trk_gaps, "telemetry": tel_gaps}
     meta = {"format": "pair", "grid": grid, "dv": how, **(meta or {}), **extra,
             "telemetry_span_s": [float(t_tel[0]), float(t_tel[-1])],
             "tracking_span_s": [float(t_trk[0]), float(t_trk[-1])],
@@ -629,6 +642,41 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
             "start_speed_m_s": float(np.linalg.norm(v_tel[0])),
             "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.checks
     return FlightData(t, f_out, dv, source=source, meta=meta, observed=observed, signals=sig)
+
+
+#: A step this many times the median sample step is a gap that interpolation must not bridge ...
+GAP_FACTOR = 5.0
+#: ... and at least this long, s (a few missing samples at 20 Hz are bridged well by a cubic spline).
+GAP_MIN_S = 0.5
+
+
+def _gaps(t: np.ndarray) -> list[list[float]]:
+    """``[[start, end], ...]`` of the steps of `t` above :data:`GAP_FACTOR` x its median step and :data:`GAP_MIN_S`."""
+    if t.size < 3:
+        return []
+    step = np.diff(t)
+    big = np.flatnonzero((step > GAP_FACTOR * np.median(step)) & (step > GAP_MIN_S))
+    return [[float(t[k]), float(t[k + 1])] for k in big]
+
+
+def _inside(t: np.ndarray, gaps: list[list[float]]) -> np.ndarray:
+    """Samples strictly inside one of the `gaps`."""
+    out = np.zeros(t.size, dtype=bool)
+    for a, b in gaps:
+        out |= (t > a) & (t < b)
+    return out
+
+
+def _warn_gaps(which: str, gaps: list[list[float]], rows: int, what: str, source: str) -> None:
+    import warnings
+
+    from casep.exceptions import GapWarning
+
+    listed = ", ".join(f"{b - a:.4g} s from t = {a:.10g} s" for a, b in gaps[:5]) + (" ..." if len(gaps) > 5 else "")
+    warnings.warn(GapWarning(
+        f"{source}: the {which} has {len(gaps)} gap(s) ({listed}; above {GAP_FACTOR:g} x its median step and "
+        f"{GAP_MIN_S:g} s): interpolating across them would invent data, so the {rows} {what} inside are left out of "
+        "the regression (S_V is still integrated through them)"), stacklevel=4)
 
 
 def write_table(path: str | os.PathLike, columns: dict[str, np.ndarray], *,
