@@ -215,6 +215,8 @@ def solve_rls(
                          **{k: (tuple(v) if isinstance(v, list) else v)
                             for k, v in diagnostics.get("noise_model", {}).items()}),
     )
+    if forgetting < 1.0:  # P is then no covariance and the prior no belief: the std are indicative only
+        return res
     return prior_conflict(pb.problem, res, sig * np.sqrt(weight * p0), sig)
 
 
