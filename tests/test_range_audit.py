@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import warnings
 
-import numpy as np
 import pandas as pd
 import pytest
 
@@ -65,3 +64,33 @@ def test_rls_prior_the_data_contradict_fails():
     assert "prior-data conflict" in res.message and "z = " in res.message
     assert res.diagnostics["prior_conflict"][0]["z"] > 5
     assert ok.success and "prior_conflict" not in ok.diagnostics
+
+
+# ------------------------------------------------------------------ Monte Carlo inputs refused at the edge
+@pytest.mark.parametrize("disp, message", [
+    ({"launch_azimuth_deg": {"dist": "normal", "mean": 1e300, "std": 1.0}},
+     r"`launch_azimuth_deg`: draws must stay within \+-180 deg, got \[1e\+300, 1e\+300\]"),
+    ({"launch_azimuth_deg": {"dist": "uniform", "low": -200.0, "high": 0.0}}, r"within \+-180 deg"),
+    ({"thrust_scale": {"dist": "normal", "mean": 0.01, "std": 0.0}},
+     r"lift-off thrust-to-weight of 0\.0178 \(nominal 1\.78\), below 1\.05: that vehicle does not lift off"),
+    ({"thrust_scale": {"dist": "uniform", "low": 0.9, "high": 1.1},
+      "liftoff_mass_scale": {"dist": "uniform", "low": 1.0, "high": 1.8}}, r"thrust-to-weight of 0\.89"),
+])
+def test_montecarlo_dispersions_that_hang_or_never_lift_off_are_refused(disp, message):
+    """An azimuth of 1e300 hung main (still running after 120 s); a thrust scale of 0.01 ran without lift-off."""
+    from casep.workflows.montecarlo import run_montecarlo
+
+    with pytest.raises(ValueError, match=message):
+        run_montecarlo("paper", runs=1, methods=["ols"], rate=5.0, workers=1, progress=False, dispersions=disp)
+
+
+def test_montecarlo_truth_prior_beyond_any_instrument_is_refused():
+    """--truth-from-prior with std 1e308 printed nan; beyond 1e4 x the declared magnitude is refused too."""
+    from casep.workflows.montecarlo import run_montecarlo
+
+    for std, message in ((1e308, r"`Kg0x`: draws reach \|mean\| \+ 6 std = inf deg/h"),
+                         (1e3, r"`Kg0x`: draws reach \|mean\| \+ 6 std = 6000 deg/h, beyond 10000 x its declared "
+                               r"magnitude 0\.5")):
+        with pytest.raises(ValueError, match=message):
+            run_montecarlo("paper", runs=1, methods=["ols"], rate=5.0, workers=1, progress=False,
+                           truth_prior={"Kg0x": {"mean": 0.0, "std": std}})

@@ -238,10 +238,9 @@ def prior_conflict(problem, res: EstimateResult, prior_std: float, sigma: float)
     """
     import warnings
 
+    from casep.analysis.checks import NOISE_FREE
     from casep.estimators._base import failed
     from casep.estimators.ols import solve_ols
-
-    from casep.analysis.checks import NOISE_FREE
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # conditioning: said by the RLS result itself

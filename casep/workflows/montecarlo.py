@@ -673,10 +673,11 @@ def run_montecarlo(
         if "correlation" in truth_prior and "correlation" not in names:
             raise ValueError("`truth_prior`: a correlation entry is not supported (marginal means and stds only)")
         tp = parse_prior(truth_prior, names, "`truth_prior`")
+        _check_truth_prior(tp, model, "`truth_prior`")
     if dispersions is not None:
         from casep.simulation.dispersions import parse_dispersions
 
-        dispersions = parse_dispersions(dispersions, len(sc.vehicle.stages), "`dispersions`")
+        dispersions = parse_dispersions(dispersions, len(sc.vehicle.stages), "`dispersions`", vehicle=sc.vehicle)
     sigma = sc.noise.sigma
     tau = sc.noise.tau if sc.noise.kind == "ar1" else None
     S = t = crlb = None
@@ -799,3 +800,21 @@ def write_figure(res: MonteCarloResult, path: str | os.PathLike) -> Path:
     ax.legend(fontsize=8, ncol=3)
     ax.grid(True, which="both", alpha=0.3)
     return _save(fig, path)
+
+
+def _check_truth_prior(tp: tuple[np.ndarray, np.ndarray], model, source: str) -> None:
+    """Refuse a truth prior whose draws (mean +- 6 std) reach beyond :data:`~casep.estimators._base.MAGNITUDE_FAIL`
+    times a coefficient's declared magnitude (what casep calls a failed result), or overflow (std 1e308)."""
+    from casep.estimators._base import MAGNITUDE_FAIL
+
+    mu, sd = tp
+    scales = model.scales
+    for j, name in enumerate(model.names):
+        if not np.isfinite(sd[j]):
+            continue  # not drawn
+        reach = abs(float(mu[j])) + 6.0 * float(sd[j])
+        limit = MAGNITUDE_FAIL * scales[name] if name in scales else np.finfo(float).max / 1e10
+        if not reach <= limit:
+            raise ValueError(f"{source}: `{name}`: draws reach |mean| + 6 std = {reach:.4g} {model.units[j]}, beyond "
+                             + (f"{MAGNITUDE_FAIL:g} x its declared magnitude {scales[name]:g} (a result that far "
+                                "off is a failure)" if name in scales else "what a flight can hold"))
