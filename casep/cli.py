@@ -583,9 +583,11 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     for w in caught:  # on to main(), which prints them
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
+    prov = _provenance(args, [flight])
     if args.json:
-        write_json_atomic({**res.to_dict(), **({"time_alignment": align} if align else {})}, args.json)
-    _write_exports(res, args)
+        write_json_atomic({**res.to_dict(), **({"time_alignment": align} if align else {}), "provenance": prov},
+                          args.json)
+    _write_exports(res, args, t=flight.t[flight.observed], provenance=prov)
     print(res.table())
     if args.outliers is not None:
         from casep.analysis.outliers import OutlierFlags
@@ -601,7 +603,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     for label, path in (("MAT file", args.mat), ("CSV", args.csv)):
         if path:
             print(f"{label} written to {path}")
-    _write_separate_outputs(args, res, flight, bounds, prior, caught)
+    _write_separate_outputs(args, res, flight, bounds, prior, caught, prov)
     return _result_status(res)
 
 
@@ -637,7 +639,7 @@ def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior
     if summary["consistency"].get("note"):
         print("note: " + summary["consistency"]["note"])
     if args.json:
-        write_json_atomic(_joint_json(res, jp, summary), args.json)
+        write_json_atomic({**_joint_json(res, jp, summary), "provenance": _provenance(args, flights)}, args.json)
         print(f"result written to {args.json}")
     return _result_status(res)
 
@@ -748,7 +750,23 @@ def _diagnose_flights(args: argparse.Namespace, model, prior, scales) -> int:
     return 0
 
 
-def _write_separate_outputs(args: argparse.Namespace, res, flight, bounds, prior, caught) -> None:
+def _provenance(args: argparse.Namespace, flights: list) -> dict:
+    """The provenance record of a command's result (casep.io.provenance): files with SHA-256, frames, sites,
+    time alignment, exclusions, the options as given and the command line."""
+    from casep.io.provenance import provenance
+
+    skip = {"command", "flight", "tracking", "manifest", "manifest_obj", "json", "mat", "csv", "report", "figures",
+            "argv"}
+    options = {k: v for k, v in vars(args).items() if k not in skip and v is not None
+               and isinstance(v, (str, int, float, bool, list))}
+    model = getattr(args, "model", None)
+    inputs = {"prior": getattr(args, "prior", None), "bounds": getattr(args, "bounds", None),
+              "model": model if model and Path(str(model)).is_file() else None}
+    return provenance(flights, inputs=inputs, options=options, argv=getattr(args, "argv", None),
+                      manifest=getattr(args, "manifest_obj", None))
+
+
+def _write_separate_outputs(args: argparse.Namespace, res, flight, bounds, prior, caught, prov=None) -> None:
     """`--figures DIR` and `--report FILE` of `separate` (matplotlib imported only when asked)."""
     if not (args.figures or args.report):
         return
@@ -763,7 +781,7 @@ def _write_separate_outputs(args: argparse.Namespace, res, flight, bounds, prior
         lines = [str(w.message) for w in caught if issubclass(w.category, CasepWarning)
                  and not issubclass(w.category, IllConditionedWarning)]
         write_report(res, args.report, flight=flight, figures=files, prior=prior, bounds=bounds, warnings=lines,
-                     source=args.flight)
+                     source=flight.source, provenance=prov)
         print(f"report written to {args.report}")
 
 
@@ -779,12 +797,12 @@ def _result_status(res) -> int:
     return 1
 
 
-def _write_exports(res, args: argparse.Namespace) -> None:
-    """`--mat` and `--csv` of `separate`."""
+def _write_exports(res, args: argparse.Namespace, *, t=None, provenance=None) -> None:
+    """`--mat` (with the residuals' times and the provenance) and `--csv` of `separate`."""
     from casep.estimators.result import write_csv, write_mat
 
     if args.mat:
-        write_mat(res, args.mat)
+        write_mat(res, args.mat, t=t, provenance=provenance)
     if args.csv:
         write_csv(res, args.csv)
 
@@ -1188,6 +1206,7 @@ def _quiet_on_broken_pipe(run):
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     args = _parser().parse_args(argv)
+    args.argv = ["casep", *(sys.argv[1:] if argv is None else argv)]  # the command line, for the provenance
     commands = {"separate": _cmd_separate, "diagnose": _cmd_diagnose, "simulate": _cmd_simulate,
                 "montecarlo": _cmd_montecarlo, "demo": _cmd_demo, "models": _cmd_models, "methods": _cmd_methods,
                 "fuse": _cmd_fuse, "impact": _cmd_impact, "noise": _cmd_noise, "design": _cmd_design}
