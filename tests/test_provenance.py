@@ -87,3 +87,18 @@ def test_headline_combinations_closed_form():
     (c,) = d["combinations"]
     assert c["terms"] == pytest.approx({"a": 1.0, "b": 1.0}) or c["terms"] == pytest.approx({"a": -1.0, "b": -1.0})
     assert c["std"] == pytest.approx(np.sqrt(0.008 / 2), rel=1e-9)  # unit-norm eigenvector (a + b) / sqrt 2
+
+
+def test_estimates_figure_one_panel_per_instrument(tmp_path):
+    """The estimates figure plotted t-statistics labelled "value / scale" on one axis (dt_trk at 104 flattened
+    the other 36); now one panel per instrument, in units of the declared magnitude."""
+    import casep
+    from casep.reporting.plots import instrument_groups
+
+    names = casep.load_model("platform36_timeoffset").names
+    g = instrument_groups(names)
+    assert list(g) == ["gyro x", "gyro y", "gyro z", "accelerometer x", "accelerometer y", "accelerometer z",
+                       "other"]
+    assert [names[j] for j in g["other"]] == ["dt_trk"]
+    assert [names[j] for j in g["gyro x"]] == ["Kg0x", "Kg1x", "Kg1xy", "Kg1xz", "Kg2x"]
+    assert sum(len(v) for v in g.values()) == len(names)
