@@ -526,6 +526,7 @@ def _parser() -> argparse.ArgumentParser:
     mc.add_argument("--out", metavar="DIR", default=None,
                     help="write runs.parquet/ (per-run results, one part per task) and summary.json here; a rerun "
                          "with the same settings resumes")
+    _own_trajectory_options(mc)
     fu = sub.add_parser("fuse", help="combine results saved earlier (JSON with covariance) into one estimate")
     fu.add_argument("results", nargs="+", metavar="RESULT.json", help="two or more results of one model")
     fu.add_argument("--json", metavar="OUT", default=None, help="write the fused result JSON here")
@@ -536,6 +537,30 @@ def _parser() -> argparse.ArgumentParser:
     _impact_parser(sub)
     _design_parser(sub)
     return p
+
+
+def _own_trajectory_options(parser) -> None:
+    """`montecarlo` / `design`: one's own trajectory (a flight file) and truth instead of the scenario's."""
+    parser.add_argument("--flight", metavar="FILE", default=None,
+                        help="one's own trajectory: a flight file (t, f_*, dv_* or v_tel_*/v_trk_*) whose times and "
+                             "specific force replace the scenario's; needs --truth")
+    parser.add_argument("--truth", metavar="TRUTH.json", default=None,
+                        help='with --flight: true coefficients {"Kg0x": value, ...} (natural units) or a truth file of '
+                             "casep simulate (its model and noise used; else white noise of the flight's own "
+                             "least-squares residual std)")
+
+
+def _own_trajectory(args: argparse.Namespace) -> tuple:
+    """(flight path, truth dict, model name) of --flight/--truth, or (None, None, None)."""
+    flight, truth = getattr(args, "flight", None), getattr(args, "truth", None)
+    if not flight and not truth:
+        return None, None, None
+    if not (flight and truth):
+        raise ValueError("--flight and --truth go together: one's own trajectory needs its true coefficients")
+    from casep.io.files import read_json_table
+
+    data = read_json_table(truth, "--truth")
+    return flight, data, data.get("model") if isinstance(data.get("model"), str) else None
 
 
 def _inputs(args: argparse.Namespace, *names: str) -> list:
@@ -1043,9 +1068,10 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
     from casep.workflows.montecarlo import Terminated, run_montecarlo, sigterm_raises, write_figure
 
     check_outputs({"--json": args.json, "--csv": args.csv, "--figure": args.figure},
-                  inputs=_inputs(args, "prior", "bounds", "dispersions", "truth_from_prior"))
+                  inputs=_inputs(args, "prior", "bounds", "dispersions", "truth_from_prior", "flight", "truth"))
     sc = get_scenario(args.scenario)
-    names = load_model(sc.model).names
+    own_flight, own_truth, own_model = _own_trajectory(args)  # --flight FILE --truth TRUTH.json
+    names = load_model(own_model or sc.model).names
     prior, bounds = _coefficient_file(args, "prior", names), _coefficient_file(args, "bounds", names)
     dispersions = truth_prior = None
     if args.dispersions:
@@ -1069,11 +1095,14 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
             res = run_montecarlo(args.scenario, runs=args.runs, methods=methods, seed=args.seed, rate=args.rate,
                                  workers=args.workers, progress=args.progress, prior=prior, bounds=bounds,
                                  scheduler=args.scheduler, dispersions=dispersions, truth_prior=truth_prior,
-                                 out=args.out)
+                                 out=args.out, flight=own_flight, truth=own_truth)
     except (KeyboardInterrupt, Terminated) as exc:  # workers already ended; no report (--out: finished parts kept)
         print("casep: interrupted", file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130
     print(f"scenario {res.scenario}, {res.runs} runs, seed {res.seed}")
+    if args.out:
+        print(f"resumed {res.resumed} of {res.tasks} tasks from {args.out}" if res.resumed else
+              f"{res.tasks} tasks, none resumed")
     print(res.summary())
     if args.json:
         res.write_json(args.json)
