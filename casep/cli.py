@@ -528,7 +528,9 @@ def _parser() -> argparse.ArgumentParser:
                          "with the same settings resumes")
     _own_trajectory_options(mc)
     fu = sub.add_parser("fuse", help="combine results saved earlier (JSON with covariance) into one estimate")
-    fu.add_argument("results", nargs="+", metavar="RESULT.json", help="two or more results of one model")
+    fu.add_argument("results", nargs="*", metavar="RESULT.json", help="two or more results of one model")
+    fu.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
+                    help="fuse the results the manifest lists (each flight's `result`), instead of RESULT.json files")
     fu.add_argument("--json", metavar="OUT", default=None, help="write the fused result JSON here")
     me = sub.add_parser("methods", help="list the estimators, their options and capabilities")
     me.add_argument("--json", action="store_true", help="print the registry as JSON")
@@ -537,6 +539,45 @@ def _parser() -> argparse.ArgumentParser:
     _impact_parser(sub)
     _design_parser(sub)
     return p
+
+
+def _manifest_results(args: argparse.Namespace) -> None:
+    """`fuse --manifest`: ``args.results`` from the flights' `result` keys (the files or the manifest, not both)."""
+    if not getattr(args, "manifest", None):
+        if len(args.results) < 2:
+            raise ValueError(f"fuse needs two or more RESULT.json files (or --manifest), got {len(args.results)}")
+        return
+    if args.results:
+        raise ValueError(f"--manifest {args.manifest} lists the results: leave out the RESULT.json files")
+    from casep.io.manifest import read_manifest
+
+    man = read_manifest(args.manifest)
+    missing = [k + 1 for k, f in enumerate(man.flights) if f.result is None]
+    if missing:
+        raise ValueError(f"--manifest {args.manifest}: flight(s) {', '.join(map(str, missing))} have no `result` "
+                         "(the result JSON of that flight) to fuse")
+    args.results = [str(f.result) for f in man.flights]
+
+
+def _impact_manifest(args: argparse.Namespace) -> None:
+    """`impact --manifest`: its one flight's telemetry file as FLIGHT and its `result` unless --result is given."""
+    if not getattr(args, "manifest", None):
+        if not args.flight or not args.result:
+            raise ValueError("impact needs FLIGHT and --result RESULT.json (or --manifest FLIGHTS.toml)")
+        return
+    if args.flight:
+        raise ValueError(f"--manifest {args.manifest} names the flight: leave out FLIGHT")
+    from casep.io.manifest import read_manifest
+
+    man = read_manifest(args.manifest)
+    if len(man.flights) != 1:
+        raise ValueError(f"--manifest {args.manifest} lists {len(man.flights)} flights; impact reads one")
+    f = man.flights[0]
+    args.flight = str(f.telemetry)
+    if not args.result:
+        if f.result is None:
+            raise ValueError(f"--manifest {args.manifest}: the flight has no `result`; give --result RESULT.json")
+        args.result = str(f.result)
 
 
 def _own_trajectory_options(parser) -> None:
@@ -728,6 +769,7 @@ def _cmd_fuse(args: argparse.Namespace) -> int:
     from casep.io.files import read_json_table
     from casep.workflows.flights import fuse
 
+    _manifest_results(args)  # --manifest: each flight's `result`
     check_outputs({"--json": args.json}, inputs=list(args.results))
     results = []
     for path in args.results:
@@ -885,8 +927,12 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 def _impact_parser(sub) -> None:
     """`casep impact FLIGHT --result RESULT.json [--trajectory OTHER.csv] [--json OUT] [--figures DIR]`."""
     im = sub.add_parser("impact", help="the impact miss that the estimated instrument errors cause, and its budget")
-    im.add_argument("flight", help="flight file the result was estimated on (t, f_*, r_*, v_*; last row = burnout)")
-    im.add_argument("--result", required=True, metavar="RESULT.json", help="result JSON of casep separate --json")
+    im.add_argument("flight", nargs="?", help="flight file the result was estimated on (t, f_*, r_*, v_*; last row = "
+                    "burnout)")
+    im.add_argument("--result", metavar="RESULT.json", help="result JSON of casep separate --json (required, or the "
+                    "manifest flight's `result`)")
+    im.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
+                    help="a manifest of one flight: its telemetry file and (without --result) its `result`")
     im.add_argument("--trajectory", metavar="OTHER", default=None,
                     help="apply the result to another trajectory's S_V and burnout state (t, f_*, r_*, v_*)")
     im.add_argument("--model", default=None, help="model name or .py file (default: the result's)")
@@ -905,6 +951,7 @@ def _cmd_impact(args: argparse.Namespace) -> int:
     from casep.io._atomic import check_outputs
     from casep.io.files import read_flight
 
+    _impact_manifest(args)  # --manifest: the flight's file and result
     check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "result", "trajectory"),
                   folders={"--figures": args.figures})
     per_flight = {}

@@ -145,3 +145,31 @@ def test_cli_manifest_rules_and_repeated_options(ranges, capsys):
         assert exc.value.code == 2
         err = capsys.readouterr().err
         assert "given twice: it takes one value" in err
+
+
+def test_fuse_and_impact_read_the_manifest(tmp_path, capsys):
+    """`fuse --manifest` fuses the flights' `result` files, `impact --manifest` reads its flight and result:
+    the same numbers as the files given by hand."""
+    from casep.simulation.simulate import simulate_flight, write_simulation
+
+    paths = []
+    for seed in (5, 6):
+        fl, _ = write_simulation(simulate_flight("paper", seed=seed, rate=5.0), tmp_path / f"f{seed}.csv")
+        r = tmp_path / f"r{seed}.json"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", casep.IllConditionedWarning)
+            assert main(["separate", str(fl), "--json", str(r)]) == 0
+        paths.append((fl, r))
+    body = "".join(f'[[flight]]\ntelemetry = "{fl.name}"\nresult = "{r.name}"\n\n' for fl, r in paths)
+    man = _write(tmp_path, "m.toml", body)
+    one = _write(tmp_path, "one.toml", f'[[flight]]\ntelemetry = "{paths[0][0].name}"\nresult = "{paths[0][1].name}"\n')
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    assert main(["fuse", str(paths[0][1]), str(paths[1][1]), "--json", str(a)]) == 0
+    assert main(["fuse", "--manifest", str(man), "--json", str(b)]) == 0
+    assert json.loads(a.read_text())["estimates"] == json.loads(b.read_text())["estimates"]
+    assert main(["fuse", "--manifest", str(man), str(paths[0][1])]) == 2
+    assert "leave out the RESULT.json files" in capsys.readouterr().err
+    ia, ib = tmp_path / "ia.json", tmp_path / "ib.json"
+    assert main(["impact", str(paths[0][0]), "--result", str(paths[0][1]), "--json", str(ia)]) == 0
+    assert main(["impact", "--manifest", str(one), "--json", str(ib)]) == 0
+    assert json.loads(ia.read_text())["miss"] == json.loads(ib.read_text())["miss"]
