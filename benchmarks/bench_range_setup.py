@@ -38,7 +38,8 @@ def main() -> None:
                 res = casep.separate(fl, "platform36")
             ev, a = fl.meta["setup"], fl.meta["time_alignment"]
             print(f"| {label} | {ev['pad']['speed_relative_m_s']:.3g} | "
-                  f"{ev['first_tracked']['distance_from_site_m'] / 1e3:.4g} | {ev['pad']['turn_about_vertical_deg']:.3g} "
+                  f"{ev['first_tracked']['distance_from_site_m'] / 1e3:.4g} | "
+                  f"{ev['pad']['turn_about_vertical_deg']:.3g} "
                   f"| {1e3 * a['tau_s']:.3g} ({100 * a['gain']:.2g} %) | {res.status} "
                   f"{'success' if res.success else 'failed'} |")
 
