@@ -792,7 +792,8 @@ def _diagnose_flights(args: argparse.Namespace, model, prior, scales) -> int:
 
     if args.tau:
         raise ValueError("--tau is not available with several flights yet; give one flight, or leave it out")
-    d = diagnose_flights(_read_flights(args), model, sigma=args.sigma, prior=prior, scales=scales)
+    flights = _read_flights(args)
+    d = diagnose_flights(flights, model, sigma=args.sigma, prior=prior, scales=scales)
     k = len(d["flights"])
     print(f"model {model.name}, {k} flights: CRLB std alone and jointly (verdict: + identifiable, ~ weak, "
           "- unidentifiable)" + ("; joint bound with the prior" if prior is not None else ""))
@@ -807,7 +808,7 @@ def _diagnose_flights(args: argparse.Namespace, model, prior, scales) -> int:
         print(f"flight {i + 1}: {f}, sigma {s:.4g} m/s, identifiable alone {d['identifiable_alone'][i]}")
     print(f"identifiable jointly: {d['identifiable_joint']} of {len(d['coefficients'])}")
     if args.json:
-        write_json_atomic({"model": model.name, **d}, args.json)
+        write_json_atomic({"model": model.name, **d, "provenance": _provenance(args, flights)}, args.json)
         print(f"diagnostics written to {args.json}")
     if args.figures:
         from casep.reporting.plots import plot_flights_crlb
@@ -908,7 +909,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
                     scales=model.scales if scales is None else scales)
     if args.json:
         write_json_atomic({"casep_version": __version__, "model": model.name, "n_samples": flight.n_observed,
-                           "diagnostics": diag.to_dict()}, args.json)
+                           "diagnostics": diag.to_dict(), "provenance": _provenance(args, [flight])}, args.json)
     print(f"model {model.name}, {flight.n_observed} samples")
     print(diag.report())
     if args.figures:

@@ -92,8 +92,13 @@ def test_manifest_api_and_diagnose(ranges, capsys):
     assert man.flights[0].telemetry == ranges / "a_tel.csv"  # relative to the manifest's folder
     flights = man.read()
     assert flights[1].meta["time_shift_s"] == DAY and flights[1].meta["setup"]["problems"] == []
-    assert main(["diagnose", "--manifest", str(ranges / "flights.toml")]) == 0
+    out = ranges / "diag.json"
+    assert main(["diagnose", "--manifest", str(ranges / "flights.toml"), "--json", str(out)]) == 0
     assert "identifiable jointly" in capsys.readouterr().out
+    prov = json.loads(out.read_text())["provenance"]
+    assert [f["role"] for f in prov["inputs"]] == ["manifest", "telemetry", "tracking", "telemetry", "tracking"]
+    assert prov["manifest"]["flights"][1]["time_shift_s"] == DAY
+    assert prov["flights"][1]["tracking_frame"]["frame"] == "geodetic"
 
 
 def _write(folder, name, text):
