@@ -1,6 +1,6 @@
 """Benchmark: whole-process wall time of `casep` commands against `python -c "import numpy, pandas"`.
 
-Issue 10's targets: `casep separate` on the 20k-sample example flight <= 3x the baseline,
+Targets: `casep separate` on the 20k-sample example flight <= 3x the baseline,
 `casep demo` <= 4 s. `casep --help` and `casep models` show what the lazy imports buy (the CLI
 imports a command's modules only when it runs).
 
@@ -53,7 +53,7 @@ def main() -> None:
             ("`casep models`", casep + ["models"], "-"),
             ("`casep separate examples/data/example_flight.csv`", casep + ["separate", str(flight)], "<= 3x")]
     print(f"{args.runs} interleaved runs after a warm-up; medians")
-    print("| command | wall (s) | baseline wall (s) | ratio to `import numpy, pandas` | target (issue 10) |")
+    print("| command | wall (s) | baseline wall (s) | ratio to `import numpy, pandas` | target |")
     print("|---|---|---|---|---|")
     for label, cmd, target in rows:
         t, tb, r = paired(cmd, base, args.runs)

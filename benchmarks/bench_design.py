@@ -1,4 +1,4 @@
-"""Benchmark: one ``casep design`` run on the paper scenario (issue 15 target: <= 60 s).
+"""Benchmark: one ``casep design`` run on the paper scenario (target: <= 60 s).
 
 Times :func:`casep.design.optimize.design` with its defaults (yaw manoeuvre, A-optimal, 5 deg, 2 deg/s,
 1 g lateral, 10 knots, 2 Hz design grid, 4 IPOPT starts, re-simulated check at 100 Hz), phase by phase

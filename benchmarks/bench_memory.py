@@ -1,6 +1,6 @@
 """Peak memory of `casep separate --method ols|rls` and `casep diagnose` on a long flight.
 
-Target (issue 10): on a 5e6-sample flight, each <= 1.5 GB. Before the Problem object (S_V held
+Target: on a 5e6-sample flight, each <= 1.5 GB. Before the Problem object (S_V held
 whole, 5e6 x 3 x 36 doubles = 4.3 GB, plus copies) they took 5.0 / 13.2 / 9.0 GB.
 
 The flight is written once (Parquet, deterministic): the analytic excitation of

@@ -1,13 +1,13 @@
-"""Benchmark: the README's Monte Carlo command against its 60 s target, and batched OLS against a per-run loop.
+"""Benchmark: the Monte Carlo study's command against its 60 s target, and batched OLS against a per-run loop.
 
-README command (issue 10: <= 60 s on this machine): `casep montecarlo --scenario paper --runs 200
---seed 1 --methods ols,rls,rels,wavelet+rels,ridge,pcr,map,bounded`, timed as a whole process
-(one run: it is long), with each method's seconds from its JSON.
+The study of docs/results/cramer-rao.md (target: <= 60 s on a 2-core machine):
+`casep montecarlo --scenario paper --runs 200 --seed 1 --methods ols,rls,rels,wavelet+rels,ridge,pcr,map,bounded`,
+timed as a whole process (one run: it is long), with each method's seconds from its JSON.
 
-Batched: one QR of the scaled S_V and a matrix of right-hand sides (casep.run_montecarlo).
+Batched: one QR of the scaled S_V and a matrix of right-hand sides (casep.workflows.montecarlo.run_montecarlo).
 Naive: per run, draw the noise and call casep.solve_ols (its own QR each time), timed on
 `--naive-runs` runs and scaled. Same noise in both (per-run seeds), one run of this script.
-Target (issue 7): 1000 OLS runs of a 20k-sample flight in under 5 s.
+Target: 1000 OLS runs of a 20k-sample flight in under 5 s.
 
 Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_montecarlo.py [--runs 1000] [--naive-runs 50] [--only readme|ols]
 """
@@ -37,7 +37,7 @@ README_TARGET_S = 60.0
 
 
 def readme_command() -> None:
-    """The README's Monte Carlo command, whole process, one run; a table row (measured, target)."""
+    """The Monte Carlo study's command, whole process, one run; a table row (measured, target)."""
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "mc.json")
         cmd = [sys.executable, "-m", "casep", "montecarlo", "--scenario", "paper", "--runs", "200", "--seed", "1",

@@ -1,4 +1,4 @@
-"""Benchmark: Monte Carlo scaling on Dask (issue 16): runs per second with 1 and 2 local workers,
+"""Benchmark: Monte Carlo scaling on Dask: runs per second with 1 and 2 local workers,
 cluster start-up, Dask's overhead per task against the work per flight.
 
 Workloads (seeded, the same numbers on every engine):

@@ -8,7 +8,7 @@ method's estimate on that subset is compared with the closed form
 (I / p0 + Z^T Z)^-1 Z^T y (statsmodels starts from its own approximate diffuse prior).
 
 Run:  pip install -e ".[bench]" && OPENBLAS_NUM_THREADS=1 python benchmarks/bench_rls.py
-Target (issue 4): >= 300k samples/s for 36 + 3 parameters.
+Target: >= 300k samples/s for 36 + 3 parameters.
 """
 
 from __future__ import annotations

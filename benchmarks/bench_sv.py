@@ -7,7 +7,7 @@ Compares, on the same flight:
   per-sample a Python loop calling the CasADi Jacobian functions sample by sample
              (timed on a slice, reported per sample).
 Peak memory is measured with tracemalloc (numpy arrays are traced) relative to the size of
-the S_V array itself. Target (issue 2): N = 1e6 in <= 2 s, peak <= 1.5x the S_V array.
+the S_V array itself. Target: N = 1e6 in <= 2 s, peak <= 1.5x the S_V array.
 
 Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sv.py [--n 1000000]
 """

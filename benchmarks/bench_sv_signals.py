@@ -3,7 +3,7 @@
 Models: platform36 (f only), platform36_timeoffset (+ a_x/a_y/a_z in a direct velocity term),
 platform36_leverarm (+ 6 attitude/rate columns, 3 direct terms), platform36_drift_ramp (+ t in
 the gyro drift). Each is built with one SVBuilder (set-up cost excluded) over the same N-sample
-flight; the best of `--repeat` runs, interleaved. Target (issue 11): a model with signals within
+flight; the best of `--repeat` runs, interleaved. Target: a model with signals within
 1.5x the time of platform36 at N = 1e6.
 
 Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_sv_signals.py [--n 1000000] [--repeat 3]

@@ -1,4 +1,4 @@
-"""Format a `casep montecarlo --json` file as the README's Markdown table.
+"""Format a `casep montecarlo --json` file as the Markdown table of docs/results/cramer-rao.md.
 
 Run:  casep montecarlo --scenario paper --runs 200 --seed 1 \\
           --methods ols,rls,rels,wavelet+rels,ridge,pcr,map,bounded --json mc.json

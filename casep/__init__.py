@@ -74,13 +74,14 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.analysis.checks": ("check_fit", "check_flight"),
     "casep.frames": ("LaunchSite",),
     "casep.io.manifest": ("read_manifest", "Manifest"),
+    "casep.calibration.calibrate": ("calibrate",),
     "casep.exceptions": ("CasepWarning", "IllConditionedWarning", "NoiseFreeWarning", "OutlierWarning",
                          "PlausibilityWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning",
                          "NoiseLevelWarning"),
 }
 __getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), (
     "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units",
-    "impact", "design", "frames"))
+    "impact", "design", "frames", "calibration"))
 
 __all__ = [
     "__version__",
@@ -135,4 +136,5 @@ __all__ = [
     "SetupWarning",
     "MagnitudeWarning",
     "NoiseLevelWarning",
+    "calibrate",
 ]

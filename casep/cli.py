@@ -33,7 +33,7 @@ from casep.exceptions import CasepWarning, IllConditionedWarning
 # Only the standard library, the version and the registry (light: numpy) are imported here, so
 # that building the parser and `casep --help` stay cheap; each command imports what it needs.
 
-__all__ = ["main"]
+__all__ = ["main", "build_parser"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -255,7 +255,7 @@ def _time_offset(text: str):
     return v * 1e-3  # ms -> s
 
 
-# ---------------------------------------------------------------- tracking frames (issue 14 item 1)
+# ---------------------------------------------------------------- tracking frames
 _FRAMES = ("launch", "ecef", "geodetic")
 
 
@@ -393,7 +393,11 @@ def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | No
     if not path:
         return None
     data = read_json_table(path, f"--{option}")
-    if option == "prior" and "coefficients" in data and "covariance" in data:  # a result JSON: its posterior
+    if option == "prior" and "calibration" in data:  # a ground calibration: the flight model's coefficients
+        from casep.calibration.consistency import ground_prior
+
+        data = ground_prior(data, getattr(args, "model", None) or "platform36")
+    elif option == "prior" and "coefficients" in data and "covariance" in data:  # a result JSON: its posterior
         from casep.estimators.map import prior_from_result
         from casep.estimators.result import EstimateResult
 
@@ -405,6 +409,17 @@ def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | No
         data = prior_from_result(res, model=model)  # per-flight coefficients (dt_trk) left flat
     {"bounds": parse_bounds, "prior": parse_prior}[option](data, names, source=f"--{option} {path}")
     return data
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``casep`` argument parser, with every command and option.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        A new parser; the documentation's command-line reference is generated from it.
+    """
+    return _parser()
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -538,6 +553,7 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--verbose", "-v", action="store_true", help="list each model's coefficients")
     _impact_parser(sub)
     _design_parser(sub)
+    _calibrate_parser(sub)
     return p
 
 
@@ -627,7 +643,7 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
                   inputs=_inputs(args, "flight", "tracking", "bounds", "prior"), folders={"--figures": args.figures})
     model = load_model(args.model)
-    # Options of the method only (casep.registry): one given for another method is an error.
+    # Options of the method only (casep.estimators.registry): one given for another method is an error.
     given = {k: getattr(args, k) for k in OPTIONS if getattr(args, k) is not None}  # files: their names
     check_method_options(args.method, given)
     opts = {k: v for k, v in given.items() if k not in ("bounds", "prior")}
@@ -648,6 +664,19 @@ def _cmd_separate(args: argparse.Namespace) -> int:
                        denoise=args.denoise, wavelet_options=wopts or None, outliers=args.outliers, **opts)
     for w in caught:  # on to main(), which prints them
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    cons = None
+    if prior is not None:  # the prior (a ground calibration) against the flight estimated alone
+        import dataclasses
+
+        from casep.calibration.consistency import flight_prior_consistency
+
+        try:
+            cons = flight_prior_consistency(flight, model, prior, sigma=args.sigma)
+            summary = cons.summary()
+        except ValueError as exc:  # the flight alone determines none of the prior's coefficients
+            summary = {"not_compared": str(exc)}
+            warnings.warn(f"prior not compared with the flight alone: {exc}", CasepWarning, stacklevel=1)
+        res = dataclasses.replace(res, diagnostics={**res.diagnostics, "prior_consistency": summary})
     align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
     prov = _provenance(args, [flight])
     if args.json:
@@ -664,6 +693,8 @@ def _cmd_separate(args: argparse.Namespace) -> int:
         dt = [res.estimate[i] for i, n in enumerate(res.names) if n == "dt_trk"]
         total = f"; the flight's offset = shift + dt_trk = {align['applied_s'] * 1e3 + dt[0]:.4g} ms" if dt else ""
         print(f"tracking time tags shifted back by {align['applied_s'] * 1e3:.4g} ms before the fit{total}")
+    if cons is not None:
+        print(cons.report())
     if args.json:
         print(f"result written to {args.json}")
     for label, path in (("MAT file", args.mat), ("CSV", args.csv)):
@@ -711,7 +742,10 @@ def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior
 
 
 def _joint_json(res, jp, summary: dict) -> dict:
-    """The result JSON with `coefficients` of the shared coefficients and a `flights` list (interfaces.md)."""
+    """The result JSON with `coefficients` of the shared coefficients and a `flights` list.
+
+    Format: docs/reference/file-formats.md, "Several flights".
+    """
     d = res.to_dict()
     keep = [i for i, n in enumerate(res.names) if n in jp.layout.names]  # shared: the model's own names
     for key in ("coefficients", "names", "units", "estimates", "std", "si_factors"):
@@ -777,6 +811,11 @@ def _cmd_fuse(args: argparse.Namespace) -> int:
         if "coefficients" not in data or "covariance" not in data:
             raise ValueError(f"{path}: not a casep result JSON with a covariance (casep separate --json)")
         results.append(EstimateResult.from_json(data))
+    from casep.calibration.consistency import ground_versus_flight
+
+    results, ground_text = ground_versus_flight(results, list(args.results))  # ground results: flight-model part
+    if ground_text:
+        print(ground_text + "\n")
     res = fuse(results, labels=list(args.results))
     print(res.table())
     if args.json:
@@ -924,7 +963,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     return 0
 
 
-# ---------------------------------------------------------------- casep impact (issue 13)
+# ---------------------------------------------------------------- casep impact
 def _impact_parser(sub) -> None:
     """`casep impact FLIGHT --result RESULT.json [--trajectory OTHER.csv] [--json OUT] [--figures DIR]`."""
     im = sub.add_parser("impact", help="the impact miss that the estimated instrument errors cause, and its budget")
@@ -983,7 +1022,10 @@ def _cmd_impact(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------- casep design
 def _design_parser(sub) -> None:
     """`casep design [--scenario paper] [--maneuver yaw|pitch|both] [--objective A|D|miss] [--max-angle DEG]
-    [--max-rate DEG_PER_S] [--prior FILE] [--json OUT] [-o FLIGHT.csv]` (interfaces.md "Manoeuvre design")."""
+    [--max-rate DEG_PER_S] [--prior FILE] [--json OUT] [-o FLIGHT.csv]`.
+
+    Output: docs/reference/file-formats.md, "Design JSON".
+    """
     from casep.simulation.scenarios import SCENARIOS
 
     de = sub.add_parser("design", help="the attitude manoeuvre that minimises the Cramer-Rao bound (IPOPT)")
@@ -998,7 +1040,7 @@ def _design_parser(sub) -> None:
     de.add_argument("--max-rate", type=float, default=2.0, metavar="DEG_PER_S",
                     help="largest offset rate, deg/s (default 2)")
     de.add_argument("--max-lateral", type=float, default=1.0, metavar="G",
-                    help="largest lateral specific force |f| sin(offset), g (default 1)")
+                    help="largest lateral specific force, norm(f) sin(offset), g (default 1)")
     de.add_argument("--coefficients", metavar="NAMES", default=None,
                     help="comma-separated coefficients that matter: objective A over these only (default all)")
     de.add_argument("--knots", type=int, default=10, help="knots of the piecewise-linear offset (default 10)")
@@ -1252,6 +1294,72 @@ def _cmd_models(args: argparse.Namespace) -> int:
     return 0
 
 
+def _calibrate_parser(sub) -> None:
+    """`casep calibrate SESSION --rate HZ (--segments FILE | --label-column NAME) [--model NAME|FILE] [--method ...]
+    --json OUT [--imucal OUT]` (casep.calibration)."""
+    ca = sub.add_parser("calibrate", help="identify instrument error coefficients from a ground test "
+                        "(static positions and rotations)")
+    ca.add_argument("session", help="session CSV or Parquet: raw accelerometer and gyro columns (any units), "
+                    "and `t` (s) or a sample-index column with --rate")
+    ca.add_argument("--rate", type=float, default=None, metavar="HZ", help="sample rate, Hz (required without `t`)")
+    seg = ca.add_mutually_exclusive_group(required=True)
+    seg.add_argument("--segments", metavar="FILE", default=None,
+                     help="segments JSON: imucal's section list {name: {start, end}} or a list of segments")
+    seg.add_argument("--label-column", metavar="NAME", default=None, dest="label_column",
+                     help="column labelling each row's segment (imucal's annotated sessions: part)")
+    ca.add_argument("--model", default="ferraris", help="calibration model name (models/calibration) or .py file "
+                    "(default ferraris; platform36_ground: the flight model's names and units, SI readings)")
+    ca.add_argument("--method", default="ols", choices=[m for m, meth in METHODS.items()
+                                                         if not meth.needs_time and m != "rels"],
+                    help="estimator (default ols)")
+    for name in ("prior", "bounds", "lam", "n_components", "p0", "weight", "forgetting", "noise_order"):
+        _add_option(ca, OPTIONS[name])
+    ca.add_argument("--prior-rel-std", type=float, default=None, dest="prior_rel_std", metavar="R",
+                    help="with an imucal --prior: its relative std (imucal states none)")
+    ca.add_argument("--sigma", type=float, default=None, help="noise std of the rows (default estimated per sensor): "
+                    "reading units with --weighting segments|samples, 1 = as modelled with positions")
+    ca.add_argument("--acc-columns", default="acc_x,acc_y,acc_z", help="accelerometer columns x,y,z")
+    ca.add_argument("--gyr-columns", default="gyr_x,gyr_y,gyr_z", help="gyro columns x,y,z")
+    ca.add_argument("--acc-unit", default="a.u.", help="accelerometer unit: a.u. (raw), m/s^2, g, mg")
+    ca.add_argument("--gyr-unit", default="a.u.", help="gyro unit: a.u. (raw), deg/s, rad/s, deg/h")
+    ca.add_argument("--gravity", type=float, default=None, metavar="M_S2",
+                    help="gravity at the stand, m/s^2 (default 9.80665; imucal uses 9.81)")
+    ca.add_argument("--angle", type=float, default=-360.0, metavar="DEG",
+                    help="angle of imucal's x_rot/y_rot/z_rot turns, deg (default -360: clockwise, imucal's)")
+    ca.add_argument("--weighting", choices=("positions", "segments", "samples"), default="positions",
+                    help="rows: segment means weighted by a position-error (tilt) and noise model (default), "
+                         "segment means of equal weight, or every sample (exact positions)")
+    ca.add_argument("--json", metavar="OUT", required=True, help="write the calibration JSON (a casep result)")
+    ca.add_argument("--imucal", metavar="OUT", default=None, help="also write imucal's calibration JSON (ferraris)")
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    """`casep calibrate`: one call of casep.calibration.calibrate_files, the report, the files (all or none)."""
+    from casep.calibration.calibrate import calibrate_files
+    from casep.calibration.imucal import to_imucal
+    from casep.estimators.result import write_json_atomic
+    from casep.io._atomic import check_outputs
+    from casep.units import G0
+
+    check_outputs({"--json": args.json, "--imucal": args.imucal},
+                  inputs=[args.session, args.segments, args.prior, args.bounds])
+    options = {k: getattr(args, k) for k in OPTIONS if getattr(args, k, None) is not None}
+    cal = calibrate_files(args.session, rate=args.rate, segments=args.segments, label_column=args.label_column,
+                          model=args.model, method=args.method, options=options,
+                          acc_columns=args.acc_columns.split(","), gyr_columns=args.gyr_columns.split(","),
+                          acc_unit=args.acc_unit, gyr_unit=args.gyr_unit,
+                          gravity=G0 if args.gravity is None else args.gravity, angle_deg=args.angle,
+                          weighting=args.weighting, sigma=args.sigma, prior_rel_std=args.prior_rel_std)
+    imucal = to_imucal(cal) if args.imucal else None  # before any file: all outputs or none
+    print(cal.report())
+    write_json_atomic(cal.to_dict(), args.json)
+    print(f"calibration written to {args.json}")
+    if imucal is not None:
+        write_json_atomic(imucal, args.imucal)
+        print(f"imucal calibration written to {args.imucal}")
+    return _result_status(cal.result)
+
+
 #: Exit status when the reader of stdout goes away (``casep ... | head``): 128 + SIGPIPE, what the
 #: shell reports for any Unix tool ended by the broken pipe, so ``set -o pipefail`` sees the same.
 EXIT_BROKEN_PIPE = 141
@@ -1286,7 +1394,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.argv = ["casep", *(sys.argv[1:] if argv is None else argv)]  # the command line, for the provenance
     commands = {"separate": _cmd_separate, "diagnose": _cmd_diagnose, "simulate": _cmd_simulate,
                 "montecarlo": _cmd_montecarlo, "demo": _cmd_demo, "models": _cmd_models, "methods": _cmd_methods,
-                "fuse": _cmd_fuse, "impact": _cmd_impact, "noise": _cmd_noise, "design": _cmd_design}
+                "fuse": _cmd_fuse, "impact": _cmd_impact, "noise": _cmd_noise, "design": _cmd_design,
+                "calibrate": _cmd_calibrate}
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", CasepWarning)

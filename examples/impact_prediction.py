@@ -1,4 +1,4 @@
-"""How well do test flights predict the impact miss of another trajectory? (README table, issue 13)
+"""How well do test flights predict the impact miss of another trajectory? (the table of docs/results/impact.md)
 
 Simulates the scenarios `paper`, `paper-yaw-late`, `paper-pitch-low`, `paper-azimuth` (white noise
 0.1 m/s, the paper's true coefficients in every flight), estimates the coefficients from one, two or

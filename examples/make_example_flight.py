@@ -1,4 +1,4 @@
-"""Make ``examples/data/example_flight.csv``: the flight the README's first command separates.
+"""Make ``examples/data/example_flight.csv``: the flight docs/guide/first-flight.md separates.
 
 #%% What it is
 # An analytic boost-like specific force (casep.simulation.synthetic.excitation_force: 1.6 g rising to

@@ -1,4 +1,4 @@
-"""Which manoeuvre determines more coefficients? Optimal experiment design with casep (issue 15).
+"""Which manoeuvre determines more coefficients? Optimal experiment design with casep.
 
 For the paper scenario, designs the A-optimal yaw manoeuvre (trace of the covariance scaled by the
 coefficients' declared magnitudes, IPOPT on the symbolic model) at several angle budgets, prints what

@@ -21,7 +21,7 @@ ap.add_argument("--quick", action="store_true", help="10 Hz instead of 100 Hz (f
 args = ap.parse_args()
 out = args.out or tempfile.mkdtemp(prefix="casep-table1-")
 
-#%% Simulate and separate (casep.demo does both)
+#%% Simulate and separate (casep.workflows.demo does both)
 res = run_demo(out, seed=1, rate=10.0 if args.quick else 100.0)
 print(res.table)
 

@@ -1,4 +1,6 @@
-"""Several flights: how many of the 36 coefficients each combination determines (README table).
+"""Several flights: how many of the 36 coefficients each combination determines.
+
+The table of docs/results/several-flights.md.
 
 Simulates the scenarios `paper`, `paper-yaw-late`, `paper-pitch-low`, `paper-azimuth` (white noise
 0.1 m/s, each flight's sigma estimated from its own residuals) and counts the coefficients whose

@@ -1,8 +1,8 @@
-"""platform36: the paper's 36-coefficient platform IMU error model (spec/model.md, Eq. 1 and 3).
+"""platform36: the paper's 36-coefficient platform IMU error model (docs/reference/model.md, Eq. 1 and 3).
 
 Gyro drift rates (5 per gyro) and accelerometer errors (7 per accelerometer); W is the
 platform specific force in g. Coefficient order and units are the contract of
-``shared/spec/model.md``.
+``docs/reference/model.md``.
 """
 
 import casadi as ca

@@ -74,7 +74,7 @@ def noise_free_errors(flight, model, truth, sigma: float = 0.1):
 @pytest.fixture(scope="session", autouse=True)
 def _one_blas_thread_per_xdist_worker():
     """With pytest-xdist (`-n 2`), each worker process uses one BLAS thread: two workers on two
-    cores, not four threads fighting for them (README: oversubscription made a Monte Carlo 30x slower)."""
+    cores, not four threads fighting for them (oversubscription made a Monte Carlo 30x slower)."""
     import os
 
     if not os.environ.get("PYTEST_XDIST_WORKER"):

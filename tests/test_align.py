@@ -1,4 +1,4 @@
-"""Coarse time alignment of tracking and telemetry (casep.io.align, issue 14 item 2)."""
+"""Coarse time alignment of tracking and telemetry (casep.io.align)."""
 
 from __future__ import annotations
 

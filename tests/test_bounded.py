@@ -1,4 +1,4 @@
-"""Bounded least squares (casep.bounded): box, KKT, no-active equals OLS, fixed values."""
+"""Bounded least squares (casep.estimators.bounded): box, KKT, no-active equals OLS, fixed values."""
 
 from __future__ import annotations
 

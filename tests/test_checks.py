@@ -1,4 +1,4 @@
-"""Plausibility and residual checks (casep.checks): unit mistakes, impossible data, noise-free
+"""Plausibility and residual checks (casep.analysis.checks): unit mistakes, impossible data, noise-free
 data, outliers and a tracking time offset, through the API and the command line."""
 
 from __future__ import annotations

@@ -168,7 +168,7 @@ def test_bad_option_files_exit_2(good_csv, tmp_path, capsys, content, args, expe
     assert not out.exists()
 
 
-@pytest.mark.parametrize("args, expect", [  # issue 10: the argparse type is the registry's rule (Option.parse)
+@pytest.mark.parametrize("args, expect", [  # the argparse type is the registry's rule (Option.parse)
     (["--method", "rls", "--forgetting", "1.5"], "argument --forgetting: must be float in (0, 1], got '1.5'"),
     (["--method", "rls", "--p0", "-1"], "argument --p0: must be float in (0, 1e+30], got '-1'"),
     (["--method", "ridge", "--lambda", "aic"], "argument --lambda: must be gcv | lcurve | float > 0, got 'aic'"),
@@ -186,13 +186,13 @@ def test_bad_option_values_exit_2(good_csv, capsys, args, expect):
 def test_missing_required_option_files(good_csv, capsys):
     assert main(["separate", str(good_csv), "--method", "bounded"]) == 2
     assert "`bounds` is required" in capsys.readouterr().err
-    with pytest.raises(SystemExit) as e:  # issue 10: refused by the registry's rule as the argparse type
+    with pytest.raises(SystemExit) as e:  # refused by the registry's rule as the argparse type
         main(["separate", str(good_csv), "--method", "rels", "--noise-order", "0"])
     assert e.value.code == 2
     assert "argument --noise-order: must be int >= 1, got '0'" in capsys.readouterr().err
 
 
-# --- issue 17, defect 11: option values are finite and in a plausible range -----------------------
+# --- option values are finite and in a plausible range -----------------------
 
 _RANGE_CASES = [  # (option, value, command, extra args)
     ("sigma", "1e300", "separate", []),
@@ -319,7 +319,7 @@ def test_infinite_bound_on_its_own_side_is_open(platform36):
     assert lo[j] == -np.inf and hi[j] == np.inf and lo[k] == -np.inf and hi[k] == 2.0 and not fixed.any()
 
 
-# --- issue 17, defects 9 and 11: model files -----------------------------------------------------
+# --- model files -----------------------------------------------------
 
 def test_broken_model_file_exit_2_one_line(good_csv, tmp_path, capsys):
     path = tmp_path / "x.py"
@@ -360,7 +360,7 @@ def test_models_exit_2_when_none_loads(tmp_path, monkeypatch, capsys):
     assert "model file" in cap.out and "line 1: ImportError: gone" in cap.out
 
 
-# --- issue 17, defect 11: a reader that closes early ends casep quietly --------------------------
+# --- a reader that closes early ends casep quietly --------------------------
 
 def test_broken_pipe_is_quiet():
     """`casep models -v | head -0`: the read end is closed before casep writes a byte."""
@@ -373,7 +373,7 @@ def test_broken_pipe_is_quiet():
     assert err == b""
 
 
-# --- issue 10: the CLI reads the registry, imports lazily ------------------------------------------
+# --- the CLI reads the registry, imports lazily ------------------------------------------
 
 def test_separate_help_has_one_group_per_method_set_from_the_registry(capsys):
     """Every registry option is in `separate --help`, once, in the group of the methods that take

@@ -1,4 +1,4 @@
-"""The demo (casep.demo) in reduced size: Table 1, figures, report."""
+"""The demo (casep.workflows.demo) in reduced size: Table 1, figures, report."""
 
 from __future__ import annotations
 

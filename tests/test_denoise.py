@@ -1,4 +1,4 @@
-"""Wavelet de-noising (casep.denoise)."""
+"""Wavelet de-noising (casep.analysis.denoise)."""
 
 from __future__ import annotations
 
@@ -153,7 +153,7 @@ def test_separate_records_settings_and_uses_raw_sigma(platform36):
 
 @pytest.mark.montecarlo
 def test_monte_carlo_denoising_does_not_help_ols(platform36):
-    """Reduced form of benchmarks/mc_denoise.py: the README's claims, at 20 Hz and 30 runs."""
+    """Reduced form of benchmarks/mc_denoise.py: the claims of docs/results/denoising.md, at 20 Hz and 30 runs."""
     from casep.analysis.diagnostics import crlb_covariance
     from casep.simulation.noise import NoiseModel
     from casep.simulation.simulate import simulate_flight

@@ -1,4 +1,4 @@
-"""casep design (issue 15): manoeuvre parametrisation, exact gradients, a closed-form optimum, the
+"""casep design: manoeuvre parametrisation, exact gradients, a closed-form optimum, the
 designed flight reaching the predicted CRLB, constraints as flown, the command line.
 
 Small on purpose: coarse design grids (1-2 Hz), flights at 5 Hz, few knots, one or two starts.

@@ -1,4 +1,4 @@
-"""Collinearity and identifiability diagnostics (casep.diagnostics)."""
+"""Collinearity and identifiability diagnostics (casep.analysis.diagnostics)."""
 
 from __future__ import annotations
 

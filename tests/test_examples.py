@@ -54,7 +54,7 @@ def test_make_example_flight_is_reproducible(tmp_path):
     assert proc.returncode == 0, proc.stderr
     # Same header and comments exactly; the numbers to 1e-9 relative (+ 1e-9 absolute, in m/s^2
     # and m/s): the trajectory integration and libm differ in the last digits between CPUs, so
-    # the bytes are equal on one machine but need not be on another (README, "Reproducibility").
+    # the bytes are equal on one machine but need not be on another (docs/guide/simulation.md, "Reproducibility").
     ref = EXAMPLES / "data" / "example_flight.csv"
     new_lines, ref_lines = fresh.read_text().splitlines(), ref.read_text().splitlines()
     header = [k for k, line in enumerate(ref_lines) if not line.startswith("#")][0]

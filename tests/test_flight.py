@@ -1,4 +1,4 @@
-"""FlightData validation and the sample-count check (casep.flight)."""
+"""FlightData validation and the sample-count check (casep.io.flight)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Flight file reading and writing (casep.flight_io) and FlightData validation."""
+"""Flight file reading and writing (casep.io.files) and FlightData validation."""
 
 from __future__ import annotations
 
@@ -366,7 +366,7 @@ def test_cli_pair_with_late_tracking_counts_observed_samples(tmp_path, capsys):
 
 
 def test_two_rate_ols_coverage_is_honest_on_the_tracking_grid(rng):
-    """Issue 14, item 3: telemetry 20 Hz, tracking 5 Hz, white tracking noise 0.1 m/s, 150 seeded
+    """Telemetry 20 Hz, tracking 5 Hz, white tracking noise 0.1 m/s, 150 seeded
     draws through pair_flight. On the tracking grid (default) the OLS 95 % intervals cover the truth
     93-97 % of the time and RMS z is about 1; on the telemetry grid (tracking interpolated) the std
     understate the error by about sqrt(20 / 5) = 2 (measured 0.64 coverage, RMS z 2.16)."""

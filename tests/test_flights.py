@@ -487,7 +487,7 @@ def test_chow_test_does_not_depend_on_the_method_or_a_common_sigma_error(two):
 
 
 def test_chow_test_size_on_consistent_flights_and_power_against_an_unmodelled_30ms_offset(rng):
-    """Issue 12: on consistent flights (paper + paper-azimuth at 5 Hz, sigma 0.1 and 0.3 m/s, each
+    """On consistent flights (paper + paper-azimuth at 5 Hz, sigma 0.1 and 0.3 m/s, each
     estimated from its own residuals) the overall test at 5 % fires about 5 % of the time (100 seeded
     draws through separate_flights + flights_summary: between 1 and 11, binomial 99 % range); a flight
     whose tracking is 30 ms late, estimated with a model without dt_trk, is rejected at 1 %."""

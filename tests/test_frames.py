@@ -1,4 +1,4 @@
-"""Tracking frames (issue 14 item 1): launch-inertial <-> ECEF <-> geodetic, Earth-fixed tracking files,
+"""Tracking frames: launch-inertial <-> ECEF <-> geodetic, Earth-fixed tracking files,
 the rotating-Earth simulator.
 
 References are closed forms (the distance of a point from the Earth's axis, the Coriolis and

@@ -1,4 +1,4 @@
-"""GLS for Gauss-Markov noise with REML tau (casep.gls)."""
+"""GLS for Gauss-Markov noise with REML tau (casep.estimators.gls)."""
 
 from __future__ import annotations
 

@@ -51,7 +51,7 @@ def test_huber_on_clean_data_is_close_to_ols(paper20, rng):
 
 @pytest.mark.montecarlo
 def test_huber_monte_carlo_with_glitches(paper20, rng):
-    """Issue 10: 2 % of samples with 3 m/s outliers. Huber's RMS error stays within 1.3x the
+    """2 % of samples with 3 m/s outliers. Huber's RMS error stays within 1.3x the
     clean-data CRLB (median over coefficients) where OLS is several times worse; its std cover
     ~95 %; every injected glitch is flagged and few clean rows are (30 seeded runs, 20 Hz)."""
     S, clean, truth, m = paper20

@@ -1,4 +1,4 @@
-"""The impact miss of an estimate (casep.impact, `casep impact`): issue 13, interfaces.md "Impact point".
+"""The impact miss of an estimate (casep.impact, `casep impact`); format: docs/reference/file-formats.md "Impact JSON".
 
 Each computed quantity is checked against an independent route: the closed-form Kepler impact
 against an adaptive integration with a ground event, the CasADi Jacobian against central finite

@@ -1,4 +1,4 @@
-"""Output safety (casep._io and the CLI): links, FIFOs, descriptors, modes, inputs, early checks."""
+"""Output safety (casep.io._atomic and the CLI): links, FIFOs, descriptors, modes, inputs, early checks."""
 
 from __future__ import annotations
 

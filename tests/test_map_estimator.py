@@ -1,4 +1,4 @@
-"""MAP with a Gaussian prior (casep.map_estimator)."""
+"""MAP with a Gaussian prior (casep.estimators.map)."""
 
 from __future__ import annotations
 
@@ -77,7 +77,7 @@ def test_prior_errors(paper_problem, platform36):
         casep.solve_map(S, y, {"Kg0x": [0, 1]}, names=nm)
 
 
-# --- issue 17: prior names and values ---------------------------------------------------------
+# --- prior names and values ---------------------------------------------------------
 
 def test_parse_prior_unknown_name_suggests(platform36):
     from casep.estimators.map import parse_prior

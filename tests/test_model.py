@@ -134,7 +134,7 @@ def test_declaration_errors():
         m.set_accel_error(ca.SX.zeros(2, 1))
 
 
-# --- issue 17, defect 9: "did you mean" for coefficient names -----------------------------------
+# --- "did you mean" for coefficient names -----------------------------------
 
 @pytest.mark.parametrize("typo, meant", [
     ("KaOy", "Ka0y"),   # letter O for digit 0
@@ -170,7 +170,7 @@ def test_unknown_coefficient_message_and_index(platform36):
 
 
 def test_declared_scales_and_their_checks():
-    """Typical magnitudes live in the model (issue 10): declare(name=(unit, scale))."""
+    """Typical magnitudes live in the model: declare(name=(unit, scale))."""
     m = casep.ErrorModel("s")
     c = m.declare(Ka0x=("mg", 2.0), Ka1x="mg/g")
     m.set_accel_error([c.Ka0x + c.Ka1x * m.W[0], 0, 0])

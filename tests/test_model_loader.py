@@ -1,4 +1,4 @@
-"""Loading models by name and by path (casep.model_loader)."""
+"""Loading models by name and by path (casep.model.loader)."""
 
 from __future__ import annotations
 
@@ -77,7 +77,7 @@ def test_extension_adds_a_term_and_is_recovered(tmp_path, truth36, flight_tf):
     np.testing.assert_allclose(res.estimate, D, rtol=1e-6)
 
 
-# --- issue 17, defect 11: a broken model file is one line naming the file and the line ----------
+# --- a broken model file is one line naming the file and the line ----------
 
 _BROKEN = {
     # name: (source, line reported, text expected after "line N...: ")

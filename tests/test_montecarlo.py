@@ -1,4 +1,4 @@
-"""Monte Carlo (casep.montecarlo): statistics, batched = per-run, CLI in reduced size."""
+"""Monte Carlo (casep.workflows.montecarlo): statistics, batched = per-run, CLI in reduced size."""
 
 from __future__ import annotations
 
@@ -125,7 +125,7 @@ def test_progress_bar_total_is_runs(monkeypatch, capsys):
 
 def test_workers_have_one_blas_thread_and_parent_is_unchanged():
     """Workers run BLAS with one thread each (oversubscription made a 2-core Monte Carlo ~6-30x
-    slower); the parent's thread pools are left as they were. (Issue 16: Dask workers.)"""
+    slower); the parent's thread pools are left as they were. (Dask workers.)"""
     from contextlib import ExitStack
 
     from threadpoolctl import threadpool_info
@@ -239,7 +239,7 @@ def test_sigkill_of_parent_ends_workers():
 
 
 def test_prior_and_bounds_files_replace_the_demo_values(tmp_path, capsys):
-    """`--prior`/`--bounds` (issue 10: no hard-wired demo values): the batched MAP and per-run
+    """`--prior`/`--bounds` (no hard-wired demo values): the batched MAP and per-run
     bounded use the given files; batched MAP equals the per-run public solver with that prior."""
     import json
 
@@ -269,7 +269,7 @@ def test_prior_and_bounds_files_replace_the_demo_values(tmp_path, capsys):
 
 
 def test_batched_methods_use_the_estimators_linear_maps():
-    """Issue 10: the batched path applies the estimators' own linear maps (no second
+    """The batched path applies the estimators' own linear maps (no second
     implementation of their formulas): the maps it builds are those of the public functions."""
     from casep.estimators.map import map_linear_map
     from casep.estimators.ols import LinearMap, ols_linear_map

@@ -1,4 +1,4 @@
-"""Monte Carlo on Dask (issue 16): workers, dispersions, truth from a prior, Parquet output, resume."""
+"""Monte Carlo on Dask: workers, dispersions, truth from a prior, Parquet output, resume."""
 
 from __future__ import annotations
 

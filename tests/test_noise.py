@@ -1,4 +1,4 @@
-"""Tracking-noise models (casep.noise)."""
+"""Tracking-noise models (casep.simulation.noise)."""
 
 from __future__ import annotations
 

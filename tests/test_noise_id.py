@@ -1,4 +1,4 @@
-"""Allan deviation and noise identification (casep.analysis.noise_id, issue 14 item 5)."""
+"""Allan deviation and noise identification (casep.analysis.noise_id)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Least squares on the scaled QR-reduced system (casep.ols, casep.linalg)."""
+"""Least squares on the scaled QR-reduced system (casep.estimators.ols, casep.analysis.linalg)."""
 
 from __future__ import annotations
 

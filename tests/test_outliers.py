@@ -1,4 +1,4 @@
-"""Studentized residuals and outlier flags (casep.analysis.outliers, issue 14 item 4)."""
+"""Studentized residuals and outlier flags (casep.analysis.outliers)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Principal-component regression (casep.pcr)."""
+"""Principal-component regression (casep.estimators.pcr)."""
 
 from __future__ import annotations
 

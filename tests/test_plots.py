@@ -1,4 +1,4 @@
-"""Figures of one separation (casep.plots, issue 17 defect 8)."""
+"""Figures of one separation (casep.reporting.plots)."""
 
 from __future__ import annotations
 

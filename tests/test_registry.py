@@ -1,4 +1,4 @@
-"""The estimator registry (casep.registry): one table read by separate(), the CLI and Monte Carlo."""
+"""The estimator registry (casep.estimators.registry): one table read by separate(), the CLI and Monte Carlo."""
 
 from __future__ import annotations
 

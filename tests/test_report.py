@@ -1,4 +1,4 @@
-"""Self-contained HTML report and the CLI's --figures / --report / exit status (issue 17, defects 8, 11)."""
+"""Self-contained HTML report and the CLI's --figures / --report / exit status."""
 
 from __future__ import annotations
 

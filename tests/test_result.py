@@ -1,4 +1,4 @@
-"""The result's terminal table, JSON shape and exports (casep.result, `separate --mat/--csv`)."""
+"""The result's terminal table, JSON shape and exports (casep.estimators.result, `separate --mat/--csv`)."""
 
 from __future__ import annotations
 
@@ -185,7 +185,7 @@ def test_diagnose_figures_creates_folder(flight_csv, tmp_path, capsys):
 
 
 def test_json_covariance_natural_units_with_null_rows(tmp_path, platform36, truth36):
-    """interfaces.md "Result JSON: covariance": n x n, model order, natural units; null rows and
+    """docs/reference/file-formats.md "Result JSON": n x n, model order, natural units; null rows and
     columns for coefficients without an estimate; its diagonal is std^2."""
     import json
 

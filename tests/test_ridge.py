@@ -1,4 +1,4 @@
-"""Ridge (casep.ridge): closed form vs cvxpy/Clarabel, GCV and L-curve choices."""
+"""Ridge (casep.estimators.ridge): closed form vs cvxpy/Clarabel, GCV and L-curve choices."""
 
 from __future__ import annotations
 

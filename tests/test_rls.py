@@ -1,4 +1,4 @@
-"""RLS and RELS (casep.rls) against closed forms, OLS and simulated ARMAX noise."""
+"""RLS and RELS (casep.estimators.rls) against closed forms, OLS and simulated ARMAX noise."""
 
 from __future__ import annotations
 
@@ -111,7 +111,7 @@ def test_bad_arguments(paper_problem):
         casep.solve_rls(S.reshape(-1, 36), y.reshape(-1))
 
 
-# --- issue 17, defect 11: wind-up with forgetting < 1, and failed results -------------------------
+# --- wind-up with forgetting < 1, and failed results -------------------------
 
 def test_forgetting_0_9_no_longer_winds_up_and_is_flagged_failed(paper_problem):
     # Before: estimates 1e16, residual RMS 1e11 m/s, success True. With stabilized forgetting
@@ -198,7 +198,7 @@ def test_finish_marks_non_finite_and_misfit_results_failed(rng):
     assert worse.status == -3
 
 
-# --- issue 17, defect 8: covariance history ---------------------------------------------------------
+# --- covariance history ---------------------------------------------------------
 
 def test_history_std_last_row_equals_final_std(paper_problem):
     S, y, _ = paper_problem

@@ -1,4 +1,4 @@
-"""Simulated flights: injected truth, noise statistics, reproducibility, files (casep.simulate)."""
+"""Simulated flights: injected truth, noise statistics, reproducibility, files (casep.simulation.simulate)."""
 
 from __future__ import annotations
 
@@ -124,7 +124,7 @@ def test_two_rate_tracking_start():
 
 
 def test_simulate_any_model_and_truth(tmp_path, capsys):
-    """`casep simulate --model FILE --truth FILE` (issue 10): another model's truth is injected
+    """`casep simulate --model FILE --truth FILE`: another model's truth is injected
     (the dv0 terms come back within 5 std) and the sidecar names model and truth."""
     import json
 

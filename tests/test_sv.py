@@ -1,4 +1,4 @@
-"""S_V against an independent forward simulation and hand-derived columns (casep.sv)."""
+"""S_V against an independent forward simulation and hand-derived columns (casep.model.sv)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ MG, UG = 1e-3 * G0, 1e-6 * G0
 
 
 def _phidot_delta(D: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Eq. (1) and (3) of spec/model.md written out in numpy (SI out), independent of casep."""
+    """Eq. (1) and (3) of docs/reference/model.md written out in numpy (SI out), independent of casep."""
     wx, wy, wz = f / G0
     g = D[:15].reshape(3, 5) * DEG_PER_HOUR
     phidot = np.array([

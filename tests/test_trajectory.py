@@ -1,4 +1,4 @@
-"""Boost-phase trajectory physics sanity (casep.trajectory)."""
+"""Boost-phase trajectory physics sanity (casep.simulation.trajectory)."""
 
 from __future__ import annotations
 

@@ -241,7 +241,7 @@ class Diagnostics:
         return [n for n in self.names if self.identifiability[n] == "unidentifiable"]
 
     def to_dict(self) -> dict[str, Any]:
-        """The ``diagnostics`` JSON of ``interfaces.md`` (plus details)."""
+        """The ``diagnostics`` JSON of ``docs/reference/file-formats.md`` (plus details)."""
         def f(v):
             return float(v) if v is not None and np.isfinite(v) else None
 

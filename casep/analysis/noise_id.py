@@ -1,4 +1,4 @@
-"""Noise identification from residuals: Allan deviation and a choice of noise model (issue 14, item 5).
+"""Noise identification from residuals: Allan deviation and a choice of noise model.
 
 Notes
 -----

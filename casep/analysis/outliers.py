@@ -1,4 +1,4 @@
-"""Outliers by externally studentized residuals of the least-squares fit (issue 14, item 4).
+"""Outliers by externally studentized residuals of the least-squares fit.
 
 Notes
 -----

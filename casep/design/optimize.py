@@ -82,7 +82,7 @@ class DesignResult:
         return [n for n, v, s in zip(self.names, c, self.scales) if np.isfinite(v) and v < s]
 
     def to_json(self) -> dict:
-        """The ``casep design --json`` document (``interfaces.md`` "Manoeuvre design"; null for NaN)."""
+        """The ``casep design --json`` document (``docs/reference/file-formats.md`` "Design JSON"; null for NaN)."""
         return _finite(self._json())
 
     def _json(self) -> dict:

@@ -19,7 +19,7 @@ with ``S_w``, ``RSS_w`` from the unit-sigma whitening; minimised over ``ln tau``
 Measured (60 runs, paper-ar1 at 20 Hz, tau 1 s): tau 0.99 +- 0.06, coverage of the 95 %
 intervals 0.947 (OLS with white-noise std: 0.24).
 
-Why it matters (``README``, Monte Carlo): with tau = 1 s at 100 Hz the white-noise std of
+Why it matters (``docs/results/cramer-rao.md``): with tau = 1 s at 100 Hz the white-noise std of
 OLS cover the truth in 11 % of runs instead of 95 %.
 """
 

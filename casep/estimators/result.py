@@ -270,7 +270,7 @@ class EstimateResult:
     settings : dict
         The options used.
     diagnostics : dict
-        Condition numbers and identifiability (see ``interfaces.md``).
+        Condition numbers and identifiability (see ``docs/reference/file-formats.md``).
     model : str
         Model name.
     n_samples : int
@@ -370,7 +370,7 @@ class EstimateResult:
         return rows
 
     def to_dict(self) -> dict[str, Any]:
-        """The result JSON of ``interfaces.md`` as a dict.
+        """The result JSON of ``docs/reference/file-formats.md`` as a dict.
 
         Besides ``coefficients`` (one object per coefficient), the flat parallel arrays
         ``names``, ``units``, ``estimates`` and ``std`` (null only where a value is missing)
@@ -444,7 +444,7 @@ class EstimateResult:
         """The n x n covariance in natural units, model order, as nested lists for JSON.
 
         Rows and columns of coefficients without an estimate (and any entry that is not
-        finite) are null; None when the method defines no covariance (``interfaces.md``,
+        finite) are null; None when the method defines no covariance (``docs/reference/file-formats.md``,
         "Result JSON: covariance").
         """
         if self.covariance is None:

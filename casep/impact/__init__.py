@@ -1,5 +1,5 @@
 """The miss that the instrument errors cause: impact point of the burnout state by vacuum
-ballistic flight and the miss budget of an estimate (issue 13, ``interfaces.md`` "Impact point").
+ballistic flight and the miss budget of an estimate (``docs/reference/file-formats.md`` "Impact JSON").
 
 - :mod:`casep.impact.ballistic`: closed-form Kepler impact point and its exact Jacobian
 - :mod:`casep.impact.miss`: S_P, miss sensitivities, predicted miss with covariance,

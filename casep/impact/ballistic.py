@@ -60,7 +60,7 @@ def impact_functions():
         p_impact = c + R_E u
         downrange = R_E atan2(u_x, u_y),  crossrange = R_E asin(u_z)
 
-    (launch point at ``u0 = (0, 1, 0)``, ``interfaces.md`` "Impact point").
+    (launch point at ``u0 = (0, 1, 0)``, ``docs/reference/file-formats.md`` "Impact JSON").
     """
     import casadi as ca
 

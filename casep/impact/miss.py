@@ -1,6 +1,6 @@
 """The impact miss that the instrument errors cause, and its budget per coefficient and per group.
 
-``interfaces.md`` "Impact point". Burnout is the last sample of the flight; its state
+``docs/reference/file-formats.md`` "Impact JSON". Burnout is the last sample of the flight; its state
 ``x_b = (r_b, v_b)`` is read from the flight's ``r_*``, ``v_*`` columns (tracked position and
 velocity, launch-inertial frame). The navigation error at burnout that the coefficients ``D``
 cause is::
@@ -274,7 +274,7 @@ class Group:
 
 @dataclass(frozen=True)
 class ImpactAnalysis:
-    """The miss budget of an estimate on one trajectory (``interfaces.md`` "Impact point").
+    """The miss budget of an estimate on one trajectory (``docs/reference/file-formats.md`` "Impact JSON").
 
     Attributes
     ----------
@@ -348,7 +348,7 @@ class ImpactAnalysis:
         return np.concatenate([self.sp @ D, self.sv @ D])
 
     def to_json(self) -> dict[str, Any]:
-        """The impact JSON of ``interfaces.md`` (plus labels, the Jacobian, groups and sources)."""
+        """The impact JSON of ``docs/reference/file-formats.md`` (plus labels, the Jacobian, groups and sources)."""
         std = self.std
         sens = [{"name": n, "unit": u, "dr": [_f(x) for x in self.sp[:, j]], "dv": [_f(x) for x in self.sv[:, j]],
                  "downrange": _f(self.sensitivity[0, j]), "crossrange": _f(self.sensitivity[1, j])}
@@ -387,7 +387,7 @@ class ImpactAnalysis:
     def table(self, top: int | None = None) -> str:
         """Terminal text: burnout, nominal impact, miss with std, budget per coefficient and per group.
 
-        `top`: only the `top` largest contributions (by |downrange| + |crossrange|); default all.
+        `top`: only the `top` largest contributions (by ``|downrange| + |crossrange|``); default all.
         """
         from casep.estimators.result import format_number
 

@@ -1,4 +1,4 @@
-"""Coarse alignment of tracking and telemetry time tags (issue 14, item 2).
+"""Coarse alignment of tracking and telemetry time tags.
 
 Notes
 -----

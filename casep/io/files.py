@@ -1,6 +1,6 @@
 """Reading and writing flight files: CSV and Parquet, one file or telemetry + tracking.
 
-Formats (``../shared/spec/interfaces.md``): a header row, one row per sample, ``#`` comment
+Formats (``docs/reference/file-formats.md``): a header row, one row per sample, ``#`` comment
 lines (CSV), other numeric columns kept as signals (below), text columns ignored.
 
 - time ``t`` (s, strictly increasing);
@@ -314,7 +314,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     meta = {"format": "parquet" if _is_parquet(tab.path) else "csv", "force": force_from, "dv": dv_from}
     if dv_from != "dv":
         meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
-        meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.checks
+        meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.analysis.checks
     signals, src = tab.signals(), tab.src
     del tab  # the file's columns, before FlightData takes its own copies (long flights: one copy at a time)
     return FlightData(t, f, dv, source=src, meta=meta, signals=signals)
@@ -324,7 +324,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
 PAIR_GRIDS = ("tracking", "telemetry")
 
 
-# ------------------------------------------------------------------ tracking frames (issue 14 item 1)
+# ------------------------------------------------------------------ tracking frames
 def _check_tracking_frame(tracking: str | os.PathLike, tracking_frame: str, site) -> None:
     """`tracking_frame` is one of casep.frames.TRACKING_FRAMES; an Earth-fixed one needs a LaunchSite."""
     from casep.frames import TRACKING_FRAMES, LaunchSite
@@ -640,7 +640,7 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
             "span_s": [float(t[0]), float(t[-1])], "observed_span_s": [float(t[observed][0]), float(t[observed][-1])],
             "unobserved": int((~observed).sum()), "telemetry_dropped": int((~keep).sum()),
             "start_speed_m_s": float(np.linalg.norm(v_tel[0])),
-            "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.checks
+            "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.analysis.checks
     return FlightData(t, f_out, dv, source=source, meta=meta, observed=observed, signals=sig)
 
 

@@ -15,7 +15,7 @@ output                      SI unit   role in the velocity error
 ``velocity_error`` dv_d(.., D) m/s       added to dv directly, not integrated
 =========================== ========= =============================================
 
-The velocity error these generate (``../shared/spec/model.md``) is::
+The velocity error these generate (``docs/reference/model.md``) is::
 
     phi(t)   = phi0 + int_{t0}^{t} phidot dt
     dWdot(t) = [f x] phi + Delta          [f x] = [[0, -fz, fy], [fz, 0, -fx], [-fy, fx, 0]]

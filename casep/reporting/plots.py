@@ -304,7 +304,7 @@ def separate_figures(result: EstimateResult, out: str | os.PathLike, t: np.ndarr
     return files
 
 
-# ----------------------------------------------------------------------------- impact (issue 13)
+# ----------------------------------------------------------------------------- impact
 def plot_miss_budget(analysis, path: str | os.PathLike, top: int = 15) -> Path:
     """Miss budget: contribution of each coefficient to the downrange and crossrange miss (bars, m).
 

@@ -172,7 +172,7 @@ def _provenance_html(prov: Mapping[str, Any]) -> str:
 def _diagnostics_summary(result: EstimateResult) -> dict[str, Any]:
     d = result.diagnostics
     keys = ("condition_number", "condition_number_equilibrated", "rank", "sigma", "unidentifiable", "groups",
-            "effective_prior_std", "noise_model", "active_bounds")
+            "effective_prior_std", "noise_model", "active_bounds", "prior_consistency")
     out = {k: d[k] for k in keys if k in d}
     out["residual RMS (m/s)"] = ", ".join(f"{a} {result.residual_rms[a]:.4g}" for a in AXES)
     return out

@@ -1,4 +1,4 @@
-"""The paper's scenario constants (Table 1 truth, noise, RELS prior), from spec/model.md."""
+"""The paper's scenario constants (Table 1 truth, noise, RELS prior), from docs/reference/model.md."""
 
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ gap windows remove rows afterwards (the instrument errors keep accumulating thro
 For two-rate data, telemetry velocity is ``v_tel = v_true + S_V D_true`` at telemetry times
 and tracking is ``v_trk(t_k) = v_true(t_k - offset) + n(t_k)`` at its own times.
 
-Every simulated flight carries, beside ``t, f_*, dv_*``, the columns of ``interfaces.md``
+Every simulated flight carries, beside ``t, f_*, dv_*``, the columns of ``docs/reference/file-formats.md``
 (0.2) that model files may use as signals (:data:`SIGNAL_COLUMNS`): ``a_*`` the true
 kinematic acceleration (specific force + gravity, m/s^2) at t; ``r_*`` and ``v_*`` the tracked
 position and velocity (launch-inertial frame, m and m/s) with ``v_tel = v_* + dv`` exactly;
@@ -136,7 +136,7 @@ class SimulatedFlight:
     tracking: dict = dataclasses.field(default_factory=dict)  # injected time offset (ms), lever arm (m)
 
     def truth_dict(self) -> dict:
-        """The ``<name>.truth.json`` sidecar of ``interfaces.md``."""
+        """The ``<name>.truth.json`` sidecar of ``docs/reference/file-formats.md``."""
         return {
             "model": self.model.name,
             "coefficients": {n: float(v) for n, v in zip(self.model.names, self.truth)},

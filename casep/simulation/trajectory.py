@@ -1,6 +1,6 @@
 """Boost-phase point-mass (3-DOF) trajectory in the launch-inertial frame.
 
-Assumptions (every one is a choice, stated here and in the README):
+Assumptions (every one is a choice, stated here and in docs/guide/simulation.md):
 
 - **Frame**: launch-inertial, origin at the launch point; x downrange (horizontal at
   launch), y up (local vertical at launch), z cross-range, right-handed. The Earth does

@@ -240,7 +240,7 @@ def _write_report(out: Path, sim, results, diag, crlb, figures: list[Path], impa
         "The residuals of wavelet + RELS are small (Figure 4 analogue) because they are taken against the "
         "de-noised data; that says nothing about the coefficients. RLS/RELS look better than LS on the badly "
         "determined coefficients because P0 = 1e6 I is a prior in natural units, not because of the recursion "
-        "(see the README's Monte Carlo tables). Single-flight errors scatter: judge methods by "
+        "(see docs/results/cramer-rao.md). Single-flight errors scatter: judge methods by "
         "`casep montecarlo`.",
         "",
         "## Impact miss",

@@ -240,7 +240,7 @@ def _sigmas(problems: Sequence[Problem], sigma) -> list[float]:
 
 
 def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
-    """The ``flights`` entries of the result JSON (``interfaces.md``, "Several flights") and the
+    """The ``flights`` entries of the result JSON (``docs/reference/file-formats.md``, "Several flights") and the
     consistency of the flights on the shared coefficients.
 
     Per flight: file, samples, sigma, residual RMS per axis under the joint estimate, its per-flight

@@ -483,7 +483,7 @@ class MonteCarloResult:
         return {"bias": bias, "rms": rms, "efficiency": eff, "coverage95": cov}
 
     def to_dict(self) -> dict[str, Any]:
-        """The Monte Carlo JSON of ``interfaces.md``."""
+        """The Monte Carlo JSON of ``docs/reference/file-formats.md``."""
         def f(v):
             return float(v) if np.isfinite(v) else None
 

@@ -110,7 +110,7 @@ def separate(
     -------
     EstimateResult
     """
-    # One rule table (casep.registry): an option the method does not take is an error, not ignored.
+    # One rule table (casep.estimators.registry): an option the method does not take is an error, not ignored.
     kw = {"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": noise_order, "lam": lam,
           "bounds": bounds, "prior": prior, "n_components": n_components, "tau": tau}
     for k, v in dict(options or {}).items():
