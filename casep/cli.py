@@ -597,7 +597,7 @@ def _impact_manifest(args: argparse.Namespace) -> None:
 
 
 def _own_trajectory_options(parser) -> None:
-    """`montecarlo` / `design`: one's own trajectory (a flight file) and truth instead of the scenario's."""
+    """`montecarlo`: one's own trajectory (a flight file) and truth instead of the scenario's."""
     parser.add_argument("--flight", metavar="FILE", default=None,
                         help="one's own trajectory: a flight file (t, f_*, dv_* or v_tel_*/v_trk_*) whose times and "
                              "specific force replace the scenario's; needs --truth")

@@ -109,6 +109,10 @@ def separate(
     Returns
     -------
     EstimateResult
+        Judged against the set-up (:func:`judge_setup`): failed with status -4 when the flight failed a
+        set-up check (launch site, azimuth, launch time, time scales: ``flight.meta["setup"]``), with
+        status -5 when estimates exceed 1e4 times their declared magnitudes (a warning from 100 times);
+        a given `sigma` far from the residual std is a warning (:func:`casep.analysis.checks.check_sigma`).
     """
     # One rule table (casep.estimators.registry): an option the method does not take is an error, not ignored.
     kw = {"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": noise_order, "lam": lam,
