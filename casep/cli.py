@@ -1053,6 +1053,7 @@ def _design_parser(sub) -> None:
     de.add_argument("--figure", metavar="PNG", default=None, help="write the manoeuvre and CRLB before/after here")
     de.add_argument("-o", "--output", metavar="FLIGHT", default=None,
                     help="simulate the designed flight into this flight file (truth in <stem>.truth.json)")
+    _own_trajectory_options(de)
 
 
 def _cmd_design(args: argparse.Namespace) -> int:
@@ -1072,31 +1073,43 @@ def _cmd_design(args: argparse.Namespace) -> int:
     outputs = {"--json": args.json, "--figure": args.figure}
     if args.output:
         outputs.update({"-o": args.output, "-o (truth sidecar)": truth_path(args.output)})
-    check_outputs(outputs, inputs=_inputs(args, "prior"))
-    prior = _coefficient_file(args, "prior", load_model(get_scenario(args.scenario).model).names)
+    check_outputs(outputs, inputs=_inputs(args, "prior", "flight", "truth"))
+    own_flight, own_truth, own_model = _own_trajectory(args)  # --flight FILE --truth TRUTH.json
+    if own_flight and args.output:
+        raise ValueError("-o simulates the designed flight of a scenario's vehicle; with --flight there is none")
+    own_sigma = None
+    if own_truth and isinstance(own_truth.get("noise"), dict):
+        own_sigma = own_truth["noise"].get("sigma")
+    prior = _coefficient_file(args, "prior", load_model(own_model or get_scenario(args.scenario).model).names)
     res = design(args.scenario, maneuver=args.maneuver, objective=args.objective, max_angle=args.max_angle,
                  max_rate=args.max_rate, max_lateral=args.max_lateral, prior=prior, knots=args.knots,
-                 starts=args.starts, seed=args.seed, rate=args.rate,
+                 starts=args.starts, seed=args.seed, rate=None if own_flight else args.rate,
                  coefficients=None if args.coefficients is None else
-                 [c.strip() for c in args.coefficients.split(",") if c.strip()])
+                 [c.strip() for c in args.coefficients.split(",") if c.strip()],
+                 flight=own_flight, model=own_model, sigma=own_sigma)
     s = res.solver
     print(f"{args.objective}-optimal {args.maneuver} manoeuvre, scenario {args.scenario}: objective "
           f"{res.before:.6g} -> {res.after:.6g} (design model); IPOPT {s['return_status']} (best of "
           f"{len(s['starts'])} starts; {sum(r['success'] for r in s['starts'])} solved), {res.timing['total']:.1f} s")
     v = res.verification
-    print(f"re-simulated: objective {v['before']:.6g} -> {v['after']:.6g}; CRLB prediction error max "
-          f"{100 * v['crlb_prediction_error_max']:.1f} %")
+    if not v:  # one's own trajectory: no vehicle to re-fly
+        print(f"own trajectory {own_flight}: the designed flight is not re-flown (no vehicle model); the 'after' "
+              "bounds are the design model's prediction (the manoeuvre turns the specific force)")
+    else:
+        print(f"re-simulated: objective {v['before']:.6g} -> {v['after']:.6g}; CRLB prediction error max "
+              f"{100 * v['crlb_prediction_error_max']:.1f} %")
     gain_d = (res.before - res.after) / abs(res.before) if res.before else 0.0
-    gain_v = (v["before"] - v["after"]) / abs(v["before"]) if v["before"] else 0.0
+    gain_v = ((v["before"] - v["after"]) / abs(v["before"]) if v["before"] else 0.0) if v else gain_d
     if abs(gain_d - gain_v) > 0.05 * max(abs(gain_v), 1e-12) and abs(gain_d - gain_v) > 0.01:
         print(f"warning: the design model promised a {100 * gain_d:.1f} % change of the objective, the re-simulated "
               f"flights give {100 * gain_v:.1f} %: trust the re-simulated value (the JSON's before/after)")
-    b = v["burnout_change"]
-    print(f"the designed flight burns out elsewhere: speed {b['speed_m_s']:+.1f} m/s, "
-          f"altitude {b['altitude_m'] / 1e3:+.2f} "
-          f"km, crossrange {b['crossrange_m'] / 1e3:+.2f} km (no terminal constraint: a test flight, not the mission)")
+    if v:
+        b = v["burnout_change"]
+        print(f"the designed flight burns out elsewhere: speed {b['speed_m_s']:+.1f} m/s, "
+              f"altitude {b['altitude_m'] / 1e3:+.2f} km, crossrange {b['crossrange_m'] / 1e3:+.2f} km (no terminal "
+              "constraint: a test flight, not the mission)")
     sc_noise = get_scenario(args.scenario).noise
-    if sc_noise.kind != "white":
+    if sc_noise.kind != "white" and not own_flight:
         print(f"warning: scenario {args.scenario} has {sc_noise.kind} tracking noise; the design assumes white noise "
               "of the same sigma")
     m = res.maneuver.to_dict(res.x)
