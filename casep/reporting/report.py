@@ -52,8 +52,8 @@ def _text(v: Any) -> str:
     if isinstance(v, (int, np.integer)):
         return str(int(v))
     if isinstance(v, (float, np.floating)):
-        return format_number(float(v), 0) if not math.isfinite(v) or v == 0 or 1e-3 <= abs(v) < 1e6 \
-            else f"{v:.4g}"
+        x = float(v)
+        return format_number(x, 0) if not math.isfinite(x) or x == 0 or 1e-3 <= abs(x) < 1e6 else f"{x:.4g}"
     if isinstance(v, str):
         return v
     if isinstance(v, (list, tuple)):
