@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from casep.calibration import calibrate, load_calibration_model
+from casep import calibrate
+from casep.calibration import load_calibration_model
 from casep.calibration.session import read_session, segments_from_labels
 from casep.calibration.simulate import simulate_session
 

@@ -11,7 +11,8 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from casep.calibration import CalibrationModel, calibrate, load_calibration_model
+from casep import calibrate
+from casep.calibration import CalibrationModel, load_calibration_model
 from casep.calibration.calibrate import PositionMisfitWarning, RotationSignWarning
 from casep.calibration.session import SegmentError, read_session, segments_from_labels
 from casep.calibration.simulate import ferraris_design, simulate_session, tilted_design

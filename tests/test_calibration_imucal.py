@@ -10,7 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from casep.calibration import calibrate, load_calibration_model
+from casep import calibrate
+from casep.calibration import load_calibration_model
 from casep.calibration.calibrate import RotationSignWarning
 from casep.calibration.imucal import from_imucal, imucal_prior, to_imucal
 from casep.calibration.session import read_segments, read_session, segments_from_labels

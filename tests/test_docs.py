@@ -83,4 +83,4 @@ def test_cli_reference_parser_has_every_command():
     parser = build_parser()
     sub = next(a for a in parser._actions if a.dest == "command")
     assert {"separate", "diagnose", "simulate", "montecarlo", "demo", "models", "methods", "impact",
-            "design", "fuse", "noise"} <= set(sub.choices)
+            "design", "fuse", "noise", "calibrate"} <= set(sub.choices)

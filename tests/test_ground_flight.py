@@ -9,7 +9,8 @@ import pytest
 from scipy import stats
 
 import casep
-from casep.calibration import calibrate, load_calibration_model
+from casep import calibrate
+from casep.calibration import load_calibration_model
 from casep.calibration.consistency import consistency, ground_prior
 from casep.calibration.simulate import ferraris_design, simulate_session, tilted_design
 from casep.cli import main

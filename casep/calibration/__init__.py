@@ -2,9 +2,13 @@
 
 - :mod:`casep.calibration.model`: :class:`CalibrationModel` (declare -> ``setup()`` -> locked)
 - :mod:`casep.calibration.session`: session files, segments (JSON list or label column), checks
-- :mod:`casep.calibration.calibrate`: the regression of a test and :func:`calibrate`
+- :mod:`casep.calibration.calibrate`: the regression of a test and :func:`casep.calibrate`
 - :mod:`casep.calibration.imucal`: imucal's calibration JSON, export and import (as a prior)
 - :mod:`casep.calibration.consistency`: ground versus flight, per coefficient and overall
+
+``calibrate`` and ``consistency`` are both a submodule and its function, so they are not re-exported
+here (as in :mod:`casep.workflows`): use ``casep.calibrate`` and
+``casep.calibration.consistency.consistency``, or import them from their submodules.
 
 Layer 5 (as :mod:`casep.workflows`): uses the model, io, analysis and estimators layers.
 """
@@ -15,17 +19,17 @@ __getattr__, __dir__ = attach(__name__, {
     "casep.calibration.model": ("CalibrationModel",),
     "casep.calibration.session": ("Session", "Segment", "SegmentError", "read_session", "read_segments",
                                   "segments_from_labels", "FERRARIS_SEGMENTS"),
-    "casep.calibration.calibrate": ("Calibration", "calibrate", "calibrate_files", "load_calibration_model",
+    "casep.calibration.calibrate": ("Calibration", "calibrate_files", "load_calibration_model",
                                     "calibration_models",
                                     "RotationSignWarning", "PositionMisfitWarning"),
     "casep.calibration.imucal": ("to_imucal", "from_imucal", "read_imucal", "write_imucal", "imucal_prior"),
-    "casep.calibration.consistency": ("Consistency", "consistency", "ground_prior", "flight_prior_consistency",
+    "casep.calibration.consistency": ("Consistency", "ground_prior", "flight_prior_consistency",
                                       "ground_versus_flight"),
 }, globals())
 
 __all__ = ["CalibrationModel", "Session", "Segment", "SegmentError", "read_session", "read_segments",
-           "segments_from_labels", "FERRARIS_SEGMENTS", "Calibration", "calibrate", "calibrate_files",
+           "segments_from_labels", "FERRARIS_SEGMENTS", "Calibration", "calibrate_files",
            "load_calibration_model", "calibration_models", "RotationSignWarning", "PositionMisfitWarning",
            "to_imucal", "from_imucal",
-           "read_imucal", "write_imucal", "imucal_prior", "Consistency", "consistency", "ground_prior",
+           "read_imucal", "write_imucal", "imucal_prior", "Consistency", "ground_prior",
            "flight_prior_consistency", "ground_versus_flight"]

@@ -102,13 +102,16 @@ def load_calibration_model(model: str | os.PathLike | CalibrationModel) -> Calib
         if not path.is_file():
             raise ValueError(f"model file `{text}` does not exist")
     else:
-        path = next((d / f"{text}.py" for d in calibration_model_dirs() if (d / f"{text}.py").is_file()), None)
-        if path is None:
+        found = next((d / f"{text}.py" for d in calibration_model_dirs() if (d / f"{text}.py").is_file()), None)
+        if found is None:
             raise ValueError(f"unknown calibration model `{text}`. Use one of: {', '.join(calibration_models())}; "
                              "or a path to a .py file whose build() returns a casep.calibration.CalibrationModel")
+        path = found
     import importlib.util
 
     spec = importlib.util.spec_from_file_location(f"casep_calibration_model_{path.stem}", path)
+    if spec is None or spec.loader is None:  # as casep.model.loader
+        raise ModelFileError(f"model file {path}: cannot be loaded as Python")
     module = importlib.util.module_from_spec(spec)
     try:
         spec.loader.exec_module(module)
@@ -247,6 +250,7 @@ def _noise(segs: Sequence[Segment], u: np.ndarray) -> np.ndarray:
 
 def _rotation_row(model, slot, seg: Segment, u: np.ndarray, g: float, rate: float):
     """(y, J, T) of a rotation segment: the integral over the turn (module notes)."""
+    assert seg.angle_deg is not None and seg.axis is not None  # a rotation segment has both
     f = g * seg.gravity
     theta = np.deg2rad(seg.angle_deg) * seg.axis  # rad
     T = len(seg.rows) / rate
@@ -365,8 +369,9 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     static = [s for s in segments if s.kind == "static"]
     rots = [s for s in segments if s.kind == "rotation"]
     rate = session.rate
-    seg_info = {s.name: {"name": s.name, "kind": s.kind, "rows": [int(s.rows[0]), int(s.rows[-1])],
-                         "samples": len(s.rows), "misfit": {}} for s in segments}
+    seg_info: dict[str, dict[str, Any]] = {
+        s.name: {"name": s.name, "kind": s.kind, "rows": [int(s.rows[0]), int(s.rows[-1])], "samples": len(s.rows),
+                 "misfit": {}} for s in segments}
     sensors: dict[str, EstimateResult] = {}
     n = model.n_coefficients
     # the two sensors are independent regressions: zero covariance between their blocks
@@ -379,7 +384,8 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         cols = model.columns(slot)
         names = [model.names[j] for j in cols]
         s_i = _noise(static, u)  # sample noise per axis
-        rows_S, rows_y, rows_sd, rows_seg, rows_t = [], [], [], [], []
+        rows_S, rows_y, rows_seg, rows_t = [], [], [], []
+        rows_sd: list[np.ndarray | None] = []  # None: the static level, estimated
         for s in static:
             f = gravity * s.gravity
             w = np.deg2rad(s.omega_dps)

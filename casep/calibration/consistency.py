@@ -54,7 +54,7 @@ class Consistency:
 
     @property
     def disagree(self) -> list[str]:
-        """Coefficients with |z| above :data:`DISAGREE_Z`."""
+        """Coefficients with ``|z|`` above :data:`DISAGREE_Z`."""
         return [n for n, z in zip(self.names, self.z) if abs(z) > DISAGREE_Z]
 
     @property
@@ -288,9 +288,10 @@ def ground_versus_flight(results: Sequence, labels: Sequence[str]) -> tuple[list
             pr = ground_prior(r, cm.flight_model)
             nm = pr["correlation"]["names"]
             idx = [r.names.index(n) for n in nm]
+            cov = r.covariance[np.ix_(idx, idx)] if r.covariance is not None else None
             r = dataclasses.replace(r, names=tuple(nm), units=tuple(r.units[i] for i in idx),
                                     estimate=r.estimate[idx], std=r.std[idx] if r.std is not None else None,
-                                    covariance=r.covariance[np.ix_(idx, idx)], si_factors=r.si_factors[idx],
+                                    covariance=cov, si_factors=r.si_factors[idx],
                                     model=cm.flight_model, reasons={})
             grounds.append((r, lab))
         else:

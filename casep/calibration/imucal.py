@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import os
-from typing import Mapping
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -91,7 +91,7 @@ def read_imucal(source: str | os.PathLike | Mapping) -> dict:
             raise ValueError(f"{where}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
     if not isinstance(d, dict) or d.get("cal_type") not in ("Ferraris", "Turntable"):
         raise ValueError(f"{where}: not an imucal Ferraris/Turntable calibration (cal_type {d.get('cal_type')!r})")
-    out = {}
+    out: dict[str, Any] = {}
     for k in IMUCAL_KEYS:
         try:
             a = np.asarray(d[k], dtype=float)

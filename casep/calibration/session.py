@@ -333,6 +333,7 @@ def segments_from_labels(session: Session, *, angle_deg: float = -360.0, specs: 
         gaps = np.flatnonzero(np.diff(rows) > 1)
         if gaps.size:
             r = session.rows
+            assert r is not None  # filled by Session.__post_init__
             raise SegmentError(f"{session.source}: label `{name}` occurs in {gaps.size + 1} separate runs (file rows "
                                f"{r[rows[0]] + 2}.. and {r[rows[gaps[0] + 1]] + 2}..): a segment is one run. Use: "
                                "distinct labels")

@@ -16,7 +16,7 @@ noise of std ``noise`` per axis (reading units; ``noise = 0``: exact).
 from __future__ import annotations
 
 import math
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -30,7 +30,8 @@ __all__ = ["simulate_session", "ferraris_design", "tilted_design"]
 def ferraris_design(static_samples: int = 400, rotation_samples: int = 300,
                     angle_deg: float = -360.0) -> list[dict]:
     """The nine segments of the Ferraris procedure (imucal's names) as design entries."""
-    out = [{"name": n, "samples": static_samples} for n in ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")]
+    out: list[dict[str, Any]] = [{"name": n, "samples": static_samples}
+                                 for n in ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")]
     out += [{"name": n, "samples": rotation_samples, "angle_deg": angle_deg} for n in ("x_rot", "y_rot", "z_rot")]
     return out
 
@@ -90,7 +91,9 @@ def simulate_session(model: CalibrationModel, truth: Mapping[str, float] | np.nd
     if isinstance(noise, (int, float)):
         noise = (noise, noise)
     na, ng = (np.broadcast_to(np.asarray(v, dtype=float), (3,)) for v in noise)
-    acc, gyr, segs = [], [], []
+    acc: list[np.ndarray] = []
+    gyr: list[np.ndarray] = []
+    segs: list[Segment] = []
     k0 = 0
     for d in design:
         k = int(d["samples"])
@@ -116,6 +119,7 @@ def simulate_session(model: CalibrationModel, truth: Mapping[str, float] | np.nd
             f = gravity * (R @ seg.gravity)
             w0, a, r = np.deg2rad(seg.omega_dps), np.zeros(3), np.zeros(k)
         else:
+            assert seg.angle_deg is not None and seg.axis is not None  # a rotation segment has both
             theta = math.radians(seg.angle_deg) * (1.0 + angle_error * rng.normal())
             T = k / rate
             t = np.arange(k) / rate

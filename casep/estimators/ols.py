@@ -21,18 +21,21 @@ threshold is explicit (`rcond`) and its consequences are in the result.
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
 from casep.estimators._base import Prepared, finish, prepare
 from casep.estimators.result import EstimateResult, OLSExtras
 
+if TYPE_CHECKING:
+    from casep.analysis.problem import Problem
+
 __all__ = ["solve_ols"]
 
 
 def solve_ols(
-    S: np.ndarray,
+    S: np.ndarray | Problem,
     y: np.ndarray | None = None,
     *,
     names: Sequence[str] | None = None,
@@ -45,8 +48,9 @@ def solve_ols(
 
     Parameters
     ----------
-    S : (N, 3, n) or (m, n) array_like
-        Regression matrix in natural units (from :func:`casep.build_sv`).
+    S : (N, 3, n) or (m, n) array_like, or Problem
+        Regression matrix in natural units (from :func:`casep.build_sv`), or a
+        :class:`~casep.analysis.problem.Problem` (then `y` is omitted: the problem holds it).
     y : (N, 3) or (m,) array_like
         Observed velocity error, m/s.
     names, units, si_factors : sequence, optional

@@ -317,7 +317,8 @@ class EstimateResult:
     history: np.ndarray | None = None
     history_std: np.ndarray | None = None
     sigma_source: str = "estimated"
-    stored_residual_rms: dict[str, float] | None = None  # from a JSON (which has no residuals)
+    # from a JSON (which has no residuals); None per axis: a result with no residuals (fused, ground calibration)
+    stored_residual_rms: dict[str, float | None] | None = None
     std_kind: str = "sampling"
     extras: Any = None
 
@@ -350,7 +351,7 @@ class EstimateResult:
         return self.estimate * self.si_factors
 
     @property
-    def residual_rms(self) -> dict[str, float]:
+    def residual_rms(self) -> dict[str, float | None]:
         """RMS of the residuals per axis, m/s."""
         if self.stored_residual_rms is not None and np.asarray(self.residuals).size == 0:
             return dict(self.stored_residual_rms)

@@ -23,6 +23,7 @@ PUBLIC_MODULES = (
     "casep.simulation",
     "casep.impact",
     "casep.design",
+    "casep.calibration",
     "casep.frames",
     "casep.units",
     "casep.exceptions",
