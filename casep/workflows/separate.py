@@ -158,7 +158,7 @@ def separate(
     check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source)
     if sigma is not None and not sigma_from_wavelet:
         check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
-    res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model)
+    res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model, noise_free=_noise_free(problem))
     if outliers is not None:  # studentized residuals of the least-squares fit (white noise), rows named
         from casep.analysis.outliers import flag_outliers
 
@@ -180,16 +180,28 @@ def _is_default(name: str, value) -> bool:
         return False
 
 
-def judge_setup(res: EstimateResult, flight: FlightData | None, model) -> EstimateResult:
+def _noise_free(problem: Problem) -> bool:
+    """Least-squares residual std at the rounding level of dv (:data:`casep.analysis.checks.NOISE_FREE`)."""
+    from casep.analysis.checks import NOISE_FREE
+
+    if problem.y is None:
+        return False
+    dof = max(problem.m - problem.rank().rank, 1)
+    return float(np.sqrt(problem.ls_rss() / dof)) <= NOISE_FREE * float(np.max(np.abs(problem.y)))
+
+
+def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_free: bool = False) -> EstimateResult:
     """A result judged against the set-up: failed (status -4) when its flight failed a set-up check
     (:func:`casep.io.flight.setup_problems`: launch site, azimuth, launch time, time scales), and against
-    the model's declared magnitudes (:func:`casep.estimators._base.check_magnitudes`)."""
+    the model's declared magnitudes (:func:`casep.estimators._base.check_magnitudes`), except on noise-free
+    data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
+    set-up mistake (check_fit's NoiseFreeWarning says so)."""
     from casep.estimators._base import STATUS_SETUP, check_magnitudes, failed
     from casep.io.flight import setup_problems
 
     problems = setup_problems(flight) if flight is not None else []
     if problems:
         res = failed(res, STATUS_SETUP, f"failed: set-up check of {flight.source}: " + "; ".join(problems))
-    if isinstance(model, ErrorModel) and model.name == res.model:
+    if isinstance(model, ErrorModel) and model.name == res.model and not noise_free:
         res = check_magnitudes(res, model.scales, source=flight.source if flight is not None else "")
     return res
