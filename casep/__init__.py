@@ -75,13 +75,16 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.frames": ("LaunchSite",),
     "casep.io.manifest": ("read_manifest", "Manifest"),
     "casep.calibration.calibrate": ("calibrate",),
+    "casep.model.tracking": ("TrackingModel", "load_tracking_model", "build_tracking_model"),
+    "casep.tracking.stations": ("Station", "read_station", "read_radar"),
+    "casep.workflows.radar": ("separate_radar", "diagnose_radar"),
     "casep.exceptions": ("CasepWarning", "IllConditionedWarning", "NoiseFreeWarning", "OutlierWarning",
                          "PlausibilityWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning",
                          "NoiseLevelWarning"),
 }
 __getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), (
     "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units",
-    "impact", "design", "frames", "calibration"))
+    "impact", "design", "frames", "calibration", "tracking"))
 
 __all__ = [
     "__version__",
@@ -137,4 +140,12 @@ __all__ = [
     "MagnitudeWarning",
     "NoiseLevelWarning",
     "calibrate",
+    "TrackingModel",
+    "load_tracking_model",
+    "build_tracking_model",
+    "Station",
+    "read_station",
+    "read_radar",
+    "separate_radar",
+    "diagnose_radar",
 ]

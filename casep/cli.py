@@ -463,6 +463,7 @@ def _parser() -> argparse.ArgumentParser:
                         "(t, f_* or W_*, v_tel_*); several flights: once per flight, in their order")
     _add_grid(s)  # --grid, --time-offset
     _add_frames(s)  # --tracking-frame, --launch-site, --launch-time
+    _add_radar(s)  # --radar STATION.json MEAS.csv, --tracking-model
     _method_option_groups(s)
     g = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
     g.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
@@ -480,12 +481,14 @@ def _parser() -> argparse.ArgumentParser:
                    help="tracked point from the platform, m, body frame (default 0 0 0); the flight file's "
                         "att_pitch/att_yaw/att_roll (rad) and omega_x/y/z (rad/s, body) columns describe the attitude")
     _add_simulate_frames(g)  # --rotating-earth, --launch-site, --tracking-frame, --tracking-rate, --tracking-output
+    _add_simulate_radar(g)  # --radar-station, --tracking-truth, --radar-rate, noise
     d = sub.add_parser("diagnose", help="what the flight can and cannot determine")
     d.add_argument("flight", nargs="*", help="flight file; several: what each determines alone and jointly")
     d.add_argument("--tracking", metavar="FILE", default=None, action="append",
                    help="tracking file (two-file input); several flights: once per flight, in their order")
     _add_grid(d)
     _add_frames(d)
+    _add_radar(d)
     d.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
     d.add_argument("--sigma", type=_ranged("sigma"), default=None, help="noise std, m/s (default: estimated)")
     d.add_argument("--tau",
@@ -639,6 +642,9 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     from casep.model.loader import load_model
     from casep.workflows.separate import separate
 
+    if args.radar:
+        return _separate_radar(args)
+    _radar_only(args, ("tracking_model",))
     _manifest(args)  # --manifest FLIGHTS.toml, or the flight files
     check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
                   inputs=_inputs(args, "flight", "tracking", "bounds", "prior"), folders={"--figures": args.figures})
@@ -924,6 +930,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     from casep.model._model import unknown_coefficient_message
     from casep.model.loader import load_model
 
+    if args.radar:
+        return _diagnose_radar(args)
+    _radar_only(args, ("tracking_model",))
     _manifest(args)  # --manifest FLIGHTS.toml, or the flight files
     check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "prior", "scales"),
                   folders={"--figures": args.figures})
@@ -963,6 +972,156 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---------------------------------------------------------------- radar stations and their errors
+def _add_radar(parser) -> None:
+    """`separate` / `diagnose`: radar measurements of one or more stations (measurement domain)."""
+    parser.add_argument("--radar", nargs=2, action="append", default=None, metavar=("STATION.json", "MEAS.csv"),
+                        help="a radar station ({name, lat, lon, h}: deg, deg, m WGS84) and its measurements (t, range "
+                             "m, azimuth deg from north, elevation deg, optional range_rate m/s); repeat per station. "
+                             "The flight file is then the telemetry (t, f_*, v_tel_*, optional r_tel_*); needs "
+                             "--launch-site and --launch-time")
+    parser.add_argument("--tracking-model", default="radar_biases", metavar="NAME|FILE",
+                        help="with --radar: the station error model (default radar_biases)")
+
+
+def _radar_site(args: argparse.Namespace):
+    from casep.frames import LaunchSite
+
+    if len(args.flight) != 1:
+        raise ValueError(f"--radar takes one telemetry file, got {len(args.flight)}")
+    if args.tracking or args.tracking_frame != "launch":
+        raise ValueError("--radar replaces --tracking/--tracking-frame: give the radar stations only")
+    if args.launch_site is None or args.launch_time is None:
+        raise ValueError("--radar needs --launch-site LAT LON H AZ and --launch-time T0 (the launch time in the radar "
+                         "files' time scale): they tie the telemetry's launch-inertial frame to the stations")
+    return LaunchSite(*args.launch_site, args.launch_time)
+
+
+def _separate_radar(args: argparse.Namespace) -> int:
+    """`casep separate TEL --radar S1.json S1.csv ...`: instrument and station errors in one estimate."""
+    from casep.estimators.result import write_json_atomic
+    from casep.io._atomic import check_outputs
+    from casep.workflows.radar import separate_radar
+
+    for flag, value in (("--denoise wavelet", args.denoise == "wavelet" or None), ("--figures", args.figures),
+                        ("--mat", args.mat), ("--csv", args.csv), ("--outliers", args.outliers),
+                        ("--sigma", args.sigma)):
+        if value:
+            raise ValueError(f"{flag} is not available with --radar (noise: sigma_range/sigma_angle in the station "
+                             "files, else estimated per station and type); leave it out")
+    check_outputs({"--json": args.json, "--report": args.report},
+                  inputs=_inputs(args, "flight") + [f for pair in args.radar for f in pair])
+    site = _radar_site(args)
+    options = {k: getattr(args, k) for k in OPTIONS if getattr(args, k) is not None}
+    for k in ("bounds", "prior"):
+        if k in options:
+            from casep.io.files import read_json_table
+
+            options[k] = read_json_table(options[k], f"--{k}")
+    rr = separate_radar(args.flight[0], args.radar, site, args.model, args.tracking_model, args.method,
+                        options=options)
+    print(rr.table())
+    if args.json:
+        write_json_atomic(rr.to_dict(), args.json)
+        print(f"result written to {args.json}")
+    if args.report:
+        from casep.reporting.radar import write_radar_report
+
+        print(f"report written to {write_radar_report(rr, args.report, source=args.flight[0])}")
+    return _result_status(rr.result)
+
+
+def _diagnose_radar(args: argparse.Namespace) -> int:
+    """`casep diagnose TEL --radar ...`: CRLB with the tracking terms fixed and free, mixed groups, station gains."""
+    from casep.estimators.result import write_json_atomic
+    from casep.io._atomic import check_outputs
+    from casep.tracking.diagnostics import diagnostics_table
+    from casep.workflows.radar import diagnose_radar
+
+    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight") + [f for pair in args.radar for f in pair])
+    d = diagnose_radar(args.flight[0], args.radar, _radar_site(args), args.model, args.tracking_model)
+    print(diagnostics_table(d))
+    if args.json:
+        write_json_atomic({"casep_version": __version__, "model": args.model, "radar_diagnostics": d}, args.json)
+        print(f"diagnostics written to {args.json}")
+    return 0
+
+
+def _add_simulate_radar(parser) -> None:
+    parser.add_argument("--radar-station", metavar="STATION.json", action="append", default=None,
+                        help="with --rotating-earth: write radar measurements of this station (repeat per station): "
+                             "-o is then the telemetry (t, f_*, v_tel_*, r_tel_*), each station <stem>.<name>.json "
+                             "and <stem>.<name>.csv beside it")
+    parser.add_argument("--tracking-truth", metavar="FILE", default=None,
+                        help='with --radar-station: JSON {"S1": {"range_bias": 5, ...}, ...}, the tracking model\'s '
+                             "units (m, ppm, arcsec, ms); default none")
+    parser.add_argument("--radar-rate", type=_positive_float, default=20.0, metavar="HZ",
+                        help="with --radar-station: measurement rate (default 20)")
+    parser.add_argument("--range-noise", type=float, default=3.0, metavar="M", help="range noise std (default 3 m)")
+    parser.add_argument("--angle-noise", type=float, default=8.0, metavar="ARCSEC",
+                        help="azimuth and elevation noise std (default 8 arcsec)")
+    parser.add_argument("--radar-range-rate", action="store_true", help="also write range_rate (noise 0.05 m/s)")
+
+
+def _simulate_radar(args: argparse.Namespace, site) -> int:
+    """`casep simulate -o TEL.csv --rotating-earth --launch-site ... --radar-station S1.json ...`."""
+    from casep.io._atomic import check_outputs
+    from casep.io.files import read_json_table
+    from casep.tracking.stations import read_station
+    from casep.workflows.radar import radar_simulation_outputs, simulate_radar_files
+
+    if site is None:
+        raise ValueError("--radar-station needs --rotating-earth --launch-site LAT LON H AZ (the stations are on the "
+                         "Earth)")
+    if args.tracking_frame != "launch" or args.lever_arm is not None or args.tracking_offset:
+        raise ValueError("--radar-station writes radar files: leave out --tracking-frame, --lever-arm and "
+                         "--tracking-offset (a radar time-tag error is the tracking model's time_bias)")
+    stations = [read_station(p) for p in args.radar_station]
+    check_outputs(radar_simulation_outputs(args.output, stations),
+                  inputs=_inputs(args, "truth", "tracking_truth", "radar_station"))
+    sim, files = simulate_radar_files(
+        args.output, stations, site, truth=read_json_table(args.truth, "--truth") if args.truth else None,
+        tracking_truth=read_json_table(args.tracking_truth, "--tracking-truth") if args.tracking_truth else None,
+        scenario=args.scenario, seed=args.seed, telemetry_rate=args.rate or 100.0, radar_rate=args.radar_rate,
+        model=args.model, noise={"range": args.range_noise, "azimuth": args.angle_noise, "elevation": args.angle_noise},
+        range_rate=args.radar_range_rate)
+    print(f"scenario {sim.scenario}: telemetry {sim.telemetry.t.size} samples, "
+          + ", ".join(f"{m.station.name} {m.t.size} samples" for m in sim.radars)
+          + f" at {args.radar_rate:g} Hz (range noise {args.range_noise:g} m, angles {args.angle_noise:g} arcsec)")
+    print("wrote " + ", ".join(str(f) for f in files))
+    radar = " ".join(f"--radar {files[1 + 2 * i]} {files[2 + 2 * i]}" for i in range(len(sim.radars)))
+    print(f"separate with: casep separate {args.output} {radar} --launch-site "
+          f"{' '.join(f'{v:g}' for v in args.launch_site)} --launch-time 0")
+    return 0
+
+
+_RADAR_DEFAULTS = {"tracking_model": "radar_biases", "tracking_truth": None, "radar_rate": 20.0, "range_noise": 3.0,
+                   "angle_noise": 8.0, "radar_range_rate": False}
+
+
+def _radar_only(args: argparse.Namespace, names) -> None:
+    """Radar options given without radar inputs are an error, not ignored."""
+    for n in names:
+        if getattr(args, n) != _RADAR_DEFAULTS[n]:
+            need = "--radar-station" if args.command == "simulate" else "--radar"
+            raise ValueError(f"--{n.replace('_', '-')} is used only with {need}")
+
+
+def _list_tracking_model(name: str, error: str, verbose: bool) -> bool:
+    """`casep models`: a model file that is a tracking model is listed as such (True), not as broken."""
+    if "it is a tracking model" not in error:
+        return False
+    from casep.model.tracking import load_tracking_model
+
+    m = load_tracking_model(name)
+    print(f"{name:<28} {m.n_coefficients:>3} terms per station (tracking model, --tracking-model)  {m.description}")
+    if verbose:
+        for nm, unit in zip(m.names, m.units):
+            print(f"    {nm:<16} {unit}")
+    return True
+# ---------------------------------------------------------------- end radar
+
+
 # ---------------------------------------------------------------- casep impact
 def _impact_parser(sub) -> None:
     """`casep impact FLIGHT --result RESULT.json [--trajectory OTHER.csv] [--json OUT] [--figures DIR]`."""
@@ -989,7 +1148,6 @@ def _cmd_impact(args: argparse.Namespace) -> int:
     from casep.estimators.result import write_json_atomic
     from casep.impact.miss import impact_analysis, read_trajectory
     from casep.io._atomic import check_outputs
-    from casep.io.files import read_flight
 
     _impact_manifest(args)  # --manifest: the flight's file and result
     check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "result", "trajectory"),
@@ -1003,7 +1161,7 @@ def _cmd_impact(args: argparse.Namespace) -> int:
             raise ValueError(f"--per-flight {item}: give NAME=VALUE (natural units)") from None
         if not eq or not math.isfinite(per_flight[name.strip()]):
             raise ValueError(f"--per-flight {item}: give NAME=VALUE with a finite value (natural units)")
-    flight = read_flight(args.flight)
+    flight = read_trajectory(args.flight)  # dv unused (a radar-tracked telemetry file has none)
     other = read_trajectory(args.trajectory) if args.trajectory else None
     a = impact_analysis(flight, args.result, args.model, other, per_flight=per_flight or None)
     if args.json:
@@ -1229,6 +1387,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from casep.simulation.simulate import simulate_flight, truth_path, write_simulation
 
     site = _simulate_site(args)  # --rotating-earth --launch-site (tracking frames)
+    if args.radar_station:
+        return _simulate_radar(args, site)
+    _radar_only(args, ("tracking_truth", "radar_rate", "range_noise", "angle_noise", "radar_range_rate"))
     if args.tracking_frame == "launch":
         if args.tracking_output is not None:
             raise ValueError("--tracking-output needs --tracking-frame ecef|geodetic")
@@ -1292,6 +1453,8 @@ def _cmd_models(args: argparse.Namespace) -> int:
         try:
             model = load_model(name)
         except ModelDefinitionError as exc:
+            if _list_tracking_model(name, str(exc), args.verbose):
+                continue
             broken += 1
             warnings.warn(f"model `{name}` not listed: {exc}", CasepWarning, stacklevel=1)
             continue

@@ -55,6 +55,8 @@ UNITS: dict[str, float] = {
     "s": 1.0,
     "m": 1.0,
     "deg/h/s": DEG_PER_HOUR,
+    # scale factors (tracking range scale): parts per million -> dimensionless
+    "ppm": 1e-6,
 }
 
 

@@ -145,7 +145,8 @@ def prior_information(prior: Mapping, names: Sequence[str], source: str = "`prio
 
 def per_flight_names(result, model=None) -> set[str]:
     """The coefficients of a result that belong to one flight (the model's ``per_flight=True`` ones,
-    and a several-flights result's ``name[file]``): they are not shared with another flight.
+    a several-flights result's ``name[file]`` and a radar result's station terms ``S1.range_bias``):
+    they are not shared with another flight.
 
     `model` (ErrorModel or name) defaults to the result's own; a result whose model cannot be found
     is an error (guessing would silently treat a flight's own time offset as shared).
@@ -163,7 +164,8 @@ def per_flight_names(result, model=None) -> set[str]:
     else:
         model = load_model(model)
     own = {n for n, pf in zip(model.names, model.per_flight) if pf}
-    return own | {n for n in result.names if "[" in n}
+    stations = set((result.diagnostics or {}).get("tracking_terms") or ())  # a radar result's station errors
+    return own | stations | {n for n in result.names if "[" in n}
 
 
 def prior_from_result(result, names: Sequence[str] | None = None, model=None) -> dict:

@@ -39,6 +39,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from casep.impact.ballistic import impact, impact_jacobian, impact_point
+from casep.model.sv import cumulative_sp  # S_P = int S_V dt (the tracking layer uses it too)
 
 __all__ = ["ImpactAnalysis", "impact_analysis", "burnout_state", "position_sensitivity", "cumulative_sp",
            "read_trajectory", "STATE_COLUMNS", "CORRELATION_GROUP"]
@@ -79,14 +80,15 @@ def read_trajectory(path: str | os.PathLike):
     """A flight file for the impact analysis: ``t``, ``f_*`` (or ``W_*``), ``r_*``, ``v_*``.
 
     ``dv_*`` (or ``v_tel_*``/``v_trk_*``) may be absent: a trajectory that was not flown has
-    none, and the impact analysis does not use them (dv is then stored as zeros and
+    none, a radar-tracked flight's telemetry has ``v_tel_*`` only, and the impact analysis does not
+    use them (dv is then stored as zeros and
     ``meta["dv"]`` says ``"absent"``).
     """
     from casep.io.files import DV_COLUMNS, VTEL_COLUMNS, _force, _is_parquet, _Table, read_flight
     from casep.io.flight import FlightData
 
     tab = _Table(path)
-    if tab.has(DV_COLUMNS) or any(c in tab.columns for c in VTEL_COLUMNS):
+    if tab.has(DV_COLUMNS) or (any(c in tab.columns for c in VTEL_COLUMNS) and "v_trk_x" in tab.columns):
         del tab
         return read_flight(path)
     tab.require(("t",))
@@ -98,21 +100,6 @@ def read_trajectory(path: str | os.PathLike):
 
 
 # ----------------------------------------------------------------------------- S_P
-def cumulative_sp(S: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """S_P = cumulative trapezoid of S_V over `t`, zero at the first sample: ``(N, 3, n)``.
-
-    Notes
-    -----
-    ``S_P[0] = 0``, ``S_P[k] = S_P[k-1] + (S_V[k-1] + S_V[k]) (t_k - t_{k-1}) / 2``.
-    """
-    S = np.asarray(S, dtype=float)
-    t = np.asarray(t, dtype=float)
-    out = np.zeros_like(S)
-    dt = np.diff(t)[:, None, None]
-    np.cumsum(0.5 * (S[1:] + S[:-1]) * dt, axis=0, out=out[1:])  # trapezoid per step, summed
-    return out
-
-
 def position_sensitivity(model, flight, *, rows: int = 65536) -> tuple[np.ndarray, np.ndarray]:
     """``S_P(t_b)`` and ``S_V(t_b)`` at the flight's last sample, ``(3, n)`` each, per natural unit.
 
@@ -182,7 +169,8 @@ def _coefficients(res, model, per_flight: Mapping[str, float] | None, source: st
         if not pf[names.index(k)]:
             raise ValueError(f"per_flight: `{k}` is not a per-flight coefficient of model `{model.name}` "
                              "(its value is the result's estimate)")
-    extra = [n for n in res.names if n not in names]
+    tracking = set((res.diagnostics or {}).get("tracking_terms") or ())  # station errors: no part in the miss
+    extra = [n for n in res.names if n not in names and n not in tracking]
     if extra:
         raise ValueError(f"result {source} has coefficients that model `{model.name}` lacks: {', '.join(extra[:5])}")
     n = len(names)
@@ -466,7 +454,6 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
     ``c_j = G_j D_j``; ``miss = sum_j c_j`` over the coefficients with a value;
     ``cov = G_k Cov_kk G_k^T`` over the estimated ones; ``nonlinear = impact(x_b - B D) - impact(x_b)``.
     """
-    from casep.io.files import read_flight
     from casep.model.loader import load_model
 
     res, rsource = _load_result(result)
@@ -480,7 +467,7 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
             raise ValueError(f"result {rsource} is of model `{res.model}`, not of model `{model.name}`: "
                              f"give --model {res.model} (or leave it out), or a result of `{model.name}`")
     if not isinstance(flight, _flight_type()):
-        flight = read_flight(flight)
+        flight = read_trajectory(flight)  # dv is not used here (a radar-tracked flight's telemetry has none)
     target = flight
     if trajectory is not None:
         target = trajectory if isinstance(trajectory, _flight_type()) else read_trajectory(trajectory)

@@ -25,7 +25,8 @@ from pathlib import Path
 
 from casep.model._model import ErrorModel, ModelDefinitionError
 
-__all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file"]
+__all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file",
+           "run_model_file"]
 
 
 def model_dirs() -> list[Path]:
@@ -101,8 +102,12 @@ def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {msg}" if msg else type(exc).__name__
 
 
-def _run_file(path: Path) -> ErrorModel:
-    """Execute the model file and its ``build()``; any failure becomes a one-line ModelFileError."""
+def run_model_file(path: Path, kind: type = ErrorModel):
+    """Execute the model file and its ``build()``; any failure becomes a one-line ModelFileError.
+
+    `kind`: the class ``build()`` must return (:class:`ErrorModel`, or
+    :class:`casep.model.tracking.TrackingModel` for a tracking model file).
+    """
     spec = importlib.util.spec_from_file_location(f"casep_model_{path.stem}", path)
     if spec is None or spec.loader is None:
         raise ModelFileError(f"model file {path}: cannot be loaded as Python")
@@ -120,9 +125,16 @@ def _run_file(path: Path) -> ErrorModel:
     except (Exception, SystemExit) as exc:  # KeyboardInterrupt still interrupts
         where = _where(path, exc)
         raise ModelFileError(f"{where}{', in build()' if stage == 'build()' else ''}: {_describe(exc)}") from exc
-    if not isinstance(result, ErrorModel):
-        raise ModelFileError(f"model file {path}: build() returned {type(result).__name__}, not casep.ErrorModel")
+    if not isinstance(result, kind):
+        use = {"TrackingModel": "a tracking model: use it with --tracking-model (casep.load_tracking_model)",
+               "ErrorModel": "an instrument model: use it with --model (casep.load_model)"}
+        use = use.get(type(result).__name__, "")
+        raise ModelFileError(f"model file {path}: build() returned {type(result).__name__}, not casep.{kind.__name__}"
+                             + (f"; it is {use}" if use else ""))
     return result
+
+
+_run_file = run_model_file  # the instrument-model case
 
 
 def build_model(model: str | os.PathLike) -> ErrorModel:

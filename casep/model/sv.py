@@ -41,7 +41,7 @@ from casep._kernels import sv_integrate_chunk
 from casep.exceptions import CasepWarning
 from casep.model._model import ErrorModel
 
-__all__ = ["build_sv", "SVBuilder", "DEFAULT_CHUNK"]
+__all__ = ["build_sv", "SVBuilder", "DEFAULT_CHUNK", "cumulative_sp"]
 
 #: Samples per CasADi evaluation. Large enough to amortise the call, small enough for cache.
 DEFAULT_CHUNK = 2048
@@ -242,3 +242,18 @@ def build_sv(model: ErrorModel, t: np.ndarray, f: np.ndarray, *, chunk: int = DE
              signals: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
     """S_V of a flight for a set-up model: ``(N, 3, n)`` array, see :class:`SVBuilder`."""
     return SVBuilder(model, chunk).build(t, f, signals=signals)
+
+
+def cumulative_sp(S: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """S_P = cumulative trapezoid of S_V over `t`, zero at the first sample: ``(N, 3, n)``.
+
+    Notes
+    -----
+    ``S_P[0] = 0``, ``S_P[k] = S_P[k-1] + (S_V[k-1] + S_V[k]) (t_k - t_{k-1}) / 2``.
+    """
+    S = np.asarray(S, dtype=float)
+    t = np.asarray(t, dtype=float)
+    out = np.zeros_like(S)
+    dt = np.diff(t)[:, None, None]
+    np.cumsum(0.5 * (S[1:] + S[:-1]) * dt, axis=0, out=out[1:])  # trapezoid per step, summed
+    return out

@@ -174,7 +174,8 @@ def _diagnostics_summary(result: EstimateResult) -> dict[str, Any]:
     keys = ("condition_number", "condition_number_equilibrated", "rank", "sigma", "unidentifiable", "groups",
             "effective_prior_std", "noise_model", "active_bounds", "prior_consistency")
     out = {k: d[k] for k in keys if k in d}
-    out["residual RMS (m/s)"] = ", ".join(f"{a} {result.residual_rms[a]:.4g}" for a in AXES)
+    if all(result.residual_rms.get(a) is not None for a in AXES):  # a fused or radar result has no dv residuals
+        out["residual RMS (m/s)"] = ", ".join(f"{a} {result.residual_rms[a]:.4g}" for a in AXES)
     return out
 
 

@@ -1,0 +1,202 @@
+"""Simulated radar tracking of a simulated flight: stations, injected station errors, noise.
+
+The flight is the rotating-Earth boost of a scenario (:func:`casep.simulation.simulate.scenario_setup`,
+launch site with t0 = 0 at lift-off). Telemetry is the navigated state with the instrument errors::
+
+    v_tel = v + S_V D,      r_tel = r + S_P D,      S_P = cumulative trapezoid of S_V
+
+(:func:`casep.model.sv.cumulative_sp`, the same S_P the separation uses). Each station measures at
+its own rate, on times inside the flight::
+
+    z(t) = h(r(t - tau), v(t - tau)) + T(g) theta + n,    n ~ N(0, sigma_type^2)
+
+(tags whose instant ``t - tau`` falls outside the flight are not written)
+
+with ``h`` the geometric measurement (:class:`casep.tracking.geometry.RadarGeometry`), ``g`` the
+geometry it gives, ``T`` the tracking model's Jacobian and ``theta`` the station's true errors.
+A tracking-model term named ``time_bias`` (unit ``ms``) is applied exactly as a late time tag
+(the true state sampled at ``t - tau``, the trajectory's dense output) instead of through its
+first-order ``T`` column; every other term enters through ``T`` (exact for biases and scale
+factors). All randomness from ``numpy.random.default_rng(seed)``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from casep.frames import LaunchSite
+from casep.model.sv import build_sv, cumulative_sp
+from casep.model.tracking import TrackingModel, load_tracking_model
+from casep.tracking.geometry import RadarGeometry
+from casep.tracking.regression import Telemetry
+from casep.tracking.stations import RadarMeasurements, Station, check_station_names
+from casep.units import ARCSEC
+
+__all__ = ["RadarSimulation", "simulate_radar", "write_radar_simulation", "DEFAULT_NOISE"]
+
+#: Default noise std per measurement type, natural units: 3 m, 8 arcsec, 8 arcsec, 0.05 m/s.
+DEFAULT_NOISE = {"range": 3.0, "azimuth": 8.0, "elevation": 8.0, "range_rate": 0.05}
+_SI = {"range": 1.0, "azimuth": ARCSEC, "elevation": ARCSEC, "range_rate": 1.0}
+
+
+@dataclass(frozen=True)
+class RadarSimulation:
+    """A simulated flight tracked by radar stations, with its truth."""
+
+    telemetry: Telemetry
+    radars: tuple[RadarMeasurements, ...]
+    site: LaunchSite
+    model: object  # ErrorModel
+    tracking: TrackingModel
+    truth: np.ndarray  # instrument, natural units
+    tracking_truth: dict  # station -> {term: value}, natural units
+    noise: dict  # type -> std, natural units
+    seed: int
+    scenario: str
+
+    def truth_vector(self) -> np.ndarray:
+        """Truth in the order of a :class:`~casep.tracking.regression.RadarRegression`'s names."""
+        parts = [self.truth] + [np.array([self.tracking_truth[m.station.name].get(n, 0.0)
+                                          for n in self.tracking.names]) for m in self.radars]
+        return np.concatenate(parts)
+
+    def truth_dict(self) -> dict:
+        return {"model": self.model.name, "coefficients": dict(zip(self.model.names, map(float, self.truth))),
+                "units": dict(zip(self.model.names, self.model.units)),
+                "tracking_model": self.tracking.name,
+                "tracking": {s: {k: float(v) for k, v in d.items()} for s, d in self.tracking_truth.items()},
+                "tracking_units": dict(zip(self.tracking.names, self.tracking.units)),
+                "radar_noise": dict(self.noise), "seed": self.seed, "scenario": self.scenario,
+                "launch_site": self.site.to_dict(),
+                "stations": [m.station.to_dict() for m in self.radars]}
+
+
+def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="paper", seed: int = 0,
+                   telemetry_rate: float = 100.0, radar_rate: float = 20.0, model=None, truth: Mapping | None = None,
+                   tracking: "str | TrackingModel" = "radar_biases", tracking_truth: Mapping | None = None,
+                   noise: Mapping | None = None, range_rate: bool = False) -> RadarSimulation:
+    """Simulate telemetry and the measurements of each station.
+
+    Parameters
+    ----------
+    stations : sequence of Station
+    site : LaunchSite
+        Launch point and azimuth; ``t0`` must be 0 (lift-off).
+    scenario, telemetry_rate, model, truth
+        As :func:`casep.simulation.simulate.simulate_flight` (truth: instrument coefficients, natural units).
+    radar_rate : float
+        Hz; a divisor of `telemetry_rate` puts the radar times on telemetry samples.
+    tracking : str or TrackingModel
+    tracking_truth : mapping, optional
+        ``{station: {term: value}}``, natural units (missing: 0).
+    noise : mapping, optional
+        Std per type, natural units (:data:`DEFAULT_NOISE`); 0 for noise-free.
+    range_rate : bool
+        Also write range rate.
+    """
+    from casep.simulation.scenarios import get_scenario
+    from casep.simulation.simulate import _check_seed, scenario_setup
+
+    seed = _check_seed(seed)
+    stations = list(stations)
+    check_station_names(stations)
+    sc = get_scenario(scenario)
+    if model is not None or truth is not None:
+        sc = dataclasses.replace(sc, model=sc.model if model is None else os.fspath(model),
+                                 truth=sc.truth if truth is None else dict(truth))
+    sc, traj, mdl, D = scenario_setup(sc, telemetry_rate, rotating_earth=True, site=site)
+    trk = load_tracking_model(tracking)
+    noise = {**DEFAULT_NOISE, **dict(noise or {})}
+    for k, v in noise.items():
+        if k not in DEFAULT_NOISE or not np.isfinite(v) or v < 0:
+            raise ValueError(f"`noise`: `{k}` must be one of {', '.join(DEFAULT_NOISE)} with a finite std >= 0, "
+                             f"got {v!r}")
+    tt = {s.name: dict((tracking_truth or {}).get(s.name, {})) for s in stations}
+    for s, d in (tracking_truth or {}).items():
+        if s not in tt:
+            raise ValueError(f"`tracking_truth` names station `{s}`, which is not simulated ({', '.join(tt)})")
+        for k in d:
+            if k not in trk.names:
+                raise ValueError(f"`tracking_truth` of `{s}`: unknown term `{k}`; the model has {', '.join(trk.names)}")
+    from casep.simulation.simulate import trajectory_signals
+
+    sig = trajectory_signals(traj)
+    SV = build_sv(mdl, traj.t, traj.specific_force, signals=sig)
+    SP = cumulative_sp(SV, traj.t)
+    v_tel = traj.velocity + SV @ D  # v_tel = v + S_V D
+    r_tel = traj.position + SP @ D  # r_tel = r + S_P D
+    # a_*: kinematic acceleration; r_*, v_*: the true state (the range's best trajectory; casep impact's burnout)
+    keep_sig = {k: v for k, v in sig.items() if k[:2] in ("a_", "r_", "v_")}
+    tel = Telemetry(traj.t, traj.specific_force, v_tel, r_tel, "r_tel columns", keep_sig,
+                    f"simulated:{sc.name}:seed{seed}")
+    rng = np.random.default_rng(seed)
+    t_end = traj.t[-1]
+    t_r = np.arange(0, int(np.floor(t_end * radar_rate + 1e-9)) + 1) / radar_rate
+    types = ("range", "azimuth", "elevation") + (("range_rate",) if range_rate else ())
+    idx_time = trk.names.index("time_bias") if "time_bias" in trk.names else None
+    radars = []
+    for st in stations:
+        th = np.array([tt[st.name].get(n, 0.0) for n in trk.names], dtype=float)
+        tau = 0.0
+        if idx_time is not None:
+            tau = th[idx_time] * trk.si_factors[idx_time]  # s
+            th[idx_time] = 0.0  # applied exactly below
+        inside = (t_r - tau >= traj.t[0]) & (t_r - tau <= t_end)  # tags whose instant t - tau was flown
+        t_tag = t_r[inside]
+        t_meas = t_tag - tau  # measured at t - tau
+        k = traj.kinematics(t_meas)
+        geo, _ = RadarGeometry(site, st).evaluate(t_meas, k["position"], k["velocity"], k["acceleration"])
+        T = trk.jacobian(np.column_stack([geo, t_tag - t_tag[0]]))
+        z = geo[:, :4] + T @ th  # h + T theta
+        for j, ty in enumerate(types):
+            if noise[ty] > 0:
+                z[:, j] += rng.normal(0.0, noise[ty] * _SI[ty], t_tag.size)
+        radars.append(RadarMeasurements(st, t_tag, z[:, 0], z[:, 1] % (2 * np.pi), z[:, 2],
+                                        z[:, 3] if range_rate else None, f"simulated:{st.name}"))
+    return RadarSimulation(tel, tuple(radars), site, mdl, trk, D, tt, {k: noise[k] for k in types}, seed, sc.name)
+
+
+def write_radar_simulation(sim: RadarSimulation, telemetry: str | os.PathLike,
+                           folder: str | os.PathLike | None = None) -> list[Path]:
+    """Write the telemetry file, one station JSON and one measurement CSV per station, and the truth.
+
+    Telemetry: ``t, f_*, v_tel_*, r_tel_*`` and the signals ``a_*`` (kinematic acceleration) and
+    ``r_*, v_*`` (the true state: what ``casep impact`` reads as the burnout state). Stations:
+    ``<stem>.<S>.json`` and ``<stem>.<S>.csv`` beside it (or in `folder`); truth: ``<stem>.truth.json``.
+    Angles in degrees.
+    """
+    from casep.io._atomic import atomic_open
+    from casep.io.files import write_table
+    from casep.simulation.simulate import truth_path
+
+    telemetry = Path(telemetry)
+    folder = telemetry.parent if folder is None else Path(folder)
+    tel = sim.telemetry
+    cols = {"t": tel.t, **{f"f_{a}": tel.f[:, i] for i, a in enumerate("xyz")},
+            **{f"v_tel_{a}": tel.v[:, i] for i, a in enumerate("xyz")},
+            **{f"r_tel_{a}": tel.r[:, i] for i, a in enumerate("xyz")}, **tel.signals}
+    write_table(telemetry, cols, comments=[f"casep simulated telemetry (radar), scenario {sim.scenario}, seed "
+                                           f"{sim.seed}; launch site {sim.site.to_dict()} (t0: lift-off)"])
+    out = [telemetry]
+    for m in sim.radars:
+        js = folder / f"{telemetry.stem}.{m.station.name}.json"
+        with atomic_open(js) as fh:
+            fh.write(json.dumps(m.station.to_dict(), indent=2) + "\n")
+        csv = folder / f"{telemetry.stem}.{m.station.name}.csv"
+        c = {"t": m.t, "range": m.range, "azimuth": np.degrees(m.azimuth), "elevation": np.degrees(m.elevation)}
+        if m.range_rate is not None:
+            c["range_rate"] = m.range_rate
+        write_table(csv, c, comments=[f"casep simulated radar, station {m.station.name}: range m, azimuth and "
+                                      "elevation deg, range_rate m/s"])
+        out += [js, csv]
+    side = truth_path(telemetry)
+    with atomic_open(side) as fh:
+        fh.write(json.dumps(sim.truth_dict(), indent=2) + "\n")
+    return out + [side]

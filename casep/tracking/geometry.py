@@ -1,0 +1,132 @@
+"""The predicted radar measurement h(r, v) of a station and its Jacobian H, exact from CasADi.
+
+Chain (see :mod:`casep.frames`; ``theta = omega_E (t - t0)``, ``Rz`` the rotation about the ECEF
+z axis, ``C`` the launch triad at t0 as ECEF columns, ``r_s`` the launch point, ``r_st`` the
+station (ECEF), ``M`` the ECEF -> station east-north-up rotation, rows east, north, up)::
+
+    r_E = Rz(theta)^T (r_s + C r_L)                  # launch-inertial -> ECEF (Earth turned by theta)
+    v_E = Rz(theta)^T C v_L - w x r_E                # velocity relative to the rotating Earth
+    a_E = Rz(theta)^T C a_L - 2 w x v_E - w x (w x r_E)   # relative acceleration (a_L kinematic)
+    (e, n, u) = M (r_E - r_st),   (e', n', u') = M v_E,   (e'', n'', u'') = M a_E
+    rho = sqrt(e^2 + n^2 + u^2)                      # range, m
+    A   = atan2(e, n)                                # azimuth from north, clockwise, rad
+    E   = atan2(u, sqrt(e^2 + n^2))                  # elevation above the WGS84-normal horizon, rad
+    rho' = (e e' + n n' + u u') / rho                # range rate, m/s
+    rho'' = (|(e', n', u')|^2 + (e, n, u).(e'', n'', u'') - rho'^2) / rho   # range acceleration (time bias in rho')
+    A' = (n e' - e n') / (e^2 + n^2)                 # angle rates (time-bias terms)
+    E' = (u' (e^2 + n^2) - u (e e' + n n')) / (rho^2 sqrt(e^2 + n^2))
+
+``H = d(rho, A, E, rho')/d(r_L, v_L)`` (4 x 6) is CasADi's exact derivative of the same
+expression graph. The measurement is geometric (straight line of sight, no refraction, no
+light time: 1 ms at 300 km, which a user term can model as a time bias).
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+from casep.frames import OMEGA_EARTH, LaunchSite
+
+__all__ = ["RadarGeometry", "wrap_angle", "GEOMETRY_COLUMNS"]
+
+#: Columns of :attr:`RadarGeometry.evaluate`'s geometry, the inputs of a tracking model.
+GEOMETRY_COLUMNS = ("range", "azimuth", "elevation", "range_rate", "azimuth_rate", "elevation_rate",
+                    "range_acceleration", "east", "north", "up")
+
+
+def wrap_angle(a: np.ndarray) -> np.ndarray:
+    """Angles wrapped to [-pi, pi) (azimuth residuals across north)."""
+    return (np.asarray(a, dtype=float) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _function() -> ca.Function:
+    x = ca.SX.sym("x", 6)  # r_L (m), v_L (m/s), launch-inertial
+    acc = ca.SX.sym("a", 3)  # kinematic acceleration a_L (m/s^2), launch-inertial
+    dt = ca.SX.sym("dt")  # t - t0, s
+    p = ca.SX.sym("p", 24)  # C (9, column-major), Rz-free launch point r_s (3), M (9, column-major), r_st (3)
+    C = ca.reshape(p[0:9], 3, 3)
+    r_s = p[9:12]
+    M = ca.reshape(p[12:21], 3, 3)
+    r_st = p[21:24]
+    th = OMEGA_EARTH * dt
+    c, s = ca.cos(th), ca.sin(th)
+    RzT = ca.vertcat(ca.horzcat(c, s, 0), ca.horzcat(-s, c, 0), ca.horzcat(0, 0, 1))  # Rz(theta)^T
+    r_L, v_L = x[0:3], x[3:6]
+    r_E = ca.mtimes(RzT, r_s) + ca.mtimes(RzT, ca.mtimes(C, r_L))  # Rz^T r_s + Rz^T C r_L (as casep.frames)
+    v_E = ca.mtimes(RzT, ca.mtimes(C, v_L)) - ca.vertcat(-OMEGA_EARTH * r_E[1], OMEGA_EARTH * r_E[0], 0)
+    w = ca.vertcat(0, 0, OMEGA_EARTH)
+    # relative acceleration in ECEF: a_E = Rz^T C a_L - 2 w x v_E - w x (w x r_E)
+    a_E = ca.mtimes(RzT, ca.mtimes(C, acc)) - 2 * ca.cross(w, v_E) - ca.cross(w, ca.cross(w, r_E))
+    enu = ca.mtimes(M, r_E - r_st)
+    enu_dot = ca.mtimes(M, v_E)
+    enu_ddot = ca.mtimes(M, a_E)
+    e, n, u = enu[0], enu[1], enu[2]
+    hor = ca.sqrt(e**2 + n**2)
+    rho = ca.sqrt(e**2 + n**2 + u**2)
+    az = ca.atan2(e, n)
+    el = ca.atan2(u, hor)
+    rho_dot = ca.dot(enu, enu_dot) / rho
+    rho_ddot = (ca.dot(enu_dot, enu_dot) + ca.dot(enu, enu_ddot) - rho_dot**2) / rho
+    ed, nd, ud = enu_dot[0], enu_dot[1], enu_dot[2]
+    az_dot = (n * ed - e * nd) / hor**2  # d atan2(e, n) / dt
+    el_dot = (ud * hor**2 - u * (e * ed + n * nd)) / (rho**2 * hor)  # d atan2(u, hor) / dt
+    rates = ca.vertcat(az_dot, el_dot)
+    meas = ca.vertcat(rho, az, el, rho_dot)
+    H = ca.jacobian(meas, x)  # exact, 4 x 6
+    geo = ca.vertcat(meas, rates, rho_ddot, enu)  # GEOMETRY_COLUMNS order
+    return ca.Function("radar_h", [x, acc, dt, p], [geo, ca.densify(H)], ["x", "a", "dt", "p"], ["geometry", "H"])
+
+
+_FUNCTION: ca.Function | None = None
+
+
+class RadarGeometry:
+    """Predicted measurements of one station for a launch site: ``h`` and ``H`` per sample.
+
+    Parameters
+    ----------
+    site : LaunchSite
+        Ties the launch-inertial frame to the Earth (launch point, azimuth, launch time t0).
+    station : Station
+        :class:`casep.tracking.stations.Station` (its ECEF position and ENU axes by pymap3d).
+    """
+
+    def __init__(self, site: LaunchSite, station) -> None:
+        global _FUNCTION
+        if _FUNCTION is None:
+            _FUNCTION = _function()
+        self.site = site
+        self.station = station
+        self._p = np.concatenate([site.C.ravel(order="F"), site.r_site, station.enu_rows.ravel(order="F"),
+                                  station.r_ecef])
+
+    def evaluate(self, t: np.ndarray, r: np.ndarray, v: np.ndarray,
+                 a: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Geometry and Jacobian at times `t` for launch-inertial positions `r` and velocities `v`.
+
+        `a`: the kinematic acceleration (launch-inertial, m/s^2), used only for the range
+        acceleration column (NaN there without it).
+
+        Returns
+        -------
+        geometry : (N, 10) ndarray
+            :data:`GEOMETRY_COLUMNS` (m, rad, rad, m/s, rad/s, rad/s, m/s^2, m, m, m); azimuth in (-pi, pi].
+        H : (N, 4, 6) ndarray
+            d(range, azimuth, elevation, range_rate) / d(r, v).
+        """
+        t = np.asarray(t, dtype=float)
+        x = np.hstack([np.asarray(r, dtype=float), np.asarray(v, dtype=float)])
+        if x.shape != (t.size, 6):
+            raise ValueError(f"`r` and `v` must be ({t.size}, 3), got {np.shape(r)} and {np.shape(v)}")
+        if t.size == 0:
+            return np.zeros((0, len(GEOMETRY_COLUMNS))), np.zeros((0, 4, 6))
+        acc = np.zeros((t.size, 3)) if a is None else np.asarray(a, dtype=float).reshape(t.size, 3)
+        geo, H = _FUNCTION(x.T, acc.T, (t - self.site.t0)[None, :], self._p)  # mapped over the columns
+        geo = np.asarray(geo).T
+        if a is None:
+            geo[:, GEOMETRY_COLUMNS.index("range_acceleration")] = np.nan
+        H = np.asarray(H).reshape(4, t.size, 6).transpose(1, 0, 2)
+        return geo, H
