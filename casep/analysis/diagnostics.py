@@ -32,7 +32,7 @@ zero columns are left out (they are unidentifiable by definition).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
@@ -45,6 +45,9 @@ from casep.analysis.linalg import (
     reduce_qr,
     unidentifiable_reasons,
 )
+
+if TYPE_CHECKING:
+    from casep.analysis.problem import Problem
 
 __all__ = ["Diagnostics", "diagnose", "crlb_covariance", "collinearity", "ar1_whiten", "ILL_CONDITIONED",
            "GROUP_INDEX", "GROUP_PROPORTION"]
@@ -305,7 +308,7 @@ def _scales(names: Sequence[str], prior_std: np.ndarray | None, scales: Mapping 
 
 
 def diagnose(
-    S: np.ndarray,
+    S: np.ndarray | Problem,
     y: np.ndarray | None = None,
     *,
     names: Sequence[str] | None = None,
@@ -323,8 +326,9 @@ def diagnose(
 
     Parameters
     ----------
-    S : (N, 3, n) array_like
-        Regression in natural units.
+    S : (N, 3, n) array_like, or Problem
+        Regression in natural units, or a :class:`~casep.analysis.problem.Problem` (then `y` is
+        omitted: the problem holds it).
     y : (N, 3) array_like, optional
         Velocity error; used to estimate sigma when `sigma` is not given.
     sigma : float, optional

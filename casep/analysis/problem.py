@@ -92,7 +92,7 @@ class Problem:
     @classmethod
     def from_arrays(cls, S: np.ndarray, y: np.ndarray, t: np.ndarray | None = None, *,
                     names: Sequence[str] | None = None, units: Sequence[str] | None = None,
-                    si_factors: Sequence[float] | None = None, model: str | None = None,
+                    si_factors: Sequence[float] | np.ndarray | None = None, model: str | None = None,
                     f: np.ndarray | None = None) -> "Problem":
         """A problem from ``S`` ``(N, 3, n)`` or ``(m, n)`` and ``y`` ``(N, 3)`` or ``(m,)`` (kept whole)."""
         S_arr = np.asarray(S, dtype=float)

@@ -126,9 +126,9 @@ def run_model_file(path: Path, kind: type = ErrorModel):
         where = _where(path, exc)
         raise ModelFileError(f"{where}{', in build()' if stage == 'build()' else ''}: {_describe(exc)}") from exc
     if not isinstance(result, kind):
-        use = {"TrackingModel": "a tracking model: use it with --tracking-model (casep.load_tracking_model)",
-               "ErrorModel": "an instrument model: use it with --model (casep.load_model)"}
-        use = use.get(type(result).__name__, "")
+        uses = {"TrackingModel": "a tracking model: use it with --tracking-model (casep.load_tracking_model)",
+                "ErrorModel": "an instrument model: use it with --model (casep.load_model)"}
+        use = uses.get(type(result).__name__, "")
         raise ModelFileError(f"model file {path}: build() returned {type(result).__name__}, not casep.{kind.__name__}"
                              + (f"; it is {use}" if use else ""))
     return result

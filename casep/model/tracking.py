@@ -329,6 +329,7 @@ class TrackingModel:
         n = self.n_coefficients
         if g.shape[0] == 0:
             return np.zeros((0, 4, n))
+        assert self._jac is not None  # built by setup()
         T = np.asarray(self._jac(g.T))  # (4, n N): one 4 x n block per sample, side by side
         return T.reshape(4, g.shape[0], n).transpose(1, 0, 2)
 
@@ -343,6 +344,7 @@ class TrackingModel:
         th = np.asarray(theta, dtype=float).reshape(-1)
         if th.size != self.n_coefficients:
             raise ValueError(f"`theta` must have {self.n_coefficients} values, got {th.size}")
+        assert self._err is not None  # built by setup()
         return np.asarray(self._err(g.T, th)).T
 
     def __repr__(self) -> str:

@@ -32,6 +32,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from casep.frames import LaunchSite
+from casep.model._model import ErrorModel
 from casep.model.sv import build_sv, cumulative_sp
 from casep.model.tracking import TrackingModel, load_tracking_model
 from casep.tracking.geometry import RadarGeometry
@@ -53,7 +54,7 @@ class RadarSimulation:
     telemetry: Telemetry
     radars: tuple[RadarMeasurements, ...]
     site: LaunchSite
-    model: object  # ErrorModel
+    model: ErrorModel
     tracking: TrackingModel
     truth: np.ndarray  # instrument, natural units
     tracking_truth: dict  # station -> {term: value}, natural units

@@ -9,3 +9,21 @@ Layer 2 (beside :mod:`casep.analysis`): imports the model layer, :mod:`casep.io`
 - :mod:`casep.tracking.diagnostics`: CRLB with tracking terms fixed and free, mixed
   near-dependencies, the gain of each station
 """
+
+from casep._lazy import attach
+
+# Imported on first use (PEP 562), see casep._lazy: `import casep.tracking` loads neither CasADi nor pydantic.
+__getattr__, __dir__ = attach(__name__, {
+    "casep.tracking.stations": ("Station", "RadarMeasurements", "read_station", "read_radar", "RadianAnglesWarning",
+                                "MEASUREMENT_TYPES", "RADAR_COLUMNS"),
+    "casep.tracking.geometry": ("RadarGeometry", "wrap_angle", "GEOMETRY_COLUMNS"),
+    "casep.tracking.regression": ("Telemetry", "read_telemetry", "RadarRegression", "estimate_group_sigmas",
+                                  "FIRST_RANGE_LIMIT", "TYPE_UNITS", "RadarCoverageWarning",
+                                  "RadarConvergenceWarning"),
+    "casep.tracking.diagnostics": ("radar_diagnostics", "diagnostics_table"),
+}, globals())
+
+__all__ = ["Station", "RadarMeasurements", "read_station", "read_radar", "RadianAnglesWarning", "MEASUREMENT_TYPES",
+           "RADAR_COLUMNS", "RadarGeometry", "wrap_angle", "GEOMETRY_COLUMNS", "Telemetry", "read_telemetry",
+           "RadarRegression", "estimate_group_sigmas", "FIRST_RANGE_LIMIT", "TYPE_UNITS", "RadarCoverageWarning",
+           "RadarConvergenceWarning", "radar_diagnostics", "diagnostics_table"]

@@ -83,6 +83,14 @@ def _function() -> ca.Function:
 _FUNCTION: ca.Function | None = None
 
 
+def _shared_function() -> ca.Function:
+    """``_function()``, built on first use and shared by every :class:`RadarGeometry`."""
+    global _FUNCTION
+    if _FUNCTION is None:
+        _FUNCTION = _function()
+    return _FUNCTION
+
+
 class RadarGeometry:
     """Predicted measurements of one station for a launch site: ``h`` and ``H`` per sample.
 
@@ -95,9 +103,7 @@ class RadarGeometry:
     """
 
     def __init__(self, site: LaunchSite, station) -> None:
-        global _FUNCTION
-        if _FUNCTION is None:
-            _FUNCTION = _function()
+        _shared_function()  # built here, once per process
         self.site = site
         self.station = station
         self._p = np.concatenate([site.C.ravel(order="F"), site.r_site, station.enu_rows.ravel(order="F"),
@@ -124,7 +130,7 @@ class RadarGeometry:
         if t.size == 0:
             return np.zeros((0, len(GEOMETRY_COLUMNS))), np.zeros((0, 4, 6))
         acc = np.zeros((t.size, 3)) if a is None else np.asarray(a, dtype=float).reshape(t.size, 3)
-        geo, H = _FUNCTION(x.T, acc.T, (t - self.site.t0)[None, :], self._p)  # mapped over the columns
+        geo, H = _shared_function()(x.T, acc.T, (t - self.site.t0)[None, :], self._p)  # mapped over the columns
         geo = np.asarray(geo).T
         if a is None:
             geo[:, GEOMETRY_COLUMNS.index("range_acceleration")] = np.nan

@@ -26,6 +26,7 @@ import os
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -91,7 +92,7 @@ class Station:
         return d
 
 
-def _station_schema():
+def _station_schema() -> Any:  # the pydantic model class, built (and pydantic imported) on first use
     from pydantic import BaseModel, ConfigDict, Field, field_validator
 
     class StationFile(BaseModel):
@@ -109,7 +110,7 @@ def _station_schema():
 
         @field_validator("lat", "lon", "h", "sigma_range", "sigma_angle", "sigma_range_rate")
         @classmethod
-        def _finite(cls, v):
+        def _finite(cls, v: float | None) -> float | None:
             if v is not None and not math.isfinite(v):
                 raise ValueError("must be finite")
             return v

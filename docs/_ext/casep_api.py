@@ -24,6 +24,7 @@ PUBLIC_MODULES = (
     "casep.impact",
     "casep.design",
     "casep.calibration",
+    "casep.tracking",
     "casep.frames",
     "casep.units",
     "casep.exceptions",
