@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 __all__ = ["CasepWarning", "IllConditionedWarning", "PlausibilityWarning", "NoiseFreeWarning",
-           "OutlierWarning", "TimeOffsetWarning", "NoiseNotWhiteWarning"]
+           "OutlierWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning", "NoiseLevelWarning",
+           "GapWarning", "NoiseNotWhiteWarning"]
 
 
 class CasepWarning(UserWarning):
@@ -29,6 +30,23 @@ class OutlierWarning(CasepWarning):
 
 class TimeOffsetWarning(CasepWarning):
     """The residuals track the kinematic acceleration (or its derivative): a tracking time offset."""
+
+
+class SetupWarning(PlausibilityWarning):
+    """Telemetry and tracking disagree with the stated set-up (launch site, azimuth, launch time, time
+    scales): the message gives the numbers (pad velocity, first tracked position, time spans)."""
+
+
+class MagnitudeWarning(CasepWarning):
+    """Estimates far beyond the model's declared magnitudes: the message names them and the ratio."""
+
+
+class NoiseLevelWarning(CasepWarning):
+    """A given noise sigma (or a prior) that the residuals contradict: the message gives the ratio and the test."""
+
+
+class GapWarning(CasepWarning):
+    """A gap in tracking (or telemetry) that interpolation would bridge: the rows inside it are left out."""
 
 
 class NoiseNotWhiteWarning(CasepWarning):

@@ -52,11 +52,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from casep.analysis.linalg import reduce_qr_blocks
-from casep.exceptions import NoiseFreeWarning, OutlierWarning, PlausibilityWarning, TimeOffsetWarning
+from casep.exceptions import (
+    NoiseFreeWarning,
+    NoiseLevelWarning,
+    OutlierWarning,
+    PlausibilityWarning,
+    TimeOffsetWarning,
+)
 from casep.io.flight import FlightData, FlightDataError
 from casep.units import G0
 
-__all__ = ["check_flight", "check_fit", "time_offset_test", "TimeOffsetTest", "GRAVITY_LAUNCH"]
+__all__ = ["check_flight", "check_fit", "check_sigma", "time_offset_test", "TimeOffsetTest", "GRAVITY_LAUNCH"]
 
 #: Gravity in the launch-inertial (platform) frame, x downrange, y up: flat, uniform Earth.
 GRAVITY_LAUNCH = np.array([0.0, -G0, 0.0])
@@ -474,3 +480,50 @@ def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5, loc
     more = f" and {len(hits) - top} more" if len(hits) > top else ""
     _warn(f"{source}: {len(hits)} outlier(s) in dv: {rows}{more}. They bias every coefficient: remove them "
           "(--exclude-outliers), fit robustly (--robust) or correct these rows.", OutlierWarning)
+
+
+#: A given sigma and the least-squares residual std differing by more than this factor ...
+SIGMA_FACTOR = 3.0
+#: ... with a two-sided chi-square p-value below this: a warning.
+SIGMA_P = 1e-3
+
+
+def check_sigma(problem, sigma: float, source: str = "<memory>") -> dict | None:
+    """Compare a given noise std with the least-squares residual std of the same data.
+
+    Under white noise of std `sigma`, ``RSS / sigma^2 ~ chi-square(m - rank)``, with RSS the
+    least-squares residual sum of squares (the smallest misfit the model allows). A
+    :class:`~casep.exceptions.NoiseLevelWarning` when the ratio ``s_LS / sigma`` is outside
+    ``[1 / SIGMA_FACTOR, SIGMA_FACTOR]`` and the two-sided p-value is below :data:`SIGMA_P`: every
+    std of the result scales with sigma (``--sigma 1e-3`` on 0.1 m/s noise: std 100 x too small).
+
+    Parameters
+    ----------
+    problem : Problem
+    sigma : float
+        The given noise std, m/s.
+    source : str, optional
+
+    Returns
+    -------
+    dict or None
+        ``{"sigma_given", "residual_std", "ratio", "chi2", "dof", "p_value"}`` when it warns, else None.
+    """
+    from scipy.stats import chi2 as chi2_dist
+
+    dof = int(problem.m - problem.rank().rank)
+    if dof < 1 or not sigma > 0:
+        return None
+    rss = float(problem.ls_rss())
+    s_ls = float(np.sqrt(rss / dof))
+    ratio = s_ls / sigma
+    stat = rss / sigma**2
+    p = float(2 * min(chi2_dist.sf(stat, dof), chi2_dist.cdf(stat, dof)))
+    if 1 / SIGMA_FACTOR <= ratio <= SIGMA_FACTOR or p >= SIGMA_P:
+        return None
+    out = {"sigma_given": float(sigma), "residual_std": s_ls, "ratio": ratio, "chi2": stat, "dof": dof, "p_value": p}
+    _warn(f"{source}: the given noise sigma {sigma:.4g} m/s disagrees with the least-squares residual std "
+          f"{s_ls:.4g} m/s (ratio {ratio:.3g}; chi-square {stat:.4g} on {dof} dof, p = {p:.2g}): every std scales with "
+          f"sigma, so they are {'too small' if ratio > 1 else 'too large'} by about {max(ratio, 1 / ratio):.3g} x. "
+          "Leave sigma out to estimate it, or check its unit (m/s).", NoiseLevelWarning)
+    return out

@@ -156,13 +156,14 @@ class Problem:
             lift-off without the model's initial terms (default True).
         """
         from casep.analysis.checks import check_flight
-        from casep.io.flight import check_dv_not_zero, check_enough_samples, warn_late_start
+        from casep.io.flight import check_dv_not_zero, check_enough_samples, warn_late_start, warn_setup
         from casep.model.sv import SVBuilder
 
         if checks:
             check_enough_samples(flight, model.n_coefficients, model.name)
             check_flight(flight)  # unit mistakes, impossible data
             check_dv_not_zero(flight)
+            warn_setup(flight)  # site, azimuth, launch time, time scales against the data
             warn_late_start(flight, model)
 
         builder = SVBuilder(model)

@@ -5,6 +5,7 @@ Depends only on :mod:`casep.exceptions`.
 - :mod:`casep.io.flight`: :class:`FlightData` (validated arrays, observed-row mask, late start)
 - :mod:`casep.io.files`: CSV/Parquet/NPZ flight files, telemetry + tracking pairs
 - :mod:`casep.io._atomic`: output checks and all-or-nothing file writing
+- :mod:`casep.io.manifest`: the TOML flight manifest (several flights, each with its own set-up)
 """
 
 from casep.io.files import apparent_velocity_to_force, read_flight, read_flight_pair, write_flight

@@ -144,13 +144,14 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     if len(flights) < 2:
         raise ValueError(f"`flights` must hold two or more flights, got {len(flights)}")
     model = load_model(model)
-    problems, paired = [], []
+    problems, paired, read = [], [], []
     for fl in flights:
         if isinstance(fl, Problem):
             problems.append(fl)
             paired.append(False)
             continue
         fl = fl if isinstance(fl, FlightData) else read_flight(fl)
+        read.append(fl)
         paired.append(fl.meta.get("format") == "pair" and fl.meta.get("grid") == "telemetry")  # interpolated tracking
         problems.append(Problem.from_flight(fl, model))
     _refuse_repeats(problems)
@@ -201,6 +202,11 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
             per_flight[lab] = d
         res = dataclasses.replace(res, diagnostics={**res.diagnostics, "noise": per_flight},
                                   settings={**res.settings, "noise": noise})
+    from casep.workflows.separate import judge_setup
+
+    for fl in read:  # a flight that failed a set-up check fails the joint result
+        res = judge_setup(res, fl, None)
+    res = judge_setup(res, None, model)  # declared magnitudes, once
     if taus is not None:
         from casep.estimators.result import GLSExtras
 

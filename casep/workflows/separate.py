@@ -8,7 +8,7 @@ from typing import Mapping
 
 import numpy as np
 
-from casep.analysis.checks import check_fit
+from casep.analysis.checks import check_fit, check_sigma
 from casep.analysis.denoise import denoise as wavelet_denoise
 from casep.analysis.problem import Problem
 from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
@@ -22,7 +22,7 @@ from casep.model._model import ErrorModel
 from casep.model.loader import load_model
 from casep.workflows.solve import solve_problem
 
-__all__ = ["separate", "regression_rows", "METHODS"]
+__all__ = ["separate", "regression_rows", "judge_setup", "METHODS"]
 
 #: Estimators available through :func:`separate` and ``casep separate --method`` (the registry's).
 METHODS = tuple(_REGISTRY)
@@ -136,6 +136,10 @@ def separate(
     Returns
     -------
     EstimateResult
+        Judged against the set-up (:func:`judge_setup`): failed with status -4 when the flight failed a
+        set-up check (launch site, azimuth, launch time, time scales: ``flight.meta["setup"]``), with
+        status -5 when estimates exceed 1e4 times their declared magnitudes (a warning from 100 times);
+        a given `sigma` far from the residual std is a warning (:func:`casep.analysis.checks.check_sigma`).
     """
     # One rule table (casep.estimators.registry): an option the method does not take is an error, not ignored.
     kw = {"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": noise_order, "lam": lam,
@@ -202,6 +206,9 @@ def separate(
     # raw dv: noise-free, outliers, offset
     check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source,
               outliers_handled=robust is not None or exclude_outliers is not None)
+    if sigma is not None and not sigma_from_wavelet:
+        check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
+    res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model, noise_free=_noise_free(problem))
     if outliers is not None:  # studentized residuals on the rows the method solved (whitened), samples named
         from casep.analysis.outliers import flag_outliers
 
@@ -221,3 +228,30 @@ def _is_default(name: str, value) -> bool:
         return bool(value == OPTIONS[name].default)
     except (TypeError, ValueError):  # e.g. a mapping or an array: given
         return False
+
+
+def _noise_free(problem: Problem) -> bool:
+    """Least-squares residual std at the rounding level of dv (:data:`casep.analysis.checks.NOISE_FREE`)."""
+    from casep.analysis.checks import NOISE_FREE
+
+    if problem.y is None:
+        return False
+    dof = max(problem.m - problem.rank().rank, 1)
+    return float(np.sqrt(problem.ls_rss() / dof)) <= NOISE_FREE * float(np.max(np.abs(problem.y)))
+
+
+def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_free: bool = False) -> EstimateResult:
+    """A result judged against the set-up: failed (status -4) when its flight failed a set-up check
+    (:func:`casep.io.flight.setup_problems`: launch site, azimuth, launch time, time scales), and against
+    the model's declared magnitudes (:func:`casep.estimators._base.check_magnitudes`), except on noise-free
+    data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
+    set-up mistake (check_fit's NoiseFreeWarning says so)."""
+    from casep.estimators._base import STATUS_SETUP, check_magnitudes, failed
+    from casep.io.flight import setup_problems
+
+    problems = setup_problems(flight) if flight is not None else []
+    if problems:
+        res = failed(res, STATUS_SETUP, f"failed: set-up check of {flight.source}: " + "; ".join(problems))
+    if isinstance(model, ErrorModel) and model.name == res.model and not noise_free:
+        res = check_magnitudes(res, model.scales, source=flight.source if flight is not None else "")
+    return res
