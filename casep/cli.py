@@ -40,6 +40,28 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str):  # one line, exit 2
         self.exit(2, f"{self.prog}: error: {message}\n")
 
+    def parse_known_args(self, args=None, namespace=None):
+        self._refuse_repeated(sys.argv[1:] if args is None else list(args))
+        return super().parse_known_args(args, namespace)
+
+    def _refuse_repeated(self, argv: list[str]) -> None:
+        """An option that takes one value (``--launch-site``, ``--model``) given twice is an error: argparse
+        would keep the last silently. Options that collect (``--tracking``, once per flight) may repeat.
+        Only this parser's own options count (a subcommand's parser checks its own, when argparse hands
+        it the rest of the line)."""
+        seen: dict[int, str] = {}
+        for token in argv:
+            if token == "--":
+                break
+            action = self._option_string_actions.get(token.split("=", 1)[0]) if token.startswith("-") else None
+            if action is None or isinstance(action, (argparse._AppendAction, argparse._CountAction,
+                                                     argparse._HelpAction, argparse._VersionAction)):
+                continue
+            if id(action) in seen:
+                self.error(f"{token.split('=', 1)[0]} given twice: it takes one value (argparse would keep the last "
+                           "silently); flights with their own set-up go in a manifest (--manifest FLIGHTS.toml)")
+            seen[id(action)] = token
+
 
 def _positive_float(text: str) -> float:
     try:
@@ -154,16 +176,115 @@ def _add_option(group, option: Option, default: str | None = None) -> None:
                        metavar=_metavar(option), help=_option_help(option, default))
 
 
+def _add_noise(parser, *, outputs: bool = True, default: str = "auto") -> None:
+    """The noise-model options every method takes (casep.analysis.noise, casep.workflows.solve)."""
+    g = parser.add_argument_group("noise model (every method)")
+    g.add_argument("--noise", choices=("auto", "gm", "white"), default=default,
+                   help=f"tracking noise (default {default}): auto (white or Gauss-Markov per axis by a "
+                        "likelihood-ratio test, said in the output), gm (Gauss-Markov per axis, --tau or REML), white "
+                        "(with separate, a whiteness test warns when the residuals contradict it)")
+    g.add_argument("--robust", nargs="?", const="huber", choices=("huber", "bisquare"), default=None,
+                   help="robust fit for any method: glitches removed by a robust filter on the innovations, the rest "
+                        "weighted (default function huber)")
+    if outputs:
+        g.add_argument("--std", choices=("model", "hac"), default="model",
+                       help="model (default) or hac: Newey-West std of a white-noise ols fit")
+        g.add_argument("--exclude-outliers", type=float, nargs="?", const=0.01, default=None, metavar="ALPHA",
+                       help="remove the samples whose studentized residual (whitened rows) is flagged at "
+                            "family-wise chance ALPHA (default 0.01) and fit again; removed samples listed")
+
+
+def _noise_kw(args: argparse.Namespace, opts: dict) -> dict:
+    """separate()'s noise keywords from the options (--tau: the noise model's for every method)."""
+    kw = {"noise": args.noise, "robust": args.robust}
+    for k in ("std", "exclude_outliers"):
+        if getattr(args, k, None) is not None:
+            kw[k] = getattr(args, k)
+    if args.method != "gls" and opts.get("tau") is not None:
+        kw["tau"] = opts.pop("tau")
+    return kw
+
+
+def _print_noise(res) -> None:
+    """The noise model, the robust fit and the removed samples, one line each."""
+    from casep.analysis.noise import NoiseModel
+
+    nd = res.diagnostics.get("noise")
+    if nd:
+        if "note" in nd:
+            print(f"noise: {nd['note']}, tau {nd['axes']['x']['tau_s']:.3g} s ({nd['rule']})")
+        else:
+            axes = nd["axes"]
+            nm = NoiseModel(kind=nd["kind"], tau=tuple(axes[a]["tau_s"] for a in "xyz"),
+                            scale=tuple(axes[a]["scale"] for a in "xyz"), rule=nd["rule"],
+                            lr=tuple(axes[a]["lr"] for a in "xyz") if "lr" in axes["x"] else None,
+                            lr_scale=nd.get("lr_scale"),
+                            sigma=axes["x"].get("std_m_s"))
+            print(nm.line())
+    rb = res.diagnostics.get("robust")
+    if rb:
+        times = ", ".join(r["where"] for r in rb["rejected"][:6])
+        print(f"robust ({rb['function']}): {rb['rejected_count']} sample(s) rejected as glitches"
+              + (f": {times}{', ...' if rb['rejected_count'] > 6 else ''}" if times else "")
+              + f", {rb['downweighted']} row(s) down-weighted, {rb['iterations']} iteration(s)")
+    ex = res.diagnostics.get("excluded")
+    if ex:
+        times = ", ".join(f"{r['where']} {r['axis']}" for r in ex["samples"][:6])
+        print(f"excluded: {ex['count']} sample(s) flagged at alpha {ex['alpha']:g} removed and the fit repeated"
+              + (f": {times}{', ...' if ex['count'] > 6 else ''}" if times else ""))
+    gaps = res.diagnostics.get("gaps")
+    if gaps:
+        parts = ", ".join(f"{g['length']:.3g} s before {g['where']}" for g in gaps[:6])
+        print(f"tracking gaps: {len(gaps)} longer than 3 sample periods: {parts}{', ...' if len(gaps) > 6 else ''}")
+
+
 def _read(args: argparse.Namespace):
-    """The flight of a command: one file, or telemetry + `--tracking`."""
+    """The flight of a command: one file, telemetry + `--tracking`, or the one flight of `--manifest`."""
     from casep.io.files import read_flight, read_flight_pair
 
+    man = getattr(args, "manifest_obj", None)
+    if man is not None:
+        if len(man.flights) != 1:
+            raise ValueError(f"--manifest {man.source} lists {len(man.flights)} flights; this command reads one")
+        return man.flights[0].read()
     tracking = args.tracking or []
     if len(tracking) > 1:
         raise ValueError(f"--tracking given {len(tracking)} times for one flight; give it once per flight")
     frames = _frame_options(args)  # --tracking-frame, --launch-site, --launch-time
-    return (read_flight_pair(args.flight, tracking[0], grid=args.grid, time_offset=args.time_offset, **frames)
+    return (read_flight_pair(args.flight, tracking[0], grid=args.grid, time_offset=args.time_offset,
+                             time_shift=getattr(args, "time_shift", 0.0), **frames)
             if tracking else read_flight(args.flight))
+
+
+def _manifest(args: argparse.Namespace):
+    """`--manifest FLIGHTS.toml` read (kept as ``args.manifest_obj``; ``args.flight`` its telemetry files), or None.
+
+    The manifest holds each flight's files and set-up: the single-flight options are an error with it, and
+    without it a flight file is needed."""
+    path = getattr(args, "manifest", None)
+    flights = args.flight if isinstance(args.flight, list) else [args.flight] if args.flight else []
+    if not path:
+        if not flights:
+            raise ValueError("give a flight file, or --manifest FLIGHTS.toml")
+        return None
+    given = [flag for flag, on in (
+        ("the flight files", flights), ("--tracking", args.tracking),
+        ("--tracking-frame", getattr(args, "tracking_frame", "launch") != "launch"),
+        ("--launch-site", getattr(args, "launch_site", None) is not None),
+        ("--launch-time", getattr(args, "launch_time", None) is not None),
+        ("--time-shift", getattr(args, "time_shift", 0.0) != 0.0),
+        ("--time-offset", getattr(args, "time_offset", None) is not None),
+        ("--grid", getattr(args, "grid", "tracking") != "tracking")) if on]
+    if given:
+        raise ValueError(f"--manifest {path} lists the flights with their files and set-up: leave out "
+                         f"{', '.join(given)} (they describe one flight given on the command line)")
+    from casep.io.manifest import read_manifest
+
+    man = read_manifest(path)
+    args.manifest_obj = man
+    telemetry = [str(f.telemetry) for f in man.flights]
+    args.flight = telemetry if isinstance(args.flight, list) else telemetry[0]
+    return man
 
 
 def _add_grid(parser) -> None:
@@ -175,6 +296,23 @@ def _add_grid(parser) -> None:
                         help="with --tracking: tracking time tags late by MS milliseconds, shifted back; 'auto': the "
                              "offset that lines up the velocity increments (then fit dt_trk for the rest); default: "
                              "none, with a warning when that offset exceeds a tracking sample period")
+    parser.add_argument("--time-shift", type=_finite_float, default=0.0, metavar="SECONDS",
+                        help="with --tracking: how the time scales relate, tracking time minus telemetry time "
+                             "(tracking in seconds of day, telemetry from lift-off at 12:00:00: 43200); default 0 "
+                             "(one scale)")
+    parser.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
+                        help="TOML manifest listing each flight's telemetry, tracking, frame, site, launch time and "
+                             "time shift (docs/guide/range-data.md), instead of the flight files and these options")
+
+
+def _finite_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    return v
 
 
 def _positive_int(text: str) -> int:
@@ -311,13 +449,16 @@ def _read_flights(args: argparse.Namespace) -> list:
     """Several flights, each a file or (with `--tracking` once per flight, in flight order) a pair."""
     from casep.io.files import read_flight, read_flight_pair
 
+    if getattr(args, "manifest_obj", None) is not None:
+        return args.manifest_obj.read()  # each flight with its own frame, site, launch time and time shift
     tracking = args.tracking or []
     if tracking and len(tracking) != len(args.flight):
         raise ValueError(f"--tracking given {len(tracking)} times for {len(args.flight)} flights: give it once per "
                          "flight, in the order of the flights (telemetry A --tracking TA, B --tracking TB)")
     frames = _frame_options(args)  # --tracking-frame, --launch-site, --launch-time: the same for every flight
     if tracking:
-        return [read_flight_pair(f, t, grid=args.grid, time_offset=args.time_offset, **frames)
+        return [read_flight_pair(f, t, grid=args.grid, time_offset=args.time_offset,
+                                 time_shift=getattr(args, "time_shift", 0.0), **frames)
                 for f, t in zip(args.flight, tracking)]
     return [read_flight(f) for f in args.flight]
 
@@ -368,7 +509,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"casep {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     s = sub.add_parser("separate", help="estimate the error coefficients of a flight file")
-    s.add_argument("flight", nargs="+", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "
+    s.add_argument("flight", nargs="*", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "
                    "several files: one estimate of the shared coefficients, per-flight ones per flight "
                    "(methods ols, ridge, bounded, pcr, map)")
     s.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
@@ -401,6 +542,7 @@ def _parser() -> argparse.ArgumentParser:
                         "(t, f_* or W_*, v_tel_*); several flights: once per flight, in their order")
     _add_grid(s)  # --grid, --time-offset
     _add_frames(s)  # --tracking-frame, --launch-site, --launch-time
+    _add_noise(s)  # --noise, --robust, --std, --exclude-outliers
     _add_radar(s)  # --radar STATION.json MEAS.csv, --tracking-model
     _method_option_groups(s)
     g = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
@@ -421,7 +563,7 @@ def _parser() -> argparse.ArgumentParser:
     _add_simulate_frames(g)  # --rotating-earth, --launch-site, --tracking-frame, --tracking-rate, --tracking-output
     _add_simulate_radar(g)  # --radar-station, --tracking-truth, --radar-rate, noise
     d = sub.add_parser("diagnose", help="what the flight can and cannot determine")
-    d.add_argument("flight", nargs="+", help="flight file; several: what each determines alone and jointly")
+    d.add_argument("flight", nargs="*", help="flight file; several: what each determines alone and jointly")
     d.add_argument("--tracking", metavar="FILE", default=None, action="append",
                    help="tracking file (two-file input); several flights: once per flight, in their order")
     _add_grid(d)
@@ -440,7 +582,7 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--figures", metavar="DIR", default=None,
                    help="write singular_values.png and variance_decomposition.png here")
     nz = sub.add_parser("noise", help="Allan deviation of the residuals: white, Gauss-Markov or random-walk noise")
-    nz.add_argument("flight", help="flight file (or telemetry file with --tracking)")
+    nz.add_argument("flight", nargs="?", help="flight file (or telemetry file with --tracking)")
     nz.add_argument("--tracking", metavar="FILE", default=None, action="append", help="tracking file (two-file input)")
     _add_grid(nz)
     _add_frames(nz)  # --tracking-frame, --launch-site, --launch-time
@@ -480,11 +622,17 @@ def _parser() -> argparse.ArgumentParser:
     mc.add_argument("--truth-from-prior", metavar="FILE", dest="truth_from_prior", default=None,
                     help='JSON {"Kg0x": {"mean": m, "std": s}, ...}: each run draws its true coefficients from it '
                          "(also map's prior unless --prior is given)")
+    _add_noise(mc, outputs=False, default="white")
+    mc.add_argument("--tau", dest="noise_tau", type=_positive_float, default=None, metavar="S",
+                    help="Gauss-Markov correlation time the methods assume, s (with --noise gm; default REML)")
     mc.add_argument("--out", metavar="DIR", default=None,
                     help="write runs.parquet/ (per-run results, one part per task) and summary.json here; a rerun "
                          "with the same settings resumes")
+    _own_trajectory_options(mc)
     fu = sub.add_parser("fuse", help="combine results saved earlier (JSON with covariance) into one estimate")
-    fu.add_argument("results", nargs="+", metavar="RESULT.json", help="two or more results of one model")
+    fu.add_argument("results", nargs="*", metavar="RESULT.json", help="two or more results of one model")
+    fu.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
+                    help="fuse the results the manifest lists (each flight's `result`), instead of RESULT.json files")
     fu.add_argument("--json", metavar="OUT", default=None, help="write the fused result JSON here")
     fu.add_argument("--model", default=None, help="model name or .py file (default: the one the results name)")
     me = sub.add_parser("methods", help="list the estimators, their options and capabilities")
@@ -497,12 +645,78 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _manifest_results(args: argparse.Namespace) -> None:
+    """`fuse --manifest`: ``args.results`` from the flights' `result` keys (the files or the manifest, not both)."""
+    if not getattr(args, "manifest", None):
+        if len(args.results) < 2:
+            raise ValueError(f"fuse needs two or more RESULT.json files (or --manifest), got {len(args.results)}")
+        return
+    if args.results:
+        raise ValueError(f"--manifest {args.manifest} lists the results: leave out the RESULT.json files")
+    from casep.io.manifest import read_manifest
+
+    man = read_manifest(args.manifest)
+    missing = [k + 1 for k, f in enumerate(man.flights) if f.result is None]
+    if missing:
+        raise ValueError(f"--manifest {args.manifest}: flight(s) {', '.join(map(str, missing))} have no `result` "
+                         "(the result JSON of that flight) to fuse")
+    args.results = [str(f.result) for f in man.flights]
+
+
+def _impact_manifest(args: argparse.Namespace) -> None:
+    """`impact --manifest`: its one flight's telemetry file as FLIGHT and its `result` unless --result is given."""
+    if not getattr(args, "manifest", None):
+        if not args.flight or not args.result:
+            raise ValueError("impact needs FLIGHT and --result RESULT.json (or --manifest FLIGHTS.toml)")
+        return
+    if args.flight:
+        raise ValueError(f"--manifest {args.manifest} names the flight: leave out FLIGHT")
+    from casep.io.manifest import read_manifest
+
+    man = read_manifest(args.manifest)
+    if len(man.flights) != 1:
+        raise ValueError(f"--manifest {args.manifest} lists {len(man.flights)} flights; impact reads one")
+    f = man.flights[0]
+    args.flight = str(f.telemetry)
+    if not args.result:
+        if f.result is None:
+            raise ValueError(f"--manifest {args.manifest}: the flight has no `result`; give --result RESULT.json")
+        args.result = str(f.result)
+
+
+def _own_trajectory_options(parser) -> None:
+    """`montecarlo`: one's own trajectory (a flight file) and truth instead of the scenario's."""
+    parser.add_argument("--flight", metavar="FILE", default=None,
+                        help="one's own trajectory: a flight file (t, f_*, dv_* or v_tel_*/v_trk_*) whose times and "
+                             "specific force replace the scenario's; needs --truth")
+    parser.add_argument("--truth", metavar="TRUTH.json", default=None,
+                        help='with --flight: true coefficients {"Kg0x": value, ...} (natural units) or a truth file of '
+                             "casep simulate (its model and noise used; else white noise of the flight's own "
+                             "least-squares residual std)")
+
+
+def _own_trajectory(args: argparse.Namespace) -> tuple:
+    """(flight path, truth dict, model name) of --flight/--truth, or (None, None, None)."""
+    flight, truth = getattr(args, "flight", None), getattr(args, "truth", None)
+    if not flight and not truth:
+        return None, None, None
+    if not (flight and truth):
+        raise ValueError("--flight and --truth go together: one's own trajectory needs its true coefficients")
+    from casep.io.files import read_json_table
+
+    data = read_json_table(truth, "--truth")
+    return flight, data, data.get("model") if isinstance(data.get("model"), str) else None
+
+
 def _inputs(args: argparse.Namespace, *names: str) -> list:
     """The input files a command reads (an output must be none of them)."""
     files = []
     for n in names:
         v = getattr(args, n, None)
         files += v if isinstance(v, list) else [v]
+    man = getattr(args, "manifest_obj", None)
+    if man is not None:  # the manifest and every file it lists
+        files += [man.source] + [str(p) for f in man.flights for p in (f.telemetry, f.tracking, f.result) if p]
     model = getattr(args, "model", None)
     return files + ([model] if model and Path(model).is_file() else [])
 
@@ -516,11 +730,13 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     if args.radar:
         return _separate_radar(args)
     _radar_only(args, ("tracking_model",))
+    _manifest(args)  # --manifest FLIGHTS.toml, or the flight files
     check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
                   inputs=_inputs(args, "flight", "tracking", "bounds", "prior"), folders={"--figures": args.figures})
     model = load_model(args.model)
     # Options of the method only (casep.estimators.registry): one given for another method is an error.
     given = {k: getattr(args, k) for k in OPTIONS if getattr(args, k) is not None}  # files: their names
+    nkw = _noise_kw(args, given)  # --tau: the noise model's, for every method
     check_method_options(args.method, given)
     opts = {k: v for k, v in given.items() if k not in ("bounds", "prior")}
     bounds = _coefficient_file(args, "bounds", model.names)
@@ -531,13 +747,13 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     if wopts and args.denoise != "wavelet":
         raise ValueError(f"wavelet options ({', '.join(wopts)}) need --denoise wavelet")
     if len(args.flight) > 1:
-        return _separate_flights(args, model, opts, bounds, prior)
+        return _separate_flights(args, model, opts, bounds, prior, nkw)
     args.flight = args.flight[0]
     flight = _read(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", CasepWarning)
         res = separate(flight, model, args.method, sigma=args.sigma, bounds=bounds, prior=prior,
-                       denoise=args.denoise, wavelet_options=wopts or None, outliers=args.outliers, **opts)
+                       denoise=args.denoise, wavelet_options=wopts or None, outliers=args.outliers, **opts, **nkw)
     for w in caught:  # on to main(), which prints them
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     cons = None
@@ -554,10 +770,13 @@ def _cmd_separate(args: argparse.Namespace) -> int:
             warnings.warn(f"prior not compared with the flight alone: {exc}", CasepWarning, stacklevel=1)
         res = dataclasses.replace(res, diagnostics={**res.diagnostics, "prior_consistency": summary})
     align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
+    prov = _provenance(args, [flight])
     if args.json:
-        write_json_atomic({**res.to_dict(), **({"time_alignment": align} if align else {})}, args.json)
-    _write_exports(res, args)
+        write_json_atomic({**res.to_dict(), **({"time_alignment": align} if align else {}), "provenance": prov},
+                          args.json)
+    _write_exports(res, args, t=flight.t[flight.observed], provenance=prov)
     print(res.table())
+    _print_noise(res)
     if args.outliers is not None:
         from casep.analysis.outliers import OutlierFlags
 
@@ -574,11 +793,11 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     for label, path in (("MAT file", args.mat), ("CSV", args.csv)):
         if path:
             print(f"{label} written to {path}")
-    _write_separate_outputs(args, res, flight, bounds, prior, caught)
+    _write_separate_outputs(args, res, flight, bounds, prior, caught, prov)
     return _result_status(res)
 
 
-def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior) -> int:
+def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior, nkw: dict) -> int:
     """`casep separate A B ...`: several flights in one estimate (casep.workflows.flights)."""
     from casep.estimators.result import write_json_atomic
     from casep.workflows.flights import JOINT_METHODS, flights_summary, separate_flights
@@ -595,7 +814,7 @@ def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior
     flights = _read_flights(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", CasepWarning)
-        res, jp = separate_flights(flights, model, args.method, sigma=args.sigma, options=options)
+        res, jp = separate_flights(flights, model, args.method, sigma=args.sigma, options=options, **nkw)
         summary = flights_summary(res, jp)
     for w in caught:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
@@ -610,7 +829,7 @@ def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior
     if summary["consistency"].get("note"):
         print("note: " + summary["consistency"]["note"])
     if args.json:
-        write_json_atomic(_joint_json(res, jp, summary), args.json)
+        write_json_atomic({**_joint_json(res, jp, summary), "provenance": _provenance(args, flights)}, args.json)
         print(f"result written to {args.json}")
     return _result_status(res)
 
@@ -643,6 +862,7 @@ def _cmd_noise(args: argparse.Namespace) -> int:
     from casep.io._atomic import check_outputs
     from casep.model.loader import load_model
 
+    _manifest(args)  # --manifest FLIGHTS.toml (one flight), or the flight file
     check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking"),
                   folders={"--figures": args.figures})
     model = load_model(args.model)
@@ -675,6 +895,7 @@ def _cmd_fuse(args: argparse.Namespace) -> int:
     from casep.io._atomic import check_outputs
     from casep.workflows.flights import fuse
 
+    _manifest_results(args)  # --manifest: each flight's `result`
     check_outputs({"--json": args.json}, inputs=list(args.results) + [args.model])
     from casep.calibration.calibrate import calibration_models
     from casep.calibration.consistency import ground_versus_flight
@@ -709,7 +930,8 @@ def _diagnose_flights(args: argparse.Namespace, model, prior, scales) -> int:
 
     if args.tau:
         raise ValueError("--tau is not available with several flights yet; give one flight, or leave it out")
-    d = diagnose_flights(_read_flights(args), model, sigma=args.sigma, prior=prior, scales=scales)
+    flights = _read_flights(args)
+    d = diagnose_flights(flights, model, sigma=args.sigma, prior=prior, scales=scales)
     k = len(d["flights"])
     print(f"model {model.name}, {k} flights: CRLB std alone and jointly (verdict: + identifiable, ~ weak, "
           "- unidentifiable)" + ("; joint bound with the prior" if prior is not None else ""))
@@ -724,7 +946,7 @@ def _diagnose_flights(args: argparse.Namespace, model, prior, scales) -> int:
         print(f"flight {i + 1}: {f}, sigma {s:.4g} m/s, identifiable alone {d['identifiable_alone'][i]}")
     print(f"identifiable jointly: {d['identifiable_joint']} of {len(d['coefficients'])}")
     if args.json:
-        write_json_atomic({"model": model.name, **d}, args.json)
+        write_json_atomic({"model": model.name, **d, "provenance": _provenance(args, flights)}, args.json)
         print(f"diagnostics written to {args.json}")
     if args.figures:
         from casep.reporting.plots import plot_flights_crlb
@@ -734,7 +956,23 @@ def _diagnose_flights(args: argparse.Namespace, model, prior, scales) -> int:
     return 0
 
 
-def _write_separate_outputs(args: argparse.Namespace, res, flight, bounds, prior, caught) -> None:
+def _provenance(args: argparse.Namespace, flights: list) -> dict:
+    """The provenance record of a command's result (casep.io.provenance): files with SHA-256, frames, sites,
+    time alignment, exclusions, the options as given and the command line."""
+    from casep.io.provenance import provenance
+
+    skip = {"command", "flight", "tracking", "manifest", "manifest_obj", "json", "mat", "csv", "report", "figures",
+            "argv"}
+    options = {k: v for k, v in vars(args).items() if k not in skip and v is not None
+               and isinstance(v, (str, int, float, bool, list))}
+    model = getattr(args, "model", None)
+    inputs = {"prior": getattr(args, "prior", None), "bounds": getattr(args, "bounds", None),
+              "model": model if model and Path(str(model)).is_file() else None}
+    return provenance(flights, inputs=inputs, options=options, argv=getattr(args, "argv", None),
+                      manifest=getattr(args, "manifest_obj", None))
+
+
+def _write_separate_outputs(args: argparse.Namespace, res, flight, bounds, prior, caught, prov=None) -> None:
     """`--figures DIR` and `--report FILE` of `separate` (matplotlib imported only when asked)."""
     if not (args.figures or args.report):
         return
@@ -749,7 +987,7 @@ def _write_separate_outputs(args: argparse.Namespace, res, flight, bounds, prior
         lines = [str(w.message) for w in caught if issubclass(w.category, CasepWarning)
                  and not issubclass(w.category, IllConditionedWarning)]
         write_report(res, args.report, flight=flight, figures=files, prior=prior, bounds=bounds, warnings=lines,
-                     source=args.flight)
+                     source=flight.source, provenance=prov)
         print(f"report written to {args.report}")
 
 
@@ -765,12 +1003,12 @@ def _result_status(res) -> int:
     return 1
 
 
-def _write_exports(res, args: argparse.Namespace) -> None:
-    """`--mat` and `--csv` of `separate`."""
+def _write_exports(res, args: argparse.Namespace, *, t=None, provenance=None) -> None:
+    """`--mat` (with the residuals' times and the provenance) and `--csv` of `separate`."""
     from casep.estimators.result import write_csv, write_mat
 
     if args.mat:
-        write_mat(res, args.mat)
+        write_mat(res, args.mat, t=t, provenance=provenance)
     if args.csv:
         write_csv(res, args.csv)
 
@@ -788,6 +1026,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if args.radar:
         return _diagnose_radar(args)
     _radar_only(args, ("tracking_model",))
+    _manifest(args)  # --manifest FLIGHTS.toml, or the flight files
     check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "prior", "scales"),
                   folders={"--figures": args.figures})
     model = load_model(args.model)
@@ -811,7 +1050,7 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
                     scales=model.scales if scales is None else scales)
     if args.json:
         write_json_atomic({"casep_version": __version__, "model": model.name, "n_samples": flight.n_observed,
-                           "diagnostics": diag.to_dict()}, args.json)
+                           "diagnostics": diag.to_dict(), "provenance": _provenance(args, [flight])}, args.json)
     print(f"model {model.name}, {flight.n_observed} samples")
     print(diag.report())
     if args.figures:
@@ -859,10 +1098,12 @@ def _separate_radar(args: argparse.Namespace) -> int:
 
     for flag, value in (("--denoise wavelet", args.denoise == "wavelet" or None), ("--figures", args.figures),
                         ("--mat", args.mat), ("--csv", args.csv), ("--outliers", args.outliers),
-                        ("--sigma", args.sigma)):
+                        ("--sigma", args.sigma), ("--noise gm", args.noise == "gm" or None),
+                        ("--robust", args.robust), ("--std hac", args.std == "hac" or None),
+                        ("--exclude-outliers", args.exclude_outliers)):
         if value:
-            raise ValueError(f"{flag} is not available with --radar (noise: sigma_range/sigma_angle in the station "
-                             "files, else estimated per station and type); leave it out")
+            raise ValueError(f"{flag} is not available with --radar (noise: white per station and measurement type, "
+                             "sigma_range/sigma_angle in the station files, else estimated); leave it out")
     check_outputs({"--json": args.json, "--report": args.report},
                   inputs=_inputs(args, "flight") + [f for pair in args.radar for f in pair])
     site = _radar_site(args)
@@ -980,14 +1221,17 @@ def _list_tracking_model(name: str, error: str, verbose: bool) -> bool:
 def _impact_parser(sub) -> None:
     """`casep impact FLIGHT --result RESULT.json [--trajectory OTHER.csv] [--json OUT] [--figures DIR]`."""
     im = sub.add_parser("impact", help="the impact miss that the estimated instrument errors cause, and its budget")
-    im.add_argument("flight", help="flight file the result was estimated on (t, f_*, r_*, v_*; last row = burnout), "
-                    "or its telemetry file with --tracking")
+    im.add_argument("flight", nargs="?", help="flight file the result was estimated on (t, f_*, r_*, v_*; last row = "
+                    "burnout)")
+    im.add_argument("--result", metavar="RESULT.json", help="result JSON of casep separate --json (required, or the "
+                    "manifest flight's `result`)")
+    im.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
+                    help="a manifest of one flight: its telemetry file and (without --result) its `result`")
     im.add_argument("--tracking", metavar="FILE", default=None, action="append",
                     help="tracking file (two-file input, as for separate): Earth-fixed tracking (--tracking-frame "
                          "ecef|geodetic) also gives the burnout position and velocity")
     _add_grid(im)
     _add_frames(im)
-    im.add_argument("--result", required=True, metavar="RESULT.json", help="result JSON of casep separate --json")
     im.add_argument("--trajectory", metavar="OTHER", default=None,
                     help="apply the result to another trajectory's S_V and burnout state (t, f_*, r_*, v_*)")
     im.add_argument("--model", default=None, help="model name or .py file (default: the result's)")
@@ -1005,6 +1249,7 @@ def _cmd_impact(args: argparse.Namespace) -> int:
     from casep.impact.miss import impact_analysis, read_trajectory
     from casep.io._atomic import check_outputs
 
+    _impact_manifest(args)  # --manifest: the flight's file and result
     check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "result", "trajectory"),
                   folders={"--figures": args.figures})
     per_flight = {}
@@ -1070,6 +1315,7 @@ def _design_parser(sub) -> None:
     de.add_argument("--figure", metavar="PNG", default=None, help="write the manoeuvre and CRLB before/after here")
     de.add_argument("-o", "--output", metavar="FLIGHT", default=None,
                     help="simulate the designed flight into this flight file (truth in <stem>.truth.json)")
+    _own_trajectory_options(de)
 
 
 def _cmd_design(args: argparse.Namespace) -> int:
@@ -1089,31 +1335,43 @@ def _cmd_design(args: argparse.Namespace) -> int:
     outputs = {"--json": args.json, "--figure": args.figure}
     if args.output:
         outputs.update({"-o": args.output, "-o (truth sidecar)": truth_path(args.output)})
-    check_outputs(outputs, inputs=_inputs(args, "prior"))
-    prior = _coefficient_file(args, "prior", load_model(get_scenario(args.scenario).model).names)
+    check_outputs(outputs, inputs=_inputs(args, "prior", "flight", "truth"))
+    own_flight, own_truth, own_model = _own_trajectory(args)  # --flight FILE --truth TRUTH.json
+    if own_flight and args.output:
+        raise ValueError("-o simulates the designed flight of a scenario's vehicle; with --flight there is none")
+    own_sigma = None
+    if own_truth and isinstance(own_truth.get("noise"), dict):
+        own_sigma = own_truth["noise"].get("sigma")
+    prior = _coefficient_file(args, "prior", load_model(own_model or get_scenario(args.scenario).model).names)
     res = design(args.scenario, maneuver=args.maneuver, objective=args.objective, max_angle=args.max_angle,
                  max_rate=args.max_rate, max_lateral=args.max_lateral, prior=prior, knots=args.knots,
-                 starts=args.starts, seed=args.seed, rate=args.rate,
+                 starts=args.starts, seed=args.seed, rate=None if own_flight else args.rate,
                  coefficients=None if args.coefficients is None else
-                 [c.strip() for c in args.coefficients.split(",") if c.strip()])
+                 [c.strip() for c in args.coefficients.split(",") if c.strip()],
+                 flight=own_flight, model=own_model, sigma=own_sigma)
     s = res.solver
     print(f"{args.objective}-optimal {args.maneuver} manoeuvre, scenario {args.scenario}: objective "
           f"{res.before:.6g} -> {res.after:.6g} (design model); IPOPT {s['return_status']} (best of "
           f"{len(s['starts'])} starts; {sum(r['success'] for r in s['starts'])} solved), {res.timing['total']:.1f} s")
     v = res.verification
-    print(f"re-simulated: objective {v['before']:.6g} -> {v['after']:.6g}; CRLB prediction error max "
-          f"{100 * v['crlb_prediction_error_max']:.1f} %")
+    if not v:  # one's own trajectory: no vehicle to re-fly
+        print(f"own trajectory {own_flight}: the designed flight is not re-flown (no vehicle model); the 'after' "
+              "bounds are the design model's prediction (the manoeuvre turns the specific force)")
+    else:
+        print(f"re-simulated: objective {v['before']:.6g} -> {v['after']:.6g}; CRLB prediction error max "
+              f"{100 * v['crlb_prediction_error_max']:.1f} %")
     gain_d = (res.before - res.after) / abs(res.before) if res.before else 0.0
-    gain_v = (v["before"] - v["after"]) / abs(v["before"]) if v["before"] else 0.0
+    gain_v = ((v["before"] - v["after"]) / abs(v["before"]) if v["before"] else 0.0) if v else gain_d
     if abs(gain_d - gain_v) > 0.05 * max(abs(gain_v), 1e-12) and abs(gain_d - gain_v) > 0.01:
         print(f"warning: the design model promised a {100 * gain_d:.1f} % change of the objective, the re-simulated "
               f"flights give {100 * gain_v:.1f} %: trust the re-simulated value (the JSON's before/after)")
-    b = v["burnout_change"]
-    print(f"the designed flight burns out elsewhere: speed {b['speed_m_s']:+.1f} m/s, "
-          f"altitude {b['altitude_m'] / 1e3:+.2f} "
-          f"km, crossrange {b['crossrange_m'] / 1e3:+.2f} km (no terminal constraint: a test flight, not the mission)")
+    if v:
+        b = v["burnout_change"]
+        print(f"the designed flight burns out elsewhere: speed {b['speed_m_s']:+.1f} m/s, "
+              f"altitude {b['altitude_m'] / 1e3:+.2f} km, crossrange {b['crossrange_m'] / 1e3:+.2f} km (no terminal "
+              "constraint: a test flight, not the mission)")
     sc_noise = get_scenario(args.scenario).noise
-    if sc_noise.kind != "white":
+    if sc_noise.kind != "white" and not own_flight:
         print(f"warning: scenario {args.scenario} has {sc_noise.kind} tracking noise; the design assumes white noise "
               "of the same sigma")
     m = res.maneuver.to_dict(res.x)
@@ -1175,9 +1433,10 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
     from casep.workflows.montecarlo import Terminated, run_montecarlo, sigterm_raises, write_figure
 
     check_outputs({"--json": args.json, "--csv": args.csv, "--figure": args.figure},
-                  inputs=_inputs(args, "prior", "bounds", "dispersions", "truth_from_prior"))
+                  inputs=_inputs(args, "prior", "bounds", "dispersions", "truth_from_prior", "flight", "truth"))
     sc = get_scenario(args.scenario)
-    names = load_model(sc.model).names
+    own_flight, own_truth, own_model = _own_trajectory(args)  # --flight FILE --truth TRUTH.json
+    names = load_model(own_model or sc.model).names
     prior, bounds = _coefficient_file(args, "prior", names), _coefficient_file(args, "bounds", names)
     dispersions = truth_prior = None
     if args.dispersions:
@@ -1201,11 +1460,15 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
             res = run_montecarlo(args.scenario, runs=args.runs, methods=methods, seed=args.seed, rate=args.rate,
                                  workers=args.workers, progress=args.progress, prior=prior, bounds=bounds,
                                  scheduler=args.scheduler, dispersions=dispersions, truth_prior=truth_prior,
-                                 out=args.out)
+                                 out=args.out, flight=own_flight, truth=own_truth, noise=args.noise,
+                                 tau=args.noise_tau, robust=args.robust)
     except (KeyboardInterrupt, Terminated) as exc:  # workers already ended; no report (--out: finished parts kept)
         print("casep: interrupted", file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130
     print(f"scenario {res.scenario}, {res.runs} runs, seed {res.seed}")
+    if args.out:
+        print(f"resumed {res.resumed} of {res.tasks} tasks from {args.out}" if res.resumed else
+              f"{res.tasks} tasks, none resumed")
     print(res.summary())
     from casep.io._atomic import output_group
 
@@ -1421,6 +1684,7 @@ def _quiet_on_broken_pipe(run):
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     args = _parser().parse_args(argv)
+    args.argv = ["casep", *(sys.argv[1:] if argv is None else argv)]  # the command line, for the provenance
     commands = {"separate": _cmd_separate, "diagnose": _cmd_diagnose, "simulate": _cmd_simulate,
                 "montecarlo": _cmd_montecarlo, "demo": _cmd_demo, "models": _cmd_models, "methods": _cmd_methods,
                 "fuse": _cmd_fuse, "impact": _cmd_impact, "noise": _cmd_noise, "design": _cmd_design,

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 __all__ = ["CasepWarning", "IllConditionedWarning", "PlausibilityWarning", "NoiseFreeWarning",
-           "OutlierWarning", "TimeOffsetWarning",
-           "ConsistencyWarning"]
+           "OutlierWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning", "NoiseLevelWarning",
+           "GapWarning", "NoiseNotWhiteWarning", "ConsistencyWarning"]
 
 
 class CasepWarning(UserWarning):
@@ -30,6 +30,28 @@ class OutlierWarning(CasepWarning):
 
 class TimeOffsetWarning(CasepWarning):
     """The residuals track the kinematic acceleration (or its derivative): a tracking time offset."""
+
+
+class SetupWarning(PlausibilityWarning):
+    """Telemetry and tracking disagree with the stated set-up (launch site, azimuth, launch time, time
+    scales): the message gives the numbers (pad velocity, first tracked position, time spans)."""
+
+
+class MagnitudeWarning(CasepWarning):
+    """Estimates far beyond the model's declared magnitudes: the message names them and the ratio."""
+
+
+class NoiseLevelWarning(CasepWarning):
+    """A given noise sigma (or a prior) that the residuals contradict: the message gives the ratio and the test."""
+
+
+class GapWarning(CasepWarning):
+    """A gap in tracking (or telemetry) that interpolation would bridge: the rows inside it are left out."""
+
+
+class NoiseNotWhiteWarning(CasepWarning):
+    """A white-noise fit whose residuals are correlated: the message gives the test, its numbers
+    and the factor by which the reported std are too small."""
 
 
 class ConsistencyWarning(CasepWarning):

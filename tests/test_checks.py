@@ -169,7 +169,7 @@ def test_outlier_is_named_with_its_row_and_size(paper20):
     with pytest.warns(OutlierWarning) as rec:
         casep.separate(_replace(paper20.flight, dv=dv), paper20.model)
     msg = next(str(w.message) for w in rec if w.category is OutlierWarning)
-    assert "1 outlier(s)" in msg and "row 1235 (t = 61.7 s) dv_x +1e+04 m/s" in msg
+    assert "1 outlier(s)" in msg and "sample 1235 (t = 61.7 s) dv_x +1e+04 m/s" in msg
     z = float(msg.split("m/s = ")[1].split(" noise sigma")[0])
     assert 8e4 < z < 1.2e5  # 1e4 m/s against 0.1 m/s noise
 

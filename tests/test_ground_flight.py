@@ -133,7 +133,10 @@ def test_separate_with_ground_prior_reports_consistency_and_fuse_too(ground_cal,
     dv_bad = inject_errors(flight_model, t, f, D_bad) + np.random.default_rng(4).normal(0, 0.01, (t.size, 3))
     bad_csv = tmp_path / "bad.csv"
     casep.write_flight(casep.FlightData(t, f, dv_bad), bad_csv)
-    assert main(["separate", str(bad_csv), "--method", "map", "--prior", str(gpath), "--json", str(out)]) == 0
+    # the prior the flight contradicts drives second-order terms to 1e5 x their declared magnitudes: a failed
+    # result (exit 1), its JSON still written with the consistency test that explains it
+    assert main(["separate", str(bad_csv), "--method", "map", "--prior", str(gpath), "--json", str(out)]) == 1
+    assert json.loads(out.read_text())["success"] is False
     pc = json.loads(out.read_text())["diagnostics"]["prior_consistency"]
     assert not pc["overall"]["consistent"] and "Ka0x" in pc["disagree"]
     # fuse: the ground result with a flight-only result, consistency printed first

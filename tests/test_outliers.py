@@ -93,8 +93,10 @@ def test_cli_outliers_option(paper10, tmp_path, capsys):
         warnings.simplefilter("ignore")
         assert main(["separate", str(tmp_path / "f.csv"), "--outliers", "--json", str(tmp_path / "r.json")]) == 0
     out = capsys.readouterr().out
-    assert "outliers: 1 row(s)" in out and "sample 100 (t = 10 s) dv_y" in out
     d = json.loads((tmp_path / "r.json").read_text())["diagnostics"]["outliers_studentized"]
     assert d["count"] == 1 and d["rows"][0]["sample"] == 100
+    line = d["rows"][0]["line"]  # one numbering: the file's line and the time, in the output and the JSON
+    assert float((tmp_path / "f.csv").read_text().splitlines()[line - 1].split(",")[0]) == pytest.approx(10.0)
+    assert "outliers: 1 row(s)" in out and f"line {line} of f.csv (t = 10 s) dv_y" in out
     with pytest.raises(ValueError, match="`alpha` must be in"):
         flag_outliers(Problem.from_flight(sim.flight, sim.model), alpha=2.0)

@@ -110,7 +110,8 @@ def test_bad_arguments(tmp_path, capsys):
     assert main(["simulate", "--seed", "-3", "-o", str(tmp_path / "x.csv")]) == 2
     assert "`--seed` must be >= 0" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
-    assert set(SCENARIOS) == {"paper", "paper-pitch", "paper-ar1", "paper-yaw-late", "paper-pitch-low", "paper-azimuth"}
+    assert set(SCENARIOS) == {"paper", "paper-pitch", "paper-ar1", "paper-yaw-late", "paper-pitch-low", "paper-azimuth",
+                              "paper-range-gm", "paper-range"}
 
 
 def test_two_rate_tracking_start():

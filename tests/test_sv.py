@@ -146,5 +146,6 @@ def test_data_gap_warns_with_numbers(platform36):
 
     t = np.r_[np.arange(0.0, 10.0, 0.01), np.arange(12.0, 20.0, 0.01)]  # 2 s dropout
     with pytest.warns(CasepWarning,
-                      match=r"1 gap\(s\) longer than 10x the median step 0.01 s \(largest 2.01 s before row 1000\)"):
+                      match=r"1 gap\(s\) longer than 10x the median step 0.01 s \(largest 2.01 s before sample 1001, "
+                      r"t = 12 s\)"):
         casep.build_sv(platform36, t, excitation_force(t))

@@ -52,11 +52,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from casep.analysis.linalg import reduce_qr_blocks
-from casep.exceptions import NoiseFreeWarning, OutlierWarning, PlausibilityWarning, TimeOffsetWarning
+from casep.exceptions import (
+    NoiseFreeWarning,
+    NoiseLevelWarning,
+    OutlierWarning,
+    PlausibilityWarning,
+    TimeOffsetWarning,
+)
 from casep.io.flight import FlightData, FlightDataError
 from casep.units import G0
 
-__all__ = ["check_flight", "check_fit", "time_offset_test", "TimeOffsetTest", "GRAVITY_LAUNCH"]
+__all__ = ["check_flight", "check_fit", "check_sigma", "time_offset_test", "TimeOffsetTest", "GRAVITY_LAUNCH"]
 
 #: Gravity in the launch-inertial (platform) frame, x downrange, y up: flat, uniform Earth.
 GRAVITY_LAUNCH = np.array([0.0, -G0, 0.0])
@@ -385,7 +391,7 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
 
 
 def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.ndarray,
-              source: str = "<memory>") -> None:
+              source: str = "<memory>", outliers_handled: bool = False) -> None:
     """Residual checks after an estimate: noise-free data, outliers, tracking time offset.
 
     Parameters
@@ -401,6 +407,8 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         Times (s) and specific force (N, 3) of the same rows.
     source : str, optional
         Flight name for the messages.
+    outliers_handled : bool, optional
+        The fit removed or down-weighted its outliers already (a robust fit): no outlier warning.
 
     Warns
     -----
@@ -419,7 +427,10 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         _warn(f"{source}: residual RMS {rms:.3g} m/s is at the rounding level of dv (max |dv| {scale:.3g} m/s): "
               "the data carry no noise, so the std reflect rounding only.", NoiseFreeWarning)
         return
-    _check_outliers(r, t, source)
+    if not outliers_handled:
+        _check_outliers(r, t, source, locate=S.locate if _is_problem(S) and hasattr(S, "locate") else None)
+    if f is None:  # rows without their specific force (a problem from arrays): no time-offset test
+        return
     if _shares_problem_test(S, dv):
         del r  # long flights: the shared test reads dv, not the residuals
         test = _problem_time_offset_test(S, t, f)
@@ -439,7 +450,7 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
               TimeOffsetWarning)
 
 
-def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5) -> None:
+def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5, locate=None) -> None:
     """Name the rows whose residual spikes above :data:`OUTLIER_Z` robust sigma."""
     if r.shape[0] < 5:
         return
@@ -458,8 +469,61 @@ def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5) -> 
     if not hits:
         return
     hits.sort(reverse=True)
-    rows = "; ".join(f"row {k + 1} (t = {t[k]:.6g} s) dv_{'xyz'[i]} {size:+.3g} m/s = {zr:+.3g} noise sigma"
-                     for _, k, i, size, zr in hits[:top])
+    if locate is not None:  # the file's line and the time, as every other message names a row
+        from casep.io.files import where
+
+        places = [where(loc) for loc in locate([k for _, k, *_ in hits[:top]])]
+    else:
+        places = [f"sample {k + 1} (t = {t[k]:.6g} s)" for _, k, *_ in hits[:top]]
+    rows = "; ".join(f"{p} dv_{'xyz'[i]} {size:+.3g} m/s = {zr:+.3g} noise sigma"
+                     for p, (_, k, i, size, zr) in zip(places, hits[:top]))
     more = f" and {len(hits) - top} more" if len(hits) > top else ""
-    _warn(f"{source}: {len(hits)} outlier(s) in dv: {rows}{more}. They bias every coefficient: remove or "
-          "correct these rows.", OutlierWarning)
+    _warn(f"{source}: {len(hits)} outlier(s) in dv: {rows}{more}. They bias every coefficient: remove them "
+          "(--exclude-outliers), fit robustly (--robust) or correct these rows.", OutlierWarning)
+
+
+#: A given sigma and the least-squares residual std differing by more than this factor ...
+SIGMA_FACTOR = 3.0
+#: ... with a two-sided chi-square p-value below this: a warning.
+SIGMA_P = 1e-3
+
+
+def check_sigma(problem, sigma: float, source: str = "<memory>") -> dict | None:
+    """Compare a given noise std with the least-squares residual std of the same data.
+
+    Under white noise of std `sigma`, ``RSS / sigma^2 ~ chi-square(m - rank)``, with RSS the
+    least-squares residual sum of squares (the smallest misfit the model allows). A
+    :class:`~casep.exceptions.NoiseLevelWarning` when the ratio ``s_LS / sigma`` is outside
+    ``[1 / SIGMA_FACTOR, SIGMA_FACTOR]`` and the two-sided p-value is below :data:`SIGMA_P`: every
+    std of the result scales with sigma (``--sigma 1e-3`` on 0.1 m/s noise: std 100 x too small).
+
+    Parameters
+    ----------
+    problem : Problem
+    sigma : float
+        The given noise std, m/s.
+    source : str, optional
+
+    Returns
+    -------
+    dict or None
+        ``{"sigma_given", "residual_std", "ratio", "chi2", "dof", "p_value"}`` when it warns, else None.
+    """
+    from scipy.stats import chi2 as chi2_dist
+
+    dof = int(problem.m - problem.rank().rank)
+    if dof < 1 or not sigma > 0:
+        return None
+    rss = float(problem.ls_rss())
+    s_ls = float(np.sqrt(rss / dof))
+    ratio = s_ls / sigma
+    stat = rss / sigma**2
+    p = float(2 * min(chi2_dist.sf(stat, dof), chi2_dist.cdf(stat, dof)))
+    if 1 / SIGMA_FACTOR <= ratio <= SIGMA_FACTOR or p >= SIGMA_P:
+        return None
+    out = {"sigma_given": float(sigma), "residual_std": s_ls, "ratio": ratio, "chi2": stat, "dof": dof, "p_value": p}
+    _warn(f"{source}: the given noise sigma {sigma:.4g} m/s disagrees with the least-squares residual std "
+          f"{s_ls:.4g} m/s (ratio {ratio:.3g}; chi-square {stat:.4g} on {dof} dof, p = {p:.2g}): every std scales with "
+          f"sigma, so they are {'too small' if ratio > 1 else 'too large'} by about {max(ratio, 1 / ratio):.3g} x. "
+          "Leave sigma out to estimate it, or check its unit (m/s).", NoiseLevelWarning)
+    return out

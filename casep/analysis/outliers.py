@@ -102,10 +102,11 @@ class OutlierFlags:
                 f"{self.rate:.2g} per row: {self.expected_false:.2g} expected from white noise)")
         if not self.rows:
             return head
-        rows = "; ".join(f"sample {r['sample']} (t = {r['t']:.6g} s) dv_{r['axis']} {r['residual']:+.3g} m/s, "
-                         f"t {r['t_value']:+.3g}" for r in self.rows[:top])
+        rows = "; ".join(f"{r.get('where') or 'sample %d (t = %.6g s)' % (r['sample'] + 1, r['t'])} dv_{r['axis']} "
+                         f"{r['residual']:+.3g} m/s, t {r['t_value']:+.3g}" for r in self.rows[:top])
         more = f" and {self.count - top} more" if self.count > top else ""
-        return f"{head}: {rows}{more}. Remove or correct them, or estimate with --method huber"
+        return (f"{head}: {rows}{more}. Remove them (--exclude-outliers), fit robustly (--robust) or estimate with "
+                "--method huber")
 
     def to_dict(self) -> dict:
         return {"count": self.count, "threshold": self.threshold, "rate": self.rate, "rows_tested": self.rows_tested,
@@ -138,4 +139,16 @@ def flag_outliers(problem, *, alpha: float = 0.01, rate: float | None = None,
     rows = [{"sample": int(k), "t": float(times[k]), "axis": "xyz"[i] if tv.shape[1] == 3 else "-",
              "t_value": float(tv[k, i]), "residual": float(rv[k, i])} for k, i in np.argwhere(np.abs(tv) > thr)]
     rows.sort(key=lambda r: -abs(r["t_value"]))
+    _add_locations(problem, rows)
     return OutlierFlags(rows, thr, rate, m)
+
+
+def _add_locations(problem, rows: list[dict], top: int = 200) -> None:
+    """File, line and a printable place of the first `top` rows (:meth:`casep.Problem.locate`)."""
+    locate = getattr(problem, "locate", None)
+    if locate is None or not rows:
+        return
+    from casep.io.files import where
+
+    for r, loc in zip(rows[:top], locate([r["sample"] for r in rows[:top]])):
+        r.update(file=loc["file"], line=loc["line"], where=where(loc))

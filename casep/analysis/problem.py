@@ -83,6 +83,15 @@ class Problem:
         self._S = S
         self._regenerate = regenerate
         self._ranks: dict[float | None, RankAnalysis] = {}
+        #: The raw problem this one was derived from by :meth:`subset` or :meth:`whitened` (None: raw).
+        self.parent: Problem | None = None
+        #: Indices of this problem's samples among the parent's (None: all of them).
+        self.sample_index: np.ndarray | None = None
+        #: The noise model the rows are whitened for (None: raw rows).
+        self.noise = None
+        self._unwhitened: Problem | None = None  # the same rows before whitening
+        #: Where rows come from (file, line, time): ``locate(rows)`` for indices of this problem's rows.
+        self._locate_flight = None  # (flight, observed sample indices) of a problem from a flight
         n = red.n
         for label, seq in (("names", self.names), ("units", self.units), ("si_factors", self.si_factors)):
             if len(seq) != n:
@@ -147,13 +156,14 @@ class Problem:
             lift-off without the model's initial terms (default True).
         """
         from casep.analysis.checks import check_flight
-        from casep.io.flight import check_dv_not_zero, check_enough_samples, warn_late_start
+        from casep.io.flight import check_dv_not_zero, check_enough_samples, warn_late_start, warn_setup
         from casep.model.sv import SVBuilder
 
         if checks:
             check_enough_samples(flight, model.n_coefficients, model.name)
             check_flight(flight)  # unit mistakes, impossible data
             check_dv_not_zero(flight)
+            warn_setup(flight)  # site, azimuth, launch time, time scales against the data
             warn_late_start(flight, model)
 
         builder = SVBuilder(model)
@@ -167,7 +177,9 @@ class Problem:
                       source=flight.source)
         if keep_sv:
             S = flight.observed_rows(builder.build(flight.t, flight.f, signals=signals))[0]
-            return cls(red=reduce_qr(S, dv, names=model.names), y=dv, t=t, S=S, f=f_obs, **common)
+            pb = cls(red=reduce_qr(S, dv, names=model.names), y=dv, t=t, S=S, f=f_obs, **common)
+            pb._locate_flight = (flight, np.flatnonzero(obs))
+            return pb
 
         def regenerate(rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
             k0 = 0  # observed rows before this block
@@ -181,7 +193,9 @@ class Problem:
 
         red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in regenerate(block_rows)), model.n_coefficients,
                                names=model.names)
-        return cls(red=red, y=dv, t=t, regenerate=regenerate, f=f_obs, **common)
+        pb = cls(red=red, y=dv, t=t, regenerate=regenerate, f=f_obs, **common)
+        pb._locate_flight = (flight, np.flatnonzero(obs))
+        return pb
 
     def with_y(self, y: np.ndarray) -> "Problem":
         """The same regression with other observations (e.g. de-noised dv): reduced again, S shared."""
@@ -199,6 +213,124 @@ class Problem:
                       model=self.model, source=self.source, S=self._S, regenerate=regenerate, f=self.f)
         new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n, names=self.names)
         return new
+
+    def subset(self, keep: np.ndarray) -> "Problem":
+        """The regression on the samples where `keep` (N,) is True (time order kept; S shared).
+
+        The parent (this problem, or its own parent) and the kept sample indices are recorded:
+        residuals of the whole flight stay available through :attr:`parent`.
+        """
+        self._need_rows()
+        keep = np.asarray(keep, dtype=bool)
+        if keep.shape != (self.n_samples,) or self.y.ndim != 2:
+            raise ValueError(f"`keep` must be a boolean mask of the {self.n_samples} samples, got shape {keep.shape}")
+        idx = np.flatnonzero(keep)
+        y = self.y[idx]
+        t = None if self.t is None else self.t[idx]
+        f = None if self.f is None else self.f[idx]
+        S = regenerate = None
+        if self._S is not None:
+            S = self._S[idx]
+        else:
+            base = self._regenerate
+
+            def regenerate(rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
+                k0 = 0
+                for sl, S_b, _ in base(rows):
+                    o = keep[sl]
+                    k1 = k0 + int(o.sum())
+                    if k1 > k0:
+                        yield slice(k0, k1), S_b[o], y[k0:k1]
+                    k0 = k1
+
+        new = Problem(names=self.names, units=self.units, si_factors=self.si_factors,
+                      red=reduce_qr(S, y) if S is not None else self.red, y=y, t=t, model=self.model,
+                      source=self.source, S=S, regenerate=regenerate, f=f)
+        if S is None:
+            new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n)
+        root = self.parent if self.parent is not None else self
+        new.parent = root
+        new.sample_index = idx if self.sample_index is None else self.sample_index[idx]
+        return new
+
+    def whitened(self, noise, *, weights: np.ndarray | None = None) -> "Problem":
+        """The regression on rows whitened for a noise model (:mod:`casep.analysis.noise`).
+
+        Every estimator solves on the whitened rows as on any problem: least squares there is
+        the GLS estimate, and the std follow the noise model. Residuals of the raw rows:
+        ``problem.raw_residuals(x)``.
+
+        Parameters
+        ----------
+        noise : NoiseModel
+        weights : (N, 3) array_like, optional
+            Robust row weights in (0, 1]: the whitened rows are multiplied by ``sqrt(w)``.
+        """
+        from casep.analysis.noise import whiten, whiten_blocks
+
+        self._need_rows()
+        if self.noise is not None:
+            raise ValueError(f"problem `{self.source}` is whitened already")
+        if self.t is None or self.y.ndim != 2:
+            raise ValueError(f"problem `{self.source}`: whitening needs rows (N, 3) with their times")
+        w = None if weights is None else np.asarray(weights, dtype=float).reshape(self.y.shape)
+        t = self.t
+        if self._S is not None:
+            Sw, yw = whiten(self._S, self.y, t, noise, w)
+            new = Problem(names=self.names, units=self.units, si_factors=self.si_factors, red=reduce_qr(Sw, yw),
+                          y=yw, t=t, model=self.model, source=self.source, S=Sw, f=self.f)
+        else:
+            base = self.blocks
+            yw = np.empty_like(self.y)
+            for sl, _, y_b in whiten_blocks(base(), t, noise, w):
+                yw[sl] = y_b
+
+            def regenerate(rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
+                yield from whiten_blocks(base(rows), t, noise, w)
+
+            new = Problem(names=self.names, units=self.units, si_factors=self.si_factors, red=self.red, y=yw, t=t,
+                          model=self.model, source=self.source, regenerate=regenerate, f=self.f)
+            new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n)
+        new.parent = self.parent if self.parent is not None else self
+        new.sample_index = self.sample_index
+        new.noise = noise
+        new._unwhitened = self
+        return new
+
+    def locate(self, rows) -> list[dict]:
+        """Where rows of this problem come from: ``{"sample", "t", "file", "row", "line"}`` each
+        (:func:`casep.io.files.locate_samples`; without a flight: the row and its time only)."""
+        rows = np.asarray(rows, dtype=int).reshape(-1)
+        root = self.parent if self.parent is not None else self
+        idx = rows if self.sample_index is None else self.sample_index[rows]  # rows of the root problem
+        if root._locate_flight is None:
+            t = root.t
+            return [{"sample": int(k), "t": float(t[k]) if t is not None else float("nan"), "file": None,
+                     "row": None, "line": None} for k in idx]
+        from casep.io.files import locate_samples
+
+        flight, obs = root._locate_flight
+        out = locate_samples(flight, obs[idx])
+        for d, k in zip(out, idx):
+            d["sample"] = int(k)  # the problem's row, as the results count them
+        return out
+
+    def rows(self, noise: str = "auto", tau=None, robust: str | None = None, exclude_outliers: float | None = None):
+        """The rows every method solves: this problem's noise model, robust weights and removed samples.
+
+        :func:`casep.analysis.rows.prepare_rows`; ``rows.solved`` is the problem to hand to any
+        solver (``casep.solve_map(problem.rows().solved, prior=...)``), ``rows.noise`` the noise
+        model.
+        """
+        from casep.analysis.rows import prepare_rows
+
+        return prepare_rows(self, noise, tau, robust, exclude_outliers)
+
+    def raw_residuals(self, x: np.ndarray, *, all_samples: bool = True) -> np.ndarray:
+        """``dv - S x`` of the raw rows: of every sample of the parent (default), or of this problem's own."""
+        if all_samples and self.parent is not None:
+            return self.parent.residuals(x)
+        return (self._unwhitened if self._unwhitened is not None else self).residuals(x)
 
     # ----------------------------------------------------------------- properties
     @property

@@ -246,7 +246,8 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
            knots: int = DEFAULTS["knots"], start: float | None = None, design_rate: float = DEFAULTS["design_rate"],
            starts: int = DEFAULTS["starts"], seed: int = DEFAULTS["seed"], max_iter: int = DEFAULTS["max_iter"],
            model=None, rate: float | None = None, verify: bool = True,
-           coefficients: list[str] | tuple[str, ...] | None = None) -> DesignResult:
+           coefficients: list[str] | tuple[str, ...] | None = None, flight=None,
+           sigma: float | None = None) -> DesignResult:
     """Design the attitude manoeuvre of a scenario's flight that minimises a Cramer-Rao objective.
 
     Parameters
@@ -284,6 +285,15 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
         as flown (default True).
     coefficients : sequence of str, optional
         The coefficients that matter: objective A sums only their scaled variances (default: all).
+    flight : FlightData or path, optional
+        One's own trajectory instead of the scenario's vehicle: its specific force (every sample, at its
+        own rate) is the nominal flight, the body axis taken along it (no angle of attack), and the
+        manoeuvre turns it (the design model's approximation). Objectives A and D only (``miss`` needs
+        the burnout state of a flown vehicle); there is no vehicle to re-fly, so ``crlb_before`` is the
+        flight's exact CRLB and ``crlb_after`` the design model's prediction (no ``verification``).
+    sigma : float, optional
+        White tracking-noise std, m/s (default: the scenario's; with `flight`, the flight's own
+        least-squares residual std).
 
     Returns
     -------
@@ -309,7 +319,21 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
     sc = get_scenario(scenario).with_rate(rate)
     model = load_model(sc.model if model is None else model)
     names = model.names
-    sigma = float(sc.noise.sigma)
+    own = None
+    if flight is not None:
+        if objective == "miss":
+            raise ValueError("objective `miss` on one's own trajectory is not available (it needs the burnout state "
+                             "of a flown vehicle); use A or D")
+        own = _flight_nominal(flight, model, design_rate)
+        sc = dataclasses.replace(sc, name=f"flight {own['name']}", rate=own["rate"],
+                                 description=f"own trajectory {own['source']}")
+        verify = False
+    if sigma is not None:
+        sigma = _positive("sigma", sigma)  # given
+    elif own is not None and own["sigma"] is not None:
+        sigma = own["sigma"]  # the flight's own tracking noise
+    else:
+        sigma = float(sc.noise.sigma)
     if not sigma > 0:
         raise ValueError(f"scenario `{sc.name}` has no tracking noise (sigma {sigma}): the bound is zero")
     scales = np.array([model.scales.get(nm, 1.0) for nm in names])
@@ -332,21 +356,29 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
         info_prior = W.T @ W
     timing = {}
     t0 = time.perf_counter()
-    coarse = simulate_boost(sc.vehicle, design_rate)
-    t_end = float(coarse.t[-1])
-    p = sc.vehicle.pitch
-    first = p.vertical + p.kick if start is None else float(start)
-    if not 0.0 <= first < t_end:
-        raise ValueError(f"`start` must be in [0, {t_end:g}) s (burnout), got {first!r}")
+    if own is None:
+        coarse = simulate_boost(sc.vehicle, design_rate)
+        t_grid, att_grid, f_grid = coarse.t, coarse.attitude, coarse.specific_force
+        p = sc.vehicle.pitch
+        default_start = p.vertical + p.kick
+    else:
+        t_grid, att_grid, f_grid = own["t"], own["attitude"], own["force"]
+        default_start = float(t_grid[0] + 0.1 * (t_grid[-1] - t_grid[0]))  # after the first tenth of the flight
+    t_end = float(t_grid[-1])
+    first = default_start if start is None else float(start)
+    if not float(t_grid[0]) <= first < t_end:
+        raise ValueError(f"`start` must be in [{float(t_grid[0]):g}, {t_end:g}) s (burnout), got {first!r}")
     mv = Maneuver(maneuver, tuple(np.linspace(first, t_end, knots)))
     full = S_nom = G_miss = None
-    if verify or objective == "miss":
+    if own is not None:
+        S_nom = build_sv(model, own["t_full"], own["f_full"])  # the flight as flown: its exact CRLB
+    elif verify or objective == "miss":
         full = simulate_boost(sc.vehicle, sc.rate)
         S_nom = build_sv(model, full.t, full.specific_force)
         G_miss = _burnout_miss_sensitivity(full, S_nom)
     timing["nominal_trajectory"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    problem = DesignProblem(model, coarse.t, coarse.attitude, coarse.specific_force, mv, rate=sc.rate, sigma=sigma,
+    problem = DesignProblem(model, t_grid, att_grid, f_grid, mv, rate=sc.rate, sigma=sigma,
                             scales=scales, prior_information=info_prior, miss_sensitivity=G_miss, weights=weights)
     timing["build"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -359,11 +391,14 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
     # The designed flight flies the nominal pitch programme open loop (as a function of time, from the
     # design grid) plus the offsets: the attitude is then the one the design assumed, not the gravity-turn
     # law's reaction to the manoeuvre.
-    after_first = coarse.t > mv.knots[0] + 1e-9  # the spline starts at the first knot (no kink of the kick in it)
-    base_t = np.concatenate([[mv.knots[0]], coarse.t[after_first]])
-    base_theta = np.concatenate([coarse.kinematics(np.array([mv.knots[0]]))["attitude"][:, 0],
-                                 coarse.attitude[after_first, 0]])
-    vehicle = dataclasses.replace(sc.vehicle, attitude=mv.profile(x_best, base_t, base_theta))
+    if own is None:
+        after_first = coarse.t > mv.knots[0] + 1e-9  # the spline starts at the first knot (no kink of the kick)
+        base_t = np.concatenate([[mv.knots[0]], coarse.t[after_first]])
+        base_theta = np.concatenate([coarse.kinematics(np.array([mv.knots[0]]))["attitude"][:, 0],
+                                     coarse.attitude[after_first, 0]])
+        vehicle = dataclasses.replace(sc.vehicle, attitude=mv.profile(x_best, base_t, base_theta))
+    else:
+        vehicle = sc.vehicle  # no vehicle flies one's own trajectory: the designed flight is not re-flown
     designed = dataclasses.replace(sc, name=f"{sc.name}-designed", vehicle=vehicle,
                                    description=f"{sc.description}; designed {maneuver} manoeuvre ({objective}-optimal, "
                                                f"max {max_angle:g} deg, {max_rate:g} deg/s, {max_lateral:g} g)")
@@ -372,6 +407,11 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
                               "max_rate_deg_s": float(np.max(np.abs(mv.rate_matrix() @ x_best), initial=0.0)),
                               "max_lateral_g": float(np.max(problem.lateral_g(x_best)))}}
     crlb_before, crlb_after = pred_before, pred_after
+    if own is not None:
+        from casep.analysis.diagnostics import crlb_covariance
+
+        W = None if prior is None else prior_rows(prior, names, "--prior")[0]
+        crlb_before = np.sqrt(np.diag(crlb_covariance(S_nom, sigma, prior_information=W)))
     verification: dict = {}
     if verify:
         from casep.analysis.diagnostics import crlb_covariance
@@ -408,3 +448,37 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
                         solver=solver, scenario=designed, prior=prior is not None, timing=timing,
                         coefficients=None if coefficients is None else tuple(coefficients),
                         verification=verification)
+
+
+def _flight_nominal(flight, model, design_rate: float) -> dict:
+    """One's own flight as the design's nominal: the design grid (``design_rate``), the attitude of the
+    specific force (body axis along f: pitch ``atan2(f_y, f_x)``, yaw ``asin(f_z / |f|)``), the flight's
+    rate, the flight at its own samples and its least-squares residual std (None without dv)."""
+    import warnings
+
+    from casep.analysis.problem import Problem
+    from casep.exceptions import IllConditionedWarning
+    from casep.io.files import read_flight
+    from casep.io.flight import FlightData
+
+    fl = flight if isinstance(flight, FlightData) else read_flight(flight)
+    t, f = np.asarray(fl.t), np.asarray(fl.f)
+    norm = np.linalg.norm(f, axis=1)
+    if np.any(norm <= 0):
+        k = int(np.flatnonzero(norm <= 0)[0])
+        raise ValueError(f"{fl.source}: row {k + 1}: zero specific force, no body axis to turn (the design needs "
+                         "powered flight throughout)")
+    grid = np.arange(t[0], t[-1] + 1e-9, 1.0 / design_rate)
+    fg = np.column_stack([np.interp(grid, t, f[:, i]) for i in range(3)])
+    ng = np.linalg.norm(fg, axis=1)
+    attitude = np.column_stack([np.arctan2(fg[:, 1], fg[:, 0]), np.arcsin(np.clip(fg[:, 2] / ng, -1, 1)),
+                                np.zeros(grid.size)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        pb = Problem.from_flight(fl, model)
+    sigma = float(np.sqrt(pb.ls_rss() / max(pb.m - pb.rank().rank, 1)))
+    from pathlib import Path
+
+    return {"t": grid, "attitude": attitude, "force": fg, "rate": float(1.0 / np.median(np.diff(t))),
+            "t_full": t, "f_full": f, "sigma": sigma if sigma > 0 else None, "source": fl.source,
+            "name": Path(fl.source).name}

@@ -19,7 +19,7 @@ from casep.analysis.diagnostics import ILL_CONDITIONED, collinearity
 from casep.analysis.linalg import RankAnalysis, ReducedSystem, condition_numbers, unidentifiable_reasons
 from casep.analysis.problem import Problem as RegressionProblem
 from casep.estimators.result import EstimateResult
-from casep.exceptions import IllConditionedWarning
+from casep.exceptions import IllConditionedWarning, MagnitudeWarning
 
 __all__ = ["Prepared", "prepare", "rows_of", "finish", "check_positive", "inverse_scale", "OPTION_RANGES"]
 
@@ -361,3 +361,83 @@ def _ill_conditioning_note(pb: Prepared, diag: dict[str, Any]) -> str | None:
     if und:
         parts.append(f"{len(und)} unidentifiable: " + ", ".join(und))
     return "ill-conditioned regression: " + "; ".join(parts) + ". See `casep diagnose`."
+
+
+# ------------------------------------------------------------------ judging a result against the set-up
+#: An estimate this many times its declared magnitude (``declare(Kg0x=("deg/h", 0.5))``) is a warning ...
+MAGNITUDE_WARN = 100.0
+#: ... and this many times fails the result (status -5): no instrument is 1e4 times off its spec sheet;
+#: a set-up, unit or model mistake is far likelier.
+MAGNITUDE_FAIL = 1e4
+#: Both judged on ``|estimate| - MAGNITUDE_Z std``: what the data say at least (5 std: two-sided
+#: P = 6e-7 per coefficient, so that noise in a poorly determined coefficient is not flagged).
+MAGNITUDE_Z = 5.0
+#: Methods whose estimates of poorly determined coefficients the regularisation sets, not the data (and whose
+#: std leave out that bias): beyond :data:`MAGNITUDE_FAIL` they get the warning, not a failure.
+REGULARISED = ("ridge", "pcr", "bounded")
+#: Status of a result whose flight failed a set-up check (casep.io.flight.setup_problems).
+STATUS_SETUP = -4
+#: Status of a result with estimates beyond :data:`MAGNITUDE_FAIL` times their declared magnitudes.
+STATUS_MAGNITUDE = -5
+
+
+def failed(res: EstimateResult, status: int, message: str) -> EstimateResult:
+    """`res` marked failed (``success`` False) with `status` and `message`; a failure already there is kept first."""
+    import dataclasses
+
+    if not res.success:
+        return dataclasses.replace(res, message=f"{res.message}; {message}")
+    return dataclasses.replace(res, status=status, success=False, message=message)
+
+
+def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str = "") -> EstimateResult:
+    """Estimates against the model's declared magnitudes: a :class:`~casep.exceptions.MagnitudeWarning` at
+    :data:`MAGNITUDE_WARN` times, a failed result (status :data:`STATUS_MAGNITUDE`) at :data:`MAGNITUDE_FAIL`
+    (a warning for the :data:`REGULARISED` methods).
+
+    Parameters
+    ----------
+    res : EstimateResult
+    scales : dict
+        Declared magnitude per coefficient, natural units (``ErrorModel.scales``); a several-flights
+        name ``name[flight]`` uses ``name``'s.
+    source : str, optional
+        Flight name for the message.
+
+    Returns
+    -------
+    EstimateResult
+        `res`, or `res` failed; ``diagnostics["magnitudes"]`` lists the coefficients beyond
+        :data:`MAGNITUDE_WARN` (name, estimate, unit, declared, ratio).
+    """
+    import dataclasses
+
+    rows = []
+    std = res.std if res.std is not None else np.zeros(len(res.names))
+    for name, unit, x, sd in zip(res.names, res.units, res.estimate, std):
+        scale = scales.get(name, scales.get(name.split("[")[0]))
+        if not np.isfinite(sd):
+            continue  # a std the method does not define (a coefficient at a bound): the bound is the user's
+        # |x| - 5 std: what the data say at least, so that a poorly determined coefficient's noise is not flagged
+        low = abs(x) - MAGNITUDE_Z * sd
+        if scale and np.isfinite(x) and low >= MAGNITUDE_WARN * scale:
+            rows.append({"name": name, "estimate": float(x), "std": sd, "unit": unit, "declared": float(scale),
+                         "ratio": float(abs(x) / scale), "ratio_low": float(low / scale)})
+    if not rows:
+        return res
+    rows.sort(key=lambda r: -r["ratio"])
+    listed = "; ".join(f"{r['name']} {r['estimate']:.4g} +- {r['std']:.2g} {r['unit']} = {r['ratio']:.3g} x "
+                       f"{r['declared']:g}" for r in rows[:6]) + (f" and {len(rows) - 6} more" if len(rows) > 6 else "")
+    where = f"{source}: " if source else ""
+    res = dataclasses.replace(res, diagnostics={**res.diagnostics, "magnitudes": rows})
+    worst = max(r["ratio_low"] for r in rows)
+    text = (f"{len(rows)} estimate(s) at least {MAGNITUDE_WARN:g} x their declared magnitudes (by |estimate| - "
+            f"{MAGNITUDE_Z:g} std; {listed}): "
+            "a set-up mistake (launch site, azimuth, time scales), a unit mistake or a missing model term is likelier "
+            "than such instruments")
+    if worst >= MAGNITUDE_FAIL and res.method not in REGULARISED:
+        return failed(res, STATUS_MAGNITUDE, f"failed: {text} (beyond {MAGNITUDE_FAIL:g} x)")
+    if not res.success:
+        return res  # failed already, for its own reason (recorded in diagnostics["magnitudes"])
+    warnings.warn(MagnitudeWarning(where + text), stacklevel=2)
+    return res

@@ -65,7 +65,9 @@ def _polish(R, q, z0, lo, hi, fixed, rcond):
         r = int(np.sum(s > rcond * s[0])) if s.size and s[0] > 0 else 0
         z[free] = Vt[:r].T @ ((U[:, :r].T @ rhs) / s[:r])
     g = R.T @ (R @ z - q)  # gradient of 0.5 ||R z - q||^2
-    gtol = 1e-8 * max(np.linalg.norm(R.T @ q), 1e-300)
+    # backward-stable scale of the gradient: ||R|| (||R z|| + ||q||) (relative to ||R^T q|| alone, an exact
+    # least-squares point of an ill-conditioned R can fail by rounding, leaving the interior point's 1e-3 std)
+    gtol = 1e-8 * max(np.linalg.norm(R, 2) * (np.linalg.norm(R @ z) + np.linalg.norm(q)), 1e-300)
     ok = (np.all(z[free] >= lo[free] - tol_lo[free]) and np.all(z[free] <= hi[free] + tol_hi[free])
           and np.all(g[on_lo] >= -gtol) and np.all(g[on_hi] <= gtol) and np.all(np.abs(g[free]) <= gtol))
     return (z, True) if ok else (z0, False)

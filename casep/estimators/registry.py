@@ -25,7 +25,8 @@ import numpy as np
 from casep.estimators.result import EXTRAS_TYPES, STD_KIND_MEANINGS
 
 __all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Method", "OPTIONS", "METHODS",
-           "check_method_options", "describe", "run_method"]
+           "check_method_options", "describe", "run_method",
+           "NOISE_OPTIONS"]
 
 
 class Rule:
@@ -207,8 +208,12 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     Option("n_components", "--components", None, (Interval(int, 1),),
            "principal components kept (default: CI <= 1000)"),
     Option("tau", "--tau", "auto", (Choices(("auto",)), Interval(float, 0, 1e4, "right", "s")),
-           "Gauss-Markov correlation time (auto: REML)"),
+           "Gauss-Markov correlation time of the noise model, every method (auto: REML)"),
 )}
+
+#: Options of the noise model (:mod:`casep.analysis.noise`) that every method takes through
+#: :func:`casep.separate`; ``gls`` also takes them as its own (its one tau for every axis).
+NOISE_OPTIONS = ("tau",)
 
 #: Every estimator, in the order of ``casep methods``.
 METHODS: dict[str, Method] = {m.name: m for m in (

@@ -8,7 +8,7 @@ import json
 import math
 import os
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -710,8 +710,15 @@ def _mat_value(v: Any) -> Any:
     return None
 
 
-def write_mat(res: EstimateResult, path: str | os.PathLike) -> None:
+def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | None = None,
+              provenance: Mapping[str, Any] | None = None) -> None:
     """Write the result as a MATLAB/Octave ``.mat`` file (scipy.io.savemat), atomically.
+
+    With `t` (the times of the residual rows, s) the file holds ``t_residuals`` beside ``residuals``;
+    the near-dependency groups are ``groups`` (a cell array of cellstr); with `provenance`
+    (:func:`casep.io.provenance.provenance`) ``provenance_json`` holds it whole (``jsondecode`` in
+    MATLAB) and ``input_files``, ``input_sha256``, ``input_roles`` (cellstr) and ``command_line`` the
+    essentials.
 
     Variables: ``names``, ``units`` (cellstr); ``estimates``, ``std`` (n x 1 double, NaN
     where missing), ``covariance`` (n x n, NaN rows/columns where missing), ``residuals``
@@ -737,6 +744,22 @@ def write_mat(res: EstimateResult, path: str | os.PathLike) -> None:
     }
     if res.history is not None:
         data["history"] = np.asarray(res.history, dtype=float)
+    if t is not None:
+        t = np.asarray(t, dtype=float).reshape(-1)
+        if t.size != data["residuals"].shape[0]:
+            raise ValueError(f"`t` has {t.size} times for {data['residuals'].shape[0]} residual rows")
+        data["t_residuals"] = t
+    groups = res.diagnostics.get("groups") or []
+    cell = np.empty((len(groups),), dtype=object)
+    for k, g in enumerate(groups):
+        cell[k] = np.array(list(g), dtype=object)
+    data["groups"] = cell
+    if provenance is not None:
+        data["provenance_json"] = json.dumps(_jsonable(provenance))
+        data["command_line"] = str(provenance.get("command_line", ""))
+        files = provenance.get("inputs", [])
+        for key, field_name in (("input_files", "file"), ("input_sha256", "sha256"), ("input_roles", "role")):
+            data[key] = np.array([str(f.get(field_name) or "") for f in files], dtype=object)
     for key in ("settings", "diagnostics", "denoise"):
         value = _mat_value(getattr(res, key))
         if isinstance(value, dict):

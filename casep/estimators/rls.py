@@ -205,7 +205,7 @@ def solve_rls(
             "ma_std": [float(np.sqrt(cov_s[p + j, p + j])) for j in range(nc)],
             "innovation_rms": float(np.sqrt(innov_ss / (3 * N))),
         }
-    return finish(
+    res = finish(
         pb, method, x_nat, cov, sig,
         settings={"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": nc,
                   "residuals": residuals, "history_stride": history_stride,
@@ -215,6 +215,56 @@ def solve_rls(
                          **{k: (tuple(v) if isinstance(v, list) else v)
                             for k, v in diagnostics.get("noise_model", {}).items()}),
     )
+    if forgetting < 1.0:  # P is then no covariance and the prior no belief: the std are indicative only
+        return res
+    return prior_conflict(pb.problem, res, sig * np.sqrt(weight * p0), sig)
+
+
+#: |z| of the least-squares estimate against the prior above this: prior-data conflict (Gaussian P ~ 6e-7).
+PRIOR_CONFLICT_Z = 5.0
+#: Status of a result whose prior the data contradict.
+STATUS_PRIOR_CONFLICT = -6
+
+
+def prior_conflict(problem, res: EstimateResult, prior_std: float, sigma: float) -> EstimateResult:
+    """Prior-data conflict of RLS's prior ``N(0, prior_std^2 I)`` (natural units): fail the result
+    (status :data:`STATUS_PRIOR_CONFLICT`) when the data put a coefficient far outside it.
+
+    Under the model, the least-squares estimate is distributed as ``N(0, prior_std^2 + C_LS,jj)``
+    (prior predictive, Box 1980); ``z_j = D_LS,j / sqrt(prior_std^2 + C_LS,jj)`` above
+    :data:`PRIOR_CONFLICT_Z` means the prior excludes what the data say, and the posterior is pulled
+    towards 0 by far more than its std (a prior std 1e-6 of the truth: the estimate 69 std off).
+    ``diagnostics["prior_conflict"]`` records the largest z values.
+    """
+    import warnings
+
+    from casep.analysis.checks import NOISE_FREE
+    from casep.estimators._base import failed
+    from casep.estimators.ols import solve_ols
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # conditioning: said by the RLS result itself
+        ls = solve_ols(problem, sigma=sigma)
+    ls_sigma = float(np.sqrt(problem.ls_rss() / max(problem.m - problem.rank().rank, 1)))
+    if problem.y is not None and ls_sigma <= NOISE_FREE * float(np.max(np.abs(problem.y))):
+        return res  # noise-free data: every std is rounding (check_fit says so); no prior is consistent with it
+    ok = np.isfinite(ls.estimate) & np.isfinite(ls.std)
+    z = np.where(ok, np.abs(np.nan_to_num(ls.estimate)) / np.sqrt(prior_std**2 + np.nan_to_num(ls.std) ** 2), 0.0)
+    if not np.any(z > PRIOR_CONFLICT_Z):
+        return res
+    order = np.argsort(-z)[: min(5, int(np.sum(z > PRIOR_CONFLICT_Z)))]
+    rows = [{"name": res.names[j], "least_squares": float(ls.estimate[j]), "least_squares_std": float(ls.std[j]),
+             "z": float(z[j])} for j in order]
+    listed = "; ".join(f"{r['name']}: least squares {r['least_squares']:.4g} +- {r['least_squares_std']:.2g} "
+                       f"{res.units[res.names.index(r['name'])]}, z = {r['z']:.3g}" for r in rows)
+    import dataclasses
+
+    res = dataclasses.replace(res, diagnostics={**res.diagnostics, "prior_conflict": rows})
+    return failed(res, STATUS_PRIOR_CONFLICT,
+                  f"failed: prior-data conflict: the data put {int(np.sum(z > PRIOR_CONFLICT_Z))} coefficient(s) more "
+                  f"than {PRIOR_CONFLICT_Z:g} std outside the prior N(0, {prior_std:.3g}^2) (p0 = "
+                  f"{res.settings.get('p0', float('nan')):g}); {listed}. The estimate is pulled towards 0 by more than "
+                  "its std: raise p0 (the prior variance, natural units) or use a prior that admits the data")
 
 
 def _history_std(hist_var: np.ndarray, scale2: float, live: np.ndarray, cl: np.ndarray, n: int) -> np.ndarray:

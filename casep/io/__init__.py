@@ -5,6 +5,7 @@ Depends only on :mod:`casep.exceptions`.
 - :mod:`casep.io.flight`: :class:`FlightData` (validated arrays, observed-row mask, late start)
 - :mod:`casep.io.files`: CSV/Parquet/NPZ flight files, telemetry + tracking pairs
 - :mod:`casep.io._atomic`: output checks and all-or-nothing file writing
+- :mod:`casep.io.manifest`: the TOML flight manifest (several flights, each with its own set-up)
 - :mod:`casep.io.result_json`: result files (casep's and other tools'), read strictly (pydantic)
 """
 

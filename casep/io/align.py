@@ -23,7 +23,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["TimeAlignment", "coarse_time_offset"]
+__all__ = ["TimeAlignment", "coarse_time_offset", "EXPLAIN_GAIN", "EXPLAIN_F"]
+
+#: A coarse offset "explains" the data when it removes at least this fraction of J(0) ...
+EXPLAIN_GAIN = 0.2
+#: ... and its F statistic (:attr:`TimeAlignment.f_statistic`, chi-square 1 dof without an offset)
+#: exceeds this (P(chi2_1 > 25) ~ 6e-7).
+EXPLAIN_F = 25.0
 
 
 @dataclass(frozen=True)
@@ -38,13 +44,36 @@ class TimeAlignment:
     samples: int
 
     @property
+    def gain(self) -> float:
+        """Fraction of the unshifted misfit the shift removes: ``1 - J(tau) / J(0)``."""
+        return float(1.0 - self.cost / self.cost_at_zero) if self.cost_at_zero > 0 else 0.0
+
+    @property
+    def f_statistic(self) -> float:
+        """``(J(0) - J(tau)) / J(tau) * n_eff``: the misfit the shift removes against what is left, with
+        ``n_eff = samples / lag`` independent increments (increments over a lag of about 1 s overlap);
+        about chi-square with 1 dof when there is no offset."""
+        lag = max(1, round(1.0 / self.tracking_period)) if np.isfinite(self.tracking_period) else 1
+        n_eff = max(self.samples / lag, 1.0)
+        return float((self.cost_at_zero - self.cost) / self.cost * n_eff) if self.cost > 0 else np.inf
+
+    @property
+    def explains(self) -> bool:
+        """The shift explains the data: it removes at least :data:`EXPLAIN_GAIN` of the misfit of the
+        velocity increments and its F statistic exceeds :data:`EXPLAIN_F`. A wrong launch site or
+        azimuth leaves a misfit no shift removes (measured: 0.0001-0.3 % removed), a real offset of
+        60-300 ms at 5-20 Hz tracking removes 32-92 %."""
+        return self.gain >= EXPLAIN_GAIN and self.f_statistic >= EXPLAIN_F
+
+    @property
     def exceeds_period(self) -> bool:
         """``|tau|`` larger than one tracking sample period."""
         return abs(self.tau) > self.tracking_period
 
     def to_dict(self) -> dict:
         return {"tau_s": self.tau, "cost": self.cost, "cost_at_zero": self.cost_at_zero,
-                "tracking_period_s": self.tracking_period, "samples": self.samples}
+                "tracking_period_s": self.tracking_period, "samples": self.samples, "gain": self.gain,
+                "f_statistic": self.f_statistic if np.isfinite(self.f_statistic) else None, "explains": self.explains}
 
 
 def coarse_time_offset(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray, *,

@@ -41,7 +41,7 @@ from casep.io.flight import AXES, DV_COLUMNS, FORCE_COLUMNS, FlightData, FlightD
 __all__ = [
     "read_json_table",
     "read_flight", "read_flight_pair", "pair_flight", "PAIR_GRIDS", "write_flight",
-    "write_table", "apparent_velocity_to_force",
+    "write_table", "apparent_velocity_to_force", "locate_samples", "where", "csv_lines",
 ]
 
 APPARENT_COLUMNS = tuple(f"W_{a}" for a in AXES)
@@ -75,6 +75,61 @@ def _csv_line_locator(path: Path) -> Callable[[int], int | None]:
         return None
 
     return line_of
+
+
+def csv_lines(path: str | os.PathLike, data_rows) -> dict[int, int]:
+    """File line of each given data row (1-based, after the header; comments and blank lines
+    skipped, as pandas reads them), in one pass over the file: ``{row: line}``."""
+    want = set(int(r) for r in data_rows)
+    out: dict[int, int] = {}
+    if not want:
+        return out
+    last = max(want)
+    seen = -1  # the header is row 0
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for lineno, text in enumerate(fh, 1):
+                st = text.strip()
+                if not st or st.startswith("#"):
+                    continue
+                seen += 1
+                if seen in want:
+                    out[seen] = lineno
+                    if seen >= last:
+                        break
+    except OSError:
+        pass
+    return out
+
+
+def locate_samples(flight: FlightData, samples) -> list[dict]:
+    """Where samples of a flight come from: ``{"sample", "t", "file", "row", "line"}`` each.
+
+    ``row`` is the 1-based data row of the file (after the header), ``line`` its line in a CSV
+    file (comments and blank lines counted; None for Parquet). For a telemetry + tracking pair
+    on the tracking grid the file is the tracking file; on the telemetry grid the telemetry file.
+    """
+    samples = [int(k) for k in samples]
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    src = meta.get("rows_file")
+    index = meta.get("rows_index")  # data row (0-based) of each sample in `src`, when not the identity
+    if src is None:
+        return [{"sample": k, "t": float(flight.t[k]), "file": None, "row": None, "line": None} for k in samples]
+    rows = [int(index[k]) + 1 if index is not None else k + 1 for k in samples]
+    lines = csv_lines(src, rows) if not _is_parquet(Path(src)) else {}
+    return [{"sample": k, "t": float(flight.t[k]), "file": str(src), "row": r, "line": lines.get(r)}
+            for k, r in zip(samples, rows)]
+
+
+def where(loc: dict) -> str:
+    """``line 1703 of f.csv (t = 85.1 s)``, or the row for Parquet, or the sample when no file."""
+    t = f"t = {loc['t']:.6g} s"
+    if loc.get("file") is None:
+        return f"sample {loc['sample'] + 1} ({t})"
+    name = Path(loc["file"]).name
+    if loc.get("line") is not None:
+        return f"line {loc['line']} of {name} ({t})"
+    return f"row {loc['row']} of {name} ({t})"
 
 
 #: Column separators a CSV flight file may use: comma (casep, MATLAB writetable's default),
@@ -335,7 +390,8 @@ def read_flight(path: str | os.PathLike) -> FlightData:
         tab.require(VTEL_COLUMNS + VTRK_COLUMNS, ". Use: v_tel_x/y/z with v_trk_x/y/z, or dv_x, dv_y, dv_z")
         v_tel = tab.vectors(VTEL_COLUMNS)
         dv, dv_from = v_tel - tab.vectors(VTRK_COLUMNS), "v_tel - v_trk"
-    meta = {"format": "parquet" if _is_parquet(tab.path) else "csv", "force": force_from, "dv": dv_from}
+    meta = {"format": "parquet" if _is_parquet(tab.path) else "csv", "force": force_from, "dv": dv_from,
+            "rows_file": str(tab.path)}  # sample k is data row k + 1 (locate_samples)
     if dv_from != "dv":
         meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
         meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.analysis.checks
@@ -364,28 +420,25 @@ def _check_tracking_frame(tracking: str | os.PathLike, tracking_frame: str, site
                          "(CLI: --launch-site LAT LON H AZ --launch-time T0)")
 
 
-def _tracking_velocity(trk: "_Table", t_trk: np.ndarray, tracking_frame: str, site) -> np.ndarray:
-    """The tracking velocity in the launch-inertial frame, m/s (casep.frames), from the file's own time tags."""
-    return _tracking_state(trk, t_trk, tracking_frame, site)[1]
-
-
-def _tracking_state(trk: "_Table", t_trk: np.ndarray, tracking_frame: str, site) -> tuple[np.ndarray | None,
-                                                                                           np.ndarray]:
-    """Tracked position (m; None for launch-frame tracking, which has none) and velocity (m/s), launch-inertial."""
-    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS, ecef_to_launch, geodetic_to_launch
+def _tracking_velocity(trk: "_Table", t_trk: np.ndarray, tracking_frame: str,
+                       site) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """The tracking velocity in the launch-inertial frame, m/s (casep.frames), from the file's own time tags,
+    and (Earth-fixed frames) the tracked ECEF position and Earth-relative velocity (m, m/s; None for launch)."""
+    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS, ecef_to_launch, geodetic_to_ecef
 
     if tracking_frame == "launch":
-        return None, trk.vectors(VTRK_COLUMNS)
+        return trk.vectors(VTRK_COLUMNS), None, None
     if tracking_frame == "ecef":
         r, v = trk.vectors(ECEF_COLUMNS[1:4]), trk.vectors(ECEF_COLUMNS[4:7])
-        return ecef_to_launch(site, t_trk, r, v)
-    lat, lon, h, ve, vn, vu = (trk.numeric(c) for c in GEODETIC_COLUMNS[1:])
-    for col, values, lim in (("lat", lat, 90.0), ("lon", lon, 360.0)):
-        bad = np.flatnonzero(np.abs(values) > lim)
-        if bad.size:
-            raise trk.error(f"{values[bad[0]]:g} deg is outside +-{lim:g} deg (latitude and longitude in degrees)",
-                            col, int(bad[0]) + 1)
-    return geodetic_to_launch(site, t_trk, lat, lon, h, ve, vn, vu)
+    else:
+        lat, lon, h, ve, vn, vu = (trk.numeric(c) for c in GEODETIC_COLUMNS[1:])
+        for col, values, lim in (("lat", lat, 90.0), ("lon", lon, 360.0)):
+            bad = np.flatnonzero(np.abs(values) > lim)
+            if bad.size:
+                raise trk.error(f"{values[bad[0]]:g} deg is outside +-{lim:g} deg (latitude and longitude in degrees)",
+                                col, int(bad[0]) + 1)
+        r, v = geodetic_to_ecef(lat, lon, h, ve, vn, vu)
+    return ecef_to_launch(site, t_trk, r, v)[1], r, v
 
 
 def _tracking_hint(trk: "_Table", tracking_frame: str) -> str:
@@ -408,7 +461,7 @@ def _tracking_hint(trk: "_Table", tracking_frame: str) -> str:
 def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, *,
                      interpolation: str = "cubic", grid: str = "tracking",
                      time_offset: float | str | None = None, tracking_frame: str = "launch",
-                     site=None) -> FlightData:
+                     site=None, time_shift: float = 0.0) -> FlightData:
     """Combine a telemetry file and a tracking file recorded at different rates.
 
     Parameters
@@ -446,7 +499,15 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
         time tags, before any `time_offset` shift; ``meta["tracking_frame"]`` records frame and site.
     site : casep.frames.LaunchSite, optional
         Launch point, azimuth and launch time (in the tracking file's time scale): required with an
-        Earth-fixed `tracking_frame` (ValueError naming the file otherwise).
+        Earth-fixed `tracking_frame` (ValueError naming the file otherwise). The set-up checks
+        (:func:`casep.io.flight.setup_evidence`) compare the first tracked position with it and
+        the telemetry velocity at its first sample with its pad velocity; ``meta["setup"]``.
+    time_shift : float, optional
+        How the time scales relate, s: tracking time minus telemetry time for the same instant
+        (tracking in seconds of day, telemetry from lift-off at 12:00:00: 43200). Tracking time
+        tags ``T`` become ``T - time_shift`` in the telemetry's scale; the launch time stays in the
+        tracking scale. Default 0 (one time scale). Telemetry and tracking that do not overlap
+        after it are an error that gives both spans.
 
     Returns
     -------
@@ -474,14 +535,17 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     t_tel = tel.time()
     f, force_from = _force(tel, t_tel)
     v_tel = tel.vectors(VTEL_COLUMNS)
-    t_trk = trk.time()
-    r_trk, v_trk = _tracking_state(trk, t_trk, tracking_frame, site)  # launch-inertial
-    if t_trk.size < (4 if interpolation == "cubic" else 2):
-        raise trk.error(f"{t_trk.size} tracking samples are too few for {interpolation} interpolation", "t", t_trk.size)
+    t_raw = trk.time()  # the tracking file's own time scale (the launch time's)
+    if site is not None:
+        _check_launch_time(trk, t_raw, site)
+    v_trk, r_ecef, v_ecef = _tracking_velocity(trk, t_raw, tracking_frame, site)  # launch-inertial
+    if t_raw.size < (4 if interpolation == "cubic" else 2):
+        raise trk.error(f"{t_raw.size} tracking samples are too few for {interpolation} interpolation", "t", t_raw.size)
+    shift_scale = _time_shift(time_shift)
+    t_trk = t_raw - shift_scale  # the telemetry's time scale
     inside = (t_tel >= t_trk[0]) & (t_tel <= t_trk[-1])
     if inside.sum() < 2:
-        raise tel.error(f"telemetry time [{t_tel[0]:g}, {t_tel[-1]:g}] s and tracking time "
-                        f"[{t_trk[0]:g}, {t_trk[-1]:g}] s share fewer than 2 telemetry samples", "t")
+        raise tel.error(_no_overlap_message(t_tel, t_raw, shift_scale), "t")
     align = None
     if time_offset is None or time_offset == "auto":
         from casep.io.align import coarse_time_offset
@@ -491,22 +555,23 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
         except ValueError:
             if time_offset == "auto":
                 raise
+    import warnings
+
+    from casep.exceptions import SetupWarning, TimeOffsetWarning
+
     if time_offset == "auto":
         shift = align.tau
     elif time_offset is None:
         shift = 0.0
-        if align is not None and align.exceeds_period:
-            import warnings
-
-            from casep.exceptions import TimeOffsetWarning
-
-            warnings.warn(f"{tel.src} + {trk.src}: the tracking time tags look {align.tau * 1e3:.1f} ms late (velocity "
-                          f"increments line up best there: mean squared difference {align.cost:.3g} "
-                          f"against {align.cost_at_zero:.3g} "
-                          f"m^2/s^2 unshifted), more than a tracking sample period "
-                          f"({align.tracking_period * 1e3:.4g} ms); "
-                          "align them (--time-offset auto) and let dt_trk estimate the rest", TimeOffsetWarning,
-                          stacklevel=2)
+        if align is not None and align.exceeds_period and align.explains:
+            # only when the shift explains the data: a wrong site or frame leaves a misfit no shift removes
+            warnings.warn(f"{tel.src} + {trk.src}: the tracking time tags look {align.tau * 1e3:.1f} ms late "
+                          f"(velocity increments line up best there: mean squared difference {align.cost:.3g} against "
+                          f"{align.cost_at_zero:.3g} m^2/s^2 unshifted, {100 * align.gain:.3g} % of the misfit "
+                          "removed, "
+                          f"F = {align.f_statistic:.3g}), more than a tracking sample period "
+                          f"({align.tracking_period * 1e3:.4g} ms); align them (--time-offset auto) and let dt_trk "
+                          "estimate the rest", TimeOffsetWarning, stacklevel=2)
     else:
         try:
             shift = float(time_offset)
@@ -515,20 +580,44 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
                              f"got {time_offset!r}") from None
         if not np.isfinite(shift):
             raise ValueError(f"`time_offset` must be finite, got {shift}")
-    extra = {"time_alignment": {**(align.to_dict() if align is not None else {}), "applied_s": shift}}
+        if abs(shift) > MAX_TIME_OFFSET:
+            span = t_trk[-1] - t_trk[0]
+            warnings.warn(SetupWarning(
+                f"{trk.src}: a tracking time offset of {shift:.6g} s ({shift * 1e3:.6g} ms) is far beyond tracking "
+                f"latencies (milliseconds, below {MAX_TIME_OFFSET:g} s; --time-offset is in milliseconds) and is "
+                f"{100 * abs(shift) / span:.3g} % of the {span:.4g} s tracking span. If the two files count time from "
+                "different origins, state it with time_shift (--time-shift SECONDS, manifest time_shift_s)."),
+                stacklevel=2)
+    mode = "auto" if time_offset == "auto" else ("none" if time_offset is None else "given")
+    extra = {"time_alignment": {**(align.to_dict() if align is not None else {}), "applied_s": shift, "mode": mode}}
+    signals = tel.signals()
+    if not all(f"a_{a}" in signals for a in "xyz"):
+        # the kinematic acceleration for a time-offset term: d v_tel / dt (cubic spline), exact kinematics
+        from scipy.interpolate import CubicSpline
+
+        acc = CubicSpline(t_tel, v_tel, axis=0).derivative()(t_tel)
+        signals.update({f"a_{a}": acc[:, i] for i, a in enumerate("xyz")})
+        extra["kinematic_acceleration"] = "a_x, a_y, a_z: d v_tel / dt (cubic spline of the telemetry velocity)"
     if tracking_frame != "launch":
         extra["tracking_frame"] = {"frame": tracking_frame, "site": site.to_dict()}
-    flight = pair_flight(t_tel, f, v_tel, t_trk - shift, v_trk, signals=tel.signals(), interpolation=interpolation,
+    flight = pair_flight(t_tel, f, v_tel, t_trk - shift, v_trk, signals=signals, interpolation=interpolation,
                          grid=grid, source=f"{tel.src} + {trk.src}",
                          meta={"force": force_from, "telemetry": tel.src, "tracking": trk.src, **extra})
+    flight.meta["rows_file"] = str(trk.path if flight.meta.get("rows_side") == "tracking" else tel.path)
+    if shift_scale:
+        flight.meta["time_shift_s"] = shift_scale
     if tracking_frame != "launch":  # the late-start check: speed relative to the pad, not the Earth's rotation
+        from casep.io.flight import setup_evidence
+
+        ev = setup_evidence(site, t_tel, v_tel, t_raw, r_ecef, v_ecef, time_shift=shift_scale)
+        flight.meta["start_speed_m_s"] = ev["pad"]["speed_relative_m_s"]
+        flight.meta["tracking_frame"]["pad_velocity_m_s"] = ev["pad"]["pad_velocity_m_s"]
+        flight.meta["setup"] = ev
+    if r_ecef is not None and not any(c in flight.signals for c in STATE_SIGNALS):  # Earth-fixed: the state
         from casep.frames import ecef_to_launch
 
-        v_pad = ecef_to_launch(site, [t_tel[0]], [site.r_site], [[0.0, 0.0, 0.0]])[1][0]
-        flight.meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0] - v_pad))
-        flight.meta["tracking_frame"]["pad_velocity_m_s"] = v_pad.tolist()
-    if r_trk is not None and not any(c in flight.signals for c in STATE_SIGNALS):
-        flight = _with_tracked_state(flight, t_trk - shift, r_trk, v_trk)
+        r_l, v_l = ecef_to_launch(site, t_raw, r_ecef, v_ecef)  # launch-inertial, at the file's own time tags
+        flight = _with_tracked_state(flight, t_trk - shift, r_l, v_l)
     return flight
 
 
@@ -553,6 +642,42 @@ def _with_tracked_state(flight: FlightData, t_trk: np.ndarray, r: np.ndarray, v:
         sig[name] = col
     meta = {**flight.meta, "state_from": "tracking (r_*, v_*: launch-inertial, spline on the flight's times)"}
     return dataclasses.replace(flight, signals=sig, meta=meta)
+
+
+#: A given tracking time offset above this, s, is no latency: a warning suggests `time_shift`.
+MAX_TIME_OFFSET = 2.0
+#: The launch time must lie within this of the tracking file's time tags, s (a day: seconds of day,
+#: of a week's GPS time or since an epoch all put it within hours of the tracking).
+MAX_LAUNCH_TIME_GAP = 86400.0
+
+
+def _time_shift(value) -> float:
+    """`time_shift`: a finite number of seconds."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(value):
+        raise ValueError(f"`time_shift` (tracking time minus telemetry time, s) must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _check_launch_time(trk: "_Table", t_raw: np.ndarray, site) -> None:
+    """The launch time in the tracking file's time scale: within :data:`MAX_LAUNCH_TIME_GAP` of its time tags."""
+    gap = max(t_raw[0] - site.t0, site.t0 - t_raw[-1], 0.0)
+    if gap > MAX_LAUNCH_TIME_GAP:
+        raise trk.error(f"the launch time {site.t0:.10g} s is {gap:.4g} s from the tracking time tags "
+                        f"[{t_raw[0]:.10g}, {t_raw[-1]:.10g}] s (more than {MAX_LAUNCH_TIME_GAP:g} s): give it in the "
+                        "tracking file's time scale (--launch-time, manifest launch_time_s)", "t")
+
+
+def _no_overlap_message(t_tel: np.ndarray, t_raw: np.ndarray, shift: float) -> str:
+    """Telemetry and tracking that do not overlap: both spans, and the shift that would line them up."""
+    after = t_raw[0] - shift - t_tel[0]
+    scale = f" (after time_shift {shift:g} s: [{t_raw[0] - shift:.10g}, {t_raw[-1] - shift:.10g}] s)" if shift else ""
+    return (f"telemetry time [{t_tel[0]:.10g}, {t_tel[-1]:.10g}] s and tracking time [{t_raw[0]:.10g}, "
+            f"{t_raw[-1]:.10g}] s{scale} share fewer than 2 telemetry samples: the tracking starts {after:.6g} s "
+            f"{'after' if after >= 0 else 'before'} the telemetry. Telemetry and tracking must be on one time scale; "
+            "if they count from different origins (seconds of day against seconds from lift-off), state how they "
+            f"relate: time_shift = tracking time - telemetry time (e.g. {t_raw[0] - t_tel[0]:.10g} if both start "
+            "together; CLI --time-shift, manifest time_shift_s)")
 
 
 def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray, *,
@@ -590,15 +715,27 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
 
     keep = t_tel <= t_trk[-1]  # from the first telemetry sample to the end of tracking
     extra: dict = {}
+    trk_gaps, tel_gaps = _gaps(t_trk), _gaps(t_tel)
     if grid == "telemetry":
         t, observed = t_tel[keep], (t_tel[keep] >= t_trk[0])
+        in_gap = _inside(t, trk_gaps)
+        if in_gap.any():  # tracking interpolated across a gap invents data: those rows are not observed
+            _warn_gaps("tracking", trk_gaps, int(np.count_nonzero(in_gap & observed)), "telemetry samples", source)
+            observed &= ~in_gap
+            extra["gap_rows_left_out"] = int(np.count_nonzero(in_gap))
         dv = np.full((t.size, 3), np.nan)  # not observed before tracking starts
         dv[observed] = v_tel[keep][observed] - carry(t_trk, v_trk, t[observed])  # v_tel - v_trk(t_tel)
         f_out = f[keep]
         sig = {k: v[keep] for k, v in signals.items()}
         how = f"v_tel - v_trk at telemetry times ({interpolation} interpolation of tracking)"
+        extra.update(rows_side="telemetry", rows_index=np.flatnonzero(keep))
     else:
         use = (t_trk >= t_tel[0]) & (t_trk <= t_tel[-1])
+        in_gap = _inside(t_trk, tel_gaps) & use
+        if in_gap.any():  # telemetry velocity interpolated across a telemetry gap: those tracking rows left out
+            _warn_gaps("telemetry", tel_gaps, int(np.count_nonzero(in_gap)), "tracking samples", source)
+            use &= ~in_gap
+            extra["gap_rows_left_out"] = int(np.count_nonzero(in_gap))
         tt = t_trk[use]
         t_keep = t_tel[keep]
         j = np.clip(np.searchsorted(t_keep, tt), 1, t_keep.size - 1)
@@ -613,7 +750,12 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
         f_out = np.column_stack([np.interp(t, t_tel, f[:, i]) for i in range(3)])
         sig = {k: np.interp(t, t_tel, v) for k, v in signals.items()}
         how = f"v_tel - v_trk at tracking times ({interpolation} interpolation of telemetry)"
-        extra = {"tracking_dropped": int((~use).sum()), "inserted": int((~on).sum())}
+        extra = {**extra, "tracking_dropped": int((~use).sum()), "inserted": int((~on).sum()), "rows_side": "tracking"}
+        rows_index = np.full(t.size, -1)
+        rows_index[idx] = np.flatnonzero(use)  # the tracking data row of each observed sample
+        extra["rows_index"] = rows_index
+    if trk_gaps or tel_gaps:
+        extra["gaps_s"] = {"tracking": trk_gaps, "telemetry": tel_gaps}
     meta = {"format": "pair", "grid": grid, "dv": how, **(meta or {}), **extra,
             "telemetry_span_s": [float(t_tel[0]), float(t_tel[-1])],
             "tracking_span_s": [float(t_trk[0]), float(t_trk[-1])],
@@ -622,6 +764,41 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
             "start_speed_m_s": float(np.linalg.norm(v_tel[0])),
             "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.analysis.checks
     return FlightData(t, f_out, dv, source=source, meta=meta, observed=observed, signals=sig)
+
+
+#: A step this many times the median sample step is a gap that interpolation must not bridge ...
+GAP_FACTOR = 5.0
+#: ... and at least this long, s (a few missing samples at 20 Hz are bridged well by a cubic spline).
+GAP_MIN_S = 0.5
+
+
+def _gaps(t: np.ndarray) -> list[list[float]]:
+    """``[[start, end], ...]`` of the steps of `t` above :data:`GAP_FACTOR` x its median step and :data:`GAP_MIN_S`."""
+    if t.size < 3:
+        return []
+    step = np.diff(t)
+    big = np.flatnonzero((step > GAP_FACTOR * np.median(step)) & (step > GAP_MIN_S))
+    return [[float(t[k]), float(t[k + 1])] for k in big]
+
+
+def _inside(t: np.ndarray, gaps: list[list[float]]) -> np.ndarray:
+    """Samples strictly inside one of the `gaps`."""
+    out = np.zeros(t.size, dtype=bool)
+    for a, b in gaps:
+        out |= (t > a) & (t < b)
+    return out
+
+
+def _warn_gaps(which: str, gaps: list[list[float]], rows: int, what: str, source: str) -> None:
+    import warnings
+
+    from casep.exceptions import GapWarning
+
+    listed = ", ".join(f"{b - a:.4g} s from t = {a:.10g} s" for a, b in gaps[:5]) + (" ..." if len(gaps) > 5 else "")
+    warnings.warn(GapWarning(
+        f"{source}: the {which} has {len(gaps)} gap(s) ({listed}; above {GAP_FACTOR:g} x its median step and "
+        f"{GAP_MIN_S:g} s): interpolating across them would invent data, so the {rows} {what} inside are left out of "
+        "the regression (S_V is still integrated through them)"), stacklevel=4)
 
 
 def write_table(path: str | os.PathLike, columns: dict[str, np.ndarray], *,

@@ -31,7 +31,7 @@ from pathlib import Path
 from casep.model._model import ErrorModel, ModelDefinitionError
 
 __all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file",
-           "model_file_reference", "run_model_file"]
+           "run_model_file", "with_time_offset", "TIME_OFFSET", "model_file_reference"]
 
 
 def model_dirs() -> list[Path]:
@@ -241,6 +241,35 @@ def load_model(model: str | os.PathLike | ErrorModel) -> ErrorModel:
         raise
     except ModelDefinitionError as exc:  # setup()'s checks name the term; add the file
         raise ModelFileError(f"model file {path}: {exc}") from exc
+
+
+#: The tracking time offset term every model can gain (:func:`with_time_offset`).
+TIME_OFFSET = "dt_trk"
+
+
+def with_time_offset(model: str | os.PathLike | ErrorModel) -> ErrorModel:
+    """A model plus the tracking time offset ``dt_trk`` (ms, per flight), set up.
+
+    Tracking time tags late by ``dt_trk`` give ``v_trk(t) = v(t - dt_trk) ~ v(t) - a(t) dt_trk``, so
+    ``dv`` gains ``a(t) dt_trk`` with ``a`` the kinematic acceleration (flight signals ``a_x``,
+    ``a_y``, ``a_z``; :func:`casep.io.files.read_flight_pair` derives them from the telemetry
+    velocity when the file has none). A model that has ``dt_trk`` already is returned as it is.
+    """
+    import casadi as ca
+
+    base = load_model(model)
+    if TIME_OFFSET in base.names:
+        return base
+    source = model if isinstance(model, (str, os.PathLike)) else base.name
+    m = build_model(source)  # unlocked: the term is added to it
+    m.name = f"{base.name}+dt_trk"
+    m.source_file = None  # a derived model: its file alone does not build it (no model_file in results)
+    m.description = f"{base.description or base.name} + tracking time offset dt_trk (ms, per flight)"
+    c = m.declare(dt_trk=("ms", 20.0), per_flight=True)  # tracking time-tag delay, ms (SI: s)
+    a = ca.vertcat(m.signal("a_x"), m.signal("a_y"), m.signal("a_z"))  # kinematic acceleration, m/s^2
+    m.set_velocity_error(m.output("velocity_error") + a * c.dt_trk)  # dv += a(t) dt_trk (a lever arm kept)
+    m.setup()
+    return m
 
 
 def model_file_reference(model: ErrorModel) -> str | None:

@@ -173,7 +173,7 @@ class SVBuilder:
         dt[0] = 0.0  # S_V(t0) = V0, Phi(t0) = Phi0
         np.subtract(t[1:], t[:-1], out=dt[1:])
         half_dt = 0.5 * dt
-        _warn_gaps(dt)
+        _warn_gaps(dt, t)
         # Carries between chunks: running integrals and the last integrands.
         phi = self._phi0.copy()  # (3, ng)
         G_prev = np.zeros_like(phi)
@@ -224,7 +224,7 @@ def _signal_matrix(model: ErrorModel, signals: Mapping[str, np.ndarray] | None, 
 GAP_FACTOR = 10.0
 
 
-def _warn_gaps(dt: np.ndarray) -> None:
+def _warn_gaps(dt: np.ndarray, t: np.ndarray) -> None:
     if dt.size < 3:
         return
     med = float(np.median(dt[1:]))
@@ -233,8 +233,8 @@ def _warn_gaps(dt: np.ndarray) -> None:
         k = int(big[np.argmax(dt[big])])
         warnings.warn(
             f"`t` has {big.size} gap(s) longer than {GAP_FACTOR:g}x the median step {med:.3g} s (largest "
-            f"{dt[k]:.3g} s before row {k}): S_V is integrated across them by the trapezoid rule, which is "
-            "inaccurate where the specific force changes inside a gap",
+            f"{dt[k]:.3g} s before sample {k + 1}, t = {t[k]:.6g} s): S_V is integrated across them by the "
+            "trapezoid rule, which is inaccurate where the specific force changes inside a gap",
             CasepWarning, stacklevel=3)
 
 

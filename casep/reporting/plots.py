@@ -168,39 +168,89 @@ def estimate_scales(result: EstimateResult, prior: Mapping | None = None,
     return scale, kind
 
 
+def instrument_groups(names) -> dict[str, list[int]]:
+    """Coefficient indices per instrument: ``gyro x``, ..., ``accelerometer z`` (names ``Kg<order><axis>...``,
+    ``Ka<order><axis>...``), then ``other`` (tracking time offset, initial terms, lever arm, ...)."""
+    import re
+
+    out: dict[str, list[int]] = {}
+    for j, n in enumerate(names):
+        m = re.match(r"^K([ga])\d([xyz])", str(n))
+        key = f"{'gyro' if m.group(1) == 'g' else 'accelerometer'} {m.group(2)}" if m else "other"
+        out.setdefault(key, []).append(j)
+    order = [f"{i} {a}" for i in ("gyro", "accelerometer") for a in "xyz"] + ["other"]
+    return {k: out[k] for k in order if k in out}
+
+
 def plot_estimates(result: EstimateResult, path: str | os.PathLike, *, prior: Mapping | None = None,
-                   bounds: Mapping | None = None) -> Path:
-    """Estimates +- 2 std, each divided by its scale (:func:`estimate_scales`), against the prior or box."""
+                   bounds: Mapping | None = None, scales: Mapping | None = None) -> Path:
+    """Estimates +- 2 std against the declared magnitudes, one panel per instrument (:func:`instrument_groups`).
+
+    Each coefficient is divided by its declared magnitude (``declare(Kg0x=("deg/h", 0.5))``; `scales`, default
+    the result's model's), so the grey band +-1 is what the instrument's spec sheet allows and a bar well
+    inside it a coefficient the flight determines; the natural unit of each coefficient is in its tick label.
+    Coefficients without a declared magnitude use the prior std, the box half-width or their own std
+    (:func:`estimate_scales`; the panel title says which). A panel whose values span more than 50 magnitudes
+    has a symmetric-log axis, so that one large coefficient does not flatten the others.
+    """
     plt = _pyplot()
     n = len(result.names)
-    scale, kind = estimate_scales(result, prior, bounds)
-    x = np.arange(n)
-    z = result.estimate / scale  # estimate / scale
-    err = None if result.std is None else 2 * result.std / scale  # 2 std / scale
-    fig, ax = plt.subplots(figsize=(max(8, 0.3 * n), 4.5))
+    if scales is None:
+        try:
+            from casep.model.loader import load_model
+
+            scales = load_model(result.model).scales if result.model else {}
+        except Exception:  # a model file moved since: fall back on the other scales
+            scales = {}
+    fallback, kind = estimate_scales(result, prior, bounds)
+    declared = np.array([scales.get(nm, scales.get(str(nm).split("[")[0], np.nan)) for nm in result.names], float)
+    scale = np.where(np.isfinite(declared), declared, fallback)
+    kind = ["declared magnitude" if np.isfinite(declared[j]) else kind[j] for j in range(n)]
+    z = result.estimate / scale
+    err = None if result.std is None else 2 * result.std / scale
+    mu = tau = lo = hi = None
     if prior is not None:
         from casep.estimators.map import parse_prior
 
         mu, tau = parse_prior(prior, result.names)
-        has = np.isfinite(tau)
-        ax.errorbar(x[has] + 0.2, (mu / scale)[has], yerr=2.0, fmt="s", color="0.5", ms=3, capsize=2,
-                    label="prior mean +- 2 prior std")
     if bounds is not None:
         from casep.estimators.bounded import parse_bounds
 
         lo, hi, _ = parse_bounds(bounds, result.names)
-        for v, mk in ((lo, "^"), (hi, "v")):
-            ok = np.isfinite(v)
-            ax.plot(x[ok], (v / scale)[ok], mk, color="tab:red", ms=4, ls="none")
-        ax.plot([], [], "v", color="tab:red", ms=4, ls="none", label="bounds")
-    ax.errorbar(x, z, yerr=err, fmt="o", ms=3, capsize=2, label=f"{result.method} estimate +- 2 std")
-    ax.axhline(0.0, color="k", lw=0.6)
-    ax.set_xticks(x, [f"{nm}" for nm in result.names], rotation=90, fontsize=7)
-    kinds = sorted(set(kind))
-    ax.set_ylabel("value / scale")
-    ax.set_title(f"Estimates normalised by {', '.join(kinds)} (missing: not identifiable)", fontsize=10)
-    ax.legend(fontsize=7)
-    ax.grid(alpha=0.3)
+    groups = instrument_groups(result.names)
+    ncol = min(3, len(groups))
+    nrow = -(-len(groups) // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.2 * nrow + 0.6), squeeze=False)
+    for ax, (title, idx) in zip(axes.ravel(), groups.items()):
+        idx = np.asarray(idx)
+        x = np.arange(idx.size)
+        ax.axhspan(-1.0, 1.0, color="0.88", zorder=0, label="declared magnitude")
+        if mu is not None:
+            has = np.isfinite(tau[idx])
+            ax.errorbar(x[has] + 0.2, (mu / scale)[idx][has], yerr=(2 * tau / scale)[idx][has], fmt="s",
+                        color="0.5", ms=3, capsize=2, label="prior mean +- 2 prior std")
+        if lo is not None:
+            for v, mk in ((lo, "^"), (hi, "v")):
+                ok = np.isfinite(v[idx])
+                ax.plot(x[ok], (v / scale)[idx][ok], mk, color="tab:red", ms=4, ls="none")
+        ax.errorbar(x, z[idx], yerr=None if err is None else err[idx], fmt="o", ms=3, capsize=2,
+                    label=f"{result.method} estimate +- 2 std")
+        ax.axhline(0.0, color="k", lw=0.6)
+        span = np.nanmax(np.abs(np.concatenate([z[idx], (z + err)[idx] if err is not None else z[idx]])))
+        if np.isfinite(span) and span > 50:
+            ax.set_yscale("symlog", linthresh=1.0)
+        ax.set_xticks(x, [f"{result.names[j]}\n{result.units[j]}" for j in idx], rotation=90, fontsize=6)
+        kinds = sorted({kind[j] for j in idx})
+        ax.set_title(f"{title}" + ("" if kinds == ["declared magnitude"] else f" (/ {', '.join(kinds)})"),
+                     fontsize=9)
+        ax.grid(alpha=0.3)
+    for ax in axes.ravel()[len(groups):]:
+        ax.set_visible(False)
+    axes[0, 0].set_ylabel("estimate / declared magnitude")
+    axes[0, 0].legend(fontsize=6, loc="best")
+    fig.suptitle(f"{result.model} ({result.method}): estimate +- 2 std in units of the declared magnitude; grey: "
+                 "+-1 declared magnitude; missing: not identifiable", fontsize=9)
+    fig.tight_layout()
     return _save(fig, path)
 
 
@@ -273,7 +323,8 @@ def plot_miss_budget(analysis, path: str | os.PathLike, top: int = 15) -> Path:
     sd = None
     if a.coefficient_std is not None:  # 1 sigma of each contribution alone: |G_j| std_j (0 without estimate)
         sd = np.abs(a.sensitivity) * np.nan_to_num(a.coefficient_std, nan=0.0)
-    labels = [a.names[j] for j in order] + [f"group {k + 1}" for k in range(len(a.groups))] + ["total (linear)"]
+    labels = [a.names[j] for j in order] + [_group_label(k, g.names) for k, g in enumerate(a.groups)] \
+        + ["total (linear)"]
     fig, axes = plt.subplots(1, 2, figsize=(11, max(4.0, 0.32 * len(labels) + 1.5)), sharey=True)
     y = np.arange(len(labels))[::-1]
     for i, (ax, what) in enumerate(zip(axes, ("downrange", "crossrange"))):
@@ -287,6 +338,7 @@ def plot_miss_budget(analysis, path: str | os.PathLike, top: int = 15) -> Path:
         ax.axvline(0.0, color="0.3", lw=0.8)
         ax.set_xscale("symlog", linthresh=max(1.0, float(np.nanmax(np.abs(vals))) * 1e-3))
         ax.set_xlabel(f"{what} miss, m")
+        ax.tick_params(axis="x", labelrotation=30, labelsize=7)  # symlog ticks: keep them apart
         tot = f"{a.miss[i]:.4g}" + (f" +- {a.std[i]:.3g}" if a.std is not None else "")
         ax.set_title(f"{what}: total {tot} m (nonlinear {a.nonlinear[i]:.4g} m)", fontsize=9)
         ax.grid(True, axis="x", alpha=0.3)
@@ -294,6 +346,12 @@ def plot_miss_budget(analysis, path: str | os.PathLike, top: int = 15) -> Path:
     fig.suptitle(f"Miss budget, {a.model} ({a.method}): blue coefficients, orange near-dependency groups, "
                  "red total; bars 1 sigma", fontsize=9)
     return _save(fig, path)
+
+
+def _group_label(k: int, names, width: int = 38) -> str:
+    """``group 1: Kg0x, Kg1y, ...`` (its coefficients, cut to `width` characters)."""
+    text = f"group {k + 1}: " + ", ".join(names)
+    return text if len(text) <= width else text[: width - 3].rstrip(", ") + "..."
 
 
 def plot_impact_ellipse(analysis, path: str | os.PathLike) -> Path:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import base64
 import html
-import json
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -45,13 +45,128 @@ def _coefficient_table(result: EstimateResult) -> str:
     return "\n".join(rows)
 
 
+def _text(v: Any) -> str:
+    """A value as an analyst reads it: numbers to 4 significant digits, lists joined, groups bracketed."""
+    if isinstance(v, bool) or v is None:
+        return "-" if v is None else str(v).lower()
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        x = float(v)
+        return format_number(x, 0) if not math.isfinite(x) or x == 0 or 1e-3 <= abs(x) < 1e6 else f"{x:.4g}"
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (list, tuple)):
+        if v and all(isinstance(x, (list, tuple)) for x in v):
+            return "; ".join("[" + ", ".join(_text(x) for x in g) + "]" for g in v)
+        return ", ".join(_text(x) for x in v)
+    if isinstance(v, dict):
+        return ", ".join(f"{k} {_text(x)}" for k, x in v.items())
+    return str(v)
+
+
 def _key_value_table(items: Mapping[str, Any], table_id: str) -> str:
     rows = [f"<table id=\"{table_id}\">"]
     for k, v in items.items():
-        text = v if isinstance(v, str) else json.dumps(v, default=str)
-        rows.append(f"<tr><th>{_esc(k)}</th><td>{_esc(text)}</td></tr>")
+        rows.append(f"<tr><th>{_esc(k)}</th><td>{_esc(_text(v))}</td></tr>")
     rows.append("</table>")
     return "\n".join(rows)
+
+
+def determined(result: EstimateResult, scales: Mapping[str, float], top: int = 4) -> dict[str, Any]:
+    """What the flight determines: the coefficients whose std is below their declared magnitude, and the
+    best-determined combinations of the rest.
+
+    With ``C_s = D^-1 C D^-1`` (covariance in units of the declared magnitudes ``D = diag(s)``) of the rest,
+    its eigenvectors ``v`` with eigenvalue ``lambda < 1`` are combinations ``sum_j v_j x_j / s_j`` known to
+    ``sqrt(lambda)`` of a declared magnitude although no single coefficient is.
+
+    Returns
+    -------
+    dict
+        ``{"determined": [names], "rest": [names], "combinations": [{"terms": {name: weight}, "std": s}]}``.
+    """
+    names = list(result.names)
+    std = result.std if result.std is not None else np.full(len(names), np.nan)
+    has = [j for j, n in enumerate(names) if n in scales and np.isfinite(std[j])]
+    det = [names[j] for j in has if std[j] < scales[names[j]]]
+    rest = [j for j in has if std[j] >= scales[names[j]]]
+    combos = []
+    C = result.covariance
+    if rest and C is not None and np.all(np.isfinite(C[np.ix_(rest, rest)])):
+        s = np.array([scales[names[j]] for j in rest])
+        lam, V = np.linalg.eigh(C[np.ix_(rest, rest)] / np.outer(s, s))
+        for k in np.flatnonzero(lam < 1.0)[:top]:
+            v = V[:, k] / np.max(np.abs(V[:, k]))
+            order = np.argsort(-np.abs(v))[:5]
+            combos.append({"terms": {names[rest[i]]: float(v[i]) for i in order if abs(v[i]) > 0.05},
+                           "std": float(np.sqrt(max(lam[k], 0.0)))})
+    return {"determined": det, "rest": [names[j] for j in rest], "combinations": combos}
+
+
+def _headline(result: EstimateResult) -> str:
+    """The report's first lines: what the flight determines, against the model's declared magnitudes."""
+    try:
+        from casep.model.loader import load_model
+
+        scales = load_model(result.model).scales if result.model else {}
+    except Exception:  # a model file moved since: no headline rather than no report
+        scales = {}
+    if not scales:
+        return ""
+    d = determined(result, scales)
+    units = dict(zip(result.names, result.units))
+    est = dict(zip(result.names, result.estimate))
+    sd = dict(zip(result.names, result.std if result.std is not None else [np.nan] * len(result.names)))
+    items = ", ".join(f"{n} {_text(float(est[n]))} &plusmn; {_text(float(sd[n]))} {_esc(units[n])}"
+                      for n in d["determined"])
+    out = [f"<p id=\"headline\"><b>This flight determines {len(d['determined'])} of {len(result.names)} "
+           f"coefficients</b> to better than their declared magnitude"
+           + (f": {items}." if items else ".") + "</p>"]
+    if d["combinations"]:
+        rows = "".join(
+            "<li>" + " ".join(f"{'+' if w >= 0 else '&minus;'} {abs(w):.2g} {_esc(n)}/{scales[n]:g}"
+                              for n, w in c["terms"].items())
+            + f": std {c['std']:.2g} of the declared magnitudes</li>" for c in d["combinations"])
+        out.append(f"<p>Of the other {len(d['rest'])}, no single coefficient is determined, but these combinations "
+                   f"(each coefficient divided by its declared magnitude) are:</p><ul id=\"combinations\">{rows}</ul>")
+    return "\n".join(out)
+
+
+def _provenance_html(prov: Mapping[str, Any]) -> str:
+    """Input files with their SHA-256, per flight its frame, site, time alignment and exclusions, the options
+    and the command line."""
+    files = "".join(f"<tr><td>{_esc(f['role'])}</td><td>{_esc(f['file'])}</td><td class=\"num\">"
+                    f"{_esc(_text(f.get('bytes')))}</td><td><code>{_esc(f.get('sha256') or '-')}</code></td></tr>"
+                    for f in prov.get("inputs", []))
+    parts = [f"<p>casep {_esc(prov.get('casep_version', ''))}; command: <code>{_esc(prov.get('command_line', ''))}"
+             "</code></p>",
+             "<table id=\"inputs\"><tr><th>role</th><th>file</th><th>bytes</th><th>SHA-256</th></tr>" + files
+             + "</table>"]
+    for k, f in enumerate(prov.get("flights", [])):
+        items: dict[str, Any] = {"source": f.get("source"), "samples (observed)": f"{f.get('samples')} "
+                                 f"({f.get('observed')})"}
+        tf = f.get("tracking_frame") or {}
+        if tf:
+            items["tracking frame"] = tf.get("frame")
+            if tf.get("site"):
+                items["launch site"] = tf["site"]
+        ta = f.get("time_alignment") or {}
+        if ta:
+            items["time alignment"] = {"applied shift (s)": ta.get("applied_s"), "coarse offset (s)": ta.get("tau_s")}
+        if f.get("time_shift_s"):
+            items["time scales: tracking - telemetry (s)"] = f["time_shift_s"]
+        if f.get("grid"):
+            items["grid"] = f["grid"]
+        if f.get("exclusions"):
+            items["samples left out"] = f["exclusions"]
+        sc = f.get("setup_checks")
+        if sc:
+            items["set-up checks"] = "; ".join(sc.get("problems") or []) or "passed"
+        parts += [f"<h3>Flight {k + 1}</h3>", _key_value_table(items, f"provenance-flight-{k + 1}")]
+    if prov.get("options"):
+        parts += ["<h3>Options</h3>", _key_value_table(prov["options"], "options")]
+    return "\n".join(parts)
 
 
 def _diagnostics_summary(result: EstimateResult) -> dict[str, Any]:
@@ -70,12 +185,14 @@ def _image(path: Path) -> str:
 
 
 def report_html(result: EstimateResult, figures: Sequence[str | os.PathLike] = (), *,
-                warnings: Sequence[str] = (), source: str | None = None, impact=None) -> str:
+                warnings: Sequence[str] = (), source: str | None = None, impact=None,
+                provenance: Mapping[str, Any] | None = None) -> str:
     """The report page as a string (see :func:`write_report`); `impact`: an
     :class:`casep.impact.miss.ImpactAnalysis` of the result, or a sentence why there is none."""
     from casep._version import __version__
 
-    state = "ok" if result.success else "failed"
+    # the status colour follows the warnings: green only for a success nothing was said against
+    state = "failed" if not result.success else "warn" if warnings else "ok"
     warn = list(warnings)
     if result.diagnostics.get("warning"):
         warn.append(str(result.diagnostics["warning"]))
@@ -87,7 +204,9 @@ def report_html(result: EstimateResult, figures: Sequence[str | os.PathLike] = (
         f"<p>casep {_esc(__version__)}, model {_esc(result.model)}, method {_esc(result.method)}, "
         f"{int(result.n_samples)} samples, rank {int(result.rank)}/{len(result.names)}, "
         f"sigma {result.sigma:.4g} m/s</p>",
-        f"<p class=\"{state}\">status {int(result.status)}: {_esc(result.message)}</p>",
+        f"<p class=\"{state}\" id=\"status\">status {int(result.status)}: {_esc(result.message)}"
+        + (f" ({len(warnings)} warning(s) below)" if warnings and result.success else "") + "</p>",
+        _headline(result),
     ]
     if warn:
         parts.append("<h2>Warnings</h2><ul>" + "".join(f"<li class=\"warn\">{_esc(w)}</li>" for w in warn) + "</ul>")
@@ -101,6 +220,8 @@ def report_html(result: EstimateResult, figures: Sequence[str | os.PathLike] = (
     if figures:
         parts.append("<h2>Figures</h2>")
         parts += [_image(Path(f)) for f in figures]
+    if provenance:
+        parts += ["<h2>Provenance</h2>", _provenance_html(provenance)]
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"
 
@@ -137,7 +258,8 @@ def _impact_html(ia) -> str:
 
 def write_report(result: EstimateResult, path: str | os.PathLike, *, flight=None,
                  figures: Sequence[str | os.PathLike] | None = None, prior: Mapping | None = None,
-                 bounds: Mapping | None = None, warnings: Sequence[str] = (), source: str | None = None) -> Path:
+                 bounds: Mapping | None = None, warnings: Sequence[str] = (), source: str | None = None,
+                 provenance: Mapping[str, Any] | None = None) -> Path:
     """Write a self-contained HTML report of one separation.
 
     Parameters
@@ -156,7 +278,9 @@ def write_report(result: EstimateResult, path: str | os.PathLike, *, flight=None
     warnings : sequence of str
         Warning lines to list.
     source : str, optional
-        Name of the flight file for the title.
+        Name of the flight (its files) for the title.
+    provenance : mapping, optional
+        :func:`casep.io.provenance.provenance` of the result: a "Provenance" section.
 
     Returns
     -------
@@ -166,7 +290,7 @@ def write_report(result: EstimateResult, path: str | os.PathLike, *, flight=None
     path = Path(path)
     impact = _impact_of(result, flight)
     if figures is not None:
-        text = report_html(result, figures, warnings=warnings, source=source, impact=impact)
+        text = report_html(result, figures, warnings=warnings, source=source, impact=impact, provenance=provenance)
     else:
         from casep.reporting.plots import impact_figures, separate_figures
 
@@ -175,7 +299,8 @@ def write_report(result: EstimateResult, path: str | os.PathLike, *, flight=None
             files = separate_figures(result, tmp, t, prior=prior, bounds=bounds)
             if impact is not None and not isinstance(impact, str):
                 files += impact_figures(impact, tmp)
-            text = report_html(result, files, warnings=warnings, source=source, impact=impact)
+            text = report_html(result, files, warnings=warnings, source=source, impact=impact,
+                               provenance=provenance)
     with atomic_open(path) as fh:
         fh.write(text)
     return path

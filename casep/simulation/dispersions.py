@@ -22,8 +22,11 @@ Parameters (:data:`PARAMETERS`; a ``*_scale`` multiplies the scenario's value, n
 ====================== ===========================================================================
 
 A ``*_scale`` must stay positive: a normal one needs ``mean - 6 std > 0``, a uniform one
-``low > 0``. Run k draws from ``default_rng(SeedSequence(seed, spawn_key=(k, 0)))`` in the order
-of :data:`PARAMETERS`, so its vehicle depends on the seed and k only.
+``low > 0``. ``launch_azimuth_deg`` must stay within +-180 deg (``|mean| + 6 std``, or ``low`` and
+``high``). With the vehicle given, its worst draw (lowest thrust, highest lift-off mass: 6 std, or the
+uniform bounds) must still lift off: lift-off thrust / weight above :data:`MIN_LIFTOFF_TW`.
+Run k draws from ``default_rng(SeedSequence(seed, spawn_key=(k, 0)))`` in the order of
+:data:`PARAMETERS`, so its vehicle depends on the seed and k only.
 """
 
 from __future__ import annotations
@@ -50,8 +53,17 @@ def _order(name: str) -> tuple:
     return (1, int(m.group(1)), m.group(2)) if m else (0, PARAMETERS.index(name), "")
 
 
-def parse_dispersions(data: Any, n_stages: int, source: str = "dispersions") -> dict[str, dict]:
-    """Check a dispersions mapping; return it in canonical order (errors name `source` and the key)."""
+#: Lift-off thrust-to-weight of the worst dispersed vehicle below this: it does not lift off (refused).
+MIN_LIFTOFF_TW = 1.05
+#: Largest launch azimuth dispersion, deg (a draw beyond it is another launch direction, not a dispersion).
+MAX_AZIMUTH_DEG = 180.0
+
+
+def parse_dispersions(data: Any, n_stages: int, source: str = "dispersions",
+                      vehicle: Vehicle | None = None) -> dict[str, dict]:
+    """Check a dispersions mapping; return it in canonical order (errors name `source` and the key).
+
+    `vehicle` (optional): the scenario's vehicle, to refuse dispersions whose worst draw does not lift off."""
     if not isinstance(data, Mapping):
         raise ValueError(f"{source}: must hold a JSON object {{parameter: distribution}}")
     if not data:
@@ -89,8 +101,39 @@ def parse_dispersions(data: Any, n_stages: int, source: str = "dispersions") -> 
             if not lowest > 0:
                 raise ValueError(f"{source}: `{name}`: a scale factor must stay > 0 "
                                  f"({'mean - 6 std' if spec['dist'] == 'normal' else 'low'} = {lowest:g})")
+        if name == "launch_azimuth_deg":
+            lo, hi = (a - 6 * b, a + 6 * b) if spec["dist"] == "normal" else (a, b)
+            if not (-MAX_AZIMUTH_DEG <= lo and hi <= MAX_AZIMUTH_DEG):
+                raise ValueError(f"{source}: `{name}`: draws must stay within +-{MAX_AZIMUTH_DEG:g} deg, got "
+                                 f"[{lo:g}, {hi:g}] ({'mean +- 6 std' if spec['dist'] == 'normal' else 'low, high'})")
         out[str(name)] = {"dist": spec["dist"], keys[0]: a, keys[1]: b}
+    if vehicle is not None:
+        _check_liftoff(out, vehicle, source)
     return {k: out[k] for k in sorted(out, key=_order)}
+
+
+def _extreme(spec: Mapping | None, high: bool) -> float:
+    """The largest (`high`) or smallest draw of a scale factor: mean +- 6 std, or the uniform bound; 1 if absent."""
+    if spec is None:
+        return 1.0
+    if spec["dist"] == "normal":
+        return spec["mean"] + (6 if high else -6) * spec["std"]
+    return spec["high"] if high else spec["low"]
+
+
+def _check_liftoff(disp: Mapping[str, dict], vehicle: Vehicle, source: str) -> None:
+    """Refuse dispersions whose worst draw does not lift off: T1 min / (m0 max g) < MIN_LIFTOFF_TW."""
+    from casep.units import G0
+
+    thrust = vehicle.stages[0].thrust * _extreme(disp.get("thrust_scale"), False) \
+        * _extreme(disp.get("stage1_thrust_scale"), False)
+    mass = vehicle.liftoff_mass * _extreme(disp.get("liftoff_mass_scale"), True)
+    tw = thrust / (mass * G0)
+    if tw < MIN_LIFTOFF_TW:
+        nominal = vehicle.stages[0].thrust / (vehicle.liftoff_mass * G0)
+        raise ValueError(f"{source}: the worst draw (lowest thrust, highest lift-off mass) gives a lift-off "
+                         f"thrust-to-weight of {tw:.3g} (nominal {nominal:.3g}), below {MIN_LIFTOFF_TW:g}: that "
+                         "vehicle does not lift off; narrow thrust_scale, stage1_thrust_scale or liftoff_mass_scale")
 
 
 def draw_dispersion(disp: Mapping[str, dict], rng: np.random.Generator) -> dict[str, float]:

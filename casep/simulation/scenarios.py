@@ -13,6 +13,9 @@
 ``paper-pitch-low`` a depressed trajectory: pitch-over kick at 2.4 deg/s (paper: 1.6) for 8 s.
 ``paper-azimuth`` ``paper`` flown 10 deg off the platform's x axis (constant yaw offset): a
                  cross-range component of the specific force throughout.
+``paper-range-gm`` ``paper`` at 20 Hz as a range delivers it: Gauss-Markov tracking noise (sigma
+                 0.1 m/s, tau 1 s), tracking from 8 s, dropouts of 6 s at 95 s and 1.5 s at 140 s.
+``paper-range``  ``paper-range-gm`` with glitches: 0.5 % of the values per axis off by N(0, 2 m/s).
 =============== ==========================================================================
 
 The paper does not publish its trajectory; these are documented stand-ins with the figures
@@ -85,6 +88,8 @@ class Scenario:
 
 
 _PAPER_YAW = YawManoeuvre(amplitude=2.0, period=80.0, start=20.0, end=180.0)
+#: Tracking gaps of the range scenarios: a late start (0-8 s) and two dropouts, (start, length) s.
+_RANGE_GAPS = ((0.0, 8.0), (95.0, 6.0), (140.0, 1.5))
 
 SCENARIOS: dict[str, Scenario] = {
     s.name: s
@@ -101,6 +106,13 @@ SCENARIOS: dict[str, Scenario] = {
         Scenario("paper-pitch-low", "as paper, depressed trajectory (pitch-over kick 2.4 deg/s for 8 s)",
                  vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=_PAPER_YAW,
                                              pitch=dataclasses.replace(DEFAULT_VEHICLE.pitch, kick_rate=2.4))),
+        Scenario("paper-range-gm", "as paper at 20 Hz, Gauss-Markov noise 0.1 m/s tau 1 s, tracking from 8 s, "
+                 "dropouts 95-101 s and 140-141.5 s", vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=_PAPER_YAW),
+                 noise=NoiseModel("ar1", TABLE1_NOISE_SIGMA, tau=1.0, gaps=_RANGE_GAPS), rate=20.0),
+        Scenario("paper-range", "as paper-range-gm, with 0.5 % glitches of N(0, 2 m/s) per axis",
+                 vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=_PAPER_YAW),
+                 noise=NoiseModel("ar1", TABLE1_NOISE_SIGMA, tau=1.0, gaps=_RANGE_GAPS, outlier_rate=0.005,
+                                  outlier_sigma=2.0), rate=20.0),
         Scenario("paper-azimuth", "as paper, flown 10 deg off the platform x axis (cross-range component)",
                  vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=dataclasses.replace(_PAPER_YAW, offset=10.0))),
     )

@@ -106,7 +106,9 @@ def _labels(problems: Sequence[Problem]) -> tuple[str, ...]:
 
 
 def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: float | Sequence[float] | None = None,
-                     options: Mapping[str, Any] | None = None) -> tuple[EstimateResult, JointProblem]:
+                     options: Mapping[str, Any] | None = None, noise: str = "auto", tau=None,
+                     robust: str | None = None, std: str = "model",
+                     exclude_outliers: float | None = None) -> tuple[EstimateResult, JointProblem]:
     """One estimate of the shared coefficients from several flights; per-flight ones per flight.
 
     Parameters
@@ -121,6 +123,11 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         residual std ``sqrt(RSS_k / (m_k - rank_k))``.
     options : mapping, optional
         The method's options (registry names).
+    noise, tau, robust : optional
+        Each flight's noise model (:func:`casep.analysis.noise.fit_noise`, fitted on the flight
+        alone) and robust cleaning (the robust filter of a least-squares fit of the flight alone:
+        its glitches removed, its rows weighted); the joint solve is then on every flight's
+        whitened rows (:func:`casep.separate` describes the options).
 
     Returns
     -------
@@ -138,13 +145,14 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     if len(flights) < 2:
         raise ValueError(f"`flights` must hold two or more flights, got {len(flights)}")
     model = load_model(model)
-    problems, paired = [], []
+    problems, paired, read = [], [], []
     for fl in flights:
         if isinstance(fl, Problem):
             problems.append(fl)
             paired.append(False)
             continue
         fl = fl if isinstance(fl, FlightData) else read_flight(fl)
+        read.append(fl)
         paired.append(fl.meta.get("format") == "pair" and fl.meta.get("grid") == "telemetry")  # interpolated tracking
         problems.append(Problem.from_flight(fl, model))
     _refuse_repeats(problems)
@@ -155,10 +163,19 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         if per:
             raise ValueError(f"`{key}` names per-flight coefficient(s) {', '.join(per)}: not supported with several "
                              "flights yet; give it for the shared coefficients only")
+    if std != "model" or exclude_outliers is not None:
+        raise ValueError("`std` and `exclude_outliers` are not available with several flights yet: fit each flight "
+                         "alone for them")
     raw = problems
     taus = None
+    noise_models = None
     if method == "gls":  # each flight whitened by its own Gauss-Markov correlation time, then combined as OLS
+        if robust is not None or noise == "white":
+            raise ValueError("method `gls` is ols with one Gauss-Markov tau per flight: for noise 'white' or a robust "
+                             "fit use method ols with `noise` and `robust`")
         problems, taus = _gls_whitened(problems, opts.get("tau", "auto"))
+    else:
+        problems, noise_models = _noise_whitened(problems, noise, tau, robust)
     sig = _sigmas(problems, sigma)
     layout = JointLayout(model.names, model.per_flight, _labels(raw))
     jp = JointProblem(problems, sig, layout, raw=raw, interpolated=paired)
@@ -179,6 +196,20 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
             rows.append({**r, "flight": layout.labels[k], "flight_sample": int(r["sample"] - starts[k])})
         res = dataclasses.replace(res, diagnostics={**res.diagnostics,
                                                     "outliers": {**res.diagnostics["outliers"], "largest": rows}})
+    if noise_models is not None:
+        per_flight = {}
+        for lab, out in zip(layout.labels, noise_models):
+            d = {**out.noise.to_dict(), "asked": noise}
+            if out.result is not None and "robust" in out.result.diagnostics:
+                d["robust"] = out.result.diagnostics["robust"]
+            per_flight[lab] = d
+        res = dataclasses.replace(res, diagnostics={**res.diagnostics, "noise": per_flight},
+                                  settings={**res.settings, "noise": noise})
+    from casep.workflows.separate import judge_setup
+
+    for fl in read:  # a flight that failed a set-up check fails the joint result
+        res = judge_setup(res, fl, None)
+    res = judge_setup(res, None, model)  # declared magnitudes, once
     if taus is not None:
         from casep.estimators.result import GLSExtras
 
@@ -221,6 +252,24 @@ def _gls_whitened(problems: Sequence[Problem], tau) -> tuple[list[Problem], list
         out.append(q)
         taus.append(float(tk))
     return out, taus
+
+
+def _noise_whitened(problems: Sequence[Problem], noise: str, tau, robust: str | None):
+    """Each flight's rows whitened for its own noise model (robustly cleaned when asked)."""
+    from casep.workflows.solve import solve_problem
+
+    out, solved = [], []
+    for p in problems:
+        if noise == "white" and robust is None:
+            from casep.analysis.noise import NoiseModel
+            from casep.workflows.solve import Solved
+
+            s = Solved(None, p, NoiseModel.white())  # type: ignore[arg-type]
+        else:
+            s = solve_problem(p, "ols", noise=noise, tau=tau, robust=robust)
+        solved.append(s)
+        out.append(s.rows_problem(p))
+    return out, solved
 
 
 def _sigmas(problems: Sequence[Problem], sigma) -> list[float]:

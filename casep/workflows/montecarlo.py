@@ -104,11 +104,15 @@ def _denoised(method: str, y: np.ndarray) -> tuple[str, np.ndarray, float | None
 
 def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float, t: np.ndarray,
            given: float | None = None, tau: float | str = "auto", *, prior: Mapping | None = None,
-           bounds: Mapping | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+           bounds: Mapping | None = None, noise: str = "white", noise_tau=None,
+           robust: str | None = None, rows=None) -> tuple[np.ndarray, np.ndarray | None]:
     """One run of a (de-noised) method through the public solvers: estimate and reported std.
 
     `given` is the sigma handed to the solver (None: estimated), `tau` the GLS correlation time,
-    `prior` and `bounds` those of ``map`` and ``bounded`` (default: the paper's demo values).
+    `prior` and `bounds` those of ``map`` and ``bounded`` (default: the paper's demo values);
+    `noise`, `noise_tau` and `robust` the noise model and robust fit
+    (:func:`casep.workflows.solve.solve_problem`; white and not robust: the solver directly);
+    `rows` the run's rows prepared once for every method (:func:`casep.workflows.solve.prepare_rows`).
     """
     from casep.estimators.registry import run_method
 
@@ -121,6 +125,11 @@ def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float, t: np
         opts = {"bounds": bounds or demo_bounds(names)}
     elif method == "gls":
         opts = {"tau": tau}
+    if rows is not None and method != "gls":
+        from casep.workflows.solve import solve_problem
+
+        r = solve_problem(rows.problem, method, opts, noise=noise, rows=rows, sigma=given, check_white=False).result
+        return r.estimate, r.std
     r = run_method(method, S, y, t, opts, names=names, sigma=given)  # the registry's solver and defaults
     return r.estimate, r.std
 
@@ -147,9 +156,12 @@ class _Context:
     bounds: Mapping | None = None
     truth_prior: tuple[np.ndarray, np.ndarray] | None = None  # mean, std (inf: not drawn)
     dispersions: Mapping | None = None
-    S: np.ndarray | None = None  # nominal trajectory (None when dispersed)
+    S: np.ndarray | None = None  # nominal trajectory's tracked rows (None when dispersed)
     t: np.ndarray | None = None
     crlb: np.ndarray | None = None
+    noise: str = "white"  # the noise model the methods assume (casep.analysis.noise)
+    noise_tau: Any = None
+    robust: str | None = None
 
 
 _CACHE: dict[str, Any] = {}  # per process: the linear maps of the current campaign
@@ -171,7 +183,7 @@ def _flight(ctx: _Context, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
         truth = truth.copy()
         truth[fin] = mu[fin] + sd[fin] * np.random.default_rng(_run_seq(ctx.seed, k, 1)).standard_normal(fin.sum())
     if ctx.dispersions is None:
-        return ctx.S, ctx.t, truth, ctx.crlb
+        return ctx.S, ctx.t, truth, ctx.crlb, {}
     from casep.simulation.dispersions import disperse_vehicle, draw_dispersion
     from casep.simulation.trajectory import simulate_boost
 
@@ -182,9 +194,11 @@ def _flight(ctx: _Context, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
         drawn = ", ".join(f"{n} {v:.6g}" for n, v in values.items())
         raise ValueError(f"run {k}: the dispersed vehicle ({drawn}) cannot be flown: {exc}. Narrow the "
                          "--dispersions (the same seed draws the same values again)") from None
-    S = build_sv(_model(ctx.scenario.model), traj.t, traj.specific_force)
-    crlb = np.sqrt(np.diag(crlb_covariance(S, ctx.sigma, t=traj.t if ctx.tau else None, tau=ctx.tau)))
-    return S, traj.t, truth, crlb
+    keep = ctx.scenario.noise.keep_mask(traj.t)  # tracking gaps: no rows there
+    S = build_sv(_model(ctx.scenario.model), traj.t, traj.specific_force)[keep]
+    t = traj.t[keep]
+    crlb = np.sqrt(np.diag(crlb_covariance(S, ctx.sigma, t=t if ctx.tau else None, tau=ctx.tau)))
+    return S, t, truth, crlb, values
 
 
 def _task(ctx: _Context, linear: Sequence[str], other: Sequence[str], runs: Sequence[int]) -> dict[str, Any]:
@@ -202,7 +216,7 @@ def _task(ctx: _Context, linear: Sequence[str], other: Sequence[str], runs: Sequ
     with threadpool_limits(limits=1), warnings.catch_warnings():
         warnings.simplefilter("ignore", IllConditionedWarning)
         flights = [_flight(ctx, k) for k in runs]
-        ys = [S @ tr + _noise(ctx.scenario, t, _run_seq(ctx.seed, k)) for k, (S, t, tr, _) in zip(runs, flights)]
+        ys = [S @ tr + _noise(ctx.scenario, t, _run_seq(ctx.seed, k)) for k, (S, t, tr, *_) in zip(runs, flights)]
         est: dict[str, np.ndarray] = {}
         std: dict[str, np.ndarray | None] = {}
         if linear:
@@ -223,18 +237,27 @@ def _task(ctx: _Context, linear: Sequence[str], other: Sequence[str], runs: Sequ
                 for m, lm in maps.items():
                     X, sd = lm.apply(S2, Y)  # D = K y + b and the solver's std
                     est[m][idx], std[m][idx] = X.T, sd.T
+        rows = [None] * len(runs)
+        if ctx.noise != "white" or ctx.robust is not None:  # each run's noise model and weights, for every method
+            from casep.analysis.problem import Problem
+            from casep.workflows.solve import prepare_rows
+
+            rows = [prepare_rows(Problem.from_arrays(S, y, t, names=ctx.names), ctx.noise, ctx.noise_tau, ctx.robust)
+                    for y, (S, t, *_) in zip(ys, flights)]
         for method in other:
             runs_d = [_denoised(method, y) for y in ys]
             if runs_d[0][0] == "gls" and ctx.dispersions is None:  # one REML lattice for the task
                 taus = estimate_tau_many(ctx.S, np.stack([y for _, y, _ in runs_d], axis=-1), ctx.t)
             else:
                 taus = ["auto"] * len(runs_d)
-            outs = [_solve(m, S, y, ctx.names, ctx.sigma, t, given, tau, prior=ctx.prior, bounds=ctx.bounds)
-                    for (m, y, given), tau, (S, t, _, _) in zip(runs_d, taus, flights)]
+            outs = [_solve(m, S, y, ctx.names, ctx.sigma, t, given, tau, prior=ctx.prior, bounds=ctx.bounds,
+                           noise=ctx.noise, noise_tau=ctx.noise_tau, robust=ctx.robust, rows=rw)
+                    for (m, y, given), tau, (S, t, *_), rw in zip(runs_d, taus, flights, rows)]
             est[method] = np.array([o[0] for o in outs])
             std[method] = None if outs[0][1] is None else np.array([o[1] for o in outs])
+    draws = {name: np.array([f[4][name] for f in flights]) for name in (flights[0][4] if flights else {})}
     return {"runs": np.asarray(runs, dtype=np.int64), "truth": np.array([f[2] for f in flights]),
-            "crlb": np.array([f[3] for f in flights]), "est": est, "std": std}
+            "crlb": np.array([f[3] for f in flights]), "est": est, "std": std, "draws": draws}
 
 
 def _task_size(method: str, runs: int) -> int:
@@ -380,6 +403,8 @@ class _Store:
         res: dict[str, Any] = {"runs": runs_col[: m * n: n].astype(np.int64), "est": {}, "std": {}}
         res["truth"] = tab.column("true").to_numpy()[: m * n].reshape(m, n)
         res["crlb"] = tab.column("crlb_std").to_numpy()[: m * n].reshape(m, n)
+        res["draws"] = {c.removeprefix("draw_"): tab.column(c).to_numpy()[: m * n: n] for c in tab.column_names
+                        if c.startswith("draw_")}
         for i, meth in enumerate(methods):
             sl = slice(i * m * n, (i + 1) * m * n)
             res["est"][meth] = tab.column("estimate").to_numpy()[sl].reshape(m, n)
@@ -406,6 +431,9 @@ class _Store:
             "std": pa.concat_arrays(sds),
             "true": np.tile(res["truth"].reshape(-1), k),
             "crlb_std": np.tile(res["crlb"].reshape(-1), k),
+            # each run's dispersion draws (natural units of casep.simulation.dispersions), on every row of the run
+            **{f"draw_{p}": np.tile(np.repeat(np.asarray(v, dtype=float), n), k)
+               for p, v in res.get("draws", {}).items()},
         })
         name = _PART.format(stage=stage, task=task)
         tmp = self.parts / f".{name}.tmp"
@@ -456,6 +484,9 @@ class MonteCarloResult:
     truths: np.ndarray | None = None  # (runs, n) when each run drew its own (truth from a prior)
     dispersions: tuple[str, ...] = ()  # the dispersed vehicle/launch parameters (crlb_std: RMS over the runs)
     rate: float | None = None  # sample rate of the simulated flights, Hz
+    resumed: int = 0  # tasks read back from --out (a resumed campaign) ...
+    tasks: int = 0  # ... of this many
+    draws: dict[str, np.ndarray] = field(default_factory=dict)  # dispersion parameter -> (runs,) drawn values
 
     def stats(self, method: str) -> dict[str, np.ndarray]:
         """bias, rms, efficiency, coverage95 arrays of one method (NaN where undefined)."""
@@ -608,6 +639,11 @@ def run_montecarlo(
     truth_prior: Mapping | None = None,
     out: str | os.PathLike | None = None,
     dask: bool | None = None,
+    flight=None,
+    truth: Mapping | None = None,
+    noise: str = "white",
+    tau=None,
+    robust: str | None = None,
 ) -> MonteCarloResult:
     """Run `runs` noise draws of a scenario through each method.
 
@@ -649,7 +685,29 @@ def run_montecarlo(
     dask : bool, optional
         Force (True) or forbid (False) Dask; default: Dask when `scheduler` is given or
         `workers` > 1 and there is per-run work (a per-run method or dispersions).
+    flight : FlightData or path, optional
+        One's own trajectory instead of the scenario's: its times and specific force (every sample)
+        give S_V; each run adds noise to ``S_V D_true``. Needs `truth`; not with `dispersions`.
+    truth : mapping, optional
+        With `flight`: the true coefficients, ``{name: value}`` in natural units, or a truth file of
+        ``casep simulate`` (``{"model", "coefficients", "noise"}``: its model and noise are used).
+        Without a noise there, white noise of the flight's own least-squares residual std.
+    noise, tau, robust : optional
+        The noise model every method assumes and the robust fit, as :func:`casep.separate` takes
+        them (default ``"white"``, not robust: the methods as they are, the linear ones batched;
+        otherwise every method runs per run through :func:`casep.workflows.solve.solve_problem`).
+        The scenario's tracking gaps remove rows in every case.
     """
+    from casep.analysis.noise import check_noise_kind
+    from casep.analysis.robust import ROBUST_FUNCTIONS
+
+    check_noise_kind(noise)
+    noise_tau = tau  # (`tau` below is the scenario's, for the CRLB)
+    if (noise != "white" or robust is not None) and any(m.startswith("wavelet+") for m in methods):
+        raise ValueError("wavelet+<method> de-noises dv: it does not combine with `noise` other than 'white' or "
+                         "with `robust`")
+    if robust is not None and robust not in ROBUST_FUNCTIONS:
+        raise ValueError(f"`robust` must be one of {', '.join(ROBUST_FUNCTIONS)}, got {robust!r}")
     if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
         raise ValueError(f"`runs` must be an int >= 1, got {runs!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -660,7 +718,17 @@ def run_montecarlo(
         raise ValueError("`methods` is empty")
     if len(set(methods)) != len(methods):
         raise ValueError(f"`methods` names a method twice: {', '.join(methods)}")
-    sc, traj, model, truth = scenario_setup(scenario, rate)
+    own = None
+    if flight is not None or truth is not None:
+        if flight is None or truth is None:
+            raise ValueError("`flight` and `truth` go together: a Monte Carlo on one's own trajectory needs both")
+        if dispersions is not None:
+            raise ValueError("`dispersions` fly the scenario's vehicle; with `flight` the trajectory is given")
+        own = _own_trajectory(scenario, flight, truth)
+        sc, model, truth = own["scenario"], own["model"], own["truth"]
+        traj = None
+    else:
+        sc, traj, model, truth = scenario_setup(scenario, rate)
     names = model.names
     if prior is None and truth_prior is not None:
         prior = truth_prior  # MAP with the prior the truths are drawn from: Bayesian coverage
@@ -673,20 +741,25 @@ def run_montecarlo(
         if "correlation" in truth_prior and "correlation" not in names:
             raise ValueError("`truth_prior`: a correlation entry is not supported (marginal means and stds only)")
         tp = parse_prior(truth_prior, names, "`truth_prior`")
+        _check_truth_prior(tp, model, "`truth_prior`")
     if dispersions is not None:
         from casep.simulation.dispersions import parse_dispersions
 
-        dispersions = parse_dispersions(dispersions, len(sc.vehicle.stages), "`dispersions`")
+        dispersions = parse_dispersions(dispersions, len(sc.vehicle.stages), "`dispersions`", vehicle=sc.vehicle)
     sigma = sc.noise.sigma
     tau = sc.noise.tau if sc.noise.kind == "ar1" else None
     S = t = crlb = None
     if dispersions is None:  # every run shares the trajectory
-        t = traj.t
-        S = build_sv(model, t, traj.specific_force)
+        t_all = traj.t if own is None else own["t"]
+        keep = sc.noise.keep_mask(t_all)  # tracking gaps: no rows there
+        t = t_all[keep]
+        S = build_sv(model, t_all, traj.specific_force if own is None else own["f"])[keep]
         crlb = np.sqrt(np.diag(crlb_covariance(S, sigma, t=t if tau else None, tau=tau)))
     ctx = _Context(token=uuid.uuid4().hex, scenario=sc, names=names, sigma=sigma, tau=tau, seed=seed, truth=truth,
-                   prior=prior, bounds=bounds, truth_prior=tp, dispersions=dispersions, S=S, t=t, crlb=crlb)
-    lin = [m for m in methods if batched and (m in BATCHED or m.startswith("ridge:"))]
+                   prior=prior, bounds=bounds, truth_prior=tp, dispersions=dispersions, S=S, t=t, crlb=crlb,
+                   noise=noise, noise_tau=noise_tau, robust=robust)
+    per_run_noise = noise != "white" or robust is not None
+    lin = [m for m in methods if batched and not per_run_noise and (m in BATCHED or m.startswith("ridge:"))]
     other = [m for m in methods if m not in lin]
     # stages: (linear, per-run) methods; nominal: the linear maps together, then each per-run
     # method; dispersed: all in one stage (each run's trajectory is simulated once)
@@ -698,8 +771,11 @@ def run_montecarlo(
     store = None
     if out is not None:
         settings = {"scenario": sc.name, "rate": sc.rate, "runs": runs, "seed": seed, "methods": methods,
+                    **({"flight": own["record"]} if own is not None else {}),
                     "batched": bool(batched), "prior": prior, "bounds": bounds, "dispersions": dispersions,
                     "truth_from_prior": truth_prior, "tasks": [len(c) for c in chunks]}
+        if per_run_noise:  # (absent for the default, so campaigns written before stay resumable)
+            settings["noise"] = {"noise": noise, "tau": noise_tau, "robust": robust}
         store = _Store(out, json.loads(json.dumps(settings)))
     n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
     if n_workers < 1:
@@ -713,7 +789,9 @@ def run_montecarlo(
                 r = store.load(si, ti, g, names)
                 if r is not None:
                     results[si][ti] = r
-    pending = sum(len(chunks[si]) - len(results[si]) for si in range(len(stages)))
+    n_tasks = sum(len(c) for c in chunks)
+    resumed = sum(len(r) for r in results)
+    pending = n_tasks - resumed
     per_run_work = dispersions is not None or bool(other)
     use_dask = dask if dask is not None else bool(scheduler) or (n_workers > 1 and per_run_work and pending > 1)
     secs: dict[str, float] = {}
@@ -746,6 +824,7 @@ def run_montecarlo(
     first = [results[0][ti] for ti in range(len(chunks[0]))]
     truths = np.concatenate([p["truth"] for p in first])
     crlbs = np.concatenate([p["crlb"] for p in first])
+    draws = {k: np.concatenate([p["draws"][k] for p in first]) for k in (first[0].get("draws") or {})} if first else {}
     with np.errstate(invalid="ignore"):
         crlb_std = crlb if dispersions is None else np.sqrt(np.mean(crlbs**2, axis=0))  # RMS over the runs
     centre = truth if tp is None else np.where(np.isfinite(tp[1]), tp[0], truth)
@@ -753,7 +832,8 @@ def run_montecarlo(
                            truth=centre, crlb_std=crlb_std, estimates={m: est[m] for m in methods},
                            stds={m: std[m] for m in methods}, seconds=secs,
                            truths=truths if tp is not None else None,
-                           dispersions=tuple(dispersions) if dispersions else ())
+                           dispersions=tuple(dispersions) if dispersions else (), resumed=resumed, tasks=n_tasks,
+                           draws=draws)
     if store is not None:
         res.write_json(store.dir / "summary.json")
     return res
@@ -799,3 +879,65 @@ def write_figure(res: MonteCarloResult, path: str | os.PathLike) -> Path:
     ax.legend(fontsize=8, ncol=3)
     ax.grid(True, which="both", alpha=0.3)
     return _save(fig, path)
+
+
+#: A truth prior may reach this many declared magnitudes (mean + 6 std): wide priors of poorly known
+#: second-order terms (the demo's: 1e4 x) pass, 1e308 does not.
+TRUTH_PRIOR_LIMIT = 1e6
+
+
+def _check_truth_prior(tp: tuple[np.ndarray, np.ndarray], model, source: str) -> None:
+    """Refuse a truth prior whose draws (mean +- 6 std) reach beyond :data:`TRUTH_PRIOR_LIMIT` times a
+    coefficient's declared magnitude (no instrument is that far off its spec sheet), or overflow (std 1e308)."""
+    mu, sd = tp
+    scales = model.scales
+    for j, name in enumerate(model.names):
+        if not np.isfinite(sd[j]):
+            continue  # not drawn
+        reach = abs(float(mu[j])) + 6.0 * float(sd[j])
+        limit = TRUTH_PRIOR_LIMIT * scales[name] if name in scales else np.finfo(float).max / 1e10
+        if not reach <= limit:
+            raise ValueError(f"{source}: `{name}`: draws reach |mean| + 6 std = {reach:.4g} {model.units[j]}, beyond "
+                             + (f"{TRUTH_PRIOR_LIMIT:g} x its declared magnitude {scales[name]:g} (no instrument is "
+                                "that far off its spec sheet)" if name in scales else "what a flight can hold"))
+
+
+def _own_trajectory(scenario, flight, truth: Mapping) -> dict[str, Any]:
+    """The scenario of a Monte Carlo on one's own flight: its times, specific force, model, truth and noise."""
+    import dataclasses
+
+    from casep.analysis.problem import Problem
+    from casep.io.files import read_flight
+    from casep.io.flight import FlightData
+    from casep.io.provenance import file_record
+    from casep.simulation.noise import NoiseModel
+    from casep.simulation.scenarios import get_scenario
+    from casep.simulation.simulate import _truth_vector
+
+    sc = get_scenario(scenario)
+    fl = flight if isinstance(flight, FlightData) else read_flight(flight)
+    if not isinstance(truth, Mapping):
+        raise ValueError(f"`truth` must be a mapping {{name: value}} or a truth file's dict, got "
+                         f"{type(truth).__name__}")
+    coefs = truth["coefficients"] if isinstance(truth.get("coefficients"), Mapping) else truth
+    model = _model(str(truth.get("model", sc.model)))
+    vec = _truth_vector(model, {k: v for k, v in coefs.items() if k not in ("model", "noise")}, "`truth`")
+    if isinstance(truth.get("noise"), Mapping):
+        try:
+            noise = NoiseModel(**truth["noise"])
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"`truth`: `noise` must be a noise model of casep simulate ({exc})") from None
+        how = "the truth file's"
+    else:  # the flight's own least-squares residual std: its tracking noise
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IllConditionedWarning)
+            pb = Problem.from_flight(fl, model)
+        noise = NoiseModel("white", float(np.sqrt(pb.ls_rss() / max(pb.m - pb.rank().rank, 1))))
+        how = "the flight's least-squares residual std"
+    rate = float(1.0 / np.median(np.diff(fl.t)))
+    name = f"flight {Path(fl.source).name}"
+    sc = dataclasses.replace(sc, name=name, description=f"own trajectory {fl.source}; noise: {how}", rate=rate,
+                             model=model.name, truth=dict(zip(model.names, vec.tolist())), noise=noise)
+    record = file_record(fl.source, "flight") if Path(fl.source).is_file() else {"file": fl.source}
+    return {"scenario": sc, "model": model, "truth": vec, "t": np.asarray(fl.t), "f": np.asarray(fl.f),
+            "record": {**record, "noise": noise.to_dict(), "noise_from": how}}

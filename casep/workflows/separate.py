@@ -8,20 +8,21 @@ from typing import Mapping
 
 import numpy as np
 
-from casep.analysis.checks import check_fit
+from casep.analysis.checks import check_fit, check_sigma
 from casep.analysis.denoise import denoise as wavelet_denoise
 from casep.analysis.problem import Problem
 from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
 from casep.estimators.registry import METHODS as _REGISTRY
-from casep.estimators.registry import OPTIONS, check_method_options, run_method
+from casep.estimators.registry import OPTIONS, check_method_options
 from casep.estimators.result import EstimateResult
 from casep.estimators.rls import DEFAULT_P0
 from casep.io.files import read_flight, read_json_table
 from casep.io.flight import FlightData
 from casep.model._model import ErrorModel
 from casep.model.loader import load_model
+from casep.workflows.solve import solve_problem
 
-__all__ = ["separate", "regression_rows", "METHODS"]
+__all__ = ["separate", "regression_rows", "judge_setup", "METHODS"]
 
 #: Estimators available through :func:`separate` and ``casep separate --method`` (the registry's).
 METHODS = tuple(_REGISTRY)
@@ -56,8 +57,13 @@ def separate(
     denoise: str | None = None,
     wavelet_options: Mapping | None = None,
     outliers: float | None = None,
-    tau: float | str = "auto",
+    tau: float | str | None = "auto",
     options: Mapping | None = None,
+    noise: str = "auto",
+    robust: str | None = None,
+    std: str = "model",
+    exclude_outliers: float | None = None,
+    fit_time_offset: bool | None = None,
 ) -> EstimateResult:
     """Estimate a model's error coefficients from one flight.
 
@@ -102,23 +108,56 @@ def separate(
     axes). The result records the de-noising settings and the per-axis sigma.
 
     outliers : float, optional
-        Flag rows by their studentized least-squares residual (:func:`casep.analysis.outliers.flag_outliers`)
-        with this chance of any false flag in a clean flight (e.g. 0.01); the flags go to
-        ``diagnostics["outliers_studentized"]``.
+        Flag rows by their studentized residual on the whitened rows
+        (:func:`casep.analysis.outliers.flag_outliers`) with this chance of any false flag in a
+        clean flight (e.g. 0.01); the flags go to ``diagnostics["outliers_studentized"]``.
+    noise : {"auto", "gm", "white"}, optional
+        The noise model of the rows (:mod:`casep.analysis.noise`), for every method: ``auto``
+        (default) chooses white or Gauss-Markov per axis by a likelihood-ratio test and says so in
+        ``diagnostics["noise"]``; ``gm`` Gauss-Markov on every axis (correlation time `tau`, or
+        REML); ``white`` one std, no correlation (a whiteness test warns when the residuals
+        contradict it, with the factor by which the std are too small).
+    tau : float, three floats or "auto", optional
+        Gauss-Markov correlation time(s), s; a number implies ``noise="gm"``.
+    robust : {None, "huber", "bisquare"}, optional
+        Robust fit for any method: glitches removed by a robust filter on the innovations, the
+        rest weighted (:mod:`casep.workflows.solve`).
+    std : {"model", "hac"}, optional
+        ``hac``: Newey-West std (method ols with noise "white").
+    exclude_outliers : float, optional
+        Remove the samples flagged at this family-wise false-alarm chance and fit again (the
+        removed samples in ``diagnostics["excluded"]``).
+    fit_time_offset : bool, optional
+        Add the tracking time offset ``dt_trk`` to the model (:func:`casep.model.loader.with_time_offset`).
+        Default: when the tracking time tags were aligned automatically (``read_flight_pair(...,
+        time_offset="auto")``), so that the alignment's error of a few ms is estimated and in the std
+        instead of biasing the coefficients that correlate with it.
 
     Returns
     -------
     EstimateResult
+        Judged against the set-up (:func:`judge_setup`): failed with status -4 when the flight failed a
+        set-up check (launch site, azimuth, launch time, time scales: ``flight.meta["setup"]``), with
+        status -5 when estimates exceed 1e4 times their declared magnitudes (a warning from 100 times);
+        a given `sigma` far from the residual std is a warning (:func:`casep.analysis.checks.check_sigma`).
     """
     # One rule table (casep.estimators.registry): an option the method does not take is an error, not ignored.
     kw = {"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": noise_order, "lam": lam,
-          "bounds": bounds, "prior": prior, "n_components": n_components, "tau": tau}
+          "bounds": bounds, "prior": prior, "n_components": n_components, "tau": "auto" if tau is None else tau}
     for k, v in dict(options or {}).items():
         if k not in OPTIONS:
             raise ValueError(f"`options` has unknown option `{k}`; the options are {', '.join(OPTIONS)}")
         if not _is_default(k, kw[k]):
             raise ValueError(f"option `{k}` given both as a keyword and in `options`")
         kw[k] = v
+    # tau is the noise model's (every method); `gls` also takes it as its own option
+    tau_given = None if isinstance(kw["tau"], str) and kw["tau"] == "auto" else kw["tau"]
+    if method != "gls":
+        kw.pop("tau")
+        if tau_given is not None:
+            if noise == "white":
+                raise ValueError("`tau` given with noise 'white': a correlation time means noise 'gm'")
+            noise = "gm"
     given = {k: v for k, v in kw.items() if v is not None and not _is_default(k, v)}
     check_method_options(method, given)
     # A bounds or prior table may be given as its JSON file (as on the command line).
@@ -144,6 +183,13 @@ def separate(
     else:
         if not isinstance(flight, FlightData):
             flight = read_flight(flight)
+        align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
+        if fit_time_offset is None:
+            fit_time_offset = bool(align) and align.get("mode") == "auto"
+        if fit_time_offset:
+            from casep.model.loader import with_time_offset
+
+            model = with_time_offset(model)
         model = load_model(model)
         problem = Problem.from_flight(flight, model)  # S_V integrated and reduced once, checks on the way
     solved, den, sigma_from_wavelet = problem, None, False
@@ -156,14 +202,25 @@ def separate(
     labels = {"sigma": sigma}
     if method == "pcr":
         labels["max_condition_index"] = max_condition_index
-    res = run_method(method, solved, None, solved.t, {k: v for k, v in kw.items() if k in _REGISTRY[method].options},
-                     **labels)
+    if den is not None:
+        if noise == "gm" or robust is not None or exclude_outliers is not None or std != "model":
+            raise ValueError("`denoise='wavelet'` removes the noise a noise model, a robust fit or HAC std describe: "
+                             "use them without de-noising")
+        noise = "white"  # the de-noised residuals are no noise sample to fit a model on
+    out = solve_problem(solved, method, {k: v for k, v in kw.items() if k in _REGISTRY[method].options},
+                        noise=noise, tau=tau_given if method != "gls" else None, robust=robust, std=std,
+                        exclude_outliers=exclude_outliers, check_white=den is None, **labels)
+    res = out.result
     # raw dv: noise-free, outliers, offset
-    check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source)
-    if outliers is not None:  # studentized residuals of the least-squares fit (white noise), rows named
+    check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source,
+              outliers_handled=robust is not None or exclude_outliers is not None)
+    if sigma is not None and not sigma_from_wavelet:
+        check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
+    res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model, noise_free=_noise_free(problem))
+    if outliers is not None:  # studentized residuals on the rows the method solved (whitened), samples named
         from casep.analysis.outliers import flag_outliers
 
-        flags = flag_outliers(problem, alpha=outliers)
+        flags = flag_outliers(out.problem, alpha=outliers)
         res = dataclasses.replace(res, diagnostics={**res.diagnostics, "outliers_studentized": flags.to_dict()})
     if den is not None:
         settings = dict(res.settings)
@@ -185,3 +242,30 @@ def _is_default(name: str, value) -> bool:
         return bool(value == OPTIONS[name].default)
     except (TypeError, ValueError):  # e.g. a mapping or an array: given
         return False
+
+
+def _noise_free(problem: Problem) -> bool:
+    """Least-squares residual std at the rounding level of dv (:data:`casep.analysis.checks.NOISE_FREE`)."""
+    from casep.analysis.checks import NOISE_FREE
+
+    if problem.y is None:
+        return False
+    dof = max(problem.m - problem.rank().rank, 1)
+    return float(np.sqrt(problem.ls_rss() / dof)) <= NOISE_FREE * float(np.max(np.abs(problem.y)))
+
+
+def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_free: bool = False) -> EstimateResult:
+    """A result judged against the set-up: failed (status -4) when its flight failed a set-up check
+    (:func:`casep.io.flight.setup_problems`: launch site, azimuth, launch time, time scales), and against
+    the model's declared magnitudes (:func:`casep.estimators._base.check_magnitudes`), except on noise-free
+    data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
+    set-up mistake (check_fit's NoiseFreeWarning says so)."""
+    from casep.estimators._base import STATUS_SETUP, check_magnitudes, failed
+    from casep.io.flight import setup_problems
+
+    problems = setup_problems(flight) if flight is not None else []
+    if problems:
+        res = failed(res, STATUS_SETUP, f"failed: set-up check of {flight.source}: " + "; ".join(problems))
+    if isinstance(model, ErrorModel) and model.name == res.model and not noise_free:
+        res = check_magnitudes(res, model.scales, source=flight.source if flight is not None else "")
+    return res

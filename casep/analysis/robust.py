@@ -1,0 +1,145 @@
+"""Robust row weights in coloured noise: a robust filter on the one-step innovations.
+
+A glitch (one sample of tracking far off) in Gauss-Markov noise spreads over two whitened rows
+(its own innovation and the next one's), so down-weighting whitened residuals row by row, as
+Huber's IRLS does in white noise, removes good data next to every glitch and lets the rest of
+the glitch leak in. The robust filter (Masreliez; Martin & Thomson) instead walks the residuals
+``e_k`` of a fit in time order and predicts each from the last sample it accepted::
+
+    nu_k = (e_k - a_k e_j) / (r_a sqrt(1 - a_k^2)),    a_k = exp(-(t_k - t_j) / tau_a),   u_k = nu_k / s
+
+(``j`` the last accepted sample, ``s`` a robust scale of the innovations: 1.4826 MAD). A sample
+with ``|u_k| > reject`` on any axis is rejected: it is removed from the regression and the
+recursion goes on from sample ``j`` (exactly the whitening across a gap), so the glitch does not
+enter the next innovation. The kept samples get the weight of the chosen function on each axis:
+
+* Huber: ``w = min(1, c / |u|)``, ``c = 1.345`` (95 % efficiency at the Gaussian);
+* bisquare: ``w = (1 - (u / c)^2)^2`` for ``|u| < c``, ``c = 4.685``; 0 beyond (rejected).
+
+More than :data:`MAX_RUN` rejections in a row are taken as a real change (a step the model does
+not have), not a glitch: the run is accepted again, so the filter cannot lose track.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from casep.analysis.noise import NoiseModel
+
+__all__ = ["ROBUST_FUNCTIONS", "RobustWeights", "robust_filter", "HUBER_C", "BISQUARE_C", "REJECT", "MAX_RUN"]
+
+ROBUST_FUNCTIONS = ("huber", "bisquare")
+HUBER_C = 1.345
+BISQUARE_C = 4.685
+#: |u| above which a sample is rejected (Huber); a Gaussian innovation exceeds it with P = 6e-5.
+REJECT = 4.0
+#: Consecutive rejections after which the filter accepts again (a step, not a glitch).
+MAX_RUN = 10
+MAD_SIGMA = 1.482602218505602  # sigma = MAD / Phi^-1(3/4)
+
+
+@dataclass(frozen=True)
+class RobustWeights:
+    """The outcome of the robust filter on one fit's residuals.
+
+    Attributes
+    ----------
+    keep : (N,) bool ndarray
+        Samples kept in the regression.
+    weights : (N, 3) ndarray
+        Weight of each kept sample's axis row (1 for rejected samples: unused).
+    u : (N, 3) ndarray
+        Standardized innovations ``nu / s``.
+    scale : float
+        Robust scale ``s`` of the innovations (in units of the x-axis noise std).
+    """
+
+    keep: np.ndarray
+    weights: np.ndarray
+    u: np.ndarray
+    scale: float
+
+    @property
+    def rejected(self) -> np.ndarray:
+        """Indices of the rejected samples."""
+        return np.flatnonzero(~self.keep)
+
+
+def _innovations(e: np.ndarray, t: np.ndarray, noise: NoiseModel, keep: np.ndarray) -> np.ndarray:
+    """Innovations of every sample from the last kept one before it (unit scale)."""
+    N = e.shape[0]
+    nu = np.empty_like(e)
+    last = np.full(N, -1)
+    idx = np.flatnonzero(keep)
+    # last kept sample strictly before k
+    pos = np.searchsorted(idx, np.arange(N), side="left") - 1
+    last[pos >= 0] = idx[pos[pos >= 0]]
+    has = last >= 0
+    for j in range(3):
+        sc = noise.scale[j]
+        tau = noise.tau[j]
+        nu[:, j] = e[:, j] / sc
+        if tau is None:
+            continue
+        dt = t[has] - t[last[has]]
+        a = np.exp(-dt / tau)
+        nu[has, j] = (e[has, j] - a * e[last[has], j]) / (sc * np.sqrt(-np.expm1(-2.0 * dt / tau)))
+    return nu
+
+
+def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, function: str = "huber",
+                  scale: float | None = None, reject: float | None = None) -> RobustWeights:
+    """Robust weights and rejected samples of a fit's raw residuals ``(N, 3)`` (module notes).
+
+    Parameters
+    ----------
+    residuals : (N, 3) array_like
+        ``dv - S D`` of every sample, m/s, in time order.
+    t : (N,) array_like
+        Sample times, s.
+    noise : NoiseModel
+        Correlation time and relative scale per axis.
+    function : {"huber", "bisquare"}
+    scale : float, optional
+        Known innovation scale (the x-axis noise std, m/s); default 1.4826 MAD of the innovations.
+    reject : float, optional
+        Rejection threshold in scale units (default :data:`REJECT` for Huber, ``c`` for bisquare).
+    """
+    if function not in ROBUST_FUNCTIONS:
+        raise ValueError(f"`robust` must be one of {', '.join(ROBUST_FUNCTIONS)}, got {function!r}")
+    e = np.asarray(residuals, dtype=float)
+    t = np.asarray(t, dtype=float)
+    N = e.shape[0]
+    c = HUBER_C if function == "huber" else BISQUARE_C
+    thr = float(reject) if reject is not None else (REJECT if function == "huber" else BISQUARE_C)
+    # pass 1: innovations from the previous sample; scale from their MAD (glitches are few)
+    keep = np.ones(N, dtype=bool)
+    nu = _innovations(e, t, noise, keep)
+    s = float(scale) if scale is not None else float(MAD_SIGMA * np.median(np.abs(nu - np.median(nu, axis=0))))
+    if not s > 0:
+        return RobustWeights(keep, np.ones_like(e), np.zeros_like(e), 0.0)
+    # pass 2: sequential, from the last accepted sample (a rejected one is a gap)
+    keep = _sequential(e, t, noise, s, thr)
+    nu = _innovations(e, t, noise, keep)
+    u = nu / s
+    au = np.abs(u)
+    if function == "huber":
+        w = np.minimum(1.0, c / np.maximum(au, 1e-300))  # w = min(1, c / |u|)
+    else:
+        w = np.where(au < c, (1.0 - (u / c) ** 2) ** 2, 0.0)  # Tukey's bisquare
+    w[~keep] = 1.0
+    return RobustWeights(keep, w, u, s)
+
+
+def _sequential(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: float, thr: float) -> np.ndarray:
+    """Keep mask of the sequential filter (compiled: :func:`casep._kernels.robust_filter_keep`)."""
+    from casep._kernels import robust_filter_keep
+
+    inv_tau = np.array([0.0 if tau is None else 1.0 / tau for tau in noise.tau])
+    scale = s * np.asarray(noise.scale, dtype=float)
+    keep = np.ones(e.shape[0], dtype=np.bool_)
+    robust_filter_keep(np.ascontiguousarray(e, dtype=float), np.ascontiguousarray(t, dtype=float), inv_tau, scale,
+                       float(thr), MAX_RUN, keep)
+    return keep

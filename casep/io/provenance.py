@@ -1,0 +1,119 @@
+"""Provenance of a result: which files (with their SHA-256), frames, sites, time alignment, exclusions,
+options, casep version and command line produced it.
+
+:func:`provenance` collects it from the flights as read (their ``meta``, recorded by the readers of
+:mod:`casep.io.files`) and the other inputs; ``casep separate`` writes it into the result JSON
+(``provenance``), the ``.mat`` file (struct ``provenance``) and the HTML report (section
+"Provenance"), so that a result found on a disk months later says what it was made of. The
+checksums are of the files as they were read (:mod:`hashlib`, streamed in 1 MiB blocks).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shlex
+import sys
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+__all__ = ["provenance", "flight_provenance", "file_record", "command_line"]
+
+#: FlightData.meta keys that say which samples were left out, and why.
+_EXCLUSIONS = ("unobserved", "telemetry_dropped", "tracking_dropped", "gap_rows_left_out", "gaps_s", "inserted")
+
+
+def file_record(path: str | os.PathLike, role: str) -> dict[str, Any]:
+    """``{"role", "file", "bytes", "sha256"}`` of an input file (sha256 None if it cannot be read)."""
+    p = Path(path)
+    digest, size = None, None
+    try:
+        h = hashlib.sha256()
+        with open(p, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+        digest, size = h.hexdigest(), p.stat().st_size
+    except OSError:
+        pass
+    return {"role": role, "file": str(p), "bytes": size, "sha256": digest}
+
+
+def flight_provenance(flight) -> dict[str, Any]:
+    """What a flight's reader recorded: files, grid, tracking frame and site, time alignment and shift,
+    set-up checks, spans and the samples left out (``FlightData.meta``)."""
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    out: dict[str, Any] = {"source": flight.source, "samples": int(flight.n_samples),
+                           "observed": int(flight.n_observed)}
+    if meta.get("format") == "pair":
+        out["files"] = {"telemetry": meta.get("telemetry"), "tracking": meta.get("tracking")}
+        out["grid"] = meta.get("grid")
+        out["tracking_frame"] = meta.get("tracking_frame", {"frame": "launch"})
+        out["time_alignment"] = meta.get("time_alignment")
+        out["time_shift_s"] = meta.get("time_shift_s", 0.0)
+        out["spans_s"] = {k: meta.get(f"{k}_span_s") for k in ("telemetry", "tracking", "observed")}
+    else:
+        out["files"] = {"flight": flight.source}
+        out["format"] = meta.get("format")
+    setup = meta.get("setup")
+    if setup:
+        out["setup_checks"] = {"problems": setup.get("problems", []), "pad": setup.get("pad"),
+                               "first_tracked": setup.get("first_tracked"), "spans": setup.get("spans")}
+    out["exclusions"] = {k: meta[k] for k in _EXCLUSIONS if k in meta}
+    return out
+
+
+def command_line(argv: Sequence[str] | None = None) -> str:
+    """The command as typed (``casep separate ...``), shell-quoted; `argv` default ``sys.argv``."""
+    args = list(sys.argv if argv is None else argv)
+    if args and Path(args[0]).name in ("__main__.py", "cli.py", "casep"):
+        args[0] = "casep"
+    return " ".join(shlex.quote(str(a)) for a in args)
+
+
+def provenance(flights: Sequence, *, inputs: Mapping[str, Any] | None = None, options: Mapping | None = None,
+               argv: Sequence[str] | None = None, manifest=None) -> dict[str, Any]:
+    """The provenance record of a result (module notes).
+
+    Parameters
+    ----------
+    flights : sequence of FlightData
+        The flights as read.
+    inputs : mapping, optional
+        Other input files by role (``{"prior": path, "bounds": path, "model": path}``; None skipped).
+    options : mapping, optional
+        The options used (method, model, sigma, ...), recorded as given.
+    argv : sequence of str, optional
+        The command line (default ``sys.argv``).
+    manifest : casep.io.manifest.Manifest, optional
+        The manifest the flights came from: its file and entries.
+
+    Returns
+    -------
+    dict
+        ``casep_version``, ``command_line``, ``inputs`` (role, file, bytes, sha256 of every file read),
+        ``flights`` (:func:`flight_provenance`), ``options``, and ``manifest`` when given.
+    """
+    from casep._version import __version__
+
+    files: list[dict] = []
+    seen: set[str] = set()
+
+    def add(path, role):
+        if path and str(path) not in seen and Path(str(path)).is_file():
+            seen.add(str(path))
+            files.append(file_record(path, role))
+
+    if manifest is not None:
+        add(manifest.source, "manifest")
+    recs = [flight_provenance(f) for f in flights]
+    for r in recs:
+        for role, path in r["files"].items():
+            add(path, role)
+    for role, path in (inputs or {}).items():
+        for p in (path if isinstance(path, (list, tuple)) else [path]):
+            add(p, role)
+    out = {"casep_version": __version__, "command_line": command_line(argv), "inputs": files, "flights": recs,
+           "options": dict(options or {})}
+    if manifest is not None:
+        out["manifest"] = {"file": manifest.source, "flights": [f.to_dict() for f in manifest.flights]}
+    return out

@@ -1,0 +1,246 @@
+"""Solve a problem under its noise model: whitened rows for every estimator, robust if asked.
+
+The noise model, the robust weights and the removed samples belong to the data, not to a
+method: :func:`casep.analysis.rows.prepare_rows` (``problem.rows(...)``) works them out once for a
+problem, and :func:`solve_problem` hands the resulting rows to any registered method, so its std
+hold in coloured noise and with glitches, and every method of a comparison sees the same rows.
+
+Residuals are reported on the raw rows (``dv - S_V D``) of every sample.
+
+``std="hac"`` replaces a white-noise least-squares fit's std by the Newey-West sandwich
+(:func:`hac_covariance`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from casep.analysis.noise import NoiseModel, check_noise_kind, default_lags, find_gaps, whiteness_test
+from casep.analysis.problem import Problem
+from casep.analysis.rows import Rows, prepare_rows
+from casep.estimators.registry import run_method
+from casep.estimators.result import EstimateResult
+from casep.exceptions import NoiseNotWhiteWarning
+
+# Rows and prepare_rows live in casep.analysis.rows (the data's), re-exported here beside solve_problem
+__all__ = ["solve_problem", "prepare_rows", "Rows", "Solved", "hac_covariance", "STD_CHOICES"]
+
+STD_CHOICES = ("model", "hac")
+
+
+@dataclass
+class Solved:
+    """A method solved under a noise model.
+
+    Attributes
+    ----------
+    result : EstimateResult
+        Residuals on the raw rows of every sample; ``diagnostics["noise"]`` the noise model,
+        ``diagnostics["robust"]``/``["excluded"]`` what was down-weighted or removed.
+    problem : Problem
+        What the method solved (whitened, without the removed samples).
+    noise : NoiseModel
+    excluded : (k,) int ndarray
+        Samples (of the problem given) removed from the fit.
+    weights : (N, 3) ndarray or None
+        Robust row weights (samples of the problem given).
+    """
+
+    result: EstimateResult
+    problem: Problem
+    noise: NoiseModel
+    excluded: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    weights: np.ndarray | None = None
+
+    def rows_problem(self, problem: Problem) -> Problem:
+        """`problem` (the raw one given) as the method solved it: samples removed, whitened, weighted."""
+        keep = np.ones(problem.n_samples, dtype=bool)
+        keep[self.excluded] = False
+        sub = problem if keep.all() else problem.subset(keep)
+        w = None if self.weights is None else self.weights[keep]
+        return sub if (self.noise.is_white and w is None) else sub.whitened(self.noise, weights=w)
+
+
+def _x(res: EstimateResult) -> np.ndarray:
+    return np.where(np.isnan(res.estimate), 0.0, res.estimate)
+
+
+def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | None = None, *,
+                  noise: str = "auto", tau=None, robust: str | None = None, std: str = "model",
+                  exclude_outliers: float | None = None, check_white: bool = True, rows: Rows | None = None,
+                  **labels) -> Solved:
+    """Fit `problem`'s noise model (:func:`prepare_rows`) and solve its rows with a registered `method`.
+
+    Parameters
+    ----------
+    problem : Problem
+        Raw rows ``(N, 3)`` with their times.
+    method : str
+        A registered method (:data:`casep.estimators.registry.METHODS`).
+    options : mapping
+        The method's options.
+    noise, tau, robust, exclude_outliers
+        As :func:`prepare_rows`.
+    std : {"model", "hac"}
+        ``hac``: Newey-West std for a white-noise least-squares fit.
+    check_white : bool
+        With noise "white": test the residuals' whiteness and warn (not for de-noised data).
+    rows : Rows, optional
+        Rows prepared before (:func:`prepare_rows` of this problem): reused, the noise options
+        are then ignored (several methods on one flight share them).
+    **labels
+        ``sigma`` and solver extras, passed to the method.
+    """
+    check_noise_kind(noise)
+    if std not in STD_CHOICES:
+        raise ValueError(f"`std` must be one of {', '.join(STD_CHOICES)}, got {std!r}")
+    opts = dict(options or {})
+    if method == "gls":
+        return _solve_gls(problem, opts, noise, tau, robust, std, exclude_outliers, labels)
+    if method == "huber" and robust is not None:
+        raise ValueError("method `huber` is robust already; `robust` makes any other method robust "
+                         "(e.g. method ols with robust='huber')")
+    if std == "hac" and (noise != "white" or method != "ols"):
+        raise ValueError("`std='hac'` is the Newey-West std of a white-noise least-squares fit: use it with "
+                         "method ols and noise 'white' (in coloured noise, noise 'auto' or 'gm' gives honest std)")
+    if rows is None:
+        rows = prepare_rows(problem, noise, tau, robust, exclude_outliers)
+    elif rows.problem is not problem:
+        raise ValueError("`rows` were prepared for another problem")
+    if labels.get("sigma") is None and rows.sigma is not None:
+        labels = {**labels, "sigma": rows.sigma}  # robust: the M-estimator's sigma (module notes)
+    res = run_method(method, rows.solved, None, rows.solved.t, opts, **labels)
+    if rows.sigma is not None and res.sigma_source == "given" and labels["sigma"] == rows.sigma:
+        res = dataclasses.replace(res, sigma_source="robust")
+    if std == "hac":
+        res = _with_hac(res, rows.solved)
+    return Solved(_finish(rows, res, check_white), rows.solved, rows.noise, np.flatnonzero(~rows.keep),
+                  rows.weights)
+
+
+def _places(problem: Problem, samples) -> list[dict]:
+    """``{"sample", "t", "file", "row", "line", "where"}`` of rows of `problem` (one numbering everywhere)."""
+    from casep.io.files import where
+
+    return [{**loc, "where": where(loc)} for loc in problem.locate(samples)]
+
+
+def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResult:
+    problem, keep, nm, noise = rows.problem, rows.keep, rows.noise, rows.asked
+    x = _x(res)
+    raw = problem.residuals(x)
+    diag = dict(res.diagnostics)
+    nd = nm.to_dict()
+    nd["asked"] = noise
+    diag["noise"] = nd
+    if rows.robust is not None and problem.t is not None:
+        diag["robust"] = {**rows.robust, "rejected": _places(problem, np.flatnonzero(~keep)[:200])}
+    if rows.excluded is not None:
+        ex = rows.excluded
+        locs = _places(problem, [r["sample"] for r in ex["samples"]])
+        diag["excluded"] = {**ex, "samples": [{**r, **loc} for r, loc in zip(ex["samples"], locs)]}
+    if problem.t is not None:
+        gaps = find_gaps(problem.t)
+        for g, loc in zip(gaps, _places(problem, [g["row"] - 1 for g in gaps])):
+            g.update(loc)  # the first sample after the gap
+        diag["gaps"] = gaps
+    if nm.is_white and noise == "white" and check_white and problem.t is not None and raw.ndim == 2:
+        wt = whiteness_test(raw[keep], problem.t[keep])
+        if wt.rejected:
+            factor = _gm_factor(res, rows.solved)
+            wt = dataclasses.replace(wt, std_factor=factor[0], std_factor_max=factor[1])
+            warnings.warn(f"{res.method}: {wt.message()}", NoiseNotWhiteWarning, stacklevel=3)
+        diag["whiteness"] = wt.to_dict()
+    settings = {**res.settings, "noise": noise}
+    return dataclasses.replace(res, residuals=raw, n_samples=problem.n_samples, diagnostics=diag, settings=settings)
+
+
+# --------------------------------------------------------------------------- HAC
+def hac_covariance(problem: Problem, x: np.ndarray, lags: int | None = None) -> np.ndarray:
+    """Newey-West (Bartlett kernel) covariance of a least-squares estimate, natural units.
+
+    Each axis is its own time series (the axes' noises independent)::
+
+        Omega = sum_a [G_a0 + sum_{l=1}^{L} (1 - l / (L + 1)) (G_al + G_al^T)],
+        G_al = sum_k g_{a,k} g_{a,k-l}^T,   g_{a,k} = S_{k,a}^T r_{k,a}
+        Cov = (S^T S)^-1 Omega (S^T S)^-1
+
+    with lags in samples (``L`` default ``floor(4 (N / 100)^(2/9))``). Equal to statsmodels'
+    ``cov_type="hac-panel"`` with the axis as the group, Bartlett kernel and no small-sample
+    correction (tested).
+    """
+    N = problem.n_samples
+    L = default_lags(N) if lags is None else int(lags)
+    S = problem.sv()  # (N, 3, n)
+    r = problem.residuals(x)  # (N, 3)
+    n = S.shape[-1]
+    c = np.where(problem.red.scale > 0, problem.red.scale, 1.0)
+    Omega = np.zeros((n, n))
+    for a in range(3):
+        g = S[:, a, :] * r[:, a, None] / c  # scores on the scaled columns
+        Omega += g.T @ g
+        for lag in range(1, L + 1):
+            G = g[lag:].T @ g[:-lag]
+            Omega += (1.0 - lag / (L + 1.0)) * (G + G.T)
+    ra = problem.rank()
+    V, inv_s = ra.pinv_factors()
+    B = (V * inv_s**2) @ V.T  # (Z^T Z)^+ = R^+ R^+T on the scaled columns
+    cov_s = B @ Omega @ B
+    return cov_s / np.outer(c, c)
+
+
+def _with_hac(res: EstimateResult, solved: Problem) -> EstimateResult:
+    cov = hac_covariance(solved, _x(res))
+    und = np.isnan(res.estimate)
+    cov[und, :] = np.nan
+    cov[:, und] = np.nan
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    std[und] = np.nan
+    return dataclasses.replace(res, covariance=cov, std=std, settings={**res.settings, "std": "hac"})
+
+
+def _gm_factor(res: EstimateResult, solved: Problem) -> tuple[float | None, float | None]:
+    """Median and largest ratio of the Gauss-Markov (REML) least-squares std to the reported white std.
+
+    How far too small the reported std are, measured from the fit: the same data under the
+    noise model the residuals point to.
+    """
+    from casep.estimators.ols import solve_ols
+
+    if res.std is None or solved.noise is not None or not solved.has_rows:
+        return None, None
+    try:
+        rows = prepare_rows(solved, "gm", robust="huber")  # robust: glitches would collapse tau
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # conditioning: said by the result
+            gm = solve_ols(rows.solved)
+    except (ValueError, np.linalg.LinAlgError):
+        return None, None
+    if gm.std is None:
+        return None, None
+    ok = np.isfinite(res.std) & (res.std > 0) & np.isfinite(gm.std)
+    if not ok.any():
+        return None, None
+    ratio = gm.std[ok] / res.std[ok]
+    return float(np.median(ratio)), float(np.max(ratio))
+
+
+def _solve_gls(problem, opts, noise, tau, robust, std, exclude_outliers, labels) -> Solved:
+    """`gls`: least squares with one Gauss-Markov correlation time for every axis (its own solver)."""
+    if noise == "white":
+        raise ValueError("method `gls` assumes Gauss-Markov noise: noise 'white' contradicts it (use method ols)")
+    if robust is not None or exclude_outliers is not None or std != "model":
+        raise ValueError("method `gls` takes no `robust`, `exclude_outliers` or `std`: use method ols with "
+                         "noise 'gm' (per-axis Gauss-Markov) and those options")
+    if tau is not None:
+        opts = {**opts, "tau": tau}
+    res = run_method("gls", problem, None, problem.t, opts, **labels)
+    t_used = float(res.settings["tau"])
+    nm = NoiseModel(kind="gm", tau=(t_used,) * 3, rule=str(res.settings.get("tau_rule", "reml")))
+    diag = {**res.diagnostics, "noise": {**nm.to_dict(), "asked": "gm", "note": "method gls: one tau for all axes"}}
+    return Solved(dataclasses.replace(res, diagnostics=diag, settings={**res.settings, "noise": "gm"}), problem, nm)

@@ -1,0 +1,364 @@
+"""casep.analysis.noise, casep.analysis.robust, casep.workflows.solve: the noise model of the rows.
+
+Whitening and REML against dense generalised least squares with the exact AR(1) covariance, the
+white / Gauss-Markov choice, the whiteness test, HAC against statsmodels, the robust filter, and
+seeded Monte Carlo of every registered method in Gauss-Markov noise with gaps (and glitches).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import casep
+from casep.analysis.noise import AUTO_LR, NoiseModel, _estimable_basis, _Reml, fit_noise, ljung_box, whiteness_test
+from casep.analysis.problem import Problem
+from casep.analysis.robust import robust_filter
+from casep.exceptions import IllConditionedWarning, NoiseNotWhiteWarning
+from casep.simulation.noise import ar1_noise
+from casep.workflows.solve import hac_covariance, prepare_rows, solve_problem
+
+
+def _irregular_times(rng, n: int) -> np.ndarray:
+    """Non-uniform spacing (jittered 0.1 s) with one gap of 2 s in the middle."""
+    dt = 0.1 * (1.0 + 0.4 * rng.uniform(-1, 1, n - 1))
+    dt[n // 2] = 2.0
+    return np.concatenate([[0.0], np.cumsum(dt)])
+
+
+def _dense_cov(t: np.ndarray, nm: NoiseModel) -> np.ndarray:
+    """The exact covariance (unit sigma) of the stacked rows (sample-major, axes x, y, z)."""
+    N = t.size
+    C = np.zeros((3 * N, 3 * N))
+    for a in range(3):
+        tau, r = nm.tau[a], nm.scale[a]
+        block = r**2 * (np.eye(N) if tau is None else np.exp(-np.abs(t[:, None] - t[None, :]) / tau))
+        C[a::3, a::3] = block
+    return C
+
+
+def test_whitening_on_non_uniform_spacing_and_across_a_gap_equals_dense_gls(rng):
+    N, n = 70, 5
+    t = _irregular_times(rng, N)
+    nm = NoiseModel(kind="gm", tau=(0.5, 2.0, None), scale=(1.0, 2.0, 0.5))
+    S = rng.normal(size=(N, 3, n))
+    C = _dense_cov(t, nm)
+    y = (S.reshape(-1, n) @ rng.normal(size=n) + np.linalg.cholesky(C) @ rng.normal(size=3 * N)).reshape(N, 3)
+    # dense GLS with the Cholesky factor of the exact covariance: x = (S^T C^-1 S)^-1 S^T C^-1 y
+    L = np.linalg.cholesky(C)
+    A = np.linalg.solve(L, S.reshape(-1, n))
+    b = np.linalg.solve(L, y.reshape(-1))
+    x_ref = np.linalg.lstsq(A, b, rcond=None)[0]
+    cov_ref = np.linalg.inv(A.T @ A)
+    res = casep.solve_ols(Problem.from_arrays(S, y, t).whitened(nm), sigma=1.0)
+    np.testing.assert_allclose(res.estimate, x_ref, rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(res.covariance, cov_ref, rtol=1e-8, atol=1e-12)
+    # the whitened rows themselves: W (S, y) with W^T W = C^-1 (same residual sum of squares)
+    r = y.reshape(-1) - S.reshape(-1, n) @ x_ref
+    rw = Problem.from_arrays(S, y, t).whitened(nm).residuals(x_ref).reshape(-1)
+    assert rw @ rw == pytest.approx(r @ np.linalg.solve(C, r), rel=1e-9)
+
+
+def test_whitening_block_by_block_equals_whole(platform36, flight_tf):
+    """A regenerated problem (S_V never whole) whitens with the last row carried across blocks."""
+    t, f = flight_tf
+    rng = np.random.default_rng(5)
+    S = casep.build_sv(platform36, t, f)
+    y = S @ rng.normal(size=36) * 1e-3 + ar1_noise(t, 0.1, 1.0, rng)
+    fl = casep.FlightData(t=t, f=f, dv=y)
+    whole = Problem.from_flight(fl, platform36, keep_sv=True, checks=False)
+    blocks = Problem.from_flight(fl, platform36, keep_sv=False, block_rows=257, checks=False)
+    nm = NoiseModel(kind="gm", tau=(1.0, 0.7, None), scale=(1.0, 1.3, 0.8))
+    a, b = whole.whitened(nm), blocks.whitened(nm)
+    np.testing.assert_allclose(np.abs(a.red.R), np.abs(b.red.R), rtol=1e-9, atol=1e-9 * np.abs(a.red.R).max())
+    np.testing.assert_allclose(a.y, b.y, rtol=1e-12, atol=1e-15)
+    x = rng.normal(size=36)
+    np.testing.assert_allclose(a.residuals(x), b.residuals(x), rtol=1e-10, atol=1e-12)
+
+
+def _dense_neg2_reml(S2: np.ndarray, y: np.ndarray, C: np.ndarray) -> float:
+    """-2 l_R with sigma profiled: (m - p) ln RSS + ln det C + ln det(S^T C^-1 S)."""
+    m, p = S2.shape
+    L = np.linalg.cholesky(C)
+    A = np.linalg.solve(L, S2)
+    b = np.linalg.solve(L, y)
+    x = np.linalg.lstsq(A, b, rcond=None)[0]
+    rss = float(np.sum((b - A @ x) ** 2))
+    return (m - p) * np.log(rss) + 2 * np.sum(np.log(np.diag(L))) + np.linalg.slogdet(A.T @ A)[1]
+
+
+def test_reml_equals_the_dense_restricted_likelihood(rng):
+    """Differences of -2 l_R between parameter sets equal the dense computation's (constants cancel)."""
+    N, n = 60, 4
+    t = _irregular_times(rng, N)
+    S = rng.normal(size=(N, 3, n))
+    truth = NoiseModel(kind="gm", tau=(0.8, 0.3, 1.5), scale=(1.0, 1.5, 0.7))
+    y = (S.reshape(-1, n) @ rng.normal(size=n) + np.linalg.cholesky(_dense_cov(t, truth)) @ rng.normal(size=3 * N))
+    pb = Problem.from_arrays(S, y.reshape(N, 3), t)
+    reml = _Reml(pb, _estimable_basis(pb))
+    sets = [((0.8, 0.3, 1.5), (1.0, 1.5, 0.7)), ((0.4, None, 3.0), (1.0, 1.0, 1.0)),
+            ((None, None, None), (1.0, 2.0, 0.5))]
+    ours = [reml.evaluate(tau, sc)[0] for tau, sc in sets]
+    dense = [_dense_neg2_reml(S.reshape(-1, n), y, _dense_cov(t, NoiseModel(tau=tau, scale=sc))) for tau, sc in sets]
+    np.testing.assert_allclose(np.diff(ours), np.diff(dense), rtol=1e-8, atol=1e-7)
+    # the axis scales' fixed point is a stationary point of -2 l_R: no nearby scale does better
+    val, sc = reml.fit_scales(sets[0][0])
+    for dy in (0.98, 1.02):
+        assert reml.evaluate(sets[0][0], (1.0, sc[1] * dy, sc[2]))[0] > val - 1e-9
+
+
+@pytest.fixture(scope="module")
+def range_problem(platform36):
+    """S_V of the paper-range-gm flight (20 Hz, tracking from 8 s, two dropouts) and its truth."""
+    from casep.simulation.simulate import simulate_flight
+
+    sim = simulate_flight("paper-range-gm", seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the gaps warning of the flight checks
+        pb = Problem.from_flight(sim.flight, platform36)
+    return pb.sv(), pb.t, np.asarray(sim.truth)
+
+
+def _draw(S, t, truth, seq, *, gm=True, glitches=0.0):
+    rng = np.random.default_rng(seq)
+    e = ar1_noise(t, 0.1, 1.0, rng) if gm else 0.1 * rng.standard_normal((t.size, 3))
+    if glitches:
+        hit = rng.random(e.shape) < glitches
+        e = e + hit * rng.choice([-2.0, 2.0], size=e.shape)  # glitches of 2 m/s
+    return Problem.from_arrays(S, S @ truth + e, t, names=casep.load_model("platform36").names)
+
+
+@pytest.mark.montecarlo
+def test_auto_picks_white_on_white_noise_and_gauss_markov_on_gauss_markov(range_problem):
+    """>= 95 % right choices over 100 seeds each (the likelihood-ratio test has size 1 % per axis)."""
+    S, t, truth = range_problem
+    sub = slice(0, 800)  # 40 s of it, for time
+    S, t = S[sub], t[sub]
+    white = gm = 0
+    for k in range(100):
+        a = fit_noise(_draw(S, t, truth, np.random.SeedSequence(11, spawn_key=(k,)), gm=False), "auto")
+        white += a.is_white
+        b = fit_noise(_draw(S, t, truth, np.random.SeedSequence(12, spawn_key=(k,))), "auto")
+        gm += all(tau is not None for tau in b.tau)
+    assert white >= 95 and gm >= 95, (white, gm)
+
+
+@pytest.mark.montecarlo
+def test_whiteness_warning_fires_on_gauss_markov_noise_and_rarely_on_white(range_problem):
+    S, t, truth = range_problem
+    pb = _draw(S, t, truth, np.random.SeedSequence(3))
+    with pytest.warns(NoiseNotWhiteWarning, match=r"not white .* too small"), \
+            warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        res = solve_problem(pb, "ols", noise="white").result
+    assert res.diagnostics["whiteness"]["rejected"] == ["x", "y", "z"]
+    assert res.diagnostics["whiteness"]["std_factor_median"] > 2.0  # GM tau 1 s at 20 Hz: ~6x in theory
+    # false alarms on white noise: the test's residuals of a least-squares fit, 100 seeds
+    alarms = 0
+    for k in range(100):
+        q = _draw(S, t, truth, np.random.SeedSequence(4, spawn_key=(k,)), gm=False)
+        x = np.linalg.lstsq(S.reshape(-1, 36), q.y.reshape(-1), rcond=None)[0]
+        alarms += bool(whiteness_test(q.residuals(x), t).rejected)
+    assert alarms <= 5, alarms
+
+
+def test_ljung_box_equals_statsmodels():
+    sm = pytest.importorskip("statsmodels.stats.diagnostic")
+    x = np.random.default_rng(1).standard_normal(500).cumsum() * 0.01 + np.random.default_rng(2).standard_normal(500)
+    q, p = ljung_box(x, 10)
+    ref = sm.acorr_ljungbox(x, lags=[10])
+    assert q == pytest.approx(float(ref["lb_stat"].iloc[0]), rel=1e-10)
+    assert p == pytest.approx(float(ref["lb_pvalue"].iloc[0]), rel=1e-8)
+
+
+def test_hac_std_equals_statsmodels_hac_panel():
+    """Newey-West per axis (the axes independent): statsmodels' panel HAC with the axis as the
+    group, Bartlett kernel, same lags, no small-sample correction."""
+    sm = pytest.importorskip("statsmodels.api")
+    from statsmodels.stats.sandwich_covariance import cov_nw_panel
+
+    rng = np.random.default_rng(7)
+    N, n, L = 300, 4, 6
+    t = np.arange(N) * 0.05
+    S = rng.normal(size=(N, 3, n)) + np.linspace(0, 2, N)[:, None, None]
+    y = S @ rng.normal(size=n) + ar1_noise(t, 0.1, 0.3, rng)
+    pb = Problem.from_arrays(S, y, t)
+    x = casep.solve_ols(pb).estimate
+    ours = hac_covariance(pb, x, lags=L)
+    X = np.concatenate([S[:, a, :] for a in range(3)])  # long format: axis after axis
+    Y = np.concatenate([y[:, a] for a in range(3)])
+    fit = sm.OLS(Y, X).fit()
+    ref = cov_nw_panel(fit, L, [(0, N), (N, 2 * N), (2 * N, 3 * N)], use_correction=False)
+    np.testing.assert_allclose(fit.params, x, rtol=1e-10)
+    np.testing.assert_allclose(ours, ref, rtol=1e-8, atol=1e-12 * np.abs(ref).max())
+    with pytest.warns(NoiseNotWhiteWarning):  # the noise is Gauss-Markov: the whiteness test says so
+        res = casep.separate(pb, method="ols", noise="white", std="hac")
+    np.testing.assert_allclose(res.std, np.sqrt(np.diag(hac_covariance(pb, x))), rtol=1e-8)
+
+
+def test_robust_filter_rejects_a_glitch_not_its_neighbour():
+    """A glitch in Gauss-Markov noise: its sample rejected, the next innovation taken from the one before."""
+    rng = np.random.default_rng(3)
+    t = np.arange(400) * 0.05
+    e = ar1_noise(t, 0.1, 1.0, rng)
+    e[200, 1] += 2.0
+    nm = NoiseModel(kind="gm", tau=(1.0, 1.0, 1.0))
+    rw = robust_filter(e, t, nm)
+    assert list(rw.rejected) == [200]
+    assert rw.scale == pytest.approx(0.1, rel=0.15)  # the innovation scale is the stationary std
+    assert np.all(rw.weights > 0) and np.all(rw.weights <= 1)
+
+
+@pytest.mark.montecarlo
+def test_reml_tau_with_glitches_is_robust(range_problem):
+    """20 seeds, 0.5 % glitches of 2 m/s: REML tau without the robust filter collapses; with it, the
+    mean over seeds is within 20 % of the true 1 s on every axis, and each seed's median over the
+    axes within 35 %."""
+    S, t, truth = range_problem
+    plain, robust = [], []
+    for k in range(20):
+        pb = _draw(S, t, truth, np.random.SeedSequence(21, spawn_key=(k,)), glitches=0.005)
+        plain.append([v or 0.0 for v in fit_noise(pb, "gm").tau])
+        robust.append(prepare_rows(pb, "gm", robust="huber").noise.tau)
+    plain, robust = np.array(plain, dtype=float), np.array(robust, dtype=float)
+    assert np.mean(plain) < 0.5  # glitches look like white noise: tau collapses
+    assert np.all(np.abs(robust.mean(axis=0) - 1.0) < 0.2), robust.mean(axis=0)
+    assert np.all(np.abs(np.median(robust, axis=1) - 1.0) < 0.35)
+
+
+def _z(est, ref, std):
+    z = (est - ref) / std
+    return z[np.isfinite(z)]
+
+
+def _study(range_problem, runs: int, glitches: float, robust: str | None, seed: int):
+    """Every registered method on the same draws, its rows prepared once per draw (default noise
+    'auto'). The true coefficients are drawn from N(0, 1) in natural units, which is also MAP's
+    prior and RLS/RELS's (prior covariance sigma^2 w P0 with w = 1, P0 = 100 I, sigma 0.1 m/s), so
+    the posterior std are checked by Bayesian coverage; the sampling std of the biased methods
+    (ridge, pcr) against the method's own noise-free answer on the same rows and options; the
+    others against the truth."""
+    from casep.estimators.registry import METHODS
+
+    S, t, _ = range_problem
+    names = casep.load_model("platform36").names
+    prior = {nm_: {"mean": 0.0, "std": 1.0} for nm_ in names}
+    opts = {"map": {"prior": prior}, "rls": {"p0": 100.0}, "rels": {"p0": 100.0},
+            "bounded": {"bounds": {"Ka0x": [-1e3, 1e3], "Ka0y": [-1e3, 1e3]}}}  # loose: never active
+    skip = {"huber", "gls"} if robust else set()  # huber is robust itself; gls is ols with one tau
+    out: dict[str, list] = {m: [] for m in METHODS if m not in skip}
+    for k in range(runs):
+        tr = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(k, 1))).standard_normal(36)
+        pb = _draw(S, t, tr, np.random.SeedSequence(seed, spawn_key=(k,)), glitches=glitches)
+        rows = prepare_rows(pb, "auto", robust=robust)
+        for method in out:
+            if method == "gls":
+                res = solve_problem(pb, "gls").result
+            else:
+                res = solve_problem(pb, method, opts.get(method), rows=rows).result
+            ref = tr
+            if method in ("ridge", "pcr"):  # biased: around the method's noise-free answer on the same rows
+                clean = rows.solved.with_y(rows.solved.sv() @ tr)  # the same whitened, weighted rows, no noise
+                ref = (casep.solve_ridge(clean, lam=float(res.extras.lam)) if method == "ridge" else
+                       casep.solve_pcr(clean, n_components=int(res.extras.n_components))).estimate
+            out[method].append(_z(res.estimate, ref, res.std))
+    return {m: np.concatenate(v) for m, v in out.items()}
+
+
+@pytest.mark.montecarlo
+@pytest.mark.parametrize("glitches, robust", [(0.0, None), (0.005, "huber")], ids=["gm-gaps", "gm-gaps-glitches"])
+def test_every_method_is_honest_in_gauss_markov_noise_with_gaps(range_problem, glitches, robust):
+    """paper-range-gm rows from 60 to 150 s (20 Hz, tau 1 s, two dropouts), default noise 'auto': RMS z
+    in [0.85, 1.15] and 95 % coverage in [0.92, 0.98] for every method (60 seeded draws); with 0.5 %
+    glitches of 2 m/s and robust='huber' the same (huber itself and gls take no robust option).
+    ``benchmarks/mc_noise.py`` runs the whole flight and more draws."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        S, t, truth = range_problem
+        window = (t >= 60.0) & (t <= 150.0)  # 90 s holding both dropouts, for time
+        stats = _study((S[window], t[window], truth), 60, glitches, robust, seed=31 if robust else 30)
+    bad = {}
+    for m, z in stats.items():
+        rms, cov = float(np.sqrt(np.mean(z**2))), float(np.mean(np.abs(z) <= 1.96))
+        if not (0.85 <= rms <= 1.15 and 0.92 <= cov <= 0.98):
+            bad[m] = (round(rms, 3), round(cov, 3))
+    assert not bad, bad
+
+
+def test_separate_reports_the_noise_choice_and_gaps(range_problem):
+    S, t, truth = range_problem
+    pb = _draw(S, t, truth, np.random.SeedSequence(8))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        res = casep.separate(pb, method="map", prior={"Ka0x": {"mean": 0.0, "std": 1.0}})
+    nd = res.diagnostics["noise"]
+    assert nd["kind"] == "auto" and all(nd["axes"][a]["model"] == "gauss-markov" for a in "xyz")
+    assert all(nd["axes"][a]["lr"] > AUTO_LR for a in "xyz")
+    assert [round(g["length"], 2) for g in res.diagnostics["gaps"]] == [6.05, 1.55]
+    assert res.residuals.shape == pb.y.shape  # raw residuals of every sample
+    np.testing.assert_allclose(res.residuals, pb.residuals(np.nan_to_num(res.estimate)), rtol=1e-12)
+
+
+def test_noise_options_refused_with_a_reason(range_problem):
+    S, t, truth = range_problem
+    pb = _draw(S, t, truth, np.random.SeedSequence(9))
+    with pytest.raises(ValueError, match="`noise` must be one of"):
+        casep.separate(pb, noise="pink")
+    with pytest.raises(ValueError, match="`robust` must be one of"):
+        casep.separate(pb, robust="cauchy")
+    with pytest.raises(ValueError, match="huber` is robust already"):
+        casep.separate(pb, method="huber", robust="huber")
+    with pytest.raises(ValueError, match="std='hac'"):
+        casep.separate(pb, std="hac")  # noise auto: HAC is for white-noise fits
+    with pytest.raises(ValueError, match="`tau` given with noise 'white'"):
+        casep.separate(pb, noise="white", tau=1.0)
+    with pytest.raises(ValueError, match=r"`tau` \(y\) must be in"):
+        casep.separate(pb, noise="gm", tau=[1.0, -1.0, 1.0])
+
+
+def test_dt_trk_is_fitted_after_automatic_alignment_without_a_columns(tmp_path):
+    """A telemetry + tracking pair without a_* columns, tracking 30 ms late, noise-free: the
+    alignment shifts by ~30 ms, the model gains dt_trk (kinematic acceleration from d v_tel / dt),
+    and shift + dt_trk recovers the 30 ms to 0.1 ms."""
+    import dataclasses
+
+    import pandas as pd
+
+    from casep.simulation.noise import NoiseModel as SimNoise
+    from casep.simulation.scenarios import get_scenario
+    from casep.simulation.simulate import simulate_two_rate
+
+    quiet = dataclasses.replace(get_scenario("paper"), noise=SimNoise("white", 0.0))
+    d = simulate_two_rate(quiet, seed=0, telemetry_rate=100.0, tracking_rate=20.0, time_offset=0.030)
+    d.write(tmp_path / "tel.csv", tmp_path / "trk.csv", apparent=True)
+    tel = pd.read_csv(tmp_path / "tel.csv", comment="#")
+    tel.drop(columns=[c for c in tel.columns if c.startswith("a_")]).to_csv(tmp_path / "tel2.csv", index=False)
+    fl = casep.read_flight_pair(tmp_path / "tel2.csv", tmp_path / "trk.csv", time_offset="auto")
+    assert "d v_tel / dt" in fl.meta["kinematic_acceleration"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        warnings.simplefilter("ignore", casep.exceptions.NoiseFreeWarning)
+        res = casep.separate(fl, "platform36")
+        with pytest.warns(casep.exceptions.TimeOffsetWarning):  # the alignment's few tenths of a ms, unmodelled
+            plain = casep.separate(fl, "platform36", fit_time_offset=False)
+    assert res.model == "platform36+dt_trk" and "dt_trk" not in plain.names
+    shift_ms = fl.meta["time_alignment"]["applied_s"] * 1e3
+    assert abs(shift_ms + res.estimate[res.names.index("dt_trk")] - 30.0) < 0.1
+
+
+def test_problem_rows_serve_any_solver(range_problem):
+    """problem.rows(): the noise model belongs to the data; a solver called on rows.solved gives what
+    separate() gives with the same noise options."""
+    S, t, truth = range_problem
+    pb = _draw(S, t, truth, np.random.SeedSequence(10), glitches=0.005)
+    rows = pb.rows(robust="huber")
+    assert rows.noise.kind == "auto" and (~rows.keep).sum() > 0 and rows.sigma > 0
+    prior = {"Ka0x": {"mean": 0.0, "std": 1.0}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        direct = casep.solve_map(rows.solved, prior=prior, sigma=rows.sigma)
+        via = casep.separate(pb, method="map", prior=prior, robust="huber")
+    np.testing.assert_allclose(direct.estimate, via.estimate, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(direct.std, via.std, rtol=1e-10)
