@@ -287,7 +287,7 @@ def _manifest(args: argparse.Namespace):
     return man
 
 
-def _add_grid(parser) -> None:
+def _add_grid(parser, manifest: bool = True) -> None:
     parser.add_argument("--grid", choices=("tracking", "telemetry"), default="tracking",
                         help="with --tracking: form dv at the tracking times (default: one row per tracking "
                              "sample, white noise, honest std) or at the telemetry times (tracking interpolated: "
@@ -300,9 +300,11 @@ def _add_grid(parser) -> None:
                         help="with --tracking: how the time scales relate, tracking time minus telemetry time "
                              "(tracking in seconds of day, telemetry from lift-off at 12:00:00: 43200); default 0 "
                              "(one scale)")
-    parser.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
-                        help="TOML manifest listing each flight's telemetry, tracking, frame, site, launch time and "
-                             "time shift (docs/guide/range-data.md), instead of the flight files and these options")
+    if manifest:  # impact has its own (a manifest of one flight, with its result)
+        parser.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
+                            help="TOML manifest listing each flight's telemetry, tracking, frame, site, launch time "
+                                 "and time shift (docs/guide/range-data.md), instead of the flight files and these "
+                                 "options")
 
 
 def _finite_float(text: str) -> float:
@@ -1230,7 +1232,7 @@ def _impact_parser(sub) -> None:
     im.add_argument("--tracking", metavar="FILE", default=None, action="append",
                     help="tracking file (two-file input, as for separate): Earth-fixed tracking (--tracking-frame "
                          "ecef|geodetic) also gives the burnout position and velocity")
-    _add_grid(im)
+    _add_grid(im, manifest=False)
     _add_frames(im)
     im.add_argument("--trajectory", metavar="OTHER", default=None,
                     help="apply the result to another trajectory's S_V and burnout state (t, f_*, r_*, v_*)")
