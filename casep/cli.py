@@ -73,6 +73,17 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _rate(text: str) -> float:
+    """A sample rate, Hz: (0, casep.simulation.scenarios.MAX_RATE_HZ]."""
+    from casep.simulation.scenarios import check_rate
+
+    v = _positive_float(text)
+    try:
+        return check_rate(v, "rate")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("rate ")) from None
+
+
 def _ranged(name: str):
     """Argparse type for the common option `name` (``sigma``) of :data:`casep.estimators._base.OPTION_RANGES`:
     the API's check and message."""
@@ -276,7 +287,7 @@ def _manifest(args: argparse.Namespace):
     return man
 
 
-def _add_grid(parser) -> None:
+def _add_grid(parser, manifest: bool = True) -> None:
     parser.add_argument("--grid", choices=("tracking", "telemetry"), default="tracking",
                         help="with --tracking: form dv at the tracking times (default: one row per tracking "
                              "sample, white noise, honest std) or at the telemetry times (tracking interpolated: "
@@ -289,9 +300,11 @@ def _add_grid(parser) -> None:
                         help="with --tracking: how the time scales relate, tracking time minus telemetry time "
                              "(tracking in seconds of day, telemetry from lift-off at 12:00:00: 43200); default 0 "
                              "(one scale)")
-    parser.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
-                        help="TOML manifest listing each flight's telemetry, tracking, frame, site, launch time and "
-                             "time shift (docs/guide/range-data.md), instead of the flight files and these options")
+    if manifest:  # impact has its own (a manifest of one flight, with its result)
+        parser.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
+                            help="TOML manifest listing each flight's telemetry, tracking, frame, site, launch time "
+                                 "and time shift (docs/guide/range-data.md), instead of the flight files and these "
+                                 "options")
 
 
 def _finite_float(text: str) -> float:
@@ -301,6 +314,13 @@ def _finite_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
     if not math.isfinite(v):
         raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    return v
+
+
+def _positive_int(text: str) -> int:
+    v = _order(text)
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text}")
     return v
 
 
@@ -367,7 +387,7 @@ def _add_simulate_frames(parser) -> None:
                         help="with --rotating-earth: ecef or geodetic writes two files, the telemetry (-o: t, f_*, "
                              "v_tel_*, a_*) and the tracking in that frame (--tracking-output); default launch: the "
                              "one-file flight")
-    parser.add_argument("--tracking-rate", type=_positive_float, default=20.0, metavar="HZ",
+    parser.add_argument("--tracking-rate", type=_rate, default=20.0, metavar="HZ",
                         help="with --tracking-frame ecef|geodetic: tracking sample rate (default 20)")
     parser.add_argument("--tracking-output", metavar="FILE", default=None,
                         help="with --tracking-frame ecef|geodetic: tracking file (default <stem>.tracking<suffix>)")
@@ -455,19 +475,18 @@ def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | No
     if not path:
         return None
     data = read_json_table(path, f"--{option}")
+    from casep.io.result_json import looks_like_result
+
     if option == "prior" and "calibration" in data:  # a ground calibration: the flight model's coefficients
         from casep.calibration.consistency import ground_prior
 
         data = ground_prior(data, getattr(args, "model", None) or "platform36")
-    elif option == "prior" and "coefficients" in data and "covariance" in data:  # a result JSON: its posterior
+    elif option == "prior" and looks_like_result(data):  # a result file (any form): its posterior
         from casep.estimators.map import prior_from_result
-        from casep.estimators.result import EstimateResult
+        from casep.estimators.result import read_result
 
-        res = EstimateResult.from_json(data)
         model = getattr(args, "model", None)
-        if res.model and model and Path(str(model)).stem != res.model:
-            raise ValueError(f"--prior {path}: a result of model `{res.model}`, but the model here is "
-                             f"`{Path(str(model)).stem}`; use a result of the same model")
+        res, model = read_result(path, model, option="--prior")
         data = prior_from_result(res, model=model)  # per-flight coefficients (dt_trk) left flat
     {"bounds": parse_bounds, "prior": parse_prior}[option](data, names, source=f"--{option} {path}")
     return data
@@ -531,7 +550,7 @@ def _parser() -> argparse.ArgumentParser:
     g = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
     g.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
     g.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    g.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
+    g.add_argument("--rate", type=_rate, default=None, help="sample rate, Hz (default: scenario's)")
     g.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="flight file (.csv, or .parquet); truth goes to <stem>.truth.json beside it")
     g.add_argument("--model", default=None, help="error model to inject, name or .py file (default: the scenario's)")
@@ -568,13 +587,14 @@ def _parser() -> argparse.ArgumentParser:
     nz.add_argument("flight", nargs="?", help="flight file (or telemetry file with --tracking)")
     nz.add_argument("--tracking", metavar="FILE", default=None, action="append", help="tracking file (two-file input)")
     _add_grid(nz)
+    _add_frames(nz)  # --tracking-frame, --launch-site, --launch-time
     nz.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
     nz.add_argument("--json", metavar="OUT", default=None, help="write the Allan deviation and the fits here")
     nz.add_argument("--figures", metavar="DIR", default=None, help="write allan.png into DIR (created)")
     dm = sub.add_parser("demo", help="the paper's scenario end to end: Table 1, figures, report")
     dm.add_argument("--out", metavar="DIR", default="casep-demo", help="output folder (default ./casep-demo)")
     dm.add_argument("--seed", type=_order, default=1, help="noise seed (default 1)")
-    dm.add_argument("--rate", type=_positive_float, default=100.0, help="sample rate, Hz (default 100)")
+    dm.add_argument("--rate", type=_rate, default=100.0, help="sample rate, Hz (default 100)")
     mc = sub.add_parser("montecarlo", help="seeded Monte Carlo of the estimators against the CRLB")
     mc.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
     mc.add_argument("--runs", type=_order, default=100, help="noise draws (default 100)")
@@ -582,7 +602,7 @@ def _parser() -> argparse.ArgumentParser:
                     help=f"comma-separated: {', '.join(METHODS)}, ridge:<lambda> (fixed), wavelet+<method> (de-noised "
                          "first) (default ols,rls,rels)")
     mc.add_argument("--seed", type=_order, default=0, help="root seed (default 0)")
-    mc.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
+    mc.add_argument("--rate", type=_rate, default=None, help="sample rate, Hz (default: scenario's)")
     mc.add_argument("--workers", type=_order, default=None,
                     help="Dask LocalCluster worker processes, one thread each (default: all cores; 1: runs in this "
                          "process)")
@@ -616,6 +636,7 @@ def _parser() -> argparse.ArgumentParser:
     fu.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
                     help="fuse the results the manifest lists (each flight's `result`), instead of RESULT.json files")
     fu.add_argument("--json", metavar="OUT", default=None, help="write the fused result JSON here")
+    fu.add_argument("--model", default=None, help="model name or .py file (default: the one the results name)")
     me = sub.add_parser("methods", help="list the estimators, their options and capabilities")
     me.add_argument("--json", action="store_true", help="print the registry as JSON")
     m = sub.add_parser("models", help="list the available error models")
@@ -872,30 +893,36 @@ def _cmd_noise(args: argparse.Namespace) -> int:
 
 def _cmd_fuse(args: argparse.Namespace) -> int:
     """`casep fuse R1.json R2.json ...` (casep.workflows.flights.fuse)."""
-    from casep.estimators.result import EstimateResult, write_json_atomic
+    from casep.estimators.result import read_result, write_json_atomic
     from casep.io._atomic import check_outputs
-    from casep.io.files import read_json_table
     from casep.workflows.flights import fuse
 
     _manifest_results(args)  # --manifest: each flight's `result`
-    check_outputs({"--json": args.json}, inputs=list(args.results))
-    results = []
-    for path in args.results:
-        data = read_json_table(path, "RESULT")
-        if "coefficients" not in data or "covariance" not in data:
-            raise ValueError(f"{path}: not a casep result JSON with a covariance (casep separate --json)")
-        results.append(EstimateResult.from_json(data))
+    check_outputs({"--json": args.json}, inputs=list(args.results) + [args.model])
+    from casep.calibration.calibrate import calibration_models
     from casep.calibration.consistency import ground_versus_flight
+    from casep.estimators.result import result_from_data
+    from casep.io.result_json import read_result_data
 
+    grounds, results = set(calibration_models()), []
+    for path in args.results:  # every result form, checked against its model (or --model)
+        rd = read_result_data(path, "RESULT")
+        if rd.model in grounds:  # a ground calibration: mapped to its flight model below
+            results.append(result_from_data(rd))
+        else:
+            results.append(read_result(path, args.model, option="RESULT")[0])
     results, ground_text = ground_versus_flight(results, list(args.results))  # ground results: flight-model part
     if ground_text:
         print(ground_text + "\n")
-    res = fuse(results, labels=list(args.results))
+    res = fuse(results, labels=list(args.results), model=args.model)
     print(res.table())
+    c = res.diagnostics["consistency"]
+    ov = c["overall"]
+    print(f"consistency of the results: chi2 {ov['chi2']:.4g}, {ov['dof']} dof, p {ov['p_value']:.3g}")
     if args.json:
         write_json_atomic(res.to_dict(), args.json)
         print(f"result written to {args.json}")
-    return 0
+    return _result_status(res)
 
 
 def _diagnose_flights(args: argparse.Namespace, model, prior, scales) -> int:
@@ -1202,13 +1229,18 @@ def _impact_parser(sub) -> None:
                     "manifest flight's `result`)")
     im.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
                     help="a manifest of one flight: its telemetry file and (without --result) its `result`")
+    im.add_argument("--tracking", metavar="FILE", default=None, action="append",
+                    help="tracking file (two-file input, as for separate): Earth-fixed tracking (--tracking-frame "
+                         "ecef|geodetic) also gives the burnout position and velocity")
+    _add_grid(im, manifest=False)
+    _add_frames(im)
     im.add_argument("--trajectory", metavar="OTHER", default=None,
                     help="apply the result to another trajectory's S_V and burnout state (t, f_*, r_*, v_*)")
     im.add_argument("--model", default=None, help="model name or .py file (default: the result's)")
     im.add_argument("--per-flight", metavar="NAME=VALUE", action="append", default=None,
                     help="value (natural units) of a per-flight coefficient a several-flight result does not "
                          "hold (default 0); repeat for several")
-    im.add_argument("--top", type=_order, default=None, help="table: only the TOP largest contributions")
+    im.add_argument("--top", type=_positive_int, default=None, help="table: only the TOP (>= 1) largest contributions")
     im.add_argument("--json", metavar="OUT", default=None, help="write the impact JSON here")
     im.add_argument("--figures", metavar="DIR", default=None,
                     help="write miss_budget.png and impact_ellipse.png into DIR (created)")
@@ -1220,7 +1252,7 @@ def _cmd_impact(args: argparse.Namespace) -> int:
     from casep.io._atomic import check_outputs
 
     _impact_manifest(args)  # --manifest: the flight's file and result
-    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "result", "trajectory"),
+    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "result", "trajectory"),
                   folders={"--figures": args.figures})
     per_flight = {}
     for item in args.per_flight or ():
@@ -1231,7 +1263,11 @@ def _cmd_impact(args: argparse.Namespace) -> int:
             raise ValueError(f"--per-flight {item}: give NAME=VALUE (natural units)") from None
         if not eq or not math.isfinite(per_flight[name.strip()]):
             raise ValueError(f"--per-flight {item}: give NAME=VALUE with a finite value (natural units)")
-    flight = read_trajectory(args.flight)  # dv unused (a radar-tracked telemetry file has none)
+    if args.tracking:  # telemetry + tracking, with the frame options as for separate
+        flight = _read(args)
+    else:
+        _frame_options(args)  # --tracking-frame / --launch-site without --tracking: an error
+        flight = read_trajectory(args.flight)  # dv unused (a radar-tracked telemetry file has none)
     other = read_trajectory(args.trajectory) if args.trajectory else None
     a = impact_analysis(flight, args.result, args.model, other, per_flight=per_flight or None)
     if args.json:
@@ -1274,7 +1310,7 @@ def _design_parser(sub) -> None:
     de.add_argument("--knots", type=int, default=10, help="knots of the piecewise-linear offset (default 10)")
     de.add_argument("--starts", type=int, default=4, help="IPOPT starts (default 4)")
     de.add_argument("--seed", type=_order, default=0, help="seed of the random starts and of -o's noise (default 0)")
-    de.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
+    de.add_argument("--rate", type=_rate, default=None, help="sample rate, Hz (default: scenario's)")
     de.add_argument("--prior", metavar="FILE", default=None,
                     help='prior JSON {"Kg0x": {"mean": m, "std": s}, ...} (natural units): Bayesian covariance')
     de.add_argument("--json", metavar="OUT", default=None, help="write the design JSON here")
@@ -1436,12 +1472,15 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
         print(f"resumed {res.resumed} of {res.tasks} tasks from {args.out}" if res.resumed else
               f"{res.tasks} tasks, none resumed")
     print(res.summary())
-    if args.json:
-        res.write_json(args.json)
-    if args.csv:
-        res.write_csv(args.csv)
-    if args.figure:
-        write_figure(res, args.figure)
+    from casep.io._atomic import output_group
+
+    with output_group():  # the report files together or none (the --out store keeps its parts regardless)
+        if args.json:
+            res.write_json(args.json)
+        if args.csv:
+            res.write_csv(args.csv)
+        if args.figure:
+            write_figure(res, args.figure)
     for label, path in (("JSON", args.json), ("CSV", args.csv), ("figure", args.figure)):
         if path:
             print(f"{label} written to {path}")
@@ -1531,10 +1570,19 @@ def _cmd_models(args: argparse.Namespace) -> int:
             continue
         print(f"{name:<28} {model.n_coefficients:>3} coefficients  {model.description}")
         if args.verbose:
-            for nm, unit, own in zip(model.names, model.units, model.per_flight):
-                print(f"    {nm:<10} {unit}" + ("  (per flight)" if own else ""))
+            doc = getattr(model, "source_doc", "")
+            if doc:  # the model file's docstring: its equations and conventions
+                print("\n".join("    | " + line if line.strip() else "    |" for line in doc.splitlines()))
+            scales = model.scales
+            print(f"    {'coefficient':<12} {'unit':<10} {'magnitude':>10}  description")
+            for nm, unit, own, what in zip(model.names, model.units, model.per_flight, model.descriptions):
+                mag = f"{scales[nm]:.3g}" if nm in scales else "-"
+                note = "; ".join(x for x in (what, "per flight" if own else "") if x)
+                print(f"    {nm:<12} {unit:<10} {mag:>10}  {note}".rstrip())
             if model.signals:
                 print(f"    signals: {', '.join(model.signals)}")
+            if getattr(model, "source_file", None):
+                print(f"    file: {model.source_file}")
     if broken and broken == len(names):
         print(f"casep: error: none of the {broken} model files loads (see the warnings)", file=sys.stderr)
         return 2
@@ -1643,8 +1691,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "montecarlo": _cmd_montecarlo, "demo": _cmd_demo, "models": _cmd_models, "methods": _cmd_methods,
                 "fuse": _cmd_fuse, "impact": _cmd_impact, "noise": _cmd_noise, "design": _cmd_design,
                 "calibrate": _cmd_calibrate}
+    from contextlib import nullcontext
+
+    from casep.io._atomic import output_group
+
+    # All outputs of a command appear together or none (a failed second output leaves no first);
+    # not for montecarlo, whose --out folder keeps every finished part for a resume.
+    group = nullcontext() if args.command == "montecarlo" else output_group()
     try:
-        with warnings.catch_warnings(record=True) as caught:
+        with warnings.catch_warnings(record=True) as caught, group:
             warnings.simplefilter("always", CasepWarning)
             status = commands[args.command](args)
     except BrokenPipeError:

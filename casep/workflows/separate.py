@@ -163,7 +163,15 @@ def separate(
     # A bounds or prior table may be given as its JSON file (as on the command line).
     for k in ("bounds", "prior"):
         if isinstance(kw[k], (str, os.PathLike)):
-            kw[k] = read_json_table(kw[k], k)
+            path, kw[k] = kw[k], read_json_table(kw[k], k)
+            from casep.io.result_json import looks_like_result
+
+            if k == "prior" and looks_like_result(kw[k]):  # a result file (any form): its posterior
+                from casep.estimators.map import prior_from_result
+                from casep.estimators.result import read_result
+
+                res_prior, m = read_result(path, None if isinstance(flight, Problem) else model, option="prior")
+                kw[k] = prior_from_result(res_prior, model=m)
     if denoise not in (None, "none", "wavelet"):
         raise ValueError(f"`denoise` must be 'none' or 'wavelet', got {denoise!r}")
     if wavelet_options and denoise != "wavelet":
@@ -220,6 +228,12 @@ def separate(
             settings["sigma"] = f"wavelet estimate {sigma:.6g}"
         res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings,
                                   sigma_source="wavelet" if sigma_from_wavelet else res.sigma_source)
+    if not isinstance(flight, Problem):
+        from casep.model.loader import model_file_reference
+
+        ref = model_file_reference(model)  # a model loaded from a path: impact/fuse find it again
+        if ref:
+            res = dataclasses.replace(res, model_file=ref)
     return res
 
 
