@@ -183,9 +183,11 @@ def _add_noise(parser, *, outputs: bool = True, default: str = "auto") -> None:
                    help=f"tracking noise (default {default}): auto (white or Gauss-Markov per axis by a "
                         "likelihood-ratio test, said in the output), gm (Gauss-Markov per axis, --tau or REML), white "
                         "(with separate, a whiteness test warns when the residuals contradict it)")
-    g.add_argument("--robust", nargs="?", const="huber", choices=("huber", "bisquare"), default=None,
+    g.add_argument("--robust", nargs="?", const="huber", choices=("auto", "huber", "bisquare", "none"),
+                   default="auto",
                    help="robust fit for any method: glitches removed by a robust filter on the innovations, the rest "
-                        "weighted (default function huber)")
+                        "weighted; --robust alone: huber; auto (default): huber when the filter finds more glitches "
+                        "than Gaussian noise explains (said in the output); none: never")
     if outputs:
         g.add_argument("--std", choices=("model", "hac"), default="model",
                        help="model (default) or hac: Newey-West std of a white-noise ols fit")
@@ -205,33 +207,51 @@ def _noise_kw(args: argparse.Namespace, opts: dict) -> dict:
     return kw
 
 
-def _print_noise(res) -> None:
-    """The noise model, the robust fit and the removed samples, one line each."""
+def _noise_line(nd: dict) -> str:
+    """One line of a result's ``diagnostics["noise"]``."""
     from casep.analysis.noise import NoiseModel
 
+    axes = nd["axes"]
+    if "note" in nd:
+        return f"noise: {nd['note']}, tau {axes['x']['tau_s']:.3g} s ({nd['rule']})"
+    nm = NoiseModel(kind=nd["kind"], tau=tuple(axes[a]["tau_s"] for a in "xyz"),
+                    scale=tuple(axes[a]["scale"] for a in "xyz"), rule=nd["rule"],
+                    lr=tuple(axes[a]["lr"] for a in "xyz") if "lr" in axes["x"] else None,
+                    lr_scale=nd.get("lr_scale"), sigma=axes["x"].get("std_m_s"))
+    return nm.line()
+
+
+def _robust_line(rb: dict) -> str:
+    """One line of a result's ``diagnostics["robust"]``."""
+    places = ", ".join(r["where"] for r in rb.get("rejected", [])[:6])
+    auto = rb.get("automatic")
+    why = (f", automatic: the filter found {auto['glitches_found']} glitch(es) where Gaussian noise gives "
+           f"{auto['expected_from_noise']:.2g}" if auto else "")
+    more = ", ..." if rb["rejected_count"] > 6 else ""
+    return (f"robust ({rb['function']}{why}): {rb['rejected_count']} sample(s) rejected as glitches"
+            + (f": {places}{more}" if places else "")
+            + f", {rb['downweighted']} row(s) down-weighted, {rb['iterations']} iteration(s)")
+
+
+def _print_noise(res, joint: bool = False) -> None:
+    """The noise model, the robust fit, the removed samples and the gaps, one line each (per flight)."""
     nd = res.diagnostics.get("noise")
+    if joint:
+        for label, d in (nd or {}).items():
+            print(f"{label}: {_noise_line(d)}")
+            if d.get("robust"):
+                print(f"{label}: {_robust_line(d['robust'])}")
+        return
     if nd:
-        if "note" in nd:
-            print(f"noise: {nd['note']}, tau {nd['axes']['x']['tau_s']:.3g} s ({nd['rule']})")
-        else:
-            axes = nd["axes"]
-            nm = NoiseModel(kind=nd["kind"], tau=tuple(axes[a]["tau_s"] for a in "xyz"),
-                            scale=tuple(axes[a]["scale"] for a in "xyz"), rule=nd["rule"],
-                            lr=tuple(axes[a]["lr"] for a in "xyz") if "lr" in axes["x"] else None,
-                            lr_scale=nd.get("lr_scale"),
-                            sigma=axes["x"].get("std_m_s"))
-            print(nm.line())
+        print(_noise_line(nd))
     rb = res.diagnostics.get("robust")
     if rb:
-        times = ", ".join(r["where"] for r in rb["rejected"][:6])
-        print(f"robust ({rb['function']}): {rb['rejected_count']} sample(s) rejected as glitches"
-              + (f": {times}{', ...' if rb['rejected_count'] > 6 else ''}" if times else "")
-              + f", {rb['downweighted']} row(s) down-weighted, {rb['iterations']} iteration(s)")
+        print(_robust_line(rb))
     ex = res.diagnostics.get("excluded")
     if ex:
-        times = ", ".join(f"{r['where']} {r['axis']}" for r in ex["samples"][:6])
+        places = ", ".join(f"{r['where']} {r['axis']}" for r in ex["samples"][:6])
         print(f"excluded: {ex['count']} sample(s) flagged at alpha {ex['alpha']:g} removed and the fit repeated"
-              + (f": {times}{', ...' if ex['count'] > 6 else ''}" if times else ""))
+              + (f": {places}{', ...' if ex['count'] > 6 else ''}" if places else ""))
     gaps = res.diagnostics.get("gaps")
     if gaps:
         parts = ", ".join(f"{g['length']:.3g} s before {g['where']}" for g in gaps[:6])
@@ -821,6 +841,7 @@ def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior
     for w in caught:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     print(res.table())
+    _print_noise(res, joint=True)
     ov = summary["consistency"]["overall"]
     for f in summary["flights"]:
         print(f"{f['file']}: {f['n_samples']} samples, sigma {f['sigma']:.4g} m/s")

@@ -107,7 +107,7 @@ def _labels(problems: Sequence[Problem]) -> tuple[str, ...]:
 
 def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: float | Sequence[float] | None = None,
                      options: Mapping[str, Any] | None = None, noise: str = "auto", tau=None,
-                     robust: str | None = None, std: str = "model",
+                     robust: str | None = "auto", std: str = "model",
                      exclude_outliers: float | None = None) -> tuple[EstimateResult, JointProblem]:
     """One estimate of the shared coefficients from several flights; per-flight ones per flight.
 
@@ -170,7 +170,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     taus = None
     noise_models = None
     if method == "gls":  # each flight whitened by its own Gauss-Markov correlation time, then combined as OLS
-        if robust is not None or noise == "white":
+        if robust not in (None, "auto", "none") or noise == "white":
             raise ValueError("method `gls` is ols with one Gauss-Markov tau per flight: for noise 'white' or a robust "
                              "fit use method ols with `noise` and `robust`")
         problems, taus = _gls_whitened(problems, opts.get("tau", "auto"))
@@ -260,7 +260,7 @@ def _noise_whitened(problems: Sequence[Problem], noise: str, tau, robust: str | 
 
     out, solved = [], []
     for p in problems:
-        if noise == "white" and robust is None:
+        if noise == "white" and robust in (None, "none"):
             from casep.analysis.noise import NoiseModel
             from casep.workflows.solve import Solved
 

@@ -60,7 +60,7 @@ def separate(
     tau: float | str | None = "auto",
     options: Mapping | None = None,
     noise: str = "auto",
-    robust: str | None = None,
+    robust: str | None = "auto",
     std: str = "model",
     exclude_outliers: float | None = None,
     fit_time_offset: bool | None = None,
@@ -119,9 +119,10 @@ def separate(
         contradict it, with the factor by which the std are too small).
     tau : float, three floats or "auto", optional
         Gauss-Markov correlation time(s), s; a number implies ``noise="gm"``.
-    robust : {None, "huber", "bisquare"}, optional
+    robust : {"auto", "huber", "bisquare", "none"}, optional
         Robust fit for any method: glitches removed by a robust filter on the innovations, the
-        rest weighted (:mod:`casep.workflows.solve`).
+        rest weighted (:mod:`casep.analysis.rows`). ``auto`` (default): Huber when the filter
+        finds more glitches than Gaussian noise explains, said in ``diagnostics["robust"]``.
     std : {"model", "hac"}, optional
         ``hac``: Newey-West std (method ols with noise "white").
     exclude_outliers : float, optional
@@ -203,17 +204,17 @@ def separate(
     if method == "pcr":
         labels["max_condition_index"] = max_condition_index
     if den is not None:
-        if noise == "gm" or robust is not None or exclude_outliers is not None or std != "model":
+        if noise == "gm" or robust not in (None, "auto", "none") or exclude_outliers is not None or std != "model":
             raise ValueError("`denoise='wavelet'` removes the noise a noise model, a robust fit or HAC std describe: "
                              "use them without de-noising")
-        noise = "white"  # the de-noised residuals are no noise sample to fit a model on
+        noise, robust = "white", None  # the de-noised residuals are no noise sample to fit a model on
     out = solve_problem(solved, method, {k: v for k, v in kw.items() if k in _REGISTRY[method].options},
                         noise=noise, tau=tau_given if method != "gls" else None, robust=robust, std=std,
                         exclude_outliers=exclude_outliers, check_white=den is None, **labels)
     res = out.result
     # raw dv: noise-free, outliers, offset
     check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source,
-              outliers_handled=robust is not None or exclude_outliers is not None)
+              outliers_handled="robust" in res.diagnostics or exclude_outliers is not None)
     if sigma is not None and not sigma_from_wavelet:
         check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model, noise_free=_noise_free(problem))
