@@ -116,6 +116,7 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float]:
 
     from casep.analysis.robust import REJECT
 
+    assert problem.t is not None  # the caller checked
     x, _ = _ls(_rows(problem, np.ones(problem.n_samples, dtype=bool), nm, None))
     rw = robust_filter(problem.residuals(x), problem.t, nm)
     expected = problem.n_samples * (1.0 - (1.0 - 2.0 * norm.sf(REJECT)) ** 3)
@@ -155,7 +156,8 @@ def prepare_rows(problem: Problem, noise: str = "auto", tau=None, robust: str | 
     auto = None
     if robust == "auto":
         robust = None
-        if not noise_free and exclude_outliers is None and problem.t is not None and problem.y.ndim == 2:
+        if not noise_free and exclude_outliers is None and problem.t is not None and problem.y is not None \
+                and problem.y.ndim == 2:
             found, expected = _glitches(problem, nm)
             limit = expected + GLITCH_SIGMAS * np.sqrt(expected) + GLITCH_MIN
             auto = {"glitches_found": found, "expected_from_noise": expected, "limit": float(limit)}
