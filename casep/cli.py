@@ -749,8 +749,11 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     from casep.model.loader import load_model
     from casep.workflows.separate import separate
 
+    wopts = {k: v for k, v in (("wavelet", args.wavelet), ("level", args.level), ("rule", args.threshold_rule),
+                                ("mode", args.threshold_mode), ("extension", args.extension),
+                                ("scaling", args.noise_scaling)) if v is not None}
     if args.radar:
-        return _separate_radar(args)
+        return _separate_radar(args, wopts)
     _radar_only(args, ("tracking_model",))
     _manifest(args)  # --manifest FLIGHTS.toml, or the flight files
     check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
@@ -763,9 +766,6 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     opts = {k: v for k, v in given.items() if k not in ("bounds", "prior")}
     bounds = _coefficient_file(args, "bounds", model.names)
     prior = _coefficient_file(args, "prior", model.names)
-    wopts = {k: v for k, v in (("wavelet", args.wavelet), ("level", args.level), ("rule", args.threshold_rule),
-                                ("mode", args.threshold_mode), ("extension", args.extension),
-                                ("scaling", args.noise_scaling)) if v is not None}
     if wopts and args.denoise != "wavelet":
         raise ValueError(f"wavelet options ({', '.join(wopts)}) need --denoise wavelet")
     if len(args.flight) > 1:
@@ -1113,20 +1113,16 @@ def _radar_site(args: argparse.Namespace):
     return LaunchSite(*args.launch_site, args.launch_time)
 
 
-def _separate_radar(args: argparse.Namespace) -> int:
+def _separate_radar(args: argparse.Namespace, wavelet_options: dict) -> int:
     """`casep separate TEL --radar S1.json S1.csv ...`: instrument and station errors in one estimate."""
     from casep.estimators.result import write_json_atomic
     from casep.io._atomic import check_outputs
-    from casep.workflows.radar import separate_radar
+    from casep.workflows.radar import check_radar_options, separate_radar
 
-    for flag, value in (("--denoise wavelet", args.denoise == "wavelet" or None), ("--figures", args.figures),
-                        ("--mat", args.mat), ("--csv", args.csv), ("--outliers", args.outliers),
-                        ("--sigma", args.sigma), ("--noise gm", args.noise == "gm" or None),
-                        ("--robust", args.robust), ("--std hac", args.std == "hac" or None),
-                        ("--exclude-outliers", args.exclude_outliers)):
-        if value:
-            raise ValueError(f"{flag} is not available with --radar (noise: white per station and measurement type, "
-                             "sigma_range/sigma_angle in the station files, else estimated); leave it out")
+    # the options of separate() that do not apply with radar: one list (casep.workflows.radar.NOT_WITH_RADAR)
+    check_radar_options({"wavelet_options": wavelet_options, **{k: getattr(args, k) for k in (
+        "denoise", "outliers", "sigma", "noise", "robust", "std", "exclude_outliers")}}, cli=True,
+        outputs={"--figures": args.figures, "--mat": args.mat, "--csv": args.csv})
     check_outputs({"--json": args.json, "--report": args.report},
                   inputs=_inputs(args, "flight") + [f for pair in args.radar for f in pair])
     site = _radar_site(args)
