@@ -41,7 +41,7 @@ NOT_WITH_RADAR: dict[str, tuple[str, Callable[[Any], bool]]] = {
                         bool),
     "outliers": ("--outliers", lambda v: v is not None),
     "exclude_outliers": ("--exclude-outliers", lambda v: v is not None),
-    "robust": ("--robust", lambda v: v is not None),
+    "robust": ("--robust", lambda v: v not in (None, "auto", "none")),
     "std": ("--std hac", lambda v: v not in (None, "model")),
     "noise": ("--noise gm", lambda v: v == "gm"),
     # a number is the std of the telemetry-minus-tracking velocity, m/s; the radar's is per station and type
