@@ -60,19 +60,7 @@ def _csv_line_locator(path: Path) -> Callable[[int], int | None]:
     """Map a data row (1-based; 0 = header) to its file line, skipping comments and blanks."""
 
     def line_of(row: int) -> int | None:
-        seen = -1
-        try:
-            with open(path, encoding="utf-8", errors="replace") as fh:
-                for lineno, text in enumerate(fh, 1):
-                    s = text.strip()
-                    if not s or s.startswith("#"):
-                        continue
-                    seen += 1
-                    if seen == row:
-                        return lineno
-        except OSError:
-            return None
-        return None
+        return csv_lines(path, [row]).get(row)
 
     return line_of
 
