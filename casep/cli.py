@@ -507,6 +507,7 @@ def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | No
 
         model = getattr(args, "model", None)
         res, model = read_result(path, model, option="--prior")
+        _refuse_failed(res, f"--prior {path}")
         data = prior_from_result(res, model=model)  # per-flight coefficients (dt_trk) left flat
     {"bounds": parse_bounds, "prior": parse_prior}[option](data, names, source=f"--{option} {path}")
     return data
@@ -932,6 +933,9 @@ def _cmd_fuse(args: argparse.Namespace) -> int:
             results.append(result_from_data(rd))
         else:
             results.append(read_result(path, args.model, option="RESULT")[0])
+    for path, r in zip(args.results, results):
+        _refuse_failed(r, f"RESULT {path}")
+    _refuse_shared_inputs(list(args.results))
     results, ground_text = ground_versus_flight(results, list(args.results))  # ground results: flight-model part
     if ground_text:
         print(ground_text + "\n")
@@ -944,6 +948,32 @@ def _cmd_fuse(args: argparse.Namespace) -> int:
         write_json_atomic(res.to_dict(), args.json)
         print(f"result written to {args.json}")
     return _result_status(res)
+
+
+def _refuse_failed(res, where: str) -> None:
+    """A failed result (``success`` false) is no input for fusing or as a prior: exit 2 saying why."""
+    if not res.success:
+        raise ValueError(f"{where}: a failed result (status {res.status}: {res.message}); its estimate and std are "
+                         "not usable as an input. Fix what failed and estimate again")
+
+
+def _refuse_shared_inputs(paths: list) -> None:
+    """Two results whose provenance names the same input file (sha256): the same data would count twice."""
+    seen: dict[str, str] = {}
+    for path in paths:
+        try:
+            with open(path, encoding="utf-8") as fh:
+                prov = json.load(fh).get("provenance") or {}
+        except (OSError, ValueError, AttributeError):
+            continue  # read and checked by the result reader; a hand-written result has no provenance
+        for inp in prov.get("inputs", []) if isinstance(prov, dict) else []:
+            digest = inp.get("sha256") if isinstance(inp, dict) else None
+            if digest and inp.get("role", "") not in ("prior", "bounds", "model"):
+                if digest in seen and seen[digest] != str(path):
+                    raise ValueError(f"RESULT {path} and {seen[digest]} were estimated from the same input file "
+                                     f"{inp.get('file', '')} (sha256 {digest[:12]}...): fusing them counts its data "
+                                     "twice (std too small by sqrt 2); give each flight's result once")
+                seen.setdefault(digest, str(path))
 
 
 def _diagnose_flights(args: argparse.Namespace, model, prior, scales) -> int:

@@ -34,6 +34,7 @@ each flight as the single-flight options would.
 
 from __future__ import annotations
 
+import math
 import os
 import tomllib
 from pathlib import Path
@@ -65,13 +66,16 @@ class ManifestFlight(BaseModel):
     site: ManifestSite | None = None
     launch_time_s: float | None = Field(default=None, allow_inf_nan=False)
     time_shift_s: float = Field(default=0.0, allow_inf_nan=False)
-    time_offset_ms: float | Literal["auto"] | None = Field(default=None, allow_inf_nan=False)
+    time_offset_ms: float | Literal["auto"] | None = None  # finite: checked below (a Field constraint would
+    # apply to "auto" too)
     grid: Literal["tracking", "telemetry"] = "tracking"
     result: Path | None = None
 
     @field_validator("time_offset_ms")
     @classmethod
     def _offset_range(cls, v):
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ValueError(f"must be finite, got {v}")
         if isinstance(v, float) and abs(v) > 1e5:
             raise ValueError(f"must be within +-1e5 ms, got {v:g}")
         return v

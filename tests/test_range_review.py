@@ -1,0 +1,52 @@
+"""Defects a fresh-eyes review of the range-data features found: a manifest's time_offset_ms = "auto",
+fuse counting one flight's data twice, failed results used as inputs."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import pytest
+
+import casep
+from casep.cli import main
+
+
+def test_manifest_time_offset_auto_is_read(tmp_path):
+    (tmp_path / "m.toml").write_text('[[flight]]\ntelemetry = "t.csv"\ntracking = "k.csv"\ntime_offset_ms = "auto"\n')
+    for name in ("t.csv", "k.csv"):
+        (tmp_path / name).write_text("t\n0\n")
+    man = casep.read_manifest(tmp_path / "m.toml")
+    assert man.flights[0].time_offset_ms == "auto"
+    (tmp_path / "bad.toml").write_text('[[flight]]\ntelemetry = "t.csv"\ntracking = "k.csv"\ntime_offset_ms = inf\n')
+    with pytest.raises(ValueError, match="time_offset_ms"):
+        casep.read_manifest(tmp_path / "bad.toml")
+
+
+@pytest.fixture(scope="module")
+def two_results(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fuse")
+    assert main(["simulate", "--scenario", "paper", "--rate", "5", "--seed", "2", "-o", str(d / "a.csv")]) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # conditioning: printed by the CLI
+        assert main(["separate", str(d / "a.csv"), "--json", str(d / "r1.json")]) == 0
+        assert main(["separate", str(d / "a.csv"), "--sigma", "0.1", "--json", str(d / "r2.json")]) == 0
+    return d
+
+
+def test_fuse_refuses_two_results_of_the_same_data(two_results, capsys):
+    d = two_results
+    assert main(["fuse", str(d / "r1.json"), str(d / "r2.json")]) == 2
+    err = capsys.readouterr().err
+    assert "same input file a.csv" in err and "counts its data twice" in err
+
+
+def test_failed_results_are_no_input(two_results, capsys):
+    d = two_results
+    bad = json.loads((d / "r1.json").read_text())
+    bad.update(success=False, status=-4, message="failed: set-up")
+    (d / "failed.json").write_text(json.dumps(bad))
+    assert main(["fuse", str(d / "failed.json"), str(d / "r2.json")]) == 2
+    assert "failed.json: a failed result (status -4" in capsys.readouterr().err
+    assert main(["separate", str(d / "a.csv"), "--method", "map", "--prior", str(d / "failed.json")]) == 2
+    assert "--prior" in capsys.readouterr().err
