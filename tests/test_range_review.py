@@ -50,3 +50,12 @@ def test_failed_results_are_no_input(two_results, capsys):
     assert "failed.json: a failed result (status -4" in capsys.readouterr().err
     assert main(["separate", str(d / "a.csv"), "--method", "map", "--prior", str(d / "failed.json")]) == 2
     assert "--prior" in capsys.readouterr().err
+
+
+def test_a_manifest_may_name_a_result_not_written_yet(tmp_path):
+    """separate --manifest writes the result the manifest names: it need not exist before."""
+    for name in ("t.csv", "k.csv"):
+        (tmp_path / name).write_text("t\n0\n")
+    (tmp_path / "m.toml").write_text('[[flight]]\ntelemetry = "t.csv"\ntracking = "k.csv"\nresult = "r.json"\n')
+    man = casep.read_manifest(tmp_path / "m.toml")
+    assert man.flights[0].result == tmp_path / "r.json" and not (tmp_path / "r.json").exists()

@@ -193,8 +193,8 @@ def read_manifest(path: str | os.PathLike) -> Manifest:
     for k, f in enumerate(man.flights):
         resolved = {key: (getattr(f, key) if getattr(f, key) is None or getattr(f, key).is_absolute()
                           else base / getattr(f, key)) for key in ("telemetry", "tracking", "result")}
-        for key, p in resolved.items():
-            if p is not None and not p.is_file():
+        for key, p in resolved.items():  # a `result` is read (and named when missing) by fuse and impact only:
+            if key != "result" and p is not None and not p.is_file():  # separate may be about to write it
                 raise ValueError(f"manifest {path}: flight {k + 1}, key `{key}`: file {p} does not exist")
         real = os.path.realpath(resolved["telemetry"])
         if real in seen:
