@@ -201,8 +201,11 @@ class Calibration:
                          f"({r.sigma_source}, {r.diagnostics.get('rows', '?')} rows, rank {r.rank}/{len(r.names)})"
                          + (f", condition number {cn:.3g} (equilibrated)" if cn else "") + f"; {r.message}")
             if "position_error_deg" in r.diagnostics and k == "accelerometer":
+                dof = r.diagnostics.get("position_error_dof")
                 lines.append(f"  position error {r.diagnostics['position_error_deg']:.3g} deg rms (estimated from the "
-                             "misfit of the positions)")
+                             f"misfit of the positions, {dof} degrees of freedom"
+                             + ("; few: the std of the coefficients it drives are themselves uncertain)"
+                                if dof is not None and dof < 10 else ")"))
             if r.diagnostics.get("groups"):
                 lines.append("  near-dependencies: " + "; ".join("[" + ", ".join(g) + "]"
                                                                 for g in r.diagnostics["groups"]))
@@ -378,6 +381,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     est, cov = np.full(n, np.nan), np.zeros((n, n))
     reasons: dict[str, str] = {}
     tilt = None  # position error, rad rms (weighting "positions")
+    tilt_dof = 0  # the residual degrees of freedom it is estimated from
     for slot in model.slots:
         sensor = _SENSOR[slot]
         u = acc if slot == "accel_reading" else gyr
@@ -446,7 +450,10 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
             whiten = _position_whitening(static, Jf, s_i, gravity, floor, S[:3 * n_static], ybar,
                                          S[3 * n_static:], y_rot, sd_rot)
             if tilt is None:  # estimated on the first sensor (the accelerometer): the same tilts move both
-                tilt = _solve_tilt(whiten, S.shape[0], len(cols))
+                # degrees of freedom: rows minus the rank of S (the six axis positions leave some
+                # coefficients undetermined, so the rank, not the number of columns, counts)
+                tilt_dof = S.shape[0] - int(np.linalg.matrix_rank(Sw))
+                tilt = _solve_tilt(whiten, S.shape[0], S.shape[0] - tilt_dof)
             Sw, yw = whiten(tilt)
             level = _ls_sigma(Sw, yw)
         m3 = S.shape[0] // 3  # observations of three rows (x, y, z) each
@@ -470,7 +477,8 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         res = run_method(method, pb, None, None, opts, sigma=use_sigma)
         res = dataclasses.replace(res, diagnostics={**res.diagnostics, "rows": int(S.shape[0]),
                                                     "static_level": level, "sample_noise": s_i.tolist(),
-                                                    **({"position_error_deg": math.degrees(tilt)}
+                                                    **({"position_error_deg": math.degrees(tilt),
+                                                        "position_error_dof": tilt_dof}
                                                        if tilt is not None else {})})
         sensors[sensor] = res
         est[cols] = res.estimate
@@ -575,8 +583,9 @@ def _position_whitening(static, Jf, s_i, g, floor, S_st, y_st, S_rot, y_rot, sd_
 def _solve_tilt(whiten, m: int, n: int) -> float:
     """The position error (rad rms) at which the whitened least-squares residual std is 1.
 
-    0 when the sample noise alone explains the misfit (or no degree of freedom is left); capped at
-    0.5 rad.
+    `m` rows, `n` the rank of the rows (not the number of coefficients: the six axis positions leave
+    some undetermined). 0 when the sample noise alone explains the misfit (or no degree of freedom is
+    left); capped at 0.5 rad.
     """
     from scipy.optimize import brentq
 
