@@ -3,15 +3,22 @@ gaps in a turn, rate against the t column, units, SI readings of the wrong unit)
 
 from __future__ import annotations
 
+import dataclasses
+import json
+import re
 import warnings
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from casep import calibrate
 from casep.calibration import load_calibration_model
-from casep.calibration.calibrate import PositionMisfitWarning
+from casep.calibration.calibrate import PositionMisfitWarning, TimeGapWarning, calibrate_files
+from casep.calibration.session import Session, read_session
 from casep.calibration.simulate import ferraris_design, simulate_session
+from casep.cli import main
+from casep.units import G0
 
 # a platform36 truth of typical magnitudes (the six positions cannot separate the cross-quadratic terms: 0)
 PLATFORM = dict(Kg0x=2.0, Kg1x=1.0, Kg0y=-3.0, Kg0z=1.5, Ka0x=-2, Ka1x=0.5, Ka1xy=50, Ka1xz=50, Ka2x=5, Ka0y=-2,
@@ -52,3 +59,117 @@ def test_six_positions_estimate_the_position_error_with_the_rank_not_the_columns
     pooled = float(np.sqrt(np.mean(np.square(est))))
     assert 0.5 * np.sqrt(0.30) < pooled < 0.5 * np.sqrt(2.0), est
     assert "3 degrees of freedom" in cal.report()
+
+
+# ------------------------------------------------------------------ session files
+def ferraris_truth(model, seed=1, scale=200.0):
+    """Raw-reading truth: `scale` reading units per m/s^2 on the accelerometer diagonal."""
+    rng = np.random.default_rng(seed)
+    truth = dict(zip(model.names, rng.normal(size=model.n_coefficients)))
+    for i, a in enumerate("xyz"):
+        truth[f"Ma_{a}{a}"] = scale + i
+        truth[f"Mg_{a}{a}"] = 16.0 + i  # reading units per deg/s
+    return truth
+
+
+def _write(tmp_path, ses, segs, t=None, name="s.csv"):
+    """The session as CSV with a `t` column, and imucal's section list (row positions, end excluded)."""
+    df = pd.DataFrame({"t": ses.t if t is None else t, **{f"acc_{a}": ses.acc[:, i] for i, a in enumerate("xyz")},
+                       **{f"gyr_{a}": ses.gyr[:, i] for i, a in enumerate("xyz")}})
+    path = tmp_path / name
+    df.to_csv(path, index=False)
+    seg_path = tmp_path / f"{name}.segments.json"
+    seg_path.write_text(json.dumps({s.name: {"start": int(s.rows[0]), "end": int(s.rows[-1]) + 1} for s in segs}))
+    return path, seg_path
+
+
+def _drop(ses, segs, drop):
+    """The session without the rows `drop` (positions), its t kept: gaps in time; segments renumbered."""
+    keep = np.ones(ses.n_samples, dtype=bool)
+    keep[drop] = False
+    new = np.cumsum(keep) - 1  # old position -> new position
+    s2 = Session(t=ses.t[keep], acc=ses.acc[keep], gyr=ses.gyr[keep], rate=ses.rate, source=ses.source,
+                 acc_unit=ses.acc_unit, gyr_unit=ses.gyr_unit)
+    return s2, [dataclasses.replace(s, rows=new[s.rows[keep[s.rows]]]) for s in segs]
+
+
+# ------------------------------------------------------------------ D2: samples missing inside a turn
+def test_samples_missing_inside_a_turn_are_integrated_over_t_and_warned(ferraris, tmp_path):
+    """Every 10th sample of x_rot deleted, t kept: the turn integral on the recorded times recovers the gyro
+    scale (noise-free: to the rectangle rule's error), and a TimeGapWarning names the segment. Summing the
+    remaining samples / rate gave Mg_xx 10 % low."""
+    truth = ferraris_truth(ferraris)
+    ses, segs = simulate_session(ferraris, truth, ferraris_design(60, 200), rate=100.0)
+    xrot = next(s for s in segs if s.name == "x_rot")
+    ses2, segs2 = _drop(ses, segs, xrot.rows[5::10])
+    with pytest.warns(TimeGapWarning, match=r"segment `x_rot`.*20 gap\(s\).*about 20 samples missing"):
+        cal = calibrate(ses2, segs2, ferraris)
+    assert abs(cal.value("Mg_xx") / truth["Mg_xx"] - 1.0) < 2e-3, cal.value("Mg_xx")
+    assert abs(cal.value("Mg_yy") / truth["Mg_yy"] - 1.0) < 1e-9  # untouched turns: exact
+    # from a file: the t column carries the gaps
+    path, seg = _write(tmp_path, ses2, segs2)
+    with pytest.warns(TimeGapWarning, match="x_rot"):
+        cal = calibrate_files(path, segments=seg, model=ferraris)
+    assert abs(cal.value("Mg_xx") / truth["Mg_xx"] - 1.0) < 2e-3
+
+
+# ------------------------------------------------------------------ D3: --rate against the t column
+def test_rate_that_contradicts_the_t_column_is_refused(ferraris, tmp_path, capsys):
+    truth = ferraris_truth(ferraris)
+    ses, segs = simulate_session(ferraris, truth, ferraris_design(60, 100), rate=50.0)
+    path, seg = _write(tmp_path, ses, segs)
+    with pytest.raises(ValueError, match=r"--rate 100 Hz disagrees with the `t` column.* 50 Hz"):
+        read_session(path, rate=100.0)
+    out = tmp_path / "o.json"
+    assert main(["calibrate", str(path), "--rate", "100", "--segments", str(seg), "--json", str(out)]) == 2
+    assert "--rate 100 Hz disagrees" in capsys.readouterr().err and not out.exists()
+    # within 1 %: accepted, and the gyro scale is right (the turn integral runs on t)
+    cal = calibrate_files(path, rate=50.4, segments=seg, model=ferraris)
+    assert abs(cal.value("Mg_zz") / truth["Mg_zz"] - 1.0) < 1e-6
+    assert read_session(path).rate == pytest.approx(50.0)
+
+
+# ------------------------------------------------------------------ D4: units
+def test_unknown_unit_is_refused_and_the_coefficient_units_follow_the_given_one(ferraris, tmp_path, capsys):
+    truth = ferraris_truth(ferraris, scale=1000.0 / G0)  # mg per m/s^2: the readings are in mg
+    ses, segs = simulate_session(ferraris, truth, ferraris_design(60, 100), rate=100.0)
+    path, seg = _write(tmp_path, ses, segs)
+    out, imu = tmp_path / "o.json", tmp_path / "i.json"
+    for flag in ("--acc-unit", "--gyr-unit"):
+        assert main(["calibrate", str(path), "--segments", str(seg), flag, "furlong", "--json", str(out),
+                     "--imucal", str(imu)]) == 2
+        err = capsys.readouterr().err
+        assert f"{flag} `furlong` is not a known unit" in err and "a.u." in err, err
+        assert ("m/s^2, g, mg" if flag == "--acc-unit" else "rad/s, deg/s, deg/h") in err
+        assert not out.exists() and not imu.exists()
+    assert main(["calibrate", str(path), "--segments", str(seg), "--acc-unit", "mg", "--gyr-unit", "deg/s",
+                 "--json", str(out), "--imucal", str(imu)]) == 0
+    cal = calibrate_files(path, segments=seg, model=ferraris, acc_unit="mg", gyr_unit="deg/s")
+    units = dict(zip(cal.names, cal.result.units))
+    assert units["ba_x"] == "mg" and units["Ma_xy"] == "mg/(m/s^2)"
+    assert units["bg_x"] == "deg/s" and units["Kga_xy"] == "deg/s/(m/s^2)"
+    assert "a.u." not in cal.report().split("\n\n")[0]
+    assert json.loads(imu.read_text())["from_acc_unit"] == "mg"
+
+
+# ------------------------------------------------------------------ D5: readings of the wrong physical unit
+def test_static_readings_far_from_gravity_in_a_physical_unit_are_refused(platform_ground, ferraris, tmp_path, capsys):
+    ses, segs = simulate_session(platform_ground, PLATFORM, ferraris_design(60, 100), rate=100.0)
+    cal = calibrate(ses, segs, platform_ground)  # m/s^2 as declared: accepted
+    assert cal.result.success
+    for factor, declared, says in ((1.0 / G0, "m/s^2", "look like g: --acc-unit g"),
+                                   (1000.0, "m/s^2", "raw counts?"),
+                                   (1.0, "mg", "look like m/s^2: --acc-unit m/s^2")):
+        bad = Session(t=ses.t, acc=ses.acc * factor, gyr=ses.gyr, rate=ses.rate, acc_unit=declared,
+                      gyr_unit="rad/s", source="s.csv")
+        with pytest.raises(ValueError, match=r"segment `x_p`.*x gravity.*more than 10% off"):
+            calibrate(bad, segs, platform_ground)
+        with pytest.raises(ValueError, match=re.escape(says)):
+            calibrate(bad, segs, platform_ground)
+    # the same from the command line, with the raw-readings model: exit 2, nothing written
+    raw = Session(t=ses.t, acc=ses.acc * 1000.0, gyr=ses.gyr * 57.3, rate=ses.rate)
+    path, seg = _write(tmp_path, raw, segs)
+    out = tmp_path / "o.json"
+    assert main(["calibrate", str(path), "--segments", str(seg), "--acc-unit", "m/s^2", "--json", str(out)]) == 2
+    assert "x gravity" in capsys.readouterr().err and not out.exists()
+    assert main(["calibrate", str(path), "--segments", str(seg), "--json", str(out)]) == 0  # a.u.: any scale

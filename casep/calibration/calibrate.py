@@ -39,19 +39,18 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from casep.calibration.model import CalibrationModel
-from casep.calibration.session import Segment, Session
+from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Segment, Session
 from casep.exceptions import CasepWarning
 from casep.units import G0
 
 __all__ = ["Calibration", "calibrate", "load_calibration_model", "calibration_models",
-           "calibration_model_dirs", "calibrate_files", "RotationSignWarning", "PositionMisfitWarning", "WEIGHTINGS",
-           "ACC_UNITS", "GYR_UNITS"]
+           "calibration_model_dirs", "calibrate_files", "RotationSignWarning", "PositionMisfitWarning",
+           "TimeGapWarning", "WEIGHTINGS", "ACC_UNITS", "GYR_UNITS"]
 
 #: Row weighting of the static segments (module notes).
 WEIGHTINGS = ("positions", "segments", "samples")
-#: Session units a ``readings="si"`` model converts from: unit -> SI factor.
-ACC_UNITS = {"m/s^2": 1.0, "g": G0, "mg": 1e-3 * G0}
-GYR_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "deg/h": math.pi / 180.0 / 3600.0}
+#: A static segment's |mean specific force| may differ from gravity by this fraction (physical units).
+GRAVITY_TOLERANCE = 0.10
 _SENSOR = {"accel_reading": "accelerometer", "gyro_reading": "gyro"}
 #: Methods whose noise model runs along time (AR(1), MA): meaningless on segment rows.
 TIME_SERIES_METHODS = ("gls", "rels")
@@ -65,6 +64,10 @@ class RotationSignWarning(CasepWarning):
 
 class PositionMisfitWarning(CasepWarning):
     """A static segment misfits the model far more than the others (segment and numbers)."""
+
+
+class TimeGapWarning(CasepWarning):
+    """Samples are missing inside a turn (segment, gaps, samples missing): integrated over the recorded times."""
 
 
 # ------------------------------------------------------------------ models
@@ -251,18 +254,74 @@ def _noise(segs: Sequence[Segment], u: np.ndarray) -> np.ndarray:
     return np.sqrt(ss / max(dof, 1))
 
 
-def _rotation_row(model, slot, seg: Segment, u: np.ndarray, g: float, rate: float):
-    """(y, J, T) of a rotation segment: the integral over the turn (module notes)."""
+def _steps(seg: Segment, t: np.ndarray, rate: float) -> np.ndarray:
+    """The time each sample of a segment stands for, s: the step to the next sample, the last one 1 / rate."""
+    return np.append(np.diff(t[seg.rows]), 1.0 / rate)
+
+
+def _rotation_row(model, slot, seg: Segment, u: np.ndarray, g: float, rate: float, t: np.ndarray):
+    """(y, J, T, dt) of a rotation segment: the integral over the turn (module notes)."""
     assert seg.angle_deg is not None and seg.axis is not None  # a rotation segment has both
     f = g * seg.gravity
     theta = np.deg2rad(seg.angle_deg) * seg.axis  # rad
-    T = len(seg.rows) / rate
+    # int u dt by the rectangle rule on the recorded times: u_i (t_{i+1} - t_i), the last sample 1 / rate
+    # (evenly sampled: imucal's sum / rate; samples missing inside the turn do not shorten it)
+    dt = _steps(seg, t, rate)
+    T = float(dt.sum())
     z = np.zeros(3)
-    integral = u[seg.rows].sum(axis=0) / rate  # int u dt, the rectangle rule (imucal's sum / rate)
+    integral = (u[seg.rows] * dt[:, None]).sum(axis=0)
     y0 = T * model.known(slot, f, z) + (model.known(slot, f, theta) - model.known(slot, f, z))
     J0 = model.jacobian(slot, f, z)
     J = T * J0 + (model.jacobian(slot, f, theta) - J0)
-    return integral - y0, J, T
+    return integral - y0, J, T, dt
+
+
+def _unit_text(model: CalibrationModel, session: Session) -> list[str]:
+    """The coefficients' unit text: a raw-readings model's ``a.u.`` is the session's unit of that sensor."""
+    units = list(model.units)
+    if model.readings != "raw":
+        return units
+    for slot, unit in (("accel_reading", session.acc_unit), ("gyro_reading", session.gyr_unit)):
+        if slot in model.slots and unit != RAW_UNIT:
+            for j in model.columns(slot):
+                units[j] = units[j].replace(RAW_UNIT, unit)
+    return units
+
+
+def _check_gravity(segs: Sequence[Segment], session: Session, gravity: float) -> None:
+    """Refuse readings in a physical unit whose static |mean| is off gravity by more than GRAVITY_TOLERANCE.
+
+    A static accelerometer senses ``|f| = g``; a mean far from it in the declared unit is a unit mistake
+    (raw counts declared as m/s^2, g as m/s^2, ...): the units that would give g are named.
+    """
+    unit = session.acc_unit
+    if unit not in ACC_UNITS:
+        return  # raw counts: any scale
+    for s in segs:
+        if s.kind != "static":
+            continue
+        raw = float(np.linalg.norm(session.acc[s.rows].mean(axis=0)))  # |mean|, declared unit
+        m = raw * ACC_UNITS[unit]  # m/s^2
+        if abs(m / gravity - 1.0) <= GRAVITY_TOLERANCE:
+            continue
+        fits = [u for u, k in ACC_UNITS.items() if u != unit and abs(raw * k / gravity - 1.0) <= GRAVITY_TOLERANCE]
+        hint = (f"the readings look like {' or '.join(fits)}: --acc-unit {fits[0]}" if fits else
+                f"raw counts? Use: --acc-unit {RAW_UNIT} with a raw-readings model (ferraris)")
+        raise ValueError(f"{session.source}: {s.where}: the static accelerometer mean has |f| = {raw:.6g} {unit} = "
+                         f"{m:.6g} m/s^2, {m / gravity:.4g} x gravity ({gravity:.6g} m/s^2; more than "
+                         f"{GRAVITY_TOLERANCE:.0%} off): {hint}")
+
+
+def _check_gaps(rots: Sequence[Segment], t: np.ndarray, rate: float) -> None:
+    """TimeGapWarning for a turn whose time steps exceed 1.5 / rate (samples missing)."""
+    for s in rots:
+        step = np.diff(t[s.rows])
+        gaps = step > 1.5 / rate
+        if gaps.any():
+            missing = int(np.round(step[gaps] * rate).sum()) - int(gaps.sum())
+            warnings.warn(f"{s.where}: {int(gaps.sum())} gap(s) in time inside the turn (largest {step.max():.4g} s "
+                          f"against the {1.0 / rate:.4g} s step; about {missing} samples missing): the turn is "
+                          "integrated over the recorded times", TimeGapWarning, stacklevel=3)
 
 
 def _check_positions(segs: Sequence[Segment], acc: np.ndarray, unit: str) -> None:
@@ -368,10 +427,13 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         raise ValueError(f"method `{method}` models noise correlated in time; the rows of a ground test (segment "
                          "means, turn integrals) have no time order. Use: another method")
     acc, gyr, acc_unit, gyr_unit = _readings(session, model)
+    _check_gravity(segments, session, gravity)
     _check_positions(segments, acc, acc_unit)
     static = [s for s in segments if s.kind == "static"]
     rots = [s for s in segments if s.kind == "rotation"]
     rate = session.rate
+    _check_gaps(rots, session.t, rate)
+    units = _unit_text(model, session)
     seg_info: dict[str, dict[str, Any]] = {
         s.name: {"name": s.name, "kind": s.kind, "rows": [int(s.rows[0]), int(s.rows[-1])], "samples": len(s.rows),
                  "misfit": {}} for s in segments}
@@ -411,10 +473,10 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         n_static = len(rows_S)
         if slot == "gyro_reading":
             for s in rots:
-                y, J, T = _rotation_row(model, slot, s, u, gravity, rate)
+                y, J, T, dt = _rotation_row(model, slot, s, u, gravity, rate, session.t)
                 rows_S.append(J[:, cols])
                 rows_y.append(y)
-                rows_sd.append(s_i * math.sqrt(len(s.rows)) / rate)  # white noise integrated over the turn
+                rows_sd.append(s_i * math.sqrt(float(dt @ dt)))  # white noise integrated: s sqrt(sum dt^2)
                 rows_seg.append((s.name, 1))
                 rows_t.append(session.t[s.rows].mean())
         S = np.vstack([np.atleast_2d(x).reshape(-1, len(cols)) for x in rows_S])
@@ -458,7 +520,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
             level = _ls_sigma(Sw, yw)
         m3 = S.shape[0] // 3  # observations of three rows (x, y, z) each
         pb = Problem.from_arrays(Sw.reshape(m3, 3, len(cols)), yw.reshape(m3, 3),
-                                 np.asarray(rows_t, dtype=float), names=names, units=[model.units[j] for j in cols],
+                                 np.asarray(rows_t, dtype=float), names=names, units=[units[j] for j in cols],
                                  si_factors=model.si_factors[cols], model=model.name)
         opts = {k: v for k, v in options.items() if v is not None}
         for key in ("prior", "bounds"):
@@ -526,7 +588,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     # worst of the two: a failure (<= 0) if either failed, else 2 (some not identifiable) over 1
     status = min(r.status for r in parts) if any(r.status <= 0 for r in parts) else max(r.status for r in parts)
     res_all = EstimateResult(
-        method=method, names=model.names, units=model.units, estimate=est, std=std, covariance=cov,
+        method=method, names=model.names, units=tuple(units), estimate=est, std=std, covariance=cov,
         reasons=reasons, residuals=np.zeros((0, 3)), sigma=math.nan, rank=sum(r.rank for r in parts),
         status=status, message="; ".join(f"{k}: {r.message}" for k, r in sensors.items()),
         success=all(r.success for r in parts), si_factors=model.si_factors,
