@@ -80,7 +80,7 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.workflows.radar": ("separate_radar", "diagnose_radar"),
     "casep.exceptions": ("CasepWarning", "IllConditionedWarning", "NoiseFreeWarning", "OutlierWarning",
                          "PlausibilityWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning",
-                         "NoiseLevelWarning"),
+                         "NoiseLevelWarning", "ConsistencyWarning"),
 }
 __getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), (
     "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units",
@@ -130,6 +130,7 @@ __all__ = [
     "IllConditionedWarning",
     "PlausibilityWarning",
     "TimeOffsetWarning",
+    "ConsistencyWarning",
     "OutlierWarning",
     "NoiseFreeWarning",
     "LateStartWarning",

@@ -73,6 +73,17 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _rate(text: str) -> float:
+    """A sample rate, Hz: (0, casep.simulation.scenarios.MAX_RATE_HZ]."""
+    from casep.simulation.scenarios import check_rate
+
+    v = _positive_float(text)
+    try:
+        return check_rate(v, "rate")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("rate ")) from None
+
+
 def _ranged(name: str):
     """Argparse type for the common option `name` (``sigma``) of :data:`casep.estimators._base.OPTION_RANGES`:
     the API's check and message."""
@@ -172,9 +183,11 @@ def _add_noise(parser, *, outputs: bool = True, default: str = "auto") -> None:
                    help=f"tracking noise (default {default}): auto (white or Gauss-Markov per axis by a "
                         "likelihood-ratio test, said in the output), gm (Gauss-Markov per axis, --tau or REML), white "
                         "(with separate, a whiteness test warns when the residuals contradict it)")
-    g.add_argument("--robust", nargs="?", const="huber", choices=("huber", "bisquare"), default=None,
+    g.add_argument("--robust", nargs="?", const="huber", choices=("auto", "huber", "bisquare", "none"),
+                   default="auto",
                    help="robust fit for any method: glitches removed by a robust filter on the innovations, the rest "
-                        "weighted (default function huber)")
+                        "weighted; --robust alone: huber; auto (default): huber when the filter finds more glitches "
+                        "than Gaussian noise explains (said in the output); none: never")
     if outputs:
         g.add_argument("--std", choices=("model", "hac"), default="model",
                        help="model (default) or hac: Newey-West std of a white-noise ols fit")
@@ -194,33 +207,51 @@ def _noise_kw(args: argparse.Namespace, opts: dict) -> dict:
     return kw
 
 
-def _print_noise(res) -> None:
-    """The noise model, the robust fit and the removed samples, one line each."""
+def _noise_line(nd: dict) -> str:
+    """One line of a result's ``diagnostics["noise"]``."""
     from casep.analysis.noise import NoiseModel
 
+    axes = nd["axes"]
+    if "note" in nd:
+        return f"noise: {nd['note']}, tau {axes['x']['tau_s']:.3g} s ({nd['rule']})"
+    nm = NoiseModel(kind=nd["kind"], tau=tuple(axes[a]["tau_s"] for a in "xyz"),
+                    scale=tuple(axes[a]["scale"] for a in "xyz"), rule=nd["rule"],
+                    lr=tuple(axes[a]["lr"] for a in "xyz") if "lr" in axes["x"] else None,
+                    lr_scale=nd.get("lr_scale"), sigma=axes["x"].get("std_m_s"))
+    return nm.line()
+
+
+def _robust_line(rb: dict) -> str:
+    """One line of a result's ``diagnostics["robust"]``."""
+    places = ", ".join(r["where"] for r in rb.get("rejected", [])[:6])
+    auto = rb.get("automatic")
+    why = (f", automatic: the filter found {auto['glitches_found']} glitch(es) where Gaussian noise gives "
+           f"{auto['expected_from_noise']:.2g}" if auto else "")
+    more = ", ..." if rb["rejected_count"] > 6 else ""
+    return (f"robust ({rb['function']}{why}): {rb['rejected_count']} sample(s) rejected as glitches"
+            + (f": {places}{more}" if places else "")
+            + f", {rb['downweighted']} row(s) down-weighted, {rb['iterations']} iteration(s)")
+
+
+def _print_noise(res, joint: bool = False) -> None:
+    """The noise model, the robust fit, the removed samples and the gaps, one line each (per flight)."""
     nd = res.diagnostics.get("noise")
+    if joint:
+        for label, d in (nd or {}).items():
+            print(f"{label}: {_noise_line(d)}")
+            if d.get("robust"):
+                print(f"{label}: {_robust_line(d['robust'])}")
+        return
     if nd:
-        if "note" in nd:
-            print(f"noise: {nd['note']}, tau {nd['axes']['x']['tau_s']:.3g} s ({nd['rule']})")
-        else:
-            axes = nd["axes"]
-            nm = NoiseModel(kind=nd["kind"], tau=tuple(axes[a]["tau_s"] for a in "xyz"),
-                            scale=tuple(axes[a]["scale"] for a in "xyz"), rule=nd["rule"],
-                            lr=tuple(axes[a]["lr"] for a in "xyz") if "lr" in axes["x"] else None,
-                            lr_scale=nd.get("lr_scale"),
-                            sigma=axes["x"].get("std_m_s"))
-            print(nm.line())
+        print(_noise_line(nd))
     rb = res.diagnostics.get("robust")
     if rb:
-        times = ", ".join(r["where"] for r in rb["rejected"][:6])
-        print(f"robust ({rb['function']}): {rb['rejected_count']} sample(s) rejected as glitches"
-              + (f": {times}{', ...' if rb['rejected_count'] > 6 else ''}" if times else "")
-              + f", {rb['downweighted']} row(s) down-weighted, {rb['iterations']} iteration(s)")
+        print(_robust_line(rb))
     ex = res.diagnostics.get("excluded")
     if ex:
-        times = ", ".join(f"{r['where']} {r['axis']}" for r in ex["samples"][:6])
+        places = ", ".join(f"{r['where']} {r['axis']}" for r in ex["samples"][:6])
         print(f"excluded: {ex['count']} sample(s) flagged at alpha {ex['alpha']:g} removed and the fit repeated"
-              + (f": {times}{', ...' if ex['count'] > 6 else ''}" if times else ""))
+              + (f": {places}{', ...' if ex['count'] > 6 else ''}" if places else ""))
     gaps = res.diagnostics.get("gaps")
     if gaps:
         parts = ", ".join(f"{g['length']:.3g} s before {g['where']}" for g in gaps[:6])
@@ -276,7 +307,7 @@ def _manifest(args: argparse.Namespace):
     return man
 
 
-def _add_grid(parser) -> None:
+def _add_grid(parser, manifest: bool = True) -> None:
     parser.add_argument("--grid", choices=("tracking", "telemetry"), default="tracking",
                         help="with --tracking: form dv at the tracking times (default: one row per tracking "
                              "sample, white noise, honest std) or at the telemetry times (tracking interpolated: "
@@ -289,9 +320,11 @@ def _add_grid(parser) -> None:
                         help="with --tracking: how the time scales relate, tracking time minus telemetry time "
                              "(tracking in seconds of day, telemetry from lift-off at 12:00:00: 43200); default 0 "
                              "(one scale)")
-    parser.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
-                        help="TOML manifest listing each flight's telemetry, tracking, frame, site, launch time and "
-                             "time shift (docs/guide/range-data.md), instead of the flight files and these options")
+    if manifest:  # impact has its own (a manifest of one flight, with its result)
+        parser.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
+                            help="TOML manifest listing each flight's telemetry, tracking, frame, site, launch time "
+                                 "and time shift (docs/guide/range-data.md), instead of the flight files and these "
+                                 "options")
 
 
 def _finite_float(text: str) -> float:
@@ -301,6 +334,13 @@ def _finite_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
     if not math.isfinite(v):
         raise argparse.ArgumentTypeError(f"must be finite, got {text}")
+    return v
+
+
+def _positive_int(text: str) -> int:
+    v = _order(text)
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text}")
     return v
 
 
@@ -367,7 +407,7 @@ def _add_simulate_frames(parser) -> None:
                         help="with --rotating-earth: ecef or geodetic writes two files, the telemetry (-o: t, f_*, "
                              "v_tel_*, a_*) and the tracking in that frame (--tracking-output); default launch: the "
                              "one-file flight")
-    parser.add_argument("--tracking-rate", type=_positive_float, default=20.0, metavar="HZ",
+    parser.add_argument("--tracking-rate", type=_rate, default=20.0, metavar="HZ",
                         help="with --tracking-frame ecef|geodetic: tracking sample rate (default 20)")
     parser.add_argument("--tracking-output", metavar="FILE", default=None,
                         help="with --tracking-frame ecef|geodetic: tracking file (default <stem>.tracking<suffix>)")
@@ -455,19 +495,18 @@ def _coefficient_file(args: argparse.Namespace, option: str, names) -> dict | No
     if not path:
         return None
     data = read_json_table(path, f"--{option}")
+    from casep.io.result_json import looks_like_result
+
     if option == "prior" and "calibration" in data:  # a ground calibration: the flight model's coefficients
         from casep.calibration.consistency import ground_prior
 
         data = ground_prior(data, getattr(args, "model", None) or "platform36")
-    elif option == "prior" and "coefficients" in data and "covariance" in data:  # a result JSON: its posterior
+    elif option == "prior" and looks_like_result(data):  # a result file (any form): its posterior
         from casep.estimators.map import prior_from_result
-        from casep.estimators.result import EstimateResult
+        from casep.estimators.result import read_result
 
-        res = EstimateResult.from_json(data)
         model = getattr(args, "model", None)
-        if res.model and model and Path(str(model)).stem != res.model:
-            raise ValueError(f"--prior {path}: a result of model `{res.model}`, but the model here is "
-                             f"`{Path(str(model)).stem}`; use a result of the same model")
+        res, model = read_result(path, model, option="--prior")
         data = prior_from_result(res, model=model)  # per-flight coefficients (dt_trk) left flat
     {"bounds": parse_bounds, "prior": parse_prior}[option](data, names, source=f"--{option} {path}")
     return data
@@ -531,7 +570,7 @@ def _parser() -> argparse.ArgumentParser:
     g = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
     g.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
     g.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    g.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
+    g.add_argument("--rate", type=_rate, default=None, help="sample rate, Hz (default: scenario's)")
     g.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="flight file (.csv, or .parquet); truth goes to <stem>.truth.json beside it")
     g.add_argument("--model", default=None, help="error model to inject, name or .py file (default: the scenario's)")
@@ -568,13 +607,14 @@ def _parser() -> argparse.ArgumentParser:
     nz.add_argument("flight", nargs="?", help="flight file (or telemetry file with --tracking)")
     nz.add_argument("--tracking", metavar="FILE", default=None, action="append", help="tracking file (two-file input)")
     _add_grid(nz)
+    _add_frames(nz)  # --tracking-frame, --launch-site, --launch-time
     nz.add_argument("--model", default="platform36", help="model name or .py file (default platform36)")
     nz.add_argument("--json", metavar="OUT", default=None, help="write the Allan deviation and the fits here")
     nz.add_argument("--figures", metavar="DIR", default=None, help="write allan.png into DIR (created)")
     dm = sub.add_parser("demo", help="the paper's scenario end to end: Table 1, figures, report")
     dm.add_argument("--out", metavar="DIR", default="casep-demo", help="output folder (default ./casep-demo)")
     dm.add_argument("--seed", type=_order, default=1, help="noise seed (default 1)")
-    dm.add_argument("--rate", type=_positive_float, default=100.0, help="sample rate, Hz (default 100)")
+    dm.add_argument("--rate", type=_rate, default=100.0, help="sample rate, Hz (default 100)")
     mc = sub.add_parser("montecarlo", help="seeded Monte Carlo of the estimators against the CRLB")
     mc.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
     mc.add_argument("--runs", type=_order, default=100, help="noise draws (default 100)")
@@ -582,7 +622,7 @@ def _parser() -> argparse.ArgumentParser:
                     help=f"comma-separated: {', '.join(METHODS)}, ridge:<lambda> (fixed), wavelet+<method> (de-noised "
                          "first) (default ols,rls,rels)")
     mc.add_argument("--seed", type=_order, default=0, help="root seed (default 0)")
-    mc.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
+    mc.add_argument("--rate", type=_rate, default=None, help="sample rate, Hz (default: scenario's)")
     mc.add_argument("--workers", type=_order, default=None,
                     help="Dask LocalCluster worker processes, one thread each (default: all cores; 1: runs in this "
                          "process)")
@@ -616,6 +656,7 @@ def _parser() -> argparse.ArgumentParser:
     fu.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
                     help="fuse the results the manifest lists (each flight's `result`), instead of RESULT.json files")
     fu.add_argument("--json", metavar="OUT", default=None, help="write the fused result JSON here")
+    fu.add_argument("--model", default=None, help="model name or .py file (default: the one the results name)")
     me = sub.add_parser("methods", help="list the estimators, their options and capabilities")
     me.add_argument("--json", action="store_true", help="print the registry as JSON")
     m = sub.add_parser("models", help="list the available error models")
@@ -708,8 +749,11 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     from casep.model.loader import load_model
     from casep.workflows.separate import separate
 
+    wopts = {k: v for k, v in (("wavelet", args.wavelet), ("level", args.level), ("rule", args.threshold_rule),
+                                ("mode", args.threshold_mode), ("extension", args.extension),
+                                ("scaling", args.noise_scaling)) if v is not None}
     if args.radar:
-        return _separate_radar(args)
+        return _separate_radar(args, wopts)
     _radar_only(args, ("tracking_model",))
     _manifest(args)  # --manifest FLIGHTS.toml, or the flight files
     check_outputs({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
@@ -722,9 +766,6 @@ def _cmd_separate(args: argparse.Namespace) -> int:
     opts = {k: v for k, v in given.items() if k not in ("bounds", "prior")}
     bounds = _coefficient_file(args, "bounds", model.names)
     prior = _coefficient_file(args, "prior", model.names)
-    wopts = {k: v for k, v in (("wavelet", args.wavelet), ("level", args.level), ("rule", args.threshold_rule),
-                                ("mode", args.threshold_mode), ("extension", args.extension),
-                                ("scaling", args.noise_scaling)) if v is not None}
     if wopts and args.denoise != "wavelet":
         raise ValueError(f"wavelet options ({', '.join(wopts)}) need --denoise wavelet")
     if len(args.flight) > 1:
@@ -800,6 +841,7 @@ def _separate_flights(args: argparse.Namespace, model, opts: dict, bounds, prior
     for w in caught:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     print(res.table())
+    _print_noise(res, joint=True)
     ov = summary["consistency"]["overall"]
     for f in summary["flights"]:
         print(f"{f['file']}: {f['n_samples']} samples, sigma {f['sigma']:.4g} m/s")
@@ -872,30 +914,36 @@ def _cmd_noise(args: argparse.Namespace) -> int:
 
 def _cmd_fuse(args: argparse.Namespace) -> int:
     """`casep fuse R1.json R2.json ...` (casep.workflows.flights.fuse)."""
-    from casep.estimators.result import EstimateResult, write_json_atomic
+    from casep.estimators.result import read_result, write_json_atomic
     from casep.io._atomic import check_outputs
-    from casep.io.files import read_json_table
     from casep.workflows.flights import fuse
 
     _manifest_results(args)  # --manifest: each flight's `result`
-    check_outputs({"--json": args.json}, inputs=list(args.results))
-    results = []
-    for path in args.results:
-        data = read_json_table(path, "RESULT")
-        if "coefficients" not in data or "covariance" not in data:
-            raise ValueError(f"{path}: not a casep result JSON with a covariance (casep separate --json)")
-        results.append(EstimateResult.from_json(data))
+    check_outputs({"--json": args.json}, inputs=list(args.results) + [args.model])
+    from casep.calibration.calibrate import calibration_models
     from casep.calibration.consistency import ground_versus_flight
+    from casep.estimators.result import result_from_data
+    from casep.io.result_json import read_result_data
 
+    grounds, results = set(calibration_models()), []
+    for path in args.results:  # every result form, checked against its model (or --model)
+        rd = read_result_data(path, "RESULT")
+        if rd.model in grounds:  # a ground calibration: mapped to its flight model below
+            results.append(result_from_data(rd))
+        else:
+            results.append(read_result(path, args.model, option="RESULT")[0])
     results, ground_text = ground_versus_flight(results, list(args.results))  # ground results: flight-model part
     if ground_text:
         print(ground_text + "\n")
-    res = fuse(results, labels=list(args.results))
+    res = fuse(results, labels=list(args.results), model=args.model)
     print(res.table())
+    c = res.diagnostics["consistency"]
+    ov = c["overall"]
+    print(f"consistency of the results: chi2 {ov['chi2']:.4g}, {ov['dof']} dof, p {ov['p_value']:.3g}")
     if args.json:
         write_json_atomic(res.to_dict(), args.json)
         print(f"result written to {args.json}")
-    return 0
+    return _result_status(res)
 
 
 def _diagnose_flights(args: argparse.Namespace, model, prior, scales) -> int:
@@ -1065,20 +1113,16 @@ def _radar_site(args: argparse.Namespace):
     return LaunchSite(*args.launch_site, args.launch_time)
 
 
-def _separate_radar(args: argparse.Namespace) -> int:
+def _separate_radar(args: argparse.Namespace, wavelet_options: dict) -> int:
     """`casep separate TEL --radar S1.json S1.csv ...`: instrument and station errors in one estimate."""
     from casep.estimators.result import write_json_atomic
     from casep.io._atomic import check_outputs
-    from casep.workflows.radar import separate_radar
+    from casep.workflows.radar import check_radar_options, separate_radar
 
-    for flag, value in (("--denoise wavelet", args.denoise == "wavelet" or None), ("--figures", args.figures),
-                        ("--mat", args.mat), ("--csv", args.csv), ("--outliers", args.outliers),
-                        ("--sigma", args.sigma), ("--noise gm", args.noise == "gm" or None),
-                        ("--robust", args.robust), ("--std hac", args.std == "hac" or None),
-                        ("--exclude-outliers", args.exclude_outliers)):
-        if value:
-            raise ValueError(f"{flag} is not available with --radar (noise: white per station and measurement type, "
-                             "sigma_range/sigma_angle in the station files, else estimated); leave it out")
+    # the options of separate() that do not apply with radar: one list (casep.workflows.radar.NOT_WITH_RADAR)
+    check_radar_options({"wavelet_options": wavelet_options, **{k: getattr(args, k) for k in (
+        "denoise", "outliers", "sigma", "noise", "robust", "std", "exclude_outliers")}}, cli=True,
+        outputs={"--figures": args.figures, "--mat": args.mat, "--csv": args.csv})
     check_outputs({"--json": args.json, "--report": args.report},
                   inputs=_inputs(args, "flight") + [f for pair in args.radar for f in pair])
     site = _radar_site(args)
@@ -1202,13 +1246,18 @@ def _impact_parser(sub) -> None:
                     "manifest flight's `result`)")
     im.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
                     help="a manifest of one flight: its telemetry file and (without --result) its `result`")
+    im.add_argument("--tracking", metavar="FILE", default=None, action="append",
+                    help="tracking file (two-file input, as for separate): Earth-fixed tracking (--tracking-frame "
+                         "ecef|geodetic) also gives the burnout position and velocity")
+    _add_grid(im, manifest=False)
+    _add_frames(im)
     im.add_argument("--trajectory", metavar="OTHER", default=None,
                     help="apply the result to another trajectory's S_V and burnout state (t, f_*, r_*, v_*)")
     im.add_argument("--model", default=None, help="model name or .py file (default: the result's)")
     im.add_argument("--per-flight", metavar="NAME=VALUE", action="append", default=None,
                     help="value (natural units) of a per-flight coefficient a several-flight result does not "
                          "hold (default 0); repeat for several")
-    im.add_argument("--top", type=_order, default=None, help="table: only the TOP largest contributions")
+    im.add_argument("--top", type=_positive_int, default=None, help="table: only the TOP (>= 1) largest contributions")
     im.add_argument("--json", metavar="OUT", default=None, help="write the impact JSON here")
     im.add_argument("--figures", metavar="DIR", default=None,
                     help="write miss_budget.png and impact_ellipse.png into DIR (created)")
@@ -1220,7 +1269,7 @@ def _cmd_impact(args: argparse.Namespace) -> int:
     from casep.io._atomic import check_outputs
 
     _impact_manifest(args)  # --manifest: the flight's file and result
-    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "result", "trajectory"),
+    check_outputs({"--json": args.json}, inputs=_inputs(args, "flight", "tracking", "result", "trajectory"),
                   folders={"--figures": args.figures})
     per_flight = {}
     for item in args.per_flight or ():
@@ -1231,7 +1280,11 @@ def _cmd_impact(args: argparse.Namespace) -> int:
             raise ValueError(f"--per-flight {item}: give NAME=VALUE (natural units)") from None
         if not eq or not math.isfinite(per_flight[name.strip()]):
             raise ValueError(f"--per-flight {item}: give NAME=VALUE with a finite value (natural units)")
-    flight = read_trajectory(args.flight)  # dv unused (a radar-tracked telemetry file has none)
+    if args.tracking:  # telemetry + tracking, with the frame options as for separate
+        flight = _read(args)
+    else:
+        _frame_options(args)  # --tracking-frame / --launch-site without --tracking: an error
+        flight = read_trajectory(args.flight)  # dv unused (a radar-tracked telemetry file has none)
     other = read_trajectory(args.trajectory) if args.trajectory else None
     a = impact_analysis(flight, args.result, args.model, other, per_flight=per_flight or None)
     if args.json:
@@ -1274,7 +1327,7 @@ def _design_parser(sub) -> None:
     de.add_argument("--knots", type=int, default=10, help="knots of the piecewise-linear offset (default 10)")
     de.add_argument("--starts", type=int, default=4, help="IPOPT starts (default 4)")
     de.add_argument("--seed", type=_order, default=0, help="seed of the random starts and of -o's noise (default 0)")
-    de.add_argument("--rate", type=_positive_float, default=None, help="sample rate, Hz (default: scenario's)")
+    de.add_argument("--rate", type=_rate, default=None, help="sample rate, Hz (default: scenario's)")
     de.add_argument("--prior", metavar="FILE", default=None,
                     help='prior JSON {"Kg0x": {"mean": m, "std": s}, ...} (natural units): Bayesian covariance')
     de.add_argument("--json", metavar="OUT", default=None, help="write the design JSON here")
@@ -1436,12 +1489,15 @@ def _cmd_montecarlo(args: argparse.Namespace) -> int:
         print(f"resumed {res.resumed} of {res.tasks} tasks from {args.out}" if res.resumed else
               f"{res.tasks} tasks, none resumed")
     print(res.summary())
-    if args.json:
-        res.write_json(args.json)
-    if args.csv:
-        res.write_csv(args.csv)
-    if args.figure:
-        write_figure(res, args.figure)
+    from casep.io._atomic import output_group
+
+    with output_group():  # the report files together or none (the --out store keeps its parts regardless)
+        if args.json:
+            res.write_json(args.json)
+        if args.csv:
+            res.write_csv(args.csv)
+        if args.figure:
+            write_figure(res, args.figure)
     for label, path in (("JSON", args.json), ("CSV", args.csv), ("figure", args.figure)):
         if path:
             print(f"{label} written to {path}")
@@ -1531,10 +1587,19 @@ def _cmd_models(args: argparse.Namespace) -> int:
             continue
         print(f"{name:<28} {model.n_coefficients:>3} coefficients  {model.description}")
         if args.verbose:
-            for nm, unit, own in zip(model.names, model.units, model.per_flight):
-                print(f"    {nm:<10} {unit}" + ("  (per flight)" if own else ""))
+            doc = getattr(model, "source_doc", "")
+            if doc:  # the model file's docstring: its equations and conventions
+                print("\n".join("    | " + line if line.strip() else "    |" for line in doc.splitlines()))
+            scales = model.scales
+            print(f"    {'coefficient':<12} {'unit':<10} {'magnitude':>10}  description")
+            for nm, unit, own, what in zip(model.names, model.units, model.per_flight, model.descriptions):
+                mag = f"{scales[nm]:.3g}" if nm in scales else "-"
+                note = "; ".join(x for x in (what, "per flight" if own else "") if x)
+                print(f"    {nm:<12} {unit:<10} {mag:>10}  {note}".rstrip())
             if model.signals:
                 print(f"    signals: {', '.join(model.signals)}")
+            if getattr(model, "source_file", None):
+                print(f"    file: {model.source_file}")
     if broken and broken == len(names):
         print(f"casep: error: none of the {broken} model files loads (see the warnings)", file=sys.stderr)
         return 2
@@ -1643,8 +1708,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "montecarlo": _cmd_montecarlo, "demo": _cmd_demo, "models": _cmd_models, "methods": _cmd_methods,
                 "fuse": _cmd_fuse, "impact": _cmd_impact, "noise": _cmd_noise, "design": _cmd_design,
                 "calibrate": _cmd_calibrate}
+    from contextlib import nullcontext
+
+    from casep.io._atomic import output_group
+
+    # All outputs of a command appear together or none (a failed second output leaves no first);
+    # not for montecarlo, whose --out folder keeps every finished part for a resume.
+    group = nullcontext() if args.command == "montecarlo" else output_group()
     try:
-        with warnings.catch_warnings(record=True) as caught:
+        with warnings.catch_warnings(record=True) as caught, group:
             warnings.simplefilter("always", CasepWarning)
             status = commands[args.command](args)
     except BrokenPipeError:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 __all__ = ["CasepWarning", "IllConditionedWarning", "PlausibilityWarning", "NoiseFreeWarning",
            "OutlierWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning", "NoiseLevelWarning",
-           "GapWarning", "NoiseNotWhiteWarning"]
+           "GapWarning", "NoiseNotWhiteWarning", "ConsistencyWarning"]
 
 
 class CasepWarning(UserWarning):
@@ -52,3 +52,8 @@ class GapWarning(CasepWarning):
 class NoiseNotWhiteWarning(CasepWarning):
     """A white-noise fit whose residuals are correlated: the message gives the test, its numbers
     and the factor by which the reported std are too small."""
+
+
+class ConsistencyWarning(CasepWarning):
+    """Results (or flights) combined into one estimate disagree beyond their std: the message gives
+    the chi-square, its degrees of freedom, the p-value and the coefficients that disagree most."""

@@ -169,7 +169,7 @@ def test_bad_option_files_exit_2(good_csv, tmp_path, capsys, content, args, expe
 
 
 @pytest.mark.parametrize("args, expect", [  # the argparse type is the registry's rule (Option.parse)
-    (["--method", "rls", "--forgetting", "1.5"], "argument --forgetting: must be float in (0, 1], got '1.5'"),
+    (["--method", "rls", "--forgetting", "1.5"], "argument --forgetting: must be float in [0.5, 1], got '1.5'"),
     (["--method", "rls", "--p0", "-1"], "argument --p0: must be float in (0, 1e+30], got '-1'"),
     (["--method", "ridge", "--lambda", "aic"], "argument --lambda: must be gcv | lcurve | float > 0, got 'aic'"),
     (["--method", "rels", "--noise-order", "-2"], "argument --noise-order: must be int >= 1, got '-2'"),
@@ -242,7 +242,7 @@ def test_out_of_range_option_api_same_message(paper_problem, platform36, capsys,
     assert (api if option == "sigma" else f"must be {OPTIONS[option].rule}, got '{value}'") in err
 
 
-@pytest.mark.parametrize("option", ["p0", "weight", "tau"])
+@pytest.mark.parametrize("option", ["p0", "weight", "tau", "forgetting"])
 def test_registry_rules_are_the_solvers_ranges(option):
     """One range per option: the registry's Interval (CLI) is the solvers' OPTION_RANGES entry."""
     from casep.estimators._base import OPTION_RANGES
@@ -391,7 +391,7 @@ def test_separate_help_has_one_group_per_method_set_from_the_registry(capsys):
         assert f"  {opt.flag} " in group, (name, takers)
         assert out.count(f"  {opt.flag} ") == 1
     flat = " ".join(out.split())  # help lines are wrapped
-    assert "rls / rels options:" in out and "float in (0, 1] (default 1)" in flat
+    assert "rls / rels options:" in out and "float in [0.5, 1] (default 1)" in flat
     assert "--bounds FILE box bounds and fixed values; JSON file {name: [lo, hi] | value} (required)" in flat
 
 

@@ -331,9 +331,10 @@ def test_huber_jointly_flags_an_outlier_in_one_flight_and_resists_it(two):
     dv = b.flight.dv.copy()
     dv[200:220, 1] += 100 * 0.2  # 20 samples 100 sigma off in flight 2
     bad = dataclasses.replace(b.flight, dv=dv)
-    ols, _ = _quiet(separate_flights, [a.flight, b.flight], a.model, "ols", noise="white")  # Huber in white noise
-    hub, _ = _quiet(separate_flights, [a.flight, bad], a.model, "huber", noise="white")
-    spoilt, _ = _quiet(separate_flights, [a.flight, bad], a.model, "ols", noise="white")
+    # Huber in white noise, against least squares without the robust filter
+    ols, _ = _quiet(separate_flights, [a.flight, b.flight], a.model, "ols", noise="white", robust="none")
+    hub, _ = _quiet(separate_flights, [a.flight, bad], a.model, "huber", noise="white", robust="none")
+    spoilt, _ = _quiet(separate_flights, [a.flight, bad], a.model, "ols", noise="white", robust="none")
     rows = hub.diagnostics["outliers"]["largest"]
     assert hub.diagnostics["outliers"]["count"] >= 20
     assert {(r["sample"], r["axis"]) for r in rows[:20]} == {(a.flight.n_observed + i, "y") for i in range(200, 220)}

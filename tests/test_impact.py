@@ -328,7 +328,7 @@ def test_cli_not_a_result_exit_2(files, tmp_path, capsys):
     p = tmp_path / "x.json"
     p.write_text('{"a": 1}')
     assert main(["impact", str(files / "flight.csv"), "--result", str(p)]) == 2
-    assert "not a casep result JSON" in capsys.readouterr().err
+    assert "not a result: missing field `coefficients`" in capsys.readouterr().err
 
 
 def test_lazy_names():

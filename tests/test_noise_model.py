@@ -247,15 +247,14 @@ def _study(range_problem, runs: int, glitches: float, robust: str | None, seed: 
     prior = {nm_: {"mean": 0.0, "std": 1.0} for nm_ in names}
     opts = {"map": {"prior": prior}, "rls": {"p0": 100.0}, "rels": {"p0": 100.0},
             "bounded": {"bounds": {"Ka0x": [-1e3, 1e3], "Ka0y": [-1e3, 1e3]}}}  # loose: never active
-    skip = {"huber", "gls"} if robust else set()  # huber is robust itself; gls is ols with one tau
-    out: dict[str, list] = {m: [] for m in METHODS if m not in skip}
+    out: dict[str, list] = {m: [] for m in METHODS}
     for k in range(runs):
         tr = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(k, 1))).standard_normal(36)
         pb = _draw(S, t, tr, np.random.SeedSequence(seed, spawn_key=(k,)), glitches=glitches)
         rows = prepare_rows(pb, "auto", robust=robust)
         for method in out:
-            if method == "gls":
-                res = solve_problem(pb, "gls").result
+            if method == "gls":  # its own tau, glitches removed first
+                res = solve_problem(pb, "gls", robust=robust).result
             else:
                 res = solve_problem(pb, method, opts.get(method), rows=rows).result
             ref = tr
@@ -268,17 +267,19 @@ def _study(range_problem, runs: int, glitches: float, robust: str | None, seed: 
 
 
 @pytest.mark.montecarlo
-@pytest.mark.parametrize("glitches, robust", [(0.0, None), (0.005, "huber")], ids=["gm-gaps", "gm-gaps-glitches"])
+@pytest.mark.parametrize("glitches, robust", [(0.0, "auto"), (0.005, "huber")],
+                         ids=["gm-gaps", "gm-gaps-glitches-robust"])
 def test_every_method_is_honest_in_gauss_markov_noise_with_gaps(range_problem, glitches, robust):
     """paper-range-gm rows from 60 to 150 s (20 Hz, tau 1 s, two dropouts), default noise 'auto': RMS z
     in [0.85, 1.15] and 95 % coverage in [0.92, 0.98] for every method (60 seeded draws); with 0.5 %
-    glitches of 2 m/s and robust='huber' the same (huber itself and gls take no robust option).
+    glitches of 2 m/s and robust='huber' the same (the default robust='auto' engages the same Huber fit on
+    such data: test_robust_fit_engages_by_itself_on_glitches_only).
     ``benchmarks/mc_noise.py`` runs the whole flight and more draws."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IllConditionedWarning)
         S, t, truth = range_problem
         window = (t >= 60.0) & (t <= 150.0)  # 90 s holding both dropouts, for time
-        stats = _study((S[window], t[window], truth), 60, glitches, robust, seed=31 if robust else 30)
+        stats = _study((S[window], t[window], truth), 60, glitches, robust, seed=31 if glitches else 30)
     bad = {}
     for m, z in stats.items():
         rms, cov = float(np.sqrt(np.mean(z**2))), float(np.mean(np.abs(z) <= 1.96))
@@ -308,8 +309,6 @@ def test_noise_options_refused_with_a_reason(range_problem):
         casep.separate(pb, noise="pink")
     with pytest.raises(ValueError, match="`robust` must be one of"):
         casep.separate(pb, robust="cauchy")
-    with pytest.raises(ValueError, match="huber` is robust already"):
-        casep.separate(pb, method="huber", robust="huber")
     with pytest.raises(ValueError, match="std='hac'"):
         casep.separate(pb, std="hac")  # noise auto: HAC is for white-noise fits
     with pytest.raises(ValueError, match="`tau` given with noise 'white'"):
@@ -362,3 +361,21 @@ def test_problem_rows_serve_any_solver(range_problem):
         via = casep.separate(pb, method="map", prior=prior, robust="huber")
     np.testing.assert_allclose(direct.estimate, via.estimate, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(direct.std, via.std, rtol=1e-10)
+
+
+def test_robust_fit_engages_by_itself_on_glitches_only(range_problem):
+    """Default robust='auto': the robust filter's rejections against what Gaussian noise gives."""
+    S, t, truth = range_problem
+    clean = _draw(S, t, truth, np.random.SeedSequence(12))
+    glitchy = _draw(S, t, truth, np.random.SeedSequence(12), glitches=0.005)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        a = casep.separate(clean)
+        b = casep.separate(glitchy)
+        with pytest.warns(casep.exceptions.OutlierWarning, match="--robust"):  # without the filter: said
+            c = casep.separate(glitchy, robust="none")
+    assert "robust" not in a.diagnostics
+    auto = b.diagnostics["robust"]["automatic"]
+    assert auto["glitches_found"] > auto["limit"] > auto["expected_from_noise"]
+    assert b.diagnostics["noise"]["axes"]["x"]["tau_s"] > 0.5  # not collapsed by the glitches
+    assert (c.diagnostics["noise"]["axes"]["x"]["tau_s"] or 0.0) < 0.3  # without the filter: collapsed

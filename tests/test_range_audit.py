@@ -88,7 +88,8 @@ def test_montecarlo_truth_prior_beyond_any_instrument_is_refused():
     """--truth-from-prior with std 1e308 printed nan; beyond 1e6 x the declared magnitude is refused too."""
     from casep.workflows.montecarlo import run_montecarlo
 
-    for std, message in ((1e308, r"`Kg0x`: draws reach \|mean\| \+ 6 std = inf deg/h"),
+    for std, message in ((1e308, r"`Kg0x`(: draws reach \|mean\| \+ 6 std = inf deg/h| std must be > 0, within "
+                                 r"\[1e-30, 1e\+30\])"),  # the prior reader's magnitude limit comes first
                          (1e5, r"`Kg0x`: draws reach \|mean\| \+ 6 std = 6e\+05 deg/h, beyond 1e\+06 x its declared "
                                r"magnitude 0\.5")):
         with pytest.raises(ValueError, match=message):

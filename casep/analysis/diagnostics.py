@@ -278,8 +278,8 @@ class Diagnostics:
         for j, (n, u) in enumerate(zip(self.names, self.units)):
             sd = self.crlb_std[j]
             sc = self.scales.get(n)
-            lines.append(f"{n:<12} {u:<10} {sd:>12.4g} {(f'{sc:.3g}' if sc else '-'):>10} "
-                         f"{self.vif[j]:>10.3g}  {self.identifiability[n]}"
+            lines.append(f"{n:<12} {u:<10} {_cell(sd, 12, '.4g')} {(f'{sc:.3g}' if sc else '-'):>10} "
+                         f"{_cell(self.vif[j], 10, '.3g')}  {self.identifiability[n]}"
                          + (f" ({self.reasons[n]})" if n in self.reasons else ""))
         counts = {k: sum(v == k for v in self.identifiability.values())
                   for k in ("identifiable", "weak", "unidentifiable")}
@@ -293,6 +293,11 @@ class Diagnostics:
             terms = " ".join(f"{'+' if w >= 0 else '-'} {abs(w):.3g} {n}" for n, w in cmb["combination"].items())
             lines.append(f"  {terms.lstrip('+ ')}   std {cmb['std']:.3g}")
         return "\n".join(lines)
+
+
+def _cell(v: float, width: int, fmt: str) -> str:
+    """A table cell: the number, or ``-`` where it does not exist (an unidentifiable coefficient's bound)."""
+    return f"{v:>{width}{fmt}}" if v is not None and np.isfinite(v) else "-".rjust(width)
 
 
 def _scales(names: Sequence[str], prior_std: np.ndarray | None, scales: Mapping | None) -> dict[str, float]:

@@ -17,7 +17,7 @@ classical estimable-function criterion), i.e. iff its row of ``V_null`` is zero.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable
+from typing import Iterable, Sequence
 
 import numpy as np
 
@@ -59,7 +59,19 @@ class ReducedSystem:
         return int(self.scale.size)
 
 
-def reduce_qr(S: np.ndarray, y: np.ndarray, *, block_rows: int = DEFAULT_BLOCK_ROWS) -> ReducedSystem:
+def _column(j: int, names: Sequence[str] | None) -> str:
+    """``column 2 (Kg1xy)``: the S column and, when known, its coefficient."""
+    return f"column {j}" + (f" ({names[j]})" if names is not None and j < len(names) else "")
+
+
+def _first_bad(S_blk: np.ndarray, names: Sequence[str] | None, row0: int) -> str:
+    """Where the first non-finite entry of an S block is: ``row r, column j (name)``."""
+    r, j = np.argwhere(~np.isfinite(S_blk.reshape(S_blk.shape[0], -1)))[0]
+    return f"`S` is not finite at row {row0 + int(r)}, {_column(int(j), names)}"
+
+
+def reduce_qr(S: np.ndarray, y: np.ndarray, *, block_rows: int = DEFAULT_BLOCK_ROWS,
+              names: Sequence[str] | None = None) -> ReducedSystem:
     """Column-scale ``S`` and reduce ``min ||y - S x||`` to an n x n triangular system.
 
     Parameters
@@ -97,8 +109,11 @@ def reduce_qr(S: np.ndarray, y: np.ndarray, *, block_rows: int = DEFAULT_BLOCK_R
         blk = S[s : s + block_rows]
         sq += np.einsum("ij,ij->j", blk, blk)
     if not np.all(np.isfinite(sq)):
-        j = int(np.flatnonzero(~np.isfinite(sq))[0])
-        raise ValueError(f"`S` column {j} is not finite")
+        for s in range(0, m, block_rows):
+            if not np.all(np.isfinite(S[s : s + block_rows])):
+                raise ValueError(_first_bad(S[s : s + block_rows], names, s))
+        j = int(np.flatnonzero(~np.isfinite(sq))[0])  # finite entries whose squares overflow
+        raise ValueError(f"`S` {_column(j, names)} is too large: its sum of squares overflows")
     scale = np.sqrt(sq)
     inv = np.where(scale > 0, 1.0 / np.where(scale > 0, scale, 1.0), 0.0)
     Racc = np.zeros((0, n + 1))
@@ -118,7 +133,8 @@ def reduce_qr(S: np.ndarray, y: np.ndarray, *, block_rows: int = DEFAULT_BLOCK_R
                          scale=scale, m=m)
 
 
-def reduce_qr_blocks(blocks: Iterable[tuple[np.ndarray, np.ndarray]], n: int) -> ReducedSystem:
+def reduce_qr_blocks(blocks: Iterable[tuple[np.ndarray, np.ndarray]], n: int,
+                     names: Sequence[str] | None = None) -> ReducedSystem:
     """:func:`reduce_qr` of a regression given block by block (rows never held whole).
 
     Parameters
@@ -145,7 +161,7 @@ def reduce_qr_blocks(blocks: Iterable[tuple[np.ndarray, np.ndarray]], n: int) ->
         if not np.all(np.isfinite(y_blk)):
             raise ValueError(f"`y` is not finite at row {m + int(np.flatnonzero(~np.isfinite(y_blk))[0])}")
         if not np.all(np.isfinite(S_blk)):
-            raise ValueError(f"`S` is not finite at row {m + int(np.flatnonzero(~np.isfinite(S_blk).all(axis=1))[0])}")
+            raise ValueError(_first_bad(S_blk, names, m))
         M = np.empty((Racc.shape[0] + S_blk.shape[0], n + 1))
         M[: Racc.shape[0]] = Racc
         M[Racc.shape[0]:, :n] = S_blk

@@ -560,7 +560,7 @@ class WhitenessTest:
                       "the right ones, some too large here; if the residuals are a model error (frames, time "
                       "tags, a missing term) no noise model makes the std right")
         return (f"residuals are not white ({parts}, Ljung-Box on {self.lags} lags){factor}. Use --noise auto "
-                "(or gm), or --std hac")
+                "(or gm)")
 
 
 def default_lags(n: int) -> int:

@@ -120,7 +120,7 @@ class Problem:
         names = tuple(f"c{j}" for j in range(n)) if names is None else tuple(names)
         units = ("",) * n if units is None else tuple(units)
         si = np.ones(n) if si_factors is None else np.asarray(si_factors, dtype=float)
-        return cls(names=names, units=units, si_factors=si, red=reduce_qr(S_arr, y_arr), y=y_arr, t=t,
+        return cls(names=names, units=units, si_factors=si, red=reduce_qr(S_arr, y_arr, names=names), y=y_arr, t=t,
                    model=model, S=S_arr, f=f)
 
     @classmethod
@@ -177,7 +177,7 @@ class Problem:
                       source=flight.source)
         if keep_sv:
             S = flight.observed_rows(builder.build(flight.t, flight.f, signals=signals))[0]
-            pb = cls(red=reduce_qr(S, dv), y=dv, t=t, S=S, f=f_obs, **common)
+            pb = cls(red=reduce_qr(S, dv, names=model.names), y=dv, t=t, S=S, f=f_obs, **common)
             pb._locate_flight = (flight, np.flatnonzero(obs))
             return pb
 
@@ -191,7 +191,8 @@ class Problem:
                     yield slice(k0, k1), S_obs, dv[k0:k1]
                 k0 = k1
 
-        red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in regenerate(block_rows)), model.n_coefficients)
+        red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in regenerate(block_rows)), model.n_coefficients,
+                               names=model.names)
         pb = cls(red=red, y=dv, t=t, regenerate=regenerate, f=f_obs, **common)
         pb._locate_flight = (flight, np.flatnonzero(obs))
         return pb
@@ -210,7 +211,7 @@ class Problem:
 
         new = Problem(names=self.names, units=self.units, si_factors=self.si_factors, red=self.red, y=y, t=self.t,
                       model=self.model, source=self.source, S=self._S, regenerate=regenerate, f=self.f)
-        new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n)
+        new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n, names=self.names)
         return new
 
     def subset(self, keep: np.ndarray) -> "Problem":

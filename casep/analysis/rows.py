@@ -27,9 +27,9 @@ import numpy as np
 
 from casep.analysis.noise import NoiseModel, check_noise_kind, fit_noise
 from casep.analysis.problem import Problem
-from casep.analysis.robust import ROBUST_FUNCTIONS, robust_filter
+from casep.analysis.robust import robust_filter
 
-__all__ = ["Rows", "prepare_rows", "NOISE_FREE"]
+__all__ = ["Rows", "prepare_rows", "NOISE_FREE", "ROBUST_CHOICES", "GLITCH_SIGMAS"]
 
 #: Residual RMS below this fraction of the RMS of dv: noise-free data, nothing to fit a noise model on.
 NOISE_FREE = 1e-9
@@ -102,7 +102,28 @@ def _ls(pb: Problem) -> tuple[np.ndarray, np.ndarray]:
     return np.where(ra.estimable, x, 0.0), np.where(ok, sd, np.inf)
 
 
-def prepare_rows(problem: Problem, noise: str = "auto", tau=None, robust: str | None = None,
+#: ``robust="auto"``: the robust fit engages when the robust filter rejects more samples than
+#: Gaussian noise explains: more than ``expected + GLITCH_SIGMAS sqrt(expected) + GLITCH_MIN``, with
+#: ``expected = N P(any axis |u| > 4)`` (Poisson; 0.7 on a 20 Hz, 200 s flight, so 8 trigger).
+GLITCH_SIGMAS = 4.0
+GLITCH_MIN = 3
+ROBUST_CHOICES = ("auto", "none", "huber", "bisquare")
+
+
+def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float]:
+    """(rejections of the robust filter on the least-squares residuals, the count Gaussian noise gives)."""
+    from scipy.stats import norm
+
+    from casep.analysis.robust import REJECT
+
+    assert problem.t is not None  # the caller checked
+    x, _ = _ls(_rows(problem, np.ones(problem.n_samples, dtype=bool), nm, None))
+    rw = robust_filter(problem.residuals(x), problem.t, nm)
+    expected = problem.n_samples * (1.0 - (1.0 - 2.0 * norm.sf(REJECT)) ** 3)
+    return int((~rw.keep).sum()), float(expected)
+
+
+def prepare_rows(problem: Problem, noise: str = "auto", tau=None, robust: str | None = "auto",
                  exclude_outliers: float | None = None) -> Rows:
     """The noise model, robust weights and removed samples of a problem (module notes).
 
@@ -113,26 +134,43 @@ def prepare_rows(problem: Problem, noise: str = "auto", tau=None, robust: str | 
     noise : {"auto", "gm", "white"}
     tau : float, three floats or None
         Given Gauss-Markov correlation time(s), s (``noise="gm"``).
-    robust : {None, "huber", "bisquare"}
+    robust : {"auto", None, "none", "huber", "bisquare"}
+        ``auto`` (default): Huber when the robust filter finds glitches (more rejections than
+        Gaussian noise explains: :data:`GLITCH_SIGMAS`), else none, and said in ``robust``;
+        None or ``none``: never.
     exclude_outliers : float, optional
         Family-wise false-alarm chance of the outlier flags whose samples are removed.
     """
     check_noise_kind(noise)
-    if robust is not None and robust not in ROBUST_FUNCTIONS:
-        raise ValueError(f"`robust` must be one of {', '.join(ROBUST_FUNCTIONS)}, got {robust!r}")
-    if noise != "white" and _noise_free(problem):
+    if robust is not None and robust not in ROBUST_CHOICES:
+        raise ValueError(f"`robust` must be one of {', '.join(ROBUST_CHOICES)} or None, got {robust!r}")
+    robust = None if robust == "none" else robust
+    noise_free = _noise_free(problem)
+    if noise != "white" and noise_free:
         nm = dataclasses.replace(NoiseModel.white(), kind=noise, rule="noise-free data: white")
     else:
         nm = fit_noise(problem, noise, tau)
     keep = np.ones(problem.n_samples, dtype=bool)
     weights = None
     robust_info = None
+    auto = None
+    if robust == "auto":
+        robust = None
+        if not noise_free and exclude_outliers is None and problem.t is not None and problem.y is not None \
+                and problem.y.ndim == 2:
+            found, expected = _glitches(problem, nm)
+            limit = expected + GLITCH_SIGMAS * np.sqrt(expected) + GLITCH_MIN
+            auto = {"glitches_found": found, "expected_from_noise": expected, "limit": float(limit)}
+            if found > limit:
+                robust = "huber"
     if robust is not None:
         nm, keep, weights, robust_info = _robust(problem, nm, noise, tau, robust)
+        if auto is not None:
+            robust_info["automatic"] = auto
     solved = _rows(problem, keep, nm, weights)
     excluded_info = None
     if exclude_outliers is not None:
-        solved, keep, excluded_info = _exclude(problem, solved, nm, keep, weights, exclude_outliers)
+        solved, keep, excluded_info, nm = _exclude(problem, solved, nm, keep, weights, exclude_outliers, noise, tau)
     return Rows(problem, solved, nm, keep, weights, robust_info, excluded_info, noise)
 
 
@@ -160,6 +198,8 @@ def _robust(problem, nm, noise, tau, function):
         history.append({"iteration": it, "rejected": int((~keep).sum()), "max_step_std": move})
         if not changed and move < 1e-3:
             break
+    if tau is not None and noise != "white" and not keep.all():  # given tau: the scales and sigma on the kept rows
+        nm = fit_noise(problem.subset(keep), noise, tau)
     sigma = _robust_sigma(rw, keep, function) if rw is not None else None
     info = {"function": function, "iterations": len(history), "rejected_count": int((~keep).sum()),
             "scale": rw.scale if rw is not None else None, "sigma_effective": sigma,
@@ -195,7 +235,7 @@ def _robust_sigma(rw, keep: np.ndarray, function: str) -> float | None:
     return float(rw.scale * np.sqrt(np.mean(psi**2) * np.mean(w)) / d)
 
 
-def _exclude(problem, solved, nm, keep, weights, alpha):
+def _exclude(problem, solved, nm, keep, weights, alpha, noise="auto", tau=None):
     """Remove the samples of flagged rows and prepare the rows again until nothing is flagged."""
     from casep.analysis.outliers import flag_outliers
 
@@ -218,8 +258,10 @@ def _exclude(problem, solved, nm, keep, weights, alpha):
             keep[k] = False
             removed.append({"sample": k, "t": float(problem.t[k]), "axis": worst[k]["axis"],
                             "t_value": float(worst[k]["t_value"])})
+        if noise != "white":  # the noise model of the kept samples: the removed ones had bent it
+            nm = fit_noise(problem.subset(keep), noise, tau)
         solved = _rows(problem, keep, nm, weights)
     info = {"alpha": alpha, "count": len(removed), "samples": removed}
-    return solved, keep, info
+    return solved, keep, info, nm
 
 

@@ -40,7 +40,23 @@ OPTION_RANGES: dict[str, tuple[float, float, bool, str]] = {
     # and 930 at 1e50 (garbage; the error grows like p0 * eps).
     "p0": (0.0, 1e30, False, "natural units^2; beyond it the RLS recursion loses its digits, and "
                              "1e14 already gives least squares on the paper flight"),
+    # The forgetting factor lambda keeps a memory of about 1 / (1 - lambda) samples: below 0.5 that is
+    # under two samples (nothing left to estimate 30-odd coefficients from), and P / lambda overflows
+    # to inf (NaN estimates) as lambda nears 1e-308. Useful values are 0.99 .. 1.
+    "forgetting": (0.5, 1.0, True, "a memory of about 1 / (1 - forgetting) samples; useful: 0.99 .. 1"),
 }
+
+
+#: Largest |mean| and std of a prior, and the inverse of the smallest std, natural units: beyond any
+#: instrument error in any unit, and the information 1/std^2 and its products stay finite.
+MAX_PRIOR_VALUE = 1e30
+
+
+def is_number(v) -> bool:
+    """A real number that is not a bool (JSON ``true`` is not a number; nor is ``"0.1"``)."""
+    import numbers
+
+    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
 
 
 def check_positive(name: str, value: float | None, *, allow_none: bool = True, allow_zero: bool = False,

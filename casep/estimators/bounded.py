@@ -29,7 +29,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from casep.estimators._base import finish, prepare
+from casep.estimators._base import MAX_PRIOR_VALUE, finish, is_number, prepare
 from casep.estimators.result import BoundedExtras, EstimateResult
 from casep.exceptions import CasepWarning
 from casep.model._model import unknown_coefficient_message
@@ -87,16 +87,22 @@ def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"
         if name not in names:
             raise ValueError(unknown_coefficient_message(name, names, source))
         j = list(names).index(name)
-        if isinstance(spec, (int, float)) and not isinstance(spec, bool):
+        if is_number(spec):
             a = b = float(spec)
         elif isinstance(spec, (list, tuple)) and len(spec) == 2:
-            try:
-                a = -np.inf if spec[0] is None else float(spec[0])
-                b = np.inf if spec[1] is None else float(spec[1])
-            except (TypeError, ValueError):
-                raise ValueError(f"{source}: `{name}` must be [lo, hi] with numbers or null, got {spec!r}") from None
+            for v in spec:  # strict: "1" or true is not a number
+                if v is not None and not is_number(v):
+                    raise ValueError(f"{source}: `{name}` must be [lo, hi] with numbers or null, got {spec!r} "
+                                     f"({type(v).__name__} {v!r})")
+            a = -np.inf if spec[0] is None else float(spec[0])
+            b = np.inf if spec[1] is None else float(spec[1])
         else:
             raise ValueError(f"{source}: `{name}` must be [lo, hi] or a number, got {spec!r}")
+        for side, v in (("lower", a), ("upper", b)):
+            if np.isfinite(v) and abs(v) > MAX_PRIOR_VALUE:
+                raise ValueError(f"{source}: `{name}` {side} bound {v:g} is beyond +-{MAX_PRIOR_VALUE:g} (natural "
+                                 "units): the solver cannot scale it; give null (or -Infinity / Infinity) for an "
+                                 "open side")
         if np.isnan(a) or np.isnan(b):
             raise ValueError(f"{source}: `{name}` has a NaN bound")
         # -Infinity below / Infinity above are open sides, like null; any other infinity is refused.
@@ -110,6 +116,10 @@ def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"
             raise ValueError(f"{source}: `{name}` has lo > hi ({a:g} > {b:g})")
         lo[j], hi[j] = a, b
     return lo, hi, lo == hi
+
+
+def _bound_text(v: float) -> str:
+    return "null" if not np.isfinite(v) else f"{v:g}"
 
 
 def solve_bounded(
@@ -168,7 +178,17 @@ def solve_bounded(
         warnings.filterwarnings("ignore", message="Solution may be inaccurate")  # handled below
         prob.solve(solver=cp.CLARABEL, tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10)
     if prob.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
-        raise RuntimeError(f"cvxpy/Clarabel bounded least squares failed: {prob.status}")
+        # A box is always feasible: "infeasible" here means bounds so far from the data, in the
+        # scaled coordinates the solver works in (unit-norm columns), that it cannot resolve them.
+        # Name the bounds farthest out; they are the input to fix.
+        far = np.where(np.isfinite(lo) | np.isfinite(hi),
+                       np.fmax(np.abs(np.where(np.isfinite(lo), lo * cs, 0.0)),
+                               np.abs(np.where(np.isfinite(hi), hi * cs, 0.0))), 0.0)
+        worst = [j for j in np.argsort(-far)[:3] if far[j] > 0]
+        named = "; ".join(f"{pb.names[j]} [{_bound_text(lo[j])}, {_bound_text(hi[j])}] {pb.units[j]}" for j in worst)
+        raise ValueError(f"bounded: the solver (cvxpy/Clarabel) reports the problem {prob.status}, although box bounds "
+                         f"always admit a solution: bounds too far from anything the data allow, for it to resolve. "
+                         f"Farthest out: {named}. Check their values and units (natural units)")
     lo_s = lo * cs
     hi_s = hi * cs
     zv, polished = _polish(R, pb.red.qty, np.asarray(z.value, dtype=float), lo_s, hi_s, fixed, pb.ra.rcond)

@@ -39,7 +39,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from casep.estimators._base import finish, prepare
+from casep.estimators._base import MAX_PRIOR_VALUE, finish, is_number, prepare
 from casep.estimators.result import EstimateResult, MAPExtras
 from casep.model._model import unknown_coefficient_message
 
@@ -72,14 +72,18 @@ def _parse(prior: Mapping, names: Sequence[str], source: str):
             raise ValueError(unknown_coefficient_message(name, names, source))
         if not isinstance(spec, Mapping) or "mean" not in spec or "std" not in spec:
             raise ValueError(f"{source}: `{name}` must be {{\"mean\": m, \"std\": s}}, got {spec!r}")
-        try:
-            m_, s_ = float(spec["mean"]), float(spec["std"])
-        except (TypeError, ValueError):
-            raise ValueError(f"{source}: `{name}` mean and std must be numbers, got {spec!r}") from None
-        if not np.isfinite(m_):
-            raise ValueError(f"{source}: `{name}` mean must be finite, got {m_}")
-        if np.isnan(s_) or s_ <= 0 or (np.isfinite(s_) and not np.isfinite(1.0 / s_)):
-            raise ValueError(f"{source}: `{name}` std must be > 0 (inf for no prior), got {s_:g}")
+        for key in ("mean", "std"):  # strict: true or "0.1" is not a number
+            if not is_number(spec[key]):
+                raise ValueError(f"{source}: `{name}` {key} must be a number, got {spec[key]!r} "
+                                 f"({type(spec[key]).__name__})")
+        m_, s_ = float(spec["mean"]), float(spec["std"])
+        if not np.isfinite(m_) or abs(m_) > MAX_PRIOR_VALUE:
+            raise ValueError(f"{source}: `{name}` mean must be finite and within +-{MAX_PRIOR_VALUE:g} (natural "
+                             f"units), got {m_:g}")
+        if np.isnan(s_) or s_ <= 0 or (np.isfinite(s_) and not 1.0 / MAX_PRIOR_VALUE <= s_ <= MAX_PRIOR_VALUE):
+            raise ValueError(f"{source}: `{name}` std must be > 0, within [{1.0 / MAX_PRIOR_VALUE:g}, "
+                             f"{MAX_PRIOR_VALUE:g}] (natural units; Infinity, or leaving the coefficient out, for no "
+                             f"prior), got {s_:g}")
         j = list(names).index(name)
         mu[j], tau[j] = m_, s_
     if corr is None:

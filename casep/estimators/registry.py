@@ -197,12 +197,14 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     # Ranges as casep.estimators._base.OPTION_RANGES (the solvers' own checks), with the reasons there.
     Option("p0", "--p0", 1e6, (Interval(float, 0, 1e30, "right"),), "P0 = p0 I, natural units (a prior variance)"),
     Option("weight", "--weight", 1.0, (Interval(float, 1e-12, 1e12),), "measurement weight w (variance 1/w)"),
-    Option("forgetting", "--forgetting", 1.0, (Interval(float, 0, 1, "right"),), "forgetting factor (stabilized)"),
+    Option("forgetting", "--forgetting", 1.0, (Interval(float, 0.5, 1, "both"),), "forgetting factor (stabilized)"),
     Option("noise_order", "--noise-order", 1, (Interval(int, 1),), "MA order of the noise model"),
     Option("lam", "--lambda", "gcv", (Choices(("gcv", "lcurve")), Interval(float, 0, None, "neither")),
            "ridge parameter on unit-norm columns, or its rule"),
     Option("bounds", "--bounds", None, (CoefficientTable("{name: [lo, hi] | value}"),), "box bounds and fixed values"),
-    Option("prior", "--prior", None, (CoefficientTable("{name: {mean, std}}"),), "Gaussian prior per coefficient"),
+    Option("prior", "--prior", None, (CoefficientTable("{name: {mean, std}}"),),
+           "Gaussian prior per coefficient, or a result file (its estimate and covariance; "
+           "docs/guide/result-files.md)"),
     Option("n_components", "--components", None, (Interval(int, 1),),
            "principal components kept (default: CI <= 1000)"),
     Option("tau", "--tau", "auto", (Choices(("auto",)), Interval(float, 0, 1e4, "right", "s")),

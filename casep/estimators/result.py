@@ -14,7 +14,8 @@ import numpy as np
 
 from casep.io._atomic import atomic_open
 
-__all__ = ["EstimateResult", "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "EXTRAS_TYPES", "OLSExtras",
+__all__ = ["EstimateResult", "read_result", "result_from_data", "check_result_units", "resolve_result_model",
+           "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "EXTRAS_TYPES", "OLSExtras",
            "RLSExtras", "RidgeExtras", "BoundedExtras", "PCRExtras", "MAPExtras", "GLSExtras", "HuberExtras",
            "write_json_atomic", "write_mat", "write_csv", "format_number"]
 
@@ -42,6 +43,7 @@ SIGMA_SOURCE_MEANINGS = {
     "robust": "Huber's MAD scale of the residuals",
     "whitened": "several flights: each flight's rows divided by its own sigma (flights[].sigma), so 1 here",
     "fused": "fused results: each input's own sigma (settings.fused)",
+    "external": "a result file of another tool that states no sigma (docs/guide/result-files.md)",
 }
 SIGMA_SOURCES = tuple(SIGMA_SOURCE_MEANINGS)
 
@@ -152,11 +154,11 @@ def _jsonable(v: Any) -> Any:
     return v
 
 
-def format_number(v: float | None, width: int = 12) -> str:
-    """Right-aligned ``%.6g`` with ``-`` for a missing value."""
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+def format_number(v: float | None, width: int = 12, fmt: str = ".6g") -> str:
+    """Right-aligned ``%.6g`` (or `fmt`) with ``-`` for a missing value (None, NaN, inf)."""
+    if v is None or not math.isfinite(float(v)):
         return "-".rjust(width)
-    return f"{v:.6g}".rjust(width)
+    return f"{v:{fmt}}".rjust(width)
 
 
 def _json_float(v: float) -> float | None:
@@ -293,6 +295,9 @@ class EstimateResult:
     extras : dataclass or None
         Typed per-method outputs, an instance of ``EXTRAS_TYPES[method]`` (e.g.
         ``res.extras.lam`` for ridge); None for a result of no registered method (fused).
+    model_file : str or None
+        The model's file when the model is not found by its name (a model loaded from a path):
+        written to the JSON so that ``impact`` and ``fuse`` find it again.
     """
 
     method: str
@@ -321,6 +326,7 @@ class EstimateResult:
     stored_residual_rms: dict[str, float | None] | None = None
     std_kind: str = "sampling"
     extras: Any = None
+    model_file: str | None = None
 
     def __post_init__(self) -> None:
         if self.std_kind not in STD_KIND_MEANINGS:
@@ -371,7 +377,7 @@ class EstimateResult:
         return rows
 
     def to_dict(self) -> dict[str, Any]:
-        """The result JSON of ``docs/reference/file-formats.md`` as a dict.
+        """The result JSON (``docs/guide/result-files.md``, form 3: both forms) as a dict.
 
         Besides ``coefficients`` (one object per coefficient), the flat parallel arrays
         ``names``, ``units``, ``estimates`` and ``std`` (null only where a value is missing)
@@ -406,47 +412,47 @@ class EstimateResult:
             "diagnostics": self.diagnostics,
             "extras": _jsonable(dataclasses.asdict(self.extras)) if self.extras is not None else None,
             "history_names": list(self.history_names) if self.history_names is not None else None,
+            **({"model_file": self.model_file} if self.model_file else {}),
         }
 
     @classmethod
-    def from_json(cls, source: "str | os.PathLike | dict") -> "EstimateResult":
-        """A result back from its JSON (a file or the dict of :meth:`to_dict`).
+    def from_json(cls, source: "str | os.PathLike | dict", model=None) -> "EstimateResult":
+        """A result back from its JSON (a file or the dict of :meth:`to_dict`), or from a result file
+        of another tool in one of the forms of ``docs/guide/result-files.md``.
 
-        Everything the JSON holds comes back (estimates, std, covariance, labels, sigma and its
+        Everything casep's JSON holds comes back (estimates, std, covariance, labels, sigma and its
         source, status, settings, diagnostics); the per-sample residuals and the history are not
-        in the JSON, so the result has none (``residual_rms`` then reads the stored values).
+        in the JSON, so the result has none (``residual_rms`` then reads the stored values). A file
+        of another tool that holds only coefficients gets ``method`` "external", ``sigma`` NaN and
+        ``success`` true unless it says otherwise.
+
+        Parameters
+        ----------
+        source : path or dict
+        model : ErrorModel or str, optional
+            Check the result against this model: every coefficient one of its (or a several-flight
+            result's ``name[file]``), in its unit (ValueError naming coefficient and both units).
+
+        Raises
+        ------
+        ValueError
+            Naming the file and the field: a missing or wrongly typed field, the two forms
+            disagreeing, a covariance that is not one (:mod:`casep.io.result_json`).
         """
+        from casep.io.result_json import parse_result_data, read_result_data
+
         if isinstance(source, dict):
-            d = source
+            rd = parse_result_data(source, "result")
         else:
-            with open(source, encoding="utf-8") as fh:
-                d = json.load(fh)
-
-        def arr(v):
-            return np.array([np.nan if x is None else x for x in v], dtype=float)
-
-        rows = d["coefficients"]
-        cov = d.get("covariance")
-        return cls(
-            method=d["method"], names=tuple(d["names"]), units=tuple(d["units"]), estimate=arr(d["estimates"]),
-            std=arr(d["std"]) if d.get("std") is not None else None,
-            covariance=np.array([arr(r) for r in cov]) if cov is not None else None,
-            reasons={r["name"]: r["reason"] for r in rows if "reason" in r},
-            residuals=np.zeros((0, 3)), sigma=math.nan if d["sigma"] is None else float(d["sigma"]),
-            rank=int(d["rank"]), status=int(d["status"]), message=d["message"], success=bool(d["success"]),
-            si_factors=np.array(d.get("si_factors") or [math.nan] * len(rows), dtype=float),
-            settings=d.get("settings") or {}, diagnostics=d.get("diagnostics") or {}, model=d.get("model", ""),
-            n_samples=int(d.get("n_samples", 0)), denoise=d.get("denoise"),
-            sigma_source=d.get("sigma_source", "estimated"), stored_residual_rms=d.get("residual_rms"),
-            std_kind=d.get("std_kind", "sampling"), extras=_extras_from_dict(d["method"], d.get("extras")),
-        )
+            rd = read_result_data(source, "result")
+        return result_from_data(rd, model)
 
     def covariance_rows(self) -> list[list[float | None]] | None:
         """The n x n covariance in natural units, model order, as nested lists for JSON.
 
         Rows and columns of coefficients without an estimate (and any entry that is not
-        finite) are null; None when the method defines no covariance (``docs/reference/file-formats.md``,
-        "Result JSON: covariance").
+        finite) are null; None when the method defines no covariance
+        (``docs/guide/result-files.md``).
         """
         if self.covariance is None:
             return None
@@ -470,7 +476,8 @@ class EstimateResult:
             parts = []
         if describe is None:
             parts = [f"{k} {v}" for k, v in self.settings.items() if isinstance(v, (int, float, str)) and k != "sigma"]
-        parts.append(_sigma_text(self.settings.get("sigma")))
+        parts.append("sigma not stated (a result file of another tool)" if self.sigma_source == "external"
+                     else _sigma_text(self.settings.get("sigma")))
         parts.append(f"std {self.std_kind}" + (" on the active set (understated)"
                                                  if self.std_kind == "conditional" else ""))
         return "settings: " + "; ".join(parts)
@@ -484,11 +491,15 @@ class EstimateResult:
                          f"{format_number(row['std'])}  {note}".rstrip())
         rms = self.residual_rms
         lines.append("")
+        whitened = self.sigma_source == "whitened"  # several flights: rows divided by their sigma, no unit
+        sigma = ("-" if not math.isfinite(self.sigma) else f"{self.sigma:.4g}" if whitened
+                 else f"{self.sigma:.4g} m/s")
         lines.append(f"method {self.method}, model {self.model}, {self.n_samples} samples, rank {self.rank}/"
-                     f"{len(self.names)}, sigma {self.sigma:.4g} m/s")
+                     f"{len(self.names)}, sigma {sigma}" + (" (whitened, dimensionless)" if whitened else ""))
         lines.append(self.settings_line())
         if all(rms[a] is not None for a in AXES):  # a fused result has no residuals
-            lines.append("residual RMS (m/s): " + ", ".join(f"{a} {rms[a]:.4g}" for a in AXES))
+            lines.append(f"residual RMS ({'whitened, dimensionless' if whitened else 'm/s'}): "
+                         + ", ".join(f"{a} {format_number(rms[a], 0, '.4g')}" for a in AXES))
         if self.denoise:
             d = self.denoise
             lines.append(f"de-noised: {d.get('wavelet')} level {d.get('level')}, {d.get('threshold_rule')} "
@@ -505,11 +516,167 @@ class EstimateResult:
         return "\n".join(lines)
 
 
+def result_from_data(rd, model=None) -> EstimateResult:
+    """An :class:`EstimateResult` of a checked result file (:class:`casep.io.result_json.ResultData`).
+
+    `model` (ErrorModel or name): check names and units against it, and take the SI factors from it.
+    """
+    f = rd.fields
+    si = None
+    if model is not None:
+        from casep.model.loader import load_model
+
+        model = load_model(model)
+        skip = _tracking_terms(f.get("diagnostics"))
+        check_result_units(rd.names, rd.units, model, rd.source, skip=skip)
+        if not skip:
+            base = [n.split("[", 1)[0] for n in rd.names]
+            si = np.array([model.si_factors[model.names.index(b)] for b in base], dtype=float)
+    if si is None and f.get("si_factors") is not None and len(f["si_factors"]) == len(rd.names):
+        si = np.array([np.nan if v is None else v for v in f["si_factors"]], dtype=float)
+    if si is None:
+        from casep.units import si_factor
+
+        vals = []
+        for u in rd.units:
+            try:
+                vals.append(si_factor(u))
+            except (KeyError, ValueError):
+                vals.append(math.nan)
+        si = np.array(vals, dtype=float)
+    method = f.get("method") or "external"
+    try:
+        extras = _extras_from_dict(method, f.get("extras"))
+    except (TypeError, KeyError) as exc:
+        raise ValueError(f"{rd.source}: field `extras` does not fit method `{method}` ({exc})") from None
+    rrms = f.get("residual_rms")
+    n_est = int(np.isfinite(rd.estimate).sum())
+    for key, allowed in (("std_kind", STD_KIND_MEANINGS), ("sigma_source", SIGMA_SOURCE_MEANINGS)):
+        if f.get(key) is not None and f[key] not in allowed:
+            raise ValueError(f"{rd.source}: field `{key}` must be one of {', '.join(allowed)}, got {f[key]!r}")
+    return EstimateResult(
+        method=method, names=rd.names, units=rd.units, estimate=rd.estimate, std=rd.std,
+        covariance=rd.covariance, reasons=dict(rd.reasons), residuals=np.zeros((0, 3)),
+        sigma=math.nan if f.get("sigma") is None else float(f["sigma"]),
+        rank=n_est if f.get("rank") is None else int(f["rank"]),
+        status=0 if f.get("status") is None else int(f["status"]),
+        message=f.get("message") or f"read from {rd.source}",
+        success=True if f.get("success") is None else bool(f["success"]),
+        si_factors=si, settings=f.get("settings") or {}, diagnostics=f.get("diagnostics") or {},
+        model=f.get("model") or (model.name if model is not None else ""),
+        n_samples=int(f.get("n_samples") or 0), denoise=f.get("denoise"),
+        sigma_source=f.get("sigma_source") or ("estimated" if f.get("sigma") is not None else "external"),
+        stored_residual_rms=rrms if rrms is not None else {a: None for a in AXES},
+        std_kind=f.get("std_kind") or "sampling", extras=extras, model_file=f.get("model_file"))
+
+
+def _tracking_terms(diagnostics) -> set[str]:
+    """Coefficients of a radar-tracked result that belong to its tracking model (station errors), not to
+    the instrument model: ``diagnostics["tracking_terms"]``."""
+    terms = (diagnostics or {}).get("tracking_terms") if isinstance(diagnostics, dict) else None
+    return {str(t) for t in terms} if isinstance(terms, (list, tuple)) else set()
+
+
+def check_result_units(names, units, model, source: str, skip: set[str] | frozenset[str] = frozenset()) -> None:
+    """Every coefficient of a result is the model's (a several-flight result's ``name[file]``: its base
+    name) and in the model's unit; ValueError naming the coefficient and both units. Names in `skip`
+    (a radar-tracked result's tracking-model terms) are not the instrument model's and are left out."""
+    from casep.model._model import unknown_coefficient_message
+
+    for n, u in zip(names, units):
+        if n in skip:
+            continue
+        base = n.split("[", 1)[0]
+        if base not in model.names:
+            raise ValueError(unknown_coefficient_message(base, model.names, f"{source} (model {model.name})"))
+        mu = model.units[model.names.index(base)]
+        if u.strip() != mu:
+            raise ValueError(f"{source}: `{n}` is in {u!r}, but model `{model.name}` declares it in {mu!r}: convert "
+                             "the estimate, std and covariance to the model's unit")
+
+
+def read_result(source, model=None, option: str = "result") -> tuple[EstimateResult, object]:
+    """A result file read with its model: ``(result, model)``.
+
+    The model is `model` when given (ErrorModel, name or path), else the one the result names:
+    by name (built-in, or ``CASEP_MODEL_PATH``), then by the ``model_file`` the result records.
+    A result whose model cannot be found is a ValueError saying exactly what to pass.
+    """
+    from casep.io.result_json import parse_result_data, read_result_data
+    from casep.model.loader import load_model
+
+    if isinstance(source, EstimateResult):
+        rd, res = None, source
+        where = "result <memory>"
+    else:
+        rd = parse_result_data(source, "result <memory>") if isinstance(source, dict) else \
+            read_result_data(source, option)
+        where = rd.source
+    if model is None:
+        name = (rd.model if rd is not None else source.model) or ""
+        mfile = rd.fields.get("model_file") if rd is not None else source.model_file
+        model = resolve_result_model(name, mfile, where)
+    else:
+        model = load_model(model)
+        name = rd.model if rd is not None else source.model
+        if name and name != model.name:
+            raise ValueError(f"{where} is of model `{name}`, not of model `{model.name}`: give --model {name} "
+                             f"(or leave it out), or a result of `{model.name}`")
+    if rd is not None:
+        res = result_from_data(rd, model)
+    else:
+        check_result_units(res.names, res.units, model, where, skip=_tracking_terms(res.diagnostics))
+    return res, model
+
+
+def resolve_result_model(name: str, model_file: str | None, where: str):
+    """The model a result names (see :func:`read_result`)."""
+    from casep.model.loader import load_model
+
+    if not name and not model_file:
+        raise ValueError(f"{where} names no model (no `model` field): give the model (CLI --model NAME|FILE.py, "
+                         "API model=...)")
+    errors = []
+    for cand in ([name] if name else []) + ([model_file] if model_file else []):
+        try:
+            return load_model(cand)
+        except ValueError as exc:  # unknown name, missing file; a broken file names itself
+            if "unknown model" not in str(exc) and "does not exist" not in str(exc):
+                raise
+            errors.append(cand)
+    hint = f" (the result records model_file {model_file}, which does not exist)" if model_file else ""
+    raise ValueError(f"{where} is of model `{name or model_file}`, which casep cannot find: it is not a built-in model "
+                     f"nor in CASEP_MODEL_PATH{hint}. Give the model file: --model path/to/{name or 'model'}.py "
+                     "(API: model='path/to/model.py')")
+
+
 def write_json_atomic(data: dict[str, Any], path: str | os.PathLike) -> None:
     """Write JSON to `path` through a temporary file and a rename: never half-written."""
-    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+    try:
+        text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+    except ValueError:  # NaN or inf somewhere: say where, and what put it there
+        where = _first_non_finite(data)
+        raise ValueError(f"{path}: cannot write a non-finite value ({where[1]!r}) at `{where[0]}`: the input that "
+                         "produced it is out of range (a prior, bound or option far beyond its plausible values?)"
+                         if where else f"{path}: cannot write a non-finite value") from None
     with atomic_open(path) as fh:
         fh.write(text)
+
+
+def _first_non_finite(v: Any, where: str = "") -> tuple[str, float] | None:
+    """The path (``settings.prior.Kg0x.mean``) and value of the first NaN or inf in a JSON-like value."""
+    if isinstance(v, dict):
+        items = v.items()
+    elif isinstance(v, (list, tuple)):
+        items = ((f"[{i}]", x) for i, x in enumerate(v))
+    else:
+        return (where, float(v)) if isinstance(v, float) and not math.isfinite(v) else None
+    for k, x in items:
+        key = k if str(k).startswith("[") else (f"{where}.{k}" if where else str(k))
+        hit = _first_non_finite(x, where + key if str(k).startswith("[") else key)
+        if hit:
+            return hit
+    return None
 
 
 def _nan_array(a: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray:

@@ -64,10 +64,14 @@ def burnout_state(flight) -> tuple[float, np.ndarray, np.ndarray]:
 
     missing = [c for c in STATE_COLUMNS if c not in flight.signals]
     if missing:
+        pair = isinstance(flight.meta, dict) and flight.meta.get("format") == "pair"
+        how = (": give them in the telemetry file, or read Earth-fixed tracking, which carries the position "
+               "(--tracking-frame ecef|geodetic --launch-site LAT LON H AZ --launch-time T0; API: read_flight_pair("
+               "tracking_frame=..., site=LaunchSite(...)))" if pair else "")
         raise FlightDataError(flight.source, f"missing column{'s' if len(missing) > 1 else ''} "
                                              f"{', '.join(missing)}: the impact point needs the burnout state "
                                              "(r_x, r_y, r_z in m and v_x, v_y, v_z in m/s, launch-inertial "
-                                             "frame, last row = burnout)")
+                                             f"frame, last row = burnout){how}")
     x = np.array([flight.signals[c][-1] for c in STATE_COLUMNS], dtype=float)
     bad = np.flatnonzero(~np.isfinite(x))
     if bad.size:
@@ -138,24 +142,14 @@ class _Coefficients:
     covariance_source: str
 
 
-def _load_result(result):
-    from casep.estimators.result import EstimateResult
+def _load_result(result, model=None):
+    """``(result, its source, model)``: :func:`casep.estimators.result.read_result` (every result form,
+    checked; the model the result names, or `model`)."""
+    from casep.estimators.result import EstimateResult, read_result
 
-    if isinstance(result, EstimateResult):
-        return result, "<memory>"
-    if isinstance(result, dict):
-        return EstimateResult.from_json(result), "<memory>"
-    import json
-
-    path = os.fspath(result)
-    try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not a JSON file ({exc})") from None
-    if not isinstance(data, dict) or "coefficients" not in data or "names" not in data:
-        raise ValueError(f"{path}: not a casep result JSON (casep separate --json)")
-    return EstimateResult.from_json(data), path
+    source = "<memory>" if isinstance(result, (EstimateResult, dict)) else os.fspath(result)
+    res, model = read_result(result, model, option="--result" if source != "<memory>" else "result")
+    return res, source, model
 
 
 def _coefficients(res, model, per_flight: Mapping[str, float] | None, source: str) -> _Coefficients:
@@ -375,9 +369,12 @@ class ImpactAnalysis:
     def table(self, top: int | None = None) -> str:
         """Terminal text: burnout, nominal impact, miss with std, budget per coefficient and per group.
 
-        `top`: only the `top` largest contributions (by ``|downrange| + |crossrange|``); default all.
+        `top`: only the `top` (>= 1) largest contributions (by ``|downrange| + |crossrange|``); default all.
         """
         from casep.estimators.result import format_number
+
+        if top is not None and (isinstance(top, bool) or not isinstance(top, (int, np.integer)) or top < 1):
+            raise ValueError(f"`top` must be an integer >= 1 (or None for all), got {top!r}")
 
         std = self.std
         lines = [f"impact of {self.trajectory or self.flight}: model {self.model}, result of method {self.method}"
@@ -428,9 +425,13 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
     flight : FlightData or path
         The flight the result was estimated on (``t``, ``f_*``, ``r_*``, ``v_*``).
     result : EstimateResult, dict or path
-        An estimate (a ``casep separate --json`` file: one flight, or several with ``"flights"``).
+        An estimate: a ``casep separate --json`` file (one flight, or several with ``"flights"``), or a
+        result file of another tool in a form of ``docs/guide/result-files.md``; its units must be the
+        model's.
     model : ErrorModel or str, optional
-        Default: the result's model. A model of another name is refused (message names both).
+        Default: the result's model, found by its name (built-in or ``CASEP_MODEL_PATH``) or by the
+        ``model_file`` the result records (a model loaded from a path); when neither finds it, the
+        ValueError says to pass the model file. A model of another name is refused (message names both).
     trajectory : FlightData or path, optional
         Another trajectory (``t``, ``f_*``, ``r_*``, ``v_*``; dv not needed): the result's
         estimate and covariance are applied to *its* S_V and burnout state (the miss of a flight
@@ -454,18 +455,7 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
     ``c_j = G_j D_j``; ``miss = sum_j c_j`` over the coefficients with a value;
     ``cov = G_k Cov_kk G_k^T`` over the estimated ones; ``nonlinear = impact(x_b - B D) - impact(x_b)``.
     """
-    from casep.model.loader import load_model
-
-    res, rsource = _load_result(result)
-    if model is None:
-        if not res.model:
-            raise ValueError(f"result {rsource} names no model: give the model")
-        model = load_model(res.model)
-    else:
-        model = load_model(model)
-        if res.model and res.model != model.name:
-            raise ValueError(f"result {rsource} is of model `{res.model}`, not of model `{model.name}`: "
-                             f"give --model {res.model} (or leave it out), or a result of `{model.name}`")
+    res, rsource, model = _load_result(result, model)
     if not isinstance(flight, _flight_type()):
         flight = read_trajectory(flight)  # dv is not used here (a radar-tracked flight's telemetry has none)
     target = flight

@@ -9,11 +9,17 @@ existing file keeps its permission bits.
 :func:`check_output` and :func:`check_output_dir` are called by each command before any
 work, so that a bad output path fails in a second instead of after the computation, and an
 output that is one of the command's inputs (the flight would be overwritten) is refused.
+
+:func:`output_group` makes several outputs appear together: inside it, every file that
+:func:`atomic_open` writes stays a temporary file until the block ends without error, then all
+are renamed into place; on an error none is (a failed second output leaves no first one). A
+failed write names its file (a full disk: ``cannot write out.json: No space left on device``).
 """
 
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import os
 import re
 import stat
@@ -22,7 +28,8 @@ import tempfile
 from pathlib import Path
 from typing import IO, Iterable, Iterator
 
-__all__ = ["atomic_open", "check_output", "check_output_dir", "check_outputs"]
+__all__ = ["atomic_open", "output_group", "read_output", "scratch_files", "check_output", "check_output_dir",
+           "check_outputs"]
 
 PathLike = str | os.PathLike
 
@@ -66,16 +73,76 @@ def _new_file_mode(target: Path) -> int:
         return 0o666 & ~umask
 
 
+#: The pending renames ``(temporary, target)`` of the innermost :func:`output_group`, or None.
+_GROUP: contextvars.ContextVar[list | None] = contextvars.ContextVar("casep_output_group", default=None)
+
+
+@contextlib.contextmanager
+def output_group() -> Iterator[None]:
+    """All files :func:`atomic_open` writes inside the block appear together when it ends without
+    error, or none of them (their temporary files are removed).
+
+    The renames happen one after the other at the end, after every output has been written in
+    full; a FIFO or device output (``/dev/stdout``) is written directly and cannot wait.
+    """
+    outer = _GROUP.get()
+    pending: list[tuple[str, Path]] = []
+    token = _GROUP.set(pending)
+    try:
+        yield
+    except BaseException:
+        _GROUP.reset(token)
+        for tmp, _ in pending:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+        raise
+    _GROUP.reset(token)
+    if outer is not None:  # nested: the outer group renames them
+        outer.extend(pending)
+        return
+    for k, (tmp, target) in enumerate(pending):
+        try:
+            os.replace(tmp, target)
+        except OSError as exc:
+            for t, _ in pending[k:]:
+                with contextlib.suppress(OSError):
+                    os.unlink(t)
+            raise OSError(exc.errno, f"cannot write {target}: {exc.strerror}") from exc
+
+
+@contextlib.contextmanager
+def scratch_files() -> Iterator[None]:
+    """Files written inside this block are not part of the enclosing :func:`output_group` (scratch
+    files in a temporary folder, gone before the group ends): each is renamed at once."""
+    token = _GROUP.set(None)
+    try:
+        yield
+    finally:
+        _GROUP.reset(token)
+
+
+def read_output(path: PathLike) -> bytes:
+    """The bytes of a file this process wrote with :func:`atomic_open`, also while its
+    :func:`output_group` is still pending (the report embeds the figures written before it)."""
+    target = Path(os.path.realpath(path))
+    for tmp, t in reversed(_GROUP.get() or []):
+        if t == target:
+            return Path(tmp).read_bytes()
+    return Path(path).read_bytes()
+
+
 @contextlib.contextmanager
 def atomic_open(path: PathLike, *, binary: bool = False) -> Iterator[IO]:
     """Open `path` for (text or binary) writing so that it appears whole or not at all.
 
     A regular (or new) file: the data go to a temporary file in the target's folder,
-    renamed over the target when the block ends without error; on error the temporary file
-    is removed and the target is left as it was. A symbolic link is resolved first, so the
-    link stays and its target is replaced. An existing file keeps its permission bits; a new
-    one gets ``0o666 & ~umask``. A FIFO, character device or socket (``/dev/stdout``, a
-    named pipe) is written directly: a rename would replace the node with a regular file.
+    renamed over the target when the block ends without error (inside an
+    :func:`output_group`: when the group ends); on error the temporary file is removed and the
+    target is left as it was. A symbolic link is resolved first, so the link stays and its
+    target is replaced. An existing file keeps its permission bits; a new one gets
+    ``0o666 & ~umask``. A FIFO, character device or socket (``/dev/stdout``, a named pipe) is
+    written directly: a rename would replace the node with a regular file. An OSError while
+    writing (a full disk) names `path`.
     """
     path = Path(path)
     direct = _direct(path)
@@ -86,17 +153,27 @@ def atomic_open(path: PathLike, *, binary: bool = False) -> Iterator[IO]:
         sys.stderr.flush()
         target = os.dup(direct) if isinstance(direct, int) else path
         mode = "wb" if binary else "w"
-        with (open(target, mode) if binary else open(target, mode, encoding="utf-8", newline="\n")) as fh:
-            yield fh
+        try:
+            with (open(target, mode) if binary else open(target, mode, encoding="utf-8", newline="\n")) as fh:
+                yield fh
+        except OSError as exc:
+            raise OSError(exc.errno, f"cannot write {path}: {exc.strerror}") from exc
         return
     target = Path(os.path.realpath(path))  # through symbolic links (also a dangling one)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
         opened = os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", encoding="utf-8", newline="\n")
-        with opened as fh:
-            yield fh
+        try:
+            with opened as fh:
+                yield fh
+        except OSError as exc:  # ENOSPC and friends: say which output
+            raise OSError(exc.errno, f"cannot write {path}: {exc.strerror}") from exc
         os.chmod(tmp, _new_file_mode(target))
-        os.replace(tmp, target)
+        group = _GROUP.get()
+        if group is not None:
+            group.append((tmp, target))  # renamed when the group ends
+        else:
+            os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)

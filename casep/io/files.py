@@ -29,7 +29,6 @@ atomic: a failure leaves no half-written file.
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 from typing import Callable
@@ -61,19 +60,7 @@ def _csv_line_locator(path: Path) -> Callable[[int], int | None]:
     """Map a data row (1-based; 0 = header) to its file line, skipping comments and blanks."""
 
     def line_of(row: int) -> int | None:
-        seen = -1
-        try:
-            with open(path, encoding="utf-8", errors="replace") as fh:
-                for lineno, text in enumerate(fh, 1):
-                    s = text.strip()
-                    if not s or s.startswith("#"):
-                        continue
-                    seen += 1
-                    if seen == row:
-                        return lineno
-        except OSError:
-            return None
-        return None
+        return csv_lines(path, [row]).get(row)
 
     return line_of
 
@@ -133,17 +120,30 @@ def where(loc: dict) -> str:
     return f"row {loc['row']} of {name} ({t})"
 
 
-def _csv_header(path: Path) -> list[str]:
+#: Column separators a CSV flight file may use: comma (casep, MATLAB writetable's default),
+#: semicolon (Excel in locales with a decimal comma), tab (writetable 'Delimiter','tab').
+CSV_SEPARATORS = (",", ";", "\t")
+_SEPARATOR_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
+
+
+def _csv_header(path: Path) -> tuple[list[str], str]:
     """The header's names as pandas sees them (first line that is not blank or a ``#`` comment,
-    text after ``#`` dropped), before pandas renames a repeated ``dv_x`` to ``dv_x.1``."""
+    text after ``#`` dropped), before pandas renames a repeated ``dv_x`` to ``dv_x.1``, and the
+    column separator.
+
+    The separator is the one of :data:`CSV_SEPARATORS` that splits the header into the most names
+    (names are identifiers such as ``t``, ``f_x``, so none contains a separator): read from the
+    header alone, it costs nothing, and the data are then parsed by pandas' C reader with it.
+    """
     import csv
 
     with open(path, encoding="utf-8", errors="replace", newline="") as fh:
         for text in fh:
-            text = text.split("#", 1)[0]
+            text = text.split("#", 1)[0].lstrip("\ufeff")  # a byte-order mark (Excel's "CSV UTF-8")
             if text.strip():
-                return [c.strip() for c in next(csv.reader([text], skipinitialspace=True))]
-    return []
+                sep = max(CSV_SEPARATORS, key=lambda c: (text.count(c), c == ","))  # ties: comma
+                return [c.strip() for c in next(csv.reader([text], delimiter=sep, skipinitialspace=True))], sep
+    return [], ","
 
 
 def _parquet_header(path: Path) -> list[str]:
@@ -188,15 +188,17 @@ class _Table:
             raise FlightDataError(self.src, "file does not exist")
         if not self.path.is_file():
             raise FlightDataError(self.src, "not a regular file (a device, FIFO or socket?)")
+        self.sep = ","
         if _is_parquet(self.path):
             self.line_of: Callable[[int], int | None] = lambda row: None
             self._refuse_repeated(self._parquet(_parquet_header))  # before pandas, which fails on them
             frame = self._parquet(_read_parquet_frame)
         else:
             try:
-                header = _csv_header(self.path)
-                frame = pd.read_csv(self.path, comment="#", skip_blank_lines=True, keep_default_na=False,
-                                    na_values=[""], skipinitialspace=True)
+                header, self.sep = _csv_header(self.path)
+                frame = pd.read_csv(self.path, sep=self.sep, comment="#", skip_blank_lines=True,
+                                    keep_default_na=False, na_values=[""], skipinitialspace=True,
+                                    encoding="utf-8-sig")
             except pd.errors.EmptyDataError:
                 raise FlightDataError(self.src, "file has no header row and no data") from None
             except pd.errors.ParserError as exc:
@@ -236,7 +238,13 @@ class _Table:
     def require(self, cols: tuple[str, ...], hint: str = "") -> None:
         for c in cols:
             if c not in self.columns:
-                raise self.error(f"missing column (header has: {', '.join(self.frame.columns)}){hint}",
+                sep = "" if self.sep == "," else f"; columns read as {_SEPARATOR_NAMES[self.sep]}-separated"
+                if len(self.frame.columns) == 1:  # one name holding them all: another separator
+                    other = next((c for c in (" ", "|", ":") if c in str(self.frame.columns[0]).strip()), None)
+                    if other is not None:
+                        sep += (f"; the header looks {'space' if other == ' ' else repr(other)}-separated: casep "
+                                "reads comma-, semicolon- or tab-separated files")
+                raise self.error(f"missing column (header has: {', '.join(self.frame.columns)}{sep}){hint}",
                                  c, "header")
         if self.frame.shape[0] == 0:
             raise self.error("file has a header but no data rows", cols[0], "header")
@@ -271,6 +279,10 @@ class _Table:
             text = cell.strip().lower().lstrip("+-")
             what = ("NaN value" if text == "nan" else f"infinite value {cell}" if np.isinf(values[r])
                     else f"non-numeric value {cell!r}")
+            if self.sep != "," and "," in cell and pd.notna(pd.to_numeric(cell.replace(",", "."), errors="coerce")):
+                what += (f" (a decimal comma? the columns are {_SEPARATOR_NAMES[self.sep]}-separated, numbers "
+                         "need a decimal point: save the file with '.' as decimal separator, e.g. MATLAB "
+                         "writetable, or Excel with the system separators set to '.')")
         elif isinstance(cell, (float, np.floating)) and np.isinf(cell):
             what = f"infinite value {cell}"
         elif isinstance(cell, (float, np.floating)) and _is_parquet(self.path):
@@ -589,7 +601,35 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
         flight.meta["start_speed_m_s"] = ev["pad"]["speed_relative_m_s"]
         flight.meta["tracking_frame"]["pad_velocity_m_s"] = ev["pad"]["pad_velocity_m_s"]
         flight.meta["setup"] = ev
+    if r_ecef is not None and not any(c in flight.signals for c in STATE_SIGNALS):  # Earth-fixed: the state
+        from casep.frames import ecef_to_launch
+
+        r_l, v_l = ecef_to_launch(site, t_raw, r_ecef, v_ecef)  # launch-inertial, at the file's own time tags
+        flight = _with_tracked_state(flight, t_trk - shift, r_l, v_l)
     return flight
+
+
+#: Launch-inertial position and velocity columns (m, m/s): the burnout state of casep.impact.
+STATE_SIGNALS = ("r_x", "r_y", "r_z", "v_x", "v_y", "v_z")
+
+
+def _with_tracked_state(flight: FlightData, t_trk: np.ndarray, r: np.ndarray, v: np.ndarray) -> FlightData:
+    """The flight with the tracked position and velocity (Earth-fixed tracking turned launch-inertial) as the
+    signals ``r_*``, ``v_*`` on its time grid: a not-a-knot cubic spline through the tracking samples inside
+    their span, NaN outside (before tracking starts). What the impact analysis reads as the burnout state."""
+    import dataclasses
+
+    from scipy.interpolate import CubicSpline
+
+    t = np.asarray(flight.t)
+    inside = (t >= t_trk[0]) & (t <= t_trk[-1])
+    sig = dict(flight.signals)
+    for name, values in zip(STATE_SIGNALS, np.column_stack([r, v]).T):
+        col = np.full(t.size, np.nan)
+        col[inside] = CubicSpline(t_trk, values)(t[inside])
+        sig[name] = col
+    meta = {**flight.meta, "state_from": "tracking (r_*, v_*: launch-inertial, spline on the flight's times)"}
+    return dataclasses.replace(flight, signals=sig, meta=meta)
 
 
 #: A given tracking time offset above this, s, is no latency: a warning suggests `time_shift`.
@@ -800,16 +840,13 @@ def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[
 def read_json_table(path: str | os.PathLike, option: str) -> dict:
     """A JSON object keyed by coefficient name (``--bounds``, ``--prior``, ``--truth``, ``--scales``).
 
-    Errors name the option and the file (``ValueError``); the entries are checked by the
-    caller, which knows the model's coefficients.
+    Read strictly (:func:`casep.io.result_json.load_json`: a key repeated in one object, or
+    nesting too deep to decode, is refused). Errors name the option and the file (``ValueError``);
+    the entries are checked by the caller, which knows the model's coefficients.
     """
-    try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
-    except OSError as exc:
-        raise ValueError(f"{option} {path}: cannot read ({exc.strerror})") from None
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{option} {path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+    from casep.io.result_json import load_json
+
+    data = load_json(path, option)
     if not isinstance(data, dict):
         raise ValueError(f"{option} {path}: must hold a JSON object keyed by coefficient name")
     return data

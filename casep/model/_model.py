@@ -164,6 +164,8 @@ class ErrorModel:
         self._locked = False
         self._functions: dict[str, ca.Function] = {}
         self._numeric: dict[str, np.ndarray] = {}
+        self.source_file: str | None = None  # the model file, set by casep.model.loader
+        self.source_doc: str = ""  # the model file's docstring, set by casep.model.loader
 
     # ------------------------------------------------------------------ declare
     @property

@@ -18,15 +18,20 @@ deepest line of the traceback inside the model file.
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
+import math
 import os
+import signal
+import threading
+import time
 import traceback
 from pathlib import Path
 
 from casep.model._model import ErrorModel, ModelDefinitionError
 
 __all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file",
-           "run_model_file", "with_time_offset", "TIME_OFFSET"]
+           "run_model_file", "with_time_offset", "TIME_OFFSET", "model_file_reference"]
 
 
 def model_dirs() -> list[Path]:
@@ -102,8 +107,58 @@ def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {msg}" if msg else type(exc).__name__
 
 
+#: Longest a model file may take to load and build, s (``CASEP_MODEL_TIMEOUT`` overrides it): the
+#: built-in models take well under a second; a file that loops forever ends with a ModelFileError.
+MODEL_LOAD_TIMEOUT_S = 60.0
+
+
+class _LoadTimeout(BaseException):
+    """Raised by the alarm inside a model file that takes too long (never leaves this module); a
+    BaseException, so that an ``except Exception`` in the model file does not swallow it."""
+
+
+def _timeout_s() -> float:
+    text = os.environ.get("CASEP_MODEL_TIMEOUT", "")
+    try:
+        v = float(text) if text else MODEL_LOAD_TIMEOUT_S
+    except ValueError:
+        raise ModelDefinitionError(f"CASEP_MODEL_TIMEOUT must be a number of seconds, got {text!r}") from None
+    if not (v > 0 and math.isfinite(v)):
+        raise ModelDefinitionError(f"CASEP_MODEL_TIMEOUT must be finite and > 0 s, got {text!r}")
+    return v
+
+
+@contextlib.contextmanager
+def _time_limit(seconds: float):
+    """Raise :class:`_LoadTimeout` in this thread after `seconds` (a real-time interval timer, SIGALRM).
+
+    Only on the main thread of a POSIX process (where Python delivers signals); elsewhere (a worker
+    thread, Windows) no limit. The timer and handler in place before are put back, with the time
+    spent here taken off a pending timer. A loop inside a C extension is interrupted only when it
+    returns to Python.
+    """
+    if not hasattr(signal, "setitimer") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def alarm(signum, frame):
+        raise _LoadTimeout
+
+    start = time.monotonic()
+    old_handler = signal.signal(signal.SIGALRM, alarm)
+    old_delay, old_interval = signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old_handler)
+        if old_delay > 0:  # someone else's timer: what is left of it
+            signal.setitimer(signal.ITIMER_REAL, max(old_delay - (time.monotonic() - start), 1e-6), old_interval)
+
+
 def run_model_file(path: Path, kind: type = ErrorModel):
-    """Execute the model file and its ``build()``; any failure becomes a one-line ModelFileError.
+    """Execute the model file and its ``build()``; any failure becomes a one-line ModelFileError,
+    and so does taking longer than :data:`MODEL_LOAD_TIMEOUT_S` (``CASEP_MODEL_TIMEOUT``).
 
     `kind`: the class ``build()`` must return (:class:`ErrorModel`, or
     :class:`casep.model.tracking.TrackingModel` for a tracking model file).
@@ -113,13 +168,19 @@ def run_model_file(path: Path, kind: type = ErrorModel):
         raise ModelFileError(f"model file {path}: cannot be loaded as Python")
     module = importlib.util.module_from_spec(spec)
     stage = "loading"
+    limit = _timeout_s()
     try:
-        spec.loader.exec_module(module)
-        build = getattr(module, "build", None)
-        if not callable(build):
-            raise ModelFileError(f"model file {path}: Missing: build(). Use: def build() -> casep.ErrorModel")
-        stage = "build()"
-        result = build()
+        with _time_limit(limit):
+            spec.loader.exec_module(module)
+            build = getattr(module, "build", None)
+            if not callable(build):
+                raise ModelFileError(f"model file {path}: Missing: build(). Use: def build() -> casep.ErrorModel")
+            stage = "build()"
+            result = build()
+    except _LoadTimeout as exc:
+        raise ModelFileError(f"{_where(path, exc)}{', in build()' if stage == 'build()' else ''}: still running "
+                             f"after {limit:g} s (an endless loop?); a model file should load in well under a "
+                             "second (limit: CASEP_MODEL_TIMEOUT=SECONDS)") from None
     except ModelFileError:
         raise  # from this file, or from a model it extends (that one names its own file)
     except (Exception, SystemExit) as exc:  # KeyboardInterrupt still interrupts
@@ -131,6 +192,11 @@ def run_model_file(path: Path, kind: type = ErrorModel):
         use = uses.get(type(result).__name__, "")
         raise ModelFileError(f"model file {path}: build() returned {type(result).__name__}, not casep.{kind.__name__}"
                              + (f"; it is {use}" if use else ""))
+    # Where the model came from (results record it when its name alone does not find it) and the
+    # file's docstring (casep models -v); a model extending another keeps the outermost file's.
+    if isinstance(result, ErrorModel):
+        result.source_file = str(path.resolve())
+        result.source_doc = (module.__doc__ or "").strip()
     return result
 
 
@@ -197,9 +263,25 @@ def with_time_offset(model: str | os.PathLike | ErrorModel) -> ErrorModel:
     source = model if isinstance(model, (str, os.PathLike)) else base.name
     m = build_model(source)  # unlocked: the term is added to it
     m.name = f"{base.name}+dt_trk"
+    m.source_file = None  # a derived model: its file alone does not build it (no model_file in results)
     m.description = f"{base.description or base.name} + tracking time offset dt_trk (ms, per flight)"
     c = m.declare(dt_trk=("ms", 20.0), per_flight=True)  # tracking time-tag delay, ms (SI: s)
     a = ca.vertcat(m.signal("a_x"), m.signal("a_y"), m.signal("a_z"))  # kinematic acceleration, m/s^2
     m.set_velocity_error(m.output("velocity_error") + a * c.dt_trk)  # dv += a(t) dt_trk (a lever arm kept)
     m.setup()
     return m
+
+
+def model_file_reference(model: ErrorModel) -> str | None:
+    """The model's file when its name alone does not find that file (a model loaded from a path), else None.
+
+    A result records it (``model_file``) so that a later ``impact`` or ``fuse`` finds the model again.
+    """
+    src = getattr(model, "source_file", None)
+    if not src:
+        return None
+    try:
+        found = find_model_file(model.name)
+    except (ValueError, TypeError):
+        return src
+    return None if str(found.resolve()) == src else src

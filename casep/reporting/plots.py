@@ -26,8 +26,11 @@ def _pyplot():
 
 
 def _save(fig, path: str | os.PathLike) -> Path:
+    from casep.io._atomic import atomic_open
+
     path = Path(path)
-    fig.savefig(path, dpi=120, bbox_inches="tight")
+    with atomic_open(path, binary=True) as fh:  # whole or not at all; with the command's other outputs
+        fig.savefig(fh, format=path.suffix.lstrip(".").lower() or "png", dpi=120, bbox_inches="tight")
     import matplotlib.pyplot as plt
 
     plt.close(fig)

@@ -18,7 +18,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from casep.estimators.result import AXES, EstimateResult, format_number
-from casep.io._atomic import atomic_open
+from casep.io._atomic import atomic_open, read_output, scratch_files
 
 __all__ = ["write_report", "report_html"]
 
@@ -180,7 +180,7 @@ def _diagnostics_summary(result: EstimateResult) -> dict[str, Any]:
 
 
 def _image(path: Path) -> str:
-    data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
+    data = base64.b64encode(read_output(path)).decode("ascii")  # also a figure of this command not yet renamed
     return f"<figure><img alt=\"{_esc(Path(path).stem)}\" src=\"data:image/png;base64,{data}\"></figure>"
 
 
@@ -295,7 +295,7 @@ def write_report(result: EstimateResult, path: str | os.PathLike, *, flight=None
         from casep.reporting.plots import impact_figures, separate_figures
 
         t = None if flight is None else np.asarray(flight.t[flight.observed])  # the rows of the residuals
-        with tempfile.TemporaryDirectory(prefix="casep-report-") as tmp:
+        with tempfile.TemporaryDirectory(prefix="casep-report-") as tmp, scratch_files():
             files = separate_figures(result, tmp, t, prior=prior, bounds=bounds)
             if impact is not None and not isinstance(impact, str):
                 files += impact_figures(impact, tmp)

@@ -25,13 +25,32 @@ the paper's class of vehicle has (see :mod:`casep.simulation.trajectory`).
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from casep.simulation.noise import NoiseModel
 from casep.simulation.paper import TABLE1_NOISE_SIGMA, TABLE1_TRUTH
 from casep.simulation.trajectory import DEFAULT_VEHICLE, Vehicle, YawManoeuvre
 
 __all__ = ["Scenario", "SCENARIOS", "get_scenario"]
+
+
+#: Highest simulated sample rate, Hz: a 200 s boost at 10 kHz is already 2 million samples (the
+#: sample count, and the memory of S_V, grow with the rate; 1e308 Hz overflows the time grid).
+MAX_RATE_HZ = 1e4
+
+
+def check_rate(rate, what: str = "`rate`") -> float:
+    """A sample rate in (0, :data:`MAX_RATE_HZ`] Hz, or ValueError naming `what` and the range."""
+    if isinstance(rate, bool) or not isinstance(rate, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{what} must be a number of Hz, got {rate!r}")
+    r = float(rate)
+    if not (math.isfinite(r) and 0 < r <= MAX_RATE_HZ):
+        raise ValueError(f"{what} must be in (0, {MAX_RATE_HZ:g}] Hz, got {rate:g} (a 200 s flight at {MAX_RATE_HZ:g} "
+                         "Hz is already 2 million samples)")
+    return r
 
 
 @dataclass(frozen=True)
@@ -61,8 +80,11 @@ class Scenario:
     noise: NoiseModel = field(default_factory=lambda: NoiseModel("white", TABLE1_NOISE_SIGMA))
 
     def with_rate(self, rate: float | None) -> "Scenario":
-        """The same scenario at another sample rate (None keeps it)."""
-        return self if rate is None else dataclasses.replace(self, rate=float(rate))
+        """The same scenario at another sample rate (None keeps it); ValueError outside (0, MAX_RATE_HZ]."""
+        if rate is None:
+            return self
+        check_rate(rate, "`rate`")
+        return dataclasses.replace(self, rate=float(rate))
 
 
 _PAPER_YAW = YawManoeuvre(amplitude=2.0, period=80.0, start=20.0, end=180.0)

@@ -125,10 +125,14 @@ def _solve(method: str, S: np.ndarray, y: np.ndarray, names, sigma: float, t: np
         opts = {"bounds": bounds or demo_bounds(names)}
     elif method == "gls":
         opts = {"tau": tau}
-    if rows is not None and method != "gls":
+    if rows is not None:
         from casep.workflows.solve import solve_problem
 
-        r = solve_problem(rows.problem, method, opts, noise=noise, rows=rows, sigma=given, check_white=False).result
+        if method == "gls":  # its own tau; the glitches removed first when the run is robust
+            r = solve_problem(rows.problem, "gls", opts, noise="gm", robust=robust, sigma=given).result
+        else:
+            r = solve_problem(rows.problem, method, opts, noise=noise, rows=rows, sigma=given,
+                              check_white=False).result
         return r.estimate, r.std
     r = run_method(method, S, y, t, opts, names=names, sigma=given)  # the registry's solver and defaults
     return r.estimate, r.std
@@ -238,7 +242,7 @@ def _task(ctx: _Context, linear: Sequence[str], other: Sequence[str], runs: Sequ
                     X, sd = lm.apply(S2, Y)  # D = K y + b and the solver's std
                     est[m][idx], std[m][idx] = X.T, sd.T
         rows = [None] * len(runs)
-        if ctx.noise != "white" or ctx.robust is not None:  # each run's noise model and weights, for every method
+        if ctx.noise != "white" or ctx.robust not in (None, "auto"):  # each run's noise model, weights: every method
             from casep.analysis.problem import Problem
             from casep.workflows.solve import prepare_rows
 
@@ -643,7 +647,7 @@ def run_montecarlo(
     truth: Mapping | None = None,
     noise: str = "white",
     tau=None,
-    robust: str | None = None,
+    robust: str | None = "auto",
 ) -> MonteCarloResult:
     """Run `runs` noise draws of a scenario through each method.
 
@@ -699,15 +703,18 @@ def run_montecarlo(
         The scenario's tracking gaps remove rows in every case.
     """
     from casep.analysis.noise import check_noise_kind
-    from casep.analysis.robust import ROBUST_FUNCTIONS
+    from casep.analysis.rows import ROBUST_CHOICES
 
     check_noise_kind(noise)
     noise_tau = tau  # (`tau` below is the scenario's, for the CRLB)
-    if (noise != "white" or robust is not None) and any(m.startswith("wavelet+") for m in methods):
+    if (noise != "white" or robust not in (None, "auto", "none")) and any(m.startswith("wavelet+") for m in methods):
         raise ValueError("wavelet+<method> de-noises dv: it does not combine with `noise` other than 'white' or "
                          "with `robust`")
-    if robust is not None and robust not in ROBUST_FUNCTIONS:
-        raise ValueError(f"`robust` must be one of {', '.join(ROBUST_FUNCTIONS)}, got {robust!r}")
+    if robust is not None and robust not in ROBUST_CHOICES:
+        raise ValueError(f"`robust` must be one of {', '.join(ROBUST_CHOICES)} or None, got {robust!r}")
+    if tau is not None and noise != "gm":
+        raise ValueError(f"`tau` given with noise {noise!r}: a given correlation time means noise 'gm'")
+    robust = None if robust == "none" else robust
     if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
         raise ValueError(f"`runs` must be an int >= 1, got {runs!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -758,7 +765,7 @@ def run_montecarlo(
     ctx = _Context(token=uuid.uuid4().hex, scenario=sc, names=names, sigma=sigma, tau=tau, seed=seed, truth=truth,
                    prior=prior, bounds=bounds, truth_prior=tp, dispersions=dispersions, S=S, t=t, crlb=crlb,
                    noise=noise, noise_tau=noise_tau, robust=robust)
-    per_run_noise = noise != "white" or robust is not None
+    per_run_noise = noise != "white" or robust not in (None, "auto")
     lin = [m for m in methods if batched and not per_run_noise and (m in BATCHED or m.startswith("ridge:"))]
     other = [m for m in methods if m not in lin]
     # stages: (linear, per-run) methods; nominal: the linear maps together, then each per-run

@@ -14,10 +14,11 @@ from __future__ import annotations
 import dataclasses
 import os
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
 from casep.estimators.registry import OPTIONS, check_method_options, run_method
 from casep.estimators.result import EstimateResult
 from casep.frames import LaunchSite
@@ -25,10 +26,60 @@ from casep.model.loader import load_model
 from casep.model.tracking import load_tracking_model
 from casep.tracking.diagnostics import diagnostics_table, radar_diagnostics
 from casep.tracking.regression import TYPE_UNITS, LinearisedRadar, RadarRegression, Telemetry, read_telemetry
-from casep.tracking.stations import RadarMeasurements, read_radar, read_station
+from casep.tracking.stations import RadarMeasurements, Station, read_radar, read_station
 
 __all__ = ["RadarResult", "separate_radar", "diagnose_radar", "read_radar_inputs", "simulate_radar_files",
-           "radar_simulation_outputs"]
+           "radar_simulation_outputs", "NOT_WITH_RADAR", "check_radar_options"]
+
+#: Keywords of :func:`casep.separate` that do not apply with radar inputs: name -> (the flag of
+#: ``casep separate``, the test that the value asks for something). The radar rows have their own
+#: noise (white per station and measurement type, given in the station files or estimated), a fit
+#: of their own (relinearised) and their own time-tag term (the tracking model's ``time_bias``).
+NOT_WITH_RADAR: dict[str, tuple[str, Callable[[Any], bool]]] = {
+    "denoise": ("--denoise wavelet", lambda v: v not in (None, "none")),
+    "wavelet_options": ("--wavelet, --level, --threshold-rule, --threshold-mode, --extension, --noise-scaling",
+                        bool),
+    "outliers": ("--outliers", lambda v: v is not None),
+    "exclude_outliers": ("--exclude-outliers", lambda v: v is not None),
+    "robust": ("--robust", lambda v: v not in (None, "auto", "none")),
+    "std": ("--std hac", lambda v: v not in (None, "model")),
+    "noise": ("--noise gm", lambda v: v == "gm"),
+    # a number is the std of the telemetry-minus-tracking velocity, m/s; the radar's is per station and type
+    "sigma": ("--sigma", lambda v: v is not None and not isinstance(v, Mapping)),
+    "max_condition_index": ("--max-condition-index", lambda v: v is not None and v != DEFAULT_MAX_CONDITION_INDEX),
+    "fit_time_offset": ("--fit-time-offset", bool),
+}
+
+
+def check_radar_options(given: Mapping[str, Any], *, cli: bool = False,
+                        outputs: Mapping[str, Any] | None = None) -> None:
+    """Refuse the options of :func:`casep.separate` that do not apply with radar inputs.
+
+    Parameters
+    ----------
+    given : mapping
+        Keyword of :func:`casep.separate` (a :data:`NOT_WITH_RADAR` key) -> the value the caller has.
+    cli : bool
+        Name the command-line flag in the error instead of the keyword.
+    outputs : mapping, optional
+        ``{flag: value}`` of outputs the radar result does not write (the command line's).
+
+    Raises
+    ------
+    ValueError
+        Naming the first option given, and why it does not apply.
+    """
+    for name, value in given.items():
+        flag, asks = NOT_WITH_RADAR[name]
+        if asks(value):
+            what = flag if cli else f"`{name}={value!r}`"
+            raise ValueError(f"{what} is not available with {'--radar' if cli else '`radar`'} (noise: white per "
+                             "station and measurement type, sigma_range/sigma_angle in the station files, else "
+                             "estimated; a time-tag error is the tracking model's time_bias); leave it out")
+    for flag, value in dict(outputs or {}).items():
+        if value:
+            raise ValueError(f"{flag} is not available with --radar (the radar result writes --json and --report); "
+                             "leave it out")
 
 
 @dataclass(frozen=True)
@@ -74,7 +125,7 @@ class RadarResult:
 
 
 def read_radar_inputs(pairs: Sequence) -> list[RadarMeasurements]:
-    """``[(station.json, measurements.csv), ...]`` (or RadarMeasurements) -> measurements, stations read."""
+    """``[(station.json or Station, measurements.csv), ...]`` (or RadarMeasurements) -> measurements, stations read."""
     out = []
     for p in pairs:
         if isinstance(p, RadarMeasurements):
@@ -82,7 +133,7 @@ def read_radar_inputs(pairs: Sequence) -> list[RadarMeasurements]:
             continue
         if not isinstance(p, (tuple, list)) or len(p) != 2:
             raise ValueError(f"each radar input must be (station.json, measurements.csv), got {p!r}")
-        out.append(read_radar(p[1], read_station(p[0])))
+        out.append(read_radar(p[1], p[0] if isinstance(p[0], Station) else read_station(p[0])))
     return out
 
 

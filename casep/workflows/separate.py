@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Mapping
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
@@ -21,6 +21,10 @@ from casep.io.flight import FlightData
 from casep.model._model import ErrorModel
 from casep.model.loader import load_model
 from casep.workflows.solve import solve_problem
+
+if TYPE_CHECKING:
+    from casep.frames import LaunchSite
+    from casep.workflows.radar import RadarResult
 
 __all__ = ["separate", "regression_rows", "judge_setup", "METHODS"]
 
@@ -60,18 +64,23 @@ def separate(
     tau: float | str | None = "auto",
     options: Mapping | None = None,
     noise: str = "auto",
-    robust: str | None = None,
+    robust: str | None = "auto",
     std: str = "model",
     exclude_outliers: float | None = None,
     fit_time_offset: bool | None = None,
-) -> EstimateResult:
+    radar: Sequence | None = None,
+    site: LaunchSite | None = None,
+    tracking_model: Any = "radar_biases",
+) -> EstimateResult | RadarResult:
     """Estimate a model's error coefficients from one flight.
 
     Parameters
     ----------
     flight : FlightData, Problem or path
         The flight, a flight file to read, or a :class:`~casep.analysis.problem.Problem` built
-        earlier (``casep demo`` solves every method on one; `model` is then its model).
+        earlier (``casep demo`` solves every method on one; `model` is then its model). With
+        `radar`: the telemetry file (``t, f_*, v_tel_*`` and optionally ``r_tel_*``) or a
+        :class:`casep.tracking.regression.Telemetry`.
     model : str, path or ErrorModel, optional
         Model name (``"platform36"``), model file, or model object.
     method : {"ols", "rls", "rels", "ridge", "bounded", "pcr", "map", "gls"}, optional
@@ -119,9 +128,10 @@ def separate(
         contradict it, with the factor by which the std are too small).
     tau : float, three floats or "auto", optional
         Gauss-Markov correlation time(s), s; a number implies ``noise="gm"``.
-    robust : {None, "huber", "bisquare"}, optional
+    robust : {"auto", "huber", "bisquare", "none"}, optional
         Robust fit for any method: glitches removed by a robust filter on the innovations, the
-        rest weighted (:mod:`casep.workflows.solve`).
+        rest weighted (:mod:`casep.analysis.rows`). ``auto`` (default): Huber when the filter
+        finds more glitches than Gaussian noise explains, said in ``diagnostics["robust"]``.
     std : {"model", "hac"}, optional
         ``hac``: Newey-West std (method ols with noise "white").
     exclude_outliers : float, optional
@@ -132,13 +142,32 @@ def separate(
         Default: when the tracking time tags were aligned automatically (``read_flight_pair(...,
         time_offset="auto")``), so that the alignment's error of a few ms is estimated and in the std
         instead of biasing the coefficients that correlate with it.
+    radar : sequence, optional
+        Radar measurements instead of tracking velocities: ``[(station, measurements), ...]``, each
+        station a station JSON file or a :class:`casep.tracking.stations.Station` and each measurement
+        file a CSV (``t, range, azimuth, elevation``, optionally ``range_rate``), or
+        :class:`casep.tracking.stations.RadarMeasurements`. The instrument coefficients and every
+        station's tracking terms are then estimated jointly by :func:`casep.separate_radar` (as
+        ``casep separate TEL --radar S1.json S1.csv``). `sigma` may then be ``{(station, type): std}``
+        (SI); the method options (``bounds``, ``prior``, ... and `options`) go to the method. The
+        keywords that do not apply (:data:`casep.workflows.radar.NOT_WITH_RADAR`: `denoise`,
+        `wavelet_options`, `outliers`, `exclude_outliers`, `robust`, ``std="hac"``, ``noise="gm"``, a
+        number as `sigma`, `max_condition_index`, `fit_time_offset`) are a ValueError, as is a
+        FlightData or Problem as `flight`.
+    site : LaunchSite, required with `radar`
+        Launch point, azimuth and launch time (``t0`` in the radar files' time scale).
+    tracking_model : name, path or TrackingModel, optional
+        With `radar`: the tracking model (default ``radar_biases``).
 
     Returns
     -------
-    EstimateResult
-        Judged against the set-up (:func:`judge_setup`): failed with status -4 when the flight failed a
-        set-up check (launch site, azimuth, launch time, time scales: ``flight.meta["setup"]``), with
-        status -5 when estimates exceed 1e4 times their declared magnitudes (a warning from 100 times);
+    EstimateResult or RadarResult
+        With `radar`: the :class:`casep.workflows.radar.RadarResult` of :func:`casep.separate_radar`
+        (its ``result`` the EstimateResult over the instrument coefficients and the station terms
+        ``<station>.<term>``, with ``summary`` and ``diagnostics``). Without: the EstimateResult, judged
+        against the set-up (:func:`judge_setup`): failed with status -4 when the flight failed a set-up check
+        (launch site, azimuth, launch time, time scales: ``flight.meta["setup"]``), with status -5 when
+        estimates exceed 1e4 times their declared magnitudes (a warning from 100 times);
         a given `sigma` far from the residual std is a warning (:func:`casep.analysis.checks.check_sigma`).
     """
     # One rule table (casep.estimators.registry): an option the method does not take is an error, not ignored.
@@ -150,6 +179,13 @@ def separate(
         if not _is_default(k, kw[k]):
             raise ValueError(f"option `{k}` given both as a keyword and in `options`")
         kw[k] = v
+    if radar is not None:
+        return _separate_radar(flight, model, method, kw, radar, site, tracking_model, sigma=sigma, denoise=denoise,
+                               wavelet_options=wavelet_options, outliers=outliers, exclude_outliers=exclude_outliers,
+                               robust=robust, std=std, noise=noise, max_condition_index=max_condition_index,
+                               fit_time_offset=fit_time_offset)
+    if site is not None or not _is_tracking_default(tracking_model):
+        raise ValueError(f"`{'site' if site is not None else 'tracking_model'}` is used only with `radar`")
     # tau is the noise model's (every method); `gls` also takes it as its own option
     tau_given = None if isinstance(kw["tau"], str) and kw["tau"] == "auto" else kw["tau"]
     if method != "gls":
@@ -163,7 +199,15 @@ def separate(
     # A bounds or prior table may be given as its JSON file (as on the command line).
     for k in ("bounds", "prior"):
         if isinstance(kw[k], (str, os.PathLike)):
-            kw[k] = read_json_table(kw[k], k)
+            path, kw[k] = kw[k], read_json_table(kw[k], k)
+            from casep.io.result_json import looks_like_result
+
+            if k == "prior" and looks_like_result(kw[k]):  # a result file (any form): its posterior
+                from casep.estimators.map import prior_from_result
+                from casep.estimators.result import read_result
+
+                res_prior, m = read_result(path, None if isinstance(flight, Problem) else model, option="prior")
+                kw[k] = prior_from_result(res_prior, model=m)
     if denoise not in (None, "none", "wavelet"):
         raise ValueError(f"`denoise` must be 'none' or 'wavelet', got {denoise!r}")
     if wavelet_options and denoise != "wavelet":
@@ -195,17 +239,17 @@ def separate(
     if method == "pcr":
         labels["max_condition_index"] = max_condition_index
     if den is not None:
-        if noise == "gm" or robust is not None or exclude_outliers is not None or std != "model":
+        if noise == "gm" or robust not in (None, "auto", "none") or exclude_outliers is not None or std != "model":
             raise ValueError("`denoise='wavelet'` removes the noise a noise model, a robust fit or HAC std describe: "
                              "use them without de-noising")
-        noise = "white"  # the de-noised residuals are no noise sample to fit a model on
+        noise, robust = "white", None  # the de-noised residuals are no noise sample to fit a model on
     out = solve_problem(solved, method, {k: v for k, v in kw.items() if k in _REGISTRY[method].options},
                         noise=noise, tau=tau_given if method != "gls" else None, robust=robust, std=std,
                         exclude_outliers=exclude_outliers, check_white=den is None, **labels)
     res = out.result
     # raw dv: noise-free, outliers, offset
     check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source,
-              outliers_handled=robust is not None or exclude_outliers is not None)
+              outliers_handled="robust" in res.diagnostics or exclude_outliers is not None)
     if sigma is not None and not sigma_from_wavelet:
         check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model, noise_free=_noise_free(problem))
@@ -220,7 +264,43 @@ def separate(
             settings["sigma"] = f"wavelet estimate {sigma:.6g}"
         res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings,
                                   sigma_source="wavelet" if sigma_from_wavelet else res.sigma_source)
+    if not isinstance(flight, Problem):
+        from casep.model.loader import model_file_reference
+
+        ref = model_file_reference(model)  # a model loaded from a path: impact/fuse find it again
+        if ref:
+            res = dataclasses.replace(res, model_file=ref)
     return res
+
+
+def _is_tracking_default(value) -> bool:
+    return isinstance(value, str) and value == "radar_biases"
+
+
+def _separate_radar(telemetry, model, method: str, kw: dict, radar: Sequence, site, tracking_model, *,
+                    sigma, **refused) -> RadarResult:
+    """:func:`separate` with radar inputs: the refusals, then :func:`casep.workflows.radar.separate_radar`."""
+    from casep.frames import LaunchSite
+    from casep.workflows.radar import check_radar_options, separate_radar
+
+    check_radar_options({"sigma": sigma, **refused})
+    if isinstance(telemetry, (FlightData, Problem)):
+        raise ValueError(f"`flight` is a {type(telemetry).__name__}: with `radar` it is the telemetry file (t, f_*, "
+                         "v_tel_* and optionally r_tel_*) or a casep.tracking.regression.Telemetry, since the "
+                         "radar regression integrates the telemetry itself")
+    if not isinstance(site, LaunchSite):
+        raise ValueError("`radar` needs `site`, a casep.LaunchSite (launch point, azimuth and launch time t0 in the "
+                         "radar files' time scale): it ties the telemetry's launch-inertial frame to the stations, "
+                         f"got {site!r}")
+    if isinstance(radar, (str, os.PathLike)) or not isinstance(radar, Sequence):
+        raise ValueError(f"`radar` must be a list of (station, measurements) pairs, got {radar!r}")
+    # the method's options as the caller set them; the method refuses the ones it does not take
+    opts = {k: v for k, v in kw.items() if v is not None and not _is_default(k, v)}
+    for k in ("bounds", "prior"):
+        if isinstance(opts.get(k), (str, os.PathLike)):
+            opts[k] = read_json_table(opts[k], k)
+    return separate_radar(telemetry, radar, site, model, tracking_model, method,
+                          sigma=sigma if isinstance(sigma, Mapping) else None, options=opts)
 
 
 def _is_default(name: str, value) -> bool:

@@ -71,7 +71,7 @@ def _x(res: EstimateResult) -> np.ndarray:
 
 
 def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | None = None, *,
-                  noise: str = "auto", tau=None, robust: str | None = None, std: str = "model",
+                  noise: str = "auto", tau=None, robust: str | None = "auto", std: str = "model",
                   exclude_outliers: float | None = None, check_white: bool = True, rows: Rows | None = None,
                   **labels) -> Solved:
     """Fit `problem`'s noise model (:func:`prepare_rows`) and solve its rows with a registered `method`.
@@ -102,9 +102,8 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
     opts = dict(options or {})
     if method == "gls":
         return _solve_gls(problem, opts, noise, tau, robust, std, exclude_outliers, labels)
-    if method == "huber" and robust is not None:
-        raise ValueError("method `huber` is robust already; `robust` makes any other method robust "
-                         "(e.g. method ols with robust='huber')")
+    if std == "hac" and robust == "auto":
+        robust = None  # HAC std are of the plain least-squares fit
     if std == "hac" and (noise != "white" or method != "ols"):
         raise ValueError("`std='hac'` is the Newey-West std of a white-noise least-squares fit: use it with "
                          "method ols and noise 'white' (in coloured noise, noise 'auto' or 'gm' gives honest std)")
@@ -231,16 +230,31 @@ def _gm_factor(res: EstimateResult, solved: Problem) -> tuple[float | None, floa
 
 
 def _solve_gls(problem, opts, noise, tau, robust, std, exclude_outliers, labels) -> Solved:
-    """`gls`: least squares with one Gauss-Markov correlation time for every axis (its own solver)."""
+    """`gls`: least squares with one Gauss-Markov correlation time for every axis (its own solver).
+
+    Glitches (a robust fit asked or found, :func:`casep.analysis.rows.prepare_rows`) and flagged
+    outliers are removed first, so that they cannot collapse the correlation time.
+    """
     if noise == "white":
         raise ValueError("method `gls` assumes Gauss-Markov noise: noise 'white' contradicts it (use method ols)")
-    if robust is not None or exclude_outliers is not None or std != "model":
-        raise ValueError("method `gls` takes no `robust`, `exclude_outliers` or `std`: use method ols with "
-                         "noise 'gm' (per-axis Gauss-Markov) and those options")
+    if std != "model":
+        raise ValueError("method `gls` takes no `std`: HAC std are for white-noise least squares (method ols)")
     if tau is not None:
         opts = {**opts, "tau": tau}
-    res = run_method("gls", problem, None, problem.t, opts, **labels)
+    sub, rows = problem, None
+    if robust not in (None, "none") or exclude_outliers is not None:
+        rows = prepare_rows(problem, "gm", None, robust, exclude_outliers)
+        if not rows.keep.all():
+            sub = problem.subset(rows.keep)
+    res = run_method("gls", sub, None, sub.t, opts, **labels)
     t_used = float(res.settings["tau"])
     nm = NoiseModel(kind="gm", tau=(t_used,) * 3, rule=str(res.settings.get("tau_rule", "reml")))
     diag = {**res.diagnostics, "noise": {**nm.to_dict(), "asked": "gm", "note": "method gls: one tau for all axes"}}
-    return Solved(dataclasses.replace(res, diagnostics=diag, settings={**res.settings, "noise": "gm"}), problem, nm)
+    if rows is not None and rows.robust is not None:
+        diag["robust"] = {**rows.robust, "rejected": _places(problem, np.flatnonzero(~rows.keep)[:200])}
+    if rows is not None and rows.excluded is not None:
+        diag["excluded"] = rows.excluded
+    raw = problem.residuals(_x(res))
+    res = dataclasses.replace(res, diagnostics=diag, settings={**res.settings, "noise": "gm"}, residuals=raw,
+                              n_samples=problem.n_samples)
+    return Solved(res, sub, nm, np.zeros(0, dtype=int) if rows is None else np.flatnonzero(~rows.keep))
