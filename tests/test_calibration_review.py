@@ -11,14 +11,19 @@ import warnings
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import stats
 
 from casep import calibrate
 from casep.calibration import load_calibration_model
 from casep.calibration.calibrate import PositionMisfitWarning, TimeGapWarning, calibrate_files
+from casep.calibration.consistency import ground_flight_checks
 from casep.calibration.session import Session, read_session
-from casep.calibration.simulate import ferraris_design, simulate_session
+from casep.calibration.simulate import ferraris_design, simulate_session, tilted_design
 from casep.cli import main
+from casep.estimators.result import EstimateResult
+from casep.exceptions import ConsistencyWarning
 from casep.units import G0
+from casep.workflows.flights import fuse_with_ground
 
 # a platform36 truth of typical magnitudes (the six positions cannot separate the cross-quadratic terms: 0)
 PLATFORM = dict(Kg0x=2.0, Kg1x=1.0, Kg0y=-3.0, Kg0z=1.5, Ka0x=-2, Ka1x=0.5, Ka1xy=50, Ka1xz=50, Ka2x=5, Ka0y=-2,
@@ -173,3 +178,39 @@ def test_static_readings_far_from_gravity_in_a_physical_unit_are_refused(platfor
     assert main(["calibrate", str(path), "--segments", str(seg), "--acc-unit", "m/s^2", "--json", str(out)]) == 2
     assert "x gravity" in capsys.readouterr().err and not out.exists()
     assert main(["calibrate", str(path), "--segments", str(seg), "--json", str(out)]) == 0  # a.u.: any scale
+
+
+# ------------------------------------------------------------------ D11: fusing a ground and a flight that disagree
+def test_fuse_of_a_ground_and_a_flight_that_disagree_is_not_a_success(platform_ground, tmp_path, capsys):
+    """A flight result whose Ka0x is off the ground calibration's by k std, k chosen so the ground-versus-
+    flight test gives p = 1e-4 (below 1e-3: they disagree, above fuse's own 1e-6 failure): a
+    ConsistencyWarning naming the pair, success false, exit 1. The same flight without the shift fuses."""
+    ses, segs = simulate_session(platform_ground, PLATFORM, ferraris_design(60, 60) + tilted_design(60),
+                                 rate=100.0, noise=(2e-3, 1e-4), position_error_deg=0.05, seed=3)
+    cal = _quiet(calibrate, ses, segs, platform_ground)
+    ground = EstimateResult.from_json(json.loads(json.dumps(cal.to_dict())))
+    mapped = ground_flight_checks([ground], ["ground.json"])[0][0]  # the ground's flight-model part
+    j = mapped.names.index("Ka0x")
+    n = len(mapped.names)
+    # a shift of Ka0x by k std, the others by their regression on it: shift^T C^-1 shift = k^2, so the pair
+    # (the flight has the ground's covariance, the difference 2 C) gives chi2 = k^2 / 2; p = 1e-4 on n dof
+    k = float(np.sqrt(2.0 * stats.chi2.isf(1e-4, n)))
+    C = mapped.covariance
+    shift = k * C[:, j] / np.sqrt(C[j, j])
+    ok = dataclasses.replace(mapped, method="ols", estimate=mapped.estimate + 1e-3 * mapped.std)
+    bad = dataclasses.replace(mapped, method="ols", estimate=mapped.estimate + shift)
+    res, text = fuse_with_ground([ground, ok], ["ground.json", "ok.json"])
+    assert res.success and "consistent" in text
+    with pytest.warns(ConsistencyWarning) as caught:  # fuse's own (p < 0.01: a warning) and the pair's
+        res, text = fuse_with_ground([ground, bad], ["ground.json", "bad.json"])
+    pair = [str(w.message) for w in caught if "ground ground.json and flight bad.json disagree" in str(w.message)]
+    assert len(pair) == 1 and "p 0.0001 (below 0.001)" in pair[0] and "Ka0x" in pair[0], pair
+    assert not res.success and res.status == 2 and "disagree" in res.message and "DISAGREE" in text
+    # the command: the warning after the table, exit 1, the JSON written with success false
+    gpath, fpath, out = tmp_path / "ground.json", tmp_path / "bad.json", tmp_path / "fused.json"
+    gpath.write_text(json.dumps(cal.to_dict()))
+    fpath.write_text(json.dumps(bad.to_dict()))
+    assert main(["fuse", str(gpath), str(fpath), "--json", str(out)]) == 1
+    stdout = capsys.readouterr().out
+    assert stdout.rindex("warning:") > stdout.index("consistency of the results")
+    assert json.loads(out.read_text())["success"] is False
