@@ -10,7 +10,9 @@ diagnostics are those of a flight. With readings ``u`` and the model's reading
   mean ``mean(u) - y0(f_k, omega_k) = J(f_k, omega_k) D`` (``weighting="samples"``: one row per
   sample and axis);
 - rotation segment k (gyro only; by angle ``theta`` about axis ``a`` along gravity, over ``T_k =
-  n_k / rate``): the integral. The reading is affine in omega (checked by the model's setup), so
+  sum_i dt_i``, ``dt_i = t_{i+1} - t_i`` the recorded steps, the last 1 / rate): the integral
+  ``int u dt = sum_i u_i dt_i`` (evenly sampled: imucal's sum / rate). The reading is affine in omega
+  (checked by the model's setup), so
   ``int u dt = T_k y0(f_k, 0) + [y0(f_k, Theta) - y0(f_k, 0)] + (T_k J(f_k, 0) + [J(f_k, Theta) -
   J(f_k, 0)]) D`` exactly, ``Theta = theta a`` in rad, whatever the rate profile of the turn.
 
@@ -22,7 +24,9 @@ covariance a tilt ``phi ~ N(0, tilt^2 I)`` of the position gives,
 ``J_f = dy/df`` (the model's, at an equal-weight first estimate) and ``P_k = I - e e^T`` (a tilt
 moves the readings across gravity, not along it), the turns by their white-noise std
 ``s_i sqrt(n_k) / rate`` (``s_i``: pooled within-segment sample std of axis i); ``tilt`` is where the
-whitened least-squares residual std is 1, estimated on the accelerometer and used for the gyro.
+whitened least-squares residual std is 1, estimated on the accelerometer and used for the gyro. A tilted
+position senses on average ``g cos|phi x e| ~ g (1 - tilt^2)`` along e (``E |phi x e|^2 / 2 = tilt^2``):
+the static rows are taken at ``f_k = g (1 - tilt^2) e_k`` (tilt and rows by a few fixed-point steps).
 ``segments``: the means with equal weight and the noise level from their misfit (the turns scaled to
 that level); ``samples``: every static sample a row, the white-noise GLS (exact positions only).
 """
@@ -509,13 +513,17 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
                 else np.zeros(0)
             sd_rot = np.maximum(sd_rot, 1e-12 * np.max(np.abs(y_rot), initial=0.0) + 1e-300)
             floor = (1e-12 * float(np.max(np.abs(ybar)))) ** 2 + 1e-300
-            whiten = _position_whitening(static, Jf, s_i, gravity, floor, S[:3 * n_static], ybar,
-                                         S[3 * n_static:], y_rot, sd_rot)
+            # a tilted position senses on average f = g (1 - tilt^2) e (module notes): the static rows there
+            args = (model, slot, cols, static, u, gravity, n_static, Jf, s_i, floor, y_rot, sd_rot)
             if tilt is None:  # estimated on the first sensor (the accelerometer): the same tilts move both
                 # degrees of freedom: rows minus the rank of S (the six axis positions leave some
                 # coefficients undetermined, so the rank, not the number of columns, counts)
                 tilt_dof = S.shape[0] - int(np.linalg.matrix_rank(Sw))
-                tilt = _solve_tilt(whiten, S.shape[0], S.shape[0] - tilt_dof)
+                tilt = 0.0
+                for _ in range(4):  # the mean shortfall moves the misfit by O(tilt^2): a fixed point in a few steps
+                    tilt = _solve_tilt(_tilted_rows(tilt, S, y, *args), S.shape[0], S.shape[0] - tilt_dof)
+            whiten = _tilted_rows(tilt, S, y, *args)
+            Sst, yst = S[:3 * n_static], y[:3 * n_static]
             Sw, yw = whiten(tilt)
             level = _ls_sigma(Sw, yw)
         m3 = S.shape[0] // 3  # observations of three rows (x, y, z) each
@@ -602,6 +610,24 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
                 "session_units": [session.acc_unit, session.gyr_unit], "source": session.source,
                 "rotation_angles_deg": {s.name: s.angle_deg for s in rots}}
     return Calibration(res_all, sensors, [seg_info[s.name] for s in segments], model, settings)
+
+
+def _tilted_rows(tilt, S, y, model, slot, cols, static, u, gravity, n_static, Jf, s_i, floor, y_rot, sd_rot):
+    """The static rows of `S`, `y` (in place) at the mean specific force of positions tilted by `tilt` rad rms,
+    ``g (1 - tilt^2) e``, and their ``whiten`` (:func:`_position_whitening`)."""
+    S[:3 * n_static], y[:3 * n_static] = _static_rows(model, slot, cols, static, u, gravity * (1.0 - tilt**2))
+    return _position_whitening(static, Jf, s_i, gravity, floor, S[:3 * n_static], y[:3 * n_static],
+                               S[3 * n_static:], y_rot, sd_rot)
+
+
+def _static_rows(model, slot, cols, static, u: np.ndarray, g: float) -> tuple[np.ndarray, np.ndarray]:
+    """The static means' rows at specific force ``g e_k``: ``S`` (3 per segment) and ``mean(u) - y0``."""
+    S, y = [], []
+    for s in static:
+        f, w = g * s.gravity, np.deg2rad(s.omega_dps)
+        S.append(model.jacobian(slot, f, w)[:, cols])
+        y.append(u[s.rows].mean(axis=0) - model.known(slot, f, w))
+    return np.vstack(S), np.concatenate(y)
 
 
 def _ls_sigma(S: np.ndarray, y: np.ndarray) -> float:
