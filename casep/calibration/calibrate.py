@@ -311,8 +311,9 @@ def _check_gravity(segs: Sequence[Segment], session: Session, gravity: float) ->
         fits = [u for u, k in ACC_UNITS.items() if u != unit and abs(raw * k / gravity - 1.0) <= GRAVITY_TOLERANCE]
         hint = (f"the readings look like {' or '.join(fits)}: --acc-unit {fits[0]}" if fits else
                 f"raw counts? Use: --acc-unit {RAW_UNIT} with a raw-readings model (ferraris)")
-        raise ValueError(f"{session.source}: {s.where}: the static accelerometer mean has |f| = {raw:.6g} {unit} = "
-                         f"{m:.6g} m/s^2, {m / gravity:.4g} x gravity ({gravity:.6g} m/s^2; more than "
+        si = "" if unit == "m/s^2" else f" = {m:.6g} m/s^2"
+        raise ValueError(f"{session.source}: {s.where}: the static accelerometer mean has |f| = {raw:.6g} {unit}"
+                         f"{si}, {m / gravity:.4g} x gravity ({gravity:.6g} m/s^2; more than "
                          f"{GRAVITY_TOLERANCE:.0%} off): {hint}")
 
 
