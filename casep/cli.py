@@ -914,17 +914,16 @@ def _cmd_noise(args: argparse.Namespace) -> int:
 
 
 def _cmd_fuse(args: argparse.Namespace) -> int:
-    """`casep fuse R1.json R2.json ...` (casep.workflows.flights.fuse)."""
+    """`casep fuse R1.json R2.json ...` (casep.workflows.flights.fuse_with_ground)."""
     from casep.estimators.result import read_result, write_json_atomic
     from casep.io._atomic import check_outputs
-    from casep.workflows.flights import fuse
 
     _manifest_results(args)  # --manifest: each flight's `result`
     check_outputs({"--json": args.json}, inputs=list(args.results) + [args.model])
     from casep.calibration.calibrate import calibration_models
-    from casep.calibration.consistency import ground_versus_flight
     from casep.estimators.result import result_from_data
     from casep.io.result_json import read_result_data
+    from casep.workflows.flights import fuse_with_ground
 
     grounds, results = set(calibration_models()), []
     for path in args.results:  # every result form, checked against its model (or --model)
@@ -936,10 +935,10 @@ def _cmd_fuse(args: argparse.Namespace) -> int:
     for path, r in zip(args.results, results):
         _refuse_failed(r, f"RESULT {path}")
     _refuse_shared_inputs(list(args.results))
-    results, ground_text = ground_versus_flight(results, list(args.results))  # ground results: flight-model part
+    # ground results: their flight-model part, tested against each flight; a disagreeing pair fails the fusion
+    res, ground_text = fuse_with_ground(results, labels=list(args.results), model=args.model)
     if ground_text:
         print(ground_text + "\n")
-    res = fuse(results, labels=list(args.results), model=args.model)
     print(res.table())
     c = res.diagnostics["consistency"]
     ov = c["overall"]

@@ -21,15 +21,15 @@ __getattr__, __dir__ = attach(__name__, {
                                   "segments_from_labels", "FERRARIS_SEGMENTS"),
     "casep.calibration.calibrate": ("Calibration", "calibrate_files", "load_calibration_model",
                                     "calibration_models",
-                                    "RotationSignWarning", "PositionMisfitWarning"),
+                                    "RotationSignWarning", "PositionMisfitWarning", "TimeGapWarning"),
     "casep.calibration.imucal": ("to_imucal", "from_imucal", "read_imucal", "write_imucal", "imucal_prior"),
     "casep.calibration.consistency": ("Consistency", "ground_prior", "flight_prior_consistency",
-                                      "ground_versus_flight"),
+                                      "ground_versus_flight", "ground_flight_checks"),
 }, globals())
 
 __all__ = ["CalibrationModel", "Session", "Segment", "SegmentError", "read_session", "read_segments",
            "segments_from_labels", "FERRARIS_SEGMENTS", "Calibration", "calibrate_files",
            "load_calibration_model", "calibration_models", "RotationSignWarning", "PositionMisfitWarning",
-           "to_imucal", "from_imucal",
+           "TimeGapWarning", "to_imucal", "from_imucal",
            "read_imucal", "write_imucal", "imucal_prior", "Consistency", "ground_prior",
-           "flight_prior_consistency", "ground_versus_flight"]
+           "flight_prior_consistency", "ground_versus_flight", "ground_flight_checks"]

@@ -10,7 +10,9 @@ diagnostics are those of a flight. With readings ``u`` and the model's reading
   mean ``mean(u) - y0(f_k, omega_k) = J(f_k, omega_k) D`` (``weighting="samples"``: one row per
   sample and axis);
 - rotation segment k (gyro only; by angle ``theta`` about axis ``a`` along gravity, over ``T_k =
-  n_k / rate``): the integral. The reading is affine in omega (checked by the model's setup), so
+  sum_i dt_i``, ``dt_i = t_{i+1} - t_i`` the recorded steps, the last 1 / rate): the integral
+  ``int u dt = sum_i u_i dt_i`` (evenly sampled: imucal's sum / rate). The reading is affine in omega
+  (checked by the model's setup), so
   ``int u dt = T_k y0(f_k, 0) + [y0(f_k, Theta) - y0(f_k, 0)] + (T_k J(f_k, 0) + [J(f_k, Theta) -
   J(f_k, 0)]) D`` exactly, ``Theta = theta a`` in rad, whatever the rate profile of the turn.
 
@@ -22,7 +24,9 @@ covariance a tilt ``phi ~ N(0, tilt^2 I)`` of the position gives,
 ``J_f = dy/df`` (the model's, at an equal-weight first estimate) and ``P_k = I - e e^T`` (a tilt
 moves the readings across gravity, not along it), the turns by their white-noise std
 ``s_i sqrt(n_k) / rate`` (``s_i``: pooled within-segment sample std of axis i); ``tilt`` is where the
-whitened least-squares residual std is 1, estimated on the accelerometer and used for the gyro.
+whitened least-squares residual std is 1, estimated on the accelerometer and used for the gyro. A tilted
+position senses on average ``g cos|phi x e| ~ g (1 - tilt^2)`` along e (``E |phi x e|^2 / 2 = tilt^2``):
+the static rows are taken at ``f_k = g (1 - tilt^2) e_k`` (tilt and rows by a few fixed-point steps).
 ``segments``: the means with equal weight and the noise level from their misfit (the turns scaled to
 that level); ``samples``: every static sample a row, the white-noise GLS (exact positions only).
 """
@@ -39,19 +43,18 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from casep.calibration.model import CalibrationModel
-from casep.calibration.session import Segment, Session
+from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Segment, Session
 from casep.exceptions import CasepWarning
 from casep.units import G0
 
 __all__ = ["Calibration", "calibrate", "load_calibration_model", "calibration_models",
-           "calibration_model_dirs", "calibrate_files", "RotationSignWarning", "PositionMisfitWarning", "WEIGHTINGS",
-           "ACC_UNITS", "GYR_UNITS"]
+           "calibration_model_dirs", "calibrate_files", "RotationSignWarning", "PositionMisfitWarning",
+           "TimeGapWarning", "WEIGHTINGS", "ACC_UNITS", "GYR_UNITS"]
 
 #: Row weighting of the static segments (module notes).
 WEIGHTINGS = ("positions", "segments", "samples")
-#: Session units a ``readings="si"`` model converts from: unit -> SI factor.
-ACC_UNITS = {"m/s^2": 1.0, "g": G0, "mg": 1e-3 * G0}
-GYR_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "deg/h": math.pi / 180.0 / 3600.0}
+#: A static segment's |mean specific force| may differ from gravity by this fraction (physical units).
+GRAVITY_TOLERANCE = 0.10
 _SENSOR = {"accel_reading": "accelerometer", "gyro_reading": "gyro"}
 #: Methods whose noise model runs along time (AR(1), MA): meaningless on segment rows.
 TIME_SERIES_METHODS = ("gls", "rels")
@@ -65,6 +68,10 @@ class RotationSignWarning(CasepWarning):
 
 class PositionMisfitWarning(CasepWarning):
     """A static segment misfits the model far more than the others (segment and numbers)."""
+
+
+class TimeGapWarning(CasepWarning):
+    """Samples are missing inside a turn (segment, gaps, samples missing): integrated over the recorded times."""
 
 
 # ------------------------------------------------------------------ models
@@ -201,8 +208,11 @@ class Calibration:
                          f"({r.sigma_source}, {r.diagnostics.get('rows', '?')} rows, rank {r.rank}/{len(r.names)})"
                          + (f", condition number {cn:.3g} (equilibrated)" if cn else "") + f"; {r.message}")
             if "position_error_deg" in r.diagnostics and k == "accelerometer":
+                dof = r.diagnostics.get("position_error_dof")
                 lines.append(f"  position error {r.diagnostics['position_error_deg']:.3g} deg rms (estimated from the "
-                             "misfit of the positions)")
+                             f"misfit of the positions, {dof} degrees of freedom"
+                             + ("; few: the std of the coefficients it drives are themselves uncertain)"
+                                if dof is not None and dof < 10 else ")"))
             if r.diagnostics.get("groups"):
                 lines.append("  near-dependencies: " + "; ".join("[" + ", ".join(g) + "]"
                                                                 for g in r.diagnostics["groups"]))
@@ -248,18 +258,75 @@ def _noise(segs: Sequence[Segment], u: np.ndarray) -> np.ndarray:
     return np.sqrt(ss / max(dof, 1))
 
 
-def _rotation_row(model, slot, seg: Segment, u: np.ndarray, g: float, rate: float):
-    """(y, J, T) of a rotation segment: the integral over the turn (module notes)."""
+def _steps(seg: Segment, t: np.ndarray, rate: float) -> np.ndarray:
+    """The time each sample of a segment stands for, s: the step to the next sample, the last one 1 / rate."""
+    return np.append(np.diff(t[seg.rows]), 1.0 / rate)
+
+
+def _rotation_row(model, slot, seg: Segment, u: np.ndarray, g: float, rate: float, t: np.ndarray):
+    """(y, J, T, dt) of a rotation segment: the integral over the turn (module notes)."""
     assert seg.angle_deg is not None and seg.axis is not None  # a rotation segment has both
     f = g * seg.gravity
     theta = np.deg2rad(seg.angle_deg) * seg.axis  # rad
-    T = len(seg.rows) / rate
+    # int u dt by the rectangle rule on the recorded times: u_i (t_{i+1} - t_i), the last sample 1 / rate
+    # (evenly sampled: imucal's sum / rate; samples missing inside the turn do not shorten it)
+    dt = _steps(seg, t, rate)
+    T = float(dt.sum())
     z = np.zeros(3)
-    integral = u[seg.rows].sum(axis=0) / rate  # int u dt, the rectangle rule (imucal's sum / rate)
+    integral = (u[seg.rows] * dt[:, None]).sum(axis=0)
     y0 = T * model.known(slot, f, z) + (model.known(slot, f, theta) - model.known(slot, f, z))
     J0 = model.jacobian(slot, f, z)
     J = T * J0 + (model.jacobian(slot, f, theta) - J0)
-    return integral - y0, J, T
+    return integral - y0, J, T, dt
+
+
+def _unit_text(model: CalibrationModel, session: Session) -> list[str]:
+    """The coefficients' unit text: a raw-readings model's ``a.u.`` is the session's unit of that sensor."""
+    units = list(model.units)
+    if model.readings != "raw":
+        return units
+    for slot, unit in (("accel_reading", session.acc_unit), ("gyro_reading", session.gyr_unit)):
+        if slot in model.slots and unit != RAW_UNIT:
+            for j in model.columns(slot):
+                units[j] = units[j].replace(RAW_UNIT, unit)
+    return units
+
+
+def _check_gravity(segs: Sequence[Segment], session: Session, gravity: float) -> None:
+    """Refuse readings in a physical unit whose static |mean| is off gravity by more than GRAVITY_TOLERANCE.
+
+    A static accelerometer senses ``|f| = g``; a mean far from it in the declared unit is a unit mistake
+    (raw counts declared as m/s^2, g as m/s^2, ...): the units that would give g are named.
+    """
+    unit = session.acc_unit
+    if unit not in ACC_UNITS:
+        return  # raw counts: any scale
+    for s in segs:
+        if s.kind != "static":
+            continue
+        raw = float(np.linalg.norm(session.acc[s.rows].mean(axis=0)))  # |mean|, declared unit
+        m = raw * ACC_UNITS[unit]  # m/s^2
+        if abs(m / gravity - 1.0) <= GRAVITY_TOLERANCE:
+            continue
+        fits = [u for u, k in ACC_UNITS.items() if u != unit and abs(raw * k / gravity - 1.0) <= GRAVITY_TOLERANCE]
+        hint = (f"the readings look like {' or '.join(fits)}: --acc-unit {fits[0]}" if fits else
+                f"raw counts? Use: --acc-unit {RAW_UNIT} with a raw-readings model (ferraris)")
+        si = "" if unit == "m/s^2" else f" = {m:.6g} m/s^2"
+        raise ValueError(f"{session.source}: {s.where}: the static accelerometer mean has |f| = {raw:.6g} {unit}"
+                         f"{si}, {m / gravity:.4g} x gravity ({gravity:.6g} m/s^2; more than "
+                         f"{GRAVITY_TOLERANCE:.0%} off): {hint}")
+
+
+def _check_gaps(rots: Sequence[Segment], t: np.ndarray, rate: float) -> None:
+    """TimeGapWarning for a turn whose time steps exceed 1.5 / rate (samples missing)."""
+    for s in rots:
+        step = np.diff(t[s.rows])
+        gaps = step > 1.5 / rate
+        if gaps.any():
+            missing = int(np.round(step[gaps] * rate).sum()) - int(gaps.sum())
+            warnings.warn(f"{s.where}: {int(gaps.sum())} gap(s) in time inside the turn (largest {step.max():.4g} s "
+                          f"against the {1.0 / rate:.4g} s step; about {missing} samples missing): the turn is "
+                          "integrated over the recorded times", TimeGapWarning, stacklevel=3)
 
 
 def _check_positions(segs: Sequence[Segment], acc: np.ndarray, unit: str) -> None:
@@ -365,10 +432,13 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         raise ValueError(f"method `{method}` models noise correlated in time; the rows of a ground test (segment "
                          "means, turn integrals) have no time order. Use: another method")
     acc, gyr, acc_unit, gyr_unit = _readings(session, model)
+    _check_gravity(segments, session, gravity)
     _check_positions(segments, acc, acc_unit)
     static = [s for s in segments if s.kind == "static"]
     rots = [s for s in segments if s.kind == "rotation"]
     rate = session.rate
+    _check_gaps(rots, session.t, rate)
+    units = _unit_text(model, session)
     seg_info: dict[str, dict[str, Any]] = {
         s.name: {"name": s.name, "kind": s.kind, "rows": [int(s.rows[0]), int(s.rows[-1])], "samples": len(s.rows),
                  "misfit": {}} for s in segments}
@@ -378,6 +448,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     est, cov = np.full(n, np.nan), np.zeros((n, n))
     reasons: dict[str, str] = {}
     tilt = None  # position error, rad rms (weighting "positions")
+    tilt_dof = 0  # the residual degrees of freedom it is estimated from
     for slot in model.slots:
         sensor = _SENSOR[slot]
         u = acc if slot == "accel_reading" else gyr
@@ -407,10 +478,10 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         n_static = len(rows_S)
         if slot == "gyro_reading":
             for s in rots:
-                y, J, T = _rotation_row(model, slot, s, u, gravity, rate)
+                y, J, T, dt = _rotation_row(model, slot, s, u, gravity, rate, session.t)
                 rows_S.append(J[:, cols])
                 rows_y.append(y)
-                rows_sd.append(s_i * math.sqrt(len(s.rows)) / rate)  # white noise integrated over the turn
+                rows_sd.append(s_i * math.sqrt(float(dt @ dt)))  # white noise integrated: s sqrt(sum dt^2)
                 rows_seg.append((s.name, 1))
                 rows_t.append(session.t[s.rows].mean())
         S = np.vstack([np.atleast_2d(x).reshape(-1, len(cols)) for x in rows_S])
@@ -443,15 +514,22 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
                 else np.zeros(0)
             sd_rot = np.maximum(sd_rot, 1e-12 * np.max(np.abs(y_rot), initial=0.0) + 1e-300)
             floor = (1e-12 * float(np.max(np.abs(ybar)))) ** 2 + 1e-300
-            whiten = _position_whitening(static, Jf, s_i, gravity, floor, S[:3 * n_static], ybar,
-                                         S[3 * n_static:], y_rot, sd_rot)
+            # a tilted position senses on average f = g (1 - tilt^2) e (module notes): the static rows there
+            args = (model, slot, cols, static, u, gravity, n_static, Jf, s_i, floor, y_rot, sd_rot)
             if tilt is None:  # estimated on the first sensor (the accelerometer): the same tilts move both
-                tilt = _solve_tilt(whiten, S.shape[0], len(cols))
+                # degrees of freedom: rows minus the rank of S (the six axis positions leave some
+                # coefficients undetermined, so the rank, not the number of columns, counts)
+                tilt_dof = S.shape[0] - int(np.linalg.matrix_rank(Sw))
+                tilt = 0.0
+                for _ in range(4):  # the mean shortfall moves the misfit by O(tilt^2): a fixed point in a few steps
+                    tilt = _solve_tilt(_tilted_rows(tilt, S, y, *args), S.shape[0], S.shape[0] - tilt_dof)
+            whiten = _tilted_rows(tilt, S, y, *args)
+            Sst, yst = S[:3 * n_static], y[:3 * n_static]
             Sw, yw = whiten(tilt)
             level = _ls_sigma(Sw, yw)
         m3 = S.shape[0] // 3  # observations of three rows (x, y, z) each
         pb = Problem.from_arrays(Sw.reshape(m3, 3, len(cols)), yw.reshape(m3, 3),
-                                 np.asarray(rows_t, dtype=float), names=names, units=[model.units[j] for j in cols],
+                                 np.asarray(rows_t, dtype=float), names=names, units=[units[j] for j in cols],
                                  si_factors=model.si_factors[cols], model=model.name)
         opts = {k: v for k, v in options.items() if v is not None}
         for key in ("prior", "bounds"):
@@ -470,7 +548,8 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         res = run_method(method, pb, None, None, opts, sigma=use_sigma)
         res = dataclasses.replace(res, diagnostics={**res.diagnostics, "rows": int(S.shape[0]),
                                                     "static_level": level, "sample_noise": s_i.tolist(),
-                                                    **({"position_error_deg": math.degrees(tilt)}
+                                                    **({"position_error_deg": math.degrees(tilt),
+                                                        "position_error_dof": tilt_dof}
                                                        if tilt is not None else {})})
         sensors[sensor] = res
         est[cols] = res.estimate
@@ -518,7 +597,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     # worst of the two: a failure (<= 0) if either failed, else 2 (some not identifiable) over 1
     status = min(r.status for r in parts) if any(r.status <= 0 for r in parts) else max(r.status for r in parts)
     res_all = EstimateResult(
-        method=method, names=model.names, units=model.units, estimate=est, std=std, covariance=cov,
+        method=method, names=model.names, units=tuple(units), estimate=est, std=std, covariance=cov,
         reasons=reasons, residuals=np.zeros((0, 3)), sigma=math.nan, rank=sum(r.rank for r in parts),
         status=status, message="; ".join(f"{k}: {r.message}" for k, r in sensors.items()),
         success=all(r.success for r in parts), si_factors=model.si_factors,
@@ -532,6 +611,24 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
                 "session_units": [session.acc_unit, session.gyr_unit], "source": session.source,
                 "rotation_angles_deg": {s.name: s.angle_deg for s in rots}}
     return Calibration(res_all, sensors, [seg_info[s.name] for s in segments], model, settings)
+
+
+def _tilted_rows(tilt, S, y, model, slot, cols, static, u, gravity, n_static, Jf, s_i, floor, y_rot, sd_rot):
+    """The static rows of `S`, `y` (in place) at the mean specific force of positions tilted by `tilt` rad rms,
+    ``g (1 - tilt^2) e``, and their ``whiten`` (:func:`_position_whitening`)."""
+    S[:3 * n_static], y[:3 * n_static] = _static_rows(model, slot, cols, static, u, gravity * (1.0 - tilt**2))
+    return _position_whitening(static, Jf, s_i, gravity, floor, S[:3 * n_static], y[:3 * n_static],
+                               S[3 * n_static:], y_rot, sd_rot)
+
+
+def _static_rows(model, slot, cols, static, u: np.ndarray, g: float) -> tuple[np.ndarray, np.ndarray]:
+    """The static means' rows at specific force ``g e_k``: ``S`` (3 per segment) and ``mean(u) - y0``."""
+    S, y = [], []
+    for s in static:
+        f, w = g * s.gravity, np.deg2rad(s.omega_dps)
+        S.append(model.jacobian(slot, f, w)[:, cols])
+        y.append(u[s.rows].mean(axis=0) - model.known(slot, f, w))
+    return np.vstack(S), np.concatenate(y)
 
 
 def _ls_sigma(S: np.ndarray, y: np.ndarray) -> float:
@@ -575,8 +672,9 @@ def _position_whitening(static, Jf, s_i, g, floor, S_st, y_st, S_rot, y_rot, sd_
 def _solve_tilt(whiten, m: int, n: int) -> float:
     """The position error (rad rms) at which the whitened least-squares residual std is 1.
 
-    0 when the sample noise alone explains the misfit (or no degree of freedom is left); capped at
-    0.5 rad.
+    `m` rows, `n` the rank of the rows (not the number of coefficients: the six axis positions leave
+    some undetermined). 0 when the sample noise alone explains the misfit (or no degree of freedom is
+    left); capped at 0.5 rad.
     """
     from scipy.optimize import brentq
 

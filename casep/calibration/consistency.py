@@ -24,6 +24,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 __all__ = ["Consistency", "consistency", "ground_prior", "flight_prior_consistency", "ground_versus_flight",
+           "ground_flight_checks",
            "as_gaussian", "DISAGREE_P", "DISAGREE_Z"]
 
 #: Overall p-value below which the two are said to disagree.
@@ -266,7 +267,15 @@ def flight_prior_consistency(flight, model, prior: Mapping, *, sigma: float | No
 
 def ground_versus_flight(results: Sequence, labels: Sequence[str]) -> tuple[list, str]:
     """For ``casep fuse``: ground calibrations among `results` mapped to their flight model, and the
-    consistency of each with each flight result (text).
+    consistency of each with each flight result (text). :func:`ground_flight_checks` also returns the
+    :class:`Consistency` of each pair."""
+    out, _, text = ground_flight_checks(results, labels)
+    return out, text
+
+
+def ground_flight_checks(results: Sequence, labels: Sequence[str]) -> tuple[list, list[Consistency], str]:
+    """Ground calibrations among `results` mapped to their flight model, the consistency of each with
+    each flight result, and its text.
 
     A result of a calibration model with a ``flight_model`` (``platform36_ground``) becomes the
     Gaussian of its shared coefficients under the flight model's name (:func:`ground_prior`), so
@@ -278,7 +287,7 @@ def ground_versus_flight(results: Sequence, labels: Sequence[str]) -> tuple[list
     from casep.estimators.result import EstimateResult
 
     known = set(calibration_models())
-    out, grounds, flights, text = [], [], [], []
+    out, grounds, flights, text, checks = [], [], [], [], []
     for r, lab in zip(results, labels):
         if isinstance(r, EstimateResult) and r.model in known:
             cm = load_calibration_model(r.model)
@@ -304,5 +313,6 @@ def ground_versus_flight(results: Sequence, labels: Sequence[str]) -> tuple[list
             except ValueError as exc:
                 text.append(f"ground {gl} versus flight {fl}: not compared ({exc})")
                 continue
+            checks.append(c)
             text.append(c.report())
-    return out, "\n\n".join(text)
+    return out, checks, "\n\n".join(text)

@@ -26,14 +26,25 @@ session that uses them must have all nine.
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from casep.units import G0
+
 __all__ = ["Session", "Segment", "SegmentError", "read_session", "read_segments", "segments_from_labels",
-           "FERRARIS_SEGMENTS", "ferraris_segment", "ACC_COLUMNS", "GYR_COLUMNS"]
+           "FERRARIS_SEGMENTS", "ferraris_segment", "ACC_COLUMNS", "GYR_COLUMNS", "ACC_UNITS", "GYR_UNITS",
+           "RATE_TOLERANCE"]
+
+#: Physical units of the session's columns: unit -> SI factor (``a.u.``, raw counts, is also accepted).
+ACC_UNITS = {"m/s^2": 1.0, "g": G0, "mg": 1e-3 * G0}
+GYR_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "deg/h": math.pi / 180.0 / 3600.0}
+RAW_UNIT = "a.u."
+#: A given sample rate and that of the ``t`` column may differ by this fraction.
+RATE_TOLERANCE = 0.01
 
 ACC_COLUMNS = ("acc_x", "acc_y", "acc_z")
 GYR_COLUMNS = ("gyr_x", "gyr_y", "gyr_z")
@@ -173,6 +184,10 @@ def read_session(path: str | os.PathLike, *, rate: float | None = None, acc_colu
         Naming the file, the column and the row (missing column, non-numeric or NaN value,
         time not increasing, no rate).
     """
+    for what, unit, table in (("--acc-unit", acc_unit, ACC_UNITS), ("--gyr-unit", gyr_unit, GYR_UNITS)):
+        if unit != RAW_UNIT and unit not in table:
+            raise ValueError(f"{what} `{unit}` is not a known unit. Use one of: {RAW_UNIT} (raw counts), "
+                             f"{', '.join(table)}")
     df = _read_table(path)
     src = str(path)
     cols = list(acc_columns) + list(gyr_columns)
@@ -200,9 +215,15 @@ def read_session(path: str | os.PathLike, *, rate: float | None = None, acc_colu
         raise ValueError(f"{src}: {n} rows; a session needs many samples per segment")
     if "t" in df.columns:
         t = np.asarray(df["t"], dtype=float)
+        step = np.diff(np.sort(t))
+        rate_t = 1.0 / float(np.median(step)) if np.all(np.isfinite(t)) and np.median(step) > 0 else math.nan
         if rate is None:
-            step = np.diff(np.sort(t))
-            rate = 1.0 / float(np.median(step))
+            rate = rate_t
+        elif np.isfinite(rate_t) and abs(float(rate) / rate_t - 1.0) > RATE_TOLERANCE:
+            # the t column is the record of the sampling: a rate that contradicts it scales every turn integral
+            raise ValueError(f"{src}: --rate {float(rate):.6g} Hz disagrees with the `t` column, whose median step "
+                             f"{1.0 / rate_t:.6g} s is {rate_t:.6g} Hz (more than {RATE_TOLERANCE:.0%} apart). "
+                             "Use: the right --rate, or leave it out (the t column gives the rate)")
     else:
         if rate is None:
             raise ValueError(f"{src}: no `t` column and no sample rate. Use: --rate HZ")

@@ -28,7 +28,7 @@ from casep.estimators.registry import METHODS, check_method_options, run_method
 from casep.estimators.result import EstimateResult
 
 __all__ = ["JointProblem", "separate_flights", "flights_summary", "fuse", "diagnose_flights", "JOINT_METHODS",
-           "FUSE_WARN_P", "FUSE_FAIL_P"]
+           "FUSE_WARN_P", "FUSE_FAIL_P", "fuse_with_ground"]
 
 #: Methods that estimate several flights jointly (all of the registry's).
 JOINT_METHODS = ("ols", "ridge", "bounded", "pcr", "map", "rls", "rels", "huber", "gls")
@@ -516,6 +516,46 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
                              "sigma": float(r.sigma) if np.isfinite(r.sigma) else None}
                             for r, lab in zip(results, labels)], "sigma": "each input's own"},
         n_samples=int(sum(r.n_samples for r in results)), stored_residual_rms={a: None for a in "xyz"})
+
+
+def fuse_with_ground(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
+                     model=None) -> tuple[EstimateResult, str]:
+    """:func:`fuse` of flight results and ground calibrations (a calibration model with a flight model,
+    such as ``platform36_ground``), and the text of each ground-versus-flight consistency test.
+
+    Each ground calibration is mapped to its flight model's coefficients and tested against each flight
+    result (:func:`casep.calibration.consistency.consistency`). A pair that disagrees (``p <``
+    :data:`casep.calibration.consistency.DISAGREE_P`) means one of the two is wrong for the other (an
+    unmodelled error, a unit or sign mistake, a changed instrument): the average of the two is then no
+    estimate of either, so the fused result is not a success (``success`` false, ``status`` 2) and a
+    :class:`~casep.exceptions.ConsistencyWarning` gives the pair and the numbers. Otherwise as
+    :func:`fuse` (whose own consistency test still applies).
+
+    Returns
+    -------
+    (EstimateResult, str)
+        The fused result and the consistency tables ("" without a ground calibration).
+    """
+    import dataclasses
+    import warnings
+
+    from casep.calibration.consistency import DISAGREE_P, ground_flight_checks
+    from casep.exceptions import ConsistencyWarning
+
+    labels = [f"result {k + 1}" for k in range(len(results))] if labels is None else [str(v) for v in labels]
+    mapped, checks, text = ground_flight_checks(results, labels)
+    res = fuse(mapped, labels=labels, model=model)
+    bad = [c for c in checks if not c.consistent]
+    if bad:
+        what = "; ".join(f"{c.labels[0]} and {c.labels[1]} disagree: chi2 {c.chi2:.4g} on {c.dof} dof, p "
+                         f"{c.p_value:.3g} (below {DISAGREE_P:g})"
+                         + (f", |z| > 3: {', '.join(c.disagree)}" if c.disagree else "") for c in bad)
+        what += ("; the fused result averages estimates that contradict each other (an unmodelled error, a unit or "
+                 "sign mistake, or a changed instrument): it is not a success")
+        warnings.warn(what, ConsistencyWarning, stacklevel=2)
+        res = dataclasses.replace(res, success=False, status=res.status if res.status <= 0 else 2,
+                                  message=f"{res.message}; {what}")
+    return res, text
 
 
 def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float] | None = None,
