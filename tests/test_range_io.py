@@ -222,6 +222,7 @@ def _shifted(res: dict, t: float) -> dict:
     for c, v in zip(out["coefficients"], x):
         c["estimate"] = float(v)
     out["estimates"] = [float(v) for v in x]
+    out.pop("provenance", None)  # another flight's result: not estimated from `res`'s input files
     return out
 
 
