@@ -944,7 +944,8 @@ def _cmd_fuse(args: argparse.Namespace) -> int:
     ov = c["overall"]
     print(f"consistency of the results: chi2 {ov['chi2']:.4g}, {ov['dof']} dof, p {ov['p_value']:.3g}")
     if args.json:
-        write_json_atomic(res.to_dict(), args.json)
+        prov = _provenance(args, [], {f"result {k + 1}": p for k, p in enumerate(args.results)})
+        write_json_atomic({**res.to_dict(), "provenance": prov}, args.json)
         print(f"result written to {args.json}")
     return _result_status(res)
 
@@ -957,22 +958,35 @@ def _refuse_failed(res, where: str) -> None:
 
 
 def _refuse_shared_inputs(paths: list) -> None:
-    """Two results whose provenance names the same input file (sha256): the same data would count twice."""
-    seen: dict[str, str] = {}
+    """Two results whose provenance names the same input file (sha256), or one result fused from another:
+    the same data would count twice."""
+    import hashlib
+
+    def digest(path) -> str | None:
+        try:
+            return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        except OSError:
+            return None
+
+    seen: dict[str, tuple[str, str]] = {}  # sha256 -> (result file, the file it names)
     for path in paths:
+        own = digest(path)
         try:
             with open(path, encoding="utf-8") as fh:
                 prov = json.load(fh).get("provenance") or {}
         except (OSError, ValueError, AttributeError):
-            continue  # read and checked by the result reader; a hand-written result has no provenance
+            prov = {}  # read and checked by the result reader; a hand-written result has no provenance
+        named = [(own, str(path))] if own else []
         for inp in prov.get("inputs", []) if isinstance(prov, dict) else []:
-            digest = inp.get("sha256") if isinstance(inp, dict) else None
-            if digest and inp.get("role", "") not in ("prior", "bounds", "model"):
-                if digest in seen and seen[digest] != str(path):
-                    raise ValueError(f"RESULT {path} and {seen[digest]} were estimated from the same input file "
-                                     f"{inp.get('file', '')} (sha256 {digest[:12]}...): fusing them counts its data "
-                                     "twice (std too small by sqrt 2); give each flight's result once")
-                seen.setdefault(digest, str(path))
+            if isinstance(inp, dict) and inp.get("sha256") and inp.get("role", "") not in ("prior", "bounds", "model"):
+                named.append((inp["sha256"], str(inp.get("file", ""))))
+        for d, name in named:
+            if d in seen and seen[d][0] != str(path):
+                raise ValueError(f"RESULT {path} and {seen[d][0]} were estimated from the same input file {name} "
+                                 f"(sha256 {d[:12]}...): fusing them counts its data twice (std too small by sqrt 2); "
+                                 "give each flight's result once")
+        for d, name in named:
+            seen.setdefault(d, (str(path), name))
 
 
 def _diagnose_flights(args: argparse.Namespace, model, prior, scales) -> int:
@@ -1008,18 +1022,18 @@ def _diagnose_flights(args: argparse.Namespace, model, prior, scales) -> int:
     return 0
 
 
-def _provenance(args: argparse.Namespace, flights: list) -> dict:
+def _provenance(args: argparse.Namespace, flights: list, extra_inputs: dict | None = None) -> dict:
     """The provenance record of a command's result (casep.io.provenance): files with SHA-256, frames, sites,
     time alignment, exclusions, the options as given and the command line."""
     from casep.io.provenance import provenance
 
     skip = {"command", "flight", "tracking", "manifest", "manifest_obj", "json", "mat", "csv", "report", "figures",
-            "argv"}
+            "argv", "results"}
     options = {k: v for k, v in vars(args).items() if k not in skip and v is not None
                and isinstance(v, (str, int, float, bool, list))}
     model = getattr(args, "model", None)
     inputs = {"prior": getattr(args, "prior", None), "bounds": getattr(args, "bounds", None),
-              "model": model if model and Path(str(model)).is_file() else None}
+              "model": model if model and Path(str(model)).is_file() else None, **(extra_inputs or {})}
     return provenance(flights, inputs=inputs, options=options, argv=getattr(args, "argv", None),
                       manifest=getattr(args, "manifest_obj", None))
 

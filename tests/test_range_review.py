@@ -59,3 +59,17 @@ def test_a_manifest_may_name_a_result_not_written_yet(tmp_path):
     (tmp_path / "m.toml").write_text('[[flight]]\ntelemetry = "t.csv"\ntracking = "k.csv"\nresult = "r.json"\n')
     man = casep.read_manifest(tmp_path / "m.toml")
     assert man.flights[0].result == tmp_path / "r.json" and not (tmp_path / "r.json").exists()
+
+
+def test_fuse_json_has_provenance_and_a_fused_result_is_not_fused_again(two_results, capsys):
+    d = two_results
+    assert main(["simulate", "--scenario", "paper", "--rate", "5", "--seed", "3", "-o", str(d / "b.csv")]) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["separate", str(d / "b.csv"), "--json", str(d / "r3.json")]) == 0
+        assert main(["fuse", str(d / "r1.json"), str(d / "r3.json"), "--json", str(d / "fz.json")]) == 0
+    prov = json.loads((d / "fz.json").read_text())["provenance"]
+    assert [i["role"] for i in prov["inputs"]] == ["result 1", "result 2"] and prov["command_line"].startswith("casep fuse")
+    capsys.readouterr()
+    assert main(["fuse", str(d / "r1.json"), str(d / "fz.json")]) == 2
+    assert "counts its data twice" in capsys.readouterr().err
