@@ -69,7 +69,8 @@ def test_fuse_json_has_provenance_and_a_fused_result_is_not_fused_again(two_resu
         assert main(["separate", str(d / "b.csv"), "--json", str(d / "r3.json")]) == 0
         assert main(["fuse", str(d / "r1.json"), str(d / "r3.json"), "--json", str(d / "fz.json")]) == 0
     prov = json.loads((d / "fz.json").read_text())["provenance"]
-    assert [i["role"] for i in prov["inputs"]] == ["result 1", "result 2"] and prov["command_line"].startswith("casep fuse")
+    assert [i["role"] for i in prov["inputs"]] == ["result 1", "result 2"]
+    assert prov["command_line"].startswith("casep fuse")
     capsys.readouterr()
     assert main(["fuse", str(d / "r1.json"), str(d / "fz.json")]) == 2
     assert "counts its data twice" in capsys.readouterr().err
