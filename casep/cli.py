@@ -701,6 +701,8 @@ def _impact_manifest(args: argparse.Namespace) -> None:
         raise ValueError(f"--manifest {args.manifest} lists {len(man.flights)} flights; impact reads one")
     f = man.flights[0]
     args.flight = str(f.telemetry)
+    if f.tracking is not None:  # its tracking, frame, site and clocks: read as separate reads it
+        args.manifest_obj = man
     if not args.result:
         if f.result is None:
             raise ValueError(f"--manifest {args.manifest}: the flight has no `result`; give --result RESULT.json")
@@ -1323,7 +1325,7 @@ def _cmd_impact(args: argparse.Namespace) -> int:
             raise ValueError(f"--per-flight {item}: give NAME=VALUE (natural units)") from None
         if not eq or not math.isfinite(per_flight[name.strip()]):
             raise ValueError(f"--per-flight {item}: give NAME=VALUE with a finite value (natural units)")
-    if args.tracking:  # telemetry + tracking, with the frame options as for separate
+    if args.tracking or getattr(args, "manifest_obj", None) is not None:  # telemetry + tracking (options or manifest)
         flight = _read(args)
     else:
         _frame_options(args)  # --tracking-frame / --launch-site without --tracking: an error

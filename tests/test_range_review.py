@@ -74,3 +74,27 @@ def test_fuse_json_has_provenance_and_a_fused_result_is_not_fused_again(two_resu
     capsys.readouterr()
     assert main(["fuse", str(d / "r1.json"), str(d / "fz.json")]) == 2
     assert "counts its data twice" in capsys.readouterr().err
+
+
+def test_impact_manifest_reads_the_flights_tracking_and_frame(tmp_path):
+    """impact --manifest equals impact with the same flight given on the command line (ECEF tracking)."""
+    site = ["--launch-site", "28.5", "-80.6", "3", "90", "--launch-time", "0"]
+    a, trk = str(tmp_path / "a.csv"), str(tmp_path / "a.tracking.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["simulate", "--rotating-earth", *site[:5], "--tracking-frame", "ecef", "--rate", "5", "--seed",
+                     "1", "-o", a]) == 0
+        assert main(["separate", a, "--tracking", trk, "--tracking-frame", "ecef", *site, "--json",
+                     str(tmp_path / "r.json")]) == 0
+        assert main(["impact", a, "--tracking", trk, "--tracking-frame", "ecef", *site, "--result",
+                     str(tmp_path / "r.json"), "--json", str(tmp_path / "i1.json")]) == 0
+    (tmp_path / "m.toml").write_text(
+        '[[flight]]\ntelemetry = "a.csv"\ntracking = "a.tracking.csv"\nframe = "ecef"\n'
+        'site = { lat_deg = 28.5, lon_deg = -80.6, h_m = 3.0, azimuth_deg = 90.0 }\nlaunch_time_s = 0.0\n'
+        'result = "r.json"\n')
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["impact", "--manifest", str(tmp_path / "m.toml"), "--json", str(tmp_path / "i2.json")]) == 0
+    one, two = (json.loads((tmp_path / f"i{k}.json").read_text())["miss"] for k in (1, 2))
+    assert one["downrange"] == pytest.approx(two["downrange"], rel=1e-12)
+    assert one["std_crossrange"] == pytest.approx(two["std_crossrange"], rel=1e-12)
