@@ -148,6 +148,9 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
         "gauss_newton_steps": [float(v) for v in lin.history],
         "noise_scale": float(res.sigma),
     }
+    failed = [] if lin.converged else [lin.convergence_message]
+    if failed:  # a probably wrong result is never a plain success
+        res = dataclasses.replace(res, success=False, status=-1, message="; ".join(failed))
     res = dataclasses.replace(
         res, residuals=np.empty((0, 3)), stored_residual_rms=dict.fromkeys("xyz"),
         diagnostics={**res.diagnostics, "tracking_terms": tracking_terms, "tracking_model": reg.tracking.name},

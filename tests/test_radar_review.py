@@ -1,0 +1,60 @@
+"""Radar separation review: convergence near a station's zenith, residuals far above the noise, simulated noise."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from casep.frames import LaunchSite
+from casep.simulation.radar import simulate_radar
+from casep.tracking.stations import read_station
+from casep.workflows.radar import separate_radar
+
+SITE = LaunchSite(28.5, -80.6, 3.0, 90.0, 0.0)
+#: 50 km downrange: the flight passes within about 1 deg of the station's zenith
+DR50 = {"name": "DR50", "lat": 28.5, "lon": -80.089, "h": 10.0, "sigma_range": 5.0, "sigma_angle": 15.0}
+TRUTH = {"DR50": {"range_bias": 12.0, "range_scale": 30.0, "azimuth_bias": 25.0, "elevation_bias": -15.0,
+                  "time_bias": 2.0}}
+
+
+@pytest.fixture(scope="module")
+def zenith():
+    """One station near the zenith of the flight, its noise (5 m, 15 arcsec) in the station file."""
+    return simulate_radar([read_station(DR50)], SITE, seed=1, telemetry_rate=20, radar_rate=10, tracking_truth=TRUTH,
+                          noise={"range": 5.0, "azimuth": 15.0, "elevation": 15.0})
+
+
+def test_given_noise_near_the_zenith_converges(zenith):
+    rr = separate_radar(zenith.telemetry, list(zenith.radars), SITE, zenith.model, zenith.tracking,
+                        diagnostics=False)
+    assert rr.result.success, rr.result.message
+    assert rr.summary["gauss_newton_steps"][-1] < 1e-3
+    truth = zenith.truth_vector()
+    z = (rr.result.estimate - truth) / rr.result.std
+    ok = np.isfinite(z)
+    assert ok.sum() >= 30 and np.max(np.abs(z[ok])) < 5.0, dict(zip(rr.result.names, z))
+    rms = rr.summary["residual_rms"]
+    assert rms["DR50.range"] < 5.0 * 1.2 and rms["DR50.elevation"] < 15.0 * 1.2
+
+
+def test_a_linearisation_that_does_not_converge_is_a_failed_result(zenith, monkeypatch, tmp_path, capsys):
+    import functools
+
+    from casep.cli import main
+    from casep.simulation.radar import write_radar_simulation
+    from casep.tracking.regression import RadarConvergenceWarning, RadarRegression
+
+    monkeypatch.setattr(RadarRegression, "solve", functools.partialmethod(RadarRegression.solve, iterations=2))
+    with pytest.warns(RadarConvergenceWarning, match=r"not settled in 2 Gauss-Newton steps \(last full step"):
+        rr = separate_radar(zenith.telemetry, list(zenith.radars), SITE, zenith.model, zenith.tracking,
+                            diagnostics=False)
+    assert not rr.result.success and rr.result.status < 0
+    assert "did not converge" in rr.result.message and "std" in rr.result.message
+    files = write_radar_simulation(zenith, tmp_path / "z.csv")
+    code = main(["separate", str(files[0]), "--radar", str(files[1]), str(files[2]), "--launch-site", "28.5",
+                 "-80.6", "3", "90", "--launch-time", "0", "--json", str(tmp_path / "r.json")])
+    assert code == 1
+    assert "result not successful" in capsys.readouterr().err
+    import json
+
+    assert json.loads((tmp_path / "r.json").read_text())["success"] is False
