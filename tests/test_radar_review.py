@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -58,3 +60,35 @@ def test_a_linearisation_that_does_not_converge_is_a_failed_result(zenith, monke
     import json
 
     assert json.loads((tmp_path / "r.json").read_text())["success"] is False
+
+
+def test_simulate_uses_the_station_files_noise(tmp_path):
+    """A station file's sigma_range / sigma_angle are the noise simulated (and written), not --range-noise."""
+    from casep.cli import main
+
+    st = tmp_path / "D.json"
+    st.write_text(json.dumps({"name": "Q", "lat": 28.1, "lon": -79.2, "h": 15.0, "sigma_range": 20.0,
+                              "sigma_angle": 60.0}))
+    plain = tmp_path / "P.json"
+    plain.write_text(json.dumps({"name": "P", "lat": 28.9, "lon": -80.0, "h": 20.0}))
+    code = main(["simulate", "-o", str(tmp_path / "f.csv"), "--seed", "3", "--rate", "20", "--rotating-earth",
+                 "--launch-site", "28.5", "-80.6", "3", "90", "--radar-station", str(st), "--radar-station",
+                 str(plain), "--radar-rate", "20", "--range-noise", "1", "--angle-noise", "2"])
+    assert code == 0
+    truth = json.loads((tmp_path / "f.truth.json").read_text())
+    assert truth["station_noise"]["Q"] == {"range": 20.0, "azimuth": 60.0, "elevation": 60.0}
+    assert truth["station_noise"]["P"] == {"range": 1.0, "azimuth": 2.0, "elevation": 2.0}
+    assert json.loads((tmp_path / "f.Q.json").read_text())["sigma_range"] == 20.0
+    assert "sigma_range" not in json.loads((tmp_path / "f.P.json").read_text())
+    # the noise in the data, estimated per group (several thousand samples: about 1 % std; 10 % is loose)
+    rr = separate_radar(tmp_path / "f.csv", [(tmp_path / "f.P.json", tmp_path / "f.P.csv")], SITE,
+                        diagnostics=False)
+    est = {(g["station"], g["type"]): g["sigma"] for g in rr.summary["noise"]}
+    assert est[("P", "range")] == pytest.approx(1.0, rel=0.1) and est[("P", "azimuth")] == pytest.approx(2.0, rel=0.1)
+    d = tmp_path / "f.Q.json"
+    plain_d = tmp_path / "Qplain.json"
+    plain_d.write_text(json.dumps({k: v for k, v in json.loads(d.read_text()).items() if not k.startswith("sigma")}))
+    rr = separate_radar(tmp_path / "f.csv", [(plain_d, tmp_path / "f.Q.csv")], SITE, diagnostics=False)
+    est = {(g["station"], g["type"]): g["sigma"] for g in rr.summary["noise"]}
+    assert est[("Q", "range")] == pytest.approx(20.0, rel=0.1)
+    assert est[("Q", "elevation")] == pytest.approx(60.0, rel=0.1)
