@@ -92,3 +92,60 @@ def test_simulate_uses_the_station_files_noise(tmp_path):
     est = {(g["station"], g["type"]): g["sigma"] for g in rr.summary["noise"]}
     assert est[("Q", "range")] == pytest.approx(20.0, rel=0.1)
     assert est[("Q", "elevation")] == pytest.approx(60.0, rel=0.1)
+
+
+@pytest.fixture(scope="module")
+def offset():
+    """One station away from the zenith, noise 5 m and 15 arcsec in its file."""
+    q = {"name": "Q", "lat": 28.1, "lon": -79.2, "h": 15.0, "sigma_range": 5.0, "sigma_angle": 15.0}
+    return simulate_radar([read_station(q)], SITE, seed=2, telemetry_rate=20, radar_rate=10,
+                          noise={"range": 5.0, "azimuth": 15.0, "elevation": 15.0})
+
+
+def _shifted(sim, dt, given=True):
+    import dataclasses
+
+    m = sim.radars[0]
+    st = m.station if given else dataclasses.replace(m.station, sigma={})
+    return [dataclasses.replace(m, t=m.t + dt, station=st)]
+
+
+def test_time_tags_off_are_a_failed_result_not_a_success(offset):
+    # 0.5 s late tags: absorbed by the time bias (500 ms against a declared 1 ms), so the residuals look fine
+    with pytest.warns(Warning):  # the samples shifted out of the telemetry span
+        rr = separate_radar(offset.telemetry, _shifted(offset, 0.5), SITE, offset.model, offset.tracking,
+                            diagnostics=False)
+    assert not rr.result.success and rr.result.status < 0, rr.summary["residual_rms"]
+    assert "Q.time_bias" in rr.result.message and "--launch-time" in rr.result.message
+    with pytest.warns(Warning):
+        rr = separate_radar(offset.telemetry, _shifted(offset, 0.5, given=False), SITE, offset.model,
+                            offset.tracking, diagnostics=False)
+    assert not rr.result.success and "declared magnitude" in rr.result.message
+    # unshifted: a success, with the noise given and estimated
+    for given in (True, False):
+        rr = separate_radar(offset.telemetry, _shifted(offset, 0.0, given), SITE, offset.model, offset.tracking,
+                            diagnostics=False)
+        assert rr.result.success, rr.result.message
+
+
+def test_residuals_above_the_given_noise_fail_or_warn(offset):
+    import dataclasses
+
+    from casep.tracking.regression import RadarResidualWarning
+
+    m = offset.radars[0]
+    tight = dataclasses.replace(m, station=dataclasses.replace(m.station, sigma={**m.station.sigma, "range": 2.0}))
+    rr = separate_radar(offset.telemetry, [tight], SITE, offset.model, offset.tracking, diagnostics=False)
+    assert not rr.result.success
+    assert "Q.range: residual RMS" in rr.result.message and "times the given noise 2 m" in rr.result.message
+    # 10 % below the true 5 m on about 3000 samples: chi-square far out (p ~ 1e-40), but within 1.5 times
+    near = dataclasses.replace(m, station=dataclasses.replace(m.station, sigma={**m.station.sigma, "range": 4.5}))
+    with pytest.warns(RadarResidualWarning, match=r"Q\.range: residual RMS 4\.9\d* m is 1\.1\d* times"):
+        rr = separate_radar(offset.telemetry, [near], SITE, offset.model, offset.tracking, diagnostics=False)
+    assert rr.result.success
+
+
+def test_an_18_s_shift_names_the_launch_time(zenith):
+    with pytest.raises(ValueError, match=r"first measured elevation .*--launch-time"), pytest.warns(Warning):
+        separate_radar(zenith.telemetry, _shifted(zenith, 18.0), SITE, zenith.model, zenith.tracking,
+                       diagnostics=False)

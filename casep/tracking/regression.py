@@ -53,7 +53,8 @@ from casep.tracking.stations import MEASUREMENT_TYPES, RadarMeasurements, check_
 from casep.units import ARCSEC
 
 __all__ = ["Telemetry", "read_telemetry", "RadarRegression", "estimate_group_sigmas", "FIRST_RANGE_LIMIT",
-           "TYPE_UNITS", "RadarCoverageWarning", "RadarConvergenceWarning"]
+           "TYPE_UNITS", "RadarCoverageWarning", "RadarConvergenceWarning", "RadarResidualWarning",
+           "PLAUSIBLE_SIGMA", "RESIDUAL_RATIO_LIMIT"]
 
 #: A first predicted range further than this from the first measured one is a wrong site, not a bias, m.
 FIRST_RANGE_LIMIT = 1000.0
@@ -66,12 +67,22 @@ TYPE_UNITS = {"range": ("m", 1.0), "azimuth": ("arcsec", ARCSEC), "elevation": (
 _START_SIGMA = {"range": 1.0, "azimuth": 5 * ARCSEC, "elevation": 5 * ARCSEC, "range_rate": 0.1}
 #: Floor of an estimated group std (SI): the rounding of the measurements, not noise.
 _SIGMA_FLOOR = {"range": 1e-9, "azimuth": 1e-15, "elevation": 1e-15, "range_rate": 1e-10}
+#: Largest plausible noise std of a tracking radar per type (SI): 100 m, 300 arcsec, 10 m/s. An estimated
+#: noise above it is a misfit (time tags off, a wrong model), not noise: the result is failed.
+PLAUSIBLE_SIGMA = {"range": 100.0, "azimuth": 300 * ARCSEC, "elevation": 300 * ARCSEC, "range_rate": 10.0}
+#: A given noise std exceeded by the residual RMS by more than this factor (and a chi-square test at
+#: p < 1e-6) is a failed result; exceeded less, but significantly (p < 1e-6), a warning.
+RESIDUAL_RATIO_LIMIT = 1.5
 #: Telemetry speed relative to the pad above which its first sample is not on the pad, m/s.
 _PAD_SPEED = 5.0
 
 
 class RadarConvergenceWarning(CasepWarning):
     """The Gauss-Newton relinearisation did not settle: the message gives the steps (in std)."""
+
+
+class RadarResidualWarning(CasepWarning):
+    """Residuals significantly above the given noise (chi-square, p < 1e-6), but within 1.5 times it."""
 
 
 class RadarCoverageWarning(CasepWarning):
@@ -258,8 +269,9 @@ class RadarRegression:
                     raise ValueError(
                         f"station `{name}` ({s.meas.source}): first measured {ty} {math.degrees(s.z[0, j]):.6g} deg vs "
                         f"predicted {math.degrees(geo[0, j]):.6g} deg at t = {s.t[0]:g} s (difference "
-                        f"{math.degrees(d):.4g} deg > 1 deg): a wrong station position or launch site, or angles not "
-                        "in degrees")
+                        f"{math.degrees(d):.4g} deg > 1 deg): a wrong station position or launch site, a radar time "
+                        "scale other than the telemetry's (--launch-time: the launch time in the radar files' time "
+                        "scale), or angles not in degrees")
 
     # ------------------------------------------------------------------ rows
     @property
@@ -608,6 +620,42 @@ class LinearisedRadar:
         for (st, ty), r in zip(self.regression.groups, self.regression.group_rows()):
             out[f"{st}.{ty}"] = float(np.sqrt(np.mean(res[r] ** 2)) / TYPE_UNITS[ty][1])
         return out
+
+    def residual_check(self, x: np.ndarray) -> tuple[list[str], list[str]]:
+        """Residuals against the noise, per group: ``(failures, warnings)`` (messages with the numbers).
+
+        Given noise: ``q = sum r_i^2 / sigma^2`` over the group's ``m`` rows is chi-square with about
+        ``m`` degrees of freedom (the fitted parameters are few against thousands of samples); a
+        significant excess (``P(chi2_m > q) < 1e-6``) with ``RMS > 1.5 sigma`` fails, a smaller
+        significant excess warns. Estimated noise: above :data:`PLAUSIBLE_SIGMA` fails (the
+        estimate then measures a misfit, not the sensor).
+        """
+        from scipy.stats import chi2
+
+        x = np.where(np.isnan(x), 0.0, x)
+        res = self.y - self.S @ x
+        fail, warn = [], []
+        for (st, ty), r, s, given in zip(self.regression.groups, self.regression.group_rows(), self.sigma,
+                                         self.sigma_given):
+            unit, f = TYPE_UNITS[ty]
+            rms = float(np.sqrt(np.mean(res[r] ** 2)))
+            if given:
+                m = r.size
+                q = m * (rms / s) ** 2  # sum r^2 / sigma^2 ~ chi2(m)
+                p = float(chi2.sf(q, m))
+                if p < 1e-6:
+                    txt = (f"{st}.{ty}: residual RMS {rms / f:.4g} {unit} is {rms / s:.3g} times the given noise "
+                           f"{s / f:.4g} {unit} (chi-square {q:.4g} on {m} samples, p = {p:.2g})")
+                    (fail if rms > RESIDUAL_RATIO_LIMIT * s else warn).append(txt)
+            elif s > PLAUSIBLE_SIGMA[ty]:
+                fail.append(f"{st}.{ty}: estimated noise {s / f:.4g} {unit} (residual RMS {rms / f:.4g} {unit}) is "
+                            f"above any plausible radar noise ({PLAUSIBLE_SIGMA[ty] / f:g} {unit})")
+        if fail or warn:
+            hint = ("; a misfit, not noise: time tags off (time scale, --launch-time), a wrong station position, or "
+                    "station errors outside the tracking model")
+            fail = [f + hint for f in fail[:1]] + fail[1:] if fail else fail
+            warn = [w + hint for w in warn[:1]] + warn[1:] if warn else warn
+        return fail, warn
 
     @property
     def types(self) -> tuple[str, ...]:
