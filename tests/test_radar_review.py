@@ -149,3 +149,21 @@ def test_an_18_s_shift_names_the_launch_time(zenith):
     with pytest.raises(ValueError, match=r"first measured elevation .*--launch-time"), pytest.warns(Warning):
         separate_radar(zenith.telemetry, _shifted(zenith, 18.0), SITE, zenith.model, zenith.tracking,
                        diagnostics=False)
+
+
+def test_an_estimated_noise_above_any_plausible_radar_noise_fails(offset):
+    import dataclasses
+
+    from casep.units import ARCSEC
+
+    m = offset.radars[0]
+    rng = np.random.default_rng(5)
+    bad = dataclasses.replace(m, station=dataclasses.replace(m.station, sigma={}),
+                              azimuth=m.azimuth + rng.normal(0.0, 1000 * ARCSEC, m.t.size))
+    rr = separate_radar(offset.telemetry, [bad], SITE, offset.model, offset.tracking, diagnostics=False)
+    assert not rr.result.success
+    import re
+
+    est = float(re.search(r"Q\.azimuth: estimated noise ([0-9.e+]+) arcsec", rr.result.message).group(1))
+    assert est == pytest.approx(1000.0, rel=0.05)  # about 3000 samples: 1.3 % std
+    assert "above any plausible radar noise (300 arcsec)" in rr.result.message
