@@ -1246,7 +1246,8 @@ def _simulate_radar(args: argparse.Namespace, site) -> int:
         range_rate=args.radar_range_rate)
     print(f"scenario {sim.scenario}: telemetry {sim.telemetry.t.size} samples, "
           + ", ".join(f"{m.station.name} {m.t.size} samples" for m in sim.radars)
-          + f" at {args.radar_rate:g} Hz (range noise {args.range_noise:g} m, angles {args.angle_noise:g} arcsec)")
+          + f" at {args.radar_rate:g} Hz (noise: " + "; ".join(f"{k} range {v['range']:g} m, angles {v['azimuth']:g} "
+                                                               "arcsec" for k, v in sim.station_noise.items()) + ")")
     print("wrote " + ", ".join(str(f) for f in files))
     radar = " ".join(f"--radar {files[1 + 2 * i]} {files[2 + 2 * i]}" for i in range(len(sim.radars)))
     print(f"separate with: casep separate {args.output} {radar} --launch-site "

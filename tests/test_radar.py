@@ -509,5 +509,6 @@ def test_linearisation_that_does_not_settle_warns(clean):
     from casep.tracking.regression import RadarConvergenceWarning, RadarRegression
 
     reg = RadarRegression(clean.telemetry, list(clean.radars), clean.model, clean.tracking, SITE)
-    with pytest.warns(RadarConvergenceWarning, match=r"did not settle in 1 Gauss-Newton steps \(last change 1\.47 std"):
-        reg.solve(SIGMA, iterations=1)
+    with pytest.warns(RadarConvergenceWarning, match=r"not settled in 1 Gauss-Newton steps \(last full step 1\.47 std"):
+        lin = reg.solve(SIGMA, iterations=1)
+    assert not lin.converged and "1.47 std" in lin.convergence_message

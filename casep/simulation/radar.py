@@ -58,9 +58,10 @@ class RadarSimulation:
     tracking: TrackingModel
     truth: np.ndarray  # instrument, natural units
     tracking_truth: dict  # station -> {term: value}, natural units
-    noise: dict  # type -> std, natural units
+    noise: dict  # type -> std, natural units: the default for a station whose file gives none
     seed: int
     scenario: str
+    station_noise: dict = dataclasses.field(default_factory=dict)  # station -> {type: std} used, natural units
 
     def truth_vector(self) -> np.ndarray:
         """Truth in the order of a :class:`~casep.tracking.regression.RadarRegression`'s names."""
@@ -74,7 +75,8 @@ class RadarSimulation:
                 "tracking_model": self.tracking.name,
                 "tracking": {s: {k: float(v) for k, v in d.items()} for s, d in self.tracking_truth.items()},
                 "tracking_units": dict(zip(self.tracking.names, self.tracking.units)),
-                "radar_noise": dict(self.noise), "seed": self.seed, "scenario": self.scenario,
+                "radar_noise": dict(self.noise), "station_noise": {k: dict(v) for k, v in self.station_noise.items()},
+                "seed": self.seed, "scenario": self.scenario,
                 "launch_site": self.site.to_dict(),
                 "stations": [m.station.to_dict() for m in self.radars]}
 
@@ -98,7 +100,9 @@ def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="p
     tracking_truth : mapping, optional
         ``{station: {term: value}}``, natural units (missing: 0).
     noise : mapping, optional
-        Std per type, natural units (:data:`DEFAULT_NOISE`); 0 for noise-free.
+        Std per type, natural units (:data:`DEFAULT_NOISE`); 0 for noise-free. A station whose
+        file gives ``sigma_range`` / ``sigma_angle`` / ``sigma_range_rate`` is simulated with those
+        (the station file written declares them, so they must be what the data have).
     range_rate : bool
         Also write range rate.
     """
@@ -142,8 +146,11 @@ def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="p
     t_r = np.arange(0, int(np.floor(t_end * radar_rate + 1e-9)) + 1) / radar_rate
     types = ("range", "azimuth", "elevation") + (("range_rate",) if range_rate else ())
     idx_time = trk.names.index("time_bias") if "time_bias" in trk.names else None
-    radars = []
+    radars, used = [], {}
     for st in stations:
+        # the station file's noise when given (it is written out, and separate trusts it), else `noise`
+        nz = {ty: (st.sigma[ty] / _SI[ty] if ty in st.sigma else noise[ty]) for ty in types}
+        used[st.name] = nz
         th = np.array([tt[st.name].get(n, 0.0) for n in trk.names], dtype=float)
         tau = 0.0
         if idx_time is not None:
@@ -157,11 +164,12 @@ def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="p
         T = trk.jacobian(np.column_stack([geo, t_tag - t_tag[0]]))
         z = geo[:, :4] + T @ th  # h + T theta
         for j, ty in enumerate(types):
-            if noise[ty] > 0:
-                z[:, j] += rng.normal(0.0, noise[ty] * _SI[ty], t_tag.size)
+            if nz[ty] > 0:
+                z[:, j] += rng.normal(0.0, nz[ty] * _SI[ty], t_tag.size)
         radars.append(RadarMeasurements(st, t_tag, z[:, 0], z[:, 1] % (2 * np.pi), z[:, 2],
                                         z[:, 3] if range_rate else None, f"simulated:{st.name}"))
-    return RadarSimulation(tel, tuple(radars), site, mdl, trk, D, tt, {k: noise[k] for k in types}, seed, sc.name)
+    return RadarSimulation(tel, tuple(radars), site, mdl, trk, D, tt, {k: noise[k] for k in types}, seed, sc.name,
+                          used)
 
 
 def write_radar_simulation(sim: RadarSimulation, telemetry: str | os.PathLike,

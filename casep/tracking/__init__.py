@@ -19,7 +19,7 @@ __getattr__, __dir__ = attach(__name__, {
     "casep.tracking.geometry": ("RadarGeometry", "wrap_angle", "GEOMETRY_COLUMNS"),
     "casep.tracking.regression": ("Telemetry", "read_telemetry", "RadarRegression", "estimate_group_sigmas",
                                   "FIRST_RANGE_LIMIT", "TYPE_UNITS", "RadarCoverageWarning",
-                                  "RadarConvergenceWarning"),
+                                  "RadarConvergenceWarning", "RadarResidualWarning"),
     "casep.tracking.diagnostics": ("radar_diagnostics", "diagnostics_table"),
 }, globals())
 

@@ -20,7 +20,13 @@ estimators as a :class:`casep.analysis.problem.Problem`. ``D0`` is re-set to the
 estimate a few times (Gauss-Newton) so that the linearisation point is the estimated true
 trajectory: on the test flight (370 m of position error at burnout, 70-290 km range) the
 linearisation at the telemetered trajectory alone is off by 1.5-3 std of the estimate; the steps
-then shrink quadratically (2.8, 0.76, 2.4e-4 std).
+then shrink quadratically (2.8, 0.76, 2.4e-4 std). Each step is damped: it is halved until the
+weighted residual sum ``F(D) = min_theta |W (z - h(D) - T theta)|^2`` (``T`` kept at the geometry of
+the current point) does not grow. Near a station's zenith the azimuth, and the azimuth rate in the
+time-bias column of ``T``, are far from linear in the position (position sensitivity
+``range cos E``), and the full step diverges there (a flight passing at 89 deg elevation: steps of
+20, 359, 793, ... 1e5 std); damped, it converges (12 steps). A linearisation that does not
+converge is reported (:attr:`LinearisedRadar.converged`) and makes a failed result.
 
 Telemetry quantities are carried to each station's times by cubic Hermite interpolation (position
 with velocity as its derivative, S_P with S_V), velocity and S_V linearly; at radar times that
@@ -47,7 +53,8 @@ from casep.tracking.stations import MEASUREMENT_TYPES, RadarMeasurements, check_
 from casep.units import ARCSEC
 
 __all__ = ["Telemetry", "read_telemetry", "RadarRegression", "estimate_group_sigmas", "FIRST_RANGE_LIMIT",
-           "TYPE_UNITS", "RadarCoverageWarning", "RadarConvergenceWarning"]
+           "TYPE_UNITS", "RadarCoverageWarning", "RadarConvergenceWarning", "RadarResidualWarning",
+           "PLAUSIBLE_SIGMA", "RESIDUAL_RATIO_LIMIT"]
 
 #: A first predicted range further than this from the first measured one is a wrong site, not a bias, m.
 FIRST_RANGE_LIMIT = 1000.0
@@ -60,12 +67,22 @@ TYPE_UNITS = {"range": ("m", 1.0), "azimuth": ("arcsec", ARCSEC), "elevation": (
 _START_SIGMA = {"range": 1.0, "azimuth": 5 * ARCSEC, "elevation": 5 * ARCSEC, "range_rate": 0.1}
 #: Floor of an estimated group std (SI): the rounding of the measurements, not noise.
 _SIGMA_FLOOR = {"range": 1e-9, "azimuth": 1e-15, "elevation": 1e-15, "range_rate": 1e-10}
+#: Largest plausible noise std of a tracking radar per type (SI): 100 m, 300 arcsec, 10 m/s. An estimated
+#: noise above it is a misfit (time tags off, a wrong model), not noise: the result is failed.
+PLAUSIBLE_SIGMA = {"range": 100.0, "azimuth": 300 * ARCSEC, "elevation": 300 * ARCSEC, "range_rate": 10.0}
+#: A given noise std exceeded by the residual RMS by more than this factor (and a chi-square test at
+#: p < 1e-6) is a failed result; exceeded less, but significantly (p < 1e-6), a warning.
+RESIDUAL_RATIO_LIMIT = 1.5
 #: Telemetry speed relative to the pad above which its first sample is not on the pad, m/s.
 _PAD_SPEED = 5.0
 
 
 class RadarConvergenceWarning(CasepWarning):
     """The Gauss-Newton relinearisation did not settle: the message gives the steps (in std)."""
+
+
+class RadarResidualWarning(CasepWarning):
+    """Residuals significantly above the given noise (chi-square, p < 1e-6), but within 1.5 times it."""
 
 
 class RadarCoverageWarning(CasepWarning):
@@ -252,8 +269,9 @@ class RadarRegression:
                     raise ValueError(
                         f"station `{name}` ({s.meas.source}): first measured {ty} {math.degrees(s.z[0, j]):.6g} deg vs "
                         f"predicted {math.degrees(geo[0, j]):.6g} deg at t = {s.t[0]:g} s (difference "
-                        f"{math.degrees(d):.4g} deg > 1 deg): a wrong station position or launch site, or angles not "
-                        "in degrees")
+                        f"{math.degrees(d):.4g} deg > 1 deg): a wrong station position or launch site, a radar time "
+                        "scale other than the telemetry's (--launch-time: the launch time in the radar files' time "
+                        "scale), or angles not in degrees")
 
     # ------------------------------------------------------------------ rows
     @property
@@ -269,7 +287,8 @@ class RadarRegression:
                 k0 += s.t.size
         return out
 
-    def assemble(self, D0: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def assemble(self, D0: np.ndarray | None = None, *,
+                 tracking_at: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(S, y, t)`` of the stacked regression linearised about ``D0`` (unweighted, SI rows).
 
         Rows: station by station, type by type (range, azimuth, elevation, range rate), in time
@@ -291,7 +310,11 @@ class RadarRegression:
             resid = s.z - geo[:, :k]
             resid[:, 1] = wrap_angle(resid[:, 1])  # azimuth across north
             yk = resid + A @ D0  # y = z - h(lin) + A D0
-            T = self.tracking.jacobian(np.column_stack([geo, s.t - s.t[0]]))[:, :k, :]
+            if tracking_at is not None:  # T at another point's geometry (the damped steps keep T fixed)
+                geo_T, _ = s.geometry.evaluate(s.t, s.r - s.SP @ tracking_at, s.v - s.SV @ tracking_at, s.a)
+            else:
+                geo_T = geo
+            T = self.tracking.jacobian(np.column_stack([geo_T, s.t - s.t[0]]))[:, :k, :]
             c0 = self.nD + i * self.nT
             for j in range(k):
                 rows = slice(k0, k0 + s.t.size)
@@ -311,7 +334,7 @@ class RadarRegression:
                     out[(s.meas.station.name, ty)] = float(s.meas.station.sigma[ty])
         return out
 
-    def solve(self, sigma: dict | None = None, *, iterations: int = 10, tol: float = 1e-3):
+    def solve(self, sigma: dict | None = None, *, iterations: int = 30, tol: float = 1e-3):
         """Gauss-Newton on the linearisation point with group noise std re-estimated at each step.
 
         Parameters
@@ -320,7 +343,9 @@ class RadarRegression:
             ``{(station, type): std}`` SI, known std (also read from the station files); the
             others are estimated (:func:`estimate_group_sigmas`).
         iterations : int
-            At most this many relinearisations.
+            At most this many relinearisations (each a Gauss-Newton step halved until the weighted
+            residual sum does not grow). Not converged: a :class:`RadarConvergenceWarning`, and
+            the returned ``converged`` false with the numbers in ``convergence_message``.
         tol : float
             Stop when the change of D is below `tol` times its least-squares std. Gauss-Newton
             converges quadratically here (steps of 2.8, 0.76, 2.4e-4, 1.4e-7 std on the test
@@ -344,30 +369,69 @@ class RadarRegression:
         sig = np.array([known.get(g, _START_SIGMA[g[1]]) for g in self.groups])
         fixed = np.array([g in known for g in self.groups])
         rows = self.group_rows()
+        floor = np.array([_SIGMA_FLOOR[g[1]] for g in self.groups])
         D0 = np.zeros(self.nD)
-        history = []
+        S, y, t = self.assemble(D0)
+        history: list[float] = []
+        step, settled, why = math.inf, False, ""
         for _ in range(iterations):
-            S, y, t = self.assemble(D0)
-            sig, x, std = estimate_group_sigmas(S, y, rows, sig, fixed, floor=np.array(
-                [_SIGMA_FLOOR[g[1]] for g in self.groups]))
+            sig, x, std = estimate_group_sigmas(S, y, rows, sig, fixed, floor=floor)
             dD = x[:self.nD] - D0
             with np.errstate(invalid="ignore", divide="ignore"):
                 step = float(np.nanmax(np.where(std[:self.nD] > 0, np.abs(dD) / std[:self.nD], 0.0)))
-            history.append(step)
-            D0 = x[:self.nD]
-            if step < tol:
+            if step < tol:  # the full Gauss-Newton step is below tol std: a stationary point
+                history.append(step)
+                D0 = x[:self.nD]
+                settled = True
                 break
-        if history[-1] >= tol:
-            warnings.warn(f"radar separation: the linearisation did not settle in {iterations} Gauss-Newton steps "
-                          f"(last change {history[-1]:.3g} std, steps {', '.join(f'{h:.3g}' for h in history)}): the "
-                          "telemetered trajectory is far from the measured one; the estimate is that of the last "
-                          "linearisation", RadarConvergenceWarning, stacklevel=2)
+            # damped step: halve it until the weighted nonlinear residual sum F(D) (theta profiled out)
+            # does not grow; near a station's zenith the azimuth is far from linear in the position
+            w = np.empty(y.size)
+            for g, r in enumerate(rows):
+                w[r] = 1.0 / sig[g]
+            f0 = self._profile_cost(S, y, D0, w)
+            alpha = 1.0
+            while True:
+                Dt = D0 + alpha * dD
+                St, yt, t = self.assemble(Dt, tracking_at=D0)
+                ft = self._profile_cost(St, yt, Dt, w)
+                if ft <= f0 * (1.0 + 1e-12):
+                    break
+                alpha *= 0.5
+                if alpha < 2.0**-30:
+                    break
+            if alpha < 2.0**-30:
+                why = f"no step along the Gauss-Newton direction lowers the weighted residual sum ({f0:.6g})"
+                history.append(step)
+                break
+            history.append(alpha * step)
+            D0 = Dt
+            S, y, t = self.assemble(D0)
+        if not settled:
+            why = why or f"not settled in {iterations} Gauss-Newton steps"
+            msg = (f"radar separation: the linearisation did not converge: {why} (last full step {step:.3g} std, "
+                   f"steps taken {', '.join(f'{h:.3g}' for h in history)}): the telemetered trajectory is far from "
+                   "the measured one, or a station, the launch site or the launch time is wrong; the estimate is "
+                   "that of the last linearisation and is not to be used")
+            warnings.warn(msg, RadarConvergenceWarning, stacklevel=2)
+        else:
+            msg = ""
         S, y, t = self.assemble(D0)
-        if np.all(sig <= np.array([_SIGMA_FLOOR[g[1]] for g in self.groups]) * 1.0001) and not fixed.all():
+        if np.all(sig <= floor * 1.0001) and not fixed.all():
             warnings.warn("radar residuals at the rounding level: the noise std are floored at the rounding of the "
                           "measurements (a noise-free simulation?); give the noise in the station files",
                           NoiseFreeWarning, stacklevel=2)
-        return LinearisedRadar(self, S, y, t, sig, fixed, D0, history, group_reductions(S, y, rows))
+        return LinearisedRadar(self, S, y, t, sig, fixed, D0, history, group_reductions(S, y, rows), settled, msg)
+
+    def _profile_cost(self, S: np.ndarray, y: np.ndarray, D: np.ndarray, w: np.ndarray) -> float:
+        """Weighted residual sum at D with the station terms profiled out (``S, y = assemble(D)``).
+
+        ``F(D) = min_theta |W (z - h(D) - T theta)|^2`` and ``z - h(D) = y - A D`` (:meth:`assemble`).
+        """
+        r = (y - S[:, :self.nD] @ D) * w
+        T = S[:, self.nD:] * w[:, None]
+        theta = np.linalg.lstsq(T, r, rcond=None)[0]
+        return float(np.sum((r - T @ theta) ** 2))
 
 
 def estimate_group_sigmas(S: np.ndarray, y: np.ndarray, rows: list[np.ndarray], sigma: np.ndarray,
@@ -460,6 +524,8 @@ class LinearisedRadar:
     D0: np.ndarray
     history: list
     reductions: list  # group_reductions(S, y) at this point, unweighted
+    converged: bool = True
+    convergence_message: str = ""
 
     def stacked(self, groups=None, columns=None) -> np.ndarray:
         """The whitened regression reduced to ``[R_g / sigma_g]`` over `groups` (indices; default all):
@@ -554,6 +620,42 @@ class LinearisedRadar:
         for (st, ty), r in zip(self.regression.groups, self.regression.group_rows()):
             out[f"{st}.{ty}"] = float(np.sqrt(np.mean(res[r] ** 2)) / TYPE_UNITS[ty][1])
         return out
+
+    def residual_check(self, x: np.ndarray) -> tuple[list[str], list[str]]:
+        """Residuals against the noise, per group: ``(failures, warnings)`` (messages with the numbers).
+
+        Given noise: ``q = sum r_i^2 / sigma^2`` over the group's ``m`` rows is chi-square with about
+        ``m`` degrees of freedom (the fitted parameters are few against thousands of samples); a
+        significant excess (``P(chi2_m > q) < 1e-6``) with ``RMS > 1.5 sigma`` fails, a smaller
+        significant excess warns. Estimated noise: above :data:`PLAUSIBLE_SIGMA` fails (the
+        estimate then measures a misfit, not the sensor).
+        """
+        from scipy.stats import chi2
+
+        x = np.where(np.isnan(x), 0.0, x)
+        res = self.y - self.S @ x
+        fail, warn = [], []
+        for (st, ty), r, s, given in zip(self.regression.groups, self.regression.group_rows(), self.sigma,
+                                         self.sigma_given):
+            unit, f = TYPE_UNITS[ty]
+            rms = float(np.sqrt(np.mean(res[r] ** 2)))
+            if given:
+                m = r.size
+                q = m * (rms / s) ** 2  # sum r^2 / sigma^2 ~ chi2(m)
+                p = float(chi2.sf(q, m))
+                if p < 1e-6:
+                    txt = (f"{st}.{ty}: residual RMS {rms / f:.4g} {unit} is {rms / s:.3g} times the given noise "
+                           f"{s / f:.4g} {unit} (chi-square {q:.4g} on {m} samples, p = {p:.2g})")
+                    (fail if rms > RESIDUAL_RATIO_LIMIT * s else warn).append(txt)
+            elif s > PLAUSIBLE_SIGMA[ty]:
+                fail.append(f"{st}.{ty}: estimated noise {s / f:.4g} {unit} (residual RMS {rms / f:.4g} {unit}) is "
+                            f"above any plausible radar noise ({PLAUSIBLE_SIGMA[ty] / f:g} {unit})")
+        if fail or warn:
+            hint = ("; a misfit, not noise: time tags off (time scale, --launch-time), a wrong station position, or "
+                    "station errors outside the tracking model")
+            fail = [f + hint for f in fail[:1]] + fail[1:] if fail else fail
+            warn = [w + hint for w in warn[:1]] + warn[1:] if warn else warn
+        return fail, warn
 
     @property
     def types(self) -> tuple[str, ...]:

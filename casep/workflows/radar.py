@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import warnings
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
@@ -25,7 +26,14 @@ from casep.frames import LaunchSite
 from casep.model.loader import load_model
 from casep.model.tracking import load_tracking_model
 from casep.tracking.diagnostics import diagnostics_table, radar_diagnostics
-from casep.tracking.regression import TYPE_UNITS, LinearisedRadar, RadarRegression, Telemetry, read_telemetry
+from casep.tracking.regression import (
+    TYPE_UNITS,
+    LinearisedRadar,
+    RadarRegression,
+    RadarResidualWarning,
+    Telemetry,
+    read_telemetry,
+)
 from casep.tracking.stations import RadarMeasurements, Station, read_radar, read_station
 
 __all__ = ["RadarResult", "separate_radar", "diagnose_radar", "read_radar_inputs", "simulate_radar_files",
@@ -199,6 +207,20 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
         "gauss_newton_steps": [float(v) for v in lin.history],
         "noise_scale": float(res.sigma),
     }
+    failed = [] if lin.converged else [lin.convergence_message]
+    # residuals and station terms are checked at a converged linearisation only (else already failed)
+    bad, suspicious = lin.residual_check(x) if lin.converged else ([], [])
+    if bad:
+        failed.append("radar residuals far above the noise: " + "; ".join(bad))
+    big, large = _tracking_magnitude_check(reg, res) if lin.converged else ([], [])
+    if big:
+        failed.append("station terms far above their declared magnitudes: " + "; ".join(big))
+    suspicious += large
+    if suspicious:
+        warnings.warn("radar residuals or station terms larger than expected: " + "; ".join(suspicious),
+                      RadarResidualWarning, stacklevel=2)
+    if failed:  # a probably wrong result is never a plain success
+        res = dataclasses.replace(res, success=False, status=-1, message="; ".join(failed))
     res = dataclasses.replace(
         res, residuals=np.empty((0, 3)), stored_residual_rms=dict.fromkeys("xyz"),
         diagnostics={**res.diagnostics, "tracking_terms": tracking_terms, "tracking_model": reg.tracking.name},
@@ -208,6 +230,31 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
         f"{s.meas.station.name}.{k}": v for s in reg.stations for k, v in reg.tracking.scales.items()}}) \
         if diagnostics else None
     return RadarResult(res, lin, summary, diag)
+
+
+#: A station term estimated, by more than 3 std, above this many times its declared magnitude (the
+#: tracking model's scale) fails the result: a time scale or station position that is wrong, not a
+#: bias (10 times: a warning).
+TERM_FAIL_RATIO, TERM_WARN_RATIO = 100.0, 10.0
+
+
+def _tracking_magnitude_check(reg: RadarRegression, res: EstimateResult) -> tuple[list[str], list[str]]:
+    """Station terms against the tracking model's declared magnitudes: ``(failures, warnings)``."""
+    fail, warn = [], []
+    scales = reg.tracking.scales
+    for j, name in enumerate(reg.names[reg.nD:], start=reg.nD):
+        term = name.split(".", 1)[1]
+        est, std = float(res.estimate[j]), float(res.std[j])
+        if term not in scales or not np.isfinite(est) or scales[term] <= 0:
+            continue
+        ratio = abs(est) / scales[term]
+        low = (abs(est) - 3.0 * (std if np.isfinite(std) else np.inf)) / scales[term]  # |est| - 3 std, in scales
+        if low > TERM_WARN_RATIO:
+            txt = (f"{name} = {est:.4g} +- {std:.2g} {res.units[j]} is {ratio:.3g} times its declared magnitude "
+                   f"{scales[term]:g} {res.units[j]}" + (" (time tags off: check the radar time scale and "
+                                                         "--launch-time)" if term == "time_bias" else ""))
+            (fail if low > TERM_FAIL_RATIO else warn).append(txt)
+    return fail, warn
 
 
 def diagnose_radar(telemetry, radars: Sequence, site: LaunchSite, model: Any = "platform36",
