@@ -634,7 +634,8 @@ class LinearisedRadar:
 
         x = np.where(np.isnan(x), 0.0, x)
         res = self.y - self.S @ x
-        fail, warn = [], []
+        fail: list[str] = []
+        warn: list[str] = []
         for (st, ty), r, s, given in zip(self.regression.groups, self.regression.group_rows(), self.sigma,
                                          self.sigma_given):
             unit, f = TYPE_UNITS[ty]

@@ -240,11 +240,13 @@ TERM_FAIL_RATIO, TERM_WARN_RATIO = 100.0, 10.0
 
 def _tracking_magnitude_check(reg: RadarRegression, res: EstimateResult) -> tuple[list[str], list[str]]:
     """Station terms against the tracking model's declared magnitudes: ``(failures, warnings)``."""
-    fail, warn = [], []
+    fail: list[str] = []
+    warn: list[str] = []
     scales = reg.tracking.scales
     for j, name in enumerate(reg.names[reg.nD:], start=reg.nD):
         term = name.split(".", 1)[1]
-        est, std = float(res.estimate[j]), float(res.std[j])
+        est = float(res.estimate[j])
+        std = float(res.std[j]) if res.std is not None else float("nan")
         if term not in scales or not np.isfinite(est) or scales[term] <= 0:
             continue
         ratio = abs(est) / scales[term]
