@@ -120,7 +120,7 @@ def test_batched_tau_matches_per_run_reml():
     assert n_batch < 0.5 * (len(calls) - n_batch)  # factorisations: shared lattice vs one search per run
     for r in range(Y.shape[-1]):
         tight = np.exp(minimize_scalar(lambda x, r=r: float(neg2(S, Y[..., r:r + 1], t, float(np.exp(x)))[0]),
-                                       bounds=gls._tau_bounds(t), method="bounded", options={"xatol": 1e-10}).x)
+                                       bounds=gls.tau_search_bounds(t), method="bounded", options={"xatol": 1e-10}).x)
         assert abs(taus[r] / tight - 1) < 2e-5, (r, taus[r], tight)
         assert abs(taus[r] / per_run[r] - 1) < 1e-3
     assert 0.7 < np.median(taus) < 1.4  # truth 1 s

@@ -332,7 +332,7 @@ class _Reml:
         return self.evaluate(taus, sc)[0], (float(sc[0]), float(sc[1]), float(sc[2]))
 
 
-def _tau_bounds(t: np.ndarray) -> tuple[float, float]:
+def tau_search_bounds(t: np.ndarray) -> tuple[float, float]:
     """Search interval of ln tau: [ln(median(dt) / 5), ln(duration)]."""
     return float(np.log(np.median(np.diff(t)) / 5.0)), float(np.log(t[-1] - t[0]))
 
@@ -382,7 +382,7 @@ def fit_noise(problem, kind: str = "auto", tau=None, *, xatol: float = 5e-3) -> 
     if problem.n_samples < 3:
         raise ValueError(f"problem `{problem.source}`: {problem.n_samples} samples are too few to fit a noise model")
     reml = _Reml(problem, _estimable_basis(problem))
-    lo, hi = _tau_bounds(problem.t)
+    lo, hi = tau_search_bounds(problem.t)
 
     if taus_given is not None:
         val, sc = reml.fit_scales(taus_given)

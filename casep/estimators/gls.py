@@ -30,6 +30,7 @@ from typing import Sequence
 import numpy as np
 
 from casep.analysis.diagnostics import ar1_whiten
+from casep.analysis.noise import tau_search_bounds  # one search interval of ln tau for both REMLs
 from casep.estimators._base import check_positive, finish, prepare, rows_of
 from casep.estimators.ols import least_squares
 from casep.estimators.result import EstimateResult, GLSExtras
@@ -39,11 +40,6 @@ __all__ = ["solve_gls", "estimate_tau"]
 
 def _whiten(S: np.ndarray, y: np.ndarray, t: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray]:
     return ar1_whiten(S, t, 1.0, tau), ar1_whiten(y[:, :, None], t, 1.0, tau)[:, :, 0]
-
-
-def _tau_bounds(t: np.ndarray) -> tuple[float, float]:
-    """Search interval of ln tau: [ln(median(dt) / 5), ln(duration)]."""
-    return float(np.log(np.median(np.diff(t)) / 5.0)), float(np.log(t[-1] - t[0]))
 
 
 def _neg2_reml(S: np.ndarray, Y: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
@@ -80,7 +76,7 @@ def estimate_tau(S: np.ndarray, y: np.ndarray, t: np.ndarray) -> float:
     from scipy.optimize import minimize_scalar
 
     Y = np.asarray(y, dtype=float).reshape(S.shape[0], 3, 1)
-    res = minimize_scalar(lambda x: float(_neg2_reml(S, Y, t, float(np.exp(x)))[0]), bounds=_tau_bounds(t),
+    res = minimize_scalar(lambda x: float(_neg2_reml(S, Y, t, float(np.exp(x)))[0]), bounds=tau_search_bounds(t),
                           method="bounded", options={"xatol": 1e-4})
     return float(np.exp(res.x))
 
@@ -181,7 +177,7 @@ def estimate_tau_many(S: np.ndarray, Y: np.ndarray, t: np.ndarray) -> np.ndarray
     """
     S = np.asarray(S, dtype=float)
     Y = np.asarray(Y, dtype=float)
-    lo, hi = _tau_bounds(t)
+    lo, hi = tau_search_bounds(t)
     nf = _FINE_DIV * max(1, int(np.ceil((hi - lo) / _COARSE_STEP)))
     step = (hi - lo) / nf  # x_j = lo + j step, j = 0..nf
     f: dict[int, np.ndarray] = {}

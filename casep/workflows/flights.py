@@ -198,10 +198,12 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
                                                     "outliers": {**res.diagnostics["outliers"], "largest": rows}})
     if noise_models is not None:
         per_flight = {}
-        for lab, out in zip(layout.labels, noise_models):
-            d = {**out.noise.to_dict(), "asked": noise}
-            if out.result is not None and "robust" in out.result.diagnostics:
-                d["robust"] = out.result.diagnostics["robust"]
+        from casep.workflows.solve import _places
+
+        for lab, rw in zip(layout.labels, noise_models):
+            d = {**rw.noise.to_dict(), "asked": noise}
+            if rw.robust is not None:
+                d["robust"] = {**rw.robust, "rejected": _places(rw.problem, np.flatnonzero(~rw.keep)[:200])}
             per_flight[lab] = d
         res = dataclasses.replace(res, diagnostics={**res.diagnostics, "noise": per_flight},
                                   settings={**res.settings, "noise": noise})
@@ -255,21 +257,12 @@ def _gls_whitened(problems: Sequence[Problem], tau) -> tuple[list[Problem], list
 
 
 def _noise_whitened(problems: Sequence[Problem], noise: str, tau, robust: str | None):
-    """Each flight's rows whitened for its own noise model (robustly cleaned when asked)."""
-    from casep.workflows.solve import solve_problem
+    """Each flight's rows as every method solves them: its own noise model, robustly cleaned when asked
+    (:func:`casep.analysis.rows.prepare_rows`); returns the solved problems and the rows."""
+    from casep.analysis.rows import prepare_rows
 
-    out, solved = [], []
-    for p in problems:
-        if noise == "white" and robust in (None, "none"):
-            from casep.analysis.noise import NoiseModel
-            from casep.workflows.solve import Solved
-
-            s = Solved(None, p, NoiseModel.white())  # type: ignore[arg-type]
-        else:
-            s = solve_problem(p, "ols", noise=noise, tau=tau, robust=robust)
-        solved.append(s)
-        out.append(s.rows_problem(p))
-    return out, solved
+    rows = [prepare_rows(p, noise, tau, robust) for p in problems]
+    return [r.solved for r in rows], rows
 
 
 def _sigmas(problems: Sequence[Problem], sigma) -> list[float]:

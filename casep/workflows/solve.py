@@ -57,14 +57,6 @@ class Solved:
     excluded: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     weights: np.ndarray | None = None
 
-    def rows_problem(self, problem: Problem) -> Problem:
-        """`problem` (the raw one given) as the method solved it: samples removed, whitened, weighted."""
-        keep = np.ones(problem.n_samples, dtype=bool)
-        keep[self.excluded] = False
-        sub = problem if keep.all() else problem.subset(keep)
-        w = None if self.weights is None else self.weights[keep]
-        return sub if (self.noise.is_white and w is None) else sub.whitened(self.noise, weights=w)
-
 
 def _x(res: EstimateResult) -> np.ndarray:
     return np.where(np.isnan(res.estimate), 0.0, res.estimate)
