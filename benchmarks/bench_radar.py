@@ -3,7 +3,7 @@ the velocity-domain separation of the same flight, and a Monte Carlo of the rada
 
 The flight is the ``paper`` scenario on a rotating Earth (195 s powered flight), launch site
 (28.5 N, 80.6 W, 3 m, azimuth 90 deg), stations S1 (28.9 N, 80.0 W) and S2 (28.1 N, 79.2 W),
-station errors as in ``tests/test_radar.py``; radar at 20 Hz with 3 m / 8 arcsec noise; telemetry
+station errors as in ``tests/tracking/test_radar.py``; radar at 20 Hz with 3 m / 8 arcsec noise; telemetry
 at 20 Hz and at 100 Hz. The velocity-domain file is the same flight's ``t, f_*, dv_*`` at the
 telemetry rate with 0.1 m/s white noise (what ``casep separate FLIGHT.csv`` reads).
 

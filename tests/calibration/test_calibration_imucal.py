@@ -19,7 +19,7 @@ from casep.cli import main
 
 imucal = pytest.importorskip("imucal")  # the test extra installs it (pyproject)
 
-DATA = Path(__file__).resolve().parent / "data" / "imucal"
+DATA = Path(__file__).resolve().parents[1] / "data" / "imucal"
 ANNOTATED = DATA / "annotated_session.csv"
 SNAPSHOT = DATA / "example_cal.json"
 RATE = 204.8  # Hz, imucal's example

@@ -320,7 +320,7 @@ def test_simulate_cli_offset_and_lever_arm(tmp_path):
 def test_two_rate_example_dt_trk_removes_the_ka0y_bias(tmp_path):
     from pathlib import Path
 
-    example = Path(__file__).resolve().parents[1] / "examples" / "two_rate_workflow.py"
+    example = Path(__file__).resolve().parents[2] / "examples" / "two_rate_workflow.py"
     out = subprocess.run([sys.executable, str(example), "--quick", "--out", str(tmp_path)], capture_output=True,
                          text=True, timeout=600, check=True).stdout
     line = next(ln for ln in out.splitlines() if ln.startswith("Ka0y"))
@@ -336,7 +336,7 @@ def test_two_rate_example_dt_trk_removes_the_ka0y_bias(tmp_path):
 def test_model_signals_paper_example_runs(tmp_path):
     from pathlib import Path
 
-    example = Path(__file__).resolve().parents[1] / "examples" / "model_signals_paper.py"
+    example = Path(__file__).resolve().parents[2] / "examples" / "model_signals_paper.py"
     out = subprocess.run([sys.executable, str(example), "--quick"], capture_output=True, text=True, timeout=600,
                          check=True, cwd=tmp_path).stdout
     assert "dt_trk" in out and "VIF" in out and "lever arm (1.5, -0.4, 0.3) m: new terms [1.5, -0.4, 0.3]" in out

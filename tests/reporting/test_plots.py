@@ -10,7 +10,7 @@ import pytest
 import casep
 from casep.reporting.plots import best_determined, estimate_scales, plot_history, separate_figures
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "data" / "example_flight.csv"
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "data" / "example_flight.csv"
 PNG = b"\x89PNG\r\n\x1a\n"
 
 

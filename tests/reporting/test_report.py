@@ -14,7 +14,7 @@ import casep
 from casep.cli import main
 from casep.reporting.report import write_report
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "data" / "example_flight.csv"
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "data" / "example_flight.csv"
 
 
 @pytest.fixture(scope="module")

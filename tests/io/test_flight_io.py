@@ -385,7 +385,7 @@ def test_two_rate_ols_coverage_is_honest_on_the_tracking_grid(rng):
     for grid in ("tracking", "telemetry"):
         base = Problem.from_flight(pair_flight(d.t_tel, d.f, d.v_tel, d.t_trk, d.v_trk, grid=grid), d.model)
         S = base.sv().reshape(-1, d.model.n_coefficients)  # the observed rows
-        lm = ols_linear_map(S)  # solve_ols as a linear map (tests/test_linear_maps.py): D = K y, Cov = s^2 C
+        lm = ols_linear_map(S)  # solve_ols as a linear map (tests/estimators/test_linear_maps.py): D = K y, Cov = s^2 C
         z = []
         for _ in range(150):
             fl = pair_flight(d.t_tel, d.f, d.v_tel, d.t_trk, d.v_trk + 0.1 * rng.standard_normal(d.v_trk.shape),

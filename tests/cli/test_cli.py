@@ -15,7 +15,7 @@ from casep.cli import main
 from casep.estimators.registry import OPTIONS, Interval
 from casep.simulation.synthetic import excitation_force, inject_errors
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "data" / "example_flight.csv"
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "data" / "example_flight.csv"
 HEADER = "t,f_x,f_y,f_z,dv_x,dv_y,dv_z"
 
 

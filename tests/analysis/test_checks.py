@@ -28,7 +28,7 @@ from casep.simulation.simulate import scenario_setup, simulate_flight, simulate_
 from casep.simulation.synthetic import excitation_force, inject_errors
 from casep.units import G0
 
-EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "examples" / "data").glob("*.csv"))
+EXAMPLES = sorted((Path(__file__).resolve().parents[2] / "examples" / "data").glob("*.csv"))
 
 
 def _casep_warnings(fn, *args, **kwargs) -> list[warnings.WarningMessage]:

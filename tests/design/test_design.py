@@ -224,7 +224,7 @@ def test_example_runs(tmp_path):
     import sys
     from pathlib import Path
 
-    script = Path(__file__).resolve().parents[1] / "examples" / "maneuver_design.py"
+    script = Path(__file__).resolve().parents[2] / "examples" / "maneuver_design.py"
     proc = subprocess.run([sys.executable, str(script), "--quick", "--out", str(tmp_path)], capture_output=True,
                           text=True, cwd=tmp_path, timeout=600, check=False)
     assert proc.returncode == 0, proc.stderr[-2000:]
