@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 import casep
+from casep.analysis.checks import check_enough_samples, min_samples
 from casep.exceptions import CasepWarning
-from casep.io.flight import FlightDataError, check_enough_samples, min_samples
+from casep.io.flight import FlightDataError
 
 
 def test_flightdata_validates_arrays():
@@ -88,7 +89,8 @@ def _cut(fl, t0):
 
 @pytest.mark.parametrize("rate", [20.0, 100.0])
 def test_late_start_warning_on_flight_cut_at_20s(rate, platform36):
-    from casep.io.flight import LateStartWarning, late_start_evidence
+    from casep.analysis.late_start import late_start_evidence
+    from casep.io.flight import LateStartWarning
     from casep.simulation.simulate import simulate_flight
 
     fl = simulate_flight("paper", seed=3, rate=rate).flight
@@ -115,7 +117,7 @@ def test_late_start_warning_on_flight_cut_at_20s(rate, platform36):
 
 @pytest.mark.parametrize("scenario", ["paper", "paper-pitch", "paper-ar1"])
 def test_no_late_start_alarm_on_flights_from_liftoff(scenario):
-    from casep.io.flight import late_start_evidence
+    from casep.analysis.late_start import late_start_evidence
     from casep.simulation.simulate import simulate_flight
 
     for seed in range(6):
