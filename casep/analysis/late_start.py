@@ -93,8 +93,9 @@ def late_start_evidence(flight: FlightData) -> dict:
     speed = flight.meta.get("start_speed_m_s")
     if speed is not None and speed > PAD_SPEED:
         out["speed_m_s"] = float(speed)
-    if flight.observed[0]:
-        run = np.argmin(flight.observed) if not flight.observed.all() else flight.n_samples
+    observed = np.asarray(flight.observed)  # a mask after FlightData's checks
+    if observed[0]:
+        run = int(np.argmin(observed)) if not observed.all() else flight.n_samples
         est = _dv_at_start(flight.t[:run], flight.dv[:run])
         if est is not None:
             dv0, sd, window = est

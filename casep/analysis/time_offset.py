@@ -169,8 +169,8 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
     Rinv = np.linalg.inv(R22)
     std = np.sqrt(s2 * kappa * np.sum(Rinv**2, axis=1)) / red.scale[-k:]  # diag (R22^T R22)^-1
     effect = np.abs(beta) * red.scale[-k:] / np.sqrt(np.sum(Rinv**2, axis=1) * 3 * N)  # |b| ||x_perp|| / sqrt(m)
-    out = [beta[0], std[0], beta[0] / std[0]]
-    out += [beta[1], std[1], beta[1] / std[1]] if k == 2 else [np.nan] * 3
-    return TimeOffsetTest(*(float(v) for v in out), inflation=kappa, offset_rms=float(effect[0]),
-                          jerk_rms=float(effect[1]) if k == 2 else 0.0)
+    jerk = (float(beta[1]), float(std[1]), float(beta[1] / std[1])) if k == 2 else (np.nan, np.nan, np.nan)
+    return TimeOffsetTest(offset=float(beta[0]), offset_std=float(std[0]), offset_t=float(beta[0] / std[0]),
+                          jerk=jerk[0], jerk_std=jerk[1], jerk_t=jerk[2], inflation=kappa,
+                          offset_rms=float(effect[0]), jerk_rms=float(effect[1]) if k == 2 else 0.0)
 

@@ -109,6 +109,8 @@ def position_sensitivity(model, flight, *, rows: int = 65536) -> tuple[np.ndarra
         if e - s > 1:
             sp += 0.5 * np.einsum("k,kij->ij", np.diff(tb), blk[1:] + blk[:-1])  # trapezoid in the block
         prev, t_prev = blk[-1].copy(), tb[-1]
+    if prev is None:
+        raise ValueError(f"{flight.source}: the flight has no samples")
     return sp, prev
 
 

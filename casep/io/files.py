@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -96,7 +97,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
         tab.require(VTEL_COLUMNS + VTRK_COLUMNS, ". Use: v_tel_x/y/z with v_trk_x/y/z, or dv_x, dv_y, dv_z")
         v_tel = tab.vectors(VTEL_COLUMNS)
         dv, dv_from = v_tel - tab.vectors(VTRK_COLUMNS), "v_tel - v_trk"
-    meta = {"format": "parquet" if is_parquet(tab.path) else "csv", "force": force_from, "dv": dv_from,
+    meta: dict[str, Any] = {"format": "parquet" if is_parquet(tab.path) else "csv", "force": force_from, "dv": dv_from,
             "rows_file": str(tab.path)}  # sample k is data row k + 1 (locate_samples)
     if dv_from != "dv":
         meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
@@ -209,6 +210,7 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     from casep.exceptions import SetupWarning, TimeOffsetWarning
 
     if time_offset == "auto":
+        assert align is not None  # "auto" re-raised a failed alignment above
         shift = align.tau
     elif time_offset is None:
         shift = 0.0
@@ -238,7 +240,8 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
                 "different origins, state it with time_shift (--time-shift SECONDS, manifest time_shift_s)."),
                 stacklevel=2)
     mode = "auto" if time_offset == "auto" else ("none" if time_offset is None else "given")
-    extra = {"time_alignment": {**(align.to_dict() if align is not None else {}), "applied_s": shift, "mode": mode}}
+    extra: dict[str, Any] = {
+        "time_alignment": {**(align.to_dict() if align is not None else {}), "applied_s": shift, "mode": mode}}
     signals = tel.signals()
     if not all(f"a_{a}" in signals for a in "xyz"):
         # the kinematic acceleration for a time-offset term: d v_tel / dt (cubic spline), exact kinematics
@@ -255,7 +258,8 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     flight.meta["rows_file"] = str(trk.path if flight.meta.get("rows_side") == "tracking" else tel.path)
     if shift_scale:
         flight.meta["time_shift_s"] = shift_scale
-    if tracking_frame != "launch":  # the late-start check: speed relative to the pad, not the Earth's rotation
+    if r_ecef is not None and v_ecef is not None:  # Earth-fixed tracking; the late-start check: speed relative
+        # to the pad, not the Earth's rotation
         from casep.io.setup import setup_evidence
 
         ev = setup_evidence(site, t_tel, v_tel, t_raw, r_ecef, v_ecef, time_shift=shift_scale)

@@ -127,7 +127,8 @@ class FlightData:
     dv: np.ndarray
     source: str = "<memory>"
     meta: dict = field(default_factory=dict, compare=False)
-    observed: np.ndarray | None = None
+    # None (the default) means every sample; after the checks of __post_init__ always the (N,) boolean mask
+    observed: np.ndarray = None  # type: ignore[assignment]
     signals: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:

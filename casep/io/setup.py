@@ -111,7 +111,7 @@ def setup_evidence(site: Any, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.nd
                         f"{dist / 1e3:.6g} km from the stated launch site, where the vehicle could be at most "
                         f"{reach / 1e3:.4g} km away (its speed then times the time since launch) + "
                         f"{POSITION_TOL / 1e3:g} km: the stated {where} is wrong")
-    if s_trk is not None and s_trk < PAD_REST_SPEED:
+    if s_trk is not None and s_std is not None and s_trk < PAD_REST_SPEED:
         tol = max(PAD_VELOCITY_TOL, 5.0 * s_std)
         gap = abs(float(np.linalg.norm(e)) - s_trk)
         pad["tolerance_m_s"] = tol

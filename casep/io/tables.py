@@ -149,7 +149,7 @@ class Table:
                                  "keep one", col, "header")
 
     def error(self, message: str, column: str | None = None, row: int | str | None = None) -> FlightDataError:
-        line = self.line_of(0 if row == "header" else row) if row is not None else None
+        line = self.line_of(0 if row == "header" else int(row)) if row is not None else None
         return FlightDataError(self.src, message, column, row, line)
 
     def has(self, cols: tuple[str, ...]) -> bool:

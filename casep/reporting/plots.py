@@ -213,7 +213,10 @@ def plot_estimates(result: EstimateResult, path: str | os.PathLike, *, prior: Ma
     kind = ["declared magnitude" if np.isfinite(declared[j]) else kind[j] for j in range(n)]
     z = result.estimate / scale
     err = None if result.std is None else 2 * result.std / scale
-    mu = tau = lo = hi = None
+    mu: np.ndarray | None = None
+    tau: np.ndarray | None = None
+    lo: np.ndarray | None = None
+    hi: np.ndarray | None = None
     if prior is not None:
         from casep.estimators.map import parse_prior
 
@@ -226,15 +229,15 @@ def plot_estimates(result: EstimateResult, path: str | os.PathLike, *, prior: Ma
     ncol = min(3, len(groups))
     nrow = -(-len(groups) // ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.2 * nrow + 0.6), squeeze=False)
-    for ax, (title, idx) in zip(axes.ravel(), groups.items()):
-        idx = np.asarray(idx)
+    for ax, (title, members) in zip(axes.ravel(), groups.items()):
+        idx = np.asarray(members)
         x = np.arange(idx.size)
         ax.axhspan(-1.0, 1.0, color="0.88", zorder=0, label="declared magnitude")
-        if mu is not None:
+        if mu is not None and tau is not None:
             has = np.isfinite(tau[idx])
             ax.errorbar(x[has] + 0.2, (mu / scale)[idx][has], yerr=(2 * tau / scale)[idx][has], fmt="s",
                         color="0.5", ms=3, capsize=2, label="prior mean +- 2 prior std")
-        if lo is not None:
+        if lo is not None and hi is not None:
             for v, mk in ((lo, "^"), (hi, "v")):
                 ok = np.isfinite(v[idx])
                 ax.plot(x[ok], (v / scale)[idx][ok], mk, color="tab:red", ms=4, ls="none")
@@ -273,7 +276,7 @@ def best_determined(result: EstimateResult, count: int = 6) -> np.ndarray:
 def plot_history(result: EstimateResult, path: str | os.PathLike, t: np.ndarray | None = None,
                  count: int = 6) -> Path:
     """RLS/RELS estimate history of the best-determined coefficients with +- 2 std bands."""
-    if result.history is None or result.history_std is None:
+    if result.history is None or result.history_std is None or result.std is None:
         raise ValueError(f"`result` of method {result.method} has no estimate and std history")
     plt = pyplot()
     stride = int(result.settings.get("history_stride", 1))
