@@ -22,13 +22,17 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from casep.analysis.noise import NoiseModel, check_noise_kind
 from casep.analysis.noise_fit import fit_noise
-from casep.analysis.problem import Problem
 from casep.analysis.robust import robust_filter
+
+#: A :class:`casep.analysis.problem.Problem`. That module imports this one (``Problem.rows``) and the rows use
+#: only a Problem's methods, so the class is not imported here (no import cycle).
+Problem = Any
 
 __all__ = ["Rows", "prepare_rows", "NOISE_FREE", "ROBUST_CHOICES", "GLITCH_SIGMAS"]
 
