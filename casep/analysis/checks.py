@@ -243,8 +243,6 @@ def _check_dv_noise(flight: FlightData) -> None:
 
 
 # ----------------------------------------------------------------------------- with the model
-
-
 def min_samples(n_coefficients: int) -> int:
     """Fewest samples that leave one degree of freedom for the noise estimate.
 
@@ -284,7 +282,6 @@ def check_dv_not_zero(flight: FlightData) -> None:
         raise FlightDataError(flight.source, f"the velocity error (columns {_dv_columns(flight)}) is exactly 0 at "
                                              f"all {dv.shape[0]} observed samples: nothing to estimate (an unfilled "
                                              "column, or telemetry compared with itself?)")
-
 
 
 def setup_problems(flight: FlightData) -> list[str]:
