@@ -268,7 +268,11 @@ class Diagnostics:
         }
 
     def report(self) -> str:
-        """Readable terminal report."""
+        """Readable terminal report: :meth:`text`."""
+        return self.text()
+
+    def text(self) -> str:
+        """Readable terminal report (what ``casep diagnose`` prints)."""
         cn = self.condition_number
         ce = self.condition_number_equilibrated
         lines = [f"condition number: {cn:.3g} (natural units), {ce:.3g} (columns equilibrated)"

@@ -120,6 +120,10 @@ class NoiseModel:
     def axis_kinds(self) -> tuple[str, str, str]:
         return tuple("white" if t is None else "gm" for t in self.tau)  # type: ignore[return-value]
 
+    def text(self) -> str:
+        """One line for the console: :meth:`line`."""
+        return self.line()
+
     def line(self) -> str:
         """One line for the console: what the noise is and why."""
         parts = []

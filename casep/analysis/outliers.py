@@ -99,6 +99,11 @@ class OutlierFlags:
         return self.rate * self.rows_tested
 
     def summary(self, top: int = 5) -> str:
+        """The flagged rows in one paragraph: :meth:`text`."""
+        return self.text(top)
+
+    def text(self, top: int = 5) -> str:
+        """The flagged rows (the `top` largest named, with file line and time) in one paragraph."""
         head = (f"{self.count} row(s) with studentized residual |t| > {self.threshold:.3g} (false-alarm rate "
                 f"{self.rate:.2g} per row: {self.expected_false:.2g} expected from white noise)")
         if not self.rows:

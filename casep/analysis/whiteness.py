@@ -62,6 +62,10 @@ class WhitenessTest:
                 "rejected": list(self.rejected), "std_factor_median": self.std_factor,
                 "std_factor_max": self.std_factor_max}
 
+    def text(self) -> str:
+        """The whiteness of the residuals per axis, in one line: :meth:`message`."""
+        return self.message()
+
     def message(self) -> str:
         parts = ", ".join(f"{a} Q {self.q[j]:.3g} (p {self.p[j]:.2g})"
                           for j, a in enumerate(AXES) if a in self.rejected)
