@@ -275,9 +275,9 @@ def test_batched_methods_use_the_estimators_linear_maps():
     from casep.estimators.ols import LinearMap, ols_linear_map
     from casep.estimators.rls import rls_linear_map
     from casep.model.sv import build_sv
+    from casep.montecarlo.methods import linear_maps as _linear_maps
     from casep.simulation.paper import demo_prior
     from casep.simulation.simulate import scenario_setup
-    from casep.montecarlo.methods import linear_maps as _linear_maps
 
     sc, traj, model, _ = scenario_setup("paper", 5.0)
     S2 = build_sv(model, traj.t, traj.specific_force).reshape(-1, model.n_coefficients)

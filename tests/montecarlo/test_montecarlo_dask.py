@@ -15,8 +15,8 @@ import pytest
 
 import casep
 from casep.cli import main
-from casep.simulation.paper import demo_prior
 from casep.montecarlo import run_montecarlo
+from casep.simulation.paper import demo_prior
 
 DISP = {"thrust_scale": {"dist": "normal", "mean": 1.0, "std": 0.01},
         "launch_azimuth_deg": {"dist": "uniform", "low": -2.0, "high": 2.0},
