@@ -9,6 +9,7 @@ lines); None: silent. Elapsed time and ETA are those of the whole campaign, not 
 
 from __future__ import annotations
 
+import shutil
 import sys
 import time
 from collections.abc import Sequence
@@ -99,8 +100,10 @@ class Progress:
         if self.mode == "bar":
             which = f" (method {self.stage + 1} of {len(self.stages)})" if several else ""
             fmt = "|{bar:24}| " + label + " {n_fmt}/{total_fmt} runs" + which + tail
+            # the terminal's size, 80 x 24 where it reports none (tqdm would then hide the bar)
+            cols, rows = shutil.get_terminal_size()
             return _StageBar(total=self.runs, initial=done, bar_format=fmt, file=sys.stderr, mininterval=0,
-                             miniters=1, owner=self)
+                             miniters=1, ncols=cols, nrows=rows, owner=self)
         which = (f" (method {self.stage + 1} of {len(self.stages)}, {{all_pct:.0f}} % of all)" if several
                  else " ({all_pct:.0f} %)")
         fmt = "montecarlo: " + label + " {n_fmt}/{total_fmt} runs" + which + tail
