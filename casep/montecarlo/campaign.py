@@ -24,8 +24,8 @@ from casep.estimators.bounded import parse_bounds
 from casep.estimators.map import parse_prior
 from casep.model.sv import build_sv
 from casep.montecarlo.engines import DaskEngine, InProcess
-from casep.montecarlo.inputs import check_truth_prior, own_trajectory
-from casep.montecarlo.methods import MethodSpec, parse_method
+from casep.montecarlo.inputs import check_options, check_truth_prior, own_trajectory
+from casep.montecarlo.methods import MethodSpec
 from casep.montecarlo.progress import Progress, progress_mode
 from casep.montecarlo.result import MonteCarloResult
 from casep.montecarlo.store import Store
@@ -112,29 +112,7 @@ def run_montecarlo(
         otherwise every method runs per run through :func:`casep.workflows.solve.solve_problem`).
         The scenario's tracking gaps remove rows in every case.
     """
-    from casep.analysis.noise import check_noise_kind
-    from casep.analysis.rows import ROBUST_CHOICES
-
-    check_noise_kind(noise)
-    if (noise != "white" or robust not in (None, "auto", "none")) and any(m.startswith("wavelet+") for m in methods):
-        raise ValueError("wavelet+<method> de-noises dv: it does not combine with `noise` other than 'white' or "
-                         "with `robust`")
-    if robust is not None and robust not in ROBUST_CHOICES:
-        raise ValueError(f"`robust` must be one of {', '.join(ROBUST_CHOICES)} or None, got {robust!r}")
-    if tau is not None and noise != "gm":
-        raise ValueError(f"`tau` given with noise {noise!r}: a given correlation time means noise 'gm'")
-    robust = None if robust == "none" else robust
-    if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
-        raise ValueError(f"`runs` must be an int >= 1, got {runs!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"`seed` must be an int >= 0, got {seed!r}")
-    runs, seed = int(runs), int(seed)
-    specs = [parse_method(m) for m in methods]
-    if not specs:
-        raise ValueError("`methods` is empty")
-    if len({s.text for s in specs}) != len(specs):
-        raise ValueError(f"`methods` names a method twice: {', '.join(methods)}")
-    n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
+    runs, seed, specs, n_workers, robust = check_options(runs, seed, methods, workers, noise, tau, robust)
     per_run_noise = noise != "white" or robust not in (None, "auto")
     linear = [s for s in specs if batched and not per_run_noise and s.linear]
     other = [s for s in specs if s not in linear]
@@ -157,8 +135,6 @@ def run_montecarlo(
         if per_run_noise:  # (absent for the default, so campaigns written before stay resumable)
             settings["noise"] = {"noise": noise, "tau": tau, "robust": robust}
         store = Store(out, json.loads(json.dumps(settings)))
-    if n_workers < 1:
-        raise ValueError(f"`workers` must be >= 1, got {workers!r}")
     groups = [[s.text for s in a + b] for a, b in stages]
     bar = Progress(runs, [",".join(g) for g in groups], progress_mode(progress))
     results: list[dict[int, dict]] = [{} for _ in stages]

@@ -1,18 +1,50 @@
-"""The inputs of a campaign: checks, one's own trajectory instead of the scenario's, truth priors."""
+"""The inputs of a campaign: option checks, one's own trajectory instead of the scenario's, truth priors."""
 
 from __future__ import annotations
 
+import os
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from casep.exceptions import IllConditionedWarning
+from casep.montecarlo.methods import MethodSpec, parse_method
 from casep.simulation.scenarios import Scenario
 
-__all__ = ["TRUTH_PRIOR_LIMIT", "check_truth_prior", "own_trajectory"]
+__all__ = ["TRUTH_PRIOR_LIMIT", "check_options", "check_truth_prior", "own_trajectory"]
+
+
+def check_options(runs: Any, seed: Any, methods: Sequence[str], workers: Any, noise: str, tau: Any,
+                  robust: str | None) -> tuple[int, int, list[MethodSpec], int, str | None]:
+    """The options of :func:`casep.montecarlo.run_montecarlo` checked before any work: runs, seed,
+    the parsed methods, the number of workers (None: all cores) and `robust` ("none": None)."""
+    from casep.analysis.noise import check_noise_kind
+    from casep.analysis.rows import ROBUST_CHOICES
+
+    check_noise_kind(noise)
+    if (noise != "white" or robust not in (None, "auto", "none")) and any(m.startswith("wavelet+") for m in methods):
+        raise ValueError("wavelet+<method> de-noises dv: it does not combine with `noise` other than 'white' or "
+                         "with `robust`")
+    if robust is not None and robust not in ROBUST_CHOICES:
+        raise ValueError(f"`robust` must be one of {', '.join(ROBUST_CHOICES)} or None, got {robust!r}")
+    if tau is not None and noise != "gm":
+        raise ValueError(f"`tau` given with noise {noise!r}: a given correlation time means noise 'gm'")
+    if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
+        raise ValueError(f"`runs` must be an int >= 1, got {runs!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"`seed` must be an int >= 0, got {seed!r}")
+    specs = [parse_method(m) for m in methods]
+    if not specs:
+        raise ValueError("`methods` is empty")
+    if len({s.text for s in specs}) != len(specs):
+        raise ValueError(f"`methods` names a method twice: {', '.join(methods)}")
+    n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
+    if n_workers < 1:
+        raise ValueError(f"`workers` must be >= 1, got {workers!r}")
+    return int(runs), int(seed), specs, n_workers, None if robust == "none" else robust
 
 #: A truth prior may reach this many declared magnitudes (mean + 6 std): wide priors of poorly known
 #: second-order terms (the demo's: 1e4 x) pass, 1e308 does not.
