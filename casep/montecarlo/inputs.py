@@ -25,7 +25,8 @@ def check_options(runs: Any, seed: Any, methods: Sequence[str], workers: Any, no
     from casep.analysis.rows import ROBUST_CHOICES
 
     check_noise_kind(noise)
-    if (noise != "white" or robust not in (None, "auto", "none")) and any(m.startswith("wavelet+") for m in methods):
+    specs = [parse_method(m) for m in methods]
+    if (noise != "white" or robust not in (None, "auto", "none")) and any(s.denoise for s in specs):
         raise ValueError("wavelet+<method> de-noises dv: it does not combine with `noise` other than 'white' or "
                          "with `robust`")
     if robust is not None and robust not in ROBUST_CHOICES:
@@ -36,7 +37,6 @@ def check_options(runs: Any, seed: Any, methods: Sequence[str], workers: Any, no
         raise ValueError(f"`runs` must be an int >= 1, got {runs!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"`seed` must be an int >= 0, got {seed!r}")
-    specs = [parse_method(m) for m in methods]
     if not specs:
         raise ValueError("`methods` is empty")
     if len({s.text for s in specs}) != len(specs):
