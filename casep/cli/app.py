@@ -14,7 +14,7 @@ import functools
 import importlib
 import os
 import sys
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, NoReturn, Sequence
 
 from casep._version import __version__
 from casep.cli.capture import print_warnings, recorded
@@ -33,10 +33,10 @@ EXIT_BROKEN_PIPE = 141
 class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (exit 2) and that refuses a one-value option given twice."""
 
-    def error(self, message: str):  # type: ignore[override]  # one line, exit 2
+    def error(self, message: str) -> NoReturn:  # one line, exit 2
         self.exit(2, f"{self.prog}: error: {message}\n")
 
-    def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:  # type: ignore[override]
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
         self._refuse_repeated(sys.argv[1:] if args is None else list(args))
         return super().parse_known_args(args, namespace)
 

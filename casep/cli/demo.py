@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
     for line in summary_lines(sim, res.results, d.crlb_std):
         print(line)
     print()
-    for line in demo.impact_lines(res.impact, res.true_miss):
+    for line in demo.impact_lines(res.impact, res.true_miss) if res.true_miss is not None else []:
         print(line)
     print()
     print(f"report and figures in {args.out}/ (report.md)")

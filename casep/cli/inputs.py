@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-__all__ = ["read_one", "read_all", "use_manifest", "frame_options", "input_files", "coefficient_file",
+__all__ = ["read_one", "read_all", "use_manifest", "frame_options", "launch_site", "input_files", "coefficient_file",
            "own_trajectory", "radar_only"]
 
 
@@ -25,9 +25,15 @@ def frame_options(args: argparse.Namespace) -> dict[str, Any]:
     if (lsite is None) != (t0 is None):
         raise ValueError(f"--tracking-frame {frame} needs both --launch-site LAT LON H AZ and --launch-time T0, "
                          f"got only {'--launch-site' if t0 is None else '--launch-time'}")
+    return {"tracking_frame": frame, "site": None if lsite is None or t0 is None else launch_site(lsite, t0)}
+
+
+def launch_site(values: list[float], t0: float) -> Any:
+    """The :class:`casep.frames.LaunchSite` of ``--launch-site LAT LON H AZ`` and a launch time `t0`."""
     from casep.frames import LaunchSite
 
-    return {"tracking_frame": frame, "site": None if lsite is None else LaunchSite(*lsite, t0)}
+    lat, lon, h, az = values
+    return LaunchSite(lat, lon, h, az, t0)
 
 
 def _pair(args: argparse.Namespace, flight: str, tracking: str, frames: dict[str, Any]) -> Any:

@@ -13,8 +13,6 @@ __all__ = ["separate_radar", "diagnose_radar", "add_simulate_radar", "simulate_r
 
 
 def _site(args: argparse.Namespace) -> Any:
-    from casep.frames import LaunchSite
-
     if len(args.flight) != 1:
         raise ValueError(f"--radar takes one telemetry file, got {len(args.flight)}")
     if args.tracking or args.tracking_frame != "launch":
@@ -22,7 +20,7 @@ def _site(args: argparse.Namespace) -> Any:
     if args.launch_site is None or args.launch_time is None:
         raise ValueError("--radar needs --launch-site LAT LON H AZ and --launch-time T0 (the launch time in the radar "
                          "files' time scale): they tie the telemetry's launch-inertial frame to the stations")
-    return LaunchSite(*args.launch_site, args.launch_time)
+    return inputs.launch_site(args.launch_site, args.launch_time)
 
 
 def _radar_files(args: argparse.Namespace) -> list[Any]:

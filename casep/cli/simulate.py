@@ -55,9 +55,7 @@ def _site(args: argparse.Namespace) -> Any:
         return None
     if args.launch_site is None:
         raise ValueError("--rotating-earth needs --launch-site LAT LON H AZ (deg, deg, m, deg from north)")
-    from casep.frames import LaunchSite
-
-    return LaunchSite(*args.launch_site, 0.0)
+    return inputs.launch_site(args.launch_site, 0.0)
 
 
 def run(args: argparse.Namespace) -> int:

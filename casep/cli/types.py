@@ -77,7 +77,8 @@ def ranged(name: str) -> Callable[[str], float]:
 
         v = _number(text)
         try:
-            return float(check_positive(name, v, allow_none=False))
+            checked = check_positive(name, v, allow_none=False)
+            return v if checked is None else checked
         except ValueError as exc:
             raise argparse.ArgumentTypeError(str(exc)) from None
 

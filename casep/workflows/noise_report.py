@@ -52,6 +52,8 @@ def flight_noise(flight: Any, model: Any) -> tuple[Any, Any]:
         warnings.simplefilter("ignore", CasepWarning)  # conditioning: not the question here
         res = solve_ols(problem)
     r = problem.residuals(res.estimate).reshape(-1, 3)  # r = dv - S_V D_hat, one row per sample
+    if problem.t is None:
+        raise ValueError(f"{problem.source}: no sample times: the Allan deviation needs them")
     step = np.diff(problem.t)
     dt = float(np.median(step))
     if np.max(np.abs(step - dt)) > STEP_TOLERANCE * dt:
