@@ -7,6 +7,7 @@ from typing import Any
 
 from casep._version import __version__
 from casep.cli import flight_options, inputs, options, outputs
+from casep.cli.radar import radar_only
 from casep.cli.types import ranged, rule_type
 from casep.estimators.registry import OPTIONS, Interval
 
@@ -37,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
         from casep.cli.radar import diagnose_radar
 
         return diagnose_radar(args)
-    inputs.radar_only(args, ("tracking_model",))
+    radar_only(args, ("tracking_model",))
     inputs.use_manifest(args)  # --manifest FLIGHTS.toml, or the flight files
     outputs.check({"--json": args.json}, inputs.input_files(args, "flight", "tracking", "prior", "scales"),
                   {"--figures": args.figures})

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["read_one", "read_all", "use_manifest", "frame_options", "launch_site", "input_files", "coefficient_file",
-           "own_trajectory", "radar_only"]
+           "own_trajectory"]
 
 
 def frame_options(args: argparse.Namespace) -> dict[str, Any]:
@@ -140,15 +140,3 @@ def own_trajectory(args: argparse.Namespace) -> tuple[Any, Any, Any]:
 
     data = read_json_table(truth, "--truth")
     return flight, data, data.get("model") if isinstance(data.get("model"), str) else None
-
-
-_RADAR_DEFAULTS = {"tracking_model": "radar_biases", "tracking_truth": None, "radar_rate": 20.0, "range_noise": 3.0,
-                   "angle_noise": 8.0, "radar_range_rate": False}
-
-
-def radar_only(args: argparse.Namespace, names: tuple[str, ...]) -> None:
-    """Radar options given without radar inputs are an error, not ignored."""
-    for n in names:
-        if getattr(args, n) != _RADAR_DEFAULTS[n]:
-            need = "--radar-station" if args.command == "simulate" else "--radar"
-            raise ValueError(f"--{n.replace('_', '-')} is used only with {need}")

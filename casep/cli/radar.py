@@ -9,7 +9,7 @@ from casep._version import __version__
 from casep.cli import inputs, options, outputs
 from casep.cli.types import positive_float
 
-__all__ = ["separate_radar", "diagnose_radar", "add_simulate_radar", "simulate_radar"]
+__all__ = ["separate_radar", "diagnose_radar", "add_simulate_radar", "simulate_radar", "radar_only"]
 
 
 def _site(args: argparse.Namespace) -> Any:
@@ -115,3 +115,15 @@ def simulate_radar(args: argparse.Namespace, site: Any) -> int:
     print(f"separate with: casep separate {args.output} {radar} --launch-site "
           f"{' '.join(f'{v:g}' for v in args.launch_site)} --launch-time 0")
     return 0
+
+
+_RADAR_DEFAULTS = {"tracking_model": "radar_biases", "tracking_truth": None, "radar_rate": 20.0, "range_noise": 3.0,
+                   "angle_noise": 8.0, "radar_range_rate": False}
+
+
+def radar_only(args: argparse.Namespace, names: tuple[str, ...]) -> None:
+    """Radar options given without radar inputs are an error, not ignored."""
+    for n in names:
+        if getattr(args, n) != _RADAR_DEFAULTS[n]:
+            need = "--radar-station" if args.command == "simulate" else "--radar"
+            raise ValueError(f"--{n.replace('_', '-')} is used only with {need}")

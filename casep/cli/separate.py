@@ -7,6 +7,7 @@ from typing import Any
 
 from casep.cli import flight_options, inputs, options, outputs
 from casep.cli.capture import recorded, report_lines
+from casep.cli.radar import radar_only
 from casep.cli.types import order, ranged
 from casep.estimators.registry import METHODS, check_method_options
 
@@ -60,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
         from casep.cli.radar import separate_radar
 
         return separate_radar(args, wopts)
-    inputs.radar_only(args, ("tracking_model",))
+    radar_only(args, ("tracking_model",))
     inputs.use_manifest(args)  # --manifest FLIGHTS.toml, or the flight files
     outputs.check({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
                   inputs.input_files(args, "flight", "tracking", "bounds", "prior"), {"--figures": args.figures})

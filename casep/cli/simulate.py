@@ -8,7 +8,7 @@ from typing import Any
 
 from casep.cli import inputs, outputs
 from casep.cli.flight_options import FRAMES
-from casep.cli.radar import add_simulate_radar
+from casep.cli.radar import add_simulate_radar, radar_only
 from casep.cli.types import rate
 
 
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         from casep.cli.radar import simulate_radar
 
         return simulate_radar(args, site)
-    inputs.radar_only(args, ("tracking_truth", "radar_rate", "range_noise", "angle_noise", "radar_range_rate"))
+    radar_only(args, ("tracking_truth", "radar_rate", "range_noise", "angle_noise", "radar_range_rate"))
     out = args.output
     files = {"-o": out, "-o (truth sidecar)": truth_path(out)}
     if args.tracking_frame == "launch" and args.tracking_output is not None:

@@ -14,6 +14,7 @@ checks it against the model, for any simulation.
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -123,8 +124,7 @@ def write_earth_fixed_flight(telemetry: str | os.PathLike, site: Any, *, frame: 
         The data and the three paths. The files are written atomically (inside a
         :func:`casep.io._atomic.output_group`, all three or none).
     """
-    from casep.estimators.result import write_json_atomic
-    from casep.io._atomic import output_group
+    from casep.io._atomic import atomic_open, output_group
     from casep.simulation.scenarios import get_scenario
     from casep.simulation.simulate import simulate_two_rate, truth_path
 
@@ -143,5 +143,6 @@ def write_earth_fixed_flight(telemetry: str | os.PathLike, site: Any, *, frame: 
                                time_offset_ms=time_offset_ms, frame=frame, tracking=trk)
     with output_group():
         d.write(out, trk, tracking_frame=frame)
-        write_json_atomic(record, truth_path(out))
+        with atomic_open(truth_path(out)) as fh:  # as write_simulation writes its sidecar
+            fh.write(json.dumps(record, indent=2) + "\n")
     return EarthFixedFlight(d, sc, out, trk, truth_path(out), record)
