@@ -1,0 +1,70 @@
+"""``casep calibrate SESSION``: instrument error coefficients from a ground test (casep.calibration)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from casep.cli import options, outputs
+from casep.estimators.registry import METHODS, OPTIONS
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser("calibrate", help="identify instrument error coefficients from a ground test "
+                       "(static positions and rotations)")
+    p.add_argument("session", help="session CSV or Parquet: raw accelerometer and gyro columns (any units), "
+                   "and `t` (s) or a sample-index column with --rate")
+    p.add_argument("--rate", type=float, default=None, metavar="HZ", help="sample rate, Hz (required without `t`)")
+    seg = p.add_mutually_exclusive_group(required=True)
+    seg.add_argument("--segments", metavar="FILE", default=None,
+                     help="segments JSON: imucal's section list {name: {start, end}} or a list of segments")
+    seg.add_argument("--label-column", metavar="NAME", default=None, dest="label_column",
+                     help="column labelling each row's segment (imucal's annotated sessions: part)")
+    p.add_argument("--model", default="ferraris", help="calibration model name (models/calibration) or .py file "
+                   "(default ferraris; platform36_ground: the flight model's names and units, SI readings)")
+    p.add_argument("--method", default="ols", choices=[m for m, meth in METHODS.items()
+                                                        if not meth.needs_time and m != "rels"],
+                   help="estimator (default ols)")
+    for name in ("prior", "bounds", "lam", "n_components", "p0", "weight", "forgetting", "noise_order"):
+        options.add_option(p, OPTIONS[name])
+    p.add_argument("--prior-rel-std", type=float, default=None, dest="prior_rel_std", metavar="R",
+                   help="with an imucal --prior: its relative std (imucal states none)")
+    p.add_argument("--sigma", type=float, default=None, help="noise std of the rows (default estimated per sensor): "
+                   "reading units with --weighting segments|samples, 1 = as modelled with positions")
+    p.add_argument("--acc-columns", default="acc_x,acc_y,acc_z", help="accelerometer columns x,y,z")
+    p.add_argument("--gyr-columns", default="gyr_x,gyr_y,gyr_z", help="gyro columns x,y,z")
+    p.add_argument("--acc-unit", default="a.u.", help="accelerometer unit: a.u. (raw), m/s^2, g, mg")
+    p.add_argument("--gyr-unit", default="a.u.", help="gyro unit: a.u. (raw), deg/s, rad/s, deg/h")
+    p.add_argument("--gravity", type=float, default=None, metavar="M_S2",
+                   help="gravity at the stand, m/s^2 (default 9.80665; imucal uses 9.81)")
+    p.add_argument("--angle", type=float, default=-360.0, metavar="DEG",
+                   help="angle of imucal's x_rot/y_rot/z_rot turns, deg (default -360: clockwise, imucal's)")
+    p.add_argument("--weighting", choices=("positions", "segments", "samples"), default="positions",
+                   help="rows: segment means weighted by a position-error (tilt) and noise model (default), "
+                        "segment means of equal weight, or every sample (exact positions)")
+    p.add_argument("--json", metavar="OUT", required=True, help="write the calibration JSON (a casep result)")
+    p.add_argument("--imucal", metavar="OUT", default=None, help="also write imucal's calibration JSON (ferraris)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """One call of casep.calibration.calibrate_files, the report, the files (all or none)."""
+    from casep.calibration.calibrate import calibrate_files
+    from casep.calibration.imucal import to_imucal
+    from casep.units import G0
+
+    outputs.check({"--json": args.json, "--imucal": args.imucal},
+                  [args.session, args.segments, args.prior, args.bounds])
+    cal = calibrate_files(args.session, rate=args.rate, segments=args.segments, label_column=args.label_column,
+                          model=args.model, method=args.method, options=options.method_options(args),
+                          acc_columns=args.acc_columns.split(","), gyr_columns=args.gyr_columns.split(","),
+                          acc_unit=args.acc_unit, gyr_unit=args.gyr_unit,
+                          gravity=G0 if args.gravity is None else args.gravity, angle_deg=args.angle,
+                          weighting=args.weighting, sigma=args.sigma, prior_rel_std=args.prior_rel_std)
+    imucal = to_imucal(cal) if args.imucal else None  # before any file: all outputs or none
+    print(cal.report())
+    outputs.write_json(cal.to_dict(), args.json)
+    print(f"calibration written to {args.json}")
+    if imucal is not None:
+        outputs.write_json(imucal, args.imucal)
+        print(f"imucal calibration written to {args.imucal}")
+    return outputs.status(cal.result)

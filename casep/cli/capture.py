@@ -1,0 +1,46 @@
+"""casep's warnings during a command: recorded, then printed as ``warning:`` lines of the report.
+
+The ill-conditioning warning is not printed (the table says it); warnings that are not casep's
+are passed on to Python's warning machinery as they were.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import warnings
+from typing import Iterator
+
+from casep.exceptions import CasepWarning, IllConditionedWarning
+
+__all__ = ["recorded", "report_lines", "print_warnings"]
+
+
+@contextlib.contextmanager
+def recorded(passed_on: bool = True) -> Iterator[list[warnings.WarningMessage]]:
+    """Record every warning of the block (casep's always, even if seen before).
+
+    With `passed_on`, the recorded warnings are issued again when the block ends, for the
+    enclosing recorder (:func:`casep.cli.main`'s) to print; the list stays available (the
+    HTML report quotes them).
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", CasepWarning)
+        yield caught
+    if passed_on:
+        for w in caught:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def report_lines(caught: list[warnings.WarningMessage]) -> list[str]:
+    """The messages of casep's warnings other than the ill-conditioning one."""
+    return [str(w.message) for w in caught if issubclass(w.category, CasepWarning)
+            and not issubclass(w.category, IllConditionedWarning)]
+
+
+def print_warnings(caught: list[warnings.WarningMessage]) -> None:
+    """Print casep's warnings as ``warning:`` lines; pass the others on."""
+    for w in caught:
+        if issubclass(w.category, CasepWarning) and not issubclass(w.category, IllConditionedWarning):
+            print(f"warning: {w.message}")
+        elif not issubclass(w.category, CasepWarning):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)

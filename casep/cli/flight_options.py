@@ -1,0 +1,75 @@
+"""Shared argument groups of the commands that read flights: two-file input (grid, clocks, manifest), tracking
+frames, radar stations, one's own trajectory."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from casep.cli.types import finite_float, time_offset
+
+__all__ = ["FRAMES", "add_tracking", "add_grid", "add_frames", "add_radar", "add_own_trajectory"]
+
+FRAMES = ("launch", "ecef", "geodetic")
+
+
+def add_tracking(parser: Any, help: str) -> None:
+    """``--tracking FILE`` (two-file input; once per flight)."""
+    parser.add_argument("--tracking", metavar="FILE", default=None, action="append", help=help)
+
+
+def add_grid(parser: Any, manifest: bool = True) -> None:
+    """``--grid``, ``--time-offset``, ``--time-shift`` and (unless `manifest` is false) ``--manifest``."""
+    parser.add_argument("--grid", choices=("tracking", "telemetry"), default="tracking",
+                        help="with --tracking: form dv at the tracking times (default: one row per tracking "
+                             "sample, white noise, honest std) or at the telemetry times (tracking interpolated: "
+                             "std too small by about sqrt(f_tel / f_trk))")
+    parser.add_argument("--time-offset", type=time_offset, default=None, metavar="auto|MS",
+                        help="with --tracking: tracking time tags late by MS milliseconds, shifted back; 'auto': the "
+                             "offset that lines up the velocity increments (then fit dt_trk for the rest); default: "
+                             "none, with a warning when that offset exceeds a tracking sample period")
+    parser.add_argument("--time-shift", type=finite_float, default=0.0, metavar="SECONDS",
+                        help="with --tracking: how the time scales relate, tracking time minus telemetry time "
+                             "(tracking in seconds of day, telemetry from lift-off at 12:00:00: 43200); default 0 "
+                             "(one scale)")
+    if manifest:  # impact has its own (a manifest of one flight, with its result)
+        parser.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
+                            help="TOML manifest listing each flight's telemetry, tracking, frame, site, launch time "
+                                 "and time shift (docs/guide/range-data.md), instead of the flight files and these "
+                                 "options")
+
+
+def add_frames(parser: Any) -> None:
+    """The tracking file's frame and the launch site tying it to the platform frame."""
+    parser.add_argument("--tracking-frame", choices=FRAMES, default="launch",
+                        help="with --tracking: frame of the tracking file: launch (t, v_trk_*, launch-inertial; "
+                             "default), ecef (t, r_ecef_*, v_ecef_*, WGS84, m, m/s) or geodetic (t, lat, lon, h, "
+                             "v_east, v_north, v_up; deg, deg, m, m/s); ecef and geodetic need --launch-site and "
+                             "--launch-time")
+    parser.add_argument("--launch-site", type=float, nargs=4, default=None, metavar=("LAT", "LON", "H", "AZ"),
+                        help="launch point (geodetic latitude, longitude, deg; height above the WGS84 ellipsoid, m) "
+                             "and azimuth of the platform x axis (deg from north, clockwise)")
+    parser.add_argument("--launch-time", type=float, default=None, metavar="T0",
+                        help="launch time in the tracking file's time scale, s (the launch-inertial frame is the "
+                             "Earth-fixed launch triad at T0)")
+
+
+def add_radar(parser: Any) -> None:
+    """Radar measurements of one or more stations (measurement domain)."""
+    parser.add_argument("--radar", nargs=2, action="append", default=None, metavar=("STATION.json", "MEAS.csv"),
+                        help="a radar station ({name, lat, lon, h}: deg, deg, m WGS84) and its measurements (t, range "
+                             "m, azimuth deg from north, elevation deg, optional range_rate m/s); repeat per station. "
+                             "The flight file is then the telemetry (t, f_*, v_tel_*, optional r_tel_*); needs "
+                             "--launch-site and --launch-time")
+    parser.add_argument("--tracking-model", default="radar_biases", metavar="NAME|FILE",
+                        help="with --radar: the station error model (default radar_biases)")
+
+
+def add_own_trajectory(parser: Any) -> None:
+    """One's own trajectory (a flight file) and truth instead of the scenario's."""
+    parser.add_argument("--flight", metavar="FILE", default=None,
+                        help="one's own trajectory: a flight file (t, f_*, dv_* or v_tel_*/v_trk_*) whose times and "
+                             "specific force replace the scenario's; needs --truth")
+    parser.add_argument("--truth", metavar="TRUTH.json", default=None,
+                        help='with --flight: true coefficients {"Kg0x": value, ...} (natural units) or a truth file of '
+                             "casep simulate (its model and noise used; else white noise of the flight's own "
+                             "least-squares residual std)")

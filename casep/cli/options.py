@@ -1,0 +1,93 @@
+"""Shared argument groups: the method options (generated from the estimator registry) and the noise model.
+
+Flag, help, default and rule of a method option come from :data:`casep.estimators.registry.OPTIONS`;
+the argparse type is the option's :meth:`~casep.estimators.registry.Option.parse`.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from casep.cli.types import metavar, rule_type
+from casep.estimators.registry import METHODS, OPTIONS, Option
+
+__all__ = ["add_option", "method_option_groups", "add_noise", "noise_kw", "add_model", "add_json", "method_options"]
+
+
+def option_help(option: Option, default: str | None = None) -> str:
+    """Help of a registry option: its help, rule and default (or "required")."""
+    required = [m for m, meth in METHODS.items() if option.name in meth.required]
+    d = option.default
+    if default is None and (d is not None or required):
+        default = "required" if d is None else f"default {d:g}" if isinstance(d, float) else f"default {d}"
+    return f"{option.help}; {option.rule}" + (f" ({default})" if default else "")
+
+
+def add_option(group: Any, option: Option, default: str | None = None) -> None:
+    """The argument of a registry option (dest: its name; None when not given)."""
+    group.add_argument(option.flag, dest=option.name, type=rule_type(option), default=None,
+                       metavar=metavar(option), help=option_help(option, default))
+
+
+def method_option_groups(parser: argparse.ArgumentParser) -> None:
+    """One argument group per set of methods taking the same options, generated from the registry.
+
+    Options shared by several methods (RLS and RELS) are in one group titled by all of them
+    (``rls / rels options``).
+    """
+    groups: dict[tuple[str, ...], list[str]] = {}
+    for name in OPTIONS:
+        takers = tuple(m for m, meth in METHODS.items() if name in meth.options)
+        groups.setdefault(takers, []).append(name)
+    for takers, names in groups.items():
+        g = parser.add_argument_group(f"{' / '.join(takers) or 'unused'} options")
+        for name in names:
+            add_option(g, OPTIONS[name])
+
+
+def method_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The registry options given on the command line (files: their names)."""
+    return {k: getattr(args, k) for k in OPTIONS if getattr(args, k, None) is not None}
+
+
+def add_noise(parser: Any, *, outputs: bool = True, default: str = "auto") -> None:
+    """The noise-model options every method takes (casep.analysis.noise, casep.workflows.solve)."""
+    g = parser.add_argument_group("noise model (every method)")
+    g.add_argument("--noise", choices=("auto", "gm", "white"), default=default,
+                   help=f"tracking noise (default {default}): auto (white or Gauss-Markov per axis by a "
+                        "likelihood-ratio test, said in the output), gm (Gauss-Markov per axis, --tau or REML), white "
+                        "(with separate, a whiteness test warns when the residuals contradict it)")
+    g.add_argument("--robust", nargs="?", const="huber", choices=("auto", "huber", "bisquare", "none"),
+                   default="auto",
+                   help="robust fit for any method: glitches removed by a robust filter on the innovations, the rest "
+                        "weighted; --robust alone: huber; auto (default): huber when the filter finds more glitches "
+                        "than Gaussian noise explains (said in the output); none: never")
+    if outputs:
+        g.add_argument("--std", choices=("model", "hac"), default="model",
+                       help="model (default) or hac: Newey-West std of a white-noise ols fit")
+        g.add_argument("--exclude-outliers", type=float, nargs="?", const=0.01, default=None, metavar="ALPHA",
+                       help="remove the samples whose studentized residual (whitened rows) is flagged at "
+                            "family-wise chance ALPHA (default 0.01) and fit again; removed samples listed")
+
+
+def noise_kw(args: argparse.Namespace, opts: dict[str, Any]) -> dict[str, Any]:
+    """separate()'s noise keywords from the options (--tau: the noise model's for every method; popped from
+    `opts` for a method other than gls)."""
+    kw = {"noise": args.noise, "robust": args.robust}
+    for k in ("std", "exclude_outliers"):
+        if getattr(args, k, None) is not None:
+            kw[k] = getattr(args, k)
+    if args.method != "gls" and opts.get("tau") is not None:
+        kw["tau"] = opts.pop("tau")
+    return kw
+
+
+def add_model(parser: Any, default: str | None = "platform36", what: str = "default platform36") -> None:
+    """``--model NAME|FILE``."""
+    parser.add_argument("--model", default=default, help=f"model name or .py file ({what})")
+
+
+def add_json(parser: Any, what: str) -> None:
+    """``--json OUT``."""
+    parser.add_argument("--json", metavar="OUT", default=None, help=f"write {what} here")

@@ -1,0 +1,144 @@
+"""``casep separate FLIGHT [...]``: estimate the error coefficients of a flight (several: jointly; radar)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from casep.cli import flight_options, inputs, options, outputs
+from casep.cli.capture import recorded, report_lines
+from casep.cli.radar import radar_only
+from casep.cli.types import order, ranged
+from casep.estimators.registry import METHODS, check_method_options
+
+
+def add_parser(sub: Any) -> None:
+    from casep.analysis.denoise import EXTENSIONS, MODES, RULES, SCALINGS
+
+    p = sub.add_parser("separate", help="estimate the error coefficients of a flight file")
+    p.add_argument("flight", nargs="*", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "
+                   "several files: one estimate of the shared coefficients, per-flight ones per flight "
+                   "(methods ols, ridge, bounded, pcr, map)")
+    options.add_model(p)
+    p.add_argument("--method", default="ols", choices=METHODS, help="estimator (default ols)")
+    p.add_argument("--sigma", type=ranged("sigma"), default=None,
+                   help="noise std, m/s (default: estimated from the residuals)")
+    p.add_argument("--denoise", choices=("none", "wavelet"), default="none", help="de-noise dv first (default none)")
+    p.add_argument("--wavelet", default=None, help="wavelet (default sym8)")
+    p.add_argument("--level", type=order, default=None, help="decomposition level (default: largest "
+                   "without boundary domination)")
+    p.add_argument("--threshold-rule", choices=RULES, default=None, help="threshold rule (default sqtwolog)")
+    p.add_argument("--threshold-mode", choices=MODES, default=None, help="threshold mode (default soft)")
+    p.add_argument("--extension", choices=tuple(EXTENSIONS), default=None,
+                   help="boundary extension (default symmetric)")
+    p.add_argument("--noise-scaling", choices=SCALINGS, default=None, help="noise scaling (default sln)")
+    options.add_json(p, "the result JSON")
+    p.add_argument("--mat", metavar="OUT", default=None,
+                   help="write the result as a MATLAB/Octave .mat file (names, estimates, std, covariance, ...)")
+    p.add_argument("--csv", metavar="OUT", default=None,
+                   help="write one row per coefficient here (name, unit, estimate, std, reason)")
+    p.add_argument("--figures", metavar="DIR", default=None,
+                   help="write residuals, estimates (and RLS/RELS history) PNG figures into DIR (created)")
+    p.add_argument("--outliers", type=float, nargs="?", const=0.01, default=None, metavar="ALPHA",
+                   help="flag rows by their studentized least-squares residual, with chance ALPHA (default 0.01) of "
+                        "any false flag in a clean flight (white noise); rows named, in the JSON diagnostics")
+    p.add_argument("--report", metavar="FILE", default=None,
+                   help="write a self-contained HTML report (table, settings, diagnostics, figures) here")
+    flight_options.add_tracking(p, "tracking file (t, v_trk_*) at its own rate; FLIGHT is then the telemetry file "
+                                   "(t, f_* or W_*, v_tel_*); several flights: once per flight, in their order")
+    flight_options.add_grid(p)  # --grid, --time-offset, --time-shift, --manifest
+    flight_options.add_frames(p)  # --tracking-frame, --launch-site, --launch-time
+    options.add_noise(p)  # --noise, --robust, --std, --exclude-outliers
+    flight_options.add_radar(p)  # --radar STATION.json MEAS.csv, --tracking-model
+    options.method_option_groups(p)
+
+
+def run(args: argparse.Namespace) -> int:
+    wopts = {k: v for k, v in (("wavelet", args.wavelet), ("level", args.level), ("rule", args.threshold_rule),
+                                ("mode", args.threshold_mode), ("extension", args.extension),
+                                ("scaling", args.noise_scaling)) if v is not None}
+    if args.radar:
+        from casep.cli.radar import separate_radar
+
+        return separate_radar(args, wopts)
+    radar_only(args, ("tracking_model",))
+    inputs.use_manifest(args)  # --manifest FLIGHTS.toml, or the flight files
+    outputs.check({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
+                  inputs.input_files(args, "flight", "tracking", "bounds", "prior"), {"--figures": args.figures})
+    from casep.model.loader import load_model
+
+    model = load_model(args.model)
+    # Options of the method only (casep.estimators.registry): one given for another method is an error.
+    given = options.method_options(args)  # files: their names
+    nkw = options.noise_kw(args, given)  # --tau: the noise model's, for every method
+    check_method_options(args.method, given)
+    opts = {k: v for k, v in given.items() if k not in ("bounds", "prior")}
+    bounds = inputs.coefficient_file(args, "bounds", model.names)
+    prior = inputs.coefficient_file(args, "prior", model.names)
+    if wopts and args.denoise != "wavelet":
+        raise ValueError(f"wavelet options ({', '.join(wopts)}) need --denoise wavelet")
+    if len(args.flight) > 1:
+        from casep.cli.separate_flights import separate_flights
+
+        return separate_flights(args, model, opts, bounds, prior, nkw)
+    args.flight = args.flight[0]
+    flight = inputs.read_one(args)
+    from casep.workflows.separate import separate
+
+    with recorded() as caught:  # passed on to main(), which prints them; the report quotes them
+        res = separate(flight, model, args.method, sigma=args.sigma, bounds=bounds, prior=prior,
+                       denoise=args.denoise, wavelet_options=wopts or None, outliers=args.outliers, **opts, **nkw)
+    cons = None
+    if prior is not None:  # the prior (a ground calibration) against the flight estimated alone
+        from casep.workflows.coefficients import with_prior_consistency
+
+        res, cons = with_prior_consistency(res, flight, model, prior, sigma=args.sigma)
+    align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
+    prov = outputs.provenance(args, [flight])
+    if args.json:
+        outputs.write_json({**res.to_dict(), **({"time_alignment": align} if align else {}), "provenance": prov},
+                           args.json)
+    outputs.write_exports(res, args, t=flight.t[flight.observed], provenance=prov)
+    _print(res, args, align, cons)
+    _figures_and_report(args, res, flight, bounds, prior, report_lines(caught), prov)
+    return outputs.status(res)
+
+
+def _print(res: Any, args: argparse.Namespace, align: Any, cons: Any) -> None:
+    from casep.reporting.noise_text import noise_lines
+
+    print(res.table())
+    for line in noise_lines(res.diagnostics):
+        print(line)
+    if args.outliers is not None:
+        from casep.analysis.outliers import OutlierFlags
+
+        o = res.diagnostics["outliers_studentized"]
+        print("outliers: " + OutlierFlags(o["rows"], o["threshold"], o["rate"], o["rows_tested"]).summary())
+    if align and align.get("applied_s"):
+        dt = [res.estimate[i] for i, n in enumerate(res.names) if n == "dt_trk"]
+        total = f"; the flight's offset = shift + dt_trk = {align['applied_s'] * 1e3 + dt[0]:.4g} ms" if dt else ""
+        print(f"tracking time tags shifted back by {align['applied_s'] * 1e3:.4g} ms before the fit{total}")
+    if cons is not None:
+        print(cons.report())
+    for label, path in (("result", args.json), ("MAT file", args.mat), ("CSV", args.csv)):
+        if path:
+            print(f"{label} written to {path}")
+
+
+def _figures_and_report(args: argparse.Namespace, res: Any, flight: Any, bounds: Any, prior: Any,
+                        warned: list[str], prov: dict) -> None:
+    """`--figures DIR` and `--report FILE` (matplotlib imported only when asked)."""
+    if not (args.figures or args.report):
+        return
+    from casep.reporting.plots import separate_figures
+    from casep.reporting.report import write_report
+
+    files = None
+    if args.figures:
+        files = separate_figures(res, args.figures, flight.t[flight.observed], prior=prior, bounds=bounds)
+        print(f"figures: {', '.join(str(f) for f in files)}")
+    if args.report:
+        write_report(res, args.report, flight=flight, figures=files, prior=prior, bounds=bounds, warnings=warned,
+                     source=flight.source, provenance=prov)
+        print(f"report written to {args.report}")

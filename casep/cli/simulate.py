@@ -1,0 +1,123 @@
+"""``casep simulate -o FLIGHT``: a boost flight with injected errors (casep.simulation); Earth-fixed tracking
+(casep.simulation.earth_fixed) and radar stations (casep.cli.radar)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from casep.cli import inputs, outputs
+from casep.cli.flight_options import FRAMES
+from casep.cli.radar import add_simulate_radar, radar_only
+from casep.cli.types import rate
+
+
+def add_parser(sub: Any) -> None:
+    from casep.simulation.scenarios import SCENARIOS
+
+    p = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
+    p.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument("--rate", type=rate, default=None, help="sample rate, Hz (default: scenario's)")
+    p.add_argument("-o", "--output", required=True, metavar="FILE",
+                   help="flight file (.csv, or .parquet); truth goes to <stem>.truth.json beside it")
+    p.add_argument("--model", default=None, help="error model to inject, name or .py file (default: the scenario's)")
+    p.add_argument("--truth", metavar="FILE", default=None,
+                   help='true coefficients, JSON {"Kg0x": value, ...} natural units, or a .truth.json sidecar '
+                        "(default: the scenario's; names not given are 0)")
+    p.add_argument("--tracking-offset", type=float, default=0.0, metavar="MS",
+                   help="tracking time tags late by MS milliseconds: v_trk(t) = v_true(t - MS) (default 0)")
+    p.add_argument("--lever-arm", type=float, nargs=3, default=None, metavar=("LX", "LY", "LZ"),
+                   help="tracked point from the platform, m, body frame (default 0 0 0); the flight file's "
+                        "att_pitch/att_yaw/att_roll (rad) and omega_x/y/z (rad/s, body) columns describe the attitude")
+    p.add_argument("--rotating-earth", action="store_true",
+                   help="Earth turning at 7.292115e-5 rad/s (needs --launch-site): the vehicle starts with the "
+                        "pad's velocity, drag relative to the co-rotating air; the flight stays launch-inertial")
+    p.add_argument("--launch-site", type=float, nargs=4, default=None, metavar=("LAT", "LON", "H", "AZ"),
+                   help="with --rotating-earth: launch point (deg, deg, m above WGS84) and azimuth of x (deg from "
+                        "north, clockwise); lift-off is t = 0 (read back with --launch-time 0)")
+    p.add_argument("--tracking-frame", choices=FRAMES, default="launch",
+                   help="with --rotating-earth: ecef or geodetic writes two files, the telemetry (-o: t, f_*, "
+                        "v_tel_*, a_*) and the tracking in that frame (--tracking-output); default launch: the "
+                        "one-file flight")
+    p.add_argument("--tracking-rate", type=rate, default=20.0, metavar="HZ",
+                   help="with --tracking-frame ecef|geodetic: tracking sample rate (default 20)")
+    p.add_argument("--tracking-output", metavar="FILE", default=None,
+                   help="with --tracking-frame ecef|geodetic: tracking file (default <stem>.tracking<suffix>)")
+    add_simulate_radar(p)  # --radar-station, --tracking-truth, --radar-rate, noise
+
+
+def _site(args: argparse.Namespace) -> Any:
+    """The LaunchSite (t0 = 0: lift-off), or None without --rotating-earth."""
+    if not args.rotating_earth:
+        if args.launch_site is not None or args.tracking_frame != "launch":
+            raise ValueError("--launch-site and --tracking-frame ecef|geodetic need --rotating-earth")
+        return None
+    if args.launch_site is None:
+        raise ValueError("--rotating-earth needs --launch-site LAT LON H AZ (deg, deg, m, deg from north)")
+    return inputs.launch_site(args.launch_site, 0.0)
+
+
+def run(args: argparse.Namespace) -> int:
+    from casep.simulation.simulate import truth_path
+
+    site = _site(args)  # --rotating-earth --launch-site (tracking frames)
+    if args.radar_station:
+        from casep.cli.radar import simulate_radar
+
+        return simulate_radar(args, site)
+    radar_only(args, ("tracking_truth", "radar_rate", "range_noise", "angle_noise", "radar_range_rate"))
+    out = args.output
+    files = {"-o": out, "-o (truth sidecar)": truth_path(out)}
+    if args.tracking_frame == "launch" and args.tracking_output is not None:
+        raise ValueError("--tracking-output needs --tracking-frame ecef|geodetic")
+    if args.tracking_frame != "launch":
+        from casep.simulation.earth_fixed import tracking_path
+
+        files = {"-o": out, "--tracking-output": args.tracking_output or tracking_path(out), **files}
+    outputs.check(files, inputs.input_files(args, "truth"))
+    if args.tracking_frame != "launch" and args.lever_arm is not None:
+        raise ValueError("--lever-arm is not available with --tracking-frame ecef|geodetic yet; leave it out")
+    if args.seed < 0:
+        raise ValueError(f"`--seed` must be >= 0, got {args.seed}")
+    truth = None
+    if args.truth:  # {"Kg0x": v, ...} or a sidecar {"coefficients": {...}}, checked against the model
+        from casep.model.loader import load_model
+        from casep.simulation.earth_fixed import read_truth
+        from casep.simulation.scenarios import get_scenario
+
+        truth = read_truth(args.truth, load_model(args.model or get_scenario(args.scenario).model))
+    if args.tracking_frame != "launch":
+        return _earth_fixed(args, site, truth)
+    from casep.simulation.simulate import simulate_flight, write_simulation
+
+    sim = simulate_flight(args.scenario, seed=args.seed, rate=args.rate, model=args.model, truth=truth,
+                          time_offset=args.tracking_offset * 1e-3, lever_arm=args.lever_arm,  # ms -> s
+                          **({"rotating_earth": True, "site": site} if site is not None else {}))
+    flight_path, side = write_simulation(sim, out)
+    s = sim.trajectory.summary()
+    print(f"scenario {sim.scenario.name}: {sim.flight.n_samples} samples at {sim.scenario.rate:g} Hz, "
+          f"{s['duration_s']:.1f} s powered flight")
+    print(f"lift-off {s['liftoff_specific_force_g']:.2f} g, max {s['max_specific_force_g']:.2f} g; burnout "
+          f"{s['burnout_speed_m_s'] / 1e3:.2f} km/s at {s['burnout_altitude_m'] / 1e3:.0f} km, "
+          f"flight-path angle {s['burnout_flight_path_deg']:.1f} deg")
+    print(f"wrote {flight_path} and {side}")
+    return 0
+
+
+def _earth_fixed(args: argparse.Namespace, site: Any, truth: Any) -> int:
+    """`--rotating-earth --tracking-frame ecef|geodetic`: telemetry, tracking and truth files."""
+    from casep.simulation.earth_fixed import write_earth_fixed_flight
+
+    ef = write_earth_fixed_flight(args.output, site, frame=args.tracking_frame, tracking=args.tracking_output,
+                                  scenario=args.scenario, seed=args.seed, telemetry_rate=args.rate,
+                                  tracking_rate=args.tracking_rate, time_offset_ms=args.tracking_offset,
+                                  model=args.model, truth=truth)
+    d = ef.data
+    print(f"scenario {ef.scenario.name}, rotating Earth at ({site.lat_deg:g} deg, {site.lon_deg:g} deg, "
+          f"{site.h_m:g} m), azimuth {site.azimuth_deg:g} deg: telemetry {d.t_tel.size} samples, tracking "
+          f"({args.tracking_frame}) {d.t_trk.size} samples at {args.tracking_rate:g} Hz")
+    print(f"wrote {ef.telemetry}, {ef.tracking} and {ef.truth}; read back with: casep separate {ef.telemetry} "
+          f"--tracking {ef.tracking} --tracking-frame {args.tracking_frame} --launch-site "
+          f"{' '.join(f'{v:g}' for v in args.launch_site)} --launch-time 0")
+    return 0

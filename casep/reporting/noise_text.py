@@ -1,0 +1,84 @@
+"""The noise model, robust fit, removed samples and tracking gaps of a result, as lines of text.
+
+A result's ``diagnostics`` (:class:`casep.estimators.result.EstimateResult`) record how the noise
+was modelled (``noise``: white or Gauss-Markov per axis, the rule that chose it), what the robust
+fit did (``robust``), which samples ``--exclude-outliers`` removed (``excluded``) and the gaps of
+the tracking (``gaps``); :func:`noise_lines` says each in one line, as ``casep separate`` prints
+them. A several-flight result holds ``noise`` per flight label; ``joint=True`` prints those.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+__all__ = ["noise_line", "robust_line", "noise_lines"]
+
+#: How many samples or gaps a line names before "...".
+SHOWN = 6
+
+
+def noise_line(nd: Mapping[str, Any]) -> str:
+    """One line of a result's ``diagnostics["noise"]`` (:meth:`casep.analysis.noise.NoiseModel.line`)."""
+    from casep.analysis.noise import NoiseModel
+
+    axes = nd["axes"]
+    if "note" in nd:
+        return f"noise: {nd['note']}, tau {axes['x']['tau_s']:.3g} s ({nd['rule']})"
+    nm = NoiseModel(kind=nd["kind"], tau=tuple(axes[a]["tau_s"] for a in "xyz"),
+                    scale=tuple(axes[a]["scale"] for a in "xyz"), rule=nd["rule"],
+                    lr=tuple(axes[a]["lr"] for a in "xyz") if "lr" in axes["x"] else None,
+                    lr_scale=nd.get("lr_scale"), sigma=axes["x"].get("std_m_s"))
+    return nm.line()
+
+
+def robust_line(rb: Mapping[str, Any]) -> str:
+    """One line of a result's ``diagnostics["robust"]``."""
+    places = ", ".join(r["where"] for r in rb.get("rejected", [])[:SHOWN])
+    auto = rb.get("automatic")
+    why = (f", automatic: the filter found {auto['glitches_found']} glitch(es) where Gaussian noise gives "
+           f"{auto['expected_from_noise']:.2g}" if auto else "")
+    more = ", ..." if rb["rejected_count"] > SHOWN else ""
+    return (f"robust ({rb['function']}{why}): {rb['rejected_count']} sample(s) rejected as glitches"
+            + (f": {places}{more}" if places else "")
+            + f", {rb['downweighted']} row(s) down-weighted, {rb['iterations']} iteration(s)")
+
+
+def noise_lines(diagnostics: Mapping[str, Any], joint: bool = False) -> list[str]:
+    """The noise model, the robust fit, the removed samples and the gaps, one line each.
+
+    Parameters
+    ----------
+    diagnostics : mapping
+        A result's ``diagnostics``.
+    joint : bool, optional
+        A several-flight result: ``diagnostics["noise"]`` is ``{flight label: noise record}``; each
+        line starts with the label.
+
+    Returns
+    -------
+    list of str
+        Empty when the diagnostics record none of these.
+    """
+    nd = diagnostics.get("noise")
+    if joint:
+        lines = []
+        for label, d in (nd or {}).items():
+            lines.append(f"{label}: {noise_line(d)}")
+            if d.get("robust"):
+                lines.append(f"{label}: {robust_line(d['robust'])}")
+        return lines
+    lines = [noise_line(nd)] if nd else []
+    rb = diagnostics.get("robust")
+    if rb:
+        lines.append(robust_line(rb))
+    ex = diagnostics.get("excluded")
+    if ex:
+        places = ", ".join(f"{r['where']} {r['axis']}" for r in ex["samples"][:SHOWN])
+        lines.append(f"excluded: {ex['count']} sample(s) flagged at alpha {ex['alpha']:g} removed and the fit repeated"
+                     + (f": {places}{', ...' if ex['count'] > SHOWN else ''}" if places else ""))
+    gaps = diagnostics.get("gaps")
+    if gaps:
+        parts = ", ".join(f"{g['length']:.3g} s before {g['where']}" for g in gaps[:SHOWN])
+        lines.append(f"tracking gaps: {len(gaps)} longer than 3 sample periods: {parts}"
+                     f"{', ...' if len(gaps) > SHOWN else ''}")
+    return lines

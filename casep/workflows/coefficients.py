@@ -1,0 +1,161 @@
+"""Coefficient files: a prior or bounds file of any accepted form, and a file of typical magnitudes.
+
+A prior file (``casep separate --prior``, ``casep diagnose --prior``) may be
+
+- a prior mapping ``{"Kg0x": {"mean": m, "std": s}, ...}`` (natural units; :func:`casep.estimators.map.parse_prior`),
+- a ground calibration (``casep calibrate --json``): its coefficients mapped to the flight model
+  (:func:`casep.calibration.consistency.ground_prior`),
+- a result JSON of an earlier estimate (any result form): its posterior, mean = estimate and
+  covariance = the result's (:func:`casep.estimators.map.prior_from_result`), so a later flight
+  continues the estimate. A failed result (``success`` false) is refused.
+
+A bounds file is ``{"Kg0x": [lo, hi] | value, ...}`` (:func:`casep.estimators.bounded.parse_bounds`).
+Every form is checked against the model's coefficient names; errors name the option and the file.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import warnings
+from typing import Any, Mapping, Sequence
+
+__all__ = ["read_coefficient_file", "read_scales", "refuse_failed", "with_prior_consistency"]
+
+
+def refuse_failed(result: Any, where: str) -> None:
+    """Raise ValueError when `result` is a failed result (``success`` false): no input for fusing or as a prior.
+
+    Parameters
+    ----------
+    result : EstimateResult
+        A result read back from a file.
+    where : str
+        What to name in the message (``"--prior FILE"``).
+    """
+    if not result.success:
+        raise ValueError(f"{where}: a failed result (status {result.status}: {result.message}); its estimate and std "
+                         "are not usable as an input. Fix what failed and estimate again")
+
+
+def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[str], *,
+                          model: Any = None) -> dict[str, Any]:
+    """Read a ``prior`` or ``bounds`` file of any accepted form, checked against the model's coefficients.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The JSON file.
+    kind : {"prior", "bounds"}
+        What the file is; the option named in messages is ``--<kind>``.
+    names : sequence of str
+        The model's coefficient names.
+    model : str, path or ErrorModel, optional
+        The flight model (a ground calibration is mapped to it, default ``platform36``; a result file
+        is read with it, default: the model the result names).
+
+    Returns
+    -------
+    dict
+        The prior mapping (``{name: {"mean", "std"}}``, with ``correlation`` from a result's covariance)
+        or the bounds mapping, as :func:`casep.separate` takes them.
+
+    Raises
+    ------
+    ValueError
+        A file that cannot be read, a coefficient the model does not have, a bad entry, or a failed
+        result given as a prior.
+    """
+    from casep.estimators.bounded import parse_bounds
+    from casep.estimators.map import parse_prior
+    from casep.io.files import read_json_table
+    from casep.io.result_json import looks_like_result
+
+    if kind not in ("prior", "bounds"):
+        raise ValueError(f"`kind` must be 'prior' or 'bounds', got {kind!r}")
+    option = f"--{kind}"
+    data = read_json_table(path, option)
+    if kind == "prior" and "calibration" in data:  # a ground calibration: the flight model's coefficients
+        from casep.calibration.consistency import ground_prior
+
+        data = ground_prior(data, model or "platform36")
+    elif kind == "prior" and looks_like_result(data):  # a result file (any form): its posterior
+        from casep.estimators.map import prior_from_result
+        from casep.estimators.result import read_result
+
+        res, res_model = read_result(path, model, option=option)
+        refuse_failed(res, f"{option} {path}")
+        data = prior_from_result(res, model=res_model)  # per-flight coefficients (dt_trk) left flat
+    (parse_prior if kind == "prior" else parse_bounds)(data, names, source=f"{option} {path}")
+    return data
+
+
+def read_scales(path: str | os.PathLike, names: Sequence[str]) -> dict[str, float]:
+    """Read a file of typical coefficient magnitudes ``{"Kg0x": magnitude, ...}`` (natural units).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The JSON file (``casep diagnose --scales``).
+    names : sequence of str
+        The model's coefficient names.
+
+    Returns
+    -------
+    dict
+        ``{name: magnitude}``, every magnitude a finite number > 0.
+
+    Raises
+    ------
+    ValueError
+        A name the model does not have, or a magnitude that is not a finite number > 0.
+    """
+    from casep.io.files import read_json_table
+    from casep.model._model import unknown_coefficient_message
+
+    scales = read_json_table(path, "--scales")
+    for k, v in scales.items():
+        if k not in names:
+            raise ValueError(unknown_coefficient_message(k, names, f"--scales {path}"))
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not (v > 0 and math.isfinite(v)):
+            raise ValueError(f"--scales {path}: `{k}` must be a finite number > 0, got {v!r}")
+    return scales
+
+
+def with_prior_consistency(result: Any, flight: Any, model: Any, prior: Mapping[str, Any], *,
+                           sigma: float | None = None) -> tuple[Any, Any]:
+    """The prior (a ground calibration, say) compared with the flight estimated alone, recorded in the result.
+
+    Parameters
+    ----------
+    result : EstimateResult
+        The estimate that used `prior`.
+    flight : FlightData
+        Its flight.
+    model : ErrorModel
+    prior : mapping
+        The prior as :func:`read_coefficient_file` returns it.
+    sigma : float, optional
+        Noise std, m/s (default: estimated).
+
+    Returns
+    -------
+    result : EstimateResult
+        A copy with ``diagnostics["prior_consistency"]``: the comparison's summary, or
+        ``{"not_compared": why}`` when the flight alone determines none of the prior's coefficients
+        (a :class:`~casep.exceptions.CasepWarning` says so).
+    consistency : Consistency or None
+        :func:`casep.calibration.consistency.flight_prior_consistency`, None when not compared.
+    """
+    from casep.calibration.consistency import flight_prior_consistency
+    from casep.exceptions import CasepWarning
+
+    cons = None
+    try:
+        cons = flight_prior_consistency(flight, model, prior, sigma=sigma)
+        summary = cons.summary()
+    except ValueError as exc:  # the flight alone determines none of the prior's coefficients
+        cons, summary = None, {"not_compared": str(exc)}
+        warnings.warn(f"prior not compared with the flight alone: {exc}", CasepWarning, stacklevel=2)
+    return dataclasses.replace(result, diagnostics={**result.diagnostics, "prior_consistency": summary}), cons
