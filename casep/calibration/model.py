@@ -33,6 +33,8 @@ states its units). ``flight_model`` names the flight model whose coefficients th
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
@@ -42,7 +44,8 @@ import numpy as np
 from casep.model._model import ErrorModel
 from casep.model.base import AXES, ModelDefinitionError, SpecificForceModel
 
-__all__ = ["CalibrationModel", "READINGS", "SLOTS"]
+__all__ = ["CalibrationModel", "READINGS", "SLOTS", "calibration_model_dirs", "calibration_models",
+           "load_calibration_model"]
 
 #: Output slots: name -> the sensor triad.
 SLOTS = {"accel_reading": "accelerometer", "gyro_reading": "gyro"}
@@ -58,10 +61,8 @@ class CalibrationModel(SpecificForceModel):
 
     Parameters
     ----------
-    name : str
-        Model name, reported in results (e.g. ``"ferraris"``).
-    description : str, optional
-        One line shown in reports.
+    name, description : str
+        As :class:`casep.ErrorModel` (e.g. ``"ferraris"``).
     readings : {"raw", "si"}
         ``"raw"``: the session's columns as recorded, in any unit; ``"si"``: readings in m/s^2 and
         rad/s (converted from the units the session states).
@@ -78,6 +79,7 @@ class CalibrationModel(SpecificForceModel):
     ('Ka0x', 'Ka1x')
     """
 
+    PUBLIC_NAME = "casep.calibration.CalibrationModel"
     SLOTS = tuple(SLOTS)
     DECLARE_USE = "model.declare(Ka0x='mg', ...) or model.coefficient(name, unit)"
     OUTPUTS_WHAT = "sensor readings"
@@ -245,3 +247,33 @@ class CalibrationModel(SpecificForceModel):
         return (f"CalibrationModel({self.name!r}, {self.n_coefficients} coefficients, readings {self.readings}, "
                 f"{'set up' if self._locked else 'declaring'})")
 
+
+
+# ------------------------------------------------------------------ model files
+def calibration_model_dirs() -> list[Path]:
+    """Folders searched for a calibration model by name: ``calibration/`` under each model folder."""
+    from casep.model.loader import model_dirs
+
+    return [d / "calibration" for d in model_dirs() if (d / "calibration").is_dir()]
+
+
+def calibration_models() -> list[str]:
+    """Names of the calibration models found (``ferraris``, ``platform36_ground``, ...)."""
+    from casep.model.loader import model_names
+
+    return model_names(calibration_model_dirs())
+
+
+def load_calibration_model(model: str | os.PathLike | CalibrationModel) -> CalibrationModel:
+    """A calibration model by name (``models/calibration/NAME.py``), path or object, set up.
+
+    Model files are loaded as the flight models' (:func:`casep.model.loader.run_model_file`: one
+    ``build()``, errors of one line naming the file and the line).
+    """
+    from casep.model.loader import find_model_file, load_model_file
+
+    if isinstance(model, CalibrationModel):
+        return model.setup()
+    path = find_model_file(model, calibration_model_dirs(), what="calibration model",
+                           use="a path to a .py file whose build() returns a casep.calibration.CalibrationModel")
+    return load_model_file(path, CalibrationModel)

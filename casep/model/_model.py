@@ -97,6 +97,7 @@ class ErrorModel(SpecificForceModel):
     ('Ka0x', 'Ka1x')
     """
 
+    PUBLIC_NAME = "casep.ErrorModel"
     SLOTS = tuple(OUTPUTS)
     DECLARE_USE = "model.declare(Kg0x='deg/h', ...) or model.coefficient(name, unit)"
     OUTPUTS_USE = "model.set_gyro_drift(phidot) and/or model.set_accel_error(delta)"

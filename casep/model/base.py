@@ -100,6 +100,8 @@ class SymbolicModel:
 
     #: How errors name the model (``"model `platform36`: ..."``).
     KIND: ClassVar[str] = "model"
+    #: How errors name the class (``"build() returned int, not casep.ErrorModel"``).
+    PUBLIC_NAME: ClassVar[str] = "casep.SymbolicModel"
     #: Output slot names, in order.
     SLOTS: ClassVar[tuple[str, ...]] = ()
     #: Rows of each output (3: an x, y, z triad; 1: a scalar).

@@ -35,7 +35,7 @@ import os
 import casadi as ca
 import numpy as np
 
-from casep.model.base import ModelDefinitionError, SymbolicModel
+from casep.model.base import SymbolicModel
 
 __all__ = ["TrackingModel", "TRACKING_OUTPUTS", "GEOMETRY", "load_tracking_model", "build_tracking_model"]
 
@@ -74,6 +74,7 @@ class TrackingModel(SymbolicModel):
     ('range_bias',)
     """
 
+    PUBLIC_NAME = "casep.TrackingModel"
     KIND = "tracking model"
     SLOTS = tuple(TRACKING_OUTPUTS)
     ROWS = 1
@@ -206,14 +207,8 @@ def load_tracking_model(model: "str | os.PathLike | TrackingModel") -> TrackingM
 
     Found like the instrument models (:func:`casep.model.loader.find_model_file`).
     """
-    from casep.model.loader import ModelFileError, find_model_file, run_model_file
+    from casep.model.loader import find_model_file, load_model_file
 
     if isinstance(model, TrackingModel):
         return model.setup()
-    path = find_model_file(model)
-    built = run_model_file(path, TrackingModel)
-    try:
-        return built.setup()
-    except ModelDefinitionError as exc:
-        raise ModelFileError(f"model file {path}: {exc}") from exc
-
+    return load_model_file(find_model_file(model), TrackingModel)
