@@ -71,12 +71,14 @@ class CalibrationModel(SpecificForceModel):
 
     Examples
     --------
-    >>> import casadi as ca
+    A gyro triad with a bias on x, reading rad/s:
+
     >>> m = CalibrationModel("toy", readings="si")
-    >>> c = m.declare(Ka0x="mg", Ka1x="mg/g")
-    >>> m.set_accel_reading(m.f + ca.vertcat(c.Ka0x + c.Ka1x * m.W[0], 0, 0))
-    >>> m.setup().names
-    ('Ka0x', 'Ka1x')
+    >>> c = m.declare(Kg0x="deg/h")
+    >>> w = m.omega
+    >>> m.set_gyro_reading([w[0] + c.Kg0x, w[1], w[2]])
+    >>> m.setup().slots
+    ('gyro_reading',)
     """
 
     PUBLIC_NAME = "casep.calibration.CalibrationModel"

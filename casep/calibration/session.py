@@ -25,7 +25,6 @@ session that uses them must have all nine.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass, field
@@ -305,13 +304,9 @@ def read_segments(path: str | os.PathLike, session: Session, *, angle_deg: float
 
     ``start``/``end`` are 0-based row positions of the session file, ``end`` excluded.
     """
-    try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
-    except OSError as exc:
-        raise ValueError(f"--segments {path}: cannot read ({exc.strerror})") from None
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"--segments {path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+    from casep.io.result_json import load_json
+
+    data = load_json(path, "--segments")
     if isinstance(data, dict):
         items = [{"name": k, **v} if isinstance(v, dict) else {"name": k, "bad": v} for k, v in data.items()]
     elif isinstance(data, list):

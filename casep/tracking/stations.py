@@ -20,7 +20,6 @@ one is refused later (:func:`casep.tracking.regression.check_first_sample`).
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import warnings
@@ -129,6 +128,7 @@ def read_station(path: str | os.PathLike | dict, *, source: str | None = None) -
     """
     from pydantic import ValidationError
 
+    from casep.io.result_json import load_json
     from casep.units import ARCSEC
 
     if isinstance(path, dict):
@@ -138,10 +138,7 @@ def read_station(path: str | os.PathLike | dict, *, source: str | None = None) -
         p = Path(path)
         if not p.is_file():
             raise ValueError(f"station file {src}: does not exist")
-        try:
-            data = json.loads(p.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise ValueError(f"station file {src}: not valid JSON ({exc})") from None
+        data = load_json(p, "station file")
         if not isinstance(data, dict):
             raise ValueError(f"station file {src}: must be a JSON object "
                              '{"name": "S1", "lat": deg, "lon": deg, "h": m}')
