@@ -52,10 +52,6 @@ FERRARIS_SEGMENTS = ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a", "x_rot", "y_rot",
 _INDEX_COLUMNS = ("samples", "n_samples")
 
 
-class SegmentError(ValueError):
-    """A segment list or label column is inconsistent: the message names the segment (and rows)."""
-
-
 @dataclass(frozen=True)
 class Segment:
     """One segment of a ground test.
@@ -89,6 +85,10 @@ class Segment:
     def where(self) -> str:
         """``segment `x_p` (rows 540-1270)`` for messages (file row positions)."""
         return f"segment `{self.name}` (rows {int(self.rows[0])}-{int(self.rows[-1])})"
+
+
+class SegmentError(ValueError):
+    """A segment list or label column is inconsistent: the message names the segment (and rows)."""
 
 
 @dataclass

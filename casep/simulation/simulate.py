@@ -48,7 +48,7 @@ from casep.simulation.scenarios import Scenario, get_scenario
 from casep.simulation.trajectory import BoostTrajectory, body_to_platform, simulate_boost
 
 __all__ = ["SIGNAL_COLUMNS", "trajectory_signals", "SimulatedFlight", "simulate_flight", "scenario_setup",
-           "write_simulation", "truth_path", "TwoRateData", "simulate_two_rate"]
+           "write_simulation", "truth_path", "TwoRateData", "simulate_two_rate", "truth_vector", "check_seed"]
 
 
 #: Signal columns of every simulated flight: name -> unit (see the module notes).
@@ -151,7 +151,12 @@ class SimulatedFlight:
         }
 
 
-def _truth_vector(model: ErrorModel, truth: dict, source: str = "truth") -> np.ndarray:
+def truth_vector(model: ErrorModel, truth: dict, source: str = "truth") -> np.ndarray:
+    """True coefficients in model order, natural units, from ``{name: value}`` (missing names: 0).
+
+    Raises ValueError naming `source` for a name the model lacks (with a "did you mean") or a value
+    that is not a finite number.
+    """
     for name in truth:
         if name not in model.names:
             raise ValueError(unknown_coefficient_message(name, model.names, f"{source} (model `{model.name}`)"))
@@ -160,6 +165,9 @@ def _truth_vector(model: ErrorModel, truth: dict, source: str = "truth") -> np.n
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
             raise ValueError(f"{source}: `{n}` must be a finite number (natural units), got {v!r}")
     return values.astype(float)
+
+
+_truth_vector = truth_vector  # re-export: remove after merge
 
 
 def scenario_setup(scenario: str | Scenario, rate: float | None = None, *, rotating_earth: bool = False,
@@ -171,10 +179,11 @@ def scenario_setup(scenario: str | Scenario, rate: float | None = None, *, rotat
     sc = get_scenario(scenario).with_rate(rate)
     model = load_model(sc.model)
     traj = simulate_boost(sc.vehicle, sc.rate, rotating_earth=rotating_earth, site=site)
-    return sc, traj, model, _truth_vector(model, sc.truth)
+    return sc, traj, model, truth_vector(model, sc.truth)
 
 
-def _check_seed(seed: int) -> int:
+def check_seed(seed: int) -> int:
+    """`seed` as an int, or ValueError: a seed is a non-negative int (not a bool)."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"`seed` must be a non-negative int, got {seed!r}")
     return int(seed)
@@ -211,7 +220,7 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
     -------
     SimulatedFlight
     """
-    seed = _check_seed(seed)
+    seed = check_seed(seed)
     sc = get_scenario(scenario)
     if model is not None or truth is not None:
         sc = dataclasses.replace(sc, model=sc.model if model is None else os.fspath(model),
@@ -329,7 +338,7 @@ def simulate_two_rate(scenario: str | Scenario = "paper", *, seed: int = 0, tele
         Rotating Earth at the launch site (:func:`~casep.simulation.trajectory.simulate_boost`);
         then :meth:`TwoRateData.write` can write ECEF or geodetic tracking.
     """
-    seed = _check_seed(seed)
+    seed = check_seed(seed)
     if not np.isfinite(tracking_rate) or tracking_rate <= 0:
         raise ValueError(f"`tracking_rate` must be finite and > 0 Hz, got {tracking_rate}")
     if not np.isfinite(time_offset):

@@ -33,9 +33,13 @@ class Stage:
 class PitchProgramme:
     """Vertical rise (s), pitch-over kick rate (deg/s) and length (s), AoA decay (s)."""
 
+    #: Vertical rise after lift-off, s.
     vertical: float = 8.0
+    #: Pitch rate of the kick, deg/s.
     kick_rate: float = 1.0
+    #: Length of the kick, s.
     kick: float = 6.0
+    #: Time constant of the decay of the kick's angle of attack in the gravity turn, s.
     tau: float = 6.0
 
 
