@@ -175,7 +175,7 @@ class CalibrationModel(SpecificForceModel):
         for slot, expr in present.items():
             self._check_foreign(slot, expr, inputs, "the coefficients, model.f / model.W and model.omega")
             J = ca.jacobian(expr, D)  # exact d reading / dD, 3 x n, per natural unit
-            self._check_linear(J, D, lambda i, slot=slot: f"`{slot}` component {AXES[i]}")
+            self._check_linear(J, D, [f"`{slot}` component {a}" for a in AXES])
             y0 = ca.substitute(expr, D, ca.SX.zeros(D.shape))  # the known part (ideal sensor)
             self._check_affine_in_omega(slot, expr, D)
             cols = sorted(set(J.sparsity().get_col()))
@@ -188,7 +188,8 @@ class CalibrationModel(SpecificForceModel):
             self._functions[f"{slot}_df"] = ca.Function(f"{slot}_df", [f, w, D], [ca.densify(ca.jacobian(expr, f))],
                                                         ["f", "omega", "D"], ["dy_df"])
             self._columns[slot] = np.asarray(cols, dtype=np.intp)
-        self._check_used(lambda s: s.name() in used_by, where="reading")  # a symbol is named as its coefficient
+        # a coefficient's symbol carries its name
+        self._check_used(lambda sym: bool(sym.name() in used_by), where="reading")
         both = [nm for nm, v in used_by.items() if len(set(v)) > 1]
         if both:
             raise ModelDefinitionError(

@@ -162,7 +162,8 @@ class ErrorModel(SpecificForceModel):
         self._per_flight.append(bool(per_flight))
         return expr
 
-    def declare(self, per_flight: bool = False, **units: str | tuple[str, float]) -> SimpleNamespace:
+    # per_flight is this model's own option; the base's declare takes unit specifications only
+    def declare(self, per_flight: bool = False, **units: str | tuple[str, float]) -> SimpleNamespace:  # type: ignore[override]
         """Declare several coefficients at once, in the order given.
 
         Parameters
@@ -249,7 +250,7 @@ class ErrorModel(SpecificForceModel):
                                  else "the coefficients (an initial term is constant: no f, t or signals)")
                                 + " (declare coefficients with model.coefficient)")
             J = ca.jacobian(expr, D)  # exact dOutput/dD, 3 x n
-            self._check_linear(J, D, lambda i, slot=slot: f"`{slot}` component {AXES[i]}")
+            self._check_linear(J, D, [f"`{slot}` component {a}" for a in AXES])
             self._check_no_offset(slot, expr, D, sig)
             jac[slot] = J
         self._check_used(lambda s: bool(ca.depends_on(everything, s)))
@@ -274,7 +275,8 @@ class ErrorModel(SpecificForceModel):
         phi0 = np.array(ca.DM(ca.densify(ca.evalf(Jphi0)))).reshape(3, n)
         dv0 = np.array(ca.DM(ca.densify(ca.evalf(Jv0)))).reshape(3, n)
         # Columns touched by the gyro part (through phi), the accelerometer part and the direct term.
-        gcols = sorted(set(Jg.sparsity().get_col()) | set(np.flatnonzero(np.any(phi0 != 0, 0))))
+        gcols = sorted({int(c) for c in Jg.sparsity().get_col()}
+                       | {int(c) for c in np.flatnonzero(np.any(phi0 != 0, 0))})
         acols = sorted(set(Ja.sparsity().get_col()))
         vcols = sorted(set(Jd.sparsity().get_col()))
         # Per-sample kernel for the S_V build, transposed so that a chunk of C samples
@@ -302,7 +304,7 @@ class ErrorModel(SpecificForceModel):
         sig_probes = np.random.default_rng(20261122).uniform(-50.0, 50.0, (len(_PROBES), sig.shape[0]))
         for probe, t, s in zip(_PROBES, _T_PROBES, sig_probes):
             at = f"f = {probe.tolist()} m/s^2" + (f", t = {t:g} s" if ca.depends_on(offset, self._t) else "")
-            self._check_offset(np.array(fun(probe, t, s)), lambda i: f"`{slot}` component {AXES[i]}", at)
+            self._check_offset(np.array(fun(probe, t, s)), [f"`{slot}` component {a}" for a in AXES], at)
 
     # ------------------------------------------------------------- after setup
     @property

@@ -293,23 +293,23 @@ class SymbolicModel:
                                        f"{', '.join(f'`{u}`' for u in unused)} declared but used in no {where}. "
                                        f"Use: {use}")
 
-    def _check_linear(self, J: ca.SX, D: ca.SX, row: Callable[[int], str]) -> None:
-        """The Jacobian `J` = d outputs / dD no longer depends on `D`; `row(i)` names row i in errors."""
+    def _check_linear(self, J: ca.SX, D: ca.SX, row: Sequence[str]) -> None:
+        """The Jacobian `J` = d outputs / dD no longer depends on `D`; `row[i]` names row i in errors."""
         for i in range(J.shape[0]):
             if ca.depends_on(J[i, :], D):
                 bad = [nm for nm, s in zip(self._names, self._symbols) if ca.depends_on(J[i, :], s)]
                 raise ModelDefinitionError(
-                    f"{self.KIND} `{self.name}`: {row(i)} is not linear in the coefficients (its derivative "
+                    f"{self.KIND} `{self.name}`: {row[i]} is not linear in the coefficients (its derivative "
                     f"still depends on {', '.join(bad)}). Use: one coefficient per term; declare a product "
                     "as its own coefficient")
 
-    def _check_offset(self, value: np.ndarray, row: Callable[[int], str], at: str) -> None:
+    def _check_offset(self, value: np.ndarray, row: Sequence[str], at: str) -> None:
         """The outputs at ``D = 0`` (`value`, one probe point `at`) are zero: no coefficient-free term."""
         value = np.asarray(value, dtype=float).ravel()
         if np.any(value != 0.0):
             i = int(np.flatnonzero(value)[0])
             raise ModelDefinitionError(
-                f"{self.KIND} `{self.name}`: {row(i)} has a term without a coefficient (value {value[i]:.6g} "
+                f"{self.KIND} `{self.name}`: {row[i]} has a term without a coefficient (value {value[i]:.6g} "
                 f"at {at}). Use: multiply every term by exactly one coefficient")
 
     # ------------------------------------------------------------------ after setup

@@ -147,11 +147,11 @@ class TrackingModel(SymbolicModel):
                          use="add them to an error expression or remove them")
         out = ca.vertcat(*(self.output(s) for s in TRACKING_OUTPUTS))  # 4 x 1
         J = ca.jacobian(out, theta)  # exact d(error)/d theta, 4 x n, per natural unit
-        slots = list(TRACKING_OUTPUTS)
-        self._check_linear(J, theta, lambda i: f"`{slots[i]}` error")
+        rows = [f"`{s}` error" for s in TRACKING_OUTPUTS]
+        self._check_linear(J, theta, rows)
         offset = ca.Function("offset", [geo], [ca.substitute(out, theta, ca.SX.zeros(theta.shape))])
         for probe in _PROBES:
-            self._check_offset(np.array(offset(probe)), lambda i: f"`{slots[i]}` error", f"range {probe[0]:g} m")
+            self._check_offset(np.array(offset(probe)), rows, f"range {probe[0]:g} m")
         self._jac = ca.Function("T", [geo], [ca.densify(J)], ["geometry"], ["T"])
         self._err = ca.Function("errors", [geo, theta], [out], ["geometry", "theta"], ["errors"])
 

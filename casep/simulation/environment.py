@@ -10,7 +10,8 @@ import numpy as np
 
 from casep.units import G0
 
-__all__ = ["MU_EARTH", "R_EARTH", "atmosphere", "axial_drag_coefficient", "RotatingEarth", "air_relative"]
+__all__ = ["MU_EARTH", "R_EARTH", "atmosphere", "axial_drag_coefficient", "RotatingEarth", "air_relative",
+           "air_relative_rate"]
 
 MU_EARTH = 3.986004418e14  # m^3/s^2
 R_EARTH = 6_371_000.0  # m
@@ -90,9 +91,14 @@ class RotatingEarth:
         return np.cross(self.w, pos - self.o)  # co-rotating atmosphere: w x (r - o)
 
 
-def air_relative(state: dict, pos: np.ndarray, vel: np.ndarray, acc: np.ndarray | None = None):
-    """Velocity (and its rate) relative to the air: v - w x (r - o), a - w x v; the inertial ones without rotation."""
+def air_relative(state: dict, pos: np.ndarray, vel: np.ndarray) -> np.ndarray:
+    """Velocity relative to the air, ``v - w x (r - o)``; the inertial one when the Earth does not turn
+    (``state["earth"]`` None)."""
     earth = state.get("earth")
-    if earth is None:
-        return vel, acc
-    return vel - earth.air_velocity(pos), (None if acc is None else acc - np.cross(earth.w, vel))
+    return vel if earth is None else vel - earth.air_velocity(pos)
+
+
+def air_relative_rate(state: dict, vel: np.ndarray, acc: np.ndarray) -> np.ndarray:
+    """Rate of :func:`air_relative`, ``a - w x v``; the inertial acceleration when the Earth does not turn."""
+    earth = state.get("earth")
+    return acc if earth is None else acc - np.cross(earth.w, vel)

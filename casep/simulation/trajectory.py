@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -63,6 +64,7 @@ from casep.simulation.environment import (
     R_EARTH,
     RotatingEarth,
     air_relative,
+    air_relative_rate,
     atmosphere,
     axial_drag_coefficient,
 )
@@ -110,12 +112,17 @@ class BoostTrajectory:
     body_rate: np.ndarray | None = None
     _segments: list = field(repr=False, compare=False, default_factory=list)
     _aoa0: float = field(repr=False, compare=False, default=0.0)
-    _earth: object = field(repr=False, compare=False, default=None)  # RotatingEarth, or None: not rotating
+    _earth: RotatingEarth | None = field(repr=False, compare=False, default=None)  # None: not rotating
 
     @property
-    def site(self):
+    def site(self) -> Any:
         """The :class:`casep.frames.LaunchSite` of a rotating-Earth trajectory, else None."""
         return None if self._earth is None else self._earth.site
+
+    @property
+    def earth(self) -> RotatingEarth | None:
+        """The turning Earth of a rotating-Earth trajectory, else None."""
+        return self._earth
 
     def sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """True position and velocity at arbitrary `times` within the flight (dense output)."""
@@ -143,7 +150,7 @@ class BoostTrajectory:
         times = np.atleast_1d(np.asarray(times, dtype=float))
         out = {k: np.full((times.size, 3), np.nan) for k in ("position", "velocity", "acceleration",
                                                                "attitude", "body_rate")}
-        state = {"aoa0": self._aoa0, "earth": self._earth}
+        state: dict[str, Any] = {"aoa0": self._aoa0, "earth": self._earth}
         done = np.zeros(times.size, dtype=bool)
         last_t1 = self._segments[-1][1]
         for t0, t1, sol, k, kind in self._segments:  # a piece owns [t0, t1), the last one [t0, t1]
@@ -153,7 +160,8 @@ class BoostTrajectory:
                 f, grav, _ = _forces(self.vehicle, self.vehicle.stages[k], kind, times[i], t0, t1, y, state)
                 rows = dict(zip(out, (y[0:3], y[3:6], f + grav)))
                 rows["attitude"], rows["body_rate"] = _attitude_rates(
-                    self.vehicle, times[i], *air_relative(state, y[0:3], y[3:6], f + grav), state)
+                    self.vehicle, times[i], air_relative(state, y[0:3], y[3:6]),
+                    air_relative_rate(state, y[3:6], f + grav), state)
                 for key, value in rows.items():
                     out[key][i] = value
             done[idx] = True
@@ -259,7 +267,7 @@ def _forces(vehicle, stage, kind, t, t0, t1, x, state):
     grav = -MU_EARTH * r / rn**3
     h = rn - R_EARTH
     rho, a = atmosphere(h)
-    vel = air_relative(state, pos, vel)[0]  # relative to the (co-rotating) air
+    vel = air_relative(state, pos, vel)  # relative to the (co-rotating) air
     speed = math.sqrt(vel @ vel)
     ca = axial_drag_coefficient(speed / a)
     drag = 0.5 * rho * speed**2 * vehicle.area * ca  # axial drag, N
@@ -314,11 +322,11 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, r
     x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, vehicle.liftoff_mass])
     if earth is not None:
         x[3:6] = earth.air_velocity(np.zeros(3))  # on the pad: the Earth's rotation velocity there
-    state = {"aoa0": 0.0, "earth": earth}
+    state: dict[str, Any] = {"aoa0": 0.0, "earth": earth}
     p = vehicle.pitch
     t_kick_end = p.vertical + p.kick
     pos, vel, f_out, mass = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n))
-    acc, att, rate = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+    acc, att, body_rate = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
     segments = []
     # Split pieces further at the end of the kick (attitude law switches there) and at the knots of
     # the attitude offsets (kinks).
@@ -336,7 +344,7 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, r
                 x[6] -= vehicle.stages[j].dry_mass
                 dropped.add(j)
         if abs(t0 - t_kick_end) < 1e-12:
-            v = air_relative(state, x[0:3], x[3:6])[0]
+            v = air_relative(state, x[0:3], x[3:6])
             theta_kick = 0.5 * math.pi - math.radians(p.kick_rate) * p.kick
             state["aoa0"] = theta_kick - math.atan2(v[1], v[0])
 
@@ -355,13 +363,14 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, r
         for i, y in zip(idx, ys.T):
             f_out[i], grav, _ = _forces(vehicle, stage, kind, t_out[i], t0, t1, y, state)
             acc[i] = f_out[i] + grav  # kinematic acceleration = specific force + gravity
-            att[i], rate[i] = _attitude_rates(vehicle, t_out[i], *air_relative(state, y[0:3], y[3:6], acc[i]), state)
+            att[i], body_rate[i] = _attitude_rates(vehicle, t_out[i], air_relative(state, y[0:3], y[3:6]),
+                                                   air_relative_rate(state, y[3:6], acc[i]), state)
         pos[idx], vel[idx], mass[idx] = ys[0:3].T, ys[3:6].T, ys[6]
         x = sol.y[:, -1].copy()
     r = pos + np.array([0.0, R_EARTH, 0.0]) if earth is None else pos - np.array([earth.centre(t) for t in t_out])
     alt = np.linalg.norm(r, axis=1) - R_EARTH
     out = BoostTrajectory(t=t_out, position=pos, velocity=vel, specific_force=f_out, mass=mass, altitude=alt,
-                          events=events, vehicle=vehicle, acceleration=acc, attitude=att, body_rate=rate,
+                          events=events, vehicle=vehicle, acceleration=acc, attitude=att, body_rate=body_rate,
                           _segments=segments, _aoa0=state["aoa0"], _earth=earth)
     if not (np.all(np.isfinite(f_out)) and np.all(np.isfinite(pos))):  # pragma: no cover
         raise RuntimeError("trajectory produced non-finite values")
