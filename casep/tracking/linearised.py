@@ -7,15 +7,12 @@ the noise per group and the check of the residuals against it.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
 from casep.tracking.stations import MEASUREMENT_TYPES
 from casep.units import ARCSEC
-
-if TYPE_CHECKING:
-    from casep.tracking.regression import RadarRegression
 
 __all__ = ["LinearisedRadar", "TYPE_UNITS", "PLAUSIBLE_SIGMA", "RESIDUAL_RATIO_LIMIT"]
 
@@ -34,7 +31,8 @@ RESIDUAL_RATIO_LIMIT = 1.5
 class LinearisedRadar:
     """The weighted regression at the final linearisation point (what the estimators solve)."""
 
-    regression: RadarRegression
+    # the casep.tracking.regression.RadarRegression linearised (not imported: that module builds this one)
+    regression: Any
     S: np.ndarray  # (m, n) unweighted, SI rows, natural-unit columns
     y: np.ndarray  # (m,) SI
     t: np.ndarray
