@@ -4,7 +4,7 @@ The study of docs/results/cramer-rao.md (target: <= 60 s on a 2-core machine):
 `casep montecarlo --scenario paper --runs 200 --seed 1 --methods ols,rls,rels,wavelet+rels,ridge,pcr,map,bounded`,
 timed as a whole process (one run: it is long), with each method's seconds from its JSON.
 
-Batched: one QR of the scaled S_V and a matrix of right-hand sides (casep.workflows.montecarlo.run_montecarlo).
+Batched: one QR of the scaled S_V and a matrix of right-hand sides (casep.montecarlo.run_montecarlo).
 Naive: per run, draw the noise and call casep.solve_ols (its own QR each time), timed on
 `--naive-runs` runs and scaled. Same noise in both (per-run seeds), one run of this script.
 Target: 1000 OLS runs of a 20k-sample flight in under 5 s.
@@ -29,8 +29,8 @@ import numpy as np  # noqa: E402
 
 import casep  # noqa: E402
 from casep.exceptions import IllConditionedWarning  # noqa: E402
+from casep.montecarlo import run_montecarlo  # noqa: E402
 from casep.simulation.simulate import simulate_flight  # noqa: E402
-from casep.workflows.montecarlo import run_montecarlo  # noqa: E402
 
 README_METHODS = "ols,rls,rels,wavelet+rels,ridge,pcr,map,bounded"
 README_TARGET_S = 60.0

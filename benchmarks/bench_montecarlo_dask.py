@@ -23,7 +23,8 @@ from contextlib import ExitStack
 
 import numpy as np
 
-from casep.workflows.montecarlo import _Dask, run_montecarlo
+from casep.montecarlo import run_montecarlo
+from casep.montecarlo.engines import DaskEngine
 
 DISP = {"thrust_scale": {"dist": "normal", "mean": 1.0, "std": 0.01},
         "isp_scale": {"dist": "normal", "mean": 1.0, "std": 0.005},
@@ -42,7 +43,7 @@ def startup_and_overhead(n_tasks: int = 200) -> None:
     for w in (1, 2):
         t0 = time.perf_counter()
         with ExitStack() as stack:
-            eng = _Dask(stack, w, None)
+            eng = DaskEngine(stack, w, None)
             t1 = time.perf_counter()
             from distributed import as_completed
 

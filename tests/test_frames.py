@@ -193,7 +193,7 @@ def test_ignoring_earth_rotation_biases_the_estimate(rotating, tmp_path):
     """The same ECEF file with its velocity only rotated into launch axes (no w x r, no turning of the Earth):
     dv is off by 409-452 m/s and the estimates by far more than their CRLB std."""
     from casep.analysis.diagnostics import crlb_covariance
-    from casep.io.files import pair_flight
+    from casep.io.pair import pair_flight
     from casep.workflows.separate import regression_rows
 
     d = rotating

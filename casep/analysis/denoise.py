@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pywt
@@ -170,16 +171,22 @@ def denoise_signal(x: np.ndarray, *, wavelet: str = "sym8", level: int | None = 
 
 @dataclass(frozen=True)
 class DenoiseResult:
-    """De-noised velocity error and what was done to it."""
+    """De-noised velocity error and what was done to it (result protocol: :mod:`casep.results`)."""
 
     dv: np.ndarray  # (N, 3) m/s
     sigma: np.ndarray  # (3,) noise std per axis from the finest details, m/s
     settings: dict = field(default_factory=dict)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """The ``denoise`` entry of the result JSON."""
         return {"method": "wavelet", **self.settings,
                 "sigma": {a: float(s) for a, s in zip("xyz", self.sigma)}}
+
+    def text(self) -> str:
+        """One line: the settings and the noise std per axis (from the finest details), m/s."""
+        how = ", ".join(f"{k} {v}" for k, v in self.settings.items())
+        sig = ", ".join(f"{a} {float(s):.4g}" for a, s in zip("xyz", self.sigma))
+        return f"wavelet de-noising ({how}): noise std {sig} m/s, {self.dv.shape[0]} samples"
 
 
 def denoise(dv: np.ndarray, *, wavelet: str = "sym8", level: int | None = None, rule: str = "sqtwolog",

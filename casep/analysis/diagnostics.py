@@ -268,7 +268,11 @@ class Diagnostics:
         }
 
     def report(self) -> str:
-        """Readable terminal report."""
+        """Readable terminal report: :meth:`text`."""
+        return self.text()
+
+    def text(self) -> str:
+        """Readable terminal report (what ``casep diagnose`` prints)."""
         cn = self.condition_number
         ce = self.condition_number_equilibrated
         lines = [f"condition number: {cn:.3g} (natural units), {ce:.3g} (columns equilibrated)"
@@ -377,7 +381,7 @@ def diagnose(
         if y is None:
             raise ValueError("`sigma` or `y` is required (the bound scales with the noise std)")
         sigma = float(np.sqrt(least_squares_rss(red, ra) / (red.m - ra.rank)))
-        if not sigma > 0:  # all-zero y (flights: casep.io.flight.check_dv_not_zero) or an exact fit
+        if not sigma > 0:  # all-zero y (flights: casep.analysis.checks.check_dv_not_zero) or an exact fit
             raise ValueError("`y` is " + ("0 everywhere" if not np.any(yy) else "fitted exactly (residuals 0)")
                              + ": sigma cannot be estimated from it; give `sigma`")
         source = "estimated from least-squares residuals"

@@ -17,7 +17,7 @@ classical estimable-function criterion), i.e. iff its row of ``V_null`` is zero.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from typing import Iterable, Sequence, cast
 
 import numpy as np
 
@@ -126,7 +126,7 @@ def reduce_qr(S: np.ndarray, y: np.ndarray, *, block_rows: int = DEFAULT_BLOCK_R
         M[:k0] = Racc
         np.multiply(blk, inv, out=M[k0:, :n])  # Z = S / c
         M[k0:, n] = y[s : s + blk.shape[0]]
-        Racc = np.linalg.qr(M, mode="r")  # Householder; R of [R_prev; block]
+        Racc = cast(np.ndarray, np.linalg.qr(M, mode="r"))  # Householder; R of [R_prev; block] (an array)
     Rfull = np.zeros((n + 1, n + 1))
     Rfull[: Racc.shape[0]] = Racc[: n + 1]
     return ReducedSystem(R=np.triu(Rfull[:n, :n]), qty=Rfull[:n, n].copy(), rho2=float(Rfull[n, n] ** 2),
@@ -166,7 +166,7 @@ def reduce_qr_blocks(blocks: Iterable[tuple[np.ndarray, np.ndarray]], n: int,
         M[: Racc.shape[0]] = Racc
         M[Racc.shape[0]:, :n] = S_blk
         M[Racc.shape[0]:, n] = y_blk
-        Racc = np.linalg.qr(M, mode="r")  # Householder; R of [R_prev; block]
+        Racc = cast(np.ndarray, np.linalg.qr(M, mode="r"))  # Householder; R of [R_prev; block] (an array)
         m += S_blk.shape[0]
     if m == 0:
         raise ValueError("`S` has no rows")

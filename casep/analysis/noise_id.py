@@ -135,6 +135,11 @@ class NoiseIdentification:
                 "or --method rels approximate it")
 
     def report(self) -> str:
+        """The table ``casep noise`` prints: :meth:`text`."""
+        return self.text()
+
+    def text(self) -> str:
+        """Allan deviation fits of the residuals, the chosen noise model and the recommendation."""
         lines = [f"Allan deviation of the residuals (dt {self.dt:.4g} s, {self.taus.size} averaging times "
                  f"{self.taus[0]:.3g}-{self.taus[-1]:.3g} s)"]
         for k in MODELS:

@@ -21,6 +21,7 @@ use the spike check of :func:`casep.analysis.checks.check_fit`, and the robust e
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -98,6 +99,11 @@ class OutlierFlags:
         return self.rate * self.rows_tested
 
     def summary(self, top: int = 5) -> str:
+        """The flagged rows in one paragraph: :meth:`text`."""
+        return self.text(top)
+
+    def text(self, top: int = 5) -> str:
+        """The flagged rows (the `top` largest named, with file line and time) in one paragraph."""
         head = (f"{self.count} row(s) with studentized residual |t| > {self.threshold:.3g} (false-alarm rate "
                 f"{self.rate:.2g} per row: {self.expected_false:.2g} expected from white noise)")
         if not self.rows:
@@ -135,9 +141,11 @@ def flag_outliers(problem, *, alpha: float = 0.01, rate: float | None = None,
     thr = float(stats.t.isf(rate / 2, dof))
     tv = t_val.reshape(-1, 3) if t_val.ndim == 2 and t_val.shape[-1] == 3 else t_val.reshape(-1, 1)
     rv = resid.reshape(tv.shape)
-    times = problem.t if problem.t is not None and len(problem.t) == tv.shape[0] else np.arange(tv.shape[0], float)
-    rows = [{"sample": int(k), "t": float(times[k]), "axis": "xyz"[i] if tv.shape[1] == 3 else "-",
-             "t_value": float(tv[k, i]), "residual": float(rv[k, i])} for k, i in np.argwhere(np.abs(tv) > thr)]
+    have_t = problem.t is not None and len(problem.t) == tv.shape[0]
+    times = problem.t if have_t else np.arange(tv.shape[0], dtype=float)
+    rows: list[dict[str, Any]] = [
+        {"sample": int(k), "t": float(times[k]), "axis": "xyz"[i] if tv.shape[1] == 3 else "-",
+         "t_value": float(tv[k, i]), "residual": float(rv[k, i])} for k, i in np.argwhere(np.abs(tv) > thr)]
     rows.sort(key=lambda r: -abs(r["t_value"]))
     _add_locations(problem, rows)
     return OutlierFlags(rows, thr, rate, m)

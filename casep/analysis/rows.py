@@ -5,7 +5,7 @@ problem (with least squares, whatever method follows; :meth:`casep.analysis.prob
 and every method then solves the same rows (:func:`casep.workflows.solve.solve_problem`), so its
 std hold in coloured noise and with glitches, and every method of a comparison sees the same rows.
 
-* Noise: :func:`casep.analysis.noise.fit_noise` (white, Gauss-Markov per axis, or chosen by a
+* Noise: :func:`casep.analysis.noise_fit.fit_noise` (white, Gauss-Markov per axis, or chosen by a
   likelihood-ratio test), rows whitened by :meth:`casep.analysis.problem.Problem.whitened`.
 * Robust (``robust="huber"|"bisquare"``): iterate least squares on the whitened, weighted rows
   and the robust filter on the innovations of its residuals
@@ -22,12 +22,17 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from casep.analysis.noise import NoiseModel, check_noise_kind, fit_noise
-from casep.analysis.problem import Problem
+from casep.analysis.noise import NoiseModel, check_noise_kind
+from casep.analysis.noise_fit import fit_noise
 from casep.analysis.robust import robust_filter
+
+#: A :class:`casep.analysis.problem.Problem`. That module imports this one (``Problem.rows``) and the rows use
+#: only a Problem's methods, so the class is not imported here (no import cycle).
+Problem = Any
 
 __all__ = ["Rows", "prepare_rows", "NOISE_FREE", "ROBUST_CHOICES", "GLITCH_SIGMAS"]
 

@@ -174,7 +174,7 @@ def impact_point_ode(r, v, *, rtol: float = 1e-12, atol: float = 1e-9, t_max: fl
     def ground(_t, x):
         return np.linalg.norm(x[:3] - EARTH_CENTRE) - R_EARTH  # altitude
 
-    ground.terminal, ground.direction = True, -1.0
+    ground.terminal, ground.direction = True, -1.0  # type: ignore[attr-defined]  # solve_ivp's event attributes
     sol = solve_ivp(rhs, (0.0, t_max), np.concatenate([r, v]), method="DOP853", rtol=rtol, atol=atol,
                     events=ground)
     if not sol.t_events[0].size:

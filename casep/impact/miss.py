@@ -33,16 +33,19 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Mapping, Sequence
 
 import numpy as np
 
 from casep.impact.ballistic import impact, impact_jacobian, impact_point
+from casep.impact.result import Group, ImpactAnalysis
+from casep.io.flight import FlightData
+from casep.io.trajectory import read_trajectory  # casep/cli.py imports it from here: keep until it does not
 from casep.model.sv import cumulative_sp  # S_P = int S_V dt (the tracking layer uses it too)
 
 __all__ = ["ImpactAnalysis", "impact_analysis", "burnout_state", "position_sensitivity", "cumulative_sp",
-           "read_trajectory", "STATE_COLUMNS", "CORRELATION_GROUP"]
+           "STATE_COLUMNS", "CORRELATION_GROUP"]
 
 #: Flight columns that carry the burnout state (m, m/s; launch-inertial frame).
 STATE_COLUMNS = ("r_x", "r_y", "r_z", "v_x", "v_y", "v_z")
@@ -80,29 +83,6 @@ def burnout_state(flight) -> tuple[float, np.ndarray, np.ndarray]:
     return float(flight.t[-1]), x[:3], x[3:]
 
 
-def read_trajectory(path: str | os.PathLike):
-    """A flight file for the impact analysis: ``t``, ``f_*`` (or ``W_*``), ``r_*``, ``v_*``.
-
-    ``dv_*`` (or ``v_tel_*``/``v_trk_*``) may be absent: a trajectory that was not flown has
-    none, a radar-tracked flight's telemetry has ``v_tel_*`` only, and the impact analysis does not
-    use them (dv is then stored as zeros and
-    ``meta["dv"]`` says ``"absent"``).
-    """
-    from casep.io.files import DV_COLUMNS, VTEL_COLUMNS, _force, _is_parquet, _Table, read_flight
-    from casep.io.flight import FlightData
-
-    tab = _Table(path)
-    if tab.has(DV_COLUMNS) or (any(c in tab.columns for c in VTEL_COLUMNS) and "v_trk_x" in tab.columns):
-        del tab
-        return read_flight(path)
-    tab.require(("t",))
-    t = tab.time()
-    f, force_from = _force(tab, t)
-    return FlightData(t, f, np.zeros((t.size, 3)), source=tab.src, signals=tab.signals(),
-                      meta={"format": "parquet" if _is_parquet(tab.path) else "csv", "force": force_from,
-                            "dv": "absent"})
-
-
 # ----------------------------------------------------------------------------- S_P
 def position_sensitivity(model, flight, *, rows: int = 65536) -> tuple[np.ndarray, np.ndarray]:
     """``S_P(t_b)`` and ``S_V(t_b)`` at the flight's last sample, ``(3, n)`` each, per natural unit.
@@ -129,6 +109,8 @@ def position_sensitivity(model, flight, *, rows: int = 65536) -> tuple[np.ndarra
         if e - s > 1:
             sp += 0.5 * np.einsum("k,kij->ij", np.diff(tb), blk[1:] + blk[:-1])  # trapezoid in the block
         prev, t_prev = blk[-1].copy(), tb[-1]
+    if prev is None:
+        raise ValueError(f"{flight.source}: the flight has no samples")
     return sp, prev
 
 
@@ -233,188 +215,6 @@ def _groups(res, names: Sequence[str], cov: np.ndarray | None, known: np.ndarray
     return out, f"estimates correlated with |rho| > {CORRELATION_GROUP:g} (the result has no near-dependency groups)"
 
 
-# ----------------------------------------------------------------------------- the analysis
-def _f(v) -> float | None:
-    v = float(v)
-    return v if math.isfinite(v) else None
-
-
-@dataclass(frozen=True)
-class Group:
-    """A near-dependency group's share of the miss: members, contribution and its std, m."""
-
-    names: tuple[str, ...]
-    contribution: np.ndarray  # (2,) downrange, crossrange; over the members with an estimate
-    std: np.ndarray | None  # (2,) from the members' covariance block
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"names": list(self.names), "downrange": _f(self.contribution[0]),
-                "crossrange": _f(self.contribution[1]),
-                "std_downrange": None if self.std is None else _f(self.std[0]),
-                "std_crossrange": None if self.std is None else _f(self.std[1])}
-
-
-@dataclass(frozen=True)
-class ImpactAnalysis:
-    """The miss budget of an estimate on one trajectory (``docs/reference/file-formats.md`` "Impact JSON").
-
-    Attributes
-    ----------
-    names, units, status : tuple of str
-        Coefficients (model order), natural units, and ``"estimated"``, ``"no estimate"`` or
-        ``"per-flight"`` (a per-flight coefficient absent from a several-flight result: its
-        value given or 0).
-    estimate : (n,) ndarray
-        Coefficients used, natural units (NaN: no estimate, contributes nothing).
-    t_b, r_b, v_b
-        Burnout time (s), position (m) and velocity (m/s), launch-inertial frame.
-    nominal : (2,) ndarray
-        Impact of the burnout state: downrange, crossrange, m.
-    jacobian : (2, 6) ndarray
-        ``d(downrange, crossrange) / d(r_b, v_b)`` (exact, CasADi).
-    sp, sv : (3, n) ndarray
-        ``S_P(t_b)`` (m per unit) and ``S_V(t_b)`` (m/s per unit).
-    sensitivity : (2, n) ndarray
-        Miss per natural unit of each coefficient, m: ``G = -J [S_P; S_V]``.
-    contributions : (2, n) ndarray
-        ``G_j D_j``, m; NaN where there is no estimate.
-    miss : (2,) ndarray
-        Linear predicted miss, the sum of the contributions, m.
-    cov : (2, 2) ndarray or None
-        ``G Cov G^T`` over the estimated coefficients, m^2.
-    nonlinear : (2,) ndarray
-        ``impact(x_b - dx_b) - impact(x_b)``, m.
-    groups : tuple of Group
-        Contributions per near-dependency group (a coefficient may be in several groups).
-    coefficient_std : (n,) ndarray or None
-        Std of each coefficient used (natural units; NaN without estimate, 0 for a per-flight value).
-    """
-
-    names: tuple[str, ...]
-    units: tuple[str, ...]
-    status: tuple[str, ...]
-    estimate: np.ndarray
-    t_b: float
-    r_b: np.ndarray
-    v_b: np.ndarray
-    nominal: np.ndarray
-    impact_point: np.ndarray
-    jacobian: np.ndarray
-    sp: np.ndarray
-    sv: np.ndarray
-    sensitivity: np.ndarray
-    contributions: np.ndarray
-    miss: np.ndarray
-    cov: np.ndarray | None
-    nonlinear: np.ndarray
-    groups: tuple[Group, ...]
-    group_source: str
-    covariance_source: str
-    model: str
-    method: str
-    flight: str
-    coefficient_std: np.ndarray | None = None
-    trajectory: str | None = None
-    result: str = "<memory>"
-    reasons: dict = field(default_factory=dict)
-
-    @property
-    def std(self) -> np.ndarray | None:
-        """Std of the predicted miss (downrange, crossrange), m."""
-        return None if self.cov is None else np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
-
-    @property
-    def dx_b(self) -> np.ndarray:
-        """Navigation error at burnout ``(dr_b, dv_b)`` of the coefficients with a value, (6,)."""
-        D = np.nan_to_num(self.estimate, nan=0.0)
-        return np.concatenate([self.sp @ D, self.sv @ D])
-
-    def to_json(self) -> dict[str, Any]:
-        """The impact JSON of ``docs/reference/file-formats.md`` (plus labels, the Jacobian, groups and sources)."""
-        std = self.std
-        sens = [{"name": n, "unit": u, "dr": [_f(x) for x in self.sp[:, j]], "dv": [_f(x) for x in self.sv[:, j]],
-                 "downrange": _f(self.sensitivity[0, j]), "crossrange": _f(self.sensitivity[1, j])}
-                for j, (n, u) in enumerate(zip(self.names, self.units))]
-        contrib = []
-        for j, n in enumerate(self.names):
-            row: dict[str, Any] = {"name": n, "downrange": _f(self.contributions[0, j]),
-                                   "crossrange": _f(self.contributions[1, j]), "estimate": _f(self.estimate[j]),
-                                   "status": self.status[j]}
-            if self.status[j] == "no estimate":
-                row["note"] = "no estimate: contributes nothing" + (
-                    f" ({self.reasons[n]})" if n in self.reasons else "")
-            elif self.status[j] == "per-flight":
-                row["note"] = "per-flight coefficient not in the result: value given, or 0"
-            contrib.append(row)
-        return {
-            "model": self.model, "method": self.method, "flight": self.flight, "trajectory": self.trajectory,
-            "result": self.result,
-            "burnout": {"t": _f(self.t_b), "r": [_f(x) for x in self.r_b], "v": [_f(x) for x in self.v_b]},
-            "nominal_impact": {"downrange": _f(self.nominal[0]), "crossrange": _f(self.nominal[1]),
-                               "point": [_f(x) for x in self.impact_point]},
-            "jacobian": [[_f(x) for x in row] for row in self.jacobian],
-            "sensitivity": sens,
-            "miss": {"downrange": _f(self.miss[0]), "crossrange": _f(self.miss[1]),
-                     "std_downrange": None if std is None else _f(std[0]),
-                     "std_crossrange": None if std is None else _f(std[1]),
-                     "cov": None if self.cov is None else [[_f(x) for x in row] for row in self.cov],
-                     "nonlinear": {"downrange": _f(self.nonlinear[0]), "crossrange": _f(self.nonlinear[1])},
-                     "covariance_source": self.covariance_source},
-            "contributions": contrib,
-            "no_estimate": [n for n, s in zip(self.names, self.status) if s == "no estimate"],
-            "groups": [g.to_dict() for g in self.groups],
-            "group_source": self.group_source,
-        }
-
-    def table(self, top: int | None = None) -> str:
-        """Terminal text: burnout, nominal impact, miss with std, budget per coefficient and per group.
-
-        `top`: only the `top` (>= 1) largest contributions (by ``|downrange| + |crossrange|``); default all.
-        """
-        from casep.estimators.result import format_number
-
-        if top is not None and (isinstance(top, bool) or not isinstance(top, (int, np.integer)) or top < 1):
-            raise ValueError(f"`top` must be an integer >= 1 (or None for all), got {top!r}")
-
-        std = self.std
-        lines = [f"impact of {self.trajectory or self.flight}: model {self.model}, result of method {self.method}"
-                 + (f" (estimated on {self.flight})" if self.trajectory else ""),
-                 f"burnout t {self.t_b:.3f} s, r [{', '.join(f'{x:.1f}' for x in self.r_b)}] m, "
-                 f"v [{', '.join(f'{x:.2f}' for x in self.v_b)}] m/s",
-                 f"nominal impact: downrange {self.nominal[0]:.1f} m, crossrange {self.nominal[1]:.1f} m", ""]
-        pm = (lambda i: f" +- {std[i]:.4g}") if std is not None else (lambda i: "")
-        lines.append(f"predicted miss (linear): downrange {self.miss[0]:.4g}{pm(0)} m, "
-                     f"crossrange {self.miss[1]:.4g}{pm(1)} m")
-        lines.append(f"nonlinear miss (perturbed burnout state flown): downrange {self.nonlinear[0]:.4g} m, "
-                     f"crossrange {self.nonlinear[1]:.4g} m")
-        lines.append(f"std from {self.covariance_source}")
-        lines.append("")
-        lines.append(f"{'coefficient':<12} {'unit':<10} {'estimate':>12} {'m/unit down':>12} {'m/unit cross':>12} "
-                     f"{'miss down m':>12} {'miss cross m':>12}")
-        order = np.argsort(-np.nan_to_num(np.abs(self.contributions).sum(axis=0), nan=-1.0), kind="stable")
-        if top is not None:
-            order = order[:top]
-        for j in order:
-            note = "  no estimate" if self.status[j] == "no estimate" else (
-                "  per-flight" if self.status[j] == "per-flight" else "")
-            lines.append(f"{self.names[j]:<12} {self.units[j]:<10} {format_number(_f(self.estimate[j]))} "
-                         f"{format_number(self.sensitivity[0, j])} {format_number(self.sensitivity[1, j])} "
-                         f"{format_number(_f(self.contributions[0, j]))} {format_number(_f(self.contributions[1, j]))}"
-                         f"{note}")
-        if self.groups:
-            lines.append("")
-            lines.append(f"per near-dependency group ({self.group_source}):")
-            for g in self.groups:
-                s = "" if g.std is None else f" (std {g.std[0]:.4g}, {g.std[1]:.4g})"
-                lines.append(f"  down {g.contribution[0]:.4g} m, cross {g.contribution[1]:.4g} m{s}: "
-                             + ", ".join(g.names))
-        missing = [n for n, s in zip(self.names, self.status) if s == "no estimate"]
-        if missing:
-            lines.append("")
-            lines.append(f"no estimate (contribute nothing to the miss): {', '.join(missing)}")
-        return "\n".join(lines)
-
-
 def impact_analysis(flight, result, model=None, trajectory=None, *,
                     per_flight: Mapping[str, float] | None = None,
                     burnout_sensitivity: tuple[np.ndarray, np.ndarray] | None = None) -> ImpactAnalysis:
@@ -456,11 +256,11 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
     ``cov = G_k Cov_kk G_k^T`` over the estimated ones; ``nonlinear = impact(x_b - B D) - impact(x_b)``.
     """
     res, rsource, model = _load_result(result, model)
-    if not isinstance(flight, _flight_type()):
+    if not isinstance(flight, FlightData):
         flight = read_trajectory(flight)  # dv is not used here (a radar-tracked flight's telemetry has none)
     target = flight
     if trajectory is not None:
-        target = trajectory if isinstance(trajectory, _flight_type()) else read_trajectory(trajectory)
+        target = trajectory if isinstance(trajectory, FlightData) else read_trajectory(trajectory)
 
     coef = _coefficients(res, model, per_flight, rsource)
     t_b, r_b, v_b = burnout_state(target)
@@ -510,9 +310,3 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
         coefficient_std=None if coef.covariance is None else np.where(
             known, np.sqrt(np.clip(np.diag(np.nan_to_num(coef.covariance)), 0.0, None)),
             np.where(have, 0.0, np.nan)))
-
-
-def _flight_type():
-    from casep.io.flight import FlightData
-
-    return FlightData

@@ -273,14 +273,14 @@ def check_outputs(files: dict[str, PathLike | None], *, inputs: Iterable[PathLik
     folders : dict, optional
         ``{option: path or None}`` of output folders (created later by the command).
     """
-    inputs = [Path(i) for i in inputs if i is not None]
+    in_paths = [Path(i) for i in inputs if i is not None]
     given = [(opt, Path(p)) for opt, p in files.items() if p is not None]
     for opt, p in given:
-        check_output(p, opt, inputs=inputs)
+        check_output(p, opt, inputs=in_paths)
     for i, (oa, pa) in enumerate(given):
         for ob, pb in given[i + 1:]:
             if _direct(pa) is None and _same_file(pa, pb):  # a device or pipe may take both
                 raise ValueError(f"{oa} and {ob} both name {pa}: give different files")
-    for opt, p in (folders or {}).items():
-        if p is not None:
-            check_output_dir(p, opt)
+    for opt, folder in (folders or {}).items():
+        if folder is not None:
+            check_output_dir(folder, opt)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Mapping
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -13,10 +13,11 @@ from casep.estimators.result import AXES, EstimateResult
 
 __all__ = ["plot_singular_values", "plot_variance_decomposition", "plot_residuals", "plot_estimates",
            "plot_history", "separate_figures", "estimate_scales", "plot_flights_crlb", "plot_allan", "plot_miss_budget",
-           "plot_impact_ellipse", "impact_figures", "plot_design"]
+           "plot_impact_ellipse", "impact_figures", "plot_design", "pyplot", "save_figure"]
 
 
-def _pyplot():
+def pyplot() -> Any:
+    """``matplotlib.pyplot`` on the non-interactive Agg backend (imported on first use)."""
     import matplotlib
 
     matplotlib.use("Agg", force=True)
@@ -25,7 +26,8 @@ def _pyplot():
     return plt
 
 
-def _save(fig, path: str | os.PathLike) -> Path:
+def save_figure(fig: Any, path: str | os.PathLike) -> Path:
+    """Write `fig` to `path` (format from the extension, PNG by default) atomically, close it, return `path`."""
     from casep.io._atomic import atomic_open
 
     path = Path(path)
@@ -37,9 +39,12 @@ def _save(fig, path: str | os.PathLike) -> Path:
     return path
 
 
+_pyplot, _save = pyplot, save_figure  # re-export: remove after merge (casep/workflows/demo.py, montecarlo.py)
+
+
 def plot_singular_values(diag: Diagnostics, path: str | os.PathLike) -> Path:
     """Singular-value spectrum of the equilibrated regression with condition indices."""
-    plt = _pyplot()
+    plt = pyplot()
     s = diag.singular_values
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.semilogy(np.arange(1, s.size + 1), s, "o-", ms=4)
@@ -52,12 +57,12 @@ def plot_singular_values(diag: Diagnostics, path: str | os.PathLike) -> Path:
                  else "Singular values (rank deficient)")
     ax.legend(loc="lower left")
     ax.grid(True, which="both", alpha=0.3)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_variance_decomposition(diag: Diagnostics, path: str | os.PathLike) -> Path:
     """Heat map of Belsley-Kuh-Welsch variance-decomposition proportions."""
-    plt = _pyplot()
+    plt = pyplot()
     P = np.nan_to_num(diag.proportions, nan=0.0)
     fig, ax = plt.subplots(figsize=(max(8, 0.28 * len(diag.names)), 6))
     im = ax.imshow(P, aspect="auto", cmap="viridis", vmin=0, vmax=1, interpolation="nearest")
@@ -67,7 +72,7 @@ def plot_variance_decomposition(diag: Diagnostics, path: str | os.PathLike) -> P
     ax.set_ylabel("condition index of dimension")
     ax.set_title("Variance-decomposition proportions (columns equilibrated, not centred)")
     fig.colorbar(im, ax=ax, label="proportion of Var(estimate)")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_flights_crlb(d: Mapping, path: str | os.PathLike, scales: Mapping | None = None) -> Path:
@@ -78,7 +83,7 @@ def plot_flights_crlb(d: Mapping, path: str | os.PathLike, scales: Mapping | Non
     magnitude (`scales`; a ratio below 1 means the data know it to better than its typical size);
     log scale; undetermined bounds drawn at the right edge with a cross.
     """
-    plt = _pyplot()
+    plt = pyplot()
     rows = d["coefficients"]
     k = len(d["flights"])
     names = [r["name"] for r in rows]
@@ -109,7 +114,7 @@ def plot_flights_crlb(d: Mapping, path: str | os.PathLike, scales: Mapping | Non
                  f"jointly {d['identifiable_joint']}")
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
     ax.grid(True, axis="x", which="both", alpha=0.3)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _sample_times(result: EstimateResult, t: np.ndarray | None) -> tuple[np.ndarray, str]:
@@ -122,7 +127,7 @@ def _sample_times(result: EstimateResult, t: np.ndarray | None) -> tuple[np.ndar
 
 def plot_residuals(result: EstimateResult, path: str | os.PathLike, t: np.ndarray | None = None) -> Path:
     """Residuals ``dv - S_V D_hat`` against time, one panel per axis, with +- 2 sigma lines."""
-    plt = _pyplot()
+    plt = pyplot()
     r = np.asarray(result.residuals).reshape(-1, 3)
     x, xlabel = _sample_times(result, t)
     fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True)
@@ -137,7 +142,7 @@ def plot_residuals(result: EstimateResult, path: str | os.PathLike, t: np.ndarra
     axes[0].set_title(f"{result.method} residuals dv - S_V D_hat (dashed: +- 2 sigma = {2 * result.sigma:.3g} m/s)",
                       fontsize=10, loc="left")
     axes[-1].set_xlabel(xlabel)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def estimate_scales(result: EstimateResult, prior: Mapping | None = None,
@@ -193,7 +198,7 @@ def plot_estimates(result: EstimateResult, path: str | os.PathLike, *, prior: Ma
     (:func:`estimate_scales`; the panel title says which). A panel whose values span more than 50 magnitudes
     has a symmetric-log axis, so that one large coefficient does not flatten the others.
     """
-    plt = _pyplot()
+    plt = pyplot()
     n = len(result.names)
     if scales is None:
         try:
@@ -208,7 +213,10 @@ def plot_estimates(result: EstimateResult, path: str | os.PathLike, *, prior: Ma
     kind = ["declared magnitude" if np.isfinite(declared[j]) else kind[j] for j in range(n)]
     z = result.estimate / scale
     err = None if result.std is None else 2 * result.std / scale
-    mu = tau = lo = hi = None
+    mu: np.ndarray | None = None
+    tau: np.ndarray | None = None
+    lo: np.ndarray | None = None
+    hi: np.ndarray | None = None
     if prior is not None:
         from casep.estimators.map import parse_prior
 
@@ -221,15 +229,15 @@ def plot_estimates(result: EstimateResult, path: str | os.PathLike, *, prior: Ma
     ncol = min(3, len(groups))
     nrow = -(-len(groups) // ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.2 * nrow + 0.6), squeeze=False)
-    for ax, (title, idx) in zip(axes.ravel(), groups.items()):
-        idx = np.asarray(idx)
+    for ax, (title, members) in zip(axes.ravel(), groups.items()):
+        idx = np.asarray(members)
         x = np.arange(idx.size)
         ax.axhspan(-1.0, 1.0, color="0.88", zorder=0, label="declared magnitude")
-        if mu is not None:
+        if mu is not None and tau is not None:
             has = np.isfinite(tau[idx])
             ax.errorbar(x[has] + 0.2, (mu / scale)[idx][has], yerr=(2 * tau / scale)[idx][has], fmt="s",
                         color="0.5", ms=3, capsize=2, label="prior mean +- 2 prior std")
-        if lo is not None:
+        if lo is not None and hi is not None:
             for v, mk in ((lo, "^"), (hi, "v")):
                 ok = np.isfinite(v[idx])
                 ax.plot(x[ok], (v / scale)[idx][ok], mk, color="tab:red", ms=4, ls="none")
@@ -251,7 +259,7 @@ def plot_estimates(result: EstimateResult, path: str | os.PathLike, *, prior: Ma
     fig.suptitle(f"{result.model} ({result.method}): estimate +- 2 std in units of the declared magnitude; grey: "
                  "+-1 declared magnitude; missing: not identifiable", fontsize=9)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def best_determined(result: EstimateResult, count: int = 6) -> np.ndarray:
@@ -268,9 +276,9 @@ def best_determined(result: EstimateResult, count: int = 6) -> np.ndarray:
 def plot_history(result: EstimateResult, path: str | os.PathLike, t: np.ndarray | None = None,
                  count: int = 6) -> Path:
     """RLS/RELS estimate history of the best-determined coefficients with +- 2 std bands."""
-    if result.history is None or result.history_std is None:
+    if result.history is None or result.history_std is None or result.std is None:
         raise ValueError(f"`result` of method {result.method} has no estimate and std history")
-    plt = _pyplot()
+    plt = pyplot()
     stride = int(result.settings.get("history_stride", 1))
     x_all, xlabel = _sample_times(result, t)
     rows = np.arange(result.history.shape[0]) * stride
@@ -292,7 +300,7 @@ def plot_history(result: EstimateResult, path: str | os.PathLike, t: np.ndarray 
     for ax in axes[-1]:
         ax.set_xlabel(xlabel)
     fig.suptitle(f"{result.method} estimate history +- 2 std (largest |estimate| / std)", fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def separate_figures(result: EstimateResult, out: str | os.PathLike, t: np.ndarray | None = None, *,
@@ -316,7 +324,7 @@ def plot_miss_budget(analysis, path: str | os.PathLike, top: int = 15) -> Path:
     (linear prediction) with the std from ``G Cov G^T``. Contributions of strongly correlated
     coefficients cancel: the groups and the total are the numbers to read.
     """
-    plt = _pyplot()
+    plt = pyplot()
     a = analysis
     c = np.nan_to_num(a.contributions, nan=0.0)
     order = np.argsort(-np.abs(c).sum(axis=0), kind="stable")[:top]
@@ -345,7 +353,7 @@ def plot_miss_budget(analysis, path: str | os.PathLike, top: int = 15) -> Path:
     axes[0].set_yticks(y, labels, fontsize=8)
     fig.suptitle(f"Miss budget, {a.model} ({a.method}): blue coefficients, orange near-dependency groups, "
                  "red total; bars 1 sigma", fontsize=9)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _group_label(k: int, names, width: int = 38) -> str:
@@ -361,7 +369,7 @@ def plot_impact_ellipse(analysis, path: str | os.PathLike) -> Path:
     Left: the miss against the nominal impact; right: zoomed on the prediction, where the ellipses
     are visible. The 95 % ellipse is ``sqrt(5.991)`` sigma (chi-square, 2 degrees of freedom).
     """
-    plt = _pyplot()
+    plt = pyplot()
     a = analysis
     fig, axes = plt.subplots(1, 2, figsize=(12, 5.5))
     for k_ax, ax in enumerate(axes):
@@ -384,7 +392,7 @@ def plot_impact_ellipse(analysis, path: str | os.PathLike) -> Path:
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8, loc="best")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def impact_figures(analysis, out: str | os.PathLike) -> list[Path]:
@@ -398,7 +406,7 @@ def impact_figures(analysis, out: str | os.PathLike) -> list[Path]:
 def plot_allan(noise, path: str | os.PathLike) -> Path:
     """Allan deviation of the residuals per axis with the fitted noise models
     (:func:`casep.analysis.noise_id.identify_noise`); the chosen model drawn solid."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for i, a in enumerate("xyz"[: noise.adev.shape[0]]):
         ax.loglog(noise.taus, noise.adev[i], "o", ms=3, alpha=0.6, label=f"residuals {a}")
@@ -413,14 +421,14 @@ def plot_allan(noise, path: str | os.PathLike) -> Path:
     ax.set_title(f"Noise of the residuals: {noise.choice.replace('_', '-')}")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_design(result, path: str | os.PathLike) -> Path:
     """`casep design --figure`: the designed manoeuvre (offsets at the knots, deg, against time) and the
     CRLB std per coefficient before and after, as a ratio to the coefficient's declared magnitude
     (log scale; below 1 = identifiable; an undetermined coefficient is drawn at the top, hollow)."""
-    plt = _pyplot()
+    plt = pyplot()
     r = result
     m = r.maneuver.to_dict(r.x)
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(12, 8), gridspec_kw={"height_ratios": [1, 1.4]})
@@ -455,4 +463,4 @@ def plot_design(result, path: str | os.PathLike) -> Path:
     a2.grid(True, alpha=0.3, which="both", axis="y")
     a2.legend(fontsize=8)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)

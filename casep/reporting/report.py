@@ -18,9 +18,11 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from casep.estimators.result import AXES, EstimateResult, format_number
+from casep.impact.result import ImpactAnalysis
 from casep.io._atomic import atomic_open, read_output, scratch_files
+from casep.io.flight import FlightData
 
-__all__ = ["write_report", "report_html"]
+__all__ = ["write_report", "report_html", "impact_or_reason", "determined"]
 
 _STYLE = """body{font-family:sans-serif;max-width:1100px;margin:1em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;font-size:13px}td,th{border:1px solid #ccc;padding:2px 6px}
@@ -104,14 +106,19 @@ def determined(result: EstimateResult, scales: Mapping[str, float], top: int = 4
     return {"determined": det, "rest": [names[j] for j in rest], "combinations": combos}
 
 
-def _headline(result: EstimateResult) -> str:
-    """The report's first lines: what the flight determines, against the model's declared magnitudes."""
-    try:
-        from casep.model.loader import load_model
+def _headline(result: EstimateResult, model: Any = None) -> str:
+    """The report's first lines: what the flight determines, against the model's declared magnitudes
+    (of `model`, the result's :class:`~casep.model.ErrorModel` when the caller has it; else loaded by name)."""
+    scales: Mapping[str, float] = {}
+    if model is not None and getattr(model, "name", None) == result.model:
+        scales = model.scales
+    else:
+        try:
+            from casep.model.loader import load_model
 
-        scales = load_model(result.model).scales if result.model else {}
-    except Exception:  # a model file moved since: no headline rather than no report
-        scales = {}
+            scales = load_model(result.model).scales if result.model else {}
+        except Exception:  # a model file moved since: no headline rather than no report
+            scales = {}
     if not scales:
         return ""
     d = determined(result, scales)
@@ -185,10 +192,11 @@ def _image(path: Path) -> str:
 
 
 def report_html(result: EstimateResult, figures: Sequence[str | os.PathLike] = (), *,
-                warnings: Sequence[str] = (), source: str | None = None, impact=None,
-                provenance: Mapping[str, Any] | None = None) -> str:
+                warnings: Sequence[str] = (), source: str | None = None, impact: ImpactAnalysis | str | None = None,
+                provenance: Mapping[str, Any] | None = None, model: Any = None) -> str:
     """The report page as a string (see :func:`write_report`); `impact`: an
-    :class:`casep.impact.miss.ImpactAnalysis` of the result, or a sentence why there is none."""
+    :class:`casep.impact.result.ImpactAnalysis` of the result, or a sentence why there is none;
+    `model`: the result's model, for the headline's declared magnitudes (default: loaded by name)."""
     from casep._version import __version__
 
     # the status colour follows the warnings: green only for a success nothing was said against
@@ -206,7 +214,7 @@ def report_html(result: EstimateResult, figures: Sequence[str | os.PathLike] = (
         f"sigma {result.sigma:.4g} m/s</p>",
         f"<p class=\"{state}\" id=\"status\">status {int(result.status)}: {_esc(result.message)}"
         + (f" ({len(warnings)} warning(s) below)" if warnings and result.success else "") + "</p>",
-        _headline(result),
+        _headline(result, model),
     ]
     if warn:
         parts.append("<h2>Warnings</h2><ul>" + "".join(f"<li class=\"warn\">{_esc(w)}</li>" for w in warn) + "</ul>")
@@ -226,8 +234,15 @@ def report_html(result: EstimateResult, figures: Sequence[str | os.PathLike] = (
     return "\n".join(parts) + "\n"
 
 
-def _impact_of(result: EstimateResult, flight):
-    """The result's impact analysis on its flight, or why there is none (no flight, no r_*/v_*)."""
+def impact_or_reason(result: EstimateResult, flight: FlightData | None, model: Any = None,
+                     **kwargs: Any) -> ImpactAnalysis | str | None:
+    """The result's impact analysis on its flight (:func:`casep.impact.miss.impact_analysis`), or the sentence
+    the report shows why there is none (the flight has no ``r_*``/``v_*`` burnout state); None without a flight.
+
+    `model` (default: the result's, loaded by name) and `kwargs` (e.g. ``burnout_sensitivity``) go to
+    :func:`~casep.impact.miss.impact_analysis`. A caller that writes the report computes it once with this and
+    hands it to :func:`write_report` (``impact=``).
+    """
     if flight is None:
         return None
     from casep.impact.miss import STATE_COLUMNS, impact_analysis
@@ -236,10 +251,10 @@ def _impact_of(result: EstimateResult, flight):
     if missing:
         return (f"No impact miss: the flight has no {', '.join(missing)} columns (the burnout state); "
                 "files from casep simulate have them.")
-    return impact_analysis(flight, result, result.model or None)
+    return impact_analysis(flight, result, model if model is not None else (result.model or None), **kwargs)
 
 
-def _impact_html(ia) -> str:
+def _impact_html(ia: ImpactAnalysis | str) -> str:
     """The predicted miss, its std, the nonlinear miss and the group contributions."""
     if isinstance(ia, str):
         return f"<p>{_esc(ia)}</p>"
@@ -256,10 +271,13 @@ def _impact_html(ia) -> str:
             + body + "</table>")
 
 
-def write_report(result: EstimateResult, path: str | os.PathLike, *, flight=None,
+_COMPUTE = object()  # `impact` not given: computed here from `flight`
+
+
+def write_report(result: EstimateResult, path: str | os.PathLike, *, flight: FlightData | None = None,
                  figures: Sequence[str | os.PathLike] | None = None, prior: Mapping | None = None,
                  bounds: Mapping | None = None, warnings: Sequence[str] = (), source: str | None = None,
-                 provenance: Mapping[str, Any] | None = None) -> Path:
+                 provenance: Mapping[str, Any] | None = None, impact: Any = _COMPUTE, model: Any = None) -> Path:
     """Write a self-contained HTML report of one separation.
 
     Parameters
@@ -281,6 +299,14 @@ def write_report(result: EstimateResult, path: str | os.PathLike, *, flight=None
         Name of the flight (its files) for the title.
     provenance : mapping, optional
         :func:`casep.io.provenance.provenance` of the result: a "Provenance" section.
+    impact : ImpactAnalysis, str or None, optional
+        The result's impact miss as the caller computed it (:func:`impact_or_reason`: an
+        :class:`~casep.impact.result.ImpactAnalysis`, or the sentence why there is none), shown as
+        given; None: no impact section. Default: computed here from `flight` (:func:`impact_or_reason`,
+        which integrates S_V over the flight once more), for callers that have not computed it.
+    model : ErrorModel, optional
+        The result's model, when the caller has it: used for the headline's declared magnitudes
+        (and for the impact when it is computed here) instead of loading it again by name.
 
     Returns
     -------
@@ -288,9 +314,13 @@ def write_report(result: EstimateResult, path: str | os.PathLike, *, flight=None
         `path`.
     """
     path = Path(path)
-    impact = _impact_of(result, flight)
+    if impact is _COMPUTE:
+        impact = impact_or_reason(result, flight, model)
+    if impact is not None and not isinstance(impact, (str, ImpactAnalysis)):
+        raise TypeError(f"`impact` must be an ImpactAnalysis, a sentence (str) or None, got {type(impact).__name__}")
     if figures is not None:
-        text = report_html(result, figures, warnings=warnings, source=source, impact=impact, provenance=provenance)
+        text = report_html(result, figures, warnings=warnings, source=source, impact=impact, provenance=provenance,
+                           model=model)
     else:
         from casep.reporting.plots import impact_figures, separate_figures
 
@@ -300,7 +330,7 @@ def write_report(result: EstimateResult, path: str | os.PathLike, *, flight=None
             if impact is not None and not isinstance(impact, str):
                 files += impact_figures(impact, tmp)
             text = report_html(result, files, warnings=warnings, source=source, impact=impact,
-                               provenance=provenance)
+                               provenance=provenance, model=model)
     with atomic_open(path) as fh:
         fh.write(text)
     return path

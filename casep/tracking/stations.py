@@ -209,11 +209,11 @@ def read_radar(path: str | os.PathLike, station: Station | str | os.PathLike) ->
         Naming file, column and row: a missing column, a bad cell, time not increasing, a
         negative range, an elevation outside [-90, 90] deg.
     """
-    from casep.io.files import _Table
+    from casep.io.tables import Table
 
     if not isinstance(station, Station):
         station = read_station(station)
-    tab = _Table(path)
+    tab = Table(path)
     tab.require(RADAR_COLUMNS, ". Use: t (s), range (m), azimuth, elevation (deg), optional range_rate (m/s)")
     t = tab.time()
     rng = tab.numeric("range")

@@ -58,13 +58,13 @@ def read_telemetry(path: str | os.PathLike, site: LaunchSite | None = None) -> T
     the launch-inertial frame); that needs the first sample on the pad: with `site`, a first
     ``v_tel`` more than 5 m/s from the pad's inertial velocity (the Earth's rotation) is refused.
     """
-    from casep.io.files import VTEL_COLUMNS, _force, _Table
+    from casep.io.tables import VTEL_COLUMNS, Table, table_force
 
-    tab = _Table(path)
+    tab = Table(path)
     tab.require(("t",) + VTEL_COLUMNS, ". A radar separation needs the telemetered velocity v_tel_x/y/z (m/s, "
                                        "launch-inertial) and optionally the position r_tel_x/y/z (m)")
     t = tab.time()
-    f, _ = _force(tab, t)
+    f, _ = table_force(tab, t)
     v = tab.vectors(VTEL_COLUMNS)
     rcols = ("r_tel_x", "r_tel_y", "r_tel_z")
     if tab.has(rcols):

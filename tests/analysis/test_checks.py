@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import casep
-from casep.analysis.checks import GRAVITY_LAUNCH, check_flight, time_offset_test
+from casep.analysis.checks import check_flight
+from casep.analysis.time_offset import GRAVITY_LAUNCH, time_offset_test
 from casep.cli import main
 from casep.exceptions import (
     CasepWarning,

@@ -125,6 +125,21 @@ def test_level_warning_and_default():
     assert res.settings["level"] == top
 
 
+def test_denoise_result_follows_the_result_protocol():
+    import json
+
+    from casep.results import Result
+
+    x = np.random.default_rng(1).standard_normal((2048, 3)) * [0.1, 0.2, 0.3]
+    res = denoise(x)
+    assert isinstance(res, Result)
+    data = json.loads(json.dumps(res.to_dict()))
+    assert data["method"] == "wavelet" and data["level"] == res.settings["level"]
+    assert [data["sigma"][a] for a in "xyz"] == pytest.approx([0.1, 0.2, 0.3], rel=0.1)
+    text = res.text()
+    assert "sym8" in text and f"z {res.sigma[2]:.4g}" in text and "2048 samples" in text
+
+
 def test_bad_arguments():
     x = np.zeros((100, 3))
     for kw, msg in (({"wavelet": "nope"}, "`wavelet` must be a discrete"), ({"rule": "aic"}, "`rule` must be one of"),

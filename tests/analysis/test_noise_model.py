@@ -13,9 +13,11 @@ import numpy as np
 import pytest
 
 import casep
-from casep.analysis.noise import AUTO_LR, NoiseModel, _estimable_basis, _Reml, fit_noise, ljung_box, whiteness_test
+from casep.analysis.noise import AUTO_LR, NoiseModel
+from casep.analysis.noise_fit import Reml, estimable_basis, fit_noise
 from casep.analysis.problem import Problem
 from casep.analysis.robust import robust_filter
+from casep.analysis.whiteness import ljung_box, whiteness_test
 from casep.exceptions import IllConditionedWarning, NoiseNotWhiteWarning
 from casep.simulation.noise import ar1_noise
 from casep.workflows.solve import hac_covariance, prepare_rows, solve_problem
@@ -97,7 +99,7 @@ def test_reml_equals_the_dense_restricted_likelihood(rng):
     truth = NoiseModel(kind="gm", tau=(0.8, 0.3, 1.5), scale=(1.0, 1.5, 0.7))
     y = (S.reshape(-1, n) @ rng.normal(size=n) + np.linalg.cholesky(_dense_cov(t, truth)) @ rng.normal(size=3 * N))
     pb = Problem.from_arrays(S, y.reshape(N, 3), t)
-    reml = _Reml(pb, _estimable_basis(pb))
+    reml = Reml(pb, estimable_basis(pb))
     sets = [((0.8, 0.3, 1.5), (1.0, 1.5, 0.7)), ((0.4, None, 3.0), (1.0, 1.0, 1.0)),
             ((None, None, None), (1.0, 2.0, 0.5))]
     ours = [reml.evaluate(tau, sc)[0] for tau, sc in sets]

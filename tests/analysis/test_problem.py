@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import casep
-from casep.analysis.checks import time_offset_test
 from casep.analysis.linalg import reduce_qr, reduce_qr_blocks
 from casep.analysis.problem import Problem
+from casep.analysis.time_offset import time_offset_test
 from casep.estimators.registry import METHODS, run_method
 from casep.model.sv import SVBuilder, build_sv
 from casep.simulation.simulate import simulate_flight

@@ -210,6 +210,19 @@ def test_null_estimates_contribute_nothing(tmp_path):
     assert np.all(np.isfinite(a.std))
 
 
+def test_impact_analysis_follows_the_result_protocol(paper_sim, paper_ols):
+    from casep.results import Result
+
+    a = impact_analysis(paper_sim.flight, paper_ols)
+    assert isinstance(a, Result)
+    d = json.loads(json.dumps(a.to_dict(), allow_nan=False))
+    assert d == json.loads(json.dumps(a.to_json(), allow_nan=False))  # the old name stays an alias
+    assert d["miss"]["downrange"] == pytest.approx(a.miss[0], rel=1e-12)
+    assert a.text() == a.table() and a.text(top=3) == a.table(3)
+    assert f"downrange {a.miss[0]:.4g}" in a.text()
+    assert len(a.text(top=3).splitlines()) < len(a.text().splitlines())
+
+
 def test_groups_from_diagnostics_and_correlation_fallback(paper_sim, paper_ols):
     a = impact_analysis(paper_sim.flight, paper_ols)
     assert [list(g.names) for g in a.groups] == [g for g in paper_ols.diagnostics["groups"]]

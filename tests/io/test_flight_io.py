@@ -374,7 +374,7 @@ def test_two_rate_ols_coverage_is_honest_on_the_tracking_grid(rng):
 
     from casep.analysis.problem import Problem
     from casep.estimators.ols import ols_linear_map
-    from casep.io.files import pair_flight
+    from casep.io.pair import pair_flight
     from casep.simulation.noise import NoiseModel
     from casep.simulation.scenarios import get_scenario
     from casep.simulation.simulate import simulate_two_rate

@@ -99,3 +99,35 @@ def test_report_has_the_impact_miss_when_the_flight_has_its_state(paper_csv, tmp
     bare = casep.read_flight(EXAMPLE)
     text = write_report(casep.separate(bare, "platform36", "ols"), tmp_path / "b.html", flight=bare).read_text()
     assert "No impact miss: the flight has no r_x" in text
+
+
+def test_report_shows_the_impact_it_is_given_and_computes_nothing_again(paper_csv, tmp_path, monkeypatch):
+    """The caller computes the impact (and has the model) once: the report neither integrates S_V again nor
+    reloads the model; impact=None leaves the section out; a wrong type is refused."""
+    import casep.impact.miss
+    import casep.model.loader
+    from casep.reporting.report import impact_or_reason
+
+    flight = casep.read_flight(paper_csv)
+    model = casep.load_model("platform36")
+    res = casep.separate(flight, model, "ols")
+    ia = impact_or_reason(res, flight, model)
+    assert isinstance(ia, casep.ImpactAnalysis)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("computed again")
+
+    monkeypatch.setattr(casep.impact.miss, "impact_analysis", refuse)
+    monkeypatch.setattr(casep.model.loader, "load_model", refuse)
+    text = write_report(res, tmp_path / "r.html", flight=flight, impact=ia, model=model).read_text(encoding="utf-8")
+    assert f"<td>predicted (linear)</td><td>{ia.miss[0]:.1f}</td><td>{ia.std[0]:.1f}</td>" in text
+    assert 'id="headline"' in text  # the declared magnitudes of the model given
+    assert text.count("data:image/png;base64,") == 4
+    text = write_report(res, tmp_path / "n.html", flight=flight, impact=None, model=model).read_text(encoding="utf-8")
+    assert "<h2>Impact miss</h2>" not in text and text.count("data:image/png;base64,") == 2
+    text = write_report(res, tmp_path / "s.html", impact="No impact miss: why.", model=model).read_text()
+    assert "<p>No impact miss: why.</p>" in text
+    with pytest.raises(TypeError, match="`impact` must be an ImpactAnalysis"):
+        write_report(res, tmp_path / "x.html", impact=1.0, model=model)
+    assert not (tmp_path / "x.html").exists()
+    assert impact_or_reason(res, None) is None

@@ -1,4 +1,4 @@
-"""Monte Carlo (casep.workflows.montecarlo): statistics, batched = per-run, CLI in reduced size."""
+"""Monte Carlo (casep.montecarlo): statistics, batched = per-run, CLI in reduced size."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import pytest
 
 import casep
 from casep.cli import main
-from casep.workflows.montecarlo import run_montecarlo
+from casep.montecarlo import run_montecarlo
 
 
 @pytest.mark.montecarlo
@@ -110,7 +110,7 @@ def test_progress_lines_off_a_terminal_count_runs_per_method(capsys):
 
 
 def test_progress_bar_total_is_runs(monkeypatch, capsys):
-    from casep.workflows.montecarlo import _Progress
+    from casep.montecarlo.progress import Progress as _Progress
 
     p = _Progress(20, ["ols,rls", "rels"], "bar")
     p(20)
@@ -130,7 +130,7 @@ def test_workers_have_one_blas_thread_and_parent_is_unchanged():
 
     from threadpoolctl import threadpool_info
 
-    from casep.workflows.montecarlo import _Dask
+    from casep.montecarlo.engines import DaskEngine as _Dask
 
     before = [p["num_threads"] for p in threadpool_info()]
     with ExitStack() as stack:
@@ -275,9 +275,9 @@ def test_batched_methods_use_the_estimators_linear_maps():
     from casep.estimators.ols import LinearMap, ols_linear_map
     from casep.estimators.rls import rls_linear_map
     from casep.model.sv import build_sv
+    from casep.montecarlo.methods import linear_maps as _linear_maps
     from casep.simulation.paper import demo_prior
     from casep.simulation.simulate import scenario_setup
-    from casep.workflows.montecarlo import _linear_maps
 
     sc, traj, model, _ = scenario_setup("paper", 5.0)
     S2 = build_sv(model, traj.t, traj.specific_force).reshape(-1, model.n_coefficients)

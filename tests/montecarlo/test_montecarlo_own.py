@@ -25,7 +25,7 @@ def test_montecarlo_on_own_trajectory_matches_its_crlb(own):
     efficient on it (RMS error / CRLB std near 1 over 40 runs: mean over 36 coefficients within 15 %)."""
     import casep
     from casep.analysis.diagnostics import crlb_covariance
-    from casep.workflows.montecarlo import run_montecarlo
+    from casep.montecarlo import run_montecarlo
 
     flight, side = own
     truth = json.loads(side.read_text())
@@ -60,7 +60,7 @@ def test_dispersion_draws_kept_per_run(tmp_path):
     """runs.parquet holds each run's dispersion draws (main: only the estimates); read back on resume."""
     import pyarrow.parquet as pq
 
-    from casep.workflows.montecarlo import run_montecarlo
+    from casep.montecarlo import run_montecarlo
 
     disp = {"thrust_scale": {"dist": "normal", "mean": 1.0, "std": 0.01},
             "launch_azimuth_deg": {"dist": "uniform", "low": -1.0, "high": 1.0}}

@@ -15,8 +15,8 @@ import pytest
 
 import casep
 from casep.cli import main
+from casep.montecarlo import run_montecarlo
 from casep.simulation.paper import demo_prior
-from casep.workflows.montecarlo import run_montecarlo
 
 DISP = {"thrust_scale": {"dist": "normal", "mean": 1.0, "std": 0.01},
         "launch_azimuth_deg": {"dist": "uniform", "low": -2.0, "high": 2.0},
@@ -238,7 +238,7 @@ def test_a_draw_the_vehicle_cannot_fly_is_exit_2_naming_the_run_and_values(tmp_p
 
 
 def test_settings_difference_names_the_innermost_key():
-    from casep.workflows.montecarlo import _settings_diff
+    from casep.montecarlo.store import settings_diff as _settings_diff
 
     old = {"seed": 1, "dispersions": {"launch_azimuth_deg": {"dist": "uniform", "low": -2, "high": 2}}}
     new = {"seed": 1, "dispersions": {"launch_azimuth_deg": {"dist": "uniform", "low": -2, "high": 3}}}
@@ -248,7 +248,7 @@ def test_settings_difference_names_the_innermost_key():
 
 def test_summary_records_the_rate():
     """Fresh-eyes review: the summary JSON says at which rate the flights were simulated."""
-    from casep.workflows.montecarlo import run_montecarlo
+    from casep.montecarlo import run_montecarlo
 
     res = run_montecarlo("paper", runs=2, methods=["ols"], seed=1, rate=2.0)
     assert res.to_dict()["rate_hz"] == 2.0

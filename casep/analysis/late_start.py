@@ -1,0 +1,151 @@
+"""Late start: a flight whose telemetry begins after lift-off.
+
+The model puts dv(t0) = 0 and phi(t0) = 0 at the first telemetry sample; a flight cut after
+lift-off breaks that unless the model has the initial terms dv0 and phi0.
+:func:`late_start_evidence` looks for it (the telemetry speed at the first sample, and dv
+extrapolated back to the first sample); :func:`warn_late_start` warns
+(:class:`~casep.io.flight.LateStartWarning`) when the model lacks the terms.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+
+from casep.analysis.checks import setup_problems
+from casep.io.flight import FlightData, LateStartWarning
+
+__all__ = ["late_start_evidence", "warn_late_start", "START_WINDOW_S", "START_DEGREE", "START_MIN_SAMPLES",
+           "START_CHI2", "START_DV_FLOOR", "PAD_SPEED", "INITIAL_TERMS"]
+
+#: Late-start test (:func:`late_start_evidence`): dv is fitted by a polynomial of degree
+#: ``START_DEGREE`` over the first ``START_WINDOW_S`` seconds (at least ``START_MIN_SAMPLES``
+#: samples) and extrapolated to t0.
+START_WINDOW_S = 20.0
+START_DEGREE = 3
+START_MIN_SAMPLES = 20
+#: Chi-square (3 dof) of dv(t0) against its std above which dv(t0) = 0 is rejected. For white
+#: noise p = 1e-6 would be 30.7; the correlation correction is approximate (on 150 flights of
+#: the paper-ar1 scenario the chi-square averaged 4.2 instead of 3, at most 27.7), so 50 keeps
+#: false alarms below about 1e-6 for such noise too. A flight of the paper scenario cut at
+#: 20 s gives 600 (20 Hz) to 2800 (100 Hz) with white noise, 40 to 80 with Gauss-Markov noise.
+START_CHI2 = 50.0
+#: ... and |dv(t0)| must exceed this, m/s: below any tracking noise (>= 0.01 m/s), so that
+#: noise-free data, whose quadratic-fit residuals are not noise, never raise a false alarm.
+START_DV_FLOOR = 1e-3
+#: Telemetry speed at the first sample above which the vehicle is already flying, m/s (about
+#: 4 s after lift-off at 0.8 g net acceleration; the launch-inertial frame has the pad at rest).
+PAD_SPEED = 30.0
+
+
+#: Initial terms a late start needs: (model.numeric key, what it is, a model that adds it).
+INITIAL_TERMS = (
+    ("dv0", "initial velocity error dv0 (dv0x, dv0y, dv0z, m/s)", "platform36_dv0"),
+    ("phi0", "initial platform misalignment phi0 (phi0x, phi0y, phi0z, arcsec)", "platform39_misalignment"),
+)
+
+
+
+def _dv_at_start(t: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """dv(t0) from a cubic fit over the first seconds, its std, and the window length (s).
+
+    For noise with lag-1 correlation rho (from the residuals; AR(1)-like tracking noise) the
+    m samples are worth n_eff = m (1 - rho) / (1 + rho) independent ones: the least-squares
+    variance of c0 is multiplied by m / n_eff, and the residual sum of squares is divided by
+    m - p m / n_eff (p = degree + 1), since a fit absorbs slow noise. None when n_eff is too
+    small for the test (dof below m / 4).
+    """
+    m = max(int(np.searchsorted(t, t[0] + START_WINDOW_S, side="right")), START_MIN_SAMPLES)
+    m = min(m, t.size)
+    if m < START_MIN_SAMPLES:
+        return None
+    x = (t[:m] - t[0]) / (t[m - 1] - t[0])
+    A = np.vander(x, START_DEGREE + 1, increasing=True)  # dv ~ c0 + c1 x + ..., c0 = dv(t0)
+    coef, *_ = np.linalg.lstsq(A, dv[:m], rcond=None)
+    r = dv[:m] - A @ coef
+    rss = np.sum(r**2, axis=0)
+    rho = np.divide(np.sum(r[1:] * r[:-1], axis=0), rss, out=np.zeros(3), where=rss > 0)
+    infl = (1 + np.clip(rho, 0.0, 0.999)) / (1 - np.clip(rho, 0.0, 0.999))  # m / n_eff
+    dof = m - A.shape[1] * infl  # E[RSS] ~ s^2 (m - p m / n_eff): the fit absorbs slow noise
+    if np.any(dof < m / 4):
+        return None  # too few independent samples in the window to judge dv(t0)
+    var0 = rss / dof * np.linalg.inv(A.T @ A)[0, 0] * infl  # Var(c0) ~ s^2 [(A^T A)^-1]_00 m / n_eff
+    return coef[0], np.sqrt(var0), float(t[m - 1] - t[0])
+
+
+def late_start_evidence(flight: FlightData) -> dict:
+    """Evidence that the flight's data begin after lift-off; empty when there is none.
+
+    Two tests, each with its numbers in the returned dict:
+
+    - ``speed_m_s``: the telemetry speed at the first sample (``meta["start_speed_m_s"]``,
+      recorded by the readers when velocity columns exist) exceeds :data:`PAD_SPEED`;
+    - ``dv0`` (with ``dv0_std``, ``chi2``, ``window_s``): when dv is observed from the first
+      sample, dv extrapolated to t0 is not 0 (chi-square > :data:`START_CHI2` and
+      ``|dv0| >`` :data:`START_DV_FLOOR`), whereas S_V(t0) = 0 makes the model predict 0.
+
+    The specific force is not used: the simulator's and many real flights start at full
+    thrust (hold-down), so no single "pad value" separates a pad start from a late one.
+    """
+    out: dict = {}
+    speed = flight.meta.get("start_speed_m_s")
+    if speed is not None and speed > PAD_SPEED:
+        out["speed_m_s"] = float(speed)
+    observed = np.asarray(flight.observed)  # a mask after FlightData's checks
+    if observed[0]:
+        run = int(np.argmin(observed)) if not observed.all() else flight.n_samples
+        est = _dv_at_start(flight.t[:run], flight.dv[:run])
+        if est is not None:
+            dv0, sd, window = est
+            z = np.divide(dv0, sd, out=np.where(dv0 != 0, np.inf, 0.0), where=sd > 0)
+            chi2 = float(np.sum(z**2))
+            if chi2 > START_CHI2 and np.linalg.norm(dv0) > START_DV_FLOOR:
+                out.update(dv0=dv0, dv0_std=sd, chi2=chi2, window_s=window)
+    return out
+
+
+def warn_late_start(flight: FlightData, model: Any) -> dict:
+    """Warn (:class:`LateStartWarning`) when the flight starts after lift-off and `model`
+    lacks the initial velocity error dv0 or the initial misalignment phi0.
+
+    Parameters
+    ----------
+    flight : FlightData
+    model : ErrorModel
+        Set up; its ``numeric("dv0")`` and ``numeric("phi0")`` Jacobians show which initial
+        terms it has.
+
+    Returns
+    -------
+    dict
+        The evidence (:func:`late_start_evidence`); empty when there is none.
+    """
+    ev = late_start_evidence(flight)
+    missing = [(term, use) for key, term, use in INITIAL_TERMS if not np.any(model.numeric(key))]
+    if not ev or not missing or setup_problems(flight):  # a failed set-up check explains dv(t0): said there
+        return ev
+    if "speed_m_s" not in ev and np.size(model.numeric("velocity_columns")):
+        return ev  # dv(t0) != 0 at lift-off is what a direct velocity term (a time offset: a(t0) dt) gives
+    what = []
+    if "speed_m_s" in ev:
+        what.append(f"the telemetry speed at the first sample is {ev['speed_m_s']:.4g} m/s (> {PAD_SPEED:g} m/s)")
+    if "dv0" in ev:
+        vec = ", ".join(f"{v:.4g}" for v in ev["dv0"])
+        sd = ", ".join(f"{v:.2g}" for v in ev["dv0_std"])
+        what.append(f"dv at the first sample, extrapolated from the first {ev['window_s']:.3g} s, is ({vec}) m/s "
+                    f"+- ({sd}) (chi-square {ev['chi2']:.3g}, 3 dof), where the model has dv(t0) = 0")
+    # dv(t0) != 0 alone with dv0 in the model: an initial velocity error at lift-off looks the same.
+    maybe = (" (or it starts at lift-off with an initial velocity error, which the model's dv0 terms take; "
+             "then ignore this)" if "speed_m_s" not in ev and np.any(model.numeric("dv0")) else "")
+    warnings.warn(LateStartWarning(
+        f"{flight.source}: the flight seems to start after lift-off{maybe} (t0 = {flight.t[0]:.6g} s): "
+        f"{'; '.join(what)}. Model `{model.name}` has no {' and no '.join(m[0] for m in missing)}: errors "
+        f"accumulated before t0 will bias the estimates. Use data from lift-off, or a model with the initial "
+        f"terms: --model {' or '.join(m[1] for m in missing)} (models/README.md shows how to combine them). "
+        f"A tracking time offset also gives dv(t0) != 0 (dv = a(t) dt_trk): `casep separate` (casep.check_fit) "
+        f"tests the residuals for one; if it finds one, model the offset instead (platform36_timeoffset)."),
+        stacklevel=3)
+    return ev
+

@@ -1,0 +1,117 @@
+"""Whiteness of the residuals: the Ljung-Box test per axis, across gaps in the sample times.
+
+White-noise std are honest only when the residuals are white; :func:`whiteness_test` says per axis
+whether they are and how much too small the white std then are.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from casep.analysis.noise import AXES
+
+__all__ = ["ljung_box", "WhitenessTest", "whiteness_test", "default_lags", "find_gaps", "segments_of"]
+
+
+def ljung_box(x: np.ndarray, lags: int, segments: np.ndarray | None = None) -> tuple[float, float]:
+    """Ljung-Box ``Q = n (n + 2) sum_k rho_k^2 / (n - k)`` of a series and its chi2(lags) p-value.
+
+    `segments`: segment id per sample; lag products are taken only within a segment (a gap in
+    the time tags is not a lag).
+    """
+    from scipy.stats import chi2
+
+    x = np.asarray(x, dtype=float)
+    x = x - x.mean()
+    n = x.size
+    den = float(x @ x)
+    if den == 0 or n <= lags + 1:
+        return 0.0, 1.0
+    q = 0.0
+    for k in range(1, lags + 1):
+        prod = x[k:] * x[:-k]
+        if segments is not None:
+            prod = prod[segments[k:] == segments[:-k]]
+        rho = float(prod.sum()) / den  # rho_k
+        q += rho**2 / (n - k)
+    q *= n * (n + 2)
+    return float(q), float(chi2.sf(q, lags))
+
+
+@dataclass(frozen=True)
+class WhitenessTest:
+    """Residual whiteness per axis (Ljung-Box) and how much too small the white std are."""
+
+    q: tuple[float, float, float]
+    p: tuple[float, float, float]
+    lags: int
+    alpha: float
+    std_factor: float | None = None  # median Gauss-Markov / white std over the estimable coefficients
+    std_factor_max: float | None = None
+
+    @property
+    def rejected(self) -> tuple[str, ...]:
+        """The axes whose residuals are not white at `alpha` (Bonferroni over the axes)."""
+        return tuple(a for a, p in zip(AXES, self.p) if p < self.alpha / 3)
+
+    def to_dict(self) -> dict:
+        return {"test": "ljung-box", "lags": self.lags, "alpha": self.alpha,
+                "axes": {a: {"q": self.q[j], "p": self.p[j]} for j, a in enumerate(AXES)},
+                "rejected": list(self.rejected), "std_factor_median": self.std_factor,
+                "std_factor_max": self.std_factor_max}
+
+    def text(self) -> str:
+        """The whiteness of the residuals per axis, in one line: :meth:`message`."""
+        return self.message()
+
+    def message(self) -> str:
+        parts = ", ".join(f"{a} Q {self.q[j]:.3g} (p {self.p[j]:.2g})"
+                          for j, a in enumerate(AXES) if a in self.rejected)
+        factor = ""
+        if self.std_factor is not None and self.std_factor >= 1.0:
+            factor = (f"; the reported std are about {self.std_factor:.2g}x too small (median over the coefficients "
+                      f"of the Gauss-Markov std of the same data / the white std; up to {self.std_factor_max:.2g}x)")
+        elif self.std_factor is not None:
+            factor = (f"; a Gauss-Markov model of the same data gives std {self.std_factor:.2g}x the reported ones "
+                      f"(median over the coefficients; up to {self.std_factor_max:.2g}x): the white std are not "
+                      "the right ones, some too large here; if the residuals are a model error (frames, time "
+                      "tags, a missing term) no noise model makes the std right")
+        return (f"residuals are not white ({parts}, Ljung-Box on {self.lags} lags){factor}. Use --noise auto "
+                "(or gm)")
+
+
+def default_lags(n: int) -> int:
+    """Lags of the whiteness test and the HAC std: Newey-West's ``floor(4 (n / 100)^(2/9))``."""
+    return max(1, int(np.floor(4.0 * (n / 100.0) ** (2.0 / 9.0))))
+
+
+def find_gaps(t: np.ndarray, factor: float = 3.0) -> list[dict]:
+    """Gaps in the sample times longer than `factor` x the median spacing.
+
+    Returns ``[{"start": t before, "length": s, "row": 1-based row after the gap, "t_after": s}]``.
+    """
+    t = np.asarray(t, dtype=float)
+    if t.size < 3:
+        return []
+    dt = np.diff(t)
+    med = float(np.median(dt))
+    return [{"start": float(t[k]), "length": float(dt[k]), "row": int(k + 2), "t_after": float(t[k + 1])}
+            for k in np.flatnonzero(dt > factor * med)]
+
+
+def segments_of(t: np.ndarray, gap_factor: float = 3.0) -> np.ndarray:
+    """Segment id per sample: a new segment after a spacing above `gap_factor` x the median."""
+    dt = np.diff(t)
+    return np.concatenate([[0], np.cumsum(dt > gap_factor * np.median(dt))])
+
+
+def whiteness_test(residuals: np.ndarray, t: np.ndarray, *, alpha: float = 0.01, lags: int | None = None
+                   ) -> WhitenessTest:
+    """Ljung-Box test per axis of residuals ``(N, 3)`` on their time spacing (gaps break the lags)."""
+    r = np.asarray(residuals, dtype=float)
+    L = default_lags(r.shape[0]) if lags is None else int(lags)
+    seg = segments_of(np.asarray(t, dtype=float))
+    qs, ps = zip(*(ljung_box(r[:, j], L, seg) for j in range(3)))
+    return WhitenessTest(tuple(qs), tuple(ps), L, alpha)

@@ -1,0 +1,257 @@
+"""A telemetry + tracking pair in arrays: tracking frames, time scales, gaps, the merged flight.
+
+:func:`pair_flight` forms dv from telemetry and tracking held in arrays on the grid asked for
+(:func:`casep.io.files.read_flight_pair` reads the two files and calls it); the helpers here turn
+Earth-fixed tracking (ECEF, geodetic) into the launch-inertial velocity (:mod:`casep.frames`),
+check the stated launch time and time scales against the files, and find the gaps that
+interpolation must not bridge (a :class:`~casep.exceptions.GapWarning` then).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from casep.io.flight import FlightData
+from casep.io.tables import VTRK_COLUMNS, Table
+
+__all__ = ["pair_flight", "PAIR_GRIDS", "STATE_SIGNALS", "GAP_FACTOR", "GAP_MIN_S", "MAX_TIME_OFFSET",
+           "MAX_LAUNCH_TIME_GAP", "check_tracking_frame", "tracking_velocity", "tracking_hint", "with_tracked_state",
+           "time_shift_seconds", "check_launch_time", "no_overlap_message"]
+
+#: Where a telemetry + tracking pair is evaluated (``read_flight_pair(grid=...)``).
+PAIR_GRIDS = ("tracking", "telemetry")
+
+
+def check_tracking_frame(tracking: str | os.PathLike, tracking_frame: str, site) -> None:
+    """`tracking_frame` is one of casep.frames.TRACKING_FRAMES; an Earth-fixed one needs a LaunchSite."""
+    from casep.frames import TRACKING_FRAMES, LaunchSite
+
+    if tracking_frame not in TRACKING_FRAMES:
+        raise ValueError(f"`tracking_frame` must be one of {', '.join(TRACKING_FRAMES)}, got {tracking_frame!r}")
+    if tracking_frame == "launch" and site is not None:
+        raise ValueError(f"{tracking}: `site` is used only with an Earth-fixed tracking_frame ('ecef' or 'geodetic'); "
+                         "launch-frame tracking needs no site")
+    if tracking_frame != "launch" and not isinstance(site, LaunchSite):
+        raise ValueError(f"{tracking}: {tracking_frame} tracking needs the launch site and launch time to be turned "
+                         "into the launch-inertial frame: give site=LaunchSite(lat_deg, lon_deg, h_m, azimuth_deg, t0) "
+                         "(CLI: --launch-site LAT LON H AZ --launch-time T0)")
+
+
+def tracking_velocity(trk: Table, t_trk: np.ndarray, tracking_frame: str,
+                       site) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """The tracking velocity in the launch-inertial frame, m/s (casep.frames), from the file's own time tags,
+    and (Earth-fixed frames) the tracked ECEF position and Earth-relative velocity (m, m/s; None for launch)."""
+    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS, ecef_to_launch, geodetic_to_ecef
+
+    if tracking_frame == "launch":
+        return trk.vectors(VTRK_COLUMNS), None, None
+    if tracking_frame == "ecef":
+        r, v = trk.vectors(ECEF_COLUMNS[1:4]), trk.vectors(ECEF_COLUMNS[4:7])
+    else:
+        lat, lon, h, ve, vn, vu = (trk.numeric(c) for c in GEODETIC_COLUMNS[1:])
+        for col, values, lim in (("lat", lat, 90.0), ("lon", lon, 360.0)):
+            bad = np.flatnonzero(np.abs(values) > lim)
+            if bad.size:
+                raise trk.error(f"{values[bad[0]]:g} deg is outside +-{lim:g} deg (latitude and longitude in degrees)",
+                                col, int(bad[0]) + 1)
+        r, v = geodetic_to_ecef(lat, lon, h, ve, vn, vu)
+    return ecef_to_launch(site, t_trk, r, v)[1], r, v
+
+
+def tracking_hint(trk: Table, tracking_frame: str) -> str:
+    """What a tracking file lacks, and the frame its columns suggest."""
+    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS
+
+    if tracking_frame == "ecef":
+        return ". Use (ECEF, m, m/s): " + ", ".join(ECEF_COLUMNS)
+    if tracking_frame == "geodetic":
+        return ". Use (deg, deg, m, m/s east/north/up): " + ", ".join(GEODETIC_COLUMNS)
+    for frame, cols in (("ecef", ECEF_COLUMNS), ("geodetic", GEODETIC_COLUMNS)):
+        if trk.has(cols):
+            return (f". Use: t, v_trk_x, v_trk_y, v_trk_z; this file has {frame} columns: read it with "
+                    f"tracking_frame='{frame}' and site=LaunchSite(...) (CLI: --tracking-frame {frame} "
+                    "--launch-site LAT LON H AZ --launch-time T0)")
+    return ". Use: t, v_trk_x, v_trk_y, v_trk_z"
+
+
+#: Launch-inertial position and velocity columns (m, m/s): the burnout state of casep.impact.
+STATE_SIGNALS = ("r_x", "r_y", "r_z", "v_x", "v_y", "v_z")
+
+
+def with_tracked_state(flight: FlightData, t_trk: np.ndarray, r: np.ndarray, v: np.ndarray) -> FlightData:
+    """The flight with the tracked position and velocity (Earth-fixed tracking turned launch-inertial) as the
+    signals ``r_*``, ``v_*`` on its time grid: a not-a-knot cubic spline through the tracking samples inside
+    their span, NaN outside (before tracking starts). What the impact analysis reads as the burnout state."""
+    import dataclasses
+
+    from scipy.interpolate import CubicSpline
+
+    t = np.asarray(flight.t)
+    inside = (t >= t_trk[0]) & (t <= t_trk[-1])
+    sig = dict(flight.signals)
+    for name, values in zip(STATE_SIGNALS, np.column_stack([r, v]).T):
+        col = np.full(t.size, np.nan)
+        col[inside] = CubicSpline(t_trk, values)(t[inside])
+        sig[name] = col
+    meta = {**flight.meta, "state_from": "tracking (r_*, v_*: launch-inertial, spline on the flight's times)"}
+    return dataclasses.replace(flight, signals=sig, meta=meta)
+
+
+#: A given tracking time offset above this, s, is no latency: a warning suggests `time_shift`.
+MAX_TIME_OFFSET = 2.0
+#: The launch time must lie within this of the tracking file's time tags, s (a day: seconds of day,
+#: of a week's GPS time or since an epoch all put it within hours of the tracking).
+MAX_LAUNCH_TIME_GAP = 86400.0
+
+
+def time_shift_seconds(value) -> float:
+    """`time_shift`: a finite number of seconds."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(value):
+        raise ValueError(f"`time_shift` (tracking time minus telemetry time, s) must be a finite number, got {value!r}")
+    return float(value)
+
+
+def check_launch_time(trk: Table, t_raw: np.ndarray, site) -> None:
+    """The launch time in the tracking file's time scale: within :data:`MAX_LAUNCH_TIME_GAP` of its time tags."""
+    gap = max(t_raw[0] - site.t0, site.t0 - t_raw[-1], 0.0)
+    if gap > MAX_LAUNCH_TIME_GAP:
+        raise trk.error(f"the launch time {site.t0:.10g} s is {gap:.4g} s from the tracking time tags "
+                        f"[{t_raw[0]:.10g}, {t_raw[-1]:.10g}] s (more than {MAX_LAUNCH_TIME_GAP:g} s): give it in the "
+                        "tracking file's time scale (--launch-time, manifest launch_time_s)", "t")
+
+
+def no_overlap_message(t_tel: np.ndarray, t_raw: np.ndarray, shift: float) -> str:
+    """Telemetry and tracking that do not overlap: both spans, and the shift that would line them up."""
+    after = t_raw[0] - shift - t_tel[0]
+    scale = f" (after time_shift {shift:g} s: [{t_raw[0] - shift:.10g}, {t_raw[-1] - shift:.10g}] s)" if shift else ""
+    return (f"telemetry time [{t_tel[0]:.10g}, {t_tel[-1]:.10g}] s and tracking time [{t_raw[0]:.10g}, "
+            f"{t_raw[-1]:.10g}] s{scale} share fewer than 2 telemetry samples: the tracking starts {after:.6g} s "
+            f"{'after' if after >= 0 else 'before'} the telemetry. Telemetry and tracking must be on one time scale; "
+            "if they count from different origins (seconds of day against seconds from lift-off), state how they "
+            f"relate: time_shift = tracking time - telemetry time (e.g. {t_raw[0] - t_tel[0]:.10g} if both start "
+            "together; CLI --time-shift, manifest time_shift_s)")
+
+
+def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray, *,
+                signals: dict[str, np.ndarray] | None = None, interpolation: str = "cubic", grid: str = "tracking",
+                source: str = "<memory>", meta: dict | None = None) -> FlightData:
+    """The flight of a telemetry + tracking pair held in arrays (see :func:`read_flight_pair`).
+
+    Parameters
+    ----------
+    t_tel, f, v_tel : arrays
+        Telemetry times (s, increasing), specific force (m/s^2) and velocity (m/s).
+    t_trk, v_trk : arrays
+        Tracking times (s, increasing) and velocity (m/s).
+    signals : dict, optional
+        Other telemetry columns at `t_tel`.
+
+    Notes
+    -----
+    With ``grid="tracking"`` a tracking time within 1e-9 s of a telemetry time is that sample;
+    the others are inserted, with ``f`` and the signals linearly interpolated (S_V integrates
+    ``f`` by the trapezoid rule, so a linearly interpolated sample leaves its first-order terms
+    unchanged). Tracking samples outside the telemetry span are dropped (counted in
+    ``meta["tracking_dropped"]``).
+    """
+    from scipy.interpolate import CubicSpline
+
+    t_tel, t_trk = np.asarray(t_tel, dtype=float), np.asarray(t_trk, dtype=float)
+    f, v_tel, v_trk = (np.asarray(a, dtype=float) for a in (f, v_tel, v_trk))
+    signals = dict(signals or {})
+
+    def carry(t_from, v_from, t_to):  # velocity of one source at the other's times
+        if interpolation == "cubic":
+            return CubicSpline(t_from, v_from, axis=0)(t_to)
+        return np.column_stack([np.interp(t_to, t_from, v_from[:, i]) for i in range(3)])
+
+    keep = t_tel <= t_trk[-1]  # from the first telemetry sample to the end of tracking
+    extra: dict = {}
+    trk_gaps, tel_gaps = _gaps(t_trk), _gaps(t_tel)
+    if grid == "telemetry":
+        t, observed = t_tel[keep], (t_tel[keep] >= t_trk[0])
+        in_gap = _inside(t, trk_gaps)
+        if in_gap.any():  # tracking interpolated across a gap invents data: those rows are not observed
+            _warn_gaps("tracking", trk_gaps, int(np.count_nonzero(in_gap & observed)), "telemetry samples", source)
+            observed &= ~in_gap
+            extra["gap_rows_left_out"] = int(np.count_nonzero(in_gap))
+        dv = np.full((t.size, 3), np.nan)  # not observed before tracking starts
+        dv[observed] = v_tel[keep][observed] - carry(t_trk, v_trk, t[observed])  # v_tel - v_trk(t_tel)
+        f_out = f[keep]
+        sig = {k: v[keep] for k, v in signals.items()}
+        how = f"v_tel - v_trk at telemetry times ({interpolation} interpolation of tracking)"
+        extra.update(rows_side="telemetry", rows_index=np.flatnonzero(keep))
+    else:
+        use = (t_trk >= t_tel[0]) & (t_trk <= t_tel[-1])
+        in_gap = _inside(t_trk, tel_gaps) & use
+        if in_gap.any():  # telemetry velocity interpolated across a telemetry gap: those tracking rows left out
+            _warn_gaps("telemetry", tel_gaps, int(np.count_nonzero(in_gap)), "tracking samples", source)
+            use &= ~in_gap
+            extra["gap_rows_left_out"] = int(np.count_nonzero(in_gap))
+        tt = t_trk[use]
+        t_keep = t_tel[keep]
+        j = np.clip(np.searchsorted(t_keep, tt), 1, t_keep.size - 1)
+        near = np.minimum(np.abs(t_keep[j] - tt), np.abs(t_keep[j - 1] - tt))
+        on = near <= 1e-9
+        t = np.union1d(t_keep, tt[~on])  # telemetry samples and the tracking times between them
+        idx = np.clip(np.searchsorted(t, tt - 1e-9), 0, t.size - 1)  # each tracking time's row
+        observed = np.zeros(t.size, bool)
+        observed[idx] = True
+        dv = np.full((t.size, 3), np.nan)
+        dv[idx] = carry(t_tel, v_tel, tt) - v_trk[use]  # v_tel(t_trk) - v_trk
+        f_out = np.column_stack([np.interp(t, t_tel, f[:, i]) for i in range(3)])
+        sig = {k: np.interp(t, t_tel, v) for k, v in signals.items()}
+        how = f"v_tel - v_trk at tracking times ({interpolation} interpolation of telemetry)"
+        extra = {**extra, "tracking_dropped": int((~use).sum()), "inserted": int((~on).sum()), "rows_side": "tracking"}
+        rows_index = np.full(t.size, -1)
+        rows_index[idx] = np.flatnonzero(use)  # the tracking data row of each observed sample
+        extra["rows_index"] = rows_index
+    if trk_gaps or tel_gaps:
+        extra["gaps_s"] = {"tracking": trk_gaps, "telemetry": tel_gaps}
+    meta = {"format": "pair", "grid": grid, "dv": how, **(meta or {}), **extra,
+            "telemetry_span_s": [float(t_tel[0]), float(t_tel[-1])],
+            "tracking_span_s": [float(t_trk[0]), float(t_trk[-1])],
+            "span_s": [float(t[0]), float(t[-1])], "observed_span_s": [float(t[observed][0]), float(t[observed][-1])],
+            "unobserved": int((~observed).sum()), "telemetry_dropped": int((~keep).sum()),
+            "start_speed_m_s": float(np.linalg.norm(v_tel[0])),
+            "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.analysis.checks
+    return FlightData(t, f_out, dv, source=source, meta=meta, observed=observed, signals=sig)
+
+
+#: A step this many times the median sample step is a gap that interpolation must not bridge ...
+GAP_FACTOR = 5.0
+#: ... and at least this long, s (a few missing samples at 20 Hz are bridged well by a cubic spline).
+GAP_MIN_S = 0.5
+
+
+def _gaps(t: np.ndarray) -> list[list[float]]:
+    """``[[start, end], ...]`` of the steps of `t` above :data:`GAP_FACTOR` x its median step and :data:`GAP_MIN_S`."""
+    if t.size < 3:
+        return []
+    step = np.diff(t)
+    big = np.flatnonzero((step > GAP_FACTOR * np.median(step)) & (step > GAP_MIN_S))
+    return [[float(t[k]), float(t[k + 1])] for k in big]
+
+
+def _inside(t: np.ndarray, gaps: list[list[float]]) -> np.ndarray:
+    """Samples strictly inside one of the `gaps`."""
+    out = np.zeros(t.size, dtype=bool)
+    for a, b in gaps:
+        out |= (t > a) & (t < b)
+    return out
+
+
+def _warn_gaps(which: str, gaps: list[list[float]], rows: int, what: str, source: str) -> None:
+    import warnings
+
+    from casep.exceptions import GapWarning
+
+    listed = ", ".join(f"{b - a:.4g} s from t = {a:.10g} s" for a, b in gaps[:5]) + (" ..." if len(gaps) > 5 else "")
+    warnings.warn(GapWarning(
+        f"{source}: the {which} has {len(gaps)} gap(s) ({listed}; above {GAP_FACTOR:g} x its median step and "
+        f"{GAP_MIN_S:g} s): interpolating across them would invent data, so the {rows} {what} inside are left out of "
+        "the regression (S_V is still integrated through them)"), stacklevel=4)
+

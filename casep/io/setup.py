@@ -1,0 +1,139 @@
+"""Set-up evidence of an Earth-fixed telemetry + tracking pair, measured when the files are read.
+
+The launch site, azimuth, launch time and time scales the user states tie the tracking to the
+platform frame, and a mistake in them leaves a fit that looks fine (a 4000 km site error: sigma
+0.1 m/s). Two numbers betray it, and only the reader has the raw tracking (ECEF position and
+Earth-relative velocity at the file's own time tags) to measure them:
+
+- the telemetry velocity at its first sample against the **pad velocity** of the stated site and
+  azimuth. On the pad the platform moves with the Earth: ``v_pad = C^T Rz(theta) (w x r_s)``
+  (409 m/s due east in Florida). While the tracking shows the vehicle (nearly) at rest relative to
+  the Earth, ``|v_tel(t0) - v_pad|`` must equal that Earth-relative speed: a 0.1 deg azimuth error
+  turns v_pad by 0.1 deg (0.71 m/s in Florida), a 10 deg one by 71 m/s;
+- the **first tracked position** against the site: the vehicle cannot be further from the pad
+  than its speed times the time since launch (a boost speeds up monotonically).
+
+:func:`casep.io.files.read_flight_pair` records :func:`setup_evidence` in ``flight.meta["setup"]``;
+the checks of a flight before estimation (:func:`casep.analysis.checks.warn_setup`) warn with it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = ["setup_evidence", "PAD_VELOCITY_TOL", "PAD_REST_SPEED", "PAD_FIT_WINDOW", "POSITION_TOL", "LAUNCH_GAP_TOL"]
+
+#: ``| |v_tel(t0) - v_pad| - s_trk |`` above this (m/s), or 5 std of the tracking's Earth-relative speed
+#: ``s_trk`` if larger: the stated site, azimuth or launch time does not match the telemetry. An INS
+#: aligned on the pad starts within mm/s of v_pad; 0.2 m/s is a 0.03 deg azimuth error in Florida.
+PAD_VELOCITY_TOL = 0.2
+#: Tracking Earth-relative speed below which the vehicle is taken to be on (or just leaving) the pad, m/s.
+PAD_REST_SPEED = 30.0
+#: Seconds of tracking after the first telemetry sample used to estimate its Earth-relative velocity there.
+PAD_FIT_WINDOW = 2.0
+#: First tracked position farther from the site than (time since launch x speed) + this, m: wrong site.
+POSITION_TOL = 2000.0
+#: First telemetry sample this far (s) from the stated launch time: the time scales or the launch time are off.
+LAUNCH_GAP_TOL = 60.0
+
+
+def _velocity_at(t: np.ndarray, v: np.ndarray, t0: float) -> tuple[np.ndarray, float] | None:
+    """Earth-relative tracking velocity at `t0` from a straight-line fit over :data:`PAD_FIT_WINDOW` s of
+    samples from `t0` on, and the std of one component; None when the tracking does not cover `t0`."""
+    period = float(np.median(np.diff(t))) if t.size > 1 else np.inf
+    if not (t[0] <= t0 + period and t[-1] >= t0):
+        return None
+    use = (t >= t0 - period) & (t <= t0 + max(PAD_FIT_WINDOW, 4 * period))
+    if use.sum() < 4:
+        return None
+    A = np.column_stack([np.ones(use.sum()), t[use] - t0])  # v ~ c0 + c1 (t - t0): c0 = v(t0)
+    coef, *_ = np.linalg.lstsq(A, v[use], rcond=None)
+    r = v[use] - A @ coef
+    s2 = float(np.sum(r**2) / max(3 * (use.sum() - 2), 1))
+    return coef[0], float(np.sqrt(s2 * np.linalg.inv(A.T @ A)[0, 0]))
+
+
+def setup_evidence(site: Any, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, r_ecef: np.ndarray,
+                   v_ecef: np.ndarray, *, time_shift: float = 0.0) -> dict:
+    """The numbers of the set-up checks of an Earth-fixed telemetry + tracking pair (module notes).
+
+    Parameters
+    ----------
+    site : casep.frames.LaunchSite
+        As stated by the user (launch time in the tracking time scale).
+    t_tel, v_tel : (N,), (N, 3) arrays
+        Telemetry times (telemetry time scale) and launch-inertial velocity, s and m/s.
+    t_trk, r_ecef, v_ecef : (M,), (M, 3), (M, 3) arrays
+        Tracking times (tracking time scale), ECEF position and Earth-relative velocity, s, m, m/s.
+    time_shift : float
+        Tracking time minus telemetry time, s.
+
+    Returns
+    -------
+    dict
+        ``spans`` (telemetry and tracking, both time scales), ``pad`` (pad velocity, the telemetry's,
+        their difference, the tracking's Earth-relative speed at the first telemetry sample and its
+        std, the rotation about the vertical and the speed ratio between v_tel and v_pad),
+        ``first_tracked`` (time since launch, distance from the site, reach), and ``problems``: the
+        messages of the checks that fail (empty when all pass).
+    """
+    from casep.frames import ecef_to_launch
+
+    t_tel, v_tel, t_trk = (np.asarray(a, dtype=float) for a in (t_tel, v_tel, t_trk))
+    r_ecef, v_ecef = np.asarray(r_ecef, dtype=float), np.asarray(v_ecef, dtype=float)
+    t_start = float(t_tel[0] + time_shift)  # the first telemetry sample in the tracking time scale
+    v_pad = ecef_to_launch(site, [t_start], [site.r_site], [[0.0, 0.0, 0.0]])[1][0]
+    e = v_tel[0] - v_pad
+    fit = _velocity_at(t_trk, v_ecef, t_start)
+    s_trk, s_std = (float(np.linalg.norm(fit[0])), fit[1]) if fit is not None else (None, None)
+    # horizontal (x, z) parts in launch axes: the turn of v_tel(t0) from v_pad about the vertical y
+    h_tel, h_pad = v_tel[0][[0, 2]], v_pad[[0, 2]]
+    turn = float(np.degrees(np.arctan2(h_pad[0] * h_tel[1] - h_pad[1] * h_tel[0], h_pad @ h_tel)))
+    pad = {"t_s": t_start, "pad_velocity_m_s": v_pad.tolist(), "telemetry_velocity_m_s": v_tel[0].tolist(),
+           "speed_relative_m_s": float(np.linalg.norm(e)), "tracking_speed_m_s": s_trk, "tracking_speed_std_m_s": s_std,
+           "turn_about_vertical_deg": turn,
+           "speed_ratio": float(np.linalg.norm(v_tel[0]) / np.linalg.norm(v_pad)) if np.any(v_pad) else None}
+    since = float(t_trk[0] - site.t0)
+    dist = float(np.linalg.norm(r_ecef[0] - site.r_site))
+    reach = max(since, 0.0) * float(np.linalg.norm(v_ecef[0]))  # a boost speeds up: mean speed <= current
+    first = {"t_s": float(t_trk[0]), "since_launch_s": since, "distance_from_site_m": dist, "reach_m": reach,
+             "tolerance_m": POSITION_TOL}
+    spans = {"telemetry_s": [float(t_tel[0]), float(t_tel[-1])], "tracking_s": [float(t_trk[0]), float(t_trk[-1])],
+             "time_shift_s": float(time_shift), "launch_time_s": float(site.t0),
+             "telemetry_start_after_launch_s": t_start - site.t0}
+    where = (f"site ({site.lat_deg:.8g} deg, {site.lon_deg:.8g} deg, {site.h_m:.6g} m), azimuth {site.azimuth_deg:.8g} "
+             f"deg, launch time {site.t0:.10g} s")
+    problems = []
+    if dist > reach + POSITION_TOL:
+        problems.append(f"the first tracked position (t = {t_trk[0]:.10g} s, {since:.4g} s after the launch time) is "
+                        f"{dist / 1e3:.6g} km from the stated launch site, where the vehicle could be at most "
+                        f"{reach / 1e3:.4g} km away (its speed then times the time since launch) + "
+                        f"{POSITION_TOL / 1e3:g} km: the stated {where} is wrong")
+    if s_trk is not None and s_std is not None and s_trk < PAD_REST_SPEED:
+        tol = max(PAD_VELOCITY_TOL, 5.0 * s_std)
+        gap = abs(float(np.linalg.norm(e)) - s_trk)
+        pad["tolerance_m_s"] = tol
+        if gap > tol:
+            hint = ""
+            if s_trk < 1.0:
+                hint = (f"; v_tel is v_pad turned by {turn:.4g} deg about the vertical"
+                        + (f" (azimuth {site.azimuth_deg - turn:.6g} deg, not {site.azimuth_deg:.6g}?)"
+                           if abs(turn) > 1e-3 else "")
+                        + f", speed ratio {pad['speed_ratio']:.6g}"
+                        + (" (a latitude or height error?)" if abs(pad["speed_ratio"] - 1) > 1e-3
+                           else ""))
+            problems.append(f"at the first telemetry sample (t = {t_tel[0]:.10g} s) the telemetry velocity differs by "
+                            f"{np.linalg.norm(e):.4g} m/s from the pad velocity ({np.linalg.norm(v_pad):.6g} m/s) "
+                            "of the "
+                            f"stated {where}, while the tracking shows the vehicle at {s_trk:.3g} +- {s_std:.2g} m/s "
+                            f"relative to the Earth: the two differ by {gap:.4g} m/s (> {tol:.3g} m/s){hint}. The "
+                            "launch site, azimuth or launch time does not match the telemetry's frame")
+    if abs(t_start - site.t0) > LAUNCH_GAP_TOL:
+        problems.append(f"the telemetry starts {t_start - site.t0:.6g} s after the stated launch time "
+                        f"{site.t0:.10g} s (tracking time scale; time_shift {time_shift:g} s): more than "
+                        f"{LAUNCH_GAP_TOL:g} s. State the "
+                        "launch time in the tracking file's time scale and how the time scales relate (time_shift)")
+    return {"spans": spans, "pad": pad, "first_tracked": first, "problems": problems}
+

@@ -1,0 +1,127 @@
+"""Where the tasks run: in this process, or on Dask; and how signals end a campaign.
+
+An engine has one method, ``run(ctx, jobs)``: it takes ``(key, (linear, other, runs))`` jobs
+(:func:`casep.montecarlo.tasks.run_task`'s arguments) and yields ``(key, result)`` as tasks
+finish, in any order.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import signal
+import sys
+import threading
+from collections.abc import Iterable, Iterator
+from contextlib import ExitStack, contextmanager
+from typing import Any
+
+from casep.montecarlo.tasks import Context, run_task
+
+__all__ = ["DaskEngine", "InProcess", "Terminated", "sigterm_raises"]
+
+Job = tuple[Any, tuple[Any, ...]]
+
+
+class InProcess:
+    """Tasks run here, in order (``workers=1``)."""
+
+    def run(self, ctx: Context, jobs: Iterable[Job]) -> Iterator[tuple[Any, dict[str, Any]]]:
+        for key, args in jobs:
+            yield key, run_task(ctx, *args)
+
+
+class Terminated(BaseException):
+    """SIGTERM received (see :func:`sigterm_raises`); like KeyboardInterrupt, not an Exception."""
+
+
+@contextmanager
+def sigterm_raises() -> Iterator[None]:
+    """Within: SIGTERM raises :class:`Terminated` in the main thread (elsewhere a no-op).
+
+    So that ``casep montecarlo`` ends its workers and exits 143 with one line instead of
+    dying with them orphaned.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise Terminated
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+@contextmanager
+def _deferred_signals() -> Iterator[None]:
+    """Within: SIGINT and SIGTERM are held, then re-raised to the handlers of before (main thread)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    old = {s: signal.signal(s, lambda signum, frame: got.append(signum)) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        if got:
+            signal.raise_signal(got[0])
+
+
+class DaskEngine:
+    """Tasks on a Dask cluster: a LocalCluster of `workers` single-threaded processes, or `scheduler`.
+
+    The local workers ignore SIGINT (:mod:`casep.montecarlo.dask_worker`: Ctrl-C reaches the
+    whole process group; this process handles it and closes the cluster) and have one BLAS
+    thread (Dask's pre-spawn environment sets OMP/MKL/OPENBLAS_NUM_THREADS=1; each task also
+    limits it by threadpoolctl, which covers remote workers). They end with this process, even
+    on SIGKILL (Dask's nanny pipe). The cluster and client close with `stack`.
+    """
+
+    def __init__(self, stack: ExitStack, workers: int, scheduler: str | None) -> None:
+        import logging
+
+        import dask
+        from distributed import Client, LocalCluster
+
+        # An interrupted cluster's closing can leave asyncio tasks failed on closed comms; asyncio
+        # logs them ("Task exception was never retrieved") on stderr: not ours to show.
+        aio = logging.getLogger("asyncio")
+        stack.callback(aio.setLevel, aio.level)
+        aio.setLevel(logging.CRITICAL)
+        if scheduler:
+            try:
+                self.client = stack.enter_context(Client(scheduler, timeout="20s"))
+            except OSError as exc:  # unreachable: say which option
+                raise ValueError(f"--scheduler {scheduler}: no Dask scheduler answers there ({exc})") from None
+        else:
+            # dashboard_address ":0": the scheduler's HTTP server (no dashboard without bokeh) on a
+            # free port; None still binds 8787 and warns when another cluster holds it
+            # Forked workers inherit casep, NumPy, SciPy and numba's compiled kernels already loaded
+            # here; spawned ones import and compile them again (measured: ~3 s of CPU per worker).
+            # Python >= 3.12 deprecates fork in a threaded process: spawn there.
+            fork = "fork" in multiprocessing.get_all_start_methods() and sys.version_info < (3, 12)
+            with _deferred_signals(), dask.config.set(
+                    {"distributed.worker.multiprocessing-method": "fork" if fork else "spawn"}):
+                cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=":0", silence_logs=logging.CRITICAL,
+                                       preload=["casep.montecarlo.dask_worker"])
+                stack.enter_context(cluster)
+                self.client = stack.enter_context(Client(cluster))
+        self.ctx_future: Any = None
+
+    def run(self, ctx: Context, jobs: Iterable[Job]) -> Iterator[tuple[Any, dict[str, Any]]]:
+        from distributed import as_completed
+
+        if self.ctx_future is None:  # the campaign's data go to every worker once
+            self.ctx_future = self.client.scatter(ctx, broadcast=True, hash=False)
+        futures = {self.client.submit(run_task, self.ctx_future, *args, pure=False): key for key, args in jobs}
+        try:
+            for fut in as_completed(futures):
+                yield futures[fut], fut.result()
+        finally:
+            self.client.cancel(list(futures))

@@ -1,0 +1,133 @@
+"""The result of a Monte Carlo campaign: per-method, per-coefficient statistics.
+
+Statistics per method and coefficient (natural units): ``bias`` = mean error, ``rms``,
+``crlb_std`` (white: sigma^2 (S^T S)^-1; Gauss-Markov scenarios: the GLS bound; dispersed:
+the RMS over the runs of each run's bound), ``efficiency`` = crlb_std / rms, ``coverage95`` =
+share of runs with ``|error| <= 1.96 std`` among the runs that report a std for that
+coefficient (bounded least squares reports none on a bound; null when the method gives none).
+With a truth prior each run's error is against its own drawn truth and ``true`` is the prior
+mean.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from casep.io._atomic import atomic_open
+
+__all__ = ["MonteCarloResult", "write_figure"]
+
+
+@dataclass(frozen=True)
+class MonteCarloResult:
+    """Per-method, per-coefficient Monte Carlo statistics (see the module notes).
+
+    Follows the result protocol of :mod:`casep.results`: :meth:`to_dict` (the Monte Carlo
+    JSON) and :meth:`text` (what ``casep montecarlo`` prints).
+    """
+
+    scenario: str
+    runs: int
+    seed: int
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    truth: np.ndarray
+    crlb_std: np.ndarray
+    estimates: dict[str, np.ndarray]  # method -> (runs, n)
+    stds: dict[str, np.ndarray | None]
+    seconds: dict[str, float] = field(default_factory=dict)
+    truths: np.ndarray | None = None  # (runs, n) when each run drew its own (truth from a prior)
+    dispersions: tuple[str, ...] = ()  # the dispersed vehicle/launch parameters (crlb_std: RMS over the runs)
+    rate: float | None = None  # sample rate of the simulated flights, Hz
+    resumed: int = 0  # tasks read back from --out (a resumed campaign) ...
+    tasks: int = 0  # ... of this many
+    draws: dict[str, np.ndarray] = field(default_factory=dict)  # dispersion parameter -> (runs,) drawn values
+
+    def stats(self, method: str) -> dict[str, np.ndarray]:
+        """bias, rms, efficiency, coverage95 arrays of one method (NaN where undefined)."""
+        E = self.estimates[method] - (self.truth if self.truths is None else self.truths)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            bias = np.mean(E, axis=0)
+            rms = np.sqrt(np.mean(E**2, axis=0))
+            eff = self.crlb_std / rms
+            sd = self.stds.get(method)
+            if sd is None:
+                cov = np.full(E.shape[1], np.nan)
+            else:  # over the runs that report an interval (bounded: not on a bound)
+                has = np.isfinite(sd) & np.isfinite(E)
+                hit = (np.abs(E) <= 1.96 * np.where(has, sd, 0.0)) & has
+                cov = np.where(has.any(axis=0), hit.sum(axis=0) / np.maximum(has.sum(axis=0), 1), np.nan)
+        return {"bias": bias, "rms": rms, "efficiency": eff, "coverage95": cov}
+
+    def to_dict(self) -> dict[str, Any]:
+        """The Monte Carlo JSON of ``docs/reference/file-formats.md``."""
+        def f(v: float) -> float | None:
+            return float(v) if np.isfinite(v) else None
+
+        methods: dict[str, Any] = {}
+        for meth in self.estimates:
+            st = self.stats(meth)
+            methods[meth] = {"seconds": self.seconds.get(meth), "coefficients": [
+                {"name": n, "unit": u, "true": float(tr), "bias": f(st["bias"][j]), "rms": f(st["rms"][j]),
+                 "crlb_std": f(self.crlb_std[j]), "efficiency": f(st["efficiency"][j]),
+                 "coverage95": f(st["coverage95"][j])}
+                for j, (n, u, tr) in enumerate(zip(self.names, self.units, self.truth))]}
+        out: dict[str, Any] = {"scenario": self.scenario, "runs": self.runs, "seed": self.seed}
+        if self.rate is not None:
+            out["rate_hz"] = float(self.rate)
+        if self.truths is not None:
+            out["truth_from_prior"] = True  # "true": the prior mean; errors against each run's own draw
+        if self.dispersions:
+            out["dispersions"] = list(self.dispersions)
+        out["methods"] = methods
+        return out
+
+    def write_json(self, path: str | os.PathLike) -> None:
+        """Write :meth:`to_dict` as JSON, atomically."""
+        with atomic_open(path) as fh:
+            fh.write(json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n")
+
+    def write_csv(self, path: str | os.PathLike) -> None:
+        """One row per method and coefficient (the columns of the JSON's coefficients), atomically."""
+        with atomic_open(path) as fh:
+            w = csv.writer(fh, lineterminator="\n")
+            w.writerow(["method", "name", "unit", "true", "bias", "rms", "crlb_std", "efficiency", "coverage95"])
+            for meth, d in self.to_dict()["methods"].items():
+                for row in d["coefficients"]:
+                    w.writerow([meth] + ["" if row[k] is None else row[k] for k in
+                                         ("name", "unit", "true", "bias", "rms", "crlb_std", "efficiency",
+                                          "coverage95")])
+
+    def text(self) -> str:
+        """What ``casep montecarlo`` prints of the result: a line naming the campaign, then :meth:`summary`."""
+        head = f"scenario {self.scenario}, {self.runs} runs, seed {self.seed}"
+        return head + "\n" + self.summary()
+
+    def summary(self) -> str:
+        """The table of :meth:`text`: one line per method, median efficiency and coverage over the coefficients."""
+        lines = [f"{'method':<18} {'median RMS/CRLB':>15} {'median efficiency':>17} {'median coverage95':>17}"
+                 f" {'seconds':>8}"]
+        for meth in self.estimates:
+            st = self.stats(meth)
+            ratio = 1.0 / st["efficiency"]
+            cov = st["coverage95"]
+            cov_s = f"{np.nanmedian(cov):.3f}" if np.any(np.isfinite(cov)) else "-"
+            lines.append(f"{meth:<18} {np.nanmedian(ratio):>15.3f} {np.nanmedian(st['efficiency']):>17.3f} "
+                         f"{cov_s:>17} {self.seconds.get(meth, float('nan')):>8.2f}")
+        return "\n".join(lines)
+
+
+def write_figure(res: MonteCarloResult, path: str | os.PathLike) -> Path:
+    """RMS error / CRLB std per coefficient and method (log scale; 1 = efficient), as `path`."""
+    from casep.reporting.montecarlo_plots import plot_efficiency
+
+    ratios = {m: 1.0 / res.stats(m)["efficiency"] for m in res.estimates}
+    return plot_efficiency(res.names, ratios, path,
+                           title=f"Monte Carlo, scenario {res.scenario}, {res.runs} runs (1 = efficient)")
