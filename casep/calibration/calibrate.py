@@ -26,6 +26,7 @@ from casep.calibration.checks import (
     check_gravity,
     check_positions,
     check_rotation_signs,
+    segment_misfits,
     warn_misfit,
 )
 from casep.calibration.model import (
@@ -38,8 +39,8 @@ from casep.calibration.result import Calibration
 from casep.calibration.rows import (
     ls_sigma,
     readings_for,
-    rotation_row,
     sample_noise,
+    sensor_rows,
     solve_tilt,
     tilted_rows,
     unit_text,
@@ -158,41 +159,11 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         cols = model.columns(slot)
         names = [model.names[j] for j in cols]
         s_i = sample_noise(static, u)  # sample noise per axis
-        rows_S, rows_y, rows_seg, rows_t = [], [], [], []
-        rows_sd: list[np.ndarray | None] = []  # None: the static level, estimated
-        for s in static:
-            f = gravity * s.gravity
-            w = np.deg2rad(s.omega_dps)
-            J = model.jacobian(slot, f, w)[:, cols]
-            y0 = model.known(slot, f, w)
-            if weighting in ("positions", "segments"):
-                rows_S.append(J)
-                rows_y.append(u[s.rows].mean(axis=0) - y0)
-                rows_sd.append(None)  # the static level, estimated
-                rows_seg.append((s.name, 1))
-                rows_t.append(session.t[s.rows].mean())
-            else:
-                k = len(s.rows)
-                rows_S.append(np.broadcast_to(J, (k, 3, len(cols))).reshape(-1, len(cols)))
-                rows_y.append((u[s.rows] - y0).reshape(-1))
-                rows_sd.append(np.tile(s_i, k))
-                rows_seg.append((s.name, k))
-                rows_t.extend(session.t[s.rows])
-        n_static = len(rows_S)
-        if slot == "gyro_reading":
-            for s in rots:
-                y, J, T, dt = rotation_row(model, slot, s, u, gravity, rate, session.t)
-                rows_S.append(J[:, cols])
-                rows_y.append(y)
-                rows_sd.append(s_i * math.sqrt(float(dt @ dt)))  # white noise integrated: s sqrt(sum dt^2)
-                rows_seg.append((s.name, 1))
-                rows_t.append(session.t[s.rows].mean())
-        S = np.vstack([np.atleast_2d(x).reshape(-1, len(cols)) for x in rows_S])
-        y = np.concatenate([np.ravel(x) for x in rows_y])
+        S, y, rows_sd, rows_seg, rows_t, n_static = sensor_rows(model, slot, cols, static, rots, u, session.t,
+                                                                gravity, rate, weighting, s_i)
         # Row std: the static level (segments: sigma_s of the static rows alone) and the rotation rows'.
         if weighting in ("positions", "segments"):
-            Sst = np.vstack(rows_S[:n_static]).reshape(-1, len(cols))
-            yst = np.concatenate(rows_y[:n_static])
+            Sst, yst = S[:3 * n_static], y[:3 * n_static]  # three rows per static segment
             pst = Problem.from_arrays(Sst, yst)
             dof = pst.m - pst.rank().rank
             noise_mean = float(np.sqrt(np.mean(s_i**2) / np.mean([len(s.rows) for s in static])))
@@ -210,7 +181,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
             D0 = np.zeros(model.n_coefficients)
             D0[cols] = x0
             Jf = [model.reading_df(slot, gravity * s.gravity, np.deg2rad(s.omega_dps), D0) for s in static]
-            ybar = np.concatenate(rows_y[:n_static])
+            ybar = y[:3 * n_static]
             # the turns' white-noise std, floored (like the means) at 1e-12 of the row: a noise-free session
             y_rot = y[3 * n_static:]
             sd_rot = np.concatenate([np.asarray(v) for v in rows_sd[n_static:]]) if len(rows_sd) > n_static \
@@ -261,22 +232,9 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         reasons.update(res.reasons)
         # misfit per segment: residual of the segment's row (unweighted), and its noise std
         x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
-        r = y - S @ x
-        k0 = 0
-        for (name, k), sdv in zip(rows_seg, rows_sd):
-            rr = r[k0:k0 + 3 * k].reshape(k, 3)
-            k0 += 3 * k
-            seg = next(s for s in segments if s.name == name)
-            if seg.kind == "static":
-                noise = s_i / math.sqrt(len(seg.rows))
-                resid = rr.mean(axis=0)
-            else:
-                noise = np.asarray(sdv)
-                resid = rr[0]
-            ratio = float(np.sqrt(np.mean(resid**2)) / max(float(np.sqrt(np.mean(noise**2))), 1e-300))
-            seg_info[name]["misfit"][sensor] = {"residual": resid.tolist(), "noise_std": noise.tolist(),
-                                                "ratio": ratio, "unit": acc_unit if sensor == "accelerometer"
-                                                else (gyr_unit if seg.kind == "static" else f"{gyr_unit} s")}
+        unit = acc_unit if sensor == "accelerometer" else gyr_unit
+        for name, misfit in segment_misfits(segments, rows_seg, rows_sd, y - S @ x, s_i, unit).items():
+            seg_info[name]["misfit"][sensor] = misfit
         if weighting in ("positions", "segments") and n_static and dof > 0:
             # the positions judged on the least-squares fit of the rows (whatever the method): static rows alone
             # (equal weight), or all rows whitened by the position and noise model

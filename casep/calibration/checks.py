@@ -20,7 +20,8 @@ from casep.calibration.session import ACC_UNITS, RAW_UNIT, Segment, Session
 from casep.exceptions import CasepWarning
 
 __all__ = ["RotationSignWarning", "PositionMisfitWarning", "TimeGapWarning", "GRAVITY_TOLERANCE", "MISFIT_Z",
-           "check_gravity", "check_gaps", "check_positions", "warn_misfit", "check_rotation_signs"]
+           "check_gravity", "check_gaps", "check_positions", "warn_misfit", "check_rotation_signs",
+           "segment_misfits"]
 
 #: A static segment's |mean specific force| may differ from gravity by this fraction (physical units).
 GRAVITY_TOLERANCE = 0.10
@@ -145,3 +146,30 @@ def check_rotation_signs(model, rots, gyr, gravity, rate, est, unit) -> None:
                 f"{sens:.5g} {unit} per deg/s. The turn went the other way (--angle {-s.angle_deg:+g}) or the gyro "
                 "axis is inverted", RotationSignWarning, stacklevel=3)
 
+
+def segment_misfits(segments: Sequence[Segment], seg: Sequence[tuple[str, int]], sd: Sequence,
+                    r: np.ndarray, s_i: np.ndarray, unit: str) -> dict[str, dict]:
+    """Per segment the residual of its row, the noise std of that row and their RMS ratio.
+
+    `seg`, `sd`: per block of rows the segment name with its number of row triples and the rows'
+    noise std (as :func:`casep.calibration.rows.sensor_rows` gives them); `r`: the residuals of the
+    unweighted rows; `s_i`: the sample noise per axis; `unit`: the sensor's reading unit. A static
+    segment's residual is the mean of its rows, its noise ``s_i / sqrt(n)``; a turn's, its one row
+    (unit times s, an integral) and its integrated white noise.
+    """
+    out: dict[str, dict] = {}
+    k0 = 0
+    for (name, k), sdv in zip(seg, sd):
+        rr = r[k0:k0 + 3 * k].reshape(k, 3)
+        k0 += 3 * k
+        segment = next(s for s in segments if s.name == name)
+        if segment.kind == "static":
+            noise = s_i / math.sqrt(len(segment.rows))
+            resid = rr.mean(axis=0)
+        else:
+            noise = np.asarray(sdv)
+            resid = rr[0]
+        ratio = float(np.sqrt(np.mean(resid**2)) / max(float(np.sqrt(np.mean(noise**2))), 1e-300))
+        out[name] = {"residual": resid.tolist(), "noise_std": noise.tolist(), "ratio": ratio,
+                     "unit": unit if segment.kind == "static" else f"{unit} s"}  # a turn's row: an integral
+    return out

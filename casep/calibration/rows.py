@@ -42,7 +42,7 @@ from casep.calibration.model import CalibrationModel
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Segment, Session
 
 __all__ = ["readings_for", "sample_noise", "sample_steps", "rotation_row", "unit_text", "static_rows", "ls_sigma",
-           "position_whitening", "tilted_rows", "solve_tilt"]
+           "position_whitening", "tilted_rows", "solve_tilt", "sensor_rows"]
 
 
 def readings_for(session: Session, model: CalibrationModel) -> tuple[np.ndarray, np.ndarray, str, str]:
@@ -184,3 +184,57 @@ def solve_tilt(whiten, m: int, n: int) -> float:
         return 0.5
     return math.exp(brentq(excess, lo, hi, xtol=1e-10))
 
+
+def sensor_rows(model: CalibrationModel, slot: str, cols: np.ndarray, static: Sequence[Segment],
+                rots: Sequence[Segment], u: np.ndarray, t: np.ndarray, gravity: float, rate: float, weighting: str,
+                s_i: np.ndarray) -> tuple[np.ndarray, np.ndarray, list, list[tuple[str, int]], list, int]:
+    """The unweighted rows of one sensor (readings `u`, output `slot`, coefficient columns `cols`).
+
+    Static segments first (``weighting`` "positions" or "segments": the mean, three rows; "samples":
+    three rows per sample), then, for the gyro, one integral per turn (:func:`rotation_row`).
+
+    Returns
+    -------
+    S, y : ndarray
+        Rows ``(m, len(cols))`` and their right-hand side, reading units.
+    sd : list
+        Per block the rows' noise std (``None``: the static level, estimated by the caller).
+    seg : list of (str, int)
+        Per block the segment name and its number of row triples.
+    times : list of float
+        Time of each row triple, s.
+    n_static : int
+        Number of static blocks.
+    """
+    rows_S, rows_y, rows_seg, rows_t = [], [], [], []
+    rows_sd: list[np.ndarray | None] = []  # None: the static level, estimated
+    for s in static:
+        f = gravity * s.gravity
+        w = np.deg2rad(s.omega_dps)
+        J = model.jacobian(slot, f, w)[:, cols]
+        y0 = model.known(slot, f, w)
+        if weighting in ("positions", "segments"):
+            rows_S.append(J)
+            rows_y.append(u[s.rows].mean(axis=0) - y0)
+            rows_sd.append(None)  # the static level, estimated
+            rows_seg.append((s.name, 1))
+            rows_t.append(t[s.rows].mean())
+        else:
+            k = len(s.rows)
+            rows_S.append(np.broadcast_to(J, (k, 3, len(cols))).reshape(-1, len(cols)))
+            rows_y.append((u[s.rows] - y0).reshape(-1))
+            rows_sd.append(np.tile(s_i, k))
+            rows_seg.append((s.name, k))
+            rows_t.extend(t[s.rows])
+    n_static = len(rows_S)
+    if slot == "gyro_reading":
+        for s in rots:
+            y_k, J, _, dt = rotation_row(model, slot, s, u, gravity, rate, t)
+            rows_S.append(J[:, cols])
+            rows_y.append(y_k)
+            rows_sd.append(s_i * math.sqrt(float(dt @ dt)))  # white noise integrated: s sqrt(sum dt^2)
+            rows_seg.append((s.name, 1))
+            rows_t.append(t[s.rows].mean())
+    S = np.vstack([np.atleast_2d(x).reshape(-1, len(cols)) for x in rows_S])
+    y = np.concatenate([np.ravel(x) for x in rows_y])
+    return S, y, rows_sd, rows_seg, rows_t, n_static
