@@ -2,7 +2,10 @@
 
 - :mod:`casep.calibration.model`: :class:`CalibrationModel` (declare -> ``setup()`` -> locked)
 - :mod:`casep.calibration.session`: session files, segments (JSON list or label column), checks
-- :mod:`casep.calibration.calibrate`: the regression of a test and :func:`casep.calibrate`
+- :mod:`casep.calibration.calibrate`: the regression of a test, :func:`casep.calibrate`
+- :mod:`casep.calibration.rows`: its rows (segment means, turn integrals) and their weighting
+- :mod:`casep.calibration.checks`: the checks of a session against its pattern, the warnings
+- :mod:`casep.calibration.result`: :class:`Calibration`, the result
 - :mod:`casep.calibration.imucal`: imucal's calibration JSON, export and import (as a prior)
 - :mod:`casep.calibration.consistency`: ground versus flight, per coefficient and overall
 
@@ -16,12 +19,12 @@ Layer 5 (as :mod:`casep.workflows`): uses the model, io, analysis and estimators
 from casep._lazy import attach
 
 __getattr__, __dir__ = attach(__name__, {
-    "casep.calibration.model": ("CalibrationModel",),
+    "casep.calibration.model": ("CalibrationModel", "load_calibration_model", "calibration_models"),
     "casep.calibration.session": ("Session", "Segment", "SegmentError", "read_session", "read_segments",
                                   "segments_from_labels", "FERRARIS_SEGMENTS"),
-    "casep.calibration.calibrate": ("Calibration", "calibrate_files", "load_calibration_model",
-                                    "calibration_models",
-                                    "RotationSignWarning", "PositionMisfitWarning", "TimeGapWarning"),
+    "casep.calibration.result": ("Calibration",),
+    "casep.calibration.calibrate": ("calibrate_files",),
+    "casep.calibration.checks": ("RotationSignWarning", "PositionMisfitWarning", "TimeGapWarning"),
     "casep.calibration.imucal": ("to_imucal", "from_imucal", "read_imucal", "write_imucal", "imucal_prior"),
     "casep.calibration.consistency": ("Consistency", "ground_prior", "flight_prior_consistency",
                                       "ground_versus_flight", "ground_flight_checks"),

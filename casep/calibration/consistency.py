@@ -283,7 +283,7 @@ def ground_flight_checks(results: Sequence, labels: Sequence[str]) -> tuple[list
     """
     import dataclasses
 
-    from casep.calibration.calibrate import calibration_models, load_calibration_model
+    from casep.calibration.model import calibration_models, load_calibration_model
     from casep.estimators.result import EstimateResult
 
     known = set(calibration_models())

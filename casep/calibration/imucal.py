@@ -13,7 +13,6 @@ result JSON; the comment says so.
 
 from __future__ import annotations
 
-import json
 import os
 from typing import Any, Mapping
 
@@ -81,14 +80,10 @@ def read_imucal(source: str | os.PathLike | Mapping) -> dict:
     if isinstance(source, Mapping):
         d, where = dict(source), "imucal calibration"
     else:
+        from casep.io.result_json import load_json
+
         where = f"imucal calibration {source}"
-        try:
-            with open(source, encoding="utf-8") as fh:
-                d = json.load(fh)
-        except OSError as exc:
-            raise ValueError(f"{where}: cannot read ({exc.strerror})") from None
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{where}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+        d = load_json(source, "imucal calibration")
     if not isinstance(d, dict) or d.get("cal_type") not in ("Ferraris", "Turntable"):
         raise ValueError(f"{where}: not an imucal Ferraris/Turntable calibration (cal_type {d.get('cal_type')!r})")
     out: dict[str, Any] = {}

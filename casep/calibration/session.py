@@ -25,7 +25,6 @@ session that uses them must have all nine.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass, field
@@ -51,10 +50,6 @@ GYR_COLUMNS = ("gyr_x", "gyr_y", "gyr_z")
 #: imucal's segment names (FerrarisCalibration.FERRARIS_SECTIONS).
 FERRARIS_SEGMENTS = ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a", "x_rot", "y_rot", "z_rot")
 _INDEX_COLUMNS = ("samples", "n_samples")
-
-
-class SegmentError(ValueError):
-    """A segment list or label column is inconsistent: the message names the segment (and rows)."""
 
 
 @dataclass(frozen=True)
@@ -90,6 +85,10 @@ class Segment:
     def where(self) -> str:
         """``segment `x_p` (rows 540-1270)`` for messages (file row positions)."""
         return f"segment `{self.name}` (rows {int(self.rows[0])}-{int(self.rows[-1])})"
+
+
+class SegmentError(ValueError):
+    """A segment list or label column is inconsistent: the message names the segment (and rows)."""
 
 
 @dataclass
@@ -305,13 +304,9 @@ def read_segments(path: str | os.PathLike, session: Session, *, angle_deg: float
 
     ``start``/``end`` are 0-based row positions of the session file, ``end`` excluded.
     """
-    try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
-    except OSError as exc:
-        raise ValueError(f"--segments {path}: cannot read ({exc.strerror})") from None
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"--segments {path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
+    from casep.io.result_json import load_json
+
+    data = load_json(path, "--segments")
     if isinstance(data, dict):
         items = [{"name": k, **v} if isinstance(v, dict) else {"name": k, "bad": v} for k, v in data.items()]
     elif isinstance(data, list):

@@ -33,17 +33,19 @@ out per natural unit of each coefficient.
 
 from __future__ import annotations
 
-import difflib
-import keyword
-import re
 from types import SimpleNamespace
 from typing import Sequence
 
 import casadi as ca
 import numpy as np
 
-from casep.units import G0
-from casep.units import si_factor as _unit_si_factor
+from casep.model.base import (
+    AXES,
+    ModelDefinitionError,
+    SpecificForceModel,
+    suggest_names,
+    unknown_coefficient_message,
+)
 
 __all__ = ["ErrorModel", "ModelDefinitionError", "OUTPUTS", "unknown_coefficient_message", "suggest_names"]
 
@@ -56,8 +58,6 @@ OUTPUTS: dict[str, tuple[str, str, bool]] = {
     "velocity_error": ("m/s", "set_velocity_error", True),
 }
 
-_AXES = "xyz"
-_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 # Deterministic specific-force probes (m/s^2) used to look for coefficient-free terms.
 _PROBES = np.array([[0.0, 0.0, 0.0], [13.1, -7.3, 21.7], [-4.9, 55.2, 3.3], [71.0, 2.2, -38.5]])
 _T_PROBES = np.array([0.0, 3.7, 41.3, 117.9])  # s, time since the first sample, at each probe
@@ -67,52 +67,7 @@ _NOT_SIGNALS = {"t": "model.t (time since the first sample, s)",
                 **{f"dv_{a}": "nothing: dv is the observation, not a regressor" for a in "xyz"}}
 
 
-class ModelDefinitionError(ValueError):
-    """An error model is declared inconsistently (raised by :meth:`ErrorModel.setup`)."""
-
-
-# Characters typed for one another in coefficient names: letter O / digit 0, letter l or I / digit 1.
-_CONFUSABLE = str.maketrans({"o": "0", "l": "1", "i": "1"})
-
-
-def _fold(name: str) -> str:
-    """Case- and look-alike-insensitive key of a name (``KaOy``, ``kaoy`` and ``Ka0y`` share one)."""
-    return name.lower().translate(_CONFUSABLE)
-
-
-def suggest_names(name: str, names: Sequence[str], n: int = 3) -> list[str]:
-    """Names of `names` the user probably meant by `name`, best first (maybe none).
-
-    Names equal to `name` up to case and the O/0, l/1, I/1 confusions come first; otherwise
-    :func:`difflib.get_close_matches` (ratio >= 0.6) on the folded names.
-    """
-    folded: dict[str, str] = {}
-    for nm in names:
-        folded.setdefault(_fold(nm), nm)
-    key = _fold(str(name))
-    if key in folded:
-        return [folded[key]]
-    return [folded[k] for k in difflib.get_close_matches(key, list(folded), n=n, cutoff=0.6)]
-
-
-def unknown_coefficient_message(name: str, names: Sequence[str], source: str) -> str:
-    """One-line error for a coefficient name that `names` lacks, with a "did you mean".
-
-    Parameters
-    ----------
-    name : str
-        The name as the user gave it.
-    names : sequence of str
-        The model's coefficient names.
-    source : str
-        Where the name was read, e.g. ``"--prior p.json"`` or ``"model `platform36`"``.
-    """
-    close = suggest_names(name, names)
-    hint = f" (did you mean {' or '.join(f'`{c}`' for c in close)}?)" if close else ""
-    return f"{source}: unknown coefficient `{name}`{hint}; the model has {', '.join(names)}"
-
-
-class ErrorModel:
+class ErrorModel(SpecificForceModel):
     """Instrumentation error model declared with CasADi symbols.
 
     Parameters
@@ -142,42 +97,23 @@ class ErrorModel:
     ('Ka0x', 'Ka1x')
     """
 
+    PUBLIC_NAME = "casep.ErrorModel"
+    SLOTS = tuple(OUTPUTS)
+    DECLARE_USE = "model.declare(Kg0x='deg/h', ...) or model.coefficient(name, unit)"
+    OUTPUTS_USE = "model.set_gyro_drift(phidot) and/or model.set_accel_error(delta)"
+
     def __init__(self, name: str, description: str = "") -> None:
-        if not isinstance(name, str) or not name.strip():
-            raise TypeError("`name` must be a non-empty str")
-        if not isinstance(description, str):
-            raise TypeError("`description` must be a str")
-        self.name = name
-        self.description = description
-        self._f = ca.SX.sym("f", 3)  # platform specific force, m/s^2
-        self._W = self._f / G0  # the same in g, as the error equations use it
+        super().__init__(name, description)
         self._t = ca.SX.sym("t")  # time since the flight's first sample, s
         self._signal_syms: dict[str, ca.SX] = {}  # flight column name -> symbol (file unit)
+        self._signals_used: tuple[str, ...] = ()
         self._per_flight: list[bool] = []
-        self._names: list[str] = []
-        self._units: list[str] = []
-        self._factors: list[float] = []
-        self._descriptions: list[str] = []
-        self._scales: dict[str, float | None] = {}
-        self._symbols: list[ca.SX] = []
-        self._outputs: dict[str, ca.SX | None] = dict.fromkeys(OUTPUTS)
-        self._locked = False
         self._functions: dict[str, ca.Function] = {}
         self._numeric: dict[str, np.ndarray] = {}
         self.source_file: str | None = None  # the model file, set by casep.model.loader
         self.source_doc: str = ""  # the model file's docstring, set by casep.model.loader
 
     # ------------------------------------------------------------------ declare
-    @property
-    def f(self) -> ca.SX:
-        """Specific force symbol, 3 x 1, m/s^2 (platform frame)."""
-        return self._f
-
-    @property
-    def W(self) -> ca.SX:
-        """Specific force in g (``f / G0``), 3 x 1 expression."""
-        return self._W
-
     @property
     def t(self) -> ca.SX:
         """Time since the flight's first sample, s (scalar symbol)."""
@@ -203,22 +139,14 @@ class ErrorModel:
         self, name: str, unit: str, *, si_factor: float | None = None, description: str = "",
         scale: float | None = None, per_flight: bool = False,
     ) -> ca.SX:
-        """Declare one error coefficient and return its SI-valued expression.
+        """Declare one error coefficient and return its SI-valued expression ``symbol * si_factor``.
+
+        `name`, `unit`, `si_factor`, `description` and `scale` as
+        :meth:`casep.model.base.SymbolicModel.coefficient`; `scale` is the yardstick of the "weak"
+        verdict of :func:`casep.analysis.diagnostics.diagnose` (CRLB std above it).
 
         Parameters
         ----------
-        name : str
-            Identifier, unique in the model (e.g. ``"Kg0x"``).
-        unit : str
-            Natural unit used in reports and files (e.g. ``"deg/h"``); see
-            :data:`casep.units.UNITS`.
-        si_factor : float, optional
-            SI value of one natural unit; required when `unit` is not a known unit.
-        description : str, optional
-            Free text for reports.
-        scale : float, optional
-            Typical magnitude in the natural unit (a spec-sheet value): the yardstick of the
-            "weak" verdict of :func:`casep.analysis.diagnostics.diagnose` (CRLB std above it).
         per_flight : bool, optional
             Each flight has its own value (a time offset, an initial velocity error) when
             several flights are estimated together (:attr:`per_flight`).
@@ -228,35 +156,14 @@ class ErrorModel:
         casadi.SX
             ``symbol * si_factor``: use it in the SI equations of the model.
         """
-        self._check_unlocked()
-        if not isinstance(name, str) or not _NAME_RE.match(name) or keyword.iskeyword(name):
-            raise ValueError(f"coefficient name {name!r} is not a valid identifier")
-        if name in self._names:
-            raise ValueError(f"coefficient `{name}` is declared twice in model `{self.name}`")
-        if not isinstance(unit, str):
-            raise TypeError(f"`unit` of `{name}` must be a str")
-        if si_factor is None:
-            factor = _unit_si_factor(unit)
-        else:
-            factor = float(si_factor)
-            if not np.isfinite(factor) or factor <= 0.0:
-                raise ValueError(f"`si_factor` of `{name}` must be finite and > 0, got {si_factor}")
-        if scale is not None and (isinstance(scale, bool) or not isinstance(scale, (int, float))
-                                  or not np.isfinite(scale) or scale <= 0):
-            raise ValueError(f"`scale` of `{name}` must be a finite number > 0, got {scale!r}")
         if not isinstance(per_flight, (bool, np.bool_)):
             raise TypeError(f"`per_flight` of `{name}` must be a bool, got {per_flight!r}")
-        sym = ca.SX.sym(name)  # valued in the natural unit
-        self._names.append(name)
-        self._units.append(unit)
-        self._factors.append(factor)
-        self._descriptions.append(description)
-        self._scales[name] = None if scale is None else float(scale)
-        self._symbols.append(sym)
+        expr = super().coefficient(name, unit, si_factor=si_factor, description=description, scale=scale)
         self._per_flight.append(bool(per_flight))
-        return sym * factor
+        return expr
 
-    def declare(self, per_flight: bool = False, **units: str | tuple[str, float]) -> SimpleNamespace:
+    # per_flight is this model's own option; the base's declare takes unit specifications only
+    def declare(self, per_flight: bool = False, **units: str | tuple[str, float]) -> SimpleNamespace:  # type: ignore[override]
         """Declare several coefficients at once, in the order given.
 
         Parameters
@@ -273,14 +180,7 @@ class ErrorModel:
         types.SimpleNamespace
             Attribute per coefficient holding its SI-valued expression.
         """
-        def one(name, spec):
-            if isinstance(spec, tuple):
-                if len(spec) != 2:
-                    raise ValueError(f"`{name}` must be \"unit\" or (\"unit\", scale), got {spec!r}")
-                return self.coefficient(name, spec[0], scale=spec[1], per_flight=per_flight)
-            return self.coefficient(name, spec, per_flight=per_flight)
-
-        return SimpleNamespace(**{n: one(n, u) for n, u in units.items()})
+        return self._declare(units, per_flight=per_flight)
 
     def set_gyro_drift(self, phidot: ca.SX | Sequence) -> None:
         """Set the platform drift rate phidot(f, D), rad/s, 3 x 1 (x, y, z)."""
@@ -313,28 +213,7 @@ class ErrorModel:
         ----------
         slot : {"gyro_drift", "accel_error", "initial_misalignment", "initial_velocity_error", "velocity_error"}
         """
-        if slot not in OUTPUTS:
-            raise ValueError(f"unknown output `{slot}`; use one of {', '.join(OUTPUTS)}")
-        expr = self._outputs[slot]
-        return ca.SX.zeros(3, 1) if expr is None else expr
-
-    def _set_output(self, slot: str, expr: ca.SX | Sequence) -> None:
-        self._check_unlocked()
-        if not isinstance(expr, (ca.SX, ca.DM)):
-            if isinstance(expr, (str, bytes)) or not isinstance(expr, Sequence):
-                raise TypeError(f"`{slot}` must be a 3 x 1 casadi.SX or a sequence of 3 expressions")
-            expr = ca.vertcat(*expr)
-        expr = ca.SX(expr)
-        if expr.shape != (3, 1):
-            raise ValueError(f"`{slot}` must be 3 x 1 (x, y, z), got {expr.shape[0]} x {expr.shape[1]}")
-        self._outputs[slot] = expr
-
-    def _check_unlocked(self) -> None:
-        if self._locked:
-            raise RuntimeError(
-                f"model `{self.name}` is locked after setup(). Use: declare every coefficient "
-                "and output before setup(), or build a new model"
-            )
+        return super().output(slot)
 
     # ------------------------------------------------------------------- setup
     def setup(self) -> "ErrorModel":
@@ -352,19 +231,9 @@ class ErrorModel:
             coefficients, a coefficient-free term, a foreign symbol, or an unused
             coefficient.
         """
-        if self._locked:
-            return self
-        if not self._names:
-            raise ModelDefinitionError(
-                f"model `{self.name}`: Missing: error coefficients. "
-                "Use: model.declare(Kg0x='deg/h', ...) or model.coefficient(name, unit)"
-            )
-        present = {k: v for k, v in self._outputs.items() if v is not None}
-        if not present:
-            raise ModelDefinitionError(
-                f"model `{self.name}`: Missing: error outputs. "
-                "Use: model.set_gyro_drift(phidot) and/or model.set_accel_error(delta)"
-            )
+        return super().setup()
+
+    def _build(self, present: dict[str, ca.SX]) -> None:
         D = ca.vertcat(*self._symbols)
         n = len(self._names)
         everything = ca.vertcat(*present.values())
@@ -373,17 +242,18 @@ class ErrorModel:
         self._signals_used = tuple(used)
         sig = ca.vertcat(*used.values()) if used else ca.SX(0, 1)
         jac: dict[str, ca.SX] = {}
+        inputs = [self._f[i] for i in range(3)] + [self._t] + list(self._signal_syms.values())
         for slot, expr in present.items():
-            self._check_symbols(slot, expr)
+            varying = OUTPUTS[slot][2]  # may use f, t and signals
+            self._check_foreign(slot, expr, inputs if varying else [],
+                                ("the coefficients, model.f / model.W, model.t and model.signal(...)" if varying
+                                 else "the coefficients (an initial term is constant: no f, t or signals)")
+                                + " (declare coefficients with model.coefficient)")
             J = ca.jacobian(expr, D)  # exact dOutput/dD, 3 x n
-            self._check_linear(slot, expr, J, D, sig)
+            self._check_linear(J, D, [f"`{slot}` component {a}" for a in AXES])
+            self._check_no_offset(slot, expr, D, sig)
             jac[slot] = J
-        unused = [nm for nm, s in zip(self._names, self._symbols) if not ca.depends_on(everything, s)]
-        if unused:
-            raise ModelDefinitionError(
-                f"model `{self.name}`: coefficient(s) {', '.join(f'`{u}`' for u in unused)} "
-                "declared but used in no output. Use: add them to an equation or remove them"
-            )
+        self._check_used(lambda s: bool(ca.depends_on(everything, s)))
         zero = ca.SX(3, n)
         Jg = jac.get("gyro_drift", zero)
         Ja = jac.get("accel_error", zero)
@@ -405,7 +275,8 @@ class ErrorModel:
         phi0 = np.array(ca.DM(ca.densify(ca.evalf(Jphi0)))).reshape(3, n)
         dv0 = np.array(ca.DM(ca.densify(ca.evalf(Jv0)))).reshape(3, n)
         # Columns touched by the gyro part (through phi), the accelerometer part and the direct term.
-        gcols = sorted(set(Jg.sparsity().get_col()) | set(np.flatnonzero(np.any(phi0 != 0, 0))))
+        gcols = sorted({int(c) for c in Jg.sparsity().get_col()}
+                       | {int(c) for c in np.flatnonzero(np.any(phi0 != 0, 0))})
         acols = sorted(set(Ja.sparsity().get_col()))
         vcols = sorted(set(Jd.sparsity().get_col()))
         # Per-sample kernel for the S_V build, transposed so that a chunk of C samples
@@ -425,70 +296,17 @@ class ErrorModel:
             "velocity_columns": np.asarray(vcols, dtype=np.intp),
             "si_factors": np.asarray(self._factors, dtype=float),
         }
-        self._locked = True
-        return self
 
-    def _check_symbols(self, slot: str, expr: ca.SX) -> None:
-        inputs = [self._f[i] for i in range(3)] + [self._t] + list(self._signal_syms.values())
-        allowed = list(self._symbols) + (inputs if OUTPUTS[slot][2] else [])
-        foreign = [s for s in ca.symvar(expr) if not any(ca.is_equal(s, a) for a in allowed)]
-        if foreign:
-            names = ", ".join(f"`{s.name()}`" for s in foreign)
-            what = ("the coefficients, model.f / model.W, model.t and model.signal(...)" if OUTPUTS[slot][2]
-                    else "the coefficients (an initial term is constant: no f, t or signals)")
-            raise ModelDefinitionError(
-                f"model `{self.name}`: `{slot}` uses symbol(s) {names} that are not declared. "
-                f"Use: only {what} (declare coefficients with model.coefficient)"
-            )
-
-    def _check_linear(self, slot: str, expr: ca.SX, J: ca.SX, D: ca.SX, sig: ca.SX) -> None:
-        for i in range(3):
-            if ca.depends_on(J[i, :], D):
-                bad = [nm for nm, s in zip(self._names, self._symbols) if ca.depends_on(J[i, :], s)]
-                raise ModelDefinitionError(
-                    f"model `{self.name}`: `{slot}` component {_AXES[i]} is not linear in the "
-                    f"coefficients (its derivative still depends on {', '.join(bad)}). "
-                    "Use: one coefficient per term; declare a product as its own coefficient"
-                )
+    def _check_no_offset(self, slot: str, expr: ca.SX, D: ca.SX, sig: ca.SX) -> None:
+        """`expr` is zero at D = 0 for every probe of f, t and the signals."""
         offset = ca.substitute(expr, D, ca.SX.zeros(D.shape))  # the coefficient-free part
         fun = ca.Function("offset", [self._f, self._t, sig], [offset])
         sig_probes = np.random.default_rng(20261122).uniform(-50.0, 50.0, (len(_PROBES), sig.shape[0]))
         for probe, t, s in zip(_PROBES, _T_PROBES, sig_probes):
-            value = np.array(fun(probe, t, s)).ravel()
-            if np.any(value != 0.0):
-                i = int(np.flatnonzero(value)[0])
-                at = f"f = {probe.tolist()} m/s^2" + (f", t = {t:g} s" if ca.depends_on(offset, self._t) else "")
-                raise ModelDefinitionError(
-                    f"model `{self.name}`: `{slot}` component {_AXES[i]} has a term without a "
-                    f"coefficient (value {value[i]:.6g} at {at}). "
-                    "Use: multiply every term by exactly one coefficient"
-                )
+            at = f"f = {probe.tolist()} m/s^2" + (f", t = {t:g} s" if ca.depends_on(offset, self._t) else "")
+            self._check_offset(np.array(fun(probe, t, s)), [f"`{slot}` component {a}" for a in AXES], at)
 
     # ------------------------------------------------------------- after setup
-    def _require_setup(self) -> None:
-        if not self._locked:
-            raise RuntimeError(f"model `{self.name}` is not set up. Use: model.setup()")
-
-    @property
-    def is_setup(self) -> bool:
-        """True once :meth:`setup` has locked the model."""
-        return self._locked
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        """Coefficient names in model order."""
-        return tuple(self._names)
-
-    @property
-    def units(self) -> tuple[str, ...]:
-        """Natural unit of each coefficient."""
-        return tuple(self._units)
-
-    @property
-    def scales(self) -> dict[str, float]:
-        """Typical magnitude per coefficient, natural units, for those declared with one."""
-        return {n: v for n, v in self._scales.items() if v is not None}
-
     @property
     def signals(self) -> tuple[str, ...]:
         """Flight columns the outputs use (:meth:`signal`), in the order first asked for; known after setup."""
@@ -499,16 +317,6 @@ class ErrorModel:
     def per_flight(self) -> np.ndarray:
         """Bool per coefficient (model order): True for a per-flight coefficient (copy)."""
         return np.array(self._per_flight, dtype=bool)
-
-    @property
-    def descriptions(self) -> tuple[str, ...]:
-        """Free-text description of each coefficient."""
-        return tuple(self._descriptions)
-
-    @property
-    def n_coefficients(self) -> int:
-        """Number of coefficients."""
-        return len(self._names)
 
     @property
     def si_factors(self) -> np.ndarray:
@@ -544,17 +352,6 @@ class ErrorModel:
             raise KeyError(f"unknown key `{key}`; use one of {sorted(self._numeric)}")
         return self._numeric[key].copy()
 
-    def index(self, name: str) -> int:
-        """Position of coefficient `name` in the model order."""
-        try:
-            return self._names.index(name)
-        except ValueError:
-            raise KeyError(unknown_coefficient_message(name, self._names, f"model `{self.name}`")) from None
-
     def to_si(self, values: np.ndarray) -> np.ndarray:
         """Convert coefficient values (last axis in model order) from natural units to SI."""
         return np.asarray(values, dtype=float) * self.si_factors
-
-    def __repr__(self) -> str:
-        state = "set up" if self._locked else "declaring"
-        return f"ErrorModel({self.name!r}, {len(self._names)} coefficients, {state})"

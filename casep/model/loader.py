@@ -27,11 +27,14 @@ import threading
 import time
 import traceback
 from pathlib import Path
+from typing import Any, Sequence
 
 from casep.model._model import ErrorModel, ModelDefinitionError
+from casep.model.base import SymbolicModel
 
 __all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file",
-           "run_model_file", "with_time_offset", "TIME_OFFSET", "model_file_reference"]
+           "run_model_file", "with_time_offset", "TIME_OFFSET", "model_file_reference", "model_names", "where_in_file",
+           "load_model_file"]
 
 
 def model_dirs() -> list[Path]:
@@ -45,17 +48,23 @@ def model_dirs() -> list[Path]:
     return dirs
 
 
-def available_models() -> list[str]:
-    """Names of the models found in :func:`model_dirs` (first one wins on a clash)."""
+def model_names(dirs: Sequence[Path]) -> list[str]:
+    """Names of the model files (``*.py``, not ``_*``) in `dirs`, in search order (first one wins on a clash)."""
     seen: list[str] = []
-    for d in model_dirs():
+    for d in dirs:
         for p in sorted(d.glob("*.py")):
             if not p.name.startswith("_") and p.stem not in seen:
                 seen.append(p.stem)
     return seen
 
 
-def find_model_file(model: str | os.PathLike) -> Path:
+def available_models() -> list[str]:
+    """Names of the models found in :func:`model_dirs` (first one wins on a clash)."""
+    return model_names(model_dirs())
+
+
+def find_model_file(model: str | os.PathLike, dirs: Sequence[Path] | None = None, *, what: str = "model",
+                    use: str = "a path to a .py file with a build() function") -> Path:
     """Resolve a model name or path to its file.
 
     Raises
@@ -71,21 +80,20 @@ def find_model_file(model: str | os.PathLike) -> Path:
         if not path.is_file():
             raise ValueError(f"model file `{text}` does not exist")
         return path
-    for d in model_dirs():
+    dirs = model_dirs() if dirs is None else list(dirs)
+    for d in dirs:
         path = d / f"{text}.py"
         if path.is_file():
             return path
-    raise ValueError(
-        f"unknown model `{text}`. Use one of: {', '.join(available_models()) or '(none found)'}; "
-        "or a path to a .py file with a build() function"
-    )
+    raise ValueError(f"unknown {what} `{text}`. Use one of: {', '.join(model_names(dirs)) or '(none found)'}; "
+                     f"or {use}")
 
 
 class ModelFileError(ModelDefinitionError):
     """A model file fails to load: the message names the file and, where known, the line."""
 
 
-def _where(path: Path, exc: BaseException) -> str:
+def where_in_file(path: Path, exc: BaseException) -> str:
     """``model file <path>, line <n>``: the line of `exc` in `path` (its deepest frame there)."""
     line = None
     if isinstance(exc, SyntaxError) and exc.filename and Path(exc.filename).resolve() == path.resolve():
@@ -156,12 +164,13 @@ def _time_limit(seconds: float):
             signal.setitimer(signal.ITIMER_REAL, max(old_delay - (time.monotonic() - start), 1e-6), old_interval)
 
 
-def run_model_file(path: Path, kind: type = ErrorModel):
+def run_model_file(path: Path, kind: type[SymbolicModel] = ErrorModel) -> Any:
     """Execute the model file and its ``build()``; any failure becomes a one-line ModelFileError,
     and so does taking longer than :data:`MODEL_LOAD_TIMEOUT_S` (``CASEP_MODEL_TIMEOUT``).
 
-    `kind`: the class ``build()`` must return (:class:`ErrorModel`, or
-    :class:`casep.model.tracking.TrackingModel` for a tracking model file).
+    `kind`: the class ``build()`` must return (:class:`ErrorModel`,
+    :class:`casep.model.tracking.TrackingModel` for a tracking model file,
+    :class:`casep.calibration.CalibrationModel` for a ground-test model file).
     """
     spec = importlib.util.spec_from_file_location(f"casep_model_{path.stem}", path)
     if spec is None or spec.loader is None:
@@ -174,23 +183,25 @@ def run_model_file(path: Path, kind: type = ErrorModel):
             spec.loader.exec_module(module)
             build = getattr(module, "build", None)
             if not callable(build):
-                raise ModelFileError(f"model file {path}: Missing: build(). Use: def build() -> casep.ErrorModel")
+                raise ModelFileError(f"model file {path}: Missing: build(). Use: def build() -> {kind.PUBLIC_NAME}")
             stage = "build()"
             result = build()
     except _LoadTimeout as exc:
-        raise ModelFileError(f"{_where(path, exc)}{', in build()' if stage == 'build()' else ''}: still running "
+        raise ModelFileError(f"{where_in_file(path, exc)}{', in build()' if stage == 'build()' else ''}: still running "
                              f"after {limit:g} s (an endless loop?); a model file should load in well under a "
                              "second (limit: CASEP_MODEL_TIMEOUT=SECONDS)") from None
     except ModelFileError:
         raise  # from this file, or from a model it extends (that one names its own file)
     except (Exception, SystemExit) as exc:  # KeyboardInterrupt still interrupts
-        where = _where(path, exc)
+        where = where_in_file(path, exc)
         raise ModelFileError(f"{where}{', in build()' if stage == 'build()' else ''}: {_describe(exc)}") from exc
     if not isinstance(result, kind):
         uses = {"TrackingModel": "a tracking model: use it with --tracking-model (casep.load_tracking_model)",
-                "ErrorModel": "an instrument model: use it with --model (casep.load_model)"}
+                "ErrorModel": "an instrument model: use it with --model (casep.load_model)",
+                "CalibrationModel": "a ground-test model: use it with casep calibrate "
+                                    "(casep.calibration.load_calibration_model)"}
         use = uses.get(type(result).__name__, "")
-        raise ModelFileError(f"model file {path}: build() returned {type(result).__name__}, not casep.{kind.__name__}"
+        raise ModelFileError(f"model file {path}: build() returned {type(result).__name__}, not {kind.PUBLIC_NAME}"
                              + (f"; it is {use}" if use else ""))
     # Where the model came from (results record it when its name alone does not find it) and the
     # file's docstring (casep models -v); a model extending another keeps the outermost file's.
@@ -233,8 +244,12 @@ def load_model(model: str | os.PathLike | ErrorModel) -> ErrorModel:
     """
     if isinstance(model, ErrorModel):
         return model.setup()
-    path = find_model_file(model)
-    built = _run_file(path)
+    return load_model_file(find_model_file(model))
+
+
+def load_model_file(path: Path, kind: type[SymbolicModel] = ErrorModel) -> Any:
+    """:func:`run_model_file` and ``setup()``: the model of the file, set up; a setup error names the file."""
+    built = run_model_file(path, kind)
     try:
         return built.setup()
     except ModelFileError:

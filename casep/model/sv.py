@@ -33,7 +33,7 @@ the chunk in one pass, carrying the running integrals to the next chunk. Memory 
 from __future__ import annotations
 
 import warnings
-from typing import Iterator, Mapping
+from typing import Any, Iterator, Mapping
 
 import numpy as np
 
@@ -67,6 +67,15 @@ def _check_time_force(t: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndar
     if step.size:
         raise ValueError(f"`t` is not strictly increasing at row {step[0] + 1}")
     return t, np.ascontiguousarray(f)
+
+
+def _bind(setter: Any, i: int, array: np.ndarray) -> None:
+    """Bind the C-contiguous `array` as input or output `i` of a CasADi FunctionBuffer (``set_arg`` / ``set_res``).
+
+    The binding takes the byte size from the memoryview; casadi's type stubs ask for it as a third
+    argument, which the binding refuses, and do not know that an ndarray is a buffer.
+    """
+    setter(i, memoryview(array))  # type: ignore[arg-type]
 
 
 class SVBuilder:
@@ -109,13 +118,13 @@ class SVBuilder:
         self._V = np.zeros((C, 3, self._vcols.size))  # direct velocity-error Jacobian
         self._tin = np.zeros(C)  # t - t_0, s
         self._sin = np.zeros((C, len(model.signals)))  # signal columns, file units
-        self._buf.set_arg(0, memoryview(self._fin))
-        self._buf.set_arg(1, memoryview(self._tin))
+        _bind(self._buf.set_arg, 0, self._fin)
+        _bind(self._buf.set_arg, 1, self._tin)
         if self._sin.shape[1]:
-            self._buf.set_arg(2, memoryview(self._sin))
-        self._buf.set_res(0, memoryview(self._G))
-        self._buf.set_res(1, memoryview(self._A))
-        self._buf.set_res(2, memoryview(self._V))
+            _bind(self._buf.set_arg, 2, self._sin)
+        _bind(self._buf.set_res, 0, self._G)
+        _bind(self._buf.set_res, 1, self._A)
+        _bind(self._buf.set_res, 2, self._V)
 
     def build(self, t: np.ndarray, f: np.ndarray, out: np.ndarray | None = None, *,
               signals: Mapping[str, np.ndarray] | None = None) -> np.ndarray:

@@ -3,7 +3,9 @@
 Depends on :mod:`casep.model` (S_V of the truth) and :mod:`casep.io` (writing flights); never on
 an estimator.
 
-- :mod:`casep.simulation.trajectory`: point-mass boost over a flat non-rotating Earth
+- :mod:`casep.simulation.trajectory`: point-mass boost in the launch-inertial frame (its assumptions)
+- :mod:`casep.simulation.vehicle`: stages, pitch programme, yaw manoeuvre, attitude offsets
+- :mod:`casep.simulation.environment`: gravity constants, standard atmosphere, drag, rotating Earth
 - :mod:`casep.simulation.scenarios`: named scenarios (``paper``, ``paper-ar1``, ...)
 - :mod:`casep.simulation.simulate`: ``casep simulate`` (flight + truth + tracking files)
 - :mod:`casep.simulation.synthetic`, :mod:`casep.simulation.noise`, :mod:`casep.simulation.paper`

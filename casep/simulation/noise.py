@@ -91,7 +91,7 @@ class NoiseModel:
 
     def lag1_at(self, dt: float) -> float:
         """Expected lag-1 autocorrelation of the base noise at sample step `dt` (s)."""
-        return 0.0 if self.kind == "white" else float(np.exp(-dt / self.tau))
+        return 0.0 if self.kind == "white" or self.tau is None else float(np.exp(-dt / self.tau))
 
     def sample(self, t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Noise at times `t`, ``(N, 3)`` m/s: base process plus outliers."""
@@ -100,6 +100,7 @@ class NoiseModel:
         if self.kind == "white":
             n = white_noise(t.size, self.sigma, rng)
         else:
+            assert self.tau is not None  # a Gauss-Markov model has one (checked on construction)
             n = ar1_noise(t, self.sigma, self.tau, rng)
         if self.outlier_rate > 0:
             hit = rng.random(n.shape) < self.outlier_rate

@@ -107,9 +107,9 @@ def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="p
         Also write range rate.
     """
     from casep.simulation.scenarios import get_scenario
-    from casep.simulation.simulate import _check_seed, scenario_setup
+    from casep.simulation.simulate import check_seed, scenario_setup
 
-    seed = _check_seed(seed)
+    seed = check_seed(seed)
     stations = list(stations)
     check_station_names(stations)
     sc = get_scenario(scenario)

@@ -35,6 +35,7 @@ import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -47,8 +48,11 @@ from casep.model.sv import build_sv
 from casep.simulation.scenarios import Scenario, get_scenario
 from casep.simulation.trajectory import BoostTrajectory, body_to_platform, simulate_boost
 
+if TYPE_CHECKING:
+    from casep.frames import LaunchSite
+
 __all__ = ["SIGNAL_COLUMNS", "trajectory_signals", "SimulatedFlight", "simulate_flight", "scenario_setup",
-           "write_simulation", "truth_path", "TwoRateData", "simulate_two_rate"]
+           "write_simulation", "truth_path", "TwoRateData", "simulate_two_rate", "truth_vector", "check_seed"]
 
 
 #: Signal columns of every simulated flight: name -> unit (see the module notes).
@@ -57,31 +61,40 @@ SIGNAL_COLUMNS = {**{f"a_{a}": "m/s^2" for a in "xyz"}, **{f"r_{a}": "m" for a i
                   **{f"omega_{a}": "rad/s" for a in "xyz"}}
 
 
+def sampled_kinematics(traj: BoostTrajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Kinematic acceleration, attitude and body rate of `traj` at its sample times (what
+    :func:`~casep.simulation.trajectory.simulate_boost` records); ValueError for a trajectory without them."""
+    if traj.acceleration is None or traj.attitude is None or traj.body_rate is None:
+        raise ValueError("the trajectory has no acceleration, attitude or body rate: fly it with simulate_boost")
+    return traj.acceleration, traj.attitude, traj.body_rate
+
+
 def _tracked_point(traj: BoostTrajectory, times: np.ndarray, lever: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Position and velocity of the tracked point (lever arm `lever`, m, body frame) at `times`."""
     t0, t1 = traj.t[0], traj.t[-1]
     inside = (times >= t0) & (times <= t1)
     pos, vel = np.zeros((times.size, 3)), np.zeros((times.size, 3))  # before lift-off: at rest on the pad
     att, rate = np.zeros((times.size, 3)), np.zeros((times.size, 3))
-    att[:, 0] = traj.attitude[0, 0]
+    acceleration, attitude, body_rate = sampled_kinematics(traj)
+    att[:, 0] = attitude[0, 0]
     if np.array_equal(times, traj.t):  # the sample times: no dense-output evaluation needed
-        pos, vel, att, rate = traj.position.copy(), traj.velocity.copy(), traj.attitude, traj.body_rate
+        pos, vel, att, rate = traj.position.copy(), traj.velocity.copy(), attitude, body_rate
     elif inside.any():
         k = traj.kinematics(times[inside])
         pos[inside], vel[inside], att[inside], rate[inside] = (k["position"], k["velocity"], k["attitude"],
                                                                 k["body_rate"])
     early = times < t0
-    if early.any() and traj.site is not None:  # rotating Earth: on the pad, turning with the Earth
-        earth = traj._earth
+    earth = traj.earth
+    if early.any() and earth is not None:  # rotating Earth: on the pad, turning with the Earth
         pos[early] = [earth.o + earth.rotate(-earth.o, tk) for tk in times[early]]
         vel[early] = np.cross(earth.w, pos[early] - earth.o)
     late = times > t1
     if late.any():  # after burnout: ballistic, r + v dt + g dt^2 / 2 with gravity g at burnout
-        g = traj.acceleration[-1] - traj.specific_force[-1]
+        g = acceleration[-1] - traj.specific_force[-1]
         d = (times[late] - t1)[:, None]
         pos[late] = traj.position[-1] + traj.velocity[-1] * d + 0.5 * g * d**2
         vel[late] = traj.velocity[-1] + g * d
-        att[late], rate[late] = traj.attitude[-1], traj.body_rate[-1]
+        att[late], rate[late] = attitude[-1], body_rate[-1]
     if np.any(lever):
         C = body_to_platform(att[:, 0], att[:, 1], att[:, 2])
         pos = pos + C @ lever  # r_point = r + C l
@@ -103,11 +116,12 @@ def trajectory_signals(traj: BoostTrajectory, *, time_offset: float = 0.0,
     """
     lever = np.zeros(3) if lever_arm is None else np.asarray(lever_arm, dtype=float)
     pos, vel = _tracked_point(traj, traj.t - time_offset, lever)
+    acceleration, attitude, body_rate = sampled_kinematics(traj)
     cols = {}
-    for prefix, arr in (("a", traj.acceleration), ("r", pos), ("v", vel)):
+    for prefix, arr in (("a", acceleration), ("r", pos), ("v", vel)):
         cols.update({f"{prefix}_{a}": arr[:, i] for i, a in enumerate("xyz")})
-    cols.update(att_pitch=traj.attitude[:, 0], att_yaw=traj.attitude[:, 1], att_roll=traj.attitude[:, 2])
-    cols.update({f"omega_{a}": traj.body_rate[:, i] for i, a in enumerate("xyz")})
+    cols.update(att_pitch=attitude[:, 0], att_yaw=attitude[:, 1], att_roll=attitude[:, 2])
+    cols.update({f"omega_{a}": body_rate[:, i] for i, a in enumerate("xyz")})
     return cols
 
 
@@ -151,7 +165,12 @@ class SimulatedFlight:
         }
 
 
-def _truth_vector(model: ErrorModel, truth: dict, source: str = "truth") -> np.ndarray:
+def truth_vector(model: ErrorModel, truth: dict, source: str = "truth") -> np.ndarray:
+    """True coefficients in model order, natural units, from ``{name: value}`` (missing names: 0).
+
+    Raises ValueError naming `source` for a name the model lacks (with a "did you mean") or a value
+    that is not a finite number.
+    """
     for name in truth:
         if name not in model.names:
             raise ValueError(unknown_coefficient_message(name, model.names, f"{source} (model `{model.name}`)"))
@@ -160,6 +179,9 @@ def _truth_vector(model: ErrorModel, truth: dict, source: str = "truth") -> np.n
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
             raise ValueError(f"{source}: `{n}` must be a finite number (natural units), got {v!r}")
     return values.astype(float)
+
+
+_truth_vector = truth_vector  # re-export: remove after merge
 
 
 def scenario_setup(scenario: str | Scenario, rate: float | None = None, *, rotating_earth: bool = False,
@@ -171,10 +193,11 @@ def scenario_setup(scenario: str | Scenario, rate: float | None = None, *, rotat
     sc = get_scenario(scenario).with_rate(rate)
     model = load_model(sc.model)
     traj = simulate_boost(sc.vehicle, sc.rate, rotating_earth=rotating_earth, site=site)
-    return sc, traj, model, _truth_vector(model, sc.truth)
+    return sc, traj, model, truth_vector(model, sc.truth)
 
 
-def _check_seed(seed: int) -> int:
+def check_seed(seed: int) -> int:
+    """`seed` as an int, or ValueError: a seed is a non-negative int (not a bool)."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"`seed` must be a non-negative int, got {seed!r}")
     return int(seed)
@@ -211,18 +234,18 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
     -------
     SimulatedFlight
     """
-    seed = _check_seed(seed)
+    seed = check_seed(seed)
     sc = get_scenario(scenario)
     if model is not None or truth is not None:
         sc = dataclasses.replace(sc, model=sc.model if model is None else os.fspath(model),
                                  truth=sc.truth if truth is None else dict(truth))
     time_offset, lever = _check_tracking(time_offset, lever_arm)
-    sc, traj, model, truth = scenario_setup(sc, rate, rotating_earth=rotating_earth, site=site)
+    sc, traj, error_model, true_D = scenario_setup(sc, rate, rotating_earth=rotating_earth, site=site)
     rng = np.random.default_rng(seed)
     sig = trajectory_signals(traj, time_offset=time_offset, lever_arm=lever)
     tracked = np.column_stack([sig[f"v_{a}"] for a in "xyz"])
     # dv = v_tel - v_trk = (v + S_V D) - (v_point(t - dt) - n) = S_V D + (v - v_point(t - dt)) + n
-    clean = build_sv(model, traj.t, traj.specific_force, signals=sig) @ truth + (traj.velocity - tracked)
+    clean = build_sv(error_model, traj.t, traj.specific_force, signals=sig) @ true_D + (traj.velocity - tracked)
     noise = sc.noise.sample(traj.t, rng)
     keep = sc.noise.keep_mask(traj.t)
     for i, a in enumerate("xyz"):
@@ -230,7 +253,7 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
     flight = FlightData(traj.t[keep], traj.specific_force[keep], clean[keep] + noise[keep],
                         source=f"simulated:{sc.name}:seed{seed}", meta={"scenario": sc.name, "seed": seed},
                         signals={k: v[keep] for k, v in sig.items()})
-    return SimulatedFlight(flight=flight, trajectory=traj, model=model, truth=truth, noise=noise[keep],
+    return SimulatedFlight(flight=flight, trajectory=traj, model=error_model, truth=true_D, noise=noise[keep],
                            scenario=sc, seed=seed,
                            tracking={"time_offset_ms": time_offset * 1e3, "lever_arm_m": lever.tolist(),
                                      **({"rotating_earth": True, "launch_site": traj.site.to_dict()}
@@ -272,7 +295,7 @@ class TwoRateData:
     model: ErrorModel
     acceleration: np.ndarray | None = None  # kinematic acceleration at telemetry times, m/s^2
     r_trk: np.ndarray | None = None  # tracked position, launch-inertial, m (noise-free)
-    site: object = None  # casep.frames.LaunchSite of a rotating-Earth flight, else None
+    site: LaunchSite | None = None  # the launch site of a rotating-Earth flight, else None
 
     def write(self, telemetry: str | os.PathLike, tracking: str | os.PathLike, *, apparent: bool = False,
               tracking_frame: str = "launch") -> None:
@@ -300,11 +323,13 @@ class TwoRateData:
         if tracking_frame == "launch":
             write_table(tracking, {"t": self.t_trk, **{f"v_trk_{a}": self.v_trk[:, i] for i, a in enumerate("xyz")}})
             return
-        r_e, v_e = launch_to_ecef(self.site, self.t_trk, self.r_trk, self.v_trk)
+        site = self.site
+        assert site is not None  # checked above for every frame but "launch"
+        r_e, v_e = launch_to_ecef(site, self.t_trk, self.r_trk, self.v_trk)
         values = (*r_e.T, *v_e.T) if tracking_frame == "ecef" else ecef_to_geodetic(r_e, v_e)
         names = ECEF_COLUMNS if tracking_frame == "ecef" else GEODETIC_COLUMNS
         write_table(tracking, {"t": self.t_trk, **dict(zip(names[1:], values))}, comments=[
-            f"casep simulated tracking, {tracking_frame} (WGS84), launch site {self.site.to_dict()} "
+            f"casep simulated tracking, {tracking_frame} (WGS84), launch site {site.to_dict()} "
             "(t0: lift-off, t = 0)"])
 
 
@@ -329,7 +354,7 @@ def simulate_two_rate(scenario: str | Scenario = "paper", *, seed: int = 0, tele
         Rotating Earth at the launch site (:func:`~casep.simulation.trajectory.simulate_boost`);
         then :meth:`TwoRateData.write` can write ECEF or geodetic tracking.
     """
-    seed = _check_seed(seed)
+    seed = check_seed(seed)
     if not np.isfinite(tracking_rate) or tracking_rate <= 0:
         raise ValueError(f"`tracking_rate` must be finite and > 0 Hz, got {tracking_rate}")
     if not np.isfinite(time_offset):

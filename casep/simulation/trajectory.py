@@ -54,209 +54,36 @@ the state at the sample times (never by differencing).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+from casep.simulation.environment import (
+    MU_EARTH,
+    R_EARTH,
+    RotatingEarth,
+    air_relative,
+    air_relative_rate,
+    atmosphere,
+    axial_drag_coefficient,
+)
+from casep.simulation.vehicle import (
+    DEFAULT_VEHICLE,
+    AttitudeProfile,
+    PitchProgramme,
+    Stage,
+    Vehicle,
+    YawManoeuvre,
+    check_propellant,
+    thrust,
+    thrust_profile,
+)
 from casep.units import G0
 
+# The vehicle types and the Earth constants are names of this module too.
 __all__ = ["body_to_platform", "Stage", "Vehicle", "PitchProgramme", "YawManoeuvre", "AttitudeProfile",
            "BoostTrajectory", "simulate_boost", "atmosphere", "DEFAULT_VEHICLE", "MU_EARTH", "R_EARTH"]
-
-MU_EARTH = 3.986004418e14  # m^3/s^2
-R_EARTH = 6_371_000.0  # m
-_R_AIR = 287.05287  # J/(kg K)
-
-# U.S. Standard Atmosphere 1976: base geopotential height (m), lapse rate (K/m).
-_H_BASE = np.array([0.0, 11_000.0, 20_000.0, 32_000.0, 47_000.0, 51_000.0, 71_000.0, 84_852.0])
-_LAPSE = np.array([-0.0065, 0.0, 0.001, 0.0028, 0.0, -0.0028, -0.002])
-_T_BASE = np.empty(8)
-_P_BASE = np.empty(8)
-_T_BASE[0], _P_BASE[0] = 288.15, 101_325.0
-for _i in range(7):
-    _dh = _H_BASE[_i + 1] - _H_BASE[_i]
-    _T_BASE[_i + 1] = _T_BASE[_i] + _LAPSE[_i] * _dh
-    if _LAPSE[_i] == 0.0:
-        _P_BASE[_i + 1] = _P_BASE[_i] * math.exp(-G0 * _dh / (_R_AIR * _T_BASE[_i]))
-    else:
-        _P_BASE[_i + 1] = _P_BASE[_i] * (_T_BASE[_i + 1] / _T_BASE[_i]) ** (-G0 / (_LAPSE[_i] * _R_AIR))
-
-_MACH = np.array([0.0, 0.8, 1.1, 1.5, 2.0, 3.0, 5.0, 10.0])
-_CA = np.array([0.30, 0.32, 0.55, 0.48, 0.40, 0.32, 0.25, 0.25])
-
-
-def atmosphere(h: float) -> tuple[float, float]:
-    """Density (kg/m^3) and speed of sound (m/s) at geometric altitude `h` (m)."""
-    hg = R_EARTH * h / (R_EARTH + h)  # geopotential height
-    if hg < 0.0:
-        hg = 0.0
-    if hg >= _H_BASE[-1]:
-        T = _T_BASE[-1]
-        rho_top = _P_BASE[-1] / (_R_AIR * T)
-        return rho_top * math.exp(-(hg - _H_BASE[-1]) * G0 / (_R_AIR * T)), math.sqrt(1.4 * _R_AIR * T)
-    i = int(np.searchsorted(_H_BASE, hg, side="right") - 1)
-    L, Tb, Pb = _LAPSE[i], _T_BASE[i], _P_BASE[i]
-    T = Tb + L * (hg - _H_BASE[i])
-    if L == 0.0:
-        P = Pb * math.exp(-G0 * (hg - _H_BASE[i]) / (_R_AIR * Tb))
-    else:
-        P = Pb * (T / Tb) ** (-G0 / (L * _R_AIR))
-    return P / (_R_AIR * T), math.sqrt(1.4 * _R_AIR * T)
-
-
-@dataclass(frozen=True)
-class Stage:
-    """One stage. Thrust N, Isp s, burn s (ignition ramp to end of tail-off), dry mass kg
-    dropped at burnout, ramps s, coast s after burnout (before the next ignition)."""
-
-    thrust: float
-    isp: float
-    burn: float
-    dry_mass: float
-    ignition: float = 0.5
-    tail_off: float = 2.0
-    coast: float = 0.0
-
-
-@dataclass(frozen=True)
-class PitchProgramme:
-    """Vertical rise (s), pitch-over kick rate (deg/s) and length (s), AoA decay (s)."""
-
-    vertical: float = 8.0
-    kick_rate: float = 1.0
-    kick: float = 6.0
-    tau: float = 6.0
-
-
-@dataclass(frozen=True)
-class YawManoeuvre:
-    """``psi(t) = offset + amplitude sin(2 pi (t - start) / period)`` (deg), the sine for start <= t <= end.
-
-    ``offset`` (deg, whole flight): a flight azimuth off the platform's x axis, so the trajectory has
-    a cross-range component.
-    """
-
-    amplitude: float = 2.0
-    period: float = 80.0
-    start: float = 20.0
-    end: float = 180.0
-    offset: float = 0.0
-
-
-@dataclass(frozen=True)
-class AttitudeProfile:
-    """Piecewise-linear attitude offsets added to the pitch and yaw laws (a designed manoeuvre).
-
-    ``times`` (s, strictly increasing), ``pitch`` and ``yaw`` (deg, one per knot): the offset at t
-    is the linear interpolation of the knots, the first (last) knot's value before (after) them.
-
-    ``base_times`` (s) and ``base_pitch`` (rad), optional: the nominal pitch programme flown open loop
-    from the first knot on (a cubic spline through these samples, typically the nominal flight's
-    attitude), instead of the gravity-turn law that follows the velocity. With it the flown pitch is
-    exactly base + offset; without it the offset is added to the law, whose feedback on the velocity
-    then turns the flight further.
-    """
-
-    times: tuple[float, ...]
-    pitch: tuple[float, ...]
-    yaw: tuple[float, ...]
-    base_times: tuple[float, ...] | None = None
-    base_pitch: tuple[float, ...] | None = None
-
-    def __post_init__(self) -> None:
-        t = np.asarray(self.times, dtype=float)
-        if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-            raise ValueError(f"`times` must be two or more finite, strictly increasing knot times, got {self.times!r}")
-        for name in ("pitch", "yaw"):
-            v = np.asarray(getattr(self, name), dtype=float)
-            if v.shape != t.shape or not np.all(np.isfinite(v)):
-                raise ValueError(f"`{name}` must be {t.size} finite offsets (deg), got {getattr(self, name)!r}")
-        object.__setattr__(self, "times", tuple(float(x) for x in t))
-        object.__setattr__(self, "pitch", tuple(float(x) for x in self.pitch))
-        object.__setattr__(self, "yaw", tuple(float(x) for x in self.yaw))
-        if (self.base_times is None) != (self.base_pitch is None):
-            raise ValueError("`base_times` and `base_pitch` go together")
-        if self.base_times is not None:
-            bt, bp = np.asarray(self.base_times, dtype=float), np.asarray(self.base_pitch, dtype=float)
-            if bt.ndim != 1 or bt.size < 4 or np.any(np.diff(bt) <= 0) or bp.shape != bt.shape \
-                    or not (np.all(np.isfinite(bt)) and np.all(np.isfinite(bp))):
-                raise ValueError("`base_times` (strictly increasing, 4 or more) and `base_pitch` (rad) must be "
-                                 "finite and of one length")
-            if bt[0] > t[0] or bt[-1] < t[-1]:
-                raise ValueError(f"`base_times` must cover the knots [{t[0]:g}, {t[-1]:g}] s")
-            object.__setattr__(self, "base_times", tuple(float(x) for x in bt))
-            object.__setattr__(self, "base_pitch", tuple(float(x) for x in bp))
-
-    def base(self, t: float) -> tuple[float, float] | None:
-        """Open-loop nominal pitch (rad) and its rate (rad/s) at `t`, or None (law flown) before the
-        first knot or without a base programme."""
-        if self.base_times is None or t < self.times[0]:
-            return None
-        spline = self.__dict__.get("_spline")
-        if spline is None:
-            from scipy.interpolate import CubicSpline
-
-            spline = CubicSpline(self.base_times, self.base_pitch)
-            object.__setattr__(self, "_spline", spline)
-        tc = min(t, self.base_times[-1])
-        return float(spline(tc)), float(spline(tc, 1)) if t <= self.base_times[-1] else 0.0
-
-    def offsets(self, t: float) -> tuple[float, float, float, float]:
-        """Pitch and yaw offsets (rad) at `t` and their rates (rad/s; the slope of the segment, 0 outside)."""
-        times = self.times
-        if t <= times[0] or t >= times[-1]:
-            k = 0 if t <= times[0] else -1
-            return math.radians(self.pitch[k]), math.radians(self.yaw[k]), 0.0, 0.0
-        i = int(np.searchsorted(times, t, side="right")) - 1
-        h = times[i + 1] - times[i]
-        u = (t - times[i]) / h
-        dp, dy = self.pitch[i + 1] - self.pitch[i], self.yaw[i + 1] - self.yaw[i]
-        return (math.radians(self.pitch[i] + u * dp), math.radians(self.yaw[i] + u * dy),
-                math.radians(dp / h), math.radians(dy / h))
-
-
-@dataclass(frozen=True)
-class Vehicle:
-    """Lift-off mass kg (all stages and payload), reference area m^2, stages in order."""
-
-    liftoff_mass: float
-    area: float
-    stages: tuple[Stage, ...]
-    pitch: PitchProgramme = field(default_factory=PitchProgramme)
-    yaw: YawManoeuvre | None = None
-    attitude: AttitudeProfile | None = None
-
-    def __post_init__(self) -> None:
-        if not self.stages:
-            raise ValueError("`stages` is empty")
-        for k, s in enumerate(self.stages):
-            for name in ("thrust", "isp", "burn"):
-                v = getattr(s, name)
-                if not np.isfinite(v) or v <= 0:
-                    raise ValueError(f"stage {k + 1} `{name}` must be finite and > 0, got {v}")
-            if s.ignition + s.tail_off > s.burn:
-                raise ValueError(f"stage {k + 1}: `ignition` + `tail_off` exceed `burn`")
-        if self.liftoff_mass <= sum(s.dry_mass for s in self.stages):
-            raise ValueError("`liftoff_mass` must exceed the sum of the stages' dry masses")
-
-    def to_dict(self) -> dict:
-        """Plain-dict form for the truth sidecar."""
-        return asdict(self)
-
-
-#: Two-stage vehicle of the built-in scenarios (measured with ``simulate_boost``, 100 Hz):
-#: 1.78 g at lift-off, 5.24 g before stage-1 tail-off (98 s), 5-s coast, 5.0 g before stage-2
-#: tail-off;
-#: 195 s powered flight; burnout 4.13 km/s at 195 km altitude, flight-path angle 25 deg.
-DEFAULT_VEHICLE = Vehicle(
-    liftoff_mass=40_000.0,
-    area=2.0,
-    stages=(
-        Stage(thrust=700_000.0, isp=265.0, burn=100.0, dry_mass=3_100.0, ignition=0.0, tail_off=2.0, coast=5.0),
-        Stage(thrust=200_000.0, isp=290.0, burn=90.0, dry_mass=0.0, ignition=0.5, tail_off=2.0, coast=0.0),
-    ),
-    pitch=PitchProgramme(vertical=8.0, kick_rate=1.6, kick=8.0, tau=6.0),
-)
 
 
 @dataclass(frozen=True)
@@ -285,12 +112,17 @@ class BoostTrajectory:
     body_rate: np.ndarray | None = None
     _segments: list = field(repr=False, compare=False, default_factory=list)
     _aoa0: float = field(repr=False, compare=False, default=0.0)
-    _earth: object = field(repr=False, compare=False, default=None)  # _RotatingEarth, or None: not rotating
+    _earth: RotatingEarth | None = field(repr=False, compare=False, default=None)  # None: not rotating
 
     @property
-    def site(self):
+    def site(self) -> Any:
         """The :class:`casep.frames.LaunchSite` of a rotating-Earth trajectory, else None."""
         return None if self._earth is None else self._earth.site
+
+    @property
+    def earth(self) -> RotatingEarth | None:
+        """The turning Earth of a rotating-Earth trajectory, else None."""
+        return self._earth
 
     def sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """True position and velocity at arbitrary `times` within the flight (dense output)."""
@@ -318,7 +150,7 @@ class BoostTrajectory:
         times = np.atleast_1d(np.asarray(times, dtype=float))
         out = {k: np.full((times.size, 3), np.nan) for k in ("position", "velocity", "acceleration",
                                                                "attitude", "body_rate")}
-        state = {"aoa0": self._aoa0, "earth": self._earth}
+        state: dict[str, Any] = {"aoa0": self._aoa0, "earth": self._earth}
         done = np.zeros(times.size, dtype=bool)
         last_t1 = self._segments[-1][1]
         for t0, t1, sol, k, kind in self._segments:  # a piece owns [t0, t1), the last one [t0, t1]
@@ -328,7 +160,8 @@ class BoostTrajectory:
                 f, grav, _ = _forces(self.vehicle, self.vehicle.stages[k], kind, times[i], t0, t1, y, state)
                 rows = dict(zip(out, (y[0:3], y[3:6], f + grav)))
                 rows["attitude"], rows["body_rate"] = _attitude_rates(
-                    self.vehicle, times[i], *_relative(state, y[0:3], y[3:6], f + grav), state)
+                    self.vehicle, times[i], air_relative(state, y[0:3], y[3:6]),
+                    air_relative_rate(state, y[3:6], f + grav), state)
                 for key, value in rows.items():
                     out[key][i] = value
             done[idx] = True
@@ -351,37 +184,6 @@ class BoostTrajectory:
             "max_specific_force_g": float(g.max()),
             "events_s": dict(self.events),
         }
-
-
-def _thrust_profile(vehicle: Vehicle):
-    """Piecewise thrust schedule: list of (t_start, t_end, stage index, kind)."""
-    pieces, events, t = [], {}, 0.0
-    for k, s in enumerate(vehicle.stages):
-        n = k + 1
-        events[f"stage{n}_ignition"] = t
-        t_full, t_tail, t_end = t + s.ignition, t + s.burn - s.tail_off, t + s.burn
-        if s.ignition > 0:
-            pieces.append((t, t_full, k, "ramp_up"))
-        pieces.append((t_full, t_tail, k, "full"))
-        if s.tail_off > 0:
-            pieces.append((t_tail, t_end, k, "tail_off"))
-        events[f"stage{n}_burnout"] = t_end
-        if s.coast > 0 and k + 1 < len(vehicle.stages):
-            pieces.append((t_end, t_end + s.coast, k, "coast"))
-            t = t_end + s.coast
-        else:
-            t = t_end
-    return pieces, events
-
-
-def _thrust(stage: Stage, kind: str, t: float, t0: float, t1: float) -> float:
-    if kind == "full":
-        return stage.thrust
-    if kind == "ramp_up":
-        return stage.thrust * (t - t0) / (t1 - t0)
-    if kind == "tail_off":
-        return stage.thrust * (t1 - t) / (t1 - t0)
-    return 0.0
 
 
 def _angles(vehicle: Vehicle, t: float, v: np.ndarray, a: np.ndarray | None, state: dict
@@ -456,40 +258,6 @@ def _attitude(vehicle: Vehicle, t: float, v: np.ndarray, state: dict) -> np.ndar
     return np.array([cp * math.cos(theta), cp * math.sin(theta), math.sin(psi)])
 
 
-class _RotatingEarth:
-    """The simulator's sphere turning rigidly with the Earth, in launch-inertial coordinates (module notes)."""
-
-    def __init__(self, site) -> None:
-        from casep.frames import OMEGA_EARTH
-
-        self.site = site
-        self.w = site.earth_rate  # rad/s, launch axes: C^T (0, 0, omega_E)
-        self.o = site.earth_centre  # WGS84 centre, a point of the axis, m
-        self.k = self.w / OMEGA_EARTH  # unit vector of the axis
-        self.omega = OMEGA_EARTH
-        self.c0 = np.array([0.0, -R_EARTH, 0.0])  # the sphere's centre at lift-off (t = 0)
-
-    def rotate(self, p: np.ndarray, t: float) -> np.ndarray:
-        """`p` (about the axis point) turned by omega_E t about the axis (Rodrigues)."""
-        a = self.omega * t
-        k = self.k
-        return p * math.cos(a) + np.cross(k, p) * math.sin(a) + k * (k @ p) * (1.0 - math.cos(a))
-
-    def centre(self, t: float) -> np.ndarray:
-        return self.o + self.rotate(self.c0 - self.o, t)  # the sphere's centre circles the axis
-
-    def air_velocity(self, pos: np.ndarray) -> np.ndarray:
-        return np.cross(self.w, pos - self.o)  # co-rotating atmosphere: w x (r - o)
-
-
-def _relative(state: dict, pos: np.ndarray, vel: np.ndarray, acc: np.ndarray | None = None):
-    """Velocity (and its rate) relative to the air: v - w x (r - o), a - w x v; the inertial ones without rotation."""
-    earth = state.get("earth")
-    if earth is None:
-        return vel, acc
-    return vel - earth.air_velocity(pos), (None if acc is None else acc - np.cross(earth.w, vel))
-
-
 def _forces(vehicle, stage, kind, t, t0, t1, x, state):
     """Specific force (m/s^2, sensed), gravity (m/s^2) and mass flow (kg/s)."""
     pos, vel, m = x[0:3], x[3:6], x[6]
@@ -499,28 +267,14 @@ def _forces(vehicle, stage, kind, t, t0, t1, x, state):
     grav = -MU_EARTH * r / rn**3
     h = rn - R_EARTH
     rho, a = atmosphere(h)
-    vel = _relative(state, pos, vel)[0]  # relative to the (co-rotating) air
+    vel = air_relative(state, pos, vel)  # relative to the (co-rotating) air
     speed = math.sqrt(vel @ vel)
-    ca = float(np.interp(speed / a, _MACH, _CA))
+    ca = axial_drag_coefficient(speed / a)
     drag = 0.5 * rho * speed**2 * vehicle.area * ca  # axial drag, N
-    T = _thrust(stage, kind, t, t0, t1)
+    T = thrust(stage, kind, t, t0, t1)
     e_b = _attitude(vehicle, t, vel, state)
     f = (T - drag) / m * e_b  # f = (T - D) e_b / m: gravity is not sensed
     return f, grav, -T / (stage.isp * G0)
-
-
-def _check_propellant(vehicle: Vehicle) -> None:
-    """Refuse a vehicle that burns more propellant than it carries (mass -> 0: the integration would
-    fail or crawl). Stage k burns ``thrust (burn - ignition/2 - tail_off/2) / (Isp g0)`` kg (the
-    trapezoid thrust profile); at its burnout the mass must still exceed the dry masses on board."""
-    m = vehicle.liftoff_mass
-    for k, st in enumerate(vehicle.stages):
-        burned = st.thrust * (st.burn - 0.5 * st.ignition - 0.5 * st.tail_off) / (st.isp * G0)
-        dry = sum(s_.dry_mass for s_ in vehicle.stages[k:])
-        if m - burned <= dry:
-            raise ValueError(f"stage {k + 1} burns {burned:.0f} kg of propellant but carries {m - dry:.0f} kg (thrust "
-                             f"{st.thrust:.4g} N, Isp {st.isp:.4g} s, burn {st.burn:.4g} s): not a flyable vehicle")
-        m -= burned + st.dry_mass
 
 
 def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, rotating_earth: bool = False,
@@ -557,22 +311,22 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, r
             raise ValueError("`rotating_earth` needs `site`, a casep.frames.LaunchSite (launch point and azimuth)")
         if site.t0 != 0.0:
             raise ValueError(f"`site.t0` must be 0 for a simulated flight (its time is from lift-off), got {site.t0}")
-        earth = _RotatingEarth(site)
+        earth = RotatingEarth(site)
     elif site is not None:
         raise ValueError("`site` is used only with `rotating_earth=True`")
-    pieces, events = _thrust_profile(vehicle)
-    _check_propellant(vehicle)
+    pieces, events = thrust_profile(vehicle)
+    check_propellant(vehicle)
     t_final = pieces[-1][1]
     n = int(math.floor(t_final * rate + 1e-9)) + 1
     t_out = np.arange(n) / rate
     x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, vehicle.liftoff_mass])
     if earth is not None:
         x[3:6] = earth.air_velocity(np.zeros(3))  # on the pad: the Earth's rotation velocity there
-    state = {"aoa0": 0.0, "earth": earth}
+    state: dict[str, Any] = {"aoa0": 0.0, "earth": earth}
     p = vehicle.pitch
     t_kick_end = p.vertical + p.kick
     pos, vel, f_out, mass = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n))
-    acc, att, rate = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+    acc, att, body_rate = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
     segments = []
     # Split pieces further at the end of the kick (attitude law switches there) and at the knots of
     # the attitude offsets (kinks).
@@ -590,7 +344,7 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, r
                 x[6] -= vehicle.stages[j].dry_mass
                 dropped.add(j)
         if abs(t0 - t_kick_end) < 1e-12:
-            v = _relative(state, x[0:3], x[3:6])[0]
+            v = air_relative(state, x[0:3], x[3:6])
             theta_kick = 0.5 * math.pi - math.radians(p.kick_rate) * p.kick
             state["aoa0"] = theta_kick - math.atan2(v[1], v[0])
 
@@ -609,13 +363,14 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, r
         for i, y in zip(idx, ys.T):
             f_out[i], grav, _ = _forces(vehicle, stage, kind, t_out[i], t0, t1, y, state)
             acc[i] = f_out[i] + grav  # kinematic acceleration = specific force + gravity
-            att[i], rate[i] = _attitude_rates(vehicle, t_out[i], *_relative(state, y[0:3], y[3:6], acc[i]), state)
+            att[i], body_rate[i] = _attitude_rates(vehicle, t_out[i], air_relative(state, y[0:3], y[3:6]),
+                                                   air_relative_rate(state, y[3:6], acc[i]), state)
         pos[idx], vel[idx], mass[idx] = ys[0:3].T, ys[3:6].T, ys[6]
         x = sol.y[:, -1].copy()
     r = pos + np.array([0.0, R_EARTH, 0.0]) if earth is None else pos - np.array([earth.centre(t) for t in t_out])
     alt = np.linalg.norm(r, axis=1) - R_EARTH
     out = BoostTrajectory(t=t_out, position=pos, velocity=vel, specific_force=f_out, mass=mass, altitude=alt,
-                          events=events, vehicle=vehicle, acceleration=acc, attitude=att, body_rate=rate,
+                          events=events, vehicle=vehicle, acceleration=acc, attitude=att, body_rate=body_rate,
                           _segments=segments, _aoa0=state["aoa0"], _earth=earth)
     if not (np.all(np.isfinite(f_out)) and np.all(np.isfinite(pos))):  # pragma: no cover
         raise RuntimeError("trajectory produced non-finite values")

@@ -20,7 +20,6 @@ one is refused later (:func:`casep.tracking.regression.check_first_sample`).
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import warnings
@@ -129,6 +128,7 @@ def read_station(path: str | os.PathLike | dict, *, source: str | None = None) -
     """
     from pydantic import ValidationError
 
+    from casep.io.result_json import load_json
     from casep.units import ARCSEC
 
     if isinstance(path, dict):
@@ -138,10 +138,7 @@ def read_station(path: str | os.PathLike | dict, *, source: str | None = None) -
         p = Path(path)
         if not p.is_file():
             raise ValueError(f"station file {src}: does not exist")
-        try:
-            data = json.loads(p.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise ValueError(f"station file {src}: not valid JSON ({exc})") from None
+        data = load_json(p, "station file")
         if not isinstance(data, dict):
             raise ValueError(f"station file {src}: must be a JSON object "
                              '{"name": "S1", "lat": deg, "lon": deg, "h": m}')
@@ -212,11 +209,11 @@ def read_radar(path: str | os.PathLike, station: Station | str | os.PathLike) ->
         Naming file, column and row: a missing column, a bad cell, time not increasing, a
         negative range, an elevation outside [-90, 90] deg.
     """
-    from casep.io.files import _Table
+    from casep.io.tables import Table
 
     if not isinstance(station, Station):
         station = read_station(station)
-    tab = _Table(path)
+    tab = Table(path)
     tab.require(RADAR_COLUMNS, ". Use: t (s), range (m), azimuth, elevation (deg), optional range_rate (m/s)")
     t = tab.time()
     rng = tab.numeric("range")

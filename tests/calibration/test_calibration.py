@@ -116,6 +116,35 @@ def test_noise_free_ferraris_session_recovered_exactly(ferraris):
     assert cal.result.success
 
 
+def test_calibration_follows_the_result_protocol(ferraris):
+    from casep.results import Result
+
+    truth = ferraris_truth(ferraris)
+    ses, segs = simulate_session(ferraris, truth, ferraris_design(50, 60), rate=100.0)
+    cal = calibrate(ses, segs, ferraris)
+    assert isinstance(cal, Result)
+    text = cal.text()
+    assert text == cal.report()  # the old name, an alias
+    assert text.splitlines()[0].split()[:4] == ["coefficient", "unit", "estimate", "std"]
+    d = json.loads(json.dumps(cal.to_dict()))  # plain data
+    assert d["calibration"]["model"] == "ferraris" and len(d["calibration"]["segments"]) == len(segs)
+    with pytest.raises(AttributeError):  # a frozen record of what was computed
+        cal.settings = {}
+
+
+def test_calibration_model_files_load_as_flight_model_files(tmp_path):
+    bad = tmp_path / "bad_ground.py"
+    bad.write_text("import casep.calibration\n\ndef build():\n    m = casep.calibration.CalibrationModel('b')\n"
+                   "    c = m.declare(Ka0x='mg')\n    return m.undefined\n")
+    with pytest.raises(ModelDefinitionError, match=rf"model file {bad}, line 6, in build\(\): AttributeError"):
+        load_calibration_model(bad)
+    with pytest.raises(ValueError, match=r"unknown calibration model `ferrari`. Use one of: .*ferraris"):
+        load_calibration_model("ferrari")
+    # the shared declaration machinery: the same "did you mean" as a flight model
+    with pytest.raises(KeyError, match=r"model `ferraris`: unknown coefficient `BA_x` \(did you mean `ba_x`\?\)"):
+        load_calibration_model("ferraris").index("BA_x")
+
+
 def test_noise_free_platform_session_recovered_exactly_and_six_positions_say_what_they_miss(platform_ground):
     ses, segs = simulate_session(platform_ground, PLATFORM_TRUTH, ferraris_design(20, 60) + tilted_design(20),
                                  rate=100.0)

@@ -185,3 +185,37 @@ def test_declared_scales_and_their_checks():
             casep.ErrorModel("t").declare(Kb=("mg", bad))
     with pytest.raises(ValueError, match="unit"):
         casep.ErrorModel("t").declare(Kb=("mg", 1.0, 2.0))
+
+
+@pytest.mark.parametrize("kind, declare, set_output", [
+    (casep.ErrorModel, {"Ka0x": "mg"}, lambda m, c: m.set_accel_error([c.Ka0x, 0, 0])),
+    (casep.TrackingModel, {"range_bias": "m"}, lambda m, c: m.set_range_error(c.range_bias)),
+    (casep.calibration.CalibrationModel, {"ba_x": "mg"}, lambda m, c: m.set_accel_reading([c.ba_x, 0, 0])),
+])
+def test_every_model_kind_has_one_life_cycle_and_one_error_style(kind, declare, set_output):
+    """ErrorModel, TrackingModel and CalibrationModel share their declaration machinery
+    (casep.model.base.SymbolicModel): the same checks, the same "Missing: ... Use: ..." errors."""
+    m = kind("toy")
+    with pytest.raises(ModelDefinitionError, match=r"`toy`: Missing: error coefficients\. Use: model\.declare"):
+        m.setup()
+    c = m.declare(**declare)
+    with pytest.raises(ModelDefinitionError, match=r"`toy`: Missing: .*\. Use: model\.set_"):
+        m.setup()
+    with pytest.raises(ValueError, match=r"coefficient `\w+` is declared twice in .*`toy`"):
+        m.declare(**declare)
+    unused = m.coefficient("spare", "m", si_factor=2.0, scale=3.0)
+    assert float(ca.evalf(ca.substitute(unused, m.symbols[-1], 1.0))) == 2.0  # symbol * si_factor
+    set_output(m, c)
+    with pytest.raises(ModelDefinitionError, match=r"`spare` declared but used in no"):
+        m.setup()
+    m2 = kind("toy")
+    c2 = m2.declare(**declare)
+    with pytest.raises(RuntimeError, match=r"`toy` is not set up\. Use: model\.setup\(\)"):
+        _ = m2.functions if hasattr(kind, "functions") else m2.jacobian(np.zeros((1, 11)))
+    set_output(m2, c2)
+    assert m2.setup() is m2 and m2.is_setup and m2.names == tuple(declare)
+    with pytest.raises(RuntimeError, match=r"`toy` is locked after setup\(\)\. Use: declare every coefficient"):
+        m2.declare(other="m")
+    name = next(iter(declare))
+    with pytest.raises(KeyError, match=rf"unknown coefficient `{name.upper()}` \(did you mean `{name}`\?\)"):
+        m2.index(name.upper())

@@ -1,0 +1,175 @@
+"""The checks of a ground test against its pattern: units, labels, gaps, misfits, rotation signs.
+
+A session is refused (ValueError naming segment and numbers) when its static accelerometer means
+are far from gravity in the declared unit (:func:`check_gravity`) or point away from the stated
+position (:func:`check_positions`); warned about (a :class:`casep.exceptions.CasepWarning`) when a turn
+has gaps in time (:class:`TimeGapWarning`), a static segment misfits the model
+(:class:`PositionMisfitWarning`) or a turn's reading has the sign opposite to its angle
+(:class:`RotationSignWarning`).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import Sequence
+
+import numpy as np
+
+from casep.calibration.session import ACC_UNITS, RAW_UNIT, Segment, Session
+from casep.exceptions import CasepWarning
+
+__all__ = ["RotationSignWarning", "PositionMisfitWarning", "TimeGapWarning", "GRAVITY_TOLERANCE", "MISFIT_Z",
+           "check_gravity", "check_gaps", "check_positions", "warn_misfit", "check_rotation_signs",
+           "segment_misfits"]
+
+#: A static segment's |mean specific force| may differ from gravity by this fraction (physical units).
+GRAVITY_TOLERANCE = 0.10
+#: A studentized segment misfit above this is warned about.
+MISFIT_Z = 4.0
+
+
+class RotationSignWarning(CasepWarning):
+    """A rotation's gyro reading has the opposite sign of the expected angle (segment and numbers)."""
+
+
+class PositionMisfitWarning(CasepWarning):
+    """A static segment misfits the model far more than the others (segment and numbers)."""
+
+
+class TimeGapWarning(CasepWarning):
+    """Samples are missing inside a turn (segment, gaps, samples missing): integrated over the recorded times."""
+
+
+def check_gravity(segs: Sequence[Segment], session: Session, gravity: float) -> None:
+    """Refuse readings in a physical unit whose static |mean| is off gravity by more than GRAVITY_TOLERANCE.
+
+    A static accelerometer senses ``|f| = g``; a mean far from it in the declared unit is a unit mistake
+    (raw counts declared as m/s^2, g as m/s^2, ...): the units that would give g are named.
+    """
+    unit = session.acc_unit
+    if unit not in ACC_UNITS:
+        return  # raw counts: any scale
+    for s in segs:
+        if s.kind != "static":
+            continue
+        raw = float(np.linalg.norm(session.acc[s.rows].mean(axis=0)))  # |mean|, declared unit
+        m = raw * ACC_UNITS[unit]  # m/s^2
+        if abs(m / gravity - 1.0) <= GRAVITY_TOLERANCE:
+            continue
+        fits = [u for u, k in ACC_UNITS.items() if u != unit and abs(raw * k / gravity - 1.0) <= GRAVITY_TOLERANCE]
+        hint = (f"the readings look like {' or '.join(fits)}: --acc-unit {fits[0]}" if fits else
+                f"raw counts? Use: --acc-unit {RAW_UNIT} with a raw-readings model (ferraris)")
+        si = "" if unit == "m/s^2" else f" = {m:.6g} m/s^2"
+        raise ValueError(f"{session.source}: {s.where}: the static accelerometer mean has |f| = {raw:.6g} {unit}"
+                         f"{si}, {m / gravity:.4g} x gravity ({gravity:.6g} m/s^2; more than "
+                         f"{GRAVITY_TOLERANCE:.0%} off): {hint}")
+
+
+def check_gaps(rots: Sequence[Segment], t: np.ndarray, rate: float) -> None:
+    """TimeGapWarning for a turn whose time steps exceed 1.5 / rate (samples missing)."""
+    for s in rots:
+        step = np.diff(t[s.rows])
+        gaps = step > 1.5 / rate
+        if gaps.any():
+            missing = int(np.round(step[gaps] * rate).sum()) - int(gaps.sum())
+            warnings.warn(f"{s.where}: {int(gaps.sum())} gap(s) in time inside the turn (largest {step.max():.4g} s "
+                          f"against the {1.0 / rate:.4g} s step; about {missing} samples missing): the turn is "
+                          "integrated over the recorded times", TimeGapWarning, stacklevel=3)
+
+
+def check_positions(segs: Sequence[Segment], acc: np.ndarray, unit: str) -> None:
+    """Refuse a static segment whose accelerometer mean points away from its stated gravity.
+
+    The means are centred on their average when the stated directions balance (a Ferraris set),
+    so a raw bias does not count; a segment whose centred mean makes more than 45 deg with its
+    stated direction is mislabelled (the nearest axis is named).
+    """
+    st = [s for s in segs if s.kind == "static"]
+    if len(st) < 2:
+        return
+    means = np.array([acc[s.rows].mean(axis=0) for s in st])
+    dirs = np.array([s.gravity for s in st])
+    centre = means.mean(axis=0) if np.linalg.norm(dirs.sum(axis=0)) < 1e-9 else np.zeros(3)
+    for s, m, e in zip(st, means, dirs):
+        v = m - centre
+        nv = float(np.linalg.norm(v))
+        if nv == 0:
+            continue
+        cos = float(v @ e) / nv
+        if cos < math.cos(math.radians(45.0)):
+            k = int(np.argmax(np.abs(v)))
+            looks = f"{'+' if v[k] > 0 else '-'}{'xyz'[k]}"
+            raise ValueError(f"{s.where}: the accelerometer mean [{', '.join(f'{x:.4g}' for x in m)}] {unit} points "
+                             f"{math.degrees(math.acos(max(-1.0, min(1.0, cos)))):.0f} deg away from the stated "
+                             f"gravity {e.round(3).tolist()} (it looks like gravity along {looks}): a mislabelled "
+                             "position? Fix the label or the segment's gravity")
+
+
+def warn_misfit(static, S_static, r, level, sensor, unit, reading_scale, S_fit) -> None:
+    """PositionMisfitWarning for a static segment whose studentized row residual exceeds MISFIT_Z.
+
+    `S_static`, `r`: the static rows and their residuals in the fit of the rows `S_fit` (the static
+    rows first); leverage ``h = diag(S (S^T S)^+ S^T)`` of the fit.
+    """
+    U, sv, _ = np.linalg.svd(S_fit, full_matrices=False)
+    keep = sv > sv[0] * 1e-10 if sv.size else sv > 0
+    h = np.sum(U[:, keep] ** 2, axis=1)[:S_static.shape[0]]
+    # residuals at the rounding level of the rows (a noise-free session) are no misfit
+    floor = 1e-12 * reading_scale
+    z = np.where(np.abs(r) <= floor, 0.0, r / (max(level, floor, 1e-300) * np.sqrt(np.clip(1.0 - h, 1e-12, None))))
+    for k, s in enumerate(static):
+        zk = z[3 * k:3 * k + 3]
+        if np.max(np.abs(zk)) > MISFIT_Z:
+            i = int(np.argmax(np.abs(zk)))
+            warnings.warn(f"{s.where}: the {sensor} mean misfits the model by {r[3 * k + i]:+.4g} {unit} "
+                          f"on {'xyz'[i]}, {abs(zk[i]):.3g} x its std from the other positions' level ({level:.4g} "
+                          f"{unit}): a bad position or a wrong label?", PositionMisfitWarning, stacklevel=3)
+
+
+def check_rotation_signs(model, rots, gyr, gravity, rate, est, unit) -> None:
+    """RotationSignWarning where the fitted sensitivity about a turn's axis is negative."""
+    x = np.where(np.isfinite(est), est, 0.0)
+    for s in rots:
+        f = gravity * s.gravity
+        a = s.axis
+        z = np.zeros(3)
+        # d reading / d omega along the axis, per rad/s: [y(f, a) - y(f, 0)] . a (the reading is affine in omega)
+        dy = (model.known("gyro_reading", f, a) - model.known("gyro_reading", f, z)
+              + (model.jacobian("gyro_reading", f, a) - model.jacobian("gyro_reading", f, z)) @ x)
+        sens = float(dy @ a) * math.pi / 180.0  # per deg/s
+        if sens < 0:
+            integral = float(gyr[s.rows].sum(axis=0) @ a / rate)
+            warnings.warn(
+                f"{s.where}: the gyro reading about {np.round(a, 3).tolist()} integrates to {integral:+.5g} {unit} s, "
+                f"the opposite sign of the expected angle {s.angle_deg:+g} deg: the fitted scale about that axis is "
+                f"{sens:.5g} {unit} per deg/s. The turn went the other way (--angle {-s.angle_deg:+g}) or the gyro "
+                "axis is inverted", RotationSignWarning, stacklevel=3)
+
+
+def segment_misfits(segments: Sequence[Segment], seg: Sequence[tuple[str, int]], sd: Sequence,
+                    r: np.ndarray, s_i: np.ndarray, unit: str) -> dict[str, dict]:
+    """Per segment the residual of its row, the noise std of that row and their RMS ratio.
+
+    `seg`, `sd`: per block of rows the segment name with its number of row triples and the rows'
+    noise std (as :func:`casep.calibration.rows.sensor_rows` gives them); `r`: the residuals of the
+    unweighted rows; `s_i`: the sample noise per axis; `unit`: the sensor's reading unit. A static
+    segment's residual is the mean of its rows, its noise ``s_i / sqrt(n)``; a turn's, its one row
+    (unit times s, an integral) and its integrated white noise.
+    """
+    out: dict[str, dict] = {}
+    k0 = 0
+    for (name, k), sdv in zip(seg, sd):
+        rr = r[k0:k0 + 3 * k].reshape(k, 3)
+        k0 += 3 * k
+        segment = next(s for s in segments if s.name == name)
+        if segment.kind == "static":
+            noise = s_i / math.sqrt(len(segment.rows))
+            resid = rr.mean(axis=0)
+        else:
+            noise = np.asarray(sdv)
+            resid = rr[0]
+        ratio = float(np.sqrt(np.mean(resid**2)) / max(float(np.sqrt(np.mean(noise**2))), 1e-300))
+        out[name] = {"residual": resid.tolist(), "noise_std": noise.tolist(), "ratio": ratio,
+                     "unit": unit if segment.kind == "static" else f"{unit} s"}  # a turn's row: an integral
+    return out
