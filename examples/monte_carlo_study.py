@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from casep.workflows.montecarlo import run_montecarlo, write_figure
+from casep.montecarlo import run_montecarlo, write_figure
 
 ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 ap.add_argument("--out", default=None, help="folder for mc.json, mc.csv and mc.png")

@@ -73,7 +73,8 @@ def _per_flight(items: list[str] | None) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from casep.impact.miss import impact_analysis, read_trajectory
+    from casep.impact.miss import impact_analysis
+    from casep.io.trajectory import read_trajectory
 
     _manifest(args)  # --manifest: the flight's file and result
     outputs.check({"--json": args.json}, inputs.input_files(args, "flight", "tracking", "result", "trajectory"),

@@ -77,8 +77,8 @@ def _read_files(args: argparse.Namespace, names: Any, stages: int) -> dict[str, 
 def run(args: argparse.Namespace) -> int:
     from casep.io._atomic import output_group
     from casep.model.loader import load_model
+    from casep.montecarlo import Terminated, run_montecarlo, sigterm_raises, write_figure
     from casep.simulation.scenarios import get_scenario
-    from casep.workflows.montecarlo import Terminated, run_montecarlo, sigterm_raises, write_figure
 
     outputs.check({"--json": args.json, "--csv": args.csv, "--figure": args.figure},
                   inputs.input_files(args, "prior", "bounds", "dispersions", "truth_from_prior", "flight", "truth"))

@@ -41,7 +41,7 @@ import numpy as np
 from casep.impact.ballistic import impact, impact_jacobian, impact_point
 from casep.impact.result import Group, ImpactAnalysis
 from casep.io.flight import FlightData
-from casep.io.trajectory import read_trajectory  # casep/cli.py imports it from here: keep until it does not
+from casep.io.trajectory import read_trajectory
 from casep.model.sv import cumulative_sp  # S_P = int S_V dt (the tracking layer uses it too)
 
 __all__ = ["ImpactAnalysis", "impact_analysis", "burnout_state", "position_sensitivity", "cumulative_sp",

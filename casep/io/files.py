@@ -60,10 +60,6 @@ __all__ = [
     "read_json_table", "read_flight", "read_flight_pair", "write_flight", "write_table", "apparent_velocity_to_force",
 ]
 
-# Importers outside casep.io that still use the old names (casep/tracking/regression.py, tracking/stations.py:
-# _Table, _force; analysis/problem.py: locate_samples; workflows/solve.py: where).
-_Table, _force = Table, table_force  # re-export: remove after merge
-
 
 def read_flight(path: str | os.PathLike) -> FlightData:
     """Read a one-file flight (CSV, or Parquet by extension ``.parquet``/``.pq``).

@@ -78,7 +78,7 @@ def own_trajectory(scenario: str | Scenario, flight: Any, truth: Mapping) -> dic
     from casep.model.loader import load_model
     from casep.simulation.noise import NoiseModel
     from casep.simulation.scenarios import get_scenario
-    from casep.simulation.simulate import _truth_vector
+    from casep.simulation.simulate import truth_vector
 
     sc = get_scenario(scenario)
     fl = flight if isinstance(flight, FlightData) else read_flight(flight)
@@ -87,7 +87,7 @@ def own_trajectory(scenario: str | Scenario, flight: Any, truth: Mapping) -> dic
                          f"{type(truth).__name__}")
     coefs = truth["coefficients"] if isinstance(truth.get("coefficients"), Mapping) else truth
     model = load_model(str(truth.get("model", sc.model)))
-    vec = _truth_vector(model, {k: v for k, v in coefs.items() if k not in ("model", "noise")}, "`truth`")
+    vec = truth_vector(model, {k: v for k, v in coefs.items() if k not in ("model", "noise")}, "`truth`")
     if isinstance(truth.get("noise"), Mapping):
         try:
             noise = NoiseModel(**truth["noise"])

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from casep.reporting.plots import _pyplot, _save
+from casep.reporting.plots import pyplot, save_figure
 
 __all__ = ["plot_efficiency"]
 
@@ -37,7 +37,7 @@ def plot_efficiency(names: Sequence[str], ratios: Mapping[str, np.ndarray], path
     Path
         `path`.
     """
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(max(9, 0.3 * len(names)), 4.5))
     x = np.arange(len(names))
     for meth, ratio in ratios.items():
@@ -48,4 +48,4 @@ def plot_efficiency(names: Sequence[str], ratios: Mapping[str, np.ndarray], path
     ax.set_title(title)
     ax.legend(fontsize=8, ncol=3)
     ax.grid(True, which="both", alpha=0.3)
-    return _save(fig, path)
+    return save_figure(fig, path)

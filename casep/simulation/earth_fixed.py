@@ -52,11 +52,11 @@ def read_truth(path: str | os.PathLike, model: Any, option: str = "--truth") -> 
         A name the model does not have, or a value that is not a finite number.
     """
     from casep.io.files import read_json_table
-    from casep.simulation.simulate import _truth_vector
+    from casep.simulation.simulate import truth_vector
 
     truth = read_json_table(path, option)
     truth = truth["coefficients"] if isinstance(truth.get("coefficients"), dict) else truth
-    _truth_vector(model, truth, f"{option} {path}")
+    truth_vector(model, truth, f"{option} {path}")
     return truth
 
 

@@ -181,7 +181,6 @@ def truth_vector(model: ErrorModel, truth: dict, source: str = "truth") -> np.nd
     return values.astype(float)
 
 
-_truth_vector = truth_vector  # re-export: remove after merge
 
 
 def scenario_setup(scenario: str | Scenario, rate: float | None = None, *, rotating_earth: bool = False,

@@ -23,6 +23,7 @@ PUBLIC_MODULES = (
     "casep.simulation",
     "casep.impact",
     "casep.design",
+    "casep.montecarlo",
     "casep.calibration",
     "casep.tracking",
     "casep.frames",

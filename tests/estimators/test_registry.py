@@ -25,7 +25,7 @@ def clean_flight(platform36, truth36):
 
 
 def test_registry_is_what_separate_and_montecarlo_use():
-    from casep.workflows.montecarlo import BATCHED
+    from casep.montecarlo import BATCHED
     from casep.workflows.separate import METHODS as SEPARATE_METHODS
 
     assert tuple(METHODS) == SEPARATE_METHODS

@@ -214,9 +214,9 @@ def _forbid(monkeypatch, target: str):
     (["separate", "{flight}", "--csv", "{missing}/r.csv"], "casep.workflows.separate.separate"),
     (["diagnose", "{flight}", "--json", "{missing}/d.json"], "casep.analysis.diagnostics.diagnose"),
     (["simulate", "-o", "{missing}/f.csv"], "casep.simulation.simulate.simulate_flight"),
-    (["montecarlo", "--runs", "2", "--json", "{missing}/mc.json"], "casep.workflows.montecarlo.run_montecarlo"),
-    (["montecarlo", "--runs", "2", "--csv", "{missing}/mc.csv"], "casep.workflows.montecarlo.run_montecarlo"),
-    (["montecarlo", "--runs", "2", "--figure", "{missing}/mc.png"], "casep.workflows.montecarlo.run_montecarlo"),
+    (["montecarlo", "--runs", "2", "--json", "{missing}/mc.json"], "casep.montecarlo.run_montecarlo"),
+    (["montecarlo", "--runs", "2", "--csv", "{missing}/mc.csv"], "casep.montecarlo.run_montecarlo"),
+    (["montecarlo", "--runs", "2", "--figure", "{missing}/mc.png"], "casep.montecarlo.run_montecarlo"),
 ])
 def test_missing_output_folder_exit_2_before_any_work(flight_csv, tmp_path, capsys, monkeypatch, argv, forbidden):
     _forbid(monkeypatch, forbidden)

@@ -78,7 +78,7 @@ def test_rls_prior_the_data_contradict_fails():
 ])
 def test_montecarlo_dispersions_that_hang_or_never_lift_off_are_refused(disp, message):
     """An azimuth of 1e300 hung main (still running after 120 s); a thrust scale of 0.01 ran without lift-off."""
-    from casep.workflows.montecarlo import run_montecarlo
+    from casep.montecarlo import run_montecarlo
 
     with pytest.raises(ValueError, match=message):
         run_montecarlo("paper", runs=1, methods=["ols"], rate=5.0, workers=1, progress=False, dispersions=disp)
@@ -86,7 +86,7 @@ def test_montecarlo_dispersions_that_hang_or_never_lift_off_are_refused(disp, me
 
 def test_montecarlo_truth_prior_beyond_any_instrument_is_refused():
     """--truth-from-prior with std 1e308 printed nan; beyond 1e6 x the declared magnitude is refused too."""
-    from casep.workflows.montecarlo import run_montecarlo
+    from casep.montecarlo import run_montecarlo
 
     for std, message in ((1e308, r"`Kg0x`(: draws reach \|mean\| \+ 6 std = inf deg/h| std must be > 0, within "
                                  r"\[1e-30, 1e\+30\])"),  # the prior reader's magnitude limit comes first
