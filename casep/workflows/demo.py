@@ -7,6 +7,13 @@ magnitude of each coefficient, :func:`casep.simulation.paper.demo_bounds`) and M
 ground-calibration-like prior, :func:`casep.simulation.paper.demo_prior`). Prints Table 1 in the
 paper's layout with the Cramer-Rao std, and with an output folder writes the figures and
 a self-contained Markdown report.
+
+Every method sees the rows :func:`casep.separate` would give it: the noise model and the robust
+check are worked out once for the flight (:meth:`casep.analysis.problem.Problem.rows`) and shared
+by the six methods on raw dv (:func:`casep.workflows.solve.solve_problem`); wavelet + RELS, on
+de-noised dv, goes through :func:`casep.separate`. The estimates are then judged against the
+model's declared magnitudes as :func:`casep.separate` judges them, the biased methods (ridge, PCR,
+bounded) with the least-squares std where theirs are smaller (:func:`_judged`).
 """
 
 from __future__ import annotations
@@ -109,10 +116,16 @@ class DemoResult:
             "truth": {n: float(v) for n, v in zip(sim.model.names, sim.truth)},
             "results": {label: r.to_dict() for label, r in self.results.items()},
             "diagnostics": self.diagnostics.to_dict(),
-            "impact": {label: ia.to_json() for label, ia in self.impact.items()},
+            "impact": {label: _plain(ia) for label, ia in self.impact.items()},
             "true_miss": None if self.true_miss is None else [float(v) for v in self.true_miss],
             "files": [str(p) for p in self.files],
         }
+
+
+def _plain(ia: ImpactAnalysis) -> dict[str, Any]:
+    """An impact miss as plain data (its ``to_dict``, or ``to_json`` where it has no ``to_dict`` yet)."""
+    to_dict = getattr(ia, "to_dict", None) or ia.to_json
+    return to_dict()
 
 
 def _fmt(v: float) -> str:
