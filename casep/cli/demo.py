@@ -16,25 +16,7 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from casep.workflows import demo
+    from casep.workflows.demo import run_demo
 
-    # summary_lines: public name of the demo module (its former name _summary_lines until that rename is merged)
-    summary_lines = getattr(demo, "summary_lines", None) or demo._summary_lines
-    res = demo.run_demo(args.out, seed=args.seed, rate=args.rate)
-    sim = res.sim
-    print(f"casep demo: paper scenario, seed {sim.seed}, {sim.flight.n_samples} samples at {sim.scenario.rate:g} Hz, "
-          f"white noise 0.1 m/s")
-    print()
-    print(res.table)
-    print()
-    d = res.diagnostics
-    print(f"equilibrated condition number {d.condition_number_equilibrated:.3g}; "
-          f"identifiable alone: {', '.join(n for n, v in d.identifiability.items() if v == 'identifiable')}")
-    for line in summary_lines(sim, res.results, d.crlb_std):
-        print(line)
-    print()
-    for line in demo.impact_lines(res.impact, res.true_miss) if res.true_miss is not None else []:
-        print(line)
-    print()
-    print(f"report and figures in {args.out}/ (report.md)")
+    print(run_demo(args.out, seed=args.seed, rate=args.rate).text())
     return 0

@@ -39,7 +39,6 @@ def save_figure(fig: Any, path: str | os.PathLike) -> Path:
     return path
 
 
-_pyplot, _save = pyplot, save_figure  # re-export: remove after merge (casep/workflows/demo.py, montecarlo.py)
 
 
 def plot_singular_values(diag: Diagnostics, path: str | os.PathLike) -> Path:

@@ -7,30 +7,43 @@ magnitude of each coefficient, :func:`casep.simulation.paper.demo_bounds`) and M
 ground-calibration-like prior, :func:`casep.simulation.paper.demo_prior`). Prints Table 1 in the
 paper's layout with the Cramer-Rao std, and with an output folder writes the figures and
 a self-contained Markdown report.
+
+Every method sees the rows :func:`casep.separate` would give it: the noise model and the robust
+check are worked out once for the flight (:meth:`casep.analysis.problem.Problem.rows`) and shared
+by the six methods on raw dv (:func:`casep.workflows.solve.solve_problem`); wavelet + RELS, on
+de-noised dv, goes through :func:`casep.separate`. The estimates are then judged against the
+model's declared magnitudes as :func:`casep.separate` judges them, the biased methods (ridge, PCR,
+bounded) with the least-squares std where theirs are smaller (:func:`_judged`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Mapping
 
 import numpy as np
 
+from casep.analysis.checks import check_fit
 from casep.analysis.diagnostics import Diagnostics, diagnose
 from casep.analysis.problem import Problem
+from casep.analysis.rows import Rows
 from casep.estimators.result import EstimateResult
 from casep.exceptions import IllConditionedWarning
-from casep.impact.miss import impact_analysis
+from casep.impact.miss import ImpactAnalysis, impact_analysis
+from casep.model._model import ErrorModel
 from casep.simulation.paper import demo_bounds, demo_prior
 from casep.simulation.simulate import SimulatedFlight, simulate_flight
-from casep.workflows.separate import separate
+from casep.workflows.separate import judge_setup, separate
+from casep.workflows.solve import solve_problem
 
-__all__ = ["DemoResult", "run_demo", "DEMO_METHODS"]
+__all__ = ["DemoResult", "run_demo", "DEMO_METHODS", "summary_lines", "impact_lines"]
 
 #: (column label, method, options) of the demo, in table order.
-DEMO_METHODS = (
+DEMO_METHODS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("LS", "ols", {}),
     ("RLS", "rls", {}),
     ("RELS", "rels", {"noise_order": 1}),
@@ -40,20 +53,79 @@ DEMO_METHODS = (
     ("MAP", "map", {}),
 )
 
+#: Methods whose std omit their bias (shrinkage, truncation, a box): judged against the declared
+#: magnitudes with the least-squares std of the same rows where theirs are smaller (:func:`_judged`).
+BIASED = ("ridge", "pcr", "bounded")
+
 
 @dataclass(frozen=True)
 class DemoResult:
-    """Everything the demo computed."""
+    """Everything the demo computed (the result protocol of :mod:`casep.results`).
+
+    Attributes
+    ----------
+    sim : SimulatedFlight
+        The simulated ``paper`` flight and its true coefficients.
+    results : dict
+        Column label (:data:`DEMO_METHODS`) -> EstimateResult.
+    diagnostics : Diagnostics
+        Cramer-Rao std, condition numbers and identifiability at the scenario's noise sigma.
+    table : str
+        Table 1 as the command line prints it.
+    files : tuple of Path
+        Figures and ``report.md`` written (empty without an output folder).
+    impact : dict
+        Label ("LS", "MAP") -> the impact miss predicted from that result (:func:`casep.impact_analysis`).
+    true_miss : (2,) ndarray or None
+        The true instrument-error miss (linear, the true coefficients), m (downrange, crossrange).
+    out : Path or None
+        The output folder.
+    """
 
     sim: SimulatedFlight
     results: dict[str, EstimateResult]
     diagnostics: Diagnostics
     table: str
     files: tuple[Path, ...] = ()
-    #: The impact miss predicted from the LS and MAP results (:func:`casep.impact_analysis`).
-    impact: dict = field(default_factory=dict)
-    #: The true instrument-error miss (linear, the true coefficients), m (downrange, crossrange).
+    impact: dict[str, ImpactAnalysis] = field(default_factory=dict)
     true_miss: np.ndarray | None = None
+    out: Path | None = None
+
+    def text(self) -> str:
+        """What ``casep demo`` prints: the scenario, Table 1, the summary per method, the impact miss."""
+        sim, d = self.sim, self.diagnostics
+        lines = [f"casep demo: paper scenario, seed {sim.seed}, {sim.flight.n_samples} samples at "
+                 f"{sim.scenario.rate:g} Hz, white noise {sim.scenario.noise.sigma:g} m/s", "", self.table, "",
+                 f"equilibrated condition number {d.condition_number_equilibrated:.3g}; identifiable alone: "
+                 + ", ".join(n for n, v in d.identifiability.items() if v == "identifiable")]
+        lines += summary_lines(sim, self.results, d.crlb_std)
+        if self.true_miss is not None:
+            lines += [""] + impact_lines(self.impact, self.true_miss)
+        if self.out is not None:
+            lines += ["", f"report and figures in {self.out}/ (report.md)"]
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data: the scenario, the truth, every method's result JSON, the diagnostics, the miss."""
+        sim = self.sim
+        return {
+            "scenario": sim.scenario.name,
+            "seed": int(sim.seed),
+            "rate_hz": float(sim.scenario.rate),
+            "n_samples": int(sim.flight.n_samples),
+            "truth": {n: float(v) for n, v in zip(sim.model.names, sim.truth)},
+            "results": {label: r.to_dict() for label, r in self.results.items()},
+            "diagnostics": self.diagnostics.to_dict(),
+            "impact": {label: _plain(ia) for label, ia in self.impact.items()},
+            "true_miss": None if self.true_miss is None else [float(v) for v in self.true_miss],
+            "files": [str(p) for p in self.files],
+        }
+
+
+def _plain(ia: ImpactAnalysis) -> dict[str, Any]:
+    """An impact miss as plain data (its ``to_dict``, or ``to_json`` where it has no ``to_dict`` yet)."""
+    to_dict = getattr(ia, "to_dict", None) or ia.to_json
+    return to_dict()
 
 
 def _fmt(v: float) -> str:
@@ -62,7 +134,7 @@ def _fmt(v: float) -> str:
     return f"{v:.4g}"
 
 
-def _table(sim: SimulatedFlight, results: dict[str, EstimateResult], crlb: np.ndarray, markdown: bool) -> str:
+def _table(sim: SimulatedFlight, results: Mapping[str, EstimateResult], crlb: np.ndarray, markdown: bool) -> str:
     labels = list(results)
     head = ["coefficient", "unit", "true"] + labels + ["CRLB std"]
     rows = []
@@ -77,10 +149,12 @@ def _table(sim: SimulatedFlight, results: dict[str, EstimateResult], crlb: np.nd
     return "\n".join([line(head), "  ".join("-" * w for w in widths)] + [line(r) for r in rows])
 
 
-def _summary_lines(sim, results, crlb) -> list[str]:
+def summary_lines(sim: SimulatedFlight, results: Mapping[str, EstimateResult], crlb: np.ndarray) -> list[str]:
+    """One line per method: residual RMS per axis, median ``|estimate - true| / CRLB std`` and how many
+    coefficients are within 2 CRLB std of the truth."""
     lines = []
     for label, r in results.items():
-        z = np.abs(r.estimate - sim.truth) / crlb
+        z = np.abs(r.estimate - sim.truth) / crlb  # error in units of the Cramer-Rao std
         rms = r.residual_rms
         lines.append(f"{label:<13} residual RMS x {rms['x']:.3g} y {rms['y']:.3g} z {rms['z']:.3g} m/s; "
                      f"median |error|/CRLB {np.nanmedian(z):.2f}; within 2 CRLB std: "
@@ -88,7 +162,9 @@ def _summary_lines(sim, results, crlb) -> list[str]:
     return lines
 
 
-def _band(ax, t: np.ndarray, r: np.ndarray, bins: int = 1000) -> None:
+
+
+def _band(ax: Any, t: np.ndarray, r: np.ndarray, bins: int = 1000) -> None:
     """Residuals against time as their min-max band per time bin (what a 1000-pixel-wide line of
     19 501 noisy samples shows anyway, drawn in half the time)."""
     k = t.size // bins
@@ -102,28 +178,30 @@ def _band(ax, t: np.ndarray, r: np.ndarray, bins: int = 1000) -> None:
         ax.plot(t[m:], r[m:], lw=0.5, color="C0")
 
 
-def _figures(out: Path, sim, results, diag, crlb) -> list[Path]:
-    from casep.reporting.plots import _pyplot, _save, plot_singular_values
+def _figures(out: Path, sim: SimulatedFlight, results: Mapping[str, EstimateResult], diag: Diagnostics,
+             crlb: np.ndarray) -> list[Path]:
+    from casep.reporting.plots import plot_singular_values, pyplot, save_figure
 
-    plt = _pyplot()
+    plt = pyplot()
     t = sim.flight.t
     files = []
     for fname, label, title in (("fig3_residuals_ls.png", "LS", "Figure 3 analogue: velocity residuals of LS"),
                                 ("fig4_residuals_wavelet_rels.png", "wavelet+RELS",
                                  "Figure 4 analogue: residuals of wavelet+RELS (w.r.t. the de-noised dv)")):
-        r = results[label].residuals
+        resid = results[label].residuals
+        assert resid is not None  # every demo method reports its residuals
         fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True)
         for i, ax in enumerate(axes):
-            _band(ax, t, r[:, i])
+            _band(ax, t, resid[:, i])
             ax.set_ylabel(f"{'xyz'[i]} (m/s)")
             ax.grid(alpha=0.3)
         axes[0].set_title(title, fontsize=10)
         axes[-1].set_xlabel("time (s)")
-        files.append(_save(fig, out / fname))
+        files.append(save_figure(fig, out / fname))
     fig, ax = plt.subplots(figsize=(11, 4.5))
     x = np.arange(len(sim.model.names))
-    for k, (label, r) in enumerate(results.items()):
-        ax.semilogy(x + (k - 3) * 0.08, np.abs(r.estimate - sim.truth) / crlb, "o", ms=3, label=label)
+    for k, (label, res) in enumerate(results.items()):
+        ax.semilogy(x + (k - 3) * 0.08, np.abs(res.estimate - sim.truth) / crlb, "o", ms=3, label=label)
     ax.axhline(1.0, color="k", lw=1, ls="--")
     ax.axhline(2.0, color="k", lw=0.8, ls=":")
     ax.set_xticks(x, sim.model.names, rotation=90, fontsize=7)
@@ -131,8 +209,9 @@ def _figures(out: Path, sim, results, diag, crlb) -> list[Path]:
     ax.set_title("Error of each coefficient against its Cramer-Rao std (one flight)")
     ax.legend(fontsize=7, ncol=4)
     ax.grid(True, which="both", alpha=0.3)
-    files.append(_save(fig, out / "coefficient_errors.png"))
+    files.append(save_figure(fig, out / "coefficient_errors.png"))
     rels = results["RELS"]
+    assert rels.history is not None  # RELS keeps its history
     H = rels.history[:, : len(sim.model.names)]
     stride = rels.settings["history_stride"]
     th = t[np.arange(H.shape[0]) * stride]
@@ -147,9 +226,42 @@ def _figures(out: Path, sim, results, diag, crlb) -> list[Path]:
     ax.set_title("RELS convergence of the six best-determined coefficients")
     ax.legend(fontsize=8, ncol=3)
     ax.grid(alpha=0.3)
-    files.append(_save(fig, out / "rels_convergence.png"))
+    files.append(save_figure(fig, out / "rels_convergence.png"))
     files.append(plot_singular_values(diag, out / "singular_values.png"))
     return files
+
+
+def _judged(res: EstimateResult, model: ErrorModel, ls_std: np.ndarray | None, noise_free: bool) -> EstimateResult:
+    """:func:`casep.workflows.separate.judge_setup` of a result, for a :data:`BIASED` method with the
+    least-squares std where its own are smaller.
+
+    The magnitude check takes ``|estimate| - 5 std`` as what the data say at least; a biased method's
+    std are the spread of its estimate about its biased mean, so they bound its error only with the
+    bias added. Ridge's shrinkage moves a coefficient the flight cannot see by a multiple of its own
+    std (``Ka2y`` on the paper flight: 89 +- 14 ug/g^2 against a truth of 0.003 and a least-squares
+    std of 485). The least-squares std of the same rows are what the data know of each coefficient.
+    """
+    if res.method not in BIASED or ls_std is None or res.std is None:
+        return judge_setup(res, None, model, noise_free=noise_free)
+    own = res.std
+    honest = np.where(np.isfinite(own), np.fmax(own, ls_std), own)  # NaN (at a bound) stays: not judged
+    return dataclasses.replace(judge_setup(dataclasses.replace(res, std=honest), None, model, noise_free=noise_free),
+                               std=own)
+
+
+def _solve(problem: Problem, model: ErrorModel, rows: Rows, method: str, options: Mapping[str, Any],
+           ls_std: np.ndarray | None, noise_free: bool) -> EstimateResult:
+    """:func:`casep.workflows.separate.separate` of a Problem, on rows prepared once for every method.
+
+    The same steps as ``separate(problem, model, method, ...)``: the method on the shared rows
+    (:func:`casep.workflows.solve.solve_problem`), the residual checks, the set-up judgement.
+    """
+    res = solve_problem(problem, method, options, rows=rows).result
+    assert problem.y is not None and problem.t is not None and problem.f is not None  # a flight's problem
+    S: Any = problem  # check_fit takes S_V or the Problem that regenerates it
+    check_fit(S, problem.y, res, t=problem.t, f=problem.f, source=problem.source,
+              outliers_handled="robust" in res.diagnostics)
+    return _judged(res, model, ls_std, noise_free)
 
 
 def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float = 100.0) -> DemoResult:
@@ -163,16 +275,32 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
         Noise seed of the simulated flight.
     rate : float, optional
         Sample rate, Hz (the paper scenario uses 100).
+
+    Returns
+    -------
+    DemoResult
     """
     sim = simulate_flight("paper", seed=seed, rate=rate)
     model = sim.model
-    extra = {"bounded": {"bounds": demo_bounds(model.names)}, "map": {"prior": demo_prior(model.names)}}
+    extra: dict[str, dict[str, Any]] = {"bounded": {"bounds": demo_bounds(model.names)},
+                                        "map": {"prior": demo_prior(model.names)}}
     results: dict[str, EstimateResult] = {}
     problem = Problem.from_flight(sim.flight, model, keep_sv=True)  # S_V and its QR once, for every method
+    noise_free = sim.scenario.noise.sigma == 0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IllConditionedWarning)  # reported once, through the diagnostics
+        # The noise model and robust weights belong to the data: fitted once (separate's defaults,
+        # noise "auto", robust "auto") for every method but wavelet+RELS, whose de-noised rows are white.
+        rows = problem.rows(robust="auto")
         for label, method, opts in DEMO_METHODS:
-            results[label] = separate(problem, model, method, **opts, **extra.get(method, {}))
+            if opts.get("denoise"):
+                res = separate(problem, model, method, **opts, **extra.get(method, {}))
+                assert isinstance(res, EstimateResult)  # no radar: an EstimateResult
+                results[label] = res
+            else:
+                ls_std = results["LS"].std if "LS" in results else None
+                results[label] = _solve(problem, model, rows, method, {**opts, **extra.get(method, {})}, ls_std,
+                                        noise_free)
     diag = diagnose(problem, sigma=sim.scenario.noise.sigma, scales=model.scales)
     crlb = diag.crlb_std
     table = _table(sim, results, crlb, markdown=False)
@@ -182,23 +310,25 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
               for label in ("LS", "MAP")}
     true_miss = impact["LS"].sensitivity @ np.asarray(sim.truth, dtype=float)  # G D_true
     files: list[Path] = []
+    folder = None
     if out is not None:
         from casep.reporting.plots import impact_figures
 
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        files = _figures(out, sim, results, diag, crlb)
-        files += impact_figures(impact["LS"], out)
-        files.append(_write_report(out, sim, results, diag, crlb, files, impact_lines(impact, true_miss)))
+        folder = Path(out)
+        folder.mkdir(parents=True, exist_ok=True)
+        files = _figures(folder, sim, results, diag, crlb)
+        files += impact_figures(impact["LS"], folder)
+        files.append(_write_report(folder, sim, results, diag, crlb, files, impact_lines(impact, true_miss)))
     return DemoResult(sim=sim, results=results, diagnostics=diag, table=table, files=tuple(files), impact=impact,
-                      true_miss=true_miss)
+                      true_miss=true_miss, out=folder)
 
 
-def impact_lines(impact: dict, true_miss: np.ndarray) -> list[str]:
+def impact_lines(impact: Mapping[str, ImpactAnalysis], true_miss: np.ndarray) -> list[str]:
     """The demo's impact-miss lines: true miss, and each result's prediction with its std."""
     lines = [f"instrument-error miss at impact (true coefficients): downrange {true_miss[0]:.0f} m, "
              f"crossrange {true_miss[1]:.0f} m"]
     for label, ia in impact.items():
+        assert ia.cov is not None  # the demo's results have their covariance
         sd = np.sqrt(np.diag(ia.cov))
         z = (ia.miss - true_miss) / sd
         lines.append(f"{label:<4} predicts downrange {ia.miss[0]:.0f} +- {sd[0]:.0f} m, crossrange {ia.miss[1]:.0f} "
@@ -207,7 +337,8 @@ def impact_lines(impact: dict, true_miss: np.ndarray) -> list[str]:
     return lines
 
 
-def _write_report(out: Path, sim, results, diag, crlb, figures: list[Path], impact: list[str]) -> Path:
+def _write_report(out: Path, sim: SimulatedFlight, results: Mapping[str, EstimateResult], diag: Diagnostics,
+                  crlb: np.ndarray, figures: list[Path], impact: list[str]) -> Path:
     from casep.io._atomic import atomic_open
 
     s = sim.trajectory.summary()
@@ -234,7 +365,7 @@ def _write_report(out: Path, sim, results, diag, crlb, figures: list[Path], impa
         "## What the columns say",
         "",
     ]
-    lines += ["- " + ln for ln in _summary_lines(sim, results, crlb)]
+    lines += ["- " + ln for ln in summary_lines(sim, results, crlb)]
     lines += [
         "",
         "The residuals of wavelet + RELS are small (Figure 4 analogue) because they are taken against the "

@@ -57,3 +57,83 @@ def test_demo_impact_miss_is_known_although_the_coefficients_are_not():
     ref = casep.impact_analysis(res.sim.flight, res.results["LS"], res.sim.model)
     np.testing.assert_allclose(res.impact["LS"].miss, ref.miss, rtol=1e-9)
     np.testing.assert_allclose(res.impact["LS"].cov, ref.cov, rtol=1e-9)
+
+
+def test_demo_result_protocol(tmp_path):
+    """DemoResult follows casep.results.Result: to_dict is JSON, text is what `casep demo` prints."""
+    import json
+
+    from casep.results import Result
+    from casep.workflows.demo import summary_lines
+
+    res = run_demo(tmp_path, rate=10.0, seed=4)
+    assert isinstance(res, Result)
+    d = json.loads(json.dumps(res.to_dict(), allow_nan=False))
+    assert d["seed"] == 4 and d["n_samples"] == res.sim.flight.n_samples
+    assert set(d["results"]) == {label for label, _, _ in DEMO_METHODS}
+    np.testing.assert_allclose(d["results"]["LS"]["estimates"], res.results["LS"].estimate)
+    assert d["truth"]["Ka0x"] == res.sim.truth[res.sim.model.names.index("Ka0x")]
+    assert sorted(d["impact"]) == ["LS", "MAP"] and len(d["true_miss"]) == 2
+    text = res.text()
+    assert res.table in text and f"report and figures in {tmp_path}/" in text
+    for line in summary_lines(res.sim, res.results, res.diagnostics.crlb_std):
+        assert line in text
+    assert "LS   predicts downrange" in text
+
+
+def test_demo_shares_rows_and_matches_separate():
+    """The demo fits the noise model once for its methods; each result is the one separate() gives."""
+    from casep.analysis.problem import Problem
+    from casep.simulation.paper import demo_bounds, demo_prior
+    from casep.workflows.separate import separate
+
+    res = run_demo(None, rate=10.0, seed=5)
+    model = res.sim.model
+    problem = Problem.from_flight(res.sim.flight, model, keep_sv=True)
+    extra = {"bounded": {"bounds": demo_bounds(model.names)}, "map": {"prior": demo_prior(model.names)}}
+    import warnings
+
+    from casep.exceptions import IllConditionedWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        for label, method, opts in DEMO_METHODS:
+            ref = separate(problem, model, method, **opts, **extra.get(method, {}))
+            got = res.results[label]
+            np.testing.assert_array_equal(got.estimate, ref.estimate)
+            np.testing.assert_array_equal(got.std, ref.std)
+            np.testing.assert_array_equal(got.residuals, ref.residuals)
+            assert got.settings == ref.settings and got.status == ref.status
+
+
+def test_demo_judges_biased_methods_by_what_the_data_know():
+    """On the full-rate paper flight ridge moves Ka2y, which the flight cannot see, by more than 5 of its own
+    std (its std omit the shrinkage bias): the demo judges it with the least-squares std and does not warn.
+    Its error against the truth is within 2 least-squares std. A result beyond 100 x a declared magnitude
+    by those std still warns."""
+    import dataclasses
+    import warnings
+
+    import pytest
+
+    from casep.exceptions import MagnitudeWarning
+    from casep.workflows.demo import _judged
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", MagnitudeWarning)
+        res = run_demo(None, seed=1)
+    model = res.sim.model
+    j = model.names.index("Ka2y")
+    ridge, ls = res.results["ridge"], res.results["LS"]
+    err = abs(ridge.estimate[j] - res.sim.truth[j])
+    assert abs(ridge.estimate[j]) - 5 * ridge.std[j] >= 100 * model.scales["Ka2y"]  # what the plain check flags
+    assert err > 5 * ridge.std[j] and err < 2 * ls.std[j]
+    assert "magnitudes" not in ridge.diagnostics
+    # A real set-up mistake: Ka0x (well determined) at 1e4 x its declared magnitude, std as determined.
+    k = model.names.index("Ka0x")
+    wrong = dataclasses.replace(ridge, estimate=np.where(np.arange(len(model.names)) == k,
+                                                         1e4 * model.scales["Ka0x"], ridge.estimate))
+    with pytest.warns(MagnitudeWarning, match="Ka0x"):
+        judged = _judged(wrong, model, ls.std, noise_free=False)
+    np.testing.assert_array_equal(judged.std, ridge.std)  # the result keeps its own std
+    assert judged.diagnostics["magnitudes"][0]["name"] == "Ka0x"
