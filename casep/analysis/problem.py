@@ -64,6 +64,8 @@ class Problem:
         The column-scaled QR reduction (computed once).
     source : str
         Where the rows came from (file name), for messages.
+    segment_starts : tuple of int
+        First sample of each segment of the rows (several flights stacked: one per flight).
     """
 
     def __init__(self, *, names: Sequence[str], units: Sequence[str], si_factors: Sequence[float],
@@ -83,6 +85,10 @@ class Problem:
         self._S = S
         self._regenerate = regenerate
         self._ranks: dict[float | None, RankAnalysis] = {}
+        #: First row (sample) of each segment: flights stacked into one problem
+        #: (:class:`casep.analysis.joint.JointProblem`) are segments; one flight is one segment. A
+        #: recursive method's noise memory restarts at each segment.
+        self.segment_starts: tuple[int, ...] = (0,)
         #: The raw problem this one was derived from by :meth:`subset` or :meth:`whitened` (None: raw).
         self.parent: Problem | None = None
         #: Indices of this problem's samples among the parent's (None: all of them).

@@ -329,7 +329,9 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
                                  description=f"own trajectory {own['source']}")
         verify = False
     if sigma is not None:
-        sigma = _positive("sigma", sigma)  # given
+        from casep.estimators.registry import SIGMA
+
+        sigma = float(SIGMA.check(sigma))  # given: the noise std's one declared rule
     elif own is not None and own["sigma"] is not None:
         sigma = own["sigma"]  # the flight's own tracking noise
     else:

@@ -15,8 +15,7 @@ import numpy as np
 from casep.io._atomic import atomic_open
 
 __all__ = ["EstimateResult", "read_result", "result_from_data", "check_result_units", "resolve_result_model",
-           "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "EXTRAS_TYPES", "OLSExtras",
-           "RLSExtras", "RidgeExtras", "BoundedExtras", "PCRExtras", "MAPExtras", "GLSExtras", "HuberExtras",
+           "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "extras_type",
            "write_json_atomic", "write_mat", "write_csv", "format_number"]
 
 AXES = ("x", "y", "z")
@@ -49,91 +48,33 @@ SIGMA_SOURCES = tuple(SIGMA_SOURCE_MEANINGS)
 
 
 # --------------------------------------------------------------------- typed per-method extras
-# Each solver builds its own and passes it to ``finish(extras=...)``; natural units throughout.
-@dataclass(frozen=True)
-class OLSExtras:
-    """OLS: the relative singular-value cut of the rank decision."""
-
-    rcond: float
+# Each method declares its extras type beside its solver (``Method.extras_type``, with ``describe``).
+_EXTRAS_NAMES = {"OLSExtras": "ols", "RLSExtras": "rls", "RidgeExtras": "ridge", "BoundedExtras": "bounded",
+                 "PCRExtras": "pcr", "MAPExtras": "map", "GLSExtras": "gls", "HuberExtras": "huber"}
 
 
-@dataclass(frozen=True)
-class RLSExtras:
-    """RLS/RELS: prior scale ``p0`` (P0 = p0 I, scaled coordinates), measurement weight,
-    forgetting factor, MA order, and the RELS noise model ``v(k) = e(k) - sum_j c_j v(k-j)``
-    (coefficients, their posterior std, innovation RMS in m/s; empty/None for RLS)."""
+def extras_type(method: str) -> type | None:
+    """The extras dataclass a registered `method` declares (None for an unregistered name)."""
+    from casep.estimators.registry import METHODS  # the registry imports the estimators, which import this module
 
-    p0: float
-    weight: float
-    forgetting: float
-    noise_order: int
-    ma_coefficients: tuple[float, ...] = ()
-    ma_std: tuple[float, ...] = ()
-    innovation_rms: float | None = None
+    m = METHODS.get(method)
+    return m.extras_type if m is not None else None
 
 
-@dataclass(frozen=True)
-class RidgeExtras:
-    """Ridge: lambda (scaled coordinates), the rule that chose it, effective dof tr(H)."""
+def __getattr__(name: str) -> Any:
+    # re-export: remove after merge (the extras types live beside their solvers; EXTRAS_TYPES is the registry's)
+    if name == "EXTRAS_TYPES":
+        from casep.estimators.registry import METHODS
 
-    lam: float
-    rule: str
-    effective_dof: float
-
-
-@dataclass(frozen=True)
-class BoundedExtras:
-    """Bounded: the box (``name -> [low, high]``) and the bounds active at the solution."""
-
-    bounds: dict
-    active_bounds: dict
-
-
-@dataclass(frozen=True)
-class PCRExtras:
-    """PCR: components kept, the rule, the condition-index cut (None when `n_components` was
-    given) and the dropped directions (condition index, leading loadings)."""
-
-    n_components: int
-    rule: str
-    dropped_directions: list
-    max_condition_index: float | None = None
-
-
-@dataclass(frozen=True)
-class MAPExtras:
-    """MAP: the Gaussian prior, ``name -> {"mean", "std"}`` (coefficients not listed: flat)."""
-
-    prior: dict
-
-
-@dataclass(frozen=True)
-class GLSExtras:
-    """GLS: the Gauss-Markov correlation time tau (s) and where it came from ("given", "reml")."""
-
-    tau: float
-    tau_rule: str
-
-
-@dataclass(frozen=True)
-class HuberExtras:
-    """Huber: tuning constant c (in scale units), IRLS iterations, the MAD scale (m/s) and
-    the flagged outlier rows (count, threshold, largest studentized residuals)."""
-
-    c: float
-    iterations: int
-    scale: float
-    outliers: dict
-
-
-#: The extras type of each method (``casep methods --json``).
-EXTRAS_TYPES = {"ols": OLSExtras, "rls": RLSExtras, "rels": RLSExtras, "ridge": RidgeExtras,
-                "bounded": BoundedExtras, "pcr": PCRExtras, "map": MAPExtras, "gls": GLSExtras, "huber": HuberExtras}
+        return {k: m.extras_type for k, m in METHODS.items() if m.extras_type is not None}
+    if name in _EXTRAS_NAMES:
+        return extras_type(_EXTRAS_NAMES[name])
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _extras_from_dict(method: str, d: dict | None):
     """The typed extras of `method` back from their JSON object (lists -> declared tuples)."""
-    cls = EXTRAS_TYPES.get(method)
+    cls = extras_type(method)
     if d is None or cls is None:
         return None
     kw = {f.name: (tuple(d[f.name]) if str(f.type).startswith("tuple") else d[f.name])
@@ -172,72 +113,6 @@ def _sigma_text(v: Any) -> str:
     if isinstance(v, (int, float)):
         return f"sigma given {v:.4g} m/s"
     return f"sigma {v}"
-
-
-def _range(values: list[float]) -> str:
-    vals = [v for v in values if v is not None]
-    if not vals:
-        return "-"
-    lo, hi = min(vals), max(vals)
-    return f"{lo:.3g}" if lo == hi else f"{lo:.3g} .. {hi:.3g}"
-
-
-def _ols_settings(s: dict, d: dict, n: int) -> list[str]:
-    return [f"rcond {s['rcond']:.3g}"] if "rcond" in s else []
-
-
-def _gls_settings(s: dict, d: dict, n: int) -> list[str]:
-    how = "REML estimate" if s.get("tau_rule") == "reml" else "given"
-    return [f"Gauss-Markov tau {s['tau']:.4g} s ({how})"]
-
-
-def _ridge_settings(s: dict, d: dict, n: int) -> list[str]:
-    rule = {"gcv": "GCV", "lcurve": "L-curve corner"}.get(s.get("lambda_rule"), s.get("lambda_rule"))
-    out = [f"lambda {s['lambda']:.4g} on unit-norm columns ({rule})"]
-    if d.get("effective_dof") is not None:
-        out.append(f"effective dof {d['effective_dof']:.3g} of {n}")
-    return out
-
-
-def _rls_settings(s: dict, d: dict, n: int) -> list[str]:
-    out = [f"p0 {s['p0']:.4g}, weight {s['weight']:.4g}, forgetting {s['forgetting']:.6g}"]
-    if d.get("effective_prior_std") is not None:
-        out.append(f"effective prior std {d['effective_prior_std']:.4g} (natural units)")
-    nm = d.get("noise_model")
-    if nm:
-        ma = ", ".join(f"c{j + 1} {c:.4g} +- {e:.2g}" for j, (c, e) in enumerate(zip(nm["ma_coefficients"],
-                                                                                      nm["ma_std"])))
-        out.append(f"MA({len(nm['ma_coefficients'])}) noise model {ma}; innovation RMS {nm['innovation_rms']:.4g} m/s")
-    return out
-
-
-def _pcr_settings(s: dict, d: dict, n: int) -> list[str]:
-    dropped = d.get("dropped_directions", [])
-    out = [f"{s['n_components']} of {n} components kept ({s.get('rule')})"]
-    if dropped:
-        out.append(f"{len(dropped)} dropped (condition index {_range([x['condition_index'] for x in dropped])})")
-    return out
-
-
-def _map_settings(s: dict, d: dict, n: int) -> list[str]:
-    prior = {k: v for k, v in s.get("prior", {}).items() if k != "correlation"}
-    corr = s.get("prior", {}).get("correlation")
-    out = [f"Gaussian prior on {len(prior)} of {n} coefficients (others flat)"
-           + (f", correlated over {len(corr['names'])}" if corr else "")]
-    if 0 < len(prior) <= 4:
-        out.append(", ".join(f"{k} {v['mean']:.4g} +- {v['std']:.4g}" for k, v in prior.items()))
-    return out
-
-
-def _bounded_settings(s: dict, d: dict, n: int) -> list[str]:
-    act = d.get("active_bounds", {})
-    kinds = list(act.values())
-    return [f"bounds on {len(s.get('bounds', {}))} of {n} coefficients; active set {kinds.count('lower')} at "
-            f"lower, {kinds.count('upper')} at upper bound, {kinds.count('fixed')} fixed, {n - len(act)} free"]
-
-
-_SETTINGS_TEXT = {"ols": _ols_settings, "gls": _gls_settings, "ridge": _ridge_settings, "rls": _rls_settings,
-                  "rels": _rls_settings, "pcr": _pcr_settings, "map": _map_settings, "bounded": _bounded_settings}
 
 
 @dataclass(frozen=True)
@@ -333,7 +208,7 @@ class EstimateResult:
             raise ValueError(f"`std_kind` must be one of {', '.join(STD_KIND_MEANINGS)}, got {self.std_kind!r}")
         if self.sigma_source not in SIGMA_SOURCES:
             raise ValueError(f"`sigma_source` must be one of {', '.join(SIGMA_SOURCES)}, got {self.sigma_source!r}")
-        cls = EXTRAS_TYPES.get(self.method)
+        cls = extras_type(self.method) if self.extras is not None else None
         if self.extras is not None and cls is not None and not isinstance(self.extras, cls):
             raise ValueError(f"`extras` of a {self.method} result must be {cls.__name__}, "
                              f"got {type(self.extras).__name__}")
@@ -468,13 +343,12 @@ class EstimateResult:
         return pd.DataFrame(self.coefficient_rows()).set_index("name")
 
     def settings_line(self) -> str:
-        """One line with the settings the method chose or was given (tau, lambda, MA model, ...)."""
-        describe = _SETTINGS_TEXT.get(self.method)
-        try:
-            parts = describe(self.settings, self.diagnostics, len(self.names)) if describe else []
-        except (KeyError, TypeError, ValueError):  # a result built by hand with partial settings
-            parts = []
-        if describe is None:
+        """One line with the settings the method chose or was given (tau, lambda, MA model, ...): its
+        extras' ``describe``; for a result without extras (another tool's, fused), its plain settings."""
+        describe = getattr(self.extras, "describe", None)
+        if describe is not None:
+            parts = list(describe(self))
+        else:
             parts = [f"{k} {v}" for k, v in self.settings.items() if isinstance(v, (int, float, str)) and k != "sigma"]
         parts.append("sigma not stated (a result file of another tool)" if self.sigma_source == "external"
                      else _sigma_text(self.settings.get("sigma")))

@@ -2,14 +2,16 @@
 
 Each flight becomes its own :class:`~casep.analysis.problem.Problem` (its checks, its S_V, its QR);
 its noise sigma is estimated from its own least-squares residuals (or given); the flights are
-combined by :func:`casep.estimators.joint.joint_reduction` into one whitened reduced system over
+combined into one :class:`~casep.analysis.joint.JointProblem`, a whitened reduced system over
 ``theta = [shared, per-flight(1), ..., per-flight(K)]`` (per-flight: the model's
 ``declare(..., per_flight=True)`` coefficients), which the reduction-based methods solve (OLS,
 ridge, bounded, PCR, MAP). The same whitened problem also gives its rows flight after flight
-(:meth:`JointProblem.blocks`: flight k's ``S_k P_k / sigma_k``, ``y_k / sigma_k``), so RLS and RELS
-run the flights in sequence (the RELS noise memory restarts at each flight) and Huber weighs the
-stacked whitened rows (its scale estimated, about 1). GLS whitens each flight with its own
-Gauss-Markov correlation time (REML per flight, or given) before the flights are combined.
+(:meth:`~casep.analysis.joint.JointProblem.blocks`, one segment per flight), so the recursive methods
+(RLS, RELS) run the flights in sequence (the RELS noise memory restarts at each flight). What else a
+method does with several flights is its own declaration
+(:class:`~casep.estimators._options.SeveralFlights`): Huber estimates the scale of the stacked whitened
+rows (about 1) and names each outlier's flight; GLS whitens each flight with its own Gauss-Markov
+correlation time (REML per flight, or given) and solves the combined rows as least squares.
 Residuals are each flight's own, divided by its sigma (the whitened system the joint fit minimises).
 """
 
@@ -22,79 +24,16 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from casep.analysis.problem import DEFAULT_BLOCK_ROWS, Problem
-from casep.estimators.joint import JointLayout, joint_reduction
-from casep.estimators.registry import METHODS, check_method_options, run_method
+from casep.analysis.joint import JointLayout, JointProblem
+from casep.analysis.problem import Problem
+from casep.estimators.registry import METHODS, check_method_options
 from casep.estimators.result import EstimateResult
 
 __all__ = ["JointProblem", "separate_flights", "flights_summary", "fuse", "diagnose_flights", "JOINT_METHODS",
            "FUSE_WARN_P", "FUSE_FAIL_P", "fuse_with_ground"]
 
-#: Methods that estimate several flights jointly (all of the registry's).
-JOINT_METHODS = ("ols", "ridge", "bounded", "pcr", "map", "rls", "rels", "huber", "gls")
-
-
-class JointProblem(Problem):
-    """Several flights' problems as one whitened problem over the joint parameters.
-
-    Parameters
-    ----------
-    problems : sequence of Problem
-        One per flight, same model.
-    sigmas : sequence of float
-        Each flight's noise std, m/s: its rows are divided by it.
-    layout : JointLayout
-    raw : sequence of Problem, optional
-        The flights as read, when `problems` are transformed (GLS: AR(1)-whitened); the summary's
-        residuals are theirs.
-    interpolated : sequence of bool, optional
-        Flights whose tracking was interpolated onto telemetry times (correlated noise: the
-        summary says its tests are optimistic); default none.
-    """
-
-    def __init__(self, problems: Sequence[Problem], sigmas: Sequence[float], layout: JointLayout,
-                 raw: Sequence[Problem] | None = None, interpolated: Sequence[bool] | None = None) -> None:
-        red = joint_reduction([p.red for p in problems], sigmas, layout)
-        units = layout.expand(problems[0].units)
-        si = layout.expand(list(problems[0].si_factors))
-        y = np.concatenate([p.y.reshape(-1, 3) / s for p, s in zip(problems, sigmas)])  # whitened, (N, 3)
-        super().__init__(names=layout.joint_names, units=units, si_factors=si, red=red, y=y,
-                         model=problems[0].model, source=" + ".join(p.source for p in problems))
-        self.problems = tuple(problems)
-        self.raw = tuple(raw) if raw is not None else self.problems
-        self.interpolated = tuple(bool(v) for v in interpolated) if interpolated else (False,) * len(problems)
-        self.sigmas = tuple(float(s) for s in sigmas)
-        self.layout = layout
-        sizes = [p.y.reshape(-1, 3).shape[0] for p in problems]
-        #: First sample of each flight in the stacked rows (RELS restarts its noise memory there).
-        self.segment_starts = tuple(int(v) for v in np.cumsum([0] + sizes[:-1]))
-
-    @property
-    def has_rows(self) -> bool:
-        return all(p.has_rows for p in self.problems)
-
-    def blocks(self, rows: int = DEFAULT_BLOCK_ROWS):
-        """Yield ``(row slice, S block, y block)``: flight after flight, each block
-        ``S_k P_k / sigma_k`` (its coefficients placed in the joint columns, zero elsewhere) and
-        ``y_k / sigma_k``. The S block is reused between yields."""
-        n = self.n
-        for k, (p, s, start) in enumerate(zip(self.problems, self.sigmas, self.segment_starts)):
-            cols = self.layout.columns(k)
-            for sl, S_b, y_b in p.blocks(rows):
-                out = np.zeros(S_b.shape[:-1] + (n,))
-                out[..., cols] = S_b / s  # S_k P_k / sigma_k
-                yield slice(start + sl.start, start + sl.stop), out, y_b / s
-
-    def residuals(self, x: np.ndarray) -> np.ndarray:
-        """Each flight's ``(y_k - S_k P_k x) / sigma_k``, stacked: the joint fit's whitened residuals."""
-        x = np.asarray(x, dtype=float)
-        return np.concatenate([p.residuals(x[self.layout.columns(k)]).reshape(-1) / s
-                               for k, (p, s) in enumerate(zip(self.problems, self.sigmas))])
-
-    def flight_estimates(self, x: np.ndarray) -> list[np.ndarray]:
-        """Flight k's coefficients in model order (shared + its own per-flight ones)."""
-        x = np.asarray(x, dtype=float)
-        return [x[self.layout.columns(k)] for k in range(self.layout.n_flights)]
+#: Methods that estimate several flights jointly (those of the registry's that declare hooks for it).
+JOINT_METHODS = tuple(k for k, m in METHODS.items() if m.flights is not None)
 
 
 def _labels(problems: Sequence[Problem]) -> tuple[str, ...]:
@@ -116,8 +55,8 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     flights : sequence of FlightData, Problem or path
         Two or more flights of the same model.
     model : str, path or ErrorModel
-    method : {"ols", "ridge", "bounded", "pcr", "map"}
-        A method that solves from the reduction.
+    method : str
+        A registered method with hooks for several flights (:data:`JOINT_METHODS`: every built-in one).
     sigma : float or sequence of float, optional
         Noise std per flight (one value for all), m/s; default: each flight's own least-squares
         residual std ``sqrt(RSS_k / (m_k - rank_k))``.
@@ -140,8 +79,11 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     from casep.io.flight import FlightData
     from casep.model.loader import load_model
 
-    if method not in JOINT_METHODS:
-        raise ValueError(f"method `{method}` cannot be estimated jointly; use one of {', '.join(JOINT_METHODS)}")
+    if method not in METHODS or METHODS[method].flights is None:
+        joint = [k for k, m in METHODS.items() if m.flights is not None]
+        raise ValueError(f"method `{method}` cannot be estimated jointly; use one of {', '.join(joint)}")
+    meth = METHODS[method]
+    hooks = meth.flights
     if len(flights) < 2:
         raise ValueError(f"`flights` must hold two or more flights, got {len(flights)}")
     model = load_model(model)
@@ -157,7 +99,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         problems.append(Problem.from_flight(fl, model))
     _refuse_repeats(problems)
     opts = dict(options or {})
-    check_method_options(method, {k: v for k, v in opts.items() if v is not None})
+    check_method_options(method, {k: v for k, v in opts.items() if v is not None})  # once, here
     for key in ("prior", "bounds"):  # on shared coefficients only (a per-flight one is refused, not dropped)
         per = [k for k in (opts.get(key) or {}) if k in model.names and model.per_flight[model.names.index(k)]]
         if per:
@@ -167,35 +109,23 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         raise ValueError("`std` and `exclude_outliers` are not available with several flights yet: fit each flight "
                          "alone for them")
     raw = problems
-    taus = None
+    state: Any = None
     noise_models = None
-    if method == "gls":  # each flight whitened by its own Gauss-Markov correlation time, then combined as OLS
-        if robust not in (None, "auto", "none") or noise == "white":
-            raise ValueError("method `gls` is ols with one Gauss-Markov tau per flight: for noise 'white' or a robust "
-                             "fit use method ols with `noise` and `robust`")
-        problems, taus = _gls_whitened(problems, opts.get("tau", "auto"))
-    else:
+    if hooks.rows is not None:  # the method's own rows (GLS: each flight whitened by its own tau)
+        problems, state = hooks.rows(problems, opts, noise, robust)
+    else:  # each flight's own noise model and robust cleaning
         problems, noise_models = _noise_whitened(problems, noise, tau, robust)
     sig = _sigmas(problems, sigma)
     layout = JointLayout(model.names, model.per_flight, _labels(raw))
     jp = JointProblem(problems, sig, layout, raw=raw, interpolated=paired)
-    solver = "ols" if method == "gls" else method
-    res = run_method(solver, jp, None, None, {k: v for k, v in opts.items() if k in METHODS[solver].options},
-                     sigma=None if method == "huber" else 1.0)  # whitened: sigma 1 (Huber: its scale, about 1)
+    by = hooks.solve_as or meth
+    res = by.solve(jp, sigma=hooks.sigma, **{k: v for k, v in opts.items() if k in by.options})
     import dataclasses
 
     from casep.model.loader import model_file_reference
 
     res = dataclasses.replace(res, sigma_source="whitened", model_file=model_file_reference(model),
                               settings={**res.settings, "sigma": "per flight" if sigma is None else "given per flight"})
-    if method == "huber" and res.diagnostics.get("outliers"):
-        starts = np.asarray(jp.segment_starts)
-        rows = []
-        for r in res.diagnostics["outliers"]["largest"]:
-            k = int(np.searchsorted(starts, r["sample"], side="right") - 1)  # the flight of the stacked sample
-            rows.append({**r, "flight": layout.labels[k], "flight_sample": int(r["sample"] - starts[k])})
-        res = dataclasses.replace(res, diagnostics={**res.diagnostics,
-                                                    "outliers": {**res.diagnostics["outliers"], "largest": rows}})
     if noise_models is not None:
         per_flight = {}
         from casep.workflows.solve import _places
@@ -212,14 +142,8 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     for fl in read:  # a flight that failed a set-up check fails the joint result
         res = judge_setup(res, fl, None)
     res = judge_setup(res, None, model)  # declared magnitudes, once
-    if taus is not None:
-        from casep.estimators.result import GLSExtras
-
-        rule = "given" if not isinstance(opts.get("tau", "auto"), str) else "reml"
-        res = dataclasses.replace(
-            res, method="gls", extras=GLSExtras(float(np.mean(taus)), rule),
-            settings={"tau": dict(zip(layout.labels, taus)), "tau_rule": rule, "sigma": res.settings["sigma"]},
-            message=res.message + f"; GLS: each flight whitened by its own tau ({rule})")
+    if hooks.finish is not None:
+        res = hooks.finish(res, jp, state, opts)
     return res, jp
 
 
@@ -236,24 +160,6 @@ def _refuse_repeats(problems: Sequence[Problem]) -> None:
             if q.y is not None and p.y is not None and q.y.shape == p.y.shape and np.array_equal(q.y, p.y):
                 raise ValueError(f"flights {j + 1} ({q.source}) and {k + 1} ({p.source}) hold the same data: its "
                                  "information would count twice; give each flight once")
-
-
-def _gls_whitened(problems: Sequence[Problem], tau) -> tuple[list[Problem], list[float]]:
-    """Each flight's rows whitened by its Gauss-Markov correlation time (REML per flight, or `tau`)."""
-    from casep.estimators.gls import _whiten, estimate_tau
-
-    out, taus = [], []
-    for p in problems:
-        if p.t is None:
-            raise ValueError(f"flight `{p.source}` has no sample times: GLS needs them")
-        S, y = p.sv(), p.y.reshape(-1, 3)
-        tk = estimate_tau(S, y, p.t) if isinstance(tau, str) else float(tau)
-        Sw, yw = _whiten(S, y, p.t, tk)
-        q = Problem.from_arrays(Sw, yw, p.t, names=p.names, units=p.units, si_factors=p.si_factors, model=p.model)
-        q.source = p.source
-        out.append(q)
-        taus.append(float(tk))
-    return out, taus
 
 
 def _noise_whitened(problems: Sequence[Problem], noise: str, tau, robust: str | None):
@@ -327,7 +233,8 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
                                   resid_dof=resid_dof)  # F form: a common error in the sigmas cancels
     cons: dict[str, Any] = {"overall": overall.to_dict() if overall else None, "per_coefficient": per}
     paired = [lab for lab, pr in zip(lay.labels, jp.interpolated) if pr]
-    if paired and res.method != "gls":
+    own_noise = METHODS[res.method].own_noise_model is not None if res.method in METHODS else False
+    if paired and not own_noise:  # a method with its own Gauss-Markov noise model (gls) models that correlation
         cons["note"] = (f"tracking interpolated onto telemetry times in {', '.join(paired)}: its noise is correlated, "
                         "so white-noise std and these tests are optimistic (false alarms); use the tracking grid "
                         "(--grid tracking, the default), or --method gls")

@@ -15,7 +15,6 @@ from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
 from casep.estimators.registry import METHODS as _REGISTRY
 from casep.estimators.registry import OPTIONS, check_method_options
 from casep.estimators.result import EstimateResult
-from casep.estimators.rls import DEFAULT_P0
 from casep.io.files import read_flight, read_json_table
 from casep.io.flight import FlightData
 from casep.model._model import ErrorModel
@@ -49,7 +48,7 @@ def separate(
     method: str = "ols",
     *,
     sigma: float | None = None,
-    p0: float = DEFAULT_P0,
+    p0: float = OPTIONS["p0"].default,
     weight: float = 1.0,
     forgetting: float = 1.0,
     noise_order: int = 1,
@@ -83,11 +82,13 @@ def separate(
         :class:`casep.tracking.regression.Telemetry`.
     model : str, path or ErrorModel, optional
         Model name (``"platform36"``), model file, or model object.
-    method : {"ols", "rls", "rels", "ridge", "bounded", "pcr", "map", "gls"}, optional
-        Estimator: :func:`~casep.solve_ols`, :func:`~casep.solve_rls` (``rels`` with
+    method : str, optional
+        A registered estimator (:data:`casep.estimators.registry.METHODS`, default ``ols``):
+        :func:`~casep.solve_ols`, :func:`~casep.solve_rls` (``rels`` with
         `noise_order`), :func:`~casep.solve_ridge`, :func:`~casep.solve_bounded`,
         :func:`~casep.solve_pcr`, :func:`~casep.solve_map`, :func:`~casep.solve_gls`
-        (Gauss-Markov noise of correlation time `tau`, "auto" = REML).
+        (Gauss-Markov noise of correlation time `tau`, "auto" = REML), :func:`~casep.solve_huber`, or one
+        registered with :func:`casep.estimators.registry.register`.
     sigma : float, optional
         Known noise standard deviation, m/s (default: estimated).
     p0, weight, forgetting, noise_order
@@ -186,16 +187,20 @@ def separate(
                                fit_time_offset=fit_time_offset)
     if site is not None or not _is_tracking_default(tracking_model):
         raise ValueError(f"`{'site' if site is not None else 'tracking_model'}` is used only with `radar`")
-    # tau is the noise model's (every method); `gls` also takes it as its own option
+    if method not in _REGISTRY:
+        raise ValueError(f"`method` must be one of {', '.join(_REGISTRY)}, got {method!r}")
+    meth = _REGISTRY[method]
+    # tau is the noise model's (every method); a method may also take it as its own option (gls: one tau)
     tau_given = None if isinstance(kw["tau"], str) and kw["tau"] == "auto" else kw["tau"]
-    if method != "gls":
+    tau_is_methods = "tau" in meth.options
+    if not tau_is_methods:
         kw.pop("tau")
         if tau_given is not None:
             if noise == "white":
                 raise ValueError("`tau` given with noise 'white': a correlation time means noise 'gm'")
             noise = "gm"
     given = {k: v for k, v in kw.items() if v is not None and not _is_default(k, v)}
-    check_method_options(method, given)
+    check_method_options(method, given)  # once, here: the method takes them as checked
     # A bounds or prior table may be given as its JSON file (as on the command line).
     for k in ("bounds", "prior"):
         if isinstance(kw[k], (str, os.PathLike)):
@@ -235,16 +240,17 @@ def separate(
         if sigma is None:
             sigma = float(np.sqrt(np.mean(den.sigma**2)))  # raw-noise sigma, not post-de-noising residuals
             sigma_from_wavelet = True
-    labels = {"sigma": sigma}
-    if method == "pcr":
-        labels["max_condition_index"] = max_condition_index
+    labels: dict[str, Any] = {"sigma": sigma}
+    keywords = {o.name for o in meth.keywords}  # solver keywords separate passes on to the methods that take them
+    if "max_condition_index" in keywords:
+        labels["max_condition_index"] = meth.option("max_condition_index").check(max_condition_index)
     if den is not None:
         if noise == "gm" or robust not in (None, "auto", "none") or exclude_outliers is not None or std != "model":
             raise ValueError("`denoise='wavelet'` removes the noise a noise model, a robust fit or HAC std describe: "
                              "use them without de-noising")
         noise, robust = "white", None  # the de-noised residuals are no noise sample to fit a model on
-    out = solve_problem(solved, method, {k: v for k, v in kw.items() if k in _REGISTRY[method].options},
-                        noise=noise, tau=tau_given if method != "gls" else None, robust=robust, std=std,
+    out = solve_problem(solved, method, {k: v for k, v in kw.items() if k in meth.options},
+                        noise=noise, tau=None if tau_is_methods else tau_given, robust=robust, std=std,
                         exclude_outliers=exclude_outliers, check_white=den is None, **labels)
     res = out.result
     # raw dv: noise-free, outliers, offset

@@ -108,4 +108,4 @@ def test_std_kind_is_a_declared_field_and_extras_a_declared_type():
         assert m.std_kind in STD_KIND_MEANINGS and m.std_kind == declared.get(name, m.std_kind), name
         assert dataclasses.is_dataclass(m.extras_type) and m.extras_type.__dataclass_params__.frozen, name
     with _pytest.raises(ValueError, match="std_kind"):
-        Method("fake", "solve_ols", "fake", std_kind="exact")
+        dataclasses.replace(METHODS["ols"], name="fake", std_kind="exact")
