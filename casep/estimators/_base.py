@@ -19,7 +19,7 @@ from casep.analysis.diagnostics import ILL_CONDITIONED, collinearity
 from casep.analysis.linalg import RankAnalysis, ReducedSystem, condition_numbers, unidentifiable_reasons
 from casep.analysis.problem import Problem as RegressionProblem
 from casep.estimators._options import SIGMA
-from casep.estimators.result import EstimateResult
+from casep.estimators.result import EstimateResult, LazyDiagnostics
 from casep.exceptions import IllConditionedWarning, MagnitudeWarning
 
 __all__ = ["Prepared", "prepare", "rows_of", "finish", "check_positive", "inverse_scale"]
@@ -252,11 +252,13 @@ def finish(
     failure = _failure(pb, method, np.where(und, 0.0, x), std, res)
     if failure is not None:
         status, message = failure
-    diag = {**condition_numbers(pb.red, pb.ra), "sigma": float(sigma), "rank": pb.ra.rank,
+    base = {**condition_numbers(pb.red, pb.ra), "sigma": float(sigma), "rank": pb.ra.rank,
             "unidentifiable": [pb.names[j] for j in np.flatnonzero(und)]}
-    diag.update(_collinearity_summary(pb, float(sigma)))
-    diag.update(diagnostics or {})
-    note = _ill_conditioning_note(pb, diag)
+    # CRLB std, VIF and near-dependency groups: computed on first use (a Monte Carlo run reads none of them)
+    red, ra, names, inv_c = pb.red, pb.ra, pb.names, pb.inv_c
+    diag = LazyDiagnostics({**base, **(diagnostics or {})}, _COLLINEARITY_KEYS,
+                           lambda: _collinearity_summary(red, ra, names, inv_c, float(sigma)))
+    note = _ill_conditioning_note(diag)
     if note:
         diag["warning"] = note
         warnings.warn(f"{method}: {note}", IllConditionedWarning, stacklevel=3)
@@ -309,26 +311,30 @@ def _failure(pb: Prepared, method: str, x: np.ndarray, std: np.ndarray | None,
     return None
 
 
-def _collinearity_summary(pb: Prepared, sigma: float) -> dict[str, Any]:
-    """White-noise CRLB std (sigma^2 (S^T S)^-1), uncentred VIF and near-dependency groups."""
-    col = collinearity(pb.red, pb.ra)
-    V, inv_s = pb.ra.pinv_factors()
-    W = V * inv_s
-    inv_c = pb.inv_c
-    crlb = sigma * np.sqrt(np.sum(W**2, axis=1)) * inv_c  # sqrt(diag(sigma^2 (S^T S)^+))
-    ok = pb.ra.estimable
+_COLLINEARITY_KEYS = ("crlb_std", "vif", "groups")
 
-    def f(v):
+
+def _collinearity_summary(red: ReducedSystem, ra: RankAnalysis, names: Sequence[str], inv_c: np.ndarray,
+                          sigma: float) -> dict[str, Any]:
+    """White-noise CRLB std (sigma^2 (S^T S)^-1), uncentred VIF and near-dependency groups."""
+    col = collinearity(red, ra)
+    V, inv_s = ra.pinv_factors()
+    W = V * inv_s
+    crlb = sigma * np.sqrt(np.sum(W**2, axis=1)) * inv_c  # sqrt(diag(sigma^2 (S^T S)^+))
+    ok = ra.estimable
+
+    def f(v: float) -> float | None:
         return float(v) if np.isfinite(v) else None
 
     return {
-        "crlb_std": {n: (f(crlb[j]) if ok[j] else None) for j, n in enumerate(pb.names)},
-        "vif": {n: f(col["vif"][j]) for j, n in enumerate(pb.names)},
-        "groups": [[pb.names[j] for j in g] for g in col["groups"]],
+        "crlb_std": {n: (f(crlb[j]) if ok[j] else None) for j, n in enumerate(names)},
+        "vif": {n: f(col["vif"][j]) for j, n in enumerate(names)},
+        "groups": [[names[j] for j in g] for g in col["groups"]],
     }
 
 
-def _ill_conditioning_note(pb: Prepared, diag: dict[str, Any]) -> str | None:
+def _ill_conditioning_note(diag: dict[str, Any]) -> str | None:
+    """The warning of an ill-conditioned or rank-deficient regression (its groups read only then)."""
     ce = diag.get("condition_number_equilibrated")
     bad = ce is None or ce > ILL_CONDITIONED
     und = diag["unidentifiable"]

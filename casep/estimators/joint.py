@@ -2,25 +2,9 @@
 
 Notes
 -----
-Flight k (k = 1..K) reduces its column-scaled regression once (:mod:`casep.analysis.linalg`):
-with ``Z_k = S_k diag(c_k)^-1`` and ``[Z_k | y_k] = Q_k [[R_k, q_k], [0, rho_k]]``::
-
-    ||y_k - S_k D||^2 = ||q_k - R_k diag(c_k) D||^2 + rho_k^2
-
-The coefficients are shared by all flights except the per-flight ones (``per_flight=True`` in the
-model: time offset, initial velocity error, initial misalignment), which each flight has
-separately. The joint parameter vector is ``theta = [D_shared, D_pf(1), ..., D_pf(K)]`` and flight
-k's coefficients are ``D_k = P_k theta`` (a column selection). Each flight is weighted by its
-noise variance, so the joint weighted least squares is::
-
-    min_theta  sum_k ||y_k - S_k P_k theta||^2 / sigma_k^2
-             = || A theta - b ||^2 + sum_k rho_k^2 / sigma_k^2,
-    A = [R_k diag(c_k) P_k / sigma_k]_k  (K n x p),   b = [q_k / sigma_k]_k
-
-``A`` has K n rows whatever the flights' lengths: the 3 N_k rows are never stacked. It is reduced
-again (column-scaled QR) into the ``ReducedSystem`` every solver takes, with ``m = sum_k 3 N_k``
-and the whitened residual ``sum_k rho_k^2 / sigma_k^2`` carried along, so the joint noise scale is
-1 (the sigma_k are the weights).
+The flights' stacked, whitened reduction over ``theta = [D_shared, D_pf(1), ..., D_pf(K)]`` is the
+data's: :mod:`casep.analysis.joint` (:class:`~casep.analysis.joint.JointLayout`,
+:func:`~casep.analysis.joint.joint_reduction`, re-exported here). Here: are the flights consistent?
 
 Consistency of the flights on a shared coefficient j (flights estimate it independently, their
 noises being independent): with ``d_k``, ``v_k`` flight k's own estimate and variance (flights where

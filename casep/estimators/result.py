@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import json
 import math
@@ -12,10 +11,14 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from casep.io._atomic import atomic_open
+from casep.io.result_files import (
+    jsonable,
+    write_coefficients_csv,
+    write_json_atomic,  # re-export: remove after merge (cli, calibration.imucal)
+    write_mat_fields,
+)
 
-__all__ = ["EstimateResult", "read_result", "result_from_data", "check_result_units", "resolve_result_model",
-           "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "extras_type",
+__all__ = ["EstimateResult", "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "extras_type",
            "write_json_atomic", "write_mat", "write_csv", "format_number"]
 
 AXES = ("x", "y", "z")
@@ -53,6 +56,9 @@ _EXTRAS_NAMES = {"OLSExtras": "ols", "RLSExtras": "rls", "RidgeExtras": "ridge",
                  "PCRExtras": "pcr", "MAPExtras": "map", "GLSExtras": "gls", "HuberExtras": "huber"}
 
 
+_READING = ("read_result", "result_from_data", "check_result_units", "resolve_result_model")
+
+
 def extras_type(method: str) -> type | None:
     """The extras dataclass a registered `method` declares (None for an unregistered name)."""
     from casep.estimators.registry import METHODS  # the registry imports the estimators, which import this module
@@ -69,30 +75,90 @@ def __getattr__(name: str) -> Any:
         return {k: m.extras_type for k, m in METHODS.items() if m.extras_type is not None}
     if name in _EXTRAS_NAMES:
         return extras_type(_EXTRAS_NAMES[name])
+    if name in _READING:  # reading result files: casep.estimators.reading
+        from casep.estimators import reading
+
+        return getattr(reading, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def _extras_from_dict(method: str, d: dict | None):
-    """The typed extras of `method` back from their JSON object (lists -> declared tuples)."""
-    cls = extras_type(method)
-    if d is None or cls is None:
-        return None
-    kw = {f.name: (tuple(d[f.name]) if str(f.type).startswith("tuple") else d[f.name])
-          for f in dataclasses.fields(cls) if f.name in d}
-    return cls(**kw)
+class LazyDiagnostics(dict):
+    """A result's diagnostics whose costly entries are computed on first use, then kept.
 
+    A plain ``dict`` to every reader (``isinstance``, ``json.dumps``, ``{**d}``, ``d[key]``): the
+    entries named by ``lazy`` (the Cramer-Rao std, variance inflation factors and near-dependency
+    groups) are computed by ``compute()`` the first time any of them, or the whole mapping, is read,
+    so that a solve (a Monte Carlo run) that reads only the estimate does not pay for them.
+    """
 
-def _jsonable(v: Any) -> Any:
-    """Tuples and numpy scalars as JSON values."""
-    if isinstance(v, dict):
-        return {str(k): _jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_jsonable(x) for x in v]
-    if isinstance(v, (np.floating, float)):
-        return _json_float(float(v))
-    if isinstance(v, np.integer):
-        return int(v)
-    return v
+    def __init__(self, data: Mapping[str, Any], lazy: tuple[str, ...], compute: Any) -> None:
+        super().__init__(data)
+        self._pending: tuple[tuple[str, ...], Any] | None = (lazy, compute)
+
+    def _force(self) -> None:
+        if self._pending is not None:
+            keys, compute = self._pending
+            self._pending = None
+            values = compute()
+            for k in keys:
+                if not dict.__contains__(self, k):
+                    dict.__setitem__(self, k, values[k])
+
+    def _lazy(self, key: Any) -> bool:
+        return self._pending is not None and key in self._pending[0]
+
+    def __getitem__(self, key: Any) -> Any:
+        if self._lazy(key):
+            self._force()
+        return dict.__getitem__(self, key)
+
+    def get(self, key: Any, default: Any = None) -> Any:
+        if self._lazy(key):
+            self._force()
+        return dict.get(self, key, default)
+
+    def __contains__(self, key: Any) -> bool:
+        return self._lazy(key) or dict.__contains__(self, key)
+
+    def __iter__(self) -> Any:
+        self._force()
+        return dict.__iter__(self)
+
+    def __len__(self) -> int:
+        self._force()
+        return dict.__len__(self)
+
+    def keys(self) -> Any:
+        self._force()
+        return dict.keys(self)
+
+    def items(self) -> Any:
+        self._force()
+        return dict.items(self)
+
+    def values(self) -> Any:
+        self._force()
+        return dict.values(self)
+
+    def copy(self) -> dict[str, Any]:
+        self._force()
+        return dict(dict.items(self))
+
+    def __eq__(self, other: object) -> bool:
+        self._force()
+        if isinstance(other, LazyDiagnostics):
+            other._force()
+        return dict.__eq__(self, other)
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        self._force()
+        return dict.__repr__(self)
+
+    def __reduce__(self) -> Any:  # pickled (dask workers) as the plain dict it stands for
+        self._force()
+        return (dict, (dict(dict.items(self)),))
 
 
 def format_number(v: float | None, width: int = 12, fmt: str = ".6g") -> str:
@@ -118,6 +184,10 @@ def _sigma_text(v: Any) -> str:
 @dataclass(frozen=True)
 class EstimateResult:
     """Estimated error coefficients with their uncertainty and how they were obtained.
+
+    Follows the result protocol (:mod:`casep.results`): :meth:`to_dict` (the result JSON) and
+    :meth:`text` (what the command line prints); ``diagnostics`` computes its Cramer-Rao std,
+    variance inflation factors and near-dependency groups on first use (:class:`LazyDiagnostics`).
 
     Attributes
     ----------
@@ -285,7 +355,7 @@ class EstimateResult:
             "message": self.message,
             "settings": self.settings,
             "diagnostics": self.diagnostics,
-            "extras": _jsonable(dataclasses.asdict(self.extras)) if self.extras is not None else None,
+            "extras": jsonable(dataclasses.asdict(self.extras)) if self.extras is not None else None,
             "history_names": list(self.history_names) if self.history_names is not None else None,
             **({"model_file": self.model_file} if self.model_file else {}),
         }
@@ -320,6 +390,8 @@ class EstimateResult:
             rd = parse_result_data(source, "result")
         else:
             rd = read_result_data(source, "result")
+        from casep.estimators.reading import result_from_data
+
         return result_from_data(rd, model)
 
     def covariance_rows(self) -> list[list[float | None]] | None:
@@ -357,7 +429,12 @@ class EstimateResult:
         return "settings: " + "; ".join(parts)
 
     def table(self) -> str:
-        """Readable fixed-width table: name, unit, estimate, std, and why a value is missing."""
+        """The same as :meth:`text` (its former name, kept)."""
+        return self.text()
+
+    def text(self) -> str:
+        """What the command line prints (the result protocol, :mod:`casep.results`): a fixed-width table
+        (name, unit, estimate, std, and why a value is missing), the settings line and the outcome."""
         lines = [f"{'coefficient':<12} {'unit':<10} {'estimate':>12} {'std':>12}  note"]
         for row in self.coefficient_rows():
             note = row.get("reason", "")
@@ -390,203 +467,13 @@ class EstimateResult:
         return "\n".join(lines)
 
 
-def result_from_data(rd, model=None) -> EstimateResult:
-    """An :class:`EstimateResult` of a checked result file (:class:`casep.io.result_json.ResultData`).
-
-    `model` (ErrorModel or name): check names and units against it, and take the SI factors from it.
-    """
-    f = rd.fields
-    si = None
-    if model is not None:
-        from casep.model.loader import load_model
-
-        model = load_model(model)
-        skip = _tracking_terms(f.get("diagnostics"))
-        check_result_units(rd.names, rd.units, model, rd.source, skip=skip)
-        if not skip:
-            base = [n.split("[", 1)[0] for n in rd.names]
-            si = np.array([model.si_factors[model.names.index(b)] for b in base], dtype=float)
-    if si is None and f.get("si_factors") is not None and len(f["si_factors"]) == len(rd.names):
-        si = np.array([np.nan if v is None else v for v in f["si_factors"]], dtype=float)
-    if si is None:
-        from casep.units import si_factor
-
-        vals = []
-        for u in rd.units:
-            try:
-                vals.append(si_factor(u))
-            except (KeyError, ValueError):
-                vals.append(math.nan)
-        si = np.array(vals, dtype=float)
-    method = f.get("method") or "external"
-    try:
-        extras = _extras_from_dict(method, f.get("extras"))
-    except (TypeError, KeyError) as exc:
-        raise ValueError(f"{rd.source}: field `extras` does not fit method `{method}` ({exc})") from None
-    rrms = f.get("residual_rms")
-    n_est = int(np.isfinite(rd.estimate).sum())
-    for key, allowed in (("std_kind", STD_KIND_MEANINGS), ("sigma_source", SIGMA_SOURCE_MEANINGS)):
-        if f.get(key) is not None and f[key] not in allowed:
-            raise ValueError(f"{rd.source}: field `{key}` must be one of {', '.join(allowed)}, got {f[key]!r}")
-    return EstimateResult(
-        method=method, names=rd.names, units=rd.units, estimate=rd.estimate, std=rd.std,
-        covariance=rd.covariance, reasons=dict(rd.reasons), residuals=np.zeros((0, 3)),
-        sigma=math.nan if f.get("sigma") is None else float(f["sigma"]),
-        rank=n_est if f.get("rank") is None else int(f["rank"]),
-        status=0 if f.get("status") is None else int(f["status"]),
-        message=f.get("message") or f"read from {rd.source}",
-        success=True if f.get("success") is None else bool(f["success"]),
-        si_factors=si, settings=f.get("settings") or {}, diagnostics=f.get("diagnostics") or {},
-        model=f.get("model") or (model.name if model is not None else ""),
-        n_samples=int(f.get("n_samples") or 0), denoise=f.get("denoise"),
-        sigma_source=f.get("sigma_source") or ("estimated" if f.get("sigma") is not None else "external"),
-        stored_residual_rms=rrms if rrms is not None else {a: None for a in AXES},
-        std_kind=f.get("std_kind") or "sampling", extras=extras, model_file=f.get("model_file"))
-
-
-def _tracking_terms(diagnostics) -> set[str]:
-    """Coefficients of a radar-tracked result that belong to its tracking model (station errors), not to
-    the instrument model: ``diagnostics["tracking_terms"]``."""
-    terms = (diagnostics or {}).get("tracking_terms") if isinstance(diagnostics, dict) else None
-    return {str(t) for t in terms} if isinstance(terms, (list, tuple)) else set()
-
-
-def check_result_units(names, units, model, source: str, skip: set[str] | frozenset[str] = frozenset()) -> None:
-    """Every coefficient of a result is the model's (a several-flight result's ``name[file]``: its base
-    name) and in the model's unit; ValueError naming the coefficient and both units. Names in `skip`
-    (a radar-tracked result's tracking-model terms) are not the instrument model's and are left out."""
-    from casep.model._model import unknown_coefficient_message
-
-    for n, u in zip(names, units):
-        if n in skip:
-            continue
-        base = n.split("[", 1)[0]
-        if base not in model.names:
-            raise ValueError(unknown_coefficient_message(base, model.names, f"{source} (model {model.name})"))
-        mu = model.units[model.names.index(base)]
-        if u.strip() != mu:
-            raise ValueError(f"{source}: `{n}` is in {u!r}, but model `{model.name}` declares it in {mu!r}: convert "
-                             "the estimate, std and covariance to the model's unit")
-
-
-def read_result(source, model=None, option: str = "result") -> tuple[EstimateResult, object]:
-    """A result file read with its model: ``(result, model)``.
-
-    The model is `model` when given (ErrorModel, name or path), else the one the result names:
-    by name (built-in, or ``CASEP_MODEL_PATH``), then by the ``model_file`` the result records.
-    A result whose model cannot be found is a ValueError saying exactly what to pass.
-    """
-    from casep.io.result_json import parse_result_data, read_result_data
-    from casep.model.loader import load_model
-
-    if isinstance(source, EstimateResult):
-        rd, res = None, source
-        where = "result <memory>"
-    else:
-        rd = parse_result_data(source, "result <memory>") if isinstance(source, dict) else \
-            read_result_data(source, option)
-        where = rd.source
-    if model is None:
-        name = (rd.model if rd is not None else source.model) or ""
-        mfile = rd.fields.get("model_file") if rd is not None else source.model_file
-        model = resolve_result_model(name, mfile, where)
-    else:
-        model = load_model(model)
-        name = rd.model if rd is not None else source.model
-        if name and name != model.name:
-            raise ValueError(f"{where} is of model `{name}`, not of model `{model.name}`: give --model {name} "
-                             f"(or leave it out), or a result of `{model.name}`")
-    if rd is not None:
-        res = result_from_data(rd, model)
-    else:
-        check_result_units(res.names, res.units, model, where, skip=_tracking_terms(res.diagnostics))
-    return res, model
-
-
-def resolve_result_model(name: str, model_file: str | None, where: str):
-    """The model a result names (see :func:`read_result`)."""
-    from casep.model.loader import load_model
-
-    if not name and not model_file:
-        raise ValueError(f"{where} names no model (no `model` field): give the model (CLI --model NAME|FILE.py, "
-                         "API model=...)")
-    errors = []
-    for cand in ([name] if name else []) + ([model_file] if model_file else []):
-        try:
-            return load_model(cand)
-        except ValueError as exc:  # unknown name, missing file; a broken file names itself
-            if "unknown model" not in str(exc) and "does not exist" not in str(exc):
-                raise
-            errors.append(cand)
-    hint = f" (the result records model_file {model_file}, which does not exist)" if model_file else ""
-    raise ValueError(f"{where} is of model `{name or model_file}`, which casep cannot find: it is not a built-in model "
-                     f"nor in CASEP_MODEL_PATH{hint}. Give the model file: --model path/to/{name or 'model'}.py "
-                     "(API: model='path/to/model.py')")
-
-
-def write_json_atomic(data: dict[str, Any], path: str | os.PathLike) -> None:
-    """Write JSON to `path` through a temporary file and a rename: never half-written."""
-    try:
-        text = json.dumps(data, indent=2, allow_nan=False) + "\n"
-    except ValueError:  # NaN or inf somewhere: say where, and what put it there
-        where = _first_non_finite(data)
-        raise ValueError(f"{path}: cannot write a non-finite value ({where[1]!r}) at `{where[0]}`: the input that "
-                         "produced it is out of range (a prior, bound or option far beyond its plausible values?)"
-                         if where else f"{path}: cannot write a non-finite value") from None
-    with atomic_open(path) as fh:
-        fh.write(text)
-
-
-def _first_non_finite(v: Any, where: str = "") -> tuple[str, float] | None:
-    """The path (``settings.prior.Kg0x.mean``) and value of the first NaN or inf in a JSON-like value."""
-    if isinstance(v, dict):
-        items = v.items()
-    elif isinstance(v, (list, tuple)):
-        items = ((f"[{i}]", x) for i, x in enumerate(v))
-    else:
-        return (where, float(v)) if isinstance(v, float) and not math.isfinite(v) else None
-    for k, x in items:
-        key = k if str(k).startswith("[") else (f"{where}.{k}" if where else str(k))
-        hit = _first_non_finite(x, where + key if str(k).startswith("[") else key)
-        if hit:
-            return hit
-    return None
-
-
 def _nan_array(a: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray:
     return np.full(shape, np.nan) if a is None else np.asarray(a, dtype=float)
 
 
-def _mat_value(v: Any) -> Any:
-    """A JSON-like value as scipy.io.savemat stores it, or None to leave it out.
-
-    Numbers -> double (null -> NaN), strings -> char, lists of numbers -> double vectors,
-    lists of strings -> cellstr, dicts with MATLAB-valid keys -> struct.
-    """
-    if v is None:
-        return np.nan
-    if isinstance(v, (bool, np.bool_)):
-        return bool(v)
-    if isinstance(v, (int, float, np.integer, np.floating)):
-        return float(v)
-    if isinstance(v, str):
-        return v
-    if isinstance(v, (list, tuple)):
-        if all(x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in v):
-            return np.array([np.nan if x is None else float(x) for x in v], dtype=float)
-        if all(isinstance(x, str) for x in v):
-            return np.array(list(v), dtype=object)
-        return None
-    if isinstance(v, dict):
-        out = {k: mv for k, x in v.items()
-               if isinstance(k, str) and k.isidentifier() and k[0].isalpha() and (mv := _mat_value(x)) is not None}
-        return out or None
-    return None
-
-
 def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | None = None,
               provenance: Mapping[str, Any] | None = None) -> None:
-    """Write the result as a MATLAB/Octave ``.mat`` file (scipy.io.savemat), atomically.
+    """Write the result as a MATLAB/Octave ``.mat`` file (:func:`casep.io.result_files.write_mat_fields`).
 
     With `t` (the times of the residual rows, s) the file holds ``t_residuals`` beside ``residuals``;
     the near-dependency groups are ``groups`` (a cell array of cellstr); with `provenance`
@@ -601,8 +488,6 @@ def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | N
     (cellstr, "" where none) and the structs ``settings``, ``diagnostics``, ``denoise``
     where their fields are simple (numbers, strings, flat lists, nested such structs).
     """
-    from scipy.io import savemat
-
     n = len(res.names)
     data: dict[str, Any] = {
         "names": np.array(res.names, dtype=object),
@@ -629,27 +514,15 @@ def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | N
         cell[k] = np.array(list(g), dtype=object)
     data["groups"] = cell
     if provenance is not None:
-        data["provenance_json"] = json.dumps(_jsonable(provenance))
+        data["provenance_json"] = json.dumps(jsonable(provenance))
         data["command_line"] = str(provenance.get("command_line", ""))
         files = provenance.get("inputs", [])
         for key, field_name in (("input_files", "file"), ("input_sha256", "sha256"), ("input_roles", "role")):
             data[key] = np.array([str(f.get(field_name) or "") for f in files], dtype=object)
-    for key in ("settings", "diagnostics", "denoise"):
-        value = _mat_value(getattr(res, key))
-        if isinstance(value, dict):
-            data[key] = value
-    with atomic_open(path, binary=True) as fh:
-        savemat(fh, data, long_field_names=True, oned_as="column", do_compression=True)
+    write_mat_fields(data, path, structs={k: getattr(res, k) for k in ("settings", "diagnostics", "denoise")})
 
 
 def write_csv(res: EstimateResult, path: str | os.PathLike) -> None:
-    """Write one row per coefficient (name, unit, estimate, std, reason) atomically.
-
-    Missing values are empty cells; numbers keep 17 significant digits.
-    """
-    with atomic_open(path) as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(["name", "unit", "estimate", "std", "reason"])
-        for row in res.coefficient_rows():
-            w.writerow([row["name"], row["unit"]] + ["" if row[k] is None else repr(float(row[k]))
-                                                     for k in ("estimate", "std")] + [row.get("reason", "")])
+    """Write one row per coefficient (name, unit, estimate, std, reason) atomically
+    (:func:`casep.io.result_files.write_coefficients_csv`)."""
+    write_coefficients_csv(res.coefficient_rows(), path)

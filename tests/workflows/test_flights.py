@@ -160,7 +160,7 @@ def test_monte_carlo_joint_ols_efficiency_and_coverage(two, rng):
 def test_fusing_two_saved_results_equals_the_joint_estimate(two, tmp_path):
     """Sequential combination: flight A's result, then B's, fused = A and B estimated together."""
     from casep.estimators.result import EstimateResult, write_json_atomic
-    from casep.workflows.flights import fuse
+    from casep.workflows.fusion import fuse
 
     a, b = two
     p36 = casep.load_model("platform36")  # no per-flight coefficient: shared = all
@@ -435,7 +435,7 @@ def test_per_flight_coefficients_are_not_fused_or_carried_as_a_prior(two):
     from casep.analysis.problem import Problem
     from casep.estimators.map import prior_from_result, solve_map
     from casep.estimators.ols import solve_ols
-    from casep.workflows.flights import fuse
+    from casep.workflows.fusion import fuse
 
     a, b = two
     m = a.model

@@ -1,0 +1,167 @@
+"""Result files read back as :class:`~casep.estimators.result.EstimateResult`, checked against their model.
+
+The file is parsed and checked strictly by :mod:`casep.io.result_json` (every form of
+``docs/guide/result-files.md``); here it becomes a result, its model is found (by name, then by the
+``model_file`` it records) and its coefficients and units are checked against that model.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from casep.estimators.result import (
+    AXES,
+    SIGMA_SOURCE_MEANINGS,
+    STD_KIND_MEANINGS,
+    EstimateResult,
+    extras_type,
+)
+
+__all__ = ["read_result", "result_from_data", "check_result_units", "resolve_result_model"]
+
+
+def _extras_from_dict(method: str, d: dict | None):
+    """The typed extras of `method` back from their JSON object (lists -> declared tuples)."""
+    cls = extras_type(method)
+    if d is None or cls is None:
+        return None
+    kw = {f.name: (tuple(d[f.name]) if str(f.type).startswith("tuple") else d[f.name])
+          for f in dataclasses.fields(cls) if f.name in d}
+    return cls(**kw)
+
+
+def result_from_data(rd, model=None) -> EstimateResult:
+    """An :class:`EstimateResult` of a checked result file (:class:`casep.io.result_json.ResultData`).
+
+    `model` (ErrorModel or name): check names and units against it, and take the SI factors from it.
+    """
+    f = rd.fields
+    si = None
+    if model is not None:
+        from casep.model.loader import load_model
+
+        model = load_model(model)
+        skip = _tracking_terms(f.get("diagnostics"))
+        check_result_units(rd.names, rd.units, model, rd.source, skip=skip)
+        if not skip:
+            base = [n.split("[", 1)[0] for n in rd.names]
+            si = np.array([model.si_factors[model.names.index(b)] for b in base], dtype=float)
+    if si is None and f.get("si_factors") is not None and len(f["si_factors"]) == len(rd.names):
+        si = np.array([np.nan if v is None else v for v in f["si_factors"]], dtype=float)
+    if si is None:
+        from casep.units import si_factor
+
+        vals = []
+        for u in rd.units:
+            try:
+                vals.append(si_factor(u))
+            except (KeyError, ValueError):
+                vals.append(math.nan)
+        si = np.array(vals, dtype=float)
+    method = f.get("method") or "external"
+    try:
+        extras = _extras_from_dict(method, f.get("extras"))
+    except (TypeError, KeyError) as exc:
+        raise ValueError(f"{rd.source}: field `extras` does not fit method `{method}` ({exc})") from None
+    rrms = f.get("residual_rms")
+    n_est = int(np.isfinite(rd.estimate).sum())
+    for key, allowed in (("std_kind", STD_KIND_MEANINGS), ("sigma_source", SIGMA_SOURCE_MEANINGS)):
+        if f.get(key) is not None and f[key] not in allowed:
+            raise ValueError(f"{rd.source}: field `{key}` must be one of {', '.join(allowed)}, got {f[key]!r}")
+    return EstimateResult(
+        method=method, names=rd.names, units=rd.units, estimate=rd.estimate, std=rd.std,
+        covariance=rd.covariance, reasons=dict(rd.reasons), residuals=np.zeros((0, 3)),
+        sigma=math.nan if f.get("sigma") is None else float(f["sigma"]),
+        rank=n_est if f.get("rank") is None else int(f["rank"]),
+        status=0 if f.get("status") is None else int(f["status"]),
+        message=f.get("message") or f"read from {rd.source}",
+        success=True if f.get("success") is None else bool(f["success"]),
+        si_factors=si, settings=f.get("settings") or {}, diagnostics=f.get("diagnostics") or {},
+        model=f.get("model") or (model.name if model is not None else ""),
+        n_samples=int(f.get("n_samples") or 0), denoise=f.get("denoise"),
+        sigma_source=f.get("sigma_source") or ("estimated" if f.get("sigma") is not None else "external"),
+        stored_residual_rms=rrms if rrms is not None else {a: None for a in AXES},
+        std_kind=f.get("std_kind") or "sampling", extras=extras, model_file=f.get("model_file"))
+
+
+def _tracking_terms(diagnostics) -> set[str]:
+    """Coefficients of a radar-tracked result that belong to its tracking model (station errors), not to
+    the instrument model: ``diagnostics["tracking_terms"]``."""
+    terms = (diagnostics or {}).get("tracking_terms") if isinstance(diagnostics, dict) else None
+    return {str(t) for t in terms} if isinstance(terms, (list, tuple)) else set()
+
+
+def check_result_units(names, units, model, source: str, skip: set[str] | frozenset[str] = frozenset()) -> None:
+    """Every coefficient of a result is the model's (a several-flight result's ``name[file]``: its base
+    name) and in the model's unit; ValueError naming the coefficient and both units. Names in `skip`
+    (a radar-tracked result's tracking-model terms) are not the instrument model's and are left out."""
+    from casep.model._model import unknown_coefficient_message
+
+    for n, u in zip(names, units):
+        if n in skip:
+            continue
+        base = n.split("[", 1)[0]
+        if base not in model.names:
+            raise ValueError(unknown_coefficient_message(base, model.names, f"{source} (model {model.name})"))
+        mu = model.units[model.names.index(base)]
+        if u.strip() != mu:
+            raise ValueError(f"{source}: `{n}` is in {u!r}, but model `{model.name}` declares it in {mu!r}: convert "
+                             "the estimate, std and covariance to the model's unit")
+
+
+def read_result(source, model=None, option: str = "result") -> tuple[EstimateResult, object]:
+    """A result file read with its model: ``(result, model)``.
+
+    The model is `model` when given (ErrorModel, name or path), else the one the result names:
+    by name (built-in, or ``CASEP_MODEL_PATH``), then by the ``model_file`` the result records.
+    A result whose model cannot be found is a ValueError saying exactly what to pass.
+    """
+    from casep.io.result_json import parse_result_data, read_result_data
+    from casep.model.loader import load_model
+
+    if isinstance(source, EstimateResult):
+        rd, res = None, source
+        where = "result <memory>"
+    else:
+        rd = parse_result_data(source, "result <memory>") if isinstance(source, dict) else \
+            read_result_data(source, option)
+        where = rd.source
+    if model is None:
+        name = (rd.model if rd is not None else source.model) or ""
+        mfile = rd.fields.get("model_file") if rd is not None else source.model_file
+        model = resolve_result_model(name, mfile, where)
+    else:
+        model = load_model(model)
+        name = rd.model if rd is not None else source.model
+        if name and name != model.name:
+            raise ValueError(f"{where} is of model `{name}`, not of model `{model.name}`: give --model {name} "
+                             f"(or leave it out), or a result of `{model.name}`")
+    if rd is not None:
+        res = result_from_data(rd, model)
+    else:
+        check_result_units(res.names, res.units, model, where, skip=_tracking_terms(res.diagnostics))
+    return res, model
+
+
+def resolve_result_model(name: str, model_file: str | None, where: str):
+    """The model a result names (see :func:`read_result`)."""
+    from casep.model.loader import load_model
+
+    if not name and not model_file:
+        raise ValueError(f"{where} names no model (no `model` field): give the model (CLI --model NAME|FILE.py, "
+                         "API model=...)")
+    errors = []
+    for cand in ([name] if name else []) + ([model_file] if model_file else []):
+        try:
+            return load_model(cand)
+        except ValueError as exc:  # unknown name, missing file; a broken file names itself
+            if "unknown model" not in str(exc) and "does not exist" not in str(exc):
+                raise
+            errors.append(cand)
+    hint = f" (the result records model_file {model_file}, which does not exist)" if model_file else ""
+    raise ValueError(f"{where} is of model `{name or model_file}`, which casep cannot find: it is not a built-in model "
+                     f"nor in CASEP_MODEL_PATH{hint}. Give the model file: --model path/to/{name or 'model'}.py "
+                     "(API: model='path/to/model.py')")
