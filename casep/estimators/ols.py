@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from casep.analysis.problem import Problem
     from casep.estimators.result import EstimateResult
 
-__all__ = ["solve_ols", "OLS", "OLSExtras"]
+__all__ = ["solve_ols", "OLS", "OLSExtras", "least_squares"]
 
 
 @dataclass(frozen=True)

@@ -177,7 +177,7 @@ def separate(
     for k, v in dict(options or {}).items():
         if k not in OPTIONS:
             raise ValueError(f"`options` has unknown option `{k}`; the options are {', '.join(OPTIONS)}")
-        if not _is_default(k, kw[k]):
+        if k in kw and not _is_default(k, kw[k]):
             raise ValueError(f"option `{k}` given both as a keyword and in `options`")
         kw[k] = v
     if radar is not None:
@@ -203,7 +203,7 @@ def separate(
     check_method_options(method, given)  # once, here: the method takes them as checked
     # A bounds or prior table may be given as its JSON file (as on the command line).
     for k in ("bounds", "prior"):
-        if isinstance(kw[k], (str, os.PathLike)):
+        if isinstance(kw.get(k), (str, os.PathLike)):
             path, kw[k] = kw[k], read_json_table(kw[k], k)
             from casep.io.result_json import looks_like_result
 
