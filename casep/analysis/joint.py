@@ -173,7 +173,8 @@ class JointProblem(Problem):
         red = joint_reduction([p.red for p in problems], sigmas, layout)
         units = layout.expand(problems[0].units)
         si = layout.expand(list(problems[0].si_factors))
-        y = np.concatenate([p.y.reshape(-1, 3) / s for p, s in zip(problems, sigmas)])  # whitened, (N, 3)
+        ys = [p._need_rows().reshape(-1, 3) for p in problems]
+        y = np.concatenate([yk / s for yk, s in zip(ys, sigmas)])  # whitened, (N, 3)
         super().__init__(names=layout.joint_names, units=units, si_factors=si, red=red, y=y,
                          model=problems[0].model, source=" + ".join(p.source for p in problems))
         self.problems = tuple(problems)
@@ -181,7 +182,7 @@ class JointProblem(Problem):
         self.interpolated = tuple(bool(v) for v in interpolated) if interpolated else (False,) * len(problems)
         self.sigmas = tuple(float(s) for s in sigmas)
         self.layout = layout
-        sizes = [p.y.reshape(-1, 3).shape[0] for p in problems]
+        sizes = [yk.shape[0] for yk in ys]
         # each flight is a segment: its first sample in the stacked rows (RELS restarts its noise memory there)
         self.segment_starts = tuple(int(v) for v in np.cumsum([0] + sizes[:-1]))
 

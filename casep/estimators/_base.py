@@ -112,7 +112,7 @@ class Prepared:
     @property
     def y(self) -> np.ndarray:
         """(m,) observations."""
-        return self.problem.y.reshape(-1)
+        return self.problem._need_rows().reshape(-1)
 
     @property
     def m(self) -> int:
@@ -136,7 +136,7 @@ class Prepared:
 
 
 def rows_of(S: np.ndarray | RegressionProblem, y: np.ndarray | None, t: np.ndarray | None,
-            names: Sequence[str] | None, units: Sequence[str] | None, si_factors: Sequence[float] | None):
+            names: Sequence[str] | None, units: Sequence[str] | None, si_factors: Sequence[float] | np.ndarray | None):
     """``(S, y, t, names, units, si_factors)`` as arrays, for the methods that need the rows whole.
 
     A Problem gives its S (materialised once, see :meth:`~casep.analysis.problem.Problem.sv`),
@@ -151,7 +151,7 @@ def rows_of(S: np.ndarray | RegressionProblem, y: np.ndarray | None, t: np.ndarr
 
 
 def prepare(S: np.ndarray | RegressionProblem, y: np.ndarray | None, names: Sequence[str] | None,
-            units: Sequence[str] | None, si_factors: Sequence[float] | None, sigma: float | None,
+            units: Sequence[str] | None, si_factors: Sequence[float] | np.ndarray | None, sigma: float | None,
             rcond: float | None = None, model: str | None = None, t: np.ndarray | None = None) -> Prepared:
     """Validate arguments once: a :class:`~casep.analysis.problem.Problem` as given (its reduction
     and rank analysis reused), or arrays ``S`` ``(N, 3, n)``/``(m, n)`` and ``y`` made into one."""

@@ -226,7 +226,7 @@ class Labels(TypedDict, total=False):
 
     names: Sequence[str] | None
     units: Sequence[str] | None
-    si_factors: Sequence[float] | None
+    si_factors: Sequence[float] | np.ndarray | None
     sigma: float | None
     rcond: float | None
 
@@ -401,7 +401,8 @@ class Method:
 
     def call(self, S: np.ndarray | Problem, y: np.ndarray | None, t: np.ndarray | None = None, *,
              names: Sequence[str] | None = None, units: Sequence[str] | None = None,
-             si_factors: Sequence[float] | None = None, sigma: float | None = None, rcond: float | None = None,
+             si_factors: Sequence[float] | np.ndarray | None = None, sigma: float | None = None,
+             rcond: float | None = None,
              **options: Any) -> EstimateResult:
         """The public solver: arrays (or a Problem) and keywords checked, then :meth:`solve`."""
         from casep.estimators._base import prepare

@@ -88,7 +88,7 @@ def _neg2_reml(S: np.ndarray, Y: np.ndarray, t: np.ndarray, tau: float) -> np.nd
     live = c > 0
     Yw = ar1_whiten(Y, t, 1.0, tau).reshape(-1, Y.shape[-1])
     q = int(live.sum())
-    R = np.linalg.qr(np.hstack([Sw[:, live] / c[live], Yw]), mode="r")  # [Z Y_w] = Q R
+    R = np.asarray(np.linalg.qr(np.hstack([Sw[:, live] / c[live], Yw]), mode="r"))  # [Z Y_w] = Q R
     d = np.abs(np.diag(R)[:q])
     ok = d > 0
     logdet = 2.0 * np.sum(np.log(d[ok])) + 2.0 * np.sum(np.log(c[live][ok]))  # ln det(S_w^T S_w)
@@ -131,7 +131,8 @@ def solve_gls(S: np.ndarray | Problem, y: np.ndarray | None = None, t: np.ndarra
         (condition numbers, CRLB) are those of the whitened regression.
     """
     if isinstance(S, Problem) and t is not None and S.t is None:
-        S = Problem.from_arrays(S.sv(), S.y, t, names=S.names, units=S.units, si_factors=S.si_factors, model=S.model)
+        S = Problem.from_arrays(S.sv(), S._need_rows(), t, names=S.names, units=S.units, si_factors=S.si_factors,
+                                model=S.model)
     return GLS.call(S, y, None if isinstance(S, Problem) else t, tau=tau, **labels)
 
 
@@ -175,7 +176,7 @@ def _flight_rows(problems: Sequence[Problem], options: Mapping[str, Any], noise:
     for p in problems:
         if p.t is None:
             raise ValueError(f"flight `{p.source}` has no sample times: GLS needs them")
-        S, y = p.sv(), p.y.reshape(-1, 3)
+        S, y = p.sv(), p._need_rows().reshape(-1, 3)
         tk = estimate_tau(S, y, p.t) if isinstance(tau, str) else float(tau)
         Sw, yw = _whiten(S, y, p.t, tk)
         q = Problem.from_arrays(Sw, yw, p.t, names=p.names, units=p.units, si_factors=p.si_factors, model=p.model)
@@ -277,22 +278,22 @@ def _lattice_vertex(v: Sequence[float]) -> float:
     the polynomial through all the finite ones (degree 2h inside the interval), 0 when the
     middle value is an end of the interval.
     """
-    v = np.asarray(v, dtype=float)
-    h = v.size // 2
-    if not (np.isfinite(v[h - 1]) and np.isfinite(v[h + 1])):
+    va = np.asarray(v, dtype=float)
+    h = va.size // 2
+    if not (np.isfinite(va[h - 1]) and np.isfinite(va[h + 1])):
         return 0.0  # minimum on an end of the interval
     u = np.arange(-h, h + 1.0)
-    use = np.isfinite(v)  # contiguous: NaN only beyond an end
-    P = np.polynomial.Polynomial.fit(u[use], v[use], int(use.sum()) - 1, domain=[-1, 1], window=[-1, 1])
+    use = np.isfinite(va)  # contiguous: NaN only beyond an end
+    P = np.polynomial.Polynomial.fit(u[use], va[use], int(use.sum()) - 1, domain=[-1, 1], window=[-1, 1])
     d1, d2 = P.deriv(), P.deriv(2)
     cand = [0.0]
-    for z in d1.roots():
-        z = float(z.real)
+    for root in d1.roots():
+        z = float(np.real(root))
         for _ in range(3):  # Newton on P' = 0: roots with a tiny leading term are loose
-            z -= d1(z) / d2(z) if d2(z) != 0 else 0.0
+            z -= float(d1(z) / d2(z)) if d2(z) != 0 else 0.0
         if -1.0 <= z <= 1.0:
             cand.append(z)
-    return min(cand, key=lambda z: P(z))
+    return float(min(cand, key=lambda z: float(P(z))))
 
 
 #: GLS: least squares in Gauss-Markov noise (its own noise model: one tau for every axis).

@@ -110,7 +110,7 @@ def stack_sqrt_information(factors: Sequence[tuple[np.ndarray, np.ndarray]]) -> 
         if R.shape[1] != n or z.shape != (R.shape[0],):
             raise ValueError("square-root information factors of different sizes")
     M = np.vstack([np.column_stack([R, z]) for R, z in factors])
-    Rz = np.linalg.qr(M, mode="r")
+    Rz = np.asarray(np.linalg.qr(M, mode="r"))
     out = np.zeros((n, n + 1))
     out[: min(n, Rz.shape[0])] = Rz[:n]
     return np.triu(out[:, :n]), out[:, n].copy()

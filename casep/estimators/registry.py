@@ -185,7 +185,8 @@ def run_method(method: str, S: Any, y: np.ndarray | None, t: np.ndarray | None, 
     m = METHODS[method]
     keys = ("names", "units", "si_factors", "sigma", "rcond")
     keywords = {k: m.option(k).check(v) for k, v in labels.items() if k not in keys}
-    pb = prepare(S, y, *(labels.get(k) for k in keys), t=t if m.needs_time else None)
+    pb = prepare(S, y, labels.get("names"), labels.get("units"), labels.get("si_factors"), labels.get("sigma"),
+                 labels.get("rcond"), t=t if m.needs_time else None)
     opts = {**m.defaults(), **{k: v for k, v in options.items() if v is not None}, **keywords}
     return m.core(pb, **opts)
 

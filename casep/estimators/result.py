@@ -150,7 +150,7 @@ class LazyDiagnostics(dict):
             other._force()
         return dict.__eq__(self, other)
 
-    __hash__ = None  # type: ignore[assignment]
+    __hash__ = None
 
     def __repr__(self) -> str:
         self._force()

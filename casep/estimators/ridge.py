@@ -150,6 +150,7 @@ def _solve(pb: Prepared, *, lam: float | str, solver: str) -> EstimateResult:
         lam = _gcv_lambda(s, beta, pb.red.rho2, m)
     elif lam == "lcurve":
         lam = lcurve_corner(s, beta, pb.red.rho2)
+    lam = float(lam)
     filt = s / (s**2 + lam)  # z = V diag(s / (s^2 + lambda)) U^T q
     z = Vt.T @ (filt * beta) if solver == "svd" else _cvxpy_ridge(pb.red.R, pb.red.qty, lam)
     rss, trh, _ = _ridge_terms(s, beta, pb.red.rho2, np.array([lam]))

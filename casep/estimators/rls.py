@@ -236,22 +236,20 @@ def _solve(pb: Prepared, *, p0: float, weight: float, forgetting: float, noise_o
     history[:, np.flatnonzero(live)] = hist_nat[:, :p]
     history[:, n:] = hist_nat[:, p:]
     history_std = _history_std(hist_var, sig**2 * weight, live, cl, n)
-    diagnostics = {"effective_prior_std": float(sig * np.sqrt(weight * p0))}
+    diagnostics: dict[str, Any] = {"effective_prior_std": float(sig * np.sqrt(weight * p0))}
+    ma = tuple(float(v) for v in x[p:])
+    ma_std = tuple(float(np.sqrt(cov_s[p + j, p + j])) for j in range(nc))
+    innovation_rms = float(np.sqrt(innov_ss / (3 * N))) if nc else None
     if nc:
-        diagnostics["noise_model"] = {
-            "ma_coefficients": [float(v) for v in x[p:]],
-            "ma_std": [float(np.sqrt(cov_s[p + j, p + j])) for j in range(nc)],
-            "innovation_rms": float(np.sqrt(innov_ss / (3 * N))),
-        }
+        diagnostics["noise_model"] = {"ma_coefficients": list(ma), "ma_std": list(ma_std),
+                                      "innovation_rms": innovation_rms}
     res = finish(
         pb, method, x_nat, cov, sig,
         settings={"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": nc,
                   "residuals": residuals, "history_stride": history_stride,
                   "sigma": "estimated" if pb.sigma is None else pb.sigma},
         diagnostics=diagnostics, history=history, residuals=fit, history_std=history_std,
-        extras=RLSExtras(float(p0), float(weight), float(forgetting), int(nc),
-                         **{k: (tuple(v) if isinstance(v, list) else v)
-                            for k, v in diagnostics.get("noise_model", {}).items()}),
+        extras=RLSExtras(float(p0), float(weight), float(forgetting), int(nc), ma, ma_std, innovation_rms),
     )
     if forgetting < 1.0:  # P is then no covariance and the prior no belief: the std are indicative only
         return res
@@ -286,12 +284,13 @@ def prior_conflict(problem, res: EstimateResult, prior_std: float, sigma: float)
     ls_sigma = float(np.sqrt(problem.ls_rss() / max(problem.m - problem.rank().rank, 1)))
     if problem.y is not None and ls_sigma <= NOISE_FREE * float(np.max(np.abs(problem.y))):
         return res  # noise-free data: every std is rounding (check_fit says so); no prior is consistent with it
-    ok = np.isfinite(ls.estimate) & np.isfinite(ls.std)
-    z = np.where(ok, np.abs(np.nan_to_num(ls.estimate)) / np.sqrt(prior_std**2 + np.nan_to_num(ls.std) ** 2), 0.0)
+    ls_std = np.asarray(ls.std, dtype=float)  # least squares always defines its std
+    ok = np.isfinite(ls.estimate) & np.isfinite(ls_std)
+    z = np.where(ok, np.abs(np.nan_to_num(ls.estimate)) / np.sqrt(prior_std**2 + np.nan_to_num(ls_std) ** 2), 0.0)
     if not np.any(z > PRIOR_CONFLICT_Z):
         return res
     order = np.argsort(-z)[: min(5, int(np.sum(z > PRIOR_CONFLICT_Z)))]
-    rows = [{"name": res.names[j], "least_squares": float(ls.estimate[j]), "least_squares_std": float(ls.std[j]),
+    rows = [{"name": res.names[j], "least_squares": float(ls.estimate[j]), "least_squares_std": float(ls_std[j]),
              "z": float(z[j])} for j in order]
     listed = "; ".join(f"{r['name']}: least squares {r['least_squares']:.4g} +- {r['least_squares_std']:.2g} "
                        f"{res.units[res.names.index(r['name'])]}, z = {r['z']:.3g}" for r in rows)

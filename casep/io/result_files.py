@@ -51,6 +51,7 @@ def write_json_atomic(data: dict[str, Any], path: str | os.PathLike) -> None:
 
 def _first_non_finite(v: Any, where: str = "") -> tuple[str, float] | None:
     """The path (``settings.prior.Kg0x.mean``) and value of the first NaN or inf in a JSON-like value."""
+    items: Any
     if isinstance(v, dict):
         items = v.items()
     elif isinstance(v, (list, tuple)):

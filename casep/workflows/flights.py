@@ -84,6 +84,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         raise ValueError(f"method `{method}` cannot be estimated jointly; use one of {', '.join(joint)}")
     meth = METHODS[method]
     hooks = meth.flights
+    assert hooks is not None  # refused above
     if len(flights) < 2:
         raise ValueError(f"`flights` must hold two or more flights, got {len(flights)}")
     model = load_model(model)
@@ -223,7 +224,8 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
             own.append(solve_ols(w, sigma=s))
     per = {}
     for j in lay.shared:
-        test = coefficient_consistency(np.array([o.estimate[j] for o in own]), np.array([o.std[j] ** 2 for o in own]))
+        var = np.array([np.nan if o.std is None else o.std[j] ** 2 for o in own])
+        test = coefficient_consistency(np.array([o.estimate[j] for o in own]), var)
         if test is not None:
             per[lay.names[j]] = test.to_dict()
     own_rss = [flight_rss(p.red) for p in jp.problems]

@@ -129,7 +129,7 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
     # (casep.estimators.joint.stack_sqrt_information): the information is never formed or inverted.
     from casep.estimators.joint import stack_sqrt_information
 
-    n = len(names)
+    n_coef = len(names)
     c = np.min(np.array(ds), axis=0)
     factors = [(linalg.solve_triangular(L, np.diag(c / d), lower=True),
                 linalg.solve_triangular(L, x / d, lower=True)) for L, d, x in zip(Ls, ds, xs)]
@@ -137,14 +137,14 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
     if np.min(np.abs(np.diag(R))) <= 1e-14 * np.max(np.abs(np.diag(R))):
         raise ValueError("the fused information is singular: the results together do not determine every "
                          "coefficient")
-    Ri = linalg.solve_triangular(R, np.eye(n))  # R^-1
+    Ri = linalg.solve_triangular(R, np.eye(n_coef))  # R^-1
     est = c * linalg.solve_triangular(R, z)  # D = c R^-1 z
     cov = np.outer(c, c) * (Ri @ Ri.T)  # Lambda^-1 = diag(c) R^-1 R^-T diag(c)
     cov = 0.5 * (cov + cov.T)
     # Consistency: Mahalanobis distance of each input from the fused estimate, ||R_k (D_k - D)||^2.
     chi2 = float(sum(np.sum(linalg.solve_triangular(L, (x - est) / d, lower=True) ** 2)
                      for L, d, x in zip(Ls, ds, xs)))
-    dof = (len(results) - 1) * n
+    dof = (len(results) - 1) * n_coef
     overall = Consistency(chi2, dof, float(stats.chi2.sf(chi2, dof)))
     per = {}
     for j, nm in enumerate(names):

@@ -39,7 +39,8 @@ def regression_rows(flight: FlightData, model: ErrorModel) -> tuple[np.ndarray, 
     not hold S_V.
     """
     pb = Problem.from_flight(flight, model, keep_sv=True)
-    return pb.sv(), pb.y, pb.t
+    assert pb.t is not None  # a flight's problem has its times
+    return pb.sv(), pb._need_rows(), pb.t
 
 
 def separate(
@@ -203,8 +204,9 @@ def separate(
     check_method_options(method, given)  # once, here: the method takes them as checked
     # A bounds or prior table may be given as its JSON file (as on the command line).
     for k in ("bounds", "prior"):
-        if isinstance(kw.get(k), (str, os.PathLike)):
-            path, kw[k] = kw[k], read_json_table(kw[k], k)
+        path = kw.get(k)
+        if isinstance(path, (str, os.PathLike)):
+            kw[k] = read_json_table(path, k)
             from casep.io.result_json import looks_like_result
 
             if k == "prior" and looks_like_result(kw[k]):  # a result file (any form): its posterior
@@ -226,7 +228,7 @@ def separate(
             flight = read_flight(flight)
         align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
         if fit_time_offset is None:
-            fit_time_offset = bool(align) and align.get("mode") == "auto"
+            fit_time_offset = isinstance(align, dict) and align.get("mode") == "auto"
         if fit_time_offset:
             from casep.model.loader import with_time_offset
 
@@ -235,7 +237,7 @@ def separate(
         problem = Problem.from_flight(flight, model)  # S_V integrated and reduced once, checks on the way
     solved, den, sigma_from_wavelet = problem, None, False
     if denoise == "wavelet":
-        den = wavelet_denoise(problem.y, **dict(wavelet_options or {}))
+        den = wavelet_denoise(problem._need_rows(), **dict(wavelet_options or {}))
         solved = problem.with_y(den.dv)
         if sigma is None:
             sigma = float(np.sqrt(np.mean(den.sigma**2)))  # raw-noise sigma, not post-de-noising residuals
@@ -254,7 +256,7 @@ def separate(
                         exclude_outliers=exclude_outliers, check_white=den is None, **labels)
     res = out.result
     # raw dv: noise-free, outliers, offset
-    check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source,
+    check_fit(problem, problem._need_rows(), res, t=problem.t, f=problem.f, source=problem.source,  # type: ignore[arg-type]
               outliers_handled="robust" in res.diagnostics or exclude_outliers is not None)
     if sigma is not None and not sigma_from_wavelet:
         check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
@@ -270,7 +272,7 @@ def separate(
             settings["sigma"] = f"wavelet estimate {sigma:.6g}"
         res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings,
                                   sigma_source="wavelet" if sigma_from_wavelet else res.sigma_source)
-    if not isinstance(flight, Problem):
+    if not isinstance(flight, Problem) and isinstance(model, ErrorModel):
         from casep.model.loader import model_file_reference
 
         ref = model_file_reference(model)  # a model loaded from a path: impact/fuse find it again
@@ -336,7 +338,7 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     from casep.io.flight import setup_problems
 
     problems = setup_problems(flight) if flight is not None else []
-    if problems:
+    if flight is not None and problems:
         res = failed(res, STATUS_SETUP, f"failed: set-up check of {flight.source}: " + "; ".join(problems))
     if isinstance(model, ErrorModel) and model.name == res.model and not noise_free:
         res = check_magnitudes(res, model.scales, source=flight.source if flight is not None else "")
