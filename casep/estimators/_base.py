@@ -18,8 +18,9 @@ import numpy as np
 from casep.analysis.diagnostics import ILL_CONDITIONED, collinearity
 from casep.analysis.linalg import RankAnalysis, ReducedSystem, condition_numbers, unidentifiable_reasons
 from casep.analysis.problem import Problem as RegressionProblem
+from casep.estimators._lazydict import LazyDiagnostics
 from casep.estimators._options import SIGMA
-from casep.estimators.result import EstimateResult, LazyDiagnostics
+from casep.estimators.result import EstimateResult
 from casep.exceptions import IllConditionedWarning, MagnitudeWarning
 
 __all__ = ["Prepared", "prepare", "rows_of", "finish", "check_positive", "inverse_scale"]

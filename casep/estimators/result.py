@@ -82,85 +82,6 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-class LazyDiagnostics(dict):
-    """A result's diagnostics whose costly entries are computed on first use, then kept.
-
-    A plain ``dict`` to every reader (``isinstance``, ``json.dumps``, ``{**d}``, ``d[key]``): the
-    entries named by ``lazy`` (the Cramer-Rao std, variance inflation factors and near-dependency
-    groups) are computed by ``compute()`` the first time any of them, or the whole mapping, is read,
-    so that a solve (a Monte Carlo run) that reads only the estimate does not pay for them.
-    """
-
-    def __init__(self, data: Mapping[str, Any], lazy: tuple[str, ...], compute: Any) -> None:
-        super().__init__(data)
-        self._pending: tuple[tuple[str, ...], Any] | None = (lazy, compute)
-
-    def _force(self) -> None:
-        if self._pending is not None:
-            keys, compute = self._pending
-            self._pending = None
-            values = compute()
-            for k in keys:
-                if not dict.__contains__(self, k):
-                    dict.__setitem__(self, k, values[k])
-
-    def _lazy(self, key: Any) -> bool:
-        return self._pending is not None and key in self._pending[0]
-
-    def __getitem__(self, key: Any) -> Any:
-        if self._lazy(key):
-            self._force()
-        return dict.__getitem__(self, key)
-
-    def get(self, key: Any, default: Any = None) -> Any:
-        if self._lazy(key):
-            self._force()
-        return dict.get(self, key, default)
-
-    def __contains__(self, key: Any) -> bool:
-        return self._lazy(key) or dict.__contains__(self, key)
-
-    def __iter__(self) -> Any:
-        self._force()
-        return dict.__iter__(self)
-
-    def __len__(self) -> int:
-        self._force()
-        return dict.__len__(self)
-
-    def keys(self) -> Any:
-        self._force()
-        return dict.keys(self)
-
-    def items(self) -> Any:
-        self._force()
-        return dict.items(self)
-
-    def values(self) -> Any:
-        self._force()
-        return dict.values(self)
-
-    def copy(self) -> dict[str, Any]:
-        self._force()
-        return dict(dict.items(self))
-
-    def __eq__(self, other: object) -> bool:
-        self._force()
-        if isinstance(other, LazyDiagnostics):
-            other._force()
-        return dict.__eq__(self, other)
-
-    __hash__ = None
-
-    def __repr__(self) -> str:
-        self._force()
-        return dict.__repr__(self)
-
-    def __reduce__(self) -> Any:  # pickled (dask workers) as the plain dict it stands for
-        self._force()
-        return (dict, (dict(dict.items(self)),))
-
-
 def format_number(v: float | None, width: int = 12, fmt: str = ".6g") -> str:
     """Right-aligned ``%.6g`` (or `fmt`) with ``-`` for a missing value (None, NaN, inf)."""
     if v is None or not math.isfinite(float(v)):
@@ -187,7 +108,8 @@ class EstimateResult:
 
     Follows the result protocol (:mod:`casep.results`): :meth:`to_dict` (the result JSON) and
     :meth:`text` (what the command line prints); ``diagnostics`` computes its Cramer-Rao std,
-    variance inflation factors and near-dependency groups on first use (:class:`LazyDiagnostics`).
+    variance inflation factors and near-dependency groups on first use
+    (:class:`casep.estimators._lazydict.LazyDiagnostics`).
 
     Attributes
     ----------

@@ -29,11 +29,16 @@ from casep.estimators.registry import METHODS, check_method_options
 from casep.estimators.result import EstimateResult
 from casep.workflows.fusion import FUSE_FAIL_P, FUSE_WARN_P, fuse, fuse_with_ground  # re-export: remove after merge
 
-__all__ = ["JointProblem", "separate_flights", "flights_summary", "fuse", "diagnose_flights", "JOINT_METHODS",
-           "FUSE_WARN_P", "FUSE_FAIL_P", "fuse_with_ground"]
+# and JOINT_METHODS (module __getattr__: the registry's as it is now)
+__all__ = ["JointProblem", "separate_flights", "flights_summary", "fuse", "diagnose_flights", "FUSE_WARN_P",
+           "FUSE_FAIL_P", "fuse_with_ground"]
 
-#: Methods that estimate several flights jointly (those of the registry's that declare hooks for it).
-JOINT_METHODS = tuple(k for k, m in METHODS.items() if m.flights is not None)
+
+def __getattr__(name: str) -> Any:
+    # JOINT_METHODS: the methods that estimate several flights jointly (the registry's with hooks for it), as now
+    if name == "JOINT_METHODS":
+        return tuple(k for k, m in METHODS.items() if m.flights is not None)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _labels(problems: Sequence[Problem]) -> tuple[str, ...]:

@@ -25,10 +25,15 @@ if TYPE_CHECKING:
     from casep.frames import LaunchSite
     from casep.workflows.radar import RadarResult
 
-__all__ = ["separate", "regression_rows", "judge_setup", "METHODS"]
+__all__ = ["separate", "regression_rows", "judge_setup"]  # and METHODS (module __getattr__)
 
-#: Estimators available through :func:`separate` and ``casep separate --method`` (the registry's).
-METHODS = tuple(_REGISTRY)
+
+def __getattr__(name: str) -> Any:
+    # METHODS: the estimators available through separate() and ``casep separate --method``, the registry's as
+    # it is now (a method registered at run time included)
+    if name == "METHODS":
+        return tuple(_REGISTRY)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def regression_rows(flight: FlightData, model: ErrorModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
