@@ -23,7 +23,7 @@ import numpy as np
 from casep.analysis.noise import NoiseModel, check_noise_kind, default_lags, find_gaps, whiteness_test
 from casep.analysis.problem import Problem
 from casep.analysis.rows import Rows, prepare_rows
-from casep.estimators.registry import METHODS
+from casep.estimators.registry import METHODS, check_method_options
 from casep.estimators.result import EstimateResult
 from casep.exceptions import NoiseNotWhiteWarning
 
@@ -75,7 +75,7 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
     method : str
         A registered method (:data:`casep.estimators.registry.METHODS`).
     options : mapping
-        The method's options, checked (:func:`casep.estimators.registry.check_method_options`).
+        The method's options (checked here by :func:`casep.estimators.registry.check_method_options`).
     noise, tau, robust, exclude_outliers
         As :func:`prepare_rows`.
     std : {"model", "hac"}
@@ -91,8 +91,7 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
     check_noise_kind(noise)
     if std not in STD_CHOICES:
         raise ValueError(f"`std` must be one of {', '.join(STD_CHOICES)}, got {std!r}")
-    if method not in METHODS:
-        raise ValueError(f"`method` must be one of {', '.join(METHODS)}, got {method!r}")
+    check_method_options(method, {k: v for k, v in dict(options or {}).items() if v is not None})  # an API edge
     meth = METHODS[method]
     opts = {**dict(options or {}), **labels}
     if meth.own_noise_model is not None:
