@@ -115,13 +115,9 @@ class Prepared:
         """(m,) observations."""
         return self.problem._need_rows().reshape(-1)
 
-    @property
-    def m(self) -> int:
-        return self.red.m
-
-    @property
-    def n(self) -> int:
-        return self.red.n
+    #: Scalar rows (3 N) and coefficients of the problem.
+    m = property(lambda self: self.red.m)
+    n = property(lambda self: self.red.n)
 
     @property
     def inv_c(self) -> np.ndarray:

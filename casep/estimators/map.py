@@ -244,8 +244,10 @@ def solve_map(S: np.ndarray | Problem, y: np.ndarray | None = None, prior: Mappi
 
     Parameters
     ----------
-    S, y : array_like or Problem
-        Regression (natural units) and velocity error, as :func:`casep.solve_ols`.
+    S : (N, 3, n) or (m, n) array_like, or Problem
+        Regression matrix in natural units (a Problem holds `y`), as :func:`casep.solve_ols`.
+    y : (N, 3) or (m,) array_like
+        Velocity error, m/s.
     prior : mapping
         ``{name: {"mean": m, "std": s}}`` in natural units; absent names are flat.
     **labels
