@@ -19,7 +19,7 @@ from casep.analysis.diagnostics import ILL_CONDITIONED, collinearity
 from casep.analysis.linalg import RankAnalysis, ReducedSystem, condition_numbers, unidentifiable_reasons
 from casep.analysis.problem import Problem as RegressionProblem
 from casep.estimators._lazydict import LazyDiagnostics
-from casep.estimators._options import SIGMA
+from casep.estimators._rules import SIGMA
 from casep.estimators.result import EstimateResult
 from casep.exceptions import IllConditionedWarning, MagnitudeWarning
 
@@ -175,7 +175,7 @@ def prepare(S: np.ndarray | RegressionProblem, y: np.ndarray | None, names: Sequ
 
 def finish(
     pb: Prepared,
-    method: str,
+    method: Any,
     x: np.ndarray,
     cov: np.ndarray | None,
     sigma: float,
@@ -197,6 +197,9 @@ def finish(
 
     Parameters
     ----------
+    method : Method or str
+        The method's declaration (:class:`~casep.estimators._options.Method`: its name, ``std_kind``,
+        extras type and failure hint), or only a name (std "sampling", no hint).
     x : (n,) natural-unit estimate used for the residuals (every entry finite).
     cov : (n, n) natural-unit covariance, or None when the method defines none.
     undetermined : (n,) bool, optional
@@ -207,9 +210,9 @@ def finish(
     sigma_source : str, optional
         Where `sigma` came from (default "given" when the caller gave it, else "estimated").
     std_kind : str, optional
-        What the std mean (default: the registry's ``Method.std_kind`` of `method`).
+        What the std mean (default: the method's declared ``std_kind``).
     extras : dataclass, optional
-        The method's typed extras (``EXTRAS_TYPES[method]``).
+        The method's typed extras (an instance of its declared ``extras_type``).
 
     Notes
     -----
@@ -223,6 +226,11 @@ def finish(
     on (nearly) noise-free data the least-squares std is ~0 and a deliberately biased
     estimator (ridge, MAP, bounded) fitting dv to 1 % is not a failure.
     """
+    declared = None if isinstance(method, str) else method
+    name = method if declared is None else declared.name
+    etype = getattr(declared, "extras_type", None)
+    if extras is not None and etype is not None and not isinstance(extras, etype):
+        raise TypeError(f"method {name}: extras must be {etype.__name__}, got {type(extras).__name__}")
     n = pb.n
     und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
     res = pb.residuals(x) if residuals is None else np.asarray(residuals, dtype=float).reshape(-1)
@@ -246,7 +254,7 @@ def finish(
                                   "(zero or exactly dependent columns); the other estimated")
         else:
             status, message = -1, message or "no coefficient is identifiable on this data"
-    failure = _failure(pb, method, np.where(und, 0.0, x), std, res)
+    failure = _failure(pb, name, getattr(declared, "hint", ""), np.where(und, 0.0, x), std, res)
     if failure is not None:
         status, message = failure
     base = {**condition_numbers(pb.red, pb.ra), "sigma": float(sigma), "rank": pb.ra.rank,
@@ -258,24 +266,17 @@ def finish(
     note = _ill_conditioning_note(diag)
     if note:
         diag["warning"] = note
-        warnings.warn(f"{method}: {note}", IllConditionedWarning, stacklevel=3)
+        warnings.warn(f"{name}: {note}", IllConditionedWarning, stacklevel=3)
     N = pb.shape[0] if len(pb.shape) == 2 else pb.m
     return EstimateResult(
-        method=method, names=pb.names, units=pb.units, estimate=est, std=std, covariance=cov,
+        method=name, names=pb.names, units=pb.units, estimate=est, std=std, covariance=cov,
         reasons=all_reasons, residuals=res.reshape(pb.shape), sigma=float(sigma), rank=pb.ra.rank,
         status=status, message=message or "", success=status > 0, si_factors=pb.si_factors,
         settings=settings, diagnostics=diag, n_samples=N, history=history, history_std=history_std,
         model=pb.problem.model or "",  # set by the problem, not patched afterwards
         sigma_source=sigma_source or ("given" if pb.sigma is not None else "estimated"),
-        std_kind=std_kind or (m.std_kind if (m := _declared(method)) is not None else "sampling"), extras=extras,
+        std_kind=std_kind or str(getattr(declared, "std_kind", "sampling")), extras=extras,
     )
-
-
-def _declared(method: str) -> Any:
-    """The registered :class:`~casep.estimators._options.Method` of `method`, or None."""
-    from casep.estimators.registry import METHODS  # imports every estimator module, which import this one
-
-    return METHODS.get(method)
 
 
 #: A residual RMS above this many least-squares residual std fails a result ...
@@ -284,7 +285,7 @@ MISFIT_FACTOR = 3.0
 MISFIT_FLOOR = 0.02
 
 
-def _failure(pb: Prepared, method: str, x: np.ndarray, std: np.ndarray | None,
+def _failure(pb: Prepared, method: str, hint_text: str, x: np.ndarray, std: np.ndarray | None,
              res: np.ndarray) -> tuple[int, str] | None:
     """``(status, message)`` of a result that cannot be trusted, or None (see :func:`finish`).
 
@@ -301,8 +302,7 @@ def _failure(pb: Prepared, method: str, x: np.ndarray, std: np.ndarray | None,
     rms_y = float(np.sqrt((pb.red.qty @ pb.red.qty + pb.red.rho2) / pb.m))  # ||y||^2 = ||Q^T y||^2 + rho^2
     ls = pb.ols_sigma()  # sqrt(min_D |y - S D|^2 / (m - rank)): the misfit the model allows
     if rms > MISFIT_FACTOR * ls and rms > MISFIT_FLOOR * rms_y:
-        m = _declared(method)
-        hint = f" ({m.hint})" if m is not None and m.hint else ""
+        hint = f" ({hint_text})" if hint_text else ""
         return -3, (f"failed: {method} residual RMS {rms:.3g} m/s is {rms / ls:.3g} x the least-squares residual "
                     f"std {ls:.3g} m/s: the estimate does not fit the data{hint}")
     return None
@@ -376,10 +376,11 @@ def failed(res: EstimateResult, status: int, message: str) -> EstimateResult:
     return dataclasses.replace(res, status=status, success=False, message=message)
 
 
-def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str = "") -> EstimateResult:
+def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str = "", *,
+                     regularised: bool = False) -> EstimateResult:
     """Estimates against the model's declared magnitudes: a :class:`~casep.exceptions.MagnitudeWarning` at
     :data:`MAGNITUDE_WARN` times, a failed result (status :data:`STATUS_MAGNITUDE`) at :data:`MAGNITUDE_FAIL`
-    (a warning for the :data:`REGULARISED` methods).
+    (a warning only, for a `regularised` method).
 
     Parameters
     ----------
@@ -389,6 +390,9 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
         name ``name[flight]`` uses ``name``'s.
     source : str, optional
         Flight name for the message.
+    regularised : bool, optional
+        The result's method sets poorly determined coefficients by its regularisation, not the data
+        (its ``Method.regularised``: ridge, PCR, bounded): beyond :data:`MAGNITUDE_FAIL` a warning.
 
     Returns
     -------
@@ -421,8 +425,7 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
             f"{MAGNITUDE_Z:g} std; {listed}): "
             "a set-up mistake (launch site, azimuth, time scales), a unit mistake or a missing model term is likelier "
             "than such instruments")
-    declared = _declared(res.method)
-    if worst >= MAGNITUDE_FAIL and not (declared is not None and declared.regularised):
+    if worst >= MAGNITUDE_FAIL and not regularised:
         return failed(res, STATUS_MAGNITUDE, f"failed: {text} (beyond {MAGNITUDE_FAIL:g} x)")
     if not res.success:
         return res  # failed already, for its own reason (recorded in diagnostics["magnitudes"])

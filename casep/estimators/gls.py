@@ -154,7 +154,7 @@ def _solve(pb: Prepared, *, tau: float | str) -> EstimateResult:
                  model=problem.model)
     x, cov, sig = least_squares(pw)  # sigma: whitened residual std = stationary sigma
     fit = y - S @ x  # dv - S_V D_hat, not whitened
-    return finish(pw, "gls", x, cov, sig, residuals=fit.reshape(-1),
+    return finish(pw, GLS, x, cov, sig, residuals=fit.reshape(-1),
                   settings={"tau": tau_used, "tau_rule": rule, "sigma": "estimated" if pb.sigma is None else pb.sigma},
                   extras=GLSExtras(float(tau_used), rule))
 

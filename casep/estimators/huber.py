@@ -138,7 +138,7 @@ def _solve(pb: Prepared, *, c: float, flag: float, tol: float, max_iter: int) ->
     rows = [{"sample": int(i // 3), "axis": "xyz"[i % 3], "size_sigma": float(u[i])} for i in order] \
         if A.shape[0] == 3 * (A.shape[0] // 3) else [{"row": int(i), "size_sigma": float(u[i])} for i in order]
     outliers = {"count": int(big.size), "threshold_sigma": float(flag), "largest": rows}
-    return finish(pb, "huber", x, cov, sig, residuals=r,
+    return finish(pb, HUBER, x, cov, sig, residuals=r,
                   settings={"c": c, "iterations": it, "scale": float(scale), "flag_sigma": flag,
                             "outliers_flagged": int(big.size),
                             "sigma": "robust (MAD) scale" if pb.sigma is None else pb.sigma},

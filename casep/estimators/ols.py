@@ -74,7 +74,7 @@ def solve_ols(S: np.ndarray | Problem, y: np.ndarray | None = None, **labels: Un
 
 def _solve(pb: Prepared) -> EstimateResult:
     x, cov, sig = least_squares(pb)
-    return finish(pb, "ols", x, cov, sig, extras=OLSExtras(float(pb.ra.rcond)),
+    return finish(pb, OLS, x, cov, sig, extras=OLSExtras(float(pb.ra.rcond)),
                   settings={"rcond": pb.ra.rcond, "sigma": "estimated" if pb.sigma is None else pb.sigma})
 
 

@@ -116,7 +116,7 @@ def _solve(pb: Prepared, *, max_condition_index: float, n_components: int | None
     cov = sig**2 * (W @ W.T) * np.outer(inv_c, inv_c)
     dropped = [{"condition_index": float(s[0] / s[i]) if s[i] > 0 else None,
                 "combination": _combination(Vt[i], pb.names)} for i in range(k, pb.n)]
-    return finish(pb, "pcr", z * inv_c, cov, sig,
+    return finish(pb, PCR, z * inv_c, cov, sig,
                   settings={"n_components": k, "rule": rule,
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
                   diagnostics={"dropped_directions": dropped},

@@ -42,7 +42,7 @@ from casep.estimators.huber import HUBER
 from casep.estimators.map import MAP
 from casep.estimators.ols import OLS
 from casep.estimators.pcr import PCR
-from casep.estimators.result import STD_KIND_MEANINGS, EstimateResult
+from casep.estimators.result import EXTRAS_TYPES, STD_KIND_MEANINGS, EstimateResult
 from casep.estimators.ridge import RIDGE
 from casep.estimators.rls import RELS, RLS
 
@@ -55,6 +55,9 @@ METHODS: dict[str, Method] = {m.name: m for m in (OLS, RLS, RELS, RIDGE, BOUNDED
 
 
 def _options() -> dict[str, Option]:
+    """The options of every method by name (and the result's table of extras types, kept in step)."""
+    EXTRAS_TYPES.clear()
+    EXTRAS_TYPES.update({k: m.extras_type for k, m in METHODS.items() if m.extras_type is not None})
     out: dict[str, Option] = {}
     for m in METHODS.values():
         for o in m.option_specs:

@@ -11,6 +11,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from casep.estimators._meanings import SIGMA_SOURCE_MEANINGS, SIGMA_SOURCES, STD_KIND_MEANINGS
 from casep.io.result_files import (
     jsonable,
     write_coefficients_csv,
@@ -18,64 +19,28 @@ from casep.io.result_files import (
     write_mat_fields,
 )
 
-__all__ = ["EstimateResult", "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "extras_type",
+__all__ = ["EstimateResult", "result_from_data", "check_result_units", "EXTRAS_TYPES",
+           "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "extras_type",
            "write_json_atomic", "write_mat", "write_csv", "format_number"]
 
 AXES = ("x", "y", "z")
 
-#: What the reported ``std`` mean (``EstimateResult.std_kind``, set by each solver; the
-#: registry's ``Method.std_kind`` declares each method's kind):
-STD_KIND_MEANINGS = {
-    "sampling": "spread of the estimate over noise draws (for a biased method: around its mean)",
-    "posterior": "std of the posterior under the method's prior (MAP's prior; RLS/RELS's P0)",
-    "conditional": "given the active set of the bounds: understated (bounded, when a bound is active)",
-}
-
-#: Where ``sigma`` came from (``EstimateResult.sigma_source``):
-#: "estimated": residual std of the fit, sqrt(RSS / (m - rank)), of the whitened residuals for GLS/RELS;
-#: "given": the caller's ``sigma``;
-#: "wavelet": the wavelet transform's estimate from the raw finest details (set by ``separate``
-#: when dv was de-noised and no sigma was given);
-#: "robust": Huber's MAD scale of the residuals.
-#: No method estimates sigma from a prior, so there is no "prior"/"posterior" source.
-SIGMA_SOURCE_MEANINGS = {
-    "estimated": "residual std of the fit (whitened residuals for GLS/RELS)",
-    "given": "given by the caller",
-    "wavelet": "wavelet estimate from the raw finest details (dv de-noised, no sigma given)",
-    "robust": "Huber's MAD scale of the residuals",
-    "whitened": "several flights: each flight's rows divided by its own sigma (flights[].sigma), so 1 here",
-    "fused": "fused results: each input's own sigma (settings.fused)",
-    "external": "a result file of another tool that states no sigma (docs/guide/result-files.md)",
-}
-SIGMA_SOURCES = tuple(SIGMA_SOURCE_MEANINGS)
-
 
 # --------------------------------------------------------------------- typed per-method extras
-# Each method declares its extras type beside its solver (``Method.extras_type``, with ``describe``).
-_EXTRAS_NAMES = {"OLSExtras": "ols", "RLSExtras": "rls", "RidgeExtras": "ridge", "BoundedExtras": "bounded",
-                 "PCRExtras": "pcr", "MAPExtras": "map", "GLSExtras": "gls", "HuberExtras": "huber"}
+#: The extras dataclass of each registered method (``Method.extras_type``, declared beside its solver, with
+#: ``describe``); filled by :mod:`casep.estimators.registry`, which the package imports first.
+EXTRAS_TYPES: dict[str, type] = {}
 
-
-_READING = ("read_result", "result_from_data", "check_result_units", "resolve_result_model")
+_READING = ("read_result", "resolve_result_model")
 
 
 def extras_type(method: str) -> type | None:
     """The extras dataclass a registered `method` declares (None for an unregistered name)."""
-    from casep.estimators.registry import METHODS  # the registry imports the estimators, which import this module
-
-    m = METHODS.get(method)
-    return m.extras_type if m is not None else None
+    return EXTRAS_TYPES.get(method)
 
 
 def __getattr__(name: str) -> Any:
-    # re-export: remove after merge (the extras types live beside their solvers; EXTRAS_TYPES is the registry's)
-    if name == "EXTRAS_TYPES":
-        from casep.estimators.registry import METHODS
-
-        return {k: m.extras_type for k, m in METHODS.items() if m.extras_type is not None}
-    if name in _EXTRAS_NAMES:
-        return extras_type(_EXTRAS_NAMES[name])
-    if name in _READING:  # reading result files: casep.estimators.reading
+    if name in _READING:  # re-export: remove after merge (cli, impact.miss, workflows: casep.estimators.reading)
         from casep.estimators import reading
 
         return getattr(reading, name)
@@ -312,8 +277,6 @@ class EstimateResult:
             rd = parse_result_data(source, "result")
         else:
             rd = read_result_data(source, "result")
-        from casep.estimators.reading import result_from_data
-
         return result_from_data(rd, model)
 
     def covariance_rows(self) -> list[list[float | None]] | None:
@@ -389,8 +352,93 @@ class EstimateResult:
         return "\n".join(lines)
 
 
-def _nan_array(a: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray:
-    return np.full(shape, np.nan) if a is None else np.asarray(a, dtype=float)
+def _extras_from_dict(method: str, d: dict | None):
+    """The typed extras of `method` back from their JSON object (lists -> declared tuples)."""
+    cls = extras_type(method)
+    if d is None or cls is None:
+        return None
+    kw = {f.name: (tuple(d[f.name]) if str(f.type).startswith("tuple") else d[f.name])
+          for f in dataclasses.fields(cls) if f.name in d}
+    return cls(**kw)
+
+
+def result_from_data(rd, model=None) -> EstimateResult:
+    """An :class:`EstimateResult` of a checked result file (:class:`casep.io.result_json.ResultData`).
+
+    `model` (ErrorModel or name): check names and units against it, and take the SI factors from it.
+    """
+    f = rd.fields
+    si = None
+    if model is not None:
+        from casep.model.loader import load_model
+
+        model = load_model(model)
+        skip = _tracking_terms(f.get("diagnostics"))
+        check_result_units(rd.names, rd.units, model, rd.source, skip=skip)
+        if not skip:
+            base = [n.split("[", 1)[0] for n in rd.names]
+            si = np.array([model.si_factors[model.names.index(b)] for b in base], dtype=float)
+    if si is None and f.get("si_factors") is not None and len(f["si_factors"]) == len(rd.names):
+        si = np.array([np.nan if v is None else v for v in f["si_factors"]], dtype=float)
+    if si is None:
+        from casep.units import si_factor
+
+        vals = []
+        for u in rd.units:
+            try:
+                vals.append(si_factor(u))
+            except (KeyError, ValueError):
+                vals.append(math.nan)
+        si = np.array(vals, dtype=float)
+    method = f.get("method") or "external"
+    try:
+        extras = _extras_from_dict(method, f.get("extras"))
+    except (TypeError, KeyError) as exc:
+        raise ValueError(f"{rd.source}: field `extras` does not fit method `{method}` ({exc})") from None
+    rrms = f.get("residual_rms")
+    n_est = int(np.isfinite(rd.estimate).sum())
+    for key, allowed in (("std_kind", STD_KIND_MEANINGS), ("sigma_source", SIGMA_SOURCE_MEANINGS)):
+        if f.get(key) is not None and f[key] not in allowed:
+            raise ValueError(f"{rd.source}: field `{key}` must be one of {', '.join(allowed)}, got {f[key]!r}")
+    return EstimateResult(
+        method=method, names=rd.names, units=rd.units, estimate=rd.estimate, std=rd.std,
+        covariance=rd.covariance, reasons=dict(rd.reasons), residuals=np.zeros((0, 3)),
+        sigma=math.nan if f.get("sigma") is None else float(f["sigma"]),
+        rank=n_est if f.get("rank") is None else int(f["rank"]),
+        status=0 if f.get("status") is None else int(f["status"]),
+        message=f.get("message") or f"read from {rd.source}",
+        success=True if f.get("success") is None else bool(f["success"]),
+        si_factors=si, settings=f.get("settings") or {}, diagnostics=f.get("diagnostics") or {},
+        model=f.get("model") or (model.name if model is not None else ""),
+        n_samples=int(f.get("n_samples") or 0), denoise=f.get("denoise"),
+        sigma_source=f.get("sigma_source") or ("estimated" if f.get("sigma") is not None else "external"),
+        stored_residual_rms=rrms if rrms is not None else {a: None for a in AXES},
+        std_kind=f.get("std_kind") or "sampling", extras=extras, model_file=f.get("model_file"))
+
+
+def _tracking_terms(diagnostics) -> set[str]:
+    """Coefficients of a radar-tracked result that belong to its tracking model (station errors), not to
+    the instrument model: ``diagnostics["tracking_terms"]``."""
+    terms = (diagnostics or {}).get("tracking_terms") if isinstance(diagnostics, dict) else None
+    return {str(t) for t in terms} if isinstance(terms, (list, tuple)) else set()
+
+
+def check_result_units(names, units, model, source: str, skip: set[str] | frozenset[str] = frozenset()) -> None:
+    """Every coefficient of a result is the model's (a several-flight result's ``name[file]``: its base
+    name) and in the model's unit; ValueError naming the coefficient and both units. Names in `skip`
+    (a radar-tracked result's tracking-model terms) are not the instrument model's and are left out."""
+    from casep.model._model import unknown_coefficient_message
+
+    for n, u in zip(names, units):
+        if n in skip:
+            continue
+        base = n.split("[", 1)[0]
+        if base not in model.names:
+            raise ValueError(unknown_coefficient_message(base, model.names, f"{source} (model {model.name})"))
+        mu = model.units[model.names.index(base)]
+        if u.strip() != mu:
+            raise ValueError(f"{source}: `{n}` is in {u!r}, but model `{model.name}` declares it in {mu!r}: convert "
+                             "the estimate, std and covariance to the model's unit")
 
 
 def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | None = None,
@@ -415,8 +463,8 @@ def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | N
         "names": np.array(res.names, dtype=object),
         "units": np.array(res.units, dtype=object),
         "estimates": np.asarray(res.estimate, dtype=float),
-        "std": _nan_array(res.std, (n,)),
-        "covariance": _nan_array(res.covariance, (n, n)),
+        "std": np.full(n, np.nan) if res.std is None else np.asarray(res.std, dtype=float),
+        "covariance": np.full((n, n), np.nan) if res.covariance is None else np.asarray(res.covariance, dtype=float),
         "residuals": np.asarray(res.residuals, dtype=float).reshape(-1, 3),
         "reasons": np.array([res.reasons.get(nm, "") for nm in res.names], dtype=object),
         "sigma": float(res.sigma), "rank": float(res.rank), "status": float(res.status),

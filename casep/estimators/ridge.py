@@ -158,7 +158,7 @@ def _solve(pb: Prepared, *, lam: float | str, solver: str) -> EstimateResult:
     G = Vt.T * (s / (s**2 + lam))  # Cov(z) = sigma^2 G G^T
     inv_c = pb.inv_c
     cov = sig**2 * (G @ G.T) * np.outer(inv_c, inv_c)
-    return finish(pb, "ridge", z * inv_c, cov, sig,
+    return finish(pb, RIDGE, z * inv_c, cov, sig,
                   settings={"lambda": float(lam), "lambda_rule": rule, "solver": solver,
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
                   diagnostics={"effective_dof": float(trh[0])},

@@ -229,7 +229,7 @@ def _solve(pb: Prepared, *, p0: float, weight: float, forgetting: float, noise_o
     cov = np.full((n, n), 0.0)
     inv = 1.0 / cl
     cov[np.ix_(live, live)] = cov_s[:p, :p] * np.outer(inv, inv)
-    method = "rels" if nc else "rls"
+    method = RELS if nc else RLS
     hist_nat = hist.copy()
     hist_nat[:, :p] /= cl
     history = np.zeros((hist.shape[0], n + nc))

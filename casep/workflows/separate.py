@@ -346,5 +346,7 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     if flight is not None and problems:
         res = failed(res, STATUS_SETUP, f"failed: set-up check of {flight.source}: " + "; ".join(problems))
     if isinstance(model, ErrorModel) and model.name == res.model and not noise_free:
-        res = check_magnitudes(res, model.scales, source=flight.source if flight is not None else "")
+        meth = _REGISTRY.get(res.method)
+        res = check_magnitudes(res, model.scales, source=flight.source if flight is not None else "",
+                               regularised=meth is not None and meth.regularised)
     return res
