@@ -86,8 +86,9 @@ class Method:
     name, summary : str
         Registry name and one line for ``casep methods``.
     core : callable
-        ``core(prepared, **options) -> EstimateResult`` on a prepared problem
-        (:func:`casep.estimators._base.prepare`), options checked and complete.
+        ``core(prepared, *, method, **options) -> EstimateResult`` on a prepared problem
+        (:func:`casep.estimators._base.prepare`), options checked and complete; `method` is the Method
+        that runs it (the result's name, ``std_kind`` and hint: :func:`casep.estimators._base.finish`).
     public : str
         Name of the public solver function in the method's module (``solve_ols``).
     option_specs : tuple of Option
@@ -214,7 +215,7 @@ class Method:
             Its options and solver keywords by name.
         """
         opts = {**self.defaults(), **{k: v for k, v in options.items() if v is not None}}
-        return self.core(prepare(problem, None, None, None, None, sigma, rcond), **opts)
+        return self.core(prepare(problem, None, None, None, None, sigma, rcond), method=self, **opts)
 
     def call(self, S: np.ndarray | Problem, y: np.ndarray | None, t: np.ndarray | None = None, *,
              names: Sequence[str] | None = None, units: Sequence[str] | None = None,
@@ -235,4 +236,4 @@ class Method:
                 raise ValueError(f"`{name}` is required for method `{self.name}`. Use: {o.flag} FILE or {name}={{...}}")
         pb = prepare(S, y, names, units, si_factors, sigma, rcond, t=t)
         opts = {**self.defaults(), **{k: v for k, v in options.items() if v is not None}}
-        return self.core(pb, **opts)
+        return self.core(pb, method=self, **opts)

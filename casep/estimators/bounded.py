@@ -172,7 +172,7 @@ def solve_bounded(S: np.ndarray | Problem, y: np.ndarray | None = None, bounds: 
     return BOUNDED.call(S, y, bounds=bounds, **labels)
 
 
-def _solve(pb: Prepared, *, bounds: Mapping) -> EstimateResult:
+def _solve(pb: Prepared, *, method: Method, bounds: Mapping) -> EstimateResult:
     import cvxpy as cp
 
     lo, hi, fixed = parse_bounds(bounds, pb.names)
@@ -246,7 +246,7 @@ def _solve(pb: Prepared, *, bounds: Mapping) -> EstimateResult:
     counts = {"at_lower": int((at_lo & ~fixed).sum()), "at_upper": int((at_hi & ~at_lo & ~fixed).sum()),
               "fixed": int(fixed.sum()),
               "free": int(pb.n - std_mask.sum()), "undetermined": int(undetermined.sum())}
-    return finish(pb, BOUNDED, x, cov, sig, undetermined=undetermined, reasons=reasons,
+    return finish(pb, method, x, cov, sig, undetermined=undetermined, reasons=reasons,
                   message=_active_set_message(counts, pb.n),
                   settings={"bounds": box, "solver": "cvxpy+clarabel",
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},

@@ -136,7 +136,7 @@ def solve_gls(S: np.ndarray | Problem, y: np.ndarray | None = None, t: np.ndarra
     return GLS.call(S, y, None if isinstance(S, Problem) else t, tau=tau, **labels)
 
 
-def _solve(pb: Prepared, *, tau: float | str) -> EstimateResult:
+def _solve(pb: Prepared, *, method: Method, tau: float | str) -> EstimateResult:
     problem = pb.problem
     S, t = problem.sv(), problem.t
     if S.ndim != 3 or S.shape[1] != 3:
@@ -154,7 +154,7 @@ def _solve(pb: Prepared, *, tau: float | str) -> EstimateResult:
                  model=problem.model)
     x, cov, sig = least_squares(pw)  # sigma: whitened residual std = stationary sigma
     fit = y - S @ x  # dv - S_V D_hat, not whitened
-    return finish(pw, GLS, x, cov, sig, residuals=fit.reshape(-1),
+    return finish(pw, method, x, cov, sig, residuals=fit.reshape(-1),
                   settings={"tau": tau_used, "tau_rule": rule, "sigma": "estimated" if pb.sigma is None else pb.sigma},
                   extras=GLSExtras(float(tau_used), rule))
 

@@ -98,7 +98,7 @@ def solve_huber(S: np.ndarray | Problem, y: np.ndarray | None = None, *, c: floa
     return HUBER.call(S, y, c=c, flag=flag, tol=tol, max_iter=max_iter, **labels)
 
 
-def _solve(pb: Prepared, *, c: float, flag: float, tol: float, max_iter: int) -> EstimateResult:
+def _solve(pb: Prepared, *, method: Method, c: float, flag: float, tol: float, max_iter: int) -> EstimateResult:
     rcond = pb.ra.rcond
     A, b = pb.S, pb.y  # (m, n) natural units, (m,)
     w = np.ones(b.size)
@@ -138,7 +138,7 @@ def _solve(pb: Prepared, *, c: float, flag: float, tol: float, max_iter: int) ->
     rows = [{"sample": int(i // 3), "axis": "xyz"[i % 3], "size_sigma": float(u[i])} for i in order] \
         if A.shape[0] == 3 * (A.shape[0] // 3) else [{"row": int(i), "size_sigma": float(u[i])} for i in order]
     outliers = {"count": int(big.size), "threshold_sigma": float(flag), "largest": rows}
-    return finish(pb, HUBER, x, cov, sig, residuals=r,
+    return finish(pb, method, x, cov, sig, residuals=r,
                   settings={"c": c, "iterations": it, "scale": float(scale), "flag_sigma": flag,
                             "outliers_flagged": int(big.size),
                             "sigma": "robust (MAD) scale" if pb.sigma is None else pb.sigma},

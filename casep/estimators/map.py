@@ -261,7 +261,7 @@ def solve_map(S: np.ndarray | Problem, y: np.ndarray | None = None, prior: Mappi
     return MAP.call(S, y, prior=prior, **labels)
 
 
-def _solve(pb: Prepared, *, prior: Mapping) -> EstimateResult:
+def _solve(pb: Prepared, *, method: Method, prior: Mapping) -> EstimateResult:
     prior_arg = prior
     Wp, bp, mu, tau = prior_information(prior, pb.names)
     sig = pb.ols_sigma() if pb.sigma is None else pb.sigma
@@ -280,7 +280,7 @@ def _solve(pb: Prepared, *, prior: Mapping) -> EstimateResult:
     prior = {n: {"mean": float(m), "std": float(t)} for n, m, t in zip(pb.names, mu, tau) if np.isfinite(t)}
     if CORRELATION in prior_arg and CORRELATION not in pb.names:
         prior[CORRELATION] = prior_arg[CORRELATION]
-    return finish(pb, MAP, z / cs, cov, sig, undetermined=undetermined, extras=MAPExtras(prior),
+    return finish(pb, method, z / cs, cov, sig, undetermined=undetermined, extras=MAPExtras(prior),
                   settings={"prior": prior, "sigma": "estimated" if pb.sigma is None else pb.sigma})
 
 

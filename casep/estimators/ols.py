@@ -72,9 +72,9 @@ def solve_ols(S: np.ndarray | Problem, y: np.ndarray | None = None, **labels: Un
     return OLS.call(S, y, **labels)
 
 
-def _solve(pb: Prepared) -> EstimateResult:
+def _solve(pb: Prepared, *, method: Method) -> EstimateResult:
     x, cov, sig = least_squares(pb)
-    return finish(pb, OLS, x, cov, sig, extras=OLSExtras(float(pb.ra.rcond)),
+    return finish(pb, method, x, cov, sig, extras=OLSExtras(float(pb.ra.rcond)),
                   settings={"rcond": pb.ra.rcond, "sigma": "estimated" if pb.sigma is None else pb.sigma})
 
 

@@ -102,7 +102,8 @@ def solve_pcr(S: np.ndarray | Problem, y: np.ndarray | None = None, *, n_compone
     return PCR.call(S, y, n_components=n_components, max_condition_index=max_condition_index, **labels)
 
 
-def _solve(pb: Prepared, *, max_condition_index: float, n_components: int | None = None) -> EstimateResult:
+def _solve(pb: Prepared, *, method: Method, max_condition_index: float,
+           n_components: int | None = None) -> EstimateResult:
     s, Vt, r = pb.ra.s, pb.ra.Vt, pb.ra.rank
     k = kept_components(s, r, n_components, max_condition_index)
     rule = f"condition index <= {max_condition_index:g}" if n_components is None else f"{k} components"
@@ -116,7 +117,7 @@ def _solve(pb: Prepared, *, max_condition_index: float, n_components: int | None
     cov = sig**2 * (W @ W.T) * np.outer(inv_c, inv_c)
     dropped = [{"condition_index": float(s[0] / s[i]) if s[i] > 0 else None,
                 "combination": _combination(Vt[i], pb.names)} for i in range(k, pb.n)]
-    return finish(pb, PCR, z * inv_c, cov, sig,
+    return finish(pb, method, z * inv_c, cov, sig,
                   settings={"n_components": k, "rule": rule,
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
                   diagnostics={"dropped_directions": dropped},

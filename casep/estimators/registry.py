@@ -191,7 +191,7 @@ def run_method(method: str, S: Any, y: np.ndarray | None, t: np.ndarray | None, 
     pb = prepare(S, y, labels.get("names"), labels.get("units"), labels.get("si_factors"), labels.get("sigma"),
                  labels.get("rcond"), t=t if m.needs_time else None)
     opts = {**m.defaults(), **{k: v for k, v in options.items() if v is not None}, **keywords}
-    return m.core(pb, **opts)
+    return m.core(pb, method=m, **opts)
 
 
 def option_ranges() -> dict[str, tuple[float, float, bool, str]]:

@@ -141,7 +141,7 @@ def solve_ridge(S: np.ndarray | Problem, y: np.ndarray | None = None, *, lam: fl
     return RIDGE.call(S, y, lam=lam, solver=solver, **labels)
 
 
-def _solve(pb: Prepared, *, lam: float | str, solver: str) -> EstimateResult:
+def _solve(pb: Prepared, *, method: Method, lam: float | str, solver: str) -> EstimateResult:
     U, s, Vt = pb.ra.U, pb.ra.s, pb.ra.Vt
     beta = U.T @ pb.red.qty
     m = pb.m
@@ -158,7 +158,7 @@ def _solve(pb: Prepared, *, lam: float | str, solver: str) -> EstimateResult:
     G = Vt.T * (s / (s**2 + lam))  # Cov(z) = sigma^2 G G^T
     inv_c = pb.inv_c
     cov = sig**2 * (G @ G.T) * np.outer(inv_c, inv_c)
-    return finish(pb, RIDGE, z * inv_c, cov, sig,
+    return finish(pb, method, z * inv_c, cov, sig,
                   settings={"lambda": float(lam), "lambda_rule": rule, "solver": solver,
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
                   diagnostics={"effective_dof": float(trh[0])},

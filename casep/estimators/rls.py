@@ -180,7 +180,7 @@ def solve_rls(S: np.ndarray | Problem, y: np.ndarray | None = None, *, p0: float
     return (RELS.call(S, y, noise_order=nc, **opts, **labels) if nc else RLS.call(S, y, **opts, **labels))
 
 
-def _solve(pb: Prepared, *, p0: float, weight: float, forgetting: float, noise_order: int,
+def _solve(pb: Prepared, *, method: Method, p0: float, weight: float, forgetting: float, noise_order: int,
            residuals: str = "posterior", history_stride: int | None = None) -> EstimateResult:
     from casep._kernels import rels_ud  # numba: compiled on first use
 
@@ -229,7 +229,6 @@ def _solve(pb: Prepared, *, p0: float, weight: float, forgetting: float, noise_o
     cov = np.full((n, n), 0.0)
     inv = 1.0 / cl
     cov[np.ix_(live, live)] = cov_s[:p, :p] * np.outer(inv, inv)
-    method = RELS if nc else RLS
     hist_nat = hist.copy()
     hist_nat[:, :p] /= cl
     history = np.zeros((hist.shape[0], n + nc))

@@ -514,3 +514,24 @@ def test_chow_test_size_on_consistent_flights_and_power_against_an_unmodelled_30
     late = simulate_flight(sc, seed=7, rate=5.0, model="platform36_timeoffset", truth={**sc.truth, "dt_trk": 30.0})
     res, jp = _quiet(separate_flights, [sims[0].flight, late.flight], m, "ols")
     assert flights_summary(res, jp)["consistency"]["overall"]["p_value"] < 0.01
+
+
+def test_a_registered_method_works_jointly_through_its_declaration(two):
+    """The several-flight path reads only the method's declaration: a method registered at run time (here a
+    copy of least squares under another name, default hooks) gives the joint least-squares numbers."""
+    from casep.estimators import registry
+
+    a, b = two
+    copy = dataclasses.replace(registry.METHODS["ols"], name="ls_copy", summary="least squares, registered")
+    registry.register(copy)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res, _ = separate_flights([a.flight, b.flight], a.model, "ls_copy", noise="white", robust="none")
+            ref, _ = separate_flights([a.flight, b.flight], a.model, "ols", noise="white", robust="none")
+    finally:
+        registry.unregister("ls_copy")
+    assert res.method == "ls_copy"
+    np.testing.assert_allclose(res.estimate, ref.estimate, rtol=1e-12)
+    np.testing.assert_allclose(res.std, ref.std, rtol=1e-12)
+    assert "ls_copy" not in registry.METHODS
