@@ -45,26 +45,6 @@ class LazyDiagnostics(dict):
     def __contains__(self, key: Any) -> bool:
         return self._lazy(key) or dict.__contains__(self, key)
 
-    def __iter__(self) -> Any:
-        self._force()
-        return dict.__iter__(self)
-
-    def __len__(self) -> int:
-        self._force()
-        return dict.__len__(self)
-
-    def keys(self) -> Any:
-        self._force()
-        return dict.keys(self)
-
-    def items(self) -> Any:
-        self._force()
-        return dict.items(self)
-
-    def values(self) -> Any:
-        self._force()
-        return dict.values(self)
-
     def copy(self) -> dict[str, Any]:
         self._force()
         return dict(dict.items(self))
@@ -77,10 +57,23 @@ class LazyDiagnostics(dict):
 
     __hash__ = None
 
-    def __repr__(self) -> str:
-        self._force()
-        return dict.__repr__(self)
-
     def __reduce__(self) -> Any:  # pickled (dask workers) as the plain dict it stands for
         self._force()
         return (dict, (dict(dict.items(self)),))
+
+
+def _forcing(name: str) -> Any:
+    """The dict method `name`, after the pending entries are computed."""
+    plain = getattr(dict, name)
+
+    def method(self: LazyDiagnostics, *args: Any) -> Any:
+        self._force()
+        return plain(self, *args)
+
+    method.__name__ = name
+    return method
+
+
+# Whatever reads the whole mapping (iteration, its size, views, its text) computes the pending entries first.
+for _name in ("__iter__", "__len__", "keys", "items", "values", "__repr__"):
+    setattr(LazyDiagnostics, _name, _forcing(_name))
