@@ -93,7 +93,8 @@ def solve_huber(S: np.ndarray | Problem, y: np.ndarray | None = None, *, c: floa
     -------
     EstimateResult
         ``diagnostics["outliers"]``: count, rows (sample, axis, size in sigma) of the largest;
-        ``settings``: c, iterations, scale.
+        ``extras`` (:class:`HuberExtras`): c, IRLS iterations, the scale, the outliers;
+        ``settings``: the inputs c, flag, tol, max_iter.
     """
     return HUBER.call(S, y, c=c, flag=flag, tol=tol, max_iter=max_iter, **labels)
 
@@ -139,8 +140,7 @@ def _solve(pb: Prepared, *, method: Method, c: float, flag: float, tol: float, m
         if A.shape[0] == 3 * (A.shape[0] // 3) else [{"row": int(i), "size_sigma": float(u[i])} for i in order]
     outliers = {"count": int(big.size), "threshold_sigma": float(flag), "largest": rows}
     return finish(pb, method, x, cov, sig, residuals=r,
-                  settings={"c": c, "iterations": it, "scale": float(scale), "flag_sigma": flag,
-                            "outliers_flagged": int(big.size),
+                  settings={"c": c, "flag": flag, "tol": tol, "max_iter": max_iter,  # inputs; found: extras
                             "sigma": "robust (MAD) scale" if pb.sigma is None else pb.sigma},
                   diagnostics={"outliers": outliers}, sigma_source=None if pb.sigma is not None else "robust",
                   extras=HuberExtras(float(c), int(it), float(scale), outliers))

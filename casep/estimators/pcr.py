@@ -97,7 +97,8 @@ def solve_pcr(S: np.ndarray | Problem, y: np.ndarray | None = None, *, n_compone
     -------
     EstimateResult
         ``diagnostics["dropped_directions"]``: list of ``{"condition_index",
-        "combination": {name: loading on c_j D_j}}``.
+        "combination": {name: loading on c_j D_j}}``; ``extras`` (:class:`PCRExtras`): the components
+        kept and the rule; ``settings``: the inputs `n_components` and `max_condition_index`.
     """
     return PCR.call(S, y, n_components=n_components, max_condition_index=max_condition_index, **labels)
 
@@ -118,7 +119,7 @@ def _solve(pb: Prepared, *, method: Method, max_condition_index: float,
     dropped = [{"condition_index": float(s[0] / s[i]) if s[i] > 0 else None,
                 "combination": _combination(Vt[i], pb.names)} for i in range(k, pb.n)]
     return finish(pb, method, z * inv_c, cov, sig,
-                  settings={"n_components": k, "rule": rule,
+                  settings={"n_components": n_components, "max_condition_index": max_condition_index,  # inputs
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
                   diagnostics={"dropped_directions": dropped},
                   extras=PCRExtras(k, rule, dropped, None if n_components is not None else float(max_condition_index)))
