@@ -17,7 +17,7 @@ Rows are ``(N, 3)`` samples x axes; ``S.reshape(3 N, n)`` is the stacked regress
 
 from __future__ import annotations
 
-from typing import Callable, Iterator, Sequence
+from typing import Any, Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -64,9 +64,11 @@ class Problem:
         The column-scaled QR reduction (computed once).
     source : str
         Where the rows came from (file name), for messages.
+    segment_starts : tuple of int
+        First sample of each segment of the rows (several flights stacked: one per flight).
     """
 
-    def __init__(self, *, names: Sequence[str], units: Sequence[str], si_factors: Sequence[float],
+    def __init__(self, *, names: Sequence[str], units: Sequence[str], si_factors: Sequence[float] | np.ndarray,
                  red: ReducedSystem, y: np.ndarray | None = None, t: np.ndarray | None = None,
                  model: str | None = None, source: str = "<memory>", S: np.ndarray | None = None,
                  regenerate: Callable[[int], Iterator[tuple[slice, np.ndarray, np.ndarray]]] | None = None,
@@ -83,15 +85,19 @@ class Problem:
         self._S = S
         self._regenerate = regenerate
         self._ranks: dict[float | None, RankAnalysis] = {}
+        #: First row (sample) of each segment: flights stacked into one problem
+        #: (:class:`casep.analysis.joint.JointProblem`) are segments; one flight is one segment. A
+        #: recursive method's noise memory restarts at each segment.
+        self.segment_starts: tuple[int, ...] = (0,)
         #: The raw problem this one was derived from by :meth:`subset` or :meth:`whitened` (None: raw).
         self.parent: Problem | None = None
         #: Indices of this problem's samples among the parent's (None: all of them).
         self.sample_index: np.ndarray | None = None
         #: The noise model the rows are whitened for (None: raw rows).
-        self.noise = None
+        self.noise: Any = None
         self._unwhitened: Problem | None = None  # the same rows before whitening
         #: Where rows come from (file, line, time): ``locate(rows)`` for indices of this problem's rows.
-        self._locate_flight = None  # (flight, observed sample indices) of a problem from a flight
+        self._locate_flight: tuple[Any, np.ndarray] | None = None  # (flight, observed samples) of a flight's
         n = red.n
         for label, seq in (("names", self.names), ("units", self.units), ("si_factors", self.si_factors)):
             if len(seq) != n:
@@ -125,7 +131,7 @@ class Problem:
 
     @classmethod
     def from_reduction(cls, red: ReducedSystem, *, names: Sequence[str], units: Sequence[str],
-                       si_factors: Sequence[float], model: str | None = None,
+                       si_factors: Sequence[float] | np.ndarray, model: str | None = None,
                        source: str = "<reduction>") -> "Problem":
         """A problem known only by its reduction (no rows: no residuals, no recursive methods)."""
         return cls(names=names, units=units, si_factors=si_factors, red=red, model=model, source=source)
@@ -199,13 +205,13 @@ class Problem:
 
     def with_y(self, y: np.ndarray) -> "Problem":
         """The same regression with other observations (e.g. de-noised dv): reduced again, S shared."""
-        self._need_rows()
-        y = np.asarray(y, dtype=float).reshape(self.y.shape)
+        y0 = self._need_rows()
+        y = np.asarray(y, dtype=float).reshape(y0.shape)
         regenerate = None
         if self._S is None:
-            base = self._regenerate
+            base = self._regenerated
 
-            def regenerate(rows: int):
+            def regenerate(rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
                 for sl, S_b, _ in base(rows):
                     yield sl, S_b, y[sl]
 
@@ -220,19 +226,20 @@ class Problem:
         The parent (this problem, or its own parent) and the kept sample indices are recorded:
         residuals of the whole flight stay available through :attr:`parent`.
         """
-        self._need_rows()
+        y0 = self._need_rows()
         keep = np.asarray(keep, dtype=bool)
-        if keep.shape != (self.n_samples,) or self.y.ndim != 2:
+        if keep.shape != (self.n_samples,) or y0.ndim != 2:
             raise ValueError(f"`keep` must be a boolean mask of the {self.n_samples} samples, got shape {keep.shape}")
         idx = np.flatnonzero(keep)
-        y = self.y[idx]
+        y = y0[idx]
         t = None if self.t is None else self.t[idx]
         f = None if self.f is None else self.f[idx]
-        S = regenerate = None
+        S: np.ndarray | None = None
+        regenerate = None
         if self._S is not None:
             S = self._S[idx]
         else:
-            base = self._regenerate
+            base = self._regenerated
 
             def regenerate(rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
                 k0 = 0
@@ -268,20 +275,20 @@ class Problem:
         """
         from casep.analysis.noise import whiten, whiten_blocks
 
-        self._need_rows()
+        y0 = self._need_rows()
         if self.noise is not None:
             raise ValueError(f"problem `{self.source}` is whitened already")
-        if self.t is None or self.y.ndim != 2:
+        if self.t is None or y0.ndim != 2:
             raise ValueError(f"problem `{self.source}`: whitening needs rows (N, 3) with their times")
-        w = None if weights is None else np.asarray(weights, dtype=float).reshape(self.y.shape)
+        w = None if weights is None else np.asarray(weights, dtype=float).reshape(y0.shape)
         t = self.t
         if self._S is not None:
-            Sw, yw = whiten(self._S, self.y, t, noise, w)
+            Sw, yw = whiten(self._S, y0, t, noise, w)
             new = Problem(names=self.names, units=self.units, si_factors=self.si_factors, red=reduce_qr(Sw, yw),
                           y=yw, t=t, model=self.model, source=self.source, S=Sw, f=self.f)
         else:
             base = self.blocks
-            yw = np.empty_like(self.y)
+            yw = np.empty_like(y0)
             for sl, _, y_b in whiten_blocks(base(), t, noise, w):
                 yw[sl] = y_b
 
@@ -364,30 +371,38 @@ class Problem:
         return least_squares_rss(self.red, self.rank(rcond))
 
     # ----------------------------------------------------------------- rows
-    def _need_rows(self) -> None:
-        if not self.has_rows:
+    def _need_rows(self) -> np.ndarray:
+        """The observations ``y``; ValueError for a reduction-only problem."""
+        if not self.has_rows or self.y is None:
             raise ValueError(f"problem `{self.source}` holds only a reduction: this needs its rows "
                              "(build it with Problem.from_flight or Problem.from_arrays)")
+        return self.y
+
+    def _regenerated(self, rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
+        """The rows from the regenerating function (S_V not kept)."""
+        if self._regenerate is None:
+            raise ValueError(f"problem `{self.source}` has neither S_V nor the means to regenerate it")
+        return self._regenerate(rows)
 
     def blocks(self, rows: int = DEFAULT_BLOCK_ROWS) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
         """Yield ``(row slice, S block, y block)`` in time order; S_V regenerated when not kept.
 
         The S block may be reused between yields: copy it to keep it.
         """
-        self._need_rows()
+        y = self._need_rows()
         if self._S is not None:
             N = self._S.shape[0]
             for s in range(0, N, rows):
                 e = min(s + rows, N)
-                yield slice(s, e), self._S[s:e], self.y[s:e]
+                yield slice(s, e), self._S[s:e], y[s:e]
         else:
-            yield from self._regenerate(rows)
+            yield from self._regenerated(rows)
 
     def sv(self) -> np.ndarray:
         """S whole: kept, or integrated once now and kept (memory N x 3 x n doubles)."""
-        self._need_rows()
+        y = self._need_rows()
         if self._S is None:
-            S = np.empty(self.y.shape + (self.n,))
+            S = np.empty(y.shape + (self.n,))
             for sl, S_b, _ in self.blocks():
                 S[sl] = S_b
             self._S = S
@@ -395,10 +410,10 @@ class Problem:
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """``y - S x`` in the shape of ``y``, block by block (NaN in `x` count as 0)."""
-        self._need_rows()
+        y = self._need_rows()
         x = np.asarray(x, dtype=float)
         x = np.where(np.isnan(x), 0.0, x)  # NaN (no estimate) counts as 0; inf stays inf
-        r = np.empty_like(self.y)
+        r = np.empty_like(y)
         for sl, S_b, y_b in self.blocks():
             r[sl] = y_b - S_b @ x
         return r

@@ -25,7 +25,7 @@ from casep.design.objective import OBJECTIVES, DesignProblem, fisher_information
 __all__ = ["design", "DesignResult", "DEFAULTS"]
 
 #: Defaults of :func:`design` (and ``casep design``).
-DEFAULTS = {"maneuver": "yaw", "objective": "A", "max_angle": 5.0, "max_rate": 2.0, "max_lateral": 1.0,
+DEFAULTS: dict[str, Any] = {"maneuver": "yaw", "objective": "A", "max_angle": 5.0, "max_rate": 2.0, "max_lateral": 1.0,
             "knots": 10, "design_rate": 2.0, "starts": 4, "seed": 0, "max_iter": 150}
 
 
@@ -171,7 +171,7 @@ def _solve(problem: DesignProblem, kind: str, max_angle: float, max_rate: float,
     opts = {"print_time": False, "error_on_fail": False,
             "ipopt": {"print_level": 0, "sb": "yes", "hessian_approximation": "exact",
                       "max_iter": max_iter, "tol": 1e-8, "acceptable_tol": 1e-6}}
-    solver = ca.nlpsol("casep_design", "ipopt", nlp, opts)
+    solver = ca.nlpsol("casep_design", "ipopt", nlp, opts)  # type: ignore[arg-type]  # CasADi's stubs: SX only
     rng = np.random.default_rng(seed)
     nv = mv.n_variables
     runs = []
@@ -329,7 +329,9 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
                                  description=f"own trajectory {own['source']}")
         verify = False
     if sigma is not None:
-        sigma = _positive("sigma", sigma)  # given
+        from casep.estimators.registry import SIGMA
+
+        sigma = float(SIGMA.check(sigma))  # given: the noise std's one declared rule
     elif own is not None and own["sigma"] is not None:
         sigma = own["sigma"]  # the flight's own tracking noise
     else:
@@ -350,7 +352,7 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
         if objective != "A":
             raise ValueError(f"`coefficients` selects the terms of objective A, not of `{objective}`")
         weights = np.array([1.0 if nm in chosen else 0.0 for nm in names])
-    info_prior = None
+    info_prior = W = None  # the prior's square-root information rows, W^T W its information
     if prior is not None:
         W = prior_rows(prior, names, "--prior")[0]
         info_prior = W.T @ W
@@ -392,6 +394,7 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
     # design grid) plus the offsets: the attitude is then the one the design assumed, not the gravity-turn
     # law's reaction to the manoeuvre.
     if own is None:
+        assert coarse.attitude is not None  # a simulated flight has its attitude
         after_first = coarse.t > mv.knots[0] + 1e-9  # the spline starts at the first knot (no kink of the kick)
         base_t = np.concatenate([[mv.knots[0]], coarse.t[after_first]])
         base_theta = np.concatenate([coarse.kinematics(np.array([mv.knots[0]]))["attitude"][:, 0],
@@ -410,16 +413,16 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
     if own is not None:
         from casep.analysis.diagnostics import crlb_covariance
 
-        W = None if prior is None else prior_rows(prior, names, "--prior")[0]
+        assert S_nom is not None  # built from the flight above
         crlb_before = np.sqrt(np.diag(crlb_covariance(S_nom, sigma, prior_information=W)))
     verification: dict = {}
     if verify:
         from casep.analysis.diagnostics import crlb_covariance
 
         t0 = time.perf_counter()
+        assert full is not None and S_nom is not None  # verify: the nominal flight was simulated above
         traj = simulate_boost(vehicle, sc.rate)
         S = build_sv(model, traj.t, traj.specific_force)
-        W = None if prior is None else prior_rows(prior, names, "--prior")[0]
         crlb_before = np.sqrt(np.diag(crlb_covariance(S_nom, sigma, prior_information=W)))
         crlb_after = np.sqrt(np.diag(crlb_covariance(S, sigma, prior_information=W)))
         F_after = fisher_information(S, sigma)

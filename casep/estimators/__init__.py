@@ -2,24 +2,31 @@
 
 Depends on :mod:`casep.analysis` (reduction, rank, diagnostics) and :mod:`casep.model` (names
 and units only). A new estimator is one module here, one line in :mod:`casep.estimators.registry`
-and its test.
+and its test (``docs/guide/adding-an-estimator.md``); outside casep, :func:`register`.
 
-- :mod:`casep.estimators.registry`: method name -> solver, options with rules, capabilities
-- :mod:`casep.estimators._base`: validation at the edge, the scaled reduction, the result
-- :mod:`casep.estimators.result`: :class:`EstimateResult` (frozen; JSON, MAT, CSV)
-- one module per method: ``ols``, ``rls`` (RLS and RELS), ``ridge``, ``bounded``, ``pcr``,
-  ``map``, ``gls``, ``huber``
+- one module per method, each declaring its :class:`Method` beside its solver: ``ols``, ``rls``
+  (RLS and RELS), ``ridge``, ``bounded``, ``pcr``, ``map``, ``gls``, ``huber``
+- :mod:`casep.estimators.registry`: the methods collected (:data:`METHODS`), option checks
+- :mod:`casep.estimators._options`: what a method declares (options, rules, capabilities, hooks)
+- :mod:`casep.estimators._base`: the scaled reduction a solver works on, the result it builds
+- :mod:`casep.estimators.result`: :class:`EstimateResult` (frozen; JSON, text)
+- :mod:`casep.estimators.reading`: result files read back and checked against their model
+- :mod:`casep.estimators.joint`: consistency of several flights, fusion by square-root information
 """
 
-from casep._lazy import attach
-
-# Imported on first use (PEP 562): the registry is read without importing every solver.
-__getattr__, __dir__ = attach(__name__, {
-    "casep.estimators.bounded": ("solve_bounded",), "casep.estimators.gls": ("solve_gls",),
-    "casep.estimators.huber": ("solve_huber",), "casep.estimators.map": ("solve_map",),
-    "casep.estimators.ols": ("solve_ols",), "casep.estimators.pcr": ("solve_pcr",),
-    "casep.estimators.ridge": ("solve_ridge",), "casep.estimators.rls": ("solve_rls",),
-    "casep.estimators.registry": ("METHODS", "describe"), "casep.estimators.result": ("EstimateResult",)}, globals())
+# The registry imports every estimator module (numpy only at import: cvxpy, numba and scipy load when a
+# solver runs), so that the methods, their options and their results' extras types are known together.
+from casep.estimators.bounded import solve_bounded
+from casep.estimators.gls import solve_gls
+from casep.estimators.huber import solve_huber
+from casep.estimators.map import solve_map
+from casep.estimators.ols import solve_ols
+from casep.estimators.pcr import solve_pcr
+from casep.estimators.registry import METHODS, Method, Option, SeveralFlights, describe, register, unregister
+from casep.estimators.result import EstimateResult
+from casep.estimators.ridge import solve_ridge
+from casep.estimators.rls import solve_rls
 
 __all__ = ["solve_bounded", "solve_gls", "solve_huber", "solve_map", "solve_ols", "solve_pcr", "solve_ridge",
-           "solve_rls", "METHODS", "describe", "EstimateResult"]
+           "solve_rls", "METHODS", "describe", "register", "unregister", "Method", "SeveralFlights", "Option",
+           "EstimateResult"]

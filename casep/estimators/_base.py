@@ -18,33 +18,20 @@ import numpy as np
 from casep.analysis.diagnostics import ILL_CONDITIONED, collinearity
 from casep.analysis.linalg import RankAnalysis, ReducedSystem, condition_numbers, unidentifiable_reasons
 from casep.analysis.problem import Problem as RegressionProblem
+from casep.estimators._lazydict import LazyDiagnostics
+from casep.estimators._rules import SIGMA
 from casep.estimators.result import EstimateResult
 from casep.exceptions import IllConditionedWarning, MagnitudeWarning
 
-__all__ = ["Prepared", "prepare", "rows_of", "finish", "check_positive", "inverse_scale", "OPTION_RANGES"]
+__all__ = ["Prepared", "prepare", "rows_of", "finish", "check_positive", "inverse_scale"]
 
 
-#: Plausible ranges ``name -> (low, high, low_inclusive, why)`` of the scalar options, applied by
-#: :func:`check_positive` wherever the option is checked (solvers and command line alike).
-OPTION_RANGES: dict[str, tuple[float, float, bool, str]] = {
-    # A noise std above 1 km/s is a unit mistake (mm/s, ft) or not a velocity at all:
-    # the whole powered flight of the paper gains ~3 km/s. (No lower end beyond > 0: a noise-free
-    # simulation may state a tiny sigma; the std underflow to 0 only below ~1e-150 m/s.)
-    "sigma": (0.0, 1e3, False, "m/s; a velocity noise std above 1 km/s is not a tracking noise"),
-    # Correlation times beyond ~3 h exceed any boost flight; exp(-dt/tau) -> 1 loses all digits.
-    "tau": (0.0, 1e4, False, "s; a correlation time above 1e4 s exceeds any flight"),
-    # w is a measurement precision 1/variance; beyond 1e+-12 (m/s)^-2, w^-1/2 is 1e-6 m/s .. 1e6 m/s.
-    "weight": (1e-12, 1e12, True, "(m/s)^-2; 1 / weight is the measurement variance"),
-    # P0 = p0 I in natural units. Measured on the paper flight (20 Hz, U-D recursion on unit-norm
-    # columns): |RLS - OLS| is 6e-5 OLS std at p0 = 1e14, 8e-9 at 1e20, 5e-5 at 1e30, 5e-2 at 1e40
-    # and 930 at 1e50 (garbage; the error grows like p0 * eps).
-    "p0": (0.0, 1e30, False, "natural units^2; beyond it the RLS recursion loses its digits, and "
-                             "1e14 already gives least squares on the paper flight"),
-    # The forgetting factor lambda keeps a memory of about 1 / (1 - lambda) samples: below 0.5 that is
-    # under two samples (nothing left to estimate 30-odd coefficients from), and P / lambda overflows
-    # to inf (NaN estimates) as lambda nears 1e-308. Useful values are 0.99 .. 1.
-    "forgetting": (0.5, 1.0, True, "a memory of about 1 / (1 - forgetting) samples; useful: 0.99 .. 1"),
-}
+def __getattr__(name: str) -> Any:
+    if name == "OPTION_RANGES":  # re-export: remove after merge (tests/cli reads it; the ranges are the Options')
+        from casep.estimators.registry import option_ranges
+
+        return option_ranges()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 #: Largest |mean| and std of a prior, and the inverse of the smallest std, natural units: beyond any
@@ -61,15 +48,17 @@ def is_number(v) -> bool:
 
 def check_positive(name: str, value: float | None, *, allow_none: bool = True, allow_zero: bool = False,
                    upper: float | None = None) -> float | None:
-    """Validate a positive finite scalar option, naming it in the error.
+    """Validate a positive finite scalar, naming it in the error.
 
-    An option of :data:`OPTION_RANGES` (``sigma``, ``tau``, ``weight``, ``p0``) must also lie
-    in its range there; the message gives the range and why.
+    ``sigma`` must also lie in the range its :data:`~casep.estimators._options.SIGMA` option declares;
+    the message gives the range and why.
     """
     if value is None:
         if allow_none:
             return None
         raise ValueError(f"`{name}` is required")
+    if name == SIGMA.name:
+        return float(SIGMA.check(value))
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise TypeError(f"`{name}` must be a number, got {type(value).__name__}")
     v = float(value)
@@ -78,10 +67,6 @@ def check_positive(name: str, value: float | None, *, allow_none: bool = True, a
         low = "[0" if allow_zero else "(0"
         want = f"in {low}, {upper:g}]" if upper is not None else (">= 0" if allow_zero else "> 0")
         raise ValueError(f"`{name}` must be finite and {want}, got {value}")
-    if name in OPTION_RANGES:
-        lo, hi, closed, why = OPTION_RANGES[name]
-        if not ((v >= lo if closed else v > lo) and v <= hi):
-            raise ValueError(f"`{name}` must be in {'[' if closed else '('}{lo:g}, {hi:g}] ({why}), got {value}")
     return v
 
 
@@ -128,15 +113,11 @@ class Prepared:
     @property
     def y(self) -> np.ndarray:
         """(m,) observations."""
-        return self.problem.y.reshape(-1)
+        return self.problem._need_rows().reshape(-1)
 
-    @property
-    def m(self) -> int:
-        return self.red.m
-
-    @property
-    def n(self) -> int:
-        return self.red.n
+    #: Scalar rows (3 N) and coefficients of the problem.
+    m = property(lambda self: self.red.m)
+    n = property(lambda self: self.red.n)
 
     @property
     def inv_c(self) -> np.ndarray:
@@ -152,7 +133,7 @@ class Prepared:
 
 
 def rows_of(S: np.ndarray | RegressionProblem, y: np.ndarray | None, t: np.ndarray | None,
-            names: Sequence[str] | None, units: Sequence[str] | None, si_factors: Sequence[float] | None):
+            names: Sequence[str] | None, units: Sequence[str] | None, si_factors: Sequence[float] | np.ndarray | None):
     """``(S, y, t, names, units, si_factors)`` as arrays, for the methods that need the rows whole.
 
     A Problem gives its S (materialised once, see :meth:`~casep.analysis.problem.Problem.sv`),
@@ -167,8 +148,8 @@ def rows_of(S: np.ndarray | RegressionProblem, y: np.ndarray | None, t: np.ndarr
 
 
 def prepare(S: np.ndarray | RegressionProblem, y: np.ndarray | None, names: Sequence[str] | None,
-            units: Sequence[str] | None, si_factors: Sequence[float] | None, sigma: float | None,
-            rcond: float | None = None, model: str | None = None) -> Prepared:
+            units: Sequence[str] | None, si_factors: Sequence[float] | np.ndarray | None, sigma: float | None,
+            rcond: float | None = None, model: str | None = None, t: np.ndarray | None = None) -> Prepared:
     """Validate arguments once: a :class:`~casep.analysis.problem.Problem` as given (its reduction
     and rank analysis reused), or arrays ``S`` ``(N, 3, n)``/``(m, n)`` and ``y`` made into one."""
     sigma = check_positive("sigma", sigma)
@@ -184,7 +165,7 @@ def prepare(S: np.ndarray | RegressionProblem, y: np.ndarray | None, names: Sequ
     else:
         if y is None:
             raise ValueError("`y` is required with an array `S`")
-        pb = RegressionProblem.from_arrays(S, y, names=names, units=units, si_factors=si_factors, model=model)
+        pb = RegressionProblem.from_arrays(S, y, t, names=names, units=units, si_factors=si_factors, model=model)
     ra = pb.rank(rcond)
     if pb.red.m <= ra.rank:
         raise ValueError(f"`S` has {pb.red.m} rows, not more than its rank {ra.rank}: "
@@ -194,7 +175,7 @@ def prepare(S: np.ndarray | RegressionProblem, y: np.ndarray | None, names: Sequ
 
 def finish(
     pb: Prepared,
-    method: str,
+    method: Any,
     x: np.ndarray,
     cov: np.ndarray | None,
     sigma: float,
@@ -216,6 +197,9 @@ def finish(
 
     Parameters
     ----------
+    method : Method or str
+        The method's declaration (:class:`~casep.estimators._options.Method`: its name, ``std_kind``,
+        extras type and failure hint), or only a name (std "sampling", no hint).
     x : (n,) natural-unit estimate used for the residuals (every entry finite).
     cov : (n, n) natural-unit covariance, or None when the method defines none.
     undetermined : (n,) bool, optional
@@ -226,9 +210,9 @@ def finish(
     sigma_source : str, optional
         Where `sigma` came from (default "given" when the caller gave it, else "estimated").
     std_kind : str, optional
-        What the std mean (default: the registry's ``Method.std_kind`` of `method`).
+        What the std mean (default: the method's declared ``std_kind``).
     extras : dataclass, optional
-        The method's typed extras (``EXTRAS_TYPES[method]``).
+        The method's typed extras (an instance of its declared ``extras_type``).
 
     Notes
     -----
@@ -242,6 +226,11 @@ def finish(
     on (nearly) noise-free data the least-squares std is ~0 and a deliberately biased
     estimator (ridge, MAP, bounded) fitting dv to 1 % is not a failure.
     """
+    declared = None if isinstance(method, str) else method
+    name = method if declared is None else declared.name
+    etype = getattr(declared, "extras_type", None)
+    if extras is not None and etype is not None and not isinstance(extras, etype):
+        raise TypeError(f"method {name}: extras must be {etype.__name__}, got {type(extras).__name__}")
     n = pb.n
     und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
     res = pb.residuals(x) if residuals is None else np.asarray(residuals, dtype=float).reshape(-1)
@@ -265,35 +254,29 @@ def finish(
                                   "(zero or exactly dependent columns); the other estimated")
         else:
             status, message = -1, message or "no coefficient is identifiable on this data"
-    failure = _failure(pb, method, np.where(und, 0.0, x), std, res)
+    failure = _failure(pb, name, getattr(declared, "hint", ""), np.where(und, 0.0, x), std, res)
     if failure is not None:
         status, message = failure
-    diag = {**condition_numbers(pb.red, pb.ra), "sigma": float(sigma), "rank": pb.ra.rank,
+    base = {**condition_numbers(pb.red, pb.ra), "sigma": float(sigma), "rank": pb.ra.rank,
             "unidentifiable": [pb.names[j] for j in np.flatnonzero(und)]}
-    diag.update(_collinearity_summary(pb, float(sigma)))
-    diag.update(diagnostics or {})
-    note = _ill_conditioning_note(pb, diag)
+    # CRLB std, VIF and near-dependency groups: computed on first use (a Monte Carlo run reads none of them)
+    red, ra, names, inv_c = pb.red, pb.ra, pb.names, pb.inv_c
+    diag = LazyDiagnostics({**base, **(diagnostics or {})}, _COLLINEARITY_KEYS,
+                           lambda: _collinearity_summary(red, ra, names, inv_c, float(sigma)))
+    note = _ill_conditioning_note(diag)
     if note:
         diag["warning"] = note
-        warnings.warn(f"{method}: {note}", IllConditionedWarning, stacklevel=3)
+        warnings.warn(f"{name}: {note}", IllConditionedWarning, stacklevel=3)
     N = pb.shape[0] if len(pb.shape) == 2 else pb.m
     return EstimateResult(
-        method=method, names=pb.names, units=pb.units, estimate=est, std=std, covariance=cov,
+        method=name, names=pb.names, units=pb.units, estimate=est, std=std, covariance=cov,
         reasons=all_reasons, residuals=res.reshape(pb.shape), sigma=float(sigma), rank=pb.ra.rank,
         status=status, message=message or "", success=status > 0, si_factors=pb.si_factors,
         settings=settings, diagnostics=diag, n_samples=N, history=history, history_std=history_std,
         model=pb.problem.model or "",  # set by the problem, not patched afterwards
         sigma_source=sigma_source or ("given" if pb.sigma is not None else "estimated"),
-        std_kind=std_kind or _declared_std_kind(method), extras=extras,
+        std_kind=std_kind or str(getattr(declared, "std_kind", "sampling")), extras=extras,
     )
-
-
-def _declared_std_kind(method: str) -> str:
-    """The registry's ``Method.std_kind`` of `method` ("sampling" for an unregistered name)."""
-    from casep.estimators.registry import METHODS  # the registry imports the solvers lazily
-
-    m = METHODS.get(method)
-    return m.std_kind if m is not None else "sampling"
 
 
 #: A residual RMS above this many least-squares residual std fails a result ...
@@ -302,7 +285,7 @@ MISFIT_FACTOR = 3.0
 MISFIT_FLOOR = 0.02
 
 
-def _failure(pb: Prepared, method: str, x: np.ndarray, std: np.ndarray | None,
+def _failure(pb: Prepared, method: str, hint_text: str, x: np.ndarray, std: np.ndarray | None,
              res: np.ndarray) -> tuple[int, str] | None:
     """``(status, message)`` of a result that cannot be trusted, or None (see :func:`finish`).
 
@@ -319,33 +302,36 @@ def _failure(pb: Prepared, method: str, x: np.ndarray, std: np.ndarray | None,
     rms_y = float(np.sqrt((pb.red.qty @ pb.red.qty + pb.red.rho2) / pb.m))  # ||y||^2 = ||Q^T y||^2 + rho^2
     ls = pb.ols_sigma()  # sqrt(min_D |y - S D|^2 / (m - rank)): the misfit the model allows
     if rms > MISFIT_FACTOR * ls and rms > MISFIT_FLOOR * rms_y:
-        hint = {"rls": " (forgetting too strong for this flight?)", "rels": " (forgetting too strong for this flight?)",
-                "bounded": " (bounds the data contradict?)", "map": " (a prior the data contradict?)"}.get(method, "")
+        hint = f" ({hint_text})" if hint_text else ""
         return -3, (f"failed: {method} residual RMS {rms:.3g} m/s is {rms / ls:.3g} x the least-squares residual "
                     f"std {ls:.3g} m/s: the estimate does not fit the data{hint}")
     return None
 
 
-def _collinearity_summary(pb: Prepared, sigma: float) -> dict[str, Any]:
-    """White-noise CRLB std (sigma^2 (S^T S)^-1), uncentred VIF and near-dependency groups."""
-    col = collinearity(pb.red, pb.ra)
-    V, inv_s = pb.ra.pinv_factors()
-    W = V * inv_s
-    inv_c = pb.inv_c
-    crlb = sigma * np.sqrt(np.sum(W**2, axis=1)) * inv_c  # sqrt(diag(sigma^2 (S^T S)^+))
-    ok = pb.ra.estimable
+_COLLINEARITY_KEYS = ("crlb_std", "vif", "groups")
 
-    def f(v):
+
+def _collinearity_summary(red: ReducedSystem, ra: RankAnalysis, names: Sequence[str], inv_c: np.ndarray,
+                          sigma: float) -> dict[str, Any]:
+    """White-noise CRLB std (sigma^2 (S^T S)^-1), uncentred VIF and near-dependency groups."""
+    col = collinearity(red, ra)
+    V, inv_s = ra.pinv_factors()
+    W = V * inv_s
+    crlb = sigma * np.sqrt(np.sum(W**2, axis=1)) * inv_c  # sqrt(diag(sigma^2 (S^T S)^+))
+    ok = ra.estimable
+
+    def f(v: float) -> float | None:
         return float(v) if np.isfinite(v) else None
 
     return {
-        "crlb_std": {n: (f(crlb[j]) if ok[j] else None) for j, n in enumerate(pb.names)},
-        "vif": {n: f(col["vif"][j]) for j, n in enumerate(pb.names)},
-        "groups": [[pb.names[j] for j in g] for g in col["groups"]],
+        "crlb_std": {n: (f(crlb[j]) if ok[j] else None) for j, n in enumerate(names)},
+        "vif": {n: f(col["vif"][j]) for j, n in enumerate(names)},
+        "groups": [[names[j] for j in g] for g in col["groups"]],
     }
 
 
-def _ill_conditioning_note(pb: Prepared, diag: dict[str, Any]) -> str | None:
+def _ill_conditioning_note(diag: dict[str, Any]) -> str | None:
+    """The warning of an ill-conditioned or rank-deficient regression (its groups read only then)."""
     ce = diag.get("condition_number_equilibrated")
     bad = ce is None or ce > ILL_CONDITIONED
     und = diag["unidentifiable"]
@@ -390,10 +376,11 @@ def failed(res: EstimateResult, status: int, message: str) -> EstimateResult:
     return dataclasses.replace(res, status=status, success=False, message=message)
 
 
-def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str = "") -> EstimateResult:
+def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str = "", *,
+                     regularised: bool = False) -> EstimateResult:
     """Estimates against the model's declared magnitudes: a :class:`~casep.exceptions.MagnitudeWarning` at
     :data:`MAGNITUDE_WARN` times, a failed result (status :data:`STATUS_MAGNITUDE`) at :data:`MAGNITUDE_FAIL`
-    (a warning for the :data:`REGULARISED` methods).
+    (a warning only, for a `regularised` method).
 
     Parameters
     ----------
@@ -403,6 +390,9 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
         name ``name[flight]`` uses ``name``'s.
     source : str, optional
         Flight name for the message.
+    regularised : bool, optional
+        The result's method sets poorly determined coefficients by its regularisation, not the data
+        (its ``Method.regularised``: ridge, PCR, bounded): beyond :data:`MAGNITUDE_FAIL` a warning.
 
     Returns
     -------
@@ -435,7 +425,7 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
             f"{MAGNITUDE_Z:g} std; {listed}): "
             "a set-up mistake (launch site, azimuth, time scales), a unit mistake or a missing model term is likelier "
             "than such instruments")
-    if worst >= MAGNITUDE_FAIL and res.method not in REGULARISED:
+    if worst >= MAGNITUDE_FAIL and not regularised:
         return failed(res, STATUS_MAGNITUDE, f"failed: {text} (beyond {MAGNITUDE_FAIL:g} x)")
     if not res.success:
         return res  # failed already, for its own reason (recorded in diagnostics["magnitudes"])

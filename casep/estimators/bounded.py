@@ -25,16 +25,39 @@ Optimality (KKT): with gradient ``g = R^T (R z - q)``, ``g_j = 0`` for free coef
 from __future__ import annotations
 
 import warnings
-from typing import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Mapping, Sequence, Unpack
 
 import numpy as np
 
-from casep.estimators._base import MAX_PRIOR_VALUE, finish, is_number, prepare
-from casep.estimators.result import BoundedExtras, EstimateResult
+from casep.estimators._base import MAX_PRIOR_VALUE, Prepared, finish, is_number
+from casep.estimators._options import CoefficientTable, Labels, Method, Option
 from casep.exceptions import CasepWarning
-from casep.model._model import unknown_coefficient_message
 
-__all__ = ["solve_bounded", "parse_bounds"]
+if TYPE_CHECKING:
+    from casep.analysis.problem import Problem
+    from casep.estimators.result import EstimateResult
+
+__all__ = ["solve_bounded", "parse_bounds", "BOUNDED", "BoundedExtras"]
+
+#: Its option (``casep separate --bounds``), required.
+BOUNDS = Option("bounds", "--bounds", None, (CoefficientTable("{name: [lo, hi] | value}"),),
+                "box bounds and fixed values")
+
+
+@dataclass(frozen=True)
+class BoundedExtras:
+    """Bounded: the box (``name -> [low, high]``) and the bounds active at the solution."""
+
+    bounds: dict
+    active_bounds: dict
+
+    def describe(self, res: Any) -> list[str]:
+        """Its part of the settings line."""
+        n = len(res.names)
+        kinds = list(self.active_bounds.values())
+        return [f"bounds on {len(self.bounds)} of {n} coefficients; active set {kinds.count('lower')} at lower, "
+                f"{kinds.count('upper')} at upper bound, {kinds.count('fixed')} fixed, {n - len(kinds)} free"]
 
 _ACTIVE_TOL = 1e-6  # relative, in scaled coordinates
 
@@ -79,6 +102,7 @@ def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"
     ``null`` / None for either end means unbounded on that side; a single number, or
     ``lo == hi``, fixes the coefficient.
     """
+    from casep.model._model import unknown_coefficient_message
     if not isinstance(bounds, Mapping):
         raise TypeError(f"{source} must be a mapping of coefficient name to [lo, hi], got {type(bounds).__name__}")
     n = len(names)
@@ -122,26 +146,19 @@ def _bound_text(v: float) -> str:
     return "null" if not np.isfinite(v) else f"{v:g}"
 
 
-def solve_bounded(
-    S: np.ndarray,
-    y: np.ndarray | None = None,
-    bounds: Mapping | None = None,
-    *,
-    sigma: float | None = None,
-    names: Sequence[str] | None = None,
-    units: Sequence[str] | None = None,
-    si_factors: Sequence[float] | None = None,
-    rcond: float | None = None,
-) -> EstimateResult:
+def solve_bounded(S: np.ndarray | Problem, y: np.ndarray | None = None, bounds: Mapping | None = None,
+                  **labels: Unpack[Labels]) -> EstimateResult:
     """Least squares with per-coefficient bounds and fixed values.
 
     Parameters
     ----------
-    S, y : array_like
+    S, y : array_like or Problem
         Regression (natural units) and velocity error, as :func:`casep.solve_ols`.
     bounds : mapping
         ``{name: [lo, hi]}`` in natural units (None for an open side), or ``{name: value}``
         to fix a coefficient. Names are those of `names`.
+    **labels
+        ``names``, ``units``, ``si_factors``, ``sigma``, ``rcond``, as :func:`casep.solve_ols`.
 
     Returns
     -------
@@ -152,11 +169,12 @@ def solve_bounded(
         of the free coefficients are then conditional on the active set and understated), else
         "sampling". ``message`` states the counts and what the std mean.
     """
+    return BOUNDED.call(S, y, bounds=bounds, **labels)
+
+
+def _solve(pb: Prepared, *, method: Method, bounds: Mapping) -> EstimateResult:
     import cvxpy as cp
 
-    if bounds is None:
-        raise ValueError("`bounds` is required for method `bounded`. Use: --bounds FILE or bounds={...}")
-    pb = prepare(S, y, names, units, si_factors, sigma, rcond)
     lo, hi, fixed = parse_bounds(bounds, pb.names)
     c = pb.red.scale
     zero = c == 0
@@ -228,7 +246,7 @@ def solve_bounded(
     counts = {"at_lower": int((at_lo & ~fixed).sum()), "at_upper": int((at_hi & ~at_lo & ~fixed).sum()),
               "fixed": int(fixed.sum()),
               "free": int(pb.n - std_mask.sum()), "undetermined": int(undetermined.sum())}
-    return finish(pb, "bounded", x, cov, sig, undetermined=undetermined, reasons=reasons,
+    return finish(pb, method, x, cov, sig, undetermined=undetermined, reasons=reasons,
                   message=_active_set_message(counts, pb.n),
                   settings={"bounds": box, "solver": "cvxpy+clarabel",
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
@@ -249,3 +267,9 @@ def _active_set_message(counts: dict[str, int], n: int) -> str:
         return msg + ("; coefficients at a bound or fixed have no std; the std of the free ones are conditional "
                       "on this active set (understated: the uncertainty of which bounds are active is ignored)")
     return msg + "; no bound active: the unconstrained least-squares estimate and its std"
+
+
+#: Box-bounded least squares (std conditional on the active set).
+BOUNDED = Method("bounded", "box-bounded least squares (Clarabel + exact polish)", _solve, "solve_bounded",
+                 (BOUNDS,), required=("bounds",), std_kind="conditional", extras_type=BoundedExtras,
+                 regularised=True, hint="bounds the data contradict?")

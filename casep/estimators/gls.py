@@ -25,17 +25,42 @@ OLS cover the truth in 11 % of runs instead of 95 %.
 
 from __future__ import annotations
 
-from typing import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Mapping, Sequence, Unpack
 
 import numpy as np
 
 from casep.analysis.diagnostics import ar1_whiten
-from casep.analysis.noise import tau_search_bounds  # one search interval of ln tau for both REMLs
-from casep.estimators._base import check_positive, finish, prepare, rows_of
-from casep.estimators.ols import least_squares
-from casep.estimators.result import EstimateResult, GLSExtras
+from casep.analysis.noise import NoiseModel, tau_search_bounds  # one search interval of ln tau for both REMLs
+from casep.analysis.problem import Problem
+from casep.estimators._base import Prepared, finish, prepare
+from casep.estimators._options import Choices, Interval, Labels, Method, Option, SeveralFlights
+from casep.estimators.ols import OLS, least_squares
 
-__all__ = ["solve_gls", "estimate_tau"]
+if TYPE_CHECKING:
+    from casep.analysis.joint import JointProblem
+    from casep.estimators.result import EstimateResult
+
+__all__ = ["solve_gls", "estimate_tau", "GLS", "GLSExtras"]
+
+#: Its option (``casep separate --tau``; the noise model's tau for every other method).
+TAU = Option("tau", "--tau", "auto", (Choices(("auto",)), Interval(float, 0, 1e4, "right", "s")),
+             "Gauss-Markov correlation time of the noise model, every method (auto: REML)",
+             # Correlation times beyond ~3 h exceed any boost flight; exp(-dt/tau) -> 1 loses all digits.
+             why="s; a correlation time above 1e4 s exceeds any flight")
+
+
+@dataclass(frozen=True)
+class GLSExtras:
+    """GLS: the Gauss-Markov correlation time tau (s) and where it came from ("given", "reml")."""
+
+    tau: float
+    tau_rule: str
+
+    def describe(self, res: Any) -> list[str]:
+        """Its part of the settings line."""
+        how = "REML estimate" if self.tau_rule == "reml" else "given"
+        return [f"Gauss-Markov tau {self.tau:.4g} s ({how})"]
 
 
 def _whiten(S: np.ndarray, y: np.ndarray, t: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray]:
@@ -63,7 +88,7 @@ def _neg2_reml(S: np.ndarray, Y: np.ndarray, t: np.ndarray, tau: float) -> np.nd
     live = c > 0
     Yw = ar1_whiten(Y, t, 1.0, tau).reshape(-1, Y.shape[-1])
     q = int(live.sum())
-    R = np.linalg.qr(np.hstack([Sw[:, live] / c[live], Yw]), mode="r")  # [Z Y_w] = Q R
+    R = np.asarray(np.linalg.qr(np.hstack([Sw[:, live] / c[live], Yw]), mode="r"))  # [Z Y_w] = Q R
     d = np.abs(np.diag(R)[:q])
     ok = d > 0
     logdet = 2.0 * np.sum(np.log(d[ok])) + 2.0 * np.sum(np.log(c[live][ok]))  # ln det(S_w^T S_w)
@@ -81,32 +106,23 @@ def estimate_tau(S: np.ndarray, y: np.ndarray, t: np.ndarray) -> float:
     return float(np.exp(res.x))
 
 
-def solve_gls(
-    S: np.ndarray,
-    y: np.ndarray | None = None,
-    t: np.ndarray | None = None,
-    *,
-    tau: float | str = "auto",
-    sigma: float | None = None,
-    names: Sequence[str] | None = None,
-    units: Sequence[str] | None = None,
-    si_factors: Sequence[float] | None = None,
-    rcond: float | None = None,
-) -> EstimateResult:
+def solve_gls(S: np.ndarray | Problem, y: np.ndarray | None = None, t: np.ndarray | None = None, *,
+              tau: float | str = "auto", **labels: Unpack[Labels]) -> EstimateResult:
     """GLS estimate of ``D`` under Gauss-Markov noise of correlation time `tau`.
 
     Parameters
     ----------
-    S : (N, 3, n) array_like
-        Regression in natural units, samples in time order.
+    S : (N, 3, n) array_like or Problem
+        Regression in natural units, samples in time order (a Problem holds its times).
     y : (N, 3) array_like
         Velocity error, m/s.
     t : (N,) array_like
         Sample times, s.
     tau : float or "auto", optional
         Correlation time, s, or its REML estimate (default).
-    sigma : float, optional
-        Stationary noise std, m/s (default: from the whitened residuals).
+    **labels
+        ``names``, ``units``, ``si_factors``, ``rcond`` as :func:`casep.solve_ols`; ``sigma``:
+        stationary noise std, m/s (default: from the whitened residuals).
 
     Returns
     -------
@@ -114,32 +130,72 @@ def solve_gls(
         ``method`` "gls"; residuals are ``dv - S_V D_hat`` (not whitened); diagnostics
         (condition numbers, CRLB) are those of the whitened regression.
     """
-    model = getattr(S, "model", None)
-    S, y, t, names, units, si_factors = rows_of(S, y, t, names, units, si_factors)  # a Problem: its S whole
-    S = np.asarray(S, dtype=float)
-    y = np.asarray(y, dtype=float)
+    if isinstance(S, Problem) and t is not None and S.t is None:
+        S = Problem.from_arrays(S.sv(), S._need_rows(), t, names=S.names, units=S.units, si_factors=S.si_factors,
+                                model=S.model)
+    return GLS.call(S, y, None if isinstance(S, Problem) else t, tau=tau, **labels)
+
+
+def _solve(pb: Prepared, *, method: Method, tau: float | str) -> EstimateResult:
+    problem = pb.problem
+    S, t = problem.sv(), problem.t
     if S.ndim != 3 or S.shape[1] != 3:
         raise ValueError(f"`S` must be (N, 3, n) in time order, got shape {S.shape}")
     if t is None:
         raise ValueError("`t` is required (the sample times)")
-    t = np.asarray(t, dtype=float)
-    if t.shape != (S.shape[0],):
-        raise ValueError(f"`t` must have {S.shape[0]} samples, got shape {t.shape}")
     if np.any(np.diff(t) <= 0):
         raise ValueError("`t` must be strictly increasing")
+    y = np.asarray(problem.y, dtype=float).reshape(S.shape[0], 3)
     if isinstance(tau, str):
-        if tau != "auto":
-            raise ValueError(f"`tau` must be a number > 0 or 'auto', got {tau!r}")
-        tau_used, rule = estimate_tau(S, y.reshape(S.shape[0], 3), t), "reml"
+        tau_used, rule = estimate_tau(S, y, t), "reml"
     else:
-        tau_used, rule = check_positive("tau", tau, allow_none=False), "given"  # OPTION_RANGES["tau"]
-    pb = prepare(*_whiten(S, y.reshape(S.shape[0], 3), t, tau_used), names, units, si_factors, sigma, rcond,
-                 model=model)
-    x, cov, sig = least_squares(pb)  # sigma: whitened residual std = stationary sigma
-    fit = y.reshape(S.shape[0], 3) - S @ x  # dv - S_V D_hat, not whitened
-    return finish(pb, "gls", x, cov, sig, residuals=fit.reshape(-1),
+        tau_used, rule = float(tau), "given"
+    pw = prepare(*_whiten(S, y, t, tau_used), pb.names, pb.units, pb.si_factors, pb.sigma, pb.ra.rcond,
+                 model=problem.model)
+    x, cov, sig = least_squares(pw)  # sigma: whitened residual std = stationary sigma
+    fit = y - S @ x  # dv - S_V D_hat, not whitened
+    return finish(pw, method, x, cov, sig, residuals=fit.reshape(-1),
                   settings={"tau": tau_used, "tau_rule": rule, "sigma": "estimated" if pb.sigma is None else pb.sigma},
                   extras=GLSExtras(float(tau_used), rule))
+
+
+def _noise_model(res: EstimateResult) -> NoiseModel:
+    """The noise model GLS fitted: one Gauss-Markov tau for every axis."""
+    return NoiseModel(kind="gm", tau=(res.extras.tau,) * 3, rule=res.extras.tau_rule)
+
+
+# ------------------------------------------------------------------ several flights
+def _flight_rows(problems: Sequence[Problem], options: Mapping[str, Any], noise: str,
+                 robust: str | None) -> tuple[list[Problem], list[float]]:
+    """Each flight's rows whitened by its own Gauss-Markov correlation time (REML per flight, or the given tau)."""
+    if robust not in (None, "auto", "none") or noise == "white":
+        raise ValueError("method `gls` is ols with one Gauss-Markov tau per flight: for noise 'white' or a robust "
+                         "fit use method ols with `noise` and `robust`")
+    tau = options.get("tau", "auto")
+    out, taus = [], []
+    for p in problems:
+        if p.t is None:
+            raise ValueError(f"flight `{p.source}` has no sample times: GLS needs them")
+        S, y = p.sv(), p._need_rows().reshape(-1, 3)
+        tk = estimate_tau(S, y, p.t) if isinstance(tau, str) else float(tau)
+        Sw, yw = _whiten(S, y, p.t, tk)
+        q = Problem.from_arrays(Sw, yw, p.t, names=p.names, units=p.units, si_factors=p.si_factors, model=p.model)
+        q.source = p.source
+        out.append(q)
+        taus.append(float(tk))
+    return out, taus
+
+
+def _flights_finish(res: EstimateResult, jp: JointProblem, taus: list[float],
+                    options: Mapping[str, Any]) -> EstimateResult:
+    """The least-squares result of the whitened flights as GLS's: each flight's tau in its settings."""
+    import dataclasses
+
+    rule = "given" if not isinstance(options.get("tau", "auto"), str) else "reml"
+    return dataclasses.replace(
+        res, method="gls", extras=GLSExtras(float(np.mean(taus)), rule),
+        settings={"tau": dict(zip(jp.layout.labels, taus)), "tau_rule": rule, "sigma": res.settings["sigma"]},
+        message=res.message + f"; GLS: each flight whitened by its own tau ({rule})")
 
 
 #: Lattice of the batched REML search: coarse step in ln tau, its subdivision, and the
@@ -222,19 +278,25 @@ def _lattice_vertex(v: Sequence[float]) -> float:
     the polynomial through all the finite ones (degree 2h inside the interval), 0 when the
     middle value is an end of the interval.
     """
-    v = np.asarray(v, dtype=float)
-    h = v.size // 2
-    if not (np.isfinite(v[h - 1]) and np.isfinite(v[h + 1])):
+    va = np.asarray(v, dtype=float)
+    h = va.size // 2
+    if not (np.isfinite(va[h - 1]) and np.isfinite(va[h + 1])):
         return 0.0  # minimum on an end of the interval
     u = np.arange(-h, h + 1.0)
-    use = np.isfinite(v)  # contiguous: NaN only beyond an end
-    P = np.polynomial.Polynomial.fit(u[use], v[use], int(use.sum()) - 1, domain=[-1, 1], window=[-1, 1])
+    use = np.isfinite(va)  # contiguous: NaN only beyond an end
+    P = np.polynomial.Polynomial.fit(u[use], va[use], int(use.sum()) - 1, domain=[-1, 1], window=[-1, 1])
     d1, d2 = P.deriv(), P.deriv(2)
     cand = [0.0]
-    for z in d1.roots():
-        z = float(z.real)
+    for root in d1.roots():
+        z = float(np.real(root))
         for _ in range(3):  # Newton on P' = 0: roots with a tiny leading term are loose
-            z -= d1(z) / d2(z) if d2(z) != 0 else 0.0
+            z -= float(d1(z) / d2(z)) if d2(z) != 0 else 0.0
         if -1.0 <= z <= 1.0:
             cand.append(z)
-    return min(cand, key=lambda z: P(z))
+    return float(min(cand, key=lambda z: float(P(z))))
+
+
+#: GLS: least squares in Gauss-Markov noise (its own noise model: one tau for every axis).
+GLS = Method("gls", "least squares in Gauss-Markov noise (AR(1) whitening)", _solve, "solve_gls", (TAU,),
+             needs_time=True, extras_type=GLSExtras, own_noise_model=_noise_model,
+             flights=SeveralFlights(rows=_flight_rows, solve_as=OLS, finish=_flights_finish))

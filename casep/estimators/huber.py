@@ -23,41 +23,59 @@ in Gaussian noise) are reported as outliers (sample row, axis, time index, size 
 
 from __future__ import annotations
 
-from typing import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Mapping, Unpack
 
 import numpy as np
 
-from casep.estimators._base import check_positive, finish, prepare
+from casep.estimators._base import Prepared, finish, prepare
+from casep.estimators._options import Interval, Labels, Method, Option, SeveralFlights
 from casep.estimators.ols import least_squares
-from casep.estimators.result import EstimateResult, HuberExtras
 
-__all__ = ["solve_huber", "HUBER_C"]
+if TYPE_CHECKING:
+    from casep.analysis.joint import JointProblem
+    from casep.analysis.problem import Problem
+    from casep.estimators.result import EstimateResult
+
+__all__ = ["solve_huber", "HUBER_C", "HUBER", "HuberExtras"]
 
 #: Huber's tuning constant: 95 % asymptotic efficiency at the Gaussian.
 HUBER_C = 1.345
 MAD_SIGMA = 1.482602218505602  # sigma = MAD / Phi^-1(3/4)
 _MAX_FLAGS = 50
 
+#: Its solver keywords (not command-line options).
+C = Option("c", "--huber-c", HUBER_C, (Interval(float, 0, None, "neither"),),
+           "Huber constant in units of the noise scale")
+FLAG = Option("flag", "--flag", 4.0, (Interval(float, 0, None, "neither"),),
+              "studentized residual above which a row is flagged as an outlier")
+TOL = Option("tol", "--tol", 1e-8, (Interval(float, 0, None, "neither"),), "IRLS stops below this step, in std")
+MAX_ITER = Option("max_iter", "--max-iter", 50, (Interval(int, 1),), "IRLS iterations at most")
 
-def solve_huber(
-    S: np.ndarray,
-    y: np.ndarray | None = None,
-    *,
-    c: float = HUBER_C,
-    flag: float = 4.0,
-    tol: float = 1e-8,
-    max_iter: int = 50,
-    sigma: float | None = None,
-    names: Sequence[str] | None = None,
-    units: Sequence[str] | None = None,
-    si_factors: Sequence[float] | None = None,
-    rcond: float | None = None,
-) -> EstimateResult:
+
+@dataclass(frozen=True)
+class HuberExtras:
+    """Huber: tuning constant c (in scale units), IRLS iterations, the MAD scale (m/s) and
+    the flagged outlier rows (count, threshold, largest studentized residuals)."""
+
+    c: float
+    iterations: int
+    scale: float
+    outliers: dict
+
+    def describe(self, res: Any) -> list[str]:
+        """Its part of the settings line."""
+        return [f"Huber c {self.c:g}, {self.iterations} IRLS iterations, scale {self.scale:.4g}",
+                f"{self.outliers.get('count', 0)} rows flagged above {self.outliers.get('threshold_sigma', 0):g} sigma"]
+
+
+def solve_huber(S: np.ndarray | Problem, y: np.ndarray | None = None, *, c: float = HUBER_C, flag: float = 4.0,
+                tol: float = 1e-8, max_iter: int = 50, **labels: Unpack[Labels]) -> EstimateResult:
     """Huber M-estimate of ``D`` in ``y = S D + e`` with heavy-tailed (glitchy) noise.
 
     Parameters
     ----------
-    S : (N, 3, n) or (m, n) array_like
+    S : (N, 3, n) or (m, n) array_like, or Problem
         Regression matrix, natural units.
     y : (N, 3) or (m,) array_like
         Velocity error, m/s.
@@ -67,18 +85,22 @@ def solve_huber(
         Studentized residual above which a row is flagged as an outlier (default 4).
     tol, max_iter : optional
         IRLS stops when no estimate moves by more than ``tol`` std.
-    sigma : float, optional
-        Known noise scale, m/s (default: robust MAD estimate, updated each iteration).
+    **labels
+        ``names``, ``units``, ``si_factors``, ``rcond`` as :func:`casep.solve_ols`; ``sigma``: known
+        noise scale, m/s (default: robust MAD estimate, updated each iteration).
 
     Returns
     -------
     EstimateResult
         ``diagnostics["outliers"]``: count, rows (sample, axis, size in sigma) of the largest;
-        ``settings``: c, iterations, scale.
+        ``extras`` (:class:`HuberExtras`): c, IRLS iterations, the scale, the outliers;
+        ``settings``: the inputs c, flag, tol, max_iter.
     """
-    c = check_positive("c", c, allow_none=False)
-    flag = check_positive("flag", flag, allow_none=False)
-    pb = prepare(S, y, names, units, si_factors, sigma, rcond)
+    return HUBER.call(S, y, c=c, flag=flag, tol=tol, max_iter=max_iter, **labels)
+
+
+def _solve(pb: Prepared, *, method: Method, c: float, flag: float, tol: float, max_iter: int) -> EstimateResult:
+    rcond = pb.ra.rcond
     A, b = pb.S, pb.y  # (m, n) natural units, (m,)
     w = np.ones(b.size)
     x = least_squares(pb)[0]
@@ -117,9 +139,29 @@ def solve_huber(
     rows = [{"sample": int(i // 3), "axis": "xyz"[i % 3], "size_sigma": float(u[i])} for i in order] \
         if A.shape[0] == 3 * (A.shape[0] // 3) else [{"row": int(i), "size_sigma": float(u[i])} for i in order]
     outliers = {"count": int(big.size), "threshold_sigma": float(flag), "largest": rows}
-    return finish(pb, "huber", x, cov, sig, residuals=r,
-                  settings={"c": c, "iterations": it, "scale": float(scale), "flag_sigma": flag,
-                            "outliers_flagged": int(big.size),
+    return finish(pb, method, x, cov, sig, residuals=r,
+                  settings={"c": c, "flag": flag, "tol": tol, "max_iter": max_iter,  # inputs; found: extras
                             "sigma": "robust (MAD) scale" if pb.sigma is None else pb.sigma},
                   diagnostics={"outliers": outliers}, sigma_source=None if pb.sigma is not None else "robust",
                   extras=HuberExtras(float(c), int(it), float(scale), outliers))
+
+
+def _flights_finish(res: EstimateResult, jp: JointProblem, state: Any, options: Mapping[str, Any]) -> EstimateResult:
+    """Each flagged row's flight and its sample in that flight (the stacked rows are flight after flight)."""
+    import dataclasses
+
+    if not res.diagnostics.get("outliers"):
+        return res
+    starts = np.asarray(jp.segment_starts)
+    rows = []
+    for r in res.diagnostics["outliers"]["largest"]:
+        k = int(np.searchsorted(starts, r["sample"], side="right") - 1)  # the flight of the stacked sample
+        rows.append({**r, "flight": jp.layout.labels[k], "flight_sample": int(r["sample"] - starts[k])})
+    return dataclasses.replace(res, diagnostics={**res.diagnostics,
+                                                 "outliers": {**res.diagnostics["outliers"], "largest": rows}})
+
+
+#: Huber's M-estimate; with several flights it estimates the scale of the whitened rows (about 1) itself.
+HUBER = Method("huber", "robust (Huber) least squares by IRLS, outliers flagged", _solve, "solve_huber",
+               keywords=(C, FLAG, TOL, MAX_ITER), extras_type=HuberExtras,
+               flights=SeveralFlights(sigma=None, finish=_flights_finish))

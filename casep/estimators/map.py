@@ -35,15 +35,43 @@ Prior mapping: ``{name: {"mean": m, "std": s}, ..., "correlation": {"names": [..
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Mapping, Sequence, Unpack
 
 import numpy as np
 
-from casep.estimators._base import MAX_PRIOR_VALUE, finish, is_number, prepare
-from casep.estimators.result import EstimateResult, MAPExtras
-from casep.model._model import unknown_coefficient_message
+from casep.estimators._base import MAX_PRIOR_VALUE, Prepared, finish, is_number
+from casep.estimators._options import SIGMA, CoefficientTable, Labels, Method, Option
 
-__all__ = ["solve_map", "parse_prior", "prior_information", "prior_from_result", "per_flight_names"]
+if TYPE_CHECKING:
+    from casep.analysis.problem import Problem
+    from casep.estimators.ols import LinearMap
+    from casep.estimators.result import EstimateResult
+
+__all__ = ["solve_map", "parse_prior", "prior_information", "prior_from_result", "per_flight_names", "MAP",
+           "MAPExtras"]
+
+#: Its option (``casep separate --prior``), required.
+PRIOR = Option("prior", "--prior", None, (CoefficientTable("{name: {mean, std}}"),),
+               "Gaussian prior per coefficient, or a result file (its estimate and covariance; "
+               "docs/guide/result-files.md)")
+
+
+@dataclass(frozen=True)
+class MAPExtras:
+    """MAP: the Gaussian prior, ``name -> {"mean", "std"}`` (coefficients not listed: flat)."""
+
+    prior: dict
+
+    def describe(self, res: Any) -> list[str]:
+        """Its part of the settings line."""
+        prior = {k: v for k, v in self.prior.items() if k != CORRELATION}
+        corr = self.prior.get(CORRELATION)
+        out = [f"Gaussian prior on {len(prior)} of {len(res.names)} coefficients (others flat)"
+               + (f", correlated over {len(corr['names'])}" if corr else "")]
+        if 0 < len(prior) <= 4:
+            out.append(", ".join(f"{k} {v['mean']:.4g} +- {v['std']:.4g}" for k, v in prior.items()))
+        return out
 
 #: The key of a prior mapping that holds a correlation block (not a coefficient name).
 CORRELATION = "correlation"
@@ -59,6 +87,8 @@ def parse_prior(prior: Mapping, names: Sequence[str], source: str = "`prior`") -
 
 
 def _parse(prior: Mapping, names: Sequence[str], source: str):
+    from casep.model._model import unknown_coefficient_message
+
     if not isinstance(prior, Mapping):
         raise TypeError(f"{source} must be a mapping of coefficient name to {{'mean', 'std'}}")
     n = len(names)
@@ -208,30 +238,31 @@ def prior_from_result(result, names: Sequence[str] | None = None, model=None) ->
     return out
 
 
-def solve_map(
-    S: np.ndarray,
-    y: np.ndarray | None = None,
-    prior: Mapping | None = None,
-    *,
-    sigma: float | None = None,
-    names: Sequence[str] | None = None,
-    units: Sequence[str] | None = None,
-    si_factors: Sequence[float] | None = None,
-    rcond: float | None = None,
-) -> EstimateResult:
+def solve_map(S: np.ndarray | Problem, y: np.ndarray | None = None, prior: Mapping | None = None,
+              **labels: Unpack[Labels]) -> EstimateResult:
     """Posterior mean and covariance of ``D`` under a Gaussian prior.
 
     Parameters
     ----------
+    S : (N, 3, n) or (m, n) array_like, or Problem
+        Regression matrix in natural units (a Problem holds `y`), as :func:`casep.solve_ols`.
+    y : (N, 3) or (m,) array_like
+        Velocity error, m/s.
     prior : mapping
         ``{name: {"mean": m, "std": s}}`` in natural units; absent names are flat.
-    sigma : float, optional
-        Noise std, m/s (default: the least-squares residual std).
+    **labels
+        ``names``, ``units``, ``si_factors``, ``rcond`` as :func:`casep.solve_ols`; ``sigma``: noise
+        std, m/s (default: the least-squares residual std).
+
+    Returns
+    -------
+    EstimateResult
     """
-    if prior is None:
-        raise ValueError("`prior` is required for method `map`. Use: --prior FILE or prior={...}")
+    return MAP.call(S, y, prior=prior, **labels)
+
+
+def _solve(pb: Prepared, *, method: Method, prior: Mapping) -> EstimateResult:
     prior_arg = prior
-    pb = prepare(S, y, names, units, si_factors, sigma, rcond)
     Wp, bp, mu, tau = prior_information(prior, pb.names)
     sig = pb.ols_sigma() if pb.sigma is None else pb.sigma
     c = pb.red.scale
@@ -249,7 +280,7 @@ def solve_map(
     prior = {n: {"mean": float(m), "std": float(t)} for n, m, t in zip(pb.names, mu, tau) if np.isfinite(t)}
     if CORRELATION in prior_arg and CORRELATION not in pb.names:
         prior[CORRELATION] = prior_arg[CORRELATION]
-    return finish(pb, "map", z / cs, cov, sig, undetermined=undetermined, extras=MAPExtras(prior),
+    return finish(pb, method, z / cs, cov, sig, undetermined=undetermined, extras=MAPExtras(prior),
                   settings={"prior": prior, "sigma": "estimated" if pb.sigma is None else pb.sigma})
 
 
@@ -258,7 +289,7 @@ __all__ += ["map_linear_map"]
 
 
 def map_linear_map(S: np.ndarray, prior: Mapping, sigma: float, *, names: Sequence[str] | None = None,
-                   rcond: float | None = None):
+                   rcond: float | None = None) -> LinearMap:
     """The linear map of :func:`solve_map` with a given noise std: ``D = K y + b``.
 
     The posterior mean is the least-squares solution of the stacked system of the module
@@ -283,10 +314,11 @@ def map_linear_map(S: np.ndarray, prior: Mapping, sigma: float, *, names: Sequen
     casep.estimators.ols.LinearMap
         The posterior covariance at `sigma`, ``dof`` None.
     """
-    from casep.estimators._base import check_positive
     from casep.estimators.ols import LinearMap, scaled_factors
 
-    sigma = check_positive("sigma", sigma, allow_none=False)
+    sigma = SIGMA.check(sigma)
+    if sigma is None:
+        raise ValueError("`sigma` is required: the map is linear in y only for a given sigma")
     pb, Q, U, s, Vt = scaled_factors(S, rcond)
     names = pb.names if names is None else tuple(names)
     Wp, bp, _, _ = prior_information(prior, names)
@@ -302,3 +334,10 @@ def map_linear_map(S: np.ndarray, prior: Mapping, sigma: float, *, names: Sequen
     null = Vta[r:].T
     undetermined = np.linalg.norm(null, axis=1) > 1e-8 if null.size else np.zeros(pb.n, bool)
     return LinearMap(K, b, cov, None, undetermined)
+
+
+#: Maximum a posteriori under a Gaussian prior.
+MAP = Method("map", "maximum a posteriori with a Gaussian prior", _solve, "solve_map", (PRIOR,), required=("prior",),
+             batched=True, std_kind="posterior", extras_type=MAPExtras, hint="a prior the data contradict?",
+             linear_map=lambda S, **kw: map_linear_map(S, kw["prior"], kw["sigma"], names=kw.get("names"),
+                                                       rcond=kw.get("rcond")))

@@ -21,29 +21,33 @@ threshold is explicit (`rcond`) and its consequences are in the result.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Unpack
 
 import numpy as np
 
 from casep.estimators._base import Prepared, finish, prepare
-from casep.estimators.result import EstimateResult, OLSExtras
+from casep.estimators._options import Labels, Method
 
 if TYPE_CHECKING:
     from casep.analysis.problem import Problem
+    from casep.estimators.result import EstimateResult
 
-__all__ = ["solve_ols"]
+__all__ = ["solve_ols", "OLS", "OLSExtras", "least_squares"]
 
 
-def solve_ols(
-    S: np.ndarray | Problem,
-    y: np.ndarray | None = None,
-    *,
-    names: Sequence[str] | None = None,
-    units: Sequence[str] | None = None,
-    si_factors: Sequence[float] | None = None,
-    sigma: float | None = None,
-    rcond: float | None = None,
-) -> EstimateResult:
+@dataclass(frozen=True)
+class OLSExtras:
+    """OLS: the relative singular-value cut of the rank decision."""
+
+    rcond: float
+
+    def describe(self, res: Any) -> list[str]:
+        """Its part of the settings line."""
+        return [f"rcond {self.rcond:.3g}"]
+
+
+def solve_ols(S: np.ndarray | Problem, y: np.ndarray | None = None, **labels: Unpack[Labels]) -> EstimateResult:
     """Least-squares estimate of ``D`` in ``y = S D + e`` with honest standard deviations.
 
     Parameters
@@ -53,12 +57,11 @@ def solve_ols(
         :class:`~casep.analysis.problem.Problem` (then `y` is omitted: the problem holds it).
     y : (N, 3) or (m,) array_like
         Observed velocity error, m/s.
-    names, units, si_factors : sequence, optional
-        Coefficient labels for the result (default ``c0, c1, ...``).
-    sigma : float, optional
-        Known noise standard deviation, m/s; default: estimated from the residuals.
-    rcond : float, optional
-        Rank threshold, see :func:`casep.analysis.linalg.analyze_rank`.
+    **labels
+        ``names``, ``units``, ``si_factors`` (coefficient labels, default ``c0, c1, ...``),
+        ``sigma`` (known noise std, m/s; default: estimated from the residuals) and ``rcond``
+        (rank threshold, see :func:`casep.analysis.linalg.analyze_rank`):
+        :class:`~casep.estimators._options.Labels`.
 
     Returns
     -------
@@ -66,9 +69,12 @@ def solve_ols(
         ``status`` 1: every coefficient estimated; 2: some are not identifiable on this
         data (reported NaN with a reason); -1: none is.
     """
-    pb = prepare(S, y, names, units, si_factors, sigma, rcond)
+    return OLS.call(S, y, **labels)
+
+
+def _solve(pb: Prepared, *, method: Method) -> EstimateResult:
     x, cov, sig = least_squares(pb)
-    return finish(pb, "ols", x, cov, sig, extras=OLSExtras(float(pb.ra.rcond)),
+    return finish(pb, method, x, cov, sig, extras=OLSExtras(float(pb.ra.rcond)),
                   settings={"rcond": pb.ra.rcond, "sigma": "estimated" if pb.sigma is None else pb.sigma})
 
 
@@ -86,9 +92,8 @@ def least_squares(pb: Prepared) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 # ------------------------------------------------------------------ linear map (batched Monte Carlo)
-from dataclasses import dataclass  # noqa: E402  (this section is self-contained)
-
 __all__ += ["LinearMap", "ols_linear_map", "scaled_factors"]
+
 
 @dataclass(frozen=True)
 class LinearMap:
@@ -165,3 +170,8 @@ def ols_linear_map(S: np.ndarray, *, rcond: float | None = None) -> LinearMap:
     K = (W @ (Q @ U[:, :r]).T) * pb.inv_c[:, None]  # x_Z = V_r diag(1/s_r) U_r^T Q^T y, then / c
     cov = (W @ W.T) * np.outer(pb.inv_c, pb.inv_c)
     return LinearMap(K, np.zeros(pb.n), cov, float(pb.m - r), ~pb.ra.estimable)
+
+
+#: Ordinary least squares: the reference every other method is judged against.
+OLS = Method("ols", "least squares on the scaled QR reduction", _solve, "solve_ols", batched=True,
+             extras_type=OLSExtras, linear_map=lambda S, **kw: ols_linear_map(S, rcond=kw.get("rcond")), hac=True)

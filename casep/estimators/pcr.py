@@ -19,16 +19,48 @@ least squares.
 
 from __future__ import annotations
 
-from typing import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Sequence, Unpack
 
 import numpy as np
 
-from casep.estimators._base import check_positive, finish, prepare
-from casep.estimators.result import EstimateResult, PCRExtras
+from casep.estimators._base import Prepared, finish
+from casep.estimators._options import Interval, Labels, Method, Option
 
-__all__ = ["solve_pcr", "DEFAULT_MAX_CONDITION_INDEX"]
+if TYPE_CHECKING:
+    from casep.analysis.problem import Problem
+    from casep.estimators.ols import LinearMap
+    from casep.estimators.result import EstimateResult
+
+__all__ = ["solve_pcr", "DEFAULT_MAX_CONDITION_INDEX", "PCR", "PCRExtras"]
 
 DEFAULT_MAX_CONDITION_INDEX = 1000.0
+
+#: Its options (``casep separate --components``) and solver keywords.
+N_COMPONENTS = Option("n_components", "--components", None, (Interval(int, 1),),
+                      "principal components kept (default: CI <= 1000)")
+MAX_CONDITION_INDEX = Option("max_condition_index", "--max-condition-index", DEFAULT_MAX_CONDITION_INDEX,
+                             (Interval(float, 0, None, "neither"),), "keep directions with s_0 / s_i up to this")
+
+
+@dataclass(frozen=True)
+class PCRExtras:
+    """PCR: components kept, the rule, the condition-index cut (None when `n_components` was
+    given) and the dropped directions (condition index, leading loadings)."""
+
+    n_components: int
+    rule: str
+    dropped_directions: list
+    max_condition_index: float | None = None
+
+    def describe(self, res: Any) -> list[str]:
+        """Its part of the settings line."""
+        out = [f"{self.n_components} of {len(res.names)} components kept ({self.rule})"]
+        ci = [d["condition_index"] for d in self.dropped_directions if d["condition_index"] is not None]
+        if self.dropped_directions:
+            span = "-" if not ci else f"{min(ci):.3g}" if min(ci) == max(ci) else f"{min(ci):.3g} .. {max(ci):.3g}"
+            out.append(f"{len(self.dropped_directions)} dropped (condition index {span})")
+        return out
 
 
 def _combination(v: np.ndarray, names: Sequence[str], top: int = 4) -> dict[str, float]:
@@ -36,46 +68,46 @@ def _combination(v: np.ndarray, names: Sequence[str], top: int = 4) -> dict[str,
     return {names[j]: float(v[j]) for j in order if abs(v[j]) > 1e-3}
 
 
-def solve_pcr(
-    S: np.ndarray,
-    y: np.ndarray | None = None,
-    *,
-    n_components: int | None = None,
-    max_condition_index: float = DEFAULT_MAX_CONDITION_INDEX,
-    sigma: float | None = None,
-    names: Sequence[str] | None = None,
-    units: Sequence[str] | None = None,
-    si_factors: Sequence[float] | None = None,
-    rcond: float | None = None,
-) -> EstimateResult:
+def kept_components(s: np.ndarray, rank: int, n_components: int | None, max_condition_index: float) -> int:
+    """How many directions PCR keeps: `n_components` (at most the rank), else those with condition
+    index ``s_0 / s_i <= max_condition_index``; the solver and its linear map share this rule."""
+    if n_components is None:
+        return int(np.sum(s[:rank] >= s[0] / max_condition_index))
+    if n_components > rank:
+        raise ValueError(f"`n_components` = {n_components} exceeds the rank {rank} of `S`")
+    return int(n_components)
+
+
+def solve_pcr(S: np.ndarray | Problem, y: np.ndarray | None = None, *, n_components: int | None = None,
+              max_condition_index: float = DEFAULT_MAX_CONDITION_INDEX, **labels: Unpack[Labels]) -> EstimateResult:
     """Principal-component estimate of ``D``.
 
     Parameters
     ----------
+    S, y : array_like or Problem
+        Regression (natural units) and velocity error, as :func:`casep.solve_ols`.
     n_components : int, optional
         Directions to keep (overrides `max_condition_index`); at most the rank.
     max_condition_index : float, optional
         Keep directions with ``s_0 / s_i`` up to this (default 1000).
+    **labels
+        ``names``, ``units``, ``si_factors``, ``sigma``, ``rcond``, as :func:`casep.solve_ols`.
 
     Returns
     -------
     EstimateResult
         ``diagnostics["dropped_directions"]``: list of ``{"condition_index",
-        "combination": {name: loading on c_j D_j}}``.
+        "combination": {name: loading on c_j D_j}}``; ``extras`` (:class:`PCRExtras`): the components
+        kept and the rule; ``settings``: the inputs `n_components` and `max_condition_index`.
     """
-    max_condition_index = check_positive("max_condition_index", max_condition_index, allow_none=False)
-    pb = prepare(S, y, names, units, si_factors, sigma, rcond)
+    return PCR.call(S, y, n_components=n_components, max_condition_index=max_condition_index, **labels)
+
+
+def _solve(pb: Prepared, *, method: Method, max_condition_index: float,
+           n_components: int | None = None) -> EstimateResult:
     s, Vt, r = pb.ra.s, pb.ra.Vt, pb.ra.rank
-    if n_components is None:
-        k = int(np.sum(s[:r] >= s[0] / max_condition_index))
-        rule = f"condition index <= {max_condition_index:g}"
-    else:
-        if isinstance(n_components, bool) or not isinstance(n_components, (int, np.integer)) or not 1 <= n_components:
-            raise ValueError(f"`n_components` must be an int >= 1, got {n_components!r}")
-        if n_components > r:
-            raise ValueError(f"`n_components` = {n_components} exceeds the rank {r} of `S`")
-        k = int(n_components)
-        rule = f"{k} components"
+    k = kept_components(s, r, n_components, max_condition_index)
+    rule = f"condition index <= {max_condition_index:g}" if n_components is None else f"{k} components"
     beta = pb.ra.U.T @ pb.red.qty
     Vk = Vt[:k].T
     z = Vk @ (beta[:k] / s[:k])  # z_k = V_k diag(1/s_k) beta_k
@@ -86,8 +118,8 @@ def solve_pcr(
     cov = sig**2 * (W @ W.T) * np.outer(inv_c, inv_c)
     dropped = [{"condition_index": float(s[0] / s[i]) if s[i] > 0 else None,
                 "combination": _combination(Vt[i], pb.names)} for i in range(k, pb.n)]
-    return finish(pb, "pcr", z * inv_c, cov, sig,
-                  settings={"n_components": k, "rule": rule,
+    return finish(pb, method, z * inv_c, cov, sig,
+                  settings={"n_components": n_components, "max_condition_index": max_condition_index,  # inputs
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
                   diagnostics={"dropped_directions": dropped},
                   extras=PCRExtras(k, rule, dropped, None if n_components is not None else float(max_condition_index)))
@@ -98,7 +130,7 @@ __all__ += ["pcr_linear_map"]
 
 
 def pcr_linear_map(S: np.ndarray, *, n_components: int | None = None,
-                   max_condition_index: float = DEFAULT_MAX_CONDITION_INDEX, rcond: float | None = None):
+                   max_condition_index: float = DEFAULT_MAX_CONDITION_INDEX, rcond: float | None = None) -> LinearMap:
     """The linear map of :func:`solve_pcr`: ``D = diag(1/c) V_k diag(1/s_k) U_k^T Q^T y``.
 
     Parameters
@@ -116,17 +148,19 @@ def pcr_linear_map(S: np.ndarray, *, n_components: int | None = None,
     """
     from casep.estimators.ols import LinearMap, scaled_factors
 
-    max_condition_index = check_positive("max_condition_index", max_condition_index, allow_none=False)
+    n_components = N_COMPONENTS.check(n_components)
+    max_condition_index = MAX_CONDITION_INDEX.check(max_condition_index)
     pb, Q, U, s, Vt = scaled_factors(S, rcond)
-    r, s_ref = pb.ra.rank, pb.ra.s  # the solver's singular values decide k
-    if n_components is None:
-        k = int(np.sum(s_ref[:r] >= s_ref[0] / max_condition_index))
-    elif isinstance(n_components, bool) or not isinstance(n_components, (int, np.integer)) \
-            or not 1 <= n_components <= r:
-        raise ValueError(f"`n_components` must be an int in [1, {r}] (the rank of `S`), got {n_components!r}")
-    else:
-        k = int(n_components)
+    k = kept_components(pb.ra.s, pb.ra.rank, n_components, max_condition_index)  # the solver's singular values
     W = Vt[:k].T / s[:k]  # V_k diag(1/s_k)
     K = (W @ (Q @ U[:, :k]).T) * pb.inv_c[:, None]
     cov = (W @ W.T) * np.outer(pb.inv_c, pb.inv_c)
     return LinearMap(K, np.zeros(pb.n), cov, float(pb.m - k), ~pb.ra.estimable)
+
+
+#: Principal-component regression (biased along the dropped directions).
+PCR = Method("pcr", "principal-component regression", _solve, "solve_pcr", (N_COMPONENTS,),
+             keywords=(MAX_CONDITION_INDEX,), batched=True, extras_type=PCRExtras, regularised=True,
+             linear_map=lambda S, **kw: pcr_linear_map(S, n_components=kw.get("n_components"), rcond=kw.get("rcond"),
+                                                       max_condition_index=kw.get("max_condition_index",
+                                                                                  DEFAULT_MAX_CONDITION_INDEX)))

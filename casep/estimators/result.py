@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import json
 import math
@@ -12,146 +11,40 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from casep.io._atomic import atomic_open
+from casep.estimators._meanings import SIGMA_SOURCE_MEANINGS, SIGMA_SOURCES, STD_KIND_MEANINGS
+from casep.io.result_files import (
+    jsonable,
+    write_coefficients_csv,
+    write_json_atomic,  # re-export: remove after merge (cli, calibration.imucal)
+    write_mat_fields,
+)
 
-__all__ = ["EstimateResult", "read_result", "result_from_data", "check_result_units", "resolve_result_model",
-           "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "EXTRAS_TYPES", "OLSExtras",
-           "RLSExtras", "RidgeExtras", "BoundedExtras", "PCRExtras", "MAPExtras", "GLSExtras", "HuberExtras",
+__all__ = ["EstimateResult", "result_from_data", "check_result_units", "EXTRAS_TYPES",
+           "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "extras_type",
            "write_json_atomic", "write_mat", "write_csv", "format_number"]
 
 AXES = ("x", "y", "z")
 
-#: What the reported ``std`` mean (``EstimateResult.std_kind``, set by each solver; the
-#: registry's ``Method.std_kind`` declares each method's kind):
-STD_KIND_MEANINGS = {
-    "sampling": "spread of the estimate over noise draws (for a biased method: around its mean)",
-    "posterior": "std of the posterior under the method's prior (MAP's prior; RLS/RELS's P0)",
-    "conditional": "given the active set of the bounds: understated (bounded, when a bound is active)",
-}
-
-#: Where ``sigma`` came from (``EstimateResult.sigma_source``):
-#: "estimated": residual std of the fit, sqrt(RSS / (m - rank)), of the whitened residuals for GLS/RELS;
-#: "given": the caller's ``sigma``;
-#: "wavelet": the wavelet transform's estimate from the raw finest details (set by ``separate``
-#: when dv was de-noised and no sigma was given);
-#: "robust": Huber's MAD scale of the residuals.
-#: No method estimates sigma from a prior, so there is no "prior"/"posterior" source.
-SIGMA_SOURCE_MEANINGS = {
-    "estimated": "residual std of the fit (whitened residuals for GLS/RELS)",
-    "given": "given by the caller",
-    "wavelet": "wavelet estimate from the raw finest details (dv de-noised, no sigma given)",
-    "robust": "Huber's MAD scale of the residuals",
-    "whitened": "several flights: each flight's rows divided by its own sigma (flights[].sigma), so 1 here",
-    "fused": "fused results: each input's own sigma (settings.fused)",
-    "external": "a result file of another tool that states no sigma (docs/guide/result-files.md)",
-}
-SIGMA_SOURCES = tuple(SIGMA_SOURCE_MEANINGS)
-
 
 # --------------------------------------------------------------------- typed per-method extras
-# Each solver builds its own and passes it to ``finish(extras=...)``; natural units throughout.
-@dataclass(frozen=True)
-class OLSExtras:
-    """OLS: the relative singular-value cut of the rank decision."""
+#: The extras dataclass of each registered method (``Method.extras_type``, declared beside its solver, with
+#: ``describe``); filled by :mod:`casep.estimators.registry`, which the package imports first.
+EXTRAS_TYPES: dict[str, type] = {}
 
-    rcond: float
-
-
-@dataclass(frozen=True)
-class RLSExtras:
-    """RLS/RELS: prior scale ``p0`` (P0 = p0 I, scaled coordinates), measurement weight,
-    forgetting factor, MA order, and the RELS noise model ``v(k) = e(k) - sum_j c_j v(k-j)``
-    (coefficients, their posterior std, innovation RMS in m/s; empty/None for RLS)."""
-
-    p0: float
-    weight: float
-    forgetting: float
-    noise_order: int
-    ma_coefficients: tuple[float, ...] = ()
-    ma_std: tuple[float, ...] = ()
-    innovation_rms: float | None = None
+_READING = ("read_result", "resolve_result_model")
 
 
-@dataclass(frozen=True)
-class RidgeExtras:
-    """Ridge: lambda (scaled coordinates), the rule that chose it, effective dof tr(H)."""
-
-    lam: float
-    rule: str
-    effective_dof: float
+def extras_type(method: str) -> type | None:
+    """The extras dataclass a registered `method` declares (None for an unregistered name)."""
+    return EXTRAS_TYPES.get(method)
 
 
-@dataclass(frozen=True)
-class BoundedExtras:
-    """Bounded: the box (``name -> [low, high]``) and the bounds active at the solution."""
+def __getattr__(name: str) -> Any:
+    if name in _READING:  # re-export: remove after merge (cli, impact.miss, workflows: casep.estimators.reading)
+        from casep.estimators import reading
 
-    bounds: dict
-    active_bounds: dict
-
-
-@dataclass(frozen=True)
-class PCRExtras:
-    """PCR: components kept, the rule, the condition-index cut (None when `n_components` was
-    given) and the dropped directions (condition index, leading loadings)."""
-
-    n_components: int
-    rule: str
-    dropped_directions: list
-    max_condition_index: float | None = None
-
-
-@dataclass(frozen=True)
-class MAPExtras:
-    """MAP: the Gaussian prior, ``name -> {"mean", "std"}`` (coefficients not listed: flat)."""
-
-    prior: dict
-
-
-@dataclass(frozen=True)
-class GLSExtras:
-    """GLS: the Gauss-Markov correlation time tau (s) and where it came from ("given", "reml")."""
-
-    tau: float
-    tau_rule: str
-
-
-@dataclass(frozen=True)
-class HuberExtras:
-    """Huber: tuning constant c (in scale units), IRLS iterations, the MAD scale (m/s) and
-    the flagged outlier rows (count, threshold, largest studentized residuals)."""
-
-    c: float
-    iterations: int
-    scale: float
-    outliers: dict
-
-
-#: The extras type of each method (``casep methods --json``).
-EXTRAS_TYPES = {"ols": OLSExtras, "rls": RLSExtras, "rels": RLSExtras, "ridge": RidgeExtras,
-                "bounded": BoundedExtras, "pcr": PCRExtras, "map": MAPExtras, "gls": GLSExtras, "huber": HuberExtras}
-
-
-def _extras_from_dict(method: str, d: dict | None):
-    """The typed extras of `method` back from their JSON object (lists -> declared tuples)."""
-    cls = EXTRAS_TYPES.get(method)
-    if d is None or cls is None:
-        return None
-    kw = {f.name: (tuple(d[f.name]) if str(f.type).startswith("tuple") else d[f.name])
-          for f in dataclasses.fields(cls) if f.name in d}
-    return cls(**kw)
-
-
-def _jsonable(v: Any) -> Any:
-    """Tuples and numpy scalars as JSON values."""
-    if isinstance(v, dict):
-        return {str(k): _jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_jsonable(x) for x in v]
-    if isinstance(v, (np.floating, float)):
-        return _json_float(float(v))
-    if isinstance(v, np.integer):
-        return int(v)
-    return v
+        return getattr(reading, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def format_number(v: float | None, width: int = 12, fmt: str = ".6g") -> str:
@@ -174,75 +67,14 @@ def _sigma_text(v: Any) -> str:
     return f"sigma {v}"
 
 
-def _range(values: list[float]) -> str:
-    vals = [v for v in values if v is not None]
-    if not vals:
-        return "-"
-    lo, hi = min(vals), max(vals)
-    return f"{lo:.3g}" if lo == hi else f"{lo:.3g} .. {hi:.3g}"
-
-
-def _ols_settings(s: dict, d: dict, n: int) -> list[str]:
-    return [f"rcond {s['rcond']:.3g}"] if "rcond" in s else []
-
-
-def _gls_settings(s: dict, d: dict, n: int) -> list[str]:
-    how = "REML estimate" if s.get("tau_rule") == "reml" else "given"
-    return [f"Gauss-Markov tau {s['tau']:.4g} s ({how})"]
-
-
-def _ridge_settings(s: dict, d: dict, n: int) -> list[str]:
-    rule = {"gcv": "GCV", "lcurve": "L-curve corner"}.get(s.get("lambda_rule"), s.get("lambda_rule"))
-    out = [f"lambda {s['lambda']:.4g} on unit-norm columns ({rule})"]
-    if d.get("effective_dof") is not None:
-        out.append(f"effective dof {d['effective_dof']:.3g} of {n}")
-    return out
-
-
-def _rls_settings(s: dict, d: dict, n: int) -> list[str]:
-    out = [f"p0 {s['p0']:.4g}, weight {s['weight']:.4g}, forgetting {s['forgetting']:.6g}"]
-    if d.get("effective_prior_std") is not None:
-        out.append(f"effective prior std {d['effective_prior_std']:.4g} (natural units)")
-    nm = d.get("noise_model")
-    if nm:
-        ma = ", ".join(f"c{j + 1} {c:.4g} +- {e:.2g}" for j, (c, e) in enumerate(zip(nm["ma_coefficients"],
-                                                                                      nm["ma_std"])))
-        out.append(f"MA({len(nm['ma_coefficients'])}) noise model {ma}; innovation RMS {nm['innovation_rms']:.4g} m/s")
-    return out
-
-
-def _pcr_settings(s: dict, d: dict, n: int) -> list[str]:
-    dropped = d.get("dropped_directions", [])
-    out = [f"{s['n_components']} of {n} components kept ({s.get('rule')})"]
-    if dropped:
-        out.append(f"{len(dropped)} dropped (condition index {_range([x['condition_index'] for x in dropped])})")
-    return out
-
-
-def _map_settings(s: dict, d: dict, n: int) -> list[str]:
-    prior = {k: v for k, v in s.get("prior", {}).items() if k != "correlation"}
-    corr = s.get("prior", {}).get("correlation")
-    out = [f"Gaussian prior on {len(prior)} of {n} coefficients (others flat)"
-           + (f", correlated over {len(corr['names'])}" if corr else "")]
-    if 0 < len(prior) <= 4:
-        out.append(", ".join(f"{k} {v['mean']:.4g} +- {v['std']:.4g}" for k, v in prior.items()))
-    return out
-
-
-def _bounded_settings(s: dict, d: dict, n: int) -> list[str]:
-    act = d.get("active_bounds", {})
-    kinds = list(act.values())
-    return [f"bounds on {len(s.get('bounds', {}))} of {n} coefficients; active set {kinds.count('lower')} at "
-            f"lower, {kinds.count('upper')} at upper bound, {kinds.count('fixed')} fixed, {n - len(act)} free"]
-
-
-_SETTINGS_TEXT = {"ols": _ols_settings, "gls": _gls_settings, "ridge": _ridge_settings, "rls": _rls_settings,
-                  "rels": _rls_settings, "pcr": _pcr_settings, "map": _map_settings, "bounded": _bounded_settings}
-
-
 @dataclass(frozen=True)
 class EstimateResult:
     """Estimated error coefficients with their uncertainty and how they were obtained.
+
+    Follows the result protocol (:mod:`casep.results`): :meth:`to_dict` (the result JSON) and
+    :meth:`text` (what the command line prints); ``diagnostics`` computes its Cramer-Rao std,
+    variance inflation factors and near-dependency groups on first use
+    (:class:`casep.estimators._lazydict.LazyDiagnostics`).
 
     Attributes
     ----------
@@ -333,7 +165,7 @@ class EstimateResult:
             raise ValueError(f"`std_kind` must be one of {', '.join(STD_KIND_MEANINGS)}, got {self.std_kind!r}")
         if self.sigma_source not in SIGMA_SOURCES:
             raise ValueError(f"`sigma_source` must be one of {', '.join(SIGMA_SOURCES)}, got {self.sigma_source!r}")
-        cls = EXTRAS_TYPES.get(self.method)
+        cls = extras_type(self.method) if self.extras is not None else None
         if self.extras is not None and cls is not None and not isinstance(self.extras, cls):
             raise ValueError(f"`extras` of a {self.method} result must be {cls.__name__}, "
                              f"got {type(self.extras).__name__}")
@@ -410,7 +242,7 @@ class EstimateResult:
             "message": self.message,
             "settings": self.settings,
             "diagnostics": self.diagnostics,
-            "extras": _jsonable(dataclasses.asdict(self.extras)) if self.extras is not None else None,
+            "extras": jsonable(dataclasses.asdict(self.extras)) if self.extras is not None else None,
             "history_names": list(self.history_names) if self.history_names is not None else None,
             **({"model_file": self.model_file} if self.model_file else {}),
         }
@@ -468,13 +300,12 @@ class EstimateResult:
         return pd.DataFrame(self.coefficient_rows()).set_index("name")
 
     def settings_line(self) -> str:
-        """One line with the settings the method chose or was given (tau, lambda, MA model, ...)."""
-        describe = _SETTINGS_TEXT.get(self.method)
-        try:
-            parts = describe(self.settings, self.diagnostics, len(self.names)) if describe else []
-        except (KeyError, TypeError, ValueError):  # a result built by hand with partial settings
-            parts = []
-        if describe is None:
+        """One line with the settings the method chose or was given (tau, lambda, MA model, ...): its
+        extras' ``describe``; for a result without extras (another tool's, fused), its plain settings."""
+        describe = getattr(self.extras, "describe", None)
+        if describe is not None:
+            parts = list(describe(self))
+        else:
             parts = [f"{k} {v}" for k, v in self.settings.items() if isinstance(v, (int, float, str)) and k != "sigma"]
         parts.append("sigma not stated (a result file of another tool)" if self.sigma_source == "external"
                      else _sigma_text(self.settings.get("sigma")))
@@ -483,7 +314,12 @@ class EstimateResult:
         return "settings: " + "; ".join(parts)
 
     def table(self) -> str:
-        """Readable fixed-width table: name, unit, estimate, std, and why a value is missing."""
+        """The same as :meth:`text` (its former name, kept)."""
+        return self.text()
+
+    def text(self) -> str:
+        """What the command line prints (the result protocol, :mod:`casep.results`): a fixed-width table
+        (name, unit, estimate, std, and why a value is missing), the settings line and the outcome."""
         lines = [f"{'coefficient':<12} {'unit':<10} {'estimate':>12} {'std':>12}  note"]
         for row in self.coefficient_rows():
             note = row.get("reason", "")
@@ -514,6 +350,16 @@ class EstimateResult:
         if self.diagnostics.get("warning"):
             lines.append("warning: " + self.diagnostics["warning"])
         return "\n".join(lines)
+
+
+def _extras_from_dict(method: str, d: dict | None):
+    """The typed extras of `method` back from their JSON object (lists -> declared tuples)."""
+    cls = extras_type(method)
+    if d is None or cls is None:
+        return None
+    kw = {f.name: (tuple(d[f.name]) if str(f.type).startswith("tuple") else d[f.name])
+          for f in dataclasses.fields(cls) if f.name in d}
+    return cls(**kw)
 
 
 def result_from_data(rd, model=None) -> EstimateResult:
@@ -595,124 +441,9 @@ def check_result_units(names, units, model, source: str, skip: set[str] | frozen
                              "the estimate, std and covariance to the model's unit")
 
 
-def read_result(source, model=None, option: str = "result") -> tuple[EstimateResult, object]:
-    """A result file read with its model: ``(result, model)``.
-
-    The model is `model` when given (ErrorModel, name or path), else the one the result names:
-    by name (built-in, or ``CASEP_MODEL_PATH``), then by the ``model_file`` the result records.
-    A result whose model cannot be found is a ValueError saying exactly what to pass.
-    """
-    from casep.io.result_json import parse_result_data, read_result_data
-    from casep.model.loader import load_model
-
-    if isinstance(source, EstimateResult):
-        rd, res = None, source
-        where = "result <memory>"
-    else:
-        rd = parse_result_data(source, "result <memory>") if isinstance(source, dict) else \
-            read_result_data(source, option)
-        where = rd.source
-    if model is None:
-        name = (rd.model if rd is not None else source.model) or ""
-        mfile = rd.fields.get("model_file") if rd is not None else source.model_file
-        model = resolve_result_model(name, mfile, where)
-    else:
-        model = load_model(model)
-        name = rd.model if rd is not None else source.model
-        if name and name != model.name:
-            raise ValueError(f"{where} is of model `{name}`, not of model `{model.name}`: give --model {name} "
-                             f"(or leave it out), or a result of `{model.name}`")
-    if rd is not None:
-        res = result_from_data(rd, model)
-    else:
-        check_result_units(res.names, res.units, model, where, skip=_tracking_terms(res.diagnostics))
-    return res, model
-
-
-def resolve_result_model(name: str, model_file: str | None, where: str):
-    """The model a result names (see :func:`read_result`)."""
-    from casep.model.loader import load_model
-
-    if not name and not model_file:
-        raise ValueError(f"{where} names no model (no `model` field): give the model (CLI --model NAME|FILE.py, "
-                         "API model=...)")
-    errors = []
-    for cand in ([name] if name else []) + ([model_file] if model_file else []):
-        try:
-            return load_model(cand)
-        except ValueError as exc:  # unknown name, missing file; a broken file names itself
-            if "unknown model" not in str(exc) and "does not exist" not in str(exc):
-                raise
-            errors.append(cand)
-    hint = f" (the result records model_file {model_file}, which does not exist)" if model_file else ""
-    raise ValueError(f"{where} is of model `{name or model_file}`, which casep cannot find: it is not a built-in model "
-                     f"nor in CASEP_MODEL_PATH{hint}. Give the model file: --model path/to/{name or 'model'}.py "
-                     "(API: model='path/to/model.py')")
-
-
-def write_json_atomic(data: dict[str, Any], path: str | os.PathLike) -> None:
-    """Write JSON to `path` through a temporary file and a rename: never half-written."""
-    try:
-        text = json.dumps(data, indent=2, allow_nan=False) + "\n"
-    except ValueError:  # NaN or inf somewhere: say where, and what put it there
-        where = _first_non_finite(data)
-        raise ValueError(f"{path}: cannot write a non-finite value ({where[1]!r}) at `{where[0]}`: the input that "
-                         "produced it is out of range (a prior, bound or option far beyond its plausible values?)"
-                         if where else f"{path}: cannot write a non-finite value") from None
-    with atomic_open(path) as fh:
-        fh.write(text)
-
-
-def _first_non_finite(v: Any, where: str = "") -> tuple[str, float] | None:
-    """The path (``settings.prior.Kg0x.mean``) and value of the first NaN or inf in a JSON-like value."""
-    if isinstance(v, dict):
-        items = v.items()
-    elif isinstance(v, (list, tuple)):
-        items = ((f"[{i}]", x) for i, x in enumerate(v))
-    else:
-        return (where, float(v)) if isinstance(v, float) and not math.isfinite(v) else None
-    for k, x in items:
-        key = k if str(k).startswith("[") else (f"{where}.{k}" if where else str(k))
-        hit = _first_non_finite(x, where + key if str(k).startswith("[") else key)
-        if hit:
-            return hit
-    return None
-
-
-def _nan_array(a: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray:
-    return np.full(shape, np.nan) if a is None else np.asarray(a, dtype=float)
-
-
-def _mat_value(v: Any) -> Any:
-    """A JSON-like value as scipy.io.savemat stores it, or None to leave it out.
-
-    Numbers -> double (null -> NaN), strings -> char, lists of numbers -> double vectors,
-    lists of strings -> cellstr, dicts with MATLAB-valid keys -> struct.
-    """
-    if v is None:
-        return np.nan
-    if isinstance(v, (bool, np.bool_)):
-        return bool(v)
-    if isinstance(v, (int, float, np.integer, np.floating)):
-        return float(v)
-    if isinstance(v, str):
-        return v
-    if isinstance(v, (list, tuple)):
-        if all(x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in v):
-            return np.array([np.nan if x is None else float(x) for x in v], dtype=float)
-        if all(isinstance(x, str) for x in v):
-            return np.array(list(v), dtype=object)
-        return None
-    if isinstance(v, dict):
-        out = {k: mv for k, x in v.items()
-               if isinstance(k, str) and k.isidentifier() and k[0].isalpha() and (mv := _mat_value(x)) is not None}
-        return out or None
-    return None
-
-
 def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | None = None,
               provenance: Mapping[str, Any] | None = None) -> None:
-    """Write the result as a MATLAB/Octave ``.mat`` file (scipy.io.savemat), atomically.
+    """Write the result as a MATLAB/Octave ``.mat`` file (:func:`casep.io.result_files.write_mat_fields`).
 
     With `t` (the times of the residual rows, s) the file holds ``t_residuals`` beside ``residuals``;
     the near-dependency groups are ``groups`` (a cell array of cellstr); with `provenance`
@@ -727,15 +458,13 @@ def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | N
     (cellstr, "" where none) and the structs ``settings``, ``diagnostics``, ``denoise``
     where their fields are simple (numbers, strings, flat lists, nested such structs).
     """
-    from scipy.io import savemat
-
     n = len(res.names)
     data: dict[str, Any] = {
         "names": np.array(res.names, dtype=object),
         "units": np.array(res.units, dtype=object),
         "estimates": np.asarray(res.estimate, dtype=float),
-        "std": _nan_array(res.std, (n,)),
-        "covariance": _nan_array(res.covariance, (n, n)),
+        "std": np.full(n, np.nan) if res.std is None else np.asarray(res.std, dtype=float),
+        "covariance": np.full((n, n), np.nan) if res.covariance is None else np.asarray(res.covariance, dtype=float),
         "residuals": np.asarray(res.residuals, dtype=float).reshape(-1, 3),
         "reasons": np.array([res.reasons.get(nm, "") for nm in res.names], dtype=object),
         "sigma": float(res.sigma), "rank": float(res.rank), "status": float(res.status),
@@ -755,27 +484,15 @@ def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | N
         cell[k] = np.array(list(g), dtype=object)
     data["groups"] = cell
     if provenance is not None:
-        data["provenance_json"] = json.dumps(_jsonable(provenance))
+        data["provenance_json"] = json.dumps(jsonable(provenance))
         data["command_line"] = str(provenance.get("command_line", ""))
         files = provenance.get("inputs", [])
         for key, field_name in (("input_files", "file"), ("input_sha256", "sha256"), ("input_roles", "role")):
             data[key] = np.array([str(f.get(field_name) or "") for f in files], dtype=object)
-    for key in ("settings", "diagnostics", "denoise"):
-        value = _mat_value(getattr(res, key))
-        if isinstance(value, dict):
-            data[key] = value
-    with atomic_open(path, binary=True) as fh:
-        savemat(fh, data, long_field_names=True, oned_as="column", do_compression=True)
+    write_mat_fields(data, path, structs={k: getattr(res, k) for k in ("settings", "diagnostics", "denoise")})
 
 
 def write_csv(res: EstimateResult, path: str | os.PathLike) -> None:
-    """Write one row per coefficient (name, unit, estimate, std, reason) atomically.
-
-    Missing values are empty cells; numbers keep 17 significant digits.
-    """
-    with atomic_open(path) as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(["name", "unit", "estimate", "std", "reason"])
-        for row in res.coefficient_rows():
-            w.writerow([row["name"], row["unit"]] + ["" if row[k] is None else repr(float(row[k]))
-                                                     for k in ("estimate", "std")] + [row.get("reason", "")])
+    """Write one row per coefficient (name, unit, estimate, std, reason) atomically
+    (:func:`casep.io.result_files.write_coefficients_csv`)."""
+    write_coefficients_csv(res.coefficient_rows(), path)

@@ -23,14 +23,41 @@ n x n reduced system (never on the 3N rows) as an independent cross-check.
 
 from __future__ import annotations
 
-from typing import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Unpack
 
 import numpy as np
 
-from casep.estimators._base import check_positive, finish, prepare
-from casep.estimators.result import EstimateResult, RidgeExtras
+from casep.estimators._base import Prepared, finish
+from casep.estimators._options import Choices, Interval, Labels, Method, Option
 
-__all__ = ["solve_ridge", "gcv_curve", "lcurve_corner"]
+if TYPE_CHECKING:
+    from casep.analysis.problem import Problem
+    from casep.estimators.ols import LinearMap
+    from casep.estimators.result import EstimateResult
+
+__all__ = ["solve_ridge", "gcv_curve", "lcurve_corner", "RIDGE", "RidgeExtras"]
+
+#: Its option (``casep separate --lambda``) and solver keyword.
+LAM = Option("lam", "--lambda", "gcv", (Choices(("gcv", "lcurve")), Interval(float, 0, None, "neither")),
+             "ridge parameter on unit-norm columns, or its rule")
+SOLVER = Option("solver", "--solver", "svd", (Choices(("svd", "cvxpy")),),
+                "closed form through the SVD of the reduced triangle, or cvxpy + Clarabel")
+
+
+@dataclass(frozen=True)
+class RidgeExtras:
+    """Ridge: lambda (scaled coordinates), the rule that chose it, effective dof tr(H)."""
+
+    lam: float
+    rule: str
+    effective_dof: float
+
+    def describe(self, res: Any) -> list[str]:
+        """Its part of the settings line."""
+        rule = {"gcv": "GCV", "lcurve": "L-curve corner"}.get(self.rule, self.rule)
+        return [f"lambda {self.lam:.4g} on unit-norm columns ({rule})",
+                f"effective dof {self.effective_dof:.3g} of {len(res.names)}"]
 
 
 def _ridge_terms(s: np.ndarray, beta: np.ndarray, rho2: float, lam: np.ndarray):
@@ -90,44 +117,31 @@ def _cvxpy_ridge(R: np.ndarray, q: np.ndarray, lam: float) -> np.ndarray:
     return np.asarray(z.value, dtype=float)
 
 
-def solve_ridge(
-    S: np.ndarray,
-    y: np.ndarray | None = None,
-    *,
-    lam: float | str = "gcv",
-    solver: str = "svd",
-    sigma: float | None = None,
-    names: Sequence[str] | None = None,
-    units: Sequence[str] | None = None,
-    si_factors: Sequence[float] | None = None,
-    rcond: float | None = None,
-) -> EstimateResult:
+def solve_ridge(S: np.ndarray | Problem, y: np.ndarray | None = None, *, lam: float | str = "gcv",
+                solver: str = "svd", **labels: Unpack[Labels]) -> EstimateResult:
     """Ridge estimate of ``D`` on unit-norm columns.
 
     Parameters
     ----------
-    S, y : array_like
+    S, y : array_like or Problem
         Regression (natural units) and velocity error, as :func:`casep.solve_ols`.
     lam : float or {"gcv", "lcurve"}, optional
         Ridge parameter for the unit-norm columns, or the rule choosing it (default GCV).
     solver : {"svd", "cvxpy"}, optional
         Closed form through the SVD of the reduced triangle, or cvxpy + Clarabel.
-    sigma : float, optional
-        Noise std for the reported std (default: ``RSS / (m - tr H)``).
+    **labels
+        ``names``, ``units``, ``si_factors``, ``rcond`` as :func:`casep.solve_ols`; ``sigma``: noise
+        std for the reported std (default: ``RSS / (m - tr H)``).
 
     Returns
     -------
     EstimateResult
         ``settings["lambda"]`` the value used; ``diagnostics["effective_dof"]`` = tr H.
     """
-    if isinstance(lam, str):
-        if lam not in ("gcv", "lcurve"):
-            raise ValueError(f"`lam` must be a number > 0, 'gcv' or 'lcurve', got {lam!r}")
-    else:
-        lam = check_positive("lam", lam, allow_none=False)
-    if solver not in ("svd", "cvxpy"):
-        raise ValueError(f"`solver` must be 'svd' or 'cvxpy', got {solver!r}")
-    pb = prepare(S, y, names, units, si_factors, sigma, rcond)
+    return RIDGE.call(S, y, lam=lam, solver=solver, **labels)
+
+
+def _solve(pb: Prepared, *, method: Method, lam: float | str, solver: str) -> EstimateResult:
     U, s, Vt = pb.ra.U, pb.ra.s, pb.ra.Vt
     beta = U.T @ pb.red.qty
     m = pb.m
@@ -136,6 +150,7 @@ def solve_ridge(
         lam = _gcv_lambda(s, beta, pb.red.rho2, m)
     elif lam == "lcurve":
         lam = lcurve_corner(s, beta, pb.red.rho2)
+    lam = float(lam)
     filt = s / (s**2 + lam)  # z = V diag(s / (s^2 + lambda)) U^T q
     z = Vt.T @ (filt * beta) if solver == "svd" else _cvxpy_ridge(pb.red.R, pb.red.qty, lam)
     rss, trh, _ = _ridge_terms(s, beta, pb.red.rho2, np.array([lam]))
@@ -143,7 +158,7 @@ def solve_ridge(
     G = Vt.T * (s / (s**2 + lam))  # Cov(z) = sigma^2 G G^T
     inv_c = pb.inv_c
     cov = sig**2 * (G @ G.T) * np.outer(inv_c, inv_c)
-    return finish(pb, "ridge", z * inv_c, cov, sig,
+    return finish(pb, method, z * inv_c, cov, sig,
                   settings={"lambda": float(lam), "lambda_rule": rule, "solver": solver,
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
                   diagnostics={"effective_dof": float(trh[0])},
@@ -154,7 +169,7 @@ def solve_ridge(
 __all__ += ["ridge_linear_map"]
 
 
-def ridge_linear_map(S: np.ndarray, lam: float, *, rcond: float | None = None):
+def ridge_linear_map(S: np.ndarray, lam: float, *, rcond: float | None = None) -> LinearMap:
     """The linear map of :func:`solve_ridge` at a given lambda: ``D = diag(1/c) V diag(s/(s^2+lambda)) U^T Q^T y``.
 
     Returns
@@ -165,10 +180,18 @@ def ridge_linear_map(S: np.ndarray, lam: float, *, rcond: float | None = None):
     """
     from casep.estimators.ols import LinearMap, scaled_factors
 
-    lam = check_positive("lam", lam, allow_none=False)
+    if isinstance(lam, str):
+        raise ValueError(f"`lam` must be a number > 0 for the linear map (a rule chooses it per run), got {lam!r}")
+    lam = LAM.check(lam)
     pb, Q, U, s, Vt = scaled_factors(S, rcond)
     G = Vt.T * (s / (s**2 + lam))  # z = V diag(s / (s^2 + lambda)) U^T Q^T y
     K = (G @ (Q @ U).T) * pb.inv_c[:, None]
     cov = (G @ G.T) * np.outer(pb.inv_c, pb.inv_c)
     trh = float(np.sum(s**2 / (s**2 + lam)))  # tr H
     return LinearMap(K, np.zeros(pb.n), cov, pb.m - trh, ~pb.ra.estimable)
+
+
+#: Ridge regression (biased towards 0 along poorly determined directions).
+RIDGE = Method("ridge", "ridge regression (GCV, L-curve or given lambda)", _solve, "solve_ridge", (LAM,),
+               keywords=(SOLVER,), extras_type=RidgeExtras, regularised=True,
+               linear_map=lambda S, **kw: ridge_linear_map(S, kw["lam"], rcond=kw.get("rcond")))

@@ -67,43 +67,84 @@ given. With ``lambda < 1`` P is no longer a covariance and the std is indicative
 
 from __future__ import annotations
 
-from typing import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Unpack
 
 import numpy as np
 
-from casep._kernels import rels_ud
-from casep.analysis.problem import Problem as RegressionProblem
-from casep.estimators._base import check_positive, finish, prepare
-from casep.estimators.result import EstimateResult, RLSExtras
+from casep.estimators._base import Prepared, finish
+from casep.estimators._options import Choices, Interval, Labels, Method, Option
 
-__all__ = ["solve_rls", "DEFAULT_P0"]
+if TYPE_CHECKING:
+    from casep.analysis.problem import Problem
+    from casep.estimators.ols import LinearMap
+    from casep.estimators.result import EstimateResult
+
+__all__ = ["solve_rls", "DEFAULT_P0", "RLS", "RELS", "RLSExtras"]
 
 #: The paper's initial covariance scale (P0 = 1e6 I, natural units).
 DEFAULT_P0 = 1e6
 _MAX_HISTORY = 2000  # rows of estimate history kept by default
 
+#: Its options (``casep separate --p0 --weight --forgetting --noise-order``) and solver keywords.
+P0 = Option("p0", "--p0", DEFAULT_P0, (Interval(float, 0, 1e30, "right"),),
+            "P0 = p0 I, natural units (a prior variance)",
+            # Measured on the paper flight (20 Hz, U-D recursion on unit-norm columns): |RLS - OLS| is 6e-5 OLS
+            # std at p0 = 1e14, 8e-9 at 1e20, 5e-5 at 1e30, 5e-2 at 1e40 and 930 at 1e50 (the error grows like
+            # p0 * eps).
+            why="natural units^2; beyond it the RLS recursion loses its digits, and 1e14 already gives least "
+                "squares on the paper flight")
+WEIGHT = Option("weight", "--weight", 1.0, (Interval(float, 1e-12, 1e12),), "measurement weight w (variance 1/w)",
+                # w is a measurement precision 1/variance; beyond 1e+-12 (m/s)^-2, w^-1/2 is 1e-6 .. 1e6 m/s.
+                why="(m/s)^-2; 1 / weight is the measurement variance")
+FORGETTING = Option("forgetting", "--forgetting", 1.0, (Interval(float, 0.5, 1, "both"),),
+                    "forgetting factor (stabilized)",
+                    # A memory of about 1 / (1 - lambda) samples: below 0.5 that is under two samples (nothing
+                    # left to estimate 30-odd coefficients from), and P / lambda overflows as lambda nears 1e-308.
+                    why="a memory of about 1 / (1 - forgetting) samples; useful: 0.99 .. 1")
+NOISE_ORDER = Option("noise_order", "--noise-order", 1, (Interval(int, 1),), "MA order of the noise model")
+RESIDUALS = Option("residuals", "--residuals", "posterior", (Choices(("posterior", "prior")),),
+                   "which residuals feed the RELS regressor")
+HISTORY_STRIDE = Option("history_stride", "--history-stride", None, (Interval(int, 1),),
+                        "keep the estimate every this many samples (default: about 2000 rows)")
+_ANY_ORDER = Option("noise_order", "--noise-order", 0, (Interval(int, 0),), "noise-model order (0: plain RLS)")
 
-def solve_rls(
-    S: np.ndarray,
-    y: np.ndarray | None = None,
-    *,
-    p0: float = DEFAULT_P0,
-    weight: float = 1.0,
-    forgetting: float = 1.0,
-    noise_order: int = 0,
-    residuals: str = "posterior",
-    sigma: float | None = None,
-    history_stride: int | None = None,
-    names: Sequence[str] | None = None,
-    units: Sequence[str] | None = None,
-    si_factors: Sequence[float] | None = None,
-    rcond: float | None = None,
-) -> EstimateResult:
+
+@dataclass(frozen=True)
+class RLSExtras:
+    """RLS/RELS: prior scale ``p0`` (P0 = p0 I, scaled coordinates), measurement weight,
+    forgetting factor, MA order, and the RELS noise model ``v(k) = e(k) - sum_j c_j v(k-j)``
+    (coefficients, their posterior std, innovation RMS in m/s; empty/None for RLS)."""
+
+    p0: float
+    weight: float
+    forgetting: float
+    noise_order: int
+    ma_coefficients: tuple[float, ...] = ()
+    ma_std: tuple[float, ...] = ()
+    innovation_rms: float | None = None
+
+    def describe(self, res: Any) -> list[str]:
+        """Its part of the settings line."""
+        out = [f"p0 {self.p0:.4g}, weight {self.weight:.4g}, forgetting {self.forgetting:.6g}"]
+        if np.isfinite(res.sigma):  # the prior std P0 means to this result: sigma sqrt(w p0)
+            out.append(f"effective prior std {res.sigma * np.sqrt(self.weight * self.p0):.4g} (natural units)")
+        if self.ma_coefficients:
+            ma = ", ".join(f"c{j + 1} {c:.4g} +- {e:.2g}" for j, (c, e) in enumerate(zip(self.ma_coefficients,
+                                                                                      self.ma_std)))
+            rms = "-" if self.innovation_rms is None else f"{self.innovation_rms:.4g}"
+            out.append(f"MA({len(self.ma_coefficients)}) noise model {ma}; innovation RMS {rms} m/s")
+        return out
+
+
+def solve_rls(S: np.ndarray | Problem, y: np.ndarray | None = None, *, p0: float = DEFAULT_P0, weight: float = 1.0,
+              forgetting: float = 1.0, noise_order: int = 0, residuals: str = "posterior",
+              history_stride: int | None = None, **labels: Unpack[Labels]) -> EstimateResult:
     """RLS (``noise_order=0``) or RELS (``noise_order >= 1``) estimate of ``D``.
 
     Parameters
     ----------
-    S : (N, 3, n) array_like
+    S : (N, 3, n) array_like or Problem
         Regression matrix in natural units, samples in time order.
     y : (N, 3) array_like
         Velocity error, m/s.
@@ -112,16 +153,17 @@ def solve_rls(
     weight : float, optional
         The paper's ``w``: measurement variance ``1 / w`` (default 1).
     forgetting : float, optional
-        Forgetting factor ``lambda`` in (0, 1] (default 1: none); stabilized towards the
+        Forgetting factor ``lambda`` in [0.5, 1] (default 1: none); stabilized towards the
         prior so that P never exceeds P_0 (see Notes of the module).
     noise_order : int, optional
         RELS noise-model order ``n_c >= 0`` (0: plain RLS).
     residuals : {"posterior", "prior"}, optional
         Which residuals feed the RELS regressor (see Notes of the module).
-    sigma : float, optional
-        Noise std for the reported std, m/s (default: estimated).
     history_stride : int, optional
         Keep the estimate every this many samples (default: about 2000 rows).
+    **labels
+        ``names``, ``units``, ``si_factors``, ``rcond`` as :func:`casep.solve_ols`; ``sigma``: noise
+        std for the reported std, m/s (default: estimated).
 
     Returns
     -------
@@ -132,25 +174,21 @@ def solve_rls(
         ``sum_j U_ij^2 D_j``, computed at the history rows only);
         ``diagnostics["noise_model"]`` the MA coefficients and their std for RELS.
     """
-    if not isinstance(S, RegressionProblem):
-        S = np.asarray(S, dtype=float)
-        if S.ndim != 3 or S.shape[1] != 3:
-            raise ValueError(f"`S` must be (N, 3, n) in time order for a recursive method, got shape {S.shape}")
-    p0 = check_positive("p0", p0, allow_none=False)
-    weight = check_positive("weight", weight, allow_none=False)
-    forgetting = check_positive("forgetting", forgetting, allow_none=False, upper=1.0)
-    if isinstance(noise_order, bool) or not isinstance(noise_order, (int, np.integer)) or noise_order < 0:
-        raise ValueError(f"`noise_order` must be an int >= 0, got {noise_order!r}")
-    if residuals not in ("posterior", "prior"):
-        raise ValueError(f"`residuals` must be 'posterior' or 'prior', got {residuals!r}")
-    pb = prepare(S, y, names, units, si_factors, sigma, rcond)
+    nc = _ANY_ORDER.check(noise_order)
+    opts: dict[str, Any] = {"p0": p0, "weight": weight, "forgetting": forgetting, "residuals": residuals,
+                            "history_stride": history_stride}
+    return (RELS.call(S, y, noise_order=nc, **opts, **labels) if nc else RLS.call(S, y, **opts, **labels))
+
+
+def _solve(pb: Prepared, *, method: Method, p0: float, weight: float, forgetting: float, noise_order: int,
+           residuals: str = "posterior", history_stride: int | None = None) -> EstimateResult:
+    from casep._kernels import rels_ud  # numba: compiled on first use
+
     if len(pb.shape) != 2 or pb.shape[1] != 3:
-        raise ValueError(f"the problem's rows must be (N, 3) samples x axes for a recursive method, got {pb.shape}")
+        raise ValueError(f"`S` must be (N, 3, n) in time order for a recursive method, got rows of shape {pb.shape}")
     N = pb.shape[0]
     if history_stride is None:
         history_stride = max(1, -(-N // _MAX_HISTORY))
-    elif isinstance(history_stride, bool) or not isinstance(history_stride, (int, np.integer)) or history_stride < 1:
-        raise ValueError(f"`history_stride` must be a positive int, got {history_stride!r}")
     n, nc = pb.n, int(noise_order)
     c = pb.red.scale
     live = c > 0  # zero columns stay out of the recursion (estimate = prior mean, reported null)
@@ -164,7 +202,7 @@ def solve_rls(
     hist = np.zeros((-(-N // history_stride), p + nc))  # rows for samples 0, stride, 2 stride, ... < N
     hist_var = np.zeros_like(hist)  # diag(P) at the same rows, scaled coordinates
     innov_ss = 0.0
-    restart = set(getattr(pb.problem, "segment_starts", ())) - {0}  # several flights: each its own noise
+    restart = set(pb.problem.segment_starts) - {0}  # several flights: each its own noise
     for sl, S_b, y_b in pb.problem.blocks():  # S_V block by block (regenerated, never whole)
         if sl.start in restart:
             past[:] = 0.0  # RELS: a new flight's noise does not continue the last one's
@@ -191,29 +229,26 @@ def solve_rls(
     cov = np.full((n, n), 0.0)
     inv = 1.0 / cl
     cov[np.ix_(live, live)] = cov_s[:p, :p] * np.outer(inv, inv)
-    method = "rels" if nc else "rls"
     hist_nat = hist.copy()
     hist_nat[:, :p] /= cl
     history = np.zeros((hist.shape[0], n + nc))
     history[:, np.flatnonzero(live)] = hist_nat[:, :p]
     history[:, n:] = hist_nat[:, p:]
     history_std = _history_std(hist_var, sig**2 * weight, live, cl, n)
-    diagnostics = {"effective_prior_std": float(sig * np.sqrt(weight * p0))}
+    diagnostics: dict[str, Any] = {"effective_prior_std": float(sig * np.sqrt(weight * p0))}
+    ma = tuple(float(v) for v in x[p:])
+    ma_std = tuple(float(np.sqrt(cov_s[p + j, p + j])) for j in range(nc))
+    innovation_rms = float(np.sqrt(innov_ss / (3 * N))) if nc else None
     if nc:
-        diagnostics["noise_model"] = {
-            "ma_coefficients": [float(v) for v in x[p:]],
-            "ma_std": [float(np.sqrt(cov_s[p + j, p + j])) for j in range(nc)],
-            "innovation_rms": float(np.sqrt(innov_ss / (3 * N))),
-        }
+        diagnostics["noise_model"] = {"ma_coefficients": list(ma), "ma_std": list(ma_std),
+                                      "innovation_rms": innovation_rms}
     res = finish(
         pb, method, x_nat, cov, sig,
         settings={"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": nc,
                   "residuals": residuals, "history_stride": history_stride,
                   "sigma": "estimated" if pb.sigma is None else pb.sigma},
         diagnostics=diagnostics, history=history, residuals=fit, history_std=history_std,
-        extras=RLSExtras(float(p0), float(weight), float(forgetting), int(nc),
-                         **{k: (tuple(v) if isinstance(v, list) else v)
-                            for k, v in diagnostics.get("noise_model", {}).items()}),
+        extras=RLSExtras(float(p0), float(weight), float(forgetting), int(nc), ma, ma_std, innovation_rms),
     )
     if forgetting < 1.0:  # P is then no covariance and the prior no belief: the std are indicative only
         return res
@@ -248,12 +283,13 @@ def prior_conflict(problem, res: EstimateResult, prior_std: float, sigma: float)
     ls_sigma = float(np.sqrt(problem.ls_rss() / max(problem.m - problem.rank().rank, 1)))
     if problem.y is not None and ls_sigma <= NOISE_FREE * float(np.max(np.abs(problem.y))):
         return res  # noise-free data: every std is rounding (check_fit says so); no prior is consistent with it
-    ok = np.isfinite(ls.estimate) & np.isfinite(ls.std)
-    z = np.where(ok, np.abs(np.nan_to_num(ls.estimate)) / np.sqrt(prior_std**2 + np.nan_to_num(ls.std) ** 2), 0.0)
+    ls_std = np.asarray(ls.std, dtype=float)  # least squares always defines its std
+    ok = np.isfinite(ls.estimate) & np.isfinite(ls_std)
+    z = np.where(ok, np.abs(np.nan_to_num(ls.estimate)) / np.sqrt(prior_std**2 + np.nan_to_num(ls_std) ** 2), 0.0)
     if not np.any(z > PRIOR_CONFLICT_Z):
         return res
     order = np.argsort(-z)[: min(5, int(np.sum(z > PRIOR_CONFLICT_Z)))]
-    rows = [{"name": res.names[j], "least_squares": float(ls.estimate[j]), "least_squares_std": float(ls.std[j]),
+    rows = [{"name": res.names[j], "least_squares": float(ls.estimate[j]), "least_squares_std": float(ls_std[j]),
              "z": float(z[j])} for j in order]
     listed = "; ".join(f"{r['name']}: least squares {r['least_squares']:.4g} +- {r['least_squares_std']:.2g} "
                        f"{res.units[res.names.index(r['name'])]}, z = {r['z']:.3g}" for r in rows)
@@ -281,7 +317,8 @@ def _history_std(hist_var: np.ndarray, scale2: float, live: np.ndarray, cl: np.n
 __all__ += ["rls_linear_map"]
 
 
-def rls_linear_map(S: np.ndarray, *, p0: float = DEFAULT_P0, weight: float = 1.0, rcond: float | None = None):
+def rls_linear_map(S: np.ndarray, *, p0: float = DEFAULT_P0, weight: float = 1.0,
+                   rcond: float | None = None) -> LinearMap:
     """The linear map of :func:`solve_rls` without forgetting and without noise model.
 
     With ``lambda = 1`` and ``noise_order = 0`` the recursion ends at the closed form
@@ -308,8 +345,7 @@ def rls_linear_map(S: np.ndarray, *, p0: float = DEFAULT_P0, weight: float = 1.0
     """
     from casep.estimators.ols import LinearMap, scaled_factors
 
-    p0 = check_positive("p0", p0, allow_none=False)
-    weight = check_positive("weight", weight, allow_none=False)
+    p0, weight = P0.check(p0), WEIGHT.check(weight)
     pb, Q, U, s, Vt = scaled_factors(S, rcond)
     c = pb.red.scale
     live = c > 0
@@ -323,3 +359,16 @@ def rls_linear_map(S: np.ndarray, *, p0: float = DEFAULT_P0, weight: float = 1.0
     cov = np.zeros((pb.n, pb.n))
     cov[np.ix_(live, live)] = weight * P / np.outer(c[live], c[live])  # w P_N per unit sigma^2
     return LinearMap(K, np.zeros(pb.n), cov, float(pb.m - int(live.sum())), ~pb.ra.estimable)
+
+
+#: RLS, paper Eq. (14); its linear map holds without forgetting (the closed form of the module Notes).
+RLS = Method("rls", "recursive least squares, paper Eq. (14), Bierman U-D", _solve, "solve_rls",
+             (P0, WEIGHT, FORGETTING), keywords=(RESIDUALS, HISTORY_STRIDE), fixed={"noise_order": 0},
+             recursive=True, batched=True, std_kind="posterior", extras_type=RLSExtras,
+             hint="forgetting too strong for this flight?",
+             linear_map=lambda S, **kw: rls_linear_map(S, p0=kw.get("p0", DEFAULT_P0), weight=kw.get("weight", 1.0),
+                                                       rcond=kw.get("rcond")))
+#: RELS: RLS with a moving-average noise model (its memory restarts at each flight of several).
+RELS = Method("rels", "recursive extended least squares (MA noise model)", _solve, "solve_rls",
+              (P0, WEIGHT, FORGETTING, NOISE_ORDER), keywords=(RESIDUALS, HISTORY_STRIDE), recursive=True,
+              std_kind="posterior", extras_type=RLSExtras, hint="forgetting too strong for this flight?")

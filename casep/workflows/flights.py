@@ -2,99 +2,43 @@
 
 Each flight becomes its own :class:`~casep.analysis.problem.Problem` (its checks, its S_V, its QR);
 its noise sigma is estimated from its own least-squares residuals (or given); the flights are
-combined by :func:`casep.estimators.joint.joint_reduction` into one whitened reduced system over
+combined into one :class:`~casep.analysis.joint.JointProblem`, a whitened reduced system over
 ``theta = [shared, per-flight(1), ..., per-flight(K)]`` (per-flight: the model's
 ``declare(..., per_flight=True)`` coefficients), which the reduction-based methods solve (OLS,
 ridge, bounded, PCR, MAP). The same whitened problem also gives its rows flight after flight
-(:meth:`JointProblem.blocks`: flight k's ``S_k P_k / sigma_k``, ``y_k / sigma_k``), so RLS and RELS
-run the flights in sequence (the RELS noise memory restarts at each flight) and Huber weighs the
-stacked whitened rows (its scale estimated, about 1). GLS whitens each flight with its own
-Gauss-Markov correlation time (REML per flight, or given) before the flights are combined.
+(:meth:`~casep.analysis.joint.JointProblem.blocks`, one segment per flight), so the recursive methods
+(RLS, RELS) run the flights in sequence (the RELS noise memory restarts at each flight). What else a
+method does with several flights is its own declaration
+(:class:`~casep.estimators._options.SeveralFlights`): Huber estimates the scale of the stacked whitened
+rows (about 1) and names each outlier's flight; GLS whitens each flight with its own Gauss-Markov
+correlation time (REML per flight, or given) and solves the combined rows as least squares.
 Residuals are each flight's own, divided by its sigma (the whitened system the joint fit minimises).
 """
 
 from __future__ import annotations
 
-import math
 import os
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from casep.analysis.problem import DEFAULT_BLOCK_ROWS, Problem
-from casep.estimators.joint import JointLayout, joint_reduction
-from casep.estimators.registry import METHODS, check_method_options, run_method
+from casep.analysis.joint import JointLayout, JointProblem
+from casep.analysis.problem import Problem
+from casep.estimators.registry import METHODS, check_method_options
 from casep.estimators.result import EstimateResult
+from casep.workflows.fusion import FUSE_FAIL_P, FUSE_WARN_P, fuse, fuse_with_ground  # re-export: remove after merge
 
-__all__ = ["JointProblem", "separate_flights", "flights_summary", "fuse", "diagnose_flights", "JOINT_METHODS",
-           "FUSE_WARN_P", "FUSE_FAIL_P", "fuse_with_ground"]
-
-#: Methods that estimate several flights jointly (all of the registry's).
-JOINT_METHODS = ("ols", "ridge", "bounded", "pcr", "map", "rls", "rels", "huber", "gls")
+# and JOINT_METHODS (module __getattr__: the registry's as it is now)
+__all__ = ["JointProblem", "separate_flights", "flights_summary", "fuse", "diagnose_flights", "FUSE_WARN_P",
+           "FUSE_FAIL_P", "fuse_with_ground"]
 
 
-class JointProblem(Problem):
-    """Several flights' problems as one whitened problem over the joint parameters.
-
-    Parameters
-    ----------
-    problems : sequence of Problem
-        One per flight, same model.
-    sigmas : sequence of float
-        Each flight's noise std, m/s: its rows are divided by it.
-    layout : JointLayout
-    raw : sequence of Problem, optional
-        The flights as read, when `problems` are transformed (GLS: AR(1)-whitened); the summary's
-        residuals are theirs.
-    interpolated : sequence of bool, optional
-        Flights whose tracking was interpolated onto telemetry times (correlated noise: the
-        summary says its tests are optimistic); default none.
-    """
-
-    def __init__(self, problems: Sequence[Problem], sigmas: Sequence[float], layout: JointLayout,
-                 raw: Sequence[Problem] | None = None, interpolated: Sequence[bool] | None = None) -> None:
-        red = joint_reduction([p.red for p in problems], sigmas, layout)
-        units = layout.expand(problems[0].units)
-        si = layout.expand(list(problems[0].si_factors))
-        y = np.concatenate([p.y.reshape(-1, 3) / s for p, s in zip(problems, sigmas)])  # whitened, (N, 3)
-        super().__init__(names=layout.joint_names, units=units, si_factors=si, red=red, y=y,
-                         model=problems[0].model, source=" + ".join(p.source for p in problems))
-        self.problems = tuple(problems)
-        self.raw = tuple(raw) if raw is not None else self.problems
-        self.interpolated = tuple(bool(v) for v in interpolated) if interpolated else (False,) * len(problems)
-        self.sigmas = tuple(float(s) for s in sigmas)
-        self.layout = layout
-        sizes = [p.y.reshape(-1, 3).shape[0] for p in problems]
-        #: First sample of each flight in the stacked rows (RELS restarts its noise memory there).
-        self.segment_starts = tuple(int(v) for v in np.cumsum([0] + sizes[:-1]))
-
-    @property
-    def has_rows(self) -> bool:
-        return all(p.has_rows for p in self.problems)
-
-    def blocks(self, rows: int = DEFAULT_BLOCK_ROWS):
-        """Yield ``(row slice, S block, y block)``: flight after flight, each block
-        ``S_k P_k / sigma_k`` (its coefficients placed in the joint columns, zero elsewhere) and
-        ``y_k / sigma_k``. The S block is reused between yields."""
-        n = self.n
-        for k, (p, s, start) in enumerate(zip(self.problems, self.sigmas, self.segment_starts)):
-            cols = self.layout.columns(k)
-            for sl, S_b, y_b in p.blocks(rows):
-                out = np.zeros(S_b.shape[:-1] + (n,))
-                out[..., cols] = S_b / s  # S_k P_k / sigma_k
-                yield slice(start + sl.start, start + sl.stop), out, y_b / s
-
-    def residuals(self, x: np.ndarray) -> np.ndarray:
-        """Each flight's ``(y_k - S_k P_k x) / sigma_k``, stacked: the joint fit's whitened residuals."""
-        x = np.asarray(x, dtype=float)
-        return np.concatenate([p.residuals(x[self.layout.columns(k)]).reshape(-1) / s
-                               for k, (p, s) in enumerate(zip(self.problems, self.sigmas))])
-
-    def flight_estimates(self, x: np.ndarray) -> list[np.ndarray]:
-        """Flight k's coefficients in model order (shared + its own per-flight ones)."""
-        x = np.asarray(x, dtype=float)
-        return [x[self.layout.columns(k)] for k in range(self.layout.n_flights)]
+def __getattr__(name: str) -> Any:
+    # JOINT_METHODS: the methods that estimate several flights jointly (the registry's with hooks for it), as now
+    if name == "JOINT_METHODS":
+        return tuple(k for k, m in METHODS.items() if m.flights is not None)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _labels(problems: Sequence[Problem]) -> tuple[str, ...]:
@@ -116,8 +60,8 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     flights : sequence of FlightData, Problem or path
         Two or more flights of the same model.
     model : str, path or ErrorModel
-    method : {"ols", "ridge", "bounded", "pcr", "map"}
-        A method that solves from the reduction.
+    method : str
+        A registered method with hooks for several flights (:data:`JOINT_METHODS`: every built-in one).
     sigma : float or sequence of float, optional
         Noise std per flight (one value for all), m/s; default: each flight's own least-squares
         residual std ``sqrt(RSS_k / (m_k - rank_k))``.
@@ -140,8 +84,12 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     from casep.io.flight import FlightData
     from casep.model.loader import load_model
 
-    if method not in JOINT_METHODS:
-        raise ValueError(f"method `{method}` cannot be estimated jointly; use one of {', '.join(JOINT_METHODS)}")
+    if method not in METHODS or METHODS[method].flights is None:
+        joint = [k for k, m in METHODS.items() if m.flights is not None]
+        raise ValueError(f"method `{method}` cannot be estimated jointly; use one of {', '.join(joint)}")
+    meth = METHODS[method]
+    hooks = meth.flights
+    assert hooks is not None  # refused above
     if len(flights) < 2:
         raise ValueError(f"`flights` must hold two or more flights, got {len(flights)}")
     model = load_model(model)
@@ -157,7 +105,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         problems.append(Problem.from_flight(fl, model))
     _refuse_repeats(problems)
     opts = dict(options or {})
-    check_method_options(method, {k: v for k, v in opts.items() if v is not None})
+    check_method_options(method, {k: v for k, v in opts.items() if v is not None})  # once, here
     for key in ("prior", "bounds"):  # on shared coefficients only (a per-flight one is refused, not dropped)
         per = [k for k in (opts.get(key) or {}) if k in model.names and model.per_flight[model.names.index(k)]]
         if per:
@@ -167,35 +115,23 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         raise ValueError("`std` and `exclude_outliers` are not available with several flights yet: fit each flight "
                          "alone for them")
     raw = problems
-    taus = None
+    state: Any = None
     noise_models = None
-    if method == "gls":  # each flight whitened by its own Gauss-Markov correlation time, then combined as OLS
-        if robust not in (None, "auto", "none") or noise == "white":
-            raise ValueError("method `gls` is ols with one Gauss-Markov tau per flight: for noise 'white' or a robust "
-                             "fit use method ols with `noise` and `robust`")
-        problems, taus = _gls_whitened(problems, opts.get("tau", "auto"))
-    else:
+    if hooks.rows is not None:  # the method's own rows (GLS: each flight whitened by its own tau)
+        problems, state = hooks.rows(problems, opts, noise, robust)
+    else:  # each flight's own noise model and robust cleaning
         problems, noise_models = _noise_whitened(problems, noise, tau, robust)
     sig = _sigmas(problems, sigma)
     layout = JointLayout(model.names, model.per_flight, _labels(raw))
     jp = JointProblem(problems, sig, layout, raw=raw, interpolated=paired)
-    solver = "ols" if method == "gls" else method
-    res = run_method(solver, jp, None, None, {k: v for k, v in opts.items() if k in METHODS[solver].options},
-                     sigma=None if method == "huber" else 1.0)  # whitened: sigma 1 (Huber: its scale, about 1)
+    by = hooks.solve_as or meth
+    res = by.solve(jp, sigma=hooks.sigma, **{k: v for k, v in opts.items() if k in by.options})
     import dataclasses
 
     from casep.model.loader import model_file_reference
 
     res = dataclasses.replace(res, sigma_source="whitened", model_file=model_file_reference(model),
                               settings={**res.settings, "sigma": "per flight" if sigma is None else "given per flight"})
-    if method == "huber" and res.diagnostics.get("outliers"):
-        starts = np.asarray(jp.segment_starts)
-        rows = []
-        for r in res.diagnostics["outliers"]["largest"]:
-            k = int(np.searchsorted(starts, r["sample"], side="right") - 1)  # the flight of the stacked sample
-            rows.append({**r, "flight": layout.labels[k], "flight_sample": int(r["sample"] - starts[k])})
-        res = dataclasses.replace(res, diagnostics={**res.diagnostics,
-                                                    "outliers": {**res.diagnostics["outliers"], "largest": rows}})
     if noise_models is not None:
         per_flight = {}
         from casep.workflows.solve import _places
@@ -212,14 +148,8 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     for fl in read:  # a flight that failed a set-up check fails the joint result
         res = judge_setup(res, fl, None)
     res = judge_setup(res, None, model)  # declared magnitudes, once
-    if taus is not None:
-        from casep.estimators.result import GLSExtras
-
-        rule = "given" if not isinstance(opts.get("tau", "auto"), str) else "reml"
-        res = dataclasses.replace(
-            res, method="gls", extras=GLSExtras(float(np.mean(taus)), rule),
-            settings={"tau": dict(zip(layout.labels, taus)), "tau_rule": rule, "sigma": res.settings["sigma"]},
-            message=res.message + f"; GLS: each flight whitened by its own tau ({rule})")
+    if hooks.finish is not None:
+        res = hooks.finish(res, jp, state, opts)
     return res, jp
 
 
@@ -236,24 +166,6 @@ def _refuse_repeats(problems: Sequence[Problem]) -> None:
             if q.y is not None and p.y is not None and q.y.shape == p.y.shape and np.array_equal(q.y, p.y):
                 raise ValueError(f"flights {j + 1} ({q.source}) and {k + 1} ({p.source}) hold the same data: its "
                                  "information would count twice; give each flight once")
-
-
-def _gls_whitened(problems: Sequence[Problem], tau) -> tuple[list[Problem], list[float]]:
-    """Each flight's rows whitened by its Gauss-Markov correlation time (REML per flight, or `tau`)."""
-    from casep.estimators.gls import _whiten, estimate_tau
-
-    out, taus = [], []
-    for p in problems:
-        if p.t is None:
-            raise ValueError(f"flight `{p.source}` has no sample times: GLS needs them")
-        S, y = p.sv(), p.y.reshape(-1, 3)
-        tk = estimate_tau(S, y, p.t) if isinstance(tau, str) else float(tau)
-        Sw, yw = _whiten(S, y, p.t, tk)
-        q = Problem.from_arrays(Sw, yw, p.t, names=p.names, units=p.units, si_factors=p.si_factors, model=p.model)
-        q.source = p.source
-        out.append(q)
-        taus.append(float(tk))
-    return out, taus
 
 
 def _noise_whitened(problems: Sequence[Problem], noise: str, tau, robust: str | None):
@@ -317,7 +229,8 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
             own.append(solve_ols(w, sigma=s))
     per = {}
     for j in lay.shared:
-        test = coefficient_consistency(np.array([o.estimate[j] for o in own]), np.array([o.std[j] ** 2 for o in own]))
+        var = np.array([np.nan if o.std is None else o.std[j] ** 2 for o in own])
+        test = coefficient_consistency(np.array([o.estimate[j] for o in own]), var)
         if test is not None:
             per[lay.names[j]] = test.to_dict()
     own_rss = [flight_rss(p.red) for p in jp.problems]
@@ -327,7 +240,8 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
                                   resid_dof=resid_dof)  # F form: a common error in the sigmas cancels
     cons: dict[str, Any] = {"overall": overall.to_dict() if overall else None, "per_coefficient": per}
     paired = [lab for lab, pr in zip(lay.labels, jp.interpolated) if pr]
-    if paired and res.method != "gls":
+    own_noise = METHODS[res.method].own_noise_model is not None if res.method in METHODS else False
+    if paired and not own_noise:  # a method with its own Gauss-Markov noise model (gls) models that correlation
         cons["note"] = (f"tracking interpolated onto telemetry times in {', '.join(paired)}: its noise is correlated, "
                         "so white-noise std and these tests are optimistic (false alarms); use the tracking grid "
                         "(--grid tracking, the default), or --method gls")
@@ -347,208 +261,6 @@ def _verdict(diag, name: str, scales: Mapping, with_prior: bool) -> str:
 
 def _num(v: float) -> float | None:
     return float(v) if np.isfinite(v) else None
-
-
-#: Fused results whose consistency test gives p below this are reported failed (``success`` false,
-#: exit 1): about 5 sigma, far beyond chance; between it and :data:`FUSE_WARN_P`, a warning.
-FUSE_FAIL_P = 1e-6
-#: Consistency p-value below which ``fuse`` warns (as ``casep separate A B`` flags flights).
-FUSE_WARN_P = 0.01
-
-
-def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None, model=None) -> EstimateResult:
-    """Combine results saved earlier (Gaussian, with covariance) into one estimate of their shared
-    coefficients: ``Lambda = sum_k C_k^-1``, ``D = Lambda^-1 sum_k C_k^-1 D_k``, and test that they agree.
-
-    Each result's shared coefficients are used with their marginal covariance: per-flight
-    coefficients (the model's ``per_flight=True`` ones such as ``dt_trk``, and a several-flights
-    result's ``name[file]``) are left out, as each flight has its own (marginalising a Gaussian is
-    taking its block). For independent flights this is the joint estimate exactly (the marginal
-    likelihood of the shared coefficients factorises), so fusing two OLS results equals estimating
-    both flights at once with the same sigmas. Computed in coordinates scaled by each
-    coefficient's std (Cholesky factor of the correlation matrix; no squared condition number of
-    natural units). The inputs must be of different flights: the same result twice is refused (its
-    information would count twice); a flight inside two results (a joint result and one of its
-    flights) cannot be told from the numbers, so the inputs are recorded in ``settings["fused"]``.
-
-    Consistency, like the joint fit's (``diagnostics["consistency"]``): overall, with ``n`` shared
-    coefficients and ``K`` results, ::
-
-        chi2 = sum_k (D_k - D)^T C_k^-1 (D_k - D)   ~ chi2((K - 1) n)  when the results agree
-
-    and per coefficient j, ``chi2_j = sum_k (D_kj - dbar_j)^2 / C_k,jj ~ chi2(K - 1)`` (marginal,
-    :func:`casep.estimators.joint.coefficient_consistency`). Below ``p = 0.01`` (:data:`FUSE_WARN_P`) a
-    :class:`~casep.exceptions.ConsistencyWarning` gives the numbers and the coefficients that disagree
-    most; below ``p = 1e-6`` (:data:`FUSE_FAIL_P`, about 5 sigma) the fused result is not a success
-    (``success`` false, ``status`` 2: the std of an average of disagreeing results are not its error).
-
-    Parameters
-    ----------
-    results : sequence of EstimateResult
-    labels : sequence of str, optional
-        Names of the results (their files) for messages and ``settings``.
-    model : ErrorModel or str, optional
-        The results' model (default: loaded by name), to tell the per-flight coefficients.
-
-    Raises
-    ------
-    ValueError
-        Results of different models (naming both), a result without covariance, a coefficient
-        without an estimate (its information is not in the covariance), a coefficient in another
-        unit than in the first result, a value that is not finite or beyond
-        :data:`casep.io.result_json.MAX_RESULT_VALUE`, a covariance that is not positive definite,
-        the same result twice.
-    """
-    import dataclasses
-    import warnings
-
-    from scipy import linalg, stats
-
-    from casep.estimators.joint import Consistency, coefficient_consistency
-    from casep.estimators.map import per_flight_names
-    from casep.exceptions import ConsistencyWarning
-    from casep.io.result_json import MAX_RESULT_VALUE, require_invertible
-
-    if len(results) < 2:
-        raise ValueError(f"fuse needs two or more results, got {len(results)}")
-    labels = [f"result {k + 1}" for k in range(len(results))] if labels is None else [str(v) for v in labels]
-    first = results[0]
-    for r, lab in zip(results[1:], labels[1:]):
-        if r.model and first.model and r.model != first.model:
-            raise ValueError(f"results of different models: `{first.model}` ({labels[0]}) and `{r.model}` ({lab}); "
-                             "fuse only results of one model")
-    own = per_flight_names(first, model)
-    names = [n for n in first.names if n not in own]
-    unit0 = dict(zip(first.names, first.units))
-    xs, Ls, ds = [], [], []
-    seen: list[tuple[np.ndarray, np.ndarray]] = []
-    for r, lab in zip(results, labels):
-        if r.covariance is None:
-            raise ValueError(f"{lab} ({r.method}) has no covariance: it cannot be fused")
-        missing = [n for n in names if n not in r.names]
-        if missing:
-            raise ValueError(f"{lab} lacks coefficient(s) {', '.join(missing)} of {labels[0]}")
-        idx = [list(r.names).index(n) for n in names]
-        for n, i in zip(names, idx):
-            if r.units[i] != unit0[n]:
-                raise ValueError(f"{lab}: `{n}` is in {r.units[i]!r}, but in {unit0[n]!r} in {labels[0]}: the "
-                                 "results must give each coefficient in the same unit")
-        x, C = np.asarray(r.estimate, dtype=float)[idx], np.asarray(r.covariance, dtype=float)[np.ix_(idx, idx)]
-        if not np.all(np.isfinite(x)) or not np.all(np.isfinite(C)):
-            bad = [n for n, v in zip(names, x) if not np.isfinite(v)]
-            raise ValueError(f"{lab} has coefficients without an estimate ({', '.join(bad) or 'covariance'}): "
-                             "their information is not in the result; estimate the flights together, or chain them "
-                             "with --prior RESULT.json")
-        big = [n for n, v in zip(names, x) if abs(v) > MAX_RESULT_VALUE]
-        if big or np.max(np.abs(C)) > MAX_RESULT_VALUE**2:
-            raise ValueError(f"{lab}: {'estimate of ' + big[0] if big else 'covariance'} beyond the magnitude limit "
-                             f"{MAX_RESULT_VALUE:g} (natural units): a unit or typing mistake?")
-        for k, (xo, Co) in enumerate(seen):
-            if np.array_equal(xo, x) and np.array_equal(Co, C):
-                raise ValueError(f"{lab} is the same estimate as {labels[k]}: its information would count twice")
-        seen.append((x, C))
-        C = 0.5 * (C + C.T)
-        if np.any(np.diag(C) < 0):
-            j = int(np.argmin(np.diag(C)))
-            raise ValueError(f"{lab}: covariance of `{names[j]}` is {C[j, j]:g}: a variance must be >= 0")
-        Ls.append(require_invertible(C, names, lab))  # correlation = L L^T
-        ds.append(np.sqrt(np.diag(C)))
-        xs.append(x)
-
-    # Square-root information: C_k = diag(d_k) L_k L_k^T diag(d_k), so R_k = L_k^-1 diag(d_k)^-1 has
-    # R_k^T R_k = C_k^-1; in coordinates y = D / c (c: each coefficient's smallest input std) flight k
-    # contributes rows [L_k^-1 diag(c / d_k) | L_k^-1 (D_k / d_k)], stacked and reduced by one QR
-    # (casep.estimators.joint.stack_sqrt_information): the information is never formed or inverted.
-    from casep.estimators.joint import stack_sqrt_information
-
-    n = len(names)
-    c = np.min(np.array(ds), axis=0)
-    factors = [(linalg.solve_triangular(L, np.diag(c / d), lower=True),
-                linalg.solve_triangular(L, x / d, lower=True)) for L, d, x in zip(Ls, ds, xs)]
-    R, z = stack_sqrt_information(factors)
-    if np.min(np.abs(np.diag(R))) <= 1e-14 * np.max(np.abs(np.diag(R))):
-        raise ValueError("the fused information is singular: the results together do not determine every "
-                         "coefficient")
-    Ri = linalg.solve_triangular(R, np.eye(n))  # R^-1
-    est = c * linalg.solve_triangular(R, z)  # D = c R^-1 z
-    cov = np.outer(c, c) * (Ri @ Ri.T)  # Lambda^-1 = diag(c) R^-1 R^-T diag(c)
-    cov = 0.5 * (cov + cov.T)
-    # Consistency: Mahalanobis distance of each input from the fused estimate, ||R_k (D_k - D)||^2.
-    chi2 = float(sum(np.sum(linalg.solve_triangular(L, (x - est) / d, lower=True) ** 2)
-                     for L, d, x in zip(Ls, ds, xs)))
-    dof = (len(results) - 1) * n
-    overall = Consistency(chi2, dof, float(stats.chi2.sf(chi2, dof)))
-    per = {}
-    for j, nm in enumerate(names):
-        t = coefficient_consistency(np.array([x[j] for x in xs]), np.array([d[j] ** 2 for d in ds]))
-        if t is not None:
-            per[nm] = t.to_dict()
-    worst = sorted(per, key=lambda m: per[m]["p_value"])[:3]
-    worst_text = ", ".join(f"{m} chi2 {per[m]['chi2']:.4g} (p {per[m]['p_value']:.2g})" for m in worst)
-    success, status = True, 1
-    message = f"{len(results)} results fused ({', '.join(labels)})"
-    if overall.p_value < FUSE_WARN_P:
-        what = (f"the fused results disagree: chi2 {chi2:.4g} on {dof} dof, p {overall.p_value:.3g} (warn below "
-                f"{FUSE_WARN_P:g}, fail below {FUSE_FAIL_P:g}); largest per coefficient: {worst_text}. An unmodelled "
-                "error in one flight, a unit or set-up mistake, or std that understate the error?")
-        if overall.p_value < FUSE_FAIL_P:
-            success, status = False, 2
-            message += "; " + what
-        else:
-            warnings.warn(what, ConsistencyWarning, stacklevel=2)
-    idx0 = [list(first.names).index(nm) for nm in names]
-    return dataclasses.replace(
-        first, method="fused", names=tuple(names), units=tuple(first.units[i] for i in idx0),
-        estimate=est, std=np.sqrt(np.diag(cov)), covariance=cov, reasons={}, residuals=np.zeros((0, 3)),
-        si_factors=np.asarray(first.si_factors)[idx0], history=None, history_std=None, status=status,
-        message=message, success=success, sigma=math.nan,
-        sigma_source="fused", extras=None, rank=len(names),
-        diagnostics={"consistency": {"overall": overall.to_dict(), "per_coefficient": per,
-                                     "test": "sum_k (D_k - D)^T C_k^-1 (D_k - D) ~ chi2((K-1) n)"}},
-        settings={"fused": [{"file": lab, "method": r.method, "n_samples": int(r.n_samples),
-                             "sigma": float(r.sigma) if np.isfinite(r.sigma) else None}
-                            for r, lab in zip(results, labels)], "sigma": "each input's own"},
-        n_samples=int(sum(r.n_samples for r in results)), stored_residual_rms={a: None for a in "xyz"})
-
-
-def fuse_with_ground(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
-                     model=None) -> tuple[EstimateResult, str]:
-    """:func:`fuse` of flight results and ground calibrations (a calibration model with a flight model,
-    such as ``platform36_ground``), and the text of each ground-versus-flight consistency test.
-
-    Each ground calibration is mapped to its flight model's coefficients and tested against each flight
-    result (:func:`casep.calibration.consistency.consistency`). A pair that disagrees (``p <``
-    :data:`casep.calibration.consistency.DISAGREE_P`) means one of the two is wrong for the other (an
-    unmodelled error, a unit or sign mistake, a changed instrument): the average of the two is then no
-    estimate of either, so the fused result is not a success (``success`` false, ``status`` 2) and a
-    :class:`~casep.exceptions.ConsistencyWarning` gives the pair and the numbers. Otherwise as
-    :func:`fuse` (whose own consistency test still applies).
-
-    Returns
-    -------
-    (EstimateResult, str)
-        The fused result and the consistency tables ("" without a ground calibration).
-    """
-    import dataclasses
-    import warnings
-
-    from casep.calibration.consistency import DISAGREE_P, ground_flight_checks
-    from casep.exceptions import ConsistencyWarning
-
-    labels = [f"result {k + 1}" for k in range(len(results))] if labels is None else [str(v) for v in labels]
-    mapped, checks, text = ground_flight_checks(results, labels)
-    res = fuse(mapped, labels=labels, model=model)
-    bad = [c for c in checks if not c.consistent]
-    if bad:
-        what = "; ".join(f"{c.labels[0]} and {c.labels[1]} disagree: chi2 {c.chi2:.4g} on {c.dof} dof, p "
-                         f"{c.p_value:.3g} (below {DISAGREE_P:g})"
-                         + (f", |z| > 3: {', '.join(c.disagree)}" if c.disagree else "") for c in bad)
-        what += ("; the fused result averages estimates that contradict each other (an unmodelled error, a unit or "
-                 "sign mistake, or a changed instrument): it is not a success")
-        warnings.warn(what, ConsistencyWarning, stacklevel=2)
-        res = dataclasses.replace(res, success=False, status=res.status if res.status <= 0 else 2,
-                                  message=f"{res.message}; {what}")
-    return res, text
 
 
 def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float] | None = None,

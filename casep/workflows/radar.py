@@ -20,7 +20,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
-from casep.estimators.registry import OPTIONS, check_method_options, run_method
+from casep.estimators.registry import METHODS, OPTIONS, check_method_options
 from casep.estimators.result import EstimateResult
 from casep.frames import LaunchSite
 from casep.model.loader import load_model
@@ -188,13 +188,14 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
         if k not in OPTIONS:
             raise ValueError(f"`options` has unknown option `{k}`; the options are {', '.join(OPTIONS)}")
     check_method_options(method, opts)
-    if method == "gls" and len(reg.stations) > 1:
-        raise ValueError("--method gls whitens one time series per axis; with several stations the rows of different "
-                         "stations share times. Use: --method ols (white noise per station and type), or one station")
+    if METHODS[method].needs_time and len(reg.stations) > 1:
+        raise ValueError(f"--method {method} uses the sample times (one time series per axis); with several stations "
+                         "the rows of different stations share times. Use: --method ols (white noise per station "
+                         "and type), or one station")
     lin = reg.solve(sigma)
     pb = lin.estimation_problem()
     all_given = bool(lin.sigma_given.all())
-    res = run_method(method, pb, None, pb.t, opts, sigma=1.0 if all_given else None)
+    res = METHODS[method].solve(pb, sigma=1.0 if all_given else None, **opts)  # options checked above
     x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
     tracking_terms = list(reg.names[reg.nD:])
     summary = {

@@ -15,7 +15,6 @@ from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
 from casep.estimators.registry import METHODS as _REGISTRY
 from casep.estimators.registry import OPTIONS, check_method_options
 from casep.estimators.result import EstimateResult
-from casep.estimators.rls import DEFAULT_P0
 from casep.io.files import read_flight, read_json_table
 from casep.io.flight import FlightData
 from casep.model._model import ErrorModel
@@ -26,10 +25,15 @@ if TYPE_CHECKING:
     from casep.frames import LaunchSite
     from casep.workflows.radar import RadarResult
 
-__all__ = ["separate", "regression_rows", "judge_setup", "METHODS"]
+__all__ = ["separate", "regression_rows", "judge_setup"]  # and METHODS (module __getattr__)
 
-#: Estimators available through :func:`separate` and ``casep separate --method`` (the registry's).
-METHODS = tuple(_REGISTRY)
+
+def __getattr__(name: str) -> Any:
+    # METHODS: the estimators available through separate() and ``casep separate --method``, the registry's as
+    # it is now (a method registered at run time included)
+    if name == "METHODS":
+        return tuple(_REGISTRY)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def regression_rows(flight: FlightData, model: ErrorModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -40,7 +44,8 @@ def regression_rows(flight: FlightData, model: ErrorModel) -> tuple[np.ndarray, 
     not hold S_V.
     """
     pb = Problem.from_flight(flight, model, keep_sv=True)
-    return pb.sv(), pb.y, pb.t
+    assert pb.t is not None  # a flight's problem has its times
+    return pb.sv(), pb._need_rows(), pb.t
 
 
 def separate(
@@ -49,7 +54,7 @@ def separate(
     method: str = "ols",
     *,
     sigma: float | None = None,
-    p0: float = DEFAULT_P0,
+    p0: float = OPTIONS["p0"].default,
     weight: float = 1.0,
     forgetting: float = 1.0,
     noise_order: int = 1,
@@ -83,11 +88,13 @@ def separate(
         :class:`casep.tracking.regression.Telemetry`.
     model : str, path or ErrorModel, optional
         Model name (``"platform36"``), model file, or model object.
-    method : {"ols", "rls", "rels", "ridge", "bounded", "pcr", "map", "gls"}, optional
-        Estimator: :func:`~casep.solve_ols`, :func:`~casep.solve_rls` (``rels`` with
+    method : str, optional
+        A registered estimator (:data:`casep.estimators.registry.METHODS`, default ``ols``):
+        :func:`~casep.solve_ols`, :func:`~casep.solve_rls` (``rels`` with
         `noise_order`), :func:`~casep.solve_ridge`, :func:`~casep.solve_bounded`,
         :func:`~casep.solve_pcr`, :func:`~casep.solve_map`, :func:`~casep.solve_gls`
-        (Gauss-Markov noise of correlation time `tau`, "auto" = REML).
+        (Gauss-Markov noise of correlation time `tau`, "auto" = REML), :func:`~casep.solve_huber`, or one
+        registered with :func:`casep.estimators.registry.register`.
     sigma : float, optional
         Known noise standard deviation, m/s (default: estimated).
     p0, weight, forgetting, noise_order
@@ -176,7 +183,7 @@ def separate(
     for k, v in dict(options or {}).items():
         if k not in OPTIONS:
             raise ValueError(f"`options` has unknown option `{k}`; the options are {', '.join(OPTIONS)}")
-        if not _is_default(k, kw[k]):
+        if k in kw and not _is_default(k, kw[k]):
             raise ValueError(f"option `{k}` given both as a keyword and in `options`")
         kw[k] = v
     if radar is not None:
@@ -186,25 +193,30 @@ def separate(
                                fit_time_offset=fit_time_offset)
     if site is not None or not _is_tracking_default(tracking_model):
         raise ValueError(f"`{'site' if site is not None else 'tracking_model'}` is used only with `radar`")
-    # tau is the noise model's (every method); `gls` also takes it as its own option
+    if method not in _REGISTRY:
+        raise ValueError(f"`method` must be one of {', '.join(_REGISTRY)}, got {method!r}")
+    meth = _REGISTRY[method]
+    # tau is the noise model's (every method); a method may also take it as its own option (gls: one tau)
     tau_given = None if isinstance(kw["tau"], str) and kw["tau"] == "auto" else kw["tau"]
-    if method != "gls":
+    tau_is_methods = "tau" in meth.options
+    if not tau_is_methods:
         kw.pop("tau")
         if tau_given is not None:
             if noise == "white":
                 raise ValueError("`tau` given with noise 'white': a correlation time means noise 'gm'")
             noise = "gm"
     given = {k: v for k, v in kw.items() if v is not None and not _is_default(k, v)}
-    check_method_options(method, given)
+    check_method_options(method, given)  # once, here: the method takes them as checked
     # A bounds or prior table may be given as its JSON file (as on the command line).
     for k in ("bounds", "prior"):
-        if isinstance(kw[k], (str, os.PathLike)):
-            path, kw[k] = kw[k], read_json_table(kw[k], k)
+        path = kw.get(k)
+        if isinstance(path, (str, os.PathLike)):
+            kw[k] = read_json_table(path, k)
             from casep.io.result_json import looks_like_result
 
             if k == "prior" and looks_like_result(kw[k]):  # a result file (any form): its posterior
                 from casep.estimators.map import prior_from_result
-                from casep.estimators.result import read_result
+                from casep.estimators.reading import read_result
 
                 res_prior, m = read_result(path, None if isinstance(flight, Problem) else model, option="prior")
                 kw[k] = prior_from_result(res_prior, model=m)
@@ -221,7 +233,7 @@ def separate(
             flight = read_flight(flight)
         align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
         if fit_time_offset is None:
-            fit_time_offset = bool(align) and align.get("mode") == "auto"
+            fit_time_offset = isinstance(align, dict) and align.get("mode") == "auto"
         if fit_time_offset:
             from casep.model.loader import with_time_offset
 
@@ -230,25 +242,26 @@ def separate(
         problem = Problem.from_flight(flight, model)  # S_V integrated and reduced once, checks on the way
     solved, den, sigma_from_wavelet = problem, None, False
     if denoise == "wavelet":
-        den = wavelet_denoise(problem.y, **dict(wavelet_options or {}))
+        den = wavelet_denoise(problem._need_rows(), **dict(wavelet_options or {}))
         solved = problem.with_y(den.dv)
         if sigma is None:
             sigma = float(np.sqrt(np.mean(den.sigma**2)))  # raw-noise sigma, not post-de-noising residuals
             sigma_from_wavelet = True
-    labels = {"sigma": sigma}
-    if method == "pcr":
-        labels["max_condition_index"] = max_condition_index
+    labels: dict[str, Any] = {"sigma": sigma}
+    keywords = {o.name for o in meth.keywords}  # solver keywords separate passes on to the methods that take them
+    if "max_condition_index" in keywords:
+        labels["max_condition_index"] = meth.option("max_condition_index").check(max_condition_index)
     if den is not None:
         if noise == "gm" or robust not in (None, "auto", "none") or exclude_outliers is not None or std != "model":
             raise ValueError("`denoise='wavelet'` removes the noise a noise model, a robust fit or HAC std describe: "
                              "use them without de-noising")
         noise, robust = "white", None  # the de-noised residuals are no noise sample to fit a model on
-    out = solve_problem(solved, method, {k: v for k, v in kw.items() if k in _REGISTRY[method].options},
-                        noise=noise, tau=tau_given if method != "gls" else None, robust=robust, std=std,
+    out = solve_problem(solved, method, {k: v for k, v in kw.items() if k in meth.options},
+                        noise=noise, tau=None if tau_is_methods else tau_given, robust=robust, std=std,
                         exclude_outliers=exclude_outliers, check_white=den is None, **labels)
     res = out.result
     # raw dv: noise-free, outliers, offset
-    check_fit(problem, problem.y, res, t=problem.t, f=problem.f, source=problem.source,
+    check_fit(problem, problem._need_rows(), res, t=problem.t, f=problem.f, source=problem.source,  # type: ignore[arg-type]
               outliers_handled="robust" in res.diagnostics or exclude_outliers is not None)
     if sigma is not None and not sigma_from_wavelet:
         check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
@@ -264,7 +277,7 @@ def separate(
             settings["sigma"] = f"wavelet estimate {sigma:.6g}"
         res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings,
                                   sigma_source="wavelet" if sigma_from_wavelet else res.sigma_source)
-    if not isinstance(flight, Problem):
+    if not isinstance(flight, Problem) and isinstance(model, ErrorModel):
         from casep.model.loader import model_file_reference
 
         ref = model_file_reference(model)  # a model loaded from a path: impact/fuse find it again
@@ -330,8 +343,10 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     from casep.io.flight import setup_problems
 
     problems = setup_problems(flight) if flight is not None else []
-    if problems:
+    if flight is not None and problems:
         res = failed(res, STATUS_SETUP, f"failed: set-up check of {flight.source}: " + "; ".join(problems))
     if isinstance(model, ErrorModel) and model.name == res.model and not noise_free:
-        res = check_magnitudes(res, model.scales, source=flight.source if flight is not None else "")
+        meth = _REGISTRY.get(res.method)
+        res = check_magnitudes(res, model.scales, source=flight.source if flight is not None else "",
+                               regularised=meth is not None and meth.regularised)
     return res

@@ -23,7 +23,7 @@ import numpy as np
 from casep.analysis.noise import NoiseModel, check_noise_kind, default_lags, find_gaps, whiteness_test
 from casep.analysis.problem import Problem
 from casep.analysis.rows import Rows, prepare_rows
-from casep.estimators.registry import run_method
+from casep.estimators.registry import METHODS, check_method_options
 from casep.estimators.result import EstimateResult
 from casep.exceptions import NoiseNotWhiteWarning
 
@@ -75,7 +75,7 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
     method : str
         A registered method (:data:`casep.estimators.registry.METHODS`).
     options : mapping
-        The method's options.
+        The method's options (checked here by :func:`casep.estimators.registry.check_method_options`).
     noise, tau, robust, exclude_outliers
         As :func:`prepare_rows`.
     std : {"model", "hac"}
@@ -86,27 +86,30 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
         Rows prepared before (:func:`prepare_rows` of this problem): reused, the noise options
         are then ignored (several methods on one flight share them).
     **labels
-        ``sigma`` and solver extras, passed to the method.
+        ``sigma`` and solver keywords, passed to the method.
     """
     check_noise_kind(noise)
     if std not in STD_CHOICES:
         raise ValueError(f"`std` must be one of {', '.join(STD_CHOICES)}, got {std!r}")
-    opts = dict(options or {})
-    if method == "gls":
-        return _solve_gls(problem, opts, noise, tau, robust, std, exclude_outliers, labels)
+    check_method_options(method, {k: v for k, v in dict(options or {}).items() if v is not None})  # an API edge
+    meth = METHODS[method]
+    opts = {**dict(options or {}), **labels}
+    if meth.own_noise_model is not None:
+        return _solve_own_noise(problem, meth, opts, noise, tau, robust, std, exclude_outliers)
     if std == "hac" and robust == "auto":
         robust = None  # HAC std are of the plain least-squares fit
-    if std == "hac" and (noise != "white" or method != "ols"):
-        raise ValueError("`std='hac'` is the Newey-West std of a white-noise least-squares fit: use it with "
-                         "method ols and noise 'white' (in coloured noise, noise 'auto' or 'gm' gives honest std)")
+    if std == "hac" and (noise != "white" or not meth.hac):
+        hac = ", ".join(k for k, m in METHODS.items() if m.hac)
+        raise ValueError(f"`std='hac'` is the Newey-West std of a white-noise least-squares fit: use it with "
+                         f"method {hac} and noise 'white' (in coloured noise, noise 'auto' or 'gm' gives honest std)")
     if rows is None:
         rows = prepare_rows(problem, noise, tau, robust, exclude_outliers)
     elif rows.problem is not problem:
         raise ValueError("`rows` were prepared for another problem")
-    if labels.get("sigma") is None and rows.sigma is not None:
-        labels = {**labels, "sigma": rows.sigma}  # robust: the M-estimator's sigma (module notes)
-    res = run_method(method, rows.solved, None, rows.solved.t, opts, **labels)
-    if rows.sigma is not None and res.sigma_source == "given" and labels["sigma"] == rows.sigma:
+    if opts.get("sigma") is None and rows.sigma is not None:
+        opts["sigma"] = rows.sigma  # robust: the M-estimator's sigma (module notes)
+    res = meth.solve(rows.solved, **opts)
+    if rows.sigma is not None and res.sigma_source == "given" and opts["sigma"] == rows.sigma:
         res = dataclasses.replace(res, sigma_source="robust")
     if std == "hac":
         res = _with_hac(res, rows.solved)
@@ -221,16 +224,19 @@ def _gm_factor(res: EstimateResult, solved: Problem) -> tuple[float | None, floa
     return float(np.median(ratio)), float(np.max(ratio))
 
 
-def _solve_gls(problem, opts, noise, tau, robust, std, exclude_outliers, labels) -> Solved:
-    """`gls`: least squares with one Gauss-Markov correlation time for every axis (its own solver).
+def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], noise: str, tau: Any, robust: str | None,
+                     std: str, exclude_outliers: float | None) -> Solved:
+    """A method that fits its own noise model (GLS: one Gauss-Markov tau for every axis).
 
     Glitches (a robust fit asked or found, :func:`casep.analysis.rows.prepare_rows`) and flagged
     outliers are removed first, so that they cannot collapse the correlation time.
     """
     if noise == "white":
-        raise ValueError("method `gls` assumes Gauss-Markov noise: noise 'white' contradicts it (use method ols)")
+        raise ValueError(f"method `{meth.name}` assumes Gauss-Markov noise: noise 'white' contradicts it "
+                         "(use method ols)")
     if std != "model":
-        raise ValueError("method `gls` takes no `std`: HAC std are for white-noise least squares (method ols)")
+        raise ValueError(f"method `{meth.name}` takes no `std`: HAC std are for white-noise least squares "
+                         "(method ols)")
     if tau is not None:
         opts = {**opts, "tau": tau}
     sub, rows = problem, None
@@ -238,10 +244,10 @@ def _solve_gls(problem, opts, noise, tau, robust, std, exclude_outliers, labels)
         rows = prepare_rows(problem, "gm", None, robust, exclude_outliers)
         if not rows.keep.all():
             sub = problem.subset(rows.keep)
-    res = run_method("gls", sub, None, sub.t, opts, **labels)
-    t_used = float(res.settings["tau"])
-    nm = NoiseModel(kind="gm", tau=(t_used,) * 3, rule=str(res.settings.get("tau_rule", "reml")))
-    diag = {**res.diagnostics, "noise": {**nm.to_dict(), "asked": "gm", "note": "method gls: one tau for all axes"}}
+    res = meth.solve(sub, **opts)
+    nm = meth.own_noise_model(res)
+    diag = {**res.diagnostics, "noise": {**nm.to_dict(), "asked": "gm",
+                                         "note": f"method {meth.name}: one tau for all axes"}}
     if rows is not None and rows.robust is not None:
         diag["robust"] = {**rows.robust, "rejected": _places(problem, np.flatnonzero(~rows.keep)[:200])}
     if rows is not None and rows.excluded is not None:

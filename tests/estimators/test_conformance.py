@@ -24,7 +24,7 @@ from casep.estimators.registry import (
     Interval,
     check_method_options,
 )
-from casep.estimators.result import EXTRAS_TYPES, SIGMA_SOURCES, EstimateResult
+from casep.estimators.result import SIGMA_SOURCES, EstimateResult
 from casep.model.sv import build_sv
 from casep.simulation.simulate import simulate_flight
 
@@ -198,17 +198,16 @@ def test_the_contract_check_catches_a_violation(monkeypatch, results):
     extras type, or a recursive method whose history lacks its names, is caught."""
     bad = dataclasses.replace(results["ols"], method="fake")
     _check_contract_fake = _check_contract
-    monkeypatch.setitem(registry.METHODS, "fake", registry.Method("fake", "solve_ols", "a fake", std_kind="posterior"))
-    monkeypatch.setitem(EXTRAS_TYPES, "fake", EXTRAS_TYPES["ols"])
+    fake = dataclasses.replace(METHODS["ols"], name="fake", summary="a fake")
+    monkeypatch.setitem(registry.METHODS, "fake", dataclasses.replace(fake, std_kind="posterior"))
     with pytest.raises(AssertionError):  # std_kind "sampling" where "posterior" is declared
         _check_contract_fake(bad)
-    monkeypatch.setitem(registry.METHODS, "fake", registry.Method("fake", "solve_ols", "a fake"))
+    monkeypatch.setitem(registry.METHODS, "fake", fake)
     _check_contract_fake(bad)  # now conforming: the check passes
-    monkeypatch.setitem(EXTRAS_TYPES, "fake", EXTRAS_TYPES["ridge"])
+    monkeypatch.setitem(registry.METHODS, "fake", dataclasses.replace(fake, extras_type=METHODS["ridge"].extras_type))
     with pytest.raises(AssertionError):  # OLSExtras where RidgeExtras is declared
         _check_contract_fake(bad)
-    monkeypatch.setitem(EXTRAS_TYPES, "fake", EXTRAS_TYPES["ols"])
-    monkeypatch.setitem(registry.METHODS, "fake", registry.Method("fake", "solve_ols", "a fake", recursive=True))
+    monkeypatch.setitem(registry.METHODS, "fake", dataclasses.replace(fake, recursive=True))
     with pytest.raises(AssertionError):  # declared recursive, no history
         _check_contract_fake(bad)
 

@@ -69,8 +69,8 @@ def test_huber_monte_carlo_with_glitches(paper20, rng):
             eh.append(h.estimate - truth)
             eo.append(o.estimate - truth)
             hits.append(np.abs(h.estimate - truth) <= 1.96 * h.std)
-            u = np.abs(h.residuals.reshape(-1)) / h.settings["scale"]
-            flagged = u > h.settings["flag_sigma"]
+            u = np.abs(h.residuals.reshape(-1)) / h.extras.scale
+            flagged = u > h.settings["flag"]
             flagged_ok += int(np.all(flagged[hit.reshape(-1)]))
             false_flags += int(np.sum(flagged & ~hit.reshape(-1)))
     ratio_h = np.sqrt(np.mean(np.array(eh) ** 2, axis=0)) / crlb

@@ -4,15 +4,9 @@ against their chi-square laws (seeded), fusion of square-root information agains
 import numpy as np
 import pytest
 
+from casep.analysis.joint import JointLayout, flight_rss, joint_reduction
 from casep.analysis.linalg import reduce_qr
-from casep.estimators.joint import (
-    JointLayout,
-    coefficient_consistency,
-    flight_rss,
-    joint_reduction,
-    overall_consistency,
-    stack_sqrt_information,
-)
+from casep.estimators.joint import coefficient_consistency, overall_consistency, stack_sqrt_information
 
 
 def _solve(red):

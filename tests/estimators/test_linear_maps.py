@@ -16,6 +16,7 @@ import pytest
 from casep.estimators.map import map_linear_map, solve_map
 from casep.estimators.ols import ols_linear_map, solve_ols
 from casep.estimators.pcr import pcr_linear_map, solve_pcr
+from casep.estimators.registry import METHODS, run_method
 from casep.estimators.ridge import ridge_linear_map, solve_ridge
 from casep.estimators.rls import rls_linear_map, solve_rls
 from casep.exceptions import IllConditionedWarning
@@ -113,3 +114,17 @@ def test_linear_map_options_are_checked(rng):
         pcr_linear_map(S, n_components=NCOEF + 1)
     with pytest.raises(ValueError, match="sigma"):
         map_linear_map(S, {}, 0.0)
+
+
+@pytest.mark.parametrize("method", [k for k, m in METHODS.items() if m.linear_map is not None])
+def test_declared_linear_map_equals_the_methods_solver(rng, method):
+    """Every method that declares a linear map (Method.linear_map, what batched Monte Carlo uses) reproduces
+    its own solver through the registry interface, options given by name."""
+    S, y = _problem(rng)
+    names = [f"c{j}" for j in range(NCOEF)]
+    opts = {"ridge": {"lam": 1e-2}, "rls": {"p0": 1e8, "weight": 2.0}, "pcr": {"n_components": 4},
+            "map": {"prior": {"c0": {"mean": 0.0, "std": 1e3}, "c2": {"mean": 0.1, "std": 0.01}}}}.get(method, {})
+    sigma = 0.1 if "prior" in opts else None  # MAP is linear in y for a given sigma only
+    lm = METHODS[method].linear_map(S, names=names, sigma=sigma, **opts)
+    res = run_method(method, S, y, None, opts, names=names, sigma=sigma)
+    _check(lm, res, S, y)

@@ -108,4 +108,21 @@ def test_std_kind_is_a_declared_field_and_extras_a_declared_type():
         assert m.std_kind in STD_KIND_MEANINGS and m.std_kind == declared.get(name, m.std_kind), name
         assert dataclasses.is_dataclass(m.extras_type) and m.extras_type.__dataclass_params__.frozen, name
     with _pytest.raises(ValueError, match="std_kind"):
-        Method("fake", "solve_ols", "fake", std_kind="exact")
+        dataclasses.replace(METHODS["ols"], name="fake", std_kind="exact")
+
+
+def test_workflows_ask_the_method_not_its_name():
+    """separate, solve_problem, the several-flight path and radar read a method's declaration, never its
+    name: no `method == "gls"`-style test in them (what a method does is in its own module)."""
+    import re
+    from pathlib import Path
+
+    import casep.workflows
+
+    names = "|".join(METHODS)
+    pattern = re.compile(rf"""(==|!=|\bin\b|\bnot in\b)\s*\(?\s*["']({names})["']|["']({names})["']\s*(==|!=|\bin\b)""")
+    root = Path(casep.workflows.__file__).parent
+    for module in ("separate.py", "solve.py", "flights.py", "radar.py", "fusion.py"):
+        hits = [line for line in (root / module).read_text().splitlines()
+                if pattern.search(line) and not line.lstrip().startswith("#")]
+        assert hits == [], (module, hits)

@@ -209,3 +209,26 @@ def test_json_covariance_natural_units_with_null_rows(tmp_path, platform36, trut
     np.testing.assert_allclose(np.sqrt(diag), [data["std"][j] for j in ok], rtol=1e-12)
     M = np.array([[C[j][k] for k in ok] for j in ok])
     np.testing.assert_allclose(M, M.T, rtol=1e-12, atol=0)
+
+
+def test_crlb_vif_groups_computed_on_first_use(monkeypatch, rng):
+    """A solve does not compute the CRLB, VIF and groups; the first read does, once, and they are right:
+    CRLB std = sigma sqrt(diag((S^T S)^-1)), uncentred VIF = diag((Z^T Z)^-1) on unit-norm columns."""
+    from casep.estimators import _base
+
+    calls = []
+    real = _base.collinearity
+    monkeypatch.setattr(_base, "collinearity", lambda *a: calls.append(1) or real(*a))
+    S = rng.normal(size=(300, 3, 4))
+    y = S @ np.array([1.0, 2.0, 3.0, 4.0]) + 0.1 * rng.normal(size=(300, 3))
+    res = casep.solve_ols(S, y)
+    assert calls == []  # well conditioned: nothing read them
+    A = S.reshape(-1, 4)
+    crlb = res.sigma * np.sqrt(np.diag(np.linalg.inv(A.T @ A)))
+    np.testing.assert_allclose(list(res.diagnostics["crlb_std"].values()), crlb, rtol=1e-10)
+    Z = A / np.linalg.norm(A, axis=0)
+    np.testing.assert_allclose(list(res.diagnostics["vif"].values()), np.diag(np.linalg.inv(Z.T @ Z)), rtol=1e-10)
+    assert res.diagnostics["groups"] == [] and calls == [1]  # computed once, then kept
+    data = json.loads(json.dumps(res.to_dict()))
+    assert set(data["diagnostics"]) >= {"crlb_std", "vif", "groups", "condition_number"}
+    assert calls == [1]

@@ -100,7 +100,7 @@ def test_zero_columns_stay_out(platform36, truth36):
 def test_bad_arguments(paper_problem):
     S, y, _ = paper_problem
     for kw, msg in (({"p0": -1}, "`p0` must be finite and > 0"),
-                    ({"forgetting": 1.5}, r"`forgetting` must be finite and in \(0, 1\]"),
+                    ({"forgetting": 1.5}, r"`forgetting` must be in \[0.5, 1\]"),
                     ({"weight": 0}, "`weight` must be finite and > 0"),
                     ({"noise_order": -1}, "`noise_order` must be an int >= 0"),
                     ({"residuals": "both"}, "`residuals` must be"),

@@ -160,7 +160,7 @@ def test_monte_carlo_joint_ols_efficiency_and_coverage(two, rng):
 def test_fusing_two_saved_results_equals_the_joint_estimate(two, tmp_path):
     """Sequential combination: flight A's result, then B's, fused = A and B estimated together."""
     from casep.estimators.result import EstimateResult, write_json_atomic
-    from casep.workflows.flights import fuse
+    from casep.workflows.fusion import fuse
 
     a, b = two
     p36 = casep.load_model("platform36")  # no per-flight coefficient: shared = all
@@ -435,7 +435,7 @@ def test_per_flight_coefficients_are_not_fused_or_carried_as_a_prior(two):
     from casep.analysis.problem import Problem
     from casep.estimators.map import prior_from_result, solve_map
     from casep.estimators.ols import solve_ols
-    from casep.workflows.flights import fuse
+    from casep.workflows.fusion import fuse
 
     a, b = two
     m = a.model
@@ -514,3 +514,24 @@ def test_chow_test_size_on_consistent_flights_and_power_against_an_unmodelled_30
     late = simulate_flight(sc, seed=7, rate=5.0, model="platform36_timeoffset", truth={**sc.truth, "dt_trk": 30.0})
     res, jp = _quiet(separate_flights, [sims[0].flight, late.flight], m, "ols")
     assert flights_summary(res, jp)["consistency"]["overall"]["p_value"] < 0.01
+
+
+def test_a_registered_method_works_jointly_through_its_declaration(two):
+    """The several-flight path reads only the method's declaration: a method registered at run time (here a
+    copy of least squares under another name, default hooks) gives the joint least-squares numbers."""
+    from casep.estimators import registry
+
+    a, b = two
+    copy = dataclasses.replace(registry.METHODS["ols"], name="ls_copy", summary="least squares, registered")
+    registry.register(copy)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res, _ = separate_flights([a.flight, b.flight], a.model, "ls_copy", noise="white", robust="none")
+            ref, _ = separate_flights([a.flight, b.flight], a.model, "ols", noise="white", robust="none")
+    finally:
+        registry.unregister("ls_copy")
+    assert res.method == "ls_copy"
+    np.testing.assert_allclose(res.estimate, ref.estimate, rtol=1e-12)
+    np.testing.assert_allclose(res.std, ref.std, rtol=1e-12)
+    assert "ls_copy" not in registry.METHODS

@@ -1,0 +1,29 @@
+"""What an estimate's ``std_kind`` and ``sigma_source`` may be, and what each means."""
+
+__all__ = ["STD_KIND_MEANINGS", "SIGMA_SOURCE_MEANINGS", "SIGMA_SOURCES"]
+
+#: What the reported ``std`` mean (``EstimateResult.std_kind``, set by each solver; the
+#: registry's ``Method.std_kind`` declares each method's kind):
+STD_KIND_MEANINGS = {
+    "sampling": "spread of the estimate over noise draws (for a biased method: around its mean)",
+    "posterior": "std of the posterior under the method's prior (MAP's prior; RLS/RELS's P0)",
+    "conditional": "given the active set of the bounds: understated (bounded, when a bound is active)",
+}
+
+#: Where ``sigma`` came from (``EstimateResult.sigma_source``):
+#: "estimated": residual std of the fit, sqrt(RSS / (m - rank)), of the whitened residuals for GLS/RELS;
+#: "given": the caller's ``sigma``;
+#: "wavelet": the wavelet transform's estimate from the raw finest details (set by ``separate``
+#: when dv was de-noised and no sigma was given);
+#: "robust": Huber's MAD scale of the residuals.
+#: No method estimates sigma from a prior, so there is no "prior"/"posterior" source.
+SIGMA_SOURCE_MEANINGS = {
+    "estimated": "residual std of the fit (whitened residuals for GLS/RELS)",
+    "given": "given by the caller",
+    "wavelet": "wavelet estimate from the raw finest details (dv de-noised, no sigma given)",
+    "robust": "Huber's MAD scale of the residuals",
+    "whitened": "several flights: each flight's rows divided by its own sigma (flights[].sigma), so 1 here",
+    "fused": "fused results: each input's own sigma (settings.fused)",
+    "external": "a result file of another tool that states no sigma (docs/guide/result-files.md)",
+}
+SIGMA_SOURCES = tuple(SIGMA_SOURCE_MEANINGS)
