@@ -23,7 +23,9 @@ __getattr__, __dir__ = attach(__name__, {
     "casep.analysis.diagnostics": ("Diagnostics", "diagnose"),
     "casep.analysis.linalg": ("RankAnalysis", "ReducedSystem", "analyze_rank", "reduce_qr", "reduce_qr_blocks"),
     "casep.analysis.problem": ("Problem",),
-    "casep.analysis.noise": ("NoiseModel", "fit_noise", "whiteness_test"),
+    "casep.analysis.noise": ("NoiseModel",),
+    "casep.analysis.noise_fit": ("fit_noise",),
+    "casep.analysis.whiteness": ("whiteness_test",),
     "casep.analysis.robust": ("robust_filter",),
     "casep.analysis.rows": ("Rows", "prepare_rows")}, globals())
 

@@ -220,20 +220,3 @@ def whiten_blocks(blocks: Iterable[tuple[slice, np.ndarray, np.ndarray]], t: np.
             Sw *= sw[:, :, None]
             yw *= sw
         yield sl, Sw, yw
-
-
-# re-export: remove after merge. casep/analysis/__init__.py (fit_noise, whiteness_test), casep/estimators/gls.py
-# (tau_search_bounds) and casep/workflows/solve.py (default_lags, find_gaps, whiteness_test) import these from
-# here; they live in casep.analysis.noise_fit and casep.analysis.whiteness, which import this module.
-_MOVED = {**dict.fromkeys(("fit_noise", "tau_search_bounds", "with_kind", "Reml", "estimable_basis"),
-                          "casep.analysis.noise_fit"),
-          **dict.fromkeys(("ljung_box", "WhitenessTest", "whiteness_test", "default_lags", "find_gaps", "segments_of"),
-                          "casep.analysis.whiteness")}
-
-
-def __getattr__(name: str) -> Any:
-    if name in _MOVED:
-        import importlib
-
-        return getattr(importlib.import_module(_MOVED[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -156,7 +156,7 @@ def _add_locations(problem, rows: list[dict], top: int = 200) -> None:
     locate = getattr(problem, "locate", None)
     if locate is None or not rows:
         return
-    from casep.io.files import where
+    from casep.io.locate import where
 
     for r, loc in zip(rows[:top], locate([r["sample"] for r in rows[:top]])):
         r.update(file=loc["file"], line=loc["line"], where=where(loc))

@@ -161,8 +161,8 @@ class Problem:
             values (:func:`casep.analysis.checks.check_flight`), warn when it starts after
             lift-off without the model's initial terms (default True).
         """
-        from casep.analysis.checks import check_flight
-        from casep.io.flight import check_dv_not_zero, check_enough_samples, warn_late_start, warn_setup
+        from casep.analysis.checks import check_dv_not_zero, check_enough_samples, check_flight, warn_setup
+        from casep.analysis.late_start import warn_late_start
         from casep.model.sv import SVBuilder
 
         if checks:
@@ -314,7 +314,7 @@ class Problem:
             t = root.t
             return [{"sample": int(k), "t": float(t[k]) if t is not None else float("nan"), "file": None,
                      "row": None, "line": None} for k in idx]
-        from casep.io.files import locate_samples
+        from casep.io.locate import locate_samples
 
         flight, obs = root._locate_flight
         out = locate_samples(flight, obs[idx])

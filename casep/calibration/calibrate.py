@@ -56,8 +56,6 @@ __all__ = ["Calibration", "calibrate", "load_calibration_model", "calibration_mo
 #: Row weighting of the static segments (:mod:`casep.calibration.rows`).
 WEIGHTINGS = ("positions", "segments", "samples")
 _SENSOR = {"accel_reading": "accelerometer", "gyro_reading": "gyro"}
-#: Methods whose noise model runs along time (AR(1), MA): meaningless on segment rows.
-TIME_SERIES_METHODS = ("gls", "rels")
 
 
 def _split_table(table: Mapping | None, names: Sequence[str]) -> dict | None:
@@ -132,7 +130,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     model = load_calibration_model(model)
     options = dict(options or {})
     check_method_options(method, {k: v for k, v in options.items() if v is not None})
-    if METHODS[method].needs_time or method in TIME_SERIES_METHODS:
+    if METHODS[method].needs_time or METHODS[method].noise_in_time:  # a noise model along time: no time order here
         raise ValueError(f"method `{method}` models noise correlated in time; the rows of a ground test (segment "
                          "means, turn integrals) have no time order. Use: another method")
     acc, gyr, acc_unit, gyr_unit = readings_for(session, model)
@@ -218,7 +216,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
                     opts[key] = part
         # Huber's MAD scale is biased low on a few rows of high leverage (6 dof; the turns are fitted
         # exactly): it takes the least-squares sigma of the weighted rows as its scale instead
-        use_sigma = sigma if sigma is not None or method != "huber" else _positive(ls_sigma(Sw, yw), 1.0)
+        use_sigma = sigma if sigma is not None or not METHODS[method].own_scale else _positive(ls_sigma(Sw, yw), 1.0)
         res = run_method(method, pb, None, None, opts, sigma=use_sigma)
         res = dataclasses.replace(res, diagnostics={**res.diagnostics, "rows": int(S.shape[0]),
                                                     "static_level": level, "sample_noise": s_i.tolist(),

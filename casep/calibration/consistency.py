@@ -159,7 +159,9 @@ def consistency(ground, flight, *, names: Sequence[str] | None = None,
 
     gn, gu, gm, gC, _ = as_gaussian(ground)
     fn, fu, fm, fC, fmethod = as_gaussian(flight)
-    if fmethod in ("map",):
+    from casep.estimators.registry import METHODS
+
+    if fmethod in METHODS and "prior" in METHODS[fmethod].required:
         raise ValueError("the flight estimate is a MAP estimate: it contains its prior and is not independent of "
                          "the ground result. Use: a flight-only estimate (--method ols), or "
                          "flight_prior_consistency()")

@@ -70,7 +70,7 @@ def to_imucal(calibration, *, comment: str | None = None) -> dict:
 
 def write_imucal(calibration, path: str | os.PathLike, **kw) -> None:
     """Write :func:`to_imucal` atomically (imucal reads it with ``CalibrationInfo.from_json_file``)."""
-    from casep.estimators.result import write_json_atomic
+    from casep.io.result_files import write_json_atomic
 
     write_json_atomic(to_imucal(calibration, **kw), path)
 

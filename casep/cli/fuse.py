@@ -1,5 +1,5 @@
 """``casep fuse R1.json R2.json ...``: combine results saved earlier into one estimate
-(casep.workflows.fuse_inputs, casep.workflows.flights.fuse_with_ground)."""
+(casep.workflows.fuse_inputs, casep.workflows.fusion.fuse_with_ground)."""
 
 from __future__ import annotations
 
@@ -39,8 +39,8 @@ def _manifest_results(args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace) -> int:
     _manifest_results(args)  # --manifest: each flight's `result`
     outputs.check({"--json": args.json}, list(args.results) + [args.model])
-    from casep.workflows.flights import fuse_with_ground
     from casep.workflows.fuse_inputs import read_results_to_fuse
+    from casep.workflows.fusion import fuse_with_ground
 
     results = read_results_to_fuse(args.results, args.model)  # none failed, no input file counted twice
     # ground results: their flight-model part, tested against each flight; a disagreeing pair fails the fusion

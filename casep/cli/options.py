@@ -78,7 +78,9 @@ def noise_kw(args: argparse.Namespace, opts: dict[str, Any]) -> dict[str, Any]:
     for k in ("std", "exclude_outliers"):
         if getattr(args, k, None) is not None:
             kw[k] = getattr(args, k)
-    if args.method != "gls" and opts.get("tau") is not None:
+    from casep.estimators.registry import METHODS
+
+    if opts.get("tau") is not None and "tau" not in METHODS[args.method].options:  # not the method's own tau
         kw["tau"] = opts.pop("tau")
     return kw
 

@@ -25,7 +25,7 @@ def check(files: dict[str, Any], inputs: Any = (), folders: dict[str, Any] | Non
 
 def write_json(data: dict[str, Any], path: str) -> None:
     """Write `data` as JSON to `path` (atomically; part of the command's output group)."""
-    from casep.estimators.result import write_json_atomic
+    from casep.io.result_files import write_json_atomic
 
     write_json_atomic(data, path)
 

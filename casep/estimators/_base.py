@@ -26,13 +26,6 @@ from casep.exceptions import IllConditionedWarning, MagnitudeWarning
 __all__ = ["Prepared", "prepare", "rows_of", "finish", "check_positive", "inverse_scale"]
 
 
-def __getattr__(name: str) -> Any:
-    if name == "OPTION_RANGES":  # re-export: remove after merge (tests/cli reads it; the ranges are the Options')
-        from casep.estimators.registry import option_ranges
-
-        return option_ranges()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
 
 #: Largest |mean| and std of a prior, and the inverse of the smallest std, natural units: beyond any
 #: instrument error in any unit, and the information 1/std^2 and its products stay finite.

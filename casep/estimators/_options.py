@@ -116,6 +116,16 @@ class Method:
     own_noise_model : callable or None
         ``own_noise_model(result) -> NoiseModel`` of a method that fits its own noise model (GLS: one
         tau), instead of solving the rows the data's noise model whitens; None for the others.
+    noise_in_time : bool
+        Its noise model runs along time (AR(1), MA): meaningless on rows without a time order
+        (the segment means of a ground calibration).
+    own_scale : bool
+        It estimates its noise scale itself (Huber's MAD) rather than from the residual sum of squares.
+    shared_options : callable or None
+        ``shared_options(S, Y, t) -> list of dict``: options that runs on one trajectory share, one dict per
+        run, computed for all runs at once (Monte Carlo; GLS: one REML search of tau for a chunk of runs).
+    max_runs_per_task : int or None
+        Most Monte Carlo runs one task holds for it (GLS: the REML lattice of a small chunk).
     hac : bool
         Newey-West std (``std="hac"``) are defined for it (white-noise least squares).
     flights : SeveralFlights or None
@@ -139,6 +149,10 @@ class Method:
     hint: str = ""
     regularised: bool = False
     own_noise_model: Callable[[EstimateResult], Any] | None = None
+    noise_in_time: bool = False
+    own_scale: bool = False
+    shared_options: Callable[..., list[dict[str, Any]]] | None = None
+    max_runs_per_task: int | None = None
     hac: bool = False
     flights: SeveralFlights | None = field(default_factory=SeveralFlights)
 

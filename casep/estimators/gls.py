@@ -31,7 +31,8 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence, Unpack
 import numpy as np
 
 from casep.analysis.diagnostics import ar1_whiten
-from casep.analysis.noise import NoiseModel, tau_search_bounds  # one search interval of ln tau for both REMLs
+from casep.analysis.noise import NoiseModel
+from casep.analysis.noise_fit import tau_search_bounds  # one search interval of ln tau for both REMLs
 from casep.analysis.problem import Problem
 from casep.estimators._base import Prepared, finish, prepare
 from casep.estimators._options import Choices, Interval, Labels, Method, Option, SeveralFlights
@@ -296,7 +297,13 @@ def _lattice_vertex(v: Sequence[float]) -> float:
     return float(min(cand, key=lambda z: float(P(z))))
 
 
+def _shared_taus(S: np.ndarray, Y: np.ndarray, t: np.ndarray) -> list[dict[str, Any]]:
+    """Monte Carlo: each run's REML tau from one lattice for the runs sharing `S` and `t`."""
+    return [{"tau": float(tau)} for tau in estimate_tau_many(S, Y, t)]
+
+
 #: GLS: least squares in Gauss-Markov noise (its own noise model: one tau for every axis).
 GLS = Method("gls", "least squares in Gauss-Markov noise (AR(1) whitening)", _solve, "solve_gls", (TAU,),
-             needs_time=True, extras_type=GLSExtras, own_noise_model=_noise_model,
+             needs_time=True, extras_type=GLSExtras, own_noise_model=_noise_model, noise_in_time=True,
+             shared_options=_shared_taus, max_runs_per_task=16,
              flights=SeveralFlights(rows=_flight_rows, solve_as=OLS, finish=_flights_finish))

@@ -163,5 +163,5 @@ def _flights_finish(res: EstimateResult, jp: JointProblem, state: Any, options: 
 
 #: Huber's M-estimate; with several flights it estimates the scale of the whitened rows (about 1) itself.
 HUBER = Method("huber", "robust (Huber) least squares by IRLS, outliers flagged", _solve, "solve_huber",
-               keywords=(C, FLAG, TOL, MAX_ITER), extras_type=HuberExtras,
+               keywords=(C, FLAG, TOL, MAX_ITER), extras_type=HuberExtras, own_scale=True,
                flights=SeveralFlights(sigma=None, finish=_flights_finish))

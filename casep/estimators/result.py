@@ -15,13 +15,12 @@ from casep.estimators._meanings import SIGMA_SOURCE_MEANINGS, SIGMA_SOURCES, STD
 from casep.io.result_files import (
     jsonable,
     write_coefficients_csv,
-    write_json_atomic,  # re-export: remove after merge (cli, calibration.imucal)
     write_mat_fields,
 )
 
 __all__ = ["EstimateResult", "result_from_data", "check_result_units", "EXTRAS_TYPES",
            "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "extras_type",
-           "write_json_atomic", "write_mat", "write_csv", "format_number"]
+           "write_mat", "write_csv", "format_number"]
 
 AXES = ("x", "y", "z")
 
@@ -31,20 +30,11 @@ AXES = ("x", "y", "z")
 #: ``describe``); filled by :mod:`casep.estimators.registry`, which the package imports first.
 EXTRAS_TYPES: dict[str, type] = {}
 
-_READING = ("read_result", "resolve_result_model")
-
 
 def extras_type(method: str) -> type | None:
     """The extras dataclass a registered `method` declares (None for an unregistered name)."""
     return EXTRAS_TYPES.get(method)
 
-
-def __getattr__(name: str) -> Any:
-    if name in _READING:  # re-export: remove after merge (cli, impact.miss, workflows: casep.estimators.reading)
-        from casep.estimators import reading
-
-        return getattr(reading, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def format_number(v: float | None, width: int = 12, fmt: str = ".6g") -> str:

@@ -371,4 +371,5 @@ RLS = Method("rls", "recursive least squares, paper Eq. (14), Bierman U-D", _sol
 #: RELS: RLS with a moving-average noise model (its memory restarts at each flight of several).
 RELS = Method("rels", "recursive extended least squares (MA noise model)", _solve, "solve_rls",
               (P0, WEIGHT, FORGETTING, NOISE_ORDER), keywords=(RESIDUALS, HISTORY_STRIDE), recursive=True,
+              noise_in_time=True,
               std_kind="posterior", extras_type=RLSExtras, hint="forgetting too strong for this flight?")

@@ -127,7 +127,8 @@ class _Coefficients:
 def _load_result(result, model=None):
     """``(result, its source, model)``: :func:`casep.estimators.result.read_result` (every result form,
     checked; the model the result names, or `model`)."""
-    from casep.estimators.result import EstimateResult, read_result
+    from casep.estimators.reading import read_result
+    from casep.estimators.result import EstimateResult
 
     source = "<memory>" if isinstance(result, (EstimateResult, dict)) else os.fspath(result)
     res, model = read_result(result, model, option="--result" if source != "<memory>" else "result")

@@ -40,7 +40,7 @@ import numpy as np
 
 from casep.io._atomic import atomic_open
 from casep.io.flight import DV_COLUMNS, FORCE_COLUMNS, FlightData
-from casep.io.locate import csv_lines, is_parquet, locate_samples, where  # noqa: F401  (re-export: remove after merge)
+from casep.io.locate import is_parquet
 from casep.io.pair import (
     MAX_TIME_OFFSET,
     PAIR_GRIDS,

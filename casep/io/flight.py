@@ -17,7 +17,6 @@ enough samples, set-up) and :mod:`casep.analysis.late_start` (a flight that star
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -233,20 +232,3 @@ class FlightData:
             raise ValueError(f"`S` must have {self.n_samples} samples, got shape {S.shape}")
         k = self.observed_index()
         return S[k], self.dv[k], self.t[k]
-
-
-# re-export: remove after merge. casep/analysis/problem.py (check_dv_not_zero, check_enough_samples,
-# warn_late_start, warn_setup) and casep/workflows/separate.py (setup_problems) import these from here;
-# they live in casep.analysis now, so they are looked up on first use (no import of analysis at load).
-_MOVED = {"min_samples": "casep.analysis.checks", "check_enough_samples": "casep.analysis.checks",
-          "check_dv_not_zero": "casep.analysis.checks", "setup_problems": "casep.analysis.checks",
-          "warn_setup": "casep.analysis.checks", "late_start_evidence": "casep.analysis.late_start",
-          "warn_late_start": "casep.analysis.late_start", "setup_evidence": "casep.io.setup"}
-
-
-def __getattr__(name: str) -> Any:
-    if name in _MOVED:
-        import importlib
-
-        return getattr(importlib.import_module(_MOVED[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

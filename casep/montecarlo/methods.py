@@ -1,23 +1,23 @@
-"""Everything the Monte Carlo knows about particular estimators, in one place.
+"""How the Monte Carlo runs an estimator: only through its :class:`~casep.estimators.registry.Method`.
 
 The rest of :mod:`casep.montecarlo` sees a method only through :func:`parse_method` (the
-spec language of ``--methods``: ``ols``, ``ridge:<lambda>``, ``wavelet+<method>``),
-:func:`linear_maps` (the batched path) and :func:`solve_runs` (the per-run path). What they
-ask of an estimator:
+spec language of ``--methods``: ``<method>``, ``<method>:<number>`` (the method's first option
+fixed, e.g. ``ridge:<lambda>``), ``wavelet+<method>``), :func:`linear_maps` (the batched path)
+and :func:`solve_runs` (the per-run path). What they ask of a method (its ``Method`` fields):
 
-- its name in :data:`casep.estimators.registry.METHODS` and whether its estimate is a fixed
-  linear function of the data at fixed options (``batched``), and then its linear map
+- ``batched`` and ``linear_map``: a batched method, or one with a linear map whose spec fixes
+  its option (``ridge:<lambda>``), is solved for all runs with one factorisation,
   ``D = K y + b`` with the solver's std (:class:`casep.estimators.ols.LinearMap`);
-- options written in the spec (``ridge:<lambda>`` is ridge with ``lam`` fixed, which makes it
-  linear);
-- the options the Monte Carlo supplies itself: ``map`` gets a prior (given, else the paper's
-  demo prior) and the scenario's known sigma; ``bounded`` gets bounds (given, else the demo's);
-- ``gls`` only: a chunk of runs on one trajectory shares one REML search of tau
-  (:func:`casep.estimators.gls.estimate_tau_many`), and a task holds at most
-  :data:`GLS_CHUNK` runs so that the lattice stays that of a small chunk;
-- a solver through the registry (:func:`casep.estimators.registry.run_method`) or, with a
-  noise model or a robust fit, through :func:`casep.workflows.solve.solve_problem`, returning an
-  estimate and its std (None: the method reports none).
+- ``required``: the options the Monte Carlo supplies itself, given or else the paper's demo
+  values (``prior``, ``bounds``); a method that requires a prior weighs the data at the
+  scenario's known sigma;
+- ``shared_options`` and ``max_runs_per_task``: options that the runs of a chunk on one
+  trajectory share (GLS: one REML search of tau), and the most runs one task holds;
+- ``own_noise_model``: with a noise model or a robust fit, a method that fits its own
+  (GLS) gets the rows before whitening, the others the rows prepared once for every method
+  (:func:`casep.workflows.solve.solve_problem`); otherwise the registry's solver
+  (:func:`casep.estimators.registry.run_method`). Each returns an estimate and its std (None:
+  the method reports none).
 """
 
 from __future__ import annotations
@@ -29,16 +29,15 @@ from typing import Any
 import numpy as np
 
 from casep.estimators.registry import METHODS as _REGISTRY
+from casep.estimators.registry import Interval
 from casep.simulation.paper import demo_bounds, demo_prior
 
-__all__ = ["BATCHED", "GLS_CHUNK", "METHOD_HELP", "MethodSpec", "linear_maps", "parse_method", "solve_runs"]
+__all__ = ["BATCHED", "METHOD_HELP", "MethodSpec", "linear_maps", "parse_method", "solve_runs"]
 
 #: Methods solved for all runs with one factorisation (their linear map).
 BATCHED = tuple(k for k, m in _REGISTRY.items() if m.batched)
 METHOD_HELP = ("ols, rls, rels, ridge (GCV), ridge:<lambda>, pcr, map, bounded, gls (REML tau), huber, and "
                "wavelet+<method> (de-noised first)")
-#: Runs of a task that share one GLS REML lattice (:func:`casep.estimators.gls.estimate_tau_many`).
-GLS_CHUNK = 16
 
 
 @dataclass(frozen=True)
@@ -54,55 +53,59 @@ class MethodSpec:
     @property
     def linear(self) -> bool:
         """The estimate is a fixed linear map of the data (solved batched when allowed)."""
-        return not self.denoise and (self.name in BATCHED or (self.name == "ridge" and "lam" in self.options))
+        m = _REGISTRY[self.name]
+        return not self.denoise and (m.batched or (m.linear_map is not None and bool(self.options)))
 
     @property
     def max_task_runs(self) -> int | None:
         """Most runs per task this method wants (None: no limit of its own)."""
-        return GLS_CHUNK if self.name == "gls" else None
+        return _REGISTRY[self.name].max_runs_per_task
 
 
 def parse_method(text: str) -> MethodSpec:
     """Read one method spec; ValueError naming it when unknown or its option is bad."""
     denoise = text.startswith("wavelet+")
     base = text.split("+", 1)[1] if denoise else text
-    if base.startswith("ridge:"):
-        try:
-            lam = float(base.split(":", 1)[1])
-        except ValueError:
-            raise ValueError(f"method `{text}`: ridge:<lambda> needs a number") from None
-        if not lam > 0:
-            raise ValueError(f"method `{text}`: lambda must be > 0")
-        return MethodSpec(text, "ridge", {"lam": lam}, denoise)
-    if base not in _REGISTRY:
+    name, _, value = base.partition(":")
+    if name not in _REGISTRY:
         raise ValueError(f"unknown method `{text}`. Use: {METHOD_HELP}")
-    return MethodSpec(text, base, {}, denoise)
+    if not value:
+        return MethodSpec(text, name, {}, denoise)
+    m = _REGISTRY[name]
+    numeric = [(o, r) for o in m.option_specs[:1] for r in o.rules if isinstance(r, Interval)]
+    if not numeric:
+        raise ValueError(f"method `{text}`: `{name}` takes no number. Use: {METHOD_HELP}")
+    (option, rule), label = numeric[0], numeric[0][0].flag.lstrip("-")
+    try:
+        number = rule.parse(value)
+    except ValueError:
+        raise ValueError(f"method `{text}`: {name}:<{label}> needs a number") from None
+    if not rule.accepts(number):
+        raise ValueError(f"method `{text}`: {label} must be {str(rule).removeprefix(rule.kind.__name__ + ' ')}")
+    return MethodSpec(text, name, {option.name: number}, denoise)
+
+
+def _supplied(spec: MethodSpec, names: Sequence[str], prior: Mapping | None,
+              bounds: Mapping | None) -> dict[str, Any]:
+    """The spec's options and the required ones the Monte Carlo supplies (given, else the demo's)."""
+    offer = {"prior": lambda: prior or demo_prior(names), "bounds": lambda: bounds or demo_bounds(names)}
+    return {**spec.options, **{k: offer[k]() for k in _REGISTRY[spec.name].required}}
 
 
 def linear_maps(S: np.ndarray, names: Sequence[str], sigma: float, methods: Sequence[str],
                 prior: Mapping | None = None) -> dict[str, Any]:
-    """The estimators' own linear maps (``D = K y + b``) of the batched `methods`, registry defaults.
+    """The estimators' own linear maps (``D = K y + b``) of the linear `methods`, registry defaults.
 
-    ``ols``, ``rls`` (no forgetting, the registry's p0 and weight), ``pcr`` (default
-    truncation), ``map`` (at the scenario's sigma, as the per-run path gives it) and
-    ``ridge:<lambda>``: see :class:`casep.estimators.ols.LinearMap`. `S` is the stacked
-    ``(rows, n)`` regression matrix.
+    Each is the method's ``linear_map`` (:class:`casep.estimators.ols.LinearMap`) at the
+    options of its spec, a prior (given, else the demo's) weighed at the scenario's `sigma`.
+    `S` is the stacked ``(rows, n)`` regression matrix.
     """
-    from casep.estimators.map import map_linear_map
-    from casep.estimators.ols import ols_linear_map
-    from casep.estimators.pcr import pcr_linear_map
-    from casep.estimators.registry import OPTIONS
-    from casep.estimators.ridge import ridge_linear_map
-    from casep.estimators.rls import rls_linear_map
-
-    build = {"ols": lambda: ols_linear_map(S),
-             "rls": lambda: rls_linear_map(S, p0=OPTIONS["p0"].default, weight=OPTIONS["weight"].default),
-             "pcr": lambda: pcr_linear_map(S),
-             "map": lambda: map_linear_map(S, prior or demo_prior(names), sigma, names=names)}
     out: dict[str, Any] = {}
-    for m in methods:
-        spec = parse_method(m)
-        out[m] = ridge_linear_map(S, spec.options["lam"]) if spec.name == "ridge" else build[spec.name]()
+    for text in methods:
+        spec = parse_method(text)
+        build = _REGISTRY[spec.name].linear_map
+        assert build is not None, f"{text} is not linear"  # the caller asks for the linear specs only
+        out[text] = build(S, names=names, sigma=sigma, **_supplied(spec, names, prior, None))
     return out
 
 
@@ -113,23 +116,21 @@ def solve_runs(spec: MethodSpec, ys: Sequence[np.ndarray], flights: Sequence[tup
     """Each run of a chunk through the public solver: estimates and stds, ``(runs, n)`` each.
 
     `ys` are the runs' dv, `flights` their ``(S_V, t)``; `shared` the ``(S_V, t)`` all runs
-    share (nominal campaigns: GLS then searches tau on one lattice for the chunk). `prior` and
-    `bounds` are those of ``map`` and ``bounded`` (default: the paper's demo values); `noise`
-    and `robust` the noise model and robust fit, with `rows` each run's rows prepared once for
-    every method (:func:`casep.workflows.solve.prepare_rows`; None: white, the solver directly).
-    The std is None when the method reports none.
+    share (nominal campaigns: the method's ``shared_options``, e.g. GLS's one REML lattice for
+    the chunk). `prior` and `bounds` are those the methods require (default: the paper's demo
+    values); `noise` and `robust` the noise model and robust fit, with `rows` each run's rows
+    prepared once for every method (:func:`casep.workflows.solve.prepare_rows`; None: white,
+    the solver directly). The std is None when the method reports none.
     """
+    m = _REGISTRY[spec.name]
     runs = [_denoised(spec, y) for y in ys]
-    if spec.name == "gls" and shared is not None:  # one REML lattice for the chunk
-        from casep.estimators.gls import estimate_tau_many
-
-        taus: list[float | str] = list(estimate_tau_many(shared[0], np.stack([y for y, _ in runs], axis=-1),
-                                                         shared[1]))
-    else:
-        taus = ["auto"] * len(runs)
-    outs = [_solve(spec, S, y, t, given, tau, names=names, sigma=sigma, prior=prior, bounds=bounds, noise=noise,
-                   robust=robust, rows=rw)
-            for (y, given), tau, (S, t), rw in zip(runs, taus, flights, rows or [None] * len(runs))]
+    per_run: list[dict[str, Any]] = [{} for _ in runs]
+    if m.shared_options is not None and shared is not None:
+        per_run = m.shared_options(shared[0], np.stack([y for y, _ in runs], axis=-1), shared[1])
+    base = _supplied(spec, names, prior, bounds)
+    outs = [_solve(spec, S, y, t, given, {**base, **extra}, sigma=sigma, names=names, noise=noise, robust=robust,
+                   rows=rw)
+            for (y, given), extra, (S, t), rw in zip(runs, per_run, flights, rows or [None] * len(runs))]
     est = np.array([o[0] for o in outs])
     return est, None if outs[0][1] is None else np.array([o[1] for o in outs])
 
@@ -144,27 +145,23 @@ def _denoised(spec: MethodSpec, y: np.ndarray) -> tuple[np.ndarray, float | None
     return d.dv, float(np.sqrt(np.mean(d.sigma**2)))
 
 
-def _solve(spec: MethodSpec, S: np.ndarray, y: np.ndarray, t: np.ndarray, given: float | None, tau: float | str, *,
-           names: Sequence[str], sigma: float, prior: Mapping | None, bounds: Mapping | None, noise: str,
-           robust: str | None, rows: Any) -> tuple[np.ndarray, np.ndarray | None]:
-    """One run: `given` is the sigma handed to the solver (None: estimated), `tau` GLS's."""
+def _solve(spec: MethodSpec, S: np.ndarray, y: np.ndarray, t: np.ndarray, given: float | None,
+           opts: Mapping[str, Any], *, sigma: float, names: Sequence[str], noise: str, robust: str | None,
+           rows: Any) -> tuple[np.ndarray, np.ndarray | None]:
+    """One run: `given` is the sigma handed to the solver (None: estimated)."""
     from casep.estimators.registry import run_method
 
-    method, opts = spec.name, dict(spec.options)
-    if method == "map":
-        opts, given = {"prior": prior or demo_prior(names)}, given or sigma  # MAP with the known sigma
-    elif method == "bounded":
-        opts = {"bounds": bounds or demo_bounds(names)}
-    elif method == "gls":
-        opts = {"tau": tau}
+    m = _REGISTRY[spec.name]
+    if "prior" in m.required:
+        given = given or sigma  # a prior weighs the data at the known sigma
     if rows is not None:
         from casep.workflows.solve import solve_problem
 
-        if method == "gls":  # its own tau; the glitches removed first when the run is robust
-            r = solve_problem(rows.problem, "gls", opts, noise="gm", robust=robust, sigma=given).result
+        if m.own_noise_model is not None:  # it fits its own noise model; the glitches removed first when robust
+            r = solve_problem(rows.problem, m.name, opts, noise="gm", robust=robust, sigma=given).result
         else:
-            r = solve_problem(rows.problem, method, opts, noise=noise, rows=rows, sigma=given,
+            r = solve_problem(rows.problem, m.name, opts, noise=noise, rows=rows, sigma=given,
                               check_white=False).result
         return r.estimate, r.std
-    r = run_method(method, S, y, t, opts, names=names, sigma=given)  # the registry's solver and defaults
+    r = run_method(m.name, S, y, t, opts, names=names, sigma=given)  # the registry's solver and defaults
     return r.estimate, r.std

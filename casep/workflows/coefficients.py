@@ -82,7 +82,7 @@ def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[st
         data = ground_prior(data, model or "platform36")
     elif kind == "prior" and looks_like_result(data):  # a result file (any form): its posterior
         from casep.estimators.map import prior_from_result
-        from casep.estimators.result import read_result
+        from casep.estimators.reading import read_result
 
         res, res_model = read_result(path, model, option=option)
         refuse_failed(res, f"{option} {path}")

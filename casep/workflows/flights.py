@@ -27,11 +27,9 @@ from casep.analysis.joint import JointLayout, JointProblem
 from casep.analysis.problem import Problem
 from casep.estimators.registry import METHODS, check_method_options
 from casep.estimators.result import EstimateResult
-from casep.workflows.fusion import FUSE_FAIL_P, FUSE_WARN_P, fuse, fuse_with_ground  # re-export: remove after merge
 
 # and JOINT_METHODS (module __getattr__: the registry's as it is now)
-__all__ = ["JointProblem", "separate_flights", "flights_summary", "fuse", "diagnose_flights", "FUSE_WARN_P",
-           "FUSE_FAIL_P", "fuse_with_ground"]
+__all__ = ["separate_flights", "flights_summary", "diagnose_flights"]
 
 
 def __getattr__(name: str) -> Any:

@@ -1,7 +1,7 @@
 """Results to fuse, read back from their files and checked: none failed, no input file counted twice.
 
 :func:`read_results_to_fuse` reads each result JSON (any result form; a ground calibration is kept
-as it is, to be mapped to its flight model by :func:`casep.workflows.flights.fuse_with_ground`),
+as it is, to be mapped to its flight model by :func:`casep.workflows.fusion.fuse_with_ground`),
 refuses a failed result, and refuses two results that were estimated from the same input file:
 their provenance records name each input with its SHA-256 (:mod:`casep.io.provenance`), and
 fusing two estimates of one data set would count its data twice (the fused std too small by
@@ -67,7 +67,7 @@ def check_distinct_inputs(paths: Sequence[str | os.PathLike]) -> None:
 
 
 def read_results_to_fuse(paths: Sequence[str | os.PathLike], model: Any = None) -> list[Any]:
-    """Read result files for :func:`casep.workflows.flights.fuse_with_ground`, each checked.
+    """Read result files for :func:`casep.workflows.fusion.fuse_with_ground`, each checked.
 
     Parameters
     ----------
@@ -88,7 +88,8 @@ def read_results_to_fuse(paths: Sequence[str | os.PathLike], model: Any = None) 
         the same input file (:func:`check_distinct_inputs`).
     """
     from casep.calibration.calibrate import calibration_models
-    from casep.estimators.result import read_result, result_from_data
+    from casep.estimators.reading import read_result
+    from casep.estimators.result import result_from_data
     from casep.io.result_json import read_result_data
 
     grounds, results = set(calibration_models()), []

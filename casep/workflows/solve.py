@@ -20,9 +20,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from casep.analysis.noise import NoiseModel, check_noise_kind, default_lags, find_gaps, whiteness_test
+from casep.analysis.noise import NoiseModel, check_noise_kind
 from casep.analysis.problem import Problem
 from casep.analysis.rows import Rows, prepare_rows
+from casep.analysis.whiteness import default_lags, find_gaps, whiteness_test
 from casep.estimators.registry import METHODS, check_method_options
 from casep.estimators.result import EstimateResult
 from casep.exceptions import NoiseNotWhiteWarning
@@ -119,7 +120,7 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
 
 def _places(problem: Problem, samples) -> list[dict]:
     """``{"sample", "t", "file", "row", "line", "where"}`` of rows of `problem` (one numbering everywhere)."""
-    from casep.io.files import where
+    from casep.io.locate import where
 
     return [{**loc, "where": where(loc)} for loc in problem.locate(samples)]
 

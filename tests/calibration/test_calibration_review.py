@@ -23,7 +23,7 @@ from casep.cli import main
 from casep.estimators.result import EstimateResult
 from casep.exceptions import ConsistencyWarning
 from casep.units import G0
-from casep.workflows.flights import fuse_with_ground
+from casep.workflows.fusion import fuse_with_ground
 
 # a platform36 truth of typical magnitudes (the six positions cannot separate the cross-quadratic terms: 0)
 PLATFORM = dict(Kg0x=2.0, Kg1x=1.0, Kg0y=-3.0, Kg0z=1.5, Ka0x=-2, Ka1x=0.5, Ka1xy=50, Ka1xz=50, Ka2x=5, Ka0y=-2,

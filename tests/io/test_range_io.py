@@ -199,7 +199,7 @@ def test_strict_option_files(files, tmp_path, capsys, option, text, expect):
 def test_fuse_consistency_equals_the_two_result_closed_form(files, capsys):
     """K = 2: sum_k (D_k - D)^T C_k^-1 (D_k - D) = (D_1 - D_2)^T (C_1 + C_2)^-1 (D_1 - D_2)."""
     from casep.estimators.result import EstimateResult
-    from casep.workflows.flights import fuse
+    from casep.workflows.fusion import fuse
 
     a, b = (EstimateResult.from_json(files / f"r{k}.json") for k in "ab")
     res = fuse([a, b])
@@ -468,7 +468,7 @@ def test_api_separate_takes_a_result_file_as_prior(files, tmp_path):
 
 
 def test_json_writer_names_a_non_finite_value(tmp_path):
-    from casep.estimators.result import write_json_atomic
+    from casep.io.result_files import write_json_atomic
 
     with pytest.raises(ValueError, match=r"non-finite value \(inf\) at `settings.prior.Kg0x.mean`"):
         write_json_atomic({"settings": {"prior": {"Kg0x": {"mean": float("inf")}}}}, tmp_path / "x.json")

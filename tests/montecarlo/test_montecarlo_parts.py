@@ -10,8 +10,9 @@ import re
 import numpy as np
 import pytest
 
+from casep.estimators.registry import METHODS
 from casep.montecarlo import MonteCarloResult, run_montecarlo
-from casep.montecarlo.methods import GLS_CHUNK, parse_method
+from casep.montecarlo.methods import parse_method
 from casep.montecarlo.progress import Progress
 from casep.montecarlo.tasks import chunks
 from casep.results import Result
@@ -78,7 +79,7 @@ def test_tasks_cover_the_runs_once_and_gls_chunks_stay_small(runs):
         sizes = {len(c) for c in cut[:-1]} or {len(cut[0])}
         assert len(sizes) == 1 and len(cut[-1]) <= max(sizes) <= 128
         if len(specs) == 2:
-            assert max(len(c) for c in cut) <= GLS_CHUNK
+            assert max(len(c) for c in cut) <= METHODS["gls"].max_runs_per_task == 16
 
 
 def test_campaign_context_caches_its_maps_and_never_sends_them():

@@ -6,7 +6,7 @@ import warnings
 import numpy as np
 import pytest
 
-from casep.estimators.result import write_json_atomic
+from casep.io.result_files import write_json_atomic
 from casep.model.loader import load_model
 from casep.simulation.simulate import simulate_flight
 from casep.workflows.coefficients import read_coefficient_file, read_scales

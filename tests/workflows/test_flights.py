@@ -159,7 +159,8 @@ def test_monte_carlo_joint_ols_efficiency_and_coverage(two, rng):
 
 def test_fusing_two_saved_results_equals_the_joint_estimate(two, tmp_path):
     """Sequential combination: flight A's result, then B's, fused = A and B estimated together."""
-    from casep.estimators.result import EstimateResult, write_json_atomic
+    from casep.estimators.result import EstimateResult
+    from casep.io.result_files import write_json_atomic
     from casep.workflows.fusion import fuse
 
     a, b = two
