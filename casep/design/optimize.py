@@ -71,6 +71,9 @@ class DesignResult:
     timing: dict
     coefficients: tuple[str, ...] | None = None
     verification: dict = field(default_factory=dict)
+    #: The nominal scenario's name (of a registered scenario) and one's own trajectory file, if any.
+    nominal: str | None = None
+    own_flight: str | None = None
 
     @property
     def profile(self):
@@ -80,6 +83,17 @@ class DesignResult:
         """Coefficients whose CRLB std is below their declared magnitude."""
         c = self.crlb_after if which == "after" else self.crlb_before
         return [n for n, v, s in zip(self.names, c, self.scales) if np.isfinite(v) and v < s]
+
+    def to_dict(self) -> dict:
+        """The result as plain data: the ``casep design --json`` document (:meth:`to_json`)."""
+        return self.to_json()
+
+    def text(self) -> str:
+        """What ``casep design`` prints (:func:`casep.design.flown.design_lines`)."""
+        from casep.design.flown import design_lines
+
+        return "\n".join(design_lines(self, scenario=self.nominal or getattr(self.scenario, "name", "?"),
+                                       maneuver=self.maneuver.kind, own_flight=self.own_flight))
 
     def to_json(self) -> dict:
         """The ``casep design --json`` document (``docs/reference/file-formats.md`` "Design JSON"; null for NaN)."""
@@ -450,7 +464,8 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
                         predicted_before=pred_before, predicted_after=pred_after, constraints=constraints,
                         solver=solver, scenario=designed, prior=prior is not None, timing=timing,
                         coefficients=None if coefficients is None else tuple(coefficients),
-                        verification=verification)
+                        verification=verification, nominal=scenario if isinstance(scenario, str) else None,
+                        own_flight=None if flight is None else str(getattr(flight, "source", flight)))
 
 
 def _flight_nominal(flight, model, design_rate: float) -> dict:

@@ -105,6 +105,10 @@ class RadarResult:
         d["radar"] = {**self.summary, **({"diagnostics": self.diagnostics} if self.diagnostics else {})}
         return d
 
+    def text(self) -> str:
+        """What ``casep separate --radar`` prints: :meth:`table`."""
+        return self.table()
+
     def table(self) -> str:
         """The result table, the noise and residuals per station and type, and the diagnostics."""
         from casep.estimators.result import format_number

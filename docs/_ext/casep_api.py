@@ -29,6 +29,7 @@ PUBLIC_MODULES = (
     "casep.frames",
     "casep.units",
     "casep.exceptions",
+    "casep.results",
 )
 
 
