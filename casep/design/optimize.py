@@ -92,7 +92,7 @@ class DesignResult:
         """What ``casep design`` prints (:func:`casep.design.flown.design_lines`)."""
         from casep.design.flown import design_lines
 
-        return "\n".join(design_lines(self, scenario=self.nominal or getattr(self.scenario, "name", "?"),
+        return "\n".join(design_lines(self, scenario=str(self.nominal or getattr(self.scenario, "name", "?")),
                                        maneuver=self.maneuver.kind, own_flight=self.own_flight))
 
     def to_json(self) -> dict:
