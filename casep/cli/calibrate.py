@@ -23,7 +23,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--model", default="ferraris", help="calibration model name (models/calibration) or .py file "
                    "(default ferraris; platform36_ground: the flight model's names and units, SI readings)")
     p.add_argument("--method", default="ols", choices=[m for m, meth in METHODS.items()
-                                                        if not meth.needs_time and m != "rels"],
+                                                        if not (meth.needs_time or meth.noise_in_time)],
                    help="estimator (default ols)")
     for name in ("prior", "bounds", "lam", "n_components", "p0", "weight", "forgetting", "noise_order"):
         options.add_option(p, OPTIONS[name])

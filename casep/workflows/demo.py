@@ -31,6 +31,7 @@ from casep.analysis.checks import check_fit
 from casep.analysis.diagnostics import Diagnostics, diagnose
 from casep.analysis.problem import Problem
 from casep.analysis.rows import Rows
+from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
 from casep.exceptions import IllConditionedWarning
 from casep.impact.miss import ImpactAnalysis, impact_analysis
@@ -55,7 +56,6 @@ DEMO_METHODS: tuple[tuple[str, str, dict[str, Any]], ...] = (
 
 #: Methods whose std omit their bias (shrinkage, truncation, a box): judged against the declared
 #: magnitudes with the least-squares std of the same rows where theirs are smaller (:func:`_judged`).
-BIASED = ("ridge", "pcr", "bounded")
 
 
 @dataclass(frozen=True)
@@ -232,8 +232,8 @@ def _figures(out: Path, sim: SimulatedFlight, results: Mapping[str, EstimateResu
 
 
 def _judged(res: EstimateResult, model: ErrorModel, ls_std: np.ndarray | None, noise_free: bool) -> EstimateResult:
-    """:func:`casep.workflows.separate.judge_setup` of a result, for a :data:`BIASED` method with the
-    least-squares std where its own are smaller.
+    """:func:`casep.workflows.separate.judge_setup` of a result, for a regularised method (its
+    ``Method.regularised``: ridge, PCR, bounded) with the least-squares std where its own are smaller.
 
     The magnitude check takes ``|estimate| - 5 std`` as what the data say at least; a biased method's
     std are the spread of its estimate about its biased mean, so they bound its error only with the
@@ -241,7 +241,7 @@ def _judged(res: EstimateResult, model: ErrorModel, ls_std: np.ndarray | None, n
     std (``Ka2y`` on the paper flight: 89 +- 14 ug/g^2 against a truth of 0.003 and a least-squares
     std of 485). The least-squares std of the same rows are what the data know of each coefficient.
     """
-    if res.method not in BIASED or ls_std is None or res.std is None:
+    if not METHODS[res.method].regularised or ls_std is None or res.std is None:
         return judge_setup(res, None, model, noise_free=noise_free)
     own = res.std
     honest = np.where(np.isfinite(own), np.fmax(own, ls_std), own)  # NaN (at a bound) stays: not judged
@@ -282,8 +282,9 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
     """
     sim = simulate_flight("paper", seed=seed, rate=rate)
     model = sim.model
-    extra: dict[str, dict[str, Any]] = {"bounded": {"bounds": demo_bounds(model.names)},
-                                        "map": {"prior": demo_prior(model.names)}}
+    supplied: dict[str, Any] = {"bounds": demo_bounds(model.names), "prior": demo_prior(model.names)}  # required
+    extra: dict[str, dict[str, Any]] = {method: {k: supplied[k] for k in METHODS[method].required}
+                                        for _, method, _ in DEMO_METHODS}
     results: dict[str, EstimateResult] = {}
     problem = Problem.from_flight(sim.flight, model, keep_sv=True)  # S_V and its QR once, for every method
     noise_free = sim.scenario.noise.sigma == 0
