@@ -306,7 +306,7 @@ class Problem:
 
     def locate(self, rows) -> list[dict]:
         """Where rows of this problem come from: ``{"sample", "t", "file", "row", "line"}`` each
-        (:func:`casep.io.files.locate_samples`; without a flight: the row and its time only)."""
+        (:func:`casep.io.locate.locate_samples`; without a flight: the row and its time only)."""
         rows = np.asarray(rows, dtype=int).reshape(-1)
         root = self.parent if self.parent is not None else self
         idx = rows if self.sample_index is None else self.sample_index[rows]  # rows of the root problem

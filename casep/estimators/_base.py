@@ -354,7 +354,7 @@ MAGNITUDE_Z = 5.0
 #: Methods whose estimates of poorly determined coefficients the regularisation sets, not the data (and whose
 #: std leave out that bias): beyond :data:`MAGNITUDE_FAIL` they get the warning, not a failure.
 REGULARISED = ("ridge", "pcr", "bounded")
-#: Status of a result whose flight failed a set-up check (casep.io.flight.setup_problems).
+#: Status of a result whose flight failed a set-up check (casep.analysis.checks.setup_problems).
 STATUS_SETUP = -4
 #: Status of a result with estimates beyond :data:`MAGNITUDE_FAIL` times their declared magnitudes.
 STATUS_MAGNITUDE = -5

@@ -196,7 +196,7 @@ def run_method(method: str, S: Any, y: np.ndarray | None, t: np.ndarray | None, 
 
 def option_ranges() -> dict[str, tuple[float, float, bool, str]]:
     """``name -> (low, high, low_inclusive, why)`` of the bounded scalar options and ``sigma``: the
-    ranges the Options declare, in the form of the former table ``_base.OPTION_RANGES``."""
+    ranges the Options declare."""
     out = {}
     for o in (SIGMA, *OPTIONS.values()):
         for r in o.rules:

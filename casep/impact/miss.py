@@ -125,7 +125,7 @@ class _Coefficients:
 
 
 def _load_result(result, model=None):
-    """``(result, its source, model)``: :func:`casep.estimators.result.read_result` (every result form,
+    """``(result, its source, model)``: :func:`casep.estimators.reading.read_result` (every result form,
     checked; the model the result names, or `model`)."""
     from casep.estimators.reading import read_result
     from casep.estimators.result import EstimateResult

@@ -66,7 +66,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     options : mapping, optional
         The method's options (registry names).
     noise, tau, robust : optional
-        Each flight's noise model (:func:`casep.analysis.noise.fit_noise`, fitted on the flight
+        Each flight's noise model (:func:`casep.analysis.noise_fit.fit_noise`, fitted on the flight
         alone) and robust cleaning (the robust filter of a least-squares fit of the flight alone:
         its glitches removed, its rows weighted); the joint solve is then on every flight's
         whitened rows (:func:`casep.separate` describes the options).

@@ -335,7 +335,7 @@ def _noise_free(problem: Problem) -> bool:
 
 def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_free: bool = False) -> EstimateResult:
     """A result judged against the set-up: failed (status -4) when its flight failed a set-up check
-    (:func:`casep.io.flight.setup_problems`: launch site, azimuth, launch time, time scales), and against
+    (:func:`casep.analysis.checks.setup_problems`: launch site, azimuth, launch time, time scales), and against
     the model's declared magnitudes (:func:`casep.estimators._base.check_magnitudes`), except on noise-free
     data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
     set-up mistake (check_fit's NoiseFreeWarning says so)."""
