@@ -87,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
 
     with recorded() as caught:  # passed on to main(), which prints them; the report quotes them
         res = separate(flight, model, args.method, sigma=args.sigma, bounds=bounds, prior=prior,
-                       denoise=args.denoise, wavelet_options=wopts or None, outliers=args.outliers, **opts, **nkw)
+                       denoise=args.denoise, wavelet_options=wopts or None, outliers=args.outliers, options=opts,
+                       **nkw)
     cons = None
     if prior is not None:  # the prior (a ground calibration) against the flight estimated alone
         from casep.workflows.coefficients import with_prior_consistency

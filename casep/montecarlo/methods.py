@@ -68,13 +68,13 @@ def parse_method(text: str) -> MethodSpec:
     base = text.split("+", 1)[1] if denoise else text
     name, _, value = base.partition(":")
     if name not in _REGISTRY:
-        raise ValueError(f"unknown method `{text}`. Use: {METHOD_HELP}")
+        raise ValueError(f"unknown method `{text}`. Use: {_known()}")
     if not value:
         return MethodSpec(text, name, {}, denoise)
     m = _REGISTRY[name]
     numeric = [(o, r) for o in m.option_specs[:1] for r in o.rules if isinstance(r, Interval)]
     if not numeric:
-        raise ValueError(f"method `{text}`: `{name}` takes no number. Use: {METHOD_HELP}")
+        raise ValueError(f"method `{text}`: `{name}` takes no number. Use: {_known()}")
     (option, rule), label = numeric[0], numeric[0][0].flag.lstrip("-")
     try:
         number = rule.parse(value)
@@ -83,6 +83,11 @@ def parse_method(text: str) -> MethodSpec:
     if not rule.accepts(number):
         raise ValueError(f"method `{text}`: {label} must be {str(rule).removeprefix(rule.kind.__name__ + ' ')}")
     return MethodSpec(text, name, {option.name: number}, denoise)
+
+
+def _known() -> str:
+    """The methods registered now (a method registered at run time included), and the spec forms."""
+    return f"{', '.join(_REGISTRY)}; <method>:<number> (its first option, e.g. ridge:<lambda>); wavelet+<method>"
 
 
 def _supplied(spec: MethodSpec, names: Sequence[str], prior: Mapping | None,

@@ -82,3 +82,25 @@ def test_worked_example_is_a_registered_method(zweighted, rng):
 
 def test_unregistered_after_the_test():
     assert "zweighted" not in registry.METHODS and "z_ratio" not in registry.OPTIONS
+
+
+def test_worked_example_on_a_flight_from_python_and_the_command_line(zweighted, tmp_path, capsys):
+    """On a flight file: the result names its model (impact and fuse need it), and `casep separate
+    --method zweighted --z-ratio 2` runs once the method is registered, with the Python API's numbers."""
+    import json
+
+    from casep.cli import main
+    from casep.simulation.simulate import simulate_flight
+
+    sim = simulate_flight("paper", seed=4, rate=5.0)
+    path = tmp_path / "f.csv"
+    casep.write_flight(sim.flight, path)
+    flight = casep.read_flight(path)
+    res = casep.separate(flight, "platform36", method="zweighted", options={"z_ratio": 2.0})
+    assert res.model == "platform36" and res.extras.z_ratio == 2.0
+    out = tmp_path / "r.json"
+    assert main(["separate", str(path), "--method", "zweighted", "--z-ratio", "2", "--json", str(out)]) in (0, 1)
+    data = json.loads(out.read_text())
+    assert data["method"] == "zweighted" and data["model"] == "platform36"
+    np.testing.assert_allclose([c["estimate"] for c in data["coefficients"]], res.estimate, rtol=1e-9, atol=1e-12)
+    capsys.readouterr()
