@@ -22,11 +22,25 @@ from casep.estimators.huber import solve_huber
 from casep.estimators.map import solve_map
 from casep.estimators.ols import solve_ols
 from casep.estimators.pcr import solve_pcr
-from casep.estimators.registry import METHODS, Method, Option, SeveralFlights, describe, register, unregister
+from casep.estimators.registry import (
+    METHODS,
+    Choices,
+    CoefficientTable,
+    Interval,
+    Method,
+    Option,
+    Prepared,
+    SeveralFlights,
+    describe,
+    finish,
+    prepare,
+    register,
+    unregister,
+)
 from casep.estimators.result import EstimateResult
 from casep.estimators.ridge import solve_ridge
 from casep.estimators.rls import solve_rls
 
 __all__ = ["solve_bounded", "solve_gls", "solve_huber", "solve_map", "solve_ols", "solve_pcr", "solve_ridge",
            "solve_rls", "METHODS", "describe", "register", "unregister", "Method", "SeveralFlights", "Option",
-           "EstimateResult"]
+           "Interval", "Choices", "CoefficientTable", "Prepared", "prepare", "finish", "EstimateResult"]
