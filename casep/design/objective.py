@@ -32,6 +32,7 @@ S_V at the scenario's rate.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -64,7 +65,7 @@ def _cholesky_objectives(n: int, g_rows: np.ndarray | None, weights: np.ndarray 
             for k in range(j):
                 s = s - L[i][k] * L[j][k]
             L[i][j] = s / L[j][j]
-    logdet = 0
+    logdet: Any = 0  # a CasADi expression once the first term is added
     for j in range(n):
         logdet = logdet + 2 * ca.log(L[j][j])
 
@@ -77,13 +78,13 @@ def _cholesky_objectives(n: int, g_rows: np.ndarray | None, weights: np.ndarray 
             y.append(s / L[i][i])
         return y
 
-    trace = 0
+    trace: Any = 0
     for j in range(n):  # [M^-1]_jj = ||L^-1 e_j||^2 (column j of L^-1, zero above the diagonal)
         if w[j] == 0:
             continue
         e = [ca.SX(1) if i == j else ca.SX(0) for i in range(n)]
         y = forward(e)
-        cjj = 0
+        cjj: Any = 0  # a CasADi expression once the first term is added
         for i in range(j, n):
             cjj = cjj + y[i] * y[i]
         trace = trace + float(w[j]) * cjj
@@ -138,12 +139,12 @@ class DesignProblem:
         theta0, psi0 = att[:, 0], att[:, 1]
         e0 = np.column_stack([np.cos(psi0) * np.cos(theta0), np.cos(psi0) * np.sin(theta0), np.sin(psi0)])
         self.axial = np.einsum("ki,ki->k", f, e0)  # a_k = f . e_b (f = a e_b exactly in the simulator)
-        B = interpolation_matrix(maneuver.knots, t)[:, 1:]  # first knot held at zero
+        B = interpolation_matrix(np.asarray(maneuver.knots), t)[:, 1:]  # first knot held at zero
         x = ca.MX.sym("x", maneuver.n_variables)
         m = maneuver.n_free
         d = {"pitch": ca.MX.zeros(K, 1), "yaw": ca.MX.zeros(K, 1)}
-        for a, axis in enumerate(maneuver.axes):
-            d[axis] = ca.mtimes(ca.DM(B), x[a * m:(a + 1) * m]) * (math.pi / 180.0)
+        for k, axis in enumerate(maneuver.axes):
+            d[axis] = ca.mtimes(ca.DM(B), x[k * m:(k + 1) * m]) * (math.pi / 180.0)
         theta = ca.DM(theta0) + d["pitch"]
         psi = ca.DM(psi0) + d["yaw"]
         ex, ey, ez = ca.cos(psi) * ca.cos(theta), ca.cos(psi) * ca.sin(theta), ca.sin(psi)
