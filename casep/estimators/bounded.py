@@ -59,6 +59,15 @@ class BoundedExtras:
         return [f"bounds on {len(self.bounds)} of {n} coefficients; active set {kinds.count('lower')} at lower, "
                 f"{kinds.count('upper')} at upper bound, {kinds.count('fixed')} fixed, {n - len(kinds)} free"]
 
+    @staticmethod
+    def old_form(settings: dict, diagnostics: dict, extras: dict | None) -> tuple[dict, dict, dict | None]:
+        """A result file of an earlier casep: the active bounds also in ``diagnostics["active_bounds"]``."""
+        diagnostics = dict(diagnostics)
+        active = diagnostics.pop("active_bounds", None)
+        if extras is None and active is not None and isinstance(settings.get("bounds"), dict):
+            extras = {"bounds": settings["bounds"], "active_bounds": active}
+        return settings, diagnostics, extras
+
 _ACTIVE_TOL = 1e-6  # relative, in scaled coordinates
 
 
@@ -163,7 +172,7 @@ def solve_bounded(S: np.ndarray | Problem, y: np.ndarray | None = None, bounds: 
     Returns
     -------
     EstimateResult
-        ``diagnostics["active_bounds"]``: ``{name: "lower" | "upper" | "fixed"}``;
+        ``extras.active_bounds`` (:class:`BoundedExtras`): ``{name: "lower" | "upper" | "fixed"}``;
         ``diagnostics["active_set"]``: counts (at_lower, at_upper, fixed, free, undetermined);
         ``std_kind``: "conditional" when a bound is active or a value fixed (the std
         of the free coefficients are then conditional on the active set and understated), else
@@ -250,7 +259,7 @@ def _solve(pb: Prepared, *, method: Method, bounds: Mapping) -> EstimateResult:
                   message=_active_set_message(counts, pb.n),
                   settings={"bounds": box, "solver": "cvxpy+clarabel",
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
-                  diagnostics={"active_bounds": active, "active_set": counts,
+                  diagnostics={"active_set": counts,
                                "solver_status": prob.status, "polished": polished},
                   std_kind="conditional" if std_mask.any() else "sampling",
                   extras=BoundedExtras(dict(box), dict(active)))

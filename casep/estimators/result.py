@@ -49,11 +49,18 @@ def _json_float(v: float) -> float | None:
     return v if math.isfinite(v) else None
 
 
-def _sigma_text(v: Any) -> str:
+#: How a sigma that no one gave was found, by ``sigma_source`` (the value itself: ``EstimateResult.sigma``).
+_SIGMA_FOUND = {"robust": "robust estimate", "wavelet": "wavelet estimate from the raw finest details"}
+
+
+def _sigma_text(v: Any, source: str = "estimated", sigma: float = math.nan) -> str:
+    """The settings line's sigma: the one given (``settings["sigma"]``, the input), or how it was found."""
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return f"sigma given {v:.4g} m/s"
+    if (v is None or v == "estimated") and source in _SIGMA_FOUND and math.isfinite(sigma):
+        return f"sigma {sigma:.4g} m/s ({_SIGMA_FOUND[source]})"
     if v is None or v == "estimated":
         return "sigma estimated from the residuals"
-    if isinstance(v, (int, float)):
-        return f"sigma given {v:.4g} m/s"
     return f"sigma {v}"
 
 
@@ -92,9 +99,13 @@ class EstimateResult:
     si_factors : (n,) ndarray
         SI value of one natural unit per coefficient.
     settings : dict
-        The options used.
+        The inputs of the computation only: the method's options as given or by their defaults
+        (``"auto"``, ``"gcv"``, a given value), ``sigma`` as given (or ``"estimated"``), the noise model
+        asked. What the method found (a REML tau, a GCV lambda, the rank threshold used, ...) is in
+        ``extras`` (and in the settings line of :meth:`text`).
     diagnostics : dict
-        Condition numbers and identifiability (see ``docs/reference/file-formats.md``).
+        What every method's result has: condition numbers and identifiability, the noise model, the
+        checks (see ``docs/reference/file-formats.md``).
     model : str
         Model name.
     n_samples : int
@@ -290,7 +301,7 @@ class EstimateResult:
         return pd.DataFrame(self.coefficient_rows()).set_index("name")
 
     def settings_line(self) -> str:
-        """One line with the settings the method chose or was given (tau, lambda, MA model, ...): its
+        """One line with what the method was given and what it chose (tau, lambda, MA model, ...): its
         extras' ``describe``; for a result without extras (another tool's, fused), its plain settings."""
         describe = getattr(self.extras, "describe", None)
         if describe is not None:
@@ -298,7 +309,7 @@ class EstimateResult:
         else:
             parts = [f"{k} {v}" for k, v in self.settings.items() if isinstance(v, (int, float, str)) and k != "sigma"]
         parts.append("sigma not stated (a result file of another tool)" if self.sigma_source == "external"
-                     else _sigma_text(self.settings.get("sigma")))
+                     else _sigma_text(self.settings.get("sigma"), self.sigma_source, self.sigma))
         parts.append(f"std {self.std_kind}" + (" on the active set (understated)"
                                                  if self.std_kind == "conditional" else ""))
         return "settings: " + "; ".join(parts)
@@ -342,6 +353,21 @@ class EstimateResult:
         return "\n".join(lines)
 
 
+def _old_form(method: str, settings: dict, diagnostics: dict, extras: dict | None, source: str | None = None
+              ) -> tuple[dict, dict, dict | None]:
+    """Settings, diagnostics and extras of a result file in today's form: a file of an earlier casep kept
+    found values in ``settings`` or twice (``diagnostics`` and ``extras``); each method's extras type says how
+    its old form reads (``old_form``), and a file in today's form passes unchanged."""
+    sigma = settings.get("sigma")
+    if (source in _SIGMA_FOUND and not isinstance(sigma, bool) and isinstance(sigma, (int, float))
+            or isinstance(sigma, str) and sigma.startswith("wavelet estimate ")):
+        settings = {**settings, "sigma": "estimated"}  # the robust or wavelet sigma found (the result's sigma)
+    convert = getattr(extras_type(method), "old_form", None)
+    if convert is None:
+        return settings, diagnostics, extras
+    return convert(settings, diagnostics, extras)
+
+
 def _extras_from_dict(method: str, d: dict | None):
     """The typed extras of `method` back from their JSON object (lists -> declared tuples)."""
     cls = extras_type(method)
@@ -382,8 +408,10 @@ def result_from_data(rd, model=None) -> EstimateResult:
         si = np.array(vals, dtype=float)
     method = f.get("method") or "external"
     try:
-        extras = _extras_from_dict(method, f.get("extras"))
-    except (TypeError, KeyError) as exc:
+        settings, diagnostics, extras_d = _old_form(method, f.get("settings") or {}, f.get("diagnostics") or {},
+                                                    f.get("extras"), f.get("sigma_source"))
+        extras = _extras_from_dict(method, extras_d)
+    except (TypeError, KeyError, ValueError, IndexError) as exc:
         raise ValueError(f"{rd.source}: field `extras` does not fit method `{method}` ({exc})") from None
     rrms = f.get("residual_rms")
     n_est = int(np.isfinite(rd.estimate).sum())
@@ -398,7 +426,7 @@ def result_from_data(rd, model=None) -> EstimateResult:
         status=0 if f.get("status") is None else int(f["status"]),
         message=f.get("message") or f"read from {rd.source}",
         success=True if f.get("success") is None else bool(f["success"]),
-        si_factors=si, settings=f.get("settings") or {}, diagnostics=f.get("diagnostics") or {},
+        si_factors=si, settings=settings, diagnostics=diagnostics,
         model=f.get("model") or (model.name if model is not None else ""),
         n_samples=int(f.get("n_samples") or 0), denoise=f.get("denoise"),
         sigma_source=f.get("sigma_source") or ("estimated" if f.get("sigma") is not None else "external"),
@@ -445,7 +473,7 @@ def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | N
     where missing), ``covariance`` (n x n, NaN rows/columns where missing), ``residuals``
     (N x 3, m/s), ``history`` (recursive methods), scalars ``sigma``, ``rank``, ``status``,
     ``success``, strings ``method``, ``model``, ``message``, ``std_kind``, ``reasons``
-    (cellstr, "" where none) and the structs ``settings``, ``diagnostics``, ``denoise``
+    (cellstr, "" where none) and the structs ``settings``, ``diagnostics``, ``denoise``, ``extras``
     where their fields are simple (numbers, strings, flat lists, nested such structs).
     """
     n = len(res.names)
@@ -479,7 +507,9 @@ def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | N
         files = provenance.get("inputs", [])
         for key, field_name in (("input_files", "file"), ("input_sha256", "sha256"), ("input_roles", "role")):
             data[key] = np.array([str(f.get(field_name) or "") for f in files], dtype=object)
-    write_mat_fields(data, path, structs={k: getattr(res, k) for k in ("settings", "diagnostics", "denoise")})
+    structs = {k: getattr(res, k) for k in ("settings", "diagnostics", "denoise")}
+    structs["extras"] = jsonable(dataclasses.asdict(res.extras)) if res.extras is not None else None
+    write_mat_fields(data, path, structs=structs)
 
 
 def write_csv(res: EstimateResult, path: str | os.PathLike) -> None:

@@ -25,6 +25,7 @@ from casep.estimators.registry import (
     check_method_options,
 )
 from casep.estimators.result import SIGMA_SOURCES, EstimateResult
+from casep.io.result_files import write_json_atomic
 from casep.model.sv import build_sv
 from casep.simulation.simulate import simulate_flight
 
@@ -176,7 +177,7 @@ def _check_contract(res):
 def test_json_round_trip(method, results, tmp_path):
     res = results[method]
     path = tmp_path / "r.json"
-    casep.estimators.result.write_json_atomic(res.to_dict(), path)
+    write_json_atomic(res.to_dict(), path)
     back = EstimateResult.from_json(path)
     for field in ("method", "names", "units", "model", "status", "success", "message", "sigma_source", "std_kind",
                   "rank", "n_samples"):
