@@ -117,6 +117,16 @@ def test_facts_found_are_not_in_the_diagnostics(problem):
     assert "Kg0x" in _solve(problem, "bounded").extras.active_bounds
 
 
+def test_inputs_are_not_repeated_in_the_extras(problem):
+    """MAP's prior and bounded's box are inputs: in settings only (the settings line still shows them)."""
+    import dataclasses
+
+    bounded, map_ = _solve(problem, "bounded"), _solve(problem, "map")
+    assert set(dataclasses.asdict(bounded.extras)) == {"active_bounds"} and dataclasses.asdict(map_.extras) == {}
+    assert "bounds on 2 of 36 coefficients" in bounded.settings_line()
+    assert "Gaussian prior on 1 of 36 coefficients" in map_.settings_line() and "Kg0x 0 +- 2" in map_.settings_line()
+
+
 def test_robust_sigma_is_found_not_given(platform36):
     """A robust fit's sigma (the M-estimator's) is the result's sigma; settings say none was given."""
     import casep
