@@ -50,7 +50,7 @@ def main() -> None:
     new = [casep.solve_gls(S, Y[..., k], t, tau=float(taus[k])) for k in range(args.runs)]
     t_shared = time.perf_counter() - t0
 
-    dtau = max(abs(n.settings["tau"] / r.settings["tau"] - 1) for n, r in zip(new, ref))
+    dtau = max(abs(n.extras.tau / r.extras.tau - 1) for n, r in zip(new, ref))
     dest = max(float(np.nanmax(np.abs(n.estimate - r.estimate) / r.std)) for n, r in zip(new, ref))
     print(f"{args.scenario} at {args.rate:g} Hz, {S.shape[0]} samples, {args.runs} GLS runs")
     print(f"per-run solve_gls      {t_per_run:7.2f} s")

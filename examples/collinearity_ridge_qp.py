@@ -33,13 +33,13 @@ print(d.report())
 
 #%% Ridge: closed form vs cvxpy + Clarabel (same lambda)
 svd = casep.solve_ridge(S, dv, lam="gcv", names=model.names)
-cvx = casep.solve_ridge(S, dv, lam=svd.settings["lambda"], solver="cvxpy", names=model.names)
+cvx = casep.solve_ridge(S, dv, lam=svd.extras.lam, solver="cvxpy", names=model.names)
 rel = np.max(np.abs(svd.estimate - cvx.estimate) / np.maximum(np.abs(svd.estimate), 1e-300))
-print(f"ridge lambda (GCV) {svd.settings['lambda']:.3g}; closed form vs cvxpy/Clarabel max rel. diff {rel:.1e}")
+print(f"ridge lambda (GCV) {svd.extras.lam:.3g}; closed form vs cvxpy/Clarabel max rel. diff {rel:.1e}")
 
 #%% Bounded least squares in a spec-sheet box
 bnd = casep.solve_bounded(S, dv, demo_bounds(model.names), names=model.names)
-print(f"bounded: {len(bnd.diagnostics['active_bounds'])} coefficients on a bound; polished: "
+print(f"bounded: {len(bnd.extras.active_bounds)} coefficients on a bound; polished: "
       f"{bnd.diagnostics['polished']}")
 for n in ("Ka0x", "Ka1x", "Ka0y", "Kg0z"):
     j = model.index(n)

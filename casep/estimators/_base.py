@@ -76,6 +76,7 @@ class Prepared:
     problem: RegressionProblem
     ra: RankAnalysis
     sigma: float | None  # given noise std, or None
+    rcond_asked: float | None = None  # the rank threshold asked for (None: the default, ``ra.rcond`` the one used)
 
     @property
     def red(self) -> ReducedSystem:
@@ -163,7 +164,7 @@ def prepare(S: np.ndarray | RegressionProblem, y: np.ndarray | None, names: Sequ
     if pb.red.m <= ra.rank:
         raise ValueError(f"`S` has {pb.red.m} rows, not more than its rank {ra.rank}: "
                          "no degree of freedom for the noise")
-    return Prepared(pb, ra, sigma)
+    return Prepared(pb, ra, sigma, rcond)
 
 
 def finish(

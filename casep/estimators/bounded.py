@@ -47,17 +47,28 @@ BOUNDS = Option("bounds", "--bounds", None, (CoefficientTable("{name: [lo, hi] |
 
 @dataclass(frozen=True)
 class BoundedExtras:
-    """Bounded: the box (``name -> [low, high]``) and the bounds active at the solution."""
+    """Bounded: the bounds active at the solution, ``name -> "lower" | "upper" | "fixed"`` (the box, its
+    input, is ``settings["bounds"]``, ``name -> [low, high]``)."""
 
-    bounds: dict
     active_bounds: dict
 
     def describe(self, res: Any) -> list[str]:
         """Its part of the settings line."""
         n = len(res.names)
         kinds = list(self.active_bounds.values())
-        return [f"bounds on {len(self.bounds)} of {n} coefficients; active set {kinds.count('lower')} at lower, "
+        box = res.settings.get("bounds") or {}
+        return [f"bounds on {len(box)} of {n} coefficients; active set {kinds.count('lower')} at lower, "
                 f"{kinds.count('upper')} at upper bound, {kinds.count('fixed')} fixed, {n - len(kinds)} free"]
+
+    @staticmethod
+    def old_form(settings: dict, diagnostics: dict, extras: dict | None) -> tuple[dict, dict, dict | None]:
+        """A result file of an earlier casep: the active bounds also in ``diagnostics["active_bounds"]``
+        (and the box also in ``extras["bounds"]``, which today's type leaves to ``settings``)."""
+        diagnostics = dict(diagnostics)
+        active = diagnostics.pop("active_bounds", None)
+        if extras is None and active is not None:
+            extras = {"active_bounds": active}
+        return settings, diagnostics, extras
 
 _ACTIVE_TOL = 1e-6  # relative, in scaled coordinates
 
@@ -163,7 +174,7 @@ def solve_bounded(S: np.ndarray | Problem, y: np.ndarray | None = None, bounds: 
     Returns
     -------
     EstimateResult
-        ``diagnostics["active_bounds"]``: ``{name: "lower" | "upper" | "fixed"}``;
+        ``extras.active_bounds`` (:class:`BoundedExtras`): ``{name: "lower" | "upper" | "fixed"}``;
         ``diagnostics["active_set"]``: counts (at_lower, at_upper, fixed, free, undetermined);
         ``std_kind``: "conditional" when a bound is active or a value fixed (the std
         of the free coefficients are then conditional on the active set and understated), else
@@ -250,10 +261,10 @@ def _solve(pb: Prepared, *, method: Method, bounds: Mapping) -> EstimateResult:
                   message=_active_set_message(counts, pb.n),
                   settings={"bounds": box, "solver": "cvxpy+clarabel",
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
-                  diagnostics={"active_bounds": active, "active_set": counts,
+                  diagnostics={"active_set": counts,
                                "solver_status": prob.status, "polished": polished},
                   std_kind="conditional" if std_mask.any() else "sampling",
-                  extras=BoundedExtras(dict(box), dict(active)))
+                  extras=BoundedExtras(dict(active)))
 
 
 def _active_set_message(counts: dict[str, int], n: int) -> str:

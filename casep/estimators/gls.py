@@ -53,15 +53,38 @@ TAU = Option("tau", "--tau", "auto", (Choices(("auto",)), Interval(float, 0, 1e4
 
 @dataclass(frozen=True)
 class GLSExtras:
-    """GLS: the Gauss-Markov correlation time tau (s) and where it came from ("given", "reml")."""
+    """GLS: the Gauss-Markov correlation time tau (s) used and where it came from ("given", "reml");
+    with several flights, each flight's own (``flight_taus``, label -> s) and ``tau`` their mean.
+    ``settings["tau"]`` holds what was asked: "auto" or the given tau."""
 
     tau: float
     tau_rule: str
+    flight_taus: dict[str, float] | None = None
 
     def describe(self, res: Any) -> list[str]:
         """Its part of the settings line."""
         how = "REML estimate" if self.tau_rule == "reml" else "given"
+        if self.flight_taus:
+            each = ", ".join(f"{k} {v:.4g}" for k, v in self.flight_taus.items())
+            return [f"Gauss-Markov tau per flight ({how}): {each} s"]
         return [f"Gauss-Markov tau {self.tau:.4g} s ({how})"]
+
+    @staticmethod
+    def old_form(settings: dict, diagnostics: dict, extras: dict | None) -> tuple[dict, dict, dict | None]:
+        """A result file of an earlier casep: ``settings["tau"]`` was the tau found (a number, or per
+        flight a dict) and ``settings["tau_rule"]`` its rule; read as the input asked and the extras."""
+        if "tau_rule" not in settings:
+            return settings, diagnostics, extras
+        settings = dict(settings)
+        rule, tau = settings.pop("tau_rule"), settings.get("tau")
+        per = tau if isinstance(tau, dict) else None
+        taus: list[Any] = list(per.values()) if per else [tau]
+        if extras is None and all(isinstance(v, (int, float)) for v in taus):
+            extras = {"tau": float(np.mean([float(v) for v in taus])), "tau_rule": rule, "flight_taus": per}
+        elif extras is not None and per and extras.get("flight_taus") is None:
+            extras = {**extras, "flight_taus": per}
+        settings["tau"] = "auto" if rule == "reml" else taus[0]
+        return settings, diagnostics, extras
 
 
 def _whiten(S: np.ndarray, y: np.ndarray, t: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray]:
@@ -156,8 +179,8 @@ def _solve(pb: Prepared, *, method: Method, tau: float | str) -> EstimateResult:
     x, cov, sig = least_squares(pw)  # sigma: whitened residual std = stationary sigma
     fit = y - S @ x  # dv - S_V D_hat, not whitened
     return finish(pw, method, x, cov, sig, residuals=fit.reshape(-1),
-                  settings={"tau": tau_used, "tau_rule": rule, "sigma": "estimated" if pb.sigma is None else pb.sigma},
-                  extras=GLSExtras(float(tau_used), rule))
+                  settings={"tau": tau, "sigma": "estimated" if pb.sigma is None else pb.sigma},  # inputs
+                  extras=GLSExtras(float(tau_used), rule))  # found (REML) or the given tau
 
 
 def _noise_model(res: EstimateResult) -> NoiseModel:
@@ -189,13 +212,15 @@ def _flight_rows(problems: Sequence[Problem], options: Mapping[str, Any], noise:
 
 def _flights_finish(res: EstimateResult, jp: JointProblem, taus: list[float],
                     options: Mapping[str, Any]) -> EstimateResult:
-    """The least-squares result of the whitened flights as GLS's: each flight's tau in its settings."""
+    """The least-squares result of the whitened flights as GLS's: the tau asked in its settings, each
+    flight's tau in its extras."""
     import dataclasses
 
-    rule = "given" if not isinstance(options.get("tau", "auto"), str) else "reml"
+    tau = options.get("tau", "auto")
+    rule = "given" if not isinstance(tau, str) else "reml"
     return dataclasses.replace(
-        res, method="gls", extras=GLSExtras(float(np.mean(taus)), rule),
-        settings={"tau": dict(zip(jp.layout.labels, taus)), "tau_rule": rule, "sigma": res.settings["sigma"]},
+        res, method="gls", extras=GLSExtras(float(np.mean(taus)), rule, dict(zip(jp.layout.labels, taus))),
+        settings={"tau": tau, "sigma": res.settings["sigma"]},
         message=res.message + f"; GLS: each flight whitened by its own tau ({rule})")
 
 

@@ -68,6 +68,20 @@ class HuberExtras:
         return [f"Huber c {self.c:g}, {self.iterations} IRLS iterations, scale {self.scale:.4g}",
                 f"{self.outliers.get('count', 0)} rows flagged above {self.outliers.get('threshold_sigma', 0):g} sigma"]
 
+    @staticmethod
+    def old_form(settings: dict, diagnostics: dict, extras: dict | None) -> tuple[dict, dict, dict | None]:
+        """A result file of an earlier casep: the outliers also in ``diagnostics["outliers"]``; earlier
+        still, ``settings`` held the iterations, the scale, ``flag_sigma`` and ``outliers_flagged``."""
+        settings, diagnostics = dict(settings), dict(diagnostics)
+        outliers = diagnostics.pop("outliers", None)
+        found = {k: settings.pop(k, None) for k in ("iterations", "scale", "outliers_flagged")}
+        if "flag_sigma" in settings:
+            settings["flag"] = settings.pop("flag_sigma")
+        if extras is None and outliers is not None and found["iterations"] is not None and found["scale"] is not None:
+            extras = {"c": settings.get("c", HUBER_C), "iterations": found["iterations"], "scale": found["scale"],
+                      "outliers": outliers}
+        return settings, diagnostics, extras
+
 
 def solve_huber(S: np.ndarray | Problem, y: np.ndarray | None = None, *, c: float = HUBER_C, flag: float = 4.0,
                 tol: float = 1e-8, max_iter: int = 50, **labels: Unpack[Labels]) -> EstimateResult:
@@ -92,8 +106,8 @@ def solve_huber(S: np.ndarray | Problem, y: np.ndarray | None = None, *, c: floa
     Returns
     -------
     EstimateResult
-        ``diagnostics["outliers"]``: count, rows (sample, axis, size in sigma) of the largest;
-        ``extras`` (:class:`HuberExtras`): c, IRLS iterations, the scale, the outliers;
+        ``extras`` (:class:`HuberExtras`): c, IRLS iterations, the scale, the outliers (count,
+        threshold, rows (sample, axis, size in sigma) of the largest);
         ``settings``: the inputs c, flag, tol, max_iter.
     """
     return HUBER.call(S, y, c=c, flag=flag, tol=tol, max_iter=max_iter, **labels)
@@ -142,7 +156,7 @@ def _solve(pb: Prepared, *, method: Method, c: float, flag: float, tol: float, m
     return finish(pb, method, x, cov, sig, residuals=r,
                   settings={"c": c, "flag": flag, "tol": tol, "max_iter": max_iter,  # inputs; found: extras
                             "sigma": "robust (MAD) scale" if pb.sigma is None else pb.sigma},
-                  diagnostics={"outliers": outliers}, sigma_source=None if pb.sigma is not None else "robust",
+                  sigma_source=None if pb.sigma is not None else "robust",
                   extras=HuberExtras(float(c), int(it), float(scale), outliers))
 
 
@@ -150,15 +164,15 @@ def _flights_finish(res: EstimateResult, jp: JointProblem, state: Any, options: 
     """Each flagged row's flight and its sample in that flight (the stacked rows are flight after flight)."""
     import dataclasses
 
-    if not res.diagnostics.get("outliers"):
+    if not isinstance(res.extras, HuberExtras):
         return res
     starts = np.asarray(jp.segment_starts)
     rows = []
-    for r in res.diagnostics["outliers"]["largest"]:
+    for r in res.extras.outliers["largest"]:
         k = int(np.searchsorted(starts, r["sample"], side="right") - 1)  # the flight of the stacked sample
         rows.append({**r, "flight": jp.layout.labels[k], "flight_sample": int(r["sample"] - starts[k])})
-    return dataclasses.replace(res, diagnostics={**res.diagnostics,
-                                                 "outliers": {**res.diagnostics["outliers"], "largest": rows}})
+    return dataclasses.replace(res, extras=dataclasses.replace(res.extras,
+                                                               outliers={**res.extras.outliers, "largest": rows}))
 
 
 #: Huber's M-estimate; with several flights it estimates the scale of the whitened rows (about 1) itself.

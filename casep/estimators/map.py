@@ -59,14 +59,14 @@ PRIOR = Option("prior", "--prior", None, (CoefficientTable("{name: {mean, std}}"
 
 @dataclass(frozen=True)
 class MAPExtras:
-    """MAP: the Gaussian prior, ``name -> {"mean", "std"}`` (coefficients not listed: flat)."""
-
-    prior: dict
+    """MAP finds nothing beyond its estimate: its input, the Gaussian prior ``name -> {"mean", "std"}``
+    (coefficients not listed: flat), is ``settings["prior"]``; this type gives the settings line."""
 
     def describe(self, res: Any) -> list[str]:
-        """Its part of the settings line."""
-        prior = {k: v for k, v in self.prior.items() if k != CORRELATION}
-        corr = self.prior.get(CORRELATION)
+        """Its part of the settings line (the prior of ``res.settings``)."""
+        given = res.settings.get("prior") or {}
+        prior = {k: v for k, v in given.items() if k != CORRELATION}
+        corr = given.get(CORRELATION)
         out = [f"Gaussian prior on {len(prior)} of {len(res.names)} coefficients (others flat)"
                + (f", correlated over {len(corr['names'])}" if corr else "")]
         if 0 < len(prior) <= 4:
@@ -280,7 +280,7 @@ def _solve(pb: Prepared, *, method: Method, prior: Mapping) -> EstimateResult:
     prior = {n: {"mean": float(m), "std": float(t)} for n, m, t in zip(pb.names, mu, tau) if np.isfinite(t)}
     if CORRELATION in prior_arg and CORRELATION not in pb.names:
         prior[CORRELATION] = prior_arg[CORRELATION]
-    return finish(pb, method, z / cs, cov, sig, undetermined=undetermined, extras=MAPExtras(prior),
+    return finish(pb, method, z / cs, cov, sig, undetermined=undetermined, extras=MAPExtras(),
                   settings={"prior": prior, "sigma": "estimated" if pb.sigma is None else pb.sigma})
 
 

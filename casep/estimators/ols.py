@@ -38,9 +38,18 @@ __all__ = ["solve_ols", "OLS", "OLSExtras", "least_squares"]
 
 @dataclass(frozen=True)
 class OLSExtras:
-    """OLS: the relative singular-value cut of the rank decision."""
+    """OLS: the relative singular-value cut of the rank decision (``settings["rcond"]``: the one asked
+    for, None for the default ``max(m, n) eps``)."""
 
     rcond: float
+
+    @staticmethod
+    def old_form(settings: dict, diagnostics: dict, extras: dict | None) -> tuple[dict, dict, dict | None]:
+        """A result file of an earlier casep: ``settings["rcond"]`` was the threshold used (given or
+        the default; as an input it gives the same rank decision), the only record of it without extras."""
+        if extras is None and isinstance(settings.get("rcond"), (int, float)):
+            extras = {"rcond": float(settings["rcond"])}
+        return settings, diagnostics, extras
 
     def describe(self, res: Any) -> list[str]:
         """Its part of the settings line."""
@@ -74,8 +83,8 @@ def solve_ols(S: np.ndarray | Problem, y: np.ndarray | None = None, **labels: Un
 
 def _solve(pb: Prepared, *, method: Method) -> EstimateResult:
     x, cov, sig = least_squares(pb)
-    return finish(pb, method, x, cov, sig, extras=OLSExtras(float(pb.ra.rcond)),
-                  settings={"rcond": pb.ra.rcond, "sigma": "estimated" if pb.sigma is None else pb.sigma})
+    return finish(pb, method, x, cov, sig, extras=OLSExtras(float(pb.ra.rcond)),  # the rank threshold used
+                  settings={"rcond": pb.rcond_asked, "sigma": "estimated" if pb.sigma is None else pb.sigma})
 
 
 def least_squares(pb: Prepared) -> tuple[np.ndarray, np.ndarray, float]:

@@ -62,6 +62,24 @@ class PCRExtras:
             out.append(f"{len(self.dropped_directions)} dropped (condition index {span})")
         return out
 
+    @staticmethod
+    def old_form(settings: dict, diagnostics: dict, extras: dict | None) -> tuple[dict, dict, dict | None]:
+        """A result file of an earlier casep: the dropped directions also in ``diagnostics``; earlier still,
+        ``settings["n_components"]`` the components kept and ``settings["rule"]`` the rule."""
+        settings, diagnostics = dict(settings), dict(diagnostics)
+        dropped = diagnostics.pop("dropped_directions", None)
+        rule = settings.pop("rule", None)
+        if isinstance(rule, str) and rule.startswith("condition index <= "):  # the default rule: k was found
+            k = settings.get("n_components")
+            settings["n_components"] = None
+            settings["max_condition_index"] = float(rule.rsplit(" ", 1)[1])
+            if extras is None and isinstance(k, int) and dropped is not None:
+                extras = {"n_components": k, "rule": rule, "dropped_directions": dropped,
+                          "max_condition_index": settings["max_condition_index"]}
+        elif extras is None and isinstance(rule, str) and dropped is not None:
+            extras = {"n_components": settings.get("n_components"), "rule": rule, "dropped_directions": dropped}
+        return settings, diagnostics, extras
+
 
 def _combination(v: np.ndarray, names: Sequence[str], top: int = 4) -> dict[str, float]:
     order = np.argsort(-np.abs(v))[:top]
@@ -96,9 +114,9 @@ def solve_pcr(S: np.ndarray | Problem, y: np.ndarray | None = None, *, n_compone
     Returns
     -------
     EstimateResult
-        ``diagnostics["dropped_directions"]``: list of ``{"condition_index",
-        "combination": {name: loading on c_j D_j}}``; ``extras`` (:class:`PCRExtras`): the components
-        kept and the rule; ``settings``: the inputs `n_components` and `max_condition_index`.
+        ``extras`` (:class:`PCRExtras`): the components kept, the rule and the dropped directions
+        (list of ``{"condition_index", "combination": {name: loading on c_j D_j}}``); ``settings``: the
+        inputs `n_components` and `max_condition_index`.
     """
     return PCR.call(S, y, n_components=n_components, max_condition_index=max_condition_index, **labels)
 
@@ -121,7 +139,6 @@ def _solve(pb: Prepared, *, method: Method, max_condition_index: float,
     return finish(pb, method, z * inv_c, cov, sig,
                   settings={"n_components": n_components, "max_condition_index": max_condition_index,  # inputs
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
-                  diagnostics={"dropped_directions": dropped},
                   extras=PCRExtras(k, rule, dropped, None if n_components is not None else float(max_condition_index)))
 
 

@@ -18,7 +18,7 @@ from casep.io.result_files import (
     write_mat_fields,
 )
 
-__all__ = ["EstimateResult", "result_from_data", "check_result_units", "EXTRAS_TYPES",
+__all__ = ["EstimateResult", "EXTRAS_TYPES",
            "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "extras_type",
            "write_mat", "write_csv", "format_number"]
 
@@ -29,6 +29,14 @@ AXES = ("x", "y", "z")
 #: The extras dataclass of each registered method (``Method.extras_type``, declared beside its solver, with
 #: ``describe``); filled by :mod:`casep.estimators.registry`, which the package imports first.
 EXTRAS_TYPES: dict[str, type] = {}
+
+
+def __getattr__(name: str) -> Any:
+    if name in ("result_from_data", "check_result_units"):  # re-export: remove after merge (workflows/fuse_inputs.py)
+        from casep.estimators import reading
+
+        return getattr(reading, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def extras_type(method: str) -> type | None:
@@ -49,11 +57,18 @@ def _json_float(v: float) -> float | None:
     return v if math.isfinite(v) else None
 
 
-def _sigma_text(v: Any) -> str:
+#: How a sigma that no one gave was found, by ``sigma_source`` (the value itself: ``EstimateResult.sigma``).
+_SIGMA_FOUND = {"robust": "robust estimate", "wavelet": "wavelet estimate from the raw finest details"}
+
+
+def _sigma_text(v: Any, source: str = "estimated", sigma: float = math.nan) -> str:
+    """The settings line's sigma: the one given (``settings["sigma"]``, the input), or how it was found."""
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return f"sigma given {v:.4g} m/s"
+    if (v is None or v == "estimated") and source in _SIGMA_FOUND and math.isfinite(sigma):
+        return f"sigma {sigma:.4g} m/s ({_SIGMA_FOUND[source]})"
     if v is None or v == "estimated":
         return "sigma estimated from the residuals"
-    if isinstance(v, (int, float)):
-        return f"sigma given {v:.4g} m/s"
     return f"sigma {v}"
 
 
@@ -92,9 +107,13 @@ class EstimateResult:
     si_factors : (n,) ndarray
         SI value of one natural unit per coefficient.
     settings : dict
-        The options used.
+        The inputs of the computation only: the method's options as given or by their defaults
+        (``"auto"``, ``"gcv"``, a given value), ``sigma`` as given (or ``"estimated"``), the noise model
+        asked. What the method found (a REML tau, a GCV lambda, the rank threshold used, ...) is in
+        ``extras`` (and in the settings line of :meth:`text`).
     diagnostics : dict
-        Condition numbers and identifiability (see ``docs/reference/file-formats.md``).
+        What every method's result has: condition numbers and identifiability, the noise model, the
+        checks (see ``docs/reference/file-formats.md``).
     model : str
         Model name.
     n_samples : int
@@ -261,6 +280,7 @@ class EstimateResult:
             Naming the file and the field: a missing or wrongly typed field, the two forms
             disagreeing, a covariance that is not one (:mod:`casep.io.result_json`).
         """
+        from casep.estimators.reading import result_from_data
         from casep.io.result_json import parse_result_data, read_result_data
 
         if isinstance(source, dict):
@@ -290,7 +310,7 @@ class EstimateResult:
         return pd.DataFrame(self.coefficient_rows()).set_index("name")
 
     def settings_line(self) -> str:
-        """One line with the settings the method chose or was given (tau, lambda, MA model, ...): its
+        """One line with what the method was given and what it chose (tau, lambda, MA model, ...): its
         extras' ``describe``; for a result without extras (another tool's, fused), its plain settings."""
         describe = getattr(self.extras, "describe", None)
         if describe is not None:
@@ -298,7 +318,7 @@ class EstimateResult:
         else:
             parts = [f"{k} {v}" for k, v in self.settings.items() if isinstance(v, (int, float, str)) and k != "sigma"]
         parts.append("sigma not stated (a result file of another tool)" if self.sigma_source == "external"
-                     else _sigma_text(self.settings.get("sigma")))
+                     else _sigma_text(self.settings.get("sigma"), self.sigma_source, self.sigma))
         parts.append(f"std {self.std_kind}" + (" on the active set (understated)"
                                                  if self.std_kind == "conditional" else ""))
         return "settings: " + "; ".join(parts)
@@ -342,95 +362,6 @@ class EstimateResult:
         return "\n".join(lines)
 
 
-def _extras_from_dict(method: str, d: dict | None):
-    """The typed extras of `method` back from their JSON object (lists -> declared tuples)."""
-    cls = extras_type(method)
-    if d is None or cls is None:
-        return None
-    kw = {f.name: (tuple(d[f.name]) if str(f.type).startswith("tuple") else d[f.name])
-          for f in dataclasses.fields(cls) if f.name in d}
-    return cls(**kw)
-
-
-def result_from_data(rd, model=None) -> EstimateResult:
-    """An :class:`EstimateResult` of a checked result file (:class:`casep.io.result_json.ResultData`).
-
-    `model` (ErrorModel or name): check names and units against it, and take the SI factors from it.
-    """
-    f = rd.fields
-    si = None
-    if model is not None:
-        from casep.model.loader import load_model
-
-        model = load_model(model)
-        skip = _tracking_terms(f.get("diagnostics"))
-        check_result_units(rd.names, rd.units, model, rd.source, skip=skip)
-        if not skip:
-            base = [n.split("[", 1)[0] for n in rd.names]
-            si = np.array([model.si_factors[model.names.index(b)] for b in base], dtype=float)
-    if si is None and f.get("si_factors") is not None and len(f["si_factors"]) == len(rd.names):
-        si = np.array([np.nan if v is None else v for v in f["si_factors"]], dtype=float)
-    if si is None:
-        from casep.units import si_factor
-
-        vals = []
-        for u in rd.units:
-            try:
-                vals.append(si_factor(u))
-            except (KeyError, ValueError):
-                vals.append(math.nan)
-        si = np.array(vals, dtype=float)
-    method = f.get("method") or "external"
-    try:
-        extras = _extras_from_dict(method, f.get("extras"))
-    except (TypeError, KeyError) as exc:
-        raise ValueError(f"{rd.source}: field `extras` does not fit method `{method}` ({exc})") from None
-    rrms = f.get("residual_rms")
-    n_est = int(np.isfinite(rd.estimate).sum())
-    for key, allowed in (("std_kind", STD_KIND_MEANINGS), ("sigma_source", SIGMA_SOURCE_MEANINGS)):
-        if f.get(key) is not None and f[key] not in allowed:
-            raise ValueError(f"{rd.source}: field `{key}` must be one of {', '.join(allowed)}, got {f[key]!r}")
-    return EstimateResult(
-        method=method, names=rd.names, units=rd.units, estimate=rd.estimate, std=rd.std,
-        covariance=rd.covariance, reasons=dict(rd.reasons), residuals=np.zeros((0, 3)),
-        sigma=math.nan if f.get("sigma") is None else float(f["sigma"]),
-        rank=n_est if f.get("rank") is None else int(f["rank"]),
-        status=0 if f.get("status") is None else int(f["status"]),
-        message=f.get("message") or f"read from {rd.source}",
-        success=True if f.get("success") is None else bool(f["success"]),
-        si_factors=si, settings=f.get("settings") or {}, diagnostics=f.get("diagnostics") or {},
-        model=f.get("model") or (model.name if model is not None else ""),
-        n_samples=int(f.get("n_samples") or 0), denoise=f.get("denoise"),
-        sigma_source=f.get("sigma_source") or ("estimated" if f.get("sigma") is not None else "external"),
-        stored_residual_rms=rrms if rrms is not None else {a: None for a in AXES},
-        std_kind=f.get("std_kind") or "sampling", extras=extras, model_file=f.get("model_file"))
-
-
-def _tracking_terms(diagnostics) -> set[str]:
-    """Coefficients of a radar-tracked result that belong to its tracking model (station errors), not to
-    the instrument model: ``diagnostics["tracking_terms"]``."""
-    terms = (diagnostics or {}).get("tracking_terms") if isinstance(diagnostics, dict) else None
-    return {str(t) for t in terms} if isinstance(terms, (list, tuple)) else set()
-
-
-def check_result_units(names, units, model, source: str, skip: set[str] | frozenset[str] = frozenset()) -> None:
-    """Every coefficient of a result is the model's (a several-flight result's ``name[file]``: its base
-    name) and in the model's unit; ValueError naming the coefficient and both units. Names in `skip`
-    (a radar-tracked result's tracking-model terms) are not the instrument model's and are left out."""
-    from casep.model._model import unknown_coefficient_message
-
-    for n, u in zip(names, units):
-        if n in skip:
-            continue
-        base = n.split("[", 1)[0]
-        if base not in model.names:
-            raise ValueError(unknown_coefficient_message(base, model.names, f"{source} (model {model.name})"))
-        mu = model.units[model.names.index(base)]
-        if u.strip() != mu:
-            raise ValueError(f"{source}: `{n}` is in {u!r}, but model `{model.name}` declares it in {mu!r}: convert "
-                             "the estimate, std and covariance to the model's unit")
-
-
 def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | None = None,
               provenance: Mapping[str, Any] | None = None) -> None:
     """Write the result as a MATLAB/Octave ``.mat`` file (:func:`casep.io.result_files.write_mat_fields`).
@@ -445,7 +376,7 @@ def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | N
     where missing), ``covariance`` (n x n, NaN rows/columns where missing), ``residuals``
     (N x 3, m/s), ``history`` (recursive methods), scalars ``sigma``, ``rank``, ``status``,
     ``success``, strings ``method``, ``model``, ``message``, ``std_kind``, ``reasons``
-    (cellstr, "" where none) and the structs ``settings``, ``diagnostics``, ``denoise``
+    (cellstr, "" where none) and the structs ``settings``, ``diagnostics``, ``denoise``, ``extras``
     where their fields are simple (numbers, strings, flat lists, nested such structs).
     """
     n = len(res.names)
@@ -479,7 +410,9 @@ def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | N
         files = provenance.get("inputs", [])
         for key, field_name in (("input_files", "file"), ("input_sha256", "sha256"), ("input_roles", "role")):
             data[key] = np.array([str(f.get(field_name) or "") for f in files], dtype=object)
-    write_mat_fields(data, path, structs={k: getattr(res, k) for k in ("settings", "diagnostics", "denoise")})
+    structs = {k: getattr(res, k) for k in ("settings", "diagnostics", "denoise")}
+    structs["extras"] = jsonable(dataclasses.asdict(res.extras)) if res.extras is not None else None
+    write_mat_fields(data, path, structs=structs)
 
 
 def write_csv(res: EstimateResult, path: str | os.PathLike) -> None:

@@ -59,6 +59,21 @@ class RidgeExtras:
         return [f"lambda {self.lam:.4g} on unit-norm columns ({rule})",
                 f"effective dof {self.effective_dof:.3g} of {len(res.names)}"]
 
+    @staticmethod
+    def old_form(settings: dict, diagnostics: dict, extras: dict | None) -> tuple[dict, dict, dict | None]:
+        """A result file of an earlier casep: ``settings["lambda"]`` was the lambda found,
+        ``settings["lambda_rule"]`` its rule and ``diagnostics["effective_dof"]`` tr H; read as the input
+        asked (the rule, or the given lambda) and the extras."""
+        if "lambda_rule" not in settings:
+            return settings, diagnostics, extras
+        settings, diagnostics = dict(settings), dict(diagnostics)
+        rule, lam = settings.pop("lambda_rule"), settings.get("lambda")
+        dof = diagnostics.pop("effective_dof", None)
+        if extras is None and isinstance(lam, (int, float)) and isinstance(dof, (int, float)):
+            extras = {"lam": float(lam), "rule": rule, "effective_dof": float(dof)}
+        settings["lambda"] = lam if rule == "given" else rule
+        return settings, diagnostics, extras
+
 
 def _ridge_terms(s: np.ndarray, beta: np.ndarray, rho2: float, lam: np.ndarray):
     lam = np.atleast_1d(lam)[:, None]
@@ -136,7 +151,8 @@ def solve_ridge(S: np.ndarray | Problem, y: np.ndarray | None = None, *, lam: fl
     Returns
     -------
     EstimateResult
-        ``settings["lambda"]`` the value used; ``diagnostics["effective_dof"]`` = tr H.
+        ``settings["lambda"]`` the input (the rule or the given value); ``extras``
+        (:class:`RidgeExtras`): the lambda used, its rule and the effective dof tr H.
     """
     return RIDGE.call(S, y, lam=lam, solver=solver, **labels)
 
@@ -145,6 +161,7 @@ def _solve(pb: Prepared, *, method: Method, lam: float | str, solver: str) -> Es
     U, s, Vt = pb.ra.U, pb.ra.s, pb.ra.Vt
     beta = U.T @ pb.red.qty
     m = pb.m
+    asked = lam  # the input: a rule or a number
     rule = lam if isinstance(lam, str) else "given"
     if lam == "gcv":
         lam = _gcv_lambda(s, beta, pb.red.rho2, m)
@@ -159,9 +176,8 @@ def _solve(pb: Prepared, *, method: Method, lam: float | str, solver: str) -> Es
     inv_c = pb.inv_c
     cov = sig**2 * (G @ G.T) * np.outer(inv_c, inv_c)
     return finish(pb, method, z * inv_c, cov, sig,
-                  settings={"lambda": float(lam), "lambda_rule": rule, "solver": solver,
+                  settings={"lambda": asked, "solver": solver,  # inputs; found: extras
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
-                  diagnostics={"effective_dof": float(trh[0])},
                   extras=RidgeExtras(float(lam), rule, float(trh[0])))
 
 

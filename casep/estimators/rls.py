@@ -113,8 +113,9 @@ _ANY_ORDER = Option("noise_order", "--noise-order", 0, (Interval(int, 0),), "noi
 @dataclass(frozen=True)
 class RLSExtras:
     """RLS/RELS: prior scale ``p0`` (P0 = p0 I, scaled coordinates), measurement weight,
-    forgetting factor, MA order, and the RELS noise model ``v(k) = e(k) - sum_j c_j v(k-j)``
-    (coefficients, their posterior std, innovation RMS in m/s; empty/None for RLS)."""
+    forgetting factor, MA order, the RELS noise model ``v(k) = e(k) - sum_j c_j v(k-j)``
+    (coefficients, their posterior std, innovation RMS in m/s; empty/None for RLS) and the stride of
+    the estimate history (samples between its rows, given or about N / 2000)."""
 
     p0: float
     weight: float
@@ -123,6 +124,7 @@ class RLSExtras:
     ma_coefficients: tuple[float, ...] = ()
     ma_std: tuple[float, ...] = ()
     innovation_rms: float | None = None
+    history_stride: int | None = None
 
     def describe(self, res: Any) -> list[str]:
         """Its part of the settings line."""
@@ -135,6 +137,19 @@ class RLSExtras:
             rms = "-" if self.innovation_rms is None else f"{self.innovation_rms:.4g}"
             out.append(f"MA({len(self.ma_coefficients)}) noise model {ma}; innovation RMS {rms} m/s")
         return out
+
+    @staticmethod
+    def old_form(settings: dict, diagnostics: dict, extras: dict | None) -> tuple[dict, dict, dict | None]:
+        """A result file of an earlier casep: the RELS noise model also in ``diagnostics["noise_model"]``."""
+        diagnostics = dict(diagnostics)
+        nm = diagnostics.pop("noise_model", None)
+        if extras is None and all(isinstance(settings.get(k), (int, float)) for k in ("p0", "weight", "forgetting")):
+            nm = nm or {}
+            extras = {"p0": settings["p0"], "weight": settings["weight"], "forgetting": settings["forgetting"],
+                      "noise_order": int(settings.get("noise_order") or 0),
+                      "ma_coefficients": nm.get("ma_coefficients", []), "ma_std": nm.get("ma_std", []),
+                      "innovation_rms": nm.get("innovation_rms"), "history_stride": settings.get("history_stride")}
+        return settings, diagnostics, extras
 
 
 def solve_rls(S: np.ndarray | Problem, y: np.ndarray | None = None, *, p0: float = DEFAULT_P0, weight: float = 1.0,
@@ -172,7 +187,8 @@ def solve_rls(S: np.ndarray | Problem, y: np.ndarray | None = None, *, p0: float
         0, stride, 2 stride, ...; the MA coefficients last) and ``history_std`` (their std
         ``sqrt(diag(sigma^2 w P_k))`` with the final sigma; diag(P_k) from the U-D factors as
         ``sum_j U_ij^2 D_j``, computed at the history rows only);
-        ``diagnostics["noise_model"]`` the MA coefficients and their std for RELS.
+        ``extras`` (:class:`RLSExtras`): the RELS noise model (MA coefficients, their std, the
+        innovation RMS) and the history stride used.
     """
     nc = _ANY_ORDER.check(noise_order)
     opts: dict[str, Any] = {"p0": p0, "weight": weight, "forgetting": forgetting, "residuals": residuals,
@@ -239,16 +255,16 @@ def _solve(pb: Prepared, *, method: Method, p0: float, weight: float, forgetting
     ma = tuple(float(v) for v in x[p:])
     ma_std = tuple(float(np.sqrt(cov_s[p + j, p + j])) for j in range(nc))
     innovation_rms = float(np.sqrt(innov_ss / (3 * N))) if nc else None
-    if nc:
-        diagnostics["noise_model"] = {"ma_coefficients": list(ma), "ma_std": list(ma_std),
-                                      "innovation_rms": innovation_rms}
     res = finish(
         pb, method, x_nat, cov, sig,
+        # inputs; found: extras. history_stride: the stride used, also when the default chose it, until the
+        # history plot (casep.reporting.plots) and the demo read extras.history_stride
         settings={"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": nc,
                   "residuals": residuals, "history_stride": history_stride,
                   "sigma": "estimated" if pb.sigma is None else pb.sigma},
         diagnostics=diagnostics, history=history, residuals=fit, history_std=history_std,
-        extras=RLSExtras(float(p0), float(weight), float(forgetting), int(nc), ma, ma_std, innovation_rms),
+        extras=RLSExtras(float(p0), float(weight), float(forgetting), int(nc), ma, ma_std, innovation_rms,
+                         int(history_stride)),
     )
     if forgetting < 1.0:  # P is then no covariance and the prior no belief: the std are indicative only
         return res

@@ -274,7 +274,7 @@ def separate(
     if den is not None:
         settings = dict(res.settings)
         if sigma_from_wavelet:
-            settings["sigma"] = f"wavelet estimate {sigma:.6g}"
+            settings["sigma"] = "estimated"  # none given: the wavelet's estimate is res.sigma (sigma_source)
         res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings,
                                   sigma_source="wavelet" if sigma_from_wavelet else res.sigma_source)
     if not isinstance(flight, Problem) and isinstance(model, ErrorModel):

@@ -107,11 +107,12 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
         rows = prepare_rows(problem, noise, tau, robust, exclude_outliers)
     elif rows.problem is not problem:
         raise ValueError("`rows` were prepared for another problem")
-    if opts.get("sigma") is None and rows.sigma is not None:
+    robust_sigma = opts.get("sigma") is None and rows.sigma is not None
+    if robust_sigma:
         opts["sigma"] = rows.sigma  # robust: the M-estimator's sigma (module notes)
     res = meth.solve(rows.solved, **opts)
-    if rows.sigma is not None and res.sigma_source == "given" and opts["sigma"] == rows.sigma:
-        res = dataclasses.replace(res, sigma_source="robust")
+    if robust_sigma:  # found, not given: settings keep the input (none given), the value is res.sigma
+        res = dataclasses.replace(res, sigma_source="robust", settings={**res.settings, "sigma": "estimated"})
     if std == "hac":
         res = _with_hac(res, rows.solved)
     return Solved(_finish(rows, res, check_white), rows.solved, rows.noise, np.flatnonzero(~rows.keep),

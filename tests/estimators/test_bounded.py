@@ -24,7 +24,7 @@ def _kkt(res, S, y, lo, hi, fixed):
     c = np.linalg.norm(S2, axis=0)
     g = (S2 / c).T @ (S2 @ res.estimate - y.reshape(-1))  # d/dz of 0.5 ||r||^2
     gn = g / np.linalg.norm(y)
-    act = res.diagnostics["active_bounds"]
+    act = res.extras.active_bounds
     names = res.names
     for j, nm in enumerate(names):
         kind = act.get(nm)
@@ -42,9 +42,9 @@ def test_solution_in_box_and_kkt(small, truth36):
     res = casep.solve_bounded(S, y, box, names=names)
     lo, hi, fixed = parse_bounds(box, names)
     assert np.all(res.estimate >= lo - 1e-12) and np.all(res.estimate <= hi + 1e-12)
-    assert len(res.diagnostics["active_bounds"]) > 0  # 0.1 m/s noise pushes many to the box
+    assert len(res.extras.active_bounds) > 0  # 0.1 m/s noise pushes many to the box
     _kkt(res, S, y, lo, hi, fixed)
-    for nm in res.diagnostics["active_bounds"]:
+    for nm in res.extras.active_bounds:
         j = names.index(nm)
         assert res.std[j] != res.std[j] and "bound" in res.reasons[nm]  # std NaN, reason given
 
@@ -54,7 +54,7 @@ def test_equals_ols_when_no_bound_is_active(small):
     ols = casep.solve_ols(S, y, names=names)
     box = {n: [e - 100 * s, e + 100 * s] for n, e, s in zip(names, ols.estimate, ols.std)}
     res = casep.solve_bounded(S, y, box, names=names)
-    assert res.diagnostics["active_bounds"] == {}
+    assert res.extras.active_bounds == {}
     assert np.max(np.abs(res.estimate - ols.estimate) / ols.std) < 1e-4
     np.testing.assert_allclose(res.std, ols.std, rtol=1e-4)
 
@@ -64,7 +64,7 @@ def test_fixed_coefficients_stay_fixed_and_rest_is_conditional_ols(small):
     res = casep.solve_bounded(S, y, {"Kg0x": 0.5, "Ka1xz": [50.0, 50.0]}, names=names)
     j, k = names.index("Kg0x"), names.index("Ka1xz")
     assert res.estimate[j] == 0.5 and res.estimate[k] == 50.0
-    assert res.diagnostics["active_bounds"] == {"Kg0x": "fixed", "Ka1xz": "fixed"}
+    assert res.extras.active_bounds == {"Kg0x": "fixed", "Ka1xz": "fixed"}
     free = [i for i in range(36) if i not in (j, k)]
     S2 = S.reshape(-1, 36)
     ref = casep.solve_ols(S2[:, free], y.reshape(-1) - S2[:, [j, k]] @ np.array([0.5, 50.0]))
@@ -89,7 +89,7 @@ def test_message_and_table_state_active_set_and_conditional_std(small, truth36):
     box = {n: [v - 2 * abs(v), v + 2 * abs(v)] for n, v in zip(names, truth36)}
     box["Kg0x"] = 0.5  # one fixed
     res = casep.solve_bounded(S, y, box, names=names)
-    kinds = list(res.diagnostics["active_bounds"].values())
+    kinds = list(res.extras.active_bounds.values())
     n_lo, n_hi = kinds.count("lower"), kinds.count("upper")
     assert kinds.count("fixed") == 1 and n_lo + n_hi > 0
     n_free = 36 - len(kinds)

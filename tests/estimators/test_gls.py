@@ -41,7 +41,7 @@ def test_reml_tau_and_honest_coverage(platform36):
     for _ in range(40):
         y = clean + noise.sample(t, rng)
         g = casep.solve_gls(S, y, t)
-        taus.append(g.settings["tau"])
+        taus.append(g.extras.tau)
         z.append((g.estimate - sim.truth) / g.std)
         o = casep.solve_ols(S, y)
         z_ols.append((o.estimate - sim.truth) / o.std)
@@ -70,7 +70,7 @@ def test_separate_and_cli(tmp_path, capsys):
     import json
 
     data = json.loads(out.read_text())
-    assert data["method"] == "gls" and 0.7 < data["settings"]["tau"] < 1.4
+    assert data["method"] == "gls" and 0.7 < data["extras"]["tau"] < 1.4
     assert main(["separate", str(tmp_path / "f.csv"), "--method", "gls", "--tau", "2.5", "--json", str(out)]) == 0
     assert json.loads(out.read_text())["settings"]["tau"] == 2.5
 

@@ -46,7 +46,7 @@ def test_huber_on_clean_data_is_close_to_ols(paper20, rng):
     """Default c = 1.345 on Gaussian noise: 95 % efficiency, so Huber - OLS ~ 0.23 std RMS."""
     ols, hub = _ols_and_huber(paper20, rng)
     z = (hub.estimate - ols.estimate) / ols.std
-    assert np.sqrt(np.mean(z**2)) < 0.5 and hub.diagnostics["outliers"]["count"] < 0.001 * ols.residuals.size
+    assert np.sqrt(np.mean(z**2)) < 0.5 and hub.extras.outliers["count"] < 0.001 * ols.residuals.size
 
 
 @pytest.mark.montecarlo

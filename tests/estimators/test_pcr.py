@@ -19,12 +19,12 @@ def test_all_components_equal_ols(paper_problem):
 def test_truncation_rule_and_dropped_directions(paper_problem):
     S, y, _ = paper_problem
     res = casep.solve_pcr(S, y, max_condition_index=100.0)
-    ci = [d["condition_index"] for d in res.diagnostics["dropped_directions"]]
+    ci = [d["condition_index"] for d in res.extras.dropped_directions]
     k = res.extras.n_components
     assert len(ci) == 36 - k and all(c > 100.0 for c in ci)
     s = np.linalg.svd(casep.reduce_qr(S, y).R, compute_uv=False)
     assert k == int(np.sum(s[0] / s <= 100.0))
-    assert all(d["combination"] for d in res.diagnostics["dropped_directions"])
+    assert all(d["combination"] for d in res.extras.dropped_directions)
     assert np.all(res.std <= casep.solve_ols(S, y).std * (1 + 1e-9))
 
 

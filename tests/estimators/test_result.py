@@ -51,18 +51,18 @@ def _settings_line(res) -> str:
 
 # Per method: keyword arguments and what its settings line must show (computed from the result).
 CASES = {
-    "ols": ({}, lambda r: [f"rcond {r.settings['rcond']:.3g}", "std sampling"]),
-    "gls": ({}, lambda r: [f"tau {r.settings['tau']:.4g} s (REML estimate)", "std sampling"]),
-    "ridge": ({}, lambda r: [f"lambda {r.settings['lambda']:.4g} on unit-norm columns (GCV)",
-                             f"effective dof {r.diagnostics['effective_dof']:.3g} of 36"]),
+    "ols": ({}, lambda r: [f"rcond {r.extras.rcond:.3g}", "std sampling"]),
+    "gls": ({}, lambda r: [f"tau {r.extras.tau:.4g} s (REML estimate)", "std sampling"]),
+    "ridge": ({}, lambda r: [f"lambda {r.extras.lam:.4g} on unit-norm columns (GCV)",
+                             f"effective dof {r.extras.effective_dof:.3g} of 36"]),
     "rls": ({"p0": 1e4, "forgetting": 0.99999},
             lambda r: ["p0 1e+04", "forgetting 0.99999",
                        f"effective prior std {r.diagnostics['effective_prior_std']:.4g}", "std posterior"]),
     "rels": ({"noise_order": 2}, lambda r: [
         "MA(2) noise model",
-        f"c1 {r.diagnostics['noise_model']['ma_coefficients'][0]:.4g} "
-        f"+- {r.diagnostics['noise_model']['ma_std'][0]:.2g}",
-        f"c2 {r.diagnostics['noise_model']['ma_coefficients'][1]:.4g}"]),
+        f"c1 {r.extras.ma_coefficients[0]:.4g} "
+        f"+- {r.extras.ma_std[0]:.2g}",
+        f"c2 {r.extras.ma_coefficients[1]:.4g}"]),
     "pcr": ({"n_components": 30}, lambda r: ["30 of 36 components kept", "6 dropped (condition index"]),
     "map": ({"prior": {"Kg0x": {"mean": 0.0, "std": 2.0}, "Ka0y": {"mean": 1.0, "std": 0.5}}},
             lambda r: ["Gaussian prior on 2 of 36 coefficients", "Kg0x 0 +- 2", "Ka0y 1 +- 0.5", "std posterior"]),
@@ -135,7 +135,7 @@ def test_mat_round_trip(noisy_flight, tmp_path):
     assert m["method"] == "bounded" and m["std_kind"] == "conditional" and m["message"] == res.message
     assert m["sigma"] == res.sigma and bool(m["success"]) is True
     assert m["settings"]["bounds"]["Kg0x"][0] == -0.01
-    assert m["diagnostics"]["active_bounds"]["Ka0y"] == "fixed"
+    assert m["extras"]["active_bounds"]["Ka0y"] == "fixed"
     assert m["reasons"][res.names.index("Ka0y")] == "fixed to its given value"
 
 
@@ -146,7 +146,7 @@ def test_mat_has_history_for_recursive(noisy_flight, tmp_path):
     write_mat(res, tmp_path / "r.mat")
     m = loadmat(tmp_path / "r.mat", simplify_cells=True)
     np.testing.assert_array_equal(m["history"], res.history)
-    assert m["diagnostics"]["noise_model"]["ma_coefficients"] == res.diagnostics["noise_model"]["ma_coefficients"][0]
+    assert m["extras"]["ma_coefficients"] == res.extras.ma_coefficients[0]
 
 
 def test_csv_round_trip(noisy_flight, tmp_path):

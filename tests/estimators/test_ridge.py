@@ -37,14 +37,14 @@ def test_gcv_picks_the_minimiser_on_a_designed_case(rng):
     grid = np.logspace(-14, 2, 20001)
     g = gcv_curve(sv, beta, red.rho2, m, grid)
     lam_grid = grid[np.argmin(g)]
-    assert res.settings["lambda"] == pytest.approx(lam_grid, rel=2e-3)
-    assert gcv_curve(sv, beta, red.rho2, m, np.array([res.settings["lambda"]]))[0] <= g.min() * (1 + 1e-9)
+    assert res.extras.lam == pytest.approx(lam_grid, rel=2e-3)
+    assert gcv_curve(sv, beta, red.rho2, m, np.array([res.extras.lam]))[0] <= g.min() * (1 + 1e-9)
 
 
 def test_lcurve_is_between_extremes(paper_problem):
     S, y, _ = paper_problem
     res = casep.solve_ridge(S, y, lam="lcurve")
-    assert res.settings["lambda_rule"] == "lcurve" and 1e-12 < res.settings["lambda"] < 1.0
+    assert res.extras.rule == "lcurve" and 1e-12 < res.extras.lam < 1.0
 
 
 def test_ridge_tends_to_ols_and_std_formula(paper_problem):
@@ -54,7 +54,7 @@ def test_ridge_tends_to_ols_and_std_formula(paper_problem):
     assert np.max(np.abs(tiny.estimate - ols.estimate) / ols.std) < 1e-3
     big = casep.solve_ridge(S, y, lam=1e3)
     assert np.all(big.std < ols.std)  # shrinkage lowers the sampling variance
-    assert big.diagnostics["effective_dof"] < 36
+    assert big.extras.effective_dof < 36
 
 
 def test_bad_arguments(paper_problem):

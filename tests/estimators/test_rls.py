@@ -65,7 +65,7 @@ def test_rels_recovers_ma1_coefficient(rng):
     v = 0.1 * rng.standard_normal((N, 3))
     e = lfilter([1.0, c_true], [1.0], v, axis=0)
     res = casep.solve_rls(S, S @ x + e, noise_order=1, p0=1e8)
-    c_hat = res.diagnostics["noise_model"]["ma_coefficients"][0]
+    c_hat = res.extras.ma_coefficients[0]
     assert abs(c_hat - c_true) < 0.05, c_hat
     assert res.method == "rels"
     np.testing.assert_allclose(res.sigma, 0.1, rtol=0.05)  # whitened innovations
@@ -75,8 +75,8 @@ def test_rels_equals_rls_in_white_noise(paper_problem):
     S, y, _ = paper_problem
     rls = casep.solve_rls(S, y)
     rels = casep.solve_rls(S, y, noise_order=1)
-    ma = rels.diagnostics["noise_model"]
-    assert abs(ma["ma_coefficients"][0]) < 3 * ma["ma_std"][0] + 0.02
+    ma = rels.extras
+    assert abs(ma.ma_coefficients[0]) < 3 * ma.ma_std[0] + 0.02
     assert np.all(np.abs(rels.estimate - rls.estimate) < rls.std)
 
 
@@ -208,7 +208,7 @@ def test_history_std_last_row_equals_final_std(paper_problem):
         assert res.history_std.shape == res.history.shape
         np.testing.assert_allclose(res.history_std[-1, :36], res.std, rtol=1e-10)
         if order:
-            np.testing.assert_allclose(res.history_std[-1, 36], res.diagnostics["noise_model"]["ma_std"][0],
+            np.testing.assert_allclose(res.history_std[-1, 36], res.extras.ma_std[0],
                                        rtol=1e-10)
 
 

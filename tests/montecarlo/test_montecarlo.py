@@ -88,7 +88,7 @@ def test_gls_chunks_match_public_solver():
     taus = estimate_tau_many(S, Y, traj.t)  # one chunk
     for k in range(runs):
         r = casep.solve_gls(S, Y[..., k], traj.t)  # its own REML search
-        assert abs(taus[k] / r.settings["tau"] - 1) < 1e-3
+        assert abs(taus[k] / r.extras.tau - 1) < 1e-3
         assert np.max(np.abs(a.estimates["gls"][k] - r.estimate) / r.std) < 1e-3
         np.testing.assert_allclose(a.stds["gls"][k], r.std, rtol=1e-3)
         g = casep.solve_gls(S, Y[..., k], traj.t, tau=float(taus[k]))  # at the shared lattice's tau

@@ -303,7 +303,7 @@ def test_gls_jointly_whitens_each_flight_with_its_own_tau(two):
     model = a.model
     taus = [0.5, 2.0]
     res, jp = _quiet(separate_flights, [a.flight, b.flight], model, "gls", options={"tau": 1.0})
-    assert res.method == "gls" and list(res.settings["tau"].values()) == [1.0, 1.0]
+    assert res.method == "gls" and list(res.extras.flight_taus.values()) == [1.0, 1.0]
     res, jp = _quiet(separate_flights, [a.flight, b.flight], model, "gls", sigma=[0.05, 0.2], options={"tau": taus[0]})
     n, j = model.n_coefficients, model.index("dt_trk")
     rows = []
@@ -323,8 +323,8 @@ def test_gls_jointly_whitens_each_flight_with_its_own_tau(two):
     np.testing.assert_allclose(res.estimate, ref, rtol=1e-7, atol=1e-9 * np.max(np.abs(ref)))
     # REML per flight: each flight's tau is its own GLS tau
     auto, _ = _quiet(separate_flights, [a.flight, b.flight], model, "gls")
-    own = [_quiet(casep.separate, f, model, "gls").settings["tau"] for f in (a.flight, b.flight)]
-    np.testing.assert_allclose(list(auto.settings["tau"].values()), own, rtol=1e-9)
+    own = [_quiet(casep.separate, f, model, "gls").extras.tau for f in (a.flight, b.flight)]
+    np.testing.assert_allclose(list(auto.extras.flight_taus.values()), own, rtol=1e-9)
 
 
 def test_huber_jointly_flags_an_outlier_in_one_flight_and_resists_it(two):
@@ -336,8 +336,8 @@ def test_huber_jointly_flags_an_outlier_in_one_flight_and_resists_it(two):
     ols, _ = _quiet(separate_flights, [a.flight, b.flight], a.model, "ols", noise="white", robust="none")
     hub, _ = _quiet(separate_flights, [a.flight, bad], a.model, "huber", noise="white", robust="none")
     spoilt, _ = _quiet(separate_flights, [a.flight, bad], a.model, "ols", noise="white", robust="none")
-    rows = hub.diagnostics["outliers"]["largest"]
-    assert hub.diagnostics["outliers"]["count"] >= 20
+    rows = hub.extras.outliers["largest"]
+    assert hub.extras.outliers["count"] >= 20
     assert {(r["sample"], r["axis"]) for r in rows[:20]} == {(a.flight.n_observed + i, "y") for i in range(200, 220)}
     label = hub.names[-1].split("[")[1].rstrip("]")  # flight 2's label, as in its dt_trk[...]
     assert {(r["flight"], r["flight_sample"]) for r in rows[:20]} == {(label, i) for i in range(200, 220)}
@@ -355,7 +355,7 @@ def test_rels_jointly_restarts_the_noise_memory_at_each_flight(two):
     a, b = two
     opts = {"noise_order": 1, "p0": 1e4}
     res, jp = _quiet(separate_flights, [a.flight, b.flight], a.model, "rels", options=opts)
-    assert res.method == "rels" and abs(res.diagnostics["noise_model"]["ma_coefficients"][0]) < 0.05
+    assert res.method == "rels" and abs(res.extras.ma_coefficients[0]) < 0.05
     plain = Problem.from_arrays(jp.sv(), jp.y, names=jp.names, units=jp.units, si_factors=jp.si_factors)
     carried = _quiet(solve_rls, plain, noise_order=1, p0=1e4, sigma=1.0)
     assert not np.array_equal(carried.estimate, res.estimate)
