@@ -31,13 +31,6 @@ AXES = ("x", "y", "z")
 EXTRAS_TYPES: dict[str, type] = {}
 
 
-def __getattr__(name: str) -> Any:
-    if name in ("result_from_data", "check_result_units"):  # re-export: remove after merge (workflows/fuse_inputs.py)
-        from casep.estimators import reading
-
-        return getattr(reading, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
 
 def extras_type(method: str) -> type | None:
     """The extras dataclass a registered `method` declares (None for an unregistered name)."""

@@ -179,7 +179,7 @@ def _provenance_html(prov: Mapping[str, Any]) -> str:
 def _diagnostics_summary(result: EstimateResult) -> dict[str, Any]:
     d = result.diagnostics
     keys = ("condition_number", "condition_number_equilibrated", "rank", "sigma", "unidentifiable", "groups",
-            "effective_prior_std", "noise_model", "active_bounds", "prior_consistency")
+            "effective_prior_std", "prior_consistency")
     out = {k: d[k] for k in keys if k in d}
     if all(result.residual_rms.get(a) is not None for a in AXES):  # a fused or radar result has no dv residuals
         out["residual RMS (m/s)"] = ", ".join(f"{a} {result.residual_rms[a]:.4g}" for a in AXES)
@@ -219,7 +219,11 @@ def report_html(result: EstimateResult, figures: Sequence[str | os.PathLike] = (
     if warn:
         parts.append("<h2>Warnings</h2><ul>" + "".join(f"<li class=\"warn\">{_esc(w)}</li>" for w in warn) + "</ul>")
     parts += ["<h2>Coefficients</h2>", _coefficient_table(result),
-              "<h2>Settings</h2>", _key_value_table(result.settings, "settings")]
+              "<h2>Settings</h2>", f"<p>{_esc(result.settings_line())}</p>",
+              _key_value_table(result.settings, "settings")]
+    found = result.to_dict().get("extras") or {}
+    if found:  # what the method found (the tau, lambda, components, active bounds, ...)
+        parts += ["<h3>Found by the method</h3>", _key_value_table(found, "extras")]
     if result.denoise:
         parts += ["<h2>De-noising</h2>", _key_value_table(result.denoise, "denoise")]
     parts += ["<h2>Diagnostics</h2>", _key_value_table(_diagnostics_summary(result), "diagnostics")]

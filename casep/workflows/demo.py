@@ -213,7 +213,7 @@ def _figures(out: Path, sim: SimulatedFlight, results: Mapping[str, EstimateResu
     rels = results["RELS"]
     assert rels.history is not None  # RELS keeps its history
     H = rels.history[:, : len(sim.model.names)]
-    stride = rels.settings["history_stride"]
+    stride = rels.extras.history_stride  # the stride the recursion kept its history at
     th = t[np.arange(H.shape[0]) * stride]
     best = np.argsort(crlb / np.maximum(np.abs(sim.truth), 1e-300))[:6]
     fig, ax = plt.subplots(figsize=(8, 4))

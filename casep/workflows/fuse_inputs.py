@@ -88,8 +88,7 @@ def read_results_to_fuse(paths: Sequence[str | os.PathLike], model: Any = None) 
         the same input file (:func:`check_distinct_inputs`).
     """
     from casep.calibration.calibrate import calibration_models
-    from casep.estimators.reading import read_result
-    from casep.estimators.result import result_from_data
+    from casep.estimators.reading import read_result, result_from_data
     from casep.io.result_json import read_result_data
 
     grounds, results = set(calibration_models()), []
