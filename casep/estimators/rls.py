@@ -203,8 +203,7 @@ def _solve(pb: Prepared, *, method: Method, p0: float, weight: float, forgetting
     if len(pb.shape) != 2 or pb.shape[1] != 3:
         raise ValueError(f"`S` must be (N, 3, n) in time order for a recursive method, got rows of shape {pb.shape}")
     N = pb.shape[0]
-    if history_stride is None:
-        history_stride = max(1, -(-N // _MAX_HISTORY))
+    stride = history_stride if history_stride is not None else max(1, -(-N // _MAX_HISTORY))  # found: extras
     n, nc = pb.n, int(noise_order)
     c = pb.red.scale
     live = c > 0  # zero columns stay out of the recursion (estimate = prior mean, reported null)
@@ -215,7 +214,7 @@ def _solve(pb: Prepared, *, method: Method, p0: float, weight: float, forgetting
     D = np.concatenate([p0 * cl**2, np.full(nc, p0)])  # P_0 = p0 diag(c^2) in scaled coords
     D0 = D.copy()  # the prior, which stabilized forgetting pulls towards
     past = np.zeros((3, nc + 1))  # each axis' last residuals (RELS regressors), carried across blocks
-    hist = np.zeros((-(-N // history_stride), p + nc))  # rows for samples 0, stride, 2 stride, ... < N
+    hist = np.zeros((-(-N // stride), p + nc))  # rows for samples 0, stride, 2 stride, ... < N
     hist_var = np.zeros_like(hist)  # diag(P) at the same rows, scaled coordinates
     innov_ss = 0.0
     restart = set(pb.problem.segment_starts) - {0}  # several flights: each its own noise
@@ -224,7 +223,7 @@ def _solve(pb: Prepared, *, method: Method, p0: float, weight: float, forgetting
             past[:] = 0.0  # RELS: a new flight's noise does not continue the last one's
         H = np.ascontiguousarray(S_b[:, :, live] / cl)  # scaled regressors
         innov = rels_ud(H, np.ascontiguousarray(y_b), x, U, D, weight, forgetting, nc, residuals == "posterior",
-                        history_stride, hist, hist_var, D0, past, sl.start)
+                        stride, hist, hist_var, D0, past, sl.start)
         innov_ss += float(np.sum(innov**2))
     Ut = U.T + np.eye(p + nc)  # U = Ut.T with unit diagonal: P = U diag(D) U^T
     L = Ut * np.sqrt(D)
@@ -257,14 +256,12 @@ def _solve(pb: Prepared, *, method: Method, p0: float, weight: float, forgetting
     innovation_rms = float(np.sqrt(innov_ss / (3 * N))) if nc else None
     res = finish(
         pb, method, x_nat, cov, sig,
-        # inputs; found: extras. history_stride: the stride used, also when the default chose it, until the
-        # history plot (casep.reporting.plots) and the demo read extras.history_stride
         settings={"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": nc,
                   "residuals": residuals, "history_stride": history_stride,
                   "sigma": "estimated" if pb.sigma is None else pb.sigma},
         diagnostics=diagnostics, history=history, residuals=fit, history_std=history_std,
         extras=RLSExtras(float(p0), float(weight), float(forgetting), int(nc), ma, ma_std, innovation_rms,
-                         int(history_stride)),
+                         int(stride)),
     )
     if forgetting < 1.0:  # P is then no covariance and the prior no belief: the std are indicative only
         return res

@@ -278,7 +278,7 @@ def plot_history(result: EstimateResult, path: str | os.PathLike, t: np.ndarray 
     if result.history is None or result.history_std is None or result.std is None:
         raise ValueError(f"`result` of method {result.method} has no estimate and std history")
     plt = pyplot()
-    stride = int(result.settings.get("history_stride", 1))
+    stride = int(getattr(result.extras, "history_stride", None) or 1)  # the stride the history was kept at
     x_all, xlabel = _sample_times(result, t)
     rows = np.arange(result.history.shape[0]) * stride
     x = x_all[rows]

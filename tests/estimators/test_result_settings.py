@@ -40,9 +40,8 @@ FOUND = {
 }
 #: Methods that use every option as given (what they find is not an option: outliers, active bounds).
 AS_GIVEN = {"huber", "map", "bounded"}
-#: The stride of the estimate history stays in ``settings`` also when the default chose it, until the history
-#: plot (casep.reporting.plots) and the demo (casep.workflows.demo) read ``extras.history_stride``.
-STILL_IN_SETTINGS = {"history_stride"}
+#: Settings that hold the value used rather than the input (none: every found value is in the extras).
+STILL_IN_SETTINGS: set[str] = set()
 #: Settings keys that are no option: ``sigma`` (given, or how it is estimated) and the solver bounded always uses.
 NOT_OPTIONS = {"sigma"}
 ALWAYS = {"bounded": {"solver": "cvxpy+clarabel"}}
