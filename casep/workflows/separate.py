@@ -251,6 +251,10 @@ def separate(
     keywords = {o.name for o in meth.keywords}  # solver keywords separate passes on to the methods that take them
     if "max_condition_index" in keywords:
         labels["max_condition_index"] = meth.option("max_condition_index").check(max_condition_index)
+    elif max_condition_index != DEFAULT_MAX_CONDITION_INDEX:  # given to a method that would ignore it
+        takers = [k for k, m in _REGISTRY.items() if "max_condition_index" in {o.name for o in m.keywords}]
+        raise ValueError(f"`max_condition_index` is not taken by method `{method}`; it is a keyword of "
+                         f"{', '.join(takers)}. Use: method={takers[0]!r}, or leave it out")
     if den is not None:
         if noise == "gm" or robust not in (None, "auto", "none") or exclude_outliers is not None or std != "model":
             raise ValueError("`denoise='wavelet'` removes the noise a noise model, a robust fit or HAC std describe: "
