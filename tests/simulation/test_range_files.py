@@ -151,3 +151,23 @@ def test_separate_on_a_range_file_agrees_with_the_truth(tmp_path):
     bound = chi2.ppf(0.999, 5 * 36)
     assert chi2.ppf(0.001, 5 * 36) < total < bound
     assert dropped > bound
+
+
+def test_cli_simulate_then_separate_describes_the_gaps(tmp_path, capsys):
+    """`casep simulate --scenario paper-range` then `casep separate`: the rows from lift-off are read, the two
+    dropouts are printed as tracking gaps, and no warning of a gap integrated by the trapezoid rule is left."""
+    import json
+
+    from casep.cli import main
+
+    out = tmp_path / "f.csv"
+    assert main(["simulate", "--scenario", "paper-range", "--rate", "10", "--seed", "2", "-o", str(out)]) == 0
+    assert main(["separate", str(out), "--json", str(tmp_path / "r.json")]) == 0
+    text = capsys.readouterr()
+    printed = text.out + text.err
+    assert "tracking gaps: 2 longer than 3 sample periods: 6.1 s before line" in printed
+    assert "(t = 101 s), 1.6 s before line" in printed and "(t = 141.5 s)" in printed
+    assert "trapezoid" not in printed and "start after lift-off" not in printed
+    res = json.loads((tmp_path / "r.json").read_text())
+    assert res["n_samples"] == 1951 - 155  # the tracked rows; 155 rows without tracking (0-8, 95-101, 140-141.5 s)
+    assert res["provenance"]["flights"][0]["exclusions"] == {"unobserved": 155}
