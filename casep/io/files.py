@@ -12,6 +12,10 @@ lines (CSV), other numeric columns kept as signals (below), text columns ignored
 - any other numeric column (``a_*``, ``r_*``, ``v_*``, attitude, body rate, temperature, ...)
   is kept as a *signal* (``FlightData.signals``, file units) for model files that use it; a
   column with text in it is ignored. Its values are checked when a model uses it.
+- a row whose three ``dv_*`` cells are all empty (Parquet: null) is a telemetry sample without
+  tracking (``FlightData.observed`` False): S_V is integrated across it, the regression leaves
+  it out. :func:`write_flight` writes the samples without tracking so; a row with only some of its
+  dv cells empty is an error naming the first of them.
 
 Two files (:func:`read_flight_pair`): a telemetry file (``t``, force or apparent velocity,
 ``v_tel_*``) and a tracking file at its own rate (``t``, ``v_trk_*``). The flight keeps every
@@ -68,14 +72,17 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     ----------
     path : str or path-like
         Columns ``t``, ``f_*`` or ``W_*``, and ``dv_*`` or ``v_tel_*`` with ``v_trk_*``; any
-        other numeric column becomes a signal (``FlightData.signals``).
+        other numeric column becomes a signal (``FlightData.signals``). A row whose three
+        ``dv_*`` cells are all empty (Parquet: null) is a telemetry sample without tracking:
+        S_V is integrated across it, the regression leaves it out (``FlightData.observed``).
 
     Returns
     -------
     FlightData
         ``meta`` records the file format, which force and velocity columns were used and,
         with ``v_tel_*`` columns, the telemetry speed at the first sample
-        (``start_speed_m_s``, for :func:`casep.analysis.late_start.late_start_evidence`).
+        (``start_speed_m_s``, for :func:`casep.analysis.late_start.late_start_evidence`), and the
+        number of rows without tracking (``unobserved``) when there are any.
 
     Raises
     ------
@@ -86,9 +93,14 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     tab.require(("t",))
     t = tab.time()
     f, force_from = table_force(tab, t)
+    observed = np.ones(t.size, dtype=bool)  # every sample tracked, unless dv says otherwise
     if tab.has(DV_COLUMNS) or not any(c in tab.columns for c in VTEL_COLUMNS):
         tab.require(DV_COLUMNS, ". Use: dv_x, dv_y, dv_z, or v_tel_x/y/z with v_trk_x/y/z")
-        dv, dv_from = tab.vectors(DV_COLUMNS), "dv"
+        # a row whose three dv cells are all empty (Parquet: null) is a sample without tracking; a row with
+        # only some of them empty is refused by Table.numeric, naming its first empty cell
+        untracked = np.logical_and.reduce([tab.missing(c) for c in DV_COLUMNS])
+        dv, dv_from = tab.vectors(DV_COLUMNS, skip=untracked), "dv"
+        observed = ~untracked
     else:
         tab.require(VTEL_COLUMNS + VTRK_COLUMNS, ". Use: v_tel_x/y/z with v_trk_x/y/z, or dv_x, dv_y, dv_z")
         v_tel = tab.vectors(VTEL_COLUMNS)
@@ -98,9 +110,11 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     if dv_from != "dv":
         meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
         meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.analysis.checks
+    if not observed.all():
+        meta["unobserved"] = int((~observed).sum())  # rows without tracking (all dv cells empty)
     signals, src = tab.signals(), tab.src
     del tab  # the file's columns, before FlightData takes its own copies (long flights: one copy at a time)
-    return FlightData(t, f, dv, source=src, meta=meta, signals=signals)
+    return FlightData(t, f, dv, source=src, meta=meta, observed=observed, signals=signals)
 
 
 
@@ -271,7 +285,7 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
 
 
 def write_table(path: str | os.PathLike, columns: dict[str, np.ndarray], *,
-                comments: list[str] | None = None) -> None:
+                comments: list[str] | None = None, nan_as_missing: bool = False) -> None:
     """Write named 1-D columns as CSV (``%.17g``, exact round trip) or Parquet, atomically.
 
     Parameters
@@ -282,6 +296,9 @@ def write_table(path: str | os.PathLike, columns: dict[str, np.ndarray], *,
         Column name to values, in order.
     comments : list of str, optional
         CSV only: lines written first as ``# ...`` (Parquet keeps them as metadata).
+    nan_as_missing : bool, optional
+        Write NaN as a missing cell, empty in CSV and null in Parquet (what :func:`read_flight` takes
+        for a sample without tracking in the dv columns), instead of ``nan`` / a NaN value.
     """
     path = Path(path)
     names = list(columns)
@@ -292,7 +309,7 @@ def write_table(path: str | os.PathLike, columns: dict[str, np.ndarray], *,
             import pyarrow.parquet as pq
         except ImportError:
             raise ValueError(f"{path}: writing Parquet needs pyarrow: pip install pyarrow") from None
-        table = pa.table({c: data[:, i] for i, c in enumerate(names)},
+        table = pa.table({c: pa.array(data[:, i], from_pandas=nan_as_missing) for i, c in enumerate(names)},
                          metadata={"comments": "\n".join(comments or [])})
         with atomic_open(path, binary=True) as fh:
             pq.write_table(table, fh)
@@ -301,21 +318,34 @@ def write_table(path: str | os.PathLike, columns: dict[str, np.ndarray], *,
         for line in comments or []:
             fh.write(f"# {line}\n")
         fh.write(",".join(names) + "\n")
-        np.savetxt(fh, data, delimiter=",", fmt="%.17g")
+        np.savetxt(_EmptyNaN(fh) if nan_as_missing and np.isnan(data).any() else fh, data, delimiter=",", fmt="%.17g")
+
+
+class _EmptyNaN:
+    """A text file whose ``write`` leaves NaN cells empty: ``%.17g`` writes NaN as ``nan``, and
+    no finite number or ``inf`` contains those letters, so removing them empties exactly the NaN cells."""
+
+    def __init__(self, fh: Any) -> None:
+        self.fh = fh
+
+    def write(self, text: str) -> None:
+        self.fh.write(text.replace("nan", ""))
 
 
 def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[str] | None = None) -> None:
-    """Write a flight (``t, f_x, f_y, f_z, dv_x, dv_y, dv_z``, then its signals) as CSV or Parquet, atomically."""
+    """Write a flight (``t, f_x, f_y, f_z, dv_x, dv_y, dv_z``, then its signals) as CSV or Parquet, atomically.
+
+    A sample without tracking (``observed`` False) is written with its three dv cells empty (CSV) or null
+    (Parquet), as are NaN signal values: :func:`read_flight` reads such a row back as not observed.
+    """
     if not isinstance(flight, FlightData):
         raise TypeError(f"`flight` must be a FlightData, got {type(flight).__name__}")
-    if flight.n_observed < flight.n_samples:
-        raise ValueError(f"{path}: the flight has {flight.n_samples - flight.n_observed} samples without tracking, "
-                         "which the one-file format cannot hold; keep the telemetry and tracking files")
     cols = {"t": flight.t}
     cols.update({c: flight.f[:, i] for i, c in enumerate(FORCE_COLUMNS)})
-    cols.update({c: flight.dv[:, i] for i, c in enumerate(DV_COLUMNS)})
+    dv = np.where(flight.observed[:, None], flight.dv, np.nan)  # a sample without tracking: all three dv missing
+    cols.update({c: dv[:, i] for i, c in enumerate(DV_COLUMNS)})
     cols.update(flight.signals)
-    write_table(path, cols, comments=comments)
+    write_table(path, cols, comments=comments, nan_as_missing=True)
 
 
 def read_json_table(path: str | os.PathLike, option: str) -> dict:

@@ -2,7 +2,10 @@
 
 ``dv = S_V(t) D_true + n(t)``: the model's S_V on the sampled specific force times the true
 coefficients, plus tracking noise from the scenario's :class:`~casep.simulation.noise.NoiseModel`;
-gap windows remove rows afterwards (the instrument errors keep accumulating through a gap).
+in the gap windows there is no tracking: the flight keeps every telemetry sample (t, f and the
+telemetry signals), with dv and the tracked ``r_*, v_*`` NaN and ``observed`` False there, as a
+telemetry + tracking pair has them (the instrument errors keep accumulating through a gap, and S_V is
+integrated from lift-off even when tracking starts later).
 For two-rate data, telemetry velocity is ``v_tel = v_true + S_V D_true`` at telemetry times
 and tracking is ``v_trk(t_k) = v_true(t_k - offset) + n(t_k)`` at its own times.
 
@@ -42,6 +45,7 @@ import numpy as np
 from casep.io._atomic import atomic_open
 from casep.io.files import write_flight, write_table
 from casep.io.flight import FlightData
+from casep.io.pair import STATE_SIGNALS
 from casep.model._model import ErrorModel, unknown_coefficient_message
 from casep.model.loader import load_model
 from casep.model.sv import build_sv
@@ -144,7 +148,7 @@ class SimulatedFlight:
     trajectory: BoostTrajectory
     model: ErrorModel
     truth: np.ndarray  # natural units, model order
-    noise: np.ndarray  # the tracking noise added, (N, 3) m/s, after gap removal
+    noise: np.ndarray  # the tracking noise, (N, 3) m/s at every sample; dv holds it where observed
     scenario: Scenario
     seed: int
     tracking: dict = dataclasses.field(default_factory=dict)  # injected time offset (ms), lever arm (m)
@@ -246,13 +250,18 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
     # dv = v_tel - v_trk = (v + S_V D) - (v_point(t - dt) - n) = S_V D + (v - v_point(t - dt)) + n
     clean = build_sv(error_model, traj.t, traj.specific_force, signals=sig) @ true_D + (traj.velocity - tracked)
     noise = sc.noise.sample(traj.t, rng)
+    # every telemetry sample stays (S_V integrates from lift-off, across the gaps); tracking exists outside the
+    # gap windows only: dv and the tracked state r_*, v_* are NaN inside them, as a telemetry + tracking pair has them
     keep = sc.noise.keep_mask(traj.t)
+    dv = np.where(keep[:, None], clean + noise, np.nan)
     for i, a in enumerate("xyz"):
         sig[f"v_{a}"] = tracked[:, i] - noise[:, i]  # tracked velocity as measured: v_tel = v_* + dv
-    flight = FlightData(traj.t[keep], traj.specific_force[keep], clean[keep] + noise[keep],
-                        source=f"simulated:{sc.name}:seed{seed}", meta={"scenario": sc.name, "seed": seed},
-                        signals={k: v[keep] for k, v in sig.items()})
-    return SimulatedFlight(flight=flight, trajectory=traj, model=error_model, truth=true_D, noise=noise[keep],
+    for name in STATE_SIGNALS:
+        sig[name] = np.where(keep, sig[name], np.nan)
+    meta = {"scenario": sc.name, "seed": seed, **({"unobserved": int((~keep).sum())} if not keep.all() else {})}
+    flight = FlightData(traj.t, traj.specific_force, dv, source=f"simulated:{sc.name}:seed{seed}", meta=meta,
+                        observed=keep, signals=sig)
+    return SimulatedFlight(flight=flight, trajectory=traj, model=error_model, truth=true_D, noise=noise,
                            scenario=sc, seed=seed,
                            tracking={"time_offset_ms": time_offset * 1e3, "lever_arm_m": lever.tolist(),
                                      **({"rotating_earth": True, "launch_site": traj.site.to_dict()}

@@ -48,9 +48,14 @@ def test_observed_mask_selects_regression_rows(tmp_path):
         casep.FlightData(t, np.ones((10, 3)), dv, observed=np.zeros(10, bool))
     with pytest.raises(FlightDataError, match=r"6 samples observed \(tracking covers 6 of 10\) are too few"):
         check_enough_samples(fl, 36, "m")
-    with pytest.raises(ValueError, match="4 samples without tracking, which the one-file format cannot hold"):
-        casep.write_flight(fl, tmp_path / "x.csv")
-    assert not list(tmp_path.iterdir())
+    # the one-file formats hold the samples without tracking: their three dv cells empty (CSV) or null (Parquet)
+    for name in ("x.csv", "x.parquet"):
+        casep.write_flight(fl, tmp_path / name)
+        back = casep.read_flight(tmp_path / name)
+        np.testing.assert_array_equal(back.observed, obs)
+        np.testing.assert_array_equal(back.dv[obs], dv[obs])
+        assert np.isnan(back.dv[~obs]).all() and back.meta["unobserved"] == 4
+    assert (tmp_path / "x.csv").read_text().splitlines()[1] == "0,1,1,1,,,"
 
 
 def test_values_beyond_magnitude_limit_refused():
