@@ -4,7 +4,9 @@ The error coefficients are fitted by ordinary least squares; the residuals
 r = dv - S_V D_hat (per axis) are then the tracking noise plus whatever the model leaves out, and
 their Allan deviation tells white noise (slope -1/2), Gauss-Markov noise (a hump at about its
 correlation time) and random walk (slope +1/2) apart (:func:`casep.analysis.noise_id.identify_noise`).
-The Allan deviation needs a uniform sample step; a flight with gaps is refused.
+The Allan deviation needs a uniform sample step: on a flight with tracking gaps it runs on the
+longest evenly sampled stretch (a :class:`~casep.exceptions.GapWarning` says which); a flight whose
+steps vary otherwise is refused.
 """
 
 from __future__ import annotations
@@ -12,10 +14,13 @@ from __future__ import annotations
 import warnings
 from typing import Any
 
-__all__ = ["flight_noise", "STEP_TOLERANCE"]
+__all__ = ["flight_noise", "STEP_TOLERANCE", "MIN_STRETCH"]
 
 #: Largest relative departure of a sample step from the median step for a "uniform" flight.
 STEP_TOLERANCE = 0.01
+#: Fewest samples of the evenly sampled stretch the Allan deviation runs on (its longest averaging
+#: time is a tenth of the stretch: below 64 samples it has hardly two octaves).
+MIN_STRETCH = 64
 
 
 def flight_noise(flight: Any, model: Any) -> tuple[Any, Any]:
@@ -38,7 +43,8 @@ def flight_noise(flight: Any, model: Any) -> tuple[Any, Any]:
     Raises
     ------
     ValueError
-        The sample steps vary by more than :data:`STEP_TOLERANCE` of their median (gaps).
+        The sample steps vary by more than :data:`STEP_TOLERANCE` of their median other than at gaps
+        (steps longer than the median), or no evenly sampled stretch has :data:`MIN_STRETCH` samples.
     """
     import numpy as np
 
@@ -56,7 +62,22 @@ def flight_noise(flight: Any, model: Any) -> tuple[Any, Any]:
         raise ValueError(f"{problem.source}: no sample times: the Allan deviation needs them")
     step = np.diff(problem.t)
     dt = float(np.median(step))
-    if np.max(np.abs(step - dt)) > STEP_TOLERANCE * dt:
+    even = np.abs(step - dt) <= STEP_TOLERANCE * dt
+    gap = step > (1.0 + STEP_TOLERANCE) * dt  # a tracking dropout: the stretches on either side are even
+    if np.any(~even & ~gap):
         raise ValueError(f"{problem.source}: sample steps vary from {step.min():.4g} to {step.max():.4g} s: the "
-                         "Allan deviation needs a uniform step (gaps?)")
+                         "Allan deviation needs a uniform step")
+    if gap.any():
+        edges = np.r_[0, np.flatnonzero(gap) + 1, problem.t.size]  # stretches [edges[k], edges[k + 1])
+        k = int(np.argmax(np.diff(edges)))
+        a, b = int(edges[k]), int(edges[k + 1])
+        if b - a < MIN_STRETCH:
+            raise ValueError(f"{problem.source}: {int(gap.sum())} gap(s) leave at most {b - a} evenly sampled "
+                             f"samples; the Allan deviation needs {MIN_STRETCH}")
+        from casep.exceptions import GapWarning
+
+        warnings.warn(f"{problem.source}: {int(gap.sum())} tracking gap(s): the Allan deviation uses the longest "
+                      f"evenly sampled stretch, t = {problem.t[a]:.6g} .. {problem.t[b - 1]:.6g} s ({b - a} of "
+                      f"{problem.t.size} samples)", GapWarning, stacklevel=2)
+        r = r[a:b]
     return identify_noise(r, dt), problem

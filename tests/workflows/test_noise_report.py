@@ -38,12 +38,33 @@ def test_residuals_are_those_of_an_independent_least_squares_fit(paper20):
     assert problem.source == paper20.source
 
 
-def test_a_gap_is_refused(paper20):
+def test_gaps_leave_the_longest_evenly_sampled_stretch(paper20):
+    """A tracking dropout: the Allan deviation runs on the longest evenly sampled stretch (a GapWarning names
+    it), equal to identify_noise on the least-squares residuals of that stretch; white noise stays white."""
+    from casep.estimators.ols import solve_ols
+    from casep.exceptions import GapWarning
+
     keep = np.ones(paper20.t.size, bool)
-    keep[100:140] = False  # 2 s of samples missing
+    keep[100:140] = False  # 2 s of samples missing: the stretch after it is the longest
     gappy = dataclasses.replace(paper20, t=paper20.t[keep], f=paper20.f[keep], dv=paper20.dv[keep], observed=None,
                                 signals={})
+    model = load_model("platform36")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # ill-conditioned boost flight; the gap's trapezoid
+        warnings.simplefilter("always", GapWarning)
+        with pytest.warns(GapWarning, match=r"longest evenly sampled stretch, t = 7 \.\. .* \(\d+ of \d+ samples\)"):
+            noise, problem = flight_noise(gappy, model)
+        r = problem.residuals(solve_ols(problem).estimate).reshape(-1, 3)[100:]
+    ref = identify_noise(r, float(np.median(np.diff(gappy.t))))
+    np.testing.assert_allclose(noise.adev, ref.adev, rtol=1e-12)
+    assert noise.choice == "white"
+
+
+def test_uneven_steps_other_than_gaps_are_refused(paper20):
+    t = paper20.t.copy()
+    t[200:] -= 0.5 * (t[1] - t[0])  # one step of half the sample interval: not a dropout
+    uneven = dataclasses.replace(paper20, t=t, signals={})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         with pytest.raises(ValueError, match="uniform step"):
-            flight_noise(gappy, load_model("platform36"))
+            flight_noise(uneven, load_model("platform36"))
