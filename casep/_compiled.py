@@ -197,3 +197,28 @@ def robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep):  # pragma: no 
             keep[k] = True
             last = k
             run = 0
+
+
+@numba.njit(cache=True, nogil=True)
+def all_pole_filter(a, x, y):  # pragma: no cover
+    """``y = lfilter([1], a, x, axis=0)`` for x (N, m), a (K + 1,) with ``a[0] = 1``, written into y.
+
+    The direct form II transposed of ``scipy.signal.lfilter`` with its operations in its order
+    (the zero coefficients of the padded numerator included), so the same numbers.
+    """
+    N, m = x.shape
+    K = a.size - 1
+    Z = np.zeros(max(K, 1))
+    for j in range(m):
+        for i in range(K):
+            Z[i] = 0.0
+        for k in range(N):
+            xn = x[k, j]
+            if K == 0:
+                y[k, j] = xn * 1.0
+                continue
+            yn = Z[0] + 1.0 * xn  # y = z_0 + b_0 x
+            for i in range(K - 1):
+                Z[i] = Z[i + 1] + xn * 0.0 - yn * a[i + 1]  # z_i = z_(i+1) + b_(i+1) x - a_(i+1) y
+            Z[K - 1] = xn * 0.0 - yn * a[K]
+            y[k, j] = yn

@@ -46,3 +46,15 @@ def test_robust_filter_is_the_compiled_loop(inv_tau, max_run):
     robust_filter_keep(e, t, *args, k1)
     assert (~k0).sum() > (40 if max_run else -1)  # the test has rejections to agree on
     assert np.array_equal(k0, k1)
+
+
+@pytest.mark.parametrize("a", [[1.0, -0.9], [1.0, 0.5, -0.2], [1.0, 0.3, 0.1, -0.05], [1.0]])
+def test_all_pole_filter_is_scipys_lfilter(a):
+    from scipy.signal import lfilter as scipy_lfilter
+
+    from casep._kernels import lfilter
+
+    x = np.random.default_rng(5).normal(size=(3000, 3))
+    x[7, 1] = 0.0
+    assert np.array_equal(lfilter([1.0], a, x, axis=0), scipy_lfilter([1.0], a, x, axis=0))
+    assert np.array_equal(lfilter([1.0, 0.5], a, x, axis=0), scipy_lfilter([1.0, 0.5], a, x, axis=0))  # scipy's
