@@ -28,7 +28,15 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from casep.analysis.noise import AUTO_LR, AUTO_LR_SCALE, NoiseModel, check_noise_kind, check_tau, whiten_axis
+from casep.analysis.noise import (
+    AUTO_LR,
+    AUTO_LR_SCALE,
+    NoiseModel,
+    _coeffs,
+    check_noise_kind,
+    check_tau,
+    whiten_axis,
+)
 
 __all__ = ["fit_noise", "tau_search_bounds", "with_kind", "Reml", "estimable_basis", "bounded_minimum"]
 
@@ -59,7 +67,7 @@ class Reml:
         key = (j, None if tau is None else float(tau))
         if key not in self._cache:
             if self._Z is not None:
-                W = whiten_axis(self._Z[j], self.t, tau, 1.0)
+                W = _whiten_unit(self._Z[j], self.t, tau)
                 M = W.T @ W
             else:
                 M = np.zeros((self.p + 1, self.p + 1))
@@ -127,6 +135,20 @@ class Reml:
             if done:
                 break
         return self.evaluate(taus, sc)[0], (float(sc[0]), float(sc[1]), float(sc[2]))
+
+
+def _whiten_unit(X: np.ndarray, t: np.ndarray, tau: float | None) -> np.ndarray:
+    """``whiten_axis(X, t, tau, 1.0)`` written in place into one new array (the same operations in the
+    same order, so the same numbers, with two passes over the rows fewer; the search whitens each axis'
+    rows about 50 times)."""
+    a, g = _coeffs(t, tau)
+    W = np.empty_like(X)
+    W[0] = X[0]
+    body = W[1:]
+    np.multiply(X[:-1], a[:, None], out=body)
+    np.subtract(X[1:], body, out=body)  # e_k - a_k e_(k-1)
+    body *= g[:, None]  # u_k = (e_k - a_k e_(k-1)) / sqrt(1 - a_k^2)
+    return W
 
 
 def tau_search_bounds(t: np.ndarray) -> tuple[float, float]:
