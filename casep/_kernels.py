@@ -1,13 +1,19 @@
-"""Inner loops: the S_V recursions in numpy, and the sequential parts numpy cannot fuse compiled by numba.
+"""Inner loops that numpy alone does not express: the S_V recursions, the robust filter, RLS/RELS.
 
-:func:`sv_integrate_chunk` is two running trapezoid sums, written with ``np.cumsum`` (a sequential
-accumulation: the same additions in the same order as a loop, so the same numbers). The Bierman
-U-D recursion (:func:`rels_ud`) and the robust filter (:func:`robust_filter_keep`) are genuinely
-sequential; they are compiled with numba (``cache=True``, :mod:`casep._compiled`), which is imported on the
-first call of one of them: a command that needs neither does not pay for numba's import (about
-0.2 s) and the set-up of its target on the first cached kernel (about 0.1 s). The callers
-(:mod:`casep.model.sv`, :mod:`casep.analysis.robust`, :mod:`casep.estimators.rls`) validate every
-argument.
+numba (``cache=True``, :mod:`casep._compiled`) is imported on the first call that needs it, not when
+casep is imported: its import and the set-up of its target on the first cached kernel take about 0.3 s,
+longer than a short flight's whole computation. So:
+
+- :func:`sv_integrate_chunk`: two running trapezoid sums, in numpy (``np.cumsum``: a sequential
+  accumulation, the same additions in the same order as the compiled loop, so the same numbers) for
+  the first :data:`NUMPY_SAMPLES` samples, compiled after;
+- :func:`robust_filter_keep`: vectorised while every sample is kept, the scalar recursion (``math``, as
+  compiled) near the threshold and after a rejection;
+- :func:`lfilter`: the all-pole filter of RELS, compiled (``scipy.signal`` would cost more to import);
+- :func:`rels_ud`: the Bierman U-D recursion, compiled.
+
+The callers (:mod:`casep.model.sv`, :mod:`casep.analysis.robust`, :mod:`casep.estimators.rls`) validate
+every argument. ``tests/test_kernels.py`` checks each against the compiled loop (or scipy) bit for bit.
 """
 
 from __future__ import annotations
@@ -21,9 +27,10 @@ __all__ = ["robust_filter_keep", "sv_integrate_chunk", "sv_integrate_chunk_numpy
            "NUMPY_SAMPLES"]
 
 
-#: Samples integrated with numpy before :func:`sv_integrate_chunk` switches to the compiled loop (whose
-#: import and set-up, about 0.3 s, a short flight does not repay: numpy takes about 4 us a sample, numba 0.5).
-NUMPY_SAMPLES = 1 << 16
+#: Samples integrated with numpy before :func:`sv_integrate_chunk` switches to the compiled loop. numpy takes
+#: about 5 us a sample, numba 0.3 us after its import and set-up (about 0.3 s): a short flight (80 s at
+#: 100 Hz, 400 s at 20 Hz) is integrated without numba, a longer one loses at most 0.05 s to numpy.
+NUMPY_SAMPLES = 1 << 13
 _numpy_samples = 0
 
 
@@ -36,7 +43,7 @@ def sv_integrate_chunk(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_pr
 
     In numpy for the first :data:`NUMPY_SAMPLES` samples of a process (unless numba is loaded
     already), compiled after: the same additions in the same order, so the same numbers
-    (``tests/model/test_kernels.py``).
+    (``tests/test_kernels.py``).
     """
     global _numpy_samples
     if "casep._compiled" in sys.modules or _numpy_samples >= NUMPY_SAMPLES:
