@@ -10,7 +10,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["rels_ud", "robust_filter_keep", "sv_integrate_chunk"]
+__all__ = ["rels_ud", "sv_integrate_chunk", "all_pole_filter"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -165,38 +165,6 @@ def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, 
                     s += U[j, i] * U[j, i] * D[j]
                 history_var[row, i] = s
     return innov
-
-
-@numba.njit(cache=True, nogil=True)
-def robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep):  # pragma: no cover
-    """Sequential robust filter (see :mod:`casep.analysis.robust`): reject a sample whose innovation
-    from the last kept one exceeds ``thr`` on any axis, at most ``max_run`` in a row.
-
-    e (N, 3) residuals; t (N,); inv_tau (3,) = 1 / tau (0 for white); scale (3,) = r_a s;
-    keep (N,) bool, written.
-    """
-    N = e.shape[0]
-    last = -1
-    run = 0
-    for k in range(N):
-        big = False
-        for j in range(3):
-            if inv_tau[j] == 0.0 or last < 0:
-                nu = e[k, j] / scale[j]
-            else:
-                x = (t[k] - t[last]) * inv_tau[j]
-                a = np.exp(-x)  # a_k = exp(-dt / tau)
-                nu = (e[k, j] - a * e[last, j]) / (scale[j] * np.sqrt(-np.expm1(-2.0 * x)))
-            if abs(nu) > thr:
-                big = True
-                break
-        if big and run < max_run:
-            keep[k] = False
-            run += 1
-        else:
-            keep[k] = True
-            last = k
-            run = 0
 
 
 @numba.njit(cache=True, nogil=True)

@@ -7,13 +7,13 @@ longer than a short flight's whole computation. So:
 - :func:`sv_integrate_chunk`: two running trapezoid sums, in numpy (``np.cumsum``: a sequential
   accumulation, the same additions in the same order as the compiled loop, so the same numbers) for
   the first :data:`NUMPY_SAMPLES` samples, compiled after;
-- :func:`robust_filter_keep`: vectorised while every sample is kept, the scalar recursion (``math``, as
-  compiled) near the threshold and after a rejection;
+- :func:`robust_filter_keep`: vectorised while every sample is kept, the scalar recursion (``math``, as the
+  compiled loop it replaced) near the threshold and after a rejection;
 - :func:`lfilter`: the all-pole filter of RELS, compiled (``scipy.signal`` would cost more to import);
 - :func:`rels_ud`: the Bierman U-D recursion, compiled.
 
 The callers (:mod:`casep.model.sv`, :mod:`casep.analysis.robust`, :mod:`casep.estimators.rls`) validate
-every argument. ``tests/test_kernels.py`` checks each against the compiled loop (or scipy) bit for bit.
+every argument. ``tests/test_kernels.py`` checks each against the compiled loop, a plain loop or scipy, bit for bit.
 """
 
 from __future__ import annotations
@@ -61,14 +61,8 @@ def sv_integrate_chunk_numpy(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev
     if K == 0:
         return
     h = half_dt[:, None, None]
-    # Phi_k = Phi_{k-1} + (G_{k-1} + G_k) dt_k / 2: a running sum from the carried Phi
-    acc = np.empty((K + 1,) + phi.shape)
-    acc[0] = phi
-    inc = acc[1:]
-    np.add(G_prev, G[0], out=inc[0])
-    np.add(G[:-1], G[1:], out=inc[1:])
-    inc *= h
-    Phi = np.cumsum(acc, axis=0, out=acc)[1:]  # (K, 3, ng)
+    # Phi_k = Phi_{k-1} + (G_{k-1} + G_k) dt_k / 2
+    Phi = _running_trapezoid(phi, G_prev, G, h)  # (K, 3, ng)
     # I_k (from zero) += [f x] Phi_k in the gyro columns, then += the Delta Jacobian in the accelerometer columns
     fx, fy, fz = f[:, 0, None], f[:, 1, None], f[:, 2, None]
     Icur = np.zeros((K,) + I_prev.shape)
@@ -77,19 +71,23 @@ def sv_integrate_chunk_numpy(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev
                                         fx * Phi[:, 1] - fy * Phi[:, 0]], axis=1))  # fx Phi_y - fy Phi_x)
     _add_columns(Icur, acols, A)
     # S_k = S_{k-1} + (I_{k-1} + I_k) dt_k / 2
-    acc = np.empty((K + 1,) + S_prev.shape)
-    acc[0] = S_prev
-    inc = acc[1:]
-    np.add(I_prev, Icur[0], out=inc[0])
-    np.add(Icur[:-1], Icur[1:], out=inc[1:])
-    inc *= h
-    np.cumsum(acc, axis=0, out=acc)
-    out[:] = acc[1:]
+    out[:] = _running_trapezoid(S_prev, I_prev, Icur, h)
     # carries for the next chunk
     phi[:] = Phi[-1]
     G_prev[:] = G[-1]
     I_prev[:] = Icur[-1]
-    S_prev[:] = acc[-1]
+    S_prev[:] = out[-1]
+
+
+def _running_trapezoid(start: np.ndarray, last: np.ndarray, values: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """``X_k = X_(k-1) + (v_(k-1) + v_k) h_k`` for k = 1..K from ``X_0 = start``, ``v_0 = last``: (K, ...)."""
+    acc = np.empty((values.shape[0] + 1,) + start.shape)
+    acc[0] = start
+    inc = acc[1:]
+    np.add(last, values[0], out=inc[0])
+    np.add(values[:-1], values[1:], out=inc[1:])
+    inc *= h
+    return np.cumsum(acc, axis=0, out=acc)[1:]  # a sequential accumulation: the loop's additions
 
 
 def _add_columns(target: np.ndarray, cols: np.ndarray, values: np.ndarray) -> None:
