@@ -142,6 +142,11 @@ def robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
     rejection, are then decided one by one with the scalar formula (``math``: the numbers of the
     compiled loop this replaces). Glitches are rare, so the loop is short.
     """
+    with np.errstate(divide="ignore", invalid="ignore"):  # as compiled: a zero step or scale gives inf, not a warning
+        _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep)
+
+
+def _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
     N = e.shape[0]
     keep[:] = True
     if N == 0:
@@ -150,8 +155,7 @@ def robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
     # a_k = exp(-dt_k / tau); e_k / scale on a white axis and for the first sample
     nu = e / scale
     x = np.diff(t)[:, None] * inv_tau
-    with np.errstate(divide="ignore", invalid="ignore"):
-        corr = (e[1:] - np.exp(-x) * e[:-1]) / (scale * np.sqrt(-np.expm1(-2.0 * x)))
+    corr = (e[1:] - np.exp(-x) * e[:-1]) / (scale * np.sqrt(-np.expm1(-2.0 * x)))
     nu[1:] = np.where(inv_tau == 0.0, nu[1:], corr)
     near = np.abs(nu).max(axis=1) > thr * (1.0 - 1e-9)  # decided exactly below
     near |= ~np.isfinite(nu).all(axis=1)
