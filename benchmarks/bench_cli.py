@@ -11,12 +11,17 @@ pairwise ratios. CPU seconds (user + system of the finished child, `resource.get
 beside the wall times: on a shared machine the wall time of a single-threaded command grows with
 the load and its CPU time much less, so a CPU ratio near the wall ratio says the machine was quiet.
 
-Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_cli.py [--runs 5] [--only separate,demo]
+With ``--against CHECKOUT`` (another checkout of casep, e.g. ``git worktree add /tmp/casep-main main``)
+each command is paired with the same command run on that checkout's code (``PYTHONPATH=CHECKOUT``)
+instead of with the import baseline: the ratio is then new / old, measured under the same load.
+
+Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_cli.py [--runs 5] [--only separate,demo] [--against DIR]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import resource
 import statistics
 import subprocess
@@ -28,23 +33,24 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def timed(cmd: list[str]) -> tuple[float, float]:
-    """Wall seconds and CPU seconds (user + system) of one whole run of `cmd`."""
+def timed(cmd: list[str], env: dict[str, str] | None = None) -> tuple[float, float]:
+    """Wall seconds and CPU seconds (user + system) of one whole run of `cmd` (environment `env`)."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    subprocess.run(cmd, check=True, capture_output=True)
+    # from a neutral folder: `python -m` puts the working folder first on sys.path, before PYTHONPATH
+    subprocess.run(cmd, check=True, capture_output=True, env=env, cwd=tempfile.gettempdir())
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
-def paired(cmd: list[str], base: list[str], runs: int) -> dict[str, float]:
+def paired(cmd: list[str], base: list[str], runs: int, base_env: dict[str, str] | None = None) -> dict[str, float]:
     """Medians of `cmd`'s and `base`'s wall and CPU seconds and of the pairwise ratios cmd / base."""
-    timed(cmd), timed(base)  # warm-up
+    timed(cmd), timed(base, base_env)  # warm-up
     a, b = [], []
     for _ in range(runs):
         a.append(timed(cmd))
-        b.append(timed(base))
+        b.append(timed(base, base_env))
     med = statistics.median
     return {"wall": med(x[0] for x in a), "cpu": med(x[1] for x in a),
             "base_wall": med(y[0] for y in b), "base_cpu": med(y[1] for y in b),
@@ -57,15 +63,17 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--only", default="help,models,separate,demo",
                     help="comma-separated rows to run (help, models, separate, demo)")
+    ap.add_argument("--against", metavar="CHECKOUT", help="pair each command with itself run on another checkout")
     args = ap.parse_args()
     only = set(args.only.split(","))
     py = sys.executable
     base = [py, "-c", "import numpy, pandas"]
     casep = [py, "-m", "casep"]
     flight = ROOT / "examples" / "data" / "example_flight.csv"
+    against = None if args.against is None else dict(os.environ, PYTHONPATH=str(Path(args.against).resolve()))
     print(f"{args.runs} interleaved runs after a warm-up; medians (wall, and CPU = user + system)")
-    print("| command | wall (s) | CPU (s) | baseline wall (s) | ratio to `import numpy, pandas` (wall) "
-          "| ratio (CPU) | target |")
+    versus = "`import numpy, pandas`" if against is None else f"the same command on {args.against}"
+    print(f"| command | wall (s) | CPU (s) | baseline wall (s) | ratio to {versus} (wall) | ratio (CPU) | target |")
     print("|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         rows = [("help", "`casep --help`", casep + ["--help"], "-"),
@@ -76,7 +84,7 @@ def main() -> None:
         for key, label, cmd, target in rows:
             if key not in only:
                 continue
-            r = paired(cmd, base, args.runs)
+            r = paired(cmd, base, args.runs) if against is None else paired(cmd, cmd, args.runs, against)
             spread = f" (min {r['min']:.2f}, max {r['max']:.2f})" if key == "demo" else ""
             print(f"| {label} | {r['wall']:.2f}{spread} | {r['cpu']:.2f} | {r['base_wall']:.2f} | {r['ratio']:.2f} "
                   f"| {r['cpu_ratio']:.2f} | {target} |", flush=True)

@@ -1,198 +1,192 @@
-"""Compiled inner loops (numba, ``cache=True``): the sequential parts numpy cannot fuse.
+"""Inner loops that numpy alone does not express: the S_V recursions, the robust filter, RLS/RELS.
 
-Kept free of Python objects so that numba compiles them in nopython mode; the callers in
-:mod:`casep.model.sv` validate every argument.
+numba (``cache=True``, :mod:`casep._compiled`) is imported on the first call that needs it, not when
+casep is imported: its import and the set-up of its target on the first cached kernel take about 0.3 s,
+longer than a short flight's whole computation. So:
+
+- :func:`sv_integrate_chunk`: two running trapezoid sums, in numpy (``np.cumsum``: a sequential
+  accumulation, the same additions in the same order as the compiled loop, so the same numbers) for
+  the first :data:`NUMPY_SAMPLES` samples, compiled after;
+- :func:`robust_filter_keep`: vectorised while every sample is kept, the scalar recursion (``math``, as the
+  compiled loop it replaced) near the threshold and after a rejection;
+- :func:`lfilter`: the all-pole filter of RELS, compiled (``scipy.signal`` would cost more to import);
+- :func:`rels_ud`: the Bierman U-D recursion, compiled.
+
+The callers (:mod:`casep.model.sv`, :mod:`casep.analysis.robust`, :mod:`casep.estimators.rls`) validate
+every argument. ``tests/test_kernels.py`` checks each against the compiled loop, a plain loop or scipy, bit for bit.
 """
 
 from __future__ import annotations
 
-import numba
+import math
+import sys
+
 import numpy as np
 
-__all__ = ["robust_filter_keep", "sv_integrate_chunk"]
+__all__ = ["robust_filter_keep", "sv_integrate_chunk", "sv_integrate_chunk_numpy", "rels_ud", "lfilter",
+           "NUMPY_SAMPLES"]
 
 
-@numba.njit(cache=True, nogil=True)
-def sv_integrate_chunk(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_prev, out):  # pragma: no cover
+#: Samples integrated with numpy before :func:`sv_integrate_chunk` switches to the compiled loop. numpy takes
+#: about 5 us a sample, numba 0.3 us after its import and set-up (about 0.3 s): a short flight (80 s at
+#: 100 Hz, 400 s at 20 Hz) is integrated without numba, a longer one loses at most 0.05 s to numpy.
+NUMPY_SAMPLES = 1 << 13
+_numpy_samples = 0
+
+
+def sv_integrate_chunk(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_prev, out) -> None:
     """Trapezoid-integrate one chunk of S_V in place (see :mod:`casep.model.sv` for the equations).
 
     G (K, 3, ng), A (K, 3, na): Jacobians per sample; f (K, 3); half_dt (K,) = dt_k / 2;
     phi (3, ng), G_prev (3, ng), I_prev (3, n), S_prev (3, n): carries, updated in place;
     out (K, 3, n): S_V rows of the chunk.
+
+    In numpy for the first :data:`NUMPY_SAMPLES` samples of a process (unless numba is loaded
+    already), compiled after: the same additions in the same order, so the same numbers
+    (``tests/test_kernels.py``).
     """
+    global _numpy_samples
+    if "casep._compiled" in sys.modules or _numpy_samples >= NUMPY_SAMPLES:
+        from casep._compiled import sv_integrate_chunk as kernel
+
+        kernel(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_prev, out)
+        return
+    _numpy_samples += G.shape[0]
+    sv_integrate_chunk_numpy(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_prev, out)
+
+
+def sv_integrate_chunk_numpy(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_prev, out) -> None:
+    """:func:`sv_integrate_chunk` in numpy: each running sum is one ``np.cumsum`` (sequential accumulation)."""
     K = G.shape[0]
-    ng = gcols.size
-    na = acols.size
-    n = out.shape[2]
-    Icur = np.zeros((3, n))
-    for k in range(K):
-        h = half_dt[k]
-        fx = f[k, 0]
-        fy = f[k, 1]
-        fz = f[k, 2]
-        for i in range(3):
-            for j in range(n):
-                Icur[i, j] = 0.0
-        for j in range(ng):
-            # Phi_k = Phi_{k-1} + (G_{k-1} + G_k) dt_k / 2
-            for i in range(3):
-                g = G[k, i, j]
-                phi[i, j] += (G_prev[i, j] + g) * h
-                G_prev[i, j] = g
-            # [f x] Phi: (fy Phi_z - fz Phi_y, fz Phi_x - fx Phi_z, fx Phi_y - fy Phi_x)
-            c = gcols[j]
-            Icur[0, c] += fy * phi[2, j] - fz * phi[1, j]
-            Icur[1, c] += fz * phi[0, j] - fx * phi[2, j]
-            Icur[2, c] += fx * phi[1, j] - fy * phi[0, j]
-        for j in range(na):
-            c = acols[j]
-            for i in range(3):
-                Icur[i, c] += A[k, i, j]  # + Delta Jacobian
-        # S_k = S_{k-1} + (I_{k-1} + I_k) dt_k / 2
-        for i in range(3):
-            for j in range(n):
-                S_prev[i, j] += (I_prev[i, j] + Icur[i, j]) * h
-                I_prev[i, j] = Icur[i, j]
-                out[k, i, j] = S_prev[i, j]
+    if K == 0:
+        return
+    h = half_dt[:, None, None]
+    # Phi_k = Phi_{k-1} + (G_{k-1} + G_k) dt_k / 2
+    Phi = _running_trapezoid(phi, G_prev, G, h)  # (K, 3, ng)
+    # I_k (from zero) += [f x] Phi_k in the gyro columns, then += the Delta Jacobian in the accelerometer columns
+    fx, fy, fz = f[:, 0, None], f[:, 1, None], f[:, 2, None]
+    Icur = np.zeros((K,) + I_prev.shape)
+    _add_columns(Icur, gcols, np.stack([fy * Phi[:, 2] - fz * Phi[:, 1],  # (fy Phi_z - fz Phi_y,
+                                        fz * Phi[:, 0] - fx * Phi[:, 2],  #  fz Phi_x - fx Phi_z,
+                                        fx * Phi[:, 1] - fy * Phi[:, 0]], axis=1))  # fx Phi_y - fy Phi_x)
+    _add_columns(Icur, acols, A)
+    # S_k = S_{k-1} + (I_{k-1} + I_k) dt_k / 2
+    out[:] = _running_trapezoid(S_prev, I_prev, Icur, h)
+    # carries for the next chunk
+    phi[:] = Phi[-1]
+    G_prev[:] = G[-1]
+    I_prev[:] = Icur[-1]
+    S_prev[:] = out[-1]
 
 
-@numba.njit(cache=True, nogil=True)
-def _bierman(U, D, x, h, f, b, r, dz, start):  # pragma: no cover
-    """One scalar measurement ``z = h x + e``, Var e = r, innovation dz = z - h x: Bierman's U-D update.
-
-    U (n, n) unit upper triangular stored transposed, D (n,), x (n,) updated in place;
-    f, b (n,) work arrays. ``h[j] = 0`` for ``j < start`` (skipped: exact).
-    """
-    n = x.size
-    # f = U^T h ; b = D f
-    for j in range(n):
-        s = 0.0
-        if j >= start:
-            s = h[j]
-            for i in range(start, j):
-                s += U[j, i] * h[i]
-        f[j] = s
-        b[j] = D[j] * s
-    # Bierman: sweep j = start..n-1 (the steps j < start change nothing)
-    alpha = r
-    gamma = 1.0 / alpha
-    for j in range(start, n):
-        beta = alpha
-        alpha = alpha + f[j] * b[j]
-        lam = -f[j] * gamma
-        gamma = 1.0 / alpha
-        D[j] = beta * gamma * D[j]
-        bj = b[j]
-        for i in range(j):
-            u = U[j, i]
-            U[j, i] = u + b[i] * lam
-            b[i] = b[i] + bj * u
-    # x <- x + K dz, K = b / alpha
-    g = dz * gamma
-    for j in range(n):
-        x[j] += g * b[j]
+def _running_trapezoid(start: np.ndarray, last: np.ndarray, values: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """``X_k = X_(k-1) + (v_(k-1) + v_k) h_k`` for k = 1..K from ``X_0 = start``, ``v_0 = last``: (K, ...)."""
+    acc = np.empty((values.shape[0] + 1,) + start.shape)
+    acc[0] = start
+    inc = acc[1:]
+    np.add(last, values[0], out=inc[0])
+    np.add(values[:-1], values[1:], out=inc[1:])
+    inc *= h
+    return np.cumsum(acc, axis=0, out=acc)[1:]  # a sequential accumulation: the loop's additions
 
 
-@numba.njit(cache=True, nogil=True)
-def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, history_var, D0, past,
-            k0):  # pragma: no cover
-    """Recursive (extended) least squares with Bierman's UD scalar updates, in place.
-
-    H (N, 3, p): scaled regressors; y (N, 3); x (p + n_c): estimate; U (p + n_c, p + n_c)
-    unit upper-triangular stored *transposed* (Ut[j, i] = U[i, j], rows contiguous);
-    D (p + n_c): P = U diag(D) U^T, on entry the diagonal prior P_0 = diag(D) (U = I, x = 0).
-    Per sample, when forgetting < 1, stabilized forgetting: P <- P / forgetting, then n
-    pseudo-measurements ``x_j = 0`` of variance D_0,j / (1 - forgetting), i.e.
-    P^-1 <- forgetting P^-1 + (1 - forgetting) P_0^-1 (see :mod:`casep.estimators.rls`); then one scalar
-    update per axis with measurement variance 1 / weight. The last n_c entries of x are the
-    noise-model coefficients; their regressors are each axis' last n_c residuals
-    (a-posteriori when `posterior`, else a-priori). Every `stride` samples x is copied to
-    history[k // stride] and diag(P) to history_var[k // stride]. Returns the residuals
-    (N, 3): a-priori innovations y - h x_{k-1} (the sequence the recursion whitens).
-
-    Resumable over blocks of samples: x, U, D and `past` (3, n_c + 1: each axis' last
-    residuals, newest first) carry the state; D0 is the prior diagonal (forgetting pulls
-    towards it) and k0 the index of this block's first sample in the flight (history rows).
-    """
-    N = H.shape[0]
-    p = H.shape[2]
-    n = p + n_c
-    h = np.zeros(n)
-    f = np.zeros(n)
-    b = np.zeros(n)
-    e_j = np.zeros(n)
-    innov = np.zeros((N, 3))
-    r = 1.0 / weight
-    inv_lam = 1.0 / forgetting
-    for k in range(N):
-        if forgetting != 1.0:
-            for j in range(n):
-                D[j] *= inv_lam  # P <- P / lambda
-            for j in range(n):
-                # + (1 - lambda) P_0^-1: pseudo-measurement 0 = e_j^T x + v, Var v = D_0,j / (1 - lambda)
-                e_j[j] = 1.0
-                _bierman(U, D, x, e_j, f, b, D0[j] / (1.0 - forgetting), -x[j], j)
-                e_j[j] = 0.0
-        for axis in range(3):
-            for j in range(p):
-                h[j] = H[k, axis, j]
-            for j in range(n_c):
-                h[p + j] = past[axis, j]
-            # innovation dz = y - h x
-            dz = y[k, axis]
-            for j in range(n):
-                dz -= h[j] * x[j]
-            innov[k, axis] = dz
-            _bierman(U, D, x, h, f, b, r, dz, 0)
-            if n_c > 0:
-                e = dz
-                if posterior:
-                    e = y[k, axis]
-                    for j in range(n):
-                        e -= h[j] * x[j]
-                for j in range(n_c - 1, 0, -1):
-                    past[axis, j] = past[axis, j - 1]
-                past[axis, 0] = e
-        if stride > 0 and (k0 + k) % stride == 0:
-            row = (k0 + k) // stride
-            for j in range(n):
-                history[row, j] = x[j]
-            # diag(P)_i = sum_{j >= i} U_ij^2 D_j  (U unit upper triangular, stored transposed)
-            for i in range(n):
-                s = D[i]
-                for j in range(i + 1, n):
-                    s += U[j, i] * U[j, i] * D[j]
-                history_var[row, i] = s
-    return innov
+def _add_columns(target: np.ndarray, cols: np.ndarray, values: np.ndarray) -> None:
+    """``target[:, :, cols[j]] += values[:, :, j]`` for each j in order (a repeated column sums its terms)."""
+    if cols.size == 0:
+        return
+    if cols.size == 1 or np.all(np.diff(cols) == 1):  # a range: a view
+        target[:, :, cols[0]:cols[-1] + 1] += values
+    elif np.unique(cols).size == cols.size:  # distinct columns
+        target[:, :, cols] += values
+    else:
+        for j, c in enumerate(cols):
+            target[:, :, c] += values[:, :, j]
 
 
-@numba.njit(cache=True, nogil=True)
-def robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep):  # pragma: no cover
+def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, history_var, D0, past, k0):
+    """Recursive (extended) least squares with Bierman's U-D scalar updates, in place
+    (:func:`casep._compiled.rels_ud`, compiled by numba on the first call)."""
+    from casep._compiled import rels_ud as kernel
+
+    return kernel(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, history_var, D0, past, k0)
+
+
+def lfilter(b, a, x, axis: int = -1) -> np.ndarray:
+    """``scipy.signal.lfilter(b, a, x, axis)``; an all-pole filter (``b = [1]``, ``a[0] = 1``) of a 2-D `x` along
+    axis 0 compiled (:func:`casep._compiled.all_pole_filter`: the same operations, so the same numbers)
+    without importing ``scipy.signal`` (0.3-0.5 s with the ``scipy.stats`` it imports)."""
+    a = np.asarray(a, dtype=float)
+    x = np.asarray(x)
+    ax = axis % x.ndim if x.ndim else axis
+    if list(np.ravel(b)) == [1.0] and a.ndim == 1 and a.size and a[0] == 1.0 and x.ndim == 2 and ax == 0 \
+            and x.dtype == np.float64:
+        from casep._compiled import all_pole_filter
+
+        y = np.empty_like(x)
+        all_pole_filter(np.ascontiguousarray(a), x, y)
+        return y
+    from scipy.signal import lfilter as scipy_lfilter
+
+    return scipy_lfilter(b, a, x, axis=axis)
+
+
+def robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
     """Sequential robust filter (see :mod:`casep.analysis.robust`): reject a sample whose innovation
     from the last kept one exceeds ``thr`` on any axis, at most ``max_run`` in a row.
 
     e (N, 3) residuals; t (N,); inv_tau (3,) = 1 / tau (0 for white); scale (3,) = r_a s;
     keep (N,) bool, written.
+
+    While every sample is kept the last kept one is the previous sample, so the innovations are
+    computed for all samples at once; the samples near or over the threshold, and the run after a
+    rejection, are then decided one by one with the scalar formula (``math``: the numbers of the
+    compiled loop this replaces). Glitches are rare, so the loop is short.
     """
+    with np.errstate(divide="ignore", invalid="ignore"):  # as compiled: a zero step or scale gives inf, not a warning
+        _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep)
+
+
+def _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
     N = e.shape[0]
-    last = -1
-    run = 0
-    for k in range(N):
-        big = False
-        for j in range(3):
-            if inv_tau[j] == 0.0 or last < 0:
-                nu = e[k, j] / scale[j]
+    keep[:] = True
+    if N == 0:
+        return
+    # innovation of each sample from the previous one: nu_k = (e_k - a_k e_{k-1}) / (scale sqrt(1 - a_k^2)),
+    # a_k = exp(-dt_k / tau); e_k / scale on a white axis and for the first sample
+    nu = e / scale
+    x = np.diff(t)[:, None] * inv_tau
+    corr = (e[1:] - np.exp(-x) * e[:-1]) / (scale * np.sqrt(-np.expm1(-2.0 * x)))
+    nu[1:] = np.where(inv_tau == 0.0, nu[1:], corr)
+    near = np.abs(nu).max(axis=1) > thr * (1.0 - 1e-9)  # decided exactly below
+    near |= ~np.isfinite(nu).all(axis=1)
+    candidates = np.flatnonzero(near)
+    k = 0
+    for c in candidates:
+        if c < k:
+            continue  # decided in the run of an earlier candidate
+        k = int(c)  # samples before it kept: the last kept one is k - 1
+        last = k - 1
+        run = 0
+        while k < N:
+            if _big(e, t, inv_tau, scale, thr, k, last) and run < max_run:
+                keep[k] = False
+                run += 1
+                k += 1
             else:
-                x = (t[k] - t[last]) * inv_tau[j]
-                a = np.exp(-x)  # a_k = exp(-dt / tau)
-                nu = (e[k, j] - a * e[last, j]) / (scale[j] * np.sqrt(-np.expm1(-2.0 * x)))
-            if abs(nu) > thr:
-                big = True
+                last = k  # kept: the filter is back on the previous sample
+                k += 1
                 break
-        if big and run < max_run:
-            keep[k] = False
-            run += 1
+
+
+def _big(e, t, inv_tau, scale, thr, k: int, last: int) -> bool:
+    """Whether sample k's innovation from sample `last` (-1: none) exceeds `thr` on any axis."""
+    for j in range(3):
+        if inv_tau[j] == 0.0 or last < 0:
+            nu = e[k, j] / scale[j]
         else:
-            keep[k] = True
-            last = k
-            run = 0
+            x = (t[k] - t[last]) * inv_tau[j]
+            a = math.exp(-x)  # a_k = exp(-dt / tau)
+            nu = (e[k, j] - a * e[last, j]) / (scale[j] * math.sqrt(-math.expm1(-2.0 * x)))
+        if abs(nu) > thr:
+            return True
+    return False

@@ -22,14 +22,23 @@ separate axis scales only when they beat one common scale by :data:`AUTO_LR_SCAL
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from casep.analysis.noise import AUTO_LR, AUTO_LR_SCALE, NoiseModel, check_noise_kind, check_tau, whiten_axis
+from casep.analysis.noise import (
+    AUTO_LR,
+    AUTO_LR_SCALE,
+    NoiseModel,
+    _coeffs,
+    check_noise_kind,
+    check_tau,
+    whiten_axis,
+)
 
-__all__ = ["fit_noise", "tau_search_bounds", "with_kind", "Reml", "estimable_basis"]
+__all__ = ["fit_noise", "tau_search_bounds", "with_kind", "Reml", "estimable_basis", "bounded_minimum"]
 
 
 class Reml:
@@ -58,7 +67,7 @@ class Reml:
         key = (j, None if tau is None else float(tau))
         if key not in self._cache:
             if self._Z is not None:
-                W = whiten_axis(self._Z[j], self.t, tau, 1.0)
+                W = _whiten_unit(self._Z[j], self.t, tau)
                 M = W.T @ W
             else:
                 M = np.zeros((self.p + 1, self.p + 1))
@@ -126,6 +135,20 @@ class Reml:
             if done:
                 break
         return self.evaluate(taus, sc)[0], (float(sc[0]), float(sc[1]), float(sc[2]))
+
+
+def _whiten_unit(X: np.ndarray, t: np.ndarray, tau: float | None) -> np.ndarray:
+    """``whiten_axis(X, t, tau, 1.0)`` written in place into one new array (the same operations in the
+    same order, so the same numbers, with two passes over the rows fewer; the search whitens each axis'
+    rows about 50 times)."""
+    a, g = _coeffs(t, tau)
+    W = np.empty_like(X)
+    W[0] = X[0]
+    body = W[1:]
+    np.multiply(X[:-1], a[:, None], out=body)
+    np.subtract(X[1:], body, out=body)  # e_k - a_k e_(k-1)
+    body *= g[:, None]  # u_k = (e_k - a_k e_(k-1)) / sqrt(1 - a_k^2)
+    return W
 
 
 def tau_search_bounds(t: np.ndarray) -> tuple[float, float]:
@@ -236,8 +259,6 @@ def _search_taus(reml: Reml, corr: Sequence[bool], lo: float, hi: float, xatol: 
     factor 4 of its current value (widened when the minimum lands on an edge), and once more
     within 25 %.
     """
-    from scipy.optimize import minimize_scalar
-
     state: dict[str, Any] = {"scales": None}
 
     def value(tt) -> float:
@@ -251,9 +272,8 @@ def _search_taus(reml: Reml, corr: Sequence[bool], lo: float, hi: float, xatol: 
         v, sc = reml.fit_scales([None, None, None], free=free)
         return v, [None, None, None], sc
     if start is None:
-        r = minimize_scalar(lambda x: value([float(np.exp(x)) if c else None for c in corr]), bounds=(lo, hi),
-                            method="bounded", options={"xatol": xatol})
-        taus = [float(np.exp(r.x)) if c else None for c in corr]
+        x = bounded_minimum(lambda x: value([float(np.exp(x)) if c else None for c in corr]), lo, hi, xatol)
+        taus = [float(np.exp(x)) if c else None for c in corr]
     else:
         taus = [(start[j] if start[j] is not None else float(np.exp(lo))) if corr[j] else None for j in range(3)]
     widths = (np.log(1.25),) if polish_only else (np.log(4.0), np.log(1.25))
@@ -268,8 +288,7 @@ def _search_taus(reml: Reml, corr: Sequence[bool], lo: float, hi: float, xatol: 
                     tt = list(taus)
                     tt[j] = float(np.exp(x))
                     return value(tt)
-                r = minimize_scalar(f, bounds=(a, b), method="bounded", options={"xatol": xatol})
-                x = float(r.x)
+                x = float(bounded_minimum(f, a, b, xatol))
                 edge = 3 * xatol
                 if x - a < edge and a > lo:
                     a, b = max(lo, a - 2 * w), a + edge
@@ -280,6 +299,79 @@ def _search_taus(reml: Reml, corr: Sequence[bool], lo: float, hi: float, xatol: 
             taus[j] = float(np.exp(x))
     v, sc = reml.fit_scales(taus, state["scales"], free=free)
     return (v if v < _NO_LIKELIHOOD else np.inf), taus, sc
+
+
+def bounded_minimum(func: Callable[[float], float], a: float, b: float, xatol: float, maxfun: int = 500) -> float:
+    """Minimiser of `func` on ``[a, b]`` by Brent's bounded method (golden section with parabolic steps).
+
+    The algorithm and the numbers of ``scipy.optimize.minimize_scalar(func, bounds=(a, b),
+    method="bounded", options={"xatol": xatol}).x`` (the same steps and function values,
+    ``tests/analysis/test_bounded_minimum.py``), without importing ``scipy.optimize`` (0.2 s, most of the
+    noise fit of a short flight). At most `maxfun` evaluations.
+    """
+    sqrt_eps = math.sqrt(2.2e-16)
+    golden_mean = 0.5 * (3.0 - math.sqrt(5.0))
+    fulc = a + golden_mean * (b - a)
+    nfc = xf = x = fulc
+    rat = e = 0.0
+    fx = func(x)
+    num = 1
+    ffulc = fnfc = fx
+    xm = 0.5 * (a + b)
+    tol1 = sqrt_eps * np.abs(xf) + xatol / 3.0
+    tol2 = 2.0 * tol1
+    while np.abs(xf - xm) > (tol2 - 0.5 * (b - a)):
+        golden = True
+        if np.abs(e) > tol1:  # try a parabola through the three best points
+            golden = False
+            r = (xf - nfc) * (fx - ffulc)
+            q = (xf - fulc) * (fx - fnfc)
+            p = (xf - fulc) * q - (xf - nfc) * r
+            q = 2.0 * (q - r)
+            if q > 0.0:
+                p = -p
+            q = np.abs(q)
+            r = e
+            e = rat
+            if (np.abs(p) < np.abs(0.5 * q * r)) and (p > q * (a - xf)) and (p < q * (b - xf)):  # acceptable
+                rat = (p + 0.0) / q
+                x = xf + rat
+                if ((x - a) < tol2) or ((b - x) < tol2):
+                    si = np.sign(xm - xf) + ((xm - xf) == 0)
+                    rat = tol1 * si
+            else:
+                golden = True
+        if golden:  # golden-section step into the larger part
+            e = a - xf if xf >= xm else b - xf
+            rat = golden_mean * e
+        si = np.sign(rat) + (rat == 0)
+        x = xf + si * np.maximum(np.abs(rat), tol1)
+        fu = func(x)
+        num += 1
+        if fu <= fx:
+            if x >= xf:
+                a = xf
+            else:
+                b = xf
+            fulc, ffulc = nfc, fnfc
+            nfc, fnfc = xf, fx
+            xf, fx = x, fu
+        else:
+            if x < xf:
+                a = x
+            else:
+                b = x
+            if (fu <= fnfc) or (nfc == xf):
+                fulc, ffulc = nfc, fnfc
+                nfc, fnfc = x, fu
+            elif (fu <= ffulc) or (fulc == xf) or (fulc == nfc):
+                fulc, ffulc = x, fu
+        xm = 0.5 * (a + b)
+        tol1 = sqrt_eps * np.abs(xf) + xatol / 3.0
+        tol2 = 2.0 * tol1
+        if num >= maxfun:
+            break
+    return xf
 
 
 def _sigma(reml: Reml, taus, scales) -> float:

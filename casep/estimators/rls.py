@@ -232,7 +232,7 @@ def _solve(pb: Prepared, *, method: Method, p0: float, weight: float, forgetting
     x_nat[live] = x[:p] / cl
     fit = pb.residuals(x_nat)  # dv - S_V D_hat, block by block
     if nc:
-        from scipy.signal import lfilter
+        from casep._kernels import lfilter  # scipy.signal.lfilter without importing scipy.signal
 
         # Whitened residuals per axis: v(k) = e(k) - sum_j c_j v(k - j)
         white = lfilter([1.0], np.r_[1.0, x[p:]], fit.reshape(N, 3), axis=0)

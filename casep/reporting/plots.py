@@ -27,12 +27,20 @@ def pyplot() -> Any:
 
 
 def save_figure(fig: Any, path: str | os.PathLike) -> Path:
-    """Write `fig` to `path` (format from the extension, PNG by default) atomically, close it, return `path`."""
+    """Write `fig` to `path` (format from the extension, PNG by default) atomically, close it, return `path`.
+
+    The figure keeps its size (``figsize`` at 120 dpi). Its labels, titles and legends stay inside it by
+    matplotlib's constrained layout, worked out while the figure is drawn: casep's figures are made with
+    ``layout="constrained"``, and a figure given here without a layout engine gets it. (Saving with
+    ``bbox_inches="tight"`` instead would draw every figure twice: once to find the bounding box.)
+    """
     from casep.io._atomic import atomic_open
 
+    if fig.get_layout_engine() is None:
+        fig.set_layout_engine("constrained")
     path = Path(path)
     with atomic_open(path, binary=True) as fh:  # whole or not at all; with the command's other outputs
-        fig.savefig(fh, format=path.suffix.lstrip(".").lower() or "png", dpi=120, bbox_inches="tight")
+        fig.savefig(fh, format=path.suffix.lstrip(".").lower() or "png", dpi=120)
     import matplotlib.pyplot as plt
 
     plt.close(fig)
@@ -40,12 +48,11 @@ def save_figure(fig: Any, path: str | os.PathLike) -> Path:
 
 
 
-
 def plot_singular_values(diag: Diagnostics, path: str | os.PathLike) -> Path:
     """Singular-value spectrum of the equilibrated regression with condition indices."""
     plt = pyplot()
     s = diag.singular_values
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = plt.subplots(figsize=(7, 4), layout="constrained")
     ax.semilogy(np.arange(1, s.size + 1), s, "o-", ms=4)
     ax.axhline(s[0] / GROUP_INDEX, color="tab:orange", ls="--", lw=1, label=f"condition index {GROUP_INDEX:g}")
     ax.axhline(s[0] / 1e3, color="tab:red", ls=":", lw=1, label="condition index 1000")
@@ -63,7 +70,7 @@ def plot_variance_decomposition(diag: Diagnostics, path: str | os.PathLike) -> P
     """Heat map of Belsley-Kuh-Welsch variance-decomposition proportions."""
     plt = pyplot()
     P = np.nan_to_num(diag.proportions, nan=0.0)
-    fig, ax = plt.subplots(figsize=(max(8, 0.28 * len(diag.names)), 6))
+    fig, ax = plt.subplots(figsize=(max(8, 0.28 * len(diag.names)), 6), layout="constrained")
     im = ax.imshow(P, aspect="auto", cmap="viridis", vmin=0, vmax=1, interpolation="nearest")
     ax.set_xticks(range(len(diag.names)), diag.names, rotation=90, fontsize=7)
     eta = diag.condition_indices
@@ -93,7 +100,7 @@ def plot_flights_crlb(d: Mapping, path: str | os.PathLike, scales: Mapping | Non
     finite = np.concatenate([alone[np.isfinite(alone)], joint[np.isfinite(joint)]])
     hi = 10 ** np.ceil(np.log10(finite.max())) if finite.size else 10.0
     lo = 10 ** np.floor(np.log10(finite.min())) if finite.size else 0.1
-    fig, ax = plt.subplots(figsize=(8, max(4, 0.22 * len(rows) + 1.5)))
+    fig, ax = plt.subplots(figsize=(8, max(4, 0.22 * len(rows) + 1.5)), layout="constrained")
     y = np.arange(len(rows))
     h = 0.8 / (k + 1)
     for i in range(k):
@@ -129,7 +136,7 @@ def plot_residuals(result: EstimateResult, path: str | os.PathLike, t: np.ndarra
     plt = pyplot()
     r = np.asarray(result.residuals).reshape(-1, 3)
     x, xlabel = _sample_times(result, t)
-    fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True, layout="constrained")
     rms = result.residual_rms
     for i, ax in enumerate(axes):
         ax.plot(x, r[:, i], lw=0.5)
@@ -227,7 +234,8 @@ def plot_estimates(result: EstimateResult, path: str | os.PathLike, *, prior: Ma
     groups = instrument_groups(result.names)
     ncol = min(3, len(groups))
     nrow = -(-len(groups) // ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.2 * nrow + 0.6), squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.2 * nrow + 0.6), squeeze=False,
+                             layout="constrained")
     for ax, (title, members) in zip(axes.ravel(), groups.items()):
         idx = np.asarray(members)
         x = np.arange(idx.size)
@@ -256,8 +264,7 @@ def plot_estimates(result: EstimateResult, path: str | os.PathLike, *, prior: Ma
     axes[0, 0].set_ylabel("estimate / declared magnitude")
     axes[0, 0].legend(fontsize=6, loc="best")
     fig.suptitle(f"{result.model} ({result.method}): estimate +- 2 std in units of the declared magnitude; grey: "
-                 "+-1 declared magnitude; missing: not identifiable", fontsize=9)
-    fig.tight_layout()
+                 "+-1 declared magnitude; missing: not identifiable", fontsize=9, wrap=True)
     return save_figure(fig, path)
 
 
@@ -285,7 +292,8 @@ def plot_history(result: EstimateResult, path: str | os.PathLike, t: np.ndarray 
     idx = best_determined(result, count)
     ncol = 3
     nrow = max(1, -(-idx.size // ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(11, 2.6 * nrow), sharex=True, squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(11, 2.6 * nrow), sharex=True, squeeze=False,
+                             layout="constrained")
     for ax, j in zip(axes.flat, idx):
         h, s = result.history[:, j], result.history_std[:, j]
         ax.fill_between(x, h - 2 * s, h + 2 * s, color="tab:blue", alpha=0.2, lw=0)
@@ -332,7 +340,8 @@ def plot_miss_budget(analysis, path: str | os.PathLike, top: int = 15) -> Path:
         sd = np.abs(a.sensitivity) * np.nan_to_num(a.coefficient_std, nan=0.0)
     labels = [a.names[j] for j in order] + [_group_label(k, g.names) for k, g in enumerate(a.groups)] \
         + ["total (linear)"]
-    fig, axes = plt.subplots(1, 2, figsize=(11, max(4.0, 0.32 * len(labels) + 1.5)), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(11, max(4.0, 0.32 * len(labels) + 1.5)), sharey=True,
+                             layout="constrained")
     y = np.arange(len(labels))[::-1]
     for i, (ax, what) in enumerate(zip(axes, ("downrange", "crossrange"))):
         vals = np.concatenate([c[i, order], [g.contribution[i] for g in a.groups], [a.miss[i]]])
@@ -351,7 +360,7 @@ def plot_miss_budget(analysis, path: str | os.PathLike, top: int = 15) -> Path:
         ax.grid(True, axis="x", alpha=0.3)
     axes[0].set_yticks(y, labels, fontsize=8)
     fig.suptitle(f"Miss budget, {a.model} ({a.method}): blue coefficients, orange near-dependency groups, "
-                 "red total; bars 1 sigma", fontsize=9)
+                 "red total; bars 1 sigma", fontsize=9, wrap=True)
     return save_figure(fig, path)
 
 
@@ -370,7 +379,7 @@ def plot_impact_ellipse(analysis, path: str | os.PathLike) -> Path:
     """
     plt = pyplot()
     a = analysis
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5.5))
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.5), layout="constrained")
     for k_ax, ax in enumerate(axes):
         if a.cov is not None:
             w, V = np.linalg.eigh(a.cov)
@@ -406,7 +415,7 @@ def plot_allan(noise, path: str | os.PathLike) -> Path:
     """Allan deviation of the residuals per axis with the fitted noise models
     (:func:`casep.analysis.noise_id.identify_noise`); the chosen model drawn solid."""
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = plt.subplots(figsize=(7, 4.5), layout="constrained")
     for i, a in enumerate("xyz"[: noise.adev.shape[0]]):
         ax.loglog(noise.taus, noise.adev[i], "o", ms=3, alpha=0.6, label=f"residuals {a}")
     for k, style in (("white", ":"), ("gauss_markov", "--"), ("random_walk", "-.")):
@@ -430,7 +439,8 @@ def plot_design(result, path: str | os.PathLike) -> Path:
     plt = pyplot()
     r = result
     m = r.maneuver.to_dict(r.x)
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(12, 8), gridspec_kw={"height_ratios": [1, 1.4]})
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(12, 8), gridspec_kw={"height_ratios": [1, 1.4]},
+                                 layout="constrained")
     for axis, color in (("pitch", "tab:orange"), ("yaw", "tab:blue")):
         if axis in r.maneuver.axes:
             a1.plot(m["knots_s"], m[f"{axis}_deg"], "o-", color=color, label=f"{axis} offset")
@@ -461,5 +471,4 @@ def plot_design(result, path: str | os.PathLike) -> Path:
     a2.set_title("Cramer-Rao bound per coefficient" + (" (Bayesian, with the prior)" if r.prior else ""), fontsize=10)
     a2.grid(True, alpha=0.3, which="both", axis="y")
     a2.legend(fontsize=8)
-    fig.tight_layout()
     return save_figure(fig, path)

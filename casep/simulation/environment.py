@@ -10,8 +10,8 @@ import numpy as np
 
 from casep.units import G0
 
-__all__ = ["MU_EARTH", "R_EARTH", "atmosphere", "axial_drag_coefficient", "RotatingEarth", "air_relative",
-           "air_relative_rate"]
+__all__ = ["MU_EARTH", "R_EARTH", "atmosphere", "atmosphere_many", "axial_drag_coefficient",
+           "axial_drag_coefficients", "RotatingEarth", "air_relative", "air_relative_rate"]
 
 MU_EARTH = 3.986004418e14  # m^3/s^2
 R_EARTH = 6_371_000.0  # m
@@ -55,9 +55,32 @@ def atmosphere(h: float) -> tuple[float, float]:
     return P / (_R_AIR * T), math.sqrt(1.4 * _R_AIR * T)
 
 
+def atmosphere_many(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`atmosphere` at many altitudes `h` (M,), m: density (kg/m^3) and speed of sound (m/s), (M,) each."""
+    hg = np.maximum(R_EARTH * h / (R_EARTH + h), 0.0)  # geopotential height
+    top = hg >= _H_BASE[-1]
+    i = np.clip(np.searchsorted(_H_BASE, hg, side="right") - 1, 0, _LAPSE.size - 1)
+    L, Tb, Pb, Hb = _LAPSE[i], _T_BASE[i], _P_BASE[i], _H_BASE[i]
+    T = np.where(top, _T_BASE[-1], Tb + L * (hg - Hb))
+    iso = L == 0.0
+    P = np.empty_like(hg)
+    P[iso] = Pb[iso] * np.exp(-G0 * (hg[iso] - Hb[iso]) / (_R_AIR * Tb[iso]))
+    grad = ~iso
+    P[grad] = Pb[grad] * (T[grad] / Tb[grad]) ** (-G0 / (L[grad] * _R_AIR))
+    rho = P / (_R_AIR * T)
+    rho_top = _P_BASE[-1] / (_R_AIR * _T_BASE[-1])
+    rho[top] = rho_top * np.exp(-(hg[top] - _H_BASE[-1]) * G0 / (_R_AIR * _T_BASE[-1]))  # exponential above
+    return rho, np.sqrt(1.4 * _R_AIR * T)
+
+
 def axial_drag_coefficient(mach: float) -> float:
     """Axial-force coefficient C_A at Mach `mach` (the table above, linear in between, held outside)."""
     return float(np.interp(mach, _MACH, _CA))
+
+
+def axial_drag_coefficients(mach: np.ndarray) -> np.ndarray:
+    """:func:`axial_drag_coefficient` at many Mach numbers (M,)."""
+    return np.interp(mach, _MACH, _CA)
 
 
 class RotatingEarth:
@@ -85,6 +108,12 @@ class RotatingEarth:
     def centre(self, t: float) -> np.ndarray:
         """The sphere's centre at `t`, m."""
         return self.o + self.rotate(self.c0 - self.o, t)  # the sphere's centre circles the axis
+
+    def centres(self, t: np.ndarray) -> np.ndarray:
+        """The sphere's centre at each of the times `t` (M,), (M, 3) m (:meth:`centre` at many times)."""
+        a = self.omega * np.asarray(t, dtype=float)[:, None]
+        k, p = self.k, self.c0 - self.o
+        return self.o + p * np.cos(a) + np.cross(k, p) * np.sin(a) + k * (k @ p) * (1.0 - np.cos(a))
 
     def air_velocity(self, pos: np.ndarray) -> np.ndarray:
         """Velocity of the co-rotating air at `pos`, m/s."""

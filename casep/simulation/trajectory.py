@@ -66,7 +66,9 @@ from casep.simulation.environment import (
     air_relative,
     air_relative_rate,
     atmosphere,
+    atmosphere_many,
     axial_drag_coefficient,
+    axial_drag_coefficients,
 )
 from casep.simulation.vehicle import (
     DEFAULT_VEHICLE,
@@ -77,6 +79,7 @@ from casep.simulation.vehicle import (
     YawManoeuvre,
     check_propellant,
     thrust,
+    thrust_many,
     thrust_profile,
 )
 from casep.units import G0
@@ -155,15 +158,10 @@ class BoostTrajectory:
         last_t1 = self._segments[-1][1]
         for t0, t1, sol, k, kind in self._segments:  # a piece owns [t0, t1), the last one [t0, t1]
             idx = np.flatnonzero((times >= t0) & ((times < t1) | ((t1 == last_t1) & (times <= t1))) & ~done)
-            for i in idx:
-                y = sol(times[i])
-                f, grav, _ = _forces(self.vehicle, self.vehicle.stages[k], kind, times[i], t0, t1, y, state)
-                rows = dict(zip(out, (y[0:3], y[3:6], f + grav)))
-                rows["attitude"], rows["body_rate"] = _attitude_rates(
-                    self.vehicle, times[i], air_relative(state, y[0:3], y[3:6]),
-                    air_relative_rate(state, y[3:6], f + grav), state)
-                for key, value in rows.items():
-                    out[key][i] = value
+            if idx.size:
+                rows = _sampled(self.vehicle, self.vehicle.stages[k], kind, times[idx], t0, t1, sol(times[idx]), state)
+                for key in out:
+                    out[key][idx] = rows[key]
             done[idx] = True
         if not np.all(done):
             raise ValueError(f"`times` contains {times[~done][0]} s, outside the flight [{self.t[0]}, {self.t[-1]}] s")
@@ -239,19 +237,6 @@ def body_to_platform(theta: np.ndarray, psi: np.ndarray, roll: np.ndarray | None
     return Rz @ Ry @ Rx
 
 
-def _attitude_rates(vehicle: Vehicle, t: float, v: np.ndarray, a: np.ndarray, state: dict
-                    ) -> tuple[np.ndarray, np.ndarray]:
-    """(pitch, yaw, roll = 0) in rad and the body rate omega_b (rad/s, body frame)."""
-    theta, psi, theta_dot, psi_dot = _angles(vehicle, t, v, a, state)
-    # omega_p = theta_dot e_z - psi_dot Rz(theta) e_y  (C = Rz(theta) Ry(-psi))
-    omega_p = np.array([psi_dot * math.sin(theta), -psi_dot * math.cos(theta), theta_dot])
-    ct, st, cp, sp = math.cos(theta), math.sin(theta), math.cos(psi), math.sin(psi)
-    # C = Rz(theta) Ry(-psi) (roll 0) written out: body_to_platform's product for one sample, without
-    # numpy's per-call overhead (19 501 samples: 2.5 s -> 0.1 s)
-    C = np.array([[ct * cp, -st, -ct * sp], [st * cp, ct, -st * sp], [sp, 0.0, cp]])
-    return np.array([theta, psi, 0.0]), C.T @ omega_p  # omega_b = C^T omega_p
-
-
 def _attitude(vehicle: Vehicle, t: float, v: np.ndarray, state: dict) -> np.ndarray:
     theta, psi, _, _ = _angles(vehicle, t, v, None, state)
     cp = math.cos(psi)
@@ -275,6 +260,79 @@ def _forces(vehicle, stage, kind, t, t0, t1, x, state):
     e_b = _attitude(vehicle, t, vel, state)
     f = (T - drag) / m * e_b  # f = (T - D) e_b / m: gravity is not sensed
     return f, grav, -T / (stage.isp * G0)
+
+
+def _angles_many(vehicle: Vehicle, t: np.ndarray, v: np.ndarray, a: np.ndarray, aoa0: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_angles` at many samples: times `t` (M,), air-relative velocity `v` and its rate `a` (M, 3);
+    pitch, yaw (rad) and their rates (rad/s), (M,) each."""
+    p = vehicle.pitch
+    t_kick_end = p.vertical + p.kick
+    theta = np.full(t.shape, 0.5 * math.pi)
+    theta_dot = np.zeros(t.shape)
+    kick = (t >= p.vertical) & (t < t_kick_end)
+    theta[kick] = 0.5 * math.pi - math.radians(p.kick_rate) * (t[kick] - p.vertical)
+    theta_dot[kick] = -math.radians(p.kick_rate)
+    turn = t >= t_kick_end
+    vt, at = v[turn], a[turn]
+    decay = aoa0 * np.exp(-(t[turn] - t_kick_end) / p.tau)
+    theta[turn] = np.arctan2(vt[:, 1], vt[:, 0]) + decay  # in-plane velocity pitch + the kick's decaying AoA
+    # d atan2(vy, vx)/dt = (vx ay - vy ax) / (vx^2 + vy^2); d decay/dt = -decay / tau
+    theta_dot[turn] = (vt[:, 0] * at[:, 1] - vt[:, 1] * at[:, 0]) / (vt[:, 0] ** 2 + vt[:, 1] ** 2) - decay / p.tau
+    y = vehicle.yaw
+    psi = np.full(t.shape, math.radians(y.offset) if y is not None else 0.0)
+    psi_dot = np.zeros(t.shape)
+    if y is not None:
+        sine = (t >= y.start) & (t <= y.end)
+        w = 2.0 * math.pi / y.period
+        psi[sine] += math.radians(y.amplitude) * np.sin(w * (t[sine] - y.start))
+        psi_dot[sine] = math.radians(y.amplitude) * w * np.cos(w * (t[sine] - y.start))
+    if vehicle.attitude is not None:  # designed offsets, added to both laws
+        d_theta, d_psi, d_theta_dot, d_psi_dot = vehicle.attitude.offsets_many(t)
+        on, base, base_dot = vehicle.attitude.base_many(t)  # pitch programme open loop from the first knot on
+        theta[on], theta_dot[on] = base[on], base_dot[on]
+        theta += d_theta
+        psi += d_psi
+        theta_dot += d_theta_dot
+        psi_dot += d_psi_dot
+    return theta, psi, theta_dot, psi_dot
+
+
+def _sampled(vehicle: Vehicle, stage: Stage, kind: str, t: np.ndarray, t0: float, t1: float, y: np.ndarray,
+             state: dict) -> dict[str, np.ndarray]:
+    """The state at many samples of one piece: times `t` (M,), integrated state `y` (7, M).
+
+    :func:`_forces` and :func:`_attitude_rates` with arrays (the same equations, evaluated for all
+    samples at once): ``{"position", "velocity", "specific_force", "acceleration", "attitude",
+    "body_rate"}``, (M, 3) each.
+    """
+    pos, vel, m = y[0:3].T, y[3:6].T, y[6]
+    earth = state.get("earth")
+    r = pos + np.array([0.0, R_EARTH, 0.0]) if earth is None else pos - earth.centres(t)
+    rn = np.sqrt(np.sum(r * r, axis=1))
+    grav = -MU_EARTH * r / (rn**3)[:, None]  # g = -mu r / |r|^3
+    rho, a_sound = atmosphere_many(rn - R_EARTH)
+    v_rel = air_relative(state, pos, vel)  # relative to the (co-rotating) air
+    speed = np.sqrt(np.sum(v_rel * v_rel, axis=1))
+    drag = 0.5 * rho * speed**2 * vehicle.area * axial_drag_coefficients(speed / a_sound)  # axial drag, N
+    T = thrust_many(stage, kind, t, t0, t1)
+    acc_rel = np.zeros_like(v_rel)  # the attitude's rates need the acceleration: first the attitude alone
+    theta, psi, _, _ = _angles_many(vehicle, t, v_rel, acc_rel, state["aoa0"])
+    cp = np.cos(psi)
+    e_b = np.stack([cp * np.cos(theta), cp * np.sin(theta), np.sin(psi)], axis=1)
+    f = ((T - drag) / m)[:, None] * e_b  # f = (T - D) e_b / m: gravity is not sensed
+    acc = f + grav  # kinematic acceleration = specific force + gravity
+    theta, psi, theta_dot, psi_dot = _angles_many(vehicle, t, v_rel, air_relative_rate(state, vel, acc),
+                                                  state["aoa0"])
+    ct, st, cp, sp = np.cos(theta), np.sin(theta), np.cos(psi), np.sin(psi)
+    # omega_p = theta_dot e_z - psi_dot Rz(theta) e_y; omega_b = C^T omega_p with C = Rz(theta) Ry(-psi):
+    # C = [[ct cp, -st, -ct sp], [st cp, ct, -st sp], [sp, 0, cp]]
+    o0, o1, o2 = psi_dot * st, -psi_dot * ct, theta_dot
+    body = np.stack([ct * cp * o0 + st * cp * o1 + sp * o2,
+                     -st * o0 + ct * o1,
+                     -ct * sp * o0 - st * sp * o1 + cp * o2], axis=1)
+    return {"position": pos, "velocity": vel, "specific_force": f, "acceleration": acc,
+            "attitude": np.stack([theta, psi, np.zeros_like(theta)], axis=1), "body_rate": body}
 
 
 def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, rotating_earth: bool = False,
@@ -360,14 +418,12 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, r
         sel = (t_out >= t0) & ((t_out < t1) | (last & (t_out <= t1 + 1e-9)))
         idx = np.flatnonzero(sel)
         ys = sol.sol(np.minimum(t_out[idx], t1))
-        for i, y in zip(idx, ys.T):
-            f_out[i], grav, _ = _forces(vehicle, stage, kind, t_out[i], t0, t1, y, state)
-            acc[i] = f_out[i] + grav  # kinematic acceleration = specific force + gravity
-            att[i], body_rate[i] = _attitude_rates(vehicle, t_out[i], air_relative(state, y[0:3], y[3:6]),
-                                                   air_relative_rate(state, y[3:6], acc[i]), state)
-        pos[idx], vel[idx], mass[idx] = ys[0:3].T, ys[3:6].T, ys[6]
+        k = _sampled(vehicle, stage, kind, t_out[idx], t0, t1, ys, state)
+        pos[idx], vel[idx], mass[idx] = k["position"], k["velocity"], ys[6]
+        f_out[idx], acc[idx], att[idx], body_rate[idx] = k["specific_force"], k["acceleration"], k["attitude"], \
+            k["body_rate"]
         x = sol.y[:, -1].copy()
-    r = pos + np.array([0.0, R_EARTH, 0.0]) if earth is None else pos - np.array([earth.centre(t) for t in t_out])
+    r = pos + np.array([0.0, R_EARTH, 0.0]) if earth is None else pos - earth.centres(t_out)
     alt = np.linalg.norm(r, axis=1) - R_EARTH
     out = BoostTrajectory(t=t_out, position=pos, velocity=vel, specific_force=f_out, mass=mass, altitude=alt,
                           events=events, vehicle=vehicle, acceleration=acc, attitude=att, body_rate=body_rate,

@@ -12,7 +12,7 @@ import numpy as np
 from casep.units import G0
 
 __all__ = ["Stage", "PitchProgramme", "YawManoeuvre", "AttitudeProfile", "Vehicle", "DEFAULT_VEHICLE",
-           "thrust_profile", "thrust", "check_propellant"]
+           "thrust_profile", "thrust", "thrust_many", "check_propellant"]
 
 
 @dataclass(frozen=True)
@@ -130,6 +130,39 @@ class AttitudeProfile:
                 math.radians(dp / h), math.radians(dy / h))
 
 
+    def base_many(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`base` at many times `t` (M,): where it applies (bool), pitch (rad) and rate (rad/s) there
+        (NaN elsewhere)."""
+        t = np.asarray(t, dtype=float)
+        on = np.zeros(t.shape, dtype=bool) if self.base_times is None else t >= self.times[0]
+        theta, rate = np.full(t.shape, np.nan), np.full(t.shape, np.nan)
+        if np.any(on):
+            self.base(float(t[on][0]))  # builds the spline
+            spline = self.__dict__["_spline"]
+            assert self.base_times is not None
+            tc = np.minimum(t[on], self.base_times[-1])
+            theta[on] = spline(tc)
+            rate[on] = np.where(t[on] <= self.base_times[-1], spline(tc, 1), 0.0)
+        return on, theta, rate
+
+    def offsets_many(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`offsets` at many times `t` (M,): pitch and yaw offsets (rad) and their rates (rad/s), (M,) each."""
+        t = np.asarray(t, dtype=float)
+        times, pitch, yaw = np.asarray(self.times), np.radians(self.pitch), np.radians(self.yaw)
+        out = t <= times[0]
+        after = t >= times[-1]
+        i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, times.size - 2)
+        h = times[i + 1] - times[i]
+        u = (t - times[i]) / h
+        dp, dy = np.diff(self.pitch)[i], np.diff(self.yaw)[i]
+        p = np.radians(np.asarray(self.pitch)[i] + u * dp)
+        y = np.radians(np.asarray(self.yaw)[i] + u * dy)
+        p_dot, y_dot = np.radians(dp / h), np.radians(dy / h)
+        for mask, k in ((out, 0), (after, -1)):  # held at the first (last) knot's value, rate 0
+            p[mask], y[mask], p_dot[mask], y_dot[mask] = pitch[k], yaw[k], 0.0, 0.0
+        return p, y, p_dot, y_dot
+
+
 @dataclass(frozen=True)
 class Vehicle:
     """Lift-off mass kg (all stages and payload), reference area m^2, stages in order."""
@@ -204,6 +237,18 @@ def thrust(stage: Stage, kind: str, t: float, t0: float, t1: float) -> float:
     if kind == "tail_off":
         return stage.thrust * (t1 - t) / (t1 - t0)
     return 0.0
+
+
+def thrust_many(stage: Stage, kind: str, t: np.ndarray, t0: float, t1: float) -> np.ndarray:
+    """:func:`thrust` at many times `t` (M,) of one piece, N."""
+    t = np.asarray(t, dtype=float)
+    if kind == "full":
+        return np.full(t.shape, stage.thrust)
+    if kind == "ramp_up":
+        return stage.thrust * (t - t0) / (t1 - t0)
+    if kind == "tail_off":
+        return stage.thrust * (t1 - t) / (t1 - t0)
+    return np.zeros(t.shape)
 
 
 def check_propellant(vehicle: Vehicle) -> None:

@@ -1,0 +1,192 @@
+"""The sequential kernels numpy cannot fuse, compiled by numba (``cache=True``).
+
+Imported by :mod:`casep._kernels` on the first call of one of them (not when casep is imported:
+numba's import and the set-up of its target take about 0.3 s). Kept free of Python objects so that
+numba compiles them in nopython mode; the callers validate every argument.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["rels_ud", "sv_integrate_chunk", "all_pole_filter"]
+
+
+@numba.njit(cache=True, nogil=True)
+def sv_integrate_chunk(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_prev, out):  # pragma: no cover
+    """Trapezoid-integrate one chunk of S_V in place (see :mod:`casep.model.sv` for the equations).
+
+    G (K, 3, ng), A (K, 3, na): Jacobians per sample; f (K, 3); half_dt (K,) = dt_k / 2;
+    phi (3, ng), G_prev (3, ng), I_prev (3, n), S_prev (3, n): carries, updated in place;
+    out (K, 3, n): S_V rows of the chunk.
+    """
+    K = G.shape[0]
+    ng = gcols.size
+    na = acols.size
+    n = out.shape[2]
+    Icur = np.zeros((3, n))
+    for k in range(K):
+        h = half_dt[k]
+        fx = f[k, 0]
+        fy = f[k, 1]
+        fz = f[k, 2]
+        for i in range(3):
+            for j in range(n):
+                Icur[i, j] = 0.0
+        for j in range(ng):
+            # Phi_k = Phi_{k-1} + (G_{k-1} + G_k) dt_k / 2
+            for i in range(3):
+                g = G[k, i, j]
+                phi[i, j] += (G_prev[i, j] + g) * h
+                G_prev[i, j] = g
+            # [f x] Phi: (fy Phi_z - fz Phi_y, fz Phi_x - fx Phi_z, fx Phi_y - fy Phi_x)
+            c = gcols[j]
+            Icur[0, c] += fy * phi[2, j] - fz * phi[1, j]
+            Icur[1, c] += fz * phi[0, j] - fx * phi[2, j]
+            Icur[2, c] += fx * phi[1, j] - fy * phi[0, j]
+        for j in range(na):
+            c = acols[j]
+            for i in range(3):
+                Icur[i, c] += A[k, i, j]  # + Delta Jacobian
+        # S_k = S_{k-1} + (I_{k-1} + I_k) dt_k / 2
+        for i in range(3):
+            for j in range(n):
+                S_prev[i, j] += (I_prev[i, j] + Icur[i, j]) * h
+                I_prev[i, j] = Icur[i, j]
+                out[k, i, j] = S_prev[i, j]
+
+
+@numba.njit(cache=True, nogil=True)
+def _bierman(U, D, x, h, f, b, r, dz, start):  # pragma: no cover
+    """One scalar measurement ``z = h x + e``, Var e = r, innovation dz = z - h x: Bierman's U-D update.
+
+    U (n, n) unit upper triangular stored transposed, D (n,), x (n,) updated in place;
+    f, b (n,) work arrays. ``h[j] = 0`` for ``j < start`` (skipped: exact).
+    """
+    n = x.size
+    # f = U^T h ; b = D f
+    for j in range(n):
+        s = 0.0
+        if j >= start:
+            s = h[j]
+            for i in range(start, j):
+                s += U[j, i] * h[i]
+        f[j] = s
+        b[j] = D[j] * s
+    # Bierman: sweep j = start..n-1 (the steps j < start change nothing)
+    alpha = r
+    gamma = 1.0 / alpha
+    for j in range(start, n):
+        beta = alpha
+        alpha = alpha + f[j] * b[j]
+        lam = -f[j] * gamma
+        gamma = 1.0 / alpha
+        D[j] = beta * gamma * D[j]
+        bj = b[j]
+        for i in range(j):
+            u = U[j, i]
+            U[j, i] = u + b[i] * lam
+            b[i] = b[i] + bj * u
+    # x <- x + K dz, K = b / alpha
+    g = dz * gamma
+    for j in range(n):
+        x[j] += g * b[j]
+
+
+@numba.njit(cache=True, nogil=True)
+def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, history_var, D0, past,
+            k0):  # pragma: no cover
+    """Recursive (extended) least squares with Bierman's UD scalar updates, in place.
+
+    H (N, 3, p): scaled regressors; y (N, 3); x (p + n_c): estimate; U (p + n_c, p + n_c)
+    unit upper-triangular stored *transposed* (Ut[j, i] = U[i, j], rows contiguous);
+    D (p + n_c): P = U diag(D) U^T, on entry the diagonal prior P_0 = diag(D) (U = I, x = 0).
+    Per sample, when forgetting < 1, stabilized forgetting: P <- P / forgetting, then n
+    pseudo-measurements ``x_j = 0`` of variance D_0,j / (1 - forgetting), i.e.
+    P^-1 <- forgetting P^-1 + (1 - forgetting) P_0^-1 (see :mod:`casep.estimators.rls`); then one scalar
+    update per axis with measurement variance 1 / weight. The last n_c entries of x are the
+    noise-model coefficients; their regressors are each axis' last n_c residuals
+    (a-posteriori when `posterior`, else a-priori). Every `stride` samples x is copied to
+    history[k // stride] and diag(P) to history_var[k // stride]. Returns the residuals
+    (N, 3): a-priori innovations y - h x_{k-1} (the sequence the recursion whitens).
+
+    Resumable over blocks of samples: x, U, D and `past` (3, n_c + 1: each axis' last
+    residuals, newest first) carry the state; D0 is the prior diagonal (forgetting pulls
+    towards it) and k0 the index of this block's first sample in the flight (history rows).
+    """
+    N = H.shape[0]
+    p = H.shape[2]
+    n = p + n_c
+    h = np.zeros(n)
+    f = np.zeros(n)
+    b = np.zeros(n)
+    e_j = np.zeros(n)
+    innov = np.zeros((N, 3))
+    r = 1.0 / weight
+    inv_lam = 1.0 / forgetting
+    for k in range(N):
+        if forgetting != 1.0:
+            for j in range(n):
+                D[j] *= inv_lam  # P <- P / lambda
+            for j in range(n):
+                # + (1 - lambda) P_0^-1: pseudo-measurement 0 = e_j^T x + v, Var v = D_0,j / (1 - lambda)
+                e_j[j] = 1.0
+                _bierman(U, D, x, e_j, f, b, D0[j] / (1.0 - forgetting), -x[j], j)
+                e_j[j] = 0.0
+        for axis in range(3):
+            for j in range(p):
+                h[j] = H[k, axis, j]
+            for j in range(n_c):
+                h[p + j] = past[axis, j]
+            # innovation dz = y - h x
+            dz = y[k, axis]
+            for j in range(n):
+                dz -= h[j] * x[j]
+            innov[k, axis] = dz
+            _bierman(U, D, x, h, f, b, r, dz, 0)
+            if n_c > 0:
+                e = dz
+                if posterior:
+                    e = y[k, axis]
+                    for j in range(n):
+                        e -= h[j] * x[j]
+                for j in range(n_c - 1, 0, -1):
+                    past[axis, j] = past[axis, j - 1]
+                past[axis, 0] = e
+        if stride > 0 and (k0 + k) % stride == 0:
+            row = (k0 + k) // stride
+            for j in range(n):
+                history[row, j] = x[j]
+            # diag(P)_i = sum_{j >= i} U_ij^2 D_j  (U unit upper triangular, stored transposed)
+            for i in range(n):
+                s = D[i]
+                for j in range(i + 1, n):
+                    s += U[j, i] * U[j, i] * D[j]
+                history_var[row, i] = s
+    return innov
+
+
+@numba.njit(cache=True, nogil=True)
+def all_pole_filter(a, x, y):  # pragma: no cover
+    """``y = lfilter([1], a, x, axis=0)`` for x (N, m), a (K + 1,) with ``a[0] = 1``, written into y.
+
+    The direct form II transposed of ``scipy.signal.lfilter`` with its operations in its order
+    (the zero coefficients of the padded numerator included), so the same numbers.
+    """
+    N, m = x.shape
+    K = a.size - 1
+    Z = np.zeros(max(K, 1))
+    for j in range(m):
+        for i in range(K):
+            Z[i] = 0.0
+        for k in range(N):
+            xn = x[k, j]
+            if K == 0:
+                y[k, j] = xn * 1.0
+                continue
+            yn = Z[0] + 1.0 * xn  # y = z_0 + b_0 x
+            for i in range(K - 1):
+                Z[i] = Z[i + 1] + xn * 0.0 - yn * a[i + 1]  # z_i = z_(i+1) + b_(i+1) x - a_(i+1) y
+            Z[K - 1] = xn * 0.0 - yn * a[K]
+            y[k, j] = yn

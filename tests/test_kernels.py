@@ -1,0 +1,85 @@
+"""The numpy inner loops against the compiled ones they stand in for: the same numbers, bit for bit."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from casep import _compiled
+from casep._kernels import robust_filter_keep, sv_integrate_chunk_numpy
+
+
+@pytest.mark.parametrize("gcols, acols", [(np.arange(15), np.arange(15, 36)),  # platform36: two ranges
+                                          (np.r_[0:15, 36:39], np.arange(15, 36)),  # columns after a gap
+                                          (np.array([3, 1, 3]), np.array([1, 0]))])  # repeated, shared columns
+def test_sv_chunk_numpy_is_the_compiled_loop(gcols, acols):
+    rng = np.random.default_rng(3)
+    n = int(max(gcols.max(), acols.max())) + 1
+    carries = [rng.normal(size=(3, gcols.size)), rng.normal(size=(3, gcols.size)), rng.normal(size=(3, n)),
+               rng.normal(size=(3, n))]
+    mine = [c.copy() for c in carries]
+    for K in (1, 2, 500):  # successive chunks carry phi, G_prev, I_prev, S_prev
+        G, A, f = rng.normal(size=(K, 3, gcols.size)), rng.normal(size=(K, 3, acols.size)), rng.normal(size=(K, 3))
+        half_dt = rng.uniform(0.001, 0.01, K)
+        out0, out1 = np.empty((K, 3, n)), np.empty((K, 3, n))
+        _compiled.sv_integrate_chunk(G, A, f, half_dt, gcols, acols, *carries, out0)
+        sv_integrate_chunk_numpy(G, A, f, half_dt, gcols, acols, *mine, out1)
+        assert np.array_equal(out0, out1)
+        for a, b in zip(carries, mine):
+            assert np.array_equal(a, b)
+
+
+def _reference_keep(e, t, inv_tau, scale, thr, max_run):
+    """The sequential filter as a plain loop (the compiled kernel it replaced, line for line)."""
+    N = e.shape[0]
+    keep = np.ones(N, dtype=bool)
+    last, run = -1, 0
+    for k in range(N):
+        big = False
+        for j in range(3):
+            if inv_tau[j] == 0.0 or last < 0:
+                nu = e[k, j] / scale[j]
+            else:
+                x = (t[k] - t[last]) * inv_tau[j]
+                nu = (e[k, j] - math.exp(-x) * e[last, j]) / (scale[j] * math.sqrt(-math.expm1(-2.0 * x)))
+            if abs(nu) > thr:
+                big = True
+                break
+        if big and run < max_run:
+            keep[k] = False
+            run += 1
+        else:
+            last, run = k, 0
+    return keep
+
+
+@pytest.mark.parametrize("inv_tau", [(0.0, 0.0, 0.0), (2.0, 0.0, 0.5), (50.0, 50.0, 50.0)])
+@pytest.mark.parametrize("max_run", [0, 1, 5])
+def test_robust_filter_is_the_compiled_loop(inv_tau, max_run):
+    rng = np.random.default_rng(7)
+    N = 4000
+    t = np.cumsum(rng.uniform(0.005, 0.015, N))
+    e = rng.normal(size=(N, 3))
+    for i in rng.choice(N, 40, replace=False):  # glitches, some in runs, one at the start
+        e[i: i + rng.integers(1, 8)] += rng.choice([-1, 1]) * rng.uniform(3, 30)
+    e[0] += 20.0
+    e[100, 1] = np.nan
+    args = (np.array(inv_tau), np.array([1.0, 1.3, 0.8]), 4.0, max_run)
+    k0, k1 = _reference_keep(e, t, *args), np.zeros(N, dtype=bool)
+    robust_filter_keep(e, t, *args, k1)
+    assert (~k0).sum() > (40 if max_run else -1)  # the test has rejections to agree on
+    assert np.array_equal(k0, k1)
+
+
+@pytest.mark.parametrize("a", [[1.0, -0.9], [1.0, 0.5, -0.2], [1.0, 0.3, 0.1, -0.05], [1.0]])
+def test_all_pole_filter_is_scipys_lfilter(a):
+    from scipy.signal import lfilter as scipy_lfilter
+
+    from casep._kernels import lfilter
+
+    x = np.random.default_rng(5).normal(size=(3000, 3))
+    x[7, 1] = 0.0
+    assert np.array_equal(lfilter([1.0], a, x, axis=0), scipy_lfilter([1.0], a, x, axis=0))
+    assert np.array_equal(lfilter([1.0, 0.5], a, x, axis=0), scipy_lfilter([1.0, 0.5], a, x, axis=0))  # scipy's
