@@ -14,7 +14,7 @@ RESULT_TYPES = [
     ("casep.estimators.result", "EstimateResult"),
     ("casep.impact.result", "ImpactAnalysis"),
     ("casep.montecarlo.result", "MonteCarloResult"),
-    ("casep.design.optimize", "DesignResult"),
+    ("casep.design.result", "DesignResult"),
     ("casep.calibration.result", "Calibration"),
     ("casep.workflows.radar", "RadarResult"),
     ("casep.workflows.demo", "DemoResult"),

@@ -10,7 +10,8 @@ from casep._lazy import attach
 _LAZY_MODULES = {
     "casep.design.maneuver": ("Maneuver",),
     "casep.design.objective": ("DesignProblem", "OBJECTIVES"),
-    "casep.design.optimize": ("design", "DesignResult"),
+    "casep.design.optimize": ("design",),
+    "casep.design.result": ("DesignResult",),
 }
 __getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), ())
 __all__ = ["Maneuver", "DesignProblem", "OBJECTIVES", "design", "DesignResult"]

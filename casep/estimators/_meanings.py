@@ -1,6 +1,9 @@
 """What an estimate's ``std_kind`` and ``sigma_source`` may be, and what each means."""
 
-__all__ = ["STD_KIND_MEANINGS", "SIGMA_SOURCE_MEANINGS", "SIGMA_SOURCES"]
+__all__ = ["STD_KIND_MEANINGS", "SIGMA_SOURCE_MEANINGS", "SIGMA_SOURCES", "SIGMA_FOUND", "AXES", "EXTRAS_TYPES",
+           "extras_type"]
+
+AXES = ("x", "y", "z")
 
 #: What the reported ``std`` mean (``EstimateResult.std_kind``, set by each solver; the
 #: registry's ``Method.std_kind`` declares each method's kind):
@@ -27,3 +30,15 @@ SIGMA_SOURCE_MEANINGS = {
     "external": "a result file of another tool that states no sigma (docs/guide/result-files.md)",
 }
 SIGMA_SOURCES = tuple(SIGMA_SOURCE_MEANINGS)
+
+#: How a sigma that a method or the de-noising found (not the caller's) reads in the settings line.
+SIGMA_FOUND = {"robust": "robust estimate", "wavelet": "wavelet estimate from the raw finest details"}
+
+#: The extras dataclass of each registered method (``Method.extras_type``, declared beside its solver, with
+#: ``describe``); filled by :mod:`casep.estimators.registry`, which the package imports first.
+EXTRAS_TYPES: dict[str, type] = {}
+
+
+def extras_type(method: str) -> type | None:
+    """The extras dataclass a registered `method` declares (None for an unregistered name)."""
+    return EXTRAS_TYPES.get(method)

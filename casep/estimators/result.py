@@ -11,7 +11,15 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from casep.estimators._meanings import SIGMA_SOURCE_MEANINGS, SIGMA_SOURCES, STD_KIND_MEANINGS
+from casep.estimators._meanings import (
+    AXES,
+    EXTRAS_TYPES,
+    SIGMA_FOUND,
+    SIGMA_SOURCE_MEANINGS,
+    SIGMA_SOURCES,
+    STD_KIND_MEANINGS,
+    extras_type,
+)
 from casep.io.result_files import (
     jsonable,
     write_coefficients_csv,
@@ -21,22 +29,6 @@ from casep.io.result_files import (
 __all__ = ["EstimateResult", "EXTRAS_TYPES",
            "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "extras_type",
            "write_mat", "write_csv", "format_number"]
-
-AXES = ("x", "y", "z")
-
-
-# --------------------------------------------------------------------- typed per-method extras
-#: The extras dataclass of each registered method (``Method.extras_type``, declared beside its solver, with
-#: ``describe``); filled by :mod:`casep.estimators.registry`, which the package imports first.
-EXTRAS_TYPES: dict[str, type] = {}
-
-
-
-def extras_type(method: str) -> type | None:
-    """The extras dataclass a registered `method` declares (None for an unregistered name)."""
-    return EXTRAS_TYPES.get(method)
-
-
 
 def format_number(v: float | None, width: int = 12, fmt: str = ".6g") -> str:
     """Right-aligned ``%.6g`` (or `fmt`) with ``-`` for a missing value (None, NaN, inf)."""
@@ -50,16 +42,12 @@ def _json_float(v: float) -> float | None:
     return v if math.isfinite(v) else None
 
 
-#: How a sigma that no one gave was found, by ``sigma_source`` (the value itself: ``EstimateResult.sigma``).
-_SIGMA_FOUND = {"robust": "robust estimate", "wavelet": "wavelet estimate from the raw finest details"}
-
-
 def _sigma_text(v: Any, source: str = "estimated", sigma: float = math.nan) -> str:
     """The settings line's sigma: the one given (``settings["sigma"]``, the input), or how it was found."""
     if isinstance(v, (int, float)) and not isinstance(v, bool):
         return f"sigma given {v:.4g} m/s"
-    if (v is None or v == "estimated") and source in _SIGMA_FOUND and math.isfinite(sigma):
-        return f"sigma {sigma:.4g} m/s ({_SIGMA_FOUND[source]})"
+    if (v is None or v == "estimated") and source in SIGMA_FOUND and math.isfinite(sigma):
+        return f"sigma {sigma:.4g} m/s ({SIGMA_FOUND[source]})"
     if v is None or v == "estimated":
         return "sigma estimated from the residuals"
     return f"sigma {v}"
@@ -273,14 +261,14 @@ class EstimateResult:
             Naming the file and the field: a missing or wrongly typed field, the two forms
             disagreeing, a covariance that is not one (:mod:`casep.io.result_json`).
         """
-        from casep.estimators.reading import result_from_data
+        from casep.estimators._from_data import result_from_data
         from casep.io.result_json import parse_result_data, read_result_data
 
         if isinstance(source, dict):
             rd = parse_result_data(source, "result")
         else:
             rd = read_result_data(source, "result")
-        return result_from_data(rd, model)
+        return result_from_data(rd, model, cls)
 
     def covariance_rows(self) -> list[list[float | None]] | None:
         """The n x n covariance in natural units, model order, as nested lists for JSON.
