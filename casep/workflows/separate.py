@@ -76,6 +76,7 @@ def separate(
     radar: Sequence | None = None,
     site: LaunchSite | None = None,
     tracking_model: Any = "radar_biases",
+    **method_options: Any,
 ) -> EstimateResult | RadarResult:
     """Estimate a model's error coefficients from one flight.
 
@@ -115,6 +116,9 @@ def separate(
     options : mapping, optional
         The method's options by name, as an alternative to the keywords above
         (``options={"lam": 0.1}``); :data:`casep.estimators.registry.OPTIONS` lists them.
+    **method_options
+        Options of a registered method that are no keyword above (a method added to the registry:
+        ``z_ratio=2.0``), the same as giving them in `options`.
 
     Notes
     -----
@@ -180,9 +184,14 @@ def separate(
     # One rule table (casep.estimators.registry): an option the method does not take is an error, not ignored.
     kw = {"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": noise_order, "lam": lam,
           "bounds": bounds, "prior": prior, "n_components": n_components, "tau": "auto" if tau is None else tau}
+    if method_options:
+        if options is not None and set(options) & set(method_options):
+            raise ValueError(f"option(s) {', '.join(sorted(set(options) & set(method_options)))} given both as a "
+                             "keyword and in `options`")
+        options = {**(options or {}), **method_options}
     for k, v in dict(options or {}).items():
         if k not in OPTIONS:
-            raise ValueError(f"`options` has unknown option `{k}`; the options are {', '.join(OPTIONS)}")
+            raise ValueError(f"unknown option `{k}`: no registered method takes it; the options are {', '.join(OPTIONS)}")
         if k in kw and not _is_default(k, kw[k]):
             raise ValueError(f"option `{k}` given both as a keyword and in `options`")
         kw[k] = v

@@ -98,6 +98,10 @@ def test_worked_example_on_a_flight_from_python_and_the_command_line(zweighted, 
     flight = casep.read_flight(path)
     res = casep.separate(flight, "platform36", method="zweighted", options={"z_ratio": 2.0})
     assert res.model == "platform36" and res.extras.z_ratio == 2.0
+    by_keyword = casep.separate(flight, "platform36", method="zweighted", z_ratio=2.0)  # a registered method's option
+    np.testing.assert_array_equal(by_keyword.estimate, res.estimate)
+    with pytest.raises(ValueError, match="`z_ratio`.*not taken by method `ols`"):
+        casep.separate(flight, "platform36", method="ols", z_ratio=2.0)
     out = tmp_path / "r.json"
     assert main(["separate", str(path), "--method", "zweighted", "--z-ratio", "2", "--json", str(out)]) in (0, 1)
     data = json.loads(out.read_text())

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -15,6 +16,9 @@ from casep.simulation.synthetic import excitation_force, inject_errors
 # A value for every option, other than its default (files: a mapping), for the "not taken" checks.
 _VALUES = {"p0": 1e4, "weight": 2.0, "forgetting": 0.999, "noise_order": 2, "lam": 1e-3, "bounds": {"Kg0x": 0.5},
            "prior": {"Kg0x": {"mean": 0.5, "std": 0.1}}, "n_components": 20, "tau": 1.0}
+for _name, _option in OPTIONS.items():  # an option of a method added to the registry: a value its rules accept
+    if _name not in _VALUES:
+        _VALUES[_name] = next(v for v in (2, 0.5, 2.0, 0.99, "a") if any(r.accepts(v) for r in _option.rules))
 
 
 @pytest.fixture(scope="module")
@@ -31,8 +35,11 @@ def test_registry_is_what_separate_and_montecarlo_use():
     assert tuple(METHODS) == SEPARATE_METHODS
     assert set(BATCHED) == {k for k, m in METHODS.items() if m.batched}
     assert set(_VALUES) == set(OPTIONS)
-    for m in METHODS.values():
-        assert callable(getattr(casep, m.solver)) and set(m.required) <= set(m.options) <= set(OPTIONS)
+    for m in METHODS.values():  # its public solver in its module; the built-in ones also as casep.<solver>
+        assert callable(getattr(sys.modules[m.core.__module__], m.solver))
+        assert set(m.required) <= set(m.options) <= set(OPTIONS)
+    for name in ("ols", "rls", "rels", "ridge", "bounded", "pcr", "map", "gls", "huber"):
+        assert callable(getattr(casep, METHODS[name].solver))
 
 
 @pytest.mark.parametrize("method", list(METHODS))
