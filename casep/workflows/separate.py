@@ -191,7 +191,8 @@ def separate(
         options = {**(options or {}), **method_options}
     for k, v in dict(options or {}).items():
         if k not in OPTIONS:
-            raise ValueError(f"unknown option `{k}`: no registered method takes it; the options are {', '.join(OPTIONS)}")
+            raise ValueError(f"unknown option `{k}`: no registered method takes it; the options are "
+                             f"{', '.join(OPTIONS)}")
         if k in kw and not _is_default(k, kw[k]):
             raise ValueError(f"option `{k}` given both as a keyword and in `options`")
         kw[k] = v
