@@ -12,13 +12,12 @@ Every method sees the rows :func:`casep.separate` would give it: the noise model
 check are worked out once for the flight (:meth:`casep.analysis.problem.Problem.rows`) and shared
 by the six methods on raw dv (:func:`casep.workflows.solve.solve_problem`); wavelet + RELS, on
 de-noised dv, goes through :func:`casep.separate`. The estimates are then judged against the
-model's declared magnitudes as :func:`casep.separate` judges them, the biased methods (ridge, PCR,
-bounded) with the least-squares std where theirs are smaller (:func:`_judged`).
+model's declared magnitudes as :func:`casep.separate` judges them
+(:func:`casep.workflows.separate.judge_setup`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import warnings
 from dataclasses import dataclass, field
@@ -53,9 +52,6 @@ DEMO_METHODS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("bounded", "bounded", {}),
     ("MAP", "map", {}),
 )
-
-#: Methods whose std omit their bias (shrinkage, truncation, a box): judged against the declared
-#: magnitudes with the least-squares std of the same rows where theirs are smaller (:func:`_judged`).
 
 
 @dataclass(frozen=True)
@@ -231,26 +227,8 @@ def _figures(out: Path, sim: SimulatedFlight, results: Mapping[str, EstimateResu
     return files
 
 
-def _judged(res: EstimateResult, model: ErrorModel, ls_std: np.ndarray | None, noise_free: bool) -> EstimateResult:
-    """:func:`casep.workflows.separate.judge_setup` of a result, for a regularised method (its
-    ``Method.regularised``: ridge, PCR, bounded) with the least-squares std where its own are smaller.
-
-    The magnitude check takes ``|estimate| - 5 std`` as what the data say at least; a biased method's
-    std are the spread of its estimate about its biased mean, so they bound its error only with the
-    bias added. Ridge's shrinkage moves a coefficient the flight cannot see by a multiple of its own
-    std (``Ka2y`` on the paper flight: 89 +- 14 ug/g^2 against a truth of 0.003 and a least-squares
-    std of 485). The least-squares std of the same rows are what the data know of each coefficient.
-    """
-    if not METHODS[res.method].regularised or ls_std is None or res.std is None:
-        return judge_setup(res, None, model, noise_free=noise_free)
-    own = res.std
-    honest = np.where(np.isfinite(own), np.fmax(own, ls_std), own)  # NaN (at a bound) stays: not judged
-    return dataclasses.replace(judge_setup(dataclasses.replace(res, std=honest), None, model, noise_free=noise_free),
-                               std=own)
-
-
 def _solve(problem: Problem, model: ErrorModel, rows: Rows, method: str, options: Mapping[str, Any],
-           ls_std: np.ndarray | None, noise_free: bool) -> EstimateResult:
+           noise_free: bool) -> EstimateResult:
     """:func:`casep.workflows.separate.separate` of a Problem, on rows prepared once for every method.
 
     The same steps as ``separate(problem, model, method, ...)``: the method on the shared rows
@@ -261,7 +239,7 @@ def _solve(problem: Problem, model: ErrorModel, rows: Rows, method: str, options
     S: Any = problem  # check_fit takes S_V or the Problem that regenerates it
     check_fit(S, problem.y, res, t=problem.t, f=problem.f, source=problem.source,
               outliers_handled="robust" in res.diagnostics)
-    return _judged(res, model, ls_std, noise_free)
+    return judge_setup(res, None, model, noise_free=noise_free)
 
 
 def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float = 100.0) -> DemoResult:
@@ -299,9 +277,7 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
                 assert isinstance(res, EstimateResult)  # no radar: an EstimateResult
                 results[label] = res
             else:
-                ls_std = results["LS"].std if "LS" in results else None
-                results[label] = _solve(problem, model, rows, method, {**opts, **extra.get(method, {})}, ls_std,
-                                        noise_free)
+                results[label] = _solve(problem, model, rows, method, {**opts, **extra.get(method, {})}, noise_free)
     diag = diagnose(problem, sigma=sim.scenario.noise.sigma, scales=model.scales)
     crlb = diag.crlb_std
     table = _table(sim, results, crlb, markdown=False)

@@ -108,7 +108,8 @@ def test_demo_shares_rows_and_matches_separate():
 
 def test_demo_judges_biased_methods_by_what_the_data_know():
     """On the full-rate paper flight ridge moves Ka2y, which the flight cannot see, by more than 5 of its own
-    std (its std omit the shrinkage bias): the demo judges it with the least-squares std and does not warn.
+    std (its std omit the shrinkage bias): judge_setup judges a regularised method with its Cramer-Rao std
+(the least-squares std of the same rows) where its own are smaller, and does not warn.
     Its error against the truth is within 2 least-squares std. A result beyond 100 x a declared magnitude
     by those std still warns."""
     import dataclasses
@@ -117,7 +118,7 @@ def test_demo_judges_biased_methods_by_what_the_data_know():
     import pytest
 
     from casep.exceptions import MagnitudeWarning
-    from casep.workflows.demo import _judged
+    from casep.workflows.separate import judge_setup
 
     with warnings.catch_warnings():
         warnings.simplefilter("error", MagnitudeWarning)
@@ -134,6 +135,6 @@ def test_demo_judges_biased_methods_by_what_the_data_know():
     wrong = dataclasses.replace(ridge, estimate=np.where(np.arange(len(model.names)) == k,
                                                          1e4 * model.scales["Ka0x"], ridge.estimate))
     with pytest.warns(MagnitudeWarning, match="Ka0x"):
-        judged = _judged(wrong, model, ls.std, noise_free=False)
+        judged = judge_setup(wrong, None, model, noise_free=False)
     np.testing.assert_array_equal(judged.std, ridge.std)  # the result keeps its own std
     assert judged.diagnostics["magnitudes"][0]["name"] == "Ka0x"
