@@ -1,0 +1,188 @@
+"""Every command of the guide pages and the README runs, as a reader would run it.
+
+A page's command blocks run in order, one page per test case, in a fresh directory holding the
+repository's ``examples/``, ``models/`` and ``tests/data/`` (links) and the files a page asks the
+reader to have (:data:`READER_FILES`), with ``casep`` on the PATH. A block is a command block when
+its fence says ``console``, ``bash`` or ``shell``, or when it has no language and every line reads
+as a command of ``casep``, ``python3`` or ``.venv/bin/`` without a placeholder (a synopsis such as
+``casep impact FLIGHT --result RESULT.json [--top K]`` is not run; its options are checked against
+the parser instead). Each command must exit 0; the last command of a block preceded by a line
+``<!-- exit N -->`` must exit N (a block that shows a refusal). Slow commands run reduced, each
+rewrite in :data:`REWRITES` with its reason; a rewrite that matches no command fails the test, so
+the table cannot go stale.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+PAGES = [*sorted((ROOT / "docs" / "guide").glob("*.md")), ROOT / "README.md"]
+RUN_LANGUAGES = ("console", "bash", "shell")
+COMMAND_WORDS = ("casep ", "python3 ", ".venv/bin/")
+
+#: Commands run otherwise here, each with the reason: ``None`` leaves the command out.
+REWRITES: dict[str, tuple[str | None, str]] = {
+    "python3 -m venv .venv && .venv/bin/pip install -e . && .venv/bin/casep demo":
+        ("casep demo --rate 10", "the install is the environment of this test; the demo at 10 Hz instead of "
+                                 "100 Hz, as tests/workflows/test_demo.py runs it (4 s instead of 8 s)"),
+    'python3 -m venv .venv && .venv/bin/pip install -e ".[test]" && .venv/bin/python -m pytest':
+        (None, "the test suite itself: .ci/run runs this line verbatim (tests/test_docs.py checks that)"),
+    '.venv/bin/pip install -e ".[docs]" && .venv/bin/sphinx-build -W --keep-going -b html docs docs/_build/html':
+        (None, ".ci/run builds the documentation with this sphinx-build line"),
+}
+
+#: Files a page tells the reader to write (its own examples of their format), present for every page.
+READER_FILES: dict[str, str] = {
+    # radar.md, "Station file": its example, and a second station 60 km away
+    "S1.json": '{"name": "S1", "lat": 28.9, "lon": -80.0, "h": 20.0}\n',
+    "S2.json": '{"name": "S2", "lat": 28.3, "lon": -79.5, "h": 10.0}\n',
+    # radar.md, "Simulation": the station errors to simulate, in the tracking model's units
+    "trk.json": '{"S1": {"range_bias": 5, "azimuth_bias": 20}, "S2": {"time_bias": 2}}\n',
+}
+#: A page's own flight: `flight.csv` in a command is the reader's flight; here the shipped one.
+READER_COPIES = {"flight.csv": ROOT / "examples" / "data" / "example_flight.csv"}
+#: Blocks run first on a page (a substring of the block), with the reason.
+RUN_FIRST = {"radar.md": ("casep simulate -o tel.csv", "the opening example separates the files that the "
+                                                      "page's simulation writes, as the page says")}
+
+_FENCE = re.compile(r"^(?P<fence>```+)(?P<lang>[^\n`]*)\n(?P<body>.*?)^(?P=fence)[ \t]*$", re.M | re.S)
+_EXIT = re.compile(r"<!--\s*exit\s+(\d+)\s*-->\s*$")
+# a placeholder: options in brackets, alternatives, an ellipsis, or an upper-case name of two letters or
+# more (FLIGHT, TEL.csv, RESULT_A.json)
+_PLACEHOLDER = re.compile(r"^\[|^\.\.\.|(?<![\w.-])[A-Z]{2,}[A-Z0-9_]*(?:\.\w+)?(?![\w-])|\w\|\w")
+
+
+@dataclass
+class Block:
+    page: str
+    line: int
+    lang: str
+    commands: list[str]
+    exit: int = 0
+
+
+def _commands(body: str) -> list[str]:
+    """The block's commands: lines joined at a trailing backslash, blank lines and comment lines dropped."""
+    out: list[str] = []
+    for line in re.sub(r"\\\n\s*", " ", body).splitlines():
+        if line.strip() and not line.lstrip().startswith("#"):
+            out.append(line.strip())
+    return out
+
+
+def _is_synopsis(command: str) -> bool:
+    words = shlex.split(command, comments=True)
+    return any(_PLACEHOLDER.search(w) for w in words[1:] if not w.startswith("--"))
+
+
+def blocks(page: Path) -> tuple[list[Block], list[Block]]:
+    """The page's command blocks to run, and its synopses (command lines with placeholders, not run)."""
+    text = page.read_text(encoding="utf-8")
+    run, synopses = [], []
+    for m in _FENCE.finditer(text):
+        lang = m["lang"].strip()
+        line = text.count("\n", 0, m.start()) + 1
+        cmds = _commands(m["body"])
+        before = text[:m.start()].rstrip("\n").rsplit("\n", 1)[-1]
+        status = int(_EXIT.search(before)[1]) if _EXIT.search(before) else 0
+        block = Block(page.name, line, lang, cmds, status)
+        if lang in RUN_LANGUAGES:
+            run.append(block)
+        elif lang in ("", "text") and cmds and all(c.startswith(COMMAND_WORDS) for c in cmds):
+            (synopses if any(_is_synopsis(c) for c in cmds) or lang == "text" else run).append(block)
+    first = RUN_FIRST.get(page.name)
+    if first:
+        run.sort(key=lambda b: not any(first[0] in c for c in b.commands))
+    return run, synopses
+
+
+def _pages_with_commands() -> list[Path]:
+    return [p for p in PAGES if blocks(p)[0]]
+
+
+def _workdir(tmp_path: Path) -> dict[str, str]:
+    """The reader's directory and environment: repository data linked, reader files written, casep on PATH."""
+    for name in ("examples", "models"):
+        (tmp_path / name).symlink_to(ROOT / name)
+    (tmp_path / "tests").mkdir()
+    (tmp_path / "tests" / "data").symlink_to(ROOT / "tests" / "data")
+    for name, content in READER_FILES.items():
+        (tmp_path / name).write_text(content)
+    for name, src in READER_COPIES.items():
+        (tmp_path / name).write_bytes(src.read_bytes())
+    bindir = tmp_path / "bin"
+    bindir.mkdir()
+    # the installed entry point's own code, run by this interpreter (a venv or not)
+    (bindir / "casep").write_text(f'#!/bin/sh\nexec {shlex.quote(sys.executable)} -m casep "$@"\n')
+    (bindir / "casep").chmod(0o755)
+    env = dict(os.environ)
+    env.update(PATH=f"{bindir}{os.pathsep}{env.get('PATH', '')}", OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
+               MPLBACKEND="Agg")
+    return env
+
+
+def _rewrite(command: str) -> str | None:
+    return REWRITES[command][0] if command in REWRITES else command
+
+
+@pytest.mark.parametrize("page", _pages_with_commands(), ids=lambda p: p.name)
+def test_page_commands_run(page: Path, tmp_path: Path):
+    env = _workdir(tmp_path)
+    for block in blocks(page)[0]:
+        cmds = [c for c in map(_rewrite, block.commands) if c is not None]
+        for k, cmd in enumerate(cmds):
+            expected = block.exit if k == len(cmds) - 1 else 0
+            proc = subprocess.run(["bash", "-c", cmd], cwd=tmp_path, env=env, capture_output=True, text=True,
+                                  timeout=300, check=False)
+            assert proc.returncode == expected, (
+                f"{page.name}:{block.line}: `{cmd}` exited {proc.returncode}, the page says {expected}\n"
+                f"{proc.stdout[-1500:]}\n{proc.stderr[-1500:]}")
+
+
+def test_the_pages_are_found_and_hold_commands():
+    names = {p.name for p in _pages_with_commands()}
+    assert {"README.md", "first-flight.md", "calibration.md", "radar.md", "simulation.md"} <= names
+
+
+def test_every_rewrite_and_first_block_is_used():
+    commands = {c for p in PAGES for b in blocks(p)[0] for c in b.commands}
+    stale = [c for c in REWRITES if c not in commands]
+    assert not stale, f"REWRITES entries that match no command of the pages: {stale}"
+    for page, (first, _) in RUN_FIRST.items():
+        (path,) = [p for p in PAGES if p.name == page]
+        assert any(first in c for c in blocks(path)[0][0].commands), f"{page}: no block with {first!r}"
+
+
+def test_a_console_block_holds_no_placeholder():
+    bad = [f"{p.name}:{b.line}: {c}" for p in PAGES for b in blocks(p)[0] if b.lang in RUN_LANGUAGES
+           for c in b.commands if c.startswith("casep ") and _is_synopsis(c)]
+    assert not bad, f"a console block is run: write a synopsis as a ```text block instead: {bad}"
+
+
+def test_synopsis_options_exist():
+    """Each ``--option`` of a ``casep <command>`` synopsis is an option of that command's parser."""
+    from casep.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command").choices
+    unknown = []
+    for page in PAGES:
+        for block in blocks(page)[1]:
+            for cmd in block.commands:
+                words = cmd.split()
+                if words[0] != "casep" or len(words) < 2 or words[1] not in sub:
+                    continue
+                known = set(sub[words[1]]._option_string_actions)
+                for opt in re.findall(r"(?<![\w-])--[a-z][a-z0-9-]*", cmd.split(" #")[0]):
+                    if opt not in known:
+                        unknown.append(f"{page.name}:{block.line}: casep {words[1]} {opt}")
+    assert not unknown, f"options the parser does not have: {unknown}"
