@@ -26,6 +26,7 @@ from casep.calibration.checks import (
     check_gravity,
     check_positions,
     check_rotation_signs,
+    check_turn_angles,
     segment_misfits,
     warn_misfit,
 )
@@ -135,6 +136,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
                          "means, turn integrals) have no time order. Use: another method")
     acc, gyr, acc_unit, gyr_unit = readings_for(session, model)
     check_gravity(segments, session, gravity)
+    check_turn_angles(segments, session)
     check_positions(segments, acc, acc_unit)
     static = [s for s in segments if s.kind == "static"]
     rots = [s for s in segments if s.kind == "rotation"]

@@ -1,11 +1,12 @@
-"""The checks of a ground test against its pattern: units, labels, gaps, misfits, rotation signs.
+"""The checks of a ground test against its pattern: units, rate, labels, gaps, misfits, rotation signs.
 
 A session is refused (ValueError naming segment and numbers) when its static accelerometer means
-are far from gravity in the declared unit (:func:`check_gravity`) or point away from the stated
-position (:func:`check_positions`); warned about (a :class:`casep.exceptions.CasepWarning`) when a turn
-has gaps in time (:class:`TimeGapWarning`), a static segment misfits the model
-(:class:`PositionMisfitWarning`) or a turn's reading has the sign opposite to its angle
-(:class:`RotationSignWarning`).
+are far from gravity in the declared unit (:func:`check_gravity`), its turns integrate to far from
+their declared angles in the declared gyro unit and rate (:func:`check_turn_angles`), or a static
+mean points away from the stated position (:func:`check_positions`); warned about (a
+:class:`casep.exceptions.CasepWarning`) when a turn has gaps in time (:class:`TimeGapWarning`), a
+static segment misfits the model (:class:`PositionMisfitWarning`) or a turn's reading has the sign
+opposite to its angle (:class:`RotationSignWarning`).
 """
 
 from __future__ import annotations
@@ -16,15 +17,18 @@ from typing import Sequence
 
 import numpy as np
 
-from casep.calibration.session import ACC_UNITS, RAW_UNIT, Segment, Session
+from casep.calibration.rows import sample_steps
+from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Segment, Session
 from casep.exceptions import CasepWarning
 
 __all__ = ["RotationSignWarning", "PositionMisfitWarning", "TimeGapWarning", "GRAVITY_TOLERANCE", "MISFIT_Z",
-           "check_gravity", "check_gaps", "check_positions", "warn_misfit", "check_rotation_signs",
-           "segment_misfits"]
+           "TURN_TOLERANCE", "check_gravity", "check_turn_angles", "check_gaps", "check_positions", "warn_misfit",
+           "check_rotation_signs", "segment_misfits"]
 
 #: A static segment's |mean specific force| may differ from gravity by this fraction (physical units).
 GRAVITY_TOLERANCE = 0.10
+#: A turn's integrated gyro reading may differ from its declared angle by this fraction (physical units).
+TURN_TOLERANCE = 0.25
 #: A studentized segment misfit above this is warned about.
 MISFIT_Z = 4.0
 
@@ -64,6 +68,57 @@ def check_gravity(segs: Sequence[Segment], session: Session, gravity: float) -> 
         raise ValueError(f"{session.source}: {s.where}: the static accelerometer mean has |f| = {raw:.6g} {unit}"
                          f"{si}, {m / gravity:.4g} x gravity ({gravity:.6g} m/s^2; more than "
                          f"{GRAVITY_TOLERANCE:.0%} off): {hint}")
+
+
+def check_turn_angles(segs: Sequence[Segment], session: Session) -> None:
+    """Refuse gyro readings in a physical unit whose turns integrate to far from their declared angles.
+
+    Per turn k about axis `a_k` with declared angle `theta_k`, the reading integrated over the turn
+    (the rectangle rule of the rows, :func:`casep.calibration.rows.sample_steps`), less the gyro bias
+    (the mean of the static segments' means) over the turn's duration `T_k`, in degrees:
+
+        ratio_k = a_k . sum_i (u_i - b) dt_i / theta_k
+
+    A gyro's scale error is a few percent; a ratio off 1 by more than TURN_TOLERANCE (in magnitude:
+    the sign is :func:`check_rotation_signs`' business) is a unit, rate or angle mistake. The
+    message names the one that would give ~1: another unit (deg/s declared rad/s: 57.3), the rate
+    (without a `t` column every integral scales with 1 / --rate: a rate twice the true one gives
+    0.5), or the angle (two turns declared as one: 2).
+    """
+    unit = session.gyr_unit
+    rots = [s for s in segs if s.kind == "rotation"]
+    if unit not in GYR_UNITS or not rots:
+        return  # raw counts: any scale
+    static = [s for s in segs if s.kind == "static"]
+    bias = np.mean([session.gyr[s.rows].mean(axis=0) for s in static], axis=0) if static else np.zeros(3)
+    ratios = []
+    for s in rots:
+        dt = sample_steps(s, session.t, session.rate)
+        turn = float(((session.gyr[s.rows] - bias) * dt[:, None]).sum(axis=0) @ s.axis)  # unit * s
+        deg = turn * GYR_UNITS[unit] * 180.0 / math.pi
+        ratios.append((s, deg, deg / s.angle_deg))
+    worst = max(ratios, key=lambda r: abs(math.log(max(abs(r[2]), 1e-300))))
+    r = abs(worst[2])
+    if abs(r - 1.0) <= TURN_TOLERANCE:
+        return
+    median = float(np.median([abs(x[2]) for x in ratios]))
+    units = [u for u, k in GYR_UNITS.items() if u != unit and abs(median * k / GYR_UNITS[unit] - 1.0) <= TURN_TOLERANCE]
+    if units:
+        hint = f"the readings look like {' or '.join(units)}: --gyr-unit {units[0]}"
+    else:
+        declared = worst[0].angle_deg
+        signed = float(np.median([x[2] for x in ratios]))
+        angle = f"the turns are about {declared * signed:+.3g} deg, not {declared:+g} " \
+                "(--angle or the segments' angle_deg)"
+        hint = (f"with no `t` column every turn integral is the readings' sum / --rate, so --rate {session.rate:.6g} "
+                f"Hz is probably wrong (about {session.rate * median:.3g} Hz would give 1); or {angle}"
+                if not session.t_column else f"{angle}, or the segment boundaries cut the turns")
+    each = ", ".join(f"`{s.name}` {x:.4g}" for s, _, x in ratios)
+    s, deg, _ = worst
+    raise ValueError(f"{session.source}: {s.where}: the gyro reading integrates to {deg:+.6g} deg about "
+                     f"{np.round(s.axis, 3).tolist()} (bias removed, read as {unit} at {session.rate:.6g} Hz), "
+                     f"{deg / s.angle_deg:.4g} x the declared angle {s.angle_deg:+g} deg (every turn: {each}; more "
+                     f"than {TURN_TOLERANCE:.0%} off 1 in magnitude): {hint}")
 
 
 def check_gaps(rots: Sequence[Segment], t: np.ndarray, rate: float) -> None:

@@ -107,6 +107,9 @@ class Session:
         The file row of each sample (for messages).
     labels : (N,) ndarray of object or None
         The label column, when read.
+    t_column : bool
+        True when `t` is the file's own time column; False when it was made from `rate` (then a
+        wrong rate scales every turn integral, :func:`casep.calibration.checks.check_turn_angles`).
     """
 
     t: np.ndarray
@@ -118,6 +121,7 @@ class Session:
     gyr_unit: str = "a.u."
     rows: np.ndarray | None = None
     labels: np.ndarray | None = None
+    t_column: bool = False
 
     def __post_init__(self) -> None:
         n = len(self.t)
@@ -243,7 +247,7 @@ def read_session(path: str | os.PathLike, *, rate: float | None = None, acc_colu
                            for s in raw], dtype=object)
     return Session(t=ts, acc=np.column_stack([data[c] for c in acc_columns])[order],
                    gyr=np.column_stack([data[c] for c in gyr_columns])[order], rate=float(rate), source=src,
-                   acc_unit=acc_unit, gyr_unit=gyr_unit, rows=order, labels=labels)
+                   acc_unit=acc_unit, gyr_unit=gyr_unit, rows=order, labels=labels, t_column="t" in df.columns)
 
 
 def _is_number(s) -> bool:

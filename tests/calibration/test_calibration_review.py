@@ -67,13 +67,13 @@ def test_six_positions_estimate_the_position_error_with_the_rank_not_the_columns
 
 
 # ------------------------------------------------------------------ session files
-def ferraris_truth(model, seed=1, scale=200.0):
-    """Raw-reading truth: `scale` reading units per m/s^2 on the accelerometer diagonal."""
+def ferraris_truth(model, seed=1, scale=200.0, gyro_scale=16.0):
+    """Raw-reading truth: `scale` reading units per m/s^2 on the accelerometer diagonal, `gyro_scale` per deg/s."""
     rng = np.random.default_rng(seed)
     truth = dict(zip(model.names, rng.normal(size=model.n_coefficients)))
     for i, a in enumerate("xyz"):
         truth[f"Ma_{a}{a}"] = scale + i
-        truth[f"Mg_{a}{a}"] = 16.0 + i  # reading units per deg/s
+        truth[f"Mg_{a}{a}"] = gyro_scale * (16.0 + i) / 16.0  # reading units per deg/s
     return truth
 
 
@@ -136,7 +136,8 @@ def test_rate_that_contradicts_the_t_column_is_refused(ferraris, tmp_path, capsy
 
 # ------------------------------------------------------------------ D4: units
 def test_unknown_unit_is_refused_and_the_coefficient_units_follow_the_given_one(ferraris, tmp_path, capsys):
-    truth = ferraris_truth(ferraris, scale=1000.0 / G0)  # mg per m/s^2: the readings are in mg
+    # readings in mg and deg/s: 1000 / G0 mg per m/s^2, about 1 per deg/s
+    truth = ferraris_truth(ferraris, scale=1000.0 / G0, gyro_scale=1.0)
     ses, segs = simulate_session(ferraris, truth, ferraris_design(60, 100), rate=100.0)
     path, seg = _write(tmp_path, ses, segs)
     out, imu = tmp_path / "o.json", tmp_path / "i.json"
