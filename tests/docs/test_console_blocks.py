@@ -1,33 +1,40 @@
-"""Every command of the guide pages and the README runs, as a reader would run it.
+"""Every command of the guide pages, the documentation's index and reference pages and the README runs.
 
 A page's command blocks run in order, one page per test case, in a fresh directory holding the
 repository's ``examples/``, ``models/`` and ``tests/data/`` (links) and the files a page asks the
 reader to have (:data:`READER_FILES`), with ``casep`` on the PATH. A block is a command block when
 its fence says ``console``, ``bash`` or ``shell``, or when it has no language and every line reads
-as a command of ``casep``, ``python3`` or ``.venv/bin/`` without a placeholder (a synopsis such as
+as a command of ``casep``, ``python``, ``pip`` or ``.venv/bin/`` without a placeholder (a synopsis such as
 ``casep impact FLIGHT --result RESULT.json [--top K]`` is not run; its options are checked against
 the parser instead). Each command must exit 0; the last command of a block preceded by a line
-``<!-- exit N -->`` must exit N (a block that shows a refusal). Slow commands run reduced, each
+``<!-- exit N -->`` must exit N (a block that shows a refusal); a command may print only the
+warnings of :data:`EXPECTED_WARNINGS`. Slow commands run reduced, each
 rewrite in :data:`REWRITES` with its reason; a rewrite that matches no command fails the test, so
 the table cannot go stale.
 """
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 import shlex
+import shutil
 import subprocess
 import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-PAGES = [*sorted((ROOT / "docs" / "guide").glob("*.md")), ROOT / "README.md"]
+# The reader's pages; docs/results/ is left out: its commands are the benchmarks behind the measured
+# tables (minutes each), which the results pages re-run by hand.
+PAGES = [*sorted((ROOT / "docs" / "guide").glob("*.md")), ROOT / "docs" / "index.md",
+         *sorted((ROOT / "docs" / "reference").glob("*.md")), ROOT / "README.md"]
 RUN_LANGUAGES = ("console", "bash", "shell")
-COMMAND_WORDS = ("casep ", "python3 ", ".venv/bin/")
+COMMAND_WORDS = ("casep ", "python3 ", "python ", "pip ", ".venv/bin/")
 
 #: Commands run otherwise here, each with the reason: ``None`` leaves the command out.
 REWRITES: dict[str, tuple[str | None, str]] = {
@@ -38,7 +45,13 @@ REWRITES: dict[str, tuple[str | None, str]] = {
         (None, "the test suite itself: .ci/run runs this line verbatim (tests/test_docs.py checks that)"),
     '.venv/bin/pip install -e ".[docs]" && .venv/bin/sphinx-build -W --keep-going -b html docs docs/_build/html':
         (None, ".ci/run builds the documentation with this sphinx-build line"),
+    'pip install -e ".[docs]" && sphinx-build -W --keep-going -b html docs docs/_build/html':
+        (None, "the same build, as docs/reference/layout.md gives it: .ci/run builds the documentation"),
 }
+
+#: Commands that read nothing a page wrote before them and write only their own folder: run once for every
+#: page that shows them (per test process), with the reason.
+RUN_ONCE = {"casep demo --rate 10": "it simulates its own flight and writes only casep-demo/; three pages show it"}
 
 #: Files a page tells the reader to write (its own examples of their format), present for every page.
 READER_FILES: dict[str, str] = {
@@ -50,6 +63,14 @@ READER_FILES: dict[str, str] = {
 }
 #: A page's own flight: `flight.csv` in a command is the reader's flight; here the shipped one.
 READER_COPIES = {"flight.csv": ROOT / "examples" / "data" / "example_flight.csv"}
+#: Warnings a page's command may print, each with the reason; any other fails (a documented command that
+#: warns is a page to fix, or a warning to explain here and on the page).
+EXPECTED_WARNINGS = {
+    "ill-conditioned regression": "a boost flight determines combinations of coefficients, not each one: "
+                                  "first-flight.md shows and explains it",
+}
+_WARNING = re.compile(r"^(?:warning: |\S*Warning: )(.*)$", re.M)
+
 #: Blocks run first on a page (a substring of the block), with the reason.
 RUN_FIRST = {"radar.md": ("casep simulate -o tel.csv", "the opening example separates the files that the "
                                                       "page's simulation writes, as the page says")}
@@ -130,6 +151,21 @@ def _workdir(tmp_path: Path) -> dict[str, str]:
     return env
 
 
+def _run(cmd: str, cwd: Path, env: dict[str, str]) -> tuple[int, str, str]:
+    proc = subprocess.run(["bash", "-c", cmd], cwd=cwd, env=env, capture_output=True, text=True, timeout=300,
+                          check=False)
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+@functools.cache
+def _run_once(cmd: str) -> tuple[int, str, str]:
+    folder = Path(tempfile.mkdtemp(prefix="casep-docs-"))
+    try:
+        return _run(cmd, folder, _workdir(folder))
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def _rewrite(command: str) -> str | None:
     return REWRITES[command][0] if command in REWRITES else command
 
@@ -141,11 +177,12 @@ def test_page_commands_run(page: Path, tmp_path: Path):
         cmds = [c for c in map(_rewrite, block.commands) if c is not None]
         for k, cmd in enumerate(cmds):
             expected = block.exit if k == len(cmds) - 1 else 0
-            proc = subprocess.run(["bash", "-c", cmd], cwd=tmp_path, env=env, capture_output=True, text=True,
-                                  timeout=300, check=False)
-            assert proc.returncode == expected, (
-                f"{page.name}:{block.line}: `{cmd}` exited {proc.returncode}, the page says {expected}\n"
-                f"{proc.stdout[-1500:]}\n{proc.stderr[-1500:]}")
+            code, out, err = _run_once(cmd) if cmd in RUN_ONCE else _run(cmd, tmp_path, env)
+            assert code == expected, (f"{page.name}:{block.line}: `{cmd}` exited {code}, the page says {expected}\n"
+                                      f"{out[-1500:]}\n{err[-1500:]}")
+            warned = [w for w in _WARNING.findall(out + err)
+                      if not any(w.startswith(k) for k in EXPECTED_WARNINGS)]
+            assert not warned, f"{page.name}:{block.line}: `{cmd}` warns: {warned}"
 
 
 def test_the_pages_are_found_and_hold_commands():
@@ -157,6 +194,8 @@ def test_every_rewrite_and_first_block_is_used():
     commands = {c for p in PAGES for b in blocks(p)[0] for c in b.commands}
     stale = [c for c in REWRITES if c not in commands]
     assert not stale, f"REWRITES entries that match no command of the pages: {stale}"
+    rewritten = {_rewrite(c) for c in commands}
+    assert set(RUN_ONCE) <= rewritten, f"RUN_ONCE entries that match no command: {set(RUN_ONCE) - rewritten}"
     for page, (first, _) in RUN_FIRST.items():
         (path,) = [p for p in PAGES if p.name == page]
         assert any(first in c for c in blocks(path)[0][0].commands), f"{page}: no block with {first!r}"
