@@ -8,7 +8,9 @@ as a command of ``casep``, ``python``, ``pip`` or ``.venv/bin/`` without a place
 ``casep impact FLIGHT --result RESULT.json [--top K]`` is not run; its options are checked against
 the parser instead). Each command must exit 0; the last command of a block preceded by a line
 ``<!-- exit N -->`` must exit N (a block that shows a refusal); a command may print only the
-warnings of :data:`EXPECTED_WARNINGS`. Slow commands run reduced, each
+warnings of :data:`EXPECTED_WARNINGS`. A block preceded by ``<!-- output -->`` is the output of the
+last command before it: its lines must be printed, in order (``...`` skips lines, a line ending in
+``...`` is a prefix). Slow commands run reduced, each
 rewrite in :data:`REWRITES` with its reason; a rewrite that matches no command fails the test, so
 the table cannot go stale.
 """
@@ -23,7 +25,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
@@ -77,6 +79,7 @@ RUN_FIRST = {"radar.md": ("casep simulate -o tel.csv", "the opening example sepa
 
 _FENCE = re.compile(r"^(?P<fence>```+)(?P<lang>[^\n`]*)\n(?P<body>.*?)^(?P=fence)[ \t]*$", re.M | re.S)
 _EXIT = re.compile(r"<!--\s*exit\s+(\d+)\s*-->\s*$")
+_OUTPUT = re.compile(r"<!--\s*output\s*-->\s*$")
 # a placeholder: options in brackets, alternatives, an ellipsis, or an upper-case name of two letters or
 # more (FLIGHT, TEL.csv, RESULT_A.json)
 _PLACEHOLDER = re.compile(r"^\[|^\.\.\.|(?<![\w.-])[A-Z]{2,}[A-Z0-9_]*(?:\.\w+)?(?![\w-])|\w\|\w")
@@ -89,12 +92,13 @@ class Block:
     lang: str
     commands: list[str]
     exit: int = 0
+    shown: list[str] = field(default_factory=list)  # the output the page shows for the block's last command
 
 
 def _commands(body: str) -> list[str]:
     """The block's commands: lines joined at a trailing backslash, blank lines and comment lines dropped."""
     out: list[str] = []
-    for line in re.sub(r"\\\n\s*", " ", body).splitlines():
+    for line in re.sub(r"[ \t]*\\\n\s*", " ", body).splitlines():
         if line.strip() and not line.lstrip().startswith("#"):
             out.append(line.strip())
     return out
@@ -116,6 +120,10 @@ def blocks(page: Path) -> tuple[list[Block], list[Block]]:
         before = text[:m.start()].rstrip("\n").rsplit("\n", 1)[-1]
         status = int(_EXIT.search(before)[1]) if _EXIT.search(before) else 0
         block = Block(page.name, line, lang, cmds, status)
+        if _OUTPUT.search(before):  # the output of the last command run before it on the page
+            assert run, f"{page.name}:{line}: an output block with no command before it"
+            run[-1].shown = m["body"].splitlines()
+            continue
         if lang in RUN_LANGUAGES:
             run.append(block)
         elif lang in ("", "text") and cmds and all(c.startswith(COMMAND_WORDS) for c in cmds):
@@ -124,6 +132,23 @@ def blocks(page: Path) -> tuple[list[Block], list[Block]]:
     if first:
         run.sort(key=lambda b: not any(first[0] in c for c in b.commands))
     return run, synopses
+
+
+def _missing_output(shown: list[str], out: str) -> list[str]:
+    """The lines of `shown` not in `out`, in order (spaces collapsed; ``...`` skips, a trailing ``...``: a prefix)."""
+    got = [" ".join(line.split()) for line in out.splitlines()]
+    k, missing = 0, []
+    for line in (" ".join(x.split()) for x in shown):
+        if line in ("", "..."):
+            continue
+        prefix = line.endswith("...")
+        want = line[:-3].rstrip() if prefix else line
+        hit = next((j for j in range(k, len(got)) if (got[j].startswith(want) if prefix else got[j] == want)), None)
+        if hit is None:
+            missing.append(line)
+        else:
+            k = hit + 1
+    return missing
 
 
 def _pages_with_commands() -> list[Path]:
@@ -183,6 +208,8 @@ def test_page_commands_run(page: Path, tmp_path: Path):
             warned = [w for w in _WARNING.findall(out + err)
                       if not any(w.startswith(k) for k in EXPECTED_WARNINGS)]
             assert not warned, f"{page.name}:{block.line}: `{cmd}` warns: {warned}"
+        missing = _missing_output(block.shown, out + err) if block.shown else []
+        assert not missing, f"{page.name}:{block.line}: `{cmds[-1]}` does not print the page's lines {missing}\n{out}"
 
 
 def test_the_pages_are_found_and_hold_commands():
@@ -225,3 +252,20 @@ def test_synopsis_options_exist():
                     if opt not in known:
                         unknown.append(f"{page.name}:{block.line}: casep {words[1]} {opt}")
     assert not unknown, f"options the parser does not have: {unknown}"
+
+
+def test_the_block_rules(tmp_path):
+    """What is run, with which status and shown output, and what is a synopsis, on a page made for it."""
+    page = tmp_path / "page.md"
+    page.write_text("# Page\n\n```console\ncasep models \\\n   --json m.json  # listed\n```\n\n"
+                    "```\ncasep impact FLIGHT --result RESULT.json [--top K]\n```\n\n"
+                    "<!-- exit 2 -->\n```\ncasep separate no.csv\n```\n\n"
+                    "<!-- output -->\n```text\ncasep: error: ...\n```\n\n"
+                    "```text\ncasep separate flight.csv\n```\n\n```python\nimport casep\n```\n\n"
+                    '```\npython3 -m pip install -e ".[test]"\n```\n')
+    run, synopses = blocks(page)
+    assert [(b.line, b.commands, b.exit) for b in run] == [
+        (3, ["casep models --json m.json  # listed"], 0), (13, ["casep separate no.csv"], 2),
+        (30, ['python3 -m pip install -e ".[test]"'], 0)]
+    assert run[1].shown == ["casep: error: ..."] and not run[0].shown
+    assert [b.line for b in synopses] == [8, 22]
