@@ -111,8 +111,9 @@ def check_turn_angles(segs: Sequence[Segment], session: Session) -> None:
         angle = f"the turns are about {declared * signed:+.3g} deg, not {declared:+g} " \
                 "(--angle or the segments' angle_deg)"
         hint = (f"with no `t` column every turn integral is the readings' sum / --rate, so --rate {session.rate:.6g} "
-                f"Hz is probably wrong (about {session.rate * median:.3g} Hz would give 1); or {angle}"
-                if not session.t_column else f"{angle}, or the segment boundaries cut the turns")
+                f"Hz is probably wrong (about {session.rate * median:.3g} Hz would give 1); or {angle}, or the "
+                "segment boundaries cut the turns" if not session.t_column else
+                f"{angle}, or the segment boundaries cut the turns")
     each = ", ".join(f"`{s.name}` {x:.4g}" for s, _, x in ratios)
     s, deg, _ = worst
     raise ValueError(f"{session.source}: {s.where}: the gyro reading integrates to {deg:+.6g} deg about "

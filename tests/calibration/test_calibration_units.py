@@ -87,19 +87,35 @@ def test_with_a_t_column_a_factor_two_is_the_angle(tmp_path, capsys):
     assert "--rate" not in err
 
 
-@pytest.mark.parametrize("scale", [1.0 + 0.8 * TURN_TOLERANCE, 1.0 - 0.8 * TURN_TOLERANCE,
-                                   1.0 + 1.2 * TURN_TOLERANCE, -(1.0 + 1.2 * TURN_TOLERANCE)])
-def test_the_tolerance_on_a_noise_free_turn(scale):
-    """A turn of exactly -360 deg at 1 deg/s read with scale k integrates to k x -360 (closed form)."""
-    rate, n = 50.0, 360 * 50  # 360 s at -1 deg/s: the rectangle rule is exact on a constant rate
+def _turn(scale: float = 1.0, kept: float = 1.0):
+    """A noise-free session: 4 s level, then a -360 deg turn about z at 1 deg/s read with `scale` (t from the
+    rate, 50 Hz); the turn segment holds its first `kept` fraction. The rectangle rule is exact on it."""
+    rate, n = 50.0, 360 * 50
     gyr = np.zeros((n + 200, 3))
     gyr[200:, 2] = -1.0 * scale
     acc = np.tile([0.0, 0.0, 9.81], (n + 200, 1))
     ses = Session(t=np.arange(n + 200) / rate, acc=acc, gyr=gyr, rate=rate, acc_unit="m/s^2", gyr_unit="deg/s")
-    segs = [ferraris_segment("z_p", np.arange(0, 200)), ferraris_segment("z_rot", np.arange(200, n + 200))]
+    return ses, [ferraris_segment("z_p", np.arange(0, 200)),
+                 ferraris_segment("z_rot", np.arange(200, 200 + int(round(kept * n))))]
+
+
+@pytest.mark.parametrize("scale", [1.0 + 0.8 * TURN_TOLERANCE, 1.0 - 0.8 * TURN_TOLERANCE,
+                                   1.0 + 1.2 * TURN_TOLERANCE, -(1.0 + 1.2 * TURN_TOLERANCE)])
+def test_the_tolerance_on_a_noise_free_turn(scale):
+    """Read with scale k, the turn integrates to k x -360 deg exactly: refused beyond the tolerance."""
+    ses, segs = _turn(scale)
     if abs(abs(scale) - 1.0) <= TURN_TOLERANCE:
         check_turn_angles(segs, ses)
     else:
         said = rf"integrates to {re.escape(f'{-360 * scale:+.6g}')} deg .* {scale:.4g} x the declared angle -360 deg"
         with pytest.raises(ValueError, match=said + rf".* the turns are about {re.escape(f'{-360 * scale:+.3g}')} deg"):
             check_turn_angles(segs, ses)
+
+
+def test_a_segment_that_cuts_the_turn_is_refused():
+    """A turn segment holding 60 % of its -360 deg turn integrates to 0.6 x its angle."""
+    ses, segs = _turn(kept=0.6)
+    with pytest.raises(ValueError, match=r"integrates to -216 deg .* 0\.6 x the declared angle -360 deg.*"
+                                         r"about 30 Hz would give 1\); or the turns are about -216 deg, not -360 .*"
+                                         r"or the segment boundaries cut the turns"):
+        check_turn_angles(segs, ses)
