@@ -57,7 +57,7 @@ RUN_ONCE = {"casep demo --rate 10": "it simulates its own flight and writes only
 
 #: Files a page tells the reader to write (its own examples of their format), present for every page.
 READER_FILES: dict[str, str] = {
-    # radar.md, "Station file": its example, and a second station 60 km away
+    # radar.md, "Station file": its example, and a second station 80 km from it
     "S1.json": '{"name": "S1", "lat": 28.9, "lon": -80.0, "h": 20.0}\n',
     "S2.json": '{"name": "S2", "lat": 28.3, "lon": -79.5, "h": 10.0}\n',
     # radar.md, "Simulation": the station errors to simulate, in the tracking model's units
@@ -105,7 +105,10 @@ def _commands(body: str) -> list[str]:
 
 
 def _is_synopsis(command: str) -> bool:
-    words = shlex.split(command, comments=True)
+    try:
+        words = shlex.split(command, comments=True)
+    except ValueError:  # an unbalanced quote: not a shell command a reader could run as it stands
+        return True
     return any(_PLACEHOLDER.search(w) for w in words[1:] if not w.startswith("--"))
 
 
