@@ -4,15 +4,16 @@ A page's command blocks run in order, one page per test case, in a fresh directo
 repository's ``examples/``, ``models/`` and ``tests/data/`` (links) and the files a page asks the
 reader to have (:data:`READER_FILES`), with ``casep`` on the PATH. A block is a command block when
 its fence says ``console``, ``bash`` or ``shell``, or when it has no language and every line reads
-as a command of ``casep``, ``python``, ``pip`` or ``.venv/bin/`` without a placeholder (a synopsis such as
-``casep impact FLIGHT --result RESULT.json [--top K]`` is not run; its options are checked against
-the parser instead). Each command must exit 0; the last command of a block preceded by a line
-``<!-- exit N -->`` must exit N (a block that shows a refusal); a command may print only the
-warnings of :data:`EXPECTED_WARNINGS`. A block preceded by ``<!-- output -->`` is the output of the
-last command before it: its lines must be printed, in order (``...`` skips lines, a line ending in
-``...`` is a prefix). Slow commands run reduced, each
-rewrite in :data:`REWRITES` with its reason; a rewrite that matches no command fails the test, so
-the table cannot go stale.
+as a command of ``casep``, ``python``, ``pip`` or ``.venv/bin/`` without a placeholder (a synopsis
+such as ``casep impact FLIGHT --result RESULT.json [--top K]``, or a ``text`` block of commands, is
+not run; its options are checked against the parser instead).
+
+Each command must exit 0; the last command of a block preceded by a line ``<!-- exit N -->`` must
+exit N (a block that shows a refusal); a command may print only the warnings of
+:data:`EXPECTED_WARNINGS`. A block preceded by ``<!-- output -->`` is the output of the last
+command before it: its lines must be printed, in order (``...`` skips lines, a line ending in
+``...`` is a prefix). Slow commands run reduced, each rewrite in :data:`REWRITES` with its
+reason; a rewrite that matches no command fails the test, so the table cannot go stale.
 """
 
 from __future__ import annotations
