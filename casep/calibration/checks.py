@@ -91,35 +91,32 @@ def check_turn_angles(segs: Sequence[Segment], session: Session) -> None:
         return  # raw counts: any scale
     static = [s for s in segs if s.kind == "static"]
     bias = np.mean([session.gyr[s.rows].mean(axis=0) for s in static], axis=0) if static else np.zeros(3)
-    ratios = []
+    turns = []  # (segment, axis, declared angle deg, integrated angle deg, ratio)
     for s in rots:
+        axis, declared = s.axis, s.angle_deg
+        assert axis is not None and declared is not None  # a rotation segment has both
         dt = sample_steps(s, session.t, session.rate)
-        turn = float(((session.gyr[s.rows] - bias) * dt[:, None]).sum(axis=0) @ s.axis)  # unit * s
+        turn = float(((session.gyr[s.rows] - bias) * dt[:, None]).sum(axis=0) @ axis)  # unit * s
         deg = turn * GYR_UNITS[unit] * 180.0 / math.pi
-        ratios.append((s, deg, deg / s.angle_deg))
-    worst = max(ratios, key=lambda r: abs(math.log(max(abs(r[2]), 1e-300))))
-    r = abs(worst[2])
-    if abs(r - 1.0) <= TURN_TOLERANCE:
+        turns.append((s, axis, declared, deg, deg / declared))
+    seg, axis, declared, deg, ratio = max(turns, key=lambda x: abs(math.log(max(abs(x[4]), 1e-300))))
+    if abs(abs(ratio) - 1.0) <= TURN_TOLERANCE:
         return
-    median = float(np.median([abs(x[2]) for x in ratios]))
+    median = float(np.median([abs(x[4]) for x in turns]))  # the turns' common factor
     units = [u for u, k in GYR_UNITS.items() if u != unit and abs(median * k / GYR_UNITS[unit] - 1.0) <= TURN_TOLERANCE]
     if units:
         hint = f"the readings look like {' or '.join(units)}: --gyr-unit {units[0]}"
     else:
-        declared = worst[0].angle_deg
-        signed = float(np.median([x[2] for x in ratios]))
-        angle = f"the turns are about {declared * signed:+.3g} deg, not {declared:+g} " \
-                "(--angle or the segments' angle_deg)"
-        hint = (f"with no `t` column every turn integral is the readings' sum / --rate, so --rate {session.rate:.6g} "
-                f"Hz is probably wrong (about {session.rate * median:.3g} Hz would give 1); or {angle}, or the "
-                "segment boundaries cut the turns" if not session.t_column else
-                f"{angle}, or the segment boundaries cut the turns")
-    each = ", ".join(f"`{s.name}` {x:.4g}" for s, _, x in ratios)
-    s, deg, _ = worst
-    raise ValueError(f"{session.source}: {s.where}: the gyro reading integrates to {deg:+.6g} deg about "
-                     f"{np.round(s.axis, 3).tolist()} (bias removed, read as {unit} at {session.rate:.6g} Hz), "
-                     f"{deg / s.angle_deg:.4g} x the declared angle {s.angle_deg:+g} deg (every turn: {each}; more "
-                     f"than {TURN_TOLERANCE:.0%} off 1 in magnitude): {hint}")
+        angle = (f"the turns are about {declared * float(np.median([x[4] for x in turns])):+.3g} deg, not "
+                 f"{declared:+g} (--angle or the segments' angle_deg), or the segment boundaries cut the turns")
+        hint = angle if session.t_column else (
+            f"with no `t` column every turn integral is the readings' sum / --rate, so --rate {session.rate:.6g} Hz "
+            f"is probably wrong (about {session.rate * median:.3g} Hz would give 1); or {angle}")
+    each = ", ".join(f"`{x[0].name}` {x[4]:.4g}" for x in turns)
+    raise ValueError(f"{session.source}: {seg.where}: the gyro reading integrates to {deg:+.6g} deg about "
+                     f"{np.round(axis, 3).tolist()} (bias removed, read as {unit} at {session.rate:.6g} Hz), "
+                     f"{ratio:.4g} x the declared angle {declared:+g} deg (every turn: {each}; more than "
+                     f"{TURN_TOLERANCE:.0%} off 1 in magnitude): {hint}")
 
 
 def check_gaps(rots: Sequence[Segment], t: np.ndarray, rate: float) -> None:
