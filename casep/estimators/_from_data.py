@@ -98,7 +98,8 @@ def result_from_data(rd: Any, model: Any, cls: type) -> Any:
         n_samples=int(f.get("n_samples") or 0), denoise=f.get("denoise"),
         sigma_source=f.get("sigma_source") or ("estimated" if f.get("sigma") is not None else "external"),
         stored_residual_rms=rrms if rrms is not None else {a: None for a in AXES},
-        std_kind=f.get("std_kind") or "sampling", extras=extras, model_file=f.get("model_file"))
+        std_kind=f.get("std_kind") or "sampling", extras=extras, model_file=f.get("model_file"),
+        model_sha256=f.get("model_sha256"))
 
 
 def tracking_terms(diagnostics: Any) -> set[str]:

@@ -185,16 +185,13 @@ def per_flight_names(result, model=None) -> set[str]:
     `model` (ErrorModel or name) defaults to the result's own; a result whose model cannot be found
     is an error (guessing would silently treat a flight's own time offset as shared).
     """
-    from casep.model.loader import load_model
+    from casep.model.loader import load_model, load_recorded_model
 
-    if model is None:
+    if model is None:  # a model shipped with casep by its name; any other only when named (never run on a result's word)
         if not result.model:
             raise ValueError("the result names no model: give `model` to tell its per-flight coefficients")
-        try:
-            model = load_model(result.model)
-        except (ValueError, OSError) as exc:
-            raise ValueError(f"the result's model `{result.model}` cannot be loaded ({exc}); give `model` "
-                             "(--model) to tell its per-flight coefficients") from None
+        model = load_recorded_model(result.model, sha256=result.model_sha256, model_file=result.model_file,
+                                    where=f"the result of model `{result.model}`", option="`model` (--model)")
     else:
         model = load_model(model)
     own = {n for n, pf in zip(model.names, model.per_flight) if pf}

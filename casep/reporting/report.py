@@ -108,15 +108,17 @@ def determined(result: EstimateResult, scales: Mapping[str, float], top: int = 4
 
 def _headline(result: EstimateResult, model: Any = None) -> str:
     """The report's first lines: what the flight determines, against the model's declared magnitudes
-    (of `model`, the result's :class:`~casep.model.ErrorModel` when the caller has it; else loaded by name)."""
+    (of `model`, the result's :class:`~casep.model.ErrorModel` when the caller has it; else the model shipped with
+    casep of that name: a result's name never runs a model file)."""
     scales: Mapping[str, float] = {}
     if model is not None and getattr(model, "name", None) == result.model:
         scales = model.scales
     else:
         try:
-            from casep.model.loader import load_model
+            from casep.model.loader import shipped_model
 
-            scales = load_model(result.model).scales if result.model else {}
+            found = shipped_model(result.model) if result.model else None  # never a file on the result's word
+            scales = found.scales if found is not None else {}
         except Exception:  # a model file moved since: no headline rather than no report
             scales = {}
     if not scales:

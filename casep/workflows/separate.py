@@ -292,11 +292,9 @@ def separate(
         res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings,
                                   sigma_source="wavelet" if sigma_from_wavelet else res.sigma_source)
     if not isinstance(flight, Problem) and isinstance(model, ErrorModel):
-        from casep.model.loader import model_file_reference
+        from casep.model.loader import model_record
 
-        ref = model_file_reference(model)  # a model loaded from a path: impact/fuse find it again
-        if ref:
-            res = dataclasses.replace(res, model_file=ref)
+        res = dataclasses.replace(res, **model_record(model))  # its file and SHA-256: read back only with that file
     return res
 
 
