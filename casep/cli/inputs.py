@@ -130,13 +130,27 @@ def coefficient_file(args: argparse.Namespace, option: str, names: Any) -> dict[
 
 
 def own_trajectory(args: argparse.Namespace) -> tuple[Any, Any, Any]:
-    """(flight path, truth dict, model name) of --flight/--truth, or (None, None, None)."""
+    """(flight path, truth dict, model) of --flight/--truth, or (None, None, None).
+
+    The model is the truth file's: the model shipped with casep it names, or the one ``--model`` names
+    (:func:`casep.model.loader.load_recorded_model`: a truth file never runs code on its own word);
+    None when neither names one (the scenario's). The truth dict's ``model`` is that model.
+    """
     flight, truth = getattr(args, "flight", None), getattr(args, "truth", None)
     if not flight and not truth:
+        if getattr(args, "model", None):
+            raise ValueError(f"--model {args.model} names the model of --truth (with --flight); without them the "
+                             "scenario's model is used: leave --model out")
         return None, None, None
     if not (flight and truth):
         raise ValueError("--flight and --truth go together: one's own trajectory needs its true coefficients")
     from casep.io.files import read_json_table
+    from casep.model.loader import load_recorded_model
 
     data = read_json_table(truth, "--truth")
-    return flight, data, data.get("model") if isinstance(data.get("model"), str) else None
+    name = data.get("model") if isinstance(data.get("model"), str) else None
+    given = getattr(args, "model", None)
+    if name is None and given is None:
+        return flight, data, None
+    model = load_recorded_model(name, given=given, where=f"--truth {truth}")
+    return flight, {**data, "model": model}, model

@@ -363,9 +363,15 @@ def shipped_model(name: str) -> ErrorModel | None:
     return with_time_offset(path) if base != name else load_model_file(path)
 
 
+def _path_like(name: str) -> bool:
+    return name.endswith(".py") or "/" in name or "\\" in name
+
+
 def _given_model(given: str | os.PathLike | ErrorModel, name: str, where: str, option: str) -> ErrorModel:
     """The model the user named, for a file that records model `name` (a ``+dt_trk`` name gains the term)."""
     model = load_model(given)
+    if _path_like(name):  # an old record of the file's path as its model: the file the user names stands
+        return model
     if name and name != model.name and name == model.name + TIME_OFFSET_SUFFIX:
         model = with_time_offset(model)
     if name and name != model.name:
@@ -420,10 +426,10 @@ def load_recorded_model(name: str | None, *, sha256: str | None = None, model_fi
     if model is None:
         base = name[: -len(TIME_OFFSET_SUFFIX)] if name.endswith(TIME_OFFSET_SUFFIX) else name
         recorded = f" (model file {model_file}" + (f", sha256 {sha256}" if sha256 else "") + ")" if model_file else ""
+        file = model_file or (base if _path_like(base) else f"path/to/{base}.py")
         raise ValueError(f"{where} is of model `{name}`{recorded}, which is not shipped with casep; a model file "
-                         "is Python code, and casep runs one only when you name it: give "
-                         f"{option} {model_file or 'path/to/' + Path(base).stem + '.py'} (or {option} NAME in "
-                         "CASEP_MODEL_PATH; API: model=...)")
+                         f"is Python code, and casep runs one only when you name it: give {option} {file} (or "
+                         f"{option} NAME in CASEP_MODEL_PATH; API: model=...)")
     _check_sha256(model.source_sha256, model.source_file, sha256, model_file, where, option, error=False)
     return model
 

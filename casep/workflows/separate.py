@@ -226,9 +226,9 @@ def separate(
 
             if k == "prior" and looks_like_result(kw[k]):  # a result file (any form): its posterior
                 from casep.estimators.map import prior_from_result
-                from casep.estimators.reading import read_result
+                from casep.estimators.reading import read_input_result
 
-                res_prior, m = read_result(path, None if isinstance(flight, Problem) else model, option="prior")
+                res_prior, m = read_input_result(path, None if isinstance(flight, Problem) else model, option="prior")
                 kw[k] = prior_from_result(res_prior, model=m)
     if denoise not in (None, "none", "wavelet"):
         raise ValueError(f"`denoise` must be 'none' or 'wavelet', got {denoise!r}")
