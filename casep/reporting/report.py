@@ -245,9 +245,9 @@ def impact_or_reason(result: EstimateResult, flight: FlightData | None, model: A
     """The result's impact analysis on its flight (:func:`casep.impact.miss.impact_analysis`), or the sentence
     the report shows why there is none (the flight has no ``r_*``/``v_*`` burnout state); None without a flight.
 
-    `model` (default: the model shipped with casep that the result names) and `kwargs` (e.g. ``burnout_sensitivity``) go to
-    :func:`~casep.impact.miss.impact_analysis`. A caller that writes the report computes it once with this and
-    hands it to :func:`write_report` (``impact=``).
+    `model` (default: the model shipped with casep that the result names) and `kwargs` (e.g.
+    ``burnout_sensitivity``) go to :func:`~casep.impact.miss.impact_analysis`. A caller that writes the report
+    computes it once with this and hands it to :func:`write_report` (``impact=``).
     """
     if flight is None:
         return None
