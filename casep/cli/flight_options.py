@@ -75,4 +75,5 @@ def add_own_trajectory(parser: Any) -> None:
                              "least-squares residual std)")
     parser.add_argument("--model", default=None,
                         help="model name or .py file of --truth and --prior when it is not shipped with casep (a model "
-                             "file is Python code: casep runs one only when it is named here, never on a file's word)")
+                             "file is Python code: casep runs one only when it is named here, never on a file's word; "
+                             "without --truth the runs use the scenario's model)")

@@ -138,9 +138,9 @@ def own_trajectory(args: argparse.Namespace) -> tuple[Any, Any, Any]:
     """
     flight, truth = getattr(args, "flight", None), getattr(args, "truth", None)
     if not flight and not truth:
-        if getattr(args, "model", None):
-            raise ValueError(f"--model {args.model} names the model of --truth (with --flight); without them the "
-                             "scenario's model is used: leave --model out")
+        if getattr(args, "model", None) and not getattr(args, "prior", None):
+            raise ValueError(f"--model {args.model} names the model of a --truth or --prior file that is not shipped "
+                             "with casep; without them the scenario's model is used: leave --model out")
         return None, None, None
     if not (flight and truth):
         raise ValueError("--flight and --truth go together: one's own trajectory needs its true coefficients")

@@ -412,9 +412,10 @@ def load_recorded_model(name: str | None, *, sha256: str | None = None, model_fi
         hashes). A shipped model file changed since (another casep version) is a CasepWarning with both.
     """
     if given is not None:
-        if isinstance(given, (str, os.PathLike)):  # the file's hash before it runs
+        if isinstance(given, (str, os.PathLike)):
             path = find_model_file(given)
-            _check_sha256(file_sha256(path), str(path), sha256, model_file, where, option, error=True)
+            if not _is_shipped(path):  # a user's file: its hash before it runs (a shipped one: its name first)
+                _check_sha256(file_sha256(path), str(path), sha256, model_file, where, option, error=True)
             given = load_model_file(path)
         model = _given_model(given, name or "", where, option)
         _check_sha256(model.source_sha256, model.source_file, sha256, model_file, where, option, error=True)
