@@ -130,17 +130,14 @@ def coefficient_file(args: argparse.Namespace, option: str, names: Any) -> dict[
 
 
 def own_trajectory(args: argparse.Namespace) -> tuple[Any, Any, Any]:
-    """(flight path, truth dict, model) of --flight/--truth, or (None, None, None).
-
-    The model is the truth file's: the model shipped with casep it names, or the one ``--model`` names
-    (:func:`casep.model.loader.load_recorded_model`: a truth file never runs code on its own word);
-    None when neither names one (the scenario's). The truth dict's ``model`` is that model.
-    """
-    flight, truth = getattr(args, "flight", None), getattr(args, "truth", None)
+    """(flight path, truth dict, model) of --flight/--truth, or (None, None, None). The model (also the dict's
+    ``model``): the shipped one the truth names or ``--model`` (a file never runs code on its own word:
+    :func:`casep.model.loader.load_recorded_model`); None when neither names one (the scenario's)."""
+    flight, truth, given = getattr(args, "flight", None), getattr(args, "truth", None), getattr(args, "model", None)
     if not flight and not truth:
-        if getattr(args, "model", None) and not getattr(args, "prior", None):
-            raise ValueError(f"--model {args.model} names the model of a --truth or --prior file that is not shipped "
-                             "with casep; without them the scenario's model is used: leave --model out")
+        if given and not getattr(args, "prior", None):
+            raise ValueError(f"--model {given} names the model of a --truth or --prior file that is not shipped with "
+                             "casep; without them the scenario's model is used: leave --model out")
         return None, None, None
     if not (flight and truth):
         raise ValueError("--flight and --truth go together: one's own trajectory needs its true coefficients")
@@ -149,8 +146,5 @@ def own_trajectory(args: argparse.Namespace) -> tuple[Any, Any, Any]:
 
     data = read_json_table(truth, "--truth")
     name = data.get("model") if isinstance(data.get("model"), str) else None
-    given = getattr(args, "model", None)
-    if name is None and given is None:
-        return flight, data, None
-    model = load_recorded_model(name, given=given, where=f"--truth {truth}")
-    return flight, {**data, "model": model}, model
+    model = None if name is None and given is None else load_recorded_model(name, given=given, where=f"--truth {truth}")
+    return flight, data if model is None else {**data, "model": model}, model
