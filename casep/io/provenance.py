@@ -17,8 +17,8 @@ import sys
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-__all__ = ["provenance", "flight_provenance", "file_record", "command_line", "DATA_ROLES", "flight_files",
-           "check_estimated_on"]
+__all__ = ["provenance", "flight_provenance", "file_record", "file_sha256", "command_line", "DATA_ROLES",
+           "flight_files", "check_estimated_on"]
 
 #: Roles of the files a flight is read from (:func:`flight_provenance`'s ``files``): the data of a result.
 DATA_ROLES = ("flight", "telemetry", "tracking")
@@ -27,16 +27,21 @@ DATA_ROLES = ("flight", "telemetry", "tracking")
 _EXCLUSIONS = ("unobserved", "telemetry_dropped", "tracking_dropped", "gap_rows_left_out", "gaps_s", "inserted")
 
 
+def file_sha256(path: str | os.PathLike) -> str:
+    """SHA-256 (hex) of a file's bytes, read in 1 MiB blocks; OSError when it cannot be read."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
 def file_record(path: str | os.PathLike, role: str) -> dict[str, Any]:
     """``{"role", "file", "bytes", "sha256"}`` of an input file (sha256 None if it cannot be read)."""
     p = Path(path)
     digest, size = None, None
     try:
-        h = hashlib.sha256()
-        with open(p, "rb") as fh:
-            for block in iter(lambda: fh.read(1 << 20), b""):
-                h.update(block)
-        digest, size = h.hexdigest(), p.stat().st_size
+        digest, size = file_sha256(p), p.stat().st_size
     except OSError:
         pass
     return {"role": role, "file": str(p), "bytes": size, "sha256": digest}

@@ -42,7 +42,7 @@ from casep.model.base import SymbolicModel
 
 __all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file",
            "run_model_file", "with_time_offset", "TIME_OFFSET", "model_file_reference", "model_names", "where_in_file",
-           "load_model_file", "shipped_model_dirs", "shipped_model_file", "file_sha256", "model_record",
+           "load_model_file", "shipped_model_dirs", "shipped_model_file", "model_record",
            "load_recorded_model", "shipped_model"]
 
 
@@ -75,9 +75,6 @@ def _is_shipped(path: str | os.PathLike) -> bool:
     return any(real.parent == d.resolve() for d in shipped_model_dirs())
 
 
-def file_sha256(path: str | os.PathLike) -> str:
-    """SHA-256 (hex) of a file's bytes."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def model_names(dirs: Sequence[Path]) -> list[str]:
@@ -415,6 +412,8 @@ def load_recorded_model(name: str | None, *, sha256: str | None = None, model_fi
         if isinstance(given, (str, os.PathLike)):
             path = find_model_file(given)
             if not _is_shipped(path):  # a user's file: its hash before it runs (a shipped one: its name first)
+                from casep.io.provenance import file_sha256
+
                 _check_sha256(file_sha256(path), str(path), sha256, model_file, where, option, error=True)
             given = load_model_file(path)
         model = _given_model(given, name or "", where, option)

@@ -10,10 +10,8 @@ sqrt 2).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
-from pathlib import Path
 from typing import Any, Sequence
 
 __all__ = ["read_results_to_fuse", "check_distinct_inputs"]
@@ -23,8 +21,10 @@ NOT_DATA = ("prior", "bounds", "model")
 
 
 def _digest(path: str | os.PathLike) -> str | None:
+    from casep.io.provenance import file_sha256
+
     try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        return file_sha256(path)
     except OSError:
         return None
 
