@@ -66,20 +66,20 @@ def _csv_header(path: Path) -> tuple[list[str], str]:
     return [], ","
 
 
-def _nul_line(path: Path, block: int = 1 << 20) -> int | None:
-    """The file line (1-based) of the first NUL byte of a text file, or None (read in blocks of `block` bytes).
+def _nul_line(path: Path) -> int | None:
+    """The file line (1-based) of the first NUL byte of a text file, or None (a memory-mapped search).
 
     A NUL byte is no character of a CSV file: it is what a recorder that stopped leaves in the space it had
     reserved, or a binary file given as text. pandas' C parser ends a field at one silently.
     """
-    lines = 0
+    import mmap
+
     with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(block), b""):
-            at = chunk.find(b"\0")
-            if at >= 0:
-                return lines + chunk.count(b"\n", 0, at) + 1
-            lines += chunk.count(b"\n")
-    return None
+        if os.fstat(fh.fileno()).st_size == 0:
+            return None
+        with mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as mm:
+            at = mm.find(b"\0")
+            return None if at < 0 else mm[:at].count(b"\n") + 1
 
 
 def _refuse_nul(path: Path) -> None:

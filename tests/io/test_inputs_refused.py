@@ -12,14 +12,9 @@ from __future__ import annotations
 import json
 
 import pytest
+from test_files_run_no_code import _run
 
 from casep.cli import main
-
-
-def _run(capsys, *argv) -> tuple[int, str, str]:
-    status = main([str(a) for a in argv])
-    cap = capsys.readouterr()
-    return status, cap.out, cap.err
 
 
 @pytest.fixture(scope="module")
