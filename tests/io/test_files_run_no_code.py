@@ -246,3 +246,34 @@ def test_a_shipped_model_is_found_by_name(clean, capsys, tmp_path):
     shutil.copy(src, copy)
     s, out, err = _run(capsys, "impact", clean / "flight.csv", "--result", tmp_path / "p.json", "--model", copy)
     assert s == 0 and f"casep: running model file {copy}" in err, err
+
+
+def test_a_time_offset_model_is_read_as_its_base_file(clean):
+    """`NAME+dt_trk` (a model with the tracking time offset added): a shipped base by its name; a user's base
+    file only when named, with its SHA-256."""
+    from casep.model.loader import load_recorded_model, model_record, with_time_offset
+
+    shipped = with_time_offset("platform36")
+    rec = model_record(shipped)
+    assert rec["model_file"] is None
+    back = load_recorded_model(shipped.name, sha256=rec["model_sha256"], where="r.json")
+    assert back.name == "platform36+dt_trk" and back.names == shipped.names
+    mine = with_time_offset(clean / "evil.py")
+    (clean / "MARKER").unlink()
+    rec = model_record(mine)
+    assert rec["model_file"] == str((clean / "evil.py").resolve())
+    with pytest.raises(ValueError, match=r"`evil\+dt_trk` .* not shipped with casep"):
+        load_recorded_model(mine.name, sha256=rec["model_sha256"], model_file=rec["model_file"], where="r.json")
+    assert not (clean / "MARKER").exists()
+    back = load_recorded_model(mine.name, sha256=rec["model_sha256"], model_file=rec["model_file"], where="r.json",
+                               given=clean / "evil.py")
+    assert back.name == "evil+dt_trk" and back.names == mine.names
+
+
+def test_a_shipped_model_changed_since_is_a_warning_naming_both_hashes():
+    from casep.exceptions import CasepWarning
+    from casep.model.loader import load_recorded_model, shipped_model_file
+
+    now = hashlib.sha256(shipped_model_file("platform36").read_bytes()).hexdigest()
+    with pytest.warns(CasepWarning, match=f"sha256 {'0' * 64}, but .*platform36.py has sha256 {now}"):
+        load_recorded_model("platform36", sha256="0" * 64, where="r.json")
