@@ -364,7 +364,8 @@ def _path_like(name: str) -> bool:
     return name.endswith(".py") or "/" in name or "\\" in name
 
 
-def _given_model(given: str | os.PathLike | ErrorModel, name: str, where: str, option: str) -> ErrorModel:
+def _given_model(given: str | os.PathLike | ErrorModel, name: str, where: str, option: str,
+                 model_file: str | None = None) -> ErrorModel:
     """The model the user named, for a file that records model `name` (a ``+dt_trk`` name gains the term)."""
     model = load_model(given)
     if _path_like(name):  # an old record of the file's path as its model: the file the user names stands
@@ -372,8 +373,8 @@ def _given_model(given: str | os.PathLike | ErrorModel, name: str, where: str, o
     if name and name != model.name and name == model.name + TIME_OFFSET_SUFFIX:
         model = with_time_offset(model)
     if name and name != model.name:
-        raise ValueError(f"{where} is of model `{name}`, not of model `{model.name}`: give {option} {name} "
-                         f"(or leave it out), or a result of `{model.name}`")
+        raise ValueError(f"{where} is of model `{name}`, not of model `{model.name}`: give {option} "
+                         f"{model_file or name} (or leave it out), or a result of `{model.name}`")
     return model
 
 
@@ -416,7 +417,7 @@ def load_recorded_model(name: str | None, *, sha256: str | None = None, model_fi
 
                 _check_sha256(file_sha256(path), str(path), sha256, model_file, where, option, error=True)
             given = load_model_file(path)
-        model = _given_model(given, name or "", where, option)
+        model = _given_model(given, name or "", where, option, model_file)
         _check_sha256(model.source_sha256, model.source_file, sha256, model_file, where, option, error=True)
         return model
     if not name:
