@@ -75,8 +75,6 @@ def _is_shipped(path: str | os.PathLike) -> bool:
     return any(real.parent == d.resolve() for d in shipped_model_dirs())
 
 
-
-
 def model_names(dirs: Sequence[Path]) -> list[str]:
     """Names of the model files (``*.py``, not ``_*``) in `dirs`, in search order (first one wins on a clash)."""
     seen: list[str] = []
@@ -214,7 +212,7 @@ def run_model_file(path: Path, kind: type[SymbolicModel] = ErrorModel) -> Any:
     limit = _timeout_s()
     try:
         with _time_limit(limit):
-            exec(compile(source, str(path), "exec"), module.__dict__)  # noqa: S102 - a model file is code (module notes)
+            exec(compile(source, str(path), "exec"), module.__dict__)  # a model file is code (module notes)
             build = getattr(module, "build", None)
             if not callable(build):
                 raise ModelFileError(f"model file {path}: Missing: build(). Use: def build() -> {kind.PUBLIC_NAME}")
