@@ -73,3 +73,7 @@ def add_own_trajectory(parser: Any) -> None:
                         help='with --flight: true coefficients {"Kg0x": value, ...} (natural units) or a truth file of '
                              "casep simulate (its model and noise used; else white noise of the flight's own "
                              "least-squares residual std)")
+    parser.add_argument("--model", default=None,
+                        help="model name or .py file of --truth and --prior when it is not shipped with casep (a model "
+                             "file is Python code: casep runs one only when it is named here, never on a file's word; "
+                             "without --truth the runs use the scenario's model)")

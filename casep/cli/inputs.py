@@ -130,13 +130,21 @@ def coefficient_file(args: argparse.Namespace, option: str, names: Any) -> dict[
 
 
 def own_trajectory(args: argparse.Namespace) -> tuple[Any, Any, Any]:
-    """(flight path, truth dict, model name) of --flight/--truth, or (None, None, None)."""
-    flight, truth = getattr(args, "flight", None), getattr(args, "truth", None)
+    """(flight path, truth dict, model) of --flight/--truth, or (None, None, None). The model (also the dict's
+    ``model``): the shipped one the truth names or ``--model`` (a file never runs code on its own word:
+    :func:`casep.model.loader.load_recorded_model`); None when neither names one (the scenario's)."""
+    flight, truth, given = getattr(args, "flight", None), getattr(args, "truth", None), getattr(args, "model", None)
     if not flight and not truth:
+        if given and not getattr(args, "prior", None):
+            raise ValueError(f"--model {given} names the model of a --truth or --prior file that is not shipped with "
+                             "casep; without them the scenario's model is used: leave --model out")
         return None, None, None
     if not (flight and truth):
         raise ValueError("--flight and --truth go together: one's own trajectory needs its true coefficients")
     from casep.io.files import read_json_table
+    from casep.model.loader import load_recorded_model
 
     data = read_json_table(truth, "--truth")
-    return flight, data, data.get("model") if isinstance(data.get("model"), str) else None
+    name = data.get("model") if isinstance(data.get("model"), str) else None
+    model = None if name is None and given is None else load_recorded_model(name, given=given, where=f"--truth {truth}")
+    return flight, data if model is None else {**data, "model": model}, model

@@ -17,7 +17,7 @@ def add_parser(sub: Any) -> None:
 
     p = sub.add_parser("montecarlo", help="seeded Monte Carlo of the estimators against the CRLB")
     p.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
-    p.add_argument("--runs", type=order, default=100, help="noise draws (default 100)")
+    p.add_argument("--runs", type=positive_int, default=100, help="noise draws, >= 1 (default 100)")
     p.add_argument("--methods", default="ols,rls,rels",
                    help=f"comma-separated: {', '.join(METHODS)}, ridge:<lambda> (fixed), wavelet+<method> (de-noised "
                         "first) (default ols,rls,rels)")

@@ -52,10 +52,11 @@ def result_from_data(rd: Any, model: Any, cls: type) -> Any:
     """
     f = rd.fields
     si = None
-    if model is not None:
-        from casep.model.loader import load_model
+    if model is not None:  # the caller's model: of the result's name, and of its recorded SHA-256
+        from casep.model.loader import load_recorded_model
 
-        model = load_model(model)
+        model = load_recorded_model(rd.model or None, sha256=f.get("model_sha256"), model_file=f.get("model_file"),
+                                    given=model, where=rd.source)
         skip = tracking_terms(f.get("diagnostics"))
         check_result_units(rd.names, rd.units, model, rd.source, skip=skip)
         if not skip:
@@ -98,7 +99,8 @@ def result_from_data(rd: Any, model: Any, cls: type) -> Any:
         n_samples=int(f.get("n_samples") or 0), denoise=f.get("denoise"),
         sigma_source=f.get("sigma_source") or ("estimated" if f.get("sigma") is not None else "external"),
         stored_residual_rms=rrms if rrms is not None else {a: None for a in AXES},
-        std_kind=f.get("std_kind") or "sampling", extras=extras, model_file=f.get("model_file"))
+        std_kind=f.get("std_kind") or "sampling", extras=extras, model_file=f.get("model_file"),
+        model_sha256=f.get("model_sha256"))
 
 
 def tracking_terms(diagnostics: Any) -> set[str]:

@@ -100,8 +100,14 @@ def _parse(prior: Mapping, names: Sequence[str], source: str):
             continue
         if name not in names:
             raise ValueError(unknown_coefficient_message(name, names, source))
-        if not isinstance(spec, Mapping) or "mean" not in spec or "std" not in spec:
-            raise ValueError(f"{source}: `{name}` must be {{\"mean\": m, \"std\": s}}, got {spec!r}")
+        if not isinstance(spec, Mapping):
+            raise ValueError(f"{source}: entry `{name}` must be {{\"mean\": m, \"std\": s}} (natural units), got "
+                             f"{spec!r}")
+        lacking = [k for k in ("mean", "std") if k not in spec]
+        if lacking:
+            raise ValueError(f"{source}: entry `{name}`: missing field {' and '.join(f'`{k}`' for k in lacking)} "
+                             f"(found: {', '.join(map(str, spec)) or 'none'}); each entry is "
+                             "{\"mean\": m, \"std\": s} in natural units")
         for key in ("mean", "std"):  # strict: true or "0.1" is not a number
             if not is_number(spec[key]):
                 raise ValueError(f"{source}: `{name}` {key} must be a number, got {spec[key]!r} "
@@ -185,16 +191,13 @@ def per_flight_names(result, model=None) -> set[str]:
     `model` (ErrorModel or name) defaults to the result's own; a result whose model cannot be found
     is an error (guessing would silently treat a flight's own time offset as shared).
     """
-    from casep.model.loader import load_model
+    from casep.model.loader import load_model, load_recorded_model
 
-    if model is None:
+    if model is None:  # a shipped model by its name; any other only when named (never run on a result's word)
         if not result.model:
             raise ValueError("the result names no model: give `model` to tell its per-flight coefficients")
-        try:
-            model = load_model(result.model)
-        except (ValueError, OSError) as exc:
-            raise ValueError(f"the result's model `{result.model}` cannot be loaded ({exc}); give `model` "
-                             "(--model) to tell its per-flight coefficients") from None
+        model = load_recorded_model(result.model, sha256=result.model_sha256, model_file=result.model_file,
+                                    where=f"the result of model `{result.model}`", option="`model` (--model)")
     else:
         model = load_model(model)
     own = {n for n, pf in zip(model.names, model.per_flight) if pf}

@@ -2,17 +2,25 @@
 
 The file is parsed and checked strictly by :mod:`casep.io.result_json` (every form of
 ``docs/guide/result-files.md``); here it becomes a result (a casep file of an earlier version in
-today's form: each method's extras type says how its old form reads), its model is found (by name,
-then by the ``model_file`` it records) and its coefficients and units are checked against that model.
+today's form: each method's extras type says how its old form reads), its model is found without
+running code on the file's word (:func:`casep.model.loader.load_recorded_model`: a model shipped
+with casep by its name, any other only when the user names it, with the SHA-256 the result records)
+and its coefficients and units are checked against that model.
+
+:func:`check_usable` is the one rule for "may this result be an input" (``impact --result``,
+``fuse``, ``--prior``, ``montecarlo``/``design --prior``): :func:`read_input_result` reads and applies it.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 from casep.estimators import _from_data
 from casep.estimators._from_data import check_result_units, tracking_terms
 from casep.estimators.result import EstimateResult
 
-__all__ = ["read_result", "resolve_result_model", "result_from_data", "check_result_units"]
+__all__ = ["read_result", "read_input_result", "check_usable", "resolve_result_model", "result_from_data",
+           "check_result_units"]
 
 
 def result_from_data(rd, model=None) -> EstimateResult:
@@ -21,15 +29,16 @@ def result_from_data(rd, model=None) -> EstimateResult:
     return _from_data.result_from_data(rd, model, EstimateResult)
 
 
-def read_result(source, model=None, option: str = "result") -> tuple[EstimateResult, object]:
+def read_result(source, model=None, option: str = "result",
+                model_option: str = "--model") -> tuple[EstimateResult, object]:
     """A result file read with its model: ``(result, model)``.
 
-    The model is `model` when given (ErrorModel, name or path), else the one the result names:
-    by name (built-in, or ``CASEP_MODEL_PATH``), then by the ``model_file`` the result records.
-    A result whose model cannot be found is a ValueError saying exactly what to pass.
+    The model is `model` when given (ErrorModel, name or path: the user's, which may run), else the
+    model shipped with casep that the result names. A result of any other model is a ValueError saying
+    to give it with `model_option`: a result file never runs code. A model file whose SHA-256 differs
+    from the one the result records is a ValueError naming both (:func:`resolve_result_model`).
     """
     from casep.io.result_json import parse_result_data, read_result_data
-    from casep.model.loader import load_model
 
     if isinstance(source, EstimateResult):
         rd, res = None, source
@@ -38,16 +47,11 @@ def read_result(source, model=None, option: str = "result") -> tuple[EstimateRes
         rd = parse_result_data(source, "result <memory>") if isinstance(source, dict) else \
             read_result_data(source, option)
         where = rd.source
-    if model is None:
-        name = (rd.model if rd is not None else source.model) or ""
-        mfile = rd.fields.get("model_file") if rd is not None else source.model_file
-        model = resolve_result_model(name, mfile, where)
+    if rd is not None:
+        rec = (rd.model, rd.fields.get("model_sha256"), rd.fields.get("model_file"))
     else:
-        model = load_model(model)
-        name = rd.model if rd is not None else source.model
-        if name and name != model.name:
-            raise ValueError(f"{where} is of model `{name}`, not of model `{model.name}`: give --model {name} "
-                             f"(or leave it out), or a result of `{model.name}`")
+        rec = (source.model, source.model_sha256, source.model_file)
+    model = resolve_result_model(*rec, where, given=model, option=model_option)
     if rd is not None:
         res = result_from_data(rd, model)
     else:
@@ -55,22 +59,36 @@ def read_result(source, model=None, option: str = "result") -> tuple[EstimateRes
     return res, model
 
 
-def resolve_result_model(name: str, model_file: str | None, where: str):
-    """The model a result names (see :func:`read_result`)."""
-    from casep.model.loader import load_model
+def resolve_result_model(name: str, sha256: str | None, model_file: str | None, where: str, *, given=None,
+                         option: str = "--model"):
+    """The model of a result (see :func:`read_result`; :func:`casep.model.loader.load_recorded_model`)."""
+    from casep.model.loader import load_recorded_model
 
-    if not name and not model_file:
-        raise ValueError(f"{where} names no model (no `model` field): give the model (CLI --model NAME|FILE.py, "
-                         "API model=...)")
-    errors = []
-    for cand in ([name] if name else []) + ([model_file] if model_file else []):
-        try:
-            return load_model(cand)
-        except ValueError as exc:  # unknown name, missing file; a broken file names itself
-            if "unknown model" not in str(exc) and "does not exist" not in str(exc):
-                raise
-            errors.append(cand)
-    hint = f" (the result records model_file {model_file}, which does not exist)" if model_file else ""
-    raise ValueError(f"{where} is of model `{name or model_file}`, which casep cannot find: it is not a built-in model "
-                     f"nor in CASEP_MODEL_PATH{hint}. Give the model file: --model path/to/{name or 'model'}.py "
-                     "(API: model='path/to/model.py')")
+    return load_recorded_model(name or None, sha256=sha256, model_file=model_file, given=given, where=where,
+                               option=option)
+
+
+def check_usable(result: Any, where: str) -> None:
+    """Raise ValueError when `result` may not be an input of another step (fuse, impact, a prior).
+
+    A failed result (``success`` false) is refused: its estimate and std are what a failed fit left.
+
+    Parameters
+    ----------
+    result : EstimateResult
+        A result, read back from a file or in memory.
+    where : str
+        What to name in the message (``"--prior FILE"``).
+    """
+    if not result.success:
+        raise ValueError(f"{where}: a failed result (status {result.status}: {result.message}); its estimate and std "
+                         "are not usable as an input. Fix what failed and estimate again")
+
+
+def read_input_result(source, model=None, option: str = "result",
+                      model_option: str = "--model") -> tuple[EstimateResult, object]:
+    """:func:`read_result` and :func:`check_usable`: a result to use as an input, with its model."""
+    res, model = read_result(source, model, option, model_option)
+    where = f"{option} {source}" if not isinstance(source, (dict, EstimateResult)) else f"{option} <memory>"
+    check_usable(res, where)
+    return res, model

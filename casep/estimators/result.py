@@ -118,8 +118,11 @@ class EstimateResult:
         Typed per-method outputs, an instance of ``EXTRAS_TYPES[method]`` (e.g.
         ``res.extras.lam`` for ridge); None for a result of no registered method (fused).
     model_file : str or None
-        The model's file when the model is not found by its name (a model loaded from a path):
-        written to the JSON so that ``impact`` and ``fuse`` find it again.
+        The model's file when the model is not shipped with casep: written to the JSON so that a
+        message of ``impact``, ``fuse`` or ``--prior`` can say which file to give with ``--model``.
+    model_sha256 : str or None
+        SHA-256 of the model file that ran (``docs/guide/model-files.md``): a model file given to read
+        the result must have it.
     """
 
     method: str
@@ -149,6 +152,7 @@ class EstimateResult:
     std_kind: str = "sampling"
     extras: Any = None
     model_file: str | None = None
+    model_sha256: str | None = None
 
     def __post_init__(self) -> None:
         if self.std_kind not in STD_KIND_MEANINGS:
@@ -235,6 +239,7 @@ class EstimateResult:
             "extras": jsonable(dataclasses.asdict(self.extras)) if self.extras is not None else None,
             "history_names": list(self.history_names) if self.history_names is not None else None,
             **({"model_file": self.model_file} if self.model_file else {}),
+            **({"model_sha256": self.model_sha256} if self.model_sha256 else {}),
         }
 
     @classmethod

@@ -125,14 +125,17 @@ class _Coefficients:
 
 
 def _load_result(result, model=None):
-    """``(result, its source, model)``: :func:`casep.estimators.reading.read_result` (every result form,
-    checked; the model the result names, or `model`)."""
-    from casep.estimators.reading import read_result
+    """``(result, its source, model, its provenance)``: :func:`casep.estimators.reading.read_input_result`
+    (every result form, checked, usable as an input; the model shipped with casep that the result names,
+    or `model`)."""
+    from casep.estimators.reading import read_input_result
     from casep.estimators.result import EstimateResult
+    from casep.io.result_json import load_json
 
     source = "<memory>" if isinstance(result, (EstimateResult, dict)) else os.fspath(result)
-    res, model = read_result(result, model, option="--result" if source != "<memory>" else "result")
-    return res, source, model
+    res, model = read_input_result(result, model, option="--result" if source != "<memory>" else "result")
+    raw = result if isinstance(result, dict) else None if source == "<memory>" else load_json(result, "--result")
+    return res, source, model, (raw or {}).get("provenance")
 
 
 def _coefficients(res, model, per_flight: Mapping[str, float] | None, source: str) -> _Coefficients:
@@ -168,17 +171,15 @@ def _coefficients(res, model, per_flight: Mapping[str, float] | None, source: st
             raise ValueError(f"result {source} has no coefficient `{nm}` of model `{model.name}`")
     idx = np.array([where.get(nm, -1) for nm in names])
     inres = idx >= 0
-    cov = None
-    cov_source = "none: the result has neither covariance nor std"
-    if res.covariance is not None:
-        C = np.asarray(res.covariance, dtype=float)
-        cov = np.zeros((n, n))
-        cov[np.ix_(inres, inres)] = C[np.ix_(idx[inres], idx[inres])]
-        cov_source = f"the result's covariance ({res.std_kind})"
-    elif res.std is not None:
-        cov = np.zeros((n, n))
-        cov[inres, inres] = np.asarray(res.std, dtype=float)[idx[inres]] ** 2
-        cov_source = f"the result's std, no covariance: correlations ignored ({res.std_kind})"
+    if res.covariance is None:  # the std alone would ignore the coefficients' correlations: a wrong miss std
+        raise ValueError(f"result {source} has no `covariance` (n x n, natural units, one row per coefficient): the "
+                         "miss std is G Cov G^T and needs the coefficients' covariance, not only their std"
+                         f"{' (the file has std only)' if res.std is not None else ''}; casep separate --json "
+                         "writes it")
+    C = np.asarray(res.covariance, dtype=float)
+    cov = np.zeros((n, n))
+    cov[np.ix_(inres, inres)] = C[np.ix_(idx[inres], idx[inres])]
+    cov_source = f"the result's covariance ({res.std_kind})"
     return _Coefficients(est, cov, tuple(status), dict(res.reasons), cov_source)
 
 
@@ -230,9 +231,9 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
         result file of another tool in a form of ``docs/guide/result-files.md``; its units must be the
         model's.
     model : ErrorModel or str, optional
-        Default: the result's model, found by its name (built-in or ``CASEP_MODEL_PATH``) or by the
-        ``model_file`` the result records (a model loaded from a path); when neither finds it, the
-        ValueError says to pass the model file. A model of another name is refused (message names both).
+        Default: the model shipped with casep that the result names; a result of any other model needs
+        it here (a result file never runs code: the ValueError says which file to give), and its file
+        must have the SHA-256 the result records. A model of another name is refused (message names both).
     trajectory : FlightData or path, optional
         Another trajectory (``t``, ``f_*``, ``r_*``, ``v_*``; dv not needed): the result's
         estimate and covariance are applied to *its* S_V and burnout state (the miss of a flight
@@ -249,6 +250,13 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
     -------
     ImpactAnalysis
 
+    Raises
+    ------
+    ValueError
+        A result that may not be an input (failed: :func:`casep.estimators.reading.check_usable`), one
+        without a covariance, one whose provenance records other data files than `flight`'s
+        (:func:`casep.io.provenance.check_estimated_on`), or one of a model not named (see `model`).
+
     Notes
     -----
     See the module notes. ``x_b = (r_b, v_b)`` at the last sample; ``B = [S_P(t_b); S_V(t_b)]``
@@ -256,9 +264,12 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
     ``c_j = G_j D_j``; ``miss = sum_j c_j`` over the coefficients with a value;
     ``cov = G_k Cov_kk G_k^T`` over the estimated ones; ``nonlinear = impact(x_b - B D) - impact(x_b)``.
     """
-    res, rsource, model = _load_result(result, model)
+    from casep.io.provenance import check_estimated_on
+
+    res, rsource, model, record = _load_result(result, model)
     if not isinstance(flight, FlightData):
         flight = read_trajectory(flight)  # dv is not used here (a radar-tracked flight's telemetry has none)
+    check_estimated_on(record, flight, f"--result {rsource}" if rsource != "<memory>" else "the result")
     target = flight
     if trajectory is not None:
         target = trajectory if isinstance(trajectory, FlightData) else read_trajectory(trajectory)

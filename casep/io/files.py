@@ -359,5 +359,7 @@ def read_json_table(path: str | os.PathLike, option: str) -> dict:
 
     data = load_json(path, option)
     if not isinstance(data, dict):
-        raise ValueError(f"{option} {path}: must hold a JSON object keyed by coefficient name")
+        found = {list: "an array", str: "a string", bool: "true/false", type(None): "null"}.get(type(data), "a number")
+        raise ValueError(f"{option} {path}: must hold a JSON object keyed by coefficient name ({{\"Kg0x\": ...}}), "
+                         f"got {found}")
     return data

@@ -17,10 +17,23 @@ import sys
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-__all__ = ["provenance", "flight_provenance", "file_record", "command_line"]
+__all__ = ["provenance", "flight_provenance", "file_record", "file_sha256", "command_line", "DATA_ROLES",
+           "flight_files", "check_estimated_on"]
+
+#: Roles of the files a flight is read from (:func:`flight_provenance`'s ``files``): the data of a result.
+DATA_ROLES = ("flight", "telemetry", "tracking")
 
 #: FlightData.meta keys that say which samples were left out, and why.
 _EXCLUSIONS = ("unobserved", "telemetry_dropped", "tracking_dropped", "gap_rows_left_out", "gaps_s", "inserted")
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """SHA-256 (hex) of a file's bytes, read in 1 MiB blocks; OSError when it cannot be read."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 def file_record(path: str | os.PathLike, role: str) -> dict[str, Any]:
@@ -28,11 +41,7 @@ def file_record(path: str | os.PathLike, role: str) -> dict[str, Any]:
     p = Path(path)
     digest, size = None, None
     try:
-        h = hashlib.sha256()
-        with open(p, "rb") as fh:
-            for block in iter(lambda: fh.read(1 << 20), b""):
-                h.update(block)
-        digest, size = h.hexdigest(), p.stat().st_size
+        digest, size = file_sha256(p), p.stat().st_size
     except OSError:
         pass
     return {"role": role, "file": str(p), "bytes": size, "sha256": digest}
@@ -117,3 +126,54 @@ def provenance(flights: Sequence, *, inputs: Mapping[str, Any] | None = None, op
     if manifest is not None:
         out["manifest"] = {"file": manifest.source, "flights": [f.to_dict() for f in manifest.flights]}
     return out
+
+
+def flight_files(flight) -> list[str]:
+    """The files `flight` (a FlightData) was read from: its telemetry and tracking files, or its one file."""
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    files = [meta.get("telemetry"), meta.get("tracking")] if meta.get("format") == "pair" else [flight.source]
+    return [str(f) for f in files if f and Path(str(f)).is_file()]
+
+
+def check_estimated_on(record: Any, flight, where: str) -> None:
+    """Refuse a result whose provenance says it was estimated on other data than `flight`.
+
+    The result's ``provenance.inputs`` holds the SHA-256 of each data file it read (:data:`DATA_ROLES`);
+    the flight's telemetry (or its one file) must be one of them. A result without such a record (written
+    by hand, by the API or by an earlier casep) is not checked; a flight read from no file cannot be, and
+    a :class:`~casep.exceptions.CasepWarning` says so.
+
+    Parameters
+    ----------
+    record : dict or None
+        The result's ``provenance``.
+    flight : FlightData
+        The flight the result is applied to as its own.
+    where : str
+        The result, as messages name it (``--result r.json``).
+
+    Raises
+    ------
+    ValueError
+        Naming the flight file and its SHA-256, and the data files the result records with theirs.
+    """
+    inputs = record.get("inputs") if isinstance(record, dict) else None
+    recorded = [(str(i.get("sha256")), str(i.get("file", ""))) for i in (inputs if isinstance(inputs, list) else [])
+                if isinstance(i, dict) and i.get("role") in DATA_ROLES and i.get("sha256")]
+    if not recorded:
+        return
+    files = flight_files(flight)
+    if not files:
+        import warnings
+
+        from casep.exceptions import CasepWarning
+
+        warnings.warn(f"{where} was estimated on {', '.join(f for _, f in recorded)}; the flight {flight.source} "
+                      "is read from no file, so casep cannot check that it is that flight", CasepWarning, stacklevel=3)
+        return
+    mine = file_record(files[0], "flight")["sha256"]
+    if mine not in {d for d, _ in recorded}:
+        theirs = "; ".join(f"{f} (sha256 {d})" for d, f in recorded)
+        raise ValueError(f"{where} was estimated on other data: flight {files[0]} has sha256 {mine}, the result "
+                         f"records {theirs}. Give the flight the result was estimated on (a flight not flown goes "
+                         "to --trajectory)")

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 __all__ = ["load_json", "ResultData", "read_result_data", "parse_result_data", "check_covariance",
            "looks_like_result", "MAX_RESULT_VALUE", "STD_RTOL", "FORMS_RTOL", "SYMMETRY_RTOL", "PSD_TOL"]
@@ -117,6 +117,7 @@ class _ResultFile(BaseModel):
     model_config = ConfigDict(strict=True, extra="allow", protected_namespaces=())
     model: str | None = None
     model_file: str | None = None
+    model_sha256: str | None = Field(default=None, pattern="^[0-9a-f]{64}$")  # hex SHA-256 of the model file
     coefficients: list[_Coefficient] | None = None
     names: list[str] | None = None
     units: list[str] | None = None

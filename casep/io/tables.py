@@ -66,6 +66,41 @@ def _csv_header(path: Path) -> tuple[list[str], str]:
     return [], ","
 
 
+def _nul_line(path: Path) -> int | None:
+    """The file line (1-based) of the first NUL byte of a text file, or None (a memory-mapped search).
+
+    A NUL byte is no character of a CSV file: it is what a recorder that stopped leaves in the space it had
+    reserved, or a binary file given as text. pandas' C parser ends a field at one silently.
+    """
+    import mmap
+
+    with open(path, "rb") as fh:
+        if os.fstat(fh.fileno()).st_size == 0:
+            return None
+        with mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as mm:
+            at = mm.find(b"\0")
+            return None if at < 0 else mm[:at].count(b"\n") + 1
+
+
+def _refuse_nul(path: Path) -> None:
+    """A FlightDataError naming the file, the data row and the line of the first NUL byte."""
+    line = _nul_line(path)
+    if line is None:
+        return
+    row: int | str | None = None
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        seen = -1  # the header is row 0 (comments and blank lines skipped, as pandas reads them)
+        for lineno, text in enumerate(fh, 1):
+            st = text.replace("\0", "").strip()
+            if lineno == line:
+                row = "header" if seen < 0 else seen + 1
+                break
+            if st and not st.startswith("#"):
+                seen += 1
+    raise FlightDataError(str(path), "NUL byte(s) in a text file (a recorder's unwritten space, or a binary file?): "
+                          "cut the file where its data end, or export it again", None, row, line)
+
+
 def _parquet_header(path: Path) -> list[str]:
     import pyarrow.parquet as pq
 
@@ -118,6 +153,7 @@ class Table:
             self._refuse_repeated(self._parquet(_parquet_header))  # before pandas, which fails on them
             frame, self.nulls = self._parquet(_read_parquet_frame)
         else:
+            _refuse_nul(self.path)  # before pandas, whose C parser ends a field at a NUL silently
             try:
                 header, self.sep = _csv_header(self.path)
                 frame = pd.read_csv(self.path, sep=self.sep, comment="#", skip_blank_lines=True,

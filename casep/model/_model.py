@@ -112,6 +112,7 @@ class ErrorModel(SpecificForceModel):
         self._numeric: dict[str, np.ndarray] = {}
         self.source_file: str | None = None  # the model file, set by casep.model.loader
         self.source_doc: str = ""  # the model file's docstring, set by casep.model.loader
+        self.source_sha256: str | None = None  # SHA-256 of the model file, set by casep.model.loader
 
     # ------------------------------------------------------------------ declare
     @property

@@ -8,7 +8,13 @@ casep's built-in model folder. Files are loaded with
 A model file is Python and **runs as code** with the rights of the user: casep loads one only
 from its built-in model folder, a folder of ``CASEP_MODEL_PATH`` or a path given explicitly
 (``--model path/to/file.py``), never from the current directory by name. Treat a model file
-like any script you run.
+like any script you run. Before it runs a model file that is not shipped with casep, casep says so
+on stderr (``casep: running model file PATH``), once per file and process.
+
+A model named by a *file* (a result, prior, truth or manifest) is never run on the file's word:
+:func:`load_recorded_model` loads a model shipped with casep by its name, and any other model only
+when the user names it (``--model``, API ``model=``); the SHA-256 a result records for its model
+file (``model_sha256``, :func:`model_record`) must then be that of the file named.
 
 A file that does not compile, raises or calls ``sys.exit`` while loading or in ``build()``
 gives a one-line :class:`ModelFileError` (a :class:`casep.ModelDefinitionError`; the command
@@ -19,10 +25,12 @@ deepest line of the traceback inside the model file.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import importlib.util
 import math
 import os
 import signal
+import sys
 import threading
 import time
 import traceback
@@ -34,18 +42,37 @@ from casep.model.base import SymbolicModel
 
 __all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file",
            "run_model_file", "with_time_offset", "TIME_OFFSET", "model_file_reference", "model_names", "where_in_file",
-           "load_model_file"]
+           "load_model_file", "shipped_model_dirs", "shipped_model_file", "model_record",
+           "load_recorded_model", "shipped_model"]
+
+
+def shipped_model_dirs() -> list[Path]:
+    """The folders of the models shipped with casep: ``casep/models`` (an installed wheel) and the
+    source checkout's ``models/`` (an editable install)."""
+    here = Path(__file__).resolve().parents[1]  # the casep package
+    return [cand for cand in (here / "models", here.parent / "models") if cand.is_dir()]
 
 
 def model_dirs() -> list[Path]:
-    """Folders searched for a model given by name, in search order."""
+    """Folders searched for a model given by name, in search order (``CASEP_MODEL_PATH``, then shipped)."""
     dirs = [Path(p) for p in os.environ.get("CASEP_MODEL_PATH", "").split(os.pathsep) if p]
-    here = Path(__file__).resolve().parents[1]  # the casep package
-    # Installed wheel: casep/models; source checkout or editable install: <repo>/models.
-    for cand in (here / "models", here.parent / "models"):
-        if cand.is_dir() and cand not in dirs:
-            dirs.append(cand)
-    return dirs
+    return dirs + [d for d in shipped_model_dirs() if d not in dirs]
+
+
+def shipped_model_file(name: str) -> Path | None:
+    """The file of the model shipped with casep called `name` (a plain name, no path), or None."""
+    if not name or name.endswith(".py") or any(c in name for c in ("/", "\\", os.sep)) or name.startswith(("_", ".")):
+        return None
+    for d in shipped_model_dirs():
+        path = d / f"{name}.py"
+        if path.is_file():
+            return path
+    return None
+
+
+def _is_shipped(path: str | os.PathLike) -> bool:
+    real = Path(path).resolve()
+    return any(real.parent == d.resolve() for d in shipped_model_dirs())
 
 
 def model_names(dirs: Sequence[Path]) -> list[str]:
@@ -176,11 +203,16 @@ def run_model_file(path: Path, kind: type[SymbolicModel] = ErrorModel) -> Any:
     if spec is None or spec.loader is None:
         raise ModelFileError(f"model file {path}: cannot be loaded as Python")
     module = importlib.util.module_from_spec(spec)
+    try:
+        source = Path(path).read_bytes()  # the bytes hashed are the bytes run
+    except OSError as exc:
+        raise ModelFileError(f"model file {path}: cannot read ({exc.strerror})") from None
+    _announce(path)
     stage = "loading"
     limit = _timeout_s()
     try:
         with _time_limit(limit):
-            spec.loader.exec_module(module)
+            exec(compile(source, str(path), "exec"), module.__dict__)  # a model file is code (module notes)
             build = getattr(module, "build", None)
             if not callable(build):
                 raise ModelFileError(f"model file {path}: Missing: build(). Use: def build() -> {kind.PUBLIC_NAME}")
@@ -208,7 +240,21 @@ def run_model_file(path: Path, kind: type[SymbolicModel] = ErrorModel) -> Any:
     if isinstance(result, ErrorModel):
         result.source_file = str(path.resolve())
         result.source_doc = (module.__doc__ or "").strip()
+        result.source_sha256 = hashlib.sha256(source).hexdigest()
     return result
+
+
+_announced: set[str] = set()
+
+
+def _announce(path: Path) -> None:
+    """``casep: running model file PATH`` on stderr before a model file not shipped with casep runs
+    (once per file and process): a file that hangs or misbehaves is named before it does."""
+    real = str(Path(path).resolve())
+    if real in _announced or _is_shipped(real):
+        return
+    _announced.add(real)
+    print(f"casep: running model file {path}", file=sys.stderr, flush=True)
 
 
 _run_file = run_model_file  # the instrument-model case
@@ -260,6 +306,8 @@ def load_model_file(path: Path, kind: type[SymbolicModel] = ErrorModel) -> Any:
 
 #: The tracking time offset term every model can gain (:func:`with_time_offset`).
 TIME_OFFSET = "dt_trk"
+#: The name of a model with the term added: ``platform36+dt_trk``.
+TIME_OFFSET_SUFFIX = "+" + TIME_OFFSET
 
 
 def with_time_offset(model: str | os.PathLike | ErrorModel) -> ErrorModel:
@@ -275,10 +323,9 @@ def with_time_offset(model: str | os.PathLike | ErrorModel) -> ErrorModel:
     base = load_model(model)
     if TIME_OFFSET in base.names:
         return base
-    source = model if isinstance(model, (str, os.PathLike)) else base.name
+    source = model if isinstance(model, (str, os.PathLike)) else (base.source_file or base.name)
     m = build_model(source)  # unlocked: the term is added to it
-    m.name = f"{base.name}+dt_trk"
-    m.source_file = None  # a derived model: its file alone does not build it (no model_file in results)
+    m.name = f"{base.name}{TIME_OFFSET_SUFFIX}"  # its file is the base model's (load_recorded_model adds the term)
     m.description = f"{base.description or base.name} + tracking time offset dt_trk (ms, per flight)"
     c = m.declare(dt_trk=("ms", 20.0), per_flight=True)  # tracking time-tag delay, ms (SI: s)
     a = ca.vertcat(m.signal("a_x"), m.signal("a_y"), m.signal("a_z"))  # kinematic acceleration, m/s^2
@@ -288,15 +335,118 @@ def with_time_offset(model: str | os.PathLike | ErrorModel) -> ErrorModel:
 
 
 def model_file_reference(model: ErrorModel) -> str | None:
-    """The model's file when its name alone does not find that file (a model loaded from a path), else None.
-
-    A result records it (``model_file``) so that a later ``impact`` or ``fuse`` finds the model again.
-    """
+    """The model's file when it is not shipped with casep (a model loaded from a path or from
+    ``CASEP_MODEL_PATH``), else None: a result records it (``model_file``) so that a message can say
+    which file to give with ``--model``."""
     src = getattr(model, "source_file", None)
-    if not src:
+    return None if not src or _is_shipped(src) else src
+
+
+def model_record(model: ErrorModel) -> dict[str, str | None]:
+    """What a result records of its model's file: ``{"model_file": ..., "model_sha256": ...}``
+    (:func:`model_file_reference`; the SHA-256 of the file that ran, None for a model declared in code)."""
+    return {"model_file": model_file_reference(model), "model_sha256": getattr(model, "source_sha256", None)}
+
+
+def shipped_model(name: str) -> ErrorModel | None:
+    """The model shipped with casep called `name` (``platform36``, ``platform36+dt_trk``), set up; None
+    for any other name: a name read from a file never runs a file that is not casep's own."""
+    base = name[: -len(TIME_OFFSET_SUFFIX)] if name.endswith(TIME_OFFSET_SUFFIX) else name
+    path = shipped_model_file(base)
+    if path is None:
         return None
-    try:
-        found = find_model_file(model.name)
-    except (ValueError, TypeError):
-        return src
-    return None if str(found.resolve()) == src else src
+    return with_time_offset(path) if base != name else load_model_file(path)
+
+
+def _path_like(name: str) -> bool:
+    return name.endswith(".py") or "/" in name or "\\" in name
+
+
+def _given_model(given: str | os.PathLike | ErrorModel, name: str, where: str, option: str,
+                 model_file: str | None = None) -> ErrorModel:
+    """The model the user named, for a file that records model `name` (a ``+dt_trk`` name gains the term)."""
+    model = load_model(given)
+    if _path_like(name):  # an old record of the file's path as its model: the file the user names stands
+        return model
+    if name and name != model.name and name == model.name + TIME_OFFSET_SUFFIX:
+        model = with_time_offset(model)
+    if name and name != model.name:
+        raise ValueError(f"{where} is of model `{name}`, not of model `{model.name}`: give {option} "
+                         f"{model_file or name} (or leave it out), or a result of `{model.name}`")
+    return model
+
+
+def load_recorded_model(name: str | None, *, sha256: str | None = None, model_file: str | None = None,
+                        given: str | os.PathLike | ErrorModel | None = None, where: str = "the file",
+                        option: str = "--model") -> ErrorModel:
+    """The model a file (a result, prior, truth) records, loaded without running code on the file's word.
+
+    Parameters
+    ----------
+    name : str or None
+        The model name the file records (its ``model`` field).
+    sha256, model_file : str, optional
+        The SHA-256 and path of the model file the file records (``model_sha256``, ``model_file``).
+    given : str, path or ErrorModel, optional
+        The model the user named (``--model``, API ``model=``): it is loaded (and may run), and must be
+        of model `name` and, when the file records one, of its SHA-256.
+    where : str
+        The file, as messages name it (``--result r.json``).
+    option : str
+        The option that names a model, as messages name it.
+
+    Returns
+    -------
+    ErrorModel
+        Set up: `given`, or the model shipped with casep called `name`.
+
+    Raises
+    ------
+    ValueError
+        A file that names no model, or a model not shipped with casep while the user named none (saying
+        which option to give), or a model file whose SHA-256 is not the recorded one (both files, both
+        hashes). A shipped model file changed since (another casep version) is a CasepWarning with both.
+    """
+    if given is not None:
+        if isinstance(given, (str, os.PathLike)):
+            path = find_model_file(given)
+            if not _is_shipped(path):  # a user's file: its hash before it runs (a shipped one: its name first)
+                from casep.io.provenance import file_sha256
+
+                _check_sha256(file_sha256(path), str(path), sha256, model_file, where, option, error=True)
+            given = load_model_file(path)
+        model = _given_model(given, name or "", where, option, model_file)
+        _check_sha256(model.source_sha256, model.source_file, sha256, model_file, where, option, error=True)
+        return model
+    if not name:
+        raise ValueError(f"{where} names no model (no `model` field): give the model ({option} NAME|FILE.py, "
+                         "API model=...)")
+    model = shipped_model(name)
+    if model is None:
+        base = name[: -len(TIME_OFFSET_SUFFIX)] if name.endswith(TIME_OFFSET_SUFFIX) else name
+        recorded = f" (model file {model_file}" + (f", sha256 {sha256}" if sha256 else "") + ")" if model_file else ""
+        file = model_file or (base if _path_like(base) else f"path/to/{base}.py")
+        raise ValueError(f"{where} is of model `{name}`{recorded}, which is not shipped with casep; a model file "
+                         f"is Python code, and casep runs one only when you name it: give {option} {file} (or "
+                         f"{option} NAME in CASEP_MODEL_PATH; API: model=...)")
+    _check_sha256(model.source_sha256, model.source_file, sha256, model_file, where, option, error=False)
+    return model
+
+
+def _check_sha256(have: str | None, path: str | None, sha256: str | None, model_file: str | None, where: str,
+                  option: str, *, error: bool) -> None:
+    """The recorded SHA-256 against `have`, that of the model file `path` (skipped when either is unknown)."""
+    if not sha256 or not have or sha256 == have:
+        return
+    msg = (f"{where} was estimated with model file {model_file or '(not recorded)'} of sha256 {sha256}, but "
+           f"{path} has sha256 {have}")
+    if error:
+        raise ValueError(f"{msg}: give {option} with the model file the result was estimated with (if the file was "
+                         "changed on purpose and declares the same coefficients, delete `model_sha256` from the file "
+                         "to read it with the new one)")
+    import warnings
+
+    from casep.exceptions import CasepWarning
+
+    warnings.warn(f"{msg} (the model shipped with this casep version); its coefficients are checked by name and unit",
+                  CasepWarning, stacklevel=3)

@@ -105,7 +105,9 @@ def run_montecarlo(
     truth : mapping, optional
         With `flight`: the true coefficients, ``{name: value}`` in natural units, or a truth file of
         ``casep simulate`` (``{"model", "coefficients", "noise"}``: its model and noise are used).
-        Without a noise there, white noise of the flight's own least-squares residual std.
+        Without a noise there, white noise of the flight's own least-squares residual std. Its
+        ``model`` is an :class:`~casep.ErrorModel` or the name of a model shipped with casep: a name
+        read from a file never runs a model file.
     noise, tau, robust : optional
         The noise model every method assumes and the robust fit, as :func:`casep.separate` takes
         them (default ``"white"``, not robust: the methods as they are, the linear ones batched;

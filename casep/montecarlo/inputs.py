@@ -75,7 +75,8 @@ def own_trajectory(scenario: str | Scenario, flight: Any, truth: Mapping) -> dic
     from casep.io.files import read_flight
     from casep.io.flight import FlightData
     from casep.io.provenance import file_record
-    from casep.model.loader import load_model
+    from casep.model import ErrorModel
+    from casep.model.loader import load_model, load_recorded_model
     from casep.simulation.noise import NoiseModel
     from casep.simulation.scenarios import get_scenario
     from casep.simulation.simulate import truth_vector
@@ -86,7 +87,9 @@ def own_trajectory(scenario: str | Scenario, flight: Any, truth: Mapping) -> dic
         raise ValueError(f"`truth` must be a mapping {{name: value}} or a truth file's dict, got "
                          f"{type(truth).__name__}")
     coefs = truth["coefficients"] if isinstance(truth.get("coefficients"), Mapping) else truth
-    model = load_model(str(truth.get("model", sc.model)))
+    named = truth.get("model", sc.model)  # a model the caller loaded, or one shipped with casep by its name
+    model = load_model(named) if isinstance(named, ErrorModel) else load_recorded_model(
+        str(named), where="`truth`", option="truth['model'] = casep.load_model('FILE.py')")
     vec = truth_vector(model, {k: v for k, v in coefs.items() if k not in ("model", "noise")}, "`truth`")
     if isinstance(truth.get("noise"), Mapping):
         try:

@@ -208,9 +208,10 @@ def plot_estimates(result: EstimateResult, path: str | os.PathLike, *, prior: Ma
     n = len(result.names)
     if scales is None:
         try:
-            from casep.model.loader import load_model
+            from casep.model.loader import shipped_model
 
-            scales = load_model(result.model).scales if result.model else {}
+            found = shipped_model(result.model) if result.model else None  # never a file on the result's word
+            scales = found.scales if found is not None else {}
         except Exception:  # a model file moved since: fall back on the other scales
             scales = {}
     fallback, kind = estimate_scales(result, prior, bounds)

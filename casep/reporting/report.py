@@ -108,15 +108,17 @@ def determined(result: EstimateResult, scales: Mapping[str, float], top: int = 4
 
 def _headline(result: EstimateResult, model: Any = None) -> str:
     """The report's first lines: what the flight determines, against the model's declared magnitudes
-    (of `model`, the result's :class:`~casep.model.ErrorModel` when the caller has it; else loaded by name)."""
+    (of `model`, the result's :class:`~casep.model.ErrorModel` when the caller has it; else the model shipped with
+    casep of that name: a result's name never runs a model file)."""
     scales: Mapping[str, float] = {}
     if model is not None and getattr(model, "name", None) == result.model:
         scales = model.scales
     else:
         try:
-            from casep.model.loader import load_model
+            from casep.model.loader import shipped_model
 
-            scales = load_model(result.model).scales if result.model else {}
+            found = shipped_model(result.model) if result.model else None  # never a file on the result's word
+            scales = found.scales if found is not None else {}
         except Exception:  # a model file moved since: no headline rather than no report
             scales = {}
     if not scales:
@@ -243,9 +245,9 @@ def impact_or_reason(result: EstimateResult, flight: FlightData | None, model: A
     """The result's impact analysis on its flight (:func:`casep.impact.miss.impact_analysis`), or the sentence
     the report shows why there is none (the flight has no ``r_*``/``v_*`` burnout state); None without a flight.
 
-    `model` (default: the result's, loaded by name) and `kwargs` (e.g. ``burnout_sensitivity``) go to
-    :func:`~casep.impact.miss.impact_analysis`. A caller that writes the report computes it once with this and
-    hands it to :func:`write_report` (``impact=``).
+    `model` (default: the model shipped with casep that the result names) and `kwargs` (e.g.
+    ``burnout_sensitivity``) go to :func:`~casep.impact.miss.impact_analysis`. A caller that writes the report
+    computes it once with this and hands it to :func:`write_report` (``impact=``).
     """
     if flight is None:
         return None
@@ -255,7 +257,14 @@ def impact_or_reason(result: EstimateResult, flight: FlightData | None, model: A
     if missing:
         return (f"No impact miss: the flight has no {', '.join(missing)} columns (the burnout state); "
                 "files from casep simulate have them.")
-    return impact_analysis(flight, result, model if model is not None else (result.model or None), **kwargs)
+    if model is None:
+        from casep.model.loader import shipped_model
+
+        model = shipped_model(result.model) if result.model else None  # a result's name never runs a model file
+        if model is None:
+            return (f"No impact miss: the result's model `{result.model}` is not shipped with casep; give the model "
+                    "(model=...) to compute it.")
+    return impact_analysis(flight, result, model, **kwargs)
 
 
 def _impact_html(ia: ImpactAnalysis | str) -> str:

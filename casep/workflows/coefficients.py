@@ -7,7 +7,8 @@ A prior file (``casep separate --prior``, ``casep diagnose --prior``) may be
   (:func:`casep.calibration.consistency.ground_prior`),
 - a result JSON of an earlier estimate (any result form): its posterior, mean = estimate and
   covariance = the result's (:func:`casep.estimators.map.prior_from_result`), so a later flight
-  continues the estimate. A failed result (``success`` false) is refused.
+  continues the estimate. A failed result (``success`` false) is refused, and a model it names
+  runs only when the user names it (``--model``; :func:`casep.estimators.reading.read_result`).
 
 A bounds file is ``{"Kg0x": [lo, hi] | value, ...}`` (:func:`casep.estimators.bounded.parse_bounds`).
 Every form is checked against the model's coefficient names; errors name the option and the file.
@@ -21,22 +22,7 @@ import os
 import warnings
 from typing import Any, Mapping, Sequence
 
-__all__ = ["read_coefficient_file", "read_scales", "refuse_failed", "with_prior_consistency"]
-
-
-def refuse_failed(result: Any, where: str) -> None:
-    """Raise ValueError when `result` is a failed result (``success`` false): no input for fusing or as a prior.
-
-    Parameters
-    ----------
-    result : EstimateResult
-        A result read back from a file.
-    where : str
-        What to name in the message (``"--prior FILE"``).
-    """
-    if not result.success:
-        raise ValueError(f"{where}: a failed result (status {result.status}: {result.message}); its estimate and std "
-                         "are not usable as an input. Fix what failed and estimate again")
+__all__ = ["read_coefficient_file", "read_scales", "with_prior_consistency"]
 
 
 def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[str], *,
@@ -82,10 +68,9 @@ def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[st
         data = ground_prior(data, model or "platform36")
     elif kind == "prior" and looks_like_result(data):  # a result file (any form): its posterior
         from casep.estimators.map import prior_from_result
-        from casep.estimators.reading import read_result
+        from casep.estimators.reading import read_input_result
 
-        res, res_model = read_result(path, model, option=option)
-        refuse_failed(res, f"{option} {path}")
+        res, res_model = read_input_result(path, model, option=option)  # usable; its model never run on its word
         data = prior_from_result(res, model=res_model)  # per-flight coefficients (dt_trk) left flat
     (parse_prior if kind == "prior" else parse_bounds)(data, names, source=f"{option} {path}")
     return data

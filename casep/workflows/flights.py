@@ -126,9 +126,9 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     res = by.solve(jp, sigma=hooks.sigma, **{k: v for k, v in opts.items() if k in by.options})
     import dataclasses
 
-    from casep.model.loader import model_file_reference
+    from casep.model.loader import model_record
 
-    res = dataclasses.replace(res, sigma_source="whitened", model_file=model_file_reference(model),
+    res = dataclasses.replace(res, sigma_source="whitened", **model_record(model),
                               settings={**res.settings, "sigma": "per flight" if sigma is None else "given per flight"})
     if noise_models is not None:
         per_flight = {}

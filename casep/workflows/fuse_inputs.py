@@ -10,13 +10,9 @@ sqrt 2).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
-from pathlib import Path
 from typing import Any, Sequence
-
-from casep.workflows.coefficients import refuse_failed
 
 __all__ = ["read_results_to_fuse", "check_distinct_inputs"]
 
@@ -25,8 +21,10 @@ NOT_DATA = ("prior", "bounds", "model")
 
 
 def _digest(path: str | os.PathLike) -> str | None:
+    from casep.io.provenance import file_sha256
+
     try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        return file_sha256(path)
     except OSError:
         return None
 
@@ -88,17 +86,16 @@ def read_results_to_fuse(paths: Sequence[str | os.PathLike], model: Any = None) 
         the same input file (:func:`check_distinct_inputs`).
     """
     from casep.calibration.calibrate import calibration_models
-    from casep.estimators.reading import read_result, result_from_data
+    from casep.estimators.reading import check_usable, read_input_result, result_from_data
     from casep.io.result_json import read_result_data
 
     grounds, results = set(calibration_models()), []
-    for path in paths:  # every result form, checked against its model (or `model`)
+    for path in paths:  # every result form, checked against its model (or `model`), usable as an input
         rd = read_result_data(path, "RESULT")
         if rd.model in grounds:  # a ground calibration: mapped to its flight model by the fusion
             results.append(result_from_data(rd))
+            check_usable(results[-1], f"RESULT {path}")
         else:
-            results.append(read_result(path, model, option="RESULT")[0])
-    for path, r in zip(paths, results):
-        refuse_failed(r, f"RESULT {path}")
+            results.append(read_input_result(path, model, option="RESULT")[0])
     check_distinct_inputs(list(paths))
     return results

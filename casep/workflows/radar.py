@@ -226,8 +226,10 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
                       RadarResidualWarning, stacklevel=2)
     if failed:  # a probably wrong result is never a plain success
         res = dataclasses.replace(res, success=False, status=-1, message="; ".join(failed))
+    from casep.model.loader import model_record
+
     res = dataclasses.replace(
-        res, residuals=np.empty((0, 3)), stored_residual_rms=dict.fromkeys("xyz"),
+        res, residuals=np.empty((0, 3)), stored_residual_rms=dict.fromkeys("xyz"), **model_record(reg.model),
         diagnostics={**res.diagnostics, "tracking_terms": tracking_terms, "tracking_model": reg.tracking.name},
         settings={**res.settings, "noise": "white per station and type, "
                   + ("given" if all_given else "estimated (REML-type iteration)")})

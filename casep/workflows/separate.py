@@ -226,9 +226,9 @@ def separate(
 
             if k == "prior" and looks_like_result(kw[k]):  # a result file (any form): its posterior
                 from casep.estimators.map import prior_from_result
-                from casep.estimators.reading import read_result
+                from casep.estimators.reading import read_input_result
 
-                res_prior, m = read_result(path, None if isinstance(flight, Problem) else model, option="prior")
+                res_prior, m = read_input_result(path, None if isinstance(flight, Problem) else model, option="prior")
                 kw[k] = prior_from_result(res_prior, model=m)
     if denoise not in (None, "none", "wavelet"):
         raise ValueError(f"`denoise` must be 'none' or 'wavelet', got {denoise!r}")
@@ -292,11 +292,9 @@ def separate(
         res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings,
                                   sigma_source="wavelet" if sigma_from_wavelet else res.sigma_source)
     if not isinstance(flight, Problem) and isinstance(model, ErrorModel):
-        from casep.model.loader import model_file_reference
+        from casep.model.loader import model_record
 
-        ref = model_file_reference(model)  # a model loaded from a path: impact/fuse find it again
-        if ref:
-            res = dataclasses.replace(res, model_file=ref)
+        res = dataclasses.replace(res, **model_record(model))  # its file and SHA-256: read back only with that file
     return res
 
 

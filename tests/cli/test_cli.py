@@ -327,8 +327,9 @@ def test_broken_model_file_exit_2_one_line(good_csv, tmp_path, capsys):
     path = tmp_path / "x.py"
     path.write_text("import casep\n\ndef build():\n    m = casep.build_model('platform36')\n    return ca.vertcat(1)\n")
     assert main(["separate", str(good_csv), "--model", str(path)]) == 2
-    err = capsys.readouterr().err
-    assert err == f"casep: error: model file {path}, line 5, in build(): NameError: name 'ca' is not defined\n"
+    err = capsys.readouterr().err  # the file named before it runs, then the error in one line
+    assert err == (f"casep: running model file {path}\n"
+                   f"casep: error: model file {path}, line 5, in build(): NameError: name 'ca' is not defined\n")
 
 
 def test_sys_exit_in_build_is_an_error_not_success(good_csv, tmp_path, capsys):

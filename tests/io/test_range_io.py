@@ -337,7 +337,11 @@ def test_model_file_that_loops_forever_is_stopped(files, tmp_path, capsys, monke
     assert s == 2 and "loop.py, line 5, in build(): still running after 0.5 s" in err
 
 
-def test_result_of_a_model_file_finds_its_model(files, tmp_path, capsys):
+def test_result_of_a_model_file_needs_it_named_with_its_sha256(files, tmp_path, capsys):
+    """A result records its model file and SHA-256; reading it back runs that file only when it is named
+    (--model), and only when its SHA-256 is the recorded one; a file moved keeps its hash."""
+    import hashlib
+
     import casep.model.loader as loader
 
     text = (loader.model_dirs()[-1] / "platform36.py").read_text().replace('ErrorModel("platform36"',
@@ -347,12 +351,15 @@ def test_result_of_a_model_file_finds_its_model(files, tmp_path, capsys):
     r = tmp_path / "r.json"
     assert main(["separate", str(files / "a.csv"), "--model", str(m), "--json", str(r)]) == 0
     assert _load(r)["model_file"] == str(m.resolve())
+    assert _load(r)["model_sha256"] == hashlib.sha256(m.read_bytes()).hexdigest()
     capsys.readouterr()
-    s, out, err = _run(capsys, "impact", files / "a.csv", "--result", r)
+    s, _, err = _run(capsys, "impact", files / "a.csv", "--result", r)
+    assert s == 2 and "not shipped with casep" in err and f"give --model {m.resolve()}" in err
+    s, out, err = _run(capsys, "impact", files / "a.csv", "--result", r, "--model", m)
     assert s == 0 and "model mine" in out, err
     m.rename(tmp_path / "moved.py")
-    s, _, err = _run(capsys, "impact", files / "a.csv", "--result", r)
-    assert s == 2 and "which casep cannot find" in err and "--model path/to/mine.py" in err
+    s, out, err = _run(capsys, "impact", files / "a.csv", "--result", r, "--model", tmp_path / "moved.py")
+    assert s == 0 and "model mine" in out, err
 
 
 def test_models_verbose_shows_magnitudes_and_docstring(capsys):
@@ -444,8 +451,11 @@ def test_impact_launch_frame_pair_says_what_is_missing(earth, tmp_path, capsys):
         columns=[c for c in tel.columns if c.startswith(("dv_", "r_"))])
     tel.to_csv(tmp_path / "tel.csv", index=False)
     trk.to_csv(tmp_path / "trk.csv", index=False)
+    # the files are one.csv rewritten (other bytes): a result without provenance, which impact cannot check
+    res = {k: v for k, v in json.loads((earth / "one.json").read_text()).items() if k != "provenance"}
+    (tmp_path / "one.json").write_text(json.dumps(res))
     s, _, err = _run(capsys, "impact", tmp_path / "tel.csv", "--tracking", tmp_path / "trk.csv", "--result",
-                     earth / "one.json")
+                     tmp_path / "one.json")
     assert s == 2 and "missing columns r_x, r_y, r_z" in err and "--tracking-frame ecef|geodetic" in err
 
 
