@@ -107,7 +107,7 @@ def regression():
     t = np.arange(N) * 0.05
     S = rng.standard_normal((N, 3, 4))
     y = S @ np.array([1.0, -2.0, 0.5, 3.0]) + 0.1 * rng.standard_normal((N, 3))
-    y[123, 1] += 5.0  # one outlier
+    y[123, 1] += 5.0  # one outlier, 50 noise sigma
     return S, y, t
 
 
@@ -151,6 +151,12 @@ def test_estimate_and_analyses_follow_the_protocol(regression):
         check_protocol(res)
         warned += check_old_names_warn(res)
     assert warned >= 4  # table, report (x2), summary
+    diag, noise, _, white, ident, flags, _ = results[1:]
+    assert "condition number" in diag.text() and "Allan deviation" in ident.text()
+    assert noise.text() == noise.line() and "GM tau 1.5 s" in noise.text()
+    assert "whiteness" in white.message and white.text().strip()
+    assert flags.count >= 1 and flags.rows[0]["sample"] == 123 and flags.rows[0]["axis"] == "y"  # the outlier
+    assert "sample 124" in flags.text() and len(flags.text(top=1)) <= len(flags.text())
 
 
 def test_an_estimate_is_a_result_plain_data_and_text_agree():

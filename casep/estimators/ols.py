@@ -93,9 +93,9 @@ def least_squares(pb: Prepared, *, refine: bool = True) -> tuple[np.ndarray, np.
 
     When the predicted error of the QR solve (:func:`casep.analysis.linalg.qr_forward_error`)
     exceeds :data:`~casep.analysis.linalg.REFINE_ABOVE` and the rows are held in memory (a problem
-    that regenerates S_V is not integrated again for it), the solution
-    gets one step of iterative refinement with its residual in extended precision
-    (:func:`~casep.analysis.linalg.refine_least_squares`); a well-conditioned fit skips it, and so
+    that regenerates S_V is not integrated again for it), the solution gets one step of iterative
+    refinement with its residual in extended precision
+    (:func:`~casep.analysis.linalg.refine_least_squares`). A well-conditioned fit skips it, and so
     does ``refine=False`` (the inner solves of an iteration whose end point is what counts).
     """
     ra, red = pb.ra, pb.red

@@ -197,7 +197,7 @@ def test_null_estimates_contribute_nothing(tmp_path):
     res = casep.solve_ols(casep.Problem.from_flight(sim.flight, sim.model))
     assert (~res.identifiable).sum() == 12
     a = impact_analysis(sim.flight, res)
-    d = json.loads(json.dumps(a.to_json(), allow_nan=False))
+    d = json.loads(json.dumps(a.to_dict(), allow_nan=False))
     rows = {r["name"]: r for r in d["contributions"]}
     missing = [n for n, ok in zip(res.names, res.identifiable) if not ok]
     assert sorted(d["no_estimate"]) == sorted(missing)
@@ -250,7 +250,7 @@ def test_per_flight_coefficients_zero_unless_given(paper_sim, paper_ols):
     d["flights"] = [{"file": "a.csv", "n_samples": 1, "sigma": 0.1, "coefficients": []}]
     a = impact_analysis(paper_sim.flight, d)
     j = a.names.index("dt_trk")
-    assert a.status[j] == "per-flight" and a.contributions[0, j] == 0.0
+    assert a.coefficient_status[j] == "per-flight" and a.contributions[0, j] == 0.0
     b = impact_analysis(paper_sim.flight, d, per_flight={"dt_trk": 2.0})
     np.testing.assert_allclose(b.contributions[:, j], 2.0 * b.sensitivity[:, j])
     np.testing.assert_allclose(b.miss - a.miss, 2.0 * b.sensitivity[:, j], rtol=0, atol=1e-9)
