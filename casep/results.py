@@ -96,8 +96,8 @@ class Completed:
 
     @property
     def message(self) -> str:
-        """``"<what>: computed"``."""
-        return f"{self.what}: computed"
+        """What the result is: :attr:`what`."""
+        return self.what
 
 
 def deprecated_alias(new: str, old: str) -> Callable[..., Any]:
