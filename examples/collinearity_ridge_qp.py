@@ -29,7 +29,7 @@ dv = sim.flight.dv
 
 #%% Diagnostics: what the flight can tell
 d = diagnose(S, dv, names=model.names, units=model.units, scales=model.scales)
-print(d.report())
+print(d.text())
 
 #%% Ridge: closed form vs cvxpy + Clarabel (same lambda)
 svd = casep.solve_ridge(S, dv, lam="gcv", names=model.names)

@@ -25,7 +25,7 @@ runs, rate = (10, 10.0) if args.quick else (args.runs, None)
 
 #%% Run: batched linear methods, per-run RELS and wavelet + RELS on all cores
 res = run_montecarlo("paper", runs=runs, methods=["ols", "rls", "rels", "wavelet+rels", "map"], seed=1, rate=rate)
-print(res.summary())
+print(res.text())
 
 #%% The coefficients the flight determines best
 for n in ("Ka0x", "Ka1x", "Ka0y", "Ka0z"):

@@ -45,12 +45,13 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pywt
 
 from casep.exceptions import CasepWarning
+from casep.results import Completed
 
 __all__ = ["denoise", "denoise_signal", "select_threshold", "mad_sigma", "max_level", "extend",
            "DenoiseResult", "EXTENSIONS", "RULES", "MODES", "SCALINGS"]
@@ -170,8 +171,10 @@ def denoise_signal(x: np.ndarray, *, wavelet: str = "sym8", level: int | None = 
 
 
 @dataclass(frozen=True)
-class DenoiseResult:
+class DenoiseResult(Completed):
     """De-noised velocity error and what was done to it (result protocol: :mod:`casep.results`)."""
+
+    what: ClassVar[str] = "wavelet de-noising of the velocity error"
 
     dv: np.ndarray  # (N, 3) m/s
     sigma: np.ndarray  # (3,) noise std per axis from the finest details, m/s

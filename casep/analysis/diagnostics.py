@@ -32,7 +32,7 @@ zero columns are left out (they are unidentifiable by definition).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping, Sequence
 
 import numpy as np
 
@@ -45,6 +45,7 @@ from casep.analysis.linalg import (
     reduce_qr,
     unidentifiable_reasons,
 )
+from casep.results import Completed, deprecated_alias
 
 if TYPE_CHECKING:
     from casep.analysis.problem import Problem
@@ -206,8 +207,10 @@ def _combination(v: np.ndarray, c: np.ndarray, names: Sequence[str], top: int = 
 
 
 @dataclass(frozen=True)
-class Diagnostics:
+class Diagnostics(Completed):
     """What the flight determines, per coefficient and per combination (see module notes)."""
+
+    what: ClassVar[str] = "diagnostics of the regression (conditioning, Cramer-Rao bounds, identifiability)"
 
     names: tuple[str, ...]
     units: tuple[str, ...]
@@ -267,9 +270,7 @@ class Diagnostics:
             "scales": self.scales,
         }
 
-    def report(self) -> str:
-        """Readable terminal report: :meth:`text`."""
-        return self.text()
+    report = deprecated_alias("text", "report")
 
     def text(self) -> str:
         """Readable terminal report (what ``casep diagnose`` prints)."""

@@ -29,9 +29,11 @@ tested for whiteness by :func:`casep.analysis.whiteness.whiteness_test`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Iterator, Sequence
+from typing import Any, ClassVar, Iterable, Iterator, Sequence
 
 import numpy as np
+
+from casep.results import Completed
 
 __all__ = ["NOISE_KINDS", "AUTO_LR", "AUTO_LR_SCALE", "NoiseModel", "whiten", "whiten_blocks", "whiten_axis",
            "check_noise_kind", "check_tau"]
@@ -69,7 +71,7 @@ def check_tau(tau) -> tuple[float, float, float] | None:
 
 
 @dataclass(frozen=True)
-class NoiseModel:
+class NoiseModel(Completed):
     """The noise of a problem's rows, per axis.
 
     Attributes
@@ -89,6 +91,8 @@ class NoiseModel:
     sigma : float, optional
         REML estimate of the x-axis stationary std, m/s.
     """
+
+    what: ClassVar[str] = "noise model of the rows"
 
     kind: str = "white"
     tau: tuple = (None, None, None)

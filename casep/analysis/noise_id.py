@@ -25,8 +25,11 @@ A Gauss-Markov choice feeds ``--method gls --tau T``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
+
+from casep.results import Completed, deprecated_alias
 
 __all__ = ["NoiseIdentification", "allan_deviation", "identify_noise", "avar_white", "avar_gauss_markov",
            "avar_random_walk"]
@@ -84,7 +87,7 @@ def allan_deviation(x: np.ndarray, dt: float, taus: np.ndarray | str = "octave")
 
 
 @dataclass(frozen=True)
-class NoiseIdentification:
+class NoiseIdentification(Completed):
     """Allan deviation of the residuals and the fitted noise models.
 
     Attributes
@@ -103,6 +106,8 @@ class NoiseIdentification:
     choice : str
         ``"white"``, ``"gauss_markov"`` or ``"random_walk"``.
     """
+
+    what: ClassVar[str] = "noise identification (Allan deviation of the residuals)"
 
     dt: float
     taus: np.ndarray
@@ -134,9 +139,7 @@ class NoiseIdentification:
         return (f"random-walk noise: OLS's std are too small; --method gls with a long tau (e.g. --tau {span:.3g}) "
                 "or --method rels approximate it")
 
-    def report(self) -> str:
-        """The table ``casep noise`` prints: :meth:`text`."""
-        return self.text()
+    report = deprecated_alias("text", "report")
 
     def text(self) -> str:
         """Allan deviation fits of the residuals, the chosen noise model and the recommendation."""

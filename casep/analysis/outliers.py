@@ -21,12 +21,13 @@ use the spike check of :func:`casep.analysis.checks.check_fit`, and the robust e
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy import stats
 
 from casep.analysis.linalg import least_squares_rss
+from casep.results import Completed, deprecated_alias
 
 __all__ = ["OutlierFlags", "studentized_residuals", "flag_outliers"]
 
@@ -69,7 +70,7 @@ def studentized_residuals(problem, rcond: float | None = None) -> tuple[np.ndarr
 
 
 @dataclass(frozen=True)
-class OutlierFlags:
+class OutlierFlags(Completed):
     """Rows flagged by their studentized residual.
 
     Attributes
@@ -83,6 +84,8 @@ class OutlierFlags:
         Per-row false-alarm probability of that threshold.
     rows_tested : int
     """
+
+    what: ClassVar[str] = "outlier flags (studentized residuals)"
 
     rows: list = field(default_factory=list)
     threshold: float = np.inf
@@ -98,9 +101,7 @@ class OutlierFlags:
         """Flags expected from white noise alone: rate x rows."""
         return self.rate * self.rows_tested
 
-    def summary(self, top: int = 5) -> str:
-        """The flagged rows in one paragraph: :meth:`text`."""
-        return self.text(top)
+    summary = deprecated_alias("text", "summary")
 
     def text(self, top: int = 5) -> str:
         """The flagged rows (the `top` largest named, with file line and time) in one paragraph."""

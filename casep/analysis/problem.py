@@ -356,6 +356,11 @@ class Problem:
         return self.y is not None and (self._S is not None or self._regenerate is not None)
 
     @property
+    def rows_in_memory(self) -> bool:
+        """Whether the rows are held (S kept): a pass over them costs no regeneration of S_V."""
+        return self.y is not None and self._S is not None
+
+    @property
     def n_samples(self) -> int:
         """Number of samples (rows of ``y``'s first axis)."""
         return int(self.y.shape[0]) if self.y is not None and self.y.ndim == 2 else self.m

@@ -7,10 +7,12 @@ whether they are and how much too small the white std then are.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from casep.analysis.noise import AXES
+from casep.results import Completed
 
 __all__ = ["ljung_box", "WhitenessTest", "whiteness_test", "default_lags", "find_gaps", "segments_of"]
 
@@ -41,8 +43,14 @@ def ljung_box(x: np.ndarray, lags: int, segments: np.ndarray | None = None) -> t
 
 
 @dataclass(frozen=True)
-class WhitenessTest:
-    """Residual whiteness per axis (Ljung-Box) and how much too small the white std are."""
+class WhitenessTest(Completed):
+    """Residual whiteness per axis (Ljung-Box) and how much too small the white std are.
+
+    A test that rejects whiteness is a finding, not a failure: ``success`` True, ``status`` 0;
+    :meth:`text` says what it found.
+    """
+
+    what: ClassVar[str] = "Ljung-Box whiteness test of the residuals"
 
     q: tuple[float, float, float]
     p: tuple[float, float, float]
@@ -63,10 +71,7 @@ class WhitenessTest:
                 "std_factor_max": self.std_factor_max}
 
     def text(self) -> str:
-        """The whiteness of the residuals per axis, in one line: :meth:`message`."""
-        return self.message()
-
-    def message(self) -> str:
+        """The whiteness of the residuals per axis, in one line."""
         parts = ", ".join(f"{a} Q {self.q[j]:.3g} (p {self.p[j]:.2g})"
                           for j, a in enumerate(AXES) if a in self.rejected)
         factor = ""

@@ -23,6 +23,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from casep.results import deprecated_alias
+
 __all__ = ["Consistency", "consistency", "ground_prior", "flight_prior_consistency", "ground_versus_flight",
            "ground_flight_checks",
            "as_gaussian", "DISAGREE_P", "DISAGREE_Z"]
@@ -35,7 +37,11 @@ DISAGREE_Z = 3.0
 
 @dataclass(frozen=True)
 class Consistency:
-    """Per-coefficient and overall consistency of two estimates (module notes)."""
+    """Per-coefficient and overall consistency of two estimates (module notes).
+
+    The result protocol (:mod:`casep.results`): ``success`` is :attr:`consistent` (status 0; 1 when
+    the two disagree), ``message`` the verdict.
+    """
 
     names: tuple[str, ...]
     units: tuple[str, ...]
@@ -63,7 +69,27 @@ class Consistency:
         """Overall p-value at least :data:`DISAGREE_P`."""
         return not self.p_value < DISAGREE_P
 
-    def summary(self) -> dict[str, Any]:
+    @property
+    def success(self) -> bool:
+        """The two estimates agree (:attr:`consistent`)."""
+        return self.consistent
+
+    @property
+    def status(self) -> int:
+        """0: consistent; 1: they disagree (overall p-value below :data:`DISAGREE_P`)."""
+        return 0 if self.consistent else 1
+
+    @property
+    def message(self) -> str:
+        """The verdict in one line."""
+        a, b = self.labels
+        return (f"{a} and {b} consistent (chi2 {self.chi2:.4g} on {self.dof} dof, p {self.p_value:.3g})"
+                if self.consistent else f"{a} and {b} DISAGREE (p {self.p_value:.3g} < {DISAGREE_P:g})")
+
+    summary = deprecated_alias("to_dict", "summary")
+    report = deprecated_alias("text", "report")
+
+    def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (per coefficient and overall)."""
         def f(v):
             v = float(v)
@@ -83,7 +109,7 @@ class Consistency:
             "left_out": list(self.left_out),
         }
 
-    def report(self) -> str:
+    def text(self) -> str:
         """Readable table and verdict."""
         a, b = self.labels
         lines = [f"{a} versus {b} ({len(self.names)} coefficients both determine; difference {b} - {a})",
@@ -316,5 +342,5 @@ def ground_flight_checks(results: Sequence, labels: Sequence[str]) -> tuple[list
                 text.append(f"ground {gl} versus flight {fl}: not compared ({exc})")
                 continue
             checks.append(c)
-            text.append(c.report())
+            text.append(c.text())
     return out, checks, "\n\n".join(text)

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from casep.calibration.model import CalibrationModel
+from casep.results import deprecated_alias
 
 __all__ = ["Calibration"]
 
@@ -49,6 +50,23 @@ class Calibration:
     def std(self, name: str) -> float:
         """Standard deviation of coefficient `name`, natural unit."""
         return float(self.result.std[self.model.index(name)])
+
+    @property
+    def success(self) -> bool:
+        """Whether every sensor's regression succeeded (the combined result's own success included)."""
+        return bool(self.result.success) and all(bool(r.success) for r in self.sensors.values())
+
+    @property
+    def status(self) -> int:
+        """The combined result's status (:class:`~casep.estimators.result.EstimateResult`), or the first
+        failing sensor's."""
+        failed = [r for r in self.sensors.values() if not r.success]
+        return int(failed[0].status if failed else self.result.status)
+
+    @property
+    def message(self) -> str:
+        """Each sensor's message, named: ``accelerometer: ...; gyro: ...``."""
+        return "; ".join(f"{k}: {r.message}" for k, r in self.sensors.items()) or str(self.result.message)
 
     def to_dict(self) -> dict:
         """The calibration JSON: a casep result (``coefficients``, ``covariance``, ... usable as
@@ -103,9 +121,7 @@ class Calibration:
                              f"  ratio {m['ratio']:.3g}")
         return "\n".join(lines)
 
-    def report(self) -> str:
-        """The same as :meth:`text`."""
-        return self.text()
+    report = deprecated_alias("text", "report")
 
 
 def _f(v) -> float | None:

@@ -61,10 +61,10 @@ def run(args: argparse.Namespace) -> int:
                           gravity=G0 if args.gravity is None else args.gravity, angle_deg=args.angle,
                           weighting=args.weighting, sigma=args.sigma, prior_rel_std=args.prior_rel_std)
     imucal = to_imucal(cal) if args.imucal else None  # before any file: all outputs or none
-    print(cal.report())
+    print(cal.text())
     outputs.write_json(cal.to_dict(), args.json)
     print(f"calibration written to {args.json}")
     if imucal is not None:
         outputs.write_json(imucal, args.imucal)
         print(f"imucal calibration written to {args.imucal}")
-    return outputs.status(cal.result)
+    return outputs.status(cal)

@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     for line in design_lines(res, scenario=args.scenario, maneuver=args.maneuver, own_flight=own_flight):
         print(line)
     if args.json:
-        outputs.write_json(res.to_json(), args.json)
+        outputs.write_json(res.to_dict(), args.json)
         print(f"design written to {args.json}")
     if args.figure:
         from casep.reporting.plots import plot_design

@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
                             "diagnostics": diag.to_dict(), "provenance": outputs.provenance(args, [flight])},
                            args.json)
     print(f"model {model.name}, {flight.n_observed} samples")
-    print(diag.report())
+    print(diag.text())
     if args.figures:
         from casep.reporting.plots import plot_singular_values, plot_variance_decomposition
 

@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     res, ground_text = fuse_with_ground(results, labels=list(args.results), model=args.model)
     if ground_text:
         print(ground_text + "\n")
-    print(res.table())
+    print(res.text())
     ov = res.diagnostics["consistency"]["overall"]
     print(f"consistency of the results: chi2 {ov['chi2']:.4g}, {ov['dof']} dof, p {ov['p_value']:.3g}")
     if args.json:

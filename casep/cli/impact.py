@@ -88,8 +88,8 @@ def run(args: argparse.Namespace) -> int:
     other = read_trajectory(args.trajectory) if args.trajectory else None
     a = impact_analysis(flight, args.result, args.model, other, per_flight=per_flight or None)
     if args.json:
-        outputs.write_json(a.to_json(), args.json)
-    print(a.table(top=args.top))
+        outputs.write_json(a.to_dict(), args.json)
+    print(a.text(top=args.top))
     if args.figures:
         from casep.reporting.plots import impact_figures
 

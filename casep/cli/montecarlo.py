@@ -97,11 +97,10 @@ def run(args: argparse.Namespace) -> int:
     except (KeyboardInterrupt, Terminated) as exc:  # workers already ended; no report (--out: finished parts kept)
         print("casep: interrupted", file=sys.stderr)
         return 143 if isinstance(exc, Terminated) else 130
-    print(f"scenario {res.scenario}, {res.runs} runs, seed {res.seed}")
+    print(res.text())
     if args.out:
         print(f"resumed {res.resumed} of {res.tasks} tasks from {args.out}" if res.resumed else
               f"{res.tasks} tasks, none resumed")
-    print(res.summary())
     with output_group():  # the report files together or none (the --out store keeps its parts regardless)
         if args.json:
             res.write_json(args.json)

@@ -27,7 +27,7 @@ def run(args: argparse.Namespace) -> int:
     outputs.check({"--json": args.json}, inputs.input_files(args, "flight", "tracking"), {"--figures": args.figures})
     model = load_model(args.model)
     noise, problem = flight_noise(inputs.read_one(args), model)
-    print(noise.report())
+    print(noise.text())
     if args.json:
         outputs.write_json({"model": model.name, "source": problem.source, **noise.to_dict()}, args.json)
         print(f"written to {args.json}")

@@ -42,7 +42,7 @@ def separate_radar(args: argparse.Namespace, wavelet_options: dict) -> int:
     given.update({k: read_json_table(given[k], f"--{k}") for k in ("bounds", "prior") if k in given})
     rr = separate_radar(args.flight[0], args.radar, site, args.model, args.tracking_model, args.method,
                         options=given)
-    print(rr.table())
+    print(rr.text())
     if args.json:
         outputs.write_json(rr.to_dict(), args.json)
         print(f"result written to {args.json}")

@@ -108,20 +108,20 @@ def run(args: argparse.Namespace) -> int:
 def _print(res: Any, args: argparse.Namespace, align: Any, cons: Any) -> None:
     from casep.reporting.noise_text import noise_lines
 
-    print(res.table())
+    print(res.text())
     for line in noise_lines(res.diagnostics):
         print(line)
     if args.outliers is not None:
         from casep.analysis.outliers import OutlierFlags
 
         o = res.diagnostics["outliers_studentized"]
-        print("outliers: " + OutlierFlags(o["rows"], o["threshold"], o["rate"], o["rows_tested"]).summary())
+        print("outliers: " + OutlierFlags(o["rows"], o["threshold"], o["rate"], o["rows_tested"]).text())
     if align and align.get("applied_s"):
         dt = [res.estimate[i] for i, n in enumerate(res.names) if n == "dt_trk"]
         total = f"; the flight's offset = shift + dt_trk = {align['applied_s'] * 1e3 + dt[0]:.4g} ms" if dt else ""
         print(f"tracking time tags shifted back by {align['applied_s'] * 1e3:.4g} ms before the fit{total}")
     if cons is not None:
-        print(cons.report())
+        print(cons.text())
     for label, path in (("result", args.json), ("MAT file", args.mat), ("CSV", args.csv)):
         if path:
             print(f"{label} written to {path}")

@@ -30,7 +30,7 @@ def separate_flights(args: argparse.Namespace, model: Any, opts: dict, bounds: A
     with recorded():
         res, jp = separate_flights(flights, model, args.method, sigma=args.sigma, options=options, **nkw)
         summary = flights_summary(res, jp)
-    print(res.table())
+    print(res.text())
     for line in noise_lines(res.diagnostics, joint=True) + joint_summary_lines(summary):
         print(line)
     if args.json:

@@ -113,7 +113,7 @@ def design_lines(res: Any, *, scenario: str, maneuver: str, own_flight: str | No
     m = res.maneuver.to_dict(res.x)
     lines.append("knots s:   " + " ".join(f"{t:7.1f}" for t in m["knots_s"]))
     lines += [f"{axis + ' deg:':<11}" + " ".join(f"{a:7.2f}" for a in m[f"{axis}_deg"]) for axis in res.maneuver.axes]
-    lines.append(res.table())
+    lines.append(res.crlb_table())
     what = "posterior std (prior included) < declared magnitude" if res.prior else "CRLB < declared magnitude"
     lines.append(f"identifiable ({what}): {len(res.identifiable('before'))} before, "
                  f"{len(res.identifiable('after'))} after: {', '.join(res.identifiable('after')) or 'none'}")

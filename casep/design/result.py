@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from casep.design.maneuver import Maneuver
+from casep.results import deprecated_alias
 
 __all__ = ["DesignResult"]
 
@@ -54,9 +55,22 @@ class DesignResult:
         c = self.crlb_after if which == "after" else self.crlb_before
         return [n for n, v, s in zip(self.names, c, self.scales) if np.isfinite(v) and v < s]
 
-    def to_dict(self) -> dict:
-        """The result as plain data: the ``casep design --json`` document (:meth:`to_json`)."""
-        return self.to_json()
+    @property
+    def success(self) -> bool:
+        """Whether the optimiser solved the design problem from its best start."""
+        return bool(self.solver.get("success", False))
+
+    @property
+    def status(self) -> int:
+        """0: solved; 1: the optimiser did not converge from any start (the best iterate is reported)."""
+        return 0 if self.success else 1
+
+    @property
+    def message(self) -> str:
+        """The optimiser's return status of the best start, and what it means for the design."""
+        how = self.solver.get("return_status", "no status")
+        return (f"manoeuvre designed ({how})" if self.success else
+                f"the optimiser did not converge ({how}): the design is its best iterate, not an optimum")
 
     def text(self) -> str:
         """What ``casep design`` prints (:func:`casep.design.flown.design_lines`)."""
@@ -65,9 +79,11 @@ class DesignResult:
         return "\n".join(design_lines(self, scenario=str(self.nominal or getattr(self.scenario, "name", "?")),
                                        maneuver=self.maneuver.kind, own_flight=self.own_flight))
 
-    def to_json(self) -> dict:
+    def to_dict(self) -> dict:
         """The ``casep design --json`` document (``docs/reference/file-formats.md`` "Design JSON"; null for NaN)."""
         return _finite(self._json())
+
+    to_json = deprecated_alias("to_dict", "to_json")
 
     def _json(self) -> dict:
         def d(a):
@@ -106,7 +122,10 @@ class DesignResult:
         r = self.crlb_after / self.crlb_before
         return [n for n, v in zip(self.names, r) if np.isfinite(v) and v > factor]
 
-    def table(self) -> str:
+    table = deprecated_alias("crlb_table", "table")
+
+    def crlb_table(self) -> str:
+        """The bound per coefficient before and after the design, and their ratio (part of :meth:`text`)."""
         kind = "post. std" if self.prior else "CRLB"
         lines = [f"{'name':<8} {'unit':<10} {'scale':>9} {kind + ' before':>12} {kind + ' after':>12} {'ratio':>7}"]
         for n, u, s, b, a in zip(self.names, self.units, self.scales, self.crlb_before, self.crlb_after):

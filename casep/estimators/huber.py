@@ -117,7 +117,7 @@ def _solve(pb: Prepared, *, method: Method, c: float, flag: float, tol: float, m
     rcond = pb.ra.rcond
     A, b = pb.S, pb.y  # (m, n) natural units, (m,)
     w = np.ones(b.size)
-    x = least_squares(pb)[0]
+    x = least_squares(pb, refine=False)[0]  # the start of the iteration
     scale = pb.sigma
     it = 0
     for _it in range(1, max_iter + 1):
@@ -130,7 +130,7 @@ def _solve(pb: Prepared, *, method: Method, c: float, flag: float, tol: float, m
         w = np.minimum(1.0, c / np.maximum(u, 1e-300))  # w_i = min(1, c / |u_i|)
         sw = np.sqrt(w)
         pw = prepare(A * sw[:, None], b * sw, pb.names, pb.units, pb.si_factors, 1.0, rcond)
-        x_new, cov_unit, _ = least_squares(pw)  # weighted LS; cov for unit sigma
+        x_new, cov_unit, _ = least_squares(pw, refine=False)  # weighted LS; cov for unit sigma
         step = np.abs(x_new - x) / np.sqrt(np.maximum(np.diag(cov_unit), 1e-300)) / scale
         x = x_new
         if np.all(step[np.isfinite(step)] < tol):
@@ -145,7 +145,7 @@ def _solve(pb: Prepared, *, method: Method, c: float, flag: float, tol: float, m
     mean_d = max(float(dpsi.mean()), 1.0 / m)
     K = 1.0 + (p / m) * float(dpsi.var()) / mean_d**2
     factor = K**2 * (float(np.sum(psi**2)) / (m - p)) / mean_d**2  # Huber's H1 correction
-    _, cov_ols_unit, _ = least_squares(prepare(A, b, pb.names, pb.units, pb.si_factors, 1.0, rcond))
+    _, cov_ols_unit, _ = least_squares(prepare(A, b, pb.names, pb.units, pb.si_factors, 1.0, rcond), refine=False)
     cov = factor * scale**2 * cov_ols_unit  # s^2 (S^T S)^-1 scaled by the H1 factor
     sig = float(scale * np.sqrt(factor))
     big = np.flatnonzero(np.abs(u) > flag)

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any, Unpack
 
 import numpy as np
 
+from casep.analysis.linalg import REFINE_ABOVE, qr_forward_error, refine_least_squares
 from casep.estimators._base import Prepared, finish, prepare
 from casep.estimators._options import Labels, Method
 
@@ -87,13 +88,24 @@ def _solve(pb: Prepared, *, method: Method) -> EstimateResult:
                   settings={"rcond": pb.rcond_asked, "sigma": "estimated" if pb.sigma is None else pb.sigma})
 
 
-def least_squares(pb: Prepared) -> tuple[np.ndarray, np.ndarray, float]:
-    """Minimum-norm LS solution, covariance and sigma of a prepared problem (natural units)."""
+def least_squares(pb: Prepared, *, refine: bool = True) -> tuple[np.ndarray, np.ndarray, float]:
+    """Minimum-norm LS solution, covariance and sigma of a prepared problem (natural units).
+
+    When the predicted error of the QR solve (:func:`casep.analysis.linalg.qr_forward_error`)
+    exceeds :data:`~casep.analysis.linalg.REFINE_ABOVE` and the rows are held in memory (a problem
+    that regenerates S_V is not integrated again for it), the solution gets one step of iterative
+    refinement with its residual in extended precision
+    (:func:`~casep.analysis.linalg.refine_least_squares`). A well-conditioned fit skips it, and so
+    does ``refine=False`` (the inner solves of an iteration whose end point is what counts).
+    """
     ra, red = pb.ra, pb.red
     V, inv_s = ra.pinv_factors()
     Uq = ra.U.T @ red.qty
     inv_c = pb.inv_c
-    x = (V @ (inv_s * Uq[: ra.rank])) * inv_c  # x_Z = V_r diag(1/s_r) U_r^T q, then / c
+    x_Z = V @ (inv_s * Uq[: ra.rank])  # x_Z = V_r diag(1/s_r) U_r^T q
+    x = x_Z * inv_c  # D = x_Z / c
+    if refine and pb.problem.rows_in_memory and qr_forward_error(red, ra, x_Z) > REFINE_ABOVE:
+        x = refine_least_squares(red, ra, x, pb.problem.blocks)  # residual in extended precision
     sig = pb.ols_sigma() if pb.sigma is None else pb.sigma  # sigma^2 = RSS / (m - r)
     W = V * inv_s  # V_r diag(1/s_r)
     cov = sig**2 * (W @ W.T) * np.outer(inv_c, inv_c)

@@ -25,6 +25,7 @@ from casep.io.result_files import (
     write_coefficients_csv,
     write_mat_fields,
 )
+from casep.results import deprecated_alias
 
 __all__ = ["EstimateResult", "EXTRAS_TYPES",
            "SIGMA_SOURCES", "SIGMA_SOURCE_MEANINGS", "STD_KIND_MEANINGS", "extras_type",
@@ -309,9 +310,7 @@ class EstimateResult:
                                                  if self.std_kind == "conditional" else ""))
         return "settings: " + "; ".join(parts)
 
-    def table(self) -> str:
-        """The same as :meth:`text` (its former name, kept)."""
-        return self.text()
+    table = deprecated_alias("text", "table")
 
     def text(self) -> str:
         """What the command line prints (the result protocol, :mod:`casep.results`): a fixed-width table

@@ -313,7 +313,8 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
         groups.append(Group(tuple(model.names[j] for j in members), contrib, gstd))
 
     return ImpactAnalysis(
-        names=model.names, units=model.units, status=coef.status, estimate=np.where(have, coef.estimate, np.nan),
+        names=model.names, units=model.units, coefficient_status=coef.status,
+        estimate=np.where(have, coef.estimate, np.nan),
         t_b=t_b, r_b=r_b, v_b=v_b, nominal=nominal, impact_point=impact_point(r_b, v_b), jacobian=J, sp=sp, sv=sv,
         sensitivity=G, contributions=contributions, miss=miss, cov=cov, nonlinear=nonlinear, groups=tuple(groups),
         group_source=gsource, covariance_source=coef.covariance_source, model=model.name, method=res.method,

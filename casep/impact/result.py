@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
+
+from casep.results import Completed, deprecated_alias
 
 __all__ = ["ImpactAnalysis", "Group"]
 
@@ -37,12 +39,15 @@ class Group:
 
 
 @dataclass(frozen=True)
-class ImpactAnalysis:
+class ImpactAnalysis(Completed):
     """The miss budget of an estimate on one trajectory (``docs/reference/file-formats.md`` "Impact JSON").
+
+    ``success``, ``status`` and ``message`` of the result protocol: always a success (status 0);
+    coefficients without an estimate are in ``coefficient_status``.
 
     Attributes
     ----------
-    names, units, status : tuple of str
+    names, units, coefficient_status : tuple of str
         Coefficients (model order), natural units, and ``"estimated"``, ``"no estimate"`` or
         ``"per-flight"`` (a per-flight coefficient absent from a several-flight result: its
         value given or 0).
@@ -72,9 +77,11 @@ class ImpactAnalysis:
         Std of each coefficient used (natural units; NaN without estimate, 0 for a per-flight value).
     """
 
+    what: ClassVar[str] = "impact miss budget"
+
     names: tuple[str, ...]
     units: tuple[str, ...]
-    status: tuple[str, ...]
+    coefficient_status: tuple[str, ...]
     estimate: np.ndarray
     t_b: float
     r_b: np.ndarray
@@ -121,11 +128,11 @@ class ImpactAnalysis:
         for j, n in enumerate(self.names):
             row: dict[str, Any] = {"name": n, "downrange": _f(self.contributions[0, j]),
                                    "crossrange": _f(self.contributions[1, j]), "estimate": _f(self.estimate[j]),
-                                   "status": self.status[j]}
-            if self.status[j] == "no estimate":
+                                   "status": self.coefficient_status[j]}
+            if self.coefficient_status[j] == "no estimate":
                 row["note"] = "no estimate: contributes nothing" + (
                     f" ({self.reasons[n]})" if n in self.reasons else "")
-            elif self.status[j] == "per-flight":
+            elif self.coefficient_status[j] == "per-flight":
                 row["note"] = "per-flight coefficient not in the result: value given, or 0"
             contrib.append(row)
         return {
@@ -143,18 +150,13 @@ class ImpactAnalysis:
                      "nonlinear": {"downrange": _f(self.nonlinear[0]), "crossrange": _f(self.nonlinear[1])},
                      "covariance_source": self.covariance_source},
             "contributions": contrib,
-            "no_estimate": [n for n, s in zip(self.names, self.status) if s == "no estimate"],
+            "no_estimate": [n for n, s in zip(self.names, self.coefficient_status) if s == "no estimate"],
             "groups": [g.to_dict() for g in self.groups],
             "group_source": self.group_source,
         }
 
-    def to_json(self) -> dict[str, Any]:
-        """The impact JSON: :meth:`to_dict` (the name ``casep impact --json`` used first)."""
-        return self.to_dict()
-
-    def table(self, top: int | None = None) -> str:
-        """The terminal table: :meth:`text`."""
-        return self.text(top)
+    to_json = deprecated_alias("to_dict", "to_json")
+    table = deprecated_alias("text", "table")
 
     def text(self, top: int | None = None) -> str:
         """Terminal text: burnout, nominal impact, miss with std, budget per coefficient and per group.
@@ -185,8 +187,8 @@ class ImpactAnalysis:
         if top is not None:
             order = order[:top]
         for j in order:
-            note = "  no estimate" if self.status[j] == "no estimate" else (
-                "  per-flight" if self.status[j] == "per-flight" else "")
+            note = "  no estimate" if self.coefficient_status[j] == "no estimate" else (
+                "  per-flight" if self.coefficient_status[j] == "per-flight" else "")
             lines.append(f"{self.names[j]:<12} {self.units[j]:<10} {format_number(_f(self.estimate[j]))} "
                          f"{format_number(self.sensitivity[0, j])} {format_number(self.sensitivity[1, j])} "
                          f"{format_number(_f(self.contributions[0, j]))} {format_number(_f(self.contributions[1, j]))}"
@@ -198,7 +200,7 @@ class ImpactAnalysis:
                 s = "" if g.std is None else f" (std {g.std[0]:.4g}, {g.std[1]:.4g})"
                 lines.append(f"  down {g.contribution[0]:.4g} m, cross {g.contribution[1]:.4g} m{s}: "
                              + ", ".join(g.names))
-        missing = [n for n, s in zip(self.names, self.status) if s == "no estimate"]
+        missing = [n for n, s in zip(self.names, self.coefficient_status) if s == "no estimate"]
         if missing:
             lines.append("")
             lines.append(f"no estimate (contribute nothing to the miss): {', '.join(missing)}")

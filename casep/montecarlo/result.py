@@ -16,22 +16,26 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from casep.io._atomic import atomic_open
+from casep.results import Completed, deprecated_alias
 
 __all__ = ["MonteCarloResult", "write_figure"]
 
 
 @dataclass(frozen=True)
-class MonteCarloResult:
+class MonteCarloResult(Completed):
     """Per-method, per-coefficient Monte Carlo statistics (see the module notes).
 
     Follows the result protocol of :mod:`casep.results`: :meth:`to_dict` (the Monte Carlo
-    JSON) and :meth:`text` (what ``casep montecarlo`` prints).
+    JSON), :meth:`text` (what ``casep montecarlo`` prints); a campaign that returns has completed
+    (``success`` True, ``status`` 0: a run that fails stops the campaign with its error).
     """
+
+    what: ClassVar[str] = "Monte Carlo campaign"
 
     scenario: str
     runs: int
@@ -106,11 +110,13 @@ class MonteCarloResult:
                                           "coverage95")])
 
     def text(self) -> str:
-        """What ``casep montecarlo`` prints of the result: a line naming the campaign, then :meth:`summary`."""
+        """What ``casep montecarlo`` prints of the result: a line naming the campaign, then :meth:`method_table`."""
         head = f"scenario {self.scenario}, {self.runs} runs, seed {self.seed}"
-        return head + "\n" + self.summary()
+        return head + "\n" + self.method_table()
 
-    def summary(self) -> str:
+    summary = deprecated_alias("method_table", "summary")
+
+    def method_table(self) -> str:
         """The table of :meth:`text`: one line per method, median efficiency and coverage over the coefficients."""
         lines = [f"{'method':<18} {'median RMS/CRLB':>15} {'median efficiency':>17} {'median coverage95':>17}"
                  f" {'seconds':>8}"]

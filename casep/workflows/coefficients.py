@@ -139,7 +139,7 @@ def with_prior_consistency(result: Any, flight: Any, model: Any, prior: Mapping[
     cons = None
     try:
         cons = flight_prior_consistency(flight, model, prior, sigma=sigma)
-        summary = cons.summary()
+        summary = cons.to_dict()
     except ValueError as exc:  # the flight alone determines none of the prior's coefficients
         cons, summary = None, {"not_compared": str(exc)}
         warnings.warn(f"prior not compared with the flight alone: {exc}", CasepWarning, stacklevel=2)

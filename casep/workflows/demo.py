@@ -101,6 +101,24 @@ class DemoResult:
             lines += ["", f"report and figures in {self.out}/ (report.md)"]
         return "\n".join(lines)
 
+    @property
+    def success(self) -> bool:
+        """Whether every method's estimate succeeded."""
+        return all(bool(r.success) for r in self.results.values())
+
+    @property
+    def status(self) -> int:
+        """0 when every method succeeded, else the status of the first that did not."""
+        failed = [r for r in self.results.values() if not r.success]
+        return int(failed[0].status) if failed else 0
+
+    @property
+    def message(self) -> str:
+        """What was run, and the methods that did not succeed, with their messages."""
+        failed = [f"{label}: {r.message}" for label, r in self.results.items() if not r.success]
+        return (f"demo: {len(self.results)} methods on the paper flight"
+                + ("; not successful: " + "; ".join(failed) if failed else ""))
+
     def to_dict(self) -> dict[str, Any]:
         """Plain data: the scenario, the truth, every method's result JSON, the diagnostics, the miss."""
         sim = self.sim
@@ -112,16 +130,12 @@ class DemoResult:
             "truth": {n: float(v) for n, v in zip(sim.model.names, sim.truth)},
             "results": {label: r.to_dict() for label, r in self.results.items()},
             "diagnostics": self.diagnostics.to_dict(),
-            "impact": {label: _plain(ia) for label, ia in self.impact.items()},
+            "impact": {label: ia.to_dict() for label, ia in self.impact.items()},
             "true_miss": None if self.true_miss is None else [float(v) for v in self.true_miss],
             "files": [str(p) for p in self.files],
         }
 
 
-def _plain(ia: ImpactAnalysis) -> dict[str, Any]:
-    """An impact miss as plain data (its ``to_dict``, or ``to_json`` where it has no ``to_dict`` yet)."""
-    to_dict = getattr(ia, "to_dict", None) or ia.to_json
-    return to_dict()
 
 
 def _fmt(v: float) -> str:

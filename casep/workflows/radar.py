@@ -114,7 +114,7 @@ class RadarResult:
         from casep.estimators.result import format_number
 
         res = self.result
-        base = res.table().replace(f"sigma {res.sigma:.4g} m/s", f"noise scale {res.sigma:.4g} (1: as estimated "
+        base = res.text().replace(f"sigma {res.sigma:.4g} m/s", f"noise scale {res.sigma:.4g} (1: as estimated "
                                                                    "per group)").split("\n")
         w = max(12, *(len(n) for n in res.names))  # station terms are longer than instrument names
         rows = [f"{'coefficient':<{w}} {'unit':<10} {'estimate':>12} {'std':>12}  note"]

@@ -150,7 +150,7 @@ def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResul
         if wt.rejected:
             factor = _gm_factor(res, rows.solved)
             wt = dataclasses.replace(wt, std_factor=factor[0], std_factor_max=factor[1])
-            warnings.warn(f"{res.method}: {wt.message()}", NoiseNotWhiteWarning, stacklevel=3)
+            warnings.warn(f"{res.method}: {wt.text()}", NoiseNotWhiteWarning, stacklevel=3)
         diag["whiteness"] = wt.to_dict()
     settings = {**res.settings, "noise": noise}
     return dataclasses.replace(res, residuals=raw, n_samples=problem.n_samples, diagnostics=diag, settings=settings)

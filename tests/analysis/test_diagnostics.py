@@ -129,7 +129,7 @@ def test_every_estimator_warns_with_number_and_coefficients(paper_problem, platf
     for call in calls:
         with pytest.warns(IllConditionedWarning, match=r"equilibrated condition number \d\.\d+e\+0[45].*\[Kg"):
             res = call()
-        assert "ill-conditioned" in res.diagnostics["warning"] and "warning: ill-conditioned" in res.table()
+        assert "ill-conditioned" in res.diagnostics["warning"] and "warning: ill-conditioned" in res.text()
 
 
 def test_well_conditioned_problem_does_not_warn(rng):

@@ -46,7 +46,7 @@ def test_each_noise_is_identified_from_its_own_series(rng, kind):
          "gauss_markov": lambda: np.column_stack([_ar1(rng, n, dt, 1.0, 0.1) for _ in range(3)]),
          "random_walk": lambda: np.cumsum(0.01 * rng.standard_normal((n, 3)), axis=0)}[kind]()
     ni = identify_noise(e, dt)
-    assert ni.choice == kind, ni.report()
+    assert ni.choice == kind, ni.text()
     if kind == "gauss_markov":
         assert 0.7 < ni.fits["gauss_markov"]["T"] < 1.4
         assert "--method gls --tau" in ni.recommendation

@@ -57,7 +57,7 @@ def test_every_injected_outlier_is_flagged_and_named(paper10, rng):
     assert {(r["sample"], r["axis"]) for r in fl.rows} == {(int(a), "xyz"[b]) for a, b in zip(k, ax)}
     r0 = fl.rows[0]
     assert r0["t"] == pytest.approx(sim.flight.t[r0["sample"]]) and abs(r0["t_value"]) > fl.threshold
-    assert "estimate with --method huber" in fl.summary()
+    assert "estimate with --method huber" in fl.text()
 
 
 def test_false_alarm_rate_is_the_nominal_rate(paper10, rng):

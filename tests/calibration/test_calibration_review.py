@@ -63,7 +63,7 @@ def test_six_positions_estimate_the_position_error_with_the_rank_not_the_columns
     # pooled over 4 sessions: 12 dof, chi2_12 / 12 in (0.30, 2.0) with probability > 0.99
     pooled = float(np.sqrt(np.mean(np.square(est))))
     assert 0.5 * np.sqrt(0.30) < pooled < 0.5 * np.sqrt(2.0), est
-    assert "3 degrees of freedom" in cal.report()
+    assert "3 degrees of freedom" in cal.text()
 
 
 # ------------------------------------------------------------------ session files
@@ -154,7 +154,7 @@ def test_unknown_unit_is_refused_and_the_coefficient_units_follow_the_given_one(
     units = dict(zip(cal.names, cal.result.units))
     assert units["ba_x"] == "mg" and units["Ma_xy"] == "mg/(m/s^2)"
     assert units["bg_x"] == "deg/s" and units["Kga_xy"] == "deg/s/(m/s^2)"
-    assert "a.u." not in cal.report().split("\n\n")[0]
+    assert "a.u." not in cal.text().split("\n\n")[0]
     assert json.loads(imu.read_text())["from_acc_unit"] == "mg"
 
 

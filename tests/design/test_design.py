@@ -145,6 +145,26 @@ def test_designed_flight_reaches_the_predicted_crlb(designed):
     np.testing.assert_allclose(res.crlb_after, res.predicted_after, rtol=0.1)  # exact vs design model
 
 
+def test_design_result_follows_the_result_protocol(designed):
+    """to_dict() is plain data with finite numbers or nulls; success, status and message follow the
+    optimiser's return status; the old names warn."""
+    from casep.results import Result
+
+    res = designed
+    assert isinstance(res, Result)
+    d = res.to_dict()
+    assert json.loads(json.dumps(d, allow_nan=False)) == d
+    assert res.success == bool(res.solver["success"]) and res.status == (0 if res.success else 1)
+    assert res.solver["return_status"] in res.message
+    with pytest.warns(DeprecationWarning, match="to_json"):
+        assert res.to_json() == d
+    with pytest.warns(DeprecationWarning, match="table"):
+        assert res.table() == res.crlb_table()
+    assert res.crlb_table() in res.text()
+    stuck = dataclasses.replace(res, solver={**res.solver, "success": False, "return_status": "Maximum_Iterations"})
+    assert not stuck.success and stuck.status == 1 and "did not converge" in stuck.message
+
+
 def test_constraints_hold_on_the_simulated_flight(designed, tmp_path):
     from casep.simulation.simulate import simulate_flight
 

@@ -101,7 +101,7 @@ def test_message_and_table_state_active_set_and_conditional_std(small, truth36):
                                   f"1 fixed, {n_free} free")
     assert "conditional on this active set (understated" in res.message
     assert res.std_kind == "conditional" and res.to_dict()["std_kind"] == "conditional"
-    table = res.table()
+    table = res.text()
     assert res.message in table.splitlines()
     assert (f"active set {n_lo} at lower, {n_hi} at upper bound, 1 fixed, {n_free} free" in table
             and "std conditional on the active set (understated)" in table)

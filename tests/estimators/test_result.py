@@ -44,8 +44,8 @@ def _separate(flight, method, **kw):
 
 
 def _settings_line(res) -> str:
-    lines = [ln for ln in res.table().splitlines() if ln.startswith("settings: ")]
-    assert len(lines) == 1, res.table()
+    lines = [ln for ln in res.text().splitlines() if ln.startswith("settings: ")]
+    assert len(lines) == 1, res.text()
     return lines[0]
 
 

@@ -50,7 +50,7 @@ def test_result_follows_the_result_protocol():
     assert d["methods"]["ols"]["coefficients"][1]["efficiency"] == pytest.approx(0.5)
     text = res.text()
     assert text.splitlines()[0] == "scenario hand, 4 runs, seed 9"
-    assert text.endswith(res.summary()) and "median efficiency" in text
+    assert text.endswith(res.method_table()) and "median efficiency" in text
 
 
 @pytest.mark.parametrize("spec, name, linear, denoise", [

@@ -259,7 +259,7 @@ def test_diagnostics_fixed_free_groups_and_station_gain(clean):
         assert r["crlb_std_tracking_free"] >= r["crlb_std_tracking_fixed"] * (1 - 1e-9)
     assert set(d["station_gain"]) == {"S1", "S2"} and d["station_gain"]["S1"]["median_ratio"] > 1.0
     assert [r["name"] for r in d["tracking"]][:2] == ["S1.range_bias", "S1.range_scale"]
-    assert "CRLB fixed" in rr.table()
+    assert "CRLB fixed" in rr.text()
     # the bounds come from the per-group reductions: the same as from every weighted row
     lin = rr.linearised
     full = np.sqrt(np.diag(casep.analysis.diagnostics.crlb_covariance(lin.S * lin.weights[:, None], 1.0)))

@@ -453,7 +453,7 @@ def test_per_flight_coefficients_are_not_fused_or_carried_as_a_prior(two):
     chained = _quiet(solve_map, pb, prior=prior, sigma=0.2)
     own = [list(chained.names).index(n) for n in fused.names]
     assert np.max(np.abs(chained.estimate[own] - joint.estimate[idx]) / joint.std[idx]) < 1e-4
-    assert "Gaussian prior on 36 of 37 coefficients" in chained.table()
+    assert "Gaussian prior on 36 of 37 coefficients" in chained.text()
     with pytest.raises(ValueError, match="count twice"):
         fuse([ra, ra], labels=["A", "A again"])
 
