@@ -279,7 +279,7 @@ def separate(
               outliers_handled="robust" in res.diagnostics or exclude_outliers is not None)
     if sigma is not None and not sigma_from_wavelet:
         check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
-    res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model, noise_free=_noise_free(problem))
+    res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model, noise_free=problem.is_noise_free())
     if outliers is not None:  # studentized residuals on the rows the method solved (whitened), samples named
         from casep.analysis.outliers import flag_outliers
 
@@ -335,16 +335,6 @@ def _is_default(name: str, value) -> bool:
         return bool(value == OPTIONS[name].default)
     except (TypeError, ValueError):  # e.g. a mapping or an array: given
         return False
-
-
-def _noise_free(problem: Problem) -> bool:
-    """Least-squares residual std at the rounding level of dv (:data:`casep.analysis.checks.NOISE_FREE`)."""
-    from casep.analysis.checks import NOISE_FREE
-
-    if problem.y is None:
-        return False
-    dof = max(problem.m - problem.rank().rank, 1)
-    return float(np.sqrt(problem.ls_rss() / dof)) <= NOISE_FREE * float(np.max(np.abs(problem.y)))
 
 
 def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_free: bool = False) -> EstimateResult:
