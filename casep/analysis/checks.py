@@ -54,7 +54,7 @@ import warnings
 
 import numpy as np
 
-from casep.analysis.problem import NOISE_FREE, is_rounding_level  # NOISE_FREE re-exported (one constant)
+from casep.analysis.problem import NOISE_FREE, is_rounding_level  # NOISE_FREE re-exported: the one constant
 from casep.analysis.time_offset import (
     GRAVITY_LAUNCH,
     is_problem,
@@ -74,7 +74,8 @@ from casep.exceptions import (
 from casep.io.flight import DV_COLUMNS, FlightData, FlightDataError
 from casep.units import G0
 
-__all__ = ["check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero", "min_samples",
+__all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
+           "min_samples",
            "setup_problems", "warn_setup"]
 
 

@@ -279,7 +279,8 @@ def separate(
               outliers_handled="robust" in res.diagnostics or exclude_outliers is not None)
     if sigma is not None and not sigma_from_wavelet:
         check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
-    res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model, noise_free=problem.is_noise_free())
+    res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model,
+                      noise_free=problem.is_noise_free())
     if outliers is not None:  # studentized residuals on the rows the method solved (whitened), samples named
         from casep.analysis.outliers import flag_outliers
 
