@@ -206,7 +206,8 @@ def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResul
         for g, loc in zip(gaps, _places(problem, [g["row"] - 1 for g in gaps])):
             g.update(loc)  # the first sample after the gap
         diag["gaps"] = gaps
-    if nm.is_white and noise == "white" and check_white and problem.t is not None and raw.ndim == 2:
+    if nm.is_white and noise == "white" and check_white and problem.t is not None and raw.ndim == 2 \
+            and not problem.is_noise_free():  # rounding residuals: no noise whose whiteness to test
         wt = whiteness_test(raw[keep], problem.t[keep])
         if wt.rejected:
             factor = _gm_factor(res, rows.solved)
