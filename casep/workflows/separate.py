@@ -302,7 +302,7 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
     set-up mistake (check_fit's NoiseFreeWarning says so)."""
     from casep.analysis.checks import setup_problems
-    from casep.estimators._base import STATUS_SETUP, check_magnitudes, failed
+    from casep.estimators.registry import STATUS_SETUP, check_magnitudes, failed
 
     problems = setup_problems(flight) if flight is not None else []
     if flight is not None and problems:
