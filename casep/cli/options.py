@@ -12,7 +12,7 @@ from typing import Any
 from casep.cli.types import metavar, rule_type
 from casep.estimators.registry import METHODS, OPTIONS, Option
 
-__all__ = ["add_option", "method_option_groups", "add_noise", "noise_kw", "add_model", "add_json", "method_options",
+__all__ = ["add_option", "method_option_groups", "add_noise", "add_model", "add_json", "method_options",
            "fit_spec"]
 
 
@@ -70,20 +70,6 @@ def add_noise(parser: Any, *, outputs: bool = True, default: str = "auto") -> No
         g.add_argument("--exclude-outliers", type=float, nargs="?", const=0.01, default=None, metavar="ALPHA",
                        help="remove the samples whose studentized residual (whitened rows) is flagged at "
                             "family-wise chance ALPHA (default 0.01) and fit again; removed samples listed")
-
-
-def noise_kw(args: argparse.Namespace, opts: dict[str, Any]) -> dict[str, Any]:
-    """separate()'s noise keywords from the options (--tau: the noise model's for every method; popped from
-    `opts` for a method other than gls)."""
-    kw = {"noise": args.noise, "robust": args.robust}
-    for k in ("std", "exclude_outliers"):
-        if getattr(args, k, None) is not None:
-            kw[k] = getattr(args, k)
-    from casep.estimators.registry import METHODS
-
-    if opts.get("tau") is not None and "tau" not in METHODS[args.method].options:  # not the method's own tau
-        kw["tau"] = opts.pop("tau")
-    return kw
 
 
 def fit_spec(args: argparse.Namespace, given: dict[str, Any], **fit: Any) -> Any:

@@ -76,17 +76,15 @@ def run(args: argparse.Namespace) -> int:
                             outliers=args.outliers)  # the one check of the request
     bounds = inputs.coefficient_file(args, "bounds", model.names)
     prior = inputs.coefficient_file(args, "prior", model.names)
-    if len(args.flight) > 1:
-        from casep.cli.separate_flights import separate_flights
-
-        nkw = options.noise_kw(args, given)  # --tau: the noise model's, for every method
-        opts = {k: v for k, v in given.items() if k not in ("bounds", "prior")}
-        return separate_flights(args, model, opts, bounds, prior, nkw)
     tables = {k: v for k, v in (("bounds", bounds), ("prior", prior)) if v is not None}
-    if tables:
+    if tables:  # the files read and checked against the model: the tables themselves
         import dataclasses
 
         spec = dataclasses.replace(spec, options={**spec.options, **tables})
+    if len(args.flight) > 1:
+        from casep.cli.separate_flights import separate_flights
+
+        return separate_flights(args, model, spec)
     args.flight = args.flight[0]
     flight = inputs.read_one(args)
     from casep.workflows.separate import separate

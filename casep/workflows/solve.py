@@ -30,7 +30,8 @@ from casep.exceptions import NoiseNotWhiteWarning
 from casep.workflows.spec import STD_CHOICES, FitSpec, NoiseSpec
 
 # Rows and prepare_rows live in casep.analysis.rows (the data's), re-exported here beside solve_problem
-__all__ = ["fit", "solve_problem", "solve_spec", "prepare_rows", "Rows", "Solved", "hac_covariance", "STD_CHOICES"]
+__all__ = ["fit", "solve_problem", "solve_spec", "noise_account", "prepare_rows", "Rows", "Solved", "hac_covariance",
+           "STD_CHOICES"]
 
 
 @dataclass
@@ -187,20 +188,34 @@ def _places(problem: Problem, samples) -> list[dict]:
     return [{**loc, "where": where(loc)} for loc in problem.locate(samples)]
 
 
+def noise_account(rows: Rows | None, asked: str, noise: NoiseModel | None = None, *,
+                  note: str | None = None) -> dict[str, Any]:
+    """The noise account of a fit, assembled here only: ``{"noise": ..., "robust": ..., "excluded": ...}``.
+
+    ``noise``: the noise model (`noise`, default the rows') with the kind `asked` (and a `note`);
+    ``robust``: what the robust fit did with the samples it rejected, located in their files;
+    ``excluded``: the samples removed as flagged outliers, located. The last two only when they apply.
+    """
+    if noise is None:
+        assert rows is not None  # the rows' own noise model
+        noise = rows.noise
+    out: dict[str, Any] = {"noise": {**noise.to_dict(), "asked": asked, **({"note": note} if note else {})}}
+    if rows is None:
+        return out
+    if rows.robust is not None and rows.problem.t is not None:
+        out["robust"] = {**rows.robust, "rejected": _places(rows.problem, np.flatnonzero(~rows.keep)[:200])}
+    if rows.excluded is not None:
+        ex = rows.excluded
+        locs = _places(rows.problem, [r["sample"] for r in ex["samples"]])
+        out["excluded"] = {**ex, "samples": [{**r, **loc} for r, loc in zip(ex["samples"], locs)]}
+    return out
+
+
 def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResult:
     problem, keep, nm, noise = rows.problem, rows.keep, rows.noise, rows.asked
     x = _x(res)
     raw = problem.residuals(x)
-    diag = dict(res.diagnostics)
-    nd = nm.to_dict()
-    nd["asked"] = noise
-    diag["noise"] = nd
-    if rows.robust is not None and problem.t is not None:
-        diag["robust"] = {**rows.robust, "rejected": _places(problem, np.flatnonzero(~keep)[:200])}
-    if rows.excluded is not None:
-        ex = rows.excluded
-        locs = _places(problem, [r["sample"] for r in ex["samples"]])
-        diag["excluded"] = {**ex, "samples": [{**r, **loc} for r, loc in zip(ex["samples"], locs)]}
+    diag = {**res.diagnostics, **noise_account(rows, noise)}
     if problem.t is not None:
         gaps = find_gaps(problem.t)
         for g, loc in zip(gaps, _places(problem, [g["row"] - 1 for g in gaps])):
@@ -303,12 +318,7 @@ def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], robust: 
             sub = problem.subset(rows.keep)
     res = meth.solve(sub, **opts)
     nm = meth.own_noise_model(res)
-    diag = {**res.diagnostics, "noise": {**nm.to_dict(), "asked": "gm",
-                                         "note": f"method {meth.name}: one tau for all axes"}}
-    if rows is not None and rows.robust is not None:
-        diag["robust"] = {**rows.robust, "rejected": _places(problem, np.flatnonzero(~rows.keep)[:200])}
-    if rows is not None and rows.excluded is not None:
-        diag["excluded"] = rows.excluded
+    diag = {**res.diagnostics, **noise_account(rows, "gm", nm, note=f"method {meth.name}: one tau for all axes")}
     raw = problem.residuals(_x(res))
     res = dataclasses.replace(res, diagnostics=diag, settings={**res.settings, "noise": "gm"}, residuals=raw,
                               n_samples=problem.n_samples)
