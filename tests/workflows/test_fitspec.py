@@ -18,7 +18,7 @@ import pytest
 
 import casep
 from casep.cli import main
-from casep.estimators.registry import METHODS, OPTIONS, Choices, CoefficientTable, Interval
+from casep.estimators.registry import METHODS, NOISE_OPTIONS, OPTIONS, Choices, CoefficientTable, Interval
 from casep.exceptions import NoiseFreeWarning
 from casep.workflows.spec import NOT_GIVEN, FitSpec, NoiseSpec
 
@@ -237,3 +237,19 @@ def test_noise_free_several_flights_default_path_json(tmp_path, capsys):
     assert data["consistency"]["overall"] is None  # no noise to test the flights' consistency against
     for fl in data["flights"]:
         assert max(fl["residual_rms"].values()) < 1e-9
+
+
+@pytest.mark.parametrize("method, option", [(m, o) for m in METHODS for o in sorted(OPTIONS)
+                                            if o not in METHODS[m].options
+                                            and o not in ("bounds", "prior", *NOISE_OPTIONS)][:12])
+def test_an_option_of_another_method_same_message_api_and_cli(good_flight_csv, capsys, method, option):
+    """An option the method does not take: the same message from casep.separate, FitSpec and casep separate.
+    (``tau`` is every method's: the noise model's, or GLS's own.)"""
+    opt = OPTIONS[option]
+    value = opt.default if opt.default is not None else 1
+    with pytest.raises(ValueError) as e:
+        FitSpec.build(method, **{option: value})
+    api = str(e.value)
+    assert api.startswith(f"option {opt.flag} (`{option}`) is not taken by method `{method}`")
+    assert main(["separate", str(good_flight_csv), "--method", method, opt.flag, str(value)]) == 2
+    assert f"casep: error: {api}" in capsys.readouterr().err
