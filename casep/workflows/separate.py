@@ -204,7 +204,7 @@ def separate(
         raise ValueError(f"`{'site' if site is not None else 'tracking_model'}` is used only with `radar`")
     if spec is None:
         spec = FitSpec.build(**fit_kw)  # every check of the request, once
-    problem, model = _problem(flight, model, fit_time_offset)
+    flight, problem, model = _problem(flight, model, fit_time_offset)
     spec = _with_tables(spec, flight, model)
     res = fit(problem, spec)
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model,
@@ -219,12 +219,12 @@ def separate(
 
 
 def _problem(flight: FlightData | Problem | str | os.PathLike, model: Any,
-             fit_time_offset: bool | None) -> tuple[Problem, Any]:
-    """The flight's Problem (S_V integrated and reduced once, checks on the way) and its model."""
+             fit_time_offset: bool | None) -> tuple[FlightData | Problem, Problem, Any]:
+    """The flight (read if a path), its Problem (S_V integrated and reduced once, checks on the way), its model."""
     if isinstance(flight, Problem):
         if not flight.has_rows:
             raise ValueError("`flight` is a reduction-only Problem: separate needs the flight's rows")
-        return flight, model
+        return flight, flight, model
     if not isinstance(flight, FlightData):
         flight = read_flight(flight)
     align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
@@ -235,7 +235,7 @@ def _problem(flight: FlightData | Problem | str | os.PathLike, model: Any,
 
         model = with_time_offset(model)
     model = load_model(model)
-    return Problem.from_flight(flight, model), model
+    return flight, Problem.from_flight(flight, model), model
 
 
 def _with_tables(spec: FitSpec, flight: Any, model: Any) -> FitSpec:
