@@ -72,7 +72,7 @@ def separate(
     fit_time_offset: bool | None = None,
     radar: Sequence | None = None,
     site: LaunchSite | None = None,
-    tracking_model: Any = "radar_biases",
+    tracking_model: Any = NOT_GIVEN,
     spec: FitSpec | None = None,
     **method_options: Any,
 ) -> EstimateResult | RadarResult:
@@ -199,8 +199,9 @@ def separate(
         raise ValueError(f"`spec` given with {', '.join(f'`{k}`' for k in fit_kw)}: give the fit request either as "
                          "a FitSpec or as keywords")
     if radar is not None:
-        return _separate_radar(flight, model, fit_kw, radar, site, tracking_model, fit_time_offset)
-    if site is not None or not _is_tracking_default(tracking_model):
+        return _separate_radar(flight, model, fit_kw, radar, site,
+                               "radar_biases" if tracking_model is NOT_GIVEN else tracking_model, fit_time_offset)
+    if site is not None or tracking_model is not NOT_GIVEN:
         raise ValueError(f"`{'site' if site is not None else 'tracking_model'}` is used only with `radar`")
     if spec is None:
         spec = FitSpec.build(**fit_kw)  # every check of the request, once
@@ -255,10 +256,6 @@ def _with_tables(spec: FitSpec, flight: Any, model: Any) -> FitSpec:
             res_prior, m = read_result(path, None if isinstance(flight, Problem) else model, option="prior")
             opts[k] = prior_from_result(res_prior, model=m)
     return spec if opts == dict(spec.options) else dataclasses.replace(spec, options=opts)
-
-
-def _is_tracking_default(value) -> bool:
-    return isinstance(value, str) and value == "radar_biases"
 
 
 def _separate_radar(telemetry, model, fit_kw: dict, radar: Sequence, site, tracking_model,
