@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -82,6 +83,9 @@ def test_spec_is_frozen_and_decides_who_owns_tau():
     with pytest.raises(TypeError):
         ols.options["lam"] = 1.0  # type: ignore[index]
     assert repr(NOT_GIVEN) == "NOT_GIVEN" and not NOT_GIVEN
+    spec = FitSpec.build("ridge", lam=0.5, noise="gm", tau=1.0, wavelet_options=None)
+    again = pickle.loads(pickle.dumps(spec))  # a spec travels to worker processes
+    assert again == spec and hash(again) == hash(spec) and pickle.loads(pickle.dumps(NOT_GIVEN)) is NOT_GIVEN
 
 
 def test_noise_kinds_flow_from_the_noise_module():
