@@ -143,8 +143,10 @@ def check_method_options(method: str, given: Mapping[str, Any]) -> None:
     """
     if method not in METHODS:
         raise ValueError(f"`method` must be one of {', '.join(METHODS)}, got {method!r}")
-    takers = {name: [k for k, v in METHODS.items() if name in v.options] for name in given}
-    flags = {name: OPTIONS[name].flag for name in given if name in OPTIONS}
+    own = set(METHODS[method].options)
+    foreign = [name for name in given if name not in own]  # only these need the takers, for the message
+    takers = {name: [k for k, v in METHODS.items() if name in v.options] for name in foreign}
+    flags = {name: OPTIONS[name].flag for name in foreign if name in OPTIONS}
     METHODS[method].check_options(given, takers=takers, flags=flags)
 
 
