@@ -23,6 +23,8 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
+import numpy as np
+
 __all__ = ["FitSpec", "NoiseSpec", "NOT_GIVEN", "NotGiven", "merge_options", "ROBUST_CHOICES", "STD_CHOICES",
            "DENOISE_CHOICES"]
 
@@ -108,7 +110,7 @@ class NoiseSpec:
     wavelet_options: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        from casep.analysis.noise import check_noise_kind
+        from casep.analysis.noise import check_noise_kind, check_tau
 
         set_ = object.__setattr__  # frozen: the normal form is set once, here
         check_noise_kind(self.kind)
@@ -125,6 +127,11 @@ class NoiseSpec:
         set_(self, "wavelet_options", _frozen(self.wavelet_options))
         if self.wavelet_options and self.denoise != "wavelet":
             raise ValueError("`wavelet_options` given without `denoise='wavelet'`")
+        if isinstance(self.tau, str) and self.tau == "auto":
+            set_(self, "tau", None)  # REML: as when not given
+        check_tau(self.tau)  # the noise model's own rule for a correlation time, checked here, at the edge
+        if isinstance(self.tau, (list, np.ndarray)):
+            set_(self, "tau", tuple(float(v) for v in np.ravel(self.tau)))  # a value: hashable, unchanged
         if self.tau is not None:
             if self.kind == "white":
                 raise ValueError("`tau` given with noise 'white': a correlation time means noise 'gm'")
