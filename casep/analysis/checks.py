@@ -54,6 +54,7 @@ import warnings
 
 import numpy as np
 
+from casep.analysis.problem import NOISE_FREE, is_rounding_level  # NOISE_FREE re-exported: the one constant
 from casep.analysis.time_offset import (
     GRAVITY_LAUNCH,
     is_problem,
@@ -73,7 +74,8 @@ from casep.exceptions import (
 from casep.io.flight import DV_COLUMNS, FlightData, FlightDataError
 from casep.units import G0
 
-__all__ = ["check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero", "min_samples",
+__all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
+           "min_samples",
            "setup_problems", "warn_setup"]
 
 
@@ -84,7 +86,6 @@ STEP_LOW, STEP_HIGH, STEP_IMPOSSIBLE, DURATION_HIGH = 1e-4, 1.0, 1e-6, 3600.0
 DUPLICATE_STEP = 1e-3  # a step below this fraction of the median is a near-duplicate time tag
 DW_HIGH = 2e4  # m/s: no rocket flight gains more than ~20 km/s of specific-force velocity
 DV_NOISE_HIGH = 5.0  # m/s: tracking noise is 0.01-1 m/s
-NOISE_FREE = 1e-9  # residual RMS / max |dv| at or below this: rounding only
 OUTLIER_Z = 10.0  # robust sigma of the spike statistic; Gaussian P(|z| > 10) ~ 1.5e-23
 OFFSET_T = 5.0  # |t| of the offset / jerk terms; Gaussian P(|t| > 5) ~ 6e-7
 EFFECT_MIN = 1e-3  # m/s: RMS of a term's part outside span S_V below which it cannot matter against
@@ -334,7 +335,9 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         r[sl] = dv[sl] - S_b @ x  # dv - S D_hat, block by block
     t = np.asarray(t, dtype=float)
     rms, scale = float(np.sqrt(np.mean(r**2))), float(np.max(np.abs(dv)))
-    if rms <= NOISE_FREE * scale or scale == 0.0:
+    if is_problem(S):
+        rms = S.ls_rms()  # the data's own rule (the noise model and the robust filter ask the same)
+    if S.is_noise_free() if is_problem(S) else is_rounding_level(rms, scale):
         _warn(f"{source}: residual RMS {rms:.3g} m/s is at the rounding level of dv (max |dv| {scale:.3g} m/s): "
               "the data carry no noise, so the std reflect rounding only.", NoiseFreeWarning)
         return

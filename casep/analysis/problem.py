@@ -30,7 +30,7 @@ from casep.analysis.linalg import (
     reduce_qr_blocks,
 )
 
-__all__ = ["Problem", "DEFAULT_BLOCK_ROWS", "SV_KEEP_BYTES"]
+__all__ = ["Problem", "DEFAULT_BLOCK_ROWS", "SV_KEEP_BYTES", "NOISE_FREE", "is_rounding_level"]
 
 #: Samples per regenerated block of S_V (16384 x 3 x 36 doubles = 14 MB; the QR of a block and
 #: its copies take a few times that).
@@ -38,6 +38,19 @@ DEFAULT_BLOCK_ROWS = 16384
 #: S_V up to this many bytes is kept whole by default (a 100 Hz, 200 s flight of 36 coefficients
 #: is 17 MB); beyond it, it is reduced block by block and regenerated when its rows are needed.
 SV_KEEP_BYTES = 256 * 2**20
+#: Residual RMS at or below this fraction of the largest |dv|: the data carry no noise, only rounding
+#: (double precision rounds at ~1e-16 relative; S_V integration and file round trips add a few digits).
+NOISE_FREE = 1e-9
+
+
+def is_rounding_level(rms: float, scale: float) -> bool:
+    """The noise-free rule: a residual RMS at the rounding level of data whose largest magnitude is `scale`.
+
+    ``rms <= NOISE_FREE * scale`` (or no data at all: ``scale == 0``). Every part of casep that asks
+    whether a flight carries noise (the noise model, the robust filter, the residual checks, the
+    magnitude and prior checks) asks it through :meth:`Problem.is_noise_free`, which calls this.
+    """
+    return bool(scale == 0.0 or rms <= NOISE_FREE * scale)
 
 
 class Problem:
@@ -374,6 +387,22 @@ class Problem:
     def ls_rss(self, rcond: float | None = None) -> float:
         """Least-squares residual sum of squares ``rho^2 + ||U_{r+}^T q||^2`` (the part of q off range R)."""
         return least_squares_rss(self.red, self.rank(rcond))
+
+    def ls_rms(self) -> float:
+        """Least-squares residual RMS over the rows, ``sqrt(rss / m)``."""
+        return float(np.sqrt(self.ls_rss() / max(self.m, 1)))
+
+    def is_noise_free(self) -> bool:
+        """Whether the rows carry no noise: least-squares residual RMS at the rounding level of ``y``.
+
+        ``sqrt(rss / m) <= NOISE_FREE * max |y|`` (:func:`is_rounding_level`); False for a
+        reduction-only problem (no ``y`` to compare with). Such data have nothing to fit a noise
+        model or a robust filter on, and their std reflect rounding only.
+        """
+        if self.y is None:
+            return False
+        scale = float(np.max(np.abs(self.y))) if self.y.size else 0.0
+        return is_rounding_level(self.ls_rms(), scale)
 
     # ----------------------------------------------------------------- rows
     def _need_rows(self) -> np.ndarray:

@@ -22,30 +22,18 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from casep.analysis.noise import NoiseModel, check_noise_kind
 from casep.analysis.noise_fit import fit_noise
+from casep.analysis.problem import NOISE_FREE, Problem  # NOISE_FREE re-exported: the one noise-free constant
 from casep.analysis.robust import robust_filter
-
-#: A :class:`casep.analysis.problem.Problem`. That module imports this one (``Problem.rows``) and the rows use
-#: only a Problem's methods, so the class is not imported here (no import cycle).
-Problem = Any
 
 __all__ = ["Rows", "prepare_rows", "NOISE_FREE", "ROBUST_CHOICES", "GLITCH_SIGMAS"]
 
-#: Residual RMS below this fraction of the RMS of dv: noise-free data, nothing to fit a noise model on.
-NOISE_FREE = 1e-9
 _MAX_ROBUST_ITER = 12
 _MAX_EXCLUDE_PASSES = 6
-
-
-def _noise_free(problem: Problem) -> bool:
-    rss = problem.ls_rss()
-    yy = float(problem.red.qty @ problem.red.qty + problem.red.rho2)
-    return yy > 0 and rss <= (NOISE_FREE**2) * yy
 
 
 @dataclass
@@ -150,7 +138,7 @@ def prepare_rows(problem: Problem, noise: str = "auto", tau=None, robust: str | 
     if robust is not None and robust not in ROBUST_CHOICES:
         raise ValueError(f"`robust` must be one of {', '.join(ROBUST_CHOICES)} or None, got {robust!r}")
     robust = None if robust == "none" else robust
-    noise_free = _noise_free(problem)
+    noise_free = problem.is_noise_free()  # nothing to fit a noise model or a robust filter on
     if noise != "white" and noise_free:
         nm = dataclasses.replace(NoiseModel.white(), kind=noise, rule="noise-free data: white")
     else:

@@ -78,6 +78,122 @@ def _positive(v: float, fallback: float) -> float:
 
 
 
+def _row_std(S: np.ndarray, y: np.ndarray, rows_sd: Sequence[Any], static: Sequence[Segment], s_i: np.ndarray,
+             n_static: int, weighting: str) -> tuple[np.ndarray, float, int]:
+    """Each row's std, the static level the rows are scaled to, and the static rows' residual dof.
+
+    The static level: the least-squares residual std of the static rows alone (``positions``,
+    ``segments``; the sample noise of a segment mean without dof), else the sample noise.
+    """
+    from casep.analysis.problem import Problem
+
+    dof = 0
+    # Row std: the static level (segments: sigma_s of the static rows alone) and the rotation rows'.
+    if weighting in ("positions", "segments"):
+        Sst, yst = S[:3 * n_static], y[:3 * n_static]  # three rows per static segment
+        pst = Problem.from_arrays(Sst, yst)
+        dof = pst.m - pst.rank().rank
+        noise_mean = float(np.sqrt(np.mean(s_i**2) / np.mean([len(s.rows) for s in static])))
+        level = math.sqrt(pst.ls_rss() / dof) if dof > 0 else noise_mean
+        level = _positive(level, _positive(noise_mean, 1.0))
+        sd = np.concatenate([np.full(3, level) if v is None else np.asarray(v) for v in rows_sd])
+    else:
+        level = _positive(float(np.sqrt(np.mean(s_i**2))), 1.0)
+        sd = np.concatenate([np.asarray(v) for v in rows_sd])
+    sd = np.where(sd > 0, sd, level)
+    return sd, level, dof
+
+
+def _position_rows(model: Any, slot: str, cols: Sequence[int], static: Sequence[Segment], u: np.ndarray,
+                   gravity: float, n_static: int, s_i: np.ndarray, S: np.ndarray, y: np.ndarray, Sw: np.ndarray,
+                   yw: np.ndarray, rows_sd: Sequence[Any], tilt: float | None,
+                   tilt_dof: int) -> tuple[np.ndarray, np.ndarray, float, float, int]:
+    """Weighting ``positions``: the rows whitened by the position-error model (:mod:`casep.calibration.rows`),
+    their level, and the position error (rad rms; estimated on the first sensor, the accelerometer,
+    since the same tilts move both) with its residual dof."""
+    x0 = np.linalg.lstsq(Sw, yw, rcond=None)[0]  # equal-weight fit: the reading's slope in f
+    D0 = np.zeros(model.n_coefficients)
+    D0[cols] = x0
+    Jf = [model.reading_df(slot, gravity * s.gravity, np.deg2rad(s.omega_dps), D0) for s in static]
+    ybar = y[:3 * n_static]
+    # the turns' white-noise std, floored (like the means) at 1e-12 of the row: a noise-free session
+    y_rot = y[3 * n_static:]
+    sd_rot = np.concatenate([np.asarray(v) for v in rows_sd[n_static:]]) if len(rows_sd) > n_static \
+        else np.zeros(0)
+    sd_rot = np.maximum(sd_rot, 1e-12 * np.max(np.abs(y_rot), initial=0.0) + 1e-300)
+    floor = (1e-12 * float(np.max(np.abs(ybar)))) ** 2 + 1e-300
+    # a tilted position senses on average f = g (1 - tilt^2) e (casep.calibration.rows): the static rows there
+    args = (model, slot, cols, static, u, gravity, n_static, Jf, s_i, floor, y_rot, sd_rot)
+    if tilt is None:  # estimated on the first sensor (the accelerometer): the same tilts move both
+        # degrees of freedom: rows minus the rank of S (the six axis positions leave some
+        # coefficients undetermined, so the rank, not the number of columns, counts)
+        tilt_dof = S.shape[0] - int(np.linalg.matrix_rank(Sw))
+        tilt = 0.0
+        for _ in range(4):  # the mean shortfall moves the misfit by O(tilt^2): a fixed point in a few steps
+            tilt = solve_tilt(tilted_rows(tilt, S, y, *args), S.shape[0], S.shape[0] - tilt_dof)
+    whiten = tilted_rows(tilt, S, y, *args)
+    Sw, yw = whiten(tilt)
+    level = ls_sigma(Sw, yw)
+    return Sw, yw, level, tilt, tilt_dof
+
+
+def _sensor_options(options: Mapping[str, Any], names: Sequence[str], method: str, sensor: str) -> dict[str, Any]:
+    """The method's options for one sensor's regression: ``prior``/``bounds`` cut to its coefficients."""
+    from casep.estimators.registry import METHODS
+
+    opts = {k: v for k, v in options.items() if v is not None}
+    for key in ("prior", "bounds"):
+        if key in opts:
+            part = _split_table(opts[key], names)
+            if part is None:
+                opts.pop(key)
+                if key in METHODS[method].required:
+                    raise ValueError(f"--{key} names none of the {sensor}'s coefficients ({', '.join(names)}); "
+                                     f"method `{method}` needs one for each sensor")
+            else:
+                opts[key] = part
+    return opts
+
+
+def _judge_positions(static: Sequence[Segment], weighting: str, Sw: np.ndarray, yw: np.ndarray, Sst: np.ndarray,
+                     yst: np.ndarray, u: np.ndarray, level: float, sensor: str, unit: str) -> None:
+    """Warn of static positions that misfit: judged on the least-squares fit of the rows (whatever the
+    method), the static rows alone (equal weight, ``segments``) or all rows whitened by the position and
+    noise model (``positions``); residuals at the rounding level of the readings are no misfit."""
+    n3 = Sst.shape[0]
+    A, b = (Sw, yw) if weighting == "positions" else (Sst, yst)
+    xs = np.linalg.lstsq(A, b, rcond=None)[0]
+    rr = b - A @ xs
+    rounding = np.abs(yst - Sst @ xs) <= 1e-12 * float(np.max(np.abs(u)))  # a noise-free session
+    rr[:n3][rounding] = 0.0
+    warn_misfit(static, A[:n3], rr[:n3], level, sensor, "(whitened)" if weighting == "positions" else unit,
+                1.0 if weighting == "positions" else float(np.max(np.abs(u))), A)
+
+
+def _combined(method: str, model: Any, units: Sequence[str], est: np.ndarray, cov: np.ndarray,
+              reasons: dict[str, str], sensors: Mapping[str, Any], segments: Sequence[Segment],
+              sigma: float | None) -> Any:
+    """The EstimateResult over both sensors' coefficients (block-diagonal covariance; the worse status)."""
+    from casep.estimators.result import EstimateResult
+
+    und = ~np.isfinite(est)
+    cov[und, :] = np.nan
+    cov[:, und] = np.nan
+    std = np.sqrt(np.clip(np.diag(cov), 0, None))
+    parts = list(sensors.values())
+    # worst of the two: a failure (<= 0) if either failed, else 2 (some not identifiable) over 1
+    status = min(r.status for r in parts) if any(r.status <= 0 for r in parts) else max(r.status for r in parts)
+    return EstimateResult(
+        method=method, names=model.names, units=tuple(units), estimate=est, std=std, covariance=cov,
+        reasons=reasons, residuals=np.zeros((0, 3)), sigma=math.nan, rank=sum(r.rank for r in parts),
+        status=status, message="; ".join(f"{k}: {r.message}" for k, r in sensors.items()),
+        success=all(r.success for r in parts), si_factors=model.si_factors,
+        settings={"method_settings": {k: r.settings for k, r in sensors.items()}},
+        diagnostics={k: r.diagnostics for k, r in sensors.items()}, model=model.name,
+        n_samples=int(sum(len(s.rows) for s in segments)), sigma_source="estimated" if sigma is None else "given",
+        stored_residual_rms={a: None for a in "xyz"}, std_kind=parts[0].std_kind, extras=None)
+
+
 def calibrate(session: Session, segments: Sequence[Segment], model: str | os.PathLike | CalibrationModel = "ferraris",
               method: str = "ols", *, gravity: float = G0, weighting: str = "positions", sigma: float | None = None,
               options: Mapping[str, Any] | None = None):
@@ -121,19 +237,20 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     import dataclasses
 
     from casep.analysis.problem import Problem
-    from casep.estimators.registry import METHODS, check_method_options, run_method
+    from casep.estimators.registry import METHODS, run_method
     from casep.estimators.result import EstimateResult
+    from casep.workflows.spec import FitSpec
 
     if weighting not in WEIGHTINGS:
         raise ValueError(f"`weighting` must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
     if not (np.isfinite(gravity) and 9.7 < gravity < 9.9):
         raise ValueError(f"`gravity` must be the local gravity in m/s^2 (9.7 .. 9.9), got {gravity}")
     model = load_calibration_model(model)
-    options = dict(options or {})
-    check_method_options(method, {k: v for k, v in options.items() if v is not None})
-    if METHODS[method].needs_time or METHODS[method].noise_in_time:  # a noise model along time: no time order here
+    if method in METHODS and (METHODS[method].needs_time or METHODS[method].noise_in_time):  # no time order here
         raise ValueError(f"method `{method}` models noise correlated in time; the rows of a ground test (segment "
                          "means, turn integrals) have no time order. Use: another method")
+    # the request checked once, as every fit's: white rows (the weighting is the calibration's own), no robust filter
+    options = dict(FitSpec.build(method, options=options, noise="white", robust=None).options)
     acc, gyr, acc_unit, gyr_unit = readings_for(session, model)
     check_gravity(segments, session, gravity)
     check_turn_angles(segments, session)
@@ -161,61 +278,17 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         s_i = sample_noise(static, u)  # sample noise per axis
         S, y, rows_sd, rows_seg, rows_t, n_static = sensor_rows(model, slot, cols, static, rots, u, session.t,
                                                                 gravity, rate, weighting, s_i)
-        # Row std: the static level (segments: sigma_s of the static rows alone) and the rotation rows'.
-        if weighting in ("positions", "segments"):
-            Sst, yst = S[:3 * n_static], y[:3 * n_static]  # three rows per static segment
-            pst = Problem.from_arrays(Sst, yst)
-            dof = pst.m - pst.rank().rank
-            noise_mean = float(np.sqrt(np.mean(s_i**2) / np.mean([len(s.rows) for s in static])))
-            level = math.sqrt(pst.ls_rss() / dof) if dof > 0 else noise_mean
-            level = _positive(level, _positive(noise_mean, 1.0))
-            sd = np.concatenate([np.full(3, level) if v is None else np.asarray(v) for v in rows_sd])
-        else:
-            level = _positive(float(np.sqrt(np.mean(s_i**2))), 1.0)
-            sd = np.concatenate([np.asarray(v) for v in rows_sd])
-        sd = np.where(sd > 0, sd, level)
+        sd, level, dof = _row_std(S, y, rows_sd, static, s_i, n_static, weighting)
         wgt = level / sd  # rows scaled to the static level: sigma comes out in reading units
         Sw, yw = S * wgt[:, None], y * wgt
-        if weighting == "positions" and n_static:
-            x0 = np.linalg.lstsq(Sw, yw, rcond=None)[0]  # equal-weight fit: the reading's slope in f
-            D0 = np.zeros(model.n_coefficients)
-            D0[cols] = x0
-            Jf = [model.reading_df(slot, gravity * s.gravity, np.deg2rad(s.omega_dps), D0) for s in static]
-            ybar = y[:3 * n_static]
-            # the turns' white-noise std, floored (like the means) at 1e-12 of the row: a noise-free session
-            y_rot = y[3 * n_static:]
-            sd_rot = np.concatenate([np.asarray(v) for v in rows_sd[n_static:]]) if len(rows_sd) > n_static \
-                else np.zeros(0)
-            sd_rot = np.maximum(sd_rot, 1e-12 * np.max(np.abs(y_rot), initial=0.0) + 1e-300)
-            floor = (1e-12 * float(np.max(np.abs(ybar)))) ** 2 + 1e-300
-            # a tilted position senses on average f = g (1 - tilt^2) e (casep.calibration.rows): the static rows there
-            args = (model, slot, cols, static, u, gravity, n_static, Jf, s_i, floor, y_rot, sd_rot)
-            if tilt is None:  # estimated on the first sensor (the accelerometer): the same tilts move both
-                # degrees of freedom: rows minus the rank of S (the six axis positions leave some
-                # coefficients undetermined, so the rank, not the number of columns, counts)
-                tilt_dof = S.shape[0] - int(np.linalg.matrix_rank(Sw))
-                tilt = 0.0
-                for _ in range(4):  # the mean shortfall moves the misfit by O(tilt^2): a fixed point in a few steps
-                    tilt = solve_tilt(tilted_rows(tilt, S, y, *args), S.shape[0], S.shape[0] - tilt_dof)
-            whiten = tilted_rows(tilt, S, y, *args)
-            Sst, yst = S[:3 * n_static], y[:3 * n_static]
-            Sw, yw = whiten(tilt)
-            level = ls_sigma(Sw, yw)
+        if weighting == "positions" and n_static:  # a tilted position senses on average f = g (1 - tilt^2) e
+            Sw, yw, level, tilt, tilt_dof = _position_rows(model, slot, cols, static, u, gravity, n_static, s_i, S, y,
+                                                           Sw, yw, rows_sd, tilt, tilt_dof)
         m3 = S.shape[0] // 3  # observations of three rows (x, y, z) each
         pb = Problem.from_arrays(Sw.reshape(m3, 3, len(cols)), yw.reshape(m3, 3),
                                  np.asarray(rows_t, dtype=float), names=names, units=[units[j] for j in cols],
                                  si_factors=model.si_factors[cols], model=model.name)
-        opts = {k: v for k, v in options.items() if v is not None}
-        for key in ("prior", "bounds"):
-            if key in opts:
-                part = _split_table(opts[key], names)
-                if part is None:
-                    opts.pop(key)
-                    if key in METHODS[method].required:
-                        raise ValueError(f"--{key} names none of the {sensor}'s coefficients ({', '.join(names)}); "
-                                         f"method `{method}` needs one for each sensor")
-                else:
-                    opts[key] = part
+        opts = _sensor_options(options, names, method, sensor)
         # Huber's MAD scale is biased low on a few rows of high leverage (6 dof; the turns are fitted
         # exactly): it takes the least-squares sigma of the weighted rows as its scale instead
         use_sigma = sigma if sigma is not None or not METHODS[method].own_scale else _positive(ls_sigma(Sw, yw), 1.0)
@@ -236,36 +309,11 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         for name, misfit in segment_misfits(segments, rows_seg, rows_sd, y - S @ x, s_i, unit).items():
             seg_info[name]["misfit"][sensor] = misfit
         if weighting in ("positions", "segments") and n_static and dof > 0:
-            # the positions judged on the least-squares fit of the rows (whatever the method): static rows alone
-            # (equal weight), or all rows whitened by the position and noise model
-            A, b = (Sw, yw) if weighting == "positions" else (Sst, yst)
-            xs = np.linalg.lstsq(A, b, rcond=None)[0]
-            rr = b - A @ xs
-            # residuals at the rounding level of the readings (a noise-free session) are no misfit
-            rounding = np.abs(yst - Sst @ xs) <= 1e-12 * float(np.max(np.abs(u)))
-            rr[:3 * n_static][rounding] = 0.0
-            warn_misfit(static, A[:3 * n_static], rr[:3 * n_static], level, sensor,
-                         "(whitened)" if weighting == "positions" else
-                         (acc_unit if sensor == "accelerometer" else gyr_unit),
-                         1.0 if weighting == "positions" else float(np.max(np.abs(u))), A)
+            _judge_positions(static, weighting, Sw, yw, S[:3 * n_static], y[:3 * n_static], u, level, sensor,
+                             acc_unit if sensor == "accelerometer" else gyr_unit)
         if slot == "gyro_reading":
             check_rotation_signs(model, rots, gyr, gravity, rate, est, gyr_unit)
-    und = ~np.isfinite(est)
-    cov[und, :] = np.nan
-    cov[:, und] = np.nan
-    std = np.sqrt(np.clip(np.diag(cov), 0, None))
-    parts = list(sensors.values())
-    # worst of the two: a failure (<= 0) if either failed, else 2 (some not identifiable) over 1
-    status = min(r.status for r in parts) if any(r.status <= 0 for r in parts) else max(r.status for r in parts)
-    res_all = EstimateResult(
-        method=method, names=model.names, units=tuple(units), estimate=est, std=std, covariance=cov,
-        reasons=reasons, residuals=np.zeros((0, 3)), sigma=math.nan, rank=sum(r.rank for r in parts),
-        status=status, message="; ".join(f"{k}: {r.message}" for k, r in sensors.items()),
-        success=all(r.success for r in parts), si_factors=model.si_factors,
-        settings={"method_settings": {k: r.settings for k, r in sensors.items()}},
-        diagnostics={k: r.diagnostics for k, r in sensors.items()}, model=model.name,
-        n_samples=int(sum(len(s.rows) for s in segments)), sigma_source="estimated" if sigma is None else "given",
-        stored_residual_rms={a: None for a in "xyz"}, std_kind=parts[0].std_kind, extras=None)
+    res_all = _combined(method, model, units, est, cov, reasons, sensors, segments, sigma)
     settings = {"weighting": weighting, "gravity": float(gravity), "rate_hz": float(rate),
                 "acc_unit": session.acc_unit if model.readings == "raw" else acc_unit,
                 "gyr_unit": session.gyr_unit if model.readings == "raw" else gyr_unit,

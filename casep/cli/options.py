@@ -12,7 +12,8 @@ from typing import Any
 from casep.cli.types import metavar, rule_type
 from casep.estimators.registry import METHODS, OPTIONS, Option
 
-__all__ = ["add_option", "method_option_groups", "add_noise", "noise_kw", "add_model", "add_json", "method_options"]
+__all__ = ["add_option", "method_option_groups", "add_noise", "add_model", "add_json", "method_options",
+           "fit_spec"]
 
 
 def option_help(option: Option, default: str | None = None) -> str:
@@ -71,18 +72,16 @@ def add_noise(parser: Any, *, outputs: bool = True, default: str = "auto") -> No
                             "family-wise chance ALPHA (default 0.01) and fit again; removed samples listed")
 
 
-def noise_kw(args: argparse.Namespace, opts: dict[str, Any]) -> dict[str, Any]:
-    """separate()'s noise keywords from the options (--tau: the noise model's for every method; popped from
-    `opts` for a method other than gls)."""
+def fit_spec(args: argparse.Namespace, given: dict[str, Any], **fit: Any) -> Any:
+    """The :class:`casep.FitSpec` of the command line: --method, its options (`given`), the noise options and
+    `fit` (sigma, de-noising, outlier flags), checked once (:meth:`casep.FitSpec.build`)."""
+    from casep.workflows.spec import FitSpec
+
     kw = {"noise": args.noise, "robust": args.robust}
     for k in ("std", "exclude_outliers"):
         if getattr(args, k, None) is not None:
             kw[k] = getattr(args, k)
-    from casep.estimators.registry import METHODS
-
-    if opts.get("tau") is not None and "tau" not in METHODS[args.method].options:  # not the method's own tau
-        kw["tau"] = opts.pop("tau")
-    return kw
+    return FitSpec.build(args.method, options=given, **kw, **fit)
 
 
 def add_model(parser: Any, default: str | None = "platform36", what: str = "default platform36") -> None:

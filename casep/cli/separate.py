@@ -9,7 +9,7 @@ from casep.cli import flight_options, inputs, options, outputs
 from casep.cli.capture import recorded, report_lines
 from casep.cli.radar import radar_only
 from casep.cli.types import order, ranged
-from casep.estimators.registry import METHODS, check_method_options
+from casep.estimators.registry import METHODS
 
 
 def add_parser(sub: Any) -> None:
@@ -70,25 +70,27 @@ def run(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     # Options of the method only (casep.estimators.registry): one given for another method is an error.
     given = options.method_options(args)  # files: their names
-    nkw = options.noise_kw(args, given)  # --tau: the noise model's, for every method
-    check_method_options(args.method, given)
-    opts = {k: v for k, v in given.items() if k not in ("bounds", "prior")}
-    bounds = inputs.coefficient_file(args, "bounds", model.names)
-    prior = inputs.coefficient_file(args, "prior", model.names)
     if wopts and args.denoise != "wavelet":
         raise ValueError(f"wavelet options ({', '.join(wopts)}) need --denoise wavelet")
+    spec = options.fit_spec(args, given, sigma=args.sigma, denoise=args.denoise, wavelet_options=wopts or None,
+                            outliers=args.outliers)  # the one check of the request
+    bounds = inputs.coefficient_file(args, "bounds", model.names)
+    prior = inputs.coefficient_file(args, "prior", model.names)
+    tables = {k: v for k, v in (("bounds", bounds), ("prior", prior)) if v is not None}
+    if tables:  # the files read and checked against the model: the tables themselves
+        import dataclasses
+
+        spec = dataclasses.replace(spec, options={**spec.options, **tables})
     if len(args.flight) > 1:
         from casep.cli.separate_flights import separate_flights
 
-        return separate_flights(args, model, opts, bounds, prior, nkw)
+        return separate_flights(args, model, spec)
     args.flight = args.flight[0]
     flight = inputs.read_one(args)
     from casep.workflows.separate import separate
 
     with recorded() as caught:  # passed on to main(), which prints them; the report quotes them
-        res = separate(flight, model, args.method, sigma=args.sigma, bounds=bounds, prior=prior,
-                       denoise=args.denoise, wavelet_options=wopts or None, outliers=args.outliers, options=opts,
-                       **nkw)
+        res = separate(flight, model, spec=spec)
     cons = None
     if prior is not None:  # the prior (a ground calibration) against the flight estimated alone
         from casep.workflows.coefficients import with_prior_consistency

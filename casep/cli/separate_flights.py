@@ -11,8 +11,8 @@ from casep.cli.capture import recorded
 __all__ = ["separate_flights", "diagnose_flights"]
 
 
-def separate_flights(args: argparse.Namespace, model: Any, opts: dict, bounds: Any, prior: Any, nkw: dict) -> int:
-    """Several flights in one estimate of the shared coefficients."""
+def separate_flights(args: argparse.Namespace, model: Any, spec: Any) -> int:
+    """Several flights in one estimate of the shared coefficients, as `spec` (a checked casep.FitSpec) asks."""
     from casep.reporting.noise_text import noise_lines
     from casep.workflows.flights import JOINT_METHODS, flights_summary, separate_flights
     from casep.workflows.joint_report import joint_result_dict, joint_summary_lines
@@ -25,10 +25,9 @@ def separate_flights(args: argparse.Namespace, model: Any, opts: dict, bounds: A
     if args.method not in JOINT_METHODS:
         raise ValueError(f"--method {args.method} cannot estimate several flights jointly yet. "
                          f"Use: --method {' | '.join(JOINT_METHODS)}")
-    options = {**opts, **({"bounds": bounds} if bounds else {}), **({"prior": prior} if prior else {})}
     flights = inputs.read_all(args)
     with recorded():
-        res, jp = separate_flights(flights, model, args.method, sigma=args.sigma, options=options, **nkw)
+        res, jp = separate_flights(flights, model, spec=spec)
         summary = flights_summary(res, jp)
     print(res.text())
     for line in noise_lines(res.diagnostics, joint=True) + joint_summary_lines(summary):

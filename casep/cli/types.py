@@ -109,8 +109,8 @@ def rule_type(option: Option, rules: Any = None) -> Callable[[str], Any]:
     def parse(text: str) -> Any:
         try:
             return opt.parse(text)
-        except ValueError as exc:  # "--p0 must be ...": argparse names the argument already
-            raise argparse.ArgumentTypeError(str(exc).removeprefix(f"{opt.flag} ")) from None
+        except ValueError as exc:  # "option `p0` (--p0) must be ...": argparse names the argument already
+            raise argparse.ArgumentTypeError(str(exc).removeprefix(f"{opt.label} ")) from None
 
     parse.__name__ = option.name  # argparse names the type in some messages
     return parse

@@ -14,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -203,14 +203,8 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
     from casep.simulation.trajectory import simulate_boost
 
     t_start = time.perf_counter()
-    if objective not in OBJECTIVES:
-        raise ValueError(f"unknown objective `{objective}`: use one of {', '.join(OBJECTIVES)}")
-    if maneuver not in AXES_OF:
-        raise ValueError(f"unknown maneuver `{maneuver}`: use one of {', '.join(AXES_OF)}")
-    max_angle = _positive("max_angle", max_angle, 45.0)
-    max_rate = _positive("max_rate", max_rate)
-    max_lateral = _positive("max_lateral", max_lateral)
-    design_rate = _positive("design_rate", design_rate)
+    max_angle, max_rate, max_lateral, design_rate = _checked_limits(objective, maneuver, max_angle, max_rate,
+                                                                    max_lateral, design_rate)
     knots, starts, max_iter = _count("knots", knots, 2), _count("starts", starts, 1), _count("max_iter", max_iter, 1)
     seed = _count("seed", seed, 0)
     sc = get_scenario(scenario).with_rate(rate)
@@ -225,44 +219,17 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
         sc = dataclasses.replace(sc, name=f"flight {own['name']}", rate=own["rate"],
                                  description=f"own trajectory {own['source']}")
         verify = False
-    if sigma is not None:
-        from casep.estimators.registry import SIGMA
-
-        sigma = float(SIGMA.check(sigma))  # given: the noise std's one declared rule
-    elif own is not None and own["sigma"] is not None:
-        sigma = own["sigma"]  # the flight's own tracking noise
-    else:
-        sigma = float(sc.noise.sigma)
-    if not sigma > 0:
-        raise ValueError(f"scenario `{sc.name}` has no tracking noise (sigma {sigma}): the bound is zero")
+    sigma = _design_sigma(sigma, own, sc)
     scales = np.array([model.scales.get(nm, 1.0) for nm in names])
-    weights = None
-    if coefficients is not None:
-        from casep.model._model import unknown_coefficient_message
-
-        chosen = list(coefficients)
-        for nm in chosen:
-            if nm not in names:
-                raise ValueError(unknown_coefficient_message(nm, names, "`coefficients`"))
-        if not chosen:
-            raise ValueError("`coefficients` is empty: name one or more, or leave it out (all)")
-        if objective != "A":
-            raise ValueError(f"`coefficients` selects the terms of objective A, not of `{objective}`")
-        weights = np.array([1.0 if nm in chosen else 0.0 for nm in names])
+    weights = _objective_weights(coefficients, names, objective)
     info_prior = W = None  # the prior's square-root information rows, W^T W its information
     if prior is not None:
         W = prior_rows(prior, names, "--prior")[0]
         info_prior = W.T @ W
     timing = {}
     t0 = time.perf_counter()
-    if own is None:
-        coarse = simulate_boost(sc.vehicle, design_rate)
-        t_grid, att_grid, f_grid = coarse.t, coarse.attitude, coarse.specific_force
-        p = sc.vehicle.pitch
-        default_start = p.vertical + p.kick
-    else:
-        t_grid, att_grid, f_grid = own["t"], own["attitude"], own["force"]
-        default_start = float(t_grid[0] + 0.1 * (t_grid[-1] - t_grid[0]))  # after the first tenth of the flight
+    coarse = None if own is not None else simulate_boost(sc.vehicle, design_rate)
+    t_grid, att_grid, f_grid, default_start = _nominal_grid(sc, coarse, own)
     t_end = float(t_grid[-1])
     first = default_start if start is None else float(start)
     if not float(t_grid[0]) <= first < t_end:
@@ -287,18 +254,7 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
     pred_before = np.sqrt(np.diag(problem.covariance(x_nom)))
     pred_after = np.sqrt(np.diag(problem.covariance(x_best)))
     before, after = problem.value(objective, x_nom), problem.value(objective, x_best)
-    # The designed flight flies the nominal pitch programme open loop (as a function of time, from the
-    # design grid) plus the offsets: the attitude is then the one the design assumed, not the gravity-turn
-    # law's reaction to the manoeuvre.
-    if own is None:
-        assert coarse.attitude is not None  # a simulated flight has its attitude
-        after_first = coarse.t > mv.knots[0] + 1e-9  # the spline starts at the first knot (no kink of the kick)
-        base_t = np.concatenate([[mv.knots[0]], coarse.t[after_first]])
-        base_theta = np.concatenate([coarse.kinematics(np.array([mv.knots[0]]))["attitude"][:, 0],
-                                     coarse.attitude[after_first, 0]])
-        vehicle = dataclasses.replace(sc.vehicle, attitude=mv.profile(x_best, base_t, base_theta))
-    else:
-        vehicle = sc.vehicle  # no vehicle flies one's own trajectory: the designed flight is not re-flown
+    vehicle = sc.vehicle if own is not None else _designed_vehicle(sc.vehicle, coarse, mv, x_best)
     designed = dataclasses.replace(sc, name=f"{sc.name}-designed", vehicle=vehicle,
                                    description=f"{sc.description}; designed {maneuver} manoeuvre ({objective}-optimal, "
                                                f"max {max_angle:g} deg, {max_rate:g} deg/s, {max_lateral:g} g)")
@@ -314,32 +270,10 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
         crlb_before = np.sqrt(np.diag(crlb_covariance(S_nom, sigma, prior_information=W)))
     verification: dict = {}
     if verify:
-        from casep.analysis.diagnostics import crlb_covariance
-
         t0 = time.perf_counter()
         assert full is not None and S_nom is not None  # verify: the nominal flight was simulated above
-        traj = simulate_boost(vehicle, sc.rate)
-        S = build_sv(model, traj.t, traj.specific_force)
-        crlb_before = np.sqrt(np.diag(crlb_covariance(S_nom, sigma, prior_information=W)))
-        crlb_after = np.sqrt(np.diag(crlb_covariance(S, sigma, prior_information=W)))
-        F_after = fisher_information(S, sigma)
-        F_before = fisher_information(S_nom, sigma)
-        both = np.isfinite(pred_after) & np.isfinite(crlb_after)
-        rel = np.abs(pred_after[both] / crlb_after[both] - 1.0)
-        constraints["flown"] = _flown(full, traj, names)
-        verification = {
-            "rate_hz": sc.rate, "samples": int(traj.t.size),
-            "before": objective_value(objective, F_before, scales, info_prior, G_miss, weights),
-            "after": objective_value(objective, F_after, scales, info_prior, G_miss, weights),
-            "crlb_prediction_error_max": float(np.max(rel, initial=0.0)),
-            "crlb_prediction_error_median": float(np.median(rel)) if rel.size else None,
-            "burnout_change": {"speed_m_s": float(np.linalg.norm(traj.velocity[-1])
-                                                  - np.linalg.norm(full.velocity[-1])),
-                               "altitude_m": float(traj.altitude[-1] - full.altitude[-1]),
-                               "crossrange_m": float(traj.position[-1, 2] - full.position[-1, 2])},
-            "note": "designed flight re-simulated (simulate_boost with the offsets) and its S_V built at the flight's "
-                    "rate: crlb_after is exact for it; crlb_prediction_error compares the design model's prediction",
-        }
+        crlb_before, crlb_after, verification = _verify(model, sc, vehicle, full, S_nom, sigma, W, objective,
+                                                        scales, info_prior, G_miss, weights, pred_after, constraints)
         timing["verify"] = time.perf_counter() - t0
     timing["total"] = time.perf_counter() - t_start
     return DesignResult(objective=objective, maneuver=mv, x=x_best, names=names, units=model.units, scales=scales,
@@ -349,6 +283,110 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
                         coefficients=None if coefficients is None else tuple(coefficients),
                         verification=verification, nominal=scenario if isinstance(scenario, str) else None,
                         own_flight=None if flight is None else str(getattr(flight, "source", flight)))
+
+
+def _checked_limits(objective: str, maneuver: str, max_angle: float, max_rate: float, max_lateral: float,
+                    design_rate: float) -> tuple[float, float, float, float]:
+    """The objective and manoeuvre names checked, and the limits and design rate as positive floats."""
+    if objective not in OBJECTIVES:
+        raise ValueError(f"unknown objective `{objective}`: use one of {', '.join(OBJECTIVES)}")
+    if maneuver not in AXES_OF:
+        raise ValueError(f"unknown maneuver `{maneuver}`: use one of {', '.join(AXES_OF)}")
+    return (_positive("max_angle", max_angle, 45.0), _positive("max_rate", max_rate),
+            _positive("max_lateral", max_lateral), _positive("design_rate", design_rate))
+
+
+def _nominal_grid(sc: Any, coarse: Any, own: dict | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Times, attitude and specific force of the nominal flight on the design grid, and the default first knot
+    (the end of the pitch-over kick; on one's own flight, after its first tenth)."""
+    if own is None:
+        p = sc.vehicle.pitch
+        return coarse.t, coarse.attitude, coarse.specific_force, p.vertical + p.kick
+    t_grid = own["t"]
+    return t_grid, own["attitude"], own["force"], float(t_grid[0] + 0.1 * (t_grid[-1] - t_grid[0]))
+
+
+def _designed_vehicle(vehicle: Any, coarse: Any, mv: Maneuver, x: np.ndarray) -> Any:
+    """The vehicle that flies the designed manoeuvre.
+
+    It flies the nominal pitch programme open loop (as a function of time, from the design grid) plus
+    the offsets: the attitude is then the one the design assumed, not the gravity-turn law's reaction
+    to the manoeuvre. (No vehicle flies one's own trajectory: that is not re-flown.)
+    """
+    assert coarse.attitude is not None  # a simulated flight has its attitude
+    after_first = coarse.t > mv.knots[0] + 1e-9  # the spline starts at the first knot (no kink of the kick)
+    base_t = np.concatenate([[mv.knots[0]], coarse.t[after_first]])
+    base_theta = np.concatenate([coarse.kinematics(np.array([mv.knots[0]]))["attitude"][:, 0],
+                                 coarse.attitude[after_first, 0]])
+    return dataclasses.replace(vehicle, attitude=mv.profile(x, base_t, base_theta))
+
+
+def _design_sigma(sigma: float | None, own: dict | None, sc: Any) -> float:
+    """The tracking-noise std of the design, m/s: given (the noise std's one declared rule), else the own
+    flight's least-squares residual std, else the scenario's; ValueError when it is not > 0."""
+    if sigma is not None:
+        from casep.estimators.registry import SIGMA
+
+        sigma = float(SIGMA.check(sigma))
+    elif own is not None and own["sigma"] is not None:
+        sigma = own["sigma"]  # the flight's own tracking noise
+    else:
+        sigma = float(sc.noise.sigma)
+    if not sigma > 0:
+        raise ValueError(f"scenario `{sc.name}` has no tracking noise (sigma {sigma}): the bound is zero")
+    return sigma
+
+
+def _objective_weights(coefficients: Sequence[str] | None, names: Sequence[str], objective: str) -> np.ndarray | None:
+    """0/1 weights of the coefficients objective A sums (None: all of them)."""
+    if coefficients is None:
+        return None
+    from casep.model._model import unknown_coefficient_message
+
+    chosen = list(coefficients)
+    for nm in chosen:
+        if nm not in names:
+            raise ValueError(unknown_coefficient_message(nm, names, "`coefficients`"))
+    if not chosen:
+        raise ValueError("`coefficients` is empty: name one or more, or leave it out (all)")
+    if objective != "A":
+        raise ValueError(f"`coefficients` selects the terms of objective A, not of `{objective}`")
+    return np.array([1.0 if nm in chosen else 0.0 for nm in names])
+
+
+def _verify(model: Any, sc: Any, vehicle: Any, full: Any, S_nom: np.ndarray, sigma: float, W: Any, objective: str,
+            scales: np.ndarray, info_prior: Any, G_miss: Any, weights: Any, pred_after: np.ndarray,
+            constraints: dict) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The designed flight re-simulated at the flight's rate: exact CRLB before and after, the objective as
+    flown, the design model's prediction error, the burnout change (``constraints["flown"]`` set here)."""
+    from casep.analysis.diagnostics import crlb_covariance
+    from casep.model.sv import build_sv
+    from casep.simulation.trajectory import simulate_boost
+
+    names = model.names
+    traj = simulate_boost(vehicle, sc.rate)
+    S = build_sv(model, traj.t, traj.specific_force)
+    crlb_before = np.sqrt(np.diag(crlb_covariance(S_nom, sigma, prior_information=W)))
+    crlb_after = np.sqrt(np.diag(crlb_covariance(S, sigma, prior_information=W)))
+    F_after = fisher_information(S, sigma)
+    F_before = fisher_information(S_nom, sigma)
+    both = np.isfinite(pred_after) & np.isfinite(crlb_after)
+    rel = np.abs(pred_after[both] / crlb_after[both] - 1.0)
+    constraints["flown"] = _flown(full, traj, names)
+    verification = {
+        "rate_hz": sc.rate, "samples": int(traj.t.size),
+        "before": objective_value(objective, F_before, scales, info_prior, G_miss, weights),
+        "after": objective_value(objective, F_after, scales, info_prior, G_miss, weights),
+        "crlb_prediction_error_max": float(np.max(rel, initial=0.0)),
+        "crlb_prediction_error_median": float(np.median(rel)) if rel.size else None,
+        "burnout_change": {"speed_m_s": float(np.linalg.norm(traj.velocity[-1])
+                                              - np.linalg.norm(full.velocity[-1])),
+                           "altitude_m": float(traj.altitude[-1] - full.altitude[-1]),
+                           "crossrange_m": float(traj.position[-1, 2] - full.position[-1, 2])},
+        "note": "designed flight re-simulated (simulate_boost with the offsets) and its S_V built at the flight's "
+                "rate: crlb_after is exact for it; crlb_prediction_error compares the design model's prediction",
+    }
+    return crlb_before, crlb_after, verification
 
 
 def _flight_nominal(flight, model, design_rate: float) -> dict:

@@ -211,7 +211,7 @@ class Method:
         for name in self.required:
             if given.get(name) is None:
                 o = self.option(name)
-                raise ValueError(f"`{name}` is required for method `{self.name}`. Use: {o.flag} {o.rule}")
+                raise ValueError(f"{o.label} is required for method `{self.name}`. Use: {o.flag} {o.rule}")
 
     def solve(self, problem: Problem, *, sigma: float | None = None, rcond: float | None = None,
               **options: Any) -> EstimateResult:

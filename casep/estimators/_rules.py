@@ -143,12 +143,22 @@ class Option:
         """The rules as text, e.g. ``gcv | lcurve | float > 0``."""
         return " | ".join(str(r) for r in self.rules)
 
+    def refusal(self, value: Any, method: str | None = None) -> ValueError:
+        """The one message form of a value the option's rules refuse (a fit request, the command line):
+        ``option --lambda (`lam`) of method `ridge` must be gcv | lcurve | float > 0, got 'aic'``."""
+        of = f" of method `{method}`" if method else ""
+        return ValueError(f"{self.label}{of} must be {self.rule}, got {value!r}")
+
+    @property
+    def label(self) -> str:
+        """How every message of a fit request names the option: ``option --lambda (`lam`)``."""
+        return f"option {self.flag} (`{self.name}`)"
+
     def validate(self, value: Any, method: str | None = None) -> Any:
-        """`value` if a rule accepts it, else ValueError naming the option (and method)."""
+        """`value` if a rule accepts it, else ValueError naming the option (and method): :meth:`refusal`."""
         if value is None or any(r.accepts(value) for r in self.rules):
             return value
-        of = f" of method `{method}`" if method else ""
-        raise ValueError(f"option `{self.name}` ({self.flag}){of} must be {self.rule}, got {value!r}")
+        raise self.refusal(value, method)
 
     def check(self, value: Any) -> Any:
         """The API's check of a value (the public ``solve_*`` functions): `value` (a float for a float
@@ -187,7 +197,7 @@ class Option:
                 continue
             if r.accepts(v) or isinstance(r, CoefficientTable):
                 return v
-        raise ValueError(f"{self.flag} must be {self.rule}, got {text!r}")
+        raise self.refusal(text)
 
 
 #: The noise std every method takes (not a method option: a label of the data).

@@ -24,7 +24,14 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from casep.estimators._base import Prepared, finish, prepare  # what a method's core uses (a method of one's own)
+from casep.estimators._base import (  # what a method's core uses (a method of one's own), and a result's judgement
+    STATUS_SETUP,
+    Prepared,
+    check_magnitudes,
+    failed,
+    finish,
+    prepare,
+)
 from casep.estimators._options import (
     SIGMA,
     Choices,
@@ -48,7 +55,8 @@ from casep.estimators.rls import RELS, RLS
 
 __all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Method", "OPTIONS", "METHODS",
            "check_method_options", "describe", "run_method", "solver", "register", "unregister", "NOISE_OPTIONS",
-           "option_ranges", "SIGMA", "SeveralFlights", "Labels", "Prepared", "prepare", "finish"]
+           "option_ranges", "SIGMA", "SeveralFlights", "Labels", "Prepared", "prepare", "finish", "failed",
+           "check_magnitudes", "STATUS_SETUP"]
 
 #: Every estimator, in the order of ``casep methods``.
 METHODS: dict[str, Method] = {m.name: m for m in (OLS, RLS, RELS, RIDGE, BOUNDED, PCR, MAP, GLS, HUBER)}
@@ -135,8 +143,10 @@ def check_method_options(method: str, given: Mapping[str, Any]) -> None:
     """
     if method not in METHODS:
         raise ValueError(f"`method` must be one of {', '.join(METHODS)}, got {method!r}")
-    takers = {name: [k for k, v in METHODS.items() if name in v.options] for name in given}
-    flags = {name: OPTIONS[name].flag for name in given if name in OPTIONS}
+    own = set(METHODS[method].options)
+    foreign = [name for name in given if name not in own]  # only these need the takers, for the message
+    takers = {name: [k for k, v in METHODS.items() if name in v.options] for name in foreign}
+    flags = {name: OPTIONS[name].flag for name in foreign if name in OPTIONS}
     METHODS[method].check_options(given, takers=takers, flags=flags)
 
 

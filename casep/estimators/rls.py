@@ -286,16 +286,14 @@ def prior_conflict(problem, res: EstimateResult, prior_std: float, sigma: float)
     """
     import warnings
 
-    from casep.analysis.checks import NOISE_FREE
     from casep.estimators._base import failed
     from casep.estimators.ols import solve_ols
 
+    if problem.is_noise_free():
+        return res  # noise-free data: every std is rounding (check_fit says so); no prior is consistent with it
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # conditioning: said by the RLS result itself
         ls = solve_ols(problem, sigma=sigma)
-    ls_sigma = float(np.sqrt(problem.ls_rss() / max(problem.m - problem.rank().rank, 1)))
-    if problem.y is not None and ls_sigma <= NOISE_FREE * float(np.max(np.abs(problem.y))):
-        return res  # noise-free data: every std is rounding (check_fit says so); no prior is consistent with it
     ls_std = np.asarray(ls.std, dtype=float)  # least squares always defines its std
     ok = np.isfinite(ls.estimate) & np.isfinite(ls_std)
     z = np.where(ok, np.abs(np.nan_to_num(ls.estimate)) / np.sqrt(prior_std**2 + np.nan_to_num(ls_std) ** 2), 0.0)

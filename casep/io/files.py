@@ -118,6 +118,61 @@ def read_flight(path: str | os.PathLike) -> FlightData:
 
 
 
+def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray,
+                    v_trk: np.ndarray, time_offset: float | str | None) -> tuple[float, dict[str, Any]]:
+    """The shift of the tracking time tags :func:`read_flight_pair` applies, s, and its ``time_alignment`` record.
+
+    ``"auto"``: the coarse offset that lines up the velocities; None: none, with a warning when that
+    offset exceeds a tracking sample period and explains the misfit; a number: that shift (a warning
+    beyond :data:`MAX_TIME_OFFSET`).
+    """
+    align = None
+    if time_offset is None or time_offset == "auto":
+        from casep.io.align import coarse_time_offset
+
+        try:
+            align = coarse_time_offset(t_tel, v_tel, t_trk, v_trk, max_offset=min(2.0, 0.25 * (t_trk[-1] - t_trk[0])))
+        except ValueError:
+            if time_offset == "auto":
+                raise
+    import warnings
+
+    from casep.exceptions import SetupWarning, TimeOffsetWarning
+
+    if time_offset == "auto":
+        assert align is not None  # "auto" re-raised a failed alignment above
+        shift = align.tau
+    elif time_offset is None:
+        shift = 0.0
+        if align is not None and align.exceeds_period and align.explains:
+            # only when the shift explains the data: a wrong site or frame leaves a misfit no shift removes
+            warnings.warn(f"{tel.src} + {trk.src}: the tracking time tags look {align.tau * 1e3:.1f} ms late "
+                          f"(velocity increments line up best there: mean squared difference {align.cost:.3g} against "
+                          f"{align.cost_at_zero:.3g} m^2/s^2 unshifted, {100 * align.gain:.3g} % of the misfit "
+                          "removed, "
+                          f"F = {align.f_statistic:.3g}), more than a tracking sample period "
+                          f"({align.tracking_period * 1e3:.4g} ms); align them (--time-offset auto) and let dt_trk "
+                          "estimate the rest", TimeOffsetWarning, stacklevel=3)
+    else:
+        try:
+            shift = float(time_offset)
+        except (TypeError, ValueError):
+            raise ValueError(f"`time_offset` must be a number of seconds, 'auto' or None, "
+                             f"got {time_offset!r}") from None
+        if not np.isfinite(shift):
+            raise ValueError(f"`time_offset` must be finite, got {shift}")
+        if abs(shift) > MAX_TIME_OFFSET:
+            span = t_trk[-1] - t_trk[0]
+            warnings.warn(SetupWarning(
+                f"{trk.src}: a tracking time offset of {shift:.6g} s ({shift * 1e3:.6g} ms) is far beyond tracking "
+                f"latencies (milliseconds, below {MAX_TIME_OFFSET:g} s; --time-offset is in milliseconds) and is "
+                f"{100 * abs(shift) / span:.3g} % of the {span:.4g} s tracking span. If the two files count time from "
+                "different origins, state it with time_shift (--time-shift SECONDS, manifest time_shift_s)."),
+                stacklevel=3)
+    mode = "auto" if time_offset == "auto" else ("none" if time_offset is None else "given")
+    return shift, {**(align.to_dict() if align is not None else {}), "applied_s": shift, "mode": mode}
+
+
 def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, *,
                      interpolation: str = "cubic", grid: str = "tracking",
                      time_offset: float | str | None = None, tracking_frame: str = "launch",
@@ -206,52 +261,8 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     inside = (t_tel >= t_trk[0]) & (t_tel <= t_trk[-1])
     if inside.sum() < 2:
         raise tel.error(no_overlap_message(t_tel, t_raw, shift_scale), "t")
-    align = None
-    if time_offset is None or time_offset == "auto":
-        from casep.io.align import coarse_time_offset
-
-        try:
-            align = coarse_time_offset(t_tel, v_tel, t_trk, v_trk, max_offset=min(2.0, 0.25 * (t_trk[-1] - t_trk[0])))
-        except ValueError:
-            if time_offset == "auto":
-                raise
-    import warnings
-
-    from casep.exceptions import SetupWarning, TimeOffsetWarning
-
-    if time_offset == "auto":
-        assert align is not None  # "auto" re-raised a failed alignment above
-        shift = align.tau
-    elif time_offset is None:
-        shift = 0.0
-        if align is not None and align.exceeds_period and align.explains:
-            # only when the shift explains the data: a wrong site or frame leaves a misfit no shift removes
-            warnings.warn(f"{tel.src} + {trk.src}: the tracking time tags look {align.tau * 1e3:.1f} ms late "
-                          f"(velocity increments line up best there: mean squared difference {align.cost:.3g} against "
-                          f"{align.cost_at_zero:.3g} m^2/s^2 unshifted, {100 * align.gain:.3g} % of the misfit "
-                          "removed, "
-                          f"F = {align.f_statistic:.3g}), more than a tracking sample period "
-                          f"({align.tracking_period * 1e3:.4g} ms); align them (--time-offset auto) and let dt_trk "
-                          "estimate the rest", TimeOffsetWarning, stacklevel=2)
-    else:
-        try:
-            shift = float(time_offset)
-        except (TypeError, ValueError):
-            raise ValueError(f"`time_offset` must be a number of seconds, 'auto' or None, "
-                             f"got {time_offset!r}") from None
-        if not np.isfinite(shift):
-            raise ValueError(f"`time_offset` must be finite, got {shift}")
-        if abs(shift) > MAX_TIME_OFFSET:
-            span = t_trk[-1] - t_trk[0]
-            warnings.warn(SetupWarning(
-                f"{trk.src}: a tracking time offset of {shift:.6g} s ({shift * 1e3:.6g} ms) is far beyond tracking "
-                f"latencies (milliseconds, below {MAX_TIME_OFFSET:g} s; --time-offset is in milliseconds) and is "
-                f"{100 * abs(shift) / span:.3g} % of the {span:.4g} s tracking span. If the two files count time from "
-                "different origins, state it with time_shift (--time-shift SECONDS, manifest time_shift_s)."),
-                stacklevel=2)
-    mode = "auto" if time_offset == "auto" else ("none" if time_offset is None else "given")
-    extra: dict[str, Any] = {
-        "time_alignment": {**(align.to_dict() if align is not None else {}), "applied_s": shift, "mode": mode}}
+    shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset)
+    extra: dict[str, Any] = {"time_alignment": alignment}
     signals = tel.signals()
     if not all(f"a_{a}" in signals for a in "xyz"):
         # the kinematic acceleration for a time-offset term: d v_tel / dt (cubic spline), exact kinematics

@@ -10,7 +10,7 @@ a self-contained Markdown report.
 
 Every method sees the rows :func:`casep.separate` would give it: the noise model and the robust
 check are worked out once for the flight (:meth:`casep.analysis.problem.Problem.rows`) and shared
-by the six methods on raw dv (:func:`casep.workflows.solve.solve_problem`); wavelet + RELS, on
+by the six methods on raw dv (:func:`casep.workflows.solve.fit`); wavelet + RELS, on
 de-noised dv, goes through :func:`casep.separate`. The estimates are then judged against the
 model's declared magnitudes as :func:`casep.separate` judges them
 (:func:`casep.workflows.separate.judge_setup`).
@@ -26,7 +26,6 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from casep.analysis.checks import check_fit
 from casep.analysis.diagnostics import Diagnostics, diagnose
 from casep.analysis.problem import Problem
 from casep.analysis.rows import Rows
@@ -38,7 +37,8 @@ from casep.model._model import ErrorModel
 from casep.simulation.paper import demo_bounds, demo_prior
 from casep.simulation.simulate import SimulatedFlight, simulate_flight
 from casep.workflows.separate import judge_setup, separate
-from casep.workflows.solve import solve_problem
+from casep.workflows.solve import fit
+from casep.workflows.spec import FitSpec
 
 __all__ = ["DemoResult", "run_demo", "DEMO_METHODS", "summary_lines", "impact_lines"]
 
@@ -241,19 +241,15 @@ def _figures(out: Path, sim: SimulatedFlight, results: Mapping[str, EstimateResu
     return files
 
 
-def _solve(problem: Problem, model: ErrorModel, rows: Rows, method: str, options: Mapping[str, Any],
-           noise_free: bool) -> EstimateResult:
+def _solve(problem: Problem, model: ErrorModel, rows: Rows, method: str, options: Mapping[str, Any]) -> EstimateResult:
     """:func:`casep.workflows.separate.separate` of a Problem, on rows prepared once for every method.
 
-    The same steps as ``separate(problem, model, method, ...)``: the method on the shared rows
-    (:func:`casep.workflows.solve.solve_problem`), the residual checks, the set-up judgement.
+    The same steps as ``separate(problem, model, method, ...)``: the one entry point
+    :func:`casep.workflows.solve.fit` on the shared rows (the method, the residual checks), then the
+    set-up judgement.
     """
-    res = solve_problem(problem, method, options, rows=rows).result
-    assert problem.y is not None and problem.t is not None and problem.f is not None  # a flight's problem
-    S: Any = problem  # check_fit takes S_V or the Problem that regenerates it
-    check_fit(S, problem.y, res, t=problem.t, f=problem.f, source=problem.source,
-              outliers_handled="robust" in res.diagnostics)
-    return judge_setup(res, None, model, noise_free=noise_free)
+    res = fit(problem, FitSpec(method, options), rows=rows)
+    return judge_setup(res, None, model, noise_free=problem.is_noise_free())
 
 
 def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float = 100.0) -> DemoResult:
@@ -279,7 +275,6 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
                                         for _, method, _ in DEMO_METHODS}
     results: dict[str, EstimateResult] = {}
     problem = Problem.from_flight(sim.flight, model, keep_sv=True)  # S_V and its QR once, for every method
-    noise_free = sim.scenario.noise.sigma == 0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IllConditionedWarning)  # reported once, through the diagnostics
         # The noise model and robust weights belong to the data: fitted once (separate's defaults,
@@ -291,7 +286,7 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
                 assert isinstance(res, EstimateResult)  # no radar: an EstimateResult
                 results[label] = res
             else:
-                results[label] = _solve(problem, model, rows, method, {**opts, **extra.get(method, {})}, noise_free)
+                results[label] = _solve(problem, model, rows, method, {**opts, **extra.get(method, {})})
     diag = diagnose(problem, sigma=sim.scenario.noise.sigma, scales=model.scales)
     crlb = diag.crlb_std
     table = _table(sim, results, crlb, markdown=False)

@@ -25,8 +25,9 @@ import numpy as np
 
 from casep.analysis.joint import JointLayout, JointProblem
 from casep.analysis.problem import Problem
-from casep.estimators.registry import METHODS, check_method_options
+from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
+from casep.workflows.spec import FitSpec
 
 # and JOINT_METHODS (module __getattr__: the registry's as it is now)
 __all__ = ["separate_flights", "flights_summary", "diagnose_flights"]
@@ -50,7 +51,8 @@ def _labels(problems: Sequence[Problem]) -> tuple[str, ...]:
 def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: float | Sequence[float] | None = None,
                      options: Mapping[str, Any] | None = None, noise: str = "auto", tau=None,
                      robust: str | None = "auto", std: str = "model",
-                     exclude_outliers: float | None = None) -> tuple[EstimateResult, JointProblem]:
+                     exclude_outliers: float | None = None,
+                     spec: FitSpec | None = None) -> tuple[EstimateResult, JointProblem]:
     """One estimate of the shared coefficients from several flights; per-flight ones per flight.
 
     Parameters
@@ -70,6 +72,10 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         alone) and robust cleaning (the robust filter of a least-squares fit of the flight alone:
         its glitches removed, its rows weighted); the joint solve is then on every flight's
         whitened rows (:func:`casep.separate` describes the options).
+    spec : FitSpec, optional
+        The fit request as one value (:class:`casep.FitSpec`) instead of `method`, `options` and the
+        noise keywords (its sigma, when set, is every flight's). Either way the request is checked once,
+        by the FitSpec, which also decides who owns `tau` (the noise model's, or GLS's own option).
 
     Returns
     -------
@@ -82,6 +88,8 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     from casep.io.flight import FlightData
     from casep.model.loader import load_model
 
+    if spec is not None:
+        method = spec.method
     if method not in METHODS or METHODS[method].flights is None:
         joint = [k for k, m in METHODS.items() if m.flights is not None]
         raise ValueError(f"method `{method}` cannot be estimated jointly; use one of {', '.join(joint)}")
@@ -90,6 +98,18 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     assert hooks is not None  # refused above
     if len(flights) < 2:
         raise ValueError(f"`flights` must hold two or more flights, got {len(flights)}")
+    if spec is None:
+        if std != "model" or exclude_outliers is not None:
+            raise ValueError("`std` and `exclude_outliers` are not available with several flights yet: fit each "
+                             "flight alone for them")
+        spec = FitSpec.build(method, options=options, noise=noise, tau=tau, robust=robust)  # the one check
+    if spec.noise.std != "model" or spec.noise.exclude_outliers is not None or spec.noise.denoise is not None \
+            or spec.outliers is not None:
+        raise ValueError("`std`, `exclude_outliers`, `denoise` and `outliers` are not available with several flights "
+                         "yet: fit each flight alone for them")
+    if sigma is None and spec.sigma is not None:
+        sigma = spec.sigma
+    opts, noise, tau, robust = dict(spec.options), spec.noise.kind, spec.noise.tau, spec.noise.robust
     model = load_model(model)
     problems, paired, read = [], [], []
     for fl in flights:
@@ -102,16 +122,11 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         paired.append(fl.meta.get("format") == "pair" and fl.meta.get("grid") == "telemetry")  # interpolated tracking
         problems.append(Problem.from_flight(fl, model))
     _refuse_repeats(problems)
-    opts = dict(options or {})
-    check_method_options(method, {k: v for k, v in opts.items() if v is not None})  # once, here
     for key in ("prior", "bounds"):  # on shared coefficients only (a per-flight one is refused, not dropped)
         per = [k for k in (opts.get(key) or {}) if k in model.names and model.per_flight[model.names.index(k)]]
         if per:
             raise ValueError(f"`{key}` names per-flight coefficient(s) {', '.join(per)}: not supported with several "
                              "flights yet; give it for the shared coefficients only")
-    if std != "model" or exclude_outliers is not None:
-        raise ValueError("`std` and `exclude_outliers` are not available with several flights yet: fit each flight "
-                         "alone for them")
     raw = problems
     state: Any = None
     noise_models = None
@@ -131,14 +146,12 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     res = dataclasses.replace(res, sigma_source="whitened", **model_record(model),
                               settings={**res.settings, "sigma": "per flight" if sigma is None else "given per flight"})
     if noise_models is not None:
-        per_flight = {}
-        from casep.workflows.solve import _places
+        from casep.workflows.solve import noise_account
 
+        per_flight = {}
         for lab, rw in zip(layout.labels, noise_models):
-            d = {**rw.noise.to_dict(), "asked": noise}
-            if rw.robust is not None:
-                d["robust"] = {**rw.robust, "rejected": _places(rw.problem, np.flatnonzero(~rw.keep)[:200])}
-            per_flight[lab] = d
+            acc = noise_account(rw, noise)
+            per_flight[lab] = {**acc["noise"], **({"robust": acc["robust"]} if "robust" in acc else {})}
         res = dataclasses.replace(res, diagnostics={**res.diagnostics, "noise": per_flight},
                                   settings={**res.settings, "noise": noise})
     from casep.workflows.separate import judge_setup
@@ -225,6 +238,10 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # each flight alone: ill-conditioned, said by the joint result
             own.append(solve_ols(w, sigma=s))
+    if all(p.is_noise_free() for p in jp.raw):  # rounding residuals: no noise to test the flights against
+        return {"flights": flights, "consistency": {
+            "overall": None, "per_coefficient": {},
+            "note": "noise-free flights (residuals at the rounding level): consistency not tested"}}
     per = {}
     for j in lay.shared:
         var = np.array([np.nan if o.std is None else o.std[j] ** 2 for o in own])

@@ -24,6 +24,49 @@ FUSE_FAIL_P = 1e-6
 FUSE_WARN_P = 0.01
 
 
+def _fusion_inputs(results: Sequence[EstimateResult], labels: list[str], names: list[str],
+                   unit0: dict[str, str]) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    """Each result's estimate ``D_k``, correlation factor ``L_k`` and std ``d_k`` over the shared `names`,
+    ``C_k = diag(d_k) L_k L_k^T diag(d_k)``; ValueError for what cannot be fused (:func:`fuse`'s Raises)."""
+    from casep.io.result_json import MAX_RESULT_VALUE, require_invertible
+
+    xs, Ls, ds = [], [], []
+    seen: list[tuple[np.ndarray, np.ndarray]] = []
+    for r, lab in zip(results, labels):
+        if r.covariance is None:
+            raise ValueError(f"{lab} ({r.method}) has no covariance: it cannot be fused")
+        missing = [n for n in names if n not in r.names]
+        if missing:
+            raise ValueError(f"{lab} lacks coefficient(s) {', '.join(missing)} of {labels[0]}")
+        idx = [list(r.names).index(n) for n in names]
+        for n, i in zip(names, idx):
+            if r.units[i] != unit0[n]:
+                raise ValueError(f"{lab}: `{n}` is in {r.units[i]!r}, but in {unit0[n]!r} in {labels[0]}: the "
+                                 "results must give each coefficient in the same unit")
+        x, C = np.asarray(r.estimate, dtype=float)[idx], np.asarray(r.covariance, dtype=float)[np.ix_(idx, idx)]
+        if not np.all(np.isfinite(x)) or not np.all(np.isfinite(C)):
+            bad = [n for n, v in zip(names, x) if not np.isfinite(v)]
+            raise ValueError(f"{lab} has coefficients without an estimate ({', '.join(bad) or 'covariance'}): "
+                             "their information is not in the result; estimate the flights together, or chain them "
+                             "with --prior RESULT.json")
+        big = [n for n, v in zip(names, x) if abs(v) > MAX_RESULT_VALUE]
+        if big or np.max(np.abs(C)) > MAX_RESULT_VALUE**2:
+            raise ValueError(f"{lab}: {'estimate of ' + big[0] if big else 'covariance'} beyond the magnitude limit "
+                             f"{MAX_RESULT_VALUE:g} (natural units): a unit or typing mistake?")
+        for k, (xo, Co) in enumerate(seen):
+            if np.array_equal(xo, x) and np.array_equal(Co, C):
+                raise ValueError(f"{lab} is the same estimate as {labels[k]}: its information would count twice")
+        seen.append((x, C))
+        C = 0.5 * (C + C.T)
+        if np.any(np.diag(C) < 0):
+            j = int(np.argmin(np.diag(C)))
+            raise ValueError(f"{lab}: covariance of `{names[j]}` is {C[j, j]:g}: a variance must be >= 0")
+        Ls.append(require_invertible(C, names, lab))  # correlation = L L^T
+        ds.append(np.sqrt(np.diag(C)))
+        xs.append(x)
+    return xs, Ls, ds
+
+
 def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None, model=None) -> EstimateResult:
     """Combine results saved earlier (Gaussian, with covariance) into one estimate of their shared
     coefficients: ``Lambda = sum_k C_k^-1``, ``D = Lambda^-1 sum_k C_k^-1 D_k``, and test that they agree.
@@ -75,8 +118,6 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
     from casep.estimators.joint import Consistency, coefficient_consistency
     from casep.estimators.map import per_flight_names
     from casep.exceptions import ConsistencyWarning
-    from casep.io.result_json import MAX_RESULT_VALUE, require_invertible
-
     if len(results) < 2:
         raise ValueError(f"fuse needs two or more results, got {len(results)}")
     labels = [f"result {k + 1}" for k in range(len(results))] if labels is None else [str(v) for v in labels]
@@ -88,40 +129,7 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
     own = per_flight_names(first, model)
     names = [n for n in first.names if n not in own]
     unit0 = dict(zip(first.names, first.units))
-    xs, Ls, ds = [], [], []
-    seen: list[tuple[np.ndarray, np.ndarray]] = []
-    for r, lab in zip(results, labels):
-        if r.covariance is None:
-            raise ValueError(f"{lab} ({r.method}) has no covariance: it cannot be fused")
-        missing = [n for n in names if n not in r.names]
-        if missing:
-            raise ValueError(f"{lab} lacks coefficient(s) {', '.join(missing)} of {labels[0]}")
-        idx = [list(r.names).index(n) for n in names]
-        for n, i in zip(names, idx):
-            if r.units[i] != unit0[n]:
-                raise ValueError(f"{lab}: `{n}` is in {r.units[i]!r}, but in {unit0[n]!r} in {labels[0]}: the "
-                                 "results must give each coefficient in the same unit")
-        x, C = np.asarray(r.estimate, dtype=float)[idx], np.asarray(r.covariance, dtype=float)[np.ix_(idx, idx)]
-        if not np.all(np.isfinite(x)) or not np.all(np.isfinite(C)):
-            bad = [n for n, v in zip(names, x) if not np.isfinite(v)]
-            raise ValueError(f"{lab} has coefficients without an estimate ({', '.join(bad) or 'covariance'}): "
-                             "their information is not in the result; estimate the flights together, or chain them "
-                             "with --prior RESULT.json")
-        big = [n for n, v in zip(names, x) if abs(v) > MAX_RESULT_VALUE]
-        if big or np.max(np.abs(C)) > MAX_RESULT_VALUE**2:
-            raise ValueError(f"{lab}: {'estimate of ' + big[0] if big else 'covariance'} beyond the magnitude limit "
-                             f"{MAX_RESULT_VALUE:g} (natural units): a unit or typing mistake?")
-        for k, (xo, Co) in enumerate(seen):
-            if np.array_equal(xo, x) and np.array_equal(Co, C):
-                raise ValueError(f"{lab} is the same estimate as {labels[k]}: its information would count twice")
-        seen.append((x, C))
-        C = 0.5 * (C + C.T)
-        if np.any(np.diag(C) < 0):
-            j = int(np.argmin(np.diag(C)))
-            raise ValueError(f"{lab}: covariance of `{names[j]}` is {C[j, j]:g}: a variance must be >= 0")
-        Ls.append(require_invertible(C, names, lab))  # correlation = L L^T
-        ds.append(np.sqrt(np.diag(C)))
-        xs.append(x)
+    xs, Ls, ds = _fusion_inputs(results, labels, names, unit0)
 
     # Square-root information: C_k = diag(d_k) L_k L_k^T diag(d_k), so R_k = L_k^-1 diag(d_k)^-1 has
     # R_k^T R_k = C_k^-1; in coordinates y = D / c (c: each coefficient's smallest input std) flight k

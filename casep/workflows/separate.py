@@ -8,18 +8,15 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from casep.analysis.checks import check_fit, check_sigma
-from casep.analysis.denoise import denoise as wavelet_denoise
 from casep.analysis.problem import Problem
-from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
 from casep.estimators.registry import METHODS as _REGISTRY
-from casep.estimators.registry import OPTIONS, check_method_options
 from casep.estimators.result import EstimateResult
 from casep.io.files import read_flight, read_json_table
 from casep.io.flight import FlightData
 from casep.model._model import ErrorModel
 from casep.model.loader import load_model
-from casep.workflows.solve import solve_problem
+from casep.workflows.solve import fit
+from casep.workflows.spec import NOT_GIVEN, FitSpec, NotGiven, merge_options
 
 if TYPE_CHECKING:
     from casep.frames import LaunchSite
@@ -51,31 +48,32 @@ def regression_rows(flight: FlightData, model: ErrorModel) -> tuple[np.ndarray, 
 def separate(
     flight: FlightData | Problem | str | os.PathLike,
     model: str | os.PathLike | ErrorModel = "platform36",
-    method: str = "ols",
+    method: str | NotGiven = NOT_GIVEN,
     *,
-    sigma: float | None = None,
-    p0: float = OPTIONS["p0"].default,
-    weight: float = 1.0,
-    forgetting: float = 1.0,
-    noise_order: int = 1,
-    lam: float | str = "gcv",
-    bounds: Mapping | None = None,
-    prior: Mapping | None = None,
-    n_components: int | None = None,
-    max_condition_index: float = DEFAULT_MAX_CONDITION_INDEX,
-    denoise: str | None = None,
-    wavelet_options: Mapping | None = None,
-    outliers: float | None = None,
-    tau: float | str | None = "auto",
-    options: Mapping | None = None,
-    noise: str = "auto",
-    robust: str | None = "auto",
-    std: str = "model",
-    exclude_outliers: float | None = None,
+    sigma: Any = NOT_GIVEN,
+    p0: float | NotGiven = NOT_GIVEN,
+    weight: float | NotGiven = NOT_GIVEN,
+    forgetting: float | NotGiven = NOT_GIVEN,
+    noise_order: int | NotGiven = NOT_GIVEN,
+    lam: float | str | NotGiven = NOT_GIVEN,
+    bounds: Mapping | str | os.PathLike | None | NotGiven = NOT_GIVEN,
+    prior: Mapping | str | os.PathLike | None | NotGiven = NOT_GIVEN,
+    n_components: int | None | NotGiven = NOT_GIVEN,
+    max_condition_index: float | NotGiven = NOT_GIVEN,
+    denoise: str | None | NotGiven = NOT_GIVEN,
+    wavelet_options: Mapping | None | NotGiven = NOT_GIVEN,
+    outliers: float | None | NotGiven = NOT_GIVEN,
+    tau: float | str | None | NotGiven = NOT_GIVEN,
+    options: Mapping | None | NotGiven = NOT_GIVEN,
+    noise: str | NotGiven = NOT_GIVEN,
+    robust: str | None | NotGiven = NOT_GIVEN,
+    std: str | NotGiven = NOT_GIVEN,
+    exclude_outliers: float | None | NotGiven = NOT_GIVEN,
     fit_time_offset: bool | None = None,
     radar: Sequence | None = None,
     site: LaunchSite | None = None,
-    tracking_model: Any = "radar_biases",
+    tracking_model: Any = NOT_GIVEN,
+    spec: FitSpec | None = None,
     **method_options: Any,
 ) -> EstimateResult | RadarResult:
     """Estimate a model's error coefficients from one flight.
@@ -119,6 +117,16 @@ def separate(
     **method_options
         Options of a registered method that are no keyword above (a method added to the registry:
         ``z_ratio=2.0``), the same as giving them in `options`.
+    spec : FitSpec, optional
+        The whole fit request as one value (:class:`casep.FitSpec`: method, options, sigma, noise,
+        outlier flags), instead of the keywords of the fit (then an error if any is given too). The
+        keywords build the same FitSpec (:meth:`casep.FitSpec.build`), checked once, then
+        :func:`casep.workflows.solve.fit` runs it.
+
+    The defaults below are those of :meth:`casep.FitSpec.build` (method ``ols``, noise ``auto``,
+    robust ``auto``, std ``model``, each method option its registry default). A keyword not given is
+    :data:`casep.workflows.spec.NOT_GIVEN`, never recognised by its value: an option given both as
+    a keyword and in `options` is an error even when the two values equal its default.
 
     Notes
     -----
@@ -181,116 +189,27 @@ def separate(
         estimates exceed 1e4 times their declared magnitudes (a warning from 100 times);
         a given `sigma` far from the residual std is a warning (:func:`casep.analysis.checks.check_sigma`).
     """
-    # One rule table (casep.estimators.registry): an option the method does not take is an error, not ignored.
-    kw = {"p0": p0, "weight": weight, "forgetting": forgetting, "noise_order": noise_order, "lam": lam,
-          "bounds": bounds, "prior": prior, "n_components": n_components, "tau": "auto" if tau is None else tau}
-    if method_options:
-        if options is not None and set(options) & set(method_options):
-            raise ValueError(f"option(s) {', '.join(sorted(set(options) & set(method_options)))} given both as a "
-                             "keyword and in `options`")
-        options = {**(options or {}), **method_options}
-    for k, v in dict(options or {}).items():
-        if k not in OPTIONS:
-            raise ValueError(f"unknown option `{k}`: no registered method takes it; the options are "
-                             f"{', '.join(OPTIONS)}")
-        if k in kw and not _is_default(k, kw[k]):
-            raise ValueError(f"option `{k}` given both as a keyword and in `options`")
-        kw[k] = v
+    fit_kw = {k: v for k, v in dict(
+        method=method, sigma=sigma, denoise=denoise, wavelet_options=wavelet_options, outliers=outliers, tau=tau,
+        options=options, noise=noise, robust=robust, std=std, exclude_outliers=exclude_outliers, p0=p0,
+        weight=weight, forgetting=forgetting, noise_order=noise_order, lam=lam, bounds=bounds, prior=prior,
+        n_components=n_components, max_condition_index=max_condition_index, **method_options).items()
+        if v is not NOT_GIVEN}
+    if spec is not None and fit_kw:
+        raise ValueError(f"`spec` given with {', '.join(f'`{k}`' for k in fit_kw)}: give the fit request either as "
+                         "a FitSpec or as keywords")
     if radar is not None:
-        return _separate_radar(flight, model, method, kw, radar, site, tracking_model, sigma=sigma, denoise=denoise,
-                               wavelet_options=wavelet_options, outliers=outliers, exclude_outliers=exclude_outliers,
-                               robust=robust, std=std, noise=noise, max_condition_index=max_condition_index,
-                               fit_time_offset=fit_time_offset)
-    if site is not None or not _is_tracking_default(tracking_model):
+        return _separate_radar(flight, model, fit_kw, radar, site,
+                               "radar_biases" if tracking_model is NOT_GIVEN else tracking_model, fit_time_offset)
+    if site is not None or tracking_model is not NOT_GIVEN:
         raise ValueError(f"`{'site' if site is not None else 'tracking_model'}` is used only with `radar`")
-    if method not in _REGISTRY:
-        raise ValueError(f"`method` must be one of {', '.join(_REGISTRY)}, got {method!r}")
-    meth = _REGISTRY[method]
-    # tau is the noise model's (every method); a method may also take it as its own option (gls: one tau)
-    tau_given = None if isinstance(kw["tau"], str) and kw["tau"] == "auto" else kw["tau"]
-    tau_is_methods = "tau" in meth.options
-    if not tau_is_methods:
-        kw.pop("tau")
-        if tau_given is not None:
-            if noise == "white":
-                raise ValueError("`tau` given with noise 'white': a correlation time means noise 'gm'")
-            noise = "gm"
-    given = {k: v for k, v in kw.items() if v is not None and not _is_default(k, v)}
-    check_method_options(method, given)  # once, here: the method takes them as checked
-    # A bounds or prior table may be given as its JSON file (as on the command line).
-    for k in ("bounds", "prior"):
-        path = kw.get(k)
-        if isinstance(path, (str, os.PathLike)):
-            kw[k] = read_json_table(path, k)
-            from casep.io.result_json import looks_like_result
-
-            if k == "prior" and looks_like_result(kw[k]):  # a result file (any form): its posterior
-                from casep.estimators.map import prior_from_result
-                from casep.estimators.reading import read_input_result
-
-                res_prior, m = read_input_result(path, None if isinstance(flight, Problem) else model, option="prior")
-                kw[k] = prior_from_result(res_prior, model=m)
-    if denoise not in (None, "none", "wavelet"):
-        raise ValueError(f"`denoise` must be 'none' or 'wavelet', got {denoise!r}")
-    if wavelet_options and denoise != "wavelet":
-        raise ValueError("`wavelet_options` given without `denoise='wavelet'`")
-    if isinstance(flight, Problem):
-        problem = flight
-        if not problem.has_rows:
-            raise ValueError("`flight` is a reduction-only Problem: separate needs the flight's rows")
-    else:
-        if not isinstance(flight, FlightData):
-            flight = read_flight(flight)
-        align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
-        if fit_time_offset is None:
-            fit_time_offset = isinstance(align, dict) and align.get("mode") == "auto"
-        if fit_time_offset:
-            from casep.model.loader import with_time_offset
-
-            model = with_time_offset(model)
-        model = load_model(model)
-        problem = Problem.from_flight(flight, model)  # S_V integrated and reduced once, checks on the way
-    solved, den, sigma_from_wavelet = problem, None, False
-    if denoise == "wavelet":
-        den = wavelet_denoise(problem._need_rows(), **dict(wavelet_options or {}))
-        solved = problem.with_y(den.dv)
-        if sigma is None:
-            sigma = float(np.sqrt(np.mean(den.sigma**2)))  # raw-noise sigma, not post-de-noising residuals
-            sigma_from_wavelet = True
-    labels: dict[str, Any] = {"sigma": sigma}
-    keywords = {o.name for o in meth.keywords}  # solver keywords separate passes on to the methods that take them
-    if "max_condition_index" in keywords:
-        labels["max_condition_index"] = meth.option("max_condition_index").check(max_condition_index)
-    elif max_condition_index != DEFAULT_MAX_CONDITION_INDEX:  # given to a method that would ignore it
-        takers = [k for k, m in _REGISTRY.items() if "max_condition_index" in {o.name for o in m.keywords}]
-        raise ValueError(f"`max_condition_index` is not taken by method `{method}`; it is a keyword of "
-                         f"{', '.join(takers)}. Use: method={takers[0]!r}, or leave it out")
-    if den is not None:
-        if noise == "gm" or robust not in (None, "auto", "none") or exclude_outliers is not None or std != "model":
-            raise ValueError("`denoise='wavelet'` removes the noise a noise model, a robust fit or HAC std describe: "
-                             "use them without de-noising")
-        noise, robust = "white", None  # the de-noised residuals are no noise sample to fit a model on
-    out = solve_problem(solved, method, {k: v for k, v in kw.items() if k in meth.options},
-                        noise=noise, tau=None if tau_is_methods else tau_given, robust=robust, std=std,
-                        exclude_outliers=exclude_outliers, check_white=den is None, **labels)
-    res = out.result
-    # raw dv: noise-free, outliers, offset
-    check_fit(problem, problem._need_rows(), res, t=problem.t, f=problem.f, source=problem.source,  # type: ignore[arg-type]
-              outliers_handled="robust" in res.diagnostics or exclude_outliers is not None)
-    if sigma is not None and not sigma_from_wavelet:
-        check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
-    res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model, noise_free=_noise_free(problem))
-    if outliers is not None:  # studentized residuals on the rows the method solved (whitened), samples named
-        from casep.analysis.outliers import flag_outliers
-
-        flags = flag_outliers(out.problem, alpha=outliers)
-        res = dataclasses.replace(res, diagnostics={**res.diagnostics, "outliers_studentized": flags.to_dict()})
-    if den is not None:
-        settings = dict(res.settings)
-        if sigma_from_wavelet:
-            settings["sigma"] = "estimated"  # none given: the wavelet's estimate is res.sigma (sigma_source)
-        res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings,
-                                  sigma_source="wavelet" if sigma_from_wavelet else res.sigma_source)
+    if spec is None:
+        spec = FitSpec.build(**fit_kw)  # every check of the request, once
+    flight, problem, model = _problem(flight, model, fit_time_offset)
+    spec = _with_tables(spec, flight, model)
+    res = fit(problem, spec)
+    res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model,
+                      noise_free=problem.is_noise_free())
     if not isinstance(flight, Problem) and isinstance(model, ErrorModel):
         from casep.model.loader import model_record
 
@@ -298,17 +217,56 @@ def separate(
     return res
 
 
-def _is_tracking_default(value) -> bool:
-    return isinstance(value, str) and value == "radar_biases"
+def _problem(flight: FlightData | Problem | str | os.PathLike, model: Any,
+             fit_time_offset: bool | None) -> tuple[FlightData | Problem, Problem, Any]:
+    """The flight (read if a path), its Problem (S_V integrated and reduced once, checks on the way), its model."""
+    if isinstance(flight, Problem):
+        if not flight.has_rows:
+            raise ValueError("`flight` is a reduction-only Problem: separate needs the flight's rows")
+        return flight, flight, model
+    if not isinstance(flight, FlightData):
+        flight = read_flight(flight)
+    align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
+    if fit_time_offset is None:
+        fit_time_offset = isinstance(align, dict) and align.get("mode") == "auto"
+    if fit_time_offset:
+        from casep.model.loader import with_time_offset
+
+        model = with_time_offset(model)
+    model = load_model(model)
+    return flight, Problem.from_flight(flight, model), model
 
 
-def _separate_radar(telemetry, model, method: str, kw: dict, radar: Sequence, site, tracking_model, *,
-                    sigma, **refused) -> RadarResult:
-    """:func:`separate` with radar inputs: the refusals, then :func:`casep.workflows.radar.separate_radar`."""
+def _with_tables(spec: FitSpec, flight: Any, model: Any) -> FitSpec:
+    """`spec` with its bounds or prior table read when given as a JSON file (as on the command line)."""
+    opts = dict(spec.options)
+    for k in ("bounds", "prior"):
+        path = opts.get(k)
+        if not isinstance(path, (str, os.PathLike)):
+            continue
+        opts[k] = read_json_table(path, k)
+        from casep.io.result_json import looks_like_result
+
+        if k == "prior" and looks_like_result(opts[k]):  # a result file (any form): its posterior
+            from casep.estimators.map import prior_from_result
+            from casep.estimators.reading import read_input_result
+
+            res_prior, m = read_input_result(path, None if isinstance(flight, Problem) else model, option="prior")
+            opts[k] = prior_from_result(res_prior, model=m)
+    return spec if opts == dict(spec.options) else dataclasses.replace(spec, options=opts)
+
+
+def _separate_radar(telemetry, model, fit_kw: dict, radar: Sequence, site, tracking_model,
+                    fit_time_offset) -> RadarResult:
+    """:func:`separate` with radar inputs: the refusals, then :func:`casep.workflows.radar.separate_radar`.
+
+    The radar rows have their own noise layer (:data:`casep.workflows.radar.NOT_WITH_RADAR` lists the
+    keywords refused); the method and its options go to the radar fit as given (its options checked there).
+    """
     from casep.frames import LaunchSite
-    from casep.workflows.radar import check_radar_options, separate_radar
+    from casep.workflows.radar import NOT_WITH_RADAR, check_radar_options, separate_radar
 
-    check_radar_options({"sigma": sigma, **refused})
+    check_radar_options({**{k: fit_kw.get(k) for k in NOT_WITH_RADAR}, "fit_time_offset": fit_time_offset})
     if isinstance(telemetry, (FlightData, Problem)):
         raise ValueError(f"`flight` is a {type(telemetry).__name__}: with `radar` it is the telemetry file (t, f_*, "
                          "v_tel_* and optionally r_tel_*) or a casep.tracking.regression.Telemetry, since the "
@@ -319,30 +277,17 @@ def _separate_radar(telemetry, model, method: str, kw: dict, radar: Sequence, si
                          f"got {site!r}")
     if isinstance(radar, (str, os.PathLike)) or not isinstance(radar, Sequence):
         raise ValueError(f"`radar` must be a list of (station, measurements) pairs, got {radar!r}")
-    # the method's options as the caller set them; the method refuses the ones it does not take
-    opts = {k: v for k, v in kw.items() if v is not None and not _is_default(k, v)}
+    given = {k: v for k, v in fit_kw.items() if k not in NOT_WITH_RADAR and k not in ("method", "options", "noise")}
+    opts = merge_options(fit_kw.get("options"), given)  # "given both" as everywhere
+    if isinstance(opts.get("tau"), str) and opts["tau"] == "auto":
+        opts.pop("tau")
+    opts = {k: v for k, v in opts.items() if v is not None}
     for k in ("bounds", "prior"):
         if isinstance(opts.get(k), (str, os.PathLike)):
             opts[k] = read_json_table(opts[k], k)
-    return separate_radar(telemetry, radar, site, model, tracking_model, method,
+    sigma = fit_kw.get("sigma")
+    return separate_radar(telemetry, radar, site, model, tracking_model, fit_kw.get("method", "ols"),
                           sigma=sigma if isinstance(sigma, Mapping) else None, options=opts)
-
-
-def _is_default(name: str, value) -> bool:
-    try:
-        return bool(value == OPTIONS[name].default)
-    except (TypeError, ValueError):  # e.g. a mapping or an array: given
-        return False
-
-
-def _noise_free(problem: Problem) -> bool:
-    """Least-squares residual std at the rounding level of dv (:data:`casep.analysis.checks.NOISE_FREE`)."""
-    from casep.analysis.checks import NOISE_FREE
-
-    if problem.y is None:
-        return False
-    dof = max(problem.m - problem.rank().rank, 1)
-    return float(np.sqrt(problem.ls_rss() / dof)) <= NOISE_FREE * float(np.max(np.abs(problem.y)))
 
 
 def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_free: bool = False) -> EstimateResult:
@@ -352,7 +297,7 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
     set-up mistake (check_fit's NoiseFreeWarning says so)."""
     from casep.analysis.checks import setup_problems
-    from casep.estimators._base import STATUS_SETUP, check_magnitudes, failed
+    from casep.estimators.registry import STATUS_SETUP, check_magnitudes, failed
 
     problems = setup_problems(flight) if flight is not None else []
     if flight is not None and problems:

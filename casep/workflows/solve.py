@@ -20,18 +20,18 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from casep.analysis.noise import NoiseModel, check_noise_kind
+from casep.analysis.noise import NoiseModel
 from casep.analysis.problem import Problem
 from casep.analysis.rows import Rows, prepare_rows
 from casep.analysis.whiteness import default_lags, find_gaps, whiteness_test
-from casep.estimators.registry import METHODS, check_method_options
+from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
 from casep.exceptions import NoiseNotWhiteWarning
+from casep.workflows.spec import STD_CHOICES, FitSpec, NoiseSpec
 
 # Rows and prepare_rows live in casep.analysis.rows (the data's), re-exported here beside solve_problem
-__all__ = ["solve_problem", "prepare_rows", "Rows", "Solved", "hac_covariance", "STD_CHOICES"]
-
-STD_CHOICES = ("model", "hac")
+__all__ = ["fit", "solve_problem", "solve_spec", "noise_account", "prepare_rows", "Rows", "Solved", "hac_covariance",
+           "STD_CHOICES"]
 
 
 @dataclass
@@ -63,11 +63,68 @@ def _x(res: EstimateResult) -> np.ndarray:
     return np.where(np.isnan(res.estimate), 0.0, res.estimate)
 
 
+def fit(problem: Problem, spec: FitSpec, *, rows: Rows | None = None) -> EstimateResult:
+    """Fit `problem` as `spec` asks: the one entry point of every path (one flight, several, demo, ...).
+
+    De-noise if asked (:func:`casep.analysis.denoise.denoise`; sigma then the wavelet's estimate of
+    the raw noise unless given), solve the rows under the noise model (:func:`solve_spec`), check the
+    residuals on the raw rows (:func:`casep.analysis.checks.check_fit`: noise-free data, outliers, time
+    offset) and a given sigma against them, and flag outliers if asked.
+
+    Parameters
+    ----------
+    problem : Problem
+        Raw rows with their times (a flight's :meth:`~casep.analysis.problem.Problem.from_flight`).
+    spec : FitSpec
+        The request, checked when it was made.
+    rows : Rows, optional
+        Rows prepared before for this problem (several methods on one flight share them).
+
+    Returns
+    -------
+    EstimateResult
+    """
+    from casep.analysis.checks import check_fit, check_sigma
+
+    if not problem.has_rows:
+        raise ValueError("`flight` is a reduction-only Problem: a fit needs the flight's rows")
+    solved, den, sigma, from_wavelet = problem, None, spec.sigma, False
+    if spec.noise.denoise == "wavelet":
+        from casep.analysis.denoise import denoise as wavelet_denoise
+
+        den = wavelet_denoise(problem._need_rows(), **dict(spec.noise.wavelet_options))
+        solved = problem.with_y(den.dv)
+        if sigma is None:
+            sigma = float(np.sqrt(np.mean(den.sigma**2)))  # raw-noise sigma, not post-de-noising residuals
+            from_wavelet = True
+    out = solve_spec(solved, dataclasses.replace(spec, sigma=sigma), rows=rows, check_white=den is None)
+    res = out.result
+    check_fit(problem, problem._need_rows(), res, t=problem.t, f=problem.f, source=problem.source,  # type: ignore[arg-type]
+              outliers_handled="robust" in res.diagnostics or spec.noise.exclude_outliers is not None)
+    if sigma is not None and not from_wavelet:
+        check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
+    if spec.outliers is not None:  # studentized residuals on the rows the method solved (whitened), samples named
+        from casep.analysis.outliers import flag_outliers
+
+        flags = flag_outliers(out.problem, alpha=spec.outliers)
+        res = dataclasses.replace(res, diagnostics={**res.diagnostics, "outliers_studentized": flags.to_dict()})
+    if den is not None:
+        settings = dict(res.settings)
+        if from_wavelet:
+            settings["sigma"] = "estimated"  # none given: the wavelet's estimate is res.sigma (sigma_source)
+        res = dataclasses.replace(res, denoise=den.to_dict(), settings=settings,
+                                  sigma_source="wavelet" if from_wavelet else res.sigma_source)
+    return res
+
+
 def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | None = None, *,
                   noise: str = "auto", tau=None, robust: str | None = "auto", std: str = "model",
                   exclude_outliers: float | None = None, check_white: bool = True, rows: Rows | None = None,
                   **labels) -> Solved:
     """Fit `problem`'s noise model (:func:`prepare_rows`) and solve its rows with a registered `method`.
+
+    The keyword form of :func:`solve_spec`: the arguments make a :class:`~casep.workflows.spec.FitSpec`
+    (checked there).
 
     Parameters
     ----------
@@ -76,7 +133,7 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
     method : str
         A registered method (:data:`casep.estimators.registry.METHODS`).
     options : mapping
-        The method's options (checked here by :func:`casep.estimators.registry.check_method_options`).
+        The method's options.
     noise, tau, robust, exclude_outliers
         As :func:`prepare_rows`.
     std : {"model", "hac"}
@@ -89,22 +146,27 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
     **labels
         ``sigma`` and solver keywords, passed to the method.
     """
-    check_noise_kind(noise)
-    if std not in STD_CHOICES:
-        raise ValueError(f"`std` must be one of {', '.join(STD_CHOICES)}, got {std!r}")
-    check_method_options(method, {k: v for k, v in dict(options or {}).items() if v is not None})  # an API edge
-    meth = METHODS[method]
-    opts = {**dict(options or {}), **labels}
+    labels = dict(labels)
+    sigma = labels.pop("sigma", None)
+    spec = FitSpec(method, dict(options or {}), sigma, NoiseSpec(noise, tau, robust, std, exclude_outliers),
+                   keywords=labels)
+    return solve_spec(problem, spec, rows=rows, check_white=check_white)
+
+
+def solve_spec(problem: Problem, spec: FitSpec, *, rows: Rows | None = None, check_white: bool = True) -> Solved:
+    """Solve `problem`'s rows under the noise model `spec` asks for, with its method (no residual checks).
+
+    The rows (:func:`prepare_rows`: noise model, robust weights, removed samples) are the data's;
+    the method solves them; residuals are reported on the raw rows of every sample.
+    """
+    meth = METHODS[spec.method]
+    ns = spec.noise
+    opts = {**dict(spec.options), **dict(spec.keywords), "sigma": spec.sigma}
+    robust = None if ns.std == "hac" and ns.robust == "auto" else ns.robust  # HAC std: of plain least squares
     if meth.own_noise_model is not None:
-        return _solve_own_noise(problem, meth, opts, noise, tau, robust, std, exclude_outliers)
-    if std == "hac" and robust == "auto":
-        robust = None  # HAC std are of the plain least-squares fit
-    if std == "hac" and (noise != "white" or not meth.hac):
-        hac = ", ".join(k for k, m in METHODS.items() if m.hac)
-        raise ValueError(f"`std='hac'` is the Newey-West std of a white-noise least-squares fit: use it with "
-                         f"method {hac} and noise 'white' (in coloured noise, noise 'auto' or 'gm' gives honest std)")
+        return _solve_own_noise(problem, meth, opts, robust, ns.exclude_outliers)
     if rows is None:
-        rows = prepare_rows(problem, noise, tau, robust, exclude_outliers)
+        rows = prepare_rows(problem, ns.kind, ns.tau, robust, ns.exclude_outliers)
     elif rows.problem is not problem:
         raise ValueError("`rows` were prepared for another problem")
     robust_sigma = opts.get("sigma") is None and rows.sigma is not None
@@ -113,7 +175,7 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
     res = meth.solve(rows.solved, **opts)
     if robust_sigma:  # found, not given: settings keep the input (none given), the value is res.sigma
         res = dataclasses.replace(res, sigma_source="robust", settings={**res.settings, "sigma": "estimated"})
-    if std == "hac":
+    if ns.std == "hac":
         res = _with_hac(res, rows.solved)
     return Solved(_finish(rows, res, check_white), rows.solved, rows.noise, np.flatnonzero(~rows.keep),
                   rows.weights)
@@ -126,26 +188,41 @@ def _places(problem: Problem, samples) -> list[dict]:
     return [{**loc, "where": where(loc)} for loc in problem.locate(samples)]
 
 
+def noise_account(rows: Rows | None, asked: str, noise: NoiseModel | None = None, *,
+                  note: str | None = None) -> dict[str, Any]:
+    """The noise account of a fit, assembled here only: ``{"noise": ..., "robust": ..., "excluded": ...}``.
+
+    ``noise``: the noise model (`noise`, default the rows') with the kind `asked` (and a `note`);
+    ``robust``: what the robust fit did with the samples it rejected, located in their files;
+    ``excluded``: the samples removed as flagged outliers, located. The last two only when they apply.
+    """
+    if noise is None:
+        assert rows is not None  # the rows' own noise model
+        noise = rows.noise
+    out: dict[str, Any] = {"noise": {**noise.to_dict(), "asked": asked, **({"note": note} if note else {})}}
+    if rows is None:
+        return out
+    if rows.robust is not None and rows.problem.t is not None:
+        out["robust"] = {**rows.robust, "rejected": _places(rows.problem, np.flatnonzero(~rows.keep)[:200])}
+    if rows.excluded is not None:
+        ex = rows.excluded
+        locs = _places(rows.problem, [r["sample"] for r in ex["samples"]])
+        out["excluded"] = {**ex, "samples": [{**r, **loc} for r, loc in zip(ex["samples"], locs)]}
+    return out
+
+
 def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResult:
     problem, keep, nm, noise = rows.problem, rows.keep, rows.noise, rows.asked
     x = _x(res)
     raw = problem.residuals(x)
-    diag = dict(res.diagnostics)
-    nd = nm.to_dict()
-    nd["asked"] = noise
-    diag["noise"] = nd
-    if rows.robust is not None and problem.t is not None:
-        diag["robust"] = {**rows.robust, "rejected": _places(problem, np.flatnonzero(~keep)[:200])}
-    if rows.excluded is not None:
-        ex = rows.excluded
-        locs = _places(problem, [r["sample"] for r in ex["samples"]])
-        diag["excluded"] = {**ex, "samples": [{**r, **loc} for r, loc in zip(ex["samples"], locs)]}
+    diag = {**res.diagnostics, **noise_account(rows, noise)}
     if problem.t is not None:
         gaps = find_gaps(problem.t)
         for g, loc in zip(gaps, _places(problem, [g["row"] - 1 for g in gaps])):
             g.update(loc)  # the first sample after the gap
         diag["gaps"] = gaps
-    if nm.is_white and noise == "white" and check_white and problem.t is not None and raw.ndim == 2:
+    if nm.is_white and noise == "white" and check_white and problem.t is not None and raw.ndim == 2 \
+            and not problem.is_noise_free():  # rounding residuals: no noise whose whiteness to test
         wt = whiteness_test(raw[keep], problem.t[keep])
         if wt.rejected:
             factor = _gm_factor(res, rows.solved)
@@ -226,21 +303,14 @@ def _gm_factor(res: EstimateResult, solved: Problem) -> tuple[float | None, floa
     return float(np.median(ratio)), float(np.max(ratio))
 
 
-def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], noise: str, tau: Any, robust: str | None,
-                     std: str, exclude_outliers: float | None) -> Solved:
-    """A method that fits its own noise model (GLS: one Gauss-Markov tau for every axis).
+def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], robust: str | None,
+                     exclude_outliers: float | None) -> Solved:
+    """A method that fits its own noise model (GLS: one Gauss-Markov tau for every axis, its own option).
 
     Glitches (a robust fit asked or found, :func:`casep.analysis.rows.prepare_rows`) and flagged
-    outliers are removed first, so that they cannot collapse the correlation time.
+    outliers are removed first, so that they cannot collapse the correlation time. What the noise
+    request may ask of such a method was checked with the request (:class:`~casep.workflows.spec.FitSpec`).
     """
-    if noise == "white":
-        raise ValueError(f"method `{meth.name}` assumes Gauss-Markov noise: noise 'white' contradicts it "
-                         "(use method ols)")
-    if std != "model":
-        raise ValueError(f"method `{meth.name}` takes no `std`: HAC std are for white-noise least squares "
-                         "(method ols)")
-    if tau is not None:
-        opts = {**opts, "tau": tau}
     sub, rows = problem, None
     if robust not in (None, "none") or exclude_outliers is not None:
         rows = prepare_rows(problem, "gm", None, robust, exclude_outliers)
@@ -248,12 +318,7 @@ def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], noise: s
             sub = problem.subset(rows.keep)
     res = meth.solve(sub, **opts)
     nm = meth.own_noise_model(res)
-    diag = {**res.diagnostics, "noise": {**nm.to_dict(), "asked": "gm",
-                                         "note": f"method {meth.name}: one tau for all axes"}}
-    if rows is not None and rows.robust is not None:
-        diag["robust"] = {**rows.robust, "rejected": _places(problem, np.flatnonzero(~rows.keep)[:200])}
-    if rows is not None and rows.excluded is not None:
-        diag["excluded"] = rows.excluded
+    diag = {**res.diagnostics, **noise_account(rows, "gm", nm, note=f"method {meth.name}: one tau for all axes")}
     raw = problem.residuals(_x(res))
     res = dataclasses.replace(res, diagnostics=diag, settings={**res.settings, "noise": "gm"}, residuals=raw,
                               n_samples=problem.n_samples)

@@ -185,7 +185,7 @@ def test_bad_option_values_exit_2(good_csv, capsys, args, expect):
 
 def test_missing_required_option_files(good_csv, capsys):
     assert main(["separate", str(good_csv), "--method", "bounded"]) == 2
-    assert "`bounds` is required" in capsys.readouterr().err
+    assert "option --bounds (`bounds`) is required" in capsys.readouterr().err
     with pytest.raises(SystemExit) as e:  # refused by the registry's rule as the argparse type
         main(["separate", str(good_csv), "--method", "rels", "--noise-order", "0"])
     assert e.value.code == 2
