@@ -287,3 +287,48 @@ def test_batched_methods_use_the_estimators_linear_maps():
     np.testing.assert_array_equal(maps["rls"].K, rls_linear_map(S2).K)
     np.testing.assert_array_equal(maps["map"].b, map_linear_map(S2, demo_prior(model.names), sc.noise.sigma,
                                                                 names=model.names).b)
+
+
+_ORPHAN = """
+import multiprocessing as mp, sys, time
+
+def child(w):
+    from casep.montecarlo.dask_worker import end_with_parent
+    end_with_parent()
+    w.send("ready")
+    time.sleep(60)
+
+if __name__ == "__main__":
+    ctx = mp.get_context("fork")
+    keep = [ctx.Pipe(duplex=False) for _ in range(2)]  # both exist before either fork, as Dask's on loaded cores
+    procs = []
+    for r, w in keep:
+        procs.append(ctx.Process(target=child, args=(w,)))
+        procs[-1].start()
+    for (r, w), p in zip(keep, procs):
+        if not r.poll(30):
+            sys.exit("a child did not start")
+    print(*[p.pid for p in procs], flush=True)
+    time.sleep(60)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc; fork")
+def test_forked_workers_holding_each_others_pipes_end_with_a_sigkilled_parent(tmp_path):
+    """The cause of the random orphans: forked workers inherit each other's write ends of Dask's
+    parent-alive pipes (each holds the other's open), so only the preload's own watch ends them."""
+    script = tmp_path / "orphan.py"
+    script.write_text(_ORPHAN)
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    children: list[int] = []
+    try:
+        children = [int(p) for p in proc.stdout.readline().split()]
+        assert len(children) == 2
+        proc.kill()
+        proc.wait()
+        assert _gone_within(children, 5), "children orphaned by SIGKILL of the parent"
+    finally:
+        for pid in [proc.pid] + children:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+        proc.communicate()
