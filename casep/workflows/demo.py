@@ -234,11 +234,12 @@ def _solve(problem: Problem, model: ErrorModel, rows: Rows, method: str, options
     The same steps as ``separate(problem, model, method, ...)``: the method on the shared rows
     (:func:`casep.workflows.solve.solve_problem`), the residual checks, the set-up judgement.
     """
-    res = solve_problem(problem, method, options, rows=rows).result
+    out = solve_problem(problem, method, options, rows=rows)
+    res = out.result
     assert problem.y is not None and problem.t is not None and problem.f is not None  # a flight's problem
     S: Any = problem  # check_fit takes S_V or the Problem that regenerates it
     check_fit(S, problem.y, res, t=problem.t, f=problem.f, source=problem.source,
-              outliers_handled="robust" in res.diagnostics)
+              outliers_handled="robust" in res.diagnostics, excluded=out.excluded)
     return judge_setup(res, None, model, noise_free=noise_free)
 
 

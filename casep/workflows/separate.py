@@ -276,7 +276,7 @@ def separate(
     res = out.result
     # raw dv: noise-free, outliers, offset
     check_fit(problem, problem._need_rows(), res, t=problem.t, f=problem.f, source=problem.source,  # type: ignore[arg-type]
-              outliers_handled="robust" in res.diagnostics or exclude_outliers is not None)
+              outliers_handled="robust" in res.diagnostics or exclude_outliers is not None, excluded=out.excluded)
     if sigma is not None and not sigma_from_wavelet:
         check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model, noise_free=_noise_free(problem))

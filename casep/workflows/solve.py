@@ -29,9 +29,21 @@ from casep.estimators.result import EstimateResult
 from casep.exceptions import NoiseNotWhiteWarning
 
 # Rows and prepare_rows live in casep.analysis.rows (the data's), re-exported here beside solve_problem
-__all__ = ["solve_problem", "prepare_rows", "Rows", "Solved", "hac_covariance", "STD_CHOICES"]
+__all__ = ["solve_problem", "prepare_rows", "Rows", "Solved", "hac_covariance", "STD_CHOICES", "check_robust_method",
+           "ROBUST_BY_THEMSELVES"]
 
 STD_CHOICES = ("model", "hac")
+#: Methods robust by themselves: a robust filter in front of one is refused (the glitches weighed twice).
+ROBUST_BY_THEMSELVES = ("huber",)
+
+
+def check_robust_method(method: str, robust: str | None) -> None:
+    """Refuse a robust fit (`robust` huber or bisquare) in front of a method that is robust by itself."""
+    if method in ROBUST_BY_THEMSELVES and robust not in (None, "auto", "none"):
+        raise ValueError(f"`robust={robust!r}` with method `{method}`: Huber's M-estimator is robust already (it "
+                         "down-weights large residuals itself; a robust filter in front of it would weigh the glitches "
+                         f"twice). Use: robust 'none' or 'auto' with method `{method}`, or another method with robust "
+                         f"{robust!r}")
 
 
 @dataclass
@@ -93,6 +105,7 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
     if std not in STD_CHOICES:
         raise ValueError(f"`std` must be one of {', '.join(STD_CHOICES)}, got {std!r}")
     check_method_options(method, {k: v for k, v in dict(options or {}).items() if v is not None})  # an API edge
+    check_robust_method(method, robust)
     meth = METHODS[method]
     opts = {**dict(options or {}), **labels}
     if meth.own_noise_model is not None:
