@@ -17,9 +17,10 @@ import sys
 from typing import Any, Callable, NoReturn, Sequence
 
 from casep._version import __version__
+from casep.cli.blas import blas_threads_limited
 from casep.cli.capture import print_warnings, recorded
 
-__all__ = ["main", "build_parser", "COMMANDS", "EXIT_BROKEN_PIPE", "BLAS_THREAD_VARS", "blas_threads_limited"]
+__all__ = ["main", "build_parser", "COMMANDS", "EXIT_BROKEN_PIPE"]
 
 #: The commands in the order ``casep --help`` lists them; each is the module ``casep.cli.<name>``.
 COMMANDS = ("separate", "simulate", "diagnose", "noise", "demo", "montecarlo", "fuse", "methods", "models", "impact",
@@ -28,42 +29,6 @@ COMMANDS = ("separate", "simulate", "diagnose", "noise", "demo", "montecarlo", "
 #: Exit status when the reader of stdout goes away (``casep ... | head``): 128 + SIGPIPE, what the
 #: shell reports for any Unix tool ended by the broken pipe, so ``set -o pipefail`` sees the same.
 EXIT_BROKEN_PIPE = 141
-
-#: The environment variables that set the BLAS / OpenMP thread counts: a user who sets any of them decides.
-BLAS_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-
-
-@contextlib.contextmanager
-def blas_threads_limited() -> Any:
-    """Within: one BLAS thread, unless the user set one of :data:`BLAS_THREAD_VARS`.
-
-    casep's matrices are small (n <= a few hundred columns, rows reduced block by block), so BLAS
-    threads buy little and, on a shared machine, cost much: each thread spins waiting for the
-    others, and a loaded 2-core machine ran ``casep separate`` of a 100 Hz flight 12-17 times
-    slower with OpenBLAS's default threads than with one (benchmarks/bench_blas_threads.py).
-    Before NumPy loads, the environment is set (the BLAS library reads it once, when it loads;
-    child processes inherit it); after, threadpoolctl limits the loaded libraries.
-    """
-    if any(v in os.environ for v in BLAS_THREAD_VARS):
-        yield
-        return
-    if "numpy" not in sys.modules:
-        saved = {v: os.environ.get(v) for v in BLAS_THREAD_VARS}
-        os.environ.update({v: "1" for v in BLAS_THREAD_VARS})
-        try:
-            yield
-        finally:
-            for v, old in saved.items():
-                if old is None:
-                    os.environ.pop(v, None)
-                else:
-                    os.environ[v] = old
-        return
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1):
-        yield
-
 
 class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (exit 2) and that refuses a one-value option given twice."""

@@ -8,10 +8,10 @@ import sys
 
 import pytest
 
-from casep.cli.app import BLAS_THREAD_VARS, blas_threads_limited
+from casep.cli.blas import BLAS_THREAD_VARS, blas_threads_limited
 
 _PROBE = """
-from casep.cli.app import blas_threads_limited
+from casep.cli.blas import blas_threads_limited
 with blas_threads_limited():
     import numpy
     from threadpoolctl import threadpool_info
