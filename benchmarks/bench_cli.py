@@ -1,7 +1,9 @@
 """Benchmark: whole-process wall and CPU time of `casep` commands against `python -c "import numpy, pandas"`.
 
-Targets: `casep separate` on the 20k-sample example flight <= 3x the baseline,
-`casep demo` <= 4 s wall. `casep --help` and `casep models` show what the lazy imports buy (the CLI
+Targets: `casep separate` on the example flight (1 800 samples, 10 Hz) and on a 100 Hz range flight
+(`casep simulate --scenario paper-range-gm --rate 100`: Gauss-Markov tracking noise, tracking gaps,
+19 501 samples; the default noise model `auto` and robust fit) <= 3x the baseline, `casep demo` <= 4 s
+wall. `casep --help` and `casep models` show what the lazy imports buy (the CLI
 imports a command's modules only when it runs).
 
 Each command runs once as a warm-up (numba's cache), then `--runs` times interleaved with the
@@ -15,7 +17,9 @@ With ``--against CHECKOUT`` (another checkout of casep, e.g. ``git worktree add 
 each command is paired with the same command run on that checkout's code (``PYTHONPATH=CHECKOUT``)
 instead of with the import baseline: the ratio is then new / old, measured under the same load.
 
-Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/bench_cli.py [--runs 5] [--only separate,demo] [--against DIR]
+Run:  python benchmarks/bench_cli.py [--runs 5] [--only separate,range,demo] [--against DIR]
+(the CLI runs with one BLAS thread unless OPENBLAS/OMP/MKL_NUM_THREADS is set:
+benchmarks/bench_blas_threads.py)
 """
 
 from __future__ import annotations
@@ -61,8 +65,8 @@ def paired(cmd: list[str], base: list[str], runs: int, base_env: dict[str, str] 
 def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("--runs", type=int, default=5)
-    ap.add_argument("--only", default="help,models,separate,demo",
-                    help="comma-separated rows to run (help, models, separate, demo)")
+    ap.add_argument("--only", default="help,models,separate,range,demo",
+                    help="comma-separated rows to run (help, models, separate, range, demo)")
     ap.add_argument("--against", metavar="CHECKOUT", help="pair each command with itself run on another checkout")
     args = ap.parse_args()
     only = set(args.only.split(","))
@@ -80,7 +84,12 @@ def main() -> None:
                 ("models", "`casep models`", casep + ["models"], "-"),
                 ("separate", "`casep separate examples/data/example_flight.csv`", casep + ["separate", str(flight)],
                  "<= 3x"),
+                ("range", "`casep separate` 100 Hz range flight (paper-range-gm)",
+                 casep + ["separate", str(Path(tmp) / "range.csv")], "<= 3x"),
                 ("demo", "`casep demo`", casep + ["demo", "--out", tmp], "<= 4 s wall")]
+        if "range" in only:
+            subprocess.run(casep + ["simulate", "--scenario", "paper-range-gm", "--rate", "100", "--seed", "1",
+                                    "-o", str(Path(tmp) / "range.csv")], check=True, capture_output=True)
         for key, label, cmd, target in rows:
             if key not in only:
                 continue

@@ -303,7 +303,7 @@ def warn_setup(flight: FlightData) -> list[str]:
 
 
 def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.ndarray,
-              source: str = "<memory>", outliers_handled: bool = False) -> None:
+              source: str = "<memory>", outliers_handled: bool = False, excluded=None) -> None:
     """Residual checks after an estimate: noise-free data, outliers, tracking time offset.
 
     Parameters
@@ -321,6 +321,9 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         Flight name for the messages.
     outliers_handled : bool, optional
         The fit removed or down-weighted its outliers already (a robust fit): no outlier warning.
+    excluded : array_like of int, optional
+        Samples the fit removed (a robust fit's glitches, excluded outliers): left out of the
+        time-offset test, which would otherwise read them as a signal.
 
     Warns
     -----
@@ -345,11 +348,15 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         _check_outliers(r, t, source, locate=S.locate if is_problem(S) and hasattr(S, "locate") else None)
     if f is None:  # rows without their specific force (a problem from arrays): no time-offset test
         return
-    if shares_problem_test(S, dv):
+    keep = None
+    if excluded is not None and len(excluded):
+        keep = np.ones(dv.shape[0], dtype=bool)
+        keep[np.asarray(excluded, dtype=int)] = False
+    if keep is None and shares_problem_test(S, dv):
         del r  # long flights: the shared test reads dv, not the residuals
         test = problem_time_offset_test(S, t, f)
     else:
-        test = time_offset_test(S, r, t, f)
+        test = time_offset_test(S, r, t, f, keep=keep)
     if test is None:
         return
     offset = abs(test.offset_t) > OFFSET_T and test.offset_rms > EFFECT_MIN

@@ -17,7 +17,9 @@ enter the next innovation. The kept samples get the weight of the chosen functio
 * bisquare: ``w = (1 - (u / c)^2)^2`` for ``|u| < c``, ``c = 4.685``; 0 beyond (rejected).
 
 More than :data:`MAX_RUN` rejections in a row are taken as a real change (a step the model does
-not have), not a glitch: the run is accepted again, so the filter cannot lose track.
+not have), not a glitch: the run is accepted again, so the filter cannot lose track. The samples
+before the first one accepted have no prediction forward; they are judged backward, from the
+next accepted sample (:func:`_sequential`).
 """
 
 from __future__ import annotations
@@ -134,7 +136,27 @@ def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, fu
 
 
 def _sequential(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: float, thr: float) -> np.ndarray:
-    """Keep mask of the sequential filter (compiled: :func:`casep._kernels.robust_filter_keep`)."""
+    """Keep mask of the sequential filter (compiled: :func:`casep._kernels.robust_filter_keep`), its start
+    decided backward.
+
+    Forward, a sample with no accepted sample before it has no prediction: it is judged by its
+    own size ``e_k / (r_a s)``. A flight whose residuals start away from zero (a level the noise
+    carries over from before tracking began) would lose its first samples as a run. A stationary
+    AR(1) process reads the same backward, so the samples before ``k0``, the first sample both
+    directions keep, are judged backward, each from the next kept sample; from ``k0`` on the
+    forward decisions stand (each depends only on the kept samples from ``k0``).
+    """
+    keep = _forward(e, t, noise, s, thr)
+    if keep.size == 0 or keep[0]:
+        return keep  # the first sample has no prediction but passed: nothing to decide backward
+    back = _forward(e[::-1], t[-1] - t[::-1], noise, s, thr)[::-1]  # the time-reversed filter
+    both = np.flatnonzero(keep & back)
+    if both.size:
+        keep[:both[0]] = back[:both[0]]
+    return keep
+
+
+def _forward(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: float, thr: float) -> np.ndarray:
     from casep._kernels import robust_filter_keep
 
     inv_tau = np.array([0.0 if tau is None else 1.0 / tau for tau in noise.tau])

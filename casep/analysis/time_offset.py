@@ -90,7 +90,8 @@ def problem_time_offset_test(problem, t: np.ndarray, f: np.ndarray):
     return problem._time_offset_test
 
 
-def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray) -> TimeOffsetTest | None:
+def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray,
+                     keep: np.ndarray | None = None) -> TimeOffsetTest | None:
     """Test residuals for a tracking time offset: ``r = S d + a(t) dt + (da/dt) c + e``.
 
     Tracking time tags late by dt give ``v_trk(t) = v(t - dt) ~ v(t) - a(t) dt``, so
@@ -120,6 +121,10 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
         Residuals ``dv - S D_hat``, m/s.
     t, f : array_like
         Times (s) and specific force (N, 3), m/s^2.
+    keep : (N,) bool array_like, optional
+        The samples the fit kept (a robust fit's glitches and excluded outliers left out): only
+        they enter the test, so that a glitch the fit removed is not read as an offset.
+        ``da/dt`` is still taken on every sample's times.
 
     Returns
     -------
@@ -140,13 +145,17 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
     if not usable.all():
         X = X[:, :, usable]
     p, k = int(nonzero.sum()) + X.shape[2], X.shape[2]
-    if 3 * N <= p + 2:
+    kept = np.ones(N, dtype=bool) if keep is None else np.asarray(keep, dtype=bool)
+    M = int(kept.sum())  # samples in the test
+    if 3 * M <= p + 2:
         return None
     y = np.asarray(r, dtype=float).reshape(N, 3)
 
     def augmented():  # [S (non-zero columns: zero ones would leave arbitrary Householder vectors) | a | j]
         for sl, S_b in blocks():
-            yield np.concatenate([S_b[:, :, nonzero], X[sl]], axis=2).reshape(-1, p), y[sl].reshape(-1)
+            use = kept[sl]
+            yield (np.concatenate([S_b[:, :, nonzero], X[sl]], axis=2)[use].reshape(-1, p),
+                   y[sl][use].reshape(-1))
 
     red = reduce_qr_blocks(augmented(), p)
     R22, q2 = red.R[-k:, -k:], red.qty[-k:]
@@ -164,11 +173,11 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray)
     rho = num / np.maximum(den, 1e-300)
     rho = np.clip(rho, 0.0, 0.999)
     kappa = float(np.max((1.0 + rho) / (1.0 - rho)))  # AR(1) long-run variance factor
-    s2 = red.rho2 / (3 * N - p)
+    s2 = red.rho2 / (3 * M - p)
     beta = np.linalg.solve(R22, q2) / red.scale[-k:]  # natural units
     Rinv = np.linalg.inv(R22)
     std = np.sqrt(s2 * kappa * np.sum(Rinv**2, axis=1)) / red.scale[-k:]  # diag (R22^T R22)^-1
-    effect = np.abs(beta) * red.scale[-k:] / np.sqrt(np.sum(Rinv**2, axis=1) * 3 * N)  # |b| ||x_perp|| / sqrt(m)
+    effect = np.abs(beta) * red.scale[-k:] / np.sqrt(np.sum(Rinv**2, axis=1) * 3 * M)  # |b| ||x_perp|| / sqrt(m)
     jerk = (float(beta[1]), float(std[1]), float(beta[1] / std[1])) if k == 2 else (np.nan, np.nan, np.nan)
     return TimeOffsetTest(offset=float(beta[0]), offset_std=float(std[0]), offset_t=float(beta[0] / std[0]),
                           jerk=jerk[0], jerk_std=jerk[1], jerk_t=jerk[2], inflation=kappa,

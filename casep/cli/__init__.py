@@ -11,6 +11,10 @@ are generated from the estimator registry (:data:`casep.estimators.registry.OPTI
 imports only the standard library, the version and the registry; each command imports what it
 needs when it runs, so building the parser and ``casep --help`` stay cheap.
 
+Every command runs with one BLAS thread unless OPENBLAS_NUM_THREADS, OMP_NUM_THREADS or
+MKL_NUM_THREADS is set (:mod:`casep.cli.blas`): casep's matrices are small and BLAS threads on a
+shared machine cost more than they give.
+
 Exit status: 0 success, 2 bad usage or bad input (one line on stderr), 1 anything else, including
 a `separate` result that is not successful (``success`` false: table and JSON still written);
 141 (quietly, like any Unix tool ended by SIGPIPE) when the reader of stdout closes early

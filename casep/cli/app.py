@@ -17,6 +17,7 @@ import sys
 from typing import Any, Callable, NoReturn, Sequence
 
 from casep._version import __version__
+from casep.cli.blas import blas_threads_limited
 from casep.cli.capture import print_warnings, recorded
 
 __all__ = ["main", "build_parser", "COMMANDS", "EXIT_BROKEN_PIPE"]
@@ -28,7 +29,6 @@ COMMANDS = ("separate", "simulate", "diagnose", "noise", "demo", "montecarlo", "
 #: Exit status when the reader of stdout goes away (``casep ... | head``): 128 + SIGPIPE, what the
 #: shell reports for any Unix tool ended by the broken pipe, so ``set -o pipefail`` sees the same.
 EXIT_BROKEN_PIPE = 141
-
 
 class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (exit 2) and that refuses a one-value option given twice."""
@@ -111,7 +111,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     # not for montecarlo, whose --out folder keeps every finished part for a resume.
     group = contextlib.nullcontext() if args.command == "montecarlo" else output_group()
     try:
-        with recorded(passed_on=False) as caught, group:
+        with blas_threads_limited(), recorded(passed_on=False) as caught, group:
             status = int(_command(args.command).run(args))
     except BrokenPipeError:
         raise  # the reader left: quiet exit, see _quiet_on_broken_pipe

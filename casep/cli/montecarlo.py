@@ -19,8 +19,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
     p.add_argument("--runs", type=positive_int, default=100, help="noise draws, >= 1 (default 100)")
     p.add_argument("--methods", default="ols,rls,rels",
-                   help=f"comma-separated: {', '.join(METHODS)}, ridge:<lambda> (fixed), wavelet+<method> (de-noised "
-                        "first) (default ols,rls,rels)")
+                   help=f"comma-separated: {', '.join(METHODS)}; <method>:<number> (its first option, ridge:<lambda>); "
+                        "<method>:<option>=<value>[:<option>=<value>] (any option, e.g. rls:p0=1e6:forgetting=0.999); "
+                        "wavelet+<method> (de-noised first) (default ols,rls,rels)")
     p.add_argument("--seed", type=order, default=0, help="root seed (default 0)")
     p.add_argument("--rate", type=rate, default=None, help="sample rate, Hz (default: scenario's)")
     p.add_argument("--workers", type=positive_int, default=None,
@@ -44,7 +45,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--truth-from-prior", metavar="FILE", dest="truth_from_prior", default=None,
                    help='JSON {"Kg0x": {"mean": m, "std": s}, ...}: each run draws its true coefficients from it '
                         "(also map's prior unless --prior is given)")
-    options.add_noise(p, outputs=False, default="white")
+    options.add_noise(p, outputs=False)  # casep separate's defaults: a campaign shows what separate gives
     p.add_argument("--tau", dest="noise_tau", type=positive_float, default=None, metavar="S",
                    help="Gauss-Markov correlation time the methods assume, s (with --noise gm; default REML)")
     p.add_argument("--out", metavar="DIR", default=None,

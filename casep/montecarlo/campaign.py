@@ -55,7 +55,7 @@ def run_montecarlo(
     dask: bool | None = None,
     flight: Any = None,
     truth: Mapping | None = None,
-    noise: str = "white",
+    noise: str = "auto",
     tau: Any = None,
     robust: str | None = "auto",
 ) -> MonteCarloResult:
@@ -110,9 +110,11 @@ def run_montecarlo(
         read from a file never runs a model file.
     noise, tau, robust : optional
         The noise model every method assumes and the robust fit, as :func:`casep.separate` takes
-        them (default ``"white"``, not robust: the methods as they are, the linear ones batched;
-        otherwise every method runs per run through :func:`casep.workflows.solve.solve_problem`).
-        The scenario's tracking gaps remove rows in every case.
+        them, with its defaults (``"auto"``, ``"auto"``: each run as ``casep separate`` would fit
+        it, every method per run through :func:`casep.workflows.solve.solve_problem`). ``"white"``
+        without a robust fit (robust ``"auto"`` or None) runs the methods as they are, the linear
+        ones batched (fast; the std then assume white noise). The scenario's tracking gaps remove
+        rows in every case.
     """
     runs, seed, specs, n_workers, robust = check_options(runs, seed, methods, workers, noise, tau, robust)
     per_run_noise = noise != "white" or robust not in (None, "auto")

@@ -79,7 +79,8 @@ class DaskEngine:
     whole process group; this process handles it and closes the cluster) and have one BLAS
     thread (Dask's pre-spawn environment sets OMP/MKL/OPENBLAS_NUM_THREADS=1; each task also
     limits it by threadpoolctl, which covers remote workers). They end with this process, even
-    on SIGKILL (Dask's nanny pipe). The cluster and client close with `stack`.
+    on SIGKILL (the preload's :func:`~casep.montecarlo.dask_worker.end_with_parent`). The cluster
+    and client close with `stack`.
     """
 
     def __init__(self, stack: ExitStack, workers: int, scheduler: str | None) -> None:

@@ -23,12 +23,15 @@ def check_options(runs: Any, seed: Any, methods: Sequence[str], workers: Any, no
     the parsed methods, the number of workers (None: all cores) and `robust` ("none": None)."""
     from casep.analysis.noise import check_noise_kind
     from casep.analysis.rows import ROBUST_CHOICES
+    from casep.workflows.spec import check_robust_method
 
     check_noise_kind(noise)
     specs = [parse_method(m) for m in methods]
+    for s in specs:
+        check_robust_method(s.name, robust)
     if (noise != "white" or robust not in (None, "auto", "none")) and any(s.denoise for s in specs):
-        raise ValueError("wavelet+<method> de-noises dv: it does not combine with `noise` other than 'white' or "
-                         "with `robust`")
+        raise ValueError(f"wavelet+<method> de-noises dv: it runs with `noise` 'white' (got {noise!r}: give "
+                         "noise 'white', --noise white) and without `robust`")
     if robust is not None and robust not in ROBUST_CHOICES:
         raise ValueError(f"`robust` must be one of {', '.join(ROBUST_CHOICES)} or None, got {robust!r}")
     if tau is not None and noise != "gm":

@@ -2,11 +2,12 @@
 
 The rest of :mod:`casep.montecarlo` sees a method only through :func:`parse_method` (the
 spec language of ``--methods``: ``<method>``, ``<method>:<number>`` (the method's first option
-fixed, e.g. ``ridge:<lambda>``), ``wavelet+<method>``), :func:`linear_maps` (the batched path)
+fixed, e.g. ``ridge:<lambda>``), ``<method>:<option>=<value>[:...]`` (any option),
+``wavelet+<method>``), :func:`linear_maps` (the batched path)
 and :func:`solve_runs` (the per-run path). What they ask of a method (its ``Method`` fields):
 
 - ``batched`` and ``linear_map``: a batched method, or one with a linear map whose spec fixes
-  its option (``ridge:<lambda>``), is solved for all runs with one factorisation,
+  its options to numbers (``ridge:<lambda>``), is solved for all runs with one factorisation,
   ``D = K y + b`` with the solver's std (:class:`casep.estimators.ols.LinearMap`);
 - ``required``: the options the Monte Carlo supplies itself, given or else the paper's demo
   values (``prior``, ``bounds``); a method that requires a prior weighs the data at the
@@ -29,14 +30,15 @@ from typing import Any
 import numpy as np
 
 from casep.estimators.registry import METHODS as _REGISTRY
-from casep.estimators.registry import Interval
+from casep.estimators.registry import CoefficientTable, Interval
 from casep.simulation.paper import demo_bounds, demo_prior
 
 __all__ = ["BATCHED", "METHOD_HELP", "MethodSpec", "linear_maps", "parse_method", "solve_runs"]
 
 #: Methods solved for all runs with one factorisation (their linear map).
 BATCHED = tuple(k for k, m in _REGISTRY.items() if m.batched)
-METHOD_HELP = ("ols, rls, rels, ridge (GCV), ridge:<lambda>, pcr, map, bounded, gls (REML tau), huber, and "
+METHOD_HELP = ("ols, rls, rels, ridge (GCV), ridge:<lambda>, pcr, map, bounded, gls (REML tau), huber; "
+               "<method>:<option>=<value>[:<option>=<value>] (any option of the method); and "
                "wavelet+<method> (de-noised first)")
 
 
@@ -54,7 +56,14 @@ class MethodSpec:
     def linear(self) -> bool:
         """The estimate is a fixed linear map of the data (solved batched when allowed)."""
         m = _REGISTRY[self.name]
-        return not self.denoise and (m.batched or (m.linear_map is not None and bool(self.options)))
+        if self.denoise or (m.linear_map is None and not m.batched):
+            return False
+        if not self.options:
+            return m.batched
+        # a linear map honours the method's first option (ridge's lambda, RLS's p0) as a number; other
+        # options (RLS's forgetting) it does not take: those specs run per run, through the solver
+        first = m.option_specs[0].name
+        return set(self.options) == {first} and isinstance(self.options[first], (int, float))
 
     @property
     def max_task_runs(self) -> int | None:
@@ -63,31 +72,78 @@ class MethodSpec:
 
 
 def parse_method(text: str) -> MethodSpec:
-    """Read one method spec; ValueError naming it when unknown or its option is bad."""
+    """Read one method spec; ValueError naming it (and the option) when unknown or an option is bad.
+
+    Forms: ``<method>``; ``<method>:<number>`` (its first numeric option, e.g. ``ridge:1e-4``);
+    ``<method>:<option>=<value>[:<option>=<value>...]`` (any option, by its keyword or its
+    ``casep separate`` flag without dashes: ``rls:p0=1e6:forgetting=0.999``, ``ridge:lambda=0.1``);
+    ``wavelet+`` before any of them. Each value is read and checked by the option's own rules and
+    the set by the method's validator (:func:`casep.estimators.registry.check_method_options`), so
+    a spec fails as ``casep separate --method <method> --<option> <value>`` would. The file options
+    (``prior``, ``bounds``) come from ``--prior``/``--bounds``, not from a spec.
+    """
+    from casep.estimators.registry import check_method_options
+
     denoise = text.startswith("wavelet+")
     base = text.split("+", 1)[1] if denoise else text
-    name, _, value = base.partition(":")
+    name, _, rest = base.partition(":")
     if name not in _REGISTRY:
         raise ValueError(f"unknown method `{text}`. Use: {_known()}")
-    if not value:
+    if not rest:
         return MethodSpec(text, name, {}, denoise)
     m = _REGISTRY[name]
+    if "=" not in rest:
+        options = {_first_number(text, m, rest)}
+    else:
+        options = [_option(text, m, item) for item in rest.split(":")]
+    given = dict(options)
+    if len(given) != len(options):
+        raise ValueError(f"method `{text}`: an option is given twice")
+    try:
+        check_method_options(name, given)
+    except ValueError as exc:
+        raise ValueError(f"method `{text}`: {exc}") from None
+    return MethodSpec(text, name, given, denoise)
+
+
+def _first_number(text: str, m: Any, value: str) -> tuple[str, Any]:
+    """``<method>:<number>``: the method's first option, when it takes a number."""
     numeric = [(o, r) for o in m.option_specs[:1] for r in o.rules if isinstance(r, Interval)]
     if not numeric:
-        raise ValueError(f"method `{text}`: `{name}` takes no number. Use: {_known()}")
+        raise ValueError(f"method `{text}`: `{m.name}` takes no number. Use: {_known()}")
     (option, rule), label = numeric[0], numeric[0][0].flag.lstrip("-")
     try:
         number = rule.parse(value)
     except ValueError:
-        raise ValueError(f"method `{text}`: {name}:<{label}> needs a number") from None
+        raise ValueError(f"method `{text}`: {m.name}:<{label}> needs a number") from None
     if not rule.accepts(number):
         raise ValueError(f"method `{text}`: {label} must be {str(rule).removeprefix(rule.kind.__name__ + ' ')}")
-    return MethodSpec(text, name, {option.name: number}, denoise)
+    return option.name, number
+
+
+def _option(text: str, m: Any, item: str) -> tuple[str, Any]:
+    """One ``<option>=<value>`` of a spec: the option (by keyword or flag) and its value, read by its rules."""
+    key, eq, value = item.partition("=")
+    key = key.strip()
+    found = [o for o in m.option_specs if key in (o.name, o.flag.lstrip("-"), o.flag.lstrip("-").replace("-", "_"))]
+    takes = ", ".join(f"{o.name} ({o.flag})" for o in m.option_specs) or "none"
+    if not eq or not key or not found:
+        raise ValueError(f"method `{text}`: `{item}` is not an option of `{m.name}` (<option>=<value>; "
+                         f"its options: {takes})")
+    o = found[0]
+    if any(isinstance(r, CoefficientTable) for r in o.rules):
+        raise ValueError(f"method `{text}`: option `{o.name}` is a file: give it with {o.flag} FILE")
+    try:
+        return o.name, o.parse(value.strip())
+    except ValueError:
+        raise ValueError(f"method `{text}`: option `{o.name}` ({o.flag}) of method `{m.name}` must be {o.rule}, "
+                         f"got {value.strip()!r}") from None
 
 
 def _known() -> str:
     """The methods registered now (a method registered at run time included), and the spec forms."""
-    return f"{', '.join(_REGISTRY)}; <method>:<number> (its first option, e.g. ridge:<lambda>); wavelet+<method>"
+    return (f"{', '.join(_REGISTRY)}; <method>:<number> (its first option, e.g. ridge:<lambda>); "
+            "<method>:<option>=<value>[:<option>=<value>] (e.g. rls:p0=1e6:forgetting=0.999); wavelet+<method>")
 
 
 def _supplied(spec: MethodSpec, names: Sequence[str], prior: Mapping | None,

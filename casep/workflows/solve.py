@@ -100,7 +100,8 @@ def fit(problem: Problem, spec: FitSpec, *, rows: Rows | None = None) -> Estimat
     out = solve_spec(solved, dataclasses.replace(spec, sigma=sigma), rows=rows, check_white=den is None)
     res = out.result
     check_fit(problem, problem._need_rows(), res, t=problem.t, f=problem.f, source=problem.source,  # type: ignore[arg-type]
-              outliers_handled="robust" in res.diagnostics or spec.noise.exclude_outliers is not None)
+              outliers_handled="robust" in res.diagnostics or spec.noise.exclude_outliers is not None,
+              excluded=out.excluded)
     if sigma is not None and not from_wavelet:
         check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
     if spec.outliers is not None:  # studentized residuals on the rows the method solved (whitened), samples named

@@ -25,7 +25,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-__all__ = ["FitSpec", "NoiseSpec", "NOT_GIVEN", "NotGiven", "merge_options", "ROBUST_CHOICES", "STD_CHOICES",
+__all__ = ["FitSpec", "NoiseSpec", "NOT_GIVEN", "NotGiven", "merge_options", "check_robust_method", "ROBUST_BY_THEMSELVES", "ROBUST_CHOICES", "STD_CHOICES",
            "DENOISE_CHOICES"]
 
 ROBUST_CHOICES = ("auto", "none", "huber", "bisquare")
@@ -268,9 +268,25 @@ def merge_options(options: Mapping[str, Any] | None, keywords: Mapping[str, Any]
     return {**dict(options or {}), **given}
 
 
+#: Methods robust by themselves: a robust filter in front of one is refused (the glitches weighed twice).
+ROBUST_BY_THEMSELVES = ("huber",)
+
+
+def check_robust_method(method: str, robust: str | None) -> None:
+    """Refuse a robust fit (`robust` huber or bisquare) in front of a method that is robust by itself."""
+    if method in ROBUST_BY_THEMSELVES and robust not in (None, "auto", "none"):
+        raise ValueError(f"`robust={robust!r}` with method `{method}`: Huber's M-estimator is robust already (it "
+                         "down-weights large residuals itself; a robust filter in front of it would weigh the glitches "
+                         f"twice). Use: robust 'none' or 'auto' with method `{method}`, or another method with robust "
+                         f"{robust!r}")
+
+
 def _check_noise_for(meth: Any, noise: NoiseSpec) -> None:
-    """What a method and the noise request must agree on (HAC std, a method with its own noise model)."""
+    """What a method and the noise request must agree on (HAC std, a method with its own noise model, a method
+    robust by itself)."""
     from casep.estimators.registry import METHODS
+
+    check_robust_method(meth.name, noise.robust)
 
     if meth.own_noise_model is not None:
         if noise.kind == "white":

@@ -20,7 +20,7 @@ from casep.montecarlo import run_montecarlo
 
 @pytest.mark.montecarlo
 def test_ols_efficiency_and_coverage_on_seeded_run():
-    res = run_montecarlo("paper", runs=300, methods=["ols"], seed=3, rate=20.0)
+    res = run_montecarlo("paper", runs=300, methods=["ols"], seed=3, rate=20.0, noise="white")
     st = res.stats("ols")
     assert 0.93 < np.median(st["efficiency"]) < 1.07
     assert 0.93 < np.median(st["coverage95"]) < 0.97
@@ -30,8 +30,8 @@ def test_ols_efficiency_and_coverage_on_seeded_run():
 
 def test_batched_equals_per_run():
     methods = ["ols", "rls", "ridge:1e-5", "pcr", "map"]
-    fast = run_montecarlo("paper", runs=4, methods=methods, seed=5, rate=10.0)
-    slow = run_montecarlo("paper", runs=4, methods=methods, seed=5, rate=10.0, batched=False, workers=1)
+    fast = run_montecarlo("paper", runs=4, methods=methods, seed=5, rate=10.0, noise="white")
+    slow = run_montecarlo("paper", runs=4, methods=methods, seed=5, rate=10.0, batched=False, workers=1, noise="white")
     for m in methods:
         sd = slow.stds[m]
         ok = np.isfinite(sd)
@@ -40,8 +40,10 @@ def test_batched_equals_per_run():
 
 
 def test_per_run_methods_in_processes_match_serial():
-    a = run_montecarlo("paper-pitch", runs=3, methods=["rels", "wavelet+ols"], seed=2, rate=10.0, workers=2)
-    b = run_montecarlo("paper-pitch", runs=3, methods=["rels", "wavelet+ols"], seed=2, rate=10.0, workers=1)
+    a = run_montecarlo("paper-pitch", runs=3, methods=["rels", "wavelet+ols"], seed=2, rate=10.0, workers=2,
+                       noise="white")
+    b = run_montecarlo("paper-pitch", runs=3, methods=["rels", "wavelet+ols"], seed=2, rate=10.0, workers=1,
+                       noise="white")
     for m in ("rels", "wavelet+ols"):
         np.testing.assert_array_equal(a.estimates[m], b.estimates[m])
     assert np.isnan(a.estimates["rels"][:, a.names.index("Kg1xz")]).all()  # zero column on a pitch flight
@@ -49,7 +51,8 @@ def test_per_run_methods_in_processes_match_serial():
 
 def test_cli_json_csv_figure(tmp_path, capsys):
     out, csv, fig = tmp_path / "mc.json", tmp_path / "mc.csv", tmp_path / "mc.png"
-    assert main(["montecarlo", "--scenario", "paper", "--runs", "5", "--rate", "10", "--methods", "ols,rls,bounded",
+    assert main(["montecarlo", "--noise", "white", "--scenario", "paper", "--runs", "5", "--rate", "10",
+                 "--methods", "ols,rls,bounded",
                  "--seed", "1", "--workers", "1", "--json", str(out), "--csv", str(csv), "--figure", str(fig)]) == 0
     data = json.loads(out.read_text())
     assert data["scenario"] == "paper" and data["runs"] == 5 and data["seed"] == 1
@@ -65,10 +68,10 @@ def test_cli_json_csv_figure(tmp_path, capsys):
 
 def test_bad_arguments(capsys):
     with pytest.raises(ValueError, match="unknown method `foo`"):
-        run_montecarlo(runs=2, methods=["foo"])
+        run_montecarlo(runs=2, methods=["foo"], noise="white")
     with pytest.raises(ValueError, match="`runs` must be an int >= 1"):
-        run_montecarlo(runs=0)
-    assert main(["montecarlo", "--runs", "2", "--methods", "ols,ridge:abc"]) == 2
+        run_montecarlo(runs=0, noise="white")
+    assert main(["montecarlo", "--noise", "white", "--runs", "2", "--methods", "ols,ridge:abc"]) == 2
     assert "ridge:<lambda> needs a number" in capsys.readouterr().err
 
 
@@ -80,7 +83,7 @@ def test_gls_chunks_match_public_solver():
     from casep.simulation.simulate import scenario_setup
 
     runs, seed = 3, 4
-    a = run_montecarlo("paper-ar1", runs=runs, methods=["gls"], seed=seed, rate=5.0, workers=1)
+    a = run_montecarlo("paper-ar1", runs=runs, methods=["gls"], seed=seed, rate=5.0, workers=1, noise="white")
     sc, traj, model, truth = scenario_setup("paper-ar1", 5.0)
     S = casep.build_sv(model, traj.t, traj.specific_force)
     Y = np.stack([S @ truth + sc.noise.sample(traj.t, np.random.default_rng(q))
@@ -93,18 +96,20 @@ def test_gls_chunks_match_public_solver():
         np.testing.assert_allclose(a.stds["gls"][k], r.std, rtol=1e-3)
         g = casep.solve_gls(S, Y[..., k], traj.t, tau=float(taus[k]))  # at the shared lattice's tau
         assert np.max(np.abs(a.estimates["gls"][k] - g.estimate) / g.std) < 1e-6
-    b = run_montecarlo("paper-ar1", runs=runs, methods=["gls"], seed=seed, rate=5.0, workers=2)
+    b = run_montecarlo("paper-ar1", runs=runs, methods=["gls"], seed=seed, rate=5.0, workers=2, noise="white")
     np.testing.assert_array_equal(a.estimates["gls"], b.estimates["gls"])
 
 
 def test_progress_lines_off_a_terminal_count_runs_per_method(capsys):
     """Defect 6: no progress at all when stderr was not a terminal; the bar said 20/40 for 20 runs."""
-    assert main(["montecarlo", "--scenario", "paper", "--runs", "3", "--rate", "5", "--methods", "ols,rls,bounded",
+    assert main(["montecarlo", "--noise", "white", "--scenario", "paper", "--runs", "3", "--rate", "5",
+                 "--methods", "ols,rls,bounded",
                  "--workers", "1", "--progress"]) == 0
     err = capsys.readouterr().err.splitlines()
     assert err[-1].startswith("montecarlo: bounded 3/3 runs (method 2 of 2, 100 % of all)")
     assert "s elapsed, ETA 0 s" in err[-1]
-    assert main(["montecarlo", "--scenario", "paper", "--runs", "3", "--rate", "5", "--methods", "ols",
+    assert main(["montecarlo", "--noise", "white", "--scenario", "paper", "--runs", "3", "--rate", "5",
+                 "--methods", "ols",
                  "--workers", "1", "--no-progress"]) == 0
     assert capsys.readouterr().err == ""
 
@@ -248,9 +253,10 @@ def test_prior_and_bounds_files_replace_the_demo_values(tmp_path, capsys):
     names = casep.load_model("platform36").names
     prior = {n: {"mean": 0.0, "std": 2.0 * max(abs(TABLE1_TRUTH[n]), 1e-3)} for n in names}
     bounds = {n: [-3.0 * abs(TABLE1_TRUTH[n]) - 1e-3, 3.0 * abs(TABLE1_TRUTH[n]) + 1e-3] for n in names}
-    fast = run_montecarlo("paper", runs=3, methods=["map"], seed=3, rate=10.0, prior=prior)
-    slow = run_montecarlo("paper", runs=3, methods=["map"], seed=3, rate=10.0, prior=prior, batched=False, workers=1)
-    demo = run_montecarlo("paper", runs=3, methods=["map"], seed=3, rate=10.0)
+    fast = run_montecarlo("paper", runs=3, methods=["map"], seed=3, rate=10.0, prior=prior, noise="white")
+    slow = run_montecarlo("paper", runs=3, methods=["map"], seed=3, rate=10.0, prior=prior, batched=False,
+                          workers=1, noise="white")
+    demo = run_montecarlo("paper", runs=3, methods=["map"], seed=3, rate=10.0, noise="white")
     sd = slow.stds["map"]
     assert np.max(np.abs(fast.estimates["map"] - slow.estimates["map"]) / sd) < 1e-8
     assert np.max(np.abs(fast.estimates["map"] - demo.estimates["map"]) / sd) > 0.1  # not the demo prior
@@ -258,13 +264,15 @@ def test_prior_and_bounds_files_replace_the_demo_values(tmp_path, capsys):
     pfile.write_text(json.dumps(prior))
     bfile.write_text(json.dumps(bounds))
     out = tmp_path / "mc.json"
-    assert main(["montecarlo", "--runs", "2", "--rate", "10", "--methods", "map,bounded", "--seed", "3",
+    assert main(["montecarlo", "--noise", "white", "--runs", "2", "--rate", "10", "--methods", "map,bounded",
+                 "--seed", "3",
                  "--workers", "1", "--prior", str(pfile), "--bounds", str(bfile), "--json", str(out)]) == 0
     got = json.loads(out.read_text())["methods"]["map"]["coefficients"]
-    mine = run_montecarlo("paper", runs=2, methods=["map"], seed=3, rate=10.0, prior=prior)
+    mine = run_montecarlo("paper", runs=2, methods=["map"], seed=3, rate=10.0, prior=prior, noise="white")
     np.testing.assert_allclose([c["rms"] for c in got], mine.stats("map")["rms"], rtol=1e-10)
     bfile.write_text(json.dumps({"KaOy": [0, 1]}))
-    assert main(["montecarlo", "--runs", "2", "--rate", "10", "--methods", "bounded", "--bounds", str(bfile)]) == 2
+    assert main(["montecarlo", "--noise", "white", "--runs", "2", "--rate", "10", "--methods", "bounded",
+                 "--bounds", str(bfile)]) == 2
     assert "did you mean `Ka0y`" in capsys.readouterr().err
 
 
@@ -287,3 +295,48 @@ def test_batched_methods_use_the_estimators_linear_maps():
     np.testing.assert_array_equal(maps["rls"].K, rls_linear_map(S2).K)
     np.testing.assert_array_equal(maps["map"].b, map_linear_map(S2, demo_prior(model.names), sc.noise.sigma,
                                                                 names=model.names).b)
+
+
+_ORPHAN = """
+import multiprocessing as mp, sys, time
+
+def child(w):
+    from casep.montecarlo.dask_worker import end_with_parent
+    end_with_parent()
+    w.send("ready")
+    time.sleep(60)
+
+if __name__ == "__main__":
+    ctx = mp.get_context("fork")
+    keep = [ctx.Pipe(duplex=False) for _ in range(2)]  # both exist before either fork, as Dask's on loaded cores
+    procs = []
+    for r, w in keep:
+        procs.append(ctx.Process(target=child, args=(w,)))
+        procs[-1].start()
+    for (r, w), p in zip(keep, procs):
+        if not r.poll(30):
+            sys.exit("a child did not start")
+    print(*[p.pid for p in procs], flush=True)
+    time.sleep(60)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc; fork")
+def test_forked_workers_holding_each_others_pipes_end_with_a_sigkilled_parent(tmp_path):
+    """The cause of the random orphans: forked workers inherit each other's write ends of Dask's
+    parent-alive pipes (each holds the other's open), so only the preload's own watch ends them."""
+    script = tmp_path / "orphan.py"
+    script.write_text(_ORPHAN)
+    proc = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    children: list[int] = []
+    try:
+        children = [int(p) for p in proc.stdout.readline().split()]
+        assert len(children) == 2
+        proc.kill()
+        proc.wait()
+        assert _gone_within(children, 5), "children orphaned by SIGKILL of the parent"
+    finally:
+        for pid in [proc.pid] + children:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+        proc.communicate()

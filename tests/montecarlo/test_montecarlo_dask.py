@@ -51,10 +51,10 @@ def test_same_seed_same_numbers_in_process_and_on_1_and_2_dask_workers(two_worke
     numbers depend on the seed only (not on the workers or the order tasks finish in)."""
     kw = dict(runs=3, methods=["ols", "map", "bounded"], seed=7, rate=1.0, dispersions=DISP,
               truth_prior=demo_prior(_names()), progress=False)
-    here = run_montecarlo("paper", workers=1, dask=False, **kw)
-    one = run_montecarlo("paper", workers=1, dask=True, **kw)  # its own LocalCluster of 1 worker
-    two = run_montecarlo("paper", workers=2, dask=True, **kw)  # its own LocalCluster of 2 workers
-    remote = run_montecarlo("paper", scheduler=two_workers, **kw)  # a running cluster, by address
+    here = run_montecarlo("paper", workers=1, dask=False, **kw, noise="white")
+    one = run_montecarlo("paper", workers=1, dask=True, **kw, noise="white")  # its own LocalCluster of 1 worker
+    two = run_montecarlo("paper", workers=2, dask=True, **kw, noise="white")  # its own LocalCluster of 2 workers
+    remote = run_montecarlo("paper", scheduler=two_workers, **kw, noise="white")  # a running cluster, by address
     for r in (one, two, remote):
         for m in kw["methods"]:
             np.testing.assert_array_equal(r.estimates[m], here.estimates[m])
@@ -64,14 +64,14 @@ def test_same_seed_same_numbers_in_process_and_on_1_and_2_dask_workers(two_worke
     assert here.to_dict()["truth_from_prior"] is True and here.to_dict()["dispersions"] == list(DISP)
     assert len({tuple(t) for t in here.truths}) == 3  # each run its own truth
     # each run its own trajectory: the CRLB differs from the nominal one
-    nominal = run_montecarlo("paper", runs=2, methods=["ols"], seed=7, rate=1.0, workers=1)
+    nominal = run_montecarlo("paper", runs=2, methods=["ols"], seed=7, rate=1.0, workers=1, noise="white")
     assert not np.allclose(here.crlb_std, nominal.crlb_std, rtol=1e-6)
 
 
 def test_nominal_per_run_methods_same_on_dask_and_in_process(two_workers):
     kw = dict(runs=5, methods=["ols", "rels", "gls"], seed=2, rate=2.0, progress=False)
-    here = run_montecarlo("paper-ar1", workers=1, **kw)
-    two = run_montecarlo("paper-ar1", scheduler=two_workers, **kw)
+    here = run_montecarlo("paper-ar1", workers=1, **kw, noise="white")
+    two = run_montecarlo("paper-ar1", scheduler=two_workers, **kw, noise="white")
     for m in kw["methods"]:
         np.testing.assert_array_equal(two.estimates[m], here.estimates[m])
 
@@ -84,7 +84,7 @@ def test_map_bayesian_coverage_with_truth_drawn_from_its_prior():
     prior = demo_prior(_names())
     runs = 2000
     res = run_montecarlo("paper", runs=runs, methods=["map"], seed=11, rate=1.0, workers=1, truth_prior=prior,
-                         progress=False)
+                         progress=False, noise="white")
     err = res.estimates["map"] - res.truths
     sd = res.stds["map"]
     ratio = np.sqrt(np.mean(err**2, axis=0)) / np.sqrt(np.mean(sd**2, axis=0))
@@ -94,13 +94,14 @@ def test_map_bayesian_coverage_with_truth_drawn_from_its_prior():
     assert abs(np.mean(cov) - 0.95) < 0.005  # pooled over the 36 coefficients
     # against the scenario's one fixed truth the same MAP's coverage is not the Bayesian 0.95
     fixed = run_montecarlo("paper", runs=200, methods=["map"], seed=11, rate=1.0, workers=1, prior=prior,
-                           progress=False)
+                           progress=False, noise="white")
     assert np.max(np.abs(fixed.stats("map")["coverage95"] - 0.95)) > 0.03
 
 
 def _cli(out: Path, *extra: str) -> list[str]:
     return [sys.executable, "-m", "casep", "montecarlo", "--scenario", "paper", "--rate", "1", "--runs", "12",
-            "--methods", "ols,map", "--seed", "5", "--workers", "1", "--no-progress", "--out", str(out), *extra]
+            "--methods", "ols,map", "--seed", "5", "--workers", "1", "--no-progress", "--out", str(out), "--noise",
+            "white", *extra]
 
 
 def test_resume_after_a_killed_campaign_gives_the_uninterrupted_result(tmp_path, capsys):
@@ -128,7 +129,7 @@ def test_resume_after_a_killed_campaign_gives_the_uninterrupted_result(tmp_path,
     assert len(list(parts.glob("part-*.parquet"))) == 12
     resumed = json.loads((out / "summary.json").read_text())
     whole = run_montecarlo("paper", runs=12, methods=["ols", "map"], seed=5, rate=1.0, workers=1,
-                           dispersions=DISP, progress=False)
+                           dispersions=DISP, progress=False, noise="white")
     assert _no_seconds(resumed) == _no_seconds(whole.to_dict())
     import pandas as pd
 
@@ -157,7 +158,7 @@ def test_resume_after_a_killed_campaign_gives_the_uninterrupted_result(tmp_path,
 def test_bad_dispersions_file_exits_2_naming_file_and_key(tmp_path, capsys, content, key):
     f = tmp_path / "disp.json"
     f.write_text(json.dumps(content))
-    assert main(["montecarlo", "--runs", "2", "--rate", "1", "--methods", "ols", "--workers", "1",
+    assert main(["montecarlo", "--noise", "white", "--runs", "2", "--rate", "1", "--methods", "ols", "--workers", "1",
                  "--dispersions", str(f)]) == 2
     err = capsys.readouterr().err
     assert str(f) in err and f"`{key}`" in err and err.startswith("casep: error: --dispersions")
@@ -166,14 +167,15 @@ def test_bad_dispersions_file_exits_2_naming_file_and_key(tmp_path, capsys, cont
 def test_bad_dispersions_and_truth_prior_files(tmp_path, capsys):
     f = tmp_path / "disp.json"
     f.write_text("{not json")
-    assert main(["montecarlo", "--runs", "2", "--methods", "ols", "--dispersions", str(f)]) == 2
+    assert main(["montecarlo", "--noise", "white", "--runs", "2", "--methods", "ols", "--dispersions", str(f)]) == 2
     assert f"--dispersions {f}: not valid JSON" in capsys.readouterr().err
     f.write_text("{}")
-    assert main(["montecarlo", "--runs", "2", "--methods", "ols", "--dispersions", str(f)]) == 2
+    assert main(["montecarlo", "--noise", "white", "--runs", "2", "--methods", "ols", "--dispersions", str(f)]) == 2
     assert "no parameters" in capsys.readouterr().err
     p = tmp_path / "prior.json"
     p.write_text(json.dumps({"Kg0q": {"mean": 0, "std": 1}}))
-    assert main(["montecarlo", "--runs", "2", "--methods", "map", "--truth-from-prior", str(p)]) == 2
+    assert main(["montecarlo", "--noise", "white", "--runs", "2", "--methods", "map", "--truth-from-prior",
+                 str(p)]) == 2
     err = capsys.readouterr().err
     assert f"--truth-from-prior {p}" in err and "Kg0q" in err
 
@@ -201,13 +203,13 @@ def test_out_nominal_stages_resume_from_missing_parts(tmp_path):
     import pandas as pd
 
     kw = dict(runs=10, methods=["ols", "map", "bounded"], seed=4, rate=2.0, workers=1, progress=False)
-    first = run_montecarlo("paper", out=tmp_path, **kw)
+    first = run_montecarlo("paper", out=tmp_path, **kw, noise="white")
     parts = sorted((tmp_path / "runs.parquet").glob("part-*.parquet"))
     assert len(parts) == 20  # 10 tasks of the batched stage, 10 of bounded
     before = pd.read_parquet(tmp_path / "runs.parquet")
     for p in parts[3:15:2]:
         p.unlink()
-    again = run_montecarlo("paper", out=tmp_path, **kw)
+    again = run_montecarlo("paper", out=tmp_path, **kw, noise="white")
     assert _no_seconds(again.to_dict()) == _no_seconds(first.to_dict())
     assert json.loads((tmp_path / "summary.json").read_text()) == json.loads(json.dumps(again.to_dict()))
     after = pd.read_parquet(tmp_path / "runs.parquet")
@@ -215,7 +217,7 @@ def test_out_nominal_stages_resume_from_missing_parts(tmp_path):
     st = json.loads((tmp_path / "state.json").read_text())["finished_tasks"]
     assert sorted(st) == [p.name for p in parts]
     with pytest.raises(ValueError, match=r"other settings \(methods: \["):
-        run_montecarlo("paper", out=tmp_path, **{**kw, "methods": ["ols"]})
+        run_montecarlo("paper", out=tmp_path, **{**kw, "methods": ["ols"]}, noise="white")
 
 
 def test_a_draw_the_vehicle_cannot_fly_is_exit_2_naming_the_run_and_values(tmp_path, capsys):
@@ -231,7 +233,7 @@ def test_a_draw_the_vehicle_cannot_fly_is_exit_2_naming_the_run_and_values(tmp_p
     simulate_boost(disperse_vehicle(get_scenario("paper").vehicle, {"isp_scale": 0.9}), 1.0)  # flyable
     f = tmp_path / "disp.json"
     f.write_text(json.dumps({"isp_scale": {"dist": "uniform", "low": 0.84, "high": 0.85}}))
-    assert main(["montecarlo", "--runs", "2", "--rate", "1", "--methods", "ols", "--workers", "1",
+    assert main(["montecarlo", "--noise", "white", "--runs", "2", "--rate", "1", "--methods", "ols", "--workers", "1",
                  "--dispersions", str(f)]) == 2
     err = capsys.readouterr().err
     assert "run 0: the dispersed vehicle (isp_scale 0.84" in err and "cannot be flown" in err
@@ -250,5 +252,5 @@ def test_summary_records_the_rate():
     """Fresh-eyes review: the summary JSON says at which rate the flights were simulated."""
     from casep.montecarlo import run_montecarlo
 
-    res = run_montecarlo("paper", runs=2, methods=["ols"], seed=1, rate=2.0)
+    res = run_montecarlo("paper", runs=2, methods=["ols"], seed=1, rate=2.0, noise="white")
     assert res.to_dict()["rate_hz"] == 2.0

@@ -29,7 +29,8 @@ def test_montecarlo_on_own_trajectory_matches_its_crlb(own):
 
     flight, side = own
     truth = json.loads(side.read_text())
-    res = run_montecarlo("paper", runs=40, methods=["ols"], workers=1, progress=False, flight=flight, truth=truth)
+    res = run_montecarlo("paper", runs=40, methods=["ols"], workers=1, progress=False, flight=flight, truth=truth,
+                         noise="white")
     fl = casep.read_flight(flight)
     model = casep.load_model(truth["model"])
     S = casep.build_sv(model, fl.t, fl.f)
@@ -44,7 +45,8 @@ def test_montecarlo_on_own_trajectory_matches_its_crlb(own):
 def test_cli_montecarlo_own_trajectory_resumes_and_says_so(own, tmp_path, capsys):
     flight, side = own
     out = tmp_path / "mc"
-    argv = ["montecarlo", "--flight", str(flight), "--truth", str(side), "--runs", "8", "--methods", "ols",
+    argv = ["montecarlo", "--noise", "white", "--flight", str(flight), "--truth", str(side), "--runs", "8",
+            "--methods", "ols",
             "--workers", "1", "--no-progress", "--out", str(out)]
     assert main(argv) == 0
     first = capsys.readouterr().out
@@ -52,7 +54,7 @@ def test_cli_montecarlo_own_trajectory_resumes_and_says_so(own, tmp_path, capsys
     assert main(argv) == 0
     m = __import__("re").search(r"resumed (\d+) of (\d+) tasks", capsys.readouterr().out)
     assert m and m.group(1) == m.group(2)
-    assert main(["montecarlo", "--flight", str(flight), "--runs", "2"]) == 2
+    assert main(["montecarlo", "--noise", "white", "--flight", str(flight), "--runs", "2"]) == 2
     assert "--flight and --truth go together" in capsys.readouterr().err
 
 
@@ -65,13 +67,13 @@ def test_dispersion_draws_kept_per_run(tmp_path):
     disp = {"thrust_scale": {"dist": "normal", "mean": 1.0, "std": 0.01},
             "launch_azimuth_deg": {"dist": "uniform", "low": -1.0, "high": 1.0}}
     kw = dict(runs=3, methods=["ols"], rate=2.0, workers=1, progress=False, dispersions=disp, out=tmp_path / "mc")
-    res = run_montecarlo("paper", **kw)
+    res = run_montecarlo("paper", **kw, noise="white")
     tab = pq.read_table(tmp_path / "mc" / "runs.parquet").to_pandas()
     per_run = tab.groupby("run")[["draw_thrust_scale", "draw_launch_azimuth_deg"]].nunique()
     assert (per_run == 1).all().all()  # one draw per run, on each of its rows
     first = tab.groupby("run")["draw_thrust_scale"].first().to_numpy()
     np.testing.assert_array_equal(first, res.draws["thrust_scale"])
     assert len(set(first)) == 3 and np.all(np.abs(first - 1.0) < 0.06)
-    again = run_montecarlo("paper", **kw)
+    again = run_montecarlo("paper", **kw, noise="white")
     assert again.resumed == again.tasks > 0
     np.testing.assert_array_equal(again.draws["launch_azimuth_deg"], res.draws["launch_azimuth_deg"])

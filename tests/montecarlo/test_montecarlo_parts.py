@@ -114,5 +114,5 @@ def test_progress_lines_mode_writes_whole_lines_per_stage(capsys):
 
 
 def test_progress_off_writes_nothing(capsys):
-    res = run_montecarlo("paper", runs=2, methods=["ols"], seed=1, rate=1.0, workers=1, progress=False)
+    res = run_montecarlo("paper", runs=2, methods=["ols"], seed=1, rate=1.0, workers=1, progress=False, noise="white")
     assert res.runs == 2 and capsys.readouterr().err == ""

@@ -81,7 +81,8 @@ def test_montecarlo_dispersions_that_hang_or_never_lift_off_are_refused(disp, me
     from casep.montecarlo import run_montecarlo
 
     with pytest.raises(ValueError, match=message):
-        run_montecarlo("paper", runs=1, methods=["ols"], rate=5.0, workers=1, progress=False, dispersions=disp)
+        run_montecarlo("paper", runs=1, methods=["ols"], rate=5.0, workers=1, progress=False, dispersions=disp,
+                       noise="white")
 
 
 def test_montecarlo_truth_prior_beyond_any_instrument_is_refused():
@@ -94,4 +95,4 @@ def test_montecarlo_truth_prior_beyond_any_instrument_is_refused():
                                r"magnitude 0\.5")):
         with pytest.raises(ValueError, match=message):
             run_montecarlo("paper", runs=1, methods=["ols"], rate=5.0, workers=1, progress=False,
-                           truth_prior={"Kg0x": {"mean": 0.0, "std": std}})
+                           truth_prior={"Kg0x": {"mean": 0.0, "std": std}}, noise="white")
