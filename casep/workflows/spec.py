@@ -25,8 +25,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-__all__ = ["FitSpec", "NoiseSpec", "NOT_GIVEN", "NotGiven", "merge_options", "check_robust_method", "ROBUST_BY_THEMSELVES", "ROBUST_CHOICES", "STD_CHOICES",
-           "DENOISE_CHOICES"]
+__all__ = ["FitSpec", "NoiseSpec", "NOT_GIVEN", "NotGiven", "merge_options", "check_robust_method",
+           "ROBUST_BY_THEMSELVES", "ROBUST_CHOICES", "STD_CHOICES", "DENOISE_CHOICES"]
 
 ROBUST_CHOICES = ("auto", "none", "huber", "bisquare")
 STD_CHOICES = ("model", "hac")
