@@ -32,6 +32,7 @@ from casep.montecarlo.store import Store
 from casep.montecarlo.tasks import Context, chunks
 from casep.simulation.scenarios import Scenario
 from casep.simulation.simulate import scenario_setup
+from casep.workflows.spec import NoiseSpec
 
 __all__ = ["run_montecarlo"]
 
@@ -55,9 +56,9 @@ def run_montecarlo(
     dask: bool | None = None,
     flight: Any = None,
     truth: Mapping | None = None,
-    noise: str = "auto",
+    noise: str = NoiseSpec.kind,
     tau: Any = None,
-    robust: str | None = "auto",
+    robust: str | None = NoiseSpec.robust,
 ) -> MonteCarloResult:
     """Run `runs` noise draws of a scenario through each method.
 
