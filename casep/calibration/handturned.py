@@ -240,7 +240,8 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     fg, sg_unit, bg_unit = _unit(session.gyr_unit, GYR_UNITS, "rad/s")
     acc, gyr = session.acc * fa, session.gyr * fg
     seg = segmentation or detect_static(acc, gyr, session.rate, gravity=g, window_s=window_s, init_s=init_s,
-                                        min_static_s=min_static_s, source=session.source)
+                                        min_static_s=min_static_s, source=session.source,
+                                        gyr_si=None if session.gyr_unit == RAW_UNIT else 1.0)
     means = np.array([acc[a:b].mean(axis=0) for a, b in seg.poses])
     afit = fit_accelerometer(means, g, counts=np.array([b - a for a, b in seg.poses]))
     u0, u1 = _dirs(afit, means)
@@ -270,12 +271,13 @@ def calibrate_multiposition_file(session: str | os.PathLike, *, rate: float | No
                                  **kwargs) -> MultipositionCalibration:
     """:func:`calibrate_multiposition` of a session file (``casep calibrate --segments auto``).
 
-    A text file without a header (``.log``, ``.txt``: whitespace-separated ``ax ay az wx wy wz``,
+    A text file without a header (``.log``, ``.txt``, gzipped or not: whitespace-separated ``ax ay az wx wy wz``,
     as imu_tk and the MPU-9150 sessions of Mikov et al. store them) is read too.
     """
     from casep.calibration.session import ACC_COLUMNS, GYR_COLUMNS, read_session
 
-    ses = (_read_plain(session, rate, acc_unit, gyr_unit) if str(session).lower().endswith((".log", ".txt"))
+    plain = str(session).lower().endswith((".log", ".txt", ".log.gz", ".txt.gz"))
+    ses = (_read_plain(session, rate, acc_unit, gyr_unit) if plain
            else read_session(session, rate=rate, acc_columns=acc_columns or ACC_COLUMNS,
                              gyr_columns=gyr_columns or GYR_COLUMNS, acc_unit=acc_unit, gyr_unit=gyr_unit))
     return calibrate_multiposition(ses, **kwargs)

@@ -261,8 +261,9 @@ def fit_gyro(gyr: np.ndarray, rate: float, motions: list[tuple[int, int]], u_sta
     x0 : (9,) ndarray, optional
         Start (default: no misalignment, the three scales `scale0`).
     scale0 : float or None
-        Starting scale, SI per reading unit (1 for readings in rad/s); None (raw counts): the best
-        of a logarithmic grid 1e-7..10, by the misfit.
+        Expected scale, SI per reading unit (1 for readings in rad/s): the start is the best, by the
+        misfit, of a logarithmic grid of 21 common scales from `scale0`/316 to 316 `scale0`; None
+        (raw counts): of 49 from 1e-7 to 10.
     """
     m = len(motions)
 
@@ -281,11 +282,11 @@ def fit_gyro(gyr: np.ndarray, rate: float, motions: list[tuple[int, int]], u_sta
         return r, J
 
     if x0 is None:
-        if scale0 is None:
-            grid = np.logspace(-7, 1, 49)
-            costs = [float(np.sum(resid(np.r_[np.zeros(6), np.full(3, c)]) ** 2)) for c in grid]
-            scale0 = float(grid[int(np.argmin(costs))])
-        x0 = np.r_[np.zeros(6), np.full(3, scale0)]
+        # the misfit is periodic in the angles: a start far from the scale (a wrong unit, raw counts) ends in a
+        # wrong minimum, so the start is the best of a logarithmic grid of common scales
+        grid = np.logspace(-7, 1, 49) if scale0 is None else scale0 * np.logspace(-2.5, 2.5, 21)
+        costs = [float(np.sum(resid(np.r_[np.zeros(6), np.full(3, c)]) ** 2)) for c in grid]
+        x0 = np.r_[np.zeros(6), np.full(3, float(grid[int(np.argmin(costs))]))]
     x0 = np.asarray(x0, dtype=float)
     x, r, J, it, ok = _lm(fun, x0, max_iter=50, tol=1e-11)
     cov, s = _covariance(J, r, 2 * m - 9)

@@ -6,8 +6,11 @@ of each accelerometer axis over a centred window of ``w`` samples, and its magni
     v(t) = || (var a_x, var a_y, var a_z) ||_2      (reading unit^2)
 
 A sample is static when ``v(t) <= k v_init``, ``v_init`` the mean of ``v`` over the initial static
-period (the first ``init_s`` seconds, which the session must begin with: it also gives the gyro
-bias). A run of static samples at least ``min_static_s`` long is a pose; a shorter one is
+period, and the gyro's window mean square about its initial bias, ``v_g(t)``, is at most ``k v_g,init``
+(a turn about gravity leaves the accelerometers unchanged: imu_tk's detector calls it static, and its
+rows then spoil the gyro bias; the MPU-9150 sessions have 20-deg turns of this kind). The initial
+period is the first ``init_s`` seconds, which the session must begin with. A run of static samples
+at least ``min_static_s`` long (after losing half a window at each end) is a pose; a shorter one is
 rejected (and listed). The multiplier ``k`` is chosen from the session, as imu_tk does: for every
 ``k`` of a sweep, the poses found are calibrated (:func:`casep.calibration.multiposition.fit_accelerometer`,
 the magnitude of gravity) and the ``k`` of the smallest RMS misfit per pose wins (a too small
@@ -70,6 +73,8 @@ class Segmentation:
         Static intervals, time order (the first is the initial period's).
     threshold, multiplier, init_variance : float
         ``threshold = multiplier * init_variance`` (reading unit^2).
+    gyro_threshold : float
+        ``multiplier`` times the gyro's initial window mean square (reading unit^2).
     window : int
         Samples of the variance window.
     rejected : list of (int, int, str)
@@ -79,7 +84,7 @@ class Segmentation:
     spread : float
         Smallest singular value of the pose directions over sqrt(n).
     turns_deg : list of float
-        Angle the gyro turns inside each pose (initial-period bias removed), deg.
+        Angle the gyro turns inside each pose (initial-period bias removed), deg (empty for raw counts).
     rate : float
         Sample rate, Hz.
     """
@@ -95,6 +100,7 @@ class Segmentation:
     sweep: list = field(default_factory=list)
     spread: float = math.nan
     turns_deg: list = field(default_factory=list)
+    gyro_threshold: float = math.nan
 
     @property
     def motions(self) -> list[tuple[int, int]]:
@@ -105,7 +111,8 @@ class Segmentation:
         return {"init": list(self.init), "poses": [list(p) for p in self.poses], "threshold": self.threshold,
                 "multiplier": self.multiplier, "init_variance": self.init_variance, "window": self.window,
                 "rate_hz": self.rate, "rejected": [list(r) for r in self.rejected],
-                "sweep": [list(s) for s in self.sweep], "spread": self.spread, "turns_deg": list(self.turns_deg)}
+                "sweep": [[k, n, _finite(r)] for k, n, r in self.sweep], "spread": _finite(self.spread),
+                "turns_deg": list(self.turns_deg), "gyro_threshold": _finite(self.gyro_threshold)}
 
     def text(self) -> str:
         """What was found: poses, their lengths, the threshold, the rejected intervals."""
@@ -114,7 +121,8 @@ class Segmentation:
                  f"{np.median(L):.3g} s), {len(self.motions)} motions; initial period rows {self.init[0]}-"
                  f"{self.init[1] - 1} ({(self.init[1] - self.init[0]) / self.rate:.3g} s)",
                  f"  threshold {self.threshold:.4g} (reading unit^2) = {self.multiplier:g} x the initial period's "
-                 f"window variance {self.init_variance:.4g}; window {self.window} samples; "
+                 f"window variance {self.init_variance:.4g} (gyro: {self.gyro_threshold:.4g}, mean square about "
+                 f"the initial bias); window {self.window} samples; "
                  f"direction spread {self.spread:.3f} (0.577: even, 0: a plane)"]
         if self.sweep:
             lines.append("  sweep (multiplier: poses, RMS misfit): " + "; ".join(
@@ -124,6 +132,11 @@ class Segmentation:
                 f"rows {a}-{b - 1} ({why})" for a, b, why in self.rejected[:12])
                 + (" ..." if len(self.rejected) > 12 else ""))
         return "\n".join(lines)
+
+
+def _finite(v: float) -> float | None:
+    """`v`, or None for NaN (JSON)."""
+    return float(v) if math.isfinite(v) else None
 
 
 def window_variance(x: np.ndarray, window: int) -> np.ndarray:
@@ -170,15 +183,16 @@ def _static_runs(v: np.ndarray, threshold: float, init_end: int, min_len: int, g
 
 def detect_static(acc: np.ndarray, gyr: np.ndarray, rate: float, *, gravity: float | None = None,
                   window_s: float = 0.5, init_s: float = 5.0, min_static_s: float = 0.5,
-                  multipliers=MULTIPLIERS, min_poses: int = MIN_POSES, max_turn_deg: float = 1.0,
-                  acc_si: float = 1.0, gyr_si: float = 1.0, source: str = "session") -> Segmentation:
+                  multipliers=MULTIPLIERS, min_poses: int = MIN_POSES, max_turn_deg: float = 2.0,
+                  acc_si: float = 1.0, gyr_si: float | None = 1.0, source: str = "session") -> Segmentation:
     """Find the static poses of a hand-turned session (module notes).
 
     Parameters
     ----------
     acc, gyr : (N, 3) ndarray
         Readings in their unit (`acc_si`, `gyr_si`: its SI value; 1 for m/s^2 and rad/s; for raw
-        counts, 1: the accelerometer fit of the sweep carries the scale).
+        counts, `acc_si` 1: the accelerometer fit of the sweep carries the scale, and `gyr_si` None:
+        no check of the turn inside a pose).
     rate : float
         Sample rate, Hz.
     gravity : float, optional
@@ -207,20 +221,11 @@ def detect_static(acc: np.ndarray, gyr: np.ndarray, rate: float, *, gravity: flo
     if init_end + w > n:
         raise SegmentError(f"{source}: {n} samples ({n / rate:.3g} s) is shorter than the initial static period "
                            f"{init_s:g} s plus one window")
-    v = np.linalg.norm(window_variance(acc, w), axis=1)
-    vi = v[w // 2: init_end - w // 2] if init_end > w else v[:init_end]
-    med = float(np.median(vi))
-    if np.max(vi) > INIT_RISE * med or med <= 0:
-        at = int(np.argmax(vi)) + (w // 2 if init_end > w else 0)
-        raise SegmentError(f"{source}: no initial static period: over the first {init_s:g} s the window variance "
-                           f"of the accelerometers rises to {np.max(vi) / max(med, 1e-300):.3g} times its median "
-                           f"(row {at}, t = {at / rate:.3g} s; static: below {INIT_RISE:g}). Use: start the session "
-                           "with the sensor at rest, or a shorter --init")
-    v_init = float(np.mean(vi))
+    v, v_init, vg_init = _statistic(acc, gyr, w, init_end, rate, init_s, source)
     g = G0 if gravity is None else float(gravity)
     sweep, best = [], None
     for k in multipliers:
-        poses, rejected = _static_runs(v, k * v_init, init_end, min_len, w // 2)
+        poses, rejected = _static_runs(v, k, init_end, min_len, w // 2)
         rms = math.nan
         if len(poses) >= min_poses:
             means = np.array([acc[a:b].mean(axis=0) for a, b in poses]) * acc_si
@@ -239,7 +244,34 @@ def detect_static(acc: np.ndarray, gyr: np.ndarray, rate: float, *, gravity: flo
     turns = _check_poses(poses, spread, gyr, init_end, rate, gyr_si, max_turn_deg, source)
     return Segmentation(init=(0, poses[0][1]), poses=poses, threshold=k * v_init, multiplier=float(k),
                         init_variance=v_init, window=w, rate=float(rate), rejected=rejected, sweep=sweep,
-                        spread=spread, turns_deg=turns)
+                        spread=spread, turns_deg=turns, gyro_threshold=k * vg_init)
+
+
+def _statistic(acc, gyr, w, init_end, rate, init_s, source):
+    """The detector's statistic ``max(v_a / v_a,init, v_g / v_g,init)`` per sample, ``v_a,init``, ``v_g,init``.
+
+    ``v_a`` is imu_tk's (module notes); ``v_g = sum_axes mean_window (w - b0)^2`` (b0 the initial
+    period's mean gyro reading) adds what the accelerometers cannot see: a turn about gravity.
+    """
+    v = np.linalg.norm(window_variance(acc, w), axis=1)
+    core = slice(w // 2, init_end - w // 2) if init_end > w else slice(0, init_end)
+    vi = v[core]
+    med = float(np.median(vi))
+    if np.max(vi) > INIT_RISE * med or med <= 0:
+        at = int(np.argmax(vi)) + (core.start or 0)
+        raise SegmentError(f"{source}: no initial static period: over the first {init_s:g} s the window variance "
+                           f"of the accelerometers rises to {np.max(vi) / max(med, 1e-300):.3g} times its median "
+                           f"(row {at}, t = {at / rate:.3g} s; static: below {INIT_RISE:g}). Use: start the session "
+                           "with the sensor at rest, or a shorter --init")
+    d2 = np.sum((gyr - gyr[core].mean(axis=0)) ** 2, axis=1)
+    c = np.concatenate([[0.0], np.cumsum(d2)])
+    idx = np.arange(len(d2))
+    lo, hi = np.clip(idx - w // 2, 0, len(d2)), np.clip(idx + w - w // 2, 0, len(d2))
+    vg = (c[hi] - c[lo]) / (hi - lo)  # window mean of |w - b0|^2
+    # a gyro quantised to a constant reading at rest has vg_init = 0: floor it far below any turn
+    vg_init = max(float(np.mean(vg[core])), 1e-12 * float(np.mean(vg)), 1e-300)
+    v_init = float(np.mean(vi))
+    return np.maximum(v / v_init, vg / vg_init), v_init, vg_init
 
 
 def pose_spread(f: np.ndarray) -> float:
@@ -258,6 +290,8 @@ def _check_poses(poses, spread, gyr, init_end, rate, gyr_si, max_turn_deg, sourc
         warnings.warn(f"{source}: the {len(poses)} poses' gravity directions span the sphere poorly: smallest "
                       f"singular value / sqrt(n) {spread:.3g} < {SPREAD_WARN} (0.577: spread evenly); scale, "
                       "bias and misalignment are poorly separated", PoseSpreadWarning, stacklevel=3)
+    if gyr_si is None:  # raw counts of unknown scale: the turn is not known in degrees before the gyro fit
+        return []
     bias = gyr[:init_end].mean(axis=0)
     turns = [math.degrees(float(np.linalg.norm((gyr[a:b] - bias).sum(axis=0))) * gyr_si / rate) for a, b in poses]
     moving = [(i, t) for i, t in enumerate(turns) if t > max_turn_deg]
