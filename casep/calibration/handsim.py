@@ -57,10 +57,13 @@ def simulate_hand_session(n_poses: int = 30, *, rate: float = 100.0, truth: dict
                           acc_noise: float = 0.02, gyr_noise: float = 0.002, gravity: float = 9.80665,
                           init_s: float = 8.0, pose_s=(1.5, 3.0), motion_s=(1.0, 2.0), angle_deg=(60.0, 150.0),
                           lin_acc: float = 0.5, pause_s: float = 0.0, wobble: bool = False,
-                          axis: np.ndarray | None = None, seed: int | None = None) -> HandSession:
+                          axis: np.ndarray | None = None, gm: tuple[float, float, float] | None = None,
+                          seed: int | None = None) -> HandSession:
     """A hand-turned session (module notes); noise std per axis in the reading unit (SI with TRUTH_SI).
 
-    `axis`: every turn about this body axis (default: a random axis per turn).
+    `axis`: every turn about this body axis (default: a random axis per turn). `gm`: ``(acc std,
+    gyro std, tau s)`` of a first-order Gauss-Markov noise added to the white noise of each axis,
+    ``x_k+1 = e^(-dt/tau) x_k + sqrt(1 - e^(-2 dt/tau)) std n_k`` (stationary from the first sample).
     """
     rng = np.random.default_rng(seed)
     tr = TRUTH_SI if truth is None else truth
@@ -127,4 +130,17 @@ def simulate_hand_session(n_poses: int = 30, *, rate: float = 100.0, truth: dict
     w = phi / dt
     acc = np.linalg.solve(acc_matrix(tr["acc"]), f.T).T + tr["acc"][6:9] + acc_noise * rng.normal(size=f.shape)
     gyr = np.linalg.solve(gyro_matrix(tr["gyro"]), w.T).T + tr["gyro_bias"] + gyr_noise * rng.normal(size=w.shape)
+    if gm is not None:
+        acc = acc + _gauss_markov(rng, len(acc), gm[0], gm[2], dt)
+        gyr = gyr + _gauss_markov(rng, len(gyr), gm[1], gm[2], dt)
     return HandSession(acc=acc, gyr=gyr, rate=float(rate), poses=poses, moving=mv, steps=phi, truth=tr, gravity=gravity)
+
+
+def _gauss_markov(rng: np.random.Generator, n: int, std: float, tau: float, dt: float) -> np.ndarray:
+    """(n, 3) first-order Gauss-Markov noise of stationary std `std` and correlation time `tau` (s)."""
+    from scipy.signal import lfilter
+
+    a = math.exp(-dt / tau)
+    e = rng.normal(size=(n, 3)) * std * math.sqrt(1.0 - a * a)
+    e[0] = rng.normal(size=3) * std  # stationary start
+    return lfilter([1.0], [1.0, -a], e, axis=0)

@@ -37,7 +37,7 @@ from casep.calibration.segment import Segmentation, detect_static
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Session
 
 __all__ = ["MultipositionCalibration", "calibrate_multiposition", "calibrate_multiposition_file", "ferraris_view",
-           "FitWarning", "CONVENTION"]
+           "FitWarning", "SaturationWarning", "check_saturation", "CONVENTION"]
 
 CONVENTION = ("imu_tk: a_cal = T_a K_a (a - b_a), T_a = [[1, -a_yz, a_zy], [0, 1, -a_zx], [0, 0, 1]] (upper "
               "triangular); w_cal = T_g K_g (w - b_g), T_g = [[1, -g_yz, g_zy], [g_xz, 1, -g_zx], [-g_xy, g_yx, 1]]; "
@@ -46,6 +46,37 @@ CONVENTION = ("imu_tk: a_cal = T_a K_a (a - b_a), T_a = [[1, -a_yz, a_zy], [0, 1
 
 class FitWarning(UserWarning):
     """An iterative fit did not converge, or its misfit is large: the result is probably wrong."""
+
+
+class SaturationWarning(UserWarning):
+    """A sensor reads its extreme value for several samples in a row during a motion: it clipped."""
+
+
+def check_saturation(x: np.ndarray, sensor: str, motions: list[tuple[int, int]], source: str,
+                     min_run: int = 3) -> list[str]:
+    """Warn of each axis of `x` (N, 3) that holds its extreme value (the session's max or min) for at
+    least `min_run` samples in a row inside a motion: a clipped rate integrates to a wrong turn.
+
+    Static poses are not searched (a noise-free reading repeats there legitimately). Returns the messages.
+    """
+    from casep.calibration.segment import runs
+
+    found = []
+    inside = np.zeros(len(x), bool)
+    for a, b in motions:
+        inside[a:b] = True
+    for j, ax in enumerate("xyz"):
+        for what, ext in (("maximum", x[:, j].max()), ("minimum", x[:, j].min())):
+            long = [(a, b) for a, b in runs((x[:, j] == ext) & inside) if b - a >= min_run]
+            if long:
+                n = sum(b - a for a, b in long)
+                a, b = max(long, key=lambda r: r[1] - r[0])
+                found.append(f"{sensor} {ax}: {n} samples at its {what} {ext:.6g} in {len(long)} run(s) inside "
+                             f"motions, the longest rows {a}-{b - 1}")
+    if found:
+        warnings.warn(f"{source}: the sensor saturates: " + "; ".join(found) + ". The turns through them are "
+                      "misread: turn more slowly, or use a wider range", SaturationWarning, stacklevel=3)
+    return found
 
 
 def _unit(unit: str, table: dict, si: str) -> tuple[float, str, str]:
@@ -242,6 +273,8 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     seg = segmentation or detect_static(acc, gyr, session.rate, gravity=g, window_s=window_s, init_s=init_s,
                                         min_static_s=min_static_s, source=session.source,
                                         gyr_si=None if session.gyr_unit == RAW_UNIT else 1.0)
+    saturated = (check_saturation(session.gyr, "gyro", seg.motions, session.source)
+                 + check_saturation(session.acc, "accelerometer", seg.motions, session.source))
     means = np.array([acc[a:b].mean(axis=0) for a, b in seg.poses])
     afit = fit_accelerometer(means, g, counts=np.array([b - a for a, b in seg.poses]))
     u0, u1 = _dirs(afit, means)
@@ -250,8 +283,8 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     gfit = fit_gyro(gyr, session.rate, seg.motions, u0, u1, bias, bias_std=bias_std,
                     scale0=None if session.gyr_unit == RAW_UNIT else 1.0)
     gfit = _propagate(gfit, afit, means, gyr, session.rate, seg.motions)
-    ok = afit.converged and gfit.converged
-    if not ok:
+    ok = afit.converged and gfit.converged and not saturated
+    if not (afit.converged and gfit.converged):
         warnings.warn(f"{session.source}: the fit did not converge (accelerometer {afit.iterations} iterations, gyro "
                       f"{gfit.iterations}): the coefficients are probably wrong", FitWarning, stacklevel=2)
     if session.acc_unit != RAW_UNIT:
@@ -260,7 +293,9 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
         check_unit_scale(gfit.x[6:9], "gyro", session.gyr_unit, fg)
     units = ("rad",) * 3 + (sa_unit,) * 3 + (ba_unit,) * 3 + ("rad",) * 6 + (sg_unit,) * 3 + (bg_unit,) * 3
     res = _result(afit, gfit, units, session.n_samples,
-                  f"{len(seg.poses)} poses, {len(seg.motions)} motions" + ("" if ok else "; fit not converged"), ok)
+                  f"{len(seg.poses)} poses, {len(seg.motions)} motions"
+                  + ("" if afit.converged and gfit.converged else "; fit not converged")
+                  + ("; the sensor saturates in a motion" if saturated else ""), ok)
     settings = {"gravity": g, "gravity_source": g_src, "rate_hz": session.rate, "source": session.source,
                 "acc_unit": session.acc_unit, "gyr_unit": session.gyr_unit}
     return MultipositionCalibration(res, seg, afit, gfit, settings)

@@ -105,3 +105,24 @@ def test_cli_auto_warns_of_a_gyro_declared_in_the_wrong_unit(tmp_path):
                      "--gyr-unit", "rad/s", "--json", str(tmp_path / "c.json")]) == 0
     unit = [str(w.message) for w in caught if issubclass(w.category, UnitScaleWarning)]
     assert len(unit) == 1 and re.search(r"gyro scales 0\.017\d+, .* declared in rad/s", unit[0]), unit
+
+
+def test_a_gyro_that_clips_in_the_turns_is_a_warning_and_no_success(tmp_path, capsys):
+    # raw counts of a +-250 deg/s gyro (131 counts per deg/s, signed): the fastest turns exceed it
+    h = simulate_hand_session(16, seed=24, motion_s=(0.8, 1.0), angle_deg=(140.0, 170.0))
+    kg = np.radians(1.0 / 131.0)
+    g = np.clip(np.round(h.gyr / kg), -32768, 32767)
+    assert np.any(g == 32767) or np.any(g == -32768)
+    p = tmp_path / "clip.txt"
+    np.savetxt(p, np.column_stack([h.acc, g]), fmt="%.10g")
+    out = tmp_path / "c.json"
+    from casep.calibration.handturned import SaturationWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        rc = main(["calibrate", str(p), "--rate", "100", "--segments", "auto", "--acc-unit", "m/s^2",
+                   "--json", str(out)])
+    sat = [str(w.message) for w in caught if issubclass(w.category, SaturationWarning)]
+    assert len(sat) == 1 and re.search(r"gyro [xyz]: \d+ samples at its (maximum 32767|minimum -32768)", sat[0]), sat
+    assert rc == 1 and json.loads(out.read_text())["success"] is False
+    assert "saturates" in capsys.readouterr().err
