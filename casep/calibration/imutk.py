@@ -4,7 +4,13 @@ imu_tk (``CalibratedTriad_::save``/``load``) stores a triad's calibration as whi
 text: the misalignment matrix T (3 rows of 3), a blank line, the scale matrix K (3 x 3, diagonal),
 a blank line, the bias B (3 rows of 1); the calibrated reading is ``T K (raw - B)``. casep's
 ``multiposition`` model is this convention (:mod:`casep.calibration.multiposition`), so the export
-is exact; a file read back gives T, K, B (and imu_tk's parameters of T).
+is exact; a file read back gives T, K, B.
+
+As a prior of casep's ``ferraris`` model (``casep calibrate --prior PREFIX_acc.calib --prior-rel-std R``,
+as an imucal JSON): ``M_a = (T_a K_a)^-1`` (``Ma_ij``, reading unit per m/s^2), ``ba_i = B_a``, and
+from ``PREFIX_gyro.calib`` when it exists ``M_g = (T_g K_g)^-1 pi/180`` (``Mg_ij``, reading unit per
+deg/s), ``bg_i = B_g``; imu_tk has no g-sensitivity (``Kga``: no prior). The session must be read in
+the unit imu_tk calibrated (raw counts, or what the files' scales are per).
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["imu_tk_files", "write_imu_tk", "read_imu_tk", "format_imu_tk"]
+__all__ = ["imu_tk_files", "write_imu_tk", "read_imu_tk", "format_imu_tk", "from_imu_tk", "imu_tk_prior"]
 
 
 def imu_tk_files(prefix: str | os.PathLike) -> tuple[str, str]:
@@ -68,3 +74,35 @@ def read_imu_tk(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.nda
     if not np.allclose(np.diag(T), 1.0, rtol=0, atol=1e-12) or np.any(K[~np.eye(3, dtype=bool)] != 0):
         raise ValueError(f"imu_tk file {path}: T must have a unit diagonal and K be diagonal")
     return T, K, B
+
+
+def from_imu_tk(acc_path: str | os.PathLike, gyro_path: str | os.PathLike | None = None) -> dict[str, float]:
+    """The ``ferraris`` model's coefficients (name -> value, natural units) of imu_tk's files (module notes)."""
+    import math
+
+    out: dict[str, float] = {}
+    for path, Mname, bname, unit in ((acc_path, "Ma", "ba", 1.0), (gyro_path, "Mg", "bg", math.pi / 180.0)):
+        if path is None:
+            continue
+        T, K, B = read_imu_tk(path)
+        M = np.linalg.inv(T @ K) * unit  # reading per m/s^2; per rad/s times pi/180 = per deg/s
+        for i, a in enumerate("xyz"):
+            for j, b in enumerate("xyz"):
+                out[f"{Mname}_{a}{b}"] = float(M[i, j])
+        out.update({f"{bname}_{a}": float(B[i]) for i, a in enumerate("xyz")})
+    return out
+
+
+def imu_tk_prior(acc_path: str | os.PathLike, std, gyro_path: str | os.PathLike | None = None) -> dict:
+    """imu_tk's files as a Gaussian prior of the ``ferraris`` model: ``{name: {"mean", "std"}}``.
+
+    `std`: a mapping name -> std or one relative std (:func:`casep.calibration.imucal.stated_prior`:
+    imu_tk states no uncertainty). `gyro_path` defaults to ``PREFIX_gyro.calib`` beside
+    ``PREFIX_acc.calib`` when it exists.
+    """
+    from casep.calibration.imucal import stated_prior
+
+    p = str(acc_path)
+    if gyro_path is None and p.endswith("_acc.calib") and Path(p[:-len("_acc.calib")] + "_gyro.calib").is_file():
+        gyro_path = p[:-len("_acc.calib")] + "_gyro.calib"
+    return stated_prior(from_imu_tk(acc_path, gyro_path), std, f"imu_tk prior {acc_path}")

@@ -29,7 +29,7 @@ def add_parser(sub: Any) -> None:
     for name in ("prior", "bounds", "lam", "n_components", "p0", "weight", "forgetting", "noise_order"):
         options.add_option(p, OPTIONS[name])
     p.add_argument("--prior-rel-std", type=float, default=None, dest="prior_rel_std", metavar="R",
-                   help="with an imucal --prior: its relative std (imucal states none)")
+                   help="with an imucal or imu_tk --prior: its relative std (they state none)")
     p.add_argument("--sigma", type=float, default=None, help="noise std of the rows (default estimated per sensor): "
                    "reading units with --weighting segments|samples, 1 = as modelled with positions")
     p.add_argument("--acc-columns", default="acc_x,acc_y,acc_z", help="accelerometer columns x,y,z")

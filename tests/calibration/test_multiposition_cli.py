@@ -126,3 +126,38 @@ def test_a_gyro_that_clips_in_the_turns_is_a_warning_and_no_success(tmp_path, ca
     assert len(sat) == 1 and re.search(r"gyro [xyz]: \d+ samples at its (maximum 32767|minimum -32768)", sat[0]), sat
     assert rc == 1 and json.loads(out.read_text())["success"] is False
     assert "saturates" in capsys.readouterr().err
+
+
+def test_imu_tk_files_as_a_prior_of_the_ferraris_model(tmp_path, capsys):
+    # imucal's labelled session calibrated by casep (ferraris), written as imu_tk's files, read back as a prior
+    imucal = Path(__file__).resolve().parents[1] / "data" / "imucal" / "annotated_session.csv"
+    base = ["calibrate", str(imucal), "--rate", "204.8", "--label-column", "part", "--gravity", "9.81"]
+    first = tmp_path / "first.json"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # imucal's session turns the other way (RotationSignWarning): not this test
+        assert main([*base, "--json", str(first)]) == 0
+    est = dict(zip(*(json.loads(first.read_text())[k] for k in ("names", "estimates"))))
+    from casep.calibration.imutk import format_imu_tk, from_imu_tk
+
+    prefix = tmp_path / "lab"
+    for sensor, M, b, unit in (("acc", "Ma", "ba", 1.0), ("gyro", "Mg", "bg", np.pi / 180.0)):
+        Mv = np.array([[est[f"{M}_{i}{j}"] for j in "xyz"] for i in "xyz"]) / unit  # reading per SI unit
+        TK = np.linalg.inv(Mv)
+        k = np.diag(TK)
+        Path(f"{prefix}_{sensor}.calib").write_text(format_imu_tk(TK / k[None, :], np.diag(k),
+                                                                  [est[f"{b}_{a}"] for a in "xyz"]))
+    back = from_imu_tk(f"{prefix}_acc.calib", f"{prefix}_gyro.calib")
+    for n, v in back.items():
+        assert v == pytest.approx(est[n], rel=1e-12, abs=1e-12), n
+    out = tmp_path / "post.json"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main([*base, "--method", "map", "--prior", f"{prefix}_acc.calib", "--prior-rel-std", "0.01",
+                     "--json", str(out)]) == 0
+    post = json.loads(out.read_text())
+    assert post["method"] == "map"
+    sd0 = dict(zip(*(json.loads(first.read_text())[k] for k in ("names", "std"))))
+    sd1 = dict(zip(post["names"], post["std"]))
+    assert sd1["ba_y"] < sd0["ba_y"] and sd1["Mg_zz"] < sd0["Mg_zz"]  # both files' information added
+    assert main([*base, "--method", "map", "--prior", f"{prefix}_acc.calib", "--json", str(out)]) == 2
+    assert "imu_tk calibration, which states no std" in capsys.readouterr().err
