@@ -162,7 +162,13 @@ class MultipositionCalibration:
                   f"{_rms(self.acc.residuals):.3g} m/s^2 over {len(self.acc.residuals)} poses, "
                   f"{self.acc.iterations} iterations; gyro: RMS gravity-direction misfit "
                   f"{math.degrees(_rms(self.gyro.residuals)):.3g} deg over {len(self.gyro.residuals)} motions, "
-                  f"{self.gyro.iterations} iterations", "", "casep ferraris view (y = M f + b):"]
+                  f"{self.gyro.iterations} iterations"]
+        for sensor, d in self.result.diagnostics.items():
+            cn = d["condition_number_equilibrated"]
+            lines.append(f"{sensor}: condition number {cn:.3g} (equilibrated)" if cn else f"{sensor}: rank deficient")
+            if d["groups"]:
+                lines[-1] += "; near-dependencies: " + "; ".join("[" + ", ".join(g) + "]" for g in d["groups"])
+        lines += ["", "casep ferraris view (y = M f + b):"]
         fv = self.ferraris()
         for pre in ("Ma", "Mg"):
             for a in "xyz":
@@ -223,6 +229,20 @@ def _dirs(afit: AccFit, means: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u[:-1], u[1:]
 
 
+def separation(J: np.ndarray, names: tuple[str, ...]) -> dict:
+    """What a fit's final linearisation can separate: the equilibrated condition number and the
+    near-dependency groups (condition index > 30, variance proportions > 0.5), as ``casep diagnose``
+    (:func:`casep.analysis.diagnostics.collinearity` of the column-scaled Jacobian)."""
+    from casep.analysis.diagnostics import collinearity
+    from casep.analysis.linalg import analyze_rank, condition_numbers, reduce_qr
+
+    red = reduce_qr(J, np.zeros(len(J)))
+    ra = analyze_rank(red)
+    col = collinearity(red, ra)
+    return {"condition_number_equilibrated": condition_numbers(red, ra)["condition_number_equilibrated"],
+            "groups": [[names[j] for j in g] for g in col["groups"]]}
+
+
 def _result(acc: AccFit, gyro: GyroFit, units: tuple, n: int, message: str, success: bool):
     """The EstimateResult of both fits (block-diagonal covariance)."""
     from casep.estimators.result import EstimateResult
@@ -236,6 +256,8 @@ def _result(acc: AccFit, gyro: GyroFit, units: tuple, n: int, message: str, succ
                           std=np.sqrt(np.clip(np.diag(C), 0, None)), covariance=C, reasons={},
                           residuals=np.zeros((0, 3)), sigma=math.nan, rank=21, status=1 if success else 0,
                           message=message, success=success, si_factors=np.ones(21), model="multiposition",
+                          diagnostics={"accelerometer": separation(acc.jacobian, ACC_NAMES),
+                                       "gyro": separation(gyro.jacobian, GYRO_NAMES)},
                           n_samples=n, stored_residual_rms={a: None for a in "xyz"})
 
 

@@ -111,7 +111,8 @@ def _covariance(J: np.ndarray, r: np.ndarray, dof: int) -> tuple[np.ndarray, flo
 
 @dataclass(frozen=True)
 class AccFit:
-    """Accelerometer fit: ``x`` (ACC_NAMES), its covariance, the residual per pose (|a_cal| - g, m/s^2)."""
+    """Accelerometer fit: ``x`` (ACC_NAMES), its covariance, the residual per pose (|a_cal| - g, m/s^2),
+    the (weighted) Jacobian of the final linearisation."""
 
     x: np.ndarray
     covariance: np.ndarray
@@ -120,6 +121,7 @@ class AccFit:
     iterations: int
     converged: bool
     gravity: float
+    jacobian: np.ndarray | None = None
 
     @property
     def std(self) -> np.ndarray:
@@ -173,7 +175,8 @@ def fit_accelerometer(means: np.ndarray, gravity: float, *, counts: np.ndarray |
 
     x, r, J, it, ok = _lm(fun, np.asarray(x0, dtype=float))
     cov, s = _covariance(J, r, m - 9)
-    return AccFit(x=x, covariance=cov, residuals=r / w, sigma=s, iterations=it, converged=ok, gravity=float(gravity))
+    return AccFit(x=x, covariance=cov, residuals=r / w, sigma=s, iterations=it, converged=ok, gravity=float(gravity),
+                  jacobian=J)
 
 
 def rotations(phi: np.ndarray) -> np.ndarray:
@@ -222,6 +225,7 @@ class GyroFit:
     iterations: int
     converged: bool
     settings: dict = field(default_factory=dict)
+    jacobian: np.ndarray | None = None
 
     @property
     def std(self) -> np.ndarray:
@@ -292,7 +296,7 @@ def fit_gyro(gyr: np.ndarray, rate: float, motions: list[tuple[int, int]], u_sta
     cov, s = _covariance(J, r, 2 * m - 9)
     return GyroFit(x=x, covariance=cov, bias=np.asarray(bias, dtype=float),
                    bias_std=np.full(3, math.nan) if bias_std is None else np.asarray(bias_std, dtype=float),
-                   residuals=r.reshape(m, 3), sigma=s, iterations=it, converged=ok)
+                   residuals=r.reshape(m, 3), sigma=s, iterations=it, converged=ok, jacobian=J)
 
 
 def check_unit_scale(scales: np.ndarray, sensor: str, unit: str, si: float) -> None:

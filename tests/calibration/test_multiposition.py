@@ -226,3 +226,18 @@ def test_gyro_fit_starts_raw_counts_from_a_scale_search():
     g = fit_gyro(counts, h.rate, seg.motions, u[:-1], u[1:], h.truth["gyro_bias"] / K, scale0=None)
     np.testing.assert_allclose(g.x[6:], h.truth["gyro"][6:] * K, rtol=1e-9)
     np.testing.assert_allclose(g.x[:6], h.truth["gyro"][:6], rtol=1e-8, atol=1e-12)
+
+
+def test_near_dependencies_say_what_a_narrow_session_cannot_separate():
+    wide = simulate_hand_session(16, seed=31)
+    narrow = simulate_hand_session(14, seed=6, angle_deg=(20.0, 30.0))
+    d = {}
+    for name, h in (("wide", wide), ("narrow", narrow)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", PoseSpreadWarning)  # the narrow one is warned of: tested above
+            d[name] = calibrate_multiposition(_session(h), gravity=h.gravity).result.diagnostics["accelerometer"]
+    assert d["wide"]["groups"] == [] and d["wide"]["condition_number_equilibrated"] < 10
+    # gravity within ~50 deg of one direction: the scales and the biases along it trade off
+    assert d["narrow"]["condition_number_equilibrated"] > 100
+    (group,) = d["narrow"]["groups"]
+    assert {"sa_x", "sa_y", "sa_z", "ba_x", "ba_y", "ba_z"} <= set(group)
