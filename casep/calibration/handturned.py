@@ -184,7 +184,8 @@ def _rms(r) -> float:
     return float(np.sqrt(np.mean(np.asarray(r) ** 2)))
 
 
-def _propagate(gfit: GyroFit, afit: AccFit, means: np.ndarray, gyr: np.ndarray, rate: float, motions) -> GyroFit:
+def _propagate(gfit: GyroFit, afit: AccFit, means: np.ndarray, gyr: np.ndarray, rate: float, motions,
+               dt: np.ndarray) -> GyroFit:
     """The gyro covariance with the errors of what its fit takes as known: the accelerometer's
     coefficients (through the gravity directions) and the gyro bias.
 
@@ -197,7 +198,7 @@ def _propagate(gfit: GyroFit, afit: AccFit, means: np.ndarray, gyr: np.ndarray, 
     from casep.calibration.multiposition import gyro_residuals
 
     def r_of(pa, b):
-        return gyro_residuals(gfit.x, gyr, rate, motions, *_dirs(replace(afit, x=pa), means), b)
+        return gyro_residuals(gfit.x, gyr, rate, motions, *_dirs(replace(afit, x=pa), means), b, dt)
 
     p0 = np.concatenate([afit.x, gfit.bias])
     Cp = np.zeros((12, 12))
@@ -212,12 +213,12 @@ def _propagate(gfit: GyroFit, afit: AccFit, means: np.ndarray, gyr: np.ndarray, 
         e[i] = h
         D[:, i] = (r_of((p0 + e)[:9], (p0 + e)[9:]) - r_of((p0 - e)[:9], (p0 - e)[9:])) / (2 * h)
     Jx = np.empty((3 * len(motions), 9))
-    r0 = gyro_residuals(gfit.x, gyr, rate, motions, *_dirs(afit, means), gfit.bias)
+    r0 = gyro_residuals(gfit.x, gyr, rate, motions, *_dirs(afit, means), gfit.bias, dt)
     for i in range(9):
         h = 1e-7 * max(abs(gfit.x[i]), 1e-3)
         e = np.zeros(9)
         e[i] = h
-        Jx[:, i] = (gyro_residuals(gfit.x + e, gyr, rate, motions, *_dirs(afit, means), gfit.bias) - r0) / h
+        Jx[:, i] = (gyro_residuals(gfit.x + e, gyr, rate, motions, *_dirs(afit, means), gfit.bias, dt) - r0) / h
     G = -np.linalg.lstsq(Jx, D, rcond=None)[0]
     return replace(gfit, covariance=gfit.covariance + G @ Cp @ G.T)
 
@@ -302,9 +303,11 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     u0, u1 = _dirs(afit, means)
     gm = np.array([gyr[a:b].mean(axis=0) for a, b in seg.poses])
     bias, bias_std = gm.mean(axis=0), gm.std(axis=0, ddof=1) / math.sqrt(len(gm))
+    # each sample's rate held until the next sample's time (the last: one nominal interval)
+    dt = np.diff(session.t, append=session.t[-1] + 1.0 / session.rate)
     gfit = fit_gyro(gyr, session.rate, seg.motions, u0, u1, bias, bias_std=bias_std,
-                    scale0=None if session.gyr_unit == RAW_UNIT else 1.0)
-    gfit = _propagate(gfit, afit, means, gyr, session.rate, seg.motions)
+                    scale0=None if session.gyr_unit == RAW_UNIT else 1.0, dt=dt)
+    gfit = _propagate(gfit, afit, means, gyr, session.rate, seg.motions, dt)
     ok = afit.converged and gfit.converged and not saturated
     if not (afit.converged and gfit.converged):
         warnings.warn(f"{session.source}: the fit did not converge (accelerometer {afit.iterations} iterations, gyro "

@@ -194,8 +194,10 @@ def rotations(phi: np.ndarray) -> np.ndarray:
     return np.eye(3)[None] + A[:, None, None] * K + B[:, None, None] * (K @ K)
 
 
-def integrate_motions(w: np.ndarray, dt: float, motions: list[tuple[int, int]]) -> np.ndarray:
-    """The rotation of each motion, ``R_j = prod_{k in motion j} exp([w_k dt]x)`` (time order), (m, 3, 3).
+def integrate_motions(w: np.ndarray, dt, motions: list[tuple[int, int]]) -> np.ndarray:
+    """The rotation of each motion, ``R_j = prod_{k in motion j} exp([w_k dt_k]x)`` (time order), (m, 3, 3).
+
+    `dt`: the sample interval (s), or one per row of `w` (the time to the next sample).
 
     The products of all motions at once: padded with identities to a power of two and composed in
     pairs, ``(R1 R2)(R3 R4)...``, log2(L) vectorised steps.
@@ -206,7 +208,8 @@ def integrate_motions(w: np.ndarray, dt: float, motions: list[tuple[int, int]]) 
     j = np.concatenate([np.full(b - a, i) for i, (a, b) in enumerate(motions)])
     p = np.concatenate([np.arange(b - a) for a, b in motions])
     rows = np.concatenate([np.arange(a, b) for a, b in motions])
-    R[j, p] = rotations(w[rows] * dt)
+    step = dt if np.ndim(dt) == 0 else np.asarray(dt, dtype=float)[rows][:, None]
+    R[j, p] = rotations(w[rows] * step)
     while R.shape[1] > 1:
         R = R[:, 0::2] @ R[:, 1::2]
     return R[:, 0]
@@ -233,21 +236,27 @@ class GyroFit:
 
 
 def gyro_residuals(x: np.ndarray, gyr: np.ndarray, rate: float, motions: list[tuple[int, int]],
-                   u_start: np.ndarray, u_end: np.ndarray, bias: np.ndarray) -> np.ndarray:
-    """``r_j = R_j^T u_j - u_{j+1}`` of every motion, stacked (3 m,): the gyro misfit (module notes)."""
+                   u_start: np.ndarray, u_end: np.ndarray, bias: np.ndarray,
+                   dt: np.ndarray | None = None) -> np.ndarray:
+    """``r_j = R_j^T u_j - u_{j+1}`` of every motion, stacked (3 m,): the gyro misfit (module notes).
+
+    `dt`: (N,) time from each sample to the next, s (a session with timestamps); default ``1 / rate``.
+    """
     gyr = np.asarray(gyr, dtype=float)
     rows = np.concatenate([np.arange(a, b) for a, b in motions])
     local, k0 = [], 0
     for a, b in motions:  # the motions' rows in the stacked array
         local.append((k0, k0 + b - a))
         k0 += b - a
-    R = integrate_motions((gyr[rows] - bias) @ gyro_matrix(x).T, 1.0 / float(rate), local)
+    step = 1.0 / float(rate) if dt is None else np.asarray(dt, dtype=float)[rows]
+    R = integrate_motions((gyr[rows] - bias) @ gyro_matrix(x).T, step, local)
     return (np.einsum("mji,mj->mi", R, np.asarray(u_start, dtype=float)) - np.asarray(u_end, dtype=float)).ravel()
 
 
 def fit_gyro(gyr: np.ndarray, rate: float, motions: list[tuple[int, int]], u_start: np.ndarray,
              u_end: np.ndarray, bias: np.ndarray, *, x0: np.ndarray | None = None,
-             bias_std: np.ndarray | None = None, scale0: float | None = 1.0) -> GyroFit:
+             bias_std: np.ndarray | None = None, scale0: float | None = 1.0,
+             dt: np.ndarray | None = None) -> GyroFit:
     """Scale and misalignment of a gyro triad from the change of the gravity direction over each motion.
 
     Parameters
@@ -264,6 +273,8 @@ def fit_gyro(gyr: np.ndarray, rate: float, motions: list[tuple[int, int]], u_sta
         Gyro bias (reading unit), subtracted.
     x0 : (9,) ndarray, optional
         Start (default: no misalignment, the three scales `scale0`).
+    dt : (N,) ndarray, optional
+        Time from each sample to the next, s (timestamps with jitter or gaps); default ``1 / rate``.
     scale0 : float or None
         Expected scale, SI per reading unit (1 for readings in rad/s): the start is the best, by the
         misfit, of a logarithmic grid of 21 common scales from `scale0`/316 to 316 `scale0`; None
@@ -272,7 +283,7 @@ def fit_gyro(gyr: np.ndarray, rate: float, motions: list[tuple[int, int]], u_sta
     m = len(motions)
 
     def resid(x):
-        return gyro_residuals(x, gyr, rate, motions, u_start, u_end, bias)
+        return gyro_residuals(x, gyr, rate, motions, u_start, u_end, bias, dt)
 
     def fun(x):
         # forward differences: an O(h) error of J moves the minimum by O(h r), nothing at r = 0 (noise-free)

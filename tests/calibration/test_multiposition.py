@@ -241,3 +241,22 @@ def test_near_dependencies_say_what_a_narrow_session_cannot_separate():
     assert d["narrow"]["condition_number_equilibrated"] > 100
     (group,) = d["narrow"]["groups"]
     assert {"sa_x", "sa_y", "sa_z", "ba_x", "ba_y", "ba_z"} <= set(group)
+
+
+def test_timestamps_with_jitter_are_integrated_exactly():
+    # the same turns sampled at jittered times (+-30 %): the rates are the increments over the true intervals
+    from casep.calibration.multiposition import gyro_matrix
+
+    h = simulate_hand_session(14, seed=41, acc_noise=0.0, gyr_noise=0.0)
+    dt = (1.0 + 0.3 * np.random.default_rng(0).uniform(-1, 1, len(h.acc))) / h.rate
+    w = h.steps / dt[:, None]
+    gyr = np.linalg.solve(gyro_matrix(h.truth["gyro"]), w.T).T + h.truth["gyro_bias"]
+    t = np.concatenate([[0.0], np.cumsum(dt)[:-1]])
+    ses = Session(t=t, acc=h.acc, gyr=gyr, rate=h.rate, acc_unit="m/s^2", gyr_unit="rad/s")
+    cal = calibrate_multiposition(ses, _true_segmentation(h), gravity=h.gravity)
+    np.testing.assert_allclose(cal.gyro.x, h.truth["gyro"], rtol=1e-9, atol=1e-11)
+    # the nominal rate instead of the timestamps: wrong by far more
+    ses0 = Session(t=np.arange(len(t)) / h.rate, acc=h.acc, gyr=gyr, rate=h.rate, acc_unit="m/s^2",
+                   gyr_unit="rad/s")
+    cal0 = calibrate_multiposition(ses0, _true_segmentation(h), gravity=h.gravity)
+    assert np.max(np.abs(cal0.gyro.x - h.truth["gyro"])) > 1e-3
