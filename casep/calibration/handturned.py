@@ -308,6 +308,15 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     gfit = fit_gyro(gyr, session.rate, seg.motions, u0, u1, bias, bias_std=bias_std,
                     scale0=None if session.gyr_unit == RAW_UNIT else 1.0, dt=dt)
     gfit = _propagate(gfit, afit, means, gyr, session.rate, seg.motions, dt)
+    if session.gyr_unit == RAW_UNIT:  # the turn inside each pose, now that the counts' scale is known
+        from dataclasses import replace
+
+        from casep.calibration.segment import MAX_TURN_DEG, warn_turns
+
+        wc = (gyr - bias) @ gyro_matrix(gfit.x).T
+        turns = [math.degrees(float(np.linalg.norm((wc[a:b] * dt[a:b, None]).sum(axis=0)))) for a, b in seg.poses]
+        warn_turns(seg.poses, turns, MAX_TURN_DEG, session.source)
+        seg = replace(seg, turns_deg=turns)
     ok = afit.converged and gfit.converged and not saturated
     if not (afit.converged and gfit.converged):
         warnings.warn(f"{session.source}: the fit did not converge (accelerometer {afit.iterations} iterations, gyro "

@@ -40,7 +40,8 @@ import numpy as np
 from casep.calibration.session import SegmentError
 
 __all__ = ["Segmentation", "detect_static", "window_variance", "runs", "PoseSpreadWarning", "StaticMotionWarning",
-           "pose_spread", "MULTIPLIERS", "SPREAD_ERROR", "SPREAD_WARN", "INIT_RISE", "MIN_POSES"]
+           "pose_spread", "warn_turns", "MAX_TURN_DEG", "MULTIPLIERS", "SPREAD_ERROR", "SPREAD_WARN", "INIT_RISE",
+           "MIN_POSES"]
 
 #: imu_tk's sweep of threshold multipliers of the initial period's variance.
 MULTIPLIERS = tuple(float(k) for k in range(2, 11))
@@ -49,6 +50,8 @@ SPREAD_ERROR = 0.1
 SPREAD_WARN = 0.25
 #: The initial period is not static if its window variance rises above this many times its median.
 INIT_RISE = 10.0
+#: A pose in which the gyro turns by more than this (deg) is warned of.
+MAX_TURN_DEG = 2.0
 #: Poses needed by the 9-coefficient accelerometer model.
 MIN_POSES = 9
 
@@ -183,7 +186,7 @@ def _static_runs(v: np.ndarray, threshold: float, init_end: int, min_len: int, g
 
 def detect_static(acc: np.ndarray, gyr: np.ndarray, rate: float, *, gravity: float | None = None,
                   window_s: float = 0.5, init_s: float = 5.0, min_static_s: float = 0.5,
-                  multipliers=MULTIPLIERS, min_poses: int = MIN_POSES, max_turn_deg: float = 2.0,
+                  multipliers=MULTIPLIERS, min_poses: int = MIN_POSES, max_turn_deg: float = MAX_TURN_DEG,
                   acc_si: float = 1.0, gyr_si: float | None = 1.0, source: str = "session") -> Segmentation:
     """Find the static poses of a hand-turned session (module notes).
 
@@ -294,10 +297,15 @@ def _check_poses(poses, spread, gyr, init_end, rate, gyr_si, max_turn_deg, sourc
         return []
     bias = gyr[:init_end].mean(axis=0)
     turns = [math.degrees(float(np.linalg.norm((gyr[a:b] - bias).sum(axis=0))) * gyr_si / rate) for a, b in poses]
+    warn_turns(poses, turns, max_turn_deg, source)
+    return turns
+
+
+def warn_turns(poses: list, turns: list[float], max_turn_deg: float, source: str) -> None:
+    """:class:`StaticMotionWarning` naming the poses in which the gyro turns by more than `max_turn_deg` (deg)."""
     moving = [(i, t) for i, t in enumerate(turns) if t > max_turn_deg]
     if moving:
         warnings.warn(f"{source}: the gyro turns inside {len(moving)} static pose(s): " + ", ".join(
             f"rows {poses[i][0]}-{poses[i][1] - 1} by {t:.3g} deg" for i, t in moving[:5])
             + f" (more than {max_turn_deg:g} deg; a turn about gravity the accelerometers do not see?)",
-            StaticMotionWarning, stacklevel=3)
-    return turns
+            StaticMotionWarning, stacklevel=4)

@@ -260,3 +260,17 @@ def test_timestamps_with_jitter_are_integrated_exactly():
                    gyr_unit="rad/s")
     cal0 = calibrate_multiposition(ses0, _true_segmentation(h), gravity=h.gravity)
     assert np.max(np.abs(cal0.gyro.x - h.truth["gyro"])) > 1e-3
+
+
+def test_raw_counts_turn_inside_a_pose_is_warned_after_the_gyro_fit():
+    # counts of unknown scale: the turn inside a pose is known in degrees only after the fit
+    h = simulate_hand_session(12, seed=42, pose_s=(20.0, 20.0))
+    gyr = h.gyr.copy()
+    a, b = h.poses[4]
+    gyr[a:b] += np.array([0.0, 0.0, np.radians(0.15)])  # 0.15 deg/s for 20 s: 3 deg, too slow for the detector
+    kg = np.radians(1.0 / 131.0)
+    ses = Session(t=np.arange(len(gyr)) / h.rate, acc=h.acc, gyr=gyr / kg + 32768.0, rate=h.rate,
+                  acc_unit="m/s^2", gyr_unit="a.u.")
+    with pytest.warns(StaticMotionWarning, match=r"turns inside 1 static pose\(s\): rows \d+-\d+ by [23]\.\d+ deg"):
+        cal = calibrate_multiposition(ses, gravity=h.gravity)
+    assert max(cal.segmentation.turns_deg) > 2.0
