@@ -8,6 +8,11 @@
 - :mod:`casep.calibration.result`: :class:`Calibration`, the result
 - :mod:`casep.calibration.imucal`: imucal's calibration JSON, export and import (as a prior)
 - :mod:`casep.calibration.consistency`: ground versus flight, per coefficient and overall
+- :mod:`casep.calibration.segment`, :mod:`casep.calibration.multiposition`,
+  :mod:`casep.calibration.handturned`: a hand-turned session without labels (``--segments auto``):
+  the static poses, the ``multiposition`` model (imu_tk's convention), the chain
+- :mod:`casep.calibration.gravity` (WGS84 normal gravity), :mod:`casep.calibration.imutk` (imu_tk's
+  files), :mod:`casep.calibration.mikov` (Mikov et al.'s parameters), :mod:`casep.calibration.handsim`
 
 ``calibrate`` and ``consistency`` are both a submodule and its function, so they are not re-exported
 here (as in :mod:`casep.workflows`): use ``casep.calibrate`` and
@@ -28,6 +33,10 @@ __getattr__, __dir__ = attach(__name__, {
     "casep.calibration.imucal": ("to_imucal", "from_imucal", "read_imucal", "write_imucal", "imucal_prior"),
     "casep.calibration.consistency": ("Consistency", "ground_prior", "flight_prior_consistency",
                                       "ground_versus_flight", "ground_flight_checks"),
+    "casep.calibration.segment": ("detect_static", "Segmentation"),
+    "casep.calibration.handturned": ("calibrate_multiposition", "calibrate_multiposition_file",
+                                     "MultipositionCalibration"),
+    "casep.calibration.gravity": ("normal_gravity",),
 }, globals())
 
 __all__ = ["CalibrationModel", "Session", "Segment", "SegmentError", "read_session", "read_segments",
@@ -35,4 +44,6 @@ __all__ = ["CalibrationModel", "Session", "Segment", "SegmentError", "read_sessi
            "load_calibration_model", "calibration_models", "RotationSignWarning", "PositionMisfitWarning",
            "TimeGapWarning", "to_imucal", "from_imucal",
            "read_imucal", "write_imucal", "imucal_prior", "Consistency", "ground_prior",
-           "flight_prior_consistency", "ground_versus_flight", "ground_flight_checks"]
+           "flight_prior_consistency", "ground_versus_flight", "ground_flight_checks", "detect_static",
+           "Segmentation", "calibrate_multiposition", "calibrate_multiposition_file", "MultipositionCalibration",
+           "normal_gravity"]

@@ -355,6 +355,12 @@ def _table_file(path, key: str, prior_rel_std: float | None) -> dict:
     """A --prior/--bounds JSON file as a mapping (prior: map format, a casep result, an imucal calibration)."""
     from casep.io.files import read_json_table
 
+    if key == "prior" and str(path).endswith(".calib"):  # imu_tk's PREFIX_acc.calib (and PREFIX_gyro.calib)
+        from casep.calibration.imutk import imu_tk_prior
+
+        if prior_rel_std is None:
+            raise ValueError(f"--prior {path} is an imu_tk calibration, which states no std. Use: --prior-rel-std R")
+        return imu_tk_prior(path, prior_rel_std)
     data = read_json_table(path, f"--{key}")
     if key != "prior":
         return data

@@ -18,7 +18,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-__all__ = ["to_imucal", "from_imucal", "read_imucal", "write_imucal", "imucal_prior", "IMUCAL_KEYS"]
+__all__ = ["to_imucal", "from_imucal", "read_imucal", "write_imucal", "imucal_prior", "stated_prior", "IMUCAL_KEYS"]
 
 IMUCAL_KEYS = ("K_a", "R_a", "b_a", "K_g", "R_g", "K_ga", "b_g")
 _AX = "xyz"
@@ -134,17 +134,22 @@ def imucal_prior(source, std: Mapping[str, float] | float) -> dict:
     dict
         ``{name: {"mean", "std"}}`` for ``method="map"`` (``options={"prior": ...}``).
     """
-    values = from_imucal(source)
+    return stated_prior(from_imucal(source), std, "imucal prior")
+
+
+def stated_prior(values: Mapping[str, float], std: Mapping[str, float] | float, what: str) -> dict:
+    """``{name: {"mean", "std"}}`` of `values` (ferraris names) with the caller's std: a mapping
+    name -> std, or one relative std (of each value's size, with the size of a matrix's largest
+    entry for its small off-diagonal ones: the group of a name is its prefix, ``Ma``, ``bg``, ...)."""
     if isinstance(std, Mapping):
         missing = [n for n in values if n not in std]
         if missing:
-            raise ValueError(f"imucal prior: Missing std for {', '.join(missing)}")
+            raise ValueError(f"{what}: Missing std for {', '.join(missing)}")
         return {n: {"mean": v, "std": float(std[n])} for n, v in values.items()}
     rel = float(std)
     if not (np.isfinite(rel) and rel > 0):
-        raise ValueError(f"imucal prior: the relative std must be finite and > 0, got {std}")
-    size = {}
-    for prefix in ("Ma", "Mg", "Kga", "ba", "bg"):
-        group = [abs(v) for n, v in values.items() if n.split("_")[0] == prefix]
-        size[prefix] = max(group)
+        raise ValueError(f"{what}: the relative std must be finite and > 0, got {std}")
+    size: dict[str, float] = {}
+    for n, v in values.items():
+        size[n.split("_")[0]] = max(size.get(n.split("_")[0], 0.0), abs(v))
     return {n: {"mean": v, "std": rel * size[n.split("_")[0]]} for n, v in values.items()}

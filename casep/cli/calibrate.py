@@ -17,7 +17,8 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--rate", type=float, default=None, metavar="HZ", help="sample rate, Hz (required without `t`)")
     seg = p.add_mutually_exclusive_group(required=True)
     seg.add_argument("--segments", metavar="FILE", default=None,
-                     help="segments JSON: imucal's section list {name: {start, end}} or a list of segments")
+                     help="segments JSON: imucal's section list {name: {start, end}} or a list of segments; "
+                          "or `auto`: find the static poses of a hand-turned session (model multiposition)")
     seg.add_argument("--label-column", metavar="NAME", default=None, dest="label_column",
                      help="column labelling each row's segment (imucal's annotated sessions: part)")
     p.add_argument("--model", default="ferraris", help="calibration model name (models/calibration) or .py file "
@@ -28,7 +29,7 @@ def add_parser(sub: Any) -> None:
     for name in ("prior", "bounds", "lam", "n_components", "p0", "weight", "forgetting", "noise_order"):
         options.add_option(p, OPTIONS[name])
     p.add_argument("--prior-rel-std", type=float, default=None, dest="prior_rel_std", metavar="R",
-                   help="with an imucal --prior: its relative std (imucal states none)")
+                   help="with an imucal or imu_tk --prior: its relative std (they state none)")
     p.add_argument("--sigma", type=float, default=None, help="noise std of the rows (default estimated per sensor): "
                    "reading units with --weighting segments|samples, 1 = as modelled with positions")
     p.add_argument("--acc-columns", default="acc_x,acc_y,acc_z", help="accelerometer columns x,y,z")
@@ -42,12 +43,25 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--weighting", choices=("positions", "segments", "samples"), default="positions",
                    help="rows: segment means weighted by a position-error (tilt) and noise model (default), "
                         "segment means of equal weight, or every sample (exact positions)")
+    auto = p.add_argument_group("--segments auto (model multiposition: a hand-turned session, no labels)")
+    auto.add_argument("--latitude", type=float, default=None, metavar="DEG",
+                      help="local gravity from the WGS84 normal gravity at this latitude (instead of --gravity)")
+    auto.add_argument("--height", type=float, default=0.0, metavar="M", help="ellipsoidal height with --latitude, m")
+    auto.add_argument("--window", type=float, default=0.5, metavar="S", help="variance window, s (default 0.5)")
+    auto.add_argument("--init", type=float, default=5.0, metavar="S",
+                      help="initial static period the session starts with, s (default 5)")
+    auto.add_argument("--min-static", type=float, default=0.5, metavar="S", dest="min_static",
+                      help="shortest static pose, s (default 0.5)")
+    auto.add_argument("--imu-tk", metavar="PREFIX", default=None, dest="imu_tk",
+                      help="also write PREFIX_acc.calib and PREFIX_gyro.calib (imu_tk's text format)")
     p.add_argument("--json", metavar="OUT", required=True, help="write the calibration JSON (a casep result)")
     p.add_argument("--imucal", metavar="OUT", default=None, help="also write imucal's calibration JSON (ferraris)")
 
 
 def run(args: argparse.Namespace) -> int:
     """One call of casep.calibration.calibrate_files, the report, the files (all or none)."""
+    if args.segments == "auto" or args.model == "multiposition":
+        return _run_auto(args)
     from casep.calibration.calibrate import calibrate_files
     from casep.calibration.imucal import to_imucal
     from casep.units import G0
@@ -67,4 +81,29 @@ def run(args: argparse.Namespace) -> int:
     if imucal is not None:
         outputs.write_json(imucal, args.imucal)
         print(f"imucal calibration written to {args.imucal}")
+    return outputs.status(cal)
+
+
+def _run_auto(args: argparse.Namespace) -> int:
+    """--segments auto: one call of casep.calibration.handturned.calibrate_multiposition_file, the report, the files."""
+    from casep.calibration.handturned import calibrate_multiposition_file
+    from casep.calibration.imutk import imu_tk_files, write_imu_tk
+
+    if args.segments != "auto" or args.model not in ("ferraris", "multiposition"):
+        raise ValueError("model multiposition takes --segments auto, and --segments auto calibrates model "
+                         f"multiposition (got --segments {args.segments}, --model {args.model})")
+    files = {"--json": args.json, **(dict(zip(("--imu-tk (acc)", "--imu-tk (gyro)"), imu_tk_files(args.imu_tk)))
+                                     if args.imu_tk else {})}
+    outputs.check(files, [args.session])
+    cal = calibrate_multiposition_file(args.session, rate=args.rate, acc_columns=args.acc_columns.split(","),
+                                       gyr_columns=args.gyr_columns.split(","), acc_unit=args.acc_unit,
+                                       gyr_unit=args.gyr_unit, gravity=args.gravity, latitude=args.latitude,
+                                       height=args.height, window_s=args.window, init_s=args.init,
+                                       min_static_s=args.min_static)
+    print(cal.text())
+    outputs.write_json(cal.to_dict(), args.json)
+    print(f"calibration written to {args.json}")
+    if args.imu_tk:
+        for path in write_imu_tk(cal, args.imu_tk):
+            print(f"imu_tk calibration written to {path}")
     return outputs.status(cal)

@@ -1,0 +1,380 @@
+"""A hand-turned session calibrated without labels or turntable: segmentation, then model ``multiposition``.
+
+:func:`calibrate_multiposition` chains :func:`casep.calibration.segment.detect_static` (the static
+poses and the motions between them), :func:`casep.calibration.multiposition.fit_accelerometer`
+(the pose means against the magnitude of gravity), the gyro bias (the mean of the poses' mean
+gyro readings; std: their scatter over sqrt(poses), which holds for drifting noise too) and
+:func:`casep.calibration.multiposition.fit_gyro` (the motions against the change of the gravity
+direction). :class:`MultipositionCalibration` holds every coefficient with its std in imu_tk's
+convention and, beside it, in casep's ``ferraris`` names (``Ma_ij``, ``ba_i``, ``Mg_ij``, ``bg_i``).
+
+Units: readings declared in a physical unit are converted to SI first (scales are then
+dimensionless, near 1, biases in m/s^2 and rad/s); raw counts (``a.u.``) are fitted as they are
+(scales in SI per count, ~1e-3; biases in counts, ~32768 for an unsigned 16-bit converter).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from casep.calibration.multiposition import (
+    ACC_NAMES,
+    GYRO_NAMES,
+    AccFit,
+    GyroFit,
+    acc_matrix,
+    check_unit_scale,
+    fit_accelerometer,
+    fit_gyro,
+    gyro_matrix,
+)
+from casep.calibration.segment import Segmentation, detect_static
+from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Session
+
+__all__ = ["MultipositionCalibration", "calibrate_multiposition", "calibrate_multiposition_file", "ferraris_view",
+           "FitWarning", "SaturationWarning", "check_saturation", "CONVENTION"]
+
+CONVENTION = ("imu_tk: a_cal = T_a K_a (a - b_a), T_a = [[1, -a_yz, a_zy], [0, 1, -a_zx], [0, 0, 1]] (upper "
+              "triangular); w_cal = T_g K_g (w - b_g), T_g = [[1, -g_yz, g_zy], [g_xz, 1, -g_zx], [-g_xy, g_yx, 1]]; "
+              "K = diag(s). casep ferraris: y = M f + b, M_a = (T_a K_a)^-1, M_g = (T_g K_g)^-1")
+
+
+class FitWarning(UserWarning):
+    """An iterative fit did not converge, or its misfit is large: the result is probably wrong."""
+
+
+class SaturationWarning(UserWarning):
+    """A sensor reads its extreme value for several samples in a row during a motion: it clipped."""
+
+
+def check_saturation(x: np.ndarray, sensor: str, motions: list[tuple[int, int]], source: str,
+                     min_run: int = 3) -> list[str]:
+    """Warn of each axis of `x` (N, 3) that holds its extreme value (the session's max or min) for at
+    least `min_run` samples in a row inside a motion: a clipped rate integrates to a wrong turn.
+
+    Static poses are not searched (a noise-free reading repeats there legitimately). Returns the messages.
+    """
+    from casep.calibration.segment import runs
+
+    found = []
+    inside = np.zeros(len(x), bool)
+    for a, b in motions:
+        inside[a:b] = True
+    for j, ax in enumerate("xyz"):
+        for what, ext in (("maximum", x[:, j].max()), ("minimum", x[:, j].min())):
+            long = [(a, b) for a, b in runs((x[:, j] == ext) & inside) if b - a >= min_run]
+            if long:
+                n = sum(b - a for a, b in long)
+                a, b = max(long, key=lambda r: r[1] - r[0])
+                found.append(f"{sensor} {ax}: {n} samples at its {what} {ext:.6g} in {len(long)} run(s) inside "
+                             f"motions, the longest rows {a}-{b - 1}")
+    if found:
+        warnings.warn(f"{source}: the sensor saturates: " + "; ".join(found) + ". The turns through them are "
+                      "misread: turn more slowly, or use a wider range", SaturationWarning, stacklevel=3)
+    return found
+
+
+def _unit(unit: str, table: dict, si: str) -> tuple[float, str, str]:
+    """(SI factor applied to the readings, scale unit, bias unit) of a declared unit."""
+    if unit == RAW_UNIT:
+        return 1.0, f"{si}/a.u.", "a.u."
+    return table[unit], "1", si
+
+
+def ferraris_view(M_of_x, x: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``M = M_of_x(x)^-1`` (casep's ferraris matrix) and its std by the delta method (central differences)."""
+    M = np.linalg.inv(M_of_x(x))
+    G = np.empty((9, len(x)))
+    for i in range(len(x)):
+        h = 1e-6 * max(abs(x[i]), 1e-3)  # misalignments ~1e-3 rad, scales ~1 (SI) or ~1e-3 (counts)
+        e = np.zeros(len(x))
+        e[i] = h
+        G[:, i] = (np.linalg.inv(M_of_x(x + e)) - np.linalg.inv(M_of_x(x - e))).ravel() / (2 * h)
+    C = np.where(np.isfinite(C), C, 0.0)
+    return M, np.sqrt(np.clip(np.diag(G @ C @ G.T), 0, None)).reshape(3, 3)
+
+
+@dataclass(frozen=True)
+class MultipositionCalibration:
+    """The outcome of :func:`calibrate_multiposition` (the result protocol, :mod:`casep.results`).
+
+    Attributes
+    ----------
+    result : EstimateResult
+        ACC_NAMES, GYRO_NAMES and ``bg_x, bg_y, bg_z``: estimate, std, covariance (block diagonal).
+    segmentation : Segmentation
+    acc : AccFit
+    gyro : GyroFit
+    settings : dict
+    """
+
+    result: object
+    segmentation: Segmentation
+    acc: AccFit
+    gyro: GyroFit
+    settings: dict = field(default_factory=dict)
+
+    def value(self, name: str) -> float:
+        return float(self.result.estimate[list(self.result.names).index(name)])
+
+    def std(self, name: str) -> float:
+        return float(self.result.std[list(self.result.names).index(name)])
+
+    def ferraris(self) -> dict:
+        """casep's ferraris names: ``Ma_ij`` (reading unit per m/s^2), ``ba_i``, ``Mg_ij`` (per rad/s), ``bg_i``."""
+        out = {}
+        Ma, sMa = ferraris_view(acc_matrix, self.acc.x, self.acc.covariance)
+        Mg, sMg = ferraris_view(gyro_matrix, self.gyro.x, self.gyro.covariance)
+        for pre, M, sM in (("Ma", Ma, sMa), ("Mg", Mg, sMg)):
+            for i, a in enumerate("xyz"):
+                for j, b in enumerate("xyz"):
+                    out[f"{pre}_{a}{b}"] = {"estimate": float(M[i, j]), "std": float(sM[i, j])}
+        for i, a in enumerate("xyz"):
+            out[f"ba_{a}"] = {"estimate": float(self.acc.x[6 + i]), "std": float(self.acc.std[6 + i])}
+            out[f"bg_{a}"] = {"estimate": float(self.gyro.bias[i]), "std": float(self.gyro.bias_std[i])}
+        return out
+
+    def to_dict(self) -> dict:
+        d = self.result.to_dict()
+        d["calibration"] = {"model": "multiposition", "convention": CONVENTION, "settings": self.settings,
+                            "segmentation": self.segmentation.to_dict(), "ferraris": self.ferraris(),
+                            "accelerometer": {"rms_misfit_m_s2": _rms(self.acc.residuals), "sigma": self.acc.sigma,
+                                              "iterations": self.acc.iterations, "converged": self.acc.converged},
+                            "gyro": {"rms_misfit_rad": _rms(self.gyro.residuals), "sigma": self.gyro.sigma,
+                                     "iterations": self.gyro.iterations, "converged": self.gyro.converged}}
+        return d
+
+    def text(self) -> str:
+        from casep.estimators.result import format_number
+
+        r = self.result
+        lines = [self.segmentation.text(), "", f"model multiposition ({CONVENTION})",
+                 f"{'coefficient':<12} {'unit':<16} {'estimate':>14} {'std':>12}"]
+        for j, name in enumerate(r.names):
+            lines.append(f"{name:<12} {r.units[j]:<16} {format_number(r.estimate[j], 14)} {format_number(r.std[j])}")
+        s = self.settings
+        lines += ["", f"g {s['gravity']:.7g} m/s^2 ({s['gravity_source']}); accelerometer: RMS | |a_cal| - g | "
+                  f"{_rms(self.acc.residuals):.3g} m/s^2 over {len(self.acc.residuals)} poses, "
+                  f"{self.acc.iterations} iterations; gyro: RMS gravity-direction misfit "
+                  f"{math.degrees(_rms(self.gyro.residuals)):.3g} deg over {len(self.gyro.residuals)} motions, "
+                  f"{self.gyro.iterations} iterations"]
+        for sensor, d in self.result.diagnostics.items():
+            cn = d["condition_number_equilibrated"]
+            lines.append(f"{sensor}: condition number {cn:.3g} (equilibrated)" if cn else f"{sensor}: rank deficient")
+            if d["groups"]:
+                lines[-1] += "; near-dependencies: " + "; ".join("[" + ", ".join(g) + "]" for g in d["groups"])
+        lines += ["", "casep ferraris view (y = M f + b):"]
+        fv = self.ferraris()
+        for pre in ("Ma", "Mg"):
+            for a in "xyz":
+                lines.append(f"  {pre}_{a}. " + "  ".join(f"{fv[f'{pre}_{a}{b}']['estimate']:+.6g} "
+                                                          f"({fv[f'{pre}_{a}{b}']['std']:.2g})" for b in "xyz"))
+        return "\n".join(lines)
+
+    @property
+    def success(self) -> bool:
+        """Whether both fits converged and the session passed its checks (the estimate's)."""
+        return bool(self.result.success)
+
+    @property
+    def status(self) -> int:
+        """The estimate's status."""
+        return int(self.result.status)
+
+    @property
+    def message(self) -> str:
+        """The estimate's message."""
+        return str(self.result.message)
+
+
+def _rms(r) -> float:
+    return float(np.sqrt(np.mean(np.asarray(r) ** 2)))
+
+
+def _propagate(gfit: GyroFit, afit: AccFit, means: np.ndarray, gyr: np.ndarray, rate: float, motions,
+               dt: np.ndarray) -> GyroFit:
+    """The gyro covariance with the errors of what its fit takes as known: the accelerometer's
+    coefficients (through the gravity directions) and the gyro bias.
+
+    At the minimum, a change ``dp`` of those moves the solution by ``dx = -(J^T J)^-1 J^T (dr/dp) dp``
+    (J: the gyro Jacobian at the solution), so ``C_x += G C_p G^T``, ``G = -(J^T J)^-1 J^T dr/dp``,
+    dr/dp by central differences.
+    """
+    from dataclasses import replace
+
+    from casep.calibration.multiposition import gyro_residuals
+
+    def r_of(pa, b):
+        return gyro_residuals(gfit.x, gyr, rate, motions, *_dirs(replace(afit, x=pa), means), b, dt)
+
+    p0 = np.concatenate([afit.x, gfit.bias])
+    Cp = np.zeros((12, 12))
+    Cp[:9, :9] = afit.covariance
+    Cp[9:, 9:] = np.diag(np.where(np.isfinite(gfit.bias_std), gfit.bias_std, 0.0) ** 2)
+    if not np.any(Cp):
+        return gfit
+    D = np.empty((3 * len(motions), 12))
+    for i in range(12):
+        h = 1e-6 * max(abs(p0[i]), 1e-3)
+        e = np.zeros(12)
+        e[i] = h
+        D[:, i] = (r_of((p0 + e)[:9], (p0 + e)[9:]) - r_of((p0 - e)[:9], (p0 - e)[9:])) / (2 * h)
+    Jx = np.empty((3 * len(motions), 9))
+    r0 = gyro_residuals(gfit.x, gyr, rate, motions, *_dirs(afit, means), gfit.bias, dt)
+    for i in range(9):
+        h = 1e-7 * max(abs(gfit.x[i]), 1e-3)
+        e = np.zeros(9)
+        e[i] = h
+        Jx[:, i] = (gyro_residuals(gfit.x + e, gyr, rate, motions, *_dirs(afit, means), gfit.bias, dt) - r0) / h
+    G = -np.linalg.lstsq(Jx, D, rcond=None)[0]
+    return replace(gfit, covariance=gfit.covariance + G @ Cp @ G.T)
+
+
+def _dirs(afit: AccFit, means: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit gravity directions of the calibrated pose means: (before each motion, after it)."""
+    u = afit.calibrate(means)
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    return u[:-1], u[1:]
+
+
+def separation(J: np.ndarray, names: tuple[str, ...]) -> dict:
+    """What a fit's final linearisation can separate: the equilibrated condition number and the
+    near-dependency groups (condition index > 30, variance proportions > 0.5), as ``casep diagnose``
+    (:func:`casep.analysis.diagnostics.collinearity` of the column-scaled Jacobian)."""
+    from casep.analysis.diagnostics import collinearity
+    from casep.analysis.linalg import analyze_rank, condition_numbers, reduce_qr
+
+    red = reduce_qr(J, np.zeros(len(J)))
+    ra = analyze_rank(red)
+    col = collinearity(red, ra)
+    return {"condition_number_equilibrated": condition_numbers(red, ra)["condition_number_equilibrated"],
+            "groups": [[names[j] for j in g] for g in col["groups"]]}
+
+
+def _result(acc: AccFit, gyro: GyroFit, units: tuple, n: int, message: str, success: bool):
+    """The EstimateResult of both fits (block-diagonal covariance)."""
+    from casep.estimators.result import EstimateResult
+
+    names = ACC_NAMES + GYRO_NAMES + ("bg_x", "bg_y", "bg_z")
+    est = np.concatenate([acc.x, gyro.x, gyro.bias])
+    C = np.zeros((21, 21))
+    C[:9, :9], C[9:18, 9:18] = acc.covariance, gyro.covariance
+    C[18:, 18:] = np.diag(gyro.bias_std ** 2)
+    return EstimateResult(method="levenberg-marquardt", names=names, units=units, estimate=est,
+                          std=np.sqrt(np.clip(np.diag(C), 0, None)), covariance=C, reasons={},
+                          residuals=np.zeros((0, 3)), sigma=math.nan, rank=21, status=1 if success else 0,
+                          message=message, success=success, si_factors=np.ones(21), model="multiposition",
+                          diagnostics={"accelerometer": separation(acc.jacobian, ACC_NAMES),
+                                       "gyro": separation(gyro.jacobian, GYRO_NAMES)},
+                          n_samples=n, stored_residual_rms={a: None for a in "xyz"})
+
+
+def calibrate_multiposition(session: Session, segmentation: Segmentation | None = None, *,
+                            gravity: float | None = None, latitude: float | None = None, height: float = 0.0,
+                            window_s: float = 0.5, init_s: float = 5.0,
+                            min_static_s: float = 0.5) -> MultipositionCalibration:
+    """Calibrate a hand-turned session (module notes).
+
+    Parameters
+    ----------
+    session : Session
+        Its ``acc_unit`` / ``gyr_unit`` say how to read the columns (``a.u.``: raw counts).
+    segmentation : Segmentation, optional
+        Default: :func:`detect_static` on the session.
+    gravity : float, optional
+        Local gravity, m/s^2; else from `latitude` (deg) and `height` (m) by
+        :func:`casep.calibration.gravity.normal_gravity`; else 9.80665.
+    window_s, init_s, min_static_s : float
+        Of :func:`detect_static`.
+    """
+    from casep.calibration.gravity import normal_gravity
+    from casep.units import G0
+
+    if gravity is not None and latitude is not None:
+        raise ValueError("give --gravity or --latitude (with --height), not both")
+    g, g_src = ((float(gravity), "given") if gravity is not None else
+                (normal_gravity(latitude, height), f"WGS84 normal gravity at {latitude:g} deg, {height:g} m")
+                if latitude is not None else (G0, "standard gravity"))
+    if not (math.isfinite(g) and 9.7 <= g <= 9.9):
+        raise ValueError(f"--gravity {g} m/s^2: the Earth's is 9.78..9.84")
+    fa, sa_unit, ba_unit = _unit(session.acc_unit, ACC_UNITS, "m/s^2")
+    fg, sg_unit, bg_unit = _unit(session.gyr_unit, GYR_UNITS, "rad/s")
+    acc, gyr = session.acc * fa, session.gyr * fg
+    seg = segmentation or detect_static(acc, gyr, session.rate, gravity=g, window_s=window_s, init_s=init_s,
+                                        min_static_s=min_static_s, source=session.source,
+                                        gyr_si=None if session.gyr_unit == RAW_UNIT else 1.0)
+    saturated = (check_saturation(session.gyr, "gyro", seg.motions, session.source)
+                 + check_saturation(session.acc, "accelerometer", seg.motions, session.source))
+    means = np.array([acc[a:b].mean(axis=0) for a, b in seg.poses])
+    afit = fit_accelerometer(means, g, counts=np.array([b - a for a, b in seg.poses]))
+    u0, u1 = _dirs(afit, means)
+    gm = np.array([gyr[a:b].mean(axis=0) for a, b in seg.poses])
+    bias, bias_std = gm.mean(axis=0), gm.std(axis=0, ddof=1) / math.sqrt(len(gm))
+    # each sample's rate held until the next sample's time (the last: one nominal interval)
+    dt = np.diff(session.t, append=session.t[-1] + 1.0 / session.rate)
+    gfit = fit_gyro(gyr, session.rate, seg.motions, u0, u1, bias, bias_std=bias_std,
+                    scale0=None if session.gyr_unit == RAW_UNIT else 1.0, dt=dt)
+    gfit = _propagate(gfit, afit, means, gyr, session.rate, seg.motions, dt)
+    if session.gyr_unit == RAW_UNIT:  # the turn inside each pose, now that the counts' scale is known
+        from dataclasses import replace
+
+        from casep.calibration.segment import MAX_TURN_DEG, warn_turns
+
+        wc = (gyr - bias) @ gyro_matrix(gfit.x).T
+        turns = [math.degrees(float(np.linalg.norm((wc[a:b] * dt[a:b, None]).sum(axis=0)))) for a, b in seg.poses]
+        warn_turns(seg.poses, turns, MAX_TURN_DEG, session.source)
+        seg = replace(seg, turns_deg=turns)
+    ok = afit.converged and gfit.converged and not saturated
+    if not (afit.converged and gfit.converged):
+        warnings.warn(f"{session.source}: the fit did not converge (accelerometer {afit.iterations} iterations, gyro "
+                      f"{gfit.iterations}): the coefficients are probably wrong", FitWarning, stacklevel=2)
+    if session.acc_unit != RAW_UNIT:
+        check_unit_scale(afit.x[3:6], "accelerometer", session.acc_unit, fa)
+    if session.gyr_unit != RAW_UNIT:
+        check_unit_scale(gfit.x[6:9], "gyro", session.gyr_unit, fg)
+    units = ("rad",) * 3 + (sa_unit,) * 3 + (ba_unit,) * 3 + ("rad",) * 6 + (sg_unit,) * 3 + (bg_unit,) * 3
+    res = _result(afit, gfit, units, session.n_samples,
+                  f"{len(seg.poses)} poses, {len(seg.motions)} motions"
+                  + ("" if afit.converged and gfit.converged else "; fit not converged")
+                  + ("; the sensor saturates in a motion" if saturated else ""), ok)
+    settings = {"gravity": g, "gravity_source": g_src, "rate_hz": session.rate, "source": session.source,
+                "acc_unit": session.acc_unit, "gyr_unit": session.gyr_unit}
+    return MultipositionCalibration(res, seg, afit, gfit, settings)
+
+
+def calibrate_multiposition_file(session: str | os.PathLike, *, rate: float | None = None, acc_columns=None,
+                                 gyr_columns=None, acc_unit: str = "a.u.", gyr_unit: str = "a.u.",
+                                 **kwargs) -> MultipositionCalibration:
+    """:func:`calibrate_multiposition` of a session file (``casep calibrate --segments auto``).
+
+    A text file without a header (``.log``, ``.txt``, gzipped or not: whitespace-separated ``ax ay az wx wy wz``,
+    as imu_tk and the MPU-9150 sessions of Mikov et al. store them) is read too.
+    """
+    from casep.calibration.session import ACC_COLUMNS, GYR_COLUMNS, read_session
+
+    plain = str(session).lower().endswith((".log", ".txt", ".log.gz", ".txt.gz"))
+    ses = (_read_plain(session, rate, acc_unit, gyr_unit) if plain
+           else read_session(session, rate=rate, acc_columns=acc_columns or ACC_COLUMNS,
+                             gyr_columns=gyr_columns or GYR_COLUMNS, acc_unit=acc_unit, gyr_unit=gyr_unit))
+    return calibrate_multiposition(ses, **kwargs)
+
+
+def _read_plain(path, rate, acc_unit, gyr_unit) -> Session:
+    """Whitespace-separated ``ax ay az wx wy wz`` rows, no header, no time (needs `rate`)."""
+    if rate is None:
+        raise ValueError(f"{path}: a text session has no time column. Use: --rate HZ")
+    try:
+        a = np.loadtxt(path, ndmin=2)
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"session file {path}: cannot be read as whitespace-separated numbers ({exc})") from None
+    if a.shape[1] != 6 or not np.all(np.isfinite(a)):
+        bad = np.flatnonzero(~np.all(np.isfinite(a), axis=1))
+        raise ValueError(f"session file {path}: needs 6 finite columns ax ay az wx wy wz, got {a.shape[1]}"
+                         + (f" (row {bad[0] + 1} not finite)" if bad.size else ""))
+    return Session(t=np.arange(len(a)) / float(rate), acc=a[:, :3], gyr=a[:, 3:], rate=float(rate), source=str(path),
+                   acc_unit=acc_unit, gyr_unit=gyr_unit)

@@ -1,0 +1,163 @@
+"""``casep calibrate --segments auto``: the command, its files (JSON, imu_tk's), its errors."""
+
+from __future__ import annotations
+
+import json
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from casep.calibration.handsim import simulate_hand_session
+from casep.calibration.imutk import read_imu_tk
+from casep.calibration.multiposition import acc_matrix, gyro_matrix
+from casep.cli import main
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "mikoff_mpu9150"
+
+
+def _independent_reader(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """imu_tk's format read by blocks separated by blank lines (not casep's reader)."""
+    blocks = [b for b in path.read_text().strip().split("\n\n")]
+    assert len(blocks) == 3
+    T, K, B = (np.array([[float(v) for v in ln.split()] for ln in b.strip().splitlines()]) for b in blocks)
+    assert T.shape == (3, 3) and K.shape == (3, 3) and B.shape == (3, 1)
+    return T, K, B.ravel()
+
+
+def test_cli_auto_on_the_mpu9150_session_writes_json_and_imu_tk(tmp_path, capsys):
+    out, prefix = tmp_path / "cal.json", tmp_path / "imu0"
+    rc = main(["calibrate", str(DATA / "imu0.log.gz"), "--rate", "100", "--segments", "auto", "--acc-unit", "m/s^2",
+               "--gyr-unit", "rad/s", "--gravity", "9.81", "--json", str(out), "--imu-tk", str(prefix)])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "static poses" in text and "threshold" in text and "Ma_x." in text
+    d = json.loads(out.read_text())
+    assert d["model"] == "multiposition" and d["calibration"]["segmentation"]["poses"]
+    est = dict(zip(d["names"], d["estimates"]))
+    xa = np.array([est[n] for n in ("a_yz", "a_zy", "a_zx", "sa_x", "sa_y", "sa_z", "ba_x", "ba_y", "ba_z")])
+    xg = np.array([est[n] for n in ("g_yz", "g_zy", "g_xz", "g_zx", "g_xy", "g_yx", "sg_x", "sg_y", "sg_z")])
+    for path, TK, b in ((Path(f"{prefix}_acc.calib"), acc_matrix(xa), xa[6:9]),
+                        (Path(f"{prefix}_gyro.calib"), gyro_matrix(xg),
+                         np.array([est["bg_x"], est["bg_y"], est["bg_z"]]))):
+        for T, K, B in (read_imu_tk(path), _independent_reader(path)):
+            np.testing.assert_allclose(T @ K, TK, rtol=1e-15, atol=1e-17)  # 17 digits: exact
+            np.testing.assert_array_equal(B, b)
+    # the accelerometer's T is upper triangular (imu_tk's convention)
+    T, _, _ = read_imu_tk(Path(f"{prefix}_acc.calib"))
+    assert T[1, 0] == T[2, 0] == T[2, 1] == 0.0
+
+
+def test_cli_auto_from_latitude_and_raw_counts(tmp_path, capsys):
+    # 16-bit counts, as a logger writes them: biases near mid-scale, 1/16384 g and 1/131 deg/s per count
+    h = simulate_hand_session(16, seed=21, acc_noise=0.02, gyr_noise=0.002)
+    ka, kg = 9.80665 / 16384.0, np.radians(1.0 / 131.0)
+    rows = np.column_stack([np.round(h.acc / ka) + 32768, np.round(h.gyr / kg) + 32768])
+    p = tmp_path / "raw.txt"
+    np.savetxt(p, rows, fmt="%d")
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", str(p), "--rate", "100", "--segments", "auto", "--latitude", "45", "--height", "100",
+                 "--json", str(out)]) == 0
+    d = json.loads(out.read_text())
+    est, std = dict(zip(d["names"], d["estimates"])), dict(zip(d["names"], d["std"]))
+    unit = dict(zip(d["names"], d["units"]))
+    assert unit["sa_x"] == "m/s^2/a.u." and unit["ba_x"] == "a.u." and unit["sg_x"] == "rad/s/a.u."
+    g45 = d["calibration"]["settings"]["gravity"]
+    assert g45 == pytest.approx(9.80589, abs=1e-4)
+    # the simulation's g is 9.80665: the scales absorb g/g45 - 1 = 7.8e-5; the rest within 4 std
+    for i, a in enumerate("xyz"):
+        assert abs(est[f"ba_{a}"] - (h.truth["acc"][6 + i] / ka + 32768)) < 4 * std[f"ba_{a}"] + 0.5
+        ratio = est[f"sa_{a}"] / (h.truth["acc"][3 + i] * ka)
+        assert abs(ratio * 9.80665 / g45 - 1) < 4 * std[f"sa_{a}"] / est[f"sa_{a}"]
+        assert abs(est[f"sg_{a}"] / (h.truth["gyro"][6 + i] * kg) - 1) < 4 * std[f"sg_{a}"] / est[f"sg_{a}"]
+        assert abs(est[f"bg_{a}"] - (h.truth["gyro_bias"][i] / kg + 32768)) < 4 * std[f"bg_{a}"] + 0.5
+
+
+def test_cli_auto_errors_exit_2_and_write_nothing(tmp_path, capsys):
+    h = simulate_hand_session(6, seed=22)
+    p = tmp_path / "few.txt"
+    np.savetxt(p, np.column_stack([h.acc, h.gyr]))
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", str(p), "--rate", "100", "--segments", "auto", "--acc-unit", "m/s^2",
+                 "--gyr-unit", "rad/s", "--json", str(out)]) == 2
+    assert "too few static poses: at most 6" in capsys.readouterr().err
+    assert not out.exists()
+    assert main(["calibrate", str(p), "--segments", "auto", "--json", str(out)]) == 2
+    assert "--rate" in capsys.readouterr().err
+    assert main(["calibrate", str(p), "--rate", "100", "--segments", "auto", "--gravity", "9.81", "--latitude", "45",
+                 "--json", str(out)]) == 2
+    assert "not both" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_cli_auto_warns_of_a_gyro_declared_in_the_wrong_unit(tmp_path):
+    h = simulate_hand_session(16, seed=23)
+    p = tmp_path / "degs.txt"
+    np.savetxt(p, np.column_stack([h.acc, np.degrees(h.gyr)]))  # deg/s, declared rad/s
+    from casep.calibration.multiposition import UnitScaleWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        # the noise read as 57 times larger also makes the poses' turns look like motion (a StaticMotionWarning)
+        warnings.simplefilter("always")
+        assert main(["calibrate", str(p), "--rate", "100", "--segments", "auto", "--acc-unit", "m/s^2",
+                     "--gyr-unit", "rad/s", "--json", str(tmp_path / "c.json")]) == 0
+    unit = [str(w.message) for w in caught if issubclass(w.category, UnitScaleWarning)]
+    assert len(unit) == 1 and re.search(r"gyro scales 0\.017\d+, .* declared in rad/s", unit[0]), unit
+
+
+def test_a_gyro_that_clips_in_the_turns_is_a_warning_and_no_success(tmp_path, capsys):
+    # raw counts of a +-250 deg/s gyro (131 counts per deg/s, signed): the fastest turns exceed it
+    h = simulate_hand_session(16, seed=24, motion_s=(0.8, 1.0), angle_deg=(140.0, 170.0))
+    kg = np.radians(1.0 / 131.0)
+    g = np.clip(np.round(h.gyr / kg), -32768, 32767)
+    assert np.any(g == 32767) or np.any(g == -32768)
+    p = tmp_path / "clip.txt"
+    np.savetxt(p, np.column_stack([h.acc, g]), fmt="%.10g")
+    out = tmp_path / "c.json"
+    from casep.calibration.handturned import SaturationWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        rc = main(["calibrate", str(p), "--rate", "100", "--segments", "auto", "--acc-unit", "m/s^2",
+                   "--json", str(out)])
+    sat = [str(w.message) for w in caught if issubclass(w.category, SaturationWarning)]
+    assert len(sat) == 1 and re.search(r"gyro [xyz]: \d+ samples at its (maximum 32767|minimum -32768)", sat[0]), sat
+    assert rc == 1 and json.loads(out.read_text())["success"] is False
+    assert "saturates" in capsys.readouterr().err
+
+
+def test_imu_tk_files_as_a_prior_of_the_ferraris_model(tmp_path, capsys):
+    # imucal's labelled session calibrated by casep (ferraris), written as imu_tk's files, read back as a prior
+    imucal = Path(__file__).resolve().parents[1] / "data" / "imucal" / "annotated_session.csv"
+    base = ["calibrate", str(imucal), "--rate", "204.8", "--label-column", "part", "--gravity", "9.81"]
+    first = tmp_path / "first.json"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # imucal's session turns the other way (RotationSignWarning): not this test
+        assert main([*base, "--json", str(first)]) == 0
+    est = dict(zip(*(json.loads(first.read_text())[k] for k in ("names", "estimates"))))
+    from casep.calibration.imutk import format_imu_tk, from_imu_tk
+
+    prefix = tmp_path / "lab"
+    for sensor, M, b, unit in (("acc", "Ma", "ba", 1.0), ("gyro", "Mg", "bg", np.pi / 180.0)):
+        Mv = np.array([[est[f"{M}_{i}{j}"] for j in "xyz"] for i in "xyz"]) / unit  # reading per SI unit
+        TK = np.linalg.inv(Mv)
+        k = np.diag(TK)
+        Path(f"{prefix}_{sensor}.calib").write_text(format_imu_tk(TK / k[None, :], np.diag(k),
+                                                                  [est[f"{b}_{a}"] for a in "xyz"]))
+    back = from_imu_tk(f"{prefix}_acc.calib", f"{prefix}_gyro.calib")
+    for n, v in back.items():
+        assert v == pytest.approx(est[n], rel=1e-12, abs=1e-12), n
+    out = tmp_path / "post.json"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main([*base, "--method", "map", "--prior", f"{prefix}_acc.calib", "--prior-rel-std", "0.01",
+                     "--json", str(out)]) == 0
+    post = json.loads(out.read_text())
+    assert post["method"] == "map"
+    sd0 = dict(zip(*(json.loads(first.read_text())[k] for k in ("names", "std"))))
+    sd1 = dict(zip(post["names"], post["std"]))
+    assert sd1["ba_y"] < sd0["ba_y"] and sd1["Mg_zz"] < sd0["Mg_zz"]  # both files' information added
+    assert main([*base, "--method", "map", "--prior", f"{prefix}_acc.calib", "--json", str(out)]) == 2
+    assert "imu_tk calibration, which states no std" in capsys.readouterr().err
