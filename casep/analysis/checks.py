@@ -51,6 +51,7 @@ Before estimation, with the model: :func:`check_enough_samples`, :func:`check_dv
 from __future__ import annotations
 
 import warnings
+from typing import Any
 
 import numpy as np
 
@@ -338,9 +339,10 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         r[sl] = dv[sl] - S_b @ x  # dv - S D_hat, block by block
     t = np.asarray(t, dtype=float)
     rms, scale = float(np.sqrt(np.mean(r**2))), float(np.max(np.abs(dv)))
-    if is_problem(S):
-        rms = S.ls_rms()  # the data's own rule (the noise model and the robust filter ask the same)
-    if S.is_noise_free() if is_problem(S) else is_rounding_level(rms, scale):
+    pb: Any = S if is_problem(S) else None  # a Problem: the data's own rule (the noise model and robust filter ask it)
+    if pb is not None:
+        rms = pb.ls_rms()
+    if pb.is_noise_free() if pb is not None else is_rounding_level(rms, scale):
         _warn(f"{source}: residual RMS {rms:.3g} m/s is at the rounding level of dv (max |dv| {scale:.3g} m/s): "
               "the data carry no noise, so the std reflect rounding only.", NoiseFreeWarning)
         return

@@ -104,7 +104,7 @@ def _row_std(S: np.ndarray, y: np.ndarray, rows_sd: Sequence[Any], static: Seque
     return sd, level, dof
 
 
-def _position_rows(model: Any, slot: str, cols: Sequence[int], static: Sequence[Segment], u: np.ndarray,
+def _position_rows(model: Any, slot: str, cols: Sequence[int] | np.ndarray, static: Sequence[Segment], u: np.ndarray,
                    gravity: float, n_static: int, s_i: np.ndarray, S: np.ndarray, y: np.ndarray, Sw: np.ndarray,
                    yw: np.ndarray, rows_sd: Sequence[Any], tilt: float | None,
                    tilt_dof: int) -> tuple[np.ndarray, np.ndarray, float, float, int]:

@@ -35,6 +35,7 @@ from casep.calibration.multiposition import (
 )
 from casep.calibration.segment import Segmentation, detect_static
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Session
+from casep.estimators.result import EstimateResult
 
 __all__ = ["MultipositionCalibration", "calibrate_multiposition", "calibrate_multiposition_file", "ferraris_view",
            "FitWarning", "SaturationWarning", "check_saturation", "CONVENTION"]
@@ -113,7 +114,7 @@ class MultipositionCalibration:
     settings : dict
     """
 
-    result: object
+    result: EstimateResult
     segmentation: Segmentation
     acc: AccFit
     gyro: GyroFit
@@ -123,7 +124,11 @@ class MultipositionCalibration:
         return float(self.result.estimate[list(self.result.names).index(name)])
 
     def std(self, name: str) -> float:
-        return float(self.result.std[list(self.result.names).index(name)])
+        return float(self._std()[list(self.result.names).index(name)])
+
+    def _std(self) -> np.ndarray:
+        assert self.result.std is not None  # both fits give a covariance
+        return self.result.std
 
     def ferraris(self) -> dict:
         """casep's ferraris names: ``Ma_ij`` (reading unit per m/s^2), ``ba_i``, ``Mg_ij`` (per rad/s), ``bg_i``."""
@@ -155,8 +160,9 @@ class MultipositionCalibration:
         r = self.result
         lines = [self.segmentation.text(), "", f"model multiposition ({CONVENTION})",
                  f"{'coefficient':<12} {'unit':<16} {'estimate':>14} {'std':>12}"]
+        sd = self._std()
         for j, name in enumerate(r.names):
-            lines.append(f"{name:<12} {r.units[j]:<16} {format_number(r.estimate[j], 14)} {format_number(r.std[j])}")
+            lines.append(f"{name:<12} {r.units[j]:<16} {format_number(r.estimate[j], 14)} {format_number(sd[j])}")
         s = self.settings
         lines += ["", f"g {s['gravity']:.7g} m/s^2 ({s['gravity_source']}); accelerometer: RMS | |a_cal| - g | "
                   f"{_rms(self.acc.residuals):.3g} m/s^2 over {len(self.acc.residuals)} poses, "
@@ -190,6 +196,12 @@ class MultipositionCalibration:
     def message(self) -> str:
         """The estimate's message."""
         return str(self.result.message)
+
+
+def _jacobian(fit: AccFit | GyroFit) -> np.ndarray:
+    """The Jacobian a converged fit keeps at its solution."""
+    assert fit.jacobian is not None  # every fit returned by multiposition keeps it
+    return fit.jacobian
 
 
 def _rms(r) -> float:
@@ -258,7 +270,6 @@ def separation(J: np.ndarray, names: tuple[str, ...]) -> dict:
 
 def _result(acc: AccFit, gyro: GyroFit, units: tuple, n: int, message: str, success: bool):
     """The EstimateResult of both fits (block-diagonal covariance)."""
-    from casep.estimators.result import EstimateResult
 
     names = ACC_NAMES + GYRO_NAMES + ("bg_x", "bg_y", "bg_z")
     est = np.concatenate([acc.x, gyro.x, gyro.bias])
@@ -269,8 +280,8 @@ def _result(acc: AccFit, gyro: GyroFit, units: tuple, n: int, message: str, succ
                           std=np.sqrt(np.clip(np.diag(C), 0, None)), covariance=C, reasons={},
                           residuals=np.zeros((0, 3)), sigma=math.nan, rank=21, status=1 if success else 0,
                           message=message, success=success, si_factors=np.ones(21), model="multiposition",
-                          diagnostics={"accelerometer": separation(acc.jacobian, ACC_NAMES),
-                                       "gyro": separation(gyro.jacobian, GYRO_NAMES)},
+                          diagnostics={"accelerometer": separation(_jacobian(acc), ACC_NAMES),
+                                       "gyro": separation(_jacobian(gyro), GYRO_NAMES)},
                           n_samples=n, stored_residual_rms={a: None for a in "xyz"})
 
 

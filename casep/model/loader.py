@@ -35,7 +35,7 @@ import threading
 import time
 import traceback
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Sequence, TypedDict
 
 from casep.model._model import ErrorModel, ModelDefinitionError
 from casep.model.base import SymbolicModel
@@ -342,10 +342,17 @@ def model_file_reference(model: ErrorModel) -> str | None:
     return None if not src or _is_shipped(src) else src
 
 
-def model_record(model: ErrorModel) -> dict[str, str | None]:
+class ModelRecord(TypedDict):
+    """What a result records of its model's file (:func:`model_record`)."""
+
+    model_file: str | None
+    model_sha256: str | None
+
+
+def model_record(model: ErrorModel) -> ModelRecord:
     """What a result records of its model's file: ``{"model_file": ..., "model_sha256": ...}``
     (:func:`model_file_reference`; the SHA-256 of the file that ran, None for a model declared in code)."""
-    return {"model_file": model_file_reference(model), "model_sha256": getattr(model, "source_sha256", None)}
+    return ModelRecord(model_file=model_file_reference(model), model_sha256=getattr(model, "source_sha256", None))
 
 
 def shipped_model(name: str) -> ErrorModel | None:
@@ -421,16 +428,16 @@ def load_recorded_model(name: str | None, *, sha256: str | None = None, model_fi
     if not name:
         raise ValueError(f"{where} names no model (no `model` field): give the model ({option} NAME|FILE.py, "
                          "API model=...)")
-    model = shipped_model(name)
-    if model is None:
+    shipped = shipped_model(name)
+    if shipped is None:
         base = name[: -len(TIME_OFFSET_SUFFIX)] if name.endswith(TIME_OFFSET_SUFFIX) else name
         recorded = f" (model file {model_file}" + (f", sha256 {sha256}" if sha256 else "") + ")" if model_file else ""
         file = model_file or (base if _path_like(base) else f"path/to/{base}.py")
         raise ValueError(f"{where} is of model `{name}`{recorded}, which is not shipped with casep; a model file "
                          f"is Python code, and casep runs one only when you name it: give {option} {file} (or "
                          f"{option} NAME in CASEP_MODEL_PATH; API: model=...)")
-    _check_sha256(model.source_sha256, model.source_file, sha256, model_file, where, option, error=False)
-    return model
+    _check_sha256(shipped.source_sha256, shipped.source_file, sha256, model_file, where, option, error=False)
+    return shipped
 
 
 def _check_sha256(have: str | None, path: str | None, sha256: str | None, model_file: str | None, where: str,

@@ -93,7 +93,7 @@ def parse_method(text: str) -> MethodSpec:
         return MethodSpec(text, name, {}, denoise)
     m = _REGISTRY[name]
     if "=" not in rest:
-        options = {_first_number(text, m, rest)}
+        options = [_first_number(text, m, rest)]
     else:
         options = [_option(text, m, item) for item in rest.split(":")]
     given = dict(options)
