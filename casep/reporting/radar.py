@@ -2,7 +2,7 @@
 
 The separation report of :func:`casep.reporting.report.report_html` (coefficients, outcome,
 settings, warnings) with a radar section appended: the stations, the noise and residual RMS per
-station and measurement type, and the diagnostics of :mod:`casep.tracking.diagnostics` (CRLB
+station and measurement type, and the diagnostics of :mod:`casep.radar.diagnostics` (CRLB
 with the station errors fixed and free, mixed near-dependencies, the gain of each station).
 """
 
@@ -22,7 +22,7 @@ __all__ = ["write_radar_report"]
 def write_radar_report(radar_result, path: str | os.PathLike, *, warnings: Sequence[str] = (),
                        source: str | None = None) -> Path:
     """Write the report of a :class:`casep.workflows.radar.RadarResult` (whole or not at all)."""
-    from casep.tracking.diagnostics import diagnostics_table
+    from casep.radar.diagnostics import diagnostics_table
 
     path = Path(path)
     rr = radar_result

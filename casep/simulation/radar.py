@@ -12,7 +12,7 @@ its own rate, on times inside the flight::
 
 (tags whose instant ``t - tau`` falls outside the flight are not written)
 
-with ``h`` the geometric measurement (:class:`casep.tracking.geometry.RadarGeometry`), ``g`` the
+with ``h`` the geometric measurement (:class:`casep.radar.geometry.RadarGeometry`), ``g`` the
 geometry it gives, ``T`` the tracking model's Jacobian and ``theta`` the station's true errors.
 A tracking-model term named ``time_bias`` (unit ``ms``) is applied exactly as a late time tag
 (the true state sampled at ``t - tau``, the trajectory's dense output) instead of through its
@@ -35,9 +35,9 @@ from casep.frames import LaunchSite
 from casep.model._model import ErrorModel
 from casep.model.sv import build_sv, cumulative_sp
 from casep.model.tracking import TrackingModel, load_tracking_model
-from casep.tracking.geometry import RadarGeometry
-from casep.tracking.regression import Telemetry
-from casep.tracking.stations import RadarMeasurements, Station, check_station_names
+from casep.radar.geometry import RadarGeometry
+from casep.radar.regression import Telemetry
+from casep.radar.stations import RadarMeasurements, Station, check_station_names
 from casep.units import ARCSEC
 
 __all__ = ["RadarSimulation", "simulate_radar", "write_radar_simulation", "DEFAULT_NOISE"]
@@ -64,7 +64,7 @@ class RadarSimulation:
     station_noise: dict = dataclasses.field(default_factory=dict)  # station -> {type: std} used, natural units
 
     def truth_vector(self) -> np.ndarray:
-        """Truth in the order of a :class:`~casep.tracking.regression.RadarRegression`'s names."""
+        """Truth in the order of a :class:`~casep.radar.regression.RadarRegression`'s names."""
         parts = [self.truth] + [np.array([self.tracking_truth[m.station.name].get(n, 0.0)
                                           for n in self.tracking.names]) for m in self.radars]
         return np.concatenate(parts)

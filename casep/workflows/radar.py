@@ -1,12 +1,12 @@
 """Separation in the measurement domain: telemetry + radar stations -> instrument and station errors.
 
 :func:`separate_radar` reads the inputs, builds the joint regression
-(:class:`casep.tracking.regression.RadarRegression`: relinearised, group noise estimated), hands
+(:class:`casep.radar.regression.RadarRegression`: relinearised, group noise estimated), hands
 it to any registered estimator as a whitened :class:`~casep.analysis.problem.Problem`, and
 returns a :class:`RadarResult`: the :class:`~casep.estimators.result.EstimateResult` over the
 instrument coefficients and the station terms ``<station>.<term>``, plus the radar summary
 (noise per station and type, residual RMS per group, how the telemetered position was had) and,
-unless asked not to, the diagnostics of :mod:`casep.tracking.diagnostics`.
+unless asked not to, the diagnostics of :mod:`casep.radar.diagnostics`.
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ from casep.estimators.result import EstimateResult
 from casep.frames import LaunchSite
 from casep.model.loader import load_model
 from casep.model.tracking import load_tracking_model
-from casep.tracking.diagnostics import diagnostics_table, radar_diagnostics
-from casep.tracking.regression import (
+from casep.radar.diagnostics import diagnostics_table, radar_diagnostics
+from casep.radar.regression import (
     TYPE_UNITS,
     LinearisedRadar,
     RadarRegression,
@@ -34,7 +34,7 @@ from casep.tracking.regression import (
     Telemetry,
     read_telemetry,
 )
-from casep.tracking.stations import RadarMeasurements, Station, read_radar, read_station
+from casep.radar.stations import RadarMeasurements, Station, read_radar, read_station
 
 __all__ = ["RadarResult", "separate_radar", "diagnose_radar", "read_radar_inputs", "simulate_radar_files",
            "radar_simulation_outputs", "NOT_WITH_RADAR", "check_radar_options"]
@@ -184,7 +184,7 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
     options : mapping, optional
         The method's options (``bounds``, ``prior`` with ``S1.range_bias``-style names, ...).
     diagnostics : bool
-        Add the CRLB fixed/free, mixed groups and station gains (:mod:`casep.tracking.diagnostics`).
+        Add the CRLB fixed/free, mixed groups and station gains (:mod:`casep.radar.diagnostics`).
     """
     reg = _inputs(telemetry, radars, model, tracking, site)
     opts = dict(options or {})
@@ -266,7 +266,7 @@ def _tracking_magnitude_check(reg: RadarRegression, res: EstimateResult) -> tupl
 
 def diagnose_radar(telemetry, radars: Sequence, site: LaunchSite, model: Any = "platform36",
                    tracking: Any = "radar_biases", *, sigma: Mapping | None = None) -> dict[str, Any]:
-    """The diagnostics of :mod:`casep.tracking.diagnostics` for these inputs (noise estimated when not given)."""
+    """The diagnostics of :mod:`casep.radar.diagnostics` for these inputs (noise estimated when not given)."""
     reg = _inputs(telemetry, radars, model, tracking, site)
     lin = reg.solve(sigma)
     return radar_diagnostics(lin, scales=reg.model.scales)
@@ -309,8 +309,8 @@ def simulate_radar_files(output: str | os.PathLike, stations: Sequence, site: La
     -------
     (RadarSimulation, list of Path)
     """
+    from casep.radar.stations import Station
     from casep.simulation.radar import simulate_radar, write_radar_simulation
-    from casep.tracking.stations import Station
 
     stations = [s if isinstance(s, Station) else read_station(s) for s in stations]
     if truth is not None and isinstance(truth.get("coefficients"), dict):

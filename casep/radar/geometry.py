@@ -99,7 +99,7 @@ class RadarGeometry:
     site : LaunchSite
         Ties the launch-inertial frame to the Earth (launch point, azimuth, launch time t0).
     station : Station
-        :class:`casep.tracking.stations.Station` (its ECEF position and ENU axes by pymap3d).
+        :class:`casep.radar.stations.Station` (its ECEF position and ENU axes by pymap3d).
     """
 
     def __init__(self, site: LaunchSite, station) -> None:

@@ -4,7 +4,7 @@ Telemetry gives the navigated position and velocity ``r_tel, v_tel`` (launch-ine
 instrument errors D make them ``r_tel = r + S_P D``, ``v_tel = v + S_V D`` with
 ``S_P = int S_V dt`` (:func:`casep.model.sv.cumulative_sp`, trapezoid from the first telemetry
 sample). Station ``s`` measures ``z = h_s(r, v) + T_s(g) theta_s + noise`` (range, azimuth,
-elevation, optionally range rate; :mod:`casep.tracking.geometry`; ``T_s`` from the tracking model).
+elevation, optionally range rate; :mod:`casep.radar.geometry`; ``T_s`` from the tracking model).
 Linearised about ``(r_lin, v_lin) = (r_tel - S_P D0, v_tel - S_V D0)``::
 
     z - h(r_lin, v_lin) = -H_r S_P (D - D0) - H_v S_V (D - D0) + T(g_lin) theta + noise
@@ -28,9 +28,9 @@ time-bias column of ``T``, are far from linear in the position (position sensiti
 20, 359, 793, ... 1e5 std); damped, it converges (12 steps). A linearisation that does not
 converge is reported (:attr:`LinearisedRadar.converged`) and makes a failed result.
 
-Telemetry quantities are carried to each station's times by :mod:`casep.tracking.telemetry`; the
-group noise is estimated by :mod:`casep.tracking.groups`; the result of the linearisation is a
-:class:`casep.tracking.linearised.LinearisedRadar`.
+Telemetry quantities are carried to each station's times by :mod:`casep.radar.telemetry`; the
+group noise is estimated by :mod:`casep.radar.groups`; the result of the linearisation is a
+:class:`casep.radar.linearised.LinearisedRadar`.
 """
 
 from __future__ import annotations
@@ -47,11 +47,11 @@ from casep.frames import LaunchSite
 from casep.model._model import ErrorModel
 from casep.model.sv import build_sv, cumulative_sp
 from casep.model.tracking import TrackingModel
-from casep.tracking.geometry import RadarGeometry, wrap_angle
-from casep.tracking.groups import estimate_group_sigmas, group_reductions
-from casep.tracking.linearised import PLAUSIBLE_SIGMA, RESIDUAL_RATIO_LIMIT, TYPE_UNITS, LinearisedRadar
-from casep.tracking.stations import RadarMeasurements, check_station_names
-from casep.tracking.telemetry import Telemetry, hermite, interp_linear, read_telemetry
+from casep.radar.geometry import RadarGeometry, wrap_angle
+from casep.radar.groups import estimate_group_sigmas, group_reductions
+from casep.radar.linearised import PLAUSIBLE_SIGMA, RESIDUAL_RATIO_LIMIT, TYPE_UNITS, LinearisedRadar
+from casep.radar.stations import RadarMeasurements, check_station_names
+from casep.radar.telemetry import Telemetry, hermite, interp_linear, read_telemetry
 from casep.units import ARCSEC
 
 __all__ = ["Telemetry", "read_telemetry", "RadarRegression", "estimate_group_sigmas", "FIRST_RANGE_LIMIT",

@@ -15,7 +15,7 @@ optionally ``range_rate`` (m/s). Inside casep the angles are radians.
 Legal but suspicious: station coordinates or measured angles that look like radians (every
 azimuth within +-2 pi and every elevation within +-pi/2) give a :class:`RadianAnglesWarning` with
 the numbers; a station whose first predicted range is more than 1 km from the first measured
-one is refused later (:func:`casep.tracking.regression.check_first_sample`).
+one is refused later (:func:`casep.radar.regression.check_first_sample`).
 """
 
 from __future__ import annotations

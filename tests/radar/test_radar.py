@@ -1,4 +1,4 @@
-"""Radar tracking errors in the same estimate (casep.tracking, casep.model.tracking, casep.workflows.radar)."""
+"""Radar tracking errors in the same estimate (casep.radar, casep.model.tracking, casep.workflows.radar)."""
 
 from __future__ import annotations
 
@@ -16,9 +16,9 @@ from casep.frames import LaunchSite, launch_to_ecef
 from casep.model._model import ModelDefinitionError
 from casep.model.loader import ModelFileError
 from casep.model.tracking import TrackingModel, load_tracking_model
+from casep.radar.geometry import RadarGeometry
+from casep.radar.stations import RadarMeasurements, RadianAnglesWarning, Station, read_radar, read_station
 from casep.simulation.radar import simulate_radar, write_radar_simulation
-from casep.tracking.geometry import RadarGeometry
-from casep.tracking.stations import RadarMeasurements, RadianAnglesWarning, Station, read_radar, read_station
 from casep.units import ARCSEC
 from casep.workflows.radar import separate_radar
 
@@ -453,7 +453,7 @@ def test_range_rate_rows_noise_free_and_recursive():
 
 
 def test_telemetry_without_position_is_integrated_from_the_launch_point(clean, tmp_path):
-    from casep.tracking.regression import read_telemetry
+    from casep.radar.regression import read_telemetry
 
     tel = clean.telemetry
     casep.io.files.write_table(tmp_path / "t.csv", {"t": tel.t, **{f"f_{a}": tel.f[:, i] for i, a in enumerate("xyz")},
@@ -506,7 +506,7 @@ def test_bad_noise_std_is_refused(clean):
 
 
 def test_linearisation_that_does_not_settle_warns(clean):
-    from casep.tracking.regression import RadarConvergenceWarning, RadarRegression
+    from casep.radar.regression import RadarConvergenceWarning, RadarRegression
 
     reg = RadarRegression(clean.telemetry, list(clean.radars), clean.model, clean.tracking, SITE)
     with pytest.warns(RadarConvergenceWarning, match=r"not settled in 1 Gauss-Newton steps \(last full step 1\.47 std"):

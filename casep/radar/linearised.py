@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from casep.tracking.stations import MEASUREMENT_TYPES
+from casep.radar.stations import MEASUREMENT_TYPES
 from casep.units import ARCSEC
 
 __all__ = ["LinearisedRadar", "TYPE_UNITS", "PLAUSIBLE_SIGMA", "RESIDUAL_RATIO_LIMIT"]
@@ -31,7 +31,7 @@ RESIDUAL_RATIO_LIMIT = 1.5
 class LinearisedRadar:
     """The weighted regression at the final linearisation point (what the estimators solve)."""
 
-    # the casep.tracking.regression.RadarRegression linearised (not imported: that module builds this one)
+    # the casep.radar.regression.RadarRegression linearised (not imported: that module builds this one)
     regression: Any
     S: np.ndarray  # (m, n) unweighted, SI rows, natural-unit columns
     y: np.ndarray  # (m,) SI
