@@ -42,7 +42,7 @@ def separate_radar(args: argparse.Namespace, wavelet_options: dict) -> int:
     given.update({k: read_json_table(given[k], f"--{k}") for k in ("bounds", "prior") if k in given})
     rr = separate_radar(args.flight[0], args.radar, site, args.model, args.tracking_model, args.method,
                         options=given)
-    print(rr.table())
+    print(rr.text())
     if args.json:
         outputs.write_json(rr.to_dict(), args.json)
         print(f"result written to {args.json}")
@@ -110,6 +110,10 @@ def simulate_radar(args: argparse.Namespace, site: Any) -> int:
     print(f"scenario {sim.scenario}: telemetry {sim.telemetry.t.size} samples, "
           + ", ".join(f"{m.station.name} {m.t.size} samples" for m in sim.radars)
           + f" at {args.radar_rate:g} Hz (noise: {noise})")
+    for name in sim.masked:
+        if sim.masked[name] or sim.over_zenith[name]:
+            print(f"station {name}: {sim.masked[name]} samples below its elevation mask dropped, "
+                  f"{sim.over_zenith[name]} written over the top of the zenith (azimuth + 180, 180 - elevation)")
     print("wrote " + ", ".join(str(f) for f in files))
     radar = " ".join(f"--radar {files[1 + 2 * i]} {files[2 + 2 * i]}" for i in range(len(sim.radars)))
     print(f"separate with: casep separate {args.output} {radar} --launch-site "

@@ -11,6 +11,8 @@ Layer 2 (beside :mod:`casep.analysis`): imports the model layer, :mod:`casep.io`
 - :mod:`casep.radar.linearised`: the regression at its final linearisation point, its residual checks
 - :mod:`casep.radar.diagnostics`: CRLB with tracking terms fixed and free, mixed
   near-dependencies, the gain of each station
+- :mod:`casep.radar.setup`: which set-up error the residuals point to (launch time, a station's
+  position, its time tags), each tested by the chi-square it explains
 """
 
 from casep._lazy import attach
@@ -26,9 +28,10 @@ __getattr__, __dir__ = attach(__name__, {
     "casep.radar.regression": ("RadarRegression", "FIRST_RANGE_LIMIT", "RadarCoverageWarning",
                                "RadarConvergenceWarning", "RadarResidualWarning"),
     "casep.radar.diagnostics": ("radar_diagnostics", "diagnostics_table"),
+    "casep.radar.setup": ("check_setup",),
 }, globals())
 
 __all__ = ["Station", "RadarMeasurements", "read_station", "read_radar", "RadianAnglesWarning", "MEASUREMENT_TYPES",
            "RADAR_COLUMNS", "RadarGeometry", "wrap_angle", "GEOMETRY_COLUMNS", "Telemetry", "read_telemetry",
            "RadarRegression", "estimate_group_sigmas", "FIRST_RANGE_LIMIT", "TYPE_UNITS", "RadarCoverageWarning",
-           "RadarConvergenceWarning", "radar_diagnostics", "diagnostics_table"]
+           "RadarConvergenceWarning", "radar_diagnostics", "diagnostics_table", "check_setup"]

@@ -53,7 +53,7 @@ class LinearisedRadar:
 
     @property
     def weights(self) -> np.ndarray:
-        w = np.empty(self.y.size)
+        w = np.ones(self.y.size)  # the keyhole's zero rows keep 1
         for g, r in enumerate(self.regression.group_rows()):
             w[r] = 1.0 / self.sigma[g]
         return w
@@ -92,7 +92,7 @@ class LinearisedRadar:
             Time of each triple, s.
         """
         reg = self.regression
-        gr = reg.group_rows()
+        gr = reg.group_rows(all_rows=True)
         idx, ts, g = [], [], 0
         for s in reg.stations:
             idx.append(np.stack([gr[g + j] for j in range(3)], axis=1))
