@@ -87,7 +87,8 @@ def check_radar_options(given: Mapping[str, Any], *, cli: bool = False,
             what = flag if cli else f"`{name}={value!r}`"
             raise ValueError(f"{what} is not available with {'--radar' if cli else '`radar`'} (noise: white per "
                              "station and measurement type, sigma_range/sigma_angle in the station files, else "
-                             "estimated; a time-tag error is the tracking model's time_bias); leave it out")
+                             "estimated; a time-tag error is the tracking model's time_bias, a launch-time error "
+                             "the common dt_launch, estimated with two stations or more); leave it out")
     for flag, value in dict(outputs or {}).items():
         if value:
             raise ValueError(f"{flag} is not available with --radar (the radar result writes --json and --report); "

@@ -24,7 +24,11 @@ from casep.units import ARCSEC
 from casep.workflows.radar import separate_radar
 
 SITE = LaunchSite(28.5, -80.6, 3.0, 90.0, 0.0)
-STATIONS = (Station("S1", 28.9, -80.0, 20.0), Station("S2", 28.1, -79.2, 15.0))
+#: elevation masks 10 deg below the horizon: the data of these tests keep the first samples, which a station's
+#: default mask (the horizon) drops in the simulator (the Monte Carlo below then gives tracking RMS z 0.92; with
+#: the horizon mask, the same 14 runs on other noise draws give 1.16: within the spread of 14 runs)
+STATIONS = (Station("S1", 28.9, -80.0, 20.0, min_elevation_deg=-10.0),
+            Station("S2", 28.1, -79.2, 15.0, min_elevation_deg=-10.0))
 TRUTH = {"S1": {"range_bias": 5.0, "range_scale": 10.0, "azimuth_bias": 15.0, "elevation_bias": -20.0},
          "S2": {"range_bias": -3.0, "range_scale": -5.0, "azimuth_bias": -10.0, "elevation_bias": 12.0}}
 NOISE = {"range": 3.0, "azimuth": 8.0, "elevation": 8.0}  # m, arcsec
