@@ -3,7 +3,7 @@ the velocity-domain separation of the same flight, and a Monte Carlo of the rada
 
 The flight is the ``paper`` scenario on a rotating Earth (195 s powered flight), launch site
 (28.5 N, 80.6 W, 3 m, azimuth 90 deg), stations S1 (28.9 N, 80.0 W) and S2 (28.1 N, 79.2 W),
-station errors as in ``tests/tracking/test_radar.py``; radar at 20 Hz with 3 m / 8 arcsec noise; telemetry
+station errors as in ``tests/radar/test_radar.py``; radar at 20 Hz with 3 m / 8 arcsec noise; telemetry
 at 20 Hz and at 100 Hz. The velocity-domain file is the same flight's ``t, f_*, dv_*`` at the
 telemetry rate with 0.1 m/s white noise (what ``casep separate FLIGHT.csv`` reads).
 
@@ -35,8 +35,8 @@ def _setup(folder: Path, rate: float):
     import casep
     from casep.frames import LaunchSite
     from casep.io.files import write_table
+    from casep.radar.stations import Station
     from casep.simulation.radar import simulate_radar, write_radar_simulation
-    from casep.tracking.stations import Station
 
     site = LaunchSite(28.5, -80.6, 3.0, 90.0, 0.0)
     stations = [Station("S1", 28.9, -80.0, 20.0), Station("S2", 28.1, -79.2, 15.0)]
@@ -76,8 +76,8 @@ def _monte_carlo(runs: int) -> None:
     from threadpoolctl import threadpool_limits
 
     from casep.frames import LaunchSite
+    from casep.radar.stations import Station
     from casep.simulation.radar import simulate_radar
-    from casep.tracking.stations import Station
     from casep.units import ARCSEC
     from casep.workflows.radar import separate_radar
 
@@ -113,8 +113,8 @@ def _monte_carlo_simulator(runs: int) -> None:
     from threadpoolctl import threadpool_limits
 
     from casep.frames import LaunchSite
+    from casep.radar.stations import Station
     from casep.simulation.radar import simulate_radar
-    from casep.tracking.stations import Station
     from casep.workflows.radar import separate_radar
 
     threadpool_limits(1, user_api="blas")
@@ -142,8 +142,8 @@ def _diagnostics() -> None:
     from threadpoolctl import threadpool_limits
 
     from casep.frames import LaunchSite
+    from casep.radar.stations import Station
     from casep.simulation.radar import simulate_radar
-    from casep.tracking.stations import Station
     from casep.units import ARCSEC
     from casep.workflows.radar import diagnose_radar
 

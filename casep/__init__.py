@@ -79,7 +79,7 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.io.manifest": ("read_manifest", "Manifest"),
     "casep.calibration.calibrate": ("calibrate",),
     "casep.model.tracking": ("TrackingModel", "load_tracking_model", "build_tracking_model"),
-    "casep.tracking.stations": ("Station", "read_station", "read_radar"),
+    "casep.radar.stations": ("Station", "read_station", "read_radar"),
     "casep.workflows.radar": ("separate_radar", "diagnose_radar"),
     "casep.exceptions": ("CasepWarning", "IllConditionedWarning", "NoiseFreeWarning", "OutlierWarning",
                          "PlausibilityWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning",

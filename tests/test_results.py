@@ -30,10 +30,10 @@ RESULT_TYPES = [
     ("casep.analysis.whiteness", "WhitenessTest"),
     ("casep.analysis.noise_id", "NoiseIdentification"),
     ("casep.analysis.outliers", "OutlierFlags"),
+    ("casep.workflows.radar", "RadarResult"),
+    ("casep.calibration.handturned", "MultipositionCalibration"),
+    ("casep.calibration.segment", "Segmentation"),
 ]
-#: The radar result renders itself through its own ``table()`` (its method, not an alias of text()): it has
-#: to_dict() and text(); the other members come with its own rendering.
-RADAR_TYPE = ("casep.workflows.radar", "RadarResult")
 
 
 def _members(cls) -> set[str]:
@@ -48,11 +48,6 @@ def test_every_result_type_has_the_five_members(module, name):
     assert _members(cls) == set(PROTOCOL), f"{name} lacks {set(PROTOCOL) - _members(cls)}"
     for method in ("to_dict", "text"):
         assert callable(getattr(cls, method)), f"{name}.{method} is not a method"
-
-
-def test_the_radar_result_has_to_dict_and_text():
-    cls = getattr(importlib.import_module(RADAR_TYPE[0]), RADAR_TYPE[1])
-    assert callable(getattr(cls, "to_dict", None)) and callable(getattr(cls, "text", None))
 
 
 def _finite_or_null(obj, where="") -> list[str]:
@@ -256,10 +251,9 @@ def test_deprecated_alias_passes_arguments_and_names_both():
 
 
 # ------------------------------------------------------------------ casep's own code calls no old name
-#: Calls of these names that are not results' old names: pyarrow's ``pa.table``, the simulated
-#: trajectory's ``summary()`` (a dict of its key figures), and the radar result's own ``table()``.
-_NOT_ALIASES = {("pa", "table"), ("trajectory", "summary"), ("self", "table")}
-_OWN_TABLE = {"casep/workflows/radar.py"}  # RadarResult.text() calls its own table()
+#: Calls of these names that are not results' old names: pyarrow's ``pa.table`` and the simulated
+#: trajectory's ``summary()`` (a dict of its key figures).
+_NOT_ALIASES = {("pa", "table"), ("trajectory", "summary")}
 
 
 def _old_name_calls(path: Path, rel: str) -> list[str]:
@@ -268,7 +262,7 @@ def _old_name_calls(path: Path, rel: str) -> list[str]:
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in DEPRECATED_NAMES:
             recv = node.func.value
             name = recv.id if isinstance(recv, ast.Name) else recv.attr if isinstance(recv, ast.Attribute) else ""
-            if (name, node.func.attr) in _NOT_ALIASES and (name != "self" or rel in _OWN_TABLE):
+            if (name, node.func.attr) in _NOT_ALIASES:
                 continue
             found.append(f"{rel}:{node.lineno}: .{node.func.attr}()")
     return found

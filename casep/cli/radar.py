@@ -55,7 +55,7 @@ def separate_radar(args: argparse.Namespace, wavelet_options: dict) -> int:
 
 def diagnose_radar(args: argparse.Namespace) -> int:
     """`casep diagnose TEL --radar ...`: CRLB with the tracking terms fixed and free, mixed groups, station gains."""
-    from casep.tracking.diagnostics import diagnostics_table
+    from casep.radar.diagnostics import diagnostics_table
     from casep.workflows.radar import diagnose_radar
 
     outputs.check({"--json": args.json}, _radar_files(args))
@@ -87,7 +87,7 @@ def add_simulate_radar(parser: Any) -> None:
 def simulate_radar(args: argparse.Namespace, site: Any) -> int:
     """`casep simulate -o TEL.csv --rotating-earth --launch-site ... --radar-station S1.json ...`."""
     from casep.io.files import read_json_table
-    from casep.tracking.stations import read_station
+    from casep.radar.stations import read_station
     from casep.workflows.radar import radar_simulation_outputs, simulate_radar_files
 
     if site is None:
@@ -110,6 +110,10 @@ def simulate_radar(args: argparse.Namespace, site: Any) -> int:
     print(f"scenario {sim.scenario}: telemetry {sim.telemetry.t.size} samples, "
           + ", ".join(f"{m.station.name} {m.t.size} samples" for m in sim.radars)
           + f" at {args.radar_rate:g} Hz (noise: {noise})")
+    for name in sim.masked:
+        if sim.masked[name] or sim.over_zenith[name]:
+            print(f"station {name}: {sim.masked[name]} samples below its elevation mask dropped, "
+                  f"{sim.over_zenith[name]} written over the top of the zenith (azimuth + 180, 180 - elevation)")
     print("wrote " + ", ".join(str(f) for f in files))
     radar = " ".join(f"--radar {files[1 + 2 * i]} {files[2 + 2 * i]}" for i in range(len(sim.radars)))
     print(f"separate with: casep separate {args.output} {radar} --launch-site "

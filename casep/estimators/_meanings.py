@@ -25,7 +25,8 @@ SIGMA_SOURCE_MEANINGS = {
     "given": "given by the caller",
     "wavelet": "wavelet estimate from the raw finest details (dv de-noised, no sigma given)",
     "robust": "Huber's MAD scale of the residuals",
-    "whitened": "several flights: each flight's rows divided by its own sigma (flights[].sigma), so 1 here",
+    "whitened": "rows divided by their own noise std (several flights: flights[].sigma; radar: per station and "
+                "measurement type), so dimensionless and 1 when those std are right",
     "fused": "fused results: each input's own sigma (settings.fused)",
     "external": "a result file of another tool that states no sigma (docs/guide/result-files.md)",
 }

@@ -18,7 +18,8 @@ from casep.io.tables import VTRK_COLUMNS, Table
 
 __all__ = ["pair_flight", "PAIR_GRIDS", "STATE_SIGNALS", "GAP_FACTOR", "GAP_MIN_S", "MAX_TIME_OFFSET",
            "MAX_LAUNCH_TIME_GAP", "check_tracking_frame", "tracking_velocity", "tracking_hint", "with_tracked_state",
-           "time_shift_seconds", "check_launch_time", "no_overlap_message"]
+           "time_shift_seconds", "check_launch_time", "no_overlap_message",
+           "check_earth_fixed_units"]
 
 #: Where a telemetry + tracking pair is evaluated (``read_flight_pair(grid=...)``).
 PAIR_GRIDS = ("tracking", "telemetry")
@@ -57,7 +58,36 @@ def tracking_velocity(trk: Table, t_trk: np.ndarray, tracking_frame: str,
                 raise trk.error(f"{values[bad[0]]:g} deg is outside +-{lim:g} deg (latitude and longitude in degrees)",
                                 col, int(bad[0]) + 1)
         r, v = geodetic_to_ecef(lat, lon, h, ve, vn, vu)
+    check_earth_fixed_units(trk, t_trk, r, v, tracking_frame)
     return ecef_to_launch(site, t_trk, r, v)[1], r, v
+
+
+def check_earth_fixed_units(trk: Table, t: np.ndarray, r: np.ndarray, v: np.ndarray, frame: str) -> None:
+    """Refuse Earth-fixed tracking whose position or velocity is not in metres (m/s), naming the likely unit.
+
+    A tracked vehicle is within 0.05-30 Earth radii of the centre: ``|r|`` far below 3e5 m
+    (km read as m: about 6.4e3) is not an ECEF position in metres. The position's time
+    derivative must match the velocity: ``ratio = median |dr/dt| / median |v|`` (central
+    differences) near 1000 or 1/1000 is a velocity in km/s or a position in km.
+    """
+    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS
+
+    norm = float(np.median(np.linalg.norm(r, axis=1)))
+    col = ECEF_COLUMNS[1] if frame == "ecef" else GEODETIC_COLUMNS[3]
+    if frame == "ecef" and norm < 3e5:
+        unit = f"kilometres (x 1000: {norm * 1e3:.4g} m)" if 3e3 < norm < 3e4 else "not metres"
+        raise trk.error(f"ECEF positions have a median norm of {norm:.4g} m, far below the Earth's radius "
+                        f"(6.371e6 m): {unit}? The ECEF columns must be in metres and m/s", col)
+    if t.size < 3:
+        return
+    speed = float(np.median(np.linalg.norm(v, axis=1)))
+    rate = float(np.median(np.linalg.norm(np.gradient(r, t, axis=0), axis=1)))
+    if speed > 1.0 and rate > 1.0 and not 0.1 < rate / speed < 10.0:
+        likely = ("the velocity in km/s" if 300 < rate / speed < 3000 else
+                  "the position in km" if 300 < speed / rate < 3000 else "the two in different units")
+        raise trk.error(f"the tracked position changes at a median {rate:.4g} m/s but the tracked velocity is a median "
+                        f"{speed:.4g} m/s (ratio {rate / speed:.4g}): {likely}? Positions must be in m, velocities in "
+                        "m/s", col)
 
 
 def tracking_hint(trk: Table, tracking_frame: str) -> str:

@@ -98,7 +98,8 @@ def determined(result: EstimateResult, scales: Mapping[str, float], top: int = 4
     if rest and C is not None and np.all(np.isfinite(C[np.ix_(rest, rest)])):
         s = np.array([scales[names[j]] for j in rest])
         lam, V = np.linalg.eigh(C[np.ix_(rest, rest)] / np.outer(s, s))
-        for k in np.flatnonzero(lam < 1.0)[:top]:
+        resolved = lam > lam.max() * lam.size * np.finfo(float).eps  # below: rounding, not a std
+        for k in np.flatnonzero((lam < 1.0) & resolved)[:top]:
             v = V[:, k] / np.max(np.abs(V[:, k]))
             order = np.argsort(-np.abs(v))[:5]
             combos.append({"terms": {names[rest[i]]: float(v[i]) for i in order if abs(v[i]) > 0.05},
@@ -121,6 +122,9 @@ def _headline(result: EstimateResult, model: Any = None) -> str:
             scales = found.scales if found is not None else {}
         except Exception:  # a model file moved since: no headline rather than no report
             scales = {}
+    if not result.success:  # a failed estimate determines nothing
+        return (f"<p id=\"headline\"><b>This fit failed</b> (status {int(result.status)}): its estimates and std "
+                "are not to be used; the status above says why.</p>")
     if not scales:
         return ""
     d = determined(result, scales)
@@ -137,7 +141,8 @@ def _headline(result: EstimateResult, model: Any = None) -> str:
             "<li>" + " ".join(f"{'+' if w >= 0 else '&minus;'} {abs(w):.2g} {_esc(n)}/{scales[n]:g}"
                               for n, w in c["terms"].items())
             + f": std {c['std']:.2g} of the declared magnitudes</li>" for c in d["combinations"])
-        out.append(f"<p>Of the other {len(d['rest'])}, no single coefficient is determined, but these combinations "
+        out.append(f"<p>Of the other {len(d['rest'])} with a declared magnitude, no single coefficient is determined, "
+                   "but these combinations "
                    f"(each coefficient divided by its declared magnitude) are:</p><ul id=\"combinations\">{rows}</ul>")
     return "\n".join(out)
 
@@ -213,7 +218,8 @@ def report_html(result: EstimateResult, figures: Sequence[str | os.PathLike] = (
         f"<h1>{_esc(title)}</h1>",
         f"<p>casep {_esc(__version__)}, model {_esc(result.model)}, method {_esc(result.method)}, "
         f"{int(result.n_samples)} samples, rank {int(result.rank)}/{len(result.names)}, "
-        f"sigma {result.sigma:.4g} m/s</p>",
+        + (f"noise scale {result.sigma:.4g} (rows whitened: dimensionless)</p>" if result.sigma_source == "whitened"
+           else f"sigma {result.sigma:.4g} m/s</p>"),
         f"<p class=\"{state}\" id=\"status\">status {int(result.status)}: {_esc(result.message)}"
         + (f" ({len(warnings)} warning(s) below)" if warnings and result.success else "") + "</p>",
         _headline(result, model),

@@ -10,9 +10,15 @@ its own rate, on times inside the flight::
 
     z(t) = h(r(t - tau), v(t - tau)) + T(g) theta + n,    n ~ N(0, sigma_type^2)
 
-(tags whose instant ``t - tau`` falls outside the flight are not written)
+(tags whose instant ``t - tau`` falls outside the flight are not written, nor samples whose true
+elevation is below the station's elevation mask ``min_elevation_deg``: :attr:`RadarSimulation.masked`
+counts them). A measured elevation pushed above 90 deg by its bias and noise near the zenith is
+written as the same line of sight seen over the top, ``(azimuth + 180 deg, 180 deg - elevation)``,
+as an azimuth-elevation mount reports it (:attr:`RadarSimulation.over_zenith` counts them); the
+separation compares such a sample with its prediction across the zenith
+(:meth:`casep.radar.regression.RadarRegression.assemble`).
 
-with ``h`` the geometric measurement (:class:`casep.tracking.geometry.RadarGeometry`), ``g`` the
+with ``h`` the geometric measurement (:class:`casep.radar.geometry.RadarGeometry`), ``g`` the
 geometry it gives, ``T`` the tracking model's Jacobian and ``theta`` the station's true errors.
 A tracking-model term named ``time_bias`` (unit ``ms``) is applied exactly as a late time tag
 (the true state sampled at ``t - tau``, the trajectory's dense output) instead of through its
@@ -35,9 +41,9 @@ from casep.frames import LaunchSite
 from casep.model._model import ErrorModel
 from casep.model.sv import build_sv, cumulative_sp
 from casep.model.tracking import TrackingModel, load_tracking_model
-from casep.tracking.geometry import RadarGeometry
-from casep.tracking.regression import Telemetry
-from casep.tracking.stations import RadarMeasurements, Station, check_station_names
+from casep.radar.geometry import RadarGeometry
+from casep.radar.regression import Telemetry
+from casep.radar.stations import RadarMeasurements, Station, check_station_names
 from casep.units import ARCSEC
 
 __all__ = ["RadarSimulation", "simulate_radar", "write_radar_simulation", "DEFAULT_NOISE"]
@@ -62,12 +68,19 @@ class RadarSimulation:
     seed: int
     scenario: str
     station_noise: dict = dataclasses.field(default_factory=dict)  # station -> {type: std} used, natural units
+    masked: dict = dataclasses.field(default_factory=dict)  # station -> samples below its elevation mask, dropped
+    over_zenith: dict = dataclasses.field(default_factory=dict)  # station -> samples written over the top
 
-    def truth_vector(self) -> np.ndarray:
-        """Truth in the order of a :class:`~casep.tracking.regression.RadarRegression`'s names."""
+    def truth_vector(self, launch_time: bool | None = None) -> np.ndarray:
+        """Truth in the order of a :class:`~casep.radar.regression.RadarRegression`'s names.
+
+        With `launch_time` (default: as the separation's default, with two stations or more) the
+        launch-time correction ``dt_launch`` comes last: 0, the simulated launch time is the site's ``t0``.
+        """
+        launch_time = len(self.radars) > 1 if launch_time is None else launch_time
         parts = [self.truth] + [np.array([self.tracking_truth[m.station.name].get(n, 0.0)
                                           for n in self.tracking.names]) for m in self.radars]
-        return np.concatenate(parts)
+        return np.concatenate(parts + [np.zeros(1 if launch_time else 0)])
 
     def truth_dict(self) -> dict:
         return {"model": self.model.name, "coefficients": dict(zip(self.model.names, map(float, self.truth))),
@@ -146,7 +159,7 @@ def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="p
     t_r = np.arange(0, int(np.floor(t_end * radar_rate + 1e-9)) + 1) / radar_rate
     types = ("range", "azimuth", "elevation") + (("range_rate",) if range_rate else ())
     idx_time = trk.names.index("time_bias") if "time_bias" in trk.names else None
-    radars, used = [], {}
+    radars, used, masked, over_zenith = [], {}, {}, {}
     for st in stations:
         # the station file's noise when given (it is written out, and separate trusts it), else `noise`
         nz = {ty: (st.sigma[ty] / _SI[ty] if ty in st.sigma else noise[ty]) for ty in types}
@@ -161,15 +174,25 @@ def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="p
         t_meas = t_tag - tau  # measured at t - tau
         k = traj.kinematics(t_meas)
         geo, _ = RadarGeometry(site, st).evaluate(t_meas, k["position"], k["velocity"], k["acceleration"])
+        seen = geo[:, 2] >= np.radians(st.min_elevation_deg)  # the station's elevation mask
+        masked[st.name] = int((~seen).sum())
+        if not seen.any():
+            raise ValueError(f"station `{st.name}`: the flight never rises above its elevation mask "
+                             f"{st.min_elevation_deg:g} deg (highest {np.degrees(geo[:, 2].max()):.3g} deg)")
+        t_tag, geo = t_tag[seen], geo[seen]
         T = trk.jacobian(np.column_stack([geo, t_tag - t_tag[0]]))
         z = geo[:, :4] + T @ th  # h + T theta
         for j, ty in enumerate(types):
             if nz[ty] > 0:
                 z[:, j] += rng.normal(0.0, nz[ty] * _SI[ty], t_tag.size)
+        over = z[:, 2] > np.pi / 2  # the same line of sight over the top: (az + pi, pi - el)
+        z[over, 1] += np.pi
+        z[over, 2] = np.pi - z[over, 2]
+        over_zenith[st.name] = int(over.sum())
         radars.append(RadarMeasurements(st, t_tag, z[:, 0], z[:, 1] % (2 * np.pi), z[:, 2],
                                         z[:, 3] if range_rate else None, f"simulated:{st.name}"))
     return RadarSimulation(tel, tuple(radars), site, mdl, trk, D, tt, {k: noise[k] for k in types}, seed, sc.name,
-                          used)
+                          used, masked, over_zenith)
 
 
 def write_radar_simulation(sim: RadarSimulation, telemetry: str | os.PathLike,

@@ -1,12 +1,12 @@
 """Separation in the measurement domain: telemetry + radar stations -> instrument and station errors.
 
 :func:`separate_radar` reads the inputs, builds the joint regression
-(:class:`casep.tracking.regression.RadarRegression`: relinearised, group noise estimated), hands
+(:class:`casep.radar.regression.RadarRegression`: relinearised, group noise estimated), hands
 it to any registered estimator as a whitened :class:`~casep.analysis.problem.Problem`, and
 returns a :class:`RadarResult`: the :class:`~casep.estimators.result.EstimateResult` over the
 instrument coefficients and the station terms ``<station>.<term>``, plus the radar summary
 (noise per station and type, residual RMS per group, how the telemetered position was had) and,
-unless asked not to, the diagnostics of :mod:`casep.tracking.diagnostics`.
+unless asked not to, the diagnostics of :mod:`casep.radar.diagnostics`.
 """
 
 from __future__ import annotations
@@ -25,8 +25,11 @@ from casep.estimators.result import EstimateResult
 from casep.frames import LaunchSite
 from casep.model.loader import load_model
 from casep.model.tracking import load_tracking_model
-from casep.tracking.diagnostics import diagnostics_table, radar_diagnostics
-from casep.tracking.regression import (
+from casep.radar.diagnostics import diagnostics_table, radar_diagnostics
+from casep.radar.regression import (
+    KEYHOLE,
+    LAUNCH_TIME,
+    LAUNCH_TIME_SCALE,
     TYPE_UNITS,
     LinearisedRadar,
     RadarRegression,
@@ -34,7 +37,9 @@ from casep.tracking.regression import (
     Telemetry,
     read_telemetry,
 )
-from casep.tracking.stations import RadarMeasurements, Station, read_radar, read_station
+from casep.radar.setup import check_setup
+from casep.radar.stations import RadarMeasurements, Station, read_radar, read_station
+from casep.results import deprecated_alias
 
 __all__ = ["RadarResult", "separate_radar", "diagnose_radar", "read_radar_inputs", "simulate_radar_files",
            "radar_simulation_outputs", "NOT_WITH_RADAR", "check_radar_options"]
@@ -83,7 +88,8 @@ def check_radar_options(given: Mapping[str, Any], *, cli: bool = False,
             what = flag if cli else f"`{name}={value!r}`"
             raise ValueError(f"{what} is not available with {'--radar' if cli else '`radar`'} (noise: white per "
                              "station and measurement type, sigma_range/sigma_angle in the station files, else "
-                             "estimated; a time-tag error is the tracking model's time_bias); leave it out")
+                             "estimated; a time-tag error is the tracking model's time_bias, a launch-time error "
+                             "the common dt_launch, estimated with two stations or more); leave it out")
     for flag, value in dict(outputs or {}).items():
         if value:
             raise ValueError(f"{flag} is not available with --radar (the radar result writes --json and --report); "
@@ -92,48 +98,85 @@ def check_radar_options(given: Mapping[str, Any], *, cli: bool = False,
 
 @dataclass(frozen=True)
 class RadarResult:
-    """The joint estimate and what goes with it."""
+    """The joint estimate and what goes with it; the result protocol of :mod:`casep.results`.
+
+    ``success``, ``status`` and ``message`` are the joint estimate's (a linearisation that did
+    not converge, residuals far above the noise, a wrong station position or station terms far
+    beyond their magnitudes make it a failure); :meth:`text` is what the command line prints,
+    :meth:`to_dict` the result JSON with a ``radar`` section and the ``provenance``.
+    """
 
     result: EstimateResult
     linearised: LinearisedRadar
     summary: dict
     diagnostics: dict | None = None
+    provenance: dict | None = None
+
+    @property
+    def success(self) -> bool:
+        return bool(self.result.success)
+
+    @property
+    def status(self) -> int:
+        return int(self.result.status)
+
+    @property
+    def message(self) -> str:
+        return str(self.result.message)
 
     def to_dict(self) -> dict[str, Any]:
-        """The result JSON with a ``radar`` section (``diagnostics.tracking_terms`` lists the station terms)."""
+        """The result JSON with a ``radar`` section (``diagnostics.tracking_terms`` lists the station terms)
+        and, when the inputs were files, the ``provenance`` (their SHA-256)."""
         d = self.result.to_dict()
         d["radar"] = {**self.summary, **({"diagnostics": self.diagnostics} if self.diagnostics else {})}
+        if self.provenance:
+            d["provenance"] = self.provenance
         return d
 
     def text(self) -> str:
-        """What ``casep separate --radar`` prints: :meth:`table`."""
-        return self.table()
-
-    def table(self) -> str:
-        """The result table, the noise and residuals per station and type, and the diagnostics."""
+        """What ``casep separate --radar`` prints: the coefficients, the fit, the noise and residuals per
+        station and type, the set-up estimate, the outcome and the diagnostics."""
         from casep.estimators.result import format_number
 
-        res = self.result
-        base = res.text().replace(f"sigma {res.sigma:.4g} m/s", f"noise scale {res.sigma:.4g} (1: as estimated "
-                                                                   "per group)").split("\n")
+        res, s = self.result, self.summary
         w = max(12, *(len(n) for n in res.names))  # station terms are longer than instrument names
-        rows = [f"{'coefficient':<{w}} {'unit':<10} {'estimate':>12} {'std':>12}  note"]
+        lines = [f"{'coefficient':<{w}} {'unit':<10} {'estimate':>12} {'std':>12}  note"]
         for r in res.coefficient_rows():
-            rows.append(f"{r['name']:<{w}} {r['unit']:<10} {format_number(r['estimate'])} "
-                        f"{format_number(r['std'])}  {r.get('reason', '')}".rstrip())
-        lines = [*rows, *base[base.index(""):],
-                 "", f"telemetered position: {self.summary['telemetry_position']}",
-                 f"linearisation: {len(self.summary['gauss_newton_steps'])} Gauss-Newton steps, last change "
-                 f"{self.summary['gauss_newton_steps'][-1]:.2g} std"]
-        lines.append("residual RMS: " + ", ".join(f"{k} {v:.4g} {TYPE_UNITS[k.split('.', 1)[1]][0]}"
-                                                  for k, v in self.summary["residual_rms"].items()))
+            lines.append(f"{r['name']:<{w}} {r['unit']:<10} {format_number(r['estimate'])} "
+                         f"{format_number(r['std'])}  {r.get('reason', '')}".rstrip())
+        n_rows = sum(g["n"] for g in s["noise"])
+        given = all(g["source"] == "given" for g in s["noise"])
+        lines += ["", f"method {res.method}, model {res.model} + {s['tracking_model']} per station, "
+                      f"{len(s['stations'])} station(s), {n_rows} radar measurements, rank {res.rank}/{len(res.names)}",
+                  f"noise: white per station and type, {'given' if given else 'estimated per group'}; rows divided "
+                  f"by it, common scale {s['noise_scale']:.4g} (dimensionless: 1 when the group std are right); "
+                  f"std {res.std_kind}",
+                  "noise std: " + ", ".join(f"{g['station']}.{g['type']} {g['sigma']:.4g} {g['unit']} ({g['source']})"
+                                            for g in s["noise"]),
+                  "residual RMS: " + ", ".join(f"{k} {v:.4g} {TYPE_UNITS[k.split('.', 1)[1]][0]}"
+                                               for k, v in s["residual_rms"].items()),
+                  f"telemetered position: {s['telemetry_position']}",
+                  f"linearisation: {len(s['gauss_newton_steps'])} Gauss-Newton steps, last change "
+                  f"{s['gauss_newton_steps'][-1]:.2g} std"]
+        lt = (s.get("setup") or {}).get("launch_time")
+        if lt:
+            lines.append(f"launch time: correction {lt['estimate_ms']:.4g} +- {lt['std_ms']:.2g} ms to --launch-time "
+                         f"{s['launch_site']['t0']:.10g} s (estimated with the other terms)")
+        lines.append(("" if self.success else "FAILED: ") + self.message)
         if self.diagnostics:
             lines += ["", diagnostics_table(self.diagnostics)]
         return "\n".join(lines)
 
+    table = deprecated_alias("text", "table")
+
     @property
     def tracking_names(self) -> tuple[str, ...]:
         return tuple(self.summary["tracking_terms"])
+
+    @property
+    def scales(self) -> dict[str, float]:
+        """The declared magnitude of every coefficient (instrument, station terms, launch time), natural units."""
+        return dict(self.summary["declared_magnitudes"])
 
 
 def read_radar_inputs(pairs: Sequence) -> list[RadarMeasurements]:
@@ -149,7 +192,7 @@ def read_radar_inputs(pairs: Sequence) -> list[RadarMeasurements]:
     return out
 
 
-def _inputs(telemetry, radars, model, tracking, site):
+def _inputs(telemetry, radars, model, tracking, site, fit_launch_time: bool | None = None):
     if not isinstance(site, LaunchSite):
         raise ValueError("`site` (--launch-site LAT LON H AZ --launch-time T0) is required: it ties the "
                          "launch-inertial frame of the telemetry to the stations on the Earth")
@@ -157,13 +200,14 @@ def _inputs(telemetry, radars, model, tracking, site):
     model = load_model(model)
     tracking = load_tracking_model(tracking)
     tel = telemetry if isinstance(telemetry, Telemetry) else read_telemetry(telemetry, site)
-    return RadarRegression(tel, meas, model, tracking, site)
+    return RadarRegression(tel, meas, model, tracking, site,
+                           fit_launch_time=len(meas) > 1 if fit_launch_time is None else bool(fit_launch_time))
 
 
 def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, site: LaunchSite,
                    model: Any = "platform36", tracking: Any = "radar_biases", method: str = "ols", *,
                    sigma: Mapping | None = None, options: Mapping | None = None,
-                   diagnostics: bool = True) -> RadarResult:
+                   diagnostics: bool = True, fit_launch_time: bool | None = None) -> RadarResult:
     """Estimate the instrument coefficients and every station's tracking terms jointly.
 
     Parameters
@@ -184,9 +228,15 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
     options : mapping, optional
         The method's options (``bounds``, ``prior`` with ``S1.range_bias``-style names, ...).
     diagnostics : bool
-        Add the CRLB fixed/free, mixed groups and station gains (:mod:`casep.tracking.diagnostics`).
+        Add the CRLB fixed/free, mixed groups and station gains (:mod:`casep.radar.diagnostics`).
+    fit_launch_time : bool, optional
+        Estimate the launch-time correction ``dt_launch`` (ms) with the other terms (see
+        :class:`casep.radar.regression.RadarRegression`). Default: with two stations or more; one
+        station alone cannot tell it from its own position and biases (the joint regression is
+        then near-singular and its Gauss-Newton steps wander near the zenith). The fit also says
+        which set-up error the residuals point to (:func:`casep.radar.setup.check_setup`).
     """
-    reg = _inputs(telemetry, radars, model, tracking, site)
+    reg = _inputs(telemetry, radars, model, tracking, site, fit_launch_time)
     opts = dict(options or {})
     for k in opts:
         if k not in OPTIONS:
@@ -210,17 +260,26 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
         "tracking_model": reg.tracking.name, "tracking_terms": tracking_terms,
         "noise": lin.noise_table(), "residual_rms": lin.group_residual_rms(x),
         "gauss_newton_steps": [float(v) for v in lin.history],
-        "noise_scale": float(res.sigma),
+        "noise_scale": float(res.sigma), "declared_magnitudes": _scales(reg),
+        "keyhole": {"elevation_deg": float(np.degrees(KEYHOLE)), "azimuth_left_out": reg.keyhole_counts},
     }
+    setup = check_setup(lin) if lin.converged else None
     failed = [] if lin.converged else [lin.convergence_message]
+    if setup:  # a set-up error named first: it explains the misfits the other checks see
+        failed += setup["failures"]
     # residuals and station terms are checked at a converged linearisation only (else already failed)
     bad, suspicious = lin.residual_check(x) if lin.converged else ([], [])
     if bad:
         failed.append("radar residuals far above the noise: " + "; ".join(bad))
-    big, large = _tracking_magnitude_check(reg, res) if lin.converged else ([], [])
+    # station terms are judged against their magnitudes only when no station position is wrong (they absorb it)
+    big, large = _tracking_magnitude_check(reg, res) if lin.converged and not failed else ([], [])
     if big:
         failed.append("station terms far above their declared magnitudes: " + "; ".join(big))
     suspicious += large
+    if setup:
+        summary["setup"] = {k: setup[k] for k in ("launch_time", "stations")}
+        if setup["warnings"]:
+            warnings.warn("radar set-up: " + "; ".join(setup["warnings"]), RadarResidualWarning, stacklevel=2)
     if suspicious:
         warnings.warn("radar residuals or station terms larger than expected: " + "; ".join(suspicious),
                       RadarResidualWarning, stacklevel=2)
@@ -229,14 +288,38 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
     from casep.model.loader import model_record
 
     res = dataclasses.replace(
-        res, residuals=np.empty((0, 3)), stored_residual_rms=dict.fromkeys("xyz"), **model_record(reg.model),
+        res, residuals=np.empty((0, 3)), stored_residual_rms=dict.fromkeys("xyz"), sigma_source="whitened",
+        **model_record(reg.model),
         diagnostics={**res.diagnostics, "tracking_terms": tracking_terms, "tracking_model": reg.tracking.name},
         settings={**res.settings, "noise": "white per station and type, "
                   + ("given" if all_given else "estimated (REML-type iteration)")})
-    diag = radar_diagnostics(lin, scales={**reg.model.scales, **{
-        f"{s.meas.station.name}.{k}": v for s in reg.stations for k, v in reg.tracking.scales.items()}}) \
-        if diagnostics else None
-    return RadarResult(res, lin, summary, diag)
+    diag = radar_diagnostics(lin, scales=_scales(reg)) if diagnostics else None
+    return RadarResult(res, lin, summary, diag, _provenance(telemetry, radars, reg, method, opts))
+
+
+def _scales(reg: RadarRegression) -> dict[str, float]:
+    """Declared magnitudes of the regression's coefficients: the models', per station, and the launch time's."""
+    out = {**reg.model.scales, **{f"{s.meas.station.name}.{k}": v for s in reg.stations
+                                  for k, v in reg.tracking.scales.items()}}
+    return {**out, **({LAUNCH_TIME: LAUNCH_TIME_SCALE} if LAUNCH_TIME in reg.names else {})}
+
+
+def _provenance(telemetry, radars: Sequence, reg: RadarRegression, method: str, options: Mapping) -> dict:
+    """:func:`casep.io.provenance.provenance` of a radar separation: the telemetry, station and measurement
+    files read (with their SHA-256; objects given in memory have none), the models and the options."""
+    from casep.io.provenance import provenance
+
+    inputs: dict[str, Any] = {"telemetry": telemetry if isinstance(telemetry, (str, os.PathLike)) else None}
+    for k, p in enumerate(radars):
+        if isinstance(p, (tuple, list)) and len(p) == 2:
+            inputs[f"station {k + 1}"] = p[0] if isinstance(p[0], (str, os.PathLike)) else None
+            inputs[f"radar measurements {k + 1}"] = p[1] if isinstance(p[1], (str, os.PathLike)) else None
+    for role, m in (("model", reg.model), ("tracking model", reg.tracking)):
+        inputs[role] = getattr(m, "source_file", None)
+    opts = {"method": method, "model": reg.model.name, "tracking_model": reg.tracking.name,
+            "launch_site": reg.site.to_dict(), "fit_launch_time": LAUNCH_TIME in reg.names,
+            **{k: v for k, v in options.items() if isinstance(v, (int, float, str, bool))}}
+    return provenance([], inputs=inputs, options=opts)
 
 
 #: A station term estimated, by more than 3 std, above this many times its declared magnitude (the
@@ -251,6 +334,8 @@ def _tracking_magnitude_check(reg: RadarRegression, res: EstimateResult) -> tupl
     warn: list[str] = []
     scales = reg.tracking.scales
     for j, name in enumerate(reg.names[reg.nD:], start=reg.nD):
+        if "." not in name:  # a term shared by the stations (the launch time): judged by check_setup
+            continue
         term = name.split(".", 1)[1]
         est = float(res.estimate[j])
         std = float(res.std[j]) if res.std is not None else float("nan")
@@ -268,7 +353,7 @@ def _tracking_magnitude_check(reg: RadarRegression, res: EstimateResult) -> tupl
 
 def diagnose_radar(telemetry, radars: Sequence, site: LaunchSite, model: Any = "platform36",
                    tracking: Any = "radar_biases", *, sigma: Mapping | None = None) -> dict[str, Any]:
-    """The diagnostics of :mod:`casep.tracking.diagnostics` for these inputs (noise estimated when not given)."""
+    """The diagnostics of :mod:`casep.radar.diagnostics` for these inputs (noise estimated when not given)."""
     reg = _inputs(telemetry, radars, model, tracking, site)
     lin = reg.solve(sigma)
     return radar_diagnostics(lin, scales=reg.model.scales)
@@ -311,8 +396,8 @@ def simulate_radar_files(output: str | os.PathLike, stations: Sequence, site: La
     -------
     (RadarSimulation, list of Path)
     """
+    from casep.radar.stations import Station
     from casep.simulation.radar import simulate_radar, write_radar_simulation
-    from casep.tracking.stations import Station
 
     stations = [s if isinstance(s, Station) else read_station(s) for s in stations]
     if truth is not None and isinstance(truth.get("coefficients"), dict):

@@ -84,7 +84,7 @@ def separate(
         The flight, a flight file to read, or a :class:`~casep.analysis.problem.Problem` built
         earlier (``casep demo`` solves every method on one; `model` is then its model). With
         `radar`: the telemetry file (``t, f_*, v_tel_*`` and optionally ``r_tel_*``) or a
-        :class:`casep.tracking.regression.Telemetry`.
+        :class:`casep.radar.regression.Telemetry`.
     model : str, path or ErrorModel, optional
         Model name (``"platform36"``), model file, or model object.
     method : str, optional
@@ -163,9 +163,9 @@ def separate(
         instead of biasing the coefficients that correlate with it.
     radar : sequence, optional
         Radar measurements instead of tracking velocities: ``[(station, measurements), ...]``, each
-        station a station JSON file or a :class:`casep.tracking.stations.Station` and each measurement
+        station a station JSON file or a :class:`casep.radar.stations.Station` and each measurement
         file a CSV (``t, range, azimuth, elevation``, optionally ``range_rate``), or
-        :class:`casep.tracking.stations.RadarMeasurements`. The instrument coefficients and every
+        :class:`casep.radar.stations.RadarMeasurements`. The instrument coefficients and every
         station's tracking terms are then estimated jointly by :func:`casep.separate_radar` (as
         ``casep separate TEL --radar S1.json S1.csv``). `sigma` may then be ``{(station, type): std}``
         (SI); the method options (``bounds``, ``prior``, ... and `options`) go to the method. The
@@ -269,7 +269,7 @@ def _separate_radar(telemetry, model, fit_kw: dict, radar: Sequence, site, track
     check_radar_options({**{k: fit_kw.get(k) for k in NOT_WITH_RADAR}, "fit_time_offset": fit_time_offset})
     if isinstance(telemetry, (FlightData, Problem)):
         raise ValueError(f"`flight` is a {type(telemetry).__name__}: with `radar` it is the telemetry file (t, f_*, "
-                         "v_tel_* and optionally r_tel_*) or a casep.tracking.regression.Telemetry, since the "
+                         "v_tel_* and optionally r_tel_*) or a casep.radar.regression.Telemetry, since the "
                          "radar regression integrates the telemetry itself")
     if not isinstance(site, LaunchSite):
         raise ValueError("`radar` needs `site`, a casep.LaunchSite (launch point, azimuth and launch time t0 in the "

@@ -25,7 +25,7 @@ PUBLIC_MODULES = (
     "casep.design",
     "casep.montecarlo",
     "casep.calibration",
-    "casep.tracking",
+    "casep.radar",
     "casep.frames",
     "casep.units",
     "casep.exceptions",

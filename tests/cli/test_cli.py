@@ -419,7 +419,7 @@ def test_cli_imports_lazily():
 
 
 @pytest.mark.parametrize("package", ["casep", "casep.estimators", "casep.analysis", "casep.model", "casep.simulation",
-                                     "casep.tracking"])
+                                     "casep.radar"])
 def test_lazy_public_names_resolve(package):
     """Every name in a lazily resolved package's __all__ is importable (the tables of casep._lazy)."""
     import importlib

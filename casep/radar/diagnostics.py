@@ -42,7 +42,7 @@ def _std(F: np.ndarray) -> np.ndarray:
 
 
 def radar_diagnostics(lin, *, scales: dict | None = None) -> dict[str, Any]:
-    """The three diagnostics of the module notes for a :class:`~casep.tracking.regression.LinearisedRadar`.
+    """The three diagnostics of the module notes for a :class:`~casep.radar.regression.LinearisedRadar`.
 
     Returns
     -------

@@ -99,15 +99,20 @@ class RadarGeometry:
     site : LaunchSite
         Ties the launch-inertial frame to the Earth (launch point, azimuth, launch time t0).
     station : Station
-        :class:`casep.tracking.stations.Station` (its ECEF position and ENU axes by pymap3d).
+        :class:`casep.radar.stations.Station` (its ECEF position and ENU axes by pymap3d).
     """
 
     def __init__(self, site: LaunchSite, station) -> None:
         _shared_function()  # built here, once per process
         self.site = site
         self.station = station
-        self._p = np.concatenate([site.C.ravel(order="F"), site.r_site, station.enu_rows.ravel(order="F"),
-                                  station.r_ecef])
+        self._p = self._parameters(0.0, np.zeros(3))
+
+    def _parameters(self, dt0: float, d_enu: np.ndarray) -> np.ndarray:
+        """The CasADi parameter vector with the launch time moved by `dt0` (s), the station by `d_enu` (m, ENU)."""
+        enu = self.station.enu_rows
+        return np.concatenate([self.site.C.ravel(order="F"), self.site.r_site, enu.ravel(order="F"),
+                               self.station.r_ecef + enu.T @ d_enu, [dt0]])
 
     def evaluate(self, t: np.ndarray, r: np.ndarray, v: np.ndarray,
                  a: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -130,9 +135,43 @@ class RadarGeometry:
         if t.size == 0:
             return np.zeros((0, len(GEOMETRY_COLUMNS))), np.zeros((0, 4, 6))
         acc = np.zeros((t.size, 3)) if a is None else np.asarray(a, dtype=float).reshape(t.size, 3)
-        geo, H = _shared_function()(x.T, acc.T, (t - self.site.t0)[None, :], self._p)  # mapped over the columns
+        return self._evaluate(t, x, acc, self._p, a is None)
+
+    def _evaluate(self, t: np.ndarray, x: np.ndarray, acc: np.ndarray, p: np.ndarray,
+                  no_acc: bool) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`evaluate` on the stacked state ``x = [r, v]`` with the parameter vector `p`."""
+        geo, H = _shared_function()(x.T, acc.T, (t - self.site.t0 - p[-1])[None, :], p[:-1])  # mapped over columns
         geo = np.asarray(geo).T
-        if a is None:
+        if no_acc:
             geo[:, GEOMETRY_COLUMNS.index("range_acceleration")] = np.nan
         H = np.asarray(H).reshape(4, t.size, 6).transpose(1, 0, 2)
         return geo, H
+
+    def setup_jacobian(self, t: np.ndarray, r: np.ndarray, v: np.ndarray, a: np.ndarray | None = None,
+                       *, station: bool = True, step_time: float = 0.01, step_position: float = 1.0) -> np.ndarray:
+        """Sensitivity of (range, azimuth, elevation, range rate) to the set-up: launch time and station position.
+
+        Central differences (exact to ``O(step^2)``: the chain is smooth on the scale of the steps)::
+
+            d h / d t0    = (h(t0 + dt) - h(t0 - dt)) / (2 dt)               (per s; dt = `step_time`)
+            d h / d e_k   = (h(r_st + d e_k) - h(r_st - d e_k)) / (2 d)        (per m; d = `step_position`)
+
+        with ``e_k`` the station's east, north and up axes (azimuth differences wrapped).
+
+        Returns
+        -------
+        (N, 4, 4) ndarray, or (N, 4, 1) with ``station=False``
+            ``[sample, measurement type, (t0, east, north, up)]``, SI.
+        """
+        t = np.asarray(t, dtype=float)
+        x = np.hstack([np.asarray(r, dtype=float), np.asarray(v, dtype=float)])
+        acc = np.zeros((t.size, 3)) if a is None else np.asarray(a, dtype=float).reshape(t.size, 3)
+        steps = [(step_time, np.zeros(3))] + ([(0.0, step_position * e) for e in np.eye(3)] if station else [])
+        out = np.empty((t.size, 4, len(steps)))
+        for k, (dt0, d) in enumerate(steps):
+            hp, _ = self._evaluate(t, x, acc, self._parameters(dt0, d), False)
+            hm, _ = self._evaluate(t, x, acc, self._parameters(-dt0, -d), False)
+            diff = hp[:, :4] - hm[:, :4]
+            diff[:, 1] = wrap_angle(diff[:, 1])
+            out[:, :, k] = diff / (2.0 * (step_time if k == 0 else step_position))
+        return out

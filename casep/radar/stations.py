@@ -15,7 +15,7 @@ optionally ``range_rate`` (m/s). Inside casep the angles are radians.
 Legal but suspicious: station coordinates or measured angles that look like radians (every
 azimuth within +-2 pi and every elevation within +-pi/2) give a :class:`RadianAnglesWarning` with
 the numbers; a station whose first predicted range is more than 1 km from the first measured
-one is refused later (:func:`casep.tracking.regression.check_first_sample`).
+one is refused later (:func:`casep.radar.regression.check_first_sample`).
 """
 
 from __future__ import annotations
@@ -57,6 +57,9 @@ class Station:
         Known noise std per measurement type, SI (m, rad, m/s); a type not in it is estimated.
     source : str
         The station file (for messages).
+    min_elevation_deg : float
+        The station's elevation mask, deg (default 0: the horizon): it tracks nothing below it
+        (the simulator drops those samples).
     """
 
     name: str
@@ -65,6 +68,7 @@ class Station:
     h_m: float
     sigma: dict = field(default_factory=dict)
     source: str = "<memory>"
+    min_elevation_deg: float = 0.0
 
     @property
     def r_ecef(self) -> np.ndarray:
@@ -85,6 +89,8 @@ class Station:
         from casep.units import ARCSEC
 
         d = {"name": self.name, "lat": self.lat_deg, "lon": self.lon_deg, "h": self.h_m}
+        if self.min_elevation_deg != 0.0:
+            d["min_elevation"] = self.min_elevation_deg
         for k, v in self.sigma.items():
             d[{"range": "sigma_range", "azimuth": "sigma_angle", "elevation": "sigma_angle",
                "range_rate": "sigma_range_rate"}[k]] = v / ARCSEC if k in ("azimuth", "elevation") else v
@@ -105,9 +111,10 @@ def _station_schema() -> Any:  # the pydantic model class, built (and pydantic i
         sigma_range: float | None = Field(default=None, gt=0.0, le=1e4)
         sigma_angle: float | None = Field(default=None, gt=0.0, le=3.6e4)
         sigma_range_rate: float | None = Field(default=None, gt=0.0, le=1e3)
+        min_elevation: float = Field(default=0.0, ge=-10.0, lt=90.0)
         description: str = ""
 
-        @field_validator("lat", "lon", "h", "sigma_range", "sigma_angle", "sigma_range_rate")
+        @field_validator("lat", "lon", "h", "sigma_range", "sigma_angle", "sigma_range_rate", "min_elevation")
         @classmethod
         def _finite(cls, v: float | None) -> float | None:
             if v is not None and not math.isfinite(v):
@@ -161,7 +168,7 @@ def read_station(path: str | os.PathLike | dict, *, source: str | None = None) -
         sigma["azimuth"] = sigma["elevation"] = s.sigma_angle * ARCSEC
     if s.sigma_range_rate is not None:
         sigma["range_rate"] = s.sigma_range_rate
-    return Station(s.name, s.lat, s.lon, s.h, sigma, src)
+    return Station(s.name, s.lat, s.lon, s.h, sigma, src, s.min_elevation)
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ Telemetry gives the navigated position and velocity ``r_tel, v_tel`` (launch-ine
 instrument errors D make them ``r_tel = r + S_P D``, ``v_tel = v + S_V D`` with
 ``S_P = int S_V dt`` (:func:`casep.model.sv.cumulative_sp`, trapezoid from the first telemetry
 sample). Station ``s`` measures ``z = h_s(r, v) + T_s(g) theta_s + noise`` (range, azimuth,
-elevation, optionally range rate; :mod:`casep.tracking.geometry`; ``T_s`` from the tracking model).
+elevation, optionally range rate; :mod:`casep.radar.geometry`; ``T_s`` from the tracking model).
 Linearised about ``(r_lin, v_lin) = (r_tel - S_P D0, v_tel - S_V D0)``::
 
     z - h(r_lin, v_lin) = -H_r S_P (D - D0) - H_v S_V (D - D0) + T(g_lin) theta + noise
@@ -28,9 +28,9 @@ time-bias column of ``T``, are far from linear in the position (position sensiti
 20, 359, 793, ... 1e5 std); damped, it converges (12 steps). A linearisation that does not
 converge is reported (:attr:`LinearisedRadar.converged`) and makes a failed result.
 
-Telemetry quantities are carried to each station's times by :mod:`casep.tracking.telemetry`; the
-group noise is estimated by :mod:`casep.tracking.groups`; the result of the linearisation is a
-:class:`casep.tracking.linearised.LinearisedRadar`.
+Telemetry quantities are carried to each station's times by :mod:`casep.radar.telemetry`; the
+group noise is estimated by :mod:`casep.radar.groups`; the result of the linearisation is a
+:class:`casep.radar.linearised.LinearisedRadar`.
 """
 
 from __future__ import annotations
@@ -47,17 +47,37 @@ from casep.frames import LaunchSite
 from casep.model._model import ErrorModel
 from casep.model.sv import build_sv, cumulative_sp
 from casep.model.tracking import TrackingModel
-from casep.tracking.geometry import RadarGeometry, wrap_angle
-from casep.tracking.groups import estimate_group_sigmas, group_reductions
-from casep.tracking.linearised import PLAUSIBLE_SIGMA, RESIDUAL_RATIO_LIMIT, TYPE_UNITS, LinearisedRadar
-from casep.tracking.stations import RadarMeasurements, check_station_names
-from casep.tracking.telemetry import Telemetry, hermite, interp_linear, read_telemetry
+from casep.radar.geometry import RadarGeometry, wrap_angle
+from casep.radar.groups import estimate_group_sigmas, group_reductions
+from casep.radar.linearised import PLAUSIBLE_SIGMA, RESIDUAL_RATIO_LIMIT, TYPE_UNITS, LinearisedRadar
+from casep.radar.stations import RadarMeasurements, check_station_names
+from casep.radar.telemetry import Telemetry, hermite, interp_linear, read_telemetry
 from casep.units import ARCSEC
 
 __all__ = ["Telemetry", "read_telemetry", "RadarRegression", "estimate_group_sigmas", "FIRST_RANGE_LIMIT",
+           "LAUNCH_TIME", "LAUNCH_TIME_SCALE",
            "TYPE_UNITS", "RadarCoverageWarning", "RadarConvergenceWarning", "RadarResidualWarning",
            "PLAUSIBLE_SIGMA", "RESIDUAL_RATIO_LIMIT", "LinearisedRadar"]
 
+#: The launch-time correction estimated with the station terms (ms): true launch time = given + dt_launch.
+LAUNCH_TIME = "dt_launch"
+#: Its declared magnitude (ms): a launch time known to about 10 ms (the diagnostics' scale).
+LAUNCH_TIME_SCALE = 10.0
+#: Elevation above which a station's azimuth is left out of the fit, rad (85 deg): near the zenith the
+#: azimuth's sensitivity to the position, 1 / (range cos E), makes it far from linear over the position's
+#: uncertainty (the Gauss-Newton steps then crawl), and a tracking mount's azimuth there (the keyhole) is
+#: not to be trusted either. The elevation rows there are kept.
+KEYHOLE = math.radians(85.0)
+#: Passes whose start re-sets the geometry of ``T`` and ``dt_launch``; later passes hold it (near the zenith
+#: the launch-time column changes fast with the trajectory and re-setting it for ever moves D by about 0.5 std
+#: a pass without end; after 4 passes the point is within a fraction of a std, where T's change is negligible).
+T_PASSES = 4
+#: A full Gauss-Newton step below this (std of D) is taken without the line search.
+SMALL_STEP = 0.1
+#: A pass of the Gauss-Newton fit whose first full step (std and T re-set) is below this (std of D) settles it.
+PASS_TOL = 0.05
+#: Elevation above which a measured line of sight may be reported over the top of the zenith, rad (80 deg).
+ZENITH_FOLD = math.radians(80.0)
 #: A first predicted range further than this from the first measured one is a wrong site, not a bias, m.
 FIRST_RANGE_LIMIT = 1000.0
 #: ... and the same for the angles, rad (1 deg).
@@ -66,6 +86,34 @@ FIRST_ANGLE_LIMIT = math.radians(1.0)
 _START_SIGMA = {"range": 1.0, "azimuth": 5 * ARCSEC, "elevation": 5 * ARCSEC, "range_rate": 0.1}
 #: Floor of an estimated group std (SI): the rounding of the measurements, not noise.
 _SIGMA_FLOOR = {"range": 1e-9, "azimuth": 1e-15, "elevation": 1e-15, "range_rate": 1e-10}
+
+
+def over_the_top(z: np.ndarray, geo: np.ndarray) -> np.ndarray:
+    """Measured angles near the zenith carried across it to the side of their prediction.
+
+    A line of sight near the zenith is reported either way: ``(A, E)`` or ``(A + pi, pi - E)``
+    over the top. A sample measured above :data:`ZENITH_FOLD` elevation whose azimuth is more
+    than 90 deg from the predicted one is compared as ``(A - pi, pi - E)`` (an elevation above
+    90 deg), so that its residual is continuous through the zenith.
+    """
+    flip = (z[:, 2] > ZENITH_FOLD) & (np.abs(wrap_angle(z[:, 1] - geo[:, 1])) > math.pi / 2)
+    if not flip.any():
+        return z
+    z = z.copy()
+    z[flip, 1] -= math.pi
+    z[flip, 2] = math.pi - z[flip, 2]
+    return z
+
+
+def _unit_ratio(a: np.ndarray, b: np.ndarray, what_a: str, what_b: str, big: str, small: str) -> None:
+    """Raise when ``median a / median b`` (two speeds, m/s) is outside [0.1, 10], naming the likely unit mix-up."""
+    ma, mb = float(np.median(a)), float(np.median(b))
+    if ma <= 1.0 or mb <= 1.0 or 0.1 < ma / mb < 10.0:
+        return
+    ratio = ma / mb
+    likely = big if 300 < ratio < 3000 else small if 300 < 1 / ratio < 3000 else "different units"
+    raise ValueError(f"{what_a} a median {ma:.4g} m/s but {what_b} {mb:.4g} m/s (ratio {ratio:.4g}): {likely}? "
+                     "casep reads m, m/s (and deg for the angles)")
 
 
 class RadarConvergenceWarning(CasepWarning):
@@ -94,6 +142,7 @@ class _Station:
     SV: np.ndarray
     types: tuple[str, ...]
     a: np.ndarray  # (N, 3) kinematic acceleration, m/s^2 (the range-acceleration input of T only)
+    keyhole: np.ndarray | None = None  # (N,) bool: azimuth left out, the telemetry above KEYHOLE elevation
 
 
 class RadarRegression:
@@ -113,10 +162,20 @@ class RadarRegression:
     check : bool, optional
         Refuse a station whose first predicted range (angle) differs from the measured one by
         more than :data:`FIRST_RANGE_LIMIT` (1 deg): a wrong site or station, not a bias.
+    fit_launch_time : bool, optional
+        Estimate the launch-time offset :data:`LAUNCH_TIME` (ms, one for all stations) with the
+        other terms (default). The launch time ties the telemetry's launch-inertial frame to the
+        Earth (``theta = omega_E (t - t0)``); an offset ``dt0`` turns the flight about the Earth's
+        axis by ``omega_E dt0`` (21 m at the test site for 50 ms), which the station terms and the
+        instrument terms would otherwise absorb. Its column is ``d h / d t0`` (central differences,
+        :meth:`RadarGeometry.setup_jacobian`). With the stations' ``time_bias`` terms it also spans
+        an offset of the telemetry clock against the range clock (the same time shift for every
+        station, minus the Earth's turn that ``dt0`` holds).
     """
 
     def __init__(self, telemetry: Telemetry, radars: Sequence[RadarMeasurements], model: ErrorModel,
-                 tracking: TrackingModel, site: LaunchSite, *, check: bool = True) -> None:
+                 tracking: TrackingModel, site: LaunchSite, *, check: bool = True,
+                 fit_launch_time: bool = True) -> None:
         if not radars:
             raise ValueError("no radar station given: at least one station and its measurements are needed")
         check_station_names([m.station for m in radars])
@@ -146,18 +205,46 @@ class RadarRegression:
             st = _Station(m, RadarGeometry(site, m.station), t, m.values()[inside],
                           hermite(tel.t, tel.r, tel.v, t), interp_linear(tel.t, tel.v, t),
                           hermite(tel.t, SP, SV, t), interp_linear(tel.t, SV, t), m.types, interp_linear(tel.t, acc, t))
+            geo, _ = st.geometry.evaluate(st.t, st.r, st.v)
+            st.keyhole = geo[:, 2] > KEYHOLE  # the azimuth is not linear in the position there
+            st.z = over_the_top(st.z, geo)  # decided once, at the telemetry: the residuals stay continuous in D
             self.stations.append(st)
         self.nD = model.n_coefficients
         self.nT = tracking.n_coefficients
+        self.common = (LAUNCH_TIME,) if fit_launch_time else ()  # terms shared by all stations, last columns
         self.names = tuple(model.names) + tuple(f"{s.meas.station.name}.{n}" for s in self.stations
-                                                 for n in tracking.names)
-        self.units = tuple(model.units) + tuple(tracking.units) * len(self.stations)
-        self.si_factors = np.concatenate([model.si_factors] + [tracking.si_factors] * len(self.stations))
+                                                 for n in tracking.names) + self.common
+        self.units = tuple(model.units) + tuple(tracking.units) * len(self.stations) + ("ms",) * len(self.common)
+        self.si_factors = np.concatenate([model.si_factors] + [tracking.si_factors] * len(self.stations)
+                                         + [np.full(len(self.common), 1e-3)])
         self.groups = [(s.meas.station.name, ty) for s in self.stations for ty in s.types]
         if check:
+            self.check_units()
             self.check_first_sample()
 
     # ------------------------------------------------------------------ checks
+    def check_units(self) -> None:
+        """Refuse telemetry whose velocity, position or radar range are in other units than m/s and m.
+
+        Two speed ratios, each near 1 for consistent units (medians over the samples, central
+        differences): the telemetered position's rate ``|d r_tel/dt|`` against ``|v_tel|``, and
+        each station's measured range rate ``|d range/dt|`` against the one the telemetry
+        predicts. A ratio outside [0.1, 10] is an error; near 1000 (or 1/1000) it names km/s or km.
+        """
+        tel = self.telemetry
+        if tel.r_source == "r_tel columns" and tel.t.size >= 3:
+            _unit_ratio(np.linalg.norm(np.gradient(tel.r, tel.t, axis=0), axis=1), np.linalg.norm(tel.v, axis=1),
+                        f"{tel.source}: the telemetered position r_tel changes at", "the telemetered velocity v_tel is",
+                        "v_tel in km/s", "r_tel in km")
+        for s in self.stations:
+            if s.t.size < 3:
+                continue
+            geo, _ = s.geometry.evaluate(s.t, s.r, s.v, s.a)
+            _unit_ratio(np.abs(np.gradient(s.z[:, 0], s.t)), np.abs(geo[:, 3]),
+                        f"station `{s.meas.station.name}` ({s.meas.source}): the measured range changes at",
+                        f"the range rate the telemetry ({tel.source}) predicts is",
+                        "the telemetry velocity in km/s (and its position from it)", "the range in km")
+
     def check_first_sample(self) -> None:
         """A station whose first predicted measurement is far from the measured one: a wrong site (error)."""
         for s in self.stations:
@@ -172,11 +259,12 @@ class RadarRegression:
                     "time, not a bias" + (f" (or a navigation error above 1 km already: this radar starts "
                                           f"{s.t[0] - self.telemetry.t[0]:.4g} s into the telemetry)"
                                           if s.t[0] - self.telemetry.t[0] > 10.0 else ""))
+            z0 = over_the_top(s.z[:1], geo[:1])[0]
             for j, ty in ((1, "azimuth"), (2, "elevation")):
-                d = float(wrap_angle(s.z[0, j] - geo[0, j]))
+                d = float(wrap_angle(z0[j] - geo[0, j]))
                 if abs(d) > FIRST_ANGLE_LIMIT:
                     raise ValueError(
-                        f"station `{name}` ({s.meas.source}): first measured {ty} {math.degrees(s.z[0, j]):.6g} deg vs "
+                        f"station `{name}` ({s.meas.source}): first measured {ty} {math.degrees(z0[j]):.6g} deg vs "
                         f"predicted {math.degrees(geo[0, j]):.6g} deg at t = {s.t[0]:g} s (difference "
                         f"{math.degrees(d):.4g} deg > 1 deg): a wrong station position or launch site, a radar time "
                         "scale other than the telemetry's (--launch-time: the launch time in the radar files' time "
@@ -187,14 +275,24 @@ class RadarRegression:
     def n(self) -> int:
         return len(self.names)
 
-    def group_rows(self) -> list[np.ndarray]:
-        """Row indices of each group (:attr:`groups` order) in the stacked regression."""
+    def group_rows(self, *, all_rows: bool = False) -> list[np.ndarray]:
+        """Row indices of each group (:attr:`groups` order) in the stacked regression.
+
+        The azimuth rows in a station's keyhole (:data:`KEYHOLE`) are zero rows of the regression and
+        are not among their group's rows unless `all_rows`.
+        """
         out, k0 = [], 0
         for s in self.stations:
-            for _ in s.types:
-                out.append(np.arange(k0, k0 + s.t.size))
+            for ty in s.types:
+                idx = np.arange(k0, k0 + s.t.size)
+                out.append(idx if all_rows or ty != "azimuth" or s.keyhole is None else idx[~s.keyhole])
                 k0 += s.t.size
         return out
+
+    @property
+    def keyhole_counts(self) -> dict[str, int]:
+        """Azimuth samples left out per station (the telemetry above :data:`KEYHOLE` elevation)."""
+        return {s.meas.station.name: int(s.keyhole.sum()) if s.keyhole is not None else 0 for s in self.stations}
 
     def assemble(self, D0: np.ndarray | None = None, *,
                  tracking_at: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -216,7 +314,7 @@ class RadarRegression:
             geo, H = s.geometry.evaluate(s.t, r_lin, v_lin, s.a)
             # A = -(H_r S_P + H_v S_V): (N, k, n_D)
             A = -(np.einsum("kij,kjn->kin", H[:, :k, :3], s.SP) + np.einsum("kij,kjn->kin", H[:, :k, 3:], s.SV))
-            resid = s.z - geo[:, :k]
+            resid = s.z[:, :k] - geo[:, :k]
             resid[:, 1] = wrap_angle(resid[:, 1])  # azimuth across north
             yk = resid + A @ D0  # y = z - h(lin) + A D0
             if tracking_at is not None:  # T at another point's geometry (the damped steps keep T fixed)
@@ -224,12 +322,21 @@ class RadarRegression:
             else:
                 geo_T = geo
             T = self.tracking.jacobian(np.column_stack([geo_T, s.t - s.t[0]]))[:, :k, :]
+            if self.common:  # d h / d t0, per ms (the column's natural unit)
+                r_T = s.r - s.SP @ (D0 if tracking_at is None else tracking_at)
+                v_T = s.v - s.SV @ (D0 if tracking_at is None else tracking_at)
+                C = s.geometry.setup_jacobian(s.t, r_T, v_T, s.a, station=False)[:, :k, 0] * 1e-3
             c0 = self.nD + i * self.nT
             for j in range(k):
                 rows = slice(k0, k0 + s.t.size)
                 S[rows, :self.nD] = A[:, j, :]
                 S[rows, c0:c0 + self.nT] = T[:, j, :]
+                if self.common:
+                    S[rows, -1] = C[:, j]
                 y[rows] = yk[:, j]
+                if s.types[j] == "azimuth" and s.keyhole is not None and s.keyhole.any():
+                    S[k0 + np.flatnonzero(s.keyhole)] = 0.0  # keyhole: a zero row (left out of its group)
+                    y[k0 + np.flatnonzero(s.keyhole)] = 0.0
                 t[rows] = s.t
                 k0 += s.t.size
         return S, y, t
@@ -243,8 +350,21 @@ class RadarRegression:
                     out[(s.meas.station.name, ty)] = float(s.meas.station.sigma[ty])
         return out
 
-    def solve(self, sigma: dict | None = None, *, iterations: int = 30, tol: float = 1e-3):
-        """Gauss-Newton on the linearisation point with group noise std re-estimated at each step.
+    def solve(self, sigma: dict | None = None, *, iterations: int = 60, tol: float = 1e-3):
+        """Gauss-Newton on the linearisation point, the group noise std and ``T`` re-set between passes.
+
+        Each pass holds the group std and the geometry of the station-term columns ``T`` (and of
+        ``dt_launch``) at the pass's starting point, so that it minimises one function of D,
+        ``F(D) = min_theta |W (z - h(D) - T theta)|^2``, whose Jacobian ``A = dh/dD`` is exact:
+        the Gauss-Newton step of the joint problem is then a descent direction and is halved
+        until F does not grow (a backtracking line search), so F falls monotonically and the pass
+        converges also where h is far from linear (a flight through a station's zenith, where the
+        azimuth's position sensitivity is ``range cos E``). A pass ends when the full step is
+        below `tol` std; the next re-estimates the std and (in the first :data:`T_PASSES` passes)
+        ``T`` there; the fit is settled when a
+        pass's first full step is already below :data:`PASS_TOL` (0.05 std: re-setting the std and
+        the station columns' geometry moves D by a negligible part of its std; this outer
+        fixed-point iteration converges only linearly near the zenith).
 
         Parameters
         ----------
@@ -252,14 +372,12 @@ class RadarRegression:
             ``{(station, type): std}`` SI, known std (also read from the station files); the
             others are estimated (:func:`estimate_group_sigmas`).
         iterations : int
-            At most this many relinearisations (each a Gauss-Newton step halved until the weighted
-            residual sum does not grow). Not converged: a :class:`RadarConvergenceWarning`, and
-            the returned ``converged`` false with the numbers in ``convergence_message``.
+            At most this many Gauss-Newton steps over all passes. Not converged: a
+            :class:`RadarConvergenceWarning`, and the returned ``converged`` false with the
+            numbers in ``convergence_message``.
         tol : float
-            Stop when the change of D is below `tol` times its least-squares std. Gauss-Newton
-            converges quadratically here (steps of 2.8, 0.76, 2.4e-4, 1.4e-7 std on the test
-            flight), and the estimator's solve is one more step, so the default 1e-3 leaves an
-            error far below 1e-6 std.
+            Stop when the change of D is below `tol` times its least-squares std (Gauss-Newton
+            converges quadratically away from the zenith: 2.8, 0.76, 2.4e-4 std on the test flight).
 
         Returns
         -------
@@ -280,57 +398,76 @@ class RadarRegression:
         rows = self.group_rows()
         floor = np.array([_SIGMA_FLOOR[g[1]] for g in self.groups])
         D0 = np.zeros(self.nD)
-        S, y, t = self.assemble(D0)
         history: list[float] = []
-        step, settled, why = math.inf, False, ""
-        for _ in range(iterations):
-            sig, x, std = estimate_group_sigmas(S, y, rows, sig, fixed, floor=floor)
-            dD = x[:self.nD] - D0
-            with np.errstate(invalid="ignore", divide="ignore"):
-                step = float(np.nanmax(np.where(std[:self.nD] > 0, np.abs(dD) / std[:self.nD], 0.0)))
-            if step < tol:  # the full Gauss-Newton step is below tol std: a stationary point
-                history.append(step)
-                D0 = x[:self.nD]
+        settled, why, step = False, "", math.inf
+        T_at, passes = D0, 0
+        while len(history) < iterations and not why:
+            T_at = D0 if passes < T_PASSES else T_at  # then held: F is one function of D from there on
+            passes += 1
+            S, y, _ = self.assemble(D0, tracking_at=T_at)
+            sig = estimate_group_sigmas(S, y, rows, sig, fixed, floor=floor)[0]
+            D0, steps, why = self._gauss_newton_pass(D0, T_at, sig, tol, iterations - len(history))
+            history += steps
+            step = steps[-1] if steps else step
+            if len(steps) == 1 and steps[0] < PASS_TOL:  # re-setting the std and T here moves D by < 0.05 std
                 settled = True
                 break
-            # damped step: halve it until the weighted nonlinear residual sum F(D) (theta profiled out)
-            # does not grow; near a station's zenith the azimuth is far from linear in the position
-            w = np.empty(y.size)
-            for g, r in enumerate(rows):
-                w[r] = 1.0 / sig[g]
-            f0 = self._profile_cost(S, y, D0, w)
-            alpha = 1.0
-            while True:
-                Dt = D0 + alpha * dD
-                St, yt, t = self.assemble(Dt, tracking_at=D0)
-                ft = self._profile_cost(St, yt, Dt, w)
-                if ft <= f0 * (1.0 + 1e-12):
-                    break
-                alpha *= 0.5
-                if alpha < 2.0**-30:
-                    break
-            if alpha < 2.0**-30:
-                why = f"no step along the Gauss-Newton direction lowers the weighted residual sum ({f0:.6g})"
-                history.append(step)
-                break
-            history.append(alpha * step)
-            D0 = Dt
-            S, y, t = self.assemble(D0)
+        msg = ""
         if not settled:
             why = why or f"not settled in {iterations} Gauss-Newton steps"
-            msg = (f"radar separation: the linearisation did not converge: {why} (last full step {step:.3g} std, "
+            msg = (f"radar separation: the linearisation did not converge: {why} (last step {step:.3g} std, "
                    f"steps taken {', '.join(f'{h:.3g}' for h in history)}): the telemetered trajectory is far from "
                    "the measured one, or a station, the launch site or the launch time is wrong; the estimate is "
                    "that of the last linearisation and is not to be used")
             warnings.warn(msg, RadarConvergenceWarning, stacklevel=2)
-        else:
-            msg = ""
-        S, y, t = self.assemble(D0)
+        S, y, t = self.assemble(D0, tracking_at=T_at)
         if np.all(sig <= floor * 1.0001) and not fixed.all():
             warnings.warn("radar residuals at the rounding level: the noise std are floored at the rounding of the "
                           "measurements (a noise-free simulation?); give the noise in the station files",
                           NoiseFreeWarning, stacklevel=2)
         return LinearisedRadar(self, S, y, t, sig, fixed, D0, history, group_reductions(S, y, rows), settled, msg)
+
+    def _gauss_newton_pass(self, D0: np.ndarray, T_at: np.ndarray, sig: np.ndarray, tol: float,
+                           budget: int) -> tuple[np.ndarray, list[float], str]:
+        """Damped Gauss-Newton steps on ``F(D)`` with the std `sig` and ``T`` held at `T_at`: ``(D, steps, why)``.
+
+        ``steps`` are the steps taken in std of D (the last one below `tol` when the pass ended
+        there); ``why`` says why a pass stopped without converging (no step lowers F), else "".
+        """
+        rows = self.group_rows()
+        w = np.ones(self.group_rows(all_rows=True)[-1][-1] + 1)  # the keyhole's zero rows keep 1
+        for g, r in enumerate(rows):
+            w[r] = 1.0 / sig[g]
+        steps: list[float] = []
+        S, y, _ = self.assemble(D0, tracking_at=T_at)
+        for _ in range(budget):
+            _, x, std = estimate_group_sigmas(S, y, rows, sig, np.ones(len(rows), dtype=bool), floor=sig)
+            dD = x[:self.nD] - D0
+            with np.errstate(invalid="ignore", divide="ignore"):
+                step = float(np.nanmax(np.where(std[:self.nD] > 0, np.abs(dD) / std[:self.nD], 0.0)))
+            if step < tol:  # the full step is below tol std: a stationary point of this pass's F
+                steps.append(step)
+                return x[:self.nD], steps, ""
+            f0, alpha = self._profile_cost(S, y, D0, w), 1.0
+            # backtracking: halve until F does not grow. A full step below SMALL_STEP std changes F by about its
+            # square (<= 0.01 chi-square, far inside F's own spread), where F's rounding can defeat the comparison:
+            # it is taken as it is (Gauss-Newton's last, quadratically converging steps)
+            while step >= SMALL_STEP and alpha >= 2.0**-30:
+                Dt = D0 + alpha * dD
+                St, yt, _ = self.assemble(Dt, tracking_at=T_at)
+                if self._profile_cost(St, yt, Dt, w) <= f0 * (1.0 + 1e-12):
+                    break
+                alpha *= 0.5
+            if step < SMALL_STEP:
+                Dt = D0 + dD
+                St, yt, _ = self.assemble(Dt, tracking_at=T_at)
+            elif alpha < 2.0**-30:
+                steps.append(step)
+                return D0, steps, ("no step along the Gauss-Newton direction lowers the weighted residual sum "
+                                   f"({f0:.6g})")
+            steps.append(alpha * step)
+            D0, S, y = Dt, St, yt
+        return D0, steps, ""
 
     def _profile_cost(self, S: np.ndarray, y: np.ndarray, D: np.ndarray, w: np.ndarray) -> float:
         """Weighted residual sum at D with the station terms profiled out (``S, y = assemble(D)``).
@@ -338,6 +475,5 @@ class RadarRegression:
         ``F(D) = min_theta |W (z - h(D) - T theta)|^2`` and ``z - h(D) = y - A D`` (:meth:`assemble`).
         """
         r = (y - S[:, :self.nD] @ D) * w
-        T = S[:, self.nD:] * w[:, None]
-        theta = np.linalg.lstsq(T, r, rcond=None)[0]
-        return float(np.sum((r - T @ theta) ** 2))
+        Q, _ = np.linalg.qr(S[:, self.nD:] * w[:, None])  # the projection on T's columns, none truncated
+        return float(np.sum((r - Q @ (Q.T @ r)) ** 2))

@@ -76,10 +76,13 @@ def read_telemetry(path: str | os.PathLike, site: LaunchSite | None = None) -> T
             pad = np.cross(site.earth_rate, -site.earth_centre)  # inertial velocity of the launch point
             off = float(np.linalg.norm(v[0] - pad))
             if off > PAD_SPEED:
+                ratio = float(np.linalg.norm(pad)) / max(float(np.linalg.norm(v[0])), 1e-300)
+                unit = (f" Or v_tel in km/s: the pad's inertial speed {np.linalg.norm(pad):.4g} m/s is {ratio:.4g} "
+                        f"times the first |v_tel| {np.linalg.norm(v[0]):.4g}" if 300 < ratio < 3000 else "")
                 raise tab.error(f"no r_tel_x/y/z columns, and the first v_tel is {off:.4g} m/s from the pad's "
                                 "velocity: the telemetry starts in flight, so its position cannot be integrated from "
-                                "the launch point. Give r_tel_x, r_tel_y, r_tel_z (m, launch-inertial)", "r_tel_x",
-                                "header")
+                                "the launch point. Give r_tel_x, r_tel_y, r_tel_z (m, launch-inertial)." + unit,
+                                "v_tel_x" if unit else "r_tel_x", "header")
         r, how = integrate_position(t, v), "v_tel integrated from the launch point"
     sig = {k: val for k, val in tab.signals().items() if k not in rcols}
     return Telemetry(t, f, v, r, how, sig, tab.src)
