@@ -214,8 +214,8 @@ def _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
     # innovation of each sample from the previous one: nu_k = (e_k - a_k e_{k-1}) / (scale sqrt(1 - a_k^2)),
     # a_k = exp(-dt_k / tau); e_k / scale on a white axis and for the first sample
     nu = e / scale
-    x = np.diff(t)[:, None] * inv_tau
-    corr = (e[1:] - np.exp(-x) * e[:-1]) / (scale * np.sqrt(-np.expm1(-2.0 * x)))
+    a, b = ar1_terms(np.diff(t)[:, None] * inv_tau, 1.0)  # a_k, 1 - a_k^2 of dt_k / tau
+    corr = (e[1:] - a * e[:-1]) / (scale * np.sqrt(b))
     nu[1:] = np.where(inv_tau == 0.0, nu[1:], corr)
     near = np.abs(nu).max(axis=1) > thr * (1.0 - 1e-9)  # decided exactly below
     near |= ~np.isfinite(nu).all(axis=1)
@@ -244,9 +244,8 @@ def _big(e, t, inv_tau, scale, thr, k: int, last: int) -> bool:
         if inv_tau[j] == 0.0 or last < 0:
             nu = e[k, j] / scale[j]
         else:
-            x = (t[k] - t[last]) * inv_tau[j]
-            a = math.exp(-x)  # a_k = exp(-dt / tau)
-            nu = (e[k, j] - a * e[last, j]) / (scale[j] * math.sqrt(-math.expm1(-2.0 * x)))
+            a, b = ar1_terms((t[k] - t[last]) * inv_tau[j], 1.0)  # a_k, 1 - a_k^2
+            nu = (e[k, j] - float(a) * e[last, j]) / (scale[j] * math.sqrt(float(b)))
         if abs(nu) > thr:
             return True
     return False

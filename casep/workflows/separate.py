@@ -131,14 +131,15 @@ def separate(
         Flag rows by their studentized residual on the whitened rows
         (:func:`casep.analysis.outliers.flag_outliers`) with this chance of any false flag in a
         clean flight (e.g. 0.01); the flags go to ``diagnostics["outliers_studentized"]``.
-    noise : {"auto", "gm", "white"}, optional
+    noise : {"auto", "gm", "gmw", "white"}, optional
         The noise model of the rows (:mod:`casep.analysis.noise`), for every method: ``auto``
-        (default) chooses white or Gauss-Markov per axis by a likelihood-ratio test and says so in
-        ``diagnostics["noise"]``; ``gm`` Gauss-Markov on every axis (correlation time `tau`, or
-        REML); ``white`` one std, no correlation (a whiteness test warns when the residuals
-        contradict it, with the factor by which the std are too small).
+        (default) chooses white, Gauss-Markov or Gauss-Markov plus white per axis by likelihood-ratio
+        tests and says so in ``diagnostics["noise"]``; ``gm`` Gauss-Markov on every axis (correlation
+        time `tau`, or REML); ``gmw`` Gauss-Markov plus white on every axis (REML); ``white`` one
+        std, no correlation. Whatever the kind, a whiteness test of the whitened residuals warns
+        when they are still correlated.
     tau : float, three floats or "auto", optional
-        Gauss-Markov correlation time(s), s; a number implies ``noise="gm"``.
+        Gauss-Markov correlation time(s), s; a number implies ``noise="gm"`` (unless ``"gmw"``).
     robust : {"auto", "huber", "bisquare", "none"}, optional
         Robust fit for any method: glitches removed by a robust filter on the innovations, the
         rest weighted (:mod:`casep.analysis.rows`). ``auto`` (default): Huber when the filter
@@ -214,7 +215,7 @@ def separate(
         if tau_given is not None:
             if noise == "white":
                 raise ValueError("`tau` given with noise 'white': a correlation time means noise 'gm'")
-            noise = "gm"
+            noise = noise if noise == "gmw" else "gm"
     given = {k: v for k, v in kw.items() if v is not None and not _is_default(k, v)}
     check_method_options(method, given)  # once, here: the method takes them as checked
     # A bounds or prior table may be given as its JSON file (as on the command line).
@@ -266,7 +267,8 @@ def separate(
         raise ValueError(f"`max_condition_index` is not taken by method `{method}`; it is a keyword of "
                          f"{', '.join(takers)}. Use: method={takers[0]!r}, or leave it out")
     if den is not None:
-        if noise == "gm" or robust not in (None, "auto", "none") or exclude_outliers is not None or std != "model":
+        if noise in ("gm", "gmw") or robust not in (None, "auto", "none") or exclude_outliers is not None \
+                or std != "model":
             raise ValueError("`denoise='wavelet'` removes the noise a noise model, a robust fit or HAC std describe: "
                              "use them without de-noising")
         noise, robust = "white", None  # the de-noised residuals are no noise sample to fit a model on

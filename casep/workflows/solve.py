@@ -145,10 +145,14 @@ def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResul
         for g, loc in zip(gaps, _places(problem, [g["row"] - 1 for g in gaps])):
             g.update(loc)  # the first sample after the gap
         diag["gaps"] = gaps
-    if nm.is_white and noise == "white" and check_white and problem.t is not None and raw.ndim == 2:
-        wt = whiteness_test(raw[keep], problem.t[keep])
+    if check_white and problem.t is not None and raw.ndim == 2 and rows.solved.has_rows:
+        # the residuals whitened by the noise model (raw ones for white noise): still correlated?
+        white = nm.is_white and rows.weights is None
+        e = raw[keep] if white else rows.solved.residuals(x).reshape(-1, 3)
+        kind = "white" if nm.is_white else ("gm" if "gmw" not in nm.axis_kinds() else "gmw")
+        wt = dataclasses.replace(whiteness_test(e, problem.t[keep]), kind=kind)
         if wt.rejected:
-            factor = _gm_factor(res, rows.solved)
+            factor = _gm_factor(res, rows) if kind != "gmw" else (None, None)
             wt = dataclasses.replace(wt, std_factor=factor[0], std_factor_max=factor[1])
             warnings.warn(f"{res.method}: {wt.message()}", NoiseNotWhiteWarning, stacklevel=3)
         diag["whiteness"] = wt.to_dict()
@@ -200,21 +204,22 @@ def _with_hac(res: EstimateResult, solved: Problem) -> EstimateResult:
     return dataclasses.replace(res, covariance=cov, std=std, settings={**res.settings, "std": "hac"})
 
 
-def _gm_factor(res: EstimateResult, solved: Problem) -> tuple[float | None, float | None]:
-    """Median and largest ratio of the Gauss-Markov (REML) least-squares std to the reported white std.
+def _gm_factor(res: EstimateResult, rows: Rows) -> tuple[float | None, float | None]:
+    """Median and largest ratio of the Gauss-Markov plus white (REML) least-squares std to the reported std.
 
-    How far too small the reported std are, measured from the fit: the same data under the
-    noise model the residuals point to.
+    How far too small the reported std are, measured from the fit: the same data (the samples
+    kept) under the richest noise model, which nests the one fitted.
     """
     from casep.estimators.ols import solve_ols
 
-    if res.std is None or solved.noise is not None or not solved.has_rows:
+    raw = rows.problem if rows.keep.all() else rows.problem.subset(rows.keep)
+    if res.std is None or raw.noise is not None or not raw.has_rows:
         return None, None
     try:
-        rows = prepare_rows(solved, "gm", robust="huber")  # robust: glitches would collapse tau
+        rich = prepare_rows(raw, "gmw", robust="huber")  # robust: glitches would collapse tau
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # conditioning: said by the result
-            gm = solve_ols(rows.solved)
+            gm = solve_ols(rich.solved)
     except (ValueError, np.linalg.LinAlgError):
         return None, None
     if gm.std is None:
