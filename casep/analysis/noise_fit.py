@@ -313,13 +313,14 @@ def _auto(reml: Reml, gm: _Fit, lo: float, hi: float, xatol: float) -> NoiseMode
         _Fit(*_value_scales(reml, taus0, gm.scales))
     # Gauss-Markov plus white against Gauss-Markov on the Gauss-Markov axes
     lr_white: list[float | None] = [None, None, None]
-    if any(corr):
-        mix = search.run(corr, cur.taus, corr, scales=cur.scales)
+    tried = [corr[j] and _whitened_p(reml, cur, j) < SCREEN_P for j in range(3)]
+    if any(tried):
+        mix = search.run(corr, cur.taus, tried, scales=cur.scales, polish_only=True)
         keep_w = [False] * 3
         for j in range(3):
-            if not corr[j]:
+            if not tried[j]:
                 continue
-            null = search.run(corr, mix.taus, [c and k != j for k, c in enumerate(corr)],
+            null = search.run(corr, mix.taus, [c and k != j for k, c in enumerate(tried)],
                               shares=[0.0 if k == j else w for k, w in enumerate(mix.shares)],
                               scales=mix.scales, polish_only=True, only=j)
             lr_white[j] = max(null.value - mix.value, 0.0) if np.isfinite(null.value) else float("inf")
@@ -334,6 +335,26 @@ def _auto(reml: Reml, gm: _Fit, lo: float, hi: float, xatol: float) -> NoiseMode
     chosen = cur if lr_scale > AUTO_LR_SCALE else one
     return _model("auto", chosen, reml, lr=tuple(float(v) for v in lr), lr_scale=float(lr_scale),
                   lr_white=tuple(lr_white))
+
+
+#: ``auto``: the white part is tried on a Gauss-Markov axis when the residuals whitened by the
+#: Gauss-Markov fit fail a Ljung-Box test at this level (a white part makes them correlated: lag-1
+#: covariance ``-a_k w``); it is then kept only by the likelihood-ratio test at 1 %, so the
+#: screen costs no size and little power, and spares the filter passes on plain Gauss-Markov data.
+SCREEN_P = 0.2
+
+
+def _whitened_p(reml: Reml, fit: _Fit, j: int) -> float:
+    """Ljung-Box p-value of axis j's residuals whitened by `fit` (Gauss-Markov on that axis)."""
+    from casep.analysis.whiteness import default_lags, ljung_box
+
+    _, T = reml.evaluate(fit.taus, fit.scales, fit.shares)
+    if T is None:
+        return 1.0
+    p = reml.p
+    v = np.concatenate([np.linalg.solve(T[:p, :p], T[:p, p]), [-1.0]])  # (beta, -1) in the basis Z
+    u = whiten_series((reml.Z[j] @ v)[:, None], reml.t, fit.taus[j], fit.shares[j])[0][:, 0]
+    return ljung_box(u, default_lags(u.size))[1]
 
 
 def _value_scales(reml: Reml, taus, scales) -> tuple[float, list, list, tuple]:
@@ -351,7 +372,9 @@ class _Search:
 
     Without a start, one common tau is found first over the whole interval; then each axis' tau is
     searched in turn within a factor 4 of its current value (widened when the minimum lands on an
-    edge), then its white share's logit within +-4, and once more within 25 % and +-1.
+    edge), and once more within 25 %; on an axis with a white part tau and the share's logit
+    together (Nelder-Mead: they trade along a ridge). The axis scales are at their fixed point at
+    every trial.
     """
 
     def __init__(self, reml: Reml, lo: float, hi: float, xatol: float, *, free: bool, fixed_tau: bool = False):
@@ -359,11 +382,17 @@ class _Search:
         self.scales: tuple | None = None
 
     def value(self, taus, shares) -> float:
+        """-2 l_R with the axis scales at their fixed point (started from the last one)."""
         v, sc = self.reml.fit_scales(taus, self.scales, free=self.free, shares=shares)
         if np.isfinite(v):
             self.scales = sc
-            return v
-        return _NO_LIKELIHOOD  # the search needs finite values
+        return v if np.isfinite(v) else _NO_LIKELIHOOD  # the search needs finite values
+
+    def rescale(self, taus, shares) -> None:
+        """The axis scales at their fixed point for the current taus and shares."""
+        v, sc = self.reml.fit_scales(taus, self.scales, free=self.free, shares=shares)
+        if np.isfinite(v):
+            self.scales = sc
 
     def run(self, corr: Sequence[bool], start: Sequence[float | None] | None = None,
             mixed: Sequence[bool] = (False, False, False), *, shares: Sequence[float] | None = None,
@@ -394,11 +423,12 @@ class _Search:
             for j in axes:
                 if mixed[j] and not self.fixed_tau:  # tau and the white share trade along a ridge: jointly
                     taus[j], ww[j] = self._both(j, taus, ww, w)
-                    continue
-                if not self.fixed_tau:
-                    taus[j] = self._tau(j, taus, ww, w)
-                if mixed[j]:
-                    ww[j] = self._share(j, taus, ww, wv)
+                else:
+                    if not self.fixed_tau:
+                        taus[j] = self._tau(j, taus, ww, w)
+                    if mixed[j]:
+                        ww[j] = self._share(j, taus, ww, wv)
+                self.rescale(taus, ww)
         v, sc = self.reml.fit_scales(taus, self.scales, free=self.free, shares=ww)
         return _Fit(v if v < _NO_LIKELIHOOD else np.inf, taus, ww, sc)
 
@@ -432,7 +462,8 @@ class _Search:
             tt[j], w2[j] = float(np.exp(z[0])), 1.0 / (1.0 + math.exp(-z[1]))
             return self.value(tt, w2)
         z0 = np.array([math.log(taus[j]), math.log(ww[j] / (1.0 - ww[j]))])
-        z = np.clip(nelder_mead(f, z0, np.array([w, 2.0 * w]), self.xatol), box[:, 0], box[:, 1])
+        z = np.clip(nelder_mead(f, z0, np.array([max(w, 0.5), 2.0]), 2.0 * self.xatol, maxfun=150),
+                    box[:, 0], box[:, 1])
         return float(np.exp(z[0])), 1.0 / (1.0 + math.exp(-z[1]))
 
     def _share(self, j: int, taus: list, ww: list, wv: float) -> float:
