@@ -115,7 +115,8 @@ class NoiseModel:
         Gauss-Markov std is ``sigma_a sqrt(1 - w_a)``, the white std ``sigma_a sqrt(w_a)``.
     lr_white : tuple of 3 (float or None), optional
         ``auto``: -2 ln Lambda of Gauss-Markov plus white against Gauss-Markov per axis (None where
-        not tested: a white axis).
+        not tried: a white axis, or a Gauss-Markov one whose whitened residuals pass the screen of
+        :data:`casep.analysis.noise_fit.SCREEN_P`).
     """
 
     kind: str = "white"

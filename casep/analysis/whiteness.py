@@ -53,7 +53,7 @@ class WhitenessTest:
     alpha: float
     std_factor: float | None = None  # median richer-model / reported std over the estimable coefficients
     std_factor_max: float | None = None
-    kind: str = "white"  # the noise kind of the fit tested (whitened residuals unless white)
+    kind: str = "white"  # the noise kind asked of the fit tested (its whitened residuals unless white)
 
     @property
     def rejected(self) -> tuple[str, ...]:
@@ -75,7 +75,7 @@ class WhitenessTest:
         parts = ", ".join(f"{a} Q {self.q[j]:.3g} (p {self.p[j]:.2g})"
                           for j, a in enumerate(AXES) if a in self.rejected)
         what = "residuals are not white" if self.kind == "white" else \
-            f"residuals whitened by the {self.kind} noise model are still correlated"
+            f"residuals whitened by the noise model ({self.kind}) are still correlated"
         factor = ""
         if self.std_factor is not None and self.std_factor >= 1.0:
             factor = (f"; the reported std are about {self.std_factor:.2g}x too small (median over the coefficients "
@@ -86,8 +86,9 @@ class WhitenessTest:
                       f"reported ones (median over the coefficients; up to {self.std_factor_max:.2g}x): the std "
                       "are not the right ones, some too large here")
         advice = {"white": "Use --noise auto (or gmw)", "gm": "Use --noise auto (or gmw)"}.get(
-            self.kind, "The noise is not of the modelled family, or the residuals hold a model error (frames, "
-                       "time tags, a missing term) that no noise model makes right: the std may be too small")
+            self.kind, "The noise is not of the modelled family (--noise gmw fits a white part on every axis), or "
+                       "the residuals hold a model error (frames, time tags, a missing term) that no noise model "
+                       "makes right: the std may be too small")
         return f"{what} ({parts}, Ljung-Box on {self.lags} lags){factor}. {advice}"
 
 

@@ -145,14 +145,13 @@ def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResul
         for g, loc in zip(gaps, _places(problem, [g["row"] - 1 for g in gaps])):
             g.update(loc)  # the first sample after the gap
         diag["gaps"] = gaps
-    if check_white and problem.t is not None and raw.ndim == 2 and rows.solved.has_rows:
+    if check_white and problem.t is not None and raw.ndim == 2 and rows.solved.has_rows \
+            and not nm.rule.startswith("noise-free"):
         # the residuals whitened by the noise model (raw ones for white noise): still correlated?
-        white = nm.is_white and rows.weights is None
-        e = raw[keep] if white else rows.solved.residuals(x).reshape(-1, 3)
-        kind = "white" if nm.is_white else ("gm" if "gmw" not in nm.axis_kinds() else "gmw")
-        wt = dataclasses.replace(whiteness_test(e, problem.t[keep]), kind=kind)
+        e = raw[keep] if nm.is_white and rows.weights is None else rows.solved.residuals(x).reshape(-1, 3)
+        wt = dataclasses.replace(whiteness_test(e, problem.t[keep]), kind=noise)
         if wt.rejected:
-            factor = _gm_factor(res, rows) if kind != "gmw" else (None, None)
+            factor = _gm_factor(res, rows) if noise in ("white", "gm") else (None, None)
             wt = dataclasses.replace(wt, std_factor=factor[0], std_factor_max=factor[1])
             warnings.warn(f"{res.method}: {wt.message()}", NoiseNotWhiteWarning, stacklevel=3)
         diag["whiteness"] = wt.to_dict()

@@ -116,4 +116,5 @@ def test_white_and_gm_on_the_mixture_warn_with_the_factor(rows90, noise):
         warnings.simplefilter("error", NoiseNotWhiteWarning)  # auto: the mixture, whitened residuals white
         warnings.simplefilter("ignore", IllConditionedWarning)
         res = solve_problem(pb, "ols", noise="auto", robust="none").result
-    assert res.diagnostics["whiteness"]["noise"] == "gmw" and not res.diagnostics["whiteness"]["rejected"]
+    assert res.diagnostics["whiteness"]["noise"] == "auto" and not res.diagnostics["whiteness"]["rejected"]
+    assert "gauss-markov+white" in {a["model"] for a in res.diagnostics["noise"]["axes"].values()}
