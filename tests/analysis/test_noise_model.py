@@ -65,7 +65,8 @@ def test_whitening_on_non_uniform_spacing_and_across_a_gap_equals_dense_gls(rng)
 
 
 def test_whitening_block_by_block_equals_whole(platform36, flight_tf):
-    """A regenerated problem (S_V never whole) whitens with the last row carried across blocks."""
+    """A regenerated problem (S_V never whole) whitens with the filter state carried across blocks
+    (Gauss-Markov, Gauss-Markov plus white and white axes)."""
     t, f = flight_tf
     rng = np.random.default_rng(5)
     S = casep.build_sv(platform36, t, f)
@@ -73,7 +74,7 @@ def test_whitening_block_by_block_equals_whole(platform36, flight_tf):
     fl = casep.FlightData(t=t, f=f, dv=y)
     whole = Problem.from_flight(fl, platform36, keep_sv=True, checks=False)
     blocks = Problem.from_flight(fl, platform36, keep_sv=False, block_rows=257, checks=False)
-    nm = NoiseModel(kind="gm", tau=(1.0, 0.7, None), scale=(1.0, 1.3, 0.8))
+    nm = NoiseModel(kind="gmw", tau=(1.0, 0.7, None), scale=(1.0, 1.3, 0.8), share=(0.0, 0.3, 0.0))
     a, b = whole.whitened(nm), blocks.whitened(nm)
     np.testing.assert_allclose(np.abs(a.red.R), np.abs(b.red.R), rtol=1e-9, atol=1e-9 * np.abs(a.red.R).max())
     np.testing.assert_allclose(a.y, b.y, rtol=1e-12, atol=1e-15)
