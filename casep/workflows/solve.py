@@ -259,6 +259,14 @@ def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], noise: s
     if rows is not None and rows.excluded is not None:
         diag["excluded"] = rows.excluded
     raw = problem.residuals(_x(res))
+    if sub.t is not None and sub.has_rows:  # its whitened residuals still correlated? (as _finish)
+        from casep.analysis.noise import whiten
+
+        e = whiten(np.zeros(sub.y.shape + (0,)), sub.residuals(_x(res)).reshape(-1, 3), sub.t, nm)[1]
+        wt = dataclasses.replace(whiteness_test(e, sub.t), kind=meth.name)
+        if wt.rejected:
+            warnings.warn(f"{meth.name}: {wt.message()}", NoiseNotWhiteWarning, stacklevel=3)
+        diag["whiteness"] = wt.to_dict()
     res = dataclasses.replace(res, diagnostics=diag, settings={**res.settings, "noise": "gm"}, residuals=raw,
                               n_samples=problem.n_samples)
     return Solved(res, sub, nm, np.zeros(0, dtype=int) if rows is None else np.flatnonzero(~rows.keep))
