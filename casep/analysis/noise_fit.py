@@ -69,7 +69,7 @@ SHARE_LOGIT = (-12.0, 12.0)
 class _LagProducts:
     """Lag products of one axis' ``[Z dv]`` grouped by the distinct spacings (module notes)."""
 
-    def __init__(self, X: np.ndarray, dt: np.ndarray, uniq: np.ndarray, inv: np.ndarray) -> None:
+    def __init__(self, X: np.ndarray, uniq: np.ndarray, inv: np.ndarray) -> None:
         D = X[1:] - X[:-1]  # D_k = z_k - z_(k-1)
         Xp = X[:-1]
         k = X.shape[1]
@@ -117,11 +117,10 @@ class Reml:
         self.N = problem.n_samples
         self._cache: dict[tuple, tuple[np.ndarray, float]] = {}
         self.Z = self._project(problem)
-        dt = np.diff(self.t)
-        uniq, inv = np.unique(dt, return_inverse=True)
+        uniq, inv = np.unique(np.diff(self.t), return_inverse=True)  # the distinct spacings d
         self._lags: list[_LagProducts | None] = [None, None, None]
         if uniq.size <= self.LAG_GROUPS * self.N:
-            self._lags = [_LagProducts(Z, dt, uniq, inv) for Z in self.Z]
+            self._lags = [_LagProducts(Z, uniq, inv) for Z in self.Z]
 
     def _project(self, problem) -> list[np.ndarray]:
         """``[S_a B  dv_a]`` per axis (N, p + 1): one pass over S_V."""
