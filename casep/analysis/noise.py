@@ -179,8 +179,8 @@ class NoiseModel:
 
     def _axis_text(self, j: int) -> str:
         kind = self.axis_kinds()[j]
-        p = f"{AXES[j]} " + {"white": "white", "gm": f"GM tau {self.tau[j]:.3g} s",
-                             "gmw": f"GM tau {self.tau[j]:.3g} s + white"}[kind]
+        p = f"{AXES[j]} " + ("white" if kind == "white" else
+                             f"GM tau {self.tau[j]:.3g} s" + (" + white" if kind == "gmw" else ""))
         if self.sigma is not None:
             sd = self.sigma * self.scale[j]
             p += (f" std {sd:.3g} m/s" if kind != "gmw" else

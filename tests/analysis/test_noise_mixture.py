@@ -198,3 +198,18 @@ def test_noise_kinds_declared_once():
     sub = next(a for a in parser._subparsers._group_actions[0].choices["separate"]._actions
                if "--noise" in a.option_strings)
     assert tuple(sub.choices) == NOISE_KINDS and "gmw" in NOISE_KINDS
+
+
+def test_noise_line_of_every_kind_reads_back():
+    """The console line of a model with white, Gauss-Markov and Gauss-Markov plus white axes, from
+    the model and from its JSON (a result file), and of a result written before the white share."""
+    from casep.reporting.noise_text import noise_line
+
+    nm = NoiseModel(kind="auto", tau=(None, 1.2, 0.8), scale=(1.0, 1.1, 0.9), rule="reml", lr=(1.0, 50.0, 80.0),
+                    sigma=0.1, share=(0.0, 0.0, 0.25), lr_white=(None, 2.0, 30.0))
+    line = nm.line()
+    assert "x white" in line and "y GM tau 1.2 s std 0.11 m/s" in line and "z GM tau 0.8 s + white" in line
+    assert noise_line(nm.to_dict()) == line
+    old = {"kind": "gm", "rule": "reml", "axes": {a: {"model": "gauss-markov", "tau_s": 1.0, "scale": 1.0}
+                                                  for a in "xyz"}}
+    assert NoiseModel.from_dict(old).share == (0.0, 0.0, 0.0)
