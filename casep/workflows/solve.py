@@ -23,7 +23,7 @@ import numpy as np
 from casep.analysis.noise import NoiseModel, check_noise_kind
 from casep.analysis.problem import Problem
 from casep.analysis.rows import Rows, prepare_rows
-from casep.analysis.whiteness import default_lags, find_gaps, whiteness_test
+from casep.analysis.whiteness import ALPHA_FITTED, default_lags, find_gaps, whiteness_test
 from casep.estimators.registry import METHODS, check_method_options
 from casep.estimators.result import EstimateResult
 from casep.exceptions import NoiseNotWhiteWarning
@@ -149,7 +149,8 @@ def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResul
             and not nm.rule.startswith("noise-free"):
         # the residuals whitened by the noise model (raw ones for white noise): still correlated?
         e = raw[keep] if nm.is_white and rows.weights is None else rows.solved.residuals(x).reshape(-1, 3)
-        wt = dataclasses.replace(whiteness_test(e, problem.t[keep]), kind=noise)
+        alpha = 0.01 if noise == "white" else ALPHA_FITTED  # raw residuals at 1 %, whitened ones at 0.1 %
+        wt = dataclasses.replace(whiteness_test(e, problem.t[keep], alpha=alpha), kind=noise)
         if wt.rejected:
             factor = _gm_factor(res, rows) if noise in ("white", "gm") else (None, None)
             wt = dataclasses.replace(wt, std_factor=factor[0], std_factor_max=factor[1])
@@ -263,7 +264,7 @@ def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], noise: s
         from casep.analysis.noise import whiten
 
         e = whiten(np.zeros(sub.y.shape + (0,)), sub.residuals(_x(res)).reshape(-1, 3), sub.t, nm)[1]
-        wt = dataclasses.replace(whiteness_test(e, sub.t), kind=meth.name)
+        wt = dataclasses.replace(whiteness_test(e, sub.t, alpha=ALPHA_FITTED), kind=meth.name)
         if wt.rejected:
             warnings.warn(f"{meth.name}: {wt.message()}", NoiseNotWhiteWarning, stacklevel=3)
         diag["whiteness"] = wt.to_dict()
