@@ -260,7 +260,9 @@ def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], noise: s
     if rows is not None and rows.excluded is not None:
         diag["excluded"] = rows.excluded
     raw = problem.residuals(_x(res))
-    if sub.t is not None and sub.has_rows:  # its whitened residuals still correlated? (as _finish)
+    from casep.workflows.separate import _noise_free  # the workflow's noise-free rule (module imports this one)
+
+    if sub.t is not None and sub.has_rows and not _noise_free(sub):  # whitened residuals still correlated?
         from casep.analysis.noise import whiten
 
         e = whiten(np.zeros(sub.y.shape + (0,)), sub.residuals(_x(res)).reshape(-1, 3), sub.t, nm)[1]
