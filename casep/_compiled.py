@@ -10,7 +10,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["rels_ud", "sv_integrate_chunk", "all_pole_filter"]
+__all__ = ["rels_ud", "sv_integrate_chunk", "all_pole_filter", "gmw_filter"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -190,3 +190,30 @@ def all_pole_filter(a, x, y):  # pragma: no cover
                 Z[i] = Z[i + 1] + xn * 0.0 - yn * a[i + 1]  # z_i = z_(i+1) + b_(i+1) x - a_(i+1) y
             Z[K - 1] = xn * 0.0 - yn * a[K]
             y[k, j] = yn
+
+
+@numba.njit(cache=True, nogil=True)
+def gmw_filter(X, dt, tau, share, m, P, out):  # pragma: no cover
+    """Innovations whitening of Gauss-Markov plus white noise (:func:`casep._kernels.gmw_filter`: the
+    equations); returns ``sum ln F_k``. The same operations as :func:`casep._kernels.gmw_filter_numpy`."""
+    K, n = X.shape
+    q = 1.0 - share
+    logdet = 0.0
+    for k in range(K):
+        x = dt[k] / tau
+        a = np.exp(-x)  # a_k = exp(-dt_k / tau)
+        b = -np.expm1(-2.0 * x)  # 1 - a_k^2 without cancellation
+        Pm = a * a * P[0] + q * b  # P_k^- = a^2 P + q (1 - a^2)
+        F = Pm + share
+        s = 1.0 / np.sqrt(F)
+        gain = Pm / F
+        for j in range(n):
+            nu = X[k, j] - a * m[j]  # innovation x_k - a_k m_(k-1)
+            out[k, j] = nu * s
+            if share == 0.0:
+                m[j] = X[k, j]  # K = 1: the state is the sample
+            else:
+                m[j] = a * m[j] + gain * nu
+        P[0] = Pm * share / F
+        logdet += np.log(F)
+    return logdet

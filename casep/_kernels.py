@@ -10,7 +10,11 @@ longer than a short flight's whole computation. So:
 - :func:`robust_filter_keep`: vectorised while every sample is kept, the scalar recursion (``math``, as the
   compiled loop it replaced) near the threshold and after a rejection;
 - :func:`lfilter`: the all-pole filter of RELS, compiled (``scipy.signal`` would cost more to import);
-- :func:`rels_ud`: the Bierman U-D recursion, compiled.
+- :func:`rels_ud`: the Bierman U-D recursion, compiled;
+- :func:`ar1_terms`: the one place of the AR(1) step coefficients ``a = exp(-dt / tau)`` and
+  ``1 - a^2 = -expm1(-2 dt / tau)`` (no cancellation when ``dt << tau``); every whitening of casep calls it;
+- :func:`gmw_filter`: the innovations (Kalman-filter) whitening of Gauss-Markov plus white noise, compiled
+  (:func:`gmw_filter_numpy`: the same recursion as a plain loop, the reference of the tests).
 
 The callers (:mod:`casep.model.sv`, :mod:`casep.analysis.robust`, :mod:`casep.estimators.rls`) validate
 every argument. ``tests/test_kernels.py`` checks each against the compiled loop, a plain loop or scipy, bit for bit.
@@ -23,7 +27,8 @@ import sys
 
 import numpy as np
 
-__all__ = ["robust_filter_keep", "sv_integrate_chunk", "sv_integrate_chunk_numpy", "rels_ud", "lfilter",
+__all__ = ["ar1_terms", "gmw_filter", "gmw_filter_numpy",
+           "robust_filter_keep", "sv_integrate_chunk", "sv_integrate_chunk_numpy", "rels_ud", "lfilter",
            "NUMPY_SAMPLES"]
 
 
@@ -32,6 +37,61 @@ __all__ = ["robust_filter_keep", "sv_integrate_chunk", "sv_integrate_chunk_numpy
 #: 100 Hz, 400 s at 20 Hz) is integrated without numba, a longer one loses at most 0.05 s to numpy.
 NUMPY_SAMPLES = 1 << 13
 _numpy_samples = 0
+
+
+def ar1_terms(dt, tau) -> tuple[np.ndarray, np.ndarray]:
+    """``(a, 1 - a^2)`` of an AR(1) step of length `dt` (s) for correlation time `tau` (s), elementwise::
+
+        a = exp(-dt / tau),     1 - a^2 = -expm1(-2 dt / tau)
+
+    The second form keeps its digits when ``dt << tau`` (``1 - a**2`` loses ``log10(tau / dt)`` of
+    them). ``dt = inf`` (no previous sample) gives ``a = 0``, ``1 - a^2 = 1``.
+    """
+    x = np.asarray(dt, dtype=float) / tau
+    return np.exp(-x), -np.expm1(-2.0 * x)
+
+
+def gmw_filter(X: np.ndarray, dt: np.ndarray, tau: float, share: float, m: np.ndarray, P: np.ndarray,
+               out: np.ndarray) -> float:
+    """Whiten the columns of `X` (K, k) for unit-variance Gauss-Markov plus white noise; returns ``sum ln F_k``.
+
+    The noise is ``e_k = g_k + v_k`` with ``g`` AR(1) of correlation time `tau` and variance
+    ``q = 1 - share``, ``v`` white of variance `share`. The Kalman filter of ``g`` (gains from the
+    times and the parameters only, so one recursion whitens every column)::
+
+        P_k^- = a_k^2 P_(k-1) + q (1 - a_k^2),   F_k = P_k^- + share,   K_k = P_k^- / F_k
+        u_k = (x_k - a_k m_(k-1)) / sqrt(F_k),   m_k = a_k m_(k-1) + K_k (x_k - a_k m_(k-1)),
+        P_k = P_k^- share / F_k
+
+    ``dt`` (K,): time from the previous sample (``inf`` for the first of a series: ``P^- = q``);
+    ``m`` (k,) and ``P`` (1,): the filter state, carried in place from block to block; `out` (K, k)
+    the whitened rows. ``share = 0`` is AR(1) (``K = 1``, ``m_k = x_k`` exactly). Compiled
+    (:func:`casep._compiled.gmw_filter`); :func:`gmw_filter_numpy` is the same recursion in Python.
+    """
+    from casep._compiled import gmw_filter as kernel
+
+    return float(kernel(X, dt, float(tau), float(share), m, P, out))
+
+
+def gmw_filter_numpy(X: np.ndarray, dt: np.ndarray, tau: float, share: float, m: np.ndarray, P: np.ndarray,
+                     out: np.ndarray) -> float:
+    """:func:`gmw_filter` as a plain loop over the samples (the reference of the compiled kernel)."""
+    q = 1.0 - share
+    a_all, b_all = ar1_terms(dt, tau)
+    logdet = 0.0
+    for k in range(X.shape[0]):
+        a, b = float(a_all[k]), float(b_all[k])
+        Pm = a * a * P[0] + q * b  # P_k^- = a^2 P + q (1 - a^2)
+        F = Pm + share
+        nu = X[k] - a * m  # x_k - a_k m_(k-1)
+        out[k] = nu * (1.0 / math.sqrt(F))
+        if share == 0.0:
+            m[:] = X[k]  # K = 1: the state is the sample
+        else:
+            m[:] = a * m + (Pm / F) * nu
+        P[0] = Pm * share / F
+        logdet += math.log(F)
+    return logdet
 
 
 def sv_integrate_chunk(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_prev, out) -> None:
@@ -154,8 +214,8 @@ def _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
     # innovation of each sample from the previous one: nu_k = (e_k - a_k e_{k-1}) / (scale sqrt(1 - a_k^2)),
     # a_k = exp(-dt_k / tau); e_k / scale on a white axis and for the first sample
     nu = e / scale
-    x = np.diff(t)[:, None] * inv_tau
-    corr = (e[1:] - np.exp(-x) * e[:-1]) / (scale * np.sqrt(-np.expm1(-2.0 * x)))
+    a, b = ar1_terms(np.diff(t)[:, None] * inv_tau, 1.0)  # a_k, 1 - a_k^2 of dt_k / tau
+    corr = (e[1:] - a * e[:-1]) / (scale * np.sqrt(b))
     nu[1:] = np.where(inv_tau == 0.0, nu[1:], corr)
     near = np.abs(nu).max(axis=1) > thr * (1.0 - 1e-9)  # decided exactly below
     near |= ~np.isfinite(nu).all(axis=1)
@@ -184,9 +244,8 @@ def _big(e, t, inv_tau, scale, thr, k: int, last: int) -> bool:
         if inv_tau[j] == 0.0 or last < 0:
             nu = e[k, j] / scale[j]
         else:
-            x = (t[k] - t[last]) * inv_tau[j]
-            a = math.exp(-x)  # a_k = exp(-dt / tau)
-            nu = (e[k, j] - a * e[last, j]) / (scale[j] * math.sqrt(-math.expm1(-2.0 * x)))
+            a, b = ar1_terms((t[k] - t[last]) * inv_tau[j], 1.0)  # a_k, 1 - a_k^2
+            nu = (e[k, j] - float(a) * e[last, j]) / (scale[j] * math.sqrt(float(b)))
         if abs(nu) > thr:
             return True
     return False

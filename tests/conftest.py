@@ -56,6 +56,17 @@ def augmented_lstsq(S2: np.ndarray, y: np.ndarray, prior_precision_sqrt: np.ndar
     return np.linalg.lstsq(A, b, rcond=None)[0] / c
 
 
+def dishonest_methods(stats: dict, rms=(0.85, 1.15), coverage=(0.92, 0.98)) -> dict:
+    """``{method: (RMS z, 95 % coverage)}`` of the methods whose z (Monte Carlo, method -> z values)
+    fall outside the honest ranges."""
+    bad = {}
+    for m, z in stats.items():
+        r, cov = float(np.sqrt(np.mean(z**2))), float(np.mean(np.abs(z) <= 1.96))
+        if not (rms[0] <= r <= rms[1] and coverage[0] <= cov <= coverage[1]):
+            bad[m] = (round(r, 3), round(cov, 3))
+    return bad
+
+
 def noise_free_errors(flight, model, truth, sigma: float = 0.1):
     """Separate a noise-free flight with platform36 OLS (its ill-conditioning warning expected) and
     return ``(result, |estimate - truth| / CRLB std at noise sigma)``: how exactly the pipeline recovers

@@ -124,17 +124,21 @@ def collinearity(red: ReducedSystem, ra: RankAnalysis) -> dict[str, Any]:
     return out
 
 
-def ar1_whiten(S: np.ndarray, t: np.ndarray, sigma: float, tau: float) -> np.ndarray:
-    """Whiten (N, 3, n) regressors for first-order Gauss-Markov noise (see module notes)."""
+def ar1_whiten(S: np.ndarray, t: np.ndarray, sigma: float, tau: float, share: float = 0.0) -> np.ndarray:
+    """Whiten (N, 3, n) regressors for first-order Gauss-Markov noise of stationary std `sigma` (see module
+    notes; with a white share `share` of the variance, Gauss-Markov plus white): the whitening of
+    :func:`casep.analysis.noise.whiten_series` on each axis, divided by `sigma`."""
+    from casep.analysis.noise import whiten_series
+
     t = np.asarray(t, dtype=float)
     if t.shape != (S.shape[0],):
         raise ValueError(f"`t` must have {S.shape[0]} samples, got shape {t.shape}")
     if not np.isfinite(tau) or tau <= 0:
         raise ValueError(f"`tau` must be finite and > 0 s, got {tau}")
-    a = np.exp(-np.diff(t) / tau)[:, None, None]
-    W = np.empty_like(S)
-    W[0] = S[0] / sigma
-    W[1:] = (S[1:] - a * S[:-1]) / (sigma * np.sqrt(1.0 - a**2))
+    W = np.empty(S.shape)
+    for j in range(S.shape[1]):
+        W[:, j, :] = whiten_series(S[:, j, :], t, tau, share)[0]  # u_k = (e_k - a_k e_(k-1)) / sqrt(1 - a_k^2)
+    W /= sigma
     return W
 
 

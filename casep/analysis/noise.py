@@ -1,47 +1,68 @@
-"""The noise of the regression rows: white or first-order Gauss-Markov per axis, fitted by REML.
+"""The noise of the regression rows per axis: white, Gauss-Markov, or Gauss-Markov plus white, fitted by REML.
 
 Tracking noise on a range is coloured: the velocity a radar or an optical track delivers is
 smoothed, and its error is close to first-order Gauss-Markov (AR(1) on the sample times) with a
-correlation time of about a second. Least squares with a white-noise std is then several times
-overconfident. The noise model belongs to the data, so every estimator solves on the same
-whitened rows (:meth:`casep.analysis.problem.Problem.whitened`).
+correlation time of about a second, usually with a white measurement noise on top. Least squares
+with a white-noise std is then several times overconfident, and a Gauss-Markov model without the
+white part is too (it fits a short correlation time to the mixture). The noise model belongs to
+the data, so every estimator solves on the same whitened rows
+(:meth:`casep.analysis.problem.Problem.whitened`).
 
 Model
 -----
 Axis ``a`` (x, y, z) of the velocity error has stationary std ``sigma_a = sigma r_a`` (``r_x = 1``)
-and, for Gauss-Markov noise, correlation time ``tau_a``: between samples ``k - 1`` and ``k``
-(any spacing: non-uniform, across a gap)::
+and is the sum of a Gauss-Markov part ``g`` (variance share ``1 - w_a``, correlation time
+``tau_a``) and a white part ``v`` (variance share ``w_a``, the *white share*)::
 
-    e_k = a_k e_{k-1} + sqrt(1 - a_k^2) sigma_a w_k,     a_k = exp(-(t_k - t_{k-1}) / tau_a),  w_k ~ N(0, 1)
+    e_k = g_k + v_k,    g_k = a_k g_(k-1) + sqrt(1 - a_k^2) sqrt(1 - w_a) sigma_a n_k,
+    a_k = exp(-(t_k - t_(k-1)) / tau_a),    Var v_k = w_a sigma_a^2,    n_k ~ N(0, 1)
 
-and white noise is ``a_k = 0``. The whitening (exact for this covariance, the Cholesky factor
-of its inverse)::
+at any spacing (non-uniform, across a gap). The kinds nest: *white* (no ``g``: ``tau`` None),
+*gm* (Gauss-Markov, ``w_a = 0``) and *gmw* (Gauss-Markov plus white, ``0 < w_a < 1``).
 
-    u_0 = e_0 / r_a,     u_k = (e_k - a_k e_{k-1}) / (r_a sqrt(1 - a_k^2))
+Whitening
+---------
+The innovations of the Kalman filter of ``g`` whiten the series exactly (the Cholesky factor of
+the inverse covariance, computed recursively; never an N x N matrix). With unit ``sigma_a``::
 
-makes the noise white with std ``sigma``; it is applied to ``S`` and ``dv`` alike, so least squares
-on the whitened rows is the GLS estimate and every estimator's std holds.
+    P_k^- = a_k^2 P_(k-1) + (1 - w)(1 - a_k^2),    F_k = P_k^- + w,    K_k = P_k^- / F_k
+    u_k = (e_k - a_k m_(k-1)) / sqrt(F_k),         m_k = a_k m_(k-1) + K_k (e_k - a_k m_(k-1)),
+    P_k = P_k^- w / F_k,                           (first sample: a = 0, P^- = 1 - w)
 
-The noise model is fitted by REML (:func:`casep.analysis.noise_fit.fit_noise`); the residuals are
-tested for whiteness by :func:`casep.analysis.whiteness.whiteness_test`.
+``1 - a_k^2`` is computed as ``-expm1(-2 dt_k / tau)`` (:func:`casep._kernels.ar1_terms`). The
+gains depend only on the times and the parameters, so the same recursion whitens every column of
+``S`` and ``dv``; least squares on the whitened rows is the GLS estimate and every estimator's std
+holds. ``ln det`` of the correlation matrix is ``sum_k ln F_k``. For ``w = 0`` the recursion is
+the AR(1) difference ``u_k = (e_k - a_k e_(k-1)) / sqrt(1 - a_k^2)`` (vectorised); for ``w > 0``
+it runs compiled (:func:`casep._kernels.gmw_filter`). The rows are divided by ``r_a``.
+
+The noise model is fitted by REML (:func:`casep.analysis.noise_fit.fit_noise`); the whitened
+residuals are tested for whiteness by :func:`casep.analysis.whiteness.whiteness_test`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Iterable, Iterator, Sequence
+from typing import Any, ClassVar, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
+from casep._kernels import ar1_terms, gmw_filter
 from casep.results import Completed
 
 __all__ = ["NOISE_KINDS", "AUTO_LR", "AUTO_LR_SCALE", "NoiseModel", "whiten", "whiten_blocks", "whiten_axis",
-           "check_noise_kind", "check_tau"]
+           "whiten_series", "check_noise_kind", "check_tau", "NOISE_HELP"]
 
-#: The noise kinds a problem can be given.
-NOISE_KINDS = ("white", "gm", "auto")
-#: ``auto``: -2 ln Lambda of Gauss-Markov against white noise on one axis above which the axis is
-#: Gauss-Markov: 1 % point of (chi2_0 + chi2_1) / 2 (the chi2_1 2 % point).
+#: The noise kinds a problem can be given (the API's ``noise=`` and the command line's ``--noise``).
+NOISE_KINDS = ("auto", "gm", "gmw", "white")
+#: One line per kind, for the command line's help.
+NOISE_HELP = ("auto (white, Gauss-Markov or Gauss-Markov plus white per axis by likelihood-ratio tests, said in "
+              "the output), gm (Gauss-Markov per axis, --tau or REML), gmw (Gauss-Markov plus white per axis, "
+              "REML), white (a whiteness test warns when the residuals contradict it)")
+#: ``auto``: -2 ln Lambda of one nested kind against the next simpler one on one axis (Gauss-Markov
+#: against white: tau on the boundary; Gauss-Markov plus white against Gauss-Markov: the white
+#: share 0 on the boundary) above which the richer kind is taken: 1 % point of the null
+#: distribution (chi2_0 + chi2_1) / 2 (the chi2_1 2 % point).
 AUTO_LR = 5.412
 #: ``auto``: -2 ln Lambda of three axis scales against one above which they are kept: chi2_2 1 % point.
 AUTO_LR_SCALE = 9.210
@@ -49,7 +70,7 @@ AXES = ("x", "y", "z")
 
 
 def check_noise_kind(kind: str) -> str:
-    """Validate a noise kind (``white``, ``gm`` or ``auto``), naming the parameter."""
+    """Validate a noise kind (:data:`NOISE_KINDS`), naming the parameter."""
     if kind not in NOISE_KINDS:
         raise ValueError(f"`noise` must be one of {', '.join(NOISE_KINDS)}, got {kind!r}")
     return kind
@@ -72,14 +93,14 @@ def check_tau(tau) -> tuple[float, float, float] | None:
 
 @dataclass(frozen=True)
 class NoiseModel(Completed):
-    """The noise of a problem's rows, per axis.
+    """The noise of a problem's rows, per axis (module notes).
 
     Attributes
     ----------
-    kind : {"white", "gm", "auto"}
+    kind : {"white", "gm", "gmw", "auto"}
         What was asked.
     tau : tuple of 3 (float or None)
-        Correlation time per axis, s; None where the axis is white.
+        Correlation time of the Gauss-Markov part per axis, s; None where the axis is white.
     scale : tuple of 3 float
         Std of each axis relative to x (``sigma_a = sigma scale_a``).
     rule : str
@@ -90,6 +111,13 @@ class NoiseModel(Completed):
         ``auto``: -2 ln Lambda of three axis scales against one.
     sigma : float, optional
         REML estimate of the x-axis stationary std, m/s.
+    share : tuple of 3 float
+        White share ``w_a`` of each axis' variance (0: pure Gauss-Markov or white axis): the
+        Gauss-Markov std is ``sigma_a sqrt(1 - w_a)``, the white std ``sigma_a sqrt(w_a)``.
+    lr_white : tuple of 3 (float or None), optional
+        ``auto``: -2 ln Lambda of Gauss-Markov plus white against Gauss-Markov per axis (None where
+        not tried: a white axis, or a Gauss-Markov one whose whitened residuals pass the screen of
+        :data:`casep.analysis.noise_fit.SCREEN_P`).
     """
 
     what: ClassVar[str] = "noise model of the rows"
@@ -102,6 +130,14 @@ class NoiseModel(Completed):
     lr_scale: float | None = None
     sigma: float | None = None
     extra: dict = field(default_factory=dict, compare=False)
+    share: tuple = (0.0, 0.0, 0.0)
+    lr_white: tuple | None = None
+
+    def __post_init__(self) -> None:
+        for a, w, tau in zip(AXES, self.share, self.tau):
+            if not 0.0 <= w < 1.0 or (w > 0.0 and tau is None):
+                raise ValueError(f"noise model: the white share of axis {a} must be in [0, 1) and 0 on a white "
+                                 f"axis, got {w} (tau {tau})")
 
     @classmethod
     def white(cls) -> "NoiseModel":
@@ -109,12 +145,26 @@ class NoiseModel(Completed):
         return cls()
 
     @classmethod
-    def gauss_markov(cls, tau, scale: Sequence[float] = (1.0, 1.0, 1.0)) -> "NoiseModel":
-        """Gauss-Markov noise of given correlation time (one value or one per axis), s."""
+    def gauss_markov(cls, tau, scale: Sequence[float] = (1.0, 1.0, 1.0), share=0.0) -> "NoiseModel":
+        """Gauss-Markov noise of given correlation time (one value or one per axis), s; with a white
+        share `share` (one value or one per axis, in [0, 1)) Gauss-Markov plus white."""
         taus = check_tau(tau)
         if taus is None:
             raise ValueError("`tau` is required (a number > 0 s or three)")
-        return cls(kind="gm", tau=taus, scale=tuple(float(s) for s in scale), rule="given")
+        shares = tuple(float(w) for w in np.broadcast_to(np.asarray(share, dtype=float), (3,)))
+        return cls(kind="gmw" if any(shares) else "gm", tau=taus, scale=tuple(float(s) for s in scale),
+                   rule="given", share=shares)
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "NoiseModel":
+        """The model of :meth:`to_dict` (also of a result written before the white share existed)."""
+        axes = d["axes"]
+        lr_w = tuple(axes[a].get("lr_white") for a in AXES) if "lr_white" in axes["x"] else None
+        return cls(kind=d["kind"], tau=tuple(axes[a]["tau_s"] for a in AXES),
+                   scale=tuple(axes[a]["scale"] for a in AXES), rule=d["rule"],
+                   lr=tuple(axes[a]["lr"] for a in AXES) if "lr" in axes["x"] else None,
+                   lr_scale=d.get("lr_scale"), sigma=axes["x"].get("std_m_s"),
+                   share=tuple(float(axes[a].get("white_share", 0.0)) for a in AXES), lr_white=lr_w)
 
     @property
     def is_white(self) -> bool:
@@ -122,67 +172,109 @@ class NoiseModel(Completed):
         return all(t is None for t in self.tau) and all(s == 1.0 for s in self.scale)
 
     def axis_kinds(self) -> tuple[str, str, str]:
-        return tuple("white" if t is None else "gm" for t in self.tau)  # type: ignore[return-value]
+        """``white``, ``gm`` or ``gmw`` per axis."""
+        return tuple("white" if t is None else ("gmw" if w > 0 else "gm")  # type: ignore[return-value]
+                     for t, w in zip(self.tau, self.share))
 
     def text(self) -> str:
         """One line for the console: :meth:`line`."""
         return self.line()
 
+    def _axis_text(self, j: int) -> str:
+        kind = self.axis_kinds()[j]
+        p = f"{AXES[j]} " + ("white" if kind == "white" else
+                             f"GM tau {self.tau[j]:.3g} s" + (" + white" if kind == "gmw" else ""))
+        if self.sigma is not None:
+            sd = self.sigma * self.scale[j]
+            p += (f" std {sd:.3g} m/s" if kind != "gmw" else
+                  f" std {sd * np.sqrt(1.0 - self.share[j]):.3g} + {sd * np.sqrt(self.share[j]):.3g} m/s")
+        elif self.scale[j] != 1.0:
+            p += f" scale {self.scale[j]:.3g}"
+        if kind == "gmw" and self.sigma is None:
+            p += f" (white share {self.share[j]:.3g})"
+        if self.lr is not None:
+            p += f" (LR {self.lr[j]:.3g}" + ("" if self.lr_white is None or self.lr_white[j] is None
+                                             else f", white part LR {self.lr_white[j]:.3g}") + ")"
+        return p
+
     def line(self) -> str:
         """One line for the console: what the noise is and why."""
-        parts = []
-        for j, a in enumerate(AXES):
-            p = f"{a} " + ("white" if self.tau[j] is None else f"GM tau {self.tau[j]:.3g} s")
-            if self.sigma is not None:
-                p += f" std {self.sigma * self.scale[j]:.3g} m/s"
-            elif self.scale[j] != 1.0:
-                p += f" scale {self.scale[j]:.3g}"
-            if self.lr is not None:
-                p += f" (LR {self.lr[j]:.3g})"
-            parts.append(p)
         how = {"reml": "REML", "given": "given"}.get(self.rule, self.rule)
-        head = f"noise {self.kind}" + (f" ({how}" + (f"; GM where LR > {AUTO_LR:g}, 1 %" if self.kind == "auto" else "")
-                                        + ")")
+        test = f"; each richer kind where its LR > {AUTO_LR:g}, 1 %" if self.kind == "auto" else ""
+        head = f"noise {self.kind} ({how}{test})"
         scale = "" if self.lr_scale is None else f"; axis scales LR {self.lr_scale:.3g} (kept > {AUTO_LR_SCALE:g})"
-        return f"{head}: " + ", ".join(parts) + scale
+        return f"{head}: " + ", ".join(self._axis_text(j) for j in range(3)) + scale
 
     def to_dict(self) -> dict:
-        """JSON-ready description."""
-        d: dict[str, Any] = {"kind": self.kind, "rule": self.rule,
-             "axes": {a: {"model": "white" if self.tau[j] is None else "gauss-markov",
-                          "tau_s": self.tau[j], "scale": self.scale[j],
-                          **({"std_m_s": self.sigma * self.scale[j]} if self.sigma is not None else {}),
-                          **({"lr": self.lr[j]} if self.lr is not None else {})}
-                      for j, a in enumerate(AXES)}}
+        """JSON-ready description (read back by :meth:`from_dict`)."""
+        names = {"white": "white", "gm": "gauss-markov", "gmw": "gauss-markov+white"}
+        axes: dict[str, dict[str, Any]] = {}
+        for j, (a, kind) in enumerate(zip(AXES, self.axis_kinds())):
+            ax: dict[str, Any] = {"model": names[kind], "tau_s": self.tau[j], "scale": self.scale[j]}
+            if kind == "gmw":
+                ax["white_share"] = self.share[j]
+            if self.sigma is not None:
+                ax["std_m_s"] = self.sigma * self.scale[j]
+                if kind == "gmw":
+                    ax["std_gm_m_s"] = ax["std_m_s"] * float(np.sqrt(1.0 - self.share[j]))
+                    ax["std_white_m_s"] = ax["std_m_s"] * float(np.sqrt(self.share[j]))
+            if self.lr is not None:
+                ax["lr"] = self.lr[j]
+            if self.lr_white is not None:
+                ax["lr_white"] = self.lr_white[j]
+            axes[a] = ax
+        d: dict[str, Any] = {"kind": self.kind, "rule": self.rule, "axes": axes}
         if self.lr is not None:
             d["lr_threshold"] = AUTO_LR
+            d["lr_null"] = "(chi2_0 + chi2_1) / 2, 1 %"
         if self.lr_scale is not None:
             d["lr_scale"], d["lr_scale_threshold"] = self.lr_scale, AUTO_LR_SCALE
         d.update(self.extra)
         return d
 
 
-def _coeffs(t: np.ndarray, tau: float | None) -> tuple[np.ndarray, np.ndarray]:
-    """``(a_k, 1 / sqrt(1 - a_k^2))`` for k >= 1 (a = 0 for white noise)."""
-    dt = np.diff(t)
+#: The state a whitening carries from one block of samples to the next: (time of the last sample,
+#: the filter's estimate m of each column (the last row for Gauss-Markov), its variance P).
+State = tuple[float, np.ndarray, float]
+
+
+def whiten_series(X: np.ndarray, t: np.ndarray, tau: float | None, share: float = 0.0,
+                  state: State | None = None) -> tuple[np.ndarray, float, State]:
+    """Whiten the rows ``X`` (N, k) of one axis at unit std (module notes): ``(W, sum ln F_k, state)``.
+
+    `state`: what the whitening of the samples before these left (None: these are the first).
+    White (`tau` None): ``W = X``. Gauss-Markov (``share = 0``): the AR(1) difference, vectorised.
+    Gauss-Markov plus white: the innovations filter, compiled.
+    """
+    X = np.asarray(X, dtype=float)
     if tau is None:
-        return np.zeros(dt.size), np.ones(dt.size)
-    a = np.exp(-dt / tau)  # a_k = exp(-dt_k / tau)
-    return a, 1.0 / np.sqrt(-np.expm1(-2.0 * dt / tau))  # 1 - a^2 without cancellation
+        return X.copy(), 0.0, (float(t[-1]), X[-1].copy(), 0.0)
+    dt = np.empty(t.size)
+    dt[0] = np.inf if state is None else t[0] - state[0]  # inf: no previous sample (a = 0, P^- = 1 - w)
+    np.subtract(t[1:], t[:-1], out=dt[1:])
+    if share == 0.0:
+        a, b = ar1_terms(dt, tau)  # a_k, 1 - a_k^2
+        g = 1.0 / np.sqrt(b)
+        W = np.empty_like(X)
+        W[0] = (X[0] - a[0] * state[1]) * g[0] if state is not None else X[0]
+        np.multiply(X[:-1], a[1:, None], out=W[1:])
+        np.subtract(X[1:], W[1:], out=W[1:])  # e_k - a_k e_(k-1)
+        W[1:] *= g[1:, None]  # u_k = (e_k - a_k e_(k-1)) / sqrt(1 - a_k^2)
+        return W, float(np.sum(np.log(b))), (float(t[-1]), X[-1].copy(), 0.0)
+    m = np.zeros(X.shape[1]) if state is None else state[1].copy()
+    P = np.array([0.0 if state is None else state[2]])
+    W = np.empty_like(X)
+    logdet = gmw_filter(np.ascontiguousarray(X), dt, float(tau), float(share), m, P, W)
+    return W, logdet, (float(t[-1]), m, float(P[0]))
 
 
 def whiten_axis(X: np.ndarray, t: np.ndarray, tau: float | None, scale: float,
-                 prev: tuple[float, np.ndarray] | None = None) -> np.ndarray:
-    """Whiten the rows ``X`` (N, k) of one axis; `prev` = (time, row) before the first, if any."""
-    if prev is not None:
-        X = np.concatenate([prev[1][None], X])
-        t = np.concatenate([[prev[0]], t])
-    a, g = _coeffs(t, tau)
-    W = np.empty_like(X)
-    W[0] = X[0]
-    W[1:] = (X[1:] - a[:, None] * X[:-1]) * g[:, None]  # u_k = (e_k - a_k e_{k-1}) / sqrt(1 - a_k^2)
+                prev: State | None = None, share: float = 0.0) -> np.ndarray:
+    """Whiten the rows ``X`` (N, k) of one axis of relative std `scale` (:func:`whiten_series`);
+    `prev`: the state the samples before left, if any."""
+    W = whiten_series(X, t, tau, share, prev)[0]
     W /= scale
-    return W[1:] if prev is not None else W
+    return W
 
 
 def whiten(S: np.ndarray, y: np.ndarray, t: np.ndarray, noise: NoiseModel,
@@ -197,7 +289,7 @@ def whiten(S: np.ndarray, y: np.ndarray, t: np.ndarray, noise: NoiseModel,
     yw = np.empty_like(y)
     for j in range(3):
         X = np.concatenate([S[:, j, :], y[:, j, None]], axis=1)
-        W = whiten_axis(X, t, noise.tau[j], noise.scale[j])
+        W = whiten_axis(X, t, noise.tau[j], noise.scale[j], None, noise.share[j])
         Sw[:, j, :], yw[:, j] = W[:, :-1], W[:, -1]
     if weights is not None:
         sw = np.sqrt(weights)
@@ -208,16 +300,16 @@ def whiten(S: np.ndarray, y: np.ndarray, t: np.ndarray, noise: NoiseModel,
 
 def whiten_blocks(blocks: Iterable[tuple[slice, np.ndarray, np.ndarray]], t: np.ndarray, noise: NoiseModel,
                   weights: np.ndarray | None = None) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
-    """Whiten ``(row slice, S block, y block)`` in time order, carrying the last row across blocks."""
-    prev: list[tuple[float, np.ndarray] | None] = [None, None, None]
+    """Whiten ``(row slice, S block, y block)`` in time order, carrying the filter state across blocks."""
+    prev: list[State | None] = [None, None, None]
     for sl, S_b, y_b in blocks:
         tb = t[sl]
         Sw = np.empty(S_b.shape)
         yw = np.empty(y_b.shape)
         for j in range(3):
             X = np.concatenate([S_b[:, j, :], y_b[:, j, None]], axis=1)
-            W = whiten_axis(X, tb, noise.tau[j], noise.scale[j], prev[j])
-            prev[j] = (float(tb[-1]), X[-1].copy())
+            W, _, prev[j] = whiten_series(X, tb, noise.tau[j], noise.share[j], prev[j])
+            W /= noise.scale[j]
             Sw[:, j, :], yw[:, j] = W[:, :-1], W[:, -1]
         if weights is not None:
             sw = np.sqrt(weights[sl])

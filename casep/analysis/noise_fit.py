@@ -2,53 +2,112 @@
 
 REML
 ----
-The restricted log-likelihood of ``theta = (tau_a, r_a)`` with ``sigma^2`` profiled out::
+The restricted log-likelihood of ``theta = (tau_a, w_a, r_a)`` (correlation time, white share,
+relative std per axis) with ``sigma^2`` profiled out::
 
-    -2 l_R(theta) = (m - p) ln RSS_w + sum_a [N ln r_a^2 + sum_k ln(1 - a_k^2)] + ln det(Z_w^T Z_w)
+    -2 l_R(theta) = (m - p) ln RSS_w + sum_a [N ln r_a^2 + sum_k ln F_ak] + ln det(Z_w^T Z_w)
 
 with ``Z = S V_p`` a basis of the estimable column space (rank ``p``, :mod:`casep.analysis.linalg`),
-``RSS_w`` the whitened residual sum of squares and ``m = 3 N``. It is evaluated from one
-``(p + 1) x (p + 1)`` triangle per axis (the QR of the axis' whitened ``[Z  dv]``): stacking the
-three triangles scaled by ``1 / r_a`` and factoring again gives the log-determinant on its
-diagonal and ``RSS_w`` in its last element. Each ``tau_a`` is found by a bounded scalar search in
-``ln tau`` over ``[median(dt) / 5, duration]`` (coordinate-wise, twice over the axes), each ``r_a``
-by the REML fixed point ``r_a^2 = RSS_a / (N - h_a)`` (``h_a`` the leverage of the axis' rows).
+``F_ak`` the innovation variances of the whitening (:mod:`casep.analysis.noise`; ``1 - a_k^2`` for
+Gauss-Markov, 1 for white), ``RSS_w`` the whitened residual sum of squares and ``m = 3 N``. It is
+evaluated from one ``(p + 1) x (p + 1)`` Gram matrix per axis: ``G = sum_a M_a / r_a^2 = T^T T``
+gives the log-determinant on the diagonal of ``T`` and ``RSS_w = T_pp^2``.
 
-``auto`` fits Gauss-Markov noise on every axis, then keeps it on an axis only when the likelihood
-ratio against white noise there, ``-2 ln Lambda_a``, exceeds :data:`AUTO_LR` (tau = 0 is on the
-boundary, so the null distribution is ``(chi2_0 + chi2_1) / 2``; 5.41 is its 1 % point), and keeps
-separate axis scales only when they beat one common scale by :data:`AUTO_LR_SCALE` (chi2_2 at 1 %).
+``[Z  dv]`` of each axis is formed once per fit (one pass over S_V, never again); a trial is then
+
+* Gauss-Markov: from lag products grouped by the distinct spacings ``d`` (formed once). With
+  ``D_k = z_k - z_(k-1)`` and ``c = 1 - a = -expm1(-d / tau)``, the whitened row is
+  ``u_k = (D_k + c z_(k-1)) / sqrt(1 - a^2)``, so::
+
+      M(tau) = z_0 z_0^T + sum_d [A_d + c_d (B_d + B_d^T) + c_d^2 C_d] / (1 - a_d^2),
+      A_d = sum D_k D_k^T,  B_d = sum D_k z_(k-1)^T,  C_d = sum z_(k-1) z_(k-1)^T   (k: dt_k = d)
+
+  O(G p^2) per trial for G distinct spacings (written with the differences ``D``, so no
+  cancellation when ``dt << tau``); when the spacings are nearly all distinct (jittered time tags)
+  the rows ``Z`` are whitened instead, O(N p^2);
+* Gauss-Markov plus white: one pass of the innovations filter over ``Z`` (O(N p), compiled) and
+  its Gram.
+
+Each ``tau_a`` is found by a bounded scalar search in ``ln tau`` over ``[median(dt) / 5,
+duration]``, each white share ``w_a`` in its logit, coordinate-wise; each ``r_a`` by the REML fixed
+point ``r_a^2 = RSS_a / (N - h_a)`` (``h_a`` the leverage of the axis' rows).
+
+``auto`` (per axis, nested kinds white < gm < gmw): Gauss-Markov is fitted on every axis and kept
+on an axis where the likelihood ratio against white noise there, ``-2 ln Lambda_a``, exceeds
+:data:`AUTO_LR`; on the Gauss-Markov axes Gauss-Markov plus white is fitted and kept where its
+likelihood ratio against Gauss-Markov exceeds :data:`AUTO_LR`. Each test has one parameter on the
+boundary of its space under the null (tau = 0, resp. the white share = 0), so the null
+distribution is ``(chi2_0 + chi2_1) / 2`` (Self & Liang); 5.41 is its 1 % point. Separate axis
+scales are kept only when they beat one common scale by :data:`AUTO_LR_SCALE` (chi2_2 at 1 %).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Any, Callable, Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
+from casep._kernels import ar1_terms
 from casep.analysis.noise import (
     AUTO_LR,
     AUTO_LR_SCALE,
     NoiseModel,
-    _coeffs,
     check_noise_kind,
     check_tau,
-    whiten_axis,
+    whiten_series,
 )
 
-__all__ = ["fit_noise", "tau_search_bounds", "with_kind", "Reml", "estimable_basis", "bounded_minimum"]
+__all__ = ["fit_noise", "tau_search_bounds", "with_kind", "Reml", "estimable_basis", "bounded_minimum",
+           "nelder_mead", "SHARE_LOGIT"]
+
+#: Search interval of the white share's logit ``ln(w / (1 - w))``: w in [6e-6, 0.99999].
+SHARE_LOGIT = (-12.0, 12.0)
+
+
+class _LagProducts:
+    """Lag products of one axis' ``[Z dv]`` grouped by the distinct spacings (module notes)."""
+
+    def __init__(self, X: np.ndarray, uniq: np.ndarray, inv: np.ndarray) -> None:
+        D = X[1:] - X[:-1]  # D_k = z_k - z_(k-1)
+        Xp = X[:-1]
+        k = X.shape[1]
+        G = uniq.size
+        self.A, self.B, self.C = (np.empty((G, k, k)) for _ in range(3))
+        order = np.argsort(inv, kind="stable")
+        bounds = np.searchsorted(inv[order], np.arange(G + 1))
+        for g in range(G):
+            idx = order[bounds[g]:bounds[g + 1]]
+            Dg, Pg = D[idx], Xp[idx]
+            self.A[g] = Dg.T @ Dg
+            B = Dg.T @ Pg
+            self.B[g] = B + B.T
+            self.C[g] = Pg.T @ Pg
+        self.first = np.outer(X[0], X[0])
+        self.d = uniq
+        self.count = np.bincount(inv, minlength=G)
+
+    def gram(self, tau: float) -> tuple[np.ndarray, float]:
+        """(M(tau), sum_k ln(1 - a_k^2))."""
+        a, b = ar1_terms(self.d, tau)  # a_d, 1 - a_d^2
+        c = -np.expm1(-self.d / tau)  # 1 - a_d without cancellation
+        M = self.first + np.tensordot(1.0 / b, self.A, 1) + np.tensordot(c / b, self.B, 1) \
+            + np.tensordot(c * c / b, self.C, 1)
+        return M, float(self.count @ np.log(b))
 
 
 class Reml:
-    """-2 l_R of per-axis (tau, scale) from per-axis Gram matrices (module notes).
+    """-2 l_R of per-axis (tau, white share, scale) from per-axis Gram matrices (module notes).
 
-    Axis ``a`` at ``tau_a`` contributes ``M_a = [Z_w y_w]^T [Z_w y_w]`` (unit scale, ``Z = S B``
+    Axis ``a`` at ``(tau_a, w_a)`` contributes ``M_a = [Z_w y_w]^T [Z_w y_w]`` (unit scale, ``Z = S B``
     with orthonormal columns before whitening, so ``M_a`` is well conditioned); with the scales,
     ``G = sum_a M_a / r_a^2 = T^T T`` (Cholesky) gives ``ln det(Z_w^T Z_w) = 2 sum ln T_jj`` (j < p)
-    and ``RSS_w = T_pp^2``.
+    and ``RSS_w = T_pp^2``. ``[Z dv]`` is formed once, here.
     """
+
+    #: Lag products are used while the distinct spacings number at most this share of the samples.
+    LAG_GROUPS = 0.25
 
     def __init__(self, problem, basis: np.ndarray) -> None:
         self.pb = problem
@@ -56,32 +115,41 @@ class Reml:
         self.p = basis.shape[1]
         self.t = problem.t
         self.N = problem.n_samples
-        self._cache: dict[tuple[int, float | None], tuple[np.ndarray, float]] = {}
-        self._Z: list[np.ndarray] | None = None
-        if problem._S is not None:  # rows kept: project once
-            X = problem._S @ self.B  # (N, 3, p)
-            self._Z = [np.concatenate([X[:, j, :], problem.y[:, j, None]], axis=1) for j in range(3)]
+        self._cache: dict[tuple, tuple[np.ndarray, float]] = {}
+        self.Z = self._project(problem)
+        uniq, inv = np.unique(np.diff(self.t), return_inverse=True)  # the distinct spacings d
+        self._lags: list[_LagProducts | None] = [None, None, None]
+        if uniq.size <= self.LAG_GROUPS * self.N:
+            self._lags = [_LagProducts(Z, uniq, inv) for Z in self.Z]
 
-    def gram(self, j: int, tau: float | None) -> tuple[np.ndarray, float]:
-        """(M_a, sum_k ln(1 - a_k^2)) of axis j at tau (unit scale), cached."""
-        key = (j, None if tau is None else float(tau))
+    def _project(self, problem) -> list[np.ndarray]:
+        """``[S_a B  dv_a]`` per axis (N, p + 1): one pass over S_V."""
+        if problem._S is not None:  # rows kept
+            X = problem._S @ self.B  # (N, 3, p)
+            return [np.concatenate([X[:, j, :], problem.y[:, j, None]], axis=1) for j in range(3)]
+        Z = [np.empty((self.N, self.p + 1)) for _ in range(3)]
+        for sl, S_b, y_b in problem.blocks():
+            X = S_b @ self.B
+            for j in range(3):
+                Z[j][sl, :-1] = X[:, j, :]
+                Z[j][sl, -1] = y_b[:, j]
+        return Z
+
+    def gram(self, j: int, tau: float | None, share: float = 0.0) -> tuple[np.ndarray, float]:
+        """(M_a, sum_k ln F_k) of axis j at (tau, white share) (unit scale), cached."""
+        key = (j, None if tau is None else float(tau), float(share) if tau is not None else 0.0)
         if key not in self._cache:
-            if self._Z is not None:
-                W = _whiten_unit(self._Z[j], self.t, tau)
-                M = W.T @ W
+            lags = self._lags[j]
+            if tau is None:
+                Z = self.Z[j]
+                self._cache[key] = (Z.T @ Z, 0.0)
+            elif share == 0.0 and lags is not None:
+                self._cache[key] = lags.gram(float(tau))
             else:
-                M = np.zeros((self.p + 1, self.p + 1))
-                prev = None
-                for sl, S_b, y_b in self.pb.blocks():
-                    X = np.concatenate([S_b[:, j, :] @ self.B, y_b[:, j, None]], axis=1)
-                    tb = self.t[sl]
-                    W = whiten_axis(X, tb, tau, 1.0, prev)
-                    prev = (float(tb[-1]), X[-1].copy())
-                    M += W.T @ W
-            ld = 0.0
-            if tau is not None:
-                ld = float(np.sum(np.log(-np.expm1(-2.0 * np.diff(self.t) / tau))))  # sum ln(1 - a_k^2)
-            self._cache[key] = (M, ld)
+                W, ld, _ = whiten_series(self.Z[j], self.t, float(tau), float(share))
+                self._cache[key] = (W.T @ W, ld)
+            if len(self._cache) > 4096:  # a long search: keep the memory bounded
+                self._cache.pop(next(iter(self._cache)))
         return self._cache[key]
 
     def _factor(self, Ms: Sequence[np.ndarray], scales) -> np.ndarray | None:
@@ -91,9 +159,10 @@ class Reml:
         except np.linalg.LinAlgError:
             return None
 
-    def evaluate(self, taus: Sequence[float | None], scales) -> tuple[float, np.ndarray | None]:
-        """(-2 l_R, T) at the given taus and scales."""
-        gs = [self.gram(j, taus[j]) for j in range(3)]
+    def evaluate(self, taus: Sequence[float | None], scales, shares: Sequence[float] = (0.0, 0.0, 0.0)
+                 ) -> tuple[float, np.ndarray | None]:
+        """(-2 l_R, T) at the given taus, scales and white shares."""
+        gs = [self.gram(j, taus[j], shares[j]) for j in range(3)]
         T = self._factor([g[0] for g in gs], scales)
         if T is None:
             return np.inf, None
@@ -107,12 +176,13 @@ class Reml:
         return float(val), T
 
     def fit_scales(self, taus: Sequence[float | None], scales: Sequence[float] | None = None,
-                   free: bool = True) -> tuple[float, tuple[float, float, float]]:
+                   free: bool = True, shares: Sequence[float] = (0.0, 0.0, 0.0)
+                   ) -> tuple[float, tuple[float, float, float]]:
         """-2 l_R with the axis scales at their REML fixed point (or all 1 when not `free`)."""
         if not free:
-            return self.evaluate(taus, (1.0, 1.0, 1.0))[0], (1.0, 1.0, 1.0)
+            return self.evaluate(taus, (1.0, 1.0, 1.0), shares)[0], (1.0, 1.0, 1.0)
         sc = np.ones(3) if scales is None else np.array(scales, dtype=float)
-        Ms = [self.gram(j, taus[j])[0] for j in range(3)]
+        Ms = [self.gram(j, taus[j], shares[j])[0] for j in range(3)]
         p = self.p
         for _ in range(50):
             T = self._factor(Ms, sc)
@@ -134,21 +204,7 @@ class Reml:
             sc = new
             if done:
                 break
-        return self.evaluate(taus, sc)[0], (float(sc[0]), float(sc[1]), float(sc[2]))
-
-
-def _whiten_unit(X: np.ndarray, t: np.ndarray, tau: float | None) -> np.ndarray:
-    """``whiten_axis(X, t, tau, 1.0)`` written in place into one new array (the same operations in the
-    same order, so the same numbers, with two passes over the rows fewer; the search whitens each axis'
-    rows about 50 times)."""
-    a, g = _coeffs(t, tau)
-    W = np.empty_like(X)
-    W[0] = X[0]
-    body = W[1:]
-    np.multiply(X[:-1], a[:, None], out=body)
-    np.subtract(X[1:], body, out=body)  # e_k - a_k e_(k-1)
-    body *= g[:, None]  # u_k = (e_k - a_k e_(k-1)) / sqrt(1 - a_k^2)
-    return W
+        return self.evaluate(taus, sc, shares)[0], (float(sc[0]), float(sc[1]), float(sc[2]))
 
 
 def tau_search_bounds(t: np.ndarray) -> tuple[float, float]:
@@ -171,29 +227,29 @@ def fit_noise(problem, kind: str = "auto", tau=None, *, xatol: float = 5e-3) -> 
     ----------
     problem : Problem
         Rows ``(N, 3)`` in time order, with times.
-    kind : {"auto", "gm", "white"}
+    kind : {"auto", "gm", "gmw", "white"}
         ``white``: one std, no correlation (nothing is fitted). ``gm``: Gauss-Markov on every
-        axis, tau by REML unless given, axis scales by REML. ``auto``: as ``gm``, then white on
-        the axes where the likelihood-ratio test does not reject it, one common scale unless the
-        axis scales are significant.
+        axis, tau by REML unless given, axis scales by REML. ``gmw``: Gauss-Markov plus white on
+        every axis, tau (unless given) and the white share by REML. ``auto``: per axis the
+        simplest of white, gm, gmw that the likelihood-ratio tests do not reject, one common
+        scale unless the axis scales are significant.
     tau : float, three floats or None
-        Given correlation time(s), s (``gm`` only).
+        Given correlation time(s), s (``gm`` and ``gmw`` only).
     xatol : float
-        Tolerance of the search in ln tau.
+        Tolerance of the searches in ln tau (and the white share's logit).
 
     Returns
     -------
     NoiseModel
     """
-
     check_noise_kind(kind)
     taus_given = check_tau(tau)
     if kind == "white":
         if taus_given is not None:
-            raise ValueError("`tau` given with noise 'white': use noise 'gm'")
+            raise ValueError("`tau` given with noise 'white': use noise 'gm' or 'gmw'")
         return NoiseModel.white()
     if taus_given is not None and kind == "auto":
-        raise ValueError("`tau` given with noise 'auto': a given tau means noise 'gm'")
+        raise ValueError("`tau` given with noise 'auto': a given tau means noise 'gm' (or 'gmw')")
     if problem.y is None or problem.t is None or problem.y.ndim != 2 or problem.y.shape[1] != 3:
         if kind == "auto":  # nothing to test a correlation on: white, and said
             return replace(NoiseModel.white(), kind="auto", rule="white: rows without sample times")
@@ -202,103 +258,261 @@ def fit_noise(problem, kind: str = "auto", tau=None, *, xatol: float = 5e-3) -> 
         raise ValueError(f"problem `{problem.source}`: {problem.n_samples} samples are too few to fit a noise model")
     reml = Reml(problem, estimable_basis(problem))
     lo, hi = tau_search_bounds(problem.t)
-
     if taus_given is not None:
-        val, sc = reml.fit_scales(taus_given)
-        return NoiseModel(kind="gm", tau=taus_given, scale=sc, rule="given",
-                          sigma=_sigma(reml, taus_given, sc), extra={"neg2_reml": val})
-
-    best, taus, scales = _search_taus(reml, [True, True, True], lo, hi, xatol, free=True)
-    if not np.isfinite(best):
         if kind == "gm":
+            val, sc = reml.fit_scales(taus_given)
+            return NoiseModel(kind="gm", tau=taus_given, scale=sc, rule="given",
+                              sigma=_sigma(reml, taus_given, sc), extra={"neg2_reml": val})
+        fit = _Search(reml, lo, hi, xatol, free=True, fixed_tau=True).run([True] * 3, list(taus_given), [True] * 3)
+        return _model("gmw", fit, reml, rule="given")
+    fit = _Search(reml, lo, hi, xatol, free=True).run([True] * 3)
+    if not np.isfinite(fit.value):
+        if kind != "auto":
             raise ValueError(f"problem `{problem.source}`: the Gauss-Markov likelihood is not finite anywhere "
                              "(residuals at the rounding level: noise-free data?); use noise 'white'")
         return replace(NoiseModel.white(), kind="auto", rule="white: no finite Gauss-Markov likelihood (noise-free?)")
     if kind == "gm":
-        return NoiseModel(kind="gm", tau=tuple(taus), scale=scales, rule="reml", sigma=_sigma(reml, taus, scales),
-                          extra={"neg2_reml": best})
+        return _model("gm", fit, reml)
+    if kind == "gmw":
+        return _model("gmw", _Search(reml, lo, hi, xatol, free=True).run([True] * 3, fit.taus, [True] * 3,
+                                                                         scales=fit.scales), reml)
+    return _auto(reml, fit, lo, hi, xatol)
 
-    # auto: white on an axis where the likelihood ratio does not reject it. The ratio with the
-    # other axes held is an upper bound of the one with them refitted; refit only where it matters.
+
+class _Fit:
+    """A point of the search: -2 l_R, taus (None: white axis), white shares, scales."""
+
+    def __init__(self, value: float, taus, shares, scales) -> None:
+        self.value, self.taus, self.shares, self.scales = value, list(taus), list(shares), tuple(scales)
+
+
+def _model(kind: str, fit: _Fit, reml: Reml, rule: str = "reml", **kw) -> NoiseModel:
+    return NoiseModel(kind=kind, tau=tuple(fit.taus), scale=fit.scales, rule=rule, share=tuple(fit.shares),
+                      sigma=_sigma(reml, fit.taus, fit.scales, fit.shares), extra={"neg2_reml": fit.value}, **kw)
+
+
+def _auto(reml: Reml, gm: _Fit, lo: float, hi: float, xatol: float) -> NoiseModel:
+    """``auto`` after the Gauss-Markov fit of every axis (module notes): the nested tests per axis."""
+    search = _Search(reml, lo, hi, xatol, free=True)
+    # white against Gauss-Markov per axis; the ratio with the other axes held is an upper bound of
+    # the one with them refitted: refit only where it matters
     lr = []
     for j in range(3):
-        tt = list(taus)
+        tt = list(gm.taus)
         tt[j] = None
-        quick = reml.fit_scales(tt, scales)[0] - best
+        quick = reml.fit_scales(tt, gm.scales)[0] - gm.value
         if np.isfinite(quick) and (quick < 0.5 * AUTO_LR or quick > 20.0 * AUTO_LR):
             lr.append(max(quick, 0.0))
             continue
-        corr = [k != j for k in range(3)]
-        val_j = _search_taus(reml, corr, lo, hi, xatol, free=True, start=taus, polish_only=True)[0]
-        lr.append(max(val_j - best, 0.0) if np.isfinite(val_j) else np.inf)  # -2 ln Lambda_a
+        val_j = search.run([k != j for k in range(3)], gm.taus, polish_only=True).value
+        lr.append(max(val_j - gm.value, 0.0) if np.isfinite(val_j) else np.inf)  # -2 ln Lambda_a
     corr = [lr[j] > AUTO_LR for j in range(3)]
-    chosen0 = [taus[j] if corr[j] else None for j in range(3)]
-    val_free, sc_free = reml.fit_scales(chosen0, scales)
-    taus_free = chosen0
-    if not all(corr[j] for j in range(3)) and any(corr):
-        val_free, taus_free, sc_free = _search_taus(reml, corr, lo, hi, xatol, free=True, start=taus,
-                                                    polish_only=True)
-    val_one, taus_one, _ = _search_taus(reml, corr, lo, hi, xatol, free=False, start=taus, polish_only=True)
-    lr_scale = max(val_one - val_free, 0.0) if np.isfinite(val_one - val_free) else 0.0
-    free = lr_scale > AUTO_LR_SCALE
-    chosen, sc, val = (taus_free, sc_free, val_free) if free else (taus_one, (1.0, 1.0, 1.0), val_one)
-    return NoiseModel(kind="auto", tau=tuple(chosen), scale=sc, rule="reml", lr=tuple(float(v) for v in lr),
-                      lr_scale=float(lr_scale), sigma=_sigma(reml, chosen, sc), extra={"neg2_reml": val})
+    taus0 = [gm.taus[j] if corr[j] else None for j in range(3)]
+    cur = search.run(corr, taus0, polish_only=True) if (any(corr) and not all(corr)) else \
+        _Fit(*_value_scales(reml, taus0, gm.scales))
+    # Gauss-Markov plus white against Gauss-Markov on the Gauss-Markov axes
+    lr_white: list[float | None] = [None, None, None]
+    tried = [corr[j] and _whitened_p(reml, cur, j) < SCREEN_P for j in range(3)]
+    if any(tried):
+        mix = search.run(corr, cur.taus, tried, scales=cur.scales, polish_only=True)
+        keep_w = [False] * 3
+        for j in range(3):
+            if not tried[j]:
+                continue
+            null = search.run(corr, mix.taus, [c and k != j for k, c in enumerate(tried)],
+                              shares=[0.0 if k == j else w for k, w in enumerate(mix.shares)],
+                              scales=mix.scales, polish_only=True, only=j)
+            lr_white[j] = max(null.value - mix.value, 0.0) if np.isfinite(null.value) else float("inf")
+            keep_w[j] = lr_white[j] > AUTO_LR
+        if any(keep_w):
+            shares = [mix.shares[j] if keep_w[j] else 0.0 for j in range(3)]
+            cur = search.run(corr, mix.taus, keep_w, shares=shares, scales=mix.scales, polish_only=True)
+    # one common scale unless the axis scales are significant
+    one = _Search(reml, lo, hi, xatol, free=False).run(corr, cur.taus, [w > 0 for w in cur.shares],
+                                                       shares=cur.shares, polish_only=True)
+    lr_scale = max(one.value - cur.value, 0.0) if np.isfinite(one.value - cur.value) else 0.0
+    chosen = cur if lr_scale > AUTO_LR_SCALE else one
+    return _model("auto", chosen, reml, lr=tuple(float(v) for v in lr), lr_scale=float(lr_scale),
+                  lr_white=tuple(lr_white))
 
 
-#: What the tau search sees where the likelihood is not finite (a rounding-level residual).
+#: ``auto``: the white part is tried on a Gauss-Markov axis when the residuals whitened by the
+#: Gauss-Markov fit fail a Ljung-Box test at this level (a white part makes them correlated: lag-1
+#: covariance ``-a_k w``); it is then kept only by the likelihood-ratio test at 1 %, so the
+#: screen costs no size and little power, and spares the filter passes on plain Gauss-Markov data.
+SCREEN_P = 0.2
+
+
+def _whitened_p(reml: Reml, fit: _Fit, j: int) -> float:
+    """Ljung-Box p-value of axis j's residuals whitened by `fit` (Gauss-Markov on that axis)."""
+    from casep.analysis.whiteness import default_lags, ljung_box
+
+    _, T = reml.evaluate(fit.taus, fit.scales, fit.shares)
+    if T is None:
+        return 1.0
+    p = reml.p
+    v = np.concatenate([np.linalg.solve(T[:p, :p], T[:p, p]), [-1.0]])  # (beta, -1) in the basis Z
+    u = whiten_series((reml.Z[j] @ v)[:, None], reml.t, fit.taus[j], fit.shares[j])[0][:, 0]
+    return ljung_box(u, default_lags(u.size))[1]
+
+
+def _value_scales(reml: Reml, taus, scales) -> tuple[float, list, list, tuple]:
+    val, sc = reml.fit_scales(taus, scales)
+    return val, list(taus), [0.0, 0.0, 0.0], sc
+
+
+#: What the searches see where the likelihood is not finite (a rounding-level residual).
 _NO_LIKELIHOOD = 1e300
 
 
-def _search_taus(reml: Reml, corr: Sequence[bool], lo: float, hi: float, xatol: float, *, free: bool,
-                 start: Sequence[float | None] | None = None, polish_only: bool = False):
-    """Minimise -2 l_R over ln tau of the correlated axes, coordinate-wise (scales by their fixed point).
+class _Search:
+    """Minimise -2 l_R over ln tau (and the white share's logit) per axis, coordinate-wise, the axis
+    scales at their fixed point (or one common scale when not `free`).
 
-    Returns ``(-2 l_R, taus, scales)`` (tau None on the white axes). Without `start`, one common
-    tau is found first over the whole interval; then each axis is searched in turn within a
-    factor 4 of its current value (widened when the minimum lands on an edge), and once more
-    within 25 %.
+    Without a start, one common tau is found first over the whole interval; then each axis' tau is
+    searched in turn within a factor 4 of its current value (widened when the minimum lands on an
+    edge), and once more within 25 %; on an axis with a white part tau and the share's logit
+    together (Nelder-Mead: they trade along a ridge). The axis scales are at their fixed point at
+    every trial.
     """
-    state: dict[str, Any] = {"scales": None}
 
-    def value(tt) -> float:
-        v, sc = reml.fit_scales(tt, state["scales"], free=free)
+    def __init__(self, reml: Reml, lo: float, hi: float, xatol: float, *, free: bool, fixed_tau: bool = False):
+        self.reml, self.lo, self.hi, self.xatol, self.free, self.fixed_tau = reml, lo, hi, xatol, free, fixed_tau
+        self.scales: tuple | None = None
+
+    def value(self, taus, shares) -> float:
+        """-2 l_R with the axis scales at their fixed point (started from the last one)."""
+        v, sc = self.reml.fit_scales(taus, self.scales, free=self.free, shares=shares)
         if np.isfinite(v):
-            state["scales"] = sc
-            return v
-        return _NO_LIKELIHOOD  # the search needs finite values
+            self.scales = sc
+        return v if np.isfinite(v) else _NO_LIKELIHOOD  # the search needs finite values
 
-    if not any(corr):
-        v, sc = reml.fit_scales([None, None, None], free=free)
-        return v, [None, None, None], sc
-    if start is None:
-        x = bounded_minimum(lambda x: value([float(np.exp(x)) if c else None for c in corr]), lo, hi, xatol)
-        taus = [float(np.exp(x)) if c else None for c in corr]
-    else:
-        taus = [(start[j] if start[j] is not None else float(np.exp(lo))) if corr[j] else None for j in range(3)]
-    widths = (np.log(1.25),) if polish_only else (np.log(4.0), np.log(1.25))
-    for w in widths:
+    def rescale(self, taus, shares) -> None:
+        """The axis scales at their fixed point for the current taus and shares."""
+        v, sc = self.reml.fit_scales(taus, self.scales, free=self.free, shares=shares)
+        if np.isfinite(v):
+            self.scales = sc
+
+    def run(self, corr: Sequence[bool], start: Sequence[float | None] | None = None,
+            mixed: Sequence[bool] = (False, False, False), *, shares: Sequence[float] | None = None,
+            scales=None, polish_only: bool = False, only: int | None = None) -> _Fit:
+        """The minimum with Gauss-Markov on the axes `corr`, a white share searched on the axes `mixed`
+        (else held at `shares`, default 0); `only`: search that axis alone."""
+        self.scales = None if scales is None else tuple(scales)
+        ww = [float(shares[j]) if shares is not None and corr[j] and not mixed[j] else 0.0 for j in range(3)]
         for j in range(3):
-            if not corr[j]:
-                continue
-            x0 = float(np.log(taus[j] or np.exp(lo)))
-            a, b = max(lo, x0 - w), min(hi, x0 + w)
-            for _ in range(20):
-                def f(x, j=j):
-                    tt = list(taus)
-                    tt[j] = float(np.exp(x))
-                    return value(tt)
-                x = float(bounded_minimum(f, a, b, xatol))
-                edge = 3 * xatol
-                if x - a < edge and a > lo:
-                    a, b = max(lo, a - 2 * w), a + edge
-                elif b - x < edge and b < hi:
-                    a, b = b - edge, min(hi, b + 2 * w)
+            if mixed[j] and shares is not None and shares[j] > 0:
+                ww[j] = float(shares[j])
+            elif mixed[j]:
+                ww[j] = 0.1  # a start inside the interval
+        lo, hi = self.lo, self.hi
+        if not any(corr):
+            v, sc = self.reml.fit_scales([None, None, None], free=self.free)
+            return _Fit(v, [None, None, None], [0.0] * 3, sc)
+        if start is None:
+            x = bounded_minimum(lambda x: self.value([float(np.exp(x)) if c else None for c in corr], ww),
+                                lo, hi, self.xatol)
+            taus = [float(np.exp(x)) if c else None for c in corr]
+        else:
+            taus = [(start[j] if start[j] is not None else float(np.exp(lo))) if corr[j] else None
+                    for j in range(3)]
+        widths = ((np.log(1.25), 1.0),) if polish_only else ((np.log(4.0), 4.0), (np.log(1.25), 1.0))
+        axes = [j for j in range(3) if corr[j] and (only is None or j == only)]
+        for w, wv in widths:
+            for j in axes:
+                if mixed[j] and not self.fixed_tau:  # tau and the white share trade along a ridge: jointly
+                    taus[j], ww[j] = self._both(j, taus, ww, w)
                 else:
-                    break
-            taus[j] = float(np.exp(x))
-    v, sc = reml.fit_scales(taus, state["scales"], free=free)
-    return (v if v < _NO_LIKELIHOOD else np.inf), taus, sc
+                    if not self.fixed_tau:
+                        taus[j] = self._tau(j, taus, ww, w)
+                    if mixed[j]:
+                        ww[j] = self._share(j, taus, ww, wv)
+                self.rescale(taus, ww)
+        v, sc = self.reml.fit_scales(taus, self.scales, free=self.free, shares=ww)
+        return _Fit(v if v < _NO_LIKELIHOOD else np.inf, taus, ww, sc)
+
+    def _tau(self, j: int, taus: list, ww: list, w: float) -> float:
+        lo, hi, xatol = self.lo, self.hi, self.xatol
+        x0 = float(np.log(taus[j] or np.exp(lo)))
+        a, b = max(lo, x0 - w), min(hi, x0 + w)
+        x = x0
+        for _ in range(20):
+            def f(x, j=j):
+                tt = list(taus)
+                tt[j] = float(np.exp(x))
+                return self.value(tt, ww)
+            x = float(bounded_minimum(f, a, b, xatol))
+            edge = 3 * xatol
+            if x - a < edge and a > lo:
+                a, b = max(lo, a - 2 * w), a + edge
+            elif b - x < edge and b < hi:
+                a, b = b - edge, min(hi, b + 2 * w)
+            else:
+                break
+        return float(np.exp(x))
+
+    def _both(self, j: int, taus: list, ww: list, w: float) -> tuple[float, float]:
+        """(tau, white share) of axis j by Nelder-Mead in (ln tau, logit w), inside the search intervals."""
+        box = np.array([[self.lo, self.hi], SHARE_LOGIT])
+
+        def f(z):
+            z = np.clip(z, box[:, 0], box[:, 1])
+            tt, w2 = list(taus), list(ww)
+            tt[j], w2[j] = float(np.exp(z[0])), 1.0 / (1.0 + math.exp(-z[1]))
+            return self.value(tt, w2)
+        z0 = np.array([math.log(taus[j]), math.log(ww[j] / (1.0 - ww[j]))])
+        z = np.clip(nelder_mead(f, z0, np.array([max(w, 0.5), 2.0]), 2.0 * self.xatol, maxfun=150),
+                    box[:, 0], box[:, 1])
+        return float(np.exp(z[0])), 1.0 / (1.0 + math.exp(-z[1]))
+
+    def _share(self, j: int, taus: list, ww: list, wv: float) -> float:
+        lo, hi = SHARE_LOGIT
+        v0 = float(np.log(ww[j] / (1.0 - ww[j])))
+
+        def f(v):
+            w2 = list(ww)
+            w2[j] = 1.0 / (1.0 + math.exp(-v))  # w = 1 / (1 + e^-v)
+            return self.value(taus, w2)
+        v = float(bounded_minimum(f, max(lo, v0 - wv), min(hi, v0 + wv), self.xatol))
+        return 1.0 / (1.0 + math.exp(-v))
+
+
+def nelder_mead(func: Callable[[np.ndarray], float], x0: np.ndarray, step: np.ndarray, xatol: float,
+                maxfun: int = 400) -> np.ndarray:
+    """Minimiser of `func` near `x0` by the Nelder-Mead simplex (reflection 1, expansion 2, contraction
+    1/2, shrink 1/2), the first simplex ``x0`` and ``x0 + step_i e_i``; stops when every vertex is
+    within `xatol` of the best in every coordinate, or after `maxfun` evaluations."""
+    n = x0.size
+    X = np.vstack([x0] + [x0 + step[i] * np.eye(n)[i] for i in range(n)])
+    F = np.array([func(x) for x in X])
+    nf = n + 1
+    while nf < maxfun:
+        o = np.argsort(F)
+        X, F = X[o], F[o]
+        if np.max(np.abs(X[1:] - X[0])) <= xatol:
+            break
+        c = X[:-1].mean(axis=0)  # centroid of all but the worst
+        xr = c + (c - X[-1])
+        fr = func(xr)
+        nf += 1
+        if fr < F[0]:
+            xe = c + 2.0 * (c - X[-1])
+            fe = func(xe)
+            nf += 1
+            X[-1], F[-1] = (xe, fe) if fe < fr else (xr, fr)
+        elif fr < F[-2]:
+            X[-1], F[-1] = xr, fr
+        else:
+            xc = c + 0.5 * ((xr if fr < F[-1] else X[-1]) - c)  # outside or inside contraction
+            fc = func(xc)
+            nf += 1
+            if fc < min(fr, F[-1]):
+                X[-1], F[-1] = xc, fc
+            else:  # shrink towards the best
+                X[1:] = X[0] + 0.5 * (X[1:] - X[0])
+                F[1:] = [func(x) for x in X[1:]]
+                nf += n
+    return X[int(np.argmin(F))]
 
 
 def bounded_minimum(func: Callable[[float], float], a: float, b: float, xatol: float, maxfun: int = 500) -> float:
@@ -374,9 +588,9 @@ def bounded_minimum(func: Callable[[float], float], a: float, b: float, xatol: f
     return xf
 
 
-def _sigma(reml: Reml, taus, scales) -> float:
+def _sigma(reml: Reml, taus, scales, shares=(0.0, 0.0, 0.0)) -> float:
     """REML sigma of the x axis: sqrt(RSS_w / (m - p))."""
-    _, T = reml.evaluate(taus, scales)
+    _, T = reml.evaluate(taus, scales, shares)
     if not isinstance(T, np.ndarray):
         return float("nan")
     return float(abs(T[reml.p, reml.p]) / np.sqrt(3 * reml.N - reml.p))

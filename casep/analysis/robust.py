@@ -16,6 +16,10 @@ enter the next innovation. The kept samples get the weight of the chosen functio
 * Huber: ``w = min(1, c / |u|)``, ``c = 1.345`` (95 % efficiency at the Gaussian);
 * bisquare: ``w = (1 - (u / c)^2)^2`` for ``|u| < c``, ``c = 4.685``; 0 beyond (rejected).
 
+On an axis with a white part (Gauss-Markov plus white) the innovations are those of its
+Gauss-Markov part, as above: the white part inflates them by a common factor that the robust scale
+``s`` absorbs (an approximation; the whitening of the fit itself is exact).
+
 More than :data:`MAX_RUN` rejections in a row are taken as a real change (a step the model does
 not have), not a glitch: the run is accepted again, so the filter cannot lose track. The samples
 before the first one accepted have no prediction forward; they are judged backward, from the
@@ -28,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from casep._kernels import ar1_terms
 from casep.analysis.noise import NoiseModel
 
 __all__ = ["ROBUST_FUNCTIONS", "RobustWeights", "robust_filter", "HUBER_C", "BISQUARE_C", "REJECT", "MAX_RUN"]
@@ -85,9 +90,8 @@ def _innovations(e: np.ndarray, t: np.ndarray, noise: NoiseModel, keep: np.ndarr
         nu[:, j] = e[:, j] / sc
         if tau is None:
             continue
-        dt = t[has] - t[last[has]]
-        a = np.exp(-dt / tau)
-        nu[has, j] = (e[has, j] - a * e[last[has], j]) / (sc * np.sqrt(-np.expm1(-2.0 * dt / tau)))
+        a, b = ar1_terms(t[has] - t[last[has]], tau)  # a_k, 1 - a_k^2
+        nu[has, j] = (e[has, j] - a * e[last[has], j]) / (sc * np.sqrt(b))
     return nu
 
 

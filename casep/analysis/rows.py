@@ -124,7 +124,7 @@ def prepare_rows(problem: Problem, noise: str = "auto", tau=None, robust: str | 
     ----------
     problem : Problem
         Raw rows ``(N, 3)`` with their times.
-    noise : {"auto", "gm", "white"}
+    noise : {"auto", "gm", "gmw", "white"}
     tau : float, three floats or None
         Given Gauss-Markov correlation time(s), s (``noise="gm"``).
     robust : {"auto", None, "none", "huber", "bisquare"}

@@ -1,7 +1,10 @@
 """Whiteness of the residuals: the Ljung-Box test per axis, across gaps in the sample times.
 
-White-noise std are honest only when the residuals are white; :func:`whiteness_test` says per axis
-whether they are and how much too small the white std then are.
+The std of a fit are honest only when its whitened residuals are white (for noise ``white`` the
+raw residuals; for a Gauss-Markov or Gauss-Markov-plus-white model the residuals whitened by it,
+:mod:`casep.analysis.noise`). :func:`whiteness_test` says per axis whether they are, and
+:meth:`WhitenessTest.message` how much too small the std then are (the std of a Gauss-Markov plus
+white model of the same data over the reported ones) and which noise model to ask for.
 """
 
 from __future__ import annotations
@@ -14,7 +17,13 @@ import numpy as np
 from casep.analysis.noise import AXES
 from casep.results import Completed
 
-__all__ = ["ljung_box", "WhitenessTest", "whiteness_test", "default_lags", "find_gaps", "segments_of"]
+#: Level of the test (Bonferroni over the axes) of residuals whitened by a noise model fitted to the same data
+#: (every kind but white): a fitted model's residuals fail at 1 % on about 1 flight in 100 by chance, a
+#: warning on the default path of every such flight; a model that misses a white part or a model error
+#: gives Q in the hundreds, far beyond this level too.
+ALPHA_FITTED = 1e-3
+
+__all__ = ["ALPHA_FITTED", "ljung_box", "WhitenessTest", "whiteness_test", "default_lags", "find_gaps", "segments_of"]
 
 
 def ljung_box(x: np.ndarray, lags: int, segments: np.ndarray | None = None) -> tuple[float, float]:
@@ -56,8 +65,9 @@ class WhitenessTest(Completed):
     p: tuple[float, float, float]
     lags: int
     alpha: float
-    std_factor: float | None = None  # median Gauss-Markov / white std over the estimable coefficients
+    std_factor: float | None = None  # median richer-model / reported std over the estimable coefficients
     std_factor_max: float | None = None
+    kind: str = "white"  # the noise kind asked of the fit tested (its whitened residuals unless white)
 
     @property
     def rejected(self) -> tuple[str, ...]:
@@ -65,26 +75,32 @@ class WhitenessTest(Completed):
         return tuple(a for a, p in zip(AXES, self.p) if p < self.alpha / 3)
 
     def to_dict(self) -> dict:
-        return {"test": "ljung-box", "lags": self.lags, "alpha": self.alpha,
+        return {"test": "ljung-box", "lags": self.lags, "alpha": self.alpha, "noise": self.kind,
                 "axes": {a: {"q": self.q[j], "p": self.p[j]} for j, a in enumerate(AXES)},
                 "rejected": list(self.rejected), "std_factor_median": self.std_factor,
                 "std_factor_max": self.std_factor_max}
 
     def text(self) -> str:
-        """The whiteness of the residuals per axis, in one line."""
+        """The whiteness of the residuals per axis, in one line (the warning's text): the axes, their Q and p, the
+        factor by which the std are too small, what to do."""
         parts = ", ".join(f"{a} Q {self.q[j]:.3g} (p {self.p[j]:.2g})"
                           for j, a in enumerate(AXES) if a in self.rejected)
+        what = "residuals are not white" if self.kind == "white" else \
+            f"residuals whitened by the noise model ({self.kind}) are still correlated"
         factor = ""
         if self.std_factor is not None and self.std_factor >= 1.0:
             factor = (f"; the reported std are about {self.std_factor:.2g}x too small (median over the coefficients "
-                      f"of the Gauss-Markov std of the same data / the white std; up to {self.std_factor_max:.2g}x)")
+                      f"of the Gauss-Markov plus white std of the same data / the reported std; up to "
+                      f"{self.std_factor_max:.2g}x)")
         elif self.std_factor is not None:
-            factor = (f"; a Gauss-Markov model of the same data gives std {self.std_factor:.2g}x the reported ones "
-                      f"(median over the coefficients; up to {self.std_factor_max:.2g}x): the white std are not "
-                      "the right ones, some too large here; if the residuals are a model error (frames, time "
-                      "tags, a missing term) no noise model makes the std right")
-        return (f"residuals are not white ({parts}, Ljung-Box on {self.lags} lags){factor}. Use --noise auto "
-                "(or gm)")
+            factor = (f"; a Gauss-Markov plus white model of the same data gives std {self.std_factor:.2g}x the "
+                      f"reported ones (median over the coefficients; up to {self.std_factor_max:.2g}x): the std "
+                      "are not the right ones, some too large here")
+        advice = {"white": "Use --noise auto (or gmw)", "gm": "Use --noise auto (or gmw)"}.get(
+            self.kind, "The noise is not of the modelled family (--noise gmw fits a white part on every axis), or "
+                       "the residuals hold a model error (frames, time tags, a missing term) that no noise model "
+                       "makes right: the std may be too small")
+        return f"{what} ({parts}, Ljung-Box on {self.lags} lags){factor}. {advice}"
 
 
 def default_lags(n: int) -> int:

@@ -54,11 +54,11 @@ def method_options(args: argparse.Namespace) -> dict[str, Any]:
 
 def add_noise(parser: Any, *, outputs: bool = True, default: str = "auto") -> None:
     """The noise-model options every method takes (casep.analysis.noise, casep.workflows.solve)."""
+    from casep.analysis.noise import NOISE_HELP, NOISE_KINDS
+
     g = parser.add_argument_group("noise model (every method)")
-    g.add_argument("--noise", choices=("auto", "gm", "white"), default=default,
-                   help=f"tracking noise (default {default}): auto (white or Gauss-Markov per axis by a "
-                        "likelihood-ratio test, said in the output), gm (Gauss-Markov per axis, --tau or REML), white "
-                        "(with separate, a whiteness test warns when the residuals contradict it)")
+    g.add_argument("--noise", choices=NOISE_KINDS, default=default,
+                   help=f"tracking noise (default {default}): {NOISE_HELP}")
     g.add_argument("--robust", nargs="?", const="huber", choices=("auto", "huber", "bisquare", "none"),
                    default="auto",
                    help="robust fit for any method: glitches removed by a robust filter on the innovations, the rest "

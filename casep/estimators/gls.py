@@ -1,18 +1,28 @@
-"""Generalised least squares for first-order Gauss-Markov (AR(1)) tracking noise.
+"""Generalised least squares for first-order Gauss-Markov (AR(1)) tracking noise, with a white part.
 
 Notes
 -----
-Each axis' noise is stationary Gauss-Markov with correlation time ``tau``. With
-``a_k = exp(-(t_k - t_{k-1}) / tau)`` the whitening of :func:`casep.analysis.diagnostics.ar1_whiten`
-(``w_0 = e_0``, ``w_k = (e_k - a_k e_{k-1}) / sqrt(1 - a_k^2)``) turns the noise white, so
-least squares on the whitened ``S`` and ``dv`` is the GLS estimate with its honest
-covariance ``sigma^2 (S^T Sigma^-1 S)^-1``, which attains the Gauss-Markov Cramer-Rao bound.
+Each axis' noise is stationary Gauss-Markov with correlation time ``tau``, plus (when the data
+ask for it) white measurement noise of variance share ``w`` (one ``tau`` and one ``w`` for every
+axis). With ``a_k = exp(-(t_k - t_{k-1}) / tau)`` the whitening of :mod:`casep.analysis.noise`
+(``w = 0``: ``w_0 = e_0``, ``w_k = (e_k - a_k e_{k-1}) / sqrt(1 - a_k^2)``; ``w > 0``: the
+innovations of the Kalman filter) turns the noise white, so least squares on the whitened ``S``
+and ``dv`` is the GLS estimate with its honest covariance ``sigma^2 (S^T Sigma^-1 S)^-1``, which
+attains the Cramer-Rao bound.
+
+``tau="auto"`` also tests a white part: ``w`` by REML in (ln tau, logit w) from the
+Gauss-Markov optimum, kept when ``-2 ln Lambda`` against ``w = 0`` exceeds
+:data:`casep.analysis.noise.AUTO_LR` (w = 0 on the boundary: null ``(chi2_0 + chi2_1) / 2``, 1 %).
+Without it GM-plus-white data is fitted as one short correlation time and the std are about 2x
+too small. A given ``tau`` means pure Gauss-Markov with that tau.
 
 ``tau="auto"`` estimates ``tau`` by restricted maximum likelihood (REML), which accounts
 for the degrees of freedom the regression absorbs (the lag-1 autocorrelation of OLS
 residuals underestimates tau by ~13 % here, and iterating does not help)::
 
-    -2 l_R(tau) = (m - p) ln RSS_w(tau) + 3 sum_k ln(1 - a_k^2) + ln det(S_w^T S_w) + const
+    -2 l_R(tau, w) = (m - p) ln RSS_w + 3 sum_k ln F_k + ln det(S_w^T S_w) + const
+
+(``F_k = 1 - a_k^2`` for ``w = 0``, the innovation variances of the filter otherwise)
 
 with ``S_w``, ``RSS_w`` from the unit-sigma whitening; minimised over ``ln tau`` in
 [median(dt) / 5, duration]. A ``tau`` at the lower end is white noise in effect (GLS = OLS).
@@ -30,9 +40,8 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence, Unpack
 
 import numpy as np
 
-from casep.analysis.diagnostics import ar1_whiten
-from casep.analysis.noise import NoiseModel
-from casep.analysis.noise_fit import tau_search_bounds  # one search interval of ln tau for both REMLs
+from casep.analysis.noise import AUTO_LR, NoiseModel, whiten_series
+from casep.analysis.noise_fit import SHARE_LOGIT, nelder_mead, tau_search_bounds  # one search of both REMLs
 from casep.analysis.problem import Problem
 from casep.estimators._base import Prepared, finish, prepare
 from casep.estimators._options import Choices, Interval, Labels, Method, Option, SeveralFlights
@@ -42,7 +51,7 @@ if TYPE_CHECKING:
     from casep.analysis.joint import JointProblem
     from casep.estimators.result import EstimateResult
 
-__all__ = ["solve_gls", "estimate_tau", "GLS", "GLSExtras"]
+__all__ = ["solve_gls", "estimate_tau", "estimate_noise", "GLS", "GLSExtras"]
 
 #: Its option (``casep separate --tau``; the noise model's tau for every other method).
 TAU = Option("tau", "--tau", "auto", (Choices(("auto",)), Interval(float, 0, 1e4, "right", "s")),
@@ -55,11 +64,13 @@ TAU = Option("tau", "--tau", "auto", (Choices(("auto",)), Interval(float, 0, 1e4
 class GLSExtras:
     """GLS: the Gauss-Markov correlation time tau (s) used and where it came from ("given", "reml");
     with several flights, each flight's own (``flight_taus``, label -> s) and ``tau`` their mean.
-    ``settings["tau"]`` holds what was asked: "auto" or the given tau."""
+    ``settings["tau"]`` holds what was asked: "auto" or the given tau. ``white_share``: the white
+    part's share of the noise variance (0: pure Gauss-Markov)."""
 
     tau: float
     tau_rule: str
     flight_taus: dict[str, float] | None = None
+    white_share: float = 0.0
 
     def describe(self, res: Any) -> list[str]:
         """Its part of the settings line."""
@@ -67,7 +78,8 @@ class GLSExtras:
         if self.flight_taus:
             each = ", ".join(f"{k} {v:.4g}" for k, v in self.flight_taus.items())
             return [f"Gauss-Markov tau per flight ({how}): {each} s"]
-        return [f"Gauss-Markov tau {self.tau:.4g} s ({how})"]
+        white = f" plus white (share {self.white_share:.3g} of the variance)" if self.white_share else ""
+        return [f"Gauss-Markov tau {self.tau:.4g} s ({how}){white}"]
 
     @staticmethod
     def old_form(settings: dict, diagnostics: dict, extras: dict | None) -> tuple[dict, dict, dict | None]:
@@ -87,12 +99,24 @@ class GLSExtras:
         return settings, diagnostics, extras
 
 
-def _whiten(S: np.ndarray, y: np.ndarray, t: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray]:
-    return ar1_whiten(S, t, 1.0, tau), ar1_whiten(y[:, :, None], t, 1.0, tau)[:, :, 0]
+def _whiten_axes(S: np.ndarray, t: np.ndarray, tau: float, share: float = 0.0) -> tuple[np.ndarray, float]:
+    """(N, 3, k) rows whitened per axis at unit std (:func:`casep.analysis.noise.whiten_series`), sum ln F."""
+    W = np.empty(S.shape)
+    ld = 0.0
+    for j in range(3):
+        W[:, j, :], ldj, _ = whiten_series(S[:, j, :], t, tau, share)
+        ld += ldj
+    return W, ld
 
 
-def _neg2_reml(S: np.ndarray, Y: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
-    """-2 l_R(tau) + const of each column of ``Y`` (module notes), one factorisation for all.
+def _whiten(S: np.ndarray, y: np.ndarray, t: np.ndarray, tau: float, share: float = 0.0
+            ) -> tuple[np.ndarray, np.ndarray]:
+    W = _whiten_axes(np.concatenate([S, y[:, :, None]], axis=2), t, tau, share)[0]
+    return W[:, :, :-1], W[:, :, -1]
+
+
+def _neg2_reml(S: np.ndarray, Y: np.ndarray, t: np.ndarray, tau: float, share: float = 0.0) -> np.ndarray:
+    """-2 l_R(tau, w) + const of each column of ``Y`` (module notes), one factorisation for all.
 
     Parameters
     ----------
@@ -106,18 +130,18 @@ def _neg2_reml(S: np.ndarray, Y: np.ndarray, t: np.ndarray, tau: float) -> np.nd
     cancellation.
     """
     N, _, p = S.shape
-    a = np.exp(-np.diff(t) / tau)  # a_k = exp(-dt_k / tau)
-    Sw = ar1_whiten(S, t, 1.0, tau).reshape(-1, p)
+    W, logF = _whiten_axes(np.concatenate([S, Y], axis=2), t, tau, share)  # logF = 3 sum_k ln F_k
+    Sw = W[:, :, :p].reshape(-1, p)
     c = np.sqrt(np.einsum("ij,ij->j", Sw, Sw))  # column norms of S_w
     live = c > 0
-    Yw = ar1_whiten(Y, t, 1.0, tau).reshape(-1, Y.shape[-1])
+    Yw = W[:, :, p:].reshape(-1, Y.shape[-1])
     q = int(live.sum())
     R = np.asarray(np.linalg.qr(np.hstack([Sw[:, live] / c[live], Yw]), mode="r"))  # [Z Y_w] = Q R
     d = np.abs(np.diag(R)[:q])
     ok = d > 0
     logdet = 2.0 * np.sum(np.log(d[ok])) + 2.0 * np.sum(np.log(c[live][ok]))  # ln det(S_w^T S_w)
     rss = np.einsum("ij,ij->j", R[q:, q:], R[q:, q:])  # ||(I - P_Z) y_w||^2 = column norms of R_22
-    return (3 * N - p) * np.log(rss) + 3.0 * np.sum(np.log1p(-(a**2))) + logdet
+    return (3 * N - p) * np.log(rss) + logF + logdet
 
 
 def estimate_tau(S: np.ndarray, y: np.ndarray, t: np.ndarray) -> float:
@@ -128,6 +152,25 @@ def estimate_tau(S: np.ndarray, y: np.ndarray, t: np.ndarray) -> float:
     res = minimize_scalar(lambda x: float(_neg2_reml(S, Y, t, float(np.exp(x)))[0]), bounds=tau_search_bounds(t),
                           method="bounded", options={"xatol": 1e-4})
     return float(np.exp(res.x))
+
+
+def estimate_noise(S: np.ndarray, y: np.ndarray, t: np.ndarray) -> tuple[float, float]:
+    """REML ``(tau, white share)`` (module notes): the Gauss-Markov tau, then the white part where the
+    likelihood-ratio test keeps it (share 0 otherwise)."""
+    Y = np.asarray(y, dtype=float).reshape(S.shape[0], 3, 1)
+    tau = estimate_tau(S, y, t)
+    lo, hi = tau_search_bounds(t)
+    box = np.array([[lo, hi], SHARE_LOGIT])
+
+    def f(z: np.ndarray) -> float:
+        z = np.clip(z, box[:, 0], box[:, 1])
+        return float(_neg2_reml(S, Y, t, float(np.exp(z[0])), 1.0 / (1.0 + np.exp(-z[1])))[0])
+    z = np.clip(nelder_mead(f, np.array([np.log(tau) + 1.0, np.log(0.1 / 0.9)]), np.array([1.0, 2.0]), 1e-3),
+                box[:, 0], box[:, 1])
+    lr = float(_neg2_reml(S, Y, t, tau)[0]) - f(z)  # -2 ln Lambda of the white part
+    if not lr > AUTO_LR:
+        return tau, 0.0
+    return float(np.exp(z[0])), float(1.0 / (1.0 + np.exp(-z[1])))
 
 
 def solve_gls(S: np.ndarray | Problem, y: np.ndarray | None = None, t: np.ndarray | None = None, *,
@@ -171,21 +214,22 @@ def _solve(pb: Prepared, *, method: Method, tau: float | str) -> EstimateResult:
         raise ValueError("`t` must be strictly increasing")
     y = np.asarray(problem.y, dtype=float).reshape(S.shape[0], 3)
     if isinstance(tau, str):
-        tau_used, rule = estimate_tau(S, y, t), "reml"
+        (tau_used, share), rule = estimate_noise(S, y, t), "reml"
     else:
-        tau_used, rule = float(tau), "given"
-    pw = prepare(*_whiten(S, y, t, tau_used), pb.names, pb.units, pb.si_factors, pb.sigma, pb.ra.rcond,
+        tau_used, share, rule = float(tau), 0.0, "given"
+    pw = prepare(*_whiten(S, y, t, tau_used, share), pb.names, pb.units, pb.si_factors, pb.sigma, pb.ra.rcond,
                  model=problem.model)
     x, cov, sig = least_squares(pw)  # sigma: whitened residual std = stationary sigma
     fit = y - S @ x  # dv - S_V D_hat, not whitened
     return finish(pw, method, x, cov, sig, residuals=fit.reshape(-1),
                   settings={"tau": tau, "sigma": "estimated" if pb.sigma is None else pb.sigma},  # inputs
-                  extras=GLSExtras(float(tau_used), rule))  # found (REML) or the given tau
+                  extras=GLSExtras(float(tau_used), rule, white_share=share))  # found (REML) or the given tau
 
 
 def _noise_model(res: EstimateResult) -> NoiseModel:
-    """The noise model GLS fitted: one Gauss-Markov tau for every axis."""
-    return NoiseModel(kind="gm", tau=(res.extras.tau,) * 3, rule=res.extras.tau_rule)
+    """The noise model GLS fitted: one Gauss-Markov tau (and white share) for every axis."""
+    w = float(getattr(res.extras, "white_share", 0.0))
+    return NoiseModel(kind="gmw" if w else "gm", tau=(res.extras.tau,) * 3, rule=res.extras.tau_rule, share=(w,) * 3)
 
 
 # ------------------------------------------------------------------ several flights
@@ -201,8 +245,8 @@ def _flight_rows(problems: Sequence[Problem], options: Mapping[str, Any], noise:
         if p.t is None:
             raise ValueError(f"flight `{p.source}` has no sample times: GLS needs them")
         S, y = p.sv(), p._need_rows().reshape(-1, 3)
-        tk = estimate_tau(S, y, p.t) if isinstance(tau, str) else float(tau)
-        Sw, yw = _whiten(S, y, p.t, tk)
+        tk, share = estimate_noise(S, y, p.t) if isinstance(tau, str) else (float(tau), 0.0)
+        Sw, yw = _whiten(S, y, p.t, tk, share)
         q = Problem.from_arrays(Sw, yw, p.t, names=p.names, units=p.units, si_factors=p.si_factors, model=p.model)
         q.source = p.source
         out.append(q)

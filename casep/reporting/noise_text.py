@@ -24,11 +24,7 @@ def noise_line(nd: Mapping[str, Any]) -> str:
     axes = nd["axes"]
     if "note" in nd:
         return f"noise: {nd['note']}, tau {axes['x']['tau_s']:.3g} s ({nd['rule']})"
-    nm = NoiseModel(kind=nd["kind"], tau=tuple(axes[a]["tau_s"] for a in "xyz"),
-                    scale=tuple(axes[a]["scale"] for a in "xyz"), rule=nd["rule"],
-                    lr=tuple(axes[a]["lr"] for a in "xyz") if "lr" in axes["x"] else None,
-                    lr_scale=nd.get("lr_scale"), sigma=axes["x"].get("std_m_s"))
-    return nm.line()
+    return NoiseModel.from_dict(nd).line()
 
 
 def robust_line(rb: Mapping[str, Any]) -> str:

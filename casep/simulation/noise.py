@@ -8,7 +8,9 @@ discretisation on possibly non-uniform times::
     n_0 ~ N(0, sigma^2),   n_k = a_k n_{k-1} + sigma sqrt(1 - a_k^2) w_k,   w_k ~ N(0, 1)
 
 so ``Var(n_k) = sigma^2`` for every k and the lag-1 correlation on a uniform grid of step
-``dt`` is ``exp(-dt / tau)``.
+``dt`` is ``exp(-dt / tau)`` (``1 - a_k^2`` from :func:`casep._kernels.ar1_terms`, exact when
+``dt << tau``). ``white_sigma`` adds independent white measurement noise ``N(0, white_sigma^2)``
+on top of either kind: Gauss-Markov plus white, the usual radar / GNSS mixture.
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
+
+from casep._kernels import ar1_terms
 
 __all__ = ["NoiseModel", "ar1_noise", "white_noise"]
 
@@ -37,11 +41,11 @@ def ar1_noise(t: np.ndarray, sigma: float, tau: float, rng: np.random.Generator,
     t = np.asarray(t, dtype=float)
     if not np.isfinite(tau) or tau <= 0:
         raise ValueError(f"`tau` must be finite and > 0 s, got {tau}")
-    a = np.exp(-np.diff(t) / tau)  # a_k
+    a, one_minus_a2 = ar1_terms(np.diff(t), tau)  # a_k, 1 - a_k^2
     w = rng.standard_normal((t.size, axes))
     out = np.empty((t.size, axes))
     out[0] = sigma * w[0]
-    b = sigma * np.sqrt(1.0 - a**2)
+    b = sigma * np.sqrt(one_minus_a2)
     for k in range(1, t.size):  # n_k = a_k n_{k-1} + sigma sqrt(1 - a_k^2) w_k
         out[k] = a[k - 1] * out[k - 1] + b[k - 1] * w[k]
     return out
@@ -65,6 +69,9 @@ class NoiseModel:
         Std of an outlier's added error, m/s.
     gaps : tuple of (start, length), optional
         Time windows (s) with no samples (rows are removed from the flight).
+    white_sigma : float, optional
+        Std of white measurement noise added to the base process, m/s (``"ar1"`` with it:
+        Gauss-Markov plus white).
     """
 
     kind: str = "white"
@@ -73,6 +80,7 @@ class NoiseModel:
     outlier_rate: float = 0.0
     outlier_sigma: float = 0.0
     gaps: tuple[tuple[float, float], ...] = ()
+    white_sigma: float = 0.0
 
     def __post_init__(self) -> None:
         if self.kind not in ("white", "ar1"):
@@ -81,6 +89,8 @@ class NoiseModel:
             raise ValueError(f"`sigma` must be finite and >= 0, got {self.sigma}")
         if self.kind == "ar1" and (self.tau is None or not self.tau > 0):
             raise ValueError(f"`tau` must be > 0 for 'ar1' noise, got {self.tau}")
+        if not (np.isfinite(self.white_sigma) and self.white_sigma >= 0):
+            raise ValueError(f"`white_sigma` must be finite and >= 0, got {self.white_sigma}")
         if not 0.0 <= self.outlier_rate < 1.0:
             raise ValueError(f"`outlier_rate` must be in [0, 1), got {self.outlier_rate}")
         if self.outlier_sigma < 0:
@@ -90,8 +100,12 @@ class NoiseModel:
                 raise ValueError(f"each gap must be (start, length > 0), got {g}")
 
     def lag1_at(self, dt: float) -> float:
-        """Expected lag-1 autocorrelation of the base noise at sample step `dt` (s)."""
-        return 0.0 if self.kind == "white" or self.tau is None else float(np.exp(-dt / self.tau))
+        """Expected lag-1 autocorrelation of the noise (without outliers) at sample step `dt` (s):
+        ``exp(-dt / tau) sigma^2 / (sigma^2 + white_sigma^2)``."""
+        if self.kind == "white" or self.tau is None:
+            return 0.0
+        total = self.sigma**2 + self.white_sigma**2
+        return float(np.exp(-dt / self.tau) * self.sigma**2 / total) if total > 0 else 0.0
 
     def sample(self, t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Noise at times `t`, ``(N, 3)`` m/s: base process plus outliers."""
@@ -102,6 +116,8 @@ class NoiseModel:
         else:
             assert self.tau is not None  # a Gauss-Markov model has one (checked on construction)
             n = ar1_noise(t, self.sigma, self.tau, rng)
+        if self.white_sigma > 0:
+            n = n + white_noise(t.size, self.white_sigma, rng)
         if self.outlier_rate > 0:
             hit = rng.random(n.shape) < self.outlier_rate
             n = n + hit * self.outlier_sigma * rng.standard_normal(n.shape)

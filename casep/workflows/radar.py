@@ -56,7 +56,7 @@ NOT_WITH_RADAR: dict[str, tuple[str, Callable[[Any], bool]]] = {
     "exclude_outliers": ("--exclude-outliers", lambda v: v is not None),
     "robust": ("--robust", lambda v: v not in (None, "auto", "none")),
     "std": ("--std hac", lambda v: v not in (None, "model")),
-    "noise": ("--noise gm", lambda v: v == "gm"),
+    "noise": ("--noise gm / gmw", lambda v: v in ("gm", "gmw")),
     # a number is the std of the telemetry-minus-tracking velocity, m/s; the radar's is per station and type
     "sigma": ("--sigma", lambda v: v is not None and not isinstance(v, Mapping)),
     "max_condition_index": ("--max-condition-index", lambda v: v is not None and v != DEFAULT_MAX_CONDITION_INDEX),

@@ -139,14 +139,15 @@ def separate(
         Flag rows by their studentized residual on the whitened rows
         (:func:`casep.analysis.outliers.flag_outliers`) with this chance of any false flag in a
         clean flight (e.g. 0.01); the flags go to ``diagnostics["outliers_studentized"]``.
-    noise : {"auto", "gm", "white"}, optional
+    noise : {"auto", "gm", "gmw", "white"}, optional
         The noise model of the rows (:mod:`casep.analysis.noise`), for every method: ``auto``
-        (default) chooses white or Gauss-Markov per axis by a likelihood-ratio test and says so in
-        ``diagnostics["noise"]``; ``gm`` Gauss-Markov on every axis (correlation time `tau`, or
-        REML); ``white`` one std, no correlation (a whiteness test warns when the residuals
-        contradict it, with the factor by which the std are too small).
+        (default) chooses white, Gauss-Markov or Gauss-Markov plus white per axis by likelihood-ratio
+        tests and says so in ``diagnostics["noise"]``; ``gm`` Gauss-Markov on every axis (correlation
+        time `tau`, or REML); ``gmw`` Gauss-Markov plus white on every axis (REML); ``white`` one
+        std, no correlation. Whatever the kind, a whiteness test of the whitened residuals warns
+        when they are still correlated.
     tau : float, three floats or "auto", optional
-        Gauss-Markov correlation time(s), s; a number implies ``noise="gm"``.
+        Gauss-Markov correlation time(s), s; a number implies ``noise="gm"`` (unless ``"gmw"``).
     robust : {"auto", "huber", "bisquare", "none"}, optional
         Robust fit for any method: glitches removed by a robust filter on the innovations, the
         rest weighted (:mod:`casep.analysis.rows`). ``auto`` (default): Huber when the filter

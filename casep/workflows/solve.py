@@ -23,7 +23,7 @@ import numpy as np
 from casep.analysis.noise import NoiseModel
 from casep.analysis.problem import Problem
 from casep.analysis.rows import Rows, prepare_rows
-from casep.analysis.whiteness import default_lags, find_gaps, whiteness_test
+from casep.analysis.whiteness import ALPHA_FITTED, default_lags, find_gaps, whiteness_test
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
 from casep.exceptions import NoiseNotWhiteWarning
@@ -222,11 +222,14 @@ def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResul
         for g, loc in zip(gaps, _places(problem, [g["row"] - 1 for g in gaps])):
             g.update(loc)  # the first sample after the gap
         diag["gaps"] = gaps
-    if nm.is_white and noise == "white" and check_white and problem.t is not None and raw.ndim == 2 \
+    if check_white and problem.t is not None and raw.ndim == 2 and rows.solved.has_rows \
             and not problem.is_noise_free():  # rounding residuals: no noise whose whiteness to test
-        wt = whiteness_test(raw[keep], problem.t[keep])
+        # the residuals whitened by the noise model (raw ones for white noise): still correlated?
+        e = raw[keep] if nm.is_white and rows.weights is None else rows.solved.residuals(x).reshape(-1, 3)
+        alpha = 0.01 if noise == "white" else ALPHA_FITTED  # raw residuals at 1 %, whitened ones at 0.1 %
+        wt = dataclasses.replace(whiteness_test(e, problem.t[keep], alpha=alpha), kind=noise)
         if wt.rejected:
-            factor = _gm_factor(res, rows.solved)
+            factor = _gm_factor(res, rows) if noise in ("white", "gm") else (None, None)
             wt = dataclasses.replace(wt, std_factor=factor[0], std_factor_max=factor[1])
             warnings.warn(f"{res.method}: {wt.text()}", NoiseNotWhiteWarning, stacklevel=3)
         diag["whiteness"] = wt.to_dict()
@@ -278,21 +281,22 @@ def _with_hac(res: EstimateResult, solved: Problem) -> EstimateResult:
     return dataclasses.replace(res, covariance=cov, std=std, settings={**res.settings, "std": "hac"})
 
 
-def _gm_factor(res: EstimateResult, solved: Problem) -> tuple[float | None, float | None]:
-    """Median and largest ratio of the Gauss-Markov (REML) least-squares std to the reported white std.
+def _gm_factor(res: EstimateResult, rows: Rows) -> tuple[float | None, float | None]:
+    """Median and largest ratio of the Gauss-Markov plus white (REML) least-squares std to the reported std.
 
-    How far too small the reported std are, measured from the fit: the same data under the
-    noise model the residuals point to.
+    How far too small the reported std are, measured from the fit: the same data (the samples
+    kept) under the richest noise model, which nests the one fitted.
     """
     from casep.estimators.ols import solve_ols
 
-    if res.std is None or solved.noise is not None or not solved.has_rows:
+    raw = rows.problem if rows.keep.all() else rows.problem.subset(rows.keep)
+    if res.std is None or raw.noise is not None or not raw.has_rows:
         return None, None
     try:
-        rows = prepare_rows(solved, "gm", robust="huber")  # robust: glitches would collapse tau
+        rich = prepare_rows(raw, "gmw", robust="huber")  # robust: glitches would collapse tau
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # conditioning: said by the result
-            gm = solve_ols(rows.solved)
+            gm = solve_ols(rich.solved)
     except (ValueError, np.linalg.LinAlgError):
         return None, None
     if gm.std is None:
@@ -321,6 +325,14 @@ def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], robust: 
     nm = meth.own_noise_model(res)
     diag = {**res.diagnostics, **noise_account(rows, "gm", nm, note=f"method {meth.name}: one tau for all axes")}
     raw = problem.residuals(_x(res))
+    if sub.t is not None and sub.has_rows and not sub.is_noise_free():  # whitened residuals still correlated?
+        from casep.analysis.noise import whiten
+
+        e = whiten(np.zeros(sub.y.shape + (0,)), sub.residuals(_x(res)).reshape(-1, 3), sub.t, nm)[1]
+        wt = dataclasses.replace(whiteness_test(e, sub.t, alpha=ALPHA_FITTED), kind=meth.name)
+        if wt.rejected:
+            warnings.warn(f"{meth.name}: {wt.text()}", NoiseNotWhiteWarning, stacklevel=3)
+        diag["whiteness"] = wt.to_dict()
     res = dataclasses.replace(res, diagnostics=diag, settings={**res.settings, "noise": "gm"}, residuals=raw,
                               n_samples=problem.n_samples)
     return Solved(res, sub, nm, np.zeros(0, dtype=int) if rows is None else np.flatnonzero(~rows.keep))

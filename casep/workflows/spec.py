@@ -87,7 +87,7 @@ class NoiseSpec:
         likelihood).
     tau : float, three floats or None
         Given Gauss-Markov correlation time(s) of the noise model, s (None: REML). A number implies
-        Gauss-Markov noise (``kind`` "auto" becomes "gm"; "white" is an error).
+        Gauss-Markov noise (``kind`` "auto" becomes "gm", "gmw" stays; "white" is an error).
     robust : {"auto", "huber", "bisquare"} or None
         Robust fit (None: never).
     std : {"model", "hac"}
@@ -135,9 +135,9 @@ class NoiseSpec:
         if self.tau is not None:
             if self.kind == "white":
                 raise ValueError("`tau` given with noise 'white': a correlation time means noise 'gm'")
-            set_(self, "kind", "gm")
+            set_(self, "kind", "gmw" if self.kind == "gmw" else "gm")  # gmw: the white part still by REML
         if self.denoise == "wavelet":
-            if self.kind == "gm" or self.robust not in (None, "auto") or self.exclude_outliers is not None \
+            if self.kind in ("gm", "gmw") or self.robust not in (None, "auto") or self.exclude_outliers is not None \
                     or self.std != "model":
                 raise ValueError("`denoise='wavelet'` removes the noise a noise model, a robust fit or HAC std "
                                  "describe: use them without de-noising")

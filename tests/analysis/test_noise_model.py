@@ -11,6 +11,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import dishonest_methods
 
 import casep
 from casep.analysis.noise import AUTO_LR, NoiseModel
@@ -64,7 +65,8 @@ def test_whitening_on_non_uniform_spacing_and_across_a_gap_equals_dense_gls(rng)
 
 
 def test_whitening_block_by_block_equals_whole(platform36, flight_tf):
-    """A regenerated problem (S_V never whole) whitens with the last row carried across blocks."""
+    """A regenerated problem (S_V never whole) whitens with the filter state carried across blocks
+    (Gauss-Markov, Gauss-Markov plus white and white axes)."""
     t, f = flight_tf
     rng = np.random.default_rng(5)
     S = casep.build_sv(platform36, t, f)
@@ -72,7 +74,7 @@ def test_whitening_block_by_block_equals_whole(platform36, flight_tf):
     fl = casep.FlightData(t=t, f=f, dv=y)
     whole = Problem.from_flight(fl, platform36, keep_sv=True, checks=False)
     blocks = Problem.from_flight(fl, platform36, keep_sv=False, block_rows=257, checks=False)
-    nm = NoiseModel(kind="gm", tau=(1.0, 0.7, None), scale=(1.0, 1.3, 0.8))
+    nm = NoiseModel(kind="gmw", tau=(1.0, 0.7, None), scale=(1.0, 1.3, 0.8), share=(0.0, 0.3, 0.0))
     a, b = whole.whitened(nm), blocks.whitened(nm)
     np.testing.assert_allclose(np.abs(a.red.R), np.abs(b.red.R), rtol=1e-9, atol=1e-9 * np.abs(a.red.R).max())
     np.testing.assert_allclose(a.y, b.y, rtol=1e-12, atol=1e-15)
@@ -279,14 +281,11 @@ def test_every_method_is_honest_in_gauss_markov_noise_with_gaps(range_problem, g
     ``benchmarks/mc_noise.py`` runs the whole flight and more draws."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IllConditionedWarning)
+        warnings.simplefilter("ignore", NoiseNotWhiteWarning)  # the whiteness test's 1 % false alarms: not the test
         S, t, truth = range_problem
         window = (t >= 60.0) & (t <= 150.0)  # 90 s holding both dropouts, for time
         stats = _study((S[window], t[window], truth), 60, glitches, robust, seed=31 if glitches else 30)
-    bad = {}
-    for m, z in stats.items():
-        rms, cov = float(np.sqrt(np.mean(z**2))), float(np.mean(np.abs(z) <= 1.96))
-        if not (0.85 <= rms <= 1.15 and 0.92 <= cov <= 0.98):
-            bad[m] = (round(rms, 3), round(cov, 3))
+    bad = dishonest_methods(stats)
     assert not bad, bad
 
 
@@ -343,6 +342,8 @@ def test_dt_trk_is_fitted_after_automatic_alignment_without_a_columns(tmp_path):
         warnings.simplefilter("ignore", casep.exceptions.NoiseFreeWarning)
         res = casep.separate(fl, "platform36")
         with pytest.warns(casep.exceptions.TimeOffsetWarning):  # the alignment's few tenths of a ms, unmodelled
+            # the unmodelled offset is the residual, a model error: its whiteness warning is expected too
+            warnings.simplefilter("ignore", NoiseNotWhiteWarning)
             plain = casep.separate(fl, "platform36", fit_time_offset=False)
     assert res.model == "platform36+dt_trk" and "dt_trk" not in plain.names
     shift_ms = fl.meta["time_alignment"]["applied_s"] * 1e3
@@ -374,10 +375,15 @@ def test_robust_fit_engages_by_itself_on_glitches_only(range_problem):
         warnings.simplefilter("ignore", IllConditionedWarning)
         a = casep.separate(clean)
         b = casep.separate(glitchy)
-        with pytest.warns(casep.exceptions.OutlierWarning, match="--robust"):  # without the filter: said
+        with pytest.warns(casep.exceptions.OutlierWarning, match="--robust"), \
+                warnings.catch_warnings():  # without the filter: said
+            warnings.simplefilter("ignore", NoiseNotWhiteWarning)  # glitches are no Gaussian noise: may be said too
             c = casep.separate(glitchy, robust="none")
     assert "robust" not in a.diagnostics
     auto = b.diagnostics["robust"]["automatic"]
     assert auto["glitches_found"] > auto["limit"] > auto["expected_from_noise"]
     assert b.diagnostics["noise"]["axes"]["x"]["tau_s"] > 0.5  # not collapsed by the glitches
-    assert (c.diagnostics["noise"]["axes"]["x"]["tau_s"] or 0.0) < 0.3  # without the filter: collapsed
+    # without the filter the glitches are taken for noise: a white part (Gauss-Markov plus white) or,
+    # without one, a collapsed correlation time
+    cx = c.diagnostics["noise"]["axes"]["x"]
+    assert cx["model"] == "gauss-markov+white" or (cx["tau_s"] or 0.0) < 0.3

@@ -83,7 +83,10 @@ def test_table_prints_settings_line_per_method(noisy_flight, method):
 
 
 def test_settings_line_given_sigma_and_tau(noisy_flight):
-    res = _separate(noisy_flight, "gls", tau=0.5, sigma=0.02)
+    from casep.exceptions import NoiseNotWhiteWarning
+
+    with pytest.warns(NoiseNotWhiteWarning, match="gls"):  # a tau of 0.5 s given for white noise: said
+        res = _separate(noisy_flight, "gls", tau=0.5, sigma=0.02)
     line = _settings_line(res)
     assert "tau 0.5 s (given)" in line and "sigma given 0.02 m/s" in line
 
