@@ -162,7 +162,8 @@ class NoiseModel(Completed):
         lr_w = tuple(axes[a].get("lr_white") for a in AXES) if "lr_white" in axes["x"] else None
         return cls(kind=d["kind"], tau=tuple(axes[a]["tau_s"] for a in AXES),
                    scale=tuple(axes[a]["scale"] for a in AXES), rule=d["rule"],
-                   lr=tuple(axes[a]["lr"] for a in AXES) if "lr" in axes["x"] else None,
+                   lr=tuple(np.inf if axes[a]["lr"] is None else axes[a]["lr"] for a in AXES)
+                   if "lr" in axes["x"] else None,
                    lr_scale=d.get("lr_scale"), sigma=axes["x"].get("std_m_s"),
                    share=tuple(float(axes[a].get("white_share", 0.0)) for a in AXES), lr_white=lr_w)
 
@@ -219,18 +220,24 @@ class NoiseModel(Completed):
                     ax["std_gm_m_s"] = ax["std_m_s"] * float(np.sqrt(1.0 - self.share[j]))
                     ax["std_white_m_s"] = ax["std_m_s"] * float(np.sqrt(self.share[j]))
             if self.lr is not None:
-                ax["lr"] = self.lr[j]
+                ax["lr"] = _statistic(self.lr[j])
             if self.lr_white is not None:
-                ax["lr_white"] = self.lr_white[j]
+                ax["lr_white"] = _statistic(self.lr_white[j])
             axes[a] = ax
         d: dict[str, Any] = {"kind": self.kind, "rule": self.rule, "axes": axes}
         if self.lr is not None:
             d["lr_threshold"] = AUTO_LR
             d["lr_null"] = "(chi2_0 + chi2_1) / 2, 1 %"
         if self.lr_scale is not None:
-            d["lr_scale"], d["lr_scale_threshold"] = self.lr_scale, AUTO_LR_SCALE
-        d.update(self.extra)
+            d["lr_scale"], d["lr_scale_threshold"] = _statistic(self.lr_scale), AUTO_LR_SCALE
+        d.update({k: _statistic(v) if isinstance(v, float) else v for k, v in self.extra.items()})
         return d
+
+
+def _statistic(v: float | None) -> float | None:
+    """A test statistic as JSON holds it: None where it is infinite (the simpler model has no finite
+    likelihood: residuals at the rounding level on that axis), which JSON cannot hold as a number."""
+    return None if v is None or not np.isfinite(v) else float(v)
 
 
 #: The state a whitening carries from one block of samples to the next: (time of the last sample,

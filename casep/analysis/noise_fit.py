@@ -322,8 +322,8 @@ def _auto(reml: Reml, gm: _Fit, lo: float, hi: float, xatol: float) -> NoiseMode
             null = search.run(corr, mix.taus, [c and k != j for k, c in enumerate(tried)],
                               shares=[0.0 if k == j else w for k, w in enumerate(mix.shares)],
                               scales=mix.scales, polish_only=True, only=j)
-            lr_white[j] = max(null.value - mix.value, 0.0) if np.isfinite(null.value) else float("inf")
-            keep_w[j] = lr_white[j] > AUTO_LR
+            lr_j = max(null.value - mix.value, 0.0) if np.isfinite(null.value) else float("inf")
+            lr_white[j], keep_w[j] = lr_j, lr_j > AUTO_LR
         if any(keep_w):
             shares = [mix.shares[j] if keep_w[j] else 0.0 for j in range(3)]
             cur = search.run(corr, mix.taus, keep_w, shares=shares, scales=mix.scales, polish_only=True)

@@ -328,7 +328,8 @@ def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], robust: 
     if sub.t is not None and sub.has_rows and not sub.is_noise_free():  # whitened residuals still correlated?
         from casep.analysis.noise import whiten
 
-        e = whiten(np.zeros(sub.y.shape + (0,)), sub.residuals(_x(res)).reshape(-1, 3), sub.t, nm)[1]
+        r = sub.residuals(_x(res)).reshape(-1, 3)
+        e = whiten(np.zeros(r.shape + (0,)), r, sub.t, nm)[1]
         wt = dataclasses.replace(whiteness_test(e, sub.t, alpha=ALPHA_FITTED), kind=meth.name)
         if wt.rejected:
             warnings.warn(f"{meth.name}: {wt.text()}", NoiseNotWhiteWarning, stacklevel=3)

@@ -213,3 +213,21 @@ def test_noise_line_of_every_kind_reads_back():
     old = {"kind": "gm", "rule": "reml", "axes": {a: {"model": "gauss-markov", "tau_s": 1.0, "scale": 1.0}
                                                   for a in "xyz"}}
     assert NoiseModel.from_dict(old).share == (0.0, 0.0, 0.0)
+
+
+def test_an_infinite_likelihood_ratio_is_written_as_null_and_read_back():
+    """An axis whose white fit has no finite likelihood (residuals at the rounding level there, the rest
+    not: a noise-free flight with a 1 us tracking offset) gives LR inf: the result JSON holds it as null
+    (JSON has no inf; the writer refused the whole file before) and reads it back as inf."""
+    import json
+    import math
+
+    nm = NoiseModel(kind="auto", tau=(1.0, 1.0, 96.4), scale=(1.0, 0.7, 0.01), rule="reml",
+                    lr=(6.98e4, 6.98e4, math.inf), lr_scale=math.inf, sigma=4e-6,
+                    extra={"neg2_reml": -math.inf})
+    d = nm.to_dict()
+    text = json.dumps(d, allow_nan=False)  # raises on a non-finite number
+    assert d["axes"]["z"]["lr"] is None and d["lr_scale"] is None and d["neg2_reml"] is None
+    back = NoiseModel.from_dict(json.loads(text))
+    assert back.lr == (6.98e4, 6.98e4, math.inf)
+    assert "LR inf" in back.line()
