@@ -55,7 +55,7 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.io.files": ("apparent_velocity_to_force", "read_flight", "read_flight_pair", "write_flight"),
     "casep.analysis.linalg": ("ReducedSystem", "analyze_rank", "reduce_qr"),
     "casep.analysis.problem": ("Problem",),
-    "casep.model._model": ("ErrorModel", "ModelDefinitionError"),
+    "casep.model.error_model": ("ErrorModel", "ModelDefinitionError"),
     "casep.model.loader": ("available_models", "build_model", "load_model", "model_dirs"),
     "casep.estimators.bounded": ("solve_bounded",),
     "casep.estimators.gls": ("solve_gls",),

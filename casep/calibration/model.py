@@ -41,8 +41,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from casep.model._model import ErrorModel
 from casep.model.base import AXES, ModelDefinitionError, SpecificForceModel
+from casep.model.error_model import ErrorModel
 
 __all__ = ["CalibrationModel", "READINGS", "SLOTS", "calibration_model_dirs", "calibration_models",
            "load_calibration_model"]

@@ -341,7 +341,7 @@ def _objective_weights(coefficients: Sequence[str] | None, names: Sequence[str],
     """0/1 weights of the coefficients objective A sums (None: all of them)."""
     if coefficients is None:
         return None
-    from casep.model._model import unknown_coefficient_message
+    from casep.model.error_model import unknown_coefficient_message
 
     chosen = list(coefficients)
     for nm in chosen:

@@ -114,7 +114,7 @@ def check_result_units(names, units, model, source: str, skip: set[str] | frozen
     """Every coefficient of a result is the model's (a several-flight result's ``name[file]``: its base
     name) and in the model's unit; ValueError naming the coefficient and both units. Names in `skip`
     (a radar-tracked result's tracking-model terms) are not the instrument model's and are left out."""
-    from casep.model._model import unknown_coefficient_message
+    from casep.model.error_model import unknown_coefficient_message
 
     for n, u in zip(names, units):
         if n in skip:

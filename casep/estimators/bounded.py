@@ -113,7 +113,7 @@ def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"
     ``null`` / None for either end means unbounded on that side; a single number, or
     ``lo == hi``, fixes the coefficient.
     """
-    from casep.model._model import unknown_coefficient_message
+    from casep.model.error_model import unknown_coefficient_message
     if not isinstance(bounds, Mapping):
         raise TypeError(f"{source} must be a mapping of coefficient name to [lo, hi], got {type(bounds).__name__}")
     n = len(names)

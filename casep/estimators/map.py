@@ -87,7 +87,7 @@ def parse_prior(prior: Mapping, names: Sequence[str], source: str = "`prior`") -
 
 
 def _parse(prior: Mapping, names: Sequence[str], source: str):
-    from casep.model._model import unknown_coefficient_message
+    from casep.model.error_model import unknown_coefficient_message
 
     if not isinstance(prior, Mapping):
         raise TypeError(f"{source} must be a mapping of coefficient name to {{'mean', 'std'}}")

@@ -2,7 +2,7 @@
 
 Depends only on :mod:`casep.units`, :mod:`casep.exceptions` and the compiled kernels.
 
-- :mod:`casep.model._model`: :class:`ErrorModel` (declarations, equations, exact Jacobians)
+- :mod:`casep.model.error_model`: :class:`ErrorModel` (declarations, equations, exact Jacobians)
 - :mod:`casep.model.loader`: model files (``build()``), search path, ``load_model``
 - :mod:`casep.model.sv`: S_V integrated chunk by chunk from the model's Jacobians
 """
@@ -12,7 +12,7 @@ from casep._lazy import attach
 
 # Imported on first use (PEP 562), see casep._lazy.
 __getattr__, __dir__ = attach(__name__, {
-    "casep.model._model": ("ErrorModel", "ModelDefinitionError"),
+    "casep.model.error_model": ("ErrorModel", "ModelDefinitionError"),
     "casep.model.loader": ("ModelFileError", "available_models", "build_model", "load_model", "model_dirs"),
     "casep.model.sv": ("SVBuilder", "build_sv")}, globals())
 

@@ -37,8 +37,8 @@ import traceback
 from pathlib import Path
 from typing import Any, Sequence, TypedDict
 
-from casep.model._model import ErrorModel, ModelDefinitionError
 from casep.model.base import SymbolicModel
+from casep.model.error_model import ErrorModel, ModelDefinitionError
 
 __all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file",
            "run_model_file", "with_time_offset", "TIME_OFFSET", "model_file_reference", "model_names", "where_in_file",

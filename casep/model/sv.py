@@ -39,7 +39,7 @@ import numpy as np
 
 from casep._kernels import sv_integrate_chunk
 from casep.exceptions import CasepWarning
-from casep.model._model import ErrorModel
+from casep.model.error_model import ErrorModel
 
 __all__ = ["build_sv", "SVBuilder", "DEFAULT_CHUNK", "cumulative_sp"]
 

@@ -29,9 +29,11 @@ def check_options(runs: Any, seed: Any, methods: Sequence[str], workers: Any, no
     specs = [parse_method(m) for m in methods]
     for s in specs:
         check_robust_method(s.name, robust)
-    if (noise != "white" or robust not in (None, "auto", "none")) and any(s.denoise for s in specs):
-        raise ValueError(f"wavelet+<method> de-noises dv: it runs with `noise` 'white' (got {noise!r}: give "
-                         "noise 'white', --noise white) and without `robust`")
+    if (noise in ("gm", "gmw") or robust not in (None, "auto", "none")) and any(s.denoise for s in specs):
+        # as casep separate --denoise wavelet: the de-noised rows are solved white (no noise sample is left)
+        raise ValueError(f"wavelet+<method> de-noises dv, which removes the noise a noise model or a robust fit "
+                         f"describe (got noise {noise!r}, robust {robust!r}): give noise 'auto' or 'white' and "
+                         "robust 'auto' or 'none' with it")
     if robust is not None and robust not in ROBUST_CHOICES:
         raise ValueError(f"`robust` must be one of {', '.join(ROBUST_CHOICES)} or None, got {robust!r}")
     if tau is not None and noise != "gm":

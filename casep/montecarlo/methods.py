@@ -191,7 +191,10 @@ def solve_runs(spec: MethodSpec, ys: Sequence[np.ndarray], flights: Sequence[tup
     base = _supplied(spec, names, prior, bounds)
     outs = [_solve(spec, S, y, t, given, {**base, **extra}, sigma=sigma, names=names, noise=noise, robust=robust,
                    rows=rw)
-            for (y, given), extra, (S, t), rw in zip(runs, per_run, flights, rows or [None] * len(runs))]
+            for (y, given), extra, (S, t), rw in zip(runs, per_run, flights,
+                                                     # de-noised dv: white, as casep separate fits it
+                                                     rows if rows is not None and not spec.denoise
+                                                     else [None] * len(runs))]
     est = np.array([o[0] for o in outs])
     return est, None if outs[0][1] is None else np.array([o[1] for o in outs])
 

@@ -44,7 +44,7 @@ import numpy as np
 
 from casep.exceptions import CasepWarning, NoiseFreeWarning
 from casep.frames import LaunchSite
-from casep.model._model import ErrorModel
+from casep.model.error_model import ErrorModel
 from casep.model.sv import build_sv, cumulative_sp
 from casep.model.tracking import TrackingModel
 from casep.radar.geometry import RadarGeometry, wrap_angle

@@ -38,7 +38,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from casep.frames import LaunchSite
-from casep.model._model import ErrorModel
+from casep.model.error_model import ErrorModel
 from casep.model.sv import build_sv, cumulative_sp
 from casep.model.tracking import TrackingModel, load_tracking_model
 from casep.radar.geometry import RadarGeometry

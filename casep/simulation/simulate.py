@@ -46,7 +46,7 @@ from casep.io._atomic import atomic_open
 from casep.io.files import write_flight, write_table
 from casep.io.flight import FlightData
 from casep.io.pair import STATE_SIGNALS
-from casep.model._model import ErrorModel, unknown_coefficient_message
+from casep.model.error_model import ErrorModel, unknown_coefficient_message
 from casep.model.loader import load_model
 from casep.model.sv import build_sv
 from casep.simulation.scenarios import Scenario, get_scenario

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from casep.model._model import ErrorModel
+from casep.model.error_model import ErrorModel
 from casep.model.sv import build_sv
 from casep.units import G0
 

@@ -97,7 +97,7 @@ def read_scales(path: str | os.PathLike, names: Sequence[str]) -> dict[str, floa
         A name the model does not have, or a magnitude that is not a finite number > 0.
     """
     from casep.io.files import read_json_table
-    from casep.model._model import unknown_coefficient_message
+    from casep.model.error_model import unknown_coefficient_message
 
     scales = read_json_table(path, "--scales")
     for k, v in scales.items():

@@ -33,7 +33,7 @@ from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
 from casep.exceptions import IllConditionedWarning
 from casep.impact.miss import ImpactAnalysis, impact_analysis
-from casep.model._model import ErrorModel
+from casep.model.error_model import ErrorModel
 from casep.simulation.paper import demo_bounds, demo_prior
 from casep.simulation.simulate import SimulatedFlight, simulate_flight
 from casep.workflows.separate import judge_setup, separate

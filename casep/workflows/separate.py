@@ -13,7 +13,7 @@ from casep.estimators.registry import METHODS as _REGISTRY
 from casep.estimators.result import EstimateResult
 from casep.io.files import read_flight, read_json_table
 from casep.io.flight import FlightData
-from casep.model._model import ErrorModel
+from casep.model.error_model import ErrorModel
 from casep.model.loader import load_model
 from casep.workflows.solve import fit
 from casep.workflows.spec import NOT_GIVEN, FitSpec, NotGiven, merge_options

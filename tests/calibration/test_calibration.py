@@ -18,7 +18,7 @@ from casep.calibration.session import SegmentError, read_session, segments_from_
 from casep.calibration.simulate import ferraris_design, simulate_session, tilted_design
 from casep.cli import main
 from casep.exceptions import IllConditionedWarning
-from casep.model._model import ModelDefinitionError
+from casep.model.error_model import ModelDefinitionError
 
 # platform36's Table 1 magnitudes, with second-order terms large enough that double precision resolves
 # 1e-9 of them in a 1 g reading (the paper's 3e-3 ug/g^2 moves a 1 g reading by 3e-9 of itself)

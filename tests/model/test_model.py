@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import casep
-from casep.model._model import ModelDefinitionError
+from casep.model.error_model import ModelDefinitionError
 from casep.units import ARCSEC, DEG_PER_HOUR, G0
 
 
@@ -146,7 +146,7 @@ def test_declaration_errors():
     ("Ka2zz", "Ka2z"),  # no look-alike: difflib's closest
 ])
 def test_suggest_names_ranks_the_meant_name_first(platform36, typo, meant):
-    from casep.model._model import suggest_names
+    from casep.model.error_model import suggest_names
 
     assert suggest_names(typo, platform36.names)[0] == meant
 
@@ -159,7 +159,7 @@ def test_difflib_alone_misranks_the_o_zero_confusion(platform36):
 
 
 def test_unknown_coefficient_message_and_index(platform36):
-    from casep.model._model import unknown_coefficient_message
+    from casep.model.error_model import unknown_coefficient_message
 
     msg = unknown_coefficient_message("KaOy", platform36.names, "--prior p.json")
     assert msg.startswith("--prior p.json: unknown coefficient `KaOy` (did you mean `Ka0y`?); the model has Kg0x")

@@ -7,7 +7,7 @@ import textwrap
 import pytest
 
 import casep
-from casep.model._model import ModelDefinitionError
+from casep.model.error_model import ModelDefinitionError
 
 
 def test_builtin_models_are_listed():

@@ -14,7 +14,7 @@ import pytest
 
 import casep
 from casep.frames import LaunchSite, launch_to_ecef
-from casep.model._model import ModelDefinitionError
+from casep.model.error_model import ModelDefinitionError
 from casep.model.loader import ModelFileError
 from casep.model.tracking import TrackingModel, load_tracking_model
 from casep.radar.geometry import RadarGeometry
