@@ -40,8 +40,8 @@ import numpy as np
 from casep.calibration.session import SegmentError
 
 __all__ = ["Segmentation", "detect_static", "window_variance", "runs", "PoseSpreadWarning", "StaticMotionWarning",
-           "pose_spread", "warn_turns", "MAX_TURN_DEG", "MULTIPLIERS", "SPREAD_ERROR", "SPREAD_WARN", "INIT_RISE",
-           "MIN_POSES"]
+           "pose_spread", "warn_turns", "static_runs", "static_statistic", "MAX_TURN_DEG", "MULTIPLIERS",
+           "SPREAD_ERROR", "SPREAD_WARN", "INIT_RISE", "MIN_POSES"]
 
 #: imu_tk's sweep of threshold multipliers of the initial period's variance.
 MULTIPLIERS = tuple(float(k) for k in range(2, 11))
@@ -90,6 +90,9 @@ class Segmentation:
         Angle the gyro turns inside each pose (initial-period bias removed), deg (empty for raw counts).
     rate : float
         Sample rate, Hz.
+    statistic : (N,) ndarray or None
+        The detector's statistic per sample in units of the initial period (static: at most
+        `multiplier`), for the figure of the segmentation; not in :meth:`to_dict`.
     """
 
     init: tuple[int, int]
@@ -104,6 +107,7 @@ class Segmentation:
     spread: float = math.nan
     turns_deg: list = field(default_factory=list)
     gyro_threshold: float = math.nan
+    statistic: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def motions(self) -> list[tuple[int, int]]:
@@ -166,7 +170,7 @@ def runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
 
 
-def _static_runs(v: np.ndarray, threshold: float, init_end: int, min_len: int, guard: int):
+def static_runs(v: np.ndarray, threshold: float, init_end: int, min_len: int, guard: int):
     """Poses (the initial period first) and the rejected runs for one threshold.
 
     Each run loses `guard` samples at both ends (half a window: the variance of a window centred
@@ -224,11 +228,11 @@ def detect_static(acc: np.ndarray, gyr: np.ndarray, rate: float, *, gravity: flo
     if init_end + w > n:
         raise SegmentError(f"{source}: {n} samples ({n / rate:.3g} s) is shorter than the initial static period "
                            f"{init_s:g} s plus one window")
-    v, v_init, vg_init = _statistic(acc, gyr, w, init_end, rate, init_s, source)
+    v, v_init, vg_init = static_statistic(acc, gyr, w, init_end, rate, init_s, source)
     g = G0 if gravity is None else float(gravity)
     sweep, best = [], None
     for k in multipliers:
-        poses, rejected = _static_runs(v, k, init_end, min_len, w // 2)
+        poses, rejected = static_runs(v, k, init_end, min_len, w // 2)
         rms = math.nan
         if len(poses) >= min_poses:
             means = np.array([acc[a:b].mean(axis=0) for a, b in poses]) * acc_si
@@ -247,10 +251,10 @@ def detect_static(acc: np.ndarray, gyr: np.ndarray, rate: float, *, gravity: flo
     turns = _check_poses(poses, spread, gyr, init_end, rate, gyr_si, max_turn_deg, source)
     return Segmentation(init=(0, poses[0][1]), poses=poses, threshold=k * v_init, multiplier=float(k),
                         init_variance=v_init, window=w, rate=float(rate), rejected=rejected, sweep=sweep,
-                        spread=spread, turns_deg=turns, gyro_threshold=k * vg_init)
+                        spread=spread, turns_deg=turns, gyro_threshold=k * vg_init, statistic=v)
 
 
-def _statistic(acc, gyr, w, init_end, rate, init_s, source):
+def static_statistic(acc, gyr, w, init_end, rate, init_s, source):
     """The detector's statistic ``max(v_a / v_a,init, v_g / v_g,init)`` per sample, ``v_a,init``, ``v_g,init``.
 
     ``v_a`` is imu_tk's (module notes); ``v_g = sum_axes mean_window (w - b0)^2`` (b0 the initial
