@@ -167,3 +167,68 @@ def test_a_turn_not_about_the_vertical_is_an_error():
     with pytest.raises(SegmentError, match=r"is about y with gravity along \+x: a Ferraris turn is about the "
                                            r"vertical axis"):
         find_ferraris_segments(_simulate(_plan(), gyro_mix=swap)[0])
+
+
+# --- the figure and the command ---------------------------------------------------------------------
+
+
+def test_segmentation_figure_draws_the_segmentation(tmp_path):
+    """The figure is a PNG with content, and the intervals it drew are the segmentation's: the nine
+    named segments, the detector's unused poses and its rejected runs (a Ferraris session), the
+    detector's poses (a hand-turned one)."""
+    from casep.calibration.handsim import simulate_hand_session
+    from casep.calibration.segment import detect_static
+    from casep.reporting.segmentation import plot_segmentation
+
+    found = find_ferraris_segments(_simulate(_plan())[0])
+    drawn = plot_segmentation(found, tmp_path / "ferraris.png")
+    data = (tmp_path / "ferraris.png").read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
+    named = {s.name: (int(s.rows[0]), int(s.rows[-1]) + 1) for s in found.segments}
+    assert {**drawn["poses"], **drawn["turns"]} == named and len(drawn["turns"]) == 3
+    assert drawn["rejected"] == [(a, b) for a, b, _ in found.segmentation.rejected]
+    inside = [p for p in found.segmentation.poses if p not in drawn["unused"]]
+    assert all(any(a <= p[0] and p[1] <= b for a, b in named.values()) for p in inside)
+
+    h = simulate_hand_session(12, seed=3)
+    seg = detect_static(h.acc, h.gyr, h.rate)
+    drawn = plot_segmentation(seg, tmp_path / "hand.png")
+    assert (tmp_path / "hand.png").stat().st_size > 10_000
+    assert list(drawn["poses"].values()) == [tuple(p) for p in seg.poses] and drawn["turns"] == {}
+    assert drawn["rejected"] == [(a, b) for a, b, _ in seg.rejected]
+
+
+def test_cli_ferraris_auto_writes_json_and_figure(tmp_path, capsys):
+    from casep.cli import main
+
+    out, figs = tmp_path / "cal.json", tmp_path / "figs"
+    rc = main(["calibrate", str(DATA), "--rate", "204.8", "--segments", "auto", "--model", "ferraris",
+               "--window", "0.2", "--gravity", "9.81", "--json", str(out), "--figures", str(figs)])
+    assert rc == 0
+    cap = capsys.readouterr()
+    text = cap.out
+    assert "the opposite sign of the expected angle -360" in cap.err  # imucal's turns, as with the labels
+    assert "segmentation (Ferraris, no labels)" in text and "x_rot" in text
+    assert (figs / "segmentation.png").stat().st_size > 10_000
+    import json
+
+    d = json.loads(out.read_text())
+    assert d["model"] == "ferraris" and set(d["calibration"]["segmentation"]["segments"]) >= {"x_p", "z_rot"}
+
+
+def test_cli_ferraris_auto_error_exits_2_and_writes_nothing(tmp_path, capsys):
+    """Two poses along +x: exit 2, the message with the rows, no file."""
+    import pandas as pd
+
+    from casep.cli import main
+
+    ses, _ = _simulate(_plan(order=("x_p", "x_a", "x_p", "y_p", "y_a", "z_p", "z_a")))
+    path = tmp_path / "s.csv"
+    pd.DataFrame({"t": ses.t, **{f"acc_{a}": ses.acc[:, i] for i, a in enumerate("xyz")},
+                  **{f"gyr_{a}": ses.gyr[:, i] for i, a in enumerate("xyz")}}).to_csv(path, index=False)
+    out, figs = tmp_path / "cal.json", tmp_path / "figs"
+    rc = main(["calibrate", str(path), "--segments", "auto", "--model", "ferraris", "--json", str(out),
+               "--figures", str(figs)])
+    assert rc == 2
+    assert "two static poses with gravity along +x" in capsys.readouterr().err
+    assert not out.exists() and not (figs / "segmentation.png").exists()
