@@ -207,7 +207,7 @@ def test_cli_ferraris_auto_writes_json_and_figure(tmp_path, capsys):
     assert rc == 0
     cap = capsys.readouterr()
     text = cap.out
-    assert "the opposite sign of the expected angle -360" in cap.err  # imucal's turns, as with the labels
+    assert "the opposite sign of the expected angle -360" in cap.out + cap.err  # imucal's turns, as with the labels
     assert "segmentation (Ferraris, no labels)" in text and "x_rot" in text
     assert (figs / "segmentation.png").stat().st_size > 10_000
     import json
