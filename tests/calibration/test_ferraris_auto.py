@@ -201,7 +201,7 @@ def test_cli_ferraris_auto_writes_json_and_figure(tmp_path, capsys):
 
     out, figs = tmp_path / "cal.json", tmp_path / "figs"
     rc = main(["calibrate", str(DATA), "--rate", "204.8", "--segments", "auto", "--model", "ferraris",
-               "--window", "0.2", "--gravity", "9.81", "--json", str(out), "--figures", str(figs)])
+               "--window", "0.2", "--angle", "360", "--gravity", "9.81", "--json", str(out), "--figures", str(figs)])
     assert rc == 0
     cap = capsys.readouterr()
     text = cap.out
