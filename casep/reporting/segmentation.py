@@ -86,8 +86,9 @@ def plot_segmentation(segmentation: Any, path: str | os.PathLike) -> dict:
                    label="rejected static run" if i == 0 else None)
     ax.set_xlabel("time, s")
     ax.set_ylabel("statistic / initial period's")
-    ax.set_title(f"Segmentation: {len(drawn['poses'])} poses, {len(drawn['turns'])} turns, "
-                 f"{len(drawn['rejected'])} rejected runs; window {seg.window} samples")
+    turns = f"{len(drawn['turns'])} turns, " if drawn["turns"] else ""
+    ax.set_title(f"Segmentation: {len(drawn['poses'])} poses, {turns}{len(drawn['rejected'])} rejected runs; "
+                 f"window {seg.window} samples")
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
     save_figure(fig, Path(path))
