@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from casep.calibration.segment import MULTIPLIERS, Segmentation, static_runs, static_statistic
+from casep.calibration.segment import MULTIPLIERS, Segmentation, detector, static_runs, window_mean
 from casep.calibration.session import GYR_UNITS, RAW_UNIT, Segment, SegmentError, Session, ferraris_segment
 
 __all__ = ["FerrarisSegmentation", "find_ferraris_segments", "TurnBoundaryWarning", "AXIS_TOL_DEG",
@@ -123,14 +123,6 @@ def _runs(poses: list, rejected: list) -> list[tuple[int, int, int, int, bool]]:
     return sorted(out)
 
 
-def _moving_mean(x: np.ndarray, w: int) -> np.ndarray:
-    """Mean of `x` (N, 3) over a centred window of `w` samples (shorter at the ends)."""
-    n, h = len(x), w // 2
-    c = np.vstack([np.zeros((1, 3)), np.cumsum(x, axis=0)])
-    lo, hi = np.clip(np.arange(n) - h, 0, n), np.clip(np.arange(n) + w - h, 0, n)
-    return (c[hi] - c[lo]) / (hi - lo)[:, None]
-
-
 def _axis_label(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Signed axis label ``2 i + (m_i < 0)`` of the largest component of each row of `m`, -1 when that
     component is more than AXIS_TOL_DEG from the row; and that angle, deg."""
@@ -151,7 +143,7 @@ def _label_samples(acc: np.ndarray, runs_: list, w: int) -> tuple[np.ndarray, li
     means = np.array([acc[r[0]:r[1]].mean(axis=0) for r in runs_])
     pm = means[[r[4] for r in runs_]]
     centre = (pm.max(axis=0) + pm.min(axis=0)) / 2
-    L, _ = _axis_label(_moving_mean(acc, max(1, w // 8)) - centre)
+    L, _ = _axis_label(window_mean(acc, max(1, w // 8)) - centre)
     rl, off = _axis_label(means - centre)
     out, rejected = [], []
     for r, lab, o in zip(runs_, rl, off):
@@ -206,7 +198,7 @@ def _span(st, gyr, dt, b0, quiet) -> tuple[tuple[int, int], np.ndarray, tuple[bo
 def _quiet(gyr: np.ndarray, b0: np.ndarray, poses: list, w: int) -> np.ndarray:
     """Per sample: the gyro's mean square about `b0` over a short window of `w` samples is at most
     QUIET times its mean over the poses (a few samples' mean square scatters: a wide margin)."""
-    q = _moving_mean((gyr - b0) ** 2, w).sum(axis=1)
+    q = window_mean((gyr - b0) ** 2, w).sum(axis=1)
     level = float(np.mean(np.concatenate([q[a:b] for a, b in poses])))
     return q <= QUIET * max(level, 1e-300)
 
@@ -333,14 +325,8 @@ def find_ferraris_segments(session: Session, *, angle_deg: float = -360.0, windo
         A pose or a rotation that cannot be identified (at every multiplier), with the rows and the numbers.
     """
     acc, gyr, rate = session.acc, session.gyr, session.rate
-    n = session.n_samples
-    w = max(3, int(round(window_s * rate)))
-    init_end = int(round(init_s * rate))
-    min_len = max(2, int(round(min_static_s * rate)))
-    if init_end + w > n:
-        raise SegmentError(f"{session.source}: {n} samples ({n / rate:.3g} s) is shorter than the initial static "
-                           f"period {init_s:g} s plus one window")
-    v, v_init, vg_init = static_statistic(acc, gyr, w, init_end, rate, init_s, session.source)
+    w, init_end, min_len, v, v_init, vg_init = detector(acc, gyr, rate, window_s, init_s, min_static_s,
+                                                        session.source)
     gyr_si = None if session.gyr_unit == RAW_UNIT else GYR_UNITS[session.gyr_unit]
     dt = np.diff(session.t, append=session.t[-1] + 1.0 / rate)
     sweep, best, errors = [], None, []

@@ -39,9 +39,9 @@ import numpy as np
 
 from casep.calibration.session import SegmentError
 
-__all__ = ["Segmentation", "detect_static", "window_variance", "runs", "PoseSpreadWarning", "StaticMotionWarning",
-           "pose_spread", "warn_turns", "static_runs", "static_statistic", "MAX_TURN_DEG", "MULTIPLIERS",
-           "SPREAD_ERROR", "SPREAD_WARN", "INIT_RISE", "MIN_POSES"]
+__all__ = ["Segmentation", "detect_static", "window_variance", "window_mean", "runs", "PoseSpreadWarning",
+           "StaticMotionWarning", "pose_spread", "warn_turns", "static_runs", "static_statistic", "detector",
+           "MAX_TURN_DEG", "MULTIPLIERS", "SPREAD_ERROR", "SPREAD_WARN", "INIT_RISE", "MIN_POSES"]
 
 #: imu_tk's sweep of threshold multipliers of the initial period's variance.
 MULTIPLIERS = tuple(float(k) for k in range(2, 11))
@@ -153,15 +153,20 @@ def window_variance(x: np.ndarray, window: int) -> np.ndarray:
     first, so raw counts near 32768 lose no digits).
     """
     x = np.asarray(x, dtype=float) - np.mean(x, axis=0)
+    m = window_mean(x, window)
+    return np.maximum(window_mean(x * x, window) - m * m, 0.0)
+
+
+def window_mean(x: np.ndarray, window: int) -> np.ndarray:
+    """Mean of `x` (N, k) over a centred window of `window` samples (shorter at the ends), (N, k), by
+    cumulative sums: rows ``[i - window // 2, i + window - window // 2)`` clipped to the data."""
+    x = np.asarray(x, dtype=float)
     n = len(x)
     h = window // 2
     lo = np.clip(np.arange(n) - h, 0, n)
     hi = np.clip(np.arange(n) + window - h, 0, n)
-    c1 = np.vstack([np.zeros((1, 3)), np.cumsum(x, axis=0)])
-    c2 = np.vstack([np.zeros((1, 3)), np.cumsum(x * x, axis=0)])
-    cnt = (hi - lo)[:, None]
-    m = (c1[hi] - c1[lo]) / cnt
-    return np.maximum((c2[hi] - c2[lo]) / cnt - m * m, 0.0)
+    c = np.vstack([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
+    return (c[hi] - c[lo]) / (hi - lo).reshape((-1,) + (1,) * (x.ndim - 1))
 
 
 def runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -221,14 +226,7 @@ def detect_static(acc: np.ndarray, gyr: np.ndarray, rate: float, *, gravity: flo
 
     acc = np.asarray(acc, dtype=float)
     gyr = np.asarray(gyr, dtype=float)
-    n = len(acc)
-    w = max(3, int(round(window_s * rate)))
-    init_end = int(round(init_s * rate))
-    min_len = max(2, int(round(min_static_s * rate)))
-    if init_end + w > n:
-        raise SegmentError(f"{source}: {n} samples ({n / rate:.3g} s) is shorter than the initial static period "
-                           f"{init_s:g} s plus one window")
-    v, v_init, vg_init = static_statistic(acc, gyr, w, init_end, rate, init_s, source)
+    w, init_end, min_len, v, v_init, vg_init = detector(acc, gyr, rate, window_s, init_s, min_static_s, source)
     g = G0 if gravity is None else float(gravity)
     sweep, best = [], None
     for k in multipliers:
@@ -254,6 +252,26 @@ def detect_static(acc: np.ndarray, gyr: np.ndarray, rate: float, *, gravity: flo
                         spread=spread, turns_deg=turns, gyro_threshold=k * vg_init, statistic=v)
 
 
+def detector(acc: np.ndarray, gyr: np.ndarray, rate: float, window_s: float, init_s: float, min_static_s: float,
+             source: str) -> tuple:
+    """The detector's sizes in samples (window, end of the initial period, shortest pose) and its
+    statistic (:func:`static_statistic`): ``(w, init_end, min_len, v, v_init, vg_init)``.
+
+    Raises
+    ------
+    SegmentError
+        A session shorter than the initial period plus one window, or one that does not begin at rest.
+    """
+    n = len(acc)
+    w = max(3, int(round(window_s * rate)))
+    init_end = int(round(init_s * rate))
+    min_len = max(2, int(round(min_static_s * rate)))
+    if init_end + w > n:
+        raise SegmentError(f"{source}: {n} samples ({n / rate:.3g} s) is shorter than the initial static period "
+                           f"{init_s:g} s plus one window")
+    return (w, init_end, min_len, *static_statistic(acc, gyr, w, init_end, rate, init_s, source))
+
+
 def static_statistic(acc, gyr, w, init_end, rate, init_s, source):
     """The detector's statistic ``max(v_a / v_a,init, v_g / v_g,init)`` per sample, ``v_a,init``, ``v_g,init``.
 
@@ -271,10 +289,7 @@ def static_statistic(acc, gyr, w, init_end, rate, init_s, source):
                            f"(row {at}, t = {at / rate:.3g} s; static: below {INIT_RISE:g}). Use: start the session "
                            "with the sensor at rest, or a shorter --init")
     d2 = np.sum((gyr - gyr[core].mean(axis=0)) ** 2, axis=1)
-    c = np.concatenate([[0.0], np.cumsum(d2)])
-    idx = np.arange(len(d2))
-    lo, hi = np.clip(idx - w // 2, 0, len(d2)), np.clip(idx + w - w // 2, 0, len(d2))
-    vg = (c[hi] - c[lo]) / (hi - lo)  # window mean of |w - b0|^2
+    vg = window_mean(d2, w)  # window mean of |w - b0|^2
     # a gyro quantised to a constant reading at rest has vg_init = 0: floor it far below any turn
     vg_init = max(float(np.mean(vg[core])), 1e-12 * float(np.mean(vg)), 1e-300)
     v_init = float(np.mean(vi))
