@@ -165,7 +165,7 @@ def window_mean(x: np.ndarray, window: int) -> np.ndarray:
     h = window // 2
     lo = np.clip(np.arange(n) - h, 0, n)
     hi = np.clip(np.arange(n) + window - h, 0, n)
-    c = np.vstack([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
+    c = np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
     return (c[hi] - c[lo]) / (hi - lo).reshape((-1,) + (1,) * (x.ndim - 1))
 
 
