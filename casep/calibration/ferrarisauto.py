@@ -208,7 +208,8 @@ def _turns(cands: list, gyr_si, angle_deg, source) -> dict:
     Theta, open)}`` (module notes, step 3)."""
     cand = [(c[0][0], *c[1:]) for c in cands if c[1][1] > c[1][0]]
     if not cand:
-        return {}
+        raise SegmentError(f"{source}: no turn found: no station (samples with one axis vertical) moves between "
+                           "its poses. Use: turn about each axis once while it is vertical, or give the segments")
     size = np.array([float(np.linalg.norm(c[2])) for c in cand])
     if gyr_si is not None:  # the expected angle in the reading unit s
         ref, what = math.radians(abs(angle_deg)) / gyr_si, f"of the expected {abs(angle_deg):g} deg"
@@ -232,6 +233,14 @@ def _turns(cands: list, gyr_si, angle_deg, source) -> dict:
             raise SegmentError(f"{where} and the turn of rows {out[i][1][0]}-{out[i][1][1] - 1} are both about "
                                f"{'xyz'[i]} (size {m:.4g}, {m / ref:.3g} {what}): one turn per axis")
         out[i] = (lab, (a, b), th, opened)
+    missing = [ax for k, ax in enumerate("xyz") if k not in out]
+    if missing:
+        largest = "" if gyr_si is None else (f"; the largest station's is {size.max() / ref:.3g} of it, "
+                                             f"{math.degrees(size.max() * gyr_si):.4g} deg")
+        raise SegmentError(f"{source}: no turn about {', '.join(missing)} found (turns found about: "
+                           f"{', '.join('xyz'[k] for k in sorted(out)) or 'none'}; a turn: a station's integrated "
+                           f"gyro of at least {ROTATION_FRACTION:g} {what}{largest}). Use: turn about each axis once "
+                           "while it is vertical (and check --gyr-unit and --angle), or give the segments")
     return out
 
 
@@ -276,11 +285,6 @@ def _assign(cands: list, turns: dict, source: str, angle_deg: float) -> list[Seg
             rows = np.concatenate([np.arange(a, b) for a, b in poses[lab]])
             segs.append(ferraris_segment(f"{ax}_{suffix}", rows))
     for i, ax in enumerate("xyz"):
-        if i not in turns:
-            raise SegmentError(f"{source}: no turn about {ax} found (turns found about: "
-                               f"{', '.join('xyz'[j] for j in sorted(turns)) or 'none'}; a turn: a station's "
-                               f"integrated gyro of at least {ROTATION_FRACTION:g} of the expected angle). Use: turn "
-                               "about each axis once while it is vertical, or give the segments")
         lab, (a, b), _, _ = turns[i]
         e = np.zeros(3)
         e[i] = 1.0

@@ -146,7 +146,8 @@ def test_two_poses_with_the_same_axis_is_an_error():
 def test_a_missing_pose_or_turn_is_an_error():
     with pytest.raises(SegmentError, match=r"no static pose with gravity along -y \(found: \+x rows"):
         find_ferraris_segments(_simulate(_plan(order=("x_p", "x_a", "y_p", "z_p", "z_a")))[0])
-    with pytest.raises(SegmentError, match=r"no turn about z found \(turns found about: x, y"):
+    with pytest.raises(SegmentError, match=r"no turn about z found \(turns found about: x, y; a turn: a station's "
+                                           r"integrated gyro of at least 0\.5 of the largest station's"):
         find_ferraris_segments(_simulate(_plan(turns=("x", "y")))[0])
 
 
@@ -230,3 +231,31 @@ def test_cli_ferraris_auto_error_exits_2_and_writes_nothing(tmp_path, capsys):
     assert rc == 2
     assert "two static poses with gravity along +x" in capsys.readouterr().err
     assert not out.exists() and not (figs / "segmentation.png").exists()
+
+
+def test_a_turn_without_rest_after_it_is_a_warning():
+    """The flip to the next pose starts right at the end of the turn about x: its integral may hold the
+    start of the flip, which the station (gravity within 30 deg of +x) still contains."""
+    from casep.calibration.ferrarisauto import TurnBoundaryWarning
+
+    plan = _plan()
+    i = next(k for k, s in enumerate(plan) if s[0] == "turn")
+    del plan[i + 1]  # the 2-s hold after the turn about x
+    with pytest.warns(TurnBoundaryWarning, match=r"the turn about x \(rows \d+-\d+\) has no rest at its end"):
+        found = find_ferraris_segments(_simulate(plan)[0])
+    assert [s.name for s in found.segments][-3:] == ["x_rot", "y_rot", "z_rot"]
+
+
+def test_turns_in_physical_units_are_judged_by_the_expected_angle():
+    """A gyro in rad/s: the turns are 2 pi rad = 360 deg, found; declared deg/s, they are 6.3 deg,
+    less than half the expected 360 deg: no turn (the error names the threshold)."""
+    ses, _ = _simulate(_plan(), noise=(0.0005, 0.0005))
+    si = Session(t=ses.t, acc=(ses.acc - BA) @ np.linalg.inv(MA).T, gyr=(ses.gyr - BG) @ np.linalg.inv(MG).T,
+                 rate=ses.rate, source="si", acc_unit="m/s^2", gyr_unit="rad/s")
+    found = find_ferraris_segments(si)
+    np.testing.assert_allclose(found.turns["z_rot"], [0.0, 0.0, -2 * math.pi], atol=1e-3)
+    wrong = Session(t=si.t, acc=si.acc, gyr=si.gyr, rate=si.rate, source="si", acc_unit="m/s^2", gyr_unit="deg/s")
+    with pytest.raises(SegmentError, match=r"no turn about x, y, z found \(turns found about: none; a turn: a "
+                                           r"station's integrated gyro of at least 0\.5 of the expected 360 deg; the "
+                                           r"largest station's is 0\.0175 of it, 6\.28\d deg\)"):
+        find_ferraris_segments(wrong)
