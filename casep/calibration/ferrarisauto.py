@@ -5,33 +5,38 @@ once about each axis while that axis is vertical (three rotations). Without labe
 
 1. **Static runs**: the detector of :func:`casep.calibration.segment.detect_static` (window variance
    of the accelerometers and the gyro's window mean square about its initial reading, in units of
-   the initial period; static: at most ``k``), runs of at least ``min_static_s`` after losing half
-   a window at each end.
-2. **Which axis is vertical** in each run: its mean accelerometer reading ``abar`` centred per axis
-   on the midpoint of the runs' extremes (``c_i = (max_k abar_ki + min_k abar_ki) / 2``, so a raw
-   bias near mid-scale does not count); the axis ``i`` of the largest ``|abar_i - c_i|`` and its sign
-   name the run (``+x``: ``x_p``, ``-x``: ``x_a``). A run more than ``AXIS_TOL_DEG`` from every axis
-   is rejected (listed, with its angle).
-3. **Stations**: consecutive runs with the same vertical axis. The gyro integrated over a station,
-   from the end of its first run to the start of its last,
+   the initial period; static: at most ``k``). A run of at least ``min_static_s`` after losing half
+   a window at each end is a pose; a shorter one is no pose but still separates two motions (at its
+   midpoint).
+2. **Which axis is vertical**: a pose's mean accelerometer reading ``abar`` centred per axis on the
+   midpoint of the poses' extremes (``c_i = (max_k abar_ki + min_k abar_ki) / 2``, so a raw bias
+   near mid-scale does not count); the axis ``i`` of the largest ``|abar_i - c_i|`` and its sign name
+   the pose (``+x``: ``x_p``, ``-x``: ``x_a``). A pose more than ``AXIS_TOL_DEG`` from every axis is
+   rejected (listed, with its angle). Every other sample takes the axis of its short-window mean
+   (``window / 8``), or none.
+3. **Stations and turns**: consecutive samples with the same vertical axis form a station. Its turn
+   candidate is the gap between its poses (or its bounds) of the largest integrated gyro
 
-       Theta = sum_i (w_i - b0) dt_i         (b0: the mean gyro reading of all static runs)
+       Theta = sum_i (w_i - b0) dt_i         (b0: the mean gyro reading of the poses)
 
-   is a **rotation** when it is large (physical units: at least ``ROTATION_FRACTION`` of the
-   expected ``|angle|``; raw counts: of the largest station's ``|Theta|``), a wobble otherwise.
-   Its axis is that of the largest ``|Theta_i|``, which must hold at least ``cos(AXIS_TOL_DEG)`` of
-   ``|Theta|`` and be the station's vertical axis (a Ferraris turn is about the vertical).
-4. **Poses**: a station without a rotation is the pose of its axis (the rows of its runs); an axis
-   with no such station takes the longest run of its rotation's station.
+   A gap that ends at the station's bound while the gyro still moves there (short-window mean
+   square above ``QUIET`` times the poses') ends at the station's short static run nearest that
+   bound instead; without one, :class:`TurnBoundaryWarning`. The candidate is a **turn** when
+   ``|Theta|`` is at least ``ROTATION_FRACTION`` of the expected ``|angle|`` (physical units) or of
+   the largest candidate's (raw counts, whose scale is not known yet). Its axis is that of the
+   largest ``|Theta_i|``, which must hold at least ``cos(AXIS_TOL_DEG)`` of ``|Theta|`` and be the
+   station's vertical axis (a Ferraris turn is about the vertical).
+4. **Poses**: a station without a turn is the pose of its axis (the rows of its poses); an axis
+   whose only station holds its turn takes the longer pose before or after the turn.
 
 The threshold multiplier ``k`` is chosen from the session as imu_tk chooses it: of every ``k`` of
 :data:`casep.calibration.segment.MULTIPLIERS` whose segments are all identified, the one of the
 smallest RMS misfit of the least-squares accelerometer fit ``abar_k = M_a g e_k + b_a`` to the six
 poses (18 rows, 12 coefficients).
 
-Errors (:class:`casep.calibration.session.SegmentError`, with the rows and the numbers): two
-stations with the same vertical axis, an axis with no pose, a rotation about no single axis or not
-about the vertical, two rotations about one axis, an axis with no rotation.
+Errors (:class:`casep.calibration.session.SegmentError`, with the rows and the numbers): an axis
+with no turn, a turn about no single axis or not about the vertical, two turns about one axis, two
+stations with poses of the same vertical axis, an axis with no pose.
 """
 
 from __future__ import annotations
@@ -55,6 +60,7 @@ ROTATION_FRACTION = 0.5
 #: The gyro is at rest at a sample when its short-window mean square is at most this many times the poses' mean.
 QUIET = 25.0
 
+
 class TurnBoundaryWarning(UserWarning):
     """A turn not bracketed by rest: its gyro integral may include part of the next motion."""
 
@@ -77,15 +83,10 @@ class FerrarisSegmentation:
     segments: list
     turns: dict = field(default_factory=dict)
 
-    def intervals(self) -> dict:
-        """Row intervals (end excluded) of the poses and rotations by name, the static runs and the rejected ones."""
-        return {"segments": {s.name: (int(s.rows[0]), int(s.rows[-1]) + 1) for s in self.segments},
-                "static": [tuple(p) for p in self.segmentation.poses],
-                "rejected": [(a, b) for a, b, _ in self.segmentation.rejected]}
-
     def to_dict(self) -> dict:
-        segs = self.intervals()["segments"]
-        return {**self.segmentation.to_dict(), "segments": {k: list(v) for k, v in segs.items()},
+        """The detector's record and each segment's row interval (end excluded) and each turn's ``Theta``."""
+        return {**self.segmentation.to_dict(),
+                "segments": {s.name: [int(s.rows[0]), int(s.rows[-1]) + 1] for s in self.segments},
                 "turns": {k: list(map(float, v)) for k, v in self.turns.items()}}
 
     def text(self) -> str:
@@ -108,8 +109,9 @@ class FerrarisSegmentation:
 
 
 def _axis_text(e: np.ndarray) -> str:
+    """``+x``, ``-y``, ...: the signed axis of the largest component of `e`."""
     i = int(np.argmax(np.abs(e)))
-    return ("+" if e[i] > 0 else "-") + "xyz"[i]
+    return _label_text(2 * i + int(e[i] < 0))
 
 
 def _runs(poses: list, rejected: list) -> list[tuple[int, int, int, int, bool]]:
@@ -245,6 +247,7 @@ def _turns(cands: list, gyr_si, angle_deg, source) -> dict:
 
 
 def _label_text(lab: int) -> str:
+    """The text of an axis label ``2 i + (negative)``: ``+x``, ``-x``, ``+y``, ..."""
     return "+-"[lab % 2] + "xyz"[lab // 2]
 
 
@@ -356,6 +359,8 @@ def find_ferraris_segments(session: Session, *, angle_deg: float = -360.0, windo
         raise SegmentError(f"{msg} [threshold multiplier {k:g}, {nk} static poses; no multiplier of "
                            f"{min(multipliers):g}..{max(multipliers):g} identifies the nine Ferraris segments]")
     _, k, poses, rejected, segs, turns = best
+    off_axis = {(a, b) for a, b, _ in rejected}
+    poses = [p for p in poses if p not in off_axis]  # a pose off every axis is listed as rejected only
     seg = Segmentation(init=(0, poses[0][1]), poses=poses, threshold=k * v_init, multiplier=float(k),
                        init_variance=v_init, window=w, rate=float(rate), rejected=rejected, sweep=sweep,
                        gyro_threshold=k * vg_init, statistic=v)
