@@ -26,8 +26,9 @@ once about each axis while that axis is vertical (three rotations). Without labe
    the largest candidate's (raw counts, whose scale is not known yet). Its axis is that of the
    largest ``|Theta_i|``, which must hold at least ``cos(AXIS_TOL_DEG)`` of ``|Theta|`` and be the
    station's vertical axis (a Ferraris turn is about the vertical).
-4. **Poses**: a station without a turn is the pose of its axis (the rows of its poses); an axis
-   whose only station holds its turn takes the longer pose before or after the turn.
+4. **Poses**: a station without a turn is the pose of its axis (the rows of its poses; stations of
+   one axis with no other pose or turn between them are one pose); an axis whose only station holds
+   its turn takes the longer pose before or after the turn.
 
 The threshold multiplier ``k`` is chosen from the session as imu_tk chooses it: of every ``k`` of
 :data:`casep.calibration.segment.MULTIPLIERS` whose segments are all identified, the one of the
@@ -252,23 +253,29 @@ def _label_text(lab: int) -> str:
 
 
 def _station_poses(cands: list, turns: dict, source: str) -> dict:
-    """Label -> the pose rows ``[(a, b), ...]`` (module notes, step 4)."""
+    """Label -> the pose rows ``[(a, b), ...]`` (module notes, step 4).
+
+    Stations of one axis with no other pose or turn between them (a bump that tilted the sensor
+    past AXIS_TOL_DEG and back) are one pose.
+    """
     poses: dict = {}
     spans = {t[1] for t in turns.values()}
-    later = []
+    later, last = [], None  # last: the axis of the latest station with a pose (None after a turn)
     for (lab, _, _, S), span, _, _ in cands:
         long = [(r[0], r[1]) for r in S if r[4] and r[5] == lab]
-        if not long:
-            continue
         if span in spans:  # a rotation's station: its poses outside the turn, if the axis has no other
             later.append((lab, [p for p in long if p[1] <= span[0] or p[0] >= span[1]]))
+            last = None
             continue
-        if lab in poses:
+        if not long:
+            continue
+        if lab in poses and last != lab:
             prev = poses[lab]
             raise SegmentError(f"{source}: two static poses with gravity along {_label_text(lab)}: rows "
-                               f"{prev[0][0]}-{prev[-1][1] - 1} and {long[0][0]}-{long[-1][1] - 1} (the Ferraris "
-                               "procedure holds each axis up and down once)")
-        poses[lab] = long
+                               f"{prev[0][0]}-{prev[-1][1] - 1} and {long[0][0]}-{long[-1][1] - 1}, another pose "
+                               "or a turn between them (the Ferraris procedure holds each axis up and down once)")
+        poses.setdefault(lab, []).extend(long)
+        last = lab
     for lab, long in later:
         if lab not in poses and long:  # the longest pose before or after the turn
             poses[lab] = [max(long, key=lambda p: p[1] - p[0])]
