@@ -292,3 +292,18 @@ def test_imucal_example_session_continuous_recording():
     end = listed[6].rows[-1] + 1
     tail = turn[end:found.segments[6].rows[-1] + 1, 0].sum() / ses.rate  # deg, after the listed end
     assert np.linalg.norm(turn[end - 1]) > 0.5 and 0.02 < abs(tail) < 0.1  # at rest: ~0.1 deg/s
+
+
+def test_cli_hand_turned_session_writes_the_figure(tmp_path, capsys):
+    """--figures with model multiposition: the detector's poses drawn into DIR/segmentation.png."""
+    from casep.calibration.handsim import simulate_hand_session
+    from casep.cli import main
+
+    h = simulate_hand_session(14, seed=5)
+    p = tmp_path / "hand.txt"
+    np.savetxt(p, np.column_stack([h.acc, h.gyr]))
+    figs = tmp_path / "figs"
+    assert main(["calibrate", str(p), "--rate", "100", "--segments", "auto", "--acc-unit", "m/s^2", "--gyr-unit",
+                 "rad/s", "--json", str(tmp_path / "cal.json"), "--figures", str(figs)]) == 0
+    assert (figs / "segmentation.png").stat().st_size > 10_000
+    assert f"figure: {figs / 'segmentation.png'}" in capsys.readouterr().out
