@@ -11,6 +11,8 @@
 - :mod:`casep.calibration.segment`, :mod:`casep.calibration.multiposition`,
   :mod:`casep.calibration.handturned`: a hand-turned session without labels (``--segments auto``):
   the static poses, the ``multiposition`` model (imu_tk's convention), the chain
+- :mod:`casep.calibration.ferrarisauto`: the six poses and three turns of a Ferraris session without
+  labels (``--segments auto`` with model ``ferraris``)
 - :mod:`casep.calibration.gravity` (WGS84 normal gravity), :mod:`casep.calibration.imutk` (imu_tk's
   files), :mod:`casep.calibration.mikov` (Mikov et al.'s parameters), :mod:`casep.calibration.handsim`
 
@@ -37,6 +39,7 @@ __getattr__, __dir__ = attach(__name__, {
     "casep.calibration.handturned": ("calibrate_multiposition", "calibrate_multiposition_file",
                                      "MultipositionCalibration"),
     "casep.calibration.gravity": ("normal_gravity",),
+    "casep.calibration.ferrarisauto": ("find_ferraris_segments", "FerrarisSegmentation"),
 }, globals())
 
 __all__ = ["CalibrationModel", "Session", "Segment", "SegmentError", "read_session", "read_segments",
@@ -46,4 +49,4 @@ __all__ = ["CalibrationModel", "Session", "Segment", "SegmentError", "read_sessi
            "read_imucal", "write_imucal", "imucal_prior", "Consistency", "ground_prior",
            "flight_prior_consistency", "ground_versus_flight", "ground_flight_checks", "detect_static",
            "Segmentation", "calibrate_multiposition", "calibrate_multiposition_file", "MultipositionCalibration",
-           "normal_gravity"]
+           "normal_gravity", "find_ferraris_segments", "FerrarisSegmentation"]

@@ -10,6 +10,7 @@ in :mod:`casep.calibration.checks`; the result is a :class:`casep.calibration.re
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from typing import Any, Mapping, Sequence
@@ -327,8 +328,13 @@ def calibrate_files(session: str | os.PathLike, *, rate: float | None = None, se
                     options: Mapping[str, Any] | None = None, acc_columns=None, gyr_columns=None,
                     acc_unit: str = "a.u.", gyr_unit: str = "a.u.", gravity: float = G0, angle_deg: float = -360.0,
                     weighting: str = "positions", sigma: float | None = None,
-                    prior_rel_std: float | None = None) -> Calibration:
+                    prior_rel_std: float | None = None, window_s: float = 0.5, init_s: float = 5.0,
+                    min_static_s: float = 0.5) -> Calibration:
     """:func:`calibrate` from files: the session, and its segments from `segments` (JSON) or `label_column`.
+
+    ``segments="auto"``: the six static poses and three turns of a Ferraris session found without labels
+    (:func:`casep.calibration.ferrarisauto.find_ferraris_segments` with `window_s`, `init_s`,
+    `min_static_s`); the result carries what was found (:attr:`Calibration.segmentation`).
 
     A ``prior`` option may be a path: a map-format JSON, a casep calibration/result JSON (its
     estimate and covariance), or an imucal calibration JSON (with `prior_rel_std`, imucal states no
@@ -341,14 +347,23 @@ def calibrate_files(session: str | os.PathLike, *, rate: float | None = None, se
     ses = read_session(session, rate=rate, acc_columns=acc_columns or ACC_COLUMNS,
                        gyr_columns=gyr_columns or GYR_COLUMNS, acc_unit=acc_unit, gyr_unit=gyr_unit,
                        label_column=label_column)
-    segs = (read_segments(segments, ses, angle_deg=angle_deg) if segments is not None
-            else segments_from_labels(ses, angle_deg=angle_deg))
+    found = None
+    if segments == "auto":
+        from casep.calibration.ferrarisauto import find_ferraris_segments
+
+        found = find_ferraris_segments(ses, angle_deg=angle_deg, window_s=window_s, init_s=init_s,
+                                       min_static_s=min_static_s)
+        segs = found.segments
+    else:
+        segs = (read_segments(segments, ses, angle_deg=angle_deg) if segments is not None
+                else segments_from_labels(ses, angle_deg=angle_deg))
     options = dict(options or {})
     for key in ("prior", "bounds"):
         v = options.get(key)
         if isinstance(v, (str, os.PathLike)):
             options[key] = _table_file(v, key, prior_rel_std)
-    return calibrate(ses, segs, model, method, gravity=gravity, weighting=weighting, sigma=sigma, options=options)
+    cal = calibrate(ses, segs, model, method, gravity=gravity, weighting=weighting, sigma=sigma, options=options)
+    return cal if found is None else dataclasses.replace(cal, segmentation=found)
 
 
 def _table_file(path, key: str, prior_rel_std: float | None) -> dict:

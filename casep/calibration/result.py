@@ -30,6 +30,8 @@ class Calibration:
         (reading units), the noise std of that row from the sample scatter, their ratio.
     model : CalibrationModel
     settings : dict
+    segmentation : FerrarisSegmentation or None
+        The segments found without labels (``--segments auto``), else None.
     """
 
     result: Any
@@ -37,6 +39,7 @@ class Calibration:
     segments: list
     model: CalibrationModel
     settings: dict = field(default_factory=dict)
+    segmentation: Any = None
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -80,6 +83,8 @@ class Calibration:
                         for k, r in self.sensors.items()},
             "segments": self.segments,
         }
+        if self.segmentation is not None:
+            d["calibration"]["segmentation"] = self.segmentation.to_dict()
         return d
 
     def text(self) -> str:
@@ -111,6 +116,8 @@ class Calibration:
             if r.diagnostics.get("groups"):
                 lines.append("  near-dependencies: " + "; ".join("[" + ", ".join(g) + "]"
                                                                 for g in r.diagnostics["groups"]))
+        if self.segmentation is not None:
+            lines += ["", self.segmentation.text()]
         lines.append("")
         lines.append("misfit per segment (row residual per axis; noise: std of the row from the sample scatter)")
         for seg in self.segments:

@@ -41,9 +41,9 @@ import numpy as np
 from casep.calibration.session import SegmentError
 from casep.results import Completed
 
-__all__ = ["Segmentation", "detect_static", "window_variance", "runs", "PoseSpreadWarning", "StaticMotionWarning",
-           "pose_spread", "warn_turns", "MAX_TURN_DEG", "MULTIPLIERS", "SPREAD_ERROR", "SPREAD_WARN", "INIT_RISE",
-           "MIN_POSES"]
+__all__ = ["Segmentation", "detect_static", "window_variance", "window_mean", "runs", "PoseSpreadWarning",
+           "StaticMotionWarning", "pose_spread", "warn_turns", "static_runs", "static_statistic", "detector",
+           "MAX_TURN_DEG", "MULTIPLIERS", "SPREAD_ERROR", "SPREAD_WARN", "INIT_RISE", "MIN_POSES"]
 
 #: imu_tk's sweep of threshold multipliers of the initial period's variance.
 MULTIPLIERS = tuple(float(k) for k in range(2, 11))
@@ -92,6 +92,9 @@ class Segmentation(Completed):
         Angle the gyro turns inside each pose (initial-period bias removed), deg (empty for raw counts).
     rate : float
         Sample rate, Hz.
+    statistic : (N,) ndarray or None
+        The detector's statistic per sample in units of the initial period (static: at most
+        `multiplier`), for the figure of the segmentation; not in :meth:`to_dict`.
     """
 
     what: ClassVar[str] = "segmentation of a calibration session into static poses and motions"
@@ -108,6 +111,7 @@ class Segmentation(Completed):
     spread: float = math.nan
     turns_deg: list = field(default_factory=list)
     gyro_threshold: float = math.nan
+    statistic: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def motions(self) -> list[tuple[int, int]]:
@@ -153,15 +157,20 @@ def window_variance(x: np.ndarray, window: int) -> np.ndarray:
     first, so raw counts near 32768 lose no digits).
     """
     x = np.asarray(x, dtype=float) - np.mean(x, axis=0)
+    m = window_mean(x, window)
+    return np.maximum(window_mean(x * x, window) - m * m, 0.0)
+
+
+def window_mean(x: np.ndarray, window: int) -> np.ndarray:
+    """Mean of `x` (N, k) over a centred window of `window` samples (shorter at the ends), (N, k), by
+    cumulative sums: rows ``[i - window // 2, i + window - window // 2)`` clipped to the data."""
+    x = np.asarray(x, dtype=float)
     n = len(x)
     h = window // 2
     lo = np.clip(np.arange(n) - h, 0, n)
     hi = np.clip(np.arange(n) + window - h, 0, n)
-    c1 = np.vstack([np.zeros((1, 3)), np.cumsum(x, axis=0)])
-    c2 = np.vstack([np.zeros((1, 3)), np.cumsum(x * x, axis=0)])
-    cnt = (hi - lo)[:, None]
-    m = (c1[hi] - c1[lo]) / cnt
-    return np.maximum((c2[hi] - c2[lo]) / cnt - m * m, 0.0)
+    c = np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
+    return (c[hi] - c[lo]) / (hi - lo).reshape((-1,) + (1,) * (x.ndim - 1))
 
 
 def runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -170,7 +179,7 @@ def runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
 
 
-def _static_runs(v: np.ndarray, threshold: float, init_end: int, min_len: int, guard: int):
+def static_runs(v: np.ndarray, threshold: float, init_end: int, min_len: int, guard: int):
     """Poses (the initial period first) and the rejected runs for one threshold.
 
     Each run loses `guard` samples at both ends (half a window: the variance of a window centred
@@ -221,18 +230,11 @@ def detect_static(acc: np.ndarray, gyr: np.ndarray, rate: float, *, gravity: flo
 
     acc = np.asarray(acc, dtype=float)
     gyr = np.asarray(gyr, dtype=float)
-    n = len(acc)
-    w = max(3, int(round(window_s * rate)))
-    init_end = int(round(init_s * rate))
-    min_len = max(2, int(round(min_static_s * rate)))
-    if init_end + w > n:
-        raise SegmentError(f"{source}: {n} samples ({n / rate:.3g} s) is shorter than the initial static period "
-                           f"{init_s:g} s plus one window")
-    v, v_init, vg_init = _statistic(acc, gyr, w, init_end, rate, init_s, source)
+    w, init_end, min_len, v, v_init, vg_init = detector(acc, gyr, rate, window_s, init_s, min_static_s, source)
     g = G0 if gravity is None else float(gravity)
     sweep, best = [], None
     for k in multipliers:
-        poses, rejected = _static_runs(v, k, init_end, min_len, w // 2)
+        poses, rejected = static_runs(v, k, init_end, min_len, w // 2)
         rms = math.nan
         if len(poses) >= min_poses:
             means = np.array([acc[a:b].mean(axis=0) for a, b in poses]) * acc_si
@@ -251,10 +253,30 @@ def detect_static(acc: np.ndarray, gyr: np.ndarray, rate: float, *, gravity: flo
     turns = _check_poses(poses, spread, gyr, init_end, rate, gyr_si, max_turn_deg, source)
     return Segmentation(init=(0, poses[0][1]), poses=poses, threshold=k * v_init, multiplier=float(k),
                         init_variance=v_init, window=w, rate=float(rate), rejected=rejected, sweep=sweep,
-                        spread=spread, turns_deg=turns, gyro_threshold=k * vg_init)
+                        spread=spread, turns_deg=turns, gyro_threshold=k * vg_init, statistic=v)
 
 
-def _statistic(acc, gyr, w, init_end, rate, init_s, source):
+def detector(acc: np.ndarray, gyr: np.ndarray, rate: float, window_s: float, init_s: float, min_static_s: float,
+             source: str) -> tuple:
+    """The detector's sizes in samples (window, end of the initial period, shortest pose) and its
+    statistic (:func:`static_statistic`): ``(w, init_end, min_len, v, v_init, vg_init)``.
+
+    Raises
+    ------
+    SegmentError
+        A session shorter than the initial period plus one window, or one that does not begin at rest.
+    """
+    n = len(acc)
+    w = max(3, int(round(window_s * rate)))
+    init_end = int(round(init_s * rate))
+    min_len = max(2, int(round(min_static_s * rate)))
+    if init_end + w > n:
+        raise SegmentError(f"{source}: {n} samples ({n / rate:.3g} s) is shorter than the initial static period "
+                           f"{init_s:g} s plus one window")
+    return (w, init_end, min_len, *static_statistic(acc, gyr, w, init_end, rate, init_s, source))
+
+
+def static_statistic(acc, gyr, w, init_end, rate, init_s, source):
     """The detector's statistic ``max(v_a / v_a,init, v_g / v_g,init)`` per sample, ``v_a,init``, ``v_g,init``.
 
     ``v_a`` is imu_tk's (module notes); ``v_g = sum_axes mean_window (w - b0)^2`` (b0 the initial
@@ -271,10 +293,7 @@ def _statistic(acc, gyr, w, init_end, rate, init_s, source):
                            f"(row {at}, t = {at / rate:.3g} s; static: below {INIT_RISE:g}). Use: start the session "
                            "with the sensor at rest, or a shorter --init")
     d2 = np.sum((gyr - gyr[core].mean(axis=0)) ** 2, axis=1)
-    c = np.concatenate([[0.0], np.cumsum(d2)])
-    idx = np.arange(len(d2))
-    lo, hi = np.clip(idx - w // 2, 0, len(d2)), np.clip(idx + w - w // 2, 0, len(d2))
-    vg = (c[hi] - c[lo]) / (hi - lo)  # window mean of |w - b0|^2
+    vg = window_mean(d2, w)  # window mean of |w - b0|^2
     # a gyro quantised to a constant reading at rest has vg_init = 0: floor it far below any turn
     vg_init = max(float(np.mean(vg[core])), 1e-12 * float(np.mean(vg)), 1e-300)
     v_init = float(np.mean(vi))

@@ -18,11 +18,13 @@ def add_parser(sub: Any) -> None:
     seg = p.add_mutually_exclusive_group(required=True)
     seg.add_argument("--segments", metavar="FILE", default=None,
                      help="segments JSON: imucal's section list {name: {start, end}} or a list of segments; "
-                          "or `auto`: find the static poses of a hand-turned session (model multiposition)")
+                          "or `auto`: find the segments (model multiposition: a hand-turned session's poses; "
+                          "--model ferraris: the six poses and three turns of a Ferraris session)")
     seg.add_argument("--label-column", metavar="NAME", default=None, dest="label_column",
                      help="column labelling each row's segment (imucal's annotated sessions: part)")
-    p.add_argument("--model", default="ferraris", help="calibration model name (models/calibration) or .py file "
-                   "(default ferraris; platform36_ground: the flight model's names and units, SI readings)")
+    p.add_argument("--model", default=None, help="calibration model name (models/calibration) or .py file "
+                   "(default ferraris, with --segments auto multiposition; platform36_ground: the flight model's "
+                   "names and units, SI readings)")
     p.add_argument("--method", default="ols", choices=[m for m, meth in METHODS.items()
                                                         if not (meth.needs_time or meth.noise_in_time)],
                    help="estimator (default ols)")
@@ -43,7 +45,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--weighting", choices=("positions", "segments", "samples"), default="positions",
                    help="rows: segment means weighted by a position-error (tilt) and noise model (default), "
                         "segment means of equal weight, or every sample (exact positions)")
-    auto = p.add_argument_group("--segments auto (model multiposition: a hand-turned session, no labels)")
+    auto = p.add_argument_group("--segments auto (no labels: a hand-turned session, or a Ferraris one with --model)")
     auto.add_argument("--latitude", type=float, default=None, metavar="DEG",
                       help="local gravity from the WGS84 normal gravity at this latitude (instead of --gravity)")
     auto.add_argument("--height", type=float, default=0.0, metavar="M", help="ellipsoidal height with --latitude, m")
@@ -54,28 +56,36 @@ def add_parser(sub: Any) -> None:
                       help="shortest static pose, s (default 0.5)")
     auto.add_argument("--imu-tk", metavar="PREFIX", default=None, dest="imu_tk",
                       help="also write PREFIX_acc.calib and PREFIX_gyro.calib (imu_tk's text format)")
+    auto.add_argument("--figures", metavar="DIR", default=None,
+                      help="write segmentation.png (the detector's statistic, the poses, turns and rejected runs) "
+                           "into DIR (created)")
     p.add_argument("--json", metavar="OUT", required=True, help="write the calibration JSON (a casep result)")
     p.add_argument("--imucal", metavar="OUT", default=None, help="also write imucal's calibration JSON (ferraris)")
 
 
 def run(args: argparse.Namespace) -> int:
     """One call of casep.calibration.calibrate_files, the report, the files (all or none)."""
-    if args.segments == "auto" or args.model == "multiposition":
+    if args.model == "multiposition" or (args.segments == "auto" and args.model is None):
         return _run_auto(args)
     from casep.calibration.calibrate import calibrate_files
     from casep.calibration.imucal import to_imucal
     from casep.units import G0
 
+    if args.figures and args.segments != "auto":
+        raise ValueError("--figures draws the segments found by --segments auto; give --segments auto")
     outputs.check({"--json": args.json, "--imucal": args.imucal},
-                  [args.session, args.segments, args.prior, args.bounds])
+                  [args.session, args.segments if args.segments != "auto" else None, args.prior, args.bounds],
+                  {"--figures": args.figures})
     cal = calibrate_files(args.session, rate=args.rate, segments=args.segments, label_column=args.label_column,
-                          model=args.model, method=args.method, options=options.method_options(args),
+                          model=args.model or "ferraris", method=args.method, options=options.method_options(args),
                           acc_columns=args.acc_columns.split(","), gyr_columns=args.gyr_columns.split(","),
                           acc_unit=args.acc_unit, gyr_unit=args.gyr_unit,
                           gravity=G0 if args.gravity is None else args.gravity, angle_deg=args.angle,
-                          weighting=args.weighting, sigma=args.sigma, prior_rel_std=args.prior_rel_std)
+                          weighting=args.weighting, sigma=args.sigma, prior_rel_std=args.prior_rel_std,
+                          window_s=args.window, init_s=args.init, min_static_s=args.min_static)
     imucal = to_imucal(cal) if args.imucal else None  # before any file: all outputs or none
     print(cal.text())
+    _figure(args, cal.segmentation)
     outputs.write_json(cal.to_dict(), args.json)
     print(f"calibration written to {args.json}")
     if imucal is not None:
@@ -89,21 +99,31 @@ def _run_auto(args: argparse.Namespace) -> int:
     from casep.calibration.handturned import calibrate_multiposition_file
     from casep.calibration.imutk import imu_tk_files, write_imu_tk
 
-    if args.segments != "auto" or args.model not in ("ferraris", "multiposition"):
-        raise ValueError("model multiposition takes --segments auto, and --segments auto calibrates model "
-                         f"multiposition (got --segments {args.segments}, --model {args.model})")
+    if args.segments != "auto":
+        raise ValueError(f"model multiposition takes --segments auto (got --segments {args.segments})")
     files = {"--json": args.json, **(dict(zip(("--imu-tk (acc)", "--imu-tk (gyro)"), imu_tk_files(args.imu_tk)))
                                      if args.imu_tk else {})}
-    outputs.check(files, [args.session])
+    outputs.check(files, [args.session], {"--figures": args.figures})
     cal = calibrate_multiposition_file(args.session, rate=args.rate, acc_columns=args.acc_columns.split(","),
                                        gyr_columns=args.gyr_columns.split(","), acc_unit=args.acc_unit,
                                        gyr_unit=args.gyr_unit, gravity=args.gravity, latitude=args.latitude,
                                        height=args.height, window_s=args.window, init_s=args.init,
                                        min_static_s=args.min_static)
     print(cal.text())
+    _figure(args, cal.segmentation)
     outputs.write_json(cal.to_dict(), args.json)
     print(f"calibration written to {args.json}")
     if args.imu_tk:
         for path in write_imu_tk(cal, args.imu_tk):
             print(f"imu_tk calibration written to {path}")
     return outputs.status(cal)
+
+
+def _figure(args: argparse.Namespace, segmentation) -> None:
+    """`--figures DIR`: segmentation.png (matplotlib imported only when asked)."""
+    if args.figures and segmentation is not None:
+        from casep.reporting.segmentation import plot_segmentation
+
+        path = outputs.folder(args.figures) / "segmentation.png"
+        plot_segmentation(segmentation, path)
+        print(f"figure: {path}")
