@@ -305,16 +305,16 @@ def _assign(cands: list, turns: dict, source: str, angle_deg: float) -> list[Seg
 
 def _misfit(acc: np.ndarray, segs: list[Segment]) -> float:
     """RMS misfit of ``abar_k = M g e_k + b`` over the six poses (18 rows, 12 coefficients), reading unit."""
-    A, y = [], []
+    rows, obs = [], []
     for s in segs[:6]:
         m = acc[s.rows].mean(axis=0)
         for r in range(3):
             row = np.zeros(12)
             row[3 * r:3 * r + 3] = s.gravity
             row[9 + r] = 1.0
-            A.append(row)
-            y.append(m[r])
-    A, y = np.array(A), np.array(y)
+            rows.append(row)
+            obs.append(m[r])
+    A, y = np.array(rows), np.array(obs)
     res = y - A @ np.linalg.lstsq(A, y, rcond=None)[0]
     return float(np.sqrt(np.mean(res ** 2)))
 

@@ -55,7 +55,7 @@ def test_annotated_session_auto_equals_labelled_within_std():
     assert z.max() == pytest.approx(0.47, abs=0.05)  # the figure quoted above and in the guide
     d = auto.to_dict()["calibration"]["segmentation"]
     assert set(d["segments"]) == {"x_p", "x_a", "y_p", "y_a", "z_p", "z_a", "x_rot", "y_rot", "z_rot"}
-    assert "segmentation (Ferraris, no labels)" in auto.report()
+    assert "segmentation (Ferraris, no labels)" in auto.text()
 
 
 # --- simulated continuous sessions ------------------------------------------------------------------
