@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     from casep.workflows.coefficients import read_scales
 
     model = load_model(args.model)
-    prior = inputs.coefficient_file(args, "prior", model.names)
+    prior = inputs.coefficient_file(args, "prior", model.names, fitted=True)
     prior_std = None if prior is None else parse_prior(prior, model.names)[1]
     prior_rows = None if prior is None or "correlation" not in prior else prior_information(prior, model.names)[0]
     scales = read_scales(args.scales, model.names) if args.scales else None

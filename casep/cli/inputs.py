@@ -119,14 +119,14 @@ def input_files(args: argparse.Namespace, *names: str) -> list[Any]:
     return files + ([model] if model and Path(model).is_file() else [])
 
 
-def coefficient_file(args: argparse.Namespace, option: str, names: Any) -> dict[str, Any] | None:
-    """The `--bounds` or `--prior` file (:func:`casep.workflows.coefficients.read_coefficient_file`), or None."""
-    path = getattr(args, option)
-    if not path:
+def coefficient_file(args: argparse.Namespace, option: str, names: Any, *, fitted: bool = False) -> dict | None:
+    """The `--bounds`/`--prior` file (coefficients.read_coefficient_file) or None; `fitted`: no result of the flight."""
+    if not (path := getattr(args, option)):
         return None
     from casep.workflows.coefficients import read_coefficient_file
 
-    return read_coefficient_file(path, option, names, model=getattr(args, "model", None))
+    return read_coefficient_file(path, option, names, model=getattr(args, "model", None),
+                                 data_files=input_files(args, "flight", "tracking") if fitted else ())
 
 
 def own_trajectory(args: argparse.Namespace) -> tuple[Any, Any, Any]:

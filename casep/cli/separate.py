@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     spec = options.fit_spec(args, given, sigma=args.sigma, denoise=args.denoise, wavelet_options=wopts or None,
                             outliers=args.outliers)  # the one check of the request
     bounds = inputs.coefficient_file(args, "bounds", model.names)
-    prior = inputs.coefficient_file(args, "prior", model.names)
+    prior = inputs.coefficient_file(args, "prior", model.names, fitted=True)
     tables = {k: v for k, v in (("bounds", bounds), ("prior", prior)) if v is not None}
     if tables:  # the files read and checked against the model: the tables themselves
         import dataclasses

@@ -108,6 +108,11 @@ def _parse(prior: Mapping, names: Sequence[str], source: str):
             raise ValueError(f"{source}: entry `{name}`: missing field {' and '.join(f'`{k}`' for k in lacking)} "
                              f"(found: {', '.join(map(str, spec)) or 'none'}); each entry is "
                              "{\"mean\": m, \"std\": s} in natural units")
+        unknown = [str(k) for k in spec if k not in ("mean", "std")]
+        if unknown:  # a "unit" or "sigma" would be ignored: the value taken in the natural unit, the std lost
+            raise ValueError(f"{source}: entry `{name}`: unknown field(s) {', '.join(f'`{k}`' for k in unknown)}; "
+                             "each entry is {\"mean\": m, \"std\": s} in the coefficient's natural unit (as "
+                             "`casep models` lists it)")
         for key in ("mean", "std"):  # strict: true or "0.1" is not a number
             if not is_number(spec[key]):
                 raise ValueError(f"{source}: `{name}` {key} must be a number, got {spec[key]!r} "

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 __all__ = ["provenance", "flight_provenance", "file_record", "file_sha256", "command_line", "DATA_ROLES",
-           "flight_files", "check_estimated_on"]
+           "flight_files", "check_estimated_on", "check_not_estimated_on"]
 
 #: Roles of the files a flight is read from (:func:`flight_provenance`'s ``files``): the data of a result.
 DATA_ROLES = ("flight", "telemetry", "tracking")
@@ -157,9 +157,7 @@ def check_estimated_on(record: Any, flight, where: str) -> None:
     ValueError
         Naming the flight file and its SHA-256, and the data files the result records with theirs.
     """
-    inputs = record.get("inputs") if isinstance(record, dict) else None
-    recorded = [(str(i.get("sha256")), str(i.get("file", ""))) for i in (inputs if isinstance(inputs, list) else [])
-                if isinstance(i, dict) and i.get("role") in DATA_ROLES and i.get("sha256")]
+    recorded = _recorded_data(record)
     if not recorded:
         return
     files = flight_files(flight)
@@ -177,3 +175,35 @@ def check_estimated_on(record: Any, flight, where: str) -> None:
         raise ValueError(f"{where} was estimated on other data: flight {files[0]} has sha256 {mine}, the result "
                          f"records {theirs}. Give the flight the result was estimated on (a flight not flown goes "
                          "to --trajectory)")
+
+
+def _recorded_data(record: Any) -> list[tuple[str, str]]:
+    """``(sha256, file)`` of the data files a result's ``provenance`` records (:data:`DATA_ROLES`)."""
+    inputs = record.get("inputs") if isinstance(record, dict) else None
+    return [(str(i.get("sha256")), str(i.get("file", ""))) for i in (inputs if isinstance(inputs, list) else [])
+            if isinstance(i, dict) and i.get("role") in DATA_ROLES and i.get("sha256")]
+
+
+def check_not_estimated_on(record: Any, files: Sequence[str | os.PathLike], where: str) -> None:
+    """Refuse a prior estimated on the data of `flight` itself (the twin of :func:`check_estimated_on`).
+
+    A prior from the same data counts it twice: the posterior std come out sqrt 2 too small (as
+    :func:`casep.workflows.fusion.fuse` refuses two results of one input). Checked on the SHA-256 of the data
+    files the prior's ``provenance`` records against `files`, the flight's (:func:`flight_files`); a prior
+    without such a record, or a flight read from no file, is not checked.
+
+    Raises
+    ------
+    ValueError
+        Naming the file both share, its SHA-256, and the option.
+    """
+    recorded = _recorded_data(record)
+    mine = {file_record(f, "flight")["sha256"]: str(f) for f in (files if recorded else [])
+            if f and Path(f).is_file()}
+    shared = [(d, f) for d, f in recorded if d in mine]
+    if shared:
+        d, f = shared[0]
+        raise ValueError(f"{where} was estimated on this flight's own data: {mine[d]} has sha256 {d}, which the "
+                         f"prior records as {f}. A prior from the same data counts it twice (every std about "
+                         "sqrt 2 too small): give a prior from other data (ground calibration, another flight), "
+                         "or fit the flights together (casep separate A B)")

@@ -26,7 +26,7 @@ __all__ = ["read_coefficient_file", "read_scales", "with_prior_consistency"]
 
 
 def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[str], *,
-                          model: Any = None) -> dict[str, Any]:
+                          model: Any = None, data_files: Sequence[str | os.PathLike] = ()) -> dict[str, Any]:
     """Read a ``prior`` or ``bounds`` file of any accepted form, checked against the model's coefficients.
 
     Parameters
@@ -40,6 +40,9 @@ def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[st
     model : str, path or ErrorModel, optional
         The flight model (a ground calibration is mapped to it, default ``platform36``; a result file
         is read with it, default: the model the result names).
+    data_files : sequence of paths, optional
+        The files of the flight the prior is for: a result estimated on them is refused
+        (:func:`casep.io.provenance.check_not_estimated_on`: the same data counted twice).
 
     Returns
     -------
@@ -69,8 +72,10 @@ def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[st
     elif kind == "prior" and looks_like_result(data):  # a result file (any form): its posterior
         from casep.estimators.map import prior_from_result
         from casep.estimators.reading import read_input_result
+        from casep.io.provenance import check_not_estimated_on
 
         res, res_model = read_input_result(path, model, option=option)  # usable; its model never run on its word
+        check_not_estimated_on(data.get("provenance"), data_files, f"{option} {path}")
         data = prior_from_result(res, model=res_model)  # per-flight coefficients (dt_trk) left flat
     (parse_prior if kind == "prior" else parse_bounds)(data, names, source=f"{option} {path}")
     return data

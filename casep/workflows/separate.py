@@ -239,21 +239,19 @@ def _problem(flight: FlightData | Problem | str | os.PathLike, model: Any,
 
 
 def _with_tables(spec: FitSpec, flight: Any, model: Any) -> FitSpec:
-    """`spec` with its bounds or prior table read when given as a JSON file (as on the command line)."""
+    """`spec` with its bounds or prior table read when given as a JSON file, as on the command line
+    (:func:`casep.workflows.coefficients.read_coefficient_file`: a ground calibration, a result's posterior,
+    a result of this very flight refused)."""
+    from casep.io.provenance import flight_files
+    from casep.workflows.coefficients import read_coefficient_file
+
     opts = dict(spec.options)
     for k in ("bounds", "prior"):
         path = opts.get(k)
-        if not isinstance(path, (str, os.PathLike)):
-            continue
-        opts[k] = read_json_table(path, k)
-        from casep.io.result_json import looks_like_result
-
-        if k == "prior" and looks_like_result(opts[k]):  # a result file (any form): its posterior
-            from casep.estimators.map import prior_from_result
-            from casep.estimators.reading import read_input_result
-
-            res_prior, m = read_input_result(path, None if isinstance(flight, Problem) else model, option="prior")
-            opts[k] = prior_from_result(res_prior, model=m)
+        if isinstance(path, (str, os.PathLike)):
+            names = flight.names if isinstance(flight, Problem) else model.names
+            opts[k] = read_coefficient_file(path, k, names, model=None if isinstance(flight, Problem) else model,
+                                            data_files=flight_files(flight) if isinstance(flight, FlightData) else ())
     return spec if opts == dict(spec.options) else dataclasses.replace(spec, options=opts)
 
 

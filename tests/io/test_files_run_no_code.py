@@ -50,6 +50,7 @@ def files(tmp_path_factory):
 
     d = tmp_path_factory.mktemp("nocode")
     write_simulation(simulate_flight("paper", seed=3, rate=5.0), d / "flight.csv")
+    write_simulation(simulate_flight("paper", seed=4, rate=5.0), d / "flight2.csv")  # the prior's next flight
     (d / "evil.py").write_text(EVIL)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the separation's own warnings are not the point here
@@ -147,7 +148,7 @@ def test_separate_prior_with_the_model_named_works_and_checks_sha256(clean, chan
     s, out, err = _run(capsys, "separate", clean / "flight.csv", "--method", "map", "--prior", clean / "r.json",
                        "--model", changed)
     _mismatch(s, err, clean, changed)
-    s, out, err = _run(capsys, "separate", clean / "flight.csv", "--method", "map", "--prior", clean / "r.json",
+    s, out, err = _run(capsys, "separate", clean / "flight2.csv", "--method", "map", "--prior", clean / "r.json",
                        "--model", clean / "evil.py", "--noise", "white", "--robust", "none")
     assert s == 0 and "map" in out, err
     assert (clean / "MARKER").exists()  # the user named it: it ran

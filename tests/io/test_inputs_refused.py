@@ -129,6 +129,28 @@ def test_a_prior_entry_without_std_names_the_entry_and_the_field(files, tmp_path
     assert s == 2 and "must hold a JSON object keyed by coefficient name" in err and "got an array" in err
 
 
+@pytest.mark.parametrize("field", ["unit", "sigma"])
+def test_a_prior_entry_with_an_unknown_field_is_refused(files, tmp_path, capsys, field):
+    """Before: `unit` or `sigma` in an entry were ignored (the value taken in deg/h whatever the unit said)."""
+    p = tmp_path / "p.json"
+    p.write_text(json.dumps({"Kg0x": {"mean": 0.0, "std": 1.0, field: "rad/s" if field == "unit" else 2.0}}))
+    s, out, err = _run(capsys, "separate", files / "a.csv", "--method", "map", "--prior", p)
+    assert s == 2 and out == "", err
+    assert f"--prior {p}: entry `Kg0x`: unknown field(s) `{field}`" in err and "natural unit" in err
+
+
+def test_a_prior_estimated_on_the_same_flight_is_refused(files, capsys):
+    """Before: exit 0, every std sqrt 2 too small (the flight counted twice); fuse refused the same pair."""
+    import hashlib
+
+    s, out, err = _run(capsys, "separate", files / "a.csv", "--method", "map", "--prior", files / "a.json")
+    assert s == 2 and out == "", err
+    digest = hashlib.sha256((files / "a.csv").read_bytes()).hexdigest()
+    assert "was estimated on this flight's own data" in err and digest in err and "sqrt 2" in err
+    s, _, err = _run(capsys, "separate", files / "b.csv", "--method", "map", "--prior", files / "a.json")
+    assert s == 0, err  # another flight's result is a prior
+
+
 def test_a_model_file_is_named_on_stderr_before_it_runs(files, tmp_path, capsys, monkeypatch):
     m = tmp_path / "hangs.py"
     m.write_text("import casep\n\n\ndef build():\n    while True:\n        pass\n")
