@@ -38,7 +38,7 @@ from __future__ import annotations
 import warnings
 from typing import Any, Callable, ClassVar, Protocol, runtime_checkable
 
-__all__ = ["Result", "Completed", "deprecated_alias", "PROTOCOL", "DEPRECATED_NAMES"]
+__all__ = ["Result", "Completed", "OfEstimate", "deprecated_alias", "PROTOCOL", "DEPRECATED_NAMES"]
 
 #: The members every result has.
 PROTOCOL = ("text", "to_dict", "success", "status", "message")
@@ -98,6 +98,31 @@ class Completed:
     def message(self) -> str:
         """What the result is: :attr:`what`."""
         return self.what
+
+
+class OfEstimate:
+    """``success``, ``status`` and ``message`` of a result built around an estimate: its ``result``'s.
+
+    A radar fit or a multiposition calibration succeeds or fails as the
+    :class:`~casep.estimators.result.EstimateResult` it holds in ``result``.
+    """
+
+    result: Any
+
+    @property
+    def success(self) -> bool:
+        """Whether the estimate it holds succeeded."""
+        return bool(self.result.success)
+
+    @property
+    def status(self) -> int:
+        """The estimate's status."""
+        return int(self.result.status)
+
+    @property
+    def message(self) -> str:
+        """The estimate's message."""
+        return str(self.result.message)
 
 
 def deprecated_alias(new: str, old: str) -> Callable[..., Any]:

@@ -36,6 +36,7 @@ from casep.calibration.multiposition import (
 from casep.calibration.segment import Segmentation, detect_static
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Session
 from casep.estimators.result import EstimateResult
+from casep.results import OfEstimate
 
 __all__ = ["MultipositionCalibration", "calibrate_multiposition", "calibrate_multiposition_file", "ferraris_view",
            "FitWarning", "SaturationWarning", "check_saturation", "CONVENTION"]
@@ -101,7 +102,7 @@ def ferraris_view(M_of_x, x: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.
 
 
 @dataclass(frozen=True)
-class MultipositionCalibration:
+class MultipositionCalibration(OfEstimate):
     """The outcome of :func:`calibrate_multiposition` (the result protocol, :mod:`casep.results`).
 
     Attributes
@@ -181,21 +182,6 @@ class MultipositionCalibration:
                 lines.append(f"  {pre}_{a}. " + "  ".join(f"{fv[f'{pre}_{a}{b}']['estimate']:+.6g} "
                                                           f"({fv[f'{pre}_{a}{b}']['std']:.2g})" for b in "xyz"))
         return "\n".join(lines)
-
-    @property
-    def success(self) -> bool:
-        """Whether both fits converged and the session passed its checks (the estimate's)."""
-        return bool(self.result.success)
-
-    @property
-    def status(self) -> int:
-        """The estimate's status."""
-        return int(self.result.status)
-
-    @property
-    def message(self) -> str:
-        """The estimate's message."""
-        return str(self.result.message)
 
 
 def _jacobian(fit: AccFit | GyroFit) -> np.ndarray:

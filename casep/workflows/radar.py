@@ -39,7 +39,7 @@ from casep.radar.regression import (
 )
 from casep.radar.setup import check_setup
 from casep.radar.stations import RadarMeasurements, Station, read_radar, read_station
-from casep.results import deprecated_alias
+from casep.results import OfEstimate, deprecated_alias
 
 __all__ = ["RadarResult", "separate_radar", "diagnose_radar", "read_radar_inputs", "simulate_radar_files",
            "radar_simulation_outputs", "NOT_WITH_RADAR", "check_radar_options"]
@@ -97,7 +97,7 @@ def check_radar_options(given: Mapping[str, Any], *, cli: bool = False,
 
 
 @dataclass(frozen=True)
-class RadarResult:
+class RadarResult(OfEstimate):
     """The joint estimate and what goes with it; the result protocol of :mod:`casep.results`.
 
     ``success``, ``status`` and ``message`` are the joint estimate's (a linearisation that did
@@ -111,18 +111,6 @@ class RadarResult:
     summary: dict
     diagnostics: dict | None = None
     provenance: dict | None = None
-
-    @property
-    def success(self) -> bool:
-        return bool(self.result.success)
-
-    @property
-    def status(self) -> int:
-        return int(self.result.status)
-
-    @property
-    def message(self) -> str:
-        return str(self.result.message)
 
     def to_dict(self) -> dict[str, Any]:
         """The result JSON with a ``radar`` section (``diagnostics.tracking_terms`` lists the station terms)
