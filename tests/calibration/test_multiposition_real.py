@@ -1,4 +1,4 @@
-"""A real MPU-9150 session (Mikov et al., ICINS 2020) calibrated with --segments auto, against the paper's table."""
+"""The five real MPU-9150 sessions (Mikov et al., ICINS 2020), calibrated by --segments auto, against their table."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from casep.calibration.handturned import calibrate_multiposition_file
 from casep.calibration.mikov import mikov_accelerometer, mikov_gyro, table_si
@@ -50,29 +51,44 @@ def _mapped_std(fun, x, C, seed=0, n=2000):
     return np.std([fun(d) for d in draws], axis=0)
 
 
-def test_mpu9150_session_against_the_published_table():
+@pytest.mark.parametrize("session", range(5))
+def test_mpu9150_session_against_the_published_table(session):
+    """Session imu<session> against column #<session + 1> of the paper's table, within the tolerance argued here.
+
+    The table is not a converged least-squares optimum: its optimiser stops after 25 (accelerometer) and 50
+    (gyro) evaluations with a soft-l1 loss, and it prints 3 decimals (s in %, m and eps in deg, gyro b in
+    deg/s rounded from 1e-3 rad/s). The data's notes argue a tolerance of ~1e-3 on that ground. Per group:
+
+    - accelerometer scales and misalignments: 1e-3 (the notes' tolerance; found: at most 2e-4), and within
+      3 std + 1e-4 (the table's rounding at 3 decimals of % and deg is below 1e-4);
+    - accelerometer biases: within 3 std + 1e-4 only. Their std on these sessions is 5e-4 to 1.3e-3 m/s^2
+      (22 poses, each mean's noise ~1e-3), so a fixed 1e-3 would demand more than the data holds; found:
+      up to 1.9e-3 m/s^2 (imu4 b_z) at z <= 2.2;
+    - gyro scales, misalignments and eps: within 3 std (~1e-3 from 21 motions) plus the table's rounding
+      5e-4; found: z <= 2.7 (imu1, the session the authors' own fit found poor: residual 2.07 against
+      0.2-0.4 for the others);
+    - gyro biases: 1e-3 rad/s. The table rounds them to 1e-3 rad/s, and theirs are fitted to the motions,
+      casep's are the mean of the poses (std ~1e-4), which the motions cannot move; found: at most 8e-4.
+
+    Each session takes 0.3-0.5 s (calibration and the std mapped by 2 x 2000 seeded draws; 2.5 s for the file).
+    """
     with warnings.catch_warnings():
-        # the last pose turns by ~1 deg in 10 s (gyro bias drift): below the 2-deg warning; nothing else expected
+        # imu0's last pose turns by ~1 deg in 10 s (gyro bias drift): below the 2-deg warning; nothing expected
         warnings.simplefilter("error")
-        cal = calibrate_multiposition_file(DATA / "imu0.log.gz", rate=100.0, acc_unit="m/s^2", gyr_unit="rad/s",
-                                           gravity=9.81)  # theirs: 9.81 hard-coded
+        cal = calibrate_multiposition_file(DATA / f"imu{session}.log.gz", rate=100.0, acc_unit="m/s^2",
+                                           gyr_unit="rad/s", gravity=9.81)  # theirs: 9.81 hard-coded
     seg = cal.segmentation
     assert 20 <= len(seg.poses) <= 24 and seg.spread > 0.3
-    # accelerometer: the table's tolerance ~1e-3 (its optimiser is capped at 25 evaluations with a soft-l1 loss);
-    # found: within 2e-4 (scales, misalignments) and 3e-4 m/s^2 (biases), ~1 std
     a = mikov_accelerometer(cal.acc.x)
     sa = _mapped_std(mikov_accelerometer, cal.acc.x, cal.acc.covariance)
-    ref = table_si("accelerometer", 0)
-    assert np.all(np.abs(a - ref) <= 1e-3), (a - ref)
+    ref = table_si("accelerometer", session)
+    assert np.all(np.abs(a - ref)[:6] <= 1e-3), (a - ref)
     assert np.all(np.abs(a - ref) <= 3 * sa + 1e-4), (a - ref) / sa
-    # gyro: scales, misalignments, eps within 3 std (~1e-3: 21 motions) plus the table's rounding 5e-4; the
-    # biases within 1e-3 rad/s: the table rounds them to 1e-3 rad/s, and theirs are fitted to the motions,
-    # ours are the mean of the poses (std 1e-4)
     xg = np.r_[cal.gyro.x, cal.gyro.bias]
     fun = lambda p: mikov_gyro(p[:9], p[9:])  # noqa: E731
     g = fun(xg)
     sg = _mapped_std(fun, xg, cal.result.covariance[9:, 9:])
-    ref = table_si("gyro", 0)
+    ref = table_si("gyro", session)
     d = np.abs(g - ref)
     assert np.all(d[6:9] <= 1e-3), d[6:9]
     keep = np.r_[0:6, 9:12]
