@@ -2,7 +2,8 @@
 
 A session is refused (ValueError naming segment and numbers) when its static accelerometer means
 are far from gravity in the declared unit (:func:`check_gravity`), its turns integrate to far from
-their declared angles in the declared gyro unit and rate (:func:`check_turn_angles`), or a static
+their declared angles in the declared gyro unit and rate (:func:`check_turn_angles`; for a hand-turned
+session its fitted gyro scales, :func:`check_gyro_scale`), or a static
 mean points away from the stated position (:func:`check_positions`); warned about (a
 :class:`casep.exceptions.CasepWarning`) when a turn has gaps in time (:class:`TimeGapWarning`), a
 static segment misfits the model (:class:`PositionMisfitWarning`) or a turn's reading has the sign
@@ -22,7 +23,8 @@ from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Segment, S
 from casep.exceptions import CasepWarning
 
 __all__ = ["RotationSignWarning", "PositionMisfitWarning", "TimeGapWarning", "GRAVITY_TOLERANCE", "MISFIT_Z",
-           "TURN_TOLERANCE", "check_gravity", "check_turn_angles", "check_gaps", "check_positions", "warn_misfit",
+           "TURN_TOLERANCE", "check_gravity", "check_turn_angles",
+           "gyro_scale_hint", "check_gyro_scale", "check_gaps", "check_positions", "warn_misfit",
            "check_rotation_signs", "segment_misfits"]
 
 #: A static segment's |mean specific force| may differ from gravity by this fraction (physical units).
@@ -103,20 +105,63 @@ def check_turn_angles(segs: Sequence[Segment], session: Session) -> None:
     if abs(abs(ratio) - 1.0) <= TURN_TOLERANCE:
         return
     median = float(np.median([abs(x[4]) for x in turns]))  # the turns' common factor
-    units = [u for u, k in GYR_UNITS.items() if u != unit and abs(median * k / GYR_UNITS[unit] - 1.0) <= TURN_TOLERANCE]
-    if units:
-        hint = f"the readings look like {' or '.join(units)}: --gyr-unit {units[0]}"
-    else:
-        angle = (f"the turns are about {declared * float(np.median([x[4] for x in turns])):+.3g} deg, not "
-                 f"{declared:+g} (--angle or the segments' angle_deg), or the segment boundaries cut the turns")
-        hint = angle if session.t_column else (
-            f"with no `t` column every turn integral is the readings' sum / --rate, so --rate {session.rate:.6g} Hz "
-            f"is probably wrong (about {session.rate * median:.3g} Hz would give 1); or {angle}")
+    angle = (f"the turns are about {declared * float(np.median([x[4] for x in turns])):+.3g} deg, not "
+             f"{declared:+g} (--angle or the segments' angle_deg), or the segment boundaries cut the turns")
+    hint = gyro_scale_hint(median, session, angle)
     each = ", ".join(f"`{x[0].name}` {x[4]:.4g}" for x in turns)
     raise ValueError(f"{session.source}: {seg.where}: the gyro reading integrates to {deg:+.6g} deg about "
                      f"{np.round(axis, 3).tolist()} (bias removed, read as {unit} at {session.rate:.6g} Hz), "
                      f"{ratio:.4g} x the declared angle {declared:+g} deg (every turn: {each}; more than "
                      f"{TURN_TOLERANCE:.0%} off 1 in magnitude): {hint}")
+
+
+def gyro_scale_hint(ratio: float, session: Session, otherwise: str) -> str:
+    """The likely mistake when the gyro readings integrate to `ratio` x the true rotation (declared unit and rate).
+
+    A gyro's own scale error is a few percent, so a common factor `ratio` off 1 by more than
+    TURN_TOLERANCE is a mistake of the declaration. In order:
+
+    - another unit `u` with ``|ratio k_u / k_declared - 1| <= TURN_TOLERANCE`` (``k`` the unit's rad/s
+      per unit): deg/s declared rad/s reads 57.3 x the truth, rad/s declared deg/s 1/57.3;
+    - without a `t` column, the rate: every integral is ``sum_i u_i / rate``, so ``rate x ratio`` Hz
+      gives 1 (a rate twice the true one gives 0.5);
+    - else `otherwise` (the caller's other explanation).
+
+    Used by :func:`check_turn_angles` (ratio: integrated over declared angle) and
+    :func:`check_gyro_scale` (ratio: 1 / the fitted scale).
+    """
+    unit = session.gyr_unit
+    units = [u for u, k in GYR_UNITS.items() if u != unit and abs(ratio * k / GYR_UNITS[unit] - 1.0) <= TURN_TOLERANCE]
+    if units:
+        f = GYR_UNITS[unit] / GYR_UNITS[units[0]]  # readings in units[0] read as `unit`: f x the truth
+        factor = f"{f:.4g}" if f >= 1.0 else f"1/{1.0 / f:.4g}"
+        return (f"the readings look like {' or '.join(units)}: --gyr-unit {units[0]} (read as {unit} they are "
+                f"{factor} x the truth)")
+    if session.t_column:
+        return otherwise
+    return (f"with no `t` column every turn integral is the readings' sum / --rate, so --rate {session.rate:.6g} Hz "
+            f"is probably wrong (about {session.rate * ratio:.3g} Hz would give 1); or {otherwise}")
+
+
+def check_gyro_scale(scales: np.ndarray, session: Session) -> None:
+    """Refuse fitted gyro scales (true rate per reading, SI) off 1 by more than TURN_TOLERANCE in a physical unit.
+
+    A scale `s_i` means the readings integrate to ``1 / s_i`` x the rotation the accelerometers see between
+    the poses: the ratio :func:`check_turn_angles` tests for declared angles, and the same rule
+    (:func:`gyro_scale_hint`, on the median of ``|1 / s_i|``) names the likely mistake.
+    """
+    unit = session.gyr_unit
+    if unit not in GYR_UNITS:
+        return  # raw counts: any scale
+    s = np.asarray(scales, dtype=float)
+    ratios = 1.0 / np.maximum(np.abs(s), 1e-300)
+    if np.all(np.abs(ratios - 1.0) <= TURN_TOLERANCE):
+        return
+    median = float(np.median(ratios))
+    hint = gyro_scale_hint(median, session, f"the readings are not a gyro's in {unit}, or the sensor is broken")
+    raise ValueError(f"{session.source}: the fitted gyro scales are {', '.join(f'{v:.4g}' for v in s)} (read as "
+                     f"{unit} at {session.rate:.6g} Hz): the readings turn {median:.4g} x the rotation the "
+                     f"accelerometers see between the poses (more than {TURN_TOLERANCE:.0%} off 1): {hint}")
 
 
 def check_gaps(rots: Sequence[Segment], t: np.ndarray, rate: float) -> None:

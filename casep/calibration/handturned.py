@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from casep.calibration.checks import check_gyro_scale
 from casep.calibration.multiposition import (
     ACC_NAMES,
     GYRO_NAMES,
@@ -302,9 +303,12 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     fa, sa_unit, ba_unit = _unit(session.acc_unit, ACC_UNITS, "m/s^2")
     fg, sg_unit, bg_unit = _unit(session.gyr_unit, GYR_UNITS, "rad/s")
     acc, gyr = session.acc * fa, session.gyr * fg
-    seg = segmentation or detect_static(acc, gyr, session.rate, gravity=g, window_s=window_s, init_s=init_s,
-                                        min_static_s=min_static_s, source=session.source,
-                                        gyr_si=None if session.gyr_unit == RAW_UNIT else 1.0)
+    with warnings.catch_warnings(record=True) as held:
+        # held until the gyro's unit is checked: a wrong unit also makes the poses' noise look like turns
+        warnings.simplefilter("always")
+        seg = segmentation or detect_static(acc, gyr, session.rate, gravity=g, window_s=window_s, init_s=init_s,
+                                            min_static_s=min_static_s, source=session.source,
+                                            gyr_si=None if session.gyr_unit == RAW_UNIT else 1.0)
     saturated = (check_saturation(session.gyr, "gyro", seg.motions, session.source)
                  + check_saturation(session.acc, "accelerometer", seg.motions, session.source))
     means = np.array([acc[a:b].mean(axis=0) for a, b in seg.poses])
@@ -317,6 +321,9 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     gfit = fit_gyro(gyr, session.rate, seg.motions, u0, u1, bias, bias_std=bias_std,
                     scale0=None if session.gyr_unit == RAW_UNIT else 1.0, dt=dt)
     gfit = _propagate(gfit, afit, means, gyr, session.rate, seg.motions, dt)
+    check_gyro_scale(gfit.x[6:9], session)  # the unit and the rate first: they explain everything else
+    for w in held:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if session.gyr_unit == RAW_UNIT:  # the turn inside each pose, now that the counts' scale is known
         from dataclasses import replace
 
@@ -332,8 +339,6 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
                       f"{gfit.iterations}): the coefficients are probably wrong", FitWarning, stacklevel=2)
     if session.acc_unit != RAW_UNIT:
         check_unit_scale(afit.x[3:6], "accelerometer", session.acc_unit, fa)
-    if session.gyr_unit != RAW_UNIT:
-        check_unit_scale(gfit.x[6:9], "gyro", session.gyr_unit, fg)
     units = ("rad",) * 3 + (sa_unit,) * 3 + (ba_unit,) * 3 + ("rad",) * 6 + (sg_unit,) * 3 + (bg_unit,) * 3
     res = _result(afit, gfit, units, session.n_samples,
                   f"{len(seg.poses)} poses, {len(seg.motions)} motions"

@@ -92,19 +92,53 @@ def test_cli_auto_errors_exit_2_and_write_nothing(tmp_path, capsys):
     assert not out.exists()
 
 
-def test_cli_auto_warns_of_a_gyro_declared_in_the_wrong_unit(tmp_path):
-    h = simulate_hand_session(16, seed=23)
-    p = tmp_path / "degs.txt"
-    np.savetxt(p, np.column_stack([h.acc, np.degrees(h.gyr)]))  # deg/s, declared rad/s
-    from casep.calibration.multiposition import UnitScaleWarning
+def _refused(argv: list[str], out: Path, capsys) -> str:
+    """Run the command, assert exit 2, nothing written and no StaticMotionWarning; return its error message."""
+    from casep.calibration.segment import StaticMotionWarning
 
     with warnings.catch_warnings(record=True) as caught:
-        # the noise read as 57 times larger also makes the poses' turns look like motion (a StaticMotionWarning)
         warnings.simplefilter("always")
-        assert main(["calibrate", str(p), "--rate", "100", "--segments", "auto", "--acc-unit", "m/s^2",
-                     "--gyr-unit", "rad/s", "--json", str(tmp_path / "c.json")]) == 0
-    unit = [str(w.message) for w in caught if issubclass(w.category, UnitScaleWarning)]
-    assert len(unit) == 1 and re.search(r"gyro scales 0\.017\d+, .* declared in rad/s", unit[0]), unit
+        assert main(argv + ["--json", str(out)]) == 2
+    # the unit (or rate) is checked first: the poses' noise read 57 x too large is not blamed on motion
+    assert not [w for w in caught if issubclass(w.category, StaticMotionWarning)], [str(w.message) for w in caught]
+    assert not out.exists()
+    return capsys.readouterr().err
+
+
+@pytest.mark.parametrize("factor, declared, says", [
+    (180.0 / np.pi, "rad/s", r"the fitted gyro scales are 0\.017\d+, 0\.017\d+, 0\.017\d+ \(read as rad/s at 100 Hz\): "
+     r"the readings turn 5[67]\.\d+ x the rotation .*: the readings look like deg/s: --gyr-unit deg/s \(read as rad/s "
+     r"they are 57\.3 x the truth\)"),
+    (1.0, "deg/s", r"the fitted gyro scales are 5[67]\.\d+, 5[67]\.\d+, 5[67]\.\d+ \(read as deg/s at 100 Hz\): the "
+     r"readings turn 0\.017\d+ x .*look like rad/s: --gyr-unit rad/s \(read as deg/s they are 1/57\.3 x the truth\)"),
+])
+def test_cli_auto_refuses_a_gyro_declared_in_the_wrong_unit(tmp_path, capsys, factor, declared, says):
+    # the labelled path's rule (casep.calibration.checks.gyro_scale_hint) on the fitted scales: exit 2
+    h = simulate_hand_session(16, seed=23)
+    p = tmp_path / "gyro.txt"
+    np.savetxt(p, np.column_stack([h.acc, h.gyr * factor]))
+    err = _refused(["calibrate", str(p), "--rate", "100", "--segments", "auto", "--acc-unit", "m/s^2",
+                    "--gyr-unit", declared], tmp_path / "c.json", capsys)
+    assert re.search(says, err), err
+
+
+def test_cli_auto_refuses_a_wrong_rate_without_a_time_column(tmp_path, capsys):
+    # the real 100 Hz session declared 50 Hz: every motion integral doubles, the fitted gyro scales halve
+    err = _refused(["calibrate", str(DATA / "imu0.log.gz"), "--rate", "50", "--segments", "auto", "--acc-unit",
+                    "m/s^2", "--gyr-unit", "rad/s", "--gravity", "9.81"], tmp_path / "c.json", capsys)
+    assert re.search(r"the fitted gyro scales are 0\.49\d+, 0\.49\d+, 0\.49\d+ \(read as rad/s at 50 Hz\): the "
+                     r"readings turn 2\.0\d+ x .*with no `t` column .* --rate 50 Hz is probably wrong \(about 100 Hz "
+                     r"would give 1\)", err), err
+    # with a time column the rate is not blamed (the times say it)
+    h = simulate_hand_session(16, seed=23)
+    p = tmp_path / "t.csv"
+    t = np.arange(len(h.acc)) / h.rate
+    np.savetxt(p, np.column_stack([t, h.acc, 2.0 * h.gyr]), delimiter=",", comments="",
+               header="t,acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z")
+    err = _refused(["calibrate", str(p), "--segments", "auto", "--acc-unit", "m/s^2", "--gyr-unit", "rad/s"],
+                   tmp_path / "d.json", capsys)
+    assert re.search(r"the readings turn (1\.99|2\.0)\d* x", err) and "--rate" not in err, err
+    assert "the readings are not a gyro's in rad/s, or the sensor is broken" in err, err
 
 
 def test_a_gyro_that_clips_in_the_turns_is_a_warning_and_no_success(tmp_path, capsys):
