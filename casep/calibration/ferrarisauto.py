@@ -50,6 +50,7 @@ import numpy as np
 
 from casep.calibration.segment import MULTIPLIERS, Segmentation, detector, static_runs, window_mean
 from casep.calibration.session import GYR_UNITS, RAW_UNIT, Segment, SegmentError, Session, ferraris_segment
+from casep.exceptions import CasepWarning
 
 __all__ = ["FerrarisSegmentation", "find_ferraris_segments", "TurnBoundaryWarning", "AXIS_TOL_DEG",
            "ROTATION_FRACTION", "QUIET"]
@@ -62,7 +63,7 @@ ROTATION_FRACTION = 0.5
 QUIET = 25.0
 
 
-class TurnBoundaryWarning(UserWarning):
+class TurnBoundaryWarning(CasepWarning):
     """A turn not bracketed by rest: its gyro integral may include part of the next motion."""
 
 

@@ -37,6 +37,7 @@ from casep.calibration.multiposition import (
 from casep.calibration.segment import Segmentation, detect_static
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Session
 from casep.estimators.result import EstimateResult
+from casep.exceptions import CasepWarning
 from casep.results import OfEstimate
 
 __all__ = ["MultipositionCalibration", "calibrate_multiposition", "calibrate_multiposition_file", "ferraris_view",
@@ -47,11 +48,11 @@ CONVENTION = ("imu_tk: a_cal = T_a K_a (a - b_a), T_a = [[1, -a_yz, a_zy], [0, 1
               "K = diag(s). casep ferraris: y = M f + b, M_a = (T_a K_a)^-1, M_g = (T_g K_g)^-1")
 
 
-class FitWarning(UserWarning):
+class FitWarning(CasepWarning):
     """An iterative fit did not converge, or its misfit is large: the result is probably wrong."""
 
 
-class SaturationWarning(UserWarning):
+class SaturationWarning(CasepWarning):
     """A sensor reads its extreme value for several samples in a row during a motion: it clipped."""
 
 

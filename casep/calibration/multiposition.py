@@ -44,6 +44,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from casep.exceptions import CasepWarning
+
 __all__ = ["AccFit", "GyroFit", "fit_accelerometer", "fit_gyro", "acc_matrix", "gyro_matrix", "rotations",
            "integrate_motions", "gyro_residuals", "ACC_NAMES", "GYRO_NAMES", "UnitScaleWarning"]
 
@@ -53,7 +55,7 @@ ACC_NAMES = ("a_yz", "a_zy", "a_zx", "sa_x", "sa_y", "sa_z", "ba_x", "ba_y", "ba
 GYRO_NAMES = ("g_yz", "g_zy", "g_xz", "g_zx", "g_xy", "g_yx", "sg_x", "sg_y", "sg_z")
 
 
-class UnitScaleWarning(UserWarning):
+class UnitScaleWarning(CasepWarning):
     """A fitted scale far from 1 for readings declared in a physical unit: the unit is probably wrong."""
 
 

@@ -39,6 +39,7 @@ from typing import ClassVar
 import numpy as np
 
 from casep.calibration.session import SegmentError
+from casep.exceptions import CasepWarning
 from casep.results import Completed
 
 __all__ = ["Segmentation", "detect_static", "window_variance", "window_mean", "runs", "PoseSpreadWarning",
@@ -58,11 +59,11 @@ MAX_TURN_DEG = 2.0
 MIN_POSES = 9
 
 
-class PoseSpreadWarning(UserWarning):
+class PoseSpreadWarning(CasepWarning):
     """The poses' gravity directions span the sphere poorly: some coefficients are barely separated."""
 
 
-class StaticMotionWarning(UserWarning):
+class StaticMotionWarning(CasepWarning):
     """The gyro turns inside an interval the accelerometers call static (e.g. a turn about gravity)."""
 
 
