@@ -313,11 +313,14 @@ def fit_gyro(gyr: np.ndarray, rate: float, motions: list[tuple[int, int]], u_sta
 
 
 def check_unit_scale(scales: np.ndarray, sensor: str, unit: str, si: float) -> None:
-    """Warn when the fitted scales (SI per SI) are far from 1: readings in another unit than declared."""
+    """Warn when the fitted scales (SI per SI) are far from 1: readings in another unit than declared.
+
+    The gyro's are refused instead, by the rule of the labelled path
+    (:func:`casep.calibration.checks.check_gyro_scale`).
+    """
     s = np.asarray(scales, dtype=float)
     if np.all(np.abs(s - 1.0) < 0.2):
         return
-    hint = {"gyro": " (deg/s declared rad/s gives 0.0175; rad/s declared deg/s 57.3)",
-            "accelerometer": " (g declared m/s^2 gives 9.81)"}[sensor]
+    hint = {"gyro": "", "accelerometer": " (g declared m/s^2 gives 9.81)"}[sensor]
     warnings.warn(f"{sensor} scales {', '.join(f'{v:.4g}' for v in s)} are far from 1 for readings declared in "
                   f"{unit}{hint}: is the unit right?", UnitScaleWarning, stacklevel=3)
