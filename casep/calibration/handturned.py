@@ -273,6 +273,12 @@ def _result(acc: AccFit, gyro: GyroFit, units: tuple, n: int, message: str, succ
                           n_samples=n, stored_residual_rms={a: None for a in "xyz"})
 
 
+def _reissue(held: list[warnings.WarningMessage]) -> None:
+    """Issue held warnings again, as they were."""
+    for w in held:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
 def calibrate_multiposition(session: Session, segmentation: Segmentation | None = None, *,
                             gravity: float | None = None, latitude: float | None = None, height: float = 0.0,
                             window_s: float = 0.5, init_s: float = 5.0,
@@ -304,12 +310,17 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     fa, sa_unit, ba_unit = _unit(session.acc_unit, ACC_UNITS, "m/s^2")
     fg, sg_unit, bg_unit = _unit(session.gyr_unit, GYR_UNITS, "rad/s")
     acc, gyr = session.acc * fa, session.gyr * fg
-    with warnings.catch_warnings(record=True) as held:
-        # held until the gyro's unit is checked: a wrong unit also makes the poses' noise look like turns
-        warnings.simplefilter("always")
-        seg = segmentation or detect_static(acc, gyr, session.rate, gravity=g, window_s=window_s, init_s=init_s,
-                                            min_static_s=min_static_s, source=session.source,
-                                            gyr_si=None if session.gyr_unit == RAW_UNIT else 1.0)
+    held: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as held:
+            # held until the gyro's unit is checked: a wrong unit also makes the poses' noise look like turns
+            warnings.simplefilter("always")
+            seg = segmentation or detect_static(acc, gyr, session.rate, gravity=g, window_s=window_s,
+                                                init_s=init_s, min_static_s=min_static_s, source=session.source,
+                                                gyr_si=None if session.gyr_unit == RAW_UNIT else 1.0)
+    except ValueError:
+        _reissue(held)  # no fit to check the unit by: the segmentation's warnings go with its error
+        raise
     saturated = (check_saturation(session.gyr, "gyro", seg.motions, session.source)
                  + check_saturation(session.acc, "accelerometer", seg.motions, session.source))
     means = np.array([acc[a:b].mean(axis=0) for a, b in seg.poses])
@@ -323,8 +334,7 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
                     scale0=None if session.gyr_unit == RAW_UNIT else 1.0, dt=dt)
     gfit = _propagate(gfit, afit, means, gyr, session.rate, seg.motions, dt)
     check_gyro_scale(gfit.x[6:9], session)  # the unit and the rate first: they explain everything else
-    for w in held:
-        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    _reissue(held)
     if session.gyr_unit == RAW_UNIT:  # the turn inside each pose, now that the counts' scale is known
         from dataclasses import replace
 
