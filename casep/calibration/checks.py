@@ -3,7 +3,7 @@
 A session is refused (ValueError naming segment and numbers) when its static accelerometer means
 are far from gravity in the declared unit (:func:`check_gravity`), its turns integrate to far from
 their declared angles in the declared gyro unit and rate (:func:`check_turn_angles`; for a hand-turned
-session its fitted gyro scales, :func:`check_gyro_scale`), or a static
+session its fitted scales, :func:`check_acc_scale` and :func:`check_gyro_scale`), or a static
 mean points away from the stated position (:func:`check_positions`); warned about (a
 :class:`casep.exceptions.CasepWarning`) when a turn has gaps in time (:class:`TimeGapWarning`), a
 static segment misfits the model (:class:`PositionMisfitWarning`) or a turn's reading has the sign
@@ -24,7 +24,8 @@ from casep.exceptions import CasepWarning
 
 __all__ = ["RotationSignWarning", "PositionMisfitWarning", "TimeGapWarning", "GRAVITY_TOLERANCE", "MISFIT_Z",
            "TURN_TOLERANCE", "check_gravity", "check_turn_angles",
-           "gyro_scale_hint", "check_gyro_scale", "check_gaps", "check_positions", "warn_misfit",
+           "gyro_scale_hint", "check_gyro_scale", "acc_scale_hint", "check_acc_scale", "check_gaps",
+           "check_positions", "warn_misfit",
            "check_rotation_signs", "segment_misfits"]
 
 #: A static segment's |mean specific force| may differ from gravity by this fraction (physical units).
@@ -63,13 +64,44 @@ def check_gravity(segs: Sequence[Segment], session: Session, gravity: float) -> 
         m = raw * ACC_UNITS[unit]  # m/s^2
         if abs(m / gravity - 1.0) <= GRAVITY_TOLERANCE:
             continue
-        fits = [u for u, k in ACC_UNITS.items() if u != unit and abs(raw * k / gravity - 1.0) <= GRAVITY_TOLERANCE]
-        hint = (f"the readings look like {' or '.join(fits)}: --acc-unit {fits[0]}" if fits else
-                f"raw counts? Use: --acc-unit {RAW_UNIT} with a raw-readings model (ferraris)")
+        hint = acc_scale_hint(m / gravity, unit)
         si = "" if unit == "m/s^2" else f" = {m:.6g} m/s^2"
         raise ValueError(f"{session.source}: {s.where}: the static accelerometer mean has |f| = {raw:.6g} {unit}"
                          f"{si}, {m / gravity:.4g} x gravity ({gravity:.6g} m/s^2; more than "
                          f"{GRAVITY_TOLERANCE:.0%} off): {hint}")
+
+
+def acc_scale_hint(ratio: float, unit: str) -> str:
+    """The likely mistake when accelerometer readings are `ratio` x the true specific force (declared `unit`).
+
+    Another unit `u` with ``|ratio k_u / k_declared - 1| <= GRAVITY_TOLERANCE`` (``k`` the unit's
+    m/s^2 per unit: g declared m/s^2 reads 1/9.81 x the truth), else raw counts. Used by
+    :func:`check_gravity` (ratio: |static mean| / gravity) and :func:`check_acc_scale` (1 / the fitted scale).
+    """
+    fits = [u for u, k in ACC_UNITS.items()
+            if u != unit and abs(ratio * k / ACC_UNITS[unit] - 1.0) <= GRAVITY_TOLERANCE]
+    if fits:
+        return f"the readings look like {' or '.join(fits)}: --acc-unit {fits[0]}"
+    return f"raw counts? Use: --acc-unit {RAW_UNIT} with a raw-readings model (ferraris)"
+
+
+def check_acc_scale(scales: np.ndarray, session: Session) -> None:
+    """Refuse fitted accelerometer scales (true per reading, SI) off 1 by more than GRAVITY_TOLERANCE.
+
+    A scale `s_i` means the readings are ``1 / s_i`` x the specific force: the ratio :func:`check_gravity`
+    tests on labelled static segments, named by the same rule (:func:`acc_scale_hint`, on the median).
+    """
+    unit = session.acc_unit
+    if unit not in ACC_UNITS:
+        return  # raw counts: any scale
+    s = np.asarray(scales, dtype=float)
+    ratios = 1.0 / np.maximum(np.abs(s), 1e-300)
+    if np.all(np.abs(ratios - 1.0) <= GRAVITY_TOLERANCE):
+        return
+    median = float(np.median(ratios))
+    raise ValueError(f"{session.source}: the fitted accelerometer scales are {', '.join(f'{v:.4g}' for v in s)} "
+                     f"(read as {unit}): the readings are {median:.4g} x the specific force (more than "
+                     f"{GRAVITY_TOLERANCE:.0%} off 1): {acc_scale_hint(median, unit)}")
 
 
 def check_turn_angles(segs: Sequence[Segment], session: Session) -> None:

@@ -22,14 +22,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from casep.calibration.checks import check_gyro_scale
+from casep.calibration.checks import check_acc_scale, check_gyro_scale
 from casep.calibration.multiposition import (
     ACC_NAMES,
     GYRO_NAMES,
     AccFit,
     GyroFit,
     acc_matrix,
-    check_unit_scale,
     fit_accelerometer,
     fit_gyro,
     gyro_matrix,
@@ -333,7 +332,8 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     gfit = fit_gyro(gyr, session.rate, seg.motions, u0, u1, bias, bias_std=bias_std,
                     scale0=None if session.gyr_unit == RAW_UNIT else 1.0, dt=dt)
     gfit = _propagate(gfit, afit, means, gyr, session.rate, seg.motions, dt)
-    check_gyro_scale(gfit.x[6:9], session)  # the unit and the rate first: they explain everything else
+    check_acc_scale(afit.x[3:6], session)  # the units and the rate first: they explain everything else
+    check_gyro_scale(gfit.x[6:9], session)
     _reissue(held)
     if session.gyr_unit == RAW_UNIT:  # the turn inside each pose, now that the counts' scale is known
         from dataclasses import replace
@@ -348,8 +348,6 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     if not (afit.converged and gfit.converged):
         warnings.warn(f"{session.source}: the fit did not converge (accelerometer {afit.iterations} iterations, gyro "
                       f"{gfit.iterations}): the coefficients are probably wrong", FitWarning, stacklevel=2)
-    if session.acc_unit != RAW_UNIT:
-        check_unit_scale(afit.x[3:6], "accelerometer", session.acc_unit, fa)
     units = ("rad",) * 3 + (sa_unit,) * 3 + (ba_unit,) * 3 + ("rad",) * 6 + (sg_unit,) * 3 + (bg_unit,) * 3
     res = _result(afit, gfit, units, session.n_samples,
                   f"{len(seg.poses)} poses, {len(seg.motions)} motions"

@@ -39,24 +39,17 @@ solved by Levenberg-Marquardt on a forward-difference Jacobian (9 coefficients: 
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from casep.exceptions import CasepWarning
-
 __all__ = ["AccFit", "GyroFit", "fit_accelerometer", "fit_gyro", "acc_matrix", "gyro_matrix", "rotations",
-           "integrate_motions", "gyro_residuals", "ACC_NAMES", "GYRO_NAMES", "UnitScaleWarning"]
+           "integrate_motions", "gyro_residuals", "ACC_NAMES", "GYRO_NAMES"]
 
 #: imu_tk's accelerometer parameters (misalignment rad, scale SI per reading unit, bias reading unit).
 ACC_NAMES = ("a_yz", "a_zy", "a_zx", "sa_x", "sa_y", "sa_z", "ba_x", "ba_y", "ba_z")
 #: imu_tk's gyro parameters (misalignment rad, scale SI per reading unit); the bias apart.
 GYRO_NAMES = ("g_yz", "g_zy", "g_xz", "g_zx", "g_xy", "g_yx", "sg_x", "sg_y", "sg_z")
-
-
-class UnitScaleWarning(CasepWarning):
-    """A fitted scale far from 1 for readings declared in a physical unit: the unit is probably wrong."""
 
 
 def acc_matrix(x: np.ndarray) -> np.ndarray:
@@ -310,17 +303,3 @@ def fit_gyro(gyr: np.ndarray, rate: float, motions: list[tuple[int, int]], u_sta
     return GyroFit(x=x, covariance=cov, bias=np.asarray(bias, dtype=float),
                    bias_std=np.full(3, math.nan) if bias_std is None else np.asarray(bias_std, dtype=float),
                    residuals=r.reshape(m, 3), sigma=s, iterations=it, converged=ok, jacobian=J)
-
-
-def check_unit_scale(scales: np.ndarray, sensor: str, unit: str, si: float) -> None:
-    """Warn when the fitted scales (SI per SI) are far from 1: readings in another unit than declared.
-
-    The gyro's are refused instead, by the rule of the labelled path
-    (:func:`casep.calibration.checks.check_gyro_scale`).
-    """
-    s = np.asarray(scales, dtype=float)
-    if np.all(np.abs(s - 1.0) < 0.2):
-        return
-    hint = {"gyro": "", "accelerometer": " (g declared m/s^2 gives 9.81)"}[sensor]
-    warnings.warn(f"{sensor} scales {', '.join(f'{v:.4g}' for v in s)} are far from 1 for readings declared in "
-                  f"{unit}{hint}: is the unit right?", UnitScaleWarning, stacklevel=3)

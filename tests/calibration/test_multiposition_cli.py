@@ -122,6 +122,18 @@ def test_cli_auto_refuses_a_gyro_declared_in_the_wrong_unit(tmp_path, capsys, fa
     assert re.search(says, err), err
 
 
+def test_cli_auto_refuses_an_accelerometer_declared_in_the_wrong_unit(tmp_path, capsys):
+    # g declared m/s^2: the fitted scales are ~9.8; the labelled path's rule (checks.acc_scale_hint) names g
+    h = simulate_hand_session(16, seed=23)
+    p = tmp_path / "acc.txt"
+    np.savetxt(p, np.column_stack([h.acc / 9.80665, h.gyr]))
+    err = _refused(["calibrate", str(p), "--rate", "100", "--segments", "auto", "--acc-unit", "m/s^2",
+                    "--gyr-unit", "rad/s"], tmp_path / "c.json", capsys)
+    assert re.search(r"the fitted accelerometer scales are 9\.[6-9]\d*, 9\.[6-9]\d*, 9\.[6-9]\d* \(read as m/s\^2\): "
+                     r"the readings are 0\.10\d* x the specific force \(more than 10% off 1\): the readings look like "
+                     r"g: --acc-unit g", err), err
+
+
 def test_cli_auto_refuses_a_wrong_rate_without_a_time_column(tmp_path, capsys):
     # the real 100 Hz session declared 50 Hz: every motion integral doubles, the fitted gyro scales halve
     err = _refused(["calibrate", str(DATA / "imu0.log.gz"), "--rate", "50", "--segments", "auto", "--acc-unit",
@@ -204,10 +216,8 @@ def test_the_calibration_warnings_are_casep_warnings():
     # Python warning (`.../handturned.py:NNN: StaticMotionWarning: ...`)
     from casep.calibration.ferrarisauto import TurnBoundaryWarning
     from casep.calibration.handturned import FitWarning, SaturationWarning
-    from casep.calibration.multiposition import UnitScaleWarning
     from casep.calibration.segment import PoseSpreadWarning, StaticMotionWarning
     from casep.exceptions import CasepWarning
 
-    for cls in (TurnBoundaryWarning, FitWarning, SaturationWarning, UnitScaleWarning, PoseSpreadWarning,
-                StaticMotionWarning):
+    for cls in (TurnBoundaryWarning, FitWarning, SaturationWarning, PoseSpreadWarning, StaticMotionWarning):
         assert issubclass(cls, CasepWarning), cls
