@@ -24,7 +24,8 @@ from casep.exceptions import CasepWarning
 
 __all__ = ["RotationSignWarning", "PositionMisfitWarning", "TimeGapWarning", "GRAVITY_TOLERANCE", "MISFIT_Z",
            "TURN_TOLERANCE", "check_gravity", "check_turn_angles",
-           "gyro_scale_hint", "check_gyro_scale", "acc_scale_hint", "check_acc_scale", "check_gaps",
+           "gyro_scale_hint", "check_gyro_scale", "acc_scale_hint", "check_acc_scale", "scale_off",
+           "check_gaps",
            "check_positions", "warn_misfit",
            "check_rotation_signs", "segment_misfits"]
 
@@ -85,20 +86,25 @@ def acc_scale_hint(ratio: float, unit: str) -> str:
     return f"raw counts? Use: --acc-unit {RAW_UNIT} with a raw-readings model (ferraris)"
 
 
+def scale_off(scales: np.ndarray, tolerance: float) -> float | None:
+    """The readings' common factor ``median_i |1 / s_i|`` when a fitted scale is off: ``|1/|s_i| - 1| > tolerance``.
+
+    None when every scale is within `tolerance` (a sensor's own scale error is a few percent).
+    """
+    ratios = 1.0 / np.maximum(np.abs(np.asarray(scales, dtype=float)), 1e-300)
+    return None if np.all(np.abs(ratios - 1.0) <= tolerance) else float(np.median(ratios))
+
+
 def check_acc_scale(scales: np.ndarray, session: Session) -> None:
     """Refuse fitted accelerometer scales (true per reading, SI) off 1 by more than GRAVITY_TOLERANCE.
 
     A scale `s_i` means the readings are ``1 / s_i`` x the specific force: the ratio :func:`check_gravity`
     tests on labelled static segments, named by the same rule (:func:`acc_scale_hint`, on the median).
     """
-    unit = session.acc_unit
-    if unit not in ACC_UNITS:
-        return  # raw counts: any scale
-    s = np.asarray(scales, dtype=float)
-    ratios = 1.0 / np.maximum(np.abs(s), 1e-300)
-    if np.all(np.abs(ratios - 1.0) <= GRAVITY_TOLERANCE):
+    unit, s = session.acc_unit, np.asarray(scales, dtype=float)
+    median = scale_off(s, GRAVITY_TOLERANCE) if unit in ACC_UNITS else None  # raw counts: any scale
+    if median is None:
         return
-    median = float(np.median(ratios))
     raise ValueError(f"{session.source}: the fitted accelerometer scales are {', '.join(f'{v:.4g}' for v in s)} "
                      f"(read as {unit}): the readings are {median:.4g} x the specific force (more than "
                      f"{GRAVITY_TOLERANCE:.0%} off 1): {acc_scale_hint(median, unit)}")
@@ -182,14 +188,10 @@ def check_gyro_scale(scales: np.ndarray, session: Session) -> None:
     the poses: the ratio :func:`check_turn_angles` tests for declared angles, and the same rule
     (:func:`gyro_scale_hint`, on the median of ``|1 / s_i|``) names the likely mistake.
     """
-    unit = session.gyr_unit
-    if unit not in GYR_UNITS:
-        return  # raw counts: any scale
-    s = np.asarray(scales, dtype=float)
-    ratios = 1.0 / np.maximum(np.abs(s), 1e-300)
-    if np.all(np.abs(ratios - 1.0) <= TURN_TOLERANCE):
+    unit, s = session.gyr_unit, np.asarray(scales, dtype=float)
+    median = scale_off(s, TURN_TOLERANCE) if unit in GYR_UNITS else None  # raw counts: any scale
+    if median is None:
         return
-    median = float(np.median(ratios))
     hint = gyro_scale_hint(median, session, f"the readings are not a gyro's in {unit}, or the sensor is broken")
     raise ValueError(f"{session.source}: the fitted gyro scales are {', '.join(f'{v:.4g}' for v in s)} (read as "
                      f"{unit} at {session.rate:.6g} Hz): the readings turn {median:.4g} x the rotation the "
