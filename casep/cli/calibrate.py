@@ -101,6 +101,14 @@ def _run_auto(args: argparse.Namespace) -> int:
 
     if args.segments != "auto":
         raise ValueError(f"model multiposition takes --segments auto (got --segments {args.segments})")
+    unused = [OPTIONS[k].flag for k in options.method_options(args)] + [f for f, given in (
+        ("--method", args.method != "ols"), ("--weighting", args.weighting != "positions"),
+        ("--sigma", args.sigma is not None), ("--prior-rel-std", args.prior_rel_std is not None),
+        ("--angle", args.angle != -360.0), ("--label-column", args.label_column is not None)) if given]
+    if unused:  # they would be ignored silently: the multiposition fit is its own (Levenberg-Marquardt, per pose)
+        raise ValueError(f"{', '.join(unused)}: not used by model multiposition (--segments auto on a hand-turned "
+                         "session is a Levenberg-Marquardt fit of its own, every pose weighted by its noise): leave "
+                         "them out, or calibrate a labelled or Ferraris session (--model ferraris) to use them")
     files = {"--json": args.json, **(dict(zip(("--imu-tk (acc)", "--imu-tk (gyro)"), imu_tk_files(args.imu_tk)))
                                      if args.imu_tk else {})}
     outputs.check(files, [args.session], {"--figures": args.figures})

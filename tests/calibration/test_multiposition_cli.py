@@ -92,6 +92,23 @@ def test_cli_auto_errors_exit_2_and_write_nothing(tmp_path, capsys):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("extra, flag", [(["--method", "huber"], "--method"), (["--lambda", "0.1"], "--lambda"),
+                                         (["--weighting", "samples"], "--weighting"), (["--sigma", "5"], "--sigma"),
+                                         (["--angle", "360"], "--angle")])
+def test_cli_auto_refuses_the_options_it_would_ignore(tmp_path, capsys, extra, flag):
+    """Before: a hand-turned session with --method, an estimator option, --weighting or --sigma gave exit 0 and the
+    estimates of a plain run (a --bounds box was broken by the result): the options were ignored silently."""
+    h = simulate_hand_session(12, seed=23)
+    p = tmp_path / "s.txt"
+    np.savetxt(p, np.column_stack([h.acc, h.gyr]))
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", str(p), "--rate", "100", "--segments", "auto", "--acc-unit", "m/s^2",
+                 "--gyr-unit", "rad/s", "--json", str(out), *extra]) == 2
+    err = capsys.readouterr().err
+    assert f"{flag}: not used by model multiposition" in err and "--model ferraris" in err
+    assert not out.exists()
+
+
 def _refused(argv: list[str], out: Path, capsys) -> str:
     """Run the command, assert exit 2, nothing written and no StaticMotionWarning; return its error message."""
     from casep.calibration.segment import StaticMotionWarning
