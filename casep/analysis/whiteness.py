@@ -32,7 +32,7 @@ def ljung_box(x: np.ndarray, lags: int, segments: np.ndarray | None = None) -> t
     `segments`: segment id per sample; lag products are taken only within a segment (a gap in
     the time tags is not a lag).
     """
-    from scipy.stats import chi2
+    from scipy.special import chdtrc  # chi2 survival function, without importing scipy.stats (0.5 s)
 
     x = np.asarray(x, dtype=float)
     x = x - x.mean()
@@ -48,7 +48,7 @@ def ljung_box(x: np.ndarray, lags: int, segments: np.ndarray | None = None) -> t
         rho = float(prod.sum()) / den  # rho_k
         q += rho**2 / (n - k)
     q *= n * (n + 2)
-    return float(q), float(chi2.sf(q, lags))
+    return float(q), float(chdtrc(lags, q))
 
 
 @dataclass(frozen=True)
