@@ -49,6 +49,10 @@ class GapWarning(CasepWarning):
     """A gap in tracking (or telemetry) that interpolation would bridge: the rows inside it are left out."""
 
 
+class BiasedStdWarning(CasepWarning):
+    """A regularised estimate used as an input: its std leave out the bias of its regularisation."""
+
+
 class NoiseNotWhiteWarning(CasepWarning):
     """A white-noise fit whose residuals are correlated: the message gives the test, its numbers
     and the factor by which the reported std are too small."""

@@ -19,8 +19,8 @@ from casep.estimators import _from_data
 from casep.estimators._from_data import check_result_units, tracking_terms
 from casep.estimators.result import EstimateResult
 
-__all__ = ["read_result", "read_input_result", "check_usable", "resolve_result_model", "result_from_data",
-           "check_result_units"]
+__all__ = ["read_result", "read_input_result", "check_usable", "warn_biased_std", "resolve_result_model",
+           "result_from_data", "check_result_units"]
 
 
 def result_from_data(rd, model=None) -> EstimateResult:
@@ -85,10 +85,32 @@ def check_usable(result: Any, where: str) -> None:
                          "are not usable as an input. Fix what failed and estimate again")
 
 
+def warn_biased_std(result: Any, where: str) -> None:
+    """Warn when `result` is of a regularised method whose std leave out its bias (ridge's shrinkage, PCR's
+    truncation, active bounds): a miss, fused or prior std computed from them can be far too small.
+
+    The std are of the kind the method declares for its regularised estimate (``Method.std_kind``, not
+    ``posterior``); a bounded fit with no bound active reports plain sampling std and is not warned about.
+    """
+    import warnings
+
+    from casep.estimators.registry import METHODS
+    from casep.exceptions import BiasedStdWarning
+
+    meth = METHODS.get(result.method)
+    if meth is None or not meth.regularised or result.std_kind == "posterior" or result.std_kind != meth.std_kind:
+        return
+    warnings.warn(f"{where}: a result of method {result.method}, whose std ({result.std_kind}) leave out the bias its "
+                  "regularisation brings: what is computed from them (a miss std, a fused std, a prior) can be far "
+                  "too small. For an error budget use a method whose std hold (ols, gls, or map with a stated prior)",
+                  BiasedStdWarning, stacklevel=3)
+
+
 def read_input_result(source, model=None, option: str = "result",
                       model_option: str = "--model") -> tuple[EstimateResult, object]:
     """:func:`read_result` and :func:`check_usable`: a result to use as an input, with its model."""
     res, model = read_result(source, model, option, model_option)
     where = f"{option} {source}" if not isinstance(source, (dict, EstimateResult)) else f"{option} <memory>"
     check_usable(res, where)
+    warn_biased_std(res, where)
     return res, model
