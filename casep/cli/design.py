@@ -91,4 +91,4 @@ def run(args: argparse.Namespace) -> int:
 
         flight_path, side = write_simulation(simulate_flight(res.scenario, seed=args.seed), args.output)
         print(f"designed flight written to {flight_path} and {side}")
-    return 0 if res.solver["success"] else 1
+    return outputs.status(res)  # 1, the message on stderr, when the optimiser did not converge
