@@ -21,21 +21,14 @@ def check_options(runs: Any, seed: Any, methods: Sequence[str], workers: Any, no
                   robust: str | None) -> tuple[int, int, list[MethodSpec], int, str | None]:
     """The options of :func:`casep.montecarlo.run_montecarlo` checked before any work: runs, seed,
     the parsed methods, the number of workers (None: all cores) and `robust` ("none": None)."""
-    from casep.analysis.noise import check_noise_kind
-    from casep.analysis.rows import ROBUST_CHOICES
-    from casep.workflows.spec import check_robust_method
+    from casep.workflows.spec import NoiseSpec, check_robust_method
 
-    check_noise_kind(noise)
+    NoiseSpec(kind=noise, robust=robust)  # the fit request's rules for the noise kind and the robust fit
     specs = [parse_method(m) for m in methods]
     for s in specs:
         check_robust_method(s.name, robust)
-    if (noise in ("gm", "gmw") or robust not in (None, "auto", "none")) and any(s.denoise for s in specs):
-        # as casep separate --denoise wavelet: the de-noised rows are solved white (no noise sample is left)
-        raise ValueError(f"wavelet+<method> de-noises dv, which removes the noise a noise model or a robust fit "
-                         f"describe (got noise {noise!r}, robust {robust!r}): give noise 'auto' or 'white' and "
-                         "robust 'auto' or 'none' with it")
-    if robust is not None and robust not in ROBUST_CHOICES:
-        raise ValueError(f"`robust` must be one of {', '.join(ROBUST_CHOICES)} or None, got {robust!r}")
+    if any(s.denoise for s in specs):  # as casep separate --denoise wavelet: its rule, the de-noised rows solved white
+        NoiseSpec(kind=noise, robust=robust, denoise="wavelet")
     if tau is not None and noise != "gm":
         raise ValueError(f"`tau` given with noise {noise!r}: a given correlation time means noise 'gm'")
     if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
