@@ -1,9 +1,9 @@
 """Benchmark: what the extended-precision refinement of least squares costs on a flight.
 
 OLS on a simulated 100 Hz flight (the ``paper`` scenario, platform36) through
-:func:`casep.solve_ols` on its :class:`~casep.analysis.problem.Problem` (S_V built once, outside
+:func:`casep.solve_ols` on its :class:`~casep.regression.problem.Problem` (S_V built once, outside
 the timing), with refinement as casep decides it (``auto``: only when the predicted error of the
-QR solve exceeds :data:`casep.analysis.linalg.REFINE_ABOVE`), never, and always; the median of
+QR solve exceeds :data:`casep.regression.linalg.REFINE_ABOVE`), never, and always; the median of
 `--repeat` runs each, and the predicted error of the flight. The same on a well-conditioned
 regression of the same size (Gaussian S, condition number ~1): there ``auto`` must cost nothing.
 
@@ -21,10 +21,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from casep.analysis import linalg  # noqa: E402
-from casep.analysis.problem import Problem  # noqa: E402
 from casep.estimators import ols  # noqa: E402
 from casep.model import load_model  # noqa: E402
+from casep.regression import linalg  # noqa: E402
+from casep.regression.problem import Problem  # noqa: E402
 from casep.simulation.simulate import simulate_flight  # noqa: E402
 
 

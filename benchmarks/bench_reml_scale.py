@@ -2,7 +2,7 @@
 
 The flight: ``casep simulate --scenario paper-range-gm --rate 2000`` (195 s, 359k tracked samples,
 Gauss-Markov noise tau 1 s, two dropouts). Timed in this process, one BLAS thread
-(``OPENBLAS_NUM_THREADS=1``): the noise fit (REML, :func:`casep.analysis.noise_fit.fit_noise`
+(``OPENBLAS_NUM_THREADS=1``): the noise fit (REML, :func:`casep.noise.fit.fit_noise`
 with ``auto``), the whole default ``casep.separate`` (noise ``auto``, robust ``auto``), and one
 QR of the stacked rows ``[S_V dv]`` (3N x (n + 1), ``numpy.linalg.qr(mode="r")``) with S_V built
 beforehand. Printed: seconds, samples per second, and the ratio of the default path to the QR.
@@ -30,9 +30,9 @@ def main() -> None:
     import numpy as np
 
     import casep
-    from casep.analysis.noise_fit import fit_noise
-    from casep.analysis.problem import Problem
     from casep.cli.app import main as cli
+    from casep.noise.fit import fit_noise
+    from casep.regression.problem import Problem
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rate", type=float, default=2000.0)

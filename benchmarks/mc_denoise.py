@@ -25,9 +25,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 import casep  # noqa: E402
-from casep.analysis.denoise import denoise  # noqa: E402
-from casep.analysis.diagnostics import crlb_covariance  # noqa: E402
+from casep.checks.diagnostics import crlb_covariance  # noqa: E402
 from casep.exceptions import IllConditionedWarning  # noqa: E402
+from casep.noise.denoise import denoise  # noqa: E402
 from casep.simulation.noise import NoiseModel  # noqa: E402
 from casep.simulation.simulate import simulate_flight  # noqa: E402
 

@@ -3,7 +3,7 @@
 The whole ``paper-range-gm`` flight (20 Hz, Gauss-Markov tracking noise sigma 0.1 m/s tau 1 s,
 tracking from 8 s, dropouts of 6 s and 1.5 s), seeded draws; and the same with 0.5 % glitches of
 2 m/s and ``robust="huber"``. z = (estimate - reference) / reported std over the 36 coefficients
-and the draws, the reference being what each method's std describes (``tests/analysis/test_noise_model.py``,
+and the draws, the reference being what each method's std describes (``tests/noise/test_noise_model.py``,
 ``_study``: the truth; the method's own noise-free answer for ridge and pcr; a truth drawn from
 the prior for map, rls, rels). The test suite runs the same on a 90-s window with 60 draws.
 
@@ -27,7 +27,7 @@ def main() -> None:
     from test_noise_model import _study  # the study the tests run, on the whole flight here
 
     import casep
-    from casep.analysis.problem import Problem
+    from casep.regression.problem import Problem
     from casep.simulation.simulate import simulate_flight
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

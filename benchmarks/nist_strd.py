@@ -14,7 +14,7 @@ capped at 15 (the certified digits); the set's figure is the smallest over its c
 algorithm on these sets reaches roughly 15 - log10(condition number).
 
 A second column gives the digits without the extended-precision refinement of
-:func:`casep.analysis.linalg.refine_least_squares` (``--no-refine`` prints only those): the QR
+:func:`casep.regression.linalg.refine_least_squares` (``--no-refine`` prints only those): the QR
 solve alone. The ceiling of any double-precision method is the exact solution of the data as
 doubles (decimal inputs such as Filip's are rounded on reading): ``tests/estimators/test_nist_strd.py``
 computes it in rational arithmetic.

@@ -35,7 +35,8 @@ Column names (flight files)
 
 Main entry points
 -----------------
-:func:`load_model`, :func:`build_sv`, :func:`read_flight`, the estimators
+:func:`load_model`, :func:`build_sv`, :func:`read_flight`, a flight's regression :class:`Problem`
+(:func:`flight_problem`: built after the checks before estimation), the estimators
 :func:`solve_ols`, :func:`solve_rls` (RLS/RELS), :func:`solve_ridge`, :func:`solve_bounded`,
 :func:`solve_pcr`, :func:`solve_map`, :func:`solve_gls` (all returning :class:`EstimateResult`),
 :func:`separate`; the impact miss of an estimate :func:`impact_analysis`
@@ -53,8 +54,8 @@ from casep._version import __version__
 _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.io.flight": ("FlightData", "FlightDataError", "LateStartWarning"),
     "casep.io.files": ("apparent_velocity_to_force", "read_flight", "read_flight_pair", "write_flight"),
-    "casep.analysis.linalg": ("ReducedSystem", "analyze_rank", "reduce_qr"),
-    "casep.analysis.problem": ("Problem",),
+    "casep.regression.linalg": ("ReducedSystem", "analyze_rank", "reduce_qr"),
+    "casep.regression.problem": ("Problem",),
     "casep.model.error_model": ("ErrorModel", "ModelDefinitionError"),
     "casep.model.loader": ("available_models", "build_model", "load_model", "model_dirs"),
     "casep.estimators.bounded": ("solve_bounded",),
@@ -74,7 +75,8 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.model.sv": ("SVBuilder", "build_sv"),
     "casep.units": ("G0",),
     "casep.impact.miss": ("ImpactAnalysis", "impact_analysis"),
-    "casep.analysis.checks": ("check_fit", "check_flight"),
+    "casep.checks.plausibility": ("check_fit", "check_flight"),
+    "casep.checks.flight_problem": ("flight_problem",),
     "casep.frames": ("LaunchSite",),
     "casep.io.manifest": ("read_manifest", "Manifest"),
     "casep.calibration.calibrate": ("calibrate",),
@@ -86,8 +88,8 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
                          "NoiseLevelWarning", "ConsistencyWarning"),
 }
 __getattr__, __dir__ = attach(__name__, _LAZY_MODULES, globals(), (
-    "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows", "cli", "exceptions", "units",
-    "impact", "design", "frames", "calibration", "tracking"))
+    "noise", "regression", "checks", "analysis", "estimators", "io", "model", "reporting", "simulation", "workflows",
+    "cli", "exceptions", "units", "impact", "design", "frames", "calibration", "radar"))
 
 __all__ = [
     "__version__",
@@ -107,6 +109,7 @@ __all__ = [
     "read_flight_pair",
     "apparent_velocity_to_force",
     "Problem",
+    "flight_problem",
     "ReducedSystem",
     "reduce_qr",
     "analyze_rank",

@@ -16,7 +16,7 @@ longer than a short flight's whole computation. So:
 - :func:`gmw_filter`: the innovations (Kalman-filter) whitening of Gauss-Markov plus white noise, compiled
   (:func:`gmw_filter_numpy`: the same recursion as a plain loop, the reference of the tests).
 
-The callers (:mod:`casep.model.sv`, :mod:`casep.analysis.robust`, :mod:`casep.estimators.rls`) validate
+The callers (:mod:`casep.model.sv`, :mod:`casep.noise.robust`, :mod:`casep.estimators.rls`) validate
 every argument. ``tests/test_kernels.py`` checks each against the compiled loop, a plain loop or scipy, bit for bit.
 """
 
@@ -191,7 +191,7 @@ def lfilter(b, a, x, axis: int = -1) -> np.ndarray:
 
 
 def robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
-    """Sequential robust filter (see :mod:`casep.analysis.robust`): reject a sample whose innovation
+    """Sequential robust filter (see :mod:`casep.noise.robust`): reject a sample whose innovation
     from the last kept one exceeds ``thr`` on any axis, at most ``max_run`` in a row.
 
     e (N, 3) residuals; t (N,); inv_tau (3,) = 1 / tau (0 for white); scale (3,) = r_a s;

@@ -13,7 +13,7 @@ import argparse
 import numpy as np
 
 import casep
-from casep.analysis.diagnostics import diagnose
+from casep.checks.diagnostics import diagnose
 from casep.simulation.paper import demo_bounds
 from casep.simulation.simulate import simulate_flight
 

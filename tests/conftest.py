@@ -71,7 +71,7 @@ def noise_free_errors(flight, model, truth, sigma: float = 0.1):
     """Separate a noise-free flight with platform36 OLS (its ill-conditioning warning expected) and
     return ``(result, |estimate - truth| / CRLB std at noise sigma)``: how exactly the pipeline recovers
     the truth, in units of what noise would allow."""
-    from casep.analysis.diagnostics import crlb_covariance
+    from casep.checks.diagnostics import crlb_covariance
     from casep.exceptions import IllConditionedWarning
     from casep.workflows.separate import regression_rows
 

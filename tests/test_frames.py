@@ -192,7 +192,7 @@ def test_earth_fixed_tracking_noise_free_recovers_truth(rotating, tmp_path, fram
 def test_ignoring_earth_rotation_biases_the_estimate(rotating, tmp_path):
     """The same ECEF file with its velocity only rotated into launch axes (no w x r, no turning of the Earth):
     dv is off by 409-452 m/s and the estimates by far more than their CRLB std."""
-    from casep.analysis.diagnostics import crlb_covariance
+    from casep.checks.diagnostics import crlb_covariance
     from casep.io.pair import pair_flight
     from casep.workflows.separate import regression_rows
 

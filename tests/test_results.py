@@ -24,12 +24,12 @@ RESULT_TYPES = [
     ("casep.calibration.result", "Calibration"),
     ("casep.calibration.consistency", "Consistency"),
     ("casep.workflows.demo", "DemoResult"),
-    ("casep.analysis.denoise", "DenoiseResult"),
-    ("casep.analysis.diagnostics", "Diagnostics"),
-    ("casep.analysis.noise", "NoiseModel"),
-    ("casep.analysis.whiteness", "WhitenessTest"),
-    ("casep.analysis.noise_id", "NoiseIdentification"),
-    ("casep.analysis.outliers", "OutlierFlags"),
+    ("casep.noise.denoise", "DenoiseResult"),
+    ("casep.checks.diagnostics", "Diagnostics"),
+    ("casep.noise.model", "NoiseModel"),
+    ("casep.noise.whiteness", "WhitenessTest"),
+    ("casep.noise.identification", "NoiseIdentification"),
+    ("casep.regression.outliers", "OutlierFlags"),
     ("casep.workflows.radar", "RadarResult"),
     ("casep.calibration.handturned", "MultipositionCalibration"),
     ("casep.calibration.segment", "Segmentation"),
@@ -124,13 +124,13 @@ def _estimate(regression):
 
 
 def _analyses(regression):
-    from casep.analysis.denoise import denoise
-    from casep.analysis.diagnostics import diagnose
-    from casep.analysis.noise import NoiseModel
-    from casep.analysis.noise_id import identify_noise
-    from casep.analysis.outliers import flag_outliers
-    from casep.analysis.problem import Problem
-    from casep.analysis.whiteness import whiteness_test
+    from casep.checks.diagnostics import diagnose
+    from casep.noise.denoise import denoise
+    from casep.noise.identification import identify_noise
+    from casep.noise.model import NoiseModel
+    from casep.noise.whiteness import whiteness_test
+    from casep.regression.outliers import flag_outliers
+    from casep.regression.problem import Problem
 
     S, y, t = regression
     r = y - S @ np.linalg.lstsq(S.reshape(-1, 4), y.reshape(-1), rcond=None)[0]
@@ -196,7 +196,7 @@ def test_paper_flight_estimate_impact_and_consistency(paper):
 
 def test_demo_result_is_no_plain_success_when_a_method_fails(paper):
     import casep
-    from casep.analysis.diagnostics import diagnose
+    from casep.checks.diagnostics import diagnose
     from casep.workflows.demo import DemoResult
 
     sim, res = paper

@@ -86,7 +86,7 @@ def _row_std(S: np.ndarray, y: np.ndarray, rows_sd: Sequence[Any], static: Seque
     The static level: the least-squares residual std of the static rows alone (``positions``,
     ``segments``; the sample noise of a segment mean without dof), else the sample noise.
     """
-    from casep.analysis.problem import Problem
+    from casep.regression.problem import Problem
 
     dof = 0
     # Row std: the static level (segments: sigma_s of the static rows alone) and the rotation rows'.
@@ -237,9 +237,9 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     """
     import dataclasses
 
-    from casep.analysis.problem import Problem
     from casep.estimators.registry import METHODS, run_method
     from casep.estimators.result import EstimateResult
+    from casep.regression.problem import Problem
     from casep.workflows.spec import FitSpec
 
     if weighting not in WEIGHTINGS:

@@ -281,7 +281,7 @@ def flight_prior_consistency(flight, model, prior: Mapping, *, sigma: float | No
     ``casep separate --prior`` reports it: the MAP estimate contains the prior, so the flight is
     refitted without it (its S_V built once more) and compared on the coefficients it determines.
     """
-    from casep.analysis.problem import Problem
+    from casep.checks.flight_problem import flight_problem
     from casep.estimators.ols import solve_ols
     from casep.exceptions import CasepWarning
     from casep.model.loader import load_model
@@ -289,7 +289,7 @@ def flight_prior_consistency(flight, model, prior: Mapping, *, sigma: float | No
     model = load_model(model)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", CasepWarning)  # the separation itself reports the flight's conditioning
-        res = solve_ols(Problem.from_flight(flight, model), sigma=sigma)
+        res = solve_ols(flight_problem(flight, model), sigma=sigma)
     return consistency(prior, res, labels=("prior", "flight alone"))
 
 

@@ -244,9 +244,9 @@ def _dirs(afit: AccFit, means: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def separation(J: np.ndarray, names: tuple[str, ...]) -> dict:
     """What a fit's final linearisation can separate: the equilibrated condition number and the
     near-dependency groups (condition index > 30, variance proportions > 0.5), as ``casep diagnose``
-    (:func:`casep.analysis.diagnostics.collinearity` of the column-scaled Jacobian)."""
-    from casep.analysis.diagnostics import collinearity
-    from casep.analysis.linalg import analyze_rank, condition_numbers, reduce_qr
+    (:func:`casep.checks.diagnostics.collinearity` of the column-scaled Jacobian)."""
+    from casep.checks.diagnostics import collinearity
+    from casep.regression.linalg import analyze_rank, condition_numbers, reduce_qr
 
     red = reduce_qr(J, np.zeros(len(J)))
     ra = analyze_rank(red)

@@ -57,10 +57,10 @@ def run(args: argparse.Namespace) -> int:
         return diagnose_flights(args, model, prior, scales)
     args.flight = args.flight[0]
     flight = inputs.read_one(args)
-    from casep.analysis.diagnostics import diagnose
-    from casep.analysis.problem import Problem
+    from casep.checks.diagnostics import diagnose
+    from casep.checks.flight_problem import flight_problem
 
-    problem = Problem.from_flight(flight, model)  # reduced block by block: S_V never whole (white bound)
+    problem = flight_problem(flight, model)  # reduced block by block: S_V never whole (white bound)
     diag = diagnose(problem, sigma=args.sigma, tau=args.tau, prior_std=prior_std, prior_information=prior_rows,
                     scales=model.scales if scales is None else scales)
     if args.json:

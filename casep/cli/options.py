@@ -53,8 +53,8 @@ def method_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def add_noise(parser: Any, *, outputs: bool = True, default: str = "auto") -> None:
-    """The noise-model options every method takes (casep.analysis.noise, casep.workflows.solve)."""
-    from casep.analysis.noise import NOISE_HELP, NOISE_KINDS
+    """The noise-model options every method takes (casep.noise.model, casep.workflows.solve)."""
+    from casep.noise.model import NOISE_HELP, NOISE_KINDS
 
     g = parser.add_argument_group("noise model (every method)")
     g.add_argument("--noise", choices=NOISE_KINDS, default=default,

@@ -13,7 +13,7 @@ from casep.estimators.registry import METHODS
 
 
 def add_parser(sub: Any) -> None:
-    from casep.analysis.denoise import EXTENSIONS, MODES, RULES, SCALINGS
+    from casep.noise.denoise import EXTENSIONS, MODES, RULES, SCALINGS
 
     p = sub.add_parser("separate", help="estimate the error coefficients of a flight file")
     p.add_argument("flight", nargs="*", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "
@@ -114,7 +114,7 @@ def _print(res: Any, args: argparse.Namespace, align: Any, cons: Any) -> None:
     for line in noise_lines(res.diagnostics):
         print(line)
     if args.outliers is not None:
-        from casep.analysis.outliers import OutlierFlags
+        from casep.regression.outliers import OutlierFlags
 
         o = res.diagnostics["outliers_studentized"]
         print("outliers: " + OutlierFlags(o["rows"], o["threshold"], o["rate"], o["rows_tested"]).text())

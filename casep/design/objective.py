@@ -240,7 +240,7 @@ class DesignProblem:
 def fisher_covariance(F: np.ndarray, prior_info: np.ndarray | None = None) -> np.ndarray:
     """``(F + prior)^-1`` by eigen-decomposition in the column-equilibrated form, NaN for directions
     with no information (rows/columns of coefficients in the null space)."""
-    from casep.analysis.diagnostics import crlb_covariance
+    from casep.checks.diagnostics import crlb_covariance
 
     F = np.asarray(F, dtype=float)
     n = F.shape[0]

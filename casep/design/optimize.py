@@ -264,7 +264,7 @@ def design(scenario="paper", *, maneuver: str = DEFAULTS["maneuver"], objective:
                               "max_lateral_g": float(np.max(problem.lateral_g(x_best)))}}
     crlb_before, crlb_after = pred_before, pred_after
     if own is not None:
-        from casep.analysis.diagnostics import crlb_covariance
+        from casep.checks.diagnostics import crlb_covariance
 
         assert S_nom is not None  # built from the flight above
         crlb_before = np.sqrt(np.diag(crlb_covariance(S_nom, sigma, prior_information=W)))
@@ -359,7 +359,7 @@ def _verify(model: Any, sc: Any, vehicle: Any, full: Any, S_nom: np.ndarray, sig
             constraints: dict) -> tuple[np.ndarray, np.ndarray, dict]:
     """The designed flight re-simulated at the flight's rate: exact CRLB before and after, the objective as
     flown, the design model's prediction error, the burnout change (``constraints["flown"]`` set here)."""
-    from casep.analysis.diagnostics import crlb_covariance
+    from casep.checks.diagnostics import crlb_covariance
     from casep.model.sv import build_sv
     from casep.simulation.trajectory import simulate_boost
 
@@ -395,7 +395,7 @@ def _flight_nominal(flight, model, design_rate: float) -> dict:
     rate, the flight at its own samples and its least-squares residual std (None without dv)."""
     import warnings
 
-    from casep.analysis.problem import Problem
+    from casep.checks.flight_problem import flight_problem
     from casep.exceptions import IllConditionedWarning
     from casep.io.files import read_flight
     from casep.io.flight import FlightData
@@ -414,7 +414,7 @@ def _flight_nominal(flight, model, design_rate: float) -> dict:
                                 np.zeros(grid.size)])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IllConditionedWarning)
-        pb = Problem.from_flight(fl, model)
+        pb = flight_problem(fl, model)
     sigma = float(np.sqrt(pb.ls_rss() / max(pb.m - pb.rank().rank, 1)))
     from pathlib import Path
 

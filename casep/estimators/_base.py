@@ -15,13 +15,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from casep.analysis.diagnostics import ILL_CONDITIONED, collinearity
-from casep.analysis.linalg import RankAnalysis, ReducedSystem, condition_numbers, unidentifiable_reasons
-from casep.analysis.problem import Problem as RegressionProblem
+from casep.checks.diagnostics import ILL_CONDITIONED, collinearity
 from casep.estimators._lazydict import LazyDiagnostics
 from casep.estimators._rules import SIGMA
 from casep.estimators.result import EstimateResult
 from casep.exceptions import IllConditionedWarning, MagnitudeWarning
+from casep.regression.linalg import RankAnalysis, ReducedSystem, condition_numbers, unidentifiable_reasons
+from casep.regression.problem import Problem as RegressionProblem
 
 __all__ = ["Prepared", "prepare", "rows_of", "finish", "check_positive", "inverse_scale"]
 
@@ -71,7 +71,7 @@ def inverse_scale(scale: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Prepared:
-    """A validated :class:`casep.analysis.problem.Problem` as a solver sees it: reduction, rank, sigma."""
+    """A validated :class:`casep.regression.problem.Problem` as a solver sees it: reduction, rank, sigma."""
 
     problem: RegressionProblem
     ra: RankAnalysis
@@ -130,7 +130,7 @@ def rows_of(S: np.ndarray | RegressionProblem, y: np.ndarray | None, t: np.ndarr
             names: Sequence[str] | None, units: Sequence[str] | None, si_factors: Sequence[float] | np.ndarray | None):
     """``(S, y, t, names, units, si_factors)`` as arrays, for the methods that need the rows whole.
 
-    A Problem gives its S (materialised once, see :meth:`~casep.analysis.problem.Problem.sv`),
+    A Problem gives its S (materialised once, see :meth:`~casep.regression.problem.Problem.sv`),
     y, t and labels; arrays pass through.
     """
     if isinstance(S, RegressionProblem):
@@ -144,7 +144,7 @@ def rows_of(S: np.ndarray | RegressionProblem, y: np.ndarray | None, t: np.ndarr
 def prepare(S: np.ndarray | RegressionProblem, y: np.ndarray | None, names: Sequence[str] | None,
             units: Sequence[str] | None, si_factors: Sequence[float] | np.ndarray | None, sigma: float | None,
             rcond: float | None = None, model: str | None = None, t: np.ndarray | None = None) -> Prepared:
-    """Validate arguments once: a :class:`~casep.analysis.problem.Problem` as given (its reduction
+    """Validate arguments once: a :class:`~casep.regression.problem.Problem` as given (its reduction
     and rank analysis reused), or arrays ``S`` ``(N, 3, n)``/``(m, n)`` and ``y`` made into one."""
     sigma = check_positive("sigma", sigma)
     if isinstance(S, RegressionProblem):
@@ -355,7 +355,7 @@ MAGNITUDE_Z = 5.0
 #: Methods whose estimates of poorly determined coefficients the regularisation sets, not the data (and whose
 #: std leave out that bias): beyond :data:`MAGNITUDE_FAIL` they get the warning, not a failure.
 REGULARISED = ("ridge", "pcr", "bounded")
-#: Status of a result whose flight failed a set-up check (casep.analysis.checks.setup_problems).
+#: Status of a result whose flight failed a set-up check (casep.checks.plausibility.setup_problems).
 STATUS_SETUP = -4
 #: Status of a result with estimates beyond :data:`MAGNITUDE_FAIL` times their declared magnitudes.
 STATUS_MAGNITUDE = -5

@@ -24,9 +24,9 @@ from casep.estimators._meanings import STD_KIND_MEANINGS
 from casep.estimators._rules import SIGMA, Choices, CoefficientTable, Interval, Option, Rule
 
 if TYPE_CHECKING:
-    from casep.analysis.joint import JointProblem
-    from casep.analysis.problem import Problem
     from casep.estimators.result import EstimateResult
+    from casep.regression.joint import JointProblem
+    from casep.regression.problem import Problem
 
 __all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Labels", "Method", "SeveralFlights",
            "SIGMA"]
@@ -40,7 +40,7 @@ class Labels(TypedDict, total=False):
     sigma : float
         Known noise standard deviation, m/s (default: estimated).
     rcond : float
-        Rank threshold, see :func:`casep.analysis.linalg.analyze_rank`.
+        Rank threshold, see :func:`casep.regression.linalg.analyze_rank`.
     """
 
     names: Sequence[str] | None
@@ -54,7 +54,7 @@ class Labels(TypedDict, total=False):
 class SeveralFlights:
     """A method's hooks for several flights (:func:`casep.workflows.flights.separate_flights`).
 
-    The flights become one :class:`~casep.analysis.joint.JointProblem`: a reduction-based method
+    The flights become one :class:`~casep.regression.joint.JointProblem`: a reduction-based method
     solves its stacked reduction, a recursive one its rows flight after flight (its ``segments``).
 
     Attributes

@@ -35,8 +35,8 @@ from casep.estimators._options import CoefficientTable, Labels, Method, Option
 from casep.exceptions import CasepWarning
 
 if TYPE_CHECKING:
-    from casep.analysis.problem import Problem
     from casep.estimators.result import EstimateResult
+    from casep.regression.problem import Problem
 
 __all__ = ["solve_bounded", "parse_bounds", "BOUNDED", "BoundedExtras"]
 

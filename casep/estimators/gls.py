@@ -4,7 +4,7 @@ Notes
 -----
 Each axis' noise is stationary Gauss-Markov with correlation time ``tau``, plus (when the data
 ask for it) white measurement noise of variance share ``w`` (one ``tau`` and one ``w`` for every
-axis). With ``a_k = exp(-(t_k - t_{k-1}) / tau)`` the whitening of :mod:`casep.analysis.noise`
+axis). With ``a_k = exp(-(t_k - t_{k-1}) / tau)`` the whitening of :mod:`casep.noise.model`
 (``w = 0``: ``w_0 = e_0``, ``w_k = (e_k - a_k e_{k-1}) / sqrt(1 - a_k^2)``; ``w > 0``: the
 innovations of the Kalman filter) turns the noise white, so least squares on the whitened ``S``
 and ``dv`` is the GLS estimate with its honest covariance ``sigma^2 (S^T Sigma^-1 S)^-1``, which
@@ -12,7 +12,7 @@ attains the Cramer-Rao bound.
 
 ``tau="auto"`` also tests a white part: ``w`` by REML in (ln tau, logit w) from the
 Gauss-Markov optimum, kept when ``-2 ln Lambda`` against ``w = 0`` exceeds
-:data:`casep.analysis.noise.AUTO_LR` (w = 0 on the boundary: null ``(chi2_0 + chi2_1) / 2``, 1 %).
+:data:`casep.noise.model.AUTO_LR` (w = 0 on the boundary: null ``(chi2_0 + chi2_1) / 2``, 1 %).
 Without it GM-plus-white data is fitted as one short correlation time and the std are about 2x
 too small. A given ``tau`` means pure Gauss-Markov with that tau.
 
@@ -40,16 +40,16 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence, Unpack
 
 import numpy as np
 
-from casep.analysis.noise import AUTO_LR, NoiseModel, whiten_series
-from casep.analysis.noise_fit import SHARE_LOGIT, nelder_mead, tau_search_bounds  # one search of both REMLs
-from casep.analysis.problem import Problem
 from casep.estimators._base import Prepared, finish, prepare
 from casep.estimators._options import Choices, Interval, Labels, Method, Option, SeveralFlights
 from casep.estimators.ols import OLS, least_squares
+from casep.noise.fit import SHARE_LOGIT, nelder_mead, tau_search_bounds  # one search of both REMLs
+from casep.noise.model import AUTO_LR, NoiseModel, whiten_series
+from casep.regression.problem import Problem
 
 if TYPE_CHECKING:
-    from casep.analysis.joint import JointProblem
     from casep.estimators.result import EstimateResult
+    from casep.regression.joint import JointProblem
 
 __all__ = ["solve_gls", "estimate_tau", "estimate_noise", "GLS", "GLSExtras"]
 
@@ -100,7 +100,7 @@ class GLSExtras:
 
 
 def _whiten_axes(S: np.ndarray, t: np.ndarray, tau: float, share: float = 0.0) -> tuple[np.ndarray, float]:
-    """(N, 3, k) rows whitened per axis at unit std (:func:`casep.analysis.noise.whiten_series`), sum ln F."""
+    """(N, 3, k) rows whitened per axis at unit std (:func:`casep.noise.model.whiten_series`), sum ln F."""
     W = np.empty(S.shape)
     ld = 0.0
     for j in range(3):

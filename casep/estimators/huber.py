@@ -33,9 +33,9 @@ from casep.estimators._options import Interval, Labels, Method, Option, SeveralF
 from casep.estimators.ols import least_squares
 
 if TYPE_CHECKING:
-    from casep.analysis.joint import JointProblem
-    from casep.analysis.problem import Problem
     from casep.estimators.result import EstimateResult
+    from casep.regression.joint import JointProblem
+    from casep.regression.problem import Problem
 
 __all__ = ["solve_huber", "HUBER_C", "HUBER", "HuberExtras"]
 

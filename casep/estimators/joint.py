@@ -3,8 +3,8 @@
 Notes
 -----
 The flights' stacked, whitened reduction over ``theta = [D_shared, D_pf(1), ..., D_pf(K)]`` is the
-data's: :mod:`casep.analysis.joint` (:class:`~casep.analysis.joint.JointLayout`,
-:func:`~casep.analysis.joint.joint_reduction`, re-exported here). Here: are the flights consistent?
+data's: :mod:`casep.regression.joint` (:class:`~casep.regression.joint.JointLayout`,
+:func:`~casep.regression.joint.joint_reduction`, re-exported here). Here: are the flights consistent?
 
 Consistency of the flights on a shared coefficient j (flights estimate it independently, their
 noises being independent): with ``d_k``, ``v_k`` flight k's own estimate and variance (flights where
@@ -29,8 +29,8 @@ from typing import Sequence
 import numpy as np
 from scipy import stats
 
-# The stacked reduction of several flights is the data's (casep.analysis.joint); re-exported here.
-from casep.analysis.joint import JointLayout, flight_rss, joint_reduction
+# The stacked reduction of several flights is the data's (casep.regression.joint); re-exported here.
+from casep.regression.joint import JointLayout, flight_rss, joint_reduction
 
 __all__ = ["JointLayout", "joint_reduction", "flight_rss", "coefficient_consistency", "overall_consistency",
            "stack_sqrt_information"]

@@ -44,9 +44,9 @@ from casep.estimators._base import MAX_PRIOR_VALUE, Prepared, finish, is_number
 from casep.estimators._options import SIGMA, CoefficientTable, Labels, Method, Option
 
 if TYPE_CHECKING:
-    from casep.analysis.problem import Problem
     from casep.estimators.ols import LinearMap
     from casep.estimators.result import EstimateResult
+    from casep.regression.problem import Problem
 
 __all__ = ["solve_map", "parse_prior", "prior_information", "prior_from_result", "per_flight_names", "MAP",
            "MAPExtras"]

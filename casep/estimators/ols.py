@@ -2,7 +2,7 @@
 
 Notes
 -----
-With ``Z = S diag(c)^-1`` (unit-norm columns) and the reduction of :mod:`casep.analysis.linalg`,
+With ``Z = S diag(c)^-1`` (unit-norm columns) and the reduction of :mod:`casep.regression.linalg`,
 ``[Z | y] = Q [[R, q], [0, rho]]`` and ``R = U diag(s) V^T``::
 
     x_Z    = V_r diag(1/s_r) U_r^T q                 (minimum-norm LS solution, scaled)
@@ -26,13 +26,13 @@ from typing import TYPE_CHECKING, Any, Unpack
 
 import numpy as np
 
-from casep.analysis.linalg import REFINE_ABOVE, qr_forward_error, refine_least_squares
 from casep.estimators._base import Prepared, finish, prepare
 from casep.estimators._options import Labels, Method
+from casep.regression.linalg import REFINE_ABOVE, qr_forward_error, refine_least_squares
 
 if TYPE_CHECKING:
-    from casep.analysis.problem import Problem
     from casep.estimators.result import EstimateResult
+    from casep.regression.problem import Problem
 
 __all__ = ["solve_ols", "OLS", "OLSExtras", "least_squares"]
 
@@ -64,13 +64,13 @@ def solve_ols(S: np.ndarray | Problem, y: np.ndarray | None = None, **labels: Un
     ----------
     S : (N, 3, n) or (m, n) array_like, or Problem
         Regression matrix in natural units (from :func:`casep.build_sv`), or a
-        :class:`~casep.analysis.problem.Problem` (then `y` is omitted: the problem holds it).
+        :class:`~casep.regression.problem.Problem` (then `y` is omitted: the problem holds it).
     y : (N, 3) or (m,) array_like
         Observed velocity error, m/s.
     **labels
         ``names``, ``units``, ``si_factors`` (coefficient labels, default ``c0, c1, ...``),
         ``sigma`` (known noise std, m/s; default: estimated from the residuals) and ``rcond``
-        (rank threshold, see :func:`casep.analysis.linalg.analyze_rank`):
+        (rank threshold, see :func:`casep.regression.linalg.analyze_rank`):
         :class:`~casep.estimators._options.Labels`.
 
     Returns
@@ -91,11 +91,11 @@ def _solve(pb: Prepared, *, method: Method) -> EstimateResult:
 def least_squares(pb: Prepared, *, refine: bool = True) -> tuple[np.ndarray, np.ndarray, float]:
     """Minimum-norm LS solution, covariance and sigma of a prepared problem (natural units).
 
-    When the predicted error of the QR solve (:func:`casep.analysis.linalg.qr_forward_error`)
-    exceeds :data:`~casep.analysis.linalg.REFINE_ABOVE` and the rows are held in memory (a problem
+    When the predicted error of the QR solve (:func:`casep.regression.linalg.qr_forward_error`)
+    exceeds :data:`~casep.regression.linalg.REFINE_ABOVE` and the rows are held in memory (a problem
     that regenerates S_V is not integrated again for it), the solution gets one step of iterative
     refinement with its residual in extended precision
-    (:func:`~casep.analysis.linalg.refine_least_squares`). A well-conditioned fit skips it, and so
+    (:func:`~casep.regression.linalg.refine_least_squares`). A well-conditioned fit skips it, and so
     does ``refine=False`` (the inner solves of an iteration whose end point is what counts).
     """
     ra, red = pb.ra, pb.red

@@ -28,9 +28,9 @@ from casep.estimators._base import Prepared, finish
 from casep.estimators._options import Interval, Labels, Method, Option
 
 if TYPE_CHECKING:
-    from casep.analysis.problem import Problem
     from casep.estimators.ols import LinearMap
     from casep.estimators.result import EstimateResult
+    from casep.regression.problem import Problem
 
 __all__ = ["solve_pcr", "DEFAULT_MAX_CONDITION_INDEX", "PCR", "PCRExtras"]
 

@@ -79,7 +79,7 @@ def _options() -> dict[str, Option]:
 #: Method options by name (``sigma`` and the noise and de-noising options apply to every method).
 OPTIONS: dict[str, Option] = _options()
 
-#: Options of the noise model (:mod:`casep.analysis.noise`) that every method takes through
+#: Options of the noise model (:mod:`casep.noise.model`) that every method takes through
 #: :func:`casep.separate`; ``gls`` also takes them as its own (its one tau for every axis).
 NOISE_OPTIONS = ("tau",)
 
@@ -181,7 +181,7 @@ def run_method(method: str, S: Any, y: np.ndarray | None, t: np.ndarray | None, 
         A key of :data:`METHODS`.
     S, y, t : array_like, or a Problem and None
         Regression ``(N, 3, n)``, velocity error ``(N, 3)`` and sample times ``(N,)`` (used by a
-        method that ``needs_time``), or a :class:`~casep.analysis.problem.Problem` (`y` None).
+        method that ``needs_time``), or a :class:`~casep.regression.problem.Problem` (`y` None).
     options : mapping
         The method's options (keys of its :attr:`Method.options`; missing ones take their defaults).
     **labels

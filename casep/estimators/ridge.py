@@ -32,9 +32,9 @@ from casep.estimators._base import Prepared, finish
 from casep.estimators._options import Choices, Interval, Labels, Method, Option
 
 if TYPE_CHECKING:
-    from casep.analysis.problem import Problem
     from casep.estimators.ols import LinearMap
     from casep.estimators.result import EstimateResult
+    from casep.regression.problem import Problem
 
 __all__ = ["solve_ridge", "gcv_curve", "lcurve_corner", "RIDGE", "RidgeExtras"]
 

@@ -76,9 +76,9 @@ from casep.estimators._base import Prepared, finish
 from casep.estimators._options import Choices, Interval, Labels, Method, Option
 
 if TYPE_CHECKING:
-    from casep.analysis.problem import Problem
     from casep.estimators.ols import LinearMap
     from casep.estimators.result import EstimateResult
+    from casep.regression.problem import Problem
 
 __all__ = ["solve_rls", "DEFAULT_P0", "RLS", "RELS", "RLSExtras"]
 

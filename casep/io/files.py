@@ -81,7 +81,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     FlightData
         ``meta`` records the file format, which force and velocity columns were used and,
         with ``v_tel_*`` columns, the telemetry speed at the first sample
-        (``start_speed_m_s``, for :func:`casep.analysis.late_start.late_start_evidence`), and the
+        (``start_speed_m_s``, for :func:`casep.checks.late_start.late_start_evidence`), and the
         number of rows without tracking (``unobserved``) when there are any.
 
     Raises
@@ -109,7 +109,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
             "rows_file": str(tab.path)}  # sample k is data row k + 1 (locate_samples)
     if dv_from != "dv":
         meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
-        meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.analysis.checks
+        meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.checks.plausibility
     if not observed.all():
         meta["unobserved"] = int((~observed).sum())  # rows without tracking (all dv cells empty)
     signals, src = tab.signals(), tab.src

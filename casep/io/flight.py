@@ -9,8 +9,8 @@ telemetry sample (where the model puts dv = 0 and phi = 0), while the regression
 only at the ``observed`` samples, where tracking exists (:meth:`FlightData.observed_rows`).
 
 A flight is checked here as data (shapes, finite values, magnitudes, increasing time); what it
-can tell a model is checked before estimation by :mod:`casep.analysis.checks` (plausibility,
-enough samples, set-up) and :mod:`casep.analysis.late_start` (a flight that starts after lift-off:
+can tell a model is checked before estimation by :mod:`casep.checks.plausibility` (plausibility,
+enough samples, set-up) and :mod:`casep.checks.late_start` (a flight that starts after lift-off:
 :class:`LateStartWarning`).
 """
 

@@ -247,7 +247,7 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
             "span_s": [float(t[0]), float(t[-1])], "observed_span_s": [float(t[observed][0]), float(t[observed][-1])],
             "unobserved": int((~observed).sum()), "telemetry_dropped": int((~keep).sum()),
             "start_speed_m_s": float(np.linalg.norm(v_tel[0])),
-            "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.analysis.checks
+            "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.checks.plausibility
     return FlightData(t, f_out, dv, source=source, meta=meta, observed=observed, signals=sig)
 
 

@@ -14,7 +14,7 @@ Earth-relative velocity at the file's own time tags) to measure them:
   than its speed times the time since launch (a boost speeds up monotonically).
 
 :func:`casep.io.files.read_flight_pair` records :func:`setup_evidence` in ``flight.meta["setup"]``;
-the checks of a flight before estimation (:func:`casep.analysis.checks.warn_setup`) warn with it.
+the checks of a flight before estimation (:func:`casep.checks.plausibility.warn_setup`) warn with it.
 """
 
 from __future__ import annotations

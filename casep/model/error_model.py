@@ -144,7 +144,7 @@ class ErrorModel(SpecificForceModel):
 
         `name`, `unit`, `si_factor`, `description` and `scale` as
         :meth:`casep.model.base.SymbolicModel.coefficient`; `scale` is the yardstick of the "weak"
-        verdict of :func:`casep.analysis.diagnostics.diagnose` (CRLB std above it).
+        verdict of :func:`casep.checks.diagnostics.diagnose` (CRLB std above it).
 
         Parameters
         ----------

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from casep.analysis.diagnostics import crlb_covariance
+from casep.checks.diagnostics import crlb_covariance
 from casep.estimators.bounded import parse_bounds
 from casep.estimators.map import parse_prior
 from casep.model.sv import build_sv

@@ -69,7 +69,7 @@ def own_trajectory(scenario: str | Scenario, flight: Any, truth: Mapping) -> dic
     """The scenario of a Monte Carlo on one's own flight: its times, specific force, model, truth and noise."""
     import dataclasses
 
-    from casep.analysis.problem import Problem
+    from casep.checks.flight_problem import flight_problem
     from casep.io.files import read_flight
     from casep.io.flight import FlightData
     from casep.io.provenance import file_record
@@ -98,7 +98,7 @@ def own_trajectory(scenario: str | Scenario, flight: Any, truth: Mapping) -> dic
     else:  # the flight's own least-squares residual std: its tracking noise
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", IllConditionedWarning)
-            pb = Problem.from_flight(fl, model)
+            pb = flight_problem(fl, model)
         noise = NoiseModel("white", float(np.sqrt(pb.ls_rss() / max(pb.m - pb.rank().rank, 1))))
         how = "the flight's least-squares residual std"
     rate = float(1.0 / np.median(np.diff(fl.t)))

@@ -203,7 +203,7 @@ def _denoised(spec: MethodSpec, y: np.ndarray) -> tuple[np.ndarray, float | None
     """``wavelet+<m>``: the de-noised dv and its sigma, as casep separate does; else as given."""
     if not spec.denoise:
         return y, None
-    from casep.analysis.denoise import denoise
+    from casep.noise.denoise import denoise
 
     d = denoise(y)
     return d.dv, float(np.sqrt(np.mean(d.sigma**2)))

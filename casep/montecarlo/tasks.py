@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from casep.analysis.diagnostics import crlb_covariance
+from casep.checks.diagnostics import crlb_covariance
 from casep.exceptions import IllConditionedWarning
 from casep.model.sv import build_sv
 from casep.montecarlo.methods import MethodSpec, linear_maps, solve_runs
@@ -56,7 +56,7 @@ class Context:
     S: np.ndarray | None = None  # nominal trajectory's tracked rows (None when dispersed)
     t: np.ndarray | None = None
     crlb: np.ndarray | None = None
-    noise: str = "white"  # the noise model the methods assume (casep.analysis.noise)
+    noise: str = "white"  # the noise model the methods assume (casep.noise.model)
     noise_tau: Any = None
     robust: str | None = None
     linear: tuple[str, ...] = ()  # the batched methods of the campaign
@@ -150,7 +150,7 @@ def run_task(ctx: Context, linear: Sequence[MethodSpec], other: Sequence[MethodS
             std.update(std_l)
         rows = None
         if ctx.noise != "white" or ctx.robust not in (None, "auto"):  # each run's noise model, weights: every method
-            from casep.analysis.problem import Problem
+            from casep.regression.problem import Problem
             from casep.workflows.solve import prepare_rows
 
             rows = [prepare_rows(Problem.from_arrays(S, y, t, names=ctx.names), ctx.noise, ctx.noise_tau, ctx.robust)

@@ -10,7 +10,7 @@ All of them from the per-group reductions ``R_g`` (``S_g = Q_g R_g``, so ``F^T F
 on any subset of rows by group and of columns): a few (G n x n) matrices instead of the full rows.
 
 - **mixed near-dependencies**: the Belsley-Kuh-Welsch groups of the joint regression
-  (:func:`casep.analysis.diagnostics.diagnose`) that hold both instrument and tracking terms
+  (:func:`casep.checks.diagnostics.diagnose`) that hold both instrument and tracking terms
   (a platform misalignment and an elevation bias that look alike, by name), and for each tracking
   term the instrument terms it is most correlated with at the bound (|rho| >= 0.5) and its own CRLB
   with the instrument terms known;
@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from casep.analysis.diagnostics import crlb_covariance, diagnose
+from casep.checks.diagnostics import crlb_covariance, diagnose
 
 __all__ = ["radar_diagnostics", "diagnostics_table"]
 
@@ -51,7 +51,7 @@ def radar_diagnostics(lin, *, scales: dict | None = None) -> dict[str, Any]:
         aliased), ``tracking`` (name, unit, crlb_std), ``mixed_groups``, ``groups``,
         ``station_gain`` ({station: {median_ratio, max_ratio, ratio: {name: r}}}), ``noise``.
     """
-    from casep.analysis.problem import Problem
+    from casep.regression.problem import Problem
 
     reg = lin.regression
     nD = reg.nD

@@ -23,7 +23,7 @@ def estimate_group_sigmas(S: np.ndarray, y: np.ndarray, rows: list[np.ndarray], 
     sum of squares equals ``m - rank``, the REML condition for group variances of a linear model
     at these leverages.
 
-    Each group is reduced once (casep's TSQR, :func:`casep.analysis.linalg.reduce_qr`:
+    Each group is reduced once (casep's TSQR, :func:`casep.regression.linalg.reduce_qr`:
     ``S_g = Q_g R_g``, ``q_g = Q_g^T y_g``, ``rho_g^2`` the rest); a weighting is then the
     least-squares problem of the stacked ``R_g / sigma_g`` (``G n`` rows), and the group's residual
     sum of squares is ``|q_g - R_g x|^2 + rho_g^2``: exact, and independent of the number of rows.
@@ -65,7 +65,7 @@ def group_reductions(S: np.ndarray, y: np.ndarray, rows: list[np.ndarray]) -> li
     ``|y_g - S_g x|^2 = |q_g - R_g x|^2 + rho_g^2`` for every x, and ``S_g^T S_g = R_g^T R_g``, also on
     any subset of the columns: every bound and fit of the stacked regression follows from these.
     """
-    from casep.analysis.linalg import reduce_qr
+    from casep.regression.linalg import reduce_qr
 
     out = []
     for r in rows:

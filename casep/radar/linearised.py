@@ -59,8 +59,8 @@ class LinearisedRadar:
         return w
 
     def problem(self, columns: np.ndarray | None = None, rows: np.ndarray | None = None):
-        """The whitened :class:`~casep.analysis.problem.Problem` (rows / sigma_group), optionally a subset."""
-        from casep.analysis.problem import Problem
+        """The whitened :class:`~casep.regression.problem.Problem` (rows / sigma_group), optionally a subset."""
+        from casep.regression.problem import Problem
 
         reg = self.regression
         w = self.weights
@@ -109,7 +109,7 @@ class LinearisedRadar:
 
     def estimation_problem(self):
         """The whitened regression as an ``(M, 3, n)`` Problem (rows as in :meth:`sample_layout`)."""
-        from casep.analysis.problem import Problem
+        from casep.regression.problem import Problem
 
         reg = self.regression
         w = self.weights

@@ -16,7 +16,7 @@ so with ``A = -(H_r S_P + H_v S_V)`` the regression in the absolute coefficients
 Rows are grouped by station and measurement type (azimuth residuals wrapped to [-pi, pi)),
 each group divided by its noise std (given, or estimated: :func:`estimate_group_sigmas`), and
 stacked into one ``(m, n_D + n_stations n_T)`` regression ``[A | T_1 | T_2 ...]`` handed to the
-estimators as a :class:`casep.analysis.problem.Problem`. ``D0`` is re-set to the least-squares
+estimators as a :class:`casep.regression.problem.Problem`. ``D0`` is re-set to the least-squares
 estimate a few times (Gauss-Newton) so that the linearisation point is the estimated true
 trajectory: on the test flight (370 m of position error at burnout, 70-290 km range) the
 linearisation at the telemetered trajectory alone is off by 1.5-3 std of the estimate; the steps

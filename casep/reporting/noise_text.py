@@ -18,8 +18,8 @@ SHOWN = 6
 
 
 def noise_line(nd: Mapping[str, Any]) -> str:
-    """One line of a result's ``diagnostics["noise"]`` (:meth:`casep.analysis.noise.NoiseModel.line`)."""
-    from casep.analysis.noise import NoiseModel
+    """One line of a result's ``diagnostics["noise"]`` (:meth:`casep.noise.model.NoiseModel.line`)."""
+    from casep.noise.model import NoiseModel
 
     axes = nd["axes"]
     if "note" in nd:

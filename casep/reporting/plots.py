@@ -8,7 +8,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from casep.analysis.diagnostics import GROUP_INDEX, Diagnostics
+from casep.checks.diagnostics import GROUP_INDEX, Diagnostics
 from casep.estimators.result import AXES, EstimateResult
 
 __all__ = ["plot_singular_values", "plot_variance_decomposition", "plot_residuals", "plot_estimates",
@@ -414,7 +414,7 @@ def impact_figures(analysis, out: str | os.PathLike) -> list[Path]:
 
 def plot_allan(noise, path: str | os.PathLike) -> Path:
     """Allan deviation of the residuals per axis with the fitted noise models
-    (:func:`casep.analysis.noise_id.identify_noise`); the chosen model drawn solid."""
+    (:func:`casep.noise.identification.identify_noise`); the chosen model drawn solid."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5), layout="constrained")
     for i, a in enumerate("xyz"[: noise.adev.shape[0]]):

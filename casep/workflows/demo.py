@@ -9,7 +9,7 @@ paper's layout with the Cramer-Rao std, and with an output folder writes the fig
 a self-contained Markdown report.
 
 Every method sees the rows :func:`casep.separate` would give it: the noise model and the robust
-check are worked out once for the flight (:meth:`casep.analysis.problem.Problem.rows`) and shared
+check are worked out once for the flight (:func:`casep.regression.rows.prepare_rows`) and shared
 by the six methods on raw dv (:func:`casep.workflows.solve.fit`); wavelet + RELS, on
 de-noised dv, goes through :func:`casep.separate`. The estimates are then judged against the
 model's declared magnitudes as :func:`casep.separate` judges them
@@ -26,14 +26,15 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from casep.analysis.diagnostics import Diagnostics, diagnose
-from casep.analysis.problem import Problem
-from casep.analysis.rows import Rows
+from casep.checks.diagnostics import Diagnostics, diagnose
+from casep.checks.flight_problem import flight_problem
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
 from casep.exceptions import IllConditionedWarning
 from casep.impact.miss import ImpactAnalysis, impact_analysis
 from casep.model.error_model import ErrorModel
+from casep.regression.problem import Problem
+from casep.regression.rows import Rows, prepare_rows
 from casep.simulation.paper import demo_bounds, demo_prior
 from casep.simulation.simulate import SimulatedFlight, simulate_flight
 from casep.workflows.separate import judge_setup, separate
@@ -274,12 +275,12 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
     extra: dict[str, dict[str, Any]] = {method: {k: supplied[k] for k in METHODS[method].required}
                                         for _, method, _ in DEMO_METHODS}
     results: dict[str, EstimateResult] = {}
-    problem = Problem.from_flight(sim.flight, model, keep_sv=True)  # S_V and its QR once, for every method
+    problem = flight_problem(sim.flight, model, keep_sv=True)  # S_V and its QR once, for every method
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IllConditionedWarning)  # reported once, through the diagnostics
         # The noise model and robust weights belong to the data: fitted once (separate's defaults,
         # noise "auto", robust "auto") for every method but wavelet+RELS, whose de-noised rows are white.
-        rows = problem.rows(robust="auto")
+        rows = prepare_rows(problem, robust="auto")
         for label, method, opts in DEMO_METHODS:
             if opts.get("denoise"):
                 res = separate(problem, model, method, **opts, **extra.get(method, {}))

@@ -1,12 +1,12 @@
 """Several flights in one estimate.
 
-Each flight becomes its own :class:`~casep.analysis.problem.Problem` (its checks, its S_V, its QR);
+Each flight becomes its own :class:`~casep.regression.problem.Problem` (its checks, its S_V, its QR);
 its noise sigma is estimated from its own least-squares residuals (or given); the flights are
-combined into one :class:`~casep.analysis.joint.JointProblem`, a whitened reduced system over
+combined into one :class:`~casep.regression.joint.JointProblem`, a whitened reduced system over
 ``theta = [shared, per-flight(1), ..., per-flight(K)]`` (per-flight: the model's
 ``declare(..., per_flight=True)`` coefficients), which the reduction-based methods solve (OLS,
 ridge, bounded, PCR, MAP). The same whitened problem also gives its rows flight after flight
-(:meth:`~casep.analysis.joint.JointProblem.blocks`, one segment per flight), so the recursive methods
+(:meth:`~casep.regression.joint.JointProblem.blocks`, one segment per flight), so the recursive methods
 (RLS, RELS) run the flights in sequence (the RELS noise memory restarts at each flight). What else a
 method does with several flights is its own declaration
 (:class:`~casep.estimators._options.SeveralFlights`): Huber estimates the scale of the stacked whitened
@@ -23,10 +23,11 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from casep.analysis.joint import JointLayout, JointProblem
-from casep.analysis.problem import Problem
+from casep.checks.flight_problem import flight_problem
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
+from casep.regression.joint import JointLayout, JointProblem
+from casep.regression.problem import Problem
 from casep.workflows.spec import FitSpec
 
 # and JOINT_METHODS (module __getattr__: the registry's as it is now)
@@ -68,7 +69,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     options : mapping, optional
         The method's options (registry names).
     noise, tau, robust : optional
-        Each flight's noise model (:func:`casep.analysis.noise_fit.fit_noise`, fitted on the flight
+        Each flight's noise model (:func:`casep.noise.fit.fit_noise`, fitted on the flight
         alone) and robust cleaning (the robust filter of a least-squares fit of the flight alone:
         its glitches removed, its rows weighted); the joint solve is then on every flight's
         whitened rows (:func:`casep.separate` describes the options).
@@ -120,7 +121,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         fl = fl if isinstance(fl, FlightData) else read_flight(fl)
         read.append(fl)
         paired.append(fl.meta.get("format") == "pair" and fl.meta.get("grid") == "telemetry")  # interpolated tracking
-        problems.append(Problem.from_flight(fl, model))
+        problems.append(flight_problem(fl, model))
     _refuse_repeats(problems)
     for key in ("prior", "bounds"):  # on shared coefficients only (a per-flight one is refused, not dropped)
         per = [k for k in (opts.get(key) or {}) if k in model.names and model.per_flight[model.names.index(k)]]
@@ -181,8 +182,8 @@ def _refuse_repeats(problems: Sequence[Problem]) -> None:
 
 def _noise_whitened(problems: Sequence[Problem], noise: str, tau, robust: str | None):
     """Each flight's rows as every method solves them: its own noise model, robustly cleaned when asked
-    (:func:`casep.analysis.rows.prepare_rows`); returns the solved problems and the rows."""
-    from casep.analysis.rows import prepare_rows
+    (:func:`casep.regression.rows.prepare_rows`); returns the solved problems and the rows."""
+    from casep.regression.rows import prepare_rows
 
     rows = [prepare_rows(p, noise, tau, robust) for p in problems]
     return [r.solved for r in rows], rows
@@ -285,7 +286,7 @@ def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float]
 
     Per shared coefficient: the CRLB std of each flight alone (its own sigma) and of the flights
     jointly (weighted by 1/sigma_k^2), and the verdicts (identifiable / weak / unidentifiable, as
-    :func:`casep.analysis.diagnostics.diagnose`, "weak" against the model's declared magnitudes);
+    :func:`casep.checks.diagnostics.diagnose`, "weak" against the model's declared magnitudes);
     with `prior_std` (model order), the joint bound is Bayesian and its verdict asks whether the
     posterior std is below the declared magnitude. `prior` (the MAP format, correlations allowed,
     e.g. :func:`casep.estimators.map.prior_from_result` of earlier flights) is used instead of
@@ -298,7 +299,7 @@ def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float]
         "verdict_alone": [..], "crlb_joint", "verdict_joint"}], "identifiable_alone": [counts],
         "identifiable_joint": count}``
     """
-    from casep.analysis.diagnostics import diagnose
+    from casep.checks.diagnostics import diagnose
     from casep.io.files import read_flight
     from casep.io.flight import FlightData
     from casep.model.loader import load_model
@@ -312,7 +313,7 @@ def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float]
             raise ValueError("give `prior` or `prior_std`, not both")
         Wp, _, _, prior_std = prior_information(prior, model.names)
     problems = [fl if isinstance(fl, Problem) else
-                Problem.from_flight(fl if isinstance(fl, FlightData) else read_flight(fl), model) for fl in flights]
+                flight_problem(fl if isinstance(fl, FlightData) else read_flight(fl), model) for fl in flights]
     sig = _sigmas(problems, sigma)
     scales = dict(model.scales if scales is None else scales)
     alone = [diagnose(p, sigma=s, scales=scales) for p, s in zip(problems, sig)]

@@ -3,7 +3,7 @@
 The error coefficients are fitted by ordinary least squares; the residuals
 r = dv - S_V D_hat (per axis) are then the tracking noise plus whatever the model leaves out, and
 their Allan deviation tells white noise (slope -1/2), Gauss-Markov noise (a hump at about its
-correlation time) and random walk (slope +1/2) apart (:func:`casep.analysis.noise_id.identify_noise`).
+correlation time) and random walk (slope +1/2) apart (:func:`casep.noise.identification.identify_noise`).
 The Allan deviation needs a uniform sample step: on a flight with tracking gaps it runs on the
 longest evenly sampled stretch (a :class:`~casep.exceptions.GapWarning` says which); a flight whose
 steps vary otherwise is refused.
@@ -48,12 +48,12 @@ def flight_noise(flight: Any, model: Any) -> tuple[Any, Any]:
     """
     import numpy as np
 
-    from casep.analysis.noise_id import identify_noise
-    from casep.analysis.problem import Problem
+    from casep.checks.flight_problem import flight_problem
     from casep.estimators.ols import solve_ols
     from casep.exceptions import CasepWarning
+    from casep.noise.identification import identify_noise
 
-    problem = Problem.from_flight(flight, model)
+    problem = flight_problem(flight, model)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", CasepWarning)  # conditioning: not the question here
         res = solve_ols(problem)

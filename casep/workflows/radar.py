@@ -2,7 +2,7 @@
 
 :func:`separate_radar` reads the inputs, builds the joint regression
 (:class:`casep.radar.regression.RadarRegression`: relinearised, group noise estimated), hands
-it to any registered estimator as a whitened :class:`~casep.analysis.problem.Problem`, and
+it to any registered estimator as a whitened :class:`~casep.regression.problem.Problem`, and
 returns a :class:`RadarResult`: the :class:`~casep.estimators.result.EstimateResult` over the
 instrument coefficients and the station terms ``<station>.<term>``, plus the radar summary
 (noise per station and type, residual RMS per group, how the telemetered position was had) and,

@@ -8,13 +8,14 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from casep.analysis.problem import Problem
+from casep.checks.flight_problem import flight_problem
 from casep.estimators.registry import METHODS as _REGISTRY
 from casep.estimators.result import EstimateResult
 from casep.io.files import read_flight, read_json_table
 from casep.io.flight import FlightData
 from casep.model.error_model import ErrorModel
 from casep.model.loader import load_model
+from casep.regression.problem import Problem
 from casep.workflows.solve import fit
 from casep.workflows.spec import NOT_GIVEN, FitSpec, NotGiven, merge_options
 
@@ -36,11 +37,11 @@ def __getattr__(name: str) -> Any:
 def regression_rows(flight: FlightData, model: ErrorModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The regression of a flight as arrays: ``(S_V, dv, t)`` at the observed samples.
 
-    The :class:`~casep.analysis.problem.Problem` of the flight with S_V kept whole (same checks:
-    :meth:`~casep.analysis.problem.Problem.from_flight`). Prefer the Problem itself: it need
+    The :class:`~casep.regression.problem.Problem` of the flight with S_V kept whole, after the checks
+    before estimation (:func:`~casep.checks.flight_problem.flight_problem`). Prefer the Problem itself: it need
     not hold S_V.
     """
-    pb = Problem.from_flight(flight, model, keep_sv=True)
+    pb = flight_problem(flight, model, keep_sv=True)
     assert pb.t is not None  # a flight's problem has its times
     return pb.sv(), pb._need_rows(), pb.t
 
@@ -81,7 +82,7 @@ def separate(
     Parameters
     ----------
     flight : FlightData, Problem or path
-        The flight, a flight file to read, or a :class:`~casep.analysis.problem.Problem` built
+        The flight, a flight file to read, or a :class:`~casep.regression.problem.Problem` built
         earlier (``casep demo`` solves every method on one; `model` is then its model). With
         `radar`: the telemetry file (``t, f_*, v_tel_*`` and optionally ``r_tel_*``) or a
         :class:`casep.radar.regression.Telemetry`.
@@ -107,9 +108,9 @@ def separate(
     n_components, max_condition_index
         PCR truncation.
     denoise : {None, "none", "wavelet"}, optional
-        De-noise dv per axis before estimation (:func:`casep.analysis.denoise.denoise`).
+        De-noise dv per axis before estimation (:func:`casep.noise.denoise.denoise`).
     wavelet_options : mapping, optional
-        Keyword arguments of :func:`casep.analysis.denoise.denoise` (wavelet, level, rule, mode,
+        Keyword arguments of :func:`casep.noise.denoise.denoise` (wavelet, level, rule, mode,
         extension, scaling).
     options : mapping, optional
         The method's options by name, as an alternative to the keywords above
@@ -137,10 +138,10 @@ def separate(
 
     outliers : float, optional
         Flag rows by their studentized residual on the whitened rows
-        (:func:`casep.analysis.outliers.flag_outliers`) with this chance of any false flag in a
+        (:func:`casep.regression.outliers.flag_outliers`) with this chance of any false flag in a
         clean flight (e.g. 0.01); the flags go to ``diagnostics["outliers_studentized"]``.
     noise : {"auto", "gm", "gmw", "white"}, optional
-        The noise model of the rows (:mod:`casep.analysis.noise`), for every method: ``auto``
+        The noise model of the rows (:mod:`casep.noise.model`), for every method: ``auto``
         (default) chooses white, Gauss-Markov or Gauss-Markov plus white per axis by likelihood-ratio
         tests and says so in ``diagnostics["noise"]``; ``gm`` Gauss-Markov on every axis (correlation
         time `tau`, or REML); ``gmw`` Gauss-Markov plus white on every axis (REML); ``white`` one
@@ -150,7 +151,7 @@ def separate(
         Gauss-Markov correlation time(s), s; a number implies ``noise="gm"`` (unless ``"gmw"``).
     robust : {"auto", "huber", "bisquare", "none"}, optional
         Robust fit for any method: glitches removed by a robust filter on the innovations, the
-        rest weighted (:mod:`casep.analysis.rows`). ``auto`` (default): Huber when the filter
+        rest weighted (:mod:`casep.regression.rows`). ``auto`` (default): Huber when the filter
         finds more glitches than Gaussian noise explains, said in ``diagnostics["robust"]``.
     std : {"model", "hac"}, optional
         ``hac``: Newey-West std (method ols with noise "white").
@@ -188,7 +189,7 @@ def separate(
         against the set-up (:func:`judge_setup`): failed with status -4 when the flight failed a set-up check
         (launch site, azimuth, launch time, time scales: ``flight.meta["setup"]``), with status -5 when
         estimates exceed 1e4 times their declared magnitudes (a warning from 100 times);
-        a given `sigma` far from the residual std is a warning (:func:`casep.analysis.checks.check_sigma`).
+        a given `sigma` far from the residual std is a warning (:func:`casep.checks.plausibility.check_sigma`).
     """
     fit_kw = {k: v for k, v in dict(
         method=method, sigma=sigma, denoise=denoise, wavelet_options=wavelet_options, outliers=outliers, tau=tau,
@@ -235,7 +236,7 @@ def _problem(flight: FlightData | Problem | str | os.PathLike, model: Any,
 
         model = with_time_offset(model)
     model = load_model(model)
-    return flight, Problem.from_flight(flight, model), model
+    return flight, flight_problem(flight, model), model
 
 
 def _with_tables(spec: FitSpec, flight: Any, model: Any) -> FitSpec:
@@ -291,11 +292,11 @@ def _separate_radar(telemetry, model, fit_kw: dict, radar: Sequence, site, track
 
 def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_free: bool = False) -> EstimateResult:
     """A result judged against the set-up: failed (status -4) when its flight failed a set-up check
-    (:func:`casep.analysis.checks.setup_problems`: launch site, azimuth, launch time, time scales), and against
+    (:func:`casep.checks.plausibility.setup_problems`: launch site, azimuth, launch time, time scales), and against
     the model's declared magnitudes (:func:`casep.estimators._base.check_magnitudes`), except on noise-free
     data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
     set-up mistake (check_fit's NoiseFreeWarning says so)."""
-    from casep.analysis.checks import setup_problems
+    from casep.checks.plausibility import setup_problems
     from casep.estimators.registry import STATUS_SETUP, check_magnitudes, failed
 
     problems = setup_problems(flight) if flight is not None else []

@@ -1,7 +1,7 @@
 """Solve a problem under its noise model: whitened rows for every estimator, robust if asked.
 
 The noise model, the robust weights and the removed samples belong to the data, not to a
-method: :func:`casep.analysis.rows.prepare_rows` (``problem.rows(...)``) works them out once for a
+method: :func:`casep.regression.rows.prepare_rows` works them out once for a
 problem, and :func:`solve_problem` hands the resulting rows to any registered method, so its std
 hold in coloured noise and with glitches, and every method of a comparison sees the same rows.
 
@@ -20,16 +20,16 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from casep.analysis.noise import NoiseModel
-from casep.analysis.problem import Problem
-from casep.analysis.rows import Rows, prepare_rows
-from casep.analysis.whiteness import ALPHA_FITTED, default_lags, find_gaps, whiteness_test
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
 from casep.exceptions import NoiseNotWhiteWarning
+from casep.noise.model import NoiseModel
+from casep.noise.whiteness import ALPHA_FITTED, default_lags, find_gaps, whiteness_test
+from casep.regression.problem import Problem
+from casep.regression.rows import Rows, prepare_rows
 from casep.workflows.spec import STD_CHOICES, FitSpec, NoiseSpec
 
-# Rows and prepare_rows live in casep.analysis.rows (the data's), re-exported here beside solve_problem
+# Rows and prepare_rows live in casep.regression.rows (the data's), re-exported here beside solve_problem
 __all__ = ["fit", "solve_problem", "solve_spec", "noise_account", "prepare_rows", "Rows", "Solved", "hac_covariance",
            "STD_CHOICES"]
 
@@ -66,15 +66,15 @@ def _x(res: EstimateResult) -> np.ndarray:
 def fit(problem: Problem, spec: FitSpec, *, rows: Rows | None = None) -> EstimateResult:
     """Fit `problem` as `spec` asks: the one entry point of every path (one flight, several, demo, ...).
 
-    De-noise if asked (:func:`casep.analysis.denoise.denoise`; sigma then the wavelet's estimate of
+    De-noise if asked (:func:`casep.noise.denoise.denoise`; sigma then the wavelet's estimate of
     the raw noise unless given), solve the rows under the noise model (:func:`solve_spec`), check the
-    residuals on the raw rows (:func:`casep.analysis.checks.check_fit`: noise-free data, outliers, time
+    residuals on the raw rows (:func:`casep.checks.plausibility.check_fit`: noise-free data, outliers, time
     offset) and a given sigma against them, and flag outliers if asked.
 
     Parameters
     ----------
     problem : Problem
-        Raw rows with their times (a flight's :meth:`~casep.analysis.problem.Problem.from_flight`).
+        Raw rows with their times (a flight's :meth:`~casep.regression.problem.Problem.from_flight`).
     spec : FitSpec
         The request, checked when it was made.
     rows : Rows, optional
@@ -84,13 +84,13 @@ def fit(problem: Problem, spec: FitSpec, *, rows: Rows | None = None) -> Estimat
     -------
     EstimateResult
     """
-    from casep.analysis.checks import check_fit, check_sigma
+    from casep.checks.plausibility import check_fit, check_sigma
 
     if not problem.has_rows:
         raise ValueError("`flight` is a reduction-only Problem: a fit needs the flight's rows")
     solved, den, sigma, from_wavelet = problem, None, spec.sigma, False
     if spec.noise.denoise == "wavelet":
-        from casep.analysis.denoise import denoise as wavelet_denoise
+        from casep.noise.denoise import denoise as wavelet_denoise
 
         den = wavelet_denoise(problem._need_rows(), **dict(spec.noise.wavelet_options))
         solved = problem.with_y(den.dv)
@@ -105,7 +105,7 @@ def fit(problem: Problem, spec: FitSpec, *, rows: Rows | None = None) -> Estimat
     if sigma is not None and not from_wavelet:
         check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
     if spec.outliers is not None:  # studentized residuals on the rows the method solved (whitened), samples named
-        from casep.analysis.outliers import flag_outliers
+        from casep.regression.outliers import flag_outliers
 
         flags = flag_outliers(out.problem, alpha=spec.outliers)
         res = dataclasses.replace(res, diagnostics={**res.diagnostics, "outliers_studentized": flags.to_dict()})
@@ -312,7 +312,7 @@ def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], robust: 
                      exclude_outliers: float | None) -> Solved:
     """A method that fits its own noise model (GLS: one Gauss-Markov tau for every axis, its own option).
 
-    Glitches (a robust fit asked or found, :func:`casep.analysis.rows.prepare_rows`) and flagged
+    Glitches (a robust fit asked or found, :func:`casep.regression.rows.prepare_rows`) and flagged
     outliers are removed first, so that they cannot collapse the correlation time. What the noise
     request may ask of such a method was checked with the request (:class:`~casep.workflows.spec.FitSpec`).
     """
@@ -326,7 +326,7 @@ def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], robust: 
     diag = {**res.diagnostics, **noise_account(rows, "gm", nm, note=f"method {meth.name}: one tau for all axes")}
     raw = problem.residuals(_x(res))
     if sub.t is not None and sub.has_rows and not sub.is_noise_free():  # whitened residuals still correlated?
-        from casep.analysis.noise import whiten
+        from casep.noise.model import whiten
 
         r = sub.residuals(_x(res)).reshape(-1, 3)
         e = whiten(np.zeros(r.shape + (0,)), r, sub.t, nm)[1]

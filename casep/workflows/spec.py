@@ -4,7 +4,7 @@ A request is built once, where it enters casep (the keywords of :func:`casep.sep
 arguments of ``casep separate``, a manifest), and checked there by one validator
 (:meth:`FitSpec.__post_init__`): the method and its options (by the registry's rules,
 :func:`casep.estimators.registry.check_method_options`), sigma, the noise kind
-(:func:`casep.analysis.noise.check_noise_kind`), the robust fit, the std kind, the outlier
+(:func:`casep.noise.model.check_noise_kind`), the robust fit, the std kind, the outlier
 exclusion and the de-noising. Everything downstream (:func:`casep.workflows.solve.fit`) takes
 the spec as checked.
 
@@ -78,12 +78,12 @@ def _frozen(mapping: Mapping[str, Any] | None) -> Mapping[str, Any]:
 
 @dataclass(frozen=True)
 class NoiseSpec:
-    """The noise part of a fit request (:mod:`casep.analysis.rows`, :mod:`casep.analysis.noise`).
+    """The noise part of a fit request (:mod:`casep.regression.rows`, :mod:`casep.noise.model`).
 
     Attributes
     ----------
     kind : str
-        Noise kind, one of :data:`casep.analysis.noise.NOISE_KINDS` (``auto``: chosen per axis by
+        Noise kind, one of :data:`casep.noise.model.NOISE_KINDS` (``auto``: chosen per axis by
         likelihood).
     tau : float, three floats or None
         Given Gauss-Markov correlation time(s) of the noise model, s (None: REML). A number implies
@@ -95,10 +95,10 @@ class NoiseSpec:
     exclude_outliers : float or None
         Remove the samples flagged at this family-wise false-alarm chance and fit again.
     denoise : {"wavelet"} or None
-        De-noise dv first (:func:`casep.analysis.denoise.denoise`); the noise model is then white
+        De-noise dv first (:func:`casep.noise.denoise.denoise`); the noise model is then white
         and no robust fit runs (the de-noised residuals are no noise sample).
     wavelet_options : mapping
-        Keywords of :func:`casep.analysis.denoise.denoise`.
+        Keywords of :func:`casep.noise.denoise.denoise`.
     """
 
     kind: str = "auto"
@@ -110,7 +110,7 @@ class NoiseSpec:
     wavelet_options: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        from casep.analysis.noise import check_noise_kind, check_tau
+        from casep.noise.model import check_noise_kind, check_tau
 
         set_ = object.__setattr__  # frozen: the normal form is set once, here
         check_noise_kind(self.kind)

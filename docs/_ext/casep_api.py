@@ -18,7 +18,9 @@ from pathlib import Path
 PUBLIC_MODULES = (
     "casep.model",
     "casep.io",
-    "casep.analysis",
+    "casep.noise",
+    "casep.regression",
+    "casep.checks",
     "casep.estimators",
     "casep.simulation",
     "casep.impact",

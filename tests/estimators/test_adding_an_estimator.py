@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import casep
-from casep.analysis.problem import Problem
 from casep.estimators import registry
+from casep.regression.problem import Problem
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "guide" / "adding-an-estimator.md"
 

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 import casep
-from casep.analysis.problem import Problem
 from casep.estimators import registry
 from casep.estimators.registry import (
     METHODS,
@@ -27,6 +26,7 @@ from casep.estimators.registry import (
 from casep.estimators.result import SIGMA_SOURCES, EstimateResult
 from casep.io.result_files import write_json_atomic
 from casep.model.sv import build_sv
+from casep.regression.problem import Problem
 from casep.simulation.simulate import simulate_flight
 
 

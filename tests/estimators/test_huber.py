@@ -55,7 +55,7 @@ def test_huber_monte_carlo_with_glitches(paper20, rng):
     clean-data CRLB (median over coefficients) where OLS is several times worse; its std cover
     ~95 %; every injected glitch is flagged and few clean rows are (30 seeded runs, 20 Hz)."""
     S, clean, truth, m = paper20
-    crlb = casep.analysis.diagnostics.crlb_covariance(S, 0.1)
+    crlb = casep.checks.diagnostics.crlb_covariance(S, 0.1)
     crlb = np.sqrt(np.diag(crlb))
     eh, eo, hits, flagged_ok, false_flags = [], [], [], 0, 0
     import warnings

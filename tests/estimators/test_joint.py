@@ -4,9 +4,9 @@ against their chi-square laws (seeded), fusion of square-root information agains
 import numpy as np
 import pytest
 
-from casep.analysis.joint import JointLayout, flight_rss, joint_reduction
-from casep.analysis.linalg import reduce_qr
 from casep.estimators.joint import coefficient_consistency, overall_consistency, stack_sqrt_information
+from casep.regression.joint import JointLayout, flight_rss, joint_reduction
+from casep.regression.linalg import reduce_qr
 
 
 def _solve(red):

@@ -109,8 +109,8 @@ def test_refinement_is_what_gains_the_digits(monkeypatch):
 def test_a_well_conditioned_fit_is_not_refined(monkeypatch):
     """Condition number ~1: the predicted error is far below the threshold and no extra pass is made."""
     import casep
-    from casep.analysis.linalg import REFINE_ABOVE
     from casep.estimators import ols
+    from casep.regression.linalg import REFINE_ABOVE
 
     def refuse(*a, **k):
         raise AssertionError("refined a well-conditioned fit")
@@ -138,7 +138,7 @@ def test_refinement_of_a_rank_deficient_fit_stays_minimum_norm():
     pb = ols.prepare(X, y, None, None, None, None)
     V, inv_s = pb.ra.pinv_factors()
     x_Z = V @ (inv_s * (pb.ra.U.T @ pb.red.qty)[: pb.ra.rank])
-    from casep.analysis.linalg import qr_forward_error
+    from casep.regression.linalg import qr_forward_error
 
     assert qr_forward_error(pb.red, pb.ra, x_Z) > ols.REFINE_ABOVE  # the refinement runs
     with pytest.warns(casep.exceptions.IllConditionedWarning):

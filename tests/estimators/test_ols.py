@@ -1,4 +1,4 @@
-"""Least squares on the scaled QR-reduced system (casep.estimators.ols, casep.analysis.linalg)."""
+"""Least squares on the scaled QR-reduced system (casep.estimators.ols, casep.regression.linalg)."""
 
 from __future__ import annotations
 

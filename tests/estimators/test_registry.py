@@ -137,7 +137,7 @@ def test_workflows_ask_the_method_not_its_name():
 
 def test_a_solver_keyword_given_to_a_method_that_ignores_it_is_refused():
     """`max_condition_index` is PCR's keyword: separate() with another method refuses it, naming the taker."""
-    from casep.analysis.problem import Problem
+    from casep.regression.problem import Problem
 
     rng = np.random.default_rng(0)
     S = rng.standard_normal((50, 3, 3))

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from casep.analysis.problem import Problem
 from casep.estimators.reading import read_result
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
+from casep.regression.problem import Problem
 from casep.simulation.simulate import simulate_flight
 
 OLD = Path(__file__).parent / "data" / "old_results"

@@ -1,4 +1,4 @@
-"""FlightData validation (casep.io.flight) and the sample-count and all-zero dv checks (casep.analysis.checks)."""
+"""FlightData validation (casep.io.flight) and the sample-count and all-zero dv checks (casep.checks.plausibility)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import casep
-from casep.analysis.checks import check_enough_samples, min_samples
+from casep.checks.plausibility import check_enough_samples, min_samples
 from casep.io.flight import FlightDataError
 
 
@@ -80,7 +80,7 @@ def test_all_zero_dv_one_rule_for_separate_and_diagnose(tmp_path, capsys):
     for cmd in ("separate", "diagnose"):
         assert main([cmd, str(p)]) == 2
         assert "is exactly 0 at all" in capsys.readouterr().err
-    from casep.analysis.diagnostics import diagnose
+    from casep.checks.diagnostics import diagnose
 
     with pytest.raises(ValueError, match="`y` is 0 everywhere: sigma cannot be estimated"):
         diagnose(np.ones((20, 3, 2)), np.zeros((20, 3)))

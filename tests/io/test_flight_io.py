@@ -372,9 +372,9 @@ def test_two_rate_ols_coverage_is_honest_on_the_tracking_grid(rng):
     understate the error by about sqrt(20 / 5) = 2 (measured 0.64 coverage, RMS z 2.16)."""
     import dataclasses
 
-    from casep.analysis.problem import Problem
     from casep.estimators.ols import ols_linear_map
     from casep.io.pair import pair_flight
+    from casep.regression.problem import Problem
     from casep.simulation.noise import NoiseModel
     from casep.simulation.scenarios import get_scenario
     from casep.simulation.simulate import simulate_two_rate

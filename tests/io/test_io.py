@@ -212,7 +212,7 @@ def _forbid(monkeypatch, target: str):
     (["separate", "{flight}", "--json", "{missing}/r.json"], "casep.workflows.separate.separate"),
     (["separate", "{flight}", "--mat", "{missing}/r.mat"], "casep.workflows.separate.separate"),
     (["separate", "{flight}", "--csv", "{missing}/r.csv"], "casep.workflows.separate.separate"),
-    (["diagnose", "{flight}", "--json", "{missing}/d.json"], "casep.analysis.diagnostics.diagnose"),
+    (["diagnose", "{flight}", "--json", "{missing}/d.json"], "casep.checks.diagnostics.diagnose"),
     (["simulate", "-o", "{missing}/f.csv"], "casep.simulation.simulate.simulate_flight"),
     (["montecarlo", "--runs", "2", "--json", "{missing}/mc.json"], "casep.montecarlo.run_montecarlo"),
     (["montecarlo", "--runs", "2", "--csv", "{missing}/mc.csv"], "casep.montecarlo.run_montecarlo"),
@@ -230,7 +230,7 @@ def test_missing_output_folder_exit_2_before_any_work(flight_csv, tmp_path, caps
 
 
 def test_diagnose_figures_under_a_file_exit_2_before_any_work(flight_csv, tmp_path, capsys, monkeypatch):
-    _forbid(monkeypatch, "casep.analysis.diagnostics.diagnose")
+    _forbid(monkeypatch, "casep.checks.diagnostics.diagnose")
     (tmp_path / "file").write_text("")
     assert main(["diagnose", str(flight_csv), "--figures", str(tmp_path / "file")]) == 2
     assert "exists and is not a folder" in capsys.readouterr().err

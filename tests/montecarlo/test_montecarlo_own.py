@@ -24,7 +24,7 @@ def test_montecarlo_on_own_trajectory_matches_its_crlb(own):
     """The CRLB of the runs is that of the file's own S_V with the truth file's noise (by hand), and OLS is
     efficient on it (RMS error / CRLB std near 1 over 40 runs: mean over 36 coefficients within 15 %)."""
     import casep
-    from casep.analysis.diagnostics import crlb_covariance
+    from casep.checks.diagnostics import crlb_covariance
     from casep.montecarlo import run_montecarlo
 
     flight, side = own

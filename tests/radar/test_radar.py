@@ -267,7 +267,7 @@ def test_diagnostics_fixed_free_groups_and_station_gain(clean):
     assert "CRLB fixed" in rr.text()
     # the bounds come from the per-group reductions: the same as from every weighted row
     lin = rr.linearised
-    full = np.sqrt(np.diag(casep.analysis.diagnostics.crlb_covariance(lin.S * lin.weights[:, None], 1.0)))
+    full = np.sqrt(np.diag(casep.checks.diagnostics.crlb_covariance(lin.S * lin.weights[:, None], 1.0)))
     np.testing.assert_allclose([r["crlb_std_tracking_free"] for r in d["instrument"]], full[:36], rtol=1e-7)
     js = json.loads(json.dumps(rr.to_dict()))
     assert js["diagnostics"]["tracking_terms"][0] == "S1.range_bias" and js["radar"]["noise"][0]["source"] == "given"

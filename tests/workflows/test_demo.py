@@ -83,7 +83,7 @@ def test_demo_result_protocol(tmp_path):
 
 def test_demo_shares_rows_and_matches_separate():
     """The demo fits the noise model once for its methods; each result is the one separate() gives."""
-    from casep.analysis.problem import Problem
+    from casep.regression.problem import Problem
     from casep.simulation.paper import demo_bounds, demo_prior
     from casep.workflows.separate import separate
 

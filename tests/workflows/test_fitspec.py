@@ -2,7 +2,7 @@
 
 The request is built at the edge (keywords, command line) and checked by one validator; a
 keyword equal to its default is still "given"; a FitSpec passed directly fits the same as the
-keywords that build it. Noise-free flights (one rule, :meth:`casep.analysis.problem.Problem.is_noise_free`)
+keywords that build it. Noise-free flights (one rule, :meth:`casep.regression.problem.Problem.is_noise_free`)
 go through ``casep separate --json`` with exit 0, nothing rejected as a glitch, the truth recovered to
 1e-2 of its Cramer-Rao std at 0.1 m/s, and every JSON number finite.
 """
@@ -34,7 +34,7 @@ def clean_problem(platform36):
     f = excitation_force(t, duration=120.0)
     truth = np.array([TABLE1_TRUTH[n] for n in platform36.names])
     flight = casep.FlightData(t, f, inject_errors(platform36, t, f, truth))
-    return casep.analysis.problem.Problem.from_flight(flight, platform36), flight, truth
+    return casep.regression.problem.Problem.from_flight(flight, platform36), flight, truth
 
 
 # --------------------------------------------------------------------------- the request
@@ -89,8 +89,8 @@ def test_spec_is_frozen_and_decides_who_owns_tau():
 
 
 def test_noise_kinds_flow_from_the_noise_module():
-    """The noise kind is checked by casep.analysis.noise.check_noise_kind: every kind it knows is accepted."""
-    from casep.analysis.noise import NOISE_KINDS
+    """The noise kind is checked by casep.noise.model.check_noise_kind: every kind it knows is accepted."""
+    from casep.noise.model import NOISE_KINDS
 
     for kind in NOISE_KINDS:
         assert FitSpec.build("ols", noise=kind).noise.kind == kind
@@ -165,7 +165,7 @@ def _finite_json(path) -> dict:
 
 
 def _recovery_in_crlb_std(estimates: np.ndarray, truth: np.ndarray, flight, model) -> float:
-    from casep.analysis.diagnostics import crlb_covariance
+    from casep.checks.diagnostics import crlb_covariance
     from casep.workflows.separate import regression_rows
 
     S, _, _ = regression_rows(flight, model)

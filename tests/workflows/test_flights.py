@@ -131,7 +131,7 @@ def test_monte_carlo_joint_ols_efficiency_and_coverage(two, rng):
     """Two flights with noise 0.05 and 0.2 m/s (so the 1/sigma^2 weighting matters), sigma estimated per
     flight: RMS error / reported std in [0.9, 1.1] and 95 % coverage in [0.93, 0.97] over the
     coefficients and 200 seeded noise draws (reduced size for CI)."""
-    from casep.analysis.problem import Problem
+    from casep.regression.problem import Problem
 
     m = two[0].model
     S = [casep.build_sv(m, s.flight.t, s.flight.f, signals=s.flight.model_signals(m.signals, m.name)) for s in two]
@@ -255,9 +255,9 @@ def test_posterior_of_one_flight_as_prior_of_the_next_gives_the_joint_estimate(t
     """Sequential fusion: OLS on flight 1, its posterior (shared coefficients, full covariance) as the
     MAP prior of flight 2 = both flights at once, estimates and std (the Gaussian likelihoods multiply;
     flight 1's per-flight dt_trk is marginalised by taking the covariance block)."""
-    from casep.analysis.problem import Problem
     from casep.estimators.map import prior_from_result, solve_map
     from casep.estimators.ols import solve_ols
+    from casep.regression.problem import Problem
 
     a, b = two
     m = a.model
@@ -297,7 +297,7 @@ def test_rls_in_sequence_over_flights_equals_the_joint_bayesian_estimate(two):
 def test_gls_jointly_whitens_each_flight_with_its_own_tau(two):
     """Independent construction: each flight's rows AR(1)-whitened with its tau (ar1_whiten from
     diagnostics), divided by its whitened LS residual std, stacked, solved by column-scaled lstsq."""
-    from casep.analysis.diagnostics import ar1_whiten
+    from casep.checks.diagnostics import ar1_whiten
 
     a, b = two
     model = a.model
@@ -349,8 +349,8 @@ def test_rels_jointly_restarts_the_noise_memory_at_each_flight(two):
     """RELS over two flights: the MA regressors restart at flight 2's first sample. The same stacked
     whitened rows as one plain problem (memory carried over from flight 1's end) give a different
     answer, so the restart is in effect; on white noise both stay near joint RLS (MA(1) near 0)."""
-    from casep.analysis.problem import Problem
     from casep.estimators.rls import solve_rls
+    from casep.regression.problem import Problem
 
     a, b = two
     opts = {"noise_order": 1, "p0": 1e4}
@@ -433,9 +433,9 @@ def test_per_flight_coefficients_are_not_fused_or_carried_as_a_prior(two):
     """A single-flight result of platform36_timeoffset holds its own dt_trk: fusing two such results,
     or using one as the prior of the next flight, must leave dt_trk out (each flight has its own),
     and then equals the joint estimate of the shared coefficients."""
-    from casep.analysis.problem import Problem
     from casep.estimators.map import prior_from_result, solve_map
     from casep.estimators.ols import solve_ols
+    from casep.regression.problem import Problem
     from casep.workflows.fusion import fuse
 
     a, b = two
@@ -493,7 +493,7 @@ def test_chow_test_size_on_consistent_flights_and_power_against_an_unmodelled_30
     estimated from its own residuals) the overall test at 5 % fires about 5 % of the time (100 seeded
     draws through separate_flights + flights_summary: between 1 and 11, binomial 99 % range); a flight
     whose tracking is 30 ms late, estimated with a model without dt_trk, is rejected at 1 %."""
-    from casep.analysis.problem import Problem
+    from casep.regression.problem import Problem
     from casep.workflows.flights import flights_summary
 
     m = casep.load_model("platform36")

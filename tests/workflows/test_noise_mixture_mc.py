@@ -18,8 +18,8 @@ import pytest
 from conftest import dishonest_methods
 
 import casep
-from casep.analysis.problem import Problem
 from casep.exceptions import IllConditionedWarning, NoiseNotWhiteWarning
+from casep.regression.problem import Problem
 from casep.simulation.noise import NoiseModel as SimNoise
 from casep.workflows.solve import prepare_rows, solve_problem
 
@@ -51,7 +51,7 @@ def draw(S, t, names, seq, truth=None):
 
 def study(S, t, names, runs: int, seed: int) -> dict[str, np.ndarray]:
     """z = (estimate - reference) / std of every method over `runs` draws (the reference as in
-    ``tests/analysis/test_noise_model.py``: the truth; the method's noise-free answer on the same
+    ``tests/noise/test_noise_model.py``: the truth; the method's noise-free answer on the same
     rows for ridge and pcr; truths drawn from MAP's and RLS's prior, so their std are checked by
     Bayesian coverage)."""
     from casep.estimators.registry import METHODS

@@ -6,9 +6,9 @@ import warnings
 import numpy as np
 import pytest
 
-from casep.analysis.noise_id import identify_noise
 from casep.model.loader import load_model
 from casep.model.sv import build_sv
+from casep.noise.identification import identify_noise
 from casep.simulation.simulate import simulate_flight
 from casep.workflows.noise_report import flight_noise
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from casep._kernels import ar1_terms
-from casep.analysis.noise import NoiseModel
+from casep.noise.model import NoiseModel
 
 __all__ = ["ROBUST_FUNCTIONS", "RobustWeights", "robust_filter", "HUBER_C", "BISQUARE_C", "REJECT", "MAX_RUN"]
 

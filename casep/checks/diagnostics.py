@@ -32,11 +32,12 @@ zero columns are left out (they are unidentifiable by definition).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, Mapping, Sequence
+from typing import Any, ClassVar, Mapping, Sequence
 
 import numpy as np
 
-from casep.analysis.linalg import (
+from casep.noise.model import whiten_series
+from casep.regression.linalg import (
     RankAnalysis,
     ReducedSystem,
     analyze_rank,
@@ -45,10 +46,8 @@ from casep.analysis.linalg import (
     reduce_qr,
     unidentifiable_reasons,
 )
+from casep.regression.problem import Problem
 from casep.results import Completed, deprecated_alias
-
-if TYPE_CHECKING:
-    from casep.analysis.problem import Problem
 
 __all__ = ["Diagnostics", "diagnose", "crlb_covariance", "collinearity", "ar1_whiten", "ILL_CONDITIONED",
            "GROUP_INDEX", "GROUP_PROPORTION"]
@@ -127,9 +126,7 @@ def collinearity(red: ReducedSystem, ra: RankAnalysis) -> dict[str, Any]:
 def ar1_whiten(S: np.ndarray, t: np.ndarray, sigma: float, tau: float, share: float = 0.0) -> np.ndarray:
     """Whiten (N, 3, n) regressors for first-order Gauss-Markov noise of stationary std `sigma` (see module
     notes; with a white share `share` of the variance, Gauss-Markov plus white): the whitening of
-    :func:`casep.analysis.noise.whiten_series` on each axis, divided by `sigma`."""
-    from casep.analysis.noise import whiten_series
-
+    :func:`casep.noise.model.whiten_series` on each axis, divided by `sigma`."""
     t = np.asarray(t, dtype=float)
     if t.shape != (S.shape[0],):
         raise ValueError(f"`t` must have {S.shape[0]} samples, got shape {t.shape}")
@@ -341,7 +338,7 @@ def diagnose(
     Parameters
     ----------
     S : (N, 3, n) array_like, or Problem
-        Regression in natural units, or a :class:`~casep.analysis.problem.Problem` (then `y` is
+        Regression in natural units, or a :class:`~casep.regression.problem.Problem` (then `y` is
         omitted: the problem holds it).
     y : (N, 3) array_like, optional
         Velocity error; used to estimate sigma when `sigma` is not given.
@@ -359,8 +356,6 @@ def diagnose(
         A correlated prior's square-root information rows (see :func:`crlb_covariance`): the
         Bayesian bound uses them instead of `prior_std` (which stays the "weak" yardstick).
     """
-    from casep.analysis.problem import Problem
-
     if isinstance(S, Problem):  # its reduction and rank analysis, reused
         if y is not None:
             raise ValueError("`y` must be omitted when `S` is a Problem (the problem holds it)")
@@ -386,7 +381,7 @@ def diagnose(
         if y is None:
             raise ValueError("`sigma` or `y` is required (the bound scales with the noise std)")
         sigma = float(np.sqrt(least_squares_rss(red, ra) / (red.m - ra.rank)))
-        if not sigma > 0:  # all-zero y (flights: casep.analysis.checks.check_dv_not_zero) or an exact fit
+        if not sigma > 0:  # all-zero y (flights: casep.checks.plausibility.check_dv_not_zero) or an exact fit
             raise ValueError("`y` is " + ("0 everywhere" if not np.any(yy) else "fitted exactly (residuals 0)")
                              + ": sigma cannot be estimated from it; give `sigma`")
         source = "estimated from least-squares residuals"

@@ -1,4 +1,4 @@
-"""Wavelet de-noising (casep.analysis.denoise)."""
+"""Wavelet de-noising (casep.noise.denoise)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 import casep
-from casep.analysis.denoise import (
+from casep.exceptions import CasepWarning
+from casep.noise.denoise import (
     EXTENSIONS,
     MODES,
     denoise,
@@ -16,7 +17,6 @@ from casep.analysis.denoise import (
     max_level,
     select_threshold,
 )
-from casep.exceptions import CasepWarning
 
 
 @pytest.mark.parametrize("n", [10, 33, 1000, 65536])
@@ -169,7 +169,7 @@ def test_separate_records_settings_and_uses_raw_sigma(platform36):
 @pytest.mark.montecarlo
 def test_monte_carlo_denoising_does_not_help_ols(platform36):
     """Reduced form of benchmarks/mc_denoise.py: the claims of docs/results/denoising.md, at 20 Hz and 30 runs."""
-    from casep.analysis.diagnostics import crlb_covariance
+    from casep.checks.diagnostics import crlb_covariance
     from casep.simulation.noise import NoiseModel
     from casep.simulation.simulate import simulate_flight
 

@@ -1,4 +1,4 @@
-"""The late-start check (casep.analysis.late_start): a flight whose telemetry begins after lift-off."""
+"""The late-start check (casep.checks.late_start): a flight whose telemetry begins after lift-off."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import casep
-from casep.analysis.late_start import late_start_evidence
+from casep.checks.late_start import late_start_evidence
 from casep.exceptions import CasepWarning
 from casep.io.flight import LateStartWarning
 from casep.simulation.simulate import simulate_flight

@@ -1,20 +1,20 @@
 """The rows every method solves: the noise model, robust weights and removed samples of a problem.
 
 These belong to the data, not to a method: :func:`prepare_rows` works them out once for a
-problem (with least squares, whatever method follows; :meth:`casep.analysis.problem.Problem.rows`),
+problem (with least squares, whatever method follows),
 and every method then solves the same rows (:func:`casep.workflows.solve.solve_problem`), so its
 std hold in coloured noise and with glitches, and every method of a comparison sees the same rows.
 
-* Noise: :func:`casep.analysis.noise_fit.fit_noise` (white, Gauss-Markov per axis, or chosen by a
-  likelihood-ratio test), rows whitened by :meth:`casep.analysis.problem.Problem.whitened`.
+* Noise: :func:`casep.noise.fit.fit_noise` (white, Gauss-Markov per axis, or chosen by a
+  likelihood-ratio test), rows whitened by :meth:`casep.regression.problem.Problem.whitened`.
 * Robust (``robust="huber"|"bisquare"``): iterate least squares on the whitened, weighted rows
   and the robust filter on the innovations of its residuals
-  (:func:`casep.analysis.robust.robust_filter`: gross glitches removed as gaps, the rest
+  (:func:`casep.noise.robust.robust_filter`: gross glitches removed as gaps, the rest
   weighted); the correlation time is fitted again on the kept samples (so glitches cannot
   collapse it); until the kept samples settle and the estimate stops moving. The methods then
   take the M-estimator's noise std (:func:`_robust_sigma`).
 * ``exclude_outliers=alpha``: rows flagged by their externally studentized residual on the
-  whitened rows (:func:`casep.analysis.outliers.flag_outliers`, family-wise false-alarm chance
+  whitened rows (:func:`casep.regression.outliers.flag_outliers`, family-wise false-alarm chance
   ``alpha``); their samples removed and the rows prepared again, until nothing is flagged.
 """
 
@@ -25,10 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from casep.analysis.noise import NoiseModel, check_noise_kind
-from casep.analysis.noise_fit import fit_noise
-from casep.analysis.problem import NOISE_FREE, Problem  # NOISE_FREE re-exported: the one noise-free constant
-from casep.analysis.robust import robust_filter
+from casep.noise.fit import fit_noise
+from casep.noise.model import NoiseModel, check_noise_kind
+from casep.noise.robust import robust_filter
+from casep.regression.problem import NOISE_FREE, Problem  # NOISE_FREE re-exported: the one noise-free constant
 
 __all__ = ["Rows", "prepare_rows", "NOISE_FREE", "ROBUST_CHOICES", "GLITCH_SIGMAS"]
 
@@ -107,7 +107,7 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float]:
     """(rejections of the robust filter on the least-squares residuals, the count Gaussian noise gives)."""
     from scipy.special import ndtr  # the normal cdf without importing scipy.stats (0.3 s on the CLI's path)
 
-    from casep.analysis.robust import REJECT
+    from casep.noise.robust import REJECT
 
     assert problem.t is not None  # the caller checked
     x, _ = _ls(_rows(problem, np.ones(problem.n_samples, dtype=bool), nm, None))
@@ -210,7 +210,7 @@ def _robust_sigma(rw, keep: np.ndarray, function: str) -> float | None:
     over the kept rows (``Z^T W Z ~ mean(w) Z^T Z``). The weighted residual std alone,
     ``s^2 mean(w u^2)``, is about 10 % too small for Huber at the Gaussian (0.821 against 1.030).
     """
-    from casep.analysis.robust import BISQUARE_C, HUBER_C
+    from casep.noise.robust import BISQUARE_C, HUBER_C
 
     u = rw.u[keep].reshape(-1)
     w = rw.weights[keep].reshape(-1)
@@ -230,7 +230,7 @@ def _robust_sigma(rw, keep: np.ndarray, function: str) -> float | None:
 
 def _exclude(problem, solved, nm, keep, weights, alpha, noise="auto", tau=None):
     """Remove the samples of flagged rows and prepare the rows again until nothing is flagged."""
-    from casep.analysis.outliers import flag_outliers
+    from casep.regression.outliers import flag_outliers
 
     keep = keep.copy()
     removed: list[dict] = []

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 import casep
-from casep.analysis.linalg import reduce_qr, reduce_qr_blocks
-from casep.analysis.problem import Problem
-from casep.analysis.time_offset import time_offset_test
+from casep.checks.time_offset import time_offset_test
 from casep.estimators.registry import METHODS, run_method
 from casep.model.sv import SVBuilder, build_sv
+from casep.regression.linalg import reduce_qr, reduce_qr_blocks
+from casep.regression.problem import Problem
 from casep.simulation.simulate import simulate_flight
 
 
@@ -89,7 +89,7 @@ def test_noise_free_recovery_through_from_flight(sim):
 
 
 def test_time_offset_test_is_the_same_from_residuals_or_dv(sim, streamed):
-    """Frisch-Waugh-Lovell: the test reads only the part off span S (casep.analysis.checks caches it)."""
+    """Frisch-Waugh-Lovell: the test reads only the part off span S (casep.checks.plausibility caches it)."""
     S = build_sv(sim.model, sim.flight.t, sim.flight.f)
     res = casep.solve_ols(S, sim.flight.dv)
     r = sim.flight.dv - S @ res.estimate
@@ -102,8 +102,8 @@ def test_separate_and_demo_build_sv_and_qr_once(sim, tmp_path):
     """S_V integrated once per flight, the one QR reused by every method of the demo."""
     real_build = SVBuilder._integrate
     with mock.patch.object(SVBuilder, "_integrate", autospec=True, side_effect=real_build) as integ, \
-            mock.patch("casep.analysis.problem.reduce_qr_blocks", wraps=reduce_qr_blocks) as red_b, \
-            mock.patch("casep.analysis.problem.reduce_qr", wraps=reduce_qr) as red:
+            mock.patch("casep.regression.problem.reduce_qr_blocks", wraps=reduce_qr_blocks) as red_b, \
+            mock.patch("casep.regression.problem.reduce_qr", wraps=reduce_qr) as red:
         casep.separate(sim.flight, sim.model, "ols")
         assert red.call_count + red_b.call_count == 1
         # S_V: once to reduce, once more for the residual checks (regenerated, never held whole)
@@ -111,7 +111,7 @@ def test_separate_and_demo_build_sv_and_qr_once(sim, tmp_path):
     from casep.workflows import demo
 
     with mock.patch.object(SVBuilder, "_integrate", autospec=True, side_effect=real_build) as integ, \
-            mock.patch("casep.analysis.problem.reduce_qr", wraps=reduce_qr) as red:
+            mock.patch("casep.regression.problem.reduce_qr", wraps=reduce_qr) as red:
         demo.run_demo(None, seed=1, rate=20.0)
         assert integ.call_count == 1 + 1  # the simulator's truth, the demo's one Problem
         assert red.call_count == 1

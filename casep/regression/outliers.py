@@ -14,7 +14,7 @@ Leverages come from the reduction without forming the hat matrix: with column-sc
 ``h_i = || Z_i V_r diag(1/s_r) ||^2``. A row is flagged when ``|t_i|`` exceeds the two-sided
 ``rate`` quantile; the default ``rate = alpha / m`` (Bonferroni) makes the chance of any false
 flag in a clean flight at most ``alpha``. The test assumes white noise: with correlated noise
-use the spike check of :func:`casep.analysis.checks.check_fit`, and the robust estimator
+use the spike check of :func:`casep.checks.plausibility.check_fit`, and the robust estimator
 (``--method huber``) to estimate with outliers in.
 """
 
@@ -26,7 +26,7 @@ from typing import Any, ClassVar
 import numpy as np
 from scipy import stats
 
-from casep.analysis.linalg import least_squares_rss
+from casep.regression.linalg import least_squares_rss
 from casep.results import Completed, deprecated_alias
 
 __all__ = ["OutlierFlags", "studentized_residuals", "flag_outliers"]

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from casep.analysis.whiteness import ljung_box
+from casep.noise.whiteness import ljung_box
 
 
 @pytest.mark.parametrize("lags", [1, 5, 10, 40])
@@ -23,7 +23,7 @@ def test_ljung_box_p_value_is_the_chi2_survival_function(lags):
 
 
 def test_ljung_box_does_not_import_scipy_stats():
-    code = ("import sys, numpy as np; from casep.analysis.whiteness import ljung_box; "
+    code = ("import sys, numpy as np; from casep.noise.whiteness import ljung_box; "
             "ljung_box(np.random.default_rng(0).normal(size=200), 5); "
             "assert 'scipy.stats' not in sys.modules, 'scipy.stats imported'")
     subprocess.run([sys.executable, "-c", code], check=True)

@@ -1,4 +1,4 @@
-"""Collinearity and identifiability diagnostics (casep.analysis.diagnostics)."""
+"""Collinearity and identifiability diagnostics (casep.checks.diagnostics)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from scipy.linalg import toeplitz
 
 import casep
-from casep.analysis.diagnostics import crlb_covariance, diagnose
+from casep.checks.diagnostics import crlb_covariance, diagnose
 from casep.cli import main
 from casep.exceptions import IllConditionedWarning
 

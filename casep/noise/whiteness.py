@@ -2,7 +2,7 @@
 
 The std of a fit are honest only when its whitened residuals are white (for noise ``white`` the
 raw residuals; for a Gauss-Markov or Gauss-Markov-plus-white model the residuals whitened by it,
-:mod:`casep.analysis.noise`). :func:`whiteness_test` says per axis whether they are, and
+:mod:`casep.noise.model`). :func:`whiteness_test` says per axis whether they are, and
 :meth:`WhitenessTest.message` how much too small the std then are (the std of a Gauss-Markov plus
 white model of the same data over the reported ones) and which noise model to ask for.
 """
@@ -14,7 +14,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from casep.analysis.noise import AXES
+from casep.noise.model import AXES
 from casep.results import Completed
 
 #: Level of the test (Bonferroni over the axes) of residuals whitened by a noise model fitted to the same data

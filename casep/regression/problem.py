@@ -17,11 +17,13 @@ Rows are ``(N, 3)`` samples x axes; ``S.reshape(3 N, n)`` is the stacked regress
 
 from __future__ import annotations
 
-from typing import Any, Callable, Iterator, Sequence
+from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
-from casep.analysis.linalg import (
+from casep.io.flight import FlightData
+from casep.noise.model import NoiseModel, whiten, whiten_blocks
+from casep.regression.linalg import (
     RankAnalysis,
     ReducedSystem,
     analyze_rank,
@@ -58,7 +60,7 @@ class Problem:
 
     Build it with :meth:`from_flight`, :meth:`from_arrays` or :meth:`from_reduction`; pass it
     to any solver in place of ``S`` (``solve_ols(problem)``) or to
-    :func:`casep.analysis.diagnostics.diagnose`.
+    :func:`casep.checks.diagnostics.diagnose`.
 
     Attributes
     ----------
@@ -99,7 +101,7 @@ class Problem:
         self._regenerate = regenerate
         self._ranks: dict[float | None, RankAnalysis] = {}
         #: First row (sample) of each segment: flights stacked into one problem
-        #: (:class:`casep.analysis.joint.JointProblem`) are segments; one flight is one segment. A
+        #: (:class:`casep.regression.joint.JointProblem`) are segments; one flight is one segment. A
         #: recursive method's noise memory restarts at each segment.
         self.segment_starts: tuple[int, ...] = (0,)
         #: The raw problem this one was derived from by :meth:`subset` or :meth:`whitened` (None: raw).
@@ -107,10 +109,10 @@ class Problem:
         #: Indices of this problem's samples among the parent's (None: all of them).
         self.sample_index: np.ndarray | None = None
         #: The noise model the rows are whitened for (None: raw rows).
-        self.noise: Any = None
+        self.noise: NoiseModel | None = None
         self._unwhitened: Problem | None = None  # the same rows before whitening
         #: Where rows come from (file, line, time): ``locate(rows)`` for indices of this problem's rows.
-        self._locate_flight: tuple[Any, np.ndarray] | None = None  # (flight, observed samples) of a flight's
+        self._locate_flight: tuple[FlightData, np.ndarray] | None = None  # (flight, observed samples) of a flight's
         n = red.n
         for label, seq in (("names", self.names), ("units", self.units), ("si_factors", self.si_factors)):
             if len(seq) != n:
@@ -150,9 +152,13 @@ class Problem:
         return cls(names=names, units=units, si_factors=si_factors, red=red, model=model, source=source)
 
     @classmethod
-    def from_flight(cls, flight, model, *, keep_sv: bool | None = None, block_rows: int = DEFAULT_BLOCK_ROWS,
-                    checks: bool = True) -> "Problem":
-        """The regression of a flight for a set-up model, S_V integrated once.
+    def from_flight(cls, flight, model, *, keep_sv: bool | None = None,
+                    block_rows: int = DEFAULT_BLOCK_ROWS) -> "Problem":
+        """The regression of a flight for a set-up model, S_V integrated once; no check of the flight.
+
+        The checks before estimation (too few samples, units, an all-zero dv, the set-up, a late
+        start) are judgements of the data: :func:`casep.checks.flight_problem.flight_problem` runs
+        them and then builds the problem here, as every workflow and command does.
 
         S_V is integrated over every sample from the first telemetry sample (where the model
         has dv = 0 and phi = 0); the rows where tracking observes dv are the regression
@@ -169,21 +175,8 @@ class Problem:
             most :data:`SV_KEEP_BYTES`.
         block_rows : int, optional
             Samples per block.
-        checks : bool, optional
-            Refuse too few observed samples and an all-zero dv, check the flight's units and
-            values (:func:`casep.analysis.checks.check_flight`), warn when it starts after
-            lift-off without the model's initial terms (default True).
         """
-        from casep.analysis.checks import check_dv_not_zero, check_enough_samples, check_flight, warn_setup
-        from casep.analysis.late_start import warn_late_start
         from casep.model.sv import SVBuilder
-
-        if checks:
-            check_enough_samples(flight, model.n_coefficients, model.name)
-            check_flight(flight)  # unit mistakes, impossible data
-            check_dv_not_zero(flight)
-            warn_setup(flight)  # site, azimuth, launch time, time scales against the data
-            warn_late_start(flight, model)
 
         builder = SVBuilder(model)
         signals = flight.model_signals(model.signals, model.name)
@@ -273,8 +266,8 @@ class Problem:
         new.sample_index = idx if self.sample_index is None else self.sample_index[idx]
         return new
 
-    def whitened(self, noise, *, weights: np.ndarray | None = None) -> "Problem":
-        """The regression on rows whitened for a noise model (:mod:`casep.analysis.noise`).
+    def whitened(self, noise: NoiseModel, *, weights: np.ndarray | None = None) -> "Problem":
+        """The regression on rows whitened for a noise model (:mod:`casep.noise.model`).
 
         Every estimator solves on the whitened rows as on any problem: least squares there is
         the GLS estimate, and the std follow the noise model. Residuals of the raw rows:
@@ -286,8 +279,6 @@ class Problem:
         weights : (N, 3) array_like, optional
             Robust row weights in (0, 1]: the whitened rows are multiplied by ``sqrt(w)``.
         """
-        from casep.analysis.noise import whiten, whiten_blocks
-
         y0 = self._need_rows()
         if self.noise is not None:
             raise ValueError(f"problem `{self.source}` is whitened already")
@@ -334,17 +325,6 @@ class Problem:
         for d, k in zip(out, idx):
             d["sample"] = int(k)  # the problem's row, as the results count them
         return out
-
-    def rows(self, noise: str = "auto", tau=None, robust: str | None = None, exclude_outliers: float | None = None):
-        """The rows every method solves: this problem's noise model, robust weights and removed samples.
-
-        :func:`casep.analysis.rows.prepare_rows`; ``rows.solved`` is the problem to hand to any
-        solver (``casep.solve_map(problem.rows().solved, prior=...)``), ``rows.noise`` the noise
-        model.
-        """
-        from casep.analysis.rows import prepare_rows
-
-        return prepare_rows(self, noise, tau, robust, exclude_outliers)
 
     def raw_residuals(self, x: np.ndarray, *, all_samples: bool = True) -> np.ndarray:
         """``dv - S x`` of the raw rows: of every sample of the parent (default), or of this problem's own."""

@@ -1,4 +1,4 @@
-"""Fitting the noise model of the rows (:class:`casep.analysis.noise.NoiseModel`) by REML.
+"""Fitting the noise model of the rows (:class:`casep.noise.model.NoiseModel`) by REML.
 
 REML
 ----
@@ -7,8 +7,8 @@ relative std per axis) with ``sigma^2`` profiled out::
 
     -2 l_R(theta) = (m - p) ln RSS_w + sum_a [N ln r_a^2 + sum_k ln F_ak] + ln det(Z_w^T Z_w)
 
-with ``Z = S V_p`` a basis of the estimable column space (rank ``p``, :mod:`casep.analysis.linalg`),
-``F_ak`` the innovation variances of the whitening (:mod:`casep.analysis.noise`; ``1 - a_k^2`` for
+with ``Z = S V_p`` a basis of the estimable column space (rank ``p``, :mod:`casep.regression.linalg`),
+``F_ak`` the innovation variances of the whitening (:mod:`casep.noise.model`; ``1 - a_k^2`` for
 Gauss-Markov, 1 for white), ``RSS_w`` the whitened residual sum of squares and ``m = 3 N``. It is
 evaluated from one ``(p + 1) x (p + 1)`` Gram matrix per axis: ``G = sum_a M_a / r_a^2 = T^T T``
 gives the log-determinant on the diagonal of ``T`` and ``RSS_w = T_pp^2``.
@@ -50,7 +50,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from casep._kernels import ar1_terms
-from casep.analysis.noise import (
+from casep.noise.model import (
     AUTO_LR,
     AUTO_LR_SCALE,
     NoiseModel,
@@ -345,7 +345,7 @@ SCREEN_P = 0.2
 
 def _whitened_p(reml: Reml, fit: _Fit, j: int) -> float:
     """Ljung-Box p-value of axis j's residuals whitened by `fit` (Gauss-Markov on that axis)."""
-    from casep.analysis.whiteness import default_lags, ljung_box
+    from casep.noise.whiteness import default_lags, ljung_box
 
     _, T = reml.evaluate(fit.taus, fit.scales, fit.shares)
     if T is None:
@@ -520,7 +520,7 @@ def bounded_minimum(func: Callable[[float], float], a: float, b: float, xatol: f
 
     The algorithm and the numbers of ``scipy.optimize.minimize_scalar(func, bounds=(a, b),
     method="bounded", options={"xatol": xatol}).x`` (the same steps and function values,
-    ``tests/analysis/test_bounded_minimum.py``), without importing ``scipy.optimize`` (0.2 s, most of the
+    ``tests/noise/test_bounded_minimum.py``), without importing ``scipy.optimize`` (0.2 s, most of the
     noise fit of a short flight). At most `maxfun` evaluations.
     """
     sqrt_eps = math.sqrt(2.2e-16)

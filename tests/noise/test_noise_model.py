@@ -1,4 +1,4 @@
-"""casep.analysis.noise, casep.analysis.robust, casep.workflows.solve: the noise model of the rows.
+"""casep.noise.model, casep.noise.robust, casep.workflows.solve: the noise model of the rows.
 
 Whitening and REML against dense generalised least squares with the exact AR(1) covariance, the
 white / Gauss-Markov choice, the whiteness test, HAC against statsmodels, the robust filter, and
@@ -14,12 +14,12 @@ import pytest
 from conftest import dishonest_methods
 
 import casep
-from casep.analysis.noise import AUTO_LR, NoiseModel
-from casep.analysis.noise_fit import Reml, estimable_basis, fit_noise
-from casep.analysis.problem import Problem
-from casep.analysis.robust import robust_filter
-from casep.analysis.whiteness import ljung_box, whiteness_test
 from casep.exceptions import IllConditionedWarning, NoiseNotWhiteWarning
+from casep.noise.fit import Reml, estimable_basis, fit_noise
+from casep.noise.model import AUTO_LR, NoiseModel
+from casep.noise.robust import robust_filter
+from casep.noise.whiteness import ljung_box, whiteness_test
+from casep.regression.problem import Problem
 from casep.simulation.noise import ar1_noise
 from casep.workflows.solve import hac_covariance, prepare_rows, solve_problem
 
@@ -72,8 +72,8 @@ def test_whitening_block_by_block_equals_whole(platform36, flight_tf):
     S = casep.build_sv(platform36, t, f)
     y = S @ rng.normal(size=36) * 1e-3 + ar1_noise(t, 0.1, 1.0, rng)
     fl = casep.FlightData(t=t, f=f, dv=y)
-    whole = Problem.from_flight(fl, platform36, keep_sv=True, checks=False)
-    blocks = Problem.from_flight(fl, platform36, keep_sv=False, block_rows=257, checks=False)
+    whole = Problem.from_flight(fl, platform36, keep_sv=True)
+    blocks = Problem.from_flight(fl, platform36, keep_sv=False, block_rows=257)
     nm = NoiseModel(kind="gmw", tau=(1.0, 0.7, None), scale=(1.0, 1.3, 0.8), share=(0.0, 0.3, 0.0))
     a, b = whole.whitened(nm), blocks.whitened(nm)
     np.testing.assert_allclose(np.abs(a.red.R), np.abs(b.red.R), rtol=1e-9, atol=1e-9 * np.abs(a.red.R).max())
@@ -350,12 +350,12 @@ def test_dt_trk_is_fitted_after_automatic_alignment_without_a_columns(tmp_path):
     assert abs(shift_ms + res.estimate[res.names.index("dt_trk")] - 30.0) < 0.1
 
 
-def test_problem_rows_serve_any_solver(range_problem):
-    """problem.rows(): the noise model belongs to the data; a solver called on rows.solved gives what
+def test_prepared_rows_serve_any_solver(range_problem):
+    """prepare_rows(problem): the noise model belongs to the data; a solver called on rows.solved gives what
     separate() gives with the same noise options."""
     S, t, truth = range_problem
     pb = _draw(S, t, truth, np.random.SeedSequence(10), glitches=0.005)
-    rows = pb.rows(robust="huber")
+    rows = prepare_rows(pb, robust="huber")
     assert rows.noise.kind == "auto" and (~rows.keep).sum() > 0 and rows.sigma > 0
     prior = {"Ka0x": {"mean": 0.0, "std": 1.0}}
     with warnings.catch_warnings():

@@ -34,7 +34,7 @@ flight.
 
 Before estimation, with the model: :func:`check_enough_samples`, :func:`check_dv_not_zero` (errors),
 :func:`warn_setup` (the set-up evidence the pair reader recorded, :mod:`casep.io.setup`) and
-:func:`casep.analysis.late_start.warn_late_start`.
+:func:`casep.checks.late_start.warn_late_start`.
 
 :func:`check_fit` (after estimation, on ``r = dv - S_V D_hat``)
     - **Noise-free data**: residual RMS at the rounding level of dv (below 1e-9 max |dv|):
@@ -45,7 +45,7 @@ Before estimation, with the model: :func:`check_enough_samples`, :func:`check_dv
       (``MAD(d) / sqrt(1.5)``: the sample-to-sample scatter, which the outlier's pull on the
       fit does not inflate). The check runs on the raw dv (after de-noising, the residuals of the
       thresholded dv are sparse and heavy-tailed, not noise).
-    - **Tracking time offset**: see :func:`casep.analysis.time_offset.time_offset_test`.
+    - **Tracking time offset**: see :func:`casep.checks.time_offset.time_offset_test`.
 """
 
 from __future__ import annotations
@@ -55,8 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from casep.analysis.problem import NOISE_FREE, is_rounding_level  # NOISE_FREE re-exported: the one constant
-from casep.analysis.time_offset import (
+from casep.checks.time_offset import (
     GRAVITY_LAUNCH,
     is_problem,
     problem_time_offset_test,
@@ -73,6 +72,7 @@ from casep.exceptions import (
     TimeOffsetWarning,
 )
 from casep.io.flight import DV_COLUMNS, FlightData, FlightDataError
+from casep.regression.problem import NOISE_FREE, is_rounding_level  # NOISE_FREE re-exported: the one constant
 from casep.units import G0
 
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
@@ -310,7 +310,7 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
     Parameters
     ----------
     S : (N, 3, n) array_like or Problem
-        Regression matrix the estimate used (a :class:`~casep.analysis.problem.Problem`: its
+        Regression matrix the estimate used (a :class:`~casep.regression.problem.Problem`: its
         rows regenerated block by block).
     dv : (N, 3) array_like
         Velocity error the estimate used, m/s.

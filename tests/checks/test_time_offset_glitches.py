@@ -36,7 +36,7 @@ def test_glitches_removed_by_the_robust_fit_give_no_time_offset_warning(glitchy,
 
 def test_the_test_on_every_sample_is_the_test_without_a_keep_mask(paper_problem):
     """keep all True is the plain test, to rounding; a kept subset is the test on those samples' rows."""
-    from casep.analysis.time_offset import time_offset_test
+    from casep.checks.time_offset import time_offset_test
     from casep.simulation.simulate import simulate_flight
 
     S, dv, _ = paper_problem

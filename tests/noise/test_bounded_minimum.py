@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
-from casep.analysis.noise_fit import bounded_minimum
+from casep.noise.fit import bounded_minimum
 
 
 def _recorded(func):

@@ -2,7 +2,7 @@
 
 Notes
 -----
-Flight k (k = 1..K) reduces its column-scaled regression once (:mod:`casep.analysis.linalg`):
+Flight k (k = 1..K) reduces its column-scaled regression once (:mod:`casep.regression.linalg`):
 with ``Z_k = S_k diag(c_k)^-1`` and ``[Z_k | y_k] = Q_k [[R_k, q_k], [0, rho_k]]``::
 
     ||y_k - S_k D||^2 = ||q_k - R_k diag(c_k) D||^2 + rho_k^2
@@ -30,8 +30,8 @@ from typing import Iterator, Sequence
 
 import numpy as np
 
-from casep.analysis.linalg import ReducedSystem, analyze_rank, least_squares_rss, reduce_qr
-from casep.analysis.problem import DEFAULT_BLOCK_ROWS, Problem
+from casep.regression.linalg import ReducedSystem, analyze_rank, least_squares_rss, reduce_qr
+from casep.regression.problem import DEFAULT_BLOCK_ROWS, Problem
 
 __all__ = ["JointLayout", "JointProblem", "joint_reduction", "flight_rss"]
 

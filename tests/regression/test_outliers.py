@@ -1,4 +1,4 @@
-"""Studentized residuals and outlier flags (casep.analysis.outliers)."""
+"""Studentized residuals and outlier flags (casep.regression.outliers)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import casep
-from casep.analysis.outliers import flag_outliers, studentized_residuals
-from casep.analysis.problem import Problem
+from casep.regression.outliers import flag_outliers, studentized_residuals
+from casep.regression.problem import Problem
 from casep.simulation.simulate import simulate_flight
 
 

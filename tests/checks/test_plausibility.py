@@ -1,4 +1,4 @@
-"""Plausibility and residual checks (casep.analysis.checks): unit mistakes, impossible data, noise-free
+"""Plausibility and residual checks (casep.checks.plausibility): unit mistakes, impossible data, noise-free
 data, outliers and a tracking time offset, through the API and the command line."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import casep
-from casep.analysis.checks import check_flight
-from casep.analysis.time_offset import GRAVITY_LAUNCH, time_offset_test
+from casep.checks.plausibility import check_flight
+from casep.checks.time_offset import GRAVITY_LAUNCH, time_offset_test
 from casep.cli import main
 from casep.exceptions import (
     CasepWarning,

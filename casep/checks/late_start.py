@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from casep.analysis.checks import setup_problems
+from casep.checks.plausibility import setup_problems
 from casep.io.flight import FlightData, LateStartWarning
 
 __all__ = ["late_start_evidence", "warn_late_start", "START_WINDOW_S", "START_DEGREE", "START_MIN_SAMPLES",

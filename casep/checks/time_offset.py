@@ -1,4 +1,4 @@
-"""The residual test for a tracking time offset (and a jerk term) of :func:`casep.analysis.checks.check_fit`.
+"""The residual test for a tracking time offset (and a jerk term) of :func:`casep.checks.plausibility.check_fit`.
 
 Tracking time tags late by dt give ``dv += a(t) dt``: a regressor outside the span of S_V, which
 :func:`time_offset_test` finds in the residuals by an augmented regression (see its notes).
@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from casep.analysis.linalg import reduce_qr_blocks
+from casep.regression.linalg import reduce_qr_blocks
 from casep.units import G0
 
 __all__ = ["TimeOffsetTest", "time_offset_test", "kinematic_acceleration", "GRAVITY_LAUNCH", "row_blocks",
@@ -72,7 +72,7 @@ def row_blocks(S) -> tuple:
 
 
 def is_problem(S) -> bool:
-    """A :class:`casep.analysis.problem.Problem` (by its interface: problem.py imports this module)."""
+    """A :class:`casep.regression.problem.Problem` (by its interface: problem.py imports this module)."""
     return hasattr(S, "blocks") and hasattr(S, "red") and hasattr(S, "has_rows")
 
 
@@ -98,7 +98,7 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray,
     ``dv += a(t) dt``, not integrated: a regressor outside the span of S_V. The test adds
     the columns ``a(t)`` and ``da/dt`` (stacked over the three axes, one shared coefficient
     each, as a model term would be) to S and reads their coefficients off the last 2 x 2
-    block of the QR factor of ``[S | a | j] / c`` (:func:`casep.analysis.linalg.reduce_qr`):
+    block of the QR factor of ``[S | a | j] / c`` (:func:`casep.regression.linalg.reduce_qr`):
     ``R22 beta = q2``, ``Cov(beta) = s^2 kappa (R22^T R22)^-1`` with
     ``s^2 = RSS / (m - p)`` and ``kappa = max_axis (1 + rho) / (1 - rho)`` (rho = lag-1
     autocorrelation of the augmented residuals, clipped to [0, 0.999]): the long-run
@@ -106,7 +106,7 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray,
     read as a signal. By Frisch-Waugh-Lovell the test does not depend on the estimate
     that produced `r` (any D_hat leaves the same projection off span S).
 
-    `S` may be a :class:`~casep.analysis.problem.Problem`: its rows are then regenerated block
+    `S` may be a :class:`~casep.regression.problem.Problem`: its rows are then regenerated block
     by block (twice), never held whole.
 
     Cost: one QR of the 3N x (n + 2) matrix, about one OLS solve (0.04 s against 0.03 s on

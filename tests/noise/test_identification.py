@@ -1,4 +1,4 @@
-"""Allan deviation and noise identification (casep.analysis.noise_id)."""
+"""Allan deviation and noise identification (casep.noise.identification)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 import pytest
 
-from casep.analysis.noise_id import allan_deviation, avar_gauss_markov, avar_random_walk, avar_white, identify_noise
+from casep.noise.identification import allan_deviation, avar_gauss_markov, avar_random_walk, avar_white, identify_noise
 
 
 def _ar1(rng, n, dt, T, q):

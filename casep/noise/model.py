@@ -6,7 +6,7 @@ correlation time of about a second, usually with a white measurement noise on to
 with a white-noise std is then several times overconfident, and a Gauss-Markov model without the
 white part is too (it fits a short correlation time to the mixture). The noise model belongs to
 the data, so every estimator solves on the same whitened rows
-(:meth:`casep.analysis.problem.Problem.whitened`).
+(:meth:`casep.regression.problem.Problem.whitened`).
 
 Model
 -----
@@ -36,8 +36,8 @@ holds. ``ln det`` of the correlation matrix is ``sum_k ln F_k``. For ``w = 0`` t
 the AR(1) difference ``u_k = (e_k - a_k e_(k-1)) / sqrt(1 - a_k^2)`` (vectorised); for ``w > 0``
 it runs compiled (:func:`casep._kernels.gmw_filter`). The rows are divided by ``r_a``.
 
-The noise model is fitted by REML (:func:`casep.analysis.noise_fit.fit_noise`); the whitened
-residuals are tested for whiteness by :func:`casep.analysis.whiteness.whiteness_test`.
+The noise model is fitted by REML (:func:`casep.noise.fit.fit_noise`); the whitened
+residuals are tested for whiteness by :func:`casep.noise.whiteness.whiteness_test`.
 """
 
 from __future__ import annotations
@@ -117,7 +117,7 @@ class NoiseModel(Completed):
     lr_white : tuple of 3 (float or None), optional
         ``auto``: -2 ln Lambda of Gauss-Markov plus white against Gauss-Markov per axis (None where
         not tried: a white axis, or a Gauss-Markov one whose whitened residuals pass the screen of
-        :data:`casep.analysis.noise_fit.SCREEN_P`).
+        :data:`casep.noise.fit.SCREEN_P`).
     """
 
     what: ClassVar[str] = "noise model of the rows"

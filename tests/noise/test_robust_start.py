@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from casep.analysis.noise import NoiseModel
-from casep.analysis.robust import robust_filter
+from casep.noise.model import NoiseModel
+from casep.noise.robust import robust_filter
 from casep.simulation.noise import ar1_noise
 
 GM = NoiseModel(kind="gm", tau=(1.0, 1.0, 1.0))

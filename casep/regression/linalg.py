@@ -336,7 +336,7 @@ def refine_least_squares(red: ReducedSystem, ra: RankAnalysis, x: np.ndarray,
         Solution in natural units (the minimum-norm one at rank ``r``).
     blocks : callable
         ``blocks(rows)`` yields ``(slice, S block, y block)`` of the rows the reduction stands for
-        (:meth:`casep.analysis.problem.Problem.blocks`).
+        (:meth:`casep.regression.problem.Problem.blocks`).
 
     Returns
     -------

@@ -9,9 +9,9 @@ import pytest
 
 from casep import _compiled
 from casep._kernels import ar1_terms, gmw_filter_numpy
-from casep.analysis.noise import NOISE_KINDS, NoiseModel, whiten, whiten_series
-from casep.analysis.noise_fit import Reml, estimable_basis, fit_noise
-from casep.analysis.problem import Problem
+from casep.noise.fit import Reml, estimable_basis, fit_noise
+from casep.noise.model import NOISE_KINDS, NoiseModel, whiten, whiten_series
+from casep.regression.problem import Problem
 
 
 def _times(rng, n: int, dt: float = 0.05) -> np.ndarray:

@@ -1,0 +1,64 @@
+"""A flight's problem, checked before estimation: the one way casep builds the regression of a flight.
+
+:meth:`casep.regression.problem.Problem.from_flight` builds the regression and judges nothing (the
+regression layer knows no check); :func:`flight_problem` runs the checks before estimation first
+(:func:`check_before_estimation`), so that every workflow, command and campaign refuses and warns
+about the same flights, with the same messages, before S_V is integrated.
+"""
+
+from __future__ import annotations
+
+from casep.checks.late_start import warn_late_start
+from casep.checks.plausibility import check_dv_not_zero, check_enough_samples, check_flight, warn_setup
+from casep.io.flight import FlightData
+from casep.model.error_model import ErrorModel
+from casep.regression.problem import DEFAULT_BLOCK_ROWS, Problem
+
+__all__ = ["check_before_estimation", "flight_problem"]
+
+
+def check_before_estimation(flight: FlightData, model: ErrorModel) -> None:
+    """The checks of a flight for a set-up model before estimation, in this order.
+
+    Too few observed samples for the model's coefficients (:func:`check_enough_samples`, error);
+    unit mistakes and impossible data (:func:`check_flight`); an all-zero dv
+    (:func:`check_dv_not_zero`, error); the set-up evidence the pair reader recorded (site,
+    azimuth, launch time, time scales: :func:`warn_setup`); tracking that starts after lift-off
+    without the model's initial terms (:func:`casep.checks.late_start.warn_late_start`).
+
+    Raises
+    ------
+    casep.io.flight.FlightDataError
+        Data that cannot be a boost flight, or too little of it.
+
+    Warns
+    -----
+    PlausibilityWarning, SetupWarning, LateStartWarning
+        Legal but suspicious data, with the numbers.
+    """
+    check_enough_samples(flight, model.n_coefficients, model.name)
+    check_flight(flight)
+    check_dv_not_zero(flight)
+    warn_setup(flight)
+    warn_late_start(flight, model)
+
+
+def flight_problem(flight: FlightData, model: ErrorModel, *, keep_sv: bool | None = None,
+                   block_rows: int = DEFAULT_BLOCK_ROWS) -> Problem:
+    """The regression of a flight for a set-up model, after :func:`check_before_estimation`.
+
+    Parameters
+    ----------
+    flight : FlightData
+    model : ErrorModel
+        Set up.
+    keep_sv, block_rows
+        As :meth:`casep.regression.problem.Problem.from_flight` (S_V kept whole or regenerated
+        block by block).
+
+    Returns
+    -------
+    Problem
+    """
+    check_before_estimation(flight, model)
+    return Problem.from_flight(flight, model, keep_sv=keep_sv, block_rows=block_rows)
