@@ -1,9 +1,13 @@
 """The package's structure, read from its source with ast: functions a reader can hold, no private
-imports across subpackages, one definition of the noise-free rule."""
+imports across subpackages, one definition of the noise-free rule, the layers of
+docs/reference/layout.md (no import back up, no circle, none hidden in a function), no ``Any`` dodge."""
 
 from __future__ import annotations
 
 import ast
+import re
+import subprocess
+import sys
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "casep"
@@ -112,3 +116,194 @@ def test_one_noise_free_rule():
     assert assigned == ["regression/problem.py"]
     assert read_in == ["regression/problem.py:is_rounding_level"]
     assert rule_functions == ["regression/problem.py:is_noise_free"]
+
+
+# ----------------------------------------------------------------- layers and circles
+LAYOUT = PACKAGE.parent / "docs" / "reference" / "layout.md"
+#: ``python -m casep``: the entry point, above every layer (it runs the command line).
+ENTRY_POINT = "__main__.py"
+
+
+def _layers() -> dict[str, int]:
+    """The layer of each subpackage (``cli``) and root module (``units.py``) from the table of
+    docs/reference/layout.md (``| 7 | `casep/cli/` | ...``)."""
+    layers: dict[str, int] = {}
+    for line in LAYOUT.read_text().splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) < 3 or not cells[0].isdigit():
+            continue
+        for name in re.findall(r"`([^`]+)`", cells[1]):
+            name = name.removeprefix("casep/")
+            layers[name.rstrip("/")] = int(cells[0])
+    return layers
+
+
+LAYERS = _layers()
+
+
+def _unit(path: str) -> str:
+    """The unit a layer is given to: the subpackage of a module (``cli``), or a root module itself (``units.py``)."""
+    return path.split("/")[0] if "/" in path else path
+
+
+def _target(module: str) -> str:
+    """The unit an imported module belongs to (``casep.cli.app`` -> ``cli``, ``casep.units`` -> ``units.py``)."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 2 or (PACKAGE / parts[1]).is_dir() else f"{parts[1]}.py"
+
+
+def _all_imports(tree: ast.Module):
+    """Every import of casep in a module, at any depth (in functions, under TYPE_CHECKING): (node, module)."""
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "").split(".")[0] == "casep"):
+            yield node, ("." * node.level) + (node.module or "")
+            if node.module and node.level == 0:
+                for a in node.names:  # `from casep.regression import linalg`: the module linalg
+                    if (PACKAGE.parent / (node.module + "." + a.name).replace(".", "/")).with_suffix(".py").exists():
+                        yield node, f"{node.module}.{a.name}"
+        elif isinstance(node, ast.Import):
+            yield from ((node, a.name) for a in node.names if a.name.split(".")[0] == "casep")
+
+
+def test_layout_lists_every_subpackage_and_root_module():
+    units = {_unit(path) for path, _ in MODULES} - {"__init__.py", ENTRY_POINT}
+    assert not units - set(LAYERS), f"not in the table of docs/reference/layout.md: {sorted(units - set(LAYERS))}"
+    assert not set(LAYERS) - units, f"in docs/reference/layout.md but not in casep: {sorted(set(LAYERS) - units)}"
+
+
+def _upward_imports(modules: list[tuple[str, ast.Module]], layers: dict[str, int]) -> list[str]:
+    top = max(layers.values()) + 1
+    bad = []
+    for path, tree in modules:
+        mine = _unit(path)
+        here = top if mine == ENTRY_POINT else 0 if mine == "__init__.py" else layers[mine]
+        for node, module in _all_imports(tree):
+            if module.startswith("."):
+                bad.append(f"{path}:{node.lineno} a relative import ({module}): write it absolute")
+                continue
+            if module == "casep":
+                bad.append(f"{path}:{node.lineno} imports casep itself: import the module that defines the name")
+                continue
+            there = layers.get(_target(module), top)
+            if there > here:
+                bad.append(f"{path}:{node.lineno} ({mine}, layer {here}) imports {module} (layer {there})")
+    return bad
+
+
+def test_no_import_runs_back_up():
+    """A package imports only from its own layer or below (docs/reference/layout.md), also inside
+    functions and under TYPE_CHECKING: a lazy import is for start-up time, never a way up."""
+    bad = _upward_imports(MODULES, LAYERS)
+    assert not bad, "imports against the layers of docs/reference/layout.md: " + "; ".join(bad)
+
+
+def test_the_layer_rule_sees_function_level_imports():
+    tree = ast.parse("def f():\n    from casep.cli.app import main\n")
+    assert _upward_imports([("noise/x.py", tree)], {"noise": 2, "cli": 10}) == \
+        ["noise/x.py:2 (noise, layer 2) imports casep.cli.app (layer 10)"]
+    assert _upward_imports([("cli/x.py", tree)], {"noise": 2, "cli": 10}) == []
+
+
+def _module_name(path: str) -> str:
+    name = "casep." + path.removesuffix(".py").replace("/", ".")
+    return name.removesuffix(".__init__")
+
+
+def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one node (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def _graphs(modules: list[tuple[str, ast.Module]]) -> tuple[dict[str, set[str]], dict[str, set[str]]]:
+    """(module -> modules it imports, subpackage -> subpackages it imports), every import counted."""
+    names = {_module_name(path) for path, _ in modules}
+    mods: dict[str, set[str]] = {n: set() for n in names}
+    packages: dict[str, set[str]] = {}
+    for path, tree in modules:
+        me = _module_name(path)
+        for _, module in _all_imports(tree):
+            while module and module not in names:  # `from casep.x.y import name`: the module casep.x.y
+                module = module.rpartition(".")[0]
+            if module and module != me:
+                mods[me].add(module)
+                a, b = _unit(path), _target(module)
+                if a != b and "." not in a + b:  # two subpackages (a root module is "units.py")
+                    packages.setdefault(a, set()).add(b)
+    return mods, packages
+
+
+def test_no_import_circle_between_subpackages_or_modules():
+    """No two subpackages import each other, directly or through others; nor two modules, imports
+    inside functions and under TYPE_CHECKING counted, so that no import sits in a function to hide
+    a circle (a lazy import is for start-up time only)."""
+    mods, packages = _graphs(MODULES)
+    assert not _circles(packages), f"subpackages in a circle: {_circles(packages)}"
+    assert not _circles(mods), f"modules in a circle: {_circles(mods)}"
+
+
+def test_the_circle_rule_sees_an_import_hidden_in_a_function():
+    a = ast.parse("from casep.b.y import g\n")
+    b = ast.parse("def g():\n    from casep.a.x import f\n")
+    mods, packages = _graphs([("a/x.py", a), ("b/y.py", b)])
+    assert _circles(mods) == [["casep.a.x", "casep.b.y"]]
+    assert _circles(packages) == [["a", "b"]]
+
+
+def test_no_type_is_dodged_with_any():
+    """No alias of ``Any`` (``Problem = Any``): a type that cannot be imported without a circle is a
+    layering mistake, not a typing one."""
+    bad = []
+    for path, tree in MODULES:
+        for node in ast.walk(tree):
+            value = node.value if isinstance(node, (ast.Assign, ast.AnnAssign)) else None
+            if (isinstance(value, ast.Name) and value.id == "Any") or \
+                    (isinstance(value, ast.Attribute) and value.attr == "Any"):
+                bad.append(f"{path}:{node.lineno}")
+    assert not bad, "names bound to Any: " + "; ".join(bad)
+
+
+def test_casep_analysis_is_a_deprecated_reexport_nothing_in_casep_imports():
+    """casep 0.3's ``casep.analysis`` names still resolve for one release, with a DeprecationWarning."""
+    users = [f"{path}:{node.lineno}" for path, tree in MODULES for node, module in _all_imports(tree)
+             if module == "casep.analysis" or module.startswith("casep.analysis.")]
+    assert not users, f"casep imports its deprecated casep.analysis: {users}"
+    code = ("import warnings\n"
+            "with warnings.catch_warnings(record=True) as w:\n"
+            "    warnings.simplefilter('always')\n"
+            "    import casep.analysis as a\n"
+            "import casep.regression, casep.checks, casep.noise\n"
+            "assert any(issubclass(x.category, DeprecationWarning) and 'casep.regression' in str(x.message)\n"
+            "           for x in w)\n"
+            "assert a.Problem is casep.regression.Problem and a.check_fit is casep.checks.check_fit\n"
+            "assert a.fit_noise is casep.noise.fit_noise and all(getattr(a, n) is not None for n in a.__all__)\n")
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)

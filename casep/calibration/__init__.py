@@ -20,7 +20,7 @@
 here (as in :mod:`casep.workflows`): use ``casep.calibrate`` and
 ``casep.calibration.consistency.consistency``, or import them from their submodules.
 
-Layer 5 (as :mod:`casep.workflows`): uses the model, io, analysis and estimators layers.
+Layer 8 (as :mod:`casep.workflows`): uses the model, io, regression, checks and estimators layers.
 """
 
 from casep._lazy import attach

@@ -239,8 +239,8 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
 
     from casep.estimators.registry import METHODS, run_method
     from casep.estimators.result import EstimateResult
+    from casep.estimators.spec import FitSpec
     from casep.regression.problem import Problem
-    from casep.workflows.spec import FitSpec
 
     if weighting not in WEIGHTINGS:
         raise ValueError(f"`weighting` must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")

@@ -281,7 +281,7 @@ def flight_prior_consistency(flight, model, prior: Mapping, *, sigma: float | No
     ``casep separate --prior`` reports it: the MAP estimate contains the prior, so the flight is
     refitted without it (its S_V built once more) and compared on the coefficients it determines.
     """
-    from casep.checks.flight_problem import flight_problem
+    from casep.checks.flight import flight_problem
     from casep.estimators.ols import solve_ols
     from casep.exceptions import CasepWarning
     from casep.model.loader import load_model

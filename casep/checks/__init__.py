@@ -4,7 +4,7 @@ collinearity and the Cramer-Rao bound, a late start of tracking, a tracking time
 Layer 4: depends on :mod:`casep.regression` (the problem judged), :mod:`casep.noise`,
 :mod:`casep.io` and casep's root modules; never on an estimator.
 
-- :mod:`casep.checks.flight_problem`: :func:`flight_problem`, a flight's :class:`~casep.Problem`
+- :mod:`casep.checks.flight`: :func:`flight_problem`, a flight's :class:`~casep.Problem`
   after the checks before estimation (the one way casep builds a flight's problem)
 - :mod:`casep.checks.plausibility`: :func:`check_flight` (units, impossible data), :func:`check_fit`
   (residuals: noise-free data, spikes, time offset), :func:`check_sigma`
@@ -17,7 +17,7 @@ from casep._lazy import attach
 
 # Imported on first use (PEP 562), see casep._lazy.
 __getattr__, __dir__ = attach(__name__, {
-    "casep.checks.flight_problem": ("flight_problem", "check_before_estimation"),
+    "casep.checks.flight": ("flight_problem", "check_before_estimation"),
     "casep.checks.plausibility": ("check_fit", "check_flight", "check_sigma"),
     "casep.checks.diagnostics": ("Diagnostics", "diagnose", "crlb_covariance"),
     "casep.checks.late_start": ("late_start_evidence", "warn_late_start"),

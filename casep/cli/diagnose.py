@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     args.flight = args.flight[0]
     flight = inputs.read_one(args)
     from casep.checks.diagnostics import diagnose
-    from casep.checks.flight_problem import flight_problem
+    from casep.checks.flight import flight_problem
 
     problem = flight_problem(flight, model)  # reduced block by block: S_V never whole (white bound)
     diag = diagnose(problem, sigma=args.sigma, tau=args.tau, prior_std=prior_std, prior_information=prior_rows,

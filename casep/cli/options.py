@@ -75,7 +75,7 @@ def add_noise(parser: Any, *, outputs: bool = True, default: str = "auto") -> No
 def fit_spec(args: argparse.Namespace, given: dict[str, Any], **fit: Any) -> Any:
     """The :class:`casep.FitSpec` of the command line: --method, its options (`given`), the noise options and
     `fit` (sigma, de-noising, outlier flags), checked once (:meth:`casep.FitSpec.build`)."""
-    from casep.workflows.spec import FitSpec
+    from casep.estimators.spec import FitSpec
 
     kw = {"noise": args.noise, "robust": args.robust}
     for k in ("std", "exclude_outliers"):

@@ -395,7 +395,7 @@ def _flight_nominal(flight, model, design_rate: float) -> dict:
     rate, the flight at its own samples and its least-squares residual std (None without dv)."""
     import warnings
 
-    from casep.checks.flight_problem import flight_problem
+    from casep.checks.flight import flight_problem
     from casep.exceptions import IllConditionedWarning
     from casep.io.files import read_flight
     from casep.io.flight import FlightData

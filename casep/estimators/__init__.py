@@ -1,12 +1,16 @@
 """The estimators, their registry and their result.
 
-Depends on :mod:`casep.analysis` (reduction, rank, diagnostics) and :mod:`casep.model` (names
-and units only). A new estimator is one module here, one line in :mod:`casep.estimators.registry`
-and its test (``docs/guide/adding-an-estimator.md``); outside casep, :func:`register`.
+Depends on :mod:`casep.regression` (the problem, its reduction and rank), :mod:`casep.noise`,
+:mod:`casep.checks` (diagnostics, residual checks) and :mod:`casep.model` (names and units only).
+A new estimator is one module here, one line in :mod:`casep.estimators.registry` and its test
+(``docs/guide/adding-an-estimator.md``); outside casep, :func:`register`.
 
 - one module per method, each declaring its :class:`Method` beside its solver: ``ols``, ``rls``
   (RLS and RELS), ``ridge``, ``bounded``, ``pcr``, ``map``, ``gls``, ``huber``
 - :mod:`casep.estimators.registry`: the methods collected (:data:`METHODS`), option checks
+- :mod:`casep.estimators.spec`: :class:`FitSpec`, what a user asks of a fit (method, options, sigma,
+  :class:`NoiseSpec`), checked once where it enters casep; every path (workflows, calibration,
+  Monte Carlo) takes it
 - :mod:`casep.estimators._options`: what a method declares (options, rules, capabilities, hooks)
 - :mod:`casep.estimators._base`: the scaled reduction a solver works on, the result it builds
 - :mod:`casep.estimators.result`: :class:`EstimateResult` (frozen; JSON, text)
@@ -40,7 +44,9 @@ from casep.estimators.registry import (
 from casep.estimators.result import EstimateResult
 from casep.estimators.ridge import solve_ridge
 from casep.estimators.rls import solve_rls
+from casep.estimators.spec import FitSpec, NoiseSpec
 
 __all__ = ["solve_bounded", "solve_gls", "solve_huber", "solve_map", "solve_ols", "solve_pcr", "solve_ridge",
            "solve_rls", "METHODS", "describe", "register", "unregister", "Method", "SeveralFlights", "Option",
-           "Interval", "Choices", "CoefficientTable", "Prepared", "prepare", "finish", "EstimateResult"]
+           "Interval", "Choices", "CoefficientTable", "Prepared", "prepare", "finish", "EstimateResult",
+           "FitSpec", "NoiseSpec"]

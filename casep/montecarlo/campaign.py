@@ -22,6 +22,7 @@ import numpy as np
 from casep.checks.diagnostics import crlb_covariance
 from casep.estimators.bounded import parse_bounds
 from casep.estimators.map import parse_prior
+from casep.estimators.spec import NoiseSpec
 from casep.model.sv import build_sv
 from casep.montecarlo.engines import DaskEngine, InProcess
 from casep.montecarlo.inputs import check_options, check_truth_prior, own_trajectory
@@ -32,7 +33,6 @@ from casep.montecarlo.store import Store
 from casep.montecarlo.tasks import Context, chunks
 from casep.simulation.scenarios import Scenario
 from casep.simulation.simulate import scenario_setup
-from casep.workflows.spec import NoiseSpec
 
 __all__ = ["run_montecarlo"]
 

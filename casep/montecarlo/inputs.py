@@ -21,7 +21,7 @@ def check_options(runs: Any, seed: Any, methods: Sequence[str], workers: Any, no
                   robust: str | None) -> tuple[int, int, list[MethodSpec], int, str | None]:
     """The options of :func:`casep.montecarlo.run_montecarlo` checked before any work: runs, seed,
     the parsed methods, the number of workers (None: all cores) and `robust` ("none": None)."""
-    from casep.workflows.spec import NoiseSpec, check_robust_method
+    from casep.estimators.spec import NoiseSpec, check_robust_method
 
     NoiseSpec(kind=noise, robust=robust)  # the fit request's rules for the noise kind and the robust fit
     specs = [parse_method(m) for m in methods]
@@ -69,7 +69,7 @@ def own_trajectory(scenario: str | Scenario, flight: Any, truth: Mapping) -> dic
     """The scenario of a Monte Carlo on one's own flight: its times, specific force, model, truth and noise."""
     import dataclasses
 
-    from casep.checks.flight_problem import flight_problem
+    from casep.checks.flight import flight_problem
     from casep.io.files import read_flight
     from casep.io.flight import FlightData
     from casep.io.provenance import file_record

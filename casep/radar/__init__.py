@@ -1,7 +1,8 @@
 """Radar station errors in the same estimate: radar stations, their measurements and biases.
 
-Layer 2 (beside :mod:`casep.analysis`): imports the model layer, :mod:`casep.io`,
-:mod:`casep.frames` and :mod:`casep.analysis`; the workflows run the estimators on what it builds.
+Layer 5 (above :mod:`casep.checks`): imports the model layer, :mod:`casep.io`, :mod:`casep.frames`,
+:mod:`casep.regression` and :mod:`casep.checks` (the Cramer-Rao bound); the workflows run the
+estimators on what it builds.
 
 - :mod:`casep.radar.stations`: station files (JSON, pydantic) and measurement files
 - :mod:`casep.radar.geometry`: the predicted measurement h(r, v) and H = dh/d(r, v) (CasADi)

@@ -157,7 +157,7 @@ class Problem:
         """The regression of a flight for a set-up model, S_V integrated once; no check of the flight.
 
         The checks before estimation (too few samples, units, an all-zero dv, the set-up, a late
-        start) are judgements of the data: :func:`casep.checks.flight_problem.flight_problem` runs
+        start) are judgements of the data: :func:`casep.checks.flight.flight_problem` runs
         them and then builds the problem here, as every workflow and command does.
 
         S_V is integrated over every sample from the first telemetry sample (where the model

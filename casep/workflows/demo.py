@@ -27,9 +27,10 @@ from typing import Any, Mapping
 import numpy as np
 
 from casep.checks.diagnostics import Diagnostics, diagnose
-from casep.checks.flight_problem import flight_problem
+from casep.checks.flight import flight_problem
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
+from casep.estimators.spec import FitSpec
 from casep.exceptions import IllConditionedWarning
 from casep.impact.miss import ImpactAnalysis, impact_analysis
 from casep.model.error_model import ErrorModel
@@ -39,7 +40,6 @@ from casep.simulation.paper import demo_bounds, demo_prior
 from casep.simulation.simulate import SimulatedFlight, simulate_flight
 from casep.workflows.separate import judge_setup, separate
 from casep.workflows.solve import fit
-from casep.workflows.spec import FitSpec
 
 __all__ = ["DemoResult", "run_demo", "DEMO_METHODS", "summary_lines", "impact_lines"]
 

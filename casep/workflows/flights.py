@@ -23,12 +23,12 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from casep.checks.flight_problem import flight_problem
+from casep.checks.flight import flight_problem
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
+from casep.estimators.spec import FitSpec
 from casep.regression.joint import JointLayout, JointProblem
 from casep.regression.problem import Problem
-from casep.workflows.spec import FitSpec
 
 # and JOINT_METHODS (module __getattr__: the registry's as it is now)
 __all__ = ["separate_flights", "flights_summary", "diagnose_flights"]

@@ -48,7 +48,7 @@ def flight_noise(flight: Any, model: Any) -> tuple[Any, Any]:
     """
     import numpy as np
 
-    from casep.checks.flight_problem import flight_problem
+    from casep.checks.flight import flight_problem
     from casep.estimators.ols import solve_ols
     from casep.exceptions import CasepWarning
     from casep.noise.identification import identify_noise

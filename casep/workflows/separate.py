@@ -8,16 +8,16 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from casep.checks.flight_problem import flight_problem
+from casep.checks.flight import flight_problem
 from casep.estimators.registry import METHODS as _REGISTRY
 from casep.estimators.result import EstimateResult
+from casep.estimators.spec import NOT_GIVEN, FitSpec, NotGiven, merge_options
 from casep.io.files import read_flight, read_json_table
 from casep.io.flight import FlightData
 from casep.model.error_model import ErrorModel
 from casep.model.loader import load_model
 from casep.regression.problem import Problem
 from casep.workflows.solve import fit
-from casep.workflows.spec import NOT_GIVEN, FitSpec, NotGiven, merge_options
 
 if TYPE_CHECKING:
     from casep.frames import LaunchSite
@@ -38,7 +38,7 @@ def regression_rows(flight: FlightData, model: ErrorModel) -> tuple[np.ndarray, 
     """The regression of a flight as arrays: ``(S_V, dv, t)`` at the observed samples.
 
     The :class:`~casep.regression.problem.Problem` of the flight with S_V kept whole, after the checks
-    before estimation (:func:`~casep.checks.flight_problem.flight_problem`). Prefer the Problem itself: it need
+    before estimation (:func:`~casep.checks.flight.flight_problem`). Prefer the Problem itself: it need
     not hold S_V.
     """
     pb = flight_problem(flight, model, keep_sv=True)
@@ -126,7 +126,7 @@ def separate(
 
     The defaults below are those of :meth:`casep.FitSpec.build` (method ``ols``, noise ``auto``,
     robust ``auto``, std ``model``, each method option its registry default). A keyword not given is
-    :data:`casep.workflows.spec.NOT_GIVEN`, never recognised by its value: an option given both as
+    :data:`casep.estimators.spec.NOT_GIVEN`, never recognised by its value: an option given both as
     a keyword and in `options` is an error even when the two values equal its default.
 
     Notes

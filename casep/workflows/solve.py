@@ -22,12 +22,12 @@ import numpy as np
 
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
+from casep.estimators.spec import STD_CHOICES, FitSpec, NoiseSpec
 from casep.exceptions import NoiseNotWhiteWarning
 from casep.noise.model import NoiseModel
 from casep.noise.whiteness import ALPHA_FITTED, default_lags, find_gaps, whiteness_test
 from casep.regression.problem import Problem
 from casep.regression.rows import Rows, prepare_rows
-from casep.workflows.spec import STD_CHOICES, FitSpec, NoiseSpec
 
 # Rows and prepare_rows live in casep.regression.rows (the data's), re-exported here beside solve_problem
 __all__ = ["fit", "solve_problem", "solve_spec", "noise_account", "prepare_rows", "Rows", "Solved", "hac_covariance",
@@ -124,7 +124,7 @@ def solve_problem(problem: Problem, method: str, options: Mapping[str, Any] | No
                   **labels) -> Solved:
     """Fit `problem`'s noise model (:func:`prepare_rows`) and solve its rows with a registered `method`.
 
-    The keyword form of :func:`solve_spec`: the arguments make a :class:`~casep.workflows.spec.FitSpec`
+    The keyword form of :func:`solve_spec`: the arguments make a :class:`~casep.estimators.spec.FitSpec`
     (checked there).
 
     Parameters
@@ -314,7 +314,7 @@ def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], robust: 
 
     Glitches (a robust fit asked or found, :func:`casep.regression.rows.prepare_rows`) and flagged
     outliers are removed first, so that they cannot collapse the correlation time. What the noise
-    request may ask of such a method was checked with the request (:class:`~casep.workflows.spec.FitSpec`).
+    request may ask of such a method was checked with the request (:class:`~casep.estimators.spec.FitSpec`).
     """
     sub, rows = problem, None
     if robust not in (None, "none") or exclude_outliers is not None:

@@ -20,8 +20,8 @@ import pytest
 import casep
 from casep.cli import main
 from casep.estimators.registry import METHODS, NOISE_OPTIONS, OPTIONS, Choices, CoefficientTable, Interval
+from casep.estimators.spec import NOT_GIVEN, FitSpec, NoiseSpec
 from casep.exceptions import NoiseFreeWarning
-from casep.workflows.spec import NOT_GIVEN, FitSpec, NoiseSpec
 
 
 @pytest.fixture(scope="module")
