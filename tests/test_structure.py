@@ -307,3 +307,12 @@ def test_casep_analysis_is_a_deprecated_reexport_nothing_in_casep_imports():
             "assert a.Problem is casep.regression.Problem and a.check_fit is casep.checks.check_fit\n"
             "assert a.fit_noise is casep.noise.fit_noise and all(getattr(a, n) is not None for n in a.__all__)\n")
     subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
+
+
+def test_casep_builds_a_flights_problem_after_its_checks():
+    """``Problem.from_flight`` judges nothing: casep's own code builds a flight's problem through
+    ``casep.checks.flight.flight_problem`` (the checks before estimation, then the problem)."""
+    calls = [f"{path}:{node.lineno}" for path, tree in MODULES for node in ast.walk(tree)
+             if isinstance(node, ast.Attribute) and node.attr == "from_flight"
+             and path not in ("regression/problem.py", "checks/flight.py")]
+    assert not calls, "Problem.from_flight called without the checks (use flight_problem): " + "; ".join(calls)
