@@ -72,10 +72,33 @@ def add_noise(parser: Any, *, outputs: bool = True, default: str = "auto") -> No
                             "family-wise chance ALPHA (default 0.01) and fit again; removed samples listed")
 
 
+#: The command line's options that make the fit request (besides every method option of the registry).
+FIT_DESTS = ("method", "sigma", "denoise", "wavelet", "level", "threshold_rule", "threshold_mode", "extension",
+             "noise_scaling", "outliers", "noise", "robust", "std", "exclude_outliers")
+
+
 def fit_spec(args: argparse.Namespace, given: dict[str, Any], **fit: Any) -> Any:
     """The :class:`casep.FitSpec` of the command line: --method, its options (`given`), the noise options and
-    `fit` (sigma, de-noising, outlier flags), checked once (:meth:`casep.FitSpec.build`)."""
+    `fit` (sigma, de-noising, outlier flags), checked once (:meth:`casep.FitSpec.build`).
+
+    With ``--manifest`` whose ``[fit]`` table holds the request, that request (built when the manifest was
+    read, :meth:`casep.io.manifest.Manifest.spec`); an option of the fit given on the command line too is
+    then an error, whatever its value. Its prior or bounds file becomes ``--prior``/``--bounds`` (read as
+    those are)."""
     from casep.workflows.spec import FitSpec
+
+    man = getattr(args, "manifest_obj", None)
+    if man is not None and man.spec() is not None:
+        on_line = sorted(set(getattr(args, "given", ())) & {*FIT_DESTS, *OPTIONS})
+        if on_line:
+            raise ValueError(f"--manifest {args.manifest} holds the fit request (its [fit] table): leave out "
+                             f"{', '.join(OPTIONS[d].flag if d in OPTIONS else '--' + d.replace('_', '-') for d in on_line)}, "
+                             "or the [fit] table")
+        spec = man.spec()
+        for key in ("prior", "bounds"):
+            if isinstance(spec.options.get(key), str):
+                setattr(args, key, spec.options[key])  # read and checked as --prior/--bounds are
+        return spec
 
     kw = {"noise": args.noise, "robust": args.robust}
     for k in ("std", "exclude_outliers"):

@@ -95,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
     if prior is not None:  # the prior (a ground calibration) against the flight estimated alone
         from casep.workflows.coefficients import with_prior_consistency
 
-        res, cons = with_prior_consistency(res, flight, model, prior, sigma=args.sigma)
+        res, cons = with_prior_consistency(res, flight, model, prior, sigma=spec.sigma)
     align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
     prov = outputs.provenance(args, [flight])
     if args.json:
