@@ -91,9 +91,9 @@ def fit_spec(args: argparse.Namespace, given: dict[str, Any], **fit: Any) -> Any
     if man is not None and man.spec() is not None:
         on_line = sorted(set(getattr(args, "given", ())) & {*FIT_DESTS, *OPTIONS})
         if on_line:
+            flags = ", ".join(OPTIONS[d].flag if d in OPTIONS else "--" + d.replace("_", "-") for d in on_line)
             raise ValueError(f"--manifest {args.manifest} holds the fit request (its [fit] table): leave out "
-                             f"{', '.join(OPTIONS[d].flag if d in OPTIONS else '--' + d.replace('_', '-') for d in on_line)}, "
-                             "or the [fit] table")
+                             f"{flags}, or the [fit] table")
         spec = man.spec()
         for key in ("prior", "bounds"):
             if isinstance(spec.options.get(key), str):
