@@ -55,17 +55,18 @@ def method_options(args: argparse.Namespace) -> dict[str, Any]:
 def add_noise(parser: Any, *, outputs: bool = True, default: str = "auto") -> None:
     """The noise-model options every method takes (casep.analysis.noise, casep.workflows.solve)."""
     from casep.analysis.noise import NOISE_HELP, NOISE_KINDS
+    from casep.workflows.spec import ROBUST_CHOICES, STD_CHOICES  # the fit request's choices, one list each
 
     g = parser.add_argument_group("noise model (every method)")
     g.add_argument("--noise", choices=NOISE_KINDS, default=default,
                    help=f"tracking noise (default {default}): {NOISE_HELP}")
-    g.add_argument("--robust", nargs="?", const="huber", choices=("auto", "huber", "bisquare", "none"),
+    g.add_argument("--robust", nargs="?", const="huber", choices=ROBUST_CHOICES,
                    default="auto",
                    help="robust fit for any method: glitches removed by a robust filter on the innovations, the rest "
                         "weighted; --robust alone: huber; auto (default): huber when the filter finds more glitches "
                         "than Gaussian noise explains (said in the output); none: never")
     if outputs:
-        g.add_argument("--std", choices=("model", "hac"), default="model",
+        g.add_argument("--std", choices=STD_CHOICES, default="model",
                        help="model (default) or hac: Newey-West std of a white-noise ols fit")
         g.add_argument("--exclude-outliers", type=float, nargs="?", const=0.01, default=None, metavar="ALPHA",
                        help="remove the samples whose studentized residual (whitened rows) is flagged at "
