@@ -78,3 +78,11 @@ def test_a_bad_fit_table_is_refused_when_read(two, table, message):
     with pytest.raises(ValueError) as e:
         casep.read_manifest(path)
     assert str(e.value).startswith(f"manifest {path}: table [fit]: ") and message in str(e.value)
+
+
+@pytest.mark.parametrize("flags, flag", [(["--tracking-frame", "launch"], "--tracking-frame"),
+                                         (["--grid", "tracking"], "--grid"), (["--time-shift", "0"], "--time-shift")])
+def test_a_set_up_option_at_its_default_with_a_manifest_is_given(two, capsys, flags, flag):
+    """The manifest holds each flight's set-up: a single-flight option is refused even at its default value."""
+    assert main(["separate", "--manifest", str(two / "plain.toml"), *flags]) == 2
+    assert f"leave out {flag} (they describe one flight" in capsys.readouterr().err
