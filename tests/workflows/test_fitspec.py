@@ -286,3 +286,16 @@ def test_an_option_of_another_method_same_message_api_and_cli(good_flight_csv, c
     assert api.startswith(f"option {opt.flag} (`{option}`) is not taken by method `{method}`")
     assert main(["separate", str(good_flight_csv), "--method", method, opt.flag, str(value)]) == 2
     assert f"casep: error: {api}" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name, flag, value", [("outliers", "--outliers", 2.0), ("exclude_outliers",
+                                                                                  "--exclude-outliers", 1.5),
+                                               ("outliers", "--outliers", 0.0), ("exclude_outliers",
+                                                                                  "--exclude-outliers", -0.01)])
+def test_outlier_chances_are_checked_with_the_request(good_flight_csv, capsys, name, flag, value):
+    """A false-alarm chance outside (0, 1) is refused where the request is made, naming the option (was:
+    accepted, then refused mid-fit as `alpha`)."""
+    with pytest.raises(ValueError, match=rf"^`{name}` must be a false-alarm chance in \(0, 1\)"):
+        FitSpec.build("ols", **{name: value})
+    assert main(["separate", str(good_flight_csv), flag, str(value)]) == 2
+    assert f"casep: error: `{name}` must be a false-alarm chance in (0, 1)" in capsys.readouterr().err
