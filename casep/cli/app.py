@@ -37,20 +37,42 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
     def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
-        self._refuse_repeated(sys.argv[1:] if args is None else list(args))
-        return super().parse_known_args(args, namespace)
+        given = self._given(sys.argv[1:] if args is None else list(args))
+        ns, rest = super().parse_known_args(args, namespace)
+        # the options given on the command line, by destination (a value equal to the default is given too)
+        ns.given = frozenset(getattr(ns, "given", frozenset())) | {a.dest for a, _ in given}
+        return ns, rest
 
-    def _refuse_repeated(self, argv: list[str]) -> None:
-        """An option that takes one value (``--launch-site``, ``--model``) given twice is an error: argparse
-        would keep the last silently. Options that collect (``--tracking``, once per flight) may repeat.
-        Only this parser's own options count (a subcommand's parser checks its own)."""
-        seen: dict[int, str] = {}
-        collect = (argparse._AppendAction, argparse._CountAction, argparse._HelpAction, argparse._VersionAction)
+    def _action(self, token: str) -> argparse.Action | None:
+        """This parser's option that `token` names (an unambiguous prefix too, as argparse reads it), or None."""
+        if not token.startswith("-"):
+            return None
+        name = token.split("=", 1)[0]
+        action = self._option_string_actions.get(name)
+        if action is None and self.allow_abbrev and name.startswith("--"):
+            hits = {id(a): a for s, a in self._option_string_actions.items() if s.startswith(name)}
+            action = next(iter(hits.values())) if len(hits) == 1 else None
+        return action
+
+    def _given(self, argv: list[str]) -> list[tuple[argparse.Action, str]]:
+        """This parser's options in `argv` (a subcommand's parser reads its own); one given twice is refused."""
+        out = []
         for token in argv:
             if token == "--":
                 break
-            action = self._option_string_actions.get(token.split("=", 1)[0]) if token.startswith("-") else None
-            if action is None or isinstance(action, collect):
+            action = self._action(token)
+            if action is not None:
+                out.append((action, token))
+        self._refuse_repeated(out)
+        return out
+
+    def _refuse_repeated(self, given: list[tuple[argparse.Action, str]]) -> None:
+        """An option that takes one value (``--launch-site``, ``--model``) given twice is an error: argparse
+        would keep the last silently. Options that collect (``--tracking``, once per flight) may repeat."""
+        seen: dict[int, str] = {}
+        collect = (argparse._AppendAction, argparse._CountAction, argparse._HelpAction, argparse._VersionAction)
+        for action, token in given:
+            if isinstance(action, collect):
                 continue
             if id(action) in seen:
                 self.error(f"{token.split('=', 1)[0]} given twice: it takes one value (argparse would keep the last "

@@ -86,14 +86,10 @@ def use_manifest(args: argparse.Namespace) -> Any:
         if not flights:
             raise ValueError("give a flight file, or --manifest FLIGHTS.toml")
         return None
-    given = [flag for flag, on in (
-        ("the flight files", flights), ("--tracking", args.tracking),
-        ("--tracking-frame", getattr(args, "tracking_frame", "launch") != "launch"),
-        ("--launch-site", getattr(args, "launch_site", None) is not None),
-        ("--launch-time", getattr(args, "launch_time", None) is not None),
-        ("--time-shift", getattr(args, "time_shift", 0.0) != 0.0),
-        ("--time-offset", getattr(args, "time_offset", None) is not None),
-        ("--grid", getattr(args, "grid", "tracking") != "tracking")) if on]
+    on_line = getattr(args, "given", frozenset())  # the options given, whatever their values (casep.cli.app.Parser)
+    given = (["the flight files"] if flights else []) + [
+        "--" + dest.replace("_", "-") for dest in ("tracking", "tracking_frame", "launch_site", "launch_time",
+                                                   "time_shift", "time_offset", "grid") if dest in on_line]
     if given:
         raise ValueError(f"--manifest {path} lists the flights with their files and set-up: leave out "
                          f"{', '.join(given)} (they describe one flight given on the command line)")

@@ -55,27 +55,51 @@ def method_options(args: argparse.Namespace) -> dict[str, Any]:
 def add_noise(parser: Any, *, outputs: bool = True, default: str = "auto") -> None:
     """The noise-model options every method takes (casep.noise.model, casep.workflows.solve)."""
     from casep.noise.model import NOISE_HELP, NOISE_KINDS
+    from casep.estimators.spec import ROBUST_CHOICES, STD_CHOICES  # the fit request's choices, one list each
 
     g = parser.add_argument_group("noise model (every method)")
     g.add_argument("--noise", choices=NOISE_KINDS, default=default,
                    help=f"tracking noise (default {default}): {NOISE_HELP}")
-    g.add_argument("--robust", nargs="?", const="huber", choices=("auto", "huber", "bisquare", "none"),
+    g.add_argument("--robust", nargs="?", const="huber", choices=ROBUST_CHOICES,
                    default="auto",
                    help="robust fit for any method: glitches removed by a robust filter on the innovations, the rest "
                         "weighted; --robust alone: huber; auto (default): huber when the filter finds more glitches "
                         "than Gaussian noise explains (said in the output); none: never")
     if outputs:
-        g.add_argument("--std", choices=("model", "hac"), default="model",
+        g.add_argument("--std", choices=STD_CHOICES, default="model",
                        help="model (default) or hac: Newey-West std of a white-noise ols fit")
         g.add_argument("--exclude-outliers", type=float, nargs="?", const=0.01, default=None, metavar="ALPHA",
                        help="remove the samples whose studentized residual (whitened rows) is flagged at "
                             "family-wise chance ALPHA (default 0.01) and fit again; removed samples listed")
 
 
+#: The command line's options that make the fit request (besides every method option of the registry).
+FIT_DESTS = ("method", "sigma", "denoise", "wavelet", "level", "threshold_rule", "threshold_mode", "extension",
+             "noise_scaling", "outliers", "noise", "robust", "std", "exclude_outliers")
+
+
 def fit_spec(args: argparse.Namespace, given: dict[str, Any], **fit: Any) -> Any:
     """The :class:`casep.FitSpec` of the command line: --method, its options (`given`), the noise options and
-    `fit` (sigma, de-noising, outlier flags), checked once (:meth:`casep.FitSpec.build`)."""
+    `fit` (sigma, de-noising, outlier flags), checked once (:meth:`casep.FitSpec.build`).
+
+    With ``--manifest`` whose ``[fit]`` table holds the request, that request (built when the manifest was
+    read, :meth:`casep.io.manifest.Manifest.spec`); an option of the fit given on the command line too is
+    then an error, whatever its value. Its prior or bounds file becomes ``--prior``/``--bounds`` (read as
+    those are)."""
     from casep.estimators.spec import FitSpec
+
+    man = getattr(args, "manifest_obj", None)
+    if man is not None and man.spec() is not None:
+        on_line = sorted(set(getattr(args, "given", ())) & {*FIT_DESTS, *OPTIONS})
+        if on_line:
+            flags = ", ".join(OPTIONS[d].flag if d in OPTIONS else "--" + d.replace("_", "-") for d in on_line)
+            raise ValueError(f"--manifest {args.manifest} holds the fit request (its [fit] table): leave out "
+                             f"{flags}, or the [fit] table")
+        spec = man.spec()
+        for key in ("prior", "bounds"):
+            if isinstance(spec.options.get(key), str):
+                setattr(args, key, spec.options[key])  # read and checked as --prior/--bounds are
+        return spec
 
     kw = {"noise": args.noise, "robust": args.robust}
     for k in ("std", "exclude_outliers"):

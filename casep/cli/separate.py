@@ -14,6 +14,7 @@ from casep.estimators.registry import METHODS
 
 def add_parser(sub: Any) -> None:
     from casep.noise.denoise import EXTENSIONS, MODES, RULES, SCALINGS
+    from casep.estimators.spec import DENOISE_CHOICES
 
     p = sub.add_parser("separate", help="estimate the error coefficients of a flight file")
     p.add_argument("flight", nargs="*", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "
@@ -23,7 +24,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--method", default="ols", choices=METHODS, help="estimator (default ols)")
     p.add_argument("--sigma", type=ranged("sigma"), default=None,
                    help="noise std, m/s (default: estimated from the residuals)")
-    p.add_argument("--denoise", choices=("none", "wavelet"), default="none", help="de-noise dv first (default none)")
+    p.add_argument("--denoise", choices=DENOISE_CHOICES, default="none", help="de-noise dv first (default none)")
     p.add_argument("--wavelet", default=None, help="wavelet (default sym8)")
     p.add_argument("--level", type=order, default=None, help="decomposition level (default: largest "
                    "without boundary domination)")
@@ -95,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
     if prior is not None:  # the prior (a ground calibration) against the flight estimated alone
         from casep.workflows.coefficients import with_prior_consistency
 
-        res, cons = with_prior_consistency(res, flight, model, prior, sigma=args.sigma)
+        res, cons = with_prior_consistency(res, flight, model, prior, sigma=spec.sigma)
     align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
     prov = outputs.provenance(args, [flight])
     if args.json:

@@ -18,6 +18,9 @@ def add_parser(sub: Any) -> None:
     p = sub.add_parser("simulate", help="simulate a boost flight with injected errors")
     p.add_argument("--scenario", default="paper", choices=list(SCENARIOS), help="scenario (default paper)")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument("--noise-free", action="store_true",
+                   help="no tracking noise or outliers (dv = S_V D to rounding): the first check of a model file or "
+                        "a set-up, casep separate then recovers the truth to rounding")
     p.add_argument("--rate", type=rate, default=None, help="sample rate, Hz (default: scenario's)")
     p.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="flight file (.csv, or .parquet); truth goes to <stem>.truth.json beside it")
@@ -65,8 +68,15 @@ def run(args: argparse.Namespace) -> int:
     if args.radar_station:
         from casep.cli.radar import simulate_radar
 
+        if args.noise_free:
+            raise ValueError("--noise-free is the tracking velocity's: with --radar-station the radar noise is "
+                             "--range-noise and --angle-noise")
+
         return simulate_radar(args, site)
     radar_only(args, ("tracking_truth", "radar_rate", "range_noise", "angle_noise", "radar_range_rate"))
+    from casep.simulation.scenarios import get_scenario
+
+    scenario = get_scenario(args.scenario).without_noise() if args.noise_free else args.scenario
     out = args.output
     files = {"-o": out, "-o (truth sidecar)": truth_path(out)}
     if args.tracking_frame == "launch" and args.tracking_output is not None:
@@ -84,14 +94,12 @@ def run(args: argparse.Namespace) -> int:
     if args.truth:  # {"Kg0x": v, ...} or a sidecar {"coefficients": {...}}, checked against the model
         from casep.model.loader import load_model
         from casep.simulation.earth_fixed import read_truth
-        from casep.simulation.scenarios import get_scenario
-
         truth = read_truth(args.truth, load_model(args.model or get_scenario(args.scenario).model))
     if args.tracking_frame != "launch":
-        return _earth_fixed(args, site, truth)
+        return _earth_fixed(args, site, truth, scenario)
     from casep.simulation.simulate import simulate_flight, write_simulation
 
-    sim = simulate_flight(args.scenario, seed=args.seed, rate=args.rate, model=args.model, truth=truth,
+    sim = simulate_flight(scenario, seed=args.seed, rate=args.rate, model=args.model, truth=truth,
                           time_offset=args.tracking_offset * 1e-3, lever_arm=args.lever_arm,  # ms -> s
                           **({"rotating_earth": True, "site": site} if site is not None else {}))
     flight_path, side = write_simulation(sim, out)
@@ -105,12 +113,12 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _earth_fixed(args: argparse.Namespace, site: Any, truth: Any) -> int:
+def _earth_fixed(args: argparse.Namespace, site: Any, truth: Any, scenario: Any) -> int:
     """`--rotating-earth --tracking-frame ecef|geodetic`: telemetry, tracking and truth files."""
     from casep.simulation.earth_fixed import write_earth_fixed_flight
 
     ef = write_earth_fixed_flight(args.output, site, frame=args.tracking_frame, tracking=args.tracking_output,
-                                  scenario=args.scenario, seed=args.seed, telemetry_rate=args.rate,
+                                  scenario=scenario, seed=args.seed, telemetry_rate=args.rate,
                                   tracking_rate=args.tracking_rate, time_offset_ms=args.tracking_offset,
                                   model=args.model, truth=truth)
     d = ef.data

@@ -25,7 +25,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-__all__ = ["FitSpec", "NoiseSpec", "NOT_GIVEN", "NotGiven", "merge_options", "check_robust_method",
+__all__ = ["FitSpec", "NoiseSpec", "NOT_GIVEN", "NotGiven", "merge_options", "check_robust_method", "check_chance",
            "ROBUST_BY_THEMSELVES", "ROBUST_CHOICES", "STD_CHOICES", "DENOISE_CHOICES"]
 
 ROBUST_CHOICES = ("auto", "none", "huber", "bisquare")
@@ -120,6 +120,7 @@ class NoiseSpec:
             set_(self, "robust", None)
         if self.std not in STD_CHOICES:
             raise ValueError(f"`std` must be one of {', '.join(STD_CHOICES)}, got {self.std!r}")
+        check_chance("exclude_outliers", self.exclude_outliers)
         if self.denoise is not None and self.denoise not in DENOISE_CHOICES:
             raise ValueError(f"`denoise` must be 'none' or 'wavelet', got {self.denoise!r}")
         if self.denoise == "none":
@@ -207,6 +208,7 @@ class FitSpec:
             keywords[k] = meth.option(k).check(v)
         if self.sigma is not None and not isinstance(self.sigma, Mapping):
             set_(self, "sigma", SIGMA.check(self.sigma))
+        check_chance("outliers", self.outliers)
         _check_noise_for(meth, noise)
         set_(self, "options", _frozen(opts))
         set_(self, "keywords", _frozen(keywords))
@@ -266,6 +268,15 @@ def merge_options(options: Mapping[str, Any] | None, keywords: Mapping[str, Any]
     if both:
         raise ValueError(f"option(s) {', '.join(f'`{k}`' for k in both)} given both as a keyword and in `options`")
     return {**dict(options or {}), **given}
+
+
+def check_chance(name: str, value: Any) -> None:
+    """A family-wise false-alarm chance of the outlier flags (`outliers`, `exclude_outliers`): None or in (0, 1)."""
+    if value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not 0.0 < float(value) < 1.0:
+        raise ValueError(f"`{name}` must be a false-alarm chance in (0, 1) (e.g. 0.01), got {value!r}")
 
 
 #: Methods robust by themselves: a robust filter in front of one is refused (the glitches weighed twice).

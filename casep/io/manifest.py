@@ -25,11 +25,18 @@ geodetic flight from another are estimated together::
     time_offset_ms = "auto"           # optional: tracking latency, ms, or "auto"
     grid = "tracking"                 # optional: tracking (default) | telemetry
 
+    [fit]                             # optional: the fit request (casep.FitSpec), as casep.separate's keywords
+    method = "ridge"
+    options = { lam = 0.1 }           # the method's options; prior/bounds files relative to this file
+    noise = "auto"                    # noise, tau, robust, sigma, ... (casep separate's options)
+
 Who does what: :mod:`tomllib` (standard library) parses the TOML; pydantic checks the types, the
 allowed values, unknown keys (a misspelt key is an error, not ignored) and the rules between keys
 (a site with an Earth-fixed frame only); :func:`read_manifest` turns its errors into one
 ``ValueError`` naming the file, the flight and the key; :func:`casep.io.files.read_flight_pair` reads
-each flight as the single-flight options would.
+each flight as the single-flight options would. The ``[fit]`` table, when there, is the fit request:
+:meth:`casep.FitSpec.build` makes it from its keys when the manifest is read (its one check, every error
+naming the manifest and the table), :meth:`Manifest.spec` returns it.
 """
 
 from __future__ import annotations
@@ -38,9 +45,9 @@ import math
 import os
 import tomllib
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
 
 __all__ = ["Manifest", "ManifestFlight", "ManifestSite", "read_manifest"]
 
@@ -125,7 +132,22 @@ class Manifest(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
     flights: list[ManifestFlight] = Field(alias="flight", min_length=1)
+    fit: dict[str, Any] | None = None  # the [fit] table: keywords of casep.FitSpec.build
     source: str = "<memory>"
+    _spec: Any = PrivateAttr(default=None)
+
+    def spec(self) -> Any:
+        """The fit request of the ``[fit]`` table (a checked :class:`casep.FitSpec`), or None without one."""
+        if self.fit is None:
+            return None
+        if self._spec is None:
+            from casep.estimators.spec import FitSpec
+
+            try:
+                self._spec = FitSpec.build(**self.fit)  # the one check of a request, as for keywords and arguments
+            except (ValueError, TypeError) as exc:
+                raise ValueError(f"manifest {self.source}: table [fit]: {exc}") from None
+        return self._spec
 
     def read(self) -> list:
         """Every flight, read (:meth:`ManifestFlight.read`), in manifest order."""
@@ -202,4 +224,11 @@ def read_manifest(path: str | os.PathLike) -> Manifest:
                              f"{resolved['telemetry']}: give each flight once")
         seen[real] = k
         flights.append(f.model_copy(update=resolved))
-    return man.model_copy(update={"flights": flights})
+    fit = None
+    if man.fit is not None:  # the options' files (prior, bounds) relative to the manifest too
+        opts = {k: str(base / v) if k in ("prior", "bounds") and isinstance(v, str) and not Path(v).is_absolute()
+                else v for k, v in (man.fit.get("options") or {}).items()}
+        fit = {**man.fit, **({"options": opts} if "options" in man.fit else {})}
+    out = man.model_copy(update={"flights": flights, "fit": fit})
+    out.spec()  # the request checked now, with the manifest: an error names it and the table
+    return out

@@ -124,7 +124,8 @@ def provenance(flights: Sequence, *, inputs: Mapping[str, Any] | None = None, op
     out = {"casep_version": __version__, "command_line": command_line(argv), "inputs": files, "flights": recs,
            "options": dict(options or {})}
     if manifest is not None:
-        out["manifest"] = {"file": manifest.source, "flights": [f.to_dict() for f in manifest.flights]}
+        out["manifest"] = {"file": manifest.source, "flights": [f.to_dict() for f in manifest.flights],
+                           **({"fit": manifest.spec().to_dict()} if getattr(manifest, "fit", None) else {})}
     return out
 
 

@@ -26,11 +26,11 @@ from casep.estimators.spec import NoiseSpec
 from casep.model.sv import build_sv
 from casep.montecarlo.engines import DaskEngine, InProcess
 from casep.montecarlo.inputs import check_options, check_truth_prior, own_trajectory
-from casep.montecarlo.methods import MethodSpec
+from casep.montecarlo.methods import MethodSpec, fit_spec
 from casep.montecarlo.progress import Progress, progress_mode
 from casep.montecarlo.result import MonteCarloResult
 from casep.montecarlo.store import Store
-from casep.montecarlo.tasks import Context, chunks
+from casep.montecarlo.tasks import Context, chunks, per_run_noise
 from casep.simulation.scenarios import Scenario
 from casep.simulation.simulate import scenario_setup
 
@@ -112,17 +112,18 @@ def run_montecarlo(
     noise, tau, robust : optional
         The noise model every method assumes and the robust fit, as :func:`casep.separate` takes
         them, with its defaults (``"auto"``, ``"auto"``: each run as ``casep separate`` would fit
-        it, every method per run through :func:`casep.workflows.solve.solve_problem`). ``"white"``
+        it, every method per run through :func:`casep.workflows.solve.fit`). ``"white"``
         without a robust fit (robust ``"auto"`` or None) runs the methods as they are, the linear
         ones batched (fast; the std then assume white noise). The scenario's tracking gaps remove
         rows in every case.
     """
-    runs, seed, specs, n_workers, robust = check_options(runs, seed, methods, workers, noise, tau, robust)
-    per_run_noise = noise != "white" or robust not in (None, "auto")
-    linear = [s for s in specs if batched and not per_run_noise and s.linear]
+    asked = {"noise": noise, "tau": tau, "robust": robust}  # as given (recorded with the campaign)
+    runs, seed, specs, n_workers, noise_spec = check_options(runs, seed, methods, workers, noise, tau, robust)
+    noisy = per_run_noise(noise_spec)
+    linear = [s for s in specs if batched and not noisy and s.linear]
     other = [s for s in specs if s not in linear]
     ctx, own, units = _context(scenario, rate, seed, flight, truth, prior, bounds, truth_prior, dispersions,
-                               noise=noise, noise_tau=tau, robust=robust, linear=tuple(s.text for s in linear))
+                               noise=noise_spec, other=other, linear=tuple(s.text for s in linear))
     # stages: (linear, per-run) methods; nominal: the linear maps together, then each per-run
     # method; dispersed: all in one stage (each run's trajectory is simulated once)
     stages: list[tuple[list[MethodSpec], list[MethodSpec]]]
@@ -137,8 +138,8 @@ def run_montecarlo(
                     "methods": [s.text for s in specs], **({"flight": own["record"]} if own is not None else {}),
                     "batched": bool(batched), "prior": ctx.prior, "bounds": bounds, "dispersions": ctx.dispersions,
                     "truth_from_prior": truth_prior, "tasks": [len(c) for c in chunks_]}
-        if per_run_noise:  # (absent for the default, so campaigns written before stay resumable)
-            settings["noise"] = {"noise": noise, "tau": tau, "robust": robust}
+        if noisy:  # (absent for the default, so campaigns written before stay resumable)
+            settings["noise"] = {**asked, "robust": None if robust == "none" else robust}
         store = Store(out, json.loads(json.dumps(settings)))
     groups = [[s.text for s in a + b] for a, b in stages]
     bar = Progress(runs, [",".join(g) for g in groups], progress_mode(progress))
@@ -183,9 +184,11 @@ def run_montecarlo(
 
 def _context(scenario: str | Scenario, rate: float | None, seed: int, flight: Any, truth: Mapping | None,
              prior: Mapping | None, bounds: Mapping | None, truth_prior: Mapping | None,
-             dispersions: Mapping | None, **options: Any) -> tuple[Context, dict[str, Any] | None, tuple[str, ...]]:
-    """The campaign's context (inputs checked, the nominal S_V and CRLB built), the own-trajectory
-    record (None: the scenario's) and the coefficients' units."""
+             dispersions: Mapping | None, *, noise: NoiseSpec | None = None, other: Sequence[MethodSpec] = (),
+             linear: tuple[str, ...] = ()) -> tuple[Context, dict[str, Any] | None, tuple[str, ...]]:
+    """The campaign's context (inputs checked, the nominal S_V and CRLB built, the fit request of each
+    per-run method in `other` built once under the noise request `noise`), the own-trajectory record
+    (None: the scenario's) and the coefficients' units."""
     own = None
     if flight is not None or truth is not None:
         if flight is None or truth is None:
@@ -223,8 +226,16 @@ def _context(scenario: str | Scenario, rate: float | None, seed: int, flight: An
         t = t_all[keep]
         S = build_sv(model, t_all, f_all)[keep]
         crlb = np.sqrt(np.diag(crlb_covariance(S, sigma, t=t if tau else None, tau=tau)))
+    fits = {}
+    for spec in other:  # each method's fit request, checked here, before any run
+        try:
+            fits[spec.text] = fit_spec(spec, names, noise or NoiseSpec("white", robust=None), sigma=sigma, prior=prior,
+                                       bounds=bounds)
+        except ValueError as exc:
+            raise ValueError(f"method `{spec.text}`: {exc}") from None
     ctx = Context(scenario=sc, names=names, sigma=sigma, tau=tau, seed=seed, truth=truth_v, prior=prior,
-                  bounds=bounds, truth_prior=tp, dispersions=dispersions, S=S, t=t, crlb=crlb, **options)
+                  bounds=bounds, truth_prior=tp, dispersions=dispersions, S=S, t=t, crlb=crlb, noise=noise, fits=fits,
+                  linear=linear)
     return ctx, own, model.units
 
 

@@ -18,19 +18,17 @@ __all__ = ["TRUTH_PRIOR_LIMIT", "check_options", "check_truth_prior", "own_traje
 
 
 def check_options(runs: Any, seed: Any, methods: Sequence[str], workers: Any, noise: str, tau: Any,
-                  robust: str | None) -> tuple[int, int, list[MethodSpec], int, str | None]:
+                  robust: str | None) -> tuple[int, int, list[MethodSpec], int, Any]:
     """The options of :func:`casep.montecarlo.run_montecarlo` checked before any work: runs, seed,
-    the parsed methods, the number of workers (None: all cores) and `robust` ("none": None)."""
-    from casep.estimators.spec import NoiseSpec, check_robust_method
+    the parsed methods, the number of workers (None: all cores) and the noise request every method
+    assumes (a :class:`~casep.estimators.spec.NoiseSpec`, checked by the fit request's own rules; noise
+    "white" without a robust fit asked runs the methods as they are: robust "auto" is then none)."""
+    from casep.estimators.spec import NoiseSpec
 
-    NoiseSpec(kind=noise, robust=robust)  # the fit request's rules for the noise kind and the robust fit
+    ns = NoiseSpec(kind=noise, tau=tau, robust=robust)  # the fit request's rules for the noise kind, tau, robust
+    if ns.kind == "white" and ns.robust == "auto":
+        ns = NoiseSpec(kind="white", robust=None)
     specs = [parse_method(m) for m in methods]
-    for s in specs:
-        check_robust_method(s.name, robust)
-    if any(s.denoise for s in specs):  # as casep separate --denoise wavelet: its rule, the de-noised rows solved white
-        NoiseSpec(kind=noise, robust=robust, denoise="wavelet")
-    if tau is not None and noise != "gm":
-        raise ValueError(f"`tau` given with noise {noise!r}: a given correlation time means noise 'gm'")
     if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
         raise ValueError(f"`runs` must be an int >= 1, got {runs!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -42,7 +40,7 @@ def check_options(runs: Any, seed: Any, methods: Sequence[str], workers: Any, no
     n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
     if n_workers < 1:
         raise ValueError(f"`workers` must be >= 1, got {workers!r}")
-    return int(runs), int(seed), specs, n_workers, None if robust == "none" else robust
+    return int(runs), int(seed), specs, n_workers, ns
 
 #: A truth prior may reach this many declared magnitudes (mean + 6 std): wide priors of poorly known
 #: second-order terms (the demo's: 1e4 x) pass, 1e308 does not.

@@ -14,11 +14,12 @@ and :func:`solve_runs` (the per-run path). What they ask of a method (its ``Meth
   scenario's known sigma;
 - ``shared_options`` and ``max_runs_per_task``: options that the runs of a chunk on one
   trajectory share (GLS: one REML search of tau), and the most runs one task holds;
-- ``own_noise_model``: with a noise model or a robust fit, a method that fits its own
-  (GLS) gets the rows before whitening, the others the rows prepared once for every method
-  (:func:`casep.workflows.solve.solve_problem`); otherwise the registry's solver
-  (:func:`casep.estimators.registry.run_method`). Each returns an estimate and its std (None:
-  the method reports none).
+- ``own_noise_model``: a method that fits its own (GLS) keeps it whatever the campaign's noise.
+
+Every per-run method is a fit request built once for the campaign (:func:`fit_spec`), each run solved
+through the one entry point :func:`casep.workflows.solve.fit`, on the rows prepared once per run for
+every method (:func:`casep.workflows.solve.rows_for`) when the campaign fits a noise model or a robust
+fit. Each returns an estimate and its std (None: the method reports none).
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from casep.estimators.registry import METHODS as _REGISTRY
 from casep.estimators.registry import CoefficientTable, Interval
 from casep.simulation.paper import demo_bounds, demo_prior
 
-__all__ = ["BATCHED", "METHOD_HELP", "MethodSpec", "linear_maps", "parse_method", "solve_runs"]
+__all__ = ["BATCHED", "METHOD_HELP", "MethodSpec", "fit_spec", "linear_maps", "parse_method", "solve_runs"]
 
 #: Methods solved for all runs with one factorisation (their linear map).
 BATCHED = tuple(k for k, m in _REGISTRY.items() if m.batched)
@@ -170,62 +171,57 @@ def linear_maps(S: np.ndarray, names: Sequence[str], sigma: float, methods: Sequ
     return out
 
 
-def solve_runs(spec: MethodSpec, ys: Sequence[np.ndarray], flights: Sequence[tuple[np.ndarray, np.ndarray]], *,
-               names: Sequence[str], sigma: float, prior: Mapping | None = None, bounds: Mapping | None = None,
-               noise: str = "white", robust: str | None = None, rows: Sequence[Any] | None = None,
-               shared: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray | None]:
-    """Each run of a chunk through the public solver: estimates and stds, ``(runs, n)`` each.
+def fit_spec(spec: MethodSpec, names: Sequence[str], noise: Any, *, sigma: float, prior: Mapping | None = None,
+             bounds: Mapping | None = None) -> Any:
+    """The fit request (:class:`~casep.estimators.spec.FitSpec`) of one method of a campaign, built once.
 
-    `ys` are the runs' dv, `flights` their ``(S_V, t)``; `shared` the ``(S_V, t)`` all runs
-    share (nominal campaigns: the method's ``shared_options``, e.g. GLS's one REML lattice for
-    the chunk). `prior` and `bounds` are those the methods require (default: the paper's demo
-    values); `noise` and `robust` the noise model and robust fit, with `rows` each run's rows
-    prepared once for every method (:func:`casep.workflows.solve.prepare_rows`; None: white,
-    the solver directly). The std is None when the method reports none.
+    Its options are the spec's and the required ones the campaign supplies (`prior`, `bounds`: given,
+    else the paper's demo values); a method that requires a prior weighs the data at the scenario's
+    known `sigma`; `noise` is the campaign's :class:`~casep.estimators.spec.NoiseSpec`, de-noised first
+    for ``wavelet+<method>`` (then white, as ``casep separate --denoise wavelet`` fits it). A method with
+    its own noise model (GLS) keeps it: the campaign's "white" is the other methods' assumption.
     """
+    import dataclasses
+
+    from casep.estimators.spec import FitSpec
+
     m = _REGISTRY[spec.name]
-    runs = [_denoised(spec, y) for y in ys]
-    per_run: list[dict[str, Any]] = [{} for _ in runs]
+    if spec.denoise:
+        noise = dataclasses.replace(noise, denoise="wavelet")
+    elif m.own_noise_model is not None and noise.kind == "white":
+        noise = dataclasses.replace(noise, kind="auto")
+    return FitSpec(spec.name, _supplied(spec, names, prior, bounds), sigma if "prior" in m.required else None, noise)
+
+
+def solve_runs(spec: Any, ys: Sequence[np.ndarray], flights: Sequence[tuple[np.ndarray, np.ndarray]], *,
+               names: Sequence[str], rows: Sequence[Any] | None = None,
+               shared: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """Each run of a chunk through the one entry point :func:`casep.workflows.solve.fit`: estimates and stds,
+    ``(runs, n)`` each.
+
+    `spec` is the method's fit request (:func:`fit_spec`), `ys` the runs' dv, `flights` their
+    ``(S_V, t)``; `rows` each run's rows prepared once for every method
+    (:func:`casep.workflows.solve.rows_for`; None: prepared here, per method); `shared` the ``(S_V, t)``
+    all runs share (nominal campaigns: the method's ``shared_options``, e.g. GLS's one REML lattice
+    for the chunk). The std is None when the method reports none. The residual checks are left out
+    (a campaign judges its runs by their numbers).
+    """
+    import dataclasses
+
+    from casep.regression.problem import Problem
+    from casep.workflows.solve import fit
+
+    m = _REGISTRY[spec.method]
+    per_run: list[dict[str, Any]] = [{} for _ in ys]
     if m.shared_options is not None and shared is not None:
-        per_run = m.shared_options(shared[0], np.stack([y for y, _ in runs], axis=-1), shared[1])
-    base = _supplied(spec, names, prior, bounds)
-    outs = [_solve(spec, S, y, t, given, {**base, **extra}, sigma=sigma, names=names, noise=noise, robust=robust,
-                   rows=rw)
-            for (y, given), extra, (S, t), rw in zip(runs, per_run, flights,
-                                                     # de-noised dv: white, as casep separate fits it
-                                                     rows if rows is not None and not spec.denoise
-                                                     else [None] * len(runs))]
+        per_run = m.shared_options(shared[0], np.stack(list(ys), axis=-1), shared[1])
+    if rows is None or spec.noise.denoise is not None:  # de-noised dv: the rows of the raw dv are not its
+        rows = [None] * len(ys)
+    outs = []
+    for y, extra, (S, t), rw in zip(ys, per_run, flights, rows):
+        problem = rw.problem if rw is not None else Problem.from_arrays(S, y, t, names=names)
+        run_spec = dataclasses.replace(spec, options={**spec.options, **extra}) if extra else spec
+        r = fit(problem, run_spec, rows=rw, checks=False)
+        outs.append((r.estimate, r.std))
     est = np.array([o[0] for o in outs])
     return est, None if outs[0][1] is None else np.array([o[1] for o in outs])
-
-
-def _denoised(spec: MethodSpec, y: np.ndarray) -> tuple[np.ndarray, float | None]:
-    """``wavelet+<m>``: the de-noised dv and its sigma, as casep separate does; else as given."""
-    if not spec.denoise:
-        return y, None
-    from casep.noise.denoise import denoise
-
-    d = denoise(y)
-    return d.dv, float(np.sqrt(np.mean(d.sigma**2)))
-
-
-def _solve(spec: MethodSpec, S: np.ndarray, y: np.ndarray, t: np.ndarray, given: float | None,
-           opts: Mapping[str, Any], *, sigma: float, names: Sequence[str], noise: str, robust: str | None,
-           rows: Any) -> tuple[np.ndarray, np.ndarray | None]:
-    """One run: `given` is the sigma handed to the solver (None: estimated)."""
-    from casep.estimators.registry import run_method
-
-    m = _REGISTRY[spec.name]
-    if "prior" in m.required:
-        given = given or sigma  # a prior weighs the data at the known sigma
-    if rows is not None:
-        from casep.workflows.solve import solve_problem
-
-        if m.own_noise_model is not None:  # it fits its own noise model; the glitches removed first when robust
-            r = solve_problem(rows.problem, m.name, opts, noise="gm", robust=robust, sigma=given).result
-        else:
-            r = solve_problem(rows.problem, m.name, opts, noise=noise, rows=rows, sigma=given,
-                              check_white=False).result
-        return r.estimate, r.std
-    r = run_method(m.name, S, y, t, opts, names=names, sigma=given)  # the registry's solver and defaults
-    return r.estimate, r.std

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
 
@@ -23,7 +23,7 @@ from casep.model.sv import build_sv
 from casep.montecarlo.methods import MethodSpec, linear_maps, solve_runs
 from casep.simulation.scenarios import Scenario
 
-__all__ = ["BLOCK", "Context", "chunks", "run_seq", "run_task"]
+__all__ = ["BLOCK", "Context", "chunks", "per_run_noise", "run_seq", "run_task"]
 
 BLOCK = 128  # most runs per task (columns of one block of right-hand sides)
 
@@ -56,10 +56,10 @@ class Context:
     S: np.ndarray | None = None  # nominal trajectory's tracked rows (None when dispersed)
     t: np.ndarray | None = None
     crlb: np.ndarray | None = None
-    noise: str = "white"  # the noise model the methods assume (casep.noise.model)
-    noise_tau: Any = None
-    robust: str | None = None
+    noise: Any = None  # the NoiseSpec the methods assume (None: white, no robust fit)
+    fits: Mapping[str, Any] = field(default_factory=dict)  # each per-run method's FitSpec, by its text
     linear: tuple[str, ...] = ()  # the batched methods of the campaign
+
 
     @cached_property
     def model(self) -> Any:
@@ -77,6 +77,12 @@ class Context:
     def __getstate__(self) -> dict[str, Any]:
         # the cached model (CasADi, not picklable) and maps are rebuilt where they are used
         return {k: v for k, v in self.__dict__.items() if k not in ("model", "nominal_maps")}
+
+
+def per_run_noise(noise: Any) -> bool:
+    """Each run's rows need a noise model or a robust fit under the NoiseSpec `noise` (prepared once per run
+    for every method; the linear methods then run per run, not batched). None: white, no robust fit."""
+    return noise is not None and (noise.kind != "white" or noise.robust is not None)
 
 
 Flight = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, float]]
@@ -149,17 +155,16 @@ def run_task(ctx: Context, linear: Sequence[MethodSpec], other: Sequence[MethodS
             est.update(est_l)
             std.update(std_l)
         rows = None
-        if ctx.noise != "white" or ctx.robust not in (None, "auto"):  # each run's noise model, weights: every method
+        if per_run_noise(ctx.noise):  # each run's noise model and weights, worked out once for every method
             from casep.regression.problem import Problem
-            from casep.workflows.solve import prepare_rows
+            from casep.workflows.solve import rows_for
 
-            rows = [prepare_rows(Problem.from_arrays(S, y, t, names=ctx.names), ctx.noise, ctx.noise_tau, ctx.robust)
+            rows = [rows_for(Problem.from_arrays(S, y, t, names=ctx.names), ctx.noise)
                     for y, (S, t, *_) in zip(ys, flights)]
         shared = (ctx.S, ctx.t) if ctx.dispersions is None and ctx.S is not None and ctx.t is not None else None
         for spec in other:
-            est[spec.text], std[spec.text] = solve_runs(
-                spec, ys, [(S, t) for S, t, *_ in flights], names=ctx.names, sigma=ctx.sigma, prior=ctx.prior,
-                bounds=ctx.bounds, noise=ctx.noise, robust=ctx.robust, rows=rows, shared=shared)
+            est[spec.text], std[spec.text] = solve_runs(ctx.fits[spec.text], ys, [(S, t) for S, t, *_ in flights],
+                                                        names=ctx.names, rows=rows, shared=shared)
     draws = {name: np.array([f[4][name] for f in flights]) for name in (flights[0][4] if flights else {})}
     return {"runs": np.asarray(runs, dtype=np.int64), "truth": np.array([f[2] for f in flights]),
             "crlb": np.array([f[3] for f in flights]), "est": est, "std": std, "draws": draws}

@@ -15,7 +15,7 @@ on top of either kind: Gauss-Markov plus white, the usual radar / GNSS mixture.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -98,6 +98,10 @@ class NoiseModel:
         for g in self.gaps:
             if len(g) != 2 or not g[1] > 0:
                 raise ValueError(f"each gap must be (start, length > 0), got {g}")
+
+    def without_noise(self) -> "NoiseModel":
+        """The same tracking (kind, gaps) without noise or outliers: ``dv = S_V D`` to rounding."""
+        return replace(self, sigma=0.0, white_sigma=0.0, outlier_rate=0.0, outlier_sigma=0.0)
 
     def lag1_at(self, dt: float) -> float:
         """Expected lag-1 autocorrelation of the noise (without outliers) at sample step `dt` (s):

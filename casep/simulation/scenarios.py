@@ -79,6 +79,11 @@ class Scenario:
     truth: dict = field(default_factory=lambda: dict(TABLE1_TRUTH))
     noise: NoiseModel = field(default_factory=lambda: NoiseModel("white", TABLE1_NOISE_SIGMA))
 
+    def without_noise(self) -> "Scenario":
+        """The same scenario without tracking noise (:meth:`casep.simulation.noise.NoiseModel.without_noise`):
+        a noise-free flight, the first check of a model file or a set-up (the truth recovered to rounding)."""
+        return dataclasses.replace(self, noise=self.noise.without_noise())
+
     def with_rate(self, rate: float | None) -> "Scenario":
         """The same scenario at another sample rate (None keeps it); ValueError outside (0, MAX_RATE_HZ]."""
         if rate is None:

@@ -110,7 +110,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
                          "yet: fit each flight alone for them")
     if sigma is None and spec.sigma is not None:
         sigma = spec.sigma
-    opts, noise, tau, robust = dict(spec.options), spec.noise.kind, spec.noise.tau, spec.noise.robust
+    opts, noise, robust = dict(spec.options), spec.noise.kind, spec.noise.robust
     model = load_model(model)
     problems, paired, read = [], [], []
     for fl in flights:
@@ -134,7 +134,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     if hooks.rows is not None:  # the method's own rows (GLS: each flight whitened by its own tau)
         problems, state = hooks.rows(problems, opts, noise, robust)
     else:  # each flight's own noise model and robust cleaning
-        problems, noise_models = _noise_whitened(problems, noise, tau, robust)
+        problems, noise_models = _noise_whitened(problems, spec.noise)
     sig = _sigmas(problems, sigma)
     layout = JointLayout(model.names, model.per_flight, _labels(raw))
     jp = JointProblem(problems, sig, layout, raw=raw, interpolated=paired)
@@ -180,12 +180,13 @@ def _refuse_repeats(problems: Sequence[Problem]) -> None:
                                  "information would count twice; give each flight once")
 
 
-def _noise_whitened(problems: Sequence[Problem], noise: str, tau, robust: str | None):
-    """Each flight's rows as every method solves them: its own noise model, robustly cleaned when asked
-    (:func:`casep.regression.rows.prepare_rows`); returns the solved problems and the rows."""
-    from casep.regression.rows import prepare_rows
+def _noise_whitened(problems: Sequence[Problem], noise: Any):
+    """Each flight's rows as every method solves them under the noise request `noise` (a NoiseSpec): its own
+    noise model, robustly cleaned when asked (:func:`casep.workflows.solve.rows_for`); returns the solved
+    problems and the rows."""
+    from casep.workflows.solve import rows_for
 
-    rows = [prepare_rows(p, noise, tau, robust) for p in problems]
+    rows = [rows_for(p, noise) for p in problems]
     return [r.solved for r in rows], rows
 
 

@@ -30,8 +30,8 @@ from casep.regression.problem import Problem
 from casep.regression.rows import Rows, prepare_rows
 
 # Rows and prepare_rows live in casep.regression.rows (the data's), re-exported here beside solve_problem
-__all__ = ["fit", "solve_problem", "solve_spec", "noise_account", "prepare_rows", "Rows", "Solved", "hac_covariance",
-           "STD_CHOICES"]
+__all__ = ["fit", "rows_for", "solve_problem", "solve_spec", "noise_account", "prepare_rows", "Rows", "Solved",
+           "hac_covariance", "STD_CHOICES"]
 
 
 @dataclass
@@ -63,8 +63,8 @@ def _x(res: EstimateResult) -> np.ndarray:
     return np.where(np.isnan(res.estimate), 0.0, res.estimate)
 
 
-def fit(problem: Problem, spec: FitSpec, *, rows: Rows | None = None) -> EstimateResult:
-    """Fit `problem` as `spec` asks: the one entry point of every path (one flight, several, demo, ...).
+def fit(problem: Problem, spec: FitSpec, *, rows: Rows | None = None, checks: bool = True) -> EstimateResult:
+    """Fit `problem` as `spec` asks: the one entry point of every path (one flight, several, demo, Monte Carlo, ...).
 
     De-noise if asked (:func:`casep.noise.denoise.denoise`; sigma then the wavelet's estimate of
     the raw noise unless given), solve the rows under the noise model (:func:`solve_spec`), check the
@@ -78,7 +78,11 @@ def fit(problem: Problem, spec: FitSpec, *, rows: Rows | None = None) -> Estimat
     spec : FitSpec
         The request, checked when it was made.
     rows : Rows, optional
-        Rows prepared before for this problem (several methods on one flight share them).
+        Rows prepared before for this problem (:func:`rows_for`: several methods on one flight share them).
+    checks : bool, optional
+        False: the estimate and its std only, without the judgements of the residuals (noise-free data,
+        outliers, time offset, a given sigma, whiteness): a Monte Carlo run, whose numbers are judged
+        over the runs.
 
     Returns
     -------
@@ -97,12 +101,15 @@ def fit(problem: Problem, spec: FitSpec, *, rows: Rows | None = None) -> Estimat
         if sigma is None:
             sigma = float(np.sqrt(np.mean(den.sigma**2)))  # raw-noise sigma, not post-de-noising residuals
             from_wavelet = True
-    out = solve_spec(solved, dataclasses.replace(spec, sigma=sigma), rows=rows, check_white=den is None)
+    if sigma is not spec.sigma:
+        spec = dataclasses.replace(spec, sigma=sigma)
+    out = solve_spec(solved, spec, rows=rows, check_white=den is None and checks)
     res = out.result
-    check_fit(problem, problem._need_rows(), res, t=problem.t, f=problem.f, source=problem.source,  # type: ignore[arg-type]
-              outliers_handled="robust" in res.diagnostics or spec.noise.exclude_outliers is not None,
-              excluded=out.excluded)
-    if sigma is not None and not from_wavelet:
+    if checks:
+        check_fit(problem, problem._need_rows(), res, t=problem.t, f=problem.f, source=problem.source,  # type: ignore[arg-type]
+                  outliers_handled="robust" in res.diagnostics or spec.noise.exclude_outliers is not None,
+                  excluded=out.excluded)
+    if checks and sigma is not None and not from_wavelet:
         check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
     if spec.outliers is not None:  # studentized residuals on the rows the method solved (whitened), samples named
         from casep.regression.outliers import flag_outliers
@@ -163,11 +170,10 @@ def solve_spec(problem: Problem, spec: FitSpec, *, rows: Rows | None = None, che
     meth = METHODS[spec.method]
     ns = spec.noise
     opts = {**dict(spec.options), **dict(spec.keywords), "sigma": spec.sigma}
-    robust = None if ns.std == "hac" and ns.robust == "auto" else ns.robust  # HAC std: of plain least squares
     if meth.own_noise_model is not None:
-        return _solve_own_noise(problem, meth, opts, robust, ns.exclude_outliers)
+        return _solve_own_noise(problem, meth, opts, _robust(ns), ns.exclude_outliers)
     if rows is None:
-        rows = prepare_rows(problem, ns.kind, ns.tau, robust, ns.exclude_outliers)
+        rows = rows_for(problem, ns)
     elif rows.problem is not problem:
         raise ValueError("`rows` were prepared for another problem")
     robust_sigma = opts.get("sigma") is None and rows.sigma is not None
@@ -180,6 +186,17 @@ def solve_spec(problem: Problem, spec: FitSpec, *, rows: Rows | None = None, che
         res = _with_hac(res, rows.solved)
     return Solved(_finish(rows, res, check_white), rows.solved, rows.noise, np.flatnonzero(~rows.keep),
                   rows.weights)
+
+
+def _robust(noise: NoiseSpec) -> str | None:
+    """The robust fit a noise request runs: HAC std are those of plain least squares (no automatic robust fit)."""
+    return None if noise.std == "hac" and noise.robust == "auto" else noise.robust
+
+
+def rows_for(problem: Problem, noise: NoiseSpec) -> Rows:
+    """The rows of `problem` under the noise request `noise` (:func:`prepare_rows`): noise model, robust
+    weights, removed samples; prepared once, they serve every method of a comparison (``fit(..., rows=)``)."""
+    return prepare_rows(problem, noise.kind, noise.tau, _robust(noise), noise.exclude_outliers)
 
 
 def _places(problem: Problem, samples) -> list[dict]:

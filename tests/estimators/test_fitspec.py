@@ -164,13 +164,17 @@ def _finite_json(path) -> dict:
     return data
 
 
-def _recovery_in_crlb_std(estimates: np.ndarray, truth: np.ndarray, flight, model) -> float:
+def _crlb_std(flight, model) -> np.ndarray:
+    """The Cramer-Rao std of the flight's coefficients at 0.1 m/s of white noise."""
     from casep.checks.diagnostics import crlb_covariance
     from casep.workflows.separate import regression_rows
 
     S, _, _ = regression_rows(flight, model)
-    crlb = np.sqrt(np.diag(crlb_covariance(S, 0.1)))  # what 0.1 m/s of noise would allow
-    return float(np.max(np.abs(estimates - truth) / crlb))
+    return np.sqrt(np.diag(crlb_covariance(S, 0.1)))  # what 0.1 m/s of noise would allow
+
+
+def _recovery_in_crlb_std(estimates: np.ndarray, truth: np.ndarray, flight, model) -> float:
+    return float(np.max(np.abs(estimates - truth) / _crlb_std(flight, model)))
 
 
 def _check_clean(data: dict, truth: np.ndarray, flight, model) -> None:
@@ -184,8 +188,22 @@ def _check_clean(data: dict, truth: np.ndarray, flight, model) -> None:
 def _clean_scenario(name: str):
     from casep.simulation.scenarios import get_scenario
 
-    sc = get_scenario(name)
-    return dataclasses.replace(sc, noise=dataclasses.replace(sc.noise, sigma=0.0, outlier_rate=0.0))
+    return get_scenario(name).without_noise()  # what casep simulate --noise-free flies
+
+
+def test_noise_free_simulated_flight_from_the_command_line(tmp_path, capsys, platform36):
+    """As an analyst checks a set-up: casep simulate --noise-free, then casep separate --json (exit 0, nothing
+    rejected as a glitch, the truth recovered to 1e-2 of its Cramer-Rao std at 0.1 m/s, every number finite)."""
+    path, out = tmp_path / "clean.csv", tmp_path / "r.json"
+    assert main(["simulate", "--noise-free", "--rate", "10", "-o", str(path)]) == 0
+    side = json.loads((tmp_path / "clean.truth.json").read_text())
+    assert side["noise"]["sigma"] == 0.0 == side["noise"]["outlier_rate"]
+    code = main(["separate", str(path), "--json", str(out)])
+    printed = capsys.readouterr()
+    assert code == 0, printed.err
+    assert "glitch" not in printed.out + printed.err and "at the rounding level" in printed.out
+    truth = np.array([side["coefficients"].get(n, 0.0) for n in platform36.names])
+    _check_clean(_finite_json(out), truth, casep.read_flight(path), platform36)
 
 
 @pytest.mark.parametrize("model, lever", [("platform36", None), ("models/platform36_leverarm.py", (0.5, 0.2, -0.1))])
@@ -241,6 +259,17 @@ def test_noise_free_several_flights_default_path_json(tmp_path, capsys):
     assert data["consistency"]["overall"] is None  # no noise to test the flights' consistency against
     for fl in data["flights"]:
         assert max(fl["residual_rms"].values()) < 1e-9
+    # the coefficients recovered to 1e-2 of their joint Cramer-Rao std at 0.1 m/s (both flights' rows stacked)
+    from casep.checks.diagnostics import crlb_covariance
+    from casep.workflows.separate import regression_rows
+
+    S = np.concatenate([regression_rows(casep.read_flight(p), sim.model)[0] for p in paths])
+    crlb = dict(zip(sim.model.names, np.sqrt(np.diag(crlb_covariance(S, 0.1)))))
+    est = dict(zip(data["names"], np.array(data["estimates"], dtype=float)))
+    truth = dict(zip(sim.model.names, np.array(sim.truth, dtype=float)))
+    assert set(est) == set(truth)  # platform36: every coefficient shared by the flights
+    worst = max(abs(est[n] - truth[n]) / crlb[n] for n in est)
+    assert worst <= 0.01, worst
 
 
 @pytest.mark.parametrize("method, option", [(m, o) for m in METHODS for o in sorted(OPTIONS)
@@ -257,3 +286,16 @@ def test_an_option_of_another_method_same_message_api_and_cli(good_flight_csv, c
     assert api.startswith(f"option {opt.flag} (`{option}`) is not taken by method `{method}`")
     assert main(["separate", str(good_flight_csv), "--method", method, opt.flag, str(value)]) == 2
     assert f"casep: error: {api}" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name, flag, value", [("outliers", "--outliers", 2.0), ("exclude_outliers",
+                                                                                  "--exclude-outliers", 1.5),
+                                               ("outliers", "--outliers", 0.0), ("exclude_outliers",
+                                                                                  "--exclude-outliers", -0.01)])
+def test_outlier_chances_are_checked_with_the_request(good_flight_csv, capsys, name, flag, value):
+    """A false-alarm chance outside (0, 1) is refused where the request is made, naming the option (was:
+    accepted, then refused mid-fit as `alpha`)."""
+    with pytest.raises(ValueError, match=rf"^`{name}` must be a false-alarm chance in \(0, 1\)"):
+        FitSpec.build("ols", **{name: value})
+    assert main(["separate", str(good_flight_csv), flag, str(value)]) == 2
+    assert f"casep: error: `{name}` must be a false-alarm chance in (0, 1)" in capsys.readouterr().err

@@ -87,8 +87,7 @@ def test_campaign_context_caches_its_maps_and_never_sends_them():
     (what Dask scatters) leaves the cached maps and model behind."""
     from casep.montecarlo.campaign import _context  # the campaign's own set-up, as run_montecarlo builds it
 
-    ctx, _, _ = _context("paper", 2.0, 1, None, None, None, None, None, None, noise="white", noise_tau=None,
-                         robust=None, linear=("ols", "map"))
+    ctx, _, _ = _context("paper", 2.0, 1, None, None, None, None, None, None, linear=("ols", "map"))
     maps = ctx.nominal_maps
     assert set(maps) == {"ols", "map"} and ctx.nominal_maps is maps
     _ = ctx.model
