@@ -349,8 +349,12 @@ class _EmptyNaN:
         self.fh.write(text.replace("nan", ""))
 
 
-def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[str] | None = None) -> None:
+def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[str] | None = None,
+                 force: bool = True) -> None:
     """Write a flight (``t, f_x, f_y, f_z, dv_x, dv_y, dv_z``, then its signals) as CSV or Parquet, atomically.
+
+    ``force=False`` leaves ``f_*`` out: a strapdown flight, whose reader computes ``f = C(q) fb`` from its
+    ``q_*`` and ``fb_*`` signals.
 
     A sample without tracking (``observed`` False) is written with its three dv cells empty (CSV) or null
     (Parquet), as are NaN signal values: :func:`read_flight` reads such a row back as not observed.
@@ -358,7 +362,8 @@ def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[
     if not isinstance(flight, FlightData):
         raise TypeError(f"`flight` must be a FlightData, got {type(flight).__name__}")
     cols = {"t": flight.t}
-    cols.update({c: flight.f[:, i] for i, c in enumerate(FORCE_COLUMNS)})
+    if force:
+        cols.update({c: flight.f[:, i] for i, c in enumerate(FORCE_COLUMNS)})
     dv = np.where(flight.observed[:, None], flight.dv, np.nan)  # a sample without tracking: all three dv missing
     cols.update({c: dv[:, i] for i, c in enumerate(DV_COLUMNS)})
     cols.update(flight.signals)
