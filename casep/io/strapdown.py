@@ -102,7 +102,7 @@ def _rate_evidence(t: np.ndarray, q: np.ndarray, w: np.ndarray) -> dict[str, Any
     dt = np.diff(t)
     inc = 0.5 * (w[1:] + w[:-1]) * dt[:, None]  # trapezoid of w over each step, rad
     total = float(np.sum(np.linalg.norm(inc, axis=1)))
-    out: dict[str, Any] = {"rotation_rad": total}
+    out: dict[str, Any] = {"rotation_rad": total, "rows": int(t.size)}
     if total < MIN_ROTATION or t.size < 3:
         return out
     fits = {}
@@ -191,12 +191,13 @@ def _judge_rate_fits(src: str, ev: dict[str, Any], error: Any) -> None:
         raise error(f"the body rate looks like deg/s, not rad/s: the attitude (q_*) turns by {mine['scale']:.5g} "
                     f"times the integrated rate (1/{1 / mine['scale']:.4g}; pi/180 = 1/57.30), which then agrees "
                     f"within {100 * mine['scaled_mismatch']:.2g} % (as rad/s it is {100 * mine['mismatch']:.3g} % "
-                    f"off). Give {wcols} in rad/s: multiply by pi/180", "w_x", None)
+                    f"off, over rows 1-{ev['rows']}). Give {wcols} in rad/s: multiply by pi/180", "w_x", None)
     for name, fit in list(fits.items())[1:]:
         if fit["mismatch"] <= RATE_TOL:
             raise error(f"the quaternions look {name}: read so, the integrated body rate ({wcols}) agrees with "
                         f"their steps within {100 * fit['mismatch']:.2g} %, read as declared (Hamilton, scalar "
-                        f"first, body to navigation) it is {100 * mine['mismatch']:.3g} % off. Convert them to "
+                        f"first, body to navigation) it is {100 * mine['mismatch']:.3g} % off (rows 1-{ev['rows']}). "
+                        "Convert them to "
                         "the declared convention", ", ".join(QUATERNION_COLUMNS), None)
     warnings.warn(StrapdownWarning(
         f"{src}: the attitude (q_*) disagrees with the integrated body rate ({wcols}) by "
