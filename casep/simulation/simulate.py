@@ -57,7 +57,7 @@ from casep.simulation.trajectory import BoostTrajectory, body_to_platform, simul
 if TYPE_CHECKING:
     from casep.frames import LaunchSite
 
-__all__ = ["SIGNAL_COLUMNS", "trajectory_signals", "SimulatedFlight", "simulate_flight", "scenario_setup",
+__all__ = ["SIGNAL_COLUMNS", "trajectory_signals", "sv_inputs", "with_roll", "SimulatedFlight", "simulate_flight", "scenario_setup",
            "write_simulation", "truth_path", "TwoRateData", "simulate_two_rate", "truth_vector", "check_seed"]
 
 
@@ -203,8 +203,28 @@ def scenario_setup(scenario: str | Scenario, rate: float | None = None, *, rotat
     """
     sc = get_scenario(scenario).with_rate(rate)
     model = load_model(sc.model)
-    traj = simulate_boost(sc.vehicle, sc.rate, rotating_earth=rotating_earth, site=site)
+    traj = with_roll(sc, simulate_boost(sc.vehicle, sc.rate, rotating_earth=rotating_earth, site=site))
     return sc, traj, model, truth_vector(model, sc.truth)
+
+
+def with_roll(sc: Scenario, traj: BoostTrajectory) -> BoostTrajectory:
+    """`traj` flown with the scenario's roll programme (a strapdown scenario), else `traj` itself."""
+    return traj if sc.roll is None else rolled(traj, sc.roll)
+
+
+def sv_inputs(sc: Scenario, traj: BoostTrajectory, model: ErrorModel, truth: np.ndarray,
+              signals: dict[str, np.ndarray] | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The specific force and signal columns S_V of a scenario's flight is built on.
+
+    A platform scenario: the trajectory's specific force and :func:`trajectory_signals` (or `signals`). A
+    strapdown one: ``f = C(q) fb`` and the strapdown columns beside them, the IMU's body errors at `truth`
+    (:func:`casep.simulation.strapdown.strapdown_signals`).
+    """
+    sig = trajectory_signals(traj) if signals is None else signals
+    if sc.roll is None:
+        return traj.specific_force, sig
+    force, columns = strapdown_signals(traj, model, truth)
+    return force, {**sig, **columns}
 
 
 def check_seed(seed: int) -> int:
@@ -253,15 +273,11 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
     time_offset, lever = _check_tracking(time_offset, lever_arm)
     sc, traj, error_model, true_D = scenario_setup(sc, rate, rotating_earth=rotating_earth, site=site)
     rng = np.random.default_rng(seed)
-    if sc.roll is not None:  # strapdown: the roll programme in the attitude and body rate
-        if time_offset and np.any(lever):
-            raise ValueError("a strapdown scenario takes a tracking time offset or a lever arm, not both")
-        traj = rolled(traj, sc.roll)
-    sig = trajectory_signals(traj, time_offset=time_offset, lever_arm=lever)
-    force = traj.specific_force
-    if sc.roll is not None:  # q_*, measured fb_* and w_*; f = C(q) fb as the file's reader computes it
-        force, columns = strapdown_signals(traj, error_model, true_D)
-        sig.update(columns)
+    if sc.roll is not None and time_offset and np.any(lever):  # the rolled attitude is known at the samples only
+        raise ValueError("a strapdown scenario takes a tracking time offset or a lever arm, not both")
+    # strapdown: q_*, measured fb_* and w_*; f = C(q) fb as the file's reader computes it
+    force, sig = sv_inputs(sc, traj, error_model, true_D, trajectory_signals(traj, time_offset=time_offset,
+                                                                             lever_arm=lever))
     tracked = np.column_stack([sig[f"v_{a}"] for a in "xyz"])
     # dv = v_tel - v_trk = (v + S_V D) - (v_point(t - dt) - n) = S_V D + (v - v_point(t - dt)) + n
     clean = build_sv(error_model, traj.t, force, signals=sig) @ true_D + (traj.velocity - tracked)
