@@ -2,7 +2,7 @@
 
 The ``strapdown-boost`` scenario (roll programme, tracking from 6 s, gap 110-115 s, Gauss-Markov
 0.1 m/s tau 1 s plus white 0.05 m/s per axis) with the 15 strapdown33 terms an axial-thrust boost
-excites (``tests/data/strapdown15_axial.py``, truth from the scenario's). One trajectory, one
+excites (the shipped ``strapdown15_axial``, truth from the scenario's). One trajectory, one
 noise-free dv; each run draws its noise with its own seed (as ``simulate_flight(seed=k)`` does) and
 separates with OLS and the default noise model (REML). z = (estimate - truth) / reported std over
 the 15 coefficients and the runs. Also the noise-free recovery against the CRLB std, and the white
@@ -17,11 +17,10 @@ import argparse
 import dataclasses
 import time
 import warnings
-from pathlib import Path
 
 import numpy as np
 
-MODEL = str(Path(__file__).resolve().parents[1] / "tests" / "data" / "strapdown15_axial.py")
+MODEL = "strapdown15_axial"
 
 
 def _line(name: str, z: np.ndarray) -> str:

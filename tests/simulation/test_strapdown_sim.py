@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,7 +16,7 @@ from casep.simulation.simulate import simulate_flight, write_simulation
 from casep.simulation.strapdown import RollProgramme
 
 #: The strapdown33 terms an axial-thrust boost excites (fb_y = fb_z = 0 leaves the others unseen).
-AXIAL = str(Path(__file__).parents[1] / "data" / "strapdown15_axial.py")
+AXIAL = "strapdown15_axial"
 RATE = 20.0  # Hz: fast enough for the suite
 
 
