@@ -9,6 +9,7 @@ second) leave the other rate terms weak: `casep diagnose FLIGHT --model strapdow
 flight. Same names, units, equations and columns as strapdown33 (docs/reference/model.md).
 """
 import casadi as ca
+
 import casep
 from casep.model.strapdown import strapdown_inputs
 from casep.units import G0

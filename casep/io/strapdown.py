@@ -24,7 +24,8 @@ Checks, each naming the file, the columns, the rows and the numbers:
 
   A flight that turns by less than :data:`MIN_ROTATION` in all gets no comparison (nothing to see).
 
-A body-rate peak above :data:`RATE_PEAK_HIGH` is a warning (deg/s?). The specific force's units are
+A body-rate peak above :data:`RATE_PEAK_HIGH` is a warning (deg/s?); so are ``f_*`` columns beside the
+strapdown ones that differ from ``C(q) fb`` by more than :data:`FORCE_TOL` (1 %) RMS. The specific force's units are
 checked on the computed ``f`` by :func:`casep.analysis.checks.check_flight` (a peak below 1 g: ``fb``
 in g), which names the ``fb_*`` columns.
 """
@@ -40,8 +41,9 @@ from casep.exceptions import PlausibilityWarning
 from casep.io.flight import FlightDataError
 from casep.model.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS, STRAPDOWN_COLUMNS
 
-__all__ = ["StrapdownWarning", "strapdown_force", "check_strapdown", "quaternion_dcm_array", "NORM_TOL",
-           "RATE_TOL", "MIN_ROTATION", "RATE_PEAK_HIGH", "CONVENTIONS", "STRAPDOWN_COLUMNS"]
+__all__ = ["StrapdownWarning", "strapdown_force", "check_strapdown", "compare_force", "FORCE_TOL",
+           "quaternion_dcm_array", "NORM_TOL", "RATE_TOL", "MIN_ROTATION", "RATE_PEAK_HIGH", "CONVENTIONS",
+           "STRAPDOWN_COLUMNS"]
 
 #: Largest accepted | |q| - 1 |.
 NORM_TOL = 1e-6
@@ -205,6 +207,22 @@ def _judge_rate_fits(src: str, ev: dict[str, Any], error: Any) -> None:
         f"worst {ev['worst_rate_error_rad_s'] / _DEG:.3g} deg/s at row {ev['worst_row']}), against "
         f"{ev['rms_rate_rad_s'] / _DEG:.3g} deg/s RMS body rate; no other quaternion convention or rate unit "
         "explains it: check that q, fb and w are the INS's own, on one time base"), stacklevel=4)
+
+
+#: RMS of ``f - C(q) fb`` relative to the RMS of f above which a file's f_* and its strapdown columns disagree.
+FORCE_TOL = 0.01
+
+
+def compare_force(src: str, f: np.ndarray, f_body: np.ndarray) -> None:
+    """A :class:`StrapdownWarning` when the file's ``f_*`` differ from ``C(q) fb`` by more than :data:`FORCE_TOL`."""
+    diff = np.linalg.norm(f - f_body, axis=1)
+    rms, scale = float(np.sqrt(np.mean(diff**2))), float(np.sqrt(np.mean(np.sum(f**2, axis=1))))
+    if scale > 0 and rms > FORCE_TOL * scale:
+        k = int(np.argmax(diff))
+        warnings.warn(StrapdownWarning(
+            f"{src}: f_x, f_y, f_z differ from C(q) fb (q_*, fb_*) by {rms:.4g} m/s^2 RMS ({100 * rms / scale:.3g} % "
+            f"of f; worst {diff[k]:.4g} m/s^2 at row {k + 1}): f_* is used, while the strapdown models use q_*, "
+            "fb_*; check the quaternion convention and that both are the INS's"), stacklevel=4)
 
 
 def strapdown_force(tab: Any, t: np.ndarray) -> tuple[np.ndarray, dict[str, Any], np.ndarray]:

@@ -334,6 +334,10 @@ def table_force(tab: Table, t: np.ndarray) -> tuple[np.ndarray, str]:
         tab.strapdown = {"info": info, "q": q}
         if not given:
             return f_body, "q, fb"
+        if tab.has(FORCE_COLUMNS):
+            from casep.io.strapdown import compare_force
+
+            compare_force(tab.src, tab.vectors(FORCE_COLUMNS), f_body)
     if tab.has(FORCE_COLUMNS) or not any(c in tab.columns for c in APPARENT_COLUMNS):
         tab.require(FORCE_COLUMNS, ". Use: f_x, f_y, f_z (m/s^2), or W_x, W_y, W_z (apparent velocity, m/s)")
         return tab.vectors(FORCE_COLUMNS), "f"

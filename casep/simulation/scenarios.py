@@ -143,7 +143,8 @@ SCENARIOS: dict[str, Scenario] = {
                  "Gauss-Markov 0.1 m/s tau 1 s plus white 0.05 m/s tracking noise, tracking from 6 s, gap 110-115 s",
                  vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=_PAPER_YAW), rate=50.0, model="strapdown33",
                  truth=dict(STRAPDOWN_TRUTH), roll=STRAPDOWN_ROLL,
-                 noise=NoiseModel("ar1", TABLE1_NOISE_SIGMA, tau=1.0, white_sigma=0.05, gaps=((0.0, 6.0), (110.0, 5.0)))),
+                 noise=NoiseModel("ar1", TABLE1_NOISE_SIGMA, tau=1.0, white_sigma=0.05,
+                                  gaps=((0.0, 6.0), (110.0, 5.0)))),
         Scenario("paper-azimuth", "as paper, flown 10 deg off the platform x axis (cross-range component)",
                  vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=dataclasses.replace(_PAPER_YAW, offset=10.0))),
     )

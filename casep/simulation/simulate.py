@@ -57,7 +57,8 @@ from casep.simulation.trajectory import BoostTrajectory, body_to_platform, simul
 if TYPE_CHECKING:
     from casep.frames import LaunchSite
 
-__all__ = ["SIGNAL_COLUMNS", "trajectory_signals", "sv_inputs", "with_roll", "SimulatedFlight", "simulate_flight", "scenario_setup",
+__all__ = ["SIGNAL_COLUMNS", "trajectory_signals", "sv_inputs", "with_roll", "SimulatedFlight", "simulate_flight",
+           "scenario_setup",
            "write_simulation", "truth_path", "TwoRateData", "simulate_two_rate", "truth_vector", "check_seed"]
 
 

@@ -88,7 +88,7 @@ def test_unexplained_disagreement_warns_with_its_size(tmp_path):
     t, q, fb, w, _ = motion()
     w_bad = w.copy()
     w_bad[:, 1] += 0.2  # 0.2 rad/s on the y gyro that the attitude never saw
-    with pytest.warns(StrapdownWarning, match=r"disagrees with the integrated body rate .* by ([0-9.]+) deg/s RMS") as rec:
+    with pytest.warns(StrapdownWarning, match=r"disagrees with the integrated body rate .* deg/s RMS") as rec:
         casep.read_flight(write(tmp_path / "sd.csv", t, q, fb, w_bad))
     size = float(str(rec[0].message).split(" by ")[1].split(" deg/s")[0])
     assert size == pytest.approx(np.degrees(0.2), rel=0.05)
@@ -108,9 +108,14 @@ def test_implausible_rate_peak_warns(tmp_path):
 def test_f_columns_win_and_partial_strapdown_columns_are_named(tmp_path):
     t, q, fb, w, C = motion(200)
     f = np.einsum("kij,kj->ki", C, fb)
-    fl = casep.read_flight(write(tmp_path / "both.csv", t, q, fb, w, f_x=f[:, 0] + 1.0, f_y=f[:, 1], f_z=f[:, 2]))
+    fl = casep.read_flight(write(tmp_path / "both.csv", t, q, fb, w, f_x=f[:, 0], f_y=f[:, 1], f_z=f[:, 2]))
     assert fl.meta["force"] == "f" and "strapdown" in fl.meta  # the file's f, the strapdown columns checked
-    assert np.allclose(fl.f[:, 0], f[:, 0] + 1.0)
+    with pytest.warns(StrapdownWarning, match=r"differ from C\(q\) fb .* by 1 m/s\^2 RMS") as rec:
+        fl = casep.read_flight(write(tmp_path / "off.csv", t, q, fb, w, f_x=f[:, 0] + 1.0, f_y=f[:, 1], f_z=f[:, 2]))
+    percent = float(str(rec[0].message).split("RMS (")[1].split(" %")[0])
+    f_file = f + [1.0, 0.0, 0.0]
+    assert percent == pytest.approx(100.0 / np.sqrt(np.mean(np.sum(f_file**2, axis=1))), rel=2e-3)  # of RMS |f|
+    assert np.allclose(fl.f[:, 0], f[:, 0] + 1.0)  # the file's f is used
     cols = {"t": t, "q_w": q[:, 0], "q_x": q[:, 1], "q_y": q[:, 2], "q_z": q[:, 3],
             **{f"dv_{a}": np.zeros(t.size) for a in "xyz"}}
     write_table(tmp_path / "part.csv", cols)
