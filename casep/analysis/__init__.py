@@ -2,7 +2,7 @@
 :mod:`casep.noise` and :mod:`casep.checks`.
 
 Importing this package warns (:class:`DeprecationWarning`); it goes in the next release. Its
-modules (``casep.analysis.problem`` and the like) are gone: import from the new packages.
+modules (``casep.regression.problem`` and the like) are gone: import from the new packages.
 """
 
 import warnings

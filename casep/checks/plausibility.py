@@ -180,7 +180,8 @@ def _check_velocity_units(flight: FlightData) -> None:
 
 
 def _force_columns(flight: FlightData) -> str:
-    return "W_x, W_y, W_z (as dW/dt)" if flight.meta.get("force") == "W" else "f_x, f_y, f_z"
+    return {"W": "W_x, W_y, W_z (as dW/dt)", "q, fb": "fb_x, fb_y, fb_z (as C(q) fb)"}.get(flight.meta.get("force", ""),
+                                                                                          "f_x, f_y, f_z")
 
 
 def _check_force(flight: FlightData) -> float:

@@ -47,6 +47,11 @@ def add_parser(sub: Any) -> None:
                    help="with --tracking-frame ecef|geodetic: tracking sample rate (default 20)")
     p.add_argument("--tracking-output", metavar="FILE", default=None,
                    help="with --tracking-frame ecef|geodetic: tracking file (default <stem>.tracking<suffix>)")
+    p.add_argument("--imu-output", metavar="FILE", default=None,
+                   help="with a strapdown scenario (strapdown-boost): also write the raw IMU data, t, w_x/y/z (rad/s) "
+                        "and fb_x/y/z (m/s^2) as measured, with the truth true_q_*, true_r_*, true_v_*")
+    p.add_argument("--imu-pad", type=float, default=0.0, metavar="SECONDS",
+                   help="with --imu-output: SECONDS standing on the pad before lift-off (t < 0), for an alignment")
     add_simulate_radar(p)  # --radar-station, --tracking-truth, --radar-rate, noise
 
 
@@ -79,6 +84,10 @@ def run(args: argparse.Namespace) -> int:
     scenario = get_scenario(args.scenario).without_noise() if args.noise_free else args.scenario
     out = args.output
     files = {"-o": out, "-o (truth sidecar)": truth_path(out)}
+    if args.imu_output is not None:
+        files["--imu-output"] = args.imu_output
+    elif args.imu_pad:
+        raise ValueError("--imu-pad needs --imu-output")
     if args.tracking_frame == "launch" and args.tracking_output is not None:
         raise ValueError("--tracking-output needs --tracking-frame ecef|geodetic")
     if args.tracking_frame != "launch":
@@ -102,14 +111,14 @@ def run(args: argparse.Namespace) -> int:
     sim = simulate_flight(scenario, seed=args.seed, rate=args.rate, model=args.model, truth=truth,
                           time_offset=args.tracking_offset * 1e-3, lever_arm=args.lever_arm,  # ms -> s
                           **({"rotating_earth": True, "site": site} if site is not None else {}))
-    flight_path, side = write_simulation(sim, out)
+    flight_path, side = write_simulation(sim, out, imu=args.imu_output, imu_pad=args.imu_pad)
     s = sim.trajectory.summary()
     print(f"scenario {sim.scenario.name}: {sim.flight.n_samples} samples at {sim.scenario.rate:g} Hz, "
           f"{s['duration_s']:.1f} s powered flight")
     print(f"lift-off {s['liftoff_specific_force_g']:.2f} g, max {s['max_specific_force_g']:.2f} g; burnout "
           f"{s['burnout_speed_m_s'] / 1e3:.2f} km/s at {s['burnout_altitude_m'] / 1e3:.0f} km, "
           f"flight-path angle {s['burnout_flight_path_deg']:.1f} deg")
-    print(f"wrote {flight_path} and {side}")
+    print(f"wrote {flight_path}{'' if args.imu_output is None else ', ' + str(args.imu_output)} and {side}")
     return 0
 
 

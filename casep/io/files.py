@@ -9,6 +9,10 @@ lines (CSV), other numeric columns kept as signals (below), text columns ignored
   differences on the (possibly non-uniform) time grid (:func:`apparent_velocity_to_force`);
 - velocity error ``dv_x, dv_y, dv_z`` (m/s), or ``v_tel_x/y/z`` and ``v_trk_x/y/z`` (then
   dv = v_tel - v_trk);
+- or, for a strapdown system, ``q_w, q_x, q_y, q_z`` (INS attitude: Hamilton unit quaternion, scalar
+  first, body to navigation), ``fb_x, fb_y, fb_z`` (body specific force, m/s^2) and ``w_x, w_y, w_z``
+  (body rate, rad/s): ``f = C(q) fb`` when the file has no ``f_*`` / ``W_*``; the columns are checked
+  whenever present (:mod:`casep.io.strapdown`) and kept as signals for the strapdown models;
 - any other numeric column (``a_*``, ``r_*``, ``v_*``, attitude, body rate, temperature, ...)
   is kept as a *signal* (``FlightData.signals``, file units) for model files that use it; a
   column with text in it is ignored. Its values are checked when a model uses it.
@@ -113,6 +117,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     if not observed.all():
         meta["unobserved"] = int((~observed).sum())  # rows without tracking (all dv cells empty)
     signals, src = tab.signals(), tab.src
+    tab.strapdown_signals(signals, meta)  # q_*, fb_*, w_*: the checked quaternions, what the checks found
     del tab  # the file's columns, before FlightData takes its own copies (long flights: one copy at a time)
     return FlightData(t, f, dv, source=src, meta=meta, observed=observed, signals=signals)
 
@@ -264,6 +269,7 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset)
     extra: dict[str, Any] = {"time_alignment": alignment}
     signals = tel.signals()
+    tel.strapdown_signals(signals, extra)
     if not all(f"a_{a}" in signals for a in "xyz"):
         # the kinematic acceleration for a time-offset term: d v_tel / dt (cubic spline), exact kinematics
         from scipy.interpolate import CubicSpline
@@ -343,8 +349,12 @@ class _EmptyNaN:
         self.fh.write(text.replace("nan", ""))
 
 
-def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[str] | None = None) -> None:
+def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[str] | None = None,
+                 force: bool = True) -> None:
     """Write a flight (``t, f_x, f_y, f_z, dv_x, dv_y, dv_z``, then its signals) as CSV or Parquet, atomically.
+
+    ``force=False`` leaves ``f_*`` out: a strapdown flight, whose reader computes ``f = C(q) fb`` from its
+    ``q_*`` and ``fb_*`` signals.
 
     A sample without tracking (``observed`` False) is written with its three dv cells empty (CSV) or null
     (Parquet), as are NaN signal values: :func:`read_flight` reads such a row back as not observed.
@@ -352,7 +362,8 @@ def write_flight(flight: FlightData, path: str | os.PathLike, *, comments: list[
     if not isinstance(flight, FlightData):
         raise TypeError(f"`flight` must be a FlightData, got {type(flight).__name__}")
     cols = {"t": flight.t}
-    cols.update({c: flight.f[:, i] for i, c in enumerate(FORCE_COLUMNS)})
+    if force:
+        cols.update({c: flight.f[:, i] for i, c in enumerate(FORCE_COLUMNS)})
     dv = np.where(flight.observed[:, None], flight.dv, np.nan)  # a sample without tracking: all three dv missing
     cols.update({c: dv[:, i] for i, c in enumerate(DV_COLUMNS)})
     cols.update(flight.signals)

@@ -20,6 +20,7 @@ import numpy as np
 
 from casep.io.flight import AXES, DV_COLUMNS, FORCE_COLUMNS, FlightDataError, too_large
 from casep.io.locate import csv_lines, is_parquet
+from casep.model.strapdown import STRAPDOWN_COLUMNS
 
 __all__ = ["Table", "table_force", "apparent_velocity_to_force", "CSV_SEPARATORS", "KNOWN_COLUMNS",
            "APPARENT_COLUMNS", "VTEL_COLUMNS", "VTRK_COLUMNS"]
@@ -147,6 +148,7 @@ class Table:
         if not self.path.is_file():
             raise FlightDataError(self.src, "not a regular file (a device, FIFO or socket?)")
         self.sep = ","
+        self.strapdown: dict[str, Any] | None = None  # what table_force found in q_*, fb_*, w_*
         self.nulls: dict[str, np.ndarray] = {}  # Parquet: the null cells of each column that has any
         if is_parquet(self.path):
             self.line_of: Callable[[int], int | None] = lambda row: None
@@ -278,6 +280,15 @@ class Table:
                     out[col] = values[rows]
         return out
 
+    def strapdown_signals(self, signals: dict[str, np.ndarray], meta: dict[str, Any]) -> None:
+        """After :func:`table_force`: the sign-continuous quaternions into `signals` (at their rows), the
+        checks' findings into ``meta["strapdown"]``."""
+        if self.strapdown is None:
+            return
+        for i, c in enumerate(STRAPDOWN_COLUMNS[:4]):
+            signals[c] = self.strapdown["q"][:, i]
+        meta["strapdown"] = self.strapdown["info"]
+
     def vectors(self, cols: tuple[str, ...], skip: np.ndarray | None = None) -> np.ndarray:
         return np.column_stack([self.numeric(c, skip) for c in cols])
 
@@ -309,8 +320,24 @@ def table_force(tab: Table, t: np.ndarray) -> tuple[np.ndarray, str]:
     """The specific force of a table, m/s^2, and the columns it came from (``"f"`` or ``"W"``).
 
     ``f_x, f_y, f_z`` when the file has them (or has no ``W_*``), else the derivative of the
-    apparent velocity ``W_x, W_y, W_z`` (:func:`apparent_velocity_to_force`).
+    apparent velocity ``W_x, W_y, W_z`` (:func:`apparent_velocity_to_force`); a strapdown file without
+    either: ``f = C(q) fb`` from ``q_*`` and ``fb_*`` (``"q, fb"``, :func:`casep.io.strapdown.strapdown_force`).
+    The strapdown columns are checked whenever the file has them; what the checks found and the
+    sign-continuous quaternions are left in ``tab.strapdown`` for the reader's meta and signals.
     """
+    strapdown = any(c in tab.columns for c in STRAPDOWN_COLUMNS)
+    given = tab.has(FORCE_COLUMNS) or any(c in tab.columns for c in APPARENT_COLUMNS)
+    if strapdown and (not given or tab.has(STRAPDOWN_COLUMNS)):  # q_*, fb_*, w_*: checked whenever present
+        from casep.io.strapdown import strapdown_force
+
+        f_body, info, q = strapdown_force(tab, t)
+        tab.strapdown = {"info": info, "q": q}
+        if not given:
+            return f_body, "q, fb"
+        if tab.has(FORCE_COLUMNS):
+            from casep.io.strapdown import compare_force
+
+            compare_force(tab.src, tab.vectors(FORCE_COLUMNS), f_body)
     if tab.has(FORCE_COLUMNS) or not any(c in tab.columns for c in APPARENT_COLUMNS):
         tab.require(FORCE_COLUMNS, ". Use: f_x, f_y, f_z (m/s^2), or W_x, W_y, W_z (apparent velocity, m/s)")
         return tab.vectors(FORCE_COLUMNS), "f"

@@ -32,7 +32,7 @@ from casep.montecarlo.result import MonteCarloResult
 from casep.montecarlo.store import Store
 from casep.montecarlo.tasks import Context, chunks, per_run_noise
 from casep.simulation.scenarios import Scenario
-from casep.simulation.simulate import scenario_setup
+from casep.simulation.simulate import scenario_setup, sv_inputs
 
 __all__ = ["run_montecarlo"]
 
@@ -221,10 +221,13 @@ def _context(scenario: str | Scenario, rate: float | None, seed: int, flight: An
     tau = sc.noise.tau if sc.noise.kind == "ar1" else None  # the scenario's, for the CRLB
     S = t = crlb = None
     if dispersions is None:  # every run shares the trajectory
-        t_all, f_all = (traj.t, traj.specific_force) if own is None else (own["t"], own["f"])
+        if own is None:  # the scenario's force and signal columns (a strapdown scenario: its q_*, fb_*, w_*)
+            t_all, (f_all, sig) = traj.t, sv_inputs(sc, traj, model, truth_v)
+        else:
+            t_all, f_all, sig = own["t"], own["f"], None
         keep = sc.noise.keep_mask(t_all)  # tracking gaps: no rows there
         t = t_all[keep]
-        S = build_sv(model, t_all, f_all)[keep]
+        S = build_sv(model, t_all, f_all, signals=sig)[keep]
         crlb = np.sqrt(np.diag(crlb_covariance(S, sigma, t=t if tau else None, tau=tau)))
     fits = {}
     for spec in other:  # each method's fit request, checked here, before any run

@@ -109,8 +109,12 @@ def flight(ctx: Context, k: int) -> Flight:
         drawn = ", ".join(f"{n} {v:.6g}" for n, v in values.items())
         raise ValueError(f"run {k}: the dispersed vehicle ({drawn}) cannot be flown: {exc}. Narrow the "
                          "--dispersions (the same seed draws the same values again)") from None
+    from casep.simulation.simulate import sv_inputs, with_roll
+
+    traj = with_roll(ctx.scenario, traj)
+    force, signals = sv_inputs(ctx.scenario, traj, ctx.model, ctx.truth)
     keep = ctx.scenario.noise.keep_mask(traj.t)  # tracking gaps: no rows there
-    S = build_sv(ctx.model, traj.t, traj.specific_force)[keep]
+    S = build_sv(ctx.model, traj.t, force, signals=signals)[keep]
     t = traj.t[keep]
     crlb = np.sqrt(np.diag(crlb_covariance(S, ctx.sigma, t=t if ctx.tau else None, tau=ctx.tau)))
     return S, t, truth, crlb, values

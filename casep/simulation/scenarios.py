@@ -16,6 +16,11 @@
 ``paper-range-gm`` ``paper`` at 20 Hz as a range delivers it: Gauss-Markov tracking noise (sigma
                  0.1 m/s, tau 1 s), tracking from 8 s, dropouts of 6 s at 95 s and 1.5 s at 140 s.
 ``paper-range``  ``paper-range-gm`` with glitches: 0.5 % of the values per axis off by N(0, 2 m/s).
+``strapdown-boost`` a strapdown IMU (model ``strapdown33``, body-frame errors) on the ``paper`` boost with
+                 a roll programme (:data:`STRAPDOWN_ROLL`: 60 deg/s from 15 s, 120 deg/s from 90 s,
+                 stopped by 160 s), 50 Hz; tracking Gauss-Markov (0.1 m/s, tau 1 s) plus white
+                 (0.05 m/s) noise, from 6 s (late start), a gap 110-115 s. Writes strapdown
+                 telemetry: ``q_*``, ``fb_*``, ``w_*``, no ``f_*`` (:mod:`casep.simulation.strapdown`).
 =============== ==========================================================================
 
 The paper does not publish its trajectory; these are documented stand-ins with the figures
@@ -32,9 +37,10 @@ import numpy as np
 
 from casep.simulation.noise import NoiseModel
 from casep.simulation.paper import TABLE1_NOISE_SIGMA, TABLE1_TRUTH
+from casep.simulation.strapdown import RollProgramme
 from casep.simulation.trajectory import DEFAULT_VEHICLE, Vehicle, YawManoeuvre
 
-__all__ = ["Scenario", "SCENARIOS", "get_scenario"]
+__all__ = ["Scenario", "SCENARIOS", "get_scenario", "STRAPDOWN_ROLL", "STRAPDOWN_TRUTH"]
 
 
 #: Highest simulated sample rate, Hz: a 200 s boost at 10 kHz is already 2 million samples (the
@@ -69,6 +75,9 @@ class Scenario:
         Coefficient name -> true value, natural units (missing names are 0).
     noise : NoiseModel
         Tracking noise.
+    roll : RollProgramme, optional
+        A strapdown flight: the roll programme flown (kinematic, :mod:`casep.simulation.strapdown`); the
+        model's errors act in body axes and the flight carries strapdown telemetry. None: a platform flight.
     """
 
     name: str
@@ -78,6 +87,12 @@ class Scenario:
     model: str = "platform36"
     truth: dict = field(default_factory=lambda: dict(TABLE1_TRUTH))
     noise: NoiseModel = field(default_factory=lambda: NoiseModel("white", TABLE1_NOISE_SIGMA))
+    roll: RollProgramme | None = None
+
+    @property
+    def strapdown(self) -> bool:
+        """A strapdown flight (strapdown telemetry, body-frame errors)?"""
+        return self.roll is not None
 
     def without_noise(self) -> "Scenario":
         """The same scenario without tracking noise (:meth:`casep.simulation.noise.NoiseModel.without_noise`):
@@ -95,6 +110,17 @@ class Scenario:
 _PAPER_YAW = YawManoeuvre(amplitude=2.0, period=80.0, start=20.0, end=180.0)
 #: Tracking gaps of the range scenarios: a late start (0-8 s) and two dropouts, (start, length) s.
 _RANGE_GAPS = ((0.0, 8.0), (95.0, 6.0), (140.0, 1.5))
+#: Roll programme of the strapdown scenario.
+STRAPDOWN_ROLL = RollProgramme()
+#: True body-frame errors of the strapdown scenario (strapdown33, natural units): a tactical-grade IMU.
+STRAPDOWN_TRUTH = {
+    "ba_x": 0.8, "ba_y": -0.5, "ba_z": 0.6, "sa_x": 250.0, "sa_y": -150.0, "sa_z": 100.0,
+    "ma_xy": 40.0, "ma_xz": -30.0, "ma_yx": 20.0, "ma_yz": 50.0, "ma_zx": -40.0, "ma_zy": 30.0,
+    "bg_x": 1.0, "bg_y": -0.8, "bg_z": 0.5, "sg_x": 80.0, "sg_y": -60.0, "sg_z": 50.0,
+    "mg_xy": 30.0, "mg_xz": -20.0, "mg_yx": 40.0, "mg_yz": -30.0, "mg_zx": 20.0, "mg_zy": 50.0,
+    "gg_xx": 0.5, "gg_xy": -0.3, "gg_xz": 0.2, "gg_yx": 0.4, "gg_yy": -0.5, "gg_yz": 0.3,
+    "gg_zx": -0.2, "gg_zy": 0.6, "gg_zz": 0.3,
+}
 
 SCENARIOS: dict[str, Scenario] = {
     s.name: s
@@ -118,6 +144,12 @@ SCENARIOS: dict[str, Scenario] = {
                  vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=_PAPER_YAW),
                  noise=NoiseModel("ar1", TABLE1_NOISE_SIGMA, tau=1.0, gaps=_RANGE_GAPS, outlier_rate=0.005,
                                   outlier_sigma=2.0), rate=20.0),
+        Scenario("strapdown-boost", "strapdown IMU (strapdown33) on the paper boost with a roll programme, 50 Hz, "
+                 "Gauss-Markov 0.1 m/s tau 1 s plus white 0.05 m/s tracking noise, tracking from 6 s, gap 110-115 s",
+                 vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=_PAPER_YAW), rate=50.0, model="strapdown33",
+                 truth=dict(STRAPDOWN_TRUTH), roll=STRAPDOWN_ROLL,
+                 noise=NoiseModel("ar1", TABLE1_NOISE_SIGMA, tau=1.0, white_sigma=0.05,
+                                  gaps=((0.0, 6.0), (110.0, 5.0)))),
         Scenario("paper-azimuth", "as paper, flown 10 deg off the platform x axis (cross-range component)",
                  vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=dataclasses.replace(_PAPER_YAW, offset=10.0))),
     )

@@ -48,14 +48,17 @@ from casep.io.flight import FlightData
 from casep.io.pair import STATE_SIGNALS
 from casep.model.error_model import ErrorModel, unknown_coefficient_message
 from casep.model.loader import load_model
+from casep.model.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
 from casep.model.sv import build_sv
 from casep.simulation.scenarios import Scenario, get_scenario
+from casep.simulation.strapdown import rolled, strapdown_signals
 from casep.simulation.trajectory import BoostTrajectory, body_to_platform, simulate_boost
 
 if TYPE_CHECKING:
     from casep.frames import LaunchSite
 
-__all__ = ["SIGNAL_COLUMNS", "trajectory_signals", "SimulatedFlight", "simulate_flight", "scenario_setup",
+__all__ = ["SIGNAL_COLUMNS", "trajectory_signals", "sv_inputs", "with_roll", "SimulatedFlight", "simulate_flight",
+           "scenario_setup",
            "write_simulation", "truth_path", "TwoRateData", "simulate_two_rate", "truth_vector", "check_seed"]
 
 
@@ -63,6 +66,11 @@ __all__ = ["SIGNAL_COLUMNS", "trajectory_signals", "SimulatedFlight", "simulate_
 SIGNAL_COLUMNS = {**{f"a_{a}": "m/s^2" for a in "xyz"}, **{f"r_{a}": "m" for a in "xyz"},
                   **{f"v_{a}": "m/s" for a in "xyz"}, "att_pitch": "rad", "att_yaw": "rad", "att_roll": "rad",
                   **{f"omega_{a}": "rad/s" for a in "xyz"}}
+
+
+#: Units of the strapdown telemetry columns a strapdown scenario adds (no f_*: f = C(q) fb).
+STRAPDOWN_UNITS = {**{c: "1" for c in QUATERNION_COLUMNS}, **{c: "m/s^2" for c in BODY_FORCE_COLUMNS},
+                   **{c: "rad/s" for c in BODY_RATE_COLUMNS}}
 
 
 def sampled_kinematics(traj: BoostTrajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -165,7 +173,8 @@ class SimulatedFlight:
                            "summary": self.trajectory.summary()},
             "seed": self.seed,
             "tracking": {"time_offset_ms": 0.0, "lever_arm_m": [0.0, 0.0, 0.0], **self.tracking},
-            "signals": SIGNAL_COLUMNS,
+            "signals": {**SIGNAL_COLUMNS, **(STRAPDOWN_UNITS if self.scenario.strapdown else {})},
+            **({"roll_programme": self.scenario.roll.to_dict()} if self.scenario.roll is not None else {}),
         }
 
 
@@ -195,8 +204,28 @@ def scenario_setup(scenario: str | Scenario, rate: float | None = None, *, rotat
     """
     sc = get_scenario(scenario).with_rate(rate)
     model = load_model(sc.model)
-    traj = simulate_boost(sc.vehicle, sc.rate, rotating_earth=rotating_earth, site=site)
+    traj = with_roll(sc, simulate_boost(sc.vehicle, sc.rate, rotating_earth=rotating_earth, site=site))
     return sc, traj, model, truth_vector(model, sc.truth)
+
+
+def with_roll(sc: Scenario, traj: BoostTrajectory) -> BoostTrajectory:
+    """`traj` flown with the scenario's roll programme (a strapdown scenario), else `traj` itself."""
+    return traj if sc.roll is None else rolled(traj, sc.roll)
+
+
+def sv_inputs(sc: Scenario, traj: BoostTrajectory, model: ErrorModel, truth: np.ndarray,
+              signals: dict[str, np.ndarray] | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The specific force and signal columns S_V of a scenario's flight is built on.
+
+    A platform scenario: the trajectory's specific force and :func:`trajectory_signals` (or `signals`). A
+    strapdown one: ``f = C(q) fb`` and the strapdown columns beside them, the IMU's body errors at `truth`
+    (:func:`casep.simulation.strapdown.strapdown_signals`).
+    """
+    sig = trajectory_signals(traj) if signals is None else signals
+    if sc.roll is None:
+        return traj.specific_force, sig
+    force, columns = strapdown_signals(traj, model, truth)
+    return force, {**sig, **columns}
 
 
 def check_seed(seed: int) -> int:
@@ -245,10 +274,14 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
     time_offset, lever = _check_tracking(time_offset, lever_arm)
     sc, traj, error_model, true_D = scenario_setup(sc, rate, rotating_earth=rotating_earth, site=site)
     rng = np.random.default_rng(seed)
-    sig = trajectory_signals(traj, time_offset=time_offset, lever_arm=lever)
+    if sc.roll is not None and time_offset and np.any(lever):  # the rolled attitude is known at the samples only
+        raise ValueError("a strapdown scenario takes a tracking time offset or a lever arm, not both")
+    # strapdown: q_*, measured fb_* and w_*; f = C(q) fb as the file's reader computes it
+    force, sig = sv_inputs(sc, traj, error_model, true_D, trajectory_signals(traj, time_offset=time_offset,
+                                                                             lever_arm=lever))
     tracked = np.column_stack([sig[f"v_{a}"] for a in "xyz"])
     # dv = v_tel - v_trk = (v + S_V D) - (v_point(t - dt) - n) = S_V D + (v - v_point(t - dt)) + n
-    clean = build_sv(error_model, traj.t, traj.specific_force, signals=sig) @ true_D + (traj.velocity - tracked)
+    clean = build_sv(error_model, traj.t, force, signals=sig) @ true_D + (traj.velocity - tracked)
     noise = sc.noise.sample(traj.t, rng)
     # every telemetry sample stays (S_V integrates from lift-off, across the gaps); tracking exists outside the
     # gap windows only: dv and the tracked state r_*, v_* are NaN inside them, as a telemetry + tracking pair has them
@@ -259,7 +292,9 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
     for name in STATE_SIGNALS:
         sig[name] = np.where(keep, sig[name], np.nan)
     meta = {"scenario": sc.name, "seed": seed, **({"unobserved": int((~keep).sum())} if not keep.all() else {})}
-    flight = FlightData(traj.t, traj.specific_force, dv, source=f"simulated:{sc.name}:seed{seed}", meta=meta,
+    if sc.roll is not None:
+        meta["force"] = "q, fb"  # as read back: the file has no f_*
+    flight = FlightData(traj.t, force, dv, source=f"simulated:{sc.name}:seed{seed}", meta=meta,
                         observed=keep, signals=sig)
     return SimulatedFlight(flight=flight, trajectory=traj, model=error_model, truth=true_D, noise=noise,
                            scenario=sc, seed=seed,
@@ -274,15 +309,34 @@ def truth_path(path: str | os.PathLike) -> Path:
     return path.with_name(path.stem + ".truth.json")
 
 
-def write_simulation(sim: SimulatedFlight, path: str | os.PathLike) -> tuple[Path, Path]:
-    """Write the flight file (CSV or Parquet by extension) and its truth sidecar."""
+def write_simulation(sim: SimulatedFlight, path: str | os.PathLike, *, imu: str | os.PathLike | None = None,
+                     imu_pad: float = 0.0) -> tuple[Path, Path]:
+    """Write the flight file (CSV or Parquet by extension) and its truth sidecar.
+
+    `imu`: a strapdown flight's raw IMU file too (:func:`casep.simulation.strapdown.imu_table`), with
+    `imu_pad` s on the pad before lift-off. Everything is checked before the first file is written.
+    """
     path = Path(path)
     sc = sim.scenario
-    write_flight(sim.flight, path, comments=[
+    imu_columns = None
+    if imu is not None:
+        if not sc.strapdown:
+            raise ValueError(f"--imu-output needs a strapdown scenario (strapdown-boost); `{sc.name}` is a platform "
+                             "flight")
+        from casep.simulation.strapdown import imu_table
+
+        imu_columns = imu_table(sim.trajectory, sim.model, sim.truth, pad=imu_pad)
+    write_flight(sim.flight, path, force=not sc.strapdown, comments=[
         f"casep simulated flight: scenario {sc.name} ({sc.description})",
         f"model {sim.model.name}, seed {sim.seed}, rate {1.0 / float(np.median(np.diff(sim.flight.t))):.6g} Hz; "
         "truth in the .truth.json sidecar",
     ])
+    if imu_columns is not None:
+        assert imu is not None
+        write_table(imu, imu_columns, comments=[
+            f"casep simulated raw IMU: scenario {sc.name}, model {sim.model.name}, seed {sim.seed}",
+            "w_* body rate rad/s and fb_* body specific force m/s^2 as measured; true_q_* (Hamilton, scalar first, "
+            "body to launch-inertial), true_r_* m, true_v_* m/s: the truth"])
     side = truth_path(path)
     with atomic_open(side) as fh:
         fh.write(json.dumps(sim.truth_dict(), indent=2) + "\n")

@@ -1,0 +1,254 @@
+"""Strapdown telemetry at the edge: the attitude, body specific force and body rate columns, checked.
+
+Columns (:data:`casep.model.strapdown.STRAPDOWN_COLUMNS`): ``q_w, q_x, q_y, q_z`` the INS attitude
+(Hamilton quaternion, scalar first, rotating body vectors into the navigation frame, casep's
+launch-inertial frame), ``fb_x, fb_y, fb_z`` the measured body specific force (m/s^2) and ``w_x, w_y,
+w_z`` the measured body rate (rad/s). A flight file without ``f_*`` (and ``W_*``) gets its
+navigation-frame specific force from them, ``f = C(q) fb`` (:func:`strapdown_force`).
+
+Checks, each naming the file, the columns, the rows and the numbers:
+
+- **unit quaternions**: ``| |q| - 1 | <= 1e-6`` in every row (:data:`NORM_TOL`), else an error at the
+  first row off, with how many rows are off and the worst;
+- **sign flips**: q and -q are the same attitude; a step where ``q_{k-1} . q_k < 0`` is a flip, counted
+  (``meta["strapdown"]["sign_flips"]``) and removed before the comparison below (C(q) does not see it);
+- **attitude against the integrated body rate**: the rotation between consecutive quaternions in body
+  axes, ``rotvec(C_{k-1}^T C_k)``, against the trapezoid of ``w`` over the step. Their RMS difference
+  relative to the RMS step rotation above :data:`RATE_TOL` (5 %) is a :class:`StrapdownWarning` with its
+  size (deg/s) and the worst row, unless one explanation fits, which is an error saying so:
+
+  * ``w`` in deg/s: the quaternions turn by 1/57.3 of the integrated rate (multiply by pi/180);
+  * the other quaternion conventions: scalar last (the columns hold x, y, z, w), or
+    navigation-to-body (the conjugate), or both: the integrated rate agrees with the quaternions
+    read that way.
+
+  A flight that turns by less than :data:`MIN_ROTATION` in all gets no comparison (nothing to see).
+
+A body-rate peak above :data:`RATE_PEAK_HIGH` is a warning (deg/s?); so are ``f_*`` columns beside the
+strapdown ones that differ from ``C(q) fb`` by more than :data:`FORCE_TOL` (1 %) RMS. The specific force's units are
+checked on the computed ``f`` by :func:`casep.checks.plausibility.check_flight` (a peak below 1 g: ``fb``
+in g), which names the ``fb_*`` columns.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+
+from casep.exceptions import PlausibilityWarning
+from casep.io.flight import FlightDataError
+from casep.model.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS, STRAPDOWN_COLUMNS
+
+__all__ = ["StrapdownWarning", "strapdown_force", "check_strapdown", "compare_force", "FORCE_TOL",
+           "quaternion_dcm_array", "NORM_TOL", "RATE_TOL", "MIN_ROTATION", "RATE_PEAK_HIGH", "CONVENTIONS",
+           "STRAPDOWN_COLUMNS"]
+
+#: Largest accepted | |q| - 1 |.
+NORM_TOL = 1e-6
+#: RMS disagreement between the quaternion steps and the integrated rate, relative to the RMS step, above
+#: which the attitude and the body rate disagree (5 %: far above the trapezoid's (w dt)^2 / 12).
+RATE_TOL = 0.05
+#: Total rotation (rad, sum of the step angles) below which the attitude is not compared with the rate.
+MIN_ROTATION = 0.05
+#: Body-rate peak, rad/s, above which a rate is implausible for a vehicle (20 rev/s spin ~ 126 rad/s).
+RATE_PEAK_HIGH = 200.0
+_DEG = np.pi / 180.0
+
+
+class StrapdownWarning(PlausibilityWarning):
+    """The strapdown columns are suspicious: the attitude disagrees with the integrated body rate."""
+
+
+def _as_scalar_last(q: np.ndarray) -> np.ndarray:
+    """The quaternions if the columns ``q_w, q_x, q_y, q_z`` held ``x, y, z, w``: scalar first again."""
+    return q[:, [3, 0, 1, 2]]
+
+
+def _conjugate(q: np.ndarray) -> np.ndarray:
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+#: Readings of the quaternion columns the rate comparison tries, name -> transform to the declared one.
+CONVENTIONS = {
+    "as declared (Hamilton, scalar first, body to navigation)": lambda q: q,
+    "scalar last (the columns q_w, q_x, q_y, q_z hold x, y, z, w)": _as_scalar_last,
+    "navigation to body (the conjugate of the declared one)": _conjugate,
+    "scalar last and navigation to body": lambda q: _conjugate(_as_scalar_last(q)),
+}
+
+
+def quaternion_dcm_array(q: np.ndarray) -> np.ndarray:
+    """``(N, 3, 3)`` body-to-navigation matrices of ``(N, 4)`` Hamilton quaternions (scalar first)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_quat(np.asarray(q, dtype=float), scalar_first=True).as_matrix()
+
+
+def _step_rotations(q: np.ndarray) -> np.ndarray:
+    """``(N-1, 3)`` rotation vectors of ``C_{k-1}^T C_k`` (body axes), rad."""
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.from_quat(q, scalar_first=True)
+    return (R[:-1].inv() * R[1:]).as_rotvec()
+
+
+def _mismatch(rv: np.ndarray, inc: np.ndarray) -> float:
+    """RMS of ``|rv - inc|`` relative to the RMS of ``|inc|``."""
+    return float(np.sqrt(np.mean(np.sum((rv - inc) ** 2, axis=1)) / np.mean(np.sum(inc**2, axis=1))))
+
+
+def _rate_evidence(t: np.ndarray, q: np.ndarray, w: np.ndarray) -> dict[str, Any]:
+    """How well each reading of the quaternions (:data:`CONVENTIONS`) matches the integrated rate."""
+    dt = np.diff(t)
+    inc = 0.5 * (w[1:] + w[:-1]) * dt[:, None]  # trapezoid of w over each step, rad
+    total = float(np.sum(np.linalg.norm(inc, axis=1)))
+    out: dict[str, Any] = {"rotation_rad": total, "rows": int(t.size)}
+    if total < MIN_ROTATION or t.size < 3:
+        return out
+    fits = {}
+    for name, transform in CONVENTIONS.items():
+        rv = _step_rotations(transform(q))
+        scale = float(np.sum(rv * inc) / np.sum(inc * inc))  # quaternion turn per unit of integrated rate
+        fits[name] = {"mismatch": _mismatch(rv, inc), "scale": scale,
+                      "scaled_mismatch": _mismatch(rv, scale * inc) if scale > 0 else np.inf}
+    rv = _step_rotations(q)
+    err = np.linalg.norm(rv - inc, axis=1) / dt  # rad/s per step
+    out.update(fits=fits, rms_rate_error_rad_s=float(np.sqrt(np.mean(err**2))), worst_row=int(np.argmax(err)) + 2,
+               worst_rate_error_rad_s=float(err.max()), rms_rate_rad_s=float(np.sqrt(np.mean(np.sum(w**2, 1)))))
+    return out
+
+
+def check_strapdown(src: str, t: np.ndarray, q: np.ndarray, fb: np.ndarray, w: np.ndarray, *,
+                    error: Any = None) -> tuple[np.ndarray, dict[str, Any]]:
+    """Check strapdown columns (module notes); return the sign-continuous quaternions and what was found.
+
+    Parameters
+    ----------
+    src : str
+        The file, for messages.
+    t : (N,) s; q : (N, 4) q_w, q_x, q_y, q_z; fb : (N, 3) m/s^2; w : (N, 3) rad/s
+    error : callable, optional
+        ``error(message, column, row) -> Exception`` (a table's, which adds the file line); default a
+        :class:`~casep.io.flight.FlightDataError` of `src`.
+
+    Returns
+    -------
+    q : (N, 4) ndarray
+        The quaternions with their sign flips removed (``q_{k-1} . q_k >= 0``).
+    info : dict
+        ``sign_flips``, ``rotation_rad`` and, when the flight turns enough, the rate comparison.
+
+    Raises
+    ------
+    FlightDataError
+        A quaternion that is not a unit one, rates in deg/s, quaternions of another convention.
+
+    Warns
+    -----
+    StrapdownWarning
+        Attitude and integrated rate disagree without an explanation; a body-rate peak above
+        :data:`RATE_PEAK_HIGH`.
+    """
+    if error is None:
+        def error(message: str, column: str | None = None, row: int | None = None) -> Exception:
+            return FlightDataError(src, message, column, row)
+    qcols = ", ".join(QUATERNION_COLUMNS)
+    off = np.abs(np.linalg.norm(q, axis=1) - 1.0)
+    bad = np.flatnonzero(off > NORM_TOL)
+    if bad.size:
+        r, worst = int(bad[0]), int(np.argmax(off))
+        raise error(f"the quaternion is not a unit one: |q| = {np.linalg.norm(q[r]):.9g} (| |q| - 1 | = "
+                    f"{off[r]:.3g} > {NORM_TOL:g}); {bad.size} of {t.size} rows are off, the worst |q| = "
+                    f"{np.linalg.norm(q[worst]):.9g} at row {worst + 1}. Give the INS attitude as a unit Hamilton "
+                    "quaternion (scalar first): normalise it, or check the columns", qcols, r + 1)
+    flips = np.concatenate([[False], np.sum(q[1:] * q[:-1], axis=1) < 0])
+    sign = np.where(np.logical_xor.accumulate(flips), -1.0, 1.0)
+    q = q * sign[:, None]
+    info: dict[str, Any] = {"sign_flips": int(flips.sum())}
+    peak = np.linalg.norm(w, axis=1)
+    if peak.size and peak.max() > RATE_PEAK_HIGH:
+        k = int(np.argmax(peak))
+        warnings.warn(StrapdownWarning(
+            f"{src}: body rate ({', '.join(BODY_RATE_COLUMNS)}) peaks at {peak[k]:.4g} rad/s ({peak[k] / _DEG:.4g} "
+            f"deg/s, {peak[k] / (2 * np.pi):.3g} rev/s) at row {k + 1}, above the {RATE_PEAK_HIGH:g} rad/s of "
+            "vehicles: is it in deg/s (multiply by pi/180)?"), stacklevel=3)
+    ev = _rate_evidence(t, q, w)
+    info.update({k: v for k, v in ev.items() if k != "fits"})
+    if "fits" in ev:
+        _judge_rate_fits(src, ev, error)
+    return q, info
+
+
+def _judge_rate_fits(src: str, ev: dict[str, Any], error: Any) -> None:
+    """Error or warning from :func:`_rate_evidence` (module notes)."""
+    fits = ev["fits"]
+    declared = next(iter(fits))
+    mine = fits[declared]
+    if mine["mismatch"] <= RATE_TOL:
+        return
+    wcols = ", ".join(BODY_RATE_COLUMNS)
+    if mine["scaled_mismatch"] <= RATE_TOL and abs(mine["scale"] / _DEG - 1.0) < 0.1:
+        raise error(f"the body rate looks like deg/s, not rad/s: the attitude (q_*) turns by {mine['scale']:.5g} "
+                    f"times the integrated rate (1/{1 / mine['scale']:.4g}; pi/180 = 1/57.30), which then agrees "
+                    f"within {100 * mine['scaled_mismatch']:.2g} % (as rad/s it is {100 * mine['mismatch']:.3g} % "
+                    f"off, over rows 1-{ev['rows']}). Give {wcols} in rad/s: multiply by pi/180", "w_x", None)
+    for name, fit in list(fits.items())[1:]:
+        if fit["mismatch"] <= RATE_TOL:
+            raise error(f"the quaternions look {name}: read so, the integrated body rate ({wcols}) agrees with "
+                        f"their steps within {100 * fit['mismatch']:.2g} %, read as declared (Hamilton, scalar "
+                        f"first, body to navigation) it is {100 * mine['mismatch']:.3g} % off (rows 1-{ev['rows']}). "
+                        "Convert them to "
+                        "the declared convention", ", ".join(QUATERNION_COLUMNS), None)
+    warnings.warn(StrapdownWarning(
+        f"{src}: the attitude (q_*) disagrees with the integrated body rate ({wcols}) by "
+        f"{ev['rms_rate_error_rad_s'] / _DEG:.3g} deg/s RMS ({100 * mine['mismatch']:.3g} % of the step rotation; "
+        f"worst {ev['worst_rate_error_rad_s'] / _DEG:.3g} deg/s at row {ev['worst_row']}), against "
+        f"{ev['rms_rate_rad_s'] / _DEG:.3g} deg/s RMS body rate; no other quaternion convention or rate unit "
+        "explains it: check that q, fb and w are the INS's own, on one time base"), stacklevel=4)
+
+
+#: RMS of ``f - C(q) fb`` relative to the RMS of f above which a file's f_* and its strapdown columns disagree.
+FORCE_TOL = 0.01
+
+
+def compare_force(src: str, f: np.ndarray, f_body: np.ndarray) -> None:
+    """A :class:`StrapdownWarning` when the file's ``f_*`` differ from ``C(q) fb`` by more than :data:`FORCE_TOL`."""
+    diff = np.linalg.norm(f - f_body, axis=1)
+    rms, scale = float(np.sqrt(np.mean(diff**2))), float(np.sqrt(np.mean(np.sum(f**2, axis=1))))
+    if scale > 0 and rms > FORCE_TOL * scale:
+        k = int(np.argmax(diff))
+        warnings.warn(StrapdownWarning(
+            f"{src}: f_x, f_y, f_z differ from C(q) fb (q_*, fb_*) by {rms:.4g} m/s^2 RMS ({100 * rms / scale:.3g} % "
+            f"of f; worst {diff[k]:.4g} m/s^2 at row {k + 1}): f_* is used, while the strapdown models use q_*, "
+            "fb_*; check the quaternion convention and that both are the INS's"), stacklevel=4)
+
+
+def strapdown_force(tab: Any, t: np.ndarray) -> tuple[np.ndarray, dict[str, Any], np.ndarray]:
+    """Navigation-frame specific force ``f = C(q) fb`` of a table with the strapdown columns, checked.
+
+    Parameters
+    ----------
+    tab : casep.io.tables.Table
+        With every column of :data:`STRAPDOWN_COLUMNS`.
+    t : (N,) ndarray
+        Its time, s.
+
+    Returns
+    -------
+    f : (N, 3) ndarray
+        m/s^2, navigation (launch-inertial) frame.
+    info : dict
+        What :func:`check_strapdown` found (for the flight's ``meta["strapdown"]``).
+    q : (N, 4) ndarray
+        The sign-continuous quaternions (the flight's ``q_*`` signals).
+    """
+    tab.require(STRAPDOWN_COLUMNS, ". Use: q_w, q_x, q_y, q_z (unit quaternion, scalar first, body to navigation), "
+                                   "fb_x, fb_y, fb_z (m/s^2) and w_x, w_y, w_z (rad/s)")
+    q = tab.vectors(QUATERNION_COLUMNS)
+    fb = tab.vectors(BODY_FORCE_COLUMNS)
+    w = tab.vectors(BODY_RATE_COLUMNS)
+    q, info = check_strapdown(tab.src, t, q, fb, w, error=tab.error)
+    f = np.einsum("kij,kj->ki", quaternion_dcm_array(q), fb)
+    return f, info, q

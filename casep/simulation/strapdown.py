@@ -1,0 +1,172 @@
+"""Strapdown flights: a roll programme on the boost trajectory, body-frame IMU errors, strapdown telemetry.
+
+The simulated vehicle's specific force is axial (thrust minus drag along the body x axis), so a roll
+about that axis changes nothing in the trajectory: it is added kinematically. With the pitch-yaw
+attitude ``C0 = Rz(theta) Ry(-psi)`` and its body rate ``w0`` (:mod:`casep.simulation.trajectory`),
+the rolled attitude and body rate are::
+
+    C = C0 Rx(phi),      w = Rx(phi)^T w0 + (phi_dot, 0, 0)      (C_dot = C [w x])
+
+and the true body specific force ``fb = C^T f``. The IMU measures ``fb + delta_f`` and ``w + delta_w``,
+the body-frame errors of the scenario's strapdown model at its true coefficients
+(``delta_f = C^T Delta``, ``delta_w = -C^T phidot`` from the model's own outputs). The telemetry carries
+the attitude ``q`` (the true one: the INS attitude error is arcseconds, far below what changes S_V),
+the measured ``fb`` and ``w``, and no ``f_*``: ``f = C(q) fb`` as :func:`casep.io.read_flight` computes
+it, so a flight read back from its file has exactly the S_V it was simulated with.
+
+Raw IMU output (:func:`imu_table`): ``t, w_x, w_y, w_z, fb_x, fb_y, fb_z`` as the IMU measured them,
+optionally after a stationary pad segment before lift-off (t < 0), with the truth trajectory beside
+them (``true_q_*``, ``true_r_*``, ``true_v_*``; launch-inertial, non-rotating Earth).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from casep.io.strapdown import quaternion_dcm_array
+from casep.model.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
+from casep.simulation.trajectory import BoostTrajectory, body_to_platform
+
+__all__ = ["RollProgramme", "rolled", "strapdown_signals", "imu_table", "IMU_COLUMNS"]
+
+#: The columns of a raw IMU file before the truth columns.
+IMU_COLUMNS = ("t",) + BODY_RATE_COLUMNS + BODY_FORCE_COLUMNS
+
+
+@dataclass(frozen=True)
+class RollProgramme:
+    """Roll rate piecewise linear through knots: ``times`` (s, increasing), ``rates`` (deg/s); 0 outside.
+
+    The roll angle is its exact integral (piecewise quadratic), 0 at the first knot.
+    """
+
+    times: tuple[float, ...] = (10.0, 15.0, 80.0, 90.0, 150.0, 160.0)
+    rates: tuple[float, ...] = (0.0, 60.0, 60.0, 120.0, 120.0, 0.0)
+
+    def __post_init__(self) -> None:
+        t, r = np.asarray(self.times, dtype=float), np.asarray(self.rates, dtype=float)
+        if t.ndim != 1 or t.size < 2 or np.any(np.diff(t) <= 0) or r.shape != t.shape \
+                or not np.all(np.isfinite(t)) or not np.all(np.isfinite(r)):
+            raise ValueError("`times` (s, strictly increasing, 2 or more) and `rates` (deg/s, one per knot) must "
+                             "be finite and of one length")
+
+    def angle_rate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Roll angle (rad) and rate (rad/s) at times `t`."""
+        t = np.asarray(t, dtype=float)
+        kt, kr = np.asarray(self.times), np.radians(self.rates)
+        at_knot = np.concatenate([[0.0], np.cumsum(0.5 * (kr[1:] + kr[:-1]) * np.diff(kt))])
+        i = np.clip(np.searchsorted(kt, t, side="right") - 1, 0, kt.size - 2)
+        u = np.clip(t - kt[i], 0.0, None)
+        slope = (kr[i + 1] - kr[i]) / (kt[i + 1] - kt[i])
+        inside = (t >= kt[0]) & (t <= kt[-1])
+        rate = np.where(inside, kr[i] + slope * u, 0.0)
+        angle = np.where(t < kt[0], 0.0, np.where(t > kt[-1], at_knot[-1] + kr[-1] * (t - kt[-1]),
+                                                    at_knot[i] + kr[i] * u + 0.5 * slope * u**2))
+        return angle, rate
+
+    def to_dict(self) -> dict:
+        """Plain-dict form for the truth sidecar."""
+        return {"times_s": list(self.times), "rates_deg_s": list(self.rates)}
+
+
+def rolled(traj: BoostTrajectory, roll: RollProgramme) -> BoostTrajectory:
+    """`traj` with the roll programme in its attitude (third column, rad) and body rate (module notes)."""
+    if traj.attitude is None or traj.body_rate is None:
+        raise ValueError("the trajectory has no attitude or body rate: fly it with simulate_boost")
+    phi, phi_dot = roll.angle_rate(traj.t)
+    c, s = np.cos(phi), np.sin(phi)
+    w0 = traj.body_rate
+    w = np.column_stack([w0[:, 0] + phi_dot, c * w0[:, 1] + s * w0[:, 2], -s * w0[:, 1] + c * w0[:, 2]])
+    att = traj.attitude.copy()
+    att[:, 2] = phi
+    return dataclasses.replace(traj, attitude=att, body_rate=w)
+
+
+def _body_errors(model: Any, C: np.ndarray, q: np.ndarray, fb: np.ndarray, w: np.ndarray, t: np.ndarray,
+                 truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Body-frame ``delta_f = C^T Delta`` and ``delta_w = -C^T phidot`` of `model` at `truth` (natural units)."""
+    cols = {**dict(zip(QUATERNION_COLUMNS, q.T)), **dict(zip(BODY_FORCE_COLUMNS, fb.T)),
+            **dict(zip(BODY_RATE_COLUMNS, w.T))}
+    missing = [c for c in model.signals if c not in cols]
+    if missing:
+        raise ValueError(f"model `{model.name}` uses column(s) {', '.join(missing)} that a strapdown simulation "
+                         "does not make: inject a strapdown model (strapdown12, strapdown33)")
+    sig = np.array([cols[c] for c in model.signals])  # (n_signals, N)
+    f_nav = np.einsum("kij,kj->ki", C, fb)
+    fn = model.functions
+    n = t.size
+    args = [f_nav.T, (t - t[0])[None, :]] + ([sig] if sig.size else [])
+    delta = np.array(fn["Delta"].map(n)(*args, np.repeat(truth[:, None], n, 1))).T  # (N, 3), nav
+    phidot = np.array(fn["phidot"].map(n)(*args, np.repeat(truth[:, None], n, 1))).T
+    return np.einsum("kji,kj->ki", C, delta), -np.einsum("kji,kj->ki", C, phidot)
+
+
+def strapdown_signals(traj: BoostTrajectory, model: Any, truth: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Strapdown telemetry of a (rolled) trajectory with the body errors of `model` at `truth`.
+
+    Returns
+    -------
+    f : (N, 3) ndarray
+        ``C(q) fb_measured``, m/s^2: the navigation-frame specific force the file's reader computes.
+    columns : dict
+        ``q_*`` (true attitude, scalar first, body to navigation), ``fb_*`` and ``w_*`` as measured.
+    """
+    from scipy.spatial.transform import Rotation
+
+    att = traj.attitude
+    assert att is not None and traj.body_rate is not None
+    C = body_to_platform(att[:, 0], att[:, 1], att[:, 2])
+    q = Rotation.from_matrix(C).as_quat(scalar_first=True)
+    q *= np.where(q[:, :1] < 0, -1.0, 1.0)  # w >= 0 (either sign is the attitude)
+    fb = np.einsum("kji,kj->ki", C, traj.specific_force)  # fb = C^T f
+    w = traj.body_rate
+    df, dw = _body_errors(model, C, q, fb, w, traj.t, truth)
+    fb_m, w_m = fb + df, w + dw
+    cols = {**dict(zip(QUATERNION_COLUMNS, q.T)), **dict(zip(BODY_FORCE_COLUMNS, fb_m.T)),
+            **dict(zip(BODY_RATE_COLUMNS, w_m.T))}
+    return np.einsum("kij,kj->ki", C, fb_m), {k: np.ascontiguousarray(v) for k, v in cols.items()}
+
+
+def imu_table(traj: BoostTrajectory, model: Any, truth: np.ndarray, *, pad: float = 0.0) -> dict[str, np.ndarray]:
+    """The raw IMU file's columns (module notes), with `pad` s standing on the pad before lift-off.
+
+    On the pad (t < 0, at the flight's median sample step) the vehicle stands at its lift-off attitude,
+    at rest in the non-rotating launch frame: ``fb = C0^T (-g)``, g the gravity at lift-off, ``w = 0``,
+    measured with the model's errors there. Truth: ``true_q_*`` (scalar first, body to navigation),
+    ``true_r_*`` (m) and ``true_v_*`` (m/s), launch-inertial.
+    """
+    if not (np.isfinite(pad) and pad >= 0):
+        raise ValueError(f"`pad` must be a finite number of seconds >= 0, got {pad!r}")
+    _, cols = strapdown_signals(traj, model, truth)
+    t, pos, vel = traj.t, traj.position, traj.velocity
+    q = np.column_stack([cols[c] for c in QUATERNION_COLUMNS])
+    fb, w = (np.column_stack([cols[c] for c in names]) for names in (BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS))
+    if pad > 0:
+        assert traj.acceleration is not None
+        step = float(np.median(np.diff(t)))
+        t_pad = t[0] - step * np.arange(int(np.ceil(pad / step - 1e-9)), 0, -1)
+        k = t_pad.size
+        C0 = np.repeat(quaternion_dcm_array(q[:1]), k, axis=0)
+        g = traj.acceleration[0] - traj.specific_force[0]  # gravity at lift-off, m/s^2
+        fb_pad = np.repeat((C0[0].T @ -g)[None, :], k, axis=0)
+        df, dw = _body_errors(model, C0, np.repeat(q[:1], k, 0), fb_pad, np.zeros((k, 3)), t_pad, truth)
+        t = np.concatenate([t_pad, t])
+        q = np.concatenate([np.repeat(q[:1], k, 0), q])
+        fb = np.concatenate([fb_pad + df, fb])
+        w = np.concatenate([dw, w])
+        pos = np.concatenate([np.repeat(pos[:1], k, 0), pos])
+        vel = np.concatenate([np.zeros((k, 3)), vel])
+    out = {"t": t}
+    out.update({c: w[:, i] for i, c in enumerate(BODY_RATE_COLUMNS)})
+    out.update({c: fb[:, i] for i, c in enumerate(BODY_FORCE_COLUMNS)})
+    out.update({f"true_{c}": q[:, i] for i, c in enumerate(QUATERNION_COLUMNS)})
+    for i, a in enumerate("xyz"):
+        out[f"true_r_{a}"] = pos[:, i]
+    for i, a in enumerate("xyz"):
+        out[f"true_v_{a}"] = vel[:, i]
+    return out
+

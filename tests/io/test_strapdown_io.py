@@ -1,0 +1,123 @@
+"""Strapdown telemetry at the edge: f = C(q) fb, and the checks on q, fb, w (casep.io.strapdown)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import casep
+from casep.io.files import write_table
+from casep.io.flight import FlightDataError
+from casep.io.strapdown import StrapdownWarning
+
+RATE = 50.0
+
+
+def motion(n: int = 1000):
+    """A rolling, pitching body: exact attitude from a closed-form rotation (roll then a slow pitch).
+
+    C(t) = Rz(theta(t)) Rx(phi(t)) with phi = 1.5 t, theta = 0.2 sin(0.3 t): body rate
+    w = Rx(phi)^T (0, 0, theta_dot) + (phi_dot, 0, 0).
+    """
+    t = np.arange(n) / RATE
+    phi, phi_dot = 1.5 * t, np.full(n, 1.5)
+    theta, theta_dot = 0.2 * np.sin(0.3 * t), 0.06 * np.cos(0.3 * t)
+    R = Rotation.from_euler("z", theta[:, None]) * Rotation.from_euler("x", phi[:, None])
+    w = np.column_stack([phi_dot, np.sin(phi) * theta_dot, np.cos(phi) * theta_dot])
+    fb = np.column_stack([30.0 + np.sin(t), 0.5 * np.cos(t), 0.2 * np.ones(n)])
+    return t, R.as_quat(scalar_first=True), fb, w, R.as_matrix()
+
+
+def write(path, t, q, fb, w, dv=None, **extra):
+    cols = {"t": t, **{f"q_{a}": q[:, i] for i, a in enumerate("wxyz")},
+            **{f"fb_{a}": fb[:, i] for i, a in enumerate("xyz")}, **{f"w_{a}": w[:, i] for i, a in enumerate("xyz")}}
+    dv = np.zeros((t.size, 3)) if dv is None else dv
+    cols.update({f"dv_{a}": dv[:, i] for i, a in enumerate("xyz")}, **extra)
+    write_table(path, cols)
+    return path
+
+
+def test_force_is_the_rotated_body_force_and_sign_flips_are_accepted(tmp_path):
+    t, q, fb, w, C = motion()
+    flip = np.ones(t.size)
+    flip[200:450] = -1.0  # q and -q: the same attitude
+    fl = casep.read_flight(write(tmp_path / "sd.csv", t, q * flip[:, None], fb, w))
+    assert fl.meta["force"] == "q, fb"
+    assert np.allclose(fl.f, np.einsum("kij,kj->ki", C, fb), atol=1e-12)
+    assert fl.meta["strapdown"]["sign_flips"] == 2
+    qs = np.column_stack([fl.signals[f"q_{a}"] for a in "wxyz"])
+    assert np.all(np.sum(qs[1:] * qs[:-1], axis=1) > 0)  # continuous after the flips are removed
+    assert fl.meta["strapdown"]["rms_rate_error_rad_s"] < 1e-3 * fl.meta["strapdown"]["rms_rate_rad_s"]
+
+
+def test_non_unit_quaternion_names_columns_row_and_numbers(tmp_path):
+    t, q, fb, w, _ = motion()
+    q[36] *= 1.001
+    q[500] *= 0.99
+    with pytest.raises(FlightDataError) as exc:
+        casep.read_flight(write(tmp_path / "sd.csv", t, q, fb, w))
+    msg = str(exc.value)
+    assert "q_w, q_x, q_y, q_z" in msg and "row 37" in msg and "1.001" in msg
+    assert "2 of 1000 rows" in msg and "row 501" in msg and "0.99" in msg
+
+
+def test_rates_in_degrees_per_second_are_refused(tmp_path):
+    t, q, fb, w, _ = motion()
+    with pytest.raises(FlightDataError) as exc:
+        casep.read_flight(write(tmp_path / "sd.csv", t, q, fb, np.degrees(w)))
+    msg = str(exc.value)
+    assert "column `w_x`" in msg and "deg/s" in msg and "pi/180" in msg
+    scale = float(msg.split("turns by ")[1].split(" times")[0])
+    assert scale == pytest.approx(np.pi / 180, rel=1e-3)
+
+
+@pytest.mark.parametrize("transform, what", [
+    (lambda q: q[:, [1, 2, 3, 0]], "scalar last"),
+    (lambda q: q * np.array([1.0, -1.0, -1.0, -1.0]), "navigation to body"),
+])
+def test_quaternions_of_another_convention_are_refused(tmp_path, transform, what):
+    t, q, fb, w, _ = motion()
+    with pytest.raises(FlightDataError) as exc:
+        casep.read_flight(write(tmp_path / "sd.csv", t, transform(q), fb, w))
+    msg = str(exc.value)
+    assert f"look {what}" in msg and "q_w, q_x, q_y, q_z" in msg and "% off" in msg
+
+
+def test_unexplained_disagreement_warns_with_its_size(tmp_path):
+    t, q, fb, w, _ = motion()
+    w_bad = w.copy()
+    w_bad[:, 1] += 0.2  # 0.2 rad/s on the y gyro that the attitude never saw
+    with pytest.warns(StrapdownWarning, match=r"disagrees with the integrated body rate .* deg/s RMS") as rec:
+        casep.read_flight(write(tmp_path / "sd.csv", t, q, fb, w_bad))
+    size = float(str(rec[0].message).split(" by ")[1].split(" deg/s")[0])
+    assert size == pytest.approx(np.degrees(0.2), rel=0.05)
+
+
+def test_implausible_rate_peak_warns(tmp_path):
+    """250 rad/s (40 rev/s) that the attitude does follow (1 kHz samples): only the peak is suspicious."""
+    t = np.arange(200) / 1000.0
+    q = Rotation.from_euler("x", 250.0 * t[:, None]).as_quat(scalar_first=True)
+    w = np.column_stack([np.full(t.size, 250.0), np.zeros(t.size), np.zeros(t.size)])
+    fb = np.column_stack([np.full(t.size, 30.0), np.zeros(t.size), np.zeros(t.size)])
+    with pytest.warns(StrapdownWarning, match=r"peaks at 250 rad/s \(1\.432e\+04 deg/s.* row 1, .*deg/s"):
+        fl = casep.read_flight(write(tmp_path / "spin.csv", t, q, fb, w))
+    assert fl.meta["strapdown"]["rms_rate_error_rad_s"] < 1e-6 * 250
+
+
+def test_f_columns_win_and_partial_strapdown_columns_are_named(tmp_path):
+    t, q, fb, w, C = motion(200)
+    f = np.einsum("kij,kj->ki", C, fb)
+    fl = casep.read_flight(write(tmp_path / "both.csv", t, q, fb, w, f_x=f[:, 0], f_y=f[:, 1], f_z=f[:, 2]))
+    assert fl.meta["force"] == "f" and "strapdown" in fl.meta  # the file's f, the strapdown columns checked
+    with pytest.warns(StrapdownWarning, match=r"differ from C\(q\) fb .* by 1 m/s\^2 RMS") as rec:
+        fl = casep.read_flight(write(tmp_path / "off.csv", t, q, fb, w, f_x=f[:, 0] + 1.0, f_y=f[:, 1], f_z=f[:, 2]))
+    percent = float(str(rec[0].message).split("RMS (")[1].split(" %")[0])
+    f_file = f + [1.0, 0.0, 0.0]
+    assert percent == pytest.approx(100.0 / np.sqrt(np.mean(np.sum(f_file**2, axis=1))), rel=2e-3)  # of RMS |f|
+    assert np.allclose(fl.f[:, 0], f[:, 0] + 1.0)  # the file's f is used
+    cols = {"t": t, "q_w": q[:, 0], "q_x": q[:, 1], "q_y": q[:, 2], "q_z": q[:, 3],
+            **{f"dv_{a}": np.zeros(t.size) for a in "xyz"}}
+    write_table(tmp_path / "part.csv", cols)
+    with pytest.raises(FlightDataError, match="column `fb_x`, header .*missing column"):
+        casep.read_flight(tmp_path / "part.csv")
