@@ -23,7 +23,7 @@ result a failure (its instrument estimate is biased), the others a warning.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -46,13 +46,19 @@ def _rss_fit(F: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray, np.ndarra
     return float(r @ r), b, np.sqrt(np.sum(Rinv**2, axis=1))
 
 
-def check_setup(lin: Any) -> dict[str, Any]:
+def check_setup(lin: Any, whiten: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None
+                ) -> dict[str, Any]:
     """The chi-square each set-up hypothesis explains, per station, with its estimate (see the module notes).
 
     Parameters
     ----------
     lin : casep.radar.linearised.LinearisedRadar
-        The regression at its final linearisation point (rows whitened by the group std).
+        The regression at its final linearisation point.
+    whiten : callable, optional
+        The noise model's whitening of regression rows ``X`` (m, k) -> ``(Xw (M, 3, k), t)``
+        (:meth:`casep.radar.noise.RadarNoise.whiten`): the hypotheses are tested on the rows the fit
+        solved, so that correlated noise does not inflate their chi-square. Default: the rows divided
+        by their group std (white noise).
 
     Returns
     -------
@@ -66,8 +72,11 @@ def check_setup(lin: Any) -> dict[str, Any]:
     from casep.radar.regression import LAUNCH_TIME
 
     reg = lin.regression
-    w = lin.weights
-    F, y = lin.S * w[:, None], lin.y * w
+    n = lin.S.shape[1]
+    X = np.column_stack([lin.S, lin.y, *_position_columns(lin)])
+    Xw = X * lin.weights[:, None] if whiten is None else whiten(X)[0].reshape(-1, X.shape[1])
+    F, y = Xw[:, :n], Xw[:, n]
+    G = [Xw[:, n + 1 + 3 * i:n + 4 + 3 * i] for i in range(len(reg.stations))]
     rss0, b0, std0 = _rss_fit(F, y)
     out: dict[str, Any] = {"launch_time": None, "stations": {}, "failures": [], "warnings": []}
     launch_warning = ""
@@ -84,7 +93,6 @@ def check_setup(lin: Any) -> dict[str, Any]:
                 f"{b0[j]:.4g} ms explains chi-square {d:.4g}, p = {chi2.sf(d, 1):.2g}; the stations' time tags "
                 "and positions explain the rest); it is estimated with the other terms, so the instrument estimate "
                 "accounts for it: correct --launch-time (or the telemetry's time scale)")
-    G = _position_columns(lin, w)
     base, rss_base, remaining = F, rss0, list(range(len(reg.stations)))
     while remaining:  # the station that explains most first; the others then tested with it corrected
         fits = {i: _rss_fit(np.hstack([base, G[i]]), y) for i in remaining}
@@ -104,19 +112,20 @@ def check_setup(lin: Any) -> dict[str, Any]:
     return out
 
 
-def _position_columns(lin: Any, w: np.ndarray) -> list[np.ndarray]:
-    """Per station, the whitened columns ``d h / d (east, north, up)`` of its rows (zero elsewhere), (m, 3)."""
+def _position_columns(lin: Any) -> list[np.ndarray]:
+    """Per station, the columns ``d h / d (east, north, up)`` of its rows (zero elsewhere), (m, 3), SI rows."""
     reg = lin.regression
     rows = reg.group_rows(all_rows=True)
-    used = np.zeros(w.size, dtype=bool)  # the keyhole's azimuth rows are zero rows of the fit
+    m = lin.y.size
+    used = np.zeros(m, dtype=bool)  # the keyhole's azimuth rows are zero rows of the fit
     used[np.concatenate(reg.group_rows())] = True
     out, g = [], 0
     for s in reg.stations:
         k = len(s.types)
         J = s.geometry.setup_jacobian(s.t, s.r - s.SP @ lin.D0, s.v - s.SV @ lin.D0, s.a)[:, :k, 1:]  # (N, k, 3)
-        G = np.zeros((w.size, 3))
+        G = np.zeros((m, 3))
         for j in range(k):
-            G[rows[g + j]] = J[:, j, :] * w[rows[g + j], None]
+            G[rows[g + j]] = J[:, j, :]
         G[~used] = 0.0
         out.append(G)
         g += k
