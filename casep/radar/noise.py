@@ -19,7 +19,10 @@ the joint regression, and the common scale the method estimates is 1 when the no
 right.
 
 - A station whose noise std are given (station file, ``sigma``) has known white noise: its rows
-  are divided by them and nothing is fitted (a correlated noise asked for it is an error).
+  are divided by them and nothing is fitted (a correlated noise asked for it is an error); their
+  level is tested by the residual check, not their whiteness.
+- The whitened residuals of every other station are tested for whiteness (Ljung-Box per type, as
+  a flight's axes, :meth:`RadarNoise.whiteness`): still correlated, a warning naming the station.
 - Range-rate rows (a fourth type) stay white per group, std from the linearisation.
 - The samples in a station's keyhole (telemetry above 85 deg elevation: the azimuth left out of
   the fit) are left out of its series (a gap, whitened across exactly), range and elevation too:
@@ -175,13 +178,14 @@ class RadarNoise:
         out = {}
         for s in self.stations:
             keep = s.keep
-            if keep.sum() < 10 or s.problem.is_noise_free():  # rounding: no noise whose whiteness to test
+            # rounding: no noise whose whiteness to test; given std: the user's statement, their level tested by
+            # the residual check (LinearisedRadar.residual_check)
+            if keep.sum() < 10 or s.rows is None or s.problem.is_noise_free():
                 continue
             e = s.whiten(r[:, None])[:, :, 0]
-            kind = s.noise.kind if s.rows is not None else "white"
-            # as for a flight: white noise asked at 1 %, a fitted model's (or given std's) residuals at 0.1 %
+            # as for a flight: white noise asked at 1 %, a fitted model's residuals at 0.1 %
             alpha = 0.01 if self.asked == "white" else ALPHA_FITTED
-            wt = dataclasses.replace(whiteness_test(e, s.t[keep], alpha=alpha), kind=kind)
+            wt = dataclasses.replace(whiteness_test(e, s.t[keep], alpha=alpha), kind=s.noise.kind)
             if wt.rejected:
                 axes = dict(zip("xyz", SERIES_TYPES))
                 text = wt.text()

@@ -321,10 +321,8 @@ class RadarRegression:
             else:
                 geo_T = geo
             T = self.tracking.jacobian(np.column_stack([geo_T, s.t - s.t[0]]))[:, :k, :]
-            if self.common:  # d h / d t0, per ms (the column's natural unit)
-                r_T = s.r - s.SP @ (D0 if tracking_at is None else tracking_at)
-                v_T = s.v - s.SV @ (D0 if tracking_at is None else tracking_at)
-                C = s.geometry.setup_jacobian(s.t, r_T, v_T, s.a, station=False)[:, :k, 0] * 1e-3
+            if self.common:
+                C = self._launch_time_column(s, D0 if tracking_at is None else tracking_at)
             c0 = self.nD + i * self.nT
             for j in range(k):
                 rows = slice(k0, k0 + s.t.size)
@@ -344,6 +342,27 @@ class RadarRegression:
         """Largest measured magnitude of each group (:attr:`groups` order), SI: the scale of its rounding."""
         return np.array([float(np.max(np.abs(s.z[:, j]))) if s.t.size else 0.0
                          for s in self.stations for j in range(len(s.types))])
+
+    @staticmethod
+    def _launch_time_column(s: _Station, D: np.ndarray) -> np.ndarray:
+        """``d h / d t0`` of station `s`'s measurements at the trajectory of D, per ms (the term's unit): (N, k)."""
+        k = len(s.types)
+        return s.geometry.setup_jacobian(s.t, s.r - s.SP @ D, s.v - s.SV @ D, s.a, station=False)[:, :k, 0] * 1e-3
+
+    def launch_time_rows(self, D: np.ndarray) -> np.ndarray:
+        """The column of :data:`LAUNCH_TIME` in the stacked rows at the trajectory of D (m,), also when the
+        term is not in the regression (one station: :func:`casep.radar.setup.check_setup` tests it)."""
+        out = np.zeros(sum(s.t.size * len(s.types) for s in self.stations))
+        k0 = 0
+        for s in self.stations:
+            C = self._launch_time_column(s, D)
+            for j in range(len(s.types)):
+                if not (s.types[j] == "azimuth" and s.keyhole is not None):
+                    out[k0:k0 + s.t.size] = C[:, j]
+                else:
+                    out[k0:k0 + s.t.size] = np.where(s.keyhole, 0.0, C[:, j])  # the keyhole's zero rows
+                k0 += s.t.size
+        return out
 
     def given_sigmas(self) -> dict[tuple[str, str], float]:
         """Noise std given in the station files, SI, per group."""

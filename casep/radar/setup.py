@@ -27,7 +27,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-__all__ = ["check_setup", "POSITION_LIMIT", "SETUP_P"]
+__all__ = ["check_setup", "launch_time_alias", "alias_text", "POSITION_LIMIT", "SETUP_P"]
 
 #: A station position offset (norm, m) below this is a survey error the station terms absorb.
 POSITION_LIMIT = 5.0
@@ -73,13 +73,17 @@ def check_setup(lin: Any, whiten: Callable[[np.ndarray], tuple[np.ndarray, np.nd
 
     reg = lin.regression
     n = lin.S.shape[1]
-    X = np.column_stack([lin.S, lin.y, *_position_columns(lin)])
+    aliased = LAUNCH_TIME not in reg.names  # one station: dt_launch tested, not fitted (launch_time_alias)
+    X = np.column_stack([lin.S, lin.y, *_position_columns(lin)]
+                        + ([reg.launch_time_rows(lin.D0)] if aliased else []))
     Xw = X * lin.weights[:, None] if whiten is None else whiten(X)[0].reshape(-1, X.shape[1])
     F, y = Xw[:, :n], Xw[:, n]
     G = [Xw[:, n + 1 + 3 * i:n + 4 + 3 * i] for i in range(len(reg.stations))]
     rss0, b0, std0 = _rss_fit(F, y)
     out: dict[str, Any] = {"launch_time": None, "stations": {}, "failures": [], "warnings": []}
     launch_warning = ""
+    if aliased:
+        out["aliased"], launch_warning = launch_time_alias(reg, F, y, Xw[:, -1], (rss0, b0, std0))
     if LAUNCH_TIME in reg.names:
         j = reg.names.index(LAUNCH_TIME)
         rss_without = _rss_fit(np.delete(F, j, axis=1), y)[0]
@@ -110,6 +114,59 @@ def check_setup(lin: Any, whiten: Callable[[np.ndarray], tuple[np.ndarray, np.nd
     if launch_warning and not out["failures"]:  # a wrong station position also moves dt_launch: named alone
         out["warnings"].append(launch_warning)
     return out
+
+
+def launch_time_alias(reg: Any, F: np.ndarray, y: np.ndarray, g: np.ndarray, fit0: tuple) -> tuple[dict, str]:
+    """What a launch-time error does to a fit that does not estimate it (one station), and whether the data see one.
+
+    With one station ``dt_launch`` and the station's own terms (its time tags, angle and range biases)
+    are nearly one combination, so it is left out of the fit. Left out, a true correction ``d`` moves
+    every estimate by ``c d`` with ``c = (F^T F)^-1 F^T g`` (``g`` the whitened column ``d h / d t0``):
+    what the fit determines is ``b + c dt_launch``. Said here with the numbers: ``dt_launch`` estimated
+    alone with the others (its estimate, std, the chi-square it explains), the shift per ms of the
+    station terms it moves most, and the largest shift of an instrument coefficient for a launch-time
+    error of :data:`~casep.radar.regression.LAUNCH_TIME_SCALE` ms, in its std. Returns the record and a
+    warning text ("" when the launch time is not significantly off).
+    """
+    from scipy.stats import chi2
+
+    from casep.radar.regression import LAUNCH_TIME, LAUNCH_TIME_SCALE
+
+    rss0, b0, std0 = fit0
+    rss1, b1, std1 = _rss_fit(np.column_stack([F, g]), y)
+    c = np.linalg.lstsq(F, g, rcond=None)[0]  # shift of each estimate per ms of true launch-time correction
+    d, est, sd = rss0 - rss1, float(b1[-1]), float(std1[-1])
+    p = float(chi2.sf(max(d, 0.0), 1))
+    nD = reg.nD
+    with np.errstate(divide="ignore", invalid="ignore"):
+        shift = np.where(std0[:nD] > 0, np.abs(c[:nD]) * LAUNCH_TIME_SCALE / std0[:nD], 0.0)
+    k = int(np.argmax(shift)) if nD else 0
+    terms = sorted(range(nD, len(reg.names)), key=lambda j: -abs(c[j]) / std0[j] if std0[j] > 0 else 0.0)[:2]
+    rec = {"term": LAUNCH_TIME, "estimated": False, "estimate_ms": est, "std_ms": sd, "dchi2": float(d), "p": p,
+           "absorbed_per_ms": {reg.names[j]: float(c[j]) for j in terms},
+           "units": {reg.names[j]: reg.units[j] for j in terms},
+           "instrument_shift_std": float(shift[k]) if nD else 0.0, "instrument_most_moved": reg.names[k],
+           "scale_ms": LAUNCH_TIME_SCALE}
+    warn = ""
+    if abs(est) - 3 * sd > LAUNCH_TIME_LIMIT and p < SETUP_P:
+        warn = (f"the launch time given (--launch-time {reg.site.t0:.10g} s) looks {-est:+.4g} +- {sd:.2g} ms off "
+                f"({LAUNCH_TIME} fitted with the one station's terms explains chi-square {d:.4g}, p = {p:.2g}); with "
+                "one station it is not estimated (it aliases with the station's time tags and biases), so the "
+                f"instrument estimate is moved by it (up to {shift[k] * abs(est) / LAUNCH_TIME_SCALE:.3g} std, "
+                f"{reg.names[k]}): correct --launch-time, or add a second station")
+    return rec, warn
+
+
+def alias_text(rec: dict) -> str:
+    """The console line of :func:`launch_time_alias`'s record: which combination the fit determines, with its numbers."""
+    from casep.radar.regression import LAUNCH_TIME
+
+    moved = ", ".join(f"{n} {v:+.3g} {rec['units'][n]}" for n, v in rec["absorbed_per_ms"].items())
+    return (f"launch time: not estimated with one station (it aliases with the station's terms: {LAUNCH_TIME} "
+            f"fitted with them would be {rec['estimate_ms']:.4g} +- {rec['std_ms']:.3g} ms, chi-square "
+            f"{rec['dchi2']:.3g}); the fit determines the station terms plus the launch-time error: per ms of it "
+            f"{moved}; a {rec['scale_ms']:g} ms error moves the instrument coefficients by up to "
+            f"{rec['instrument_shift_std']:.2g} std ({rec['instrument_most_moved']})")
 
 
 def _position_columns(lin: Any) -> list[np.ndarray]:

@@ -155,6 +155,11 @@ class RadarResult(OfEstimate):
                   f"linearisation: {len(s['gauss_newton_steps'])} Gauss-Newton steps, last change "
                   f"{s['gauss_newton_steps'][-1]:.2g} std"]
         lt = (s.get("setup") or {}).get("launch_time")
+        alias = (s.get("setup") or {}).get("aliased")
+        if alias:
+            from casep.radar.setup import alias_text
+
+            lines.append(alias_text(alias))
         if lt:
             lines.append(f"launch time: correction {lt['estimate_ms']:.4g} +- {lt['std_ms']:.2g} ms to --launch-time "
                          f"{s['launch_site']['t0']:.10g} s (estimated with the other terms)")
@@ -313,7 +318,8 @@ def _judge(reg: RadarRegression, lin: LinearisedRadar, rn: RadarNoise, res: Esti
     if bad:
         failed.append("radar residuals far above the noise: " + "; ".join(bad))
     # station terms are judged against their magnitudes only when no station position is wrong (they absorb it)
-    big, large = _tracking_magnitude_check(reg, res) if lin.converged and not failed else ([], [])
+    big, large = _tracking_magnitude_check(reg, res, (setup or {}).get("aliased")) if lin.converged and not failed \
+        else ([], [])
     if big:
         failed.append("station terms far above their declared magnitudes: " + "; ".join(big))
     suspicious += large
@@ -358,8 +364,12 @@ def _provenance(telemetry, radars: Sequence, reg: RadarRegression, method: str, 
 TERM_FAIL_RATIO, TERM_WARN_RATIO = 100.0, 10.0
 
 
-def _tracking_magnitude_check(reg: RadarRegression, res: EstimateResult) -> tuple[list[str], list[str]]:
-    """Station terms against the tracking model's declared magnitudes: ``(failures, warnings)``."""
+def _tracking_magnitude_check(reg: RadarRegression, res: EstimateResult,
+                              alias: Mapping | None = None) -> tuple[list[str], list[str]]:
+    """Station terms against the tracking model's declared magnitudes: ``(failures, warnings)``; with one
+    station (`alias`: :func:`casep.radar.setup.launch_time_alias`) a term the launch time moves says how many
+    ms of launch-time error would explain it."""
+    per_ms = dict((alias or {}).get("absorbed_per_ms", {}))
     fail: list[str] = []
     warn: list[str] = []
     scales = reg.tracking.scales
@@ -376,7 +386,9 @@ def _tracking_magnitude_check(reg: RadarRegression, res: EstimateResult) -> tupl
         if low > TERM_WARN_RATIO:
             txt = (f"{name} = {est:.4g} +- {std:.2g} {res.units[j]} is {ratio:.3g} times its declared magnitude "
                    f"{scales[term]:g} {res.units[j]}" + (" (time tags off: check the radar time scale and "
-                                                         "--launch-time)" if term == "time_bias" else ""))
+                                                         "--launch-time)" if term == "time_bias" else "")
+                   + (f" (or a launch time {-est / per_ms[name]:+.4g} ms off: with one station it moves {name} by "
+                      f"{per_ms[name]:+.3g} {res.units[j]} per ms; check --launch-time)" if per_ms.get(name) else ""))
             (fail if low > TERM_FAIL_RATIO else warn).append(txt)
     return fail, warn
 
