@@ -161,7 +161,7 @@ class RadarNoise:
                 ", tau given" if nm.rule == "given" else f", {nm.rule.replace('reml', 'REML')}"
             d = {**row, "kind": kind, "sigma": sd / f, "source": row["source"] + how}
             if kind != "white":
-                d["tau_s"] = float(nm.tau[j])  # type: ignore[arg-type]
+                d["tau_s"] = float(nm.tau[j])
                 d["sigma_gm"] = sd / f * float(np.sqrt(1.0 - nm.share[j]))
                 d["sigma_white"] = sd / f * float(np.sqrt(nm.share[j]))
             out.append(d)
@@ -228,16 +228,14 @@ def fit_radar_noise(lin, spec) -> RadarNoise:
     ns = spec.noise
     own = METHODS[spec.method].own_noise_model is not None  # gls: its own noise model on the rows
     stations, g = [], 0
-    rate_rows, rate_t, rate_sig = [], [], []
-    all_rows = reg.group_rows(all_rows=True)
     for i, st in enumerate(reg.stations):
         pb, index, t, sigma = _station_problem(lin, i, g)
         given = bool(lin.sigma_given[g:g + 3].any())
         name = st.meas.station.name
         if given and (ns.kind in ("gm", "gmw") or ns.tau is not None):
-            raise ValueError(f"noise {ns.kind!r} asked, but station `{name}` ({st.meas.station.source}) gives its noise "
-                             "std (sigma_range / sigma_angle, or `sigma`): given std are white noise. Remove them to "
-                             "have the noise fitted, or use noise 'auto' or 'white'")
+            raise ValueError(f"noise {ns.kind!r} asked, but station `{name}` ({st.meas.station.source}) gives its "
+                             "noise std (sigma_range / sigma_angle, or `sigma`): given std are white noise. Remove "
+                             "them to have the noise fitted, or use noise 'auto' or 'white'")
         if given or own:
             stations.append(StationRows(name, index, t, sigma, None, 1.0, pb))
         else:
@@ -245,13 +243,13 @@ def fit_radar_noise(lin, spec) -> RadarNoise:
             std = rows.sigma if rows.sigma is not None else rows.noise.sigma
             stations.append(StationRows(name, index, t, sigma, rows, float(std) if std and np.isfinite(std) else 1.0,
                                         pb))
-        if len(st.types) == 4:  # range rate: white, three consecutive rows to a triple
-            rr = all_rows[g + 3]
-            pad = (-rr.size) % 3
-            rate_rows.append(np.concatenate([rr, -np.ones(pad, dtype=np.intp)]).reshape(-1, 3))
-            rate_t.append(st.t[np.minimum(np.arange(rate_rows[-1].shape[0]) * 3 + 1, st.t.size - 1)])
-            rate_sig.append(np.where(rate_rows[-1] >= 0, lin.sigma[g + 3], 1.0))
         g += len(st.types)
-    cat = (lambda a, shape: np.concatenate(a) if a else np.zeros(shape))
-    return RadarNoise(lin, stations, "white" if own else ns.kind, cat(rate_rows, (0, 3)).astype(np.intp),
-                      cat(rate_t, (0,)), cat(rate_sig, (0, 3)))
+    # range rate: white, its rows grouped three to a triple as the estimators' sample layout has them
+    index, t = lin.sample_layout()
+    group_sigma = np.ones(lin.y.size + 1)  # the last place: the zero pad (-1)
+    is_rate = np.zeros(lin.y.size + 1, dtype=bool)
+    for gi, ((_, ty), r) in enumerate(zip(reg.groups, reg.group_rows(all_rows=True))):
+        group_sigma[r] = lin.sigma[gi]
+        is_rate[r] = ty == "range_rate"
+    rate = is_rate[index[:, 0]]
+    return RadarNoise(lin, stations, "white" if own else ns.kind, index[rate], t[rate], group_sigma[index[rate]])

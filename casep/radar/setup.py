@@ -158,7 +158,7 @@ def launch_time_alias(reg: Any, F: np.ndarray, y: np.ndarray, g: np.ndarray, fit
 
 
 def alias_text(rec: dict) -> str:
-    """The console line of :func:`launch_time_alias`'s record: which combination the fit determines, with its numbers."""
+    """The console line of :func:`launch_time_alias`'s record: the combination the fit determines, with its numbers."""
     from casep.radar.regression import LAUNCH_TIME
 
     moved = ", ".join(f"{n} {v:+.3g} {rec['units'][n]}" for n, v in rec["absorbed_per_ms"].items())

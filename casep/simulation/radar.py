@@ -91,7 +91,8 @@ class RadarSimulation:
                 "tracking": {s: {k: float(v) for k, v in d.items()} for s, d in self.tracking_truth.items()},
                 "tracking_units": dict(zip(self.tracking.names, self.tracking.units)),
                 "radar_noise": dict(self.noise), "radar_noise_gauss_markov": dict(self.gauss_markov),
-                "radar_noise_gm_tau_s": self.gm_tau, "station_noise": {k: dict(v) for k, v in self.station_noise.items()},
+                "radar_noise_gm_tau_s": self.gm_tau,
+                "station_noise": {k: dict(v) for k, v in self.station_noise.items()},
                 "seed": self.seed, "scenario": self.scenario,
                 "launch_site": self.site.to_dict(),
                 "stations": [m.station.to_dict() for m in self.radars]}

@@ -26,6 +26,7 @@ from casep.frames import LaunchSite
 from casep.model.loader import load_model
 from casep.model.tracking import load_tracking_model
 from casep.radar.diagnostics import diagnostics_table, radar_diagnostics
+from casep.radar.noise import RadarNoise, fit_radar_noise
 from casep.radar.regression import (
     KEYHOLE,
     LAUNCH_TIME,
@@ -37,7 +38,6 @@ from casep.radar.regression import (
     Telemetry,
     read_telemetry,
 )
-from casep.radar.noise import RadarNoise, fit_radar_noise
 from casep.radar.setup import check_setup
 from casep.radar.stations import RadarMeasurements, Station, read_radar, read_station
 from casep.results import OfEstimate, deprecated_alias
@@ -279,8 +279,9 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
     res = dataclasses.replace(
         res, residuals=np.empty((0, 3)), stored_residual_rms=dict.fromkeys("xyz"), sigma_source="whitened",
         **model_record(reg.model),
-        diagnostics={**res.diagnostics, "tracking_terms": summary["tracking_terms"], "tracking_model": reg.tracking.name,
-                     "noise": rn.accounts(), **({"whiteness": whiteness} if whiteness else {})},
+        diagnostics={**res.diagnostics, "tracking_terms": summary["tracking_terms"],
+                     "tracking_model": reg.tracking.name, "noise": rn.accounts(),
+                     **({"whiteness": whiteness} if whiteness else {})},
         settings={**res.settings, "noise": rn.asked + " per station and type"
                   + (", given" if all_given else ""), "robust": spec.noise.robust})
     diag = radar_diagnostics(lin, scales=_scales(reg)) if diagnostics else None

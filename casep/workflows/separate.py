@@ -16,7 +16,7 @@ from casep.io.flight import FlightData
 from casep.model.error_model import ErrorModel
 from casep.model.loader import load_model
 from casep.workflows.solve import fit
-from casep.workflows.spec import NOT_GIVEN, FitSpec, NotGiven, merge_options
+from casep.workflows.spec import NOT_GIVEN, FitSpec, NotGiven
 
 if TYPE_CHECKING:
     from casep.frames import LaunchSite
