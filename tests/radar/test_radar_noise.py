@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from test_radar import SITE, STATIONS, TRUTH
 
-from casep.cli.main import main
+from casep.cli import main
 from casep.exceptions import NoiseNotWhiteWarning
 from casep.simulation.radar import DEFAULT_NOISE, simulate_radar, write_radar_simulation
 from casep.workflows.radar import separate_radar
