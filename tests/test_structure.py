@@ -100,8 +100,8 @@ def test_no_private_name_imported_across_subpackages():
 
 
 def test_one_noise_free_rule():
-    """One constant (regression/problem.py NOISE_FREE), read in one function (is_rounding_level); no other
-    function decides noise-free data on its own."""
+    """One constant (regression/problem.py NOISE_FREE), read in one function (rounding_level, which
+    is_rounding_level compares with); no other function decides noise-free data on its own."""
     assigned, read_in, rule_functions = [], [], []
     for path, tree in MODULES:
         for node in ast.walk(tree):
@@ -114,7 +114,7 @@ def test_one_noise_free_rule():
                 if any(isinstance(n, ast.Name) and n.id == "NOISE_FREE" for n in ast.walk(node)):
                     read_in.append(f"{path}:{node.name}")
     assert assigned == ["regression/problem.py"]
-    assert read_in == ["regression/problem.py:is_rounding_level"]
+    assert read_in == ["regression/problem.py:rounding_level"]
     assert rule_functions == ["regression/problem.py:is_noise_free"]
 
 

@@ -34,14 +34,14 @@ def separate_radar(args: argparse.Namespace, wavelet_options: dict) -> int:
 
     # the options of separate() that do not apply with radar: one list (casep.workflows.radar.NOT_WITH_RADAR)
     check_radar_options({"wavelet_options": wavelet_options, **{k: getattr(args, k) for k in (
-        "denoise", "outliers", "sigma", "noise", "robust", "std", "exclude_outliers")}}, cli=True,
+        "denoise", "outliers", "sigma", "std", "exclude_outliers")}}, cli=True,
         outputs={"--figures": args.figures, "--mat": args.mat, "--csv": args.csv})
     outputs.check({"--json": args.json, "--report": args.report}, _radar_files(args))
     site = _site(args)
     given = options.method_options(args)
     given.update({k: read_json_table(given[k], f"--{k}") for k in ("bounds", "prior") if k in given})
-    rr = separate_radar(args.flight[0], args.radar, site, args.model, args.tracking_model, args.method,
-                        options=given)
+    spec = options.fit_spec(args, given)  # the one check of the request: method, options, --noise, --tau, --robust
+    rr = separate_radar(args.flight[0], args.radar, site, args.model, args.tracking_model, spec=spec)
     print(rr.text())
     if args.json:
         outputs.write_json(rr.to_dict(), args.json)

@@ -42,6 +42,7 @@ from typing import Sequence
 
 import numpy as np
 
+from casep.regression.problem import is_rounding_level, rounding_level
 from casep.exceptions import CasepWarning, NoiseFreeWarning
 from casep.frames import LaunchSite
 from casep.model.error_model import ErrorModel
@@ -84,8 +85,6 @@ FIRST_RANGE_LIMIT = 1000.0
 FIRST_ANGLE_LIMIT = math.radians(1.0)
 #: Starting noise std per type (SI) before they are estimated: 1 m, 5 arcsec, 0.1 m/s.
 _START_SIGMA = {"range": 1.0, "azimuth": 5 * ARCSEC, "elevation": 5 * ARCSEC, "range_rate": 0.1}
-#: Floor of an estimated group std (SI): the rounding of the measurements, not noise.
-_SIGMA_FLOOR = {"range": 1e-9, "azimuth": 1e-15, "elevation": 1e-15, "range_rate": 1e-10}
 
 
 def over_the_top(z: np.ndarray, geo: np.ndarray) -> np.ndarray:
@@ -322,10 +321,8 @@ class RadarRegression:
             else:
                 geo_T = geo
             T = self.tracking.jacobian(np.column_stack([geo_T, s.t - s.t[0]]))[:, :k, :]
-            if self.common:  # d h / d t0, per ms (the column's natural unit)
-                r_T = s.r - s.SP @ (D0 if tracking_at is None else tracking_at)
-                v_T = s.v - s.SV @ (D0 if tracking_at is None else tracking_at)
-                C = s.geometry.setup_jacobian(s.t, r_T, v_T, s.a, station=False)[:, :k, 0] * 1e-3
+            if self.common:
+                C = self._launch_time_column(s, D0 if tracking_at is None else tracking_at)
             c0 = self.nD + i * self.nT
             for j in range(k):
                 rows = slice(k0, k0 + s.t.size)
@@ -340,6 +337,32 @@ class RadarRegression:
                 t[rows] = s.t
                 k0 += s.t.size
         return S, y, t
+
+    def group_scales(self) -> np.ndarray:
+        """Largest measured magnitude of each group (:attr:`groups` order), SI: the scale of its rounding."""
+        return np.array([float(np.max(np.abs(s.z[:, j]))) if s.t.size else 0.0
+                         for s in self.stations for j in range(len(s.types))])
+
+    @staticmethod
+    def _launch_time_column(s: _Station, D: np.ndarray) -> np.ndarray:
+        """``d h / d t0`` of station `s`'s measurements at the trajectory of D, per ms (the term's unit): (N, k)."""
+        k = len(s.types)
+        return s.geometry.setup_jacobian(s.t, s.r - s.SP @ D, s.v - s.SV @ D, s.a, station=False)[:, :k, 0] * 1e-3
+
+    def launch_time_rows(self, D: np.ndarray) -> np.ndarray:
+        """The column of :data:`LAUNCH_TIME` in the stacked rows at the trajectory of D (m,), also when the
+        term is not in the regression (one station: :func:`casep.radar.setup.check_setup` tests it)."""
+        out = np.zeros(sum(s.t.size * len(s.types) for s in self.stations))
+        k0 = 0
+        for s in self.stations:
+            C = self._launch_time_column(s, D)
+            for j in range(len(s.types)):
+                if not (s.types[j] == "azimuth" and s.keyhole is not None):
+                    out[k0:k0 + s.t.size] = C[:, j]
+                else:
+                    out[k0:k0 + s.t.size] = np.where(s.keyhole, 0.0, C[:, j])  # the keyhole's zero rows
+                k0 += s.t.size
+        return out
 
     def given_sigmas(self) -> dict[tuple[str, str], float]:
         """Noise std given in the station files, SI, per group."""
@@ -396,7 +419,10 @@ class RadarRegression:
         sig = np.array([known.get(g, _START_SIGMA[g[1]]) for g in self.groups])
         fixed = np.array([g in known for g in self.groups])
         rows = self.group_rows()
-        floor = np.array([_SIGMA_FLOOR[g[1]] for g in self.groups])
+        # an estimated std is floored at the rounding level of its group's measurements (the noise-free rule):
+        # on noise-free data the steps and the convergence test are then measured against that level, not zero
+        scale = self.group_scales()
+        floor = rounding_level(scale)
         D0 = np.zeros(self.nD)
         history: list[float] = []
         settled, why, step = False, "", math.inf
@@ -421,7 +447,7 @@ class RadarRegression:
                    "that of the last linearisation and is not to be used")
             warnings.warn(msg, RadarConvergenceWarning, stacklevel=2)
         S, y, t = self.assemble(D0, tracking_at=T_at)
-        if np.all(sig <= floor * 1.0001) and not fixed.all():
+        if not fixed.all() and all(is_rounding_level(sig[g], scale[g]) for g in np.flatnonzero(~fixed)):
             warnings.warn("radar residuals at the rounding level: the noise std are floored at the rounding of the "
                           "measurements (a noise-free simulation?); give the noise in the station files",
                           NoiseFreeWarning, stacklevel=2)

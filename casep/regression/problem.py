@@ -32,7 +32,7 @@ from casep.regression.linalg import (
     reduce_qr_blocks,
 )
 
-__all__ = ["Problem", "DEFAULT_BLOCK_ROWS", "SV_KEEP_BYTES", "NOISE_FREE", "is_rounding_level"]
+__all__ = ["Problem", "DEFAULT_BLOCK_ROWS", "SV_KEEP_BYTES", "NOISE_FREE", "is_rounding_level", "rounding_level"]
 
 #: Samples per regenerated block of S_V (16384 x 3 x 36 doubles = 14 MB; the QR of a block and
 #: its copies take a few times that).
@@ -45,14 +45,26 @@ SV_KEEP_BYTES = 256 * 2**20
 NOISE_FREE = 1e-9
 
 
+def rounding_level(scale):
+    """The rounding level of data whose largest magnitude is `scale`: ``NOISE_FREE * scale`` (elementwise).
+
+    What casep takes for no noise: a residual RMS at or below it is rounding (:func:`is_rounding_level`),
+    and a noise std estimated from such residuals is floored there (the radar groups,
+    :meth:`casep.radar.regression.RadarRegression.solve`), so that no std, step or test is measured
+    against a noise level of zero.
+    """
+    return NOISE_FREE * np.asarray(scale, dtype=float) if np.ndim(scale) else NOISE_FREE * float(scale)
+
+
 def is_rounding_level(rms: float, scale: float) -> bool:
     """The noise-free rule: a residual RMS at the rounding level of data whose largest magnitude is `scale`.
 
-    ``rms <= NOISE_FREE * scale`` (or no data at all: ``scale == 0``). Every part of casep that asks
-    whether a flight carries noise (the noise model, the robust filter, the residual checks, the
-    magnitude and prior checks) asks it through :meth:`Problem.is_noise_free`, which calls this.
+    ``rms <= NOISE_FREE * scale`` (:func:`rounding_level`; or no data at all: ``scale == 0``). Every part
+    of casep that asks whether a flight carries noise (the noise model, the robust filter, the residual
+    checks, the magnitude and prior checks, the radar groups) asks it through :meth:`Problem.is_noise_free`
+    or this.
     """
-    return bool(scale == 0.0 or rms <= NOISE_FREE * scale)
+    return bool(scale == 0.0 or rms <= rounding_level(scale))
 
 
 class Problem:

@@ -70,6 +70,8 @@ class RadarSimulation:
     station_noise: dict = dataclasses.field(default_factory=dict)  # station -> {type: std} used, natural units
     masked: dict = dataclasses.field(default_factory=dict)  # station -> samples below its elevation mask, dropped
     over_zenith: dict = dataclasses.field(default_factory=dict)  # station -> samples written over the top
+    gauss_markov: dict = dataclasses.field(default_factory=dict)  # type -> std of the Gauss-Markov part, natural units
+    gm_tau: float | None = None  # its correlation time, s
 
     def truth_vector(self, launch_time: bool | None = None) -> np.ndarray:
         """Truth in the order of a :class:`~casep.radar.regression.RadarRegression`'s names.
@@ -88,7 +90,9 @@ class RadarSimulation:
                 "tracking_model": self.tracking.name,
                 "tracking": {s: {k: float(v) for k, v in d.items()} for s, d in self.tracking_truth.items()},
                 "tracking_units": dict(zip(self.tracking.names, self.tracking.units)),
-                "radar_noise": dict(self.noise), "station_noise": {k: dict(v) for k, v in self.station_noise.items()},
+                "radar_noise": dict(self.noise), "radar_noise_gauss_markov": dict(self.gauss_markov),
+                "radar_noise_gm_tau_s": self.gm_tau,
+                "station_noise": {k: dict(v) for k, v in self.station_noise.items()},
                 "seed": self.seed, "scenario": self.scenario,
                 "launch_site": self.site.to_dict(),
                 "stations": [m.station.to_dict() for m in self.radars]}
@@ -97,7 +101,8 @@ class RadarSimulation:
 def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="paper", seed: int = 0,
                    telemetry_rate: float = 100.0, radar_rate: float = 20.0, model=None, truth: Mapping | None = None,
                    tracking: "str | TrackingModel" = "radar_biases", tracking_truth: Mapping | None = None,
-                   noise: Mapping | None = None, range_rate: bool = False) -> RadarSimulation:
+                   noise: Mapping | None = None, range_rate: bool = False, gauss_markov: Mapping | None = None,
+                   gm_tau: float = 1.0) -> RadarSimulation:
     """Simulate telemetry and the measurements of each station.
 
     Parameters
@@ -118,6 +123,14 @@ def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="p
         (the station file written declares them, so they must be what the data have).
     range_rate : bool
         Also write range rate.
+    gauss_markov : mapping, optional
+        Std per type of a first-order Gauss-Markov measurement noise added to the white one, natural
+        units (``{"range": 2.0, "azimuth": 6.0, "elevation": 6.0}``): per station and type
+        ``g_k = a_k g_(k-1) + sqrt(1 - a_k^2) sigma n_k``, ``a_k = exp(-(t_k - t_(k-1)) / gm_tau)``,
+        stationary from the first sample (:func:`casep._kernels.ar1_terms`), drawn from the same `rng`
+        after the white noise.
+    gm_tau : float
+        Its correlation time, s.
     """
     from casep.simulation.scenarios import get_scenario
     from casep.simulation.simulate import check_seed, scenario_setup
@@ -131,11 +144,10 @@ def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="p
                                  truth=sc.truth if truth is None else dict(truth))
     sc, traj, mdl, D = scenario_setup(sc, telemetry_rate, rotating_earth=True, site=site)
     trk = load_tracking_model(tracking)
-    noise = {**DEFAULT_NOISE, **dict(noise or {})}
-    for k, v in noise.items():
-        if k not in DEFAULT_NOISE or not np.isfinite(v) or v < 0:
-            raise ValueError(f"`noise`: `{k}` must be one of {', '.join(DEFAULT_NOISE)} with a finite std >= 0, "
-                             f"got {v!r}")
+    noise = _check_stds("noise", {**DEFAULT_NOISE, **dict(noise or {})})
+    gm = _check_stds("gauss_markov", dict(gauss_markov or {}))
+    if gm and not (np.isfinite(gm_tau) and gm_tau > 0):
+        raise ValueError(f"`gm_tau` must be a finite correlation time > 0 s, got {gm_tau!r}")
     tt = {s.name: dict((tracking_truth or {}).get(s.name, {})) for s in stations}
     for s, d in (tracking_truth or {}).items():
         if s not in tt:
@@ -185,6 +197,9 @@ def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="p
         for j, ty in enumerate(types):
             if nz[ty] > 0:
                 z[:, j] += rng.normal(0.0, nz[ty] * _SI[ty], t_tag.size)
+        for j, ty in enumerate(types):
+            if gm.get(ty, 0.0) > 0:
+                z[:, j] += _gauss_markov(t_tag, gm[ty] * _SI[ty], gm_tau, rng)
         over = z[:, 2] > np.pi / 2  # the same line of sight over the top: (az + pi, pi - el)
         z[over, 1] += np.pi
         z[over, 2] = np.pi - z[over, 2]
@@ -192,7 +207,29 @@ def simulate_radar(stations: Sequence[Station], site: LaunchSite, *, scenario="p
         radars.append(RadarMeasurements(st, t_tag, z[:, 0], z[:, 1] % (2 * np.pi), z[:, 2],
                                         z[:, 3] if range_rate else None, f"simulated:{st.name}"))
     return RadarSimulation(tel, tuple(radars), site, mdl, trk, D, tt, {k: noise[k] for k in types}, seed, sc.name,
-                          used, masked, over_zenith)
+                          used, masked, over_zenith, gm, gm_tau if gm else None)
+
+
+def _check_stds(what: str, stds: dict) -> dict:
+    """`stds` (type -> std, natural units), each type known and each std finite and >= 0, else an error naming it."""
+    for k, v in stds.items():
+        if k not in DEFAULT_NOISE or not np.isfinite(v) or v < 0:
+            raise ValueError(f"`{what}`: `{k}` must be one of {', '.join(DEFAULT_NOISE)} with a finite std >= 0, "
+                             f"got {v!r}")
+    return stds
+
+
+def _gauss_markov(t: np.ndarray, sigma: float, tau: float, rng: np.random.Generator) -> np.ndarray:
+    """A stationary first-order Gauss-Markov sequence of std `sigma` and correlation time `tau` on the times `t`."""
+    from casep._kernels import ar1_terms
+
+    a, b = ar1_terms(np.diff(t), tau)  # a_k, 1 - a_k^2
+    n = rng.normal(0.0, sigma, t.size)
+    g = np.empty(t.size)
+    g[0] = n[0]
+    for k in range(1, t.size):
+        g[k] = a[k - 1] * g[k - 1] + np.sqrt(b[k - 1]) * n[k]  # g_k = a g_(k-1) + sqrt(1 - a^2) sigma n_k
+    return g
 
 
 def write_radar_simulation(sim: RadarSimulation, telemetry: str | os.PathLike,

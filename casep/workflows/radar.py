@@ -20,12 +20,13 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
-from casep.estimators.registry import METHODS, OPTIONS, check_method_options
+from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
 from casep.frames import LaunchSite
 from casep.model.loader import load_model
 from casep.model.tracking import load_tracking_model
 from casep.radar.diagnostics import diagnostics_table, radar_diagnostics
+from casep.radar.noise import RadarNoise, fit_radar_noise
 from casep.radar.regression import (
     KEYHOLE,
     LAUNCH_TIME,
@@ -40,23 +41,23 @@ from casep.radar.regression import (
 from casep.radar.setup import check_setup
 from casep.radar.stations import RadarMeasurements, Station, read_radar, read_station
 from casep.results import OfEstimate, deprecated_alias
+from casep.estimators.spec import FitSpec
 
 __all__ = ["RadarResult", "separate_radar", "diagnose_radar", "read_radar_inputs", "simulate_radar_files",
-           "radar_simulation_outputs", "NOT_WITH_RADAR", "check_radar_options"]
+           "radar_simulation_outputs", "NOT_WITH_RADAR", "check_radar_options", "check_radar_spec"]
 
 #: Keywords of :func:`casep.separate` that do not apply with radar inputs: name -> (the flag of
-#: ``casep separate``, the test that the value asks for something). The radar rows have their own
-#: noise (white per station and measurement type, given in the station files or estimated), a fit
-#: of their own (relinearised) and their own time-tag term (the tracking model's ``time_bias``).
+#: ``casep separate``, the test that the value asks for something). The radar rows take the noise layer
+#: of the velocity domain (``noise``, ``tau``, ``robust``: :mod:`casep.radar.noise`), per station and
+#: measurement type; these others have no meaning there: the rows are no velocity (de-noising, a sigma in
+#: m/s), the time-tag error is the tracking model's ``time_bias`` and the launch time the common ``dt_launch``.
 NOT_WITH_RADAR: dict[str, tuple[str, Callable[[Any], bool]]] = {
     "denoise": ("--denoise wavelet", lambda v: v not in (None, "none")),
     "wavelet_options": ("--wavelet, --level, --threshold-rule, --threshold-mode, --extension, --noise-scaling",
                         bool),
     "outliers": ("--outliers", lambda v: v is not None),
     "exclude_outliers": ("--exclude-outliers", lambda v: v is not None),
-    "robust": ("--robust", lambda v: v not in (None, "auto", "none")),
     "std": ("--std hac", lambda v: v not in (None, "model")),
-    "noise": ("--noise gm / gmw", lambda v: v in ("gm", "gmw")),
     # a number is the std of the telemetry-minus-tracking velocity, m/s; the radar's is per station and type
     "sigma": ("--sigma", lambda v: v is not None and not isinstance(v, Mapping)),
     "max_condition_index": ("--max-condition-index", lambda v: v is not None and v != DEFAULT_MAX_CONDITION_INDEX),
@@ -86,14 +87,22 @@ def check_radar_options(given: Mapping[str, Any], *, cli: bool = False,
         flag, asks = NOT_WITH_RADAR[name]
         if asks(value):
             what = flag if cli else f"`{name}={value!r}`"
-            raise ValueError(f"{what} is not available with {'--radar' if cli else '`radar`'} (noise: white per "
-                             "station and measurement type, sigma_range/sigma_angle in the station files, else "
-                             "estimated; a time-tag error is the tracking model's time_bias, a launch-time error "
-                             "the common dt_launch, estimated with two stations or more); leave it out")
+            raise ValueError(f"{what} is not available with {'--radar' if cli else '`radar`'} (the radar rows take the "
+                             "noise model per station and measurement type: --noise, --tau, --robust; "
+                             "sigma_range/sigma_angle in the station files give it as white; a time-tag error is the "
+                             "tracking model's time_bias, a launch-time error the common dt_launch); leave it out")
     for flag, value in dict(outputs or {}).items():
         if value:
             raise ValueError(f"{flag} is not available with --radar (the radar result writes --json and --report); "
                              "leave it out")
+
+
+def check_radar_spec(spec: FitSpec) -> None:
+    """Refuse a fit request that asks what radar rows do not take (:data:`NOT_WITH_RADAR`, from the request)."""
+    ns = spec.noise
+    check_radar_options({"denoise": ns.denoise, "wavelet_options": dict(ns.wavelet_options), "outliers": spec.outliers,
+                         "exclude_outliers": ns.exclude_outliers, "std": ns.std, "sigma": spec.sigma,
+                         "max_condition_index": spec.keywords.get("max_condition_index")})
 
 
 @dataclass(frozen=True)
@@ -136,17 +145,21 @@ class RadarResult(OfEstimate):
         given = all(g["source"] == "given" for g in s["noise"])
         lines += ["", f"method {res.method}, model {res.model} + {s['tracking_model']} per station, "
                       f"{len(s['stations'])} station(s), {n_rows} radar measurements, rank {res.rank}/{len(res.names)}",
-                  f"noise: white per station and type, {'given' if given else 'estimated per group'}; rows divided "
-                  f"by it, common scale {s['noise_scale']:.4g} (dimensionless: 1 when the group std are right); "
-                  f"std {res.std_kind}",
-                  "noise std: " + ", ".join(f"{g['station']}.{g['type']} {g['sigma']:.4g} {g['unit']} ({g['source']})"
-                                            for g in s["noise"]),
+                  f"noise: {s.get('noise_asked', 'white')} per station and type, "
+                  f"{'given' if given else 'estimated per group'}; rows whitened by it, common scale "
+                  f"{s['noise_scale']:.4g} (dimensionless: 1 when the noise models are right); std {res.std_kind}",
+                  "noise: " + ", ".join(_group_noise_text(g) for g in s["noise"]),
                   "residual RMS: " + ", ".join(f"{k} {v:.4g} {TYPE_UNITS[k.split('.', 1)[1]][0]}"
                                                for k, v in s["residual_rms"].items()),
                   f"telemetered position: {s['telemetry_position']}",
                   f"linearisation: {len(s['gauss_newton_steps'])} Gauss-Newton steps, last change "
                   f"{s['gauss_newton_steps'][-1]:.2g} std"]
         lt = (s.get("setup") or {}).get("launch_time")
+        alias = (s.get("setup") or {}).get("aliased")
+        if alias:
+            from casep.radar.setup import alias_text
+
+            lines.append(alias_text(alias))
         if lt:
             lines.append(f"launch time: correction {lt['estimate_ms']:.4g} +- {lt['std_ms']:.2g} ms to --launch-time "
                          f"{s['launch_site']['t0']:.10g} s (estimated with the other terms)")
@@ -165,6 +178,15 @@ class RadarResult(OfEstimate):
     def scales(self) -> dict[str, float]:
         """The declared magnitude of every coefficient (instrument, station terms, launch time), natural units."""
         return dict(self.summary["declared_magnitudes"])
+
+
+def _group_noise_text(g: Mapping[str, Any]) -> str:
+    """One group's noise for the console: ``S1.range GM tau 1.1 s 2.9 + white 1.2 m (estimated, reml)``."""
+    u = g["unit"]
+    what = {"white": f"white {g['sigma']:.4g} {u}", "gm": f"GM tau {g.get('tau_s', 0):.3g} s {g['sigma']:.4g} {u}",
+            "gmw": f"GM tau {g.get('tau_s', 0):.3g} s {g.get('sigma_gm', 0):.4g} + white {g.get('sigma_white', 0):.4g} "
+                   f"{u}"}[g.get("kind", "white")]
+    return f"{g['station']}.{g['type']} {what} ({g['source']})"
 
 
 def read_radar_inputs(pairs: Sequence) -> list[RadarMeasurements]:
@@ -194,7 +216,8 @@ def _inputs(telemetry, radars, model, tracking, site, fit_launch_time: bool | No
 
 def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, site: LaunchSite,
                    model: Any = "platform36", tracking: Any = "radar_biases", method: str = "ols", *,
-                   sigma: Mapping | None = None, options: Mapping | None = None,
+                   sigma: Mapping | None = None, options: Mapping | None = None, noise: str = "auto", tau: Any = None,
+                   robust: str | None = "auto", spec: FitSpec | None = None,
                    diagnostics: bool = True, fit_launch_time: bool | None = None) -> RadarResult:
     """Estimate the instrument coefficients and every station's tracking terms jointly.
 
@@ -211,47 +234,83 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
     method : str
         Any registered estimator; ``gls`` only with one station (it whitens one time series).
     sigma : mapping, optional
-        ``{(station, type): std}`` known noise, SI (m, rad, m/s); also read from the station
+        ``{(station, type): std}`` known noise, SI (m, rad, m/s): white; also read from the station
         files. The others are estimated per station and type.
     options : mapping, optional
         The method's options (``bounds``, ``prior`` with ``S1.range_bias``-style names, ...).
+    noise, tau, robust
+        The noise model per station and measurement type and the robust fit, as for a flight
+        (:class:`~casep.estimators.spec.NoiseSpec`; :mod:`casep.radar.noise`): ``auto`` (default) chooses
+        white, Gauss-Markov or Gauss-Markov plus white per station and type by REML; ``tau`` one
+        correlation time or three (range, azimuth, elevation), s.
+    spec : FitSpec, optional
+        The whole request instead of `method`, `sigma`, `options`, `noise`, `tau`, `robust`.
     diagnostics : bool
         Add the CRLB fixed/free, mixed groups and station gains (:mod:`casep.radar.diagnostics`).
     fit_launch_time : bool, optional
         Estimate the launch-time correction ``dt_launch`` (ms) with the other terms (see
-        :class:`casep.radar.regression.RadarRegression`). Default: with two stations or more; one
-        station alone cannot tell it from its own position and biases (the joint regression is
-        then near-singular and its Gauss-Newton steps wander near the zenith). The fit also says
-        which set-up error the residuals point to (:func:`casep.radar.setup.check_setup`).
+        :class:`casep.radar.regression.RadarRegression`). Default: with two stations or more. One
+        station alone cannot tell it from its own time-tag term: with a ``time_bias`` in the tracking
+        model the two are one combination (said in the result, with its numbers:
+        :func:`casep.radar.setup.launch_time_alias`); without one, ``dt_launch`` is estimated.
+        The fit also says which set-up error the residuals point to (:func:`casep.radar.setup.check_setup`).
     """
+    if spec is None:
+        spec = FitSpec.build(method, options=options, sigma=sigma, noise=noise, tau=tau, robust=robust)
+    check_radar_spec(spec)
     reg = _inputs(telemetry, radars, model, tracking, site, fit_launch_time)
-    opts = dict(options or {})
-    for k in opts:
-        if k not in OPTIONS:
-            raise ValueError(f"`options` has unknown option `{k}`; the options are {', '.join(OPTIONS)}")
-    check_method_options(method, opts)
-    if METHODS[method].needs_time and len(reg.stations) > 1:
-        raise ValueError(f"--method {method} uses the sample times (one time series per axis); with several stations "
-                         "the rows of different stations share times. Use: --method ols (white noise per station "
-                         "and type), or one station")
-    lin = reg.solve(sigma)
-    pb = lin.estimation_problem()
+    if METHODS[spec.method].needs_time and len(reg.stations) > 1:
+        raise ValueError(f"--method {spec.method} uses the sample times (one time series per axis); with several "
+                         "stations the rows of different stations share times. Use: --method ols (the noise model "
+                         "per station and type), or one station")
+    lin = reg.solve(spec.sigma)
+    rn = fit_radar_noise(lin, spec)
     all_given = bool(lin.sigma_given.all())
-    res = METHODS[method].solve(pb, sigma=1.0 if all_given else None, **opts)  # options checked above
+    opts = {**dict(spec.options), **dict(spec.keywords)}
+    res = METHODS[spec.method].solve(rn.problem(), sigma=1.0 if all_given else None, **opts)  # checked in spec
     x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
-    tracking_terms = list(reg.names[reg.nD:])
-    summary = {
+    summary = _summary(reg, lin, rn, res, x)
+    failed, suspicious = _judge(reg, lin, rn, res, summary)
+    whiteness = rn.whiteness(x)
+    if failed:  # a probably wrong result is never a plain success
+        res = dataclasses.replace(res, success=False, status=-1, message="; ".join(failed))
+    from casep.model.loader import model_record
+
+    res = dataclasses.replace(
+        res, residuals=np.empty((0, 3)), stored_residual_rms=dict.fromkeys("xyz"), sigma_source="whitened",
+        **model_record(reg.model),
+        diagnostics={**res.diagnostics, "tracking_terms": summary["tracking_terms"],
+                     "tracking_model": reg.tracking.name, "noise": rn.accounts(),
+                     **({"whiteness": whiteness} if whiteness else {})},
+        settings={**res.settings, "noise": rn.asked + " per station and type"
+                  + (", given" if all_given else ""), "robust": spec.noise.robust})
+    diag = radar_diagnostics(lin, scales=_scales(reg)) if diagnostics else None
+    return RadarResult(res, lin, summary, diag, _provenance(telemetry, radars, reg, spec.method, opts))
+
+
+def _summary(reg: RadarRegression, lin: LinearisedRadar, rn: RadarNoise, res: EstimateResult,
+             x: np.ndarray) -> dict[str, Any]:
+    """The radar section of the result: stations, site, models, noise per group, residuals, linearisation."""
+    return {
         "stations": [{**s.meas.station.to_dict(), "file": s.meas.source, "station_file": s.meas.station.source,
                       "n_samples": int(s.t.size), "types": list(s.types)} for s in reg.stations],
         "launch_site": reg.site.to_dict(), "telemetry": reg.telemetry.source,
         "telemetry_position": reg.telemetry.r_source, "instrument_model": reg.model.name,
-        "tracking_model": reg.tracking.name, "tracking_terms": tracking_terms,
-        "noise": lin.noise_table(), "residual_rms": lin.group_residual_rms(x),
+        "tracking_model": reg.tracking.name, "tracking_terms": list(reg.names[reg.nD:]),
+        "noise": rn.table(), "noise_asked": rn.asked, "residual_rms": lin.group_residual_rms(x),
         "gauss_newton_steps": [float(v) for v in lin.history],
         "noise_scale": float(res.sigma), "declared_magnitudes": _scales(reg),
         "keyhole": {"elevation_deg": float(np.degrees(KEYHOLE)), "azimuth_left_out": reg.keyhole_counts},
     }
-    setup = check_setup(lin) if lin.converged else None
+
+
+def _judge(reg: RadarRegression, lin: LinearisedRadar, rn: RadarNoise, res: EstimateResult,
+           summary: dict) -> tuple[list[str], list[str]]:
+    """``(failures, warnings)`` of a radar fit: the linearisation, the set-up (launch time, station positions,
+    whitened by the noise model), the residuals against the noise, the station terms against their
+    magnitudes; the set-up warnings are issued here, the others returned."""
+    x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
+    setup = check_setup(lin, rn.whiten) if lin.converged else None
     failed = [] if lin.converged else [lin.convergence_message]
     if setup:  # a set-up error named first: it explains the misfits the other checks see
         failed += setup["failures"]
@@ -260,29 +319,19 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
     if bad:
         failed.append("radar residuals far above the noise: " + "; ".join(bad))
     # station terms are judged against their magnitudes only when no station position is wrong (they absorb it)
-    big, large = _tracking_magnitude_check(reg, res) if lin.converged and not failed else ([], [])
+    big, large = _tracking_magnitude_check(reg, res, (setup or {}).get("aliased")) if lin.converged and not failed \
+        else ([], [])
     if big:
         failed.append("station terms far above their declared magnitudes: " + "; ".join(big))
     suspicious += large
     if setup:
-        summary["setup"] = {k: setup[k] for k in ("launch_time", "stations")}
+        summary["setup"] = {k: setup[k] for k in ("launch_time", "stations", "aliased") if k in setup}
         if setup["warnings"]:
-            warnings.warn("radar set-up: " + "; ".join(setup["warnings"]), RadarResidualWarning, stacklevel=2)
+            warnings.warn("radar set-up: " + "; ".join(setup["warnings"]), RadarResidualWarning, stacklevel=3)
     if suspicious:
         warnings.warn("radar residuals or station terms larger than expected: " + "; ".join(suspicious),
-                      RadarResidualWarning, stacklevel=2)
-    if failed:  # a probably wrong result is never a plain success
-        res = dataclasses.replace(res, success=False, status=-1, message="; ".join(failed))
-    from casep.model.loader import model_record
-
-    res = dataclasses.replace(
-        res, residuals=np.empty((0, 3)), stored_residual_rms=dict.fromkeys("xyz"), sigma_source="whitened",
-        **model_record(reg.model),
-        diagnostics={**res.diagnostics, "tracking_terms": tracking_terms, "tracking_model": reg.tracking.name},
-        settings={**res.settings, "noise": "white per station and type, "
-                  + ("given" if all_given else "estimated (REML-type iteration)")})
-    diag = radar_diagnostics(lin, scales=_scales(reg)) if diagnostics else None
-    return RadarResult(res, lin, summary, diag, _provenance(telemetry, radars, reg, method, opts))
+                      RadarResidualWarning, stacklevel=3)
+    return failed, suspicious
 
 
 def _scales(reg: RadarRegression) -> dict[str, float]:
@@ -316,8 +365,12 @@ def _provenance(telemetry, radars: Sequence, reg: RadarRegression, method: str, 
 TERM_FAIL_RATIO, TERM_WARN_RATIO = 100.0, 10.0
 
 
-def _tracking_magnitude_check(reg: RadarRegression, res: EstimateResult) -> tuple[list[str], list[str]]:
-    """Station terms against the tracking model's declared magnitudes: ``(failures, warnings)``."""
+def _tracking_magnitude_check(reg: RadarRegression, res: EstimateResult,
+                              alias: Mapping | None = None) -> tuple[list[str], list[str]]:
+    """Station terms against the tracking model's declared magnitudes: ``(failures, warnings)``; with one
+    station (`alias`: :func:`casep.radar.setup.launch_time_alias`) a term the launch time moves says how many
+    ms of launch-time error would explain it."""
+    per_ms = dict((alias or {}).get("absorbed_per_ms", {}))
     fail: list[str] = []
     warn: list[str] = []
     scales = reg.tracking.scales
@@ -334,7 +387,9 @@ def _tracking_magnitude_check(reg: RadarRegression, res: EstimateResult) -> tupl
         if low > TERM_WARN_RATIO:
             txt = (f"{name} = {est:.4g} +- {std:.2g} {res.units[j]} is {ratio:.3g} times its declared magnitude "
                    f"{scales[term]:g} {res.units[j]}" + (" (time tags off: check the radar time scale and "
-                                                         "--launch-time)" if term == "time_bias" else ""))
+                                                         "--launch-time)" if term == "time_bias" else "")
+                   + (f" (or a launch time {-est / per_ms[name]:+.4g} ms off: with one station it moves {name} by "
+                      f"{per_ms[name]:+.3g} {res.units[j]} per ms; check --launch-time)" if per_ms.get(name) else ""))
             (fail if low > TERM_FAIL_RATIO else warn).append(txt)
     return fail, warn
 

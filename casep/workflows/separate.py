@@ -18,6 +18,7 @@ from casep.model.error_model import ErrorModel
 from casep.model.loader import load_model
 from casep.regression.problem import Problem
 from casep.workflows.solve import fit
+from casep.estimators.spec import NOT_GIVEN, FitSpec, NotGiven
 
 if TYPE_CHECKING:
     from casep.frames import LaunchSite
@@ -202,7 +203,7 @@ def separate(
                          "a FitSpec or as keywords")
     if radar is not None:
         return _separate_radar(flight, model, fit_kw, radar, site,
-                               "radar_biases" if tracking_model is NOT_GIVEN else tracking_model, fit_time_offset)
+                               "radar_biases" if tracking_model is NOT_GIVEN else tracking_model, fit_time_offset, spec)
     if site is not None or tracking_model is not NOT_GIVEN:
         raise ValueError(f"`{'site' if site is not None else 'tracking_model'}` is used only with `radar`")
     if spec is None:
@@ -257,11 +258,11 @@ def _with_tables(spec: FitSpec, flight: Any, model: Any) -> FitSpec:
 
 
 def _separate_radar(telemetry, model, fit_kw: dict, radar: Sequence, site, tracking_model,
-                    fit_time_offset) -> RadarResult:
+                    fit_time_offset, spec: FitSpec | None = None) -> RadarResult:
     """:func:`separate` with radar inputs: the refusals, then :func:`casep.workflows.radar.separate_radar`.
 
-    The radar rows have their own noise layer (:data:`casep.workflows.radar.NOT_WITH_RADAR` lists the
-    keywords refused); the method and its options go to the radar fit as given (its options checked there).
+    The request is one :class:`~casep.estimators.spec.FitSpec` (method, options, noise, tau, robust), as for a
+    flight; :data:`casep.workflows.radar.NOT_WITH_RADAR` lists the keywords that do not apply to radar rows.
     """
     from casep.frames import LaunchSite
     from casep.workflows.radar import NOT_WITH_RADAR, check_radar_options, separate_radar
@@ -277,17 +278,15 @@ def _separate_radar(telemetry, model, fit_kw: dict, radar: Sequence, site, track
                          f"got {site!r}")
     if isinstance(radar, (str, os.PathLike)) or not isinstance(radar, Sequence):
         raise ValueError(f"`radar` must be a list of (station, measurements) pairs, got {radar!r}")
-    given = {k: v for k, v in fit_kw.items() if k not in NOT_WITH_RADAR and k not in ("method", "options", "noise")}
-    opts = merge_options(fit_kw.get("options"), given)  # "given both" as everywhere
-    if isinstance(opts.get("tau"), str) and opts["tau"] == "auto":
-        opts.pop("tau")
-    opts = {k: v for k, v in opts.items() if v is not None}
+    sigma = fit_kw.get("sigma", spec.sigma if spec is not None else None)
+    if spec is None:
+        spec = FitSpec.build(**{k: v for k, v in fit_kw.items() if k != "sigma"})  # the one check of the request
+    opts = dict(spec.options)
     for k in ("bounds", "prior"):
         if isinstance(opts.get(k), (str, os.PathLike)):
             opts[k] = read_json_table(opts[k], k)
-    sigma = fit_kw.get("sigma")
-    return separate_radar(telemetry, radar, site, model, tracking_model, fit_kw.get("method", "ols"),
-                          sigma=sigma if isinstance(sigma, Mapping) else None, options=opts)
+    spec = dataclasses.replace(spec, options=opts, sigma=sigma if isinstance(sigma, Mapping) else None)
+    return separate_radar(telemetry, radar, site, model, tracking_model, spec=spec)
 
 
 def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_free: bool = False) -> EstimateResult:
