@@ -69,6 +69,7 @@ def test_cli_json_csv_figure(tmp_path, capsys):
     assert "noise: simulated white 0.1 m/s; the methods fit white noise, no robust fit" in printed
     assert data["noise"]["fit"] == {"noise": "white", "tau": None, "robust": "auto"}
     assert data["noise"]["simulated"]["kind"] == "white" and data["noise"]["simulated"]["sigma"] == 0.1
+    assert data["warnings"] == []  # the run's warnings (none)
 
 
 def test_output_says_the_noise_model(capsys):
