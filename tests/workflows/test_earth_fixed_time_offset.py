@@ -47,3 +47,27 @@ def test_the_rule_of_the_time_offset_term():
     assert not fits_time_offset({"time_alignment": {"mode": "none"}})
     assert not fits_time_offset({"time_alignment": {"mode": "given", "applied_s": 0.02}})
     assert not fits_time_offset(None)
+
+
+def test_a_clock_ahead_is_named_and_estimated_not_blamed_on_the_site(tmp_path, capsys):
+    """The tracking's time scale stated 50 ms off (--time-shift 0.05): on the pad the telemetry is still at the pad
+    velocity while the tracking already moves. Main failed the result (exit 1) blaming the launch site, azimuth or
+    launch time; the offset is the range clock's, which dt_trk estimates: exit 0, the warning names it."""
+    fl = write_earth_fixed_flight(tmp_path / "tel.csv", SITE, frame="ecef", seed=4)
+    out = tmp_path / "res.json"
+    status = main(["separate", str(fl.telemetry), "--tracking", str(fl.tracking), "--tracking-frame", "ecef",
+                   "--launch-site", "28.5", "-80.6", "3", "90", "--launch-time", "0", "--time-shift", "0.05",
+                   "--json", str(out)])
+    printed = capsys.readouterr().out
+    assert status == 0, printed
+    assert "the tracking's time tags look about" in printed and "not the site or azimuth" in printed, printed
+    assert "set-up check failed" not in printed
+    res = json.loads(out.read_text())
+    est = dict(zip(res["names"], zip(res["estimates"], res["std"])))
+    dt, dt_std = est.pop("dt_trk")
+    assert abs(dt + OFFSET_MS) < 3 * dt_std, (dt, dt_std)  # tracking tags early: dt_trk = -50 ms
+    truth = fl.truth_record["coefficients"]
+    z = np.array([(e - truth[n]) / s for n, (e, s) in est.items()])
+    assert np.abs(z).max() < 3.5 and 0.6 < np.sqrt(np.mean(z ** 2)) < 1.5, z
+    clock = res["provenance"]["flights"][0]["setup_checks"]["pad"]["clock_offset"]
+    assert -60e-3 < clock["dt_trk_s"] < -25e-3, clock  # the rough reading at lift-off: 37 ms
