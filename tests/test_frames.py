@@ -185,8 +185,9 @@ def test_earth_fixed_tracking_noise_free_recovers_truth(rotating, tmp_path, fram
     d.write(tel, trk, tracking_frame=frame)
     fl = casep.read_flight_pair(tel, trk, tracking_frame=frame, site=SITE)
     assert fl.meta["tracking_frame"]["frame"] == frame and fl.meta["start_speed_m_s"] < 1e-6
-    _, err = noise_free_errors(fl, d.model, d.truth)
+    res, err = noise_free_errors(fl, d.model, d.truth)
     assert err.max() < 1e-6, dict(zip(d.model.names, err))
+    assert abs(res.estimate[res.names.index("dt_trk")]) < 1e-6  # ms: the range clock's offset, fitted by default
 
 
 def test_ignoring_earth_rotation_biases_the_estimate(rotating, tmp_path):

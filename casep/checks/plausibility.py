@@ -362,8 +362,11 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         test = time_offset_test(S, r, t, f, keep=keep)
     if test is None:
         return
+    from casep.model.loader import TIME_OFFSET
+
     offset = abs(test.offset_t) > OFFSET_T and test.offset_rms > EFFECT_MIN
-    if offset:
+    if offset and TIME_OFFSET not in (getattr(result, "names", None) or ()):
+        # with dt_trk in the model the offset is estimated: a(t) lies in the span of S_V, its test is moot
         _warn(f"{source}: residuals track the kinematic acceleration a = f + g: a tracking time offset of "
               f"{1e3 * test.offset:.3g} +- {1e3 * test.offset_std:.2g} ms would explain them "
               f"(t = {test.offset_t:.3g}); model it (dt_trk) or align the time tags.", TimeOffsetWarning)

@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     outputs.write_json(cal.to_dict(), args.json)
     print(f"calibration written to {args.json}")
     if imucal is not None:
-        outputs.write_json(imucal, args.imucal)
+        outputs.write_json(imucal, args.imucal, record_warnings=False)  # imucal's format
         print(f"imucal calibration written to {args.imucal}")
     return outputs.status(cal)
 

@@ -12,7 +12,10 @@ from typing import Iterator
 
 from casep.exceptions import CasepWarning, IllConditionedWarning
 
-__all__ = ["recorded", "report_lines", "print_warnings"]
+__all__ = ["recorded", "report_lines", "print_warnings", "raised_so_far"]
+
+#: The warning lists of the recorders now open, outermost first (:func:`raised_so_far` reads them).
+_OPEN: list[list[warnings.WarningMessage]] = []
 
 
 @contextlib.contextmanager
@@ -25,7 +28,11 @@ def recorded(passed_on: bool = True) -> Iterator[list[warnings.WarningMessage]]:
     """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", CasepWarning)
-        yield caught
+        _OPEN.append(caught)
+        try:
+            yield caught
+        finally:
+            del _OPEN[next(i for i, c in enumerate(_OPEN) if c is caught)]
     if passed_on:
         for w in caught:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
@@ -44,3 +51,12 @@ def print_warnings(caught: list[warnings.WarningMessage]) -> None:
             print(f"warning: {w.message}")
         elif not issubclass(w.category, CasepWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def raised_so_far() -> list[str]:
+    """casep's warnings of the command so far (:func:`report_lines` of every open recorder, each once, in order):
+    what a result file records of its run (``provenance["warnings"]``)."""
+    lines: list[str] = []
+    for caught in _OPEN:
+        lines += [line for line in report_lines(caught) if line not in lines]
+    return lines

@@ -104,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
               f"{res.tasks} tasks, none resumed")
     with output_group():  # the report files together or none (the --out store keeps its parts regardless)
         if args.json:
-            res.write_json(args.json)
+            outputs.write_json(res.to_dict(), args.json)  # with the run's warnings
         if args.csv:
             res.write_csv(args.csv)
         if args.figure:

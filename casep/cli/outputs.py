@@ -23,10 +23,21 @@ def check(files: dict[str, Any], inputs: Any = (), folders: dict[str, Any] | Non
     check_outputs(files, inputs=inputs, folders=folders)
 
 
-def write_json(data: dict[str, Any], path: str) -> None:
-    """Write `data` as JSON to `path` (atomically; part of the command's output group)."""
+def write_json(data: dict[str, Any], path: str, *, record_warnings: bool = True) -> None:
+    """Write `data` as JSON to `path` (atomically; part of the command's output group).
+
+    With `record_warnings` (not for a file in another program's format), the warnings the command raised
+    so far (:func:`casep.cli.capture.raised_so_far`: units assumed, set-up checks, ...) go with it: into its
+    ``provenance`` as ``warnings``, or as a top-level ``warnings`` list when it has no provenance.
+    """
+    from casep.cli.capture import raised_so_far
     from casep.io.result_files import write_json_atomic
 
+    if record_warnings:
+        lines = raised_so_far()
+        prov = data.get("provenance")
+        data = {**data, "provenance": {**prov, "warnings": lines}} if isinstance(prov, dict) else \
+            {**data, "warnings": lines}
     write_json_atomic(data, path)
 
 

@@ -290,6 +290,14 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
         from casep.io.setup import setup_evidence
 
         ev = setup_evidence(site, t_tel, v_tel, t_raw, r_ecef, v_ecef, time_shift=shift_scale)
+        clock = ev["pad"].get("clock_offset")
+        if clock is not None:
+            import warnings
+
+            from casep.exceptions import TimeOffsetWarning
+
+            warnings.warn(f"{tel.src} + {trk.src}: {clock['message']}; the fit's dt_trk estimates it",
+                          TimeOffsetWarning, stacklevel=2)
         flight.meta["start_speed_m_s"] = ev["pad"]["speed_relative_m_s"]
         flight.meta["tracking_frame"]["pad_velocity_m_s"] = ev["pad"]["pad_velocity_m_s"]
         flight.meta["setup"] = ev

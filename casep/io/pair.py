@@ -19,7 +19,28 @@ from casep.io.tables import VTRK_COLUMNS, Table
 __all__ = ["pair_flight", "PAIR_GRIDS", "STATE_SIGNALS", "GAP_FACTOR", "GAP_MIN_S", "MAX_TIME_OFFSET",
            "MAX_LAUNCH_TIME_GAP", "check_tracking_frame", "tracking_velocity", "tracking_hint", "with_tracked_state",
            "time_shift_seconds", "check_launch_time", "no_overlap_message",
-           "check_earth_fixed_units"]
+           "check_earth_fixed_units", "fits_time_offset"]
+
+def fits_time_offset(meta) -> bool:
+    """Whether a flight's fit gains the tracking time offset ``dt_trk`` by default (the one rule).
+
+    Yes when the tracking time tags were aligned automatically (``time_alignment`` mode ``auto``:
+    the alignment's error of a few ms is left to estimate), or when the tracking comes from an
+    Earth-fixed range (``tracking_frame`` ECEF or geodetic), whose clock is not the telemetry's: the
+    offset between the two clocks is an ordinary range error, estimated jointly with its std
+    (``dv += a(t) dt_trk``, :func:`casep.model.loader.with_time_offset`) instead of biasing the
+    coefficients that correlate with the kinematic acceleration.
+
+    Parameters
+    ----------
+    meta : dict
+        The flight's ``meta`` (:func:`casep.io.files.read_flight_pair`).
+    """
+    if not isinstance(meta, dict):
+        return False
+    align = meta.get("time_alignment")
+    return (isinstance(align, dict) and align.get("mode") == "auto") or isinstance(meta.get("tracking_frame"), dict)
+
 
 #: Where a telemetry + tracking pair is evaluated (``read_flight_pair(grid=...)``).
 PAIR_GRIDS = ("tracking", "telemetry")

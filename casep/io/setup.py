@@ -39,9 +39,10 @@ POSITION_TOL = 2000.0
 LAUNCH_GAP_TOL = 60.0
 
 
-def _velocity_at(t: np.ndarray, v: np.ndarray, t0: float) -> tuple[np.ndarray, float] | None:
+def _velocity_at(t: np.ndarray, v: np.ndarray, t0: float) -> tuple[np.ndarray, float, np.ndarray] | None:
     """Earth-relative tracking velocity at `t0` from a straight-line fit over :data:`PAD_FIT_WINDOW` s of
-    samples from `t0` on, and the std of one component; None when the tracking does not cover `t0`."""
+    samples from `t0` on, the std of one component and the fitted acceleration; None when the tracking does
+    not cover `t0`."""
     period = float(np.median(np.diff(t))) if t.size > 1 else np.inf
     if not (t[0] <= t0 + period and t[-1] >= t0):
         return None
@@ -52,7 +53,28 @@ def _velocity_at(t: np.ndarray, v: np.ndarray, t0: float) -> tuple[np.ndarray, f
     coef, *_ = np.linalg.lstsq(A, v[use], rcond=None)
     r = v[use] - A @ coef
     s2 = float(np.sum(r**2) / max(3 * (use.sum() - 2), 1))
-    return coef[0], float(np.sqrt(s2 * np.linalg.inv(A.T @ A)[0, 0]))
+    return coef[0], float(np.sqrt(s2 * np.linalg.inv(A.T @ A)[0, 0])), coef[1]
+
+
+def _clock_offset(fit: tuple, e: float, tol: float, t_first: float) -> dict | None:
+    """The clock offset that explains a tracking already moving while the telemetry is still on the pad.
+
+    At the first telemetry sample the telemetry velocity is the pad's (``e`` within `tol`) but the tracking
+    shows the vehicle moving at ``s`` m/s relative to the Earth, accelerating at ``|a|``: its time tags are
+    early by about ``s / |a|`` (``dt_trk ~ -s / |a|``: the tracking's clock ahead of the telemetry's, a
+    time_shift or range time-tag error), which no site, azimuth or launch time explains. None otherwise.
+    """
+    v0, std, acc = fit
+    s, a = float(np.linalg.norm(v0)), float(np.linalg.norm(acc))
+    if not (e <= tol and s > tol and a > 1.0):  # 1 m/s^2: a vehicle lifting off, not one sitting on the pad
+        return None
+    dt = -s / a
+    return {"dt_trk_s": dt, "tracking_speed_m_s": s, "acceleration_m_s2": a,
+            "message": f"at the first telemetry sample (t = {t_first:.10g} s) the telemetry velocity is the pad's "
+                       f"(within {e:.3g} m/s) but the tracking already shows the vehicle moving at {s:.3g} +- "
+                       f"{std:.2g} m/s relative to the Earth, accelerating at {a:.3g} m/s^2: the tracking's time "
+                       f"tags look about {-dt * 1e3:.3g} ms early (dt_trk about {dt * 1e3:.3g} ms: its clock ahead "
+                       "of the telemetry's; a time_shift or range time-tag offset, not the site or azimuth)"}
 
 
 def setup_evidence(site: Any, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, r_ecef: np.ndarray,
@@ -77,7 +99,9 @@ def setup_evidence(site: Any, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.nd
         their difference, the tracking's Earth-relative speed at the first telemetry sample and its
         std, the rotation about the vertical and the speed ratio between v_tel and v_pad),
         ``first_tracked`` (time since launch, distance from the site, reach), and ``problems``: the
-        messages of the checks that fail (empty when all pass).
+        messages of the checks that fail (empty when all pass). A tracking that moves while the
+        telemetry is on the pad is a clock offset, not a set-up problem: ``pad["clock_offset"]`` (its
+        dt_trk and message; the reader warns with it, the fit's ``dt_trk`` estimates it).
     """
     from casep.frames import ecef_to_launch
 
@@ -115,7 +139,10 @@ def setup_evidence(site: Any, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.nd
         tol = max(PAD_VELOCITY_TOL, 5.0 * s_std)
         gap = abs(float(np.linalg.norm(e)) - s_trk)
         pad["tolerance_m_s"] = tol
-        if gap > tol:
+        clock = _clock_offset(fit, float(np.linalg.norm(e)), tol, t_tel[0]) if fit is not None and gap > tol else None
+        if clock is not None:  # not the site's frame: the two clocks (the fit's dt_trk estimates it)
+            pad["clock_offset"] = clock
+        elif gap > tol:
             hint = ""
             if s_trk < 1.0:
                 hint = (f"; v_tel is v_pad turned by {turn:.4g} deg about the vertical"

@@ -265,4 +265,6 @@ def _result(ctx: Context, methods: list[str], units: tuple[str, ...], groups: li
                             estimates={m: est[m] for m in methods}, stds={m: std[m] for m in methods},
                             seconds=secs, truths=truths if tp is not None else None,
                             dispersions=tuple(ctx.dispersions) if ctx.dispersions else (), resumed=resumed,
-                            tasks=tasks, draws=draws)
+                            tasks=tasks, draws=draws,
+                            noise={"simulated": {**ctx.scenario.noise.to_dict(), "text": ctx.scenario.noise.describe()},
+                                   "fit": {"noise": ctx.noise, "tau": ctx.noise_tau, "robust": ctx.robust}})

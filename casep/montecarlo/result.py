@@ -53,6 +53,9 @@ class MonteCarloResult(Completed):
     resumed: int = 0  # tasks read back from --out (a resumed campaign) ...
     tasks: int = 0  # ... of this many
     draws: dict[str, np.ndarray] = field(default_factory=dict)  # dispersion parameter -> (runs,) drawn values
+    # the noise: {"simulated": the runs' noise (casep.simulation.noise.NoiseModel.to_dict() plus "text"),
+    # "fit": {"noise", "tau", "robust"} the methods assume}
+    noise: dict[str, Any] = field(default_factory=dict)
 
     def stats(self, method: str) -> dict[str, np.ndarray]:
         """bias, rms, efficiency, coverage95 arrays of one method (NaN where undefined)."""
@@ -90,6 +93,8 @@ class MonteCarloResult(Completed):
             out["truth_from_prior"] = True  # "true": the prior mean; errors against each run's own draw
         if self.dispersions:
             out["dispersions"] = list(self.dispersions)
+        if self.noise:
+            out["noise"] = self.noise
         out["methods"] = methods
         return out
 
@@ -112,7 +117,20 @@ class MonteCarloResult(Completed):
     def text(self) -> str:
         """What ``casep montecarlo`` prints of the result: a line naming the campaign, then :meth:`method_table`."""
         head = f"scenario {self.scenario}, {self.runs} runs, seed {self.seed}"
+        if self.noise:
+            head += "\n" + self.noise_line()
         return head + "\n" + self.method_table()
+
+    def noise_line(self) -> str:
+        """The noise the runs were given and the noise model the methods fitted (what the coverage column means)."""
+        fit = self.noise.get("fit") or {}
+        kind, tau, robust = fit.get("noise"), fit.get("tau"), fit.get("robust")
+        if kind == "white" and robust in (None, "auto"):  # run_montecarlo then runs the methods as they are
+            assumed = "white noise, no robust fit (the methods as they are)"
+        else:
+            assumed = (f"noise {kind}" + ("" if tau is None else f", tau {tau} s") + f", robust {robust or 'none'}"
+                       + (" (each run's own noise model, REML)" if tau is None and kind != "white" else ""))
+        return f"noise: simulated {self.noise.get('simulated', {}).get('text', '?')}; the methods fit {assumed}"
 
     summary = deprecated_alias("method_table", "summary")
 

@@ -31,8 +31,10 @@ def robust_line(rb: Mapping[str, Any]) -> str:
     """One line of a result's ``diagnostics["robust"]``."""
     places = ", ".join(r["where"] for r in rb.get("rejected", [])[:SHOWN])
     auto = rb.get("automatic")
+    gross = auto.get("gross") if auto else None
     why = (f", automatic: the filter found {auto['glitches_found']} glitch(es) where Gaussian noise gives "
-           f"{auto['expected_from_noise']:.2g}" if auto else "")
+           f"{auto['expected_from_noise']:.2g}"
+           + (f", {gross} beyond {auto['gross_sigmas']:g} sigma" if gross else "") if auto else "")
     more = ", ..." if rb["rejected_count"] > SHOWN else ""
     return (f"robust ({rb['function']}{why}): {rb['rejected_count']} sample(s) rejected as glitches"
             + (f": {places}{more}" if places else "")

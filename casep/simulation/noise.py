@@ -127,6 +127,18 @@ class NoiseModel:
             n = n + hit * self.outlier_sigma * rng.standard_normal(n.shape)
         return n
 
+    def describe(self) -> str:
+        """One line: ``white 0.1 m/s`` or ``Gauss-Markov tau 1 s 0.09 m/s + white 0.045 m/s``, outliers, gaps."""
+        text = (f"white {self.sigma:.3g} m/s" if self.kind == "white"
+                else f"Gauss-Markov tau {self.tau:.3g} s {self.sigma:.3g} m/s")
+        if self.white_sigma > 0:
+            text += f" + white {self.white_sigma:.3g} m/s"
+        if self.outlier_rate > 0:
+            text += f", outliers {self.outlier_rate:.3g} per sample and axis (std {self.outlier_sigma:.3g} m/s)"
+        if self.gaps:
+            text += f", {len(self.gaps)} tracking gap(s)"
+        return text
+
     def keep_mask(self, t: np.ndarray) -> np.ndarray:
         """True for samples outside every gap."""
         keep = np.ones(np.shape(t), dtype=bool)

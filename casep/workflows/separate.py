@@ -161,9 +161,10 @@ def separate(
         removed samples in ``diagnostics["excluded"]``).
     fit_time_offset : bool, optional
         Add the tracking time offset ``dt_trk`` to the model (:func:`casep.model.loader.with_time_offset`).
-        Default: when the tracking time tags were aligned automatically (``read_flight_pair(...,
-        time_offset="auto")``), so that the alignment's error of a few ms is estimated and in the std
-        instead of biasing the coefficients that correlate with it.
+        Default (:func:`casep.io.pair.fits_time_offset`): when the tracking time tags were aligned
+        automatically (``read_flight_pair(..., time_offset="auto")``) or come from Earth-fixed tracking
+        (``tracking_frame="ecef"`` or ``"geodetic"``: the range's clock), so that the offset between the
+        two clocks is estimated with its std instead of biasing the coefficients that correlate with it.
     radar : sequence, optional
         Radar measurements instead of tracking velocities: ``[(station, measurements), ...]``, each
         station a station JSON file or a :class:`casep.radar.stations.Station` and each measurement
@@ -229,9 +230,10 @@ def _problem(flight: FlightData | Problem | str | os.PathLike, model: Any,
         return flight, flight, model
     if not isinstance(flight, FlightData):
         flight = read_flight(flight)
-    align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
     if fit_time_offset is None:
-        fit_time_offset = isinstance(align, dict) and align.get("mode") == "auto"
+        from casep.io.pair import fits_time_offset
+
+        fit_time_offset = fits_time_offset(flight.meta)
     if fit_time_offset:
         from casep.model.loader import with_time_offset
 

@@ -63,7 +63,22 @@ def test_cli_json_csv_figure(tmp_path, capsys):
     assert csv.read_text().splitlines()[0] == "method,name,unit,true,bias,rms,crlb_std,efficiency,coverage95"
     assert len(csv.read_text().splitlines()) == 1 + 3 * 36
     assert fig.read_bytes()[:4] == b"\x89PNG"
-    assert "median efficiency" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "median efficiency" in printed
+    # the noise simulated and the noise model the methods assumed: what the coverage column means
+    assert "noise: simulated white 0.1 m/s; the methods fit white noise, no robust fit" in printed
+    assert data["noise"]["fit"] == {"noise": "white", "tau": None, "robust": "auto"}
+    assert data["noise"]["simulated"]["kind"] == "white" and data["noise"]["simulated"]["sigma"] == 0.1
+    assert data["warnings"] == []  # the run's warnings (none)
+
+
+def test_output_says_the_noise_model(capsys):
+    """Gauss-Markov noise simulated, the default noise model (auto, robust auto): both named."""
+    assert main(["montecarlo", "--scenario", "paper-range-gm", "--runs", "1", "--rate", "5", "--methods", "ols",
+                 "--workers", "1", "--no-progress"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("noise:"))
+    assert line.startswith("noise: simulated Gauss-Markov tau 1 s 0.1 m/s") and "tracking gap(s)" in line, line
+    assert line.endswith("the methods fit noise auto, robust auto (each run's own noise model, REML)"), line
 
 
 def test_bad_arguments(capsys):
