@@ -33,7 +33,12 @@ from casep.calibration.multiposition import (
     fit_gyro,
     gyro_matrix,
 )
-from casep.calibration.saturation import SaturationWarning, check_gyro_saturation, clipped_poses
+from casep.calibration.saturation import (
+    SaturationWarning,
+    check_gyro_saturation,
+    clipped_poses,
+    implied_full_scale,
+)
 from casep.calibration.segment import Segmentation, detect_static
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Session
 from casep.estimators.result import EstimateResult
@@ -147,6 +152,7 @@ class MultipositionCalibration(OfEstimate):
                   f"{self.acc.iterations} iterations; gyro: RMS gravity-direction misfit "
                   f"{math.degrees(_rms(self.gyro.residuals)):.3g} deg over {len(self.gyro.residuals)} motions, "
                   f"{self.gyro.iterations} iterations"]
+        lines += _full_scale_lines(self.settings)
         for sensor, d in self.result.diagnostics.items():
             cn = d["condition_number_equilibrated"]
             lines.append(f"{sensor}: condition number {cn:.3g} (equilibrated)" if cn else f"{sensor}: rank deficient")
@@ -159,6 +165,23 @@ class MultipositionCalibration(OfEstimate):
                 lines.append(f"  {pre}_{a}. " + "  ".join(f"{fv[f'{pre}_{a}{b}']['estimate']:+.6g} "
                                                           f"({fv[f'{pre}_{a}{b}']['std']:.2g})" for b in "xyz"))
         return "\n".join(lines)
+
+
+def _full_scale_lines(settings: dict) -> list[str]:
+    """The full scale raw counts imply (:func:`casep.calibration.saturation.implied_full_scale`), one line per sensor."""
+    out = []
+    for key, sensor in (("acc_full_scale", "accelerometer"), ("gyr_full_scale", "gyro")):
+        fs = settings.get(key)
+        if not fs:
+            continue
+        line = (f"{sensor} raw counts: full scale +-{fs['full_scale']:.4g} {fs['unit']} over +-{fs['half_range_counts']:.0f} "
+                f"counts (a {fs['bits']}-bit converter), {fs['ratio']:.4g} x the nominal +-{fs['nominal']:g} {fs['unit']}")
+        if sensor == "gyro":
+            line += (f"; at {'the t column' if settings.get('t_column') else 'the assumed --rate'} "
+                     f"{settings['rate_hz']:.6g} Hz" + ("" if settings.get("t_column") else
+                                                        " (no t column: a wrong rate scales it by assumed / true)"))
+        out.append(line)
+    return out
 
 
 def _jacobian(fit: AccFit | GyroFit) -> np.ndarray:
@@ -338,7 +361,11 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
                   + ("" if afit.converged and gfit.converged else "; fit not converged")
                   + ("; the sensor saturates in a motion" if saturated else ""), ok)
     settings = {"gravity": g, "gravity_source": g_src, "rate_hz": session.rate, "source": session.source,
-                "acc_unit": session.acc_unit, "gyr_unit": session.gyr_unit}
+                "acc_unit": session.acc_unit, "gyr_unit": session.gyr_unit, "t_column": session.t_column}
+    if session.acc_unit == RAW_UNIT:
+        settings["acc_full_scale"] = implied_full_scale(afit.x[3:6], afit.x[6:9], "accelerometer")
+    if session.gyr_unit == RAW_UNIT:
+        settings["gyr_full_scale"] = implied_full_scale(gfit.x[6:9], gfit.bias, "gyro")
     return MultipositionCalibration(res, seg, afit, gfit, settings)
 
 

@@ -28,7 +28,7 @@ import numpy as np
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT
 from casep.exceptions import CasepWarning
 
-__all__ = ["SaturationWarning", "full_scale", "saturated_runs", "check_gyro_saturation", "clipped_poses",
+__all__ = ["SaturationWarning", "full_scale", "implied_full_scale", "saturated_runs", "check_gyro_saturation", "clipped_poses",
            "ADC_BITS", "ACC_RANGES_G", "GYR_RANGES_DPS", "FULL_SCALE_TOLERANCE"]
 
 #: Word lengths of the converters raw counts come from.
@@ -71,8 +71,8 @@ def full_scale(ext: float, side: str, column: np.ndarray, unit: str, sensor: str
                            else (GYR_UNITS, GYR_RANGES_DPS, "deg/s"))
     per = ACC_UNITS["g"] if name == "g" else math.pi / 180.0  # SI per unit of the nominal ranges
     v = abs(ext) * table[unit] / per
-    near = [r for r in ranges if abs(v / r - 1.0) <= FULL_SCALE_TOLERANCE]
-    return f"the nominal +-{near[0]:g} {name} range" if near else None
+    near = min(ranges, key=lambda r: abs(v / r - 1.0))
+    return f"the nominal +-{near:g} {name} range" if abs(v / near - 1.0) <= FULL_SCALE_TOLERANCE else None
 
 
 def saturated_runs(x: np.ndarray, sensor: str, unit: str, declared: tuple[float, float] | None = None,
@@ -133,3 +133,22 @@ def clipped_poses(acc: np.ndarray, poses: list[tuple[int, int]], unit: str, sour
                       + (" ..." if len(bad) > 6 else "") + ". A clipped axis gives a wrong pose mean: use a wider "
                       "range", SaturationWarning, stacklevel=3)
     return sorted(bad)
+
+
+def implied_full_scale(scales: np.ndarray, biases: np.ndarray, sensor: str) -> dict:
+    """The full scale raw counts imply: ``max_i s_i * H`` in g or deg/s, H the converter's half range.
+
+    ``H = 2^(b-1)`` for the word length b whose mid-scale ``2^(b-1)`` is nearest the biases' median (an
+    unsigned converter reads its zero there); biases near 0 (a signed converter) are taken as 16-bit.
+    The nearest nominal range (ACC_RANGES_G, GYR_RANGES_DPS) and the ratio are given: without a time
+    column a gyro's is proportional to the assumed rate, so a ratio far from 1 says the rate is wrong.
+    """
+    med = float(np.median(np.abs(biases)))
+    bits = min(ADC_BITS, key=lambda b: abs(math.log2(max(med, 1.0)) - (b - 1))) if med > 64 else 16
+    half = 2.0 ** (bits - 1)
+    per, ranges, name = ((ACC_UNITS["g"], ACC_RANGES_G, "g") if sensor == "accelerometer"
+                         else (math.pi / 180.0, GYR_RANGES_DPS, "deg/s"))
+    fs = float(np.max(np.abs(scales))) * half / per
+    near = min(ranges, key=lambda r: abs(math.log(fs / r)))
+    return {"full_scale": fs, "unit": name, "bits": bits, "half_range_counts": half, "nominal": near,
+            "ratio": fs / near}
