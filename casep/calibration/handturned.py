@@ -332,7 +332,7 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
                              x0=np.array([0, 0, 0, 1, 1, 1, 0, 0, 0.0]) if physical else None)
     u0, u1 = _dirs(afit, means)
     gm = np.array([gyr[a:b].mean(axis=0) for a, b in seg.poses])
-    bias, bias_std = gm.mean(axis=0), gm.std(axis=0, ddof=1) / math.sqrt(len(gm))
+    bias, bias_std = pose_mean_bias(gm)
     # each sample's rate held until the next sample's time (the last: one nominal interval)
     dt = np.diff(session.t, append=session.t[-1] + 1.0 / session.rate)
     gfit = fit_gyro(gyr, session.rate, seg.motions, u0, u1, bias, bias_std=bias_std,
@@ -437,6 +437,22 @@ def check_gyro_swap(gfit: GyroFit, gyr: np.ndarray, session: Session, motions: l
                      f"{'' if gfit.converged else f', not converged in {gfit.iterations} iterations'}. Use: "
                      f"--gyr-columns in the order {names} of the given ones (or the accelerometer's columns are "
                      "swapped: the gyro's axes must be the accelerometer's)")
+
+
+def pose_mean_bias(gm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The gyro bias (the mean of the poses' mean readings `gm`, time order) and its std with a drift.
+
+    ``std_i = s_i / sqrt(m) sqrt((1 + rho) / (1 - rho))``: `s_i` the poses' scatter, `m` their number and
+    the AR(1) long-run factor of the lag-1 correlation `rho` of consecutive poses (pooled over the axes, its
+    estimate's bias ``-(1 + 3 rho) / m`` removed, clipped to [0, 0.95]): a bias that drifts slowly moves neighbouring poses together, and their scatter
+    alone then understates the error of the mean.
+    """
+    m = len(gm)
+    d = gm - gm.mean(axis=0)
+    den = float(np.sum(d * d))
+    r1 = float(np.sum(d[1:] * d[:-1])) / den if den > 0 else 0.0
+    rho = min(max(r1 + (1.0 + 3.0 * r1) / m, 0.0), 0.95)  # the lag-1 estimate's small-sample bias removed
+    return gm.mean(axis=0), gm.std(axis=0, ddof=1) / math.sqrt(m) * math.sqrt((1.0 + rho) / (1.0 - rho))
 
 
 def _drop_clipped(seg: Segmentation, session: Session, acc_range) -> Segmentation:
