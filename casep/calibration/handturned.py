@@ -33,6 +33,12 @@ from casep.calibration.multiposition import (
     fit_gyro,
     gyro_matrix,
 )
+from casep.calibration.saturation import (
+    SaturationWarning,
+    check_gyro_saturation,
+    clipped_poses,
+    implied_full_scale,
+)
 from casep.calibration.segment import Segmentation, detect_static
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Session
 from casep.estimators.result import EstimateResult
@@ -40,7 +46,13 @@ from casep.exceptions import CasepWarning
 from casep.results import OfEstimate
 
 __all__ = ["MultipositionCalibration", "calibrate_multiposition", "calibrate_multiposition_file", "ferraris_view",
-           "FitWarning", "SaturationWarning", "check_saturation", "CONVENTION"]
+           "FitWarning", "SaturationWarning", "CONVENTION"]
+
+#: Poses whose gravity directions lie within this angle of their mean direction (deg) are a narrow session.
+CONE_DEG = 60.0
+
+#: A gyro fit with an RMS gravity-direction misfit above this (deg) is checked for swapped columns.
+SWAP_MISFIT_DEG = 1.0
 
 CONVENTION = ("imu_tk: a_cal = T_a K_a (a - b_a), T_a = [[1, -a_yz, a_zy], [0, 1, -a_zx], [0, 0, 1]] (upper "
               "triangular); w_cal = T_g K_g (w - b_g), T_g = [[1, -g_yz, g_zy], [g_xz, 1, -g_zx], [-g_xy, g_yx, 1]]; "
@@ -49,37 +61,6 @@ CONVENTION = ("imu_tk: a_cal = T_a K_a (a - b_a), T_a = [[1, -a_yz, a_zy], [0, 1
 
 class FitWarning(CasepWarning):
     """An iterative fit did not converge, or its misfit is large: the result is probably wrong."""
-
-
-class SaturationWarning(CasepWarning):
-    """A sensor reads its extreme value for several samples in a row during a motion: it clipped."""
-
-
-def check_saturation(x: np.ndarray, sensor: str, motions: list[tuple[int, int]], source: str,
-                     min_run: int = 3) -> list[str]:
-    """Warn of each axis of `x` (N, 3) that holds its extreme value (the session's max or min) for at
-    least `min_run` samples in a row inside a motion: a clipped rate integrates to a wrong turn.
-
-    Static poses are not searched (a noise-free reading repeats there legitimately). Returns the messages.
-    """
-    from casep.calibration.segment import runs
-
-    found = []
-    inside = np.zeros(len(x), bool)
-    for a, b in motions:
-        inside[a:b] = True
-    for j, ax in enumerate("xyz"):
-        for what, ext in (("maximum", x[:, j].max()), ("minimum", x[:, j].min())):
-            long = [(a, b) for a, b in runs((x[:, j] == ext) & inside) if b - a >= min_run]
-            if long:
-                n = sum(b - a for a, b in long)
-                a, b = max(long, key=lambda r: r[1] - r[0])
-                found.append(f"{sensor} {ax}: {n} samples at its {what} {ext:.6g} in {len(long)} run(s) inside "
-                             f"motions, the longest rows {a}-{b - 1}")
-    if found:
-        warnings.warn(f"{source}: the sensor saturates: " + "; ".join(found) + ". The turns through them are "
-                      "misread: turn more slowly, or use a wider range", SaturationWarning, stacklevel=3)
-    return found
 
 
 def _unit(unit: str, table: dict, si: str) -> tuple[float, str, str]:
@@ -171,6 +152,7 @@ class MultipositionCalibration(OfEstimate):
                   f"{self.acc.iterations} iterations; gyro: RMS gravity-direction misfit "
                   f"{math.degrees(_rms(self.gyro.residuals)):.3g} deg over {len(self.gyro.residuals)} motions, "
                   f"{self.gyro.iterations} iterations"]
+        lines += _full_scale_lines(self.settings)
         for sensor, d in self.result.diagnostics.items():
             cn = d["condition_number_equilibrated"]
             lines.append(f"{sensor}: condition number {cn:.3g} (equilibrated)" if cn else f"{sensor}: rank deficient")
@@ -183,6 +165,23 @@ class MultipositionCalibration(OfEstimate):
                 lines.append(f"  {pre}_{a}. " + "  ".join(f"{fv[f'{pre}_{a}{b}']['estimate']:+.6g} "
                                                           f"({fv[f'{pre}_{a}{b}']['std']:.2g})" for b in "xyz"))
         return "\n".join(lines)
+
+
+def _full_scale_lines(settings: dict) -> list[str]:
+    """The full scale raw counts imply (:func:`casep.calibration.saturation.implied_full_scale`), one line per sensor."""
+    out = []
+    for key, sensor in (("acc_full_scale", "accelerometer"), ("gyr_full_scale", "gyro")):
+        fs = settings.get(key)
+        if not fs:
+            continue
+        line = (f"{sensor} raw counts: full scale +-{fs['full_scale']:.4g} {fs['unit']} over +-{fs['half_range_counts']:.0f} "
+                f"counts (a {fs['bits']}-bit converter), {fs['ratio']:.4g} x the nominal +-{fs['nominal']:g} {fs['unit']}")
+        if sensor == "gyro":
+            line += (f"; at {'the t column' if settings.get('t_column') else 'the assumed --rate'} "
+                     f"{settings['rate_hz']:.6g} Hz" + ("" if settings.get("t_column") else
+                                                        " (no t column: a wrong rate scales it by assumed / true)"))
+        out.append(line)
+    return out
 
 
 def _jacobian(fit: AccFit | GyroFit) -> np.ndarray:
@@ -281,7 +280,8 @@ def _reissue(held: list[warnings.WarningMessage]) -> None:
 def calibrate_multiposition(session: Session, segmentation: Segmentation | None = None, *,
                             gravity: float | None = None, latitude: float | None = None, height: float = 0.0,
                             window_s: float = 0.5, init_s: float = 5.0,
-                            min_static_s: float = 0.5) -> MultipositionCalibration:
+                            min_static_s: float = 0.5, acc_range: tuple[float, float] | None = None,
+                            gyr_range: tuple[float, float] | None = None) -> MultipositionCalibration:
     """Calibrate a hand-turned session (module notes).
 
     Parameters
@@ -295,6 +295,9 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
         :func:`casep.calibration.gravity.normal_gravity`; else 9.80665.
     window_s, init_s, min_static_s : float
         Of :func:`detect_static`.
+    acc_range, gyr_range : (float, float), optional
+        The sensors' full scale ``(low, high)`` in the reading unit (default: a converter's limit for raw
+        counts, a nominal range for a physical unit; :mod:`casep.calibration.saturation`).
     """
     from casep.calibration.gravity import normal_gravity
     from casep.units import G0
@@ -320,19 +323,23 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     except ValueError:
         _reissue(held)  # no fit to check the unit by: the segmentation's warnings go with its error
         raise
-    saturated = (check_saturation(session.gyr, "gyro", seg.motions, session.source)
-                 + check_saturation(session.acc, "accelerometer", seg.motions, session.source))
+    seg = _drop_clipped(seg, session, acc_range)
+    saturated = check_gyro_saturation(session.gyr, seg.motions, session.gyr_unit, session.source, gyr_range)
     means = np.array([acc[a:b].mean(axis=0) for a, b in seg.poses])
-    afit = fit_accelerometer(means, g, counts=np.array([b - a for a, b in seg.poses]))
+    physical = session.acc_unit != RAW_UNIT
+    # a physical unit is near its truth: start there (the extremes' half-range of a narrow session is not)
+    afit = fit_accelerometer(means, g, counts=np.array([b - a for a, b in seg.poses]),
+                             x0=np.array([0, 0, 0, 1, 1, 1, 0, 0, 0.0]) if physical else None)
     u0, u1 = _dirs(afit, means)
     gm = np.array([gyr[a:b].mean(axis=0) for a, b in seg.poses])
-    bias, bias_std = gm.mean(axis=0), gm.std(axis=0, ddof=1) / math.sqrt(len(gm))
+    bias, bias_std = pose_mean_bias(gm)
     # each sample's rate held until the next sample's time (the last: one nominal interval)
     dt = np.diff(session.t, append=session.t[-1] + 1.0 / session.rate)
     gfit = fit_gyro(gyr, session.rate, seg.motions, u0, u1, bias, bias_std=bias_std,
                     scale0=None if session.gyr_unit == RAW_UNIT else 1.0, dt=dt)
     gfit = _propagate(gfit, afit, means, gyr, session.rate, seg.motions, dt)
-    check_acc_scale(afit.x[3:6], session)  # the units and the rate first: they explain everything else
+    check_acc_fit(afit, means, session)  # the units and the rate first: they explain everything else
+    check_gyro_swap(gfit, gyr, session, seg.motions, (u0, u1), dt)
     check_gyro_scale(gfit.x[6:9], session)
     _reissue(held)
     if session.gyr_unit == RAW_UNIT:  # the turn inside each pose, now that the counts' scale is known
@@ -354,8 +361,125 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
                   + ("" if afit.converged and gfit.converged else "; fit not converged")
                   + ("; the sensor saturates in a motion" if saturated else ""), ok)
     settings = {"gravity": g, "gravity_source": g_src, "rate_hz": session.rate, "source": session.source,
-                "acc_unit": session.acc_unit, "gyr_unit": session.gyr_unit}
+                "acc_unit": session.acc_unit, "gyr_unit": session.gyr_unit, "t_column": session.t_column}
+    if session.acc_unit == RAW_UNIT:
+        settings["acc_full_scale"] = implied_full_scale(afit.x[3:6], afit.x[6:9], "accelerometer")
+    if session.gyr_unit == RAW_UNIT:
+        settings["gyr_full_scale"] = implied_full_scale(gfit.x[6:9], gfit.bias, "gyro")
     return MultipositionCalibration(res, seg, afit, gfit, settings)
+
+
+def check_acc_fit(afit: AccFit, means: np.ndarray, session: Session) -> None:
+    """Refuse an accelerometer fit a unit mistake or the poses' spread explains (numbers in the message).
+
+    Fitted scales off 1 by more than GRAVITY_TOLERANCE (physical unit) or a fit that did not converge, with
+    the poses' gravity directions inside a cone narrower than CONE_DEG
+    (:func:`casep.calibration.segment.pose_cone_deg`: the scale and bias along the cone's axis are then
+    barely separable) and, in a physical unit, the pose means' median magnitude within GRAVITY_TOLERANCE
+    of gravity (the unit is right): the spread is named. Else :func:`casep.calibration.checks.check_acc_scale`
+    (the unit).
+    """
+    from casep.calibration.checks import GRAVITY_TOLERANCE, scale_off
+    from casep.calibration.segment import pose_cone_deg, pose_spread
+
+    unit, s, g = session.acc_unit, afit.x[3:6], afit.gravity
+    physical = unit != RAW_UNIT
+    unit_right = not physical or abs(float(np.median(np.linalg.norm(means, axis=1))) / g - 1.0) <= GRAVITY_TOLERANCE
+    dirs = means if physical else afit.calibrate(means)
+    cone = pose_cone_deg(dirs)
+    off = scale_off(s, GRAVITY_TOLERANCE) if physical else None
+    if (off is not None or not afit.converged) and cone < CONE_DEG and unit_right:
+        raise ValueError(f"{session.source}: the {len(means)} poses' gravity directions{'' if physical else ' (from the fit)'} lie within {cone:.3g} deg of "
+                         f"one direction (smallest singular value / sqrt(n) {pose_spread(dirs):.3g}; 0.577: spread "
+                         "evenly): the accelerometer's scale and bias along it cannot be separated (fitted scales "
+                         f"{', '.join(f'{v:.4g}' for v in s)}"
+                         f"{'' if afit.converged else f', not converged in {afit.iterations} iterations'}). Use: "
+                         "turn the sensor so that each axis points up and down")
+    check_acc_scale(s, session)
+
+
+def check_gyro_swap(gfit: GyroFit, gyr: np.ndarray, session: Session, motions: list, dirs: tuple, dt) -> None:
+    """Refuse a gyro whose columns are in another order than the accelerometer's (numbers and the order).
+
+    A permutation of the axes is no small misalignment: the fit ends far off (scales off 1, a misfit of
+    degrees, or no convergence) and would be read as a unit mistake. When the fit is bad in that way
+    (not converged, RMS gravity-direction misfit above SWAP_MISFIT_DEG, or in a physical unit scales off 1
+    by more than TURN_TOLERANCE), the five other orders of the columns are fitted; one that converges with
+    a misfit under a tenth of the given order's (and scales within TURN_TOLERANCE in a physical unit) is named.
+    """
+    from itertools import permutations
+
+    from casep.calibration.checks import TURN_TOLERANCE, scale_off
+
+    physical = session.gyr_unit != RAW_UNIT
+
+    def bad(f: GyroFit) -> bool:
+        return (not f.converged or math.degrees(_rms(f.residuals)) > SWAP_MISFIT_DEG
+                or (physical and scale_off(f.x[6:9], TURN_TOLERANCE) is not None))
+
+    if not bad(gfit):
+        return
+    from casep.calibration.multiposition import gyro_start
+
+    scale0 = 1.0 if physical else None
+    # the order whose start fits best is fitted (a fit per order would cost five)
+    order = min((o for o in permutations(range(3)) if o != (0, 1, 2)), key=lambda o: gyro_start(
+        gyr[:, o], session.rate, motions, *dirs, gfit.bias[list(o)], scale0, dt)[1])
+    f = fit_gyro(gyr[:, order], session.rate, motions, *dirs, gfit.bias[list(order)], scale0=scale0, dt=dt)
+    rms = _rms(f.residuals)
+    if bad(f) or rms > 0.1 * _rms(gfit.residuals):
+        return
+    names = ", ".join("xyz"[i] for i in order)
+    raise ValueError(f"{session.source}: the gyro columns look swapped: taken in the order ({names}) the gyro fit "
+                     f"converges with an RMS gravity-direction misfit of {math.degrees(rms):.3g} deg and scales "
+                     f"{', '.join(f'{v:.4g}' for v in f.x[6:9])}; in the order given, {math.degrees(_rms(gfit.residuals)):.3g} "
+                     f"deg and scales {', '.join(f'{v:.4g}' for v in gfit.x[6:9])}"
+                     f"{'' if gfit.converged else f', not converged in {gfit.iterations} iterations'}. Use: "
+                     f"--gyr-columns in the order {names} of the given ones (or the accelerometer's columns are "
+                     "swapped: the gyro's axes must be the accelerometer's)")
+
+
+def pose_mean_bias(gm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The gyro bias (the mean of the poses' mean readings `gm`, time order) and its std with a drift.
+
+    ``std_i = s_i / sqrt(m) sqrt((1 + rho) / (1 - rho))``: `s_i` the poses' scatter, `m` their number and
+    the AR(1) long-run factor of the lag-1 correlation `rho` of consecutive poses (pooled over the axes, its
+    estimate's bias ``-(1 + 3 rho) / m`` removed, clipped to [0, 0.95]): a bias that drifts slowly moves neighbouring poses together, and their scatter
+    alone then understates the error of the mean.
+    """
+    m = len(gm)
+    d = gm - gm.mean(axis=0)
+    den = float(np.sum(d * d))
+    r1 = float(np.sum(d[1:] * d[:-1])) / den if den > 0 else 0.0
+    rho = min(max(r1 + (1.0 + 3.0 * r1) / m, 0.0), 0.95)  # the lag-1 estimate's small-sample bias removed
+    return gm.mean(axis=0), gm.std(axis=0, ddof=1) / math.sqrt(m) * math.sqrt((1.0 + rho) / (1.0 - rho))
+
+
+def _drop_clipped(seg: Segmentation, session: Session, acc_range) -> Segmentation:
+    """The segmentation without the poses in which the accelerometer clips (warned of by
+    :func:`casep.calibration.saturation.clipped_poses`), listed among its rejected intervals.
+
+    Raises
+    ------
+    SegmentError
+        Fewer than the accelerometer model's poses are left.
+    """
+    from dataclasses import replace
+
+    from casep.calibration.segment import MIN_POSES
+    from casep.calibration.session import SegmentError
+
+    bad = clipped_poses(session.acc, seg.poses, session.acc_unit, session.source, acc_range)
+    if not bad:
+        return seg
+    keep = [p for i, p in enumerate(seg.poses) if i not in bad]
+    if len(keep) < MIN_POSES:
+        raise SegmentError(f"{session.source}: the accelerometer saturates in {len(bad)} of {len(seg.poses)} static "
+                           f"poses; {len(keep)} are left, fewer than the {MIN_POSES} the accelerometer model needs. "
+                           "Use: a wider range, or poses that keep every axis inside it")
+    return replace(seg, poses=keep, rejected=seg.rejected + [(seg.poses[i][0], seg.poses[i][1],
+                                                              "the accelerometer saturates") for i in bad],
+                   turns_deg=[t for i, t in enumerate(seg.turns_deg) if i not in bad])
 
 
 def calibrate_multiposition_file(session: str | os.PathLike, *, rate: float | None = None, acc_columns=None,

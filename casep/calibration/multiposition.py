@@ -248,6 +248,20 @@ def gyro_residuals(x: np.ndarray, gyr: np.ndarray, rate: float, motions: list[tu
     return (np.einsum("mji,mj->mi", R, np.asarray(u_start, dtype=float)) - np.asarray(u_end, dtype=float)).ravel()
 
 
+def gyro_start(gyr: np.ndarray, rate: float, motions: list[tuple[int, int]], u_start: np.ndarray, u_end: np.ndarray,
+               bias: np.ndarray, scale0: float | None = 1.0, dt: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """:func:`fit_gyro`'s start and its sum of squared residuals.
+
+    The misfit is periodic in the angles: a start far from the scale (a wrong unit, raw counts) ends in a
+    wrong minimum, so the start is the best of a logarithmic grid of common scales (no misalignment).
+    """
+    grid = np.logspace(-7, 1, 49) if scale0 is None else scale0 * np.logspace(-2.5, 2.5, 21)
+    costs = [float(np.sum(gyro_residuals(np.r_[np.zeros(6), np.full(3, c)], gyr, rate, motions, u_start, u_end, bias,
+                                         dt) ** 2)) for c in grid]
+    k = int(np.argmin(costs))
+    return np.r_[np.zeros(6), np.full(3, float(grid[k]))], costs[k]
+
+
 def fit_gyro(gyr: np.ndarray, rate: float, motions: list[tuple[int, int]], u_start: np.ndarray,
              u_end: np.ndarray, bias: np.ndarray, *, x0: np.ndarray | None = None,
              bias_std: np.ndarray | None = None, scale0: float | None = 1.0,
@@ -292,11 +306,7 @@ def fit_gyro(gyr: np.ndarray, rate: float, motions: list[tuple[int, int]], u_sta
         return r, J
 
     if x0 is None:
-        # the misfit is periodic in the angles: a start far from the scale (a wrong unit, raw counts) ends in a
-        # wrong minimum, so the start is the best of a logarithmic grid of common scales
-        grid = np.logspace(-7, 1, 49) if scale0 is None else scale0 * np.logspace(-2.5, 2.5, 21)
-        costs = [float(np.sum(resid(np.r_[np.zeros(6), np.full(3, c)]) ** 2)) for c in grid]
-        x0 = np.r_[np.zeros(6), np.full(3, float(grid[int(np.argmin(costs))]))]
+        x0 = gyro_start(gyr, rate, motions, u_start, u_end, bias, scale0, dt)[0]
     x0 = np.asarray(x0, dtype=float)
     x, r, J, it, ok = _lm(fun, x0, max_iter=50, tol=1e-11)
     cov, s = _covariance(J, r, 2 * m - 9)

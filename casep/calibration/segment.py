@@ -43,7 +43,7 @@ from casep.exceptions import CasepWarning
 from casep.results import Completed
 
 __all__ = ["Segmentation", "detect_static", "window_variance", "window_mean", "runs", "PoseSpreadWarning",
-           "StaticMotionWarning", "pose_spread", "warn_turns", "static_runs", "static_statistic", "detector",
+           "StaticMotionWarning", "pose_spread", "pose_cone_deg", "warn_turns", "static_runs", "static_statistic", "detector",
            "MAX_TURN_DEG", "MULTIPLIERS", "SPREAD_ERROR", "SPREAD_WARN", "INIT_RISE", "MIN_POSES"]
 
 #: imu_tk's sweep of threshold multipliers of the initial period's variance.
@@ -305,6 +305,17 @@ def pose_spread(f: np.ndarray) -> float:
     """Smallest singular value of the unit directions of `f` (n, 3) over sqrt(n): 0.577 spread evenly, 0 a plane."""
     dirs = f / np.linalg.norm(f, axis=1)[:, None]
     return float(np.linalg.svd(dirs, compute_uv=False)[-1] / math.sqrt(len(f)))
+
+
+def pose_cone_deg(f: np.ndarray) -> float:
+    """Largest angle between the unit directions of `f` (n, 3) and their mean direction, deg
+    (90 or more: the directions surround the sensor; a few tens: the poses lie in one cone)."""
+    dirs = f / np.linalg.norm(f, axis=1)[:, None]
+    c = dirs.mean(axis=0)
+    nc = float(np.linalg.norm(c))
+    if nc < 1e-12:
+        return 180.0
+    return float(np.degrees(np.arccos(np.clip(dirs @ (c / nc), -1.0, 1.0))).max())
 
 
 def _check_poses(poses, spread, gyr, init_end, rate, gyr_si, max_turn_deg, source) -> list[float]:

@@ -36,7 +36,7 @@ from casep.units import G0
 
 __all__ = ["Session", "Segment", "SegmentError", "read_session", "read_segments", "segments_from_labels",
            "FERRARIS_SEGMENTS", "ferraris_segment", "ACC_COLUMNS", "GYR_COLUMNS", "ACC_UNITS", "GYR_UNITS",
-           "RATE_TOLERANCE"]
+           "RATE_TOLERANCE", "SESSION_RATES", "check_time_unit"]
 
 #: Physical units of the session's columns: unit -> SI factor (``a.u.``, raw counts, is also accepted).
 ACC_UNITS = {"m/s^2": 1.0, "g": G0, "mg": 1e-3 * G0}
@@ -44,6 +44,10 @@ GYR_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0, "deg/h": math.pi / 180.0 / 
 RAW_UNIT = "a.u."
 #: A given sample rate and that of the ``t`` column may differ by this fraction.
 RATE_TOLERANCE = 0.01
+#: The sample rates an IMU session is recorded at, Hz: a ``t`` column outside them is in another unit.
+SESSION_RATES = (1.0, 1e5)
+#: Time units a ``t`` column may be in by mistake: (name, seconds per unit).
+TIME_UNITS = (("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9), ("min", 60.0))
 
 ACC_COLUMNS = ("acc_x", "acc_y", "acc_z")
 GYR_COLUMNS = ("gyr_x", "gyr_y", "gyr_z")
@@ -220,6 +224,7 @@ def read_session(path: str | os.PathLike, *, rate: float | None = None, acc_colu
         t = np.asarray(df["t"], dtype=float)
         step = np.diff(np.sort(t))
         rate_t = 1.0 / float(np.median(step)) if np.all(np.isfinite(t)) and np.median(step) > 0 else math.nan
+        check_time_unit(rate_t, src)
         if rate is None:
             rate = rate_t
         elif np.isfinite(rate_t) and abs(float(rate) / rate_t - 1.0) > RATE_TOLERANCE:
@@ -248,6 +253,22 @@ def read_session(path: str | os.PathLike, *, rate: float | None = None, acc_colu
     return Session(t=ts, acc=np.column_stack([data[c] for c in acc_columns])[order],
                    gyr=np.column_stack([data[c] for c in gyr_columns])[order], rate=float(rate), source=src,
                    acc_unit=acc_unit, gyr_unit=gyr_unit, rows=order, labels=labels, t_column="t" in df.columns)
+
+
+def check_time_unit(rate_t: float, src: str) -> None:
+    """Refuse a ``t`` column whose median step gives a rate outside SESSION_RATES (1 Hz-100 kHz).
+
+    ``rate_t = 1 / median(diff t)``; ``t`` in a unit of ``k`` seconds read as seconds gives
+    ``rate_t = true rate / k`` (t in ms at 100 Hz: 0.1 Hz). The units of TIME_UNITS that bring the
+    rate inside SESSION_RATES are named.
+    """
+    lo, hi = SESSION_RATES
+    if not math.isfinite(rate_t) or lo <= rate_t <= hi:
+        return
+    fits = [(u, rate_t / k) for u, k in TIME_UNITS if lo <= rate_t / k <= hi]
+    hint = (" or ".join(f"like {u} (then {r:.6g} Hz)" for u, r in fits) if fits else "not like seconds")
+    raise ValueError(f"{src}: column `t`: median step {1.0 / rate_t:.6g} (read as s: {rate_t:.6g} Hz; an IMU "
+                     f"session is sampled at {lo:g} Hz to {hi:g} Hz): the times look {hint}. Use: `t` in seconds")
 
 
 def _is_number(s) -> bool:
