@@ -37,7 +37,7 @@ import numpy as np
 
 __all__ = ["OMEGA_EARTH", "TRACKING_FRAMES", "LaunchSite", "launch_to_ecef", "ecef_to_launch",
            "geodetic_to_ecef", "ecef_to_geodetic", "launch_to_geodetic", "geodetic_to_launch",
-           "ECEF_COLUMNS", "GEODETIC_COLUMNS"]
+           "ECEF_COLUMNS", "GEODETIC_COLUMNS", "ecef_to_launch_vector"]
 
 #: Earth rotation rate, rad/s (WGS84 / IERS value, about the ECEF z axis).
 OMEGA_EARTH = 7.292115e-5
@@ -197,6 +197,16 @@ def ecef_to_launch(site: LaunchSite, t, r_ecef, v_ecef) -> tuple[np.ndarray, np.
     r_l = np.einsum("nij,nj->ni", Rz, d) @ C  # C^T Rz d (row-vector form)
     v_l = np.einsum("nij,nj->ni", Rz, v_e + _omega_cross(r_e)) @ C  # C^T Rz (v_E + w x r_E)
     return r_l, v_l
+
+
+def ecef_to_launch_vector(site: LaunchSite, t, a_ecef) -> np.ndarray:
+    """Free vectors (accelerations, axes) given in ECEF axes at times `t` -> launch-inertial axes.
+
+    ``a_L = C^T Rz(theta) a_E``, ``theta = omega_E (t - t0)``: the rotation of
+    :func:`ecef_to_launch` without the origin shift and without the transport term.
+    """
+    t, (a,) = _prepare(t, a_ecef)
+    return np.einsum("nij,nj->ni", _rz(OMEGA_EARTH * (t - site.t0)), a) @ site.C
 
 
 def geodetic_to_ecef(lat, lon, h, v_east, v_north, v_up) -> tuple[np.ndarray, np.ndarray]:
