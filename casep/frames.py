@@ -30,6 +30,7 @@ only the *tracking velocity* must be brought into the launch-inertial frame befo
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -89,16 +90,18 @@ class LaunchSite:
             raise ValueError(f"LaunchSite: `lat_deg` must be within +-89.999 deg (no launch azimuth at a pole), "
                              f"got {self.lat_deg}")
 
-    @property
+    @functools.cached_property
     def r_site(self) -> np.ndarray:
-        """Launch point, ECEF, m (pymap3d.geodetic2ecef)."""
+        """Launch point, ECEF, m (pymap3d.geodetic2ecef); computed once (a navigation asks it per window)."""
         import pymap3d
 
-        return np.array(pymap3d.geodetic2ecef(self.lat_deg, self.lon_deg, self.h_m), dtype=float)
+        r = np.array(pymap3d.geodetic2ecef(self.lat_deg, self.lon_deg, self.h_m), dtype=float)
+        r.flags.writeable = False  # shared by every caller
+        return r
 
-    @property
+    @functools.cached_property
     def C(self) -> np.ndarray:
-        """Launch-to-ECEF rotation at t0, (3, 3): columns are the launch x, y, z axes in ECEF."""
+        """Launch-to-ECEF rotation at t0, (3, 3): columns are the launch x, y, z axes in ECEF; computed once."""
         import pymap3d
 
         lat, lon = self.lat_deg, self.lon_deg
@@ -108,7 +111,9 @@ class LaunchSite:
         az = math.radians(self.azimuth_deg)
         x = math.sin(az) * east + math.cos(az) * north  # azimuth from north, clockwise (towards east)
         z = np.cross(x, up)  # right-handed: z = x cross y
-        return np.column_stack([x, up, z])
+        C = np.column_stack([x, up, z])
+        C.flags.writeable = False  # shared by every caller
+        return C
 
     @property
     def earth_rate(self) -> np.ndarray:
