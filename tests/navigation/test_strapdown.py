@@ -132,7 +132,8 @@ def test_a_circle_at_constant_speed_without_gravity(source):
         inc = increments_from_rates(t, np.tile([0.0, 0.0, Om], (n, 1)), np.tile([0.0, V * Om, 0.0], (n, 1)))
     else:
         h = 1.0 / rate  # the exact increments of the constant body rate and force
-        inc = increments_from_deltas(np.tile([0.0, 0.0, Om * h], (n - 1, 1)), np.tile([0.0, V * Om * h, 0.0], (n - 1, 1)))
+        inc = increments_from_deltas(np.tile([0.0, 0.0, Om * h], (n - 1, 1)),
+                                     np.tile([0.0, V * Om * h, 0.0], (n - 1, 1)))
     q = propagate_attitude(np.array([1.0, 0, 0, 0]), inc)
     dV = quat_rotate(q[:-1], body_velocity_increments(inc))
     r, v, _ = propagate_translation(t, dV, np.zeros(3), np.array([V, 0.0, 0.0]), None)
