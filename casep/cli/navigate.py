@@ -39,7 +39,7 @@ def add_parser(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     from casep.io.files import write_table
     from casep.navigation.imu import read_imu
-    from casep.navigation.navigate import navigate
+    from casep.navigation.navigator import navigate
 
     outputs.check({"--output": args.output, "--json": args.json}, [args.imu])
     site = inputs.launch_site(args.launch_site, args.launch_time)

@@ -120,7 +120,8 @@ def check_imu(imu: ImuData) -> ImuData:
     if lost.size:
         k = int(lost[np.argmax(h[lost])])
         missing = int(np.sum(np.round(h[lost] / h_med) - 1))
-        warnings.warn(f"{imu.source}: {lost.size} gaps in t (about {missing} samples lost at the median step "
+        gaps = f"{lost.size} gap{'s' if lost.size > 1 else ''}"
+        warnings.warn(f"{imu.source}: {gaps} in t (about {missing} samples lost at the median step "
                       f"{h_med:.4g} s); the longest {h[k]:.4g} s after t = {t[k]:.10g} s (row {k + 1}): "
                       "integrated across it, the rate and specific force taken linear (rates) or held (increments)",
                       GapWarning, stacklevel=2)

@@ -113,7 +113,7 @@ class NavigationResult:
         lat, lon, h, ve, vn, vu = ecef_to_geodetic(r_e[-1:], v_e[-1:])
         lines = [self.message,
                  f"  input      {self.source}: {self.kind}, {len(self.t)} samples from t = {self.t[0]:.6g} s to "
-                 f"{self.t[-1]:.6g} s" + (f", {self.gaps} gaps integrated across" if self.gaps else "")]
+                 f"{self.t[-1]:.6g} s" + (f", {self.gaps} gap(s) integrated across" if self.gaps else "")]
         if a is not None:
             lines += self._alignment_lines(a)
         lines += [f"  end        t = {self.t[-1]:.6g} s: lat {lat[0]:.6f} deg, lon {lon[0]:.6f} deg, h {h[0]:.1f} m; "

@@ -26,8 +26,7 @@ from numpy.polynomial import legendre
 from scipy.spatial.transform import Rotation
 
 from casep.frames import OMEGA_EARTH, LaunchSite, ecef_to_launch
-from casep.navigation import ImuData, check_imu
-from casep.navigation.navigate import navigate_from
+from casep.navigation import ImuData, check_imu, navigate_from
 from casep.navigation.strapdown import dcm_to_quat, quat_multiply
 
 PROFILE = Path(__file__).resolve().parents[1] / "data" / "groves" / "Profile_3_15-45s.csv"
