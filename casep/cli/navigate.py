@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from casep.cli import inputs, options, outputs
+from casep.cli import flight_options, inputs, options, outputs
 from casep.cli.types import finite_float
 
 
@@ -15,12 +15,7 @@ def add_parser(sub: Any) -> None:
                                         "(attitude, body rate and specific force, launch-inertial velocity)")
     p.add_argument("imu", help="IMU file: t, w_x..w_z (rad/s), fb_x..fb_z (m/s^2); or t, dth_x..dth_z (rad), "
                                "dvb_x..dvb_z (m/s), each over the sample period ending at t")
-    p.add_argument("--launch-site", type=float, nargs=4, required=True, metavar=("LAT", "LON", "H", "AZ"),
-                   help="launch point (geodetic latitude, longitude, deg; height above the WGS84 ellipsoid, m) "
-                        "and azimuth of the launch-inertial x axis (deg from north, clockwise)")
-    p.add_argument("--launch-time", type=finite_float, required=True, metavar="T0",
-                   help="launch time in the IMU's time scale, s (the launch-inertial frame is the Earth-fixed "
-                        "launch triad at T0)")
+    flight_options.add_launch_site(p, required=True, scale="the IMU's")
     p.add_argument("--align", type=finite_float, nargs=2, required=True, metavar=("T1", "T2"),
                    help="the span at rest on the pad, s: levelling by the mean specific force, and the start of the "
                         "navigation")
