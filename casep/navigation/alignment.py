@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from casep.exceptions import AlignmentWarning
+from casep.exceptions import AlignmentWarning, PlausibilityWarning
 from casep.frames import OMEGA_EARTH, LaunchSite
 
 __all__ = ["Alignment", "align", "HEADING_AXES"]
@@ -144,6 +144,7 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
         warnings.warn(f"--align {t1:g} {t2:g}: the specific force departs from its mean by up to {moved:.3g} m/s^2 "
                       "during the window: the vehicle may have moved (the levelling is its mean)",
                       AlignmentWarning, stacklevel=2)
+    _check_pad_rate(w_mean, n, (t1, t2))
     up_b, up_t = f_mean / fm, -g_t / g0
     if heading_deg is not None:
         if heading_axis not in HEADING_AXES:
@@ -157,6 +158,21 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
         C = _triad(up_b, axis, up_t, _horizontal(heading_deg, site))
         return Alignment(C, "heading", float(heading_deg) % 360.0, None, f_mean, w_mean, g0, n)
     return _gyrocompass(w[sel], w_mean, f_mean, up_b, up_t, g0, site, n, (t1, t2))
+
+
+#: A mean pad rate beyond this (2.9 deg/s, no gyro that navigates has such a bias) is warned about, rad/s.
+MAX_PAD_RATE = 0.05
+
+
+def _check_pad_rate(w_mean: np.ndarray, n: int, window: tuple[float, float]) -> None:
+    """At rest the gyros measure the Earth rate (7.3e-5 rad/s) plus their bias: warn when the mean is beyond
+    :data:`MAX_PAD_RATE`, or is about 57.3 times the Earth rate (the Earth rate in deg/s, declared rad/s)."""
+    rate = float(np.linalg.norm(w_mean))
+    ratio = rate / OMEGA_EARTH
+    if rate > MAX_PAD_RATE or 0.8 * math.degrees(1.0) < ratio < 1.2 * math.degrees(1.0):
+        warnings.warn(f"--align {window[0]:g} {window[1]:g}: mean body rate at rest {rate:.4g} rad/s over {n} samples, "
+                      f"{ratio:.1f} times the Earth rate {OMEGA_EARTH:.4g} rad/s: deg/s given as rad/s (57.3 times), "
+                      "a gyro bias of that size, or a vehicle not at rest", PlausibilityWarning, stacklevel=3)
 
 
 def _gyrocompass(w_win: np.ndarray, w_mean: np.ndarray, f_mean: np.ndarray, up_b: np.ndarray, up_t: np.ndarray,

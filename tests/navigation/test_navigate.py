@@ -126,6 +126,10 @@ def test_rates_in_deg_s_are_caught():
     w[500:, 0] = 40.0
     with pytest.warns(PlausibilityWarning, match="2292 deg/s"):
         check_imu(ImuData(t, w, f))
+    # a stationary record in deg/s: the pad rate is 57.3 times the Earth rate
+    t, w, f = _stationary(100.0, 20.0)
+    with pytest.warns(PlausibilityWarning, match=r"0\.004178 rad/s over 1001 samples, 57\.3 times the Earth rate"):
+        navigate(check_imu(ImuData(t, np.degrees(w), f)), SITE, (0.0, 10.0), heading_deg=10.0)
 
 
 def _write_imu(path, t, w, f, increments=False):
