@@ -15,8 +15,6 @@ __all__ = ["NavigationResult", "TELEMETRY_COLUMNS"]
 #: The strapdown telemetry columns :meth:`NavigationResult.columns` gives, in order.
 TELEMETRY_COLUMNS = ("t", "q_w", "q_x", "q_y", "q_z", "fb_x", "fb_y", "fb_z", "w_x", "w_y", "w_z",
                      "v_tel_x", "v_tel_y", "v_tel_z", "r_tel_x", "r_tel_y", "r_tel_z")
-#: The iteration limit of :func:`casep.navigation.strapdown.propagate_translation` (more passes: not converged).
-_MAX_PASSES = 12
 
 
 @dataclass
@@ -78,7 +76,9 @@ class NavigationResult:
     @property
     def success(self) -> bool:
         """Whether every window of the gravity iteration converged."""
-        return self.passes <= _MAX_PASSES
+        from casep.navigation.strapdown import MAX_PASSES
+
+        return self.passes <= MAX_PASSES
 
     @property
     def status(self) -> int:

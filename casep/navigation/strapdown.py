@@ -35,8 +35,10 @@ import numpy as np
 
 __all__ = ["quat_multiply", "quat_rotate", "quat_from_rotvec", "quat_to_dcm", "dcm_to_quat",
            "increments_from_rates", "increments_from_deltas", "propagate_attitude", "body_velocity_increments",
-           "propagate_translation", "launch_gravitation", "Increments"]
+           "propagate_translation", "launch_gravitation", "Increments", "MAX_PASSES"]
 
+#: Fixed-point passes of the gravity iteration a window may take; more: not converged.
+MAX_PASSES = 12
 #: Gravitation in L at times t and positions r: ``(t (N,), r (N, 3)) -> (N, 3)`` m/s^2.
 Gravity = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
@@ -240,7 +242,8 @@ def _gravity_on_grid(gravity: Gravity, t: np.ndarray, r: np.ndarray, spacing_s: 
 
 def propagate_translation(t: np.ndarray, dV: np.ndarray, r0: np.ndarray, v0: np.ndarray,
                           gravity: Gravity | None, *, window_s: float = 5.0, tol_m: float = 1e-7,
-                          max_passes: int = 12, gravity_spacing_s: float = 0.05) -> tuple[np.ndarray, np.ndarray, int]:
+                          max_passes: int = MAX_PASSES,
+                          gravity_spacing_s: float = 0.05) -> tuple[np.ndarray, np.ndarray, int]:
     """Velocity and position from the velocity increments `dV` in L (N-1, 3) and the gravitation.
 
     Parameters

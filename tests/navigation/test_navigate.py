@@ -197,3 +197,17 @@ def test_the_command_writes_the_strapdown_telemetry(tmp_path, capsys):
         assert main(["navigate", str(tmp_path / "imu.csv"), "--launch-site", *site, "--launch-time", "100",
                      "--align", "50", "60", "-o", str(bad)]) == 2
     assert not bad.exists()
+
+
+def test_a_gravity_iteration_that_does_not_converge_is_a_failed_result():
+    from casep.navigation.strapdown import MAX_PASSES, propagate_translation
+
+    t = np.arange(0.0, 3.0, 0.01)
+    _, _, passes = propagate_translation(t, np.zeros((len(t) - 1, 3)), np.zeros(3), np.zeros(3),
+                                         lambda tt, r: -1e-3 * r - 9.8, max_passes=1)
+    assert passes == 2  # the limit reached: one more than allowed
+    t, w, f = _stationary(100.0, 20.0)
+    res = navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 10.0), heading_deg=10.0)
+    assert res.success and res.status == 0
+    res.passes = MAX_PASSES + 1
+    assert not res.success and res.status == 1 and "did not converge" in res.message
