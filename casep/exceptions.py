@@ -4,7 +4,7 @@ from __future__ import annotations
 
 __all__ = ["CasepWarning", "IllConditionedWarning", "PlausibilityWarning", "NoiseFreeWarning",
            "OutlierWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning", "NoiseLevelWarning",
-           "GapWarning", "NoiseNotWhiteWarning", "ConsistencyWarning"]
+           "GapWarning", "NoiseNotWhiteWarning", "ConsistencyWarning", "AlignmentWarning"]
 
 
 class CasepWarning(UserWarning):
@@ -61,3 +61,8 @@ class NoiseNotWhiteWarning(CasepWarning):
 class ConsistencyWarning(CasepWarning):
     """Results (or flights) combined into one estimate disagree beyond their std: the message gives
     the chi-square, its degrees of freedom, the p-value and the coefficients that disagree most."""
+
+
+class AlignmentWarning(CasepWarning):
+    """A pad alignment to read with care: a heading found by gyrocompassing (the message says how well
+    it is known) or a vehicle that moved during the alignment window."""

@@ -30,6 +30,7 @@ only the *tracking velocity* must be brought into the launch-inertial frame befo
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -37,7 +38,7 @@ import numpy as np
 
 __all__ = ["OMEGA_EARTH", "TRACKING_FRAMES", "LaunchSite", "launch_to_ecef", "ecef_to_launch",
            "geodetic_to_ecef", "ecef_to_geodetic", "launch_to_geodetic", "geodetic_to_launch",
-           "ECEF_COLUMNS", "GEODETIC_COLUMNS"]
+           "ECEF_COLUMNS", "GEODETIC_COLUMNS", "ecef_to_launch_vector"]
 
 #: Earth rotation rate, rad/s (WGS84 / IERS value, about the ECEF z axis).
 OMEGA_EARTH = 7.292115e-5
@@ -89,16 +90,18 @@ class LaunchSite:
             raise ValueError(f"LaunchSite: `lat_deg` must be within +-89.999 deg (no launch azimuth at a pole), "
                              f"got {self.lat_deg}")
 
-    @property
+    @functools.cached_property
     def r_site(self) -> np.ndarray:
-        """Launch point, ECEF, m (pymap3d.geodetic2ecef)."""
+        """Launch point, ECEF, m (pymap3d.geodetic2ecef); computed once (a navigation asks it per window)."""
         import pymap3d
 
-        return np.array(pymap3d.geodetic2ecef(self.lat_deg, self.lon_deg, self.h_m), dtype=float)
+        r = np.array(pymap3d.geodetic2ecef(self.lat_deg, self.lon_deg, self.h_m), dtype=float)
+        r.flags.writeable = False  # shared by every caller
+        return r
 
-    @property
+    @functools.cached_property
     def C(self) -> np.ndarray:
-        """Launch-to-ECEF rotation at t0, (3, 3): columns are the launch x, y, z axes in ECEF."""
+        """Launch-to-ECEF rotation at t0, (3, 3): columns are the launch x, y, z axes in ECEF; computed once."""
         import pymap3d
 
         lat, lon = self.lat_deg, self.lon_deg
@@ -108,7 +111,9 @@ class LaunchSite:
         az = math.radians(self.azimuth_deg)
         x = math.sin(az) * east + math.cos(az) * north  # azimuth from north, clockwise (towards east)
         z = np.cross(x, up)  # right-handed: z = x cross y
-        return np.column_stack([x, up, z])
+        C = np.column_stack([x, up, z])
+        C.flags.writeable = False  # shared by every caller
+        return C
 
     @property
     def earth_rate(self) -> np.ndarray:
@@ -197,6 +202,16 @@ def ecef_to_launch(site: LaunchSite, t, r_ecef, v_ecef) -> tuple[np.ndarray, np.
     r_l = np.einsum("nij,nj->ni", Rz, d) @ C  # C^T Rz d (row-vector form)
     v_l = np.einsum("nij,nj->ni", Rz, v_e + _omega_cross(r_e)) @ C  # C^T Rz (v_E + w x r_E)
     return r_l, v_l
+
+
+def ecef_to_launch_vector(site: LaunchSite, t, a_ecef) -> np.ndarray:
+    """Free vectors (accelerations, axes) given in ECEF axes at times `t` -> launch-inertial axes.
+
+    ``a_L = C^T Rz(theta) a_E``, ``theta = omega_E (t - t0)``: the rotation of
+    :func:`ecef_to_launch` without the origin shift and without the transport term.
+    """
+    t, (a,) = _prepare(t, a_ecef)
+    return np.einsum("nij,nj->ni", _rz(OMEGA_EARTH * (t - site.t0)), a) @ site.C
 
 
 def geodetic_to_ecef(lat, lon, h, v_east, v_north, v_up) -> tuple[np.ndarray, np.ndarray]:

@@ -70,3 +70,15 @@ def test_several_flights_example(tmp_path):
     assert len(rows) == 9 and all(1 <= a <= b <= 36 for a, b in counts)  # a prior never determines less
     assert counts[-1][0] > counts[0][0]  # four flights determine more than one
 
+
+
+def test_make_example_imu_is_reproducible(tmp_path):
+    fresh = tmp_path / "example_imu.csv"
+    proc = subprocess.run([sys.executable, str(EXAMPLES / "make_example_imu.py"), "--out", str(fresh)],
+                          capture_output=True, text=True, timeout=300, check=False)
+    assert proc.returncode == 0, proc.stderr
+    ref = (EXAMPLES / "data" / "example_imu.csv").read_text().splitlines()
+    new = fresh.read_text().splitlines()
+    assert new[:2] == ref[:2]
+    np.testing.assert_allclose(np.loadtxt(new[2:], delimiter=","), np.loadtxt(ref[2:], delimiter=","),
+                               rtol=1e-9, atol=1e-9)

@@ -33,6 +33,7 @@ RESULT_TYPES = [
     ("casep.workflows.radar", "RadarResult"),
     ("casep.calibration.handturned", "MultipositionCalibration"),
     ("casep.calibration.segment", "Segmentation"),
+    ("casep.navigation.result", "NavigationResult"),
 ]
 
 

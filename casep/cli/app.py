@@ -24,7 +24,7 @@ __all__ = ["main", "build_parser", "COMMANDS", "EXIT_BROKEN_PIPE"]
 
 #: The commands in the order ``casep --help`` lists them; each is the module ``casep.cli.<name>``.
 COMMANDS = ("separate", "simulate", "diagnose", "noise", "demo", "montecarlo", "fuse", "methods", "models", "impact",
-            "design", "calibrate")
+            "design", "calibrate", "navigate")
 
 #: Exit status when the reader of stdout goes away (``casep ... | head``): 128 + SIGPIPE, what the
 #: shell reports for any Unix tool ended by the broken pipe, so ``set -o pipefail`` sees the same.

@@ -7,7 +7,7 @@ from typing import Any
 
 from casep.cli.types import finite_float, time_offset
 
-__all__ = ["FRAMES", "add_tracking", "add_grid", "add_frames", "add_radar", "add_own_trajectory"]
+__all__ = ["FRAMES", "add_tracking", "add_grid", "add_frames", "add_launch_site", "add_radar", "add_own_trajectory"]
 
 FRAMES = ("launch", "ecef", "geodetic")
 
@@ -45,11 +45,17 @@ def add_frames(parser: Any) -> None:
                              "default), ecef (t, r_ecef_*, v_ecef_*, WGS84, m, m/s) or geodetic (t, lat, lon, h, "
                              "v_east, v_north, v_up; deg, deg, m, m/s); ecef and geodetic need --launch-site and "
                              "--launch-time")
-    parser.add_argument("--launch-site", type=float, nargs=4, default=None, metavar=("LAT", "LON", "H", "AZ"),
+    add_launch_site(parser)
+
+
+def add_launch_site(parser: Any, *, required: bool = False, scale: str = "the tracking file's") -> None:
+    """``--launch-site LAT LON H AZ`` and ``--launch-time T0``: what ties the launch-inertial frame to the Earth."""
+    parser.add_argument("--launch-site", type=float, nargs=4, default=None, required=required,
+                        metavar=("LAT", "LON", "H", "AZ"),
                         help="launch point (geodetic latitude, longitude, deg; height above the WGS84 ellipsoid, m) "
                              "and azimuth of the platform x axis (deg from north, clockwise)")
-    parser.add_argument("--launch-time", type=float, default=None, metavar="T0",
-                        help="launch time in the tracking file's time scale, s (the launch-inertial frame is the "
+    parser.add_argument("--launch-time", type=float, default=None, required=required, metavar="T0",
+                        help=f"launch time in {scale} time scale, s (the launch-inertial frame is the "
                              "Earth-fixed launch triad at T0)")
 
 

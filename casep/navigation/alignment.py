@@ -1,0 +1,200 @@
+"""Alignment on the pad: levelling by the mean specific force, heading given or by gyrocompassing.
+
+At rest on the Earth the accelerometers sense ``-g`` (the normal gravity, :mod:`casep.gravity`) and
+the gyros the Earth rate. Over the window ``[T1, T2]`` the mean specific force ``f_b`` gives the
+local vertical in body axes; the heading comes from a second direction, known in both frames
+(the TRIAD construction)::
+
+    body:   e1 = f_b/|f_b|,  e2 = unit(s_b - (s_b . e1) e1),  e3 = e1 x e2
+    triad:  E1 = -g_T/|g_T|, E2 = unit(s_T - (s_T . E1) E1),  E3 = E1 x E2
+    C_T^b = [E1 E2 E3] [e1 e2 e3]^T          (body -> Earth-fixed launch triad at the pad)
+
+``s`` is either a body axis whose azimuth is given (``--heading``: the rail azimuth of the
+longitudinal axis; in the triad the horizontal unit vector at that azimuth) or the mean gyro rate
+(gyrocompassing: its horizontal part is the north component ``omega_E cos(lat)`` of the Earth
+rate). A gyrocompassed heading is as good as the gyros: a horizontal gyro bias ``b`` turns it by
+``b / (omega_E cos(lat))`` (1 deg/h: 3.8 deg at the equator, 5.4 deg at 45 deg), which the pad data
+bound from below by the mismatch between the measured and the expected Earth rate; the warning
+gives the figures.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from casep.exceptions import AlignmentWarning, PlausibilityWarning
+from casep.frames import OMEGA_EARTH, LaunchSite
+
+__all__ = ["Alignment", "align", "HEADING_AXES"]
+
+#: Body axes whose azimuth ``--heading`` may give.
+HEADING_AXES = ("x", "y", "z")
+#: Gyrocompassing is refused when the heading would be known worse than this, rad.
+GYROCOMPASS_LIMIT_RAD = math.radians(30.0)
+#: The heading axis must lean at least this far from the vertical for its azimuth to fix a heading, rad.
+MIN_AXIS_TILT_RAD = math.radians(2.0)
+
+
+@dataclass(frozen=True)
+class Alignment:
+    """The pad attitude and how it was found.
+
+    Attributes
+    ----------
+    C_tb : (3, 3) ndarray
+        Body -> Earth-fixed launch triad (columns: body axes in triad axes).
+    method : str
+        ``"heading"`` (given) or ``"gyrocompass"``.
+    heading_deg : float
+        Azimuth of the heading axis's horizontal projection, deg from north, clockwise.
+    heading_std_deg : float or None
+        Gyrocompassing: how well the heading is known (noise and the Earth-rate mismatch); None when given.
+    f_mean, w_mean : (3,) ndarray
+        Mean body specific force (m/s^2) and rate (rad/s) over the window.
+    g_pad : float
+        Normal gravity at the pad, m/s^2.
+    rows : int
+        Samples in the window.
+    """
+
+    C_tb: np.ndarray
+    method: str
+    heading_deg: float
+    heading_std_deg: float | None
+    f_mean: np.ndarray
+    w_mean: np.ndarray
+    g_pad: float
+    rows: int
+
+    def to_dict(self) -> dict:
+        return {"method": self.method, "heading_deg": self.heading_deg, "heading_std_deg": self.heading_std_deg,
+                "f_mean": self.f_mean.tolist(), "w_mean": self.w_mean.tolist(), "g_pad": self.g_pad,
+                "rows": self.rows}
+
+
+def _triad(e1: np.ndarray, s_b: np.ndarray, E1: np.ndarray, s_t: np.ndarray) -> np.ndarray:
+    """``C_T^b`` from the vertical (`e1` body, `E1` triad) and a second direction (`s_b`, `s_t`)."""
+    def frame(a: np.ndarray, s: np.ndarray) -> np.ndarray:
+        a = a / np.linalg.norm(a)
+        b = s - (s @ a) * a
+        b = b / np.linalg.norm(b)
+        return np.column_stack([a, b, np.cross(a, b)])
+
+    return frame(E1, s_t) @ frame(e1, s_b).T
+
+
+def _horizontal(azimuth_deg: float, site: LaunchSite) -> np.ndarray:
+    """Horizontal unit vector at `azimuth_deg` (from north, clockwise) in the launch triad (x at the site azimuth)."""
+    d = math.radians(azimuth_deg - site.azimuth_deg)
+    return np.array([math.cos(d), 0.0, math.sin(d)])  # z = x cross up points 90 deg clockwise of x
+
+
+def _azimuth(v_t: np.ndarray, site: LaunchSite) -> float:
+    """Azimuth (deg from north, clockwise, in [0, 360)) of the horizontal part of a triad vector."""
+    return (site.azimuth_deg + math.degrees(math.atan2(v_t[2], v_t[0]))) % 360.0
+
+
+def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, float], site: LaunchSite, *,
+          heading_deg: float | None = None, heading_axis: str = "x") -> Alignment:
+    """Level over `window` and fix the heading (given, or by gyrocompassing with a warning).
+
+    Parameters
+    ----------
+    t, w, f : ndarray
+        Times (s), body rates (rad/s, (N, 3)), body specific forces (m/s^2, (N, 3)).
+    window : (T1, T2)
+        The pad span, at rest on the Earth, s.
+    site : LaunchSite
+    heading_deg : float, optional
+        Azimuth of the horizontal projection of body axis `heading_axis`, deg from north, clockwise
+        (a rocket on its rail: the rail azimuth, with `heading_axis` its longitudinal axis).
+        None: gyrocompassing.
+    heading_axis : {"x", "y", "z"}
+
+    Raises
+    ------
+    ValueError
+        Fewer than 2 samples in the window, a mean specific force more than 5 % from the normal
+        gravity (not at rest, or not in m/s^2), a heading axis within 2 deg of the vertical, or
+        gyros that cannot find north (heading known worse than 30 deg).
+    """
+    from casep.gravity import normal_gravity_ecef
+
+    t1, t2 = window
+    sel = (t >= t1) & (t <= t2)
+    n = int(sel.sum())
+    if not t1 < t2 or n < 2:
+        raise ValueError(f"--align {t1:g} {t2:g}: the window must hold at least 2 samples (it holds {n}; the file "
+                         f"spans {t[0]:g} .. {t[-1]:g} s)")
+    f_mean, w_mean = f[sel].mean(axis=0), w[sel].mean(axis=0)
+    g_t = site.C.T @ normal_gravity_ecef(site.r_site)
+    g0 = float(np.linalg.norm(g_t))
+    fm = float(np.linalg.norm(f_mean))
+    if abs(fm / g0 - 1.0) > 0.05:
+        hint = " (the specific force looks like it is in g: give m/s^2)" if 0.9 < fm < 1.1 else \
+            " (the vehicle moved, or the accelerometers are not in m/s^2)"
+        raise ValueError(f"--align {t1:g} {t2:g}: mean specific force {fm:.5g} m/s^2 over {n} samples, normal gravity "
+                         f"at the pad {g0:.5g} m/s^2: not at rest on the pad{hint}")
+    moved = float(np.max(np.linalg.norm(f[sel] - f_mean, axis=1)))
+    if moved > 0.1 * g0:
+        warnings.warn(f"--align {t1:g} {t2:g}: the specific force departs from its mean by up to {moved:.3g} m/s^2 "
+                      "during the window: the vehicle may have moved (the levelling is its mean)",
+                      AlignmentWarning, stacklevel=2)
+    _check_pad_rate(w_mean, n, (t1, t2))
+    up_b, up_t = f_mean / fm, -g_t / g0
+    if heading_deg is not None:
+        if heading_axis not in HEADING_AXES:
+            raise ValueError(f"heading_axis must be one of {HEADING_AXES}, got {heading_axis!r}")
+        axis = np.eye(3)[HEADING_AXES.index(heading_axis)]
+        tilt = math.acos(min(1.0, abs(float(axis @ up_b))))
+        if tilt < MIN_AXIS_TILT_RAD:
+            raise ValueError(f"--heading {heading_deg:g}: body {heading_axis} axis is {math.degrees(tilt):.2f} deg "
+                             "from the vertical on the pad, so its azimuth does not fix the heading: give the azimuth "
+                             "of a horizontal axis (--heading-axis)")
+        C = _triad(up_b, axis, up_t, _horizontal(heading_deg, site))
+        return Alignment(C, "heading", float(heading_deg) % 360.0, None, f_mean, w_mean, g0, n)
+    return _gyrocompass(w[sel], w_mean, f_mean, up_b, up_t, g0, site, n, (t1, t2))
+
+
+#: A mean pad rate beyond this (2.9 deg/s, no gyro that navigates has such a bias) is warned about, rad/s.
+MAX_PAD_RATE = 0.05
+
+
+def _check_pad_rate(w_mean: np.ndarray, n: int, window: tuple[float, float]) -> None:
+    """At rest the gyros measure the Earth rate (7.3e-5 rad/s) plus their bias: warn when the mean is beyond
+    :data:`MAX_PAD_RATE`, or is about 57.3 times the Earth rate (the Earth rate in deg/s, declared rad/s)."""
+    rate = float(np.linalg.norm(w_mean))
+    ratio = rate / OMEGA_EARTH
+    if rate > MAX_PAD_RATE or 0.8 * math.degrees(1.0) < ratio < 1.2 * math.degrees(1.0):
+        warnings.warn(f"--align {window[0]:g} {window[1]:g}: mean body rate at rest {rate:.4g} rad/s over {n} samples, "
+                      f"{ratio:.1f} times the Earth rate {OMEGA_EARTH:.4g} rad/s: deg/s given as rad/s (57.3 times), "
+                      "a gyro bias of that size, or a vehicle not at rest", PlausibilityWarning, stacklevel=3)
+
+
+def _gyrocompass(w_win: np.ndarray, w_mean: np.ndarray, f_mean: np.ndarray, up_b: np.ndarray, up_t: np.ndarray,
+                 g0: float, site: LaunchSite, n: int, window: tuple[float, float]) -> Alignment:
+    """Heading from the horizontal Earth rate; warns with how well it is known, refuses beyond 30 deg."""
+    omega_t = site.earth_rate  # Earth rate in triad axes (the triad is Earth-fixed)
+    north_rate = float(np.linalg.norm(omega_t - (omega_t @ up_t) * up_t))  # omega_E cos(lat)
+    noise = float(np.linalg.norm(w_win.std(axis=0, ddof=1)) / math.sqrt(n))  # std of the mean rate, white noise
+    C = _triad(up_b, w_mean, up_t, omega_t)
+    mismatch = float(np.linalg.norm(w_mean - C.T @ omega_t))  # what the Earth rate does not explain: a bias bound
+    std = math.hypot(noise, mismatch) / north_rate
+    x_t = C[:, 0]
+    heading = _azimuth(x_t, site)
+    t1, t2 = window
+    if std > GYROCOMPASS_LIMIT_RAD:
+        raise ValueError(f"--align {t1:g} {t2:g}: the gyros cannot find north (mean rate {np.linalg.norm(w_mean):.3g} "
+                         f"rad/s against the Earth rate {OMEGA_EARTH:.4g} rad/s, {north_rate:.3g} of it horizontal; "
+                         f"the heading would be known to about {math.degrees(std):.0f} deg): give --heading")
+    warnings.warn(f"heading by gyrocompassing over --align {t1:g} {t2:g}: body x at azimuth {heading:.2f} deg, known "
+                  f"to about {math.degrees(std):.2g} deg (noise of the mean rate {noise:.3g} rad/s, Earth-rate "
+                  f"mismatch {mismatch:.3g} rad/s, against the horizontal Earth rate {north_rate:.4g} rad/s); an "
+                  f"unseen horizontal gyro bias of 1 deg/h adds "
+                  f"{math.degrees(math.radians(1 / 3600) / north_rate):.2g} deg; give --heading if it is known",
+                  AlignmentWarning, stacklevel=3)
+    return Alignment(C, "gyrocompass", heading, math.degrees(std), f_mean, w_mean, g0, n)

@@ -1,0 +1,112 @@
+"""The strapdown navigation solution from raw IMU data: align on the pad, then integrate.
+
+:func:`navigate` levels and heads the IMU over the pad window (:mod:`casep.navigation.alignment`),
+starts from the pad at rest on the Earth at the window's first sample (its launch-inertial
+position and velocity from :func:`casep.frames.ecef_to_launch`: before the launch time ``t0`` the
+pad is not at the origin, and on the pad ``v_tel`` is the Earth's rotation, ``omega_E x r``), and
+integrates (:mod:`casep.navigation.strapdown`) to the end of the record. The attitude at the start
+is the pad's: ``C_L^b = C^T Rz(theta) C C_T^b`` (the Earth-fixed triad seen from L at that time).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from casep.frames import LaunchSite
+from casep.navigation.imu import ImuData
+from casep.navigation.result import NavigationResult
+
+__all__ = ["navigate", "navigate_from"]
+
+
+def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], *, heading_deg: float | None = None,
+             heading_axis: str = "x") -> NavigationResult:
+    """Align on the pad over `align_window` and navigate in the launch-inertial frame to the end of `imu`.
+
+    Parameters
+    ----------
+    imu : ImuData
+        :func:`casep.navigation.imu.read_imu` (or an :class:`ImuData` checked by ``check_imu``).
+    site : LaunchSite
+        The launch point, azimuth and launch time ``t0`` defining the frame (in the IMU's time scale).
+    align_window : (T1, T2)
+        The span at rest on the pad, s; the navigation starts at its first sample.
+    heading_deg, heading_axis
+        See :func:`casep.navigation.alignment.align` (None: gyrocompassing, with a warning).
+
+    Returns
+    -------
+    NavigationResult
+        The strapdown telemetry from ``T1`` on: attitude, measured body rate and specific force,
+        launch-inertial velocity and position.
+    """
+    from casep.frames import ecef_to_launch, ecef_to_launch_vector
+    from casep.navigation.alignment import align
+    from casep.navigation.strapdown import dcm_to_quat
+
+    if not isinstance(site, LaunchSite):
+        raise TypeError(f"`site` must be a casep.frames.LaunchSite, got {type(site).__name__}")
+    alignment = align(imu.t, imu.w, imu.f, align_window, site, heading_deg=heading_deg, heading_axis=heading_axis)
+    t_s = imu.t[np.searchsorted(imu.t, align_window[0])][None]
+    r0, v0 = ecef_to_launch(site, t_s, site.r_site[None, :], np.zeros((1, 3)))
+    axes_e = (site.C @ alignment.C_tb).T  # rows: the body axes in ECEF at rest on the pad
+    C_lb = ecef_to_launch_vector(site, np.repeat(t_s, 3), axes_e).T  # columns: the body axes in L at t_s
+    res = navigate_from(imu, site, dcm_to_quat(C_lb), r0[0], v0[0], t_start=float(t_s[0]))
+    res.alignment = alignment
+    res.align_window = (float(align_window[0]), float(align_window[1]))
+    return res
+
+
+def navigate_from(imu: ImuData, site: LaunchSite, q0: np.ndarray, r0: np.ndarray, v0: np.ndarray, *,
+                  t_start: float | None = None) -> NavigationResult:
+    """Navigate from a known state at the sample `t_start` (default: the first) to the end of `imu`.
+
+    Parameters
+    ----------
+    imu : ImuData
+    site : LaunchSite
+        The frame (launch point, azimuth, ``t0``).
+    q0 : (4,) array_like
+        Attitude at `t_start`: Hamilton quaternion, scalar first, body -> launch-inertial.
+    r0, v0 : (3,) array_like
+        Launch-inertial position (m) and velocity (m/s) at `t_start`.
+    t_start : float, optional
+        A sample time of `imu`, s.
+
+    Returns
+    -------
+    NavigationResult
+        Without an alignment (``alignment`` None).
+    """
+    from casep.navigation.strapdown import (
+        Increments,
+        body_velocity_increments,
+        increments_from_deltas,
+        increments_from_rates,
+        launch_gravitation,
+        propagate_attitude,
+        propagate_translation,
+        quat_rotate,
+    )
+
+    i0 = 0 if t_start is None else int(np.searchsorted(imu.t, t_start))
+    if i0 >= len(imu.t) - 1:
+        raise ValueError(f"t_start {t_start:g} s leaves fewer than 2 samples of {imu.source} (ends at {imu.t[-1]:g} s)")
+    q0 = np.asarray(q0, float)
+    if q0.shape != (4,) or abs(np.linalg.norm(q0) - 1.0) > 1e-6:
+        raise ValueError(f"q0 must be a unit quaternion (4,), got {q0!r}")
+    t = imu.t[i0:]
+    if imu.kind == "increments":
+        if imu.dtheta is None or imu.dv is None:
+            raise ValueError(f"{imu.source}: increments without dtheta and dv (read it with read_imu or check_imu)")
+        full = increments_from_deltas(imu.dtheta[i0:], imu.dv[i0:])  # row i0 is the first interval's previous one
+        inc = Increments(full.dtheta[1:], full.dv[1:], full.coning[1:], full.sculling[1:])
+    else:
+        inc = increments_from_rates(t, imu.w[i0:], imu.f[i0:])
+    q = propagate_attitude(q0, inc)
+    dV = quat_rotate(q[:-1], body_velocity_increments(inc))
+    r, v, passes = propagate_translation(t, dV, np.asarray(r0, float), np.asarray(v0, float),
+                                         launch_gravitation(site))
+    return NavigationResult(t=t, q=q, fb=imu.f[i0:], w=imu.w[i0:], v=v, r=r, site=site, alignment=None,
+                            kind=imu.kind, gaps=imu.gaps, passes=passes, source=imu.source,
+                            align_window=(float(t[0]), float(t[0])))

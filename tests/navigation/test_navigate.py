@@ -1,0 +1,213 @@
+"""``navigate`` and ``casep navigate``: a stationary IMU on the pad, alignment, input checks, the CLI.
+
+A stationary IMU senses ``f_b = -C_b^T g`` (the normal gravity at the pad) and ``w_b = C_b^T omega_E``.
+Navigated in the launch-inertial frame and brought back to the Earth by
+:func:`casep.frames.launch_to_ecef` (the conversion of the tracking chain) it must stay at rest:
+this ties the mechanisation's gravitation and the frame's Earth rotation together (a centrifugal
+term left out, or the Earth rate of the wrong sign, moves it by metres per second in a minute).
+With sensor noise, it stays within the noise's own error growth: velocity random walk
+``sigma_a sqrt(h t)``, the levelling error of the mean ``sigma_a / sqrt(n) t``, and the tilt random
+walk under gravity ``g sigma_g sqrt(h) t^1.5 / sqrt(3)``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from casep.cli import main
+from casep.exceptions import AlignmentWarning, GapWarning, PlausibilityWarning
+from casep.frames import LaunchSite, launch_to_ecef
+from casep.gravity import normal_gravity_ecef
+from casep.io.flight import FlightDataError
+from casep.navigation import TELEMETRY_COLUMNS, ImuData, check_imu, navigate, read_imu
+
+SITE = LaunchSite(67.89, 21.1, 330.0, 30.0, 100.0)  # a northern range, launch azimuth 30 deg, t0 = 100 s
+C_TB = Rotation.from_euler("ZYX", [20.0, 5.0, -3.0], degrees=True).as_matrix()  # body -> launch triad
+
+
+def _heading_of_x() -> float:
+    x_t = C_TB[:, 0]
+    return (SITE.azimuth_deg + math.degrees(math.atan2(x_t[2], x_t[0]))) % 360.0
+
+
+def _stationary(rate: float, duration: float, rng=None, sigma_a: float = 0.0, sigma_g: float = 0.0,
+                t_first: float = 0.0, C_tb: np.ndarray = C_TB):
+    g_t = SITE.C.T @ normal_gravity_ecef(SITE.r_site)
+    t = t_first + np.arange(0.0, duration, 1.0 / rate)
+    n = len(t)
+    w = np.tile(C_tb.T @ SITE.earth_rate, (n, 1))
+    f = np.tile(C_tb.T @ -g_t, (n, 1))
+    if rng is not None:
+        w = w + rng.normal(scale=sigma_g, size=w.shape)
+        f = f + rng.normal(scale=sigma_a, size=f.shape)
+    return t, w, f
+
+
+def test_a_stationary_imu_stays_at_rest_on_the_rotating_earth():
+    t, w, f = _stationary(400.0, 300.0)
+    res = navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 10.0), heading_deg=_heading_of_x())
+    assert res.success and res.alignment.method == "heading"
+    r_e, v_e = launch_to_ecef(SITE, res.t, res.r, res.v)  # the tracking chain's conversion
+    assert np.abs(v_e).max() < 1e-5  # 5 min: rounding and the vertical channel only
+    assert np.abs(r_e - SITE.r_site).max() < 1e-3
+    # in the launch-inertial frame the pad moves with the Earth: omega_E x r (176 m/s here at 67.9 deg N)
+    assert np.linalg.norm(res.v[0]) == pytest.approx(7.292115e-5 * np.hypot(*SITE.r_site[:2]), rel=1e-9)
+    assert res.pad_drift() < 1e-7
+
+
+def test_a_noisy_stationary_imu_drifts_by_its_noise_only(rng):
+    rate, T, sa, sg = 200.0, 180.0, 0.02, 2e-4  # MEMS-like white noise per sample
+    t, w, f = _stationary(rate, T, rng, sa, sg)
+    res = navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 20.0), heading_deg=_heading_of_x())
+    _, v_e = res.earth_relative()
+    h, tau, n = 1.0 / rate, res.t - res.t[0], int(20.0 * rate)
+    sigma = np.sqrt(sa ** 2 * h * tau + (sa / math.sqrt(n) * tau) ** 2 + 9.8 ** 2 * sg ** 2 * h * tau ** 3 / 3)
+    z = np.linalg.norm(v_e, axis=1)[1:] / sigma[1:]
+    assert z.max() < 5.0  # 3 components: |v| / sigma beyond 5 has probability < 1e-4
+    assert np.abs(v_e[-1]).max() > 0.01 * sigma[-1]  # the noise did move it (the test could fail)
+
+
+def test_gyrocompassing_finds_the_heading_and_says_how_well(rng):
+    t, w, f = _stationary(100.0, 120.0)
+    with pytest.warns(AlignmentWarning, match=r"gyrocompassing.*known to about"):
+        res = navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 100.0))
+    assert res.alignment.heading_deg == pytest.approx(_heading_of_x(), abs=1e-6)
+    np.testing.assert_allclose(res.alignment.C_tb, C_TB, atol=1e-9)
+    # a navigation-grade gyro noise: the heading within its stated uncertainty
+    t, w, f = _stationary(100.0, 120.0, rng, 1e-3, 2e-6)
+    with pytest.warns(AlignmentWarning, match="known to about") as rec:
+        res = navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 100.0))
+    std = res.alignment.heading_std_deg
+    assert 0.01 < std < 10 and f"{std:.2g} deg" in str(rec[0].message)
+    assert abs((res.alignment.heading_deg - _heading_of_x() + 180) % 360 - 180) < 4 * std
+    # MEMS gyros cannot find north: an error asking for --heading
+    t, w, f = _stationary(100.0, 120.0, rng, 1e-3, 0.01)
+    w = w + np.radians([0.3, -0.2, 0.1])  # deg/s biases
+    with pytest.raises(ValueError, match="cannot find north.*give --heading"):
+        navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 100.0))
+
+
+def test_alignment_refuses_what_is_not_at_rest_in_m_s2():
+    t, w, f = _stationary(100.0, 30.0)
+    with pytest.raises(ValueError, match=r"9\.82.*in g: give m/s\^2") as e:
+        navigate(check_imu(ImuData(t, w, f / 9.80665)), SITE, (0.0, 10.0), heading_deg=10.0)
+    assert "--align 0 10" in str(e.value)
+    with pytest.raises(ValueError, match="at least 2 samples"):
+        navigate(check_imu(ImuData(t, w, f)), SITE, (50.0, 60.0), heading_deg=10.0)
+    t, w, f = _stationary(100.0, 30.0, C_tb=Rotation.from_euler("YZX", [20.0, 1.0, -1.0], degrees=True).as_matrix())
+    with pytest.raises(ValueError, match=r"y axis is 1\.\d+ deg from the vertical"):  # its azimuth fixes nothing
+        navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 10.0), heading_deg=10.0, heading_axis="y")
+
+
+def test_lost_samples_are_integrated_across_and_counted():
+    t, w, f = _stationary(200.0, 60.0)
+    keep = np.ones(len(t), bool)
+    keep[3000:3015] = False  # 75 ms lost
+    keep[6000:6003] = False
+    with pytest.warns(GapWarning, match=r"2 gaps in t \(about 18 samples lost.*longest 0\.08 s"):
+        imu = check_imu(ImuData(t[keep], w[keep], f[keep]))
+    res = navigate(imu, SITE, (0.0, 10.0), heading_deg=_heading_of_x())
+    assert res.gaps == 2 and np.abs(res.earth_relative()[1]).max() < 1e-6
+
+
+def test_rates_in_deg_s_are_caught():
+    t = np.arange(0.0, 10.0, 0.01)
+    w = np.zeros((len(t), 3))
+    f = np.tile([0.0, 0.0, 9.8], (len(t), 1))
+    w[500:, 0] = math.degrees(6.0)  # a 6 rad/s roll given in deg/s
+    with pytest.raises(ValueError, match=r"w_\*, row 501: body rate 343.8 rad/s .*look like deg/s"):
+        check_imu(ImuData(t, w, f))
+    w[500:, 0] = 40.0
+    with pytest.warns(PlausibilityWarning, match="2292 deg/s"):
+        check_imu(ImuData(t, w, f))
+    # a stationary record in deg/s: the pad rate is 57.3 times the Earth rate
+    t, w, f = _stationary(100.0, 20.0)
+    with pytest.warns(PlausibilityWarning, match=r"0\.004178 rad/s over 1001 samples, 57\.3 times the Earth rate"):
+        navigate(check_imu(ImuData(t, np.degrees(w), f)), SITE, (0.0, 10.0), heading_deg=10.0)
+
+
+def _write_imu(path, t, w, f, increments=False):
+    if increments:
+        h = np.diff(t, prepend=t[0] - (t[1] - t[0]))[:, None]
+        cols = {"t": t, **{f"dth_{a}": w[:, i] * h[:, 0] for i, a in enumerate("xyz")},
+                **{f"dvb_{a}": f[:, i] * h[:, 0] for i, a in enumerate("xyz")}}
+    else:
+        cols = {"t": t, **{f"w_{a}": w[:, i] for i, a in enumerate("xyz")},
+                **{f"fb_{a}": f[:, i] for i, a in enumerate("xyz")}}
+    with open(path, "w") as fh:
+        fh.write(",".join(cols) + "\n")
+        np.savetxt(fh, np.column_stack(list(cols.values())), delimiter=",", fmt="%.17g")
+
+
+def test_files_of_rates_and_of_increments_give_the_same_pad_solution(tmp_path):
+    t, w, f = _stationary(100.0, 60.0, t_first=40.0)
+    _write_imu(tmp_path / "r.csv", t, w, f)
+    _write_imu(tmp_path / "d.csv", t, w, f, increments=True)
+    a, b = read_imu(tmp_path / "r.csv"), read_imu(tmp_path / "d.csv")
+    assert (a.kind, b.kind) == ("rates", "increments")
+    ra = navigate(a, SITE, (45.0, 55.0), heading_deg=_heading_of_x())
+    rb = navigate(b, SITE, (45.0, 55.0), heading_deg=_heading_of_x())
+    assert ra.t[0] == pytest.approx(45.0)
+    np.testing.assert_allclose(ra.v, rb.v, atol=1e-7)
+    np.testing.assert_allclose(ra.q, rb.q, atol=1e-10)
+
+
+def test_bad_imu_files_name_file_column_and_row(tmp_path):
+    t, w, f = _stationary(100.0, 5.0)
+    _write_imu(tmp_path / "imu.csv", t, w, f)
+    text = (tmp_path / "imu.csv").read_text().splitlines()
+    (tmp_path / "nocol.csv").write_text("\n".join([text[0].replace("fb_z", "fz")] + text[1:]))
+    with pytest.raises(FlightDataError, match=r"nocol.csv.*fb_z.*missing column"):
+        read_imu(tmp_path / "nocol.csv")
+    (tmp_path / "back.csv").write_text("\n".join(text[:10] + [text[5]] + text[10:]))
+    with pytest.raises(FlightDataError, match=r"back.csv.*column `t`, row 10.*does not increase"):
+        read_imu(tmp_path / "back.csv")
+
+
+def test_the_command_writes_the_strapdown_telemetry(tmp_path, capsys):
+    t, w, f = _stationary(100.0, 30.0)
+    _write_imu(tmp_path / "imu.csv", t, w, f)
+    site = [str(v) for v in (SITE.lat_deg, SITE.lon_deg, SITE.h_m, SITE.azimuth_deg)]
+    out = tmp_path / "tel.csv"
+    args = ["navigate", str(tmp_path / "imu.csv"), "--launch-site", *site, "--launch-time", "100", "--align", "0",
+            "10", "--heading", f"{_heading_of_x():.12f}", "-o", str(out), "--json", str(tmp_path / "nav.json")]
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    assert "pad check" in printed and "telemetry written to" in printed
+    summary = json.loads((tmp_path / "nav.json").read_text())  # plain, finite data (the result protocol)
+    assert summary["success"] and summary["alignment"]["method"] == "heading" and summary["pad_drift_m_s"] < 1e-6
+    header = next(line for line in out.read_text().splitlines() if not line.startswith("#"))
+    assert tuple(header.split(",")) == TELEMETRY_COLUMNS
+    data = np.loadtxt(out, delimiter=",", comments="#", skiprows=1 + sum(1 for line in out.read_text().splitlines()
+                                                                         if line.startswith("#")))
+    q = data[:, 1:5]
+    np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-12)
+    _, v_e = launch_to_ecef(SITE, data[:, 0], data[:, 14:17], data[:, 11:14])
+    assert np.abs(v_e).max() < 1e-6
+    # bad input: exit 2, nothing written
+    bad = tmp_path / "tel2.csv"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["navigate", str(tmp_path / "imu.csv"), "--launch-site", *site, "--launch-time", "100",
+                     "--align", "50", "60", "-o", str(bad)]) == 2
+    assert not bad.exists()
+
+
+def test_a_gravity_iteration_that_does_not_converge_is_a_failed_result():
+    from casep.navigation.strapdown import MAX_PASSES, propagate_translation
+
+    t = np.arange(0.0, 3.0, 0.01)
+    _, _, passes = propagate_translation(t, np.zeros((len(t) - 1, 3)), np.zeros(3), np.zeros(3),
+                                         lambda tt, r: -1e-3 * r - 9.8, max_passes=1)
+    assert passes == 2  # the limit reached: one more than allowed
+    t, w, f = _stationary(100.0, 20.0)
+    res = navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 10.0), heading_deg=10.0)
+    assert res.success and res.status == 0
+    res.passes = MAX_PASSES + 1
+    assert not res.success and res.status == 1 and "did not converge" in res.message
