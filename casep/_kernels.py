@@ -5,8 +5,8 @@ casep is imported: its import and the set-up of its target on the first cached k
 longer than a short flight's whole computation. So:
 
 - :func:`sv_integrate_chunk`: two running trapezoid sums, in numpy (``np.cumsum``: a sequential
-  accumulation, the same additions in the same order as the compiled loop, so the same numbers) for
-  the first :data:`NUMPY_SAMPLES` samples, compiled after;
+  accumulation, the same additions in the same order as the compiled loop, so the same numbers) for a
+  flight of up to :data:`NUMPY_SAMPLES` samples, compiled for a longer one;
 - :func:`robust_filter_keep`: vectorised while every sample is kept, the scalar recursion (``math``, as the
   compiled loop it replaced) near the threshold and after a rejection;
 - :func:`lfilter`: the all-pole filter of RELS, compiled (``scipy.signal`` would cost more to import);
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import sys
+from typing import Callable, cast
 
 import numpy as np
 
@@ -32,11 +33,13 @@ __all__ = ["ar1_terms", "gmw_filter", "gmw_filter_numpy",
            "NUMPY_SAMPLES"]
 
 
-#: Samples integrated with numpy before :func:`sv_integrate_chunk` switches to the compiled loop. numpy takes
-#: about 5 us a sample, numba 0.3 us after its import and set-up (about 0.3 s): a short flight (80 s at
-#: 100 Hz, 400 s at 20 Hz) is integrated without numba, a longer one loses at most 0.05 s to numpy.
-NUMPY_SAMPLES = 1 << 13
-_numpy_samples = 0
+#: The longest flight whose S_V :func:`sv_integrate_chunk` integrates in numpy (unless numba is loaded already);
+#: a longer one is compiled from its first sample. numba's import and the set-up of its target on the first
+#: cached kernel cost about 0.4 s of CPU; numpy's sums cost about 2.5 us a sample more than the compiled
+#: loop's (platform36, CasADi's Jacobians included in both): a flight of 131 072 samples (22 min at 100 Hz)
+#: loses at most 0.33 s to numpy, a shorter one saves numba's set-up whenever nothing else needs it
+#: (``casep separate`` on a 100 Hz range flight).
+NUMPY_SAMPLES = 1 << 17
 
 
 def ar1_terms(dt, tau) -> tuple[np.ndarray, np.ndarray]:
@@ -94,29 +97,27 @@ def gmw_filter_numpy(X: np.ndarray, dt: np.ndarray, tau: float, share: float, m:
     return logdet
 
 
-def sv_integrate_chunk(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_prev, out) -> None:
-    """Trapezoid-integrate one chunk of S_V in place (see :mod:`casep.model.sv` for the equations).
+def sv_integrate_chunk(n_samples: int) -> Callable[..., None]:
+    """The kernel that trapezoid-integrates one chunk of S_V in place, for a flight of `n_samples` samples.
 
-    G (K, 3, ng), A (K, 3, na): Jacobians per sample; f (K, 3); half_dt (K,) = dt_k / 2;
-    phi (3, ng), G_prev (3, ng), I_prev (3, n), S_prev (3, n): carries, updated in place;
-    out (K, 3, n): S_V rows of the chunk.
+    The kernel's arguments (see :mod:`casep.model.sv` for the equations): ``G`` (K, 3, ng), ``A`` (K, 3,
+    na): Jacobians per sample; ``f`` (K, 3); ``half_dt`` (K,) = dt_k / 2; ``gcols``, ``acols``: their
+    columns; ``phi`` (3, ng), ``G_prev`` (3, ng), ``I_prev`` (3, n), ``S_prev`` (3, n): carries, updated
+    in place; ``out`` (K, 3, n): S_V rows of the chunk.
 
-    In numpy for the first :data:`NUMPY_SAMPLES` samples of a process (unless numba is loaded
-    already), compiled after: the same additions in the same order, so the same numbers
-    (``tests/test_kernels.py``).
+    :func:`sv_integrate_chunk_numpy` for a flight of up to :data:`NUMPY_SAMPLES` samples (unless numba is
+    loaded already), the compiled loop for a longer one: the same additions in the same order, so the
+    same numbers (``tests/test_kernels.py``).
     """
-    global _numpy_samples
-    if "casep._compiled" in sys.modules or _numpy_samples >= NUMPY_SAMPLES:
+    if "casep._compiled" in sys.modules or n_samples > NUMPY_SAMPLES:
         from casep._compiled import sv_integrate_chunk as kernel
 
-        kernel(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_prev, out)
-        return
-    _numpy_samples += G.shape[0]
-    sv_integrate_chunk_numpy(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_prev, out)
+        return cast(Callable[..., None], kernel)
+    return sv_integrate_chunk_numpy
 
 
 def sv_integrate_chunk_numpy(G, A, f, half_dt, gcols, acols, phi, G_prev, I_prev, S_prev, out) -> None:
-    """:func:`sv_integrate_chunk` in numpy: each running sum is one ``np.cumsum`` (sequential accumulation)."""
+    """The kernel of :func:`sv_integrate_chunk` in numpy: each running sum one ``np.cumsum`` (sequential)."""
     K = G.shape[0]
     if K == 0:
         return

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 import pytest
 
 from casep import _compiled
-from casep._kernels import robust_filter_keep, sv_integrate_chunk_numpy
+from casep._kernels import NUMPY_SAMPLES, robust_filter_keep, sv_integrate_chunk, sv_integrate_chunk_numpy
 
 
 @pytest.mark.parametrize("gcols, acols", [(np.arange(15), np.arange(15, 36)),  # platform36: two ranges
@@ -29,6 +30,15 @@ def test_sv_chunk_numpy_is_the_compiled_loop(gcols, acols):
         assert np.array_equal(out0, out1)
         for a, b in zip(carries, mine):
             assert np.array_equal(a, b)
+
+
+def test_sv_kernel_by_flight_length(monkeypatch):
+    """numpy for a flight of up to NUMPY_SAMPLES samples while numba is not loaded, compiled beyond it
+    or once numba is loaded (the two give the same numbers: the test above)."""
+    assert sv_integrate_chunk(NUMPY_SAMPLES + 1) is _compiled.sv_integrate_chunk
+    assert sv_integrate_chunk(10) is _compiled.sv_integrate_chunk  # loaded already: compiled
+    monkeypatch.delitem(sys.modules, "casep._compiled")
+    assert sv_integrate_chunk(NUMPY_SAMPLES) is sv_integrate_chunk_numpy
 
 
 def _reference_keep(e, t, inv_tau, scale, thr, max_run):

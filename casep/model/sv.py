@@ -24,9 +24,9 @@ of angular frequency omega): below 1e-5 for boost-phase signals at >= 20 Hz.
 
 Evaluation is chunked: the model's ``sv_rates`` CasADi function is mapped over a fixed
 chunk of samples once (``Function.map(chunk)``) and evaluated through
-``Function.buffer()`` straight into numpy arrays; a compiled loop
-(:func:`casep._kernels.sv_integrate_chunk`, numba) then runs both trapezoid recursions over
-the chunk in one pass, carrying the running integrals to the next chunk. Memory beyond the
+``Function.buffer()`` straight into numpy arrays; a kernel
+(:func:`casep._kernels.sv_integrate_chunk`: numpy on a short flight, numba on a long one) then runs
+both trapezoid recursions over the chunk, carrying the running integrals to the next chunk. Memory beyond the
 (N, 3, n) result is a few chunk-sized arrays.
 """
 
@@ -189,6 +189,7 @@ class SVBuilder:
         I_prev = np.zeros((3, n))
         S_prev = self._dv0.copy()  # (3, n)
         C = self.chunk
+        integrate_chunk = sv_integrate_chunk(N)  # numpy or compiled, by the flight's length
         for b0 in range(0, N, rows):
             b1 = min(b0 + rows, N)
             for s in range(b0, b1, C):
@@ -201,8 +202,8 @@ class SVBuilder:
                 if k < C:
                     self._fin[k:] = 0.0
                 self._eval()  # CasADi: G, A of the chunk into self._G, self._A
-                sv_integrate_chunk(self._G[:k], self._A[:k], f[s:e], half_dt[s:e], self._gcols,
-                                   self._acols, phi, G_prev, I_prev, S_prev, o)
+                integrate_chunk(self._G[:k], self._A[:k], f[s:e], half_dt[s:e], self._gcols,
+                                self._acols, phi, G_prev, I_prev, S_prev, o)
                 if self._vcols.size:
                     o[:, :, self._vcols] += self._V[:k]  # + V_d: direct term, not integrated
             yield b0, b1, buf[: b1 - b0]
