@@ -213,7 +213,7 @@ def _row_scale(problem: Problem, keep: np.ndarray, nm: NoiseModel, x: np.ndarray
     """Robust scale (1.4826 MAD) of the kept samples' residuals on the exactly whitened rows, the rows the
     methods solve. On an axis with a white part the robust filter's innovations are those of the Gauss-Markov
     part alone, several times wider than the exact (Kalman) innovations: their scale is not the rows' own."""
-    from casep.analysis.robust import MAD_SIGMA
+    from casep.noise.robust import MAD_SIGMA
 
     r = _rows(problem, keep, nm, None).residuals(x).reshape(-1)
     return float(MAD_SIGMA * np.median(np.abs(r - np.median(r))))

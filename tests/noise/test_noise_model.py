@@ -395,7 +395,7 @@ def test_a_few_gross_glitches_engage_the_robust_fit_with_honest_std(range_proble
     that Gaussian noise cannot give; the glitches then bent the noise model into a white part twice its size),
     rejects every glitch, keeps tau, and its std are honest (main, when it engaged: RMS z 0.28-0.51, the std
     scaled by the filter's Gauss-Markov innovations, several times the whitened rows' own)."""
-    from casep.analysis.rows import GLITCH_GROSS
+    from casep.regression.rows import GLITCH_GROSS
 
     S, t, truth = range_problem
     z = []
