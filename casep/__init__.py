@@ -78,7 +78,7 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.checks.plausibility": ("check_fit", "check_flight"),
     "casep.checks.flight": ("flight_problem",),
     "casep.frames": ("LaunchSite",),
-    "casep.io.manifest": ("read_manifest", "Manifest"),
+    "casep.workflows.manifest": ("read_manifest", "Manifest"),
     "casep.calibration.calibrate": ("calibrate",),
     "casep.model.tracking": ("TrackingModel", "load_tracking_model", "build_tracking_model"),
     "casep.radar.stations": ("Station", "read_station", "read_radar"),

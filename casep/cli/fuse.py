@@ -26,7 +26,7 @@ def _manifest_results(args: argparse.Namespace) -> None:
         return
     if args.results:
         raise ValueError(f"--manifest {args.manifest} lists the results: leave out the RESULT.json files")
-    from casep.io.manifest import read_manifest
+    from casep.workflows.manifest import read_manifest
 
     man = read_manifest(args.manifest)
     missing = [k + 1 for k, f in enumerate(man.flights) if f.result is None]

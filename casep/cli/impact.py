@@ -43,7 +43,7 @@ def _manifest(args: argparse.Namespace) -> None:
         return
     if args.flight:
         raise ValueError(f"--manifest {args.manifest} names the flight: leave out FLIGHT")
-    from casep.io.manifest import read_manifest
+    from casep.workflows.manifest import read_manifest
 
     man = read_manifest(args.manifest)
     if len(man.flights) != 1:

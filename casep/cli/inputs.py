@@ -93,7 +93,7 @@ def use_manifest(args: argparse.Namespace) -> Any:
     if given:
         raise ValueError(f"--manifest {path} lists the flights with their files and set-up: leave out "
                          f"{', '.join(given)} (they describe one flight given on the command line)")
-    from casep.io.manifest import read_manifest
+    from casep.workflows.manifest import read_manifest
 
     man = read_manifest(path)
     args.manifest_obj = man

@@ -54,8 +54,8 @@ def method_options(args: argparse.Namespace) -> dict[str, Any]:
 
 def add_noise(parser: Any, *, outputs: bool = True, default: str = "auto") -> None:
     """The noise-model options every method takes (casep.noise.model, casep.workflows.solve)."""
-    from casep.noise.model import NOISE_HELP, NOISE_KINDS
     from casep.estimators.spec import ROBUST_CHOICES, STD_CHOICES  # the fit request's choices, one list each
+    from casep.noise.model import NOISE_HELP, NOISE_KINDS
 
     g = parser.add_argument_group("noise model (every method)")
     g.add_argument("--noise", choices=NOISE_KINDS, default=default,
@@ -83,7 +83,7 @@ def fit_spec(args: argparse.Namespace, given: dict[str, Any], **fit: Any) -> Any
     `fit` (sigma, de-noising, outlier flags), checked once (:meth:`casep.FitSpec.build`).
 
     With ``--manifest`` whose ``[fit]`` table holds the request, that request (built when the manifest was
-    read, :meth:`casep.io.manifest.Manifest.spec`); an option of the fit given on the command line too is
+    read, :meth:`casep.workflows.manifest.Manifest.spec`); an option of the fit given on the command line too is
     then an error, whatever its value. Its prior or bounds file becomes ``--prior``/``--bounds`` (read as
     those are)."""
     from casep.estimators.spec import FitSpec

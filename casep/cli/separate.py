@@ -13,8 +13,8 @@ from casep.estimators.registry import METHODS
 
 
 def add_parser(sub: Any) -> None:
-    from casep.noise.denoise import EXTENSIONS, MODES, RULES, SCALINGS
     from casep.estimators.spec import DENOISE_CHOICES
+    from casep.noise.denoise import EXTENSIONS, MODES, RULES, SCALINGS
 
     p = sub.add_parser("separate", help="estimate the error coefficients of a flight file")
     p.add_argument("flight", nargs="*", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "

@@ -10,7 +10,6 @@ Depends only on :mod:`casep.exceptions`, :mod:`casep.units` and :mod:`casep.fram
 - :mod:`casep.io.locate`: the file row and line of a flight's samples, for messages
 - :mod:`casep.io.trajectory`: a trajectory file for the impact analysis
 - :mod:`casep.io._atomic`: output checks and all-or-nothing file writing
-- :mod:`casep.io.manifest`: the TOML flight manifest (several flights, each with its own set-up)
 - :mod:`casep.io.result_json`: result files (casep's and other tools'), read strictly (pydantic)
 """
 

@@ -93,7 +93,7 @@ def provenance(flights: Sequence, *, inputs: Mapping[str, Any] | None = None, op
         The options used (method, model, sigma, ...), recorded as given.
     argv : sequence of str, optional
         The command line (default ``sys.argv``).
-    manifest : casep.io.manifest.Manifest, optional
+    manifest : casep.workflows.manifest.Manifest, optional
         The manifest the flights came from: its file and entries.
 
     Returns

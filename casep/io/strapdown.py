@@ -39,11 +39,18 @@ import numpy as np
 
 from casep.exceptions import PlausibilityWarning
 from casep.io.flight import FlightDataError
-from casep.model.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS, STRAPDOWN_COLUMNS
 
 __all__ = ["StrapdownWarning", "strapdown_force", "check_strapdown", "compare_force", "FORCE_TOL",
            "quaternion_dcm_array", "NORM_TOL", "RATE_TOL", "MIN_ROTATION", "RATE_PEAK_HIGH", "CONVENTIONS",
-           "STRAPDOWN_COLUMNS"]
+           "STRAPDOWN_COLUMNS", "QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS"]
+
+#: The strapdown telemetry columns (``docs/reference/file-formats.md``): the INS attitude (Hamilton unit
+#: quaternion, scalar first, body to navigation frame), the body specific force (m/s^2), the body rate (rad/s).
+QUATERNION_COLUMNS = ("q_w", "q_x", "q_y", "q_z")
+BODY_FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
+BODY_RATE_COLUMNS = ("w_x", "w_y", "w_z")
+#: The columns of a strapdown flight beside t and the velocities.
+STRAPDOWN_COLUMNS = QUATERNION_COLUMNS + BODY_FORCE_COLUMNS + BODY_RATE_COLUMNS
 
 #: Largest accepted | |q| - 1 |.
 NORM_TOL = 1e-6

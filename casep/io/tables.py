@@ -20,7 +20,7 @@ import numpy as np
 
 from casep.io.flight import AXES, DV_COLUMNS, FORCE_COLUMNS, FlightDataError, too_large
 from casep.io.locate import csv_lines, is_parquet
-from casep.model.strapdown import STRAPDOWN_COLUMNS
+from casep.io.strapdown import STRAPDOWN_COLUMNS
 
 __all__ = ["Table", "table_force", "apparent_velocity_to_force", "CSV_SEPARATORS", "KNOWN_COLUMNS",
            "APPARENT_COLUMNS", "VTEL_COLUMNS", "VTRK_COLUMNS"]

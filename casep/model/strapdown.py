@@ -29,17 +29,14 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-if TYPE_CHECKING:  # the column names are read by casep.io without CasADi
+from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS, STRAPDOWN_COLUMNS
+
+if TYPE_CHECKING:
     import casadi as ca
 
 __all__ = ["QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS", "STRAPDOWN_COLUMNS",
            "quaternion_dcm", "strapdown_inputs"]
 
-QUATERNION_COLUMNS = ("q_w", "q_x", "q_y", "q_z")
-BODY_FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
-BODY_RATE_COLUMNS = ("w_x", "w_y", "w_z")
-#: The columns of a strapdown flight beside t and the velocities.
-STRAPDOWN_COLUMNS = QUATERNION_COLUMNS + BODY_FORCE_COLUMNS + BODY_RATE_COLUMNS
 
 
 def quaternion_dcm(w: Any, x: Any, y: Any, z: Any) -> ca.SX:

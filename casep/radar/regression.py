@@ -42,7 +42,6 @@ from typing import Sequence
 
 import numpy as np
 
-from casep.regression.problem import is_rounding_level, rounding_level
 from casep.exceptions import CasepWarning, NoiseFreeWarning
 from casep.frames import LaunchSite
 from casep.model.error_model import ErrorModel
@@ -53,6 +52,7 @@ from casep.radar.groups import estimate_group_sigmas, group_reductions
 from casep.radar.linearised import PLAUSIBLE_SIGMA, RESIDUAL_RATIO_LIMIT, TYPE_UNITS, LinearisedRadar
 from casep.radar.stations import RadarMeasurements, check_station_names
 from casep.radar.telemetry import Telemetry, hermite, interp_linear, read_telemetry
+from casep.regression.problem import is_rounding_level, rounding_level
 from casep.units import ARCSEC
 
 __all__ = ["Telemetry", "read_telemetry", "RadarRegression", "estimate_group_sigmas", "FIRST_RANGE_LIMIT",

@@ -56,7 +56,7 @@ def check_setup(lin: Any, whiten: Callable[[np.ndarray], tuple[np.ndarray, np.nd
         The regression at its final linearisation point.
     whiten : callable, optional
         The noise model's whitening of regression rows ``X`` (m, k) -> ``(Xw (M, 3, k), t)``
-        (:meth:`casep.radar.noise.RadarNoise.whiten`): the hypotheses are tested on the rows the fit
+        (:meth:`casep.workflows.radar_noise.RadarNoise.whiten`): the hypotheses are tested on the rows the fit
         solved, so that correlated noise does not inflate their chi-square. Default: the rows divided
         by their group std (white noise).
 

@@ -22,11 +22,11 @@ import numpy as np
 from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
+from casep.estimators.spec import FitSpec
 from casep.frames import LaunchSite
 from casep.model.loader import load_model
 from casep.model.tracking import load_tracking_model
 from casep.radar.diagnostics import diagnostics_table, radar_diagnostics
-from casep.radar.noise import RadarNoise, fit_radar_noise
 from casep.radar.regression import (
     KEYHOLE,
     LAUNCH_TIME,
@@ -41,14 +41,14 @@ from casep.radar.regression import (
 from casep.radar.setup import check_setup
 from casep.radar.stations import RadarMeasurements, Station, read_radar, read_station
 from casep.results import OfEstimate, deprecated_alias
-from casep.estimators.spec import FitSpec
+from casep.workflows.radar_noise import RadarNoise, fit_radar_noise
 
 __all__ = ["RadarResult", "separate_radar", "diagnose_radar", "read_radar_inputs", "simulate_radar_files",
            "radar_simulation_outputs", "NOT_WITH_RADAR", "check_radar_options", "check_radar_spec"]
 
 #: Keywords of :func:`casep.separate` that do not apply with radar inputs: name -> (the flag of
 #: ``casep separate``, the test that the value asks for something). The radar rows take the noise layer
-#: of the velocity domain (``noise``, ``tau``, ``robust``: :mod:`casep.radar.noise`), per station and
+#: of the velocity domain (``noise``, ``tau``, ``robust``: :mod:`casep.workflows.radar_noise`), per station and
 #: measurement type; these others have no meaning there: the rows are no velocity (de-noising, a sigma in
 #: m/s), the time-tag error is the tracking model's ``time_bias`` and the launch time the common ``dt_launch``.
 NOT_WITH_RADAR: dict[str, tuple[str, Callable[[Any], bool]]] = {
@@ -240,7 +240,7 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
         The method's options (``bounds``, ``prior`` with ``S1.range_bias``-style names, ...).
     noise, tau, robust
         The noise model per station and measurement type and the robust fit, as for a flight
-        (:class:`~casep.estimators.spec.NoiseSpec`; :mod:`casep.radar.noise`): ``auto`` (default) chooses
+        (:class:`~casep.estimators.spec.NoiseSpec`; :mod:`casep.workflows.radar_noise`): ``auto`` (default) chooses
         white, Gauss-Markov or Gauss-Markov plus white per station and type by REML; ``tau`` one
         correlation time or three (range, azimuth, elevation), s.
     spec : FitSpec, optional

@@ -11,14 +11,13 @@ import numpy as np
 from casep.checks.flight import flight_problem
 from casep.estimators.registry import METHODS as _REGISTRY
 from casep.estimators.result import EstimateResult
-from casep.estimators.spec import NOT_GIVEN, FitSpec, NotGiven, merge_options
+from casep.estimators.spec import NOT_GIVEN, FitSpec, NotGiven
 from casep.io.files import read_flight, read_json_table
 from casep.io.flight import FlightData
 from casep.model.error_model import ErrorModel
 from casep.model.loader import load_model
 from casep.regression.problem import Problem
 from casep.workflows.solve import fit
-from casep.estimators.spec import NOT_GIVEN, FitSpec, NotGiven
 
 if TYPE_CHECKING:
     from casep.frames import LaunchSite

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import casep.workflows.solve as solve
-from casep.montecarlo import run_montecarlo
 from casep.estimators.spec import FitSpec
+from casep.montecarlo import run_montecarlo
 
 
 @pytest.mark.parametrize("methods, noise", [(["rels", "wavelet+ols"], "white"), (["ols", "huber"], "auto")])

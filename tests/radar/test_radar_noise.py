@@ -14,10 +14,10 @@ import pytest
 from test_radar import SITE, STATIONS, TRUTH
 
 from casep.cli import main
+from casep.estimators.spec import FitSpec
 from casep.exceptions import NoiseNotWhiteWarning
 from casep.simulation.radar import DEFAULT_NOISE, simulate_radar, write_radar_simulation
 from casep.workflows.radar import separate_radar
-from casep.estimators.spec import FitSpec
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 

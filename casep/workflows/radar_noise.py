@@ -40,8 +40,8 @@ from typing import Any
 import numpy as np
 
 from casep.noise.model import NoiseModel, whiten
-from casep.regression.rows import Rows, prepare_rows
 from casep.radar.linearised import TYPE_UNITS
+from casep.regression.rows import Rows, prepare_rows
 
 __all__ = ["RadarNoise", "StationRows", "fit_radar_noise", "SERIES_TYPES"]
 
@@ -170,8 +170,8 @@ class RadarNoise:
     def whiteness(self, x: np.ndarray) -> dict[str, Any]:
         """Per station, the Ljung-Box test of its whitened residuals at the estimate `x`; a
         :class:`~casep.exceptions.NoiseNotWhiteWarning` naming the station where they are still correlated."""
-        from casep.noise.whiteness import ALPHA_FITTED, whiteness_test
         from casep.exceptions import NoiseNotWhiteWarning
+        from casep.noise.whiteness import ALPHA_FITTED, whiteness_test
 
         x = np.where(np.isfinite(x), x, 0.0)
         r = self.lin.y - self.lin.S @ x
