@@ -111,7 +111,7 @@ def test_bad_arguments(tmp_path, capsys):
     assert "`--seed` must be >= 0" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
     assert set(SCENARIOS) == {"paper", "paper-pitch", "paper-ar1", "paper-yaw-late", "paper-pitch-low", "paper-azimuth",
-                              "paper-range-gm", "paper-range"}
+                              "paper-range-gm", "paper-range", "strapdown-boost"}
 
 
 def test_two_rate_tracking_start():
