@@ -86,7 +86,7 @@ def use_manifest(args: argparse.Namespace) -> Any:
         if not flights:
             raise ValueError("give a flight file, or --manifest FLIGHTS.toml")
         return None
-    on_line = getattr(args, "given", frozenset())  # the options given, whatever their values (casep.cli.app.Parser)
+    on_line: frozenset[str] = getattr(args, "given", frozenset())  # given, whatever the values (cli.app.Parser)
     given = (["the flight files"] if flights else []) + [
         "--" + dest.replace("_", "-") for dest in ("tracking", "tracking_frame", "launch_site", "launch_time",
                                                    "time_shift", "time_offset", "grid") if dest in on_line]
