@@ -393,7 +393,8 @@ def check_acc_fit(afit: AccFit, means: np.ndarray, session: Session) -> None:
         src = "" if physical else " (from the fit)"
         raise ValueError(f"{session.source}: the {len(means)} poses' gravity directions{src} lie within "
                          f"{cone:.3g} deg of one direction (smallest singular value / sqrt(n) "
-                         f"{pose_spread(dirs):.3g}; 0.577: spread evenly): the accelerometer's scale and bias along it cannot be separated (fitted scales "
+                         f"{pose_spread(dirs):.3g}; 0.577: spread evenly): the accelerometer's scale and bias along "
+                         "it cannot be separated (fitted scales "
                          f"{', '.join(f'{v:.4g}' for v in s)}"
                          f"{'' if afit.converged else f', not converged in {afit.iterations} iterations'}). Use: "
                          "turn the sensor so that each axis points up and down")
