@@ -168,14 +168,15 @@ class MultipositionCalibration(OfEstimate):
 
 
 def _full_scale_lines(settings: dict) -> list[str]:
-    """The full scale raw counts imply (:func:`casep.calibration.saturation.implied_full_scale`), one line per sensor."""
+    """The full scale raw counts imply (:func:`casep.calibration.saturation.implied_full_scale`), a line a sensor."""
     out = []
     for key, sensor in (("acc_full_scale", "accelerometer"), ("gyr_full_scale", "gyro")):
         fs = settings.get(key)
         if not fs:
             continue
-        line = (f"{sensor} raw counts: full scale +-{fs['full_scale']:.4g} {fs['unit']} over +-{fs['half_range_counts']:.0f} "
-                f"counts (a {fs['bits']}-bit converter), {fs['ratio']:.4g} x the nominal +-{fs['nominal']:g} {fs['unit']}")
+        u = fs["unit"]
+        line = (f"{sensor} raw counts: full scale +-{fs['full_scale']:.4g} {u} over +-{fs['half_range_counts']:.0f} "
+                f"counts (a {fs['bits']}-bit converter), {fs['ratio']:.4g} x the nominal +-{fs['nominal']:g} {u}")
         if sensor == "gyro":
             line += (f"; at {'the t column' if settings.get('t_column') else 'the assumed --rate'} "
                      f"{settings['rate_hz']:.6g} Hz" + ("" if settings.get("t_column") else
@@ -389,16 +390,19 @@ def check_acc_fit(afit: AccFit, means: np.ndarray, session: Session) -> None:
     cone = pose_cone_deg(dirs)
     off = scale_off(s, GRAVITY_TOLERANCE) if physical else None
     if (off is not None or not afit.converged) and cone < CONE_DEG and unit_right:
-        raise ValueError(f"{session.source}: the {len(means)} poses' gravity directions{'' if physical else ' (from the fit)'} lie within {cone:.3g} deg of "
-                         f"one direction (smallest singular value / sqrt(n) {pose_spread(dirs):.3g}; 0.577: spread "
-                         "evenly): the accelerometer's scale and bias along it cannot be separated (fitted scales "
+        src = "" if physical else " (from the fit)"
+        raise ValueError(f"{session.source}: the {len(means)} poses' gravity directions{src} lie within "
+                         f"{cone:.3g} deg of one direction (smallest singular value / sqrt(n) "
+                         f"{pose_spread(dirs):.3g}; 0.577: spread evenly): the accelerometer's scale and bias along "
+                         "it cannot be separated (fitted scales "
                          f"{', '.join(f'{v:.4g}' for v in s)}"
                          f"{'' if afit.converged else f', not converged in {afit.iterations} iterations'}). Use: "
                          "turn the sensor so that each axis points up and down")
     check_acc_scale(s, session)
 
 
-def check_gyro_swap(gfit: GyroFit, gyr: np.ndarray, session: Session, motions: list, dirs: tuple, dt) -> None:
+def check_gyro_swap(gfit: GyroFit, gyr: np.ndarray, session: Session, motions: list,
+                    dirs: tuple[np.ndarray, np.ndarray], dt) -> None:
     """Refuse a gyro whose columns are in another order than the accelerometer's (numbers and the order).
 
     A permutation of the axes is no small misalignment: the fit ends far off (scales off 1, a misfit of
@@ -423,16 +427,18 @@ def check_gyro_swap(gfit: GyroFit, gyr: np.ndarray, session: Session, motions: l
 
     scale0 = 1.0 if physical else None
     # the order whose start fits best is fitted (a fit per order would cost five)
+    u0, u1 = dirs
     order = min((o for o in permutations(range(3)) if o != (0, 1, 2)), key=lambda o: gyro_start(
-        gyr[:, o], session.rate, motions, *dirs, gfit.bias[list(o)], scale0, dt)[1])
-    f = fit_gyro(gyr[:, order], session.rate, motions, *dirs, gfit.bias[list(order)], scale0=scale0, dt=dt)
+        gyr[:, o], session.rate, motions, u0, u1, gfit.bias[list(o)], scale0, dt)[1])
+    f = fit_gyro(gyr[:, order], session.rate, motions, u0, u1, gfit.bias[list(order)], scale0=scale0, dt=dt)
     rms = _rms(f.residuals)
     if bad(f) or rms > 0.1 * _rms(gfit.residuals):
         return
     names = ", ".join("xyz"[i] for i in order)
     raise ValueError(f"{session.source}: the gyro columns look swapped: taken in the order ({names}) the gyro fit "
                      f"converges with an RMS gravity-direction misfit of {math.degrees(rms):.3g} deg and scales "
-                     f"{', '.join(f'{v:.4g}' for v in f.x[6:9])}; in the order given, {math.degrees(_rms(gfit.residuals)):.3g} "
+                     f"{', '.join(f'{v:.4g}' for v in f.x[6:9])}; in the order given, "
+                     f"{math.degrees(_rms(gfit.residuals)):.3g} "
                      f"deg and scales {', '.join(f'{v:.4g}' for v in gfit.x[6:9])}"
                      f"{'' if gfit.converged else f', not converged in {gfit.iterations} iterations'}. Use: "
                      f"--gyr-columns in the order {names} of the given ones (or the accelerometer's columns are "
@@ -444,7 +450,8 @@ def pose_mean_bias(gm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
     ``std_i = s_i / sqrt(m) sqrt((1 + rho) / (1 - rho))``: `s_i` the poses' scatter, `m` their number and
     the AR(1) long-run factor of the lag-1 correlation `rho` of consecutive poses (pooled over the axes, its
-    estimate's bias ``-(1 + 3 rho) / m`` removed, clipped to [0, 0.95]): a bias that drifts slowly moves neighbouring poses together, and their scatter
+    estimate's bias ``-(1 + 3 rho) / m`` removed, clipped to [0, 0.95]): a bias that drifts slowly moves
+    neighbouring poses together, and their scatter
     alone then understates the error of the mean.
     """
     m = len(gm)

@@ -28,7 +28,8 @@ import numpy as np
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT
 from casep.exceptions import CasepWarning
 
-__all__ = ["SaturationWarning", "full_scale", "implied_full_scale", "saturated_runs", "check_gyro_saturation", "clipped_poses",
+__all__ = ["SaturationWarning", "full_scale", "implied_full_scale", "saturated_runs", "check_gyro_saturation",
+           "clipped_poses",
            "ADC_BITS", "ACC_RANGES_G", "GYR_RANGES_DPS", "FULL_SCALE_TOLERANCE"]
 
 #: Word lengths of the converters raw counts come from.

@@ -43,7 +43,8 @@ from casep.exceptions import CasepWarning
 from casep.results import Completed
 
 __all__ = ["Segmentation", "detect_static", "window_variance", "window_mean", "runs", "PoseSpreadWarning",
-           "StaticMotionWarning", "pose_spread", "pose_cone_deg", "warn_turns", "static_runs", "static_statistic", "detector",
+           "StaticMotionWarning", "pose_spread", "pose_cone_deg", "warn_turns", "static_runs", "static_statistic",
+           "detector",
            "MAX_TURN_DEG", "MULTIPLIERS", "SPREAD_ERROR", "SPREAD_WARN", "INIT_RISE", "MIN_POSES"]
 
 #: imu_tk's sweep of threshold multipliers of the initial period's variance.
