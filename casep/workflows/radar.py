@@ -271,7 +271,7 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
     x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
     summary = _summary(reg, lin, rn, res, x)
     failed, suspicious = _judge(reg, lin, rn, res, summary)
-    whiteness = rn.whiteness(x)
+    whiteness = rn.whiteness(x) if not failed else {}  # a failed fit's residuals hold its set-up error: said already
     if failed:  # a probably wrong result is never a plain success
         res = dataclasses.replace(res, success=False, status=-1, message="; ".join(failed))
     from casep.model.loader import model_record
