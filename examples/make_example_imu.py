@@ -1,4 +1,4 @@
-"""Make ``examples/data/example_imu.csv``: the raw IMU record docs/guide/navigate.md navigates.
+"""Make ``examples/data/imu/example_imu.csv``: the raw IMU record docs/guide/navigate.md navigates.
 
 #%% What it is
 # A rocket on a rail at Esrange (67.89 N, 21.10 E, 330 m), body x along the rail: 85 deg elevation
@@ -22,13 +22,13 @@ from casep.gravity import normal_gravity_ecef
 
 #%% Build and write
 SEED = 1
-OUT = Path(__file__).resolve().parent / "data" / "example_imu.csv"
+OUT = Path(__file__).resolve().parent / "data" / "imu" / "example_imu.csv"
 SITE = LaunchSite(67.89, 21.10, 330.0, 30.0, 10.0)  # launch azimuth 30 deg, launch time 10 s
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=OUT, help=f"output file (default {OUT.name} in examples/data)")
+    ap.add_argument("--out", type=Path, default=OUT, help=f"output file (default {OUT.name} in examples/data/imu)")
     out = ap.parse_args().out
     rng = np.random.default_rng(SEED)
     el = math.radians(85.0)

@@ -77,7 +77,7 @@ def test_make_example_imu_is_reproducible(tmp_path):
     proc = subprocess.run([sys.executable, str(EXAMPLES / "make_example_imu.py"), "--out", str(fresh)],
                           capture_output=True, text=True, timeout=300, check=False)
     assert proc.returncode == 0, proc.stderr
-    ref = (EXAMPLES / "data" / "example_imu.csv").read_text().splitlines()
+    ref = (EXAMPLES / "data" / "imu" / "example_imu.csv").read_text().splitlines()
     new = fresh.read_text().splitlines()
     assert new[:2] == ref[:2]
     np.testing.assert_allclose(np.loadtxt(new[2:], delimiter=","), np.loadtxt(ref[2:], delimiter=","),
