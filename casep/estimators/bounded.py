@@ -122,7 +122,8 @@ def _gradient(R, q, z) -> tuple[np.ndarray, float]:
     g = R.T @ (R @ z - q)
     # backward-stable scale of the gradient: ||R|| (||R z|| + ||q||) (relative to ||R^T q|| alone, an exact
     # least-squares point of an ill-conditioned R can fail by rounding, leaving the interior point's 1e-3 std)
-    return g, 1e-8 * max(np.linalg.norm(R, 2) * (np.linalg.norm(R @ z) + np.linalg.norm(q)), 1e-300)
+    scale = float(np.linalg.norm(R, 2) * (np.linalg.norm(R @ z) + np.linalg.norm(q)))
+    return g, 1e-8 * max(scale, 1e-300)
 
 
 def _active_set(R, q, lo, hi, fixed, rcond) -> np.ndarray | None:
