@@ -6,7 +6,8 @@ Targets: `casep separate` on the example flight (1 800 samples, 10 Hz) and on a 
 wall. `casep --help` and `casep models` show what the lazy imports buy (the CLI
 imports a command's modules only when it runs).
 
-Each command runs once as a warm-up (numba's cache), then `--runs` times interleaved with the
+Each command runs once as a warm-up (numba's cache, and the bytecode of casep's modules: the commands run
+without ``PYTHONDONTWRITEBYTECODE``, as an installed casep does), then `--runs` times interleaved with the
 baseline (A B A B ...), so that each ratio is taken pair by pair in one run of this script and a
 drift of the machine's speed cancels; the table gives medians of the wall times and of the
 pairwise ratios. CPU seconds (user + system of the finished child, `resource.getrusage`) are given
@@ -39,6 +40,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def timed(cmd: list[str], env: dict[str, str] | None = None) -> tuple[float, float]:
     """Wall seconds and CPU seconds (user + system) of one whole run of `cmd` (environment `env`)."""
+    # with bytecode, as an installed casep runs: PYTHONDONTWRITEBYTECODE would compile every module each run
+    env = {k: v for k, v in (os.environ if env is None else env).items() if k != "PYTHONDONTWRITEBYTECODE"}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     # from a neutral folder: `python -m` puts the working folder first on sys.path, before PYTHONPATH

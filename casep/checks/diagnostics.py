@@ -66,8 +66,6 @@ def _canonical_ties(s: np.ndarray, Vt: np.ndarray, rel: float = 1e-9) -> np.ndar
     in the coordinates: for orthogonal columns (one cluster) the proportions become the
     identity, as Belsley et al. intend.
     """
-    from scipy.linalg import qr
-
     Vt = Vt.copy()
     k = 0
     while k < s.size:
@@ -75,6 +73,8 @@ def _canonical_ties(s: np.ndarray, Vt: np.ndarray, rel: float = 1e-9) -> np.ndar
         while m < s.size and abs(s[m] - s[k]) <= rel * max(s[0], 1e-300):
             m += 1
         if m - k > 1:
+            from scipy.linalg import qr  # here: most spectra have no ties, and its import is 0.3 s
+
             Q, _, _ = qr(Vt[k:m], mode="economic", pivoting=True)  # B^T P = Q R, B^T = rows k..m-1
             Vt[k:m] = Q.T @ Vt[k:m]  # new rows R P^T: echelon in the coordinates
         k = m

@@ -1,4 +1,5 @@
-"""Box-bounded least squares with optional fixed coefficients (cvxpy + Clarabel).
+"""Box-bounded least squares with optional fixed coefficients (an exact active-set method; cvxpy + Clarabel
+when it does not settle).
 
 Notes
 -----
@@ -6,12 +7,16 @@ In scaled coordinates ``z = c * D`` the problem is the n x n reduced one::
 
     min_z ||q - R z||^2     s.t.  c_j lo_j <= z_j <= c_j hi_j,   z_k = c_k v_k (fixed)
 
-solved by cvxpy with the Clarabel interior-point solver. The 3N-row problem is never given to
-cvxpy (its set-up alone would dominate). On this ill-conditioned problem an interior point
-is accurate to ~1e-3 std only, so the solution is *polished*: least squares is solved
-exactly (SVD) on the free coefficients with the active ones at their bounds, and the
+solved by a primal active-set method (:func:`_active_set`: least squares on the free coefficients,
+a step to the first bound in the way, a bound released while its multiplier has the wrong sign), in
+numpy on the n x n reduction: the 3N-row problem is never solved again. Should it not settle
+(at most ``10 n`` steps) or its point fail the optimality test below, cvxpy with the Clarabel
+interior-point solver solves it; on this ill-conditioned problem an interior point is accurate to
+~1e-3 std only, so its solution is *polished*. Either point is polished the same way: least squares
+is solved exactly (SVD) on the free coefficients with the active ones at their bounds, and the
 polished point is kept when it is feasible and satisfies the KKT conditions below
-(``diagnostics["polished"]``). A bound is *active* when the solution sits on it
+(``diagnostics["polished"]``). Both solvers' points give the same active set, and so, polished,
+the same numbers. A bound is *active* when the solution sits on it
 (within ``1e-7 (1 + |bound|)`` in natural units, relative to the column scale). The
 standard deviations of the free coefficients are conditional on the active set::
 
@@ -71,6 +76,9 @@ class BoundedExtras:
         return settings, diagnostics, extras
 
 _ACTIVE_TOL = 1e-6  # relative, in scaled coordinates
+#: A held bound is released while its multiplier has the wrong sign beyond this share of the KKT test's tolerance
+#: (1e-14 of the gradient's scale: rounding), so the method stops at the optimum, not anywhere the test passes.
+_RELEASE = 1e-6
 
 
 def _at_bounds(z, lo, hi, fixed):
@@ -93,18 +101,67 @@ def _polish(R, q, z0, lo, hi, fixed, rcond):
     z[on_lo] = lo[on_lo]
     z[on_hi] = hi[on_hi]
     free = ~(fixed | on_lo | on_hi)
+    _free_lstsq(R, q, z, free, rcond)
+    g, gtol = _gradient(R, q, z)
+    ok = (np.all(z[free] >= lo[free] - tol_lo[free]) and np.all(z[free] <= hi[free] + tol_hi[free])
+          and np.all(g[on_lo] >= -gtol) and np.all(g[on_hi] <= gtol) and np.all(np.abs(g[free]) <= gtol))
+    return (z, True) if ok else (z0, False)
+
+
+def _free_lstsq(R, q, z, free, rcond) -> None:
+    """``z[free]`` = the least-squares solution with the other coordinates held (SVD, rank by `rcond`)."""
     if free.any():
         rhs = q - R[:, ~free] @ z[~free]
         U, s, Vt = np.linalg.svd(R[:, free], full_matrices=False)
         r = int(np.sum(s > rcond * s[0])) if s.size and s[0] > 0 else 0
         z[free] = Vt[:r].T @ ((U[:, :r].T @ rhs) / s[:r])
-    g = R.T @ (R @ z - q)  # gradient of 0.5 ||R z - q||^2
+
+
+def _gradient(R, q, z) -> tuple[np.ndarray, float]:
+    """The gradient of ``0.5 ||R z - q||^2`` and the size below which a component of it counts as zero."""
+    g = R.T @ (R @ z - q)
     # backward-stable scale of the gradient: ||R|| (||R z|| + ||q||) (relative to ||R^T q|| alone, an exact
     # least-squares point of an ill-conditioned R can fail by rounding, leaving the interior point's 1e-3 std)
-    gtol = 1e-8 * max(np.linalg.norm(R, 2) * (np.linalg.norm(R @ z) + np.linalg.norm(q)), 1e-300)
-    ok = (np.all(z[free] >= lo[free] - tol_lo[free]) and np.all(z[free] <= hi[free] + tol_hi[free])
-          and np.all(g[on_lo] >= -gtol) and np.all(g[on_hi] <= gtol) and np.all(np.abs(g[free]) <= gtol))
-    return (z, True) if ok else (z0, False)
+    scale = float(np.linalg.norm(R, 2) * (np.linalg.norm(R @ z) + np.linalg.norm(q)))
+    return g, 1e-8 * max(scale, 1e-300)
+
+
+def _active_set(R, q, lo, hi, fixed, rcond) -> np.ndarray | None:
+    """``min ||R z - q||`` within the box ``lo <= z <= hi`` (``fixed``: ``z = lo``) by a primal active-set method.
+
+    From a feasible point (0 clipped to the box) with the coordinates on a bound held there: the least
+    squares of the free ones (:func:`_free_lstsq`); if it leaves the box, a step towards it up to the first
+    bound in the way, whose coordinate is then held; if not, the multiplier test, ``g_j >= 0`` held at a
+    lower and ``g_j <= 0`` at an upper bound (``g`` the gradient, zero on the free ones), to rounding
+    (:data:`_RELEASE`): the point is the optimum when it holds for all, else the worst is released.
+    Returns None after ``10 n`` steps without settling (rank deficiency or degeneracy can make it cycle).
+    """
+    n = R.shape[1]
+    z = np.clip(np.zeros(n), lo, hi)
+    state = np.where(fixed, 2, np.where(z == lo, -1, np.where(z == hi, 1, 0)))  # 0 free, -1/1 lower/upper, 2 fixed
+    for _ in range(10 * n + 1):
+        free = state == 0
+        target = z.copy()
+        _free_lstsq(R, q, target, free, rcond)
+        d = target - z
+        with np.errstate(divide="ignore", invalid="ignore"):
+            to_lo = np.where(free & (d < 0) & (target < lo), (lo - z) / d, np.inf)
+            to_hi = np.where(free & (d > 0) & (target > hi), (hi - z) / d, np.inf)
+        alpha = min(float(to_lo.min()), float(to_hi.min()))
+        if alpha < 1.0:  # a bound in the way: step to it, hold it
+            z = z + max(alpha, 0.0) * d
+            hit_lo, hit_hi = to_lo <= alpha, to_hi <= alpha
+            z[hit_lo], z[hit_hi] = lo[hit_lo], hi[hit_hi]
+            state[hit_lo], state[hit_hi] = -1, 1
+            continue
+        z = target
+        g, gtol = _gradient(R, q, z)
+        wrong = np.where(state == -1, -g, np.where(state == 1, g, 0.0))  # a multiplier of the wrong sign
+        j = int(np.argmax(wrong))
+        if wrong[j] <= _RELEASE * gtol:
+            return z
+        state[j] = 0
+    return None
 
 
 def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"):
@@ -184,14 +241,30 @@ def solve_bounded(S: np.ndarray | Problem, y: np.ndarray | None = None, bounds: 
 
 
 def _solve(pb: Prepared, *, method: Method, bounds: Mapping) -> EstimateResult:
-    import cvxpy as cp
-
     lo, hi, fixed = parse_bounds(bounds, pb.names)
     c = pb.red.scale
     zero = c == 0
     # A zero column has no scale: keep it in natural units (its z is D itself).
     cs = np.where(zero, 1.0, c)
     R = pb.red.R
+    lo_s = lo * cs
+    hi_s = hi * cs
+    z_as = _active_set(R, pb.red.qty, lo_s, hi_s, fixed, pb.ra.rcond)
+    zv, polished = (None, False) if z_as is None else _polish(R, pb.red.qty, z_as, lo_s, hi_s, fixed, pb.ra.rcond)
+    if polished:
+        solver, status = "active set", "optimal"
+    else:
+        zv, polished, status = _clarabel(pb, R, lo, hi, fixed, cs)
+        solver = "cvxpy+clarabel"
+    assert zv is not None
+    return _result(pb, method, zv, polished, status, solver, lo, hi, fixed, c)
+
+
+def _clarabel(pb: Prepared, R: np.ndarray, lo: np.ndarray, hi: np.ndarray, fixed: np.ndarray,
+              cs: np.ndarray) -> tuple[np.ndarray, bool, str]:
+    """cvxpy + Clarabel's solution, polished (:func:`_polish`), whether the polish held, and Clarabel's status."""
+    import cvxpy as cp
+
     z = cp.Variable(pb.n)
     cons = []
     fin_lo = np.isfinite(lo) & ~fixed
@@ -218,12 +291,20 @@ def _solve(pb: Prepared, *, method: Method, bounds: Mapping) -> EstimateResult:
         raise ValueError(f"bounded: the solver (cvxpy/Clarabel) reports the problem {prob.status}, although box bounds "
                          f"always admit a solution: bounds too far from anything the data allow, for it to resolve. "
                          f"Farthest out: {named}. Check their values and units (natural units)")
-    lo_s = lo * cs
-    hi_s = hi * cs
-    zv, polished = _polish(R, pb.red.qty, np.asarray(z.value, dtype=float), lo_s, hi_s, fixed, pb.ra.rcond)
+    zv, polished = _polish(R, pb.red.qty, np.asarray(z.value, dtype=float), lo * cs, hi * cs, fixed, pb.ra.rcond)
     if prob.status == cp.OPTIMAL_INACCURATE and not polished:
         warnings.warn("bounded: Clarabel reports an inaccurate solution and the active-set polish failed",
-                      CasepWarning, stacklevel=2)
+                      CasepWarning, stacklevel=3)
+    return zv, polished, str(prob.status)
+
+
+def _result(pb: Prepared, method: Method, zv: np.ndarray, polished: bool, status: str, solver: str,
+            lo: np.ndarray, hi: np.ndarray, fixed: np.ndarray, c: np.ndarray) -> EstimateResult:
+    """The estimate, its conditional covariance and the active set, from the scaled solution `zv`."""
+    zero = c == 0
+    cs = np.where(zero, 1.0, c)
+    lo_s, hi_s = lo * cs, hi * cs
+    R = pb.red.R
     x = zv / cs
     x = np.where(fixed, lo, x)
     at_lo, at_hi, _, _ = _at_bounds(zv, lo_s, hi_s, fixed)
@@ -259,10 +340,9 @@ def _solve(pb: Prepared, *, method: Method, bounds: Mapping) -> EstimateResult:
               "free": int(pb.n - std_mask.sum()), "undetermined": int(undetermined.sum())}
     return finish(pb, method, x, cov, sig, undetermined=undetermined, reasons=reasons,
                   message=_active_set_message(counts, pb.n),
-                  settings={"bounds": box, "solver": "cvxpy+clarabel",
+                  settings={"bounds": box, "solver": solver,
                             "sigma": "estimated" if pb.sigma is None else pb.sigma},
-                  diagnostics={"active_set": counts,
-                               "solver_status": prob.status, "polished": polished},
+                  diagnostics={"active_set": counts, "solver_status": status, "polished": polished},
                   std_kind="conditional" if std_mask.any() else "sampling",
                   extras=BoundedExtras(dict(active)))
 
@@ -281,6 +361,6 @@ def _active_set_message(counts: dict[str, int], n: int) -> str:
 
 
 #: Box-bounded least squares (std conditional on the active set).
-BOUNDED = Method("bounded", "box-bounded least squares (Clarabel + exact polish)", _solve, "solve_bounded",
+BOUNDED = Method("bounded", "box-bounded least squares (active set, exact)", _solve, "solve_bounded",
                  (BOUNDS,), required=("bounds",), std_kind="conditional", extras_type=BoundedExtras,
                  regularised=True, hint="bounds the data contradict?")

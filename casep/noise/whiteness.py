@@ -32,7 +32,7 @@ def ljung_box(x: np.ndarray, lags: int, segments: np.ndarray | None = None) -> t
     `segments`: segment id per sample; lag products are taken only within a segment (a gap in
     the time tags is not a lag).
     """
-    from scipy.special import chdtrc  # chi2 survival function, without importing scipy.stats (0.5 s)
+    from casep._special import chi2_sf  # without importing scipy.special (its import, 0.1-0.6 s)
 
     x = np.asarray(x, dtype=float)
     x = x - x.mean()
@@ -48,7 +48,7 @@ def ljung_box(x: np.ndarray, lags: int, segments: np.ndarray | None = None) -> t
         rho = float(prod.sum()) / den  # rho_k
         q += rho**2 / (n - k)
     q *= n * (n + 2)
-    return float(q), float(chdtrc(lags, q))
+    return float(q), chi2_sf(int(lags), float(q))
 
 
 @dataclass(frozen=True)

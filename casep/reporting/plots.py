@@ -26,6 +26,10 @@ def pyplot() -> Any:
     return plt
 
 
+#: zlib level of the PNG figures (lossless at every level; 1 is the fastest).
+PNG_COMPRESS_LEVEL = 1
+
+
 def save_figure(fig: Any, path: str | os.PathLike) -> Path:
     """Write `fig` to `path` (format from the extension, PNG by default) atomically, close it, return `path`.
 
@@ -39,8 +43,11 @@ def save_figure(fig: Any, path: str | os.PathLike) -> Path:
     if fig.get_layout_engine() is None:
         fig.set_layout_engine("constrained")
     path = Path(path)
+    fmt = path.suffix.lstrip(".").lower() or "png"
+    # PNG: zlib level 1 (PIL's default is 6): the same pixels, about 10 % more bytes, half the encoding time
+    extra = {"pil_kwargs": {"compress_level": PNG_COMPRESS_LEVEL}} if fmt == "png" else {}
     with atomic_open(path, binary=True) as fh:  # whole or not at all; with the command's other outputs
-        fig.savefig(fh, format=path.suffix.lstrip(".").lower() or "png", dpi=120)
+        fig.savefig(fh, format=fmt, dpi=120, **extra)
     import matplotlib.pyplot as plt
 
     plt.close(fig)

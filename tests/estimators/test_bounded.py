@@ -129,3 +129,51 @@ def test_narrow_interval_counts_each_coefficient_once(paper_problem, platform36)
     c = res.diagnostics["active_set"]
     assert c["at_lower"] + c["at_upper"] + c["fixed"] + c["free"] + c["undetermined"] <= 36
     assert f"{c['at_lower'] + c['at_upper']} of 36" in res.message and "of 36 coefficients at a bound" in res.message
+
+
+def test_active_set_is_clarabels_optimum(small, truth36, monkeypatch):
+    """The active-set solution against the cvxpy + Clarabel path it stands in front of (forced by making
+    the active-set method give up): the same active set, so, polished, the same numbers."""
+    import casep.estimators.bounded as bounded
+
+    S, y, names = small
+    box = {n: [v - 2 * abs(v), v + 2 * abs(v)] for n, v in zip(names, truth36)}
+    box["Kg0x"] = 0.5
+    mine = casep.solve_bounded(S, y, box, names=names)
+    monkeypatch.setattr(bounded, "_active_set", lambda *a: None)
+    ref = casep.solve_bounded(S, y, box, names=names)
+    assert mine.settings["solver"] == "active set" and ref.settings["solver"] == "cvxpy+clarabel"
+    assert mine.diagnostics["polished"] and ref.diagnostics["polished"]
+    assert mine.extras.active_bounds == ref.extras.active_bounds and len(ref.extras.active_bounds) > 3
+    np.testing.assert_allclose(mine.estimate, ref.estimate, rtol=1e-12, atol=0.0)
+    np.testing.assert_allclose(mine.std, ref.std, rtol=1e-12, atol=0.0)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_active_set_on_random_boxes_is_the_qp_optimum(seed):
+    """Random well-posed boxes (some sides open, one coordinate fixed): the active-set point is feasible, meets
+    the KKT conditions and equals cvxpy + Clarabel's optimum to its accuracy."""
+    import cvxpy as cp
+
+    from casep.estimators.bounded import _active_set
+
+    rng = np.random.default_rng(seed)
+    n = 10
+    R = np.triu(rng.normal(size=(n, n))) + 3.0 * np.eye(n)
+    q = 3.0 * rng.normal(size=n)
+    lo, hi = -rng.uniform(0.1, 1.0, n), rng.uniform(0.1, 1.0, n)
+    lo[0], hi[1] = -np.inf, np.inf
+    fixed = np.zeros(n, dtype=bool)
+    fixed[2] = True
+    hi[2] = lo[2]
+    z = _active_set(R, q, lo, hi, fixed, 1e-12)
+    assert z is not None and np.all(z >= lo) and np.all(z <= hi) and z[2] == lo[2]
+    g = R.T @ (R @ z - q)
+    on_lo, on_hi = (z == lo) & ~fixed, (z == hi) & ~fixed
+    free = ~(on_lo | on_hi | fixed)
+    assert np.all(np.abs(g[free]) < 1e-10) and np.all(g[on_lo] > -1e-10) and np.all(g[on_hi] < 1e-10)
+    assert on_lo.any() or on_hi.any()
+    x = cp.Variable(n)
+    cons = [x[3:] >= lo[3:], x[0] <= hi[0], x[1] >= lo[1], x[2] == lo[2], x[3:] <= hi[3:]]
+    cp.Problem(cp.Minimize(cp.sum_squares(R @ x - q)), cons).solve(solver=cp.CLARABEL)
+    np.testing.assert_allclose(z, x.value, atol=1e-6)

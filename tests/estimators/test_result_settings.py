@@ -44,7 +44,7 @@ AS_GIVEN = {"huber", "map", "bounded"}
 STILL_IN_SETTINGS: set[str] = set()
 #: Settings keys that are no option: ``sigma`` (given, or how it is estimated) and the solver bounded always uses.
 NOT_OPTIONS = {"sigma"}
-ALWAYS = {"bounded": {"solver": "cvxpy+clarabel"}}
+ALWAYS = {"bounded": {"solver": "active set"}}
 #: Option name -> its settings key where they differ.
 KEY = {"lam": "lambda"}
 

@@ -282,10 +282,13 @@ def test_forgetting_range_in_the_api(files):
         casep.separate(read_flight(files / "a.csv"), "platform36", "rls", forgetting=1e-300)
 
 
-def test_infeasible_bounds_named(files, tmp_path, capsys):
+def test_bounds_the_data_contradict_fail_naming_the_coefficient(files, tmp_path, capsys):
+    """A box far from anything the data allow: solved exactly (the coefficient on its bound), then failed by
+    the residual check, exit 1, the coefficient at its bound in the table."""
     p = _write(tmp_path / "far.json", '{"Kg0x": [1e10, 1e11]}')
-    s, _, err = _run(capsys, "separate", files / "a.csv", "--method", "bounded", "--bounds", p)
-    assert s == 2 and "Kg0x [1e+10, 1e+11] deg/h" in err and "Traceback" not in err
+    s, out, err = _run(capsys, "separate", files / "a.csv", "--method", "bounded", "--bounds", p)
+    assert s == 1 and "bounds the data contradict?" in err and "Traceback" not in err
+    assert any(ln.startswith("Kg0x") and "at its lower bound" in ln for ln in out.splitlines())
 
 
 def test_diagnose_prints_dash_not_nan(tmp_path, capsys):
