@@ -267,4 +267,10 @@ def _result(ctx: Context, methods: list[str], units: tuple[str, ...], groups: li
                             dispersions=tuple(ctx.dispersions) if ctx.dispersions else (), resumed=resumed,
                             tasks=tasks, draws=draws,
                             noise={"simulated": {**ctx.scenario.noise.to_dict(), "text": ctx.scenario.noise.describe()},
-                                   "fit": {"noise": ctx.noise, "tau": ctx.noise_tau, "robust": ctx.robust}})
+                                   "fit": _fit_record(ctx.noise)})
+
+
+def _fit_record(noise: NoiseSpec | None) -> dict[str, Any]:
+    """The noise model the campaign's methods assumed (None: white, no robust fit), as the result records it."""
+    ns = noise if noise is not None else NoiseSpec("white", robust=None)
+    return {"noise": ns.kind, "tau": ns.tau, "robust": ns.robust}

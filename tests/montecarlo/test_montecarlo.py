@@ -67,7 +67,7 @@ def test_cli_json_csv_figure(tmp_path, capsys):
     assert "median efficiency" in printed
     # the noise simulated and the noise model the methods assumed: what the coverage column means
     assert "noise: simulated white 0.1 m/s; the methods fit white noise, no robust fit" in printed
-    assert data["noise"]["fit"] == {"noise": "white", "tau": None, "robust": "auto"}
+    assert data["noise"]["fit"] == {"noise": "white", "tau": None, "robust": None}
     assert data["noise"]["simulated"]["kind"] == "white" and data["noise"]["simulated"]["sigma"] == 0.1
     assert data["warnings"] == []  # the run's warnings (none)
 
