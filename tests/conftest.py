@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+import math
+
 import numpy as np
 import pytest
 
@@ -96,3 +99,25 @@ def _one_blas_thread_per_xdist_worker():
 
     with threadpool_limits(limits=1, user_api="blas"):
         yield
+
+
+def finite_json(path) -> dict:
+    """The JSON file, refusing any non-finite number (Infinity/NaN) anywhere in it."""
+
+    def refuse(token):
+        raise AssertionError(f"non-finite number {token} in {path}")
+
+    data = json.loads(path.read_text(), parse_constant=refuse)
+
+    def walk(x, where="$"):
+        if isinstance(x, dict):
+            for k, v in x.items():
+                walk(v, f"{where}.{k}")
+        elif isinstance(x, list):
+            for i, v in enumerate(x):
+                walk(v, f"{where}[{i}]")
+        elif isinstance(x, float):
+            assert math.isfinite(x), where
+
+    walk(data)
+    return data

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import pickle
 
 import numpy as np
@@ -143,25 +142,9 @@ def good_flight_csv(tmp_path_factory, clean_problem):
 
 
 def _finite_json(path) -> dict:
-    """The JSON file, refusing any non-finite number (Infinity/NaN) anywhere in it."""
+    from conftest import finite_json
 
-    def refuse(token):
-        raise AssertionError(f"non-finite number {token} in {path}")
-
-    data = json.loads(path.read_text(), parse_constant=refuse)
-
-    def walk(x, where="$"):
-        if isinstance(x, dict):
-            for k, v in x.items():
-                walk(v, f"{where}.{k}")
-        elif isinstance(x, list):
-            for i, v in enumerate(x):
-                walk(v, f"{where}[{i}]")
-        elif isinstance(x, float):
-            assert math.isfinite(x), where
-
-    walk(data)
-    return data
+    return finite_json(path)
 
 
 def _crlb_std(flight, model) -> np.ndarray:

@@ -4,7 +4,6 @@ noise-free radar flight through the default path, and the launch time with one s
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import sys
 from pathlib import Path
@@ -100,24 +99,10 @@ def test_radar_robust_fit_removes_glitches_per_station():
 
 
 # ----------------------------------------------------------------------------- noise-free, default path
-def _finite_json(path: Path) -> dict:
-    def refuse(token):
-        raise AssertionError(f"non-finite number {token} in {path}")
+def _finite_json(path) -> dict:
+    from conftest import finite_json
 
-    data = json.loads(path.read_text(), parse_constant=refuse)
-
-    def walk(x, where="$"):
-        if isinstance(x, dict):
-            for k, v in x.items():
-                walk(v, f"{where}.{k}")
-        elif isinstance(x, list):
-            for i, v in enumerate(x):
-                walk(v, f"{where}[{i}]")
-        elif isinstance(x, float):
-            assert math.isfinite(x), where
-
-    walk(data)
-    return data
+    return finite_json(path)
 
 
 def test_noise_free_radar_flight_default_path_json(tmp_path, capsys):
