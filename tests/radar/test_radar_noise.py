@@ -4,7 +4,6 @@ noise-free radar flight through the default path, and the launch time with one s
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import sys
 import warnings
@@ -21,6 +20,9 @@ from casep.workflows.radar import separate_radar
 from casep.workflows.spec import FitSpec
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "workflows"))
+
+from test_fitspec import _finite_json  # noqa: E402  (the one JSON finiteness check of the noise-free tests)
 
 
 # ----------------------------------------------------------------------------- Gauss-Markov noise
@@ -111,26 +113,6 @@ def test_radar_robust_fit_removes_glitches_per_station():
 
 
 # ----------------------------------------------------------------------------- noise-free, default path
-def _finite_json(path: Path) -> dict:
-    def refuse(token):
-        raise AssertionError(f"non-finite number {token} in {path}")
-
-    data = json.loads(path.read_text(), parse_constant=refuse)
-
-    def walk(x, where="$"):
-        if isinstance(x, dict):
-            for k, v in x.items():
-                walk(v, f"{where}.{k}")
-        elif isinstance(x, list):
-            for i, v in enumerate(x):
-                walk(v, f"{where}[{i}]")
-        elif isinstance(x, float):
-            assert math.isfinite(x), where
-
-    walk(data)
-    return data
-
-
 def test_noise_free_radar_flight_default_path_json(tmp_path, capsys):
     """Noise-free two-station flight, no noise given, `casep separate --radar ... --json`: exit 0, nothing rejected
     as a glitch, recovery within 0.01 of the CRLB std at the simulator's default noise, every JSON number finite.
