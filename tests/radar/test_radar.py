@@ -496,7 +496,7 @@ def test_noise_from_the_station_file(clean):
     noise = {(g["station"], g["type"]): g for g in rr.summary["noise"]}
     assert noise[("S1", "range")]["source"] == "given" and noise[("S1", "range")]["sigma"] == 3.0
     assert noise[("S1", "azimuth")]["sigma"] == pytest.approx(8.0, rel=1e-12)
-    assert noise[("S2", "range")]["source"] == "estimated"
+    assert noise[("S2", "range")]["source"].startswith("estimated")  # by REML under the noise model
     assert noise[("S2", "range")]["sigma"] == pytest.approx(3.0, rel=0.05)  # 3901 samples: 1.1 % std
     assert noise[("S2", "elevation")]["sigma"] == pytest.approx(8.0, rel=0.05)
 
