@@ -289,8 +289,6 @@ def prior_conflict(problem, res: EstimateResult, prior_std: float, sigma: float)
     from casep.estimators._base import failed
     from casep.estimators.ols import solve_ols
 
-    if problem.is_noise_free():
-        return res  # noise-free data: every std is rounding (check_fit says so); no prior is consistent with it
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # conditioning: said by the RLS result itself
         ls = solve_ols(problem, sigma=sigma)
@@ -311,7 +309,10 @@ def prior_conflict(problem, res: EstimateResult, prior_std: float, sigma: float)
                   f"failed: prior-data conflict: the data put {int(np.sum(z > PRIOR_CONFLICT_Z))} coefficient(s) more "
                   f"than {PRIOR_CONFLICT_Z:g} std outside the prior N(0, {prior_std:.3g}^2) (p0 = "
                   f"{res.settings.get('p0', float('nan')):g}); {listed}. The estimate is pulled towards 0 by more than "
-                  "its std: raise p0 (the prior variance, natural units) or use a prior that admits the data")
+                  "its std: raise p0 (the prior variance, natural units) or use a prior that admits the data"
+                  + ("; on noise-free data the prior's scale, sigma, is estimated from residuals that shrink with "
+                     "the prior's pull: give sigma (--sigma) as well" if problem.is_noise_free() and res.settings.get(
+                         "sigma") == "estimated" else ""))
 
 
 def _history_std(hist_var: np.ndarray, scale2: float, live: np.ndarray, cl: np.ndarray, n: int) -> np.ndarray:

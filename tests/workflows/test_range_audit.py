@@ -70,6 +70,28 @@ def test_rls_prior_the_data_contradict_fails():
     assert ok.success and "prior_conflict" not in ok.diagnostics
 
 
+def test_rls_on_a_noise_free_flight_is_no_success_when_its_prior_pulls_the_estimate():
+    """A noise-free flight through RLS at the paper's p0: the prior N(0, (sigma sqrt(p0))^2), sigma estimated from the
+    prior-biased residuals, pulled Ka1xy 200 std off and the result was a success (the conflict test was skipped on
+    noise-free data). It fails now, naming the coefficients and the way out (give sigma); with sigma given the prior
+    is wide and the estimate within its std of the truth."""
+    from casep.exceptions import NoiseFreeWarning, NoiseLevelWarning
+    from casep.simulation.scenarios import get_scenario
+    from casep.simulation.simulate import simulate_flight
+
+    sim = simulate_flight(get_scenario("paper").without_noise(), seed=1, rate=20.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        warnings.simplefilter("ignore", NoiseFreeWarning)
+        res = casep.separate(sim.flight, "platform36", "rls")
+        with pytest.warns(NoiseLevelWarning, match="disagrees with the least-squares residual std"):
+            ok = casep.separate(sim.flight, "platform36", "rls", sigma=0.1)  # std then too large, and said
+    assert not res.success and res.status == -6
+    assert "prior-data conflict" in res.message and "give sigma" in res.message
+    assert ok.success
+    assert abs((ok.estimate - sim.truth) / ok.std).max() < 1.0  # the prior N(0, 100^2) pulls it within its std
+
+
 # ------------------------------------------------------------------ Monte Carlo inputs refused at the edge
 @pytest.mark.parametrize("disp, message", [
     ({"launch_azimuth_deg": {"dist": "normal", "mean": 1e300, "std": 1.0}},
