@@ -50,7 +50,7 @@ class Alignment:
     method : str
         ``"heading"`` (given) or ``"gyrocompass"``.
     heading_deg : float
-        Azimuth of the heading axis's horizontal projection, deg from north, clockwise.
+        Azimuth of the horizontal projection of body axis `heading_axis`, deg from north, clockwise.
     heading_std_deg : float or None
         Gyrocompassing: how well the heading is known (noise and the Earth-rate mismatch); None when given.
     f_mean, w_mean : (3,) ndarray
@@ -59,6 +59,9 @@ class Alignment:
         Normal gravity at the pad, m/s^2.
     rows : int
         Samples in the window.
+    heading_axis : str
+        The body axis whose azimuth `heading_deg` is: the one named, or when gyrocompassing with the
+        named axis within 2 deg of the vertical, the most horizontal one.
     """
 
     C_tb: np.ndarray
@@ -69,11 +72,12 @@ class Alignment:
     w_mean: np.ndarray
     g_pad: float
     rows: int
+    heading_axis: str = "x"
 
     def to_dict(self) -> dict:
         return {"method": self.method, "heading_deg": self.heading_deg, "heading_std_deg": self.heading_std_deg,
                 "f_mean": self.f_mean.tolist(), "w_mean": self.w_mean.tolist(), "g_pad": self.g_pad,
-                "rows": self.rows}
+                "rows": self.rows, "heading_axis": self.heading_axis}
 
 
 def _triad(e1: np.ndarray, s_b: np.ndarray, E1: np.ndarray, s_t: np.ndarray) -> np.ndarray:
@@ -99,7 +103,8 @@ def _azimuth(v_t: np.ndarray, site: LaunchSite) -> float:
 
 
 def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, float], site: LaunchSite, *,
-          heading_deg: float | None = None, heading_axis: str = "x") -> Alignment:
+          heading_deg: float | None = None, heading_axis: str = "x",
+          rates_in: str = "columns w_x, w_y, w_z") -> Alignment:
     """Level over `window` and fix the heading (given, or by gyrocompassing with a warning).
 
     Parameters
@@ -114,13 +119,18 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
         (a rocket on its rail: the rail azimuth, with `heading_axis` its longitudinal axis).
         None: gyrocompassing.
     heading_axis : {"x", "y", "z"}
+        Gyrocompassing: the axis whose azimuth is reported (the most horizontal one if this one is
+        within 2 deg of the vertical).
+    rates_in : str
+        Where the rates come from, for messages (file and columns).
 
     Raises
     ------
     ValueError
         Fewer than 2 samples in the window, a mean specific force more than 5 % from the normal
-        gravity (not at rest, or not in m/s^2), a heading axis within 2 deg of the vertical, or
-        gyros that cannot find north (heading known worse than 30 deg).
+        gravity (not at rest, or not in m/s^2), rates in deg/s (the pad rate is the Earth rate times
+        57.3), a heading axis within 2 deg of the vertical, or gyros that cannot find north (heading
+        known worse than 30 deg).
     """
     from casep.gravity import normal_gravity_ecef
 
@@ -144,57 +154,80 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
         warnings.warn(f"--align {t1:g} {t2:g}: the specific force departs from its mean by up to {moved:.3g} m/s^2 "
                       "during the window: the vehicle may have moved (the levelling is its mean)",
                       AlignmentWarning, stacklevel=2)
-    _check_pad_rate(w_mean, n, (t1, t2))
     up_b, up_t = f_mean / fm, -g_t / g0
+    _check_pad_rate(w_mean, n, (t1, t2), up_b, up_t, site, rates_in)
+    if heading_axis not in HEADING_AXES:
+        raise ValueError(f"heading_axis must be one of {HEADING_AXES}, got {heading_axis!r}")
+    axis = np.eye(3)[HEADING_AXES.index(heading_axis)]
+    tilt = math.acos(min(1.0, abs(float(axis @ up_b))))
     if heading_deg is not None:
-        if heading_axis not in HEADING_AXES:
-            raise ValueError(f"heading_axis must be one of {HEADING_AXES}, got {heading_axis!r}")
-        axis = np.eye(3)[HEADING_AXES.index(heading_axis)]
-        tilt = math.acos(min(1.0, abs(float(axis @ up_b))))
         if tilt < MIN_AXIS_TILT_RAD:
             raise ValueError(f"--heading {heading_deg:g}: body {heading_axis} axis is {math.degrees(tilt):.2f} deg "
                              "from the vertical on the pad, so its azimuth does not fix the heading: give the azimuth "
                              "of a horizontal axis (--heading-axis)")
         C = _triad(up_b, axis, up_t, _horizontal(heading_deg, site))
-        return Alignment(C, "heading", float(heading_deg) % 360.0, None, f_mean, w_mean, g0, n)
-    return _gyrocompass(w[sel], w_mean, f_mean, up_b, up_t, g0, site, n, (t1, t2))
+        return Alignment(C, "heading", float(heading_deg) % 360.0, None, f_mean, w_mean, g0, n, heading_axis)
+    if tilt < MIN_AXIS_TILT_RAD:  # its azimuth means nothing: report the most horizontal axis's
+        heading_axis = HEADING_AXES[int(np.argmin(np.abs(up_b)))]
+    return _gyrocompass(w[sel], w_mean, f_mean, up_b, up_t, g0, site, n, (t1, t2), heading_axis)
 
 
 #: A mean pad rate beyond this (2.9 deg/s, no gyro that navigates has such a bias) is warned about, rad/s.
 MAX_PAD_RATE = 0.05
+#: Rates are taken for deg/s when the pad rate divided by 57.2958 matches the Earth rate (its vertical and
+#: horizontal parts at the site) within this fraction of the Earth rate.
+DEG_S_MATCH = 0.05
 
 
-def _check_pad_rate(w_mean: np.ndarray, n: int, window: tuple[float, float]) -> None:
-    """At rest the gyros measure the Earth rate (7.3e-5 rad/s) plus their bias: warn when the mean is beyond
-    :data:`MAX_PAD_RATE`, or is about 57.3 times the Earth rate (the Earth rate in deg/s, declared rad/s)."""
+def _check_pad_rate(w_mean: np.ndarray, n: int, window: tuple[float, float], up_b: np.ndarray, up_t: np.ndarray,
+                    site: LaunchSite, rates_in: str) -> None:
+    """At rest the gyros measure the Earth rate (7.3e-5 rad/s) plus their bias.
+
+    Rates in deg/s read as rad/s give ``w = D omega_b`` with ``D = 180/pi = 57.2958``: an error when
+    the vertical and horizontal parts of ``w / D`` match the Earth rate's at the site,
+    ``|(w.u/D - omega_E sin(lat), |w_h|/D - omega_E cos(lat))| < DEG_S_MATCH omega_E``. A warning when
+    the mean is beyond :data:`MAX_PAD_RATE`, or about 57.3 times the Earth rate without that match.
+    """
+    deg = math.degrees(1.0)
     rate = float(np.linalg.norm(w_mean))
     ratio = rate / OMEGA_EARTH
-    if rate > MAX_PAD_RATE or 0.8 * math.degrees(1.0) < ratio < 1.2 * math.degrees(1.0):
-        warnings.warn(f"--align {window[0]:g} {window[1]:g}: mean body rate at rest {rate:.4g} rad/s over {n} samples, "
-                      f"{ratio:.1f} times the Earth rate {OMEGA_EARTH:.4g} rad/s: deg/s given as rad/s (57.3 times), "
-                      "a gyro bias of that size, or a vehicle not at rest", PlausibilityWarning, stacklevel=3)
+    omega_t = site.earth_rate
+    up_rate = float(omega_t @ up_t)  # omega_E sin(lat)
+    north_rate = float(np.linalg.norm(omega_t - up_rate * up_t))  # omega_E cos(lat)
+    w_up = float(w_mean @ up_b)
+    w_h = float(np.linalg.norm(w_mean - w_up * up_b))
+    match = math.hypot(w_up / deg - up_rate, w_h / deg - north_rate) / OMEGA_EARTH
+    where = f"--align {window[0]:g} {window[1]:g}: {rates_in}: mean body rate at rest {rate:.4g} rad/s over {n} samples"
+    if match < DEG_S_MATCH:
+        raise ValueError(f"{where}, {ratio:.2f} times the Earth rate {OMEGA_EARTH:.4g} rad/s: divided by 57.2958 it is "
+                         f"the Earth rate at latitude {site.lat_deg:g} deg (vertical {w_up / deg:.4g}, horizontal "
+                         f"{w_h / deg:.4g} rad/s, within {100 * match:.1f} %): the rates are in deg/s; give them in "
+                         "rad/s (multiply by pi/180)")
+    if rate > MAX_PAD_RATE or 0.8 * deg < ratio < 1.2 * deg:
+        warnings.warn(f"{where}, {ratio:.1f} times the Earth rate {OMEGA_EARTH:.4g} rad/s: deg/s given as rad/s (57.3 "
+                      "times), a gyro bias of that size, or a vehicle not at rest", PlausibilityWarning, stacklevel=3)
 
 
 def _gyrocompass(w_win: np.ndarray, w_mean: np.ndarray, f_mean: np.ndarray, up_b: np.ndarray, up_t: np.ndarray,
-                 g0: float, site: LaunchSite, n: int, window: tuple[float, float]) -> Alignment:
-    """Heading from the horizontal Earth rate; warns with how well it is known, refuses beyond 30 deg."""
+                 g0: float, site: LaunchSite, n: int, window: tuple[float, float], axis: str) -> Alignment:
+    """Heading from the horizontal Earth rate; warns with how well it is known (the azimuth of body `axis`),
+    refuses beyond 30 deg."""
     omega_t = site.earth_rate  # Earth rate in triad axes (the triad is Earth-fixed)
     north_rate = float(np.linalg.norm(omega_t - (omega_t @ up_t) * up_t))  # omega_E cos(lat)
     noise = float(np.linalg.norm(w_win.std(axis=0, ddof=1)) / math.sqrt(n))  # std of the mean rate, white noise
     C = _triad(up_b, w_mean, up_t, omega_t)
     mismatch = float(np.linalg.norm(w_mean - C.T @ omega_t))  # what the Earth rate does not explain: a bias bound
     std = math.hypot(noise, mismatch) / north_rate
-    x_t = C[:, 0]
-    heading = _azimuth(x_t, site)
+    heading = _azimuth(C[:, HEADING_AXES.index(axis)], site)
     t1, t2 = window
     if std > GYROCOMPASS_LIMIT_RAD:
         raise ValueError(f"--align {t1:g} {t2:g}: the gyros cannot find north (mean rate {np.linalg.norm(w_mean):.3g} "
                          f"rad/s against the Earth rate {OMEGA_EARTH:.4g} rad/s, {north_rate:.3g} of it horizontal; "
                          f"the heading would be known to about {math.degrees(std):.0f} deg): give --heading")
-    warnings.warn(f"heading by gyrocompassing over --align {t1:g} {t2:g}: body x at azimuth {heading:.2f} deg, known "
-                  f"to about {math.degrees(std):.2g} deg (noise of the mean rate {noise:.3g} rad/s, Earth-rate "
+    warnings.warn(f"heading by gyrocompassing over --align {t1:g} {t2:g}: body {axis} at azimuth {heading:.2f} deg, "
+                  f"known to about {math.degrees(std):.2g} deg (noise of the mean rate {noise:.3g} rad/s, Earth-rate "
                   f"mismatch {mismatch:.3g} rad/s, against the horizontal Earth rate {north_rate:.4g} rad/s); an "
                   f"unseen horizontal gyro bias of 1 deg/h adds "
                   f"{math.degrees(math.radians(1 / 3600) / north_rate):.2g} deg; give --heading if it is known",
                   AlignmentWarning, stacklevel=3)
-    return Alignment(C, "gyrocompass", heading, math.degrees(std), f_mean, w_mean, g0, n)
+    return Alignment(C, "gyrocompass", heading, math.degrees(std), f_mean, w_mean, g0, n, axis)

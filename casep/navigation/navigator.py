@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from casep.frames import LaunchSite
-from casep.navigation.imu import ImuData
+from casep.navigation.imu import DTHETA_COLUMNS, RATE_COLUMNS, ImuData
 from casep.navigation.result import NavigationResult
 
 __all__ = ["navigate", "navigate_from"]
@@ -46,7 +46,9 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
 
     if not isinstance(site, LaunchSite):
         raise TypeError(f"`site` must be a casep.frames.LaunchSite, got {type(site).__name__}")
-    alignment = align(imu.t, imu.w, imu.f, align_window, site, heading_deg=heading_deg, heading_axis=heading_axis)
+    cols = ", ".join(DTHETA_COLUMNS if imu.kind == "increments" else RATE_COLUMNS)
+    alignment = align(imu.t, imu.w, imu.f, align_window, site, heading_deg=heading_deg, heading_axis=heading_axis,
+                      rates_in=f"{imu.source}, columns {cols}")
     t_s = imu.t[np.searchsorted(imu.t, align_window[0])][None]
     r0, v0 = ecef_to_launch(site, t_s, site.r_site[None, :], np.zeros((1, 3)))
     axes_e = (site.C @ alignment.C_tb).T  # rows: the body axes in ECEF at rest on the pad

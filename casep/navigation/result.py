@@ -123,8 +123,8 @@ class NavigationResult:
         return "\n".join(lines)
 
     def _alignment_lines(self, a: Alignment) -> list[str]:
-        head = (f"heading given: body axis at {a.heading_deg:.3f} deg" if a.method == "heading" else
-                f"heading by gyrocompassing: body x at {a.heading_deg:.2f} deg, known to about "
+        head = (f"heading given: body {a.heading_axis} at {a.heading_deg:.3f} deg" if a.method == "heading" else
+                f"heading by gyrocompassing: body {a.heading_axis} at {a.heading_deg:.2f} deg, known to about "
                 f"{a.heading_std_deg:.2g} deg")
         up = a.f_mean / np.linalg.norm(a.f_mean)
         return [f"  alignment  {self.align_window[0]:g} .. {self.align_window[1]:g} s ({a.rows} samples): |f| = "

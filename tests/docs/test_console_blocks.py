@@ -56,14 +56,10 @@ REWRITES: dict[str, tuple[str | None, str]] = {
 #: page that shows them (per test process), with the reason.
 RUN_ONCE = {"casep demo --rate 10": "it simulates its own flight and writes only casep-demo/; three pages show it"}
 
-#: Files a page tells the reader to write (its own examples of their format), present for every page.
-READER_FILES: dict[str, str] = {
-    # radar.md, "Station file": its example, and a second station 80 km from it
-    "S1.json": '{"name": "S1", "lat": 28.9, "lon": -80.0, "h": 20.0}\n',
-    "S2.json": '{"name": "S2", "lat": 28.3, "lon": -79.5, "h": 10.0}\n',
-    # radar.md, "Simulation": the station errors to simulate, in the tracking model's units
-    "trk.json": '{"S1": {"range_bias": 5, "azimuth_bias": 20}, "S2": {"time_bias": 2}}\n',
-}
+#: Files a page tells the reader to write and shows in full, present for every page (each content must
+#: stand verbatim on a page: a file the page does not show would hide a command the reader cannot run).
+#: The radar page writes its station files itself, in its simulation block.
+READER_FILES: dict[str, str] = {}
 #: A page's own flight: `flight.csv` in a command is the reader's flight; here the shipped one.
 READER_COPIES = {"flight.csv": ROOT / "examples" / "data" / "example_flight.csv"}
 #: Warnings a page's command may print, each with the reason; any other fails (a documented command that
@@ -231,6 +227,12 @@ def test_every_rewrite_and_first_block_is_used():
     for page, (first, _) in RUN_FIRST.items():
         (path,) = [p for p in PAGES if p.name == page]
         assert any(first in c for c in blocks(path)[0][0].commands), f"{page}: no block with {first!r}"
+
+
+def test_every_reader_file_is_shown_in_full_on_a_page():
+    text = "\n".join(p.read_text(encoding="utf-8") for p in PAGES)
+    hidden = [name for name, content in READER_FILES.items() if content.strip() not in text]
+    assert not hidden, f"files the test writes that no page shows in full: {hidden}"
 
 
 def test_a_console_block_holds_no_placeholder():

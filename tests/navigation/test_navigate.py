@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import warnings
 
 import numpy as np
@@ -93,6 +94,34 @@ def test_gyrocompassing_finds_the_heading_and_says_how_well(rng):
         navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 100.0))
 
 
+def _azimuth_of(C_tb: np.ndarray, i: int) -> float:
+    a_t = C_tb[:, i]  # triad: x at the site azimuth, y up, z 90 deg clockwise of x
+    return (SITE.azimuth_deg + math.degrees(math.atan2(a_t[2], a_t[0]))) % 360.0
+
+
+def test_gyrocompassing_reports_the_azimuth_of_a_horizontal_axis(capsys):
+    # body x 1 deg from the vertical (tilted towards body y), z horizontal; triad y is up
+    C = (Rotation.from_euler("y", 35.0, degrees=True) * Rotation.from_euler("z", 89.0, degrees=True)).as_matrix()
+    assert abs(C[1, 0]) > math.cos(math.radians(1.01)) and abs(C[1, 2]) < 1e-12
+    t, w, f = _stationary(100.0, 30.0, C_tb=C)
+    with pytest.warns(AlignmentWarning, match=r"body z at azimuth") as rec:
+        res = navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 20.0))
+    a = res.alignment
+    assert a.heading_axis == "z" and a.to_dict()["heading_axis"] == "z"
+    assert a.heading_deg == pytest.approx(_azimuth_of(C, 2), abs=1e-6)
+    assert f"{a.heading_deg:.2f} deg" in str(rec[0].message)
+    assert f"body z at {a.heading_deg:.2f} deg" in res.text()
+    # the axis named is reported when its azimuth means something
+    with pytest.warns(AlignmentWarning, match=r"body y at azimuth"):
+        res = navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 20.0), heading_axis="y")
+    assert res.alignment.heading_axis == "y"
+    assert res.alignment.heading_deg == pytest.approx(_azimuth_of(C, 1), abs=1e-6)
+    # fed back as --heading with that axis, it gives the same attitude
+    again = navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 20.0), heading_deg=res.alignment.heading_deg,
+                     heading_axis="y")
+    np.testing.assert_allclose(again.alignment.C_tb, C, atol=1e-9)
+
+
 def test_alignment_refuses_what_is_not_at_rest_in_m_s2():
     t, w, f = _stationary(100.0, 30.0)
     with pytest.raises(ValueError, match=r"9\.82.*in g: give m/s\^2") as e:
@@ -126,10 +155,46 @@ def test_rates_in_deg_s_are_caught():
     w[500:, 0] = 40.0
     with pytest.warns(PlausibilityWarning, match="2292 deg/s"):
         check_imu(ImuData(t, w, f))
-    # a stationary record in deg/s: the pad rate is 57.3 times the Earth rate
+
+
+def test_a_pad_record_in_deg_s_is_an_error_naming_columns_ratio_and_fix(tmp_path, capsys):
+    # at rest the gyros read the Earth rate: in deg/s declared rad/s, 57.2958 times it, in its direction
     t, w, f = _stationary(100.0, 20.0)
-    with pytest.warns(PlausibilityWarning, match=r"0\.004178 rad/s over 1001 samples, 57\.3 times the Earth rate"):
-        navigate(check_imu(ImuData(t, np.degrees(w), f)), SITE, (0.0, 10.0), heading_deg=10.0)
+    for increments, cols in ((False, "w_x, w_y, w_z"), (True, "dth_x, dth_y, dth_z")):
+        _write_imu(tmp_path / "imu.csv", t, np.degrees(w), f, increments)
+        with pytest.raises(ValueError) as e:
+            navigate(read_imu(tmp_path / "imu.csv"), SITE, (0.0, 10.0))
+        assert f"imu.csv, columns {cols}" in str(e.value)
+        assert re.search(r"57\.\d\d times the Earth rate.*in deg/s; give them in rad/s", str(e.value))
+    # the command: exit 2, the message on stderr, nothing written
+    _write_imu(tmp_path / "imu.csv", t, np.degrees(w), f)
+    site = [str(v) for v in (SITE.lat_deg, SITE.lon_deg, SITE.h_m, SITE.azimuth_deg)]
+    out = tmp_path / "tel.csv"
+    assert main(["navigate", str(tmp_path / "imu.csv"), "--launch-site", *site, "--launch-time", "100", "--align",
+                 "0", "10", "--heading", "10", "--heading-axis", "y", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "columns w_x, w_y, w_z" in err and "57.30 times the Earth rate" in err and "rad/s" in err
+    assert not out.exists()
+    # the same rate in rad/s: the right solution
+    _write_imu(tmp_path / "imu.csv", t, w, f)
+    res = navigate(read_imu(tmp_path / "imu.csv"), SITE, (0.0, 10.0), heading_deg=_heading_of_x())
+    assert res.pad_drift() < 1e-6
+
+
+def test_a_pad_rate_near_57_times_the_earth_rate_in_another_direction_is_only_warned_about():
+    t, _, f = _stationary(100.0, 20.0)
+    up_t = -(SITE.C.T @ normal_gravity_ecef(SITE.r_site))
+    up_t /= np.linalg.norm(up_t)
+    north_t = SITE.earth_rate - (SITE.earth_rate @ up_t) * up_t
+    # 57.3 times the Earth rate in magnitude, all of it horizontal: not the Earth rate in deg/s
+    w_t = math.degrees(1.0) * 7.292115e-5 * north_t / np.linalg.norm(north_t)
+    w = np.tile(C_TB.T @ w_t, (len(t), 1))
+    with pytest.warns(PlausibilityWarning, match=r"57\.3 times the Earth rate.*deg/s given as rad/s"):
+        navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 10.0), heading_deg=_heading_of_x())
+    # 50 times the Earth rate in its direction: beyond the 5 % match, a warning
+    _, w, _ = _stationary(100.0, 20.0)
+    with pytest.warns(PlausibilityWarning, match=r"50\.0 times the Earth rate"):
+        navigate(check_imu(ImuData(t, 50.0 * w, f)), SITE, (0.0, 10.0), heading_deg=_heading_of_x())
 
 
 def _write_imu(path, t, w, f, increments=False):
