@@ -34,7 +34,22 @@ class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (exit 2) and that refuses a one-value option given twice."""
 
     def error(self, message: str) -> NoReturn:  # one line, exit 2
+        # "argument --sigma: option --sigma (`sigma`) must be ...": the option's own message names it already
+        head, sep, rest = message.partition(": ")
+        if sep and head.startswith("argument ") and rest.startswith("option "):
+            message = rest
         self.exit(2, f"{self.prog}: error: {message}\n")
+
+    def _check_value(self, action: argparse.Action, value: Any) -> None:
+        """A value outside an option's choices, in the one message form of an option error
+        (:func:`casep.estimators.registry.refusal`): ``option --robust (`robust`) must be auto | none | ...``."""
+        if action.choices is not None and action.option_strings and value not in action.choices:
+            from casep.estimators.registry import refusal
+
+            flag = max(action.option_strings, key=len)
+            raise argparse.ArgumentError(action, str(refusal(action.dest, flag, " | ".join(map(str, action.choices)),
+                                                             value)))
+        super()._check_value(action, value)
 
     def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
         given = self._given(sys.argv[1:] if args is None else list(args))

@@ -89,7 +89,7 @@ def test_spec_is_frozen_and_decides_who_owns_tau():
 
 
 def test_noise_kinds_flow_from_the_noise_module():
-    """The noise kind is checked by casep.noise.model.check_noise_kind: every kind it knows is accepted."""
+    """The noise kind is checked against casep.noise.model.NOISE_KINDS: every kind it knows is accepted."""
     from casep.noise.model import NOISE_KINDS
 
     for kind in NOISE_KINDS:
