@@ -265,8 +265,8 @@ def test_gls_tau_range_api_same_message(paper_problem, platform36, capsys, good_
         casep.solve_gls(S, y, t, tau=float(value), names=platform36.names)
     with pytest.raises(SystemExit):
         main(["separate", str(good_csv), "--method", "gls", "--tau", value])
-    assert str(e.value).startswith("`tau` must be")  # same range: test_registry_rules_are_the_solvers_ranges
-    assert f"argument --tau: must be {OPTIONS['tau'].rule}, got '{value}'" in capsys.readouterr().err
+    assert str(e.value).startswith("option --tau (`tau`) must be")  # see test_registry_rules_are_the_solvers_ranges
+    assert f"error: option --tau (`tau`) must be {OPTIONS['tau'].rule}, got '{value}'" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("option, value", [("sigma", 1e3), ("weight", 1e-12), ("weight", 1e12), ("p0", 1e30)])
