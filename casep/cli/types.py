@@ -13,7 +13,7 @@ from typing import Any, Callable
 from casep.estimators.registry import CoefficientTable, Interval, Option, option_label
 
 __all__ = ["positive_float", "finite_float", "order", "positive_int", "rate", "ranged", "time_offset", "rule_type",
-           "metavar"]
+           "metavar", "choice_refusal"]
 
 
 def _number(text: str) -> float:
@@ -100,6 +100,15 @@ def time_offset(text: str) -> float | str:
     if not math.isfinite(v) or abs(v) > 1e5:
         raise argparse.ArgumentTypeError(f"must be a finite number of milliseconds within +-1e5, got {text!r}")
     return v * 1e-3  # ms -> s
+
+
+def choice_refusal(action: argparse.Action, value: Any) -> str:
+    """A value outside an option's choices, in the one form of a refused option
+    (:func:`casep.exceptions.refusal`): ``option --robust (`robust`) must be auto | none | ..., got 'x'``."""
+    from casep.exceptions import refusal
+
+    flag = max(action.option_strings, key=len)
+    return str(refusal(action.dest, flag, " | ".join(map(str, action.choices or ())), value))
 
 
 def rule_type(option: Option, rules: Any = None) -> Callable[[str], Any]:
