@@ -1,10 +1,14 @@
-"""casep's warning classes (errors are ValueError/TypeError subclasses next to their modules)."""
+"""casep's warning classes (errors are ValueError/TypeError subclasses next to their modules), and the one
+message form of a refused option (:func:`refusal`)."""
 
 from __future__ import annotations
 
+from typing import Any
+
 __all__ = ["CasepWarning", "IllConditionedWarning", "PlausibilityWarning", "NoiseFreeWarning",
            "OutlierWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning", "NoiseLevelWarning",
-           "GapWarning", "NoiseNotWhiteWarning", "ConsistencyWarning", "AlignmentWarning"]
+           "GapWarning", "NoiseNotWhiteWarning", "ConsistencyWarning", "AlignmentWarning",
+           "option_label", "refusal"]
 
 
 class CasepWarning(UserWarning):
@@ -66,3 +70,16 @@ class ConsistencyWarning(CasepWarning):
 class AlignmentWarning(CasepWarning):
     """A pad alignment to read with care: a heading found by gyrocompassing (the message says how well
     it is known) or a vehicle that moved during the alignment window."""
+
+
+def option_label(name: str, flag: str | None = None) -> str:
+    """How every message of a fit request names an option, by its command-line flag and API keyword:
+    ``option --lambda (`lam`)`` (`flag` defaults to ``--`` and the keyword with ``-`` for ``_``)."""
+    return f"option {flag or '--' + name.replace('_', '-')} (`{name}`)"
+
+
+def refusal(name: str, flag: str | None, rule: str, value: Any, method: str | None = None) -> ValueError:
+    """The one message form of a refused option value, in the API and on the command line:
+    ``option --lambda (`lam`) of method `ridge` must be gcv | lcurve | float > 0, got 'aic'``."""
+    of = f" of method `{method}`" if method else ""
+    return ValueError(f"{option_label(name, flag)}{of} must be {rule}, got {value!r}")

@@ -48,6 +48,7 @@ from casep.calibration.rows import (
     unit_text,
 )
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, Segment, Session
+from casep.regression.problem import rounding_level
 from casep.units import G0
 
 # The result type, the model loaders and the warnings of a calibration are names of this module too.
@@ -165,7 +166,8 @@ def _judge_positions(static: Sequence[Segment], weighting: str, Sw: np.ndarray, 
     A, b = (Sw, yw) if weighting == "positions" else (Sst, yst)
     xs = np.linalg.lstsq(A, b, rcond=None)[0]
     rr = b - A @ xs
-    rounding = np.abs(yst - Sst @ xs) <= 1e-12 * float(np.max(np.abs(u)))  # a noise-free session
+    # the noise-free rule of casep (rounding_level), residual by residual: a noise-free session misfits nowhere
+    rounding = np.abs(yst - Sst @ xs) <= rounding_level(float(np.max(np.abs(u))))
     rr[:n3][rounding] = 0.0
     warn_misfit(static, A[:n3], rr[:n3], level, sensor, "(whitened)" if weighting == "positions" else unit,
                 1.0 if weighting == "positions" else float(np.max(np.abs(u))), A)

@@ -21,6 +21,7 @@ import numpy as np
 from casep.calibration.rows import sample_steps
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Segment, Session
 from casep.exceptions import CasepWarning
+from casep.regression.problem import rounding_level
 
 __all__ = ["RotationSignWarning", "PositionMisfitWarning", "TimeGapWarning", "GRAVITY_TOLERANCE", "MISFIT_Z",
            "TURN_TOLERANCE", "check_gravity", "check_turn_angles",
@@ -247,8 +248,8 @@ def warn_misfit(static, S_static, r, level, sensor, unit, reading_scale, S_fit) 
     U, sv, _ = np.linalg.svd(S_fit, full_matrices=False)
     keep = sv > sv[0] * 1e-10 if sv.size else sv > 0
     h = np.sum(U[:, keep] ** 2, axis=1)[:S_static.shape[0]]
-    # residuals at the rounding level of the rows (a noise-free session) are no misfit
-    floor = 1e-12 * reading_scale
+    # residuals at the rounding level of the rows (a noise-free session: casep's one rule) are no misfit
+    floor = float(rounding_level(reading_scale))
     z = np.where(np.abs(r) <= floor, 0.0, r / (max(level, floor, 1e-300) * np.sqrt(np.clip(1.0 - h, 1e-12, None))))
     for k, s in enumerate(static):
         zk = z[3 * k:3 * k + 3]

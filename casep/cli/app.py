@@ -1,9 +1,9 @@
 """The ``casep`` parser and :func:`main`: one module per command (``add_parser``, ``run``), dispatched here.
 
-Exit status: 0 success, 2 bad usage or bad input (one line on stderr: argparse's, or the API's
-``ValueError``/``TypeError``/``OSError`` message, here in one place), 1 anything else, including
-a result that is not successful (``success`` false: table and JSON still written); 141 (quietly,
-like any Unix tool ended by SIGPIPE) when the reader of stdout closes early (``casep models | head -1``).
+Exit status: 0 success, 2 bad usage or bad input (one line on stderr: argparse's, or the API's ``ValueError``/
+``TypeError``/``OSError`` message, here in one place), 1 anything else, including
+a result that is not successful (``success`` false: table and JSON still written); 141 (quietly, like any Unix
+tool ended by SIGPIPE) when the reader of stdout closes early (``casep models | head -1``).
 """
 
 from __future__ import annotations
@@ -33,8 +33,15 @@ EXIT_BROKEN_PIPE = 141
 class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (exit 2) and that refuses a one-value option given twice."""
 
-    def error(self, message: str) -> NoReturn:  # one line, exit 2
-        self.exit(2, f"{self.prog}: error: {message}\n")
+    def error(self, message: str) -> NoReturn:  # one line, exit 2; "option --sigma (`sigma`) ..." names itself
+        rest = message.partition(": ")[2]  # "argument --sigma: option --sigma (`sigma`) ...": the option's own
+        self.exit(2, f"{self.prog}: error: {rest if rest.startswith('option --') else message}\n")
+
+    def _check_value(self, action: argparse.Action, value: Any) -> None:  # the one form of a refused option
+        if action.choices is not None and action.option_strings and value not in action.choices:
+            from casep.cli.types import choice_refusal  # (casep --help imports no registry)
+            raise argparse.ArgumentError(action, choice_refusal(action, value))
+        super()._check_value(action, value)
 
     def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
         given = self._given(sys.argv[1:] if args is None else list(args))
@@ -106,7 +113,6 @@ def _quiet_on_broken_pipe(run: Callable[..., int]) -> Callable[..., int]:
     The Python recipe (docs, "Note on SIGPIPE"): flush inside the guard so buffered output
     fails here, then point stdout at /dev/null so the interpreter's final flush is silent.
     """
-
     @functools.wraps(run)
     def guarded(argv: Sequence[str] | None = None) -> int:
         try:

@@ -10,10 +10,10 @@ import argparse
 import math
 from typing import Any, Callable
 
-from casep.estimators.registry import CoefficientTable, Interval, Option
+from casep.estimators.registry import CoefficientTable, Interval, Option, option_label
 
 __all__ = ["positive_float", "finite_float", "order", "positive_int", "rate", "ranged", "time_offset", "rule_type",
-           "metavar"]
+           "metavar", "choice_refusal"]
 
 
 def _number(text: str) -> float:
@@ -75,7 +75,10 @@ def ranged(name: str) -> Callable[[str], float]:
     def parse(text: str) -> float:
         from casep.estimators._base import check_positive
 
-        v = _number(text)
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{option_label(name)} must be a number, got {text!r}") from None
         try:
             checked = check_positive(name, v, allow_none=False)
             return v if checked is None else checked
@@ -99,6 +102,15 @@ def time_offset(text: str) -> float | str:
     return v * 1e-3  # ms -> s
 
 
+def choice_refusal(action: argparse.Action, value: Any) -> str:
+    """A value outside an option's choices, in the one form of a refused option
+    (:func:`casep.exceptions.refusal`): ``option --robust (`robust`) must be auto | none | ..., got 'x'``."""
+    from casep.exceptions import refusal
+
+    flag = max(action.option_strings, key=len)
+    return str(refusal(action.dest, flag, " | ".join(map(str, action.choices or ())), value))
+
+
 def rule_type(option: Option, rules: Any = None) -> Callable[[str], Any]:
     """Argparse type of a registry option: :meth:`Option.parse`, so a bad value is an error stating the rule.
 
@@ -109,8 +121,8 @@ def rule_type(option: Option, rules: Any = None) -> Callable[[str], Any]:
     def parse(text: str) -> Any:
         try:
             return opt.parse(text)
-        except ValueError as exc:  # "option `p0` (--p0) must be ...": argparse names the argument already
-            raise argparse.ArgumentTypeError(str(exc).removeprefix(f"{opt.label} ")) from None
+        except ValueError as exc:  # "option --p0 (`p0`) must be ...": the one form (Parser.error prints it alone)
+            raise argparse.ArgumentTypeError(str(exc)) from None
 
     parse.__name__ = option.name  # argparse names the type in some messages
     return parse

@@ -15,7 +15,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
-__all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "SIGMA"]
+from casep.exceptions import option_label, refusal
+
+__all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "SIGMA", "option_label", "refusal"]
+
 
 
 class Rule:
@@ -146,13 +149,12 @@ class Option:
     def refusal(self, value: Any, method: str | None = None) -> ValueError:
         """The one message form of a value the option's rules refuse (a fit request, the command line):
         ``option --lambda (`lam`) of method `ridge` must be gcv | lcurve | float > 0, got 'aic'``."""
-        of = f" of method `{method}`" if method else ""
-        return ValueError(f"{self.label}{of} must be {self.rule}, got {value!r}")
+        return refusal(self.name, self.flag, self.rule, value, method)
 
     @property
     def label(self) -> str:
         """How every message of a fit request names the option: ``option --lambda (`lam`)``."""
-        return f"option {self.flag} (`{self.name}`)"
+        return option_label(self.name, self.flag)
 
     def validate(self, value: Any, method: str | None = None) -> Any:
         """`value` if a rule accepts it, else ValueError naming the option (and method): :meth:`refusal`."""
@@ -167,26 +169,26 @@ class Option:
             return value
         intervals = [r for r in self.rules if isinstance(r, Interval)]
         if not intervals:
-            raise ValueError(f"`{self.name}` must be {self.rule}, got {value!r}")
+            raise ValueError(f"{self.label} must be {self.rule}, got {value!r}")
         iv = intervals[0]
         if iv.accepts(value):
             return int(value) if iv.kind is int else float(value)
         choices = [c for r in self.rules if isinstance(r, Choices) for c in r.values]
         if iv.kind is int:
-            raise ValueError(f"`{self.name}` must be an int {iv.bounds_text()}, got {value!r}")
+            raise ValueError(f"{self.label} must be an int {iv.bounds_text()}, got {value!r}")
         if choices and not iv.is_number(value):
             quoted = [f"'{c}'" for c in choices]
             listed = quoted[0] if len(quoted) == 1 else ", ".join(quoted[:-1]) + " or " + quoted[-1]
             sep = ", " if len(quoted) > 1 else " or "
             num = "> 0" if iv.low == 0 and not iv.low_closed else iv.bounds_text()
-            raise ValueError(f"`{self.name}` must be a number {num}{sep}{listed}, got {value!r}")
+            raise ValueError(f"{self.label} must be a number {num}{sep}{listed}, got {value!r}")
         if not iv.is_number(value):
-            raise TypeError(f"`{self.name}` must be a number, got {type(value).__name__}")
+            raise TypeError(f"{self.label} must be a number, got {type(value).__name__}")
         v = float(value)
         if iv.low is not None and iv.low >= 0 and not (math.isfinite(v) and v > 0):  # a positive quantity
-            raise ValueError(f"`{self.name}` must be finite and > 0, got {value}")
+            raise ValueError(f"{self.label} must be finite and > 0, got {value}")
         why = f" ({self.why})" if self.why else ""
-        raise ValueError(f"`{self.name}` must be {iv.bounds_text()}{why}, got {value}")
+        raise ValueError(f"{self.label} must be {iv.bounds_text()}{why}, got {value}")
 
     def parse(self, text: str) -> Any:
         """Command-line text -> a valid value (ValueError naming the rule otherwise)."""

@@ -43,6 +43,7 @@ from casep.estimators._options import (
     Rule,
     SeveralFlights,
 )
+from casep.estimators._rules import option_label, refusal
 from casep.estimators.bounded import BOUNDED
 from casep.estimators.gls import GLS
 from casep.estimators.huber import HUBER
@@ -56,7 +57,7 @@ from casep.estimators.rls import RELS, RLS
 __all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Method", "OPTIONS", "METHODS",
            "check_method_options", "describe", "run_method", "solver", "register", "unregister", "NOISE_OPTIONS",
            "option_ranges", "SIGMA", "SeveralFlights", "Labels", "Prepared", "prepare", "finish", "failed",
-           "check_magnitudes", "STATUS_SETUP"]
+           "check_magnitudes", "STATUS_SETUP", "option_label", "refusal"]
 
 #: Every estimator, in the order of ``casep methods``.
 METHODS: dict[str, Method] = {m.name: m for m in (OLS, RLS, RELS, RIDGE, BOUNDED, PCR, MAP, GLS, HUBER)}
@@ -142,7 +143,7 @@ def check_method_options(method: str, given: Mapping[str, Any]) -> None:
         naming the option, the method and its rule when a value breaks the option's rules.
     """
     if method not in METHODS:
-        raise ValueError(f"`method` must be one of {', '.join(METHODS)}, got {method!r}")
+        raise refusal("method", "--method", " | ".join(METHODS), method)
     own = set(METHODS[method].options)
     foreign = [name for name in given if name not in own]  # only these need the takers, for the message
     takers = {name: [k for k, v in METHODS.items() if name in v.options] for name in foreign}

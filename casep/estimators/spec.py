@@ -4,7 +4,7 @@ A request is built once, where it enters casep (the keywords of :func:`casep.sep
 arguments of ``casep separate``, a manifest), and checked there by one validator
 (:meth:`FitSpec.__post_init__`): the method and its options (by the registry's rules,
 :func:`casep.estimators.registry.check_method_options`), sigma, the noise kind
-(:func:`casep.noise.model.check_noise_kind`), the robust fit, the std kind, the outlier
+(:class:`casep.noise.spec.NoiseSpec`), the robust fit, the std kind, the outlier
 exclusion and the de-noising. Everything downstream (:func:`casep.workflows.solve.fit`) takes
 the spec as checked.
 
@@ -23,14 +23,18 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-import numpy as np
+from casep.exceptions import option_label, refusal
+from casep.noise.spec import (  # the noise part of the request (below the estimators: the rows take it)
+    DENOISE_CHOICES,
+    ROBUST_CHOICES,
+    STD_CHOICES,
+    NoiseSpec,
+    check_chance,
+    frozen_options,
+)
 
 __all__ = ["FitSpec", "NoiseSpec", "NOT_GIVEN", "NotGiven", "merge_options", "check_robust_method", "check_chance",
            "ROBUST_BY_THEMSELVES", "ROBUST_CHOICES", "STD_CHOICES", "DENOISE_CHOICES"]
-
-ROBUST_CHOICES = ("auto", "none", "huber", "bisquare")
-STD_CHOICES = ("model", "hac")
-DENOISE_CHOICES = ("none", "wavelet")
 
 
 class NotGiven:
@@ -55,95 +59,6 @@ class NotGiven:
 
 #: An argument the caller did not give (distinct from every value, its default included).
 NOT_GIVEN = NotGiven()
-
-
-class FrozenOptions(dict):
-    """A read-only mapping of options (a spec's parts cannot change after its check); pickles as a dict."""
-
-    def _refuse(self, *args: Any, **kwargs: Any) -> None:
-        raise TypeError("a FitSpec's options are read-only: make a new spec (dataclasses.replace)")
-
-    __setitem__ = __delitem__ = update = pop = popitem = clear = setdefault = __ior__ = _refuse  # type: ignore[assignment]
-
-    def __reduce__(self) -> tuple[Any, tuple[dict[str, Any]]]:
-        return (FrozenOptions, (dict(self),))
-
-    def __hash__(self) -> int:  # type: ignore[override]
-        return hash(tuple(sorted((k, repr(v)) for k, v in self.items())))
-
-
-def _frozen(mapping: Mapping[str, Any] | None) -> Mapping[str, Any]:
-    return FrozenOptions(mapping or {})
-
-
-@dataclass(frozen=True)
-class NoiseSpec:
-    """The noise part of a fit request (:mod:`casep.regression.rows`, :mod:`casep.noise.model`).
-
-    Attributes
-    ----------
-    kind : str
-        Noise kind, one of :data:`casep.noise.model.NOISE_KINDS` (``auto``: chosen per axis by
-        likelihood).
-    tau : float, three floats or None
-        Given Gauss-Markov correlation time(s) of the noise model, s (None: REML). A number implies
-        Gauss-Markov noise (``kind`` "auto" becomes "gm", "gmw" stays; "white" is an error).
-    robust : {"auto", "huber", "bisquare"} or None
-        Robust fit (None: never).
-    std : {"model", "hac"}
-        What the std are: the noise model's, or Newey-West (white-noise least squares).
-    exclude_outliers : float or None
-        Remove the samples flagged at this family-wise false-alarm chance and fit again.
-    denoise : {"wavelet"} or None
-        De-noise dv first (:func:`casep.noise.denoise.denoise`); the noise model is then white
-        and no robust fit runs (the de-noised residuals are no noise sample).
-    wavelet_options : mapping
-        Keywords of :func:`casep.noise.denoise.denoise`.
-    """
-
-    kind: str = "auto"
-    tau: Any = None
-    robust: str | None = "auto"
-    std: str = "model"
-    exclude_outliers: float | None = None
-    denoise: str | None = None
-    wavelet_options: Mapping[str, Any] = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        from casep.noise.model import check_noise_kind, check_tau
-
-        set_ = object.__setattr__  # frozen: the normal form is set once, here
-        check_noise_kind(self.kind)
-        if self.robust is not None and self.robust not in ROBUST_CHOICES:
-            raise ValueError(f"`robust` must be one of {', '.join(ROBUST_CHOICES)} or None, got {self.robust!r}")
-        if self.robust == "none":
-            set_(self, "robust", None)
-        if self.std not in STD_CHOICES:
-            raise ValueError(f"`std` must be one of {', '.join(STD_CHOICES)}, got {self.std!r}")
-        check_chance("exclude_outliers", self.exclude_outliers)
-        if self.denoise is not None and self.denoise not in DENOISE_CHOICES:
-            raise ValueError(f"`denoise` must be 'none' or 'wavelet', got {self.denoise!r}")
-        if self.denoise == "none":
-            set_(self, "denoise", None)
-        set_(self, "wavelet_options", _frozen(self.wavelet_options))
-        if self.wavelet_options and self.denoise != "wavelet":
-            raise ValueError("`wavelet_options` given without `denoise='wavelet'`")
-        if isinstance(self.tau, str) and self.tau == "auto":
-            set_(self, "tau", None)  # REML: as when not given
-        check_tau(self.tau)  # the noise model's own rule for a correlation time, checked here, at the edge
-        if isinstance(self.tau, (list, np.ndarray)):
-            set_(self, "tau", tuple(float(v) for v in np.ravel(self.tau)))  # a value: hashable, unchanged
-        if self.tau is not None:
-            if self.kind == "white":
-                raise ValueError("`tau` given with noise 'white': a correlation time means noise 'gm'")
-            set_(self, "kind", "gmw" if self.kind == "gmw" else "gm")  # gmw: the white part still by REML
-        if self.denoise == "wavelet":
-            if self.kind in ("gm", "gmw") or self.robust not in (None, "auto") or self.exclude_outliers is not None \
-                    or self.std != "model":
-                raise ValueError("`denoise='wavelet'` removes the noise a noise model, a robust fit or HAC std "
-                                 "describe: use them without de-noising")
-            set_(self, "kind", "white")  # the de-noised residuals are no noise sample to fit a model on
-            set_(self, "robust", None)
 
 
 @dataclass(frozen=True)
@@ -182,19 +97,20 @@ class FitSpec:
 
         set_ = object.__setattr__
         if self.method not in METHODS:
-            raise ValueError(f"`method` must be one of {', '.join(METHODS)}, got {self.method!r}")
+            raise refusal("method", None, " | ".join(METHODS), self.method)
         if not isinstance(self.noise, NoiseSpec):
-            raise TypeError(f"`noise` must be a NoiseSpec, got {type(self.noise).__name__}")
+            raise TypeError(f"{option_label('noise')} of a FitSpec must be a NoiseSpec, "
+                            f"got {type(self.noise).__name__}")
         meth = METHODS[self.method]
         opts = {k: v for k, v in dict(self.options).items() if v is not None and v is not NOT_GIVEN}
         noise = self.noise
         if "tau" in opts and "tau" not in meth.options:  # not the method's own: the noise model's
             if noise.tau is not None:
-                raise ValueError("option `tau` given both as the method's option and the noise model's")
+                raise ValueError(f"{option_label('tau')} given both as the method's option and the noise model's")
             noise = dataclasses.replace(noise, tau=opts.pop("tau"))
         elif "tau" in meth.options and noise.tau is not None:  # the method's own (gls: one tau)
             if "tau" in opts:
-                raise ValueError("option `tau` given both as the method's option and the noise model's")
+                raise ValueError(f"{option_label('tau')} given both as the method's option and the noise model's")
             opts["tau"] = noise.tau
             noise = dataclasses.replace(noise, tau=None)
         check_method_options(self.method, opts)  # the registry's rules: the one check of the options
@@ -202,7 +118,8 @@ class FitSpec:
         for k, v in keywords.items():
             if k not in {o.name for o in meth.keywords}:
                 takers = [n for n, m in METHODS.items() if k in {o.name for o in m.keywords}]
-                raise ValueError(f"`{k}` is not taken by method `{self.method}`; it is a keyword of "
+                label = METHODS[takers[0]].option(k).label if takers else option_label(k)
+                raise ValueError(f"{label} is not taken by method `{self.method}`; it is a keyword of "
                                  f"{', '.join(takers) or 'no method'}. Use: method={takers[0] if takers else '...'!r}, "
                                  "or leave it out")
             keywords[k] = meth.option(k).check(v)
@@ -210,8 +127,8 @@ class FitSpec:
             set_(self, "sigma", SIGMA.check(self.sigma))
         check_chance("outliers", self.outliers)
         _check_noise_for(meth, noise)
-        set_(self, "options", _frozen(opts))
-        set_(self, "keywords", _frozen(keywords))
+        set_(self, "options", frozen_options(opts))
+        set_(self, "keywords", frozen_options(keywords))
         set_(self, "noise", noise)
 
     @classmethod
@@ -237,13 +154,13 @@ class FitSpec:
         keywords = {k: all_opts.pop(k) for k in list(all_opts) if k in kw_names}
         for k in all_opts:
             if k not in OPTIONS:
-                raise ValueError(f"unknown option `{k}`: no registered method takes it; the options are "
+                raise ValueError(f"unknown {option_label(k)}: no registered method takes it; the options are "
                                  f"{', '.join(OPTIONS)}")
         if isinstance(tau, str) and tau == "auto":
             tau = None
         if tau is not None and meth is not None and "tau" in meth.options:
             if "tau" in all_opts:
-                raise ValueError("option `tau` given both as a keyword and in `options`")
+                raise ValueError(f"{option_label('tau')} given both as a keyword and in `options`")
             all_opts["tau"], tau = tau, None
         if isinstance(all_opts.get("tau"), str) and all_opts["tau"] == "auto" and (meth is None or
                                                                                     "tau" not in meth.options):
@@ -266,17 +183,8 @@ def merge_options(options: Mapping[str, Any] | None, keywords: Mapping[str, Any]
     given = {k: v for k, v in keywords.items() if v is not NOT_GIVEN}
     both = sorted(set(options or {}) & set(given))
     if both:
-        raise ValueError(f"option(s) {', '.join(f'`{k}`' for k in both)} given both as a keyword and in `options`")
+        raise ValueError(f"{', '.join(option_label(k) for k in both)} given both as a keyword and in `options`")
     return {**dict(options or {}), **given}
-
-
-def check_chance(name: str, value: Any) -> None:
-    """A family-wise false-alarm chance of the outlier flags (`outliers`, `exclude_outliers`): None or in (0, 1)."""
-    if value is None:
-        return
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not 0.0 < float(value) < 1.0:
-        raise ValueError(f"`{name}` must be a false-alarm chance in (0, 1) (e.g. 0.01), got {value!r}")
 
 
 #: Methods robust by themselves: a robust filter in front of one is refused (the glitches weighed twice).
@@ -286,8 +194,9 @@ ROBUST_BY_THEMSELVES = ("huber",)
 def check_robust_method(method: str, robust: str | None) -> None:
     """Refuse a robust fit (`robust` huber or bisquare) in front of a method that is robust by itself."""
     if method in ROBUST_BY_THEMSELVES and robust not in (None, "auto", "none"):
-        raise ValueError(f"`robust={robust!r}` with method `{method}`: Huber's M-estimator is robust already (it "
-                         "down-weights large residuals itself; a robust filter in front of it would weigh the glitches "
+        raise ValueError(f"{option_label('robust')} {robust!r} with method `{method}`: Huber's M-estimator is "
+                         "robust already (it down-weights large residuals itself; a robust filter in front of it "
+                         "would weigh the glitches "
                          f"twice). Use: robust 'none' or 'auto' with method `{method}`, or another method with robust "
                          f"{robust!r}")
 
@@ -304,9 +213,10 @@ def _check_noise_for(meth: Any, noise: NoiseSpec) -> None:
             raise ValueError(f"method `{meth.name}` assumes Gauss-Markov noise: noise 'white' contradicts it "
                              "(use method ols)")
         if noise.std != "model":
-            raise ValueError(f"method `{meth.name}` takes no `std`: HAC std are for white-noise least squares "
-                             "(method ols)")
+            raise ValueError(f"method `{meth.name}` takes no {option_label('std')}: HAC std are for white-noise "
+                             "least squares (method ols)")
     elif noise.std == "hac" and (noise.kind != "white" or not meth.hac):
         hac = ", ".join(k for k, m in METHODS.items() if m.hac)
-        raise ValueError(f"`std='hac'` is the Newey-West std of a white-noise least-squares fit: use it with "
-                         f"method {hac} and noise 'white' (in coloured noise, noise 'auto' or 'gm' gives honest std)")
+        raise ValueError(f"{option_label('std')} 'hac' is the Newey-West std of a white-noise least-squares fit: "
+                         f"use it with method {hac} and noise 'white' (in coloured noise, noise 'auto' or 'gm' gives "
+                         "honest std)")

@@ -26,11 +26,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from casep.noise.fit import fit_noise
-from casep.noise.model import NoiseModel, check_noise_kind
+from casep.noise.model import NoiseModel
 from casep.noise.robust import robust_filter
+from casep.noise.spec import NoiseSpec
 from casep.regression.problem import NOISE_FREE, Problem  # NOISE_FREE re-exported: the one noise-free constant
 
-__all__ = ["Rows", "prepare_rows", "NOISE_FREE", "ROBUST_CHOICES", "GLITCH_SIGMAS"]
+__all__ = ["Rows", "prepare_rows", "NOISE_FREE", "GLITCH_SIGMAS"]
 
 _MAX_ROBUST_ITER = 12
 _MAX_EXCLUDE_PASSES = 6
@@ -104,7 +105,6 @@ GLITCH_MIN = 3
 #: Gaussian noise gives with P = 1.6e-23 per value (3e-18 on a 200 s, 20 Hz flight). A few 3 m/s glitches
 #: in 0.1 m/s noise (|u| ~ 30) stay below the count of rejections that engages the fit, but bias it.
 GLITCH_GROSS = 10.0
-ROBUST_CHOICES = ("auto", "none", "huber", "bisquare")
 
 
 def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int]:
@@ -121,7 +121,7 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int]:
     return int((~rw.keep).sum()), float(expected), gross
 
 
-def prepare_rows(problem: Problem, noise: str = "auto", tau=None, robust: str | None = "auto",
+def prepare_rows(problem: Problem, noise: str | NoiseSpec = "auto", tau=None, robust: str | None = "auto",
                  exclude_outliers: float | None = None) -> Rows:
     """The noise model, robust weights and removed samples of a problem (module notes).
 
@@ -129,7 +129,9 @@ def prepare_rows(problem: Problem, noise: str = "auto", tau=None, robust: str | 
     ----------
     problem : Problem
         Raw rows ``(N, 3)`` with their times.
-    noise : {"auto", "gm", "gmw", "white"}
+    noise : {"auto", "gm", "gmw", "white"} or NoiseSpec
+        The noise kind; or a whole noise request (its tau, robust and exclude_outliers are then taken and
+        the other arguments ignored). Checked by :class:`casep.noise.spec.NoiseSpec`, the request's one check.
     tau : float, three floats or None
         Given Gauss-Markov correlation time(s), s (``noise="gm"``).
     robust : {"auto", None, "none", "huber", "bisquare"}
@@ -140,10 +142,9 @@ def prepare_rows(problem: Problem, noise: str = "auto", tau=None, robust: str | 
     exclude_outliers : float, optional
         Family-wise false-alarm chance of the outlier flags whose samples are removed.
     """
-    check_noise_kind(noise)
-    if robust is not None and robust not in ROBUST_CHOICES:
-        raise ValueError(f"`robust` must be one of {', '.join(ROBUST_CHOICES)} or None, got {robust!r}")
-    robust = None if robust == "none" else robust
+    # the request's one check (a NoiseSpec given is checked already)
+    spec = noise if isinstance(noise, NoiseSpec) else NoiseSpec(noise, tau, robust, exclude_outliers=exclude_outliers)
+    noise, tau, robust, exclude_outliers = spec.kind, spec.tau, spec.robust, spec.exclude_outliers
     noise_free = problem.is_noise_free()  # nothing to fit a noise model or a robust filter on
     if noise != "white" and noise_free:
         nm = dataclasses.replace(NoiseModel.white(), kind=noise, rule="noise-free data: white")

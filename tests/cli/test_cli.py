@@ -168,6 +168,13 @@ def test_bad_option_files_exit_2(good_csv, tmp_path, capsys, content, args, expe
     assert not out.exists()
 
 
+def _one_form(expect: str) -> str:
+    """``argument --lambda: must be ...`` in the one form of a refused option: ``option --lambda (`lam`) must ...``."""
+    flag, rest = expect.removeprefix("argument ").split(": ", 1)
+    name = next(o.name for o in OPTIONS.values() if o.flag == flag)
+    return f"error: option {flag} (`{name}`) {rest}"
+
+
 @pytest.mark.parametrize("args, expect", [  # the argparse type is the registry's rule (Option.parse)
     (["--method", "rls", "--forgetting", "1.5"], "argument --forgetting: must be float in [0.5, 1], got '1.5'"),
     (["--method", "rls", "--p0", "-1"], "argument --p0: must be float in (0, 1e+30], got '-1'"),
@@ -180,7 +187,7 @@ def test_bad_option_files_exit_2(good_csv, tmp_path, capsys, content, args, expe
 def test_bad_option_values_exit_2(good_csv, capsys, args, expect):
     with pytest.raises(SystemExit) as e:
         main(["separate", str(good_csv), *args])
-    assert e.value.code == 2 and expect in capsys.readouterr().err
+    assert e.value.code == 2 and _one_form(expect) in capsys.readouterr().err
 
 
 def test_missing_required_option_files(good_csv, capsys):
@@ -189,7 +196,7 @@ def test_missing_required_option_files(good_csv, capsys):
     with pytest.raises(SystemExit) as e:  # refused by the registry's rule as the argparse type
         main(["separate", str(good_csv), "--method", "rels", "--noise-order", "0"])
     assert e.value.code == 2
-    assert "argument --noise-order: must be int >= 1, got '0'" in capsys.readouterr().err
+    assert "error: option --noise-order (`noise_order`) must be int >= 1, got '0'" in capsys.readouterr().err
 
 
 # --- option values are finite and in a plausible range -----------------------
@@ -219,10 +226,10 @@ def test_out_of_range_option_exit_2_one_line(good_csv, capsys, option, value, co
     err = capsys.readouterr().err
     assert e.value.code == 2 and err.count("\n") == 1
     if option == "sigma":  # a common option: the solvers' check and message
-        assert f"argument --{option}: `{option}` must be" in err
+        assert f"error: option --{option} (`{option}`) must be" in err
     else:  # a method option: the registry's rule (diagnose --tau: its number rule only)
         rule = " | ".join(str(r) for r in OPTIONS[option].rules if command == "separate" or isinstance(r, Interval))
-        assert f"argument --{option}: must be {rule}, got '{value}'" in err
+        assert f"error: option --{option} (`{option}`) must be {rule}, got '{value}'" in err
 
 
 @pytest.mark.parametrize("option, value", sorted({(o, v) for o, v, _, _ in _RANGE_CASES if o != "tau"}))
@@ -235,7 +242,7 @@ def test_out_of_range_option_api_same_message(paper_problem, platform36, capsys,
     with pytest.raises(ValueError) as e:
         casep.solve_rls(S, y, **{**kw, option: float(value)}, names=platform36.names)
     api = str(e.value)
-    assert api.startswith(f"`{option}` must be")
+    assert api.startswith(f"option --{option} (`{option}`) must be")
     with pytest.raises(SystemExit):
         main(["separate", str(good_csv), "--method", "rls", f"--{option}", value])
     err = capsys.readouterr().err
@@ -265,8 +272,8 @@ def test_gls_tau_range_api_same_message(paper_problem, platform36, capsys, good_
         casep.solve_gls(S, y, t, tau=float(value), names=platform36.names)
     with pytest.raises(SystemExit):
         main(["separate", str(good_csv), "--method", "gls", "--tau", value])
-    assert str(e.value).startswith("`tau` must be")  # same range: test_registry_rules_are_the_solvers_ranges
-    assert f"argument --tau: must be {OPTIONS['tau'].rule}, got '{value}'" in capsys.readouterr().err
+    assert str(e.value).startswith("option --tau (`tau`) must be")  # see test_registry_rules_are_the_solvers_ranges
+    assert f"error: option --tau (`tau`) must be {OPTIONS['tau'].rule}, got '{value}'" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("option, value", [("sigma", 1e3), ("weight", 1e-12), ("weight", 1e12), ("p0", 1e30)])

@@ -72,7 +72,8 @@ def test_worked_example_is_a_registered_method(zweighted, rng):
     S, y, t, D = _data(rng, 1.0)
     assert "zweighted" in registry.METHODS and registry.OPTIONS["z_ratio"].default == 1.0
     assert any(m["name"] == "zweighted" for m in registry.describe())
-    with pytest.raises(ValueError, match=r"`z_ratio` must be in \(0, 100\]"):  # its rule, in its public solver
+    # its rule, in its public solver
+    with pytest.raises(ValueError, match=r"option --z-ratio \(`z_ratio`\) must be in \(0, 100\]"):
         zweighted.solve_zweighted(S, y, z_ratio=500.0)
     with pytest.raises(ValueError, match="option --z-ratio .* is not taken by method `ols`"):
         casep.separate(Problem.from_arrays(S, y, t), method="ols", options={"z_ratio": 2.0})

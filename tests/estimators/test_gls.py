@@ -78,9 +78,9 @@ def test_separate_and_cli(tmp_path, capsys):
 def test_bad_arguments(paper_problem):
     S, y, _ = paper_problem
     t = np.arange(S.shape[0]) / 20.0
-    with pytest.raises(ValueError, match="`tau` must be finite and > 0"):
+    with pytest.raises(ValueError, match=r"option --tau \(`tau`\) must be finite and > 0"):
         casep.solve_gls(S, y, t, tau=-1.0)
-    with pytest.raises(ValueError, match="`tau` must be a number > 0 or 'auto'"):
+    with pytest.raises(ValueError, match=r"option --tau \(`tau`\) must be a number > 0 or 'auto'"):
         casep.solve_gls(S, y, t, tau="ml")
     with pytest.raises(ValueError, match="`t` must have"):
         casep.solve_gls(S, y, t[:-1])

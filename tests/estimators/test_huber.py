@@ -87,5 +87,5 @@ def test_huber_is_registered_and_validates(paper20):
     from casep.estimators.registry import METHODS
 
     assert "huber" in METHODS and METHODS["huber"].std_kind == "sampling"
-    with pytest.raises(ValueError, match="`c` must be"):
+    with pytest.raises(ValueError, match=r"\(`c`\) must be"):
         casep.solve_huber(S, clean, c=-1.0)

@@ -101,7 +101,7 @@ def test_bad_arguments(rng):
         casep.solve_ols(S, np.zeros(9))
     with pytest.raises(ValueError, match="`names` has 1 entries"):
         casep.solve_ols(S, np.zeros(10), names=["a"])
-    with pytest.raises(ValueError, match="`sigma` must be finite and > 0"):
+    with pytest.raises(ValueError, match=r"option --sigma \(`sigma`\) must be finite and > 0"):
         casep.solve_ols(S, np.zeros(10), sigma=-1.0)
     with pytest.raises(ValueError, match="no degree of freedom"):
         casep.solve_ols(S[:2], np.zeros(2))

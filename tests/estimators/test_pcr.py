@@ -32,5 +32,5 @@ def test_bad_arguments(paper_problem):
     S, y, _ = paper_problem
     with pytest.raises(ValueError, match="exceeds the rank"):
         casep.solve_pcr(S, y, n_components=37)
-    with pytest.raises(ValueError, match="`n_components` must be an int >= 1"):
+    with pytest.raises(ValueError, match=r"\(`n_components`\) must be an int >= 1"):
         casep.solve_pcr(S, y, n_components=0)

@@ -59,9 +59,9 @@ def test_ridge_tends_to_ols_and_std_formula(paper_problem):
 
 def test_bad_arguments(paper_problem):
     S, y, _ = paper_problem
-    with pytest.raises(ValueError, match="`lam` must be a number > 0, 'gcv' or 'lcurve'"):
+    with pytest.raises(ValueError, match=r"\(`lam`\) must be a number > 0, 'gcv' or 'lcurve'"):
         casep.solve_ridge(S, y, lam="aic")
-    with pytest.raises(ValueError, match="`lam` must be finite and > 0"):
+    with pytest.raises(ValueError, match=r"\(`lam`\) must be finite and > 0"):
         casep.solve_ridge(S, y, lam=-1.0)
-    with pytest.raises(ValueError, match="`solver` must be"):
+    with pytest.raises(ValueError, match=r"\(`solver`\) must be"):
         casep.solve_ridge(S, y, lam=1.0, solver="scs")

@@ -99,12 +99,12 @@ def test_zero_columns_stay_out(platform36, truth36):
 
 def test_bad_arguments(paper_problem):
     S, y, _ = paper_problem
-    for kw, msg in (({"p0": -1}, "`p0` must be finite and > 0"),
-                    ({"forgetting": 1.5}, r"`forgetting` must be in \[0.5, 1\]"),
-                    ({"weight": 0}, "`weight` must be finite and > 0"),
-                    ({"noise_order": -1}, "`noise_order` must be an int >= 0"),
-                    ({"residuals": "both"}, "`residuals` must be"),
-                    ({"history_stride": 0}, "`history_stride` must be")):
+    for kw, msg in (({"p0": -1}, r"\(`p0`\) must be finite and > 0"),
+                    ({"forgetting": 1.5}, r"\(`forgetting`\) must be in \[0.5, 1\]"),
+                    ({"weight": 0}, r"\(`weight`\) must be finite and > 0"),
+                    ({"noise_order": -1}, r"\(`noise_order`\) must be an int >= 0"),
+                    ({"residuals": "both"}, r"\(`residuals`\) must be"),
+                    ({"history_stride": 0}, r"\(`history_stride`\) must be")):
         with pytest.raises(ValueError, match=msg):
             casep.solve_rls(S, y, **kw)
     with pytest.raises(ValueError, match=r"must be \(N, 3, n\)"):

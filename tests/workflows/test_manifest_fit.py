@@ -69,7 +69,7 @@ def test_a_fit_option_on_the_command_line_too_is_refused(two, capsys, flags):
 @pytest.mark.parametrize("table, message", [
     ('method = "ridge"\noptions = { lam = -1.0 }', "option --lambda (`lam`) of method `ridge` must be"),
     ('method = "ols"\noptions = { p0 = 1.0 }', "option --p0 (`p0`) is not taken by method `ols`"),
-    ('method = "rls"\np0 = 1.0\noptions = { p0 = 1.0 }', "`p0` given both as a keyword and in `options`"),
+    ('method = "rls"\np0 = 1.0\noptions = { p0 = 1.0 }', "option --p0 (`p0`) given both as a keyword and in `options`"),
     ('noise = "pink"', "noise"),
 ])
 def test_a_bad_fit_table_is_refused_when_read(two, table, message):

@@ -1,0 +1,39 @@
+"""prepare_rows takes the fit request's noise part (NoiseSpec), checked by it alone: no second list of choices."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import casep.regression.rows as rows_module
+from casep.noise.spec import NoiseSpec
+from casep.regression.problem import Problem
+from casep.regression.rows import prepare_rows
+
+
+@pytest.fixture(scope="module")
+def problem():
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 60.0, 0.1)
+    S = rng.normal(size=(t.size, 3, 4))
+    y = S @ np.array([1.0, -2.0, 0.5, 3.0]) + 0.01 * rng.normal(size=(t.size, 3))
+    return Problem.from_arrays(S, y, t)
+
+
+def test_a_noise_spec_is_taken_as_checked(problem):
+    spec = NoiseSpec("white", robust="none")
+    by_spec = prepare_rows(problem, spec)
+    by_words = prepare_rows(problem, "white", robust=None)
+    assert by_spec.noise.kind == by_words.noise.kind == "white" and by_spec.robust is None
+    np.testing.assert_allclose(by_spec.solved.y, by_words.solved.y, rtol=0, atol=0)
+
+
+@pytest.mark.parametrize(("kw", "flag"), [({"robust": "tukey"}, "--robust"), ({"noise": "pink"}, "--noise"),
+                                          ({"tau": -1.0, "noise": "gm"}, "--tau")])
+def test_bad_words_are_refused_by_the_request(problem, kw, flag):
+    with pytest.raises(ValueError, match=rf"^option {flag} \(`\w+`\) must be "):
+        prepare_rows(problem, **kw)
+
+
+def test_no_second_list_of_robust_choices():
+    assert not hasattr(rows_module, "ROBUST_CHOICES")
