@@ -297,7 +297,7 @@ def _summary(reg: RadarRegression, lin: LinearisedRadar, rn: RadarNoise, res: Es
         "launch_site": reg.site.to_dict(), "telemetry": reg.telemetry.source,
         "telemetry_position": reg.telemetry.r_source, "instrument_model": reg.model.name,
         "tracking_model": reg.tracking.name, "tracking_terms": list(reg.names[reg.nD:]),
-        "noise": rn.table(), "noise_asked": rn.asked, "residual_rms": lin.group_residual_rms(x),
+        "noise": rn.group_records(), "noise_asked": rn.asked, "residual_rms": lin.group_residual_rms(x),
         "gauss_newton_steps": [float(v) for v in lin.history],
         "noise_scale": float(res.sigma), "declared_magnitudes": _scales(reg),
         "keyhole": {"elevation_deg": float(np.degrees(KEYHOLE)), "azimuth_left_out": reg.keyhole_counts},

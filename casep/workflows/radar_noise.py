@@ -140,7 +140,7 @@ class RadarNoise:
             out[s.name] = {**acc["noise"], **({"robust": acc["robust"]} if "robust" in acc else {})}
         return out
 
-    def table(self) -> list[dict]:
+    def group_records(self) -> list[dict]:
         """Per group (station and type): the noise kind, its std in natural units (Gauss-Markov and white
         parts), the correlation time, and how it was had."""
         out = []
