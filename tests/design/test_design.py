@@ -217,10 +217,10 @@ def test_cli_design_json_and_flight(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--objective", "E"], "invalid choice: 'E'"),
+    (["--objective", "E"], "option --objective (`objective`) must be "),
     (["--max-angle=-3"], "--max-angle must be > 0"),
     (["--max-rate", "0"], "--max-rate must be > 0"),
-    (["--maneuver", "roll"], "invalid choice: 'roll'"),
+    (["--maneuver", "roll"], "option --maneuver (`maneuver`) must be yaw | pitch | both, got 'roll'"),
 ])
 def test_cli_bad_input_exits_2(argv, message, capsys):
     try:

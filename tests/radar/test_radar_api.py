@@ -82,7 +82,7 @@ def test_radar_needs_site_and_a_telemetry_file_and_site_needs_radar(files):
     with pytest.raises(ValueError, match=r"`tracking_model` is used only with `radar`"):
         casep.separate(flight, tracking_model="my_radar.py")
     # tau is the noise model's (per station and type), checked by its one rule before any file is read
-    with pytest.raises(ValueError, match=r"`tau` \(x\) must be in \(0, 1e4\] s"):
+    with pytest.raises(ValueError, match=r"option --tau \(`tau`\) must be a number in \(0, 1e4\] s"):
         casep.separate(tel, radar=pairs, site=SITE, tau=-5.0)
 
 
