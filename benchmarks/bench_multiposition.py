@@ -32,12 +32,12 @@ GROUPS = {"acc misalignment": slice(0, 3), "acc scale": slice(3, 6), "acc bias":
           "gyro misalignment": slice(9, 15), "gyro scale": slice(15, 18), "gyro bias": slice(18, 21)}
 
 
-def monte_carlo(runs: int, poses: int, gm: float, seed: int) -> None:
+def monte_carlo(runs: int, poses: int, gm: float, seed: int, gm_gyr: float | None = None, tau: float = 1.0) -> None:
     z, err = [], []
     t0 = time.time()
     for r in range(runs):
         h = simulate_hand_session(poses, seed=seed + r, pause_s=0.6, wobble=True,
-                                  gm=(gm, gm / 10.0, 1.0) if gm > 0 else None)
+                                  gm=(gm, gm / 10.0 if gm_gyr is None else gm_gyr, tau) if gm > 0 else None)
         ses = Session(t=np.arange(len(h.acc)) / h.rate, acc=h.acc, gyr=h.gyr, rate=h.rate, acc_unit="m/s^2",
                       gyr_unit="rad/s")
         with warnings.catch_warnings():
@@ -48,8 +48,8 @@ def monte_carlo(runs: int, poses: int, gm: float, seed: int) -> None:
         z.append(e / cal.result.std)
         err.append(e)
     z, err = np.array(z), np.array(err)
-    print(f"{runs} sessions of {poses} poses, Gauss-Markov std {gm:g} m/s^2 ({gm / 10:g} rad/s), "
-          f"{time.time() - t0:.1f} s")
+    print(f"{runs} sessions of {poses} poses, Gauss-Markov std {gm:g} m/s^2 "
+          f"({gm / 10 if gm_gyr is None else gm_gyr:g} rad/s), tau {tau:g} s, {time.time() - t0:.1f} s")
     print(f"{'group':<18} {'RMS z':>7} {'cover95':>8} {'RMS error':>11}")
     for name, sl in GROUPS.items():
         print(f"{name:<18} {np.sqrt(np.mean(z[:, sl] ** 2)):7.3f} {np.mean(np.abs(z[:, sl]) < 1.96):8.3f} "
@@ -82,11 +82,13 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=200)
     ap.add_argument("--poses", type=int, default=30)
     ap.add_argument("--gm", type=float, default=0.0, help="Gauss-Markov std of the accelerometer, m/s^2")
+    ap.add_argument("--gm-gyr", type=float, default=None, help="Gauss-Markov std of the gyro, rad/s (default gm / 10)")
+    ap.add_argument("--tau", type=float, default=1.0, help="Gauss-Markov correlation time, s")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--mpu", type=Path, default=None, help="folder of imu0.log..imu4.log")
     a = ap.parse_args()
     if a.runs:
-        monte_carlo(a.runs, a.poses, a.gm, a.seed)
+        monte_carlo(a.runs, a.poses, a.gm, a.seed, a.gm_gyr, a.tau)
     if a.mpu:
         mpu(a.mpu)
 

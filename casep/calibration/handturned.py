@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from casep.calibration.checks import check_acc_scale, check_gyro_scale
+from casep.calibration.drift import DriftFit
 from casep.calibration.multiposition import (
     ACC_NAMES,
     GYRO_NAMES,
@@ -46,7 +47,7 @@ from casep.exceptions import CasepWarning
 from casep.results import OfEstimate
 
 __all__ = ["MultipositionCalibration", "calibrate_multiposition", "calibrate_multiposition_file", "ferraris_view",
-           "FitWarning", "SaturationWarning", "CONVENTION"]
+           "FitWarning", "SaturationWarning", "DriftWarning", "CONVENTION"]
 
 #: Poses whose gravity directions lie within this angle of their mean direction (deg) are a narrow session.
 CONE_DEG = 60.0
@@ -331,9 +332,12 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     # a physical unit is near its truth: start there (the extremes' half-range of a narrow session is not)
     afit = fit_accelerometer(means, g, counts=np.array([b - a for a, b in seg.poses]),
                              x0=np.array([0, 0, 0, 1, 1, 1, 0, 0, 0.0]) if physical else None)
+    t_pose = np.array([session.t[a:b].mean() for a, b in seg.poses])
+    n_pose = np.array([b - a for a, b in seg.poses])
+    afit, acc_drift = acc_drift_covariance(afit, means, t_pose, n_pose, session.rate)
     u0, u1 = _dirs(afit, means)
     gm = np.array([gyr[a:b].mean(axis=0) for a, b in seg.poses])
-    bias, bias_std = pose_mean_bias(gm)
+    bias, bias_std, gyr_drift = pose_mean_bias(gm, t_pose, n_pose, session.rate)
     # each sample's rate held until the next sample's time (the last: one nominal interval)
     dt = np.diff(session.t, append=session.t[-1] + 1.0 / session.rate)
     gfit = fit_gyro(gyr, session.rate, seg.motions, u0, u1, bias, bias_std=bias_std,
@@ -343,6 +347,8 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     check_gyro_swap(gfit, gyr, session, seg.motions, (u0, u1), dt)
     check_gyro_scale(gfit.x[6:9], session)
     _reissue(held)
+    drift = drift_report(acc_drift, gyr_drift, afit.std[6:9], bias_std, float(np.ptp(t_pose)), (ba_unit, bg_unit),
+                         session.source)
     if session.gyr_unit == RAW_UNIT:  # the turn inside each pose, now that the counts' scale is known
         from dataclasses import replace
 
@@ -362,7 +368,8 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
                   + ("" if afit.converged and gfit.converged else "; fit not converged")
                   + ("; the sensor saturates in a motion" if saturated else ""), ok)
     settings = {"gravity": g, "gravity_source": g_src, "rate_hz": session.rate, "source": session.source,
-                "acc_unit": session.acc_unit, "gyr_unit": session.gyr_unit, "t_column": session.t_column}
+                "acc_unit": session.acc_unit, "gyr_unit": session.gyr_unit, "t_column": session.t_column,
+                "drift": drift}
     if session.acc_unit == RAW_UNIT:
         settings["acc_full_scale"] = implied_full_scale(afit.x[3:6], afit.x[6:9], "accelerometer")
     if session.gyr_unit == RAW_UNIT:
@@ -445,21 +452,70 @@ def check_gyro_swap(gfit: GyroFit, gyr: np.ndarray, session: Session, motions: l
                      "swapped: the gyro's axes must be the accelerometer's)")
 
 
-def pose_mean_bias(gm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The gyro bias (the mean of the poses' mean readings `gm`, time order) and its std with a drift.
+def pose_mean_bias(gm: np.ndarray, t: np.ndarray, n: np.ndarray, rate: float
+                   ) -> tuple[np.ndarray, np.ndarray, DriftFit]:
+    """The gyro bias (the mean of the poses' mean readings `gm`, at times `t` s, of `n` samples at `rate` Hz)
+    and its std with a drift (:mod:`casep.calibration.drift`).
 
-    ``std_i = s_i / sqrt(m) sqrt((1 + rho) / (1 - rho))``: `s_i` the poses' scatter, `m` their number and
-    the AR(1) long-run factor of the lag-1 correlation `rho` of consecutive poses (pooled over the axes, its
-    estimate's bias ``-(1 + 3 rho) / m`` removed, clipped to [0, 0.95]): a bias that drifts slowly moves
-    neighbouring poses together, and their scatter
-    alone then understates the error of the mean.
+    ``gm_k = b + d(t_k) + white_k``, white variance ``v0 nbar / n_k``: the bias's error is the mean of the
+    drift over the poses plus the white noise's mean, ``var = v0 (1^T (W + rho D) 1) / m^2`` averaged over the
+    drift grid (each axis its ``v0``); white noise alone gives the poses' scatter over sqrt(m).
     """
+    from casep.calibration.drift import drift_grid, fit_drift
+
     m = len(gm)
-    d = gm - gm.mean(axis=0)
-    den = float(np.sum(d * d))
-    r1 = float(np.sum(d[1:] * d[:-1])) / den if den > 0 else 0.0
-    rho = min(max(r1 + (1.0 + 3.0 * r1) / m, 0.0), 0.95)  # the lag-1 estimate's small-sample bias removed
-    return gm.mean(axis=0), gm.std(axis=0, ddof=1) / math.sqrt(m) * math.sqrt((1.0 + rho) / (1.0 - rho))
+    n = np.asarray(n, dtype=float)
+    fit = fit_drift(gm - gm.mean(axis=0), np.ones((m, 1)), np.diag(np.mean(n) / n), np.ones((m, m)), t,
+                    drift_grid(t, n / rate), np.full((1, m), 1.0 / m))
+    return gm.mean(axis=0), np.sqrt(fit.covariance[:, 0, 0]), fit
+
+
+class DriftWarning(CasepWarning):
+    """The pose means drift: the biases' std holds for a drift faster than about a quarter of the session."""
+
+
+def drift_report(acc: DriftFit, gyr: DriftFit, acc_bias_std: np.ndarray, gyr_bias_std: np.ndarray, session_s: float,
+                 units: tuple[str, str], source: str) -> dict:
+    """The drift each sensor's pose means show (:mod:`casep.calibration.drift`), warned of (DriftWarning, numbers)
+    when it is most of their variance; a dict for the result's settings."""
+    from casep.calibration.drift import drift_note
+
+    out = {}
+    for key, fit, what, unit, bstd, bunit in (
+            ("accelerometer", acc, "accelerometer's misfit", "m/s^2", acc_bias_std, units[0]),
+            ("gyro", gyr, "gyro's pose means", units[1], gyr_bias_std, units[1])):
+        out[key] = {"share": fit.drift_share, "sigma_d": np.atleast_1d(fit.sigma_d).tolist(), "unit": unit,
+                    "tau_s": float(np.exp(np.sum(fit.weights * np.log(fit.taus))))}
+        note = drift_note(fit, what, unit, session_s, bstd, bunit)
+        if note:
+            warnings.warn(f"{source}: {note}", DriftWarning, stacklevel=3)
+    return out
+
+
+def acc_drift_covariance(afit: AccFit, means: np.ndarray, t: np.ndarray, n: np.ndarray, rate: float
+                         ) -> tuple[AccFit, DriftFit]:
+    """The accelerometer fit with its covariance widened by the drift its misfit shows (:mod:`casep.calibration.drift`).
+
+    Rows ``r_k = w_k (|T K (abar_k - b)| - g)``; a reading error ``e_k`` moves row k by ``w_k a_k . e_k``,
+    ``a_k = (T K)^T u_k`` (``u_k`` the calibrated gravity direction); the drift, the same process on each axis,
+    couples rows k, l by ``w_k w_l a_k . a_l exp(-|t_k - t_l| / tau)``; ``x - x_true = -J^+ r`` (J the fit's
+    weighted Jacobian at its solution).
+    """
+    from dataclasses import replace
+
+    from casep.calibration.drift import drift_grid, fit_drift
+
+    J = _jacobian(afit)
+    m = len(J)
+    n = np.asarray(n, dtype=float)
+    w = np.sqrt(n / np.mean(n))
+    v = afit.calibrate(means)
+    a = (v / np.linalg.norm(v, axis=1)[:, None]) @ acc_matrix(afit.x)  # a_k = (T K)^T u_k, one per row
+    d = np.linalg.norm(J, axis=0)
+    d[d == 0] = 1.0
+    A = np.linalg.pinv(J / d) / d[:, None]
+    fit = fit_drift(w * afit.residuals, J, np.eye(m), np.outer(w, w) * (a @ a.T), t, drift_grid(t, n / rate), A)
+    return replace(afit, covariance=fit.covariance[0]), fit
 
 
 def _drop_clipped(seg: Segmentation, session: Session, acc_range) -> Segmentation:

@@ -1,0 +1,162 @@
+"""A slow sensor drift in the std of a hand-turned calibration, estimated from the session itself.
+
+A consumer MEMS bias wanders: over a session of minutes it moves like a first-order Gauss-Markov
+process ``d(t)`` of stationary variance ``sigma_d^2`` and correlation time ``tau``. The pose means
+then carry, besides their white noise, errors correlated across poses by their time separation:
+
+    Cov(e_k, e_l) = v0 (W_kl + rho D_kl(tau)),     D_kl(tau) = S_kl exp(-|t_k - t_l| / tau)
+
+(``W`` the white noise's shape, ``S`` how the drift enters each row: 1 for a gyro pose mean,
+``w_k w_l a_k . a_l`` for the accelerometer's misfit rows, ``a_k`` the row's gradient in the
+reading). A least-squares estimate ``x = x_true + A e`` then has ``C = A Cov(e) A^T``, of which
+``v0 (A W A^T)`` (the white noise alone) is the usual ``s^2 (J^T J)^-1``.
+
+``(v0, rho, tau)`` are not known. The rows' misfit (or the series' scatter about its mean) is
+projected on the space the fit cannot absorb (``Q``, an orthonormal basis of the complement of the
+fitted columns ``X``), where its likelihood does not depend on the coefficients (REML):
+
+    l(rho, tau) = -1/2 (n log v0 + log det Q^T M Q),   v0 = y^T (Q^T M Q)^-1 y / n,   y = Q^T r
+
+(``M = W + rho D``, ``n`` = rows - columns; several series share ``rho, tau`` and each has its
+``v0``). For each ``tau`` of a grid (log-spaced from the median pose length to the session's length) ``rho`` is
+the best of a grid (0, then 1e-2..1e3 log-spaced: the profile likelihood); ``C`` is the average over
+``tau`` of those points' ``A Cov(e) A^T``, each weighted by ``exp(l)`` (flat prior in log ``tau``). White
+noise alone puts ``rho`` at or near 0 and gives the usual covariance; a drift the misfit shows widens
+it, most for the biases, whose error is the drift's common part over the session.
+
+What a session cannot show: a drift slower than the session (``tau`` near or beyond its length) is, for
+the most part, a bias the session cannot tell from the constant one; its scatter about the session's
+mean is small while its common part is up to ``sigma_d``. Seeded simulation (30 poses, ~2 minutes,
+``benchmarks/bench_multiposition.py``): the std is honest for ``tau`` up to about a quarter of the
+session; for ``tau`` near the session's length the biases' errors are up to ~1.8 times their std.
+:func:`drift_note` says so with the numbers whenever the misfit shows a drift.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["DriftFit", "fit_drift", "drift_grid", "drift_note", "null_basis", "RATIOS"]
+
+#: The drift-to-white variance ratios of the grid (0: white noise alone).
+RATIOS = np.r_[0.0, np.geomspace(1e-2, 1e3, 16)]
+
+#: Correlation times per grid (log-spaced between the median pose length and the session's length).
+N_TAU = 10
+
+#: A drift share of a pose mean's variance above which :func:`drift_note` speaks.
+DRIFT_SHARE = 0.5
+
+
+@dataclass(frozen=True)
+class DriftFit:
+    """The drift the rows show: per ``tau`` of the grid its weight, best ``rho`` and ``v0`` per series; ``C``.
+
+    ``covariance``: (k, q, q), one per series.
+    """
+
+    weights: np.ndarray
+    ratios: np.ndarray
+    v0: np.ndarray
+    taus: np.ndarray
+    covariance: np.ndarray
+
+    @property
+    def drift_share(self) -> float:
+        """The drift's share of a pose mean's variance, ``rho / (1 + rho)`` averaged over ``tau`` (0: white)."""
+        return float(np.sum(self.weights * self.ratios / (1.0 + self.ratios)))
+
+    @property
+    def sigma_d(self) -> np.ndarray:
+        """The drift's stationary std per series, ``sqrt(rho v0)`` averaged over ``tau`` (the row's unit)."""
+        return np.sqrt(np.sum(self.weights[:, None] * self.ratios[:, None] * self.v0, axis=0))
+
+
+def null_basis(X: np.ndarray, m: int) -> np.ndarray:
+    """An orthonormal basis (m, m - rank X) of the complement of the columns of `X` (column-scaled)."""
+    d = np.linalg.norm(X, axis=0)
+    d[d == 0] = 1.0
+    U, s, _ = np.linalg.svd(X / d, full_matrices=True)
+    rank = int(np.sum(s > s[0] * m * np.finfo(float).eps)) if s.size and s[0] > 0 else 0
+    return U[:, rank:]
+
+
+def drift_grid(t: np.ndarray, pose_s: np.ndarray) -> np.ndarray:
+    """Correlation times (s) of the grid: N_TAU log-spaced from the median pose length `pose_s` to the span of `t`."""
+    lo = max(float(np.median(pose_s)), 1e-3)
+    hi = max(float(np.ptp(t)), 2.0 * lo)
+    return np.geomspace(lo, hi, N_TAU)
+
+
+def fit_drift(r: np.ndarray, X: np.ndarray, W: np.ndarray, S: np.ndarray, t: np.ndarray, taus: np.ndarray,
+              A: np.ndarray) -> DriftFit:
+    """The covariance ``A Cov(e) A^T`` with the drift the rows show (module notes).
+
+    Parameters
+    ----------
+    r : (m,) or (m, k) ndarray
+        The rows' misfit (or series); the k columns share ``rho, tau`` and have their own ``v0``.
+    X : (m, p) ndarray
+        The columns the fit absorbs (projected out).
+    W, S : (m, m) ndarray
+        The white noise's shape and the drift's row coupling (``D = S exp(-|dt| / tau)``).
+    t : (m,) ndarray
+        Each row's time, s.
+    taus : (n_tau,) ndarray
+        Correlation times of the grid, s.
+    A : (q, m) ndarray
+        The estimate's sensitivity to the rows: ``x - x_true = A e``.
+    """
+    from scipy.linalg import eigh
+
+    r = np.asarray(r, dtype=float)
+    r = r[:, None] if r.ndim == 1 else r
+    m, k = r.shape
+    Q = null_basis(X, m)
+    n = Q.shape[1]
+    lag = np.abs(t[:, None] - t[None, :])
+    Wq = Q.T @ W @ Q
+    y = Q.T @ r
+    logdet_w = float(np.linalg.slogdet(Wq)[1])
+    AWA = A @ W @ A.T
+    best = np.zeros(len(taus), dtype=int)
+    ll, v0, ADA = np.full(len(taus), -np.inf), np.zeros((len(taus), k)), []
+    for j, tau in enumerate(taus):
+        D = S * np.exp(-lag / tau)
+        ADA.append(A @ D @ A.T)
+        # Q^T M Q = Wq + rho Dq, diagonal (I + rho lam) in the generalized eigenbasis V (V^T Wq V = I)
+        lam, V = eigh(Q.T @ D @ Q, Wq)
+        lam = np.clip(lam, 0.0, None)
+        z2 = (V.T @ y) ** 2  # (n, k)
+        f = 1.0 + RATIOS[:, None] * lam[None, :]  # (n_rho, n)
+        v = (1.0 / f) @ z2 / n  # (n_rho, k): v0 profiled per ratio
+        with np.errstate(divide="ignore"):
+            lr = -0.5 * (n * np.sum(np.log(v), axis=1) + k * (logdet_w + np.sum(np.log(f), axis=1)))
+        lr = np.where(np.all(v > 0, axis=1), lr, -np.inf)
+        best[j] = int(np.argmax(lr))
+        ll[j], v0[j] = lr[best[j]], v[best[j]]
+    if np.isfinite(ll).any():
+        w = np.exp(ll - np.max(ll))
+    else:  # a noise-free misfit: nothing to scale
+        w = np.r_[1.0, np.zeros(len(taus) - 1)]
+    w /= w.sum()
+    rho = RATIOS[best]
+    C = sum(w[j] * v0[j][:, None, None] * (AWA + rho[j] * ADA[j])[None] for j in range(len(taus)))
+    return DriftFit(weights=w, ratios=rho, v0=v0, taus=np.asarray(taus, dtype=float), covariance=np.asarray(C))
+
+
+def drift_note(fit: DriftFit, what: str, unit: str, session_s: float, bias_std: np.ndarray,
+               bias_unit: str) -> str | None:
+    """A sentence when the rows show a drift (share above DRIFT_SHARE): its size, and that a drift slower than the
+    session would move the biases by up to its std beyond `bias_std` (module notes); else None."""
+    if fit.drift_share < DRIFT_SHARE:
+        return None
+    sd = ", ".join(f"{v:.3g}" for v in np.atleast_1d(fit.sigma_d))
+    bs = ", ".join(f"{v:.3g}" for v in np.atleast_1d(bias_std))
+    return (f"the {what} drifts: {100 * fit.drift_share:.0f} % of a pose mean's variance is a slow drift of std "
+            f"{sd} {unit} (white noise alone: 0 %). The bias std ({bs} {bias_unit}) holds for a drift correlation time up to "
+            f"about a quarter of the session's {session_s:.0f} s; a slower drift is a bias the session cannot tell "
+            f"from the constant one and can move the bias by up to the drift's std. Use: a longer session, or an initial "
+            "static period long enough to measure the drift (Allan deviation)")
