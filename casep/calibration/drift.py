@@ -29,7 +29,13 @@ the most part, a bias the session cannot tell from the constant one; its scatter
 mean is small while its common part is up to ``sigma_d``. Seeded simulation (30 poses, ~2 minutes,
 ``benchmarks/bench_multiposition.py``): the std is honest for ``tau`` up to about a quarter of the
 session; for ``tau`` near the session's length the biases' errors are up to ~1.8 times their std.
-:func:`drift_note` says so with the numbers whenever the misfit shows a drift.
+:func:`drift_note` says so with the numbers when the misfit shows a slow drift: most of a pose mean's
+variance, most weight at ``tau`` >= a quarter of the session, and a likelihood ratio against white noise
+alone, ``-2 ln Lambda`` at the best ``(rho, tau)``, above :data:`casep.noise.model.AUTO_LR` (casep's rule
+for a richer noise kind; ``rho`` on its boundary under white noise). The std itself is always the
+average (a drift too small to be told from white noise still widens it): a test would make it the
+white-noise std whenever the test misses a real drift (seeded simulation: the biases' RMS z 1.25-1.8
+instead of 0.9-1.2).
 """
 
 from __future__ import annotations
@@ -37,6 +43,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from casep.noise.model import AUTO_LR
 
 __all__ = ["DriftFit", "fit_drift", "drift_grid", "drift_note", "null_basis", "RATIOS"]
 
@@ -46,13 +54,16 @@ RATIOS = np.r_[0.0, np.geomspace(1e-2, 1e3, 16)]
 #: Correlation times per grid (log-spaced between the median pose length and the session's length).
 N_TAU = 10
 
-#: A drift share of a pose mean's variance above which :func:`drift_note` speaks.
+#: A drift share of a pose mean's variance above which :func:`drift_note` speaks (with most weight at a slow ``tau``).
 DRIFT_SHARE = 0.5
+#: A correlation time above this fraction of the session is slow: the std holds below it (module notes).
+SLOW = 0.25
 
 
 @dataclass(frozen=True)
 class DriftFit:
-    """The drift the rows show: per ``tau`` of the grid its weight, best ``rho`` and ``v0`` per series; ``C``.
+    """The drift the rows show: per ``tau`` of the grid its weight, best ``rho`` and ``v0`` per series; ``C``;
+    ``lr_stat``: -2 ln Lambda of the best drift against white noise.
 
     ``covariance``: (k, q, q), one per series.
     """
@@ -62,6 +73,7 @@ class DriftFit:
     v0: np.ndarray
     taus: np.ndarray
     covariance: np.ndarray
+    lr_stat: float = 0.0
 
     @property
     def drift_share(self) -> float:
@@ -91,7 +103,7 @@ def drift_grid(t: np.ndarray, pose_s: np.ndarray) -> np.ndarray:
 
 
 def fit_drift(r: np.ndarray, X: np.ndarray, W: np.ndarray, S: np.ndarray, t: np.ndarray, taus: np.ndarray,
-              A: np.ndarray) -> DriftFit:
+              A: np.ndarray, scale: float) -> DriftFit:
     """The covariance ``A Cov(e) A^T`` with the drift the rows show (module notes).
 
     Parameters
@@ -108,7 +120,12 @@ def fit_drift(r: np.ndarray, X: np.ndarray, W: np.ndarray, S: np.ndarray, t: np.
         Correlation times of the grid, s.
     A : (q, m) ndarray
         The estimate's sensitivity to the rows: ``x - x_true = A e``.
+    scale : float
+        The data's magnitude: rows whose RMS is at its rounding level
+        (:func:`casep.regression.problem.is_rounding_level`) are noise-free, taken as white.
     """
+    from casep.regression.problem import is_rounding_level
+
     from scipy.linalg import eigh
 
     r = np.asarray(r, dtype=float)
@@ -122,6 +139,7 @@ def fit_drift(r: np.ndarray, X: np.ndarray, W: np.ndarray, S: np.ndarray, t: np.
     logdet_w = float(np.linalg.slogdet(Wq)[1])
     AWA = A @ W @ A.T
     best = np.zeros(len(taus), dtype=int)
+    ll0 = -np.inf
     ll, v0, ADA = np.full(len(taus), -np.inf), np.zeros((len(taus), k)), []
     for j, tau in enumerate(taus):
         D = S * np.exp(-lag / tau)
@@ -135,8 +153,12 @@ def fit_drift(r: np.ndarray, X: np.ndarray, W: np.ndarray, S: np.ndarray, t: np.
         with np.errstate(divide="ignore"):
             lr = -0.5 * (n * np.sum(np.log(v), axis=1) + k * (logdet_w + np.sum(np.log(f), axis=1)))
         lr = np.where(np.all(v > 0, axis=1), lr, -np.inf)
+        if is_rounding_level(float(np.sqrt(np.mean(r * r))), scale):
+            lr[1:] = -np.inf  # no noise, no drift: the usual covariance
+        ll0 = lr[0]  # rho = 0: the same at every tau
         best[j] = int(np.argmax(lr))
         ll[j], v0[j] = lr[best[j]], v[best[j]]
+    lr_stat = 2.0 * float(np.max(ll) - ll0) if np.isfinite(ll0) else 0.0
     if np.isfinite(ll).any():
         w = np.exp(ll - np.max(ll))
     else:  # a noise-free misfit: nothing to scale
@@ -144,19 +166,22 @@ def fit_drift(r: np.ndarray, X: np.ndarray, W: np.ndarray, S: np.ndarray, t: np.
     w /= w.sum()
     rho = RATIOS[best]
     C = sum(w[j] * v0[j][:, None, None] * (AWA + rho[j] * ADA[j])[None] for j in range(len(taus)))
-    return DriftFit(weights=w, ratios=rho, v0=v0, taus=np.asarray(taus, dtype=float), covariance=np.asarray(C))
+    return DriftFit(weights=w, ratios=rho, v0=v0, taus=np.asarray(taus, dtype=float), covariance=np.asarray(C),
+                    lr_stat=lr_stat)
 
 
 def drift_note(fit: DriftFit, what: str, unit: str, session_s: float, bias_std: np.ndarray,
                bias_unit: str) -> str | None:
-    """A sentence when the rows show a drift (share above DRIFT_SHARE): its size, and that a drift slower than the
-    session would move the biases by up to its std beyond `bias_std` (module notes); else None."""
-    if fit.drift_share < DRIFT_SHARE:
+    """A sentence when the rows show a slow drift (share above DRIFT_SHARE, most weight at ``tau`` >= SLOW times the
+    session): its size, and that it can move the biases by up to its std beyond `bias_std` (module notes); else None."""
+    slow = float(np.sum(fit.weights[fit.taus >= SLOW * session_s]))
+    if fit.drift_share < DRIFT_SHARE or slow < 0.5 or fit.lr_stat <= AUTO_LR:
         return None
     sd = ", ".join(f"{v:.3g}" for v in np.atleast_1d(fit.sigma_d))
     bs = ", ".join(f"{v:.3g}" for v in np.atleast_1d(bias_std))
     return (f"the {what} drifts: {100 * fit.drift_share:.0f} % of a pose mean's variance is a slow drift of std "
-            f"{sd} {unit} (white noise alone: 0 %). The bias std ({bs} {bias_unit}) holds for a drift correlation time up to "
+            f"{sd} {unit} (white noise alone: 0 %), {100 * slow:.0f} % of its weight at a correlation time of "
+            f"{SLOW * session_s:.0f} s or more. The bias std ({bs} {bias_unit}) holds for a drift correlation time up to "
             f"about a quarter of the session's {session_s:.0f} s; a slower drift is a bias the session cannot tell "
             f"from the constant one and can move the bias by up to the drift's std. Use: a longer session, or an initial "
             "static period long enough to measure the drift (Allan deviation)")

@@ -3,7 +3,7 @@
 :func:`calibrate_multiposition` chains :func:`casep.calibration.segment.detect_static` (the static
 poses and the motions between them), :func:`casep.calibration.multiposition.fit_accelerometer`
 (the pose means against the magnitude of gravity), the gyro bias (the mean of the poses' mean
-gyro readings; std: their scatter over sqrt(poses), which holds for drifting noise too) and
+gyro readings; std: their scatter over sqrt(poses), widened by the drift they show, :mod:`casep.calibration.drift`) and
 :func:`casep.calibration.multiposition.fit_gyro` (the motions against the change of the gravity
 direction). :class:`MultipositionCalibration` holds every coefficient with its std in imu_tk's
 convention and, beside it, in casep's ``ferraris`` names (``Ma_ij``, ``ba_i``, ``Mg_ij``, ``bg_i``).
@@ -466,7 +466,7 @@ def pose_mean_bias(gm: np.ndarray, t: np.ndarray, n: np.ndarray, rate: float
     m = len(gm)
     n = np.asarray(n, dtype=float)
     fit = fit_drift(gm - gm.mean(axis=0), np.ones((m, 1)), np.diag(np.mean(n) / n), np.ones((m, m)), t,
-                    drift_grid(t, n / rate), np.full((1, m), 1.0 / m))
+                    drift_grid(t, n / rate), np.full((1, m), 1.0 / m), float(np.max(np.abs(gm))))
     return gm.mean(axis=0), np.sqrt(fit.covariance[:, 0, 0]), fit
 
 
@@ -514,7 +514,8 @@ def acc_drift_covariance(afit: AccFit, means: np.ndarray, t: np.ndarray, n: np.n
     d = np.linalg.norm(J, axis=0)
     d[d == 0] = 1.0
     A = np.linalg.pinv(J / d) / d[:, None]
-    fit = fit_drift(w * afit.residuals, J, np.eye(m), np.outer(w, w) * (a @ a.T), t, drift_grid(t, n / rate), A)
+    fit = fit_drift(w * afit.residuals, J, np.eye(m), np.outer(w, w) * (a @ a.T), t, drift_grid(t, n / rate), A,
+                    afit.gravity)
     return replace(afit, covariance=fit.covariance[0]), fit
 
 
