@@ -39,6 +39,7 @@ from casep.calibration.saturation import (
     check_gyro_saturation,
     clipped_poses,
     implied_full_scale,
+    warn_implied_full_scale,
 )
 from casep.calibration.segment import Segmentation, detect_static
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Session
@@ -173,11 +174,12 @@ def _full_scale_lines(settings: dict) -> list[str]:
     out = []
     for key, sensor in (("acc_full_scale", "accelerometer"), ("gyr_full_scale", "gyro")):
         fs = settings.get(key)
-        if not fs:
+        if not fs or "full_scale" not in fs:
             continue
         u = fs["unit"]
         line = (f"{sensor} raw counts: full scale +-{fs['full_scale']:.4g} {u} over +-{fs['half_range_counts']:.0f} "
-                f"counts (a {fs['bits']}-bit converter), {fs['ratio']:.4g} x the nominal +-{fs['nominal']:g} {u}")
+                f"counts (a {fs['bits']}-bit converter), {fs['ratio']:.4g} x the "
+                f"{'declared' if fs.get('declared') else 'nominal'} +-{fs['nominal']:g} {u}")
         if sensor == "gyro":
             line += (f"; at {'the t column' if settings.get('t_column') else 'the assumed --rate'} "
                      f"{settings['rate_hz']:.6g} Hz" + ("" if settings.get("t_column") else
@@ -282,8 +284,8 @@ def _reissue(held: list[warnings.WarningMessage]) -> None:
 def calibrate_multiposition(session: Session, segmentation: Segmentation | None = None, *,
                             gravity: float | None = None, latitude: float | None = None, height: float = 0.0,
                             window_s: float = 0.5, init_s: float = 5.0,
-                            min_static_s: float = 0.5, acc_range: tuple[float, float] | None = None,
-                            gyr_range: tuple[float, float] | None = None) -> MultipositionCalibration:
+                            min_static_s: float = 0.5, acc_full_scale: float | None = None,
+                            gyr_full_scale: float | None = None) -> MultipositionCalibration:
     """Calibrate a hand-turned session (module notes).
 
     Parameters
@@ -297,12 +299,22 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
         :func:`casep.calibration.gravity.normal_gravity`; else 9.80665.
     window_s, init_s, min_static_s : float
         Of :func:`detect_static`.
-    acc_range, gyr_range : (float, float), optional
-        The sensors' full scale ``(low, high)`` in the reading unit (default: a converter's limit for raw
-        counts, a nominal range for a physical unit; :mod:`casep.calibration.saturation`).
+    acc_full_scale, gyr_full_scale : float, optional
+        The sensors' full scale ``+-F``, m/s^2 and rad/s (``casep calibrate --acc-range G --gyr-range DPS``):
+        readings held at it are saturated (:mod:`casep.calibration.saturation`). Default: a nominal range for a
+        physical unit, the converter's limit for raw counts; raw counts also say the full scale their fitted
+        scale implies, and warn (FullScaleWarning) when it is off the declared one.
     """
     from casep.calibration.gravity import normal_gravity
+    from casep.calibration.saturation import check_full_scale, declared_range
     from casep.units import G0
+
+    for v, name, flag, u in ((acc_full_scale, "acc_full_scale", "--acc-range", "m/s^2"),
+                             (gyr_full_scale, "gyr_full_scale", "--gyr-range", "rad/s")):
+        if v is not None:
+            check_full_scale(v, name, flag, u)
+    acc_range = declared_range(acc_full_scale, session.acc_unit, "accelerometer")
+    gyr_range = declared_range(gyr_full_scale, session.gyr_unit, "gyro")
 
     if gravity is not None and latitude is not None:
         raise ValueError("give --gravity or --latitude (with --height), not both")
@@ -370,10 +382,14 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     settings = {"gravity": g, "gravity_source": g_src, "rate_hz": session.rate, "source": session.source,
                 "acc_unit": session.acc_unit, "gyr_unit": session.gyr_unit, "t_column": session.t_column,
                 "drift": drift}
-    if session.acc_unit == RAW_UNIT:
-        settings["acc_full_scale"] = implied_full_scale(afit.x[3:6], afit.x[6:9], "accelerometer")
-    if session.gyr_unit == RAW_UNIT:
-        settings["gyr_full_scale"] = implied_full_scale(gfit.x[6:9], gfit.bias, "gyro")
+    for key, unit, sc, b, fs_si, sensor in (
+            ("acc_full_scale", session.acc_unit, afit.x[3:6], afit.x[6:9], acc_full_scale, "accelerometer"),
+            ("gyr_full_scale", session.gyr_unit, gfit.x[6:9], gfit.bias, gyr_full_scale, "gyro")):
+        if unit == RAW_UNIT:
+            settings[key] = implied_full_scale(sc, b, sensor, fs_si)
+            warn_implied_full_scale(settings[key], sensor, session.source, not session.t_column)
+        elif fs_si is not None:
+            settings[key] = {"declared": True, "full_scale_si": fs_si}
     return MultipositionCalibration(res, seg, afit, gfit, settings)
 
 

@@ -28,8 +28,8 @@ import numpy as np
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT
 from casep.exceptions import CasepWarning
 
-__all__ = ["SaturationWarning", "full_scale", "implied_full_scale", "saturated_runs", "check_gyro_saturation",
-           "clipped_poses",
+__all__ = ["SaturationWarning", "FullScaleWarning", "full_scale", "implied_full_scale", "saturated_runs",
+           "check_gyro_saturation", "clipped_poses", "check_full_scale", "declared_range", "warn_implied_full_scale",
            "ADC_BITS", "ACC_RANGES_G", "GYR_RANGES_DPS", "FULL_SCALE_TOLERANCE"]
 
 #: Word lengths of the converters raw counts come from.
@@ -43,6 +43,36 @@ FULL_SCALE_TOLERANCE = 0.03
 
 class SaturationWarning(CasepWarning):
     """A sensor reads its full scale for several samples in a row: it clipped (where, how long, the value)."""
+
+
+class FullScaleWarning(CasepWarning):
+    """Raw counts whose fitted scale implies another full scale than the one declared (both, and the ratio)."""
+
+
+#: The unit of each sensor's full scale at the edge (command line), and SI per that unit.
+FULL_SCALE_UNITS = {"accelerometer": ("g", ACC_UNITS["g"]), "gyro": ("deg/s", math.pi / 180.0)}
+
+
+def check_full_scale(value, name: str, flag: str, unit: str) -> float:
+    """A declared full scale (+-`value`, in `unit`): a finite number > 0, else the one option-error form."""
+    from casep.exceptions import refusal
+
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise refusal(name, flag, f"a finite number > 0 ({unit})", value) from None
+    if not (math.isfinite(v) and v > 0):
+        raise refusal(name, flag, f"a finite number > 0 ({unit})", value)
+    return v
+
+
+def declared_range(full_scale_si: float | None, unit: str, sensor: str) -> tuple[float, float] | None:
+    """The readings' range ``(-F, F)`` in their unit of a declared full scale F (SI: m/s^2, rad/s); None when none is
+    declared or the readings are raw counts (their full scale is the converter's limit, :func:`full_scale`)."""
+    if full_scale_si is None or unit == RAW_UNIT:
+        return None
+    f = (ACC_UNITS if sensor == "accelerometer" else GYR_UNITS)[unit]
+    return (-full_scale_si / f, full_scale_si / f)
 
 
 def full_scale(ext: float, side: str, column: np.ndarray, unit: str, sensor: str,
@@ -136,13 +166,14 @@ def clipped_poses(acc: np.ndarray, poses: list[tuple[int, int]], unit: str, sour
     return sorted(bad)
 
 
-def implied_full_scale(scales: np.ndarray, biases: np.ndarray, sensor: str) -> dict:
+def implied_full_scale(scales: np.ndarray, biases: np.ndarray, sensor: str, declared_si: float | None = None) -> dict:
     """The full scale raw counts imply: ``max_i s_i * H`` in g or deg/s, H the converter's half range.
 
     ``H = 2^(b-1)`` for the word length b whose mid-scale ``2^(b-1)`` is nearest the biases' median (an
     unsigned converter reads its zero there); biases near 0 (a signed converter) are taken as 16-bit.
-    The nearest nominal range (ACC_RANGES_G, GYR_RANGES_DPS) and the ratio are given: without a time
-    column a gyro's is proportional to the assumed rate, so a ratio far from 1 says the rate is wrong.
+    The nearest nominal range (ACC_RANGES_G, GYR_RANGES_DPS), or the declared full scale `declared_si`
+    (m/s^2, rad/s; ``declared`` true), and the ratio are given: without a time column a gyro's is
+    proportional to the assumed rate, so a ratio far from 1 says the rate (or the declared range) is wrong.
     """
     med = float(np.median(np.abs(biases)))
     bits = min(ADC_BITS, key=lambda b: abs(math.log2(max(med, 1.0)) - (b - 1))) if med > 64 else 16
@@ -150,6 +181,18 @@ def implied_full_scale(scales: np.ndarray, biases: np.ndarray, sensor: str) -> d
     per, ranges, name = ((ACC_UNITS["g"], ACC_RANGES_G, "g") if sensor == "accelerometer"
                          else (math.pi / 180.0, GYR_RANGES_DPS, "deg/s"))
     fs = float(np.max(np.abs(scales))) * half / per
-    near = min(ranges, key=lambda r: abs(math.log(fs / r)))
+    near = declared_si / per if declared_si is not None else min(ranges, key=lambda r: abs(math.log(fs / r)))
     return {"full_scale": fs, "unit": name, "bits": bits, "half_range_counts": half, "nominal": near,
-            "ratio": fs / near}
+            "ratio": fs / near, "declared": declared_si is not None}
+
+
+def warn_implied_full_scale(fs: dict, sensor: str, source: str, rate_assumed: bool) -> None:
+    """FullScaleWarning when raw counts imply a full scale off the declared one by more than FULL_SCALE_TOLERANCE."""
+    if not fs["declared"] or abs(fs["ratio"] - 1.0) <= FULL_SCALE_TOLERANCE:
+        return
+    u = fs["unit"]
+    why = "a wrong declared range" + (" or a wrong --rate (no t column: the gyro's scale is proportional to it)"
+                                      if sensor == "gyro" and rate_assumed else "")
+    warnings.warn(f"{source}: the {sensor}'s raw counts imply a full scale of +-{fs['full_scale']:.4g} {u} over "
+                  f"+-{fs['half_range_counts']:.0f} counts (a {fs['bits']}-bit converter), {fs['ratio']:.4g} x the "
+                  f"declared +-{fs['nominal']:.4g} {u}: {why}", FullScaleWarning, stacklevel=3)

@@ -54,6 +54,11 @@ def add_parser(sub: Any) -> None:
                       help="initial static period the session starts with, s (default 5)")
     auto.add_argument("--min-static", type=float, default=0.5, metavar="S", dest="min_static",
                       help="shortest static pose, s (default 0.5)")
+    auto.add_argument("--acc-range", type=str, default=None, metavar="G", dest="acc_range",
+                      help="the accelerometer's full scale +-G, g: readings held at it are saturated (raw counts: "
+                           "the converter's limit, and the full scale the fit implies is checked against it)")
+    auto.add_argument("--gyr-range", type=str, default=None, metavar="DPS", dest="gyr_range",
+                      help="the gyro's full scale +-DPS, deg/s (as --acc-range)")
     auto.add_argument("--imu-tk", metavar="PREFIX", default=None, dest="imu_tk",
                       help="also write PREFIX_acc.calib and PREFIX_gyro.calib (imu_tk's text format)")
     auto.add_argument("--figures", metavar="DIR", default=None,
@@ -73,6 +78,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.figures and args.segments != "auto":
         raise ValueError("--figures draws the segments found by --segments auto; give --segments auto")
+    given = [f for f, v in (("--acc-range", args.acc_range), ("--gyr-range", args.gyr_range)) if v is not None]
+    if given:
+        raise ValueError(f"{', '.join(given)}: used by model multiposition (--segments auto on a hand-turned session) "
+                         "only: leave them out")
     outputs.check({"--json": args.json, "--imucal": args.imucal},
                   [args.session, args.segments if args.segments != "auto" else None, args.prior, args.bounds],
                   {"--figures": args.figures})
@@ -112,11 +121,12 @@ def _run_auto(args: argparse.Namespace) -> int:
     files = {"--json": args.json, **(dict(zip(("--imu-tk (acc)", "--imu-tk (gyro)"), imu_tk_files(args.imu_tk)))
                                      if args.imu_tk else {})}
     outputs.check(files, [args.session], {"--figures": args.figures})
+    fs = full_scales(args)
     cal = calibrate_multiposition_file(args.session, rate=args.rate, acc_columns=args.acc_columns.split(","),
                                        gyr_columns=args.gyr_columns.split(","), acc_unit=args.acc_unit,
                                        gyr_unit=args.gyr_unit, gravity=args.gravity, latitude=args.latitude,
                                        height=args.height, window_s=args.window, init_s=args.init,
-                                       min_static_s=args.min_static)
+                                       min_static_s=args.min_static, **fs)
     print(cal.text())
     _figure(args, cal.segmentation)
     outputs.write_json(cal.to_dict(), args.json)
@@ -125,6 +135,19 @@ def _run_auto(args: argparse.Namespace) -> int:
         for path in write_imu_tk(cal, args.imu_tk):
             print(f"imu_tk calibration written to {path}")
     return outputs.status(cal)
+
+
+def full_scales(args: argparse.Namespace) -> dict:
+    """--acc-range G and --gyr-range DPS, checked and in SI (m/s^2, rad/s): the keywords of the multiposition call."""
+    from casep.calibration.saturation import FULL_SCALE_UNITS, check_full_scale
+
+    out = {}
+    for flag, value, key, sensor in (("--acc-range", args.acc_range, "acc_full_scale", "accelerometer"),
+                                     ("--gyr-range", args.gyr_range, "gyr_full_scale", "gyro")):
+        if value is not None:
+            unit, si = FULL_SCALE_UNITS[sensor]
+            out[key] = check_full_scale(value, flag[2:].replace("-", "_"), flag, unit) * si
+    return out
 
 
 def _figure(args: argparse.Namespace, segmentation) -> None:
