@@ -31,7 +31,8 @@ mean is small while its common part is up to ``sigma_d``. Seeded simulation (30 
 ``tests/calibration/test_drift.py``): the biases' RMS z is 0.9-1.0 (accelerometer) and 0.84-0.93 (gyro)
 with white noise alone, 1.0-1.15 and 0.7-1.0 at ``tau`` 10-20 s, 1.2-1.3 and 0.8-1.1 at 30 s, ~1.6 at
 60 s and ~1.8 at 100 s; the scales and misalignments' 0.97-1.07 throughout (the former std, white noise
-alone: the biases' 1.5-2.8 at ``tau`` 20-30 s). :func:`drift_note` says so with the numbers when the misfit shows a slow drift: most of a pose mean's
+alone: the biases' 1.5-2.8 at ``tau`` 20-30 s).
+:func:`drift_note` says so with the numbers when the misfit shows a slow drift: most of a pose mean's
 variance, most weight at ``tau`` >= a quarter of the session, and a likelihood ratio against white noise
 alone, ``-2 ln Lambda`` at the best ``(rho, tau)``, above :data:`casep.noise.model.AUTO_LR` (casep's rule
 for a richer noise kind; ``rho`` on its boundary under white noise). The std itself is always the
@@ -126,9 +127,9 @@ def fit_drift(r: np.ndarray, X: np.ndarray, W: np.ndarray, S: np.ndarray, t: np.
         The data's magnitude: rows whose RMS is at its rounding level
         (:func:`casep.regression.problem.is_rounding_level`) are noise-free, taken as white.
     """
-    from casep.regression.problem import is_rounding_level
-
     from scipy.linalg import eigh
+
+    from casep.regression.problem import is_rounding_level
 
     r = np.asarray(r, dtype=float)
     r = r[:, None] if r.ndim == 1 else r
@@ -183,7 +184,7 @@ def drift_note(fit: DriftFit, what: str, unit: str, session_s: float, bias_std: 
     bs = ", ".join(f"{v:.3g}" for v in np.atleast_1d(bias_std))
     return (f"the {what} drifts: {100 * fit.drift_share:.0f} % of a pose mean's variance is a slow drift of std "
             f"{sd} {unit} (white noise alone: 0 %), {100 * slow:.0f} % of its weight at a correlation time of "
-            f"{SLOW * session_s:.0f} s or more. The bias std ({bs} {bias_unit}) holds for a drift correlation time up to "
-            f"about a quarter of the session's {session_s:.0f} s; a slower drift is a bias the session cannot tell "
-            f"from the constant one and can move the bias by up to the drift's std. Use: a longer session, or an initial "
-            "static period long enough to measure the drift (Allan deviation)")
+            f"{SLOW * session_s:.0f} s or more. The bias std ({bs} {bias_unit}) holds for a drift correlation time "
+            f"up to about a quarter of the session's {session_s:.0f} s; a slower drift is a bias the session cannot "
+            "tell from the constant one and can move the bias by up to the drift's std. Use: a longer session, or an "
+            "initial static period long enough to measure the drift (Allan deviation)")

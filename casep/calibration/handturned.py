@@ -382,15 +382,22 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     settings = {"gravity": g, "gravity_source": g_src, "rate_hz": session.rate, "source": session.source,
                 "acc_unit": session.acc_unit, "gyr_unit": session.gyr_unit, "t_column": session.t_column,
                 "drift": drift}
-    for key, unit, sc, b, fs_si, sensor in (
-            ("acc_full_scale", session.acc_unit, afit.x[3:6], afit.x[6:9], acc_full_scale, "accelerometer"),
-            ("gyr_full_scale", session.gyr_unit, gfit.x[6:9], gfit.bias, gyr_full_scale, "gyro")):
-        if unit == RAW_UNIT:
-            settings[key] = implied_full_scale(sc, b, sensor, fs_si)
-            warn_implied_full_scale(settings[key], sensor, session.source, not session.t_column)
-        elif fs_si is not None:
-            settings[key] = {"declared": True, "full_scale_si": fs_si}
+    settings.update(_full_scales(session, afit, gfit, acc_full_scale, gyr_full_scale))
     return MultipositionCalibration(res, seg, afit, gfit, settings)
+
+
+def _full_scales(session: Session, afit: AccFit, gfit: GyroFit, acc_fs: float | None, gyr_fs: float | None) -> dict:
+    """The settings' full scales: raw counts' implied one (warned of when off the declared one), or the declared."""
+    out: dict = {}
+    for key, unit, sc, b, fs_si, sensor in (
+            ("acc_full_scale", session.acc_unit, afit.x[3:6], afit.x[6:9], acc_fs, "accelerometer"),
+            ("gyr_full_scale", session.gyr_unit, gfit.x[6:9], gfit.bias, gyr_fs, "gyro")):
+        if unit == RAW_UNIT:
+            out[key] = implied_full_scale(sc, b, sensor, fs_si)
+            warn_implied_full_scale(out[key], sensor, session.source, not session.t_column)
+        elif fs_si is not None:
+            out[key] = {"declared": True, "full_scale_si": fs_si}
+    return out
 
 
 def check_acc_fit(afit: AccFit, means: np.ndarray, session: Session) -> None:
