@@ -27,8 +27,9 @@ it, most for the biases, whose error is the drift's common part over the session
 What a session cannot show: a drift slower than the session (``tau`` near or beyond its length) is, for
 the most part, a bias the session cannot tell from the constant one; its scatter about the session's
 mean is small while its common part is up to ``sigma_d``. Seeded simulation (30 poses, ~125 s; drift std
-2 mg and 3e-4 rad/s, most of a pose mean's variance; 60 draws per line, two seed sets,
-``tests/calibration/test_drift.py``): the biases' RMS z is 0.9-1.0 (accelerometer) and 0.84-0.93 (gyro)
+2e-3 m/s^2 (0.2 mg) and 3e-4 rad/s (62 deg/h), the sizes the MPU-9150 sessions show,
+``benchmarks/allan_real_sessions.py``; most of a pose mean's variance; 60 draws per line, two seed
+sets, ``tests/calibration/test_drift.py``): the biases' RMS z is 0.9-1.0 (accelerometer) and 0.84-0.93 (gyro)
 with white noise alone, 1.0-1.15 and 0.7-1.0 at ``tau`` 10-20 s, 1.2-1.3 and 0.8-1.1 at 30 s, ~1.6 at
 60 s and ~1.8 at 100 s; the scales and misalignments' 0.97-1.07 throughout (the former std, white noise
 alone: the biases' 1.5-2.8 at ``tau`` 20-30 s).

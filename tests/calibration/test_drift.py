@@ -87,8 +87,8 @@ def _mc(draws: int, std_a: float, std_g: float, tau: float, seed: int) -> dict:
 @pytest.mark.parametrize("std_a, std_g, tau, lo", [(0.0, 0.0, 1.0, 0.8), (0.002, 3e-4, 20.0, 0.6)])
 def test_biases_std_is_honest_with_white_noise_and_with_a_drift(std_a, std_g, tau, lo):
     # 60 draws of 30 poses (~125 s), 180-360 z per group (relative std of their RMS ~5 % with white noise; with a
-    # drift the gyro bias's z are heavy-tailed: 0.70-0.98 over seeds 7-10). The drift (std 2 mg and 3e-4 rad/s,
-    # tau 20 s) is most of the pose means' variance: the former std (white noise alone; the gyro bias by an AR(1)
+    # drift the gyro bias's z are heavy-tailed: 0.70-0.98 over seeds 7-10). The drift (std 2e-3 m/s^2 and 3e-4
+    # rad/s, tau 20 s) is most of the pose means' variance: the former std (white noise alone; the gyro bias by an AR(1)
     # widening) gives the accelerometer bias RMS z 1.9 and the gyro bias 1.46. The biases' RMS z by tau (module
     # notes): 0.7-1.0 at 10-20 s, 0.8-1.3 at 30 s; full sessions: benchmarks/bench_multiposition.py --tau.
     # White noise alone: the gyro bias's 0.84-0.92 (a drift too small to tell still widens it, a little).
