@@ -155,6 +155,12 @@ class MultipositionCalibration(OfEstimate):
                   f"{math.degrees(_rms(self.gyro.residuals)):.3g} deg over {len(self.gyro.residuals)} motions, "
                   f"{self.gyro.iterations} iterations"]
         lines += _full_scale_lines(self.settings)
+        dr = self.settings.get("drift")
+        if dr:
+            lines.append("drift beyond white noise (share of a pose mean's variance, std; casep.calibration.drift): "
+                         + "; ".join(f"{k} {100 * v['share']:.0f} %, "
+                                     + ", ".join(f"{x:.3g}" for x in v["sigma_d"]) + f" {v['unit']}"
+                                     for k, v in dr.items()))
         for sensor, d in self.result.diagnostics.items():
             cn = d["condition_number_equilibrated"]
             lines.append(f"{sensor}: condition number {cn:.3g} (equilibrated)" if cn else f"{sensor}: rank deficient")

@@ -36,6 +36,11 @@ def test_cli_auto_on_the_mpu9150_session_writes_json_and_imu_tk(tmp_path, capsys
     assert "static poses" in text and "threshold" in text and "Ma_x." in text
     d = json.loads(out.read_text())
     assert d["model"] == "multiposition" and d["calibration"]["segmentation"]["poses"]
+    # the drift each sensor's pose means show, in the report and the JSON
+    assert "drift beyond white noise" in text
+    drift = d["calibration"]["settings"]["drift"]
+    assert set(drift) == {"accelerometer", "gyro"}
+    assert all(0.0 <= v["share"] <= 1.0 and len(v["sigma_d"]) in (1, 3) and v["tau_s"] > 0 for v in drift.values())
     est = dict(zip(d["names"], d["estimates"]))
     xa = np.array([est[n] for n in ("a_yz", "a_zy", "a_zx", "sa_x", "sa_y", "sa_z", "ba_x", "ba_y", "ba_z")])
     xg = np.array([est[n] for n in ("g_yz", "g_zy", "g_xz", "g_zx", "g_xy", "g_yx", "sg_x", "sg_y", "sg_z")])
