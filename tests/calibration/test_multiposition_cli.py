@@ -34,6 +34,9 @@ def test_cli_auto_on_the_mpu9150_session_writes_json_and_imu_tk(tmp_path, capsys
     assert rc == 0
     text = capsys.readouterr().out
     assert "static poses" in text and "threshold" in text and "Ma_x." in text
+    # the misalignment convention stated beside casep's own names (imu_tk's T_a upper triangular, T_g full)
+    assert "imu_tk: a_cal = T_a K_a (a - b_a), T_a = [[1, -a_yz, a_zy], [0, 1, -a_zx], [0, 0, 1]]" in text
+    assert "casep ferraris: y = M f + b, M_a = (T_a K_a)^-1" in text
     d = json.loads(out.read_text())
     assert d["model"] == "multiposition" and d["calibration"]["segmentation"]["poses"]
     # the drift each sensor's pose means show, in the report and the JSON
