@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from casep.frames import LaunchSite
+from casep.io.pair import VALID_COLUMN
 from casep.navigation.alignment import Alignment
 
 __all__ = ["NavigationResult", "TELEMETRY_COLUMNS", "VALID_COLUMN"]
@@ -15,9 +16,6 @@ __all__ = ["NavigationResult", "TELEMETRY_COLUMNS", "VALID_COLUMN"]
 #: The strapdown telemetry columns :meth:`NavigationResult.columns` gives, in order.
 TELEMETRY_COLUMNS = ("t", "q_w", "q_x", "q_y", "q_z", "fb_x", "fb_y", "fb_z", "w_x", "w_y", "w_z",
                      "v_tel_x", "v_tel_y", "v_tel_z", "r_tel_x", "r_tel_y", "r_tel_z")
-#: The column marking the samples whose solution is trusted (1) or not (0: after a clipped IMU sample); the
-#: pair reader leaves the rows where it is 0 out of the regression (:func:`casep.io.pair.pair_flight`).
-VALID_COLUMN = "ins_valid"
 
 
 @dataclass

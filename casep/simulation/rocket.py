@@ -218,15 +218,15 @@ def _gps(sp: RocketSpec, rng: np.random.Generator, t: np.ndarray, r_e: np.ndarra
     state[wrong, 3:] = v_wrong
     state[wrong, :3] = state[last, :3] + np.cumsum(v_wrong, axis=0) / sp.gps_rate
     after = tg >= back
-    fresh = np.floor((tg[after] - back) / sp.gps_step_s) * sp.gps_step_s + back - sp.gps_lag_s  # the fix shown
+    k = np.floor((tg[after] - back) / sp.gps_step_s + 1e-9).astype(int)  # the solution shown: its update
+    fresh = back + k * sp.gps_step_s - sp.gps_lag_s  # ... is the state gps_lag_s before it
     phi = math.exp(-sp.gps_step_s / sp.gps_gm_tau)
-    n_fix = int(np.max(np.round((fresh - fresh[0]) / sp.gps_step_s))) + 1
+    n_fix = int(k[-1]) + 1
     gm = np.zeros((n_fix, 3))
     gm[0] = rng.normal(0, sp.gps_gm_std, 3)
     for k in range(1, n_fix):
         gm[k] = phi * gm[k - 1] + rng.normal(0, sp.gps_gm_std * math.sqrt(1 - phi * phi), 3)
     err = gm + rng.normal(0, sp.gps_white, (n_fix, 3))
-    k = np.round((fresh - fresh[0]) / sp.gps_step_s).astype(int)
     state[after] = at(fresh)
     state[after, 3:] += err[k]
     state[after, :3] += 3.0 * err[k]
