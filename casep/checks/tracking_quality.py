@@ -22,6 +22,12 @@ finds, on a telemetry + tracking pair formed at the tracking times:
   ``tau_w``: its slope in ppm with its std. A slope beyond :data:`DRIFT_MIN_PPM` and 4 std is
   warned about (a single ``dt_trk`` does not model it); otherwise the figures are recorded.
 
+- **noise that changes between stretches** (stretches: the kept epochs split at pauses of
+  :data:`MIN_SEGMENT_S` or more): the robust scatter of ``d(dv)`` per stretch (the median change
+  removed, MAD, over sqrt 2); a ratio beyond :data:`NOISE_RATIO` between the noisiest and the
+  quietest is warned about: one noise level per axis weights both alike, and the std of what the
+  noisy stretch determines are understated by up to that ratio.
+
 Each finding is a :class:`~casep.exceptions.TrackingQualityWarning` with the times, the number of
 epochs and the sizes; ``meta["tracking_screen"]`` records them.
 """
@@ -37,9 +43,10 @@ import numpy as np
 
 from casep.exceptions import TrackingQualityWarning
 from casep.io.flight import FlightData
+from casep.noise.robust import MAD_SIGMA
 
-__all__ = ["TrackingScreen", "screen_tracking", "clock_drift", "STALE_MOTION", "JUMP_TOL", "JUMP_RATE",
-           "MIN_SEGMENT_S", "DRIFT_MIN_PPM"]
+__all__ = ["TrackingScreen", "screen_tracking", "clock_drift", "stretch_noise", "STALE_MOTION", "JUMP_TOL",
+           "JUMP_RATE", "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
 
 #: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
 STALE_MOTION = 0.5
@@ -53,6 +60,8 @@ DRIFT_MIN_PPM = 20.0
 #: Windows for the drift, and the least spread of the acceleration (m/s^2) that lets a window see an offset.
 DRIFT_WINDOWS = 4
 DRIFT_MIN_ACCEL = 2.0
+#: Stretches of the tracking whose noise differs by more than this factor are warned about.
+NOISE_RATIO = 5.0
 
 
 @dataclass
@@ -67,6 +76,7 @@ class TrackingScreen:
     drift_std_ppm: float = math.nan
     epochs: int = 0
     kept: int = 0
+    stretches: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
         """Plain data (JSON: NaN as null)."""
@@ -166,6 +176,20 @@ def clock_drift(t: np.ndarray, dv: np.ndarray, a: np.ndarray, windows: int = DRI
     return slope * 1e6, math.sqrt(cov[1, 1]) * 1e6
 
 
+def stretch_noise(t: np.ndarray, dv: np.ndarray) -> list[tuple[float, float, int, float]]:
+    """Per stretch (split at pauses of MIN_SEGMENT_S or more) with 5 epochs or more: ``(t_first, t_last, epochs,
+    scatter m/s)``, the scatter the MAD of the changes of dv (their median removed) over sqrt 2, largest axis."""
+    cut = np.flatnonzero(np.diff(t) >= MIN_SEGMENT_S) + 1
+    out = []
+    for a, b in zip(np.concatenate([[0], cut]), np.concatenate([cut, [t.size]])):
+        if b - a < 5:
+            continue
+        d = np.diff(dv[a:b], axis=0)
+        mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+        out.append((float(t[a]), float(t[b - 1]), int(b - a), float(np.max(mad)) * MAD_SIGMA / math.sqrt(2)))
+    return out
+
+
 def screen_tracking(flight: FlightData) -> FlightData:
     """`flight` without its stale and impossible tracking epochs (module notes), the findings warned and recorded.
 
@@ -194,6 +218,7 @@ def screen_tracking(flight: FlightData) -> FlightData:
     drift, drift_std = clock_drift(t[keep], flight.dv[idx[keep]], a) if keep.sum() >= 20 else (math.nan, math.nan)
     screen = TrackingScreen(_spans(t, stale), _spans(t, rejected), largest, drift, drift_std, int(idx.size),
                             int(keep.sum()))
+    screen.stretches = stretch_noise(t[keep], flight.dv[idx[keep]])
     _warn(flight.source, screen)
     if keep.all():
         return dataclasses.replace(flight, meta={**meta, "tracking_screen": screen.to_dict()})
@@ -220,3 +245,12 @@ def _warn(source: str, s: TrackingScreen) -> None:
             f"{source}: the tracking time offset drifts by {s.drift_ppm:.4g} +- {s.drift_std_ppm:.2g} ppm "
             f"({s.drift_ppm * 1e-4:.3g} ms per 100 s): the telemetry and tracking clocks run at different rates, "
             "which one time offset (dt_trk) does not model; rescale the telemetry times by the drift"), stacklevel=3)
+    noise = [x for x in s.stretches if x[3] > 0]
+    if len(noise) > 1 and max(x[3] for x in noise) > NOISE_RATIO * min(x[3] for x in noise):
+        ratio = max(x[3] for x in noise) / min(x[3] for x in noise)
+        listed = ", ".join(f"{a:.10g}..{b:.10g} s ({n} epochs): {sd:.3g} m/s" for a, b, n, sd in noise)
+        warnings.warn(TrackingQualityWarning(
+            f"{source}: the tracking noise differs {ratio:.3g}-fold between stretches ({listed}; scatter of the "
+            "epoch-to-epoch change of dv): one noise level per axis weights them alike, so the std of what the noisy "
+            f"stretch determines are understated by up to {ratio:.3g} x; see `casep diagnose` for the combinations "
+            "each stretch determines"), stacklevel=3)
