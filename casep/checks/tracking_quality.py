@@ -45,7 +45,8 @@ from casep.exceptions import TrackingQualityWarning
 from casep.io.flight import FlightData
 from casep.noise.robust import MAD_SIGMA
 
-__all__ = ["TrackingScreen", "screen_tracking", "clock_drift", "stretch_noise", "STALE_MOTION", "JUMP_TOL",
+__all__ = ["TrackingScreen", "screen_tracking", "clock_drift", "stretch_noise", "noise_problem", "determined",
+           "judge_tracking", "STATUS_TRACKING", "STALE_MOTION", "JUMP_TOL",
            "JUMP_RATE", "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
 
 #: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
@@ -62,6 +63,8 @@ DRIFT_WINDOWS = 4
 DRIFT_MIN_ACCEL = 2.0
 #: Stretches of the tracking whose noise differs by more than this factor are warned about.
 NOISE_RATIO = 5.0
+#: Status of a separation failed by :func:`judge_tracking`.
+STATUS_TRACKING = -6
 
 
 @dataclass
@@ -194,7 +197,8 @@ def screen_tracking(flight: FlightData) -> FlightData:
     """`flight` without its stale and impossible tracking epochs (module notes), the findings warned and recorded.
 
     Only a telemetry + tracking pair formed at the tracking times with the telemetry's acceleration
-    (:func:`casep.io.files.read_flight_pair`) is screened; any other flight is returned as it is.
+    (:func:`casep.io.files.read_flight_pair`) is screened, once; any other flight (or one screened
+    already: ``meta["tracking_screen"]``) is returned as it is.
 
     Warns
     -----
@@ -203,7 +207,7 @@ def screen_tracking(flight: FlightData) -> FlightData:
     """
     meta = flight.meta
     V = _velocity_change(flight)
-    if meta.get("format") != "pair" or meta.get("rows_side") != "tracking" or V is None \
+    if "tracking_screen" in meta or meta.get("format") != "pair" or meta.get("rows_side") != "tracking" or V is None \
             or "rows_index" not in meta:
         return flight
     idx = np.flatnonzero(flight.observed)
@@ -254,3 +258,78 @@ def _warn(source: str, s: TrackingScreen) -> None:
             "epoch-to-epoch change of dv): one noise level per axis weights them alike, so the std of what the noisy "
             f"stretch determines are understated by up to {ratio:.3g} x; see `casep diagnose` for the combinations "
             "each stretch determines"), stacklevel=3)
+
+
+def noise_problem(flight: FlightData) -> str | None:
+    """The screen's finding that the tracking noise differs between stretches beyond NOISE_RATIO, or None."""
+    screen = flight.meta.get("tracking_screen") if isinstance(flight.meta, dict) else None
+    noise = [x for x in (screen or {}).get("stretches", []) if x[3] > 0]
+    if len(noise) < 2:
+        return None
+    ratio = max(x[3] for x in noise) / min(x[3] for x in noise)
+    if ratio <= NOISE_RATIO:
+        return None
+    listed = ", ".join(f"{a:.10g}..{b:.10g} s: {sd:.3g} m/s" for a, b, _, sd in noise)
+    return f"the tracking noise differs {ratio:.3g}-fold between stretches ({listed})"
+
+
+def determined(problem, stretches: list, scales: dict[str, float], top: int = 3) -> tuple[list[dict], float]:
+    """The combinations of coefficients the flight determines when each stretch is weighted by its own noise.
+
+    Rows weighted by ``1 / sigma_s`` (the stretch's scatter, :func:`stretch_noise`; the largest for rows in no
+    stretch), coefficients scaled by their declared magnitudes (``z_j = x_j / scale_j``):
+    ``A = U diag(s) V^T``; combination ``c_i = V_i . z`` is estimated as ``U_i . y_w / s_i`` with std
+    ``k / s_i``, ``k = sqrt(max(1, chi2 / dof))`` of the weighted fit (noise larger than the scatter says:
+    the std grow with it). A combination is determined when its std is below 1 (its declared magnitude).
+
+    Returns
+    -------
+    combinations : list of dict
+        ``terms`` (name -> weight on ``x / scale``, the `top` largest), ``weights`` (all, model order),
+        ``estimate``, ``std``; best first.
+    k : float
+        The std factor.
+    """
+    S, y, t = problem.sv(), problem.y, problem.t
+    noise = [x for x in stretches if x[3] > 0]
+    sig = np.full(t.size, max(x[3] for x in noise))
+    for a, b, _, sd in noise:
+        sig[(t >= a) & (t <= b)] = sd
+    scale = np.array([scales.get(nm, 1.0) for nm in problem.names])
+    n = len(problem.names)
+    A = (S / sig[:, None, None]).reshape(-1, n) * scale
+    yw = (y / sig[:, None]).reshape(-1)
+    U, sv, Vt = np.linalg.svd(A, full_matrices=False)
+    keep = sv > sv[0] * 1e-12
+    z = (U[:, keep].T @ yw) / sv[keep]
+    r = yw - U[:, keep] @ (U[:, keep].T @ yw)
+    k = math.sqrt(max(1.0, float(r @ r) / max(yw.size - int(keep.sum()), 1)))
+    out = []
+    for i in np.flatnonzero(keep):
+        if k / sv[i] >= 1.0:
+            continue
+        j = np.argsort(-np.abs(Vt[i]))[:top]
+        sign = 1.0 if Vt[i, j[0]] >= 0 else -1.0
+        out.append({"terms": {problem.names[m]: sign * float(Vt[i, m]) for m in j}, "estimate": sign * float(z[i]),
+                    "std": k / float(sv[i]), "weights": (sign * Vt[i]).tolist()})
+    return out, k
+
+
+def judge_tracking(res, flight: FlightData, problem, scales: dict[str, float]):
+    """`res` failed (status :data:`STATUS_TRACKING`) when the flight's tracking noise differs between stretches
+    beyond :data:`NOISE_RATIO` (:func:`noise_problem`): its message says which combinations the flight
+    determines (:func:`determined`) instead of each coefficient."""
+    from casep.estimators.registry import failed
+
+    why = noise_problem(flight)
+    if why is None or problem.y is None or problem.t is None:
+        return res
+    combos, k = determined(problem, flight.meta["tracking_screen"]["stretches"], scales)
+    said = "; ".join(" + ".join(f"{w:.2f} {nm}/{scales.get(nm, 1.0):g}" for nm, w in c["terms"].items())
+                     + f" = {c['estimate']:.3g} +- {c['std']:.2g}" for c in combos[:6])
+    n = len(problem.names)
+    msg = (f"failed: {why}: one noise level per axis weights them alike, so the std of the coefficients are not "
+           f"honest. Weighted by each stretch's own noise (std x {k:.3g} for the weighted fit's misfit), the flight "
+           f"determines {len(combos)} of {n} combinations better than their declared magnitudes (coefficient / "
+           f"declared magnitude)" + (f": {said}" if said else "") + ("; ..." if len(combos) > 6 else ""))
+    return failed(res, STATUS_TRACKING, msg)

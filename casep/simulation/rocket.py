@@ -87,8 +87,9 @@ class RocketFlight:
     ----------
     imu, gps : dict of str -> ndarray
         The raw IMU file's and the ECEF GNSS file's columns.
-    truth_t, truth_v : ndarray
-        GPS times and the true launch-inertial velocity there (m/s), every IMU sample of the full record.
+    truth_t, truth_v, truth_q : ndarray
+        GPS times, the true launch-inertial velocity (m/s) and attitude (scalar first, body to launch-inertial)
+        there, every IMU sample of the full record.
     coefficients : dict
         The injected strapdown12 coefficients (mg, ppm, deg/h).
     events : dict
@@ -104,6 +105,7 @@ class RocketFlight:
     truth_v: np.ndarray
     coefficients: dict
     events: dict = field(default_factory=dict)
+    truth_q: np.ndarray | None = None
 
     @property
     def align_window(self) -> tuple[float, float]:
@@ -195,7 +197,7 @@ def simulate_rocket(seed: int = 0, spec: RocketSpec | None = None, site: LaunchS
     events = {"lift_off": site.t0, "burnout": site.t0 + sp.burn_s, "gaps": [(site.t0 + a, n) for a, n in gaps],
               "first_clipped": float(site.t0 + t[clipped[0]]) if clipped.size else None,
               "heading_deg": heading + sp.heading_error_deg, "true_heading_deg": heading, **spans}
-    return RocketFlight(sp, site, imu, gps, t + site.t0, true.v, coef, events)
+    return RocketFlight(sp, site, imu, gps, t + site.t0, true.v, coef, events, true.q)
 
 
 def _gps(sp: RocketSpec, rng: np.random.Generator, t: np.ndarray, r_e: np.ndarray, v_e: np.ndarray,
@@ -224,8 +226,8 @@ def _gps(sp: RocketSpec, rng: np.random.Generator, t: np.ndarray, r_e: np.ndarra
     n_fix = int(k[-1]) + 1
     gm = np.zeros((n_fix, 3))
     gm[0] = rng.normal(0, sp.gps_gm_std, 3)
-    for k in range(1, n_fix):
-        gm[k] = phi * gm[k - 1] + rng.normal(0, sp.gps_gm_std * math.sqrt(1 - phi * phi), 3)
+    for j in range(1, n_fix):
+        gm[j] = phi * gm[j - 1] + rng.normal(0, sp.gps_gm_std * math.sqrt(1 - phi * phi), 3)
     err = gm + rng.normal(0, sp.gps_white, (n_fix, 3))
     state[after] = at(fresh)
     state[after, 3:] += err[k]

@@ -213,6 +213,10 @@ def separate(
     res = fit(problem, spec)
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model,
                       noise_free=problem.is_noise_free())
+    if isinstance(flight, FlightData) and isinstance(model, ErrorModel):
+        from casep.checks.tracking_quality import judge_tracking
+
+        res = judge_tracking(res, flight, problem, model.scales)
     if not isinstance(flight, Problem) and isinstance(model, ErrorModel):
         from casep.model.loader import model_record
 
@@ -229,6 +233,9 @@ def _problem(flight: FlightData | Problem | str | os.PathLike, model: Any,
         return flight, flight, model
     if not isinstance(flight, FlightData):
         flight = read_flight(flight)
+    from casep.checks.tracking_quality import screen_tracking
+
+    flight = screen_tracking(flight)  # before the problem: the result is judged on what the screen found
     if fit_time_offset is None:
         from casep.io.pair import fits_time_offset
 
