@@ -22,7 +22,8 @@ the lost samples leave unknown: across a gap of length ``h`` where the specific 
 Clipped samples (:func:`clipped_samples`): a reading at the sensor's full scale is not the motion.
 With a declared full scale (``gyr_range`` rad/s, ``acc_range`` m/s^2) a component within 1 % of it
 is clipped; without one, a run of at least :data:`CLIP_RUN` samples holding a column's extreme value
-that lies within :data:`casep.units.FULL_SCALE_TOLERANCE` of a nominal range
+that lies within :data:`casep.units.FULL_SCALE_TOLERANCE` of a nominal range, and a tenth of it or more
+from the column's median (a static accelerometer reads 1 g for ever without clipping)
 (:data:`casep.units.GYR_RANGES_DPS`, :data:`casep.units.ACC_RANGES_G`). The attitude and velocity
 integrated through a clipped sample stay wrong for the rest of the record, so everything from the
 first clipped sample on is marked (``ImuData.clipped``; the navigation writes ``ins_valid = 0``
@@ -163,7 +164,8 @@ def _warn_gaps(imu: ImuData, lost: np.ndarray, h: np.ndarray, h_med: float) -> N
     gaps = f"{lost.size} gap{'s' if lost.size > 1 else ''}"
     warnings.warn(f"{imu.source}: {gaps} in t (about {missing} samples lost at the median step "
                   f"{h_med:.4g} s); the longest {h[k]:.4g} s after t = {t[k]:.10g} s (row {k + 1}): "
-                  "integrated across it, the rate and specific force taken linear (rates) or held (increments); "
+                  "integrated across it, the rate and specific force interpolated (rates: the cubic through the "
+                  "neighbouring samples) or held (increments); "
                   f"the velocity across the gap after t = {t[j]:.10g} s is known to about {unknown.max():.3g} m/s "
                   f"only (the specific force changes by {2 * unknown.max() / h[j]:.4g} m/s^2 over its "
                   f"{h[j]:.4g} s)", GapWarning, stacklevel=3)
@@ -189,8 +191,10 @@ def clipped_samples(x: np.ndarray, full_scale: float | None, nominal_si: tuple[f
     out = np.zeros(x.shape, bool)
     nominal = np.asarray(nominal_si, float)
     for j in range(x.shape[1]):
+        med = float(np.median(x[:, j]))
         for ext in (float(x[:, j].max()), float(x[:, j].min())):
-            if ext == 0.0 or np.min(np.abs(abs(ext) / nominal - 1.0)) > FULL_SCALE_TOLERANCE:
+            if ext == 0.0 or np.min(np.abs(abs(ext) / nominal - 1.0)) > FULL_SCALE_TOLERANCE \
+                    or abs(ext - med) < 0.1 * abs(ext):  # a reading held near the column's median is no clipping
                 continue
             at = np.concatenate([[0], (x[:, j] == ext).astype(np.int8), [0]])
             edges = np.flatnonzero(np.diff(at))

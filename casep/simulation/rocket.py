@@ -25,7 +25,6 @@ can compare what a tool masks and says with what was done.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -34,7 +33,7 @@ import numpy as np
 from casep.frames import LaunchSite
 from casep.units import G0
 
-__all__ = ["RocketSpec", "RocketFlight", "simulate_rocket", "ROCKET_SITE"]
+__all__ = ["RocketSpec", "RocketFlight", "simulate_rocket", "ROCKET_SITE", "QUICK_ROCKET"]
 
 #: A northern rocket range (lat, lon, h, launch azimuth, launch time in GPS seconds of the week).
 ROCKET_SITE = LaunchSite(67.89, 21.1, 330.0, 30.0, 300000.0)
@@ -240,6 +239,6 @@ def _gps(sp: RocketSpec, rng: np.random.Generator, t: np.ndarray, r_e: np.ndarra
     return gps, spans
 
 
-def with_spec(**changes) -> RocketSpec:
-    """The default :class:`RocketSpec` with `changes`."""
-    return dataclasses.replace(RocketSpec(), **changes)
+#: A short flight with every fault, for tests: 400 Hz, 8 s on the pad, lock lost for 8 s, the tumble at 20 s.
+QUICK_ROCKET = RocketSpec(rate=400.0, pad_s=8.0, flight_s=24.0, burn_s=3.0, stale_s=8.0, tumble_start_s=20.0,
+                          gaps=3)
