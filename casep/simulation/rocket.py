@@ -33,7 +33,7 @@ import numpy as np
 from casep.frames import LaunchSite
 from casep.units import G0
 
-__all__ = ["RocketSpec", "RocketFlight", "simulate_rocket", "ROCKET_SITE", "QUICK_ROCKET"]
+__all__ = ["RocketSpec", "RocketFlight", "simulate_rocket", "ROCKET_SITE", "QUICK_ROCKET", "HEADING_AXIS"]
 
 #: A northern rocket range (lat, lon, h, launch azimuth, launch time in GPS seconds of the week).
 ROCKET_SITE = LaunchSite(67.89, 21.1, 330.0, 30.0, 300000.0)
@@ -57,7 +57,7 @@ class RocketSpec:
     gyr_range_dps: float = 2000.0
     gaps: int = 6
     burnout_gap_s: float = 0.075
-    heading_error_deg: float = 0.5
+    heading_error_deg: float = 0.2
     acc_bias_mg: float = 3.0
     acc_scale_ppm: float = 1000.0
     gyr_bias_dph: float = 30.0
@@ -141,9 +141,14 @@ def _true_imu(sp: RocketSpec, site: LaunchSite, t: np.ndarray) -> tuple[np.ndarr
     return w, f, C_tb
 
 
+#: The body axis whose azimuth the navigation is given: z, horizontal on the pad (the x axis points almost up,
+#: so the azimuth of its horizontal projection moves by degrees with a tenth of a degree of tilt).
+HEADING_AXIS = "z"
+
+
 def _heading(site: LaunchSite, C_tb: np.ndarray) -> float:
-    """The azimuth of the body x axis's horizontal projection, deg from north."""
-    x_t = C_tb[:, 0]
+    """The azimuth of the body axis HEADING_AXIS's horizontal projection, deg from north."""
+    x_t = C_tb[:, "xyz".index(HEADING_AXIS)]
     return (site.azimuth_deg + math.degrees(math.atan2(x_t[2], x_t[0]))) % 360.0
 
 
@@ -184,7 +189,7 @@ def simulate_rocket(seed: int = 0, spec: RocketSpec | None = None, site: LaunchS
     w, f, C_tb = _true_imu(sp, site, t)
     heading = _heading(site, C_tb)
     true = navigate(ImuData(t + site.t0, w, f, source="truth"), site, (site.t0 + t[0], site.t0 - 1.0),
-                    heading_deg=heading)
+                    heading_deg=heading, heading_axis=HEADING_AXIS)
     w_m, f_m, coef = _measured(sp, rng, w, f)
     keep, gaps = _lost(sp, rng, t)
     t_imu = site.t0 + t * (1 + sp.clock_ppm * 1e-6)
@@ -195,7 +200,8 @@ def simulate_rocket(seed: int = 0, spec: RocketSpec | None = None, site: LaunchS
     clipped = np.flatnonzero(np.any(np.abs(w_m) >= math.radians(sp.gyr_range_dps), axis=1))
     events = {"lift_off": site.t0, "burnout": site.t0 + sp.burn_s, "gaps": [(site.t0 + a, n) for a, n in gaps],
               "first_clipped": float(site.t0 + t[clipped[0]]) if clipped.size else None,
-              "heading_deg": heading + sp.heading_error_deg, "true_heading_deg": heading, **spans}
+              "heading_deg": heading + sp.heading_error_deg, "true_heading_deg": heading,
+              "heading_axis": HEADING_AXIS, **spans}
     return RocketFlight(sp, site, imu, gps, t + site.t0, true.v, coef, events, true.q)
 
 

@@ -39,7 +39,8 @@ def _exact(tail_off: float):
     """The error-free record with a motor tail-off of `tail_off` s, and its navigation without a gap (cached)."""
     if tail_off not in _FLIGHTS:
         fl = simulate_rocket(0, dataclasses.replace(EXACT, tail_off_s=tail_off))
-        _FLIGHTS[tail_off] = fl, navigate(_imu(fl.imu), fl.site, fl.align_window, heading_deg=fl.events["heading_deg"])
+        _FLIGHTS[tail_off] = fl, navigate(_imu(fl.imu), fl.site, fl.align_window, heading_deg=fl.events["heading_deg"],
+                                          heading_axis="z")
     return _FLIGHTS[tail_off]
 
 
@@ -53,7 +54,7 @@ def test_a_gap_costs_what_its_missing_samples_leave_unknown(start, tail_off, kin
     with pytest.warns(GapWarning, match=gap) as w:
         imu = _imu(fl.imu, keep)
     bound = float(re.search(r"known to about ([0-9.e+-]+) m/s", str(w[0].message)).group(1))
-    res = navigate(imu, fl.site, fl.align_window, heading_deg=fl.events["heading_deg"])
+    res = navigate(imu, fl.site, fl.align_window, heading_deg=fl.events["heading_deg"], heading_axis="z")
     err = np.linalg.norm(res.v[-1] - full.v[-1])
     assert err <= bound
     if kind == "coast":  # rate constant, specific force smooth: the cubic loses nothing that matters
@@ -77,7 +78,7 @@ def test_clipped_gyro_samples_are_named_and_the_rest_of_the_flight_marked(clippe
         with pytest.warns(SaturationWarning, match=r"imu\.csv: the IMU clipped: w_y: \d+ samples at full scale \(the "
                                                    r"declared 2000 deg/s\), rows \d+\.\.\d+, t = 3000\d\d\.\d+") as w:
             imu = _imu(fl.imu, gyr_range=math.radians(2000.0))
-        res = navigate(imu, fl.site, fl.align_window, heading_deg=fl.events["heading_deg"])
+        res = navigate(imu, fl.site, fl.align_window, heading_deg=fl.events["heading_deg"], heading_axis="z")
     first = fl.site.t0 + (fl.events["first_clipped"] - fl.site.t0) * (1 + 104e-6)  # the IMU clock runs fast
     k = int(np.argmin(res.valid))
     assert first - 0.05 < res.t[k] <= first + 1e-9  # within 1 % of the full scale: the samples just before count
@@ -121,7 +122,7 @@ def test_the_command_takes_the_gyro_range_and_writes_ins_valid(clipped_record, t
     a, b = fl.align_window
     args = ["navigate", str(tmp_path / "imu.parquet"), "--launch-site", str(s.lat_deg), str(s.lon_deg), str(s.h_m),
             str(s.azimuth_deg), "--launch-time", str(s.t0), "--align", str(a), str(b), "--heading",
-            str(fl.events["heading_deg"]), "--gyr-range", "2000", "-o", str(out)]
+            str(fl.events["heading_deg"]), "--heading-axis", "z", "--gyr-range", "2000", "-o", str(out)]
     assert main(args) == 0
     text = capsys.readouterr()
     assert "ins_valid = 0" in text.out and "the IMU clipped" in text.out + text.err
