@@ -318,7 +318,8 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3)
 def judge_tracking(res, flight: FlightData, problem, scales: dict[str, float]):
     """`res` failed (status :data:`STATUS_TRACKING`) when the flight's tracking noise differs between stretches
     beyond :data:`NOISE_RATIO` (:func:`noise_problem`): its message says which combinations the flight
-    determines (:func:`determined`) instead of each coefficient."""
+    determines (:func:`determined`) instead of each coefficient; ``diagnostics["determined"]`` holds them
+    (``combinations``, ``std_factor``, the ``scales`` they divide by)."""
     from casep.estimators.registry import failed
 
     why = noise_problem(flight)
@@ -332,4 +333,7 @@ def judge_tracking(res, flight: FlightData, problem, scales: dict[str, float]):
            f"honest. Weighted by each stretch's own noise (std x {k:.3g} for the weighted fit's misfit), the flight "
            f"determines {len(combos)} of {n} combinations better than their declared magnitudes (coefficient / "
            f"declared magnitude)" + (f": {said}" if said else "") + ("; ..." if len(combos) > 6 else ""))
-    return failed(res, STATUS_TRACKING, msg)
+    res = failed(res, STATUS_TRACKING, msg)
+    res.diagnostics["determined"] = {"combinations": combos, "std_factor": k,
+                                     "scales": {nm: scales.get(nm, 1.0) for nm in problem.names}}
+    return res
