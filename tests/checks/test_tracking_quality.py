@@ -82,7 +82,7 @@ def test_stale_and_wrong_epochs_are_left_out_and_listed_the_pad_kept(rocket):
     pad = before & (t < t0)
     assert after[pad].all() and pad.sum() == round(QUICK_ROCKET.pad_s * QUICK_ROCKET.gps_rate)
     assert gone.sum() == screened.meta["tracking_screen"]["epochs"] - screened.meta["tracking_screen"]["kept"]
-    assert f"stale tracking epochs" in said and f"{ev['stale'][0]:.10g}..{ev['stale'][1]:.10g} s" in said
+    assert "stale tracking epochs" in said and f"{ev['stale'][0]:.10g}..{ev['stale'][1]:.10g} s" in said
     # the reacquired stretch is far noisier than the pad: said, and the reason the separation fails
     why = noise_problem(screened)
     assert why is not None and "differs" in why

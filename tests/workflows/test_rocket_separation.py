@@ -20,20 +20,6 @@ from casep.cli import main
 from casep.navigation.strapdown import quat_to_dcm
 from casep.simulation.rocket import HEADING_AXIS, QUICK_ROCKET, simulate_rocket
 
-MODEL = '''"""strapdown12 plus the initial attitude error phi0 (arcsec, navigation frame)."""
-import casadi as ca
-
-import casep
-
-
-def build() -> casep.ErrorModel:
-    m = casep.build_model("strapdown12")
-    m.name = "strapdown15_phi0"
-    c = m.declare(phi0_x=("arcsec", 60.0), phi0_y=("arcsec", 60.0), phi0_z=("arcsec", 60.0))
-    m.set_initial_misalignment(ca.vertcat(c.phi0_x, c.phi0_y, c.phi0_z))
-    return m
-'''
-
 
 def _truth(fl, tel) -> dict:
     """The injected coefficients, and the initial attitude error of the navigation: (I - [phi x]) = C_ins C^T."""
@@ -49,7 +35,6 @@ def _truth(fl, tel) -> dict:
 def test_the_rocket_is_masked_said_and_not_a_plain_success(tmp_path, capsys):
     fl = simulate_rocket(3, QUICK_ROCKET)
     fl.write(tmp_path / "imu.parquet", tmp_path / "gps.parquet")
-    (tmp_path / "model.py").write_text(MODEL)
     s, (a, b) = fl.site, fl.align_window
     site = ["--launch-site", str(s.lat_deg), str(s.lon_deg), str(s.h_m), str(s.azimuth_deg), "--launch-time",
             str(s.t0)]
@@ -61,7 +46,7 @@ def test_the_rocket_is_masked_said_and_not_a_plain_success(tmp_path, capsys):
     said = nav.out + nav.err
     assert "gaps in t" in said and "the longest 0.07" in said and "the IMU clipped: w_y" in said
     code = main(["separate", str(tel), "--tracking", str(tmp_path / "gps.parquet"), "--tracking-frame", "ecef",
-                 *site, "--model", str(tmp_path / "model.py"), "--json", str(tmp_path / "res.json")])
+                 *site, "--model", "strapdown15_phi0", "--json", str(tmp_path / "res.json")])
     out = capsys.readouterr()
     said = out.out + out.err
     assert code == 1  # not a success
