@@ -46,7 +46,7 @@ from casep.io.flight import FlightData
 from casep.noise.robust import MAD_SIGMA
 
 __all__ = ["TrackingScreen", "screen_tracking", "clock_drift", "stretch_noise", "noise_problem", "determined",
-           "judge_tracking", "STATUS_TRACKING", "STALE_MOTION", "JUMP_TOL",
+           "determined_message", "STALE_MOTION", "JUMP_TOL",
            "JUMP_RATE", "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
 
 #: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
@@ -63,8 +63,6 @@ DRIFT_WINDOWS = 4
 DRIFT_MIN_ACCEL = 2.0
 #: Stretches of the tracking whose noise differs by more than this factor are warned about.
 NOISE_RATIO = 5.0
-#: Status of a separation failed by :func:`judge_tracking`.
-STATUS_TRACKING = -6
 
 
 @dataclass
@@ -315,25 +313,12 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3)
     return out, k
 
 
-def judge_tracking(res, flight: FlightData, problem, scales: dict[str, float]):
-    """`res` failed (status :data:`STATUS_TRACKING`) when the flight's tracking noise differs between stretches
-    beyond :data:`NOISE_RATIO` (:func:`noise_problem`): its message says which combinations the flight
-    determines (:func:`determined`) instead of each coefficient; ``diagnostics["determined"]`` holds them
-    (``combinations``, ``std_factor``, the ``scales`` they divide by)."""
-    from casep.estimators.registry import failed
-
-    why = noise_problem(flight)
-    if why is None or problem.y is None or problem.t is None:
-        return res
-    combos, k = determined(problem, flight.meta["tracking_screen"]["stretches"], scales)
+def determined_message(why: str, combos: list[dict], k: float, n: int, scales: dict[str, float]) -> str:
+    """The failure message of a flight whose tracking noise differs between stretches (`why`, :func:`noise_problem`):
+    what it determines (:func:`determined`: `combos`, std factor `k`) of its `n` coefficients."""
     said = "; ".join(" + ".join(f"{w:.2f} {nm}/{scales.get(nm, 1.0):g}" for nm, w in c["terms"].items())
                      + f" = {c['estimate']:.3g} +- {c['std']:.2g}" for c in combos[:6])
-    n = len(problem.names)
-    msg = (f"failed: {why}: one noise level per axis weights them alike, so the std of the coefficients are not "
-           f"honest. Weighted by each stretch's own noise (std x {k:.3g} for the weighted fit's misfit), the flight "
-           f"determines {len(combos)} of {n} combinations better than their declared magnitudes (coefficient / "
-           f"declared magnitude)" + (f": {said}" if said else "") + ("; ..." if len(combos) > 6 else ""))
-    res = failed(res, STATUS_TRACKING, msg)
-    res.diagnostics["determined"] = {"combinations": combos, "std_factor": k,
-                                     "scales": {nm: scales.get(nm, 1.0) for nm in problem.names}}
-    return res
+    return (f"failed: {why}: one noise level per axis weights them alike, so the std of the coefficients are not "
+            f"honest. Weighted by each stretch's own noise (std x {k:.3g} for the weighted fit's misfit), the flight "
+            f"determines {len(combos)} of {n} combinations better than their declared magnitudes (coefficient / "
+            f"declared magnitude)" + (f": {said}" if said else "") + ("; ..." if len(combos) > 6 else ""))
