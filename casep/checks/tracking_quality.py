@@ -16,11 +16,14 @@ finds, on a telemetry + tracking pair formed at the tracking times:
   second between them) is a tracking velocity change the IMU rules out. The epochs are cut into
   segments at such jumps; a segment shorter than :data:`MIN_SEGMENT_S` is left out (a glitch or a
   burst of wrong epochs between consistent stretches); when no segment is that long, the longest is kept.
-- **clock drift**: the time offset of the tracking against the telemetry estimated in windows
-  (``dv ~ c + b (t - t_w) + a(t) tau_w`` per window, three axes, one ``tau_w``; windows whose
-  acceleration barely changes cannot see it and are skipped), and a straight line through the
-  ``tau_w``: its slope in ppm with its std. A slope beyond :data:`DRIFT_MIN_PPM` and 4 std is
-  warned about (a single ``dt_trk`` does not model it); otherwise the figures are recorded.
+- **clock drift**: the time offset of the tracking against the telemetry estimated in
+  :data:`DRIFT_WINDOWS` windows (``dv ~ quadratic in t + a(t) tau_w`` per window, each axis its own
+  quadratic, one ``tau_w``; windows whose acceleration barely changes cannot see it and are skipped),
+  and a straight line through the ``tau_w`` (three windows or more): its slope in ppm with its std,
+  the std scaled up by the line's reduced chi-square when the windows disagree more than their own
+  std say (instrument errors the quadratics leave in bias each window differently). A slope beyond
+  :data:`DRIFT_MIN_PPM` and 4 std is warned about (a single ``dt_trk`` does not model it);
+  otherwise the figures are recorded.
 
 - **noise that changes between stretches** (stretches: the kept epochs split at pauses of
   :data:`MIN_SEGMENT_S` or more): the robust scatter of ``d(dv)`` per stretch (the median change
@@ -59,7 +62,7 @@ MIN_SEGMENT_S = 3.0
 #: A clock drift is warned about beyond this (ppm) and 4 std.
 DRIFT_MIN_PPM = 20.0
 #: Windows for the drift, and the least spread of the acceleration (m/s^2) that lets a window see an offset.
-DRIFT_WINDOWS = 4
+DRIFT_WINDOWS = 6
 DRIFT_MIN_ACCEL = 2.0
 #: Stretches of the tracking whose noise differs by more than this factor are warned about.
 NOISE_RATIO = 5.0
@@ -156,25 +159,27 @@ def clock_drift(t: np.ndarray, dv: np.ndarray, a: np.ndarray, windows: int = DRI
             continue
         tm = 0.5 * (lo + hi)
         n = int(k.sum())
-        A = np.zeros((3 * n, 7))
-        for j in range(3):  # rows of axis j: its intercept and slope, and the shared offset
-            A[j::3, 2 * j] = 1.0
-            A[j::3, 2 * j + 1] = t[k] - tm
-            A[j::3, 6] = a[k, j]
+        A = np.zeros((3 * n, 10))
+        for j in range(3):  # rows of axis j: its own quadratic trend, and the shared offset
+            for p in range(3):
+                A[j::3, 3 * j + p] = ((t[k] - tm) / (hi - lo)) ** p
+            A[j::3, 9] = a[k, j]
         y = dv[k].reshape(-1)
         coef, *_ = np.linalg.lstsq(A, y, rcond=None)
         r = y - A @ coef
-        cov = np.linalg.pinv(A.T @ A) * float(r @ r) / max(3 * n - 7, 1)
+        cov = np.linalg.pinv(A.T @ A) * float(r @ r) / max(3 * n - 10, 1)
         centre.append(tm)
-        tau.append(coef[6])
-        var.append(cov[6, 6])
-    if len(tau) < 2:
+        tau.append(coef[9])
+        var.append(cov[9, 9])
+    if len(tau) < 3:
         return math.nan, math.nan
     w = 1.0 / np.maximum(np.asarray(var), 1e-30)
     X = np.column_stack([np.ones(len(tau)), np.asarray(centre) - np.mean(centre)])
     cov = np.linalg.inv(X.T @ (w[:, None] * X))
-    slope = float((cov @ (X.T @ (w * np.asarray(tau))))[1])
-    return slope * 1e6, math.sqrt(cov[1, 1]) * 1e6
+    line = cov @ (X.T @ (w * np.asarray(tau)))
+    res = np.asarray(tau) - X @ line
+    birge = max(1.0, float(np.sum(w * res**2)) / (len(tau) - 2))  # the windows disagree more than their std say:
+    return float(line[1]) * 1e6, math.sqrt(cov[1, 1] * birge) * 1e6  # errors the trends left in, the std grow
 
 
 def stretch_noise(t: np.ndarray, dv: np.ndarray) -> list[tuple[float, float, int, float]]:
