@@ -97,9 +97,24 @@ def _spans(t: np.ndarray, flagged: np.ndarray) -> list[tuple[float, float, int]]
     return [(float(t[a]), float(t[b - 1]), int(b - a)) for a, b in zip(edges[::2], edges[1::2])]
 
 
-def _listed(spans: list[tuple[float, float, int]]) -> str:
-    text = ", ".join(f"{a:.10g}..{b:.10g} s ({n})" for a, b, n in spans[:6])
-    return text + (f" and {len(spans) - 6} more" if len(spans) > 6 else "")
+def _located(flight: FlightData, idx: np.ndarray, flagged: np.ndarray, top: int = 6) -> str:
+    """The first `top` runs of flagged epochs (of the observed samples `idx`) by file line and time, and how many."""
+    from pathlib import Path
+
+    from casep.io.locate import locate_samples
+
+    x = np.concatenate([[0], flagged.astype(np.int8), [0]])
+    edges = np.flatnonzero(np.diff(x))
+    runs = list(zip(edges[::2], edges[1::2]))
+    locs = locate_samples(flight, [idx[k] for a, b in runs[:top] for k in (a, b - 1)])
+    parts = []
+    for i, (a, b) in enumerate(runs[:top]):
+        first, last = locs[2 * i], locs[2 * i + 1]
+        at = "" if first["file"] is None else (
+            f"lines {first['line']}..{last['line']}" if first["line"] is not None else
+            f"rows {first['row']}..{last['row']}") + f" of {Path(first['file']).name}, "
+        parts.append(f"{at}t = {first['t']:.10g}..{last['t']:.10g} s ({b - a})")
+    return ", ".join(parts) + (f" and {len(runs) - top} more" if len(runs) > top else "")
 
 
 def _velocity_change(flight: FlightData) -> np.ndarray | None:
@@ -226,7 +241,8 @@ def screen_tracking(flight: FlightData) -> FlightData:
     screen = TrackingScreen(_spans(t, stale), _spans(t, rejected), largest, drift, drift_std, int(idx.size),
                             int(keep.sum()))
     screen.stretches = stretch_noise(t[keep], flight.dv[idx[keep]])
-    _warn(flight.source, screen)
+    _warn(flight.source, screen, _located(flight, idx, stale) if stale.any() else "",
+          _located(flight, idx, rejected) if rejected.any() else "")
     if keep.all():
         return dataclasses.replace(flight, meta={**meta, "tracking_screen": screen.to_dict()})
     observed = flight.observed.copy()
@@ -234,19 +250,19 @@ def screen_tracking(flight: FlightData) -> FlightData:
     return dataclasses.replace(flight, observed=observed, meta={**meta, "tracking_screen": screen.to_dict()})
 
 
-def _warn(source: str, s: TrackingScreen) -> None:
-    """The screen's TrackingQualityWarnings."""
+def _warn(source: str, s: TrackingScreen, stale: str, rejected: str) -> None:
+    """The screen's TrackingQualityWarnings (`stale`, `rejected`: the runs located in the file)."""
     if s.stale:
         n = sum(k for *_, k in s.stale)
         warnings.warn(TrackingQualityWarning(
             f"{source}: {n} stale tracking epochs (a fix repeated while the telemetry moved by more than "
-            f"{STALE_MOTION:g} m/s since it) left out, in {len(s.stale)} span(s): {_listed(s.stale)}"), stacklevel=3)
+            f"{STALE_MOTION:g} m/s since it) left out, in {len(s.stale)} span(s): {stale}"), stacklevel=3)
     if s.rejected:
         n = sum(k for *_, k in s.rejected)
         warnings.warn(TrackingQualityWarning(
             f"{source}: {n} tracking epochs fail the physics check against the telemetry (velocity jumps up to "
             f"{s.largest_jump_m_s:.4g} m/s, beyond {JUMP_TOL:g} m/s + {JUMP_RATE:g} m/s^2 x the time between epochs, "
-            f"in stretches shorter than {MIN_SEGMENT_S:g} s) and are left out: {_listed(s.rejected)}"), stacklevel=3)
+            f"in stretches shorter than {MIN_SEGMENT_S:g} s) and are left out: {rejected}"), stacklevel=3)
     if math.isfinite(s.drift_ppm) and abs(s.drift_ppm) > max(DRIFT_MIN_PPM, 4.0 * s.drift_std_ppm):
         warnings.warn(TrackingQualityWarning(
             f"{source}: the tracking time offset drifts by {s.drift_ppm:.4g} +- {s.drift_std_ppm:.2g} ppm "

@@ -74,7 +74,10 @@ def test_stale_and_wrong_epochs_are_left_out_and_listed_the_pad_kept(rocket):
     in_wrong = before & (t >= ev["wrong"][0] - 1e-6) & (t <= ev["wrong"][1] + 1e-6)
     assert not after[in_wrong].any()
     assert f"{round(QUICK_ROCKET.wrong_s * QUICK_ROCKET.gps_rate)} tracking epochs fail the physics check" in said
-    assert f"{ev['wrong'][0]:.10g}..{ev['wrong'][1]:.10g} s" in said
+    n_pad = round(QUICK_ROCKET.pad_s * QUICK_ROCKET.gps_rate)
+    first_wrong = n_pad + round((QUICK_ROCKET.lock_lost_s + QUICK_ROCKET.stale_s) * QUICK_ROCKET.gps_rate) + 1
+    assert (f"rows {first_wrong}..{first_wrong + 9} of gps.parquet, t = {ev['wrong'][0]:.10g}..{ev['wrong'][1]:.10g} "
+            "s (10)") in said
     # after reacquisition: one epoch per 1 Hz update kept (the lagged solution repeated in between is stale)
     reacq = after & (t >= ev["reacquired"])
     assert np.allclose(np.diff(t[reacq]), QUICK_ROCKET.gps_step_s, atol=1e-6)
@@ -82,7 +85,7 @@ def test_stale_and_wrong_epochs_are_left_out_and_listed_the_pad_kept(rocket):
     pad = before & (t < t0)
     assert after[pad].all() and pad.sum() == round(QUICK_ROCKET.pad_s * QUICK_ROCKET.gps_rate)
     assert gone.sum() == screened.meta["tracking_screen"]["epochs"] - screened.meta["tracking_screen"]["kept"]
-    assert "stale tracking epochs" in said and f"{ev['stale'][0]:.10g}..{ev['stale'][1]:.10g} s" in said
+    assert "stale tracking epochs" in said and f"t = {ev['stale'][0]:.10g}..{ev['stale'][1]:.10g} s" in said
     # the reacquired stretch is far noisier than the pad: said, and the reason the separation fails
     why = noise_problem(screened)
     assert why is not None and "differs" in why
@@ -113,13 +116,15 @@ def test_a_clean_pair_passes_untouched_and_a_glitch_goes_alone(rng):
     screened = screen_tracking(flight)  # no warning: the suite makes one an error
     assert np.array_equal(screened.observed, flight.observed)
     assert screened.meta["tracking_screen"]["stale"] == [] and screened.meta["tracking_screen"]["rejected"] == []
-    with pytest.warns(TrackingQualityWarning, match=r"1 tracking epochs fail the physics check .* jumps up to 86\.\d"):
+    glitch = r"1 tracking epochs fail the physics check .* jumps up to 86\.\d.* t = 20\.\.20 s \(1\)"
+    with pytest.warns(TrackingQualityWarning, match=glitch):
         screened = screen_tracking(_clean_pair(rng, glitch=200))
     assert screened.n_observed == flight.n_observed - 1
 
 
 def test_a_repeated_fix_is_stale_only_when_the_vehicle_moved(rng):
-    with pytest.warns(TrackingQualityWarning, match=r"3 stale tracking epochs .* in 1 span\(s\): 30\.1\.\.30\.3 s"):
+    stale = r"3 stale tracking epochs .* in 1 span\(s\): t = 30\.1\.\.30\.3 s \(3\)"
+    with pytest.warns(TrackingQualityWarning, match=stale):
         screened = screen_tracking(_clean_pair(rng, repeats=(301, 302, 303)))
     assert screened.meta["tracking_screen"]["stale"] == [(30.1, 30.3, 3)]
     at_rest = _clean_pair(rng, repeats=(301, 302, 303), at_rest=True)

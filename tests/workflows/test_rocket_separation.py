@@ -51,7 +51,7 @@ def test_the_rocket_is_masked_said_and_not_a_plain_success(tmp_path, capsys):
     said = out.out + out.err
     assert code == 1  # not a success
     for listed in ("stale tracking epochs", "fail the physics check", "ins_valid marks", "noise differs",
-                   f"{fl.events['wrong'][0]:.10g}..{fl.events['wrong'][1]:.10g} s"):
+                   f"t = {fl.events['wrong'][0]:.10g}..{fl.events['wrong'][1]:.10g} s (10)"):
         assert listed in said, listed
     res = json.loads((tmp_path / "res.json").read_text())
     assert not res["success"] and res["status"] == -6 and "combinations better than their declared" in res["message"]
