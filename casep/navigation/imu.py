@@ -149,7 +149,7 @@ def check_imu(imu: ImuData, *, gyr_range: float | None = None, acc_range: float 
     if lost.size:
         _warn_gaps(imu, lost, h, h_med)
     imu.gaps = int(lost.size)
-    _check_units(imu)
+    _check_units(imu, declared=gyr_range is not None and float(np.abs(imu.w).max()) <= (1 + CLIP_MARGIN) * gyr_range)
     imu.clipped = _check_clipped(imu, gyr_range, acc_range)
     return imu
 
@@ -232,8 +232,9 @@ def _check_clipped(imu: ImuData, gyr_range: float | None, acc_range: float | Non
     return clipped
 
 
-def _check_units(imu: ImuData) -> None:
-    """Rates beyond any full scale: error; beyond 2000 deg/s or forces beyond 50 g: warning; with the numbers."""
+def _check_units(imu: ImuData, declared: bool = False) -> None:
+    """Rates beyond any full scale: error; beyond 2000 deg/s (unless within a `declared` gyro range) or forces
+    beyond 50 g: warning; with the numbers."""
     wn = np.linalg.norm(imu.w, axis=1)
     k = int(np.argmax(wn))
     cols = "dth_*" if imu.kind == "increments" else "w_*"
@@ -241,7 +242,7 @@ def _check_units(imu: ImuData) -> None:
         raise ValueError(f"{imu.source}: columns {cols}, row {k + 1}: body rate {wn[k]:.4g} rad/s "
                          f"({math.degrees(wn[k]):.4g} deg/s) is beyond any gyro's full scale: the rates look like "
                          "deg/s (give rad/s)")
-    if wn[k] > WARN_RATE:
+    if wn[k] > WARN_RATE and not declared:
         warnings.warn(f"{imu.source}: columns {cols}, row {k + 1}: body rate {wn[k]:.4g} rad/s "
                       f"({math.degrees(wn[k]):.4g} deg/s), beyond the 2000 deg/s of common gyros: deg/s given as "
                       "rad/s?", PlausibilityWarning, stacklevel=3)

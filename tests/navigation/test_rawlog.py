@@ -73,8 +73,7 @@ def clipped_record():
 def test_clipped_gyro_samples_are_named_and_the_rest_of_the_flight_marked(clipped_record, tmp_path):
     fl = clipped_record
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", GapWarning)
-        warnings.simplefilter("ignore", PlausibilityWarning)
+        warnings.simplefilter("ignore", GapWarning)  # the rates within the declared range: no PlausibilityWarning
         with pytest.warns(SaturationWarning, match=r"imu\.csv: the IMU clipped: w_y: \d+ samples at full scale \(the "
                                                    r"declared 2000 deg/s\), rows \d+\.\.\d+, t = 3000\d\d\.\d+") as w:
             imu = _imu(fl.imu, gyr_range=math.radians(2000.0))
