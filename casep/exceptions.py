@@ -7,7 +7,8 @@ from typing import Any
 
 __all__ = ["CasepWarning", "IllConditionedWarning", "PlausibilityWarning", "NoiseFreeWarning",
            "OutlierWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning", "NoiseLevelWarning",
-           "GapWarning", "NoiseNotWhiteWarning", "ConsistencyWarning", "AlignmentWarning",
+           "GapWarning", "NoiseNotWhiteWarning", "ConsistencyWarning", "AlignmentWarning", "SaturationWarning",
+           "TrackingQualityWarning",
            "option_label", "refusal"]
 
 
@@ -34,6 +35,15 @@ class OutlierWarning(CasepWarning):
 
 class TimeOffsetWarning(CasepWarning):
     """The residuals track the kinematic acceleration (or its derivative): a tracking time offset."""
+
+
+class SaturationWarning(CasepWarning):
+    """A sensor reads its full scale for several samples in a row: it clipped (where, how long, the value)."""
+
+
+class TrackingQualityWarning(CasepWarning):
+    """Tracking epochs that cannot be right (repeated fixes while the vehicle moved, velocity jumps the IMU
+    rules out, a drifting clock): what was left out or found, with the times and the numbers."""
 
 
 class SetupWarning(PlausibilityWarning):

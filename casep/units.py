@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["G0", "DEG_PER_HOUR", "ARCSEC", "UNITS", "si_factor"]
+__all__ = ["G0", "DEG_PER_HOUR", "ARCSEC", "UNITS", "si_factor", "ACC_RANGES_G", "GYR_RANGES_DPS",
+           "FULL_SCALE_TOLERANCE"]
 
 #: Standard gravity, m/s^2 (the "g" of every unit below).
 G0 = 9.80665
@@ -20,6 +21,12 @@ G0 = 9.80665
 DEG_PER_HOUR = math.pi / 180.0 / 3600.0
 #: One arcsecond in rad.
 ARCSEC = math.pi / 180.0 / 3600.0
+
+#: Nominal ranges (+-) of MEMS accelerometers, g, and gyros, deg/s: a reading held at one of them clipped.
+ACC_RANGES_G = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0, 16.0, 24.0, 30.0, 32.0, 50.0, 100.0, 200.0, 400.0)
+GYR_RANGES_DPS = (125.0, 150.0, 245.0, 250.0, 300.0, 400.0, 450.0, 500.0, 1000.0, 2000.0, 4000.0)
+#: A physical reading within this fraction of a nominal range is at full scale.
+FULL_SCALE_TOLERANCE = 0.03
 
 _MG = 1e-3 * G0  # one milli-g in m/s^2
 _UG = 1e-6 * G0  # one micro-g in m/s^2

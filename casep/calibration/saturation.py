@@ -26,7 +26,8 @@ import warnings
 import numpy as np
 
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT
-from casep.exceptions import CasepWarning
+from casep.exceptions import SaturationWarning
+from casep.units import ACC_RANGES_G, FULL_SCALE_TOLERANCE, GYR_RANGES_DPS
 
 __all__ = ["SaturationWarning", "FullScaleWarning", "full_scale", "implied_full_scale", "saturated_runs",
            "check_gyro_saturation", "clipped_poses", "check_full_scale", "declared_range", "warn_implied_full_scale",
@@ -34,15 +35,6 @@ __all__ = ["SaturationWarning", "FullScaleWarning", "full_scale", "implied_full_
 
 #: Word lengths of the converters raw counts come from.
 ADC_BITS = (8, 10, 12, 14, 16, 18, 20, 24, 32)
-#: Nominal ranges (+-) of MEMS accelerometers, g, and gyros, deg/s.
-ACC_RANGES_G = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0, 16.0, 24.0, 30.0, 32.0, 50.0, 100.0, 200.0, 400.0)
-GYR_RANGES_DPS = (125.0, 150.0, 245.0, 250.0, 300.0, 400.0, 450.0, 500.0, 1000.0, 2000.0, 4000.0)
-#: A physical reading within this fraction of a nominal range is at full scale.
-FULL_SCALE_TOLERANCE = 0.03
-
-
-class SaturationWarning(CasepWarning):
-    """A sensor reads its full scale for several samples in a row: it clipped (where, how long, the value)."""
 
 
 class FullScaleWarning(CasepWarning):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from casep.checks.late_start import warn_late_start
 from casep.checks.plausibility import check_dv_not_zero, check_enough_samples, check_flight, warn_setup
+from casep.checks.tracking_quality import screen_tracking
 from casep.io.flight import FlightData
 from casep.model.error_model import ErrorModel
 from casep.regression.problem import DEFAULT_BLOCK_ROWS, Problem
@@ -59,6 +60,9 @@ def flight_problem(flight: FlightData, model: ErrorModel, *, keep_sv: bool | Non
     Returns
     -------
     Problem
+        Of the flight without the tracking epochs :func:`casep.checks.tracking_quality.screen_tracking`
+        leaves out (stale, impossible), said with warnings.
     """
+    flight = screen_tracking(flight)
     check_before_estimation(flight, model)
     return Problem.from_flight(flight, model, keep_sv=keep_sv, block_rows=block_rows)

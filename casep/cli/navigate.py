@@ -25,6 +25,12 @@ def add_parser(sub: Any) -> None:
                         "saying how well the heading is known")
     p.add_argument("--heading-axis", choices=("x", "y", "z"), default="x",
                    help="the body axis whose azimuth --heading gives (default x)")
+    p.add_argument("--gyr-range", type=finite_float, default=None, metavar="DEG/S",
+                   help="the gyros' full scale, deg/s: a rate within 1 %% of it is clipped (default: a run of 3 "
+                        "samples held at a nominal range); the solution from the first clipped sample on is marked "
+                        "ins_valid = 0 and left out of the separation")
+    p.add_argument("--acc-range", type=finite_float, default=None, metavar="G",
+                   help="the accelerometers' full scale, g (as --gyr-range)")
     p.add_argument("-o", "--output", metavar="TEL.csv", required=True,
                    help="the strapdown telemetry: t, q_w..q_z, fb_*, w_*, v_tel_*, r_tel_* (CSV, or Parquet for "
                         ".parquet)")
@@ -32,18 +38,24 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import math
+
     from casep.io.files import write_table
     from casep.navigation.imu import read_imu
     from casep.navigation.navigator import navigate
+    from casep.units import G0
 
     outputs.check({"--output": args.output, "--json": args.json}, [args.imu])
     site = inputs.launch_site(args.launch_site, args.launch_time)
-    res = navigate(read_imu(args.imu), site, tuple(args.align), heading_deg=args.heading,
+    ranges = {"gyr_range": None if args.gyr_range is None else math.radians(args.gyr_range),
+              "acc_range": None if args.acc_range is None else args.acc_range * G0}
+    res = navigate(read_imu(args.imu, **ranges), site, tuple(args.align), heading_deg=args.heading,
                    heading_axis=args.heading_axis)
     lat, lon, h, az = args.launch_site
     comments = [f"casep navigate {args.imu}: strapdown telemetry, launch-inertial frame",
                 f"launch site {lat:g} {lon:g} {h:g} azimuth {az:g} deg, launch time {args.launch_time:g} s",
-                "q: Hamilton, scalar first, body -> launch-inertial; SI units"]
+                "q: Hamilton, scalar first, body -> launch-inertial; SI units"] + \
+        (["ins_valid: 0 from the first clipped IMU sample on (not trusted)"] if res.invalid_from() is not None else [])
     write_table(args.output, res.columns(), comments=comments)
     if args.json:
         outputs.write_json(res.to_dict(), args.json)

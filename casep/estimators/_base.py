@@ -359,6 +359,9 @@ REGULARISED = ("ridge", "pcr", "bounded")
 STATUS_SETUP = -4
 #: Status of a result with estimates beyond :data:`MAGNITUDE_FAIL` times their declared magnitudes.
 STATUS_MAGNITUDE = -5
+#: Status of a result whose flight's tracking noise differs between stretches beyond what one noise level per axis
+#: can weight (casep.checks.tracking_quality.noise_problem): the result says what the flight determines instead.
+STATUS_TRACKING = -6
 
 
 def failed(res: EstimateResult, status: int, message: str) -> EstimateResult:

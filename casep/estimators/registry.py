@@ -26,6 +26,7 @@ import numpy as np
 
 from casep.estimators._base import (  # what a method's core uses (a method of one's own), and a result's judgement
     STATUS_SETUP,
+    STATUS_TRACKING,
     Prepared,
     check_magnitudes,
     failed,
@@ -57,7 +58,7 @@ from casep.estimators.rls import RELS, RLS
 __all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Method", "OPTIONS", "METHODS",
            "check_method_options", "describe", "run_method", "solver", "register", "unregister", "NOISE_OPTIONS",
            "option_ranges", "SIGMA", "SeveralFlights", "Labels", "Prepared", "prepare", "finish", "failed",
-           "check_magnitudes", "STATUS_SETUP", "option_label", "refusal"]
+           "check_magnitudes", "STATUS_SETUP", "STATUS_TRACKING", "option_label", "refusal"]
 
 #: Every estimator, in the order of ``casep methods``.
 METHODS: dict[str, Method] = {m.name: m for m in (OLS, RLS, RELS, RIDGE, BOUNDED, PCR, MAP, GLS, HUBER)}

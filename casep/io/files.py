@@ -57,6 +57,7 @@ from casep.io.pair import (
     check_tracking_frame,
     no_overlap_message,
     pair_flight,
+    repeated_rows,
     time_shift_seconds,
     tracking_hint,
     tracking_velocity,
@@ -267,7 +268,7 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     if inside.sum() < 2:
         raise tel.error(no_overlap_message(t_tel, t_raw, shift_scale), "t")
     shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset)
-    extra: dict[str, Any] = {"time_alignment": alignment}
+    extra: dict[str, Any] = {"time_alignment": alignment, "tracking_repeats": repeated_rows(trk, tracking_frame)}
     signals = tel.signals()
     tel.strapdown_signals(signals, extra)
     if not all(f"a_{a}" in signals for a in "xyz"):

@@ -19,7 +19,11 @@ from casep.io.tables import VTRK_COLUMNS, Table
 __all__ = ["pair_flight", "PAIR_GRIDS", "STATE_SIGNALS", "GAP_FACTOR", "GAP_MIN_S", "MAX_TIME_OFFSET",
            "MAX_LAUNCH_TIME_GAP", "check_tracking_frame", "tracking_velocity", "tracking_hint", "with_tracked_state",
            "time_shift_seconds", "check_launch_time", "no_overlap_message",
-           "check_earth_fixed_units", "fits_time_offset"]
+           "check_earth_fixed_units", "fits_time_offset", "VALID_COLUMN", "repeated_rows"]
+
+#: The telemetry column marking the samples whose navigation solution is trusted (1) or not (0: after a clipped
+#: IMU sample, :mod:`casep.navigation.imu`): :func:`pair_flight` leaves the rows where it is below 1 out.
+VALID_COLUMN = "ins_valid"
 
 def fits_time_offset(meta) -> bool:
     """Whether a flight's fit gains the tracking time offset ``dt_trk`` by default (the one rule).
@@ -81,6 +85,17 @@ def tracking_velocity(trk: Table, t_trk: np.ndarray, tracking_frame: str,
         r, v = geodetic_to_ecef(lat, lon, h, ve, vn, vu)
     check_earth_fixed_units(trk, t_trk, r, v, tracking_frame)
     return ecef_to_launch(site, t_trk, r, v)[1], r, v
+
+
+def repeated_rows(trk: Table, tracking_frame: str) -> np.ndarray:
+    """The tracking rows (0-based) whose position and velocity columns repeat the previous row's exactly: a receiver
+    that has lost lock and repeats its last fix. A record of the file, not a judgement
+    (:mod:`casep.checks.tracking_quality` judges them against the telemetry's motion)."""
+    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS
+
+    cols = {"launch": VTRK_COLUMNS, "ecef": ECEF_COLUMNS[1:], "geodetic": GEODETIC_COLUMNS[1:]}[tracking_frame]
+    x = trk.vectors(tuple(cols))
+    return np.flatnonzero(np.all(x[1:] == x[:-1], axis=1)) + 1
 
 
 def check_earth_fixed_units(trk: Table, t: np.ndarray, r: np.ndarray, v: np.ndarray, frame: str) -> None:
@@ -260,6 +275,8 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
         rows_index = np.full(t.size, -1)
         rows_index[idx] = np.flatnonzero(use)  # the tracking data row of each observed sample
         extra["rows_index"] = rows_index
+    if VALID_COLUMN in sig:
+        observed = _valid_rows(t, observed, sig[VALID_COLUMN], extra, source)
     if trk_gaps or tel_gaps:
         extra["gaps_s"] = {"tracking": trk_gaps, "telemetry": tel_gaps}
     meta = {"format": "pair", "grid": grid, "dv": how, **(meta or {}), **extra,
@@ -270,6 +287,24 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
             "start_speed_m_s": float(np.linalg.norm(v_tel[0])),
             "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.checks.plausibility
     return FlightData(t, f_out, dv, source=source, meta=meta, observed=observed, signals=sig)
+
+
+def _valid_rows(t: np.ndarray, observed: np.ndarray, valid: np.ndarray, extra: dict, source: str) -> np.ndarray:
+    """`observed` without the rows where the telemetry's :data:`VALID_COLUMN` is below 1, said with a warning."""
+    import warnings
+
+    from casep.exceptions import SaturationWarning
+
+    bad = observed & ~(np.asarray(valid) >= 1.0)
+    if not bad.any():
+        return observed
+    rows = np.flatnonzero(bad)
+    extra["ins_invalid"] = {"from_s": float(t[rows[0]]), "to_s": float(t[rows[-1]]), "rows_left_out": int(rows.size)}
+    warnings.warn(SaturationWarning(
+        f"{source}: the telemetry column {VALID_COLUMN} marks the navigation solution as not trusted (a clipped IMU "
+        f"sample) from t = {t[rows[0]]:.10g} s: the {rows.size} observed rows from there to t = {t[rows[-1]]:.10g} s "
+        "are left out of the regression"), stacklevel=4)
+    return observed & ~bad
 
 
 #: A step this many times the median sample step is a gap that interpolation must not bridge ...

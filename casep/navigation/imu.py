@@ -14,7 +14,21 @@ integrated across, with a :class:`~casep.exceptions.GapWarning` giving their cou
 gap; an increment after a gap covers one nominal period and stands for the whole step (the rate
 held over the lost samples). Rates beyond any gyro's full scale (200 rad/s) are an error (deg/s
 declared rad/s), rates over 35 rad/s (2000 deg/s) or specific forces over 50 g a
-:class:`~casep.exceptions.PlausibilityWarning`, with the numbers.
+:class:`~casep.exceptions.PlausibilityWarning`, with the numbers. The gap warning also states what
+the lost samples leave unknown: across a gap of length ``h`` where the specific force changes from
+``f_a`` to ``f_b``, any path between them fits, so the velocity across it is known to about
+``|f_b - f_a| h / 2`` (the largest such bound is given with its time).
+
+Clipped samples (:func:`clipped_samples`): a reading at the sensor's full scale is not the motion.
+With a declared full scale (``gyr_range`` rad/s, ``acc_range`` m/s^2) a component within 1 % of it
+is clipped; without one, a run of at least :data:`CLIP_RUN` samples holding a column's extreme value
+that lies within :data:`casep.units.FULL_SCALE_TOLERANCE` of a nominal range, and a tenth of it or more
+from the column's median (a static accelerometer reads 1 g for ever without clipping)
+(:data:`casep.units.GYR_RANGES_DPS`, :data:`casep.units.ACC_RANGES_G`). The attitude and velocity
+integrated through a clipped sample stay wrong for the rest of the record, so everything from the
+first clipped sample on is marked (``ImuData.clipped``; the navigation writes ``ins_valid = 0``
+there, and the separation leaves those rows out), with a :class:`~casep.exceptions.SaturationWarning`
+naming the columns, the rows, the times and the full scale.
 """
 
 from __future__ import annotations
@@ -26,10 +40,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from casep.exceptions import GapWarning, PlausibilityWarning
+from casep.exceptions import GapWarning, PlausibilityWarning, SaturationWarning
+from casep.units import ACC_RANGES_G, FULL_SCALE_TOLERANCE, G0, GYR_RANGES_DPS
 
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
-           "GAP_FACTOR"]
+           "GAP_FACTOR", "clipped_samples", "CLIP_RUN"]
 
 RATE_COLUMNS = ("w_x", "w_y", "w_z")
 FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
@@ -42,6 +57,10 @@ MAX_RATE = 200.0
 #: Rates beyond this (2000 deg/s, the largest common full scale) and specific forces beyond 50 g are warned about.
 WARN_RATE = 35.0
 WARN_FORCE = 50 * 9.80665
+#: Without a declared full scale, this many samples in a row at a nominal range are clipped.
+CLIP_RUN = 3
+#: With a declared full scale, a reading within this fraction of it is clipped.
+CLIP_MARGIN = 0.01
 
 
 @dataclass
@@ -63,6 +82,8 @@ class ImuData:
         The file, for messages.
     gaps : int
         Steps with lost samples.
+    clipped : (N,) ndarray of bool or None
+        Samples at or after the first clipped one (:func:`clipped_samples`); None: none checked or none found.
     """
 
     t: np.ndarray
@@ -73,10 +94,14 @@ class ImuData:
     dv: np.ndarray | None = None
     source: str = "<memory>"
     gaps: int = 0
+    clipped: np.ndarray | None = None
 
 
-def read_imu(path: str | os.PathLike) -> ImuData:
-    """Read and check an IMU file (layout by its columns: rates, else increments); see the module docstring."""
+def read_imu(path: str | os.PathLike, *, gyr_range: float | None = None, acc_range: float | None = None) -> ImuData:
+    """Read and check an IMU file (layout by its columns: rates, else increments); see the module docstring.
+
+    `gyr_range` (rad/s) and `acc_range` (m/s^2): the sensors' declared full scales (:func:`clipped_samples`).
+    """
     from casep.io.tables import Table
 
     tab = Table(path)
@@ -84,16 +109,20 @@ def read_imu(path: str | os.PathLike) -> ImuData:
         tab.require(("t",) + DTHETA_COLUMNS + DV_COLUMNS)
         t = tab.time()
         return check_imu(ImuData(t, np.zeros((len(t), 3)), np.zeros((len(t), 3)), "increments",
-                                 tab.vectors(DTHETA_COLUMNS), tab.vectors(DV_COLUMNS), tab.src))
+                                 tab.vectors(DTHETA_COLUMNS), tab.vectors(DV_COLUMNS), tab.src),
+                         gyr_range=gyr_range, acc_range=acc_range)
     tab.require(("t",) + RATE_COLUMNS + FORCE_COLUMNS,
                 "; an IMU file holds t, w_x..w_z (rad/s), fb_x..fb_z (m/s^2), or t, dth_x..dth_z (rad), "
                 "dvb_x..dvb_z (m/s)")
     t = tab.time()
-    return check_imu(ImuData(t, tab.vectors(RATE_COLUMNS), tab.vectors(FORCE_COLUMNS), "rates", source=tab.src))
+    return check_imu(ImuData(t, tab.vectors(RATE_COLUMNS), tab.vectors(FORCE_COLUMNS), "rates", source=tab.src),
+                     gyr_range=gyr_range, acc_range=acc_range)
 
 
-def check_imu(imu: ImuData) -> ImuData:
-    """Check an IMU record (gaps, units) and, for increments, fill ``w``, ``f``; returns it.
+def check_imu(imu: ImuData, *, gyr_range: float | None = None, acc_range: float | None = None) -> ImuData:
+    """Check an IMU record (gaps, units, clipped samples) and, for increments, fill ``w``, ``f``; returns it.
+
+    `gyr_range` (rad/s), `acc_range` (m/s^2): declared full scales (:func:`clipped_samples`), else nominal ranges.
 
     Raises
     ------
@@ -118,20 +147,94 @@ def check_imu(imu: ImuData) -> ImuData:
         step = np.concatenate([[h_med], h])[:, None]
         imu.w, imu.f = imu.dtheta / step, imu.dv / step
     if lost.size:
-        k = int(lost[np.argmax(h[lost])])
-        missing = int(np.sum(np.round(h[lost] / h_med) - 1))
-        gaps = f"{lost.size} gap{'s' if lost.size > 1 else ''}"
-        warnings.warn(f"{imu.source}: {gaps} in t (about {missing} samples lost at the median step "
-                      f"{h_med:.4g} s); the longest {h[k]:.4g} s after t = {t[k]:.10g} s (row {k + 1}): "
-                      "integrated across it, the rate and specific force taken linear (rates) or held (increments)",
-                      GapWarning, stacklevel=2)
+        _warn_gaps(imu, lost, h, h_med)
     imu.gaps = int(lost.size)
-    _check_units(imu)
+    _check_units(imu, declared=gyr_range is not None and float(np.abs(imu.w).max()) <= (1 + CLIP_MARGIN) * gyr_range)
+    imu.clipped = _check_clipped(imu, gyr_range, acc_range)
     return imu
 
 
-def _check_units(imu: ImuData) -> None:
-    """Rates beyond any full scale: error; beyond 2000 deg/s or forces beyond 50 g: warning; with the numbers."""
+def _warn_gaps(imu: ImuData, lost: np.ndarray, h: np.ndarray, h_med: float) -> None:
+    """The GapWarning: count, samples lost, the longest gap and where, and the largest velocity it leaves unknown."""
+    t = imu.t
+    k = int(lost[np.argmax(h[lost])])
+    missing = int(np.sum(np.round(h[lost] / h_med) - 1))
+    unknown = np.linalg.norm(imu.f[lost + 1] - imu.f[lost], axis=1) * h[lost] / 2  # |f_b - f_a| h / 2, m/s
+    j = int(lost[np.argmax(unknown)])
+    gaps = f"{lost.size} gap{'s' if lost.size > 1 else ''}"
+    warnings.warn(f"{imu.source}: {gaps} in t (about {missing} samples lost at the median step "
+                  f"{h_med:.4g} s); the longest {h[k]:.4g} s after t = {t[k]:.10g} s (row {k + 1}): "
+                  "integrated across it, the rate and specific force interpolated (rates: the cubic through the "
+                  "neighbouring samples) or held (increments); "
+                  f"the velocity across the gap after t = {t[j]:.10g} s is known to about {unknown.max():.3g} m/s "
+                  f"only (the specific force changes by {2 * unknown.max() / h[j]:.4g} m/s^2 over its "
+                  f"{h[j]:.4g} s)", GapWarning, stacklevel=3)
+
+
+def clipped_samples(x: np.ndarray, full_scale: float | None, nominal_si: tuple[float, ...]) -> np.ndarray:
+    """The (N, 3) readings of `x` at the sensor's full scale (module notes).
+
+    Parameters
+    ----------
+    x : (N, 3) ndarray
+        Body rates (rad/s) or specific forces (m/s^2).
+    full_scale : float or None
+        The declared full scale, same unit; None: the nominal ranges `nominal_si` (same unit).
+
+    Returns
+    -------
+    (N, 3) ndarray of bool
+    """
+    x = np.asarray(x, float)
+    if full_scale is not None:
+        return np.abs(x) >= (1.0 - CLIP_MARGIN) * full_scale
+    out = np.zeros(x.shape, bool)
+    nominal = np.asarray(nominal_si, float)
+    for j in range(x.shape[1]):
+        med = float(np.median(x[:, j]))
+        for ext in (float(x[:, j].max()), float(x[:, j].min())):
+            if ext == 0.0 or np.min(np.abs(abs(ext) / nominal - 1.0)) > FULL_SCALE_TOLERANCE \
+                    or abs(ext - med) < 0.1 * abs(ext):  # a reading held near the column's median is no clipping
+                continue
+            at = np.concatenate([[0], (x[:, j] == ext).astype(np.int8), [0]])
+            edges = np.flatnonzero(np.diff(at))
+            for a, b in zip(edges[::2], edges[1::2]):
+                if b - a >= CLIP_RUN:
+                    out[a:b, j] = True
+    return out
+
+
+def _check_clipped(imu: ImuData, gyr_range: float | None, acc_range: float | None) -> np.ndarray | None:
+    """Samples from the first clipped one on (None when none is), with a SaturationWarning."""
+    for name, value in (("gyr_range", gyr_range), ("acc_range", acc_range)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"`{name}` (the sensor's full scale, SI) must be a positive number, got {value!r}")
+    found = []
+    for cols, x, fs, nominal, unit, per in (
+            (RATE_COLUMNS, imu.w, gyr_range, np.radians(GYR_RANGES_DPS), "deg/s", math.pi / 180),
+            (FORCE_COLUMNS, imu.f, acc_range, np.asarray(ACC_RANGES_G) * G0, "g", G0)):
+        hit = clipped_samples(x, fs, tuple(nominal))
+        for j in np.flatnonzero(hit.any(axis=0)):
+            rows = np.flatnonzero(hit[:, j])
+            why = f"the declared {fs / per:g} {unit}" if fs is not None else \
+                f"a nominal range, {np.max(np.abs(x[rows, j])) / per:.5g} {unit}, held {CLIP_RUN}+ samples"
+            found.append((int(rows[0]), f"{cols[j]}: {rows.size} samples at full scale ({why}), rows "
+                                        f"{rows[0] + 1}..{rows[-1] + 1}, t = {imu.t[rows[0]]:.10g} .. "
+                                        f"{imu.t[rows[-1]]:.10g} s"))
+    if not found:
+        return None
+    first = min(k for k, _ in found)
+    warnings.warn(f"{imu.source}: the IMU clipped: " + "; ".join(m for _, m in sorted(found)) + ". The attitude and "
+                  f"velocity are wrong from t = {imu.t[first]:.10g} s (row {first + 1}) on: the navigation marks "
+                  "them (ins_valid = 0) and the separation leaves them out", SaturationWarning, stacklevel=3)
+    clipped = np.zeros(imu.t.size, bool)
+    clipped[first:] = True
+    return clipped
+
+
+def _check_units(imu: ImuData, declared: bool = False) -> None:
+    """Rates beyond any full scale: error; beyond 2000 deg/s (unless within a `declared` gyro range) or forces
+    beyond 50 g: warning; with the numbers."""
     wn = np.linalg.norm(imu.w, axis=1)
     k = int(np.argmax(wn))
     cols = "dth_*" if imu.kind == "increments" else "w_*"
@@ -139,7 +242,7 @@ def _check_units(imu: ImuData) -> None:
         raise ValueError(f"{imu.source}: columns {cols}, row {k + 1}: body rate {wn[k]:.4g} rad/s "
                          f"({math.degrees(wn[k]):.4g} deg/s) is beyond any gyro's full scale: the rates look like "
                          "deg/s (give rad/s)")
-    if wn[k] > WARN_RATE:
+    if wn[k] > WARN_RATE and not declared:
         warnings.warn(f"{imu.source}: columns {cols}, row {k + 1}: body rate {wn[k]:.4g} rad/s "
                       f"({math.degrees(wn[k]):.4g} deg/s), beyond the 2000 deg/s of common gyros: deg/s given as "
                       "rad/s?", PlausibilityWarning, stacklevel=3)

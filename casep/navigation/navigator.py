@@ -111,4 +111,5 @@ def navigate_from(imu: ImuData, site: LaunchSite, q0: np.ndarray, r0: np.ndarray
                                          launch_gravitation(site))
     return NavigationResult(t=t, q=q, fb=imu.f[i0:], w=imu.w[i0:], v=v, r=r, site=site, alignment=None,
                             kind=imu.kind, gaps=imu.gaps, passes=passes, source=imu.source,
-                            align_window=(float(t[0]), float(t[0])))
+                            align_window=(float(t[0]), float(t[0])),
+                            valid=None if imu.clipped is None else ~np.asarray(imu.clipped[i0:], bool))

@@ -8,9 +8,10 @@ from typing import Any
 import numpy as np
 
 from casep.frames import LaunchSite
+from casep.io.pair import VALID_COLUMN
 from casep.navigation.alignment import Alignment
 
-__all__ = ["NavigationResult", "TELEMETRY_COLUMNS"]
+__all__ = ["NavigationResult", "TELEMETRY_COLUMNS", "VALID_COLUMN"]
 
 #: The strapdown telemetry columns :meth:`NavigationResult.columns` gives, in order.
 TELEMETRY_COLUMNS = ("t", "q_w", "q_x", "q_y", "q_z", "fb_x", "fb_y", "fb_z", "w_x", "w_y", "w_z",
@@ -39,6 +40,9 @@ class NavigationResult:
         Steps with lost samples, integrated across.
     passes : int
         The most fixed-point passes a window of the gravity iteration needed.
+    valid : (N,) ndarray of bool or None
+        False from the first clipped IMU sample on (the solution is wrong there); None: nothing clipped.
+        Written as the column :data:`VALID_COLUMN` (1 or 0) when some sample is not valid.
     """
 
     t: np.ndarray
@@ -55,11 +59,22 @@ class NavigationResult:
     source: str = "<memory>"
     align_window: tuple[float, float] = (0.0, 0.0)
     settings: dict = field(default_factory=dict)
+    valid: np.ndarray | None = None
 
     def columns(self) -> dict[str, np.ndarray]:
-        """The strapdown telemetry as named columns (:data:`TELEMETRY_COLUMNS`)."""
+        """The strapdown telemetry as named columns (:data:`TELEMETRY_COLUMNS`, and :data:`VALID_COLUMN` when
+        some sample is not valid)."""
         arrays = [self.t[:, None], self.q, self.fb, self.w, self.v, self.r]
-        return dict(zip(TELEMETRY_COLUMNS, np.hstack(arrays).T))
+        out = dict(zip(TELEMETRY_COLUMNS, np.hstack(arrays).T))
+        if self.invalid_from() is not None:
+            out[VALID_COLUMN] = np.asarray(self.valid, float)
+        return out
+
+    def invalid_from(self) -> float | None:
+        """The time of the first sample whose solution is not valid (a clipped IMU sample), s; None: all valid."""
+        if self.valid is None or bool(np.all(self.valid)):
+            return None
+        return float(self.t[np.argmin(self.valid)])
 
     def earth_relative(self) -> tuple[np.ndarray, np.ndarray]:
         """Position and velocity relative to the rotating Earth (ECEF, m, m/s): :func:`casep.frames.launch_to_ecef`."""
@@ -101,6 +116,7 @@ class NavigationResult:
                 "t_end": float(self.t[-1]), "site": self.site.to_dict(), "align_window": list(self.align_window),
                 "alignment": None if self.alignment is None else self.alignment.to_dict(), "gaps": self.gaps,
                 "gravity_passes": self.passes, "pad_drift_m_s": self.pad_drift(),
+                "invalid_from_s": self.invalid_from(),
                 "end": {"v_tel": self.v[-1].tolist(), "r_tel": self.r[-1].tolist(), "v_ecef": v_e[-1].tolist(),
                         "r_ecef": r_e[-1].tolist()}}
 
@@ -116,6 +132,9 @@ class NavigationResult:
                  f"{self.t[-1]:.6g} s" + (f", {self.gaps} gap(s) integrated across" if self.gaps else "")]
         if a is not None:
             lines += self._alignment_lines(a)
+        if self.invalid_from() is not None:
+            lines.append(f"  clipped    the IMU clipped at t = {self.invalid_from():.10g} s: the solution from there "
+                         f"on is marked {VALID_COLUMN} = 0 (the separation leaves it out)")
         lines += [f"  end        t = {self.t[-1]:.6g} s: lat {lat[0]:.6f} deg, lon {lon[0]:.6f} deg, h {h[0]:.1f} m; "
                   f"velocity east {ve[0]:.2f}, north {vn[0]:.2f}, up {vu[0]:.2f} m/s (relative to the Earth)",
                   f"  frame      launch-inertial (t0 = {self.site.t0:g} s, azimuth {self.site.azimuth_deg:g} deg); "

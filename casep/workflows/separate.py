@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     from casep.frames import LaunchSite
     from casep.workflows.radar import RadarResult
 
-__all__ = ["separate", "regression_rows", "judge_setup"]  # and METHODS (module __getattr__)
+__all__ = ["separate", "regression_rows", "judge_setup", "judge_tracking"]  # and METHODS (module __getattr__)
 
 
 def __getattr__(name: str) -> Any:
@@ -213,6 +213,8 @@ def separate(
     res = fit(problem, spec)
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model,
                       noise_free=problem.is_noise_free())
+    if isinstance(flight, FlightData) and isinstance(model, ErrorModel):
+        res = judge_tracking(res, flight, problem, model.scales)
     if not isinstance(flight, Problem) and isinstance(model, ErrorModel):
         from casep.model.loader import model_record
 
@@ -229,6 +231,9 @@ def _problem(flight: FlightData | Problem | str | os.PathLike, model: Any,
         return flight, flight, model
     if not isinstance(flight, FlightData):
         flight = read_flight(flight)
+    from casep.checks.tracking_quality import screen_tracking
+
+    flight = screen_tracking(flight)  # before the problem: the result is judged on what the screen found
     if fit_time_offset is None:
         from casep.io.pair import fits_time_offset
 
@@ -306,4 +311,22 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
         meth = _REGISTRY.get(res.method)
         res = check_magnitudes(res, model.scales, source=flight.source if flight is not None else "",
                                regularised=meth is not None and meth.regularised)
+    return res
+
+
+def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, scales: dict) -> EstimateResult:
+    """`res` failed (status ``STATUS_TRACKING``) when the flight's screened tracking noise differs between
+    stretches beyond :data:`casep.checks.tracking_quality.NOISE_RATIO`: its message says which combinations the
+    flight determines (:func:`casep.checks.tracking_quality.determined`) instead of each coefficient;
+    ``diagnostics["determined"]`` holds them (``combinations``, ``std_factor``, the ``scales`` they divide by)."""
+    from casep.checks.tracking_quality import determined, determined_message, noise_problem
+    from casep.estimators.registry import STATUS_TRACKING, failed
+
+    why = noise_problem(flight)
+    if why is None or problem.y is None or problem.t is None:
+        return res
+    combos, k = determined(problem, flight.meta["tracking_screen"]["stretches"], scales)
+    res = failed(res, STATUS_TRACKING, determined_message(why, combos, k, len(problem.names), scales))
+    res.diagnostics["determined"] = {"combinations": combos, "std_factor": k,
+                                     "scales": {nm: scales.get(nm, 1.0) for nm in problem.names}}
     return res

@@ -137,6 +137,7 @@ def test_quaternion_matrix_matches_scipy():
 
 
 @pytest.mark.parametrize("name, n, extra", [("strapdown33", 33, ()), ("strapdown12", 12, ()),
+                                            ("strapdown15_phi0", 15, ("phi0_x", "phi0_z")),
                                             ("strapdown42_extended", 42, ("ka2_x", "phi0_x", "l_x"))])
 def test_shipped_strapdown_models(name, n, extra):
     m = casep.load_model(name)

@@ -1,0 +1,345 @@
+"""Tracking epochs that cannot be right, found against the telemetry's own motion, and a drifting clock.
+
+A GNSS receiver that loses lock may repeat its last fix, report fresh-looking but wrong epochs, or
+hold a 1 Hz solution over its 10 Hz output. The telemetry (the IMU) says how the vehicle moved
+between two tracking epochs: ``V(t) = int a dt``, ``a`` the kinematic acceleration the pair reader
+derives from the telemetry velocity (signals ``a_*``). With ``dv = v_tel - v_trk`` at the tracking
+epochs, the tracking's own change between two epochs is ``dV - d(dv)``. :func:`screen_tracking`
+finds, on a telemetry + tracking pair formed at the tracking times:
+
+- **stale epochs**: a row whose position and velocity repeat the previous row's exactly
+  (``meta["tracking_repeats"]``, :func:`casep.io.pair.repeated_rows`) while the telemetry moved by more
+  than :data:`STALE_MOTION` since the fix it repeats. The fix itself is kept (it was right at its
+  time); its repeats are left out. On the pad a repeated fix of a vehicle at rest is kept.
+- **impossible jumps** (the physics check): between consecutive remaining epochs, ``|d(dv)|`` above
+  ``JUMP_TOL + JUMP_RATE dt`` (10 m/s, plus 2 m/s^2 = 200 mg of instrument error acceleration per
+  second between them) is a tracking velocity change the IMU rules out. The epochs are cut into
+  segments at such jumps; a segment shorter than :data:`MIN_SEGMENT_S` is left out (a glitch or a
+  burst of wrong epochs between consistent stretches); when no segment is that long, the longest is kept.
+- **clock drift**: the time offset of the tracking against the telemetry estimated in
+  :data:`DRIFT_WINDOWS` windows (``dv ~ quadratic in t + a(t) tau_w`` per window, each axis its own
+  quadratic, one ``tau_w``; windows whose acceleration barely changes cannot see it and are skipped),
+  and a straight line through the ``tau_w`` (three windows or more): its slope in ppm with its std,
+  the std scaled up by the line's reduced chi-square when the windows disagree more than their own
+  std say (instrument errors the quadratics leave in bias each window differently). A slope beyond
+  :data:`DRIFT_MIN_PPM` and 4 std is warned about (a single ``dt_trk`` does not model it);
+  otherwise the figures are recorded.
+
+- **noise that changes between stretches** (stretches: the kept epochs split at pauses of
+  :data:`MIN_SEGMENT_S` or more): the robust scatter of ``d(dv)`` per stretch (the median change
+  removed, MAD, over sqrt 2); a ratio beyond :data:`NOISE_RATIO` between the noisiest and the
+  quietest is warned about: one noise level per axis weights both alike, and the std of what the
+  noisy stretch determines are understated by up to that ratio.
+
+Each finding is a :class:`~casep.exceptions.TrackingQualityWarning` with the times, the number of
+epochs and the sizes; ``meta["tracking_screen"]`` records them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from casep.exceptions import TrackingQualityWarning
+from casep.io.flight import FlightData
+from casep.noise.robust import MAD_SIGMA
+
+__all__ = ["TrackingScreen", "screen_tracking", "clock_drift", "stretch_noise", "noise_problem", "determined",
+           "determined_message", "STALE_MOTION", "JUMP_TOL",
+           "JUMP_RATE", "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
+
+#: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
+STALE_MOTION = 0.5
+#: The physics check: a jump of dv between consecutive epochs above JUMP_TOL + JUMP_RATE dt (m/s, m/s^2) ...
+JUMP_TOL = 10.0
+JUMP_RATE = 2.0
+#: ... cuts the epochs into segments; a segment shorter than this (s) is left out.
+MIN_SEGMENT_S = 3.0
+#: A clock drift is warned about beyond this (ppm) and 4 std.
+DRIFT_MIN_PPM = 20.0
+#: Windows for the drift, and the least spread of the acceleration (m/s^2) that lets a window see an offset.
+DRIFT_WINDOWS = 6
+DRIFT_MIN_ACCEL = 2.0
+#: Stretches of the tracking whose noise differs by more than this factor are warned about.
+NOISE_RATIO = 5.0
+
+
+@dataclass
+class TrackingScreen:
+    """What :func:`screen_tracking` found: spans ``(t_first, t_last, epochs)`` (s) and the drift (ppm, NaN: not
+    determined)."""
+
+    stale: list = field(default_factory=list)
+    rejected: list = field(default_factory=list)
+    largest_jump_m_s: float = 0.0
+    drift_ppm: float = math.nan
+    drift_std_ppm: float = math.nan
+    epochs: int = 0
+    kept: int = 0
+    stretches: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        """Plain data (JSON: NaN as null)."""
+        out = dataclasses.asdict(self)
+        for k in ("drift_ppm", "drift_std_ppm"):
+            out[k] = None if not math.isfinite(out[k]) else out[k]
+        return out
+
+
+def _spans(t: np.ndarray, flagged: np.ndarray) -> list[tuple[float, float, int]]:
+    """Runs of consecutive flagged epochs: ``(t_first, t_last, count)``."""
+    x = np.concatenate([[0], flagged.astype(np.int8), [0]])
+    edges = np.flatnonzero(np.diff(x))
+    return [(float(t[a]), float(t[b - 1]), int(b - a)) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def _located(flight: FlightData, idx: np.ndarray, flagged: np.ndarray, top: int = 6) -> str:
+    """The first `top` runs of flagged epochs (of the observed samples `idx`) by file line and time, and how many."""
+    from pathlib import Path
+
+    from casep.io.locate import locate_samples
+
+    x = np.concatenate([[0], flagged.astype(np.int8), [0]])
+    edges = np.flatnonzero(np.diff(x))
+    runs = list(zip(edges[::2], edges[1::2]))
+    locs = locate_samples(flight, [idx[k] for a, b in runs[:top] for k in (a, b - 1)])
+    parts = []
+    for i, (a, b) in enumerate(runs[:top]):
+        first, last = locs[2 * i], locs[2 * i + 1]
+        at = "" if first["file"] is None else (
+            f"lines {first['line']}..{last['line']}" if first["line"] is not None else
+            f"rows {first['row']}..{last['row']}") + f" of {Path(first['file']).name}, "
+        parts.append(f"{at}t = {first['t']:.10g}..{last['t']:.10g} s ({b - a})")
+    return ", ".join(parts) + (f" and {len(runs) - top} more" if len(runs) > top else "")
+
+
+def _velocity_change(flight: FlightData) -> np.ndarray | None:
+    """``V(t) = int a dt`` (trapezoid) of the telemetry's kinematic acceleration, (N, 3) m/s; None without ``a_*``."""
+    if not all(f"a_{c}" in flight.signals for c in "xyz"):
+        return None
+    a = np.column_stack([flight.signals[f"a_{c}"] for c in "xyz"])
+    if not np.all(np.isfinite(a)):
+        return None
+    inc = 0.5 * (a[1:] + a[:-1]) * np.diff(flight.t)[:, None]
+    return np.vstack([np.zeros((1, 3)), np.cumsum(inc, axis=0)])
+
+
+def _stale(flight: FlightData, idx: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """Of the observed epochs `idx`: the repeats of a fix while the telemetry moved by more than STALE_MOTION."""
+    rows = np.asarray(flight.meta.get("rows_index"))[idx]
+    is_rep = np.isin(rows, np.asarray(flight.meta.get("tracking_repeats", []), dtype=int))
+    is_rep[0] = False
+    anchor = np.maximum.accumulate(np.where(~is_rep, np.arange(idx.size), 0))  # the fix each epoch repeats
+    moved = np.linalg.norm(V[idx] - V[idx[anchor]], axis=1)
+    return is_rep & (moved > STALE_MOTION)
+
+
+def _impossible(t: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, float]:
+    """Epochs in segments shorter than MIN_SEGMENT_S between jumps the IMU rules out; and the largest jump, m/s."""
+    if t.size < 2:
+        return np.zeros(t.size, bool), 0.0
+    jump = np.linalg.norm(np.diff(dv, axis=0), axis=1)
+    cut = jump > JUMP_TOL + JUMP_RATE * np.diff(t)
+    seg = np.concatenate([[0], np.cumsum(cut)])
+    first = np.flatnonzero(np.concatenate([[True], cut]))
+    last = np.concatenate([first[1:] - 1, [t.size - 1]])
+    long = t[last] - t[first] >= MIN_SEGMENT_S
+    if not long.any():
+        long[np.argmax(t[last] - t[first])] = True
+    largest = float(jump[cut].max()) if cut.any() else 0.0
+    return ~long[seg], largest
+
+
+def clock_drift(t: np.ndarray, dv: np.ndarray, a: np.ndarray, windows: int = DRIFT_WINDOWS) -> tuple[float, float]:
+    """The drift of the tracking time offset, ppm, and its std (module notes); NaN when fewer than 2 windows see it.
+
+    Parameters
+    ----------
+    t : (n,) ndarray
+        Tracking epochs, s.
+    dv : (n, 3) ndarray
+        ``v_tel - v_trk`` there, m/s.
+    a : (n, 3) ndarray
+        The telemetry's kinematic acceleration there, m/s^2 (a late tracking time tag ``tau``: ``dv += a tau``).
+    """
+    edges = np.linspace(t[0], t[-1], windows + 1)
+    centre, tau, var = [], [], []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        k = (t >= lo) & (t <= hi)
+        if k.sum() < 10 or np.max(np.ptp(a[k], axis=0)) < DRIFT_MIN_ACCEL:
+            continue
+        tm = 0.5 * (lo + hi)
+        n = int(k.sum())
+        A = np.zeros((3 * n, 10))
+        for j in range(3):  # rows of axis j: its own quadratic trend, and the shared offset
+            for p in range(3):
+                A[j::3, 3 * j + p] = ((t[k] - tm) / (hi - lo)) ** p
+            A[j::3, 9] = a[k, j]
+        y = dv[k].reshape(-1)
+        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+        r = y - A @ coef
+        cov = np.linalg.pinv(A.T @ A) * float(r @ r) / max(3 * n - 10, 1)
+        centre.append(tm)
+        tau.append(coef[9])
+        var.append(cov[9, 9])
+    if len(tau) < 3:
+        return math.nan, math.nan
+    w = 1.0 / np.maximum(np.asarray(var), 1e-30)
+    X = np.column_stack([np.ones(len(tau)), np.asarray(centre) - np.mean(centre)])
+    cov = np.linalg.inv(X.T @ (w[:, None] * X))
+    line = cov @ (X.T @ (w * np.asarray(tau)))
+    res = np.asarray(tau) - X @ line
+    birge = max(1.0, float(np.sum(w * res**2)) / (len(tau) - 2))  # the windows disagree more than their std say:
+    return float(line[1]) * 1e6, math.sqrt(cov[1, 1] * birge) * 1e6  # errors the trends left in, the std grow
+
+
+def stretch_noise(t: np.ndarray, dv: np.ndarray) -> list[tuple[float, float, int, float]]:
+    """Per stretch (split at pauses of MIN_SEGMENT_S or more) with 5 epochs or more: ``(t_first, t_last, epochs,
+    scatter m/s)``, the scatter the MAD of the changes of dv (their median removed) over sqrt 2, largest axis."""
+    cut = np.flatnonzero(np.diff(t) >= MIN_SEGMENT_S) + 1
+    out = []
+    for a, b in zip(np.concatenate([[0], cut]), np.concatenate([cut, [t.size]])):
+        if b - a < 5:
+            continue
+        d = np.diff(dv[a:b], axis=0)
+        mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+        out.append((float(t[a]), float(t[b - 1]), int(b - a), float(np.max(mad)) * MAD_SIGMA / math.sqrt(2)))
+    return out
+
+
+def screen_tracking(flight: FlightData) -> FlightData:
+    """`flight` without its stale and impossible tracking epochs (module notes), the findings warned and recorded.
+
+    Only a telemetry + tracking pair formed at the tracking times with the telemetry's acceleration
+    (:func:`casep.io.files.read_flight_pair`) is screened, once; any other flight (or one screened
+    already: ``meta["tracking_screen"]``) is returned as it is.
+
+    Warns
+    -----
+    TrackingQualityWarning
+        Stale epochs, epochs left out by the physics check, a clock drift: times, counts and sizes.
+    """
+    meta = flight.meta
+    V = _velocity_change(flight)
+    if "tracking_screen" in meta or meta.get("format") != "pair" or meta.get("rows_side") != "tracking" or V is None \
+            or "rows_index" not in meta:
+        return flight
+    idx = np.flatnonzero(flight.observed)
+    t = flight.t[idx]
+    stale = _stale(flight, idx, V)
+    fresh = np.flatnonzero(~stale)
+    bad_fresh, largest = _impossible(t[fresh], flight.dv[idx[fresh]])
+    rejected = np.zeros(idx.size, bool)
+    rejected[fresh[bad_fresh]] = True
+    keep = ~(stale | rejected)
+    a = np.column_stack([flight.signals[f"a_{c}"] for c in "xyz"])[idx[keep]]
+    drift, drift_std = clock_drift(t[keep], flight.dv[idx[keep]], a) if keep.sum() >= 20 else (math.nan, math.nan)
+    screen = TrackingScreen(_spans(t, stale), _spans(t, rejected), largest, drift, drift_std, int(idx.size),
+                            int(keep.sum()))
+    screen.stretches = stretch_noise(t[keep], flight.dv[idx[keep]])
+    _warn(flight.source, screen, _located(flight, idx, stale) if stale.any() else "",
+          _located(flight, idx, rejected) if rejected.any() else "")
+    if keep.all():
+        return dataclasses.replace(flight, meta={**meta, "tracking_screen": screen.to_dict()})
+    observed = flight.observed.copy()
+    observed[idx[~keep]] = False
+    return dataclasses.replace(flight, observed=observed, meta={**meta, "tracking_screen": screen.to_dict()})
+
+
+def _warn(source: str, s: TrackingScreen, stale: str, rejected: str) -> None:
+    """The screen's TrackingQualityWarnings (`stale`, `rejected`: the runs located in the file)."""
+    if s.stale:
+        n = sum(k for *_, k in s.stale)
+        warnings.warn(TrackingQualityWarning(
+            f"{source}: {n} stale tracking epochs (a fix repeated while the telemetry moved by more than "
+            f"{STALE_MOTION:g} m/s since it) left out, in {len(s.stale)} span(s): {stale}"), stacklevel=3)
+    if s.rejected:
+        n = sum(k for *_, k in s.rejected)
+        warnings.warn(TrackingQualityWarning(
+            f"{source}: {n} tracking epochs fail the physics check against the telemetry (velocity jumps up to "
+            f"{s.largest_jump_m_s:.4g} m/s, beyond {JUMP_TOL:g} m/s + {JUMP_RATE:g} m/s^2 x the time between epochs, "
+            f"in stretches shorter than {MIN_SEGMENT_S:g} s) and are left out: {rejected}"), stacklevel=3)
+    if math.isfinite(s.drift_ppm) and abs(s.drift_ppm) > max(DRIFT_MIN_PPM, 4.0 * s.drift_std_ppm):
+        warnings.warn(TrackingQualityWarning(
+            f"{source}: the tracking time offset drifts by {s.drift_ppm:.4g} +- {s.drift_std_ppm:.2g} ppm "
+            f"({s.drift_ppm * 1e-4:.3g} ms per 100 s): the telemetry and tracking clocks run at different rates, "
+            "which one time offset (dt_trk) does not model; rescale the telemetry times by the drift"), stacklevel=3)
+    noise = [x for x in s.stretches if x[3] > 0]
+    if len(noise) > 1 and max(x[3] for x in noise) > NOISE_RATIO * min(x[3] for x in noise):
+        ratio = max(x[3] for x in noise) / min(x[3] for x in noise)
+        listed = ", ".join(f"{a:.10g}..{b:.10g} s ({n} epochs): {sd:.3g} m/s" for a, b, n, sd in noise)
+        warnings.warn(TrackingQualityWarning(
+            f"{source}: the tracking noise differs {ratio:.3g}-fold between stretches ({listed}; scatter of the "
+            "epoch-to-epoch change of dv): one noise level per axis weights them alike, so the std of what the noisy "
+            f"stretch determines are understated by up to {ratio:.3g} x; see `casep diagnose` for the combinations "
+            "each stretch determines"), stacklevel=3)
+
+
+def noise_problem(flight: FlightData) -> str | None:
+    """The screen's finding that the tracking noise differs between stretches beyond NOISE_RATIO, or None."""
+    screen = flight.meta.get("tracking_screen") if isinstance(flight.meta, dict) else None
+    noise = [x for x in (screen or {}).get("stretches", []) if x[3] > 0]
+    if len(noise) < 2:
+        return None
+    ratio = max(x[3] for x in noise) / min(x[3] for x in noise)
+    if ratio <= NOISE_RATIO:
+        return None
+    listed = ", ".join(f"{a:.10g}..{b:.10g} s: {sd:.3g} m/s" for a, b, _, sd in noise)
+    return f"the tracking noise differs {ratio:.3g}-fold between stretches ({listed})"
+
+
+def determined(problem, stretches: list, scales: dict[str, float], top: int = 3) -> tuple[list[dict], float]:
+    """The combinations of coefficients the flight determines when each stretch is weighted by its own noise.
+
+    Rows weighted by ``1 / sigma_s`` (the stretch's scatter, :func:`stretch_noise`; the largest for rows in no
+    stretch), coefficients scaled by their declared magnitudes (``z_j = x_j / scale_j``):
+    ``A = U diag(s) V^T``; combination ``c_i = V_i . z`` is estimated as ``U_i . y_w / s_i`` with std
+    ``k / s_i``, ``k = sqrt(max(1, chi2 / dof))`` of the weighted fit (noise larger than the scatter says:
+    the std grow with it). A combination is determined when its std is below 1 (its declared magnitude).
+
+    Returns
+    -------
+    combinations : list of dict
+        ``terms`` (name -> weight on ``x / scale``, the `top` largest), ``weights`` (all, model order),
+        ``estimate``, ``std``; best first.
+    k : float
+        The std factor.
+    """
+    S, y, t = problem.sv(), problem.y, problem.t
+    noise = [x for x in stretches if x[3] > 0]
+    sig = np.full(t.size, max(x[3] for x in noise))
+    for a, b, _, sd in noise:
+        sig[(t >= a) & (t <= b)] = sd
+    scale = np.array([scales.get(nm, 1.0) for nm in problem.names])
+    n = len(problem.names)
+    A = (S / sig[:, None, None]).reshape(-1, n) * scale
+    yw = (y / sig[:, None]).reshape(-1)
+    U, sv, Vt = np.linalg.svd(A, full_matrices=False)
+    keep = sv > sv[0] * 1e-12
+    z = (U[:, keep].T @ yw) / sv[keep]
+    r = yw - U[:, keep] @ (U[:, keep].T @ yw)
+    k = math.sqrt(max(1.0, float(r @ r) / max(yw.size - int(keep.sum()), 1)))
+    out = []
+    for i in np.flatnonzero(keep):
+        if k / sv[i] >= 1.0:
+            continue
+        j = np.argsort(-np.abs(Vt[i]))[:top]
+        sign = 1.0 if Vt[i, j[0]] >= 0 else -1.0
+        out.append({"terms": {problem.names[m]: sign * float(Vt[i, m]) for m in j}, "estimate": sign * float(z[i]),
+                    "std": k / float(sv[i]), "weights": (sign * Vt[i]).tolist()})
+    return out, k
+
+
+def determined_message(why: str, combos: list[dict], k: float, n: int, scales: dict[str, float]) -> str:
+    """The failure message of a flight whose tracking noise differs between stretches (`why`, :func:`noise_problem`):
+    what it determines (:func:`determined`: `combos`, std factor `k`) of its `n` coefficients."""
+    said = "; ".join(" + ".join(f"{w:.2f} {nm}/{scales.get(nm, 1.0):g}" for nm, w in c["terms"].items())
+                     + f" = {c['estimate']:.3g} +- {c['std']:.2g}" for c in combos[:6])
+    return (f"failed: {why}: one noise level per axis weights them alike, so the std of the coefficients are not "
+            f"honest. Weighted by each stretch's own noise (std x {k:.3g} for the weighted fit's misfit), the flight "
+            f"determines {len(combos)} of {n} combinations better than their declared magnitudes (coefficient / "
+            f"declared magnitude)" + (f": {said}" if said else "") + ("; ..." if len(combos) > 6 else ""))

@@ -1,0 +1,142 @@
+"""The tracking screen: stale fixes, epochs the IMU rules out, a drifting clock, noise that changes between stretches.
+
+The simulated rocket (:mod:`casep.simulation.rocket`) knows when its receiver repeated its fix, when it
+reported wrong epochs and when it reacquired: the screen must leave out exactly those and keep the pad.
+Clean pairs built here must come through untouched and unwarned (the suite turns warnings into errors).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from casep.checks.tracking_quality import (
+    DRIFT_MIN_PPM,
+    NOISE_RATIO,
+    clock_drift,
+    noise_problem,
+    screen_tracking,
+)
+from casep.exceptions import GapWarning, PlausibilityWarning, SaturationWarning, TrackingQualityWarning
+from casep.io.files import read_flight_pair
+from casep.io.pair import pair_flight
+from casep.navigation import ImuData, check_imu, navigate
+from casep.simulation.rocket import HEADING_AXIS, QUICK_ROCKET, simulate_rocket
+
+
+@pytest.fixture(scope="module")
+def rocket(tmp_path_factory):
+    """The quick rocket navigated (gyro range declared) and paired with its GNSS file, before the screen."""
+    fl = simulate_rocket(3, QUICK_ROCKET)
+    d = tmp_path_factory.mktemp("rocket")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", GapWarning)
+        warnings.simplefilter("ignore", PlausibilityWarning)
+        warnings.simplefilter("ignore", SaturationWarning)
+        imu = check_imu(ImuData(fl.imu["t"], np.column_stack([fl.imu[f"w_{a}"] for a in "xyz"]),
+                                np.column_stack([fl.imu[f"fb_{a}"] for a in "xyz"])), gyr_range=math.radians(2000))
+        nav = navigate(imu, fl.site, fl.align_window, heading_deg=fl.events["heading_deg"], heading_axis=HEADING_AXIS)
+        from casep.io.files import write_table
+
+        write_table(d / "tel.parquet", nav.columns())
+        write_table(d / "gps.parquet", fl.gps)
+        flight = read_flight_pair(d / "tel.parquet", d / "gps.parquet", tracking_frame="ecef", site=fl.site)
+    return fl, flight
+
+
+def test_the_pair_reader_leaves_out_what_the_telemetry_marks_invalid(rocket):
+    fl, flight = rocket
+    first = fl.site.t0 + (fl.events["first_clipped"] - fl.site.t0) * (1 + 104e-6)  # the IMU's clock
+    info = flight.meta["ins_invalid"]
+    assert first - 0.1 < info["from_s"] <= first + 0.1 and info["rows_left_out"] > 0
+    assert not flight.observed[flight.t >= info["from_s"]].any()
+
+
+def test_stale_and_wrong_epochs_are_left_out_and_listed_the_pad_kept(rocket):
+    fl, flight = rocket
+    with pytest.warns(TrackingQualityWarning) as w:
+        screened = screen_tracking(flight)
+    said = " | ".join(str(m.message) for m in w)
+    ev, t0 = fl.events, fl.site.t0
+    t = flight.t
+    before = flight.observed
+    after = screened.observed
+    gone = before & ~after
+    # every epoch of the lock-lost span is a repeat while the rocket climbs: all gone, the fix they repeat kept
+    in_stale = before & (t >= ev["stale"][0] - 1e-6) & (t <= ev["stale"][1] + 1e-6)
+    assert in_stale.sum() == round(QUICK_ROCKET.stale_s * QUICK_ROCKET.gps_rate) and not after[in_stale].any()
+    last_fix = before & (t > ev["stale"][0] - 0.15) & (t < ev["stale"][0] - 0.05)
+    assert after[last_fix].all()
+    # the wrong epochs: exactly those fail the physics check
+    in_wrong = before & (t >= ev["wrong"][0] - 1e-6) & (t <= ev["wrong"][1] + 1e-6)
+    assert not after[in_wrong].any()
+    assert f"{round(QUICK_ROCKET.wrong_s * QUICK_ROCKET.gps_rate)} tracking epochs fail the physics check" in said
+    n_pad = round(QUICK_ROCKET.pad_s * QUICK_ROCKET.gps_rate)
+    first_wrong = n_pad + round((QUICK_ROCKET.lock_lost_s + QUICK_ROCKET.stale_s) * QUICK_ROCKET.gps_rate) + 1
+    assert (f"rows {first_wrong}..{first_wrong + 9} of gps.parquet, t = {ev['wrong'][0]:.10g}..{ev['wrong'][1]:.10g} "
+            "s (10)") in said
+    # after reacquisition: one epoch per 1 Hz update kept (the lagged solution repeated in between is stale)
+    reacq = after & (t >= ev["reacquired"])
+    assert np.allclose(np.diff(t[reacq]), QUICK_ROCKET.gps_step_s, atol=1e-6)
+    # the pad: every epoch kept (the zero-velocity check holds)
+    pad = before & (t < t0)
+    assert after[pad].all() and pad.sum() == round(QUICK_ROCKET.pad_s * QUICK_ROCKET.gps_rate)
+    assert gone.sum() == screened.meta["tracking_screen"]["epochs"] - screened.meta["tracking_screen"]["kept"]
+    assert "stale tracking epochs" in said and f"t = {ev['stale'][0]:.10g}..{ev['stale'][1]:.10g} s" in said
+    # the reacquired stretch is far noisier than the pad: said, and the reason the separation fails
+    why = noise_problem(screened)
+    assert why is not None and "differs" in why
+    pad_sd, reacq_sd = (x[3] for x in screened.meta["tracking_screen"]["stretches"])
+    assert reacq_sd > NOISE_RATIO * pad_sd and 0.01 < pad_sd < 0.06  # the pad noise simulated: 0.03 m/s
+    assert screen_tracking(screened) is screened  # once
+
+
+def _clean_pair(rng, repeats=(), glitch=None, at_rest=False):
+    t_tel = np.arange(0.0, 60.0, 0.01)
+    acc = np.zeros((t_tel.size, 3)) if at_rest else np.column_stack(
+        [5 * np.sin(0.3 * t_tel), 20 + 0 * t_tel, 3 * np.cos(0.2 * t_tel)])
+    v_tel = np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (acc[1:] + acc[:-1]) * 0.01, axis=0)])
+    t_trk = np.arange(0.0, 60.0, 0.1)
+    v_trk = np.column_stack([np.interp(t_trk, t_tel, v_tel[:, i]) for i in range(3)])
+    v_trk += rng.normal(0, 0.05, v_trk.shape)
+    for k in repeats:
+        v_trk[k] = v_trk[k - 1]
+    if glitch is not None:
+        v_trk[glitch] += 50.0
+    signals = {f"a_{c}": acc[:, i] for i, c in enumerate("xyz")}
+    return pair_flight(t_tel, acc, v_tel, t_trk, v_trk, signals=signals, source="pair",
+                       meta={"tracking_repeats": np.asarray(repeats, dtype=int)})
+
+
+def test_a_clean_pair_passes_untouched_and_a_glitch_goes_alone(rng):
+    flight = _clean_pair(rng)
+    screened = screen_tracking(flight)  # no warning: the suite makes one an error
+    assert np.array_equal(screened.observed, flight.observed)
+    assert screened.meta["tracking_screen"]["stale"] == [] and screened.meta["tracking_screen"]["rejected"] == []
+    glitch = r"1 tracking epochs fail the physics check .* jumps up to 86\.\d.* t = 20\.\.20 s \(1\)"
+    with pytest.warns(TrackingQualityWarning, match=glitch):
+        screened = screen_tracking(_clean_pair(rng, glitch=200))
+    assert screened.n_observed == flight.n_observed - 1
+
+
+def test_a_repeated_fix_is_stale_only_when_the_vehicle_moved(rng):
+    stale = r"3 stale tracking epochs .* in 1 span\(s\): t = 30\.1\.\.30\.3 s \(3\)"
+    with pytest.warns(TrackingQualityWarning, match=stale):
+        screened = screen_tracking(_clean_pair(rng, repeats=(301, 302, 303)))
+    assert screened.meta["tracking_screen"]["stale"] == [(30.1, 30.3, 3)]
+    at_rest = _clean_pair(rng, repeats=(301, 302, 303), at_rest=True)
+    assert np.array_equal(screen_tracking(at_rest).observed, at_rest.observed)  # at rest a repeat is right
+
+
+@pytest.mark.parametrize("ppm", [0.0, 500.0])
+def test_the_clock_drift_is_measured_in_windows(rng, ppm):
+    t = np.arange(0.0, 100.0, 0.1)
+    a = np.column_stack([20 * np.sin(2 * np.pi * t / 7), 15 * np.cos(2 * np.pi * t / 5), 10 * np.sin(t / 3)])
+    tau = 0.05 + ppm * 1e-6 * (t - 50.0)  # the tracking time tags late by tau(t)
+    dv = a * tau[:, None] + 0.3 + 0.01 * t[:, None] + rng.normal(0, 0.02, a.shape)
+    est, std = clock_drift(t, dv, a)
+    assert abs(est - ppm) < 4 * std and std < DRIFT_MIN_PPM / 2
+    assert math.isnan(clock_drift(t, dv, 0 * a)[0])  # no acceleration: no offset to see, not determined
