@@ -128,14 +128,14 @@ def _navigate_window(imu, trk: _Tracking, t_a: float, t_b: float, C_eb: np.ndarr
     return site, nav
 
 
-def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str):
+def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fit_options: dict):
     from casep.io.files import read_flight_pair, write_table
     from casep.workflows.separate import separate
 
     tel = os.path.join(workdir, "window.parquet")
     write_table(tel, nav.columns())
     flight = read_flight_pair(tel, trk.path, tracking_frame="geodetic", site=site)
-    return flight, separate(flight, model)
+    return flight, separate(flight, model, **fit_options)
 
 
 def _attitude_error_end(model, result, flight) -> np.ndarray:
@@ -152,7 +152,8 @@ def _attitude_error_end(model, result, flight) -> np.ndarray:
 
 def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: tuple[float, float], *,
                      length: float = 30.0, start: float | None = None, model: str = "strapdown6_window",
-                     attitude_passes: int = 3, gyro_bias_from_pad: bool = True) -> WindowsResult:
+                     attitude_passes: int = 3, gyro_bias_from_pad: bool = True,
+                     fit_options: dict | None = None) -> WindowsResult:
     """Align on the pad, cut the rest of `imu` into windows of `length` s and separate each (module docstring).
 
     Parameters
@@ -174,6 +175,16 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
         A window model (instrument terms + ``phi0_*`` + ``dv0_*``).
     attitude_passes : int
         Navigations per window at most (the initial attitude corrected by ``phi0`` between them).
+    gyro_bias_from_pad : bool
+        Remove the pad's gyro biases before navigating.
+    fit_options : dict, optional
+        Keywords of :func:`casep.separate` (default: none, its default noise path).
+
+    Returns
+    -------
+    WindowsResult
+        The windows (each with its :class:`~casep.EstimateResult`) and :func:`window_consistency` of
+        the instrument coefficients (the model's names without :data:`NUISANCE_PREFIXES`).
     """
     from casep.model.loader import load_model
     from casep.navigation.alignment import course_rotation
@@ -205,7 +216,7 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
                 course = math.degrees(psi)
             for passes in range(1, attitude_passes + 1):
                 site_k, nav = _navigate_window(imu, trk, t_a, t_b, C_eb)
-                flight, res = _separate_nav(nav, site_k, trk, model, workdir)
+                flight, res = _separate_nav(nav, site_k, trk, model, workdir, dict(fit_options or {}))
                 est = dict(zip(res.names, res.estimate))
                 phi0 = base.numeric("phi0") @ np.array([est[n] for n in base.names])
                 if np.linalg.norm(phi0) <= PHI0_LINEAR_RAD or passes == attitude_passes:
