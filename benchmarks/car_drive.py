@@ -53,7 +53,7 @@ def convert(data: str, out: str, cut: tuple[float, float] | None = None) -> tupl
     si = np.ones(len(ti), bool) if cut is None else (ti >= cut[0]) & (ti <= cut[1])
     sp = np.ones(len(tp), bool) if cut is None else (tp >= cut[0] - 1.0) & (tp <= cut[1] + 1.0)
     os.makedirs(out, exist_ok=True)
-    imu_path, trk_path = os.path.join(out, "imu.csv.gz"), os.path.join(out, "tracking.csv")
+    imu_path, trk_path = os.path.join(out, "imu.csv"), os.path.join(out, "tracking.csv")
     pd.DataFrame({"t": ti[si], "w_x": imu[si, 4], "w_y": imu[si, 5], "w_z": imu[si, 6], "fb_x": imu[si, 1],
                   "fb_y": imu[si, 2], "fb_z": imu[si, 3]}).to_csv(imu_path, index=False, float_format="%.7g")
     pd.DataFrame({"t": tp[sp], "lat": pos["lat"][sp], "lon": pos["lon"][sp], "h": pos["h"][sp],
@@ -105,7 +105,7 @@ def figures(res, outdir: str) -> list[str]:
 def main() -> None:
     from casep.frames import LaunchSite
     from casep.navigation.imu import read_imu
-    from casep.workflows.windows import separate_windows
+    from casep.workflows.windows import separate_windows, window_consistency
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=DATA)
@@ -113,11 +113,19 @@ def main() -> None:
     ap.add_argument("--length", type=float, default=30.0, help="window length, s")
     ap.add_argument("--imu-shift", type=float, default=0.0, help="added to the IMU times, s (a clock-offset probe)")
     ap.add_argument("--figures", default=None, help="folder for the PNG figures")
+    ap.add_argument("--noise", default=None, help="casep's --noise for every window (default: its default path)")
     ap.add_argument("--write-cut", default=None, help="write the converted cut here and stop")
     ap.add_argument("--cut", type=float, nargs=2, default=(0.0, 70.0))
     args = ap.parse_args()
-    if args.write_cut:
-        print(convert(args.data, args.write_cut, tuple(args.cut)))
+    if args.write_cut:  # the IMU file gzipped (-9), as the test suite holds it
+        import gzip
+        import shutil
+
+        imu_path, trk_path, _ = convert(args.data, args.write_cut, tuple(args.cut))
+        with open(imu_path, "rb") as src, gzip.open(imu_path + ".gz", "wb", compresslevel=9) as dst:
+            shutil.copyfileobj(src, dst)
+        os.remove(imu_path)
+        print(imu_path + ".gz", trk_path)
         return
     imu_path, trk_path, t_ref = convert(args.data, args.out)
     with warnings.catch_warnings(record=True) as caught:
@@ -130,7 +138,8 @@ def main() -> None:
         site = LaunchSite(float(trk.lat[0]), float(trk.lon[0]), float(trk.h[0]), 0.0, 0.0)
         moving = float(trk.t[np.hypot(trk.v_east, trk.v_north) > 0.3].iloc[0])
         c0 = time.process_time()
-        res = separate_windows(imu, trk_path, site, (0.0, moving - 5.0), length=args.length, start=moving + 1.0)
+        res = separate_windows(imu, trk_path, site, (0.0, moving - 5.0), length=args.length, start=moving + 1.0,
+                               fit_options={} if args.noise is None else {"noise": args.noise})
         cpu = time.process_time() - c0
     kinds: dict[str, int] = {}
     for w in caught:
@@ -153,6 +162,13 @@ def main() -> None:
     print("  per coefficient (dof " + f"{c['used'] - 1}): " + ", ".join(f"{n} {v:.0f}"
                                                                        for n, v in c["chi2_per_coefficient"].items()))
     print("  weighted mean: " + ", ".join(f"{n} {v:.2f}" for n, v in zip(res.names, c["weighted_mean"])))
+    print(f"  the std would have to be {math.sqrt(c['chi2'] / c['dof']):.1f} times larger for chi2 = dof")
+    acc = window_consistency(res.windows, res.names[:3])
+    gyr = window_consistency(res.windows, res.names[3:])
+    clock = window_consistency(res.windows, ("dt_trk",))
+    for what, cc in (("accelerometer biases", acc), ("gyro biases", gyr), ("tracking time offset dt_trk", clock)):
+        print(f"  {what}: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, weighted mean "
+              + ", ".join(f"{v:.2f}" for v in cc["weighted_mean"]))
     print(f"held-out prediction of dv at the window end ({c['prediction_pairs']} ordered pairs x 3 axes): "
           f"within 1 std {c['within_1_std']:.2f} (0.68 expected), within 2 std {c['within_2_std']:.2f} (0.95), "
           f"median |z| {c['median_abs_z']:.2f} (0.67)")

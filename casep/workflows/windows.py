@@ -196,6 +196,7 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
     base = load_model(model)
     nav0 = navigate(imu, site, align, heading_deg=0.0)
     a = nav0.alignment
+    assert a is not None  # navigate always aligns
     if gyro_bias_from_pad:
         imu = ImuData(imu.t, imu.w - (a.w_mean - a.C_tb.T @ site.earth_rate), imu.f, source=imu.source)
         nav0 = navigate(imu, site, align, heading_deg=0.0)
