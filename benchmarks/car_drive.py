@@ -62,6 +62,11 @@ def convert(data: str, out: str, cut: tuple[float, float] | None = None) -> tupl
     return imu_path, trk_path, t_ref
 
 
+def _rms(result) -> float:
+    """RMS of a fit's residuals over its axes and samples, m/s."""
+    return float(np.sqrt(np.nanmean(np.asarray(result.residuals, float) ** 2)))
+
+
 def figures(res, outdir: str) -> list[str]:
     import matplotlib
 
@@ -91,7 +96,7 @@ def figures(res, outdir: str) -> list[str]:
     ds = [dict(zip(w.result.names, w.result.std)).get("dt_trk", np.nan) for w in res.windows]
     ax[0].errorbar(t, dt, yerr=ds, fmt="o", ms=3, capsize=2)
     ax[0].set_title("tracking time offset dt_trk per window, ms", fontsize=9)
-    ax[1].plot(t, [w.result.sigma for w in res.windows], "o", ms=3)
+    ax[1].plot(t, [_rms(w.result) for w in res.windows], "o", ms=3)
     ax[1].set_yscale("log")
     ax[1].set_title("RMS of the fit residuals per window, m/s", fontsize=9)
     for a in ax:
@@ -113,6 +118,7 @@ def main() -> None:
     ap.add_argument("--length", type=float, default=30.0, help="window length, s")
     ap.add_argument("--imu-shift", type=float, default=0.0, help="added to the IMU times, s (a clock-offset probe)")
     ap.add_argument("--figures", default=None, help="folder for the PNG figures")
+    ap.add_argument("--model", default="strapdown6_window", help="the window model (instrument terms + phi0 + dv0)")
     ap.add_argument("--noise", default=None, help="casep's --noise for every window (default: its default path)")
     ap.add_argument("--write-cut", default=None, help="write the converted cut here and stop")
     ap.add_argument("--cut", type=float, nargs=2, default=(0.0, 70.0))
@@ -139,23 +145,28 @@ def main() -> None:
         moving = float(trk.t[np.hypot(trk.v_east, trk.v_north) > 0.3].iloc[0])
         c0 = time.process_time()
         res = separate_windows(imu, trk_path, site, (0.0, moving - 5.0), length=args.length, start=moving + 1.0,
-                               fit_options={} if args.noise is None else {"noise": args.noise})
+                               model=args.model, fit_options={} if args.noise is None else {"noise": args.noise})
         cpu = time.process_time() - c0
     kinds: dict[str, int] = {}
+    first: dict[str, str] = {}
     for w in caught:
         kinds[w.category.__name__] = kinds.get(w.category.__name__, 0) + 1
+        first.setdefault(w.category.__name__, str(w.message)[:300])
     print(f"{len(res.windows)} windows of {args.length:g} s from t = {moving + 1:.1f} s (GPST {t_ref:.0f} + t); "
           f"{cpu:.1f} CPU s; warnings {kinds}")
+    for k, m in first.items():
+        print(f"  e.g. {k}: {m}")
     w_max = float(np.max(np.linalg.norm(imu.w, axis=1)))
     print(f"lever arm antenna - IMU {np.linalg.norm(LEVER_ARM_CAR):.2f} m: |w x l| <= {w_max * 0.05:.3f} m/s "
           f"(largest rate {math.degrees(w_max):.1f} deg/s), not modelled")
-    print(" start  passes course  sigma   dt_trk ms     " + "  ".join(f"{n:>14s}" for n in res.names))
+    shown = tuple(n for n in res.names if n.startswith(("ba_", "bg_")))
+    print(" start  passes course    rms   dt_trk ms     " + "  ".join(f"{n:>14s}" for n in shown))
     for w in res.windows:
         r = w.result
         e, s = dict(zip(r.names, r.estimate)), dict(zip(r.names, r.std))
         course = "" if w.heading_from_course_deg is None else f"{w.heading_from_course_deg:.1f}"
-        print(f"{w.t_start:6.1f} {w.passes:4d} {course:>8s} {r.sigma:6.3f} {e['dt_trk']:6.1f}+-{s['dt_trk']:4.1f}  "
-              + "  ".join(f"{e[n]:7.1f}+-{s[n]:5.1f}" for n in res.names))
+        print(f"{w.t_start:6.1f} {w.passes:4d} {course:>8s} {_rms(r):6.3f} {e['dt_trk']:6.1f}+-{s['dt_trk']:4.1f}  "
+              + "  ".join(f"{e[n]:7.1f}+-{s[n]:5.1f}" for n in shown))
     c = res.consistency
     print(f"chi-square of the windows against their weighted mean: {c['chi2']:.1f} on {c['dof']} dof, "
           f"p = {c['p_value']:.3g}: {'agree' if c['agree'] else 'do NOT agree'}")
@@ -163,8 +174,8 @@ def main() -> None:
                                                                        for n, v in c["chi2_per_coefficient"].items()))
     print("  weighted mean: " + ", ".join(f"{n} {v:.2f}" for n, v in zip(res.names, c["weighted_mean"])))
     print(f"  the std would have to be {math.sqrt(c['chi2'] / c['dof']):.1f} times larger for chi2 = dof")
-    acc = window_consistency(res.windows, res.names[:3])
-    gyr = window_consistency(res.windows, res.names[3:])
+    acc = window_consistency(res.windows, tuple(n for n in res.names if n.startswith("ba_")))
+    gyr = window_consistency(res.windows, tuple(n for n in res.names if n.startswith("bg_")))
     clock = window_consistency(res.windows, ("dt_trk",))
     for what, cc in (("accelerometer biases", acc), ("gyro biases", gyr), ("tracking time offset dt_trk", clock)):
         print(f"  {what}: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, weighted mean "

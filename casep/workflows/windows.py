@@ -75,12 +75,6 @@ def _skew(p: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]])
 
 
-def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    """Right-handed rotation by `angle` (rad) about the unit `axis` (Rodrigues)."""
-    K = _skew(axis)
-    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
-
-
 def _launch_from_ecef(site: LaunchSite, t: float) -> np.ndarray:
     """The rotation L <- ECEF at time `t` (columns: the ECEF axes in L)."""
     from casep.frames import ecef_to_launch_vector
@@ -190,7 +184,7 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
     from casep.navigation.alignment import course_rotation
     from casep.navigation.imu import ImuData
     from casep.navigation.navigator import navigate
-    from casep.navigation.strapdown import quat_to_dcm
+    from casep.navigation.strapdown import quat_from_rotvec, quat_to_dcm
 
     trk = _Tracking(tracking)
     base = load_model(model)
@@ -213,7 +207,7 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
                 s0, n0 = _navigate_window(imu, trk, t_a, t_b, C_eb)
                 _, v_e = n0.earth_relative()
                 psi = course_rotation(n0.t, v_e, trk.t, trk.v_e, trk.at(t_a, trk.r_e))
-                C_eb = _rotation(_up(trk.at(t_a, trk.r_e)), psi) @ C_eb
+                C_eb = quat_to_dcm(quat_from_rotvec(psi * _up(trk.at(t_a, trk.r_e)))) @ C_eb
                 course = math.degrees(psi)
             for passes in range(1, attitude_passes + 1):
                 site_k, nav = _navigate_window(imu, trk, t_a, t_b, C_eb)
@@ -280,7 +274,7 @@ def window_consistency(windows: Sequence[Window], names: Sequence[str]) -> dict[
     per = {n: float(sum((x[i] - xbar[i]) ** 2 / c[i, i] for x, c in zip(xs, covs))) for i, n in enumerate(names)}
     z = []
     for j, wj in enumerate(ok):
-        if not wj.sv_end.size:
+        if not wj.sv_end.size or not set(names) <= set(wj.sv_names):
             continue
         s = wj.sv_end[:, [wj.sv_names.index(n) for n in names]]
         for i in range(len(ok)):
