@@ -62,6 +62,23 @@ def convert(data: str, out: str, cut: tuple[float, float] | None = None) -> tupl
     return imu_path, trk_path, t_ref
 
 
+def course_rate_ratio(imu, trk, pad: tuple[float, float]) -> float:
+    """Slope of the tracked course rate on the vertical gyro rate (pad bias removed), epochs above 3 m/s.
+
+    The course (azimuth of the horizontal velocity) turns clockwise as the body turns counterclockwise
+    about the up axis, so the slope is -(1 + scale error of the vertical rate) when the car does not slip.
+    """
+    pad_rows = (imu.t >= pad[0]) & (imu.t <= pad[1])
+    up = imu.f[pad_rows].mean(axis=0)
+    up /= np.linalg.norm(up)
+    w_up = (imu.w - imu.w[pad_rows].mean(axis=0)) @ up
+    t, ve, vn = trk.t.to_numpy(), trk.v_east.to_numpy(), trk.v_north.to_numpy()
+    rate = np.gradient(np.unwrap(np.arctan2(ve, vn)), t)
+    use = np.hypot(ve, vn) > 3.0
+    w = np.interp(t[use], imu.t, w_up)
+    return float(np.sum(w * rate[use]) / np.sum(w * w))
+
+
 def _rms(result) -> float:
     """RMS of a fit's residuals over its axes and samples, m/s."""
     return float(np.sqrt(np.nanmean(np.asarray(result.residuals, float) ** 2)))
@@ -157,6 +174,8 @@ def main() -> None:
     for k, m in first.items():
         print(f"  e.g. {k}: {m}")
     w_max = float(np.max(np.linalg.norm(imu.w, axis=1)))
+    print(f"tracked course rate / vertical gyro rate over the epochs above 3 m/s: "
+          f"{course_rate_ratio(imu, trk, (0.0, moving - 5.0)):.4f}")
     print(f"lever arm antenna - IMU {np.linalg.norm(LEVER_ARM_CAR):.2f} m: |w x l| <= {w_max * 0.05:.3f} m/s "
           f"(largest rate {math.degrees(w_max):.1f} deg/s), not modelled")
     shown = tuple(n for n in res.names if n.startswith(("ba_", "bg_")))
