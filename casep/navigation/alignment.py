@@ -237,8 +237,8 @@ def course_rotation(t_nav: np.ndarray, v_nav: np.ndarray, t_trk: np.ndarray, v_t
                     r_ecef: np.ndarray) -> float:
     """The heading error of a navigation from the tracked course: the rotation about the vertical, rad.
 
-    A vehicle that cannot find north on the pad (a MEMS gyro: its bias is thousands of times the
-    Earth rate) takes its heading from the tracked course once it moves. With ``dv_n``, ``dv_t`` the
+    A vehicle that cannot find north on the pad (a MEMS gyro: its bias is tens to thousands of times
+    the Earth rate) takes its heading from the tracked course once it moves. With ``dv_n``, ``dv_t`` the
     horizontal changes of the navigated and tracked Earth-relative velocity since the first common
     sample (changes, so a velocity error at the start does not count), both at the tracking times
     within the navigation's span,

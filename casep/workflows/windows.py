@@ -68,7 +68,43 @@ class WindowsResult:
 
     @property
     def success(self) -> bool:
+        """Whether the windows' instrument coefficients agree (chi-square p-value above 1 %)."""
         return bool(self.consistency.get("agree", False))
+
+    @property
+    def status(self) -> int:
+        """0 the windows agree, 1 they do not (or fewer than two could be compared)."""
+        return 0 if self.success else 1
+
+    @property
+    def message(self) -> str:
+        """One line: how many windows, and whether they agree."""
+        c = self.consistency
+        if "chi2" not in c:
+            return str(c.get("message", "nothing to compare"))
+        verdict = "agree" if self.success else "do NOT agree"
+        return (f"{c['used']} of {c['windows']} windows compared on {', '.join(self.names)}: chi-square "
+                f"{c['chi2']:.4g} on {c['dof']} dof, p = {c['p_value']:.3g}: they {verdict}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data: the consistency and, per window, its span, passes and coefficients."""
+        return {"success": self.success, "status": self.status, "message": self.message,
+                "consistency": self.consistency,
+                "windows": [{"t_start": w.t_start, "t_end": w.t_end, "passes": w.passes,
+                             "heading_from_course_deg": w.heading_from_course_deg, "success": w.result.success,
+                             "names": list(w.result.names), "estimate": np.asarray(w.result.estimate).tolist(),
+                             "std": None if w.result.std is None else np.asarray(w.result.std).tolist()}
+                            for w in self.windows]}
+
+    def text(self) -> str:
+        """The message, then one line per window with its instrument coefficients."""
+        lines = [self.message]
+        for w in self.windows:
+            est = dict(zip(w.result.names, w.result.estimate))
+            sd = dict(zip(w.result.names, w.result.std if w.result.std is not None else [np.nan] * len(est)))
+            lines.append(f"  {w.t_start:9.3f} .. {w.t_end:9.3f} s: "
+                         + ", ".join(f"{n} {est[n]:.4g} +- {sd[n]:.2g}" for n in self.names))
+        return "\n".join(lines)
 
 
 def _skew(p: np.ndarray) -> np.ndarray:
@@ -161,6 +197,8 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
     align : (T1, T2)
         The span at rest: levelling, and with `gyro_bias_from_pad` the gyro biases (the mean rate
         minus the Earth rate), removed before navigating (what the windows then estimate is the rest).
+        The heading is not known on the pad, so the Earth rate's horizontal part is taken at heading
+        0: up to ``omega_E cos(lat)`` of it is left in the windows' gyro biases.
     length : float
         Window length, s.
     start : float, optional

@@ -9,6 +9,7 @@ costs twice the CPU; the whole drive with the default path is benchmarks/car_dri
 from __future__ import annotations
 
 import gzip
+import json
 import math
 import shutil
 import warnings
@@ -87,7 +88,14 @@ def car(tmp_path_factory):
     return imu, site, res
 
 
-def test_car_heading_from_the_course(car):
+def test_car_drive_cut(car):
+    """One test on the cut (its fixture computed once, whichever xdist worker runs it): heading, agreement, pad."""
+    _heading_from_the_course(car)
+    _windows_agree(car)
+    _vertical_accelerometer_bias_is_the_pads(car)
+
+
+def _heading_from_the_course(car):
     """The heading comes from the course in the first window; the initial attitude errors left are linear."""
     _, _, res = car
     assert len(res.windows) == 2
@@ -102,18 +110,21 @@ def test_car_heading_from_the_course(car):
         assert rms < 0.1, (w.t_start, rms)  # m/s: the RTK velocity noise is 0.04 m/s; a wrong heading leaves metres
 
 
-def test_car_windows_agree(car):
+def _windows_agree(car):
     """The two windows' biases agree by chi-square (6 dof) and predict each other's dv at the end within 2 std."""
     _, _, res = car
     c = res.consistency
     assert c["dof"] == 6 and c["used"] == 2
+    assert res.success and res.status == 0 and "they agree" in res.message
+    assert json.loads(json.dumps(res.to_dict()))["consistency"]["dof"] == 6
+    assert len(res.text().splitlines()) == 3
     assert c["agree"] and c["p_value"] > 0.01, c
     assert c["within_2_std"] >= 4 / 6, c  # 2 ordered pairs x 3 axes
     acc = window_consistency(res.windows, ("ba_x", "ba_y", "ba_z"))
     assert acc["p_value"] > 0.01, acc
 
 
-def test_car_vertical_accelerometer_bias_is_the_pads(car):
+def _vertical_accelerometer_bias_is_the_pads(car):
     """The windows' bias along the pad's vertical is what the pad shows by itself: |f| - g (an independent figure)."""
     from casep.gravity import normal_gravity_ecef
 
