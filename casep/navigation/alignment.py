@@ -29,7 +29,7 @@ import numpy as np
 from casep.exceptions import AlignmentWarning, PlausibilityWarning
 from casep.frames import OMEGA_EARTH, LaunchSite
 
-__all__ = ["Alignment", "align", "HEADING_AXES"]
+__all__ = ["Alignment", "align", "HEADING_AXES", "course_rotation"]
 
 #: Body axes whose azimuth ``--heading`` may give.
 HEADING_AXES = ("x", "y", "z")
@@ -231,3 +231,52 @@ def _gyrocompass(w_win: np.ndarray, w_mean: np.ndarray, f_mean: np.ndarray, up_b
                   f"{math.degrees(math.radians(1 / 3600) / north_rate):.2g} deg; give --heading if it is known",
                   AlignmentWarning, stacklevel=3)
     return Alignment(C, "gyrocompass", heading, math.degrees(std), f_mean, w_mean, g0, n, axis)
+
+
+def course_rotation(t_nav: np.ndarray, v_nav: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray,
+                    r_ecef: np.ndarray) -> float:
+    """The heading error of a navigation from the tracked course: the rotation about the vertical, rad.
+
+    A vehicle that cannot find north on the pad (a MEMS gyro: its bias is tens to thousands of times
+    the Earth rate) takes its heading from the tracked course once it moves. With ``dv_n``, ``dv_t`` the
+    horizontal changes of the navigated and tracked Earth-relative velocity since the first common
+    sample (changes, so a velocity error at the start does not count), both at the tracking times
+    within the navigation's span,
+
+        psi = atan2(sum (dv_n x dv_t) . u, sum dv_n . dv_t)
+
+    turns the navigated velocity onto the tracked one about the local vertical ``u`` (right-handed:
+    positive counterclockwise seen from above); the attitude is corrected by the same rotation,
+    ``C_e^b <- R_u(psi) C_e^b``. Accelerometer biases turn ``dv_n`` by about their share of the
+    speed change; what is left is estimated as the initial attitude error ``phi0`` of a window model.
+
+    Parameters
+    ----------
+    t_nav, v_nav : (N,), (N, 3) ndarray
+        Navigation times (s) and Earth-relative velocity in ECEF (m/s).
+    t_trk, v_trk : (M,), (M, 3) ndarray
+        Tracking times (same scale) and Earth-relative velocity in ECEF (m/s).
+    r_ecef : (3,) ndarray
+        Where the vertical is taken, m (ECEF).
+
+    Raises
+    ------
+    ValueError
+        Fewer than 3 tracking samples in the span, or a horizontal speed change under 1 m/s (no course).
+    """
+    from casep.gravity import normal_gravity_ecef
+
+    up = -normal_gravity_ecef(np.asarray(r_ecef, float))
+    up = up / np.linalg.norm(up)
+    sel = (t_trk >= t_nav[0]) & (t_trk <= t_nav[-1])
+    if int(sel.sum()) < 3:
+        raise ValueError(f"course heading: {int(sel.sum())} tracking samples within {t_nav[0]:g} .. {t_nav[-1]:g} s "
+                         "(at least 3 needed)")
+    vn = np.column_stack([np.interp(t_trk[sel], t_nav, v_nav[:, c]) for c in range(3)])
+    dn, dt = vn - vn[0], v_trk[sel] - v_trk[sel][0]
+    dn, dt = dn - np.outer(dn @ up, up), dt - np.outer(dt @ up, up)
+    change = float(np.max(np.linalg.norm(dt, axis=1)))
+    if change < 1.0:
+        raise ValueError(f"course heading: the tracked horizontal velocity changes by at most {change:.3g} m/s within "
+                         f"{t_nav[0]:g} .. {t_nav[-1]:g} s: no course to take a heading from (start when it moves)")
+    return math.atan2(float(np.sum(np.cross(dn, dt) @ up)), float(np.sum(dn * dt)))

@@ -1,0 +1,211 @@
+"""A real car drive (consumer MEMS IMU at 100 Hz, RTK velocity at 4 Hz) separated in windows.
+
+Data: rtklibexplorer/GNSS_IMU, drive_0708 (BSD-3; NOTES.md of the data folder): a TDK ICM-45686 IMU
+on a car roof, the IMU clock mapped to GPS time (``imu_1934_gpst_raw.csv.gz``: GPST seconds, m/s^2,
+rad/s), RTKLIB's solution ``gnss_1934_sf.pos`` (lat, lon, h and vn, ve, vu at 4 Hz, GPST).
+
+The chain (:func:`casep.workflows.windows.separate_windows`): align on the static start, remove
+the gyro biases seen there, then windows of ``--length`` s, each navigated from the RTK state at its
+start and the running attitude, separated with ``strapdown6_window`` (biases + initial attitude and
+velocity errors; the tracking time offset dt_trk comes with the geodetic tracking), and compared:
+chi-square of the windows' biases against their weighted mean, and each window's biases predicting
+every other window's dv at its end.
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/car_drive.py --figures docs/results/figures
+    python benchmarks/car_drive.py --write-cut tests/data/car_drive --cut 0 70   # the test suite's cut
+"""
+
+from __future__ import annotations
+
+import argparse
+import calendar
+import datetime
+import math
+import os
+import time
+import warnings
+
+import numpy as np
+
+DATA = "/work/shared/data/rtklibexplorer_car"
+#: GNSS antenna minus IMU, car axes (forward, right, down), m (the data's drive_config.py).
+LEVER_ARM_CAR = np.array([0.0, -0.05, 0.0])
+
+
+def read_rtklib_pos(path: str) -> dict[str, np.ndarray]:
+    """RTKLIB .pos with GPST calendar time and velocity columns: t (GPST s, Unix epoch), lat, lon, h, vn, ve, vu."""
+    rows = [line.split() for line in open(path) if line.strip() and not line.startswith("%")]
+    t = np.array([calendar.timegm(datetime.datetime.strptime(r[0] + " " + r[1], "%Y/%m/%d %H:%M:%S.%f").timetuple())
+                  + float("0." + r[1].split(".")[1]) for r in rows])
+    v = np.array([[float(x) for x in r[2:]] for r in rows])
+    return {"t": t, "lat": v[:, 0], "lon": v[:, 1], "h": v[:, 2], "q": v[:, 3], "vn": v[:, 13], "ve": v[:, 14],
+            "vu": v[:, 15]}
+
+
+def convert(data: str, out: str, cut: tuple[float, float] | None = None) -> tuple[str, str, float]:
+    """casep's IMU file (t, w_*, fb_*) and geodetic tracking file, time from the first IMU sample."""
+    import pandas as pd
+
+    imu = pd.read_csv(os.path.join(data, "imu_1934_gpst_raw.csv.gz")).to_numpy()
+    pos = read_rtklib_pos(os.path.join(data, "gnss_1934_sf.pos"))
+    t_ref = float(np.floor(imu[0, 0]))
+    ti, tp = imu[:, 0] - t_ref, pos["t"] - t_ref
+    si = np.ones(len(ti), bool) if cut is None else (ti >= cut[0]) & (ti <= cut[1])
+    sp = np.ones(len(tp), bool) if cut is None else (tp >= cut[0] - 1.0) & (tp <= cut[1] + 1.0)
+    os.makedirs(out, exist_ok=True)
+    imu_path, trk_path = os.path.join(out, "imu.csv"), os.path.join(out, "tracking.csv")
+    pd.DataFrame({"t": ti[si], "w_x": imu[si, 4], "w_y": imu[si, 5], "w_z": imu[si, 6], "fb_x": imu[si, 1],
+                  "fb_y": imu[si, 2], "fb_z": imu[si, 3]}).to_csv(imu_path, index=False, float_format="%.7g")
+    pd.DataFrame({"t": tp[sp], "lat": pos["lat"][sp], "lon": pos["lon"][sp], "h": pos["h"][sp],
+                  "v_east": pos["ve"][sp], "v_north": pos["vn"][sp], "v_up": pos["vu"][sp]}).to_csv(
+        trk_path, index=False, float_format="%.11g")
+    return imu_path, trk_path, t_ref
+
+
+def course_rate_ratio(imu, trk, pad: tuple[float, float]) -> float:
+    """Slope of the tracked course rate on the vertical gyro rate (pad bias removed), epochs above 3 m/s.
+
+    The course (azimuth of the horizontal velocity) turns clockwise as the body turns counterclockwise
+    about the up axis, so the slope is -(1 + scale error of the vertical rate) when the car does not slip.
+    """
+    pad_rows = (imu.t >= pad[0]) & (imu.t <= pad[1])
+    up = imu.f[pad_rows].mean(axis=0)
+    up /= np.linalg.norm(up)
+    w_up = (imu.w - imu.w[pad_rows].mean(axis=0)) @ up
+    t, ve, vn = trk.t.to_numpy(), trk.v_east.to_numpy(), trk.v_north.to_numpy()
+    rate = np.gradient(np.unwrap(np.arctan2(ve, vn)), t)
+    use = np.hypot(ve, vn) > 3.0
+    w = np.interp(t[use], imu.t, w_up)
+    return float(np.sum(w * rate[use]) / np.sum(w * w))
+
+
+def _rms(result) -> float:
+    """RMS of a fit's residuals over its axes and samples, m/s."""
+    return float(np.sqrt(np.nanmean(np.asarray(result.residuals, float) ** 2)))
+
+
+def figures(res, outdir: str) -> list[str]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    os.makedirs(outdir, exist_ok=True)
+    names = res.names
+    mean = np.array(res.consistency["weighted_mean"])
+    t = np.array([w.t_start for w in res.windows])
+    fig, axes = plt.subplots(2, 3, figsize=(10, 5.5), sharex=True)
+    for k, (ax, n) in enumerate(zip(axes.ravel(), names)):
+        x = [dict(zip(w.result.names, w.result.estimate))[n] for w in res.windows]
+        s = [dict(zip(w.result.names, w.result.std))[n] for w in res.windows]
+        ax.errorbar(t, x, yerr=s, fmt="o", ms=3, capsize=2)
+        ax.axhline(mean[k], color="k", lw=0.8)
+        unit = res.windows[0].result.units[list(res.windows[0].result.names).index(n)]
+        ax.set_title(f"{n} ({unit}), chi2 {res.consistency['chi2_per_coefficient'][n]:.0f} / {len(t) - 1}", fontsize=9)
+    for ax in axes[1]:
+        ax.set_xlabel("window start, s")
+    fig.suptitle("car drive: biases per 30 s window (+- 1 std) and their weighted mean", fontsize=10)
+    fig.tight_layout()
+    p1 = os.path.join(outdir, "car-drive-windows.png")
+    fig.savefig(p1, dpi=80)
+    fig2, ax = plt.subplots(1, 2, figsize=(10, 3))
+    dt = [dict(zip(w.result.names, w.result.estimate)).get("dt_trk", np.nan) for w in res.windows]
+    ds = [dict(zip(w.result.names, w.result.std)).get("dt_trk", np.nan) for w in res.windows]
+    ax[0].errorbar(t, dt, yerr=ds, fmt="o", ms=3, capsize=2)
+    ax[0].set_title("tracking time offset dt_trk per window, ms", fontsize=9)
+    ax[1].plot(t, [_rms(w.result) for w in res.windows], "o", ms=3)
+    ax[1].set_yscale("log")
+    ax[1].set_title("RMS of the fit residuals per window, m/s", fontsize=9)
+    for a in ax:
+        a.set_xlabel("window start, s")
+    fig2.tight_layout()
+    p2 = os.path.join(outdir, "car-drive-offset.png")
+    fig2.savefig(p2, dpi=80)
+    return [p1, p2]
+
+
+def main() -> None:
+    from casep.frames import LaunchSite
+    from casep.navigation.imu import read_imu
+    from casep.workflows.windows import separate_windows, window_consistency
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", default=DATA)
+    ap.add_argument("--out", default="car_drive_out", help="where the converted files go")
+    ap.add_argument("--length", type=float, default=30.0, help="window length, s")
+    ap.add_argument("--imu-shift", type=float, default=0.0, help="added to the IMU times, s (a clock-offset probe)")
+    ap.add_argument("--figures", default=None, help="folder for the PNG figures")
+    ap.add_argument("--model", default="strapdown6_window", help="the window model (instrument terms + phi0 + dv0)")
+    ap.add_argument("--noise", default=None, help="casep's --noise for every window (default: its default path)")
+    ap.add_argument("--write-cut", default=None, help="write the converted cut here and stop")
+    ap.add_argument("--cut", type=float, nargs=2, default=(0.0, 70.0))
+    args = ap.parse_args()
+    if args.write_cut:  # the IMU file gzipped (-9), as the test suite holds it
+        import gzip
+        import shutil
+
+        imu_path, trk_path, _ = convert(args.data, args.write_cut, tuple(args.cut))
+        with open(imu_path, "rb") as src, gzip.open(imu_path + ".gz", "wb", compresslevel=9) as dst:
+            shutil.copyfileobj(src, dst)
+        os.remove(imu_path)
+        print(imu_path + ".gz", trk_path)
+        return
+    imu_path, trk_path, t_ref = convert(args.data, args.out)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        imu = read_imu(imu_path)
+        imu.t = imu.t + args.imu_shift
+        import pandas as pd
+
+        trk = pd.read_csv(trk_path)
+        site = LaunchSite(float(trk.lat[0]), float(trk.lon[0]), float(trk.h[0]), 0.0, 0.0)
+        moving = float(trk.t[np.hypot(trk.v_east, trk.v_north) > 0.3].iloc[0])
+        c0 = time.process_time()
+        res = separate_windows(imu, trk_path, site, (0.0, moving - 5.0), length=args.length, start=moving + 1.0,
+                               model=args.model, fit_options={} if args.noise is None else {"noise": args.noise})
+        cpu = time.process_time() - c0
+    kinds: dict[str, int] = {}
+    first: dict[str, str] = {}
+    for w in caught:
+        kinds[w.category.__name__] = kinds.get(w.category.__name__, 0) + 1
+        first.setdefault(w.category.__name__, str(w.message)[:300])
+    print(f"{len(res.windows)} windows of {args.length:g} s from t = {moving + 1:.1f} s (GPST {t_ref:.0f} + t); "
+          f"{cpu:.1f} CPU s; warnings {kinds}")
+    for k, m in first.items():
+        print(f"  e.g. {k}: {m}")
+    w_max = float(np.max(np.linalg.norm(imu.w, axis=1)))
+    print(f"tracked course rate / vertical gyro rate over the epochs above 3 m/s: "
+          f"{course_rate_ratio(imu, trk, (0.0, moving - 5.0)):.4f}")
+    print(f"lever arm antenna - IMU {np.linalg.norm(LEVER_ARM_CAR):.2f} m: |w x l| <= {w_max * 0.05:.3f} m/s "
+          f"(largest rate {math.degrees(w_max):.1f} deg/s), not modelled")
+    shown = tuple(n for n in res.names if n.startswith(("ba_", "bg_")))
+    print(" start  passes course    rms   dt_trk ms     " + "  ".join(f"{n:>14s}" for n in shown))
+    for w in res.windows:
+        r = w.result
+        e, s = dict(zip(r.names, r.estimate)), dict(zip(r.names, r.std))
+        course = "" if w.heading_from_course_deg is None else f"{w.heading_from_course_deg:.1f}"
+        print(f"{w.t_start:6.1f} {w.passes:4d} {course:>8s} {_rms(r):6.3f} {e['dt_trk']:6.1f}+-{s['dt_trk']:4.1f}  "
+              + "  ".join(f"{e[n]:7.1f}+-{s[n]:5.1f}" for n in shown))
+    c = res.consistency
+    print(f"chi-square of the windows against their weighted mean: {c['chi2']:.1f} on {c['dof']} dof, "
+          f"p = {c['p_value']:.3g}: {'agree' if c['agree'] else 'do NOT agree'}")
+    print("  per coefficient (dof " + f"{c['used'] - 1}): " + ", ".join(f"{n} {v:.0f}"
+                                                                       for n, v in c["chi2_per_coefficient"].items()))
+    print("  weighted mean: " + ", ".join(f"{n} {v:.2f}" for n, v in zip(res.names, c["weighted_mean"])))
+    print(f"  the std would have to be {math.sqrt(c['chi2'] / c['dof']):.1f} times larger for chi2 = dof")
+    acc = window_consistency(res.windows, tuple(n for n in res.names if n.startswith("ba_")))
+    gyr = window_consistency(res.windows, tuple(n for n in res.names if n.startswith("bg_")))
+    clock = window_consistency(res.windows, ("dt_trk",))
+    for what, cc in (("accelerometer biases", acc), ("gyro biases", gyr), ("tracking time offset dt_trk", clock)):
+        print(f"  {what}: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, weighted mean "
+              + ", ".join(f"{v:.2f}" for v in cc["weighted_mean"]))
+    print(f"held-out prediction of dv at the window end ({c['prediction_pairs']} ordered pairs x 3 axes): "
+          f"within 1 std {c['within_1_std']:.2f} (0.68 expected), within 2 std {c['within_2_std']:.2f} (0.95), "
+          f"median |z| {c['median_abs_z']:.2f} (0.67)")
+    if args.figures:
+        for p in figures(res, args.figures):
+            print("figure", p)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,328 @@
+"""A long free-inertial record cut into short windows: separated window by window, then compared.
+
+A consumer MEMS IMU drifts out of the linear range of the error model within tens of seconds, so a
+long record (a car drive, a UAV flight) cannot be separated as one flight. :func:`separate_windows`
+cuts it into windows of a few tens of seconds, and for each one
+
+1. navigates (:func:`casep.navigation.navigate_from`) from the tracked position and velocity at its
+   first sample and the running attitude there, in a launch-inertial frame tied to that sample
+   (site = the tracked point, azimuth 0, launch time = the window's start);
+2. separates it (:func:`casep.separate`, the default noise path; Earth-fixed tracking brings the
+   tracking time offset ``dt_trk``) with a window model: the instrument terms plus the initial
+   attitude error ``phi0`` and initial velocity error ``dv0`` (``models/strapdown6_window.py``);
+3. when ``|phi0|`` is beyond :data:`PHI0_LINEAR_RAD` (the ``f x phi`` term is then no longer linear),
+   turns the starting attitude by the estimated ``phi0`` (``C_true = (I + [phi0 x]) C_ins``) and
+   navigates and separates again, up to ``attitude_passes`` times;
+4. carries the attitude to the next window corrected by the estimated attitude error at the end,
+   ``phi(T) = phi0 + int phidot dt`` (the model's ``phidot`` at the window's samples).
+
+The heading at the start comes from the tracked course (:func:`casep.navigation.alignment.course_rotation`)
+over the first window, then from step 3. :func:`window_consistency` says whether the windows agree:
+the chi-square of each window's instrument coefficients against their weighted mean, and how well
+each window's coefficients predict every other window's dv at its end.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from casep.frames import LaunchSite
+
+__all__ = ["Window", "WindowsResult", "separate_windows", "window_consistency", "NUISANCE_PREFIXES",
+           "PHI0_LINEAR_RAD"]
+
+#: Coefficients that belong to one window only (not compared across windows): initial states, time offset.
+NUISANCE_PREFIXES = ("phi0_", "dv0_", "dt_trk")
+#: An initial attitude error beyond this is re-navigated from the corrected attitude, rad (1 deg: the
+#: ``f x phi`` term then departs from its linear form by ``|phi|^2 / 2 |f|``, 1.5 mm/s^2 at 1 g).
+PHI0_LINEAR_RAD = math.radians(1.0)
+
+
+@dataclass
+class Window:
+    """One window: its start, frame, separation and how its initial attitude was found."""
+
+    t_start: float
+    t_end: float
+    site: LaunchSite
+    result: Any
+    passes: int
+    heading_from_course_deg: float | None
+    sv_end: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((3, 0)))
+    sv_names: tuple[str, ...] = ()
+
+
+@dataclass
+class WindowsResult:
+    """The windows and their consistency (:func:`window_consistency`)."""
+
+    windows: list[Window]
+    names: tuple[str, ...]
+    consistency: dict[str, Any]
+
+    @property
+    def success(self) -> bool:
+        """Whether the windows' instrument coefficients agree (chi-square p-value above 1 %)."""
+        return bool(self.consistency.get("agree", False))
+
+    @property
+    def status(self) -> int:
+        """0 the windows agree, 1 they do not (or fewer than two could be compared)."""
+        return 0 if self.success else 1
+
+    @property
+    def message(self) -> str:
+        """One line: how many windows, and whether they agree."""
+        c = self.consistency
+        if "chi2" not in c:
+            return str(c.get("message", "nothing to compare"))
+        verdict = "agree" if self.success else "do NOT agree"
+        return (f"{c['used']} of {c['windows']} windows compared on {', '.join(self.names)}: chi-square "
+                f"{c['chi2']:.4g} on {c['dof']} dof, p = {c['p_value']:.3g}: they {verdict}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data: the consistency and, per window, its span, passes and coefficients."""
+        return {"success": self.success, "status": self.status, "message": self.message,
+                "consistency": self.consistency,
+                "windows": [{"t_start": w.t_start, "t_end": w.t_end, "passes": w.passes,
+                             "heading_from_course_deg": w.heading_from_course_deg, "success": w.result.success,
+                             "names": list(w.result.names), "estimate": np.asarray(w.result.estimate).tolist(),
+                             "std": None if w.result.std is None else np.asarray(w.result.std).tolist()}
+                            for w in self.windows]}
+
+    def text(self) -> str:
+        """The message, then one line per window with its instrument coefficients."""
+        lines = [self.message]
+        for w in self.windows:
+            est = dict(zip(w.result.names, w.result.estimate))
+            sd = dict(zip(w.result.names, w.result.std if w.result.std is not None else [np.nan] * len(est)))
+            lines.append(f"  {w.t_start:9.3f} .. {w.t_end:9.3f} s: "
+                         + ", ".join(f"{n} {est[n]:.4g} +- {sd[n]:.2g}" for n in self.names))
+        return "\n".join(lines)
+
+
+def _skew(p: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]])
+
+
+def _launch_from_ecef(site: LaunchSite, t: float) -> np.ndarray:
+    """The rotation L <- ECEF at time `t` (columns: the ECEF axes in L)."""
+    from casep.frames import ecef_to_launch_vector
+
+    return ecef_to_launch_vector(site, np.full(3, t), np.eye(3)).T
+
+
+def _orthonormal(C: np.ndarray) -> np.ndarray:
+    U, _, Vt = np.linalg.svd(C)
+    return U @ Vt
+
+
+class _Tracking:
+    """Geodetic tracking (t, lat, lon, h, v_east, v_north, v_up) read once, interpolated to any time."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        from casep.frames import GEODETIC_COLUMNS, geodetic_to_ecef
+        from casep.io.tables import Table
+
+        tab = Table(path)
+        tab.require(GEODETIC_COLUMNS)
+        self.path = path
+        self.t = tab.time()
+        self.geo = np.column_stack([tab.numeric(c) for c in GEODETIC_COLUMNS[1:4]])
+        self.v_enu = np.column_stack([tab.numeric(c) for c in GEODETIC_COLUMNS[4:7]])
+        self.r_e, self.v_e = geodetic_to_ecef(*self.geo.T, *self.v_enu.T)
+
+    def at(self, t: float, values: np.ndarray) -> np.ndarray:
+        return np.array([np.interp(t, self.t, values[:, c]) for c in range(values.shape[1])])
+
+
+def _navigate_window(imu, trk: _Tracking, t_a: float, t_b: float, C_eb: np.ndarray):
+    """Navigate [t_a, t_b] from the tracked state at t_a and the attitude C_eb (body -> ECEF)."""
+    from casep.frames import ecef_to_launch
+    from casep.navigation.imu import ImuData
+    from casep.navigation.navigator import navigate_from
+    from casep.navigation.strapdown import dcm_to_quat
+
+    lat, lon, h = trk.at(t_a, trk.geo)
+    site = LaunchSite(float(lat), float(lon), float(h), 0.0, t_a)
+    r0, v0 = ecef_to_launch(site, np.array([t_a]), trk.at(t_a, trk.r_e)[None, :], trk.at(t_a, trk.v_e)[None, :])
+    sel = (imu.t >= t_a) & (imu.t <= t_b)
+    sub = ImuData(imu.t[sel], imu.w[sel], imu.f[sel], source=imu.source)
+    nav = navigate_from(sub, site, dcm_to_quat(_launch_from_ecef(site, t_a) @ C_eb), r0[0], v0[0])
+    return site, nav
+
+
+def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fit_options: dict):
+    from casep.io.files import read_flight_pair, write_table
+    from casep.workflows.separate import separate
+
+    tel = os.path.join(workdir, "window.parquet")
+    write_table(tel, nav.columns())
+    flight = read_flight_pair(tel, trk.path, tracking_frame="geodetic", site=site)
+    return flight, separate(flight, model, **fit_options)
+
+
+def _attitude_error_end(model, result, flight) -> np.ndarray:
+    """``phi(T) = phi0 + int phidot dt`` of the estimate, rad, navigation frame of the window."""
+    est = dict(zip(result.names, result.estimate))
+    D = np.array([est[n] for n in model.names])
+    sig = np.column_stack([flight.signals[s] for s in model.signals]) if model.signals else np.zeros((len(flight.t), 0))
+    fun = model.functions["phidot"]
+    args = [flight.f.T, (flight.t - flight.t[0])[None, :]] + ([sig.T] if model.signals else [])
+    n_in = fun.n_in()
+    rate = np.array(fun.map(len(flight.t))(*args[:n_in - 1], D)).T  # (N, 3)
+    return model.numeric("phi0") @ D + np.trapezoid(rate, flight.t, axis=0)
+
+
+def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: tuple[float, float], *,
+                     length: float = 30.0, start: float | None = None, model: str = "strapdown6_window",
+                     attitude_passes: int = 3, gyro_bias_from_pad: bool = True,
+                     fit_options: dict | None = None) -> WindowsResult:
+    """Align on the pad, cut the rest of `imu` into windows of `length` s and separate each (module docstring).
+
+    Parameters
+    ----------
+    imu : casep.navigation.ImuData
+        Raw IMU data in the tracking file's time scale.
+    tracking : path
+        Geodetic tracking: ``t, lat, lon, h, v_east, v_north, v_up`` (deg, m, m/s).
+    site : LaunchSite
+        The pad (for the alignment; azimuth and launch time are not used further).
+    align : (T1, T2)
+        The span at rest: levelling, and with `gyro_bias_from_pad` the gyro biases (the mean rate
+        minus the Earth rate), removed before navigating (what the windows then estimate is the rest).
+        The heading is not known on the pad, so the Earth rate's horizontal part is taken at heading
+        0: up to ``omega_E cos(lat)`` of it is left in the windows' gyro biases.
+    length : float
+        Window length, s.
+    start : float, optional
+        First window's start (default: the end of `align`).
+    model : str
+        A window model (instrument terms + ``phi0_*`` + ``dv0_*``).
+    attitude_passes : int
+        Navigations per window at most (the initial attitude corrected by ``phi0`` between them).
+    gyro_bias_from_pad : bool
+        Remove the pad's gyro biases before navigating.
+    fit_options : dict, optional
+        Keywords of :func:`casep.separate` (default: none, its default noise path).
+
+    Returns
+    -------
+    WindowsResult
+        The windows (each with its :class:`~casep.EstimateResult`) and :func:`window_consistency` of
+        the instrument coefficients (the model's names without :data:`NUISANCE_PREFIXES`).
+    """
+    from casep.model.loader import load_model
+    from casep.navigation.alignment import course_rotation
+    from casep.navigation.imu import ImuData
+    from casep.navigation.navigator import navigate
+    from casep.navigation.strapdown import quat_from_rotvec, quat_to_dcm
+
+    trk = _Tracking(tracking)
+    base = load_model(model)
+    nav0 = navigate(imu, site, align, heading_deg=0.0)
+    a = nav0.alignment
+    assert a is not None  # navigate always aligns
+    if gyro_bias_from_pad:
+        imu = ImuData(imu.t, imu.w - (a.w_mean - a.C_tb.T @ site.earth_rate), imu.f, source=imu.source)
+        nav0 = navigate(imu, site, align, heading_deg=0.0)
+    t_a = float(align[1] if start is None else start)
+    j = int(np.searchsorted(nav0.t, t_a))
+    t_a = float(nav0.t[j])
+    C_eb = _launch_from_ecef(site, t_a).T @ quat_to_dcm(nav0.q[j])
+    windows: list[Window] = []
+    with tempfile.TemporaryDirectory() as workdir:
+        while t_a + length <= min(imu.t[-1], trk.t[-1]):
+            t_b = t_a + length
+            course = None
+            if not windows:  # the heading is unknown at the start: the tracked course turns it
+                s0, n0 = _navigate_window(imu, trk, t_a, t_b, C_eb)
+                _, v_e = n0.earth_relative()
+                psi = course_rotation(n0.t, v_e, trk.t, trk.v_e, trk.at(t_a, trk.r_e))
+                C_eb = quat_to_dcm(quat_from_rotvec(psi * _up(trk.at(t_a, trk.r_e)))) @ C_eb
+                course = math.degrees(psi)
+            for passes in range(1, attitude_passes + 1):
+                site_k, nav = _navigate_window(imu, trk, t_a, t_b, C_eb)
+                flight, res = _separate_nav(nav, site_k, trk, model, workdir, dict(fit_options or {}))
+                est = dict(zip(res.names, res.estimate))
+                phi0 = base.numeric("phi0") @ np.array([est[n] for n in base.names])
+                if np.linalg.norm(phi0) <= PHI0_LINEAR_RAD or passes == attitude_passes:
+                    break
+                M = _launch_from_ecef(site_k, t_a)
+                C_eb = M.T @ _orthonormal((np.eye(3) + _skew(phi0)) @ M @ C_eb)
+            from casep.model.sv import build_sv
+
+            S = build_sv(base, flight.t, flight.f, signals=flight.signals)
+            windows.append(Window(t_a, float(nav.t[-1]), site_k, res, passes, course, S[-1], base.names))
+            phi_end = _attitude_error_end(base, res, flight)
+            t_a = float(nav.t[-1])
+            C_lb = _orthonormal((np.eye(3) + _skew(phi_end)) @ quat_to_dcm(nav.q[-1]))
+            C_eb = _launch_from_ecef(site_k, t_a).T @ C_lb
+    names = tuple(n for n in base.names if not n.startswith(NUISANCE_PREFIXES))
+    return WindowsResult(windows, names, window_consistency(windows, names))
+
+
+def _up(r_e: np.ndarray) -> np.ndarray:
+    from casep.gravity import normal_gravity_ecef
+
+    g = normal_gravity_ecef(r_e)
+    return -g / np.linalg.norm(g)
+
+
+def _instrument(window: Window, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    res = window.result
+    idx = [res.names.index(n) for n in names]
+    cov = np.full((len(idx), len(idx)), np.nan) if res.covariance is None else res.covariance[np.ix_(idx, idx)]
+    return res.estimate[idx], cov
+
+
+def window_consistency(windows: Sequence[Window], names: Sequence[str]) -> dict[str, Any]:
+    """Do the windows' instrument coefficients agree, and does each predict the others' dv?
+
+    Agreement: with ``x_k``, ``C_k`` each window's estimate and covariance of the coefficients
+    `names`, the weighted mean ``xbar = (sum C_k^-1)^-1 sum C_k^-1 x_k`` and
+
+        chi2 = sum_k (x_k - xbar)^T C_k^-1 (x_k - xbar),   dof = (K - 1) p
+
+    (also per coefficient, from the diagonal); the windows agree when the p-value is above 1 %.
+
+    Prediction: window ``i``'s coefficients predict window ``j``'s dv at its end by
+    ``s_j (x_i - x_j)`` away from what ``j``'s own fit gives (``s_j`` the rows of S_V at ``j``'s
+    last sample, instrument columns), with std ``sqrt(s_j (C_i + C_j) s_j^T)`` per axis; the fractions
+    of ``|z| <= 1`` and ``<= 2`` over all ordered pairs and axes (0.68 and 0.95 when they agree).
+    """
+    from scipy.stats import chi2 as chi2_dist
+
+    ok = [w for w in windows if w.result.success and w.result.covariance is not None]
+    xs, covs = zip(*(_instrument(w, names) for w in ok)) if ok else ((), ())
+    p = len(names)
+    out: dict[str, Any] = {"windows": len(windows), "used": len(ok), "names": list(names)}
+    if len(ok) < 2:
+        return {**out, "agree": False, "message": f"{len(ok)} window(s) with a covariance: nothing to compare"}
+    W = [np.linalg.pinv(c) for c in covs]
+    xbar = np.linalg.solve(sum(W), sum(w @ x for w, x in zip(W, xs)))
+    chi2 = float(sum((x - xbar) @ w @ (x - xbar) for w, x in zip(W, xs)))
+    dof = (len(ok) - 1) * p
+    per = {n: float(sum((x[i] - xbar[i]) ** 2 / c[i, i] for x, c in zip(xs, covs))) for i, n in enumerate(names)}
+    z = []
+    for j, wj in enumerate(ok):
+        if not wj.sv_end.size or not set(names) <= set(wj.sv_names):
+            continue
+        s = wj.sv_end[:, [wj.sv_names.index(n) for n in names]]
+        for i in range(len(ok)):
+            if i != j:
+                sd = np.sqrt(np.einsum("ap,pq,aq->a", s, covs[i] + covs[j], s))
+                z.append(s @ (xs[i] - xs[j]) / sd)
+    zz = np.abs(np.concatenate(z)) if z else np.array([])
+    pval = float(chi2_dist.sf(chi2, dof))
+    return {**out, "chi2": chi2, "dof": dof, "p_value": pval, "agree": pval > 0.01, "weighted_mean": xbar.tolist(),
+            "chi2_per_coefficient": per, "prediction_pairs": len(z),
+            "within_1_std": float(np.mean(zz <= 1.0)) if zz.size else None,
+            "within_2_std": float(np.mean(zz <= 2.0)) if zz.size else None,
+            "median_abs_z": float(np.median(zz)) if zz.size else None}

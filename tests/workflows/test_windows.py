@@ -1,0 +1,142 @@
+"""Windows of a long record: the consistency statistics against closed forms, and the chain on a real car drive.
+
+The real data: a 70 s cut of rtklibexplorer's drive_0708 (tests/data/car_drive/README.md): 35 s at rest
+with the engine running, then the car pulls out. Two windows of 15 s are navigated and separated with the
+Gauss-Markov plus white noise model (``noise="gmw"``, no robust filter: the default ``auto`` selection
+costs twice the CPU; the whole drive with the default path is benchmarks/car_drive.py).
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+import math
+import shutil
+import warnings
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.stats import chi2 as chi2_dist
+
+from casep.frames import LaunchSite
+from casep.workflows.windows import PHI0_LINEAR_RAD, Window, window_consistency
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "car_drive"
+
+
+def _window(x, C, s_end=None):
+    names = ("a", "b")
+    res = SimpleNamespace(names=names, estimate=np.asarray(x, float), covariance=np.asarray(C, float),
+                          std=np.sqrt(np.diag(C)), success=True)
+    site = LaunchSite(0.0, 0.0, 0.0, 0.0, 0.0)
+    return Window(0.0, 1.0, site, res, 1, None, np.zeros((3, 0)) if s_end is None else np.asarray(s_end, float), names)
+
+
+def test_two_windows_chi2_and_prediction_closed_form():
+    """Two windows: chi2 = d^T (C1 + C2)^-1 d, and the prediction z = s d / sqrt(s (C1 + C2) s^T)."""
+    C1 = np.array([[2.0, 0.3], [0.3, 1.0]])
+    C2 = np.array([[0.5, -0.1], [-0.1, 3.0]])
+    x1, x2 = np.array([1.0, -2.0]), np.array([2.5, 0.5])
+    s = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    out = window_consistency([_window(x1, C1, s), _window(x2, C2, s)], ("a", "b"))
+    d = x1 - x2
+    assert out["chi2"] == pytest.approx(d @ np.linalg.solve(C1 + C2, d), rel=1e-12)
+    assert out["dof"] == 2
+    assert out["p_value"] == pytest.approx(chi2_dist.sf(out["chi2"], 2), rel=1e-12)
+    z = np.abs(s @ d / np.sqrt(np.einsum("ap,pq,aq->a", s, C1 + C2, s)))
+    assert out["within_1_std"] == pytest.approx(np.mean(z <= 1.0))
+    assert out["median_abs_z"] == pytest.approx(np.median(np.concatenate([z, z])))
+
+
+def test_chi2_calibrated_on_consistent_windows():
+    """Windows drawn from one truth with their own covariances: chi2/dof near 1, 5 % of p below 0.05 (seeded)."""
+    rng = np.random.default_rng(7)
+    pvals, ratios = [], []
+    for _ in range(200):
+        ws = []
+        for _k in range(5):
+            A = rng.normal(size=(2, 2))
+            C = A @ A.T + 0.2 * np.eye(2)
+            ws.append(_window(rng.multivariate_normal([3.0, -1.0], C), C))
+        out = window_consistency(ws, ("a", "b"))
+        pvals.append(out["p_value"])
+        ratios.append(out["chi2"] / out["dof"])
+    assert np.mean(ratios) == pytest.approx(1.0, abs=0.1)  # std of the mean of 200: 0.035
+    assert 0.02 < np.mean(np.array(pvals) < 0.05) < 0.09
+
+
+@pytest.fixture(scope="module")
+def car(tmp_path_factory):
+    """The chain on the real cut: align 0-30 s, two 15 s windows from 36 s."""
+    import pandas as pd
+
+    from casep.navigation.imu import read_imu
+    from casep.workflows.windows import separate_windows
+
+    tmp = tmp_path_factory.mktemp("car")
+    with gzip.open(DATA / "imu.csv.gz", "rb") as src, open(tmp / "imu.csv", "wb") as dst:
+        shutil.copyfileobj(src, dst)
+    trk = pd.read_csv(DATA / "tracking.csv")
+    site = LaunchSite(float(trk.lat[0]), float(trk.lon[0]), float(trk.h[0]), 0.0, 0.0)
+    imu = read_imu(tmp / "imu.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the fits' own warnings (noise, whiteness) are not what is tested here
+        res = separate_windows(imu, DATA / "tracking.csv", site, (0.0, 30.0), length=15.0, start=36.0,
+                               attitude_passes=2, fit_options={"noise": "gmw", "robust": None})
+    return imu, site, res
+
+
+def test_car_drive_cut(car):
+    """One test on the cut (its fixture computed once, whichever xdist worker runs it): heading, agreement, pad."""
+    _heading_from_the_course(car)
+    _windows_agree(car)
+    _vertical_accelerometer_bias_is_the_pads(car)
+
+
+def _heading_from_the_course(car):
+    """The heading comes from the course in the first window; the initial attitude errors left are linear."""
+    _, _, res = car
+    assert len(res.windows) == 2
+    assert res.windows[0].heading_from_course_deg is not None and res.windows[1].heading_from_course_deg is None
+    for w in res.windows:
+        est = dict(zip(w.result.names, w.result.estimate))
+        sd = dict(zip(w.result.names, w.result.std))
+        phi0 = np.radians(np.array([est[f"phi0_{i}"] for i in "xyz"]) / 3600.0)
+        phi0_sd = np.radians(np.array([sd[f"phi0_{i}"] for i in "xyz"]) / 3600.0)
+        assert np.all(np.abs(phi0) <= np.maximum(PHI0_LINEAR_RAD, 3.0 * phi0_sd)), (w.t_start, phi0, phi0_sd)
+        rms = float(np.sqrt(np.nanmean(np.asarray(w.result.residuals) ** 2)))
+        assert rms < 0.1, (w.t_start, rms)  # m/s: the RTK velocity noise is 0.04 m/s; a wrong heading leaves metres
+
+
+def _windows_agree(car):
+    """The two windows' biases agree by chi-square (6 dof) and predict each other's dv at the end within 2 std."""
+    _, _, res = car
+    c = res.consistency
+    assert c["dof"] == 6 and c["used"] == 2
+    assert res.success and res.status == 0 and "they agree" in res.message
+    assert json.loads(json.dumps(res.to_dict()))["consistency"]["dof"] == 6
+    assert len(res.text().splitlines()) == 3
+    assert c["agree"] and c["p_value"] > 0.01, c
+    assert c["within_2_std"] >= 4 / 6, c  # 2 ordered pairs x 3 axes
+    acc = window_consistency(res.windows, ("ba_x", "ba_y", "ba_z"))
+    assert acc["p_value"] > 0.01, acc
+
+
+def _vertical_accelerometer_bias_is_the_pads(car):
+    """The windows' bias along the pad's vertical is what the pad shows by itself: |f| - g (an independent figure)."""
+    from casep.gravity import normal_gravity_ecef
+
+    imu, site, res = car
+    pad = imu.t <= 30.0
+    f = imu.f[pad].mean(axis=0)
+    excess_mg = (np.linalg.norm(f) - np.linalg.norm(normal_gravity_ecef(site.r_site))) / 9.80665e-3
+    up = f / np.linalg.norm(f)
+    for w in res.windows:
+        est = dict(zip(w.result.names, w.result.estimate))
+        sd = dict(zip(w.result.names, w.result.std))
+        ba = np.array([est[f"ba_{i}"] for i in "xyz"])
+        ba_sd = float(np.sqrt(np.sum((up * np.array([sd[f"ba_{i}"] for i in "xyz"])) ** 2)))
+        # the pad's mean is known to ~0.002 m/s^2 (0.2 mg); engine vibration makes it 0.5 mg at most
+        assert abs(up @ ba - excess_mg) < 3.0 * math.hypot(ba_sd, 0.5), (w.t_start, up @ ba, excess_mg, ba_sd)
