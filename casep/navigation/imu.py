@@ -29,7 +29,7 @@ import numpy as np
 from casep.exceptions import GapWarning, PlausibilityWarning
 
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
-           "GAP_FACTOR"]
+           "GAP_FACTOR", "sample_periods", "with_rates"]
 
 RATE_COLUMNS = ("w_x", "w_y", "w_z")
 FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
@@ -115,7 +115,7 @@ def check_imu(imu: ImuData) -> ImuData:
         scale[0] = 1.0
         imu.dtheta = np.asarray(imu.dtheta, float) * scale  # after a gap: the rate held over the whole step
         imu.dv = np.asarray(imu.dv, float) * scale
-        step = np.concatenate([[h_med], h])[:, None]
+        step = sample_periods(t)[:, None]
         imu.w, imu.f = imu.dtheta / step, imu.dv / step
     if lost.size:
         k = int(lost[np.argmax(h[lost])])
@@ -128,6 +128,25 @@ def check_imu(imu: ImuData) -> ImuData:
     imu.gaps = int(lost.size)
     _check_units(imu)
     return imu
+
+
+def sample_periods(t: np.ndarray) -> np.ndarray:
+    """The period each increment row is divided by to give a rate, s: the step ending at its time (the
+    median step for the first row)."""
+    h = np.diff(t)
+    return np.concatenate([[float(np.median(h))], h])
+
+
+def with_rates(imu: ImuData, w: np.ndarray, f: np.ndarray) -> ImuData:
+    """A copy of `imu` with body rate `w` (rad/s) and specific force `f` (m/s^2) in place of its own; increments
+    become them times :func:`sample_periods` (the inverse of :func:`check_imu`'s division)."""
+    import dataclasses
+
+    out = dataclasses.replace(imu, w=np.asarray(w, float), f=np.asarray(f, float))
+    if imu.kind == "increments":
+        step = sample_periods(imu.t)[:, None]
+        out.dtheta, out.dv = out.w * step, out.f * step
+    return out
 
 
 def _check_units(imu: ImuData) -> None:
