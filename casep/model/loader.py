@@ -41,7 +41,8 @@ from casep.model.base import SymbolicModel
 from casep.model.error_model import ErrorModel, ModelDefinitionError
 
 __all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file",
-           "run_model_file", "with_time_offset", "add_time_offset", "TIME_OFFSET", "model_file_reference", "model_names", "where_in_file",
+           "run_model_file", "with_time_offset", "add_time_offset",
+           "TIME_OFFSET", "model_file_reference", "model_names", "where_in_file",
            "load_model_file", "shipped_model_dirs", "shipped_model_file", "model_record",
            "load_recorded_model", "shipped_model"]
 

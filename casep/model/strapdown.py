@@ -43,11 +43,13 @@ if TYPE_CHECKING:
 
 __all__ = ["QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS", "STRAPDOWN_COLUMNS",
            "quaternion_dcm", "strapdown_inputs", "body_errors", "corrected_imu", "imu_error_signals",
-           "CORRECTION_TOL", "CORRECTION_MAX_STEPS"]
+           "CORRECTION_TOL", "CORRECTION_FLOOR", "CORRECTION_MAX_STEPS"]
 
 #: The fixed-point inversion of :func:`corrected_imu` stops when a step moves no input by more than this
 #: relative amount (a few units in the last place of a double).
 CORRECTION_TOL = 1e-15
+#: ... or when it no longer contracts below this (the rounding of the errors' own evaluation) ...
+CORRECTION_FLOOR = 1e-12
 #: ... or after this many steps: not converged (sensor errors too large for the record to be invertible).
 CORRECTION_MAX_STEPS = 60
 
@@ -151,7 +153,8 @@ def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured
     found by the fixed-point iteration ``x_{k+1} = x_measured - delta(x_k)`` from ``x_0 = x_measured``
     (``x = (fb, w)``). It contracts by the size of the errors' dependence on the inputs (scale
     factors, misalignments, g-sensitivity: 1e-2 for a MEMS IMU, so each step gains two digits) and
-    stops when a step moves no input by more than :data:`CORRECTION_TOL` relative. For strapdown33
+    stops when a step moves no input by more than :data:`CORRECTION_TOL` relative (or no longer
+    contracts, below :data:`CORRECTION_FLOOR`: the rounding of the errors' own evaluation). For strapdown33
     this is the closed form ``fb = (I + M_a)^{-1} (fb_m - b_a)``, ``w = (I + M_g)^{-1} (w_m - b_g -
     G fb / g0)`` (``M`` scale factors on the diagonal, misalignments off it, ``G`` g-sensitivity),
     which the tests check.
@@ -181,9 +184,9 @@ def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured
         fb, w = new_fb, new_w
         if not np.all(np.isfinite(step)):
             break
-        moved = float(step.max())
-        if moved <= CORRECTION_TOL:
-            return fb, w
+        moved, before = float(step.max()), moved
+        if moved <= CORRECTION_TOL or (moved >= before and moved <= CORRECTION_FLOOR):
+            return fb, w  # converged, or at the rounding of the error evaluation itself
     raise ValueError(f"model `{model.name}`: the sensor errors at the coefficients given do not invert (the last "
                      f"fixed-point step still moved an input by {moved:.3g} of its largest value after "
                      f"{CORRECTION_MAX_STEPS} steps): errors as large as the measured rates or forces")

@@ -19,5 +19,6 @@ __getattr__, __dir__ = attach(__name__, {
     "casep.navigation.result": ("NavigationResult", "TELEMETRY_COLUMNS"),
 }, globals())
 
-__all__ = ["navigate", "navigate_from", "pad_state", "ImuData", "read_imu", "check_imu", "Alignment", "align", "NavigationResult",
+__all__ = ["navigate", "navigate_from", "pad_state",
+           "ImuData", "read_imu", "check_imu", "Alignment", "align", "NavigationResult",
            "TELEMETRY_COLUMNS"]

@@ -43,17 +43,19 @@ import dataclasses
 import os
 import warnings
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from casep.estimators.result import EstimateResult
-from casep.estimators.spec import FitSpec
 from casep.frames import LaunchSite
-from casep.io.flight import FlightData
-from casep.model.error_model import ErrorModel
 from casep.navigation.imu import ImuData
-from casep.navigation.result import NavigationResult
+
+if TYPE_CHECKING:
+    from casep.estimators.result import EstimateResult
+    from casep.estimators.spec import FitSpec
+    from casep.io.flight import FlightData
+    from casep.model.error_model import ErrorModel
+    from casep.navigation.result import NavigationResult
 
 __all__ = ["separate_imu", "ImuSeparation", "ITERATE_TOL", "MAX_ITERATIONS", "STATUS_NOT_CONVERGED"]
 
@@ -130,7 +132,7 @@ def iteration_lines(diagnostics: dict) -> list[str]:
 def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, site: LaunchSite,
                  align_window: tuple[float, float], model: str | os.PathLike | ErrorModel = "strapdown33", *,
                  heading_deg: float | None = None, heading_axis: str = "x", spec: FitSpec | None = None,
-                 iterate: bool = True, tol: float = ITERATE_TOL, max_iterations: int = MAX_ITERATIONS,
+                 iterate: bool = True, tol: float = ITERATE_TOL, max_iterations: int | None = None,
                  tracking_frame: str = "launch", grid: str = "tracking", time_offset: float | str | None = None,
                  time_shift: float = 0.0, fit_time_offset: bool | None = None) -> ImuSeparation:
     """Separate a strapdown IMU's errors from its raw data and tracking (module notes).
@@ -155,7 +157,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     iterate : bool
         Iterate until every correction is below `tol` of its std (default); False: one linear pass.
     tol, max_iterations
-        The stop rule and the passes allowed.
+        The stop rule and the passes allowed (None: :data:`MAX_ITERATIONS`).
     tracking_frame, grid, time_offset, time_shift, fit_time_offset
         As :func:`casep.io.files.read_flight_pair` and :func:`casep.separate` (the time offset found by
         ``"auto"`` on the first pass is kept for the others).
@@ -164,9 +166,11 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     -------
     ImuSeparation
     """
+    from casep.estimators.spec import FitSpec
     from casep.model.loader import load_model
     from casep.navigation.imu import read_imu
 
+    max_iterations = MAX_ITERATIONS if max_iterations is None else max_iterations
     if not 0 < tol < 1:
         raise ValueError(f"`tol` must be a fraction of the std in (0, 1), got {tol!r}")
     if int(max_iterations) != max_iterations or max_iterations < 1:
@@ -229,6 +233,8 @@ class _Run:
 
         tel = Table.from_columns(nav.columns(), f"{self.imu.source} (navigated)")
         flight = read_flight_pair(tel, self.tracking, **self.pair)
+        # the late-start check: the speed relative to the pad (launch-inertial v_tel carries the Earth's rotation)
+        flight.meta["start_speed_m_s"] = float(np.linalg.norm(nav.earth_relative()[1][0]))
         if model is None or not np.any(D):
             return flight
         return dataclasses.replace(flight, dv=flight.dv - _direct_velocity(model, flight, D))

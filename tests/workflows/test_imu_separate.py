@@ -1,0 +1,127 @@
+"""Separation from raw IMU data (:mod:`casep.workflows.imu_separate`): one linear pass against the iteration.
+
+The flights are built so that casep's own navigation is their truth: a clean IMU record (a rail launch
+at Esrange, 10 s at rest on the pad, then an axial boost with a roll programme and a slow pitch-over)
+is navigated by :func:`casep.navigation.navigate` (heading given, the exact pad attitude), the tracking
+velocity is that navigation at 5 Hz (launch-inertial), and the IMU measures the clean record plus the
+body errors of ``strapdown15_axial`` at MEMS sizes (:func:`casep.model.strapdown.body_errors`, the
+model's own forward law). The correction of the IMU at the true coefficients then gives back the
+clean record, and the noise-free truth is the iteration's fixed point.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import casep
+from casep.estimators.spec import FitSpec
+from casep.frames import LaunchSite
+from casep.gravity import normal_gravity_ecef
+from casep.io.files import write_table
+from casep.model.strapdown import body_errors
+from casep.navigation import ImuData, check_imu, navigate
+from casep.workflows.imu_separate import STATUS_NOT_CONVERGED, separate_imu
+
+SITE = LaunchSite(67.89, 21.1, 330.0, 30.0, 10.0)  # lift-off at t = 10 s
+C_TB = Rotation.from_euler("zx", [80.0, 10.0], degrees=True).as_matrix()  # body x along a rail at 80 deg elevation
+MODEL = "strapdown15_axial"
+RATE, TRK_RATE, T_END, PAD = 20.0, 5.0, 40.0, 10.0
+ALIGN = (0.0, 9.0)
+#: MEMS-size errors (natural units): accelerometer biases of 10-20 mg, a 0.5 % scale factor, misalignments of a
+#: quarter to half a degree, gyro biases of 150-250 deg/h, a 0.3 % scale factor, g-sensitivity 100-200 deg/h/g.
+TRUTH = dict(ba_x=20.0, ba_y=-15.0, ba_z=10.0, sa_x=5000.0, ma_yx=1500.0, ma_zx=-1000.0, bg_x=200.0, bg_y=-150.0,
+             bg_z=250.0, sg_x=3000.0, mg_yx=1000.0, mg_zx=-800.0, gg_xx=200.0, gg_yx=-100.0, gg_zx=150.0)
+
+
+def heading_of_x() -> float:
+    """Azimuth of the body x axis's horizontal projection on the pad, deg."""
+    x_t = C_TB[:, 0]
+    return (SITE.azimuth_deg + math.degrees(math.atan2(x_t[2], x_t[0]))) % 360.0
+
+
+def clean_record() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``t, w, f``: at rest on the rotating Earth until PAD, then thrust along x, a roll ramp to 2 rad/s, pitch-over."""
+    g_t = SITE.C.T @ normal_gravity_ecef(SITE.r_site)
+    t = np.arange(0.0, T_END, 1.0 / RATE)
+    w = np.tile(C_TB.T @ SITE.earth_rate, (t.size, 1))
+    f = np.tile(C_TB.T @ -g_t, (t.size, 1))
+    u = t[t >= PAD] - PAD
+    f[t >= PAD] = np.column_stack([np.where(u < 20.0, 40.0, -2.0), 0 * u, 0 * u])
+    w[t >= PAD] = np.column_stack([2.0 * np.minimum(u / 5.0, 1.0), -0.03 + 0 * u, 0.01 * np.sin(0.3 * u)])
+    return t, w, f
+
+
+@pytest.fixture(scope="module")
+def truth_flight():
+    """The clean record, its navigation (the truth) and the model."""
+    t, w, f = clean_record()
+    nav = navigate(check_imu(ImuData(t, w, f)), SITE, ALIGN, heading_deg=heading_of_x())
+    model = casep.load_model(MODEL)
+    return t, w, f, nav, model
+
+
+def write_flight(directory, truth_flight, gyro_scale: float = 1.0, noise: np.ndarray | None = None):
+    """IMU and tracking files of the truth flight with TRUTH, its gyro terms times `gyro_scale`; returns
+    (imu, tracking, D)."""
+    t, w, f, nav, model = truth_flight
+    D = np.array([TRUTH[n] * (gyro_scale if n[1] == "g" else 1.0) for n in model.names])
+    df, dw = body_errors(model, nav.q, f, w, t - t[0], D)
+    imu, trk = directory / "imu.csv", directory / "trk.csv"
+    write_table(imu, {"t": t, **{f"w_{a}": (w + dw)[:, i] for i, a in enumerate("xyz")},
+                      **{f"fb_{a}": (f + df)[:, i] for i, a in enumerate("xyz")}})
+    k = slice(None, None, int(RATE / TRK_RATE))
+    v = nav.v[k] + (0.0 if noise is None else noise)
+    write_table(trk, {"t": t[k], **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}})
+    return imu, trk, D
+
+
+NOISE_FREE = FitSpec.build("ols", noise="white", sigma=0.1, robust="none")
+
+
+def _separate(imu, trk, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # noise-free: the given sigma far off, the residuals not white
+        return separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=heading_of_x(), **kw)
+
+
+@pytest.fixture(scope="module")
+def noise_free(truth_flight, tmp_path_factory):
+    return write_flight(tmp_path_factory.mktemp("nf"), truth_flight)
+
+
+def test_one_linear_pass_is_biased_by_many_crlb_std_the_iteration_converges_to_the_truth(noise_free):
+    imu, trk, D = noise_free
+    one = _separate(imu, trk, spec=NOISE_FREE, iterate=False)
+    it = _separate(imu, trk, spec=NOISE_FREE)
+    z_one, z_it = ((r.result.estimate - D) / np.array([r.result.diagnostics["crlb_std"][n] for n in r.result.names])
+                   for r in (one, it))
+    assert one.success and np.abs(z_one).max() > 5.0, z_one  # MEMS errors are not linear over 30 s
+    assert it.success and it.result.diagnostics["iterations"]["converged"]
+    assert np.abs(z_it).max() <= 0.01, z_it
+    passes = it.result.diagnostics["iterations"]["passes"]
+    assert len(passes) >= 3 and passes[-1]["max_z"] < 0.1 <= passes[0]["max_z"]
+    assert "iterations:" in it.text() and "converged" in it.text()
+
+
+def test_errors_far_too_large_are_a_failed_result(truth_flight, tmp_path):
+    imu, trk, _ = write_flight(tmp_path, truth_flight, gyro_scale=30.0)
+    out = _separate(imu, trk, spec=NOISE_FREE, max_iterations=3)
+    assert not out.success and out.status == STATUS_NOT_CONVERGED
+    assert "did not converge in 3 passes" in out.message or "could not apply the correction" in out.message
+    assert not out.result.diagnostics["iterations"]["converged"]
+
+
+def test_inconsistent_data_are_a_failed_result(noise_free):
+    """The rail azimuth off by 45 deg: the flight is not this IMU's, and the iteration says so."""
+    imu, trk, _ = noise_free
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=heading_of_x() - 45.0, spec=NOISE_FREE,
+                           max_iterations=2)
+    assert not out.success and out.status < 0
+    assert "failed" in out.message
