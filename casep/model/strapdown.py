@@ -142,7 +142,8 @@ def body_errors(model: Any, q: np.ndarray, fb: np.ndarray, w: np.ndarray, t: np.
 
 
 def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured: np.ndarray, t: np.ndarray,
-                  coefficients: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                  coefficients: np.ndarray, *,
+                  start: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The IMU record without the model's errors: the inverse of ``measured = true + error(true)``.
 
     The model's sensor errors are functions of the true inputs (:func:`body_errors`: the forward law
@@ -151,6 +152,7 @@ def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured
         fb + delta_f(fb, w; D) = fb_measured,     w + delta_w(fb, w; D) = w_measured
 
     found by the fixed-point iteration ``x_{k+1} = x_measured - delta(x_k)`` from ``x_0 = x_measured``
+    (or `start`)
     (``x = (fb, w)``). It contracts by the size of the errors' dependence on the inputs (scale
     factors, misalignments, g-sensitivity: 1e-2 for a MEMS IMU, so each step gains two digits) and
     stops when a step moves no input by more than :data:`CORRECTION_TOL` relative (or no longer
@@ -166,6 +168,8 @@ def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured
         turned back into body axes; a body-axis model does not depend on it).
     fb_measured, w_measured : (N, 3) ndarray
         The measured body specific force (m/s^2) and rate (rad/s).
+    start : (fb, w), optional
+        Where the iteration starts (default the measured record): a correction at nearby coefficients.
 
     Raises
     ------
@@ -174,7 +178,7 @@ def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured
         the inputs themselves: a scale factor near -100 %, or coefficients far off).
     """
     fb_m, w_m = np.asarray(fb_measured, float), np.asarray(w_measured, float)
-    fb, w = fb_m.copy(), w_m.copy()
+    fb, w = (fb_m.copy(), w_m.copy()) if start is None else (np.asarray(start[0], float), np.asarray(start[1], float))
     scale = np.maximum(np.abs(np.hstack([fb_m, w_m])).max(axis=0), 1e-300)
     moved = np.inf
     for _ in range(CORRECTION_MAX_STEPS):

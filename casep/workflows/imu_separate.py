@@ -122,10 +122,10 @@ def iteration_lines(diagnostics: dict) -> list[str]:
         return []
     if not it["iterate"]:
         return ["one linear pass (no iteration): the std hold only while the errors stay linear"]
-    lines = [f"iterations: {len(it['passes'])} (stop when every correction < {it['tol']:g} std, at most "
-             f"{it['max_iterations']}): {'converged' if it['converged'] else 'NOT converged'}"]
+    lines = [f"iterations: {it['passes'][-1]['iteration']} passes (stop when every correction < {it['tol']:g} std, "
+             f"at most {it['max_iterations']}): {'converged' if it['converged'] else 'NOT converged'}"]
     for p in it["passes"]:
-        lines.append(f"  pass {p['iteration']}: largest correction {p['max_z']:.3g} std ({p['worst']})")
+        lines.append(f"  pass {p['iteration']}: largest correction {p['max_z']:.3g} std ({p['worst']}); {p['fit']}")
     return lines
 
 
@@ -215,9 +215,11 @@ class _Run:
         i0 = int(np.searchsorted(imu.t, self.window[0]))
         D = D[:self.base.n_coefficients]  # the IMU's (a fitted dt_trk follows them)
         if self.nav is not None and np.any(D):
-            fb, w = corrected_imu(self.base, self.nav.q, imu.f[i0:], imu.w[i0:], imu.t[i0:] - imu.t[i0], D)
+            fb, w = corrected_imu(self.base, self.nav.q, imu.f[i0:], imu.w[i0:], imu.t[i0:] - imu.t[i0], D,
+                                  start=(self.imu_k.f[i0:], self.imu_k.w[i0:]))  # from the last pass's
             imu = with_rates(imu, np.vstack([imu.w[:i0], w]), np.vstack([imu.f[:i0], fb]))
         q0, r0, v0, t_s, alignment = pad_state(imu, self.nav_site, self.window, **self.heading)
+        self.q_aligned = q0
         phi0, dv0 = self.base.numeric("phi0") @ D, self.base.numeric("dv0") @ D  # the model's own initial terms
         q0 = quat_multiply(quat_from_rotvec(phi0), q0)  # true = R(phi0) INS: INS = (I - [phi0 x]) true
         nav = navigate_from(imu, self.nav_site, q0 / np.linalg.norm(q0), r0, v0 - dv0, t_start=t_s)
@@ -255,41 +257,52 @@ class _Run:
 
     def alignment_sensitivity(self, nav: NavigationResult) -> np.ndarray:
         """``A = d phi0 / d D`` (3 x n, rad per natural unit): central differences of the pad alignment
-        along each coefficient's body errors over the window (module notes)."""
+        along each coefficient's body errors over the window (module notes).
+
+        The alignment's attitude depends on the pad data only through their means over the window
+        (:func:`casep.navigation.alignment.align`), so each step aligns two rows holding the perturbed
+        means; its attitude error turns from the Earth-fixed triad into the launch-inertial frame with
+        the fixed rotation ``R = C_lb C_tb^T`` of the pass.
+        """
         from scipy.spatial.transform import Rotation
 
         from casep.model.strapdown import body_errors
-        from casep.navigation.navigator import pad_state
+        from casep.navigation.alignment import align
         from casep.navigation.strapdown import quat_to_dcm
 
         imu, (t1, t2) = self.imu_k, self.window
         sel = (imu.t >= t1) & (imu.t <= t2)
-        pad = ImuData(imu.t[sel], imu.w[sel], imu.f[sel], source=imu.source)
-        k = np.searchsorted(nav.t, pad.t)
+        k = np.searchsorted(nav.t, imu.t[sel])
         n = self.base.n_coefficients
+        unit = np.eye(n)
+        f_mean, w_mean = imu.f[sel].mean(axis=0), imu.w[sel].mean(axis=0)
+        per = [body_errors(self.base, nav.q[k], imu.f[sel], imu.w[sel], imu.t[sel] - nav.t[0], unit[j])
+               for j in range(n)]
+        R = quat_to_dcm(self.q_aligned) @ nav.alignment.C_tb.T  # triad -> launch-inertial at the first sample
         A = np.zeros((3, n))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # a gyrocompassing warning per step: said once, by the pass itself
-            C_ref = quat_to_dcm(pad_state(pad, self.nav_site, self.window, **self.heading)[0])
-            for j in range(n):
-                df, dw = body_errors(self.base, nav.q[k], pad.f, pad.w, pad.t - nav.t[0], np.eye(n)[j])
+            C_ref = align(np.array([t1, t2]), np.tile(w_mean, (2, 1)), np.tile(f_mean, (2, 1)), self.window,
+                          self.nav_site, **self.heading).C_tb
+            for j, (df, dw) in enumerate(per):
+                df, dw = df.mean(axis=0), dw.mean(axis=0)
                 size = max(np.abs(df).max() / 9.8, np.abs(dw).max() / 7.3e-5)
                 if size == 0:
                     continue
                 h = _ALIGN_STEP_RAD / size
                 phi = []
                 for s in (h, -h):
-                    moved = ImuData(pad.t, pad.w + s * dw, pad.f + s * df, source=imu.source)
-                    C = quat_to_dcm(pad_state(moved, self.nav_site, self.window, **self.heading)[0])
-                    phi.append(Rotation.from_matrix(C_ref @ C.T).as_rotvec())  # C = (I - [phi x]) C_ref
+                    C = align(np.array([t1, t2]), np.tile(w_mean + s * dw, (2, 1)), np.tile(f_mean + s * df, (2, 1)),
+                              self.window, self.nav_site, **self.heading).C_tb
+                    phi.append(R @ Rotation.from_matrix(C_ref @ C.T).as_rotvec())  # C = (I - [phi x]) C_ref
                 A[:, j] = (phi[0] - phi[1]) / (2 * h)
         return A
 
-    def solve(self, D: np.ndarray | None) -> tuple[EstimateResult, NavigationResult, FlightData, ErrorModel, Any]:
+    def solve(self, D: np.ndarray | None, spec: FitSpec) -> tuple[EstimateResult, NavigationResult, FlightData,
+                                                                   ErrorModel, Any]:
         """One pass at `D` (None: the first, uncorrected): navigate, pair, model, and the estimate alone (no
         judgement of the residuals, no warnings: the last pass's fit is made again, whole, by :meth:`iterate`)."""
         from casep.checks.flight import flight_problem
-        from casep.workflows.solve import fit
 
         first = D is None
         D = np.zeros(self.base.n_coefficients) if D is None else D
@@ -310,39 +323,45 @@ class _Run:
         model = self.model(nav)
         self.model_k = model
         problem = flight_problem(flight, model)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            res = fit(problem, self.spec, checks=False)
-        return res, nav, flight, model, problem
+        return _quiet_fit(problem, spec), nav, flight, model, problem
 
     # ------------------------------------------------------------------ the iteration
     def iterate(self, iterate: bool, tol: float, max_iterations: int) -> ImuSeparation:
-        """Passes until every correction is below `tol` std (or one pass without `iterate`)."""
-        res, nav, flight, model, problem = self.solve(None)
+        """Passes until every correction is below `tol` std (or one pass without `iterate`).
+
+        While the corrections are large, a pass is solved by OLS under white noise (:func:`_fast_spec`: the
+        noise model of the requested fit is fitted to residuals that are still mostly linearisation
+        error); once they are below `tol` std, the same pass is solved as requested and the passes go on
+        with it until its corrections are below `tol` std too.
+        """
+        fast = _fast_spec(self.spec) if iterate else None
+        spec = fast or self.spec
+        res, nav, flight, model, problem = self.solve(None, spec)
         D = np.zeros(len(res.names))
         passes: list[dict] = []
         failure = None
-        for k in range(1, max_iterations + 1):
+        k = 1
+        while True:
             total = D + np.where(np.isfinite(res.estimate), res.estimate, 0.0)
-            std = res.std if res.std is not None else np.full(len(res.names), np.nan)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                z = np.abs(res.estimate) / std
-            zf = np.where(np.isfinite(z), z, 0.0)
-            worst = int(np.argmax(zf))
-            passes.append({"iteration": k, "max_z": float(zf[worst]), "worst": res.names[worst],
-                           "z": {nm: (float(v) if np.isfinite(v) else None) for nm, v in zip(res.names, z)}})
-            if not iterate or zf[worst] < tol:
+            passes.append(_pass_record(k, res, "ols, white noise (while far)" if spec is fast else "as requested"))
+            if not iterate:
                 break
+            if passes[-1]["max_z"] < tol:
+                if spec is self.spec:
+                    break
+                spec = self.spec  # the same linearisation, solved as requested
+                res = _quiet_fit(problem, spec)
+                continue
             if k == max_iterations:
                 failure = (f"failed: the iteration did not converge in {max_iterations} passes (the last correction "
-                           f"was {zf[worst]:.3g} std of {res.names[worst]}, the stop rule {tol:g} std): the errors are "
-                           "too large for the model, or the data are inconsistent with it")
+                           f"was {passes[-1]['max_z']:.3g} std of {passes[-1]['worst']}, the stop rule {tol:g} std): "
+                           "the errors are too large for the model, or the data are inconsistent with it")
                 break
-            D = total
+            D, k = total, k + 1
             try:
-                res, nav, flight, model, problem = self.solve(D)
+                res, nav, flight, model, problem = self.solve(D, spec)
             except ValueError as exc:
-                failure = (f"failed: pass {k + 1} could not apply the correction of pass {k} ({exc}): the errors are "
+                failure = (f"failed: pass {k} could not apply the correction of pass {k - 1} ({exc}): the errors are "
                            "too large for the model, or the data are inconsistent with it")
                 break
         from casep.workflows.solve import fit
@@ -370,6 +389,36 @@ class _Run:
             out = failed(out, STATUS_NOT_CONVERGED, failure)
         out = judge_setup(out, flight, model, noise_free=False)
         return ImuSeparation(out, nav, flight, passes)
+
+
+def _fast_spec(spec: FitSpec) -> FitSpec | None:
+    """The fit of the passes far from convergence: OLS under white noise, no robust filter (None when `spec` asks
+    another method or de-noising: then every pass is fitted as asked)."""
+    from casep.estimators.spec import FitSpec
+
+    if spec.method != "ols" or spec.noise.denoise not in (None, "none") or spec.options:
+        return None
+    return FitSpec.build("ols", noise="white", robust="none", sigma=spec.sigma)
+
+
+def _quiet_fit(problem: Any, spec: FitSpec) -> EstimateResult:
+    """The estimate and its std alone (``fit(checks=False)``), its warnings not shown."""
+    from casep.workflows.solve import fit
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fit(problem, spec, checks=False)
+
+
+def _pass_record(k: int, res: EstimateResult, how: str) -> dict:
+    """One pass for ``diagnostics["iterations"]``: the largest |correction| / std, whose, every coefficient's."""
+    std = res.std if res.std is not None else np.full(len(res.names), np.nan)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.abs(res.estimate) / std
+    zf = np.where(np.isfinite(z), z, 0.0)
+    worst = int(np.argmax(zf))
+    return {"iteration": k, "fit": how, "max_z": float(zf[worst]), "worst": res.names[worst],
+            "z": {nm: (float(v) if np.isfinite(v) else None) for nm, v in zip(res.names, z)}}
 
 
 def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np.ndarray:

@@ -58,7 +58,7 @@ def clean_record() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @pytest.fixture(scope="module")
 def truth_flight():
-    """The clean record, its navigation (the truth) and the model."""
+    """The clean record, its navigation (the truth) and the model (``truth_flight.__wrapped__()`` outside pytest)."""
     t, w, f = clean_record()
     nav = navigate(check_imu(ImuData(t, w, f)), SITE, ALIGN, heading_deg=heading_of_x())
     model = casep.load_model(MODEL)
@@ -125,3 +125,24 @@ def test_inconsistent_data_are_a_failed_result(noise_free):
                            max_iterations=2)
     assert not out.success and out.status < 0
     assert "failed" in out.message
+
+
+#: Tracking noise per axis: Gauss-Markov (correlation time, std) plus white, m/s.
+GM_TAU, GM_STD, WHITE_STD = 1.0, 0.09, 0.045
+
+
+def noisy_flight(directory, truth_flight, seed: int):
+    """The MEMS flight with Gauss-Markov plus white tracking noise drawn with `seed`: (imu, tracking, D)."""
+    from casep.simulation.noise import ar1_noise, white_noise
+
+    rng = np.random.default_rng(seed)
+    t_trk = truth_flight[0][:: int(RATE / TRK_RATE)]
+    noise = ar1_noise(t_trk, GM_STD, GM_TAU, rng) + white_noise(t_trk.size, WHITE_STD, rng)
+    return write_flight(directory, truth_flight, noise=noise)
+
+
+def separate_default(imu, trk, **kw):
+    """:func:`separate_imu` with the default fit (OLS, the noise model chosen by the data)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # MEMS-size estimates, conditioning: said by the result
+        return separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=heading_of_x(), **kw)
