@@ -146,3 +146,17 @@ def separate_default(imu, trk, **kw):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # MEMS-size estimates, conditioning: said by the result
         return separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=heading_of_x(), **kw)
+
+
+def test_seeded_monte_carlo_iterated_std_hold_under_gauss_markov_plus_white_noise(truth_flight, tmp_path):
+    """Two seeded draws of the tracking noise (the full size: benchmarks/mc_imu_iterate.py): every run converges,
+    and the 30 z = (estimate - truth) / std have an RMS near 1 (bounds for 30 z of a unit normal: chi-square
+    30 dof at 0.1 % each side gives RMS 0.50-1.52)."""
+    z = []
+    for seed in (1, 2):
+        imu, trk, D = noisy_flight(tmp_path, truth_flight, seed)
+        out = separate_default(imu, trk)
+        assert out.success and out.result.diagnostics["iterations"]["converged"], out.message
+        z.append((out.result.estimate - D) / out.result.std)
+    rms = float(np.sqrt(np.mean(np.concatenate(z) ** 2)))
+    assert 0.50 <= rms <= 1.52, rms
