@@ -161,12 +161,12 @@ def _separate_imu(args: argparse.Namespace, spec: Any) -> int:
     if args.json:
         outputs.write_json({**out.to_dict(), "provenance": prov}, args.json)
     outputs.write_exports(res, args, t=flight.t[flight.observed], provenance=prov)
-    _print(res, args, flight.meta.get("time_alignment"), None, iteration_lines(res.diagnostics))
+    _print(res, args, flight.meta.get("time_alignment"), None, tuple(iteration_lines(res.diagnostics)))
     _figures_and_report(args, res, flight, None, None, report_lines(caught), prov)
     return outputs.status(res)
 
 
-def _print(res: Any, args: argparse.Namespace, align: Any, cons: Any, extra: list[str] = ()) -> None:
+def _print(res: Any, args: argparse.Namespace, align: Any, cons: Any, extra: tuple[str, ...] = ()) -> None:
     from casep.reporting.noise_text import noise_lines
 
     print(res.text())

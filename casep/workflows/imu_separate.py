@@ -197,11 +197,15 @@ class _Run:
                  pair: dict, fit_time_offset: bool | None) -> None:
         self.imu, self.tracking, self.nav_site, self.site, self.window = imu, tracking, nav_site, site, window
         self.base, self.source, self.spec = base, source, spec
-        self.heading = {"heading_deg": heading_deg, "heading_axis": heading_axis}
+        self.heading: dict[str, Any] = {"heading_deg": heading_deg, "heading_axis": heading_axis}
         self.pair, self.fit_time_offset = dict(pair), fit_time_offset
         if pair["tracking_frame"] != "launch":
             self.pair["site"] = site
         self.nav: NavigationResult | None = None
+        self.imu_k: ImuData = imu  # the IMU of the last pass (corrected)
+        self.model_k: ErrorModel | None = None  # the model of the last pass
+        self.q_aligned = np.array([1.0, 0.0, 0.0, 0.0])  # the last pass's aligned start attitude
+        self.C_tb = np.eye(3)  # ... and its body -> launch triad
 
     # ------------------------------------------------------------------ one pass
     def navigate(self, D: np.ndarray) -> NavigationResult:
@@ -219,7 +223,7 @@ class _Run:
                                   start=(self.imu_k.f[i0:], self.imu_k.w[i0:]))  # from the last pass's
             imu = with_rates(imu, np.vstack([imu.w[:i0], w]), np.vstack([imu.f[:i0], fb]))
         q0, r0, v0, t_s, alignment = pad_state(imu, self.nav_site, self.window, **self.heading)
-        self.q_aligned = q0
+        self.q_aligned, self.C_tb = q0, alignment.C_tb
         phi0, dv0 = self.base.numeric("phi0") @ D, self.base.numeric("dv0") @ D  # the model's own initial terms
         q0 = quat_multiply(quat_from_rotvec(phi0), q0)  # true = R(phi0) INS: INS = (I - [phi0 x]) true
         nav = navigate_from(imu, self.nav_site, q0 / np.linalg.norm(q0), r0, v0 - dv0, t_start=t_s)
@@ -278,7 +282,7 @@ class _Run:
         f_mean, w_mean = imu.f[sel].mean(axis=0), imu.w[sel].mean(axis=0)
         per = [body_errors(self.base, nav.q[k], imu.f[sel], imu.w[sel], imu.t[sel] - nav.t[0], unit[j])
                for j in range(n)]
-        R = quat_to_dcm(self.q_aligned) @ nav.alignment.C_tb.T  # triad -> launch-inertial at the first sample
+        R = quat_to_dcm(self.q_aligned) @ self.C_tb.T  # triad -> launch-inertial at the first sample
         A = np.zeros((3, n))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # a gyrocompassing warning per step: said once, by the pass itself
