@@ -84,8 +84,8 @@ class ImuSeparation:
     flight : FlightData
         The last flight (that navigation paired with the tracking).
     iterations : list of dict
-        One per pass: ``iteration``, ``max_z`` (the largest |correction| / std), ``worst`` (its
-        coefficient), ``z`` (every coefficient's).
+        One per pass: ``iteration``, ``fit`` (how it was solved), ``max_z`` (the largest |correction| /
+        std), ``worst`` (its coefficient), ``z`` (every coefficient's), ``estimate`` (after the pass).
     """
 
     result: EstimateResult
@@ -347,7 +347,8 @@ class _Run:
         k = 1
         while True:
             total = D + np.where(np.isfinite(res.estimate), res.estimate, 0.0)
-            passes.append(_pass_record(k, res, "ols, white noise (while far)" if spec is fast else "as requested"))
+            how = "ols, white noise (while far)" if spec is fast else "as requested"
+            passes.append(_pass_record(k, res, total, how))
             if not iterate:
                 break
             if passes[-1]["max_z"] < tol:
@@ -414,15 +415,18 @@ def _quiet_fit(problem: Any, spec: FitSpec) -> EstimateResult:
         return fit(problem, spec, checks=False)
 
 
-def _pass_record(k: int, res: EstimateResult, how: str) -> dict:
-    """One pass for ``diagnostics["iterations"]``: the largest |correction| / std, whose, every coefficient's."""
+def _pass_record(k: int, res: EstimateResult, total: np.ndarray, how: str) -> dict:
+    """One pass for ``diagnostics["iterations"]``: the largest |correction| / std, whose, every coefficient's, and
+    the estimate after it (`total`, natural units; the first pass's is the one linear pass's)."""
     std = res.std if res.std is not None else np.full(len(res.names), np.nan)
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.abs(res.estimate) / std
     zf = np.where(np.isfinite(z), z, 0.0)
     worst = int(np.argmax(zf))
     return {"iteration": k, "fit": how, "max_z": float(zf[worst]), "worst": res.names[worst],
-            "z": {nm: (float(v) if np.isfinite(v) else None) for nm, v in zip(res.names, z)}}
+            "z": {nm: (float(v) if np.isfinite(v) else None) for nm, v in zip(res.names, z)},
+            "estimate": {nm: (float(v) if np.isfinite(e) else None)
+                         for nm, v, e in zip(res.names, total, res.estimate)}}
 
 
 def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np.ndarray:

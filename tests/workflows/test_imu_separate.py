@@ -95,17 +95,46 @@ def noise_free(truth_flight, tmp_path_factory):
 
 
 def test_one_linear_pass_is_biased_by_many_crlb_std_the_iteration_converges_to_the_truth(noise_free):
+    """The first pass is the one linear pass (its estimate recorded with the passes)."""
     imu, trk, D = noise_free
-    one = _separate(imu, trk, spec=NOISE_FREE, iterate=False)
     it = _separate(imu, trk, spec=NOISE_FREE)
-    z_one, z_it = ((r.result.estimate - D) / np.array([r.result.diagnostics["crlb_std"][n] for n in r.result.names])
-                   for r in (one, it))
-    assert one.success and np.abs(z_one).max() > 5.0, z_one  # MEMS errors are not linear over 30 s
-    assert it.success and it.result.diagnostics["iterations"]["converged"]
+    res = it.result
+    crlb = np.array([res.diagnostics["crlb_std"][n] for n in res.names])
+    passes = res.diagnostics["iterations"]["passes"]
+    z_one = (np.array([passes[0]["estimate"][n] for n in res.names]) - D) / crlb
+    z_it = (res.estimate - D) / crlb
+    assert np.abs(z_one).max() > 5.0, z_one  # MEMS errors are not linear over 30 s
+    assert it.success and res.diagnostics["iterations"]["converged"]
     assert np.abs(z_it).max() <= 0.01, z_it
-    passes = it.result.diagnostics["iterations"]["passes"]
     assert len(passes) >= 3 and passes[-1]["max_z"] < 0.1 <= passes[0]["max_z"]
     assert "iterations:" in it.text() and "converged" in it.text()
+    assert np.allclose([passes[-1]["estimate"][n] for n in res.names], res.estimate, rtol=1e-12, atol=0)
+
+
+def test_the_command_line_no_iterate_and_its_refusals(noise_free, tmp_path, capsys):
+    """``casep separate --imu``: one linear pass with --no-iterate, the IMU file in the provenance; options of
+    --imu without it, and --imu without what it needs, refused with exit 2 before any work."""
+    import json
+
+    from casep.cli import main
+
+    imu, trk, _ = noise_free
+    site = ["--launch-site", "67.89", "21.1", "330", "30", "--launch-time", "10"]
+    cmd = ["separate", "--imu", str(imu), "--tracking", str(trk), *site, "--align", "0", "9", "--heading",
+           repr(heading_of_x()), "--model", MODEL, "--sigma", "0.1", "--noise", "white", "--robust", "none",
+           "--no-iterate", "--json", str(tmp_path / "r.json")]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(cmd) == 0
+    out = capsys.readouterr().out
+    assert "one linear pass (no iteration)" in out
+    data = json.loads((tmp_path / "r.json").read_text())
+    assert data["diagnostics"]["iterations"]["iterate"] is False and data["navigation"]["success"]
+    assert "imu" in [i["role"] for i in data["provenance"]["inputs"]]
+    assert main(["separate", str(imu), "--align", "0", "9"]) == 2
+    assert "--align is used only with --imu" in capsys.readouterr().err
+    assert main(["separate", "--imu", str(imu), "--tracking", str(trk), *site]) == 2
+    assert "needs --align T1 T2" in capsys.readouterr().err
 
 
 def test_errors_far_too_large_are_a_failed_result(truth_flight, tmp_path):
