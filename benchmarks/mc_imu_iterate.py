@@ -24,13 +24,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "workflows"))
 
 
-def _line(name: str, z: np.ndarray) -> str:
-    rms, cov = float(np.sqrt(np.mean(z**2))), float(np.mean(np.abs(z) <= 1.959964))
-    return f"{name:<12} RMS z {rms:6.3f}   95 % coverage {cov:6.3f}   max |z| {np.max(np.abs(z)):6.2f}   ({z.size} z)"
-
-
 def main() -> None:
     import test_imu_separate as flight
+    from mc_strapdown import _line  # the same summary line (benchmarks/ is the script's folder)
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=40)
