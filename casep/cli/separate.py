@@ -32,7 +32,7 @@ def add_parser(sub: Any) -> None:
                         "casep.workflows.imu_separate; default with --imu); --no-iterate: one linear pass")
     p.add_argument("--max-iterations", type=positive_int, default=None, metavar="N",
                    help="with --imu: passes before an iteration that has not converged is a failed result "
-                        "(default: casep.workflows.imu_separate.MAX_ITERATIONS, 10)")
+                        "(default: casep.workflows.imu_separate.MAX_ITERATIONS, 20)")
     p.add_argument("--method", default="ols", choices=METHODS, help="estimator (default ols)")
     p.add_argument("--sigma", type=ranged("sigma"), default=None,
                    help="noise std, m/s (default: estimated from the residuals)")

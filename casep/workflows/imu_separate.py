@@ -28,7 +28,10 @@ by degrees and the linear error model is biased by many std. With ``D_k`` the co
    tracking time offset ``dt_trk``), rebuilds S_V (and ``A``) about the corrected trajectory, and
    solves for the remaining correction ``d_k``; ``D_{k+1} = D_k + d_k``.
 
-It stops when every correction is below :data:`ITERATE_TOL` (0.1) of its std, ``|d_k,i| < 0.1
+Far from convergence the passes are solved by OLS under white noise, then as requested; once every
+correction is below :data:`ACCELERATE_BELOW` std, ``D_{k+1}`` is the secant (Anderson, depth one)
+step through the last two passes (:func:`_secant_step`). It stops when every correction is below
+:data:`ITERATE_TOL` (0.1) of its std, ``|d_k,i| < 0.1
 std_i`` (Gauss-Newton with S_V as the Jacobian: its fixed point makes the residual orthogonal to
 S_V about the corrected trajectory, the noise-free truth included), and fails (status
 :data:`STATUS_NOT_CONVERGED`) after ``max_iterations`` passes or when a correction cannot be
@@ -62,7 +65,9 @@ __all__ = ["separate_imu", "ImuSeparation", "ITERATE_TOL", "MAX_ITERATIONS", "ST
 #: The iteration stops when every correction is below this fraction of its std.
 ITERATE_TOL = 0.1
 #: Passes after which an iteration that has not converged is a failed result.
-MAX_ITERATIONS = 10
+MAX_ITERATIONS = 20
+#: Below this largest correction (std) the passes take the secant step of the last two (:func:`_secant_step`).
+ACCELERATE_BELOW = 5.0
 #: Status of a result whose iteration did not converge (or whose correction could not be applied).
 STATUS_NOT_CONVERGED = -7
 #: The alignment's derivative is taken with steps that turn the attitude by about this much, rad.
@@ -343,7 +348,7 @@ class _Run:
         res, nav, flight, model, problem = self.solve(None, spec)
         D = np.zeros(len(res.names))
         passes: list[dict] = []
-        failure = None
+        failure, last = None, None
         k = 1
         while True:
             total = D + np.where(np.isfinite(res.estimate), res.estimate, 0.0)
@@ -354,7 +359,7 @@ class _Run:
             if passes[-1]["max_z"] < tol:
                 if spec is self.spec:
                     break
-                spec = self.spec  # the same linearisation, solved as requested
+                spec, last = self.spec, None  # the same linearisation, solved as requested (another map)
                 res = _quiet_fit(problem, spec)
                 continue
             if k == max_iterations:
@@ -362,7 +367,10 @@ class _Run:
                            f"was {passes[-1]['max_z']:.3g} std of {passes[-1]['worst']}, the stop rule {tol:g} std): "
                            "the errors are too large for the model, or the data are inconsistent with it")
                 break
-            D, k = total, k + 1
+            d = total - D
+            step = _secant_step(D, d, res.std, last) if passes[-1]["max_z"] < ACCELERATE_BELOW else d
+            last = (D, d) if passes[-1]["max_z"] < ACCELERATE_BELOW else None
+            D, k = D + step, k + 1
             try:
                 res, nav, flight, model, problem = self.solve(D, spec)
             except ValueError as exc:
@@ -394,6 +402,32 @@ class _Run:
             out = failed(out, STATUS_NOT_CONVERGED, failure)
         out = judge_setup(out, flight, model, noise_free=False)
         return ImuSeparation(out, nav, flight, passes)
+
+
+def _secant_step(D: np.ndarray, d: np.ndarray, std: np.ndarray | None, last: tuple | None) -> np.ndarray:
+    """The step from `D` after a pass that found the correction `d`: `d` itself, or with the pass before (`last`,
+    its ``(D, d)``) the Anderson (secant) step of depth one, on the corrections in std.
+
+    The passes are the fixed-point map ``G(D) = D + d(D)``. Near its fixed point the map is linear, and with
+    noise its contraction along a poorly determined direction can be close to 1 or to -1 (the residual's
+    curvature, not the Jacobian, sets it: Gauss-Newton on a non-zero residual). With ``f = d / std``,
+    ``x = D / std`` and ``df = f - f_last``::
+
+        gamma = (f . df) / (df . df),      x_next = x + f - gamma ((x + f) - (x_last + f_last))
+
+    the root of the secant through the last two passes along their difference (for a contraction ``rho``
+    in one direction: the fixed point in one step, whatever ``rho``).
+    """
+    if last is None or std is None:
+        return d
+    s = np.where(np.isfinite(std) & (std > 0), std, np.inf)
+    f, f_last = d / s, last[1] / s
+    df = f - f_last
+    den = float(df @ df)
+    if not den > 0:
+        return d
+    gamma = float(f @ df) / den
+    return d - gamma * ((D + d) - (last[0] + last[1]))
 
 
 def _fast_spec(spec: FitSpec) -> FitSpec | None:
