@@ -7,7 +7,7 @@ draws the noise with its own seed and separates with :func:`casep.workflows.imu_
 (OLS, the default noise model) iterated, and in one linear pass for contrast. z = (estimate - truth) / std
 over the 15 coefficients and the runs. ``tests/workflows/test_imu_separate.py`` runs a few draws.
 
-Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/mc_imu_iterate.py [--runs 40]
+Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/mc_imu_iterate.py [--runs 12]
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ def main() -> None:
     from mc_strapdown import _line  # the same summary line (benchmarks/ is the script's folder)
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--runs", type=int, default=40)
+    ap.add_argument("--runs", type=int, default=12)
     args = ap.parse_args()
     warnings.simplefilter("ignore")
     truth = flight.truth_flight.__wrapped__()
@@ -45,7 +45,7 @@ def main() -> None:
                     continue
                 z[name].append((out.result.estimate - D) / out.result.std)
                 if iterate:
-                    passes.append(len(out.result.diagnostics["iterations"]["passes"]))
+                    passes.append(out.result.diagnostics["iterations"]["passes"][-1]["iteration"])
     print(f"{args.runs} runs, model {flight.MODEL}, {time.process_time() - t0:.0f} CPU s; iterated: {failed} failed, "
           f"passes {min(passes)}-{max(passes)} (median {int(np.median(passes))})")
     for name, zs in z.items():
