@@ -82,3 +82,16 @@ def test_make_example_imu_is_reproducible(tmp_path):
     assert new[:2] == ref[:2]
     np.testing.assert_allclose(np.loadtxt(new[2:], delimiter=","), np.loadtxt(ref[2:], delimiter=","),
                                rtol=1e-9, atol=1e-9)
+
+
+def test_make_example_mems_is_reproducible(tmp_path):
+    proc = subprocess.run([sys.executable, str(EXAMPLES / "make_example_mems.py"), "--out-dir", str(tmp_path)],
+                          capture_output=True, text=True, timeout=300, check=False)
+    assert proc.returncode == 0, proc.stderr
+    for name in ("mems_imu.csv", "mems_tracking.csv"):
+        ref = (EXAMPLES / "data" / "imu" / name).read_text().splitlines()
+        new = (tmp_path / name).read_text().splitlines()
+        head = sum(line.startswith("#") for line in ref) + 1
+        assert new[:head] == ref[:head]
+        np.testing.assert_allclose(np.loadtxt(new[head:], delimiter=","), np.loadtxt(ref[head:], delimiter=","),
+                                   rtol=1e-9, atol=1e-9)

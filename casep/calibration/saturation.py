@@ -26,7 +26,7 @@ import warnings
 import numpy as np
 
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT
-from casep.exceptions import SaturationWarning
+from casep.exceptions import CasepWarning, SaturationWarning
 from casep.units import ACC_RANGES_G, FULL_SCALE_TOLERANCE, GYR_RANGES_DPS
 
 __all__ = ["SaturationWarning", "FullScaleWarning", "full_scale", "implied_full_scale", "saturated_runs",

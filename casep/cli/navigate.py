@@ -16,15 +16,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("imu", help="IMU file: t, w_x..w_z (rad/s), fb_x..fb_z (m/s^2); or t, dth_x..dth_z (rad), "
                                "dvb_x..dvb_z (m/s), each over the sample period ending at t")
     flight_options.add_launch_site(p, required=True, scale="the IMU's")
-    p.add_argument("--align", type=finite_float, nargs=2, required=True, metavar=("T1", "T2"),
-                   help="the span at rest on the pad, s: levelling by the mean specific force, and the start of the "
-                        "navigation")
-    p.add_argument("--heading", type=finite_float, default=None, metavar="DEG",
-                   help="azimuth of the horizontal projection of the body axis --heading-axis, deg from north, "
-                        "clockwise (a rail launch: the rail azimuth); default: gyrocompassing, with a warning "
-                        "saying how well the heading is known")
-    p.add_argument("--heading-axis", choices=("x", "y", "z"), default="x",
-                   help="the body axis whose azimuth --heading gives (default x)")
+    flight_options.add_alignment(p, required=True)
     p.add_argument("--gyr-range", type=finite_float, default=None, metavar="DEG/S",
                    help="the gyros' full scale, deg/s: a rate within 1 %% of it is clipped (default: a run of 3 "
                         "samples held at a nominal range); the solution from the first clipped sample on is marked "

@@ -8,7 +8,7 @@ from typing import Any
 from casep.cli import flight_options, inputs, options, outputs
 from casep.cli.capture import recorded, report_lines
 from casep.cli.radar import radar_only
-from casep.cli.types import order, ranged
+from casep.cli.types import order, positive_int, ranged
 from casep.estimators.registry import METHODS
 
 
@@ -20,7 +20,19 @@ def add_parser(sub: Any) -> None:
     p.add_argument("flight", nargs="*", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "
                    "several files: one estimate of the shared coefficients, per-flight ones per flight "
                    "(methods ols, ridge, bounded, pcr, map)")
-    options.add_model(p)
+    options.add_model(p, None, "default platform36; strapdown33 with --imu")
+    p.add_argument("--imu", metavar="IMU.csv", default=None,
+                   help="a raw IMU record instead of FLIGHT (t, w_*, fb_* or t, dth_*, dvb_*, as casep navigate "
+                        "reads it): navigated, paired with --tracking and separated; needs --launch-site, "
+                        "--launch-time (the tracking file's time scale) and --align")
+    flight_options.add_alignment(p, what="with --imu: ")
+    p.add_argument("--iterate", action=argparse.BooleanOptionalAction, default=None,
+                   help="with --imu: correct the IMU by the estimate, re-navigate, rebuild S_V and solve again "
+                        "until every correction is below a tenth of its std (the stop rule of "
+                        "casep.workflows.imu_separate; default with --imu); --no-iterate: one linear pass")
+    p.add_argument("--max-iterations", type=positive_int, default=None, metavar="N",
+                   help="with --imu: passes before an iteration that has not converged is a failed result "
+                        "(default: casep.workflows.imu_separate.MAX_ITERATIONS, 20)")
     p.add_argument("--method", default="ols", choices=METHODS, help="estimator (default ols)")
     p.add_argument("--sigma", type=ranged("sigma"), default=None,
                    help="noise std, m/s (default: estimated from the residuals)")
@@ -63,9 +75,14 @@ def run(args: argparse.Namespace) -> int:
 
         return separate_radar(args, wopts)
     radar_only(args, ("tracking_model",))
-    inputs.use_manifest(args)  # --manifest FLIGHTS.toml, or the flight files
+    _imu_only(args)
+    if args.model is None:
+        args.model = "strapdown33" if args.imu else "platform36"
+    if not args.imu:
+        inputs.use_manifest(args)  # --manifest FLIGHTS.toml, or the flight files
     outputs.check({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},
-                  inputs.input_files(args, "flight", "tracking", "bounds", "prior"), {"--figures": args.figures})
+                  inputs.input_files(args, "flight", "tracking", "bounds", "prior") + ([args.imu] if args.imu else []),
+                  {"--figures": args.figures})
     from casep.model.loader import load_model
 
     model = load_model(args.model)
@@ -82,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
         import dataclasses
 
         spec = dataclasses.replace(spec, options={**spec.options, **tables})
+    if args.imu:
+        return _separate_imu(args, spec)
     if len(args.flight) > 1:
         from casep.cli.separate_flights import separate_flights
 
@@ -108,11 +127,50 @@ def run(args: argparse.Namespace) -> int:
     return outputs.status(res)
 
 
-def _print(res: Any, args: argparse.Namespace, align: Any, cons: Any) -> None:
+def _imu_only(args: argparse.Namespace) -> None:
+    """`--imu` with what it needs; its options without it: an error, not ignored."""
+    if not args.imu:
+        for flag, value in (("--align", args.align), ("--heading", args.heading), ("--iterate", args.iterate),
+                            ("--max-iterations", args.max_iterations),
+                            ("--heading-axis", None if args.heading_axis == "x" else args.heading_axis)):
+            if value is not None:
+                raise ValueError(f"{flag} is used only with --imu IMU.csv")
+        return
+    if args.flight or args.manifest:
+        raise ValueError("--imu IMU.csv is the flight: give no FLIGHT file or --manifest with it")
+    for flag, value in (("--tracking FILE", args.tracking), ("--launch-site LAT LON H AZ", args.launch_site),
+                        ("--launch-time T0", args.launch_time), ("--align T1 T2", args.align)):
+        if value is None:
+            raise ValueError(f"--imu {args.imu} needs {flag}")
+    if len(args.tracking) != 1:
+        raise ValueError(f"--tracking given {len(args.tracking)} times: --imu takes one tracking file")
+
+
+def _separate_imu(args: argparse.Namespace, spec: Any) -> int:
+    """``casep separate --imu IMU.csv --tracking TRK.csv ...``: casep.workflows.imu_separate.separate_imu."""
+    from casep.workflows.imu_separate import iteration_lines, separate_imu
+
+    site = inputs.launch_site(args.launch_site, args.launch_time)
+    with recorded() as caught:
+        out = separate_imu(args.imu, args.tracking[0], site, tuple(args.align), args.model, heading_deg=args.heading,
+                           heading_axis=args.heading_axis, spec=spec, iterate=args.iterate is not False,
+                           max_iterations=args.max_iterations, tracking_frame=args.tracking_frame,
+                           grid=args.grid, time_offset=args.time_offset, time_shift=args.time_shift)
+    res, flight = out.result, out.flight
+    prov = outputs.provenance(args, [flight], {"imu": args.imu})
+    if args.json:
+        outputs.write_json({**out.to_dict(), "provenance": prov}, args.json)
+    outputs.write_exports(res, args, t=flight.t[flight.observed], provenance=prov)
+    _print(res, args, flight.meta.get("time_alignment"), None, tuple(iteration_lines(res.diagnostics)))
+    _figures_and_report(args, res, flight, None, None, report_lines(caught), prov)
+    return outputs.status(res)
+
+
+def _print(res: Any, args: argparse.Namespace, align: Any, cons: Any, extra: tuple[str, ...] = ()) -> None:
     from casep.reporting.noise_text import noise_lines
 
     print(res.text())
-    for line in noise_lines(res.diagnostics):
+    for line in [*noise_lines(res.diagnostics), *extra]:
         print(line)
     if args.outliers is not None:
         from casep.regression.outliers import OutlierFlags

@@ -179,7 +179,7 @@ def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray
     return shift, {**(align.to_dict() if align is not None else {}), "applied_s": shift, "mode": mode}
 
 
-def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, *,
+def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.PathLike, *,
                      interpolation: str = "cubic", grid: str = "tracking",
                      time_offset: float | str | None = None, tracking_frame: str = "launch",
                      site=None, time_shift: float = 0.0) -> FlightData:
@@ -187,9 +187,10 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
 
     Parameters
     ----------
-    telemetry : path
+    telemetry : path or Table
         ``t``, ``f_*`` or ``W_*``, ``v_tel_*``; its other numeric columns become signals
-        (the tracking file's other columns are not read).
+        (the tracking file's other columns are not read). A :class:`casep.io.tables.Table` (one held in
+        memory, :meth:`~casep.io.tables.Table.from_columns`) is read as its file would be.
     tracking : path
         ``t``, ``v_trk_*``, at its own times.
     interpolation : {"cubic", "linear"}, optional
@@ -246,7 +247,7 @@ def read_flight_pair(telemetry: str | os.PathLike, tracking: str | os.PathLike, 
     if grid not in PAIR_GRIDS:
         raise ValueError(f"`grid` must be one of {', '.join(PAIR_GRIDS)}, got {grid!r}")
     check_tracking_frame(tracking, tracking_frame, site)
-    tel, trk = Table(telemetry), Table(tracking)
+    tel, trk = telemetry if isinstance(telemetry, Table) else Table(telemetry), Table(tracking)
     tel.require(("t",))
     from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS
 

@@ -20,8 +20,9 @@ from typing import Any, Mapping, Sequence
 __all__ = ["provenance", "flight_provenance", "file_record", "file_sha256", "command_line", "DATA_ROLES",
            "flight_files", "check_estimated_on", "check_not_estimated_on"]
 
-#: Roles of the files a flight is read from (:func:`flight_provenance`'s ``files``): the data of a result.
-DATA_ROLES = ("flight", "telemetry", "tracking")
+#: Roles of the files a flight is read from (:func:`flight_provenance`'s ``files``, and a raw IMU record that
+#: was navigated into the telemetry): the data of a result.
+DATA_ROLES = ("flight", "telemetry", "tracking", "imu")
 
 #: FlightData.meta keys that say which samples were left out, and why.
 _EXCLUSIONS = ("unobserved", "telemetry_dropped", "tracking_dropped", "gap_rows_left_out", "gaps_s", "inserted")

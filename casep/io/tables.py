@@ -173,6 +173,20 @@ class Table:
         self.frame = frame
         self.columns = set(frame.columns)
 
+    @classmethod
+    def from_columns(cls, columns: dict[str, np.ndarray], source: str) -> Table:
+        """A table held in memory (named 1-D columns), read and checked as a file's would be; `source`
+        names it in messages (rows are counted from 1, with no file line)."""
+        import pandas as pd
+
+        self = cls.__new__(cls)
+        self.path, self.src, self.sep = Path(source), source, ","
+        self.strapdown, self.nulls = None, {}
+        self.line_of = lambda row: None
+        self.frame = pd.DataFrame({k: np.asarray(v, dtype=float) for k, v in columns.items()})
+        self.columns = set(self.frame.columns)
+        return self
+
     def _parquet(self, reader: Callable):
         """``reader(path)``, with pyarrow's errors as :class:`FlightDataError`."""
         try:

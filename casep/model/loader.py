@@ -41,7 +41,8 @@ from casep.model.base import SymbolicModel
 from casep.model.error_model import ErrorModel, ModelDefinitionError
 
 __all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file",
-           "run_model_file", "with_time_offset", "TIME_OFFSET", "model_file_reference", "model_names", "where_in_file",
+           "run_model_file", "with_time_offset", "add_time_offset",
+           "TIME_OFFSET", "model_file_reference", "model_names", "where_in_file",
            "load_model_file", "shipped_model_dirs", "shipped_model_file", "model_record",
            "load_recorded_model", "shipped_model"]
 
@@ -318,19 +319,25 @@ def with_time_offset(model: str | os.PathLike | ErrorModel) -> ErrorModel:
     ``a_y``, ``a_z``; :func:`casep.io.files.read_flight_pair` derives them from the telemetry
     velocity when the file has none). A model that has ``dt_trk`` already is returned as it is.
     """
-    import casadi as ca
-
     base = load_model(model)
     if TIME_OFFSET in base.names:
         return base
     source = model if isinstance(model, (str, os.PathLike)) else (base.source_file or base.name)
-    m = build_model(source)  # unlocked: the term is added to it
-    m.name = f"{base.name}{TIME_OFFSET_SUFFIX}"  # its file is the base model's (load_recorded_model adds the term)
-    m.description = f"{base.description or base.name} + tracking time offset dt_trk (ms, per flight)"
+    m = add_time_offset(build_model(source))  # unlocked: the term is added to it
+    m.setup()
+    return m
+
+
+def add_time_offset(m: ErrorModel) -> ErrorModel:
+    """Declare ``dt_trk`` (ms, per flight) in an unlocked model and add ``a(t) dt_trk`` to its direct velocity
+    error (:func:`with_time_offset`); renames it ``<name>+dt_trk``. Returns `m`, still unlocked."""
+    import casadi as ca
+
+    m.description = f"{m.description or m.name} + tracking time offset dt_trk (ms, per flight)"
+    m.name = f"{m.name}{TIME_OFFSET_SUFFIX}"  # its file is the base model's (load_recorded_model adds the term)
     c = m.declare(dt_trk=("ms", 20.0), per_flight=True)  # tracking time-tag delay, ms (SI: s)
     a = ca.vertcat(m.signal("a_x"), m.signal("a_y"), m.signal("a_z"))  # kinematic acceleration, m/s^2
     m.set_velocity_error(m.output("velocity_error") + a * c.dt_trk)  # dv += a(t) dt_trk (a lever arm kept)
-    m.setup()
     return m
 
 

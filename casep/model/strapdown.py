@@ -23,11 +23,18 @@ in body axes and reach the navigation frame through C; the model's slots take th
     accel_error = Delta  =  C delta_f        (so dv_dot = C delta_f + f_nav x phi)
 
 with the navigation-frame specific force ``f_nav = C fb`` as the model's ``m.f``.
+
+Numerically, :func:`body_errors` evaluates a set-up model's errors in body axes at given inputs and
+coefficients from the model's own outputs (``delta_f = C^T Delta``, ``delta_w = -C^T phidot``), and
+:func:`corrected_imu` inverts them: the IMU record the sensors would have given without the errors.
+Both use the model file's equations themselves, never a copy.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS, STRAPDOWN_COLUMNS
 
@@ -35,7 +42,16 @@ if TYPE_CHECKING:
     import casadi as ca
 
 __all__ = ["QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS", "STRAPDOWN_COLUMNS",
-           "quaternion_dcm", "strapdown_inputs"]
+           "quaternion_dcm", "strapdown_inputs", "body_errors", "corrected_imu", "imu_error_signals",
+           "CORRECTION_TOL", "CORRECTION_FLOOR", "CORRECTION_MAX_STEPS"]
+
+#: The fixed-point inversion of :func:`corrected_imu` stops when a step moves no input by more than this
+#: relative amount (a few units in the last place of a double).
+CORRECTION_TOL = 1e-15
+#: ... or when it no longer contracts below this (the rounding of the errors' own evaluation) ...
+CORRECTION_FLOOR = 1e-12
+#: ... or after this many steps: not converged (sensor errors too large for the record to be invertible).
+CORRECTION_MAX_STEPS = 60
 
 
 
@@ -67,3 +83,114 @@ def strapdown_inputs(m: Any) -> tuple[ca.SX, ca.SX, ca.SX]:
     fb = ca.vertcat(*(m.signal(c) for c in BODY_FORCE_COLUMNS))
     w = ca.vertcat(*(m.signal(c) for c in BODY_RATE_COLUMNS))
     return C, fb, w
+
+
+def imu_error_signals(model: Any) -> tuple[str, ...]:
+    """The signals (flight columns) a set-up model's IMU errors (``accel_error``, ``gyro_drift``) depend on."""
+    import casadi as ca
+
+    fn = model.functions
+    sig = ca.SX.sym("s", len(model.signals))
+    f, t, D = ca.SX.sym("f", 3), ca.SX.sym("t"), ca.SX.sym("D", model.n_coefficients)
+    out = []
+    for name in ("Delta", "phidot"):
+        args = {"f": f, "t": t, "signals": sig, "D": D}
+        value = fn[name].call({k: args[k] for k in fn[name].name_in()})[name]
+        out.append(value)
+    both = ca.vertcat(*out)
+    return tuple(s for i, s in enumerate(model.signals) if ca.depends_on(both, sig[i]))
+
+
+def body_errors(model: Any, q: np.ndarray, fb: np.ndarray, w: np.ndarray, t: np.ndarray,
+                coefficients: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The body-axis sensor errors of a set-up strapdown model at the inputs and coefficients given.
+
+    ``delta_f = C^T Delta(f_nav, t, signals, D)`` and ``delta_w = -C^T phidot(...)``, each (N, 3), from
+    the model's own outputs (the model file states ``accel_error = C delta_f`` and
+    ``gyro_drift = -C delta_w``), with ``C = C(q)`` and ``f_nav = C fb``.
+
+    Parameters
+    ----------
+    model : ErrorModel
+        Set up; its IMU errors may use the signals ``q_*``, ``fb_*``, ``w_*`` only.
+    q : (N, 4) ndarray
+        Attitude, Hamilton, scalar first, body -> navigation.
+    fb, w : (N, 3) ndarray
+        Body specific force (m/s^2) and rate (rad/s) at which the errors are evaluated.
+    t : (N,) ndarray
+        Time since the flight's first sample, s.
+    coefficients : (n,) ndarray
+        In the model's natural units.
+    """
+    from casep.io.strapdown import quaternion_dcm_array
+
+    cols = {**dict(zip(QUATERNION_COLUMNS, np.asarray(q, float).T)), **dict(zip(BODY_FORCE_COLUMNS, fb.T)),
+            **dict(zip(BODY_RATE_COLUMNS, w.T))}
+    missing = [c for c in model.signals if c not in cols]
+    if missing and set(missing) & set(imu_error_signals(model)):
+        raise ValueError(f"model `{model.name}`: its IMU errors use column(s) "
+                         f"{', '.join(sorted(set(missing) & set(imu_error_signals(model))))}, which raw IMU data "
+                         "do not have (a strapdown model's sensor errors use q_*, fb_*, w_* only)")
+    n = len(t)
+    C = quaternion_dcm_array(q)
+    values = {"f": np.einsum("kij,kj->ki", C, fb).T, "t": np.asarray(t, float)[None, :],
+              "signals": np.array([cols.get(c, np.zeros(n)) for c in model.signals]),
+              "D": np.repeat(np.asarray(coefficients, float)[:, None], n, 1)}
+    fn = model.functions
+    delta, phidot = (np.array(fn[k].map(n)(*(values[a] for a in fn[k].name_in()))).T for k in ("Delta", "phidot"))
+    return np.einsum("kji,kj->ki", C, delta), -np.einsum("kji,kj->ki", C, phidot)
+
+
+def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured: np.ndarray, t: np.ndarray,
+                  coefficients: np.ndarray, *,
+                  start: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The IMU record without the model's errors: the inverse of ``measured = true + error(true)``.
+
+    The model's sensor errors are functions of the true inputs (:func:`body_errors`: the forward law
+    a simulator applies), so the true body specific force and rate solve, sample by sample::
+
+        fb + delta_f(fb, w; D) = fb_measured,     w + delta_w(fb, w; D) = w_measured
+
+    found by the fixed-point iteration ``x_{k+1} = x_measured - delta(x_k)`` from ``x_0 = x_measured``
+    (or `start`)
+    (``x = (fb, w)``). It contracts by the size of the errors' dependence on the inputs (scale
+    factors, misalignments, g-sensitivity: 1e-2 for a MEMS IMU, so each step gains two digits) and
+    stops when a step moves no input by more than :data:`CORRECTION_TOL` relative (or no longer
+    contracts, below :data:`CORRECTION_FLOOR`: the rounding of the errors' own evaluation). For strapdown33
+    this is the closed form ``fb = (I + M_a)^{-1} (fb_m - b_a)``, ``w = (I + M_g)^{-1} (w_m - b_g -
+    G fb / g0)`` (``M`` scale factors on the diagonal, misalignments off it, ``G`` g-sensitivity),
+    which the tests check.
+
+    Parameters
+    ----------
+    model, q, t, coefficients
+        As :func:`body_errors` (`q` the attitude at which the model's navigation-frame outputs are
+        turned back into body axes; a body-axis model does not depend on it).
+    fb_measured, w_measured : (N, 3) ndarray
+        The measured body specific force (m/s^2) and rate (rad/s).
+    start : (fb, w), optional
+        Where the iteration starts (default the measured record): a correction at nearby coefficients.
+
+    Raises
+    ------
+    ValueError
+        The iteration does not converge in :data:`CORRECTION_MAX_STEPS` steps (errors of the order of
+        the inputs themselves: a scale factor near -100 %, or coefficients far off).
+    """
+    fb_m, w_m = np.asarray(fb_measured, float), np.asarray(w_measured, float)
+    fb, w = (fb_m.copy(), w_m.copy()) if start is None else (np.asarray(start[0], float), np.asarray(start[1], float))
+    scale = np.maximum(np.abs(np.hstack([fb_m, w_m])).max(axis=0), 1e-300)
+    moved = np.inf
+    for _ in range(CORRECTION_MAX_STEPS):
+        df, dw = body_errors(model, q, fb, w, t, coefficients)
+        new_fb, new_w = fb_m - df, w_m - dw
+        step = np.abs(np.hstack([new_fb - fb, new_w - w])) / scale
+        fb, w = new_fb, new_w
+        if not np.all(np.isfinite(step)):
+            break
+        moved, before = float(step.max()), moved
+        if moved <= CORRECTION_TOL or (moved >= before and moved <= CORRECTION_FLOOR):
+            return fb, w  # converged, or at the rounding of the error evaluation itself
+    raise ValueError(f"model `{model.name}`: the sensor errors at the coefficients given do not invert (the last "
+                     f"fixed-point step still moved an input by {moved:.3g} of its largest value after "
+                     f"{CORRECTION_MAX_STEPS} steps): errors as large as the measured rates or forces")

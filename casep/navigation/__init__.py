@@ -13,11 +13,12 @@ Layer 2: uses :mod:`casep.frames`, :mod:`casep.gravity` and :mod:`casep.io`.
 from casep._lazy import attach
 
 __getattr__, __dir__ = attach(__name__, {
-    "casep.navigation.navigator": ("navigate", "navigate_from"),
+    "casep.navigation.navigator": ("navigate", "navigate_from", "pad_state"),
     "casep.navigation.imu": ("ImuData", "read_imu", "check_imu"),
     "casep.navigation.alignment": ("Alignment", "align"),
     "casep.navigation.result": ("NavigationResult", "TELEMETRY_COLUMNS"),
 }, globals())
 
-__all__ = ["navigate", "navigate_from", "ImuData", "read_imu", "check_imu", "Alignment", "align", "NavigationResult",
+__all__ = ["navigate", "navigate_from", "pad_state",
+           "ImuData", "read_imu", "check_imu", "Alignment", "align", "NavigationResult",
            "TELEMETRY_COLUMNS"]

@@ -24,7 +24,9 @@ With a declared full scale (``gyr_range`` rad/s, ``acc_range`` m/s^2) a componen
 is clipped; without one, a run of at least :data:`CLIP_RUN` samples holding a column's extreme value
 that lies within :data:`casep.units.FULL_SCALE_TOLERANCE` of a nominal range, and a tenth of it or more
 from the column's median (a static accelerometer reads 1 g for ever without clipping)
-(:data:`casep.units.GYR_RANGES_DPS`, :data:`casep.units.ACC_RANGES_G`). The attitude and velocity
+(:data:`casep.units.GYR_RANGES_DPS`, :data:`casep.units.ACC_RANGES_G`), in a column with noise (in a
+noise-free record, where half the consecutive samples or more are equal, a constant thrust near 4 g
+is held exactly without any clipping: declare the full scale there). The attitude and velocity
 integrated through a clipped sample stay wrong for the rest of the record, so everything from the
 first clipped sample on is marked (``ImuData.clipped``; the navigation writes ``ins_valid = 0``
 there, and the separation leaves those rows out), with a :class:`~casep.exceptions.SaturationWarning`
@@ -44,7 +46,7 @@ from casep.exceptions import GapWarning, PlausibilityWarning, SaturationWarning
 from casep.units import ACC_RANGES_G, FULL_SCALE_TOLERANCE, G0, GYR_RANGES_DPS
 
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
-           "GAP_FACTOR", "clipped_samples", "CLIP_RUN"]
+           "GAP_FACTOR", "clipped_samples", "CLIP_RUN", "sample_periods", "with_rates"]
 
 RATE_COLUMNS = ("w_x", "w_y", "w_z")
 FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
@@ -61,6 +63,9 @@ WARN_FORCE = 50 * 9.80665
 CLIP_RUN = 3
 #: With a declared full scale, a reading within this fraction of it is clipped.
 CLIP_MARGIN = 0.01
+#: Without a declared full scale: a column whose consecutive samples are equal this often has no noise (a
+#: simulated record), so a value held at its extreme says nothing of the sensor's range; none is looked for.
+HELD_FRACTION = 0.5
 
 
 @dataclass
@@ -144,7 +149,7 @@ def check_imu(imu: ImuData, *, gyr_range: float | None = None, acc_range: float 
         scale[0] = 1.0
         imu.dtheta = np.asarray(imu.dtheta, float) * scale  # after a gap: the rate held over the whole step
         imu.dv = np.asarray(imu.dv, float) * scale
-        step = np.concatenate([[h_med], h])[:, None]
+        step = sample_periods(t)[:, None]
         imu.w, imu.f = imu.dtheta / step, imu.dv / step
     if lost.size:
         _warn_gaps(imu, lost, h, h_med)
@@ -192,6 +197,8 @@ def clipped_samples(x: np.ndarray, full_scale: float | None, nominal_si: tuple[f
     nominal = np.asarray(nominal_si, float)
     for j in range(x.shape[1]):
         med = float(np.median(x[:, j]))
+        if np.mean(x[1:, j] == x[:-1, j]) >= HELD_FRACTION:  # noise-free: every steady span is held exactly
+            continue
         for ext in (float(x[:, j].max()), float(x[:, j].min())):
             if ext == 0.0 or np.min(np.abs(abs(ext) / nominal - 1.0)) > FULL_SCALE_TOLERANCE \
                     or abs(ext - med) < 0.1 * abs(ext):  # a reading held near the column's median is no clipping
@@ -230,6 +237,25 @@ def _check_clipped(imu: ImuData, gyr_range: float | None, acc_range: float | Non
     clipped = np.zeros(imu.t.size, bool)
     clipped[first:] = True
     return clipped
+
+
+def sample_periods(t: np.ndarray) -> np.ndarray:
+    """The period each increment row is divided by to give a rate, s: the step ending at its time (the
+    median step for the first row)."""
+    h = np.diff(t)
+    return np.concatenate([[float(np.median(h))], h])
+
+
+def with_rates(imu: ImuData, w: np.ndarray, f: np.ndarray) -> ImuData:
+    """A copy of `imu` with body rate `w` (rad/s) and specific force `f` (m/s^2) in place of its own; increments
+    become them times :func:`sample_periods` (the inverse of :func:`check_imu`'s division)."""
+    import dataclasses
+
+    out = dataclasses.replace(imu, w=np.asarray(w, float), f=np.asarray(f, float))
+    if imu.kind == "increments":
+        step = sample_periods(imu.t)[:, None]
+        out.dtheta, out.dv = out.w * step, out.f * step
+    return out
 
 
 def _check_units(imu: ImuData, declared: bool = False) -> None:

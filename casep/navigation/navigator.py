@@ -13,10 +13,11 @@ from __future__ import annotations
 import numpy as np
 
 from casep.frames import LaunchSite
+from casep.navigation.alignment import Alignment
 from casep.navigation.imu import DTHETA_COLUMNS, RATE_COLUMNS, ImuData
 from casep.navigation.result import NavigationResult
 
-__all__ = ["navigate", "navigate_from"]
+__all__ = ["navigate", "navigate_from", "pad_state"]
 
 
 def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], *, heading_deg: float | None = None,
@@ -40,6 +41,22 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
         The strapdown telemetry from ``T1`` on: attitude, measured body rate and specific force,
         launch-inertial velocity and position.
     """
+    q0, r0, v0, t_s, alignment = pad_state(imu, site, align_window, heading_deg=heading_deg,
+                                           heading_axis=heading_axis)
+    res = navigate_from(imu, site, q0, r0, v0, t_start=t_s)
+    res.alignment = alignment
+    res.align_window = (float(align_window[0]), float(align_window[1]))
+    return res
+
+
+def pad_state(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], *, heading_deg: float | None = None,
+              heading_axis: str = "x") -> tuple[np.ndarray, np.ndarray, np.ndarray, float, Alignment]:
+    """The state :func:`navigate` starts from: ``(q0, r0, v0, t_start, alignment)``.
+
+    The attitude (Hamilton, scalar first, body -> launch-inertial), position (m) and velocity (m/s) of
+    the pad at rest at the alignment window's first sample ``t_start``, and the alignment itself
+    (:func:`casep.navigation.alignment.align`; arguments as :func:`navigate`).
+    """
     from casep.frames import ecef_to_launch, ecef_to_launch_vector
     from casep.navigation.alignment import align
     from casep.navigation.strapdown import dcm_to_quat
@@ -53,10 +70,7 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
     r0, v0 = ecef_to_launch(site, t_s, site.r_site[None, :], np.zeros((1, 3)))
     axes_e = (site.C @ alignment.C_tb).T  # rows: the body axes in ECEF at rest on the pad
     C_lb = ecef_to_launch_vector(site, np.repeat(t_s, 3), axes_e).T  # columns: the body axes in L at t_s
-    res = navigate_from(imu, site, dcm_to_quat(C_lb), r0[0], v0[0], t_start=float(t_s[0]))
-    res.alignment = alignment
-    res.align_window = (float(align_window[0]), float(align_window[1]))
-    return res
+    return dcm_to_quat(C_lb), r0[0], v0[0], float(t_s[0]), alignment
 
 
 def navigate_from(imu: ImuData, site: LaunchSite, q0: np.ndarray, r0: np.ndarray, v0: np.ndarray, *,

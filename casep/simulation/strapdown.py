@@ -88,21 +88,15 @@ def rolled(traj: BoostTrajectory, roll: RollProgramme) -> BoostTrajectory:
 
 def _body_errors(model: Any, C: np.ndarray, q: np.ndarray, fb: np.ndarray, w: np.ndarray, t: np.ndarray,
                  truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Body-frame ``delta_f = C^T Delta`` and ``delta_w = -C^T phidot`` of `model` at `truth` (natural units)."""
-    cols = {**dict(zip(QUATERNION_COLUMNS, q.T)), **dict(zip(BODY_FORCE_COLUMNS, fb.T)),
-            **dict(zip(BODY_RATE_COLUMNS, w.T))}
-    missing = [c for c in model.signals if c not in cols]
+    """Body-frame ``delta_f = C^T Delta`` and ``delta_w = -C^T phidot`` of `model` at `truth` (natural units):
+    :func:`casep.model.strapdown.body_errors` (`C` is C(q), kept for the callers)."""
+    from casep.model.strapdown import body_errors
+
+    missing = [c for c in model.signals if c not in QUATERNION_COLUMNS + BODY_FORCE_COLUMNS + BODY_RATE_COLUMNS]
     if missing:
         raise ValueError(f"model `{model.name}` uses column(s) {', '.join(missing)} that a strapdown simulation "
                          "does not make: inject a strapdown model (strapdown12, strapdown33)")
-    sig = np.array([cols[c] for c in model.signals])  # (n_signals, N)
-    f_nav = np.einsum("kij,kj->ki", C, fb)
-    fn = model.functions
-    n = t.size
-    args = [f_nav.T, (t - t[0])[None, :]] + ([sig] if sig.size else [])
-    delta = np.array(fn["Delta"].map(n)(*args, np.repeat(truth[:, None], n, 1))).T  # (N, 3), nav
-    phidot = np.array(fn["phidot"].map(n)(*args, np.repeat(truth[:, None], n, 1))).T
-    return np.einsum("kji,kj->ki", C, delta), -np.einsum("kji,kj->ki", C, phidot)
+    return body_errors(model, q, fb, w, t - t[0], truth)
 
 
 def strapdown_signals(traj: BoostTrajectory, model: Any, truth: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:

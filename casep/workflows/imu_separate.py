@@ -1,0 +1,473 @@
+"""Separation from raw IMU data: navigate, separate, and iterate while the errors are too large to stay linear.
+
+:func:`separate_imu` is ``casep separate --imu IMU.csv --tracking TRK.csv --launch-site ... --align T1 T2``.
+One pass navigates the raw IMU (:func:`casep.navigation.navigate`: levelled and headed on the pad,
+integrated in the launch-inertial frame), pairs the strapdown telemetry with the tracking
+(:func:`casep.io.files.read_flight_pair`, the reader of ``casep separate TEL --tracking TRK``),
+builds S_V and solves through :func:`casep.workflows.solve.fit`.
+
+**The alignment.** The pad levelling turns the accelerometer errors on the pad into an attitude
+error at the first sample, ``phi0 = A D`` (at rest the INS makes ``C (fb + delta_f)`` vertical:
+``phi0_h = u x (C delta_f) / g``; a gyrocompassed heading takes the gyro errors too). ``A`` (3 x n,
+per natural unit) is the derivative of the alignment itself (:func:`casep.navigation.pad_state`)
+along each coefficient's body errors over the pad window, by central differences (the errors are
+linear in D, the alignment smooth: exact to about 1e-10); the model gains it as an initial
+misalignment, ``phi0 += A D``. Without it S_V would predict a velocity error on the pad that the
+levelling cancels.
+
+**Iterating** (``iterate=True``, the default): MEMS errors over tens of seconds turn the attitude
+by degrees and the linear error model is biased by many std. With ``D_k`` the coefficients so far
+(``D_0 = 0``), pass k
+
+1. corrects the raw IMU by the model's own error equations applied inversely
+   (:func:`casep.model.strapdown.corrected_imu`: ``fb + delta_f(fb, w; D_k) = fb_measured``,
+   ``w + delta_w(fb, w; D_k) = w_measured``), and the start state by the model's initial terms
+   (``C_start = R(phi0(D_k)) C_aligned``, ``v_start -= dv0(D_k)``);
+2. re-aligns and re-navigates with the corrected record;
+3. pairs it with the tracking, less the model's direct velocity terms at ``D_k`` (a lever arm, the
+   tracking time offset ``dt_trk``), rebuilds S_V (and ``A``) about the corrected trajectory, and
+   solves for the remaining correction ``d_k``; ``D_{k+1} = D_k + d_k``.
+
+Far from convergence the passes are solved by OLS under white noise, then as requested; once every
+correction is below :data:`ACCELERATE_BELOW` std, ``D_{k+1}`` is the secant (Anderson, depth one)
+step through the last two passes (:func:`_secant_step`). It stops when every correction is below
+:data:`ITERATE_TOL` (0.1) of its std, ``|d_k,i| < 0.1
+std_i`` (Gauss-Newton with S_V as the Jacobian: its fixed point makes the residual orthogonal to
+S_V about the corrected trajectory, the noise-free truth included), and fails (status
+:data:`STATUS_NOT_CONVERGED`) after ``max_iterations`` passes or when a correction cannot be
+applied. The estimate is ``D_k + d_k`` of the last pass, the std and covariance those of its
+linearisation; ``diagnostics["iterations"]`` lists every pass (the largest correction in std and
+whose it was).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import warnings
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from casep.frames import LaunchSite
+from casep.navigation.imu import ImuData
+
+if TYPE_CHECKING:
+    from casep.estimators.result import EstimateResult
+    from casep.estimators.spec import FitSpec
+    from casep.io.flight import FlightData
+    from casep.model.error_model import ErrorModel
+    from casep.navigation.result import NavigationResult
+
+__all__ = ["separate_imu", "ImuSeparation", "ITERATE_TOL", "MAX_ITERATIONS", "STATUS_NOT_CONVERGED"]
+
+#: The iteration stops when every correction is below this fraction of its std.
+ITERATE_TOL = 0.1
+#: Passes after which an iteration that has not converged is a failed result.
+MAX_ITERATIONS = 20
+#: Below this largest correction (std) the passes take the secant step of the last two (:func:`_secant_step`).
+ACCELERATE_BELOW = 5.0
+#: Status of a result whose iteration did not converge (or whose correction could not be applied).
+STATUS_NOT_CONVERGED = -7
+#: The alignment's derivative is taken with steps that turn the attitude by about this much, rad.
+_ALIGN_STEP_RAD = 1e-6
+
+
+@dataclass
+class ImuSeparation:
+    """The separation of a raw IMU record: the estimate, the navigation it was made on, the passes.
+
+    Attributes
+    ----------
+    result : EstimateResult
+        The coefficients (``D_k + d_k`` of the last pass), std and covariance of the last linearisation;
+        failed (status :data:`STATUS_NOT_CONVERGED`) when the iteration did not converge;
+        ``diagnostics["iterations"]`` the passes.
+    navigation : NavigationResult
+        The last navigation (the IMU corrected by the coefficients of the last pass).
+    flight : FlightData
+        The last flight (that navigation paired with the tracking).
+    iterations : list of dict
+        One per pass: ``iteration``, ``fit`` (how it was solved), ``max_z`` (the largest |correction| /
+        std), ``worst`` (its coefficient), ``z`` (every coefficient's), ``estimate`` (after the pass).
+    """
+
+    result: EstimateResult
+    navigation: NavigationResult
+    flight: FlightData
+    iterations: list[dict] = field(default_factory=list)
+
+    @property
+    def success(self) -> bool:
+        return self.result.success
+
+    @property
+    def status(self) -> int:
+        return self.result.status
+
+    @property
+    def message(self) -> str:
+        return self.result.message
+
+    def to_dict(self) -> dict[str, Any]:
+        """The result JSON (:meth:`EstimateResult.to_dict`; the passes in ``diagnostics.iterations``) with the
+        navigation summary under ``navigation``."""
+        return {**self.result.to_dict(), "navigation": self.navigation.to_dict()}
+
+    def text(self) -> str:
+        """The estimate's table, then one line per pass."""
+        return "\n".join([self.result.text(), *iteration_lines(self.result.diagnostics)])
+
+
+def iteration_lines(diagnostics: dict) -> list[str]:
+    """What the command line prints of ``diagnostics["iterations"]`` (none without it)."""
+    it = diagnostics.get("iterations")
+    if not it:
+        return []
+    if not it["iterate"]:
+        return ["one linear pass (no iteration): the std hold only while the errors stay linear"]
+    lines = [f"iterations: {it['passes'][-1]['iteration']} passes (stop when every correction < {it['tol']:g} std, "
+             f"at most {it['max_iterations']}): {'converged' if it['converged'] else 'NOT converged'}"]
+    for p in it["passes"]:
+        lines.append(f"  pass {p['iteration']}: largest correction {p['max_z']:.3g} std ({p['worst']}); {p['fit']}")
+    return lines
+
+
+def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, site: LaunchSite,
+                 align_window: tuple[float, float], model: str | os.PathLike | ErrorModel = "strapdown33", *,
+                 heading_deg: float | None = None, heading_axis: str = "x", spec: FitSpec | None = None,
+                 iterate: bool = True, tol: float = ITERATE_TOL, max_iterations: int | None = None,
+                 tracking_frame: str = "launch", grid: str = "tracking", time_offset: float | str | None = None,
+                 time_shift: float = 0.0, fit_time_offset: bool | None = None) -> ImuSeparation:
+    """Separate a strapdown IMU's errors from its raw data and tracking (module notes).
+
+    Parameters
+    ----------
+    imu : ImuData or path
+        The raw IMU record (:func:`casep.navigation.read_imu`).
+    tracking : path
+        The tracking file (frame `tracking_frame`; :func:`casep.io.files.read_flight_pair`).
+    site : LaunchSite
+        Launch point, azimuth and launch time, ``t0`` in the tracking file's time scale (the IMU's is
+        ``t0 - time_shift``).
+    align_window : (T1, T2)
+        The span at rest on the pad, in the IMU's time scale, s.
+    model : name, path or ErrorModel
+        A strapdown model (its sensor errors in ``q_*``, ``fb_*``, ``w_*``), default ``strapdown33``.
+    heading_deg, heading_axis
+        :func:`casep.navigation.navigate` (None: gyrocompassing, with a warning).
+    spec : FitSpec, optional
+        The fit request (default :meth:`FitSpec.build`: OLS, the noise model chosen by the data).
+    iterate : bool
+        Iterate until every correction is below `tol` of its std (default); False: one linear pass.
+    tol, max_iterations
+        The stop rule and the passes allowed (None: :data:`MAX_ITERATIONS`).
+    tracking_frame, grid, time_offset, time_shift, fit_time_offset
+        As :func:`casep.io.files.read_flight_pair` and :func:`casep.separate` (the time offset found by
+        ``"auto"`` on the first pass is kept for the others).
+
+    Returns
+    -------
+    ImuSeparation
+    """
+    from casep.estimators.spec import FitSpec
+    from casep.model.loader import load_model
+    from casep.navigation.imu import read_imu
+
+    max_iterations = MAX_ITERATIONS if max_iterations is None else max_iterations
+    if not 0 < tol < 1:
+        raise ValueError(f"`tol` must be a fraction of the std in (0, 1), got {tol!r}")
+    if int(max_iterations) != max_iterations or max_iterations < 1:
+        raise ValueError(f"`max_iterations` must be an integer >= 1, got {max_iterations!r}")
+    if not isinstance(site, LaunchSite):
+        raise TypeError(f"`site` must be a casep.frames.LaunchSite, got {type(site).__name__}")
+    if not isinstance(imu, ImuData):
+        imu = read_imu(imu)
+    spec = FitSpec.build() if spec is None else spec
+    base = load_model(model)
+    source = model if isinstance(model, (str, os.PathLike)) else (base.source_file or base.name)
+    run = _Run(imu, tracking, dataclasses.replace(site, t0=site.t0 - time_shift), site, tuple(align_window), base,
+               source, spec, heading_deg, heading_axis,
+               {"tracking_frame": tracking_frame, "grid": grid, "time_offset": time_offset, "time_shift": time_shift},
+               fit_time_offset)
+    return run.iterate(iterate, tol, int(max_iterations))
+
+
+class _Run:
+    """One separation: the inputs, and a pass at given coefficients."""
+
+    def __init__(self, imu: ImuData, tracking: Any, nav_site: LaunchSite, site: LaunchSite, window: tuple,
+                 base: ErrorModel, source: Any, spec: FitSpec, heading_deg: float | None, heading_axis: str,
+                 pair: dict, fit_time_offset: bool | None) -> None:
+        self.imu, self.tracking, self.nav_site, self.site, self.window = imu, tracking, nav_site, site, window
+        self.base, self.source, self.spec = base, source, spec
+        self.heading: dict[str, Any] = {"heading_deg": heading_deg, "heading_axis": heading_axis}
+        self.pair, self.fit_time_offset = dict(pair), fit_time_offset
+        if pair["tracking_frame"] != "launch":
+            self.pair["site"] = site
+        self.nav: NavigationResult | None = None
+        self.imu_k: ImuData = imu  # the IMU of the last pass (corrected)
+        self.model_k: ErrorModel | None = None  # the model of the last pass
+        self.q_aligned = np.array([1.0, 0.0, 0.0, 0.0])  # the last pass's aligned start attitude
+        self.C_tb = np.eye(3)  # ... and its body -> launch triad
+
+    # ------------------------------------------------------------------ one pass
+    def navigate(self, D: np.ndarray) -> NavigationResult:
+        """The IMU corrected by `D` (at the attitude of the last navigation), aligned and navigated."""
+        from casep.model.strapdown import corrected_imu
+        from casep.navigation.imu import with_rates
+        from casep.navigation.navigator import navigate_from, pad_state
+        from casep.navigation.strapdown import quat_from_rotvec, quat_multiply
+
+        imu = self.imu
+        i0 = int(np.searchsorted(imu.t, self.window[0]))
+        D = D[:self.base.n_coefficients]  # the IMU's (a fitted dt_trk follows them)
+        if self.nav is not None and np.any(D):
+            fb, w = corrected_imu(self.base, self.nav.q, imu.f[i0:], imu.w[i0:], imu.t[i0:] - imu.t[i0], D,
+                                  start=(self.imu_k.f[i0:], self.imu_k.w[i0:]))  # from the last pass's
+            imu = with_rates(imu, np.vstack([imu.w[:i0], w]), np.vstack([imu.f[:i0], fb]))
+        q0, r0, v0, t_s, alignment = pad_state(imu, self.nav_site, self.window, **self.heading)
+        self.q_aligned, self.C_tb = q0, alignment.C_tb
+        phi0, dv0 = self.base.numeric("phi0") @ D, self.base.numeric("dv0") @ D  # the model's own initial terms
+        q0 = quat_multiply(quat_from_rotvec(phi0), q0)  # true = R(phi0) INS: INS = (I - [phi0 x]) true
+        nav = navigate_from(imu, self.nav_site, q0 / np.linalg.norm(q0), r0, v0 - dv0, t_start=t_s)
+        nav.alignment, nav.align_window = alignment, (float(self.window[0]), float(self.window[1]))
+        nav.source = self.imu.source
+        self.imu_k = imu
+        return nav
+
+    def flight(self, nav: NavigationResult, D: np.ndarray, model: ErrorModel | None) -> FlightData:
+        """The navigation paired with the tracking, less the model's direct velocity terms at `D`."""
+        from casep.io.files import read_flight_pair
+        from casep.io.tables import Table
+
+        tel = Table.from_columns(nav.columns(), f"{self.imu.source} (navigated)")
+        flight = read_flight_pair(tel, self.tracking, **self.pair)
+        # the late-start check: the speed relative to the pad (launch-inertial v_tel carries the Earth's rotation)
+        flight.meta["start_speed_m_s"] = float(np.linalg.norm(nav.earth_relative()[1][0]))
+        if model is None or not np.any(D):
+            return flight
+        return dataclasses.replace(flight, dv=flight.dv - _direct_velocity(model, flight, D))
+
+    def model(self, nav: NavigationResult) -> ErrorModel:
+        """The model with the alignment's attitude error ``phi0 += A D`` (and ``dt_trk`` when fitted), set up."""
+        import casadi as ca
+
+        from casep.model.loader import add_time_offset, build_model
+
+        A = self.alignment_sensitivity(nav)
+        m = build_model(self.source)
+        m.set_initial_misalignment(m.output("initial_misalignment") + ca.mtimes(ca.DM(A), ca.vertcat(*m.symbols)))
+        if self.fit_time_offset:
+            add_time_offset(m)
+        m.setup()
+        return m
+
+    def alignment_sensitivity(self, nav: NavigationResult) -> np.ndarray:
+        """``A = d phi0 / d D`` (3 x n, rad per natural unit): central differences of the pad alignment
+        along each coefficient's body errors over the window (module notes).
+
+        The alignment's attitude depends on the pad data only through their means over the window
+        (:func:`casep.navigation.alignment.align`), so each step aligns two rows holding the perturbed
+        means; its attitude error turns from the Earth-fixed triad into the launch-inertial frame with
+        the fixed rotation ``R = C_lb C_tb^T`` of the pass.
+        """
+        from scipy.spatial.transform import Rotation
+
+        from casep.model.strapdown import body_errors
+        from casep.navigation.alignment import align
+        from casep.navigation.strapdown import quat_to_dcm
+
+        imu, (t1, t2) = self.imu_k, self.window
+        sel = (imu.t >= t1) & (imu.t <= t2)
+        k = np.searchsorted(nav.t, imu.t[sel])
+        n = self.base.n_coefficients
+        unit = np.eye(n)
+        f_mean, w_mean = imu.f[sel].mean(axis=0), imu.w[sel].mean(axis=0)
+        per = [body_errors(self.base, nav.q[k], imu.f[sel], imu.w[sel], imu.t[sel] - nav.t[0], unit[j])
+               for j in range(n)]
+        R = quat_to_dcm(self.q_aligned) @ self.C_tb.T  # triad -> launch-inertial at the first sample
+        A = np.zeros((3, n))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # a gyrocompassing warning per step: said once, by the pass itself
+            C_ref = align(np.array([t1, t2]), np.tile(w_mean, (2, 1)), np.tile(f_mean, (2, 1)), self.window,
+                          self.nav_site, **self.heading).C_tb
+            for j, (df, dw) in enumerate(per):
+                df, dw = df.mean(axis=0), dw.mean(axis=0)
+                size = max(np.abs(df).max() / 9.8, np.abs(dw).max() / 7.3e-5)
+                if size == 0:
+                    continue
+                h = _ALIGN_STEP_RAD / size
+                phi = []
+                for s in (h, -h):
+                    C = align(np.array([t1, t2]), np.tile(w_mean + s * dw, (2, 1)), np.tile(f_mean + s * df, (2, 1)),
+                              self.window, self.nav_site, **self.heading).C_tb
+                    phi.append(R @ Rotation.from_matrix(C_ref @ C.T).as_rotvec())  # C = (I - [phi x]) C_ref
+                A[:, j] = (phi[0] - phi[1]) / (2 * h)
+        return A
+
+    def solve(self, D: np.ndarray | None, spec: FitSpec) -> tuple[EstimateResult, NavigationResult, FlightData,
+                                                                   ErrorModel, Any]:
+        """One pass at `D` (None: the first, uncorrected): navigate, pair, model, and the estimate alone (no
+        judgement of the residuals, no warnings: the last pass's fit is made again, whole, by :meth:`iterate`)."""
+        from casep.checks.flight import flight_problem
+
+        first = D is None
+        D = np.zeros(self.base.n_coefficients) if D is None else D
+        with warnings.catch_warnings():
+            if not first:
+                warnings.simplefilter("ignore")  # the inputs' warnings were shown on the first pass
+            nav = self.navigate(D)
+            flight = self.flight(nav, D, None if first else self.model_k)
+        if first:
+            from casep.io.pair import fits_time_offset
+
+            if self.fit_time_offset is None:
+                self.fit_time_offset = fits_time_offset(flight.meta)
+            align = flight.meta.get("time_alignment") or {}
+            if self.pair["time_offset"] == "auto":  # the offset of the first pass, kept (the grid stays)
+                self.pair["time_offset"] = align.get("applied_s", 0.0) or None
+        self.nav = nav
+        model = self.model(nav)
+        self.model_k = model
+        problem = flight_problem(flight, model)
+        return _quiet_fit(problem, spec), nav, flight, model, problem
+
+    # ------------------------------------------------------------------ the iteration
+    def iterate(self, iterate: bool, tol: float, max_iterations: int) -> ImuSeparation:
+        """Passes until every correction is below `tol` std (or one pass without `iterate`).
+
+        While the corrections are large, a pass is solved by OLS under white noise (:func:`_fast_spec`: the
+        noise model of the requested fit is fitted to residuals that are still mostly linearisation
+        error); once they are below `tol` std, the same pass is solved as requested and the passes go on
+        with it until its corrections are below `tol` std too.
+        """
+        fast = _fast_spec(self.spec) if iterate else None
+        spec = fast or self.spec
+        res, nav, flight, model, problem = self.solve(None, spec)
+        D = np.zeros(len(res.names))
+        passes: list[dict] = []
+        failure, last = None, None
+        k = 1
+        while True:
+            total = D + np.where(np.isfinite(res.estimate), res.estimate, 0.0)
+            how = "ols, white noise (while far)" if spec is fast else "as requested"
+            passes.append(_pass_record(k, res, total, how))
+            if not iterate:
+                break
+            if passes[-1]["max_z"] < tol:
+                if spec is self.spec:
+                    break
+                spec, last = self.spec, None  # the same linearisation, solved as requested (another map)
+                res = _quiet_fit(problem, spec)
+                continue
+            if k == max_iterations:
+                failure = (f"failed: the iteration did not converge in {max_iterations} passes (the last correction "
+                           f"was {passes[-1]['max_z']:.3g} std of {passes[-1]['worst']}, the stop rule {tol:g} std): "
+                           "the errors are too large for the model, or the data are inconsistent with it")
+                break
+            d = total - D
+            step = _secant_step(D, d, res.std, last) if passes[-1]["max_z"] < ACCELERATE_BELOW else d
+            last = (D, d) if passes[-1]["max_z"] < ACCELERATE_BELOW else None
+            D, k = D + step, k + 1
+            try:
+                res, nav, flight, model, problem = self.solve(D, spec)
+            except ValueError as exc:
+                failure = (f"failed: pass {k} could not apply the correction of pass {k - 1} ({exc}): the errors are "
+                           "too large for the model, or the data are inconsistent with it")
+                break
+        from casep.workflows.solve import fit
+
+        res = fit(problem, self.spec)  # the last linearisation, judged (its warnings are the result's)
+        return self.finish(res, nav, flight, model, total, passes, failure, iterate, tol, max_iterations)
+
+    def finish(self, res: EstimateResult, nav: NavigationResult, flight: FlightData, model: ErrorModel,
+               total: np.ndarray, passes: list[dict], failure: str | None, iterate: bool, tol: float,
+               max_iterations: int) -> ImuSeparation:
+        """The result of the last pass with the accumulated estimate, judged, its warnings re-issued."""
+        from casep.estimators.registry import failed
+        from casep.model.loader import model_record
+        from casep.workflows.separate import judge_setup
+
+        estimate = np.where(np.isfinite(res.estimate), total, np.nan)
+        diag = dict(res.diagnostics)
+        diag["iterations"] = {"iterate": iterate, "tol": tol, "max_iterations": max_iterations,
+                              "converged": failure is None and (not iterate or passes[-1]["max_z"] < tol),
+                              "passes": passes}
+        out = dataclasses.replace(res, estimate=estimate, diagnostics=diag, **model_record(self.base))
+        if iterate and failure is None and passes[-1]["max_z"] >= tol and out.success:
+            failure = f"failed: the iteration stopped at pass {len(passes)} before converging"
+        if failure is not None:
+            out = failed(out, STATUS_NOT_CONVERGED, failure)
+        out = judge_setup(out, flight, model, noise_free=False)
+        return ImuSeparation(out, nav, flight, passes)
+
+
+def _secant_step(D: np.ndarray, d: np.ndarray, std: np.ndarray | None, last: tuple | None) -> np.ndarray:
+    """The step from `D` after a pass that found the correction `d`: `d` itself, or with the pass before (`last`,
+    its ``(D, d)``) the Anderson (secant) step of depth one, on the corrections in std.
+
+    The passes are the fixed-point map ``G(D) = D + d(D)``. Near its fixed point the map is linear, and with
+    noise its contraction along a poorly determined direction can be close to 1 or to -1 (the residual's
+    curvature, not the Jacobian, sets it: Gauss-Newton on a non-zero residual). With ``f = d / std``,
+    ``x = D / std`` and ``df = f - f_last``::
+
+        gamma = (f . df) / (df . df),      x_next = x + f - gamma ((x + f) - (x_last + f_last))
+
+    the root of the secant through the last two passes along their difference (for a contraction ``rho``
+    in one direction: the fixed point in one step, whatever ``rho``).
+    """
+    if last is None or std is None:
+        return d
+    s = np.where(np.isfinite(std) & (std > 0), std, np.inf)
+    f, f_last = d / s, last[1] / s
+    df = f - f_last
+    den = float(df @ df)
+    if not den > 0:
+        return d
+    gamma = float(f @ df) / den
+    return d - gamma * ((D + d) - (last[0] + last[1]))
+
+
+def _fast_spec(spec: FitSpec) -> FitSpec | None:
+    """The fit of the passes far from convergence: OLS under white noise, no robust filter (None when `spec` asks
+    another method or de-noising: then every pass is fitted as asked)."""
+    from casep.estimators.spec import FitSpec
+
+    if spec.method != "ols" or spec.noise.denoise not in (None, "none") or spec.options:
+        return None
+    return FitSpec.build("ols", noise="white", robust="none", sigma=spec.sigma)
+
+
+def _quiet_fit(problem: Any, spec: FitSpec) -> EstimateResult:
+    """The estimate and its std alone (``fit(checks=False)``), its warnings not shown."""
+    from casep.workflows.solve import fit
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fit(problem, spec, checks=False)
+
+
+def _pass_record(k: int, res: EstimateResult, total: np.ndarray, how: str) -> dict:
+    """One pass for ``diagnostics["iterations"]``: the largest |correction| / std, whose, every coefficient's, and
+    the estimate after it (`total`, natural units; the first pass's is the one linear pass's)."""
+    std = res.std if res.std is not None else np.full(len(res.names), np.nan)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.abs(res.estimate) / std
+    zf = np.where(np.isfinite(z), z, 0.0)
+    worst = int(np.argmax(zf))
+    return {"iteration": k, "fit": how, "max_z": float(zf[worst]), "worst": res.names[worst],
+            "z": {nm: (float(v) if np.isfinite(v) else None) for nm, v in zip(res.names, z)},
+            "estimate": {nm: (float(v) if np.isfinite(e) else None)
+                         for nm, v, e in zip(res.names, total, res.estimate)}}
+
+
+def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np.ndarray:
+    """The model's direct velocity error ``velocity_error(f, t, signals; D)`` (m/s) at every flight sample (N, 3)."""
+    fn = model.functions["velocity_error"]
+    n = flight.t.size
+    values = {"f": flight.f.T, "t": (flight.t - flight.t[0])[None, :],
+              "signals": np.array([flight.signals[c] for c in model.signals]).reshape(-1, n),
+              "D": np.repeat(D[:, None], n, 1)}
+    return np.array(fn.map(n)(*(values[a] for a in fn.name_in()))).T

@@ -1,0 +1,105 @@
+"""The IMU correction of a strapdown model (:func:`casep.model.strapdown.corrected_imu`) against the closed form.
+
+strapdown33's errors are affine in the inputs: with ``M_a`` (scale factors on the diagonal, misalignments
+off it), ``M_g`` likewise and ``G`` the g-sensitivity, written here from the model's docstring::
+
+    fb_m = (I + M_a) fb + b_a,      w_m = (I + M_g) w + b_g + G fb / g0
+
+so the clean record is ``fb = (I + M_a)^-1 (fb_m - b_a)``, ``w = (I + M_g)^-1 (w_m - b_g - G fb / g0)``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import casep
+from casep.model.strapdown import body_errors, corrected_imu
+from casep.navigation.imu import ImuData, sample_periods, with_rates
+from casep.units import G0
+
+AX = "xyz"
+ARCSEC = math.pi / 180 / 3600
+DEG_H = math.pi / 180 / 3600
+
+
+@pytest.fixture(scope="module")
+def strapdown33():
+    return casep.load_model("strapdown33")
+
+
+def _mems(model, rng):
+    """Coefficients of a consumer MEMS IMU (natural units): 30 mg, 1 %, 0.5 deg, 0.3 deg/s, 2 %, 0.1 deg/s/g."""
+    size = {"ba": 30.0, "sa": 1e4, "ma": 1800.0, "bg": 1000.0, "sg": 2e4, "mg": 1800.0, "gg": 400.0}
+    return np.array([rng.normal(scale=size[n[:2]]) for n in model.names])
+
+
+def _closed_form(model, D):
+    c = dict(zip(model.names, D))
+    Ma, Mg, G = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
+    for a, i in enumerate(AX):
+        Ma[a, a], Mg[a, a] = c[f"sa_{i}"] * 1e-6, c[f"sg_{i}"] * 1e-6
+        for b, j in enumerate(AX):
+            G[a, b] = c[f"gg_{i}{j}"] * DEG_H / G0
+            if j != i:
+                Ma[a, b], Mg[a, b] = c[f"ma_{i}{j}"] * ARCSEC, c[f"mg_{i}{j}"] * ARCSEC
+    ba = np.array([c[f"ba_{i}"] * 1e-3 * G0 for i in AX])
+    bg = np.array([c[f"bg_{i}"] * DEG_H for i in AX])
+    return Ma, Mg, G, ba, bg
+
+
+def _record(rng, n=400):
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    fb = rng.normal(scale=30.0, size=(n, 3))
+    w = rng.normal(scale=3.0, size=(n, 3))
+    return q, fb, w, np.arange(n) * 0.01
+
+
+def test_forward_errors_are_the_closed_form(strapdown33, rng):
+    q, fb, w, t = _record(rng)
+    D = _mems(strapdown33, rng)
+    Ma, Mg, G, ba, bg = _closed_form(strapdown33, D)
+    df, dw = body_errors(strapdown33, q, fb, w, t, D)
+    assert np.allclose(df, fb @ Ma.T + ba, rtol=0, atol=1e-12 * np.abs(fb).max())
+    assert np.allclose(dw, w @ Mg.T + bg + fb @ G.T, rtol=0, atol=1e-12 * np.abs(w).max())
+
+
+def test_the_correction_recovers_the_clean_record_to_rounding(strapdown33, rng):
+    q, fb, w, t = _record(rng)
+    D = _mems(strapdown33, rng)
+    Ma, Mg, G, ba, bg = _closed_form(strapdown33, D)
+    fb_m = fb @ (np.eye(3) + Ma).T + ba  # measured by the closed form, not by the model
+    w_m = w @ (np.eye(3) + Mg).T + bg + fb @ G.T
+    fb_c, w_c = corrected_imu(strapdown33, q, fb_m, w_m, t, D)
+    fb_inv = np.linalg.solve(np.eye(3) + Ma, (fb_m - ba).T).T  # the closed-form inverse
+    w_inv = np.linalg.solve(np.eye(3) + Mg, (w_m - bg - fb_inv @ G.T).T).T
+    for got, want, clean in ((fb_c, fb_inv, fb), (w_c, w_inv, w)):
+        scale = np.abs(clean).max()
+        assert np.abs(got - want).max() <= 1e-14 * scale * 8
+        assert np.abs(got - clean).max() <= 1e-14 * scale * 8
+    assert np.abs(fb_m - fb).max() > 0.1  # the errors were there to remove
+
+
+def test_no_errors_no_correction_and_too_large_errors_refused(strapdown33, rng):
+    q, fb, w, t = _record(rng, 50)
+    D0 = np.zeros(strapdown33.n_coefficients)
+    fb_c, w_c = corrected_imu(strapdown33, q, fb, w, t, D0)
+    assert np.array_equal(fb_c, fb) and np.array_equal(w_c, w)
+    D = D0.copy()
+    D[strapdown33.index("sa_x")] = -1.5e6  # a scale factor of -150 %: the record cannot be inverted by iteration
+    with pytest.raises(ValueError, match="do not invert"):
+        corrected_imu(strapdown33, q, fb, w, t, D)
+
+
+def test_increments_take_the_corrected_rates_times_their_periods(rng):
+    t = np.array([0.0, 0.01, 0.02, 0.05, 0.06])  # a gap: the period of the fourth row is 0.03 s
+    dth, dv = rng.normal(size=(5, 3)) * 1e-3, rng.normal(size=(5, 3)) * 0.1
+    step = sample_periods(t)[:, None]
+    imu = ImuData(t, dth / step, dv / step, "increments", dth, dv)
+    w, f = imu.w * 1.01, imu.f - 0.2
+    out = with_rates(imu, w, f)
+    assert np.allclose(out.dtheta, w * np.array([0.01, 0.01, 0.01, 0.03, 0.01])[:, None], rtol=1e-14, atol=0)
+    assert np.allclose(out.dv / step, f, rtol=1e-14, atol=0) and out.kind == "increments"
