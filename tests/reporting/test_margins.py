@@ -67,7 +67,8 @@ def test_demo_figures_keep_their_texts_apart(checked, tmp_path, rng):
     n, names, scale = 2001, [f"K{k}{a}" for k in ("a0", "a1y", "g2xy") for a in "xyz"], 1e-3
     t = np.linspace(0.0, 195.0, n)
     truth = rng.standard_normal(len(names))
-    res = SimpleNamespace(residuals=scale * rng.standard_normal((n, 3)), estimate=truth + rng.standard_normal(len(names)),
+    res = SimpleNamespace(residuals=scale * rng.standard_normal((n, 3)),
+                          estimate=truth + rng.standard_normal(len(names)),
                           history=truth + rng.standard_normal((n // 10, len(names))),
                           extras=SimpleNamespace(history_stride=10))
     sim = SimpleNamespace(flight=SimpleNamespace(t=t), model=SimpleNamespace(names=names), truth=truth)
