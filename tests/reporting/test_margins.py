@@ -28,16 +28,16 @@ def clashes(fig) -> list[str]:
 
 @pytest.fixture
 def checked(monkeypatch):
-    """Every figure saved with ``layout=None`` is checked for clashes before it is written."""
+    """Every figure given to save_figure is drawn and checked for clashes instead of written (writing a
+    PNG is save_figure's own test); it must come laid out by fixed margins (``layout=None``)."""
     found: dict[str, list[str]] = {}
-    save = plots.save_figure
 
-    def check_then_save(fig, path, *, layout="constrained"):
-        if layout is None:
-            found[path.name] = clashes(fig)
-        return save(fig, path, layout=layout)
+    def check(fig, path, *, layout="constrained"):
+        found[path.name] = clashes(fig) + ([] if layout is None else [f"laid out by {layout}"])
+        pyplot().close(fig)
+        return path
 
-    monkeypatch.setattr(plots, "save_figure", check_then_save)
+    monkeypatch.setattr(plots, "save_figure", check)
     return found
 
 
