@@ -191,7 +191,7 @@ def _band(ax: Any, t: np.ndarray, r: np.ndarray, bins: int = 1000) -> None:
 
 def _figures(out: Path, sim: SimulatedFlight, results: Mapping[str, EstimateResult], diag: Diagnostics,
              crlb: np.ndarray) -> list[Path]:
-    from casep.reporting.plots import plot_singular_values, pyplot, save_figure
+    from casep.reporting.plots import plot_singular_values, pyplot, save_figure, set_margins
 
     plt = pyplot()
     t = sim.flight.t
@@ -208,7 +208,8 @@ def _figures(out: Path, sim: SimulatedFlight, results: Mapping[str, EstimateResu
             ax.grid(alpha=0.3)
         axes[0].set_title(title, fontsize=10)
         axes[-1].set_xlabel("time (s)")
-        files.append(save_figure(fig, out / fname))
+        set_margins(fig, left=0.95, right=0.12, bottom=0.5, top=0.28, hspace=0.12)  # y ticks up to 6 characters
+        files.append(save_figure(fig, out / fname, layout=None))
     fig, ax = plt.subplots(figsize=(11, 4.5))
     x = np.arange(len(sim.model.names))
     for k, (label, res) in enumerate(results.items()):
@@ -220,7 +221,8 @@ def _figures(out: Path, sim: SimulatedFlight, results: Mapping[str, EstimateResu
     ax.set_title("Error of each coefficient against its Cramer-Rao std (one flight)")
     ax.legend(fontsize=7, ncol=4)
     ax.grid(True, which="both", alpha=0.3)
-    files.append(save_figure(fig, out / "coefficient_errors.png"))
+    set_margins(fig, left=0.75, right=0.12, bottom=0.55, top=0.3)
+    files.append(save_figure(fig, out / "coefficient_errors.png", layout=None))
     rels = results["RELS"]
     assert rels.history is not None  # RELS keeps its history
     H = rels.history[:, : len(sim.model.names)]
@@ -237,7 +239,8 @@ def _figures(out: Path, sim: SimulatedFlight, results: Mapping[str, EstimateResu
     ax.set_title("RELS convergence of the six best-determined coefficients")
     ax.legend(fontsize=8, ncol=3)
     ax.grid(alpha=0.3)
-    files.append(save_figure(fig, out / "rels_convergence.png"))
+    set_margins(fig, left=0.8, right=0.12, bottom=0.5, top=0.3)
+    files.append(save_figure(fig, out / "rels_convergence.png", layout=None))
     files.append(plot_singular_values(diag, out / "singular_values.png"))
     return files
 
