@@ -9,8 +9,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from casep.cli.types import metavar, rule_type
-from casep.estimators.registry import METHODS, OPTIONS, Option
+from casep.cli.types import metavar, per_axis_type, rule_type
+from casep.estimators.registry import METHODS, NOISE_OPTIONS, OPTIONS, Option
 
 __all__ = ["add_option", "method_option_groups", "add_noise", "add_model", "add_json", "method_options",
            "fit_spec"]
@@ -27,6 +27,12 @@ def option_help(option: Option, default: str | None = None) -> str:
 
 def add_option(group: Any, option: Option, default: str | None = None) -> None:
     """The argument of a registry option (dest: its name; None when not given)."""
+    if option.name in NOISE_OPTIONS:  # the noise model's too (tau): one value, or one per axis
+        group.add_argument(option.flag, dest=option.name, type=per_axis_type(option), default=None,
+                           metavar=metavar(option) + "|X,Y,Z",
+                           help=option_help(option, default) + "; X,Y,Z: one per axis (the noise model's, every "
+                                "method but those taking one tau)")
+        return
     group.add_argument(option.flag, dest=option.name, type=rule_type(option), default=None,
                        metavar=metavar(option), help=option_help(option, default))
 
