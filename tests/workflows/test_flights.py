@@ -70,7 +70,7 @@ def test_bad_input():
     a = _flight(1, 0.0, 0.1)
     with pytest.raises(ValueError, match="two or more"):
         separate_flights([a.flight], a.model)
-    with pytest.raises(ValueError, match="jointly"):
+    with pytest.raises(ValueError, match="option --method"):
         separate_flights([a.flight, a.flight], a.model, "lasso")
 
 
