@@ -14,6 +14,7 @@ import casep
 from casep.checks.plausibility import check_flight
 from casep.checks.time_offset import GRAVITY_LAUNCH, time_offset_test
 from casep.cli import main
+from casep.io.flight import FlightDataError
 from casep.exceptions import (
     CasepWarning,
     IllConditionedWarning,
@@ -261,10 +262,12 @@ def test_cli_impossible_flight_exit_2(tmp_path, capsys, paper20):
     assert not out.exists()
 
 
-@pytest.mark.parametrize("factor, hint", [(1 / 0.3048, "ft/s"), (100.0, "cm/s"), (1e-3, "km/s")])
-def test_velocity_columns_in_other_units_warn(tmp_path, factor, hint):
+@pytest.mark.parametrize("factor, hint", [(1 / 0.3048, "ft/s"), (100.0, "cm/s"), (1e-3, "km/s"), (1.5, None)])
+def test_velocity_columns_in_other_units_are_refused(tmp_path, factor, hint):
     """v_tel/v_trk in ft/s (or cm/s, km/s) while f is in m/s^2: the telemetered velocity change
-    disagrees with int (f + g) dt by the unit factor (0.9986 in SI on the paper boost)."""
+    disagrees with int (f + g) dt by the unit factor (0.9986 in SI on the paper boost): refused, naming the
+    file, the columns and the numbers (every estimate would be scaled by the factor); a ratio of 1.5, no
+    unit's factor, is a warning."""
     from casep.io.files import write_table
     from casep.simulation.simulate import simulate_two_rate
 
@@ -278,5 +281,28 @@ def test_velocity_columns_in_other_units_warn(tmp_path, factor, hint):
     with warnings.catch_warnings():
         warnings.simplefilter("error", PlausibilityWarning)
         check_flight(casep.read_flight(good))  # SI: silent
-    with pytest.warns(PlausibilityWarning, match=hint):
+    if hint is None:
+        with pytest.warns(PlausibilityWarning, match="ratio 1.5"):
+            check_flight(casep.read_flight(bad))
+        return
+    with pytest.raises(FlightDataError, match=hint) as e, warnings.catch_warnings():
+        warnings.simplefilter("ignore", PlausibilityWarning)  # cm/s: the dv scatter is named too
         check_flight(casep.read_flight(bad))
+    assert e.value.source == str(bad) and e.value.column == "v_tel_x" and "ratio " in str(e.value)
+
+
+def test_cli_pair_with_telemetry_in_km_per_s_exits_2(tmp_path, capsys):
+    """A telemetry file in km/s beside tracking in m/s: no plain success but exit 2 naming the file, the column and
+    the numbers, and nothing written."""
+    from casep.io.files import write_table
+    from casep.simulation.simulate import simulate_two_rate
+
+    d = simulate_two_rate("paper", seed=1, telemetry_rate=10.0, tracking_rate=10.0)
+    tel, trk, out = tmp_path / "tel_kms.csv", tmp_path / "trk.csv", tmp_path / "out.json"
+    write_table(tel, {"t": d.t_tel, **{f"f_{a}": d.f[:, i] for i, a in enumerate("xyz")},
+                      **{f"v_tel_{a}": 1e-3 * d.v_tel[:, i] for i, a in enumerate("xyz")}})
+    write_table(trk, {"t": d.t_trk, **{f"v_trk_{a}": d.v_trk[:, i] for i, a in enumerate("xyz")}})
+    assert main(["separate", str(tel), "--tracking", str(trk), "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert str(tel) in err and "v_tel_x" in err and "km/s" in err and "ratio" in err
+    assert not out.exists()
