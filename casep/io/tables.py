@@ -139,7 +139,7 @@ def _refuse_json(path: Path) -> None:
     message about its line 1908."""
     with open(path, "rb") as fh:
         head = fh.read(4096).lstrip(b"\xef\xbb\xbf \t\r\n")
-    if not head[:1] in (b"{", b"["):
+    if head[:1] not in (b"{", b"["):
         return
     from casep.io.result_json import load_json, looks_like_result
 

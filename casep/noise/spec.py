@@ -16,9 +16,8 @@ import numpy as np
 
 from casep.exceptions import option_label, refusal
 
-__all__ = ["NoiseSpec", "ROBUST_CHOICES", "STD_CHOICES", "DENOISE_CHOICES", "TAU_RULE", "TAU_AXIS_RULE", "FrozenOptions",
-           "frozen_options",
-           "check_chance"]
+__all__ = ["NoiseSpec", "ROBUST_CHOICES", "STD_CHOICES", "DENOISE_CHOICES", "TAU_RULE", "TAU_AXIS_RULE",
+           "FrozenOptions", "frozen_options", "check_chance"]
 
 ROBUST_CHOICES = ("auto", "none", "huber", "bisquare")
 STD_CHOICES = ("model", "hac")
@@ -82,7 +81,7 @@ class NoiseSpec:
     wavelet_options: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        from casep.noise.model import NOISE_KINDS, check_tau
+        from casep.noise.model import NOISE_KINDS
 
         set_ = object.__setattr__  # frozen: the normal form is set once, here
         for name, value, choices in (("noise", self.kind, NOISE_KINDS), ("robust", self.robust, ROBUST_CHOICES),

@@ -42,8 +42,9 @@ from casep.regression.problem import Problem
 from casep.regression.rows import Rows, prepare_rows
 
 # Rows and prepare_rows live in casep.regression.rows (the data's), re-exported here beside solve_problem
-__all__ = ["fit", "fit_flights", "joint_rows", "JointRows", "flight_sigmas", "rows_for", "solve_problem", "solve_spec", "noise_account", "prepare_rows", "Rows", "Solved",
-           "hac_covariance", "with_hac", "STD_CHOICES"]
+__all__ = ["fit", "fit_flights", "joint_rows", "JointRows", "flight_sigmas", "rows_for", "solve_problem",
+           "solve_spec", "noise_account", "prepare_rows", "Rows", "Solved", "hac_covariance", "with_hac",
+           "STD_CHOICES"]
 
 
 @dataclass

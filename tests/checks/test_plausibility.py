@@ -14,7 +14,6 @@ import casep
 from casep.checks.plausibility import check_flight
 from casep.checks.time_offset import GRAVITY_LAUNCH, time_offset_test
 from casep.cli import main
-from casep.io.flight import FlightDataError
 from casep.exceptions import (
     CasepWarning,
     IllConditionedWarning,
