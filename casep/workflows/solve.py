@@ -458,7 +458,7 @@ def fit_flights(flights: Flights, spec: FitSpec, *, rows: JointRows | None = Non
     ----------
     flights : Flights
     spec : FitSpec
-        Its sigma, when set, is every flight's (a sequence: one per flight).
+        Its sigma, when set, is every flight's (one per flight: :func:`joint_rows`' `sigma`).
     rows : JointRows, optional
         Prepared before (:func:`joint_rows`): its joint problem is the one solved (the caller keeps it for
         the flights' summary).
