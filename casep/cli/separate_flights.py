@@ -31,6 +31,11 @@ def separate_flights(args: argparse.Namespace, model: Any, spec: Any) -> int:
     print(res.text())
     for line in noise_lines(res.diagnostics, joint=True) + joint_summary_lines(summary):
         print(line)
+    if "outliers_studentized" in res.diagnostics:  # --outliers: the flagged rows, by flight and sample
+        from casep.regression.outliers import OutlierFlags
+
+        o = res.diagnostics["outliers_studentized"]
+        print("outliers: " + OutlierFlags(o["rows"], o["threshold"], o["rate"], o["rows_tested"]).text())
     if args.json:
         outputs.write_json({**joint_result_dict(res, jp, summary), "provenance": outputs.provenance(args, flights)},
                            args.json)
