@@ -7,9 +7,9 @@ the argparse type is the option's :meth:`~casep.estimators.registry.Option.parse
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import Any, Callable
 
-from casep.cli.types import metavar, per_axis_type, rule_type
+from casep.cli.types import metavar, rule_type
 from casep.estimators.registry import METHODS, NOISE_OPTIONS, OPTIONS, Option
 
 __all__ = ["add_option", "method_option_groups", "add_noise", "add_model", "add_json", "method_options",
@@ -23,6 +23,27 @@ def option_help(option: Option, default: str | None = None) -> str:
     if default is None and (d is not None or required):
         default = "required" if d is None else f"default {d:g}" if isinstance(d, float) else f"default {d}"
     return f"{option.help}; {option.rule}" + (f" ({default})" if default else "")
+
+
+def per_axis_type(option: Option) -> Callable[[str], Any]:
+    """Argparse type of an option given for all axes or per axis (``--tau 1,2,0.5``): one value by the option's
+    rules (:func:`rule_type`); three comma-separated ones as a tuple of numbers (a part that is no number kept as
+    written), checked with the fit request, whose refusal names the axis (:class:`casep.FitSpec`)."""
+    one = rule_type(option)
+
+    def number(part: str) -> Any:
+        try:
+            return float(part)
+        except ValueError:
+            return part.strip()
+
+    def parse(text: str) -> Any:
+        if "," not in text:
+            return one(text)
+        return tuple(number(part) for part in text.split(","))
+
+    parse.__name__ = option.name
+    return parse
 
 
 def add_option(group: Any, option: Option, default: str | None = None) -> None:

@@ -128,27 +128,6 @@ def rule_type(option: Option, rules: Any = None) -> Callable[[str], Any]:
     return parse
 
 
-def per_axis_type(option: Option) -> Callable[[str], Any]:
-    """Argparse type of an option given for all axes or per axis (``--tau 1,2,0.5``): one value by the option's
-    rules (:func:`rule_type`); three comma-separated ones as a tuple of numbers (a part that is no number kept as
-    written), checked with the fit request, whose refusal names the axis (:class:`casep.FitSpec`)."""
-    one = rule_type(option)
-
-    def number(part: str) -> Any:
-        try:
-            return float(part)
-        except ValueError:
-            return part.strip()
-
-    def parse(text: str) -> Any:
-        if "," not in text:
-            return one(text)
-        return tuple(number(part) for part in text.split(","))
-
-    parse.__name__ = option.name
-    return parse
-
-
 def metavar(option: Option) -> str:
     """``gcv|lcurve|VALUE``, ``INT``, ``FILE``: what the rules take, for the usage line."""
     words: list[str] = []
