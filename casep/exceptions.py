@@ -88,8 +88,11 @@ def option_label(name: str, flag: str | None = None) -> str:
     return f"option {flag or '--' + name.replace('_', '-')} (`{name}`)"
 
 
-def refusal(name: str, flag: str | None, rule: str, value: Any, method: str | None = None) -> ValueError:
+def refusal(name: str, flag: str | None, rule: str, value: Any, method: str | None = None,
+            part: str | None = None) -> ValueError:
     """The one message form of a refused option value, in the API and on the command line:
-    ``option --lambda (`lam`) of method `ridge` must be gcv | lcurve | float > 0, got 'aic'``."""
+    ``option --lambda (`lam`) of method `ridge` must be gcv | lcurve | float > 0, got 'aic'``; `part` names the
+    part of a value of several parts that is refused (``option --tau (`tau`) for axis y must be ..., got -2.0``)."""
     of = f" of method `{method}`" if method else ""
-    return ValueError(f"{option_label(name, flag)}{of} must be {rule}, got {value!r}")
+    at = f" for {part}" if part else ""
+    return ValueError(f"{option_label(name, flag)}{of}{at} must be {rule}, got {value!r}")

@@ -118,12 +118,13 @@ def _position_rows(model: Any, slot: str, cols: Sequence[int] | np.ndarray, stat
     D0[cols] = x0
     Jf = [model.reading_df(slot, gravity * s.gravity, np.deg2rad(s.omega_dps), D0) for s in static]
     ybar = y[:3 * n_static]
-    # the turns' white-noise std, floored (like the means) at 1e-12 of the row: a noise-free session
+    # the turns' white-noise std, floored (like the means) at the rounding level of the rows (casep's noise-free
+    # rule, rounding_level): a noise-free session is weighted, not divided by zero
     y_rot = y[3 * n_static:]
     sd_rot = np.concatenate([np.asarray(v) for v in rows_sd[n_static:]]) if len(rows_sd) > n_static \
         else np.zeros(0)
-    sd_rot = np.maximum(sd_rot, 1e-12 * np.max(np.abs(y_rot), initial=0.0) + 1e-300)
-    floor = (1e-12 * float(np.max(np.abs(ybar)))) ** 2 + 1e-300
+    sd_rot = np.maximum(sd_rot, rounding_level(np.max(np.abs(y_rot), initial=0.0)) + 1e-300)
+    floor = rounding_level(float(np.max(np.abs(ybar)))) ** 2 + 1e-300
     # a tilted position senses on average f = g (1 - tilt^2) e (casep.calibration.rows): the static rows there
     args = (model, slot, cols, static, u, gravity, n_static, Jf, s_i, floor, y_rot, sd_rot)
     if tilt is None:  # estimated on the first sensor (the accelerometer): the same tilts move both
@@ -239,9 +240,9 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
     """
     import dataclasses
 
-    from casep.estimators.registry import METHODS, run_method
+    from casep.estimators.registry import METHODS
     from casep.estimators.result import EstimateResult
-    from casep.estimators.spec import FitSpec
+    from casep.estimators.spec import FitSpec, NoiseSpec
     from casep.regression.problem import Problem
 
     if weighting not in WEIGHTINGS:
@@ -295,7 +296,15 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         # Huber's MAD scale is biased low on a few rows of high leverage (6 dof; the turns are fitted
         # exactly): it takes the least-squares sigma of the weighted rows as its scale instead
         use_sigma = sigma if sigma is not None or not METHODS[method].own_scale else _positive(ls_sigma(Sw, yw), 1.0)
-        res = run_method(method, pb, None, None, opts, sigma=use_sigma)
+        # The linear step is a casep estimate of one checked request per sensor (FitSpec: the method, its options
+        # cut to this sensor's coefficients, sigma; white rows, no robust filter), solved by the method's solver on
+        # the Problem, which is what casep.workflows.solve.fit runs on white rows. Not fit() itself: the
+        # workflows import calibration (ground priors, fusion, consistency), so calibration cannot import them back
+        # (no circle between packages); and what fit() adds is for a flight's time series (noise model in time,
+        # robust filter, residual checks in time), which these rows (segment means, turn integrals) are not:
+        # their noise model is the weighting above.
+        spec = FitSpec(method, opts, use_sigma, NoiseSpec("white", robust=None))
+        res = METHODS[method].solve(pb, sigma=spec.sigma, **spec.options)
         res = dataclasses.replace(res, diagnostics={**res.diagnostics, "rows": int(S.shape[0]),
                                                     "static_level": level, "sample_noise": s_i.tolist(),
                                                     **({"position_error_deg": math.degrees(tilt),

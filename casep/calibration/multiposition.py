@@ -95,13 +95,29 @@ def _lm(fun, x0: np.ndarray, max_iter: int = 100, tol: float = 1e-13):
 
 
 def _covariance(J: np.ndarray, r: np.ndarray, dof: int) -> tuple[np.ndarray, float]:
-    """``s^2 (J^T J)^-1`` with ``s^2 = r.r / dof`` (column-scaled inverse); and s."""
-    d = np.linalg.norm(J, axis=0)
-    d[d == 0] = 1.0
-    Js = J / d
+    """``s^2 (J^T J)^-1`` with ``s^2 = r.r / dof``, and s: the covariance of the last linearisation.
+
+    The Gauss-Newton step of the last linearisation, ``J dx = -r``, is solved as a casep estimate (least
+    squares on a :class:`~casep.regression.problem.Problem`: column-scaled QR and its rank analysis, the
+    one linear solve of casep), of known noise std s; its covariance is the fit's. The damped
+    Levenberg-Marquardt steps before it (:func:`_lm`) are an optimiser's trial steps, not estimates.
+    """
+    from casep.estimators.ols import solve_ols
+    from casep.regression.problem import Problem
+
     s2 = float(r @ r) / dof if dof > 0 else math.nan
-    inv = np.linalg.pinv(Js.T @ Js)
-    return s2 * inv / np.outer(d, d), math.sqrt(s2) if s2 == s2 else math.nan
+    if not s2 > 0:  # no residual dof, or a fit exact to the last digit: no noise level to scale by
+        d = np.linalg.norm(J, axis=0)
+        d[d == 0] = 1.0
+        return (s2 if s2 == s2 else math.nan) * np.linalg.pinv((J / d).T @ (J / d)) / np.outer(d, d), \
+            math.sqrt(s2) if s2 == s2 else math.nan
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # conditioning: judged by the calibration's own checks
+        step = solve_ols(Problem.from_arrays(J, -r), sigma=math.sqrt(s2))
+    cov = np.asarray(step.covariance, dtype=float)
+    return np.where(np.isfinite(cov), cov, math.nan), math.sqrt(s2)
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,8 @@ flight.
     - **Velocity columns** (files with ``v_tel_*``, ``v_trk_*``): the telemetered velocity
       change ``v_tel(end) - v_tel(0)`` against ``int (f + g) dt`` with the flat-Earth g of the
       launch frame (ratio 0.9986 on the ``paper`` boost); outside 0.8-1.25 is a warning with the
-      unit that fits (ft/s gives 3.28, cm/s 100, km/s 0.001).
+      unit that fits, outside 0.4-2.5 (a unit's factor: ft/s gives 3.28, cm/s 100, km/s 0.001) a
+      :class:`~casep.io.flight.FlightDataError` naming the columns and the numbers.
 
 Before estimation, with the model: :func:`check_enough_samples`, :func:`check_dv_not_zero` (errors),
 :func:`warn_setup` (the set-up evidence the pair reader recorded, :mod:`casep.io.setup`) and
@@ -154,6 +155,9 @@ def check_flight(flight: FlightData) -> None:
 #: disagree on units. The flat-Earth g of :data:`GRAVITY_LAUNCH` makes the ratio 0.9986 on the
 #: ``paper`` boost (195 s, 195 km downrange), so 20 % is a wide margin; ft/s gives 3.28.
 VELOCITY_RATIO_RANGE = (0.8, 1.25)
+#: Outside this range the ratio is a unit's factor (ft/s 3.28, cm/s 100, km/s 1e-3, mm/s 1e3), not a flight's
+#: gravity model: the flight is refused (every estimate would be scaled by it), naming the columns and the numbers.
+VELOCITY_RATIO_REFUSED = (0.4, 2.5)
 
 
 def _check_velocity_units(flight: FlightData) -> None:
@@ -174,9 +178,13 @@ def _check_velocity_units(flight: FlightData) -> None:
     hint = _unit_hint(ratio, lo, hi, (("ft/s (multiply v_tel and v_trk by 0.3048)", 0.3048),
                                       ("km/s (multiply by 1000)", 1e3), ("cm/s (divide by 100)", 1e-2),
                                       ("mm/s (divide by 1000)", 1e-3)))
-    _warn(f"{flight.source}: the telemetered velocity changes by {g:.4g} m/s over {t[-1] - t[0]:.4g} s but "
-          f"the specific force plus gravity integrates to {e:.4g} m/s (ratio {ratio:.3g}, expected "
-          f"{lo:g}-{hi:g}): the velocity columns (v_tel_*, v_trk_*) and f disagree on units.{hint}")
+    what = (f"the telemetered velocity changes by {g:.4g} m/s over {t[-1] - t[0]:.4g} s but the specific force "
+            f"plus gravity integrates to {e:.4g} m/s (ratio {ratio:.3g}, expected {lo:g}-{hi:g}): the velocity "
+            f"columns (v_tel_*, v_trk_*) and f disagree on units.{hint}")
+    low, high = VELOCITY_RATIO_REFUSED
+    if not low <= ratio <= high:  # a unit's factor (ft/s 3.28, km/s 1e-3, ...): every estimate would be wrong
+        raise FlightDataError(flight.source, what + " Convert the columns to m/s (f to m/s^2)", "v_tel_x")
+    _warn(f"{flight.source}: {what}")
 
 
 def _force_columns(flight: FlightData) -> str:

@@ -7,10 +7,10 @@ the argparse type is the option's :meth:`~casep.estimators.registry.Option.parse
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import Any, Callable
 
 from casep.cli.types import metavar, rule_type
-from casep.estimators.registry import METHODS, OPTIONS, Option
+from casep.estimators.registry import METHODS, NOISE_OPTIONS, OPTIONS, Option
 
 __all__ = ["add_option", "method_option_groups", "add_noise", "add_model", "add_json", "method_options",
            "fit_spec"]
@@ -25,8 +25,35 @@ def option_help(option: Option, default: str | None = None) -> str:
     return f"{option.help}; {option.rule}" + (f" ({default})" if default else "")
 
 
+def per_axis_type(option: Option) -> Callable[[str], Any]:
+    """Argparse type of an option given for all axes or per axis (``--tau 1,2,0.5``): one value by the option's
+    rules (:func:`rule_type`); three comma-separated ones as a tuple of numbers (a part that is no number kept as
+    written), checked with the fit request, whose refusal names the axis (:class:`casep.FitSpec`)."""
+    one = rule_type(option)
+
+    def number(part: str) -> Any:
+        try:
+            return float(part)
+        except ValueError:
+            return part.strip()
+
+    def parse(text: str) -> Any:
+        if "," not in text:
+            return one(text)
+        return tuple(number(part) for part in text.split(","))
+
+    parse.__name__ = option.name
+    return parse
+
+
 def add_option(group: Any, option: Option, default: str | None = None) -> None:
     """The argument of a registry option (dest: its name; None when not given)."""
+    if option.name in NOISE_OPTIONS:  # the noise model's too (tau): one value, or one per axis
+        group.add_argument(option.flag, dest=option.name, type=per_axis_type(option), default=None,
+                           metavar=metavar(option) + "|X,Y,Z",
+                           help=option_help(option, default) + "; X,Y,Z: one per axis (the noise model's, every "
+                                "method but those taking one tau)")
+        return
     group.add_argument(option.flag, dest=option.name, type=rule_type(option), default=None,
                        metavar=metavar(option), help=option_help(option, default))
 

@@ -17,8 +17,7 @@ def separate_flights(args: argparse.Namespace, model: Any, spec: Any) -> int:
     from casep.workflows.flights import JOINT_METHODS, flights_summary, separate_flights
     from casep.workflows.joint_report import joint_result_dict, joint_summary_lines
 
-    for flag, value in (("--denoise wavelet", args.denoise == "wavelet" or None),
-                        ("--figures", args.figures), ("--report", args.report), ("--mat", args.mat),
+    for flag, value in (("--figures", args.figures), ("--report", args.report), ("--mat", args.mat),
                         ("--csv", args.csv)):
         if value:
             raise ValueError(f"{flag} is not available with several flights yet; give one flight, or leave it out")
@@ -32,6 +31,11 @@ def separate_flights(args: argparse.Namespace, model: Any, spec: Any) -> int:
     print(res.text())
     for line in noise_lines(res.diagnostics, joint=True) + joint_summary_lines(summary):
         print(line)
+    if "outliers_studentized" in res.diagnostics:  # --outliers: the flagged rows, by flight and sample
+        from casep.regression.outliers import OutlierFlags
+
+        o = res.diagnostics["outliers_studentized"]
+        print("outliers: " + OutlierFlags(o["rows"], o["threshold"], o["rate"], o["rows_tested"]).text())
     if args.json:
         outputs.write_json({**joint_result_dict(res, jp, summary), "provenance": outputs.provenance(args, flights)},
                            args.json)

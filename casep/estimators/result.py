@@ -101,7 +101,7 @@ class EstimateResult:
     n_samples : int
         Samples used.
     denoise : dict or None
-        De-noising settings and per-axis noise sigma, or None.
+        De-noising settings and per-axis noise sigma, or None; several flights: ``{"flights": {label: ...}}``.
     history : ndarray or None
         Estimate after each sample for recursive methods, natural units.
     history_std : ndarray or None
@@ -331,11 +331,11 @@ class EstimateResult:
         if all(rms[a] is not None for a in AXES):  # a fused result has no residuals
             lines.append(f"residual RMS ({'whitened, dimensionless' if whitened else 'm/s'}): "
                          + ", ".join(f"{a} {format_number(rms[a], 0, '.4g')}" for a in AXES))
-        if self.denoise:
-            d = self.denoise
-            lines.append(f"de-noised: {d.get('wavelet')} level {d.get('level')}, {d.get('threshold_rule')} "
-                         f"{d.get('threshold_mode')}, {d.get('extension')} extension; raw noise sigma "
-                         + ", ".join(f"{a} {d['sigma'][a]:.4g}" for a in AXES)
+        denoised = {} if not self.denoise else self.denoise.get("flights", {"": self.denoise})  # several: per flight
+        for label, d in denoised.items():
+            lines.append(f"de-noised{' ' + label if label else ''}: {d.get('wavelet')} level {d.get('level')}, "
+                         f"{d.get('threshold_rule')} {d.get('threshold_mode')}, {d.get('extension')} extension; raw "
+                         "noise sigma " + ", ".join(f"{a} {d['sigma'][a]:.4g}" for a in AXES)
                          + " m/s (residuals after de-noising understate the noise)")
         cn = self.diagnostics.get("condition_number_equilibrated")
         if cn is not None:

@@ -8,9 +8,10 @@ arguments of ``casep separate``, a manifest), and checked there by one validator
 exclusion and the de-noising. Everything downstream (:func:`casep.workflows.solve.fit`) takes
 the spec as checked.
 
-Who owns ``tau`` is decided here, once: a method that takes ``tau`` as its own option (GLS: one
-correlation time for every axis) gets it in :attr:`FitSpec.options`; for every other method it is
-the noise model's (:attr:`NoiseSpec.tau`, a number meaning Gauss-Markov noise).
+Who owns ``tau`` is decided here, by one rule (:func:`_tau_owner`, when the spec is made): a method
+that takes ``tau`` as its own option (GLS: one correlation time for every axis) gets it in
+:attr:`FitSpec.options`; for every other method it is the noise model's (:attr:`NoiseSpec.tau`, a
+number meaning Gauss-Markov noise), wherever the caller put it.
 
 Options the caller did not give are :data:`NOT_GIVEN` (a sentinel), never recognised by being
 equal to their default: ``separate(..., p0=1e6, options={"p0": 1.0})`` is "given both", whatever
@@ -104,15 +105,7 @@ class FitSpec:
         meth = METHODS[self.method]
         opts = {k: v for k, v in dict(self.options).items() if v is not None and v is not NOT_GIVEN}
         noise = self.noise
-        if "tau" in opts and "tau" not in meth.options:  # not the method's own: the noise model's
-            if noise.tau is not None:
-                raise ValueError(f"{option_label('tau')} given both as the method's option and the noise model's")
-            noise = dataclasses.replace(noise, tau=opts.pop("tau"))
-        elif "tau" in meth.options and noise.tau is not None:  # the method's own (gls: one tau)
-            if "tau" in opts:
-                raise ValueError(f"{option_label('tau')} given both as the method's option and the noise model's")
-            opts["tau"] = noise.tau
-            noise = dataclasses.replace(noise, tau=None)
+        opts, noise = _tau_owner(meth, opts, noise)
         check_method_options(self.method, opts)  # the registry's rules: the one check of the options
         keywords = {k: v for k, v in dict(self.keywords).items() if v is not None and v is not NOT_GIVEN}
         for k, v in keywords.items():
@@ -143,28 +136,18 @@ class FitSpec:
         such as ``max_condition_index``); :data:`NOT_GIVEN` ones are left out. An option given
         both as a keyword and in `options` is an error, whatever its values.
 
-        ``tau="auto"`` (or None) is REML; a number is the noise model's correlation time (the
-        method's own option for a method that takes ``tau``).
+        ``tau="auto"`` (or None) is REML; a number is a correlation time, the noise model's or the
+        method's own (who owns it: :func:`_tau_owner`, applied when the spec is made).
         """
         from casep.estimators.registry import METHODS, OPTIONS
 
         all_opts = merge_options(options, option_keywords)
-        meth = METHODS.get(method)
         kw_names = {o.name for m in METHODS.values() for o in m.keywords} - set(OPTIONS)
         keywords = {k: all_opts.pop(k) for k in list(all_opts) if k in kw_names}
         for k in all_opts:
             if k not in OPTIONS:
                 raise ValueError(f"unknown {option_label(k)}: no registered method takes it; the options are "
                                  f"{', '.join(OPTIONS)}")
-        if isinstance(tau, str) and tau == "auto":
-            tau = None
-        if tau is not None and meth is not None and "tau" in meth.options:
-            if "tau" in all_opts:
-                raise ValueError(f"{option_label('tau')} given both as a keyword and in `options`")
-            all_opts["tau"], tau = tau, None
-        if isinstance(all_opts.get("tau"), str) and all_opts["tau"] == "auto" and (meth is None or
-                                                                                    "tau" not in meth.options):
-            all_opts.pop("tau")  # "auto" for the noise model: REML, as when not given
         ns = NoiseSpec(noise, tau, robust, std, exclude_outliers, denoise, dict(wavelet_options or {}))
         return cls(method, all_opts, sigma, ns, outliers, keywords)
 
@@ -173,6 +156,22 @@ class FitSpec:
         return {"method": self.method, "options": dict(self.options), "sigma": self.sigma,
                 "noise": {**dataclasses.asdict(self.noise), "wavelet_options": dict(self.noise.wavelet_options)},
                 "outliers": self.outliers, "keywords": dict(self.keywords)}
+
+
+def _tau_owner(meth: Any, opts: dict[str, Any], noise: NoiseSpec) -> tuple[dict[str, Any], NoiseSpec]:
+    """Who owns ``tau``, the one rule: a method that declares ``tau`` among its options (GLS: one correlation
+    time for every axis) owns it, checked by its rule; for every other method it is the noise model's
+    (:attr:`NoiseSpec.tau`: three values allowed, "auto" meaning REML). Given both ways: an error, whatever
+    the values. Returns the method options and the noise request with tau where it belongs."""
+    in_opts = opts.pop("tau", None)
+    if in_opts is not None and noise.tau is not None:
+        raise ValueError(f"{option_label('tau')} given both as the method's option and the noise model's")
+    if "tau" in meth.options:
+        tau = noise.tau if in_opts is None else in_opts
+        if tau is not None:
+            opts["tau"] = tau
+        return opts, noise if noise.tau is None else dataclasses.replace(noise, tau=None)
+    return opts, noise if in_opts is None else dataclasses.replace(noise, tau=in_opts)
 
 
 def merge_options(options: Mapping[str, Any] | None, keywords: Mapping[str, Any]) -> dict[str, Any]:

@@ -35,6 +35,16 @@ def fits_time_offset(meta) -> bool:
     (``dv += a(t) dt_trk``, :func:`casep.model.loader.with_time_offset`) instead of biasing the
     coefficients that correlate with the kinematic acceleration.
 
+    The radar path decides its time terms elsewhere, and they are not this idea written twice: a radar
+    station's time-tag delay is its tracking model's ``time_bias`` (one per station, always in the
+    ``radar_biases`` model: each station is a range clock, as Earth-fixed tracking is here), the twin of
+    ``dt_trk`` in the measurement domain (column ``dh/dt`` of the predicted range and angles instead of
+    ``a(t)``); its ``dt_launch`` (:data:`casep.radar.regression.LAUNCH_TIME`, fitted with two or more
+    stations) is an error of the launch epoch, which turns the launch-inertial frame about the Earth's
+    axis by ``omega_E dt_launch`` -- no delay of any time tag. ``read_flight_pair(..., time_offset="auto")``
+    is no estimate either: the coarse shift that lines the velocities up before the fit, whose rest this
+    rule leaves to ``dt_trk``.
+
     Parameters
     ----------
     meta : dict

@@ -133,6 +133,35 @@ def _read_parquet_frame(path: Path) -> tuple[Any, dict[str, np.ndarray]]:
     return pd.DataFrame(columns, copy=False), nulls
 
 
+def _refuse_json(path: Path) -> None:
+    """A JSON file given where a flight table (CSV or Parquet) is read: refused saying what the file is (a casep
+    result, a coefficient table, a radar station) and which command or option takes it, instead of a CSV parser's
+    message about its line 1908."""
+    with open(path, "rb") as fh:
+        head = fh.read(4096).lstrip(b"\xef\xbb\xbf \t\r\n")
+    if head[:1] not in (b"{", b"["):
+        return
+    from casep.io.result_json import load_json, looks_like_result
+
+    src = str(path)
+    try:
+        data = load_json(path, "flight")
+    except ValueError:  # not JSON after all (or broken JSON): the CSV reader says what it finds
+        return
+    table = "a flight is a CSV or Parquet table with columns t, f_x, f_y, f_z and dv_x.. (or v_tel_x.. and v_trk_x..)"
+    if looks_like_result(data):
+        what = (f"a result JSON (model {data.get('model') or '?'}, method {data.get('method') or '?'}), not flight "
+                f"data ({table}). A result is read by `casep fuse RESULT...`, `casep impact --result RESULT` and "
+                "`--prior RESULT` of `casep separate` and `casep design`")
+    elif isinstance(data, dict) and {"lat", "lon"} <= set(data):
+        what = (f"a radar station JSON, not flight data ({table}). A station is given with "
+                "`casep separate TELEMETRY --radar STATION.json MEASUREMENTS.csv --launch-site ...`")
+    else:
+        what = (f"a JSON file, not flight data ({table}). A coefficient table (name: value or {{mean, std}}) is "
+                "given with --bounds or --prior")
+    raise FlightDataError(src, what)
+
+
 class Table:
     """A file read into a DataFrame, with error helpers that locate rows."""
 
@@ -156,6 +185,7 @@ class Table:
             frame, self.nulls = self._parquet(_read_parquet_frame)
         else:
             _refuse_nul(self.path)  # before pandas, whose C parser ends a field at a NUL silently
+            _refuse_json(self.path)  # a result, prior or station file given as a flight: say what it is
             try:
                 header, self.sep = _csv_header(self.path)
                 frame = pd.read_csv(self.path, sep=self.sep, comment="#", skip_blank_lines=True,

@@ -16,9 +16,8 @@ import numpy as np
 
 from casep.exceptions import option_label, refusal
 
-__all__ = ["NoiseSpec", "ROBUST_CHOICES", "STD_CHOICES", "DENOISE_CHOICES", "TAU_RULE", "FrozenOptions",
-           "frozen_options",
-           "check_chance"]
+__all__ = ["NoiseSpec", "ROBUST_CHOICES", "STD_CHOICES", "DENOISE_CHOICES", "TAU_RULE", "TAU_AXIS_RULE",
+           "FrozenOptions", "frozen_options", "check_chance"]
 
 ROBUST_CHOICES = ("auto", "none", "huber", "bisquare")
 STD_CHOICES = ("model", "hac")
@@ -82,7 +81,7 @@ class NoiseSpec:
     wavelet_options: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        from casep.noise.model import NOISE_KINDS, check_tau
+        from casep.noise.model import NOISE_KINDS
 
         set_ = object.__setattr__  # frozen: the normal form is set once, here
         for name, value, choices in (("noise", self.kind, NOISE_KINDS), ("robust", self.robust, ROBUST_CHOICES),
@@ -100,10 +99,7 @@ class NoiseSpec:
                              f"{option_label('denoise')} 'wavelet'")
         if isinstance(self.tau, str) and self.tau == "auto":
             set_(self, "tau", None)  # REML: as when not given
-        try:
-            check_tau(self.tau)  # the noise model's own rule for a correlation time, checked here, at the edge
-        except (ValueError, TypeError):
-            raise refusal("tau", None, TAU_RULE, self.tau) from None
+        set_(self, "tau", _checked_tau(self.tau))
         if isinstance(self.tau, (list, np.ndarray)):
             set_(self, "tau", tuple(float(v) for v in np.ravel(self.tau)))  # a value: hashable, unchanged
         if self.tau is not None:
@@ -118,6 +114,35 @@ class NoiseSpec:
                                  "or HAC std describe: use them without de-noising")
             set_(self, "kind", "white")  # the de-noised residuals are no noise sample to fit a model on
             set_(self, "robust", None)
+
+
+#: The rule of one axis's correlation time (:func:`casep.noise.model.check_tau`'s), in a refusal naming the axis.
+TAU_AXIS_RULE = "a number in (0, 1e4] s (a correlation time above 1e4 s exceeds any flight)"
+
+
+def _checked_tau(tau: Any) -> Any:
+    """`tau` as given, once the noise model's rule (:func:`casep.noise.model.check_tau`) accepts it; a mapping
+    ``{"x": .., "y": .., "z": ..}`` becomes three values. A refused value of one axis is named by its axis."""
+    from casep.noise.model import AXES, check_tau
+
+    if isinstance(tau, Mapping):
+        wrong = sorted(set(map(str, tau)) ^ set(AXES))
+        if wrong:
+            raise refusal("tau", None, "one value per axis x, y and z when given per axis", dict(tau),
+                          part=f"axis {', '.join(wrong)}")
+        tau = tuple(tau[a] for a in AXES)
+    try:
+        check_tau(tau)  # the noise model's own rule for a correlation time, checked here, at the edge
+    except (ValueError, TypeError):
+        if isinstance(tau, (tuple, list, np.ndarray)) and np.size(tau) == 3:
+            for a, v in zip(AXES, np.ravel(np.asarray(tau, dtype=object))):
+                try:
+                    check_tau(v)
+                except (ValueError, TypeError):
+                    raise refusal("tau", None, TAU_AXIS_RULE, v,
+                                  part=f"axis {a}") from None
+        raise refusal("tau", None, TAU_RULE, tau) from None
+    return tau
 
 
 def check_chance(name: str, value: Any) -> None:

@@ -60,7 +60,10 @@ __all__ = ["Telemetry", "read_telemetry", "RadarRegression", "estimate_group_sig
            "TYPE_UNITS", "RadarCoverageWarning", "RadarConvergenceWarning", "RadarResidualWarning",
            "PLAUSIBLE_SIGMA", "RESIDUAL_RATIO_LIMIT", "LinearisedRadar"]
 
-#: The launch-time correction estimated with the station terms (ms): true launch time = given + dt_launch.
+#: The launch-time correction estimated with the station terms (ms): true launch time = given + dt_launch. An error
+#: of the launch epoch (the launch-inertial frame turned about the Earth's axis), not a time-tag delay: a station's
+#: delay is its own ``time_bias``, the twin of a velocity pair's ``dt_trk`` (:func:`casep.io.pair.fits_time_offset`
+#: says why the two are not one rule).
 LAUNCH_TIME = "dt_launch"
 #: Its declared magnitude (ms): a launch time known to about 10 ms (the diagnostics' scale).
 LAUNCH_TIME_SCALE = 10.0

@@ -7,7 +7,8 @@ Layer 3: depends on :mod:`casep.noise` (the rows whitened for a noise model), :m
 
 - :mod:`casep.regression.problem`: :class:`Problem`, the regression of a flight built once
 - :mod:`casep.regression.linalg`: TSQR reduction of the column-scaled regression, rank analysis
-- :mod:`casep.regression.joint`: :class:`JointProblem`, several flights with shared coefficients
+- :mod:`casep.regression.joint`: :class:`JointProblem`, several flights with shared coefficients; :class:`Flights`,
+  several flights as one problem to fit
 - :mod:`casep.regression.rows`: :func:`prepare_rows`, the rows every method solves (noise model,
   robust weights, removed samples)
 - :mod:`casep.regression.outliers`: externally studentized residuals, outlier flags
@@ -19,10 +20,10 @@ from casep._lazy import attach
 __getattr__, __dir__ = attach(__name__, {
     "casep.regression.problem": ("Problem",),
     "casep.regression.linalg": ("RankAnalysis", "ReducedSystem", "analyze_rank", "reduce_qr", "reduce_qr_blocks"),
-    "casep.regression.joint": ("JointProblem",),
+    "casep.regression.joint": ("JointProblem", "Flights"),
     "casep.regression.rows": ("Rows", "prepare_rows"),
     "casep.regression.outliers": ("OutlierFlags", "flag_outliers", "studentized_residuals"),
 }, globals())
 
 __all__ = ["Problem", "RankAnalysis", "ReducedSystem", "analyze_rank", "reduce_qr", "reduce_qr_blocks",
-           "JointProblem", "Rows", "prepare_rows", "OutlierFlags", "flag_outliers", "studentized_residuals"]
+           "JointProblem", "Flights", "Rows", "prepare_rows", "OutlierFlags", "flag_outliers", "studentized_residuals"]

@@ -33,7 +33,7 @@ import numpy as np
 from casep.regression.linalg import ReducedSystem, analyze_rank, least_squares_rss, reduce_qr
 from casep.regression.problem import DEFAULT_BLOCK_ROWS, Problem
 
-__all__ = ["JointLayout", "JointProblem", "joint_reduction", "flight_rss"]
+__all__ = ["JointLayout", "JointProblem", "Flights", "joint_reduction", "flight_rss"]
 
 
 @dataclass(frozen=True)
@@ -212,3 +212,35 @@ class JointProblem(Problem):
         """Flight k's coefficients in model order (shared + its own per-flight ones)."""
         x = np.asarray(x, dtype=float)
         return [x[self.layout.columns(k)] for k in range(self.layout.n_flights)]
+
+
+@dataclass(frozen=True)
+class Flights:
+    """Several flights of one model as one problem to fit (:func:`casep.workflows.solve.fit`): the flights as read,
+    before any noise model or weighting (the fit request decides those, on each flight as on one alone).
+
+    Parameters
+    ----------
+    problems : sequence of Problem
+        One per flight, same model (its per-flight coefficients each flight's own).
+    layout : JointLayout
+        Where each flight's coefficients sit in the joint parameter vector; its labels name the flights.
+    interpolated : sequence of bool, optional
+        Flights whose tracking was interpolated onto telemetry times (default none).
+    """
+
+    problems: tuple[Problem, ...]
+    layout: JointLayout
+    interpolated: tuple[bool, ...] = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "problems", tuple(self.problems))
+        if len(self.problems) != self.layout.n_flights:
+            raise ValueError(f"{len(self.problems)} flights for {self.layout.n_flights} labels")
+        flags = tuple(bool(v) for v in self.interpolated) or (False,) * len(self.problems)
+        if len(flags) != len(self.problems):
+            raise ValueError(f"`interpolated` has {len(flags)} entries for {len(self.problems)} flights")
+        object.__setattr__(self, "interpolated", flags)
+        for p in self.problems:
+            if not p.has_rows:
+                raise ValueError(f"flight `{p.source}` is a reduction-only Problem: a fit needs the flight's rows")

@@ -17,6 +17,7 @@ Residuals are each flight's own, divided by its sigma (the whitened system the j
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -27,8 +28,9 @@ from casep.checks.flight import flight_problem
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
 from casep.estimators.spec import FitSpec
-from casep.regression.joint import JointLayout, JointProblem
+from casep.regression.joint import Flights, JointLayout, JointProblem
 from casep.regression.problem import Problem
+from casep.workflows.solve import fit, flight_sigmas, joint_rows
 
 # and JOINT_METHODS (module __getattr__: the registry's as it is now)
 __all__ = ["separate_flights", "flights_summary", "diagnose_flights"]
@@ -52,9 +54,13 @@ def _labels(problems: Sequence[Problem]) -> tuple[str, ...]:
 def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: float | Sequence[float] | None = None,
                      options: Mapping[str, Any] | None = None, noise: str = "auto", tau=None,
                      robust: str | None = "auto", std: str = "model",
-                     exclude_outliers: float | None = None,
+                     exclude_outliers: float | None = None, fit_time_offset: bool | None = None,
                      spec: FitSpec | None = None) -> tuple[EstimateResult, JointProblem]:
     """One estimate of the shared coefficients from several flights; per-flight ones per flight.
+
+    The flights become one :class:`~casep.regression.joint.Flights` fitted through the one entry point
+    :func:`casep.workflows.solve.fit`, so every rule of the request (noise model per flight and axis, tau,
+    robust fit, std kind, outlier exclusion and flags, de-noising) applies to each flight as to one alone.
 
     Parameters
     ----------
@@ -68,101 +74,71 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         residual std ``sqrt(RSS_k / (m_k - rank_k))``.
     options : mapping, optional
         The method's options (registry names).
-    noise, tau, robust : optional
-        Each flight's noise model (:func:`casep.noise.fit.fit_noise`, fitted on the flight
-        alone) and robust cleaning (the robust filter of a least-squares fit of the flight alone:
-        its glitches removed, its rows weighted); the joint solve is then on every flight's
-        whitened rows (:func:`casep.separate` describes the options).
+    noise, tau, robust, std, exclude_outliers : optional
+        As :func:`casep.separate`, each flight's own (its noise model fitted on the flight alone, its
+        glitches removed and its rows weighted by a robust fit of the flight alone; HAC std with lags
+        within each flight); the joint solve is then on every flight's whitened rows.
+    fit_time_offset : bool, optional
+        Add the tracking time offset ``dt_trk`` (per flight) to the model; default: when any flight read
+        here asks for it by the one rule :func:`casep.io.pair.fits_time_offset` (tracking aligned
+        automatically, Earth-fixed tracking), each flight then has its own offset.
     spec : FitSpec, optional
         The fit request as one value (:class:`casep.FitSpec`) instead of `method`, `options` and the
         noise keywords (its sigma, when set, is every flight's). Either way the request is checked once,
-        by the FitSpec, which also decides who owns `tau` (the noise model's, or GLS's own option).
+        by the FitSpec.
 
     Returns
     -------
     (EstimateResult, JointProblem)
         The result over the joint parameters (names ``name`` for shared, ``name[file]`` per flight;
-        std from the whitened system, so ``sigma`` is 1 and ``sigma_source`` "given"); the problem
+        std from the whitened system, so ``sigma`` is 1 and ``sigma_source`` "whitened"); the problem
         (its ``sigmas``, ``layout`` and ``flight_estimates``).
     """
-    from casep.io.files import read_flight
-    from casep.io.flight import FlightData
-    from casep.model.loader import load_model
-
-    if spec is not None:
-        method = spec.method
-    if method not in METHODS or METHODS[method].flights is None:
+    if spec is None:
+        spec = FitSpec.build(method, options=options, noise=noise, tau=tau, robust=robust, std=std,
+                             exclude_outliers=exclude_outliers)  # the one check
+    if METHODS[spec.method].flights is None:
         joint = [k for k, m in METHODS.items() if m.flights is not None]
-        raise ValueError(f"method `{method}` cannot be estimated jointly; use one of {', '.join(joint)}")
-    meth = METHODS[method]
-    hooks = meth.flights
-    assert hooks is not None  # refused above
+        raise ValueError(f"method `{spec.method}` cannot be estimated jointly; use one of {', '.join(joint)}")
     if len(flights) < 2:
         raise ValueError(f"`flights` must hold two or more flights, got {len(flights)}")
-    if spec is None:
-        if std != "model" or exclude_outliers is not None:
-            raise ValueError("`std` and `exclude_outliers` are not available with several flights yet: fit each "
-                             "flight alone for them")
-        spec = FitSpec.build(method, options=options, noise=noise, tau=tau, robust=robust)  # the one check
-    if spec.noise.std != "model" or spec.noise.exclude_outliers is not None or spec.noise.denoise is not None \
-            or spec.outliers is not None:
-        raise ValueError("`std`, `exclude_outliers`, `denoise` and `outliers` are not available with several flights "
-                         "yet: fit each flight alone for them")
-    if sigma is None and spec.sigma is not None:
-        sigma = spec.sigma
-    opts, noise, robust = dict(spec.options), spec.noise.kind, spec.noise.robust
-    model = load_model(model)
-    problems, paired, read = [], [], []
-    for fl in flights:
-        if isinstance(fl, Problem):
-            problems.append(fl)
-            paired.append(False)
-            continue
-        fl = fl if isinstance(fl, FlightData) else read_flight(fl)
-        read.append(fl)
-        paired.append(fl.meta.get("format") == "pair" and fl.meta.get("grid") == "telemetry")  # interpolated tracking
-        problems.append(flight_problem(fl, model))
+    model, problems, paired, read = _read(flights, model, fit_time_offset)
     _refuse_repeats(problems)
     for key in ("prior", "bounds"):  # on shared coefficients only (a per-flight one is refused, not dropped)
-        per = [k for k in (opts.get(key) or {}) if k in model.names and model.per_flight[model.names.index(k)]]
+        per = [k for k in (spec.options.get(key) or {}) if k in model.names and model.per_flight[model.names.index(k)]]
         if per:
             raise ValueError(f"`{key}` names per-flight coefficient(s) {', '.join(per)}: not supported with several "
                              "flights yet; give it for the shared coefficients only")
-    raw = problems
-    state: Any = None
-    noise_models = None
-    if hooks.rows is not None:  # the method's own rows (GLS: each flight whitened by its own tau)
-        problems, state = hooks.rows(problems, opts, noise, robust)
-    else:  # each flight's own noise model and robust cleaning
-        problems, noise_models = _noise_whitened(problems, spec.noise)
-    sig = _sigmas(problems, sigma)
-    layout = JointLayout(model.names, model.per_flight, _labels(raw))
-    jp = JointProblem(problems, sig, layout, raw=raw, interpolated=paired)
-    by = hooks.solve_as or meth
-    res = by.solve(jp, sigma=hooks.sigma, **{k: v for k, v in opts.items() if k in by.options})
-    import dataclasses
-
+    several = Flights(tuple(problems), JointLayout(model.names, model.per_flight, _labels(problems)), tuple(paired))
+    rows = joint_rows(several, spec, sigma)  # a sigma per flight, or the request's
+    res = fit(several, spec, rows=rows)  # the one entry point, as for one flight
     from casep.model.loader import model_record
-
-    res = dataclasses.replace(res, sigma_source="whitened", **model_record(model),
-                              settings={**res.settings, "sigma": "per flight" if sigma is None else "given per flight"})
-    if noise_models is not None:
-        from casep.workflows.solve import noise_account
-
-        per_flight = {}
-        for lab, rw in zip(layout.labels, noise_models):
-            acc = noise_account(rw, noise)
-            per_flight[lab] = {**acc["noise"], **({"robust": acc["robust"]} if "robust" in acc else {})}
-        res = dataclasses.replace(res, diagnostics={**res.diagnostics, "noise": per_flight},
-                                  settings={**res.settings, "noise": noise})
     from casep.workflows.separate import judge_setup
 
+    res = dataclasses.replace(res, **model_record(model))
     for fl in read:  # a flight that failed a set-up check fails the joint result
         res = judge_setup(res, fl, None)
-    res = judge_setup(res, None, model)  # declared magnitudes, once
-    if hooks.finish is not None:
-        res = hooks.finish(res, jp, state, opts)
-    return res, jp
+    res = judge_setup(res, None, model, noise_free=all(p.is_noise_free() for p in problems))  # declared magnitudes
+    return res, rows.joint
+
+
+def _read(flights: Sequence, model: Any, fit_time_offset: bool | None) -> tuple[Any, list[Problem], list[bool], list]:
+    """The model (with ``dt_trk`` when the time-offset rule asks for it), each flight's Problem (after the checks
+    before estimation), whether its tracking was interpolated onto telemetry times, and the flights read."""
+    from casep.io.files import read_flight
+    from casep.io.flight import FlightData
+    from casep.io.pair import fits_time_offset
+    from casep.model.loader import load_model, with_time_offset
+
+    read = [fl if isinstance(fl, (FlightData, Problem)) else read_flight(fl) for fl in flights]
+    data = [fl for fl in read if isinstance(fl, FlightData)]
+    if fit_time_offset is None:
+        fit_time_offset = any(fits_time_offset(fl.meta) for fl in data)  # the one rule, as for one flight
+    model = load_model(with_time_offset(model) if fit_time_offset else model)
+    problems = [fl if isinstance(fl, Problem) else flight_problem(fl, model) for fl in read]
+    paired = [isinstance(fl, FlightData) and fl.meta.get("format") == "pair" and fl.meta.get("grid") == "telemetry"
+              for fl in read]  # interpolated tracking
+    return model, problems, paired, data
 
 
 def _refuse_repeats(problems: Sequence[Problem]) -> None:
@@ -178,29 +154,6 @@ def _refuse_repeats(problems: Sequence[Problem]) -> None:
             if q.y is not None and p.y is not None and q.y.shape == p.y.shape and np.array_equal(q.y, p.y):
                 raise ValueError(f"flights {j + 1} ({q.source}) and {k + 1} ({p.source}) hold the same data: its "
                                  "information would count twice; give each flight once")
-
-
-def _noise_whitened(problems: Sequence[Problem], noise: Any):
-    """Each flight's rows as every method solves them under the noise request `noise` (a NoiseSpec): its own
-    noise model, robustly cleaned when asked (:func:`casep.workflows.solve.rows_for`); returns the solved
-    problems and the rows."""
-    from casep.workflows.solve import rows_for
-
-    rows = [rows_for(p, noise) for p in problems]
-    return [r.solved for r in rows], rows
-
-
-def _sigmas(problems: Sequence[Problem], sigma) -> list[float]:
-    """Each flight's noise std: given, or its own least-squares residual std."""
-    if sigma is None:
-        return [float(np.sqrt(p.ls_rss() / (p.m - p.rank().rank))) for p in problems]
-    values = [sigma] * len(problems) if np.ndim(sigma) == 0 else list(sigma)
-    if len(values) != len(problems):
-        raise ValueError(f"`sigma` has {len(values)} values for {len(problems)} flights")
-    for k, v in enumerate(values):
-        if not (isinstance(v, (int, float, np.floating)) and np.isfinite(v) and v > 0):
-            raise ValueError(f"`sigma` of flight {k + 1} must be finite and > 0, got {v!r}")
-    return [float(v) for v in values]
 
 
 def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
@@ -315,7 +268,7 @@ def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float]
         Wp, _, _, prior_std = prior_information(prior, model.names)
     problems = [fl if isinstance(fl, Problem) else
                 flight_problem(fl if isinstance(fl, FlightData) else read_flight(fl), model) for fl in flights]
-    sig = _sigmas(problems, sigma)
+    sig = flight_sigmas(problems, sigma)
     scales = dict(model.scales if scales is None else scales)
     alone = [diagnose(p, sigma=s, scales=scales) for p, s in zip(problems, sig)]
     out: dict[str, Any] = {"flights": list(_labels(problems)), "sigmas": sig}

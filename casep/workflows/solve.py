@@ -7,6 +7,16 @@ hold in coloured noise and with glitches, and every method of a comparison sees 
 
 Residuals are reported on the raw rows (``dv - S_V D``) of every sample.
 
+Several flights (:class:`~casep.regression.joint.Flights`) go through the same entry point :func:`fit`:
+every rule of the request applies to each flight as it does to one flight alone (de-noising with each
+flight's own wavelet sigma, the noise model per flight and axis, the robust fit and the outlier exclusion
+on each flight's own rows, or a method's own rows: GLS whitens each flight by its own tau); the flights
+are then combined into one whitened :class:`~casep.regression.joint.JointProblem` over
+``theta = [shared, per-flight(1), ..., per-flight(K)]`` (:func:`joint_rows`) and solved by the method.
+On the joint result: HAC std (Newey-West within each flight, never across two), the studentized outlier
+flags (each named by its flight) and, per flight, one flight's residual checks (noise-free data,
+outliers, time offset, a given sigma) on that flight's own residuals ``dv_k - S_k P_k theta``.
+
 ``std="hac"`` replaces a white-noise least-squares fit's std by the Newey-West sandwich
 (:func:`hac_covariance`).
 """
@@ -14,6 +24,7 @@ Residuals are reported on the raw rows (``dv - S_V D``) of every sample.
 from __future__ import annotations
 
 import dataclasses
+import types
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Mapping
@@ -26,12 +37,14 @@ from casep.estimators.spec import STD_CHOICES, FitSpec, NoiseSpec
 from casep.exceptions import NoiseNotWhiteWarning
 from casep.noise.model import NoiseModel
 from casep.noise.whiteness import ALPHA_FITTED, default_lags, find_gaps, whiteness_test
+from casep.regression.joint import Flights, JointProblem
 from casep.regression.problem import Problem
 from casep.regression.rows import Rows, prepare_rows
 
 # Rows and prepare_rows live in casep.regression.rows (the data's), re-exported here beside solve_problem
-__all__ = ["fit", "rows_for", "solve_problem", "solve_spec", "noise_account", "prepare_rows", "Rows", "Solved",
-           "hac_covariance", "STD_CHOICES"]
+__all__ = ["fit", "fit_flights", "joint_rows", "JointRows", "flight_sigmas", "rows_for", "solve_problem",
+           "solve_spec", "noise_account", "prepare_rows", "Rows", "Solved", "hac_covariance", "with_hac",
+           "STD_CHOICES"]
 
 
 @dataclass
@@ -63,8 +76,11 @@ def _x(res: EstimateResult) -> np.ndarray:
     return np.where(np.isnan(res.estimate), 0.0, res.estimate)
 
 
-def fit(problem: Problem, spec: FitSpec, *, rows: Rows | None = None, checks: bool = True) -> EstimateResult:
+def fit(problem: Problem | Flights, spec: FitSpec, *, rows: Rows | JointRows | None = None,
+        checks: bool = True) -> EstimateResult:
     """Fit `problem` as `spec` asks: the one entry point of every path (one flight, several, demo, Monte Carlo, ...).
+
+    Several flights (a :class:`~casep.regression.joint.Flights`): :func:`fit_flights`, the same rules on each.
 
     De-noise if asked (:func:`casep.noise.denoise.denoise`; sigma then the wavelet's estimate of
     the raw noise unless given), solve the rows under the noise model (:func:`solve_spec`), check the
@@ -90,6 +106,10 @@ def fit(problem: Problem, spec: FitSpec, *, rows: Rows | None = None, checks: bo
     """
     from casep.checks.plausibility import check_fit, check_sigma
 
+    if isinstance(problem, Flights):
+        assert rows is None or isinstance(rows, JointRows)
+        return fit_flights(problem, spec, rows=rows, checks=checks)
+    assert rows is None or isinstance(rows, Rows)
     if not problem.has_rows:
         raise ValueError("`flight` is a reduction-only Problem: a fit needs the flight's rows")
     solved, den, sigma, from_wavelet = problem, None, spec.sigma, False
@@ -183,7 +203,7 @@ def solve_spec(problem: Problem, spec: FitSpec, *, rows: Rows | None = None, che
     if robust_sigma:  # found, not given: settings keep the input (none given), the value is res.sigma
         res = dataclasses.replace(res, sigma_source="robust", settings={**res.settings, "sigma": "estimated"})
     if ns.std == "hac":
-        res = _with_hac(res, rows.solved)
+        res = with_hac(res, rows.solved)
     return Solved(_finish(rows, res, check_white), rows.solved, rows.noise, np.flatnonzero(~rows.keep),
                   rows.weights)
 
@@ -266,21 +286,24 @@ def hac_covariance(problem: Problem, x: np.ndarray, lags: int | None = None) -> 
 
     with lags in samples (``L`` default ``floor(4 (N / 100)^(2/9))``). Equal to statsmodels'
     ``cov_type="hac-panel"`` with the axis as the group, Bartlett kernel and no small-sample
-    correction (tested).
+    correction (tested). Several flights stacked (a problem's ``segment_starts``): each flight's lag
+    products within that flight only (``L`` by its own length), summed into ``Omega``.
     """
     N = problem.n_samples
-    L = default_lags(N) if lags is None else int(lags)
     S = problem.sv()  # (N, 3, n)
-    r = problem.residuals(x)  # (N, 3)
+    r = problem.residuals(x).reshape(-1, 3)  # (N, 3)
     n = S.shape[-1]
     c = np.where(problem.red.scale > 0, problem.red.scale, 1.0)
     Omega = np.zeros((n, n))
-    for a in range(3):
-        g = S[:, a, :] * r[:, a, None] / c  # scores on the scaled columns
-        Omega += g.T @ g
-        for lag in range(1, L + 1):
-            G = g[lag:].T @ g[:-lag]
-            Omega += (1.0 - lag / (L + 1.0)) * (G + G.T)
+    ends = list(problem.segment_starts[1:]) + [N]
+    for start, end in zip(problem.segment_starts, ends):  # several flights: lags within each flight only
+        L = default_lags(end - start) if lags is None else int(lags)
+        for a in range(3):
+            g = S[start:end, a, :] * r[start:end, a, None] / c  # scores on the scaled columns
+            Omega += g.T @ g
+            for lag in range(1, min(L, end - start - 1) + 1):
+                G = g[lag:].T @ g[:-lag]
+                Omega += (1.0 - lag / (L + 1.0)) * (G + G.T)
     ra = problem.rank()
     V, inv_s = ra.pinv_factors()
     B = (V * inv_s**2) @ V.T  # (Z^T Z)^+ = R^+ R^+T on the scaled columns
@@ -288,7 +311,8 @@ def hac_covariance(problem: Problem, x: np.ndarray, lags: int | None = None) -> 
     return cov_s / np.outer(c, c)
 
 
-def _with_hac(res: EstimateResult, solved: Problem) -> EstimateResult:
+def with_hac(res: EstimateResult, solved: Problem) -> EstimateResult:
+    """`res` with its covariance and std replaced by the Newey-West ones (:func:`hac_covariance`)."""
     cov = hac_covariance(solved, _x(res))
     und = np.isnan(res.estimate)
     cov[und, :] = np.nan
@@ -354,3 +378,169 @@ def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], robust: 
     res = dataclasses.replace(res, diagnostics=diag, settings={**res.settings, "noise": "gm"}, residuals=raw,
                               n_samples=problem.n_samples)
     return Solved(res, sub, nm, np.zeros(0, dtype=int) if rows is None else np.flatnonzero(~rows.keep))
+
+
+# --------------------------------------------------------------------------- several flights
+@dataclass
+class JointRows:
+    """Several flights' rows as a method solves them (:func:`joint_rows`), prepared once.
+
+    Attributes
+    ----------
+    joint : JointProblem
+        The whitened joint problem (each flight divided by its sigma).
+    rows : list of Rows or None
+        Each flight's noise rows (noise model, robust weights, removed samples); None when the method
+        makes its own rows (GLS).
+    state : Any
+        What the method's own rows hand to its ``finish`` hook (GLS: the flights' tau).
+    denoised : list of dict or None
+        Each flight's de-noising (:meth:`casep.noise.denoise.DenoiseResult.to_dict`) when asked.
+    sigma_given : bool
+        The flights' sigma were given (the request's, or the de-noising's estimates), not their residuals'.
+    """
+
+    joint: JointProblem
+    rows: list | None
+    state: Any
+    denoised: list[dict] | None
+    sigma_given: bool
+
+
+def joint_rows(flights: Flights, spec: FitSpec, sigma: Any = None) -> JointRows:
+    """Each flight's rows under `spec` (de-noised if asked, its noise model and robust cleaning, or the method's
+    own rows), weighted by its sigma (`sigma`: one per flight or one for all, else the request's, the wavelet's
+    estimate, or its own least-squares residual std) and combined into one
+    :class:`~casep.regression.joint.JointProblem`."""
+    hooks = METHODS[spec.method].flights
+    assert hooks is not None  # refused by fit_flights
+    problems, denoised = list(flights.problems), None
+    sigma = spec.sigma if sigma is None else sigma
+    if spec.noise.denoise == "wavelet":
+        from casep.noise.denoise import denoise as wavelet_denoise
+
+        dens = [wavelet_denoise(p._need_rows(), **dict(spec.noise.wavelet_options)) for p in problems]
+        problems = [p.with_y(d.dv) for p, d in zip(problems, dens)]
+        denoised = [d.to_dict() for d in dens]
+        if sigma is None:  # raw-noise sigma of each flight, not its post-de-noising residuals
+            sigma = [float(np.sqrt(np.mean(d.sigma**2))) for d in dens]
+    state: Any = None
+    rows = None
+    if hooks.rows is not None:  # the method's own rows (GLS: each flight whitened by its own tau)
+        solved, state = hooks.rows(problems, dict(spec.options), spec.noise.kind, spec.noise.robust)
+    else:
+        rows = [rows_for(p, spec.noise) for p in problems]
+        solved = [r.solved for r in rows]
+    jp = JointProblem(solved, flight_sigmas(solved, sigma), flights.layout, raw=flights.problems,
+                      interpolated=flights.interpolated)
+    return JointRows(jp, rows, state, denoised, sigma is not None)
+
+
+def flight_sigmas(problems, sigma) -> list[float]:
+    """Each flight's noise std: given (one for all, or one per flight), or its own least-squares residual std
+    ``sqrt(RSS_k / (m_k - rank_k))``."""
+    if sigma is None:
+        return [float(np.sqrt(p.ls_rss() / (p.m - p.rank().rank))) for p in problems]
+    values = [sigma] * len(problems) if np.ndim(sigma) == 0 else list(sigma)
+    if len(values) != len(problems):
+        raise ValueError(f"`sigma` has {len(values)} values for {len(problems)} flights")
+    for k, v in enumerate(values):
+        if not (isinstance(v, (int, float, np.floating)) and np.isfinite(v) and v > 0):
+            raise ValueError(f"`sigma` of flight {k + 1} must be finite and > 0, got {v!r}")
+    return [float(v) for v in values]
+
+
+def fit_flights(flights: Flights, spec: FitSpec, *, rows: JointRows | None = None,
+                checks: bool = True) -> EstimateResult:
+    """Fit several flights as `spec` asks (module notes); :func:`casep.workflows.solve.fit` of a :class:`Flights`.
+
+    Parameters
+    ----------
+    flights : Flights
+    spec : FitSpec
+        Its sigma, when set, is every flight's (one per flight: :func:`joint_rows`' `sigma`).
+    rows : JointRows, optional
+        Prepared before (:func:`joint_rows`): its joint problem is the one solved (the caller keeps it for
+        the flights' summary).
+    checks : bool, optional
+        False: the estimate and its std only, without each flight's residual checks.
+
+    Returns
+    -------
+    EstimateResult
+        Over the joint parameters (names ``name`` for shared, ``name[label]`` per flight), std from the
+        whitened system (``sigma_source`` "whitened").
+    """
+    meth = METHODS[spec.method]
+    hooks = meth.flights
+    if hooks is None:
+        joint = [k for k, m in METHODS.items() if m.flights is not None]
+        raise ValueError(f"method `{spec.method}` cannot be estimated jointly; use one of {', '.join(joint)}")
+    if rows is None:
+        rows = joint_rows(flights, spec)
+    jp = rows.joint
+    by = hooks.solve_as or meth
+    kw = {k: v for k, v in {**dict(spec.options), **dict(spec.keywords)}.items()
+          if k in by.options or k in {o.name for o in by.keywords}}
+    res = by.solve(jp, sigma=hooks.sigma, **kw)
+    settings = {**res.settings, "sigma": "per flight" if not rows.sigma_given else "given per flight"}
+    res = dataclasses.replace(res, sigma_source="whitened", settings=settings)
+    if spec.noise.std == "hac":
+        res = with_hac(res, jp)
+    if rows.rows is not None:
+        res = _noise_account(res, rows, spec.noise.kind)
+    if rows.denoised is not None:
+        res = dataclasses.replace(res, denoise={"flights": dict(zip(jp.layout.labels, rows.denoised))})
+    if checks:
+        _check_flights(res, rows, spec)
+    if spec.outliers is not None:
+        res = _flag_outliers(res, jp, spec.outliers)
+    if hooks.finish is not None:
+        res = hooks.finish(res, jp, rows.state, dict(spec.options))
+    return res
+
+
+def _noise_account(res: EstimateResult, rows: JointRows, kind: str) -> EstimateResult:
+    """Each flight's noise account (:func:`casep.workflows.solve.noise_account`), by its label."""
+    per_flight = {}
+    assert rows.rows is not None
+    for lab, rw in zip(rows.joint.layout.labels, rows.rows):
+        acc = noise_account(rw, kind)
+        per_flight[lab] = {**acc["noise"], **{k: acc[k] for k in ("robust", "excluded") if k in acc}}
+    return dataclasses.replace(res, diagnostics={**res.diagnostics, "noise": per_flight},
+                               settings={**res.settings, "noise": kind})
+
+
+def _check_flights(res: EstimateResult, rows: JointRows, spec: FitSpec) -> None:
+    """One flight's residual checks on each flight (:func:`casep.checks.plausibility.check_fit`): its own
+    residuals under the joint estimate, its removed samples left out; a given sigma against its residuals."""
+    from casep.checks.plausibility import check_fit, check_sigma
+
+    jp = rows.joint
+    x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
+    robust = "robust" in res.diagnostics or any(
+        isinstance(v, dict) and "robust" in v for v in (res.diagnostics.get("noise") or {}).values())
+    for k, p in enumerate(jp.raw):
+        est = types.SimpleNamespace(estimate=x[jp.layout.columns(k)], names=p.names)  # flight k's coefficients
+        excluded = None if rows.rows is None else np.flatnonzero(~rows.rows[k].keep)
+        check_fit(p, p._need_rows(), est, t=p.t, f=p.f, source=p.source,  # type: ignore[arg-type]
+                  outliers_handled=robust or spec.noise.exclude_outliers is not None, excluded=excluded)
+        if rows.sigma_given and rows.denoised is None:
+            check_sigma(p, float(jp.sigmas[k]), source=p.source)
+
+
+def _flag_outliers(res: EstimateResult, jp: JointProblem, alpha: float) -> EstimateResult:
+    """Studentized residuals of the joint whitened rows, each flagged row named by its flight and its sample
+    there (the stacked rows are flight after flight)."""
+    from casep.regression.outliers import flag_outliers
+
+    flags = flag_outliers(jp, alpha=alpha).to_dict()
+    starts = np.asarray(jp.segment_starts)
+    named = []
+    for r in flags.get("rows", []):
+        k = int(np.searchsorted(starts, r["sample"], side="right") - 1)
+        sample = int(r["sample"] - starts[k])
+        loc = jp.raw[k].locate([sample])[0]
+        named.append({**r, **loc, "flight": jp.layout.labels[k], "flight_sample": sample})
+    flags["rows"] = named
+    return dataclasses.replace(res, diagnostics={**res.diagnostics, "outliers_studentized": flags})

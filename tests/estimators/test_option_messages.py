@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+import casep
 from casep.cli import main
 from casep.estimators.spec import FitSpec
 
@@ -69,3 +70,40 @@ def test_cli_and_api_say_the_same(capsys):
         main(["separate", str(EXAMPLE), "--sigma", "-1"])
     assert ex.value.code == 2
     assert capsys.readouterr().err.strip().endswith(str(e.value))
+
+
+AXIS_FORM = re.compile(r"option --tau \(`tau`\) for axis (\w+) must be .+, got (.+)")
+
+
+@pytest.mark.parametrize(("tau", "axis", "got"), [((1.0, -2.0, 1.0), "y", "-2.0"), ([1, 2, "a"], "z", "'a'"),
+                                                  ({"x": 1.0, "y": 2.0, "z": 0.0}, "z", "0.0")],
+                         ids=["tuple", "list", "mapping"])
+def test_a_bad_tau_of_one_axis_is_named_by_its_axis(tau, axis, got):
+    """Per-axis tau (the noise model's: a tuple, a list or a mapping by axis) refused naming the axis and its value."""
+    with pytest.raises(ValueError) as e:
+        FitSpec.build("ols", tau=tau)
+    m = AXIS_FORM.fullmatch(str(e.value))
+    assert m is not None and m.groups() == (axis, got), str(e.value)
+
+
+def test_a_bad_tau_of_one_axis_on_the_command_line(capsys):
+    """``--tau 1,-2,1``: three values for the noise model, the one of axis y refused in the API's words."""
+    with pytest.raises(ValueError) as e:
+        FitSpec.build("ols", tau=(1.0, -2.0, 1.0))
+    assert main(["separate", str(EXAMPLE), "--tau", "1,-2,1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].endswith(str(e.value)), err
+
+
+def test_tau_has_one_owner_wherever_it_is_given():
+    """One rule: GLS owns tau (its option), every other method's tau is the noise model's, as a keyword or in
+    `options`; given both ways it is refused whatever the values."""
+    for where in ({"tau": 2.0}, {"options": {"tau": 2.0}}):
+        gls, ols = FitSpec.build("gls", **where), FitSpec.build("ols", **where)
+        assert (gls.options.get("tau"), gls.noise.tau) == (2.0, None)
+        assert (ols.options.get("tau"), ols.noise.tau, ols.noise.kind) == (None, 2.0, "gm")
+    assert FitSpec.build("ols", options={"tau": "auto"}).noise.tau is None
+    assert FitSpec.build("ols", tau=(1.0, 2.0, 3.0)).noise.tau == (1.0, 2.0, 3.0)
+    for method in ("ols", "gls"):
+        with pytest.raises(ValueError, match="given both"):
+            FitSpec(method, {"tau": 2.0}, noise=casep.NoiseSpec(tau=2.0))

@@ -314,7 +314,8 @@ def test_noise_options_refused_with_a_reason(range_problem):
         casep.separate(pb, std="hac")  # noise auto: HAC is for white-noise fits
     with pytest.raises(ValueError, match=r"option --tau \(`tau`\) given with option --noise \(`noise`\) 'white'"):
         casep.separate(pb, noise="white", tau=1.0)
-    with pytest.raises(ValueError, match=r"option --tau \(`tau`\) must be a number in \(0, 1e4\] s.*got \[1.0, -1.0"):
+    with pytest.raises(ValueError,
+                       match=r"option --tau \(`tau`\) for axis y must be a number in \(0, 1e4\] s.*got -1.0$"):
         casep.separate(pb, noise="gm", tau=[1.0, -1.0, 1.0])
 
 

@@ -70,7 +70,7 @@ def test_bad_input():
     a = _flight(1, 0.0, 0.1)
     with pytest.raises(ValueError, match="two or more"):
         separate_flights([a.flight], a.model)
-    with pytest.raises(ValueError, match="jointly"):
+    with pytest.raises(ValueError, match="option --method"):
         separate_flights([a.flight, a.flight], a.model, "lasso")
 
 
@@ -124,7 +124,10 @@ def test_cli_several_flights_json(two, tmp_path):
     assert [f["file"] for f in d["flights"]] == paths
     assert abs(d["flights"][0]["coefficients"][0]["estimate"] - 20.0) < 5 * d["flights"][0]["coefficients"][0]["std"]
     assert len(d["covariance"]) == 36 and d["consistency"]["overall"]["dof"] > 0
-    assert main(["separate", *paths, "--model", "platform36_timeoffset", "--denoise", "wavelet"]) == 2
+    assert main(["separate", *paths, "--model", "platform36_timeoffset", "--denoise", "wavelet", "--json",
+                 str(out)]) == 0  # the request's rules apply to each flight (de-noised with its own sigma)
+    d = json.loads(out.read_text())
+    assert set(d["denoise"]["flights"]) == {Path(p).name for p in paths}
 
 
 def test_monte_carlo_joint_ols_efficiency_and_coverage(two, rng):
@@ -536,3 +539,64 @@ def test_a_registered_method_works_jointly_through_its_declaration(two):
     np.testing.assert_allclose(res.estimate, ref.estimate, rtol=1e-12)
     np.testing.assert_allclose(res.std, ref.std, rtol=1e-12)
     assert "ls_copy" not in registry.METHODS
+
+
+def _stacked(jp, res):
+    """Independent whitened rows of the joint fit: each flight's S_V P_k / sigma_k and dv_k / sigma_k (the rows the
+    method solved: under white noise the flight's own)."""
+    out = []
+    for k, (p, s) in enumerate(zip(jp.problems, jp.sigmas)):
+        S = np.zeros(p.sv().shape[:2] + (len(res.names),))
+        S[..., jp.layout.columns(k)] = p.sv() / s
+        out.append((S, p._need_rows().reshape(-1, 3) / s))
+    return out
+
+
+def test_hac_std_of_several_flights_are_newey_west_within_each_flight(two):
+    """std='hac' with several flights: the sandwich (A^T A)^-1 Omega (A^T A)^-1 of the stacked whitened rows, Omega
+    summed over the flights with lag products inside each flight only (built here with numpy, independently)."""
+    from casep.noise.whiteness import default_lags
+
+    a, b = two
+    res, jp = _quiet(separate_flights, [a.flight, b.flight], a.model, "ols", noise="white", robust="none", std="hac")
+    assert res.settings["std"] == "hac"
+    blocks = _stacked(jp, res)
+    A = np.concatenate([S.reshape(-1, S.shape[-1]) for S, _ in blocks])
+    c = np.linalg.norm(A, axis=0)  # columns scaled: the regression is ill-conditioned (cond ~4e5)
+    Rinv = np.linalg.inv(np.linalg.qr(A / c, mode="r"))
+    Ainv = Rinv @ Rinv.T  # (Z^T Z)^-1 of the scaled columns Z = A / c
+    omega = np.zeros_like(Ainv)
+    for S, y in blocks:
+        r = y - S @ res.estimate
+        L = default_lags(S.shape[0])
+        for ax in range(3):
+            g = S[:, ax, :] * r[:, ax, None] / c
+            omega += g.T @ g
+            for lag in range(1, L + 1):
+                G = g[lag:].T @ g[:-lag]
+                omega += (1 - lag / (L + 1)) * (G + G.T)
+    ref = Ainv @ omega @ Ainv / np.outer(c, c)
+    np.testing.assert_allclose(res.std, np.sqrt(np.diag(ref)), rtol=1e-6)
+
+
+def test_exclusion_flags_and_checks_of_one_flight_apply_to_each_flight(two):
+    """exclude_outliers removes a gross glitch of flight 2 on its own rows (named there); outliers flags name the
+    flight; each flight's residual checks run (a flight with a glitch and no robust fit is warned about by name)."""
+    a, b = two
+    dv = b.flight.dv.copy()
+    dv[300, 2] += 40 * 0.2  # one sample 40 sigma off in flight 2
+    bad = dataclasses.replace(b.flight, dv=dv, source="bad.csv")
+    spec = casep.FitSpec.build("ols", noise="white", robust="none", exclude_outliers=0.01, outliers=0.01)
+    res, jp = _quiet(separate_flights, [a.flight, bad], a.model, spec=spec)
+    label = jp.layout.labels[1]
+    excluded = res.diagnostics["noise"][label]["excluded"]["samples"]
+    assert [r["sample"] for r in excluded] == [300]
+    assert res.diagnostics["noise"][jp.layout.labels[0]]["excluded"]["samples"] == []  # flight 1's own rows: none
+    assert res.diagnostics["outliers_studentized"]["rows"] == []  # removed before the joint fit: none left
+    flag = casep.FitSpec.build("ols", noise="white", robust="none", outliers=0.01)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        flagged, _ = separate_flights([a.flight, bad], a.model, spec=flag)
+    assert any(issubclass(w.category, casep.OutlierWarning) and "bad.csv" in str(w.message) for w in caught)
+    rows = flagged.diagnostics["outliers_studentized"]["rows"]
+    assert (rows[0]["flight"], rows[0]["flight_sample"], rows[0]["axis"]) == (label, 300, "z")
