@@ -220,9 +220,9 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
     With ``grid="tracking"`` a tracking time closer to a telemetry time than
     :data:`~casep.io.flight.DUPLICATE_STEP` times the median step of the merged grid is that sample
     (its dv is still evaluated at the tracking time; :func:`_merge_times`), so the grid holds no
-    near-duplicate time tag of casep's making; the others are inserted, with ``f`` and the signals linearly interpolated (S_V integrates
-    ``f`` by the trapezoid rule, so a linearly interpolated sample leaves its first-order terms
-    unchanged). Tracking samples outside the telemetry span are dropped (counted in
+    near-duplicate time tag of casep's making; the others are inserted, with ``f`` and the signals
+    linearly interpolated (S_V integrates ``f`` by the trapezoid rule, so a linearly interpolated
+    sample leaves its first-order terms unchanged). Tracking samples outside the telemetry span are dropped (counted in
     ``meta["tracking_dropped"]``).
     """
     from scipy.interpolate import CubicSpline
@@ -288,7 +288,7 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
 
 
 def _merge_times(t_tel: np.ndarray, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The merged grid of telemetry times `t_tel` and tracking times `tt`, each tracking time's row, which are on a sample.
+    """The merged grid of telemetry times `t_tel` and tracking times `tt`; each tracking time's row; which are samples.
 
     A tracking time within ``tol = DUPLICATE_STEP * median(diff(t))`` (at least 1e-9 s) of its nearest
     telemetry sample is that sample; the others are inserted. ``t`` depends on ``tol`` and ``tol`` on

@@ -20,7 +20,6 @@ import pytest
 
 from casep.navigation.strapdown import (
     body_velocity_increments,
-    dcm_to_quat,
     increments_from_deltas,
     increments_from_rates,
     propagate_attitude,
@@ -28,7 +27,6 @@ from casep.navigation.strapdown import (
     quat_from_rotvec,
     quat_multiply,
     quat_rotate,
-    quat_to_dcm,
 )
 
 ALPHA, W = math.radians(1.0), 2 * math.pi * 10.0  # a 1 deg cone at 10 Hz
