@@ -72,7 +72,7 @@ from casep.exceptions import (
     SetupWarning,
     TimeOffsetWarning,
 )
-from casep.io.flight import DV_COLUMNS, FlightData, FlightDataError
+from casep.io.flight import DUPLICATE_STEP, DV_COLUMNS, FlightData, FlightDataError  # DUPLICATE_STEP: the one rule
 from casep.regression.problem import NOISE_FREE, is_rounding_level  # NOISE_FREE re-exported: the one constant
 from casep.units import G0
 
@@ -85,7 +85,6 @@ __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enou
 F_PEAK_LOW, F_PEAK_HIGH, F_PEAK_IMPOSSIBLE = G0, 100.0 * G0, 1e4 * G0
 # Time: telemetry is sampled at 1 Hz .. 10 kHz; nothing is sampled at 1 MHz; boosts last < 1 h.
 STEP_LOW, STEP_HIGH, STEP_IMPOSSIBLE, DURATION_HIGH = 1e-4, 1.0, 1e-6, 3600.0
-DUPLICATE_STEP = 1e-3  # a step below this fraction of the median is a near-duplicate time tag
 DW_HIGH = 2e4  # m/s: no rocket flight gains more than ~20 km/s of specific-force velocity
 DV_NOISE_HIGH = 5.0  # m/s: tracking noise is 0.01-1 m/s
 OUTLIER_Z = 10.0  # robust sigma of the spike statistic; Gaussian P(|z| > 10) ~ 1.5e-23

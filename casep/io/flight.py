@@ -22,11 +22,17 @@ import numpy as np
 
 from casep.exceptions import CasepWarning
 
-__all__ = ["FlightData", "FlightDataError", "LateStartWarning", "MAX_ABS_VALUE", "too_large"]
+__all__ = ["FlightData", "FlightDataError", "LateStartWarning", "MAX_ABS_VALUE", "DUPLICATE_STEP", "too_large"]
 
 AXES = ("x", "y", "z")
 FORCE_COLUMNS = tuple(f"f_{a}" for a in AXES)
 DV_COLUMNS = tuple(f"dv_{a}" for a in AXES)
+
+#: A time step below this fraction of the median step is a near-duplicate time tag: the plausibility
+#: check warns on one (:func:`casep.checks.plausibility.check_flight`), and a telemetry + tracking merge
+#: (:func:`casep.io.pair.pair_flight`) takes a tracking epoch that close to a telemetry sample for that
+#: sample, so the grid casep builds never holds one.
+DUPLICATE_STEP = 1e-3
 
 #: Largest magnitude accepted in any flight column (t, f, W, dv, v_tel, v_trk), SI units.
 #: S_V holds products up to third order in f (the [f x] Phi term with Phi ~ int W^2 dt) and

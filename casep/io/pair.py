@@ -13,7 +13,7 @@ import os
 
 import numpy as np
 
-from casep.io.flight import FlightData
+from casep.io.flight import DUPLICATE_STEP, FlightData
 from casep.io.tables import VTRK_COLUMNS, Table
 
 __all__ = ["pair_flight", "PAIR_GRIDS", "STATE_SIGNALS", "GAP_FACTOR", "GAP_MIN_S", "MAX_TIME_OFFSET",
@@ -227,10 +227,12 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
 
     Notes
     -----
-    With ``grid="tracking"`` a tracking time within 1e-9 s of a telemetry time is that sample;
-    the others are inserted, with ``f`` and the signals linearly interpolated (S_V integrates
-    ``f`` by the trapezoid rule, so a linearly interpolated sample leaves its first-order terms
-    unchanged). Tracking samples outside the telemetry span are dropped (counted in
+    With ``grid="tracking"`` a tracking time closer to a telemetry time than
+    :data:`~casep.io.flight.DUPLICATE_STEP` times the median step of the merged grid is that sample
+    (its dv is still evaluated at the tracking time; :func:`_merge_times`), so the grid holds no
+    near-duplicate time tag of casep's making; the others are inserted, with ``f`` and the signals
+    linearly interpolated (S_V integrates ``f`` by the trapezoid rule, so a linearly interpolated
+    sample leaves its first-order terms unchanged). Tracking samples outside the telemetry span are dropped (counted in
     ``meta["tracking_dropped"]``).
     """
     from scipy.interpolate import CubicSpline
@@ -269,11 +271,7 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
             extra["gap_rows_left_out"] = int(np.count_nonzero(in_gap))
         tt = t_trk[use]
         t_keep = t_tel[keep]
-        j = np.clip(np.searchsorted(t_keep, tt), 1, t_keep.size - 1)
-        near = np.minimum(np.abs(t_keep[j] - tt), np.abs(t_keep[j - 1] - tt))
-        on = near <= 1e-9
-        t = np.union1d(t_keep, tt[~on])  # telemetry samples and the tracking times between them
-        idx = np.clip(np.searchsorted(t, tt - 1e-9), 0, t.size - 1)  # each tracking time's row
+        t, idx, on = _merge_times(t_keep, tt)
         observed = np.zeros(t.size, bool)
         observed[idx] = True
         dv = np.full((t.size, 3), np.nan)
@@ -297,6 +295,31 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
             "start_speed_m_s": float(np.linalg.norm(v_tel[0])),
             "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.checks.plausibility
     return FlightData(t, f_out, dv, source=source, meta=meta, observed=observed, signals=sig)
+
+
+def _merge_times(t_tel: np.ndarray, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The merged grid of telemetry times `t_tel` and tracking times `tt`; each tracking time's row; which are samples.
+
+    A tracking time within ``tol = DUPLICATE_STEP * median(diff(t))`` (at least 1e-9 s) of its nearest
+    telemetry sample is that sample; the others are inserted. ``t`` depends on ``tol`` and ``tol`` on
+    the median step of ``t``: iterated from 1e-9 s until ``tol`` no longer grows (matching more only
+    removes inserted rows, so ``tol`` rises monotonically; a pass or two). The plausibility check's
+    near-duplicate rule (:func:`casep.checks.plausibility.check_flight`) is the same one, so a merged
+    step below it comes from the files themselves (two telemetry or two tracking times that close).
+    """
+    j = np.clip(np.searchsorted(t_tel, tt), 1, t_tel.size - 1)
+    nearest = np.where(np.abs(t_tel[j] - tt) <= np.abs(t_tel[j - 1] - tt), j, j - 1)
+    gap = np.abs(t_tel[nearest] - tt)
+    tol = 1e-9
+    for _ in range(20):
+        on = gap <= tol
+        t = np.union1d(t_tel, tt[~on])  # telemetry samples and the tracking times between them
+        grown = DUPLICATE_STEP * float(np.median(np.diff(t))) if t.size > 1 else 0.0
+        if grown <= tol:
+            break
+        tol = grown
+    idx = np.searchsorted(t, np.where(on, t_tel[nearest], tt))  # each tracking time's row (its exact value is in t)
+    return t, idx, on
 
 
 def _valid_rows(t: np.ndarray, observed: np.ndarray, valid: np.ndarray, extra: dict, source: str) -> np.ndarray:

@@ -31,6 +31,7 @@ PUBLIC_MODULES = (
     "casep.navigation",
     "casep.frames",
     "casep.gravity",
+    "casep.rotations",
     "casep.units",
     "casep.exceptions",
     "casep.results",

@@ -136,6 +136,18 @@ def test_quaternion_matrix_matches_scipy():
         assert np.allclose(np.array(quaternion_dcm(*(-q))), C, atol=1e-14)  # q and -q: one attitude
 
 
+def test_symbolic_quaternion_matrix_is_the_numpy_one():
+    """CasADi's C(q) (divided by |q|^2) equals casep.rotations.quat_to_dcm of q/|q|, non-unit q too."""
+    from casep.model.strapdown import quaternion_dcm
+    from casep.rotations import quat_to_dcm
+
+    rng = np.random.default_rng(6)
+    q = rng.standard_normal((8, 4)) * rng.uniform(0.1, 10.0, (8, 1))  # |q| from ~0.1 to ~20
+    for qk in q:
+        C = np.array(quaternion_dcm(*qk))
+        assert np.abs(C - quat_to_dcm(qk / np.linalg.norm(qk))).max() < 1e-14
+
+
 @pytest.mark.parametrize("name, n, extra", [("strapdown33", 33, ()), ("strapdown12", 12, ()),
                                             ("strapdown15_phi0", 15, ("phi0_x", "phi0_z")),
                                             ("strapdown42_extended", 42, ("ka2_x", "phi0_x", "l_x"))])

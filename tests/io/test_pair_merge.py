@@ -1,0 +1,61 @@
+"""The tracking grid of a telemetry + tracking merge: no near-duplicate time tag of casep's making.
+
+A tracking epoch a rounding away from a telemetry sample (7e-8 s: time stamps written with fewer
+digits) is that sample; one between samples is inserted; two time tags that close in the user's own
+files still get the plausibility check's warning.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from casep.checks.plausibility import check_flight
+from casep.exceptions import PlausibilityWarning
+from casep.io.flight import DUPLICATE_STEP
+from casep.io.pair import pair_flight
+
+T0, RATE = 345600.0, 100.0  # GPS seconds of week, an IMU grid
+
+
+def _pair(t_tel, t_trk):
+    """A smooth motion seen by both: f = (1 + sin t, cos t, 0.1), v its integral plus a start speed."""
+    def v(t):
+        s = t - T0
+        return np.column_stack([5.0 + s - np.cos(s), np.sin(s), 0.1 * s])
+
+    f = np.column_stack([1.0 + np.sin(t_tel - T0), np.cos(t_tel - T0), np.full(t_tel.size, 0.1)])
+    return pair_flight(t_tel, f, v(t_tel), t_trk, v(t_trk), interpolation="linear")
+
+
+def _near_duplicate_warnings(flight):
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        check_flight(flight)
+    return [str(w.message) for w in rec
+            if issubclass(w.category, PlausibilityWarning) and "near-duplicate" in str(w.message)]
+
+
+def test_a_tracking_epoch_a_rounding_off_a_sample_is_that_sample():
+    t_tel = T0 + np.arange(3000) / RATE
+    on_grid = t_tel[50:2950:10] + 7e-8  # 10 Hz tracking, its stamps 7e-8 s off the IMU's
+    between = t_tel[55:2950:200] + 0.0033  # and some epochs between samples
+    t_trk = np.sort(np.concatenate([on_grid, between]))
+    fl = _pair(t_tel, t_trk)
+    assert fl.meta["inserted"] == between.size  # the on-grid epochs are samples, not new rows
+    assert fl.n_samples == np.count_nonzero(t_tel <= t_trk[-1]) + between.size  # telemetry to the end of tracking
+    assert np.abs(fl.t[fl.observed] - t_trk).max() <= 7e-8 + 1e-9  # each epoch on its own row
+    assert np.min(np.diff(fl.t)) >= DUPLICATE_STEP * np.median(np.diff(fl.t))
+    assert _near_duplicate_warnings(fl) == []
+
+
+def test_near_duplicate_time_tags_of_the_files_still_warn():
+    t_tel = T0 + np.arange(3000) / RATE
+    t_trk = t_tel[50:2950:10] + 7e-8
+    dup_tel = np.insert(t_tel, 1001, t_tel[1000] + 2e-7)  # the telemetry file's own near-duplicate
+    msgs = _near_duplicate_warnings(_pair(dup_tel, t_trk))
+    assert len(msgs) == 1 and "row 1002: time step 2e-07 s" in msgs[0]
+    extra = np.array([t_tel[700] + 0.004, t_tel[700] + 0.004 + 2e-7])  # the tracking file's own pair, between samples
+    msgs = _near_duplicate_warnings(_pair(t_tel, np.sort(np.concatenate([t_trk, extra]))))
+    assert len(msgs) == 1 and "time step 2e-07 s" in msgs[0]
