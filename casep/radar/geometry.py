@@ -165,9 +165,9 @@ class RadarGeometry:
         geo = np.empty((n, len(GEOMETRY_COLUMNS)))
         Ht = np.empty((n, 6, 4))
         for i, a in enumerate(args):
-            buf.set_arg(i, memoryview(a))  # type: ignore[arg-type]  # the byte size comes from the memoryview
-        buf.set_res(0, memoryview(geo))  # type: ignore[arg-type]
-        buf.set_res(1, memoryview(Ht))  # type: ignore[arg-type]
+            buf.set_arg(i, memoryview(a))  # type: ignore[arg-type, call-arg]  # size: the memoryview's
+        buf.set_res(0, memoryview(geo))  # type: ignore[arg-type, call-arg]
+        buf.set_res(1, memoryview(Ht))  # type: ignore[arg-type, call-arg]
         run()
         if no_acc:
             geo[:, GEOMETRY_COLUMNS.index("range_acceleration")] = np.nan
