@@ -136,7 +136,7 @@ def _draw(S, t, truth, seq, *, gm=True, glitches=0.0):
 
 @pytest.mark.montecarlo
 def test_auto_picks_white_on_white_noise_and_gauss_markov_on_gauss_markov(range_problem):
-    """At most 4 wrong choices in 40 seeds each (``benchmarks/mc_noise.py`` runs the whole flight).
+    """At most 4 wrong choices in 40 seeds each (``benchmarks/mc_noise.py`` prints the counts over 100 seeds).
 
     The likelihood-ratio test has size 1 % per axis: on white noise a seed goes wrong (some axis called
     Gauss-Markov) with probability p = 1 - 0.99^3 = 3 %, so 5 or more wrong in 40 has probability 0.6 %
