@@ -6,7 +6,7 @@ each design buys (objective, coefficients whose CRLB falls below their declared 
 figure of the largest budget, then flies that design (simulated, with noise) and separates it with
 OLS: the estimates' std reported by OLS is the design's CRLB.
 
-    python examples/maneuver_design.py [--quick] [--out DIR]   # --quick: 5 Hz flight, one start, one budget
+    python examples/maneuver_design.py [--quick] [--out DIR]   # --quick: 5 Hz flight, one start, one budget, 5 knots
 """
 
 # %%
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 import casep
-from casep.design.optimize import design
+from casep.design.optimize import DEFAULTS, design
 from casep.reporting.plots import plot_design
 from casep.simulation.simulate import simulate_flight
 
@@ -30,12 +30,13 @@ out.mkdir(parents=True, exist_ok=True)
 rate = 5.0 if args.quick else None  # None: the scenario's 100 Hz
 budgets = (10.0,) if args.quick else (2.0, 5.0, 10.0, 20.0)
 starts = 1 if args.quick else 4
+knots = 5 if args.quick else DEFAULTS["knots"]
 
 # %% designs at increasing angle budgets (lateral limit 2 g: the angle is the binding budget)
 results = {}
 for angle in budgets:
     r = design("paper", maneuver="yaw", objective="A", max_angle=angle, max_rate=2.0, max_lateral=2.0,
-               rate=rate, starts=starts)
+               rate=rate, starts=starts, knots=knots)
     results[angle] = r
     new = [n for n in r.identifiable("after") if n not in r.identifiable("before")]
     print(f"max {angle:4.1f} deg: A {r.before:8.1f} -> {r.after:8.1f} ({r.solver['return_status']}, "

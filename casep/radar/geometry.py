@@ -91,6 +91,21 @@ def _shared_function() -> ca.Function:
     return _FUNCTION
 
 
+#: ``_function()`` mapped serially over n samples, by n (the parameter vector shared: ``reduce_in``);
+#: a fit evaluates the same few sample counts many times.
+_MAPPED: dict[int, ca.Function] = {}
+
+
+def _mapped_function(n: int) -> ca.Function:
+    """``_shared_function()`` mapped over `n` samples (built once per `n`, at most 32 kept)."""
+    f = _MAPPED.get(n)
+    if f is None:
+        if len(_MAPPED) >= 32:
+            _MAPPED.clear()
+        f = _MAPPED[n] = _shared_function().map("radar_h_map", "serial", n, [3], [])
+    return f
+
+
 class RadarGeometry:
     """Predicted measurements of one station for a launch site: ``h`` and ``H`` per sample.
 
@@ -140,12 +155,23 @@ class RadarGeometry:
     def _evaluate(self, t: np.ndarray, x: np.ndarray, acc: np.ndarray, p: np.ndarray,
                   no_acc: bool) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`evaluate` on the stacked state ``x = [r, v]`` with the parameter vector `p`."""
-        geo, H = _shared_function()(x.T, acc.T, (t - self.site.t0 - p[-1])[None, :], p[:-1])  # mapped over columns
-        geo = np.asarray(geo).T
+        # Evaluated through a CasADi FunctionBuffer straight into numpy arrays (converting the DM
+        # results element by element cost as much as the evaluation). CasADi is column-major: the
+        # mapped input x (6 x N) is the C-contiguous (N, 6) array, the output geometry (10 x N) is
+        # (N, 10), and H (4 x 6N, sample after sample) is (N, 6, 4).
+        n = t.size
+        buf, run = _mapped_function(n).buffer()
+        args = [np.ascontiguousarray(a, dtype=float) for a in (x, acc, t - self.site.t0 - p[-1], p[:-1])]
+        geo = np.empty((n, len(GEOMETRY_COLUMNS)))
+        Ht = np.empty((n, 6, 4))
+        for i, a in enumerate(args):
+            buf.set_arg(i, memoryview(a))  # type: ignore[arg-type, call-arg]  # size: the memoryview's
+        buf.set_res(0, memoryview(geo))  # type: ignore[arg-type, call-arg]
+        buf.set_res(1, memoryview(Ht))  # type: ignore[arg-type, call-arg]
+        run()
         if no_acc:
             geo[:, GEOMETRY_COLUMNS.index("range_acceleration")] = np.nan
-        H = np.asarray(H).reshape(4, t.size, 6).transpose(1, 0, 2)
-        return geo, H
+        return geo, Ht.transpose(0, 2, 1)
 
     def setup_jacobian(self, t: np.ndarray, r: np.ndarray, v: np.ndarray, a: np.ndarray | None = None,
                        *, station: bool = True, step_time: float = 0.01, step_position: float = 1.0) -> np.ndarray:
