@@ -11,6 +11,7 @@ Layer 4: depends on :mod:`casep.regression` (the problem judged), :mod:`casep.no
 - :mod:`casep.checks.diagnostics`: condition indices, variance decomposition, VIF, CRLB
 - :mod:`casep.checks.late_start`: tracking that starts after lift-off without the model's initial terms
 - :mod:`casep.checks.time_offset`: the tracking time-offset test
+- :mod:`casep.checks.saturation`: readings held at a sensor's full scale (calibration and navigation)
 """
 
 from casep._lazy import attach

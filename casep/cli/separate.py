@@ -26,6 +26,7 @@ def add_parser(sub: Any) -> None:
                         "reads it): navigated, paired with --tracking and separated; needs --launch-site, "
                         "--launch-time (the tracking file's time scale) and --align")
     flight_options.add_alignment(p, what="with --imu: ")
+    options.add_full_scales(p, "with --imu: the rows from the first clipped sample on are left out")
     p.add_argument("--iterate", action=argparse.BooleanOptionalAction, default=None,
                    help="with --imu: correct the IMU by the estimate, re-navigate, rebuild S_V and solve again "
                         "until every correction is below a tenth of its std (the stop rule of "
@@ -75,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
 
         return separate_radar(args, wopts)
     radar_only(args, ("tracking_model",))
+    ranges = options.full_scales(args)
     _imu_only(args)
     if args.model is None:
         args.model = "strapdown33" if args.imu else "platform36"
@@ -100,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
 
         spec = dataclasses.replace(spec, options={**spec.options, **tables})
     if args.imu:
-        return _separate_imu(args, spec)
+        return _separate_imu(args, spec, ranges)
     if len(args.flight) > 1:
         from casep.cli.separate_flights import separate_flights
 
@@ -132,6 +134,7 @@ def _imu_only(args: argparse.Namespace) -> None:
     if not args.imu:
         for flag, value in (("--align", args.align), ("--heading", args.heading), ("--iterate", args.iterate),
                             ("--max-iterations", args.max_iterations),
+                            ("--acc-range", args.acc_range), ("--gyr-range", args.gyr_range),
                             ("--heading-axis", None if args.heading_axis == "x" else args.heading_axis)):
             if value is not None:
                 raise ValueError(f"{flag} is used only with --imu IMU.csv")
@@ -146,7 +149,7 @@ def _imu_only(args: argparse.Namespace) -> None:
         raise ValueError(f"--tracking given {len(args.tracking)} times: --imu takes one tracking file")
 
 
-def _separate_imu(args: argparse.Namespace, spec: Any) -> int:
+def _separate_imu(args: argparse.Namespace, spec: Any, ranges: dict) -> int:
     """``casep separate --imu IMU.csv --tracking TRK.csv ...``: casep.workflows.imu_separate.separate_imu."""
     from casep.workflows.imu_separate import iteration_lines, separate_imu
 
@@ -155,7 +158,8 @@ def _separate_imu(args: argparse.Namespace, spec: Any) -> int:
         out = separate_imu(args.imu, args.tracking[0], site, tuple(args.align), args.model, heading_deg=args.heading,
                            heading_axis=args.heading_axis, spec=spec, iterate=args.iterate is not False,
                            max_iterations=args.max_iterations, tracking_frame=args.tracking_frame,
-                           grid=args.grid, time_offset=args.time_offset, time_shift=args.time_shift)
+                           grid=args.grid, time_offset=args.time_offset, time_shift=args.time_shift,
+                           **ranges)
     res, flight = out.result, out.flight
     prov = outputs.provenance(args, [flight], {"imu": args.imu})
     if args.json:
