@@ -1,16 +1,9 @@
 """Saturation of a hand-turned session: readings held at the sensor's full scale.
 
-A sensor saturates when its reading reaches the end of its range: the converter's limit for raw
-counts, or the nominal range of the part once converted to a physical unit. Quantised readings
-repeat values naturally (three equal counts at the smooth peak of a turn's rate), so a repeated
-value alone is no saturation. Here an axis saturates when
-
-- a run of at least ``min_run`` samples holds the column's extreme value (its maximum or minimum), and
-- that value is at a full scale (:func:`full_scale`): a declared one; else, for raw counts, a limit of
-  an ``b``-bit converter (unsigned ``0`` / ``2^b - 1``, signed ``-2^(b-1)`` / ``2^(b-1) - 1``, b in
-  ADC_BITS, within ``max(1, 2^b / 1000)`` counts and at least a tenth of the half range from the
-  column's median); for a physical unit, a nominal range of ACC_RANGES_G / GYR_RANGES_DPS within
-  FULL_SCALE_TOLERANCE.
+The rule is :func:`casep.checks.saturation.held_full_scale`, the one navigation uses too: a run of
+3 or more readings at a full scale (a declared one, within 1 % of it; else a converter's limit for raw
+counts, a nominal range for a physical unit, held at the column's extreme). This module turns the
+session's units into it and judges what a saturated reading spoils.
 
 Where it matters: a gyro clipped inside a motion integrates to a wrong turn (the result is no success);
 an accelerometer clipped inside a static pose gives a wrong pose mean (the pose is left out of the
@@ -26,92 +19,40 @@ import warnings
 import numpy as np
 
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT
+from casep.checks.saturation import (
+    ADC_BITS,
+    CLIP_RUN,
+    FULL_SCALE_UNITS,
+    NOMINAL_RANGES,
+    HeldFullScale,
+    check_full_scale,
+    held_full_scale,
+    held_mask,
+)
 from casep.exceptions import CasepWarning, SaturationWarning
 from casep.units import ACC_RANGES_G, FULL_SCALE_TOLERANCE, GYR_RANGES_DPS
 
-__all__ = ["SaturationWarning", "FullScaleWarning", "full_scale", "implied_full_scale", "saturated_runs",
+__all__ = ["SaturationWarning", "FullScaleWarning", "implied_full_scale", "saturated_runs",
            "check_gyro_saturation", "clipped_poses", "check_full_scale", "declared_range", "warn_implied_full_scale",
-           "ADC_BITS", "ACC_RANGES_G", "GYR_RANGES_DPS", "FULL_SCALE_TOLERANCE"]
-
-#: Word lengths of the converters raw counts come from.
-ADC_BITS = (8, 10, 12, 14, 16, 18, 20, 24, 32)
+           "ADC_BITS", "ACC_RANGES_G", "GYR_RANGES_DPS", "FULL_SCALE_TOLERANCE", "FULL_SCALE_UNITS"]
 
 
 class FullScaleWarning(CasepWarning):
     """Raw counts whose fitted scale implies another full scale than the one declared (both, and the ratio)."""
 
 
-#: The unit of each sensor's full scale at the edge (command line), and SI per that unit.
-FULL_SCALE_UNITS = {"accelerometer": ("g", ACC_UNITS["g"]), "gyro": ("deg/s", math.pi / 180.0)}
+def declared_range(full_scale_si: float | None, unit: str, sensor: str) -> float | None:
+    """The declared full scale to check the readings against, SI (m/s^2, rad/s): None when none is declared
+    or the readings are raw counts (their full scale is the converter's limit)."""
+    return None if unit == RAW_UNIT else full_scale_si
 
 
-def check_full_scale(value, name: str, flag: str, unit: str) -> float:
-    """A declared full scale (+-`value`, in `unit`): a finite number > 0, else the one option-error form."""
-    from casep.exceptions import refusal
-
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise refusal(name, flag, f"a finite number > 0 ({unit})", value) from None
-    if not (math.isfinite(v) and v > 0):
-        raise refusal(name, flag, f"a finite number > 0 ({unit})", value)
-    return v
-
-
-def declared_range(full_scale_si: float | None, unit: str, sensor: str) -> tuple[float, float] | None:
-    """The readings' range ``(-F, F)`` in their unit of a declared full scale F (SI: m/s^2, rad/s); None when none is
-    declared or the readings are raw counts (their full scale is the converter's limit, :func:`full_scale`)."""
-    if full_scale_si is None or unit == RAW_UNIT:
-        return None
-    f = (ACC_UNITS if sensor == "accelerometer" else GYR_UNITS)[unit]
-    return (-full_scale_si / f, full_scale_si / f)
-
-
-def full_scale(ext: float, side: str, column: np.ndarray, unit: str, sensor: str,
-               declared: tuple[float, float] | None = None) -> str | None:
-    """Why the column's extreme `ext` (its ``maximum`` or ``minimum``, `side`) is the sensor's full scale, or None.
-
-    `declared`: the readings' range ``(low, high)`` in their unit; a reading within 0.5 % of the span
-    of one end is at it. Else the module's rules for raw counts and physical units.
-    """
-    top = side == "maximum"
-    if declared is not None:
-        lo, hi = declared
-        end = hi if top else lo
-        return f"the declared full scale {end:g}" if abs(ext - end) <= 0.005 * (hi - lo) else None
-    if unit == RAW_UNIT:
-        med = float(np.median(column))
-        for b in ADC_BITS:
-            for rail, kind in (((2 ** b - 1, "unsigned"), (2 ** (b - 1) - 1, "signed")) if top
-                               else ((0, "unsigned"), (-(2 ** (b - 1)), "signed"))):
-                if abs(ext - rail) <= max(1.0, 2.0 ** b / 1000) and abs(ext - med) >= 0.1 * 2.0 ** (b - 1):
-                    return (f"the {kind} {b}-bit converter's limit {rail}" if rail else
-                            "the unsigned converter's limit 0")
-        return None
-    if (ext > 0) != top:
-        return None
-    table, ranges, name = ((ACC_UNITS, ACC_RANGES_G, "g") if sensor == "accelerometer"
-                           else (GYR_UNITS, GYR_RANGES_DPS, "deg/s"))
-    per = ACC_UNITS["g"] if name == "g" else math.pi / 180.0  # SI per unit of the nominal ranges
-    v = abs(ext) * table[unit] / per
-    near = min(ranges, key=lambda r: abs(v / r - 1.0))
-    return f"the nominal +-{near:g} {name} range" if abs(v / near - 1.0) <= FULL_SCALE_TOLERANCE else None
-
-
-def saturated_runs(x: np.ndarray, sensor: str, unit: str, declared: tuple[float, float] | None = None,
-                   min_run: int = 3) -> list[tuple[int, str, float, str, list[tuple[int, int]]]]:
+def saturated_runs(x: np.ndarray, sensor: str, unit: str, declared: float | None = None,
+                   min_run: int = CLIP_RUN) -> list[HeldFullScale]:
     """Per axis and side at full scale: ``(axis, side, value, why, runs)``, the runs of at least `min_run`
-    samples (start, end excluded) that hold the column's extreme value."""
-    from casep.calibration.segment import runs
-
-    out = []
-    for j in range(x.shape[1]):
-        for side, ext in (("maximum", float(x[:, j].max())), ("minimum", float(x[:, j].min()))):
-            long = [(a, b) for a, b in runs(x[:, j] == ext) if b - a >= min_run]
-            why = full_scale(ext, side, x[:, j], unit, sensor, declared) if long else None
-            if why:
-                out.append((j, side, ext, why, long))
-    return out
+    readings at it (:func:`casep.checks.saturation.held_full_scale` in the session's `unit`; `declared`: SI)."""
+    si = None if unit == RAW_UNIT else (ACC_UNITS if sensor == "accelerometer" else GYR_UNITS)[unit]
+    return held_full_scale(x, sensor, si=si, declared=declared, min_run=min_run)
 
 
 def _inside(found, intervals: list[tuple[int, int]], n: int):
@@ -123,7 +64,7 @@ def _inside(found, intervals: list[tuple[int, int]], n: int):
 
 
 def check_gyro_saturation(gyr: np.ndarray, motions: list[tuple[int, int]], unit: str, source: str,
-                          declared: tuple[float, float] | None = None) -> list[str]:
+                          declared: float | None = None) -> list[str]:
     """SaturationWarning for a gyro axis held at its full scale inside a motion (the turn is misread); the messages."""
     msgs = []
     for j, side, ext, why, long in _inside(saturated_runs(gyr, "gyro", unit, declared), motions, len(gyr)):
@@ -138,15 +79,17 @@ def check_gyro_saturation(gyr: np.ndarray, motions: list[tuple[int, int]], unit:
 
 
 def clipped_poses(acc: np.ndarray, poses: list[tuple[int, int]], unit: str, source: str,
-                  declared: tuple[float, float] | None = None) -> list[int]:
+                  declared: float | None = None) -> list[int]:
     """The poses in which an accelerometer axis is held at its full scale (their mean is wrong), with a
     SaturationWarning naming each: axis, value, why it is the full scale, the pose's rows and the fraction
     of its samples at it. Returns their indices."""
     bad: dict[int, list[str]] = {}
-    for j, side, ext, why, long in saturated_runs(acc, "accelerometer", unit, declared):
+    for h in saturated_runs(acc, "accelerometer", unit, declared):
+        j, side, ext, why, long = h
+        held = held_mask([h], acc.shape)[:, j]
         for i, (a, b) in enumerate(poses):
-            at = int(np.count_nonzero(acc[a:b, j] == ext))
-            if any(s < b and e > a for s, e in long):
+            at = int(np.count_nonzero(held[a:b]))
+            if at:
                 bad.setdefault(i, []).append(f"{'xyz'[j]} at its {side} {ext:.6g} ({why}) in {at / (b - a):.0%} "
                                              "of its samples")
     if bad:
@@ -170,8 +113,7 @@ def implied_full_scale(scales: np.ndarray, biases: np.ndarray, sensor: str, decl
     med = float(np.median(np.abs(biases)))
     bits = min(ADC_BITS, key=lambda b: abs(math.log2(max(med, 1.0)) - (b - 1))) if med > 64 else 16
     half = 2.0 ** (bits - 1)
-    per, ranges, name = ((ACC_UNITS["g"], ACC_RANGES_G, "g") if sensor == "accelerometer"
-                         else (math.pi / 180.0, GYR_RANGES_DPS, "deg/s"))
+    (name, per), ranges = FULL_SCALE_UNITS[sensor], NOMINAL_RANGES[sensor]
     fs = float(np.max(np.abs(scales))) * half / per
     near = declared_si / per if declared_si is not None else min(ranges, key=lambda r: abs(math.log(fs / r)))
     return {"full_scale": fs, "unit": name, "bits": bits, "half_range_counts": half, "nominal": near,

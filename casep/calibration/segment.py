@@ -39,6 +39,7 @@ from typing import ClassVar
 import numpy as np
 
 from casep.calibration.session import SegmentError
+from casep.checks.saturation import runs
 from casep.exceptions import CasepWarning
 from casep.results import Completed
 
@@ -173,12 +174,6 @@ def window_mean(x: np.ndarray, window: int) -> np.ndarray:
     hi = np.clip(np.arange(n) + window - h, 0, n)
     c = np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
     return (c[hi] - c[lo]) / (hi - lo).reshape((-1,) + (1,) * (x.ndim - 1))
-
-
-def runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """The runs of True in `mask`: (start, end) with end excluded."""
-    d = np.diff(np.concatenate([[0], np.asarray(mask, dtype=np.int8), [0]]))
-    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
 
 
 def static_runs(v: np.ndarray, threshold: float, init_end: int, min_len: int, guard: int):

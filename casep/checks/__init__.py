@@ -11,6 +11,7 @@ Layer 4: depends on :mod:`casep.regression` (the problem judged), :mod:`casep.no
 - :mod:`casep.checks.diagnostics`: condition indices, variance decomposition, VIF, CRLB
 - :mod:`casep.checks.late_start`: tracking that starts after lift-off without the model's initial terms
 - :mod:`casep.checks.time_offset`: the tracking time-offset test
+- :mod:`casep.checks.saturation`: readings held at a sensor's full scale (calibration and navigation)
 """
 
 from casep._lazy import attach
@@ -22,8 +23,9 @@ __getattr__, __dir__ = attach(__name__, {
     "casep.checks.diagnostics": ("Diagnostics", "diagnose", "crlb_covariance"),
     "casep.checks.late_start": ("late_start_evidence", "warn_late_start"),
     "casep.checks.time_offset": ("TimeOffsetTest", "time_offset_test"),
+    "casep.checks.saturation": ("held_full_scale", "HeldFullScale", "check_full_scale"),
 }, globals())
 
 __all__ = ["flight_problem", "check_before_estimation", "check_fit", "check_flight", "check_sigma", "Diagnostics",
            "diagnose", "crlb_covariance", "late_start_evidence", "warn_late_start", "TimeOffsetTest",
-           "time_offset_test"]
+           "time_offset_test", "held_full_scale", "HeldFullScale", "check_full_scale"]

@@ -54,11 +54,9 @@ def add_parser(sub: Any) -> None:
                       help="initial static period the session starts with, s (default 5)")
     auto.add_argument("--min-static", type=float, default=0.5, metavar="S", dest="min_static",
                       help="shortest static pose, s (default 0.5)")
-    auto.add_argument("--acc-range", type=str, default=None, metavar="G", dest="acc_range",
-                      help="the accelerometer's full scale +-G, g: readings held at it are saturated (raw counts: "
-                           "the converter's limit, and the full scale the fit implies is checked against it)")
-    auto.add_argument("--gyr-range", type=str, default=None, metavar="DPS", dest="gyr_range",
-                      help="the gyro's full scale +-DPS, deg/s (as --acc-range)")
+    options.add_full_scales(auto, "a gyro saturated inside a turn fails the calibration, a pose with a clipped "
+                                  "accelerometer is left out (raw counts: the full scale the fit implies is checked "
+                                  "against the declared one)")
     auto.add_argument("--imu-tk", metavar="PREFIX", default=None, dest="imu_tk",
                       help="also write PREFIX_acc.calib and PREFIX_gyro.calib (imu_tk's text format)")
     auto.add_argument("--figures", metavar="DIR", default=None,
@@ -120,13 +118,14 @@ def _run_auto(args: argparse.Namespace) -> int:
                          "them out, or calibrate a labelled or Ferraris session (--model ferraris) to use them")
     files = {"--json": args.json, **(dict(zip(("--imu-tk (acc)", "--imu-tk (gyro)"), imu_tk_files(args.imu_tk)))
                                      if args.imu_tk else {})}
+    fs = options.full_scales(args)
     outputs.check(files, [args.session], {"--figures": args.figures})
-    fs = full_scales(args)
     cal = calibrate_multiposition_file(args.session, rate=args.rate, acc_columns=args.acc_columns.split(","),
                                        gyr_columns=args.gyr_columns.split(","), acc_unit=args.acc_unit,
                                        gyr_unit=args.gyr_unit, gravity=args.gravity, latitude=args.latitude,
                                        height=args.height, window_s=args.window, init_s=args.init,
-                                       min_static_s=args.min_static, **fs)
+                                       min_static_s=args.min_static, acc_full_scale=fs["acc_range"],
+                                       gyr_full_scale=fs["gyr_range"])
     print(cal.text())
     _figure(args, cal.segmentation)
     outputs.write_json(cal.to_dict(), args.json)
@@ -135,19 +134,6 @@ def _run_auto(args: argparse.Namespace) -> int:
         for path in write_imu_tk(cal, args.imu_tk):
             print(f"imu_tk calibration written to {path}")
     return outputs.status(cal)
-
-
-def full_scales(args: argparse.Namespace) -> dict:
-    """--acc-range G and --gyr-range DPS, checked and in SI (m/s^2, rad/s): the keywords of the multiposition call."""
-    from casep.calibration.saturation import FULL_SCALE_UNITS, check_full_scale
-
-    out = {}
-    for flag, value, key, sensor in (("--acc-range", args.acc_range, "acc_full_scale", "accelerometer"),
-                                     ("--gyr-range", args.gyr_range, "gyr_full_scale", "gyro")):
-        if value is not None:
-            unit, si = FULL_SCALE_UNITS[sensor]
-            out[key] = check_full_scale(value, flag[2:].replace("-", "_"), flag, unit) * si
-    return out
 
 
 def _figure(args: argparse.Namespace, segmentation) -> None:

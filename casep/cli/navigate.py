@@ -7,7 +7,6 @@ import argparse
 from typing import Any
 
 from casep.cli import flight_options, inputs, options, outputs
-from casep.cli.types import finite_float
 
 
 def add_parser(sub: Any) -> None:
@@ -17,12 +16,8 @@ def add_parser(sub: Any) -> None:
                                "dvb_x..dvb_z (m/s), each over the sample period ending at t")
     flight_options.add_launch_site(p, required=True, scale="the IMU's")
     flight_options.add_alignment(p, required=True)
-    p.add_argument("--gyr-range", type=finite_float, default=None, metavar="DEG/S",
-                   help="the gyros' full scale, deg/s: a rate within 1 %% of it is clipped (default: a run of 3 "
-                        "samples held at a nominal range); the solution from the first clipped sample on is marked "
-                        "ins_valid = 0 and left out of the separation")
-    p.add_argument("--acc-range", type=finite_float, default=None, metavar="G",
-                   help="the accelerometers' full scale, g (as --gyr-range)")
+    options.add_full_scales(p, "the solution from the first clipped sample on is marked ins_valid = 0 (and left "
+                               "out of a separation)")
     p.add_argument("-o", "--output", metavar="TEL.csv", required=True,
                    help="the strapdown telemetry: t, q_w..q_z, fb_*, w_*, v_tel_*, r_tel_* (CSV, or Parquet for "
                         ".parquet)")
@@ -30,17 +25,13 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import math
-
     from casep.io.files import write_table
     from casep.navigation.imu import read_imu
     from casep.navigation.navigator import navigate
-    from casep.units import G0
 
+    ranges = options.full_scales(args)
     outputs.check({"--output": args.output, "--json": args.json}, [args.imu])
     site = inputs.launch_site(args.launch_site, args.launch_time)
-    ranges = {"gyr_range": None if args.gyr_range is None else math.radians(args.gyr_range),
-              "acc_range": None if args.acc_range is None else args.acc_range * G0}
     res = navigate(read_imu(args.imu, **ranges), site, tuple(args.align), heading_deg=args.heading,
                    heading_axis=args.heading_axis)
     lat, lon, h, az = args.launch_site

@@ -8,6 +8,8 @@ from typing import Any
 from casep.cli import flight_options, inputs, options, outputs
 from casep.cli.capture import recorded, report_lines
 from casep.cli.radar import radar_only
+from casep.cli.separate_imu import imu_only, separate_imu
+from casep.cli.separate_output import figures_and_report, print_result
 from casep.cli.types import order, positive_int, ranged
 from casep.estimators.registry import METHODS
 
@@ -26,6 +28,7 @@ def add_parser(sub: Any) -> None:
                         "reads it): navigated, paired with --tracking and separated; needs --launch-site, "
                         "--launch-time (the tracking file's time scale) and --align")
     flight_options.add_alignment(p, what="with --imu: ")
+    options.add_full_scales(p, "with --imu: the rows from the first clipped sample on are left out")
     p.add_argument("--iterate", action=argparse.BooleanOptionalAction, default=None,
                    help="with --imu: correct the IMU by the estimate, re-navigate, rebuild S_V and solve again "
                         "until every correction is below a tenth of its std (the stop rule of "
@@ -75,7 +78,8 @@ def run(args: argparse.Namespace) -> int:
 
         return separate_radar(args, wopts)
     radar_only(args, ("tracking_model",))
-    _imu_only(args)
+    ranges = options.full_scales(args)
+    imu_only(args)
     if args.model is None:
         args.model = "strapdown33" if args.imu else "platform36"
     if not args.imu:
@@ -100,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
 
         spec = dataclasses.replace(spec, options={**spec.options, **tables})
     if args.imu:
-        return _separate_imu(args, spec)
+        return separate_imu(args, spec, ranges)
     if len(args.flight) > 1:
         from casep.cli.separate_flights import separate_flights
 
@@ -122,85 +126,6 @@ def run(args: argparse.Namespace) -> int:
         outputs.write_json({**res.to_dict(), **({"time_alignment": align} if align else {}), "provenance": prov},
                            args.json)
     outputs.write_exports(res, args, t=flight.t[flight.observed], provenance=prov)
-    _print(res, args, align, cons)
-    _figures_and_report(args, res, flight, bounds, prior, report_lines(caught), prov)
+    print_result(res, args, align, cons)
+    figures_and_report(args, res, flight, bounds, prior, report_lines(caught), prov)
     return outputs.status(res)
-
-
-def _imu_only(args: argparse.Namespace) -> None:
-    """`--imu` with what it needs; its options without it: an error, not ignored."""
-    if not args.imu:
-        for flag, value in (("--align", args.align), ("--heading", args.heading), ("--iterate", args.iterate),
-                            ("--max-iterations", args.max_iterations),
-                            ("--heading-axis", None if args.heading_axis == "x" else args.heading_axis)):
-            if value is not None:
-                raise ValueError(f"{flag} is used only with --imu IMU.csv")
-        return
-    if args.flight or args.manifest:
-        raise ValueError("--imu IMU.csv is the flight: give no FLIGHT file or --manifest with it")
-    for flag, value in (("--tracking FILE", args.tracking), ("--launch-site LAT LON H AZ", args.launch_site),
-                        ("--launch-time T0", args.launch_time), ("--align T1 T2", args.align)):
-        if value is None:
-            raise ValueError(f"--imu {args.imu} needs {flag}")
-    if len(args.tracking) != 1:
-        raise ValueError(f"--tracking given {len(args.tracking)} times: --imu takes one tracking file")
-
-
-def _separate_imu(args: argparse.Namespace, spec: Any) -> int:
-    """``casep separate --imu IMU.csv --tracking TRK.csv ...``: casep.workflows.imu_separate.separate_imu."""
-    from casep.workflows.imu_separate import iteration_lines, separate_imu
-
-    site = inputs.launch_site(args.launch_site, args.launch_time)
-    with recorded() as caught:
-        out = separate_imu(args.imu, args.tracking[0], site, tuple(args.align), args.model, heading_deg=args.heading,
-                           heading_axis=args.heading_axis, spec=spec, iterate=args.iterate is not False,
-                           max_iterations=args.max_iterations, tracking_frame=args.tracking_frame,
-                           grid=args.grid, time_offset=args.time_offset, time_shift=args.time_shift)
-    res, flight = out.result, out.flight
-    prov = outputs.provenance(args, [flight], {"imu": args.imu})
-    if args.json:
-        outputs.write_json({**out.to_dict(), "provenance": prov}, args.json)
-    outputs.write_exports(res, args, t=flight.t[flight.observed], provenance=prov)
-    _print(res, args, flight.meta.get("time_alignment"), None, tuple(iteration_lines(res.diagnostics)))
-    _figures_and_report(args, res, flight, None, None, report_lines(caught), prov)
-    return outputs.status(res)
-
-
-def _print(res: Any, args: argparse.Namespace, align: Any, cons: Any, extra: tuple[str, ...] = ()) -> None:
-    from casep.reporting.noise_text import noise_lines
-
-    print(res.text())
-    for line in [*noise_lines(res.diagnostics), *extra]:
-        print(line)
-    if args.outliers is not None:
-        from casep.regression.outliers import OutlierFlags
-
-        o = res.diagnostics["outliers_studentized"]
-        print("outliers: " + OutlierFlags(o["rows"], o["threshold"], o["rate"], o["rows_tested"]).text())
-    if align and align.get("applied_s"):
-        dt = [res.estimate[i] for i, n in enumerate(res.names) if n == "dt_trk"]
-        total = f"; the flight's offset = shift + dt_trk = {align['applied_s'] * 1e3 + dt[0]:.4g} ms" if dt else ""
-        print(f"tracking time tags shifted back by {align['applied_s'] * 1e3:.4g} ms before the fit{total}")
-    if cons is not None:
-        print(cons.text())
-    for label, path in (("result", args.json), ("MAT file", args.mat), ("CSV", args.csv)):
-        if path:
-            print(f"{label} written to {path}")
-
-
-def _figures_and_report(args: argparse.Namespace, res: Any, flight: Any, bounds: Any, prior: Any,
-                        warned: list[str], prov: dict) -> None:
-    """`--figures DIR` and `--report FILE` (matplotlib imported only when asked)."""
-    if not (args.figures or args.report):
-        return
-    from casep.reporting.plots import separate_figures
-    from casep.reporting.report import write_report
-
-    files = None
-    if args.figures:
-        files = separate_figures(res, args.figures, flight.t[flight.observed], prior=prior, bounds=bounds)
-        print(f"figures: {', '.join(str(f) for f in files)}")
-    if args.report:
-        write_report(res, args.report, flight=flight, figures=files, prior=prior, bounds=bounds, warnings=warned,
-                     source=flight.source, provenance=prov)
-        print(f"report written to {args.report}")

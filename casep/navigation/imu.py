@@ -19,14 +19,15 @@ the lost samples leave unknown: across a gap of length ``h`` where the specific 
 ``f_a`` to ``f_b``, any path between them fits, so the velocity across it is known to about
 ``|f_b - f_a| h / 2`` (the largest such bound is given with its time).
 
-Clipped samples (:func:`clipped_samples`): a reading at the sensor's full scale is not the motion.
-With a declared full scale (``gyr_range`` rad/s, ``acc_range`` m/s^2) a component within 1 % of it
-is clipped; without one, a run of at least :data:`CLIP_RUN` samples holding a column's extreme value
-that lies within :data:`casep.units.FULL_SCALE_TOLERANCE` of a nominal range, and a tenth of it or more
-from the column's median (a static accelerometer reads 1 g for ever without clipping)
-(:data:`casep.units.GYR_RANGES_DPS`, :data:`casep.units.ACC_RANGES_G`), in a column with noise (in a
-noise-free record, where half the consecutive samples or more are equal, a constant thrust near 4 g
-is held exactly without any clipping: declare the full scale there). The attitude and velocity
+Clipped samples (:func:`clipped_samples`): a reading at the sensor's full scale is not the motion. The
+rule is :func:`casep.checks.saturation.held_full_scale`, the one calibration uses too: a run of
+:data:`~casep.checks.saturation.CLIP_RUN` (3) samples or more at a full scale: with a declared one
+(``gyr_range`` rad/s, ``acc_range`` m/s^2) a component at or beyond 99 % of it
+(:data:`~casep.checks.saturation.CLIP_MARGIN`); without one, the column's extreme value held, where it lies
+within :data:`casep.units.FULL_SCALE_TOLERANCE` of a nominal range (:data:`casep.units.GYR_RANGES_DPS`,
+:data:`casep.units.ACC_RANGES_G`), a tenth of it or more from the column's median (a static accelerometer
+reads 1 g for ever without clipping), in a column with noise (in a noise-free record a constant thrust near
+4 g is held exactly without any clipping: declare the full scale there). The attitude and velocity
 integrated through a clipped sample stay wrong for the rest of the record, so everything from the
 first clipped sample on is marked (``ImuData.clipped``; the navigation writes ``ins_valid = 0``
 there, and the separation leaves those rows out), with a :class:`~casep.exceptions.SaturationWarning`
@@ -42,11 +43,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from casep.checks.saturation import (
+    CLIP_MARGIN,
+    CLIP_RUN,
+    FULL_SCALE_UNITS,
+    check_full_scale,
+    held_full_scale,
+    held_mask,
+)
 from casep.exceptions import GapWarning, PlausibilityWarning, SaturationWarning
-from casep.units import ACC_RANGES_G, FULL_SCALE_TOLERANCE, G0, GYR_RANGES_DPS
 
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
-           "GAP_FACTOR", "clipped_samples", "CLIP_RUN", "sample_periods", "with_rates"]
+           "GAP_FACTOR", "clipped_samples", "sample_periods", "with_rates"]
 
 RATE_COLUMNS = ("w_x", "w_y", "w_z")
 FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
@@ -59,13 +67,6 @@ MAX_RATE = 200.0
 #: Rates beyond this (2000 deg/s, the largest common full scale) and specific forces beyond 50 g are warned about.
 WARN_RATE = 35.0
 WARN_FORCE = 50 * 9.80665
-#: Without a declared full scale, this many samples in a row at a nominal range are clipped.
-CLIP_RUN = 3
-#: With a declared full scale, a reading within this fraction of it is clipped.
-CLIP_MARGIN = 0.01
-#: Without a declared full scale: a column whose consecutive samples are equal this often has no noise (a
-#: simulated record), so a value held at its extreme says nothing of the sensor's range; none is looked for.
-HELD_FRACTION = 0.5
 
 
 @dataclass
@@ -132,8 +133,12 @@ def check_imu(imu: ImuData, *, gyr_range: float | None = None, acc_range: float 
     Raises
     ------
     ValueError
-        Fewer than 3 samples, time not increasing, or a rate beyond :data:`MAX_RATE`.
+        Fewer than 3 samples, time not increasing, a rate beyond :data:`MAX_RATE`, or a full scale that is
+        not a finite number > 0 (:func:`casep.checks.saturation.check_full_scale`).
     """
+    for name, value, unit in (("gyr_range", gyr_range, "rad/s"), ("acc_range", acc_range, "m/s^2")):
+        if value is not None:
+            check_full_scale(value, name, "--" + name.replace("_", "-"), unit)
     t = np.asarray(imu.t, float)
     if t.ndim != 1 or len(t) < 3:
         raise ValueError(f"{imu.source}: an IMU record needs at least 3 samples, got {t.size}")
@@ -176,51 +181,33 @@ def _warn_gaps(imu: ImuData, lost: np.ndarray, h: np.ndarray, h_med: float) -> N
                   f"{h[j]:.4g} s)", GapWarning, stacklevel=3)
 
 
-def clipped_samples(x: np.ndarray, full_scale: float | None, nominal_si: tuple[float, ...]) -> np.ndarray:
-    """The (N, 3) readings of `x` at the sensor's full scale (module notes).
+def clipped_samples(x: np.ndarray, full_scale: float | None, sensor: str) -> np.ndarray:
+    """The (N, 3) readings of `x` at the sensor's full scale (:func:`casep.checks.saturation.held_full_scale`).
 
     Parameters
     ----------
     x : (N, 3) ndarray
         Body rates (rad/s) or specific forces (m/s^2).
     full_scale : float or None
-        The declared full scale, same unit; None: the nominal ranges `nominal_si` (same unit).
+        The declared full scale, same unit; None: the nominal ranges of `sensor`.
+    sensor : str
+        ``"gyro"`` or ``"accelerometer"``.
 
     Returns
     -------
     (N, 3) ndarray of bool
     """
     x = np.asarray(x, float)
-    if full_scale is not None:
-        return np.abs(x) >= (1.0 - CLIP_MARGIN) * full_scale
-    out = np.zeros(x.shape, bool)
-    nominal = np.asarray(nominal_si, float)
-    for j in range(x.shape[1]):
-        med = float(np.median(x[:, j]))
-        if np.mean(x[1:, j] == x[:-1, j]) >= HELD_FRACTION:  # noise-free: every steady span is held exactly
-            continue
-        for ext in (float(x[:, j].max()), float(x[:, j].min())):
-            if ext == 0.0 or np.min(np.abs(abs(ext) / nominal - 1.0)) > FULL_SCALE_TOLERANCE \
-                    or abs(ext - med) < 0.1 * abs(ext):  # a reading held near the column's median is no clipping
-                continue
-            at = np.concatenate([[0], (x[:, j] == ext).astype(np.int8), [0]])
-            edges = np.flatnonzero(np.diff(at))
-            for a, b in zip(edges[::2], edges[1::2]):
-                if b - a >= CLIP_RUN:
-                    out[a:b, j] = True
-    return out
+    return held_mask(held_full_scale(x, sensor, declared=full_scale), x.shape)
 
 
 def _check_clipped(imu: ImuData, gyr_range: float | None, acc_range: float | None) -> np.ndarray | None:
     """Samples from the first clipped one on (None when none is), with a SaturationWarning."""
-    for name, value in (("gyr_range", gyr_range), ("acc_range", acc_range)):
-        if value is not None and not (math.isfinite(value) and value > 0):
-            raise ValueError(f"`{name}` (the sensor's full scale, SI) must be a positive number, got {value!r}")
     found = []
-    for cols, x, fs, nominal, unit, per in (
-            (RATE_COLUMNS, imu.w, gyr_range, np.radians(GYR_RANGES_DPS), "deg/s", math.pi / 180),
-            (FORCE_COLUMNS, imu.f, acc_range, np.asarray(ACC_RANGES_G) * G0, "g", G0)):
-        hit = clipped_samples(x, fs, tuple(nominal))
+    for cols, x, fs, sensor in ((RATE_COLUMNS, imu.w, gyr_range, "gyro"), (FORCE_COLUMNS, imu.f, acc_range,
+                                                                           "accelerometer")):
+        unit, per = FULL_SCALE_UNITS[sensor]
+        hit = clipped_samples(x, fs, sensor)
         for j in np.flatnonzero(hit.any(axis=0)):
             rows = np.flatnonzero(hit[:, j])
             why = f"the declared {fs / per:g} {unit}" if fs is not None else \

@@ -139,7 +139,8 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                  heading_deg: float | None = None, heading_axis: str = "x", spec: FitSpec | None = None,
                  iterate: bool = True, tol: float = ITERATE_TOL, max_iterations: int | None = None,
                  tracking_frame: str = "launch", grid: str = "tracking", time_offset: float | str | None = None,
-                 time_shift: float = 0.0, fit_time_offset: bool | None = None) -> ImuSeparation:
+                 time_shift: float = 0.0, fit_time_offset: bool | None = None, gyr_range: float | None = None,
+                 acc_range: float | None = None) -> ImuSeparation:
     """Separate a strapdown IMU's errors from its raw data and tracking (module notes).
 
     Parameters
@@ -166,6 +167,9 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     tracking_frame, grid, time_offset, time_shift, fit_time_offset
         As :func:`casep.io.files.read_flight_pair` and :func:`casep.separate` (the time offset found by
         ``"auto"`` on the first pass is kept for the others).
+    gyr_range, acc_range : float, optional
+        With `imu` a path: the sensors' declared full scales, rad/s and m/s^2 (:func:`casep.navigation.read_imu`:
+        the rows from the first clipped sample on are left out); an ImuData was checked when it was read.
 
     Returns
     -------
@@ -183,7 +187,10 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     if not isinstance(site, LaunchSite):
         raise TypeError(f"`site` must be a casep.frames.LaunchSite, got {type(site).__name__}")
     if not isinstance(imu, ImuData):
-        imu = read_imu(imu)
+        imu = read_imu(imu, gyr_range=gyr_range, acc_range=acc_range)
+    elif gyr_range is not None or acc_range is not None:
+        raise ValueError("`gyr_range`, `acc_range`: give them to casep.navigation.read_imu (the record is checked "
+                         "for clipping as it is read), or pass the IMU file's path")
     spec = FitSpec.build() if spec is None else spec
     base = load_model(model)
     source = model if isinstance(model, (str, os.PathLike)) else (base.source_file or base.name)

@@ -109,7 +109,8 @@ def test_clipping_without_a_declared_range_is_a_run_at_a_nominal_range(clipped_r
 
 def test_a_full_scale_must_be_positive():
     t = np.arange(0.0, 1.0, 0.01)
-    with pytest.raises(ValueError, match=r"`gyr_range` \(the sensor's full scale, SI\) must be a positive number"):
+    with pytest.raises(ValueError, match=r"option --gyr-range \(`gyr_range`\) must be a finite number > 0 \(rad/s\), "
+                                         r"got -1\.0"):
         check_imu(ImuData(t, np.zeros((t.size, 3)), np.zeros((t.size, 3))), gyr_range=-1.0)
 
 

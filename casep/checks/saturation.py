@@ -1,0 +1,170 @@
+"""Readings held at a sensor's full scale (saturation, clipping): the one rule of calibration and navigation.
+
+A sensor saturates when its reading reaches the end of its range; the reading is then the range, not the
+motion. Quantised readings repeat values naturally (three equal counts at the smooth peak of a turn), so
+a repeated value alone is no saturation. :func:`held_full_scale` looks at every column and each of its
+sides (maximum, minimum):
+
+- **a declared full scale** ``F`` (``--acc-range G``, ``--gyr-range DPS``; SI inside): a reading at or
+  beyond ``(1 - CLIP_MARGIN) F`` on that side is at it (at or beyond: a reading past the declared range
+  is no trustworthy reading either);
+- **without one**, the column's extreme value ``e`` (its maximum or minimum) is at a full scale when it is
+
+  - for raw counts, a limit of a ``b``-bit converter, ``b`` in :data:`ADC_BITS` (unsigned ``0`` /
+    ``2^b - 1``, signed ``-2^(b-1)`` / ``2^(b-1) - 1``), within ``max(1, 2^b / 1000)`` counts and at
+    least a tenth of the half range ``2^(b-1)`` from the column's median;
+  - for a physical unit, a nominal range (:data:`casep.units.ACC_RANGES_G`,
+    :data:`casep.units.GYR_RANGES_DPS`) within :data:`casep.units.FULL_SCALE_TOLERANCE`, on its side of
+    zero, a tenth of ``|e|`` or more from the column's median (a static accelerometer reads 1 g for ever
+    without clipping), in a column with noise (where :data:`HELD_FRACTION` or more of the consecutive
+    samples are equal, as in a noise-free simulation, a constant thrust near 4 g is held exactly without
+    any clipping: declare the full scale there);
+
+  and the readings equal to ``e`` are at it (the converter holds its last code);
+
+and a reading at full scale is saturated when it lies in a run of at least :data:`CLIP_RUN` consecutive
+readings at full scale on the same side.
+
+**The margin.** ``CLIP_MARGIN = 0.01`` of ``F``, which is 0.5 % of the span ``2F``: the two figures the
+calibration and the navigation stated are this one band. A reading in a physical unit is counts times a
+sensitivity; converted with the part's nominal sensitivity the rail reads ``F (1 - 2^(1-b))``, a few
+parts per 10^5 below ``F``, but converted with a calibrated sensitivity it moves by the part's
+sensitivity error, about 1 % on MEMS data sheets. 1 % of ``F`` still finds that rail where 0.5 % would
+miss it; what it costs is that a motion held 3 samples within 1 % of the range is marked, a motion at the
+edge of the part's range anyway.
+
+What a saturated reading spoils is the caller's judgement: a turn of a calibration, a static pose's mean,
+or a navigation from that sample on.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from casep.units import ACC_RANGES_G, FULL_SCALE_TOLERANCE, G0, GYR_RANGES_DPS
+
+__all__ = ["held_full_scale", "held_mask", "HeldFullScale", "check_full_scale", "runs", "FULL_SCALE_UNITS",
+           "NOMINAL_RANGES", "ADC_BITS", "CLIP_RUN", "CLIP_MARGIN", "HELD_FRACTION"]
+
+#: Word lengths of the converters raw counts come from.
+ADC_BITS = (8, 10, 12, 14, 16, 18, 20, 24, 32)
+#: A reading at full scale is saturated in a run of at least this many consecutive readings at it.
+CLIP_RUN = 3
+#: With a declared full scale F, a reading at or beyond (1 - CLIP_MARGIN) F is at it (module notes).
+CLIP_MARGIN = 0.01
+#: Without a declared full scale: a physical column whose consecutive samples are equal this often has no
+#: noise (a simulated record), so a value held at its extreme says nothing of the sensor's range.
+HELD_FRACTION = 0.5
+#: The unit of each sensor's full scale at the edge (command line), and SI per that unit.
+FULL_SCALE_UNITS = {"accelerometer": ("g", G0), "gyro": ("deg/s", math.pi / 180.0)}
+#: The nominal ranges (+-) of each sensor, in the unit of FULL_SCALE_UNITS.
+NOMINAL_RANGES = {"accelerometer": ACC_RANGES_G, "gyro": GYR_RANGES_DPS}
+
+
+class HeldFullScale(NamedTuple):
+    """One column's side at full scale: ``axis`` (column index), ``side`` (``maximum``/``minimum``), ``value``
+    (the column's extreme on that side, readings' unit), ``why`` (which full scale), ``runs`` ((start, end)
+    with end excluded, each at least :data:`CLIP_RUN` readings)."""
+
+    axis: int
+    side: str
+    value: float
+    why: str
+    runs: list[tuple[int, int]]
+
+
+def check_full_scale(value, name: str, flag: str, unit: str) -> float:
+    """A declared full scale (+-`value`, in `unit`): a finite number > 0, else the one option-error form
+    (:func:`casep.exceptions.refusal`: ``option --gyr-range (`gyr_range`) must be a finite number > 0 (deg/s),
+    got '-2'``)."""
+    from casep.exceptions import refusal
+
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise refusal(name, flag, f"a finite number > 0 ({unit})", value) from None
+    if not (math.isfinite(v) and v > 0):
+        raise refusal(name, flag, f"a finite number > 0 ({unit})", value)
+    return v
+
+
+def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """The runs of True in `mask`: (start, end) with end excluded."""
+    d = np.diff(np.concatenate([[0], np.asarray(mask, dtype=np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
+
+
+def held_full_scale(x: np.ndarray, sensor: str, *, si: float | None = 1.0, declared: float | None = None,
+                    min_run: int = CLIP_RUN) -> list[HeldFullScale]:
+    """Where the readings `x` are held at the sensor's full scale (module notes), per column and side.
+
+    Parameters
+    ----------
+    x : (N, k) ndarray
+        Readings of one sensor, one column per axis.
+    sensor : str
+        ``"accelerometer"`` or ``"gyro"`` (its nominal ranges, :data:`NOMINAL_RANGES`).
+    si : float or None
+        SI per unit of the readings (m/s^2 or rad/s per unit); None: raw counts (the converters' limits).
+    declared : float, optional
+        The declared full scale, SI (m/s^2, rad/s); not used for raw counts (their full scale is the
+        converter's limit).
+    min_run : int
+        Readings in a row at full scale for a saturation (:data:`CLIP_RUN`).
+
+    Returns
+    -------
+    list of HeldFullScale
+        The sides with at least one run, in column order, maximum first.
+    """
+    x = np.asarray(x, float)
+    out = []
+    for j in range(x.shape[1]):
+        col = x[:, j]
+        for side, ext in (("maximum", float(col.max())), ("minimum", float(col.min()))):
+            if si is not None and declared is not None:
+                end = (declared if side == "maximum" else -declared) / si
+                at = col >= (1 - CLIP_MARGIN) * end if end > 0 else col <= (1 - CLIP_MARGIN) * end
+                why: str | None = f"the declared full scale {end:g}"
+            else:
+                at = col == ext
+                why = _rail(ext, side, col, sensor, si) if at.sum() >= min_run else None
+            long = [(a, b) for a, b in runs(at) if b - a >= min_run] if why else []
+            if long:
+                out.append(HeldFullScale(j, side, ext, str(why), long))
+    return out
+
+
+def held_mask(found: list[HeldFullScale], shape: tuple[int, int]) -> np.ndarray:
+    """The (N, k) readings of :func:`held_full_scale`'s runs."""
+    mask = np.zeros(shape, bool)
+    for h in found:
+        for a, b in h.runs:
+            mask[a:b, h.axis] = True
+    return mask
+
+
+def _rail(ext: float, side: str, column: np.ndarray, sensor: str, si: float | None) -> str | None:
+    """Why the column's extreme `ext` (its ``maximum`` or ``minimum``, `side`) is a full scale nobody declared, or
+    None (module notes)."""
+    top = side == "maximum"
+    med = float(np.median(column))
+    if si is None:  # raw counts: a converter's limit
+        for b in ADC_BITS:
+            for rail, kind in (((2 ** b - 1, "unsigned"), (2 ** (b - 1) - 1, "signed")) if top
+                               else ((0, "unsigned"), (-(2 ** (b - 1)), "signed"))):
+                if abs(ext - rail) <= max(1.0, 2.0 ** b / 1000) and abs(ext - med) >= 0.1 * 2.0 ** (b - 1):
+                    return (f"the {kind} {b}-bit converter's limit {rail}" if rail else
+                            "the unsigned converter's limit 0")
+        return None
+    if ext == 0.0 or (ext > 0) != top or abs(ext - med) < 0.1 * abs(ext):
+        return None  # a rail lies on its side of zero, away from where the column spends its time
+    if np.mean(column[1:] == column[:-1]) >= HELD_FRACTION:  # noise-free: every steady span is held exactly
+        return None
+    name, per = FULL_SCALE_UNITS[sensor]
+    v = abs(ext) * si / per
+    near = min(NOMINAL_RANGES[sensor], key=lambda r: abs(v / r - 1.0))
+    return f"the nominal +-{near:g} {name} range" if abs(v / near - 1.0) <= FULL_SCALE_TOLERANCE else None

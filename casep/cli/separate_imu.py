@@ -1,0 +1,54 @@
+"""``casep separate --imu IMU.csv --tracking TRK.csv ...``: a raw IMU record navigated, paired and separated
+(casep.workflows.imu_separate)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from casep.cli import inputs, outputs
+from casep.cli.capture import recorded, report_lines
+from casep.cli.separate_output import figures_and_report, print_result
+
+__all__ = ["imu_only", "separate_imu"]
+
+
+def imu_only(args: argparse.Namespace) -> None:
+    """`--imu` with what it needs; its options without it: an error, not ignored."""
+    if not args.imu:
+        for flag, value in (("--align", args.align), ("--heading", args.heading), ("--iterate", args.iterate),
+                            ("--max-iterations", args.max_iterations),
+                            ("--acc-range", args.acc_range), ("--gyr-range", args.gyr_range),
+                            ("--heading-axis", None if args.heading_axis == "x" else args.heading_axis)):
+            if value is not None:
+                raise ValueError(f"{flag} is used only with --imu IMU.csv")
+        return
+    if args.flight or args.manifest:
+        raise ValueError("--imu IMU.csv is the flight: give no FLIGHT file or --manifest with it")
+    for flag, value in (("--tracking FILE", args.tracking), ("--launch-site LAT LON H AZ", args.launch_site),
+                        ("--launch-time T0", args.launch_time), ("--align T1 T2", args.align)):
+        if value is None:
+            raise ValueError(f"--imu {args.imu} needs {flag}")
+    if len(args.tracking) != 1:
+        raise ValueError(f"--tracking given {len(args.tracking)} times: --imu takes one tracking file")
+
+
+def separate_imu(args: argparse.Namespace, spec: Any, ranges: dict) -> int:
+    """``casep separate --imu IMU.csv --tracking TRK.csv ...``: casep.workflows.imu_separate.separate_imu."""
+    from casep.workflows.imu_separate import iteration_lines, separate_imu
+
+    site = inputs.launch_site(args.launch_site, args.launch_time)
+    with recorded() as caught:
+        out = separate_imu(args.imu, args.tracking[0], site, tuple(args.align), args.model, heading_deg=args.heading,
+                           heading_axis=args.heading_axis, spec=spec, iterate=args.iterate is not False,
+                           max_iterations=args.max_iterations, tracking_frame=args.tracking_frame,
+                           grid=args.grid, time_offset=args.time_offset, time_shift=args.time_shift,
+                           **ranges)
+    res, flight = out.result, out.flight
+    prov = outputs.provenance(args, [flight], {"imu": args.imu})
+    if args.json:
+        outputs.write_json({**out.to_dict(), "provenance": prov}, args.json)
+    outputs.write_exports(res, args, t=flight.t[flight.observed], provenance=prov)
+    print_result(res, args, flight.meta.get("time_alignment"), None, tuple(iteration_lines(res.diagnostics)))
+    figures_and_report(args, res, flight, None, None, report_lines(caught), prov)
+    return outputs.status(res)
