@@ -62,6 +62,8 @@ from casep.noise.model import (
 __all__ = ["fit_noise", "tau_search_bounds", "with_kind", "Reml", "estimable_basis", "bounded_minimum",
            "nelder_mead", "SHARE_LOGIT"]
 
+_EPS = float(np.finfo(float).eps)
+
 #: Search interval of the white share's logit ``ln(w / (1 - w))``: w in [6e-6, 0.99999].
 SHARE_LOGIT = (-12.0, 12.0)
 
@@ -199,7 +201,10 @@ class Reml:
             if not np.all(new > 0):
                 return np.inf, (float(sc[0]), float(sc[1]), float(sc[2]))
             new /= new[0]
-            done = np.max(np.abs(np.log(new / sc))) < 1e-7
+            # converged to 1e-7 in ln r, or to the rounding of RSS_a = v^T M_a v (relative eps M_a,pp / RSS_a):
+            # below it the steps are rounding noise (residuals ~1e-8 of |dv|: ln r moves by O(1) at random)
+            tol = max(1e-7, 10.0 * _EPS * float(np.max(Ms[:, p, p] / np.maximum(rss, 1e-300))))
+            done = np.max(np.abs(np.log(new / sc))) < tol
             sc = new
             if done:
                 break
