@@ -62,6 +62,8 @@ from casep.noise.model import (
 __all__ = ["fit_noise", "tau_search_bounds", "with_kind", "Reml", "estimable_basis", "bounded_minimum",
            "nelder_mead", "SHARE_LOGIT"]
 
+_EPS = float(np.finfo(float).eps)
+
 #: Search interval of the white share's logit ``ln(w / (1 - w))``: w in [6e-6, 0.99999].
 SHARE_LOGIT = (-12.0, 12.0)
 
@@ -152,8 +154,10 @@ class Reml:
                 self._cache.pop(next(iter(self._cache)))
         return self._cache[key]
 
-    def _factor(self, Ms: Sequence[np.ndarray], scales) -> np.ndarray | None:
-        G = sum(Ms[j] / scales[j] ** 2 for j in range(3))
+    @staticmethod
+    def _factor(Ms: np.ndarray, scales) -> np.ndarray | None:
+        """Upper T with ``T^T T = G = sum_a M_a / r_a^2`` (`Ms` stacked (3, p + 1, p + 1)); None if not definite."""
+        G = Ms[0] / scales[0] ** 2 + Ms[1] / scales[1] ** 2 + Ms[2] / scales[2] ** 2
         try:
             return np.linalg.cholesky(G).T  # G = T^T T, T upper
         except np.linalg.LinAlgError:
@@ -163,7 +167,7 @@ class Reml:
                  ) -> tuple[float, np.ndarray | None]:
         """(-2 l_R, T) at the given taus, scales and white shares."""
         gs = [self.gram(j, taus[j], shares[j]) for j in range(3)]
-        T = self._factor([g[0] for g in gs], scales)
+        T = self._factor(np.stack([g[0] for g in gs]), scales)
         if T is None:
             return np.inf, None
         d = np.abs(np.diag(T)[: self.p])
@@ -182,25 +186,25 @@ class Reml:
         if not free:
             return self.evaluate(taus, (1.0, 1.0, 1.0), shares)[0], (1.0, 1.0, 1.0)
         sc = np.ones(3) if scales is None else np.array(scales, dtype=float)
-        Ms = [self.gram(j, taus[j], shares[j])[0] for j in range(3)]
+        Ms = np.stack([self.gram(j, taus[j], shares[j])[0] for j in range(3)])  # (3, p + 1, p + 1)
         p = self.p
         for _ in range(50):
             T = self._factor(Ms, sc)
             if T is None:
                 return np.inf, (float(sc[0]), float(sc[1]), float(sc[2]))
-            Tp = T[:p, :p]
-            beta = np.linalg.solve(Tp, T[:p, p]) if p else np.zeros(0)
-            v = np.concatenate([beta, [-1.0]])
-            Ginv = np.linalg.inv(Tp.T @ Tp) if p else np.zeros((0, 0))  # (Z_w^T Z_w)^-1
-            new = np.empty(3)
-            for j in range(3):
-                rss_j = max(float(v @ Ms[j] @ v), 0.0)  # ||[Z_a y_a] (beta, -1)||^2
-                h = float(np.sum(Ms[j][:p, :p] * Ginv)) / sc[j] ** 2  # leverage of the axis' rows
-                new[j] = np.sqrt(rss_j / max(self.N - h, 1.0))  # r_a^2 = RSS_a / (N - h_a)
+            Ti = np.linalg.inv(T[:p, :p]) if p else np.zeros((0, 0))  # T_p^-1 (upper)
+            v = np.append(Ti @ T[:p, p], -1.0)  # (beta, -1): beta = T_p^-1 T[:p, p]
+            Ginv = Ti @ Ti.T  # (Z_w^T Z_w)^-1 = (T_p^T T_p)^-1
+            rss = np.maximum(np.einsum("i,jik,k->j", v, Ms, v), 0.0)  # ||[Z_a y_a] (beta, -1)||^2
+            h = np.einsum("jik,ik->j", Ms[:, :p, :p], Ginv) / sc ** 2  # leverage of each axis' rows
+            new = np.sqrt(rss / np.maximum(self.N - h, 1.0))  # r_a^2 = RSS_a / (N - h_a)
             if not np.all(new > 0):
                 return np.inf, (float(sc[0]), float(sc[1]), float(sc[2]))
             new /= new[0]
-            done = np.max(np.abs(np.log(new / sc))) < 1e-7
+            # converged to 1e-7 in ln r, or to the rounding of RSS_a = v^T M_a v (relative eps M_a,pp / RSS_a):
+            # below it the steps are rounding noise (residuals ~1e-8 of |dv|: ln r moves by O(1) at random)
+            tol = max(1e-7, 10.0 * _EPS * float(np.max(Ms[:, p, p] / np.maximum(rss, 1e-300))))
+            done = np.max(np.abs(np.log(new / sc))) < tol
             sc = new
             if done:
                 break
