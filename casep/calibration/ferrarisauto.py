@@ -5,8 +5,8 @@ once about each axis while that axis is vertical (three rotations). Without labe
 
 1. **Static runs**: the detector of :func:`casep.calibration.segment.detect_static` (window variance
    of the accelerometers and the gyro's window mean square about its initial reading, in units of
-   the initial period; static: at most ``k``). A run of at least ``min_static_s`` is a pose; a shorter one is no pose but still separates two motions (at its
-   midpoint).
+   the initial period; static: at most ``k``). A run of at least ``min_static_s`` is a pose; a shorter
+   one is no pose but still separates two motions (at its midpoint).
 2. **Which axis is vertical**: a pose's mean accelerometer reading ``abar`` centred per axis on the
    midpoint of the poses' extremes (``c_i = (max_k abar_ki + min_k abar_ki) / 2``, so a raw bias
    near mid-scale does not count); the axis ``i`` of the largest ``|abar_i - c_i|`` and its sign name
