@@ -5,9 +5,8 @@ once about each axis while that axis is vertical (three rotations). Without labe
 
 1. **Static runs**: the detector of :func:`casep.calibration.segment.detect_static` (window variance
    of the accelerometers and the gyro's window mean square about its initial reading, in units of
-   the initial period; static: at most ``k``). A run of at least ``min_static_s`` after losing half
-   a window at each end is a pose; a shorter one is no pose but still separates two motions (at its
-   midpoint).
+   the initial period; static: at most ``k``). A run of at least ``min_static_s`` is a pose; a shorter
+   one is no pose but still separates two motions (at its midpoint).
 2. **Which axis is vertical**: a pose's mean accelerometer reading ``abar`` centred per axis on the
    midpoint of the poses' extremes (``c_i = (max_k abar_ki + min_k abar_ki) / 2``, so a raw bias
    near mid-scale does not count); the axis ``i`` of the largest ``|abar_i - c_i|`` and its sign name
@@ -119,7 +118,7 @@ def _axis_text(e: np.ndarray) -> str:
 def _runs(poses: list, rejected: list) -> list[tuple[int, int, int, int, bool]]:
     """Every static run, time order: ``(a, b, inner_start, inner_end, is_pose)``.
 
-    A pose (a run long enough) is its trimmed rows; a shorter run still separates two motions, at its
+    A pose (a run long enough) is its rows; a shorter run still separates two motions, at its
     midpoint (``inner_start = inner_end``).
     """
     out = [(a, b, a, b, True) for a, b in poses]
@@ -346,7 +345,7 @@ def find_ferraris_segments(session: Session, *, angle_deg: float = -360.0, windo
     dt = np.diff(session.t, append=session.t[-1] + 1.0 / rate)
     sweep, best, errors = [], None, []
     for k in multipliers:
-        poses, rejected = static_runs(v, k, init_end, min_len, w // 2)
+        poses, rejected = static_runs(v, k, init_end, min_len)
         L, runs_, off = _label_samples(acc, _runs(poses, rejected), w)
         b0 = np.concatenate([gyr[a:b] for a, b in poses]).mean(axis=0)
         quiet = _quiet(gyr, b0, poses, max(1, w // 8))

@@ -10,7 +10,8 @@ period, and the gyro's window mean square about its initial bias, ``v_g(t)``, is
 (a turn about gravity leaves the accelerometers unchanged: imu_tk's detector calls it static, and its
 rows then spoil the gyro bias; the MPU-9150 sessions have 20-deg turns of this kind). The initial
 period is the first ``init_s`` seconds, which the session must begin with. A run of static samples
-at least ``min_static_s`` long (after losing half a window at each end) is a pose; a shorter one is
+at least ``min_static_s`` long is a pose (untrimmed: the centred window sees a motion half a window
+ahead, :func:`static_runs`); a shorter one is
 rejected (and listed). The multiplier ``k`` is chosen from the session, as imu_tk does: for every
 ``k`` of a sweep, the poses found are calibrated (:func:`casep.calibration.multiposition.fit_accelerometer`,
 the magnitude of gravity) and the ``k`` of the smallest RMS misfit per pose wins (a too small
@@ -176,21 +177,22 @@ def window_mean(x: np.ndarray, window: int) -> np.ndarray:
     return (c[hi] - c[lo]) / (hi - lo).reshape((-1,) + (1,) * (x.ndim - 1))
 
 
-def static_runs(v: np.ndarray, threshold: float, init_end: int, min_len: int, guard: int):
+def static_runs(v: np.ndarray, threshold: float, init_end: int, min_len: int):
     """Poses (the initial period first) and the rejected runs for one threshold.
 
-    Each run loses `guard` samples at both ends (half a window: the variance of a window centred
-    there sees only part of the motion next to it), except at the start of the session.
+    A run is not trimmed: the window centred on a sample reaches half a window ahead, so the
+    statistic crosses the threshold before the motion starts, by up to half a window (an abrupt
+    motion raises it as soon as it enters the window; one that needs more than half the window to
+    raise the variance past ``k`` times the noise moves the readings by about the noise there).
     """
     mask = v <= threshold
     mask[:init_end] = True  # the initial period is a pose by definition
     poses, rejected = [], []
     for a, b in runs(mask):
-        a2, b2 = (a if a == 0 else a + guard), (b if b == len(v) else b - guard)
-        if b2 - a2 >= min_len or a == 0:
-            poses.append((a2, b2))
+        if b - a >= min_len or a == 0:
+            poses.append((a, b))
         else:
-            rejected.append((a, b, f"static {max(b2 - a2, 0)} samples after trimming < {min_len}"))
+            rejected.append((a, b, f"static {b - a} samples < {min_len}"))
     return poses, rejected
 
 
@@ -231,7 +233,7 @@ def detect_static(acc: np.ndarray, gyr: np.ndarray, rate: float, *, gravity: flo
     g = G0 if gravity is None else float(gravity)
     sweep, best = [], None
     for k in multipliers:
-        poses, rejected = static_runs(v, k, init_end, min_len, w // 2)
+        poses, rejected = static_runs(v, k, init_end, min_len)
         rms = math.nan
         if len(poses) >= min_poses:
             means = np.array([acc[a:b].mean(axis=0) for a, b in poses]) * acc_si

@@ -31,28 +31,31 @@ def _labelled():
 
 
 def test_annotated_session_auto_equals_labelled_within_std():
-    """imucal's annotated session, `--segments auto --model ferraris --window 0.2 --angle 360` against its labels.
+    """imucal's annotated session, `--segments auto --model ferraris --angle 360` (the default 0.5-s window)
+    against its labels.
 
     Every segment found lies inside the labelled segment of its name, and every coefficient is within
-    its std of the labelled calibration: max |auto - labelled| / std = 0.47 (Mg_xx; measured). The
-    default 0.5-s window trims more of these short poses (2.6-5 s), and the same comparison gives
-    1.43 (Kga_zy: the g-sensitivity rests on the gyro means of the poses, and a quarter of their
-    samples are left out), so the guide runs this session with --window 0.2.
+    its std of the labelled calibration: max |auto - labelled| / std = 0.52 (Kga_zy; measured). Its
+    segments were cut out of a longer recording, so a pose ends in a jump: the centred window sees it
+    half a window ahead and each pose found starts and ends half a window (51 samples) inside its label.
     """
     lab = _labelled()
-    auto = calibrate_files(DATA, rate=204.8, segments="auto", gravity=G, window_s=0.2, angle_deg=360.0)
+    auto = calibrate_files(DATA, rate=204.8, segments="auto", gravity=G, angle_deg=360.0)
     from casep.calibration.session import read_session
 
     ses = read_session(DATA, rate=204.8, label_column="part")
     truth = {s.name: (int(s.rows[0]), int(s.rows[-1])) for s in segments_from_labels(ses)}
+    half = auto.segmentation.segmentation.window // 2
     for s in auto.segmentation.segments:
         a, b = truth[s.name]
         assert a <= s.rows[0] and s.rows[-1] <= b, (s.name, s.rows[0], s.rows[-1], a, b)
-        assert len(s.rows) >= 0.6 * (b - a + 1), s.name
+        assert len(s.rows) >= 0.8 * (b - a + 1), s.name
+        if s.kind == "static" and a > 0:  # no more than half a window lost at a jump (plus one sample)
+            assert s.rows[0] - a <= half + 1 and b - s.rows[-1] <= half + 1, (s.name, s.rows[0], s.rows[-1], a, b)
     z = np.abs(auto.result.estimate - lab.result.estimate) / lab.result.std
     assert np.all(np.isfinite(z))
     assert z.max() < 1.0, dict(zip(lab.names, z.round(2)))
-    assert z.max() == pytest.approx(0.47, abs=0.05)  # the figure quoted above and in the guide
+    assert z.max() == pytest.approx(0.52, abs=0.05)  # the figure quoted above and in the guide
     d = auto.to_dict()["calibration"]["segmentation"]
     assert set(d["segments"]) == {"x_p", "x_a", "y_p", "y_a", "z_p", "z_a", "x_rot", "y_rot", "z_rot"}
     assert "segmentation (Ferraris, no labels)" in auto.text()
@@ -202,7 +205,7 @@ def test_cli_ferraris_auto_writes_json_and_figure(tmp_path, capsys):
 
     out, figs = tmp_path / "cal.json", tmp_path / "figs"
     rc = main(["calibrate", str(DATA), "--rate", "204.8", "--segments", "auto", "--model", "ferraris",
-               "--window", "0.2", "--angle", "360", "--gravity", "9.81", "--json", str(out), "--figures", str(figs)])
+               "--angle", "360", "--gravity", "9.81", "--json", str(out), "--figures", str(figs)])
     assert rc == 0
     cap = capsys.readouterr()
     text = cap.out
