@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from casep.cli import options, outputs
+from casep.cli import flight_options, options, outputs
 from casep.estimators.registry import METHODS, OPTIONS
 
 
@@ -54,7 +54,7 @@ def add_parser(sub: Any) -> None:
                       help="initial static period the session starts with, s (default 5)")
     auto.add_argument("--min-static", type=float, default=0.5, metavar="S", dest="min_static",
                       help="shortest static pose, s (default 0.5)")
-    options.add_full_scales(auto, "a gyro saturated inside a turn fails the calibration, a pose with a clipped "
+    flight_options.add_full_scales(auto, "a gyro saturated inside a turn fails the calibration, a pose with a clipped "
                                   "accelerometer is left out (raw counts: the full scale the fit implies is checked "
                                   "against the declared one)")
     auto.add_argument("--imu-tk", metavar="PREFIX", default=None, dest="imu_tk",
@@ -118,7 +118,7 @@ def _run_auto(args: argparse.Namespace) -> int:
                          "them out, or calibrate a labelled or Ferraris session (--model ferraris) to use them")
     files = {"--json": args.json, **(dict(zip(("--imu-tk (acc)", "--imu-tk (gyro)"), imu_tk_files(args.imu_tk)))
                                      if args.imu_tk else {})}
-    fs = options.full_scales(args)
+    fs = flight_options.full_scales(args)
     outputs.check(files, [args.session], {"--figures": args.figures})
     cal = calibrate_multiposition_file(args.session, rate=args.rate, acc_columns=args.acc_columns.split(","),
                                        gyr_columns=args.gyr_columns.split(","), acc_unit=args.acc_unit,

@@ -1,14 +1,15 @@
 """Shared argument groups of the commands that read flights: two-file input (grid, clocks, manifest), tracking
-frames, radar stations, one's own trajectory."""
+frames, radar stations, one's own trajectory; the IMU's declared full scales (also taken by calibrate)."""
 
 from __future__ import annotations
 
+import argparse
 from typing import Any
 
 from casep.cli.types import finite_float, time_offset
 
 __all__ = ["FRAMES", "add_tracking", "add_grid", "add_frames", "add_launch_site", "add_alignment", "add_radar",
-           "add_own_trajectory"]
+           "add_own_trajectory", "add_full_scales", "full_scales"]
 
 FRAMES = ("launch", "ecef", "geodetic")
 
@@ -97,3 +98,28 @@ def add_own_trajectory(parser: Any) -> None:
                         help="model name or .py file of --truth and --prior when it is not shipped with casep (a model "
                              "file is Python code: casep runs one only when it is named here, never on a file's word; "
                              "without --truth the runs use the scenario's model)")
+
+
+def add_full_scales(parser: Any, what: str) -> None:
+    """``--acc-range G`` and ``--gyr-range DPS``: the sensors' declared full scales (:func:`full_scales` checks
+    them). `what`: what the command does with readings at them."""
+    parser.add_argument("--acc-range", default=None, metavar="G", dest="acc_range",
+                        help="the accelerometers' full scale +-G, g: 3 readings in a row at or beyond 99 %% of it "
+                        "are clipped (casep.checks.saturation; default: the column's extreme held at a nominal "
+                        f"range, or raw counts at the converter's limit); {what}")
+    parser.add_argument("--gyr-range", default=None, metavar="DPS", dest="gyr_range",
+                        help="the gyros' full scale +-DPS, deg/s (as --acc-range)")
+
+
+def full_scales(args: argparse.Namespace) -> dict[str, float | None]:
+    """``--acc-range G``, ``--gyr-range DPS`` checked (a finite number > 0, else the one form of a refused option:
+    ``option --gyr-range (`gyr_range`) must be a finite number > 0 (deg/s), got '-2'``) and in SI:
+    ``{"acc_range": m/s^2, "gyr_range": rad/s}`` (None: not given)."""
+    from casep.checks.saturation import FULL_SCALE_UNITS, check_full_scale
+
+    out: dict[str, float | None] = {}
+    for key, sensor in (("acc_range", "accelerometer"), ("gyr_range", "gyro")):
+        value = getattr(args, key)
+        unit, si = FULL_SCALE_UNITS[sensor]
+        out[key] = None if value is None else check_full_scale(value, key, "--" + key.replace("_", "-"), unit) * si
+    return out

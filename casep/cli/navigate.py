@@ -16,7 +16,7 @@ def add_parser(sub: Any) -> None:
                                "dvb_x..dvb_z (m/s), each over the sample period ending at t")
     flight_options.add_launch_site(p, required=True, scale="the IMU's")
     flight_options.add_alignment(p, required=True)
-    options.add_full_scales(p, "the solution from the first clipped sample on is marked ins_valid = 0 (and left "
+    flight_options.add_full_scales(p, "the solution from the first clipped sample on is marked ins_valid = 0 (and left "
                                "out of a separation)")
     p.add_argument("-o", "--output", metavar="TEL.csv", required=True,
                    help="the strapdown telemetry: t, q_w..q_z, fb_*, w_*, v_tel_*, r_tel_* (CSV, or Parquet for "
@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
     from casep.navigation.imu import read_imu
     from casep.navigation.navigator import navigate
 
-    ranges = options.full_scales(args)
+    ranges = flight_options.full_scales(args)
     outputs.check({"--output": args.output, "--json": args.json}, [args.imu])
     site = inputs.launch_site(args.launch_site, args.launch_time)
     res = navigate(read_imu(args.imu, **ranges), site, tuple(args.align), heading_deg=args.heading,

@@ -14,7 +14,7 @@ from casep.cli.types import metavar, rule_type
 from casep.estimators.registry import METHODS, NOISE_OPTIONS, OPTIONS, Option
 
 __all__ = ["add_option", "method_option_groups", "add_noise", "add_model", "add_json", "method_options",
-           "fit_spec", "add_full_scales", "full_scales"]
+           "fit_spec"]
 
 
 def option_help(option: Option, default: str | None = None) -> str:
@@ -144,28 +144,3 @@ def add_model(parser: Any, default: str | None = "platform36", what: str = "defa
 def add_json(parser: Any, what: str) -> None:
     """``--json OUT``."""
     parser.add_argument("--json", metavar="OUT", default=None, help=f"write {what} here")
-
-
-def add_full_scales(parser: Any, what: str) -> None:
-    """``--acc-range G`` and ``--gyr-range DPS``: the sensors' declared full scales (:func:`full_scales` checks
-    them). `what`: what the command does with readings at them."""
-    parser.add_argument("--acc-range", default=None, metavar="G", dest="acc_range",
-                        help="the accelerometers' full scale +-G, g: 3 readings in a row at or beyond 99 %% of it "
-                        "are clipped (casep.checks.saturation; default: the column's extreme held at a nominal "
-                        f"range, or raw counts at the converter's limit); {what}")
-    parser.add_argument("--gyr-range", default=None, metavar="DPS", dest="gyr_range",
-                        help="the gyros' full scale +-DPS, deg/s (as --acc-range)")
-
-
-def full_scales(args: argparse.Namespace) -> dict[str, float | None]:
-    """``--acc-range G``, ``--gyr-range DPS`` checked (a finite number > 0, else the one form of a refused option:
-    ``option --gyr-range (`gyr_range`) must be a finite number > 0 (deg/s), got '-2'``) and in SI:
-    ``{"acc_range": m/s^2, "gyr_range": rad/s}`` (None: not given)."""
-    from casep.checks.saturation import FULL_SCALE_UNITS, check_full_scale
-
-    out: dict[str, float | None] = {}
-    for key, sensor in (("acc_range", "accelerometer"), ("gyr_range", "gyro")):
-        value = getattr(args, key)
-        unit, si = FULL_SCALE_UNITS[sensor]
-        out[key] = None if value is None else check_full_scale(value, key, "--" + key.replace("_", "-"), unit) * si
-    return out

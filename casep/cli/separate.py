@@ -28,7 +28,7 @@ def add_parser(sub: Any) -> None:
                         "reads it): navigated, paired with --tracking and separated; needs --launch-site, "
                         "--launch-time (the tracking file's time scale) and --align")
     flight_options.add_alignment(p, what="with --imu: ")
-    options.add_full_scales(p, "with --imu: the rows from the first clipped sample on are left out")
+    flight_options.add_full_scales(p, "with --imu: the rows from the first clipped sample on are left out")
     p.add_argument("--iterate", action=argparse.BooleanOptionalAction, default=None,
                    help="with --imu: correct the IMU by the estimate, re-navigate, rebuild S_V and solve again "
                         "until every correction is below a tenth of its std (the stop rule of "
@@ -73,15 +73,15 @@ def run(args: argparse.Namespace) -> int:
     wopts = {k: v for k, v in (("wavelet", args.wavelet), ("level", args.level), ("rule", args.threshold_rule),
                                 ("mode", args.threshold_mode), ("extension", args.extension),
                                 ("scaling", args.noise_scaling)) if v is not None}
+    if args.model is None:  # the default model: one for every path, radar included
+        args.model = "strapdown33" if args.imu else "platform36"
     if args.radar:
         from casep.cli.radar import separate_radar
 
         return separate_radar(args, wopts)
     radar_only(args, ("tracking_model",))
-    ranges = options.full_scales(args)
+    ranges = flight_options.full_scales(args)
     imu_only(args)
-    if args.model is None:
-        args.model = "strapdown33" if args.imu else "platform36"
     if not args.imu:
         inputs.use_manifest(args)  # --manifest FLIGHTS.toml, or the flight files
     outputs.check({"--json": args.json, "--mat": args.mat, "--csv": args.csv, "--report": args.report},

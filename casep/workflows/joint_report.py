@@ -33,10 +33,14 @@ def joint_result_dict(res: Any, jp: Any, summary: Mapping[str, Any]) -> dict[str
     -------
     dict
         ``res.to_dict()`` restricted to the shared coefficients (names, units, estimates, std, SI
-        factors and the covariance's rows and columns), with ``flights`` and ``consistency``.
+        factors and the covariance's rows and columns), with ``flights`` and ``consistency``; the per-flight
+        coefficients (``name[flight]``: names, units, estimates, std) under ``per_flight``.
     """
     d = res.to_dict()
     keep = [i for i, n in enumerate(res.names) if n in jp.layout.names]  # shared: the model's own names
+    own = [i for i in range(len(res.names)) if i not in set(keep)]  # per flight: ``name[flight]``
+    d["per_flight"] = {key: [d[key][i] for i in own] for key in ("names", "units", "estimates", "std")
+                       if d.get(key) is not None}
     for key in ("coefficients", "names", "units", "estimates", "std", "si_factors"):
         if d.get(key) is not None:
             d[key] = [d[key][i] for i in keep]

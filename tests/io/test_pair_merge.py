@@ -12,6 +12,7 @@ import warnings
 import numpy as np
 
 from casep.checks.plausibility import check_flight
+from casep.checks.time_offset import GRAVITY_LAUNCH
 from casep.exceptions import PlausibilityWarning
 from casep.io.flight import DUPLICATE_STEP
 from casep.io.pair import pair_flight
@@ -20,12 +21,13 @@ T0, RATE = 345600.0, 100.0  # GPS seconds of week, an IMU grid
 
 
 def _pair(t_tel, t_trk):
-    """A smooth motion seen by both: f = (1 + sin t, cos t, 0.1), v its integral plus a start speed."""
+    """A smooth motion seen by both: acceleration (1 + sin t, cos t, 0.1), v its integral plus a start speed."""
     def v(t):
         s = t - T0
         return np.column_stack([5.0 + s - np.cos(s), np.sin(s), 0.1 * s])
 
-    f = np.column_stack([1.0 + np.sin(t_tel - T0), np.cos(t_tel - T0), np.full(t_tel.size, 0.1)])
+    a = np.column_stack([1.0 + np.sin(t_tel - T0), np.cos(t_tel - T0), np.full(t_tel.size, 0.1)])
+    f = a - GRAVITY_LAUNCH  # specific force: the kinematic acceleration less gravity (the units check holds)
     return pair_flight(t_tel, f, v(t_tel), t_trk, v(t_trk), interpolation="linear")
 
 
