@@ -18,7 +18,6 @@ Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/rocket_rawlog.py [--seeds 1 2 3 4
 from __future__ import annotations
 
 import argparse
-import math
 import tempfile
 import time
 import warnings
@@ -30,26 +29,16 @@ import numpy as np
 def _one(seed: int, small: bool, d: Path) -> tuple[dict, list[float]]:
     import dataclasses
 
-    from casep.io.files import read_flight_pair, write_table
-    from casep.navigation import ImuData, check_imu, navigate
-    from casep.navigation.strapdown import quat_to_dcm
-    from casep.simulation.rocket import HEADING_AXIS, RocketSpec, simulate_rocket
+    from casep.simulation.rocket import RocketSpec, simulate_rocket
     from casep.workflows.separate import separate
 
     spec = RocketSpec()
     if small:
         spec = dataclasses.replace(spec, acc_bias_mg=spec.acc_bias_mg / 10, gyr_bias_dph=spec.gyr_bias_dph / 10)
     fl = simulate_rocket(seed, spec)
-    imu = check_imu(ImuData(fl.imu["t"], np.column_stack([fl.imu[f"w_{a}"] for a in "xyz"]),
-                            np.column_stack([fl.imu[f"fb_{a}"] for a in "xyz"])), gyr_range=math.radians(2000))
-    nav = navigate(imu, fl.site, fl.align_window, heading_deg=fl.events["heading_deg"], heading_axis=HEADING_AXIS)
-    write_table(d / "tel.parquet", nav.columns())
-    write_table(d / "gps.parquet", fl.gps)
-    flight = read_flight_pair(d / "tel.parquet", d / "gps.parquet", tracking_frame="ecef", site=fl.site)
+    nav, flight = fl.navigated(d)
     res = separate(flight, "strapdown15_phi0")
-    E = np.eye(3) - quat_to_dcm(nav.q[0]) @ quat_to_dcm(fl.truth_q[0]).T
-    phi = np.degrees(np.array([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]]) / 2) * 3600
-    truth = {**fl.coefficients, **{f"phi0_{a}": phi[i] for i, a in enumerate("xyz")}, "dt_trk": 0.0}
+    truth = fl.truth(nav.q[0])
     det = res.diagnostics.get("determined") if not res.success else None
     z = []
     if det:

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -118,6 +119,37 @@ class RocketFlight:
 
         write_table(imu_path, self.imu)
         write_table(gps_path, self.gps)
+
+    def navigated(self, folder) -> tuple[Any, Any]:
+        """The flight navigated (gyro full scale declared, the heading given) and paired with its GNSS file
+        through files in `folder`, as ``casep navigate`` and ``casep separate --tracking-frame ecef`` would:
+        ``(NavigationResult, FlightData)``."""
+        from pathlib import Path
+
+        from casep.io.files import read_flight_pair, write_table
+        from casep.navigation import ImuData, check_imu, navigate
+
+        d = Path(folder)
+        imu = check_imu(ImuData(self.imu["t"], np.column_stack([self.imu[f"w_{a}"] for a in "xyz"]),
+                                np.column_stack([self.imu[f"fb_{a}"] for a in "xyz"])),
+                        gyr_range=math.radians(self.spec.gyr_range_dps))
+        nav = navigate(imu, self.site, self.align_window, heading_deg=self.events["heading_deg"],
+                       heading_axis=HEADING_AXIS)
+        write_table(d / "tel.parquet", nav.columns())
+        write_table(d / "gps.parquet", self.gps)
+        return nav, read_flight_pair(d / "tel.parquet", d / "gps.parquet", tracking_frame="ecef", site=self.site)
+
+    def truth(self, q0: np.ndarray) -> dict[str, float]:
+        """The true coefficients of ``strapdown15_phi0`` for a navigation that started at attitude `q0`: the
+        injected ones, its initial attitude error ``phi0`` (arcsec; ``I - C(q0) C_true^T = [phi0 x]`` to first
+        order) and ``dt_trk`` 0 (the lift-off fixes are not lagged; the drift adds 0.04 ms)."""
+        from casep.rotations import quat_to_dcm
+
+        assert self.truth_q is not None  # simulate_rocket records it
+        E = np.eye(3) - quat_to_dcm(q0) @ quat_to_dcm(self.truth_q[0]).T
+        phi = np.array([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]]) / 2
+        return {**self.coefficients, **{f"phi0_{a}": math.degrees(phi[i]) * 3600 for i, a in enumerate("xyz")},
+                "dt_trk": 0.0}
 
 
 def _true_imu(sp: RocketSpec, site: LaunchSite, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

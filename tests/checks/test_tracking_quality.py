@@ -21,29 +21,19 @@ from casep.checks.tracking_quality import (
     screen_tracking,
 )
 from casep.exceptions import GapWarning, PlausibilityWarning, SaturationWarning, TrackingQualityWarning
-from casep.io.files import read_flight_pair
 from casep.io.pair import pair_flight
-from casep.navigation import ImuData, check_imu, navigate
-from casep.simulation.rocket import HEADING_AXIS, QUICK_ROCKET, simulate_rocket
+from casep.simulation.rocket import QUICK_ROCKET, simulate_rocket
 
 
 @pytest.fixture(scope="module")
 def rocket(tmp_path_factory):
     """The quick rocket navigated (gyro range declared) and paired with its GNSS file, before the screen."""
     fl = simulate_rocket(3, QUICK_ROCKET)
-    d = tmp_path_factory.mktemp("rocket")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", GapWarning)
         warnings.simplefilter("ignore", PlausibilityWarning)
         warnings.simplefilter("ignore", SaturationWarning)
-        imu = check_imu(ImuData(fl.imu["t"], np.column_stack([fl.imu[f"w_{a}"] for a in "xyz"]),
-                                np.column_stack([fl.imu[f"fb_{a}"] for a in "xyz"])), gyr_range=math.radians(2000))
-        nav = navigate(imu, fl.site, fl.align_window, heading_deg=fl.events["heading_deg"], heading_axis=HEADING_AXIS)
-        from casep.io.files import write_table
-
-        write_table(d / "tel.parquet", nav.columns())
-        write_table(d / "gps.parquet", fl.gps)
-        flight = read_flight_pair(d / "tel.parquet", d / "gps.parquet", tracking_frame="ecef", site=fl.site)
+        _, flight = fl.navigated(tmp_path_factory.mktemp("rocket"))
     return fl, flight
 
 
