@@ -26,13 +26,13 @@ from pathlib import Path
 import numpy as np
 
 
-def _one(seed: int, small: bool, d: Path) -> tuple[dict, list[float]]:
+def _one(seed: int, small: bool, d: Path, changes: dict | None = None) -> tuple[dict, list[float]]:
     import dataclasses
 
     from casep.simulation.rocket import RocketSpec, simulate_rocket
     from casep.workflows.separate import separate
 
-    spec = RocketSpec()
+    spec = dataclasses.replace(RocketSpec(), **(changes or {}))
     if small:
         spec = dataclasses.replace(spec, acc_bias_mg=spec.acc_bias_mg / 10, gyr_bias_dph=spec.gyr_bias_dph / 10)
     fl = simulate_rocket(seed, spec)
@@ -60,13 +60,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4, 5, 6])
     ap.add_argument("--small", action="store_true", help="biases / 10")
+    ap.add_argument("--set", nargs="*", default=[], metavar="FIELD=VALUE",
+                    help="change RocketSpec fields (floats), e.g. gps_gm_std=0 gps_lag_s=0")
     args = ap.parse_args()
     warnings.simplefilter("ignore")
     zs: list[float] = []
+    changes = {k: float(v) for k, v in (a.split("=", 1) for a in args.set)}
     c0 = time.process_time()
     with tempfile.TemporaryDirectory() as tmp:
         for seed in args.seeds:
-            row, z = _one(seed, args.small, Path(tmp))
+            row, z = _one(seed, args.small, Path(tmp), changes)
             zs += z
             print(f"seed {row['seed']}: status {row['status']}, left out {row['stale']} stale + {row['rejected']} "
                   f"impossible epochs and {row['clipped_rows']} clipped rows, pad kept {row['pad_kept']}, drift "

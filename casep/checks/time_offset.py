@@ -170,9 +170,9 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray,
         den += np.einsum("ki,ki->i", e, e)
         num += np.einsum("ki,ki->i", e[1:], e[:-1]) + (last * e[0] if last is not None else 0.0)
         last = e[-1].copy()
-    rho = num / np.maximum(den, 1e-300)
-    rho = np.clip(rho, 0.0, 0.999)
-    kappa = float(np.max((1.0 + rho) / (1.0 - rho)))  # AR(1) long-run variance factor
+    from casep.noise.whiteness import ar1_long_run_factor
+
+    kappa = float(np.max(ar1_long_run_factor(num, den)))
     s2 = red.rho2 / (3 * M - p)
     beta = np.linalg.solve(R22, q2) / red.scale[-k:]  # natural units
     Rinv = np.linalg.inv(R22)

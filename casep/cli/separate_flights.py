@@ -25,8 +25,10 @@ def separate_flights(args: argparse.Namespace, model: Any, spec: Any) -> int:
         raise ValueError(f"--method {args.method} cannot estimate several flights jointly yet. "
                          f"Use: --method {' | '.join(JOINT_METHODS)}")
     flights = inputs.read_all(args)
+    man = getattr(args, "manifest_obj", None)
     with recorded():
-        res, jp = separate_flights(flights, model, spec=spec)
+        res, jp = separate_flights(flights, model, spec=spec,
+                                   labels=[f.label for f in man.flights] if man is not None else None)
         summary = flights_summary(res, jp)
     print(res.text())
     for line in noise_lines(res.diagnostics, joint=True) + joint_summary_lines(summary):
@@ -51,7 +53,9 @@ def diagnose_flights(args: argparse.Namespace, model: Any, prior: Any, scales: A
     if args.tau:
         raise ValueError("--tau is not available with several flights yet; give one flight, or leave it out")
     flights = inputs.read_all(args)
-    d = diagnose_flights(flights, model, sigma=args.sigma, prior=prior, scales=scales)
+    man = getattr(args, "manifest_obj", None)
+    d = diagnose_flights(flights, model, sigma=args.sigma, prior=prior, scales=scales,
+                         labels=[f.label for f in man.flights] if man is not None else None)
     for line in flights_crlb_lines(d, model.name, with_prior=prior is not None):
         print(line)
     if args.json:

@@ -43,19 +43,25 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def _labels(problems: Sequence[Problem]) -> tuple[str, ...]:
+def _labels(problems: Sequence[Problem], given: Sequence[str | None] | None = None) -> tuple[str, ...]:
+    """Each flight's name in per-flight coefficient names (``dt_trk[name]``): its label when `given` holds one
+    (a manifest's ``label``), else its file names (a telemetry + tracking pair: both); file names that repeat
+    gain ``#k``. Given labels that repeat are an error (:class:`~casep.regression.joint.JointLayout`)."""
+    if given is not None and len(given) != len(problems):
+        raise ValueError(f"`labels`: {len(given)} labels for {len(problems)} flights")
     names = [" + ".join(Path(part).name for part in p.source.split(" + ")) or f"flight{k + 1}"
-             for k, p in enumerate(problems)]  # a telemetry + tracking pair: both names
+             for k, p in enumerate(problems)]
     if len(set(names)) < len(names):
         names = [f"{n}#{k + 1}" for k, n in enumerate(names)]
-    return tuple(names)
+    return tuple(lab if lab else n for lab, n in zip(given or [None] * len(names), names))
 
 
 def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: float | Sequence[float] | None = None,
                      options: Mapping[str, Any] | None = None, noise: str = "auto", tau=None,
                      robust: str | None = "auto", std: str = "model",
                      exclude_outliers: float | None = None, fit_time_offset: bool | None = None,
-                     spec: FitSpec | None = None) -> tuple[EstimateResult, JointProblem]:
+                     spec: FitSpec | None = None,
+                     labels: Sequence[str | None] | None = None) -> tuple[EstimateResult, JointProblem]:
     """One estimate of the shared coefficients from several flights; per-flight ones per flight.
 
     The flights become one :class:`~casep.regression.joint.Flights` fitted through the one entry point
@@ -86,11 +92,14 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         The fit request as one value (:class:`casep.FitSpec`) instead of `method`, `options` and the
         noise keywords (its sigma, when set, is every flight's). Either way the request is checked once,
         by the FitSpec.
+    labels : sequence of str or None, optional
+        One per flight (a manifest's ``label``): the flight's name in per-flight coefficient names and in the
+        result; None (or an entry None): its file names.
 
     Returns
     -------
     (EstimateResult, JointProblem)
-        The result over the joint parameters (names ``name`` for shared, ``name[file]`` per flight;
+        The result over the joint parameters (names ``name`` for shared, ``name[label]`` per flight;
         std from the whitened system, so ``sigma`` is 1 and ``sigma_source`` "whitened"); the problem
         (its ``sigmas``, ``layout`` and ``flight_estimates``).
     """
@@ -109,7 +118,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         if per:
             raise ValueError(f"`{key}` names per-flight coefficient(s) {', '.join(per)}: not supported with several "
                              "flights yet; give it for the shared coefficients only")
-    several = Flights(tuple(problems), JointLayout(model.names, model.per_flight, _labels(problems)), tuple(paired))
+    several = Flights(tuple(problems), JointLayout(model.names, model.per_flight, _labels(problems, labels)), tuple(paired))
     rows = joint_rows(several, spec, sigma)  # a sigma per flight, or the request's
     res = fit(several, spec, rows=rows)  # the one entry point, as for one flight
     from casep.model.loader import model_record
@@ -235,8 +244,9 @@ def _num(v: float) -> float | None:
 
 def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float] | None = None,
                      prior_std: np.ndarray | None = None, scales: Mapping | None = None,
-                     prior: Mapping | None = None) -> dict[str, Any]:
-    """What each flight determines alone and what they determine together.
+                     prior: Mapping | None = None, labels: Sequence[str | None] | None = None) -> dict[str, Any]:
+    """What each flight determines alone and what they determine together (flights named by `labels`, as
+    :func:`separate_flights`).
 
     Per shared coefficient: the CRLB std of each flight alone (its own sigma) and of the flights
     jointly (weighted by 1/sigma_k^2), and the verdicts (identifiable / weak / unidentifiable, as
@@ -271,9 +281,9 @@ def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float]
     sig = flight_sigmas(problems, sigma)
     scales = dict(model.scales if scales is None else scales)
     alone = [diagnose(p, sigma=s, scales=scales) for p, s in zip(problems, sig)]
-    out: dict[str, Any] = {"flights": list(_labels(problems)), "sigmas": sig}
+    out: dict[str, Any] = {"flights": list(_labels(problems, labels)), "sigmas": sig}
     if len(problems) >= 2:
-        layout = JointLayout(model.names, model.per_flight, _labels(problems))
+        layout = JointLayout(model.names, model.per_flight, _labels(problems, labels))
         jp = JointProblem(problems, sig, layout)
         jscales = {n: scales[n.split("[")[0]] for n in layout.joint_names if n.split("[")[0] in scales}
         jprior = jrows = None

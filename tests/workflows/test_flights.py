@@ -59,7 +59,10 @@ def test_noise_free_recovery_with_per_flight_offsets():
     a, b = _flight(1, 20.0, 0.0), _flight(2, -7.0, 0.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res, jp = separate_flights([a.flight, b.flight], a.model, "ols", sigma=1e-3)
+        res, jp = separate_flights([a.flight, b.flight], a.model, "ols", sigma=1e-3, labels=["pad A", None])
+    # a label given (a manifest's) names the flight; one not given: its file names
+    assert res.names[-2] == "dt_trk[pad A]" and res.names[-1].startswith("dt_trk[") and res.names[-1] != res.names[-2]
+    assert jp.layout.labels[0] == "pad A"
     est = jp.flight_estimates(res.estimate)
     np.testing.assert_allclose(est[0][-1], 20.0, rtol=1e-6)
     np.testing.assert_allclose(est[1][-1], -7.0, rtol=1e-6)
@@ -72,6 +75,11 @@ def test_bad_input():
         separate_flights([a.flight], a.model)
     with pytest.raises(ValueError, match="option --method"):
         separate_flights([a.flight, a.flight], a.model, "lasso")
+    b = _flight(2, 0.0, 0.1)
+    with pytest.raises(ValueError, match="labels repeat"):
+        separate_flights([a.flight, b.flight], a.model, labels=["A", "A"])
+    with pytest.raises(ValueError, match="1 labels for 2 flights"):
+        separate_flights([a.flight, b.flight], a.model, labels=["A"])
 
 
 def test_consistency_flags_a_flight_with_an_unmodelled_error(two):
