@@ -8,6 +8,10 @@ estimated at rest (10 mg, 360 deg/h). Coefficients, conventions as strapdown33 (
 
     delta_f_i = ba_i (mg),  delta_w_i = bg_i (deg/h),  i in x, y, z (body axes)
     phi0_i (arcsec), dv0_i (m/s): initial attitude and velocity errors (navigation frame)
+
+phi0 and dv0 are free per window: a window starts from the attitude carried from the one before, not from a
+levelling whose derivative would tie phi0 to the coefficients (docs/reference/model.md, "The initial attitude
+error").
 """
 
 import casadi as ca

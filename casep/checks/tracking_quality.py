@@ -308,7 +308,9 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray) -> np.ndarray | Non
 
         dv(t) += C_j diag(s_a h sqrt(n_j)) xi_j  -  [F(t) - F(t_j)] x C_j diag(s_g h sqrt(n_j)) xi'_j,
 
-    ``F(t) = int f dt`` (navigation-frame specific force), ``xi`` standard normal. This is the random walk of
+    ``F(t) = int f dt`` (navigation-frame specific force, ``F(t_j)`` its mean over the block: the sum over blocks
+    then equals the integral ``int (t - tau)^2 dtau`` of a tilt random walk within ``t b^2 / 12``), ``xi``
+    standard normal; a block counts at the epochs after its last sample. This is the random walk of
     velocity and of attitude that tracking noise does not hold: on a quiet pad the tilt's random walk under
     gravity is as large as what the tracking determines (simulated rocket: ``python benchmarks/rocket_rawlog.py``).
     """
@@ -340,7 +342,7 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray) -> np.ndarray | Non
     Cj = np.stack([np.bincount(block, C[:, r, c], nb) for r in range(3) for c in range(3)], 1).reshape(nb, 3, 3)
     Cj = Cj[used] / counts[used, None, None]
     t_end = np.array([t[block == j][-1] for j in used])
-    F_end = np.array([F[block == j][-1] for j in used])
+    F_mid = np.stack([np.bincount(block, F[:, a], nb)[used] for a in range(3)], 1) / counts[used, None]
     root = h * np.sqrt(counts[used])[:, None, None]
     ga = Cj * s[:3] * root  # (B, 3, 3): per block, the velocity error of xi (columns: body axes)
     gg = Cj * s[3:] * root  # ... and the attitude error of xi'
@@ -349,7 +351,7 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray) -> np.ndarray | Non
     for r, tr in enumerate(t_rows):
         after = t_end <= tr
         G[r, :, after, :3] = ga[after]
-        dF = F_rows[r] - F_end[after]  # (b, 3): [dF x] phi = dF x phi
+        dF = F_rows[r] - F_mid[after]  # (b, 3): the attitude error acts from the block's middle on
         G[r, :, after, 3:] = -np.cross(dF[:, :, None], gg[after], axisa=1, axisb=1, axisc=1)
     return G.reshape(3 * t_rows.size, -1)
 

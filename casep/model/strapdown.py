@@ -41,7 +41,7 @@ from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION
 if TYPE_CHECKING:
     import casadi as ca
 
-__all__ = ["QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS", "STRAPDOWN_COLUMNS",
+__all__ = ["corrected_attitude", "QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS", "STRAPDOWN_COLUMNS",
            "quaternion_dcm", "strapdown_inputs", "body_errors", "corrected_imu", "imu_error_signals",
            "CORRECTION_TOL", "CORRECTION_FLOOR", "CORRECTION_MAX_STEPS"]
 
@@ -53,6 +53,19 @@ CORRECTION_FLOOR = 1e-12
 #: ... or after this many steps: not converged (sensor errors too large for the record to be invertible).
 CORRECTION_MAX_STEPS = 60
 
+
+
+def corrected_attitude(C_ins: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """The body -> navigation attitude (3, 3) an estimated attitude error `phi` (rad, navigation frame) says is
+    true: ``INS = (I - [phi x]) true`` to first order (module notes), so ``true = R(phi) INS``, ``R(phi)`` the
+    rotation by the vector `phi` (``I + [phi x]`` to first order, and a rotation whatever its size).
+
+    The one rule for every start attitude corrected by a model's ``phi0`` (a pass of the iterated separation
+    from raw IMU data, a window of a long record) and for an attitude carried on by ``phi(T)``.
+    """
+    from casep.rotations import quat_from_rotvec, quat_to_dcm
+
+    return quat_to_dcm(quat_from_rotvec(np.asarray(phi, dtype=float))) @ np.asarray(C_ins, dtype=float)
 
 
 def quaternion_dcm(w: Any, x: Any, y: Any, z: Any) -> ca.SX:

@@ -23,7 +23,8 @@ from casep.results import Completed
 #: gives Q in the hundreds, far beyond this level too.
 ALPHA_FITTED = 1e-3
 
-__all__ = ["ALPHA_FITTED", "ar1_long_run_factor", "ljung_box", "WhitenessTest", "whiteness_test", "default_lags", "find_gaps", "segments_of"]
+__all__ = ["ALPHA_FITTED", "ar1_long_run_factor", "ljung_box", "WhitenessTest", "whiteness_test", "default_lags",
+           "find_gaps", "segments_of"]
 
 
 def ar1_long_run_factor(num: np.ndarray | float, den: np.ndarray | float) -> np.ndarray:

@@ -118,7 +118,8 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         if per:
             raise ValueError(f"`{key}` names per-flight coefficient(s) {', '.join(per)}: not supported with several "
                              "flights yet; give it for the shared coefficients only")
-    several = Flights(tuple(problems), JointLayout(model.names, model.per_flight, _labels(problems, labels)), tuple(paired))
+    layout = JointLayout(model.names, model.per_flight, _labels(problems, labels))
+    several = Flights(tuple(problems), layout, tuple(paired))
     rows = joint_rows(several, spec, sigma)  # a sigma per flight, or the request's
     res = fit(several, spec, rows=rows)  # the one entry point, as for one flight
     from casep.model.loader import model_record

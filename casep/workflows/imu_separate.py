@@ -13,7 +13,10 @@ per natural unit) is the derivative of the alignment itself (:func:`casep.naviga
 along each coefficient's body errors over the pad window, by central differences (the errors are
 linear in D, the alignment smooth: exact to about 1e-10); the model gains it as an initial
 misalignment, ``phi0 += A D``. Without it S_V would predict a velocity error on the pad that the
-levelling cancels.
+levelling cancels. This is the navigation casep aligned itself; a telemetry's free ``phi0`` (``strapdown15_phi0``)
+and a window's (``strapdown6_window``) are the same slot for navigations it did not align
+(``docs/reference/model.md``, "The initial attitude error"); every start attitude is corrected by
+:func:`casep.model.strapdown.corrected_attitude`.
 
 **Iterating** (``iterate=True``, the default): MEMS errors over tens of seconds turn the attitude
 by degrees and the linear error model is biased by many std. With ``D_k`` the coefficients so far
@@ -222,10 +225,10 @@ class _Run:
     # ------------------------------------------------------------------ one pass
     def navigate(self, D: np.ndarray) -> NavigationResult:
         """The IMU corrected by `D` (at the attitude of the last navigation), aligned and navigated."""
-        from casep.model.strapdown import corrected_imu
+        from casep.model.strapdown import corrected_attitude, corrected_imu
         from casep.navigation.imu import with_rates
         from casep.navigation.navigator import navigate_from, pad_state
-        from casep.navigation.strapdown import quat_from_rotvec, quat_multiply
+        from casep.rotations import dcm_to_quat, quat_to_dcm
 
         imu = self.imu
         i0 = int(np.searchsorted(imu.t, self.window[0]))
@@ -237,8 +240,8 @@ class _Run:
         q0, r0, v0, t_s, alignment = pad_state(imu, self.nav_site, self.window, **self.heading)
         self.q_aligned, self.C_tb = q0, alignment.C_tb
         phi0, dv0 = self.base.numeric("phi0") @ D, self.base.numeric("dv0") @ D  # the model's own initial terms
-        q0 = quat_multiply(quat_from_rotvec(phi0), q0)  # true = R(phi0) INS: INS = (I - [phi0 x]) true
-        nav = navigate_from(imu, self.nav_site, q0 / np.linalg.norm(q0), r0, v0 - dv0, t_start=t_s)
+        q0 = dcm_to_quat(corrected_attitude(quat_to_dcm(q0), phi0))
+        nav = navigate_from(imu, self.nav_site, q0, r0, v0 - dv0, t_start=t_s)
         nav.alignment, nav.align_window = alignment, (float(self.window[0]), float(self.window[1]))
         nav.source = self.imu.source
         self.imu_k = imu

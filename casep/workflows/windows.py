@@ -11,7 +11,8 @@ cuts it into windows of a few tens of seconds, and for each one
    tracking time offset ``dt_trk``) with a window model: the instrument terms plus the initial
    attitude error ``phi0`` and initial velocity error ``dv0`` (``models/strapdown6_window.py``);
 3. when ``|phi0|`` is beyond :data:`PHI0_LINEAR_RAD` (the ``f x phi`` term is then no longer linear),
-   turns the starting attitude by the estimated ``phi0`` (``C_true = (I + [phi0 x]) C_ins``) and
+   turns the starting attitude by the estimated ``phi0`` (``C_true = R(phi0) C_ins``,
+   :func:`casep.model.strapdown.corrected_attitude`) and
    navigates and separates again, up to ``attitude_passes`` times;
 4. carries the attitude to the next window corrected by the estimated attitude error at the end,
    ``phi(T) = phi0 + int phidot dt`` (the model's ``phidot`` at the window's samples).
@@ -107,20 +108,11 @@ class WindowsResult:
         return "\n".join(lines)
 
 
-def _skew(p: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]])
-
-
 def _launch_from_ecef(site: LaunchSite, t: float) -> np.ndarray:
     """The rotation L <- ECEF at time `t` (columns: the ECEF axes in L)."""
     from casep.frames import ecef_to_launch_vector
 
     return ecef_to_launch_vector(site, np.full(3, t), np.eye(3)).T
-
-
-def _orthonormal(C: np.ndarray) -> np.ndarray:
-    U, _, Vt = np.linalg.svd(C)
-    return U @ Vt
 
 
 class _Tracking:
@@ -219,6 +211,7 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
         the instrument coefficients (the model's names without :data:`NUISANCE_PREFIXES`).
     """
     from casep.model.loader import load_model
+    from casep.model.strapdown import corrected_attitude
     from casep.navigation.alignment import course_rotation
     from casep.navigation.imu import ImuData
     from casep.navigation.navigator import navigate
@@ -255,14 +248,14 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
                 if np.linalg.norm(phi0) <= PHI0_LINEAR_RAD or passes == attitude_passes:
                     break
                 M = _launch_from_ecef(site_k, t_a)
-                C_eb = M.T @ _orthonormal((np.eye(3) + _skew(phi0)) @ M @ C_eb)
+                C_eb = M.T @ corrected_attitude(M @ C_eb, phi0)
             from casep.model.sv import build_sv
 
             S = build_sv(base, flight.t, flight.f, signals=flight.signals)
             windows.append(Window(t_a, float(nav.t[-1]), site_k, res, passes, course, S[-1], base.names))
             phi_end = _attitude_error_end(base, res, flight)
             t_a = float(nav.t[-1])
-            C_lb = _orthonormal((np.eye(3) + _skew(phi_end)) @ quat_to_dcm(nav.q[-1]))
+            C_lb = corrected_attitude(quat_to_dcm(nav.q[-1]), phi_end)
             C_eb = _launch_from_ecef(site_k, t_a).T @ C_lb
     names = tuple(n for n in base.names if not n.startswith(NUISANCE_PREFIXES))
     return WindowsResult(windows, names, window_consistency(windows, names))

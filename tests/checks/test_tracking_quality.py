@@ -7,6 +7,7 @@ Clean pairs built here must come through untouched and unwarned (the suite turns
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -130,3 +131,30 @@ def test_the_clock_drift_is_measured_in_windows(rng, ppm):
     est, std = clock_drift(t, dv, a)
     assert abs(est - ppm) < 4 * std and std < DRIFT_MIN_PPM / 2
     assert math.isnan(clock_drift(t, dv, 0 * a)[0])  # no acceleration: no offset to see, not determined
+
+
+def test_the_imu_noise_effect_is_the_closed_form_random_walk():
+    """At rest, level (f = g up), attitude fixed: the accelerometer's white noise (per-sample std sa, step h) is a
+    velocity random walk, Var dv = sa^2 h t, on every axis; the gyro's tilts the platform by a random walk whose
+    gravity component integrates to Var dv_h = g^2 sg^2 h t^3 / 3 on the horizontal axes, none vertically."""
+    from casep.checks.tracking_quality import imu_noise_effect
+    from casep.io.flight import FlightData
+
+    rng = np.random.default_rng(11)
+    h, sa, sg, g = 1 / 200, 0.002, 2e-3, 9.80665  # horizontally the tilt dominates (by 3000x at 10 s)
+    t = np.arange(0.0, 10.5, h)
+    n = t.size
+    f = np.tile([0.0, 0.0, g], (n, 1))
+    sig = {"q_w": np.ones(n), "q_x": np.zeros(n), "q_y": np.zeros(n), "q_z": np.zeros(n),
+           **{f"fb_{a}": f[:, i] + rng.normal(0, sa, n) for i, a in enumerate("xyz")},
+           **{f"w_{a}": rng.normal(0, sg, n) for a in "xyz"}}
+    flight = FlightData(t, f, np.zeros((n, 3)), meta={"rows_index": np.full(n, -1)}, signals=sig)
+    rows = np.array([5.0, 10.0])
+    G = imu_noise_effect(flight, rows)
+    var = np.sum(G**2, axis=1).reshape(2, 3)
+    closed = np.array([[sa**2 * h * T + g**2 * sg**2 * h * T**3 / 3] * 2 + [sa**2 * h * T] for T in rows])
+    np.testing.assert_allclose(var, closed, rtol=0.15)  # the per-sample std measured from 2100 samples (MAD)
+    # the laws whatever the measured std: t for the velocity walk, t^3 for the tilt's
+    np.testing.assert_allclose(var[1, 2] / var[0, 2], 2.0, rtol=1e-3)
+    np.testing.assert_allclose(var[1, :2] / var[0, :2], closed[1, :2] / closed[0, :2], rtol=0.01)
+    assert imu_noise_effect(dataclasses.replace(flight, meta={}), rows) is None  # no telemetry samples: no effect

@@ -103,3 +103,19 @@ def test_increments_take_the_corrected_rates_times_their_periods(rng):
     out = with_rates(imu, w, f)
     assert np.allclose(out.dtheta, w * np.array([0.01, 0.01, 0.01, 0.03, 0.01])[:, None], rtol=1e-14, atol=0)
     assert np.allclose(out.dv / step, f, rtol=1e-14, atol=0) and out.kind == "increments"
+
+
+def test_the_corrected_attitude_is_the_rotation_by_phi():
+    """true = R(phi) INS: a rotation, equal to (I + [phi x]) INS to first order, and undone by R(-phi)."""
+    from scipy.spatial.transform import Rotation
+
+    from casep.model.strapdown import corrected_attitude
+
+    C = Rotation.from_euler("zyx", [30.0, -50.0, 80.0], degrees=True).as_matrix()
+    phi = np.array([2e-4, -1e-4, 3e-4])
+    K = np.array([[0.0, -phi[2], phi[1]], [phi[2], 0.0, -phi[0]], [-phi[1], phi[0], 0.0]])
+    out = corrected_attitude(C, phi)
+    np.testing.assert_allclose(out, (np.eye(3) + K) @ C, atol=2 * np.dot(phi, phi))  # second order
+    big = np.radians([3.0, -4.0, 5.0])
+    np.testing.assert_allclose(corrected_attitude(C, big), Rotation.from_rotvec(big).as_matrix() @ C, atol=1e-14)
+    np.testing.assert_allclose(corrected_attitude(corrected_attitude(C, big), -big), C, atol=1e-14)
