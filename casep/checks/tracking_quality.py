@@ -339,9 +339,9 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray) -> np.ndarray | Non
     nb = int(block[-1]) + 1
     counts = np.bincount(block, minlength=nb)
     used = np.flatnonzero(counts)
-    Cj = np.stack([np.bincount(block, C[:, r, c], nb) for r in range(3) for c in range(3)], 1).reshape(nb, 3, 3)
-    Cj = Cj[used] / counts[used, None, None]
-    t_end = np.array([t[block == j][-1] for j in used])
+    C_sum = np.stack([np.bincount(block, C[:, r, c], nb) for r in range(3) for c in range(3)], 1).reshape(nb, 3, 3)
+    Cj = C_sum[used] / counts[used, None, None]
+    t_end = t[np.cumsum(counts)[used] - 1]  # the blocks' last samples (t increases)
     F_mid = np.stack([np.bincount(block, F[:, a], nb)[used] for a in range(3)], 1) / counts[used, None]
     root = h * np.sqrt(counts[used])[:, None, None]
     ga = Cj * s[:3] * root  # (B, 3, 3): per block, the velocity error of xi (columns: body axes)
