@@ -158,3 +158,34 @@ def test_the_imu_noise_effect_is_the_closed_form_random_walk():
     np.testing.assert_allclose(var[1, 2] / var[0, 2], 2.0, rtol=1e-3)
     np.testing.assert_allclose(var[1, :2] / var[0, :2], closed[1, :2] / closed[0, :2], rtol=0.01)
     assert imu_noise_effect(dataclasses.replace(flight, meta={}), rows) is None  # no telemetry samples: no effect
+
+
+def test_a_correlated_stretch_is_weighted_by_its_long_run_variance():
+    """One offset seen by a quiet white stretch and by a stretch of Gauss-Markov noise whose epoch-to-epoch changes
+    look quiet (lag-1 correlation 0.95: its mean is 28 times less certain than white noise of that scatter says).
+    Seeded, 150 draws: the determined offset's z has RMS near 1 and 95 % coverage; with the stretches weighted
+    by their scatter alone the correlated one would take most of the weight: RMS z 6.1 on these draws."""
+    from casep.checks.tracking_quality import determined, stretch_noise
+    from casep.regression.problem import Problem
+
+    rng = np.random.default_rng(5)
+    n, phi = 200, 0.95
+    t = np.concatenate([np.arange(n) * 0.1, 30.0 + np.arange(n) * 0.1])
+    S = np.zeros((2 * n, 3, 1))
+    S[:, 0, 0] = 1.0
+    z = []
+    for _ in range(150):
+        y = np.zeros((2 * n, 3))
+        y[:, 1:] = rng.normal(0, 0.05, (2 * n, 2))
+        y[:n, 0] = rng.normal(0, 0.05, n)
+        e = np.empty(n)
+        e[0] = rng.normal(0, 0.5)
+        for k in range(1, n):
+            e[k] = phi * e[k - 1] + rng.normal(0, 0.5 * math.sqrt(1 - phi**2))
+        y[n:, 0] = e
+        combos, _ = determined(Problem.from_arrays(S, y, t), stretch_noise(t, y), {"c0": 1.0})
+        z.append(combos[0]["estimate"] / combos[0]["std"])
+    z_arr = np.abs(np.asarray(z))
+    rms = math.sqrt(np.mean(z_arr**2))
+    assert 0.8 < rms < 1.2, rms
+    assert 0.9 <= np.mean(z_arr < 1.959964) <= 1.0
