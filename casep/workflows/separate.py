@@ -358,14 +358,13 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     stretches beyond :data:`casep.checks.tracking_quality.NOISE_RATIO`: its message says which combinations the
     flight determines (:func:`casep.checks.tracking_quality.determined`) instead of each coefficient;
     ``diagnostics["determined"]`` holds them (``combinations``, ``std_factor``, the ``scales`` they divide by)."""
-    from casep.checks.tracking_quality import determined, determined_message, imu_noise_effect, noise_problem
+    from casep.checks.tracking_quality import determined, determined_message, noise_problem
     from casep.estimators.registry import STATUS_TRACKING, failed
 
     why = noise_problem(flight)
     if why is None or problem.y is None or problem.t is None:
         return res
-    combos, k = determined(problem, flight.meta["tracking_screen"]["stretches"], scales,
-                           imu_noise=imu_noise_effect(flight, problem.t))
+    combos, k = determined(problem, flight.meta["tracking_screen"]["stretches"], scales, imu=flight)
     res = failed(res, STATUS_TRACKING, determined_message(why, combos, k, len(problem.names), scales))
     res.diagnostics["determined"] = {"combinations": combos, "std_factor": k,
                                      "scales": {nm: scales.get(nm, 1.0) for nm in problem.names}}

@@ -150,14 +150,14 @@ def test_the_imu_noise_effect_is_the_closed_form_random_walk():
            **{f"w_{a}": rng.normal(0, sg, n) for a in "xyz"}}
     flight = FlightData(t, f, np.zeros((n, 3)), meta={"rows_index": np.full(n, -1)}, signals=sig)
     rows = np.array([5.0, 10.0])
-    G = imu_noise_effect(flight, rows)
+    G = imu_noise_effect(flight, rows, np.eye(6))  # seen through the identity: G itself
     var = np.sum(G**2, axis=1).reshape(2, 3)
     closed = np.array([[sa**2 * h * T + g**2 * sg**2 * h * T**3 / 3] * 2 + [sa**2 * h * T] for T in rows])
     np.testing.assert_allclose(var, closed, rtol=0.15)  # the per-sample std measured from 2100 samples (MAD)
     # the laws whatever the measured std: t for the velocity walk, t^3 for the tilt's
     np.testing.assert_allclose(var[1, 2] / var[0, 2], 2.0, rtol=1e-3)
     np.testing.assert_allclose(var[1, :2] / var[0, :2], closed[1, :2] / closed[0, :2], rtol=0.01)
-    assert imu_noise_effect(dataclasses.replace(flight, meta={}), rows) is None  # no telemetry samples: no effect
+    assert imu_noise_effect(dataclasses.replace(flight, meta={}), rows, np.eye(6)) is None  # no IMU samples
 
 
 def test_a_correlated_stretch_is_weighted_by_its_long_run_variance():

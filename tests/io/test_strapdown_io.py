@@ -168,3 +168,15 @@ def test_the_navigators_own_output_on_vibrating_data_passes(kind, reading, round
         check_strapdown("nav.csv", nav.t, nav.q[:, [1, 2, 3, 0]], nav.fb, nav.w)
     with pytest.raises(FlightDataError, match="looks like deg/s"):
         check_strapdown("nav.csv", nav.t, nav.q, nav.fb, np.degrees(nav.w))
+
+
+def test_body_force_in_g_is_warned_naming_the_fb_columns_and_the_factor(tmp_path):
+    t, q, fb, w, _ = motion()
+    fl = casep.read_flight(write(tmp_path / "sd.csv", t, q, fb / 9.80665, w))  # about 3.2 g written in m/s^2
+    from casep.checks.plausibility import check_flight
+
+    with pytest.warns(casep.PlausibilityWarning) as rec:
+        check_flight(fl)
+    msg = " ".join(str(r.message) for r in rec if "peak specific force" in str(r.message))
+    peak = np.max(np.linalg.norm(fb, axis=1)) / 9.80665
+    assert "fb_x, fb_y, fb_z (as C(q) fb)" in msg and f"is {peak:.4g} m/s^2" in msg and "multiply by 9.80665" in msg
