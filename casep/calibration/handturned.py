@@ -392,10 +392,7 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
                              x0=np.array([0, 0, 0, 1, 1, 1, 0, 0, 0.0]) if physical else None)
     t_pose = np.array([session.t[a:b].mean() for a, b in seg.poses])
     n_pose = np.array([b - a for a, b in seg.poses])
-    fits = {}
-    afit, fits["accelerometer"] = _with_prior(acc_drift_covariance(afit, means, t_pose, n_pose, session.rate),
-                                              None if acc_drift is None else acc_drift_covariance(
-                                                  afit, means, t_pose, n_pose, session.rate, acc_drift))
+    afit, acc_free = acc_drift_covariance(afit, means, t_pose, n_pose, session.rate)
     u0, u1 = _dirs(afit, means)
     gm = np.array([gyr[a:b].mean(axis=0) for a, b in seg.poses])
     bias, bias_std, gyr_free = pose_mean_bias(gm, t_pose, n_pose, session.rate)
@@ -403,14 +400,12 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     dt = np.diff(session.t, append=session.t[-1] + 1.0 / session.rate)
     gfit = fit_gyro(gyr, session.rate, seg.motions, u0, u1, bias, bias_std=bias_std,
                     scale0=None if session.gyr_unit == RAW_UNIT else 1.0, dt=dt)
-    fits["gyro"] = (gyr_free, None)
-    if gyr_drift is not None:  # the prior in the readings' unit: rad/s over each axis's scale (SI per reading unit)
-        from dataclasses import replace
-
-        _, bias_std, gyr_prior = pose_mean_bias(gm, t_pose, n_pose, session.rate,
-                                                (gyr_drift[0] / np.abs(gfit.x[6:9]), gyr_drift[1]))
-        gfit, fits["gyro"] = replace(gfit, bias_std=bias_std), (gyr_free, gyr_prior)
+    # the gyro's scale and misalignment see the bias and the gravity directions where the motions are: their errors
+    # are the session's own drift (a prior's slow part is common to the bias and every motion's readings)
     gfit = _propagate(gfit, afit, means, gyr, session.rate, seg.motions, dt)
+    afit, gfit, fits = _drift_priors(afit, acc_free, gfit, gyr_free, means, gm, (t_pose, n_pose, session.rate),
+                                     acc_drift, gyr_drift)
+    bias_std = gfit.bias_std
     check_acc_fit(afit, means, session)  # the units and the rate first: they explain everything else
     check_gyro_swap(gfit, gyr, session, seg.motions, (u0, u1), dt)
     check_gyro_scale(gfit.x[6:9], session)
@@ -626,10 +621,25 @@ def drift_report(fits: dict, acc_bias_std: np.ndarray, gyr_bias_std: np.ndarray,
     return out
 
 
-def _with_prior(free: tuple[AccFit, DriftFit], prior: tuple[AccFit, DriftFit] | None
-                ) -> tuple[AccFit, tuple[DriftFit, DriftFit | None]]:
-    """The accelerometer fit whose covariance holds (the prior's when given) and both drift fits."""
-    return (free[0], (free[1], None)) if prior is None else (prior[0], (free[1], prior[1]))
+def _drift_priors(afit: AccFit, acc_free: DriftFit, gfit: GyroFit, gyr_free: DriftFit, means: np.ndarray,
+                  gm: np.ndarray, poses: tuple, acc_drift: tuple[float, float] | None,
+                  gyr_drift: tuple[float, float] | None) -> tuple[AccFit, GyroFit, dict]:
+    """The fits with the biases' std of the drift priors (each sensor's given, in the readings' unit: the std in SI
+    over each axis's scale), and per sensor the session's own drift fit and the prior's (or None).
+
+    `poses`: the poses' times (s), samples and the rate (Hz).
+    """
+    from dataclasses import replace
+
+    t, n, rate = poses
+    fits: dict = {"accelerometer": (acc_free, None), "gyro": (gyr_free, None)}
+    if acc_drift is not None:
+        ap = acc_drift_covariance(afit, means, t, n, rate, acc_drift)
+        afit, fits["accelerometer"] = ap[0], (acc_free, ap[1])
+    if gyr_drift is not None:
+        _, bias_std, gp = pose_mean_bias(gm, t, n, rate, (gyr_drift[0] / np.abs(gfit.x[6:9]), gyr_drift[1]))
+        gfit, fits["gyro"] = replace(gfit, bias_std=bias_std), (gyr_free, gp)
+    return afit, gfit, fits
 
 
 def acc_drift_covariance(afit: AccFit, means: np.ndarray, t: np.ndarray, n: np.ndarray, rate: float,
