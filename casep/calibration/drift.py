@@ -212,20 +212,23 @@ def slow_bound(lr: np.ndarray, v: np.ndarray, tau: float, AWA: np.ndarray, ADA: 
 
 
 def drift_note(fit: DriftFit, what: str, unit: str, session_s: float, bias_std: np.ndarray,
-               bias_unit: str) -> str | None:
+               bias_unit: str, prior_flag: str = "") -> str | None:
     """A sentence when the rows show a slow drift (share above DRIFT_SHARE, most weight at ``tau`` >= SLOW times the
-    session): its size, and that it can move the biases by up to its std beyond `bias_std` (module notes); else None."""
+    session): its size, and that it can move the biases by up to its std beyond `bias_std` (module notes), and the
+    option `prior_flag` that gives the drift; else None."""
     slow = float(np.sum(fit.weights[fit.taus >= SLOW * session_s]))
     if fit.drift_share < DRIFT_SHARE or slow < 0.5 or fit.lr_stat <= AUTO_LR:
         return None
     sd = ", ".join(f"{v:.3g}" for v in np.atleast_1d(fit.sigma_d))
     bs = ", ".join(f"{v:.3g}" for v in np.atleast_1d(bias_std))
-    return (f"the {what} drifts: {100 * fit.drift_share:.0f} % of a pose mean's variance is a slow drift of std "
+    return (f"a slow drift in the {what}: {100 * fit.drift_share:.0f} % of a pose mean's variance is a drift of std "
             f"{sd} {unit} (white noise alone: 0 %), {100 * slow:.0f} % of its weight at a correlation time of "
             f"{SLOW * session_s:.0f} s or more. The bias std ({bs} {bias_unit}) holds for a drift correlation time "
             f"up to about a quarter of the session's {session_s:.0f} s; a slower drift is a bias the session cannot "
-            "tell from the constant one and can move the bias by up to the drift's std. Use: a longer session, or an "
-            "initial static period long enough to measure the drift (Allan deviation)")
+            "tell from the constant one and can move the bias by up to the drift's std. Use: "
+            + (f"{prior_flag} (the sensor's drift, a datasheet's or from a long static recording's Allan deviation: "
+               "the std then carries it), " if prior_flag else "")
+            + "a longer session, or an initial static period long enough to measure the drift (Allan deviation)")
 
 
 def fit_drift_prior(r: np.ndarray, X: np.ndarray, W: np.ndarray, S: np.ndarray, t: np.ndarray, A: np.ndarray,

@@ -206,7 +206,9 @@ def drift_lines(dr: dict | None) -> list[str]:
     if not dr:
         return []
     out = ["drift beyond white noise (share of a pose mean's variance, std; casep.calibration.drift): "
-           + "; ".join(f"{k} {100 * v['share']:.0f} %, {_floats(v['sigma_d'])} {v['unit']}" for k, v in dr.items())]
+           + "; ".join(f"{k} {100 * v['share']:.0f} %, {_floats(v['sigma_d'])} {v['unit']}"
+                       + (f" ({_floats(v['natural']['sigma_d'])} {v['natural']['unit']})" if "natural" in v else "")
+                       for k, v in dr.items())]
     for k, v in dr.items():
         if "prior" in v:
             p = v["prior"]
@@ -218,7 +220,7 @@ def drift_lines(dr: dict | None) -> list[str]:
                        f"correlation time up to about a quarter of the session; a drift of correlation time "
                        f"{b['tau_s']:.3g} s (the session) up to std {'>= ' if b['at_grid_end'] else ''}"
                        f"{_floats(b['sigma_d'])} {v['unit']} is consistent with it (95 %) and would make it "
-                       f"{_floats(b['bias_std'])} {v['bias_unit']}. A datasheet's drift: "
+                       f"{_floats(b['bias_std'])} {v['bias_unit']}; the sensor's drift: "
                        f"{'--acc-drift MG,TAU' if k == 'accelerometer' else '--gyr-drift DEG_H,TAU'}")
     return out
 
@@ -410,7 +412,8 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     check_gyro_swap(gfit, gyr, session, seg.motions, (u0, u1), dt)
     check_gyro_scale(gfit.x[6:9], session)
     _reissue(held)
-    drift = drift_report(fits, afit.std[6:9], bias_std, float(np.ptp(t_pose)), (ba_unit, bg_unit), session.source)
+    drift = drift_report(fits, afit.std[6:9], bias_std, float(np.ptp(t_pose)), (ba_unit, bg_unit), session.source,
+                         np.abs(gfit.x[6:9]) if session.gyr_unit == RAW_UNIT else np.ones(3))
     if session.gyr_unit == RAW_UNIT:  # the turn inside each pose, now that the counts' scale is known
         from dataclasses import replace
 
@@ -420,7 +423,8 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
         turns = [math.degrees(float(np.linalg.norm((wc[a:b] * dt[a:b, None]).sum(axis=0)))) for a, b in seg.poses]
         warn_turns(seg.poses, turns, MAX_TURN_DEG, session.source)
         seg = replace(seg, turns_deg=turns)
-    ok = afit.converged and gfit.converged and not saturated
+    ok = afit.converged and gfit.converged and not saturated and not gyro_misfit(gfit, seg.motions, session,
+                                                                                 bool(saturated))
     if not (afit.converged and gfit.converged):
         warnings.warn(f"{session.source}: the fit did not converge (accelerometer {afit.iterations} iterations, gyro "
                       f"{gfit.iterations}): the coefficients are probably wrong", FitWarning, stacklevel=2)
@@ -510,6 +514,25 @@ def check_acc_fit(afit: AccFit, means: np.ndarray, session: Session) -> None:
     check_acc_scale(s, session)
 
 
+def gyro_misfit(gfit: GyroFit, motions: list, session: Session, saturated: bool) -> bool:
+    """FitWarning, and True, when the gyro's RMS gravity-direction misfit is above SWAP_MISFIT_DEG (hand-turned
+    sessions fit to ~0.1 deg) and no saturation already explains it: the worst motions' rows and misfits, and the
+    likely causes."""
+    rms = math.degrees(_rms(gfit.residuals))
+    if rms <= SWAP_MISFIT_DEG or saturated or not gfit.converged:
+        return False
+    per = np.degrees(np.linalg.norm(np.asarray(gfit.residuals).reshape(len(motions), -1), axis=1))
+    worst = np.argsort(per)[::-1][:3]
+    warnings.warn(f"{session.source}: the gyro fit leaves an RMS gravity-direction misfit of {rms:.3g} deg over "
+                  f"{len(motions)} motions (a hand-turned session fits to ~0.1 deg; > {SWAP_MISFIT_DEG:g} deg is a "
+                  "bad fit), worst " + ", ".join(f"rows {motions[i][0]}-{motions[i][1] - 1}: {per[i]:.3g} deg"
+                                                  for i in worst)
+                  + ". The turns are misread: a gyro that saturates below its converter's limits (a range narrower "
+                  "than the counts), a gyro sampled at another time or rate than the accelerometers, or motion in "
+                  "the poses. The coefficients are probably wrong", FitWarning, stacklevel=3)
+    return True
+
+
 def check_gyro_swap(gfit: GyroFit, gyr: np.ndarray, session: Session, motions: list,
                     dirs: tuple[np.ndarray, np.ndarray], dt) -> None:
     """Refuse a gyro whose columns are in another order than the accelerometer's (numbers and the order).
@@ -589,12 +612,13 @@ class DriftWarning(CasepWarning):
 
 
 def drift_report(fits: dict, acc_bias_std: np.ndarray, gyr_bias_std: np.ndarray, session_s: float,
-                 units: tuple[str, str], source: str) -> dict:
+                 units: tuple[str, str], source: str, gyr_si: np.ndarray) -> dict:
     """The drift each sensor's pose means show (:mod:`casep.calibration.drift`), warned of (DriftWarning, numbers)
     when it is most of their variance and slow, or, with a prior, when it is more than the prior's; a dict for the
     result's settings.
 
-    `fits`: per sensor (``accelerometer``, ``gyro``) the session's own drift fit and the prior's (or None).
+    `fits`: per sensor (``accelerometer``, ``gyro``) the session's own drift fit and the prior's (or None);
+    `gyr_si`: rad/s per gyro reading unit, per axis (the drift also in natural units, mg and deg/h: ``natural``).
     """
     from casep.calibration.drift import drift_note, prior_note
 
@@ -605,6 +629,8 @@ def drift_report(fits: dict, acc_bias_std: np.ndarray, gyr_bias_std: np.ndarray,
         out[key] = {"share": fit.drift_share, "sigma_d": np.atleast_1d(fit.sigma_d).tolist(), "unit": unit,
                     "tau_s": float(np.exp(np.sum(fit.weights * np.log(fit.taus)))), "bias_unit": bunit,
                     "bias_std": np.atleast_1d(bstd).tolist()}
+        to_nat = (1.0 / ACC_UNITS["mg"], "mg") if key == "accelerometer" else (gyr_si / GYR_UNITS["deg/h"], "deg/h")
+        out[key]["natural"] = {"sigma_d": (np.atleast_1d(fit.sigma_d) * to_nat[0]).tolist(), "unit": to_nat[1]}
         if prior is None and fit.bound is not None:
             C = fit.bound["covariance"]
             var = np.diag(C[0])[6:9] if key == "accelerometer" else C[:, 0, 0]
@@ -614,8 +640,9 @@ def drift_report(fits: dict, acc_bias_std: np.ndarray, gyr_bias_std: np.ndarray,
         if prior is not None:
             out[key]["prior"] = {"sigma_d": np.atleast_1d(prior.sigma_d).tolist(), "tau_s": float(prior.taus[0]),
                                  "share": prior.drift_share}
-        note = drift_note(fit, what, unit, session_s, bstd, bunit) if prior is None else prior_note(prior, fit,
-                                                                                                    what, unit)
+        flag = "--acc-drift MG,TAU" if key == "accelerometer" else "--gyr-drift DEG_H,TAU"
+        note = (drift_note(fit, what, unit, session_s, bstd, bunit, flag) if prior is None
+                else prior_note(prior, fit, what, unit))
         if note:
             warnings.warn(f"{source}: {note}", DriftWarning, stacklevel=3)
     return out
