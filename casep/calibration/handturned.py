@@ -608,7 +608,8 @@ def _drift_fit(r, X, S, t, n, rate, A, scale, prior, W=None) -> DriftFit:
 
 
 class DriftWarning(CasepWarning):
-    """The pose means drift: the biases' std holds for a drift faster than about a quarter of the session."""
+    """The pose means drift slowly: without a drift prior the biases' std holds for a drift faster than about a
+    quarter of the session; with one, the session shows more drift than the prior."""
 
 
 def drift_report(fits: dict, acc_bias_std: np.ndarray, gyr_bias_std: np.ndarray, session_s: float,
