@@ -432,7 +432,10 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     res = _result(afit, gfit, units, session.n_samples,
                   f"{len(seg.poses)} poses, {len(seg.motions)} motions"
                   + ("" if afit.converged and gfit.converged else "; fit not converged")
-                  + ("; the sensor saturates in a motion" if saturated else ""), ok)
+                  + ("; the sensor saturates in a motion" if saturated else "")
+                  + ("" if acc_drift and gyr_drift else f"; no {'gyro ' if acc_drift else ''}"
+                     f"{'accelerometer ' if gyr_drift else ''}drift prior: the biases' std holds for a drift "
+                     f"correlation time up to ~{0.25 * float(np.ptp(t_pose)):.0f} s (settings.drift)"), ok)
     settings = {"gravity": g, "gravity_source": g_src, "rate_hz": session.rate, "source": session.source,
                 "acc_unit": session.acc_unit, "gyr_unit": session.gyr_unit, "t_column": session.t_column,
                 "drift": drift}

@@ -60,6 +60,10 @@ def test_the_labelled_path_refuses_the_flags(tmp_path, capsys):
     rc, _, err = main(["calibrate", str(p), "--rate", "100", "--segments", str(p), "--acc-range", "2", "--json",
                        str(tmp_path / "c.json")]), None, capsys.readouterr().err
     assert rc == 2 and "--acc-range: used by model multiposition" in err, err
+    # the drift priors too: the labelled path's biases have no drift model to take them
+    rc = main(["calibrate", str(p), "--rate", "100", "--segments", str(p), "--gyr-drift", "10,100", "--json",
+               str(tmp_path / "c.json")])
+    assert rc == 2 and "--gyr-drift: used by model multiposition" in capsys.readouterr().err
 
 
 def test_a_declared_gyro_range_off_the_nominal_ones_is_saturation(tmp_path, capsys):
