@@ -22,7 +22,8 @@ DriftWarning in most such sessions): 1.02, 1.10, 1.55; 0.95, 0.87, 2.33. Before 
 (12 sessions, tau 30 s): 1.21, 1.41, 1.39; 1.14, 1.11, 2.76.
 
 With the simulated drift given as the drift prior (``--prior``: casep calibrate --acc-drift / --gyr-drift), 40
-sessions (seed 0), same groups: tau 30 s PRIOR30; tau 100 s PRIOR100; tau 300 s 1.03, 1.11, 1.02; 0.99, 0.97,
+sessions (seed 0), same groups: tau 30 s (a quarter of the ~120 s session) 1.04, 1.05, 0.92; 0.96, 0.98,
+0.99; tau 100 s 1.04, 1.08, 0.97; 0.97, 0.93, 0.97; tau 300 s 1.03, 1.11, 1.02; 0.99, 0.97,
 0.97. Without it (same sessions): tau 30 s 1.07, 1.13, 1.14; 0.96, 0.98, 1.19; tau 100 s 1.05, 1.11, 1.73; 0.97,
 0.93, 2.11 (DriftWarning accelerometer 7/40, gyro 33/40; the report's slow-drift bound as std: acc bias 0.57,
 gyro bias 0.84); tau 300 s 1.04, 1.11, 2.58; 0.99, 0.97, 4.37 (warned 2/40 and 24/40; bound 0.80, 1.52).
