@@ -298,7 +298,7 @@ def prior_note(prior: DriftFit, free: DriftFit, what: str, unit: str) -> str | N
         return None
     sd = ", ".join(f"{v:.3g}" for v in np.atleast_1d(free.sigma_d))
     ps = ", ".join(f"{v:.3g}" for v in np.atleast_1d(prior.sigma_d))
-    return (f"the {what} shows more drift than the prior: std {sd} {unit} at a correlation time near "
+    return (f"more drift in the {what} than the prior allows: std {sd} {unit} at a correlation time near "
             f"{float(np.exp(np.sum(free.weights * np.log(free.taus)))):.3g} s against the prior's {ps} {unit} at "
             f"{float(prior.taus[0]):.3g} s (-2 ln Lambda {lr:.1f} > {AUTO_LR:g}): the std, from the prior, is too "
             "small. Use: a prior that matches the sensor, or none (the std then follows the session's own drift)")

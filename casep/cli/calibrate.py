@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from casep.cli import flight_options, options, outputs
+from casep.cli import drift_options, flight_options, options, outputs
 from casep.estimators.registry import METHODS, OPTIONS
 
 
@@ -57,14 +57,7 @@ def add_parser(sub: Any) -> None:
     flight_options.add_full_scales(auto, "a gyro saturated inside a turn fails the calibration, a pose with a clipped "
                                   "accelerometer is left out (raw counts: the full scale the fit implies is checked "
                                   "against the declared one)")
-    auto.add_argument("--acc-drift", metavar="MG,TAU", default=None, dest="acc_drift",
-                      help="accelerometer bias drift prior: a Gauss-Markov std (mg) and correlation time (s), in "
-                           "the biases' std (a drift as slow as the session is otherwise a bias it cannot tell); "
-                           "from a datasheet's bias instability B: MG = B / 0.62, TAU = the Allan floor's averaging "
-                           "time / 1.89")
-    auto.add_argument("--gyr-drift", metavar="DEG_H,TAU", default=None, dest="gyr_drift",
-                      help="gyro bias drift prior: a Gauss-Markov std (deg/h) and correlation time (s), as "
-                           "--acc-drift")
+    drift_options.add_drift_priors(auto)
     auto.add_argument("--imu-tk", metavar="PREFIX", default=None, dest="imu_tk",
                       help="also write PREFIX_acc.calib and PREFIX_gyro.calib (imu_tk's text format)")
     auto.add_argument("--figures", metavar="DIR", default=None,
@@ -134,9 +127,7 @@ def _run_auto(args: argparse.Namespace) -> int:
                                        gyr_unit=args.gyr_unit, gravity=args.gravity, latitude=args.latitude,
                                        height=args.height, window_s=args.window, init_s=args.init,
                                        min_static_s=args.min_static, acc_full_scale=fs["acc_range"],
-                                       gyr_full_scale=fs["gyr_range"],
-                                       acc_drift=_drift(args.acc_drift, "--acc-drift", "mg"),
-                                       gyr_drift=_drift(args.gyr_drift, "--gyr-drift", "deg/h"))
+                                       gyr_full_scale=fs["gyr_range"], **drift_options.drift_priors(args))
     print(cal.text())
     _figure(args, cal.segmentation)
     outputs.write_json(cal.to_dict(), args.json)
@@ -145,21 +136,6 @@ def _run_auto(args: argparse.Namespace) -> int:
         for path in write_imu_tk(cal, args.imu_tk):
             print(f"imu_tk calibration written to {path}")
     return outputs.status(cal)
-
-
-def _drift(text: str | None, flag: str, unit: str) -> tuple[float, float] | None:
-    """`--acc-drift MG,TAU` / `--gyr-drift DEG_H,TAU`: (std in SI, tau in s); checked by calibrate_multiposition."""
-    if text is None:
-        return None
-    from casep.calibration.session import ACC_UNITS, GYR_UNITS
-
-    parts = text.split(",")
-    try:
-        std, tau = (float(v) for v in parts)
-    except ValueError:
-        raise ValueError(f"{flag} {text!r}: give STD,TAU (std in {unit}, correlation time in s), "
-                         f"e.g. {flag} {'0.2,100' if unit == 'mg' else '10,100'}") from None
-    return std * {**ACC_UNITS, **GYR_UNITS}[unit], tau
 
 
 def _figure(args: argparse.Namespace, segmentation) -> None:
