@@ -40,6 +40,14 @@ for a richer noise kind; ``rho`` on its boundary under white noise). The std its
 average (a drift too small to be told from white noise still widens it): a test would make it the
 white-noise std whenever the test misses a real drift (seeded simulation: the biases' RMS z 1.25-1.8
 instead of 0.9-1.2).
+
+What the session cannot show needs a prior: the sensor's drift (a datasheet's bias instability, or a long
+static recording's Allan deviation) as a Gauss-Markov std and ``tau``, :func:`fit_drift_prior` (``casep
+calibrate --acc-drift / --gyr-drift``): ``C = A (v0 W + sigma_d^2 D(tau)) A^T``, ``v0`` by REML with the drift
+known. Seeded simulation as above, the true drift as prior: the biases' RMS z 0.97-1.02, the accelerometer's
+scales and misalignments' 1.02-1.06, at ``tau`` 5 to 1000 s (200 draws each); without it 1.6-2.0 at 100 s,
+2.9-3.5 at 300 s. Without a prior, :func:`slow_bound` gives the largest drift of correlation time the session's
+length the rows allow (95 %) and the covariance with it: the report states it beside the bias std.
 """
 
 from __future__ import annotations
@@ -50,7 +58,12 @@ import numpy as np
 
 from casep.noise.model import AUTO_LR
 
-__all__ = ["DriftFit", "fit_drift", "drift_grid", "drift_note", "null_basis", "RATIOS"]
+__all__ = ["DriftFit", "fit_drift", "fit_drift_prior", "drift_grid", "drift_note", "prior_note", "null_basis",
+           "RATIOS", "GM_ALLAN_PEAK"]
+
+#: The peak of a first-order Gauss-Markov process's Allan deviation, as a fraction of its std (at an averaging
+#: time of about 1.89 tau): a datasheet's bias instability B taken as that peak is a drift of std B / GM_ALLAN_PEAK.
+GM_ALLAN_PEAK = 0.6198
 
 #: The drift-to-white variance ratios of the grid (0: white noise alone).
 RATIOS = np.r_[0.0, np.geomspace(1e-2, 1e3, 16)]
@@ -67,7 +80,8 @@ SLOW = 0.25
 @dataclass(frozen=True)
 class DriftFit:
     """The drift the rows show: per ``tau`` of the grid its weight, best ``rho`` and ``v0`` per series; ``C``;
-    ``lr_stat``: -2 ln Lambda of the best drift against white noise.
+    ``lr_stat``: -2 ln Lambda of the best drift against white noise; ``bound``: the largest drift at the slowest
+    ``tau`` of the grid the rows allow (:func:`slow_bound`).
 
     ``covariance``: (k, q, q), one per series.
     """
@@ -78,15 +92,24 @@ class DriftFit:
     taus: np.ndarray
     covariance: np.ndarray
     lr_stat: float = 0.0
+    loglik: float = -np.inf
+    prior: np.ndarray | None = None
+    bound: dict | None = None
 
     @property
     def drift_share(self) -> float:
         """The drift's share of a pose mean's variance, ``rho / (1 + rho)`` averaged over ``tau`` (0: white)."""
+        if self.prior is not None:
+            s2 = self.prior ** 2
+            return float(np.mean(s2 / (s2 + self.v0[0])))
         return float(np.sum(self.weights * self.ratios / (1.0 + self.ratios)))
 
     @property
     def sigma_d(self) -> np.ndarray:
-        """The drift's stationary std per series, ``sqrt(rho v0)`` averaged over ``tau`` (the row's unit)."""
+        """The drift's stationary std per series, ``sqrt(rho v0)`` averaged over ``tau`` (the row's unit);
+        with a prior, the prior's."""
+        if self.prior is not None:
+            return self.prior
         return np.sqrt(np.sum(self.weights[:, None] * self.ratios[:, None] * self.v0, axis=0))
 
 
@@ -162,6 +185,7 @@ def fit_drift(r: np.ndarray, X: np.ndarray, W: np.ndarray, S: np.ndarray, t: np.
         ll0 = lr[0]  # rho = 0: the same at every tau
         best[j] = int(np.argmax(lr))
         ll[j], v0[j] = lr[best[j]], v[best[j]]
+    bound = slow_bound(lr, v, taus[-1], AWA, ADA[-1])
     lr_stat = 2.0 * float(np.max(ll) - ll0) if np.isfinite(ll0) else 0.0
     if np.isfinite(ll).any():
         w = np.exp(ll - np.max(ll))
@@ -171,21 +195,110 @@ def fit_drift(r: np.ndarray, X: np.ndarray, W: np.ndarray, S: np.ndarray, t: np.
     rho = RATIOS[best]
     C = sum(w[j] * v0[j][:, None, None] * (AWA + rho[j] * ADA[j])[None] for j in range(len(taus)))
     return DriftFit(weights=w, ratios=rho, v0=v0, taus=np.asarray(taus, dtype=float), covariance=np.asarray(C),
-                    lr_stat=lr_stat)
+                    lr_stat=lr_stat, loglik=float(np.max(ll)) - 0.5 * n * k, bound=bound)
+
+
+#: Half the 95 % point of chi-square with one degree of freedom: a profile likelihood's 95 % interval.
+HALF_CHI2_95 = 1.92
+
+
+def slow_bound(lr: np.ndarray, v: np.ndarray, tau: float, AWA: np.ndarray, ADA: np.ndarray) -> dict | None:
+    """The largest drift at correlation time `tau` (the session's length) the rows allow, and the covariance with it.
+
+    ``rho`` of the grid whose profile likelihood `lr` (over RATIOS, ``v`` its ``v0`` per series) is within
+    HALF_CHI2_95 of the best at that ``tau`` (a 95 % upper bound; ``at_grid_end``: the grid's last ratio, a
+    lower bound of the bound). A drift this slow is, for the most part, a bias the session cannot tell from the
+    constant one: this is what a session without a drift prior cannot exclude (:func:`drift_note`).
+    """
+    if not np.isfinite(lr).any():
+        return None
+    ok = np.flatnonzero(lr >= np.max(lr) - HALF_CHI2_95)
+    i = int(ok[-1])
+    rho = float(RATIOS[i])
+    C = v[i][:, None, None] * (AWA + rho * ADA)[None]
+    return {"tau_s": float(tau), "sigma_d": np.sqrt(rho * v[i]), "covariance": C, "at_grid_end": i == len(RATIOS) - 1}
 
 
 def drift_note(fit: DriftFit, what: str, unit: str, session_s: float, bias_std: np.ndarray,
-               bias_unit: str) -> str | None:
+               bias_unit: str, prior_flag: str = "") -> str | None:
     """A sentence when the rows show a slow drift (share above DRIFT_SHARE, most weight at ``tau`` >= SLOW times the
-    session): its size, and that it can move the biases by up to its std beyond `bias_std` (module notes); else None."""
+    session): its size, and that it can move the biases by up to its std beyond `bias_std` (module notes), and the
+    option `prior_flag` that gives the drift; else None."""
     slow = float(np.sum(fit.weights[fit.taus >= SLOW * session_s]))
     if fit.drift_share < DRIFT_SHARE or slow < 0.5 or fit.lr_stat <= AUTO_LR:
         return None
     sd = ", ".join(f"{v:.3g}" for v in np.atleast_1d(fit.sigma_d))
     bs = ", ".join(f"{v:.3g}" for v in np.atleast_1d(bias_std))
-    return (f"the {what} drifts: {100 * fit.drift_share:.0f} % of a pose mean's variance is a slow drift of std "
+    return (f"a slow drift in the {what}: {100 * fit.drift_share:.0f} % of a pose mean's variance is a drift of std "
             f"{sd} {unit} (white noise alone: 0 %), {100 * slow:.0f} % of its weight at a correlation time of "
             f"{SLOW * session_s:.0f} s or more. The bias std ({bs} {bias_unit}) holds for a drift correlation time "
             f"up to about a quarter of the session's {session_s:.0f} s; a slower drift is a bias the session cannot "
-            "tell from the constant one and can move the bias by up to the drift's std. Use: a longer session, or an "
-            "initial static period long enough to measure the drift (Allan deviation)")
+            "tell from the constant one and can move the bias by up to the drift's std. Use: "
+            + (f"{prior_flag} (the sensor's drift, a datasheet's or from a long static recording's Allan deviation: "
+               "the std then carries it), " if prior_flag else "")
+            + "a longer session, or an initial static period long enough to measure the drift (Allan deviation)")
+
+
+def fit_drift_prior(r: np.ndarray, X: np.ndarray, W: np.ndarray, S: np.ndarray, t: np.ndarray, A: np.ndarray,
+                    sigma_d: np.ndarray, tau: float) -> DriftFit:
+    """The covariance ``A (v0 W + sigma_d^2 D(tau)) A^T`` with the drift given (a datasheet's), ``v0`` by REML.
+
+    What the session cannot show, a drift as slow as the session or slower, is then in the std: its common part
+    over the poses moves the biases by up to ``sigma_d``. The white level ``v0`` of each series is the maximum of
+    the projected rows' likelihood with the drift's part known (module notes; in the generalized eigenbasis of
+    ``(Q^T D Q, Q^T W Q)`` the covariance is ``diag(v0 + sigma_d^2 lam_i)``):
+
+        l(v0) = -1/2 sum_i [log(v0 + s2 lam_i) + z_i^2 / (v0 + s2 lam_i)] - 1/2 log det Q^T W Q
+
+    Parameters
+    ----------
+    r, X, W, S, t, A :
+        As :func:`fit_drift`.
+    sigma_d : (k,) ndarray
+        The drift's stationary std per series, in the rows' unit.
+    tau : float
+        Its correlation time, s.
+    """
+    from scipy.linalg import eigh
+    from scipy.optimize import minimize_scalar
+
+    r = np.asarray(r, dtype=float)
+    r = r[:, None] if r.ndim == 1 else r
+    m, k = r.shape
+    s2 = np.broadcast_to(np.asarray(sigma_d, dtype=float) ** 2, (k,))
+    Q = null_basis(X, m)
+    D = S * np.exp(-np.abs(t[:, None] - t[None, :]) / tau)
+    Wq = Q.T @ W @ Q
+    lam, V = eigh(Q.T @ D @ Q, Wq)
+    lam = np.clip(lam, 0.0, None)
+    z2 = (V.T @ (Q.T @ r)) ** 2
+    logdet_w = float(np.linalg.slogdet(Wq)[1])
+    v0, ll = np.zeros(k), 0.0
+    for j in range(k):
+        def nll(u, j=j):
+            c = np.exp(u) + s2[j] * lam
+            return 0.5 * float(np.sum(np.log(c) + z2[:, j] / c))
+
+        mean_z2 = max(float(np.mean(z2[:, j])), np.finfo(float).tiny)
+        best = minimize_scalar(nll, bounds=(np.log(mean_z2) - 30.0, np.log(mean_z2) + 2.0), method="bounded",
+                               options={"xatol": 1e-6})
+        v0[j] = float(np.exp(best.x))
+        ll -= float(best.fun) + 0.5 * logdet_w
+    AWA, ADA = A @ W @ A.T, A @ D @ A.T
+    C = np.array([v0[j] * AWA + s2[j] * ADA for j in range(k)])
+    return DriftFit(weights=np.ones(1), ratios=np.zeros(1), v0=v0[None, :], taus=np.array([float(tau)]),
+                    covariance=C, loglik=ll, prior=np.sqrt(s2))
+
+
+def prior_note(prior: DriftFit, free: DriftFit, what: str, unit: str) -> str | None:
+    """A sentence when the rows show more drift than the prior allows: the data's own drift (:func:`fit_drift`)
+    beats the prior's by ``-2 ln Lambda`` above AUTO_LR and is larger; else None."""
+    lr = 2.0 * (free.loglik - prior.loglik)
+    if lr <= AUTO_LR or np.all(free.sigma_d <= prior.sigma_d):
+        return None
+    sd = ", ".join(f"{v:.3g}" for v in np.atleast_1d(free.sigma_d))
+    ps = ", ".join(f"{v:.3g}" for v in np.atleast_1d(prior.sigma_d))
+    return (f"more drift in the {what} than the prior allows: std {sd} {unit} at a correlation time near "
+            f"{float(np.exp(np.sum(free.weights * np.log(free.taus)))):.3g} s against the prior's {ps} {unit} at "
+            f"{float(prior.taus[0]):.3g} s (-2 ln Lambda {lr:.1f} > {AUTO_LR:g}): the std, from the prior, is too "
+            "small. Use: a prior that matches the sensor, or none (the std then follows the session's own drift)")

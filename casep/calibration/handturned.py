@@ -155,12 +155,7 @@ class MultipositionCalibration(OfEstimate):
                   f"{math.degrees(_rms(self.gyro.residuals)):.3g} deg over {len(self.gyro.residuals)} motions, "
                   f"{self.gyro.iterations} iterations"]
         lines += _full_scale_lines(self.settings)
-        dr = self.settings.get("drift")
-        if dr:
-            lines.append("drift beyond white noise (share of a pose mean's variance, std; casep.calibration.drift): "
-                         + "; ".join(f"{k} {100 * v['share']:.0f} %, "
-                                     + ", ".join(f"{x:.3g}" for x in v["sigma_d"]) + f" {v['unit']}"
-                                     for k, v in dr.items()))
+        lines += drift_lines(self.settings.get("drift"))
         for sensor, d in self.result.diagnostics.items():
             cn = d["condition_number_equilibrated"]
             lines.append(f"{sensor}: condition number {cn:.3g} (equilibrated)" if cn else f"{sensor}: rank deficient")
@@ -191,6 +186,42 @@ def _full_scale_lines(settings: dict) -> list[str]:
                      f"{settings['rate_hz']:.6g} Hz" + ("" if settings.get("t_column") else
                                                         " (no t column: a wrong rate scales it by assumed / true)"))
         out.append(line)
+        if "bias_si" in fs:  # the bias in SI beside the counts, natural units in brackets
+            b = fs["bias_si"]
+            nat = "mg" if sensor == "accelerometer" else "deg/s"
+            k = 1.0 / {**ACC_UNITS, **GYR_UNITS}[nat]
+            out.append(f"{sensor} bias in SI, T K (b - {b['zero_counts']:.0f}) (the reading at zero input): "
+                       + ", ".join(f"{'xyz'[i]} {v:+.4g} +- {sd:.2g} {b['unit']} ({v * k:+.4g} {nat})"
+                                   for i, (v, sd) in enumerate(zip(b["estimate"], b["std"]))))
+    return out
+
+
+def _floats(v) -> str:
+    return ", ".join(f"{x:.3g}" for x in v)
+
+
+def drift_lines(dr: dict | None) -> list[str]:
+    """The report's lines on the bias drift (:func:`drift_report`'s dict): what the session shows, and the prior
+    the biases' std carries or, without one, the slow drift the session cannot exclude and the std it would give."""
+    if not dr:
+        return []
+    out = ["drift beyond white noise (share of a pose mean's variance, std; casep.calibration.drift): "
+           + "; ".join(f"{k} {100 * v['share']:.0f} %, {_floats(v['sigma_d'])} {v['unit']}"
+                       + (f" ({_floats(v['natural']['sigma_d'])} {v['natural']['unit']})" if "natural" in v else "")
+                       for k, v in dr.items())]
+    for k, v in dr.items():
+        if "prior" in v:
+            p = v["prior"]
+            out.append(f"  {k} bias std with the drift prior (std {_floats(p['sigma_d'])} {v['unit']}, "
+                       f"tau {p['tau_s']:.3g} s): {_floats(v['bias_std'])} {v['bias_unit']}")
+        elif "slow_bound" in v:
+            b = v["slow_bound"]
+            out.append(f"  {k} bias std {_floats(v['bias_std'])} {v['bias_unit']}: no drift prior, holds for a drift "
+                       f"correlation time up to about a quarter of the session; a drift of correlation time "
+                       f"{b['tau_s']:.3g} s (the session) up to std {'>= ' if b['at_grid_end'] else ''}"
+                       f"{_floats(b['sigma_d'])} {v['unit']} is consistent with it (95 %) and would make it "
+                       f"{_floats(b['bias_std'])} {v['bias_unit']}; the sensor's drift: "
+                       f"{'--acc-drift MG,TAU' if k == 'accelerometer' else '--gyr-drift DEG_H,TAU'}")
     return out
 
 
@@ -291,7 +322,8 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
                             gravity: float | None = None, latitude: float | None = None, height: float = 0.0,
                             window_s: float = 0.5, init_s: float = 5.0,
                             min_static_s: float = 0.5, acc_full_scale: float | None = None,
-                            gyr_full_scale: float | None = None) -> MultipositionCalibration:
+                            gyr_full_scale: float | None = None, acc_drift: tuple[float, float] | None = None,
+                            gyr_drift: tuple[float, float] | None = None) -> MultipositionCalibration:
     """Calibrate a hand-turned session (module notes).
 
     Parameters
@@ -310,6 +342,12 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
         readings held at it are saturated (:mod:`casep.calibration.saturation`). Default: a nominal range for a
         physical unit, the converter's limit for raw counts; raw counts also say the full scale their fitted
         scale implies, and warn (FullScaleWarning) when it is off the declared one.
+    acc_drift, gyr_drift : (float, float), optional
+        A prior on the bias drift (a datasheet's): a first-order Gauss-Markov process's stationary std (m/s^2,
+        rad/s) and correlation time (s). The biases' std then carries what the session cannot show, a drift as
+        slow as the session or slower (:func:`casep.calibration.drift.fit_drift_prior`); without it the std
+        carries the drift the session shows and is honest for correlation times up to about a quarter of the
+        session (DriftWarning when the session shows a slower one).
     """
     from casep.calibration.gravity import normal_gravity
     from casep.calibration.saturation import check_full_scale, declared_range
@@ -319,6 +357,10 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
                              (gyr_full_scale, "gyr_full_scale", "--gyr-range", "rad/s")):
         if v is not None:
             check_full_scale(v, name, flag, u)
+    for dp, flag, u in ((acc_drift, "--acc-drift", "m/s^2"), (gyr_drift, "--gyr-drift", "rad/s")):
+        if dp is not None and not (len(dp) == 2 and all(math.isfinite(x) and x > 0 for x in dp)):
+            raise ValueError(f"{flag} {dp}: a bias drift prior is a positive std ({u}) and a positive correlation "
+                             "time (s)")
     acc_range = declared_range(acc_full_scale, session.acc_unit, "accelerometer")
     gyr_range = declared_range(gyr_full_scale, session.gyr_unit, "gyro")
 
@@ -352,21 +394,26 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
                              x0=np.array([0, 0, 0, 1, 1, 1, 0, 0, 0.0]) if physical else None)
     t_pose = np.array([session.t[a:b].mean() for a, b in seg.poses])
     n_pose = np.array([b - a for a, b in seg.poses])
-    afit, acc_drift = acc_drift_covariance(afit, means, t_pose, n_pose, session.rate)
+    afit, acc_free = acc_drift_covariance(afit, means, t_pose, n_pose, session.rate)
     u0, u1 = _dirs(afit, means)
     gm = np.array([gyr[a:b].mean(axis=0) for a, b in seg.poses])
-    bias, bias_std, gyr_drift = pose_mean_bias(gm, t_pose, n_pose, session.rate)
+    bias, bias_std, gyr_free = pose_mean_bias(gm, t_pose, n_pose, session.rate)
     # each sample's rate held until the next sample's time (the last: one nominal interval)
     dt = np.diff(session.t, append=session.t[-1] + 1.0 / session.rate)
     gfit = fit_gyro(gyr, session.rate, seg.motions, u0, u1, bias, bias_std=bias_std,
                     scale0=None if session.gyr_unit == RAW_UNIT else 1.0, dt=dt)
+    # the gyro's scale and misalignment see the bias and the gravity directions where the motions are: their errors
+    # are the session's own drift (a prior's slow part is common to the bias and every motion's readings)
     gfit = _propagate(gfit, afit, means, gyr, session.rate, seg.motions, dt)
+    afit, gfit, fits = _drift_priors(afit, acc_free, gfit, gyr_free, means, gm, (t_pose, n_pose, session.rate),
+                                     acc_drift, gyr_drift)
+    bias_std = gfit.bias_std
     check_acc_fit(afit, means, session)  # the units and the rate first: they explain everything else
     check_gyro_swap(gfit, gyr, session, seg.motions, (u0, u1), dt)
     check_gyro_scale(gfit.x[6:9], session)
     _reissue(held)
-    drift = drift_report(acc_drift, gyr_drift, afit.std[6:9], bias_std, float(np.ptp(t_pose)), (ba_unit, bg_unit),
-                         session.source)
+    drift = drift_report(fits, afit.std[6:9], bias_std, float(np.ptp(t_pose)), (ba_unit, bg_unit), session.source,
+                         np.abs(gfit.x[6:9]) if session.gyr_unit == RAW_UNIT else np.ones(3))
     if session.gyr_unit == RAW_UNIT:  # the turn inside each pose, now that the counts' scale is known
         from dataclasses import replace
 
@@ -376,7 +423,8 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
         turns = [math.degrees(float(np.linalg.norm((wc[a:b] * dt[a:b, None]).sum(axis=0)))) for a, b in seg.poses]
         warn_turns(seg.poses, turns, MAX_TURN_DEG, session.source)
         seg = replace(seg, turns_deg=turns)
-    ok = afit.converged and gfit.converged and not saturated
+    ok = afit.converged and gfit.converged and not saturated and not gyro_misfit(gfit, seg.motions, session,
+                                                                                 bool(saturated))
     if not (afit.converged and gfit.converged):
         warnings.warn(f"{session.source}: the fit did not converge (accelerometer {afit.iterations} iterations, gyro "
                       f"{gfit.iterations}): the coefficients are probably wrong", FitWarning, stacklevel=2)
@@ -384,7 +432,10 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     res = _result(afit, gfit, units, session.n_samples,
                   f"{len(seg.poses)} poses, {len(seg.motions)} motions"
                   + ("" if afit.converged and gfit.converged else "; fit not converged")
-                  + ("; the sensor saturates in a motion" if saturated else ""), ok)
+                  + ("; the sensor saturates in a motion" if saturated else "")
+                  + ("" if acc_drift and gyr_drift else f"; no {'gyro ' if acc_drift else ''}"
+                     f"{'accelerometer ' if gyr_drift else ''}drift prior: the biases' std holds for a drift "
+                     f"correlation time up to ~{0.25 * float(np.ptp(t_pose)):.0f} s (settings.drift)"), ok)
     settings = {"gravity": g, "gravity_source": g_src, "rate_hz": session.rate, "source": session.source,
                 "acc_unit": session.acc_unit, "gyr_unit": session.gyr_unit, "t_column": session.t_column,
                 "drift": drift}
@@ -395,15 +446,44 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
 def _full_scales(session: Session, afit: AccFit, gfit: GyroFit, acc_fs: float | None, gyr_fs: float | None) -> dict:
     """The settings' full scales: raw counts' implied one (warned of when off the declared one), or the declared."""
     out: dict = {}
-    for key, unit, sc, b, fs_si, sensor in (
-            ("acc_full_scale", session.acc_unit, afit.x[3:6], afit.x[6:9], acc_fs, "accelerometer"),
-            ("gyr_full_scale", session.gyr_unit, gfit.x[6:9], gfit.bias, gyr_fs, "gyro")):
+    for key, unit, sc, b, fs_si, sensor, raw in (
+            ("acc_full_scale", session.acc_unit, afit.x[3:6], afit.x[6:9], acc_fs, "accelerometer", session.acc),
+            ("gyr_full_scale", session.gyr_unit, gfit.x[6:9], gfit.bias, gyr_fs, "gyro", session.gyr)):
         if unit == RAW_UNIT:
-            out[key] = implied_full_scale(sc, b, sensor, fs_si)
+            out[key] = implied_full_scale(sc, b, sensor, fs_si, raw)
             warn_implied_full_scale(out[key], sensor, session.source, not session.t_column)
+            out[key]["bias_si"] = bias_si(afit if sensor == "accelerometer" else gfit, out[key]["zero_counts"])
         elif fs_si is not None:
             out[key] = {"declared": True, "full_scale_si": fs_si}
     return out
+
+
+def bias_si(fit: AccFit | GyroFit, zero: float) -> dict:
+    """Raw counts' bias in SI: ``T K (b - zero)`` (m/s^2 or rad/s; ``zero`` the count the converter reads at zero
+    input, :func:`casep.calibration.saturation.converter`), what the sensor reads at zero input, as a datasheet's
+    zero-g or zero-rate offset; std by the delta method from the fit's covariance (the gyro's bias independent of
+    its scale and misalignment: its own pose means)."""
+    if isinstance(fit, AccFit):
+        x, C = fit.x, fit.covariance
+    else:
+        x = np.r_[fit.x, fit.bias]
+        C = np.zeros((12, 12))
+        C[:9, :9] = fit.covariance
+        C[9:, 9:] = np.diag(np.where(np.isfinite(fit.bias_std), fit.bias_std, 0.0) ** 2)
+    M_of_x = acc_matrix if isinstance(fit, AccFit) else gyro_matrix
+
+    def off(p: np.ndarray) -> np.ndarray:
+        return M_of_x(p[:9]) @ (p[-3:] - zero)
+
+    G = np.empty((3, len(x)))
+    for i in range(len(x)):  # central differences, steps relative to each coefficient's size
+        h = 1e-6 * max(abs(x[i]), 1e-3)
+        e = np.zeros(len(x))
+        e[i] = h
+        G[:, i] = (off(x + e) - off(x - e)) / (2 * h)
+    C = np.where(np.isfinite(C), C, 0.0)
+    return {"estimate": off(x).tolist(), "std": np.sqrt(np.clip(np.diag(G @ C @ G.T), 0, None)).tolist(),
+            "unit": "m/s^2" if isinstance(fit, AccFit) else "rad/s", "zero_counts": zero}
 
 
 def check_acc_fit(afit: AccFit, means: np.ndarray, session: Session) -> None:
@@ -435,6 +515,25 @@ def check_acc_fit(afit: AccFit, means: np.ndarray, session: Session) -> None:
                          f"{'' if afit.converged else f', not converged in {afit.iterations} iterations'}). Use: "
                          "turn the sensor so that each axis points up and down")
     check_acc_scale(s, session)
+
+
+def gyro_misfit(gfit: GyroFit, motions: list, session: Session, saturated: bool) -> bool:
+    """FitWarning, and True, when the gyro's RMS gravity-direction misfit is above SWAP_MISFIT_DEG (hand-turned
+    sessions fit to ~0.1 deg) and no saturation already explains it: the worst motions' rows and misfits, and the
+    likely causes."""
+    rms = math.degrees(_rms(gfit.residuals))
+    if rms <= SWAP_MISFIT_DEG or saturated or not gfit.converged:
+        return False
+    per = np.degrees(np.linalg.norm(np.asarray(gfit.residuals).reshape(len(motions), -1), axis=1))
+    worst = np.argsort(per)[::-1][:3]
+    warnings.warn(f"{session.source}: the gyro fit leaves an RMS gravity-direction misfit of {rms:.3g} deg over "
+                  f"{len(motions)} motions (a hand-turned session fits to ~0.1 deg; > {SWAP_MISFIT_DEG:g} deg is a "
+                  "bad fit), worst " + ", ".join(f"rows {motions[i][0]}-{motions[i][1] - 1}: {per[i]:.3g} deg"
+                                                  for i in worst)
+                  + ". The turns are misread: a gyro that saturates below its converter's limits (a range narrower "
+                  "than the counts), a gyro sampled at another time or rate than the accelerometers, or motion in "
+                  "the poses. The coefficients are probably wrong", FitWarning, stacklevel=3)
+    return True
 
 
 def check_gyro_swap(gfit: GyroFit, gyr: np.ndarray, session: Session, motions: list,
@@ -481,70 +580,123 @@ def check_gyro_swap(gfit: GyroFit, gyr: np.ndarray, session: Session, motions: l
                      "swapped: the gyro's axes must be the accelerometer's)")
 
 
-def pose_mean_bias(gm: np.ndarray, t: np.ndarray, n: np.ndarray, rate: float
-                   ) -> tuple[np.ndarray, np.ndarray, DriftFit]:
+def pose_mean_bias(gm: np.ndarray, t: np.ndarray, n: np.ndarray, rate: float,
+                   prior: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray, DriftFit]:
     """The gyro bias (the mean of the poses' mean readings `gm`, at times `t` s, of `n` samples at `rate` Hz)
     and its std with a drift (:mod:`casep.calibration.drift`).
 
     ``gm_k = b + d(t_k) + white_k``, white variance ``v0 nbar / n_k``: the bias's error is the mean of the
     drift over the poses plus the white noise's mean, ``var = v0 (1^T (W + rho D) 1) / m^2`` averaged over the
-    drift grid (each axis its ``v0``); white noise alone gives the poses' scatter over sqrt(m).
+    drift grid (each axis its ``v0``); white noise alone gives the poses' scatter over sqrt(m). With `prior`
+    (the drift's std per axis in the readings' unit, its correlation time in s) the drift is the prior's
+    (:func:`casep.calibration.drift.fit_drift_prior`).
     """
-    from casep.calibration.drift import drift_grid, fit_drift
-
-    m = len(gm)
-    n = np.asarray(n, dtype=float)
-    fit = fit_drift(gm - gm.mean(axis=0), np.ones((m, 1)), np.diag(np.mean(n) / n), np.ones((m, m)), t,
-                    drift_grid(t, n / rate), np.full((1, m), 1.0 / m), float(np.max(np.abs(gm))))
+    fit = _drift_fit(gm - gm.mean(axis=0), np.ones((len(gm), 1)), None, t, n, rate,
+                     np.full((1, len(gm)), 1.0 / len(gm)), float(np.max(np.abs(gm))), prior)
     return gm.mean(axis=0), np.sqrt(fit.covariance[:, 0, 0]), fit
 
 
+def _drift_fit(r, X, S, t, n, rate, A, scale, prior, W=None) -> DriftFit:
+    """:func:`casep.calibration.drift.fit_drift` of pose rows (white shape ``nbar / n_k`` unless `W`), or
+    :func:`casep.calibration.drift.fit_drift_prior` with `prior` ``(sigma_d, tau)``."""
+    from casep.calibration.drift import drift_grid, fit_drift, fit_drift_prior
+
+    n = np.asarray(n, dtype=float)
+    m = len(n)
+    W = np.diag(np.mean(n) / n) if W is None else W
+    S = np.ones((m, m)) if S is None else S
+    if prior is not None:
+        return fit_drift_prior(r, X, W, S, t, A, prior[0], prior[1])
+    return fit_drift(r, X, W, S, t, drift_grid(t, n / rate), A, scale)
+
+
 class DriftWarning(CasepWarning):
-    """The pose means drift: the biases' std holds for a drift faster than about a quarter of the session."""
+    """The pose means drift slowly: without a drift prior the biases' std holds for a drift faster than about a
+    quarter of the session; with one, the session shows more drift than the prior."""
 
 
-def drift_report(acc: DriftFit, gyr: DriftFit, acc_bias_std: np.ndarray, gyr_bias_std: np.ndarray, session_s: float,
-                 units: tuple[str, str], source: str) -> dict:
+def drift_report(fits: dict, acc_bias_std: np.ndarray, gyr_bias_std: np.ndarray, session_s: float,
+                 units: tuple[str, str], source: str, gyr_si: np.ndarray) -> dict:
     """The drift each sensor's pose means show (:mod:`casep.calibration.drift`), warned of (DriftWarning, numbers)
-    when it is most of their variance; a dict for the result's settings."""
-    from casep.calibration.drift import drift_note
+    when it is most of their variance and slow, or, with a prior, when it is more than the prior's; a dict for the
+    result's settings.
+
+    `fits`: per sensor (``accelerometer``, ``gyro``) the session's own drift fit and the prior's (or None);
+    `gyr_si`: rad/s per gyro reading unit, per axis (the drift also in natural units, mg and deg/h: ``natural``).
+    """
+    from casep.calibration.drift import drift_note, prior_note
 
     out = {}
-    for key, fit, what, unit, bstd, bunit in (
-            ("accelerometer", acc, "accelerometer's misfit", "m/s^2", acc_bias_std, units[0]),
-            ("gyro", gyr, "gyro's pose means", units[1], gyr_bias_std, units[1])):
+    for (key, (fit, prior)), what, unit, bstd, bunit in zip(
+            fits.items(), ("accelerometer's misfit", "gyro's pose means"), ("m/s^2", units[1]),
+            (acc_bias_std, gyr_bias_std), units):
         out[key] = {"share": fit.drift_share, "sigma_d": np.atleast_1d(fit.sigma_d).tolist(), "unit": unit,
-                    "tau_s": float(np.exp(np.sum(fit.weights * np.log(fit.taus))))}
-        note = drift_note(fit, what, unit, session_s, bstd, bunit)
+                    "tau_s": float(np.exp(np.sum(fit.weights * np.log(fit.taus)))), "bias_unit": bunit,
+                    "bias_std": np.atleast_1d(bstd).tolist()}
+        to_nat = (1.0 / ACC_UNITS["mg"], "mg") if key == "accelerometer" else (gyr_si / GYR_UNITS["deg/h"], "deg/h")
+        out[key]["natural"] = {"sigma_d": (np.atleast_1d(fit.sigma_d) * to_nat[0]).tolist(), "unit": to_nat[1]}
+        if prior is None and fit.bound is not None:
+            C = fit.bound["covariance"]
+            var = np.diag(C[0])[6:9] if key == "accelerometer" else C[:, 0, 0]
+            out[key]["slow_bound"] = {"tau_s": fit.bound["tau_s"], "at_grid_end": fit.bound["at_grid_end"],
+                                      "sigma_d": np.atleast_1d(fit.bound["sigma_d"]).tolist(),
+                                      "bias_std": np.sqrt(np.clip(var, 0, None)).tolist()}
+        if prior is not None:
+            out[key]["prior"] = {"sigma_d": np.atleast_1d(prior.sigma_d).tolist(), "tau_s": float(prior.taus[0]),
+                                 "share": prior.drift_share}
+        flag = "--acc-drift MG,TAU" if key == "accelerometer" else "--gyr-drift DEG_H,TAU"
+        note = (drift_note(fit, what, unit, session_s, bstd, bunit, flag) if prior is None
+                else prior_note(prior, fit, what, unit))
         if note:
             warnings.warn(f"{source}: {note}", DriftWarning, stacklevel=3)
     return out
 
 
-def acc_drift_covariance(afit: AccFit, means: np.ndarray, t: np.ndarray, n: np.ndarray, rate: float
-                         ) -> tuple[AccFit, DriftFit]:
-    """The accelerometer fit with its covariance widened by the drift its misfit shows (:mod:`casep.calibration.drift`).
+def _drift_priors(afit: AccFit, acc_free: DriftFit, gfit: GyroFit, gyr_free: DriftFit, means: np.ndarray,
+                  gm: np.ndarray, poses: tuple, acc_drift: tuple[float, float] | None,
+                  gyr_drift: tuple[float, float] | None) -> tuple[AccFit, GyroFit, dict]:
+    """The fits with the biases' std of the drift priors (each sensor's given, in the readings' unit: the std in SI
+    over each axis's scale), and per sensor the session's own drift fit and the prior's (or None).
 
-    Rows ``r_k = w_k (|T K (abar_k - b)| - g)``; a reading error ``e_k`` moves row k by ``w_k a_k . e_k``,
-    ``a_k = (T K)^T u_k`` (``u_k`` the calibrated gravity direction); the drift, the same process on each axis,
-    couples rows k, l by ``w_k w_l a_k . a_l exp(-|t_k - t_l| / tau)``; ``x - x_true = -J^+ r`` (J the fit's
-    weighted Jacobian at its solution).
+    `poses`: the poses' times (s), samples and the rate (Hz).
     """
     from dataclasses import replace
 
-    from casep.calibration.drift import drift_grid, fit_drift
+    t, n, rate = poses
+    fits: dict = {"accelerometer": (acc_free, None), "gyro": (gyr_free, None)}
+    if acc_drift is not None:
+        ap = acc_drift_covariance(afit, means, t, n, rate, acc_drift)
+        afit, fits["accelerometer"] = ap[0], (acc_free, ap[1])
+    if gyr_drift is not None:
+        _, bias_std, gp = pose_mean_bias(gm, t, n, rate, (gyr_drift[0] / np.abs(gfit.x[6:9]), gyr_drift[1]))
+        gfit, fits["gyro"] = replace(gfit, bias_std=bias_std), (gyr_free, gp)
+    return afit, gfit, fits
+
+
+def acc_drift_covariance(afit: AccFit, means: np.ndarray, t: np.ndarray, n: np.ndarray, rate: float,
+                         prior: tuple[float, float] | None = None) -> tuple[AccFit, DriftFit]:
+    """The accelerometer fit with its covariance widened by the drift its misfit shows (:mod:`casep.calibration.drift`),
+    or by the drift `prior` states (its std in m/s^2, its correlation time in s).
+
+    Rows ``r_k = w_k (|T K (abar_k - b)| - g)``; a reading error ``e_k`` moves row k by ``w_k a_k . e_k``,
+    ``a_k = (T K)^T u_k`` (``u_k`` the calibrated gravity direction); the drift, the same process on each axis
+    in m/s^2 (``e_k = K^-1 d_k`` in the readings' unit), couples rows k, l by
+    ``w_k w_l (K^-1 a_k) . (K^-1 a_l) exp(-|t_k - t_l| / tau)``; ``x - x_true = -J^+ r`` (J the fit's weighted
+    Jacobian at its solution).
+    """
+    from dataclasses import replace
 
     J = _jacobian(afit)
-    m = len(J)
     n = np.asarray(n, dtype=float)
     w = np.sqrt(n / np.mean(n))
     v = afit.calibrate(means)
     a = (v / np.linalg.norm(v, axis=1)[:, None]) @ acc_matrix(afit.x)  # a_k = (T K)^T u_k, one per row
+    a = a / afit.x[3:6]  # per m/s^2 of drift (K: the scales, SI per reading unit)
     d = np.linalg.norm(J, axis=0)
     d[d == 0] = 1.0
     A = np.linalg.pinv(J / d) / d[:, None]
-    fit = fit_drift(w * afit.residuals, J, np.eye(m), np.outer(w, w) * (a @ a.T), t, drift_grid(t, n / rate), A,
-                    afit.gravity)
+    fit = _drift_fit(w * afit.residuals, J, np.outer(w, w) * (a @ a.T), t, n, rate, A, afit.gravity,
+                     None if prior is None else (np.atleast_1d(prior[0]), prior[1]), W=np.eye(len(J)))
     return replace(afit, covariance=fit.covariance[0]), fit
 
 

@@ -33,7 +33,8 @@ from casep.exceptions import CasepWarning, SaturationWarning
 from casep.units import ACC_RANGES_G, FULL_SCALE_TOLERANCE, GYR_RANGES_DPS
 
 __all__ = ["SaturationWarning", "FullScaleWarning", "implied_full_scale", "saturated_runs",
-           "check_gyro_saturation", "clipped_poses", "check_full_scale", "declared_range", "warn_implied_full_scale",
+           "check_gyro_saturation", "clipped_poses", "converter", "check_full_scale", "declared_range",
+           "warn_implied_full_scale",
            "ADC_BITS", "ACC_RANGES_G", "GYR_RANGES_DPS", "FULL_SCALE_TOLERANCE", "FULL_SCALE_UNITS"]
 
 
@@ -101,22 +102,37 @@ def clipped_poses(acc: np.ndarray, poses: list[tuple[int, int]], unit: str, sour
     return sorted(bad)
 
 
-def implied_full_scale(scales: np.ndarray, biases: np.ndarray, sensor: str, declared_si: float | None = None) -> dict:
-    """The full scale raw counts imply: ``max_i s_i * H`` in g or deg/s, H the converter's half range.
+def converter(biases: np.ndarray, readings: np.ndarray | None = None) -> tuple[int, float]:
+    """A raw-count converter's word length b and the count it reads at zero input.
 
-    ``H = 2^(b-1)`` for the word length b whose mid-scale ``2^(b-1)`` is nearest the biases' median (an
-    unsigned converter reads its zero there); biases near 0 (a signed converter) are taken as 16-bit.
-    The nearest nominal range (ACC_RANGES_G, GYR_RANGES_DPS), or the declared full scale `declared_si`
-    (m/s^2, rad/s; ``declared`` true), and the ratio are given: without a time column a gyro's is
-    proportional to the assumed rate, so a ratio far from 1 says the rate (or the declared range) is wrong.
+    Unsigned (every reading >= 0, `readings` when given, and the biases' median above 64): ``b`` the word length
+    whose mid-scale ``2^(b-1)``, its zero, is nearest the biases' median. Else signed, zero 0: 16-bit, or the
+    shortest of ADC_BITS whose half range holds the readings when they exceed 16 bits.
     """
     med = float(np.median(np.abs(biases)))
-    bits = min(ADC_BITS, key=lambda b: abs(math.log2(max(med, 1.0)) - (b - 1))) if med > 64 else 16
+    if med > 64 and (readings is None or float(np.min(readings)) >= 0.0):
+        bits = min(ADC_BITS, key=lambda b: abs(math.log2(med) - (b - 1)))
+        return bits, 2.0 ** (bits - 1)
+    top = float(np.max(np.abs(readings))) if readings is not None and np.size(readings) else 0.0
+    return min((b for b in ADC_BITS if b >= 16 and 2.0 ** (b - 1) > top), default=ADC_BITS[-1]), 0.0
+
+
+def implied_full_scale(scales: np.ndarray, biases: np.ndarray, sensor: str, declared_si: float | None = None,
+                       readings: np.ndarray | None = None) -> dict:
+    """The full scale raw counts imply: ``max_i s_i * H`` in g or deg/s, H the converter's half range.
+
+    ``H = 2^(b-1)``, b the word length of :func:`converter` (an unsigned converter reads its zero at its
+    mid-scale; a signed one at 0). The nearest nominal range (ACC_RANGES_G, GYR_RANGES_DPS), or the declared full
+    scale `declared_si` (m/s^2, rad/s; ``declared`` true), and the ratio are given: without a time column a gyro's is
+    proportional to the assumed rate, so a ratio far from 1 says the rate (or the declared range) is wrong.
+    """
+    bits, zero = converter(biases, readings)
     half = 2.0 ** (bits - 1)
     (name, per), ranges = FULL_SCALE_UNITS[sensor], NOMINAL_RANGES[sensor]
     fs = float(np.max(np.abs(scales))) * half / per
     near = declared_si / per if declared_si is not None else min(ranges, key=lambda r: abs(math.log(fs / r)))
-    return {"full_scale": fs, "unit": name, "bits": bits, "half_range_counts": half, "nominal": near,
+    return {"full_scale": fs, "unit": name, "bits": bits, "half_range_counts": half, "zero_counts": zero,
+            "nominal": near,
             "ratio": fs / near, "declared": declared_si is not None}
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from casep.cli import flight_options, options, outputs
+from casep.cli import drift_options, flight_options, options, outputs
 from casep.estimators.registry import METHODS, OPTIONS
 
 
@@ -57,6 +57,7 @@ def add_parser(sub: Any) -> None:
     flight_options.add_full_scales(auto, "a gyro saturated inside a turn fails the calibration, a pose with a clipped "
                                   "accelerometer is left out (raw counts: the full scale the fit implies is checked "
                                   "against the declared one)")
+    drift_options.add_drift_priors(auto)
     auto.add_argument("--imu-tk", metavar="PREFIX", default=None, dest="imu_tk",
                       help="also write PREFIX_acc.calib and PREFIX_gyro.calib (imu_tk's text format)")
     auto.add_argument("--figures", metavar="DIR", default=None,
@@ -76,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.figures and args.segments != "auto":
         raise ValueError("--figures draws the segments found by --segments auto; give --segments auto")
-    given = [f for f, v in (("--acc-range", args.acc_range), ("--gyr-range", args.gyr_range)) if v is not None]
+    given = [f for f, v in (("--acc-range", args.acc_range), ("--gyr-range", args.gyr_range),
+                            ("--acc-drift", args.acc_drift), ("--gyr-drift", args.gyr_drift)) if v is not None]
     if given:
         raise ValueError(f"{', '.join(given)}: used by model multiposition (--segments auto on a hand-turned session) "
                          "only: leave them out")
@@ -125,7 +127,7 @@ def _run_auto(args: argparse.Namespace) -> int:
                                        gyr_unit=args.gyr_unit, gravity=args.gravity, latitude=args.latitude,
                                        height=args.height, window_s=args.window, init_s=args.init,
                                        min_static_s=args.min_static, acc_full_scale=fs["acc_range"],
-                                       gyr_full_scale=fs["gyr_range"])
+                                       gyr_full_scale=fs["gyr_range"], **drift_options.drift_priors(args))
     print(cal.text())
     _figure(args, cal.segmentation)
     outputs.write_json(cal.to_dict(), args.json)

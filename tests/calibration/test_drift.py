@@ -127,3 +127,90 @@ def test_a_slow_drift_is_said_with_its_size():
         warnings.simplefilter("error")
         assert drift_note(fw, "gyro's pose means", "rad/s", float(np.ptp(t)), s, "rad/s") is None
     assert math.isfinite(fw.lr_stat)
+
+
+def test_prior_white_level_is_the_dense_reml_maximum():
+    # the prior's v0 maximises the projected rows' likelihood, computed densely with slogdet and solve
+    from casep.calibration.drift import fit_drift_prior
+
+    rng = np.random.default_rng(3)
+    t, n = _times(20, rng)
+    X = np.ones((20, 1))
+    W = np.diag(n.mean() / n)
+    r = _gm(t, 0.5, 60.0, 2, rng) + rng.normal(size=(20, 2)) * np.sqrt(np.diag(W))[:, None]
+    sd = np.array([0.5, 0.3])
+    fit = fit_drift_prior(r, X, W, np.ones((20, 20)), t, np.full((1, 20), 1 / 20), sd, 60.0)
+    Q = null_basis(X, 20)
+    D = np.exp(-np.abs(t[:, None] - t[None, :]) / 60.0)
+
+    def ll(v0, j):
+        M = Q.T @ (v0 * W + sd[j] ** 2 * D) @ Q
+        y = Q.T @ r[:, j]
+        return -0.5 * (np.linalg.slogdet(M)[1] + y @ np.linalg.solve(M, y))
+
+    for j in range(2):
+        v0 = fit.v0[0, j]
+        assert ll(v0, j) >= max(ll(0.98 * v0, j), ll(1.02 * v0, j))
+    # the covariance of the mean: A (v0 W + s2 D) A^T, densely
+    A = np.full((1, 20), 1 / 20)
+    np.testing.assert_allclose(fit.covariance[:, 0, 0], [(A @ (fit.v0[0, j] * W + sd[j] ** 2 * D) @ A.T)[0, 0]
+                                                         for j in range(2)], rtol=1e-12)
+    assert fit.sigma_d.tolist() == sd.tolist()
+
+
+def _mc_prior(draws: int, tau: float, seed: int, std_a=0.002, std_g=3e-4) -> dict:
+    """RMS z of the biases and the accelerometer's scale/misalignment with the drift given as the prior, without it,
+    and with the slow drift the session allows (the bound); the DriftWarning rate without a prior."""
+    rng = np.random.default_rng(seed)
+    z: dict = {k: [] for k in ("acc bias", "acc scale/mis", "gyro bias", "acc bias, no prior", "gyro bias, no prior",
+                               "acc bias, bound", "gyro bias, bound")}
+    for _ in range(draws):
+        t, n = _times(30, rng)
+        means = _acc_session(rng, t, n, _gm(t, std_a, tau, 3, rng))
+        af0 = fit_accelerometer(means, 9.80665, counts=n, x0=np.r_[0, 0, 0, 1, 1, 1, 0, 0, 0.0])
+        af, _ = acc_drift_covariance(af0, means, t, n, RATE, (std_a, tau))
+        e = af.x - TRUTH_SI["acc"]
+        z["acc bias"] += list(e[6:] / af.std[6:])
+        z["acc scale/mis"] += list(e[:6] / af.std[:6])
+        afn, fa = acc_drift_covariance(af0, means, t, n, RATE)
+        z["acc bias, no prior"] += list(e[6:] / afn.std[6:])
+        z["acc bias, bound"] += list(e[6:] / np.sqrt(np.diag(fa.bound["covariance"][0])[6:]))
+        gm = TRUTH_SI["gyro_bias"] + _gm(t, std_g, tau, 3, rng) + 0.002 / np.sqrt(n)[:, None] * rng.normal(size=(30, 3))
+        b, s, _ = pose_mean_bias(gm, t, n, RATE, (np.full(3, std_g), tau))
+        z["gyro bias"] += list((b - TRUTH_SI["gyro_bias"]) / s)
+        _, sn, fg = pose_mean_bias(gm, t, n, RATE)
+        z["gyro bias, no prior"] += list((b - TRUTH_SI["gyro_bias"]) / sn)
+        z["gyro bias, bound"] += list((b - TRUTH_SI["gyro_bias"]) / np.sqrt(fg.bound["covariance"][:, 0, 0]))
+    return {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in z.items()}
+
+
+@pytest.mark.parametrize("tau", [100.0, 400.0])
+def test_a_drift_prior_makes_the_biases_std_honest_where_the_session_cannot(tau):
+    # sessions of ~110 s, the drift (std 2e-3 m/s^2, 3e-4 rad/s) most of a pose mean's variance, tau near the session's
+    # length and 4x it: without a prior the biases' RMS z is 1.6-2.0 (tau 100 s) and 2.9-3.5 (300 s) over 200 draws;
+    # with the true drift as prior 0.97-1.06 (200 draws, tau 5-1000 s; full sessions:
+    # benchmarks/bench_multiposition.py --prior). 40 draws: 120 z per group, the RMS's relative std ~7 %.
+    z = _mc_prior(40, tau, seed=11)
+    for group in ("acc bias", "acc scale/mis", "gyro bias"):
+        assert 0.85 <= z[group] <= 1.15, (group, z)
+    # the same sessions without the prior: the biases' std is too small (what the prior is for)
+    assert z["gyro bias, no prior"] > 1.3 and z["acc bias, no prior"] > 1.3, z
+    # the drift of correlation time the session's length that the session allows (the report's bound, 95 %) covers
+    # these errors at that tau (RMS z 0.61, 0.73); a drift 4x slower can be larger (gyro 1.6): the report says so
+    if tau <= 110.0:
+        assert z["gyro bias, bound"] < 1.0 and z["acc bias, bound"] < 1.0, z
+
+
+def test_a_prior_smaller_than_the_drift_shown_is_said():
+    from casep.calibration.drift import prior_note
+
+    rng = np.random.default_rng(5)
+    t, n = _times(30, rng)
+    gm = _gm(t, 5e-4, 20.0, 3, rng) + 0.002 / np.sqrt(n)[:, None] * rng.normal(size=(30, 3))
+    _, _, free = pose_mean_bias(gm, t, n, RATE)
+    _, _, small = pose_mean_bias(gm, t, n, RATE, (np.full(3, 2e-5), 20.0))
+    note = prior_note(small, free, "gyro's pose means", "rad/s")
+    assert note is not None and "2e-05" in note, note
+    assert "more drift in the gyro's pose means than the prior allows" in note, note
+    _, _, right = pose_mean_bias(gm, t, n, RATE, (np.full(3, 5e-4), 20.0))
+    assert prior_note(right, free, "gyro's pose means", "rad/s") is None

@@ -60,6 +60,10 @@ def test_the_labelled_path_refuses_the_flags(tmp_path, capsys):
     rc, _, err = main(["calibrate", str(p), "--rate", "100", "--segments", str(p), "--acc-range", "2", "--json",
                        str(tmp_path / "c.json")]), None, capsys.readouterr().err
     assert rc == 2 and "--acc-range: used by model multiposition" in err, err
+    # the drift priors too: the labelled path's biases have no drift model to take them
+    rc = main(["calibrate", str(p), "--rate", "100", "--segments", str(p), "--gyr-drift", "10,100", "--json",
+               str(tmp_path / "c.json")])
+    assert rc == 2 and "--gyr-drift: used by model multiposition" in capsys.readouterr().err
 
 
 def test_a_declared_gyro_range_off_the_nominal_ones_is_saturation(tmp_path, capsys):
@@ -105,3 +109,14 @@ def test_the_warning_class_is_a_casep_warning():
     from casep.exceptions import CasepWarning
 
     assert issubclass(FullScaleWarning, CasepWarning)
+
+
+def test_the_converter_zero_is_mid_scale_only_for_unsigned_counts():
+    # a signed 16-bit sensor with offsets of ~500 counts (readings below zero) is not a 10-bit unsigned one
+    from casep.calibration.saturation import converter
+
+    signed = np.array([[500.0, -16000.0, 16900.0], [-300.0, 700.0, -200.0]])
+    assert converter(np.array([500.0, 520.0, -480.0]), signed) == (16, 0.0)
+    assert converter(np.array([2100.0, 2000.0, 1990.0]), np.array([[1000.0, 3000.0, 2048.0]])) == (12, 2048.0)
+    assert converter(np.array([32900.0, 32700.0, 32800.0]), np.array([[16400.0, 49000.0, 32768.0]])) == (16, 32768.0)
+    assert converter(np.array([3.0, -2.0, 1.0]), np.array([[70000.0, 0.0, -5.0]])) == (18, 0.0)

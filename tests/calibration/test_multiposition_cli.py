@@ -81,6 +81,18 @@ def test_cli_auto_from_latitude_and_raw_counts(tmp_path, capsys):
         assert abs(ratio * 9.80665 / g45 - 1) < 4 * std[f"sa_{a}"] / est[f"sa_{a}"]
         assert abs(est[f"sg_{a}"] / (h.truth["gyro"][6 + i] * kg) - 1) < 4 * std[f"sg_{a}"] / est[f"sg_{a}"]
         assert abs(est[f"bg_{a}"] - (h.truth["gyro_bias"][i] / kg + 32768)) < 4 * std[f"bg_{a}"] + 0.5
+    # the biases in SI beside the counts: T K (b - 32768) = (T K)_true b (the simulation reads (T K)^-1 f + b, in SI)
+    # within 4 std (the fitted scales carry g45 / 9.80665); the report prints them with mg and deg/s
+    from casep.calibration.multiposition import acc_matrix, gyro_matrix
+
+    settings = d["calibration"]["settings"]
+    for key, TK, b, f in (("acc_full_scale", acc_matrix(h.truth["acc"]), h.truth["acc"][6:9], g45 / 9.80665),
+                          ("gyr_full_scale", gyro_matrix(h.truth["gyro"]), h.truth["gyro_bias"], 1.0)):
+        si = settings[key]["bias_si"]
+        assert si["zero_counts"] == 32768.0 and si["unit"] in ("m/s^2", "rad/s")
+        np.testing.assert_array_less(np.abs(np.array(si["estimate"]) - f * TK @ b), 4 * np.array(si["std"]))
+    out_text = capsys.readouterr().out
+    assert "accelerometer bias in SI, T K (b - 32768)" in out_text and " mg)" in out_text and " deg/s)" in out_text
 
 
 def test_cli_auto_errors_exit_2_and_write_nothing(tmp_path, capsys):
@@ -246,3 +258,24 @@ def test_the_calibration_warnings_are_casep_warnings():
 
     for cls in (TurnBoundaryWarning, FitWarning, SaturationWarning, PoseSpreadWarning, StaticMotionWarning):
         assert issubclass(cls, CasepWarning), cls
+
+
+def test_cli_drift_prior_enters_the_bias_std_and_is_checked(tmp_path, capsys):
+    # the MPU-9150 session with a gyro drift prior of 36 deg/h (1.75e-4 rad/s), tau 300 s: the gyro bias std is the
+    # prior's (larger than the session's own: a drift that slow is mostly a bias the session cannot tell)
+    out = tmp_path / "cal.json"
+    args = ["calibrate", str(DATA / "imu0.log.gz"), "--rate", "100", "--segments", "auto", "--acc-unit", "m/s^2",
+            "--gyr-unit", "rad/s", "--gravity", "9.81", "--json", str(out)]
+    assert main(args + ["--gyr-drift", "36,300", "--acc-drift", "0.5,300"]) == 0
+    text = capsys.readouterr().out
+    d = json.loads(out.read_text())
+    dr = d["calibration"]["settings"]["drift"]
+    assert dr["gyro"]["prior"]["sigma_d"][0] == pytest.approx(np.radians(36 / 3600), rel=1e-3)
+    assert dr["gyro"]["prior"]["tau_s"] == 300.0 and dr["accelerometer"]["prior"]["tau_s"] == 300.0
+    std = dict(zip(d["names"], d["std"]))
+    # the bias's std at least the common part of a drift that slow over the session, sigma_d exp(-T / (2 tau))
+    assert std["bg_x"] > np.radians(36 / 3600) * np.exp(-0.5), std["bg_x"]
+    assert "gyro bias std with the drift prior (std 0.000175" in text
+    for bad, why in (("36", "give STD,TAU"), ("36,-5", "a positive std")):
+        assert main(args + ["--gyr-drift", bad]) == 2
+        assert why in capsys.readouterr().err
