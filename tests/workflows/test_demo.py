@@ -66,7 +66,7 @@ def test_demo_result_protocol(tmp_path):
     from casep.results import Result
     from casep.workflows.demo import summary_lines
 
-    res = run_demo(tmp_path, rate=10.0, seed=4)
+    res = run_demo(tmp_path, rate=10.0, seed=4, parallel=False)  # figures drawn here (the CLI test: by a worker)
     assert isinstance(res, Result)
     d = json.loads(json.dumps(res.to_dict(), allow_nan=False))
     assert d["seed"] == 4 and d["n_samples"] == res.sim.flight.n_samples
