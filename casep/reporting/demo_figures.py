@@ -24,7 +24,7 @@ import numpy as np
 from casep.reporting.plots import pyplot, save_figure, set_margins
 
 __all__ = ["FigureJobs", "plot_demo_residuals", "plot_coefficient_errors", "plot_rels_convergence", "warm_up",
-           "usable_cores", "serve"]
+           "usable_cores", "spare_core", "serve"]
 
 
 def _band(ax: Any, t: np.ndarray, r: np.ndarray, bins: int = 1000) -> None:
@@ -111,6 +111,23 @@ def usable_cores() -> int:
     if hasattr(os, "sched_getaffinity"):
         return len(os.sched_getaffinity(0))
     return os.cpu_count() or 1  # pragma: no cover - platforms without sched_getaffinity
+
+
+def spare_core() -> bool:
+    """Whether a worker process would run beside this one: two or more usable cores, and a 1-minute load
+    average below their number where the platform tells it.
+
+    On a busy machine a second process gains no CPU time (Linux shares the CPU between sessions, not
+    between processes, when its scheduler groups them, as it does by default), and the worker's start-up
+    (a new interpreter importing NumPy and matplotlib, about 0.5 s of CPU more than drawing here) is lost.
+    """
+    n = usable_cores()
+    if n < 2:
+        return False
+    try:
+        return os.getloadavg()[0] < n
+    except (AttributeError, OSError):  # pragma: no cover - no load average (Windows)
+        return True
 
 
 class FigureJobs:

@@ -15,7 +15,7 @@ de-noised dv, goes through :func:`casep.separate`. The estimates are then judged
 model's declared magnitudes as :func:`casep.separate` judges them
 (:func:`casep.workflows.separate.judge_setup`).
 
-With an output folder and two or more cores, the figures are drawn in a worker process while the methods
+With an output folder and a spare core, the figures are drawn in a worker process while the methods
 run, each as soon as its data exist (:class:`casep.reporting.demo_figures.FigureJobs`): the methods whose
 results the figures need (LS, RELS, wavelet + RELS) are computed first.
 """
@@ -45,7 +45,7 @@ from casep.reporting.demo_figures import (
     plot_coefficient_errors,
     plot_demo_residuals,
     plot_rels_convergence,
-    usable_cores,
+    spare_core,
 )
 from casep.simulation.paper import demo_bounds, demo_prior
 from casep.simulation.simulate import SimulatedFlight, simulate_flight
@@ -242,8 +242,9 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
         Sample rate, Hz (the paper scenario uses 100).
     parallel : bool, optional
         With `out`: draw the figures in a worker process while the methods run, each as soon as its data
-        exist (:class:`casep.reporting.demo_figures.FigureJobs`); default: when this process may use two or
-        more cores. The figures are the same either way.
+        exist (:class:`casep.reporting.demo_figures.FigureJobs`); default: when a core is spare (two or more
+        usable cores, the 1-minute load average below their number: :func:`casep.reporting.demo_figures.spare_core`).
+        The figures are the same either way.
 
     Returns
     -------
@@ -252,7 +253,7 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
     folder = None if out is None else Path(out)
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)
-    parallel = folder is not None and (usable_cores() >= 2 if parallel is None else parallel)
+    parallel = folder is not None and (spare_core() if parallel is None else parallel)
     with FigureJobs(parallel) as jobs:  # the worker imports matplotlib while the flight is simulated
         sim = simulate_flight("paper", seed=seed, rate=rate)
         model = sim.model

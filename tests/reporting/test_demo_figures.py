@@ -27,3 +27,16 @@ def test_an_error_in_the_caller_stops_the_worker(tmp_path):
             proc = jobs._proc
             raise KeyError("the demo failed")
     assert proc.poll() is not None  # stopped and reaped, not left behind
+
+
+def test_a_worker_only_beside_a_spare_core(monkeypatch):
+    from casep.reporting import demo_figures
+
+    monkeypatch.setattr(demo_figures, "usable_cores", lambda: 2)
+    monkeypatch.setattr(demo_figures.os, "getloadavg", lambda: (0.5, 0.5, 0.5))
+    assert demo_figures.spare_core()
+    monkeypatch.setattr(demo_figures.os, "getloadavg", lambda: (2.0, 0.5, 0.5))  # both cores busy
+    assert not demo_figures.spare_core()
+    monkeypatch.setattr(demo_figures, "usable_cores", lambda: 1)
+    monkeypatch.setattr(demo_figures.os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+    assert not demo_figures.spare_core()
