@@ -240,4 +240,7 @@ def serve() -> None:
 
 
 if __name__ == "__main__":
-    serve()
+    try:
+        serve()
+    except (KeyboardInterrupt, BrokenPipeError):  # Ctrl-C reaches the worker too; the demo says it stopped
+        sys.exit(1)
