@@ -94,8 +94,9 @@ def plot_singular_values(diag: Diagnostics, path: str | os.PathLike) -> Path:
     ax.set_xlabel("dimension k")
     ax.set_ylabel("singular value s_k (unit-norm columns)")
     ce = diag.condition_number_equilibrated
+    # y=1.0: where matplotlib would place it (a log axis has no offset text), without measuring the ticks first
     ax.set_title(f"Singular values; equilibrated condition number {ce:.3g}" if ce
-                 else "Singular values (rank deficient)")
+                 else "Singular values (rank deficient)", y=1.0)
     ax.legend(loc="lower left")
     ax.grid(True, which="both", alpha=0.3)
     return save_figure(fig, path, layout=None)
@@ -398,7 +399,8 @@ def plot_miss_budget(analysis, path: str | os.PathLike, top: int = 15) -> Path:
         ax.set_xlabel(f"{what} miss, m")
         ax.tick_params(axis="x", labelrotation=30, labelsize=7)  # symlog ticks: keep them apart
         tot = f"{a.miss[i]:.4g}" + (f" +- {a.std[i]:.3g}" if a.std is not None else "")
-        ax.set_title(f"{what}: total {tot} m (nonlinear {a.nonlinear[i]:.4g} m)", fontsize=9)
+        # y=1.0: where matplotlib would place it (no offset text on these axes), without measuring the ticks first
+        ax.set_title(f"{what}: total {tot} m (nonlinear {a.nonlinear[i]:.4g} m)", fontsize=9, y=1.0)
         ax.grid(True, axis="x", alpha=0.3)
     axes[0].set_yticks(y, labels, fontsize=8)
     fig.suptitle(title, fontsize=9, wrap=True, y=1.0 - 0.08 / fig.get_size_inches()[1], va="top")

@@ -14,6 +14,10 @@ by the six methods on raw dv (:func:`casep.workflows.solve.fit`); wavelet + RELS
 de-noised dv, goes through :func:`casep.separate`. The estimates are then judged against the
 model's declared magnitudes as :func:`casep.separate` judges them
 (:func:`casep.workflows.separate.judge_setup`).
+
+With an output folder and a spare core, the figures are drawn in a worker process while the methods
+run, each as soon as its data exist (:class:`casep.reporting.demo_figures.FigureJobs`): the methods whose
+results the figures need (LS, RELS, wavelet + RELS) are computed first.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ import os
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -36,6 +40,13 @@ from casep.impact.miss import ImpactAnalysis, impact_analysis
 from casep.model.error_model import ErrorModel
 from casep.regression.problem import Problem
 from casep.regression.rows import Rows, prepare_rows
+from casep.reporting.demo_figures import (
+    FigureJobs,
+    plot_coefficient_errors,
+    plot_demo_residuals,
+    plot_rels_convergence,
+    spare_core,
+)
 from casep.simulation.paper import demo_bounds, demo_prior
 from casep.simulation.simulate import SimulatedFlight, simulate_flight
 from casep.workflows.separate import judge_setup, separate
@@ -175,74 +186,9 @@ def summary_lines(sim: SimulatedFlight, results: Mapping[str, EstimateResult], c
 
 
 
-def _band(ax: Any, t: np.ndarray, r: np.ndarray, bins: int = 1000) -> None:
-    """Residuals against time as their min-max band per time bin (what a 1000-pixel-wide line of
-    19 501 noisy samples shows anyway, drawn in half the time)."""
-    k = t.size // bins
-    if k < 2:
-        ax.plot(t, r, lw=0.5)
-        return
-    m = k * bins
-    tb, rb = t[:m].reshape(bins, k), r[:m].reshape(bins, k)
-    ax.fill_between(tb[:, 0], rb.min(axis=1), rb.max(axis=1), lw=0, color="C0", step="post")
-    if m < t.size:
-        ax.plot(t[m:], r[m:], lw=0.5, color="C0")
-
-
-def _figures(out: Path, sim: SimulatedFlight, results: Mapping[str, EstimateResult], diag: Diagnostics,
-             crlb: np.ndarray) -> list[Path]:
-    from casep.reporting.plots import plot_singular_values, pyplot, save_figure, set_margins
-
-    plt = pyplot()
-    t = sim.flight.t
-    files = []
-    for fname, label, title in (("fig3_residuals_ls.png", "LS", "Figure 3 analogue: velocity residuals of LS"),
-                                ("fig4_residuals_wavelet_rels.png", "wavelet+RELS",
-                                 "Figure 4 analogue: residuals of wavelet+RELS (w.r.t. the de-noised dv)")):
-        resid = results[label].residuals
-        assert resid is not None  # every demo method reports its residuals
-        fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True)
-        for i, ax in enumerate(axes):
-            _band(ax, t, resid[:, i])
-            ax.set_ylabel(f"{'xyz'[i]} (m/s)")
-            ax.grid(alpha=0.3)
-        axes[0].set_title(title, fontsize=10)
-        axes[-1].set_xlabel("time (s)")
-        set_margins(fig, left=0.95, right=0.12, bottom=0.5, top=0.28, hspace=0.12)  # y ticks up to 6 characters
-        files.append(save_figure(fig, out / fname, layout=None))
-    fig, ax = plt.subplots(figsize=(11, 4.5))
-    x = np.arange(len(sim.model.names))
-    for k, (label, res) in enumerate(results.items()):
-        ax.semilogy(x + (k - 3) * 0.08, np.abs(res.estimate - sim.truth) / crlb, "o", ms=3, label=label)
-    ax.axhline(1.0, color="k", lw=1, ls="--")
-    ax.axhline(2.0, color="k", lw=0.8, ls=":")
-    ax.set_xticks(x, sim.model.names, rotation=90, fontsize=7)
-    ax.set_ylabel("|estimate - true| / CRLB std")
-    ax.set_title("Error of each coefficient against its Cramer-Rao std (one flight)")
-    ax.legend(fontsize=7, ncol=4)
-    ax.grid(True, which="both", alpha=0.3)
-    set_margins(fig, left=0.75, right=0.12, bottom=0.55, top=0.3)
-    files.append(save_figure(fig, out / "coefficient_errors.png", layout=None))
-    rels = results["RELS"]
-    assert rels.history is not None  # RELS keeps its history
-    H = rels.history[:, : len(sim.model.names)]
-    stride = rels.extras.history_stride  # the stride the recursion kept its history at
-    th = t[np.arange(H.shape[0]) * stride]
-    best = np.argsort(crlb / np.maximum(np.abs(sim.truth), 1e-300))[:6]
-    fig, ax = plt.subplots(figsize=(8, 4))
-    for j in best:
-        ax.plot(th, (H[:, j] - sim.truth[j]) / crlb[j], lw=1, label=sim.model.names[j])
-    ax.axhspan(-2, 2, color="0.9", zorder=0)
-    ax.set_ylim(-10, 10)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("(estimate - true) / final CRLB std")
-    ax.set_title("RELS convergence of the six best-determined coefficients")
-    ax.legend(fontsize=8, ncol=3)
-    ax.grid(alpha=0.3)
-    set_margins(fig, left=0.8, right=0.12, bottom=0.5, top=0.3)
-    files.append(save_figure(fig, out / "rels_convergence.png", layout=None))
-    files.append(plot_singular_values(diag, out / "singular_values.png"))
-    return files
+#: The demo's figures, in the order the report shows them.
+FIGURES = ("fig3_residuals_ls.png", "fig4_residuals_wavelet_rels.png", "coefficient_errors.png",
+           "rels_convergence.png", "singular_values.png", "miss_budget.png", "impact_ellipse.png")
 
 
 def _solve(problem: Problem, model: ErrorModel, rows: Rows, method: str, options: Mapping[str, Any]) -> EstimateResult:
@@ -256,7 +202,34 @@ def _solve(problem: Problem, model: ErrorModel, rows: Rows, method: str, options
     return judge_setup(res, None, model, noise_free=problem.is_noise_free())
 
 
-def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float = 100.0) -> DemoResult:
+def _methods(problem: Problem, model: ErrorModel, labels: Sequence[str]) -> Iterator[EstimateResult]:
+    """The results of the demo's methods `labels` (:data:`DEMO_METHODS`) in that order, one at a time.
+
+    Every method but wavelet+RELS on the shared `rows`; wavelet+RELS, on de-noised rows, through
+    :func:`casep.workflows.separate.separate`. The rows are prepared once, before the first method that needs
+    them (separate's defaults: noise "auto", robust "auto"). The condition warnings are left out: the
+    diagnostics report the conditioning once.
+    """
+    supplied: dict[str, Any] = {"bounds": demo_bounds(model.names), "prior": demo_prior(model.names)}  # required
+    spec = {label: (method, opts) for label, method, opts in DEMO_METHODS}
+    rows: Rows | None = None
+    for label in labels:
+        method, opts = spec[label]
+        opts = {**opts, **{k: supplied[k] for k in METHODS[method].required}}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IllConditionedWarning)
+            if opts.get("denoise"):
+                res = separate(problem, model, method, **opts)
+                assert isinstance(res, EstimateResult)  # no radar: an EstimateResult
+            else:
+                if rows is None:
+                    rows = prepare_rows(problem, robust="auto")
+                res = _solve(problem, model, rows, method, opts)
+        yield res
+
+
+def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float = 100.0,
+             parallel: bool | None = None) -> DemoResult:
     """Run the demo; write figures and ``report.md`` to `out` when given.
 
     Parameters
@@ -267,50 +240,80 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
         Noise seed of the simulated flight.
     rate : float, optional
         Sample rate, Hz (the paper scenario uses 100).
+    parallel : bool, optional
+        With `out`: draw the figures in a worker process while the methods run, each as soon as its data
+        exist (:class:`casep.reporting.demo_figures.FigureJobs`); default: when a core is spare (two or more
+        usable cores, the 1-minute load average below their number: :func:`casep.reporting.demo_figures.spare_core`).
+        The figures are the same either way.
 
     Returns
     -------
     DemoResult
     """
-    sim = simulate_flight("paper", seed=seed, rate=rate)
-    model = sim.model
-    supplied: dict[str, Any] = {"bounds": demo_bounds(model.names), "prior": demo_prior(model.names)}  # required
-    extra: dict[str, dict[str, Any]] = {method: {k: supplied[k] for k in METHODS[method].required}
-                                        for _, method, _ in DEMO_METHODS}
-    results: dict[str, EstimateResult] = {}
-    problem = flight_problem(sim.flight, model, keep_sv=True)  # S_V and its QR once, for every method
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", IllConditionedWarning)  # reported once, through the diagnostics
-        # The noise model and robust weights belong to the data: fitted once (separate's defaults,
-        # noise "auto", robust "auto") for every method but wavelet+RELS, whose de-noised rows are white.
-        rows = prepare_rows(problem, robust="auto")
-        for label, method, opts in DEMO_METHODS:
-            if opts.get("denoise"):
-                res = separate(problem, model, method, **opts, **extra.get(method, {}))
-                assert isinstance(res, EstimateResult)  # no radar: an EstimateResult
-                results[label] = res
-            else:
-                results[label] = _solve(problem, model, rows, method, {**opts, **extra.get(method, {})})
-    diag = diagnose(problem, sigma=sim.scenario.noise.sigma, scales=model.scales)
-    crlb = diag.crlb_std
+    folder = None if out is None else Path(out)
+    if folder is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+    parallel = folder is not None and (spare_core() if parallel is None else parallel)
+    with FigureJobs(parallel) as jobs:  # the worker imports matplotlib while the flight is simulated
+        sim = simulate_flight("paper", seed=seed, rate=rate)
+        model = sim.model
+        problem = flight_problem(sim.flight, model, keep_sv=True)  # S_V and its QR once, for every method
+        diag = diagnose(problem, sigma=sim.scenario.noise.sigma, scales=model.scales)
+        crlb = diag.crlb_std
+        if folder is not None:
+            _draw(jobs, folder, "diagnostics", sim, {}, {}, diag)
+        S = problem.sv()
+        burnout = (np.trapezoid(S, sim.flight.t, axis=0), S[-1])  # S_P(t_b) (trapezoid from 0), S_V(t_b)
+        # the figures' data first: LS (Figure 3, the impact), RELS (its convergence), wavelet+RELS (Figure 4)
+        order = ("LS", "RELS", "wavelet+RELS", "RLS", "ridge", "bounded", "MAP")
+        got: dict[str, EstimateResult] = {}
+        impact: dict[str, ImpactAnalysis] = {}
+        for label, res in zip(order, _methods(problem, model, order)):
+            got[label] = res
+            if label in ("LS", "MAP"):
+                impact[label] = impact_analysis(sim.flight, res, model, burnout_sensitivity=burnout)
+            if folder is not None:
+                _draw(jobs, folder, label, sim, got, impact, diag)
+    results = {label: got[label] for label, _, _ in DEMO_METHODS}
+    impact = {label: impact[label] for label in ("LS", "MAP")}
     table = _table(sim, results, crlb, markdown=False)
-    S = problem.sv()
-    burnout = (np.trapezoid(S, sim.flight.t, axis=0), S[-1])  # S_P(t_b) (trapezoid from 0), S_V(t_b)
-    impact = {label: impact_analysis(sim.flight, results[label], model, burnout_sensitivity=burnout)
-              for label in ("LS", "MAP")}
     true_miss = impact["LS"].sensitivity @ np.asarray(sim.truth, dtype=float)  # G D_true
     files: list[Path] = []
-    folder = None
-    if out is not None:
-        from casep.reporting.plots import impact_figures
-
-        folder = Path(out)
-        folder.mkdir(parents=True, exist_ok=True)
-        files = _figures(folder, sim, results, diag, crlb)
-        files += impact_figures(impact["LS"], folder)
+    if folder is not None:
+        files = [folder / name for name in FIGURES]
         files.append(_write_report(folder, sim, results, diag, crlb, files, impact_lines(impact, true_miss)))
     return DemoResult(sim=sim, results=results, diagnostics=diag, table=table, files=tuple(files), impact=impact,
                       true_miss=true_miss, out=folder)
+
+
+def _draw(jobs: FigureJobs, out: Path, label: str, sim: SimulatedFlight, results: Mapping[str, EstimateResult],
+          impact: Mapping[str, ImpactAnalysis], diag: Diagnostics) -> None:
+    """Submit the figures whose data the result `label` completes (:data:`FIGURES`); "diagnostics": the
+    singular values, drawn from the diagnostics alone, before the methods."""
+    from casep.reporting.plots import plot_impact_ellipse, plot_miss_budget, plot_singular_values
+
+    t, crlb, truth = sim.flight.t, diag.crlb_std, np.asarray(sim.truth, dtype=float)
+    if label == "diagnostics":
+        jobs.draw(plot_singular_values, diag, out / FIGURES[4])
+    elif label == "LS":
+        jobs.draw(plot_demo_residuals, out / FIGURES[0], t, results["LS"].residuals,
+                  "Figure 3 analogue: velocity residuals of LS")
+        jobs.draw(plot_miss_budget, impact["LS"], out / FIGURES[5])
+        jobs.draw(plot_impact_ellipse, impact["LS"], out / FIGURES[6])
+    elif label == "RELS":
+        rels = results["RELS"]
+        assert rels.history is not None  # RELS keeps its history
+        n = len(sim.model.names)
+        th = t[np.arange(rels.history.shape[0]) * rels.extras.history_stride]  # the stride the recursion kept
+        best = np.argsort(crlb / np.maximum(np.abs(truth), 1e-300))[:6]
+        z = (rels.history[:, :n][:, best] - truth[best]) / crlb[best]  # in units of the final CRLB std
+        jobs.draw(plot_rels_convergence, out / FIGURES[3], th, z, [sim.model.names[j] for j in best])
+    elif label == "wavelet+RELS":
+        jobs.draw(plot_demo_residuals, out / FIGURES[1], t, results[label].residuals,
+                  "Figure 4 analogue: residuals of wavelet+RELS (w.r.t. the de-noised dv)")
+    elif len(results) == len(DEMO_METHODS):  # every method: the errors of all, in table order
+        jobs.draw(plot_coefficient_errors, out / FIGURES[2], sim.model.names,
+                  {lb: np.abs(results[lb].estimate - truth) / crlb for lb, _, _ in DEMO_METHODS})
 
 
 def impact_lines(impact: Mapping[str, ImpactAnalysis], true_miss: np.ndarray) -> list[str]:

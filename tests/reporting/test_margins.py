@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from casep.reporting import plots
+from casep.reporting import demo_figures, plots
 from casep.reporting.plots import pyplot, set_margins, text_width
 from casep.workflows import demo
 
@@ -38,6 +38,7 @@ def checked(monkeypatch):
         return path
 
     monkeypatch.setattr(plots, "save_figure", check)
+    monkeypatch.setattr(demo_figures, "save_figure", check)
     return found
 
 
@@ -73,15 +74,17 @@ def test_demo_figures_keep_their_texts_apart(checked, tmp_path, rng):
                           extras=SimpleNamespace(history_stride=10))
     sim = SimpleNamespace(flight=SimpleNamespace(t=t), model=SimpleNamespace(names=names), truth=truth)
     results = {label: res for label, _, _ in demo.DEMO_METHODS}
-    diag = SimpleNamespace(singular_values=np.logspace(0, -7, len(names)), condition_number_equilibrated=1e7)
-    demo._figures(tmp_path, sim, results, diag, np.ones(len(names)))
+    diag = SimpleNamespace(singular_values=np.logspace(0, -7, len(names)), condition_number_equilibrated=1e7,
+                           crlb_std=np.ones(len(names)))
     G = 1e6 * rng.standard_normal((2, len(names)))
     groups = [SimpleNamespace(names=names[:6], contribution=G[:, :6].sum(axis=1), std=None)]
     cov = np.diag([4e6, 1e6])
     impact = SimpleNamespace(contributions=G, sensitivity=G, coefficient_std=np.ones(len(names)), names=names,
                              groups=groups, miss=G.sum(axis=1), std=np.sqrt(np.diag(cov)), cov=cov,
                              nonlinear=1.01 * G.sum(axis=1), model="a model with a long name", method="ols")
-    plots.impact_figures(impact, tmp_path)
+    with demo_figures.FigureJobs(parallel=False) as jobs:  # drawn here: the check replaces save_figure
+        for label in ("diagnostics", "LS", "RELS", "wavelet+RELS", "MAP"):  # MAP: every method's result exists
+            demo._draw(jobs, tmp_path, label, sim, results, {"LS": impact}, diag)
     assert set(checked) == {"fig3_residuals_ls.png", "fig4_residuals_wavelet_rels.png", "coefficient_errors.png",
                             "rels_convergence.png", "singular_values.png", "miss_budget.png", "impact_ellipse.png"}
     assert {k: v for k, v in checked.items() if v} == {}

@@ -66,8 +66,9 @@ def test_demo_result_protocol(tmp_path):
     from casep.results import Result
     from casep.workflows.demo import summary_lines
 
-    res = run_demo(tmp_path, rate=10.0, seed=4)
+    res = run_demo(tmp_path, rate=10.0, seed=4, parallel=True)  # the figures by a worker process
     assert isinstance(res, Result)
+    assert all(p.read_bytes()[:4] == b"\x89PNG" for p in res.files if p.suffix == ".png") and len(res.files) == 8
     d = json.loads(json.dumps(res.to_dict(), allow_nan=False))
     assert d["seed"] == 4 and d["n_samples"] == res.sim.flight.n_samples
     assert set(d["results"]) == {label for label, _, _ in DEMO_METHODS}
