@@ -298,7 +298,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         use_sigma = sigma if sigma is not None or not METHODS[method].own_scale else _positive(ls_sigma(Sw, yw), 1.0)
         # The linear step is a casep estimate of one checked request per sensor (FitSpec: the method, its options
         # cut to this sensor's coefficients, sigma; white rows, no robust filter), solved by the method's solver on
-        # the Problem, which is what casep.workflows.solve.fit runs on white rows. Not fit() itself: the
+        # the Problem, which is what casep.estimators.solve.fit runs on white rows. Not fit() itself: the
         # workflows import calibration (ground priors, fusion, consistency), so calibration cannot import them back
         # (no circle between packages); and what fit() adds is for a flight's time series (noise model in time,
         # robust filter, residual checks in time), which these rows (segment means, turn integrals) are not:

@@ -128,8 +128,8 @@ class RadarNoise:
 
     def accounts(self) -> dict[str, Any]:
         """``{station: noise record}`` (the noise model and what the robust fit did), each from
-        :func:`casep.workflows.solve.noise_account` (the one place), as a several-flight result holds them."""
-        from casep.workflows.solve import noise_account
+        :func:`casep.estimators.solve.noise_account` (the one place), as a several-flight result holds them."""
+        from casep.estimators.solve import noise_account
 
         note = ("axes x, y, z are the station's range, azimuth, elevation; std in units of the group std "
                 "(radar.noise gives them in natural units)")

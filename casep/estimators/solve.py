@@ -452,7 +452,7 @@ def flight_sigmas(problems, sigma) -> list[float]:
 
 def fit_flights(flights: Flights, spec: FitSpec, *, rows: JointRows | None = None,
                 checks: bool = True) -> EstimateResult:
-    """Fit several flights as `spec` asks (module notes); :func:`casep.workflows.solve.fit` of a :class:`Flights`.
+    """Fit several flights as `spec` asks (module notes); :func:`casep.estimators.solve.fit` of a :class:`Flights`.
 
     Parameters
     ----------
@@ -501,7 +501,7 @@ def fit_flights(flights: Flights, spec: FitSpec, *, rows: JointRows | None = Non
 
 
 def _noise_account(res: EstimateResult, rows: JointRows, kind: str) -> EstimateResult:
-    """Each flight's noise account (:func:`casep.workflows.solve.noise_account`), by its label."""
+    """Each flight's noise account (:func:`casep.estimators.solve.noise_account`), by its label."""
     per_flight = {}
     assert rows.rows is not None
     for lab, rw in zip(rows.joint.layout.labels, rows.rows):
