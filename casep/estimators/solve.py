@@ -98,7 +98,7 @@ def fit(problem: Problem | Flights, spec: FitSpec, *, rows: Rows | JointRows | N
     checks : bool, optional
         False: the estimate and its std only, without the judgements of the residuals (noise-free data,
         outliers, time offset, a given sigma, whiteness): a Monte Carlo run, whose numbers are judged
-        over the runs.
+        over the runs; radar rows and a calibration's rows, which their own checks judge.
 
     Returns
     -------
@@ -191,7 +191,7 @@ def solve_spec(problem: Problem, spec: FitSpec, *, rows: Rows | None = None, che
     ns = spec.noise
     opts = {**dict(spec.options), **dict(spec.keywords), "sigma": spec.sigma}
     if meth.own_noise_model is not None:
-        return _solve_own_noise(problem, meth, opts, _robust(ns), ns.exclude_outliers)
+        return _solve_own_noise(problem, meth, opts, _robust(ns), ns.exclude_outliers, check_white)
     if rows is None:
         rows = rows_for(problem, ns)
     elif rows.problem is not problem:
@@ -350,7 +350,7 @@ def _gm_factor(res: EstimateResult, rows: Rows) -> tuple[float | None, float | N
 
 
 def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], robust: str | None,
-                     exclude_outliers: float | None) -> Solved:
+                     exclude_outliers: float | None, check_white: bool = True) -> Solved:
     """A method that fits its own noise model (GLS: one Gauss-Markov tau for every axis, its own option).
 
     Glitches (a robust fit asked or found, :func:`casep.regression.rows.prepare_rows`) and flagged
@@ -366,7 +366,8 @@ def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], robust: 
     nm = meth.own_noise_model(res)
     diag = {**res.diagnostics, **noise_account(rows, "gm", nm, note=f"method {meth.name}: one tau for all axes")}
     raw = problem.residuals(_x(res))
-    if sub.t is not None and sub.has_rows and not sub.is_noise_free():  # whitened residuals still correlated?
+    # the whitened residuals still correlated? (not asked: a Monte Carlo run, rows judged by their own checks)
+    if check_white and sub.t is not None and sub.has_rows and not sub.is_noise_free():
         from casep.noise.model import whiten
 
         r = sub.residuals(_x(res)).reshape(-1, 3)
