@@ -78,7 +78,8 @@ def _x(res: EstimateResult) -> np.ndarray:
 
 def fit(problem: Problem | Flights, spec: FitSpec, *, rows: Rows | JointRows | None = None,
         checks: bool = True) -> EstimateResult:
-    """Fit `problem` as `spec` asks: the one entry point of every path (one flight, several, demo, Monte Carlo, ...).
+    """Fit `problem` as `spec` asks: the one entry point of every path (one flight, several, radar, demo, Monte Carlo,
+    calibration, ...); no other module solves a request's method itself (``tests/test_structure.py``).
 
     Several flights (a :class:`~casep.regression.joint.Flights`): :func:`fit_flights`, the same rules on each.
 
