@@ -32,7 +32,7 @@ def _line(name: str, z: np.ndarray) -> str:
 def main() -> None:
     from test_noise_mixture_mc import draw, mixture_rows, study
 
-    from casep.workflows.solve import solve_problem
+    from casep.estimators.solve import solve_problem
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=40)

@@ -69,7 +69,7 @@ _LAZY_MODULES: dict[str, tuple[str, ...]] = {
     "casep.estimators.result": ("EstimateResult",),
     "casep.workflows.separate": ("separate",),
     "casep.estimators.spec": ("FitSpec", "NoiseSpec"),
-    "casep.workflows.solve": ("fit",),
+    "casep.estimators.solve": ("fit",),
     "casep.workflows.flights": ("separate_flights", "diagnose_flights", "flights_summary"),
     "casep.workflows.fusion": ("fuse",),
     "casep.model.sv": ("SVBuilder", "build_sv"),

@@ -316,3 +316,52 @@ def test_casep_builds_a_flights_problem_after_its_checks():
              if isinstance(node, ast.Attribute) and node.attr == "from_flight"
              and path not in ("regression/problem.py", "checks/flight.py")]
     assert not calls, "Problem.from_flight called without the checks (use flight_problem): " + "; ".join(calls)
+
+
+#: Where a registered method may be dispatched by its registry entry: the one entry point of every fit
+#: (``fit`` and what it calls), and the registry that defines the dispatch (``Method.solve``, ``run_method``).
+DISPATCHERS = ("estimators/solve.py", "estimators/registry.py", "estimators/_options.py")
+
+
+def _method_dispatches(modules: list[tuple[str, ast.Module]]) -> list[str]:
+    """Calls of ``.solve``/``.core`` on a registry entry (``METHODS[...]`` under any name it is imported as, or a
+    name bound to one in the same module) and of ``run_method``, outside :data:`DISPATCHERS`."""
+    bad = []
+    for path, tree in modules:
+        if path in DISPATCHERS:
+            continue
+        registry = {a.asname or a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)
+                    and n.module == "casep.estimators.registry" for a in n.names if a.name == "METHODS"}
+
+        def entry(v: ast.AST, registry: set[str] = registry) -> bool:
+            return isinstance(v, ast.Subscript) and isinstance(v.value, ast.Name) and v.value.id in registry
+
+        bound = {t.id for n in ast.walk(tree) if isinstance(n, ast.Assign) and entry(n.value)
+                 for t in n.targets if isinstance(t, ast.Name)}
+        for n in ast.walk(tree):
+            if not isinstance(n, ast.Call):
+                continue
+            f = n.func
+            if isinstance(f, ast.Attribute) and f.attr in ("solve", "core") and (
+                    entry(f.value) or (isinstance(f.value, ast.Name) and f.value.id in bound)):
+                bad.append(f"{path}:{n.lineno}")
+            elif (isinstance(f, ast.Name) and f.id == "run_method") or \
+                    (isinstance(f, ast.Attribute) and f.attr == "run_method"):
+                bad.append(f"{path}:{n.lineno}")
+    return bad
+
+
+def test_every_path_solves_a_request_through_fit():
+    """One flight, several flights, radar, Monte Carlo, the demo and calibration solve the request's method through
+    ``casep.estimators.solve.fit`` only: no other module dispatches a method by its registry entry. (The public
+    solvers, ``solve_ols`` & co., stay: a check's own least-squares fit, e.g. the Chow test of several flights, is
+    not a fit request. ``tests/estimators/test_one_entry_point.py`` shows the same while each path runs.)"""
+    bad = _method_dispatches(MODULES)
+    assert not bad, "a method dispatched outside fit() (call casep.estimators.solve.fit): " + "; ".join(bad)
+
+
+def test_the_dispatch_rule_sees_a_method_solved_by_its_entry():
+    tree = ast.parse("from casep.estimators.registry import METHODS as R\n"
+                     "def f(p):\n    m = R['ols']\n    m.solve(p)\n    R['gls'].solve(p)\n    m.required\n")
+    assert _method_dispatches([("workflows/x.py", tree)]) == ["workflows/x.py:4", "workflows/x.py:5"]
+    assert _method_dispatches([("estimators/solve.py", tree)]) == []

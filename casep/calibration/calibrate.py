@@ -242,6 +242,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
 
     from casep.estimators.registry import METHODS
     from casep.estimators.result import EstimateResult
+    from casep.estimators.solve import fit
     from casep.estimators.spec import FitSpec, NoiseSpec
     from casep.regression.problem import Problem
 
@@ -280,7 +281,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         cols = model.columns(slot)
         names = [model.names[j] for j in cols]
         s_i = sample_noise(static, u)  # sample noise per axis
-        S, y, rows_sd, rows_seg, rows_t, n_static = sensor_rows(model, slot, cols, static, rots, u, session.t,
+        S, y, rows_sd, rows_seg, _times, n_static = sensor_rows(model, slot, cols, static, rots, u, session.t,
                                                                 gravity, rate, weighting, s_i)
         sd, level, dof = _row_std(S, y, rows_sd, static, s_i, n_static, weighting)
         wgt = level / sd  # rows scaled to the static level: sigma comes out in reading units
@@ -289,22 +290,19 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
             Sw, yw, level, tilt, tilt_dof = _position_rows(model, slot, cols, static, u, gravity, n_static, s_i, S, y,
                                                            Sw, yw, rows_sd, tilt, tilt_dof)
         m3 = S.shape[0] // 3  # observations of three rows (x, y, z) each
-        pb = Problem.from_arrays(Sw.reshape(m3, 3, len(cols)), yw.reshape(m3, 3),
-                                 np.asarray(rows_t, dtype=float), names=names, units=[units[j] for j in cols],
-                                 si_factors=model.si_factors[cols], model=model.name)
+        # no sample times: segment means and turn integrals are no time series (no gaps, no correlation in time)
+        pb = Problem.from_arrays(Sw.reshape(m3, 3, len(cols)), yw.reshape(m3, 3), None, names=names,
+                                 units=[units[j] for j in cols], si_factors=model.si_factors[cols], model=model.name)
         opts = _sensor_options(options, names, method, sensor)
         # Huber's MAD scale is biased low on a few rows of high leverage (6 dof; the turns are fitted
         # exactly): it takes the least-squares sigma of the weighted rows as its scale instead
         use_sigma = sigma if sigma is not None or not METHODS[method].own_scale else _positive(ls_sigma(Sw, yw), 1.0)
-        # The linear step is a casep estimate of one checked request per sensor (FitSpec: the method, its options
-        # cut to this sensor's coefficients, sigma; white rows, no robust filter), solved by the method's solver on
-        # the Problem, which is what casep.workflows.solve.fit runs on white rows. Not fit() itself: the
-        # workflows import calibration (ground priors, fusion, consistency), so calibration cannot import them back
-        # (no circle between packages); and what fit() adds is for a flight's time series (noise model in time,
-        # robust filter, residual checks in time), which these rows (segment means, turn integrals) are not:
-        # their noise model is the weighting above.
+        # The linear step: one checked request per sensor (the method, its options cut to this sensor's
+        # coefficients, sigma) through the one entry point of every fit. White rows and no robust filter: their
+        # noise model is the weighting above; the residual checks of a flight's time series do not apply (the
+        # misfits per segment and the positions are judged below).
         spec = FitSpec(method, opts, use_sigma, NoiseSpec("white", robust=None))
-        res = METHODS[method].solve(pb, sigma=spec.sigma, **spec.options)
+        res = fit(pb, spec, checks=False)
         res = dataclasses.replace(res, diagnostics={**res.diagnostics, "rows": int(S.shape[0]),
                                                     "static_level": level, "sample_noise": s_i.tolist(),
                                                     **({"position_error_deg": math.degrees(tilt),

@@ -81,7 +81,7 @@ def method_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def add_noise(parser: Any, *, outputs: bool = True, default: str = "auto") -> None:
-    """The noise-model options every method takes (casep.noise.model, casep.workflows.solve)."""
+    """The noise-model options every method takes (casep.noise.model, casep.estimators.solve)."""
     from casep.estimators.spec import ROBUST_CHOICES, STD_CHOICES  # the fit request's choices, one list each
     from casep.noise.model import NOISE_HELP, NOISE_KINDS
 

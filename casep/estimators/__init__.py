@@ -11,6 +11,9 @@ A new estimator is one module here, one line in :mod:`casep.estimators.registry`
 - :mod:`casep.estimators.spec`: :class:`FitSpec`, what a user asks of a fit (method, options, sigma,
   :class:`NoiseSpec`), checked once where it enters casep; every path (workflows, calibration,
   Monte Carlo) takes it
+- :mod:`casep.estimators.solve`: :func:`~casep.estimators.solve.fit`, the one entry point of every fit
+  (one flight, several flights, radar, Monte Carlo, demo, calibration): the request's method on the rows
+  of its noise model, then the residual checks
 - :mod:`casep.estimators._options`: what a method declares (options, rules, capabilities, hooks)
 - :mod:`casep.estimators._base`: the scaled reduction a solver works on, the result it builds
 - :mod:`casep.estimators.result`: :class:`EstimateResult` (frozen; JSON, text)

@@ -5,7 +5,7 @@ arguments of ``casep separate``, a manifest), and checked there by one validator
 (:meth:`FitSpec.__post_init__`): the method and its options (by the registry's rules,
 :func:`casep.estimators.registry.check_method_options`), sigma, the noise kind
 (:class:`casep.noise.spec.NoiseSpec`), the robust fit, the std kind, the outlier
-exclusion and the de-noising. Everything downstream (:func:`casep.workflows.solve.fit`) takes
+exclusion and the de-noising. Everything downstream (:func:`casep.estimators.solve.fit`) takes
 the spec as checked.
 
 Who owns ``tau`` is decided here, by one rule (:func:`_tau_owner`, when the spec is made): a method
@@ -68,7 +68,7 @@ class FitSpec:
 
     Build it from keywords with :meth:`build` (as :func:`casep.separate` does), or directly
     (``FitSpec("ridge", {"lam": 0.1}, noise=NoiseSpec("gm"))``); pass it as
-    ``casep.separate(flight, spec=...)`` or to :func:`casep.workflows.solve.fit`.
+    ``casep.separate(flight, spec=...)`` or to :func:`casep.estimators.solve.fit`.
 
     Attributes
     ----------

@@ -112,7 +112,7 @@ def run_montecarlo(
     noise, tau, robust : optional
         The noise model every method assumes and the robust fit, as :func:`casep.separate` takes
         them, with its defaults (``"auto"``, ``"auto"``: each run as ``casep separate`` would fit
-        it, every method per run through :func:`casep.workflows.solve.fit`). ``"white"``
+        it, every method per run through :func:`casep.estimators.solve.fit`). ``"white"``
         without a robust fit (robust ``"auto"`` or None) runs the methods as they are, the linear
         ones batched (fast; the std then assume white noise). The scenario's tracking gaps remove
         rows in every case.

@@ -17,8 +17,8 @@ and :func:`solve_runs` (the per-run path). What they ask of a method (its ``Meth
 - ``own_noise_model``: a method that fits its own (GLS) keeps it whatever the campaign's noise.
 
 Every per-run method is a fit request built once for the campaign (:func:`fit_spec`), each run solved
-through the one entry point :func:`casep.workflows.solve.fit`, on the rows prepared once per run for
-every method (:func:`casep.workflows.solve.rows_for`) when the campaign fits a noise model or a robust
+through the one entry point :func:`casep.estimators.solve.fit`, on the rows prepared once per run for
+every method (:func:`casep.estimators.solve.rows_for`) when the campaign fits a noise model or a robust
 fit. Each returns an estimate and its std (None: the method reports none).
 """
 
@@ -196,20 +196,20 @@ def fit_spec(spec: MethodSpec, names: Sequence[str], noise: Any, *, sigma: float
 def solve_runs(spec: Any, ys: Sequence[np.ndarray], flights: Sequence[tuple[np.ndarray, np.ndarray]], *,
                names: Sequence[str], rows: Sequence[Any] | None = None,
                shared: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray | None]:
-    """Each run of a chunk through the one entry point :func:`casep.workflows.solve.fit`: estimates and stds,
+    """Each run of a chunk through the one entry point :func:`casep.estimators.solve.fit`: estimates and stds,
     ``(runs, n)`` each.
 
     `spec` is the method's fit request (:func:`fit_spec`), `ys` the runs' dv, `flights` their
     ``(S_V, t)``; `rows` each run's rows prepared once for every method
-    (:func:`casep.workflows.solve.rows_for`; None: prepared here, per method); `shared` the ``(S_V, t)``
+    (:func:`casep.estimators.solve.rows_for`; None: prepared here, per method); `shared` the ``(S_V, t)``
     all runs share (nominal campaigns: the method's ``shared_options``, e.g. GLS's one REML lattice
     for the chunk). The std is None when the method reports none. The residual checks are left out
     (a campaign judges its runs by their numbers).
     """
     import dataclasses
 
+    from casep.estimators.solve import fit
     from casep.regression.problem import Problem
-    from casep.workflows.solve import fit
 
     m = _REGISTRY[spec.method]
     per_run: list[dict[str, Any]] = [{} for _ in ys]

@@ -160,8 +160,8 @@ def run_task(ctx: Context, linear: Sequence[MethodSpec], other: Sequence[MethodS
             std.update(std_l)
         rows = None
         if per_run_noise(ctx.noise):  # each run's noise model and weights, worked out once for every method
+            from casep.estimators.solve import rows_for
             from casep.regression.problem import Problem
-            from casep.workflows.solve import rows_for
 
             rows = [rows_for(Problem.from_arrays(S, y, t, names=ctx.names), ctx.noise)
                     for y, (S, t, *_) in zip(ys, flights)]

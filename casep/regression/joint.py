@@ -216,7 +216,7 @@ class JointProblem(Problem):
 
 @dataclass(frozen=True)
 class Flights:
-    """Several flights of one model as one problem to fit (:func:`casep.workflows.solve.fit`): the flights as read,
+    """Several flights of one model as one problem to fit (:func:`casep.estimators.solve.fit`): the flights as read,
     before any noise model or weighting (the fit request decides those, on each flight as on one alone).
 
     Parameters

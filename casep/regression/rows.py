@@ -2,7 +2,7 @@
 
 These belong to the data, not to a method: :func:`prepare_rows` works them out once for a
 problem (with least squares, whatever method follows),
-and every method then solves the same rows (:func:`casep.workflows.solve.solve_problem`), so its
+and every method then solves the same rows (:func:`casep.estimators.solve.solve_problem`), so its
 std hold in coloured noise and with glitches, and every method of a comparison sees the same rows.
 
 * Noise: :func:`casep.noise.fit.fit_noise` (white, Gauss-Markov per axis, or chosen by a

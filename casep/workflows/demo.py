@@ -10,7 +10,7 @@ a self-contained Markdown report.
 
 Every method sees the rows :func:`casep.separate` would give it: the noise model and the robust
 check are worked out once for the flight (:func:`casep.regression.rows.prepare_rows`) and shared
-by the six methods on raw dv (:func:`casep.workflows.solve.fit`); wavelet + RELS, on
+by the six methods on raw dv (:func:`casep.estimators.solve.fit`); wavelet + RELS, on
 de-noised dv, goes through :func:`casep.separate`. The estimates are then judged against the
 model's declared magnitudes as :func:`casep.separate` judges them
 (:func:`casep.workflows.separate.judge_setup`).
@@ -34,6 +34,7 @@ from casep.checks.diagnostics import Diagnostics, diagnose
 from casep.checks.flight import flight_problem
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
+from casep.estimators.solve import fit
 from casep.estimators.spec import FitSpec
 from casep.exceptions import IllConditionedWarning
 from casep.impact.miss import ImpactAnalysis, impact_analysis
@@ -50,7 +51,6 @@ from casep.reporting.demo_figures import (
 from casep.simulation.paper import demo_bounds, demo_prior
 from casep.simulation.simulate import SimulatedFlight, simulate_flight
 from casep.workflows.separate import judge_setup, separate
-from casep.workflows.solve import fit
 
 __all__ = ["DemoResult", "run_demo", "DEMO_METHODS", "summary_lines", "impact_lines"]
 
@@ -195,7 +195,7 @@ def _solve(problem: Problem, model: ErrorModel, rows: Rows, method: str, options
     """:func:`casep.workflows.separate.separate` of a Problem, on rows prepared once for every method.
 
     The same steps as ``separate(problem, model, method, ...)``: the one entry point
-    :func:`casep.workflows.solve.fit` on the shared rows (the method, the residual checks), then the
+    :func:`casep.estimators.solve.fit` on the shared rows (the method, the residual checks), then the
     set-up judgement.
     """
     res = fit(problem, FitSpec(method, options), rows=rows)

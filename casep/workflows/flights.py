@@ -27,10 +27,10 @@ import numpy as np
 from casep.checks.flight import flight_problem
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
+from casep.estimators.solve import fit, flight_sigmas, joint_rows
 from casep.estimators.spec import FitSpec
 from casep.regression.joint import Flights, JointLayout, JointProblem
 from casep.regression.problem import Problem
-from casep.workflows.solve import fit, flight_sigmas, joint_rows
 
 # and JOINT_METHODS (module __getattr__: the registry's as it is now)
 __all__ = ["separate_flights", "flights_summary", "diagnose_flights"]
@@ -65,7 +65,7 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     """One estimate of the shared coefficients from several flights; per-flight ones per flight.
 
     The flights become one :class:`~casep.regression.joint.Flights` fitted through the one entry point
-    :func:`casep.workflows.solve.fit`, so every rule of the request (noise model per flight and axis, tau,
+    :func:`casep.estimators.solve.fit`, so every rule of the request (noise model per flight and axis, tau,
     robust fit, std kind, outlier exclusion and flags, de-noising) applies to each flight as to one alone.
 
     Parameters

@@ -4,7 +4,7 @@
 One pass navigates the raw IMU (:func:`casep.navigation.navigate`: levelled and headed on the pad,
 integrated in the launch-inertial frame), pairs the strapdown telemetry with the tracking
 (:func:`casep.io.files.read_flight_pair`, the reader of ``casep separate TEL --tracking TRK``),
-builds S_V and solves through :func:`casep.workflows.solve.fit`.
+builds S_V and solves through :func:`casep.estimators.solve.fit`.
 
 **The alignment.** The pad levelling turns the accelerometer errors on the pad into an attitude
 error at the first sample, ``phi0 = A D`` (at rest the INS makes ``C (fb + delta_f)`` vertical:
@@ -387,7 +387,7 @@ class _Run:
                 failure = (f"failed: pass {k} could not apply the correction of pass {k - 1} ({exc}): the errors are "
                            "too large for the model, or the data are inconsistent with it")
                 break
-        from casep.workflows.solve import fit
+        from casep.estimators.solve import fit
 
         res = fit(problem, self.spec)  # the last linearisation, judged (its warnings are the result's)
         return self.finish(res, nav, flight, model, total, passes, failure, iterate, tol, max_iterations)
@@ -452,7 +452,7 @@ def _fast_spec(spec: FitSpec) -> FitSpec | None:
 
 def _quiet_fit(problem: Any, spec: FitSpec) -> EstimateResult:
     """The estimate and its std alone (``fit(checks=False)``), its warnings not shown."""
-    from casep.workflows.solve import fit
+    from casep.estimators.solve import fit
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -22,6 +22,7 @@ import numpy as np
 from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
+from casep.estimators.solve import fit
 from casep.estimators.spec import FitSpec
 from casep.frames import LaunchSite
 from casep.model.loader import load_model
@@ -267,7 +268,8 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
     rn = fit_radar_noise(lin, spec)
     all_given = bool(lin.sigma_given.all())
     opts = {**dict(spec.options), **dict(spec.keywords)}
-    res = METHODS[spec.method].solve(rn.problem(), sigma=1.0 if all_given else None, **opts)  # checked in spec
+    # the whitened rows through the one entry point of every fit; the radar's own checks follow (_judge)
+    res = fit(rn.problem(), rn.fit_spec(spec, 1.0 if all_given else None), checks=False)
     x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
     summary = _summary(reg, lin, rn, res, x)
     failed, suspicious = _judge(reg, lin, rn, res, summary)
@@ -279,7 +281,9 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
     res = dataclasses.replace(
         res, residuals=np.empty((0, 3)), stored_residual_rms=dict.fromkeys("xyz"), sigma_source="whitened",
         **model_record(reg.model),
-        diagnostics={**res.diagnostics, "tracking_terms": summary["tracking_terms"],
+        # the stacked rows interleave the stations' times: their gaps are no station's (each its own noise model's)
+        diagnostics={**{k: v for k, v in res.diagnostics.items() if k != "gaps"},
+                     "tracking_terms": summary["tracking_terms"],
                      "tracking_model": reg.tracking.name, "noise": rn.accounts(),
                      **({"whiteness": whiteness} if whiteness else {})},
         settings={**res.settings, "noise": rn.asked + " per station and type"

@@ -126,10 +126,25 @@ class RadarNoise:
         return Problem.from_arrays(Xw[:, :, :-1], Xw[:, :, -1], t, names=reg.names, units=reg.units,
                                    si_factors=reg.si_factors, model=reg.model.name)
 
+    def fit_spec(self, spec: Any, sigma: float | None) -> Any:
+        """The request `spec` as the rows of :meth:`problem` take it, for :func:`casep.estimators.solve.fit`.
+
+        The noise layer's work is done on those rows (each station whitened by its noise model, its
+        glitches weighted or removed), so they are white to a method without a noise model of its own and
+        no robust filter runs on them again; a method with its own (GLS) fits it on the rows divided by the
+        group std. `sigma`: 1 when every group's std is given (the rows are divided by them), else None
+        (the method estimates the common scale).
+        """
+        from casep.estimators.registry import METHODS
+
+        own = METHODS[spec.method].own_noise_model is not None
+        noise = dataclasses.replace(spec.noise, kind=spec.noise.kind if own else "white", tau=None, robust=None)
+        return dataclasses.replace(spec, sigma=sigma, noise=noise)
+
     def accounts(self) -> dict[str, Any]:
         """``{station: noise record}`` (the noise model and what the robust fit did), each from
-        :func:`casep.workflows.solve.noise_account` (the one place), as a several-flight result holds them."""
-        from casep.workflows.solve import noise_account
+        :func:`casep.estimators.solve.noise_account` (the one place), as a several-flight result holds them."""
+        from casep.estimators.solve import noise_account
 
         note = ("axes x, y, z are the station's range, azimuth, elevation; std in units of the group std "
                 "(radar.noise gives them in natural units)")

@@ -11,13 +11,13 @@ import numpy as np
 from casep.checks.flight import flight_problem
 from casep.estimators.registry import METHODS as _REGISTRY
 from casep.estimators.result import EstimateResult
+from casep.estimators.solve import fit
 from casep.estimators.spec import NOT_GIVEN, FitSpec, NotGiven
 from casep.io.files import read_flight, read_json_table
 from casep.io.flight import FlightData
 from casep.model.error_model import ErrorModel
 from casep.model.loader import load_model
 from casep.regression.problem import Problem
-from casep.workflows.solve import fit
 
 if TYPE_CHECKING:
     from casep.frames import LaunchSite
@@ -122,7 +122,7 @@ def separate(
         The whole fit request as one value (:class:`casep.FitSpec`: method, options, sigma, noise,
         outlier flags), instead of the keywords of the fit (then an error if any is given too). The
         keywords build the same FitSpec (:meth:`casep.FitSpec.build`), checked once, then
-        :func:`casep.workflows.solve.fit` runs it.
+        :func:`casep.estimators.solve.fit` runs it.
 
     The defaults below are those of :meth:`casep.FitSpec.build` (method ``ols``, noise ``auto``,
     robust ``auto``, std ``model``, each method option its registry default). A keyword not given is

@@ -2,7 +2,7 @@
 
 Each per-run method is a FitSpec built once for the campaign (checked before any run, by the fit
 request's own rules, so a campaign refuses what ``casep separate`` refuses); each run is solved by
-:func:`casep.workflows.solve.fit` on the rows prepared once per run for every method.
+:func:`casep.estimators.solve.fit` on the rows prepared once per run for every method.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import casep.workflows.solve as solve
+import casep.estimators.solve as solve
 from casep.estimators.spec import FitSpec
 from casep.montecarlo import run_montecarlo
 

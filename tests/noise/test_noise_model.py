@@ -1,4 +1,4 @@
-"""casep.noise.model, casep.noise.robust, casep.workflows.solve: the noise model of the rows.
+"""casep.noise.model, casep.noise.robust, casep.estimators.solve: the noise model of the rows.
 
 Whitening and REML against dense generalised least squares with the exact AR(1) covariance, the
 white / Gauss-Markov choice, the whiteness test, HAC against statsmodels, the robust filter, and
@@ -14,6 +14,7 @@ import pytest
 from conftest import dishonest_methods
 
 import casep
+from casep.estimators.solve import hac_covariance, prepare_rows, solve_problem
 from casep.exceptions import IllConditionedWarning, NoiseNotWhiteWarning
 from casep.noise.fit import Reml, estimable_basis, fit_noise
 from casep.noise.model import AUTO_LR, NoiseModel
@@ -21,7 +22,6 @@ from casep.noise.robust import robust_filter
 from casep.noise.whiteness import ljung_box, whiteness_test
 from casep.regression.problem import Problem
 from casep.simulation.noise import ar1_noise
-from casep.workflows.solve import hac_covariance, prepare_rows, solve_problem
 
 
 def _irregular_times(rng, n: int) -> np.ndarray:

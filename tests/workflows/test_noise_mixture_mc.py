@@ -18,10 +18,10 @@ import pytest
 from conftest import dishonest_methods
 
 import casep
+from casep.estimators.solve import prepare_rows, solve_problem
 from casep.exceptions import IllConditionedWarning, NoiseNotWhiteWarning
 from casep.regression.problem import Problem
 from casep.simulation.noise import NoiseModel as SimNoise
-from casep.workflows.solve import prepare_rows, solve_problem
 
 #: The mixture of the issue: Gauss-Markov 1 s, 0.09 m/s, plus white 0.045 m/s.
 MIXTURE = SimNoise("ar1", 0.09, tau=1.0, white_sigma=0.045)

@@ -78,7 +78,8 @@ def _x(res: EstimateResult) -> np.ndarray:
 
 def fit(problem: Problem | Flights, spec: FitSpec, *, rows: Rows | JointRows | None = None,
         checks: bool = True) -> EstimateResult:
-    """Fit `problem` as `spec` asks: the one entry point of every path (one flight, several, demo, Monte Carlo, ...).
+    """Fit `problem` as `spec` asks: the one entry point of every path (one flight, several, radar, demo, Monte Carlo,
+    calibration, ...); no other module solves a request's method itself (``tests/test_structure.py``).
 
     Several flights (a :class:`~casep.regression.joint.Flights`): :func:`fit_flights`, the same rules on each.
 
@@ -98,7 +99,7 @@ def fit(problem: Problem | Flights, spec: FitSpec, *, rows: Rows | JointRows | N
     checks : bool, optional
         False: the estimate and its std only, without the judgements of the residuals (noise-free data,
         outliers, time offset, a given sigma, whiteness): a Monte Carlo run, whose numbers are judged
-        over the runs.
+        over the runs; radar rows and a calibration's rows, which their own checks judge.
 
     Returns
     -------
@@ -191,7 +192,7 @@ def solve_spec(problem: Problem, spec: FitSpec, *, rows: Rows | None = None, che
     ns = spec.noise
     opts = {**dict(spec.options), **dict(spec.keywords), "sigma": spec.sigma}
     if meth.own_noise_model is not None:
-        return _solve_own_noise(problem, meth, opts, _robust(ns), ns.exclude_outliers)
+        return _solve_own_noise(problem, meth, opts, _robust(ns), ns.exclude_outliers, check_white)
     if rows is None:
         rows = rows_for(problem, ns)
     elif rows.problem is not problem:
@@ -350,7 +351,7 @@ def _gm_factor(res: EstimateResult, rows: Rows) -> tuple[float | None, float | N
 
 
 def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], robust: str | None,
-                     exclude_outliers: float | None) -> Solved:
+                     exclude_outliers: float | None, check_white: bool = True) -> Solved:
     """A method that fits its own noise model (GLS: one Gauss-Markov tau for every axis, its own option).
 
     Glitches (a robust fit asked or found, :func:`casep.regression.rows.prepare_rows`) and flagged
@@ -366,7 +367,8 @@ def _solve_own_noise(problem: Problem, meth: Any, opts: dict[str, Any], robust: 
     nm = meth.own_noise_model(res)
     diag = {**res.diagnostics, **noise_account(rows, "gm", nm, note=f"method {meth.name}: one tau for all axes")}
     raw = problem.residuals(_x(res))
-    if sub.t is not None and sub.has_rows and not sub.is_noise_free():  # whitened residuals still correlated?
+    # the whitened residuals still correlated? (not asked: a Monte Carlo run, rows judged by their own checks)
+    if check_white and sub.t is not None and sub.has_rows and not sub.is_noise_free():
         from casep.noise.model import whiten
 
         r = sub.residuals(_x(res)).reshape(-1, 3)
@@ -452,7 +454,7 @@ def flight_sigmas(problems, sigma) -> list[float]:
 
 def fit_flights(flights: Flights, spec: FitSpec, *, rows: JointRows | None = None,
                 checks: bool = True) -> EstimateResult:
-    """Fit several flights as `spec` asks (module notes); :func:`casep.workflows.solve.fit` of a :class:`Flights`.
+    """Fit several flights as `spec` asks (module notes); :func:`casep.estimators.solve.fit` of a :class:`Flights`.
 
     Parameters
     ----------
@@ -501,7 +503,7 @@ def fit_flights(flights: Flights, spec: FitSpec, *, rows: JointRows | None = Non
 
 
 def _noise_account(res: EstimateResult, rows: JointRows, kind: str) -> EstimateResult:
-    """Each flight's noise account (:func:`casep.workflows.solve.noise_account`), by its label."""
+    """Each flight's noise account (:func:`casep.estimators.solve.noise_account`), by its label."""
     per_flight = {}
     assert rows.rows is not None
     for lab, rw in zip(rows.joint.layout.labels, rows.rows):
