@@ -70,6 +70,57 @@ def dishonest_methods(stats: dict, rms=(0.85, 1.15), coverage=(0.92, 0.98)) -> d
     return bad
 
 
+def whitened_error(err: np.ndarray, cov: np.ndarray, rank: int | None = None) -> np.ndarray:
+    """One draw's error ``e`` (estimate - reference) whitened by its stated covariance ``C``: ``w`` with
+    ``w ~ N(0, I_r)`` when ``e ~ N(0, C)``, so ``w^T w = e^T C^+ e ~ chi2_r``.
+
+    The coefficients with a finite, positive std only. In correlation units (``z = e / std``,
+    ``R = D^-1 C D^-1 = U diag(lam) U^T``) the `rank` (default: all) largest eigenvalues:
+    ``w = diag(lam_r)^-1/2 U_r^T z``. A rank-deficient covariance (pcr: ``rank = n_components``)
+    states zero variance outside ``U_r``; an error there is a wrong covariance, so it is refused
+    (more than 1e-8 of ``|z|``) rather than left out.
+    """
+    err, cov = np.asarray(err, dtype=float), np.asarray(cov, dtype=float)
+    sd = np.sqrt(np.diag(cov))
+    keep = np.isfinite(sd) & (sd > 0) & np.isfinite(err)
+    z = err[keep] / sd[keep]
+    lam, U = np.linalg.eigh(cov[np.ix_(keep, keep)] / np.outer(sd[keep], sd[keep]))
+    r = z.size if rank is None else rank
+    lam, U = lam[::-1][:r], U[:, ::-1][:, :r]  # the r largest
+    u = U.T @ z
+    outside = np.linalg.norm(z - U @ u)
+    assert outside <= 1e-8 * np.linalg.norm(z), f"error outside the covariance's range: {outside:.3g}"
+    return u / np.sqrt(lam)
+
+
+def dishonest_whitened(stats: dict, rms=(0.85, 1.15), false_alarm: float = 1e-3) -> dict:
+    """``{method: (RMS w, draws over their chi2 95 % point, the largest count allowed)}`` of the methods
+    whose whitened errors (method -> one :func:`whitened_error` per draw) say the stated covariance is
+    not honest.
+
+    Two checks. The RMS of all ``w`` in `rms`: with an honest covariance ``sum w^2 ~ chi2_dof`` (dof:
+    draws x rank), so the RMS has std ``~ 1 / sqrt(2 dof)`` (0.026 at 20 draws of 36): the band is a
+    tolerance on the std (15 %), not the statistic's scatter; a std 2x too small gives RMS 2, 1.25x too
+    small gives 1.25 (above 1.15 by ~3 of its std). Unlike the per-coefficient ``z``, whose 36 values
+    in one draw are strongly correlated, the ``w`` are independent, so few draws suffice. And the
+    number of draws whose ``w^T w`` passes its chi2_r 95 % point, Binomial(draws, 0.05) when honest:
+    at most the count exceeded with probability `false_alarm` (5 of 20): a few draws with a grossly
+    wrong covariance fail it where the pooled RMS may not.
+    """
+    from scipy.stats import binom, chi2
+
+    bad = {}
+    for m, ws in stats.items():
+        q = np.array([w @ w for w in ws])
+        dof = sum(w.size for w in ws)
+        r = float(np.sqrt(q.sum() / dof))
+        over = int(sum(qk > chi2.ppf(0.95, w.size) for qk, w in zip(q, ws)))
+        limit = int(binom.isf(false_alarm, len(ws), 0.05))  # P(count > limit) <= false_alarm
+        if not (rms[0] <= r <= rms[1] and over <= limit):
+            bad[m] = (round(r, 3), over, limit)
+    return bad
+
+
 def noise_free_errors(flight, model, truth, sigma: float = 0.1):
     """Separate a noise-free flight with platform36 OLS (its ill-conditioning warning expected) and
     return ``(result, |estimate - truth| / CRLB std at noise sigma)``: how exactly the pipeline recovers
