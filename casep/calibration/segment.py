@@ -271,7 +271,7 @@ def detector(acc: np.ndarray, gyr: np.ndarray, rate: float, window_s: float, ini
     min_len = max(2, int(round(min_static_s * rate)))
     if init_end + w > n:
         raise SegmentError(f"{source}: {n} samples ({n / rate:.3g} s) is shorter than the initial static period "
-                           f"{init_s:g} s plus one window")
+                           f"{init_s:g} s plus one window ({window_s:g} s). Use: a shorter --init or --window")
     return (w, init_end, min_len, *static_statistic(acc, gyr, w, init_end, rate, init_s, source))
 
 

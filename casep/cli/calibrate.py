@@ -6,6 +6,7 @@ import argparse
 from typing import Any
 
 from casep.cli import drift_options, flight_options, options, outputs
+from casep.cli.types import positive_float as _pos
 from casep.estimators.registry import METHODS, OPTIONS
 
 
@@ -49,11 +50,10 @@ def add_parser(sub: Any) -> None:
     auto.add_argument("--latitude", type=float, default=None, metavar="DEG",
                       help="local gravity from the WGS84 normal gravity at this latitude (instead of --gravity)")
     auto.add_argument("--height", type=float, default=0.0, metavar="M", help="ellipsoidal height with --latitude, m")
-    auto.add_argument("--window", type=float, default=0.5, metavar="S", help="variance window, s (default 0.5)")
-    auto.add_argument("--init", type=float, default=5.0, metavar="S",
+    auto.add_argument("--window", type=_pos, default=0.5, metavar="S", help="variance window, s (default 0.5)")
+    auto.add_argument("--init", type=_pos, default=5.0, metavar="S",
                       help="initial static period the session starts with, s (default 5)")
-    auto.add_argument("--min-static", type=float, default=0.5, metavar="S", dest="min_static",
-                      help="shortest static pose, s (default 0.5)")
+    auto.add_argument("--min-static", type=_pos, default=0.5, metavar="S", help="shortest static pose, s (default 0.5)")
     flight_options.add_full_scales(auto, "a gyro saturated inside a turn fails the calibration, a pose with a clipped "
                                   "accelerometer is left out (raw counts: the full scale the fit implies is checked "
                                   "against the declared one)")
@@ -63,7 +63,7 @@ def add_parser(sub: Any) -> None:
     auto.add_argument("--figures", metavar="DIR", default=None,
                       help="write segmentation.png (the detector's statistic, the poses, turns and rejected runs) "
                            "into DIR (created)")
-    p.add_argument("--json", metavar="OUT", required=True, help="write the calibration JSON (a casep result)")
+    p.add_argument("--json", metavar="OUT", default=None, help="write the calibration JSON (a casep result)")
     p.add_argument("--imucal", metavar="OUT", default=None, help="also write imucal's calibration JSON (ferraris)")
 
 
@@ -95,8 +95,9 @@ def run(args: argparse.Namespace) -> int:
     imucal = to_imucal(cal) if args.imucal else None  # before any file: all outputs or none
     print(cal.text())
     _figure(args, cal.segmentation)
-    outputs.write_json(cal.to_dict(), args.json)
-    print(f"calibration written to {args.json}")
+    if args.json:
+        outputs.write_json(cal.to_dict(), args.json)
+        print(f"calibration written to {args.json}")
     if imucal is not None:
         outputs.write_json(imucal, args.imucal, record_warnings=False)  # imucal's format
         print(f"imucal calibration written to {args.imucal}")
@@ -130,8 +131,9 @@ def _run_auto(args: argparse.Namespace) -> int:
                                        gyr_full_scale=fs["gyr_range"], **drift_options.drift_priors(args))
     print(cal.text())
     _figure(args, cal.segmentation)
-    outputs.write_json(cal.to_dict(), args.json)
-    print(f"calibration written to {args.json}")
+    if args.json:
+        outputs.write_json(cal.to_dict(), args.json)
+        print(f"calibration written to {args.json}")
     if args.imu_tk:
         for path in write_imu_tk(cal, args.imu_tk):
             print(f"imu_tk calibration written to {path}")

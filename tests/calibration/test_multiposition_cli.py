@@ -110,6 +110,16 @@ def test_cli_auto_errors_exit_2_and_write_nothing(tmp_path, capsys):
                  "--json", str(out)]) == 2
     assert "not both" in capsys.readouterr().err
     assert not out.exists()
+    for flag, value in (("--window", "-1"), ("--min-static", "0"), ("--init", "nan")):
+        with pytest.raises(SystemExit) as refused:  # argparse's refusal, exit 2
+            main(["calibrate", str(p), "--rate", "100", "--segments", "auto", flag, value, "--json", str(out)])
+        assert refused.value.code == 2
+        err = capsys.readouterr().err
+        assert flag in err and value in err, err
+    assert main(["calibrate", str(p), "--rate", "100", "--segments", "auto", "--window", "1e9",
+                 "--json", str(out)]) == 2
+    assert "window (1e+09 s)" in capsys.readouterr().err
+    assert not out.exists()
 
 
 @pytest.mark.parametrize("extra, flag", [(["--method", "huber"], "--method"), (["--lambda", "0.1"], "--lambda"),
