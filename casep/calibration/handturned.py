@@ -205,9 +205,14 @@ def drift_lines(dr: dict | None) -> list[str]:
     the biases' std carries or, without one, the slow drift the session cannot exclude and the std it would give."""
     if not dr:
         return []
-    out = ["drift beyond white noise (share of a pose mean's variance, std; casep.calibration.drift): "
+    from casep.noise.model import AUTO_LR
+
+    out = ["drift beyond white noise (share of a pose mean's variance, std, -2 ln Lambda against white noise; "
+           "casep.calibration.drift): "
            + "; ".join(f"{k} {100 * v['share']:.0f} %, {_floats(v['sigma_d'])} {v['unit']}"
                        + (f" ({_floats(v['natural']['sigma_d'])} {v['natural']['unit']})" if "natural" in v else "")
+                       + (f", {v['lr_stat']:.3g}" + (" (not significant: white noise explains it)"
+                                                     if v["lr_stat"] <= AUTO_LR else "") if "lr_stat" in v else "")
                        for k, v in dr.items())]
     for k, v in dr.items():
         if "prior" in v:
@@ -630,7 +635,8 @@ def drift_report(fits: dict, acc_bias_std: np.ndarray, gyr_bias_std: np.ndarray,
     for (key, (fit, prior)), what, unit, bstd, bunit in zip(
             fits.items(), ("accelerometer's misfit", "gyro's pose means"), ("m/s^2", units[1]),
             (acc_bias_std, gyr_bias_std), units):
-        out[key] = {"share": fit.drift_share, "sigma_d": np.atleast_1d(fit.sigma_d).tolist(), "unit": unit,
+        out[key] = {"share": fit.drift_share, "lr_stat": fit.lr_stat,
+                    "sigma_d": np.atleast_1d(fit.sigma_d).tolist(), "unit": unit,
                     "tau_s": float(np.exp(np.sum(fit.weights * np.log(fit.taus)))), "bias_unit": bunit,
                     "bias_std": np.atleast_1d(bstd).tolist()}
         to_nat = (1.0 / ACC_UNITS["mg"], "mg") if key == "accelerometer" else (gyr_si / GYR_UNITS["deg/h"], "deg/h")
