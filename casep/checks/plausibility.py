@@ -323,7 +323,8 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
     dv : (N, 3) array_like
         Velocity error the estimate used, m/s.
     result : EstimateResult
-        The estimate (coefficients without an estimate count as 0).
+        The estimate: its :meth:`~casep.estimators.result.EstimateResult.fitted_coefficients` give the
+        fitted values (where a coefficient has no estimate, the solver's solution).
     t, f : array_like
         Times (s) and specific force (N, 3) of the same rows.
     source : str, optional
@@ -340,7 +341,7 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         See the module notes and :func:`time_offset_test`.
     """
     dv = np.asarray(dv, dtype=float).reshape(-1, 3)
-    x = np.nan_to_num(np.asarray(result.estimate, dtype=float), nan=0.0)
+    x = result.fitted_coefficients()  # the solver's solution: it reproduces the determined combinations
     blocks, _, _ = row_blocks(S)
     r = np.empty_like(dv)
     for sl, S_b in blocks():

@@ -19,6 +19,7 @@ from casep.checks.diagnostics import ILL_CONDITIONED, collinearity
 from casep.estimators._lazydict import LazyDiagnostics
 from casep.estimators._rules import SIGMA
 from casep.estimators.result import EstimateResult
+from casep.estimators.solution import Solution
 from casep.exceptions import IllConditionedWarning, MagnitudeWarning
 from casep.regression.linalg import RankAnalysis, ReducedSystem, condition_numbers, unidentifiable_reasons
 from casep.regression.problem import Problem as RegressionProblem
@@ -229,6 +230,7 @@ def finish(
     und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
     res = pb.residuals(x) if residuals is None else np.asarray(residuals, dtype=float).reshape(-1)
     est = np.where(und, np.nan, x)
+    solution = _solution(pb, x, cov) if und.any() and np.all(np.isfinite(x)) else None
     std = None
     if cov is not None:
         cov = np.array(cov, dtype=float)
@@ -269,8 +271,27 @@ def finish(
         settings=settings, diagnostics=diag, n_samples=N, history=history, history_std=history_std,
         model=pb.problem.model or "",  # set by the problem, not patched afterwards
         sigma_source=sigma_source or ("given" if pb.sigma is not None else "estimated"),
-        std_kind=std_kind or str(getattr(declared, "std_kind", "sampling")), extras=extras,
+        std_kind=std_kind or str(getattr(declared, "std_kind", "sampling")), extras=extras, solution=solution,
     )
+
+
+#: Components of a unit null vector of the scaled columns below this are the SVD's rounding (a zero column's
+#: null vector leaks ~1e-12 into the others), not part of a dependency.
+NULL_ROUNDING = 1e-9
+
+
+def _solution(pb: Prepared, x: np.ndarray, cov: np.ndarray | None) -> Solution:
+    """The solver's `x` and `cov` with the null space of S_V in natural units (:mod:`casep.estimators.solution`).
+
+    ``S = Z diag(c)``: a null vector ``v`` of the scaled ``Z`` is ``v / c`` in natural units; on a zero
+    column (``c = 0``) any value is a null direction, kept as ``v``.
+    """
+    v = pb.ra.Vt[pb.ra.rank:].T  # (n, k): Z v = 0, unit columns
+    v = np.where(np.abs(v) > NULL_ROUNDING, v, 0.0)  # rounding of the SVD: not a part of the dependency
+    scaled = pb.red.scale > 0
+    N = np.where(scaled[:, None], v * pb.inv_c[:, None], v)
+    C = None if cov is None or not np.all(np.isfinite(cov)) else np.array(cov, dtype=float)
+    return Solution(np.array(x, dtype=float), C, N)
 
 
 #: A residual RMS above this many least-squares residual std fails a result ...

@@ -171,11 +171,10 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
     from casep.estimators.ols import solve_ols
 
     lay = jp.layout
-    x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
+    x = res.fitted_coefficients()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # conditioning: said by the result
-        x_ls = solve_ols(jp, sigma=1.0).estimate  # the Chow test compares least-squares fits, whatever the method
-    x_ls = np.where(np.isfinite(x_ls), x_ls, 0.0)
+        x_ls = solve_ols(jp, sigma=1.0).fitted_coefficients()  # the Chow test compares least-squares fits
     pf = np.flatnonzero(lay.per_flight)
     flights, own, rss_joint = [], [], []
     for k, (p, w, s) in enumerate(zip(jp.raw, jp.problems, jp.sigmas)):
