@@ -160,30 +160,51 @@ VELOCITY_RATIO_REFUSED = (0.4, 2.5)
 
 
 def _check_velocity_units(flight: FlightData) -> None:
-    """Compare the telemetered velocity change with the integral of f + g (files with v_tel)."""
+    """Compare the telemetered velocity change with the integral of f + g (files with v_tel), and the tracking
+    velocity change with the telemetered one over the same times (a pair of files): one rule, :func:`_units_ratio`."""
     change = flight.meta.get("telemetry_velocity_change_m_s")
     t, f = flight.t, flight.f
     if change is None or t.size < 2:
         return
     a = f + GRAVITY_LAUNCH  # kinematic acceleration, flat-Earth gravity
     expected = np.sum(0.5 * (a[1:] + a[:-1]) * np.diff(t)[:, None], axis=0)  # trapezoid of a
-    e, g = float(np.linalg.norm(expected)), float(np.linalg.norm(change))
+    _units_ratio(change, expected, flight.source, "v_tel_x", lambda g, e, r: (
+        f"the telemetered velocity changes by {g:.4g} m/s over {t[-1] - t[0]:.4g} s but the specific force "
+        f"plus gravity integrates to {e:.4g} m/s (ratio {r:.3g}, expected {{lo:g}}-{{hi:g}}): the velocity "
+        "columns (v_tel_*, v_trk_*) and f disagree on units."), "v_tel and v_trk")
+    trk = flight.meta.get("tracking_velocity_change_m_s")
+    tel = flight.meta.get("telemetry_velocity_change_at_tracking_m_s")
+    if trk is not None and tel is not None:
+        source = str(flight.meta.get("tracking") or flight.source)
+        _units_ratio(trk, tel, source, "v_trk_x", lambda g, e, r: (
+            f"the tracking velocity (v_trk_x, v_trk_y, v_trk_z of {source}) changes by {g:.4g} m/s but the "
+            f"telemetered velocity (v_tel_* of {flight.meta.get('telemetry', 'the telemetry')}) by {e:.4g} m/s "
+            f"over the same times (ratio {r:.3g}, expected {{lo:g}}-{{hi:g}}): the two files disagree on units."),
+            "v_trk")
+
+
+def _units_ratio(measured, expected, source: str, column: str, what, columns: str) -> None:
+    """The units rule of a velocity change against the one it must equal: ``|measured| / |expected|`` outside
+    :data:`VELOCITY_RATIO_RANGE` warns with the unit that fits, outside :data:`VELOCITY_RATIO_REFUSED` (a unit's
+    factor) raises a :class:`~casep.io.flight.FlightDataError` naming `source` and `column`.
+
+    `what(|measured|, |expected|, ratio)`: the message, with ``{lo}``, ``{hi}`` for the range.
+    """
+    e, g = float(np.linalg.norm(expected)), float(np.linalg.norm(measured))
     if e < 1.0:  # no velocity gained: nothing to compare
         return
     ratio = g / e
     lo, hi = VELOCITY_RATIO_RANGE
     if lo <= ratio <= hi:
         return
-    hint = _unit_hint(ratio, lo, hi, (("ft/s (multiply v_tel and v_trk by 0.3048)", 0.3048),
+    hint = _unit_hint(ratio, lo, hi, ((f"ft/s (multiply {columns} by 0.3048)", 0.3048),
                                       ("km/s (multiply by 1000)", 1e3), ("cm/s (divide by 100)", 1e-2),
                                       ("mm/s (divide by 1000)", 1e-3)))
-    what = (f"the telemetered velocity changes by {g:.4g} m/s over {t[-1] - t[0]:.4g} s but the specific force "
-            f"plus gravity integrates to {e:.4g} m/s (ratio {ratio:.3g}, expected {lo:g}-{hi:g}): the velocity "
-            f"columns (v_tel_*, v_trk_*) and f disagree on units.{hint}")
+    text = what(g, e, ratio).format(lo=lo, hi=hi) + hint
     low, high = VELOCITY_RATIO_REFUSED
     if not low <= ratio <= high:  # a unit's factor (ft/s 3.28, km/s 1e-3, ...): every estimate would be wrong
-        raise FlightDataError(flight.source, what + " Convert the columns to m/s (f to m/s^2)", "v_tel_x")
-    _warn(f"{flight.source}: {what}")
+        raise FlightDataError(source, text + " Convert the columns to m/s (f to m/s^2)", column)
+    _warn(f"{source}: {text}")
 
 
 def _force_columns(flight: FlightData) -> str:
