@@ -373,8 +373,12 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
     if pb is not None:
         rms = pb.ls_rms()
     if pb.is_noise_free() if pb is not None else is_rounding_level(rms, scale):
-        _warn(f"{source}: residual RMS {rms:.3g} m/s is at the rounding level of dv (max |dv| {scale:.3g} m/s): "
-              "the data carry no noise, so the std reflect rounding only.", NoiseFreeWarning)
+        floor = float(getattr(pb, "interpolation_floor", 0.0) or 0.0)
+        level = (f"at the interpolation floor of the pair ({floor:.3g} m/s: one file's velocity carried to the "
+                 "other's times): the data carry no noise, so the std reflect interpolation only"
+                 if floor > NOISE_FREE * scale else f"at the rounding level of dv (max |dv| {scale:.3g} m/s): the "
+                 "data carry no noise, so the std reflect rounding only")
+        _warn(f"{source}: residual RMS {rms:.3g} m/s is {level}.", NoiseFreeWarning)
         return
     if not outliers_handled:
         _check_outliers(r, t, source, locate=S.locate if is_problem(S) and hasattr(S, "locate") else None)
