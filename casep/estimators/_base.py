@@ -394,6 +394,13 @@ def failed(res: EstimateResult, status: int, message: str) -> EstimateResult:
     return dataclasses.replace(res, status=status, success=False, message=message)
 
 
+def _std_factor(res: EstimateResult) -> float:
+    """How far too small the std are by the whiteness test of the result (its richer-noise-model factor), or 1."""
+    wt = (res.diagnostics or {}).get("whiteness") or {}
+    f = wt.get("std_factor_median") if isinstance(wt, dict) else None
+    return float(f) if isinstance(f, (int, float)) and np.isfinite(f) and f > 1.0 else 1.0
+
+
 def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str = "", *,
                      regularised: bool = False) -> EstimateResult:
     """Estimates against the model's declared magnitudes: a :class:`~casep.exceptions.MagnitudeWarning` at
@@ -429,15 +436,18 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
     if regularised:  # max(own std, Cramer-Rao std); NaN (a coefficient at a bound) stays: not judged
         crlb = res.diagnostics.get("crlb_std") or {}
         std = np.array([max(sd, crlb.get(n) or 0.0) if np.isfinite(sd) else sd for n, sd in zip(res.names, std)])
+    factor = _std_factor(res)  # the whiteness test's measure of std too small: judged with std that large
     for name, unit, x, sd in zip(res.names, res.units, res.estimate, std):
         scale = scales.get(name, scales.get(name.split("[")[0]))
         if not np.isfinite(sd):
             continue  # a std the method does not define (a coefficient at a bound): the bound is the user's
         # |x| - 5 std: what the data say at least, so that a poorly determined coefficient's noise is not flagged
         low = abs(x) - MAGNITUDE_Z * sd
+        low_noise = abs(x) - MAGNITUDE_Z * factor * sd  # with the std the noise-model check measured
         if scale and np.isfinite(x) and low >= MAGNITUDE_WARN * scale:
             rows.append({"name": name, "estimate": float(x), "std": sd, "unit": unit, "declared": float(scale),
-                         "ratio": float(abs(x) / scale), "ratio_low": float(low / scale)})
+                         "ratio": float(abs(x) / scale), "ratio_low": float(low / scale),
+                         "ratio_low_noise": float(low_noise / scale)})
     if not rows:
         return res
     rows.sort(key=lambda r: -r["ratio"])
@@ -446,10 +456,15 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
     where = f"{source}: " if source else ""
     res = dataclasses.replace(res, diagnostics={**res.diagnostics, "magnitudes": rows})
     worst = max(r["ratio_low"] for r in rows)
+    cause = ("a set-up mistake (launch site, azimuth, time scales), a unit mistake or a missing model term is likelier "
+             "than such instruments")
+    if factor > 1.0 and max(r["ratio_low_noise"] for r in rows) < MAGNITUDE_WARN:
+        # the residuals say the std are too small by `factor`: with std that large no estimate is beyond its magnitude
+        cause = (f"the noise model is the likelier cause: the whitened residuals are still correlated and the std are "
+                 f"about {factor:.2g} x too small (diagnostics.whiteness); with std {factor:.2g} x larger no estimate "
+                 f"is {MAGNITUDE_WARN:g} x beyond its declared magnitude. Fit the noise (--noise auto or gmw)")
     text = (f"{len(rows)} estimate(s) at least {MAGNITUDE_WARN:g} x their declared magnitudes (by |estimate| - "
-            f"{MAGNITUDE_Z:g} std; {listed}): "
-            "a set-up mistake (launch site, azimuth, time scales), a unit mistake or a missing model term is likelier "
-            "than such instruments")
+            f"{MAGNITUDE_Z:g} std; {listed}): {cause}")
     if worst >= MAGNITUDE_FAIL and not regularised:
         return failed(res, STATUS_MAGNITUDE, f"failed: {text} (beyond {MAGNITUDE_FAIL:g} x)")
     if not res.success:
