@@ -13,12 +13,14 @@ import contextlib
 import functools
 import importlib
 import os
+import re
 import sys
 from typing import Any, Callable, NoReturn, Sequence
 
 from casep._version import __version__
 from casep.cli.blas import blas_threads_limited
 from casep.cli.capture import print_warnings, recorded
+from casep.exceptions import option_label
 
 __all__ = ["main", "build_parser", "COMMANDS", "EXIT_BROKEN_PIPE"]
 
@@ -35,6 +37,9 @@ class Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:  # one line, exit 2; "option --sigma (`sigma`) ..." names itself
         rest = message.partition(": ")[2]  # "argument --sigma: option --sigma (`sigma`) ...": the option's own
+        own = re.match(r"argument (--[\w-]+)(?:/-\w+)?: (must .*)", message, re.S)  # a type's refusal: the one form
+        if own:
+            message = f"{option_label(own.group(1)[2:].replace('-', '_'), own.group(1))} {own.group(2)}"
         self.exit(2, f"{self.prog}: error: {rest if rest.startswith('option --') else message}\n")
 
     def _check_value(self, action: argparse.Action, value: Any) -> None:  # the one form of a refused option
