@@ -43,8 +43,8 @@ def add_parser(sub: Any) -> None:
                         '{"dist": "uniform", "low": -2, "high": 2}, ...}: each run flies its own dispersed trajectory '
                         "(names: see casep.simulation.dispersions)")
     p.add_argument("--truth-from-prior", metavar="FILE", dest="truth_from_prior", default=None,
-                   help='JSON {"Kg0x": {"mean": m, "std": s}, ...}: each run draws its true coefficients from it '
-                        "(also map's prior unless --prior is given)")
+                   help='JSON {"Kg0x": {"mean": m, "std": s}, ...}, or a result file (its estimates and std): each '
+                        "run draws its true coefficients from it (also map's prior unless --prior is given)")
     options.add_noise(p, outputs=False)  # casep separate's defaults: a campaign shows what separate gives
     p.add_argument("--tau", dest="noise_tau", type=positive_float, default=None, metavar="S",
                    help="Gauss-Markov correlation time the methods assume, s (with --noise gm; default REML)")
@@ -66,11 +66,19 @@ def _read_files(args: argparse.Namespace, names: Any, stages: int) -> dict[str, 
     if args.dispersions:
         kw["dispersions"] = parse_dispersions(read_json_table(args.dispersions, "--dispersions"), stages,
                                               source=f"--dispersions {args.dispersions}")
-    if args.truth_from_prior:
+    if args.truth_from_prior:  # a prior file of any form --prior reads (a result file: its posterior)
+        from casep.io.result_json import looks_like_result
+        from casep.workflows.coefficients import read_coefficient_file
+
         where = f"--truth-from-prior {args.truth_from_prior}"
-        kw["truth_prior"] = read_json_table(args.truth_from_prior, "--truth-from-prior")
-        if "correlation" in kw["truth_prior"] and "correlation" not in names:
+        raw = read_json_table(args.truth_from_prior, "--truth-from-prior")
+        if "correlation" in raw and "correlation" not in names:
             raise ValueError(f"{where}: a `correlation` entry is not supported (marginal mean and std only)")
+        table = read_coefficient_file(args.truth_from_prior, "prior", names, model=getattr(args, "model", None),
+                                      option="--truth-from-prior")
+        if looks_like_result(raw):  # the result's posterior: its marginals (the draws are per coefficient)
+            table = {k: v for k, v in table.items() if k != "correlation"}
+        kw["truth_prior"] = table
         parse_prior(kw["truth_prior"], names, source=where)
     return kw
 

@@ -26,7 +26,8 @@ __all__ = ["read_coefficient_file", "read_scales", "with_prior_consistency"]
 
 
 def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[str], *,
-                          model: Any = None, data_files: Sequence[str | os.PathLike] = ()) -> dict[str, Any]:
+                          model: Any = None, data_files: Sequence[str | os.PathLike] = (),
+                          option: str | None = None) -> dict[str, Any]:
     """Read a ``prior`` or ``bounds`` file of any accepted form, checked against the model's coefficients.
 
     Parameters
@@ -43,6 +44,8 @@ def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[st
     data_files : sequence of paths, optional
         The files of the flight the prior is for: a result estimated on them is refused
         (:func:`casep.io.provenance.check_not_estimated_on`: the same data counted twice).
+    option : str, optional
+        The option named in messages (default ``--<kind>``; ``--truth-from-prior`` reads a prior too).
 
     Returns
     -------
@@ -63,7 +66,7 @@ def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[st
 
     if kind not in ("prior", "bounds"):
         raise ValueError(f"`kind` must be 'prior' or 'bounds', got {kind!r}")
-    option = f"--{kind}"
+    option = option or f"--{kind}"
     data = read_json_table(path, option)
     if kind == "prior" and "calibration" in data:  # a ground calibration: the flight model's coefficients
         from casep.calibration.consistency import ground_prior
