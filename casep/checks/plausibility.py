@@ -73,7 +73,11 @@ from casep.exceptions import (
     TimeOffsetWarning,
 )
 from casep.io.flight import DUPLICATE_STEP, DV_COLUMNS, FlightData, FlightDataError  # DUPLICATE_STEP: the one rule
-from casep.regression.problem import NOISE_FREE, is_rounding_level  # NOISE_FREE re-exported: the one constant
+from casep.regression.problem import (  # NOISE_FREE re-exported: the one constant
+    NOISE_FREE,
+    is_rounding_level,
+    rounding_level,
+)
 from casep.units import G0
 
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
@@ -376,7 +380,7 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         floor = float(getattr(pb, "interpolation_floor", 0.0) or 0.0)
         level = (f"at the interpolation floor of the pair ({floor:.3g} m/s: one file's velocity carried to the "
                  "other's times): the data carry no noise, so the std reflect interpolation only"
-                 if floor > NOISE_FREE * scale else f"at the rounding level of dv (max |dv| {scale:.3g} m/s): the "
+                 if floor > rounding_level(scale) else f"at the rounding level of dv (max |dv| {scale:.3g} m/s): the "
                  "data carry no noise, so the std reflect rounding only")
         _warn(f"{source}: residual RMS {rms:.3g} m/s is {level}.", NoiseFreeWarning)
         return

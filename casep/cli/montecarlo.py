@@ -56,7 +56,6 @@ def add_parser(sub: Any) -> None:
 
 def _read_files(args: argparse.Namespace, names: Any, stages: int) -> dict[str, Any]:
     """--prior, --bounds, --dispersions and --truth-from-prior, read and checked."""
-    from casep.estimators.map import parse_prior
     from casep.io.files import read_json_table
     from casep.simulation.dispersions import parse_dispersions
 
@@ -66,20 +65,10 @@ def _read_files(args: argparse.Namespace, names: Any, stages: int) -> dict[str, 
     if args.dispersions:
         kw["dispersions"] = parse_dispersions(read_json_table(args.dispersions, "--dispersions"), stages,
                                               source=f"--dispersions {args.dispersions}")
-    if args.truth_from_prior:  # a prior file of any form --prior reads (a result file: its posterior)
-        from casep.io.result_json import looks_like_result
-        from casep.workflows.coefficients import read_coefficient_file
+    if args.truth_from_prior:  # a prior file of any form --prior reads (a result file: its posterior's marginals)
+        from casep.workflows.coefficients import read_truth_prior
 
-        where = f"--truth-from-prior {args.truth_from_prior}"
-        raw = read_json_table(args.truth_from_prior, "--truth-from-prior")
-        if "correlation" in raw and "correlation" not in names:
-            raise ValueError(f"{where}: a `correlation` entry is not supported (marginal mean and std only)")
-        table = read_coefficient_file(args.truth_from_prior, "prior", names, model=getattr(args, "model", None),
-                                      option="--truth-from-prior")
-        if looks_like_result(raw):  # the result's posterior: its marginals (the draws are per coefficient)
-            table = {k: v for k, v in table.items() if k != "correlation"}
-        kw["truth_prior"] = table
-        parse_prior(kw["truth_prior"], names, source=where)
+        kw["truth_prior"] = read_truth_prior(args.truth_from_prior, names, model=getattr(args, "model", None))
     return kw
 
 

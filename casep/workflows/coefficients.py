@@ -22,7 +22,7 @@ import os
 import warnings
 from typing import Any, Mapping, Sequence
 
-__all__ = ["read_coefficient_file", "read_scales", "with_prior_consistency"]
+__all__ = ["read_coefficient_file", "read_truth_prior", "read_scales", "with_prior_consistency"]
 
 
 def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[str], *,
@@ -152,3 +152,22 @@ def with_prior_consistency(result: Any, flight: Any, model: Any, prior: Mapping[
         cons, summary = None, {"not_compared": str(exc)}
         warnings.warn(f"prior not compared with the flight alone: {exc}", CasepWarning, stacklevel=2)
     return dataclasses.replace(result, diagnostics={**result.diagnostics, "prior_consistency": summary}), cons
+
+
+def read_truth_prior(path: str | os.PathLike, names: Sequence[str], *, model: Any = None) -> dict[str, Any]:
+    """The ``--truth-from-prior`` file: a prior of any form :func:`read_coefficient_file` reads (a result file: its
+    estimates and std), marginals only (each run draws each coefficient on its own); a ``correlation`` entry of a
+    plain prior file is refused."""
+    from casep.estimators.map import parse_prior
+    from casep.io.files import read_json_table
+    from casep.io.result_json import looks_like_result
+
+    option = "--truth-from-prior"
+    where = f"{option} {path}"
+    raw = read_json_table(path, option)
+    if "correlation" in raw and "correlation" not in names and not looks_like_result(raw):
+        raise ValueError(f"{where}: a `correlation` entry is not supported (marginal mean and std only)")
+    table = read_coefficient_file(path, "prior", names, model=model, option=option)
+    table = {k: v for k, v in table.items() if k != "correlation"}  # a result's covariance: its marginals
+    parse_prior(table, names, source=where)
+    return table
