@@ -9,7 +9,7 @@ __all__ = ["CasepWarning", "IllConditionedWarning", "PlausibilityWarning", "Nois
            "OutlierWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning", "NoiseLevelWarning",
            "GapWarning", "NoiseNotWhiteWarning", "ConsistencyWarning", "AlignmentWarning", "SaturationWarning",
            "TrackingQualityWarning",
-           "option_label", "refusal"]
+           "option_label", "refusal", "refused_option"]
 
 
 class CasepWarning(UserWarning):
@@ -86,6 +86,18 @@ def option_label(name: str, flag: str | None = None) -> str:
     """How every message of a fit request names an option, by its command-line flag and API keyword:
     ``option --lambda (`lam`)`` (`flag` defaults to ``--`` and the keyword with ``-`` for ``_``)."""
     return f"option {flag or '--' + name.replace('_', '-')} (`{name}`)"
+
+
+def refused_option(message: str) -> str:
+    """An argparse error in the one form of a refused option: ``argument --sigma: option --sigma (`sigma`) ...``
+    -> the option's own text; a type's ``argument --rate: must be ...`` -> ``option --rate (`rate`) must be ...``."""
+    import re
+
+    rest = message.partition(": ")[2]
+    if rest.startswith("option --"):
+        return rest
+    own = re.match(r"argument (--[\w-]+)(?:/-\w+)?: (must .*)", message, re.S)
+    return f"{option_label(own.group(1)[2:].replace('-', '_'), own.group(1))} {own.group(2)}" if own else message
 
 
 def refusal(name: str, flag: str | None, rule: str, value: Any, method: str | None = None,

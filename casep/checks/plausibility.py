@@ -73,7 +73,11 @@ from casep.exceptions import (
     TimeOffsetWarning,
 )
 from casep.io.flight import DUPLICATE_STEP, DV_COLUMNS, FlightData, FlightDataError  # DUPLICATE_STEP: the one rule
-from casep.regression.problem import NOISE_FREE, is_rounding_level  # NOISE_FREE re-exported: the one constant
+from casep.regression.problem import (  # NOISE_FREE re-exported: the one constant
+    NOISE_FREE,
+    is_rounding_level,
+    rounding_level,
+)
 from casep.units import G0
 
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
@@ -160,30 +164,51 @@ VELOCITY_RATIO_REFUSED = (0.4, 2.5)
 
 
 def _check_velocity_units(flight: FlightData) -> None:
-    """Compare the telemetered velocity change with the integral of f + g (files with v_tel)."""
+    """Compare the telemetered velocity change with the integral of f + g (files with v_tel), and the tracking
+    velocity change with the telemetered one over the same times (a pair of files): one rule, :func:`_units_ratio`."""
     change = flight.meta.get("telemetry_velocity_change_m_s")
     t, f = flight.t, flight.f
     if change is None or t.size < 2:
         return
     a = f + GRAVITY_LAUNCH  # kinematic acceleration, flat-Earth gravity
     expected = np.sum(0.5 * (a[1:] + a[:-1]) * np.diff(t)[:, None], axis=0)  # trapezoid of a
-    e, g = float(np.linalg.norm(expected)), float(np.linalg.norm(change))
+    _units_ratio(change, expected, flight.source, "v_tel_x", lambda g, e, r: (
+        f"the telemetered velocity changes by {g:.4g} m/s over {t[-1] - t[0]:.4g} s but the specific force "
+        f"plus gravity integrates to {e:.4g} m/s (ratio {r:.3g}, expected {{lo:g}}-{{hi:g}}): the velocity "
+        "columns (v_tel_*, v_trk_*) and f disagree on units."), "v_tel and v_trk")
+    trk = flight.meta.get("tracking_velocity_change_m_s")
+    tel = flight.meta.get("telemetry_velocity_change_at_tracking_m_s")
+    if trk is not None and tel is not None:
+        source = str(flight.meta.get("tracking") or flight.source)
+        _units_ratio(trk, tel, source, "v_trk_x", lambda g, e, r: (
+            f"the tracking velocity (v_trk_x, v_trk_y, v_trk_z of {source}) changes by {g:.4g} m/s but the "
+            f"telemetered velocity (v_tel_* of {flight.meta.get('telemetry', 'the telemetry')}) by {e:.4g} m/s "
+            f"over the same times (ratio {r:.3g}, expected {{lo:g}}-{{hi:g}}): the two files disagree on units."),
+            "v_trk")
+
+
+def _units_ratio(measured, expected, source: str, column: str, what, columns: str) -> None:
+    """The units rule of a velocity change against the one it must equal: ``|measured| / |expected|`` outside
+    :data:`VELOCITY_RATIO_RANGE` warns with the unit that fits, outside :data:`VELOCITY_RATIO_REFUSED` (a unit's
+    factor) raises a :class:`~casep.io.flight.FlightDataError` naming `source` and `column`.
+
+    `what(|measured|, |expected|, ratio)`: the message, with ``{lo}``, ``{hi}`` for the range.
+    """
+    e, g = float(np.linalg.norm(expected)), float(np.linalg.norm(measured))
     if e < 1.0:  # no velocity gained: nothing to compare
         return
     ratio = g / e
     lo, hi = VELOCITY_RATIO_RANGE
     if lo <= ratio <= hi:
         return
-    hint = _unit_hint(ratio, lo, hi, (("ft/s (multiply v_tel and v_trk by 0.3048)", 0.3048),
+    hint = _unit_hint(ratio, lo, hi, ((f"ft/s (multiply {columns} by 0.3048)", 0.3048),
                                       ("km/s (multiply by 1000)", 1e3), ("cm/s (divide by 100)", 1e-2),
                                       ("mm/s (divide by 1000)", 1e-3)))
-    what = (f"the telemetered velocity changes by {g:.4g} m/s over {t[-1] - t[0]:.4g} s but the specific force "
-            f"plus gravity integrates to {e:.4g} m/s (ratio {ratio:.3g}, expected {lo:g}-{hi:g}): the velocity "
-            f"columns (v_tel_*, v_trk_*) and f disagree on units.{hint}")
+    text = what(g, e, ratio).format(lo=lo, hi=hi) + hint
     low, high = VELOCITY_RATIO_REFUSED
     if not low <= ratio <= high:  # a unit's factor (ft/s 3.28, km/s 1e-3, ...): every estimate would be wrong
-        raise FlightDataError(flight.source, what + " Convert the columns to m/s (f to m/s^2)", "v_tel_x")
-    _warn(f"{flight.source}: {what}")
+        raise FlightDataError(source, text + " Convert the columns to m/s (f to m/s^2)", column)
+    _warn(f"{source}: {text}")
 
 
 def _force_columns(flight: FlightData) -> str:
@@ -323,7 +348,8 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
     dv : (N, 3) array_like
         Velocity error the estimate used, m/s.
     result : EstimateResult
-        The estimate (coefficients without an estimate count as 0).
+        The estimate: its :meth:`~casep.estimators.result.EstimateResult.fitted_coefficients` give the
+        fitted values (where a coefficient has no estimate, the solver's solution).
     t, f : array_like
         Times (s) and specific force (N, 3) of the same rows.
     source : str, optional
@@ -340,7 +366,7 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         See the module notes and :func:`time_offset_test`.
     """
     dv = np.asarray(dv, dtype=float).reshape(-1, 3)
-    x = np.nan_to_num(np.asarray(result.estimate, dtype=float), nan=0.0)
+    x = result.fitted_coefficients()  # the solver's solution: it reproduces the determined combinations
     blocks, _, _ = row_blocks(S)
     r = np.empty_like(dv)
     for sl, S_b in blocks():
@@ -351,8 +377,12 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
     if pb is not None:
         rms = pb.ls_rms()
     if pb.is_noise_free() if pb is not None else is_rounding_level(rms, scale):
-        _warn(f"{source}: residual RMS {rms:.3g} m/s is at the rounding level of dv (max |dv| {scale:.3g} m/s): "
-              "the data carry no noise, so the std reflect rounding only.", NoiseFreeWarning)
+        floor = float(getattr(pb, "interpolation_floor", 0.0) or 0.0)
+        level = (f"at the interpolation floor of the pair ({floor:.3g} m/s: one file's velocity carried to the "
+                 "other's times): the data carry no noise, so the std reflect interpolation only"
+                 if floor > rounding_level(scale) else f"at the rounding level of dv (max |dv| {scale:.3g} m/s): the "
+                 "data carry no noise, so the std reflect rounding only")
+        _warn(f"{source}: residual RMS {rms:.3g} m/s is {level}.", NoiseFreeWarning)
         return
     if not outliers_handled:
         _check_outliers(r, t, source, locate=S.locate if is_problem(S) and hasattr(S, "locate") else None)

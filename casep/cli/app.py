@@ -19,6 +19,7 @@ from typing import Any, Callable, NoReturn, Sequence
 from casep._version import __version__
 from casep.cli.blas import blas_threads_limited
 from casep.cli.capture import print_warnings, recorded
+from casep.exceptions import refused_option
 
 __all__ = ["main", "build_parser", "COMMANDS", "EXIT_BROKEN_PIPE"]
 
@@ -34,8 +35,7 @@ class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (exit 2) and that refuses a one-value option given twice."""
 
     def error(self, message: str) -> NoReturn:  # one line, exit 2; "option --sigma (`sigma`) ..." names itself
-        rest = message.partition(": ")[2]  # "argument --sigma: option --sigma (`sigma`) ...": the option's own
-        self.exit(2, f"{self.prog}: error: {rest if rest.startswith('option --') else message}\n")
+        self.exit(2, f"{self.prog}: error: {refused_option(message)}\n")
 
     def _check_value(self, action: argparse.Action, value: Any) -> None:  # the one form of a refused option
         if action.choices is not None and action.option_strings and value not in action.choices:

@@ -96,4 +96,4 @@ def run(args: argparse.Namespace) -> int:
         print(f"figures: {', '.join(str(f) for f in impact_figures(a, args.figures))}")
     if args.json:
         print(f"impact written to {args.json}")
-    return 0
+    return 0 if a.success else 1

@@ -25,7 +25,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{m['name']:<8} {m['summary']}; std {m['std_kind']}" + (f"; {', '.join(caps)}" if caps else ""))
         for o in m["options"]:
             d = o["default"]
-            req = (" (required)" if o["name"] in m["required"] else f" (default {d:g})" if isinstance(d, float)
-                   else f" (default {d})")
+            req = (f" (needed by --method {m['name']})" if o["name"] in m["required"]
+                   else f" (default {d:g})" if isinstance(d, float) else f" (default {d})")
             print(f"    {o['flag']:<14} {o['rule']}{req}: {o['help']}")
     return 0

@@ -43,8 +43,8 @@ def add_parser(sub: Any) -> None:
                         '{"dist": "uniform", "low": -2, "high": 2}, ...}: each run flies its own dispersed trajectory '
                         "(names: see casep.simulation.dispersions)")
     p.add_argument("--truth-from-prior", metavar="FILE", dest="truth_from_prior", default=None,
-                   help='JSON {"Kg0x": {"mean": m, "std": s}, ...}: each run draws its true coefficients from it '
-                        "(also map's prior unless --prior is given)")
+                   help='JSON {"Kg0x": {"mean": m, "std": s}, ...}, or a result file (its estimates and std): each '
+                        "run draws its true coefficients from it (also map's prior unless --prior is given)")
     options.add_noise(p, outputs=False)  # casep separate's defaults: a campaign shows what separate gives
     p.add_argument("--tau", dest="noise_tau", type=positive_float, default=None, metavar="S",
                    help="Gauss-Markov correlation time the methods assume, s (with --noise gm; default REML)")
@@ -56,7 +56,6 @@ def add_parser(sub: Any) -> None:
 
 def _read_files(args: argparse.Namespace, names: Any, stages: int) -> dict[str, Any]:
     """--prior, --bounds, --dispersions and --truth-from-prior, read and checked."""
-    from casep.estimators.map import parse_prior
     from casep.io.files import read_json_table
     from casep.simulation.dispersions import parse_dispersions
 
@@ -66,12 +65,10 @@ def _read_files(args: argparse.Namespace, names: Any, stages: int) -> dict[str, 
     if args.dispersions:
         kw["dispersions"] = parse_dispersions(read_json_table(args.dispersions, "--dispersions"), stages,
                                               source=f"--dispersions {args.dispersions}")
-    if args.truth_from_prior:
-        where = f"--truth-from-prior {args.truth_from_prior}"
-        kw["truth_prior"] = read_json_table(args.truth_from_prior, "--truth-from-prior")
-        if "correlation" in kw["truth_prior"] and "correlation" not in names:
-            raise ValueError(f"{where}: a `correlation` entry is not supported (marginal mean and std only)")
-        parse_prior(kw["truth_prior"], names, source=where)
+    if args.truth_from_prior:  # a prior file of any form --prior reads (a result file: its posterior's marginals)
+        from casep.workflows.coefficients import read_truth_prior
+
+        kw["truth_prior"] = read_truth_prior(args.truth_from_prior, names, model=getattr(args, "model", None))
     return kw
 
 

@@ -18,11 +18,12 @@ __all__ = ["add_option", "method_option_groups", "add_noise", "add_model", "add_
 
 
 def option_help(option: Option, default: str | None = None) -> str:
-    """Help of a registry option: its help, rule and default (or "required")."""
+    """Help of a registry option: its help, rule and default (or which methods need it)."""
     required = [m for m, meth in METHODS.items() if option.name in meth.required]
     d = option.default
     if default is None and (d is not None or required):
-        default = "required" if d is None else f"default {d:g}" if isinstance(d, float) else f"default {d}"
+        default = (f"needed by --method {' and '.join(required)}" if d is None
+                   else f"default {d:g}" if isinstance(d, float) else f"default {d}")
     return f"{option.help}; {option.rule}" + (f" ({default})" if default else "")
 
 

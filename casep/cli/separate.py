@@ -21,7 +21,7 @@ def add_parser(sub: Any) -> None:
     p = sub.add_parser("separate", help="estimate the error coefficients of a flight file")
     p.add_argument("flight", nargs="*", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "
                    "several files: one estimate of the shared coefficients, per-flight ones per flight "
-                   "(methods ols, ridge, bounded, pcr, map)")
+                   "(every method of `casep methods`)")
     options.add_model(p, None, "default platform36; strapdown33 with --imu")
     p.add_argument("--imu", metavar="IMU.csv", default=None,
                    help="a raw IMU record instead of FLIGHT (t, w_*, fb_* or t, dth_*, dvb_*, as casep navigate "

@@ -21,6 +21,7 @@ import numpy as np
 from casep.design.maneuver import AXES_OF, Maneuver
 from casep.design.objective import OBJECTIVES, DesignProblem, fisher_information, objective_value
 from casep.design.result import DesignResult
+from casep.exceptions import option_label
 
 __all__ = ["design", "DEFAULTS"]
 
@@ -29,17 +30,26 @@ DEFAULTS: dict[str, Any] = {"maneuver": "yaw", "objective": "A", "max_angle": 5.
             "knots": 10, "design_rate": 2.0, "starts": 4, "seed": 0, "max_iter": 150}
 
 
+#: Keywords of :func:`design` that ``casep design`` has no flag for: named as keywords only.
+_API_ONLY = ("design_rate", "max_iter")
+
+
+def _label(name: str) -> str:
+    """The one form of an option's name in a message (:func:`casep.exceptions.option_label`)."""
+    return f"`{name}`" if name in _API_ONLY else option_label(name)
+
+
 def _positive(name: str, v, hi: float = math.inf) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v) \
             or not 0 < v <= hi:
-        raise ValueError(f"`{name}` must be a number > 0" + (f" and <= {hi:g}" if np.isfinite(hi) else "")
+        raise ValueError(f"{_label(name)} must be a number > 0" + (f" and <= {hi:g}" if np.isfinite(hi) else "")
                          + f", got {v!r}")
     return float(v)
 
 
 def _count(name: str, v, lo: int) -> int:
     if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-        raise ValueError(f"`{name}` must be an int >= {lo}, got {v!r}")
+        raise ValueError(f"{_label(name)} must be an int >= {lo}, got {v!r}")
     return int(v)
 
 

@@ -19,6 +19,7 @@ from casep.checks.diagnostics import ILL_CONDITIONED, collinearity
 from casep.estimators._lazydict import LazyDiagnostics
 from casep.estimators._rules import SIGMA
 from casep.estimators.result import EstimateResult
+from casep.estimators.solution import Solution
 from casep.exceptions import IllConditionedWarning, MagnitudeWarning
 from casep.regression.linalg import RankAnalysis, ReducedSystem, condition_numbers, unidentifiable_reasons
 from casep.regression.problem import Problem as RegressionProblem
@@ -229,6 +230,7 @@ def finish(
     und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
     res = pb.residuals(x) if residuals is None else np.asarray(residuals, dtype=float).reshape(-1)
     est = np.where(und, np.nan, x)
+    solution = _solution(pb, x, cov) if und.any() and np.all(np.isfinite(x)) else None
     std = None
     if cov is not None:
         cov = np.array(cov, dtype=float)
@@ -269,8 +271,27 @@ def finish(
         settings=settings, diagnostics=diag, n_samples=N, history=history, history_std=history_std,
         model=pb.problem.model or "",  # set by the problem, not patched afterwards
         sigma_source=sigma_source or ("given" if pb.sigma is not None else "estimated"),
-        std_kind=std_kind or str(getattr(declared, "std_kind", "sampling")), extras=extras,
+        std_kind=std_kind or str(getattr(declared, "std_kind", "sampling")), extras=extras, solution=solution,
     )
+
+
+#: Components of a unit null vector of the scaled columns below this are the SVD's rounding (a zero column's
+#: null vector leaks ~1e-12 into the others), not part of a dependency.
+NULL_ROUNDING = 1e-9
+
+
+def _solution(pb: Prepared, x: np.ndarray, cov: np.ndarray | None) -> Solution:
+    """The solver's `x` and `cov` with the null space of S_V in natural units (:mod:`casep.estimators.solution`).
+
+    ``S = Z diag(c)``: a null vector ``v`` of the scaled ``Z`` is ``v / c`` in natural units; on a zero
+    column (``c = 0``) any value is a null direction, kept as ``v``.
+    """
+    v = pb.ra.Vt[pb.ra.rank:].T  # (n, k): Z v = 0, unit columns
+    v = np.where(np.abs(v) > NULL_ROUNDING, v, 0.0)  # rounding of the SVD: not a part of the dependency
+    scaled = pb.red.scale > 0
+    N = np.where(scaled[:, None], v * pb.inv_c[:, None], v)
+    C = None if cov is None or not np.all(np.isfinite(cov)) else np.array(cov, dtype=float)
+    return Solution(np.array(x, dtype=float), C, N)
 
 
 #: A residual RMS above this many least-squares residual std fails a result ...
@@ -373,6 +394,13 @@ def failed(res: EstimateResult, status: int, message: str) -> EstimateResult:
     return dataclasses.replace(res, status=status, success=False, message=message)
 
 
+def _std_factor(res: EstimateResult) -> float:
+    """How far too small the std are by the whiteness test of the result (its richer-noise-model factor), or 1."""
+    wt = (res.diagnostics or {}).get("whiteness") or {}
+    f = wt.get("std_factor_median") if isinstance(wt, dict) else None
+    return float(f) if isinstance(f, (int, float)) and np.isfinite(f) and f > 1.0 else 1.0
+
+
 def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str = "", *,
                      regularised: bool = False) -> EstimateResult:
     """Estimates against the model's declared magnitudes: a :class:`~casep.exceptions.MagnitudeWarning` at
@@ -408,15 +436,18 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
     if regularised:  # max(own std, Cramer-Rao std); NaN (a coefficient at a bound) stays: not judged
         crlb = res.diagnostics.get("crlb_std") or {}
         std = np.array([max(sd, crlb.get(n) or 0.0) if np.isfinite(sd) else sd for n, sd in zip(res.names, std)])
+    factor = _std_factor(res)  # the whiteness test's measure of std too small: judged with std that large
     for name, unit, x, sd in zip(res.names, res.units, res.estimate, std):
         scale = scales.get(name, scales.get(name.split("[")[0]))
         if not np.isfinite(sd):
             continue  # a std the method does not define (a coefficient at a bound): the bound is the user's
         # |x| - 5 std: what the data say at least, so that a poorly determined coefficient's noise is not flagged
         low = abs(x) - MAGNITUDE_Z * sd
+        low_noise = abs(x) - MAGNITUDE_Z * factor * sd  # with the std the noise-model check measured
         if scale and np.isfinite(x) and low >= MAGNITUDE_WARN * scale:
             rows.append({"name": name, "estimate": float(x), "std": sd, "unit": unit, "declared": float(scale),
-                         "ratio": float(abs(x) / scale), "ratio_low": float(low / scale)})
+                         "ratio": float(abs(x) / scale), "ratio_low": float(low / scale),
+                         "ratio_low_noise": float(low_noise / scale)})
     if not rows:
         return res
     rows.sort(key=lambda r: -r["ratio"])
@@ -425,10 +456,15 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
     where = f"{source}: " if source else ""
     res = dataclasses.replace(res, diagnostics={**res.diagnostics, "magnitudes": rows})
     worst = max(r["ratio_low"] for r in rows)
+    cause = ("a set-up mistake (launch site, azimuth, time scales), a unit mistake or a missing model term is likelier "
+             "than such instruments")
+    if factor > 1.0 and max(r["ratio_low_noise"] for r in rows) < MAGNITUDE_WARN:
+        # the residuals say the std are too small by `factor`: with std that large no estimate is beyond its magnitude
+        cause = (f"the noise model is the likelier cause: the whitened residuals are still correlated and the std are "
+                 f"about {factor:.2g} x too small (diagnostics.whiteness); with std {factor:.2g} x larger no estimate "
+                 f"is {MAGNITUDE_WARN:g} x beyond its declared magnitude. Fit the noise (--noise auto or gmw)")
     text = (f"{len(rows)} estimate(s) at least {MAGNITUDE_WARN:g} x their declared magnitudes (by |estimate| - "
-            f"{MAGNITUDE_Z:g} std; {listed}): "
-            "a set-up mistake (launch site, azimuth, time scales), a unit mistake or a missing model term is likelier "
-            "than such instruments")
+            f"{MAGNITUDE_Z:g} std; {listed}): {cause}")
     if worst >= MAGNITUDE_FAIL and not regularised:
         return failed(res, STATUS_MAGNITUDE, f"failed: {text} (beyond {MAGNITUDE_FAIL:g} x)")
     if not res.success:

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from casep.estimators._meanings import AXES, SIGMA_FOUND, SIGMA_SOURCE_MEANINGS, STD_KIND_MEANINGS, extras_type
+from casep.estimators.solution import Solution
 
 __all__ = ["result_from_data", "check_result_units", "tracking_terms"]
 
@@ -100,7 +101,8 @@ def result_from_data(rd: Any, model: Any, cls: type) -> Any:
         sigma_source=f.get("sigma_source") or ("estimated" if f.get("sigma") is not None else "external"),
         stored_residual_rms=rrms if rrms is not None else {a: None for a in AXES},
         std_kind=f.get("std_kind") or "sampling", extras=extras, model_file=f.get("model_file"),
-        model_sha256=f.get("model_sha256"))
+        model_sha256=f.get("model_sha256"),
+        solution=Solution.from_dict(f.get("solution"), len(rd.names), rd.source))
 
 
 def tracking_terms(diagnostics: Any) -> set[str]:

@@ -20,6 +20,7 @@ from casep.estimators._meanings import (
     STD_KIND_MEANINGS,
     extras_type,
 )
+from casep.estimators.solution import Solution
 from casep.io.result_files import (
     jsonable,
     write_coefficients_csv,
@@ -124,6 +125,10 @@ class EstimateResult:
     model_sha256 : str or None
         SHA-256 of the model file that ran (``docs/guide/model-files.md``): a model file given to read
         the result must have it.
+    solution : Solution or None
+        Where some coefficient has no estimate (exactly dependent columns): the solver's whole coefficient
+        vector, its covariance and the null space of S_V (:mod:`casep.estimators.solution`); None when
+        every coefficient is estimated.
     """
 
     method: str
@@ -154,6 +159,7 @@ class EstimateResult:
     extras: Any = None
     model_file: str | None = None
     model_sha256: str | None = None
+    solution: Solution | None = None
 
     def __post_init__(self) -> None:
         if self.std_kind not in STD_KIND_MEANINGS:
@@ -177,6 +183,15 @@ class EstimateResult:
     def identifiable(self) -> np.ndarray:
         """True where an estimate is reported."""
         return np.isfinite(self.estimate)
+
+    def fitted_coefficients(self) -> np.ndarray:
+        """The coefficient vector whose fitted values the fit reports (natural units, finite where the fit
+        has one): the estimate, or where some coefficient has none the solver's solution
+        (:mod:`casep.estimators.solution`: it reproduces the determined combinations; 0 in place of a
+        missing estimate would not). A result without a solution (a file of another tool) keeps NaN."""
+        if self.solution is not None:
+            return np.asarray(self.solution.x, dtype=float)
+        return np.asarray(self.estimate, dtype=float)
 
     @property
     def estimate_si(self) -> np.ndarray:
@@ -241,6 +256,7 @@ class EstimateResult:
             "history_names": list(self.history_names) if self.history_names is not None else None,
             **({"model_file": self.model_file} if self.model_file else {}),
             **({"model_sha256": self.model_sha256} if self.model_sha256 else {}),
+            **({"solution": self.solution.to_dict()} if self.solution is not None else {}),
         }
 
     @classmethod

@@ -73,7 +73,7 @@ class Solved:
 
 
 def _x(res: EstimateResult) -> np.ndarray:
-    return np.where(np.isnan(res.estimate), 0.0, res.estimate)
+    return res.fitted_coefficients()
 
 
 def fit(problem: Problem | Flights, spec: FitSpec, *, rows: Rows | JointRows | None = None,
@@ -519,11 +519,12 @@ def _check_flights(res: EstimateResult, rows: JointRows, spec: FitSpec) -> None:
     from casep.checks.plausibility import check_fit, check_sigma
 
     jp = rows.joint
-    x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
+    x = res.fitted_coefficients()
     robust = "robust" in res.diagnostics or any(
         isinstance(v, dict) and "robust" in v for v in (res.diagnostics.get("noise") or {}).values())
     for k, p in enumerate(jp.raw):
-        est = types.SimpleNamespace(estimate=x[jp.layout.columns(k)], names=p.names)  # flight k's coefficients
+        xk = x[jp.layout.columns(k)]  # flight k's coefficients
+        est = types.SimpleNamespace(estimate=xk, names=p.names, fitted_coefficients=lambda xk=xk: xk)
         excluded = None if rows.rows is None else np.flatnonzero(~rows.rows[k].keep)
         check_fit(p, p._need_rows(), est, t=p.t, f=p.f, source=p.source,  # type: ignore[arg-type]
                   outliers_handled=robust or spec.noise.exclude_outliers is not None, excluded=excluded)

@@ -217,6 +217,79 @@ def _groups(res, names: Sequence[str], cov: np.ndarray | None, known: np.ndarray
     return out, f"estimates correlated with |rho| > {CORRELATION_GROUP:g} (the result has no near-dependency groups)"
 
 
+@dataclass(frozen=True)
+class _LinearMiss:
+    miss: np.ndarray  # (2,) G D over the coefficients with a value; NaN where not determined
+    cov: np.ndarray | None  # (2, 2) G Cov G^T
+    determined: np.ndarray  # (2,) bool
+    D: np.ndarray  # (n,) the coefficient vector used (model order)
+    groups: list[tuple[np.ndarray, np.ndarray | None]]  # per group: contribution, std
+    note: str
+
+
+def _linear_miss(res, names: Sequence[str], coef: _Coefficients, G: np.ndarray,
+                 gidx: list[list[int]]) -> _LinearMiss:
+    """The linear miss ``G D``, its covariance ``G Cov G^T`` and each group's share.
+
+    A result whose coefficients all have a value: the sum over them. A result with coefficients the data
+    determine only in combination (its :class:`~casep.estimators.solution.Solution`): ``G x`` with the
+    solver's solution ``x`` where ``G``'s row is a determined combination (in the row space of S_V: the
+    same value and an honest std in every least-squares solution); not determined (NaN) otherwise, said
+    in ``note`` with the part of the miss the data cannot see.
+    """
+    have = np.isfinite(coef.estimate)
+    known = np.array([s == "estimated" for s in coef.status])
+    D = np.where(have, coef.estimate, 0.0)
+    sol = getattr(res, "solution", None)
+    if sol is None:  # every coefficient of the result has a value, or a file that has no solution
+        miss = np.sum(G * D, axis=1)
+        C = None if coef.covariance is None else np.nan_to_num(coef.covariance) * np.outer(known, known)
+        undet = ~have & np.any(G != 0.0, axis=0)
+        ok = np.full(2, not undet.any())
+        note = "" if ok.all() else (
+            "the result has no estimate of " + ", ".join(n for n, u in zip(names, undet) if u) + " and no "
+            "solution to say which combination of them the data determine: the miss is not determined")
+        sel = [np.eye(len(names))[m].sum(axis=0) for m in gidx]
+        cov = None if C is None else G @ C @ G.T
+        grp = [(np.sum(G[:, m] * D[m], axis=1),
+                None if C is None else np.sqrt(np.clip(np.diag((G * s) @ C @ (G * s).T), 0.0, None)))
+               for m, s in zip(gidx, sel)]
+        return _LinearMiss(np.where(ok, miss, np.nan), cov, ok, D, grp, note)
+    # map the result's solution onto the model's coefficients (tracking terms of a radar fit: no miss)
+    where = {nm: i for i, nm in enumerate(res.names)}
+    idx = np.array([where.get(nm, -1) for nm in names])
+    inres = idx >= 0
+    P = np.zeros((len(res.names), len(names)))  # result order -> model order
+    P[idx[inres], np.flatnonzero(inres)] = 1.0
+    D = np.where(inres, P.T @ sol.x, D)  # the solution where the result has the coefficient, else per-flight
+    fixed = np.where(inres, 0.0, D)  # per-flight values given (no uncertainty)
+
+    def comb(Gm: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        v, c, ok = sol.combination(Gm @ P.T)
+        return v + Gm @ fixed, c, ok
+
+    miss, cov, ok = comb(G)
+    grp = []
+    for m in gidx:
+        Gg = np.zeros_like(G)
+        Gg[:, m] = G[:, m]
+        v, c, _ = comb(Gg)
+        grp.append((v, None if c is None else np.sqrt(np.clip(np.diag(c), 0.0, None))))
+    note = ""
+    if not ok.all():
+        N = P.T @ sol.null_space  # null directions in model order
+        lost = np.abs(G @ N).max(axis=1)  # miss per unit step along a null direction
+        dep = [names[int(j)] for j in np.flatnonzero(np.any(np.abs(N) > 1e-12 * np.abs(N).max(), axis=1))]
+        axes = " and ".join(a for a, k in zip(("downrange", "crossrange"), ok) if not k)
+        note = (f"the {axes} miss is not determined by this flight: its sensitivity has a part along the "
+                f"combinations of {', '.join(dep)} that the data cannot see (up to "
+                f"{', '.join(f'{v:.3g}' for v in lost)} m per unit of a null direction, downrange, crossrange); "
+                f"the solver's minimum-norm solution gives {', '.join(f'{v:.4g}' for v in G @ D)} m, one value "
+                "among many. Fix the dependency (a model without the dependent terms, a prior) or fly a trajectory "
+                "that separates them")
+    return _LinearMiss(miss, cov, ok, D, grp, note)
+
+
 def impact_analysis(flight, result, model=None, trajectory=None, *,
                     per_flight: Mapping[str, float] | None = None,
                     burnout_sensitivity: tuple[np.ndarray, np.ndarray] | None = None) -> ImpactAnalysis:
@@ -288,38 +361,23 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
     G = -J @ B  # miss per natural unit: miss ~ -J dx_b
     have = np.isfinite(coef.estimate)  # estimated, or per-flight value
     known = np.array([s == "estimated" for s in coef.status])
-    D = np.where(have, coef.estimate, 0.0)
-    contributions = np.where(have, G * D, np.nan)  # c_j = G_j D_j
-    miss = np.nansum(contributions, axis=1)  # linear miss = sum of contributions
-    cov = None
-    if coef.covariance is not None:
-        Ck = np.nan_to_num(coef.covariance[np.ix_(known, known)])
-        Gk = G[:, known]
-        cov = Gk @ Ck @ Gk.T  # G Cov G^T
-        cov = 0.5 * (cov + cov.T)
-    dx = B @ D  # (dr_b, dv_b)
-    nonlinear = np.array(impact(r_b - dx[:3], v_b - dx[3:])) - nominal  # impact(x_b - dx_b) - impact(x_b)
-
+    contributions = np.where(have, G * np.where(have, coef.estimate, 0.0), np.nan)  # c_j = G_j D_j
     gidx, gsource = _groups(res, model.names, coef.covariance, known)
-    groups = []
-    for members in gidx:
-        m = [j for j in members if have[j]]
-        contrib = np.nansum(contributions[:, m], axis=1) if m else np.zeros(2)
-        gstd = None
-        if coef.covariance is not None:
-            k = [j for j in members if known[j]]
-            Gg = G[:, k]
-            gstd = np.sqrt(np.clip(np.diag(Gg @ np.nan_to_num(coef.covariance[np.ix_(k, k)]) @ Gg.T), 0.0, None))
-        groups.append(Group(tuple(model.names[j] for j in members), contrib, gstd))
+    lin = _linear_miss(res, model.names, coef, G, gidx)
+    dx = B @ lin.D  # (dr_b, dv_b)
+    nonlinear = np.array(impact(r_b - dx[:3], v_b - dx[3:])) - nominal  # impact(x_b - dx_b) - impact(x_b)
+    nonlinear = np.where(lin.determined, nonlinear, np.nan)  # of one solution among many: not said
+    groups = tuple(Group(tuple(model.names[j] for j in members), c, sd)
+                   for members, (c, sd) in zip(gidx, lin.groups))
 
     return ImpactAnalysis(
         names=model.names, units=model.units, coefficient_status=coef.status,
         estimate=np.where(have, coef.estimate, np.nan),
         t_b=t_b, r_b=r_b, v_b=v_b, nominal=nominal, impact_point=impact_point(r_b, v_b), jacobian=J, sp=sp, sv=sv,
-        sensitivity=G, contributions=contributions, miss=miss, cov=cov, nonlinear=nonlinear, groups=tuple(groups),
+        sensitivity=G, contributions=contributions, miss=lin.miss, cov=lin.cov, nonlinear=nonlinear, groups=groups,
         group_source=gsource, covariance_source=coef.covariance_source, model=model.name, method=res.method,
         flight=flight.source, trajectory=None if trajectory is None else target.source, result=rsource,
-        reasons=coef.reasons,
+        reasons=coef.reasons, determined=lin.determined, undetermined_note=lin.note,
         coefficient_std=None if coef.covariance is None else np.where(
             known, np.sqrt(np.clip(np.diag(np.nan_to_num(coef.covariance)), 0.0, None)),
             np.where(have, 0.0, np.nan)))

@@ -42,8 +42,10 @@ class Group:
 class ImpactAnalysis(Completed):
     """The miss budget of an estimate on one trajectory (``docs/reference/file-formats.md`` "Impact JSON").
 
-    ``success``, ``status`` and ``message`` of the result protocol: always a success (status 0);
-    coefficients without an estimate are in ``coefficient_status``.
+    ``success``, ``status`` and ``message`` of the result protocol: a success (status 0) unless the miss is
+    not determined by the result (status -1: coefficients the data determine only in a combination whose
+    miss sensitivity is not in the row space of S_V, said in ``undetermined_note``); coefficients without an
+    estimate are in ``coefficient_status``.
 
     Attributes
     ----------
@@ -66,7 +68,9 @@ class ImpactAnalysis(Completed):
     contributions : (2, n) ndarray
         ``G_j D_j``, m; NaN where there is no estimate.
     miss : (2,) ndarray
-        Linear predicted miss, the sum of the contributions, m.
+        Linear predicted miss ``G D``, m: the sum of the contributions, or where coefficients are determined
+        only in combination ``G x`` with the solver's solution (:mod:`casep.estimators.solution`); NaN where
+        not determined.
     cov : (2, 2) ndarray or None
         ``G Cov G^T`` over the estimated coefficients, m^2.
     nonlinear : (2,) ndarray
@@ -75,6 +79,10 @@ class ImpactAnalysis(Completed):
         Contributions per near-dependency group (a coefficient may be in several groups).
     coefficient_std : (n,) ndarray or None
         Std of each coefficient used (natural units; NaN without estimate, 0 for a per-flight value).
+    determined : (2,) bool ndarray
+        Whether the downrange and crossrange miss are determined by the result.
+    undetermined_note : str
+        Why not, with the numbers ("" when determined).
     """
 
     what: ClassVar[str] = "impact miss budget"
@@ -106,6 +114,23 @@ class ImpactAnalysis(Completed):
     trajectory: str | None = None
     result: str = "<memory>"
     reasons: dict = field(default_factory=dict)
+    determined: np.ndarray = field(default_factory=lambda: np.ones(2, dtype=bool))
+    undetermined_note: str = ""
+
+    @property
+    def success(self) -> bool:
+        """False when the miss is not determined by the result."""
+        return bool(np.all(self.determined))
+
+    @property
+    def status(self) -> int:
+        """0, or -1 when the miss is not determined."""
+        return 0 if self.success else -1
+
+    @property
+    def message(self) -> str:
+        """What the result is, or why its miss is not determined."""
+        return self.what if self.success else self.undetermined_note
 
     @property
     def std(self) -> np.ndarray | None:
@@ -130,7 +155,7 @@ class ImpactAnalysis(Completed):
                                    "crossrange": _f(self.contributions[1, j]), "estimate": _f(self.estimate[j]),
                                    "status": self.coefficient_status[j]}
             if self.coefficient_status[j] == "no estimate":
-                row["note"] = "no estimate: contributes nothing" + (
+                row["note"] = "no estimate" + (
                     f" ({self.reasons[n]})" if n in self.reasons else "")
             elif self.coefficient_status[j] == "per-flight":
                 row["note"] = "per-flight coefficient not in the result: value given, or 0"
@@ -153,6 +178,7 @@ class ImpactAnalysis(Completed):
             "no_estimate": [n for n, s in zip(self.names, self.coefficient_status) if s == "no estimate"],
             "groups": [g.to_dict() for g in self.groups],
             "group_source": self.group_source,
+            "success": self.success, "status": self.status, "message": self.message,
         }
 
     to_json = deprecated_alias("to_dict", "to_json")
@@ -174,9 +200,12 @@ class ImpactAnalysis(Completed):
                  f"burnout t {self.t_b:.3f} s, r [{', '.join(f'{x:.1f}' for x in self.r_b)}] m, "
                  f"v [{', '.join(f'{x:.2f}' for x in self.v_b)}] m/s",
                  f"nominal impact: downrange {self.nominal[0]:.1f} m, crossrange {self.nominal[1]:.1f} m", ""]
-        pm = (lambda i: f" +- {std[i]:.4g}") if std is not None else (lambda i: "")
-        lines.append(f"predicted miss (linear): downrange {self.miss[0]:.4g}{pm(0)} m, "
-                     f"crossrange {self.miss[1]:.4g}{pm(1)} m")
+        def pm(i: int) -> str:
+            if not self.determined[i]:
+                return "not determined"
+            return f"{self.miss[i]:.4g}" + (f" +- {std[i]:.4g}" if std is not None else "") + " m"
+
+        lines.append(f"predicted miss (linear): downrange {pm(0)}, crossrange {pm(1)}")
         lines.append(f"nonlinear miss (perturbed burnout state flown): downrange {self.nonlinear[0]:.4g} m, "
                      f"crossrange {self.nonlinear[1]:.4g} m")
         lines.append(f"std from {self.covariance_source}")
@@ -203,5 +232,9 @@ class ImpactAnalysis(Completed):
         missing = [n for n, s in zip(self.names, self.coefficient_status) if s == "no estimate"]
         if missing:
             lines.append("")
-            lines.append(f"no estimate (contribute nothing to the miss): {', '.join(missing)}")
+            lines.append(f"no estimate one by one: {', '.join(missing)}" + (
+                " (the miss holds what the data determine of their combinations)" if self.success else ""))
+        if not self.success:
+            lines.append("")
+            lines.append(f"FAILED: {self.undetermined_note}")
         return "\n".join(lines)

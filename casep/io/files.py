@@ -265,6 +265,10 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
         raise trk.error(f"{t_raw.size} tracking samples are too few for {interpolation} interpolation", "t", t_raw.size)
     shift_scale = time_shift_seconds(time_shift)
     t_trk = t_raw - shift_scale  # the telemetry's time scale
+    span = (t_raw[-1] - t_raw[0]) / max(float(t_tel[-1] - t_tel[0]), 1e-300)
+    if 300.0 < span < 3000.0:  # the tracking's times span ~1000 x the telemetry's: its t in ms
+        raise trk.error(f"tracking time [{t_raw[0]:.10g}, {t_raw[-1]:.10g}] spans {span:.4g} x the telemetry's "
+                        f"[{t_tel[0]:.10g}, {t_tel[-1]:.10g}] s: is the tracking file's t in ms (divide by 1000)?", "t")
     inside = (t_tel >= t_trk[0]) & (t_tel <= t_trk[-1])
     if inside.sum() < 2:
         raise tel.error(no_overlap_message(t_tel, t_raw, shift_scale), "t")

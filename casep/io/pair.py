@@ -293,8 +293,37 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
             "span_s": [float(t[0]), float(t[-1])], "observed_span_s": [float(t[observed][0]), float(t[observed][-1])],
             "unobserved": int((~observed).sum()), "telemetry_dropped": int((~keep).sum()),
             "start_speed_m_s": float(np.linalg.norm(v_tel[0])),
-            "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist()}  # for casep.checks.plausibility
+            "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist(),  # for casep.checks.plausibility
+            **_tracking_change(t_tel, v_tel, t_trk, v_trk),
+            "interpolation_floor_m_s": interpolation_floor(*((t_trk, v_trk) if grid == "telemetry" else (t_tel, v_tel)),
+                                                           carry, 4 if interpolation == "cubic" else 2)}
     return FlightData(t, f_out, dv, source=source, meta=meta, observed=observed, signals=sig)
+
+
+def interpolation_floor(t: np.ndarray, v: np.ndarray, carry, order: int) -> float:
+    """What carrying the velocity `v` (at times `t`) to other times errs by, from the data, m/s RMS.
+
+    Carried from every other sample to the samples left out, the interpolation errs as at twice the step;
+    its error goes as ``h^order`` (cubic spline 4, linear 2), so at the step itself it is that RMS over
+    ``2^order``. Noise in `v` adds ``~sigma / 2^order``, far below the noise itself: a fit whose residuals
+    are at this floor carries no noise (:func:`casep.regression.problem.is_rounding_level`).
+    """
+    if t.size < 8:
+        return 0.0
+    e = carry(t[::2], v[::2], t[1:-1:2]) - v[1:-1:2]
+    return float(np.sqrt(np.mean(e**2))) / 2.0**order
+
+
+def _tracking_change(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray) -> dict:
+    """The tracking velocity change over the tracking samples inside the telemetry, and the telemetry's over
+    the same times (linear interpolation): their ratio is ~1 in one unit (the plausibility check's units rule)."""
+    inside = np.flatnonzero((t_trk >= t_tel[0]) & (t_trk <= t_tel[-1]))
+    if inside.size < 2:
+        return {}
+    a, b = inside[0], inside[-1]
+    tel = [np.interp(t_trk[[a, b]], t_tel, v_tel[:, i]) for i in range(3)]
+    return {"tracking_velocity_change_m_s": (v_trk[b] - v_trk[a]).tolist(),
+            "telemetry_velocity_change_at_tracking_m_s": [float(v[1] - v[0]) for v in tel]}
 
 
 def _merge_times(t_tel: np.ndarray, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from casep.exceptions import IllConditionedWarning
+from casep.exceptions import IllConditionedWarning, option_label
 from casep.montecarlo.methods import MethodSpec, parse_method
 from casep.simulation.scenarios import Scenario
 
@@ -30,16 +30,16 @@ def check_options(runs: Any, seed: Any, methods: Sequence[str], workers: Any, no
         ns = NoiseSpec(kind="white", robust=None)
     specs = [parse_method(m) for m in methods]
     if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
-        raise ValueError(f"`runs` must be an int >= 1, got {runs!r}")
+        raise ValueError(f"{option_label('runs')} must be an int >= 1, got {runs!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"`seed` must be an int >= 0, got {seed!r}")
+        raise ValueError(f"{option_label('seed')} must be an int >= 0, got {seed!r}")
     if not specs:
         raise ValueError("`methods` is empty")
     if len({s.text for s in specs}) != len(specs):
         raise ValueError(f"`methods` names a method twice: {', '.join(methods)}")
     n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
     if n_workers < 1:
-        raise ValueError(f"`workers` must be >= 1, got {workers!r}")
+        raise ValueError(f"{option_label('workers')} must be >= 1, got {workers!r}")
     return int(runs), int(seed), specs, n_workers, ns
 
 #: A truth prior may reach this many declared magnitudes (mean + 6 std): wide priors of poorly known

@@ -59,15 +59,17 @@ def rounding_level(scale):
     return NOISE_FREE * np.asarray(scale, dtype=float) if np.ndim(scale) else NOISE_FREE * float(scale)
 
 
-def is_rounding_level(rms: float, scale: float) -> bool:
-    """The noise-free rule: a residual RMS at the rounding level of data whose largest magnitude is `scale`.
+def is_rounding_level(rms: float, scale: float, floor: float = 0.0) -> bool:
+    """The noise-free rule: a residual RMS at the rounding level of data whose largest magnitude is `scale`,
+    or at the interpolation floor of a pair of files (`floor`, m/s RMS: what carrying one file's velocity to the
+    other's times errs by, known from the data: :func:`casep.io.pair.interpolation_floor`).
 
-    ``rms <= NOISE_FREE * scale`` (:func:`rounding_level`; or no data at all: ``scale == 0``). Every part
+    ``rms <= max(NOISE_FREE * scale, floor)`` (:func:`rounding_level`; or no data at all: ``scale == 0``). Every part
     of casep that asks whether a flight carries noise (the noise model, the robust filter, the residual
     checks, the magnitude and prior checks, the radar groups) asks it through :meth:`Problem.is_noise_free`
     or this.
     """
-    return bool(scale == 0.0 or rms <= rounding_level(scale))
+    return bool(scale == 0.0 or rms <= max(rounding_level(scale), floor))
 
 
 class Problem:
@@ -126,6 +128,8 @@ class Problem:
         #: The noise model the rows are whitened for (None: raw rows).
         self.noise: NoiseModel | None = None
         self._unwhitened: Problem | None = None  # the same rows before whitening
+        #: The interpolation floor of a pair of files, m/s RMS (:func:`is_rounding_level`; 0: none).
+        self.interpolation_floor = 0.0
         #: Where rows come from (file, line, time): ``locate(rows)`` for indices of this problem's rows.
         self._locate_flight: tuple[FlightData, np.ndarray] | None = None  # (flight, observed samples) of a flight's
         n = red.n
@@ -206,6 +210,7 @@ class Problem:
             S = flight.observed_rows(builder.build(flight.t, flight.f, signals=signals))[0]
             pb = cls(red=reduce_qr(S, dv, names=model.names), y=dv, t=t, S=S, f=f_obs, **common)
             pb._locate_flight = (flight, np.flatnonzero(obs))
+            pb.interpolation_floor = float(flight.meta.get("interpolation_floor_m_s") or 0.0)
             return pb
 
         def regenerate(rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
@@ -222,6 +227,7 @@ class Problem:
                                names=model.names)
         pb = cls(red=red, y=dv, t=t, regenerate=regenerate, f=f_obs, **common)
         pb._locate_flight = (flight, np.flatnonzero(obs))
+        pb.interpolation_floor = float(flight.meta.get("interpolation_floor_m_s") or 0.0)
         return pb
 
     def with_y(self, y: np.ndarray) -> "Problem":
@@ -390,14 +396,17 @@ class Problem:
     def is_noise_free(self) -> bool:
         """Whether the rows carry no noise: least-squares residual RMS at the rounding level of ``y``.
 
-        ``sqrt(rss / m) <= NOISE_FREE * max |y|`` (:func:`is_rounding_level`); False for a
-        reduction-only problem (no ``y`` to compare with). Such data have nothing to fit a noise
-        model or a robust filter on, and their std reflect rounding only.
+        ``sqrt(rss / m) <= max(NOISE_FREE * max |y|, floor)`` (:func:`is_rounding_level`; the floor: the
+        interpolation floor of the flight's pair of files, for raw rows); False for a reduction-only
+        problem (no ``y`` to compare with). Such data have nothing to fit a noise model or a robust
+        filter on, and their std reflect rounding only.
         """
         if self.y is None:
             return False
         scale = float(np.max(np.abs(self.y))) if self.y.size else 0.0
-        return is_rounding_level(self.ls_rms(), scale)
+        root = self.parent if self.parent is not None else self
+        floor = root.interpolation_floor if self.noise is None else 0.0  # whitened rows: another scale
+        return is_rounding_level(self.ls_rms(), scale, floor)
 
     # ----------------------------------------------------------------- rows
     def _need_rows(self) -> np.ndarray:

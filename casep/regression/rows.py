@@ -82,7 +82,9 @@ def _rows(problem: Problem, keep: np.ndarray, nm: NoiseModel, weights) -> Proble
 
 
 def _ls(pb: Problem) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares estimate (0 where undetermined) and unit-free std of a problem, from its reduction.
+    """Least-squares estimate (the minimum-norm solution: its fitted values are the least-squares ones also
+    where a coefficient is undetermined, :mod:`casep.estimators.solution`) and unit-free std (inf where
+    undetermined) of a problem, from its reduction.
 
     ``x = c^-1 V_r diag(1/s_r) U_r^T q`` on the scaled columns; std ``sigma sqrt(diag((Z^T Z)^+)) / c``.
     """
@@ -93,7 +95,7 @@ def _ls(pb: Problem) -> tuple[np.ndarray, np.ndarray]:
     sig = float(np.sqrt(pb.ls_rss() / max(red.m - ra.rank, 1)))
     sd = sig * np.sqrt(np.sum((V * inv_s) ** 2, axis=1)) * inv_c
     ok = ra.estimable & (sd > 0)
-    return np.where(ra.estimable, x, 0.0), np.where(ok, sd, np.inf)
+    return x, np.where(ok, sd, np.inf)
 
 
 #: ``robust="auto"``: the robust fit engages when the robust filter rejects more samples than

@@ -18,8 +18,6 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Sequence
 
-import numpy as np
-
 from casep.io._atomic import atomic_open, scratch_files
 from casep.reporting.report import report_html
 
@@ -38,7 +36,7 @@ def plot_radar_residuals(radar_result, path: str | os.PathLike) -> Path:
     plt = pyplot()
     lin = radar_result.linearised
     reg = lin.regression
-    x = np.where(np.isfinite(radar_result.result.estimate), radar_result.result.estimate, 0.0)
+    x = radar_result.result.fitted_coefficients()
     res = (lin.y - lin.S @ x) * lin.weights
     types = [ty for ty in ("range", "azimuth", "elevation", "range_rate") if any(g[1] == ty for g in reg.groups)]
     fig, axes = plt.subplots(len(types), 1, figsize=(8, 2.2 * len(types)), sharex=True, layout="constrained",

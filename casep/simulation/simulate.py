@@ -272,6 +272,14 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
         sc = dataclasses.replace(sc, model=sc.model if model is None else os.fspath(model),
                                  truth=sc.truth if truth is None else dict(truth))
     time_offset, lever = _check_tracking(time_offset, lever_arm)
+    if model is not None and truth is None:  # the scenario's truth is for its own model: say so when it does not fit
+        names = load_model(sc.model).names
+        other = [n for n in sc.truth if n not in names]
+        if other:
+            raise ValueError(f"no truth given: scenario `{get_scenario(scenario).name}`'s default truth is for model "
+                             f"`{get_scenario(scenario).model}` and names {', '.join(other[:5])}"
+                             f"{' ...' if len(other) > 5 else ''}, which model `{sc.model}` lacks: give the true "
+                             "coefficients of this model (--truth FILE, truth=)")
     sc, traj, error_model, true_D = scenario_setup(sc, rate, rotating_earth=rotating_earth, site=site)
     rng = np.random.default_rng(seed)
     if sc.roll is not None and time_offset and np.any(lever):  # the rolled attitude is known at the samples only

@@ -22,11 +22,12 @@ import os
 import warnings
 from typing import Any, Mapping, Sequence
 
-__all__ = ["read_coefficient_file", "read_scales", "with_prior_consistency"]
+__all__ = ["read_coefficient_file", "read_truth_prior", "read_scales", "with_prior_consistency"]
 
 
 def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[str], *,
-                          model: Any = None, data_files: Sequence[str | os.PathLike] = ()) -> dict[str, Any]:
+                          model: Any = None, data_files: Sequence[str | os.PathLike] = (),
+                          option: str | None = None) -> dict[str, Any]:
     """Read a ``prior`` or ``bounds`` file of any accepted form, checked against the model's coefficients.
 
     Parameters
@@ -43,6 +44,8 @@ def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[st
     data_files : sequence of paths, optional
         The files of the flight the prior is for: a result estimated on them is refused
         (:func:`casep.io.provenance.check_not_estimated_on`: the same data counted twice).
+    option : str, optional
+        The option named in messages (default ``--<kind>``; ``--truth-from-prior`` reads a prior too).
 
     Returns
     -------
@@ -63,7 +66,7 @@ def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[st
 
     if kind not in ("prior", "bounds"):
         raise ValueError(f"`kind` must be 'prior' or 'bounds', got {kind!r}")
-    option = f"--{kind}"
+    option = option or f"--{kind}"
     data = read_json_table(path, option)
     if kind == "prior" and "calibration" in data:  # a ground calibration: the flight model's coefficients
         from casep.calibration.consistency import ground_prior
@@ -149,3 +152,22 @@ def with_prior_consistency(result: Any, flight: Any, model: Any, prior: Mapping[
         cons, summary = None, {"not_compared": str(exc)}
         warnings.warn(f"prior not compared with the flight alone: {exc}", CasepWarning, stacklevel=2)
     return dataclasses.replace(result, diagnostics={**result.diagnostics, "prior_consistency": summary}), cons
+
+
+def read_truth_prior(path: str | os.PathLike, names: Sequence[str], *, model: Any = None) -> dict[str, Any]:
+    """The ``--truth-from-prior`` file: a prior of any form :func:`read_coefficient_file` reads (a result file: its
+    estimates and std), marginals only (each run draws each coefficient on its own); a ``correlation`` entry of a
+    plain prior file is refused."""
+    from casep.estimators.map import parse_prior
+    from casep.io.files import read_json_table
+    from casep.io.result_json import looks_like_result
+
+    option = "--truth-from-prior"
+    where = f"{option} {path}"
+    raw = read_json_table(path, option)
+    if "correlation" in raw and "correlation" not in names and not looks_like_result(raw):
+        raise ValueError(f"{where}: a `correlation` entry is not supported (marginal mean and std only)")
+    table = read_coefficient_file(path, "prior", names, model=model, option=option)
+    table = {k: v for k, v in table.items() if k != "correlation"}  # a result's covariance: its marginals
+    parse_prior(table, names, source=where)
+    return table

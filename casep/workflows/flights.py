@@ -20,7 +20,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -111,25 +111,51 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         raise ValueError(f"method `{spec.method}` cannot be estimated jointly; use one of {', '.join(joint)}")
     if len(flights) < 2:
         raise ValueError(f"`flights` must hold two or more flights, got {len(flights)}")
-    model, problems, paired, read = _read(flights, model, fit_time_offset)
-    _refuse_repeats(problems)
-    for key in ("prior", "bounds"):  # on shared coefficients only (a per-flight one is refused, not dropped)
-        per = [k for k in (spec.options.get(key) or {}) if k in model.names and model.per_flight[model.names.index(k)]]
-        if per:
-            raise ValueError(f"`{key}` names per-flight coefficient(s) {', '.join(per)}: not supported with several "
-                             "flights yet; give it for the shared coefficients only")
-    layout = JointLayout(model.names, model.per_flight, _labels(problems, labels))
-    several = Flights(tuple(problems), layout, tuple(paired))
-    rows = joint_rows(several, spec, sigma)  # a sigma per flight, or the request's
-    res = fit(several, spec, rows=rows)  # the one entry point, as for one flight
-    from casep.model.loader import model_record
-    from casep.workflows.separate import judge_setup
+    from casep.model.loader import TIME_OFFSET
+    from casep.workflows.separate import refit_on_offset
 
-    res = dataclasses.replace(res, **model_record(model))
-    for fl in read:  # a flight that failed a set-up check fails the joint result
-        res = judge_setup(res, fl, None)
-    res = judge_setup(res, None, model, noise_free=all(p.is_noise_free() for p in problems))  # declared magnitudes
-    return res, rows.joint
+    box: dict[str, Any] = {}
+    first = _joint_fit(flights, model, fit_time_offset, spec, sigma, box, labels)
+    if fit_time_offset is not None:  # the caller decided
+        return first(), box["rows"].joint
+    # the rule of one flight (refit_on_offset): pairs of files whose residuals show an offset get dt_trk
+    res = refit_on_offset(first, _joint_fit(flights, model, True, spec, sigma, box, labels),
+                          wanted=lambda: TIME_OFFSET not in box["model"].names and any(box["paired_files"]))
+    return res, box["rows"].joint
+
+
+def _joint_fit(flights: Sequence, model: Any, fit_time_offset: bool | None, spec: FitSpec, sigma: Any,
+               box: dict[str, Any], labels: Sequence[str | None] | None = None) -> Callable[[], EstimateResult]:
+    """The joint fit of :func:`separate_flights` with `fit_time_offset`, as a call (what it read and its rows go
+    into `box`: ``model``, ``rows``, ``paired_files``)."""
+    def run() -> EstimateResult:
+        m, problems, paired, read = _read(flights, model, fit_time_offset)
+        box["model"], box["paired_files"] = m, [_is_pair(fl) for fl in read]
+        _refuse_repeats(problems)
+        for key in ("prior", "bounds"):  # on shared coefficients only (a per-flight one is refused, not dropped)
+            per = [k for k in (spec.options.get(key) or {}) if k in m.names and m.per_flight[m.names.index(k)]]
+            if per:
+                raise ValueError(f"`{key}` names per-flight coefficient(s) {', '.join(per)}: not supported with "
+                                 "several flights yet; give it for the shared coefficients only")
+        layout = JointLayout(m.names, m.per_flight, _labels(problems, labels))
+        several = Flights(tuple(problems), layout, tuple(paired))
+        rows = joint_rows(several, spec, sigma)  # a sigma per flight, or the request's
+        box["rows"] = rows
+        res = fit(several, spec, rows=rows)  # the one entry point, as for one flight
+        from casep.model.loader import model_record
+        from casep.workflows.separate import judge_setup
+
+        res = dataclasses.replace(res, **model_record(m))
+        for fl in read:  # a flight that failed a set-up check fails the joint result
+            res = judge_setup(res, fl, None)
+        return judge_setup(res, None, m, noise_free=all(p.is_noise_free() for p in problems))  # declared magnitudes
+
+    return run
+
+
+def _is_pair(flight: Any) -> bool:
+    meta = getattr(flight, "meta", None)
+    return isinstance(meta, dict) and meta.get("format") == "pair"
 
 
 def _read(flights: Sequence, model: Any, fit_time_offset: bool | None) -> tuple[Any, list[Problem], list[bool], list]:
@@ -181,11 +207,10 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
     from casep.estimators.ols import solve_ols
 
     lay = jp.layout
-    x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
+    x = res.fitted_coefficients()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # conditioning: said by the result
-        x_ls = solve_ols(jp, sigma=1.0).estimate  # the Chow test compares least-squares fits, whatever the method
-    x_ls = np.where(np.isfinite(x_ls), x_ls, 0.0)
+        x_ls = solve_ols(jp, sigma=1.0).fitted_coefficients()  # the Chow test compares least-squares fits
     pf = np.flatnonzero(lay.per_flight)
     flights, own, rss_joint = [], [], []
     for k, (p, w, s) in enumerate(zip(jp.raw, jp.problems, jp.sigmas)):

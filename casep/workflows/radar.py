@@ -270,7 +270,7 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
     opts = {**dict(spec.options), **dict(spec.keywords)}
     # the whitened rows through the one entry point of every fit; the radar's own checks follow (_judge)
     res = fit(rn.problem(), rn.fit_spec(spec, 1.0 if all_given else None), checks=False)
-    x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
+    x = res.fitted_coefficients()
     summary = _summary(reg, lin, rn, res, x)
     failed, suspicious = _judge(reg, lin, rn, res, summary)
     whiteness = rn.whiteness(x) if not failed else {}  # a failed fit's residuals hold its set-up error: said already
@@ -313,7 +313,7 @@ def _judge(reg: RadarRegression, lin: LinearisedRadar, rn: RadarNoise, res: Esti
     """``(failures, warnings)`` of a radar fit: the linearisation, the set-up (launch time, station positions,
     whitened by the noise model), the residuals against the noise, the station terms against their
     magnitudes; the set-up warnings are issued here, the others returned."""
-    x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
+    x = res.fitted_coefficients()
     setup = check_setup(lin, rn.whiten) if lin.converged else None
     failed = [] if lin.converged else [lin.convergence_message]
     if setup:  # a set-up error named first: it explains the misfits the other checks see

@@ -188,7 +188,6 @@ class RadarNoise:
         from casep.exceptions import NoiseNotWhiteWarning
         from casep.noise.whiteness import ALPHA_FITTED, whiteness_test
 
-        x = np.where(np.isfinite(x), x, 0.0)
         r = self.lin.y - self.lin.S @ x
         out = {}
         for s in self.stations:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import TYPE_CHECKING, Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -256,33 +256,47 @@ def _fit_offset_if_found(flight: Any, problem: Problem, model: Any, spec: FitSpe
     telemetry, 20 Hz tracking 30 ms late, 6 seeds) the std are about 10 times smaller with it (RMS z 0.95,
     coverage 0.97; without it 0.87 and 0.99), ``python benchmarks/mc_subperiod_offset.py --runs 6``. The result
     says so in its message."""
-    import warnings
-
-    from casep.exceptions import TimeOffsetWarning
     from casep.model.loader import TIME_OFFSET, with_time_offset
 
     pair = isinstance(flight, FlightData) and isinstance(flight.meta, dict) and flight.meta.get("format") == "pair"
     if fit_time_offset is not None or not pair or not isinstance(model, ErrorModel) or TIME_OFFSET in model.names:
         return fit(problem, spec), problem, model
+    box: dict[str, Any] = {"problem": problem, "model": model}
+
+    def again() -> EstimateResult:
+        box["model"] = load_model(with_time_offset(model))
+        box["problem"] = flight_problem(flight, box["model"])
+        return fit(box["problem"], spec)
+
+    return refit_on_offset(lambda: fit(problem, spec), again), box["problem"], box["model"]
+
+
+def refit_on_offset(first: Callable[[], EstimateResult], again: Callable[[], EstimateResult],
+                    wanted: Callable[[], bool] = lambda: True) -> EstimateResult:
+    """The time-offset rule of one flight and of several: `first` (the fit as asked), and when its residual checks
+    found a tracking time offset (the :class:`~casep.exceptions.TimeOffsetWarning` of
+    :func:`casep.checks.plausibility.check_fit`) and `wanted()` after it (a pair of files, no ``dt_trk`` yet)
+    `again` (the fit with ``dt_trk`` in the model), its message saying so; the first fit's warnings are said
+    as they were when no offset was found."""
+    import re
+    import warnings
+
+    from casep.exceptions import TimeOffsetWarning
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res = fit(problem, spec)
+        res = first()
     found = [w for w in caught if issubclass(w.category, TimeOffsetWarning) and "would explain them" in str(w.message)]
-    if not found:
+    if not found or not wanted():
         for w in caught:  # said as they were
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-        return res, problem, model
-    model = load_model(with_time_offset(model))
-    problem = flight_problem(flight, model)
-    res = fit(problem, spec)
-    import re
-
+        return res
+    res = again()
     said = re.search(r"time offset of (.+? ms) would", str(found[0].message))
     note = ("tracking time offset modelled (dt_trk added): the residuals of the model as given tracked the kinematic "
             f"acceleration{' (an offset of ' + said.group(1) + ')' if said else ''}")
-    res = dataclasses.replace(res, message=f"{res.message}; {note}",
-                              settings={**res.settings, "time_offset": "modelled: found by the residual test"})
-    return res, problem, model
+    return dataclasses.replace(res, message=f"{res.message}; {note}",
+                               settings={**res.settings, "time_offset": "modelled: found by the residual test"})
 
 
 def _with_tables(spec: FitSpec, flight: Any, model: Any) -> FitSpec:

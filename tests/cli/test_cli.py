@@ -406,7 +406,8 @@ def test_separate_help_has_one_group_per_method_set_from_the_registry(capsys):
         assert out.count(f"  {opt.flag} ") == 1
     flat = " ".join(out.split())  # help lines are wrapped
     assert "rls / rels options:" in out and "float in [0.5, 1] (default 1)" in flat
-    assert "--bounds FILE box bounds and fixed values; JSON file {name: [lo, hi] | value} (required)" in flat
+    assert ("--bounds FILE box bounds and fixed values; JSON file {name: [lo, hi] | value} "
+            "(needed by --method bounded)") in flat
 
 
 def test_montecarlo_takes_prior_and_bounds_from_the_registry(capsys):

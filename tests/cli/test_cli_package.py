@@ -26,7 +26,7 @@ def test_modules_are_small():
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["design", "--knots", "1"], "`knots` must be an int >= 2, got 1"),  # the API's check
+    (["design", "--knots", "1"], "option --knots (`knots`) must be an int >= 2, got 1"),  # the API's check
 ])
 def test_the_api_check_is_the_message(argv, message, capsys):
     assert main(argv) == 2
@@ -38,4 +38,14 @@ def test_workers_is_a_count_of_processes(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["montecarlo", "--workers", "0"])
     assert exc.value.code == 2
-    assert "argument --workers: must be >= 1, got 0" in capsys.readouterr().err
+    assert "option --workers (`workers`) must be >= 1, got 0" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, message", [  # every command's option errors in the one form
+    (["simulate", "--rate", "-3", "-o", "x.csv"], "option --rate (`rate`) must be finite and > 0, got -3"),
+    (["montecarlo", "--runs", "-2"], "option --runs (`runs`) must be >= 0, got -2"),
+])
+def test_option_errors_of_every_command_have_one_form(argv, message, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2 and message in capsys.readouterr().err

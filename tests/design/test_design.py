@@ -235,7 +235,7 @@ def test_cli_bad_input_exits_2(argv, message, capsys):
 def test_api_bad_input():
     with pytest.raises(ValueError, match="unknown objective `E`"):
         design("paper", objective="E")
-    with pytest.raises(ValueError, match="`max_angle` must be a number > 0"):
+    with pytest.raises(ValueError, match=r"option --max-angle \(`max_angle`\) must be a number > 0"):
         design("paper", max_angle=-1.0)
 
 

@@ -115,7 +115,7 @@ def test_montecarlo_runs_0_names_the_option_and_the_rule(capsys):
     with pytest.raises(SystemExit) as e:
         main(["montecarlo", "--runs", "0"])
     assert e.value.code == 2
-    assert "argument --runs: must be >= 1, got 0" in capsys.readouterr().err
+    assert "option --runs (`runs`) must be >= 1, got 0" in capsys.readouterr().err
 
 
 def test_a_prior_entry_without_std_names_the_entry_and_the_field(files, tmp_path, capsys):

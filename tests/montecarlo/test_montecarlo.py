@@ -84,7 +84,7 @@ def test_output_says_the_noise_model(capsys):
 def test_bad_arguments(capsys):
     with pytest.raises(ValueError, match="unknown method `foo`"):
         run_montecarlo(runs=2, methods=["foo"], noise="white")
-    with pytest.raises(ValueError, match="`runs` must be an int >= 1"):
+    with pytest.raises(ValueError, match=r"option --runs \(`runs`\) must be an int >= 1"):
         run_montecarlo(runs=0, noise="white")
     assert main(["montecarlo", "--noise", "white", "--runs", "2", "--methods", "ols,ridge:abc"]) == 2
     assert "ridge:<lambda> needs a number" in capsys.readouterr().err
