@@ -72,6 +72,30 @@ def _deferred_signals() -> Iterator[None]:
             signal.raise_signal(got[0])
 
 
+def _ending_workers_at_once(cluster: Any) -> Any:
+    """An exit callback for the stack that holds `cluster`: when the campaign ends by an exception (Ctrl-C,
+    SIGTERM, an error), the local worker processes are sent SIGTERM (the preload restores its default action:
+    :mod:`casep.montecarlo.dask_worker`) before the cluster closes. A worker busy in a task does not answer
+    the nanny's request to close, and the nanny waits for it (about 4 s on two workers) before it kills; its
+    task's result would be thrown away anyway. A campaign that ends normally closes its idle workers as usual."""
+    import logging
+    import os
+
+    def on_exit(exc_type: Any, exc: Any, tb: Any) -> bool:
+        if exc_type is not None:
+            logging.getLogger("distributed").setLevel(logging.CRITICAL)  # the closed comms are expected
+            for nanny in list(getattr(cluster, "workers", {}).values()):
+                pid = getattr(getattr(nanny, "process", None), "pid", None)
+                if pid:
+                    try:
+                        os.kill(pid, signal.SIGTERM)
+                    except OSError:  # already gone
+                        pass
+        return False  # the exception goes on
+
+    return on_exit
+
+
 class DaskEngine:
     """Tasks on a Dask cluster: a LocalCluster of `workers` single-threaded processes, or `scheduler`.
 
@@ -94,6 +118,8 @@ class DaskEngine:
         aio = logging.getLogger("asyncio")
         stack.callback(aio.setLevel, aio.level)
         aio.setLevel(logging.CRITICAL)
+        dist = logging.getLogger("distributed")  # quietened while ending workers at once (below)
+        stack.callback(dist.setLevel, dist.level)
         if scheduler:
             try:
                 self.client = stack.enter_context(Client(scheduler, timeout="20s"))
@@ -112,6 +138,7 @@ class DaskEngine:
                                        dashboard_address=":0", silence_logs=logging.CRITICAL,
                                        preload=["casep.montecarlo.dask_worker"])
                 stack.enter_context(cluster)
+                stack.push(_ending_workers_at_once(cluster))
                 self.client = stack.enter_context(Client(cluster))
         self.ctx_future: Any = None
 
