@@ -211,7 +211,8 @@ def drift_lines(dr: dict | None) -> list[str]:
            "casep.calibration.drift): "
            + "; ".join(f"{k} {100 * v['share']:.0f} %, {_floats(v['sigma_d'])} {v['unit']}"
                        + (f" ({_floats(v['natural']['sigma_d'])} {v['natural']['unit']})" if "natural" in v else "")
-                       + (f", {v['lr_stat']:.3g}" + (" (not significant: white noise explains it)"
+                       + (f", {v['lr_stat']:.3g}" + (f" (below the 1 % point {AUTO_LR:g} of white noise: a drift "
+                                                     "neither shown nor excluded; the slow-drift bound below)"
                                                      if v["lr_stat"] <= AUTO_LR else "") if "lr_stat" in v else "")
                        for k, v in dr.items())]
     for k, v in dr.items():
