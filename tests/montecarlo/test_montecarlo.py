@@ -182,6 +182,17 @@ def _children(pid: int) -> list[int]:
     return out
 
 
+def _cpu_seconds(pid: int) -> float:
+    """User + system CPU seconds of `pid` so far, from /proc (0 when it is gone)."""
+    from pathlib import Path
+
+    try:
+        fields = (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def _alive(pid: int) -> bool:
     from pathlib import Path
 
@@ -205,7 +216,15 @@ def _montecarlo_running():
             children = _children(proc.pid)  # the 2 workers
             time.sleep(0.1)
         assert len(children) >= 2, "the workers did not start"
-        time.sleep(1.5)  # let them import and take work
+        # At work means past the cluster's start-up, during which the parent holds a signal until the cluster is
+        # up (engines._deferred_signals): under load that start-up took seconds more than a fixed 1.5 s wait, and
+        # the parent then exited after the test's 8 s. Forked workers (Python < 3.12) start with casep loaded and
+        # use little CPU before their first task; spawned ones import it again (about 3 s of CPU each).
+        busy = 1.5 if sys.version_info < (3, 12) else 5.0
+        while time.monotonic() < deadline + 60 and min(_cpu_seconds(c) for c in children) < busy:
+            assert proc.poll() is None, proc.communicate()
+            time.sleep(0.1)
+        assert min(_cpu_seconds(c) for c in children) >= busy, "the workers did not take work"
         children = _children(proc.pid)
         yield proc, children
     finally:
