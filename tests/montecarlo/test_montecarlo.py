@@ -202,12 +202,20 @@ def _alive(pid: int) -> bool:
         return False
 
 
+def _ctrl_c_deliverable() -> None:
+    """In the child before exec: SIGINT to its default action. A command started in the background of a shell
+    without job control (``nohup sh -c '... &'``, as CI may run the suite) inherits SIGINT ignored, and an
+    ignored SIGINT stays ignored across exec (Unix's rule for background jobs, which casep keeps): the test is of
+    a Ctrl-C in a terminal, where SIGINT is delivered."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @contextlib.contextmanager
 def _montecarlo_running():
     """A CLI Monte Carlo with 2 workers at work; yields (process, its children); kills leftovers."""
     proc = subprocess.Popen([sys.executable, "-m", "casep", "montecarlo", "--scenario", "paper", "--rate", "10",
                              "--methods", "bounded", "--runs", "5000", "--workers", "2", "--no-progress"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_ctrl_c_deliverable)
     children: list[int] = []
     try:
         deadline = time.monotonic() + 30
