@@ -166,40 +166,34 @@ def _blas_threads():
 
 
 # ------------------------------------------------------------------ shutdown (defect 11)
-def _children(pid: int) -> list[int]:
-    """Direct children of `pid`, from /proc (psutil is not a dependency)."""
+def _stat(pid: int | str) -> list[str] | None:
+    """The fields of /proc/PID/stat after the command name (state, ppid, ...), or None when it is gone
+    (psutil is not a dependency)."""
     from pathlib import Path
 
-    out = []
-    for d in Path("/proc").iterdir():
-        if d.name.isdigit():
-            try:
-                stat = (d / "stat").read_text()
-            except OSError:
-                continue
-            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
-                out.append(int(d.name))
-    return out
+    try:
+        return (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+
+
+def _children(pid: int) -> list[int]:
+    """Direct children of `pid`."""
+    from pathlib import Path
+
+    return [int(d.name) for d in Path("/proc").iterdir()
+            if d.name.isdigit() and (f := _stat(d.name)) is not None and int(f[1]) == pid]
 
 
 def _cpu_seconds(pid: int) -> float:
-    """User + system CPU seconds of `pid` so far, from /proc (0 when it is gone)."""
-    from pathlib import Path
-
-    try:
-        fields = (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    """User + system CPU seconds of `pid` so far (0 when it is gone)."""
+    f = _stat(pid)
+    return 0.0 if f is None else (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def _alive(pid: int) -> bool:
-    from pathlib import Path
-
-    try:
-        return (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
+    f = _stat(pid)
+    return f is not None and f[0] != "Z"
 
 
 def _ctrl_c_deliverable() -> None:
