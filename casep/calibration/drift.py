@@ -105,6 +105,11 @@ class DriftFit:
         return float(np.sum(self.weights * self.ratios / (1.0 + self.ratios)))
 
     @property
+    def shown(self) -> bool:
+        """Whether the rows show a drift: ``-2 ln Lambda`` against white noise above :data:`AUTO_LR`."""
+        return self.lr_stat > AUTO_LR
+
+    @property
     def sigma_d(self) -> np.ndarray:
         """The drift's stationary std per series, ``sqrt(rho v0)`` averaged over ``tau`` (the row's unit);
         with a prior, the prior's."""
@@ -225,7 +230,7 @@ def drift_note(fit: DriftFit, what: str, unit: str, session_s: float, bias_std: 
     session): its size, and that it can move the biases by up to its std beyond `bias_std` (module notes), and the
     option `prior_flag` that gives the drift; else None."""
     slow = float(np.sum(fit.weights[fit.taus >= SLOW * session_s]))
-    if fit.drift_share < DRIFT_SHARE or slow < 0.5 or fit.lr_stat <= AUTO_LR:
+    if fit.drift_share < DRIFT_SHARE or slow < 0.5 or not fit.shown:
         return None
     sd = ", ".join(f"{v:.3g}" for v in np.atleast_1d(fit.sigma_d))
     bs = ", ".join(f"{v:.3g}" for v in np.atleast_1d(bias_std))

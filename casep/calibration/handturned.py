@@ -200,21 +200,29 @@ def _floats(v) -> str:
     return ", ".join(f"{x:.3g}" for x in v)
 
 
+def _drift_shown(sensor: str, v: dict) -> str:
+    """One sensor's part of the drift line: share, std (also in natural units), -2 ln Lambda and, below the
+    threshold (:attr:`casep.calibration.drift.DriftFit.shown`), that the session neither shows nor excludes one."""
+    from casep.noise.model import AUTO_LR
+
+    text = f"{sensor} {100 * v['share']:.0f} %, {_floats(v['sigma_d'])} {v['unit']}"
+    if "natural" in v:
+        text += f" ({_floats(v['natural']['sigma_d'])} {v['natural']['unit']})"
+    if "lr_stat" in v:
+        text += f", {v['lr_stat']:.3g}"
+        if not v["shown"]:
+            text += (f" (below the 1 % point {AUTO_LR:g} of white noise: a drift neither shown nor excluded; "
+                     "the slow-drift bound below)")
+    return text
+
+
 def drift_lines(dr: dict | None) -> list[str]:
     """The report's lines on the bias drift (:func:`drift_report`'s dict): what the session shows, and the prior
     the biases' std carries or, without one, the slow drift the session cannot exclude and the std it would give."""
     if not dr:
         return []
-    from casep.noise.model import AUTO_LR
-
     out = ["drift beyond white noise (share of a pose mean's variance, std, -2 ln Lambda against white noise; "
-           "casep.calibration.drift): "
-           + "; ".join(f"{k} {100 * v['share']:.0f} %, {_floats(v['sigma_d'])} {v['unit']}"
-                       + (f" ({_floats(v['natural']['sigma_d'])} {v['natural']['unit']})" if "natural" in v else "")
-                       + (f", {v['lr_stat']:.3g}" + (f" (below the 1 % point {AUTO_LR:g} of white noise: a drift "
-                                                     "neither shown nor excluded; the slow-drift bound below)"
-                                                     if v["lr_stat"] <= AUTO_LR else "") if "lr_stat" in v else "")
-                       for k, v in dr.items())]
+           "casep.calibration.drift): " + "; ".join(_drift_shown(k, v) for k, v in dr.items())]
     for k, v in dr.items():
         if "prior" in v:
             p = v["prior"]
@@ -636,7 +644,7 @@ def drift_report(fits: dict, acc_bias_std: np.ndarray, gyr_bias_std: np.ndarray,
     for (key, (fit, prior)), what, unit, bstd, bunit in zip(
             fits.items(), ("accelerometer's misfit", "gyro's pose means"), ("m/s^2", units[1]),
             (acc_bias_std, gyr_bias_std), units):
-        out[key] = {"share": fit.drift_share, "lr_stat": fit.lr_stat,
+        out[key] = {"share": fit.drift_share, "lr_stat": fit.lr_stat, "shown": fit.shown,
                     "sigma_d": np.atleast_1d(fit.sigma_d).tolist(), "unit": unit,
                     "tau_s": float(np.exp(np.sum(fit.weights * np.log(fit.taus)))), "bias_unit": bunit,
                     "bias_std": np.atleast_1d(bstd).tolist()}
