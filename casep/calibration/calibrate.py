@@ -292,7 +292,8 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         m3 = S.shape[0] // 3  # observations of three rows (x, y, z) each
         # no sample times: segment means and turn integrals are no time series (no gaps, no correlation in time)
         pb = Problem.from_arrays(Sw.reshape(m3, 3, len(cols)), yw.reshape(m3, 3), None, names=names,
-                                 units=[units[j] for j in cols], si_factors=model.si_factors[cols], model=model.name)
+                                 units=[units[j] for j in cols], si_factors=model.si_factors[cols], model=model.name,
+                                 row_unit=acc_unit if sensor == "accelerometer" else gyr_unit)
         opts = _sensor_options(options, names, method, sensor)
         # Huber's MAD scale is biased low on a few rows of high leverage (6 dof; the turns are fitted
         # exactly): it takes the least-squares sigma of the weighted rows as its scale instead
@@ -315,7 +316,7 @@ def calibrate(session: Session, segments: Sequence[Segment], model: str | os.Pat
         reasons.update(res.reasons)
         # misfit per segment: residual of the segment's row (unweighted), and its noise std
         x = np.where(np.isfinite(res.estimate), res.estimate, 0.0)
-        unit = acc_unit if sensor == "accelerometer" else gyr_unit
+        unit = pb.row_unit
         for name, misfit in segment_misfits(segments, rows_seg, rows_sd, y - S @ x, s_i, unit).items():
             seg_info[name]["misfit"][sensor] = misfit
         if weighting in ("positions", "segments") and n_static and dof > 0:

@@ -318,8 +318,9 @@ def _failure(pb: Prepared, method: str, hint_text: str, x: np.ndarray, std: np.n
     ls = pb.ols_sigma()  # sqrt(min_D |y - S D|^2 / (m - rank)): the misfit the model allows
     if rms > MISFIT_FACTOR * ls and rms > MISFIT_FLOOR * rms_y:
         hint = f" ({hint_text})" if hint_text else ""
-        return -3, (f"failed: {method} residual RMS {rms:.3g} m/s is {rms / ls:.3g} x the least-squares residual "
-                    f"std {ls:.3g} m/s: the estimate does not fit the data{hint}")
+        unit = f" {pb.problem.row_unit}" if pb.problem.row_unit else " (whitened, dimensionless)"
+        return -3, (f"failed: {method} residual RMS {rms:.3g}{unit} is {rms / ls:.3g} x the least-squares residual "
+                    f"std {ls:.3g}{unit}: the estimate does not fit the data{hint}")
     return None
 
 

@@ -176,7 +176,7 @@ class JointProblem(Problem):
         ys = [p._need_rows().reshape(-1, 3) for p in problems]
         y = np.concatenate([yk / s for yk, s in zip(ys, sigmas)])  # whitened, (N, 3)
         super().__init__(names=layout.joint_names, units=units, si_factors=si, red=red, y=y,
-                         model=problems[0].model, source=" + ".join(p.source for p in problems))
+                         model=problems[0].model, source=" + ".join(p.source for p in problems), row_unit="")
         self.problems = tuple(problems)
         self.raw = tuple(raw) if raw is not None else self.problems
         self.interpolated = tuple(bool(v) for v in interpolated) if interpolated else (False,) * len(problems)

@@ -17,7 +17,7 @@ Rows are ``(N, 3)`` samples x axes; ``S.reshape(3 N, n)`` is the stacked regress
 
 from __future__ import annotations
 
-from typing import Callable, Iterator, Sequence
+from typing import Any, Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -98,13 +98,16 @@ class Problem:
         Where the rows came from (file name), for messages.
     segment_starts : tuple of int
         First sample of each segment of the rows (several flights stacked: one per flight).
+    row_unit : str
+        Unit of the rows ``y`` for messages: ``m/s`` (a flight's velocity error), a ground test's reading unit,
+        or ``""`` for rows divided by their noise std (dimensionless).
     """
 
     def __init__(self, *, names: Sequence[str], units: Sequence[str], si_factors: Sequence[float] | np.ndarray,
                  red: ReducedSystem, y: np.ndarray | None = None, t: np.ndarray | None = None,
                  model: str | None = None, source: str = "<memory>", S: np.ndarray | None = None,
                  regenerate: Callable[[int], Iterator[tuple[slice, np.ndarray, np.ndarray]]] | None = None,
-                 f: np.ndarray | None = None) -> None:
+                 f: np.ndarray | None = None, row_unit: str = "m/s") -> None:
         self.names = tuple(names)
         self.units = tuple(units)
         self.si_factors = np.asarray(si_factors, dtype=float)
@@ -114,6 +117,8 @@ class Problem:
         self.f = f
         self.model = model
         self.source = source
+        #: Unit of the rows ``y`` (a flight's velocity error: m/s; a ground test's readings: their unit), for messages.
+        self.row_unit = row_unit
         self._S = S
         self._regenerate = regenerate
         self._ranks: dict[float | None, RankAnalysis] = {}
@@ -142,8 +147,9 @@ class Problem:
     def from_arrays(cls, S: np.ndarray, y: np.ndarray, t: np.ndarray | None = None, *,
                     names: Sequence[str] | None = None, units: Sequence[str] | None = None,
                     si_factors: Sequence[float] | np.ndarray | None = None, model: str | None = None,
-                    f: np.ndarray | None = None) -> "Problem":
-        """A problem from ``S`` ``(N, 3, n)`` or ``(m, n)`` and ``y`` ``(N, 3)`` or ``(m,)`` (kept whole)."""
+                    f: np.ndarray | None = None, row_unit: str = "m/s") -> "Problem":
+        """A problem from ``S`` ``(N, 3, n)`` or ``(m, n)`` and ``y`` ``(N, 3)`` or ``(m,)`` (kept whole; `row_unit`:
+        the unit of ``y``, for messages)."""
         S_arr = np.asarray(S, dtype=float)
         if S_arr.ndim not in (2, 3):
             raise ValueError(f"`S` must be (m, n) or (N, 3, n), got {S_arr.ndim}-D")
@@ -161,7 +167,7 @@ class Problem:
         units = ("",) * n if units is None else tuple(units)
         si = np.ones(n) if si_factors is None else np.asarray(si_factors, dtype=float)
         return cls(names=names, units=units, si_factors=si, red=reduce_qr(S_arr, y_arr, names=names), y=y_arr, t=t,
-                   model=model, S=S_arr, f=f)
+                   model=model, S=S_arr, f=f, row_unit=row_unit)
 
     @classmethod
     def from_reduction(cls, red: ReducedSystem, *, names: Sequence[str], units: Sequence[str],
@@ -242,10 +248,15 @@ class Problem:
                 for sl, S_b, _ in base(rows):
                     yield sl, S_b, y[sl]
 
-        new = Problem(names=self.names, units=self.units, si_factors=self.si_factors, red=self.red, y=y, t=self.t,
-                      model=self.model, source=self.source, S=self._S, regenerate=regenerate, f=self.f)
+        new = self._derived(red=self.red, y=y, t=self.t, S=self._S, regenerate=regenerate, f=self.f)
         new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n, names=self.names)
         return new
+
+    def _derived(self, **rows: Any) -> "Problem":
+        """A problem on other rows (`rows`: ``red``, ``y``, ``t``, ``S``, ``regenerate``, ``f``) with this one's
+        coefficients, model, source and row unit."""
+        return Problem(names=self.names, units=self.units, si_factors=self.si_factors, model=self.model,
+                       source=self.source, row_unit=self.row_unit, **rows)
 
     def subset(self, keep: np.ndarray) -> "Problem":
         """The regression on the samples where `keep` (N,) is True (time order kept; S shared).
@@ -277,9 +288,8 @@ class Problem:
                         yield slice(k0, k1), S_b[o], y[k0:k1]
                     k0 = k1
 
-        new = Problem(names=self.names, units=self.units, si_factors=self.si_factors,
-                      red=reduce_qr(S, y) if S is not None else self.red, y=y, t=t, model=self.model,
-                      source=self.source, S=S, regenerate=regenerate, f=f)
+        new = self._derived(red=reduce_qr(S, y) if S is not None else self.red, y=y, t=t, S=S, regenerate=regenerate,
+                            f=f)
         if S is None:
             new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n)
         root = self.parent if self.parent is not None else self
@@ -309,8 +319,7 @@ class Problem:
         t = self.t
         if self._S is not None:
             Sw, yw = whiten(self._S, y0, t, noise, w)
-            new = Problem(names=self.names, units=self.units, si_factors=self.si_factors, red=reduce_qr(Sw, yw),
-                          y=yw, t=t, model=self.model, source=self.source, S=Sw, f=self.f)
+            new = self._derived(red=reduce_qr(Sw, yw), y=yw, t=t, S=Sw, f=self.f)
         else:
             base = self.blocks
             yw = np.empty_like(y0)
@@ -320,8 +329,7 @@ class Problem:
             def regenerate(rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
                 yield from whiten_blocks(base(rows), t, noise, w)
 
-            new = Problem(names=self.names, units=self.units, si_factors=self.si_factors, red=self.red, y=yw, t=t,
-                          model=self.model, source=self.source, regenerate=regenerate, f=self.f)
+            new = self._derived(red=self.red, y=yw, t=t, regenerate=regenerate, f=self.f)
             new.red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in new.blocks()), self.n)
         new.parent = self.parent if self.parent is not None else self
         new.sample_index = self.sample_index
