@@ -21,10 +21,11 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from casep._cores import usable_cores
 from casep.reporting.plots import pyplot, save_figure, set_margins
 
 __all__ = ["FigureJobs", "plot_demo_residuals", "plot_coefficient_errors", "plot_rels_convergence", "warm_up",
-           "usable_cores", "spare_core", "serve"]
+           "spare_core", "serve"]
 
 
 def _band(ax: Any, t: np.ndarray, r: np.ndarray, bins: int = 1000) -> None:
@@ -106,13 +107,6 @@ def warm_up() -> None:
     plt.close(fig)
 
 
-def usable_cores() -> int:
-    """The cores this process may run on (its CPU affinity where the platform tells it, else the CPU count)."""
-    if hasattr(os, "sched_getaffinity"):
-        return len(os.sched_getaffinity(0))
-    return os.cpu_count() or 1  # pragma: no cover - platforms without sched_getaffinity
-
-
 def spare_core() -> bool:
     """Whether a worker process would run beside this one: two or more usable cores, and a 1-minute load
     average below their number where the platform tells it.
@@ -121,7 +115,7 @@ def spare_core() -> bool:
     between processes, when its scheduler groups them, as it does by default), and the worker's start-up
     (a new interpreter importing NumPy and matplotlib, about 0.5 s of CPU more than drawing here) is lost.
     """
-    n = usable_cores()
+    n = usable_cores()  # casep._cores: the CPU affinity, as Monte Carlo's default worker count
     if n < 2:
         return False
     try:
