@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -82,10 +83,10 @@ def stored_trajectory(vehicle: Vehicle, rate: float, path: str | os.PathLike = S
     if rate != STORED_RATE:
         return None
     try:
-        with np.load(path) as data:
+        with open(path, "rb") as fh, np.load(fh) as data:  # our handle: closed whatever np.load makes of it
             if str(data["vehicle"]) != _vehicle_key(vehicle) or float(data["rate"]) != rate:
                 return None
             states, aoa0 = decode_states(data["planes"]), float(data["aoa0"])
-    except (OSError, KeyError, ValueError):  # no file, or not ours: fly it
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile):  # no file, or not ours: fly it
         return None
     return sampled_trajectory(vehicle, rate, states, aoa0)

@@ -63,6 +63,8 @@ def test_none_stored_for_another_rate_vehicle_or_file(tmp_path):
     assert stored_trajectory(vehicle, 100.0, path=tmp_path / "missing.npz") is None
     (tmp_path / "bad.npz").write_bytes(b"not a zip file")
     assert stored_trajectory(vehicle, 100.0, path=tmp_path / "bad.npz") is None
+    (tmp_path / "cut.npz").write_bytes(STORED_FILE.read_bytes()[:1000])  # a truncated copy
+    assert stored_trajectory(vehicle, 100.0, path=tmp_path / "cut.npz") is None
 
 
 def test_the_encoding_is_exact(rng):
