@@ -25,8 +25,8 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--seed", type=order, default=0, help="root seed (default 0)")
     p.add_argument("--rate", type=rate, default=None, help="sample rate, Hz (default: scenario's)")
     p.add_argument("--workers", type=positive_int, default=None,
-                   help="Dask LocalCluster worker processes, one thread each (default: all cores; 1: runs in this "
-                        "process)")
+                   help="Dask LocalCluster worker processes, one thread each (default: the cores this process may use; "
+                        "1: runs in this process)")
     p.add_argument("--json", metavar="OUT", default=None, help="write the Monte Carlo JSON here")
     p.add_argument("--csv", metavar="OUT", default=None, help="write a CSV table here")
     p.add_argument("--figure", metavar="PNG", default=None, help="write RMS/CRLB per coefficient here")

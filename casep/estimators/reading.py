@@ -38,12 +38,12 @@ def read_result(source, model=None, option: str = "result",
     to give it with `model_option`: a result file never runs code. A model file whose SHA-256 differs
     from the one the result records is a ValueError naming both (:func:`resolve_result_model`).
     """
-    from casep.io.result_json import parse_result_data, read_result_data
-
-    if isinstance(source, EstimateResult):
+    if isinstance(source, EstimateResult):  # in memory: no file to parse (nor pydantic to import)
         rd, res = None, source
         where = "result <memory>"
     else:
+        from casep.io.result_json import parse_result_data, read_result_data
+
         rd = parse_result_data(source, "result <memory>") if isinstance(source, dict) else \
             read_result_data(source, option)
         where = rd.source

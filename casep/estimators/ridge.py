@@ -98,15 +98,14 @@ def _grid(s: np.ndarray) -> np.ndarray:
 
 
 def _gcv_lambda(s, beta, rho2, m) -> float:
-    from scipy.optimize import minimize_scalar
+    from casep.noise.fit import bounded_minimum  # scipy's bounded Brent search, without importing scipy.optimize
 
     grid = _grid(s)
     g = gcv_curve(s, beta, rho2, m, grid)
     k = int(np.argmin(g))
     a, b = np.log10(grid[max(k - 1, 0)]), np.log10(grid[min(k + 1, grid.size - 1)])
-    res = minimize_scalar(lambda u: float(gcv_curve(s, beta, rho2, m, np.array([10.0**u]))[0]),
-                          bounds=(a, b), method="bounded", options={"xatol": 1e-6})
-    return float(10.0 ** res.x)
+    u = bounded_minimum(lambda u: float(gcv_curve(s, beta, rho2, m, np.array([10.0**u]))[0]), a, b, xatol=1e-6)
+    return float(10.0 ** u)
 
 
 def lcurve_corner(s: np.ndarray, beta: np.ndarray, rho2: float) -> float:

@@ -130,11 +130,14 @@ def _load_result(result, model=None):
     or `model`)."""
     from casep.estimators.reading import read_input_result
     from casep.estimators.result import EstimateResult
-    from casep.io.result_json import load_json
 
     source = "<memory>" if isinstance(result, (EstimateResult, dict)) else os.fspath(result)
     res, model = read_input_result(result, model, option="--result" if source != "<memory>" else "result")
-    raw = result if isinstance(result, dict) else None if source == "<memory>" else load_json(result, "--result")
+    raw = result if isinstance(result, dict) else None
+    if source != "<memory>":  # a file: its provenance (pydantic's parser imported only then)
+        from casep.io.result_json import load_json
+
+        raw = load_json(result, "--result")
     return res, source, model, (raw or {}).get("provenance")
 
 

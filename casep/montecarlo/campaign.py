@@ -73,8 +73,8 @@ def run_montecarlo(
     rate : float, optional
         Sample rate, Hz (default: the scenario's).
     workers : int, optional
-        Dask worker processes of the LocalCluster (one thread each; default: all cores). 1 runs
-        the tasks in this process.
+        Dask worker processes of the LocalCluster (one thread each; default: the cores this process
+        may use, its CPU affinity). 1 runs the tasks in this process.
     progress : bool, optional
         Progress on stderr: True, a bar on a terminal and a plain line with the ETA every 5 s
         otherwise; False, none; default: the bar on a terminal only.

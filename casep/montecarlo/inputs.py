@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -10,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from casep._cores import usable_cores
 from casep.exceptions import IllConditionedWarning, option_label
 from casep.montecarlo.methods import MethodSpec, parse_method
 from casep.simulation.scenarios import Scenario
@@ -20,7 +20,8 @@ __all__ = ["TRUTH_PRIOR_LIMIT", "check_options", "check_truth_prior", "own_traje
 def check_options(runs: Any, seed: Any, methods: Sequence[str], workers: Any, noise: str, tau: Any,
                   robust: str | None) -> tuple[int, int, list[MethodSpec], int, Any]:
     """The options of :func:`casep.montecarlo.run_montecarlo` checked before any work: runs, seed,
-    the parsed methods, the number of workers (None: all cores) and the noise request every method
+    the parsed methods, the number of workers (None: the cores this process may use,
+    :func:`casep._cores.usable_cores`) and the noise request every method
     assumes (a :class:`~casep.estimators.spec.NoiseSpec`, checked by the fit request's own rules; noise
     "white" without a robust fit asked runs the methods as they are: robust "auto" is then none)."""
     from casep.estimators.spec import NoiseSpec
@@ -37,7 +38,7 @@ def check_options(runs: Any, seed: Any, methods: Sequence[str], workers: Any, no
         raise ValueError("`methods` is empty")
     if len({s.text for s in specs}) != len(specs):
         raise ValueError(f"`methods` names a method twice: {', '.join(methods)}")
-    n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
+    n_workers = usable_cores() if workers is None else int(workers)
     if n_workers < 1:
         raise ValueError(f"{option_label('workers')} must be >= 1, got {workers!r}")
     return int(runs), int(seed), specs, n_workers, ns

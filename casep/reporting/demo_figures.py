@@ -21,10 +21,11 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from casep.reporting.plots import pyplot, save_figure, set_margins
+from casep._cores import usable_cores
+from casep.reporting.plots import plain_log_ticks, pyplot, save_figure, set_margins
 
 __all__ = ["FigureJobs", "plot_demo_residuals", "plot_coefficient_errors", "plot_rels_convergence", "warm_up",
-           "usable_cores", "spare_core", "serve"]
+           "spare_core", "serve"]
 
 
 def _band(ax: Any, t: np.ndarray, r: np.ndarray, bins: int = 1000) -> None:
@@ -63,6 +64,7 @@ def plot_coefficient_errors(path: str | os.PathLike, names: Sequence[str], error
     x = np.arange(len(names))
     for k, (label, z) in enumerate(errors.items()):
         ax.semilogy(x + (k - 3) * 0.08, z, "o", ms=3, label=label)
+    plain_log_ticks(ax.yaxis)
     ax.axhline(1.0, color="k", lw=1, ls="--")
     ax.axhline(2.0, color="k", lw=0.8, ls=":")
     ax.set_xticks(x, list(names), rotation=90, fontsize=7)
@@ -70,7 +72,7 @@ def plot_coefficient_errors(path: str | os.PathLike, names: Sequence[str], error
     ax.set_title("Error of each coefficient against its Cramer-Rao std (one flight)", y=1.0)
     ax.legend(fontsize=7, ncol=4)
     ax.grid(True, which="both", alpha=0.3)
-    set_margins(fig, left=0.75, right=0.12, bottom=0.55, top=0.3)
+    set_margins(fig, left=0.85, right=0.12, bottom=0.55, top=0.3)
     return save_figure(fig, path, layout=None)
 
 
@@ -94,23 +96,17 @@ def plot_rels_convergence(path: str | os.PathLike, t: np.ndarray, z: np.ndarray,
 
 def warm_up() -> None:
     """Import matplotlib's pyplot on the Agg backend and draw a small figure with a log axis to memory: the
-    fonts, the text layout and the mathtext parser of the log tick labels are loaded once, by the worker,
+    fonts and the text layout are loaded once, by the worker,
     while the demo simulates (the figures' pixels do not depend on it)."""
     import io
 
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(2, 2))
     ax.semilogy([1.0, 2.0], [1e-3, 1e2], "o-")
+    plain_log_ticks(ax.yaxis)
     ax.set_title("warm-up", fontsize=9)
     fig.savefig(io.BytesIO(), format="png", dpi=20)
     plt.close(fig)
-
-
-def usable_cores() -> int:
-    """The cores this process may run on (its CPU affinity where the platform tells it, else the CPU count)."""
-    if hasattr(os, "sched_getaffinity"):
-        return len(os.sched_getaffinity(0))
-    return os.cpu_count() or 1  # pragma: no cover - platforms without sched_getaffinity
 
 
 def spare_core() -> bool:
@@ -121,7 +117,7 @@ def spare_core() -> bool:
     between processes, when its scheduler groups them, as it does by default), and the worker's start-up
     (a new interpreter importing NumPy and matplotlib, about 0.5 s of CPU more than drawing here) is lost.
     """
-    n = usable_cores()
+    n = usable_cores()  # casep._cores: the CPU affinity, as Monte Carlo's default worker count
     if n < 2:
         return False
     try:

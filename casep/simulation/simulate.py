@@ -197,14 +197,23 @@ def truth_vector(model: ErrorModel, truth: dict, source: str = "truth") -> np.nd
 
 
 def scenario_setup(scenario: str | Scenario, rate: float | None = None, *, rotating_earth: bool = False,
-                   site=None) -> tuple[Scenario, BoostTrajectory, ErrorModel, np.ndarray]:
+                   site=None, trajectory: BoostTrajectory | None = None
+                   ) -> tuple[Scenario, BoostTrajectory, ErrorModel, np.ndarray]:
     """The noise-free part of a scenario: scenario at `rate`, trajectory, model, true coefficients.
 
     `rotating_earth`, `site`: :func:`~casep.simulation.trajectory.simulate_boost`'s rotating-Earth option.
+    `trajectory`: the scenario's vehicle flown at `rate` already (non-rotating Earth; e.g.
+    :func:`casep.simulation.stored.stored_trajectory`), used instead of flying it again.
     """
     sc = get_scenario(scenario).with_rate(rate)
     model = load_model(sc.model)
-    traj = with_roll(sc, simulate_boost(sc.vehicle, sc.rate, rotating_earth=rotating_earth, site=site))
+    if trajectory is None:
+        trajectory = simulate_boost(sc.vehicle, sc.rate, rotating_earth=rotating_earth, site=site)
+    elif (trajectory.vehicle != sc.vehicle or trajectory.t.size < 2 or trajectory.t[1] != 1.0 / sc.rate
+          or rotating_earth or site is not None):
+        raise ValueError(f"`trajectory` is not scenario `{sc.name}`'s vehicle flown at {sc.rate:g} Hz over a "
+                         "non-rotating Earth")
+    traj = with_roll(sc, trajectory)
     return sc, traj, model, truth_vector(model, sc.truth)
 
 
@@ -238,7 +247,7 @@ def check_seed(seed: int) -> int:
 def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: float | None = None,
                     model: str | os.PathLike | None = None, truth: dict | None = None,
                     time_offset: float = 0.0, lever_arm: np.ndarray | None = None, rotating_earth: bool = False,
-                    site=None) -> SimulatedFlight:
+                    site=None, trajectory: BoostTrajectory | None = None) -> SimulatedFlight:
     """Simulate one flight of a scenario.
 
     Parameters
@@ -261,6 +270,10 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
         Tracked point from the platform, m, body frame.
     rotating_earth, site : optional
         Rotating Earth at the launch site (:func:`~casep.simulation.trajectory.simulate_boost`).
+    trajectory : BoostTrajectory, optional
+        The scenario's vehicle flown at `rate` already, used instead of flying it again
+        (:func:`casep.simulation.stored.stored_trajectory`: the demo's; one without dense output takes no
+        `time_offset` or `lever_arm`).
 
     Returns
     -------
@@ -280,7 +293,8 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
                              f"`{get_scenario(scenario).model}` and names {', '.join(other[:5])}"
                              f"{' ...' if len(other) > 5 else ''}, which model `{sc.model}` lacks: give the true "
                              "coefficients of this model (--truth FILE, truth=)")
-    sc, traj, error_model, true_D = scenario_setup(sc, rate, rotating_earth=rotating_earth, site=site)
+    sc, traj, error_model, true_D = scenario_setup(sc, rate, rotating_earth=rotating_earth, site=site,
+                                                   trajectory=trajectory)
     rng = np.random.default_rng(seed)
     if sc.roll is not None and time_offset and np.any(lever):  # the rolled attitude is known at the samples only
         raise ValueError("a strapdown scenario takes a tracking time offset or a lever arm, not both")

@@ -85,7 +85,8 @@ from casep.simulation.vehicle import (
 from casep.units import G0
 
 # The vehicle types and the Earth constants are names of this module too.
-__all__ = ["body_to_platform", "Stage", "Vehicle", "PitchProgramme", "YawManoeuvre", "AttitudeProfile",
+__all__ = ["body_to_platform", "sampled_trajectory", "sample_times",
+           "Stage", "Vehicle", "PitchProgramme", "YawManoeuvre", "AttitudeProfile",
            "BoostTrajectory", "simulate_boost", "atmosphere", "DEFAULT_VEHICLE", "MU_EARTH", "R_EARTH"]
 
 
@@ -130,6 +131,7 @@ class BoostTrajectory:
     def sample(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """True position and velocity at arbitrary `times` within the flight (dense output)."""
         times = np.asarray(times, dtype=float)
+        self._dense()
         pos = np.empty((times.size, 3))
         vel = np.empty((times.size, 3))
         done = np.zeros(times.size, dtype=bool)
@@ -144,6 +146,12 @@ class BoostTrajectory:
             raise ValueError(f"`times` contains {bad} s, outside the flight [{self.t[0]}, {self.t[-1]}] s")
         return pos, vel
 
+    def _dense(self) -> None:
+        """ValueError for a trajectory without the integration's dense output (built from stored samples)."""
+        if not self._segments:
+            raise ValueError("this trajectory holds its samples only (built from stored states, not integrated "
+                             "here): it has no state between them; fly it with simulate_boost")
+
     def kinematics(self, times: np.ndarray) -> dict[str, np.ndarray]:
         """True state at arbitrary `times` within the flight (dense output, exact attitude law).
 
@@ -151,6 +159,7 @@ class BoostTrajectory:
         (M, 3), in the units of the class attributes.
         """
         times = np.atleast_1d(np.asarray(times, dtype=float))
+        self._dense()
         out = {k: np.full((times.size, 3), np.nan) for k in ("position", "velocity", "acceleration",
                                                                "attitude", "body_rate")}
         state: dict[str, Any] = {"aoa0": self._aoa0, "earth": self._earth}
@@ -372,28 +381,17 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, r
         earth = RotatingEarth(site)
     elif site is not None:
         raise ValueError("`site` is used only with `rotating_earth=True`")
-    pieces, events = thrust_profile(vehicle)
+    cuts, events = _cuts(vehicle)
     check_propellant(vehicle)
-    t_final = pieces[-1][1]
-    n = int(math.floor(t_final * rate + 1e-9)) + 1
-    t_out = np.arange(n) / rate
+    t_out = sample_times(cuts, rate)
     x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, vehicle.liftoff_mass])
     if earth is not None:
         x[3:6] = earth.air_velocity(np.zeros(3))  # on the pad: the Earth's rotation velocity there
     state: dict[str, Any] = {"aoa0": 0.0, "earth": earth}
     p = vehicle.pitch
     t_kick_end = p.vertical + p.kick
-    pos, vel, f_out, mass = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n))
-    acc, att, body_rate = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+    states = np.empty((t_out.size, 7))  # the integrated state (position, velocity, mass) at the sample times
     segments = []
-    # Split pieces further at the end of the kick (attitude law switches there) and at the knots of
-    # the attitude offsets (kinks).
-    splits = [t_kick_end] + (list(vehicle.attitude.times) if vehicle.attitude is not None else [])
-    cuts = []
-    for t0, t1, k, kind in pieces:
-        inner = sorted({s for s in splits if t0 + 1e-9 < s < t1 - 1e-9})
-        edges = [t0] + inner + [t1]
-        cuts += [(a, b, k, kind) for a, b in zip(edges[:-1], edges[1:])]
     dropped: set[int] = set()
     for t0, t1, k, kind in cuts:
         stage = vehicle.stages[k]
@@ -414,20 +412,67 @@ def simulate_boost(vehicle: Vehicle = DEFAULT_VEHICLE, rate: float = 100.0, *, r
         if not sol.success:  # pragma: no cover - DOP853 on a smooth piece
             raise RuntimeError(f"trajectory integration failed on [{t0}, {t1}] s: {sol.message}")
         segments.append((t0, t1, sol.sol, k, kind))
-        last = cuts[-1][1] == t1
-        sel = (t_out >= t0) & ((t_out < t1) | (last & (t_out <= t1 + 1e-9)))
-        idx = np.flatnonzero(sel)
-        ys = sol.sol(np.minimum(t_out[idx], t1))
-        k = _sampled(vehicle, stage, kind, t_out[idx], t0, t1, ys, state)
-        pos[idx], vel[idx], mass[idx] = k["position"], k["velocity"], ys[6]
-        f_out[idx], acc[idx], att[idx], body_rate[idx] = k["specific_force"], k["acceleration"], k["attitude"], \
-            k["body_rate"]
+        idx = _piece_samples(t_out, t0, t1, last=cuts[-1][1] == t1)
+        states[idx] = sol.sol(np.minimum(t_out[idx], t1)).T
         x = sol.y[:, -1].copy()
+    return sampled_trajectory(vehicle, rate, states, state["aoa0"], earth=earth, segments=segments)
+
+
+def _cuts(vehicle: Vehicle) -> tuple[list[tuple[float, float, int, str]], dict]:
+    """The pieces of the flight, integrated one by one: the thrust profile's (ignition, burn, tail-off,
+    coast), cut further at the end of the kick (the attitude law switches there) and at the knots of the
+    attitude offsets (kinks); and the events, name -> time (s)."""
+    pieces, events = thrust_profile(vehicle)
+    splits = [vehicle.pitch.vertical + vehicle.pitch.kick] + (list(vehicle.attitude.times)
+                                                              if vehicle.attitude is not None else [])
+    cuts = []
+    for t0, t1, k, kind in pieces:
+        inner = sorted({s for s in splits if t0 + 1e-9 < s < t1 - 1e-9})
+        edges = [t0] + inner + [t1]
+        cuts += [(a, b, k, kind) for a, b in zip(edges[:-1], edges[1:])]
+    return cuts, events
+
+
+def sample_times(cuts: list, rate: float) -> np.ndarray:
+    """The sample times ``k / rate`` from lift-off to the end of the last piece of `cuts`, s."""
+    n = int(math.floor(cuts[-1][1] * rate + 1e-9)) + 1
+    return np.arange(n) / rate
+
+
+def _piece_samples(t_out: np.ndarray, t0: float, t1: float, last: bool) -> np.ndarray:
+    """Indices of the samples a piece [t0, t1) owns (the last piece [t0, t1])."""
+    return np.flatnonzero((t_out >= t0) & ((t_out < t1) | (last & (t_out <= t1 + 1e-9))))
+
+
+def sampled_trajectory(vehicle: Vehicle, rate: float, states: np.ndarray, aoa0: float, *,
+                       earth: RotatingEarth | None = None, segments: list | None = None) -> BoostTrajectory:
+    """The :class:`BoostTrajectory` of `vehicle` at `rate` Hz from its integrated state at the sample times.
+
+    `states` (N, 7): position (m), velocity (m/s) and mass (kg) at ``k / rate``; `aoa0`: the angle of attack
+    at the end of the kick (rad). The specific force, acceleration, attitude and body rate are computed from
+    them piece by piece (:func:`_sampled`), as :func:`simulate_boost` does: a trajectory built from the
+    states :func:`simulate_boost` integrated is the same trajectory. `segments`: the pieces' dense output
+    (without it, :meth:`BoostTrajectory.sample` and :meth:`~BoostTrajectory.kinematics` refuse times
+    between the samples).
+    """
+    cuts, events = _cuts(vehicle)
+    t_out = sample_times(cuts, rate)
+    if states.shape != (t_out.size, 7):
+        raise ValueError(f"`states` must be ({t_out.size}, 7) for this vehicle at {rate:g} Hz, got {states.shape}")
+    n = t_out.size
+    state: dict[str, Any] = {"aoa0": aoa0, "earth": earth}
+    f_out, acc, att, body_rate = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+    for t0, t1, k, kind in cuts:
+        idx = _piece_samples(t_out, t0, t1, last=cuts[-1][1] == t1)
+        got = _sampled(vehicle, vehicle.stages[k], kind, t_out[idx], t0, t1, states[idx].T, state)
+        f_out[idx], acc[idx], att[idx], body_rate[idx] = (got["specific_force"], got["acceleration"],
+                                                          got["attitude"], got["body_rate"])
+    pos, vel, mass = states[:, 0:3].copy(), states[:, 3:6].copy(), states[:, 6].copy()
     r = pos + np.array([0.0, R_EARTH, 0.0]) if earth is None else pos - earth.centres(t_out)
     alt = np.linalg.norm(r, axis=1) - R_EARTH
     out = BoostTrajectory(t=t_out, position=pos, velocity=vel, specific_force=f_out, mass=mass, altitude=alt,
                           events=events, vehicle=vehicle, acceleration=acc, attitude=att, body_rate=body_rate,
-                          _segments=segments, _aoa0=state["aoa0"], _earth=earth)
+                          _segments=[] if segments is None else segments, _aoa0=aoa0, _earth=earth)
     if not (np.all(np.isfinite(f_out)) and np.all(np.isfinite(pos))):  # pragma: no cover
         raise RuntimeError("trajectory produced non-finite values")
     return out

@@ -49,7 +49,9 @@ from casep.reporting.demo_figures import (
     spare_core,
 )
 from casep.simulation.paper import demo_bounds, demo_prior
+from casep.simulation.scenarios import get_scenario
 from casep.simulation.simulate import SimulatedFlight, simulate_flight
+from casep.simulation.stored import stored_trajectory
 from casep.workflows.separate import judge_setup, separate
 
 __all__ = ["DemoResult", "run_demo", "DEMO_METHODS", "summary_lines", "impact_lines"]
@@ -255,7 +257,9 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
         folder.mkdir(parents=True, exist_ok=True)
     parallel = folder is not None and (spare_core() if parallel is None else parallel)
     with FigureJobs(parallel) as jobs:  # the worker imports matplotlib while the flight is simulated
-        sim = simulate_flight("paper", seed=seed, rate=rate)
+        # the paper vehicle's trajectory at 100 Hz is stored (casep.simulation.stored): not integrated again
+        sim = simulate_flight("paper", seed=seed, rate=rate,
+                              trajectory=stored_trajectory(get_scenario("paper").vehicle, rate))
         model = sim.model
         problem = flight_problem(sim.flight, model, keep_sv=True)  # S_V and its QR once, for every method
         diag = diagnose(problem, sigma=sim.scenario.noise.sigma, scales=model.scales)
