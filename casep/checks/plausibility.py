@@ -187,19 +187,40 @@ def _check_velocity_units(flight: FlightData) -> None:
             "v_trk")
 
 
+#: A unit's factor k makes the measured velocity changes ``k`` times the expected ones at every epoch and on every
+#: axis; a drifting navigated velocity (instrument errors, larger than the vehicle's speed changes on a short
+#: window) does not. Above this fraction of the measured changes left unexplained by the best scale the ratio
+#: is no units test but a drift, which the fit estimates: the units rule says nothing.
+SCALED_COPY_UNEXPLAINED = 0.25
+
+
+def _unexplained_by_scale(measured: np.ndarray, expected: np.ndarray) -> float:
+    """RMS of ``measured - k expected`` over the RMS of `measured`, ``k`` the least-squares scale, rows (epoch, axis).
+
+    ``k = sum(m . e) / sum(e . e)``; 0 for a scaled copy, ~1 when `measured` is unrelated to `expected`."""
+    mm, ee = float(np.sum(measured * measured)), float(np.sum(expected * expected))
+    if mm == 0.0 or ee == 0.0:
+        return 1.0
+    k = float(np.sum(measured * expected)) / ee
+    return float(np.sqrt(max(mm - k * k * ee, 0.0) / mm))
+
+
 def _units_ratio(measured, expected, source: str, column: str, what, columns: str) -> None:
-    """The units rule of a velocity change against the one it must equal: ``|measured| / |expected|`` outside
-    :data:`VELOCITY_RATIO_RANGE` warns with the unit that fits, outside :data:`VELOCITY_RATIO_REFUSED` (a unit's
-    factor) raises a :class:`~casep.io.flight.FlightDataError` naming `source` and `column`.
+    """The units rule of a velocity change against the one it must equal: ``|measured| / |expected|`` (last rows)
+    outside :data:`VELOCITY_RATIO_RANGE`, the changes a scaled copy of each other (:func:`_unexplained_by_scale`
+    within :data:`SCALED_COPY_UNEXPLAINED`; rows are epochs, one row for the end alone), warns with the unit that
+    fits, outside :data:`VELOCITY_RATIO_REFUSED` (a unit's factor) raises a
+    :class:`~casep.io.flight.FlightDataError` naming `source` and `column`.
 
     `what(|measured|, |expected|, ratio)`: the message, with ``{lo}``, ``{hi}`` for the range.
     """
-    e, g = float(np.linalg.norm(expected)), float(np.linalg.norm(measured))
+    m, x = np.atleast_2d(np.asarray(measured, float)), np.atleast_2d(np.asarray(expected, float))
+    e, g = float(np.linalg.norm(x[-1])), float(np.linalg.norm(m[-1]))
     if e < 1.0:  # no velocity gained: nothing to compare
         return
     ratio = g / e
     lo, hi = VELOCITY_RATIO_RANGE
-    if lo <= ratio <= hi:
+    if lo <= ratio <= hi or _unexplained_by_scale(m, x) > SCALED_COPY_UNEXPLAINED:
         return
     hint = _unit_hint(ratio, lo, hi, ((f"ft/s (multiply {columns} by 0.3048)", 0.3048),
                                       ("km/s (multiply by 1000)", 1e3), ("cm/s (divide by 100)", 1e-2),

@@ -346,3 +346,30 @@ def test_tracking_units_against_telemetry(factor, raises):
                 check_flight(flight)
             except FlightDataError as exc:
                 assert "v_trk" not in str(exc)
+
+
+@pytest.mark.parametrize("factor", [1.0, 3.28084])
+def test_tracking_units_on_a_drifting_window(factor):
+    """A car-like window: the vehicle's speed changes by 3 m/s over 30 s while the navigated (uncorrected MEMS)
+    velocity drifts by 8 m/s (a tilt error, 0.27 m/s^2 across the track): the ratio of the velocity changes (0.35)
+    is a drift, not a unit's factor, and the tracking is not refused; the same tracking in ft/s, a scaled copy of
+    a telemetry that does not drift, is."""
+    from casep.checks.plausibility import GRAVITY_LAUNCH
+    from casep.io.pair import pair_flight
+
+    t = np.arange(0.0, 30.0, 0.01)
+    v_true = np.column_stack([10.0 + 3.0 * np.sin(np.pi * t / 60.0) ** 2, np.zeros_like(t), np.zeros_like(t)])
+    drift = np.outer(t, [0.0, 0.27, 0.02]) if factor == 1.0 else 0.0 * v_true
+    a = np.gradient(v_true + drift, t, axis=0)
+    t_trk = np.arange(0.1, 30.0, 0.25)
+    v_trk = factor * np.column_stack([np.interp(t_trk, t, v_true[:, i]) for i in range(3)])
+    flight = pair_flight(t, a - GRAVITY_LAUNCH, v_true + drift, t_trk, v_trk, source="tel.csv + trk.csv",
+                         meta={"telemetry": "tel.csv", "tracking": "trk.csv"})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # not a boost: only the units rule counts here
+        if factor == 1.0:
+            check_flight(flight)  # ratio 0.35 before the scaled-copy test: refused as "the files disagree on units"
+        else:
+            with pytest.raises(FlightDataError, match=r"trk\.csv.*v_trk_x.*ratio 3\.28.*ft/s"):
+                check_flight(flight)
+
