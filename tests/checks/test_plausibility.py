@@ -373,3 +373,24 @@ def test_tracking_units_on_a_drifting_window(factor):
             with pytest.raises(FlightDataError, match=r"trk\.csv.*v_trk_x.*ratio 3\.28.*ft/s"):
                 check_flight(flight)
 
+
+@pytest.mark.parametrize("column, match", [
+    ("f", r"column `f_x`.*ratio 3\.2\d.* f_x, f_y, f_z is in g, multiply them by 9\.80665"),
+    ("t", r"column `t`.*ratio 0\.001.*t is in ms, divide it by 1000")])
+def test_force_in_g_or_time_in_ms_is_named_before_the_velocity(tmp_path, column, match):
+    """f in g or t in ms break v_tel against int (f + g) dt as a velocity unit would (ratio 3.22: 'ft/s?'; 0.001:
+    'km/s?'); read with f in m/s^2 or t in s the velocity agrees, so that column is named, not the velocity's."""
+    from casep.checks.plausibility import GRAVITY_LAUNCH
+    from casep.io.files import write_table
+
+    t = np.arange(0.0, 60.0, 0.05)
+    a = np.tile([30.0, 0.0, 0.0], (t.size, 1))  # 3 g along x
+    f = (a - GRAVITY_LAUNCH) / (G0 if column == "f" else 1.0)
+    path = tmp_path / "bad.csv"
+    write_table(path, {"t": 1e3 * t if column == "t" else t, **{f"f_{c}": f[:, i] for i, c in enumerate("xyz")},
+                       **{f"v_tel_{c}": (t * a[:, i]) for i, c in enumerate("xyz")},
+                       **{f"v_trk_{c}": (t * a[:, i]) for i, c in enumerate("xyz")}})
+    with pytest.raises(FlightDataError, match=match) as e, warnings.catch_warnings():
+        warnings.simplefilter("ignore", PlausibilityWarning)  # the peak force or the time step is named too
+        check_flight(casep.read_flight(path))
+    assert e.value.column == ("f_x" if column == "f" else "t") and e.value.source == str(path)
