@@ -226,7 +226,8 @@ def _force_or_time_units(flight: FlightData, change, expected: np.ndarray) -> No
             raise FlightDataError(flight.source, (
                 f"the telemetered velocity changes by {g:.4g} m/s but the specific force plus gravity integrates to "
                 f"{e:.4g} m/s over {t[-1] - t[0]:.4g} s (ratio {g / e:.3g}, expected {lo:g}-{hi:g}); read with {what} "
-                f"{unit}, it integrates to {e_alt:.4g} m/s (ratio {g / e_alt:.3g}): {what} is {unit}, {fix}"),
+                f"{unit}, it integrates to {e_alt:.4g} m/s (ratio {g / e_alt:.3g}): {what} "
+                f"{'are' if ',' in what else 'is'} {unit}, {fix}"),
                 what.split(",")[0])
 
 

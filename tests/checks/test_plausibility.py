@@ -375,7 +375,7 @@ def test_tracking_units_on_a_drifting_window(factor):
 
 
 @pytest.mark.parametrize("column, match", [
-    ("f", r"column `f_x`.*ratio 3\.2\d.* f_x, f_y, f_z is in g, multiply them by 9\.80665"),
+    ("f", r"column `f_x`.*ratio 3\.2\d.* f_x, f_y, f_z are in g, multiply them by 9\.80665"),
     ("t", r"column `t`.*ratio 0\.001.*t is in ms, divide it by 1000")])
 def test_force_in_g_or_time_in_ms_is_named_before_the_velocity(tmp_path, column, match):
     """f in g or t in ms break v_tel against int (f + g) dt as a velocity unit would (ratio 3.22: 'ft/s?'; 0.001:
