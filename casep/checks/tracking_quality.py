@@ -119,20 +119,41 @@ def _located(flight: FlightData, idx: np.ndarray, flagged: np.ndarray, top: int 
     return ", ".join(parts) + (f" and {len(runs) - top} more" if len(runs) > top else "")
 
 
-def _velocity_change(flight: FlightData) -> np.ndarray | None:
-    """``V(t) = int a dt`` (trapezoid) of the telemetry's kinematic acceleration, (N, 3) m/s; None without ``a_*``."""
-    if not all(f"a_{c}" in flight.signals for c in "xyz"):
+def _acceleration(flight: FlightData) -> np.ndarray | None:
+    """The kinematic acceleration, (N, 3) m/s^2: the signals ``a_*`` of a pair; of a one-file flight without them
+    ``f + g`` (flat-Earth gravity, :data:`casep.checks.plausibility.GRAVITY_LAUNCH`: over the seconds of a stale
+    run its error is far below :data:`STALE_MOTION`); None when neither."""
+    if all(f"a_{c}" in flight.signals for c in "xyz"):
+        a = np.column_stack([flight.signals[f"a_{c}"] for c in "xyz"])
+    elif flight.meta.get("format") != "pair":
+        from casep.checks.plausibility import GRAVITY_LAUNCH
+
+        a = flight.f + GRAVITY_LAUNCH
+    else:
         return None
-    a = np.column_stack([flight.signals[f"a_{c}"] for c in "xyz"])
-    if not np.all(np.isfinite(a)):
-        return None
-    inc = 0.5 * (a[1:] + a[:-1]) * np.diff(flight.t)[:, None]
+    return a if np.all(np.isfinite(a)) else None
+
+
+def _velocity_change(a: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``V(t) = int a dt`` (trapezoid) of the kinematic acceleration `a` at times `t`, (N, 3) m/s."""
+    inc = 0.5 * (a[1:] + a[:-1]) * np.diff(t)[:, None]
     return np.vstack([np.zeros((1, 3)), np.cumsum(inc, axis=0)])
+
+
+def _screened(meta: dict) -> bool:
+    """Whether :func:`screen_tracking` judges a flight: a pair formed at the tracking times, or a one-file flight
+    with tracking columns (``v_trk_*``: its sample k is data row k), not screened already."""
+    if "tracking_screen" in meta:
+        return False
+    if meta.get("format") == "pair":
+        return meta.get("rows_side") == "tracking" and "rows_index" in meta
+    return meta.get("dv") == "v_tel - v_trk" and "tracking_repeats" in meta
 
 
 def _stale(flight: FlightData, idx: np.ndarray, V: np.ndarray) -> np.ndarray:
     """Of the observed epochs `idx`: the repeats of a fix while the telemetry moved by more than STALE_MOTION."""
-    rows = np.asarray(flight.meta.get("rows_index"))[idx]
+    index = flight.meta.get("rows_index")
+    rows = idx if index is None else np.asarray(index)[idx]  # the one-file flight: sample k is data row k
     is_rep = np.isin(rows, np.asarray(flight.meta.get("tracking_repeats", []), dtype=int))
     is_rep[0] = False
     anchor = np.maximum.accumulate(np.where(~is_rep, np.arange(idx.size), 0))  # the fix each epoch repeats
@@ -217,8 +238,9 @@ def screen_tracking(flight: FlightData) -> FlightData:
     """`flight` without its stale and impossible tracking epochs (module notes), the findings warned and recorded.
 
     Only a telemetry + tracking pair formed at the tracking times with the telemetry's acceleration
-    (:func:`casep.io.files.read_flight_pair`) is screened, once; any other flight (or one screened
-    already: ``meta["tracking_screen"]``) is returned as it is.
+    (:func:`casep.io.files.read_flight_pair`), or a one-file flight with ``v_tel_*`` and ``v_trk_*`` columns
+    (:func:`casep.io.files.read_flight`), is screened, once; any other flight (or one screened already:
+    ``meta["tracking_screen"]``) is returned as it is.
 
     Warns
     -----
@@ -226,10 +248,10 @@ def screen_tracking(flight: FlightData) -> FlightData:
         Stale epochs, epochs left out by the physics check, a clock drift: times, counts and sizes.
     """
     meta = flight.meta
-    V = _velocity_change(flight)
-    if "tracking_screen" in meta or meta.get("format") != "pair" or meta.get("rows_side") != "tracking" or V is None \
-            or "rows_index" not in meta:
+    acc = _acceleration(flight) if _screened(meta) else None
+    if acc is None:
         return flight
+    V = _velocity_change(acc, flight.t)
     idx = np.flatnonzero(flight.observed)
     t = flight.t[idx]
     stale = _stale(flight, idx, V)
@@ -238,8 +260,10 @@ def screen_tracking(flight: FlightData) -> FlightData:
     rejected = np.zeros(idx.size, bool)
     rejected[fresh[bad_fresh]] = True
     keep = ~(stale | rejected)
-    a = np.column_stack([flight.signals[f"a_{c}"] for c in "xyz"])[idx[keep]]
-    drift, drift_std = clock_drift(t[keep], flight.dv[idx[keep]], a) if keep.sum() >= 20 else (math.nan, math.nan)
+    a = acc[idx[keep]]
+    own_clock = meta.get("format") == "pair"  # a one-file flight's rows tag telemetry and tracking alike
+    drift, drift_std = clock_drift(t[keep], flight.dv[idx[keep]], a) if own_clock and keep.sum() >= 20 \
+        else (math.nan, math.nan)
     screen = TrackingScreen(_spans(t, stale), _spans(t, rejected), largest, drift, drift_std, int(idx.size),
                             int(keep.sum()))
     screen.stretches = stretch_noise(t[keep], flight.dv[idx[keep]])

@@ -115,6 +115,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     if dv_from != "dv":
         meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
         meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.checks.plausibility
+        meta["tracking_repeats"] = repeated_rows(tab, "launch")  # for casep.checks.tracking_quality
     if not observed.all():
         meta["unobserved"] = int((~observed).sum())  # rows without tracking (all dv cells empty)
     signals, src = tab.signals(), tab.src

@@ -314,16 +314,20 @@ def interpolation_floor(t: np.ndarray, v: np.ndarray, carry, order: int) -> floa
     return float(np.sqrt(np.mean(e**2))) / 2.0**order
 
 
-def _tracking_change(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray) -> dict:
-    """The tracking velocity change over the tracking samples inside the telemetry, and the telemetry's over
-    the same times (linear interpolation): their ratio is ~1 in one unit (the plausibility check's units rule)."""
+def _tracking_change(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray,
+                     epochs: int = 64) -> dict:
+    """The tracking velocity changes from the first tracking sample inside the telemetry to up to `epochs` later
+    ones spread over it, and the telemetry's over the same times (linear interpolation): one unit makes them
+    scaled copies with ratio ~1 (the plausibility check's units rule), rows ``[epoch][axis]``."""
     inside = np.flatnonzero((t_trk >= t_tel[0]) & (t_trk <= t_tel[-1]))
     if inside.size < 2:
         return {}
-    a, b = inside[0], inside[-1]
-    tel = [np.interp(t_trk[[a, b]], t_tel, v_tel[:, i]) for i in range(3)]
+    a = inside[0]
+    b = inside[np.unique(np.linspace(1, inside.size - 1, min(epochs, inside.size - 1)).round().astype(int))]
+    tel = np.column_stack([np.interp(t_trk[b], t_tel, v_tel[:, i]) - np.interp(t_trk[a], t_tel, v_tel[:, i])
+                           for i in range(3)])
     return {"tracking_velocity_change_m_s": (v_trk[b] - v_trk[a]).tolist(),
-            "telemetry_velocity_change_at_tracking_m_s": [float(v[1] - v[0]) for v in tel]}
+            "telemetry_velocity_change_at_tracking_m_s": tel.tolist()}
 
 
 def _merge_times(t_tel: np.ndarray, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

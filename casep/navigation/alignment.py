@@ -138,8 +138,12 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
     sel = (t >= t1) & (t <= t2)
     n = int(sel.sum())
     if not t1 < t2 or n < 2:
+        h = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+        # an IMU samples at 10 Hz-100 kHz: a median step of 0.1-100 "s" is one of 0.1-100 ms
+        hint = f"; its median time step is {h:g} s ({1 / h:.3g} Hz): is t in ms (divide by 1000)?" \
+            if 0.1 < h <= 100.0 else ""
         raise ValueError(f"--align {t1:g} {t2:g}: the window must hold at least 2 samples (it holds {n}; the file "
-                         f"spans {t[0]:g} .. {t[-1]:g} s)")
+                         f"spans {t[0]:g} .. {t[-1]:g} s{hint})")
     f_mean, w_mean = f[sel].mean(axis=0), w[sel].mean(axis=0)
     g_t = site.C.T @ normal_gravity_ecef(site.r_site)
     g0 = float(np.linalg.norm(g_t))

@@ -109,18 +109,35 @@ GLITCH_MIN = 3
 GLITCH_GROSS = 10.0
 
 
-def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int]:
+def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[int]]:
     """(rejections of the robust filter on the least-squares residuals, the count Gaussian noise gives,
-    the rejections beyond :data:`GLITCH_GROSS`)."""
+    the rejections beyond :data:`GLITCH_GROSS`, the lengths of the runs of rejections as long as the filter's
+    :data:`casep.noise.robust.MAX_RUN`: a step or a smooth misfit, not a glitch)."""
     from casep._special import normal_sf  # without importing scipy.special (its import, 0.1-0.6 s)
-    from casep.noise.robust import REJECT
+    from casep.noise.robust import MAX_RUN, REJECT
 
     assert problem.t is not None  # the caller checked
     x, _ = _ls(_rows(problem, np.ones(problem.n_samples, dtype=bool), nm, None))
     rw = robust_filter(problem.residuals(x), problem.t, nm)
     expected = problem.n_samples * (1.0 - (1.0 - 2.0 * normal_sf(REJECT)) ** 3)  # P(|z| > REJECT), any axis
     gross = int(np.sum(~rw.keep & np.any(np.abs(rw.u) > GLITCH_GROSS, axis=1)))
-    return int((~rw.keep).sum()), float(expected), gross
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], (~rw.keep).astype(np.int8), [0]])))
+    runs = [int(n) for n in edges[1::2] - edges[::2] if n >= MAX_RUN]
+    return int((~rw.keep).sum()), float(expected), gross, runs
+
+
+def _warn_misfit(problem: Problem, found: int, runs: list[int]) -> None:
+    """Say that the least-squares residuals hold runs, not glitches (:func:`prepare_rows`)."""
+    import warnings
+
+    from casep.exceptions import NoiseNotWhiteWarning
+    from casep.noise.robust import REJECT
+
+    warnings.warn(NoiseNotWhiteWarning(
+        f"{problem.source}: {sum(runs)} of the {found} samples the robust filter would reject lie in {len(runs)} "
+        f"run(s) of {min(runs)} or more consecutive samples beyond {REJECT:g} robust sigma: a smooth misfit of the "
+        "model (a missing term, a frame or time-tag error, or instrument errors too large for the linear model), "
+        "not isolated glitches; the robust fit is not engaged, and the std do not cover the misfit"), stacklevel=3)
 
 
 def prepare_rows(problem: Problem, noise: str | NoiseSpec = "auto", tau=None, robust: str | None = "auto",
@@ -139,7 +156,9 @@ def prepare_rows(problem: Problem, noise: str | NoiseSpec = "auto", tau=None, ro
     robust : {"auto", None, "none", "huber", "bisquare"}
         ``auto`` (default): Huber when the robust filter finds glitches (more rejections than
         Gaussian noise explains: :data:`GLITCH_SIGMAS`; or one beyond :data:`GLITCH_GROSS` sigma),
-        else none, and said in ``robust``;
+        else none, and said in ``robust``; when most rejections come in runs of
+        :data:`casep.noise.robust.MAX_RUN` (a smooth model misfit, not glitches: a glitch is isolated)
+        none, with a :class:`~casep.exceptions.NoiseNotWhiteWarning`;
         None or ``none``: never.
     exclude_outliers : float, optional
         Family-wise false-alarm chance of the outlier flags whose samples are removed.
@@ -160,11 +179,13 @@ def prepare_rows(problem: Problem, noise: str | NoiseSpec = "auto", tau=None, ro
         robust = None
         if not noise_free and exclude_outliers is None and problem.t is not None and problem.y is not None \
                 and problem.y.ndim == 2:
-            found, expected, gross = _glitches(problem, nm)
+            found, expected, gross, runs = _glitches(problem, nm)
             limit = expected + GLITCH_SIGMAS * np.sqrt(expected) + GLITCH_MIN
             auto = {"glitches_found": found, "expected_from_noise": expected, "limit": float(limit),
                     "gross": gross, "gross_sigmas": GLITCH_GROSS}
-            if found > limit or gross:
+            if 2 * sum(runs) > found:  # most in runs: a smooth misfit, which rejecting its peaks would bias
+                _warn_misfit(problem, found, runs)
+            elif found > limit or gross:
                 robust = "huber"
     if robust is not None:
         nm, keep, weights, robust_info = _robust(problem, nm, noise, tau, robust)

@@ -346,3 +346,51 @@ def test_tracking_units_against_telemetry(factor, raises):
                 check_flight(flight)
             except FlightDataError as exc:
                 assert "v_trk" not in str(exc)
+
+
+@pytest.mark.parametrize("factor", [1.0, 3.28084])
+def test_tracking_units_on_a_drifting_window(factor):
+    """A car-like window: the vehicle's speed changes by 3 m/s over 30 s while the navigated (uncorrected MEMS)
+    velocity drifts by 8 m/s (a tilt error, 0.27 m/s^2 across the track): the ratio of the velocity changes (0.35)
+    is a drift, not a unit's factor, and the tracking is not refused; the same tracking in ft/s, a scaled copy of
+    a telemetry that does not drift, is."""
+    from casep.checks.plausibility import GRAVITY_LAUNCH
+    from casep.io.pair import pair_flight
+
+    t = np.arange(0.0, 30.0, 0.01)
+    v_true = np.column_stack([10.0 + 3.0 * np.sin(np.pi * t / 60.0) ** 2, np.zeros_like(t), np.zeros_like(t)])
+    drift = np.outer(t, [0.0, 0.27, 0.02]) if factor == 1.0 else 0.0 * v_true
+    a = np.gradient(v_true + drift, t, axis=0)
+    t_trk = np.arange(0.1, 30.0, 0.25)
+    v_trk = factor * np.column_stack([np.interp(t_trk, t, v_true[:, i]) for i in range(3)])
+    flight = pair_flight(t, a - GRAVITY_LAUNCH, v_true + drift, t_trk, v_trk, source="tel.csv + trk.csv",
+                         meta={"telemetry": "tel.csv", "tracking": "trk.csv"})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # not a boost: only the units rule counts here
+        if factor == 1.0:
+            check_flight(flight)  # ratio 0.35 before the scaled-copy test: refused as "the files disagree on units"
+        else:
+            with pytest.raises(FlightDataError, match=r"trk\.csv.*v_trk_x.*ratio 3\.28.*ft/s"):
+                check_flight(flight)
+
+
+@pytest.mark.parametrize("column, match", [
+    ("f", r"column `f_x`.*ratio 3\.2\d.* f_x, f_y, f_z are in g, multiply them by 9\.80665"),
+    ("t", r"column `t`.*ratio 0\.001.*t is in ms, divide it by 1000")])
+def test_force_in_g_or_time_in_ms_is_named_before_the_velocity(tmp_path, column, match):
+    """f in g or t in ms break v_tel against int (f + g) dt as a velocity unit would (ratio 3.22: 'ft/s?'; 0.001:
+    'km/s?'); read with f in m/s^2 or t in s the velocity agrees, so that column is named, not the velocity's."""
+    from casep.checks.plausibility import GRAVITY_LAUNCH
+    from casep.io.files import write_table
+
+    t = np.arange(0.0, 60.0, 0.05)
+    a = np.tile([30.0, 0.0, 0.0], (t.size, 1))  # 3 g along x
+    f = (a - GRAVITY_LAUNCH) / (G0 if column == "f" else 1.0)
+    path = tmp_path / "bad.csv"
+    write_table(path, {"t": 1e3 * t if column == "t" else t, **{f"f_{c}": f[:, i] for i, c in enumerate("xyz")},
+                       **{f"v_tel_{c}": (t * a[:, i]) for i, c in enumerate("xyz")},
+                       **{f"v_trk_{c}": (t * a[:, i]) for i, c in enumerate("xyz")}})
+    with pytest.raises(FlightDataError, match=match) as e, warnings.catch_warnings():
+        warnings.simplefilter("ignore", PlausibilityWarning)  # the peak force or the time step is named too
+        check_flight(casep.read_flight(path))
+    assert e.value.column == ("f_x" if column == "f" else "t") and e.value.source == str(path)

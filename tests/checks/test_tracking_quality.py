@@ -189,3 +189,34 @@ def test_a_correlated_stretch_is_weighted_by_its_long_run_variance():
     rms = math.sqrt(np.mean(z_arr**2))
     assert 0.8 < rms < 1.2, rms
     assert 0.9 <= np.mean(z_arr < 1.959964) <= 1.0
+
+
+def test_stale_tracking_inside_a_one_file_flight_is_left_out(tmp_path, rng):
+    """The tracking columns of a one-file flight (v_tel_* beside v_trk_*) are screened as a tracking file is: rows
+    repeating a fix while the vehicle accelerates at 20 m/s^2 are left out and listed by file line; the same rows
+    at rest (a repeat is right there) and the clean flight are left alone."""
+    import casep
+    from casep.checks.plausibility import GRAVITY_LAUNCH
+    from casep.io.files import write_table
+
+    t = np.arange(0.0, 20.0, 0.1)
+    a = np.outer(np.where(t > 5.0, 20.0, 0.0), [1.0, 0.0, 0.0])  # at rest 0-5 s, then 20 m/s^2 along x
+    v_tel = np.column_stack([np.concatenate([[0.0], np.cumsum(0.5 * (a[1:, 0] + a[:-1, 0]) * 0.1)]), 0 * t, 0 * t])
+    v_trk = v_tel + rng.normal(0.0, 0.05, v_tel.shape)
+    for rows, n_stale in ((slice(101, 121), 20), (slice(11, 31), 0), (slice(0, 0), 0)):
+        trk = v_trk.copy()
+        if rows.stop:
+            trk[rows] = trk[rows.start - 1]  # the fix of the row before, repeated
+        path = tmp_path / "one.csv"
+        write_table(path, {"t": t, **{f"f_{c}": (a - GRAVITY_LAUNCH)[:, i] for i, c in enumerate("xyz")},
+                           **{f"v_tel_{c}": v_tel[:, i] for i, c in enumerate("xyz")},
+                           **{f"v_trk_{c}": trk[:, i] for i, c in enumerate("xyz")}})
+        flight = casep.read_flight(path)
+        if n_stale:
+            stale = r"20 stale tracking epochs .* lines 103\.\.122 of one\.csv, t = 10\.1\.\.12 s \(20\)"
+            with pytest.warns(TrackingQualityWarning, match=stale):
+                screened = screen_tracking(flight)
+            assert np.flatnonzero(~screened.observed).tolist() == list(range(101, 121))
+        else:
+            screened = screen_tracking(flight)  # no warning: the suite makes one an error
+            assert screened.observed.all() and screened.meta["tracking_screen"]["stale"] == []

@@ -127,8 +127,11 @@ def test_alignment_refuses_what_is_not_at_rest_in_m_s2():
     with pytest.raises(ValueError, match=r"9\.82.*in g: give m/s\^2") as e:
         navigate(check_imu(ImuData(t, w, f / 9.80665)), SITE, (0.0, 10.0), heading_deg=10.0)
     assert "--align 0 10" in str(e.value)
-    with pytest.raises(ValueError, match="at least 2 samples"):
+    with pytest.raises(ValueError, match="at least 2 samples") as e:
         navigate(check_imu(ImuData(t, w, f)), SITE, (50.0, 60.0), heading_deg=10.0)
+    assert "in ms" not in str(e.value)
+    with pytest.raises(ValueError, match=r"at least 2 samples.*median time step is 10 s \(0\.1 Hz\): is t in ms"):
+        navigate(check_imu(ImuData(1e3 * t, w, f)), SITE, (0.0, 9.0), heading_deg=10.0)  # t of a 100 Hz IMU in ms
     t, w, f = _stationary(100.0, 30.0, C_tb=Rotation.from_euler("YZX", [20.0, 1.0, -1.0], degrees=True).as_matrix())
     with pytest.raises(ValueError, match=r"y axis is 1\.\d+ deg from the vertical"):  # its azimuth fixes nothing
         navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 10.0), heading_deg=10.0, heading_axis="y")

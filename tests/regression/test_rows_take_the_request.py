@@ -37,3 +37,29 @@ def test_bad_words_are_refused_by_the_request(problem, kw, flag):
 
 def test_no_second_list_of_robust_choices():
     assert not hasattr(rows_module, "ROBUST_CHOICES")
+
+
+@pytest.mark.parametrize("kind", ["bumps", "glitches"])
+def test_a_smooth_misfit_is_said_and_not_filtered_as_glitches(kind):
+    """Robust 'auto': three smooth bumps the model lacks (1e-3 over ~2 s, in 1e-5 white noise: runs of ~18 samples
+    beyond 4 sigma, as the second-order terms of a noise-free strapdown flight leave) are a model misfit: the
+    robust fit is not engaged and the misfit is said; the same size as isolated one-sample glitches engages it."""
+    from casep.exceptions import NoiseNotWhiteWarning
+    from casep.noise.robust import MAX_RUN
+
+    rng = np.random.default_rng(11)
+    t = np.arange(0.0, 60.0, 0.1)
+    S = rng.normal(size=(t.size, 3, 4))
+    e = 1e-5 * rng.normal(size=(t.size, 3))
+    if kind == "bumps":
+        e[:, 0] += 1e-3 * sum(np.exp(-(((t - c) / 0.5) ** 2)) for c in (15.0, 30.0, 45.0))
+    else:
+        e[rng.choice(np.arange(10, t.size - 10), 12, replace=False), 0] += 1e-3
+    pb = Problem.from_arrays(S, S @ np.array([1.0, -2.0, 0.5, 3.0]) + e, t)
+    if kind == "bumps":
+        with pytest.warns(NoiseNotWhiteWarning, match=rf"in 3 run\(s\) of {MAX_RUN} or more .* smooth misfit"):
+            rows = prepare_rows(pb, "white")
+        assert rows.robust is None and rows.keep.all()
+    else:
+        rows = prepare_rows(pb, "white")
+        assert rows.robust is not None and rows.robust["automatic"]["glitches_found"] >= 12
