@@ -67,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
     from casep.checks.flight import flight_problem
 
     problem = flight_problem(flight, model)  # reduced block by block: S_V never whole (white bound)
-    kw = {"prior_std": prior_std, "prior_information": prior_rows, "scales": model.scales if scales is None else scales}
+    kw: dict[str, Any] = {"prior_std": prior_std, "prior_information": prior_rows,
+                          "scales": model.scales if scales is None else scales}
     if args.sigma is not None or args.tau is not None:
         diag = diagnose(problem, sigma=args.sigma, tau=args.tau, **kw)
     else:  # the noise model separate fits by default
