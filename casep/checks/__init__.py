@@ -20,12 +20,12 @@ from casep._lazy import attach
 __getattr__, __dir__ = attach(__name__, {
     "casep.checks.flight": ("flight_problem", "check_before_estimation"),
     "casep.checks.plausibility": ("check_fit", "check_flight", "check_sigma"),
-    "casep.checks.diagnostics": ("Diagnostics", "diagnose", "crlb_covariance"),
+    "casep.checks.diagnostics": ("Diagnostics", "diagnose", "diagnose_noise", "crlb_covariance"),
     "casep.checks.late_start": ("late_start_evidence", "warn_late_start"),
     "casep.checks.time_offset": ("TimeOffsetTest", "time_offset_test"),
     "casep.checks.saturation": ("held_full_scale", "HeldFullScale", "check_full_scale"),
 }, globals())
 
 __all__ = ["flight_problem", "check_before_estimation", "check_fit", "check_flight", "check_sigma", "Diagnostics",
-           "diagnose", "crlb_covariance", "late_start_evidence", "warn_late_start", "TimeOffsetTest",
+           "diagnose", "diagnose_noise", "crlb_covariance", "late_start_evidence", "warn_late_start", "TimeOffsetTest",
            "time_offset_test", "held_full_scale", "HeldFullScale", "check_full_scale"]

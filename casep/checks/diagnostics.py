@@ -24,6 +24,11 @@ zero columns are left out (they are unidentifiable by definition).
 - Identifiability: *unidentifiable* (zero or exactly dependent column), *weak* (CRLB std
   larger than the coefficient's scale: its prior std, a given scale, or by default its
   Table 1 magnitude), else *identifiable*.
+- A flight's rows (:func:`diagnose_noise`): the bound under the noise model ``casep separate``
+  fits by default (:func:`casep.regression.rows.prepare_rows`, noise ``auto``: white, Gauss-Markov
+  or Gauss-Markov plus white per axis by likelihood-ratio tests), from the rows whitened for it:
+  least squares there is the GLS estimate, so the bound is the GLS covariance
+  ``sigma^2 (S_w^T S_w)^-1`` with ``sigma`` the whitened residuals' std.
 - Estimable combinations: the best-determined directions ``v_k`` of the scaled problem,
   written as ``sum_j w_j D_j`` with ``w_j = v_kj c_j`` normalised so the largest ``|w_j|`` is 1;
   std ``sigma / (s_k max_j |v_kj c_j|)``.
@@ -31,7 +36,7 @@ zero columns are left out (they are unidentifiable by definition).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar, Mapping, Sequence
 
 import numpy as np
@@ -49,8 +54,8 @@ from casep.regression.linalg import (
 from casep.regression.problem import Problem
 from casep.results import Completed, deprecated_alias
 
-__all__ = ["Diagnostics", "diagnose", "crlb_covariance", "collinearity", "ar1_whiten", "ILL_CONDITIONED",
-           "GROUP_INDEX", "GROUP_PROPORTION"]
+__all__ = ["Diagnostics", "diagnose", "diagnose_noise", "crlb_covariance", "collinearity", "ar1_whiten",
+           "ILL_CONDITIONED", "GROUP_INDEX", "GROUP_PROPORTION"]
 
 #: Equilibrated condition number above which estimators warn.
 ILL_CONDITIONED = 1e3
@@ -279,7 +284,8 @@ class Diagnostics(Completed):
         ce = self.condition_number_equilibrated
         lines = [f"condition number: {cn:.3g} (natural units), {ce:.3g} (columns equilibrated)"
                  if cn and ce else "condition number: infinite (exactly dependent columns)",
-                 f"noise: {self.noise.get('model', 'white')}, sigma {self.sigma:.4g} m/s ({self.sigma_source})", "",
+                 f"noise: {self.noise.get('model', 'white')}, sigma {self.sigma:.4g} m/s ({self.sigma_source})",
+                 *([f"  {self.noise['line']}"] if "line" in self.noise else []), "",
                  f"{'coefficient':<12} {'unit':<10} {'CRLB std':>12} {'scale':>10} {'VIF':>10}  verdict"]
         for j, (n, u) in enumerate(zip(self.names, self.units)):
             sd = self.crlb_std[j]
@@ -428,3 +434,39 @@ def diagnose(
         sigma_source=source, noise=noise, crlb_covariance=cov, identifiability=verdict, reasons=reasons,
         groups=[[names[j] for j in g] for g in col["groups"]], combinations=combos, scales=sc,
     )
+
+
+def diagnose_noise(problem: Problem, noise: str = "auto", **kw: Any) -> Diagnostics:
+    """:func:`diagnose` under the noise model of a problem's rows that ``casep separate`` fits (module notes).
+
+    Parameters
+    ----------
+    problem : Problem
+        Raw rows ``(N, 3)`` with their times (not whitened).
+    noise : {"auto", "gm", "gmw", "white"}
+        The noise kind, chosen and fitted by :func:`casep.regression.rows.prepare_rows` (the rule
+        of ``casep separate``; no robust weights: the bound of clean rows).
+    **kw
+        Passed to :func:`diagnose` (not `sigma` or `tau`: they fix the noise model themselves).
+
+    Returns
+    -------
+    Diagnostics
+        Its ``noise`` holds the fitted model (:meth:`casep.noise.model.NoiseModel.to_dict`) and
+        its one-line description under ``"line"``.
+    """
+    from casep.regression.rows import prepare_rows
+
+    if "sigma" in kw or "tau" in kw:
+        raise ValueError("`sigma` and `tau` fix the noise model: call `diagnose` with them")
+    rows = prepare_rows(problem, noise, robust=None)
+    nm = rows.noise
+    diag = diagnose(rows.solved, **kw)  # the whitened rows: least squares there is GLS
+    kinds = {"white": "white", "gm": "gauss-markov", "gmw": "gauss-markov+white"}
+    model = " / ".join(dict.fromkeys(kinds[k] for k in nm.axis_kinds()))  # each kind once, x first
+    described = {"model": model + (" (axis scales)" if nm.scale != (1.0, 1.0, 1.0) else ""), **nm.to_dict(),
+                 "line": nm.line()}
+    if "prior" in diag.noise:
+        described["prior"] = diag.noise["prior"]
+    source = diag.sigma_source if nm.is_white else "stationary std of x, from the residuals of the whitened rows"
+    return replace(diag, noise=described, sigma_source=source)

@@ -15,10 +15,11 @@ sides (maximum, minimum):
     least a tenth of the half range ``2^(b-1)`` from the column's median;
   - for a physical unit, a nominal range (:data:`casep.units.ACC_RANGES_G`,
     :data:`casep.units.GYR_RANGES_DPS`) within :data:`casep.units.FULL_SCALE_TOLERANCE`, on its side of
-    zero, a tenth of ``|e|`` or more from the column's median (a static accelerometer reads 1 g for ever
-    without clipping), in a column with noise (where :data:`HELD_FRACTION` or more of the consecutive
-    samples are equal, as in a noise-free simulation, a constant thrust near 4 g is held exactly without
-    any clipping: declare the full scale there);
+    zero, for an accelerometer a tenth of ``|e|`` or more from the column's median (a static
+    accelerometer reads 1 g for ever without clipping; a gyro held at its range for most of a record is
+    clipped all that time), in a column with noise off the rail (where :data:`HELD_FRACTION` or more of
+    the consecutive samples not at ``e`` are equal, as in a noise-free simulation, a constant thrust
+    near 4 g is held exactly without any clipping: declare the full scale there);
 
   and the readings equal to ``e`` are at it (the converter holds its last code);
 
@@ -160,10 +161,11 @@ def _rail(ext: float, side: str, column: np.ndarray, sensor: str, si: float | No
                     return (f"the {kind} {b}-bit converter's limit {rail}" if rail else
                             "the unsigned converter's limit 0")
         return None
-    if ext == 0.0 or (ext > 0) != top or abs(ext - med) < 0.1 * abs(ext):
-        return None  # a rail lies on its side of zero, away from where the column spends its time
-    if np.mean(column[1:] == column[:-1]) >= HELD_FRACTION:  # noise-free: every steady span is held exactly
-        return None
+    if ext == 0.0 or (ext > 0) != top or (sensor == "accelerometer" and abs(ext - med) < 0.1 * abs(ext)):
+        return None  # a rail lies on its side of zero (an accelerometer's away from where the column spends its time)
+    off = (column[1:] != ext) & (column[:-1] != ext)  # the noise is judged off the rail (a gyro may sit on it)
+    if not off.any() or np.mean(column[1:][off] == column[:-1][off]) >= HELD_FRACTION:
+        return None  # noise-free: every steady span is held exactly
     name, per = FULL_SCALE_UNITS[sensor]
     v = abs(ext) * si / per
     near = min(NOMINAL_RANGES[sensor], key=lambda r: abs(v / r - 1.0))

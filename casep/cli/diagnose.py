@@ -13,6 +13,8 @@ from casep.estimators.registry import OPTIONS, Interval
 
 
 def add_parser(sub: Any) -> None:
+    from casep.noise.model import NOISE_KINDS
+
     p = sub.add_parser("diagnose", help="what the flight can and cannot determine")
     p.add_argument("flight", nargs="*", help="flight file; several: what each determines alone and jointly")
     flight_options.add_tracking(p, "tracking file (two-file input); several flights: once per flight, in their order")
@@ -25,6 +27,10 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--tau", type=rule_type(OPTIONS["tau"], numbers), default=None, metavar="SECONDS",
                    help="Gauss-Markov correlation time, s: AR(1) bound instead of white; "
                         + " | ".join(str(r) for r in numbers))
+    p.add_argument("--noise", choices=NOISE_KINDS, default="auto",
+                   help="noise model of the bound, fitted to the residuals as separate does (default auto: white, "
+                        "Gauss-Markov or Gauss-Markov plus white per axis by likelihood-ratio tests); --sigma or "
+                        "--tau fix it instead")
     p.add_argument("--prior", metavar="FILE", help="prior JSON (map format, or a result JSON: its estimate and "
                    "covariance): Bayesian bound and scales")
     p.add_argument("--scales", metavar="FILE", help='JSON {"Kg0x": typical magnitude, ...} for the "weak" verdict')
@@ -57,12 +63,16 @@ def run(args: argparse.Namespace) -> int:
         return diagnose_flights(args, model, prior, scales)
     args.flight = args.flight[0]
     flight = inputs.read_one(args)
-    from casep.checks.diagnostics import diagnose
+    from casep.checks.diagnostics import diagnose, diagnose_noise
     from casep.checks.flight import flight_problem
 
     problem = flight_problem(flight, model)  # reduced block by block: S_V never whole (white bound)
-    diag = diagnose(problem, sigma=args.sigma, tau=args.tau, prior_std=prior_std, prior_information=prior_rows,
-                    scales=model.scales if scales is None else scales)
+    kw: dict[str, Any] = {"prior_std": prior_std, "prior_information": prior_rows,
+                          "scales": model.scales if scales is None else scales}
+    if args.sigma is not None or args.tau is not None:
+        diag = diagnose(problem, sigma=args.sigma, tau=args.tau, **kw)
+    else:  # the noise model separate fits by default
+        diag = diagnose_noise(problem, args.noise, **kw)
     if args.json:
         outputs.write_json({"casep_version": __version__, "model": model.name, "n_samples": flight.n_observed,
                             "diagnostics": diag.to_dict(), "provenance": outputs.provenance(args, [flight])},

@@ -126,6 +126,8 @@ def run(args: argparse.Namespace) -> int:
         outputs.write_json({**res.to_dict(), **({"time_alignment": align} if align else {}), "provenance": prov},
                            args.json)
     outputs.write_exports(res, args, t=flight.t[flight.observed], provenance=prov)
-    print_result(res, args, align, cons)
+    flips = (flight.meta.get("strapdown") or {}).get("sign_flips", 0) if isinstance(flight.meta, dict) else 0
+    print_result(res, args, align, cons, (f"attitude: {flips} quaternion sign flip(s) (q and -q are the same "
+                                          "attitude) removed before the checks and the fit",) if flips else ())
     figures_and_report(args, res, flight, bounds, prior, report_lines(caught), prov)
     return outputs.status(res)

@@ -55,7 +55,7 @@ def diagnose_flights(args: argparse.Namespace, model: Any, prior: Any, scales: A
     flights = inputs.read_all(args)
     man = getattr(args, "manifest_obj", None)
     d = diagnose_flights(flights, model, sigma=args.sigma, prior=prior, scales=scales,
-                         labels=[f.label for f in man.flights] if man is not None else None)
+                         labels=[f.label for f in man.flights] if man is not None else None, noise=args.noise)
     for line in flights_crlb_lines(d, model.name, with_prior=prior is not None):
         print(line)
     if args.json:

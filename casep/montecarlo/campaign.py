@@ -224,7 +224,7 @@ def _context(scenario: str | Scenario, rate: float | None, seed: int, flight: An
         if own is None:  # the scenario's force and signal columns (a strapdown scenario: its q_*, fb_*, w_*)
             t_all, (f_all, sig) = traj.t, sv_inputs(sc, traj, model, truth_v)
         else:
-            t_all, f_all, sig = own["t"], own["f"], None
+            t_all, f_all, sig = own["t"], own["f"], own["signals"]
         keep = sc.noise.keep_mask(t_all)  # tracking gaps: no rows there
         t = t_all[keep]
         S = build_sv(model, t_all, f_all, signals=sig)[keep]

@@ -65,7 +65,9 @@ def check_truth_prior(tp: tuple[np.ndarray, np.ndarray], model: Any, source: str
 
 
 def own_trajectory(scenario: str | Scenario, flight: Any, truth: Mapping) -> dict[str, Any]:
-    """The scenario of a Monte Carlo on one's own flight: its times, specific force, model, truth and noise."""
+    """The scenario of a Monte Carlo on one's own flight: its times, specific force, signal columns (a strapdown
+    flight's ``q_*``, ``fb_*``, ``w_*``: every extra column of the flight, as ``casep separate`` reads them), model,
+    truth and noise."""
     import dataclasses
 
     from casep.checks.flight import flight_problem
@@ -106,4 +108,5 @@ def own_trajectory(scenario: str | Scenario, flight: Any, truth: Mapping) -> dic
                              model=model.name, truth=dict(zip(model.names, vec.tolist())), noise=noise)
     record = file_record(fl.source, "flight") if Path(fl.source).is_file() else {"file": fl.source}
     return {"scenario": sc, "model": model, "truth": vec, "t": np.asarray(fl.t), "f": np.asarray(fl.f),
+            "signals": dict(fl.signals),
             "record": {**record, "noise": noise.to_dict(), "noise_from": how}}

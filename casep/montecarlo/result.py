@@ -7,6 +7,12 @@ share of runs with ``|error| <= 1.96 std`` among the runs that report a std for 
 coefficient (bounded least squares reports none on a bound; null when the method gives none).
 With a truth prior each run's error is against its own drawn truth and ``true`` is the prior
 mean.
+
+A coefficient is *determined* when its CRLB std is finite; the others (a zero or exactly dependent
+column: only combinations of them are determined, no method gives each an estimate) are listed as
+such and left out of the summary, which pools over the determined ones: ``RMS z`` =
+``sqrt(mean(((estimate - truth) / std)^2))`` and the 95 % coverage over every run and determined
+coefficient with a std.
 """
 
 from __future__ import annotations
@@ -73,6 +79,24 @@ class MonteCarloResult(Completed):
                 cov = np.where(has.any(axis=0), hit.sum(axis=0) / np.maximum(has.sum(axis=0), 1), np.nan)
         return {"bias": bias, "rms": rms, "efficiency": eff, "coverage95": cov}
 
+    @property
+    def determined(self) -> np.ndarray:
+        """(n,) bool: coefficients with a finite CRLB std (module notes); the others are unidentifiable."""
+        return np.isfinite(self.crlb_std) & (self.crlb_std > 0)
+
+    def pooled(self, method: str) -> dict[str, Any]:
+        """RMS z and 95 % coverage of a method over every run and determined coefficient with a std (module
+        notes); None where the method gives no std."""
+        sd = self.stds.get(method)
+        if sd is None:
+            return {"rms_z": None, "coverage95": None, "count": 0}
+        E = self.estimates[method] - (self.truth if self.truths is None else self.truths)
+        has = np.isfinite(sd) & np.isfinite(E) & (sd > 0) & self.determined
+        z = np.abs(E[has]) / sd[has]
+        if not z.size:
+            return {"rms_z": None, "coverage95": None, "count": 0}
+        return {"rms_z": float(np.sqrt(np.mean(z**2))), "coverage95": float(np.mean(z <= 1.96)), "count": int(z.size)}
+
     def to_dict(self) -> dict[str, Any]:
         """The Monte Carlo JSON of ``docs/reference/file-formats.md``."""
         def f(v: float) -> float | None:
@@ -81,7 +105,7 @@ class MonteCarloResult(Completed):
         methods: dict[str, Any] = {}
         for meth in self.estimates:
             st = self.stats(meth)
-            methods[meth] = {"seconds": self.seconds.get(meth), "coefficients": [
+            methods[meth] = {"seconds": self.seconds.get(meth), "determined": self.pooled(meth), "coefficients": [
                 {"name": n, "unit": u, "true": float(tr), "bias": f(st["bias"][j]), "rms": f(st["rms"][j]),
                  "crlb_std": f(self.crlb_std[j]), "efficiency": f(st["efficiency"][j]),
                  "coverage95": f(st["coverage95"][j])}
@@ -95,6 +119,9 @@ class MonteCarloResult(Completed):
             out["dispersions"] = list(self.dispersions)
         if self.noise:
             out["noise"] = self.noise
+        det = self.determined
+        out["determined"] = [n for n, d in zip(self.names, det) if d]
+        out["unidentifiable"] = [n for n, d in zip(self.names, det) if not d]
         out["methods"] = methods
         return out
 
@@ -145,7 +172,24 @@ class MonteCarloResult(Completed):
             cov_s = f"{np.nanmedian(cov):.3f}" if np.any(np.isfinite(cov)) else "-"
             lines.append(f"{meth:<18} {np.nanmedian(ratio):>15.3f} {np.nanmedian(st['efficiency']):>17.3f} "
                          f"{cov_s:>17} {self.seconds.get(meth, float('nan')):>8.2f}")
-        return "\n".join(lines)
+        return "\n".join(lines + self._determined_lines())
+
+    def _determined_lines(self) -> list[str]:
+        """Which coefficients the flights determine, and each method's RMS z and coverage over them."""
+        det = self.determined
+        if det.all():
+            head = f"all {det.size} coefficients determined"
+        else:
+            bad = [n for n, d in zip(self.names, det) if not d]
+            head = (f"determined {int(det.sum())} of {det.size} coefficients (the statistics are over these); "
+                    f"unidentifiable {len(bad)} (only combinations of them are determined): {', '.join(bad)}")
+        lines = [head]
+        for meth in self.estimates:
+            p = self.pooled(meth)
+            if p["rms_z"] is not None:
+                lines.append(f"  {meth}: RMS z {p['rms_z']:.3f}, 95 % coverage {p['coverage95']:.3f} "
+                             f"({p['count']} z: runs x determined coefficients)")
+        return lines
 
 
 def write_figure(res: MonteCarloResult, path: str | os.PathLike) -> Path:

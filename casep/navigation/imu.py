@@ -15,9 +15,20 @@ gap; an increment after a gap covers one nominal period and stands for the whole
 held over the lost samples). Rates beyond any gyro's full scale (200 rad/s) are an error (deg/s
 declared rad/s), rates over 35 rad/s (2000 deg/s) or specific forces over 50 g a
 :class:`~casep.exceptions.PlausibilityWarning`, with the numbers. The gap warning also states what
-the lost samples leave unknown: across a gap of length ``h`` where the specific force changes from
-``f_a`` to ``f_b``, any path between them fits, so the velocity across it is known to about
-``|f_b - f_a| h / 2`` (the largest such bound is given with its time).
+the lost samples leave unknown (:func:`bridge_gaps`, the largest bound given with its time).
+
+Across a gap of rate samples (:func:`bridge_gaps`) the rate and the specific force are bridged by one
+cubic fitted by least squares to the samples on both sides, on each side as many as half the gap
+holds (``M = h / (2 h_med)``, at least 2, at most :data:`BRIDGE_MAX`, never across another gap), and
+integrated over the gap: the cubic through the four neighbouring samples for a short gap, and for a
+long one a fit whose noise averages out (the cubic through four noisy samples 1 s apart would
+amplify their noise a hundredfold). What the bridge leaves unknown, per gap: the motion (any path
+between the two sides fits: ``|x_b - x_a| h / 2`` with ``x_a``, ``x_b`` the fit at the gap's ends)
+plus three times the noise of the bridge's integral, ``sqrt(sum_axes s^2 (a^T (X^T X)^-1 a + h
+h_med))``: the fit's own (``a`` the integral of the cubic's basis over the gap, ``X`` the fitted
+samples' basis, ``s`` their residual std) and that of the lost samples themselves. For the rate this
+is the attitude across the gap, rad (after it a velocity error grows by up to ``|f|`` times it per
+second); for the specific force the velocity across it, m/s.
 
 Clipped samples (:func:`clipped_samples`): a reading at the sensor's full scale is not the motion. The
 rule is :func:`casep.checks.saturation.held_full_scale`, the one calibration uses too: a run of
@@ -54,7 +65,8 @@ from casep.checks.saturation import (
 from casep.exceptions import GapWarning, PlausibilityWarning, SaturationWarning
 
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
-           "GAP_FACTOR", "clipped_samples", "sample_periods", "with_rates"]
+           "GAP_FACTOR", "BRIDGE_MAX", "GapBridge", "bridge_gaps", "gap_steps", "clipped_samples", "sample_periods",
+           "with_rates"]
 
 RATE_COLUMNS = ("w_x", "w_y", "w_z")
 FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
@@ -62,6 +74,8 @@ DTHETA_COLUMNS = ("dth_x", "dth_y", "dth_z")
 DV_COLUMNS = ("dvb_x", "dvb_y", "dvb_z")
 #: A step longer than this many median steps has lost samples.
 GAP_FACTOR = 1.5
+#: Samples on each side of a gap its bridge is fitted to, at most (:func:`bridge_gaps`).
+BRIDGE_MAX = 400
 #: Rates beyond this are refused (no gyro's full scale reaches it: deg/s declared rad/s), rad/s.
 MAX_RATE = 200.0
 #: Rates beyond this (2000 deg/s, the largest common full scale) and specific forces beyond 50 g are warned about.
@@ -147,7 +161,7 @@ def check_imu(imu: ImuData, *, gyr_range: float | None = None, acc_range: float 
         k = int(np.flatnonzero(h <= 0)[0]) + 1
         raise ValueError(f"{imu.source}: column t, row {k + 1}: time {t[k]:.10g} s does not increase")
     h_med = float(np.median(h))
-    lost = np.flatnonzero(h > GAP_FACTOR * h_med)
+    lost = gap_steps(t)
     if imu.kind == "increments":
         cover = np.concatenate([[h_med], np.where(h > GAP_FACTOR * h_med, h_med, h)])  # what each row integrates
         scale = np.concatenate([[1.0], h])[:, None] / cover[:, None]
@@ -164,21 +178,103 @@ def check_imu(imu: ImuData, *, gyr_range: float | None = None, acc_range: float 
     return imu
 
 
+def gap_steps(t: np.ndarray) -> np.ndarray:
+    """Indices ``k`` of the steps ``t[k] -> t[k+1]`` that lost samples (over :data:`GAP_FACTOR` median steps)."""
+    h = np.diff(np.asarray(t, float))
+    return np.flatnonzero(h > GAP_FACTOR * float(np.median(h)))
+
+
+@dataclass
+class GapBridge:
+    """The bridge of each gap of a rate record (:func:`bridge_gaps`; module notes).
+
+    Attributes
+    ----------
+    steps : (G,) ndarray of int
+        The step ``t[k] -> t[k+1]`` of each gap.
+    h : (G,) ndarray
+        Gap lengths, s.
+    dtheta, dv : (G, 3) ndarray
+        The bridge's integrals of the body rate (rad) and specific force (m/s) over each gap.
+    attitude, velocity : (G,) ndarray
+        What each gap leaves unknown of the attitude (rad) and of the velocity (m/s): the motion term plus
+        three times the noise of the integral.
+    motion : (G, 2) ndarray
+        The motion terms of `attitude` and `velocity`.
+    noise : (G, 2) ndarray
+        The rate's (rad/s) and the specific force's (m/s^2) sample noise near each gap (residual std of
+        the fits, largest axis).
+    """
+
+    steps: np.ndarray
+    h: np.ndarray
+    dtheta: np.ndarray
+    dv: np.ndarray
+    attitude: np.ndarray
+    velocity: np.ndarray
+    motion: np.ndarray
+    noise: np.ndarray
+
+
+def _bridge_one(t: np.ndarray, x: np.ndarray, k: int, lo: int, hi: int,
+                h_med: float) -> tuple[np.ndarray, float, float, float]:
+    """(integral over the gap (3,), its bound, the bound's motion term, the residual std) of the cubic fitted
+    to ``x[lo:k+1]`` and ``x[k+1:hi]`` (module notes)."""
+    idx = np.r_[lo:k + 1, k + 1:hi]
+    mid, half = 0.5 * (t[k] + t[k + 1]), 0.5 * (t[k + 1] - t[k])
+    u = (t[idx] - mid) / half  # the gap is [-1, 1]
+    order = min(3, idx.size - 1)
+    X = u[:, None] ** np.arange(order + 1)
+    a = half * np.array([(1.0 - (-1.0) ** (j + 1)) / (j + 1) for j in range(order + 1)])  # int over the gap
+    coef, *_ = np.linalg.lstsq(X, x[idx], rcond=None)
+    dof = idx.size - order - 1
+    s = np.sqrt(np.sum((x[idx] - X @ coef) ** 2, axis=0) / dof) if dof > 0 else np.zeros(3)
+    var_fit = float(a @ np.linalg.pinv(X.T @ X) @ a)
+    noise = 3.0 * float(np.sqrt(np.sum(s**2) * (var_fit + 2.0 * half * h_med)))
+    ends = np.array([[1.0, -1.0, 1.0, -1.0][: order + 1], np.ones(order + 1)]) @ coef  # x at the gap's ends
+    motion = float(np.linalg.norm(ends[1] - ends[0])) * half  # |x_b - x_a| h / 2
+    return a @ coef, motion + noise, motion, float(s.max())
+
+
+def bridge_gaps(t: np.ndarray, w: np.ndarray, f: np.ndarray) -> GapBridge:
+    """The bridge of each gap of body rates `w` (rad/s) and specific forces `f` (m/s^2) at times `t` (module notes)."""
+    t, w, f = np.asarray(t, float), np.asarray(w, float), np.asarray(f, float)
+    steps = gap_steps(t)
+    h_med = float(np.median(np.diff(t)))
+    n, G = t.size, steps.size
+    out = GapBridge(steps, t[steps + 1] - t[steps], np.zeros((G, 3)), np.zeros((G, 3)), np.zeros(G), np.zeros(G),
+                    np.zeros((G, 2)), np.zeros((G, 2)))
+    edges = np.r_[-1, steps, n - 1]  # the gaps around each one: its fit stops at them
+    for g, k in enumerate(steps):
+        m = int(np.clip(round(0.5 * out.h[g] / h_med), 2, BRIDGE_MAX))
+        lo, hi = max(k - m + 1, edges[g] + 1), min(k + 1 + m, edges[g + 2] + 1)
+        out.dtheta[g], out.attitude[g], out.motion[g, 0], out.noise[g, 0] = _bridge_one(t, w, int(k), lo, hi, h_med)
+        out.dv[g], out.velocity[g], out.motion[g, 1], out.noise[g, 1] = _bridge_one(t, f, int(k), lo, hi, h_med)
+    return out
+
+
 def _warn_gaps(imu: ImuData, lost: np.ndarray, h: np.ndarray, h_med: float) -> None:
-    """The GapWarning: count, samples lost, the longest gap and where, and the largest velocity it leaves unknown."""
+    """The GapWarning: count, samples lost, the longest gap and where, and what the largest leaves unknown."""
     t = imu.t
     k = int(lost[np.argmax(h[lost])])
     missing = int(np.sum(np.round(h[lost] / h_med) - 1))
-    unknown = np.linalg.norm(imu.f[lost + 1] - imu.f[lost], axis=1) * h[lost] / 2  # |f_b - f_a| h / 2, m/s
-    j = int(lost[np.argmax(unknown)])
+    br = bridge_gaps(t, imu.w, imu.f)
+    j = int(np.argmax(br.velocity))
+    i = int(np.argmax(br.attitude))
+    fmax = float(np.linalg.norm(imu.f, axis=1).max())
     gaps = f"{lost.size} gap{'s' if lost.size > 1 else ''}"
+    how = ("the rate and specific force bridged by a cubic fitted to the samples either side" if imu.kind == "rates"
+           else "the increment after it held over it")
     warnings.warn(f"{imu.source}: {gaps} in t (about {missing} samples lost at the median step "
                   f"{h_med:.4g} s); the longest {h[k]:.4g} s after t = {t[k]:.10g} s (row {k + 1}): "
-                  "integrated across it, the rate and specific force interpolated (rates: the cubic through the "
-                  "neighbouring samples) or held (increments); "
-                  f"the velocity across the gap after t = {t[j]:.10g} s is known to about {unknown.max():.3g} m/s "
-                  f"only (the specific force changes by {2 * unknown.max() / h[j]:.4g} m/s^2 over its "
-                  f"{h[j]:.4g} s)", GapWarning, stacklevel=3)
+                  f"integrated across it, {how}; "
+                  f"the velocity across the gap after t = {t[br.steps[j]]:.10g} s is known to about "
+                  f"{br.velocity[j]:.3g} m/s only (any path of the specific force between the two sides of its "
+                  f"{br.h[j]:.4g} s: {br.motion[j, 1]:.3g} m/s; the rest from its noise {br.noise[j, 1]:.3g} m/s^2), "
+                  "the attitude across the gap after t = "
+                  f"{t[br.steps[i]]:.10g} s to about {br.attitude[i]:.3g} rad (gyro noise {br.noise[i, 0]:.3g} rad/s "
+                  f"included; after it a velocity error grows by up to {fmax * br.attitude[i]:.3g} m/s per s)",
+                  GapWarning, stacklevel=3)
 
 
 def clipped_samples(x: np.ndarray, full_scale: float | None, sensor: str) -> np.ndarray:

@@ -118,7 +118,7 @@ def navigate_from(imu: ImuData, site: LaunchSite, q0: np.ndarray, r0: np.ndarray
         full = increments_from_deltas(imu.dtheta[i0:], imu.dv[i0:])  # row i0 is the first interval's previous one
         inc = Increments(full.dtheta[1:], full.dv[1:], full.coning[1:], full.sculling[1:])
     else:
-        inc = increments_from_rates(t, imu.w[i0:], imu.f[i0:])
+        inc = _bridged(increments_from_rates(t, imu.w[i0:], imu.f[i0:]), t, imu.w[i0:], imu.f[i0:])
     q = propagate_attitude(q0, inc)
     dV = quat_rotate(q[:-1], body_velocity_increments(inc))
     r, v, passes = propagate_translation(t, dV, np.asarray(r0, float), np.asarray(v0, float),
@@ -127,3 +127,20 @@ def navigate_from(imu: ImuData, site: LaunchSite, q0: np.ndarray, r0: np.ndarray
                             kind=imu.kind, gaps=imu.gaps, passes=passes, source=imu.source,
                             align_window=(float(t[0]), float(t[0])),
                             valid=None if imu.clipped is None else ~np.asarray(imu.clipped[i0:], bool))
+
+
+def _bridged(inc, t: np.ndarray, w: np.ndarray, f: np.ndarray):
+    """`inc` with each gap's increments those of its bridge (:func:`casep.navigation.imu.bridge_gaps`: a cubic
+    fitted to the samples either side, not the cubic through the four nearest, which amplifies their noise
+    across a long gap), and the coning and sculling corrections of the steps it touches recomputed."""
+    from casep.navigation.imu import bridge_gaps
+    from casep.navigation.strapdown import Increments, increments_from_deltas
+
+    br = bridge_gaps(t, w, f)
+    if not br.steps.size:
+        return inc
+    dtheta, dv = inc.dtheta.copy(), inc.dv.copy()
+    dtheta[br.steps], dv[br.steps] = br.dtheta, br.dv
+    new = increments_from_deltas(dtheta, dv)
+    new.coning[0], new.sculling[0] = inc.coning[0], inc.sculling[0]  # the first step's own (no previous one)
+    return Increments(new.dtheta, new.dv, new.coning, new.sculling)

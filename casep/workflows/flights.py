@@ -270,9 +270,14 @@ def _num(v: float) -> float | None:
 
 def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float] | None = None,
                      prior_std: np.ndarray | None = None, scales: Mapping | None = None,
-                     prior: Mapping | None = None, labels: Sequence[str | None] | None = None) -> dict[str, Any]:
+                     prior: Mapping | None = None, labels: Sequence[str | None] | None = None,
+                     noise: str = "white") -> dict[str, Any]:
     """What each flight determines alone and what they determine together (flights named by `labels`, as
     :func:`separate_flights`).
+
+    Without `sigma`, each flight's rows are first whitened for the noise model of kind `noise`
+    (:func:`casep.regression.rows.prepare_rows`, separate's rule; ``"white"``: none), and its sigma
+    is the std of the whitened residuals: the bound under the noise ``casep separate`` fits.
 
     Per shared coefficient: the CRLB std of each flight alone (its own sigma) and of the flights
     jointly (weighted by 1/sigma_k^2), and the verdicts (identifiable / weak / unidentifiable, as
@@ -304,10 +309,18 @@ def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float]
         Wp, _, _, prior_std = prior_information(prior, model.names)
     problems = [fl if isinstance(fl, Problem) else
                 flight_problem(fl if isinstance(fl, FlightData) else read_flight(fl), model) for fl in flights]
+    noise_lines = None
+    if sigma is None and noise != "white":
+        from casep.regression.rows import prepare_rows
+
+        prepared = [prepare_rows(p, noise, robust=None) for p in problems]
+        problems, noise_lines = [r.solved for r in prepared], [r.noise.line() for r in prepared]
     sig = flight_sigmas(problems, sigma)
     scales = dict(model.scales if scales is None else scales)
     alone = [diagnose(p, sigma=s, scales=scales) for p, s in zip(problems, sig)]
     out: dict[str, Any] = {"flights": list(_labels(problems, labels)), "sigmas": sig}
+    if noise_lines is not None:
+        out["noise"] = noise_lines
     if len(problems) >= 2:
         layout = JointLayout(model.names, model.per_flight, _labels(problems, labels))
         jp = JointProblem(problems, sig, layout)

@@ -81,6 +81,7 @@ def flights_crlb_lines(d: Mapping[str, Any], model_name: str, with_prior: bool =
         lines.append(f"{r['name']:12s} {r['unit']:9s}" + "".join(f" {c:>14s}" for c in cells)
                      + f" {format_number(r['crlb_joint'], 12)} {mark[r['verdict_joint']]}")
     for i, (f, s) in enumerate(zip(d["flights"], d["sigmas"])):
-        lines.append(f"flight {i + 1}: {f}, sigma {s:.4g} m/s, identifiable alone {d['identifiable_alone'][i]}")
+        lines.append(f"flight {i + 1}: {f}, sigma {s:.4g} m/s, identifiable alone {d['identifiable_alone'][i]}"
+                     + (f"; {d['noise'][i]}" if d.get("noise") else ""))
     lines.append(f"identifiable jointly: {d['identifiable_joint']} of {len(d['coefficients'])}")
     return lines

@@ -172,3 +172,32 @@ def test_cli_diagnose_ar1_and_bad_inputs(tmp_path, capsys):
     # --figures creates a missing folder (test_result.py); a file in its place is refused
     assert main(["diagnose", str(tmp_path / "f.csv"), "--figures", str(tmp_path / "s.json")]) == 2
     assert "exists and is not a folder" in capsys.readouterr().err
+
+
+
+def test_bound_follows_the_noise_model_separate_fits():
+    """Gauss-Markov rows (sigma 0.1 m/s, tau 1 s): diagnose_noise fits the noise model as separate does, and its
+    bound is the Gauss-Markov bound of the true noise (crlb_covariance's AR(1) whitening with the true sigma and
+    tau) within the fit's error; the white bound of the same rows is several times smaller."""
+    from casep.checks.diagnostics import diagnose_noise
+    from casep.regression.problem import Problem
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 120.0, 0.1)
+    S = np.zeros((t.size, 3, 6))
+    for a in range(3):
+        S[:, a, a] = t  # a bias on each axis
+        S[:, a, 3 + a] = np.cumsum(np.sin(0.1 * t + a)) * 0.1  # a scale factor on a varying force
+    a1 = np.exp(-0.1 / 1.0)
+    e = np.empty((t.size, 3))
+    e[0] = 0.1 * rng.standard_normal(3)
+    for k in range(1, t.size):
+        e[k] = a1 * e[k - 1] + 0.1 * np.sqrt(1 - a1**2) * rng.standard_normal(3)
+    pb = Problem.from_arrays(S, S @ np.ones(6) + e, t)
+    fitted = diagnose_noise(pb)
+    true = np.sqrt(np.diag(crlb_covariance(S, 0.1, t=t, tau=1.0)))
+    ratio = fitted.crlb_std / true
+    assert np.all((ratio > 0.8) & (ratio < 1.25)), ratio
+    assert np.median(diagnose(pb).crlb_std / true) < 0.5  # white: far too small on these rows
+    assert fitted.noise["model"] == "gauss-markov" and 0.6 < fitted.noise["axes"]["x"]["tau_s"] < 1.6
+    assert "noise auto" in fitted.text() and diagnose_noise(pb, "white").noise["model"] == "white"

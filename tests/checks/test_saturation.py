@@ -133,3 +133,20 @@ def test_separate_imu_refuses_ranges_for_a_record_already_read():
     imu = ImuData(t, np.zeros((t.size, 3)), np.zeros((t.size, 3)))
     with pytest.raises(ValueError, match=r"`gyr_range`, `acc_range`: give them to casep.navigation.read_imu"):
         separate_imu(imu, "trk.csv", LaunchSite(0.0, 0.0, 0.0, 0.0, 0.0), (0.0, 1.0), gyr_range=1.0)
+
+
+def test_a_gyro_held_at_a_nominal_range_for_most_of_the_record_is_found():
+    """A noisy gyro that sits on its 125 deg/s rail for 87 % of the record: its median is the rail, which
+    says nothing against clipping for a gyro (an accelerometer's median at 1 g does); the noise is judged
+    off the rail. A static accelerometer at 1 g that never clips is still not flagged."""
+    rng = np.random.default_rng(0)
+    fs = np.radians(125.0)
+    w = np.column_stack([np.linspace(0.0, 3.0 * fs, 1000), np.zeros(1000), np.zeros(1000)])
+    w += 1e-4 * rng.standard_normal(w.shape)
+    w[:, 0] = np.minimum(w[:, 0], fs)
+    found = held_full_scale(w, "gyro")
+    assert len(found) == 1 and found[0].axis == 0 and found[0].side == "maximum"
+    assert sum(b - a for a, b in found[0].runs) == int(np.sum(w[:, 0] == fs)) > 600
+    acc = np.full((1000, 3), [0.0, 0.0, 9.80665]) + 2e-3 * rng.standard_normal((1000, 3))
+    acc[:, 2] = np.round(acc[:, 2], 2)  # quantised: the 1 g maximum repeats, and is no rail
+    assert held_full_scale(acc, "accelerometer") == []

@@ -212,7 +212,7 @@ def _forbid(monkeypatch, target: str):
     (["separate", "{flight}", "--json", "{missing}/r.json"], "casep.workflows.separate.separate"),
     (["separate", "{flight}", "--mat", "{missing}/r.mat"], "casep.workflows.separate.separate"),
     (["separate", "{flight}", "--csv", "{missing}/r.csv"], "casep.workflows.separate.separate"),
-    (["diagnose", "{flight}", "--json", "{missing}/d.json"], "casep.checks.diagnostics.diagnose"),
+    (["diagnose", "{flight}", "--json", "{missing}/d.json"], "casep.checks.diagnostics.diagnose_noise"),
     (["simulate", "-o", "{missing}/f.csv"], "casep.simulation.simulate.simulate_flight"),
     (["montecarlo", "--runs", "2", "--json", "{missing}/mc.json"], "casep.montecarlo.run_montecarlo"),
     (["montecarlo", "--runs", "2", "--csv", "{missing}/mc.csv"], "casep.montecarlo.run_montecarlo"),

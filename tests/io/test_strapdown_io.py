@@ -53,6 +53,20 @@ def test_force_is_the_rotated_body_force_and_sign_flips_are_accepted(tmp_path):
     assert fl.meta["strapdown"]["rms_rate_error_rad_s"] < 1e-3 * fl.meta["strapdown"]["rms_rate_rad_s"]
 
 
+def test_cli_separate_says_how_many_sign_flips_it_removed(tmp_path, capsys):
+    from casep.cli import main
+
+    t, q, fb, w, _ = motion(400)
+    flip = np.ones(t.size)
+    flip[100:250] = -1.0
+    dv = 0.01 * np.random.default_rng(0).standard_normal((t.size, 3))
+    path = write(tmp_path / "sd.csv", t, q * flip[:, None], fb, w, dv=dv)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a flight of noise: only the line is asked about
+        main(["separate", str(path), "--model", "strapdown12", "--noise", "white"])
+    assert "attitude: 2 quaternion sign flip(s) (q and -q are the same attitude) removed" in capsys.readouterr().out
+
+
 def test_non_unit_quaternion_names_columns_row_and_numbers(tmp_path):
     t, q, fb, w, _ = motion()
     q[36] *= 1.001

@@ -77,3 +77,28 @@ def test_dispersion_draws_kept_per_run(tmp_path):
     again = run_montecarlo("paper", **kw, noise="white")
     assert again.resumed == again.tasks > 0
     np.testing.assert_array_equal(again.draws["launch_azimuth_deg"], res.draws["launch_azimuth_deg"])
+
+
+def test_montecarlo_on_own_strapdown_flight_reads_its_signal_columns(tmp_path):
+    """A strapdown flight file (q_*, fb_*, w_*, no f_*) runs: S_V is built from its own signal columns (the CRLB
+    of the runs is that of casep.build_sv on the file's columns), and the summary names the terms the flight
+    cannot determine (an axial-thrust boost: 24 of strapdown33's) and pools RMS z and coverage over the rest."""
+    import casep
+    from casep.montecarlo import run_montecarlo
+    from casep.simulation.simulate import simulate_flight, write_simulation
+
+    flight, side = write_simulation(simulate_flight("strapdown-boost", seed=2, rate=2.0), tmp_path / "sd.csv")
+    truth = json.loads(side.read_text())
+    truth.pop("noise")  # the flight's own least-squares residual std: white
+    res = run_montecarlo("paper", runs=3, methods=["ols"], workers=1, progress=False, flight=flight, truth=truth,
+                         noise="white")
+    fl = casep.read_flight(flight)
+    model = casep.load_model(truth["model"])
+    S = casep.build_sv(model, fl.t, fl.f, signals=fl.signals)
+    sd = np.sqrt(np.diag(casep.checks.crlb_covariance(S, 1.0)))
+    assert np.array_equal(res.determined, np.isfinite(sd)) and int(res.determined.sum()) == 9
+    ok = res.determined
+    np.testing.assert_allclose(res.crlb_std[ok] / sd[ok], res.crlb_std[ok][0] / sd[ok][0], rtol=1e-6)  # one sigma
+    text, d = res.text(), res.to_dict()
+    assert "determined 9 of 33 coefficients" in text and "unidentifiable 24" in text and "RMS z" in text
+    assert len(d["unidentifiable"]) == 24 and d["methods"]["ols"]["determined"]["count"] == 27

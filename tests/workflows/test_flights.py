@@ -1,6 +1,7 @@
 """Several flights in one estimate (casep.workflows.flights): against an independent weighted stack."""
 
 import dataclasses
+import json
 import warnings
 from pathlib import Path
 
@@ -254,6 +255,8 @@ def test_diagnose_flights_joint_bound_against_summed_information(tmp_path):
         assert main(["diagnose", *paths, "--figures", str(tmp_path / "fig")]) == 0
     png = (tmp_path / "fig" / "flights_crlb.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+    noise = json.loads((tmp_path / "d.json").read_text())["noise"]  # each flight's, fitted as separate does
+    assert len(noise) == 2 and all(n.startswith("noise auto") for n in noise)
 
 
 def _quiet(fn, *args, **kw):
