@@ -28,19 +28,35 @@ by degrees and the linear error model is biased by many std. With ``D_k`` the co
    (``C_start = R(phi0(D_k)) C_aligned``, ``v_start -= dv0(D_k)``);
 2. re-aligns and re-navigates with the corrected record;
 3. pairs it with the tracking, less the model's direct velocity terms at ``D_k`` (a lever arm, the
-   tracking time offset ``dt_trk``), rebuilds S_V (and ``A``) about the corrected trajectory, and
-   solves for the remaining correction ``d_k``; ``D_{k+1} = D_k + d_k``.
+   tracking time offset ``dt_trk``), leaves out the tracking epochs the first pass's screen left out,
+   rebuilds S_V (and ``A``) about the corrected trajectory, and solves for the remaining correction
+   ``d_k`` along the combinations the flight determines (:func:`determined_step`); ``D_{k+1} = D_k + d_k``.
+
+**The tracking screen** (:func:`casep.checks.tracking_quality.screen_tracking`: stale fixes, the physics
+check against the IMU, the noise per stretch) runs once, on the first pass, where its warnings are
+said; every later pass leaves out the same tracking rows (:func:`casep.checks.tracking_quality.keep_screen`).
+A fixed point needs the same rows in every pass (a row that came and went between passes would move it),
+and what the screen tests (a repeated fix while the IMU moved by 0.5 m/s, jumps beyond 10 m/s + 2 m/s^2 dt)
+is far above what correcting the IMU changes between passes; the first pass is also what ``casep navigate``
+then ``casep separate`` screens, so both paths leave out the same epochs.
+
+**Only what the flight determines is corrected.** A coefficient without an estimate (exactly dependent
+columns) or a combination the result says the flight does not determine (the stretches' statement,
+:func:`casep.checks.tracking_quality.determined`) says nothing about the IMU: correcting the record by the
+solver's value there, or by 0 in place of a missing estimate (which drops the determined combination it
+is part of), would move the linearisation where the data do not say. :func:`determined_step` builds ``d_k``
+from the determined combinations only and measures it in their std.
 
 Far from convergence the passes are solved by OLS under white noise, then as requested; once every
 correction is below :data:`ACCELERATE_BELOW` std, ``D_{k+1}`` is the secant (Anderson, depth one)
-step through the last two passes (:func:`_secant_step`). It stops when every correction is below
-:data:`ITERATE_TOL` (0.1) of its std, ``|d_k,i| < 0.1
-std_i`` (Gauss-Newton with S_V as the Jacobian: its fixed point makes the residual orthogonal to
-S_V about the corrected trajectory, the noise-free truth included), and fails (status
+step through the last two passes (:func:`_secant_step`). It stops when the correction of every
+determined combination is below :data:`ITERATE_TOL` (0.1) of its std, ``|g . d_k| < 0.1 std(g . d_k)``
+for every determined ``g`` (Gauss-Newton with S_V as the Jacobian: its fixed point makes the residual
+orthogonal to S_V about the corrected trajectory, the noise-free truth included), and fails (status
 :data:`STATUS_NOT_CONVERGED`) after ``max_iterations`` passes or when a correction cannot be
 applied. The estimate is ``D_k + d_k`` of the last pass, the std and covariance those of its
 linearisation; ``diagnostics["iterations"]`` lists every pass (the largest correction in std and
-whose it was).
+the combination it was).
 """
 
 from __future__ import annotations
@@ -66,7 +82,7 @@ if TYPE_CHECKING:
 __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
            "STATUS_NOT_CONVERGED"]
 
-#: The iteration stops when every correction is below this fraction of its std.
+#: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
 #: Passes after which an iteration that has not converged is a failed result.
 MAX_ITERATIONS = 20
@@ -546,10 +562,9 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
             return Step(np.zeros(len(names)), 0.0, "(no combination determined)", scale, combos)
         V = np.array([c["weights"] for c in combos])
         c = np.array([c["correction"] for c in combos])
-        z = c / np.array([c["std"] for c in combos])
-        i = int(np.argmax(np.abs(z)))
-        worst = "combination " + " + ".join(f"{w:.2f} {nm}" for nm, w in combos[i]["terms"].items())
-        return Step(scale * (V.T @ c), float(np.linalg.norm(z)), worst, scale, combos)
+        s = np.array([c["std"] for c in combos])
+        z = c / s
+        return Step(scale * (V.T @ c), float(np.linalg.norm(z)), _combination(names, V.T @ (z / s)), scale, combos)
     x = res.fitted_coefficients()
     C = res.covariance if res.solution is None else res.solution.covariance
     std = res.std if res.std is not None else np.full(len(names), np.nan)
@@ -559,15 +574,29 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
         Q, _ = np.linalg.qr(N / scale[:, None])
         x = scale * (x / scale - Q @ (Q.T @ (x / scale)))
         G = np.linalg.svd(N.T)[2][N.shape[1]:]  # rows orthogonal to N: the determined combinations
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.abs(x) / std
-    zf = np.where(np.isfinite(z), z, 0.0)
-    worst = names[int(np.argmax(zf))]
-    if C is None or not np.all(np.isfinite(G @ C @ G.T)):
-        return Step(x, float(zf.max()), worst, std)  # no covariance: the coefficients' own std
+    if C is None or not np.all(np.isfinite(G @ C @ G.T)):  # no covariance: the coefficients' own std
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.abs(x) / std
+        zf = np.where(np.isfinite(z), z, 0.0)
+        return Step(x, float(zf.max()), names[int(np.argmax(zf))], std)
     gx = G @ x
-    return Step(x, float(np.sqrt(max(float(gx @ np.linalg.lstsq(G @ C @ G.T, gx, rcond=None)[0]), 0.0))), worst,
-                std)
+    a = np.linalg.lstsq(G @ C @ G.T, gx, rcond=None)[0]  # the worst combination: g = G^T a, |g.d| / std = sqrt(gx.a)
+    return Step(x, float(np.sqrt(max(float(gx @ a), 0.0))), _combination(names, scale * (G.T @ a)), std)
+
+
+def _combination(names: list[str], w: np.ndarray, top: int = 3) -> str:
+    """A combination by its weights `w` on the coefficients divided by their declared magnitudes: the coefficient's
+    name when it is nearly alone (95 % of the weight's norm), else its `top` largest terms."""
+    w = np.asarray(w, dtype=float)
+    norm = float(np.linalg.norm(w))
+    if not norm > 0:
+        return "(none)"
+    w = w / norm
+    j = np.argsort(-np.abs(w))[:top]
+    if abs(w[j[0]]) >= 0.95:
+        return names[j[0]]
+    w = w if w[j[0]] > 0 else -w
+    return "combination " + " ".join(f"{w[m]:+.2f} {names[m]}" for m in j).lstrip("+")
 
 
 def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np.ndarray:
