@@ -266,3 +266,30 @@ def test_undetermined_coefficients_never_enter_the_imu_correction(noise_free, tm
     z_one = max(abs(first[n] - TRUTH[n]) / res.std[res.names.index(n)] for n in others)
     assert abs(z_it) <= 0.01, z_it
     assert z_one > 5.0, z_one
+
+
+def test_stale_tracking_is_screened_once_and_left_out_of_every_pass(truth_flight, tmp_path):
+    """A receiver repeating its fix for 3 s in the boost: the first pass's screen says so and leaves those rows
+    out, every later pass leaves out the same rows, and the noise-free iteration still converges to the truth."""
+    from casep.exceptions import TrackingQualityWarning
+
+    imu, trk, D = write_flight(tmp_path, truth_flight)
+    t, nav = truth_flight[0], truth_flight[3]
+    k = slice(None, None, int(RATE / TRK_RATE))
+    v = nav.v[k].copy()
+    stale = np.arange(80, 95)  # t = 16.0 .. 18.8 s, the boost: the fix of row 79 repeated
+    v[stale] = v[79]
+    write_table(trk, {"t": t[k], **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}})
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=heading_of_x(), spec=NOISE_FREE)
+    said = [str(w.message) for w in caught if issubclass(w.category, TrackingQualityWarning)]
+    assert len([m for m in said if "15 stale tracking epochs" in m]) == 1, said  # said once, by the first pass
+    screen = out.flight.meta["tracking_screen"]
+    assert screen["left_out_rows"] == stale.tolist()
+    rows = np.asarray(out.flight.meta["rows_index"])
+    assert not out.flight.observed[np.isin(rows, stale)].any()
+    res = out.result
+    assert out.success and res.diagnostics["iterations"]["converged"], out.message
+    crlb = np.array([res.diagnostics["crlb_std"][n] for n in res.names])
+    assert np.abs((res.estimate - D) / crlb).max() <= 0.01
