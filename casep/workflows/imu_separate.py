@@ -181,7 +181,8 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     spec : FitSpec, optional
         The fit request (default :meth:`FitSpec.build`: OLS, the noise model chosen by the data).
     iterate : bool
-        Iterate until every correction is below `tol` of its std (default); False: one linear pass.
+        Iterate until the correction of every determined combination is below `tol` of its std (default);
+        False: one linear pass.
     tol, max_iterations
         The stop rule and the passes allowed (None: :data:`MAX_ITERATIONS`).
     tracking_frame, grid, time_offset, time_shift, fit_time_offset
@@ -370,7 +371,8 @@ class _Run:
 
     # ------------------------------------------------------------------ the iteration
     def iterate(self, iterate: bool, tol: float, max_iterations: int) -> ImuSeparation:
-        """Passes until every correction is below `tol` std (or one pass without `iterate`).
+        """Passes until the correction of every determined combination is below `tol` std (:func:`determined_step`;
+        one pass without `iterate`).
 
         While the corrections are large, a pass is solved by OLS under white noise (:func:`_fast_spec`: the
         noise model of the requested fit is fitted to residuals that are still mostly linearisation
