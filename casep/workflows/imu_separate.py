@@ -584,7 +584,7 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
         x = scale * (x / scale - Q @ (Q.T @ (x / scale)))
         Qn, _ = np.linalg.qr(N)
         P = P - Qn @ Qn.T  # row j: the part of coefficient j the flight determines (P N = 0)
-    if C is None or not np.all(np.isfinite(P @ C @ P.T)):  # no covariance: the coefficients' own std
+    if res.solution is None or C is None or not np.all(np.isfinite(P @ C @ P.T)):  # the coefficients' own std
         with np.errstate(divide="ignore", invalid="ignore"):
             z = np.abs(x) / std
     else:
