@@ -48,8 +48,8 @@ from casep.exceptions import TrackingQualityWarning
 from casep.io.flight import FlightData
 from casep.noise.robust import MAD_SIGMA
 
-__all__ = ["TrackingScreen", "screen_tracking", "clock_drift", "stretch_noise", "noise_problem", "determined",
-           "determined_message", "imu_noise_effect", "STALE_MOTION", "JUMP_TOL",
+__all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "stretch_noise", "noise_problem",
+           "determined", "determined_message", "imu_noise_effect", "STALE_MOTION", "JUMP_TOL",
            "JUMP_RATE", "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
 
 #: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
@@ -72,8 +72,8 @@ IMU_NOISE_BLOCK_S = 0.2
 
 @dataclass
 class TrackingScreen:
-    """What :func:`screen_tracking` found: spans ``(t_first, t_last, epochs)`` (s) and the drift (ppm, NaN: not
-    determined)."""
+    """What :func:`screen_tracking` found: spans ``(t_first, t_last, epochs)`` (s), the drift (ppm, NaN: not
+    determined), and the rows of the tracking file left out (``left_out_rows``, 0-based)."""
 
     stale: list = field(default_factory=list)
     rejected: list = field(default_factory=list)
@@ -83,6 +83,7 @@ class TrackingScreen:
     epochs: int = 0
     kept: int = 0
     stretches: list = field(default_factory=list)
+    left_out_rows: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
         """Plain data (JSON: NaN as null)."""
@@ -267,6 +268,7 @@ def screen_tracking(flight: FlightData) -> FlightData:
     screen = TrackingScreen(_spans(t, stale), _spans(t, rejected), largest, drift, drift_std, int(idx.size),
                             int(keep.sum()))
     screen.stretches = stretch_noise(t[keep], flight.dv[idx[keep]])
+    screen.left_out_rows = [int(r) for r in np.asarray(meta["rows_index"])[idx[~keep]]]
     _warn(flight.source, screen, _located(flight, idx, stale) if stale.any() else "",
           _located(flight, idx, rejected) if rejected.any() else "")
     if keep.all():
@@ -274,6 +276,25 @@ def screen_tracking(flight: FlightData) -> FlightData:
     observed = flight.observed.copy()
     observed[idx[~keep]] = False
     return dataclasses.replace(flight, observed=observed, meta={**meta, "tracking_screen": screen.to_dict()})
+
+
+def keep_screen(flight: FlightData, screen: dict | None) -> FlightData:
+    """`flight` with the tracking rows a screen of the same tracking file left out (``screen["left_out_rows"]``,
+    :func:`screen_tracking`'s ``meta["tracking_screen"]``) left out again and the screen recorded, without
+    screening anew; `flight` as it is when `screen` is None.
+
+    The passes of an iteration that re-navigates the same IMU record and pairs it with the same tracking
+    (:mod:`casep.workflows.imu_separate`) keep the first pass's screen: a fixed point needs the same rows
+    in every pass, and what the screen tests (a repeated fix while the IMU moved by more than
+    :data:`STALE_MOTION`, jumps beyond :data:`JUMP_TOL` + :data:`JUMP_RATE` dt) is larger by orders of
+    magnitude than what a correction of the IMU's errors changes between passes.
+    """
+    if screen is None:
+        return flight
+    observed = flight.observed.copy()
+    rows = np.asarray(flight.meta["rows_index"])
+    observed[np.isin(rows, np.asarray(screen["left_out_rows"], dtype=int)) & (rows >= 0)] = False
+    return dataclasses.replace(flight, observed=observed, meta={**flight.meta, "tracking_screen": screen})
 
 
 def _warn(source: str, s: TrackingScreen, stale: str, rejected: str) -> None:
@@ -384,7 +405,7 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray
 
 
 def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
-               imu: FlightData | None = None) -> tuple[list[dict], float]:
+               imu: FlightData | None = None, about: np.ndarray | None = None) -> tuple[list[dict], float]:
     """The combinations of coefficients the flight determines when each stretch is weighted by its own noise.
 
     Rows weighted by ``1 / sigma_s`` (the stretch's scatter, :func:`stretch_noise`; the largest for rows in no
@@ -405,11 +426,16 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
     1.12 with the IMU's noise taken out of the simulation; both carried, 1.16 (0.91), the rest the linear
     model's second order (biases / 10: 0.96, 0.97).
 
+    With `about` (natural units, the coefficients the problem was linearised about: the S_V and dv of an
+    iterated pass, :mod:`casep.workflows.imu_separate`) ``problem.y`` is the residual left at `about`, so the
+    fit estimates the combinations of ``D - about``: ``correction`` is that, ``estimate`` the total
+    ``V_i . (about / scale) + correction`` (the same std).
+
     Returns
     -------
     combinations : list of dict
         ``terms`` (name -> weight on ``x / scale``, the `top` largest), ``weights`` (all, model order),
-        ``estimate``, ``std``; best first.
+        ``estimate``, ``std``, ``correction`` (the estimate less the combination of `about`); best first.
     k : float
         The std factor.
     """
@@ -442,6 +468,7 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
     seen = None if imu is None else imu_noise_effect(imu, t, (U[:, keep] / np.repeat(sig, 3)[:, None]).T)
     if seen is not None:  # the IMU noise's variance of each combination's estimate (U_i . y_w / s_i)
         extra[keep] = np.sum(seen**2, axis=1) / sv[keep] ** 2
+    base = np.zeros(n) if about is None else Vt @ (np.asarray(about, dtype=float) / scale)
     out = []
     for i in np.flatnonzero(keep):
         std = math.sqrt((k / sv[i]) ** 2 + extra[i])
@@ -449,8 +476,9 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
             continue
         j = np.argsort(-np.abs(Vt[i]))[:top]
         sign = 1.0 if Vt[i, j[0]] >= 0 else -1.0
-        out.append({"terms": {problem.names[m]: sign * float(Vt[i, m]) for m in j}, "estimate": sign * float(z[i]),
-                    "std": std, "weights": (sign * Vt[i]).tolist()})
+        out.append({"terms": {problem.names[m]: sign * float(Vt[i, m]) for m in j},
+                    "estimate": sign * float(base[i] + z[i]), "std": std, "weights": (sign * Vt[i]).tolist(),
+                    "correction": sign * float(z[i])})
     return out, k
 
 

@@ -31,7 +31,8 @@ def add_parser(sub: Any) -> None:
     flight_options.add_full_scales(p, "with --imu: the rows from the first clipped sample on are left out")
     p.add_argument("--iterate", action=argparse.BooleanOptionalAction, default=None,
                    help="with --imu: correct the IMU by the estimate, re-navigate, rebuild S_V and solve again "
-                        "until every correction is below a tenth of its std (the stop rule of "
+                        "until the correction of every determined combination is below a tenth of its std "
+                        "(the stop rule of "
                         "casep.workflows.imu_separate; default with --imu); --no-iterate: one linear pass")
     p.add_argument("--max-iterations", type=positive_int, default=None, metavar="N",
                    help="with --imu: passes before an iteration that has not converged is a failed result "

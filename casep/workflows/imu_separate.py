@@ -28,19 +28,36 @@ by degrees and the linear error model is biased by many std. With ``D_k`` the co
    (``C_start = R(phi0(D_k)) C_aligned``, ``v_start -= dv0(D_k)``);
 2. re-aligns and re-navigates with the corrected record;
 3. pairs it with the tracking, less the model's direct velocity terms at ``D_k`` (a lever arm, the
-   tracking time offset ``dt_trk``), rebuilds S_V (and ``A``) about the corrected trajectory, and
-   solves for the remaining correction ``d_k``; ``D_{k+1} = D_k + d_k``.
+   tracking time offset ``dt_trk``), leaves out the tracking epochs the first pass's screen left out,
+   rebuilds S_V (and ``A``) about the corrected trajectory, and solves for the remaining correction
+   ``d_k`` along the combinations the flight determines (:func:`determined_step`); ``D_{k+1} = D_k + d_k``.
+
+**The tracking screen** (:func:`casep.checks.tracking_quality.screen_tracking`: stale fixes, the physics
+check against the IMU, the noise per stretch) runs once, on the first pass, where its warnings are
+said; every later pass leaves out the same tracking rows (:func:`casep.checks.tracking_quality.keep_screen`).
+A fixed point needs the same rows in every pass (a row that came and went between passes would move it),
+and what the screen tests (a repeated fix while the IMU moved by 0.5 m/s, jumps beyond 10 m/s + 2 m/s^2 dt)
+is far above what correcting the IMU changes between passes; the first pass is also what ``casep navigate``
+then ``casep separate`` screens, so both paths leave out the same epochs.
+
+**Only what the flight determines is corrected.** A coefficient without an estimate (exactly dependent
+columns) or a combination the result says the flight does not determine (the stretches' statement,
+:func:`casep.checks.tracking_quality.determined`) says nothing about the IMU: correcting the record by the
+solver's value there, or by 0 in place of a missing estimate (which drops the determined combination it
+is part of), would move the linearisation where the data do not say. :func:`determined_step` builds ``d_k``
+from the determined combinations only and measures it in their std.
 
 Far from convergence the passes are solved by OLS under white noise, then as requested; once every
 correction is below :data:`ACCELERATE_BELOW` std, ``D_{k+1}`` is the secant (Anderson, depth one)
-step through the last two passes (:func:`_secant_step`). It stops when every correction is below
-:data:`ITERATE_TOL` (0.1) of its std, ``|d_k,i| < 0.1
-std_i`` (Gauss-Newton with S_V as the Jacobian: its fixed point makes the residual orthogonal to
-S_V about the corrected trajectory, the noise-free truth included), and fails (status
+step through the last two passes (:func:`_secant_step`). It stops when the correction of every
+determined combination is below :data:`ITERATE_TOL` (0.1) of its std, ``|g . d_k| < 0.1 std(g . d_k)``
+for every ``g`` the result states as determined (:func:`determined_step`; Gauss-Newton with S_V as the
+Jacobian: its fixed point makes the residual orthogonal to S_V about the corrected trajectory, the
+noise-free truth included), and fails (status
 :data:`STATUS_NOT_CONVERGED`) after ``max_iterations`` passes or when a correction cannot be
 applied. The estimate is ``D_k + d_k`` of the last pass, the std and covariance those of its
 linearisation; ``diagnostics["iterations"]`` lists every pass (the largest correction in std and
-whose it was).
+the combination it was).
 """
 
 from __future__ import annotations
@@ -63,9 +80,10 @@ if TYPE_CHECKING:
     from casep.model.error_model import ErrorModel
     from casep.navigation.result import NavigationResult
 
-__all__ = ["separate_imu", "ImuSeparation", "ITERATE_TOL", "MAX_ITERATIONS", "STATUS_NOT_CONVERGED"]
+__all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
+           "STATUS_NOT_CONVERGED"]
 
-#: The iteration stops when every correction is below this fraction of its std.
+#: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
 #: Passes after which an iteration that has not converged is a failed result.
 MAX_ITERATIONS = 20
@@ -164,7 +182,8 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     spec : FitSpec, optional
         The fit request (default :meth:`FitSpec.build`: OLS, the noise model chosen by the data).
     iterate : bool
-        Iterate until every correction is below `tol` of its std (default); False: one linear pass.
+        Iterate until the correction of every determined combination is below `tol` of its std (default);
+        False: one linear pass.
     tol, max_iterations
         The stop rule and the passes allowed (None: :data:`MAX_ITERATIONS`).
     tracking_frame, grid, time_offset, time_shift, fit_time_offset
@@ -221,6 +240,7 @@ class _Run:
         self.model_k: ErrorModel | None = None  # the model of the last pass
         self.q_aligned = np.array([1.0, 0.0, 0.0, 0.0])  # the last pass's aligned start attitude
         self.C_tb = np.eye(3)  # ... and its body -> launch triad
+        self.screen: dict | None = None  # the first pass's tracking screen, kept
 
     # ------------------------------------------------------------------ one pass
     def navigate(self, D: np.ndarray) -> NavigationResult:
@@ -322,6 +342,7 @@ class _Run:
         """One pass at `D` (None: the first, uncorrected): navigate, pair, model, and the estimate alone (no
         judgement of the residuals, no warnings: the last pass's fit is made again, whole, by :meth:`iterate`)."""
         from casep.checks.flight import flight_problem
+        from casep.checks.tracking_quality import keep_screen, screen_tracking
 
         first = D is None
         D = np.zeros(self.base.n_coefficients) if D is None else D
@@ -330,6 +351,11 @@ class _Run:
                 warnings.simplefilter("ignore")  # the inputs' warnings were shown on the first pass
             nav = self.navigate(D)
             flight = self.flight(nav, D, None if first else self.model_k)
+        if first:  # the tracking screen of the first pass, said and kept for every pass (module notes)
+            flight = screen_tracking(flight)
+            self.screen = flight.meta.get("tracking_screen")
+        else:
+            flight = keep_screen(flight, self.screen)
         if first:
             from casep.io.pair import fits_time_offset
 
@@ -346,7 +372,8 @@ class _Run:
 
     # ------------------------------------------------------------------ the iteration
     def iterate(self, iterate: bool, tol: float, max_iterations: int) -> ImuSeparation:
-        """Passes until every correction is below `tol` std (or one pass without `iterate`).
+        """Passes until the correction of every determined combination is below `tol` std (:func:`determined_step`;
+        one pass without `iterate`).
 
         While the corrections are large, a pass is solved by OLS under white noise (:func:`_fast_spec`: the
         noise model of the requested fit is fitted to residuals that are still mostly linearisation
@@ -361,26 +388,26 @@ class _Run:
         failure, last = None, None
         k = 1
         while True:
-            total = D + np.where(np.isfinite(res.estimate), res.estimate, 0.0)
+            step = determined_step(res, problem, flight, model.scales)
             how = "ols, white noise (while far)" if spec is fast else "as requested"
-            passes.append(_pass_record(k, res, total, how))
+            passes.append(_pass_record(k, res, step, D + step.d, how))
             if not iterate:
                 break
-            if passes[-1]["max_z"] < tol:
-                if spec is self.spec:
+            if step.max_z < tol:
+                if spec is self.spec or step.combinations is not None:  # the stretches' combinations: any fit
                     break
                 spec, last = self.spec, None  # the same linearisation, solved as requested (another map)
                 res = _quiet_fit(problem, spec)
                 continue
             if k == max_iterations:
                 failure = (f"failed: the iteration did not converge in {max_iterations} passes (the last correction "
-                           f"was {passes[-1]['max_z']:.3g} std of {passes[-1]['worst']}, the stop rule {tol:g} std): "
+                           f"was {step.max_z:.3g} std of {step.worst}, the stop rule {tol:g} std): "
                            "the errors are too large for the model, or the data are inconsistent with it")
                 break
-            d = total - D
-            step = _secant_step(D, d, res.std, last) if passes[-1]["max_z"] < ACCELERATE_BELOW else d
-            last = (D, d) if passes[-1]["max_z"] < ACCELERATE_BELOW else None
-            D, k = D + step, k + 1
+            near = step.max_z < ACCELERATE_BELOW
+            move = _secant_step(D, step.d, step.metric, last) if near else step.d
+            last = (D, step.d) if near else None
+            D, k = D + move, k + 1
             try:
                 res, nav, flight, model, problem = self.solve(D, spec)
             except ValueError as exc:
@@ -390,27 +417,34 @@ class _Run:
         from casep.estimators.solve import fit
 
         res = fit(problem, self.spec)  # the last linearisation, judged (its warnings are the result's)
-        return self.finish(res, nav, flight, model, total, passes, failure, iterate, tol, max_iterations)
+        return self.finish(res, nav, flight, model, problem, D, passes, failure, (iterate, tol, max_iterations))
 
     def finish(self, res: EstimateResult, nav: NavigationResult, flight: FlightData, model: ErrorModel,
-               total: np.ndarray, passes: list[dict], failure: str | None, iterate: bool, tol: float,
-               max_iterations: int) -> ImuSeparation:
-        """The result of the last pass with the accumulated estimate, judged, its warnings re-issued."""
+               problem: Any, D: np.ndarray, passes: list[dict], failure: str | None,
+               rule: tuple[bool, float, int]) -> ImuSeparation:
+        """The result of the last pass (linearised about `D`) with the accumulated estimate ``D + x`` (``x`` the
+        solver's solution: :meth:`EstimateResult.fitted_coefficients`), judged as :func:`casep.separate` judges a
+        flight (set-up, magnitudes, the tracking's stretches: the combinations as totals), its warnings re-issued."""
         from casep.estimators.registry import failed
         from casep.model.loader import model_record
-        from casep.workflows.separate import judge_setup
+        from casep.workflows.separate import judge_setup, judge_tracking
 
+        iterate, tol, max_iterations = rule
+        total = D + res.fitted_coefficients()
         estimate = np.where(np.isfinite(res.estimate), total, np.nan)
         diag = dict(res.diagnostics)
         diag["iterations"] = {"iterate": iterate, "tol": tol, "max_iterations": max_iterations,
                               "converged": failure is None and (not iterate or passes[-1]["max_z"] < tol),
                               "passes": passes}
-        out = dataclasses.replace(res, estimate=estimate, diagnostics=diag, **model_record(self.base))
+        solution = None if res.solution is None else dataclasses.replace(res.solution, x=total)
+        out = dataclasses.replace(res, estimate=estimate, diagnostics=diag, solution=solution,
+                                  **model_record(self.base))
         if iterate and failure is None and passes[-1]["max_z"] >= tol and out.success:
             failure = f"failed: the iteration stopped at pass {len(passes)} before converging"
         if failure is not None:
             out = failed(out, STATUS_NOT_CONVERGED, failure)
         out = judge_setup(out, flight, model, noise_free=False)
+        out = judge_tracking(out, flight, problem, model.scales, about=D)
         return ImuSeparation(out, nav, flight, passes)
 
 
@@ -459,18 +493,121 @@ def _quiet_fit(problem: Any, spec: FitSpec) -> EstimateResult:
         return fit(problem, spec, checks=False)
 
 
-def _pass_record(k: int, res: EstimateResult, total: np.ndarray, how: str) -> dict:
-    """One pass for ``diagnostics["iterations"]``: the largest |correction| / std, whose, every coefficient's, and
-    the estimate after it (`total`, natural units; the first pass's is the one linear pass's)."""
+def _pass_record(k: int, res: EstimateResult, step: Step, total: np.ndarray, how: str) -> dict:
+    """One pass for ``diagnostics["iterations"]``: the largest correction of a determined combination in its std
+    (`step`), whose, every coefficient's |correction| / std (None where the flight does not determine it), the
+    combinations' (with the tracking's stretches), and the estimate after it (`total`, natural units; the first
+    pass's is the one linear pass's)."""
     std = res.std if res.std is not None else np.full(len(res.names), np.nan)
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.abs(res.estimate) / std
+    out = {"iteration": k, "fit": how, "max_z": step.max_z, "worst": step.worst,
+           "z": {nm: (float(v) if np.isfinite(v) else None) for nm, v in zip(res.names, z)},
+           "estimate": {nm: (float(v) if np.isfinite(e) else None)
+                        for nm, v, e in zip(res.names, total, res.estimate)}}
+    if step.combinations is not None:
+        out["combinations_z"] = [abs(c["correction"]) / c["std"] for c in step.combinations]
+    return out
+
+
+@dataclass
+class Step:
+    """A pass's correction along what the flight determines (:func:`determined_step`).
+
+    Attributes
+    ----------
+    d : (n,) ndarray
+        The correction, natural units, with no part along what the flight does not determine.
+    max_z : float
+        The largest correction of a determined combination, in its std (:func:`determined_step`).
+    worst : str
+        The coefficient (or combination) with the largest correction in its std.
+    metric : (n,) ndarray
+        The per-coefficient scale of the secant step (:func:`_secant_step`).
+    combinations : list of dict or None
+        With the tracking's stretches: :func:`casep.checks.tracking_quality.determined`'s combinations.
+    """
+
+    d: np.ndarray
+    max_z: float
+    worst: str
+    metric: np.ndarray
+    combinations: list | None = None
+
+
+def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scales: dict[str, float]) -> Step:
+    """The correction of one pass along the combinations the flight determines, and its size in their std.
+
+    Two cases, one per statement the result makes of what the flight determines:
+
+    - the tracking noise differs between stretches (:func:`casep.checks.tracking_quality.noise_problem`):
+      the result states the combinations ``c_i = V_i . (D / scale)`` whose std, weighted per stretch, is below
+      their declared magnitude (:func:`casep.checks.tracking_quality.determined`); the correction is
+      ``d = scale * sum_i V_i c_i`` over those (``V_i`` orthonormal: nothing along the others), and their
+      estimates are uncorrelated, so ``max_z = sqrt(sum_i (c_i / std_i)^2)``;
+    - otherwise the fit's own: ``x`` the solver's solution (:meth:`EstimateResult.fitted_coefficients`) with
+      its part along the null space ``N`` of S_V removed in the declared magnitudes (``z = x / scale``
+      projected off ``N / scale``: of the corrections that fit the data alike, the smallest against the
+      declared magnitudes; every determined combination ``g . d = g . x``, since ``g N = 0``), and
+      ``max_z`` the largest ``|P_j . d| / std(P_j . d)`` over the coefficients, ``P = I - N N^+`` (``P_j``: the
+      part of coefficient j the flight determines; the coefficient itself where it is determined, so at full
+      rank the largest ``|d_j| / std_j``; for two exactly dependent columns their sum).
+
+    Not the largest over *every* determined combination (``sqrt(d^T C^+ d)``): on the MEMS flight of
+    ``benchmarks/mc_imu_iterate.py`` that rule left 4 of 12 runs unconverged after 20 passes (the
+    well-determined directions of an ill-conditioned fit contract slowly under a changing noise model),
+    where the per-coefficient rule converges in 7 to 14.
+
+    An undetermined coefficient's estimate is never read (it is NaN; 0 in its place would drop the
+    determined combination it is part of).
+    """
+    from casep.checks.tracking_quality import determined, noise_problem
+
+    names = list(res.names)
+    scale = np.array([scales.get(nm, 1.0) for nm in names], dtype=float)
+    if noise_problem(flight) is not None and problem.y is not None and problem.t is not None:
+        combos, _ = determined(problem, flight.meta["tracking_screen"]["stretches"], scales, imu=flight)
+        if not combos:
+            return Step(np.zeros(len(names)), 0.0, "(no combination determined)", scale, combos)
+        V = np.array([c["weights"] for c in combos])
+        c = np.array([c["correction"] for c in combos])
+        s = np.array([c["std"] for c in combos])
+        z = c / s
+        return Step(scale * (V.T @ c), float(np.linalg.norm(z)), _combination(names, V.T @ (z / s)), scale, combos)
+    x = res.fitted_coefficients()
+    C = res.covariance if res.solution is None else res.solution.covariance
+    std = res.std if res.std is not None else np.full(len(names), np.nan)
+    P = np.eye(len(names))
+    if res.solution is not None:
+        N = np.asarray(res.solution.null_space, dtype=float).reshape(len(names), -1)
+        Q, _ = np.linalg.qr(N / scale[:, None])
+        x = scale * (x / scale - Q @ (Q.T @ (x / scale)))
+        Qn, _ = np.linalg.qr(N)
+        P = P - Qn @ Qn.T  # row j: the part of coefficient j the flight determines (P N = 0)
+    if res.solution is None or C is None or not np.all(np.isfinite(P @ C @ P.T)):  # the coefficients' own std
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.abs(x) / std
+    else:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.abs(P @ x) / np.sqrt(np.clip(np.einsum("ij,jk,ik->i", P, C, P), 0.0, None))
     zf = np.where(np.isfinite(z), z, 0.0)
-    worst = int(np.argmax(zf))
-    return {"iteration": k, "fit": how, "max_z": float(zf[worst]), "worst": res.names[worst],
-            "z": {nm: (float(v) if np.isfinite(v) else None) for nm, v in zip(res.names, z)},
-            "estimate": {nm: (float(v) if np.isfinite(e) else None)
-                         for nm, v, e in zip(res.names, total, res.estimate)}}
+    j = int(np.argmax(zf))
+    return Step(x, float(zf[j]), _combination(names, scale * P[j]), std)
+
+
+def _combination(names: list[str], w: np.ndarray, top: int = 3) -> str:
+    """A combination by its weights `w` on the coefficients divided by their declared magnitudes: the coefficient's
+    name when it is nearly alone (95 % of the weight's norm), else its `top` largest terms."""
+    w = np.asarray(w, dtype=float)
+    norm = float(np.linalg.norm(w))
+    if not norm > 0:
+        return "(none)"
+    w = w / norm
+    j = np.argsort(-np.abs(w))[:top]
+    if abs(w[j[0]]) >= 0.95:
+        return names[j[0]]
+    w = w if w[j[0]] > 0 else -w
+    return "combination " + " ".join(f"{w[m]:+.2f} {names[m]}" for m in j).lstrip("+")
 
 
 def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np.ndarray:

@@ -367,18 +367,20 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     return res
 
 
-def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, scales: dict) -> EstimateResult:
+def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, scales: dict,
+                   about: np.ndarray | None = None) -> EstimateResult:
     """`res` failed (status ``STATUS_TRACKING``) when the flight's screened tracking noise differs between
     stretches beyond :data:`casep.checks.tracking_quality.NOISE_RATIO`: its message says which combinations the
     flight determines (:func:`casep.checks.tracking_quality.determined`) instead of each coefficient;
-    ``diagnostics["determined"]`` holds them (``combinations``, ``std_factor``, the ``scales`` they divide by)."""
+    ``diagnostics["determined"]`` holds them (``combinations``, ``std_factor``, the ``scales`` they divide by);
+    `about`: the coefficients an iterated pass was linearised about (the combinations' estimates are totals)."""
     from casep.checks.tracking_quality import determined, determined_message, noise_problem
     from casep.estimators.registry import STATUS_TRACKING, failed
 
     why = noise_problem(flight)
     if why is None or problem.y is None or problem.t is None:
         return res
-    combos, k = determined(problem, flight.meta["tracking_screen"]["stretches"], scales, imu=flight)
+    combos, k = determined(problem, flight.meta["tracking_screen"]["stretches"], scales, imu=flight, about=about)
     res = failed(res, STATUS_TRACKING, determined_message(why, combos, k, len(problem.names), scales))
     res.diagnostics["determined"] = {"combinations": combos, "std_factor": k,
                                      "scales": {nm: scales.get(nm, 1.0) for nm in problem.names}}

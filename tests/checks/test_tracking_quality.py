@@ -18,6 +18,7 @@ from casep.checks.tracking_quality import (
     DRIFT_MIN_PPM,
     NOISE_RATIO,
     clock_drift,
+    keep_screen,
     noise_problem,
     screen_tracking,
 )
@@ -83,6 +84,22 @@ def test_stale_and_wrong_epochs_are_left_out_and_listed_the_pad_kept(rocket):
     pad_sd, reacq_sd = (x[3] for x in screened.meta["tracking_screen"]["stretches"])
     assert reacq_sd > NOISE_RATIO * pad_sd and 0.01 < pad_sd < 0.06  # the pad noise simulated: 0.03 m/s
     assert screen_tracking(screened) is screened  # once
+
+
+def test_a_later_pass_keeps_the_first_screen_unsaid(rocket):
+    """An iteration's later pass (the same tracking, the IMU corrected: dv changed by a drift of a few m/s) leaves
+    out exactly the tracking rows the first pass's screen left out, without screening or warning again."""
+    _, flight = rocket
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TrackingQualityWarning)
+        screened = screen_tracking(flight)
+    screen = screened.meta["tracking_screen"]
+    assert len(screen["left_out_rows"]) == screen["epochs"] - screen["kept"] > 0
+    later = dataclasses.replace(flight, dv=flight.dv + 0.1 * (flight.t - flight.t[0])[:, None])
+    kept = keep_screen(later, screen)  # no warning: the suite turns one into an error
+    assert np.array_equal(kept.observed, screened.observed)
+    assert kept.meta["tracking_screen"] is screen and screen_tracking(kept) is kept
+    assert keep_screen(later, None) is later
 
 
 def _clean_pair(rng, repeats=(), glitch=None, at_rest=False):
