@@ -151,10 +151,16 @@ def _screened(meta: dict) -> bool:
     return meta.get("dv") == "v_tel - v_trk" and "tracking_repeats" in meta
 
 
+def _file_rows(flight: FlightData) -> np.ndarray:
+    """The tracking file's data row of each sample, (N,): a pair's ``meta["rows_index"]`` (-1: no tracking row);
+    a one-file flight's sample k is its data row k."""
+    index = flight.meta.get("rows_index")
+    return np.arange(flight.t.size) if index is None else np.asarray(index)
+
+
 def _stale(flight: FlightData, idx: np.ndarray, V: np.ndarray) -> np.ndarray:
     """Of the observed epochs `idx`: the repeats of a fix while the telemetry moved by more than STALE_MOTION."""
-    index = flight.meta.get("rows_index")
-    rows = idx if index is None else np.asarray(index)[idx]  # the one-file flight: sample k is data row k
+    rows = _file_rows(flight)[idx]
     is_rep = np.isin(rows, np.asarray(flight.meta.get("tracking_repeats", []), dtype=int))
     is_rep[0] = False
     anchor = np.maximum.accumulate(np.where(~is_rep, np.arange(idx.size), 0))  # the fix each epoch repeats
@@ -268,7 +274,7 @@ def screen_tracking(flight: FlightData) -> FlightData:
     screen = TrackingScreen(_spans(t, stale), _spans(t, rejected), largest, drift, drift_std, int(idx.size),
                             int(keep.sum()))
     screen.stretches = stretch_noise(t[keep], flight.dv[idx[keep]])
-    screen.left_out_rows = [int(r) for r in np.asarray(meta["rows_index"])[idx[~keep]]]
+    screen.left_out_rows = [int(r) for r in _file_rows(flight)[idx[~keep]]]
     _warn(flight.source, screen, _located(flight, idx, stale) if stale.any() else "",
           _located(flight, idx, rejected) if rejected.any() else "")
     if keep.all():
@@ -292,7 +298,7 @@ def keep_screen(flight: FlightData, screen: dict | None) -> FlightData:
     if screen is None:
         return flight
     observed = flight.observed.copy()
-    rows = np.asarray(flight.meta["rows_index"])
+    rows = _file_rows(flight)
     observed[np.isin(rows, np.asarray(screen["left_out_rows"], dtype=int)) & (rows >= 0)] = False
     return dataclasses.replace(flight, observed=observed, meta={**flight.meta, "tracking_screen": screen})
 
