@@ -305,9 +305,7 @@ def refit_on_offset(first: Callable[[], EstimateResult], again: Callable[[], Est
     note = ("tracking time offset modelled (dt_trk added): the residuals of the model as given tracked the kinematic "
             f"acceleration{' (an offset of ' + said.group(1) + ')' if said else ''}")
     return dataclasses.replace(res, message=f"{res.message}; {note}",
-                               settings={**res.settings, "time_offset": "modelled: found by the residual test",
-                                         **({"time_offset_repaired": res.settings["time_offset_repaired"]}
-                                            if "time_offset_repaired" in res.settings else {})})
+                               settings={**res.settings, "time_offset": "modelled: found by the residual test"})
 
 
 #: Re-pairings of the tracking at the estimated offset (each a fit) before the offset is called not converged.
@@ -328,11 +326,11 @@ def repair_on_offset(flights: Sequence[Any], fit_at: Callable[..., EstimateResul
     in the offset's std (noise or interpolation floor, whichever sets it) it says whether the linearisation
     holds. `fit_at(flights, quick)` fits the flights given: ``quick`` with :data:`LOCATING_FIT`, else as asked.
     The offset is located by quick fits: when that term exceeds :data:`LINEAR_OFFSET_SHARE` of the std of a
-    significant offset, the tracking is re-paired at the
-    offsets found so far (its time tags moved back by them) and refitted, the fit's ``dt_trk`` added, until
-    every change is within its std or within what the linearisation holds (at most :data:`MAX_REPAIRS` fits;
-    else the result fails, status ``STATUS_TRACKING``); then the fit as asked runs once, on the pairs found.
-    The reported ``dt_trk`` is the whole offset: the shift applied plus that fit's rest.
+    significant offset, the tracking is re-paired at the offsets found so far (its time tags moved back by
+    them) and refitted, the fit's ``dt_trk`` added, until every change is within its std or within what the
+    linearisation holds (at most :data:`MAX_REPAIRS` fits; else the result fails, status
+    ``STATUS_TRACKING``); then the fit as asked runs once, on the pairs found. The reported ``dt_trk`` is the
+    whole offset: the shift applied plus that fit's rest.
     """
     from casep.estimators.registry import STATUS_TRACKING, failed
     from casep.io.pair import repaired
@@ -360,8 +358,8 @@ def repair_on_offset(flights: Sequence[Any], fit_at: Callable[..., EstimateResul
         shifted = [repaired(fl, s) if c else fl for fl, s, c in zip(flights, total, can)]
         res = _recorded(functools.partial(fit_at, shifted, True))[0]
     return failed(fit_at(flights), STATUS_TRACKING, "tracking time offset not settled: re-paired at the offset found "
-                  f"{MAX_REPAIRS} times, the last changes {', '.join(f'{v:.3g}' for v in steps[-1])} ms against std "
-                  f"{', '.join(f'{v:.2g}' for v in 1e3 * sd)} ms")
+                  f"{MAX_REPAIRS} times, the rest still {', '.join(f'{v:.3g}' for v in 1e3 * dt)} ms against std "
+                  f"{', '.join(f'{v:.2g}' for v in 1e3 * sd)} ms (a drifting clock, or time tags that jump?)")
 
 
 def _repaired_fit(fit_at: Callable[..., EstimateResult], flights: Sequence[Any], can: np.ndarray, total: np.ndarray,
@@ -378,9 +376,8 @@ def _repaired_fit(fit_at: Callable[..., EstimateResult], flights: Sequence[Any],
     return dataclasses.replace(
         res, estimate=est, settings={**res.settings, "time_offset_repaired": rec},
         message=f"{res.message}; tracking re-paired at the offset found "
-                f"({', '.join(f'{1e3 * v:.4g} ms' for v in total)}; {len(steps)} pass{'es' if len(steps) > 1 else ''}): "
-                f"{TIME_OFFSET} is that shift "
-                "plus the fit's rest")
+                f"({', '.join(f'{1e3 * v:.4g} ms' for v in total)}; {len(steps)} "
+                f"pass{'es' if len(steps) > 1 else ''}): {TIME_OFFSET} is that shift plus the fit's rest")
 
 
 def _recorded(call: Callable[[], EstimateResult]) -> tuple[EstimateResult, list]:

@@ -91,3 +91,18 @@ def test_several_flights_re_pair_each_at_its_own_offset():
         j = res.names.index(f"dt_trk[{label}]")
         assert abs(1e-3 * res.estimate[j] - offset) < 1e-4, (label, res.estimate[j])
     assert "tracking re-paired" in res.message and res.diagnostics.get("robust") is None
+
+
+def test_an_offset_that_does_not_settle_fails(monkeypatch):
+    """No re-pairing allowed to settle (one pass, every rest beyond the linearisation): a failed result naming it,
+    not the fit at the first pairing as a success."""
+    import casep.workflows.separate as sep
+
+    monkeypatch.setattr(sep, "MAX_REPAIRS", 1)
+    monkeypatch.setattr(sep, "LINEAR_OFFSET_SHARE", 0.0)
+    _, fl = _pair(0.1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", casep.exceptions.NoiseNotWhiteWarning)  # the misfit of the unpaired offset
+        res = _separate(fl, fit_time_offset=True, noise="white", robust="none")
+    assert not res.success and res.status == casep.estimators.registry.STATUS_TRACKING
+    assert "tracking time offset not settled: re-paired at the offset found 1 times" in res.message, res.message
