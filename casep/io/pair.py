@@ -10,6 +10,7 @@ interpolation must not bridge (a :class:`~casep.exceptions.GapWarning` then).
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -19,7 +20,8 @@ from casep.io.tables import VTRK_COLUMNS, Table
 __all__ = ["pair_flight", "PAIR_GRIDS", "STATE_SIGNALS", "GAP_FACTOR", "GAP_MIN_S", "MAX_TIME_OFFSET",
            "MAX_LAUNCH_TIME_GAP", "check_tracking_frame", "tracking_velocity", "tracking_hint", "with_tracked_state",
            "time_shift_seconds", "check_launch_time", "no_overlap_message",
-           "check_earth_fixed_units", "fits_time_offset", "VALID_COLUMN", "repeated_rows"]
+           "check_earth_fixed_units", "fits_time_offset", "VALID_COLUMN", "repeated_rows", "PairInputs", "repaired",
+           "offset_second_order"]
 
 #: The telemetry column marking the samples whose navigation solution is trusted (1) or not (0: after a clipped
 #: IMU sample, :mod:`casep.navigation.imu`): :func:`pair_flight` leaves the rows where it is below 1 out.
@@ -297,21 +299,84 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
             **_tracking_change(t_tel, v_tel, t_trk, v_trk),
             "interpolation_floor_m_s": interpolation_floor(*((t_trk, v_trk) if grid == "telemetry" else (t_tel, v_tel)),
                                                            carry, 4 if interpolation == "cubic" else 2)}
+    meta["pair_inputs"] = PairInputs(t_tel, f, v_tel, t_trk, v_trk, signals, interpolation, grid, source)
     return FlightData(t, f_out, dv, source=source, meta=meta, observed=observed, signals=sig)
 
 
-def interpolation_floor(t: np.ndarray, v: np.ndarray, carry, order: int) -> float:
-    """What carrying the velocity `v` (at times `t`) to other times errs by, from the data, m/s RMS.
+@dataclass(frozen=True)
+class PairInputs:
+    """What :func:`pair_flight` formed a pair from (its arguments), kept in ``meta["pair_inputs"]`` so that the pair
+    can be formed again with the tracking time tags moved (:func:`repaired`)."""
 
-    Carried from every other sample to the samples left out, the interpolation errs as at twice the step;
-    its error goes as ``h^order`` (cubic spline 4, linear 2), so at the step itself it is that RMS over
-    ``2^order``. Noise in `v` adds ``~sigma / 2^order``, far below the noise itself: a fit whose residuals
-    are at this floor carries no noise (:func:`casep.regression.problem.is_rounding_level`).
+    t_tel: np.ndarray
+    f: np.ndarray
+    v_tel: np.ndarray
+    t_trk: np.ndarray
+    v_trk: np.ndarray
+    signals: dict
+    interpolation: str
+    grid: str
+    source: str
+
+
+def repaired(flight: FlightData, shift: float) -> FlightData | None:
+    """The pair `flight` formed again with its tracking time tags `shift` seconds earlier (tracking `shift` late).
+
+    A tracking offset ``dt_trk`` enters the model linearised, ``v_trk(t) = v(t - dt) ~ v(t) - a(t) dt``; the
+    next term, ``j(t) dt^2 / 2`` (``j`` the jerk), is left in the residuals. Formed again at the offset
+    estimated, the pair holds the tracking at its true times and the fit's ``dt_trk`` is the (small) rest.
+    The samples the tracking screen left out (by tracking row) stay out; everything else the reader recorded
+    is kept. None when the flight does not hold its pair's inputs (not formed by :func:`pair_flight`, or
+    given the tracked state afterwards: :func:`with_tracked_state`).
+    """
+    import dataclasses
+
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    inp = meta.get("pair_inputs")
+    if not isinstance(inp, PairInputs) or "state_from" in meta:
+        return None
+    new = pair_flight(inp.t_tel, inp.f, inp.v_tel, inp.t_trk - shift, inp.v_trk, signals=inp.signals,
+                      interpolation=inp.interpolation, grid=inp.grid, source=flight.source)
+    observed = np.array(new.observed)
+    if inp.grid == "tracking" and "rows_index" in meta:  # the screen's exclusions, by tracking row
+        kept = np.asarray(meta["rows_index"])[np.asarray(flight.observed)]
+        observed &= np.isin(new.meta["rows_index"], kept)
+    merged = {**meta, **new.meta, "pair_inputs": inp, "pair_shift_s": float(shift)}  # shifts count from the inputs
+    return dataclasses.replace(new, meta=merged, observed=observed,
+                               dv=np.where(observed[:, None], new.dv, np.nan))
+
+
+def offset_second_order(flight: FlightData, dt: float) -> float:
+    """The second-order term of a tracking offset `dt` (s) that the linearised ``dt_trk`` leaves out, as an offset:
+    ``dt^2 rms(j) / (2 rms(a))``, s (``j = d a / dt`` the jerk of the flight's kinematic acceleration, signals
+    ``a_x, a_y, a_z``, RMS over the observed samples): the first-order column ``a`` carries ``a dt``, the term
+    left out ``j dt^2 / 2``; 0 without those signals."""
+    if not all(f"a_{c}" in flight.signals for c in "xyz") or flight.t.size < 3:
+        return 0.0
+    a = np.column_stack([flight.signals[f"a_{c}"] for c in "xyz"])
+    j = np.gradient(a, flight.t, axis=0)
+    obs = np.asarray(flight.observed) & np.all(np.isfinite(j), axis=1) & np.all(np.isfinite(a), axis=1)
+    ra = float(np.sqrt(np.mean(a[obs] ** 2))) if obs.any() else 0.0
+    return float(0.5 * dt**2 * np.sqrt(np.mean(j[obs] ** 2)) / ra) if ra > 0 else 0.0
+
+
+def interpolation_floor(t: np.ndarray, v: np.ndarray, carry, order: int) -> float:
+    """What carrying the velocity `v` (at times `t`) to other times errs by, from the data, m/s RMS (a level
+    that the error stays below, not its mean).
+
+    Carried from every other sample to the samples left out, the interpolation errs as at twice the step
+    (``e_2``). Its error goes as ``h^p``: ``p`` is the interpolation's order (cubic spline 4, linear 2) where
+    the velocity is smooth, but 2 near a kink of it (a thrust change: the acceleration jumps), and those
+    kinks set the level (a 50 Hz boost: ``e_4 / e_2`` 4.8, not 16; carried to times a fraction of a step
+    off the samples, the cubic error was 3.5 times ``e_2 / 16``). So the floor is ``e_2 / 4`` (``p = 2``, a
+    velocity whose acceleration is bounded; linear interpolation is that order anyway). Noise in `v` adds
+    ``~sigma / 4``, below the noise itself: a fit whose residuals are at this floor carries no noise
+    (:func:`casep.regression.problem.is_rounding_level`). `order` bounds ``p`` from above.
     """
     if t.size < 8:
         return 0.0
     e = carry(t[::2], v[::2], t[1:-1:2]) - v[1:-1:2]
-    return float(np.sqrt(np.mean(e**2))) / 2.0**order
+    return float(np.sqrt(np.mean(e**2))) / 2.0 ** min(order, 2)
 
 
 def _tracking_change(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray,

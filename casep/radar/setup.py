@@ -97,20 +97,7 @@ def check_setup(lin: Any, whiten: Callable[[np.ndarray], tuple[np.ndarray, np.nd
                 f"{b0[j]:.4g} ms explains chi-square {d:.4g}, p = {chi2.sf(d, 1):.2g}; the stations' time tags "
                 "and positions explain the rest); it is estimated with the other terms, so the instrument estimate "
                 "accounts for it: correct --launch-time (or the telemetry's time scale)")
-    base, rss_base, remaining = F, rss0, list(range(len(reg.stations)))
-    while remaining:  # the station that explains most first; the others then tested with it corrected
-        fits = {i: _rss_fit(np.hstack([base, G[i]]), y) for i in remaining}
-        i = max(remaining, key=lambda k: rss_base - fits[k][0])
-        for k in remaining:
-            out["stations"][reg.stations[k].meas.station.name] = _station_info(reg, k, rss_base, fits[k], b0, std0)
-        info = out["stations"][reg.stations[i].meas.station.name]
-        pos = info["position"]
-        off = np.array([pos["east"], pos["north"], pos["up"]])
-        if not (pos["p"] < SETUP_P and float(np.linalg.norm(off)) > POSITION_LIMIT):
-            break
-        out["failures"].append(_position_message(reg.stations[i], info))
-        base, rss_base = np.hstack([base, G[i]]), fits[i][0]
-        remaining.remove(i)
+    out["stations"], out["failures"] = _station_positions(reg, F, y, G, (rss0, b0, std0))
     if launch_warning and not out["failures"]:  # a wrong station position also moves dt_launch: named alone
         out["warnings"].append(launch_warning)
     return out
@@ -208,6 +195,118 @@ def _station_info(reg: Any, i: int, rss_base: float, fit: tuple, b0: np.ndarray,
     return info
 
 
+def _wrong(info: dict) -> bool:
+    """Whether a station's position hypothesis is significant (p < SETUP_P) and beyond POSITION_LIMIT."""
+    pos = info["position"]
+    return pos["p"] < SETUP_P and float(np.linalg.norm([pos["east"], pos["north"], pos["up"]])) > POSITION_LIMIT
+
+
+def _station_positions(reg: Any, F: np.ndarray, y: np.ndarray, G: list[np.ndarray], fit0: tuple
+                       ) -> tuple[dict[str, dict], list[str]]:
+    """The position hypothesis of every station and the failure messages of the significant ones.
+
+    Each station's position is first fitted alone (with the fit's terms, the other stations' positions
+    as in their files) and on its own rows alone. When one is significant: with two stations both are
+    named as candidates with their numbers (a disagreement between two stations does not say which
+    one is wrong: fitting one's position moves the other's error into its own terms and the
+    instrument's, so the larger chi-square is not the wrong station's, see the module notes); with
+    three or more the station whose position, fitted, explains most is named, then the others are
+    tested again with it fitted (the station whose removal makes the others agree).
+    """
+    rss0, b0, std0 = fit0
+    names = [s.meas.station.name for s in reg.stations]
+    alone = {i: _rss_fit(np.hstack([F, G[i]]), y) for i in range(len(G))}
+    stations = {names[i]: _station_info(reg, i, rss0, alone[i], b0, std0) for i in alone}
+    for i in alone:
+        stations[names[i]]["own_data"] = _own_data_test(reg, i, F, y, G[i])
+    if not any(_wrong(stations[n]) for n in names):
+        return stations, []
+    if len(G) == 2:
+        rss_both = _rss_fit(np.hstack([F, *G]), y)[0]
+        for i in (0, 1):  # what the other station's position still explains with this one's fitted
+            stations[names[i]]["position"]["other_then"] = float(max(alone[i][0] - rss_both, 0.0))
+        return stations, [_two_station_message(reg, stations)]
+    return stations, _named_in_turn(reg, F, y, G, alone, stations, fit0)
+
+
+def _named_in_turn(reg: Any, F: np.ndarray, y: np.ndarray, G: list[np.ndarray], fits: dict, stations: dict,
+                   fit0: tuple) -> list[str]:
+    """Three stations or more: the station whose position explains most is named, the others then tested with it
+    fitted (its message gives the largest chi-square another station's position then explains); in turn."""
+    from scipy.stats import chi2
+
+    rss_base, b0, std0 = fit0
+    base, remaining = F, list(range(len(G)))
+    failures: list[str] = []
+    while remaining:
+        i = max(remaining, key=lambda k: rss_base - fits[k][0])
+        info = _station_info(reg, i, rss_base, fits[i], b0, std0)
+        if failures:  # the station named last: do the others agree once it is fitted?
+            d, verdict = info["position"]["dchi2"], "still disagree" if _wrong(info) else "agree"
+            failures[-1] += (f"; with its position fitted the other stations {verdict}"
+                             f" (the most another station's position then explains: chi-square {d:.4g}, "
+                             f"`{reg.stations[i].meas.station.name}`, 3 dof, p = {chi2.sf(d, 3):.2g})")
+        if not _wrong(info):
+            break
+        info["own_data"] = stations[reg.stations[i].meas.station.name]["own_data"]
+        stations[reg.stations[i].meas.station.name] = info
+        failures.append(_position_message(reg.stations[i], info))
+        base, rss_base = np.hstack([base, G[i]]), fits[i][0]
+        remaining.remove(i)
+        fits = {k: _rss_fit(np.hstack([base, G[k]]), y) for k in remaining}
+    return failures
+
+
+def _own_data_test(reg: Any, i: int, F: np.ndarray, y: np.ndarray, Gi: np.ndarray) -> dict[str, float]:
+    """The position hypothesis of station `i` on its own rows alone (the instrument and its own terms fitted):
+    ``{dchi2, p}``. One station's data alone rarely see its position (its terms and the instrument's absorb it);
+    when they do, that breaks the symmetry of a two-station disagreement."""
+    from scipy.stats import chi2
+
+    prefix = f"{reg.stations[i].meas.station.name}."
+    cols = [j for j, n in enumerate(reg.names) if n.startswith(prefix)]
+    rows = np.any(Gi != 0, axis=1) | np.any(F[:, cols] != 0, axis=1)
+    Fi = F[rows]
+    Fi = Fi[:, np.any(Fi != 0, axis=0)]
+    d = max(_rss_fit(Fi, y[rows])[0] - _rss_fit(np.hstack([Fi, Gi[rows]]), y[rows])[0], 0.0)
+    return {"dchi2": float(d), "p": float(chi2.sf(d, 3))}
+
+
+def _candidate_text(s: Any, info: dict) -> str:
+    """One candidate of a two-station disagreement: the offset its position would need, with its std and chi-square."""
+    pos, own = info["position"], info["own_data"]
+    msg = (f"`{s.meas.station.name}` ({s.meas.station.source}): its position fitted moves it east {pos['east']:+.3g}, "
+           f"north {pos['north']:+.3g}, up {pos['up']:+.3g} m (std {pos['std'][0]:.2g}, {pos['std'][1]:.2g}, "
+           f"{pos['std'][2]:.2g} m) and lowers the whitened residual sum by {pos['dchi2']:.4g} (chi-square, 3 dof, "
+           f"p = {pos['p']:.2g}), the other station's position then still explains {pos['other_then']:.4g}; on its "
+           f"own data alone its position explains {own['dchi2']:.3g} (p = {own['p']:.2g})")
+    return msg + _check_hint(s, info)
+
+
+def _two_station_message(reg: Any, stations: dict) -> str:
+    """The failure message of two stations that disagree: both candidates with their numbers, and what decides."""
+    names = [s.meas.station.name for s in reg.stations]
+    own = [n for n in names if stations[n]["own_data"]["p"] < SETUP_P]
+    msg = ("a wrong station position: the two stations disagree about where the vehicle was, and two stations "
+           "cannot say which of them is wrong (fitting one station's position moves the other's error into the "
+           "station and instrument terms, so the larger chi-square is not evidence of which); candidates: "
+           + "; ".join(_candidate_text(s, stations[s.meas.station.name]) for s in reg.stations))
+    if len(own) == 1:
+        msg += f"; only `{own[0]}`'s own data move its position significantly, which points to `{own[0]}`"
+    return msg + ("; what decides: a third station, a surveyed check point (a target of known position tracked by "
+                  "both), or a station's own survey: check both stations' lat, lon, h (WGS84, h above the ellipsoid)")
+
+
+def _check_hint(s: Any, info: dict) -> str:
+    """Which coordinate of station `s` to check: its height when that is the best-determined offset."""
+    pos = info["position"]
+    z = np.abs([pos["east"], pos["north"], pos["up"]]) / np.array(pos["std"])
+    if z[2] > 3 and int(np.argmax(z)) == 2:  # the height is the best-determined offset
+        return ("; check its height h: metres above the WGS84 ellipsoid, not above mean sea level "
+                f"(h given {s.meas.station.h_m:g} m)")
+    return ""
+
+
 def _position_message(s: Any, info: dict) -> str:
     """The failure message of a station whose position the data move (numbers, and which coordinate to check)."""
     pos = info["position"]
@@ -220,8 +319,4 @@ def _position_message(s: Any, info: dict) -> str:
     if tbi is not None:
         msg += (f"; {tbi['name']} is {tbi['estimate']:.3g} +- {tbi['std']:.2g} {tbi['unit']} without it and "
                 f"{tbi['with_position']:.3g} +- {tbi['std_with_position']:.2g} {tbi['unit']} with it")
-    z = np.abs(off) / sd
-    if z[2] > 3 and int(np.argmax(z)) == 2:  # the height is the best-determined offset
-        return msg + ("; check its height h: metres above the WGS84 ellipsoid, not above mean sea level "
-                      f"(h given {s.meas.station.h_m:g} m)")
-    return msg + "; check its lat, lon, h (WGS84, h above the ellipsoid)"
+    return msg + (_check_hint(s, info) or "; check its lat, lon, h (WGS84, h above the ellipsoid)")

@@ -111,23 +111,37 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
         raise ValueError(f"method `{spec.method}` cannot be estimated jointly; use one of {', '.join(joint)}")
     if len(flights) < 2:
         raise ValueError(f"`flights` must hold two or more flights, got {len(flights)}")
+    from casep.io.files import read_flight
+    from casep.io.flight import FlightData
     from casep.model.loader import TIME_OFFSET
-    from casep.workflows.separate import refit_on_offset
+    from casep.workflows.separate import LOCATING_FIT, refit_on_offset, repair_on_offset
 
+    flights = [fl if isinstance(fl, (FlightData, Problem)) else read_flight(fl) for fl in flights]  # read once
     box: dict[str, Any] = {}
-    first = _joint_fit(flights, model, fit_time_offset, spec, sigma, box, labels)
-    if fit_time_offset is not None:  # the caller decided
-        return first(), box["rows"].joint
-    # the rule of one flight (refit_on_offset): pairs of files whose residuals show an offset get dt_trk
+
+    def fit_at(fls: Sequence, quick: bool = False) -> EstimateResult:  # the fit with dt_trk of the flights given
+        if quick:
+            return _joint_fit(fls, model, True, LOCATING_FIT, sigma, {}, labels, checks=False)()
+        return _joint_fit(fls, model, True, spec, sigma, box, labels)()
+
+    if fit_time_offset is not None and not fit_time_offset:  # the caller decided
+        return _joint_fit(flights, model, False, spec, sigma, box, labels)(), box["rows"].joint
+    if fit_time_offset:
+        return repair_on_offset(flights, fit_at), box["rows"].joint
+    # the rule of one flight (refit_on_offset): pairs of files whose residuals show an offset get dt_trk, re-paired
+    # at the offset found when the linearised dt_trk does not hold it (repair_on_offset)
+    first = _joint_fit(flights, model, None, spec, sigma, box, labels)
     res = refit_on_offset(first, _joint_fit(flights, model, True, spec, sigma, box, labels),
-                          wanted=lambda: TIME_OFFSET not in box["model"].names and any(box["paired_files"]))
+                          wanted=lambda: TIME_OFFSET not in box["model"].names and any(box["paired_files"]),
+                          flights=lambda: flights, fit_at=fit_at)
     return res, box["rows"].joint
 
 
 def _joint_fit(flights: Sequence, model: Any, fit_time_offset: bool | None, spec: FitSpec, sigma: Any,
-               box: dict[str, Any], labels: Sequence[str | None] | None = None) -> Callable[[], EstimateResult]:
+               box: dict[str, Any], labels: Sequence[str | None] | None = None,
+               checks: bool = True) -> Callable[[], EstimateResult]:
     """The joint fit of :func:`separate_flights` with `fit_time_offset`, as a call (what it read and its rows go
-    into `box`: ``model``, ``rows``, ``paired_files``)."""
+    into `box`: ``model``, ``rows``, ``paired_files``); `checks` as :func:`casep.estimators.solve.fit`'s."""
     def run() -> EstimateResult:
         m, problems, paired, read = _read(flights, model, fit_time_offset)
         box["model"], box["paired_files"] = m, [_is_pair(fl) for fl in read]
@@ -141,7 +155,7 @@ def _joint_fit(flights: Sequence, model: Any, fit_time_offset: bool | None, spec
         several = Flights(tuple(problems), layout, tuple(paired))
         rows = joint_rows(several, spec, sigma)  # a sigma per flight, or the request's
         box["rows"] = rows
-        res = fit(several, spec, rows=rows)  # the one entry point, as for one flight
+        res = fit(several, spec, rows=rows, checks=checks)  # the one entry point, as for one flight
         from casep.model.loader import model_record
         from casep.workflows.separate import judge_setup
 

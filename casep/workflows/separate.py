@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
@@ -210,7 +211,7 @@ def separate(
         spec = FitSpec.build(**fit_kw)  # every check of the request, once
     flight, problem, model = _problem(flight, model, fit_time_offset)
     spec = _with_tables(spec, flight, model)
-    res, problem, model = _fit_offset_if_found(flight, problem, model, spec, fit_time_offset)
+    res, problem, model, flight = _fit_offset_if_found(flight, problem, model, spec, fit_time_offset)
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model,
                       noise_free=problem.is_noise_free())
     if isinstance(flight, FlightData) and isinstance(model, ErrorModel):
@@ -247,7 +248,7 @@ def _problem(flight: FlightData | Problem | str | os.PathLike, model: Any,
 
 
 def _fit_offset_if_found(flight: Any, problem: Problem, model: Any, spec: FitSpec,
-                         fit_time_offset: bool | None) -> tuple[EstimateResult, Problem, Any]:
+                         fit_time_offset: bool | None) -> tuple[EstimateResult, Problem, Any, Any]:
     """:func:`fit`, and on a velocity pair whose residuals track the kinematic acceleration (the time-offset test
     of :func:`casep.checks.plausibility.check_fit`: a tracking offset, often below one tracking period, that the
     coarse alignment cannot see) the fit again with ``dt_trk`` in the model, unless the caller decided
@@ -255,48 +256,157 @@ def _fit_offset_if_found(flight: Any, problem: Problem, model: Any, spec: FitSpe
     leaving one that is there out inflates every std the offset correlates with: on the paper boost (100 Hz
     telemetry, 20 Hz tracking 30 ms late, 6 seeds) the std are about 10 times smaller with it (RMS z 0.95,
     coverage 0.97; without it 0.87 and 0.99), ``python benchmarks/mc_subperiod_offset.py --runs 6``. The result
-    says so in its message."""
+    says so in its message. An offset beyond what the linearised ``dt_trk`` holds re-pairs the tracking there
+    (:func:`repair_on_offset`). Returns the result, its problem, model and flight (re-paired or as given)."""
     from casep.model.loader import TIME_OFFSET, with_time_offset
 
     pair = isinstance(flight, FlightData) and isinstance(flight.meta, dict) and flight.meta.get("format") == "pair"
-    if fit_time_offset is not None or not pair or not isinstance(model, ErrorModel) or TIME_OFFSET in model.names:
-        return fit(problem, spec), problem, model
-    box: dict[str, Any] = {"problem": problem, "model": model}
+    box: dict[str, Any] = {"problem": problem, "model": model, "flight": flight}
 
-    def again() -> EstimateResult:
-        box["model"] = load_model(with_time_offset(model))
-        box["problem"] = flight_problem(flight, box["model"])
-        return fit(box["problem"], spec)
+    def fit_at(flights: Sequence[FlightData], quick: bool = False) -> EstimateResult:
+        if TIME_OFFSET not in box["model"].names:
+            box["model"] = load_model(with_time_offset(model))
+        pb = flight_problem(flights[0], box["model"]) if flights[0] is not flight or box["model"] is not model \
+            else problem
+        if not quick:
+            box["flight"], box["problem"] = flights[0], pb
+        return fit(pb, LOCATING_FIT, checks=False) if quick else fit(pb, spec)
 
-    return refit_on_offset(lambda: fit(problem, spec), again), box["problem"], box["model"]
+    if not pair or not isinstance(model, ErrorModel) or (fit_time_offset is not None and not fit_time_offset):
+        return fit(problem, spec), problem, model, flight
+    if fit_time_offset or TIME_OFFSET in model.names:
+        return repair_on_offset([flight], fit_at), box["problem"], box["model"], box["flight"]
+    res = refit_on_offset(lambda: fit(problem, spec), lambda: fit_at([flight]), flights=lambda: [flight],
+                          fit_at=fit_at)
+    return res, box["problem"], box["model"], box["flight"]
 
 
 def refit_on_offset(first: Callable[[], EstimateResult], again: Callable[[], EstimateResult],
-                    wanted: Callable[[], bool] = lambda: True) -> EstimateResult:
+                    wanted: Callable[[], bool] = lambda: True, *,
+                    flights: Callable[[], Sequence[Any]] = lambda: (),
+                    fit_at: Callable[..., EstimateResult] | None = None) -> EstimateResult:
     """The time-offset rule of one flight and of several: `first` (the fit as asked), and when its residual checks
     found a tracking time offset (the :class:`~casep.exceptions.TimeOffsetWarning` of
     :func:`casep.checks.plausibility.check_fit`) and `wanted()` after it (a pair of files, no ``dt_trk`` yet)
     `again` (the fit with ``dt_trk`` in the model), its message saying so; the first fit's warnings are said
-    as they were when no offset was found."""
+    as they were when no offset was found. With `fit_at` (``fit_at(flights, quick=False)``: `again` on the
+    flights given, `flights()` those of `again`), an offset beyond what the linearised ``dt_trk`` holds re-pairs
+    the tracking there (:func:`repair_on_offset`) instead of `again`."""
     import re
-    import warnings
 
     from casep.exceptions import TimeOffsetWarning
 
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        res = first()
+    res, caught = _recorded(first)
     found = [w for w in caught if issubclass(w.category, TimeOffsetWarning) and "would explain them" in str(w.message)]
     if not found or not wanted():
-        for w in caught:  # said as they were
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-        return res
-    res = again()
+        return _replayed(res, caught)  # said as they were
+    res = again() if fit_at is None else repair_on_offset(flights(), fit_at)
     said = re.search(r"time offset of (.+? ms) would", str(found[0].message))
     note = ("tracking time offset modelled (dt_trk added): the residuals of the model as given tracked the kinematic "
             f"acceleration{' (an offset of ' + said.group(1) + ')' if said else ''}")
     return dataclasses.replace(res, message=f"{res.message}; {note}",
                                settings={**res.settings, "time_offset": "modelled: found by the residual test"})
+
+
+#: Re-pairings of the tracking at the estimated offset (each a fit) before the offset is called not converged.
+MAX_REPAIRS = 6
+#: The linearised ``dt_trk`` holds while the term it leaves out, as an offset, is below this share of the offset's std.
+LINEAR_OFFSET_SHARE = 0.1
+#: The fit that locates the offset before the fit as asked: least squares, white noise, no robust filter and no
+#: residual checks (``fit(..., checks=False)``: the misfit of an offset not yet paired is no noise and no glitch).
+LOCATING_FIT = FitSpec.build("ols", noise="white", robust="none")
+
+
+def repair_on_offset(flights: Sequence[Any], fit_at: Callable[..., EstimateResult]) -> EstimateResult:
+    """The fit with ``dt_trk`` (one per flight) of the flights, each pair re-formed at its estimated offset
+    (:func:`casep.io.pair.repaired`) while the linearisation would not hold, until the offset settles.
+
+    ``dt_trk`` is linear in the offset: ``v(t - dt) ~ v(t) - a dt``; the term left out, ``j dt^2 / 2``, is as
+    large as an offset of ``dt^2 rms(j) / (2 rms(a))`` (:func:`casep.io.pair.offset_second_order`). Measured
+    in the offset's std (noise or interpolation floor, whichever sets it) it says whether the linearisation
+    holds. `fit_at(flights, quick)` fits the flights given: ``quick`` with :data:`LOCATING_FIT`, else as asked.
+    The offset is located by quick fits: when that term exceeds :data:`LINEAR_OFFSET_SHARE` of the std of a
+    significant offset, the tracking is re-paired at the offsets found so far (its time tags moved back by
+    them) and refitted, the fit's ``dt_trk`` added, until every change is within its std or within what the
+    linearisation holds (at most :data:`MAX_REPAIRS` fits; else the result fails, status
+    ``STATUS_TRACKING``); then the fit as asked runs once, on the pairs found. The reported ``dt_trk`` is the
+    whole offset: the shift applied plus that fit's rest.
+    """
+    from casep.estimators.registry import STATUS_TRACKING, failed
+    from casep.io.pair import repaired
+    from casep.model.loader import TIME_OFFSET
+
+    can = np.array([isinstance(getattr(fl, "meta", None), dict) and "pair_inputs" in fl.meta
+                    and "state_from" not in fl.meta for fl in flights])
+    res = _recorded(lambda: fit_at(flights, True))[0]
+    idx = [j for j, n in enumerate(res.names) if n == TIME_OFFSET or n.startswith(f"{TIME_OFFSET}[")]
+    total = np.zeros(len(idx))
+    steps: list[list[float]] = []
+    for k in range(MAX_REPAIRS + 1):
+        if len(idx) != len(flights) or res.std is None or not np.all(np.isfinite(res.estimate[idx])):
+            return fit_at(flights)  # no offset to locate (the locating fit is not judged: its misfit is known)
+        dt, sd = 1e-3 * res.estimate[idx], 1e-3 * res.std[idx]
+        beyond = can & np.isfinite(dt) & (np.abs(dt) > sd) & _beyond_linear(flights, dt, sd)
+        if k == 0 and not beyond.any():
+            return fit_at(flights)
+        if not beyond.any():  # every rest within its std or within what the linearisation holds
+            return _repaired_fit(fit_at, flights, can, total, steps)
+        if k == MAX_REPAIRS:
+            break
+        total = total + np.where(can, dt, 0.0)
+        steps.append([float(v) for v in 1e3 * dt])
+        shifted = [repaired(fl, s) if c else fl for fl, s, c in zip(flights, total, can)]
+        res = _recorded(functools.partial(fit_at, shifted, True))[0]
+    return failed(fit_at(flights), STATUS_TRACKING, "tracking time offset not settled: re-paired at the offset found "
+                  f"{MAX_REPAIRS} times, the rest still {', '.join(f'{v:.3g}' for v in 1e3 * dt)} ms against std "
+                  f"{', '.join(f'{v:.2g}' for v in 1e3 * sd)} ms (a drifting clock, or time tags that jump?)")
+
+
+def _repaired_fit(fit_at: Callable[..., EstimateResult], flights: Sequence[Any], can: np.ndarray, total: np.ndarray,
+                  steps: list) -> EstimateResult:
+    """The fit as asked on the pairs re-formed at the offsets `total` (s), its ``dt_trk`` the whole offset."""
+    from casep.io.pair import repaired
+    from casep.model.loader import TIME_OFFSET
+
+    res = fit_at([repaired(fl, s) if c else fl for fl, s, c in zip(flights, total, can)])
+    idx = [j for j, n in enumerate(res.names) if n == TIME_OFFSET or n.startswith(f"{TIME_OFFSET}[")]
+    est = res.estimate.copy()
+    est[idx] = est[idx] + 1e3 * total
+    rec = {"passes": len(steps), "shift_ms": [float(v) for v in 1e3 * total], "steps_ms": steps}
+    return dataclasses.replace(
+        res, estimate=est, settings={**res.settings, "time_offset_repaired": rec},
+        message=f"{res.message}; tracking re-paired at the offset found "
+                f"({', '.join(f'{1e3 * v:.4g} ms' for v in total)}; {len(steps)} "
+                f"pass{'es' if len(steps) > 1 else ''}): {TIME_OFFSET} is that shift plus the fit's rest")
+
+
+def _recorded(call: Callable[[], EstimateResult]) -> tuple[EstimateResult, list]:
+    """`call()` with the warnings it issues recorded, not said."""
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = call()
+    return res, list(caught)
+
+
+def _replayed(res: EstimateResult, caught: list) -> EstimateResult:
+    """`res`, the warnings recorded with it said as they were."""
+    import warnings
+
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return res
+
+
+def _beyond_linear(flights: Sequence[Any], dt: np.ndarray, sd: np.ndarray) -> np.ndarray:
+    """Per flight, whether the term the linearised ``dt_trk`` = `dt` (s) leaves out, as an offset
+    (:func:`casep.io.pair.offset_second_order`), exceeds :data:`LINEAR_OFFSET_SHARE` of the offset's std `sd`."""
+    from casep.io.pair import offset_second_order
+
+    return np.array([isinstance(fl, FlightData) and bool(np.isfinite(d))
+                     and offset_second_order(fl, float(d)) > LINEAR_OFFSET_SHARE * s
+                     for fl, d, s in zip(flights, dt, sd)], dtype=bool)
 
 
 def _with_tables(spec: FitSpec, flight: Any, model: Any) -> FitSpec:

@@ -72,19 +72,58 @@ def test_launch_time_right_is_a_plain_success(sim):
     assert np.nanmax(np.abs(d)) < 1.0
 
 
-def test_station_height_30_m_off_fails_naming_the_height(sim):
-    """A station 30 m higher in its file than it is: on main a success with a warning about time tags."""
-    m = sim.radars[0]
-    high = dataclasses.replace(m, station=dataclasses.replace(m.station, h_m=m.station.h_m + 30.0))
-    rr = separate_radar(sim.telemetry, [high, sim.radars[1]], SITE, sim.model, sim.tracking, diagnostics=False)
+def _height_off(radars, name: str, dh: float) -> list:
+    """The stations' measurements with station `name`'s file height `dh` metres above the truth."""
+    return [dataclasses.replace(m, station=dataclasses.replace(m.station, h_m=m.station.h_m + dh))
+            if m.station.name == name else m for m in radars]
+
+
+def _candidate_up(msg: str, name: str) -> float:
+    return float(re.search(rf"`{name}` \(<memory>\): its position fitted moves it east [-+0-9.e]+, north "
+                           r"[-+0-9.e]+, up ([-+0-9.e]+) m", msg).group(1))
+
+
+def test_two_stations_that_disagree_are_both_candidates(sim):
+    """S1 50 m higher in its file than it is, two stations: both named as candidates with their numbers and what
+    decides, neither claimed (on main: `S1` claimed; on another flight the right station was claimed)."""
+    rr = separate_radar(sim.telemetry, _height_off(sim.radars, "S1", 50.0), SITE, sim.model, sim.tracking,
+                        diagnostics=False)
+    assert not rr.success and rr.status < 0
+    msg = rr.message
+    assert "two stations cannot say which of them is wrong" in msg and "candidates: `S1`" in msg, msg
+    assert "`S2` (<memory>): its position fitted moves it" in msg, msg
+    assert "the data place it" not in msg and "station `S" not in msg, msg  # no station is claimed
+    assert "a third station, a surveyed check point" in msg
+    assert _candidate_up(msg, "S1") == pytest.approx(-50.0, abs=5.0), msg
+    assert "check its height h" in msg and "chi-square, 3 dof" in msg
+    pos = {k: v["position"] for k, v in rr.summary["setup"]["stations"].items()}
+    assert pos["S1"]["p"] < 1e-6 and pos["S1"]["other_then"] >= 0 and pos["S2"]["other_then"] >= 0, pos
+    for k in ("S1", "S2"):  # each station's own rows alone do not see the position: the joint test does
+        assert rr.summary["setup"]["stations"][k]["own_data"]["p"] > 1e-6
+
+
+@pytest.fixture(scope="module")
+def three():
+    """Three stations at 2 Hz (a third one west of the pad), station errors injected."""
+    s3 = Station("S3", 28.3, -80.9, 30.0, min_elevation_deg=-10.0)
+    truth = {**TRUTH, "S3": {"range_bias": 2.0, "range_scale": 3.0, "azimuth_bias": 5.0, "elevation_bias": 6.0}}
+    return simulate_radar((*STATIONS, s3), SITE, seed=3, telemetry_rate=2, radar_rate=2, tracking_truth=truth)
+
+
+def test_of_three_stations_the_one_whose_removal_makes_the_others_agree_is_named(three):
+    """S1 50 m higher in its file, three stations: S1 named with its offset and the statistic that the others then
+    agree; S2 and S3 not named (on main: no statement whether the others agree)."""
+    rr = separate_radar(three.telemetry, _height_off(three.radars, "S1", 50.0), SITE, three.model, three.tracking,
+                        diagnostics=False)
     assert not rr.success and rr.status < 0
     msg = rr.message
     assert "station `S1`" in msg and "a wrong station position" in msg and "check its height h" in msg, msg
+    assert "station `S2`" not in msg and "station `S3`" not in msg and "candidates" not in msg, msg
     up = float(re.search(r"up ([-+0-9.]+) m from its file's position", msg).group(1))
-    assert up == pytest.approx(-30.0, abs=5.0), msg
-    assert "chi-square, 3 dof" in msg
-    # the station that is right is not named
-    assert "station `S2`" not in msg
+    assert up == pytest.approx(-50.0, abs=5.0), msg
+    agree = re.search(r"with its position fitted the other stations agree \(the most another station's position "
+                      r"then explains: chi-square ([0-9.e+]+), `S[23]`, 3 dof, p = ([0-9.e+-]+)\)", msg)
+    assert agree and float(agree.group(2)) > 1e-6, msg
 
 
 def test_the_setup_check_stays_quiet_on_a_right_setup():
