@@ -43,6 +43,14 @@ def clean():
                           noise={"range": 0.0, "azimuth": 0.0, "elevation": 0.0})
 
 
+@pytest.fixture(scope="module")
+def clean_5hz():
+    """The flight of :func:`clean` with radar at 5 Hz: a quarter of the rows, for tests of what runs, not of
+    how well."""
+    return simulate_radar(STATIONS, SITE, seed=0, telemetry_rate=20, radar_rate=5, tracking_truth=TRUTH,
+                          noise={"range": 0.0, "azimuth": 0.0, "elevation": 0.0})
+
+
 def _with_noise(sim, rng):
     """The same flight with fresh white noise of NOISE on every measurement (as simulate_radar adds it)."""
     out = []
@@ -280,7 +288,9 @@ def test_diagnostics_fixed_free_groups_and_station_gain(clean):
     assert js["diagnostics"]["tracking_terms"][0] == "S1.range_bias" and js["radar"]["noise"][0]["source"] == "given"
 
 
-def test_every_estimator_runs_on_the_joint_regression(clean):
+def test_every_estimator_runs_on_the_joint_regression(clean_5hz):
+    """Radar at 5 Hz (1 s of CPU a fit instead of 3.7): each method's S1.range_bias within 5 OLS std of 5 m."""
+    clean = clean_5hz
     radars = _with_noise(clean, np.random.default_rng(4))
     opts = {"bounded": {"bounds": {"S1.range_bias": [-100, 100]}},
             "map": {"prior": {"S1.range_bias": {"mean": 0.0, "std": 50.0}}}}

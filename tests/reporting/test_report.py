@@ -27,6 +27,15 @@ def paper_csv(tmp_path_factory):
     return p
 
 
+@pytest.fixture(scope="module")
+def paper_ols(paper_csv):
+    """The flight of `paper_csv` as read back, platform36 and its OLS result: separated once for the tests
+    that report on it."""
+    flight = casep.read_flight(paper_csv)
+    model = casep.load_model("platform36")
+    return flight, model, casep.separate(flight, model, "ols")
+
+
 def _external_references(text: str) -> list[str]:
     """Anything a browser would fetch: src/href not a data: URI, url(...), @import."""
     refs = re.findall(r'(?:src|href)\s*=\s*"(?!data:)([^"]*)"', text)
@@ -86,11 +95,10 @@ def test_cli_wound_up_rls_exit_1_json_says_failed(paper_csv, tmp_path, capsys):
     assert json.loads(out.read_text())["success"] is True
 
 
-def test_report_has_the_impact_miss_when_the_flight_has_its_state(paper_csv, tmp_path):
+def test_report_has_the_impact_miss_when_the_flight_has_its_state(paper_ols, tmp_path):
     """A simulated flight (r_*, v_* columns): the report shows the predicted miss and its std as
     casep.impact_analysis computes them, and the two impact figures; a flight without them says why."""
-    flight = casep.read_flight(paper_csv)
-    res = casep.separate(flight, "platform36", "ols")
+    flight, _, res = paper_ols
     text = write_report(res, tmp_path / "r.html", flight=flight).read_text(encoding="utf-8")
     ia = casep.impact_analysis(flight, res)
     assert "<h2>Impact miss</h2>" in text
@@ -101,16 +109,14 @@ def test_report_has_the_impact_miss_when_the_flight_has_its_state(paper_csv, tmp
     assert "No impact miss: the flight has no r_x" in text
 
 
-def test_report_shows_the_impact_it_is_given_and_computes_nothing_again(paper_csv, tmp_path, monkeypatch):
+def test_report_shows_the_impact_it_is_given_and_computes_nothing_again(paper_ols, tmp_path, monkeypatch):
     """The caller computes the impact (and has the model) once: the report neither integrates S_V again nor
     reloads the model; impact=None leaves the section out; a wrong type is refused."""
     import casep.impact.miss
     import casep.model.loader
     from casep.reporting.report import impact_or_reason
 
-    flight = casep.read_flight(paper_csv)
-    model = casep.load_model("platform36")
-    res = casep.separate(flight, model, "ols")
+    flight, model, res = paper_ols
     ia = impact_or_reason(res, flight, model)
     assert isinstance(ia, casep.ImpactAnalysis)
 
