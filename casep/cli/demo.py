@@ -16,7 +16,11 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from casep.reporting.demo_figures import FigureJobs, spare_core
+
+    # the figure worker first (a light import): it imports matplotlib while this process imports casep's methods
+    jobs = FigureJobs(spare_core())
     from casep.workflows.demo import run_demo
 
-    print(run_demo(args.out, seed=args.seed, rate=args.rate).text())
+    print(run_demo(args.out, seed=args.seed, rate=args.rate, jobs=jobs).text())
     return 0

@@ -22,7 +22,6 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from casep._cores import usable_cores
-from casep.reporting.plots import plain_log_ticks, pyplot, save_figure, set_margins
 
 __all__ = ["FigureJobs", "plot_demo_residuals", "plot_coefficient_errors", "plot_rels_convergence", "warm_up",
            "spare_core", "serve"]
@@ -44,6 +43,8 @@ def _band(ax: Any, t: np.ndarray, r: np.ndarray, bins: int = 1000) -> None:
 
 def plot_demo_residuals(path: str | os.PathLike, t: np.ndarray, residuals: np.ndarray, title: str) -> Path:
     """Velocity residuals (N, 3), m/s, against time `t` (N,), s: one panel per axis (Figures 3-4 of the paper)."""
+    from casep.reporting.plots import pyplot, save_figure, set_margins
+
     plt = pyplot()
     fig, axes = plt.subplots(3, 1, figsize=(8, 6), sharex=True)
     for i, ax in enumerate(axes):
@@ -59,6 +60,8 @@ def plot_demo_residuals(path: str | os.PathLike, t: np.ndarray, residuals: np.nd
 def plot_coefficient_errors(path: str | os.PathLike, names: Sequence[str], errors: Mapping[str, np.ndarray]) -> Path:
     """``|estimate - true| / CRLB std`` of each coefficient (log scale), one marker colour per method
     (`errors`: method label -> (n,) array, in legend order), with the 1 and 2 std lines."""
+    from casep.reporting.plots import plain_log_ticks, pyplot, save_figure, set_margins
+
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(11, 4.5))
     x = np.arange(len(names))
@@ -79,6 +82,8 @@ def plot_coefficient_errors(path: str | os.PathLike, names: Sequence[str], error
 def plot_rels_convergence(path: str | os.PathLike, t: np.ndarray, z: np.ndarray, names: Sequence[str]) -> Path:
     """RELS estimates against time in units of the final CRLB std: `z` (K, m), ``(estimate - true) / std``
     at the times `t` (K,), s, of the coefficients `names` (m), with the +-2 std band."""
+    from casep.reporting.plots import pyplot, save_figure, set_margins
+
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 4))
     for j, name in enumerate(names):
@@ -99,6 +104,8 @@ def warm_up() -> None:
     fonts and the text layout are loaded once, by the worker,
     while the demo simulates (the figures' pixels do not depend on it)."""
     import io
+
+    from casep.reporting.plots import plain_log_ticks, pyplot
 
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(2, 2))

@@ -231,7 +231,7 @@ def _methods(problem: Problem, model: ErrorModel, labels: Sequence[str]) -> Iter
 
 
 def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float = 100.0,
-             parallel: bool | None = None) -> DemoResult:
+             parallel: bool | None = None, jobs: FigureJobs | None = None) -> DemoResult:
     """Run the demo; write figures and ``report.md`` to `out` when given.
 
     Parameters
@@ -247,6 +247,9 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
         exist (:class:`casep.reporting.demo_figures.FigureJobs`); default: when a core is spare (two or more
         usable cores, the 1-minute load average below their number: :func:`casep.reporting.demo_figures.spare_core`).
         The figures are the same either way.
+    jobs : FigureJobs, optional
+        With `out`: the figure jobs to draw with, made before this module was imported (``casep demo`` starts
+        the worker first, so that it imports matplotlib while casep is imported); `parallel` is then theirs.
 
     Returns
     -------
@@ -255,8 +258,9 @@ def run_demo(out: str | os.PathLike | None = None, *, seed: int = 1, rate: float
     folder = None if out is None else Path(out)
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)
-    parallel = folder is not None and (spare_core() if parallel is None else parallel)
-    with FigureJobs(parallel) as jobs:  # the worker imports matplotlib while the flight is simulated
+    if jobs is None:
+        jobs = FigureJobs(folder is not None and (spare_core() if parallel is None else parallel))
+    with jobs:  # the worker imports matplotlib while the flight is simulated
         # the paper vehicle's trajectory at 100 Hz is stored (casep.simulation.stored): not integrated again
         sim = simulate_flight("paper", seed=seed, rate=rate,
                               trajectory=stored_trajectory(get_scenario("paper").vehicle, rate))

@@ -8,8 +8,22 @@ from casep.cli import main
 from casep.workflows.demo import DEMO_METHODS, run_demo
 
 
-def test_demo_reduced(tmp_path, capsys):
+def test_demo_reduced(tmp_path, capsys, monkeypatch):
+    # with a spare core the command starts the figure worker before it imports the demo, and hands it over (the
+    # figures drawn in this process: tests/reporting/test_demo_figures.py)
+    import casep.reporting.demo_figures as figures
+
+    made = []
+    init = figures.FigureJobs.__init__
+
+    def record(self, parallel):
+        made.append(parallel)
+        init(self, parallel)
+
+    monkeypatch.setattr(figures, "spare_core", lambda: True)
+    monkeypatch.setattr(figures.FigureJobs, "__init__", record)
     assert main(["demo", "--out", str(tmp_path), "--rate", "10"]) == 0
+    assert made == [True]  # one worker, the command's
     text = capsys.readouterr().out
     header = next(line for line in text.splitlines() if line.startswith("coefficient"))
     for label, _, _ in DEMO_METHODS:
