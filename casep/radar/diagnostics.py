@@ -64,15 +64,14 @@ def radar_diagnostics(lin, *, scales: dict | None = None, noise: list[dict] | No
         aliased), ``tracking`` (name, unit, crlb_std), ``mixed_groups``, ``groups``,
         ``station_gain`` ({station: {median_ratio, max_ratio, ratio: {name: r}}}), ``noise``.
     """
-    from casep.regression.problem import Problem
-
     from dataclasses import replace
 
     from casep.radar.linearised import TYPE_UNITS
+    from casep.regression.problem import Problem
 
     reg = lin.regression
     if noise is not None:  # one noise per group: the fit's, in SI, as the std the CRLB rows are divided by
-        if [(g["station"], g["type"]) for g in noise] != list(reg.groups):
+        if [(g["station"], g["type"]) for g in noise] != [tuple(gr) for gr in reg.groups]:
             raise ValueError("noise: one record per group of the regression, in its order")
         lin = replace(lin, sigma=np.array([g["sigma"] * TYPE_UNITS[g["type"]][1] for g in noise]))
     nD = reg.nD
