@@ -300,10 +300,16 @@ class Diagnostics(Completed):
         if self.groups:
             lines.append(f"near-dependencies (condition index > {GROUP_INDEX:g}, proportion > {GROUP_PROPORTION}):")
             lines += ["  " + ", ".join(g) for g in self.groups]
-        lines.append("best-determined combinations (std in the units of the leading coefficient):")
+        # the order is the equilibrated problem's singular values, largest first (condition index from 1): the
+        # std are in the leading coefficient's units, so they are not comparable from line to line
+        lines.append("best-determined combinations, best first by condition index (columns equilibrated); "
+                     "std in the units of the leading coefficient, not comparable between lines:")
         for cmb in self.combinations:
             terms = " ".join(f"{'+' if w >= 0 else '-'} {abs(w):.3g} {n}" for n, w in cmb["combination"].items())
-            lines.append(f"  {terms.lstrip('+ ')}   std {cmb['std']:.3g}")
+            lead = next(iter(cmb["combination"]), None)
+            unit = self.units[self.names.index(lead)] if lead in self.names else ""
+            lines.append(f"  {terms.lstrip('+ ')}   std {cmb['std']:.3g}{' ' + unit if unit else ''}   "
+                         f"condition index {cmb['condition_index']:.3g}")
         return "\n".join(lines)
 
 

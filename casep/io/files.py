@@ -19,7 +19,8 @@ lines (CSV), other numeric columns kept as signals (below), text columns ignored
 - a row whose three ``dv_*`` cells are all empty (Parquet: null) is a telemetry sample without
   tracking (``FlightData.observed`` False): S_V is integrated across it, the regression leaves
   it out. :func:`write_flight` writes the samples without tracking so; a row with only some of its
-  dv cells empty is an error naming the first of them.
+  dv cells empty is an error naming the first of them. The same for the three ``v_trk_*`` cells of a
+  ``v_tel``/``v_trk`` flight (an INS log with its slower GNSS fixes in one file).
 
 Two files (:func:`read_flight_pair`): a telemetry file (``t``, force or apparent velocity,
 ``v_tel_*``) and a tracking file at its own rate (``t``, ``v_trk_*``). The flight keeps every
@@ -78,7 +79,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     path : str or path-like
         Columns ``t``, ``f_*`` or ``W_*``, and ``dv_*`` or ``v_tel_*`` with ``v_trk_*``; any
         other numeric column becomes a signal (``FlightData.signals``). A row whose three
-        ``dv_*`` cells are all empty (Parquet: null) is a telemetry sample without tracking:
+        ``dv_*`` (or ``v_trk_*``) cells are all empty (Parquet: null) is a telemetry sample without tracking:
         S_V is integrated across it, the regression leaves it out (``FlightData.observed``).
 
     Returns
@@ -103,21 +104,24 @@ def read_flight(path: str | os.PathLike) -> FlightData:
         tab.require(DV_COLUMNS, ". Use: dv_x, dv_y, dv_z, or v_tel_x/y/z with v_trk_x/y/z")
         # a row whose three dv cells are all empty (Parquet: null) is a sample without tracking; a row with
         # only some of them empty is refused by Table.numeric, naming its first empty cell
-        untracked = np.logical_and.reduce([tab.missing(c) for c in DV_COLUMNS])
+        untracked = tab.all_missing(DV_COLUMNS)
         dv, dv_from = tab.vectors(DV_COLUMNS, skip=untracked), "dv"
         observed = ~untracked
     else:
         tab.require(VTEL_COLUMNS + VTRK_COLUMNS, ". Use: v_tel_x/y/z with v_trk_x/y/z, or dv_x, dv_y, dv_z")
         v_tel = tab.vectors(VTEL_COLUMNS)
-        dv, dv_from = v_tel - tab.vectors(VTRK_COLUMNS), "v_tel - v_trk"
+        # the same rule for v_trk (an INS log at 50 Hz with its 10 Hz GNSS fixes): three empty cells, untracked
+        untracked = tab.all_missing(VTRK_COLUMNS)
+        dv, dv_from = v_tel - tab.vectors(VTRK_COLUMNS, skip=untracked), "v_tel - v_trk"
+        observed = ~untracked
     meta: dict[str, Any] = {"format": "parquet" if is_parquet(tab.path) else "csv", "force": force_from, "dv": dv_from,
             "rows_file": str(tab.path)}  # sample k is data row k + 1 (locate_samples)
     if dv_from != "dv":
         meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
         meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.checks.plausibility
-        meta["tracking_repeats"] = repeated_rows(tab, "launch")  # for casep.checks.tracking_quality
+        meta["tracking_repeats"] = repeated_rows(tab, "launch", skip=~observed)  # for casep.checks.tracking_quality
     if not observed.all():
-        meta["unobserved"] = int((~observed).sum())  # rows without tracking (all dv cells empty)
+        meta["unobserved"] = int((~observed).sum())  # rows without tracking (all dv, or all v_trk, cells empty)
     signals, src = tab.signals(), tab.src
     tab.strapdown_signals(signals, meta)  # q_*, fb_*, w_*: the checked quaternions, what the checks found
     del tab  # the file's columns, before FlightData takes its own copies (long flights: one copy at a time)

@@ -99,15 +99,18 @@ def tracking_velocity(trk: Table, t_trk: np.ndarray, tracking_frame: str,
     return ecef_to_launch(site, t_trk, r, v)[1], r, v
 
 
-def repeated_rows(trk: Table, tracking_frame: str) -> np.ndarray:
+def repeated_rows(trk: Table, tracking_frame: str, skip: np.ndarray | None = None) -> np.ndarray:
     """The tracking rows (0-based) whose position and velocity columns repeat the previous row's exactly: a receiver
     that has lost lock and repeats its last fix. A record of the file, not a judgement
-    (:mod:`casep.checks.tracking_quality` judges them against the telemetry's motion)."""
+    (:mod:`casep.checks.tracking_quality` judges them against the telemetry's motion). Rows `skip` (a boolean
+    mask: rows without tracking) are left out; a row is compared with the previous row not skipped."""
     from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS
 
     cols = {"launch": VTRK_COLUMNS, "ecef": ECEF_COLUMNS[1:], "geodetic": GEODETIC_COLUMNS[1:]}[tracking_frame]
-    x = trk.vectors(tuple(cols))
-    return np.flatnonzero(np.all(x[1:] == x[:-1], axis=1)) + 1
+    x = trk.vectors(tuple(cols), skip=skip)
+    idx = np.arange(x.shape[0]) if skip is None else np.flatnonzero(~skip)
+    x = x[idx]
+    return idx[1:][np.all(x[1:] == x[:-1], axis=1)]
 
 
 def check_earth_fixed_units(trk: Table, t: np.ndarray, r: np.ndarray, v: np.ndarray, frame: str) -> None:

@@ -273,6 +273,12 @@ class Table:
             return self.nulls.get(col, np.zeros(self.frame.shape[0], dtype=bool))
         return self.frame[col].isna().to_numpy(dtype=bool)
 
+    def all_missing(self, cols: tuple[str, ...]) -> np.ndarray:
+        """The rows whose cells of every column in `cols` are missing (:meth:`missing`): a velocity vector
+        not given on that row (a sample without tracking). A row with only some of them missing is not one:
+        :meth:`numeric` then refuses it, naming its first missing cell."""
+        return np.logical_and.reduce([self.missing(c) for c in cols])
+
     def numeric(self, col: str, skip: np.ndarray | None = None) -> np.ndarray:
         """Column as float64, or the error at its first bad cell (rows `skip`, a boolean mask, are NaN, unchecked)."""
         import pandas as pd

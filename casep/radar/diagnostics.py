@@ -41,8 +41,21 @@ def _std(F: np.ndarray) -> np.ndarray:
     return np.sqrt(np.diag(crlb_covariance(F, 1.0)))
 
 
-def radar_diagnostics(lin, *, scales: dict | None = None) -> dict[str, Any]:
+def radar_diagnostics(lin, *, scales: dict | None = None, noise: list[dict] | None = None) -> dict[str, Any]:
     """The three diagnostics of the module notes for a :class:`~casep.radar.regression.LinearisedRadar`.
+
+    Parameters
+    ----------
+    lin : LinearisedRadar
+    scales : dict, optional
+        Declared magnitudes of the coefficients (the equilibration of the near-dependency groups).
+    noise : list of dict, optional
+        The noise per group that the fit used (one record per group of ``lin.regression.groups``, in that
+        order, ``sigma`` in the group's natural unit, as
+        :meth:`casep.workflows.radar_noise.RadarNoise.group_records` gives them): the rows are divided
+        by these std and the table shows them, so that a result reports one noise per group. Default: the
+        group std of the linearisation (:meth:`LinearisedRadar.noise_table`, each group's weighted
+        least-squares residual std at its leverages).
 
     Returns
     -------
@@ -51,9 +64,16 @@ def radar_diagnostics(lin, *, scales: dict | None = None) -> dict[str, Any]:
         aliased), ``tracking`` (name, unit, crlb_std), ``mixed_groups``, ``groups``,
         ``station_gain`` ({station: {median_ratio, max_ratio, ratio: {name: r}}}), ``noise``.
     """
+    from dataclasses import replace
+
+    from casep.radar.linearised import TYPE_UNITS
     from casep.regression.problem import Problem
 
     reg = lin.regression
+    if noise is not None:  # one noise per group: the fit's, in SI, as the std the CRLB rows are divided by
+        if [(g["station"], g["type"]) for g in noise] != [tuple(gr) for gr in reg.groups]:
+            raise ValueError("noise: one record per group of the regression, in its order")
+        lin = replace(lin, sigma=np.array([g["sigma"] * TYPE_UNITS[g["type"]][1] for g in noise]))
     nD = reg.nD
     F = lin.stacked()  # [R_g / sigma_g]: the information of every row in G n rows
     cov = crlb_covariance(F, 1.0)
@@ -100,16 +120,17 @@ def radar_diagnostics(lin, *, scales: dict | None = None) -> dict[str, Any]:
                       "max_ratio": f(np.max(r[ok])) if ok.any() else None,
                       "ratio": {reg.names[j]: f(r[j]) for j in range(nD)}}
     return {"instrument": inst, "tracking": trk, "mixed_groups": mixed, "groups": diag.groups,
-            "station_gain": gain, "noise": lin.noise_table(),
+            "station_gain": gain, "noise": list(noise) if noise is not None else lin.noise_table(),
             "condition_number_equilibrated": diag.condition_number_equilibrated}
 
 
 def diagnostics_table(d: dict[str, Any]) -> str:
     """Readable report of :func:`radar_diagnostics`."""
-    lines = ["noise per station and type:"]
+    lines = ["noise per station and type (the std the CRLB rows are divided by):"]
     for g in d["noise"]:
+        kind = f"{g['kind']}, " if g.get("kind", "white") != "white" else ""
         lines.append(f"  {g['station']}.{g['type']:<11} {g['sigma']:10.4g} {g['unit']:<7} "
-                     f"({g['source']}, {g['n']} samples)")
+                     f"({kind}{g['source']}, {g['n']} samples)")
     lines += ["", f"{'coefficient':<12} {'unit':<10} {'CRLB fixed':>12} {'CRLB free':>12} {'ratio':>8}  "
                   "(tracking terms known / estimated)"]
     for r in d["instrument"]:

@@ -416,7 +416,9 @@ def plot_miss_budget(analysis, path: str | os.PathLike, top: int = 15) -> Path:
         colors = ["tab:blue"] * len(order) + ["tab:orange"] * len(a.groups) + ["tab:red"]
         ax.barh(y, vals, xerr=err, color=colors, ecolor="0.3", capsize=2)
         ax.axvline(0.0, color="0.3", lw=0.8)
-        ax.set_xscale("symlog", linthresh=max(1.0, float(np.nanmax(np.abs(vals))) * 1e-3))
+        lin = max(1.0, float(np.nanmax(np.abs(vals))) * 1e-3)
+        ax.set_xscale("symlog", linthresh=lin)
+        _symlog_decade_ticks(ax, lin)
         plain_log_ticks(ax.xaxis)
         ax.set_xlabel(f"{what} miss, m")
         ax.tick_params(axis="x", labelrotation=30, labelsize=7)  # symlog ticks: keep them apart
@@ -427,6 +429,22 @@ def plot_miss_budget(analysis, path: str | os.PathLike, top: int = 15) -> Path:
     axes[0].set_yticks(y, labels, fontsize=8)
     fig.suptitle(title, fontsize=9, wrap=True, y=1.0 - 0.08 / fig.get_size_inches()[1], va="top")
     return save_figure(fig, path, layout=None)
+
+
+def _symlog_decade_ticks(ax: Any, linthresh: float) -> None:
+    """Ticks of a symlog x axis at 0 and at the decades ``+-10^k >= linthresh / 2`` within its limits.
+
+    On a symlog axis a decade below ``linthresh`` lies in the linear part, ``10^k / linthresh`` of a
+    decade's width from 0: matplotlib's ticks at 1 and -1 beside 0 then overlap ("-1 0 1"); from
+    ``linthresh / 2`` they are half a decade apart or more.
+    """
+    from matplotlib.ticker import FixedLocator
+
+    top = max(abs(v) for v in ax.get_xlim())
+    k0 = int(np.ceil(np.log10(linthresh / 2.0)))
+    k1 = int(np.floor(np.log10(top))) if top > 0 else k0
+    dec = [10.0 ** k for k in range(k0, k1 + 1)]
+    ax.xaxis.set_major_locator(FixedLocator(sorted([-d for d in dec] + [0.0] + dec)))
 
 
 def _group_label(k: int, names, width: int = 38) -> str:

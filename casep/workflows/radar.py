@@ -288,7 +288,8 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
                      **({"whiteness": whiteness} if whiteness else {})},
         settings={**res.settings, "noise": rn.asked + " per station and type"
                   + (", given" if all_given else ""), "robust": spec.noise.robust})
-    diag = radar_diagnostics(lin, scales=_scales(reg)) if diagnostics else None
+    # the CRLB rows divided by the noise the fit used: the table's noise is the `noise:` line's (one per group)
+    diag = radar_diagnostics(lin, scales=_scales(reg), noise=summary["noise"]) if diagnostics else None
     return RadarResult(res, lin, summary, diag, _provenance(telemetry, radars, reg, spec.method, opts))
 
 

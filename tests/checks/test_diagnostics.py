@@ -201,3 +201,23 @@ def test_bound_follows_the_noise_model_separate_fits():
     assert np.median(diagnose(pb).crlb_std / true) < 0.5  # white: far too small on these rows
     assert fitted.noise["model"] == "gauss-markov" and 0.6 < fitted.noise["axes"]["x"]["tau_s"] < 1.6
     assert "noise auto" in fitted.text() and diagnose_noise(pb, "white").noise["model"] == "white"
+
+
+def test_best_determined_combinations_say_their_order_and_units(paper_problem, platform36):
+    """The combinations come best first by condition index (their std are in different units, so not in order);
+    the text says so, and each line gives its std's unit and its condition index."""
+    import re
+
+    S, y, _ = paper_problem
+    d = diagnose(S, y, names=platform36.names, units=platform36.units, scales=platform36.scales)
+    ci = [c["condition_index"] for c in d.combinations]
+    assert len(ci) >= 2 and ci[0] == pytest.approx(1.0, rel=1e-12) and np.all(np.diff(ci) >= 0), ci
+    text = d.text()
+    assert "best first by condition index" in text
+    lines = text.split("best-determined combinations")[1].splitlines()[1:]
+    assert len(lines) == len(d.combinations)
+    for line, c in zip(lines, d.combinations):
+        lead = next(iter(c["combination"]))
+        unit = platform36.units[platform36.names.index(lead)]
+        m = re.search(r"std (\S+) (\S+)\s+condition index (\S+)$", line)
+        assert m and m.group(2) == unit and float(m.group(3)) == pytest.approx(c["condition_index"], rel=1e-2), line

@@ -84,3 +84,35 @@ def test_all_zero_dv_one_rule_for_separate_and_diagnose(tmp_path, capsys):
 
     with pytest.raises(ValueError, match="`y` is 0 everywhere: sigma cannot be estimated"):
         diagnose(np.ones((20, 3, 2)), np.zeros((20, 3)))
+
+
+def test_one_file_v_trk_rows_left_empty_are_untracked_as_empty_dv_rows(tmp_path):
+    """A one-file v_tel/v_trk flight (an INS log with its GNSS fixes every fifth row): a row whose three v_trk
+    cells are empty is a sample without tracking, as one whose three dv cells are; one or two empty of three is
+    refused, naming the row and column. Its repeated tracking rows are counted among the tracked rows only."""
+    rng = np.random.default_rng(4)
+    n = 20
+    t = 0.02 * np.arange(n)
+    f = rng.normal(size=(n, 3))
+    v_tel = rng.normal(size=(n, 3))
+    v_trk = v_tel - 0.1 * rng.normal(size=(n, 3))
+    obs = np.arange(n) % 5 == 0
+    v_trk[~obs] = np.nan
+    v_trk[10] = v_trk[5]  # a receiver repeating its fix, five rows on
+
+    def write(rows):
+        head = "t,f_x,f_y,f_z,v_tel_x,v_tel_y,v_tel_z,v_trk_x,v_trk_y,v_trk_z"
+        cells = [",".join("" if np.isnan(v) else repr(float(v)) for v in r) for r in rows]
+        p = tmp_path / "ins.csv"
+        p.write_text("\n".join([head, *cells]) + "\n")
+        return p
+
+    back = casep.read_flight(write(np.column_stack([t, f, v_tel, v_trk])))
+    np.testing.assert_array_equal(back.observed, obs)
+    np.testing.assert_allclose(back.dv[obs], (v_tel - v_trk)[obs], rtol=0, atol=1e-12)
+    assert np.isnan(back.dv[~obs]).all() and back.meta["unobserved"] == n - 4
+    assert list(back.meta["tracking_repeats"]) == [10]
+    part = v_trk.copy()
+    part[2, 0] = 1.0  # row 3 of data: v_trk_x given, v_trk_y and v_trk_z empty
+    with pytest.raises(FlightDataError, match=r"column `v_trk_y`, row 3 \(line 4\): empty value"):
+        casep.read_flight(write(np.column_stack([t, f, v_tel, part])))

@@ -173,3 +173,24 @@ def test_one_station_launch_time_off_is_said_with_its_numbers(offset):
     n = sim.model.n_coefficients
     z = (rr.result.estimate[:n] - sim.truth[:n]) / rr.result.std[:n]
     assert np.sqrt(np.nanmean(z**2)) < 1.6
+
+
+def test_radar_result_reports_one_noise_per_group_when_a_station_is_wrong():
+    """A station 40 m too high (a failed fit): the diagnostics table's noise per group is the `noise:` line's
+    (the REML noise the rows were whitened by), not the linearisation's misfit-inflated group std, and the
+    CRLB rows are divided by it; the residual RMS, a different statistic, is above it."""
+    from casep.radar.diagnostics import diagnostics_table
+
+    sim = simulate_radar(STATIONS, SITE, seed=3, telemetry_rate=10, radar_rate=2, tracking_truth=TRUTH)
+    up = dataclasses.replace(sim.radars[0], station=dataclasses.replace(sim.radars[0].station,
+                                                                        h_m=sim.radars[0].station.h_m + 40.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rr = separate_radar(sim.telemetry, [up, sim.radars[1]], SITE, sim.model, sim.tracking)
+    line = {f"{g['station']}.{g['type']}": g["sigma"] for g in rr.summary["noise"]}
+    table = {f"{g['station']}.{g['type']}": g["sigma"] for g in rr.diagnostics["noise"]}
+    assert table == pytest.approx(line, rel=1e-12)
+    lin_sigma = {f"{g['station']}.{g['type']}": g["sigma"] for g in rr.linearised.noise_table()}
+    assert max(lin_sigma[k] / line[k] for k in line) > 1.5, (lin_sigma, line)  # the two statistics differ here
+    text = diagnostics_table(rr.diagnostics)
+    assert f"{line['S1.elevation']:10.4g}" in text and "REML" in text

@@ -88,3 +88,31 @@ def test_demo_figures_keep_their_texts_apart(checked, tmp_path, rng):
     assert set(checked) == {"fig3_residuals_ls.png", "fig4_residuals_wavelet_rels.png", "coefficient_errors.png",
                             "rels_convergence.png", "singular_values.png", "miss_budget.png", "impact_ellipse.png"}
     assert {k: v for k, v in checked.items() if v} == {}
+
+
+def test_miss_budget_symlog_tick_labels_do_not_overlap(monkeypatch, tmp_path):
+    """A downrange budget whose bars run from 1 m to 3500 m (the demo's): matplotlib's symlog ticks at -1, 0, 1
+    sit in the linear part, a fraction of a decade apart, and their labels overlap; none of them may."""
+    figs = []
+
+    def keep(fig, path, *, layout="constrained"):
+        figs.append(fig)
+        return path
+
+    monkeypatch.setattr(plots, "save_figure", keep)
+    names = [f"K{j}" for j in range(8)]
+    G = np.array([[3500.0, -1200.0, 150.0, -80.0, 12.0, -5.0, 1.5, -1.0],
+                  [-1500.0, 9000.0, -300.0, 40.0, -7.0, 3.0, -2.0, 0.5]])
+    impact = SimpleNamespace(contributions=G, sensitivity=G, coefficient_std=0.1 * np.ones(len(names)), names=names,
+                             groups=[], miss=G.sum(axis=1), std=np.array([5.6, 3.6]), nonlinear=G.sum(axis=1),
+                             model="platform36", method="ols")
+    plots.plot_miss_budget(impact, tmp_path / "miss_budget.png")
+    fig = figs[0]
+    fig.draw_without_rendering()
+    r = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        boxes = [(t.get_text(), t.get_window_extent(r)) for t in ax.get_xticklabels() if t.get_text()]
+        assert len(boxes) >= 3
+        bad = [(a, b) for i, (a, ba) in enumerate(boxes) for b, bb in boxes[i + 1:] if ba.overlaps(bb)]
+        assert bad == [], bad
+    pyplot().close(fig)
