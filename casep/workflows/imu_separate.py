@@ -390,10 +390,10 @@ class _Run:
         while True:
             step = determined_step(res, problem, flight, model.scales)
             how = "ols, white noise (while far)" if spec is fast else "as requested"
-            passes.append(_pass_record(k, res, step, D + step.d, how))
+            passes.append(_pass_record(k, res, step, D + step.d, how, _at_rounding(D, step, model.scales, res.names)))
             if not iterate:
                 break
-            if step.max_z < tol:
+            if step.max_z < tol or passes[-1]["rounding"]:
                 if spec is self.spec or step.combinations is not None:  # the stretches' combinations: any fit
                     break
                 spec, last = self.spec, None  # the same linearisation, solved as requested (another map)
@@ -434,18 +434,40 @@ class _Run:
         estimate = np.where(np.isfinite(res.estimate), total, np.nan)
         diag = dict(res.diagnostics)
         diag["iterations"] = {"iterate": iterate, "tol": tol, "max_iterations": max_iterations,
-                              "converged": failure is None and (not iterate or passes[-1]["max_z"] < tol),
+                              "converged": failure is None and (not iterate or _stopped(passes[-1], tol)),
                               "passes": passes}
         solution = None if res.solution is None else dataclasses.replace(res.solution, x=total)
         out = dataclasses.replace(res, estimate=estimate, diagnostics=diag, solution=solution,
                                   **model_record(self.base))
-        if iterate and failure is None and passes[-1]["max_z"] >= tol and out.success:
+        if iterate and failure is None and not _stopped(passes[-1], tol) and out.success:
             failure = f"failed: the iteration stopped at pass {len(passes)} before converging"
         if failure is not None:
             out = failed(out, STATUS_NOT_CONVERGED, failure)
         out = judge_setup(out, flight, model, noise_free=False)
         out = judge_tracking(out, flight, problem, model.scales, about=D)
         return ImuSeparation(out, nav, flight, passes)
+
+
+def _at_rounding(D: np.ndarray, step: Step, scales: dict[str, float], names: Any) -> bool:
+    """Whether a pass's correction is at the rounding level of the coefficients: noise-free data make every std
+    rounding too, and the stop rule ``|d| < tol std`` can then never hold.
+
+    In the declared magnitudes (``z = d / scale``, ``Z = (D + d) / scale``): ``max |z| <= NOISE_FREE max |Z|``
+    (:func:`casep.regression.problem.is_rounding_level`, the project's one noise-free rule; False at ``Z = 0``).
+    """
+    from casep.regression.problem import is_rounding_level
+
+    scale = np.array([scales.get(nm, 1.0) for nm in names], dtype=float)[:D.size]
+    z, Z = step.d[:D.size] / scale, (D + step.d)[:D.size] / scale
+    if not (np.all(np.isfinite(z)) and np.any(Z)):
+        return False
+    return is_rounding_level(float(np.abs(z).max()), float(np.abs(Z).max()))
+
+
+def _stopped(record: dict, tol: float) -> bool:
+    """The stop rule on a pass's record: every correction below `tol` std, or at the rounding level
+    (:func:`_at_rounding`)."""
+    return bool(record["max_z"] < tol or record.get("rounding"))
 
 
 def _secant_step(D: np.ndarray, d: np.ndarray, std: np.ndarray | None, last: tuple | None) -> np.ndarray:
@@ -493,7 +515,7 @@ def _quiet_fit(problem: Any, spec: FitSpec) -> EstimateResult:
         return fit(problem, spec, checks=False)
 
 
-def _pass_record(k: int, res: EstimateResult, step: Step, total: np.ndarray, how: str) -> dict:
+def _pass_record(k: int, res: EstimateResult, step: Step, total: np.ndarray, how: str, rounding: bool = False) -> dict:
     """One pass for ``diagnostics["iterations"]``: the largest correction of a determined combination in its std
     (`step`), whose, every coefficient's |correction| / std (None where the flight does not determine it), the
     combinations' (with the tracking's stretches), and the estimate after it (`total`, natural units; the first
@@ -501,7 +523,7 @@ def _pass_record(k: int, res: EstimateResult, step: Step, total: np.ndarray, how
     std = res.std if res.std is not None else np.full(len(res.names), np.nan)
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.abs(res.estimate) / std
-    out = {"iteration": k, "fit": how, "max_z": step.max_z, "worst": step.worst,
+    out = {"iteration": k, "fit": how, "max_z": step.max_z, "worst": step.worst, "rounding": rounding,
            "z": {nm: (float(v) if np.isfinite(v) else None) for nm, v in zip(res.names, z)},
            "estimate": {nm: (float(v) if np.isfinite(e) else None)
                         for nm, v, e in zip(res.names, total, res.estimate)}}

@@ -228,6 +228,18 @@ def test_a_pass_count_bound_that_is_reached_is_a_failed_result(noise_free):
     assert not it["converged"] and len(it["passes"]) == 2 and it["passes"][-1]["max_z"] >= it["tol"]
 
 
+def test_noise_free_tracking_with_the_std_estimated_stops_at_the_rounding_level(noise_free):
+    """Noise-free tracking and sigma estimated from the residuals: every std is rounding, so ``|d| < 0.1 std`` can
+    never hold; the iteration stops when the correction is at the rounding level of the coefficients (the
+    project's noise-free rule), converged, the truth recovered to far below the rounding rule's 1e-9."""
+    imu, trk, D = noise_free
+    out = _separate(imu, trk, spec=FitSpec.build("ols", noise="white", robust="none"))
+    it = out.result.diagnostics["iterations"]
+    assert out.success and it["converged"], out.message
+    assert it["passes"][-1]["rounding"] and len(it["passes"]) < it["max_iterations"]
+    assert np.allclose(out.result.estimate, D, rtol=1e-8, atol=0), out.result.estimate - D
+
+
 def test_undetermined_coefficients_never_enter_the_imu_correction(noise_free, tmp_path, monkeypatch):
     """Exactly dependent columns (``ba_x``, ``ba_x2``): every pass corrects the IMU by coefficients with no part
     along the null direction (``ba_x = ba_x2``: neither is an estimate, 0 in place of them would drop their
