@@ -91,6 +91,8 @@ MAX_ITERATIONS = 20
 ACCELERATE_BELOW = 5.0
 #: Status of a result whose iteration did not converge (or whose correction could not be applied).
 STATUS_NOT_CONVERGED = -7
+#: Why an iteration fails, unless an IMU gap is the likelier cause (:func:`_gap_clause`).
+_BLAME = "the errors are too large for the model, or the data are inconsistent with it"
 #: The alignment's derivative is taken with steps that turn the attitude by about this much, rad.
 _ALIGN_STEP_RAD = 1e-6
 
@@ -365,9 +367,12 @@ class _Run:
             if self.pair["time_offset"] == "auto":  # the offset of the first pass, kept (the grid stays)
                 self.pair["time_offset"] = align.get("applied_s", 0.0) or None
         self.nav = nav
-        model = self.model(nav)
+        with warnings.catch_warnings():
+            if not first:
+                warnings.simplefilter("ignore")  # S_V's warnings (integrated across a gap) said once, too
+            model = self.model(nav)
+            problem = flight_problem(flight, model)
         self.model_k = model
-        problem = flight_problem(flight, model)
         return _quiet_fit(problem, spec), nav, flight, model, problem
 
     # ------------------------------------------------------------------ the iteration
@@ -401,8 +406,7 @@ class _Run:
                 continue
             if k == max_iterations:
                 failure = (f"failed: the iteration did not converge in {max_iterations} passes (the last correction "
-                           f"was {step.max_z:.3g} std of {step.worst}, the stop rule {tol:g} std): "
-                           "the errors are too large for the model, or the data are inconsistent with it")
+                           f"was {step.max_z:.3g} std of {step.worst}, the stop rule {tol:g} std): " + _BLAME)
                 break
             near = step.max_z < ACCELERATE_BELOW
             move = _secant_step(D, step.d, step.metric, last) if near else step.d
@@ -411,8 +415,7 @@ class _Run:
             try:
                 res, nav, flight, model, problem = self.solve(D, spec)
             except ValueError as exc:
-                failure = (f"failed: pass {k} could not apply the correction of pass {k - 1} ({exc}): the errors are "
-                           "too large for the model, or the data are inconsistent with it")
+                failure = f"failed: pass {k} could not apply the correction of pass {k - 1} ({exc}): " + _BLAME
                 break
         from casep.estimators.solve import fit
 
@@ -442,10 +445,35 @@ class _Run:
         if iterate and failure is None and not _stopped(passes[-1], tol) and out.success:
             failure = f"failed: the iteration stopped at pass {len(passes)} before converging"
         if failure is not None:
-            out = failed(out, STATUS_NOT_CONVERGED, failure)
+            gap = _gap_clause(self.imu, float(out.sigma))
+            out = failed(out, STATUS_NOT_CONVERGED, failure.replace(_BLAME, gap) if gap else failure)
         out = judge_setup(out, flight, model, noise_free=False)
         out = judge_tracking(out, flight, problem, model.scales, about=D)
         return ImuSeparation(out, nav, flight, passes)
+
+
+def _gap_clause(imu: ImuData, sigma: float) -> str:
+    """What a failed iteration says of the IMU's gaps: the worst one, when what it leaves unknown is large against
+    the tracking noise `sigma` (m/s); else nothing.
+
+    A gap's bounds are those the navigation warned of (:func:`casep.navigation.imu.bridge_gaps`): the velocity
+    across it (m/s) and the attitude (rad), the latter a velocity error growing by up to ``|f|max * attitude`` m/s
+    per s after it. Large: either, over one second, above `sigma`. No model of constant coefficients fits across a
+    jump of that size, so the passes cannot converge whatever the errors' size.
+    """
+    from casep.navigation.imu import bridge_gaps
+
+    if not imu.gaps or not sigma > 0:
+        return ""
+    br = bridge_gaps(imu.t, imu.w, imu.f)
+    growth = float(np.linalg.norm(imu.f, axis=1).max()) * br.attitude  # m/s per s after each gap
+    worst = int(np.argmax(np.maximum(br.velocity, growth)))
+    if max(br.velocity[worst], growth[worst]) <= sigma:
+        return ""
+    return (f"the IMU gap of {br.h[worst]:.3g} s after t = {imu.t[br.steps[worst]]:.10g} s leaves the velocity "
+            f"known to {br.velocity[worst]:.3g} m/s and the attitude to {br.attitude[worst]:.3g} rad (a velocity error "
+            f"growing by up to {growth[worst]:.3g} m/s per s), large against the tracking noise {sigma:.3g} m/s: "
+            "the gap, not the errors' size, is the likelier cause")
 
 
 def _at_rounding(D: np.ndarray, step: Step, scales: dict[str, float], names: Any) -> bool:
