@@ -53,9 +53,11 @@ step through the last two passes (:func:`_secant_step`). It stops when the corre
 determined combination is below :data:`ITERATE_TOL` (0.1) of its std, ``|g . d_k| < 0.1 std(g . d_k)``
 for every ``g`` the result states as determined (:func:`determined_step`; Gauss-Newton with S_V as the
 Jacobian: its fixed point makes the residual orthogonal to S_V about the corrected trajectory, the
-noise-free truth included), and fails (status
+noise-free truth included), or when the correction is at the rounding level of the coefficients
+(:func:`_at_rounding`: noise-free tracking makes every std rounding too), and fails (status
 :data:`STATUS_NOT_CONVERGED`) after ``max_iterations`` passes or when a correction cannot be
-applied. The estimate is ``D_k + d_k`` of the last pass, the std and covariance those of its
+applied (the message names an IMU gap whose bounds are large against the tracking noise:
+:func:`_gap_clause`). The estimate is ``D_k + d_k`` of the last pass, the std and covariance those of its
 linearisation; ``diagnostics["iterations"]`` lists every pass (the largest correction in std and
 the combination it was).
 """
