@@ -53,9 +53,11 @@ step through the last two passes (:func:`_secant_step`). It stops when the corre
 determined combination is below :data:`ITERATE_TOL` (0.1) of its std, ``|g . d_k| < 0.1 std(g . d_k)``
 for every ``g`` the result states as determined (:func:`determined_step`; Gauss-Newton with S_V as the
 Jacobian: its fixed point makes the residual orthogonal to S_V about the corrected trajectory, the
-noise-free truth included), and fails (status
+noise-free truth included), or when the correction is at the rounding level of the coefficients
+(:func:`_at_rounding`: noise-free tracking makes every std rounding too), and fails (status
 :data:`STATUS_NOT_CONVERGED`) after ``max_iterations`` passes or when a correction cannot be
-applied. The estimate is ``D_k + d_k`` of the last pass, the std and covariance those of its
+applied (the message names an IMU gap whose bounds are large against the tracking noise:
+:func:`_gap_clause`). The estimate is ``D_k + d_k`` of the last pass, the std and covariance those of its
 linearisation; ``diagnostics["iterations"]`` lists every pass (the largest correction in std and
 the combination it was).
 """
@@ -91,6 +93,8 @@ MAX_ITERATIONS = 20
 ACCELERATE_BELOW = 5.0
 #: Status of a result whose iteration did not converge (or whose correction could not be applied).
 STATUS_NOT_CONVERGED = -7
+#: Why an iteration fails, unless an IMU gap is the likelier cause (:func:`_gap_clause`).
+_BLAME = "the errors are too large for the model, or the data are inconsistent with it"
 #: The alignment's derivative is taken with steps that turn the attitude by about this much, rad.
 _ALIGN_STEP_RAD = 1e-6
 
@@ -365,9 +369,12 @@ class _Run:
             if self.pair["time_offset"] == "auto":  # the offset of the first pass, kept (the grid stays)
                 self.pair["time_offset"] = align.get("applied_s", 0.0) or None
         self.nav = nav
-        model = self.model(nav)
+        with warnings.catch_warnings():
+            if not first:
+                warnings.simplefilter("ignore")  # S_V's warnings (integrated across a gap) said once, too
+            model = self.model(nav)
+            problem = flight_problem(flight, model)
         self.model_k = model
-        problem = flight_problem(flight, model)
         return _quiet_fit(problem, spec), nav, flight, model, problem
 
     # ------------------------------------------------------------------ the iteration
@@ -390,10 +397,10 @@ class _Run:
         while True:
             step = determined_step(res, problem, flight, model.scales)
             how = "ols, white noise (while far)" if spec is fast else "as requested"
-            passes.append(_pass_record(k, res, step, D + step.d, how))
+            passes.append(_pass_record(k, res, step, D + step.d, how, _at_rounding(D, step, model.scales, res.names)))
             if not iterate:
                 break
-            if step.max_z < tol:
+            if step.max_z < tol or passes[-1]["rounding"]:
                 if spec is self.spec or step.combinations is not None:  # the stretches' combinations: any fit
                     break
                 spec, last = self.spec, None  # the same linearisation, solved as requested (another map)
@@ -401,8 +408,7 @@ class _Run:
                 continue
             if k == max_iterations:
                 failure = (f"failed: the iteration did not converge in {max_iterations} passes (the last correction "
-                           f"was {step.max_z:.3g} std of {step.worst}, the stop rule {tol:g} std): "
-                           "the errors are too large for the model, or the data are inconsistent with it")
+                           f"was {step.max_z:.3g} std of {step.worst}, the stop rule {tol:g} std): " + _BLAME)
                 break
             near = step.max_z < ACCELERATE_BELOW
             move = _secant_step(D, step.d, step.metric, last) if near else step.d
@@ -411,8 +417,7 @@ class _Run:
             try:
                 res, nav, flight, model, problem = self.solve(D, spec)
             except ValueError as exc:
-                failure = (f"failed: pass {k} could not apply the correction of pass {k - 1} ({exc}): the errors are "
-                           "too large for the model, or the data are inconsistent with it")
+                failure = f"failed: pass {k} could not apply the correction of pass {k - 1} ({exc}): " + _BLAME
                 break
         from casep.estimators.solve import fit
 
@@ -434,18 +439,65 @@ class _Run:
         estimate = np.where(np.isfinite(res.estimate), total, np.nan)
         diag = dict(res.diagnostics)
         diag["iterations"] = {"iterate": iterate, "tol": tol, "max_iterations": max_iterations,
-                              "converged": failure is None and (not iterate or passes[-1]["max_z"] < tol),
+                              "converged": failure is None and (not iterate or _stopped(passes[-1], tol)),
                               "passes": passes}
         solution = None if res.solution is None else dataclasses.replace(res.solution, x=total)
         out = dataclasses.replace(res, estimate=estimate, diagnostics=diag, solution=solution,
                                   **model_record(self.base))
-        if iterate and failure is None and passes[-1]["max_z"] >= tol and out.success:
+        if iterate and failure is None and not _stopped(passes[-1], tol) and out.success:
             failure = f"failed: the iteration stopped at pass {len(passes)} before converging"
         if failure is not None:
-            out = failed(out, STATUS_NOT_CONVERGED, failure)
+            gap = _gap_clause(self.imu, float(out.sigma))
+            out = failed(out, STATUS_NOT_CONVERGED, failure.replace(_BLAME, gap) if gap else failure)
         out = judge_setup(out, flight, model, noise_free=False)
         out = judge_tracking(out, flight, problem, model.scales, about=D)
         return ImuSeparation(out, nav, flight, passes)
+
+
+def _gap_clause(imu: ImuData, sigma: float) -> str:
+    """What a failed iteration says of the IMU's gaps: the worst one, when what it leaves unknown is large against
+    the tracking noise `sigma` (m/s); else nothing.
+
+    A gap's bounds are those the navigation warned of (:func:`casep.navigation.imu.bridge_gaps`): the velocity
+    across it (m/s) and the attitude (rad), the latter a velocity error growing by up to ``|f|max * attitude`` m/s
+    per s after it. Large: either, over one second, above `sigma`. No model of constant coefficients fits across a
+    jump of that size, so the passes cannot converge whatever the errors' size.
+    """
+    from casep.navigation.imu import bridge_gaps
+
+    if not imu.gaps or not sigma > 0:
+        return ""
+    br = bridge_gaps(imu.t, imu.w, imu.f)
+    growth = float(np.linalg.norm(imu.f, axis=1).max()) * br.attitude  # m/s per s after each gap
+    worst = int(np.argmax(np.maximum(br.velocity, growth)))
+    if max(br.velocity[worst], growth[worst]) <= sigma:
+        return ""
+    return (f"the IMU gap of {br.h[worst]:.3g} s after t = {imu.t[br.steps[worst]]:.10g} s leaves the velocity "
+            f"known to {br.velocity[worst]:.3g} m/s and the attitude to {br.attitude[worst]:.3g} rad (a velocity error "
+            f"growing by up to {growth[worst]:.3g} m/s per s), large against the tracking noise {sigma:.3g} m/s: "
+            "the gap, not the errors' size, is the likelier cause")
+
+
+def _at_rounding(D: np.ndarray, step: Step, scales: dict[str, float], names: Any) -> bool:
+    """Whether a pass's correction is at the rounding level of the coefficients: noise-free data make every std
+    rounding too, and the stop rule ``|d| < tol std`` can then never hold.
+
+    In the declared magnitudes (``z = d / scale``, ``Z = (D + d) / scale``): ``max |z| <= NOISE_FREE max |Z|``
+    (:func:`casep.regression.problem.is_rounding_level`, the project's one noise-free rule; False at ``Z = 0``).
+    """
+    from casep.regression.problem import is_rounding_level
+
+    scale = np.array([scales.get(nm, 1.0) for nm in names], dtype=float)[:D.size]
+    z, Z = step.d[:D.size] / scale, (D + step.d)[:D.size] / scale
+    if not (np.all(np.isfinite(z)) and np.any(Z)):
+        return False
+    return is_rounding_level(float(np.abs(z).max()), float(np.abs(Z).max()))
+
+
+def _stopped(record: dict, tol: float) -> bool:
+    """The stop rule on a pass's record: every correction below `tol` std, or at the rounding level
+    (:func:`_at_rounding`)."""
+    return bool(record["max_z"] < tol or record.get("rounding"))
 
 
 def _secant_step(D: np.ndarray, d: np.ndarray, std: np.ndarray | None, last: tuple | None) -> np.ndarray:
@@ -493,7 +545,7 @@ def _quiet_fit(problem: Any, spec: FitSpec) -> EstimateResult:
         return fit(problem, spec, checks=False)
 
 
-def _pass_record(k: int, res: EstimateResult, step: Step, total: np.ndarray, how: str) -> dict:
+def _pass_record(k: int, res: EstimateResult, step: Step, total: np.ndarray, how: str, rounding: bool = False) -> dict:
     """One pass for ``diagnostics["iterations"]``: the largest correction of a determined combination in its std
     (`step`), whose, every coefficient's |correction| / std (None where the flight does not determine it), the
     combinations' (with the tracking's stretches), and the estimate after it (`total`, natural units; the first
@@ -501,7 +553,7 @@ def _pass_record(k: int, res: EstimateResult, step: Step, total: np.ndarray, how
     std = res.std if res.std is not None else np.full(len(res.names), np.nan)
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.abs(res.estimate) / std
-    out = {"iteration": k, "fit": how, "max_z": step.max_z, "worst": step.worst,
+    out = {"iteration": k, "fit": how, "max_z": step.max_z, "worst": step.worst, "rounding": rounding,
            "z": {nm: (float(v) if np.isfinite(v) else None) for nm, v in zip(res.names, z)},
            "estimate": {nm: (float(v) if np.isfinite(e) else None)
                         for nm, v, e in zip(res.names, total, res.estimate)}}

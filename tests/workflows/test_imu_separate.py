@@ -223,9 +223,21 @@ def test_a_pass_count_bound_that_is_reached_is_a_failed_result(noise_free):
     imu, trk, _ = noise_free
     out = _separate(imu, trk, spec=NOISE_FREE, max_iterations=2)
     assert not out.success and out.status == STATUS_NOT_CONVERGED
-    assert "did not converge in 2 passes" in out.message
+    assert "did not converge in 2 passes" in out.message and "too large for the model" in out.message  # no gap
     it = out.result.diagnostics["iterations"]
     assert not it["converged"] and len(it["passes"]) == 2 and it["passes"][-1]["max_z"] >= it["tol"]
+
+
+def test_noise_free_tracking_with_the_std_estimated_stops_at_the_rounding_level(noise_free):
+    """Noise-free tracking and sigma estimated from the residuals: every std is rounding, so ``|d| < 0.1 std`` can
+    never hold; the iteration stops when the correction is at the rounding level of the coefficients (the
+    project's noise-free rule), converged, the truth recovered to far below the rounding rule's 1e-9."""
+    imu, trk, D = noise_free
+    out = _separate(imu, trk, spec=FitSpec.build("ols", noise="white", robust="none"))
+    it = out.result.diagnostics["iterations"]
+    assert out.success and it["converged"], out.message
+    assert it["passes"][-1]["rounding"] and len(it["passes"]) < it["max_iterations"]
+    assert np.allclose(out.result.estimate, D, rtol=1e-8, atol=0), out.result.estimate - D
 
 
 def test_undetermined_coefficients_never_enter_the_imu_correction(noise_free, tmp_path, monkeypatch):
@@ -293,3 +305,22 @@ def test_stale_tracking_is_screened_once_and_left_out_of_every_pass(truth_flight
     assert out.success and res.diagnostics["iterations"]["converged"], out.message
     crlb = np.array([res.diagnostics["crlb_std"][n] for n in res.names])
     assert np.abs((res.estimate - D) / crlb).max() <= 0.01
+
+
+def test_an_imu_gap_is_named_by_the_failure_and_its_warnings_are_said_once(truth_flight, tmp_path):
+    """A 1 s IMU gap in the roll ramp: S_V's warning (integrated across the gap) once, not once per pass, and the
+    failure names the gap and its bounds (the navigation's) rather than the errors' size."""
+    from casep.navigation import read_imu
+
+    path, trk, _ = write_flight(tmp_path, truth_flight)
+    full = read_imu(path)
+    keep = ~((full.t >= 12.0) & (full.t < 13.0))
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        imu = check_imu(ImuData(full.t[keep], full.w[keep], full.f[keep]))
+        out = separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=heading_of_x(), max_iterations=2,
+                           spec=FitSpec.build("ols", noise="white", sigma=0.001, robust="none"))
+    assert sum("S_V is integrated across them" in str(w.message) for w in seen) == 1
+    assert not out.success and out.status == STATUS_NOT_CONVERGED
+    assert "the IMU gap of 1.05 s after t = 11.95 s" in out.message, out.message
+    assert "too large for the model" not in out.message
