@@ -418,7 +418,7 @@ class Problem:
         root = self.parent if self.parent is not None else self
         return root.interpolation_floor if self.noise is None else 0.0  # whitened rows: another scale
 
-    def noise_free_level(self) -> float:
+    def rounding_floor(self) -> float:
         """The residual level of these rows without noise, m/s: ``max(NOISE_FREE * max |y|, floor)``
         (:func:`is_rounding_level`: the rounding level of ``y`` or the interpolation floor of the pair of
         files); 0 without ``y``. No noise scale fitted to the rows is smaller."""

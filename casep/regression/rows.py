@@ -120,7 +120,7 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[i
     # judged on a fit without the samples rejected, iterated: glitches distort the least-squares fit, and on
     # low-noise data the misfit they leave is itself rejected (in runs) while the glitches bias the fit
     keep = np.ones(problem.n_samples, dtype=bool)
-    floor = problem.noise_free_level()
+    floor = problem.rounding_floor()
     for _ in range(_MAX_ROBUST_ITER):
         x, _ = _ls(_rows(problem, keep, nm, None))
         rw = robust_filter(problem.residuals(x), problem.t, nm, floor=floor)
@@ -219,7 +219,7 @@ def _robust(problem, nm, noise, tau, function):
     refits = 0
     history = []
     x, sd = _ls(_rows(problem, keep, nm, weights))
-    floor = problem.noise_free_level()  # the robust scale is never below the noise-free level
+    floor = problem.rounding_floor()  # the robust scale is never below the noise-free level
     rw = None
     for it in range(1, _MAX_ROBUST_ITER + 1):
         r = problem.residuals(x)
