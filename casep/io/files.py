@@ -86,7 +86,7 @@ def start_speed(tab: Table, t: np.ndarray, v_tel: np.ndarray) -> float:
     ``|v_ECEF(t_0)|``; otherwise ``|v_tel(t_0)|`` (a frame with the pad at rest).
     """
     speed = float(np.linalg.norm(v_tel[0]))
-    if is_parquet(tab.path) or not all(c in tab.columns for c in R_TEL_COLUMNS):
+    if not tab.path.is_file() or is_parquet(tab.path) or not all(c in tab.columns for c in R_TEL_COLUMNS):
         return speed
     site, inertial = None, False
     with open(tab.path, encoding="utf-8", errors="replace") as fh:
