@@ -105,3 +105,14 @@ def test_a_strapdown_flight_is_never_told_to_use_a_platform_model(tmp_path):
     text = str(rec[0].message)
     assert "--model strapdown15_phi0" in text and "--model platform" not in text and "platform39" not in text
     assert "no shipped model of this kind has the initial velocity error dv0" in text
+
+
+def test_start_speed_of_a_table_without_a_file_is_its_own(tmp_path):
+    """A telemetry table held in memory (separate --imu's navigated one) has no header to read: |v_tel(t0)|."""
+    from casep.io.files import start_speed
+    from casep.io.tables import Table
+
+    cols = {"t": np.arange(3.0), **{f"v_tel_{a}": np.full(3, 2.0) for a in "xyz"},
+            **{f"r_tel_{a}": np.zeros(3) for a in "xyz"}}
+    tab = Table.from_columns(cols, str(tmp_path / "imu.csv (navigated)"))
+    assert start_speed(tab, cols["t"], np.full((3, 3), 2.0)) == pytest.approx(np.sqrt(12.0), rel=1e-12)
