@@ -40,11 +40,20 @@ START_DV_FLOOR = 1e-3
 PAD_SPEED = 30.0
 
 
-#: Initial terms a late start needs: (model.numeric key, what it is, a model that adds it).
+#: Initial terms a late start needs: (model.numeric key, what it is, a platform model that adds it, a strapdown
+#: model that adds it or None: no shipped strapdown model has dv0).
 INITIAL_TERMS = (
-    ("dv0", "initial velocity error dv0 (dv0x, dv0y, dv0z, m/s)", "platform36_dv0"),
-    ("phi0", "initial platform misalignment phi0 (phi0x, phi0y, phi0z, arcsec)", "platform39_misalignment"),
+    ("dv0", "initial velocity error dv0 (dv0x, dv0y, dv0z, m/s)", "platform36_dv0", None),
+    ("phi0", "initial platform misalignment phi0 (phi0x, phi0y, phi0z, arcsec)", "platform39_misalignment",
+     "strapdown15_phi0"),
 )
+
+
+def _is_strapdown(flight: FlightData, model: Any) -> bool:
+    """Whether the flight is a strapdown one: its model reads the INS attitude, or the flight carries it."""
+    from casep.io.strapdown import QUATERNION_COLUMNS
+
+    return any(c in tuple(getattr(model, "signals", ()) or ()) or c in flight.signals for c in QUATERNION_COLUMNS)
 
 
 
@@ -106,6 +115,16 @@ def late_start_evidence(flight: FlightData) -> dict:
     return out
 
 
+def _models(missing: list[tuple[str, str | None]]) -> str:
+    """The models that add the missing initial terms, said (a term no shipped model of the flight's kind has)."""
+    have = [m[1] for m in missing if m[1]]
+    lack = [m[0].split(" (")[0] for m in missing if not m[1]]
+    out = f"--model {' or '.join(have)}" if have else ""
+    if lack:
+        out += ("; " if out else "") + f"no shipped model of this kind has the {' and '.join(lack)}: add it to a copy"
+    return out
+
+
 def warn_late_start(flight: FlightData, model: Any) -> dict:
     """Warn (:class:`LateStartWarning`) when the flight starts after lift-off and `model`
     lacks the initial velocity error dv0 or the initial misalignment phi0.
@@ -123,7 +142,9 @@ def warn_late_start(flight: FlightData, model: Any) -> dict:
         The evidence (:func:`late_start_evidence`); empty when there is none.
     """
     ev = late_start_evidence(flight)
-    missing = [(term, use) for key, term, use in INITIAL_TERMS if not np.any(model.numeric(key))]
+    strapdown = _is_strapdown(flight, model)
+    missing = [(term, sd if strapdown else platform) for key, term, platform, sd in INITIAL_TERMS
+               if not np.any(model.numeric(key))]
     if not ev or not missing or setup_problems(flight):  # a failed set-up check explains dv(t0): said there
         return ev
     if "speed_m_s" not in ev and np.size(model.numeric("velocity_columns")):
@@ -139,13 +160,15 @@ def warn_late_start(flight: FlightData, model: Any) -> dict:
     # dv(t0) != 0 alone with dv0 in the model: an initial velocity error at lift-off looks the same.
     maybe = (" (or it starts at lift-off with an initial velocity error, which the model's dv0 terms take; "
              "then ignore this)" if "speed_m_s" not in ev and np.any(model.numeric("dv0")) else "")
+    offset = ("the term a(t) dt_trk of models/platform36_timeoffset.py, added to a copy of the strapdown model"
+              if strapdown else "--model platform36_timeoffset")
     warnings.warn(LateStartWarning(
         f"{flight.source}: the flight seems to start after lift-off{maybe} (t0 = {flight.t[0]:.6g} s): "
         f"{'; '.join(what)}. Model `{model.name}` has no {' and no '.join(m[0] for m in missing)}: errors "
         f"accumulated before t0 will bias the estimates. Use data from lift-off, or a model with the initial "
-        f"terms: --model {' or '.join(m[1] for m in missing)} (models/README.md shows how to combine them). "
+        f"terms: {_models(missing)} (models/README.md shows how to combine them). "
         f"A tracking time offset also gives dv(t0) != 0 (dv = a(t) dt_trk): `casep separate` (casep.check_fit) "
-        f"tests the residuals for one; if it finds one, model the offset instead (platform36_timeoffset)."),
+        f"tests the residuals for one; if it finds one, model the offset instead ({offset})."),
         stacklevel=3)
     return ev
 

@@ -261,7 +261,8 @@ def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResul
             g.update(loc)  # the first sample after the gap
         diag["gaps"] = gaps
     if check_white and problem.t is not None and raw.ndim == 2 and rows.solved.has_rows \
-            and not problem.is_noise_free():  # rounding residuals: no noise whose whiteness to test
+            and not (problem if keep.all() else problem.subset(keep)).is_noise_free():
+        # rounding residuals (of the samples kept: glitches on noise-free data removed): no noise to test
         # the residuals whitened by the noise model (raw ones for white noise): still correlated?
         e = raw[keep] if nm.is_white and rows.weights is None else rows.solved.residuals(x).reshape(-1, 3)
         alpha = 0.01 if noise == "white" else ALPHA_FITTED  # raw residuals at 1 %, whitened ones at 0.1 %

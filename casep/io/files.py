@@ -42,6 +42,7 @@ The columns are read by :class:`casep.io.tables.Table`; the pair is merged by
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -69,6 +70,43 @@ from casep.io.tables import VTEL_COLUMNS, VTRK_COLUMNS, Table, apparent_velocity
 __all__ = [
     "read_json_table", "read_flight", "read_flight_pair", "write_flight", "write_table", "apparent_velocity_to_force",
 ]
+
+
+R_TEL_COLUMNS = ("r_tel_x", "r_tel_y", "r_tel_z")  # launch-inertial position (casep navigate's output), m
+#: casep navigate's header line naming the launch site (casep/cli/navigate.py writes it)
+_NAV_SITE = re.compile(r"^#\s*launch site (\S+) (\S+) (\S+) azimuth (\S+) deg, launch time (\S+) s")
+
+
+def start_speed(tab: Table, t: np.ndarray, v_tel: np.ndarray) -> float:
+    """The telemetry speed at the first sample relative to the Earth, m/s (the late-start check's
+    ``start_speed_m_s``, :func:`casep.checks.late_start.late_start_evidence`).
+
+    A telemetry in the launch-inertial frame (``casep navigate``'s output: its header names the frame
+    and the launch site, and it has the position ``r_tel_*``) carries the pad's own velocity from the
+    Earth's rotation (up to 465 m/s): the speed is then that of :func:`casep.frames.launch_to_ecef`,
+    ``|v_ECEF(t_0)|``; otherwise ``|v_tel(t_0)|`` (a frame with the pad at rest).
+    """
+    speed = float(np.linalg.norm(v_tel[0]))
+    if not tab.path.is_file() or is_parquet(tab.path) or not all(c in tab.columns for c in R_TEL_COLUMNS):
+        return speed
+    site, inertial = None, False
+    with open(tab.path, encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            if not line.startswith("#"):
+                break
+            inertial |= "launch-inertial frame" in line
+            site = _NAV_SITE.match(line) or site
+    if site is None or not inertial:
+        return speed
+    from casep.frames import LaunchSite, launch_to_ecef
+
+    try:
+        lat, lon, h, az, t0 = (float(g) for g in site.groups())
+        ls = LaunchSite(lat, lon, h, az, t0)
+    except ValueError:
+        return speed
+    _, v_e = launch_to_ecef(ls, t[:1], tab.vectors(R_TEL_COLUMNS)[:1], v_tel[:1])
+    return float(np.linalg.norm(v_e[0]))
 
 
 def read_flight(path: str | os.PathLike) -> FlightData:
@@ -117,7 +155,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
     meta: dict[str, Any] = {"format": "parquet" if is_parquet(tab.path) else "csv", "force": force_from, "dv": dv_from,
             "rows_file": str(tab.path)}  # sample k is data row k + 1 (locate_samples)
     if dv_from != "dv":
-        meta["start_speed_m_s"] = float(np.linalg.norm(v_tel[0]))
+        meta["start_speed_m_s"] = start_speed(tab, t, v_tel)
         meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.checks.plausibility
         meta["tracking_repeats"] = repeated_rows(tab, "launch", skip=~observed)  # for casep.checks.tracking_quality
     if not observed.all():
@@ -294,6 +332,7 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
                          grid=grid, source=f"{tel.src} + {trk.src}",
                          meta={"force": force_from, "telemetry": tel.src, "tracking": trk.src, **extra})
     flight.meta["rows_file"] = str(trk.path if flight.meta.get("rows_side") == "tracking" else tel.path)
+    flight.meta["start_speed_m_s"] = start_speed(tel, t_tel, v_tel)
     if shift_scale:
         flight.meta["time_shift_s"] = shift_scale
     if r_ecef is not None and v_ecef is not None:  # Earth-fixed tracking; the late-start check: speed relative

@@ -96,7 +96,7 @@ def _innovations(e: np.ndarray, t: np.ndarray, noise: NoiseModel, keep: np.ndarr
 
 
 def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, function: str = "huber",
-                  scale: float | None = None, reject: float | None = None) -> RobustWeights:
+                  scale: float | None = None, reject: float | None = None, floor: float = 0.0) -> RobustWeights:
     """Robust weights and rejected samples of a fit's raw residuals ``(N, 3)`` (module notes).
 
     Parameters
@@ -112,6 +112,10 @@ def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, fu
         Known innovation scale (the x-axis noise std, m/s); default 1.4826 MAD of the innovations.
     reject : float, optional
         Rejection threshold in scale units (default :data:`REJECT` for Huber, ``c`` for bisquare).
+    floor : float, optional
+        Least innovation scale, m/s: what the data carry without noise (rounding, the interpolation of a pair
+        of files; :func:`casep.regression.problem.is_rounding_level`). On noise-free data the MAD is ~0 and,
+        unfloored, every rounding-level residual would be a rejection.
     """
     if function not in ROBUST_FUNCTIONS:
         raise ValueError(f"`robust` must be one of {', '.join(ROBUST_FUNCTIONS)}, got {function!r}")
@@ -124,6 +128,7 @@ def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, fu
     keep = np.ones(N, dtype=bool)
     nu = _innovations(e, t, noise, keep)
     s = float(scale) if scale is not None else float(MAD_SIGMA * np.median(np.abs(nu - np.median(nu, axis=0))))
+    s = max(s, float(floor))  # s = max(1.4826 MAD, floor)
     if not s > 0:
         return RobustWeights(keep, np.ones_like(e), np.zeros_like(e), 0.0)
     # pass 2: sequential, from the last accepted sample (a rejected one is a gap)

@@ -412,9 +412,19 @@ class Problem:
         if self.y is None:
             return False
         scale = float(np.max(np.abs(self.y))) if self.y.size else 0.0
+        return is_rounding_level(self.ls_rms(), scale, self._interpolation_floor())
+
+    def _interpolation_floor(self) -> float:
         root = self.parent if self.parent is not None else self
-        floor = root.interpolation_floor if self.noise is None else 0.0  # whitened rows: another scale
-        return is_rounding_level(self.ls_rms(), scale, floor)
+        return root.interpolation_floor if self.noise is None else 0.0  # whitened rows: another scale
+
+    def rounding_floor(self) -> float:
+        """The residual level of these rows without noise, m/s: ``max(NOISE_FREE * max |y|, floor)``
+        (:func:`is_rounding_level`: the rounding level of ``y`` or the interpolation floor of the pair of
+        files); 0 without ``y``. No noise scale fitted to the rows is smaller."""
+        if self.y is None or not self.y.size:
+            return 0.0
+        return max(float(rounding_level(float(np.max(np.abs(self.y))))), self._interpolation_floor())
 
     # ----------------------------------------------------------------- rows
     def _need_rows(self) -> np.ndarray:

@@ -117,8 +117,16 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[i
     from casep.noise.robust import MAX_RUN, REJECT
 
     assert problem.t is not None  # the caller checked
-    x, _ = _ls(_rows(problem, np.ones(problem.n_samples, dtype=bool), nm, None))
-    rw = robust_filter(problem.residuals(x), problem.t, nm)
+    # judged on a fit without the samples rejected, iterated: glitches distort the least-squares fit, and on
+    # low-noise data the misfit they leave is itself rejected (in runs) while the glitches bias the fit
+    keep = np.ones(problem.n_samples, dtype=bool)
+    floor = problem.rounding_floor()
+    for _ in range(_MAX_ROBUST_ITER):
+        x, _ = _ls(_rows(problem, keep, nm, None))
+        rw = robust_filter(problem.residuals(x), problem.t, nm, floor=floor)
+        if np.array_equal(rw.keep, keep) or 3 * int(rw.keep.sum()) <= problem.n:  # too few rows left to refit
+            break
+        keep = rw.keep
     expected = problem.n_samples * (1.0 - (1.0 - 2.0 * normal_sf(REJECT)) ** 3)  # P(|z| > REJECT), any axis
     gross = int(np.sum(~rw.keep & np.any(np.abs(rw.u) > GLITCH_GROSS, axis=1)))
     edges = np.flatnonzero(np.diff(np.concatenate([[0], (~rw.keep).astype(np.int8), [0]])))
@@ -167,10 +175,7 @@ def prepare_rows(problem: Problem, noise: str | NoiseSpec = "auto", tau=None, ro
     spec = noise if isinstance(noise, NoiseSpec) else NoiseSpec(noise, tau, robust, exclude_outliers=exclude_outliers)
     noise, tau, robust, exclude_outliers = spec.kind, spec.tau, spec.robust, spec.exclude_outliers
     noise_free = problem.is_noise_free()  # nothing to fit a noise model or a robust filter on
-    if noise != "white" and noise_free:
-        nm = dataclasses.replace(NoiseModel.white(), kind=noise, rule="noise-free data: white")
-    else:
-        nm = fit_noise(problem, noise, tau)
+    nm = _noise_model(problem, noise, tau, noise_free)
     keep = np.ones(problem.n_samples, dtype=bool)
     weights = None
     robust_info = None
@@ -198,6 +203,15 @@ def prepare_rows(problem: Problem, noise: str | NoiseSpec = "auto", tau=None, ro
     return Rows(problem, solved, nm, keep, weights, robust_info, excluded_info, noise)
 
 
+def _noise_model(problem: Problem, noise: str, tau, noise_free: bool | None = None) -> NoiseModel:
+    """The noise model of a problem's rows: :func:`casep.noise.fit.fit_noise`, or white on noise-free rows
+    (:meth:`Problem.is_noise_free`: nothing to fit it on; also the samples a robust fit keeps of noise-free
+    data with glitches)."""
+    if noise != "white" and (problem.is_noise_free() if noise_free is None else noise_free):
+        return dataclasses.replace(NoiseModel.white(), kind=noise, rule="noise-free data: white")
+    return fit_noise(problem, noise, tau)
+
+
 def _robust(problem, nm, noise, tau, function):
     """Least-squares IRLS with the robust filter (module notes): noise model, keep, weights, info."""
     keep = np.ones(problem.n_samples, dtype=bool)
@@ -205,15 +219,16 @@ def _robust(problem, nm, noise, tau, function):
     refits = 0
     history = []
     x, sd = _ls(_rows(problem, keep, nm, weights))
+    floor = problem.rounding_floor()  # the robust scale is never below the noise-free level
     rw = None
     for it in range(1, _MAX_ROBUST_ITER + 1):
         r = problem.residuals(x)
-        rw = robust_filter(r, problem.t, nm, function=function)
+        rw = robust_filter(r, problem.t, nm, function=function, floor=floor)
         if not np.array_equal(rw.keep, keep) and noise != "white" and tau is None and refits < 2:
             # the correlation time on the kept samples only: glitches cannot collapse it
-            nm = fit_noise(problem.subset(rw.keep), noise, None)
+            nm = _noise_model(problem.subset(rw.keep), noise, None)
             refits += 1
-            rw = robust_filter(r, problem.t, nm, function=function)
+            rw = robust_filter(r, problem.t, nm, function=function, floor=floor)
         changed = not np.array_equal(rw.keep, keep)
         keep, weights = rw.keep, rw.weights
         x_new, sd = _ls(_rows(problem, keep, nm, weights))
@@ -223,8 +238,10 @@ def _robust(problem, nm, noise, tau, function):
         if not changed and move < 1e-3:
             break
     if tau is not None and noise != "white" and not keep.all():  # given tau: the scales and sigma on the kept rows
-        nm = fit_noise(problem.subset(keep), noise, tau)
-    sigma = _robust_sigma(rw, keep, function, _row_scale(problem, keep, nm, x)) if rw is not None else None
+        nm = _noise_model(problem.subset(keep), noise, tau)
+    kept_noise_free = (problem if keep.all() else problem.subset(keep)).is_noise_free()  # then sigma estimated
+    sigma = _robust_sigma(rw, keep, function, _row_scale(problem, keep, nm, x)) \
+        if rw is not None and not kept_noise_free else None
     info = {"function": function, "iterations": len(history), "rejected_count": int((~keep).sum()),
             "scale": rw.scale if rw is not None else None, "sigma_effective": sigma,
             "downweighted": int(np.sum(weights[keep] < 1.0)) if weights is not None else 0,
@@ -295,7 +312,7 @@ def _exclude(problem, solved, nm, keep, weights, alpha, noise="auto", tau=None):
             removed.append({"sample": k, "t": float(problem.t[k]), "axis": worst[k]["axis"],
                             "t_value": float(worst[k]["t_value"])})
         if noise != "white":  # the noise model of the kept samples: the removed ones had bent it
-            nm = fit_noise(problem.subset(keep), noise, tau)
+            nm = _noise_model(problem.subset(keep), noise, tau)
         solved = _rows(problem, keep, nm, weights)
     info = {"alpha": alpha, "count": len(removed), "samples": removed}
     return solved, keep, info, nm

@@ -46,3 +46,73 @@ def test_no_late_start_alarm_on_flights_from_liftoff(scenario):
     for seed in range(6):
         fl = simulate_flight(scenario, seed=seed, rate=20.0 if seed % 2 else 100.0).flight
         assert late_start_evidence(fl) == {}, (scenario, seed)
+
+
+def _navigate_like_csv(path, site, speed_rel):
+    """A launch-inertial telemetry (casep navigate's header and columns) of a vehicle moving at `speed_rel` m/s
+    relative to the Earth (east) at its first sample; the tracking the same velocity."""
+    from casep.frames import ecef_to_launch, geodetic_to_ecef
+    from casep.io.files import write_table
+
+    t = np.arange(0.0, 30.0, 0.1)
+    r_e, v_e = geodetic_to_ecef(np.full(t.size, site.lat_deg), np.full(t.size, site.lon_deg), np.full(t.size, site.h_m),
+                                np.full(t.size, speed_rel), np.zeros(t.size), np.zeros(t.size))
+    r, v = ecef_to_launch(site, t, r_e, v_e)
+    cols = {"t": t, "f_x": np.zeros(t.size), "f_y": np.full(t.size, 9.8), "f_z": np.zeros(t.size),
+            **{f"v_tel_{a}": v[:, i] for i, a in enumerate("xyz")},
+            **{f"r_tel_{a}": r[:, i] for i, a in enumerate("xyz")},
+            **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}}
+    write_table(path, cols, comments=["casep navigate imu.csv: strapdown telemetry, launch-inertial frame",
+                                      f"launch site {site.lat_deg:g} {site.lon_deg:g} {site.h_m:g} azimuth "
+                                      f"{site.azimuth_deg:g} deg, launch time {site.t0:g} s"])
+    return float(np.linalg.norm(v[0]))
+
+
+@pytest.mark.parametrize("speed_rel", [0.0, 100.0])
+def test_start_speed_of_a_launch_inertial_telemetry_is_relative_to_the_earth(tmp_path, speed_rel):
+    """A pad at rest in casep navigate's launch-inertial frame moves at the Earth's rotation speed (~160 m/s at
+    69 deg): the late-start speed is the Earth-relative one (0, no alarm; 100 m/s: said), not |v_tel| (> 30 m/s)."""
+    from casep.frames import LaunchSite
+    from casep.io.files import read_flight
+
+    site = LaunchSite(69.29, 16.02, 20.0, 340.0, 8.0)
+    path = tmp_path / "nav.csv"
+    inertial = _navigate_like_csv(path, site, speed_rel)
+    assert inertial > 150.0  # what the check took for flying
+    flight = read_flight(path)
+    assert flight.meta["start_speed_m_s"] == pytest.approx(speed_rel, abs=1e-6)
+    assert ("speed_m_s" in late_start_evidence(flight)) == (speed_rel > 30.0)
+
+
+def test_a_strapdown_flight_is_never_told_to_use_a_platform_model(tmp_path):
+    """A strapdown flight (its model reads the INS attitude) flying at its first sample: the warning recommends
+    strapdown15_phi0 for phi0 and says no shipped strapdown model has dv0, never a platform model."""
+    from casep.checks.late_start import warn_late_start
+    from casep.frames import LaunchSite
+    from casep.io.files import read_flight
+
+    class Strapdown:  # the set-up model's answers the check reads
+        name = "strapdown15_axial"
+        signals = ("q_w", "q_x", "q_y", "q_z", "fb_x", "fb_y", "fb_z")
+
+        @staticmethod
+        def numeric(key):
+            return np.zeros((3, 0)) if key == "velocity_columns" else np.zeros((3, 15))
+
+    _navigate_like_csv(tmp_path / "nav.csv", LaunchSite(69.29, 16.02, 20.0, 340.0, 8.0), 100.0)
+    with pytest.warns(LateStartWarning) as rec:
+        warn_late_start(read_flight(tmp_path / "nav.csv"), Strapdown())
+    text = str(rec[0].message)
+    assert "--model strapdown15_phi0" in text and "--model platform" not in text and "platform39" not in text
+    assert "no shipped model of this kind has the initial velocity error dv0" in text
+
+
+def test_start_speed_of_a_table_without_a_file_is_its_own(tmp_path):
+    """A telemetry table held in memory (separate --imu's navigated one) has no header to read: |v_tel(t0)|."""
+    from casep.io.files import start_speed
+    from casep.io.tables import Table
+
+    cols = {"t": np.arange(3.0), **{f"v_tel_{a}": np.full(3, 2.0) for a in "xyz"},
+            **{f"r_tel_{a}": np.zeros(3) for a in "xyz"}}
+    tab = Table.from_columns(cols, str(tmp_path / "imu.csv (navigated)"))
+    assert start_speed(tab, cols["t"], np.full((3, 3), 2.0)) == pytest.approx(np.sqrt(12.0), rel=1e-12)

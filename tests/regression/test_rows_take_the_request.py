@@ -63,3 +63,24 @@ def test_a_smooth_misfit_is_said_and_not_filtered_as_glitches(kind):
     else:
         rows = prepare_rows(pb, "white")
         assert rows.robust is not None and rows.robust["automatic"]["glitches_found"] >= 12
+
+
+@pytest.mark.parametrize("robust", ["auto", "huber"])
+def test_spikes_on_noise_free_rows_are_exactly_the_glitches(robust):
+    """Four 5 m/s spikes on noise-free rows, a misfit of 0 otherwise: exactly the four samples rejected (neither
+    the smooth misfit they leave in a least-squares fit nor rounding-level residuals judged on a ~0 MAD), no
+    misfit warning, and the estimate that of the rows without the spikes (noise-free: exact to rounding)."""
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 120.0, 0.1)
+    tt = t / t[-1]
+    S = np.zeros((t.size, 3, 12))  # smooth columns, as S_V: the misfit the spikes leave in a fit is smooth
+    for a in range(3):
+        S[:, a, 4 * a:4 * a + 4] = (1 + a) * np.stack([np.ones_like(tt), tt, tt**2, np.sin(3 * tt)], -1)
+    x_true = rng.normal(size=12)
+    y = S @ x_true
+    spikes = rng.choice(np.arange(20, t.size - 20), 4, replace=False)
+    y[spikes, rng.integers(3, size=4)] += 5.0 * rng.choice([-1.0, 1.0], 4)
+    rows = prepare_rows(Problem.from_arrays(S, y, t), "auto", robust=robust)  # filterwarnings=error: no warning
+    assert sorted(np.flatnonzero(~rows.keep)) == sorted(spikes)
+    x, _ = rows_module._ls(rows.solved)
+    np.testing.assert_allclose(x, x_true, rtol=0, atol=1e-9)
