@@ -333,13 +333,11 @@ def repair_on_offset(flights: Sequence[Any], fit_at: Callable[..., EstimateResul
     whole offset: the shift applied plus that fit's rest.
     """
     from casep.estimators.registry import STATUS_TRACKING, failed
-    from casep.io.pair import repaired
-    from casep.model.loader import TIME_OFFSET
 
     can = np.array([isinstance(getattr(fl, "meta", None), dict) and "pair_inputs" in fl.meta
                     and "state_from" not in fl.meta for fl in flights])
     res = _recorded(lambda: fit_at(flights, True))[0]
-    idx = [j for j, n in enumerate(res.names) if n == TIME_OFFSET or n.startswith(f"{TIME_OFFSET}[")]
+    idx = _offset_columns(res.names)
     total = np.zeros(len(idx))
     steps: list[list[float]] = []
     for k in range(MAX_REPAIRS + 1):
@@ -355,8 +353,7 @@ def repair_on_offset(flights: Sequence[Any], fit_at: Callable[..., EstimateResul
             break
         total = total + np.where(can, dt, 0.0)
         steps.append([float(v) for v in 1e3 * dt])
-        shifted = [repaired(fl, s) if c else fl for fl, s, c in zip(flights, total, can)]
-        res = _recorded(functools.partial(fit_at, shifted, True))[0]
+        res = _recorded(functools.partial(fit_at, _shifted(flights, total, can), True))[0]
     return failed(fit_at(flights), STATUS_TRACKING, "tracking time offset not settled: re-paired at the offset found "
                   f"{MAX_REPAIRS} times, the rest still {', '.join(f'{v:.3g}' for v in 1e3 * dt)} ms against std "
                   f"{', '.join(f'{v:.2g}' for v in 1e3 * sd)} ms (a drifting clock, or time tags that jump?)")
@@ -365,11 +362,10 @@ def repair_on_offset(flights: Sequence[Any], fit_at: Callable[..., EstimateResul
 def _repaired_fit(fit_at: Callable[..., EstimateResult], flights: Sequence[Any], can: np.ndarray, total: np.ndarray,
                   steps: list) -> EstimateResult:
     """The fit as asked on the pairs re-formed at the offsets `total` (s), its ``dt_trk`` the whole offset."""
-    from casep.io.pair import repaired
     from casep.model.loader import TIME_OFFSET
 
-    res = fit_at([repaired(fl, s) if c else fl for fl, s, c in zip(flights, total, can)])
-    idx = [j for j, n in enumerate(res.names) if n == TIME_OFFSET or n.startswith(f"{TIME_OFFSET}[")]
+    res = fit_at(_shifted(flights, total, can))
+    idx = _offset_columns(res.names)
     est = res.estimate.copy()
     est[idx] = est[idx] + 1e3 * total
     rec = {"passes": len(steps), "shift_ms": [float(v) for v in 1e3 * total], "steps_ms": steps}
@@ -378,6 +374,20 @@ def _repaired_fit(fit_at: Callable[..., EstimateResult], flights: Sequence[Any],
         message=f"{res.message}; tracking re-paired at the offset found "
                 f"({', '.join(f'{1e3 * v:.4g} ms' for v in total)}; {len(steps)} "
                 f"pass{'es' if len(steps) > 1 else ''}): {TIME_OFFSET} is that shift plus the fit's rest")
+
+
+def _offset_columns(names: Sequence[str]) -> list[int]:
+    """Columns of ``dt_trk``: one flight's, or each flight's ``dt_trk[label]`` of several."""
+    from casep.model.loader import TIME_OFFSET
+
+    return [j for j, n in enumerate(names) if n == TIME_OFFSET or n.startswith(f"{TIME_OFFSET}[")]
+
+
+def _shifted(flights: Sequence[Any], total: np.ndarray, can: np.ndarray) -> list:
+    """The flights, each that `can` be re-paired re-formed with its tracking moved back by `total` (s)."""
+    from casep.io.pair import repaired
+
+    return [repaired(fl, s) if c else fl for fl, s, c in zip(flights, total, can)]
 
 
 def _recorded(call: Callable[[], EstimateResult]) -> tuple[EstimateResult, list]:
