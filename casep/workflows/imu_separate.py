@@ -400,7 +400,7 @@ class _Run:
             passes.append(_pass_record(k, res, step, D + step.d, how, _at_rounding(D, step, model.scales, res.names)))
             if not iterate:
                 break
-            if step.max_z < tol or passes[-1]["rounding"]:
+            if _stopped(passes[-1], tol):
                 if spec is self.spec or step.combinations is not None:  # the stretches' combinations: any fit
                     break
                 spec, last = self.spec, None  # the same linearisation, solved as requested (another map)
