@@ -13,6 +13,8 @@ longer than a short flight's whole computation. So:
 - :func:`rels_ud`: the Bierman U-D recursion, compiled;
 - :func:`ar1_terms`: the one place of the AR(1) step coefficients ``a = exp(-dt / tau)`` and
   ``1 - a^2 = -expm1(-2 dt / tau)`` (no cancellation when ``dt << tau``); every whitening of casep calls it;
+- :func:`runs`: the runs of True in a mask (start, end), the one run-length rule of the robust fit's misfit
+  check and of the saturation and static-pose checks;
 - :func:`gmw_filter`: the innovations (Kalman-filter) whitening of Gauss-Markov plus white noise, compiled
   (:func:`gmw_filter_numpy`: the same recursion as a plain loop, the reference of the tests).
 
@@ -28,7 +30,7 @@ from typing import Callable, cast
 
 import numpy as np
 
-__all__ = ["ar1_terms", "gmw_filter", "gmw_filter_numpy",
+__all__ = ["ar1_terms", "runs", "gmw_filter", "gmw_filter_numpy",
            "robust_filter_keep", "sv_integrate_chunk", "sv_integrate_chunk_numpy", "rels_ud", "lfilter",
            "NUMPY_SAMPLES"]
 
@@ -40,6 +42,12 @@ __all__ = ["ar1_terms", "gmw_filter", "gmw_filter_numpy",
 #: loses at most 0.33 s to numpy, a shorter one saves numba's set-up whenever nothing else needs it
 #: (``casep separate`` on a 100 Hz range flight).
 NUMPY_SAMPLES = 1 << 17
+
+
+def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """The runs of True in `mask`: (start, end) with end excluded, in order."""
+    d = np.diff(np.concatenate([[0], np.asarray(mask, dtype=np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
 
 
 def ar1_terms(dt, tau) -> tuple[np.ndarray, np.ndarray]:

@@ -93,3 +93,21 @@ def test_all_pole_filter_is_scipys_lfilter(a):
     x[7, 1] = 0.0
     assert np.array_equal(lfilter([1.0], a, x, axis=0), scipy_lfilter([1.0], a, x, axis=0))
     assert np.array_equal(lfilter([1.0, 0.5], a, x, axis=0), scipy_lfilter([1.0, 0.5], a, x, axis=0))  # scipy's
+
+
+def test_runs_against_a_plain_loop():
+    """The run-length rule against a loop over the samples, on random masks with runs at both ends."""
+    from casep._kernels import runs
+
+    rng = np.random.default_rng(7)
+    for n in (0, 1, 2, 17, 200):
+        for p in (0.1, 0.5, 0.9):
+            mask = rng.random(n) < p
+            expected, start = [], None
+            for k, m in enumerate(list(mask) + [False]):
+                if m and start is None:
+                    start = k
+                elif not m and start is not None:
+                    expected.append((start, k))
+                    start = None
+            assert runs(mask) == expected

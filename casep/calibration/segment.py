@@ -39,12 +39,12 @@ from typing import ClassVar
 
 import numpy as np
 
+from casep._kernels import runs
 from casep.calibration.session import SegmentError
-from casep.checks.saturation import runs
 from casep.exceptions import CasepWarning
 from casep.results import Completed
 
-__all__ = ["Segmentation", "detect_static", "window_variance", "window_mean", "runs", "PoseSpreadWarning",
+__all__ = ["Segmentation", "detect_static", "window_variance", "window_mean", "PoseSpreadWarning",
            "StaticMotionWarning", "pose_spread", "pose_cone_deg", "warn_turns", "static_runs", "static_statistic",
            "detector",
            "MAX_TURN_DEG", "MULTIPLIERS", "SPREAD_ERROR", "SPREAD_WARN", "INIT_RISE", "MIN_POSES"]

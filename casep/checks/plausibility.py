@@ -57,13 +57,14 @@ from typing import Any
 import numpy as np
 
 from casep.checks.time_offset import (
-    GRAVITY_LAUNCH,
     is_problem,
+    kinematic_acceleration,
     problem_time_offset_test,
     row_blocks,
     shares_problem_test,
     time_offset_test,
 )
+from casep.checks.tracking_quality import _velocity_change
 from casep.exceptions import (
     NoiseFreeWarning,
     NoiseLevelWarning,
@@ -155,7 +156,7 @@ def check_flight(flight: FlightData) -> None:
 
 
 #: |v_tel(end) - v_tel(0)| / |int (f + g) dt| outside this range: the velocity columns and f
-#: disagree on units. The flat-Earth g of :data:`GRAVITY_LAUNCH` makes the ratio 0.9986 on the
+#: disagree on units. The flat-Earth g of :func:`kinematic_acceleration` makes the ratio 0.9986 on the
 #: ``paper`` boost (195 s, 195 km downrange), so 20 % is a wide margin; ft/s gives 3.28.
 VELOCITY_RATIO_RANGE = (0.8, 1.25)
 #: Outside this range the ratio is a unit's factor (ft/s 3.28, cm/s 100, km/s 1e-3, mm/s 1e3), not a flight's
@@ -195,9 +196,8 @@ SCALED_COPY_UNEXPLAINED = 0.25
 
 
 def _integrated_acceleration(t: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """``int (f + g) dt`` over the flight (trapezoid; flat-Earth g, :data:`GRAVITY_LAUNCH`), m/s."""
-    a = f + GRAVITY_LAUNCH  # kinematic acceleration
-    return np.sum(0.5 * (a[1:] + a[:-1]) * np.diff(t)[:, None], axis=0)
+    """``int (f + g) dt`` over the flight (trapezoid; flat-Earth g, :func:`kinematic_acceleration`), m/s."""
+    return _velocity_change(kinematic_acceleration(t, f), t)[-1]
 
 
 def _force_or_time_units(flight: FlightData, change, expected: np.ndarray) -> None:

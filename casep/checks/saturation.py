@@ -45,9 +45,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from casep._kernels import runs
 from casep.units import ACC_RANGES_G, FULL_SCALE_TOLERANCE, G0, GYR_RANGES_DPS
 
-__all__ = ["held_full_scale", "held_mask", "HeldFullScale", "check_full_scale", "runs", "FULL_SCALE_UNITS",
+__all__ = ["held_full_scale", "held_mask", "HeldFullScale", "check_full_scale", "FULL_SCALE_UNITS",
            "NOMINAL_RANGES", "ADC_BITS", "CLIP_RUN", "CLIP_MARGIN", "HELD_FRACTION"]
 
 #: Word lengths of the converters raw counts come from.
@@ -90,12 +91,6 @@ def check_full_scale(value, name: str, flag: str, unit: str) -> float:
     if not (math.isfinite(v) and v > 0):
         raise refusal(name, flag, f"a finite number > 0 ({unit})", value)
     return v
-
-
-def runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """The runs of True in `mask`: (start, end) with end excluded."""
-    d = np.diff(np.concatenate([[0], np.asarray(mask, dtype=np.int8), [0]]))
-    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
 
 
 def held_full_scale(x: np.ndarray, sensor: str, *, si: float | None = 1.0, declared: float | None = None,

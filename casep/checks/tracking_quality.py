@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from casep.checks.time_offset import kinematic_acceleration
 from casep.exceptions import TrackingQualityWarning
 from casep.io.flight import FlightData
 from casep.noise.robust import MAD_SIGMA
@@ -122,14 +123,12 @@ def _located(flight: FlightData, idx: np.ndarray, flagged: np.ndarray, top: int 
 
 def _acceleration(flight: FlightData) -> np.ndarray | None:
     """The kinematic acceleration, (N, 3) m/s^2: the signals ``a_*`` of a pair; of a one-file flight without them
-    ``f + g`` (flat-Earth gravity, :data:`casep.checks.plausibility.GRAVITY_LAUNCH`: over the seconds of a stale
+    ``f + g`` (flat-Earth gravity, :func:`casep.checks.time_offset.kinematic_acceleration`: over the seconds of a stale
     run its error is far below :data:`STALE_MOTION`); None when neither."""
     if all(f"a_{c}" in flight.signals for c in "xyz"):
         a = np.column_stack([flight.signals[f"a_{c}"] for c in "xyz"])
     elif flight.meta.get("format") != "pair":
-        from casep.checks.plausibility import GRAVITY_LAUNCH
-
-        a = flight.f + GRAVITY_LAUNCH
+        a = kinematic_acceleration(flight.t, flight.f)
     else:
         return None
     return a if np.all(np.isfinite(a)) else None

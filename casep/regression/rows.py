@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from casep._kernels import runs
 from casep.noise.fit import fit_noise
 from casep.noise.model import NoiseModel
 from casep.noise.robust import robust_filter
@@ -129,9 +130,8 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[i
         keep = rw.keep
     expected = problem.n_samples * (1.0 - (1.0 - 2.0 * normal_sf(REJECT)) ** 3)  # P(|z| > REJECT), any axis
     gross = int(np.sum(~rw.keep & np.any(np.abs(rw.u) > GLITCH_GROSS, axis=1)))
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], (~rw.keep).astype(np.int8), [0]])))
-    runs = [int(n) for n in edges[1::2] - edges[::2] if n >= MAX_RUN]
-    return int((~rw.keep).sum()), float(expected), gross, runs
+    long = [b - a for a, b in runs(~rw.keep) if b - a >= MAX_RUN]
+    return int((~rw.keep).sum()), float(expected), gross, long
 
 
 def _warn_misfit(problem: Problem, found: int, runs: list[int]) -> None:

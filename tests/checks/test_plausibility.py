@@ -325,7 +325,8 @@ def test_cli_pair_with_telemetry_in_km_per_s_exits_2(tmp_path, capsys):
 def test_tracking_units_against_telemetry(factor, raises):
     """Tracking in ft/s beside telemetry in m/s: the units rule of v_tel against int (f + g), applied to v_trk
     against v_tel over the same times, refuses it naming the tracking file and its column."""
-    from casep.checks.plausibility import GRAVITY_LAUNCH, check_flight
+    from casep.checks.plausibility import check_flight
+    from casep.checks.time_offset import GRAVITY_LAUNCH
     from casep.io.flight import FlightDataError
     from casep.io.pair import pair_flight
 
@@ -354,7 +355,7 @@ def test_tracking_units_on_a_drifting_window(factor):
     velocity drifts by 8 m/s (a tilt error, 0.27 m/s^2 across the track): the ratio of the velocity changes (0.35)
     is a drift, not a unit's factor, and the tracking is not refused; the same tracking in ft/s, a scaled copy of
     a telemetry that does not drift, is."""
-    from casep.checks.plausibility import GRAVITY_LAUNCH
+    from casep.checks.time_offset import GRAVITY_LAUNCH
     from casep.io.pair import pair_flight
 
     t = np.arange(0.0, 30.0, 0.01)
@@ -380,7 +381,7 @@ def test_tracking_units_on_a_drifting_window(factor):
 def test_force_in_g_or_time_in_ms_is_named_before_the_velocity(tmp_path, column, match):
     """f in g or t in ms break v_tel against int (f + g) dt as a velocity unit would (ratio 3.22: 'ft/s?'; 0.001:
     'km/s?'); read with f in m/s^2 or t in s the velocity agrees, so that column is named, not the velocity's."""
-    from casep.checks.plausibility import GRAVITY_LAUNCH
+    from casep.checks.time_offset import GRAVITY_LAUNCH
     from casep.io.files import write_table
 
     t = np.arange(0.0, 60.0, 0.05)

@@ -213,7 +213,7 @@ def test_stale_tracking_inside_a_one_file_flight_is_left_out(tmp_path, rng):
     repeating a fix while the vehicle accelerates at 20 m/s^2 are left out and listed by file line; the same rows
     at rest (a repeat is right there) and the clean flight are left alone."""
     import casep
-    from casep.checks.plausibility import GRAVITY_LAUNCH
+    from casep.checks.time_offset import GRAVITY_LAUNCH
     from casep.io.files import write_table
 
     t = np.arange(0.0, 20.0, 0.1)
