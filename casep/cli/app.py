@@ -34,8 +34,8 @@ EXIT_BROKEN_PIPE = 141
 class Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (exit 2) and that refuses a one-value option given twice."""
 
-    def error(self, message: str) -> NoReturn:  # one line, exit 2; "option --sigma (`sigma`) ..." names itself
-        self.exit(2, f"{self.prog}: error: {refused_option(message)}\n")
+    def error(self, message: str) -> NoReturn:  # one line, exit 2, main's form; "option --sigma (`sigma`) ..."
+        self.exit(2, f"casep: error: {refused_option(message)}\n")
 
     def _check_value(self, action: argparse.Action, value: Any) -> None:  # the one form of a refused option
         if action.choices is not None and action.option_strings and value not in action.choices:

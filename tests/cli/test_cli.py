@@ -442,3 +442,17 @@ def test_lazy_public_names_resolve(package):
     assert set(mod.__all__) <= set(dir(mod))
     with pytest.raises(AttributeError, match="no attribute 'not_a_name'"):
         _ = mod.not_a_name
+
+
+def test_parser_and_command_refusals_have_one_form(capsys):
+    """A refusal of the command's parser (a bad option value) and of the command (a missing file) both read
+    ``casep: error: ...``, one line, exit 2."""
+    from casep.cli.app import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["separate", "missing.csv", "--tau", "-2"])
+    parser = capsys.readouterr().err
+    assert e.value.code == 2 and parser.startswith("casep: error: ") and parser.count("\n") == 1, parser
+    assert main(["separate", "missing.csv"]) == 2
+    command = capsys.readouterr().err
+    assert command.startswith("casep: error: ") and command.count("\n") == 1, command
