@@ -10,7 +10,7 @@ import pytest
 
 from casep.checks.plausibility import OFFSET_T, check_fit
 from casep.checks.time_offset import GRAVITY_LAUNCH, gap_columns, time_offset_test
-from casep.exceptions import TimeOffsetWarning
+from casep.exceptions import CasepWarning, TimeOffsetWarning
 from casep.regression.problem import Problem
 from casep.units import G0
 
@@ -82,3 +82,25 @@ class _Zero:
 
     def fitted_coefficients(self) -> np.ndarray:
         return np.zeros(len(self.names))
+
+
+def test_a_pairs_telemetry_gap_reaches_the_problem_and_its_subsets(platform36):
+    """The pair records the telemetry's gap; the Problem built from the flight carries it, and so do the problems
+    derived from it (a subset, the whitened rows), so the offset rule of every fit sees it."""
+    from casep.io.pair import pair_flight
+    from casep.noise.model import NoiseModel
+
+    t = np.round(np.arange(0.0, 20.0, 0.05), 10)
+    t = t[(t < 12.0) | (t > 13.0)]
+    f = np.tile([30.0, 0.0, 0.0], (t.size, 1)) - GRAVITY_LAUNCH
+    t_trk = np.arange(0.05, 20.0, 0.1)
+    v_tel = np.outer(t, [30.0, 0.0, 0.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the gap's own warning
+        flight = pair_flight(t, f, v_tel, t_trk, np.outer(t_trk, [30.0, 0.0, 0.0]), source="tel + trk")
+    with pytest.warns(CasepWarning, match="S_V is integrated across them"):
+        pb = Problem.from_flight(flight, platform36)
+    assert len(pb.gaps) == 1 and pb.gaps[0][0] == pytest.approx(11.95) and pb.gaps[0][1] == pytest.approx(13.05)
+    keep = np.ones(pb.n_samples, bool)
+    keep[::7] = False
+    assert pb.subset(keep).gaps == pb.gaps and pb.whitened(NoiseModel.white()).gaps == pb.gaps
