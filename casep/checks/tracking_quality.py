@@ -49,7 +49,7 @@ from casep.io.flight import FlightData
 from casep.noise.robust import MAD_SIGMA
 
 __all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "stretch_noise", "noise_problem",
-           "determined", "determined_message", "imu_noise_effect", "STALE_MOTION", "JUMP_TOL",
+           "determined", "determined_message", "imu_noise_effect", "imu_sample_noise", "STALE_MOTION", "JUMP_TOL",
            "JUMP_RATE", "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
 
 #: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
@@ -345,6 +345,28 @@ def noise_problem(flight: FlightData) -> str | None:
     return f"the tracking noise differs {ratio:.3g}-fold between stretches ({listed})"
 
 
+def imu_sample_noise(flight: FlightData, t_rows: np.ndarray) -> tuple[np.ndarray, float, np.ndarray] | None:
+    """The IMU's white noise as :func:`imu_noise_effect` measures it: ``(s, h, samples)``, ``s`` (6,) the per-sample
+    std of ``fb_x, fb_y, fb_z`` (m/s^2) and ``w_x, w_y, w_z`` (rad/s), ``h`` the sample step (s), ``samples`` the
+    telemetry's own samples up to the last epoch of `t_rows`; None when the flight does not hold them."""
+    sig = flight.signals
+    index = flight.meta.get("rows_index") if isinstance(flight.meta, dict) else None
+    if index is None or not all(c in sig for c in ("q_w", "q_x", "q_y", "q_z", "fb_x", "w_x")) or t_rows.size == 0:
+        return None
+    own = np.asarray(index) < 0  # the telemetry's own samples (the tracking epochs were inserted among them)
+    if "ins_valid" in sig:
+        own &= np.asarray(sig["ins_valid"]) > 0
+    own &= flight.t <= t_rows[-1]
+    i = np.flatnonzero(own)
+    if i.size < 10:
+        return None
+    h = float(np.median(np.diff(flight.t[i])))
+    raw = np.column_stack([sig[f"{k}_{a}"][i] for k in ("fb", "w") for a in "xyz"])
+    d = np.diff(raw, axis=0)
+    s = np.median(np.abs(d - np.median(d, axis=0)), axis=0) * MAD_SIGMA / math.sqrt(2)  # per sample, 6 channels
+    return s, h, i
+
+
 def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray) -> np.ndarray | None:
     """``weights @ G`` (k, m): ``G`` (3M, m) the velocity errors ``dv`` at the M epochs `t_rows` (rows x, y, z per
     epoch) that the IMU's white noise makes, per unit of m independent standard normal variables
@@ -369,22 +391,12 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray
     """
     from casep.rotations import quat_to_dcm
 
+    noise = imu_sample_noise(flight, t_rows)
+    if noise is None:
+        return None
+    s, h, i = noise
     sig = flight.signals
-    index = flight.meta.get("rows_index") if isinstance(flight.meta, dict) else None
-    if index is None or not all(c in sig for c in ("q_w", "q_x", "q_y", "q_z", "fb_x", "w_x")) or t_rows.size == 0:
-        return None
-    own = np.asarray(index) < 0  # the telemetry's own samples (the tracking epochs were inserted among them)
-    if "ins_valid" in sig:
-        own &= np.asarray(sig["ins_valid"]) > 0
-    own &= flight.t <= t_rows[-1]
-    i = np.flatnonzero(own)
-    if i.size < 10:
-        return None
     t = flight.t[i]
-    h = float(np.median(np.diff(t)))
-    raw = np.column_stack([sig[f"{k}_{a}"][i] for k in ("fb", "w") for a in "xyz"])
-    d = np.diff(raw, axis=0)
-    s = np.median(np.abs(d - np.median(d, axis=0)), axis=0) * MAD_SIGMA / math.sqrt(2)  # per sample, 6 channels
     C = quat_to_dcm(np.column_stack([sig[f"q_{a}"][i] for a in "wxyz"]))
     f = flight.f[i]
     F = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(t)[:, None], axis=0)])

@@ -444,6 +444,7 @@ class _Run:
         solution = None if res.solution is None else dataclasses.replace(res.solution, x=total)
         out = dataclasses.replace(res, estimate=estimate, diagnostics=diag, solution=solution,
                                   **model_record(self.base))
+        out = with_imu_noise(out, problem, flight)
         if iterate and failure is None and not _stopped(passes[-1], tol) and out.success:
             failure = f"failed: the iteration stopped at pass {len(passes)} before converging"
         if failure is not None:
@@ -670,3 +671,74 @@ def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np
               "signals": np.array([flight.signals[c] for c in model.signals]).reshape(-1, n),
               "D": np.repeat(D[:, None], n, 1)}
     return np.array(fn.map(n)(*(values[a] for a in fn.name_in()))).T
+
+
+def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData) -> tuple[np.ndarray, dict] | None:
+    """The part of the estimate's covariance the IMU's own white noise makes, and what was used (None when the
+    flight does not hold the IMU's samples, or the result has no covariance).
+
+    The navigated velocity carries the IMU's white noise integrated: a velocity random walk (accelerometer) and
+    an attitude random walk that ``f x phi`` turns into a velocity error growing with the specific force
+    (gyro). The tracking noise model (white, Gauss-Markov, REML) describes neither. Its densities are measured
+    on the record (:func:`casep.checks.tracking_quality.imu_sample_noise`) and carried to the tracking epochs as
+    ``dv = G xi`` (``Cov = G G^T``; :func:`casep.checks.tracking_quality.imu_noise_effect`). The estimate is
+    linear in the raw rows, ``x = A dv`` with ``A = (U^T U)^+ (W^T U)^T``, ``U = W S`` whitened by the fit's
+    noise model (:func:`casep.noise.model.whiten_transpose`: never an N x N matrix); so it adds, exactly::
+
+        Cov_imu(x) = (A G) (A G)^T
+
+    to the fit's covariance (the tracking noise's). The fit's noise model was fitted to residuals that hold
+    the IMU's noise too: where REML folded some of it into the tracking noise, the sum counts it twice
+    (conservative), and the estimate itself stays the fit's (GLS for the tracking noise alone).
+    """
+    from casep.checks.tracking_quality import imu_noise_effect, imu_sample_noise
+    from casep.noise.model import NoiseModel, whiten, whiten_transpose
+
+    nd = res.diagnostics.get("noise")
+    if res.covariance is None or problem.t is None or not isinstance(nd, dict) or "axes" not in nd:
+        return None
+    t = np.asarray(problem.t, dtype=float)
+    measured = imu_sample_noise(flight, t)
+    if measured is None:
+        return None
+    noise = NoiseModel.from_dict(nd)
+    S = problem.sv()
+    N, _, n = S.shape
+    U = whiten(S, np.zeros((N, 3)), t, noise)[0].reshape(3 * N, n)
+    A = whiten_transpose(np.linalg.pinv(U).T.reshape(N, 3, n), t, noise).reshape(3 * N, n).T  # (n, 3N)
+    AG = imu_noise_effect(flight, t, A)
+    if AG is None:
+        return None
+    C_imu = AG @ AG.T
+    s, h, _ = measured
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.sqrt(1.0 + np.diag(C_imu) / np.diag(res.covariance))
+    finite = ratio[np.isfinite(ratio)]
+    worst = int(np.nanargmax(np.where(np.isfinite(ratio), ratio, -np.inf))) if finite.size else 0
+    account = {"source": "measured on the record: the scatter of consecutive samples (MAD / sqrt 2), per sample",
+               "accelerometer_m_s2": [float(v) for v in s[:3]], "gyro_rad_s": [float(v) for v in s[3:]],
+               "sample_step_s": h, "vrw_m_s_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[:3]],
+               "arw_rad_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[3:]],
+               "std_factor_max": float(finite.max()) if finite.size else None, "std_factor_worst": res.names[worst],
+               "std_tracking_noise_only": {nm: (float(v) if np.isfinite(v) else None)
+                                           for nm, v in zip(res.names, np.sqrt(np.diag(res.covariance)))},
+               "rule": "Cov(x) = fit covariance + (A G)(A G)^T: the velocity and attitude random walks carried to "
+                       "the estimate exactly"}
+    return C_imu, account
+
+
+def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
+    """`res` with the IMU's own noise in its covariance and std and said in its noise account
+    (:func:`imu_noise_budget`; `res` itself when the flight does not hold the IMU's samples)."""
+    budget = imu_noise_budget(res, problem, flight)
+    if budget is None:
+        return res
+    C_imu, account = budget
+    cov = res.covariance + C_imu
+    std = None if res.std is None else np.where(np.isfinite(res.std), np.sqrt(np.clip(np.diag(cov), 0.0, None)), np.nan)
+    solution = res.solution
+    if solution is not None and solution.covariance is not None:
+        solution = dataclasses.replace(solution, covariance=solution.covariance + C_imu)
+    diag = {**res.diagnostics, "noise": {**res.diagnostics["noise"], "imu": account}}
+    return dataclasses.replace(res, covariance=cov, std=std, solution=solution, diagnostics=diag)
+
