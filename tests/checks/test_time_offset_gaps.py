@@ -21,9 +21,9 @@ OFFSET = 0.040  # s
 def _flight(offset: float = 0.0, seed: int = 3) -> tuple[Problem, np.ndarray]:
     """Tracking rows at 10 Hz from lift-off (t = 8 s: a 6 g boost to 20 s, then -0.3 g, a lateral wobble), the
     rows of the gap left out; S: an initial velocity error, accelerometer biases and the scale factor along the
-    thrust; dv: white noise 0.03 m/s, the jump a bridged gap leaves (1 m/s along the thrust, whose step the bridge cannot place, and 1 mrad about z), and the
-    offset's ``a(t) dt``. ``a(t)`` is then a constant and a step at the burnout: the jump is an offset to a rule
-    that does not know the gap."""
+    thrust; dv: white noise 0.03 m/s, the jump a bridged gap leaves (1 m/s along the thrust, whose step the
+    bridge cannot place, and 1 mrad about z), and the offset's ``a(t) dt``. ``a(t)`` is then a constant and a
+    step at the burnout: the jump is an offset to a rule that does not know the gap."""
     t = np.round(np.arange(8.0, 45.0, 0.1), 10)
     t = t[(t <= GAP[0]) | (t >= GAP[1])]
     up = np.array([0.1, 0.99, 0.0]) / np.linalg.norm([0.1, 0.99, 0.0])

@@ -81,7 +81,8 @@ def test_the_std_hold_the_imus_white_noise(draws):
         z.append(res.estimate / res.std)
         z_trk.append(res.estimate / np.array([imu["std_tracking_noise_only"][n] for n in res.names]))
         assert imu["accelerometer_m_s2"] == pytest.approx([ACC_NOISE] * 3, rel=0.15)
-        assert np.all((np.array(imu["gyro_rad_s"]) > 0.85 * GYRO_NOISE) & (np.array(imu["gyro_rad_s"]) < 1.5 * GYRO_NOISE))
+        gyro = np.array(imu["gyro_rad_s"]) / GYRO_NOISE  # the roll ramp's steps add to the scatter of x
+        assert np.all((gyro > 0.85) & (gyro < 1.5)), gyro
         assert "IMU noise (measured on the record" in "\n".join(_lines(res))
     rms = float(np.sqrt(np.mean(np.concatenate(z) ** 2)))
     rms_trk = float(np.sqrt(np.mean(np.concatenate(z_trk) ** 2)))
