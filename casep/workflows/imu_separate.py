@@ -752,8 +752,9 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
                "std_factor_max": float(finite.max()) if finite.size else None, "std_factor_worst": res.names[worst],
                "std_tracking_noise_only": {nm: (float(v) if np.isfinite(v) else None)
                                            for nm, v in zip(res.names, np.sqrt(np.diag(res.covariance)))},
-               "rule": "Cov(x) = fit covariance + (A G)(A G)^T: the velocity and attitude random walks carried to "
-                       "the estimate exactly"}
+               "rule": "Cov(x) = fit covariance + (A G)(A G)^T: the velocity and attitude random walks (and, with "
+                       "the pad window, the levelling's start tilt) carried to the estimate exactly; the estimate is "
+                       "the fit's, the tracking noise model fitted to residuals that hold the IMU noise too"}
     return C_imu, account
 
 
