@@ -2,6 +2,12 @@
 
 Tracking time tags late by dt give ``dv += a(t) dt``: a regressor outside the span of S_V, which
 :func:`time_offset_test` finds in the residuals by an augmented regression (see its notes).
+
+Across a telemetry gap (an INS navigated across lost IMU samples) the velocity error may jump: the
+bridge leaves the velocity and the attitude known only to its bounds. Where the gap meets a change of
+the acceleration (a burnout), that jump is a step in the residuals at the same time as a step in
+``a(t)``, and would read as an offset: the test carries the jump as a nuisance
+(:func:`gap_columns`).
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ from casep.regression.linalg import reduce_qr_blocks
 from casep.units import G0
 
 __all__ = ["TimeOffsetTest", "time_offset_test", "kinematic_acceleration", "GRAVITY_LAUNCH", "row_blocks",
-           "is_problem", "shares_problem_test", "problem_time_offset_test"]
+           "is_problem", "shares_problem_test", "problem_time_offset_test", "gap_columns"]
 
 #: Gravity in the launch-inertial (platform) frame, x downrange, y up: flat, uniform Earth.
 GRAVITY_LAUNCH = np.array([0.0, -G0, 0.0])
@@ -76,6 +82,34 @@ def is_problem(S) -> bool:
     return hasattr(S, "blocks") and hasattr(S, "red") and hasattr(S, "has_rows")
 
 
+def gap_columns(t: np.ndarray, f: np.ndarray, gaps) -> np.ndarray:
+    """The velocity error a telemetry gap may leave after it, as columns (N, 3, 6 per gap): a velocity jump
+    ``dv_gap`` and an attitude jump ``phi_gap`` across the gap ``(a, b)``, on the rows after it::
+
+        dv(t) = dv_gap + (integral_b^t f ds) x phi_gap,      t >= b
+
+    (``dv_dot = f x phi`` of a constant attitude error; the integral by the trapezoid rule on the rows'
+    own times, exact for the piecewise-linear specific force the rows sample). Columns 0-2: the unit
+    jumps of ``dv_gap``; 3-5: those of ``phi_gap``. A gap with no row after it gives no columns.
+    """
+    t = np.asarray(t, dtype=float)
+    f = np.asarray(f, dtype=float).reshape(-1, 3)
+    cols = []
+    for _, b in gaps:
+        after = t >= b
+        if not after.any():
+            continue
+        k = int(np.argmax(after))
+        F = np.zeros((t.size, 3))  # integral_b^t f ds at the rows after the gap (from its first row)
+        F[k + 1:] = np.cumsum(0.5 * (f[k + 1:] + f[k:-1]) * np.diff(t[k:])[:, None], axis=0)
+        C = np.zeros((t.size, 3, 6))
+        C[after, :, :3] = np.eye(3)
+        for j in range(3):
+            C[after, :, 3 + j] = np.cross(F[after], np.eye(3)[j])
+        cols.append(C)
+    return np.concatenate(cols, axis=2) if cols else np.zeros((t.size, 3, 0))
+
+
 def shares_problem_test(S, dv: np.ndarray) -> bool:
     """Whether the residuals are those of S's own Problem (so its one time-offset test applies)."""
     return is_problem(S) and S.y is not None and (dv is S.y or np.array_equal(dv, S.y))
@@ -91,8 +125,8 @@ def problem_time_offset_test(problem, t: np.ndarray, f: np.ndarray):
 
 
 def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray,
-                     keep: np.ndarray | None = None) -> TimeOffsetTest | None:
-    """Test residuals for a tracking time offset: ``r = S d + a(t) dt + (da/dt) c + e``.
+                     keep: np.ndarray | None = None, gaps=None) -> TimeOffsetTest | None:
+    """Test residuals for a tracking time offset: ``r = S d + G g + a(t) dt + (da/dt) c + e``.
 
     Tracking time tags late by dt give ``v_trk(t) = v(t - dt) ~ v(t) - a(t) dt``, so
     ``dv += a(t) dt``, not integrated: a regressor outside the span of S_V. The test adds
@@ -105,6 +139,10 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray,
     variance of AR(1) noise against a smooth regressor, so correlated noise does not
     read as a signal. By Frisch-Waugh-Lovell the test does not depend on the estimate
     that produced `r` (any D_hat leaves the same projection off span S).
+
+    ``G``: the velocity and attitude jumps the telemetry's gaps may leave (:func:`gap_columns`),
+    nuisance columns between S and ``[a | j]``: a jump at a burnout inside a gap is not an offset,
+    and an offset is still seen wherever ``a(t)`` changes away from the gaps (lift-off).
 
     `S` may be a :class:`~casep.regression.problem.Problem`: its rows are then regenerated block
     by block (twice), never held whole.
@@ -125,6 +163,9 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray,
         The samples the fit kept (a robust fit's glitches and excluded outliers left out): only
         they enter the test, so that a glitch the fit removed is not read as an offset.
         ``da/dt`` is still taken on every sample's times.
+    gaps : sequence of (start, end), optional
+        The telemetry's gaps, s (default: a Problem's :attr:`~casep.regression.problem.Problem.gaps`,
+        else none).
 
     Returns
     -------
@@ -144,7 +185,11 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray,
         return None
     if not usable.all():
         X = X[:, :, usable]
-    p, k = int(nonzero.sum()) + X.shape[2], X.shape[2]
+    k = X.shape[2]
+    gaps = getattr(S, "gaps", ()) if gaps is None else gaps
+    if gaps:
+        X = np.concatenate([gap_columns(t, f, gaps), X], axis=2)  # the nuisance before the tested columns
+    p = int(nonzero.sum()) + X.shape[2]
     kept = np.ones(N, dtype=bool) if keep is None else np.asarray(keep, dtype=bool)
     M = int(kept.sum())  # samples in the test
     if 3 * M <= p + 2:

@@ -50,7 +50,7 @@ from casep.io.flight import FlightData
 from casep.noise.robust import MAD_SIGMA
 
 __all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "stretch_noise", "noise_problem",
-           "determined", "determined_message", "imu_noise_effect", "STALE_MOTION", "JUMP_TOL",
+           "determined", "determined_message", "imu_noise_effect", "imu_sample_noise", "STALE_MOTION", "JUMP_TOL",
            "JUMP_RATE", "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
 
 #: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
@@ -344,7 +344,30 @@ def noise_problem(flight: FlightData) -> str | None:
     return f"the tracking noise differs {ratio:.3g}-fold between stretches ({listed})"
 
 
-def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray) -> np.ndarray | None:
+def imu_sample_noise(flight: FlightData, t_rows: np.ndarray) -> tuple[np.ndarray, float, np.ndarray] | None:
+    """The IMU's white noise as :func:`imu_noise_effect` measures it: ``(s, h, samples)``, ``s`` (6,) the per-sample
+    std of ``fb_x, fb_y, fb_z`` (m/s^2) and ``w_x, w_y, w_z`` (rad/s), ``h`` the sample step (s), ``samples`` the
+    telemetry's own samples up to the last epoch of `t_rows`; None when the flight does not hold them."""
+    sig = flight.signals
+    index = flight.meta.get("rows_index") if isinstance(flight.meta, dict) else None
+    if index is None or not all(c in sig for c in ("q_w", "q_x", "q_y", "q_z", "fb_x", "w_x")) or t_rows.size == 0:
+        return None
+    own = np.asarray(index) < 0  # the telemetry's own samples (the tracking epochs were inserted among them)
+    if "ins_valid" in sig:
+        own &= np.asarray(sig["ins_valid"]) > 0
+    own &= flight.t <= t_rows[-1]
+    i = np.flatnonzero(own)
+    if i.size < 10:
+        return None
+    h = float(np.median(np.diff(flight.t[i])))
+    raw = np.column_stack([sig[f"{k}_{a}"][i] for k in ("fb", "w") for a in "xyz"])
+    d = np.diff(raw, axis=0)
+    s = np.median(np.abs(d - np.median(d, axis=0)), axis=0) * MAD_SIGMA / math.sqrt(2)  # per sample, 6 channels
+    return s, h, i
+
+
+def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray,
+                     levelling: tuple[tuple[float, float], np.ndarray] | None = None) -> np.ndarray | None:
     """``weights @ G`` (k, m): ``G`` (3M, m) the velocity errors ``dv`` at the M epochs `t_rows` (rows x, y, z per
     epoch) that the IMU's white noise makes, per unit of m independent standard normal variables
     (``Cov = G G^T``), seen through `weights` (k, 3M) (``G`` itself is never held: it grows with epochs times
@@ -365,25 +388,23 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray
     standard normal; a block counts at the epochs after its last sample. This is the random walk of
     velocity and of attitude that tracking noise does not hold: on a quiet pad the tilt's random walk under
     gravity is as large as what the tracking determines (simulated rocket: ``python benchmarks/rocket_rawlog.py``).
+
+    With `levelling` (``((T1, T2), L)``: casep aligned the navigation on the pad over ``[T1, T2]``, from its
+    first sample on, and ``L`` (3 x 3) is the start attitude error per unit of the window's mean body specific
+    force error, the derivative of the alignment itself: ``u x (C delta_f) / g`` for levelling alone, with the
+    heading's share where the heading constraint turns a tilt) the accelerometer noise there also tilts the
+    start, ``phi0 = L mean(delta_f)``, which acts from the first sample on: ``dv(t) += (F(t) - F(T1)) x phi0``.
+    A block's share of the window mean is its samples inside the window (a block cut by ``T2``: within one
+    block's noise). A gyrocompassed heading's gyro noise is not carried.
     """
     from casep.rotations import quat_to_dcm
 
+    noise = imu_sample_noise(flight, t_rows)
+    if noise is None:
+        return None
+    s, h, i = noise
     sig = flight.signals
-    index = flight.meta.get("rows_index") if isinstance(flight.meta, dict) else None
-    if index is None or not all(c in sig for c in ("q_w", "q_x", "q_y", "q_z", "fb_x", "w_x")) or t_rows.size == 0:
-        return None
-    own = np.asarray(index) < 0  # the telemetry's own samples (the tracking epochs were inserted among them)
-    if "ins_valid" in sig:
-        own &= np.asarray(sig["ins_valid"]) > 0
-    own &= flight.t <= t_rows[-1]
-    i = np.flatnonzero(own)
-    if i.size < 10:
-        return None
     t = flight.t[i]
-    h = float(np.median(np.diff(t)))
-    raw = np.column_stack([sig[f"{k}_{a}"][i] for k in ("fb", "w") for a in "xyz"])
-    d = np.diff(raw, axis=0)
-    s = np.median(np.abs(d - np.median(d, axis=0)), axis=0) * MAD_SIGMA / math.sqrt(2)  # per sample, 6 channels
     C = quat_to_dcm(np.column_stack([sig[f"q_{a}"][i] for a in "wxyz"]))
     f = flight.f[i]
     F = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(t)[:, None], axis=0)])
@@ -395,7 +416,8 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray
     Cj = C_sum[used] / counts[used, None, None]
     t_end = t[np.cumsum(counts)[used] - 1]  # the blocks' last samples (t increases)
     F_mid = np.stack([np.bincount(block, F[:, a], nb)[used] for a in range(3)], 1) / counts[used, None]
-    root = h * np.sqrt(counts[used])[:, None, None]
+    n_eff = _block_samples(t, counts, used, h)
+    root = h * np.sqrt(n_eff)[:, None, None]
     ga = Cj * s[:3] * root  # (B, 3, 3): per block, the velocity error of xi (columns: body axes)
     gg = Cj * s[3:] * root  # ... and the attitude error of xi'
     F_rows = np.column_stack([np.interp(t_rows, t, F[:, a]) for a in range(3)])
@@ -406,7 +428,42 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray
         dF = F_rows[r] - F_mid[after]  # (b, 3): the attitude error acts from the block's middle on
         G_r = np.concatenate([ga[after], -np.cross(dF[:, :, None], gg[after], axisa=1, axisb=1, axisc=1)], 2)
         out[:, after] += np.einsum("ki,bij->kbj", W[:, r], G_r)  # G_r: (b, 3 axes, 6 noise variables)
+    if levelling is not None:
+        level = _levelling_noise(t, F, block, (nb, used, n_eff), s[:3], levelling)
+        if level is not None:
+            win, Phi, F0 = level  # blocks in the window, phi0 per unit xi (bw, 3, 3), F at the window's start
+            dF = F_rows - F0  # (M, 3): phi0 acts from the start on
+            G = np.cross(dF[:, None, :, None], Phi[None], axisa=2, axisb=2, axisc=2)  # (M, bw, 3 axes, 3 xi)
+            out[:, win, :3] += np.einsum("kmi,mbij->kbj", W, G)
     return out.reshape(W.shape[0], -1)
+
+
+def _block_samples(t: np.ndarray, counts: np.ndarray, used: np.ndarray, h: float) -> np.ndarray:
+    """The IMU samples each used block spans, ``(first sample of the next block - its first) / h`` (the last:
+    to its last sample, plus one): the telemetry's own samples leave out those a tracking epoch took over
+    (:func:`casep.io.pair.pair_flight` makes a tracking time on a telemetry sample that sample), whose noise the
+    velocity integrated all the same."""
+    first = t[np.concatenate([[0], np.cumsum(counts[used])[:-1]])]
+    span = np.diff(np.append(first, t[-1] + h))
+    return np.maximum(np.rint(span / h), counts[used])
+
+
+def _levelling_noise(t: np.ndarray, F: np.ndarray, block: np.ndarray, blocks: tuple, s_a: np.ndarray,
+                     levelling: tuple) -> tuple | None:
+    """The start tilt the accelerometer noise in the levelling window leaves, per block and unit xi
+    (:func:`imu_noise_effect`; `blocks`: their number, the used ones and the samples each spans):
+    ``(blocks in the window (mask over used), Phi (bw, 3, 3), F(T1))``."""
+    nb, used, n_eff = blocks
+    window, L = levelling
+    inside = (t >= window[0]) & (t <= window[1])
+    if int(inside.sum()) < 2:
+        return None
+    frac = np.bincount(block[inside], minlength=nb)[used] / np.bincount(block, minlength=nb)[used]
+    win = frac > 0
+    n_w = float(np.sum(frac * n_eff))  # the IMU samples the window mean is over
+    share = frac[win] * np.sqrt(n_eff[win]) / n_w  # the window mean's weight on the block's xi
+    Phi = share[:, None, None] * (np.asarray(L, dtype=float) * s_a)[None]  # body axes of the mean: the pad's
+    return win, Phi, F[int(np.argmax(inside))]
 
 
 def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,

@@ -51,7 +51,7 @@ from casep._kernels import ar1_terms, gmw_filter
 from casep.results import Completed
 
 __all__ = ["NOISE_KINDS", "AUTO_LR", "AUTO_LR_SCALE", "NoiseModel", "whiten", "whiten_blocks", "whiten_axis",
-           "whiten_series", "check_noise_kind", "check_tau", "NOISE_HELP"]
+           "whiten_series", "whiten_transpose", "check_noise_kind", "check_tau", "NOISE_HELP"]
 
 #: The noise kinds a problem can be given (the API's ``noise=`` and the command line's ``--noise``).
 NOISE_KINDS = ("auto", "gm", "gmw", "white")
@@ -282,6 +282,57 @@ def whiten_axis(X: np.ndarray, t: np.ndarray, tau: float | None, scale: float,
     W = whiten_series(X, t, tau, share, prev)[0]
     W /= scale
     return W
+
+
+def _series_transpose(V: np.ndarray, t: np.ndarray, tau: float | None, share: float) -> np.ndarray:
+    """``W^T V`` for the whitening ``W`` of one axis at unit std (:func:`whiten_series`, from the first sample).
+
+    The filter is ``u_k = (e_k - a_k m_(k-1)) / sqrt(F_k)``, ``m_k = alpha_k m_(k-1) + K_k e_k`` with
+    ``alpha_k = a_k (1 - K_k)``; its transpose runs backwards with the adjoint ``rho_k`` of ``m_k``::
+
+        rho_(N-1) = 0,   rho_k = -a_(k+1) v_(k+1) / sqrt(F_(k+1)) + alpha_(k+1) rho_(k+1),
+        (W^T v)_k = v_k / sqrt(F_k) + K_k rho_k
+
+    (Gauss-Markov: ``K = 1``, ``alpha = 0``). O(N k); never an N x N matrix.
+    """
+    V = np.asarray(V, dtype=float)
+    if tau is None:
+        return V.copy()
+    dt = np.empty(t.size)
+    dt[0] = np.inf
+    np.subtract(t[1:], t[:-1], out=dt[1:])
+    a, b = ar1_terms(dt, tau)
+    F, K = np.empty(t.size), np.empty(t.size)
+    P = 0.0
+    for k in range(t.size):  # the gains of gmw_filter (they depend on the times and the parameters only)
+        Pm = a[k] * a[k] * P + (1.0 - share) * b[k]
+        F[k] = Pm + share
+        K[k] = Pm / F[k]
+        P = Pm * share / F[k]
+    g = 1.0 / np.sqrt(F)
+    alpha = a * (1.0 - K)
+    Z = V * g[:, None]
+    rho = np.zeros(V.shape[1])
+    for k in range(t.size - 2, -1, -1):
+        rho = -a[k + 1] * g[k + 1] * V[k + 1] + alpha[k + 1] * rho
+        Z[k] += K[k] * rho
+    return Z
+
+
+def whiten_transpose(V: np.ndarray, t: np.ndarray, noise: NoiseModel) -> np.ndarray:
+    """``W^T V`` of the whitening ``W`` of :func:`whiten` (rows ``V`` (N, 3, k) per axis, at unit ``sigma``).
+
+    With ``u = W e`` the whitened rows of raw rows ``e`` (N, 3), ``W^T W`` is the inverse of their correlation
+    (``Cov e = sigma^2 (W^T W)^-1``): the GLS estimate of :func:`whiten`'s rows is linear in the raw rows, ``x =
+    (U^T U)^+ (W^T U)^T e`` with ``U = W S``, and ``W^T U`` is what it needs to carry another error of the raw rows
+    (the IMU's own noise) to the estimate exactly.
+    """
+    V = np.asarray(V, dtype=float)
+    out = np.empty_like(V)
+    for j in range(3):
+        out[:, j, :] = _series_transpose(V[:, j, :], np.asarray(t, dtype=float), noise.tau[j], noise.share[j])
+        out[:, j, :] /= noise.scale[j]
+    return out
 
 
 def whiten(S: np.ndarray, y: np.ndarray, t: np.ndarray, noise: NoiseModel,

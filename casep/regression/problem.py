@@ -135,6 +135,9 @@ class Problem:
         self._unwhitened: Problem | None = None  # the same rows before whitening
         #: The interpolation floor of a pair of files, m/s RMS (:func:`is_rounding_level`; 0: none).
         self.interpolation_floor = 0.0
+        #: The telemetry's gaps ``((start, end), ...)``, s: across each the telemetry's velocity error may jump
+        #: (an INS navigated across lost samples; :func:`casep.checks.time_offset.gap_columns`).
+        self.gaps: tuple[tuple[float, float], ...] = ()
         #: Where rows come from (file, line, time): ``locate(rows)`` for indices of this problem's rows.
         self._locate_flight: tuple[FlightData, np.ndarray] | None = None  # (flight, observed samples) of a flight's
         n = red.n
@@ -217,6 +220,7 @@ class Problem:
             pb = cls(red=reduce_qr(S, dv, names=model.names), y=dv, t=t, S=S, f=f_obs, **common)
             pb._locate_flight = (flight, np.flatnonzero(obs))
             pb.interpolation_floor = float(flight.meta.get("interpolation_floor_m_s") or 0.0)
+            pb.gaps = _telemetry_gaps(flight.meta)
             return pb
 
         def regenerate(rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
@@ -234,6 +238,7 @@ class Problem:
         pb = cls(red=red, y=dv, t=t, regenerate=regenerate, f=f_obs, **common)
         pb._locate_flight = (flight, np.flatnonzero(obs))
         pb.interpolation_floor = float(flight.meta.get("interpolation_floor_m_s") or 0.0)
+        pb.gaps = _telemetry_gaps(flight.meta)
         return pb
 
     def with_y(self, y: np.ndarray) -> "Problem":
@@ -255,8 +260,10 @@ class Problem:
     def _derived(self, **rows: Any) -> "Problem":
         """A problem on other rows (`rows`: ``red``, ``y``, ``t``, ``S``, ``regenerate``, ``f``) with this one's
         coefficients, model, source and row unit."""
-        return Problem(names=self.names, units=self.units, si_factors=self.si_factors, model=self.model,
-                       source=self.source, row_unit=self.row_unit, **rows)
+        new = Problem(names=self.names, units=self.units, si_factors=self.si_factors, model=self.model,
+                      source=self.source, row_unit=self.row_unit, **rows)
+        new.gaps = self.gaps
+        return new
 
     def subset(self, keep: np.ndarray) -> "Problem":
         """The regression on the samples where `keep` (N,) is True (time order kept; S shared).
@@ -478,3 +485,9 @@ class Problem:
         where = "kept" if self._S is not None else ("regenerated" if self._regenerate else "none")
         return (f"Problem({self.model or 'arrays'!s}, {self.n} coefficients, {self.m} rows, "
                 f"source {self.source!r}, S_V {where})")
+
+
+def _telemetry_gaps(meta: dict) -> tuple[tuple[float, float], ...]:
+    """The telemetry's gaps a pair of files recorded (:func:`casep.io.pair.pair_flight`'s ``gaps_s``), s."""
+    spans = (meta.get("gaps_s") or {}).get("telemetry") or ()
+    return tuple((float(a), float(b)) for a, b in spans)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-__all__ = ["noise_line", "robust_line", "noise_lines"]
+__all__ = ["noise_line", "robust_line", "noise_lines", "imu_noise_line"]
 
 #: How many samples or gaps a line names before "...".
 SHOWN = 6
@@ -41,6 +41,15 @@ def robust_line(rb: Mapping[str, Any]) -> str:
             + f", {rb['downweighted']} row(s) down-weighted, {rb['iterations']} iteration(s)")
 
 
+def imu_noise_line(account: dict) -> str:
+    """One line of what the IMU's own noise adds to the std (:func:`casep.workflows.imu_separate.imu_noise_budget`)."""
+    acc, gyr = max(account["accelerometer_m_s2"]), max(account["gyro_rad_s"])
+    factor = account["std_factor_max"]
+    return (f"IMU noise (measured on the record, per sample up to {acc:.3g} m/s^2 and {gyr:.3g} rad/s at "
+            f"{account['sample_step_s']:.3g} s): its velocity and attitude random walks are in the std"
+            + ("" if factor is None else f" (they raise them by up to {factor:.3g} x, {account['std_factor_worst']})"))
+
+
 def noise_lines(diagnostics: Mapping[str, Any], joint: bool = False) -> list[str]:
     """The noise model, the robust fit, the removed samples and the gaps, one line each.
 
@@ -66,6 +75,8 @@ def noise_lines(diagnostics: Mapping[str, Any], joint: bool = False) -> list[str
                 lines.append(f"{label}: {robust_line(d['robust'])}")
         return lines
     lines = [noise_line(nd)] if nd else []
+    if nd and nd.get("imu"):
+        lines.append(imu_noise_line(nd["imu"]))
     rb = diagnostics.get("robust")
     if rb:
         lines.append(robust_line(rb))

@@ -341,6 +341,33 @@ class _Run:
                 A[:, j] = (phi[0] - phi[1]) / (2 * h)
         return A
 
+    def levelling_jacobian(self) -> np.ndarray:
+        """``L = d phi0 / d mean(delta_f)`` (3 x 3, rad per m/s^2): the start attitude error (launch-inertial) per
+        unit error of the pad window's mean body specific force, by central differences of the alignment of the
+        last pass (as :meth:`alignment_sensitivity`, along each body axis): what the accelerometer noise on the
+        pad does to the start (:func:`imu_noise_budget`)."""
+        from scipy.spatial.transform import Rotation
+
+        from casep.navigation.alignment import align
+        from casep.navigation.strapdown import quat_to_dcm
+
+        imu, (t1, t2) = self.imu_k, self.window
+        sel = (imu.t >= t1) & (imu.t <= t2)
+        f_mean, w_mean = imu.f[sel].mean(axis=0), imu.w[sel].mean(axis=0)
+        R = quat_to_dcm(self.q_aligned) @ self.C_tb.T  # triad -> launch-inertial at the first sample
+        h = _ALIGN_STEP_RAD * float(np.linalg.norm(f_mean))  # m/s^2: turns the attitude by about 1e-6 rad
+        tt, ww = np.array([t1, t2]), np.tile(w_mean, (2, 1))
+        L = np.zeros((3, 3))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # a gyrocompassing warning per step: said once, by the pass itself
+            C_ref = align(tt, ww, np.tile(f_mean, (2, 1)), self.window, self.nav_site, **self.heading).C_tb
+            for i in range(3):
+                phi = [R @ Rotation.from_matrix(C_ref @ align(tt, ww, np.tile(f_mean + s * np.eye(3)[i], (2, 1)),
+                                                             self.window, self.nav_site, **self.heading).C_tb.T
+                                                 ).as_rotvec() for s in (h, -h)]
+                L[:, i] = (phi[0] - phi[1]) / (2 * h)
+        return L
+
     def solve(self, D: np.ndarray | None, spec: FitSpec) -> tuple[EstimateResult, NavigationResult, FlightData,
                                                                    ErrorModel, Any]:
         """One pass at `D` (None: the first, uncorrected): navigate, pair, model, and the estimate alone (no
@@ -444,6 +471,7 @@ class _Run:
         solution = None if res.solution is None else dataclasses.replace(res.solution, x=total)
         out = dataclasses.replace(res, estimate=estimate, diagnostics=diag, solution=solution,
                                   **model_record(self.base))
+        out = with_imu_noise(out, problem, flight, (self.window, self.levelling_jacobian()))
         if iterate and failure is None and not _stopped(passes[-1], tol) and out.success:
             failure = f"failed: the iteration stopped at pass {len(passes)} before converging"
         if failure is not None:
@@ -670,3 +698,79 @@ def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np
               "signals": np.array([flight.signals[c] for c in model.signals]).reshape(-1, n),
               "D": np.repeat(D[:, None], n, 1)}
     return np.array(fn.map(n)(*(values[a] for a in fn.name_in()))).T
+
+
+def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
+                     levelling: tuple | None = None) -> tuple[np.ndarray, dict] | None:
+    """The part of the estimate's covariance the IMU's own white noise makes, and what was used (None when the
+    flight does not hold the IMU's samples, or the result has no covariance).
+
+    The navigated velocity carries the IMU's white noise integrated: a velocity random walk (accelerometer) and
+    an attitude random walk that ``f x phi`` turns into a velocity error growing with the specific force
+    (gyro). The tracking noise model (white, Gauss-Markov, REML) describes neither. Its densities are measured
+    on the record (:func:`casep.checks.tracking_quality.imu_sample_noise`) and carried to the tracking epochs as
+    ``dv = G xi`` (``Cov = G G^T``; :func:`casep.checks.tracking_quality.imu_noise_effect`; with `levelling`, the
+    pad window and the alignment's derivative along the mean specific force (:meth:`_Run.levelling_jacobian`),
+    the start tilt its accelerometer noise leaves too). The estimate is
+    linear in the raw rows, ``x = A dv`` with ``A = (U^T U)^+ (W^T U)^T``, ``U = W S`` whitened by the fit's
+    noise model (:func:`casep.noise.model.whiten_transpose`: never an N x N matrix); so it adds, exactly::
+
+        Cov_imu(x) = (A G) (A G)^T
+
+    to the fit's covariance (the tracking noise's). The fit's noise model was fitted to residuals that hold
+    the IMU's noise too: where REML folded some of it into the tracking noise, the sum counts it twice
+    (conservative), and the estimate itself stays the fit's (GLS for the tracking noise alone).
+    """
+    from casep.checks.tracking_quality import imu_noise_effect, imu_sample_noise
+    from casep.noise.model import NoiseModel, whiten, whiten_transpose
+
+    nd = res.diagnostics.get("noise")
+    if res.covariance is None or problem.t is None or not isinstance(nd, dict) or "axes" not in nd:
+        return None
+    t = np.asarray(problem.t, dtype=float)
+    measured = imu_sample_noise(flight, t)
+    if measured is None:
+        return None
+    noise = NoiseModel.from_dict(nd)
+    S = problem.sv()
+    N, _, n = S.shape
+    U = whiten(S, np.zeros((N, 3)), t, noise)[0].reshape(3 * N, n)
+    A = whiten_transpose(np.linalg.pinv(U).T.reshape(N, 3, n), t, noise).reshape(3 * N, n).T  # (n, 3N)
+    AG = imu_noise_effect(flight, t, A, levelling)
+    if AG is None:
+        return None
+    C_imu = AG @ AG.T
+    s, h, _ = measured
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.sqrt(1.0 + np.diag(C_imu) / np.diag(res.covariance))
+    finite = ratio[np.isfinite(ratio)]
+    worst = int(np.nanargmax(np.where(np.isfinite(ratio), ratio, -np.inf))) if finite.size else 0
+    account = {"source": "measured on the record: the scatter of consecutive samples (MAD / sqrt 2), per sample",
+               "accelerometer_m_s2": [float(v) for v in s[:3]], "gyro_rad_s": [float(v) for v in s[3:]],
+               "sample_step_s": h, "vrw_m_s_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[:3]],
+               "arw_rad_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[3:]],
+               "std_factor_max": float(finite.max()) if finite.size else None, "std_factor_worst": res.names[worst],
+               "std_tracking_noise_only": {nm: (float(v) if np.isfinite(v) else None)
+                                           for nm, v in zip(res.names, np.sqrt(np.diag(res.covariance)))},
+               "rule": "Cov(x) = fit covariance + (A G)(A G)^T: the velocity and attitude random walks (and, with "
+                       "the pad window, the levelling's start tilt) carried to the estimate exactly; the estimate is "
+                       "the fit's, the tracking noise model fitted to residuals that hold the IMU noise too"}
+    return C_imu, account
+
+
+def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
+                   levelling: tuple | None = None) -> EstimateResult:
+    """`res` with the IMU's own noise in its covariance and std and said in its noise account
+    (:func:`imu_noise_budget`; `res` itself when the flight does not hold the IMU's samples)."""
+    budget = imu_noise_budget(res, problem, flight, levelling)
+    if budget is None:
+        return res
+    C_imu, account = budget
+    cov = res.covariance + C_imu
+    std = None if res.std is None else np.where(np.isfinite(res.std), np.sqrt(np.clip(np.diag(cov), 0.0, None)), np.nan)
+    solution = res.solution
+    if solution is not None and solution.covariance is not None:
+        solution = dataclasses.replace(solution, covariance=solution.covariance + C_imu)
+    diag = {**res.diagnostics, "noise": {**res.diagnostics["noise"], "imu": account}}
+    return dataclasses.replace(res, covariance=cov, std=std, solution=solution, diagnostics=diag)
+
