@@ -284,23 +284,35 @@ class _Run:
             return flight
         return dataclasses.replace(flight, dv=flight.dv - _direct_velocity(model, flight, D))
 
-    def model(self, nav: NavigationResult) -> ErrorModel:
-        """The model with the alignment's attitude error ``phi0 += A D`` (and ``dt_trk`` when fitted), set up."""
+    def model(self, nav: NavigationResult, D: np.ndarray) -> ErrorModel:
+        """The model linearised about the correction at `D` (:func:`casep.model.strapdown.correction_errors`)
+        with the alignment's attitude error ``phi0 += A D`` (and ``dt_trk`` when fitted), set up: its S_V is the
+        derivative of a pass (navigate the record corrected at `D`, pair) with respect to `D`."""
         import casadi as ca
 
-        from casep.model.loader import add_time_offset, build_model
+        from casep.model.loader import add_time_offset
 
-        A = self.alignment_sensitivity(nav)
-        m = build_model(self.source)
+        A = self.alignment_sensitivity(nav, self._linearised(D).setup())
+        m = self._linearised(D)
         m.set_initial_misalignment(m.output("initial_misalignment") + ca.mtimes(ca.DM(A), ca.vertcat(*m.symbols)))
         if self.fit_time_offset:
             add_time_offset(m)
         m.setup()
         return m
 
-    def alignment_sensitivity(self, nav: NavigationResult) -> np.ndarray:
+    def _linearised(self, D: np.ndarray) -> ErrorModel:
+        """The model file's model, unlocked, its sensor errors those of the correction at `D`."""
+        from casep.model.loader import build_model
+        from casep.model.strapdown import correction_errors
+
+        m = build_model(self.source)
+        correction_errors(m, D[:self.base.n_coefficients])
+        return m
+
+    def alignment_sensitivity(self, nav: NavigationResult, model: ErrorModel | None = None) -> np.ndarray:
         """``A = d phi0 / d D`` (3 x n, rad per natural unit): central differences of the pad alignment
-        along each coefficient's body errors over the window (module notes).
+        along each coefficient's body errors over the window (module notes): `model`'s (set up; default the
+        model file's), those of the correction at the pass's coefficients (:meth:`model`).
 
         The alignment's attitude depends on the pad data only through their means over the window
         (:func:`casep.navigation.alignment.align`), so each step aligns two rows holding the perturbed
@@ -313,13 +325,14 @@ class _Run:
         from casep.navigation.alignment import align
         from casep.navigation.strapdown import quat_to_dcm
 
+        model = self.base if model is None else model
         imu, (t1, t2) = self.imu_k, self.window
         sel = (imu.t >= t1) & (imu.t <= t2)
         k = np.searchsorted(nav.t, imu.t[sel])
         n = self.base.n_coefficients
         unit = np.eye(n)
         f_mean, w_mean = imu.f[sel].mean(axis=0), imu.w[sel].mean(axis=0)
-        per = [body_errors(self.base, nav.q[k], imu.f[sel], imu.w[sel], imu.t[sel] - nav.t[0], unit[j])
+        per = [body_errors(model, nav.q[k], imu.f[sel], imu.w[sel], imu.t[sel] - nav.t[0], unit[j])
                for j in range(n)]
         R = quat_to_dcm(self.q_aligned) @ self.C_tb.T  # triad -> launch-inertial at the first sample
         A = np.zeros((3, n))
@@ -372,7 +385,7 @@ class _Run:
         with warnings.catch_warnings():
             if not first:
                 warnings.simplefilter("ignore")  # S_V's warnings (integrated across a gap) said once, too
-            model = self.model(nav)
+            model = self.model(nav, D)
             problem = flight_problem(flight, model)
         self.model_k = model
         return _quiet_fit(problem, spec), nav, flight, model, problem
