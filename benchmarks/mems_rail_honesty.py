@@ -118,13 +118,14 @@ def main() -> None:
             zs.append(r["z"])
             chi.append((r["chi2_det"], r["dof_det"], r["chi2"]))
             it = out.result.diagnostics["iterations"]
-            print(f"seed {seed}: status {out.status}, {len(it['passes'])} passes; RMS z {np.sqrt(np.mean(r['z']**2)):.3f}, "
-                  f"coverage {np.mean(np.abs(r['z']) < 1.96):.3f}; chi2 determined {r['chi2_det']:.1f}/{r['dof_det']}, "
+            print(f"seed {seed}: status {out.status}, {len(it['passes'])} passes; "
+                  f"RMS z {np.sqrt(np.mean(r['z']**2)):.3f}, coverage {np.mean(np.abs(r['z']) < 1.96):.3f}; "
+                  f"chi2 determined {r['chi2_det']:.1f}/{r['dof_det']}, "
                   f"all {r['chi2']:.1f}/15; {out.message[:90]}", flush=True)
     z = np.concatenate(zs)
     c = np.array(chi)
-    print(f"{len(args.seeds)} seeds, {time.process_time() - cpu:.0f} CPU s: RMS z {np.sqrt(np.mean(z**2)):.3f}, coverage "
-          f"{np.mean(np.abs(z) < 1.96):.3f}; chi2/dof determined {c[:, 0].sum() / c[:, 1].sum():.2f} "
+    print(f"{len(args.seeds)} seeds, {time.process_time() - cpu:.0f} CPU s: RMS z {np.sqrt(np.mean(z**2)):.3f}, "
+          f"coverage {np.mean(np.abs(z) < 1.96):.3f}; chi2/dof determined {c[:, 0].sum() / c[:, 1].sum():.2f} "
           f"(per seed {', '.join(f'{a / b:.2f}' for a, b in c[:, :2])}), all 15 {c[:, 2].mean() / 15:.2f}")
 
 

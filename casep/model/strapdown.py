@@ -41,7 +41,8 @@ from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION
 if TYPE_CHECKING:
     import casadi as ca
 
-__all__ = ["corrected_attitude", "correction_errors", "QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS", "STRAPDOWN_COLUMNS",
+__all__ = ["corrected_attitude", "correction_errors",
+           "QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS", "STRAPDOWN_COLUMNS",
            "quaternion_dcm", "strapdown_inputs", "body_errors", "corrected_imu", "imu_error_signals",
            "CORRECTION_TOL", "CORRECTION_FLOOR", "CORRECTION_MAX_STEPS"]
 

@@ -83,7 +83,7 @@ if TYPE_CHECKING:
     from casep.navigation.result import NavigationResult
 
 __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
-           "STATUS_NOT_CONVERGED"]
+           "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_DRAWS"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -95,6 +95,11 @@ ACCELERATE_BELOW = 5.0
 STATUS_NOT_CONVERGED = -7
 #: Why an iteration fails, unless an IMU gap is the likelier cause (:func:`_gap_clause`).
 _BLAME = "the errors are too large for the model, or the data are inconsistent with it"
+#: The curvature check: second-order shifts of the estimate above this (std, the largest over the combinations) are
+#: warned about (:meth:`_Run.curvature`).
+CURVATURE_TOL = 0.3
+#: ... from this many draws per coefficient of the estimate's own distribution (seeded: the same every run).
+CURVATURE_DRAWS = 1
 #: The alignment's derivative is taken with steps that turn the attitude by about this much, rad.
 _ALIGN_STEP_RAD = 1e-6
 
@@ -462,9 +467,88 @@ class _Run:
         if failure is not None:
             gap = _gap_clause(self.imu, float(out.sigma))
             out = failed(out, STATUS_NOT_CONVERGED, failure.replace(_BLAME, gap) if gap else failure)
+        if iterate and out.success:
+            out = self.curvature(out, problem, D)
         out = judge_setup(out, flight, model, noise_free=False)
         out = judge_tracking(out, flight, problem, model.scales, about=D)
         return ImuSeparation(out, nav, flight, passes)
+
+    def curvature(self, res: EstimateResult, problem: Any, D: np.ndarray, draws: int | None = None) -> EstimateResult:
+        """`res` with the pipeline's curvature at one std of its estimate in its covariance (module notes).
+
+        With ``C = L L^T`` the result's covariance and ``y(.)`` a pass's rows (the record corrected, navigated and
+        paired: :meth:`rows`), each of ``K`` seeded draws ``a ~ N(0, I)`` gives the nonlinear remainder of the pass at
+        ``D + L a`` about the linearisation ``D`` (where S_V is the pass's derivative:
+        :func:`casep.model.strapdown.correction_errors`; the estimate ``D + x`` is within a tenth of a std of it once
+        the passes converged) and the shift of the (OLS) estimate it makes::
+
+            r(a) = y(D + L a) - (y(D) - S_V L a),        b(a) = S_V^+ r(a)
+
+        The covariance gains their mean square, ``C + mean(b b^T)`` (the truth is such a draw away: the estimate is
+        off by ``b`` beside the noise); above :data:`CURVATURE_TOL` std along the combination it moves most
+        (``max eig C^-1 mean(b b^T)``) a :class:`~casep.exceptions.NonlinearityWarning` says so. Skipped (recorded)
+        when the covariance is not finite (undetermined coefficients). `draws`: ``K`` (default
+        :data:`CURVATURE_DRAWS` per coefficient).
+        """
+        from casep.exceptions import NonlinearityWarning
+
+        C = res.covariance
+        names = list(res.names)
+        if C is None or not np.all(np.isfinite(C)) or problem.y is None:
+            res.diagnostics["curvature"] = {"checked": False, "why": "the covariance is not finite"}
+            return res
+        lam, V = np.linalg.eigh(C)
+        lam = np.clip(lam, 0.0, None)
+        L = V * np.sqrt(lam)
+        S = problem.sv()
+        M = S.reshape(-1, len(names))
+        y0 = problem.y
+        K = CURVATURE_DRAWS * len(names) if draws is None else int(draws)
+        R = []
+        for a in np.random.default_rng(0).standard_normal((K, len(names))):
+            step = L @ a
+            try:
+                y = self.rows(D + step)
+            except ValueError:  # the record does not invert there: the draw says nothing of the second order
+                continue
+            R.append((y - y0 + np.einsum("ijk,k->ij", S, step)).reshape(-1))
+        if not R:
+            res.diagnostics["curvature"] = {"checked": False, "why": "no draw could be navigated"}
+            return res
+        B = np.linalg.lstsq(M, np.array(R).T, rcond=None)[0]  # (n, K): the shift of each draw
+        extra = B @ B.T / B.shape[1]
+        keep = lam > lam.max() * 1e-14
+        W = V[:, keep] / np.sqrt(lam[keep])
+        shift = float(np.sqrt(max(np.linalg.eigvalsh(W.T @ extra @ W).max(), 0.0)))
+        cov = C + extra
+        info = {"checked": True, "draws": len(R), "max_shift_std": shift, "tol": CURVATURE_TOL,
+                "std_factor": {nm: float(v) for nm, v in zip(names, np.sqrt(np.diag(cov) / np.diag(C)))}}
+        message = res.message
+        if shift > CURVATURE_TOL:
+            worst = names[int(np.argmax(np.diag(cov) / np.diag(C)))]
+            said = (f"the navigation is curved at one std of the estimate: its second-order terms move the estimate "
+                    f"by up to {shift:.3g} std (RMS over {len(R)} draws, above {CURVATURE_TOL:g}); the std carry it "
+                    f"(up to {np.sqrt(np.max(np.diag(cov) / np.diag(C))):.3g} times the linear ones, {worst})")
+            warnings.warn(said, NonlinearityWarning, stacklevel=4)
+            message = f"{message}; {said}"
+        diag = dict(res.diagnostics)
+        diag["curvature"] = info
+        return dataclasses.replace(res, covariance=cov, std=np.sqrt(np.diag(cov)), message=message, diagnostics=diag)
+
+    def rows(self, D: np.ndarray) -> np.ndarray:
+        """A pass's rows at `D` (the record corrected, navigated and paired, the first pass's screen kept), about the
+        last navigation; the state of the last pass is left as it was."""
+        from casep.checks.tracking_quality import keep_screen
+
+        state = (self.imu_k, self.q_aligned, self.C_tb)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                nav = self.navigate(D)
+                flight = keep_screen(self.flight(nav, D, self.model_k), self.screen)
+        finally:
+            self.imu_k, self.q_aligned, self.C_tb = state
+        return flight.observed_rows(flight.t)[1]
 
 
 def _gap_clause(imu: ImuData, sigma: float) -> str:
