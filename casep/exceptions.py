@@ -8,7 +8,7 @@ from typing import Any
 __all__ = ["CasepWarning", "IllConditionedWarning", "PlausibilityWarning", "NoiseFreeWarning",
            "OutlierWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning", "NoiseLevelWarning",
            "GapWarning", "NoiseNotWhiteWarning", "ConsistencyWarning", "AlignmentWarning", "SaturationWarning",
-           "TrackingQualityWarning",
+           "TrackingQualityWarning", "NonlinearityWarning",
            "option_label", "refusal", "refused_option"]
 
 
@@ -65,6 +65,11 @@ class GapWarning(CasepWarning):
 
 class BiasedStdWarning(CasepWarning):
     """A regularised estimate used as an input: its std leave out the bias of its regularisation."""
+
+
+class NonlinearityWarning(CasepWarning):
+    """An iterated separation whose pipeline is curved at one std of its own estimate: the message gives by how
+    many std the second-order terms move the estimate, and the std carry it."""
 
 
 class NoiseNotWhiteWarning(CasepWarning):

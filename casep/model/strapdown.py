@@ -41,7 +41,8 @@ from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION
 if TYPE_CHECKING:
     import casadi as ca
 
-__all__ = ["corrected_attitude", "QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS", "STRAPDOWN_COLUMNS",
+__all__ = ["corrected_attitude", "correction_errors",
+           "QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS", "STRAPDOWN_COLUMNS",
            "quaternion_dcm", "strapdown_inputs", "body_errors", "corrected_imu", "imu_error_signals",
            "CORRECTION_TOL", "CORRECTION_FLOOR", "CORRECTION_MAX_STEPS"]
 
@@ -66,6 +67,42 @@ def corrected_attitude(C_ins: np.ndarray, phi: np.ndarray) -> np.ndarray:
     from casep.rotations import quat_from_rotvec, quat_to_dcm
 
     return quat_to_dcm(quat_from_rotvec(np.asarray(phi, dtype=float))) @ np.asarray(C_ins, dtype=float)
+
+
+def correction_errors(m: Any, coefficients: np.ndarray) -> None:
+    """Turn an unlocked strapdown model's sensor errors into the first-order errors of :func:`corrected_imu` at
+    `coefficients` (natural units): what S_V must integrate for its columns to be the derivative of a
+    navigation of the corrected record.
+
+    :func:`corrected_imu` solves ``x + delta(x; D) = x_m`` for the true inputs ``x = (fb, w)``; so at the
+    corrected ``x`` (implicit function theorem)::
+
+        d x / d D_j = -(I + K)^{-1} d delta / d D_j,        K = d delta / d x   (6 x 6, at x and D)
+
+    ``K`` holds the scale factors, misalignments and g-sensitivity at `D`: with a MEMS IMU's
+    misalignment of 0.02 rad, a bias along the roll axis then also turns the record about a transverse axis
+    by 2 % of its size, which is most of what the bias does to the velocity when the thrust is along that axis.
+    The model's outputs are replaced by ``C (I + K)^{-1} delta_f`` and ``-C (I + K)^{-1} delta_w`` (the same
+    at ``D = 0``, where ``K = 0``). ``K`` is taken with the attitude at the identity (the errors are in body
+    axes: :func:`body_errors`) and the navigation-frame specific force ``m.f`` written as ``C fb``; a constant
+    ``K`` (errors linear in the inputs) is inverted numerically, else symbolically.
+    """
+    import casadi as ca
+
+    C, fb, w = strapdown_inputs(m)
+    Delta = ca.substitute(m.output("accel_error"), m.f, ca.mtimes(C, fb))
+    phidot = ca.substitute(m.output("gyro_drift"), m.f, ca.mtimes(C, fb))
+    delta = ca.vertcat(ca.mtimes(C.T, Delta), -ca.mtimes(C.T, phidot))  # body axes: C^T C = I at a unit q
+    x = ca.vertcat(fb, w)
+    q = ca.vertcat(*(m.signal(c) for c in QUATERNION_COLUMNS))
+    K = ca.substitute(ca.jacobian(delta, x), ca.vertcat(q, ca.vertcat(*m.symbols)),
+                      ca.SX(ca.vertcat(ca.DM([1.0, 0.0, 0.0, 0.0]), ca.DM(np.asarray(coefficients, float)))))
+    if K.is_constant():
+        eff = ca.mtimes(ca.DM(np.linalg.inv(np.eye(6) + np.array(ca.DM(ca.evalf(K))))), delta)
+    else:
+        eff = ca.solve(ca.SX.eye(6) + K, delta)
+    m.set_accel_error(ca.mtimes(C, eff[:3]))
+    m.set_gyro_drift(-ca.mtimes(C, eff[3:]))
 
 
 def quaternion_dcm(w: Any, x: Any, y: Any, z: Any) -> ca.SX:

@@ -73,6 +73,8 @@ READER_COPIES = {"flight.csv": ROOT / "examples" / "data" / "example_flight.csv"
 EXPECTED_WARNINGS = {
     "ill-conditioned regression": "a boost flight determines combinations of coefficients, not each one: "
                                   "first-flight.md shows and explains it",
+    "the navigation is curved at one std": "a MEMS IMU's poorly determined combinations are degrees of attitude "
+                                           "at one std: navigate.md shows the warning and explains it",
 }
 _WARNING = re.compile(r"^(?:warning: |\S*Warning: )(.*)$", re.M)
 

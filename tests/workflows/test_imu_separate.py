@@ -324,3 +324,85 @@ def test_an_imu_gap_is_named_by_the_failure_and_its_warnings_are_said_once(truth
     assert not out.success and out.status == STATUS_NOT_CONVERGED
     assert "the IMU gap of 1.05 s after t = 11.95 s" in out.message, out.message
     assert "too large for the model" not in out.message
+
+
+
+def _pass_at(truth_flight, directory, size: float, D: np.ndarray):
+    """A separation's first pass on the flight whose IMU carries TRUTH times `size` (tracking noise-free, sigma given),
+    then one pass linearised at `D`: ``(run, result, problem)``."""
+    from casep.workflows.imu_separate import _Run
+
+    _, trk, _ = write_flight(directory, truth_flight)
+    t, w, f, nav, model = truth_flight
+    df, dw = body_errors(model, nav.q, f, w, t - t[0], size * np.array([TRUTH[n] for n in model.names]))
+    run = _Run(check_imu(ImuData(t, w + dw, f + df)), trk, SITE, SITE, ALIGN, model, MODEL, NOISE_FREE,
+               heading_of_x(), "x", {"tracking_frame": "launch", "grid": "tracking", "time_offset": 0.0,
+                                     "time_shift": 0.0}, False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run.solve(None, NOISE_FREE)
+        res, _, _, _, problem = run.solve(D, NOISE_FREE)
+    return run, res, problem
+
+
+@pytest.fixture(scope="module")
+def misaligned_pass(truth_flight, tmp_path_factory):
+    """The MEMS flight linearised at its truth with misalignments of a degree and more: (run, result, problem, D)."""
+    names = truth_flight[4].names
+    D = np.array([{"ma_zx": 6000.0, "mg_zx": 5000.0, "ma_yx": -4000.0, "mg_yx": 3000.0}.get(n, TRUTH[n])
+                  for n in names])
+    return (*_pass_at(truth_flight, tmp_path_factory.mktemp("mis"), 1.0, D), D)
+
+
+def test_sv_of_a_pass_is_the_derivative_of_the_corrected_navigation(truth_flight, misaligned_pass):
+    """S_V of a pass linearised at coefficients with misalignments of a degree and more against central differences
+    of an independent whole pass: the raw record corrected at ``D +- h e_j`` (:func:`corrected_imu`), levelled and
+    navigated again (:func:`navigate`), less the tracking. The correction inverts ``x + delta(x; D) = x_m``, so its
+    derivative carries ``(I + d delta / d x)^-1``: a roll-axis bias then also turns the record about a transverse
+    axis by the misalignment, most of its effect on the velocity when the thrust is along the roll axis (without the
+    factor S_V is 40 % off for ``bg_x``, 15 % for ``ba_x`` here). Tolerance 1 %: S_V's trapezoid (0.05 % at 2 rad/s
+    and 20 Hz) and the differences' O(h^2)."""
+    from casep.model.strapdown import corrected_imu
+
+    t, w, f, nav, model = truth_flight
+    run, _, problem, D = misaligned_pass
+    imu = run.imu
+    S = problem.sv()
+    rows = np.searchsorted(t, problem.t - 1e-9)  # the tracking epochs, where it is the clean navigation
+
+    def dv(Dj):
+        fb, wb = corrected_imu(model, nav.q, imu.f, imu.w, t - t[0], Dj)
+        v = navigate(ImuData(t, wb, fb), SITE, ALIGN, heading_deg=heading_of_x()).v
+        return v[rows] - nav.v[rows]
+
+    for name in ("bg_x", "ba_x"):
+        j = model.names.index(name)
+        h = 0.01 * abs(D[j])
+        J = -(dv(D + h * np.eye(D.size)[j]) - dv(D - h * np.eye(D.size)[j])) / (2 * h)
+        assert np.linalg.norm(J - S[:, :, j]) <= 0.01 * np.linalg.norm(S[:, :, j]), name
+
+
+def test_the_curvature_at_one_std_is_carried_by_the_std_and_said(misaligned_pass):
+    """The curvature check (``_Run.curvature``, 4 seeded draws) on the MEMS pass: a draw one std away moves the
+    estimate by many std through the second-order terms, so the std grow and a NonlinearityWarning gives the shift.
+    The same pass with a covariance 1e-8 times smaller (std 1e-4 times): the remainder of a step s is O(s^2) against
+    a std O(s), so its shift in std falls by 1e4, down to the floor of S_V's trapezoid (a Jacobian error of 1e-4
+    relative, a shift of a few hundredths of a std whatever s), below the warning's threshold, and the std stay as
+    they were (within 1 %). The full-size measure of the rule: benchmarks/mems_rail_honesty.py."""
+    import dataclasses
+
+    from casep.exceptions import NonlinearityWarning
+
+    run, res, problem, D = misaligned_pass
+    with pytest.warns(NonlinearityWarning, match=r"move the estimate by up to [0-9.e+]+ std"):
+        out = run.curvature(res, problem, D, draws=4)
+    big = out.diagnostics["curvature"]["max_shift_std"]
+    assert big > 10 * out.diagnostics["curvature"]["tol"]
+    assert np.all(out.std >= res.std) and np.max(out.std / res.std) > 1.1
+    assert "curved" in out.message
+    small = dataclasses.replace(res, covariance=res.covariance * 1e-8, std=res.std * 1e-4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", NonlinearityWarning)
+        out = run.curvature(small, problem, D, draws=4)
+    assert out.diagnostics["curvature"]["max_shift_std"] < min(0.01 * big, 0.1), (big, out.diagnostics["curvature"])
+    np.testing.assert_allclose(out.std, small.std, rtol=0.01)
