@@ -19,6 +19,7 @@ from typing import Any, Callable, NoReturn, Sequence
 from casep._version import __version__
 from casep.cli.blas import blas_threads_limited
 from casep.cli.capture import print_warnings, recorded
+from casep.cli.ending import freeze_at_exit
 from casep.exceptions import refused_option
 
 __all__ = ["main", "build_parser", "COMMANDS", "EXIT_BROKEN_PIPE"]
@@ -108,13 +109,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _quiet_on_broken_pipe(run: Callable[..., int]) -> Callable[..., int]:
-    """Wrap `run` so a closed stdout ends it quietly with :data:`EXIT_BROKEN_PIPE`.
-
-    The Python recipe (docs, "Note on SIGPIPE"): flush inside the guard so buffered output
-    fails here, then point stdout at /dev/null so the interpreter's final flush is silent.
-    """
+    """Wrap `run` so a closed stdout ends it quietly with :data:`EXIT_BROKEN_PIPE` (the Python recipe, "Note on
+    SIGPIPE": flush inside the guard, then point stdout at /dev/null so the interpreter's final flush is silent),
+    and the objects alive at exit out of its last garbage collections (:func:`casep.cli.ending.freeze_at_exit`)."""
     @functools.wraps(run)
     def guarded(argv: Sequence[str] | None = None) -> int:
+        freeze_at_exit()
         try:
             status = run(argv)
             sys.stdout.flush()
@@ -128,26 +128,9 @@ def _quiet_on_broken_pipe(run: Callable[..., int]) -> Callable[..., int]:
     return guarded
 
 
-def _quick_exit() -> None:
-    """Leave the objects alive at exit out of the interpreter's last garbage collections (registered once).
-
-    While it unloads the modules at exit, the interpreter collects garbage several times over every object
-    still alive: after ``casep demo`` (CasADi, numba, SciPy and NumPy loaded) that took 0.5-1.1 s of CPU once
-    the command had finished. :func:`gc.freeze` at exit (an atexit function, so only when the process ends,
-    whoever called :func:`main`) moves them out of those collections; objects freed by their reference counts
-    are freed as before, reference cycles still alive at exit are left to the end of the process.
-    """
-    import atexit
-    import gc
-
-    atexit.unregister(gc.freeze)
-    atexit.register(gc.freeze)
-
-
 @_quiet_on_broken_pipe
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    _quick_exit()
     args = build_parser().parse_args(argv)
     args.argv = ["casep", *(sys.argv[1:] if argv is None else argv)]  # the command line, for the provenance
     from casep.io._atomic import output_group
