@@ -19,6 +19,7 @@ from typing import Any, Callable, NoReturn, Sequence
 from casep._version import __version__
 from casep.cli.blas import blas_threads_limited
 from casep.cli.capture import print_warnings, recorded
+from casep.cli.ending import freeze_at_exit
 from casep.exceptions import refused_option
 
 __all__ = ["main", "build_parser", "COMMANDS", "EXIT_BROKEN_PIPE"]
@@ -108,13 +109,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _quiet_on_broken_pipe(run: Callable[..., int]) -> Callable[..., int]:
-    """Wrap `run` so a closed stdout ends it quietly with :data:`EXIT_BROKEN_PIPE`.
-
-    The Python recipe (docs, "Note on SIGPIPE"): flush inside the guard so buffered output
-    fails here, then point stdout at /dev/null so the interpreter's final flush is silent.
-    """
+    """Wrap `run` so a closed stdout ends it quietly with :data:`EXIT_BROKEN_PIPE` (the Python recipe, "Note on
+    SIGPIPE": flush inside the guard, then point stdout at /dev/null so the interpreter's final flush is silent),
+    and the objects alive at exit out of its last garbage collections (:func:`casep.cli.ending.freeze_at_exit`)."""
     @functools.wraps(run)
     def guarded(argv: Sequence[str] | None = None) -> int:
+        freeze_at_exit()
         try:
             status = run(argv)
             sys.stdout.flush()

@@ -13,8 +13,14 @@ Depends only on :mod:`casep.exceptions`, :mod:`casep.units` and :mod:`casep.fram
 - :mod:`casep.io.result_json`: result files (casep's and other tools'), read strictly (pydantic)
 """
 
-from casep.io.files import apparent_velocity_to_force, read_flight, read_flight_pair, write_flight
-from casep.io.flight import FlightData, FlightDataError, LateStartWarning
+from casep._lazy import attach
+
+# The public names are imported on first use (PEP 562): ``casep.io._atomic`` (every command's file writing, the
+# demo's figure worker) does not import the flight files' readers.
+__getattr__, __dir__ = attach(__name__, {
+    "casep.io.files": ("apparent_velocity_to_force", "read_flight", "read_flight_pair", "write_flight"),
+    "casep.io.flight": ("FlightData", "FlightDataError", "LateStartWarning"),
+}, globals())
 
 __all__ = ["FlightData", "FlightDataError", "LateStartWarning", "read_flight", "read_flight_pair",
            "write_flight", "apparent_velocity_to_force"]

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
 
-from casep.checks.diagnostics import GROUP_INDEX, Diagnostics
-from casep.estimators.result import AXES, EstimateResult
+if TYPE_CHECKING:  # imported where used: the demo's figure worker imports this module and none of casep's methods
+    from casep.checks.diagnostics import Diagnostics
+    from casep.estimators.result import EstimateResult
 
-__all__ = ["plot_singular_values", "plot_variance_decomposition", "plot_residuals", "plot_estimates",
+__all__ = ["plot_singular_values", "plot_spectrum", "plot_variance_decomposition", "plot_residuals", "plot_estimates",
            "plot_history", "separate_figures", "estimate_scales", "plot_flights_crlb", "plot_allan", "plot_miss_budget",
            "plot_impact_ellipse", "impact_figures", "plot_design", "pyplot", "save_figure", "set_margins",
            "text_width", "plain_log_ticks"]
@@ -104,17 +105,25 @@ def plain_log_ticks(axis: Any) -> None:
 
 def plot_singular_values(diag: Diagnostics, path: str | os.PathLike) -> Path:
     """Singular-value spectrum of the equilibrated regression with condition indices."""
+    from casep.checks.diagnostics import GROUP_INDEX
+
+    return plot_spectrum(diag.singular_values, diag.condition_number_equilibrated, GROUP_INDEX, path)
+
+
+def plot_spectrum(s: np.ndarray, ce: float | None, group_index: float, path: str | os.PathLike) -> Path:
+    """:func:`plot_singular_values` from plain data: the singular values `s` of the equilibrated regression
+    (largest first), its condition number `ce` (None: rank deficient) and the condition index
+    `group_index` of :mod:`casep.checks.diagnostics` (its ``GROUP_INDEX``), drawn as the lines
+    ``s[0] / group_index`` and ``s[0] / 1000``."""
     plt = pyplot()
-    s = diag.singular_values
     fig, ax = plt.subplots(figsize=(7, 4))
     set_margins(fig, left=0.85, right=0.12, bottom=0.5, top=0.3)  # one-line title, plain log ticks ("1e-05")
     ax.semilogy(np.arange(1, s.size + 1), s, "o-", ms=4)
     plain_log_ticks(ax.yaxis)
-    ax.axhline(s[0] / GROUP_INDEX, color="tab:orange", ls="--", lw=1, label=f"condition index {GROUP_INDEX:g}")
+    ax.axhline(s[0] / group_index, color="tab:orange", ls="--", lw=1, label=f"condition index {group_index:g}")
     ax.axhline(s[0] / 1e3, color="tab:red", ls=":", lw=1, label="condition index 1000")
     ax.set_xlabel("dimension k")
     ax.set_ylabel("singular value s_k (unit-norm columns)")
-    ce = diag.condition_number_equilibrated
     # y=1.0: where matplotlib would place it (a log axis has no offset text), without measuring the ticks first
     ax.set_title(f"Singular values; equilibrated condition number {ce:.3g}" if ce
                  else "Singular values (rank deficient)", y=1.0)
@@ -190,6 +199,8 @@ def _sample_times(result: EstimateResult, t: np.ndarray | None) -> tuple[np.ndar
 
 def plot_residuals(result: EstimateResult, path: str | os.PathLike, t: np.ndarray | None = None) -> Path:
     """Residuals ``dv - S_V D_hat`` against time, one panel per axis, with +- 2 sigma lines."""
+    from casep.estimators.result import AXES
+
     plt = pyplot()
     r = np.asarray(result.residuals).reshape(-1, 3)
     x, xlabel = _sample_times(result, t)

@@ -30,7 +30,7 @@ from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
-from casep.checks.diagnostics import Diagnostics, diagnose
+from casep.checks.diagnostics import GROUP_INDEX, Diagnostics, diagnose
 from casep.checks.flight import flight_problem
 from casep.estimators.registry import METHODS
 from casep.estimators.result import EstimateResult
@@ -298,11 +298,12 @@ def _draw(jobs: FigureJobs, out: Path, label: str, sim: SimulatedFlight, results
           impact: Mapping[str, ImpactAnalysis], diag: Diagnostics) -> None:
     """Submit the figures whose data the result `label` completes (:data:`FIGURES`); "diagnostics": the
     singular values, drawn from the diagnostics alone, before the methods."""
-    from casep.reporting.plots import plot_impact_ellipse, plot_miss_budget, plot_singular_values
+    from casep.reporting.plots import plot_impact_ellipse, plot_miss_budget, plot_spectrum
 
     t, crlb, truth = sim.flight.t, diag.crlb_std, np.asarray(sim.truth, dtype=float)
-    if label == "diagnostics":
-        jobs.draw(plot_singular_values, diag, out / FIGURES[4])
+    if label == "diagnostics":  # plot_singular_values' figure from plain data: the worker imports no diagnostics
+        jobs.draw(plot_spectrum, diag.singular_values, diag.condition_number_equilibrated, GROUP_INDEX,
+                  out / FIGURES[4])
     elif label == "LS":
         jobs.draw(plot_demo_residuals, out / FIGURES[0], t, results["LS"].residuals,
                   "Figure 3 analogue: velocity residuals of LS")

@@ -430,7 +430,7 @@ def test_cli_imports_lazily():
     assert out.strip() == ""
 
 
-@pytest.mark.parametrize("package", ["casep", "casep.estimators", "casep.regression", "casep.noise",
+@pytest.mark.parametrize("package", ["casep", "casep.io", "casep.estimators", "casep.regression", "casep.noise",
                                      "casep.checks", "casep.model", "casep.simulation", "casep.radar"])
 def test_lazy_public_names_resolve(package):
     """Every name in a lazily resolved package's __all__ is importable (the tables of casep._lazy)."""

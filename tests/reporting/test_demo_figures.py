@@ -40,3 +40,21 @@ def test_a_worker_only_beside_a_spare_core(monkeypatch):
     monkeypatch.setattr(demo_figures, "usable_cores", lambda: 1)
     monkeypatch.setattr(demo_figures.os, "getloadavg", lambda: (0.0, 0.0, 0.0))
     assert not demo_figures.spare_core()
+
+
+def test_the_worker_starts_on_matplotlib_alone():
+    """`casep demo` starts the worker before it imports NumPy, and the worker's start-up (its imports and warm-up,
+    on the demo's critical path) imports matplotlib and casep's figure modules, none of casep's methods: the
+    figure jobs carry plain arrays and results."""
+    import subprocess
+    import sys
+
+    code = ("import sys\n"
+            "import casep.reporting.demo_figures as d\n"
+            "print('numpy' in sys.modules)\n"
+            "d.warm_up()\n"
+            "print(' '.join(sorted(m for m in sys.modules if m.startswith('casep'))))\n")
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout.split("\n")
+    assert out[0] == "False"  # numpy: imported by the figures
+    assert set(out[1].split()) <= {"casep", "casep._cores", "casep._lazy", "casep._version", "casep.reporting",
+                                   "casep.reporting.demo_figures", "casep.reporting.plots"}, out[1]
