@@ -325,8 +325,8 @@ def judge_consistency(res: EstimateResult, cons: Mapping[str, Any]) -> EstimateR
         misfit = ", ".join(f"{lab} {nf['residual_rms'][lab]:.3g} m/s (rounding level {nf['rounding_level'][lab]:.2g})"
                            for lab in nf["residual_rms"])
         return failed(res, STATUS_DISAGREE, "failed: the flights disagree: noise-free flights, but no one set of "
-                      f"shared coefficients fits them to their rounding level; joint least-squares residual RMS {misfit}. "
-                      "An unmodelled error, another instrument or another model in one of them?")
+                      "shared coefficients fits them to their rounding level; joint least-squares residual RMS "
+                      f"{misfit}. An unmodelled error, another instrument or another model in one of them?")
     ov = cons.get("overall")
     if not ov or not cons.get("judged", True) or ov["p_value"] >= WARN_P:
         return res
