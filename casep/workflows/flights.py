@@ -34,7 +34,7 @@ from casep.regression.problem import Problem
 
 # and JOINT_METHODS (module __getattr__: the registry's as it is now)
 __all__ = ["separate_flights", "flights_summary", "flights_consistency", "judge_consistency", "diagnose_flights",
-           "STATUS_DISAGREE"]
+           "STATUS_DISAGREE", "JOINT_ROUNDING_MARGIN"]
 
 
 def __getattr__(name: str) -> Any:
@@ -214,6 +214,14 @@ def _refuse_repeats(problems: Sequence[Problem]) -> None:
                                  "information would count twice; give each flight once")
 
 
+#: Noise-free flights agree when the joint least-squares fit leaves each within this factor of its rounding level
+#: (:meth:`Problem.is_noise_free` of the joint residual RMS / this). A pair of files' rounding level is its
+#: interpolation floor, an estimate of a systematic error that each flight's own fit partly absorbs and a joint
+#: fit cannot: two noise-free pairs of one truth, re-paired at 42 and 100 ms, leave 3.9 x theirs. Pure rounding
+#: of one truth stays below 1e-6 x its level; noise-free flights of different instruments left 1.7e4 x and more.
+JOINT_ROUNDING_MARGIN = 100.0
+
+
 def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
     """The ``flights`` entries of the result JSON (``docs/reference/file-formats.md``, "Several flights") and the
     consistency of the flights on the shared coefficients.
@@ -245,7 +253,8 @@ def flights_consistency(jp: JointProblem, method: str = "ols", *, denoised: bool
 
     Noise-free flights (each at its rounding level, :meth:`Problem.is_noise_free`): they agree when the joint
     least-squares fit leaves every flight at its rounding level too (the same rule, on the joint fit's
-    residuals); ``noise_free`` holds each flight's joint-fit residual RMS and rounding level, m/s. Otherwise:
+    residuals, within :data:`JOINT_ROUNDING_MARGIN`); ``noise_free`` holds each flight's joint-fit residual RMS
+    and rounding level, m/s. Otherwise:
     per shared coefficient, chi-square of the flights' own OLS estimates about their weighted mean (flights
     where it is estimable alone); overall, the Chow test of the joint least-squares fit against the separate
     fits (F form), with each flight's share of its statistic, ``(RSS_joint,k - RSS_k) / sigma_k^2 / s^2``.
@@ -265,7 +274,7 @@ def flights_consistency(jp: JointProblem, method: str = "ols", *, denoised: bool
     if all(p.is_noise_free() for p in jp.raw):  # rounding residuals: the joint fit must leave them so
         rms = [float(np.sqrt(np.mean(p.residuals(x_ls[lay.columns(k)]) ** 2))) for k, p in enumerate(jp.raw)]
         return {"overall": None, "per_coefficient": {}, "noise_free": {
-            "agree": all(p.is_noise_free(r) for p, r in zip(jp.raw, rms)),
+            "agree": all(p.is_noise_free(r / JOINT_ROUNDING_MARGIN) for p, r in zip(jp.raw, rms)),
             "residual_rms": dict(zip(lay.labels, rms)), "rounding_level": {
                 lab: p.rounding_floor() for lab, p in zip(lay.labels, jp.raw)}}}
     rss_joint, own = [], []
@@ -325,7 +334,8 @@ def judge_consistency(res: EstimateResult, cons: Mapping[str, Any]) -> EstimateR
         misfit = ", ".join(f"{lab} {nf['residual_rms'][lab]:.3g} m/s (rounding level {nf['rounding_level'][lab]:.2g})"
                            for lab in nf["residual_rms"])
         return failed(res, STATUS_DISAGREE, "failed: the flights disagree: noise-free flights, but no one set of "
-                      "shared coefficients fits them to their rounding level; joint least-squares residual RMS "
+                      f"shared coefficients fits them within {JOINT_ROUNDING_MARGIN:g} x their rounding level; joint "
+                      "least-squares residual RMS "
                       f"{misfit}. An unmodelled error, another instrument or another model in one of them?")
     ov = cons.get("overall")
     if not ov or not cons.get("judged", True) or ov["p_value"] >= WARN_P:
