@@ -33,7 +33,13 @@ from scipy import stats
 from casep.regression.joint import JointLayout, flight_rss, joint_reduction
 
 __all__ = ["JointLayout", "joint_reduction", "flight_rss", "coefficient_consistency", "overall_consistency",
-           "stack_sqrt_information"]
+           "stack_sqrt_information", "WARN_P", "FAIL_P", "largest_disagreements"]
+
+#: p of a consistency test (several flights' Chow test, fused results' chi-square) below which the estimates
+#: are said to disagree: a :class:`~casep.exceptions.ConsistencyWarning` with the numbers ...
+WARN_P = 0.01
+#: ... and below which the combined result fails (``success`` False): about 5 sigma, far beyond chance.
+FAIL_P = 1e-6
 
 
 @dataclass(frozen=True)
@@ -93,6 +99,14 @@ def overall_consistency(rss_joint: Sequence[float], rss_own: Sequence[float], si
     scale = float(np.sum(np.asarray(rss_own) / s2)) / resid_dof  # s^2 of the separate fits
     F = chi2 / dof / scale  # ((RSS_joint - RSS_own) / q) / s^2
     return Consistency(F * dof, dof, float(stats.f.sf(F, dof, resid_dof)))
+
+
+def largest_disagreements(per_coefficient: dict[str, dict], k: int = 3) -> str:
+    """The `k` coefficients whose own test (:func:`coefficient_consistency`, as dicts by name) disagrees most:
+    ``"Ka0y chi2 41.2 (p 1.4e-10), ..."``; "none testable" when no coefficient has a test."""
+    worst = sorted(per_coefficient, key=lambda m: per_coefficient[m]["p_value"])[:k]
+    return ", ".join(f"{m} chi2 {per_coefficient[m]['chi2']:.4g} (p {per_coefficient[m]['p_value']:.2g})"
+                     for m in worst) or "none testable"
 
 
 def stack_sqrt_information(factors: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:

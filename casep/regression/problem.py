@@ -408,18 +408,21 @@ class Problem:
         """Least-squares residual RMS over the rows, ``sqrt(rss / m)``."""
         return float(np.sqrt(self.ls_rss() / max(self.m, 1)))
 
-    def is_noise_free(self) -> bool:
+    def is_noise_free(self, rms: float | None = None) -> bool:
         """Whether the rows carry no noise: least-squares residual RMS at the rounding level of ``y``.
 
         ``sqrt(rss / m) <= max(NOISE_FREE * max |y|, floor)`` (:func:`is_rounding_level`; the floor: the
         interpolation floor of the flight's pair of files, for raw rows); False for a reduction-only
         problem (no ``y`` to compare with). Such data have nothing to fit a noise model or a robust
         filter on, and their std reflect rounding only.
+
+        With `rms` (m/s, RMS over the rows of residuals of another fit of these rows, e.g. a joint fit of
+        several flights), whether that fit leaves these rows at their rounding level, by the same rule.
         """
         if self.y is None:
             return False
         scale = float(np.max(np.abs(self.y))) if self.y.size else 0.0
-        return is_rounding_level(self.ls_rms(), scale, self._interpolation_floor())
+        return is_rounding_level(self.ls_rms() if rms is None else float(rms), scale, self._interpolation_floor())
 
     def _interpolation_floor(self) -> float:
         root = self.parent if self.parent is not None else self

@@ -33,7 +33,8 @@ from casep.regression.joint import Flights, JointLayout, JointProblem
 from casep.regression.problem import Problem
 
 # and JOINT_METHODS (module __getattr__: the registry's as it is now)
-__all__ = ["separate_flights", "flights_summary", "diagnose_flights"]
+__all__ = ["separate_flights", "flights_summary", "flights_consistency", "judge_consistency", "diagnose_flights",
+           "STATUS_DISAGREE", "JOINT_ROUNDING_MARGIN"]
 
 
 def __getattr__(name: str) -> Any:
@@ -101,7 +102,10 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     (EstimateResult, JointProblem)
         The result over the joint parameters (names ``name`` for shared, ``name[label]`` per flight;
         std from the whitened system, so ``sigma`` is 1 and ``sigma_source`` "whitened"); the problem
-        (its ``sigmas``, ``layout`` and ``flight_estimates``).
+        (its ``sigmas``, ``layout`` and ``flight_estimates``). The flights' consistency
+        (:func:`flights_consistency`) is in ``diagnostics["consistency"]`` and judges the result
+        (:func:`judge_consistency`): flights that disagree fail it (status :data:`STATUS_DISAGREE`), the
+        estimates kept for inspection.
     """
     if spec is None:
         spec = FitSpec.build(method, options=options, noise=noise, tau=tau, robust=robust, std=std,
@@ -156,6 +160,10 @@ def _joint_fit(flights: Sequence, model: Any, fit_time_offset: bool | None, spec
         rows = joint_rows(several, spec, sigma)  # a sigma per flight, or the request's
         box["rows"] = rows
         res = fit(several, spec, rows=rows, checks=checks)  # the one entry point, as for one flight
+        if checks:  # the flights' agreement first: flights that disagree explain any judgement after it
+            cons = flights_consistency(rows.joint, res.method, denoised=bool(res.denoise))
+            res = judge_consistency(dataclasses.replace(res, diagnostics={**res.diagnostics, "consistency": cons}),
+                                    cons)
         from casep.model.loader import model_record
         from casep.workflows.separate import judge_setup
 
@@ -206,31 +214,28 @@ def _refuse_repeats(problems: Sequence[Problem]) -> None:
                                  "information would count twice; give each flight once")
 
 
+#: Noise-free flights agree when the joint least-squares fit leaves each within this factor of its rounding level
+#: (:meth:`Problem.is_noise_free` of the joint residual RMS / this). A pair of files' rounding level is its
+#: interpolation floor, an estimate of a systematic error that each flight's own fit partly absorbs and a joint
+#: fit cannot: two noise-free pairs of one truth, re-paired at 42 and 100 ms, leave 3.9 x theirs. Pure rounding
+#: of one truth stays below 1e-6 x its level; noise-free flights of different instruments left 1.7e4 x and more.
+JOINT_ROUNDING_MARGIN = 100.0
+
+
 def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
     """The ``flights`` entries of the result JSON (``docs/reference/file-formats.md``, "Several flights") and the
     consistency of the flights on the shared coefficients.
 
     Per flight: file, samples, sigma, residual RMS per axis under the joint estimate, its per-flight
-    coefficients. Consistency (:mod:`casep.estimators.joint`): per shared coefficient, chi-square of
-    the flights' own OLS estimates about their weighted mean (flights where it is estimable alone);
-    overall, the Chow test of the joint fit against the separate fits.
+    coefficients. Consistency: :func:`flights_consistency` (the result's own, ``diagnostics["consistency"]``,
+    when :func:`separate_flights` judged it).
     """
-    import warnings
-
-    from casep.estimators.joint import coefficient_consistency, flight_rss, overall_consistency
-    from casep.estimators.ols import solve_ols
-
     lay = jp.layout
     x = res.fitted_coefficients()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # conditioning: said by the result
-        x_ls = solve_ols(jp, sigma=1.0).fitted_coefficients()  # the Chow test compares least-squares fits
     pf = np.flatnonzero(lay.per_flight)
-    flights, own, rss_joint = [], [], []
-    for k, (p, w, s) in enumerate(zip(jp.raw, jp.problems, jp.sigmas)):
+    flights = []
+    for k, (p, s) in enumerate(zip(jp.raw, jp.sigmas)):
         r = p.residuals(x[lay.columns(k)]).reshape(-1, 3)  # dv - S_V D: the flight's own residuals, m/s
-        rw = w.residuals(x_ls[lay.columns(k)]).reshape(-1, 3)  # joint LS fit as weighed (GLS: AR(1)-whitened)
-        rss_joint.append(float(np.sum(rw**2)))
         cols = lay.columns(k)[pf]
         flights.append({
             "file": p.source, "n_samples": int(p.n_samples), "sigma": s,
@@ -239,13 +244,45 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
                               "std": _num(res.std[c]) if res.std is not None else None}
                              for j, c in zip(pf, cols)],
         })
+    cons = res.diagnostics.get("consistency") or flights_consistency(jp, res.method, denoised=bool(res.denoise))
+    return {"flights": flights, "consistency": cons}
+
+
+def flights_consistency(jp: JointProblem, method: str = "ols", *, denoised: bool = False) -> dict[str, Any]:
+    """Do the flights agree on the shared coefficients? (:mod:`casep.estimators.joint`)
+
+    Noise-free flights (each at its rounding level, :meth:`Problem.is_noise_free`): they agree when the joint
+    least-squares fit leaves every flight at its rounding level too (the same rule, on the joint fit's
+    residuals, within :data:`JOINT_ROUNDING_MARGIN`); ``noise_free`` holds each flight's joint-fit residual RMS
+    and rounding level, m/s. Otherwise:
+    per shared coefficient, chi-square of the flights' own OLS estimates about their weighted mean (flights
+    where it is estimable alone); overall, the Chow test of the joint least-squares fit against the separate
+    fits (F form), with each flight's share of its statistic, ``(RSS_joint,k - RSS_k) / sigma_k^2 / s^2``.
+    `denoised` (the flights' rows de-noised before the fit): their residuals understate the noise, so the Chow
+    test is optimistic; it is reported with a note and ``judged`` False (:func:`judge_consistency` leaves it), as
+    for tracking interpolated onto telemetry times fitted with white noise.
+    """
+    import warnings
+
+    from casep.estimators.joint import coefficient_consistency, flight_rss, overall_consistency
+    from casep.estimators.ols import solve_ols
+
+    lay = jp.layout
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # conditioning: said by the result
+        x_ls = solve_ols(jp, sigma=1.0).fitted_coefficients()  # the tests compare least-squares fits
+    if all(p.is_noise_free() for p in jp.raw):  # rounding residuals: the joint fit must leave them so
+        rms = [float(np.sqrt(np.mean(p.residuals(x_ls[lay.columns(k)]) ** 2))) for k, p in enumerate(jp.raw)]
+        return {"overall": None, "per_coefficient": {}, "noise_free": {
+            "agree": all(p.is_noise_free(r / JOINT_ROUNDING_MARGIN) for p, r in zip(jp.raw, rms)),
+            "residual_rms": dict(zip(lay.labels, rms)), "rounding_level": {
+                lab: p.rounding_floor() for lab, p in zip(lay.labels, jp.raw)}}}
+    rss_joint, own = [], []
+    for k, (w, s) in enumerate(zip(jp.problems, jp.sigmas)):
+        rss_joint.append(float(np.sum(w.residuals(x_ls[lay.columns(k)]) ** 2)))  # as weighed (GLS: whitened)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # each flight alone: ill-conditioned, said by the joint result
             own.append(solve_ols(w, sigma=s))
-    if all(p.is_noise_free() for p in jp.raw):  # rounding residuals: no noise to test the flights against
-        return {"flights": flights, "consistency": {
-            "overall": None, "per_coefficient": {},
-            "note": "noise-free flights (residuals at the rounding level): consistency not tested"}}
     per = {}
     for j in lay.shared:
         var = np.array([np.nan if o.std is None else o.std[j] ** 2 for o in own])
@@ -253,18 +290,66 @@ def flights_summary(res: EstimateResult, jp: JointProblem) -> dict[str, Any]:
         if test is not None:
             per[lay.names[j]] = test.to_dict()
     own_rss = [flight_rss(p.red) for p in jp.problems]
-    rank_ls = jp.rank().rank
     resid_dof = int(sum(p.m - o[1] for p, o in zip(jp.problems, own_rss)))
-    overall = overall_consistency(rss_joint, [o[0] for o in own_rss], jp.sigmas, [o[1] for o in own_rss], rank_ls,
-                                  resid_dof=resid_dof)  # F form: a common error in the sigmas cancels
+    overall = overall_consistency(rss_joint, [o[0] for o in own_rss], jp.sigmas, [o[1] for o in own_rss],
+                                  jp.rank().rank, resid_dof=resid_dof)  # F form: a common error in the sigmas cancels
     cons: dict[str, Any] = {"overall": overall.to_dict() if overall else None, "per_coefficient": per}
+    if overall is not None:
+        s2 = sum(o[0] / s**2 for o, s in zip(own_rss, jp.sigmas)) / max(resid_dof, 1)  # the F form's scale
+        cons["per_flight"] = {lab: float(max(rj - o[0], 0.0) / s**2 / s2)
+                              for lab, rj, o, s in zip(lay.labels, rss_joint, own_rss, jp.sigmas)}
     paired = [lab for lab, pr in zip(lay.labels, jp.interpolated) if pr]
-    own_noise = METHODS[res.method].own_noise_model is not None if res.method in METHODS else False
-    if paired and not own_noise:  # a method with its own Gauss-Markov noise model (gls) models that correlation
+    own_noise = METHODS[method].own_noise_model is not None if method in METHODS else False
+    cons["judged"] = not denoised and not (paired and not own_noise)  # an optimistic test does not fail a result
+    if denoised:
+        cons["note"] = ("de-noised flights: their residuals understate the noise, so this test is optimistic (false "
+                        "alarms) and does not judge the result; fit without --denoise to test the flights' agreement")
+    elif paired and not own_noise:  # a method with its own Gauss-Markov noise model (gls) models that correlation
         cons["note"] = (f"tracking interpolated onto telemetry times in {', '.join(paired)}: its noise is correlated, "
-                        "so white-noise std and these tests are optimistic (false alarms); use the tracking grid "
-                        "(--grid tracking, the default), or --method gls")
-    return {"flights": flights, "consistency": cons}
+                        "so white-noise std and these tests are optimistic (false alarms) and do not judge the result; "
+                        "use the tracking grid (--grid tracking, the default), or --method gls")
+    return cons
+
+
+#: Status of a several-flight result whose flights disagree on the shared coefficients (:func:`judge_consistency`).
+STATUS_DISAGREE = -8
+
+
+def judge_consistency(res: EstimateResult, cons: Mapping[str, Any]) -> EstimateResult:
+    """`res` judged by its flights' consistency (:func:`flights_consistency`): failed (:data:`STATUS_DISAGREE`)
+    when noise-free flights are not all left at their rounding level by one joint fit, or when the Chow test
+    gives p below :data:`casep.estimators.joint.FAIL_P`; a :class:`~casep.exceptions.ConsistencyWarning` below
+    :data:`casep.estimators.joint.WARN_P`. The estimates stay, for inspection: no one set of shared coefficients
+    describes flights that disagree."""
+    import warnings
+
+    from casep.estimators.joint import FAIL_P, WARN_P, largest_disagreements
+    from casep.estimators.registry import failed
+    from casep.exceptions import ConsistencyWarning
+
+    nf = cons.get("noise_free")
+    if nf is not None:
+        if nf["agree"]:
+            return res
+        misfit = ", ".join(f"{lab} {nf['residual_rms'][lab]:.3g} m/s (rounding level {nf['rounding_level'][lab]:.2g})"
+                           for lab in nf["residual_rms"])
+        return failed(res, STATUS_DISAGREE, "failed: the flights disagree: noise-free flights, but no one set of "
+                      f"shared coefficients fits them within {JOINT_ROUNDING_MARGIN:g} x their rounding level; joint "
+                      "least-squares residual RMS "
+                      f"{misfit}. An unmodelled error, another instrument or another model in one of them?")
+    ov = cons.get("overall")
+    if not ov or not cons.get("judged", True) or ov["p_value"] >= WARN_P:
+        return res
+    shares = cons.get("per_flight") or {}
+    flights = ", ".join(f"{lab} {v:.4g}" for lab, v in sorted(shares.items(), key=lambda kv: -kv[1]))
+    what = (f"the flights disagree: Chow test chi2 {ov['chi2']:.4g} on {ov['dof']} dof, p {ov['p_value']:.3g} (warn "
+            f"below {WARN_P:g}, fail below {FAIL_P:g}); share of chi2 per flight: {flights}; largest per coefficient: "
+            f"{largest_disagreements(cons['per_coefficient'])}. An unmodelled error in one flight, a unit or set-up "
+            "mistake, or a noise model that understates the noise?")
+    if ov["p_value"] < FAIL_P:
+        return failed(res, STATUS_DISAGREE, "failed: " + what)
+    warnings.warn(what, ConsistencyWarning, stacklevel=2)
+    return res
 
 
 def _verdict(diag, name: str, scales: Mapping, with_prior: bool) -> str:

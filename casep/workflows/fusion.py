@@ -12,16 +12,18 @@ from typing import Sequence
 
 import numpy as np
 
+from casep.estimators.joint import FAIL_P, WARN_P
 from casep.estimators.result import EstimateResult
 
 __all__ = ["fuse", "fuse_with_ground", "FUSE_WARN_P", "FUSE_FAIL_P"]
 
 
 #: Fused results whose consistency test gives p below this are reported failed (``success`` false,
-#: exit 1): about 5 sigma, far beyond chance; between it and :data:`FUSE_WARN_P`, a warning.
-FUSE_FAIL_P = 1e-6
-#: Consistency p-value below which ``fuse`` warns (as ``casep separate A B`` flags flights).
-FUSE_WARN_P = 0.01
+#: exit 1): about 5 sigma, far beyond chance; between it and :data:`FUSE_WARN_P`, a warning. The levels
+#: of ``casep separate A B`` (:data:`casep.estimators.joint.FAIL_P`, :data:`casep.estimators.joint.WARN_P`).
+FUSE_FAIL_P = FAIL_P
+#: Consistency p-value below which ``fuse`` warns.
+FUSE_WARN_P = WARN_P
 
 
 def _fusion_inputs(results: Sequence[EstimateResult], labels: list[str], names: list[str],
@@ -115,7 +117,7 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
 
     from scipy import linalg, stats
 
-    from casep.estimators.joint import Consistency, coefficient_consistency
+    from casep.estimators.joint import Consistency, coefficient_consistency, largest_disagreements
     from casep.estimators.map import per_flight_names
     from casep.exceptions import ConsistencyWarning
     if len(results) < 2:
@@ -159,8 +161,7 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
         t = coefficient_consistency(np.array([x[j] for x in xs]), np.array([d[j] ** 2 for d in ds]))
         if t is not None:
             per[nm] = t.to_dict()
-    worst = sorted(per, key=lambda m: per[m]["p_value"])[:3]
-    worst_text = ", ".join(f"{m} chi2 {per[m]['chi2']:.4g} (p {per[m]['p_value']:.2g})" for m in worst)
+    worst_text = largest_disagreements(per)
     success, status = True, 1
     message = f"{len(results)} results fused ({', '.join(labels)})"
     if overall.p_value < FUSE_WARN_P:

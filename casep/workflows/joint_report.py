@@ -11,10 +11,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-__all__ = ["joint_result_dict", "joint_summary_lines", "flights_crlb_lines", "DISAGREE_P"]
-
-#: p-value of the Chow test below which the flights are said to disagree.
-DISAGREE_P = 1e-3
+__all__ = ["joint_result_dict", "joint_summary_lines", "flights_crlb_lines"]
 
 
 def joint_result_dict(res: Any, jp: Any, summary: Mapping[str, Any]) -> dict[str, Any]:
@@ -48,20 +45,32 @@ def joint_result_dict(res: Any, jp: Any, summary: Mapping[str, Any]) -> dict[str
         d["covariance"] = [[d["covariance"][i][j] for j in keep] for i in keep]
     d["flights"] = summary["flights"]
     d["consistency"] = summary["consistency"]
+    if isinstance(d.get("diagnostics"), dict):  # said once, at the top level
+        d["diagnostics"] = {k: v for k, v in d["diagnostics"].items() if k != "consistency"}
     return d
 
 
 def joint_summary_lines(summary: Mapping[str, Any]) -> list[str]:
-    """Each flight's samples and noise std, and the flights' consistency (Chow test), one line each."""
+    """Each flight's samples and noise std, and the flights' consistency (Chow test, or for noise-free flights the
+    joint fit's residuals against their rounding level), one line each; the verdict is the result's message
+    (:func:`casep.workflows.flights.judge_consistency`)."""
+    from casep.estimators.joint import FAIL_P, WARN_P
+
     lines = [f"{f['file']}: {f['n_samples']} samples, sigma {f['sigma']:.4g} m/s" for f in summary["flights"]]
-    ov = summary["consistency"]["overall"]
+    cons = summary["consistency"]
+    ov, nf = cons["overall"], cons.get("noise_free")
     if ov:
         lines.append(f"consistency of the flights (Chow test, F form): chi2 {ov['chi2']:.4g}, {ov['dof']} dof, "
                      f"p {ov['p_value']:.3g}"
-                     + ("  <- the flights disagree: an unmodelled error in one of them?"
-                        if ov["p_value"] < DISAGREE_P else ""))
-    if summary["consistency"].get("note"):
-        lines.append("note: " + summary["consistency"]["note"])
+                     + ("  <- the flights disagree" if ov["p_value"] < FAIL_P
+                        else f"  <- below {WARN_P:g}: do the flights agree?" if ov["p_value"] < WARN_P else ""))
+    if nf:
+        lines.append("consistency of the noise-free flights: joint least-squares residual RMS "
+                     + ", ".join(f"{lab} {v:.3g} m/s" for lab, v in nf["residual_rms"].items())
+                     + ("  (at their rounding level: they agree)" if nf["agree"]
+                        else "  <- above their rounding level: the flights disagree"))
+    if cons.get("note"):
+        lines.append("note: " + cons["note"])
     return lines
 
 

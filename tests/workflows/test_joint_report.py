@@ -30,11 +30,19 @@ def test_summary_lines_flag_disagreeing_flights():
     agree = {"flights": flights, "consistency": {"overall": {"chi2": 3.0, "dof": 4, "p_value": 0.5}}}
     lines = joint_summary_lines(agree)
     assert lines[0] == "A.csv: 10 samples, sigma 0.1 m/s" and "disagree" not in lines[1]
-    disagree = {"flights": flights, "consistency": {"overall": {"chi2": 90.0, "dof": 4, "p_value": 1e-6},
+    from casep.estimators.joint import FAIL_P, WARN_P
+
+    disagree = {"flights": flights, "consistency": {"overall": {"chi2": 90.0, "dof": 4, "p_value": FAIL_P / 2},
                                                     "note": "one flight"}}
     lines = joint_summary_lines(disagree)
-    assert lines[1].endswith("<- the flights disagree: an unmodelled error in one of them?")
+    assert lines[1].endswith("<- the flights disagree")
     assert lines[2] == "note: one flight"
+    doubt = {"flights": flights, "consistency": {"overall": {"chi2": 15.0, "dof": 4, "p_value": WARN_P / 2}}}
+    assert joint_summary_lines(doubt)[1].endswith(f"<- below {WARN_P:g}: do the flights agree?")
+    nf = {"flights": flights, "consistency": {"overall": None, "noise_free": {
+        "agree": False, "residual_rms": {"A.csv": 2.5e-4}, "rounding_level": {"A.csv": 1e-9}}}}
+    assert joint_summary_lines(nf)[1] == ("consistency of the noise-free flights: joint least-squares residual RMS "
+                                          "A.csv 0.00025 m/s  <- above their rounding level: the flights disagree")
 
 
 def test_crlb_table():
