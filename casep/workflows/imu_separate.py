@@ -342,11 +342,7 @@ class _Run:
         means; its attitude error turns from the Earth-fixed triad into the launch-inertial frame with
         the fixed rotation ``R = C_lb C_tb^T`` of the pass.
         """
-        from scipy.spatial.transform import Rotation
-
         from casep.model.strapdown import body_errors
-        from casep.navigation.alignment import align
-        from casep.navigation.strapdown import quat_to_dcm
 
         model = self.base if model is None else model
         imu, (t1, t2) = self.imu_k, self.window
@@ -354,34 +350,38 @@ class _Run:
         k = np.searchsorted(nav.t, imu.t[sel])
         n = self.base.n_coefficients
         unit = np.eye(n)
-        f_mean, w_mean = imu.f[sel].mean(axis=0), imu.w[sel].mean(axis=0)
         per = [body_errors(model, nav.q[k], imu.f[sel], imu.w[sel], imu.t[sel] - nav.t[0], unit[j])
                for j in range(n)]
-        R = quat_to_dcm(self.q_aligned) @ self.C_tb.T  # triad -> launch-inertial at the first sample
-        A = np.zeros((3, n))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # a gyrocompassing warning per step: said once, by the pass itself
-            C_ref = align(np.array([t1, t2]), np.tile(w_mean, (2, 1)), np.tile(f_mean, (2, 1)), self.window,
-                          self.nav_site, **self.heading).C_tb
-            for j, (df, dw) in enumerate(per):
-                df, dw = df.mean(axis=0), dw.mean(axis=0)
-                size = max(np.abs(df).max() / 9.8, np.abs(dw).max() / 7.3e-5)
-                if size == 0:
-                    continue
-                h = _ALIGN_STEP_RAD / size
-                phi = []
-                for s in (h, -h):
-                    C = align(np.array([t1, t2]), np.tile(w_mean + s * dw, (2, 1)), np.tile(f_mean + s * df, (2, 1)),
-                              self.window, self.nav_site, **self.heading).C_tb
-                    phi.append(R @ Rotation.from_matrix(C_ref @ C.T).as_rotvec())  # C = (I - [phi x]) C_ref
-                A[:, j] = (phi[0] - phi[1]) / (2 * h)
-        return A
+        directions, steps = [], []
+        for df, dw in per:
+            df, dw = df.mean(axis=0), dw.mean(axis=0)
+            size = max(np.abs(df).max() / 9.8, np.abs(dw).max() / 7.3e-5)
+            directions.append((df, dw))
+            steps.append(_ALIGN_STEP_RAD / size if size > 0 else 0.0)
+        return self._alignment_derivative(directions, steps)
 
     def levelling_jacobian(self) -> np.ndarray:
         """``L = d phi0 / d mean(delta_f)`` (3 x 3, rad per m/s^2): the start attitude error (launch-inertial) per
         unit error of the pad window's mean body specific force, by central differences of the alignment of the
         last pass (as :meth:`alignment_sensitivity`, along each body axis): what the accelerometer noise on the
         pad does to the start (:func:`imu_noise_budget`)."""
+        imu, (t1, t2) = self.imu_k, self.window
+        sel = (imu.t >= t1) & (imu.t <= t2)
+        h = _ALIGN_STEP_RAD * float(np.linalg.norm(imu.f[sel].mean(axis=0)))  # m/s^2: turns the attitude by ~1e-6 rad
+        return self._alignment_derivative([(np.eye(3)[i], np.zeros(3)) for i in range(3)], [h] * 3)
+
+    def _alignment_derivative(self, directions: list[tuple[np.ndarray, np.ndarray]], steps: list[float]) -> np.ndarray:
+        """The derivative of the last pass's start attitude error (launch-inertial) along changes of the pad window's
+        mean body specific force and rate, by central differences: column j along ``(df_j, dw_j)`` (`directions`)
+        with step ``h_j`` (`steps`; 0: the column is 0).
+
+        The alignment depends on the pad data only through their means over the window
+        (:func:`casep.navigation.alignment.align`), so each step aligns two rows holding the perturbed means;
+        with ``C`` the perturbed triad and ``C_ref`` the unperturbed one (``C = (I - [phi x]) C_ref``), ``phi`` is
+        the rotation vector of ``C_ref C^T``, turned into the launch-inertial frame by the fixed ``R = C_lb C_tb^T``::
+
+            A[:, j] = (phi(+h_j) - phi(-h_j)) / (2 h_j)
+        """
         from scipy.spatial.transform import Rotation
 
         from casep.navigation.alignment import align
@@ -391,18 +391,21 @@ class _Run:
         sel = (imu.t >= t1) & (imu.t <= t2)
         f_mean, w_mean = imu.f[sel].mean(axis=0), imu.w[sel].mean(axis=0)
         R = quat_to_dcm(self.q_aligned) @ self.C_tb.T  # triad -> launch-inertial at the first sample
-        h = _ALIGN_STEP_RAD * float(np.linalg.norm(f_mean))  # m/s^2: turns the attitude by about 1e-6 rad
-        tt, ww = np.array([t1, t2]), np.tile(w_mean, (2, 1))
-        L = np.zeros((3, 3))
+        tt = np.array([t1, t2])
+        A = np.zeros((3, len(directions)))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # a gyrocompassing warning per step: said once, by the pass itself
-            C_ref = align(tt, ww, np.tile(f_mean, (2, 1)), self.window, self.nav_site, **self.heading).C_tb
-            for i in range(3):
-                phi = [R @ Rotation.from_matrix(C_ref @ align(tt, ww, np.tile(f_mean + s * np.eye(3)[i], (2, 1)),
-                                                             self.window, self.nav_site, **self.heading).C_tb.T
-                                                 ).as_rotvec() for s in (h, -h)]
-                L[:, i] = (phi[0] - phi[1]) / (2 * h)
-        return L
+            C_ref = align(tt, np.tile(w_mean, (2, 1)), np.tile(f_mean, (2, 1)), self.window, self.nav_site,
+                          **self.heading).C_tb
+            for j, ((df, dw), h) in enumerate(zip(directions, steps)):
+                if h == 0:
+                    continue
+                phi = [R @ Rotation.from_matrix(C_ref @ align(tt, np.tile(w_mean + s * dw, (2, 1)),
+                                                             np.tile(f_mean + s * df, (2, 1)), self.window,
+                                                             self.nav_site, **self.heading).C_tb.T).as_rotvec()
+                       for s in (h, -h)]
+                A[:, j] = (phi[0] - phi[1]) / (2 * h)
+        return A
 
     def solve(self, D: np.ndarray | None, spec: FitSpec) -> tuple[EstimateResult, NavigationResult, FlightData,
                                                                    ErrorModel, Any]:
