@@ -384,6 +384,8 @@ STATUS_MAGNITUDE = -5
 #: Status of a result whose flight's tracking noise differs between stretches beyond what one noise level per axis
 #: can weight (casep.checks.tracking_quality.noise_problem): the result says what the flight determines instead.
 STATUS_TRACKING = -6
+#: Status of a result whose residuals are a model error, not noise (casep.checks.plausibility.misfit_problem).
+STATUS_MISFIT = -8
 
 
 def failed(res: EstimateResult, status: int, message: str) -> EstimateResult:
