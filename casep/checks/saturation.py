@@ -41,11 +41,14 @@ or a navigation from that sample on.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from casep.units import ACC_RANGES_G, FULL_SCALE_TOLERANCE, G0, GYR_RANGES_DPS
+
+if TYPE_CHECKING:
+    from casep.io.flight import FlightData
 
 __all__ = ["held_full_scale", "held_mask", "HeldFullScale", "check_full_scale", "runs", "FULL_SCALE_UNITS",
            "with_full_scales", "screen_saturation", "SENSOR_COLUMNS",
@@ -177,7 +180,8 @@ def _rail(ext: float, side: str, column: np.ndarray, sensor: str, si: float | No
 SENSOR_COLUMNS = {"gyro": ("w_x", "w_y", "w_z"), "accelerometer": ("fb_x", "fb_y", "fb_z")}
 
 
-def with_full_scales(flight, *, gyr_range: float | None = None, acc_range: float | None = None):
+def with_full_scales(flight: FlightData, *, gyr_range: float | None = None,
+                     acc_range: float | None = None) -> FlightData:
     """`flight` with its sensors' declared full scales (SI: rad/s, m/s^2; None: not declared) recorded in
     ``meta["full_scales"]`` for :func:`screen_saturation`."""
     import dataclasses
@@ -186,7 +190,7 @@ def with_full_scales(flight, *, gyr_range: float | None = None, acc_range: float
                                                                              "acc_range": acc_range}})
 
 
-def screen_saturation(flight):
+def screen_saturation(flight: FlightData) -> FlightData:
     """`flight` without the rows from its first saturated body rate or body specific force on, said with a warning.
 
     A strapdown telemetry file (``w_*``, ``fb_*``: :mod:`casep.io.strapdown`) holds the readings the INS
@@ -215,7 +219,8 @@ def screen_saturation(flight):
     inp = meta.get("pair_inputs")  # a pair: the telemetry's own samples, at its own rate
     t_src, sig = (inp.t_tel, inp.signals) if inp is not None else (flight.t, flight.signals)
     declared = meta.get("full_scales") or {}
-    found, first = [], math.inf
+    found: list[str] = []
+    first = math.inf
     for sensor, cols in SENSOR_COLUMNS.items():
         if not all(c in sig for c in cols):
             continue
