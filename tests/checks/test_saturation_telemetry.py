@@ -99,24 +99,25 @@ def simulate(clip_dps: float, seed: int = 3):
     return tel, trk, D, held
 
 
-@pytest.fixture(scope="module")
-def clipped_at_125(tmp_path_factory):
-    """Gyro clipped at the nominal +-125 deg/s range from t ~ 43 s: the telemetry and tracking files, the truth."""
-    tel, trk, D, held = simulate(125.0)
-    d = tmp_path_factory.mktemp("clip125")
+def _files(tmp_path_factory, clip_dps: float):
+    """The telemetry and tracking files of :func:`simulate`, the truth and the time of the first clipped sample."""
+    tel, trk, D, held = simulate(clip_dps)
+    d = tmp_path_factory.mktemp(f"clip{clip_dps:g}")
     write_table(d / "tel.csv", tel)
     write_table(d / "trk.csv", trk)
     return d / "tel.csv", d / "trk.csv", D, tel["t"][np.flatnonzero(held.any(axis=1))[0]]
+
+
+@pytest.fixture(scope="module")
+def clipped_at_125(tmp_path_factory):
+    """Gyro clipped at the nominal +-125 deg/s range from t ~ 43 s."""
+    return _files(tmp_path_factory, 125.0)
 
 
 @pytest.fixture(scope="module")
 def clipped_at_110(tmp_path_factory):
     """Gyro clipped at +-110 deg/s (no nominal range, nothing declared) from t ~ 36 s."""
-    tel, trk, D, held = simulate(110.0)
-    d = tmp_path_factory.mktemp("clip110")
-    write_table(d / "tel.csv", tel)
-    write_table(d / "trk.csv", trk)
-    return d / "tel.csv", d / "trk.csv", D, tel["t"][np.flatnonzero(held.any(axis=1))[0]]
+    return _files(tmp_path_factory, 110.0)
 
 
 def _separate(tel, trk):
