@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from casep.checks.late_start import warn_late_start
 from casep.checks.plausibility import check_dv_not_zero, check_enough_samples, check_flight, warn_setup
+from casep.checks.saturation import screen_saturation
 from casep.checks.tracking_quality import screen_tracking
 from casep.io.flight import FlightData
 from casep.model.error_model import ErrorModel
@@ -61,8 +62,9 @@ def flight_problem(flight: FlightData, model: ErrorModel, *, keep_sv: bool | Non
     -------
     Problem
         Of the flight without the tracking epochs :func:`casep.checks.tracking_quality.screen_tracking`
-        leaves out (stale, impossible), said with warnings.
+        leaves out (stale, impossible) and the rows from a saturated telemetry sensor on
+        (:func:`casep.checks.saturation.screen_saturation`), said with warnings.
     """
-    flight = screen_tracking(flight)
+    flight = screen_saturation(screen_tracking(flight))
     check_before_estimation(flight, model)
     return Problem.from_flight(flight, model, keep_sv=keep_sv, block_rows=block_rows)

@@ -82,7 +82,7 @@ from casep.regression.problem import (  # NOISE_FREE re-exported: the one consta
 from casep.units import G0
 
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
-           "min_samples",
+           "min_samples", "dv_noise", "misfit_problem", "MISFIT_RATIO", "MISFIT_NOISE_FLOOR",
            "setup_problems", "warn_setup"]
 
 
@@ -329,12 +329,17 @@ def _time_units(h: float, T: float) -> list[str]:
     return [u for u, k in scales if STEP_LOW <= h * k <= STEP_HIGH and T * k <= DURATION_HIGH]
 
 
+def dv_noise(flight: FlightData) -> np.ndarray:
+    """The robust sample-to-sample noise of dv per axis, m/s: ``MAD(d) / sqrt(1.5)``, ``d`` the spike statistic of
+    the observed rows (white noise of sigma s gives ``Var d = 1.5 s^2``; a smooth dv contributes ``~dv'' dt^2 / 2``)."""
+    return np.array([_robust_sigma(d) for d in _spikes(flight.dv[flight.observed]).T]) / np.sqrt(1.5)
+
+
 def _check_dv_noise(flight: FlightData) -> None:
     """Robust sample-to-sample scatter of dv against tracking noise."""
     if flight.n_observed < 5:
         return
-    # White noise of sigma s gives Var(d_k) = 1.5 s^2; smooth dv contributes ~dv'' dt^2 / 2.
-    noise = np.array([_robust_sigma(d) for d in _spikes(flight.dv[flight.observed]).T]) / np.sqrt(1.5)
+    noise = dv_noise(flight)
     i = int(np.argmax(noise))
     if noise[i] > DV_NOISE_HIGH:
         hint = _unit_hint(noise[i], 1e-3, 1.0, (("cm/s (divide by 100)", 1e-2), ("mm/s (divide by 1000)", 1e-3)))
@@ -477,6 +482,53 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         _warn(f"{source}: residuals track the jerk da/dt: coefficient {test.jerk:.3g} +- {test.jerk_std:.2g} s^2 "
               f"(t = {test.jerk_t:.3g}); tracking smoothing or interpolation that distorts the velocity?",
               TimeOffsetWarning)
+
+
+#: A fit's residual RMS above this many times the tracking's sample-to-sample noise (:func:`dv_noise`, at least
+#: :data:`MISFIT_NOISE_FLOOR`) on an axis whose residuals the noise model leaves correlated is a model error.
+MISFIT_RATIO = 100.0
+#: m/s: the noise the ratio is taken against at least (the low end of radar and GNSS tracking noise), so that
+#: tracking held between fixes (no sample-to-sample scatter) is not read as noise-free.
+MISFIT_NOISE_FLOOR = 0.01
+
+
+def misfit_problem(flight: FlightData, residual_rms: dict, correlated) -> str | None:
+    """Why a fit's residuals are a model error rather than noise, or None.
+
+    Tracking noise, white or correlated, has a sample-to-sample part: radar and GNSS velocities scatter by
+    0.01-1 m/s from one epoch to the next, and a Gauss-Markov error of std ``s`` and time constant ``T``
+    steps by ``s sqrt(2 dt / T)``. A residual RMS of :data:`MISFIT_RATIO` (100) times that scatter or more
+    would need a Gauss-Markov error smooth over ``10^4`` samples. Together with residuals that the fitted
+    noise model leaves correlated (the whiteness test rejects that axis: `correlated`), it is what a model
+    error leaves (a saturated sensor the INS integrated, a frame or set-up mistake, a missing term): the
+    noise model then absorbs it as a slow Gauss-Markov error of metres per second and the estimates
+    take the rest, far from the instruments' (hundreds of mg, degrees per second), whatever their std say.
+
+    Parameters
+    ----------
+    flight : FlightData
+        The flight fitted (its observed dv).
+    residual_rms : dict
+        Residual RMS per axis ``{"x": m/s, ...}`` (``EstimateResult.residual_rms``).
+    correlated : sequence of str
+        The axes whose whitened residuals the whiteness test rejects.
+
+    Returns
+    -------
+    str or None
+        The axes, their residual RMS, their noise and the ratio.
+    """
+    if flight.n_observed < 5:
+        return None
+    noise = np.maximum(dv_noise(flight), MISFIT_NOISE_FLOOR)
+    bad = [(a, float(residual_rms.get(a) or 0.0), float(noise[i])) for i, a in enumerate("xyz")
+           if a in correlated and (residual_rms.get(a) or 0.0) > MISFIT_RATIO * noise[i]]
+    if not bad:
+        return None
+    listed = ", ".join(f"{a} {r:.4g} m/s = {r / n:.3g} x {n:.2g} m/s" for a, r, n in bad)
+    return (f"residual RMS at least {MISFIT_RATIO:g} times the tracking's sample-to-sample noise, and correlated after "
+            f"the noise model, on {len(bad)} axis(es) ({listed}): a model error (a saturated sensor the INS "
+            "integrated, a frame, set-up or unit mistake, a missing term), not noise; the estimates absorb it")
 
 
 def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5, locate=None) -> None:

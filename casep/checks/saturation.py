@@ -41,14 +41,18 @@ or a navigation from that sample on.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from casep._kernels import runs
 from casep.units import ACC_RANGES_G, FULL_SCALE_TOLERANCE, G0, GYR_RANGES_DPS
 
+if TYPE_CHECKING:
+    from casep.io.flight import FlightData
+
 __all__ = ["held_full_scale", "held_mask", "HeldFullScale", "check_full_scale", "FULL_SCALE_UNITS",
+           "with_full_scales", "screen_saturation", "SENSOR_COLUMNS",
            "NOMINAL_RANGES", "ADC_BITS", "CLIP_RUN", "CLIP_MARGIN", "HELD_FRACTION"]
 
 #: Word lengths of the converters raw counts come from.
@@ -165,3 +169,70 @@ def _rail(ext: float, side: str, column: np.ndarray, sensor: str, si: float | No
     v = abs(ext) * si / per
     near = min(NOMINAL_RANGES[sensor], key=lambda r: abs(v / r - 1.0))
     return f"the nominal +-{near:g} {name} range" if abs(v / near - 1.0) <= FULL_SCALE_TOLERANCE else None
+
+
+#: The strapdown telemetry's sensor columns (:mod:`casep.io.strapdown`, SI) screened by :func:`screen_saturation`.
+SENSOR_COLUMNS = {"gyro": ("w_x", "w_y", "w_z"), "accelerometer": ("fb_x", "fb_y", "fb_z")}
+
+
+def with_full_scales(flight: FlightData, *, gyr_range: float | None = None,
+                     acc_range: float | None = None) -> FlightData:
+    """`flight` with its sensors' declared full scales (SI: rad/s, m/s^2; None: not declared) recorded in
+    ``meta["full_scales"]`` for :func:`screen_saturation`."""
+    import dataclasses
+
+    return dataclasses.replace(flight, meta={**flight.meta, "full_scales": {"gyr_range": gyr_range,
+                                                                             "acc_range": acc_range}})
+
+
+def screen_saturation(flight: FlightData) -> FlightData:
+    """`flight` without the rows from its first saturated body rate or body specific force on, said with a warning.
+
+    A strapdown telemetry file (``w_*``, ``fb_*``: :mod:`casep.io.strapdown`) holds the readings the INS
+    integrated; where they are held at a full scale (:func:`held_full_scale`, the rule of calibration and
+    navigation; the declared full scales of ``meta["full_scales"]``, :func:`with_full_scales`, else the nominal
+    ranges) the INS integrated the full scale instead of the motion, and its attitude and velocity stay wrong
+    from that sample to the end of the record (an attitude error ``phi`` turns every later specific force into
+    a velocity error ``f x phi``). The observed rows from the first saturated telemetry sample on are left out
+    (``observed`` False), as the raw-IMU path leaves them out; ``meta["saturation"]`` records what was found.
+    A flight screened already, or without those columns, is returned as it is.
+
+    Warns
+    -----
+    SaturationWarning
+        The columns, their runs at full scale (rows and times of the telemetry), the full scale, and the rows left
+        out.
+    """
+    import dataclasses
+    import warnings
+
+    from casep.exceptions import SaturationWarning
+
+    meta = flight.meta
+    if "saturation" in meta:
+        return flight
+    inp = meta.get("pair_inputs")  # a pair: the telemetry's own samples, at its own rate
+    t_src, sig = (inp.t_tel, inp.signals) if inp is not None else (flight.t, flight.signals)
+    declared = meta.get("full_scales") or {}
+    found: list[str] = []
+    first = math.inf
+    for sensor, cols in SENSOR_COLUMNS.items():
+        if not all(c in sig for c in cols):
+            continue
+        fs = declared.get("gyr_range" if sensor == "gyro" else "acc_range")
+        unit, per = FULL_SCALE_UNITS[sensor]
+        for h in held_full_scale(np.column_stack([sig[c] for c in cols]), sensor, declared=fs):
+            n = sum(b - a for a, b in h.runs)
+            a0, b1 = h.runs[0][0], h.runs[-1][1] - 1
+            first = min(first, float(t_src[a0]))
+            found.append(f"{cols[h.axis]} at its {h.side} {h.value / per:.6g} {unit} ({h.why}) for {n} samples in "
+                         f"{len(h.runs)} run(s), rows {a0 + 1}..{b1 + 1}, t = {t_src[a0]:.10g} .. {t_src[b1]:.10g} s")
+    if not found:
+        return dataclasses.replace(flight, meta={**meta, "saturation": None})
+    cut = flight.observed & (flight.t >= first)
+    warnings.warn(SaturationWarning(
+        f"{flight.source}: the telemetry's sensors saturated: " + "; ".join(found) + ". The INS integrated the full "
+        f"scale, not the motion: its attitude and velocity are wrong from t = {first:.10g} s on, so the "
+        f"{int(cut.sum())} observed rows from there (of {flight.n_observed}) are left out of the fit"), stacklevel=3)
+    rec = {"from_s": first, "rows_left_out": int(cut.sum()), "found": found}
+    return dataclasses.replace(flight, observed=flight.observed & ~cut, meta={**meta, "saturation": rec})

@@ -28,7 +28,8 @@ def add_parser(sub: Any) -> None:
                         "reads it): navigated, paired with --tracking and separated; needs --launch-site, "
                         "--launch-time (the tracking file's time scale) and --align")
     flight_options.add_alignment(p, what="with --imu: ")
-    flight_options.add_full_scales(p, "with --imu: the rows from the first clipped sample on are left out")
+    flight_options.add_full_scales(p, "with --imu, or a strapdown telemetry file (w_*, fb_*): the rows from the "
+                                   "first clipped sample on are left out")
     p.add_argument("--iterate", action=argparse.BooleanOptionalAction, default=None,
                    help="with --imu: correct the IMU by the estimate, re-navigate, rebuild S_V and solve again "
                         "until the correction of every determined combination is below a tenth of its std "
@@ -109,9 +110,18 @@ def run(args: argparse.Namespace) -> int:
     if len(args.flight) > 1:
         from casep.cli.separate_flights import separate_flights
 
+        for flag, value in (("--acc-range", args.acc_range), ("--gyr-range", args.gyr_range)):
+            if value is not None:
+                raise ValueError(f"{flag} is used with --imu IMU.csv or one strapdown telemetry file, not with "
+                                 f"{len(args.flight)} flights: separate each flight")
+
         return separate_flights(args, model, spec)
     args.flight = args.flight[0]
     flight = inputs.read_one(args)
+    if ranges["acc_range"] is not None or ranges["gyr_range"] is not None:
+        from casep.checks.saturation import with_full_scales
+
+        flight = with_full_scales(flight, **ranges)  # the telemetry's w_*, fb_* screened against them
     from casep.workflows.separate import separate
 
     with recorded() as caught:  # passed on to main(), which prints them; the report quotes them

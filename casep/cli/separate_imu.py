@@ -18,7 +18,6 @@ def imu_only(args: argparse.Namespace) -> None:
     if not args.imu:
         for flag, value in (("--align", args.align), ("--heading", args.heading), ("--iterate", args.iterate),
                             ("--max-iterations", args.max_iterations),
-                            ("--acc-range", args.acc_range), ("--gyr-range", args.gyr_range),
                             ("--heading-axis", None if args.heading_axis == "x" else args.heading_axis)):
             if value is not None:
                 raise ValueError(f"{flag} is used only with --imu IMU.csv")

@@ -384,6 +384,20 @@ STATUS_MAGNITUDE = -5
 #: Status of a result whose flight's tracking noise differs between stretches beyond what one noise level per axis
 #: can weight (casep.checks.tracking_quality.noise_problem): the result says what the flight determines instead.
 STATUS_TRACKING = -6
+#: Status of a result whose iteration did not converge (or whose correction could not be applied):
+#: casep.workflows.imu_separate.
+STATUS_NOT_CONVERGED = -7
+#: Status of a result whose residuals are a model error, not noise (casep.checks.plausibility.misfit_problem).
+STATUS_MISFIT = -8
+#: Status of a several-flight result whose flights disagree on the shared coefficients
+#: (casep.workflows.flights.judge_consistency).
+STATUS_DISAGREE = -9
+#: Status of a result whose prior the data contradict (casep.estimators.rls.prior_conflict).
+STATUS_PRIOR_CONFLICT = -10
+#: Every failure status above, by name: one status, one meaning (tests/estimators/test_statuses.py).
+FAILURE_STATUSES = {"setup": STATUS_SETUP, "magnitude": STATUS_MAGNITUDE, "tracking": STATUS_TRACKING,
+                    "not converged": STATUS_NOT_CONVERGED, "misfit": STATUS_MISFIT, "disagree": STATUS_DISAGREE,
+                    "prior conflict": STATUS_PRIOR_CONFLICT}
 
 
 def failed(res: EstimateResult, status: int, message: str) -> EstimateResult:

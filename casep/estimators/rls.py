@@ -72,7 +72,7 @@ from typing import TYPE_CHECKING, Any, Unpack
 
 import numpy as np
 
-from casep.estimators._base import Prepared, finish
+from casep.estimators._base import STATUS_PRIOR_CONFLICT, Prepared, finish
 from casep.estimators._options import Choices, Interval, Labels, Method, Option
 
 if TYPE_CHECKING:
@@ -270,8 +270,6 @@ def _solve(pb: Prepared, *, method: Method, p0: float, weight: float, forgetting
 
 #: |z| of the least-squares estimate against the prior above this: prior-data conflict (Gaussian P ~ 6e-7).
 PRIOR_CONFLICT_Z = 5.0
-#: Status of a result whose prior the data contradict.
-STATUS_PRIOR_CONFLICT = -6
 
 
 def prior_conflict(problem, res: EstimateResult, prior_std: float, sigma: float) -> EstimateResult:

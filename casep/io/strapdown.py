@@ -20,7 +20,12 @@ Checks, each naming the file, the columns, the rows and the numbers:
   better, ``w`` read as each step's mean rate written at its end (a navigator of angle increments
   writing ``dtheta / step``: :data:`RATE_READINGS`). Their RMS difference
   relative to the RMS step rotation above :data:`RATE_TOL` (5 %) is a :class:`StrapdownWarning` with its
-  size (deg/s) and the worst row, unless one explanation fits, which is an error saying so:
+  size (deg/s) and the worst row, unless one explanation fits, which is an error saying so, or the
+  disagreement is systematic, an error too: the gain ``G`` with ``rv ~ G inc + b dt`` (least squares, a
+  bias ``b`` allowed) departing from the identity by more than :data:`GAIN_TOL` (5 %) in an element
+  determined beyond :data:`GAIN_Z` std
+  (the rates times 3, an axis negated, two axes swapped, times 1.1: the INS integrated other rates than
+  the file's ``w``, whose sensor errors it shares; a model fitted on them gets the gyro terms wrong):
 
   * ``w`` in deg/s: the quaternions turn by 1/57.3 of the integrated rate (multiply by pi/180);
   * the other quaternion conventions: scalar last (the columns hold x, y, z, w), or
@@ -54,7 +59,8 @@ from casep.rotations import (
 )
 
 __all__ = ["StrapdownWarning", "strapdown_force", "check_strapdown", "compare_force", "FORCE_TOL",
-           "quaternion_dcm_array", "RATE_READINGS", "NORM_TOL", "RATE_TOL", "MIN_ROTATION", "RATE_PEAK_HIGH",
+           "quaternion_dcm_array", "RATE_READINGS", "NORM_TOL", "RATE_TOL", "GAIN_TOL", "GAIN_Z", "MIN_ROTATION",
+           "RATE_PEAK_HIGH",
            "CONVENTIONS", "STRAPDOWN_COLUMNS", "QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS"]
 
 #: The strapdown telemetry columns (``docs/reference/file-formats.md``): the INS attitude (Hamilton unit
@@ -71,6 +77,16 @@ NORM_TOL = 1e-6
 #: which the attitude and the body rate disagree (5 %: far above the integration's error on a rate that is
 #: smooth over a few samples).
 RATE_TOL = 0.05
+#: The systematic part of a disagreement, ``max |G_ij - I_ij|`` with ``G`` the gain that maps the integrated
+#: rate onto the quaternion steps (its elements determined beyond GAIN_Z std), above which it is an error.
+#: The INS integrates its own measured rate, so its sensor errors are in both columns alike and cancel:
+#: only a compensation the INS applies to its readings before integrating them (a calibrated scale factor
+#: and misalignment: a few per cent for the cheapest MEMS gyros) or a mistake in the file makes G differ
+#: from the identity. 5 %: beyond any such compensation; a noise-like disagreement (rates decimated from a
+#: faster navigator) leaves G at I.
+GAIN_TOL = 0.05
+#: An element of G is judged when it departs from the identity by this many of its std (its axis turned enough).
+GAIN_Z = 5.0
 #: Total rotation (rad, sum of the step angles) below which the attitude is not compared with the rate.
 MIN_ROTATION = 0.05
 #: Body-rate peak, rad/s, above which a rate is implausible for a vehicle (20 rev/s spin ~ 126 rad/s).
@@ -163,10 +179,37 @@ def _rate_evidence(t: np.ndarray, q: np.ndarray, w: np.ndarray) -> dict[str, Any
     _, reading, inc, fits = best
     rv = steps[next(iter(CONVENTIONS))]
     err = np.linalg.norm(rv - inc, axis=1) / dt  # rad/s per step
+    gain, bias, systematic = _rate_gain(rv, inc, dt)
     out.update(fits=fits, rate_reading=reading, rms_rate_error_rad_s=float(np.sqrt(np.mean(err**2))),
-               worst_row=int(np.argmax(err)) + 2, worst_rate_error_rad_s=float(err.max()),
-               rms_rate_rad_s=float(np.sqrt(np.mean(np.sum(w**2, 1)))))
+               worst_row=int(np.argmax(err)) + 2, worst_t=float(t[int(np.argmax(err)) + 1]),
+               worst_rate_error_rad_s=float(err.max()), rms_rate_rad_s=float(np.sqrt(np.mean(np.sum(w**2, 1)))),
+               rate_gain=[[float(x) if np.isfinite(x) else None for x in row] for row in gain],
+               rate_bias_rad_s=bias.tolist(), systematic=systematic)
     return out
+
+
+def _rate_gain(rv: np.ndarray, inc: np.ndarray, dt: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The gain ``G`` and bias ``b`` (rad/s) that map the rate's rotation vectors onto the quaternion steps,
+    ``rv_k ~ G inc_k + b dt_k`` (least squares), and the largest determined departure of ``G`` from the
+    identity: ``max |G_ij - I_ij|`` over the elements beyond :data:`GAIN_Z` of their std (module notes,
+    :data:`GAIN_TOL`). ``var G_kj = s_k^2 / |a_j - P a_j|^2``, ``a_j`` the rate's column j and ``P`` the
+    projection on the other columns: an axis turning at a constant rate is the bias's twin, and an axis that
+    hardly turns says nothing, so their columns of ``G`` are undetermined (NaN) and not judged."""
+    A = np.column_stack([inc, dt])
+    coef, *_ = np.linalg.lstsq(A, rv, rcond=None)  # (4, 3): rv = A coef
+    gain, bias = coef[:3].T, coef[3]
+    s2 = np.sum((rv - A @ coef) ** 2, axis=0) / max(rv.shape[0] - 4, 1)  # residual variance per output axis
+    for j in range(3):
+        others = np.delete(A, j, axis=1)
+        part = A[:, j] - others @ np.linalg.lstsq(others, A[:, j], rcond=None)[0]  # a_j - P a_j
+        own = float(part @ part)
+        if own <= 1e-12 * float(A[:, j] @ A[:, j]) or own == 0.0:
+            gain[:, j] = np.nan
+            continue
+        sure = np.abs(gain[:, j] - np.eye(3)[:, j]) > GAIN_Z * np.sqrt(s2 / own)
+        gain[:, j] = np.where(sure | (np.sqrt(s2 / own) < GAIN_TOL / GAIN_Z), gain[:, j], np.nan)  # judged or judgeable
+    off = np.abs(gain - np.eye(3))
+    return gain, bias, float(np.nanmax(off)) if np.isfinite(off).any() else 0.0
 
 
 def check_strapdown(src: str, t: np.ndarray, q: np.ndarray, fb: np.ndarray, w: np.ndarray, *,
@@ -235,27 +278,38 @@ def _judge_rate_fits(src: str, ev: dict[str, Any], error: Any) -> None:
     fits = ev["fits"]
     declared = next(iter(fits))
     mine = fits[declared]
-    if mine["mismatch"] <= RATE_TOL:
-        return
     wcols = ", ".join(BODY_RATE_COLUMNS)
-    if mine["scaled_mismatch"] <= RATE_TOL and abs(mine["scale"] / _DEG - 1.0) < 0.1:
+    if mine["mismatch"] <= RATE_TOL and ev["systematic"] <= GAIN_TOL:
+        return
+    if mine["mismatch"] > RATE_TOL and mine["scaled_mismatch"] <= RATE_TOL and abs(mine["scale"] / _DEG - 1.0) < 0.1:
         raise error(f"the body rate looks like deg/s, not rad/s: the attitude (q_*) turns by {mine['scale']:.5g} "
                     f"times the integrated rate (1/{1 / mine['scale']:.4g}; pi/180 = 1/57.30), which then agrees "
                     f"within {100 * mine['scaled_mismatch']:.2g} % (as rad/s it is {100 * mine['mismatch']:.3g} % "
                     f"off, over rows 1-{ev['rows']}). Give {wcols} in rad/s: multiply by pi/180", "w_x", None)
     for name, fit in list(fits.items())[1:]:
-        if fit["mismatch"] <= RATE_TOL:
+        if fit["mismatch"] <= RATE_TOL < mine["mismatch"]:
             raise error(f"the quaternions look {name}: read so, the integrated body rate ({wcols}) agrees with "
                         f"their steps within {100 * fit['mismatch']:.2g} %, read as declared (Hamilton, scalar "
                         f"first, body to navigation) it is {100 * mine['mismatch']:.3g} % off (rows 1-{ev['rows']}). "
                         "Convert them to "
                         "the declared convention", ", ".join(QUATERNION_COLUMNS), None)
+    what = (f"the attitude (q_*) disagrees with the integrated body rate ({wcols}) by "
+            f"{ev['rms_rate_error_rad_s'] / _DEG:.3g} deg/s RMS ({100 * mine['mismatch']:.3g} % of the step rotation; "
+            f"worst {ev['worst_rate_error_rad_s'] / _DEG:.3g} deg/s at row {ev['worst_row']}, "
+            f"t = {ev['worst_t']:.6g} s; "
+            f"rows 1-{ev['rows']}), against {ev['rms_rate_rad_s'] / _DEG:.3g} deg/s RMS body rate")
+    if ev["systematic"] > GAIN_TOL:
+        G = np.array(ev["rate_gain"], dtype=float)
+        raise error(f"{what}. The quaternion steps are G times the integrated rate with G = "
+                    + "[" + "; ".join(" ".join(f"{x:.3g}" if np.isfinite(x) else "?" for x in row) for row in G) + "]"
+                    f" (? where the flight does not determine it; an element {100 * ev['systematic']:.3g} % away "
+                    f"from the identity, beyond the {100 * GAIN_TOL:g} % "
+                    "a gyro compensation could apply): these are not the rates the INS integrated (axes swapped, a "
+                    "sign, a factor?). Give the INS's own body rate, in rad/s, body axes", wcols, None)
     warnings.warn(StrapdownWarning(
-        f"{src}: the attitude (q_*) disagrees with the integrated body rate ({wcols}) by "
-        f"{ev['rms_rate_error_rad_s'] / _DEG:.3g} deg/s RMS ({100 * mine['mismatch']:.3g} % of the step rotation; "
-        f"worst {ev['worst_rate_error_rad_s'] / _DEG:.3g} deg/s at row {ev['worst_row']}), against "
-        f"{ev['rms_rate_rad_s'] / _DEG:.3g} deg/s RMS body rate; no other quaternion convention or rate unit "
-        "explains it: check that q, fb and w are the INS's own, on one time base"), stacklevel=4)
+        f"{src}: {what}; no other quaternion convention or rate unit explains it, and its systematic part (a gain) is "
+        f"{100 * ev['systematic']:.2g} % (bias {', '.join(f'{b / _DEG:.3g}' for b in ev['rate_bias_rad_s'])} deg/s): "
+        "check that q, fb and w are the INS's own, on one time base"), stacklevel=4)
 
 
 #: RMS of ``f - C(q) fb`` relative to the RMS of f above which a file's f_* and its strapdown columns disagree.

@@ -25,7 +25,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from casep.checks.flight import flight_problem
-from casep.estimators.registry import METHODS
+from casep.estimators.registry import METHODS, STATUS_DISAGREE
 from casep.estimators.result import EstimateResult
 from casep.estimators.solve import fit, flight_sigmas, joint_rows
 from casep.estimators.spec import FitSpec
@@ -311,8 +311,6 @@ def flights_consistency(jp: JointProblem, method: str = "ols", *, denoised: bool
     return cons
 
 
-#: Status of a several-flight result whose flights disagree on the shared coefficients (:func:`judge_consistency`).
-STATUS_DISAGREE = -8
 
 
 def judge_consistency(res: EstimateResult, cons: Mapping[str, Any]) -> EstimateResult:

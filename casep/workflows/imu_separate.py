@@ -90,6 +90,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from casep.estimators.registry import STATUS_NOT_CONVERGED
 from casep.frames import LaunchSite
 from casep.navigation.imu import ImuData
 
@@ -109,8 +110,6 @@ ITERATE_TOL = 0.1
 MAX_ITERATIONS = 20
 #: Below this largest correction (std) the passes take the secant step of the last two (:func:`_secant_step`).
 ACCELERATE_BELOW = 5.0
-#: Status of a result whose iteration did not converge (or whose correction could not be applied).
-STATUS_NOT_CONVERGED = -7
 #: Why an iteration fails, unless an IMU gap is the likelier cause (:func:`_gap_clause`).
 _BLAME = "the errors are too large for the model, or the data are inconsistent with it"
 #: The curvature check: second-order shifts of the estimate above this (std, the largest over the combinations) are

@@ -232,9 +232,11 @@ def _problem(flight: FlightData | Problem | str | os.PathLike, model: Any,
         return flight, flight, model
     if not isinstance(flight, FlightData):
         flight = read_flight(flight)
+    from casep.checks.saturation import screen_saturation
     from casep.checks.tracking_quality import screen_tracking
 
-    flight = screen_tracking(flight)  # before the problem: the result is judged on what the screen found
+    # before the problem: the result is judged on what the screens found
+    flight = screen_saturation(screen_tracking(flight))
     if fit_time_offset is None:
         from casep.io.pair import fits_time_offset
 
@@ -470,16 +472,25 @@ def _separate_radar(telemetry, model, fit_kw: dict, radar: Sequence, site, track
 
 def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_free: bool = False) -> EstimateResult:
     """A result judged against the set-up: failed (status -4) when its flight failed a set-up check
-    (:func:`casep.checks.plausibility.setup_problems`: launch site, azimuth, launch time, time scales), and against
+    (:func:`casep.checks.plausibility.setup_problems`: launch site, azimuth, launch time, time scales), failed
+    (status -8) when its residuals are a model error, not noise (:func:`casep.checks.plausibility.misfit_problem`:
+    100 times the tracking's sample-to-sample noise and correlated after the noise model), and against
     the model's declared magnitudes (:func:`casep.estimators._base.check_magnitudes`), except on noise-free
     data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
     set-up mistake (check_fit's NoiseFreeWarning says so)."""
-    from casep.checks.plausibility import setup_problems
-    from casep.estimators.registry import STATUS_SETUP, check_magnitudes, failed
+    from casep.checks.plausibility import misfit_problem, setup_problems
+    from casep.estimators.registry import STATUS_MISFIT, STATUS_SETUP, check_magnitudes, failed
 
     problems = setup_problems(flight) if flight is not None else []
     if flight is not None and problems:
         res = failed(res, STATUS_SETUP, f"failed: set-up check of {flight.source}: " + "; ".join(problems))
+    if flight is not None and not noise_free:
+        rms = res.residual_rms
+        why = misfit_problem(flight, rms, "xyz")  # the ratio first: the whiteness test is asked only then
+        if why is not None:
+            why = misfit_problem(flight, rms, (res.diagnostics.get("whiteness") or {}).get("rejected") or ())
+        if why is not None:
+            res = failed(res, STATUS_MISFIT, f"failed: {flight.source}: {why}")
     if isinstance(model, ErrorModel) and model.name == res.model and not noise_free:
         meth = _REGISTRY.get(res.method)
         res = check_magnitudes(res, model.scales, source=flight.source if flight is not None else "",

@@ -120,8 +120,9 @@ def test_navigate_and_separate_imu_pass_the_full_scales_in_si(tmp_path, capsys, 
                  *ranges]) == 2
     assert {k: seen[k] for k in want} == want
     assert "stopped by the test" in capsys.readouterr().err
-    assert main(["separate", str(tmp_path / "imu.csv"), "--gyr-range", "2000"]) == 2
-    assert "--gyr-range is used only with --imu" in capsys.readouterr().err
+    assert main(["separate", str(tmp_path / "imu.csv"), str(tmp_path / "trk.csv"), "--gyr-range", "2000"]) == 2
+    assert "--gyr-range is used with --imu IMU.csv or one strapdown telemetry file, not with 2 flights" in \
+        capsys.readouterr().err
 
 
 def test_separate_imu_refuses_ranges_for_a_record_already_read():

@@ -1,0 +1,189 @@
+"""Strapdown telemetry whose gyro clipped (casep.checks.saturation.screen_saturation) and fits whose residuals are
+a model error (casep.checks.plausibility.misfit_problem): never a plain success with a wrong answer.
+
+The flights come from an independent strapdown simulation written here (quaternions integrated at the midpoint
+rate, 8 steps per telemetry sample): the INS integrates its measured rates, clipped at a full scale, and its
+measured body specific force, with body-frame errors of strapdown12's kind (bias and scale factor per axis).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import casep
+from casep.exceptions import SaturationWarning
+from casep.io.files import write_table
+from casep.units import G0
+
+DUR, RATE, SUB, TRK_RATE, NOISE = 60.0, 25.0, 8, 5.0, 0.02
+DEGH = math.pi / 180 / 3600
+
+
+def _qmul(a, b):
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+
+
+def _dcm(q):
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def _qexp(r):
+    a = float(np.linalg.norm(r))
+    return np.array([1.0, *(r / 2)]) if a < 1e-15 else np.array([math.cos(a / 2), *(math.sin(a / 2) * r / a)])
+
+
+def _rate(t):  # rad/s: a roll that grows until it passes the gyro's range (about t = 36 s at 110 deg/s)
+    return np.array([0.3 + (0.6 + 0.03 * t) * math.sin(2 * math.pi * t / 7), 0.3 * math.sin(2 * math.pi * t / 13),
+                     0.2 * math.cos(2 * math.pi * t / 17)])
+
+
+def _acc(t):  # kinematic acceleration, launch frame (y up), m/s^2
+    return np.array([3 * math.sin(2 * math.pi * t / 30) + 1, 2 * math.sin(2 * math.pi * t / 11),
+                     2.5 * math.cos(2 * math.pi * t / 23)])
+
+
+def simulate(clip_dps: float, seed: int = 3):
+    """Telemetry (t, q_*, fb_*, w_*, v_tel_*), tracking (t, v_trk_*) and the truth of strapdown12's coefficients."""
+    rng = np.random.default_rng(seed)
+    D = {**{f"ba_{a}": rng.normal(0, 1) for a in "xyz"}, **{f"sa_{a}": rng.normal(0, 200) for a in "xyz"},
+         **{f"bg_{a}": rng.normal(0, 3) for a in "xyz"}, **{f"sg_{a}": rng.normal(0, 300) for a in "xyz"}}
+    ba = np.array([D[f"ba_{a}"] for a in "xyz"]) * 1e-3 * G0
+    sa = np.array([D[f"sa_{a}"] for a in "xyz"]) * 1e-6
+    bg = np.array([D[f"bg_{a}"] for a in "xyz"]) * DEGH
+    sg = np.array([D[f"sg_{a}"] for a in "xyz"]) * 1e-6
+    fs = math.radians(clip_dps)
+
+    def gyro(w):
+        return np.clip(w * (1 + sg) + bg, -fs, fs)
+
+    g = np.array([0.0, -G0, 0.0])
+    h, n = 1 / (RATE * SUB), int(round(DUR * RATE * SUB))
+    q = qi = _qexp(np.array([0.0, 0.0, 0.3]))
+    v, vi = np.zeros(3), np.zeros(3)
+    rows, truth_v = [], []
+    for k in range(n + 1):
+        t = k * h
+        if k % SUB == 0:
+            fb = _dcm(q).T @ (_acc(t) - g)
+            rows.append([t, *qi, *(fb * (1 + sa) + ba), *gyro(_rate(t)), *vi])
+            truth_v.append([t, *v])
+        if k == n:
+            break
+        tm = t + h / 2
+        wm = _rate(tm)
+        fbm = _dcm(_qmul(q, _qexp(wm * h / 2))).T @ (_acc(tm) - g)
+        qim = _qmul(qi, _qexp(gyro(wm) * h / 2))
+        v = v + h * _acc(tm)
+        vi = vi + h * (_dcm(qim) @ (fbm * (1 + sa) + ba) + g)
+        q, qi = _qmul(q, _qexp(wm * h)), _qmul(qi, _qexp(gyro(wm) * h))
+        q, qi = q / np.linalg.norm(q), qi / np.linalg.norm(qi)
+    R, V = np.array(rows), np.array(truth_v)
+    held = np.abs(R[:, 8:11]) >= fs * (1 - 1e-12)
+    R[:, 8:11] += np.where(held, 0.0, rng.normal(0, 1e-3, (R.shape[0], 3)))  # gyro noise off the rail
+    R[:, 5:8] += rng.normal(0, 1e-2, (R.shape[0], 3))
+    tel = {c: R[:, i] for i, c in enumerate(["t", "q_w", "q_x", "q_y", "q_z", "fb_x", "fb_y", "fb_z", "w_x", "w_y",
+                                              "w_z", "v_tel_x", "v_tel_y", "v_tel_z"])}
+    tt = np.arange(0.0, DUR + 1e-9, 1 / TRK_RATE)
+    trk = {"t": tt, **{f"v_trk_{a}": np.interp(tt, V[:, 0], V[:, i + 1]) + rng.normal(0, NOISE, tt.size)
+                       for i, a in enumerate("xyz")}}
+    return tel, trk, D, held
+
+
+def _files(tmp_path_factory, clip_dps: float):
+    """The telemetry and tracking files of :func:`simulate`, the truth and the time of the first clipped sample."""
+    tel, trk, D, held = simulate(clip_dps)
+    d = tmp_path_factory.mktemp(f"clip{clip_dps:g}")
+    write_table(d / "tel.csv", tel)
+    write_table(d / "trk.csv", trk)
+    return d / "tel.csv", d / "trk.csv", D, tel["t"][np.flatnonzero(held.any(axis=1))[0]]
+
+
+@pytest.fixture(scope="module")
+def clipped_at_125(tmp_path_factory):
+    """Gyro clipped at the nominal +-125 deg/s range from t ~ 43 s."""
+    return _files(tmp_path_factory, 125.0)
+
+
+@pytest.fixture(scope="module")
+def clipped_at_110(tmp_path_factory):
+    """Gyro clipped at +-110 deg/s (no nominal range, nothing declared) from t ~ 36 s."""
+    return _files(tmp_path_factory, 110.0)
+
+
+def _separate(tel, trk):
+    """casep.separate of the pair with strapdown12; the warnings it gave."""
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        res = casep.separate(casep.read_flight_pair(tel, trk), "strapdown12")
+    return res, [str(w.message) for w in rec if issubclass(w.category, SaturationWarning)]
+
+
+def test_clipped_gyro_in_telemetry_is_flagged_and_the_rest_left_out(clipped_at_125):
+    """w_x held at the nominal 125 deg/s: said (column, full scale, rows, times), the rows from the first clipped
+    sample on left out (the INS attitude stays wrong after it), and the estimates within a few std of the truth."""
+    tel, trk, D, first = clipped_at_125
+    res, said = _separate(tel, trk)
+    assert len(said) == 1 and "w_x at its maximum 125 deg/s (the nominal +-125 deg/s range)" in said[0]
+    assert f"wrong from t = {first:.10g} s on" in said[0] and "rows " in said[0]
+    n_before = int(np.sum(np.arange(0.0, DUR + 1e-9, 1 / TRK_RATE) < first - 1e-9))
+    assert res.n_samples == n_before
+    z = np.array([(res.estimate[i] - D[n]) / res.std[i] for i, n in enumerate(res.names)])
+    assert res.success and np.max(np.abs(z)) < 4.0, dict(zip(res.names, z.round(2)))
+
+
+def test_a_fit_absorbing_an_undetected_clip_is_not_a_plain_success(clipped_at_110):
+    """Clipped at 110 deg/s (no nominal range, none declared): nothing says saturation, but the residuals are
+    hundreds of times the tracking noise and correlated after the noise model: failed, with the numbers."""
+    from casep.estimators.registry import STATUS_MISFIT
+
+    tel, trk, D, _ = clipped_at_110
+    res, said = _separate(tel, trk)
+    assert not said
+    assert not res.success and res.status == STATUS_MISFIT
+    assert "residual RMS at least 100 times the tracking's sample-to-sample noise" in res.message
+    assert "x " in res.message and "m/s =" in res.message
+
+
+def test_a_declared_gyro_range_finds_the_clip_in_telemetry(clipped_at_110, tmp_path, capsys):
+    """``casep separate TEL --tracking TRK --gyr-range 110``: the declared full scale finds the clip the nominal
+    ranges do not; the flight before it separates (a success, the estimates within a few std)."""
+    from casep.cli import main
+
+    tel, trk, D, first = clipped_at_110
+    code = main(["separate", str(tel), "--tracking", str(trk), "--model", "strapdown12", "--gyr-range", "110",
+                 "--json", str(tmp_path / "r.json")])
+    cap = capsys.readouterr()
+    err = cap.out + cap.err  # the command prints the warnings it recorded
+    assert code == 0 and "w_x at its maximum 110 deg/s (the declared full scale" in err
+    cut = float(err.split("wrong from t = ")[1].split(" s on")[0])
+    assert first - 0.2 <= cut <= first  # 99 % of the declared range is at it (CLIP_MARGIN): a sample or two earlier
+    import json
+
+    doc = json.loads((tmp_path / "r.json").read_text())
+    z = [(c["estimate"] - D[c["name"]]) / c["std"] for c in doc["coefficients"]]
+    assert doc["success"] and max(abs(x) for x in z) < 4.0
+
+
+def test_misfit_rule_needs_both_the_ratio_and_correlated_residuals():
+    """misfit_problem on white dv of 0.05 m/s: a residual RMS 200 x that on a correlated axis is named; the
+    same RMS on an axis the noise model whitened, or 50 x on a correlated one, is not."""
+    from casep.checks.plausibility import MISFIT_RATIO, misfit_problem
+    from casep.io.flight import FlightData
+
+    rng = np.random.default_rng(4)
+    t = np.arange(0.0, 60.0, 0.1)
+    fl = FlightData(t, np.tile([10.0, 20.0, 0.0], (t.size, 1)), rng.normal(0, 0.05, (t.size, 3)))
+    big, small = 200 * 0.05, 0.5 * MISFIT_RATIO * 0.05
+    why = misfit_problem(fl, {"x": big, "y": big, "z": small}, ("x", "z"))
+    assert why is not None and "on 1 axis(es) (x 10 m/s = " in why
+    assert misfit_problem(fl, {"x": big, "y": big, "z": big}, ()) is None
