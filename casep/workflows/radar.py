@@ -306,17 +306,17 @@ def _at_launch_time(reg: RadarRegression, spec: FitSpec
     """The fit, re-solved at the launch time it finds while the linear ``dt_launch`` would not hold:
     ``(reg, lin, rn, res, steps, unsettled)``, ``steps`` the corrections taken into the geometry (ms).
 
-    The rule of the tracking time offset (:func:`casep.workflows.separate.repair_on_offset`): a correction
-    beyond its std whose left-out second-order term moves an estimate by more than
-    :data:`~casep.workflows.separate.LINEAR_OFFSET_SHARE` of its std
+    The rule of the tracking time offset (:mod:`casep.regression.linearisation`, as
+    :func:`casep.workflows.separate.repair_on_offset`): a correction beyond its std whose left-out second-order
+    term moves an estimate by more than :data:`~casep.regression.linearisation.LINEAR_OFFSET_SHARE` of its std
     (:func:`casep.radar.setup.launch_time_nonlinearity`) is taken into the geometry
     (:meth:`RadarRegression.at_launch_shift`) and the regression solved again, until every rest is within
-    its std or within what the linearisation holds (at most :data:`~casep.workflows.separate.MAX_REPAIRS`
+    its std or within what the linearisation holds (at most :data:`~casep.regression.linearisation.MAX_REPAIRS`
     re-solves; else `unsettled` says so and the result fails). :func:`_with_shift` then reports the whole
     correction.
     """
     from casep.radar.setup import launch_time_nonlinearity
-    from casep.workflows.separate import LINEAR_OFFSET_SHARE, MAX_REPAIRS
+    from casep.regression.linearisation import LINEAR_OFFSET_SHARE, MAX_REPAIRS
 
     lin, rn, res = _fit_rows(reg, spec)
     steps: list[float] = []
