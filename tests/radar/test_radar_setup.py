@@ -132,6 +132,18 @@ def test_a_launch_time_far_off_fitted_once_pulls_the_station_terms(andoya, monke
     assert np.max(np.abs(_station_z(rr, andoya))) > 3.0
 
 
+def test_a_launch_time_not_settled_fails(andoya, monkeypatch):
+    """A correction whose linearisation never holds within the re-solves allowed: a failed result saying so."""
+    import casep.radar.setup as setup
+    import casep.regression.linearisation as lin_rule
+
+    monkeypatch.setattr(lin_rule, "MAX_REPAIRS", 0)
+    monkeypatch.setattr(setup, "launch_time_nonlinearity", lambda *a: 1.0)
+    rr, _ = _launch_off(andoya, 0.15, CasepWarning)
+    assert not rr.success and re.search(r"launch time not settled: re-solved at the correction found 0 times, the rest "
+                                        r"still -1[45]\d(\.\d+)? ms", rr.message), rr.message
+
+
 def test_launch_time_remainder_is_second_order_and_the_shifted_geometry_exact(andoya):
     """The remainder of the linear dt_launch column grows as dt^2 (x4 for twice dt, within 10 %: the third order);
     the regression moved to t0 + s has the rows of one built at that launch time (to rounding)."""
