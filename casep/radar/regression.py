@@ -35,6 +35,8 @@ group noise is estimated by :mod:`casep.radar.groups`; the result of the lineari
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import math
 import warnings
 from dataclasses import dataclass
@@ -211,6 +213,7 @@ class RadarRegression:
             st.keyhole = geo[:, 2] > KEYHOLE  # the azimuth is not linear in the position there
             st.z = over_the_top(st.z, geo)  # decided once, at the telemetry: the residuals stay continuous in D
             self.stations.append(st)
+        self.launch_shift = 0.0  # s: the stations' geometry at site.t0 + launch_shift (at_launch_shift)
         self.nD = model.n_coefficients
         self.nT = tracking.n_coefficients
         self.common = (LAUNCH_TIME,) if fit_launch_time else ()  # terms shared by all stations, last columns
@@ -355,10 +358,43 @@ class RadarRegression:
     def launch_time_rows(self, D: np.ndarray) -> np.ndarray:
         """The column of :data:`LAUNCH_TIME` in the stacked rows at the trajectory of D (m,), also when the
         term is not in the regression (one station: :func:`casep.radar.setup.check_setup` tests it)."""
+        return self._stacked([self._launch_time_column(s, D) for s in self.stations])
+
+    def launch_time_remainder(self, D: np.ndarray, dt_ms: float) -> np.ndarray:
+        """What the linear :data:`LAUNCH_TIME` column leaves out of a launch-time correction `dt_ms` (ms), stacked
+        rows at the trajectory of D (SI)::
+
+            h(t0 + dt) - h(t0) - (d h / d t0) dt        (azimuth differences wrapped; keyhole rows 0)
+
+        ``t0`` the launch time the geometry is at (the site's plus :attr:`launch_shift`)."""
+        out = []
+        for s in self.stations:
+            k, r, v = len(s.types), s.r - s.SP @ D, s.v - s.SV @ D
+            g = s.geometry
+            x, acc = np.hstack([r, v]), np.asarray(s.a, dtype=float)
+            h1 = g._evaluate(s.t, x, acc, g._parameters(1e-3 * dt_ms, np.zeros(3)), False)[0][:, :k]
+            d = h1 - g._evaluate(s.t, x, acc, g._parameters(0.0, np.zeros(3)), False)[0][:, :k]
+            if "azimuth" in s.types:
+                d[:, 1] = wrap_angle(d[:, 1])
+            out.append(d - self._launch_time_column(s, D) * dt_ms)
+        return self._stacked(out)
+
+    def at_launch_shift(self, shift: float) -> RadarRegression:
+        """This regression with the stations' geometry at the launch time ``site.t0 + shift`` (s): the rows
+        then carry a launch-time correction ``shift`` exactly, and :data:`LAUNCH_TIME` estimates the rest.
+        The site, the rows' selection (keyhole, angles over the top) and the columns' order are kept."""
+        out = copy.copy(self)
+        at = dataclasses.replace(self.site, t0=self.site.t0 + shift)
+        out.stations = [dataclasses.replace(s, geometry=RadarGeometry(at, s.meas.station)) for s in self.stations]
+        out.launch_shift = float(shift)
+        return out
+
+    def _stacked(self, per_station: Sequence[np.ndarray]) -> np.ndarray:
+        """Per station ``(N, k)`` values -> the stacked rows' (m,), station by station, type by type; the
+        keyhole's azimuth rows 0 (as :meth:`assemble`'s zero rows)."""
         out = np.zeros(sum(s.t.size * len(s.types) for s in self.stations))
         k0 = 0
-        for s in self.stations:
-            C = self._launch_time_column(s, D)
+        for s, C in zip(self.stations, per_station):
             for j in range(len(s.types)):
                 if not (s.types[j] == "azimuth" and s.keyhole is not None):
                     out[k0:k0 + s.t.size] = C[:, j]

@@ -264,15 +264,14 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
         raise ValueError(f"--method {spec.method} uses the sample times (one time series per axis); with several "
                          "stations the rows of different stations share times. Use: --method ols (the noise model "
                          "per station and type), or one station")
-    lin = reg.solve(spec.sigma)
-    rn = fit_radar_noise(lin, spec)
+    reg, lin, rn, res, steps, unsettled = _at_launch_time(reg, spec)
     all_given = bool(lin.sigma_given.all())
     opts = {**dict(spec.options), **dict(spec.keywords)}
-    # the whitened rows through the one entry point of every fit; the radar's own checks follow (_judge)
-    res = fit(rn.problem(), rn.fit_spec(spec, 1.0 if all_given else None), checks=False)
-    x = res.fitted_coefficients()
+    x = res.fitted_coefficients()  # of the rows as solved (at the launch time re-solved at: dt_launch the rest)
     summary = _summary(reg, lin, rn, res, x)
     failed, suspicious = _judge(reg, lin, rn, res, summary)
+    failed += [unsettled] if unsettled else []
+    res = _with_shift(res, reg, steps)
     whiteness = rn.whiteness(x) if not failed else {}  # a failed fit's residuals hold its set-up error: said already
     if failed:  # a probably wrong result is never a plain success
         res = dataclasses.replace(res, success=False, status=-1, message="; ".join(failed))
@@ -291,6 +290,67 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
     # the CRLB rows divided by the noise the fit used: the table's noise is the `noise:` line's (one per group)
     diag = radar_diagnostics(lin, scales=_scales(reg), noise=summary["noise"]) if diagnostics else None
     return RadarResult(res, lin, summary, diag, _provenance(telemetry, radars, reg, spec.method, opts))
+
+
+def _fit_rows(reg: RadarRegression, spec: FitSpec) -> tuple[LinearisedRadar, RadarNoise, EstimateResult]:
+    """The regression linearised, its noise model fitted and the whitened rows fitted as `spec` asks."""
+    lin = reg.solve(spec.sigma)
+    rn = fit_radar_noise(lin, spec)
+    # the whitened rows through the one entry point of every fit; the radar's own checks follow (_judge)
+    res = fit(rn.problem(), rn.fit_spec(spec, 1.0 if bool(lin.sigma_given.all()) else None), checks=False)
+    return lin, rn, res
+
+
+def _at_launch_time(reg: RadarRegression, spec: FitSpec
+                    ) -> tuple[RadarRegression, LinearisedRadar, RadarNoise, EstimateResult, list[float], str]:
+    """The fit, re-solved at the launch time it finds while the linear ``dt_launch`` would not hold:
+    ``(reg, lin, rn, res, steps, unsettled)``, ``steps`` the corrections taken into the geometry (ms).
+
+    The rule of the tracking time offset (:mod:`casep.regression.linearisation`, as
+    :func:`casep.workflows.separate.repair_on_offset`): a correction beyond its std whose left-out second-order
+    term moves an estimate by more than :data:`~casep.regression.linearisation.LINEAR_OFFSET_SHARE` of its std
+    (:func:`casep.radar.setup.launch_time_nonlinearity`) is taken into the geometry
+    (:meth:`RadarRegression.at_launch_shift`) and the regression solved again, until every rest is within
+    its std or within what the linearisation holds (at most :data:`~casep.regression.linearisation.MAX_REPAIRS`
+    re-solves; else `unsettled` says so and the result fails). :func:`_with_shift` then reports the whole
+    correction.
+    """
+    from casep.radar.setup import launch_time_nonlinearity
+    from casep.regression.linearisation import LINEAR_OFFSET_SHARE, MAX_REPAIRS
+
+    lin, rn, res = _fit_rows(reg, spec)
+    steps: list[float] = []
+    if LAUNCH_TIME not in reg.names or res.std is None:
+        return reg, lin, rn, res, steps, ""
+    j = reg.names.index(LAUNCH_TIME)
+    for k in range(MAX_REPAIRS + 1):
+        dt, sd = float(res.estimate[j]), float(res.std[j])  # ms
+        if not (np.isfinite(dt) and lin.converged and abs(dt) > sd
+                and launch_time_nonlinearity(lin, rn.whiten, dt) > LINEAR_OFFSET_SHARE):
+            break
+        if k == MAX_REPAIRS:
+            return reg, lin, rn, res, steps, (
+                f"launch time not settled: re-solved at the correction found {MAX_REPAIRS} times, the rest still "
+                f"{dt:.3g} ms against std {sd:.2g} ms and beyond what the linear {LAUNCH_TIME} holds")
+        steps.append(dt)
+        reg = reg.at_launch_shift(reg.launch_shift + 1e-3 * dt)
+        lin, rn, res = _fit_rows(reg, spec)
+    return reg, lin, rn, res, steps, ""
+
+
+def _with_shift(res: EstimateResult, reg: RadarRegression, steps: list[float]) -> EstimateResult:
+    """`res` with its ``dt_launch`` the whole correction: the shift its rows carry (``reg.launch_shift``) plus the
+    fit's rest, with the fit's std; the re-solves (`steps`, ms) recorded in ``settings`` and the message."""
+    if not steps:
+        return res
+    shift = 1e3 * reg.launch_shift
+    est = res.estimate.copy()
+    est[reg.names.index(LAUNCH_TIME)] += shift
+    rec = {"passes": len(steps), "shift_ms": shift, "steps_ms": [float(v) for v in steps]}
+    return dataclasses.replace(
+        res, estimate=est, settings={**res.settings, "launch_time_resolved": rec},
+        message=f"{res.message}; the geometry re-solved at the launch-time correction found ({shift:.4g} ms; "
+                f"{len(steps)} pass{'es' if len(steps) > 1 else ''}): {LAUNCH_TIME} is that shift plus the fit's rest")
 
 
 def _summary(reg: RadarRegression, lin: LinearisedRadar, rn: RadarNoise, res: EstimateResult,

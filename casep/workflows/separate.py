@@ -18,6 +18,7 @@ from casep.io.files import read_flight, read_json_table
 from casep.io.flight import FlightData
 from casep.model.error_model import ErrorModel
 from casep.model.loader import load_model
+from casep.regression.linearisation import LINEAR_OFFSET_SHARE, MAX_REPAIRS
 from casep.regression.problem import Problem
 
 if TYPE_CHECKING:
@@ -310,10 +311,6 @@ def refit_on_offset(first: Callable[[], EstimateResult], again: Callable[[], Est
                                settings={**res.settings, "time_offset": "modelled: found by the residual test"})
 
 
-#: Re-pairings of the tracking at the estimated offset (each a fit) before the offset is called not converged.
-MAX_REPAIRS = 6
-#: The linearised ``dt_trk`` holds while the term it leaves out, as an offset, is below this share of the offset's std.
-LINEAR_OFFSET_SHARE = 0.1
 #: The fit that locates the offset before the fit as asked: least squares, white noise, no robust filter and no
 #: residual checks (``fit(..., checks=False)``: the misfit of an offset not yet paired is no noise and no glitch).
 LOCATING_FIT = FitSpec.build("ols", noise="white", robust="none")

@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 from test_radar import SITE, STATIONS, TRUTH
 
+from casep.exceptions import CasepWarning
+from casep.frames import LaunchSite
 from casep.radar.regression import RadarResidualWarning
 from casep.radar.stations import Station, read_radar, read_station
 from casep.simulation.radar import simulate_radar, write_radar_simulation
@@ -70,6 +72,94 @@ def test_launch_time_right_is_a_plain_success(sim):
     n = sim.model.n_coefficients
     d = (rr.result.estimate[:n] - off.result.estimate[:n]) / rr.result.std[:n]
     assert np.nanmax(np.abs(d)) < 1.0
+
+
+#: An Andøya-like range: a station 6.7 km from the pad (A1), one 30 km away (B2), flight to azimuth 350 deg;
+#: a launch time 150 ms off moves the flight 25 m against the stations there.
+ANDOYA = LaunchSite(69.29, 16.02, 20.0, 350.0, 0.0)
+ANDOYA_STATIONS = (Station("A1", 69.35, 16.05, 50.0), Station("B2", 69.10, 15.70, 300.0))
+ANDOYA_TRUTH = {"A1": {"range_bias": 4.0, "azimuth_bias": 15.0}, "B2": {"time_bias": 3.0, "elevation_bias": -10.0}}
+
+
+@pytest.fixture(scope="module")
+def andoya():
+    """A 2 Hz two-station flight at the Andøya-like range, noise a tenth of the default (0.3 m, 0.8 arcsec): the
+    second-order term of a 150 ms launch-time error is then several std of the station terms."""
+    return simulate_radar(ANDOYA_STATIONS, ANDOYA, seed=1, telemetry_rate=2, radar_rate=2, tracking_truth=ANDOYA_TRUTH,
+                          noise={"range": 0.3, "azimuth": 0.8, "elevation": 0.8})
+
+
+def _station_z(rr, sim) -> np.ndarray:
+    res = rr.result
+    idx = [j for j, n in enumerate(res.names) if "." in n]
+    truth = [sim.tracking_truth.get(res.names[j].split(".")[0], {}).get(res.names[j].split(".")[1], 0.0) for j in idx]
+    return (res.estimate[idx] - np.array(truth)) / res.std[idx]
+
+
+def _launch_off(sim, late: float, warning: type[Warning] = RadarResidualWarning):
+    with pytest.warns(warning) as rec:
+        rr = separate_radar(sim.telemetry, list(sim.radars), dataclasses.replace(ANDOYA, t0=late), sim.model,
+                            sim.tracking, diagnostics=False)
+    return rr, " ".join(str(w.message) for w in rec)
+
+
+def test_a_launch_time_far_off_is_re_solved_at_the_launch_time_found(andoya):
+    """--launch-time 150 ms late: the geometry is re-solved at the correction found, the station terms honest
+    (within 2.5 std of the truth; fitted once at the given launch time: 3.5 to 5 std off, test below), dt_launch the
+    whole correction within 3 std of -150 ms, the launch time still named in the warning."""
+    rr, text = _launch_off(andoya, 0.15)
+    assert rr.success, rr.message
+    z = _station_z(rr, andoya)
+    assert np.max(np.abs(z)) < 2.5, z
+    res = rr.result
+    j = res.names.index("dt_launch")
+    assert abs(res.estimate[j] + 150.0) < 3 * res.std[j] and res.std[j] < 0.5, (res.estimate[j], res.std[j])
+    rec = res.settings["launch_time_resolved"]
+    assert rec["passes"] >= 1 and abs(rec["shift_ms"] + 150.0) < 3 * res.std[j]
+    assert "re-solved at the launch-time correction found" in rr.message
+    given = r"the launch time given \(--launch-time 0.15 s\) is \+1[45]\d(\.\d+)? \+- [0-9.]+ ms off"
+    assert re.search(given, text), text
+    assert abs(rr.summary["setup"]["launch_time"]["estimate_ms"] - res.estimate[j]) < 1e-9
+
+
+def test_a_launch_time_far_off_fitted_once_pulls_the_station_terms(andoya, monkeypatch):
+    """The same fit with the linear dt_launch alone (no re-solve): station terms several std off."""
+    import casep.regression.linearisation as lin_rule
+
+    monkeypatch.setattr(lin_rule, "LINEAR_OFFSET_SHARE", np.inf)
+    rr, _ = _launch_off(andoya, 0.15, CasepWarning)  # its misfit makes the rows ill-conditioned or far off
+    assert "launch_time_resolved" not in rr.result.settings
+    assert np.max(np.abs(_station_z(rr, andoya))) > 3.0
+
+
+def test_a_launch_time_not_settled_fails(andoya, monkeypatch):
+    """A correction whose linearisation never holds within the re-solves allowed: a failed result saying so."""
+    import casep.radar.setup as setup
+    import casep.regression.linearisation as lin_rule
+
+    monkeypatch.setattr(lin_rule, "MAX_REPAIRS", 0)
+    monkeypatch.setattr(setup, "launch_time_nonlinearity", lambda *a: 1.0)
+    rr, _ = _launch_off(andoya, 0.15, CasepWarning)
+    assert not rr.success and re.search(r"launch time not settled: re-solved at the correction found 0 times, the rest "
+                                        r"still -1[45]\d(\.\d+)? ms", rr.message), rr.message
+
+
+def test_launch_time_remainder_is_second_order_and_the_shifted_geometry_exact(andoya):
+    """The remainder of the linear dt_launch column grows as dt^2 (x4 for twice dt, within 10 %: the third order);
+    the regression moved to t0 + s has the rows of one built at that launch time (to rounding)."""
+    from casep.radar.regression import RadarRegression
+
+    reg = RadarRegression(andoya.telemetry, list(andoya.radars), andoya.model, andoya.tracking, ANDOYA)
+    D = np.zeros(reg.nD)
+    r1, r2 = reg.launch_time_remainder(D, 75.0), reg.launch_time_remainder(D, 150.0)
+    assert 3.6 < np.linalg.norm(r2) / np.linalg.norm(r1) < 4.4
+    assert np.linalg.norm(r2) < 1e-2 * np.linalg.norm(150.0 * reg.launch_time_rows(D))  # second order: small
+    moved = reg.at_launch_shift(0.15)
+    built = RadarRegression(andoya.telemetry, list(andoya.radars), andoya.model, andoya.tracking,
+                            dataclasses.replace(ANDOYA, t0=0.15))
+    (S1, y1, _), (S2, y2, _) = moved.assemble(D), built.assemble(D)
+    assert np.allclose(S1, S2, rtol=1e-12, atol=0) and np.allclose(y1, y2, rtol=1e-12, atol=1e-12)
+    assert moved.launch_shift == 0.15 and reg.launch_shift == 0.0 and moved.site == reg.site
 
 
 def _height_off(radars, name: str, dh: float) -> list:
@@ -178,7 +268,6 @@ def test_ecef_tracking_in_km_is_refused(tmp_path):
     for c in ("r_ecef_x", "r_ecef_y", "r_ecef_z", "v_ecef_x", "v_ecef_y", "v_ecef_z"):
         trk[c] = trk[c] / 1000.0
     trk.to_csv(tmp_path / "km.csv", index=False)
-    from casep.frames import LaunchSite
 
     ls = LaunchSite(28.5, -80.6, 3.0, 90.0, 0.0)
     with pytest.raises(ValueError, match=r"median norm of 6\d{3} m.*kilometres \(x 1000: 6\.\d+e\+06 m\)\?"):
