@@ -9,6 +9,7 @@ import pandas as pd
 import pytest
 
 import casep
+from casep.estimators.registry import STATUS_PRIOR_CONFLICT
 from casep.exceptions import GapWarning, IllConditionedWarning, NoiseNotWhiteWarning
 
 
@@ -64,7 +65,7 @@ def test_rls_prior_the_data_contradict_fails():
         warnings.simplefilter("ignore", NoiseNotWhiteWarning)  # the prior's pull leaves correlated residuals too
         res = casep.separate(sim.flight, "platform36", "rls", p0=0.01)
         ok = casep.separate(sim.flight, "platform36", "rls")  # the paper's p0 = 1e6: no conflict
-    assert not res.success and res.status == -6
+    assert not res.success and res.status == STATUS_PRIOR_CONFLICT
     assert "prior-data conflict" in res.message and "z = " in res.message
     assert res.diagnostics["prior_conflict"][0]["z"] > 5
     assert ok.success and "prior_conflict" not in ok.diagnostics
@@ -86,7 +87,7 @@ def test_rls_on_a_noise_free_flight_is_no_success_when_its_prior_pulls_the_estim
         res = casep.separate(sim.flight, "platform36", "rls")
         with pytest.warns(NoiseLevelWarning, match="disagrees with the least-squares residual std"):
             ok = casep.separate(sim.flight, "platform36", "rls", sigma=0.1)  # std then too large, and said
-    assert not res.success and res.status == -6
+    assert not res.success and res.status == STATUS_PRIOR_CONFLICT
     assert "prior-data conflict" in res.message and "give sigma" in res.message
     assert ok.success
     assert abs((ok.estimate - sim.truth) / ok.std).max() < 1.0  # the prior N(0, 100^2) pulls it within its std
