@@ -2,27 +2,21 @@
 
 from __future__ import annotations
 
-import runpy
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import run_forked
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 def _run(name: str, tmp_path: Path, *extra: str) -> str:
-    """``python examples/NAME --quick EXTRA`` in `tmp_path`: the script run as ``__main__`` in a forked child
-    (:func:`conftest.run_forked`: without a new interpreter's imports); its stdout. The make_example_* tests run
-    their scripts in a new interpreter."""
-    script = EXAMPLES / name
-    code, out, err = run_forked(lambda: runpy.run_path(str(script), run_name="__main__"),
-                                [str(script), "--quick", *extra], tmp_path, path0=str(EXAMPLES), timeout=600)
-    assert code == 0, err[-2000:]
-    return out
+    proc = subprocess.run([sys.executable, str(EXAMPLES / name), "--quick", *extra], capture_output=True, text=True,
+                          cwd=tmp_path, timeout=600, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return proc.stdout
 
 
 def test_reproduce_table1(tmp_path):
