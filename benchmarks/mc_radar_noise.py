@@ -39,8 +39,9 @@ def draw(seed: int, rate: float, tau: float):
                           noise=WHITE, gauss_markov=GM, gm_tau=tau)
 
 
-def instrument_z(sim, noise: str) -> tuple[np.ndarray, bool, list[str]]:
-    """z of the instrument coefficients of one separation, its success, and the warnings' classes."""
+def instrument_z(sim, noise: str):
+    """z of the instrument coefficients of one separation, its success, the warnings' classes, and the
+    separation."""
     with warnings.catch_warnings(record=True) as rec:
         warnings.simplefilter("always")
         rr = separate_radar(sim.telemetry, list(sim.radars), SITE, sim.model, sim.tracking, noise=noise,
@@ -48,18 +49,23 @@ def instrument_z(sim, noise: str) -> tuple[np.ndarray, bool, list[str]]:
     n = sim.model.n_coefficients
     z = (rr.result.estimate[:n] - sim.truth[:n]) / rr.result.std[:n]
     kinds = sorted({type(w.message).__name__ for w in rec if type(w.message).__name__ != "IllConditionedWarning"})
-    return z[np.isfinite(z)], bool(rr.success), kinds
+    return z[np.isfinite(z)], bool(rr.success), kinds, rr
 
 
-def run(seeds, rate: float, tau: float, noises=("auto", "white")) -> dict[str, dict]:
-    """The figures per noise model over the seeds."""
+def run(seeds, rate: float, tau: float, noises=("auto", "white"), separations: dict | None = None) -> dict[str, dict]:
+    """The figures per noise model over the seeds; `separations`, when given, receives each separation by
+    ``(seed, noise)`` (and each simulated flight by ``seed``)."""
     zs: dict[str, list] = {k: [] for k in noises}
     ok = dict.fromkeys(noises, 0)
     warned: dict[str, set] = {k: set() for k in noises}
     for seed in seeds:
         sim = draw(seed, rate, tau)
+        if separations is not None:
+            separations[seed] = sim
         for k in noises:
-            z, success, kinds = instrument_z(sim, k)
+            z, success, kinds, rr = instrument_z(sim, k)
+            if separations is not None:
+                separations[seed, k] = rr
             zs[k].append(z)
             ok[k] += success
             warned[k].update(kinds)

@@ -174,8 +174,11 @@ def _add_columns(target: np.ndarray, cols: np.ndarray, values: np.ndarray) -> No
 
 def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, history_var, D0, past, k0):
     """Recursive (extended) least squares with Bierman's U-D scalar updates, in place
-    (:func:`casep._compiled.rels_ud`, compiled by numba on the first call)."""
+    (:func:`casep._compiled.rels_ud`, compiled by numba on the first call). A read-only `y` is copied: numba
+    compiles a read-only array as another signature (1.5 s of CPU more)."""
     from casep._compiled import rels_ud as kernel
+
+    y = np.require(y, requirements=("C", "W"))
 
     return kernel(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, history_var, D0, past, k0)
 

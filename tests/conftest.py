@@ -4,6 +4,14 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import signal
+import sys
+import tempfile
+import traceback
+import warnings
+from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pytest
@@ -172,3 +180,66 @@ def finite_json(path) -> dict:
 
     walk(data)
     return data
+
+
+#: Python's warning filters when no -W option or PYTHONWARNINGS is given (a fresh interpreter's), first to last.
+_PYTHON_DEFAULT_FILTERS = (("default", DeprecationWarning, "__main__"), ("ignore", DeprecationWarning, ""),
+                           ("ignore", PendingDeprecationWarning, ""), ("ignore", ImportWarning, ""),
+                           ("ignore", ResourceWarning, ""))
+
+
+def run_forked(program: Callable[[], int | None], argv: list[str], cwd: Path, env: dict[str, str] | None = None,
+               path0: str | None = None, timeout: int = 300) -> tuple[int, str, str]:
+    """``program()`` run as a new interpreter would run it, in a forked child of this test process:
+    ``(exit status, stdout, stderr)``.
+
+    The child has `argv` as ``sys.argv`` (`path0`, when given, as ``sys.path[0]``: a script's folder), works in
+    `cwd` with the environment `env` (default: this one's), writes its stdout and stderr to files, has
+    Python's default warning filters (pytest's ``error`` filter is this process's), and ends as the
+    interpreter would: ``program``'s return value or ``sys.exit``'s status, 1 with the traceback for an
+    uncaught exception, killed (SIGALRM) after `timeout` s. It saves a command the 1.2-1.5 s of CPU of a new
+    interpreter importing casep, NumPy, SciPy and CasADi, which this process has loaded already.
+    """
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:  # pragma: no cover - the child
+            status = 1
+            try:
+                signal.alarm(timeout)
+                os.chdir(cwd)
+                if env is not None:
+                    os.environ.clear()
+                    os.environ.update(env)
+                os.dup2(out.fileno(), 1)
+                os.dup2(err.fileno(), 2)
+                sys.stdout = open(1, "w", encoding="utf-8", closefd=False)
+                sys.stderr = open(2, "w", encoding="utf-8", closefd=False)
+                sys.argv = list(argv)
+                if path0 is not None:
+                    sys.path[0] = path0
+                warnings.resetwarnings()
+                for action, category, module in reversed(_PYTHON_DEFAULT_FILTERS):
+                    warnings.filterwarnings(action, category=category, module=module)
+                returned = program()
+                status = returned if isinstance(returned, int) else 0
+            except SystemExit as exc:
+                if exc.code is None or isinstance(exc.code, int):
+                    status = exc.code or 0
+                else:
+                    print(exc.code, file=sys.stderr)
+            except BaseException:
+                traceback.print_exc()
+            finally:  # never back into pytest: the child ends here, whatever happened
+                try:
+                    sys.stdout.flush()
+                    sys.stderr.flush()
+                finally:
+                    os._exit(status & 0xFF if isinstance(status, int) else 1)
+        _, wait_status = os.waitpid(pid, 0)
+        texts = []
+        for f in (out, err):
+            f.seek(0)
+            texts.append(f.read().decode("utf-8", errors="replace"))
+    return os.waitstatus_to_exitcode(wait_status), texts[0], texts[1]

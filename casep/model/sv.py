@@ -196,13 +196,13 @@ class SVBuilder:
                 e = min(s + C, b1)
                 k = e - s
                 o = buf[s - b0:e - b0]
-                self._fin[:k] = f[s:e]
+                self._fin[:k] = f[s:e]  # also the kernel's f: writable, as every caller's (one compiled signature)
                 self._tin[:k] = t[s:e] - t[0]  # m.t: time since the first sample
                 self._sin[:k] = sig[s:e]
                 if k < C:
                     self._fin[k:] = 0.0
                 self._eval()  # CasADi: G, A of the chunk into self._G, self._A
-                integrate_chunk(self._G[:k], self._A[:k], f[s:e], half_dt[s:e], self._gcols,
+                integrate_chunk(self._G[:k], self._A[:k], self._fin[:k], half_dt[s:e], self._gcols,
                                 self._acols, phi, G_prev, I_prev, S_prev, o)
                 if self._vcols.size:
                     o[:, :, self._vcols] += self._V[:k]  # + V_d: direct term, not integrated

@@ -14,6 +14,12 @@ exit N (a block that shows a refusal); a command may print only the warnings of
 command before it: its lines must be printed, in order (``...`` skips lines, a line ending in
 ``...`` is a prefix). Slow commands run reduced, each rewrite in :data:`REWRITES` with its
 reason; a rewrite that matches no command fails the test, so the table cannot go stale.
+
+A page's first ``casep`` command runs as the reader's shell runs it: ``bash -c``, the ``casep`` script, a new
+interpreter. Its later plain ``casep`` commands (no shell syntax: the shell would pass ``shlex.split``'s words)
+call the entry point :func:`casep.cli.main` with those words in a forked child of this process, with the
+reader's directory, environment and Python's default warning filters, and exit with its status as
+``sys.exit`` would: the same command, without the 1.2-1.5 s of CPU of a new interpreter importing casep.
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
+from conftest import run_forked
 
 ROOT = Path(__file__).resolve().parents[2]
 # The reader's pages; docs/results/ is left out: its commands are the benchmarks behind the measured
@@ -190,6 +197,26 @@ def _run(cmd: str, cwd: Path, env: dict[str, str]) -> tuple[int, str, str]:
     return proc.returncode, proc.stdout, proc.stderr
 
 
+#: Characters that make a command more than a list of words to the shell (operators, expansions, quoting escapes):
+#: a command holding one runs in the shell.
+_SHELL_SYNTAX = re.compile(r"[|&;<>()$`*?~\[\]{}\\!=]")
+
+
+def _casep_words(cmd: str) -> list[str] | None:
+    """The arguments the shell would pass to ``casep`` for `cmd`, or None when `cmd` is not one plain casep command."""
+    words = shlex.split(cmd, comments=True)
+    if words[:1] != ["casep"] or any(_SHELL_SYNTAX.search(w) for w in words):
+        return None
+    return words[1:]
+
+
+def _run_main(argv: list[str], cwd: Path, env: dict[str, str]) -> tuple[int, str, str]:
+    """``casep ARGV`` run by the entry point :func:`casep.cli.main` in a forked child (:func:`conftest.run_forked`)."""
+    from casep.cli import main
+
+    return run_forked(lambda: main(argv), ["casep", *argv], cwd, env)
+
+
 @functools.cache
 def _run_once(cmd: str) -> tuple[int, str, str]:
     folder = Path(tempfile.mkdtemp(prefix="casep-docs-"))
@@ -206,11 +233,19 @@ def _rewrite(command: str) -> str | None:
 @pytest.mark.parametrize("page", _pages_with_commands(), ids=lambda p: p.name)
 def test_page_commands_run(page: Path, tmp_path: Path):
     env = _workdir(tmp_path)
+    shell_run = False  # a casep command of the page has run in the shell
     for block in blocks(page)[0]:
         cmds = [c for c in map(_rewrite, block.commands) if c is not None]
         for k, cmd in enumerate(cmds):
             expected = block.exit if k == len(cmds) - 1 else 0
-            code, out, err = _run_once(cmd) if cmd in RUN_ONCE else _run(cmd, tmp_path, env)
+            words = _casep_words(cmd)
+            if cmd in RUN_ONCE:
+                code, out, err = _run_once(cmd)
+            elif words is not None and shell_run:
+                code, out, err = _run_main(words, tmp_path, env)
+            else:
+                code, out, err = _run(cmd, tmp_path, env)
+                shell_run = shell_run or words is not None
             assert code == expected, (f"{page.name}:{block.line}: `{cmd}` exited {code}, the page says {expected}\n"
                                       f"{out[-1500:]}\n{err[-1500:]}")
             warned = [w for w in _WARNING.findall(out + err)
@@ -284,3 +319,18 @@ def test_the_block_rules(tmp_path):
         (30, ['python3 -m pip install -e ".[test]"'], 0)]
     assert run[1].shown == ["casep: error: ..."] and not run[0].shown
     assert [b.line for b in synopses] == [8, 22]
+
+
+def test_a_plain_casep_command_runs_as_in_the_shell(tmp_path):
+    """The forked entry point gives the shell's exit status and output (a refusal here: exit 2, one line);
+    a command with shell syntax is left to the shell."""
+    env = _workdir(tmp_path)
+    assert _casep_words("casep separate flight.csv --robust  # Huber always") == ["separate", "flight.csv", "--robust"]
+    assert _casep_words("casep 'a b' --json m.json") == ["a b", "--json", "m.json"]
+    for cmd in ("casep models | head -1", "casep separate *.csv", "casep models > m.txt", "X=1 casep models",
+                "echo casep", "casep separate $HOME/f.csv"):
+        assert _casep_words(cmd) is None, cmd
+    cmd = "casep separate no.csv --json out.json"
+    shell, forked = _run(cmd, tmp_path, env), _run_main(_casep_words(cmd), tmp_path, env)
+    assert shell[0] == 2 and "casep: error:" in shell[2] and forked == shell
+    assert not (tmp_path / "out.json").exists()

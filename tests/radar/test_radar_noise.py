@@ -46,13 +46,13 @@ def test_gauss_markov_plus_white_radar_noise_is_honest_and_white_only_is_not():
     White only on the same data: overconfident (RMS z > 2) and never a plain success (a whiteness warning naming
     the station, or a failed result).
     """
-    from mc_radar_noise import draw, run
+    from mc_radar_noise import run
 
-    res = run(range(100, 103), 10.0, 1.0, noises=("auto",))["auto"]
+    runs: dict = {}
+    res = run(range(100, 103), 10.0, 1.0, noises=("auto",), separations=runs)["auto"]
     assert 0.6 <= res["rms_z"] <= 1.3 and res["coverage"] >= 0.85, res  # seeds 100-102: 0.73, 0.99
     assert res["successes"] == res["runs"] and "NoiseNotWhiteWarning" not in res["warnings"], res
-    sim = draw(100, 10.0, 1.0)
-    rr = separate_radar(sim.telemetry, list(sim.radars), SITE, sim.model, sim.tracking, diagnostics=False)
+    sim, rr = runs[100], runs[100, "auto"]  # the first seed's flight and its separation with noise auto
     kinds = [g["kind"] for g in rr.summary["noise"]]
     assert "white" not in kinds and kinds.count("gmw") >= 4, rr.summary["noise"]
     assert all(0.5 < g["tau_s"] < 2.0 for g in rr.summary["noise"]), rr.summary["noise"]
