@@ -95,7 +95,7 @@ def check_setup(lin: Any, whiten: Callable[[np.ndarray], tuple[np.ndarray, np.nd
         if abs(b) - 3 * std0[j] > LAUNCH_TIME_LIMIT and chi2.sf(d, 1) < SETUP_P:
             launch_warning = (
                 f"the launch time given (--launch-time {reg.site.t0:.10g} s) is {-b:+.4g} +- {std0[j]:.2g} ms "
-                f"off: the data place the launch at {reg.site.t0 + 1e-3 * b:.10g} s ({LAUNCH_TIME} = "
+                f"off: the data place the launch at {reg.site.t0 + 1e-3 * b:.4f} s ({LAUNCH_TIME} = "
                 f"{b:.4g} ms explains chi-square {d:.4g}, p = {chi2.sf(d, 1):.2g}; the stations' time tags "
                 "and positions explain the rest); it is estimated with the other terms, so the instrument estimate "
                 "accounts for it: correct --launch-time (or the telemetry's time scale)")

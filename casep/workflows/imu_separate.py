@@ -575,8 +575,9 @@ class _Run:
         if shift > CURVATURE_TOL:
             worst = names[int(np.argmax(np.diag(cov) / np.diag(C)))]
             said = (f"the navigation is curved at one std of the estimate: its second-order terms move the estimate "
-                    f"by up to {shift:.3g} std (RMS over {len(R)} draws, above {CURVATURE_TOL:g}); the std carry it "
-                    f"(up to {np.sqrt(np.max(np.diag(cov) / np.diag(C))):.3g} times the linear ones, {worst})")
+                    f"along one combination of the coefficients by up to {shift:.3g} of that combination's std "
+                    f"(RMS over {len(R)} draws, above {CURVATURE_TOL:g}); the std carry it (each coefficient's up to "
+                    f"{np.sqrt(np.max(np.diag(cov) / np.diag(C))):.3g} times its linear one, {worst})")
             warnings.warn(said, NonlinearityWarning, stacklevel=4)
             message = f"{message}; {said}"
         diag = dict(res.diagnostics)

@@ -394,7 +394,8 @@ def test_the_curvature_at_one_std_is_carried_by_the_std_and_said(misaligned_pass
     from casep.exceptions import NonlinearityWarning
 
     run, res, problem, D = misaligned_pass
-    with pytest.warns(NonlinearityWarning, match=r"move the estimate by up to [0-9.e+]+ std"):
+    said = r"move the estimate along one combination of the coefficients by up to [0-9.e+]+ of that combination.s std"
+    with pytest.warns(NonlinearityWarning, match=said):
         out = run.curvature(res, problem, D, draws=4)
     big = out.diagnostics["curvature"]["max_shift_std"]
     assert big > 10 * out.diagnostics["curvature"]["tol"]
