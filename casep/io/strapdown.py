@@ -21,8 +21,9 @@ Checks, each naming the file, the columns, the rows and the numbers:
   writing ``dtheta / step``: :data:`RATE_READINGS`). Their RMS difference
   relative to the RMS step rotation above :data:`RATE_TOL` (5 %) is a :class:`StrapdownWarning` with its
   size (deg/s) and the worst row, unless one explanation fits, which is an error saying so, or the
-  disagreement is systematic, an error too: the gain ``G`` with ``rv ~ G inc + b dt`` (least squares, a
-  bias ``b`` allowed) departing from the identity by more than :data:`GAIN_TOL` (5 %) in an element
+  disagreement is systematic, an error too: the gain ``G`` with ``rv ~ G inc + b dt`` (a bias ``b``
+  allowed; fitted as ``inc ~ H rv + c dt``, ``G = H^-1``, so that noise in the written rate does not pull
+  it towards 0) departing from the identity by more than :data:`GAIN_TOL` (5 %) in an element
   determined beyond :data:`GAIN_Z` std
   (the rates times 3, an axis negated, two axes swapped, times 1.1: the INS integrated other rates than
   the file's ``w``, whose sensor errors it shares; a model fitted on them gets the gyro terms wrong):
@@ -188,26 +189,70 @@ def _rate_evidence(t: np.ndarray, q: np.ndarray, w: np.ndarray) -> dict[str, Any
     return out
 
 
-def _rate_gain(rv: np.ndarray, inc: np.ndarray, dt: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """The gain ``G`` and bias ``b`` (rad/s) that map the rate's rotation vectors onto the quaternion steps,
-    ``rv_k ~ G inc_k + b dt_k`` (least squares), and the largest determined departure of ``G`` from the
-    identity: ``max |G_ij - I_ij|`` over the elements beyond :data:`GAIN_Z` of their std (module notes,
-    :data:`GAIN_TOL`). ``var G_kj = s_k^2 / |a_j - P a_j|^2``, ``a_j`` the rate's column j and ``P`` the
-    projection on the other columns: an axis turning at a constant rate is the bias's twin, and an axis that
-    hardly turns says nothing, so their columns of ``G`` are undetermined (NaN) and not judged."""
-    A = np.column_stack([inc, dt])
-    coef, *_ = np.linalg.lstsq(A, rv, rcond=None)  # (4, 3): rv = A coef
-    gain, bias = coef[:3].T, coef[3]
-    s2 = np.sum((rv - A @ coef) ** 2, axis=0) / max(rv.shape[0] - 4, 1)  # residual variance per output axis
+def _determined(A: np.ndarray) -> np.ndarray:
+    """Indices of the first three columns of `A` not (numerically) in the span of its other columns."""
+    keep = []
     for j in range(3):
         others = np.delete(A, j, axis=1)
         part = A[:, j] - others @ np.linalg.lstsq(others, A[:, j], rcond=None)[0]  # a_j - P a_j
-        own = float(part @ part)
-        if own <= 1e-12 * float(A[:, j] @ A[:, j]) or own == 0.0:
-            gain[:, j] = np.nan
-            continue
-        sure = np.abs(gain[:, j] - np.eye(3)[:, j]) > GAIN_Z * np.sqrt(s2 / own)
-        gain[:, j] = np.where(sure | (np.sqrt(s2 / own) < GAIN_TOL / GAIN_Z), gain[:, j], np.nan)  # judged or judgeable
+        if float(part @ part) > 1e-12 * float(A[:, j] @ A[:, j]):
+            keep.append(j)
+    return np.array(keep, dtype=int)
+
+
+def _long_run_variance(r: np.ndarray, lags: int = 3) -> np.ndarray:
+    """Per column of residuals `r`, ``max(g_0, g_0 + 2 sum_{l<=lags} g_l)`` (``g_l`` the lag-l autocovariance).
+
+    The integrated rate of step k uses samples k-2..k+1 (a cubic through four), so white rate noise reaches
+    neighbouring steps alike (MA(3)): on a slowly varying regressor a coefficient's variance is the residual's
+    long-run variance over the regressor's sum of squares, not its lag-0 variance (which understates it by
+    ~1.3x in std). Never below ``g_0``.
+    """
+    n = max(r.shape[0] - 4, 1)
+    g0 = np.sum(r * r, axis=0) / n
+    lr = g0 + 2.0 * sum(np.sum(r[lag:] * r[:-lag], axis=0) / n for lag in range(1, min(lags, r.shape[0] - 1) + 1))
+    return np.maximum(lr, g0)
+
+
+def _rate_gain(rv: np.ndarray, inc: np.ndarray, dt: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The gain ``G`` and bias ``b`` (rad/s) that map the rate's rotation vectors onto the quaternion steps,
+    ``rv_k ~ G inc_k + b dt_k``, and the largest determined departure of ``G`` from the identity:
+    ``max |G_ij - I_ij|`` over the elements beyond :data:`GAIN_Z` of their std (module notes, :data:`GAIN_TOL`).
+
+    The file's rate may be noisy samples of what the INS integrated, while its attitude is smooth: a fit with the
+    integrated rate as regressor would pull ``G`` towards 0 by the noise (errors in variables). So the rate is the
+    response: ``inc_k ~ H rv_k + c dt_k`` (least squares on the axes both sides determine) and ``G = H^-1``, exact
+    for noise-free data and unbiased for white rate noise. ``cov(H_k.) = s_k^2 M`` (``s_k^2`` the long-run
+    variance of axis k's residual, :func:`_long_run_variance`; ``M`` the regressors' inverse normal matrix), and
+    ``dG = -G dH G``: ``var G_ij = (sum_k G_ik^2 s_k^2) g_j^T M g_j`` with ``g_j = G[:, j]``. An axis whose rate
+    is the bias's twin (constant) or zero says nothing: its column of ``G`` is undetermined (NaN, not judged);
+    an axis the attitude keeps still (rows of ``G`` of an undetermined quaternion axis) is fitted the direct way
+    (``rv_i`` on the rate: its gains are ~0, where attenuation changes nothing)."""
+    gain, std = np.full((3, 3), np.nan), np.full((3, 3), np.inf)
+    bias = np.zeros(3)
+    cols = _determined(np.column_stack([inc, dt]))
+    rows = _determined(np.column_stack([rv, dt]))
+    if cols.size and cols.size == rows.size:
+        R = np.column_stack([rv[:, rows], dt])
+        coef, *_ = np.linalg.lstsq(R, inc[:, cols], rcond=None)  # inc[:, cols] = R coef
+        H = coef[:-1].T
+        if abs(np.linalg.det(H)) > 1e-12:
+            G = np.linalg.inv(H)
+            M = np.linalg.inv(R.T @ R)[:-1, :-1]
+            s2 = _long_run_variance(inc[:, cols] - R @ coef)
+            gain[np.ix_(rows, cols)] = G
+            std[np.ix_(rows, cols)] = np.sqrt(np.outer(G**2 @ s2, np.einsum("lj,lm,mj->j", G, M, G)))
+            bias[rows] = -G @ coef[-1]
+            still = np.setdiff1d(np.arange(3), rows)
+            if still.size:  # rv_i ~ G_i. inc + b_i dt
+                A = np.column_stack([inc[:, cols], dt])
+                c2, *_ = np.linalg.lstsq(A, rv[:, still], rcond=None)
+                s2 = _long_run_variance(rv[:, still] - A @ c2)
+                gain[np.ix_(still, cols)] = c2[:-1].T
+                std[np.ix_(still, cols)] = np.sqrt(np.outer(s2, np.diag(np.linalg.inv(A.T @ A))[:-1]))
+                bias[still] = c2[-1]
+    sure = np.abs(gain - np.eye(3)) > GAIN_Z * std
+    gain = np.where(sure | (std < GAIN_TOL / GAIN_Z), gain, np.nan)  # judged or judgeable
     off = np.abs(gain - np.eye(3))
     return gain, bias, float(np.nanmax(off)) if np.isfinite(off).any() else 0.0
 

@@ -196,6 +196,12 @@ def test_body_force_in_g_is_warned_naming_the_fb_columns_and_the_factor(tmp_path
     assert "fb_x, fb_y, fb_z (as C(q) fb)" in msg and f"is {peak:.4g} m/s^2" in msg and "multiply by 9.80665" in msg
 
 
+def gain_in(msg: str) -> np.ndarray:
+    """The gain ``G = [a b c; ...]`` of a refusal's message (``?`` as NaN)."""
+    return np.array([[float(x.replace("?", "nan")) for x in row.split()]
+                     for row in msg.split("G = [")[1].split("]")[0].split("; ")])
+
+
 @pytest.mark.parametrize("wrong, what", [
     (lambda w: 3.0 * w, "times 3"),
     (lambda w: w * np.array([1.0, 1.0, -1.0]), "w_z negated"),
@@ -210,8 +216,7 @@ def test_rates_the_attitude_did_not_integrate_are_refused(tmp_path, wrong, what)
         casep.read_flight(write(tmp_path / "sd.csv", t, q, fb, wrong(w)))
     msg = str(exc.value)
     assert "column `w_x, w_y, w_z`" in msg and "deg/s RMS" in msg and "worst" in msg and "t = " in msg, what
-    G = np.array([[float(x.replace("?", "nan")) for x in row.split()]
-                  for row in msg.split("G = [")[1].split("]")[0].split("; ")])
+    G = gain_in(msg)
     expected = {"times 3": np.eye(3) / 3, "w_z negated": np.diag([1.0, 1.0, -1.0]),
                 "w_x and w_y swapped": np.eye(3)[[1, 0, 2]], "times 1.1": np.eye(3) / 1.1}[what]
     # a constant roll rate is the bias's twin: that column is undetermined ("?"); the others as made
@@ -226,3 +231,39 @@ def test_a_small_compensation_gain_and_a_bias_stay_a_warning(tmp_path):
     t, q, fb, w, _ = motion()
     with pytest.warns(StrapdownWarning, match=r"disagrees .* systematic part \(a gain\) is 2 %"):
         casep.read_flight(write(tmp_path / "sd.csv", t, q, fb, 1.02 * w + np.array([0.1, 0.0, 0.0])))
+
+
+def gentle_noisy_flight(seconds: float = 40.0, noise: float = 0.005, seed: int = 9):
+    """A gently turning vehicle at 100 Hz (peak ~2.6 deg/s): the attitude the navigator integrates from the smooth
+    rate, and the rate written as instantaneous samples with white noise `noise` rad/s (a MEMS gyro's)."""
+    from casep.rotations import quat_multiply, rotation_increments
+
+    t = np.arange(int(seconds * 100) + 1) / 100.0
+    w = 0.1 * np.column_stack([0.35 * np.sin(2 * np.pi * t / 25) + 0.1 * np.sin(2 * np.pi * t / 7),
+                               0.25 * np.sin(2 * np.pi * t / 40) + 0.05, 0.12 * np.cos(2 * np.pi * t / 19)])
+    steps = Rotation.from_rotvec(rotation_increments(t, w)).as_quat(scalar_first=True)
+    q = np.empty((t.size, 4))
+    q[0] = [1.0, 0.0, 0.0, 0.0]
+    for k in range(1, t.size):
+        q[k] = quat_multiply(q[k - 1], steps[k - 1])
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    return t, q, w, w + noise * np.random.default_rng(seed).standard_normal(w.shape)
+
+
+def test_noisy_rate_samples_of_a_gentle_flight_are_read_and_a_gain_with_that_noise_is_refused():
+    """Noise in the written rate must not read as a gain (errors in variables would pull G towards 0 by ~15 % on
+    the slowly turning z axis): G is the identity within its std, at most a warning; 1.1 times the rate with the
+    same noise is still refused."""
+    from casep.io.strapdown import check_strapdown
+
+    t, q, w, noisy = gentle_noisy_flight()
+    fb = np.tile([0.0, 0.0, 9.8], (t.size, 1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StrapdownWarning)  # the noise is a 20 % disagreement: a warning at most
+        _, info = check_strapdown("sd.csv", t, q, fb, noisy)
+    G = np.array(info["rate_gain"], dtype=float)
+    assert info["systematic"] < 0.03 and np.nanmax(np.abs(G - np.eye(3))) < 0.03, G
+    with pytest.raises(FlightDataError, match="not the rates the INS integrated") as exc:
+        check_strapdown("sd.csv", t, q, fb, 1.1 * w + (noisy - w))
+    G = gain_in(str(exc.value))
+    assert np.abs(G - np.eye(3) / 1.1).max() < 0.03, G  # the quaternions turn by 1/1.1 of the rate
