@@ -23,8 +23,10 @@ sides (maximum, minimum):
   - for a physical unit off every nominal range, the column's own extreme ``e`` (a full scale the data imply:
     a gyro clipped at 24 deg/s), when no two consecutive readings off ``+-e`` are equal (a
     continuous reading, noisy or smoothly moving, repeats to all digits only on a rail; a quantised or
-    noise-free column repeats on a pad at 0 or a coast, so its held extreme says nothing) and ``e`` lies a
-    tenth of ``|e|`` or more from the column's median;
+    noise-free column repeats on a pad at 0 or a coast, so its held extreme says nothing), ``e`` lies a
+    tenth of ``|e|`` or more from the column's median, and a run of :data:`CLIP_RUN` readings at ``e`` is
+    entered and left (a value held from the first or to the last sample is the state the record starts or
+    ends in, as a noise-free pad);
 
   and the readings equal to ``e`` are at it (the converter holds its last code);
 
@@ -183,6 +185,8 @@ def _rail(ext: float, side: str, column: np.ndarray, sensor: str, si: float | No
     free = (np.abs(column[1:]) != abs(ext)) & (np.abs(column[:-1]) != abs(ext))  # off both rails (+-e)
     if not free.any() or np.any(column[1:][free] == column[:-1][free]) or abs(ext - med) < 0.1 * abs(ext):
         return None
+    if not any(a > 0 and b < column.size and b - a >= CLIP_RUN for a, b in runs(column == ext)):
+        return None  # a clip is entered and left: a value held from the first or to the last sample is a state
     flag = "--gyr-range" if sensor == "gyro" else "--acc-range"
     return (f"a full scale +-{v:.6g} {name} implied by identical readings at the column's extreme, no nominal "
             f"range: {flag} {v:.6g} declares it")

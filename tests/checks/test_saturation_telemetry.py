@@ -250,7 +250,8 @@ def test_a_gyro_clipped_at_an_undeclared_non_nominal_range_is_flagged(dps, spike
 def test_exact_repeats_of_a_legitimate_flight_are_not_a_clip():
     """Not flagged: a noise-free simulated flight on the pad at exactly 0, then turning, with a constant-rate
     segment at its extreme computed in floating point (repeated to all digits: the pad says the column holds
-    values exactly); the pad alone; a noisy vehicle holding a constant rate of 50 deg/s."""
+    values exactly); the pad alone; a noise-free record held at its extreme from its first sample on; a noisy
+    vehicle holding a constant rate of 50 deg/s."""
     rng = np.random.default_rng(5)
     w = _smooth_rates(6000)
     w[:500] = 0.0  # the pad
@@ -259,6 +260,9 @@ def test_exact_repeats_of_a_legitimate_flight_are_not_a_clip():
     assert np.sum(w[:, 0] == top) >= 400
     assert _screened(w)[1] == []
     assert _screened(np.zeros((2000, 3)))[1] == []
+    w = _smooth_rates(6000)
+    w[:500, 0] = w[:, 0].max() + 0.1  # held exactly from the first sample, at the column's extreme: a state, no clip
+    assert _screened(w)[1] == []
     steady = np.full((3000, 3), [math.radians(50.0), 0.0, 0.0]) + rng.normal(0.0, 1e-3, (3000, 3))
     out, said = _screened(steady)
     assert said == [] and out.observed.all()
