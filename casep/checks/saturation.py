@@ -20,6 +20,13 @@ sides (maximum, minimum):
     clipped all that time), in a column with noise off the rail (where :data:`HELD_FRACTION` or more of
     the consecutive samples not at ``e`` are equal, as in a noise-free simulation, a constant thrust
     near 4 g is held exactly without any clipping: declare the full scale there);
+  - for a physical unit off every nominal range, the column's own extreme ``e`` (a full scale the data imply:
+    a gyro clipped at 24 deg/s), when no two consecutive readings off ``+-e`` are equal (a
+    continuous reading, noisy or smoothly moving, repeats to all digits only on a rail; a quantised or
+    noise-free column repeats on a pad at 0 or a coast, so its held extreme says nothing), ``e`` lies a
+    tenth of ``|e|`` or more from the column's median, and a run of :data:`CLIP_RUN` readings at ``e`` is
+    entered and left (a value held from the first or to the last sample is the state the record starts or
+    ends in, as a noise-free pad);
 
   and the readings equal to ``e`` are at it (the converter holds its last code);
 
@@ -163,12 +170,26 @@ def _rail(ext: float, side: str, column: np.ndarray, sensor: str, si: float | No
     if ext == 0.0 or (ext > 0) != top or (sensor == "accelerometer" and abs(ext - med) < 0.1 * abs(ext)):
         return None  # a rail lies on its side of zero (an accelerometer's away from where the column spends its time)
     off = (column[1:] != ext) & (column[:-1] != ext)  # the noise is judged off the rail (a gyro may sit on it)
-    if not off.any() or np.mean(column[1:][off] == column[:-1][off]) >= HELD_FRACTION:
+    held = np.mean(column[1:][off] == column[:-1][off]) if off.any() else 1.0
+    if held >= HELD_FRACTION:
         return None  # noise-free: every steady span is held exactly
     name, per = FULL_SCALE_UNITS[sensor]
     v = abs(ext) * si / per
     near = min(NOMINAL_RANGES[sensor], key=lambda r: abs(v / r - 1.0))
-    return f"the nominal +-{near:g} {name} range" if abs(v / near - 1.0) <= FULL_SCALE_TOLERANCE else None
+    if abs(v / near - 1.0) <= FULL_SCALE_TOLERANCE:
+        return f"the nominal +-{near:g} {name} range"
+    # No nominal range: the column's own extreme is its full scale when the column never repeats a reading to
+    # all digits off its rails +-e (a continuous, noisy or smoothly moving reading: an exact repeat there does not
+    # happen by chance, while a quantised or noise-free column repeats on a pad or a coast, and its held extreme
+    # says nothing) and the extreme lies far from where the column spends its time.
+    free = (np.abs(column[1:]) != abs(ext)) & (np.abs(column[:-1]) != abs(ext))  # off both rails (+-e)
+    if not free.any() or np.any(column[1:][free] == column[:-1][free]) or abs(ext - med) < 0.1 * abs(ext):
+        return None
+    if not any(a > 0 and b < column.size and b - a >= CLIP_RUN for a, b in runs(column == ext)):
+        return None  # a clip is entered and left: a value held from the first or to the last sample is a state
+    flag = "--gyr-range" if sensor == "gyro" else "--acc-range"
+    return (f"a full scale +-{v:.6g} {name} implied by identical readings at the column's extreme, no nominal "
+            f"range: {flag} {v:.6g} declares it")
 
 
 #: The strapdown telemetry's sensor columns (:mod:`casep.io.strapdown`, SI) screened by :func:`screen_saturation`.

@@ -67,12 +67,15 @@ def test_the_labelled_path_refuses_the_flags(tmp_path, capsys):
 
 
 def test_a_declared_gyro_range_off_the_nominal_ones_is_saturation(tmp_path, capsys):
-    # a +-200 deg/s gyro written in deg/s (no nominal range: unseen without the flag); fast turns hold +-200
+    # a +-200 deg/s gyro written in deg/s (no nominal range); fast turns hold +-200: without the flag the column's
+    # extreme, repeated to all digits where nothing else repeats, is the full scale the data imply
     h = simulate_hand_session(16, seed=24, motion_s=(0.8, 1.0), angle_deg=(140.0, 170.0))
     gyr = np.clip(np.degrees(h.gyr), -200.0, 200.0)
     moving = [(a, b) for a, b in zip(np.flatnonzero(np.diff(np.r_[0, h.moving.astype(int)]) == 1),
                                      np.flatnonzero(np.diff(np.r_[h.moving.astype(int), 0]) == -1) + 1)]
-    assert check_gyro_saturation(gyr, moving, "deg/s", "s") == []
+    with pytest.warns(SaturationWarning, match=r"a full scale \+-200 deg/s implied by identical readings.*"
+                                               r"--gyr-range 200 declares it"):
+        assert check_gyro_saturation(gyr, moving, "deg/s", "s")
     with pytest.warns(SaturationWarning, match=r"the declared full scale -?200"):
         assert check_gyro_saturation(gyr, moving, "deg/s", "s", declared_range(math.radians(200), "deg/s", "gyro"))
     p = tmp_path / "clip.txt"

@@ -141,13 +141,18 @@ def test_clipped_gyro_in_telemetry_is_flagged_and_the_rest_left_out(clipped_at_1
     assert res.success and np.max(np.abs(z)) < 4.0, dict(zip(res.names, z.round(2)))
 
 
-def test_a_fit_absorbing_an_undetected_clip_is_not_a_plain_success(clipped_at_110):
-    """Clipped at 110 deg/s (no nominal range, none declared): nothing says saturation, but the residuals are
-    hundreds of times the tracking noise and correlated after the noise model: failed, with the numbers."""
+def test_a_fit_absorbing_an_undetected_clip_is_not_a_plain_success(clipped_at_110, tmp_path):
+    """Clipped at 110 deg/s, the rail blurred by 1e-9 rad/s so no reading repeats and the screen cannot see it:
+    nothing says saturation, but the residuals are hundreds of times the tracking noise and correlated after the
+    noise model: failed, with the numbers."""
     from casep.estimators.registry import STATUS_MISFIT
 
     tel, trk, D, _ = clipped_at_110
-    res, said = _separate(tel, trk)
+    tab = np.genfromtxt(tel, delimiter=",", names=True)
+    cols = {c: np.array(tab[c]) for c in tab.dtype.names}
+    cols["w_x"] = cols["w_x"] + np.random.default_rng(1).normal(0.0, 1e-9, cols["w_x"].size)
+    write_table(tmp_path / "blurred.csv", cols)
+    res, said = _separate(tmp_path / "blurred.csv", trk)
     assert not said
     assert not res.success and res.status == STATUS_MISFIT
     assert "residual RMS at least 100 times the tracking's sample-to-sample noise" in res.message
@@ -187,3 +192,77 @@ def test_misfit_rule_needs_both_the_ratio_and_correlated_residuals():
     why = misfit_problem(fl, {"x": big, "y": big, "z": small}, ("x", "z"))
     assert why is not None and "on 1 axis(es) (x 10 m/s = " in why
     assert misfit_problem(fl, {"x": big, "y": big, "z": big}, ()) is None
+
+
+def test_a_clip_at_a_full_scale_nobody_declared_is_found_from_the_data(clipped_at_110):
+    """w_x held at exactly 110 deg/s (no nominal range, none declared): the column's own extreme, repeated to all
+    digits in a column that repeats nowhere else, is the full scale the data imply; said with the option that
+    declares it, the rows from the first clip on left out, the estimates within a few std."""
+    tel, trk, D, first = clipped_at_110
+    res, said = _separate(tel, trk)
+    assert len(said) == 1 and "w_x at its maximum 110 deg/s (a full scale +-110 deg/s implied" in said[0]
+    assert "--gyr-range 110 declares it" in said[0] and f"wrong from t = {first:.10g} s on" in said[0]
+    z = np.array([(res.estimate[i] - D[n]) / res.std[i] for i, n in enumerate(res.names)])
+    assert res.success and np.max(np.abs(z)) < 4.0, dict(zip(res.names, z.round(2)))
+
+
+def _screened(w: np.ndarray, rate: float = 100.0):
+    """screen_saturation of a flight whose telemetry gyro reads `w` (N, 3), rad/s: the flight, the warnings."""
+    from casep.checks.saturation import screen_saturation
+    from casep.io.flight import FlightData
+
+    t = np.arange(w.shape[0]) / rate
+    fb = np.tile([0.0, G0, 0.0], (t.size, 1)) + np.sin(t)[:, None] * [0.3, 0.2, 0.1]
+    sig = {**{f"w_{a}": w[:, i] for i, a in enumerate("xyz")}, **{f"fb_{a}": fb[:, i] for i, a in enumerate("xyz")}}
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        out = screen_saturation(FlightData(t, fb, np.zeros_like(fb), signals=sig))
+    return out, [str(x.message) for x in rec if issubclass(x.category, SaturationWarning)]
+
+
+def _smooth_rates(n: int) -> np.ndarray:
+    """A noise-free turning flight's body rates at 100 Hz, rad/s (no value repeats)."""
+    t = np.arange(n) / 100.0
+    return np.column_stack([0.35 * np.sin(2 * np.pi * t / 25) + 0.1 * np.sin(2 * np.pi * t / 7),
+                            0.25 * np.sin(2 * np.pi * t / 40) + 0.05, 0.12 * np.cos(2 * np.pi * t / 19)])
+
+
+@pytest.mark.parametrize("dps, spike_at", [(24.0, None), (200.0, 90.0)])
+def test_a_gyro_clipped_at_an_undeclared_non_nominal_range_is_flagged(dps, spike_at):
+    """Smooth rates clipped at exactly +-24 deg/s for hundreds of rows, or a 0.6 s roll spike of 300 deg/s clipped
+    at exactly 200 deg/s for about 30 rows near the end of the record: the column, the implied full scale, the rows
+    and times are named, and the observed rows from the first clip on are left out."""
+    w = _smooth_rates(10000)
+    if spike_at is not None:
+        x = (np.arange(10000) / 100.0 - spike_at) / 0.3
+        w[:, 0] += np.where(np.abs(x) < 1, math.radians(300.0) * (1 - x * x) ** 2, 0.0)
+    w = np.clip(w, -math.radians(dps), math.radians(dps))
+    held = np.flatnonzero(np.abs(w[:, 0]) == math.radians(dps))
+    assert held.size >= (300 if spike_at is None else 20)
+    out, said = _screened(w)
+    assert len(said) == 1 and f"(a full scale +-{dps:g} deg/s implied by identical readings" in said[0]
+    assert f"--gyr-range {dps:g} declares it" in said[0] and f"rows {held[0] + 1}.." in said[0]
+    assert f"t = {held[0] / 100.0:.10g}" in said[0] and "w_y" not in said[0] and "w_z" not in said[0]
+    assert out.meta["saturation"]["from_s"] == pytest.approx(held[0] / 100.0, abs=1e-12)
+    assert np.array_equal(out.observed, out.t < held[0] / 100.0)
+
+
+def test_exact_repeats_of_a_legitimate_flight_are_not_a_clip():
+    """Not flagged: a noise-free simulated flight on the pad at exactly 0, then turning, with a constant-rate
+    segment at its extreme computed in floating point (repeated to all digits: the pad says the column holds
+    values exactly); the pad alone; a noise-free record held at its extreme from its first sample on; a noisy
+    vehicle holding a constant rate of 50 deg/s."""
+    rng = np.random.default_rng(5)
+    w = _smooth_rates(6000)
+    w[:500] = 0.0  # the pad
+    top = float(w[:, 0].max())
+    w[3000:3400, 0] = top * np.cos(np.zeros(400))  # a coordinated turn at the column's maximum rate, held exactly
+    assert np.sum(w[:, 0] == top) >= 400
+    assert _screened(w)[1] == []
+    assert _screened(np.zeros((2000, 3)))[1] == []
+    w = _smooth_rates(6000)
+    w[:500, 0] = w[:, 0].max() + 0.1  # held exactly from the first sample, at the column's extreme: a state, no clip
+    assert _screened(w)[1] == []
+    steady = np.full((3000, 3), [math.radians(50.0), 0.0, 0.0]) + rng.normal(0.0, 1e-3, (3000, 3))
+    out, said = _screened(steady)
+    assert said == [] and out.observed.all()
