@@ -102,7 +102,7 @@ if TYPE_CHECKING:
     from casep.navigation.result import NavigationResult
 
 __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
-           "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_DRAWS"]
+           "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_DRAWS", "std_shift"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -267,6 +267,7 @@ class _Run:
         self.q_aligned = np.array([1.0, 0.0, 0.0, 0.0])  # the last pass's aligned start attitude
         self.C_tb = np.eye(3)  # ... and its body -> launch triad
         self.screen: dict | None = None  # the first pass's tracking screen, kept
+        self.inputs_said = False  # whether the inputs' warnings were said before the first pass
 
     # ------------------------------------------------------------------ one pass
     def navigate(self, D: np.ndarray) -> NavigationResult:
@@ -414,9 +415,10 @@ class _Run:
         from casep.checks.tracking_quality import keep_screen, screen_tracking
 
         first = D is None
+        quiet = not first or self.inputs_said
         D = np.zeros(self.base.n_coefficients) if D is None else D
         with warnings.catch_warnings():
-            if not first:
+            if quiet:
                 warnings.simplefilter("ignore")  # the inputs' warnings were shown on the first pass
             nav = self.navigate(D)
             flight = self.flight(nav, D, None if first else self.model_k)
@@ -435,7 +437,7 @@ class _Run:
                 self.pair["time_offset"] = align.get("applied_s", 0.0) or None
         self.nav = nav
         with warnings.catch_warnings():
-            if not first:
+            if quiet:
                 warnings.simplefilter("ignore")  # S_V's warnings (integrated across a gap) said once, too
             model = self.model(nav, D)
             problem = flight_problem(flight, model)
@@ -509,17 +511,26 @@ class _Run:
         solution = None if res.solution is None else dataclasses.replace(res.solution, x=total)
         out = dataclasses.replace(res, estimate=estimate, diagnostics=diag, solution=solution,
                                   **model_record(self.base))
-        out = with_imu_noise(out, problem, flight, (self.window, self.levelling_jacobian()))
+        out = self.with_noise(out, problem, flight)
         if iterate and failure is None and not _stopped(passes[-1], tol) and out.success:
             failure = f"failed: the iteration stopped at pass {len(passes)} before converging"
         if failure is not None:
-            gap = _gap_clause(self.imu, float(out.sigma))
+            gap = self.gap_clause(float(out.sigma))
             out = failed(out, STATUS_NOT_CONVERGED, failure.replace(_BLAME, gap) if gap else failure)
         out = judge_setup(out, flight, model, noise_free=False)
         out = judge_tracking(out, flight, problem, model.scales, about=D)
         if iterate and out.success:  # a failed result's std are not used: no curvature to carry
             out = self.curvature(out, problem, D)
         return ImuSeparation(out, nav, flight, passes)
+
+    def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
+        """`res` with the record's own noise in its std, the pad levelling's start tilt with it
+        (:func:`with_imu_noise`)."""
+        return with_imu_noise(res, problem, flight, (self.window, self.levelling_jacobian()))
+
+    def gap_clause(self, sigma: float) -> str:
+        """What a failed iteration says of the record's gaps (:func:`_gap_clause`)."""
+        return _gap_clause(self.imu, sigma)
 
     def curvature(self, res: EstimateResult, problem: Any, D: np.ndarray, draws: int | None = None) -> EstimateResult:
         """`res` with the pipeline's curvature at one std of its estimate in its covariance (module notes).
@@ -565,9 +576,7 @@ class _Run:
             return res
         B = np.linalg.lstsq(M, np.array(R).T, rcond=None)[0]  # (n, K): the shift of each draw
         extra = B @ B.T / B.shape[1]
-        keep = lam > lam.max() * 1e-14
-        W = V[:, keep] / np.sqrt(lam[keep])
-        shift = float(np.sqrt(max(np.linalg.eigvalsh(W.T @ extra @ W).max(), 0.0)))
+        shift = std_shift(C, extra)
         cov = C + extra
         info = {"checked": True, "draws": len(R), "max_shift_std": shift, "tol": CURVATURE_TOL,
                 "std_factor": {nm: float(v) for nm, v in zip(names, np.sqrt(np.diag(cov) / np.diag(C)))}}
@@ -598,6 +607,16 @@ class _Run:
         finally:
             self.imu_k, self.q_aligned, self.C_tb = state
         return flight.observed_rows(flight.t)[1]
+
+
+def std_shift(C: np.ndarray, extra: np.ndarray) -> float:
+    """``sqrt(max eig C^+ extra)``: how far a second-order term of mean square `extra` (one shift ``b``: ``b b^T``)
+    moves the estimate along the combination it moves most, in that combination's std (`C` the estimate's
+    covariance; its null directions, eigenvalues below 1e-14 of the largest, left out)."""
+    lam, V = np.linalg.eigh(C)
+    keep = lam > lam.max() * 1e-14
+    W = V[:, keep] / np.sqrt(lam[keep])
+    return float(np.sqrt(max(np.linalg.eigvalsh(W.T @ extra @ W).max(), 0.0)))
 
 
 def _gap_clause(imu: ImuData, sigma: float) -> str:

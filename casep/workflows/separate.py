@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
-from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence, TypeVar
 
 import numpy as np
 
@@ -26,6 +26,8 @@ if TYPE_CHECKING:
     from casep.workflows.radar import RadarResult
 
 __all__ = ["separate", "regression_rows", "judge_setup", "judge_tracking"]  # and METHODS (module __getattr__)
+
+_T = TypeVar("_T")
 
 
 def __getattr__(name: str) -> Any:
@@ -73,6 +75,7 @@ def separate(
     std: str | NotGiven = NOT_GIVEN,
     exclude_outliers: float | None | NotGiven = NOT_GIVEN,
     fit_time_offset: bool | None = None,
+    iterate: bool | None = None,
     radar: Sequence | None = None,
     site: LaunchSite | None = None,
     tracking_model: Any = NOT_GIVEN,
@@ -166,6 +169,13 @@ def separate(
         automatically (``read_flight_pair(..., time_offset="auto")``) or come from Earth-fixed tracking
         (``tracking_frame="ecef"`` or ``"geodetic"``: the range's clock), so that the offset between the
         two clocks is estimated with its std instead of biasing the coefficients that correlate with it.
+    iterate : bool, optional
+        On a strapdown telemetry pair (``q_*``, ``fb_*``, ``w_*``, ``v_tel_*`` with tracking) and a strapdown model:
+        None (default) iterates (the corrected record re-navigated, S_V rebuilt, solved again:
+        :mod:`casep.workflows.telemetry_iterate`) when the linear estimate's second-order remainder moves it by
+        more than :data:`casep.regression.linearisation.LINEAR_OFFSET_SHARE` of its std; True iterates always;
+        False keeps the linear result and warns beyond that share (failed beyond
+        :data:`casep.workflows.telemetry_iterate.FAIL_SHIFT` std). Ignored on other flights.
     radar : sequence, optional
         Radar measurements instead of tracking velocities: ``[(station, measurements), ...]``, each
         station a station JSON file or a :class:`casep.radar.stations.Station` and each measurement
@@ -212,6 +222,18 @@ def separate(
         spec = FitSpec.build(**fit_kw)  # every check of the request, once
     flight, problem, model = _problem(flight, model, fit_time_offset)
     spec = _with_tables(spec, flight, model)
+    from casep.workflows.telemetry_iterate import iterate_if_curved
+
+    (res, problem, model, flight), caught = _recorded(lambda: _linear(flight, problem, model, spec, fit_time_offset))
+    res, iterated = iterate_if_curved(res, flight, problem, model, spec, iterate)
+    # the linear result's warnings are said with it; an iterated result says its own (the inputs' were said above)
+    return res if iterated else _replayed(res, caught)
+
+
+def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
+            fit_time_offset: bool | None) -> tuple[EstimateResult, Problem, Any, Any]:
+    """The fit (:func:`_fit_offset_if_found`) judged (:func:`judge_setup`, :func:`judge_tracking`), with its model's
+    record: the result, its problem, model and flight."""
     res, problem, model, flight = _fit_offset_if_found(flight, problem, model, spec, fit_time_offset)
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model,
                       noise_free=problem.is_noise_free())
@@ -221,7 +243,7 @@ def separate(
         from casep.model.loader import model_record
 
         res = dataclasses.replace(res, **model_record(model))  # its file and SHA-256: read back only with that file
-    return res
+    return res, problem, model, flight
 
 
 def _problem(flight: FlightData | Problem | str | os.PathLike, model: Any,
@@ -389,7 +411,7 @@ def _shifted(flights: Sequence[Any], total: np.ndarray, can: np.ndarray) -> list
     return [repaired(fl, s) if c else fl for fl, s, c in zip(flights, total, can)]
 
 
-def _recorded(call: Callable[[], EstimateResult]) -> tuple[EstimateResult, list]:
+def _recorded(call: Callable[[], _T]) -> tuple[_T, list]:
     """`call()` with the warnings it issues recorded, not said."""
     import warnings
 

@@ -1,0 +1,265 @@
+"""Strapdown telemetry whose errors are too large to stay linear: the remainder judged, and the iterated separation.
+
+A strapdown telemetry file (``q_*``, ``fb_*``, ``w_*`` with ``v_tel_*``, paired with tracking) holds the INS's
+attitude, and the body specific force and rate it integrated, at the telemetry rate. The separation of
+:func:`casep.separate` is linear in the coefficients about the telemetry itself: S_V integrates the error model
+along the INS attitude. With MEMS errors (gyro biases of hundreds of deg/h over minutes) the attitude error is
+tens of degrees and the first-order model is biased by many std (on a 150 s aircraft-like flight with
+600-1000 deg/h gyro biases: the accelerometer scale factors 11-14 std off, plain success).
+
+**The corrected telemetry.** The telemetry holds what a re-navigation needs: the record corrected at
+coefficients ``D`` (:func:`casep.model.strapdown.corrected_imu`), integrated by the navigator's own
+mechanisation (:mod:`casep.navigation.strapdown`: increments, attitude, rotation-compensated velocity) from the
+telemetry's first attitude (corrected by the model's ``phi0``), and the uncorrected record integrated the same way
+(``B_c``, ``B_r``: attitudes, ``dV_c``, ``dV_r``: body velocity increments)::
+
+    C_c(t) = C_tel(t) B_r(t)^T B_c(t)
+    v_c(t_k) = v_tel(t_k) - dv0(D) + sum_{j <= k} [C_c(t_{j-1}) dV_c,j - C_tel(t_{j-1}) dV_r,j]
+
+Gravity and the discretisation of the INS's own integration cancel in the difference (to second order in the
+correction), and at ``D = 0`` the telemetry is given back exactly. That is what a pass of the raw-IMU
+iteration (:mod:`casep.workflows.imu_separate`) navigates; :class:`_TelemetryRun` is that iteration with this
+re-navigation in place of the pad alignment and the navigation (the passes, the stop rule, the exact S_V of
+:func:`casep.model.strapdown.correction_errors`, the IMU's noise in the std and the curvature check at one
+std are the raw-IMU path's, called, not copied).
+
+**When the linear result stands** (:func:`linearisation_shift`). The pass at the linear estimate ``x``
+(its part the flight determines) gives the rows the nonlinear model predicts; their remainder about the
+linear model, ``r = y(x) - (y(0) - S_V x)``, moves the least-squares estimate by ``b = S_V^+ r``. The linear
+result stands while ``sqrt(b^T C^+ b)`` (the shift along the combination it moves most, in that combination's
+std) is below :data:`casep.regression.linearisation.LINEAR_OFFSET_SHARE`, the rule the tracking offset and
+the radar launch time are held to; beyond it :func:`separate` iterates (``iterate=None``, the default) or,
+with ``iterate=False``, the linear result carries a :class:`~casep.exceptions.NonlinearityWarning` with the
+shift (and fails when the shift exceeds :data:`FAIL_SHIFT` std: an estimate that far off is no success).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from casep.workflows.imu_separate import ITERATE_TOL, MAX_ITERATIONS, _Run, determined_step, std_shift
+
+if TYPE_CHECKING:
+    from casep.estimators.result import EstimateResult
+    from casep.estimators.spec import FitSpec
+    from casep.io.flight import FlightData
+    from casep.model.error_model import ErrorModel
+
+__all__ = ["corrected_telemetry", "linearisation_shift", "iterate_if_curved", "CorrectedTelemetry",
+           "FAIL_SHIFT"]
+
+#: A linear result kept (``iterate=False``) whose second-order remainder moves it by more than this (std) fails.
+FAIL_SHIFT = 3.0
+
+
+@dataclass
+class CorrectedTelemetry:
+    """The telemetry at its own samples, corrected at some coefficients (:func:`corrected_telemetry`)."""
+
+    q: np.ndarray  # (N, 4) body -> navigation
+    fb: np.ndarray  # (N, 3) m/s^2
+    w: np.ndarray  # (N, 3) rad/s
+    v: np.ndarray  # (N, 3) m/s
+
+
+def strapdown_arrays(inp: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(q, fb, w)`` of a pair's telemetry (its :class:`casep.io.pair.PairInputs`), the quaternions normalised."""
+    from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
+
+    q, fb, w = (np.column_stack([np.asarray(inp.signals[c], float) for c in cols])
+                for cols in (QUATERNION_COLUMNS, BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS))
+    return q / np.linalg.norm(q, axis=1, keepdims=True), fb, w
+
+
+def corrected_telemetry(model: ErrorModel, t: np.ndarray, q: np.ndarray, fb: np.ndarray, w: np.ndarray,
+                        v: np.ndarray, D: np.ndarray, start: tuple[np.ndarray, np.ndarray] | None = None
+                        ) -> CorrectedTelemetry:
+    """The telemetry re-navigated with its record corrected at `D` (module notes: ``C_c``, ``v_c``).
+
+    Parameters
+    ----------
+    model : ErrorModel
+        A set-up strapdown model (its errors in ``q_*``, ``fb_*``, ``w_*``).
+    t, q, fb, w, v : arrays
+        The telemetry's times (s), attitude (unit quaternions), body specific force (m/s^2), body rate (rad/s)
+        and velocity (m/s), (N,) / (N, 4) / (N, 3).
+    D : (n,) ndarray
+        The coefficients, natural units (the model's first ``n``).
+    start : (fb, w), optional
+        Where the inversion of the record starts (:func:`casep.model.strapdown.corrected_imu`).
+    """
+    from casep.model.strapdown import corrected_attitude, corrected_imu
+    from casep.navigation.strapdown import (
+        body_velocity_increments,
+        increments_from_rates,
+        propagate_attitude,
+        quat_rotate,
+    )
+    from casep.rotations import dcm_to_quat, quat_conjugate, quat_multiply, quat_to_dcm
+
+    D = np.asarray(D, float)[:model.n_coefficients]
+    if not np.any(D):
+        return CorrectedTelemetry(q, fb, w, v)
+    fb_c, w_c = corrected_imu(model, q, fb, w, t - t[0], D, start=start)
+    phi0, dv0 = model.numeric("phi0") @ D, model.numeric("dv0") @ D
+    inc_r, inc_c = increments_from_rates(t, w, fb), increments_from_rates(t, w_c, fb_c)
+    B_r = propagate_attitude(q[0], inc_r)
+    B_c = propagate_attitude(dcm_to_quat(corrected_attitude(quat_to_dcm(q[0]), phi0)), inc_c)
+    q_c = quat_multiply(quat_multiply(q, quat_conjugate(B_r)), B_c)
+    q_c /= np.linalg.norm(q_c, axis=1, keepdims=True)
+    step = quat_rotate(q_c[:-1], body_velocity_increments(inc_c)) - quat_rotate(q[:-1], body_velocity_increments(inc_r))
+    v_c = v - dv0 + np.vstack([np.zeros((1, 3)), np.cumsum(step, axis=0)])
+    return CorrectedTelemetry(q_c, fb_c, w_c, v_c)
+
+
+class _TelemetryRun(_Run):
+    """The raw-IMU iteration (:class:`casep.workflows.imu_separate._Run`) on a strapdown telemetry pair: a pass
+    re-navigates the telemetry's record corrected at ``D`` (:func:`corrected_telemetry`) and pairs it with the same
+    tracking, the flight's screens kept; no pad alignment (the model's own ``phi0``, if any, is the start's)."""
+
+    def __init__(self, flight: FlightData, base: ErrorModel, source: Any, spec: FitSpec,
+                 fit_time_offset: bool | None) -> None:
+        self.flight0, self.inp = flight, flight.meta["pair_inputs"]
+        self.base, self.source, self.spec, self.fit_time_offset = base, source, spec, fit_time_offset
+        self.pair: dict[str, Any] = {"time_offset": None}
+        self.tel = strapdown_arrays(self.inp)
+        q, fb, w = self.tel
+        self.nav: Any = None
+        self.imu_k: Any = CorrectedTelemetry(q, fb, w, np.asarray(self.inp.v_tel, float))  # the last pass's
+        self.model_k: ErrorModel | None = None
+        self.q_aligned, self.C_tb = None, None  # no alignment: kept for the state `rows` restores
+        self.screen: dict | None = None
+        self.inputs_said = True  # by the linear separation that asked for the iteration
+
+    def navigate(self, D: np.ndarray) -> CorrectedTelemetry:
+        """The telemetry corrected at `D` (from the last pass's correction)."""
+        q, fb, w = self.tel
+        t = np.asarray(self.inp.t_tel, float)
+        last = self.imu_k
+        tel = corrected_telemetry(self.base, t, q, fb, w, np.asarray(self.inp.v_tel, float), D,
+                                  start=(last.fb, last.w))
+        self.imu_k = tel
+        return tel
+
+    def flight(self, nav: Any, D: np.ndarray, model: ErrorModel | None) -> FlightData:
+        """The corrected telemetry paired with the tracking as the flight was (same grid, same rows observed), less
+        the model's direct velocity terms at `D`."""
+        from casep.io.pair import pair_flight
+        from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
+        from casep.rotations import quat_rotate
+        from casep.workflows.imu_separate import _direct_velocity
+
+        f0, inp = self.flight0, self.inp
+        if nav is None or not np.any(D[:self.base.n_coefficients]):
+            flight = f0
+        else:
+            sig = dict(inp.signals)
+            for cols, arr in ((QUATERNION_COLUMNS, nav.q), (BODY_FORCE_COLUMNS, nav.fb), (BODY_RATE_COLUMNS, nav.w)):
+                sig.update({c: arr[:, i] for i, c in enumerate(cols)})
+            shift = float(f0.meta.get("pair_shift_s", 0.0))
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # the pair's warnings were said when the flight was read
+                new = pair_flight(inp.t_tel, quat_rotate(nav.q, nav.fb), nav.v, inp.t_trk - shift, inp.v_trk,
+                                  signals=sig, interpolation=inp.interpolation, grid=inp.grid, source=f0.source)
+            observed = np.asarray(new.observed) & np.asarray(f0.observed)
+            flight = dataclasses.replace(f0, f=new.f, dv=np.where(observed[:, None], new.dv, np.nan),
+                                         signals=new.signals, observed=observed)
+        if model is None or not np.any(D):
+            return flight
+        return dataclasses.replace(flight, dv=flight.dv - _direct_velocity(model, flight, D))
+
+    def model(self, nav: Any, D: np.ndarray) -> ErrorModel:
+        """The model linearised about the correction at `D` (:func:`casep.model.strapdown.correction_errors`), with
+        ``dt_trk`` when fitted, set up."""
+        from casep.model.loader import add_time_offset
+
+        m = self._linearised(D)
+        if self.fit_time_offset:
+            add_time_offset(m)
+        m.setup()
+        return m
+
+    def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
+        """`res` as it is: the std of the telemetry path are the tracking noise's, iterated or not (the linear
+        result's rule, so that a flight on either side of the remainder rule is judged alike)."""
+        return res
+
+    def gap_clause(self, sigma: float) -> str:
+        """No raw record with gaps of its own: a failed iteration names none."""
+        return ""
+
+
+def linearisation_shift(run: _TelemetryRun, res: EstimateResult, problem: Any, flight: FlightData,
+                        scales: dict) -> float | None:
+    """How far the second-order remainder of a linear result moves it, in std (module notes; None when it
+    cannot be judged: no finite covariance, no rows, or a record that does not invert at the estimate)."""
+    C = res.covariance
+    if C is None or problem.y is None or not np.all(np.isfinite(C)):
+        return None
+    x = determined_step(res, problem, flight, scales).d
+    try:
+        y = run.rows(x)
+    except ValueError:
+        return np.inf
+    S = problem.sv()
+    r = (y - problem.y + np.einsum("ijk,k->ij", S, x)).reshape(-1)
+    b = np.linalg.lstsq(S.reshape(-1, len(res.names)), r, rcond=None)[0]
+    return std_shift(C, np.outer(b, b))
+
+
+def iterate_if_curved(res: EstimateResult, flight: Any, problem: Any, model: Any, spec: FitSpec,
+                      iterate: bool | None) -> tuple[EstimateResult, bool]:
+    """The result of :func:`casep.separate` on a strapdown telemetry pair, judged for its linearisation (module
+    notes): ``(result, iterated)``. `res` as it is (a record in ``diagnostics["linearisation"]``) while its
+    second-order remainder is below ``LINEAR_OFFSET_SHARE`` std; beyond it the iterated separation's result
+    (`iterate` None or True; True iterates whatever the remainder), or, with `iterate` False, `res` with a
+    :class:`~casep.exceptions.NonlinearityWarning` (failed beyond :data:`FAIL_SHIFT` std). Anything else than a
+    strapdown telemetry pair with a strapdown model: `res` unchanged."""
+    from casep.exceptions import NonlinearityWarning
+    from casep.io.flight import FlightData
+    from casep.io.pair import PairInputs
+    from casep.io.strapdown import STRAPDOWN_COLUMNS
+    from casep.model.error_model import ErrorModel
+    from casep.model.strapdown import imu_error_signals
+    from casep.regression.linearisation import LINEAR_OFFSET_SHARE
+
+    inp = flight.meta.get("pair_inputs") if isinstance(flight, FlightData) else None
+    if (not isinstance(inp, PairInputs) or not all(c in inp.signals for c in STRAPDOWN_COLUMNS)
+            or not isinstance(model, ErrorModel) or not imu_error_signals(model) or "state_from" in flight.meta
+            or (flight.meta.get("saturation") or {}).get("left_out") or not res.success):
+        return res, False
+    from casep.model.loader import TIME_OFFSET, load_model
+
+    base = load_model(model.source_file or model.name) if TIME_OFFSET in model.names else model
+    run = _TelemetryRun(flight, base, model.source_file or model.name, spec, TIME_OFFSET in model.names)
+    shift = linearisation_shift(run, res, problem, flight, model.scales)
+    record = {"shift_std": shift, "tol": LINEAR_OFFSET_SHARE,
+              "rule": "the second-order remainder of the linear estimate moves it by shift_std std (along the "
+                      "combination it moves most); the linear result stands below tol"}
+    if not iterate and (shift is None or shift <= LINEAR_OFFSET_SHARE):
+        res.diagnostics["linearisation"] = {**record, "iterated": False}
+        return res, False
+    if iterate is False:
+        from casep.estimators.registry import STATUS_NOT_CONVERGED, failed
+
+        said = (f"the linear model does not hold on this strapdown telemetry: the second-order remainder at the "
+                f"estimate moves it by {shift:.3g} std along one combination of the coefficients (above "
+                f"{LINEAR_OFFSET_SHARE:g}); separate with iterate (CLI: --iterate) to re-navigate the corrected record")
+        warnings.warn(said, NonlinearityWarning, stacklevel=3)
+        res.diagnostics["linearisation"] = {**record, "iterated": False}
+        if shift > FAIL_SHIFT:
+            return failed(res, STATUS_NOT_CONVERGED, f"failed: {said}"), False
+        return dataclasses.replace(res, message=f"{res.message}; {said}"), False
+    out = run.iterate(True, ITERATE_TOL, MAX_ITERATIONS).result
+    out.diagnostics["linearisation"] = {**record, "iterated": True}
+    if shift is not None and shift > LINEAR_OFFSET_SHARE:
+        note = (f"iterated: the linear estimate's second-order remainder moved it by {shift:.3g} std (above "
+                f"{LINEAR_OFFSET_SHARE:g}); the record re-navigated at the estimate in "
+                f"{len(out.diagnostics['iterations']['passes'])} passes")
+        out = dataclasses.replace(out, message=f"{out.message}; {note}")
+    return out, True
