@@ -243,3 +243,100 @@ def run_forked(program: Callable[[], int | None], argv: list[str], cwd: Path, en
             f.seek(0)
             texts.append(f.read().decode("utf-8", errors="replace"))
     return os.waitstatus_to_exitcode(wait_status), texts[0], texts[1]
+
+
+# ---------------------------------------------------------------- an independent strapdown INS (telemetry + tracking)
+#: The INS simulation's defaults: duration (s), telemetry rate (Hz), integration steps per telemetry sample, tracking
+#: rate (Hz), tracking noise (m/s).
+DUR, RATE, SUB, TRK_RATE, NOISE = 60.0, 25.0, 8, 5.0, 0.02
+DEGH = math.pi / 180 / 3600
+
+
+def _qmul(a, b):
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+
+
+def _dcm(q):
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def _qexp(r):
+    a = float(np.linalg.norm(r))
+    return np.array([1.0, *(r / 2)]) if a < 1e-15 else np.array([math.cos(a / 2), *(math.sin(a / 2) * r / a)])
+
+
+def _ins_rate(t, growth):  # rad/s: a roll whose amplitude grows by `growth` rad/s per s
+    return np.array([0.3 + (0.6 + growth * t) * math.sin(2 * math.pi * t / 7), 0.3 * math.sin(2 * math.pi * t / 13),
+                     0.2 * math.cos(2 * math.pi * t / 17)])
+
+
+def _ins_acc(t):  # kinematic acceleration, launch frame (y up), m/s^2
+    return np.array([3 * math.sin(2 * math.pi * t / 30) + 1, 2 * math.sin(2 * math.pi * t / 11),
+                     2.5 * math.cos(2 * math.pi * t / 23)])
+
+
+def ins_telemetry(clip_dps: float = math.inf, seed: int = 3, *, errors: dict | None = None, noise: float = NOISE,
+                  imu_noise: bool = True, growth: float = 0.03, dur: float = DUR, trk_rate: float = TRK_RATE):
+    """Telemetry (t, q_*, fb_*, w_*, v_tel_*), tracking (t, v_trk_*), the truth of strapdown12's coefficients and the
+    gyro samples held at the full scale `clip_dps`.
+
+    An INS written here, independent of casep's: quaternions integrated at the midpoint rate, :data:`SUB` steps per
+    telemetry sample, from the measured rates (``w (1 + sg) + bg``, clipped) and body specific force
+    (``fb (1 + sa) + ba``). The truth drawn from `seed` (ba ~ 1 mg, sa ~ 200 ppm, bg ~ 3 deg/h, sg ~ 300 ppm),
+    `errors` (natural units) replacing any of it; `dur` (s) and `trk_rate` (Hz) the flight's length and tracking rate; `imu_noise`: white noise on the written rates (1e-3 rad/s off the
+    rail) and forces (1e-2 m/s^2) the INS did not integrate; `noise`: white tracking noise, m/s.
+    """
+    from casep.units import G0
+
+    rng = np.random.default_rng(seed)
+    D = {**{f"ba_{a}": rng.normal(0, 1) for a in "xyz"}, **{f"sa_{a}": rng.normal(0, 200) for a in "xyz"},
+         **{f"bg_{a}": rng.normal(0, 3) for a in "xyz"}, **{f"sg_{a}": rng.normal(0, 300) for a in "xyz"}}
+    D.update(errors or {})
+    ba = np.array([D[f"ba_{a}"] for a in "xyz"]) * 1e-3 * G0
+    sa = np.array([D[f"sa_{a}"] for a in "xyz"]) * 1e-6
+    bg = np.array([D[f"bg_{a}"] for a in "xyz"]) * DEGH
+    sg = np.array([D[f"sg_{a}"] for a in "xyz"]) * 1e-6
+    fs = math.radians(clip_dps)
+
+    def gyro(w):
+        return np.clip(w * (1 + sg) + bg, -fs, fs)
+
+    g = np.array([0.0, -G0, 0.0])
+    h, n = 1 / (RATE * SUB), int(round(dur * RATE * SUB))
+    q = qi = _qexp(np.array([0.0, 0.0, 0.3]))
+    v, vi = np.zeros(3), np.zeros(3)
+    rows, truth_v = [], []
+    for k in range(n + 1):
+        t = k * h
+        if k % SUB == 0:
+            fb = _dcm(q).T @ (_ins_acc(t) - g)
+            rows.append([t, *qi, *(fb * (1 + sa) + ba), *gyro(_ins_rate(t, growth)), *vi])
+            truth_v.append([t, *v])
+        if k == n:
+            break
+        tm = t + h / 2
+        wm = _ins_rate(tm, growth)
+        fbm = _dcm(_qmul(q, _qexp(wm * h / 2))).T @ (_ins_acc(tm) - g)
+        qim = _qmul(qi, _qexp(gyro(wm) * h / 2))
+        v = v + h * _ins_acc(tm)
+        vi = vi + h * (_dcm(qim) @ (fbm * (1 + sa) + ba) + g)
+        q, qi = _qmul(q, _qexp(wm * h)), _qmul(qi, _qexp(gyro(wm) * h))
+        q, qi = q / np.linalg.norm(q), qi / np.linalg.norm(qi)
+    R, V = np.array(rows), np.array(truth_v)
+    held = np.abs(R[:, 8:11]) >= fs * (1 - 1e-12)
+    if imu_noise:
+        R[:, 8:11] += np.where(held, 0.0, rng.normal(0, 1e-3, (R.shape[0], 3)))  # gyro noise off the rail
+        R[:, 5:8] += rng.normal(0, 1e-2, (R.shape[0], 3))
+    tel = {c: R[:, i] for i, c in enumerate(["t", "q_w", "q_x", "q_y", "q_z", "fb_x", "fb_y", "fb_z", "w_x", "w_y",
+                                              "w_z", "v_tel_x", "v_tel_y", "v_tel_z"])}
+    tt = np.arange(0.0, dur + 1e-9, 1 / trk_rate)
+    trk = {"t": tt, **{f"v_trk_{a}": np.interp(tt, V[:, 0], V[:, i + 1]) + (rng.normal(0, noise, tt.size) if noise
+                                                                           else 0.0)
+                       for i, a in enumerate("xyz")}}
+    return tel, trk, D, held

@@ -34,7 +34,11 @@ def add_parser(sub: Any) -> None:
                    help="with --imu: correct the IMU by the estimate, re-navigate, rebuild S_V and solve again "
                         "until the correction of every determined combination is below a tenth of its std "
                         "(the stop rule of "
-                        "casep.workflows.imu_separate; default with --imu); --no-iterate: one linear pass")
+                        "casep.workflows.imu_separate; default with --imu); --no-iterate: one linear pass. With a "
+                        "strapdown telemetry file (q_*, fb_*, w_*) the same on its corrected record "
+                        "(casep.workflows.telemetry_iterate; default: when the linear estimate's second-order "
+                        "remainder moves it by more than a tenth of its std); --no-iterate: the linear pass, "
+                        "warned (failed beyond 3 std) when that remainder is larger")
     p.add_argument("--max-iterations", type=positive_int, default=None, metavar="N",
                    help="with --imu: passes before an iteration that has not converged is a failed result "
                         "(default: casep.workflows.imu_separate.MAX_ITERATIONS, 20)")
@@ -110,7 +114,8 @@ def run(args: argparse.Namespace) -> int:
     if len(args.flight) > 1:
         from casep.cli.separate_flights import separate_flights
 
-        for flag, value in (("--acc-range", args.acc_range), ("--gyr-range", args.gyr_range)):
+        for flag, value in (("--acc-range", args.acc_range), ("--gyr-range", args.gyr_range),
+                            ("--iterate" if args.iterate else "--no-iterate", args.iterate)):
             if value is not None:
                 raise ValueError(f"{flag} is used with --imu IMU.csv or one strapdown telemetry file, not with "
                                  f"{len(args.flight)} flights: separate each flight")
@@ -125,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
     from casep.workflows.separate import separate
 
     with recorded() as caught:  # passed on to main(), which prints them; the report quotes them
-        res = separate(flight, model, spec=spec)
+        res = separate(flight, model, spec=spec, iterate=args.iterate)
     cons = None
     if prior is not None:  # the prior (a ground calibration) against the flight estimated alone
         from casep.workflows.coefficients import with_prior_consistency

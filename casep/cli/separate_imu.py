@@ -16,7 +16,7 @@ __all__ = ["imu_only", "separate_imu"]
 def imu_only(args: argparse.Namespace) -> None:
     """`--imu` with what it needs; its options without it: an error, not ignored."""
     if not args.imu:
-        for flag, value in (("--align", args.align), ("--heading", args.heading), ("--iterate", args.iterate),
+        for flag, value in (("--align", args.align), ("--heading", args.heading),
                             ("--max-iterations", args.max_iterations),
                             ("--heading-axis", None if args.heading_axis == "x" else args.heading_axis)):
             if value is not None:

@@ -1,9 +1,10 @@
 """Strapdown telemetry whose gyro clipped (casep.checks.saturation.screen_saturation) and fits whose residuals are
 a model error (casep.checks.plausibility.misfit_problem): never a plain success with a wrong answer.
 
-The flights come from an independent strapdown simulation written here (quaternions integrated at the midpoint
-rate, 8 steps per telemetry sample): the INS integrates its measured rates, clipped at a full scale, and its
-measured body specific force, with body-frame errors of strapdown12's kind (bias and scale factor per axis).
+The flights come from an independent strapdown simulation (``tests/conftest.py``: :func:`ins_telemetry`,
+quaternions integrated at the midpoint rate, 8 steps per telemetry sample): the INS integrates its measured rates,
+clipped at a full scale, and its measured body specific force, with body-frame errors of strapdown12's kind (bias
+and scale factor per axis).
 """
 
 from __future__ import annotations
@@ -19,89 +20,13 @@ from casep.exceptions import SaturationWarning
 from casep.io.files import write_table
 from casep.units import G0
 
-DUR, RATE, SUB, TRK_RATE, NOISE = 60.0, 25.0, 8, 5.0, 0.02
-DEGH = math.pi / 180 / 3600
-
-
-def _qmul(a, b):
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
-
-
-def _dcm(q):
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
-def _qexp(r):
-    a = float(np.linalg.norm(r))
-    return np.array([1.0, *(r / 2)]) if a < 1e-15 else np.array([math.cos(a / 2), *(math.sin(a / 2) * r / a)])
-
-
-def _rate(t):  # rad/s: a roll that grows until it passes the gyro's range (about t = 36 s at 110 deg/s)
-    return np.array([0.3 + (0.6 + 0.03 * t) * math.sin(2 * math.pi * t / 7), 0.3 * math.sin(2 * math.pi * t / 13),
-                     0.2 * math.cos(2 * math.pi * t / 17)])
-
-
-def _acc(t):  # kinematic acceleration, launch frame (y up), m/s^2
-    return np.array([3 * math.sin(2 * math.pi * t / 30) + 1, 2 * math.sin(2 * math.pi * t / 11),
-                     2.5 * math.cos(2 * math.pi * t / 23)])
-
-
-def simulate(clip_dps: float, seed: int = 3):
-    """Telemetry (t, q_*, fb_*, w_*, v_tel_*), tracking (t, v_trk_*) and the truth of strapdown12's coefficients."""
-    rng = np.random.default_rng(seed)
-    D = {**{f"ba_{a}": rng.normal(0, 1) for a in "xyz"}, **{f"sa_{a}": rng.normal(0, 200) for a in "xyz"},
-         **{f"bg_{a}": rng.normal(0, 3) for a in "xyz"}, **{f"sg_{a}": rng.normal(0, 300) for a in "xyz"}}
-    ba = np.array([D[f"ba_{a}"] for a in "xyz"]) * 1e-3 * G0
-    sa = np.array([D[f"sa_{a}"] for a in "xyz"]) * 1e-6
-    bg = np.array([D[f"bg_{a}"] for a in "xyz"]) * DEGH
-    sg = np.array([D[f"sg_{a}"] for a in "xyz"]) * 1e-6
-    fs = math.radians(clip_dps)
-
-    def gyro(w):
-        return np.clip(w * (1 + sg) + bg, -fs, fs)
-
-    g = np.array([0.0, -G0, 0.0])
-    h, n = 1 / (RATE * SUB), int(round(DUR * RATE * SUB))
-    q = qi = _qexp(np.array([0.0, 0.0, 0.3]))
-    v, vi = np.zeros(3), np.zeros(3)
-    rows, truth_v = [], []
-    for k in range(n + 1):
-        t = k * h
-        if k % SUB == 0:
-            fb = _dcm(q).T @ (_acc(t) - g)
-            rows.append([t, *qi, *(fb * (1 + sa) + ba), *gyro(_rate(t)), *vi])
-            truth_v.append([t, *v])
-        if k == n:
-            break
-        tm = t + h / 2
-        wm = _rate(tm)
-        fbm = _dcm(_qmul(q, _qexp(wm * h / 2))).T @ (_acc(tm) - g)
-        qim = _qmul(qi, _qexp(gyro(wm) * h / 2))
-        v = v + h * _acc(tm)
-        vi = vi + h * (_dcm(qim) @ (fbm * (1 + sa) + ba) + g)
-        q, qi = _qmul(q, _qexp(wm * h)), _qmul(qi, _qexp(gyro(wm) * h))
-        q, qi = q / np.linalg.norm(q), qi / np.linalg.norm(qi)
-    R, V = np.array(rows), np.array(truth_v)
-    held = np.abs(R[:, 8:11]) >= fs * (1 - 1e-12)
-    R[:, 8:11] += np.where(held, 0.0, rng.normal(0, 1e-3, (R.shape[0], 3)))  # gyro noise off the rail
-    R[:, 5:8] += rng.normal(0, 1e-2, (R.shape[0], 3))
-    tel = {c: R[:, i] for i, c in enumerate(["t", "q_w", "q_x", "q_y", "q_z", "fb_x", "fb_y", "fb_z", "w_x", "w_y",
-                                              "w_z", "v_tel_x", "v_tel_y", "v_tel_z"])}
-    tt = np.arange(0.0, DUR + 1e-9, 1 / TRK_RATE)
-    trk = {"t": tt, **{f"v_trk_{a}": np.interp(tt, V[:, 0], V[:, i + 1]) + rng.normal(0, NOISE, tt.size)
-                       for i, a in enumerate("xyz")}}
-    return tel, trk, D, held
+from conftest import DUR, TRK_RATE, ins_telemetry
 
 
 def _files(tmp_path_factory, clip_dps: float):
-    """The telemetry and tracking files of :func:`simulate`, the truth and the time of the first clipped sample."""
-    tel, trk, D, held = simulate(clip_dps)
+    """The telemetry and tracking files of the shared INS simulation (``tests/conftest.py``: :func:`ins_telemetry`),
+    the truth and the time of the first clipped sample."""
+    tel, trk, D, held = ins_telemetry(clip_dps)
     d = tmp_path_factory.mktemp(f"clip{clip_dps:g}")
     write_table(d / "tel.csv", tel)
     write_table(d / "trk.csv", trk)

@@ -1,0 +1,109 @@
+"""Strapdown telemetry with errors too large for the linear model (casep.workflows.telemetry_iterate): the corrected
+record re-navigated against an independent INS, the remainder rule, the iterated separation and its std.
+
+The flights come from the INS simulation of ``tests/conftest.py`` (:func:`ins_telemetry`: written there, not
+casep's), with MEMS-grade gyro biases (600-1000 deg/h: the attitude is off by ~15 deg after 60 s).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import casep
+from casep.exceptions import NonlinearityWarning
+from casep.io.files import write_table
+from conftest import ins_telemetry
+
+#: MEMS-grade errors (strapdown12, natural units).
+MEMS = {"ba_x": 1.05, "ba_y": 1.78, "ba_z": -2.55, "sa_x": -41.0, "sa_y": 304.0, "sa_z": 406.0,
+        "bg_x": 1000.0, "bg_y": -800.0, "bg_z": 600.0, "sg_x": 400.0, "sg_y": -350.0, "sg_z": 300.0}
+
+
+def _pair(tmp_path_factory, name, **kw):
+    """The telemetry + tracking files of :func:`ins_telemetry` (30 s, tracking at 2 Hz), read as casep separate
+    reads them; the truth and the tables."""
+    tel, trk, D, _ = ins_telemetry(growth=0.0, dur=30.0, trk_rate=2.0, **kw)
+    d = tmp_path_factory.mktemp(name)
+    write_table(d / "tel.csv", tel)
+    write_table(d / "trk.csv", trk)
+    return casep.read_flight_pair(d / "tel.csv", d / "trk.csv"), D, tel, trk
+
+
+@pytest.fixture(scope="module")
+def model():
+    return casep.load_model("strapdown12")
+
+
+@pytest.fixture(scope="module")
+def noise_free(tmp_path_factory):
+    """The MEMS flight, noise-free (tracking and written IMU alike): the attitude ~8 deg off after 30 s."""
+    return _pair(tmp_path_factory, "nf", errors=MEMS, noise=0.0, imu_noise=False)
+
+
+def test_corrected_telemetry_is_the_true_navigation(noise_free, model):
+    """The telemetry's record corrected at the true coefficients and re-navigated from its own first state gives the
+    true velocity: to 1e-4 of the INS's own error (tens of m/s)."""
+    from casep.workflows.telemetry_iterate import corrected_telemetry, strapdown_arrays
+
+    flight, D, tel, trk = noise_free
+    q, fb, w = strapdown_arrays(flight.meta["pair_inputs"])
+    v_tel = np.column_stack([tel[f"v_tel_{a}"] for a in "xyz"])
+    c = corrected_telemetry(model, tel["t"], q, fb, w, v_tel, np.array([D[n] for n in model.names]))
+    on = np.isin(tel["t"], trk["t"])
+    v_true = np.column_stack([trk[f"v_trk_{a}"] for a in "xyz"])[np.isin(trk["t"], tel["t"])]
+    ins_error = np.abs(v_tel[on] - v_true).max()
+    assert ins_error > 5.0  # MEMS: far beyond the linear model
+    assert np.abs(c.v[on] - v_true).max() < 1e-4 * ins_error, np.abs(c.v[on] - v_true).max()
+    assert np.allclose(np.linalg.norm(c.q, axis=1), 1.0, atol=1e-12)
+
+
+def test_noise_free_mems_flight_is_iterated_to_the_truth(noise_free, model):
+    """Iterated by default (the remainder rule), every coefficient within 0.01 CRLB std at 0.1 m/s; the linear
+    result kept (`iterate=False`) is said to be off and failed, not a plain success."""
+    flight, D, *_ = noise_free
+    truth = np.array([D[n] for n in model.names])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # noise-free: conditioning and magnitude warnings
+        res = casep.separate(flight, model, method="ols", noise="white", robust="none", sigma=0.1)
+    lin = res.diagnostics["linearisation"]
+    assert lin["iterated"] and lin["shift_std"] > 100 * lin["tol"], lin
+    crlb = np.array([res.diagnostics["crlb_std"][n] for n in model.names])
+    err = np.abs(res.estimate - truth) / crlb
+    assert res.success and err.max() <= 0.01, dict(zip(model.names, err.round(4)))
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        linear = casep.separate(flight, model, method="ols", noise="white", robust="none", sigma=0.1, iterate=False)
+    assert [w for w in said if issubclass(w.category, NonlinearityWarning)
+            and "second-order remainder at the estimate moves it by" in str(w.message)]
+    assert not linear.success and "does not hold" in linear.message
+    assert (np.abs(linear.estimate - truth) / crlb).max() > 1  # what the flag is about (the iterated: < 0.01)
+
+
+def test_noisy_mems_flights_iterated_with_honest_std(tmp_path_factory, model):
+    """Seeded, white tracking noise 0.02 m/s, fitted as white: iterated, every coefficient within 4 std, RMS z of
+    the 24 (two flights) in [0.5, 1.6]; ``benchmarks/mc_telemetry_iterate.py`` runs more flights for the figures."""
+    z = []
+    for seed in (11, 12):
+        flight, D, *_ = _pair(tmp_path_factory, f"mems{seed}", seed=seed, errors=MEMS, imu_noise=False)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the estimates are 100s of their declared (navigation-grade) magnitudes
+            res = casep.separate(flight, model, noise="white", robust="none")
+        assert res.success and res.diagnostics["linearisation"]["iterated"], res.message
+        z.extend((res.estimate - np.array([D[n] for n in model.names])) / res.std)
+    z = np.array(z)
+    assert np.abs(z).max() < 4.0 and 0.5 <= math.sqrt(np.mean(z**2)) <= 1.6, z.round(2)
+
+
+def test_navigation_grade_telemetry_stays_linear_and_silent(tmp_path_factory, model):
+    """Navigation-grade errors (bg ~ 3 deg/h): the remainder is far below a tenth of a std; no iteration, no
+    warning, the result the linear one."""
+    flight, D, *_ = _pair(tmp_path_factory, "nav", seed=5, imu_noise=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = casep.separate(flight, model, noise="white", robust="none")
+    lin = res.diagnostics["linearisation"]
+    assert res.success and not lin["iterated"] and lin["shift_std"] < lin["tol"], lin
