@@ -289,7 +289,8 @@ def ins_telemetry(clip_dps: float = math.inf, seed: int = 3, *, errors: dict | N
     An INS written here, independent of casep's: quaternions integrated at the midpoint rate, :data:`SUB` steps per
     telemetry sample, from the measured rates (``w (1 + sg) + bg``, clipped) and body specific force
     (``fb (1 + sa) + ba``). The truth drawn from `seed` (ba ~ 1 mg, sa ~ 200 ppm, bg ~ 3 deg/h, sg ~ 300 ppm),
-    `errors` (natural units) replacing any of it; `dur` (s) and `trk_rate` (Hz) the flight's length and tracking rate; `imu_noise`: white noise on the written rates (1e-3 rad/s off the
+    `errors` (natural units) replacing any of it; `dur` (s) and `trk_rate` (Hz) the flight's length and tracking
+    rate; `imu_noise`: white noise on the written rates (1e-3 rad/s off the
     rail) and forces (1e-2 m/s^2) the INS did not integrate; `noise`: white tracking noise, m/s.
     """
     from casep.units import G0

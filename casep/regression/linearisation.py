@@ -7,7 +7,9 @@ measured against, the linear column holds; beyond it the data are re-formed at t
 fitted again, until every rest is within its std or within what the linearisation holds, at most
 :data:`MAX_REPAIRS` times (else the result fails). Users: :func:`casep.workflows.separate.repair_on_offset`
 (the term as an offset against the offset's std), :func:`casep.workflows.radar.separate_radar` (the term's
-shift of every estimate against its std).
+shift of every estimate against its std), :func:`casep.workflows.telemetry_iterate.iterate_if_curved` (a strapdown
+telemetry's second-order remainder: its shift of the estimate along the combination it moves most, in that
+combination's std).
 """
 
 from __future__ import annotations

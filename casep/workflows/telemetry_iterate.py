@@ -30,7 +30,12 @@ result stands while ``sqrt(b^T C^+ b)`` (the shift along the combination it move
 std) is below :data:`casep.regression.linearisation.LINEAR_OFFSET_SHARE`, the rule the tracking offset and
 the radar launch time are held to; beyond it :func:`separate` iterates (``iterate=None``, the default) or,
 with ``iterate=False``, the linear result carries a :class:`~casep.exceptions.NonlinearityWarning` with the
-shift (and fails when the shift exceeds :data:`FAIL_SHIFT` std: an estimate that far off is no success).
+shift (and fails, status ``STATUS_MISFIT``: the residuals hold the model's second order, when the shift exceeds
+:data:`FAIL_SHIFT` std: an estimate that far off is no success).
+
+On 6 seeded MEMS flights (30 s, tracking at 2 Hz with 0.02 m/s white noise; ``benchmarks/mc_telemetry_iterate.py``)
+the remainder moved the linear estimates by 66-73 std; iterated (4 passes each) the 72 z pooled have RMS 0.946 and
+95 % coverage 0.944 (max |z| 2.55), the linear ones RMS 4.06 and coverage 0.51.
 """
 
 from __future__ import annotations
@@ -132,11 +137,11 @@ class _TelemetryRun(_Run):
         self.nav: Any = None
         self.imu_k: Any = CorrectedTelemetry(q, fb, w, np.asarray(self.inp.v_tel, float))  # the last pass's
         self.model_k: ErrorModel | None = None
-        self.q_aligned, self.C_tb = None, None  # no alignment: kept for the state `rows` restores
+        self.q_aligned, self.C_tb = np.array([1.0, 0.0, 0.0, 0.0]), np.eye(3)  # no alignment: the state `rows` keeps
         self.screen: dict | None = None
         self.inputs_said = True  # by the linear separation that asked for the iteration
 
-    def navigate(self, D: np.ndarray) -> CorrectedTelemetry:
+    def navigate(self, D: np.ndarray) -> CorrectedTelemetry:  # type: ignore[override]  # the pass's state, as nav
         """The telemetry corrected at `D` (from the last pass's correction)."""
         q, fb, w = self.tel
         t = np.asarray(self.inp.t_tel, float)
@@ -244,8 +249,8 @@ def iterate_if_curved(res: EstimateResult, flight: Any, problem: Any, model: Any
     if not iterate and (shift is None or shift <= LINEAR_OFFSET_SHARE):
         res.diagnostics["linearisation"] = {**record, "iterated": False}
         return res, False
-    if iterate is False:
-        from casep.estimators.registry import STATUS_NOT_CONVERGED, failed
+    if iterate is False and shift is not None:
+        from casep.estimators.registry import STATUS_MISFIT, failed
 
         said = (f"the linear model does not hold on this strapdown telemetry: the second-order remainder at the "
                 f"estimate moves it by {shift:.3g} std along one combination of the coefficients (above "
@@ -253,7 +258,7 @@ def iterate_if_curved(res: EstimateResult, flight: Any, problem: Any, model: Any
         warnings.warn(said, NonlinearityWarning, stacklevel=3)
         res.diagnostics["linearisation"] = {**record, "iterated": False}
         if shift > FAIL_SHIFT:
-            return failed(res, STATUS_NOT_CONVERGED, f"failed: {said}"), False
+            return failed(res, STATUS_MISFIT, f"failed: {said}"), False  # the residuals hold the second order
         return dataclasses.replace(res, message=f"{res.message}; {said}"), False
     out = run.iterate(True, ITERATE_TOL, MAX_ITERATIONS).result
     out.diagnostics["linearisation"] = {**record, "iterated": True}

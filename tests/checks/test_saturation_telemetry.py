@@ -14,13 +14,12 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import DUR, TRK_RATE, ins_telemetry
 
 import casep
 from casep.exceptions import SaturationWarning
 from casep.io.files import write_table
 from casep.units import G0
-
-from conftest import DUR, TRK_RATE, ins_telemetry
 
 
 def _files(tmp_path_factory, clip_dps: float):

@@ -12,11 +12,11 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import ins_telemetry
 
 import casep
 from casep.exceptions import NonlinearityWarning
 from casep.io.files import write_table
-from conftest import ins_telemetry
 
 #: MEMS-grade errors (strapdown12, natural units).
 MEMS = {"ba_x": 1.05, "ba_y": 1.78, "ba_z": -2.55, "sa_x": -41.0, "sa_y": 304.0, "sa_z": 406.0,
