@@ -499,7 +499,7 @@ class _Run:
         flight (set-up, magnitudes, the tracking's stretches: the combinations as totals), its warnings re-issued."""
         from casep.estimators.registry import failed
         from casep.model.loader import model_record
-        from casep.workflows.separate import judge_setup, judge_tracking
+        from casep.workflows.judging import judge_setup, judge_tracking
 
         iterate, tol, max_iterations = rule
         total = D + res.fitted_coefficients()

@@ -1,0 +1,67 @@
+"""How a separation's result is judged against its flight: the set-up, the misfit, the declared magnitudes
+(:func:`judge_setup`) and the tracking's stretches (:func:`judge_tracking`); one place for every workflow that
+separates a flight (:func:`casep.separate`, the raw-IMU and telemetry iterations, several flights, the demo)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from casep.estimators.registry import METHODS as _REGISTRY
+from casep.estimators.result import EstimateResult
+from casep.model.error_model import ErrorModel
+
+if TYPE_CHECKING:
+    from casep.io.flight import FlightData
+    from casep.regression.problem import Problem
+
+__all__ = ["judge_setup", "judge_tracking"]
+
+
+def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_free: bool = False) -> EstimateResult:
+    """A result judged against the set-up: failed (status -4) when its flight failed a set-up check
+    (:func:`casep.checks.plausibility.setup_problems`: launch site, azimuth, launch time, time scales), failed
+    (status -8) when its residuals are a model error, not noise (:func:`casep.checks.plausibility.misfit_problem`:
+    100 times the tracking's sample-to-sample noise and correlated after the noise model), and against
+    the model's declared magnitudes (:func:`casep.estimators._base.check_magnitudes`), except on noise-free
+    data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
+    set-up mistake (check_fit's NoiseFreeWarning says so)."""
+    from casep.checks.plausibility import misfit_problem, setup_problems
+    from casep.estimators.registry import STATUS_MISFIT, STATUS_SETUP, check_magnitudes, failed
+
+    problems = setup_problems(flight) if flight is not None else []
+    if flight is not None and problems:
+        res = failed(res, STATUS_SETUP, f"failed: set-up check of {flight.source}: " + "; ".join(problems))
+    if flight is not None and not noise_free:
+        rms = res.residual_rms
+        why = misfit_problem(flight, rms, "xyz")  # the ratio first: the whiteness test is asked only then
+        if why is not None:
+            why = misfit_problem(flight, rms, (res.diagnostics.get("whiteness") or {}).get("rejected") or ())
+        if why is not None:
+            res = failed(res, STATUS_MISFIT, f"failed: {flight.source}: {why}")
+    if isinstance(model, ErrorModel) and model.name == res.model and not noise_free:
+        meth = _REGISTRY.get(res.method)
+        res = check_magnitudes(res, model.scales, source=flight.source if flight is not None else "",
+                               regularised=meth is not None and meth.regularised)
+    return res
+
+
+def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, scales: dict,
+                   about: np.ndarray | None = None) -> EstimateResult:
+    """`res` failed (status ``STATUS_TRACKING``) when the flight's screened tracking noise differs between
+    stretches beyond :data:`casep.checks.tracking_quality.NOISE_RATIO`: its message says which combinations the
+    flight determines (:func:`casep.checks.tracking_quality.determined`) instead of each coefficient;
+    ``diagnostics["determined"]`` holds them (``combinations``, ``std_factor``, the ``scales`` they divide by);
+    `about`: the coefficients an iterated pass was linearised about (the combinations' estimates are totals)."""
+    from casep.checks.tracking_quality import determined, determined_message, noise_problem
+    from casep.estimators.registry import STATUS_TRACKING, failed
+
+    why = noise_problem(flight)
+    if why is None or problem.y is None or problem.t is None:
+        return res
+    combos, k = determined(problem, flight.meta["tracking_screen"]["stretches"], scales, imu=flight, about=about)
+    res = failed(res, STATUS_TRACKING, determined_message(why, combos, k, len(problem.names), scales))
+    res.diagnostics["determined"] = {"combinations": combos, "std_factor": k,
+                                     "scales": {nm: scales.get(nm, 1.0) for nm in problem.names}}
+    return res
