@@ -15,7 +15,6 @@ import pytest
 from conftest import ins_telemetry
 
 import casep
-from casep.exceptions import NonlinearityWarning
 from casep.io.files import write_table
 
 #: MEMS-grade errors (strapdown12, natural units).
@@ -62,8 +61,8 @@ def test_corrected_telemetry_is_the_true_navigation(noise_free, model):
 
 
 def test_noise_free_mems_flight_is_iterated_to_the_truth(noise_free, model):
-    """Iterated by default (the remainder rule), every coefficient within 0.01 CRLB std at 0.1 m/s; the linear
-    result kept (`iterate=False`) is said to be off and failed, not a plain success."""
+    """Iterated by default (the remainder rule), every coefficient within 0.01 CRLB std at 0.1 m/s, where the linear
+    pass was more than one off (``--no-iterate``: the CLI test below)."""
     flight, D, *_ = noise_free
     truth = np.array([D[n] for n in model.names])
     with warnings.catch_warnings():
@@ -74,13 +73,9 @@ def test_noise_free_mems_flight_is_iterated_to_the_truth(noise_free, model):
     crlb = np.array([res.diagnostics["crlb_std"][n] for n in model.names])
     err = np.abs(res.estimate - truth) / crlb
     assert res.success and err.max() <= 0.01, dict(zip(model.names, err.round(4)))
-    with warnings.catch_warnings(record=True) as said:
-        warnings.simplefilter("always")
-        linear = casep.separate(flight, model, method="ols", noise="white", robust="none", sigma=0.1, iterate=False)
-    assert [w for w in said if issubclass(w.category, NonlinearityWarning)
-            and "second-order remainder at the estimate moves it by" in str(w.message)]
-    assert not linear.success and "does not hold" in linear.message
-    assert (np.abs(linear.estimate - truth) / crlb).max() > 1  # what the flag is about (the iterated: < 0.01)
+    first = res.diagnostics["iterations"]["passes"][0]["estimate"]  # the linear pass
+    linear = np.array([first[n] for n in model.names])
+    assert (np.abs(linear - truth) / crlb).max() > 1  # what the rule is about (the iterated: < 0.01)
 
 
 def test_noisy_mems_flights_iterated_with_honest_std(tmp_path_factory, model):
@@ -107,3 +102,19 @@ def test_navigation_grade_telemetry_stays_linear_and_silent(tmp_path_factory, mo
         res = casep.separate(flight, model, noise="white", robust="none")
     lin = res.diagnostics["linearisation"]
     assert res.success and not lin["iterated"] and lin["shift_std"] < lin["tol"], lin
+
+
+def test_cli_no_iterate_on_telemetry_fails_the_curved_linear_pass(noise_free, capsys):
+    """``casep separate TEL --tracking TRK --no-iterate``: the linear pass kept, said (NonlinearityWarning with the
+    shift) and failed, exit 1; ``--iterate`` with two flights is refused (exit 2) rather than ignored."""
+    from casep.cli.app import main
+
+    flight, *_ = noise_free
+    tel, trk = flight.source.split(" + ")  # the files the pair was read from
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["separate", tel, "--tracking", trk, "--model", "strapdown12", "--noise", "white", "--robust",
+                     "none", "--sigma", "0.1", "--no-iterate"]) == 1
+    assert "the linear model does not hold on this strapdown telemetry" in capsys.readouterr().err
+    assert main(["separate", tel, tel, "--tracking", trk, "--iterate"]) == 2
+    assert "--iterate is used with --imu IMU.csv or one strapdown telemetry file" in capsys.readouterr().err
