@@ -202,7 +202,7 @@ class _TelemetryRun(_Run):
 def linearisation_shift(run: _TelemetryRun, res: EstimateResult, problem: Any, flight: FlightData,
                         scales: dict) -> float | None:
     """How far the second-order remainder of a linear result moves it, in std (module notes; None when it
-    cannot be judged: no finite covariance, no rows, or a record that does not invert at the estimate)."""
+    cannot be judged: no finite covariance, no rows; infinite when the record does not invert at the estimate)."""
     C = res.covariance
     if C is None or problem.y is None or not np.all(np.isfinite(C)):
         return None
@@ -224,7 +224,8 @@ def iterate_if_curved(res: EstimateResult, flight: Any, problem: Any, model: Any
     second-order remainder is below ``LINEAR_OFFSET_SHARE`` std; beyond it the iterated separation's result
     (`iterate` None or True; True iterates whatever the remainder), or, with `iterate` False, `res` with a
     :class:`~casep.exceptions.NonlinearityWarning` (failed beyond :data:`FAIL_SHIFT` std). Anything else than a
-    strapdown telemetry pair with a strapdown model: `res` unchanged."""
+    strapdown telemetry pair with a strapdown model, a flight whose saturated rows were left out, or a result that
+    failed already (its failure says more than its curvature would): `res` unchanged."""
     from casep.exceptions import NonlinearityWarning
     from casep.io.flight import FlightData
     from casep.io.pair import PairInputs
@@ -243,7 +244,8 @@ def iterate_if_curved(res: EstimateResult, flight: Any, problem: Any, model: Any
     base = load_model(model.source_file or model.name) if TIME_OFFSET in model.names else model
     run = _TelemetryRun(flight, base, model.source_file or model.name, spec, TIME_OFFSET in model.names)
     shift = linearisation_shift(run, res, problem, flight, model.scales)
-    record = {"shift_std": shift, "tol": LINEAR_OFFSET_SHARE,
+    record = {"shift_std": shift if shift is None or np.isfinite(shift) else None, "tol": LINEAR_OFFSET_SHARE,
+              **({} if shift is None or np.isfinite(shift) else {"why": "the record does not invert at the estimate"}),
               "rule": "the second-order remainder of the linear estimate moves it by shift_std std (along the "
                       "combination it moves most); the linear result stands below tol"}
     if not iterate and (shift is None or shift <= LINEAR_OFFSET_SHARE):
