@@ -22,10 +22,10 @@ MEMS = {"ba_x": 1.05, "ba_y": 1.78, "ba_z": -2.55, "sa_x": -41.0, "sa_y": 304.0,
         "bg_x": 1000.0, "bg_y": -800.0, "bg_z": 600.0, "sg_x": 400.0, "sg_y": -350.0, "sg_z": 300.0}
 
 
-def _pair(tmp_path_factory, name, **kw):
-    """The telemetry + tracking files of :func:`ins_telemetry` (30 s, tracking at 2 Hz), read as casep separate
+def _pair(tmp_path_factory, name, dur=30.0, **kw):
+    """The telemetry + tracking files of :func:`ins_telemetry` (`dur` s, tracking at 2 Hz), read as casep separate
     reads them; the truth and the tables."""
-    tel, trk, D, _ = ins_telemetry(growth=0.0, dur=30.0, trk_rate=2.0, **kw)
+    tel, trk, D, _ = ins_telemetry(growth=0.0, dur=dur, trk_rate=2.0, **kw)
     d = tmp_path_factory.mktemp(name)
     write_table(d / "tel.csv", tel)
     write_table(d / "trk.csv", trk)
@@ -79,11 +79,11 @@ def test_noise_free_mems_flight_is_iterated_to_the_truth(noise_free, model):
 
 
 def test_noisy_mems_flights_iterated_with_honest_std(tmp_path_factory, model):
-    """Seeded, white tracking noise 0.02 m/s, fitted as white: iterated, every coefficient within 4 std, RMS z of
+    """Seeded 20 s flights, white tracking noise 0.02 m/s, fitted as white: iterated, every coefficient within 4 std, RMS z of
     the 24 (two flights) in [0.5, 1.6]; ``benchmarks/mc_telemetry_iterate.py`` runs more flights for the figures."""
     z = []
     for seed in (11, 12):
-        flight, D, *_ = _pair(tmp_path_factory, f"mems{seed}", seed=seed, errors=MEMS, imu_noise=False)
+        flight, D, *_ = _pair(tmp_path_factory, f"mems{seed}", 20.0, seed=seed, errors=MEMS, imu_noise=False)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the estimates are 100s of their declared (navigation-grade) magnitudes
             res = casep.separate(flight, model, noise="white", robust="none")
