@@ -79,8 +79,9 @@ def test_noise_free_mems_flight_is_iterated_to_the_truth(noise_free, model):
 
 
 def test_noisy_mems_flights_iterated_with_honest_std(tmp_path_factory, model):
-    """Seeded 20 s flights, white tracking noise 0.02 m/s, fitted as white: iterated, every coefficient within 4 std, RMS z of
-    the 24 (two flights) in [0.5, 1.6]; ``benchmarks/mc_telemetry_iterate.py`` runs more flights for the figures."""
+    """Seeded 20 s flights, white tracking noise 0.02 m/s, fitted as white: iterated, every coefficient within 4 std,
+    RMS z of the 24 (two flights) in [0.5, 1.6]; ``benchmarks/mc_telemetry_iterate.py`` runs more flights for the
+    figures."""
     z = []
     for seed in (11, 12):
         flight, D, *_ = _pair(tmp_path_factory, f"mems{seed}", 20.0, seed=seed, errors=MEMS, imu_noise=False)
