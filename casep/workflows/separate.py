@@ -477,8 +477,8 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
     set-up mistake (check_fit's NoiseFreeWarning says so)."""
     from casep.checks.plausibility import misfit_problem, setup_problems
-    from casep.regression.rows import mostly_runs
     from casep.estimators.registry import STATUS_MISFIT, STATUS_SETUP, check_magnitudes, failed
+    from casep.regression.rows import mostly_runs
 
     problems = setup_problems(flight) if flight is not None else []
     if flight is not None and problems:

@@ -52,8 +52,9 @@ def _acc(t):  # kinematic acceleration, launch frame (y up), m/s^2
                      2.5 * math.cos(2 * math.pi * t / 23)])
 
 
-def simulate(clip_dps: float, seed: int = 3):
-    """Telemetry (t, q_*, fb_*, w_*, v_tel_*), tracking (t, v_trk_*) and the truth of strapdown12's coefficients."""
+def simulate(clip_dps: float, seed: int = 3, spike: tuple[float, float] | None = None):
+    """Telemetry (t, q_*, fb_*, w_*, v_tel_*), tracking (t, v_trk_*) and the truth of strapdown12's coefficients;
+    `spike`: (time s, peak deg/s) of a 0.6 s roll spike added to the roll rate."""
     rng = np.random.default_rng(seed)
     D = {**{f"ba_{a}": rng.normal(0, 1) for a in "xyz"}, **{f"sa_{a}": rng.normal(0, 200) for a in "xyz"},
          **{f"bg_{a}": rng.normal(0, 3) for a in "xyz"}, **{f"sg_{a}": rng.normal(0, 300) for a in "xyz"}}
@@ -62,6 +63,12 @@ def simulate(clip_dps: float, seed: int = 3):
     bg = np.array([D[f"bg_{a}"] for a in "xyz"]) * DEGH
     sg = np.array([D[f"sg_{a}"] for a in "xyz"]) * 1e-6
     fs = math.radians(clip_dps)
+
+    def rate(t):
+        w = _rate(t)
+        if spike is not None and abs(t - spike[0]) < 0.3:  # (1 - x^2)^2 bump, x = (t - t_s) / 0.3 s
+            w[0] += math.radians(spike[1]) * (1 - ((t - spike[0]) / 0.3) ** 2) ** 2
+        return w
 
     def gyro(w):
         return np.clip(w * (1 + sg) + bg, -fs, fs)
@@ -75,12 +82,12 @@ def simulate(clip_dps: float, seed: int = 3):
         t = k * h
         if k % SUB == 0:
             fb = _dcm(q).T @ (_acc(t) - g)
-            rows.append([t, *qi, *(fb * (1 + sa) + ba), *gyro(_rate(t)), *vi])
+            rows.append([t, *qi, *(fb * (1 + sa) + ba), *gyro(rate(t)), *vi])
             truth_v.append([t, *v])
         if k == n:
             break
         tm = t + h / 2
-        wm = _rate(tm)
+        wm = rate(tm)
         fbm = _dcm(_qmul(q, _qexp(wm * h / 2))).T @ (_acc(tm) - g)
         qim = _qmul(qi, _qexp(gyro(wm) * h / 2))
         v = v + h * _acc(tm)
@@ -266,3 +273,27 @@ def test_exact_repeats_of_a_legitimate_flight_are_not_a_clip():
     steady = np.full((3000, 3), [math.radians(50.0), 0.0, 0.0]) + rng.normal(0.0, 1e-3, (3000, 3))
     out, said = _screened(steady)
     assert said == [] and out.observed.all()
+
+
+def test_a_robust_fit_that_rejects_a_model_error_as_glitches_is_not_a_plain_success(tmp_path):
+    """A 0.6 s roll spike at t = 52 s clips w_x at 200 deg/s (blurred by 1e-9 rad/s: no screen sees it), so the
+    INS attitude is wrong for the last 8 s. A robust fit rejects that stretch as runs of "glitches" (its weighted
+    residuals can then pass the whiteness test); the misfit rule judges the runs: failed, naming them."""
+    from casep.estimators.registry import STATUS_MISFIT
+    from casep.noise.robust import MAX_RUN
+
+    tel, trk, D, held = simulate(200.0, spike=(52.0, 300.0))
+    assert held.any() and tel["t"][np.flatnonzero(held.any(axis=1))[0]] > 51.0
+    tel["w_x"] = tel["w_x"] + np.random.default_rng(1).normal(0.0, 1e-9, tel["w_x"].size)
+    write_table(tmp_path / "tel.csv", tel)
+    write_table(tmp_path / "trk.csv", trk)
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        res = casep.separate(casep.read_flight_pair(tmp_path / "tel.csv", tmp_path / "trk.csv"), "strapdown12",
+                             robust="bisquare")
+    assert not [w for w in rec if issubclass(w.category, SaturationWarning)]
+    rb = res.diagnostics["robust"]
+    assert 2 * sum(rb["rejected_runs"]) > rb["rejected_count"] and min(rb["rejected_runs"]) >= MAX_RUN
+    assert not res.success and res.status == STATUS_MISFIT
+    assert f"the robust fit rejected {sum(rb['rejected_runs'])} of its {rb['rejected_count']} rejected samples" \
+        in res.message and "x " in res.message
