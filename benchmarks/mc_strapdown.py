@@ -28,21 +28,28 @@ def _line(name: str, z: np.ndarray) -> str:
     return f"{name:<14} RMS z {rms:6.3f}   95 % coverage {cov:6.3f}   max |z| {np.max(np.abs(z)):6.2f}   ({z.size} z)"
 
 
-def main() -> None:
+def setup(rate: float):
+    """The ``strapdown-boost`` flight at `rate` with :data:`MODEL` and the scenario's truth; its noise-free dv."""
     import casep
     from casep.simulation.scenarios import STRAPDOWN_TRUTH
     from casep.simulation.simulate import simulate_flight
+
+    model = casep.load_model(MODEL)
+    truth = {k: v for k, v in STRAPDOWN_TRUTH.items() if k in model.names}
+    sim = simulate_flight("strapdown-boost", seed=0, model=MODEL, truth=truth, rate=rate)
+    return sim, sim.flight.dv - sim.noise
+
+
+def main() -> None:
+    import casep
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=200)
     ap.add_argument("--rate", type=float, default=20.0)
     args = ap.parse_args()
     warnings.simplefilter("ignore")
-    model = casep.load_model(MODEL)
-    truth = {k: v for k, v in STRAPDOWN_TRUTH.items() if k in model.names}
-    sim = simulate_flight("strapdown-boost", seed=0, model=MODEL, truth=truth, rate=args.rate)
+    sim, clean = setup(args.rate)
     fl = sim.flight
-    clean = fl.dv - sim.noise
     names = sim.model.names
     res = casep.separate(dataclasses.replace(fl, dv=np.where(fl.observed[:, None], clean, np.nan)), sim.model,
                          method="ols", noise="white", sigma=0.1)

@@ -282,7 +282,8 @@ def _ins_acc(t):  # kinematic acceleration, launch frame (y up), m/s^2
 
 
 def ins_telemetry(clip_dps: float = math.inf, seed: int = 3, *, errors: dict | None = None, noise: float = NOISE,
-                  imu_noise: bool = True, growth: float = 0.03, dur: float = DUR, trk_rate: float = TRK_RATE):
+                  imu_noise: bool = True, growth: float = 0.03, dur: float = DUR, trk_rate: float = TRK_RATE,
+                  spike: tuple[float, float] | None = None):
     """Telemetry (t, q_*, fb_*, w_*, v_tel_*), tracking (t, v_trk_*), the truth of strapdown12's coefficients and the
     gyro samples held at the full scale `clip_dps`.
 
@@ -305,6 +306,12 @@ def ins_telemetry(clip_dps: float = math.inf, seed: int = 3, *, errors: dict | N
     sg = np.array([D[f"sg_{a}"] for a in "xyz"]) * 1e-6
     fs = math.radians(clip_dps)
 
+    def rate(t):
+        w = _ins_rate(t, growth)
+        if spike is not None and abs(t - spike[0]) < 0.3:  # (1 - x^2)^2 bump, x = (t - t_s) / 0.3 s
+            w[0] += math.radians(spike[1]) * (1 - ((t - spike[0]) / 0.3) ** 2) ** 2
+        return w
+
     def gyro(w):
         return np.clip(w * (1 + sg) + bg, -fs, fs)
 
@@ -317,12 +324,12 @@ def ins_telemetry(clip_dps: float = math.inf, seed: int = 3, *, errors: dict | N
         t = k * h
         if k % SUB == 0:
             fb = _dcm(q).T @ (_ins_acc(t) - g)
-            rows.append([t, *qi, *(fb * (1 + sa) + ba), *gyro(_ins_rate(t, growth)), *vi])
+            rows.append([t, *qi, *(fb * (1 + sa) + ba), *gyro(rate(t)), *vi])
             truth_v.append([t, *v])
         if k == n:
             break
         tm = t + h / 2
-        wm = _ins_rate(tm, growth)
+        wm = rate(tm)
         fbm = _dcm(_qmul(q, _qexp(wm * h / 2))).T @ (_ins_acc(tm) - g)
         qim = _qmul(qi, _qexp(gyro(wm) * h / 2))
         v = v + h * _ins_acc(tm)

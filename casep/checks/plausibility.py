@@ -492,7 +492,8 @@ MISFIT_RATIO = 100.0
 MISFIT_NOISE_FLOOR = 0.01
 
 
-def misfit_problem(flight: FlightData, residual_rms: dict, correlated) -> str | None:
+def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
+                   runs: tuple[int, int, int] | None = None) -> str | None:
     """Why a fit's residuals are a model error rather than noise, or None.
 
     Tracking noise, white or correlated, has a sample-to-sample part: radar and GNSS velocities scatter by
@@ -503,6 +504,10 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated) -> str | 
     error leaves (a saturated sensor the INS integrated, a frame or set-up mistake, a missing term): the
     noise model then absorbs it as a slow Gauss-Markov error of metres per second and the estimates
     take the rest, far from the instruments' (hundreds of mg, degrees per second), whatever their std say.
+    A robust fit can hide the same misfit from the whiteness test: it rejects the stretch the model cannot
+    follow as "glitches" and down-weights the rest; rejections mostly in runs of consecutive samples
+    (`runs`, :func:`casep.regression.rows.mostly_runs`) then stand for the correlation, since a glitch is
+    isolated.
 
     Parameters
     ----------
@@ -512,6 +517,9 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated) -> str | 
         Residual RMS per axis ``{"x": m/s, ...}`` (``EstimateResult.residual_rms``).
     correlated : sequence of str
         The axes whose whitened residuals the whiteness test rejects.
+    runs : (int, int, int), optional
+        A robust fit's rejections: (samples in runs, samples rejected, runs), when most are in runs; the
+        message then names them instead of the whiteness test.
 
     Returns
     -------
@@ -526,8 +534,11 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated) -> str | 
     if not bad:
         return None
     listed = ", ".join(f"{a} {r:.4g} m/s = {r / n:.3g} x {n:.2g} m/s" for a, r, n in bad)
-    return (f"residual RMS at least {MISFIT_RATIO:g} times the tracking's sample-to-sample noise, and correlated after "
-            f"the noise model, on {len(bad)} axis(es) ({listed}): a model error (a saturated sensor the INS "
+    how = "correlated after the noise model" if runs is None else \
+        (f"the robust fit rejected {runs[0]} of its {runs[1]} rejected samples in {runs[2]} run(s) of consecutive "
+         "samples (a stretch the model cannot follow, not glitches)")
+    return (f"residual RMS at least {MISFIT_RATIO:g} times the tracking's sample-to-sample noise, and {how}, "
+            f"on {len(bad)} axis(es) ({listed}): a model error (a saturated sensor the INS "
             "integrated, a frame, set-up or unit mistake, a missing term), not noise; the estimates absorb it")
 
 

@@ -28,11 +28,11 @@ import numpy as np
 from casep._kernels import runs
 from casep.noise.fit import fit_noise
 from casep.noise.model import NoiseModel
-from casep.noise.robust import robust_filter
+from casep.noise.robust import MAX_RUN, robust_filter
 from casep.noise.spec import NoiseSpec
 from casep.regression.problem import NOISE_FREE, Problem  # NOISE_FREE re-exported: the one noise-free constant
 
-__all__ = ["Rows", "prepare_rows", "NOISE_FREE", "GLITCH_SIGMAS"]
+__all__ = ["Rows", "prepare_rows", "NOISE_FREE", "GLITCH_SIGMAS", "rejected_runs", "mostly_runs"]
 
 _MAX_ROBUST_ITER = 12
 _MAX_EXCLUDE_PASSES = 6
@@ -115,7 +115,7 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[i
     the rejections beyond :data:`GLITCH_GROSS`, the lengths of the runs of rejections as long as the filter's
     :data:`casep.noise.robust.MAX_RUN`: a step or a smooth misfit, not a glitch)."""
     from casep._special import normal_sf  # without importing scipy.special (its import, 0.1-0.6 s)
-    from casep.noise.robust import MAX_RUN, REJECT
+    from casep.noise.robust import REJECT
 
     assert problem.t is not None  # the caller checked
     # judged on a fit without the samples rejected, iterated: glitches distort the least-squares fit, and on
@@ -130,8 +130,19 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[i
         keep = rw.keep
     expected = problem.n_samples * (1.0 - (1.0 - 2.0 * normal_sf(REJECT)) ** 3)  # P(|z| > REJECT), any axis
     gross = int(np.sum(~rw.keep & np.any(np.abs(rw.u) > GLITCH_GROSS, axis=1)))
-    long = [b - a for a, b in runs(~rw.keep) if b - a >= MAX_RUN]
-    return int((~rw.keep).sum()), float(expected), gross, long
+    return int((~rw.keep).sum()), float(expected), gross, rejected_runs(rw.keep)
+
+
+def rejected_runs(keep: np.ndarray) -> list[int]:
+    """The lengths of the runs of rejected samples (False in `keep`) at least :data:`casep.noise.robust.MAX_RUN`
+    long: a step or a smooth misfit of the model, not glitches (a glitch is isolated)."""
+    return [b - a for a, b in runs(~np.asarray(keep, dtype=bool)) if b - a >= MAX_RUN]
+
+
+def mostly_runs(found: int, long: list[int]) -> bool:
+    """Whether most of `found` rejected samples lie in the runs `long` (:func:`rejected_runs`): the residuals hold
+    a smooth misfit of the model, which rejecting (or down-weighting) its peaks hides and biases the fit with."""
+    return 2 * sum(long) > found
 
 
 def _warn_misfit(problem: Problem, found: int, runs: list[int]) -> None:
@@ -188,7 +199,7 @@ def prepare_rows(problem: Problem, noise: str | NoiseSpec = "auto", tau=None, ro
             limit = expected + GLITCH_SIGMAS * np.sqrt(expected) + GLITCH_MIN
             auto = {"glitches_found": found, "expected_from_noise": expected, "limit": float(limit),
                     "gross": gross, "gross_sigmas": GLITCH_GROSS}
-            if 2 * sum(runs) > found:  # most in runs: a smooth misfit, which rejecting its peaks would bias
+            if mostly_runs(found, runs):  # a smooth misfit, which rejecting its peaks would bias
                 _warn_misfit(problem, found, runs)
             elif found > limit or gross:
                 robust = "huber"
@@ -245,6 +256,7 @@ def _robust(problem, nm, noise, tau, function):
     info = {"function": function, "iterations": len(history), "rejected_count": int((~keep).sum()),
             "scale": rw.scale if rw is not None else None, "sigma_effective": sigma,
             "downweighted": int(np.sum(weights[keep] < 1.0)) if weights is not None else 0,
+            "rejected_runs": rejected_runs(keep),
             "noise_refits": refits, "history": history}
     return nm, keep, weights, info
 

@@ -23,12 +23,14 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     """A result judged against the set-up: failed (status -4) when its flight failed a set-up check
     (:func:`casep.checks.plausibility.setup_problems`: launch site, azimuth, launch time, time scales), failed
     (status -8) when its residuals are a model error, not noise (:func:`casep.checks.plausibility.misfit_problem`:
-    100 times the tracking's sample-to-sample noise and correlated after the noise model), and against
+    100 times the tracking's sample-to-sample noise and correlated after the noise model, or, in a robust fit,
+    with most of the samples it rejected in runs: :func:`casep.regression.rows.mostly_runs`), and against
     the model's declared magnitudes (:func:`casep.estimators._base.check_magnitudes`), except on noise-free
     data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
     set-up mistake (check_fit's NoiseFreeWarning says so)."""
     from casep.checks.plausibility import misfit_problem, setup_problems
     from casep.estimators.registry import STATUS_MISFIT, STATUS_SETUP, check_magnitudes, failed
+    from casep.regression.rows import mostly_runs
 
     problems = setup_problems(flight) if flight is not None else []
     if flight is not None and problems:
@@ -36,8 +38,12 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     if flight is not None and not noise_free:
         rms = res.residual_rms
         why = misfit_problem(flight, rms, "xyz")  # the ratio first: the whiteness test is asked only then
-        if why is not None:
+        rb = res.diagnostics.get("robust") or {}
+        long = rb.get("rejected_runs") or []
+        if why is not None and not mostly_runs(int(rb.get("rejected_count") or 0), long):
             why = misfit_problem(flight, rms, (res.diagnostics.get("whiteness") or {}).get("rejected") or ())
+        elif why is not None:  # the robust weights absorbed the misfit: its stretches rejected as runs of "glitches"
+            why = misfit_problem(flight, rms, "xyz", runs=(sum(long), int(rb["rejected_count"]), len(long)))
         if why is not None:
             res = failed(res, STATUS_MISFIT, f"failed: {flight.source}: {why}")
     if isinstance(model, ErrorModel) and model.name == res.model and not noise_free:

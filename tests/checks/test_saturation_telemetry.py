@@ -190,3 +190,29 @@ def test_exact_repeats_of_a_legitimate_flight_are_not_a_clip():
     steady = np.full((3000, 3), [math.radians(50.0), 0.0, 0.0]) + rng.normal(0.0, 1e-3, (3000, 3))
     out, said = _screened(steady)
     assert said == [] and out.observed.all()
+
+
+def test_a_robust_fit_that_rejects_a_model_error_as_glitches_is_not_a_plain_success(tmp_path):
+    """A 0.6 s roll spike at t = 29 s of a 35 s flight clips w_x at 200 deg/s (blurred by 1e-9 rad/s: no screen
+    sees it), so the INS attitude is wrong for the last 6 s. A Huber fit rejects that stretch as runs of
+    "glitches" and its weighted residuals pass the whiteness test on x and z, the axes of the misfit (a plain
+    success before, with estimates up to 12 std off); the misfit rule judges the runs: failed, naming them."""
+    from casep.estimators.registry import STATUS_MISFIT
+    from casep.noise.robust import MAX_RUN
+
+    tel, trk, D, held = ins_telemetry(200.0, spike=(29.0, 300.0), dur=35.0)
+    assert held.any() and tel["t"][np.flatnonzero(held.any(axis=1))[0]] > 28.5
+    tel["w_x"] = tel["w_x"] + np.random.default_rng(1).normal(0.0, 1e-9, tel["w_x"].size)
+    write_table(tmp_path / "tel.csv", tel)
+    write_table(tmp_path / "trk.csv", trk)
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        res = casep.separate(casep.read_flight_pair(tmp_path / "tel.csv", tmp_path / "trk.csv"), "strapdown12",
+                             robust="huber")
+    assert not [w for w in rec if issubclass(w.category, SaturationWarning)]
+    rb = res.diagnostics["robust"]
+    assert 2 * sum(rb["rejected_runs"]) > rb["rejected_count"] and min(rb["rejected_runs"]) >= MAX_RUN
+    assert not {"x", "z"} & set(res.diagnostics["whiteness"]["rejected"])  # the weighted residuals look white
+    assert not res.success and res.status == STATUS_MISFIT
+    assert f"the robust fit rejected {sum(rb['rejected_runs'])} of its {rb['rejected_count']} rejected samples" \
+        in res.message and "(x " in res.message and ", z " in res.message
