@@ -184,6 +184,9 @@ def iteration_lines(diagnostics: dict) -> list[str]:
     lines = [f"iterations: {it['passes'][-1]['iteration']} passes (stop when every correction < {it['tol']:g} std, "
              f"at most {it['max_iterations']}): {'converged' if it['converged'] else 'NOT converged'}"]
     for p in it["passes"]:
+        for r in p.get("rejected", []):
+            lines.append(f"  pass {p['iteration']}: a step along combinations of std up to {r['widest']:.3g} declared "
+                         f"magnitudes rejected ({r['why']})")
         lines.append(f"  pass {p['iteration']}: largest correction {p['max_z']:.3g} std ({p['worst']}); {p['fit']}")
     return lines
 
@@ -482,7 +485,8 @@ class _Run:
         res, nav, flight, model, problem = self.solve(None, spec)
         D = np.zeros(len(res.names))
         passes: list[dict] = []
-        failure, last, rejected = None, None, []
+        failure, last = None, None
+        rejected: list[dict] = []  # the steps of this pass outside the linear model
         k, limit = 1, np.inf
         while True:
             step = determined_step(res, problem, flight, model.scales, limit)
@@ -512,7 +516,8 @@ class _Run:
                 if not 0 < step.widest < np.inf:  # nothing to narrow (no covariance, or no combination left)
                     failure = f"failed: pass {k + 1} could not take the step of pass {k} ({trial}): " + _BLAME
                     break
-                rejected.append({"limit": limit, "widest": step.widest, "why": trial})
+                rejected.append({"limit": float(limit) if np.isfinite(limit) else None, "widest": step.widest,
+                                 "why": trial})
                 passes.pop()
                 limit, last = step.widest / NARROW, None
                 continue
@@ -579,10 +584,10 @@ class _Run:
         off by ``b`` beside the noise); above :data:`CURVATURE_TOL` std along the combination it moves most
         (``max eig C^-1 mean(b b^T)``) a :class:`~casep.exceptions.NonlinearityWarning` says so. Skipped (recorded)
         when the covariance is not finite (undetermined coefficients). `draws`: ``K`` (default
-        :data:`CURVATURE_DRAWS` per coefficient). After steps left combinations out (:func:`determined_step`'s
-        `limit`, :meth:`iterate`), the draws ``L a`` lose their part along those (in the declared magnitudes, as the
-        steps did): one std there is outside the linear model by the passes' own test, and a draw there would only
-        find the record not invertible; their covariance stays linear (``left_out`` in the record).
+        :data:`CURVATURE_DRAWS` per combination drawn along). After steps left combinations out
+        (:func:`determined_step`'s `limit`, :meth:`iterate`), the draws ``L a`` lose their part along those (in the
+        declared magnitudes, as the steps did): one std there is outside the linear model by the passes' own test,
+        and a draw there would only find the record not invertible; their covariance stays linear (``left_out``).
         """
         from casep.exceptions import NonlinearityWarning
 
@@ -604,7 +609,7 @@ class _Run:
         S = problem.sv()
         M = S.reshape(-1, len(names))
         y0 = problem.y
-        K = CURVATURE_DRAWS * len(names) if draws is None else int(draws)
+        K = CURVATURE_DRAWS * (len(names) - len(left_out)) if draws is None else int(draws)  # per direction drawn
         R = []
         for a in np.random.default_rng(0).standard_normal((K, len(names))):
             step = L @ a
