@@ -414,7 +414,8 @@ def test_a_stationary_pad_record_is_iterated_only_along_what_it_determines(tmp_p
     combinations (the vertical accelerometer, the levelled gyros' drift), none of the scale factors. The full
     Gauss-Newton step along those it does not determine is noise of 1e3-1e10 declared magnitudes (a scale factor of
     -2e5; a bias of g that the levelling refuses): each such step is rejected, the widest combinations are left out,
-    and the iteration converges along the others with a warning that says so; every estimate is within its std (the truth is 0)."""
+    and the iteration converges along the others with a warning that says so; every estimate is within its std (the
+    truth is 0)."""
     from casep.exceptions import NonlinearityWarning
     from casep.gravity import normal_gravity
     from casep.workflows.imu_separate import SIGNIFICANT
