@@ -432,7 +432,6 @@ def test_a_stationary_pad_record_is_iterated_only_along_what_it_determines(tmp_p
                       "h": np.full(tt.size, 100.0), "v_east": v[:, 0], "v_north": v[:, 1], "v_up": v[:, 2]})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        warnings.simplefilter("always", NonlinearityWarning)
         with pytest.warns(NonlinearityWarning, match=r"the record determines \d+ of 13 combinations") as said:
             out = separate_imu(ImuData(t, w, f), trk, LaunchSite(45.0, 10.0, 100.0, 90.0, T / 2), (0.0, T / 2),
                                "strapdown12", heading_deg=90.0, tracking_frame="geodetic")
