@@ -74,10 +74,24 @@ Jacobian: its fixed point makes the residual orthogonal to S_V about the correct
 noise-free truth included), or when the correction is at the rounding level of the coefficients
 (:func:`_at_rounding`: noise-free tracking makes every std rounding too), and fails (status
 :data:`STATUS_NOT_CONVERGED`) after ``max_iterations`` passes or when a correction cannot be
-applied (the message names an IMU gap whose bounds are large against the tracking noise:
-:func:`_gap_clause`). The estimate is ``D_k + d_k`` of the last pass, the std and covariance those of its
+applied with nothing left to leave out (the message names an IMU gap whose bounds are large against the
+tracking noise: :func:`_gap_clause`). The estimate is ``D_k + d_k`` of the last pass, the std and covariance those of its
 linearisation; ``diagnostics["iterations"]`` lists every pass (the largest correction in std and
 the combination it was).
+
+**Only where the linear model holds** (:meth:`_Run.trial`). A step whose correction cannot be applied (the
+record does not invert, the corrected pad is no longer at rest) or after which the residual's RMS is more than
+:data:`WORSE` times what it was is rejected, and the same pass steps again without the combinations whose std (in
+the declared magnitudes) exceeds the widest one it stepped along over :data:`NARROW` (:func:`determined_step`'s
+``limit``: the truncated Gauss-Newton step, the damping in the declared magnitudes, the stop rule still in std).
+Full rank does not make a record informative: on a stationary pad every coefficient has an estimate, and the full
+step along what the pad does not determine is noise of 1e3-1e10 declared magnitudes (a gyro scale factor of -2e5,
+an accelerometer bias of several g), which the next pass cannot invert; the MEMS flights of the tests never reject
+a step (the residual's RMS after a step at most 2.0 times what it was, ``benchmarks/mc_imu_iterate.py`` draws).
+What is left out is judged when the passes converge: a combination whose correction is above :data:`SIGNIFICANT`
+std is determined but not linear over its size (failed); below, the record does not determine it, and a
+:class:`~casep.exceptions.NonlinearityWarning` says how many combinations it determines and which it does not
+(their estimates are one linear pass's, their std linear).
 """
 
 from __future__ import annotations
