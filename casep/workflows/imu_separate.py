@@ -74,8 +74,8 @@ Jacobian: its fixed point makes the residual orthogonal to S_V about the correct
 noise-free truth included), or when the correction is at the rounding level of the coefficients
 (:func:`_at_rounding`: noise-free tracking makes every std rounding too), and fails (status
 :data:`STATUS_NOT_CONVERGED`) after ``max_iterations`` passes or when a correction cannot be
-applied with nothing left to leave out (the message names an IMU gap whose bounds are large against the
-tracking noise: :func:`_gap_clause`). The estimate is ``D_k + d_k`` of the last pass, the std and covariance those of its
+applied with nothing left to leave out (the message names an IMU gap whose bounds are large against
+the tracking noise: :func:`_gap_clause`). The estimate is ``D_k + d_k`` of the last pass, the std and covariance those of its
 linearisation; ``diagnostics["iterations"]`` lists every pass (the largest correction in std and
 the combination it was).
 
