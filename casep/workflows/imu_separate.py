@@ -75,8 +75,8 @@ noise-free truth included), or when the correction is at the rounding level of t
 (:func:`_at_rounding`: noise-free tracking makes every std rounding too), and fails (status
 :data:`STATUS_NOT_CONVERGED`) after ``max_iterations`` passes or when a correction cannot be
 applied with nothing left to leave out (the message names an IMU gap whose bounds are large against
-the tracking noise: :func:`_gap_clause`). The estimate is ``D_k + d_k`` of the last pass, the std and covariance those of its
-linearisation; ``diagnostics["iterations"]`` lists every pass (the largest correction in std and
+the tracking noise: :func:`_gap_clause`). The estimate is ``D_k + d_k`` of the last pass, the std and
+covariance those of its linearisation; ``diagnostics["iterations"]`` lists every pass (the largest correction in std and
 the combination it was).
 
 **Only where the linear model holds** (:meth:`_Run.trial`). A step whose correction cannot be applied (the
