@@ -471,13 +471,16 @@ class _Run:
     def trial(self, D: np.ndarray, spec: FitSpec, before: Any) -> tuple | str:
         """The pass at `D` (:meth:`solve`), or why the step to `D` leaves the linear model (the state of the last
         pass kept): the correction does not invert, or the residual's RMS grows more than :data:`WORSE` times that
-        of the pass before (`before`, the rows the step was fitted to; not at the rounding level)."""
+        of the pass before (`before`, the rows the step was fitted to; not at the rounding level; None: not judged,
+        a step that cannot be narrowed: the stretches' combinations, or no covariance)."""
         state = (self.nav, self.imu_k, self.model_k, self.q_aligned, self.C_tb)
         try:
             out = self.solve(D, spec)
         except ValueError as exc:
             why = f"the correction does not apply: {exc}"
         else:
+            if before is None:
+                return out
             rms = [_rms(p.y) for p in (before, out[4])]
             if rms[1] <= WORSE * rms[0] or out[4].is_noise_free(rms[1]):
                 return out
@@ -525,7 +528,7 @@ class _Run:
                 break
             near = step.max_z < ACCELERATE_BELOW
             move = _secant_step(D, step.d, step.metric, last) if near else step.d
-            trial = self.trial(D + move, spec, problem)
+            trial = self.trial(D + move, spec, problem if 0 < step.widest < np.inf else None)
             if isinstance(trial, str):  # outside the linear model: the same pass, the widest combinations left out
                 if not 0 < step.widest < np.inf:  # nothing to narrow (no covariance, or no combination left)
                     failure = f"failed: pass {k + 1} could not take the step of pass {k} ({trial}): " + _BLAME
