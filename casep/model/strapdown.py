@@ -44,15 +44,17 @@ if TYPE_CHECKING:
 __all__ = ["corrected_attitude", "correction_errors",
            "QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS", "STRAPDOWN_COLUMNS",
            "quaternion_dcm", "strapdown_inputs", "body_errors", "corrected_imu", "imu_error_signals",
-           "CORRECTION_TOL", "CORRECTION_FLOOR", "CORRECTION_MAX_STEPS"]
+           "CORRECTION_TOL", "CORRECTION_FLOOR", "CORRECTION_MAX_STEPS", "CORRECTION_GROWING"]
 
 #: The fixed-point inversion of :func:`corrected_imu` stops when a step moves no input by more than this
 #: relative amount (a few units in the last place of a double).
 CORRECTION_TOL = 1e-15
 #: ... or when it no longer contracts below this (the rounding of the errors' own evaluation) ...
 CORRECTION_FLOOR = 1e-12
-#: ... or after this many steps: not converged (sensor errors too large for the record to be invertible).
+#: ... or after this many steps: not converged (sensor errors too large for the record to be invertible) ...
 CORRECTION_MAX_STEPS = 60
+#: ... or once each of this many steps in a row moved the inputs more than the one before: diverging.
+CORRECTION_GROWING = 3
 
 
 
@@ -224,14 +226,16 @@ def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured
     Raises
     ------
     ValueError
-        The iteration does not converge in :data:`CORRECTION_MAX_STEPS` steps (errors of the order of
+        The iteration does not converge in :data:`CORRECTION_MAX_STEPS` steps, or diverges (each of
+        :data:`CORRECTION_GROWING` steps in a row larger than the one before) (errors of the order of
         the inputs themselves: a scale factor near -100 %, or coefficients far off).
     """
     fb_m, w_m = np.asarray(fb_measured, float), np.asarray(w_measured, float)
     fb, w = (fb_m.copy(), w_m.copy()) if start is None else (np.asarray(start[0], float), np.asarray(start[1], float))
     scale = np.maximum(np.abs(np.hstack([fb_m, w_m])).max(axis=0), 1e-300)
-    moved = np.inf
-    for _ in range(CORRECTION_MAX_STEPS):
+    moved, growing, n_steps = np.inf, 0, 0
+    while n_steps < CORRECTION_MAX_STEPS:
+        n_steps += 1
         df, dw = body_errors(model, q, fb, w, t, coefficients)
         new_fb, new_w = fb_m - df, w_m - dw
         step = np.abs(np.hstack([new_fb - fb, new_w - w])) / scale
@@ -241,6 +245,9 @@ def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured
         moved, before = float(step.max()), moved
         if moved <= CORRECTION_TOL or (moved >= before and moved <= CORRECTION_FLOOR):
             return fb, w  # converged, or at the rounding of the error evaluation itself
+        growing = growing + 1 if moved > before else 0
+        if growing == CORRECTION_GROWING:
+            break  # diverging: no contraction grows that long (the f -> w coupling for one step at most)
     raise ValueError(f"model `{model.name}`: the sensor errors at the coefficients given do not invert (the last "
                      f"fixed-point step still moved an input by {moved:.3g} of its largest value after "
-                     f"{CORRECTION_MAX_STEPS} steps): errors as large as the measured rates or forces")
+                     f"{n_steps} steps): errors as large as the measured rates or forces")

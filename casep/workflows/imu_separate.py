@@ -74,10 +74,25 @@ Jacobian: its fixed point makes the residual orthogonal to S_V about the correct
 noise-free truth included), or when the correction is at the rounding level of the coefficients
 (:func:`_at_rounding`: noise-free tracking makes every std rounding too), and fails (status
 :data:`STATUS_NOT_CONVERGED`) after ``max_iterations`` passes or when a correction cannot be
-applied (the message names an IMU gap whose bounds are large against the tracking noise:
-:func:`_gap_clause`). The estimate is ``D_k + d_k`` of the last pass, the std and covariance those of its
-linearisation; ``diagnostics["iterations"]`` lists every pass (the largest correction in std and
+applied with nothing left to leave out (the message names an IMU gap whose bounds are large against
+the tracking noise: :func:`_gap_clause`). The estimate is ``D_k + d_k`` of the last pass, the std and
+covariance those of its linearisation; ``diagnostics["iterations"]`` lists every pass (the largest correction in std and
 the combination it was).
+
+**Only where the linear model holds** (:meth:`_Run.trial`). A step whose correction cannot be applied (the
+record does not invert, the corrected pad is no longer at rest) or after which the residual's RMS is more than
+:data:`WORSE` times what it was is rejected, and the same pass steps again without the combinations whose std (in
+the declared magnitudes) exceeds the widest one it stepped along over :data:`NARROW` (:func:`determined_step`'s
+``limit``: the truncated Gauss-Newton step, the damping in the declared magnitudes, the stop rule still in std).
+Full rank does not make a record informative: on a stationary pad every coefficient has an estimate, and the full
+step along what the pad does not determine is noise of 1e3-1e10 declared magnitudes (a gyro scale factor of -2e5,
+an accelerometer bias of several g), which the next pass cannot invert; the MEMS flights of the tests never reject
+a step (the residual's RMS after a step at most 3.2 times what it was: 38 steps of ``benchmarks/mc_imu_iterate.py
+--runs 4``).
+What is left out is judged when the passes converge: a combination whose correction is above :data:`SIGNIFICANT`
+std is determined but not linear over its size (failed); below, the record does not determine it, and a
+:class:`~casep.exceptions.NonlinearityWarning` says how many combinations it determines and which it does not
+(their estimates are one linear pass's, their std linear).
 """
 
 from __future__ import annotations
@@ -102,7 +117,7 @@ if TYPE_CHECKING:
     from casep.navigation.result import NavigationResult
 
 __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
-           "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_DRAWS", "std_shift"]
+           "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_DRAWS", "WORSE", "NARROW", "SIGNIFICANT", "std_shift"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -117,6 +132,13 @@ _BLAME = "the errors are too large for the model, or the data are inconsistent w
 CURVATURE_TOL = 0.3
 #: ... from this many draws per coefficient of the estimate's own distribution (seeded: the same every run).
 CURVATURE_DRAWS = 1
+#: A step is outside the linear model when the residual's RMS after it is this many times that before it ...
+WORSE = 10.0
+#: ... and the next step leaves out the combinations whose std exceeds the widest one stepped along, over this.
+NARROW = 10.0
+#: A combination left out whose correction exceeds this many of its std: the iteration fails (it is determined, and
+#: the model is not linear over its size); below it, the record does not determine it (said, not iterated).
+SIGNIFICANT = 4.0
 #: The alignment's derivative is taken with steps that turn the attitude by about this much, rad.
 _ALIGN_STEP_RAD = 1e-6
 
@@ -177,6 +199,9 @@ def iteration_lines(diagnostics: dict) -> list[str]:
     lines = [f"iterations: {it['passes'][-1]['iteration']} passes (stop when every correction < {it['tol']:g} std, "
              f"at most {it['max_iterations']}): {'converged' if it['converged'] else 'NOT converged'}"]
     for p in it["passes"]:
+        for r in p.get("rejected", []):
+            lines.append(f"  pass {p['iteration']}: a step along combinations of std up to {r['widest']:.3g} declared "
+                         f"magnitudes rejected ({r['why']})")
         lines.append(f"  pass {p['iteration']}: largest correction {p['max_z']:.3g} std ({p['worst']}); {p['fit']}")
     return lines
 
@@ -268,6 +293,7 @@ class _Run:
         self.C_tb = np.eye(3)  # ... and its body -> launch triad
         self.screen: dict | None = None  # the first pass's tracking screen, kept
         self.inputs_said = False  # whether the inputs' warnings were said before the first pass
+        self.limit = np.inf  # the linear region of the last step (:func:`determined_step`), declared magnitudes
 
     # ------------------------------------------------------------------ one pass
     def navigate(self, D: np.ndarray) -> NavigationResult:
@@ -445,6 +471,26 @@ class _Run:
         return _quiet_fit(problem, spec), nav, flight, model, problem
 
     # ------------------------------------------------------------------ the iteration
+    def trial(self, D: np.ndarray, spec: FitSpec, before: Any) -> tuple | str:
+        """The pass at `D` (:meth:`solve`), or why the step to `D` leaves the linear model (the state of the last
+        pass kept): the correction does not invert, or the residual's RMS grows more than :data:`WORSE` times that
+        of the pass before (`before`, the rows the step was fitted to; not at the rounding level; None: not judged,
+        a step that cannot be narrowed: the stretches' combinations, or no covariance)."""
+        state = (self.nav, self.imu_k, self.model_k, self.q_aligned, self.C_tb)
+        try:
+            out = self.solve(D, spec)
+        except ValueError as exc:
+            why = f"the correction does not apply: {exc}"
+        else:
+            if before is None:
+                return out
+            rms = [_rms(p.y) for p in (before, out[4])]
+            if rms[1] <= WORSE * rms[0] or out[4].is_noise_free(rms[1]):
+                return out
+            why = f"the residual grew from {rms[0]:.3g} to {rms[1]:.3g} m/s RMS"
+        self.nav, self.imu_k, self.model_k, self.q_aligned, self.C_tb = state
+        return why
+
     def iterate(self, iterate: bool, tol: float, max_iterations: int) -> ImuSeparation:
         """Passes until the correction of every determined combination is below `tol` std (:func:`determined_step`;
         one pass without `iterate`).
@@ -460,15 +506,21 @@ class _Run:
         D = np.zeros(len(res.names))
         passes: list[dict] = []
         failure, last = None, None
-        k = 1
+        rejected: list[dict] = []  # the steps of this pass outside the linear model
+        k, limit = 1, np.inf
         while True:
-            step = determined_step(res, problem, flight, model.scales)
+            step = determined_step(res, problem, flight, model.scales, limit)
             how = "ols, white noise (while far)" if spec is fast else "as requested"
             passes.append(_pass_record(k, res, step, D + step.d, how, _at_rounding(D, step, model.scales, res.names)))
+            if rejected:  # the same pass, its step narrowed
+                passes[-1]["rejected"] = list(rejected)
+            if step.beyond:
+                passes[-1]["left_out"] = [{"std": sd, "z": z, "combination": nm} for sd, z, nm in step.beyond]
             if not iterate:
                 break
             if _stopped(passes[-1], tol):
                 if spec is self.spec or step.combinations is not None:  # the stretches' combinations: any fit
+                    failure = _outside_failure(step, rejected)
                     break
                 spec, last = self.spec, None  # the same linearisation, solved as requested (another map)
                 res = _quiet_fit(problem, spec)
@@ -479,13 +531,20 @@ class _Run:
                 break
             near = step.max_z < ACCELERATE_BELOW
             move = _secant_step(D, step.d, step.metric, last) if near else step.d
+            trial = self.trial(D + move, spec, problem if 0 < step.widest < np.inf else None)
+            if isinstance(trial, str):  # outside the linear model: the same pass, the widest combinations left out
+                if not 0 < step.widest < np.inf:  # nothing to narrow (no covariance, or no combination left)
+                    failure = f"failed: pass {k + 1} could not take the step of pass {k} ({trial}): " + _BLAME
+                    break
+                rejected.append({"limit": float(limit) if np.isfinite(limit) else None, "widest": step.widest,
+                                 "why": trial})
+                passes.pop()
+                limit, last = step.widest / NARROW, None
+                continue
             last = (D, step.d) if near else None
-            D, k = D + move, k + 1
-            try:
-                res, nav, flight, model, problem = self.solve(D, spec)
-            except ValueError as exc:
-                failure = f"failed: pass {k} could not apply the correction of pass {k - 1} ({exc}): " + _BLAME
-                break
+            D, k, rejected = D + move, k + 1, []
+            res, nav, flight, model, problem = trial
+        self.limit = limit
         from casep.estimators.solve import fit
 
         res = fit(problem, self.spec)  # the last linearisation, judged (its warnings are the result's)
@@ -519,6 +578,13 @@ class _Run:
             out = failed(out, STATUS_NOT_CONVERGED, failure.replace(_BLAME, gap) if gap else failure)
         out = judge_setup(out, flight, model, noise_free=False)
         out = judge_tracking(out, flight, problem, model.scales, about=D)
+        out.diagnostics["iterations"]["limit"] = float(self.limit) if np.isfinite(self.limit) else None
+        said = _outside_note(passes, len(out.names)) if iterate and out.success else None
+        if said:
+            from casep.exceptions import NonlinearityWarning
+
+            warnings.warn(said, NonlinearityWarning, stacklevel=3)
+            out = dataclasses.replace(out, message=f"{out.message}; {said}")
         if iterate and out.success:  # a failed result's std are not used: no curvature to carry
             out = self.curvature(out, problem, D)
         return ImuSeparation(out, nav, flight, passes)
@@ -547,7 +613,10 @@ class _Run:
         off by ``b`` beside the noise); above :data:`CURVATURE_TOL` std along the combination it moves most
         (``max eig C^-1 mean(b b^T)``) a :class:`~casep.exceptions.NonlinearityWarning` says so. Skipped (recorded)
         when the covariance is not finite (undetermined coefficients). `draws`: ``K`` (default
-        :data:`CURVATURE_DRAWS` per coefficient).
+        :data:`CURVATURE_DRAWS` per combination drawn along). After steps left combinations out
+        (:func:`determined_step`'s `limit`, :meth:`iterate`), the draws ``L a`` lose their part along those (in the
+        declared magnitudes, as the steps did): one std there is outside the linear model by the passes' own test,
+        and a draw there would only find the record not invertible; their covariance stays linear (``left_out``).
         """
         from casep.exceptions import NonlinearityWarning
 
@@ -559,10 +628,17 @@ class _Run:
         lam, V = np.linalg.eigh(C)
         lam = np.clip(lam, 0.0, None)
         L = V * np.sqrt(lam)
+        left_out = []
+        if np.isfinite(self.limit):  # only where the passes' steps were linear: no draw beyond (determined_step)
+            scale = np.array([self.model_k.scales.get(nm, 1.0) if self.model_k else 1.0 for nm in names])
+            sig, q = _scaled_spectrum(C, scale)
+            left_out = [_combination(names, q[:, i]) for i in np.flatnonzero(sig > self.limit)]
+            qb = q[:, sig > self.limit]
+            L = scale[:, None] * (L / scale[:, None] - qb @ (qb.T @ (L / scale[:, None])))
         S = problem.sv()
         M = S.reshape(-1, len(names))
         y0 = problem.y
-        K = CURVATURE_DRAWS * len(names) if draws is None else int(draws)
+        K = CURVATURE_DRAWS * (len(names) - len(left_out)) if draws is None else int(draws)  # per direction drawn
         R = []
         for a in np.random.default_rng(0).standard_normal((K, len(names))):
             step = L @ a
@@ -578,7 +654,7 @@ class _Run:
         extra = B @ B.T / B.shape[1]
         shift = std_shift(C, extra)
         cov = C + extra
-        info = {"checked": True, "draws": len(R), "max_shift_std": shift, "tol": CURVATURE_TOL,
+        info = {"checked": True, "draws": len(R), "max_shift_std": shift, "tol": CURVATURE_TOL, "left_out": left_out,
                 "std_factor": {nm: float(v) for nm, v in zip(names, np.sqrt(np.diag(cov) / np.diag(C)))}}
         message = res.message
         if shift > CURVATURE_TOL:
@@ -743,6 +819,11 @@ class Step:
         The per-coefficient scale of the secant step (:func:`_secant_step`).
     combinations : list of dict or None
         With the tracking's stretches: :func:`casep.checks.tracking_quality.determined`'s combinations.
+    widest : float
+        The largest std (declared magnitudes) of a combination the correction is along (:func:`determined_step`).
+    beyond : list of (std, z, str)
+        The combinations left out by the step's `limit`: their std (declared magnitudes), correction in that std,
+        name.
     """
 
     d: np.ndarray
@@ -750,9 +831,12 @@ class Step:
     worst: str
     metric: np.ndarray
     combinations: list | None = None
+    widest: float = np.inf
+    beyond: list = field(default_factory=list)
 
 
-def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scales: dict[str, float]) -> Step:
+def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scales: dict[str, float],
+                    limit: float = np.inf) -> Step:
     """The correction of one pass along the combinations the flight determines, and its size in their std.
 
     Two cases, one per statement the result makes of what the flight determines:
@@ -777,6 +861,16 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
 
     An undetermined coefficient's estimate is never read (it is NaN; 0 in its place would drop the
     determined combination it is part of).
+
+    **The linear region** (`limit`, declared magnitudes; :meth:`_Run.iterate` sets it): with ``C_z = C / (scale
+    scale^T)`` the covariance in the declared magnitudes, ``C_z = sum_i sigma_i^2 q_i q_i^T``, the Gauss-Newton
+    correction is ``z = sum_i (q_i . z) q_i`` and each term is estimated to ``sigma_i``. The terms with
+    ``sigma_i > limit`` are left out of the step as the null space is (``N`` widened by ``scale * q_i``): the
+    truncated-SVD step, Levenberg-Marquardt's limit with the damping in the declared magnitudes::
+
+        d = scale * sum_{sigma_i <= limit} (q_i . z) q_i
+
+    and ``max_z`` is taken over what is left. ``limit = inf`` (the default) is the full Gauss-Newton step.
     """
     from casep.checks.tracking_quality import determined, noise_problem
 
@@ -795,13 +889,22 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
     C = res.covariance if res.solution is None else res.solution.covariance
     std = res.std if res.std is not None else np.full(len(names), np.nan)
     P = np.eye(len(names))
-    if res.solution is not None:
-        N = np.asarray(res.solution.null_space, dtype=float).reshape(len(names), -1)
+    widest, beyond = np.inf, []
+    N = np.zeros((len(names), 0)) if res.solution is None else \
+        np.asarray(res.solution.null_space, dtype=float).reshape(len(names), -1)
+    if C is not None and np.all(np.isfinite(C)) and np.all(np.isfinite(x)):
+        sig, q = _scaled_spectrum(C, scale)
+        out = sig > limit
+        widest = float(sig[~out].max(initial=0.0))
+        zq = q.T @ (x / scale) / np.where(sig > 0, sig, np.inf)  # each combination's correction in its std
+        beyond = [(float(sig[i]), float(abs(zq[i])), _combination(names, q[:, i])) for i in np.flatnonzero(out)]
+        N = np.hstack([N, scale[:, None] * q[:, out]])  # left out as the null space is
+    if res.solution is not None or beyond:
         Q, _ = np.linalg.qr(N / scale[:, None])
         x = scale * (x / scale - Q @ (Q.T @ (x / scale)))
         Qn, _ = np.linalg.qr(N)
         P = P - Qn @ Qn.T  # row j: the part of coefficient j the flight determines (P N = 0)
-    if res.solution is None or C is None or not np.all(np.isfinite(P @ C @ P.T)):  # the coefficients' own std
+    if (res.solution is None and not beyond) or C is None or not np.all(np.isfinite(P @ C @ P.T)):  # own std
         with np.errstate(divide="ignore", invalid="ignore"):
             z = np.abs(x) / std
     else:
@@ -809,7 +912,50 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
             z = np.abs(P @ x) / np.sqrt(np.clip(np.einsum("ij,jk,ik->i", P, C, P), 0.0, None))
     zf = np.where(np.isfinite(z), z, 0.0)
     j = int(np.argmax(zf))
-    return Step(x, float(zf[j]), _combination(names, scale * P[j]), std)
+    return Step(x, float(zf[j]), _combination(names, scale * P[j]), std, widest=widest, beyond=beyond)
+
+
+def _scaled_spectrum(C: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(sigma, q)``: the std (declared magnitudes) and directions (columns) of the combinations ``q_i . (D /
+    scale)`` whose estimates are uncorrelated: ``C / (scale scale^T) = sum_i sigma_i^2 q_i q_i^T``; the null space's
+    (``sigma_i = 0`` from a pseudo-inverse covariance) included."""
+    lam, q = np.linalg.eigh(C / np.outer(scale, scale))
+    return np.sqrt(np.clip(lam, 0.0, None)), q
+
+
+def _outside_note(passes: list[dict], n: int) -> str | None:
+    """What a converged iteration says of the combinations its steps left out (:func:`determined_step`'s `limit`):
+    none, or how many, their std and names, why (the last rejected step), and that their estimates are linear."""
+    left = passes[-1].get("left_out") or []
+    why = [r["why"] for p in passes for r in p.get("rejected", [])]
+    if not left or not why:
+        return None
+    sd = sorted(c["std"] for c in left)
+    names = "; ".join(c["combination"] for c in sorted(left, key=lambda c: c["std"])[:3])
+    return (f"the record determines {n - len(left)} of {n} combinations of the coefficients well enough to iterate; a "
+            f"step along the other {len(left)} (std {sd[0]:.3g} to {sd[-1]:.3g} declared magnitudes: {names}"
+            f"{'; ...' if len(left) > 3 else ''}) leaves the linear model ({why[-1]}), and their corrections are "
+            f"noise (at most {max(c['z'] for c in left):.2g} std): the record does not determine them. Their estimates "
+            "are the last linear pass's, their std linear (not checked for curvature)")
+
+
+def _rms(y: np.ndarray | None) -> float:
+    """The RMS of a pass's rows (m/s; the finite ones)."""
+    y = np.asarray(y, dtype=float)
+    y = y[np.isfinite(y)]
+    return float(np.sqrt(np.mean(y * y))) if y.size else 0.0
+
+
+def _outside_failure(step: Step, rejected: list[dict]) -> str | None:
+    """Why a converged iteration fails: a combination left out of the step (:func:`determined_step`'s `limit`,
+    set by a rejected step: `rejected`) whose correction is above :data:`SIGNIFICANT` std. The record determines it,
+    and the model is not linear over its size: the errors are too large (None when every one left out is below)."""
+    big = [(sd, z, nm) for sd, z, nm in step.beyond if z > SIGNIFICANT]
+    if not big:
+        return None
+    sd, z, nm = max(big, key=lambda b: b[1])
+    return (f"failed: the correction of {nm} is {z:.3g} of its std ({sd:.3g} declared magnitudes), but a step along "
+            f"it leaves the linear model ({rejected[-1]['why'] if rejected else 'rejected'}): " + _BLAME)
 
 
 def _combination(names: list[str], w: np.ndarray, top: int = 3) -> str:

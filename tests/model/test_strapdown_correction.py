@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import casep
-from casep.model.strapdown import body_errors, corrected_imu
+from casep.model.strapdown import CORRECTION_GROWING, body_errors, corrected_imu
 from casep.navigation.imu import ImuData, sample_periods, with_rates
 from casep.units import G0
 
@@ -90,8 +90,9 @@ def test_no_errors_no_correction_and_too_large_errors_refused(strapdown33, rng):
     assert np.array_equal(fb_c, fb) and np.array_equal(w_c, w)
     D = D0.copy()
     D[strapdown33.index("sa_x")] = -1.5e6  # a scale factor of -150 %: the record cannot be inverted by iteration
-    with pytest.raises(ValueError, match="do not invert"):
+    with pytest.raises(ValueError, match="do not invert") as refused:  # the steps grow x1.5 each: said at once
         corrected_imu(strapdown33, q, fb, w, t, D)
+    assert f"after {CORRECTION_GROWING + 1} steps" in str(refused.value)
 
 
 def test_increments_take_the_corrected_rates_times_their_periods(rng):

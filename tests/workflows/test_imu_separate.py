@@ -407,3 +407,54 @@ def test_the_curvature_at_one_std_is_carried_by_the_std_and_said(misaligned_pass
         out = run.curvature(small, problem, D, draws=4)
     assert out.diagnostics["curvature"]["max_shift_std"] < min(0.01 * big, 0.1), (big, out.diagnostics["curvature"])
     np.testing.assert_allclose(out.std, small.std, rtol=0.01)
+
+
+def test_a_stationary_pad_record_is_iterated_only_along_what_it_determines(tmp_path):
+    """16 s at rest on the pad with a quiet IMU (5 Hz) and 1 Hz tracking at rest: the record determines a few
+    combinations (the vertical accelerometer, the levelled gyros' drift), none of the scale factors. The full
+    Gauss-Newton step along those it does not determine is noise of 1e3-1e10 declared magnitudes (a scale factor of
+    -2e5; a bias of g that the levelling refuses): each such step is rejected, the widest combinations are left out,
+    and the iteration converges along the others with a warning that says so; every estimate is within its std (the
+    truth is 0)."""
+    from casep.exceptions import NonlinearityWarning
+    from casep.gravity import normal_gravity
+    from casep.workflows.imu_separate import SIGNIFICANT
+
+    T, lat, wE = 16.0, np.radians(45.0), 7.292115e-5
+    rng = np.random.default_rng(0)
+    t = np.arange(0, T, 0.2)
+    f = np.tile([0, 0, normal_gravity(45.0, 100.0)], (t.size, 1)) + rng.normal(0, 1e-3, (t.size, 3))
+    w = np.tile([0, wE * np.cos(lat), wE * np.sin(lat)], (t.size, 1)) + rng.normal(0, 1e-5, (t.size, 3))
+    tt = np.arange(0, T, 1.0)
+    v = rng.normal(0, 0.02, (tt.size, 3))
+    trk = tmp_path / "trk.csv"
+    write_table(trk, {"t": tt, "lat": np.full(tt.size, 45.0), "lon": np.full(tt.size, 10.0),
+                      "h": np.full(tt.size, 100.0), "v_east": v[:, 0], "v_north": v[:, 1], "v_up": v[:, 2]})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.warns(NonlinearityWarning, match=r"the record determines \d+ of 13 combinations") as said:
+            out = separate_imu(ImuData(t, w, f), trk, LaunchSite(45.0, 10.0, 100.0, 90.0, T / 2), (0.0, T / 2),
+                               "strapdown12", heading_deg=90.0, tracking_frame="geodetic")
+    res = out.result
+    it = res.diagnostics["iterations"]
+    assert out.success and it["converged"], out.message
+    assert "does not determine them" in out.message
+    assert any("leaves the linear model" in str(w.message) for w in said)
+    assert it["limit"] is not None and any(p.get("rejected") for p in it["passes"])
+    left = it["passes"][-1]["left_out"]
+    assert 1 <= len(left) < 13 and all(c["z"] < SIGNIFICANT and c["std"] > it["limit"] for c in left)
+    assert np.all(np.isfinite(res.estimate)) and np.all(np.abs(res.estimate) / res.std < 4.0)
+    assert res.diagnostics["curvature"]["checked"] and len(res.diagnostics["curvature"]["left_out"]) == len(left)
+
+
+def test_a_determined_combination_left_out_of_the_steps_fails_the_iteration():
+    """A combination the steps left out (outside the linear model) whose correction is many std is determined: the
+    iteration cannot converge along it, a failed result that names it; noise-sized ones are said, not failed."""
+    from casep.workflows.imu_separate import SIGNIFICANT, Step, _outside_failure
+
+    why = [{"why": "the residual grew from 0.1 to 3 m/s RMS"}]
+    step = Step(np.zeros(2), 0.0, "", np.ones(2), beyond=[(50.0, 0.7, "sg_z"), (9.0, SIGNIFICANT + 1.0, "sa_x")])
+    said = _outside_failure(step, why)
+    assert said is not None and said.startswith("failed: the correction of sa_x is 5 of its std")
+    assert "the residual grew from 0.1 to 3 m/s RMS" in said
+    assert _outside_failure(Step(np.zeros(2), 0.0, "", np.ones(2), beyond=[(50.0, 0.7, "sg_z")]), why) is None
