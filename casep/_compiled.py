@@ -10,7 +10,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["rels_ud", "sv_integrate_chunk", "all_pole_filter", "gmw_filter"]
+__all__ = ["rels_ud", "sv_integrate_chunk", "all_pole_filter", "gmw_filter", "joint_filter"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -216,4 +216,69 @@ def gmw_filter(X, dt, tau, share, m, P, out):  # pragma: no cover
                 m[j] = a * m[j] + gain * nu
         P[0] = Pm * share / F
         logdet += np.log(F)
+    return logdet
+
+
+@numba.njit(cache=True, nogil=True)
+def joint_filter(X, T, Q, H, P0, a, qb, d, out):  # pragma: no cover
+    """Kalman whitening of Gauss-Markov plus white noise per axis beside a known linear state
+    (:func:`casep._kernels.joint_filter`: the equations); returns ``sum ln det F_r``. The same operations as
+    :func:`casep._kernels.joint_filter_numpy`, on the blocks of ``P`` (z z, z g, g g) and of ``m`` (z, g)."""
+    M, _, k = X.shape
+    s = T.shape[1]
+    Pz = P0.copy()
+    Pzg = np.zeros((s, 3))
+    Pg = np.zeros((3, 3))
+    mz = np.zeros((s, k))
+    mg = np.zeros((3, k))
+    logdet = 0.0
+    for r in range(M):
+        Tr = np.ascontiguousarray(T[r])
+        Hr = np.ascontiguousarray(H[r])
+        Pz = Tr @ Pz @ Tr.T + Q[r]
+        Pzg = Tr @ Pzg
+        mz = Tr @ mz
+        for i in range(3):
+            Pzg[:, i] *= a[r, i]
+            mg[i] *= a[r, i]
+            for j in range(3):
+                Pg[i, j] *= a[r, i] * a[r, j]
+            Pg[i, i] += qb[r, i]
+        PHz = Pz @ Hr.T + Pzg  # P^- Hx^T, Hx = [H_r  I]: its z rows and g rows
+        PHg = Pzg.T @ Hr.T + Pg
+        F = Hr @ PHz + PHg
+        L = np.zeros((3, 3))  # F = L L^T
+        for i in range(3):
+            for j in range(i + 1):
+                v = 0.5 * (F[i, j] + F[j, i]) + (d[i] if i == j else 0.0)
+                for l in range(j):
+                    v -= L[i, l] * L[j, l]
+                if i == j:
+                    if not v > 0.0:
+                        return np.inf
+                    L[i, i] = np.sqrt(v)
+                else:
+                    L[i, j] = v / L[j, j]
+        nu = X[r] - Hr @ mz - mg
+        u = np.zeros((3, k))
+        Wz = np.zeros((s, 3))  # P^- Hx^T L^-T: K nu = W u, K F K^T = W W^T
+        Wg = np.zeros((3, 3))
+        for i in range(3):
+            u[i] = nu[i]
+            Wz[:, i] = PHz[:, i]
+            Wg[:, i] = PHg[:, i]
+            for l in range(i):
+                u[i] -= L[i, l] * u[l]
+                Wz[:, i] -= L[i, l] * Wz[:, l]
+                Wg[:, i] -= L[i, l] * Wg[:, l]
+            u[i] /= L[i, i]
+            Wz[:, i] /= L[i, i]
+            Wg[:, i] /= L[i, i]
+            logdet += 2.0 * np.log(L[i, i])
+        out[3 * r:3 * r + 3] = u
+        mz += Wz @ u
+        mg += Wg @ u
+        Pz -= Wz @ Wz.T
+        Pzg -= Wz @ Wg.T
+        Pg -= Wg @ Wg.T
     return logdet

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from casep._kernels import ar1_terms
+from casep._kernels import ar1_terms, joint_filter
 from casep.noise.model import AXES, NoiseModel
 
 __all__ = ["KnownStates", "TrackingParameters", "joint_whiten", "restricted_likelihood", "fit_tracking",
@@ -68,14 +68,11 @@ class KnownStates:
 
     def dense(self) -> np.ndarray:
         """``Sigma_known`` (3M, 3M), rows epoch by epoch, x y z: for tests on small cases only."""
-        M, s = self.T.shape[0], self.T.shape[1]
-        Phi = np.eye(s)
+        M = self.T.shape[0]
         P = self.P0.copy()
-        maps, covs = [], []
-        for r in range(M):  # z_r = A_r z_(-1) + sum of the noises; Cov(z_r, z_q) = A_r.. recursion
-            Phi = self.T[r] @ Phi
+        covs = []
+        for r in range(M):  # Cov(z_r) = T_r Cov(z_(r-1)) T_r^T + Q_r
             P = self.T[r] @ P @ self.T[r].T + self.Q[r]
-            maps.append(Phi)
             covs.append(P)
         out = np.zeros((3 * M, 3 * M))
         for r in range(M):
@@ -118,52 +115,28 @@ class TrackingParameters:
 
 def joint_whiten(X: np.ndarray, t: np.ndarray, theta: TrackingParameters, known: KnownStates
                  ) -> tuple[np.ndarray, float]:
-    """The rows ``X`` (M, 3, k) whitened by the filter of the module notes: ``(U (3M, k), ln det Sigma)``."""
+    """The rows ``X`` (M, 3, k) whitened by the filter of the module notes (:func:`casep._kernels.joint_filter`):
+    ``(U (3M, k), ln det Sigma)``; ``ln det`` inf where a variance is not positive."""
     M, _, k = X.shape
-    s = known.T.shape[1]
     dt = np.empty(M)
     dt[0] = np.inf
     np.subtract(t[1:], t[:-1], out=dt[1:])
-    gm = [j for j in range(3) if theta.tau[j] is not None]
-    a = np.zeros((M, 3))
-    b = np.zeros((M, 3))
-    for j in gm:
-        a[:, j], b[:, j] = ar1_terms(dt, theta.tau[j])
-    c, R = np.array(theta.c), np.diag(theta.d)
-    n = s + 3
-    m = np.zeros((n, k))
-    P = np.zeros((n, n))
-    P[:s, :s] = known.P0
+    a, qb = np.zeros((M, 3)), np.zeros((M, 3))
+    for j in range(3):
+        if theta.tau[j] is not None:
+            a[:, j], qb[:, j] = ar1_terms(dt, theta.tau[j])
+            qb[:, j] *= theta.c[j]  # c (1 - a^2)
     U = np.empty((3 * M, k))
-    logdet = 0.0
-    for r in range(M):
-        Phi = np.zeros((n, n))
-        Phi[:s, :s] = known.T[r]
-        Phi[s:, s:] = np.diag(a[r])
-        P = Phi @ P @ Phi.T
-        P[:s, :s] += known.Q[r]
-        P[s:, s:] += np.diag(c * b[r])
-        m = Phi @ m
-        Hx = np.concatenate([known.H[r], np.eye(3)], axis=1)
-        PH = P @ Hx.T
-        F = Hx @ PH + R
-        L = np.linalg.cholesky(F)
-        nu = X[r] - Hx @ m
-        U[3 * r:3 * r + 3] = np.linalg.solve(L, nu)
-        K = np.linalg.solve(F, PH.T).T  # P^- Hx^T F^-1
-        m = m + K @ nu
-        P = P - K @ PH.T
-        P = 0.5 * (P + P.T)
-        logdet += 2.0 * float(np.sum(np.log(np.diag(L))))
+    logdet = joint_filter(np.ascontiguousarray(X, dtype=float), known.T, known.Q, known.H, known.P0, a, qb,
+                          np.asarray(theta.d, dtype=float), U)
     return U, logdet
 
 
 def restricted_likelihood(X: np.ndarray, t: np.ndarray, theta: TrackingParameters, known: KnownStates) -> float:
     """``-2 l_R(theta)`` of the rows ``X = [Z dv]`` (M, 3, p + 1) (module notes; ``Z^T Z = I``); inf where the
     filter fails (a variance not positive)."""
-    try:
-        U, logdet = joint_whiten(X, t, theta, known)
-    except np.linalg.LinAlgError:
+    U, logdet = joint_whiten(X, t, theta, known)
+    if not np.isfinite(logdet):
         return np.inf
     p = X.shape[2] - 1
     try:
