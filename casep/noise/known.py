@@ -153,7 +153,7 @@ def fit_tracking(X: np.ndarray, t: np.ndarray, start: NoiseModel, known: KnownSt
     model: its parameters start the search; a given tau stays given): ``(model, -2 l_R)``.
 
     Free are, per axis, ``ln c`` (Gauss-Markov), ``ln d`` (white part) and ``ln tau`` (unless given). The model
-    returned has rule ``"reml, IMU noise known"`` (``"given, ..."`` with the tau given) and the fitted ``-2 l_R``.
+    returned has rule ``"REML beside the IMU noise"`` (``"tau given, REML beside ..."``) and the fitted ``-2 l_R``.
     """
     from casep.noise.fit import nelder_mead
 
@@ -180,7 +180,7 @@ def fit_tracking(X: np.ndarray, t: np.ndarray, start: NoiseModel, known: KnownSt
 
     best = nelder_mead(value, x0, np.full(x0.size, 0.5), xatol, maxfun=maxfun)
     val = value(best)
-    rule = ("reml" if free_tau else "given") + ", IMU noise known"
+    rule = ("REML" if free_tau else "tau given, REML") + " beside the IMU noise"
     return theta(best).model(start.kind, rule, neg2_reml=val), val
 
 

@@ -891,8 +891,9 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
 def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu: np.ndarray, refit: Any) -> dict:
     """What :func:`imu_noise_budget` used and found, for the result's noise record."""
     s, h, _ = measured
+    C_fit = np.asarray(res.covariance)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.sqrt((np.diag(C_trk) + np.diag(C_imu)) / np.diag(res.covariance))
+        ratio = np.sqrt((np.diag(C_trk) + np.diag(C_imu)) / np.diag(C_fit))
     finite = ratio[np.isfinite(ratio)]
     worst = int(np.nanargmax(np.where(np.isfinite(ratio), ratio, -np.inf))) if finite.size else 0
     how = ("the tracking noise model fitted again by REML with the IMU's noise a known term (its random walks and "
@@ -904,7 +905,7 @@ def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu:
             "arw_rad_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[3:]],
             "std_factor_max": float(finite.max()) if finite.size else None, "std_factor_worst": res.names[worst],
             "std_tracking_noise_only": {nm: (float(v) if np.isfinite(v) else None)
-                                        for nm, v in zip(res.names, np.sqrt(np.diag(res.covariance)))},
+                                        for nm, v in zip(res.names, np.sqrt(np.diag(C_fit)))},
             "tracking_noise": None if refit is None else refit.to_dict(),
             "rule": "the velocity and attitude random walks (and, with the pad window, the levelling's start tilt) "
                     "carried to the estimate exactly; the estimate is the fit's; " + how}
@@ -922,7 +923,7 @@ def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
     std = None if res.std is None else np.where(np.isfinite(res.std), np.sqrt(np.clip(np.diag(cov), 0.0, None)), np.nan)
     solution = res.solution
     if solution is not None and solution.covariance is not None:
-        solution = dataclasses.replace(solution, covariance=solution.covariance - res.covariance + cov)
+        solution = dataclasses.replace(solution, covariance=solution.covariance - np.asarray(res.covariance) + cov)
     diag = {**res.diagnostics, "noise": {**res.diagnostics["noise"], "imu": account}}
     return dataclasses.replace(res, covariance=cov, std=std, solution=solution, diagnostics=diag)
 
