@@ -819,9 +819,10 @@ def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np
 
 
 def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
-                     levelling: tuple | None = None) -> tuple[np.ndarray, np.ndarray, dict] | None:
+                     levelling: tuple | None = None) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
     """The estimate's covariance with the IMU's own white noise: ``(tracking part, IMU part, what was used)`` (None
-    when the flight does not hold the IMU's samples, or the result has no covariance).
+    when the flight does not hold the IMU's samples, or the result has no covariance; the tracking part None: the
+    fit's own covariance).
 
     The navigated velocity carries the IMU's white noise integrated: a velocity random walk (accelerometer) and
     an attitude random walk that ``f x phi`` turns into a velocity error growing with the specific force
@@ -864,11 +865,10 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
     C_imu = AG @ AG.T
     refit = _tracking_beside_imu(problem, flight, noise, levelling)
     if refit is None:
-        C_trk = res.covariance
-    else:
-        from casep.noise.known import tracking_covariance_times
+        return None, C_imu, _imu_account(res, measured, np.asarray(res.covariance), C_imu, refit)
+    from casep.noise.known import tracking_covariance_times
 
-        C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
+    C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
     return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit)
 
 
@@ -919,11 +919,13 @@ def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
     if budget is None:
         return res
     C_trk, C_imu, account = budget
-    cov = C_trk + C_imu
+    C_fit = np.asarray(res.covariance)
+    # the tracking part: refitted (the minimum-norm solution's, finite where the fit's is not), else the fit's own
+    cov = C_fit + C_imu if C_trk is None else np.where(np.isfinite(C_fit), C_trk + C_imu, np.nan)
     std = None if res.std is None else np.where(np.isfinite(res.std), np.sqrt(np.clip(np.diag(cov), 0.0, None)), np.nan)
     solution = res.solution
     if solution is not None and solution.covariance is not None:
-        solution = dataclasses.replace(solution, covariance=solution.covariance - np.asarray(res.covariance) + cov)
+        solution = dataclasses.replace(solution, covariance=(solution.covariance if C_trk is None else C_trk) + C_imu)
     diag = {**res.diagnostics, "noise": {**res.diagnostics["noise"], "imu": account}}
     return dataclasses.replace(res, covariance=cov, std=std, solution=solution, diagnostics=diag)
 
