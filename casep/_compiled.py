@@ -220,34 +220,67 @@ def gmw_filter(X, dt, tau, share, m, P, out):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
+def _acc(A, B, transpose_b, sign, out):  # pragma: no cover
+    """``out += sign A B`` (``A B^T`` with `transpose_b`) by scalar loops (matrices of 3 x 3 to 18 x 18)."""
+    n, m = A.shape
+    p = out.shape[1]
+    for i in range(n):
+        for l in range(m):
+            x = sign * A[i, l]
+            if x == 0.0:
+                continue
+            if transpose_b:
+                for j in range(p):
+                    out[i, j] += x * B[j, l]
+            else:
+                for j in range(p):
+                    out[i, j] += x * B[l, j]
+
+
+@numba.njit(cache=True, nogil=True)
 def joint_filter(X, T, Q, H, P0, a, qb, d, out):  # pragma: no cover
     """Kalman whitening of Gauss-Markov plus white noise per axis beside a known linear state
-    (:func:`casep._kernels.joint_filter`: the equations); returns ``sum ln det F_r``. The same operations as
-    :func:`casep._kernels.joint_filter_numpy`, on the blocks of ``P`` (z z, z g, g g) and of ``m`` (z, g)."""
+    (:func:`casep._kernels.joint_filter`: the equations); returns ``sum ln det F_r``. The same recursion as
+    :func:`casep._kernels.joint_filter_numpy` on ``x = (z, g)`` (n = s + 3 states), in scalar loops: numba compiles
+    slice assignments and array expressions slowly (this kernel: 9-15 s of CPU with them, 3 s without)."""
     M, _, k = X.shape
     s = T.shape[1]
-    Pz = P0.copy()
-    Pzg = np.zeros((s, 3))
-    Pg = np.zeros((3, 3))
-    mz = np.zeros((s, k))
-    mg = np.zeros((3, k))
+    n = s + 3
+    P = np.zeros((n, n))
+    for i in range(s):
+        for j in range(s):
+            P[i, j] = P0[i, j]
+    m = np.zeros((n, k))
+    Phi = np.zeros((n, n))
+    Hx = np.zeros((3, n))
     logdet = 0.0
     for r in range(M):
-        Tr = np.ascontiguousarray(T[r])
-        Hr = np.ascontiguousarray(H[r])
-        Pz = Tr @ Pz @ Tr.T + Q[r]
-        Pzg = Tr @ Pzg
-        mz = Tr @ mz
+        for i in range(s):
+            for j in range(s):
+                Phi[i, j] = T[r, i, j]
         for i in range(3):
-            Pzg[:, i] *= a[r, i]
-            mg[i] *= a[r, i]
-            for j in range(3):
-                Pg[i, j] *= a[r, i] * a[r, j]
-            Pg[i, i] += qb[r, i]
-        PHz = Pz @ Hr.T + Pzg  # P^- Hx^T, Hx = [H_r  I]: its z rows and g rows
-        PHg = Pzg.T @ Hr.T + Pg
-        F = Hr @ PHz + PHg
-        L = np.zeros((3, 3))  # F = L L^T
+            for j in range(s):
+                Hx[i, j] = H[r, i, j]
+        for i in range(3):
+            Phi[s + i, s + i] = a[r, i]
+            Hx[i, s + i] = 1.0
+        tmp = np.zeros((n, n))
+        _acc(Phi, P, False, 1.0, tmp)
+        P = np.zeros((n, n))
+        _acc(tmp, Phi, True, 1.0, P)  # Phi P Phi^T
+        for i in range(s):
+            for j in range(s):
+                P[i, j] += Q[r, i, j]
+        for i in range(3):
+            P[s + i, s + i] += qb[r, i]
+        mm = np.zeros((n, k))
+        _acc(Phi, m, False, 1.0, mm)
+        m = mm
+        PH = np.zeros((n, 3))
+        _acc(P, Hx, True, 1.0, PH)  # P^- Hx^T
+        F = np.zeros((3, 3))
+        _acc(Hx, PH, False, 1.0, F)
+        L = np.zeros((3, 3))  # F + diag d = L L^T
         for i in range(3):
             for j in range(i + 1):
                 v = 0.5 * (F[i, j] + F[j, i]) + (d[i] if i == j else 0.0)
@@ -259,26 +292,24 @@ def joint_filter(X, T, Q, H, P0, a, qb, d, out):  # pragma: no cover
                     L[i, i] = np.sqrt(v)
                 else:
                     L[i, j] = v / L[j, j]
-        nu = X[r] - Hr @ mz - mg
-        u = np.zeros((3, k))
-        Wz = np.zeros((s, 3))  # P^- Hx^T L^-T: K nu = W u, K F K^T = W W^T
-        Wg = np.zeros((3, 3))
+        nu = np.zeros((3, k))
+        _acc(Hx, m, False, -1.0, nu)
         for i in range(3):
-            u[i] = nu[i]
-            Wz[:, i] = PHz[:, i]
-            Wg[:, i] = PHg[:, i]
+            for c in range(k):
+                nu[i, c] += X[r, i, c]
+        W = np.zeros((n, 3))  # P^- Hx^T L^-T: K nu = W u, K F K^T = W W^T
+        for i in range(3):  # u = L^-1 nu (in nu), W L^T = P^- Hx^T
             for l in range(i):
-                u[i] -= L[i, l] * u[l]
-                Wz[:, i] -= L[i, l] * Wz[:, l]
-                Wg[:, i] -= L[i, l] * Wg[:, l]
-            u[i] /= L[i, i]
-            Wz[:, i] /= L[i, i]
-            Wg[:, i] /= L[i, i]
+                for c in range(k):
+                    nu[i, c] -= L[i, l] * nu[l, c]
+                for q in range(n):
+                    W[q, i] -= L[i, l] * W[q, l]
+            for c in range(k):
+                nu[i, c] /= L[i, i]
+                out[3 * r + i, c] = nu[i, c]
+            for q in range(n):
+                W[q, i] = (W[q, i] + PH[q, i]) / L[i, i]
             logdet += 2.0 * np.log(L[i, i])
-        out[3 * r:3 * r + 3] = u
-        mz += Wz @ u
-        mg += Wg @ u
-        Pz -= Wz @ Wz.T
-        Pzg -= Wz @ Wg.T
-        Pg -= Wg @ Wg.T
+        _acc(W, nu, False, 1.0, m)
+        _acc(W, W, True, -1.0, P)
     return logdet
