@@ -16,7 +16,9 @@ longer than a short flight's whole computation. So:
 - :func:`runs`: the runs of True in a mask (start, end), the one run-length rule of the robust fit's misfit
   check and of the saturation and static-pose checks;
 - :func:`gmw_filter`: the innovations (Kalman-filter) whitening of Gauss-Markov plus white noise, compiled
-  (:func:`gmw_filter_numpy`: the same recursion as a plain loop, the reference of the tests).
+  (:func:`gmw_filter_numpy`: the same recursion as a plain loop, the reference of the tests);
+- :func:`joint_filter`: the same whitening with a known linear noise state beside it (the IMU's own noise),
+  compiled (:func:`joint_filter_numpy`: its reference).
 
 The callers (:mod:`casep.model.sv`, :mod:`casep.noise.robust`, :mod:`casep.estimators.rls`) validate
 every argument. ``tests/test_kernels.py`` checks each against the compiled loop, a plain loop or scipy, bit for bit.
@@ -30,7 +32,7 @@ from typing import Callable, cast
 
 import numpy as np
 
-__all__ = ["ar1_terms", "runs", "gmw_filter", "gmw_filter_numpy",
+__all__ = ["ar1_terms", "runs", "gmw_filter", "gmw_filter_numpy", "joint_filter", "joint_filter_numpy",
            "robust_filter_keep", "sv_integrate_chunk", "sv_integrate_chunk_numpy", "rels_ud", "lfilter",
            "NUMPY_SAMPLES"]
 
@@ -102,6 +104,56 @@ def gmw_filter_numpy(X: np.ndarray, dt: np.ndarray, tau: float, share: float, m:
             m[:] = a * m + (Pm / F) * nu
         P[0] = Pm * share / F
         logdet += math.log(F)
+    return logdet
+
+
+def joint_filter(X: np.ndarray, T: np.ndarray, Q: np.ndarray, H: np.ndarray, P0: np.ndarray, a: np.ndarray,
+                 qb: np.ndarray, d: np.ndarray, out: np.ndarray) -> float:
+    """Whiten rows ``X`` (M, 3, k) of Gauss-Markov plus white noise per axis plus a known linear state; returns
+    ``sum ln det F_r`` (inf where ``F_r`` is not positive definite).
+
+    Per epoch r: the state ``x = (z, g)`` (s + 3), ``z_r = T_r z_(r-1) + w``, ``Cov w = Q_r``, ``z_(-1) ~ N(0,
+    P0)``; ``g_(a,r) = a_(a,r) g_(a,r-1) + n``, ``Var n = qb_(a,r)`` (``c_a (1 - a^2)``); the rows ``e_r = H_r z_r
+    + g_r + v_r``, ``Var v_a = d_a``. With ``Hx = [H_r  I]`` and the predicted ``m^-``, ``P^-``::
+
+        F_r = Hx P^- Hx^T + diag d = L L^T,   u_r = L^-1 (x_r - Hx m^-),   W = P^- Hx^T L^-T,
+        m_r = m^- + W u_r,                    P_r = P^- - W W^T
+
+    (``W u = K nu`` and ``W W^T = K F K^T`` of the Kalman gain ``K = P^- Hx^T F^-1``); `out` (3M, k) the rows
+    ``u_r``. Compiled (:func:`casep._compiled.joint_filter`); :func:`joint_filter_numpy` is the same recursion in
+    numpy.
+    """
+    from casep._compiled import joint_filter as kernel
+
+    return float(kernel(X, T, Q, H, P0, a, qb, d, out))
+
+
+def joint_filter_numpy(X, T, Q, H, P0, a, qb, d, out) -> float:
+    """:func:`joint_filter` with numpy's matrices (the reference of the compiled kernel)."""
+    M, _, k = X.shape
+    s = T.shape[1]
+    m = np.zeros((s + 3, k))
+    P = np.zeros((s + 3, s + 3))
+    P[:s, :s] = P0
+    logdet = 0.0
+    for r in range(M):
+        Phi = np.zeros((s + 3, s + 3))
+        Phi[:s, :s], Phi[s:, s:] = T[r], np.diag(a[r])
+        P = Phi @ P @ Phi.T
+        P[:s, :s] += Q[r]
+        P[s:, s:] += np.diag(qb[r])
+        m = Phi @ m
+        Hx = np.concatenate([H[r], np.eye(3)], axis=1)
+        PH = P @ Hx.T
+        try:
+            L = np.linalg.cholesky(Hx @ PH + np.diag(d))
+        except np.linalg.LinAlgError:
+            return math.inf
+        out[3 * r:3 * r + 3] = np.linalg.solve(L, X[r] - Hx @ m)
+        W = np.linalg.solve(L, PH.T).T
+        m = m + W @ out[3 * r:3 * r + 3]
+        P = P - W @ W.T
+        logdet += 2.0 * float(np.sum(np.log(np.diag(L))))
     return logdet
 
 

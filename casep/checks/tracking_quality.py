@@ -397,6 +397,41 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray
     A block's share of the window mean is its samples inside the window (a block cut by ``T2``: within one
     block's noise). A gyrocompassed heading's gyro noise is not carried.
     """
+    terms = _imu_noise_blocks(flight, t_rows, levelling)
+    if terms is None:
+        return None
+    W = np.asarray(weights, dtype=float).reshape(-1, t_rows.size, 3)
+    out = np.zeros((W.shape[0], terms.t_end.size, 6))
+    for r, tr in enumerate(t_rows):
+        after = terms.t_end <= tr
+        dF = terms.F_rows[r] - terms.F_mid[after]  # (b, 3): the attitude error acts from the block's middle on
+        G_r = np.concatenate([terms.ga[after], -np.cross(dF[:, :, None], terms.gg[after], axisa=1, axisb=1, axisc=1)],
+                             2)
+        out[:, after] += np.einsum("ki,bij->kbj", W[:, r], G_r)  # G_r: (b, 3 axes, 6 noise variables)
+    if terms.level is not None:
+        win, Phi, F0 = terms.level  # blocks in the window, phi0 per unit xi (bw, 3, 3), F at the window's start
+        dF = terms.F_rows - F0  # (M, 3): phi0 acts from the start on
+        G = np.cross(dF[:, None, :, None], Phi[None], axisa=2, axisb=2, axisc=2)  # (M, bw, 3 axes, 3 xi)
+        out[:, win, :3] += np.einsum("kmi,mbij->kbj", W, G)
+    return out.reshape(W.shape[0], -1)
+
+
+@dataclass(frozen=True)
+class _ImuBlocks:
+    """The blocks of :func:`imu_noise_effect`: their last sample's time ``t_end`` (B,), the velocity error ``ga``
+    (B, 3, 3) and attitude error ``gg`` (B, 3, 3) per unit xi, ``F`` at the block's middle ``F_mid`` (B, 3), ``F``
+    at the epochs ``F_rows`` (M, 3), the levelling's ``(window mask (B,), Phi (bw, 3, 3), F(T1))`` or None."""
+
+    t_end: np.ndarray
+    ga: np.ndarray
+    gg: np.ndarray
+    F_mid: np.ndarray
+    F_rows: np.ndarray
+    level: tuple | None
+
+
+def _imu_noise_blocks(flight: FlightData, t_rows: np.ndarray, levelling: tuple | None) -> _ImuBlocks | None:
+    """The IMU noise's blocks (:func:`imu_noise_effect`); None when the flight does not hold the IMU's samples."""
     from casep.rotations import quat_to_dcm
 
     noise = imu_sample_noise(flight, t_rows)
@@ -418,24 +453,86 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray
     F_mid = np.stack([np.bincount(block, F[:, a], nb)[used] for a in range(3)], 1) / counts[used, None]
     n_eff = _block_samples(t, counts, used, h)
     root = h * np.sqrt(n_eff)[:, None, None]
-    ga = Cj * s[:3] * root  # (B, 3, 3): per block, the velocity error of xi (columns: body axes)
-    gg = Cj * s[3:] * root  # ... and the attitude error of xi'
     F_rows = np.column_stack([np.interp(t_rows, t, F[:, a]) for a in range(3)])
-    W = np.asarray(weights, dtype=float).reshape(-1, t_rows.size, 3)
-    out = np.zeros((W.shape[0], used.size, 6))
-    for r, tr in enumerate(t_rows):
-        after = t_end <= tr
-        dF = F_rows[r] - F_mid[after]  # (b, 3): the attitude error acts from the block's middle on
-        G_r = np.concatenate([ga[after], -np.cross(dF[:, :, None], gg[after], axisa=1, axisb=1, axisc=1)], 2)
-        out[:, after] += np.einsum("ki,bij->kbj", W[:, r], G_r)  # G_r: (b, 3 axes, 6 noise variables)
-    if levelling is not None:
-        level = _levelling_noise(t, F, block, (nb, used, n_eff), s[:3], levelling)
-        if level is not None:
-            win, Phi, F0 = level  # blocks in the window, phi0 per unit xi (bw, 3, 3), F at the window's start
-            dF = F_rows - F0  # (M, 3): phi0 acts from the start on
-            G = np.cross(dF[:, None, :, None], Phi[None], axisa=2, axisb=2, axisc=2)  # (M, bw, 3 axes, 3 xi)
-            out[:, win, :3] += np.einsum("kmi,mbij->kbj", W, G)
-    return out.reshape(W.shape[0], -1)
+    level = None if levelling is None else _levelling_noise(t, F, block, (nb, used, n_eff), s[:3], levelling)
+    return _ImuBlocks(t_end, Cj * s[:3] * root, Cj * s[3:] * root, F_mid, F_rows, level)
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """``[v x]`` (..., 3, 3) of vectors (..., 3): ``[v x] u = v x u``."""
+    out = np.zeros(v.shape + (3,))
+    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return out
+
+
+def imu_noise_states(flight: FlightData, t_rows: np.ndarray, levelling: tuple | None = None):
+    """The noise of :func:`imu_noise_effect` at the epochs `t_rows` as a linear state
+    (:class:`casep.noise.known.KnownStates`; the same ``Cov = G G^T``, exactly); None when the flight does not hold
+    the IMU's samples.
+
+    The state is ``z = (V, Phi, Psi, phi0, R)``: the velocity random walk ``V = sum ga_j xi_j``, the attitude random
+    walk ``Phi = sum gg_j xi'_j`` and ``Psi = sum F_j x gg_j xi'_j`` over the blocks ended by the epoch (``F_j`` the
+    block's middle), so that ``- sum (F(t) - F_j) x gg_j xi'_j = -F(t) x Phi + Psi``; the levelling's start tilt
+    ``phi0 = sum_w Lv_w xi_w`` over the window's blocks (with `levelling`), and ``R`` the part of ``phi0`` the
+    blocks not yet ended still hold. The rows' map::
+
+        H_r = [I,  -[F_r x],  I,  [(F_r - F(T1)) x],  0]
+
+    ``phi0`` acts from the first epoch on, before the window's accelerometer noise that makes it has ended in
+    ``V``: the blocks are drawn given it (a Gaussian bridge). With ``Sigma_j = sum_(w >= j) Lv_w Lv_w^T`` (the
+    window's blocks not yet ended), ``R`` starts at ``phi0`` (prior ``Cov = Sigma_1`` for both) and block ``j``
+    draws::
+
+        xi_j = K_j R + e_j,   K_j = Lv_j^T Sigma_j^+,   Cov e_j = I - Lv_j^T Sigma_j^+ Lv_j,
+        V += ga_j xi_j,       R -= Lv_j xi_j
+
+    (the conditional law of ``xi_j`` given the rest of the sum: exact). ``T_r`` and ``Q_r`` compose the blocks
+    ended in ``(t_(r-1), t_r]`` (for r = 0, up to ``t_0``).
+    """
+    from casep.noise.known import KnownStates
+
+    terms = _imu_noise_blocks(flight, t_rows, levelling)
+    if terms is None:
+        return None
+    B, M = terms.t_end.size, t_rows.size
+    s = 9 if terms.level is None else 15
+    Lv = np.zeros((B, 3, 3))
+    P0 = np.zeros((s, s))
+    if terms.level is not None:
+        win, Phi, F0 = terms.level
+        Lv[np.flatnonzero(win)] = Phi
+        Sig = np.cumsum((Lv @ np.swapaxes(Lv, 1, 2))[::-1], axis=0)[::-1]  # Sigma_j: the blocks from j on
+        P0[9:, 9:] = np.tile(Sig[0], (2, 2))
+    H = np.zeros((M, 3, s))
+    H[:, :, :3] = np.eye(3)
+    H[:, :, 3:6] = -_skew(terms.F_rows)
+    H[:, :, 6:9] = np.eye(3)
+    if terms.level is not None:
+        H[:, :, 9:12] = _skew(terms.F_rows - F0)
+    T, Q = np.tile(np.eye(s), (M, 1, 1)), np.zeros((M, s, s))
+    epoch = np.searchsorted(t_rows, terms.t_end, side="left")  # the first epoch at or after the block's end
+    for j in range(B):
+        r = int(epoch[j])
+        if r >= M:
+            break
+        A, G = np.eye(s), np.zeros((s, 6))
+        G[3:6, 3:] = terms.gg[j]
+        G[6:9, 3:] = _skew(terms.F_mid[j]) @ terms.gg[j]
+        if np.any(Lv[j]):
+            Si = np.linalg.pinv(Sig[j])
+            K = Lv[j].T @ Si
+            e_cov = np.eye(3) - Lv[j].T @ Si @ Lv[j]
+            lam, vec = np.linalg.eigh(0.5 * (e_cov + e_cov.T))
+            root = vec * np.sqrt(np.clip(lam, 0.0, None))
+            A[:3, 12:] = terms.ga[j] @ K
+            A[12:, 12:] -= Lv[j] @ K
+            G[:3, :3], G[12:, :3] = terms.ga[j] @ root, -Lv[j] @ root
+        else:
+            G[:3, :3] = terms.ga[j]
+        T[r] = A @ T[r]
+        Q[r] = A @ Q[r] @ A.T + G @ G.T
+    return KnownStates(T, Q, H, P0)
 
 
 def _block_samples(t: np.ndarray, counts: np.ndarray, used: np.ndarray, h: float) -> np.ndarray:

@@ -9,6 +9,8 @@ so :mod:`casep.regression` can whiten its rows with this package.
   axis), whitening
 - :mod:`casep.noise.fit`: :func:`fit_noise`, the REML fit of the noise model (``noise="auto"``: by a
   likelihood-ratio test)
+- :mod:`casep.noise.known`: REML of the tracking noise beside a known noise term in state-space form
+  (the IMU's own noise of ``casep separate --imu``), never an N x N matrix
 - :mod:`casep.noise.whiteness`: the Ljung-Box test of whitened residuals, gaps and segments
 - :mod:`casep.noise.robust`: the robust filter on the innovations (glitches, row weights)
 - :mod:`casep.noise.identification`: Allan deviation and the noise processes it shows

@@ -47,7 +47,9 @@ def imu_noise_line(account: dict) -> str:
     factor = account["std_factor_max"]
     return (f"IMU noise (measured on the record, per sample up to {acc:.3g} m/s^2 and {gyr:.3g} rad/s at "
             f"{account['sample_step_s']:.3g} s): its velocity and attitude random walks are in the std"
-            + ("" if factor is None else f" (they raise them by up to {factor:.3g} x, {account['std_factor_worst']})"))
+            + ("" if factor is None else f" (they raise them by up to {factor:.3g} x, {account['std_factor_worst']})")
+            + ("" if not account.get("tracking_noise") else
+               "; beside them the tracking " + noise_line(account["tracking_noise"])))
 
 
 def noise_lines(diagnostics: Mapping[str, Any], joint: bool = False) -> list[str]:

@@ -984,25 +984,30 @@ def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np
 
 
 def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
-                     levelling: tuple | None = None) -> tuple[np.ndarray, dict] | None:
-    """The part of the estimate's covariance the IMU's own white noise makes, and what was used (None when the
-    flight does not hold the IMU's samples, or the result has no covariance).
+                     levelling: tuple | None = None) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
+    """The estimate's covariance with the IMU's own white noise: ``(tracking part, IMU part, what was used)`` (None
+    when the flight does not hold the IMU's samples, or the result has no covariance; the tracking part None: the
+    fit's own covariance).
 
     The navigated velocity carries the IMU's white noise integrated: a velocity random walk (accelerometer) and
     an attitude random walk that ``f x phi`` turns into a velocity error growing with the specific force
-    (gyro). The tracking noise model (white, Gauss-Markov, REML) describes neither. Its densities are measured
-    on the record (:func:`casep.checks.tracking_quality.imu_sample_noise`) and carried to the tracking epochs as
-    ``dv = G xi`` (``Cov = G G^T``; :func:`casep.checks.tracking_quality.imu_noise_effect`; with `levelling`, the
-    pad window and the alignment's derivative along the mean specific force (:meth:`_Run.levelling_jacobian`),
-    the start tilt its accelerometer noise leaves too). The estimate is
-    linear in the raw rows, ``x = A dv`` with ``A = (U^T U)^+ (W^T U)^T``, ``U = W S`` whitened by the fit's
-    noise model (:func:`casep.noise.model.whiten_transpose`: never an N x N matrix); so it adds, exactly::
+    (gyro). Its densities are measured on the record (:func:`casep.checks.tracking_quality.imu_sample_noise`) and
+    carried to the tracking epochs as ``dv = G xi`` (``Sigma_imu = G G^T``;
+    :func:`casep.checks.tracking_quality.imu_noise_effect`; with `levelling`, the pad window and the alignment's
+    derivative along the mean specific force (:meth:`_Run.levelling_jacobian`), the start tilt its accelerometer
+    noise leaves too). The rows' covariance is ``Sigma = Sigma_track(theta) + Sigma_imu``.
 
-        Cov_imu(x) = (A G) (A G)^T
+    The fit's noise model was fitted to residuals that hold the IMU's noise as well. Where it was fitted (REML),
+    ``theta`` is fitted again by the restricted likelihood of the whole ``Sigma``, ``Sigma_imu`` known
+    (:func:`casep.noise.known.fit_tracking`, its kinds per axis and a given tau kept; ``Sigma_imu`` as the linear
+    state of :func:`casep.checks.tracking_quality.imu_noise_states`: never an N x N matrix). The estimate stays the
+    fit's, linear in the raw rows, ``x = A dv`` with ``A = (U^T U)^+ (W^T U)^T``, ``U = W S`` whitened by the fit's
+    noise model (:func:`casep.noise.model.whiten_transpose`), so its covariance is, exactly::
 
-    to the fit's covariance (the tracking noise's). The fit's noise model was fitted to residuals that hold
-    the IMU's noise too: where REML folded some of it into the tracking noise, the sum counts it twice
-    (conservative), and the estimate itself stays the fit's (GLS for the tracking noise alone).
+        Cov(x) = A Sigma_track(theta) A^T + (A G) (A G)^T
+
+    (``Sigma_track A^T`` by :func:`casep.noise.known.tracking_covariance_times`). A noise model not fitted (white:
+    the solver's sigma) keeps the fit's covariance as the tracking part.
     """
     from casep.checks.tracking_quality import imu_noise_effect, imu_sample_noise
     from casep.noise.model import NoiseModel, whiten, whiten_transpose
@@ -1023,22 +1028,52 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
     if AG is None:
         return None
     C_imu = AG @ AG.T
+    refit = _tracking_beside_imu(problem, flight, noise, levelling)
+    if refit is None:
+        return None, C_imu, _imu_account(res, measured, np.asarray(res.covariance), C_imu, refit)
+    from casep.noise.known import tracking_covariance_times
+
+    C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
+    return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit)
+
+
+def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling: tuple | None) -> Any:
+    """The tracking noise model fitted again by REML with the IMU's noise a known term
+    (:func:`casep.noise.known.fit_tracking`); None when the fit's model has no fitted sigma (white noise)."""
+    from casep.checks.tracking_quality import imu_noise_states
+    from casep.noise.fit import Reml, estimable_basis
+    from casep.noise.known import fit_tracking
+
+    if noise.sigma is None or not np.isfinite(noise.sigma) or problem.y is None:
+        return None
+    known = imu_noise_states(flight, np.asarray(problem.t, dtype=float), levelling)
+    if known is None:
+        return None
+    X = np.stack(Reml(problem, estimable_basis(problem)).Z, axis=1)  # (N, 3, p + 1): [Z dv] per axis
+    return fit_tracking(X, np.asarray(problem.t, dtype=float), noise, known)[0]
+
+
+def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu: np.ndarray, refit: Any) -> dict:
+    """What :func:`imu_noise_budget` used and found, for the result's noise record."""
     s, h, _ = measured
+    C_fit = np.asarray(res.covariance)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.sqrt(1.0 + np.diag(C_imu) / np.diag(res.covariance))
+        ratio = np.sqrt((np.diag(C_trk) + np.diag(C_imu)) / np.diag(C_fit))
     finite = ratio[np.isfinite(ratio)]
     worst = int(np.nanargmax(np.where(np.isfinite(ratio), ratio, -np.inf))) if finite.size else 0
-    account = {"source": "measured on the record: the scatter of consecutive samples (MAD / sqrt 2), per sample",
-               "accelerometer_m_s2": [float(v) for v in s[:3]], "gyro_rad_s": [float(v) for v in s[3:]],
-               "sample_step_s": h, "vrw_m_s_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[:3]],
-               "arw_rad_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[3:]],
-               "std_factor_max": float(finite.max()) if finite.size else None, "std_factor_worst": res.names[worst],
-               "std_tracking_noise_only": {nm: (float(v) if np.isfinite(v) else None)
-                                           for nm, v in zip(res.names, np.sqrt(np.diag(res.covariance)))},
-               "rule": "Cov(x) = fit covariance + (A G)(A G)^T: the velocity and attitude random walks (and, with "
-                       "the pad window, the levelling's start tilt) carried to the estimate exactly; the estimate is "
-                       "the fit's, the tracking noise model fitted to residuals that hold the IMU noise too"}
-    return C_imu, account
+    how = ("the tracking noise model fitted again by REML with the IMU's noise a known term (its random walks and "
+           "the levelling tilt as a linear state), Cov(x) = A Sigma_track A^T + (A G)(A G)^T" if refit is not None
+           else "Cov(x) = fit covariance + (A G)(A G)^T (a white noise model: the solver's sigma)")
+    return {"source": "measured on the record: the scatter of consecutive samples (MAD / sqrt 2), per sample",
+            "accelerometer_m_s2": [float(v) for v in s[:3]], "gyro_rad_s": [float(v) for v in s[3:]],
+            "sample_step_s": h, "vrw_m_s_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[:3]],
+            "arw_rad_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[3:]],
+            "std_factor_max": float(finite.max()) if finite.size else None, "std_factor_worst": res.names[worst],
+            "std_tracking_noise_only": {nm: (float(v) if np.isfinite(v) else None)
+                                        for nm, v in zip(res.names, np.sqrt(np.diag(C_fit)))},
+            "tracking_noise": None if refit is None else refit.to_dict(),
+            "rule": "the velocity and attitude random walks (and, with the pad window, the levelling's start tilt) "
+                    "carried to the estimate exactly; the estimate is the fit's; " + how}
 
 
 def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
@@ -1048,12 +1083,14 @@ def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
     budget = imu_noise_budget(res, problem, flight, levelling)
     if budget is None:
         return res
-    C_imu, account = budget
-    cov = res.covariance + C_imu
+    C_trk, C_imu, account = budget
+    C_fit = np.asarray(res.covariance)
+    # the tracking part: refitted (the minimum-norm solution's, finite where the fit's is not), else the fit's own
+    cov = C_fit + C_imu if C_trk is None else np.where(np.isfinite(C_fit), C_trk + C_imu, np.nan)
     std = None if res.std is None else np.where(np.isfinite(res.std), np.sqrt(np.clip(np.diag(cov), 0.0, None)), np.nan)
     solution = res.solution
     if solution is not None and solution.covariance is not None:
-        solution = dataclasses.replace(solution, covariance=solution.covariance + C_imu)
+        solution = dataclasses.replace(solution, covariance=(solution.covariance if C_trk is None else C_trk) + C_imu)
     diag = {**res.diagnostics, "noise": {**res.diagnostics["noise"], "imu": account}}
     return dataclasses.replace(res, covariance=cov, std=std, solution=solution, diagnostics=diag)
 

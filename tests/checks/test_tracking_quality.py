@@ -177,6 +177,36 @@ def test_the_imu_noise_effect_is_the_closed_form_random_walk():
     assert imu_noise_effect(dataclasses.replace(flight, meta={}), rows, np.eye(6)) is None  # no IMU samples
 
 
+@pytest.mark.parametrize("levelled", [False, True])
+def test_the_imu_noise_state_is_the_imu_noise_effect(levelled):
+    """The linear state of the IMU's white noise (:func:`imu_noise_states`) has the covariance ``G G^T`` of
+    :func:`imu_noise_effect` at the epochs, to 1e-12, on a turning, accelerating record; with the levelling's start
+    tilt (a window over the first 2 s, a levelling Jacobian of rank 2 as levelling alone gives) as well: the tilt
+    acts from the first epoch on, before the window's noise has ended (the state's Gaussian bridge)."""
+    from scipy.spatial.transform import Rotation
+
+    from casep.checks.tracking_quality import imu_noise_effect, imu_noise_states
+    from casep.io.flight import FlightData
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 6.0, 0.05)
+    n = t.size
+    q = Rotation.from_rotvec(np.column_stack([0.3 * t, 0.1 * np.sin(t), 0.05 * t])).as_quat()  # x y z w
+    f = np.column_stack([np.sin(t), 9.8 + 2 * t, np.cos(2 * t)])
+    sig = {"q_w": q[:, 3], "q_x": q[:, 0], "q_y": q[:, 1], "q_z": q[:, 2],
+           **{f"fb_{a}": f[:, i] + rng.normal(0, 0.05, n) for i, a in enumerate("xyz")},
+           **{f"w_{a}": rng.normal(0, 2e-3, n) for a in "xyz"}}
+    flight = FlightData(t, f, np.zeros((n, 3)), meta={"rows_index": np.full(n, -1)}, signals=sig)
+    rows = np.array([0.5, 1.0, 1.3, 1.7, 2.0, 3.1, 3.3, 4.0, 5.5])
+    L = 0.01 * rng.normal(size=(3, 3))
+    L[:, 2] = 0.0
+    levelling = ((0.0, 2.0), L) if levelled else None
+    G = imu_noise_effect(flight, rows, np.eye(3 * rows.size), levelling)
+    known = imu_noise_states(flight, rows, levelling)
+    assert known.T.shape[1] == (15 if levelled else 9)
+    np.testing.assert_allclose(known.dense(), G @ G.T, rtol=0, atol=1e-12 * np.abs(G @ G.T).max())
+
+
 def test_a_correlated_stretch_is_weighted_by_its_long_run_variance():
     """One offset seen by a quiet white stretch and by a stretch of Gauss-Markov noise whose epoch-to-epoch changes
     look quiet (lag-1 correlation 0.95: its mean is 28 times less certain than white noise of that scatter says).

@@ -1,0 +1,208 @@
+"""REML of the tracking noise beside a known noise term in state-space form (the IMU's own noise).
+
+Model
+-----
+At the epochs ``t_r`` (r = 0 .. M-1) the rows' noise (3 axes) is the tracking noise of
+:mod:`casep.noise.model` plus a known term that a linear state ``z`` (s states) carries::
+
+    e_r = H_r z_r + g_r + v_r,
+    z_r = T_r z_(r-1) + w_r,   w_r ~ N(0, Q_r),   z_(-1) ~ N(0, P_0)          (the known term)
+    g_(a,r) = a_(a,r) g_(a,r-1) + n,   Var n = c_a (1 - a_(a,r)^2),   a_(a,r) = exp(-(t_r - t_(r-1)) / tau_a)
+    Var v_(a,r) = d_a
+
+per axis ``a`` (``g`` Gauss-Markov of stationary variance ``c_a`` and correlation time ``tau_a``, absent on a
+white axis; ``v`` white of variance ``d_a``, absent on a Gauss-Markov axis). ``T_r``, ``Q_r``, ``H_r``, ``P_0``
+are known (:class:`KnownStates`); the tracking parameters ``theta = (c_a, d_a, tau_a)`` are not. The
+covariance of the rows is ``Sigma(theta) = Sigma_track(theta) + Sigma_known``, never formed.
+
+Whitening and likelihood
+------------------------
+The Kalman filter of ``x = (z, g)`` (s + 3 states) whitens the rows exactly: with ``Hx_r = [H_r  I_3]``,
+``Phi_r = blockdiag(T_r, diag a_r)``, ``Qx_r = blockdiag(Q_r, diag c (1 - a_r^2))``, ``R = diag d``::
+
+    P_r^- = Phi_r P_(r-1) Phi_r^T + Qx_r,   F_r = Hx_r P_r^- Hx_r^T + R = L_r L_r^T,
+    u_r = L_r^-1 (e_r - Hx_r m_r^-),         K_r = P_r^- Hx_r^T F_r^-1,
+    m_r = m_r^- + K_r (e_r - Hx_r m_r^-),    P_r = P_r^- - K_r F_r K_r^T,      m_r^- = Phi_r m_(r-1)
+
+(first epoch: ``a = 0``, ``P^-`` of ``z`` is ``T_0 P_0 T_0^T + Q_0``), ``ln det Sigma = sum_r ln det F_r``. The
+gains depend on the times and the parameters only, so one pass whitens every column of ``[Z dv]``
+(``Z = S B`` the estimable basis of :func:`casep.noise.fit.estimable_basis`, orthonormal columns). The
+restricted likelihood, without the constant ``(3M - p) ln 2 pi``::
+
+    -2 l_R(theta) = ln det Sigma + ln det(Z_w^T Z_w) + RSS_w,    RSS_w = min_beta ||y_w - Z_w beta||^2
+
+(``Z^T Z = I``, so no ``- ln det(Z^T Z)``), which :func:`restricted_likelihood` evaluates in O(M (s + 3)^2 p);
+:func:`fit_tracking` maximises it over ``theta`` (Nelder-Mead in the logarithms) from a fitted
+:class:`~casep.noise.model.NoiseModel`, whose kinds per axis it keeps. ``sigma^2`` cannot be profiled out: the
+known term has its own scale.
+
+The estimate's covariance under ``Sigma_track`` needs ``Sigma_track V`` (:func:`tracking_covariance_times`):
+per axis ``sum_j c exp(-|t_i - t_j| / tau) v_j + d v_i``, a forward and a backward AR(1) recursion::
+
+    f_i = v_i + a_i f_(i-1),   b_i = v_i + a_(i+1) b_(i+1),   (Sigma_track v)_i = c (f_i + b_i - v_i) + d v_i
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from casep._kernels import ar1_terms, joint_filter
+from casep.noise.model import AXES, NoiseModel
+
+__all__ = ["KnownStates", "TrackingParameters", "joint_whiten", "restricted_likelihood", "fit_tracking",
+           "tracking_covariance_times"]
+
+
+@dataclass(frozen=True)
+class KnownStates:
+    """A known noise term of the rows as a linear state (module notes): per epoch r the transition ``T`` (M, s, s)
+    from the epoch before (r = 0: from the prior), the noise ``Q`` (M, s, s) added with it, the rows' map ``H``
+    (M, 3, s); the prior ``P0`` (s, s)."""
+
+    T: np.ndarray
+    Q: np.ndarray
+    H: np.ndarray
+    P0: np.ndarray
+
+    def dense(self) -> np.ndarray:
+        """``Sigma_known`` (3M, 3M), rows epoch by epoch, x y z: for tests on small cases only."""
+        M = self.T.shape[0]
+        P = self.P0.copy()
+        covs = []
+        for r in range(M):  # Cov(z_r) = T_r Cov(z_(r-1)) T_r^T + Q_r
+            P = self.T[r] @ P @ self.T[r].T + self.Q[r]
+            covs.append(P)
+        out = np.zeros((3 * M, 3 * M))
+        for r in range(M):
+            C = covs[r]  # Cov(z_q, z_r) for q >= r: T_q..T_(r+1) Cov(z_r)
+            for q in range(r, M):
+                if q > r:
+                    C = self.T[q] @ C
+                out[3 * q:3 * q + 3, 3 * r:3 * r + 3] = self.H[q] @ C @ self.H[r].T
+                out[3 * r:3 * r + 3, 3 * q:3 * q + 3] = out[3 * q:3 * q + 3, 3 * r:3 * r + 3].T
+        return out
+
+
+@dataclass(frozen=True)
+class TrackingParameters:
+    """``theta`` of the module notes, absolute: per axis the Gauss-Markov variance ``c`` (m^2/s^2; 0 on a white
+    axis), its correlation time ``tau`` (s; None on a white axis) and the white variance ``d`` (m^2/s^2)."""
+
+    c: tuple
+    tau: tuple
+    d: tuple
+
+    @classmethod
+    def of(cls, noise: NoiseModel) -> "TrackingParameters":
+        """The parameters of a fitted noise model (its ``sigma`` is the x axis' std)."""
+        if noise.sigma is None or not np.isfinite(noise.sigma):
+            raise ValueError("the noise model has no fitted sigma")
+        var = [(noise.sigma * noise.scale[j]) ** 2 for j in range(3)]
+        c = tuple(0.0 if noise.tau[j] is None else var[j] * (1.0 - noise.share[j]) for j in range(3))
+        d = tuple(var[j] if noise.tau[j] is None else var[j] * noise.share[j] for j in range(3))
+        return cls(c, tuple(noise.tau), d)
+
+    def model(self, kind: str, rule: str, **extra) -> NoiseModel:
+        """The :class:`NoiseModel` of these parameters (``sigma`` the x axis' std, scales relative to it)."""
+        var = np.array(self.c) + np.array(self.d)
+        sd = np.sqrt(var)
+        share = tuple(0.0 if self.tau[j] is None else float(self.d[j] / var[j]) for j in range(3))
+        return NoiseModel(kind=kind, tau=tuple(self.tau), scale=tuple(float(v) for v in sd / sd[0]), rule=rule,
+                          sigma=float(sd[0]), share=share, extra=dict(extra))
+
+
+def joint_whiten(X: np.ndarray, t: np.ndarray, theta: TrackingParameters, known: KnownStates
+                 ) -> tuple[np.ndarray, float]:
+    """The rows ``X`` (M, 3, k) whitened by the filter of the module notes (:func:`casep._kernels.joint_filter`):
+    ``(U (3M, k), ln det Sigma)``; ``ln det`` inf where a variance is not positive."""
+    M, _, k = X.shape
+    dt = np.empty(M)
+    dt[0] = np.inf
+    np.subtract(t[1:], t[:-1], out=dt[1:])
+    a, qb = np.zeros((M, 3)), np.zeros((M, 3))
+    for j in range(3):
+        if theta.tau[j] is not None:
+            a[:, j], qb[:, j] = ar1_terms(dt, theta.tau[j])
+            qb[:, j] *= theta.c[j]  # c (1 - a^2)
+    U = np.empty((3 * M, k))
+    logdet = joint_filter(np.ascontiguousarray(X, dtype=float), known.T, known.Q, known.H, known.P0, a, qb,
+                          np.asarray(theta.d, dtype=float), U)
+    return U, logdet
+
+
+def restricted_likelihood(X: np.ndarray, t: np.ndarray, theta: TrackingParameters, known: KnownStates) -> float:
+    """``-2 l_R(theta)`` of the rows ``X = [Z dv]`` (M, 3, p + 1) (module notes; ``Z^T Z = I``); inf where the
+    filter fails (a variance not positive)."""
+    U, logdet = joint_whiten(X, t, theta, known)
+    if not np.isfinite(logdet):
+        return np.inf
+    p = X.shape[2] - 1
+    try:
+        T = np.linalg.cholesky(U.T @ U).T  # [Z_w y_w]^T [Z_w y_w] = T^T T: ln det(Z_w^T Z_w), RSS_w = T_pp^2
+    except np.linalg.LinAlgError:
+        return np.inf
+    d = np.abs(np.diag(T))
+    return float(logdet + 2.0 * np.sum(np.log(d[:p])) + d[p] ** 2)
+
+
+def fit_tracking(X: np.ndarray, t: np.ndarray, start: NoiseModel, known: KnownStates, *,
+                 xatol: float = 5e-3, maxfun: int = 600) -> tuple[NoiseModel, float]:
+    """The tracking noise by REML beside the known term (module notes), the kinds per axis of `start` (a fitted
+    model: its parameters start the search; a given tau stays given): ``(model, -2 l_R)``.
+
+    Free are, per axis, ``ln c`` (Gauss-Markov), ``ln d`` (white part) and ``ln tau`` (unless given). The model
+    returned has rule ``"REML beside the IMU noise"`` (``"tau given, REML beside ..."``) and the fitted ``-2 l_R``.
+    """
+    from casep.noise.fit import nelder_mead
+
+    theta0 = TrackingParameters.of(start)
+    free_tau = start.rule != "given"
+    slots: list[tuple[str, int]] = []
+    for j in range(3):
+        if theta0.tau[j] is not None:
+            slots.append(("c", j))
+            if free_tau:
+                slots.append(("tau", j))
+        if theta0.d[j] > 0 or theta0.tau[j] is None:
+            slots.append(("d", j))
+    x0 = np.log([getattr(theta0, name)[j] for name, j in slots])
+
+    def theta(x: np.ndarray) -> TrackingParameters:
+        v = {"c": list(theta0.c), "tau": list(theta0.tau), "d": list(theta0.d)}
+        for (name, j), value in zip(slots, np.exp(np.clip(x, -700.0, 700.0))):
+            v[name][j] = float(value)
+        return TrackingParameters(tuple(v["c"]), tuple(v["tau"]), tuple(v["d"]))
+
+    def value(x: np.ndarray) -> float:
+        return restricted_likelihood(X, t, theta(x), known)
+
+    best = nelder_mead(value, x0, np.full(x0.size, 0.5), xatol, maxfun=maxfun)
+    val = value(best)
+    rule = ("REML" if free_tau else "tau given, REML") + " beside the IMU noise"
+    return theta(best).model(start.kind, rule, neg2_reml=val), val
+
+
+def tracking_covariance_times(V: np.ndarray, t: np.ndarray, noise: NoiseModel) -> np.ndarray:
+    """``Sigma_track V`` for rows ``V`` (N, 3, k) of the noise model `noise` (with its fitted ``sigma``): per axis
+    the forward and backward AR(1) recursions of the module notes. O(N k)."""
+    theta = TrackingParameters.of(noise)
+    V = np.asarray(V, dtype=float)
+    out = np.empty_like(V)
+    N = t.size
+    for j, _ in enumerate(AXES):
+        v = V[:, j, :]
+        out[:, j, :] = theta.d[j] * v
+        if theta.tau[j] is None:
+            continue
+        a = np.concatenate([[0.0], ar1_terms(np.diff(t), theta.tau[j])[0]])
+        fwd, bwd = np.empty_like(v), np.empty_like(v)
+        fwd[0] = v[0]
+        for i in range(1, N):
+            fwd[i] = v[i] + a[i] * fwd[i - 1]
+        bwd[-1] = v[-1]
+        for i in range(N - 2, -1, -1):
+            bwd[i] = v[i] + a[i + 1] * bwd[i + 1]
+        out[:, j, :] += theta.c[j] * (fwd + bwd - v)
+    return out

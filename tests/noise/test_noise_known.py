@@ -1,0 +1,139 @@
+"""REML of the tracking noise beside a known noise state (:mod:`casep.noise.known`): the Kalman whitening's
+restricted likelihood against the dense one, the compiled filter against its numpy reference, ``Sigma_track V``
+against the dense covariance, and with no known term the fit is the REML fit of :func:`casep.noise.fit.fit_noise`."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from casep import _compiled
+from casep._kernels import joint_filter_numpy
+from casep.noise.fit import Reml, estimable_basis, fit_noise
+from casep.noise.known import (
+    KnownStates,
+    TrackingParameters,
+    fit_tracking,
+    joint_whiten,
+    restricted_likelihood,
+    tracking_covariance_times,
+)
+from casep.regression.problem import Problem
+
+
+def _times(rng, n: int, dt: float = 0.2) -> np.ndarray:
+    """Jittered spacing (+-40 %) with a gap of 20 steps."""
+    steps = dt * (1.0 + 0.4 * rng.uniform(-1, 1, n - 1))
+    steps[n // 2] = 20 * dt
+    return np.concatenate([[0.0], np.cumsum(steps)])
+
+
+def _known(rng, M: int, s: int = 5) -> KnownStates:
+    """A known state of s dimensions: transitions near the identity, positive semi-definite noises of rank 2."""
+    T = np.eye(s) + 0.1 * rng.normal(size=(M, s, s))
+    B = 0.01 * rng.normal(size=(M, s, 2))
+    H = rng.normal(size=(M, 3, s))
+    P0 = 1e-4 * np.diag(rng.uniform(0.0, 1.0, s))
+    return KnownStates(T, B @ np.swapaxes(B, 1, 2), H, P0)
+
+
+def _track_dense(theta: TrackingParameters, t: np.ndarray) -> np.ndarray:
+    """Sigma_track (3M, 3M), rows epoch by epoch, x y z."""
+    M = t.size
+    out = np.zeros((3 * M, 3 * M))
+    for j in range(3):
+        C = theta.d[j] * np.eye(M)
+        if theta.tau[j] is not None:
+            C = C + theta.c[j] * np.exp(-np.abs(t[:, None] - t[None, :]) / theta.tau[j])
+        out[j::3, j::3] = C
+    return out
+
+
+#: One axis of each kind: Gauss-Markov plus white, white, Gauss-Markov.
+THETA = TrackingParameters((9e-4, 0.0, 4e-4), (1.0, None, 0.3), (2e-4, 5e-4, 0.0))
+
+
+def test_the_restricted_likelihood_equals_the_dense_one(rng):
+    """-2 l_R = ln det Sigma + ln det(Z^T Sigma^-1 Z) + y^T (Sigma^-1 - Sigma^-1 Z (Z^T Sigma^-1 Z)^-1 Z^T
+    Sigma^-1) y with Sigma = Sigma_track + Sigma_known formed densely (M = 40 epochs, uneven times and a gap):
+    the filter's to 1e-10."""
+    M, p = 40, 4
+    t = _times(rng, M)
+    known = _known(rng, M)
+    Z = np.linalg.qr(rng.normal(size=(3 * M, p)))[0]
+    y = 0.03 * rng.normal(size=3 * M)
+    Sigma = _track_dense(THETA, t) + known.dense()
+    Si = np.linalg.inv(Sigma)
+    A = Z.T @ Si @ Z
+    r = y - Z @ np.linalg.solve(A, Z.T @ Si @ y)
+    dense = np.linalg.slogdet(Sigma)[1] + np.linalg.slogdet(A)[1] + r @ Si @ r
+    X = np.concatenate([Z, y[:, None]], axis=1).reshape(M, 3, p + 1)
+    assert restricted_likelihood(X, t, THETA, known) == pytest.approx(dense, rel=1e-10, abs=1e-10)
+    U, logdet = joint_whiten(X, t, THETA, known)  # U^T U = X^T Sigma^-1 X
+    np.testing.assert_allclose(U.T @ U, X.reshape(3 * M, -1).T @ Si @ X.reshape(3 * M, -1), rtol=1e-9)
+    assert logdet == pytest.approx(np.linalg.slogdet(Sigma)[1], rel=1e-12)
+
+
+def test_the_known_state_dense_form_is_its_covariance(rng):
+    """KnownStates.dense against the covariance of 4000 seeded draws of the state recursion (3 sd of each entry)."""
+    M = 6
+    known = _known(rng, M, s=3)
+    D = known.dense()
+    draws = np.empty((4000, 3 * M))
+    z = rng.standard_normal((4000, 3)) @ np.sqrt(known.P0)  # P0 diagonal
+    for r in range(M):
+        lam, vec = np.linalg.eigh(known.Q[r])
+        z = z @ known.T[r].T + rng.standard_normal((4000, 3)) @ (vec * np.sqrt(np.clip(lam, 0, None))).T
+        draws[:, 3 * r:3 * r + 3] = z @ known.H[r].T
+    C = draws.T @ draws / draws.shape[0]
+    sd = np.sqrt((np.outer(np.diag(D), np.diag(D)) + D**2) / draws.shape[0])  # of a sample second moment
+    assert np.all(np.abs(C - D) < 4.5 * sd + 1e-12)
+
+
+def test_the_compiled_filter_equals_its_numpy_reference(rng):
+    M = 60
+    t = _times(rng, M)
+    known = _known(rng, M)
+    X = rng.normal(size=(M, 3, 4))
+    dt = np.concatenate([[np.inf], np.diff(t)])
+    a = np.column_stack([np.exp(-dt / 1.0), np.zeros(M), np.exp(-dt / 0.3)])
+    qb = np.array(THETA.c) * (1.0 - a**2)
+    d = np.array(THETA.d)
+    outs = [np.empty((3 * M, 4)), np.empty((3 * M, 4))]
+    lds = [kernel(X, known.T, known.Q, known.H, known.P0, a, qb, d, out)
+           for kernel, out in zip((_compiled.joint_filter, joint_filter_numpy), outs)]
+    np.testing.assert_allclose(outs[0], outs[1], rtol=1e-10, atol=1e-10)
+    assert lds[0] == pytest.approx(lds[1], rel=1e-12)
+
+
+def test_the_tracking_covariance_times_a_matrix_is_the_dense_product(rng):
+    M = 50
+    t = _times(rng, M)
+    V = rng.normal(size=(M, 3, 2))
+    got = tracking_covariance_times(V, t, THETA.model("auto", "reml"))
+    np.testing.assert_allclose(got.reshape(3 * M, 2), _track_dense(THETA, t) @ V.reshape(3 * M, 2),
+                               rtol=1e-12, atol=1e-16)
+
+
+def test_with_no_known_term_the_fit_is_the_remls():
+    """A known term of zero: the maximum of the whole restricted likelihood is that of fit_noise's profiled one
+    (Gauss-Markov plus white on every axis, 300 epochs, seeded): tau and both std within the searches'
+    tolerance (1e-3 in their logarithms)."""
+    from casep.simulation.noise import ar1_noise
+
+    rng = np.random.default_rng(4)
+    t = 0.2 * np.arange(300)
+    S = rng.normal(size=(t.size, 3, 2))
+    e = ar1_noise(t, 0.03, 1.0, rng) + 0.015 * rng.standard_normal((t.size, 3))
+    pb = Problem.from_arrays(S, S @ np.array([1.0, -2.0]) + e, t)
+    reml = fit_noise(pb, "gmw")
+    zero = KnownStates(np.ones((t.size, 1, 1)), np.zeros((t.size, 1, 1)), np.zeros((t.size, 3, 1)), np.zeros((1, 1)))
+    X = np.stack(Reml(pb, estimable_basis(pb)).Z, axis=1)
+    start = TrackingParameters.of(reml)
+    moved = TrackingParameters(tuple(1.5 * c for c in start.c), tuple(0.7 * x for x in start.tau),
+                               tuple(1.3 * d for d in start.d)).model("gmw", "reml")
+    got, _ = fit_tracking(X, t, moved, zero, xatol=1e-3)
+    a, b = TrackingParameters.of(got), start
+    np.testing.assert_allclose(a.tau, b.tau, rtol=0.03)
+    np.testing.assert_allclose(np.sqrt(a.c), np.sqrt(b.c), rtol=0.01)
+    np.testing.assert_allclose(np.sqrt(a.d), np.sqrt(b.d), rtol=0.01)
