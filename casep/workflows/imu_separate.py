@@ -110,7 +110,8 @@ if TYPE_CHECKING:
     from casep.navigation.result import NavigationResult
 
 __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
-           "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_DRAWS"]
+           "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_DRAWS",
+           "DETERMINED_DRAWS"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -125,11 +126,11 @@ _BLAME = "the errors are too large for the model, or the data are inconsistent w
 CURVATURE_TOL = 0.3
 #: ... from this many draws per coefficient of the estimate's own distribution (seeded: the same every run).
 CURVATURE_DRAWS = 1
+#: The alignment's derivative is taken with steps that turn the attitude by about this much, rad.
+_ALIGN_STEP_RAD = 1e-6
 #: The curvature over what the tracking's stretches leave undetermined: this many seeded draws, each one navigation of
 #: the record (:meth:`_Run.determined_curvature`).
 DETERMINED_DRAWS = 4
-#: The alignment's derivative is taken with steps that turn the attitude by about this much, rad.
-_ALIGN_STEP_RAD = 1e-6
 
 
 @dataclass
@@ -526,11 +527,11 @@ class _Run:
         if failure is not None:
             gap = _gap_clause(self.imu, float(out.sigma))
             out = failed(out, STATUS_NOT_CONVERGED, failure.replace(_BLAME, gap) if gap else failure)
-        out = judge_setup(out, flight, model, noise_free=False)
         widen = None
         if iterate and failure is None:  # the combinations' curvature over what the flight does not determine
             def widen(combos: list[dict]) -> tuple[list[dict], str | None, dict | None]:
                 return self.determined_curvature(combos, problem, flight, D)
+        out = judge_setup(out, flight, model, noise_free=False)
         out = judge_tracking(out, flight, problem, model.scales, about=D, widen=widen)
         if iterate and out.success:  # a failed result's std are not used: no curvature to carry
             out = self.curvature(out, problem, D)
