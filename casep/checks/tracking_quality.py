@@ -592,7 +592,7 @@ def _weighted_svd(S: np.ndarray, y: np.ndarray, sig: np.ndarray, scale: np.ndarr
 def determined_message(why: str, combos: list[dict], k: float, n: int, scales: dict[str, float]) -> str:
     """The failure message of a flight whose tracking noise differs between stretches (`why`, :func:`noise_problem`):
     what it determines (:func:`determined`: `combos`, std factor `k`) of its `n` coefficients."""
-    said = "; ".join(" + ".join(f"{w:.2f} {nm}/{scales.get(nm, 1.0):g}" for nm, w in c["terms"].items())
+    said = "; ".join(" + ".join(f"{w:.2g} {nm}/{scales.get(nm, 1.0):g}" for nm, w in c["terms"].items())
                      + (f" (+ {c['more']} smaller terms)" if c.get("more") else "")
                      + f" = {c['estimate']:.3g} +- {c['std']:.2g}" for c in combos[:6])
     return (f"failed: {why}: one noise level per axis weights them alike, so the std of the coefficients are not "

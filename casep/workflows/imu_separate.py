@@ -625,7 +625,7 @@ class _Run:
         and a combination whose std grows to its declared magnitude or more is no longer determined (left out of the
         list, kept in the record's ``left_out``).
         """
-        from casep.checks.tracking_quality import plausible_size, stretch_sigma
+        from casep.checks.tracking_quality import combination_terms, plausible_size, stretch_sigma
         from casep.exceptions import NonlinearityWarning
 
         names = list(problem.names)
@@ -658,6 +658,8 @@ class _Run:
         shift = np.sqrt(np.mean(beta**2, axis=1))
         out = [{**c, "std_linear": c["std"], "curvature_shift": float(b), "std": float(np.hypot(c["std"], b))}
                for c, b in zip(combos, shift)]
+        for c in out:  # the terms that matter against the std it now has
+            c["terms"], c["more"] = combination_terms(names, np.array(c["weights"]), c["std"], rho)
         record["shift_std"] = [float(v) for v in shift / s]
         kept = [c for c in out if c["std"] < 1.0]
         record["left_out"] = [c for c in out if c["std"] >= 1.0]
