@@ -55,9 +55,9 @@ the passes step only along the few combinations the stretches' weighting determi
 stays where the first pass put it; with MEMS errors its second order moves those combinations by tens of their linear
 std. :meth:`_Run.determined_curvature` navigates :data:`DETERMINED_DRAWS` seeded draws with the rest at its plausible
 size (:func:`casep.checks.tracking_quality.plausible_size`), carries the shift in each combination's std, says it,
-and leaves out those no longer determined. On two own MEMS rocket logs (800 Hz, gyro biases 150-750 deg/h) 7 of the 8
-linear combinations were 19 to 48 std off; with the curvature all 8 are within 1.4 std (std 0.65 to 34 declared
-magnitudes), and one is still stated.
+and leaves out those no longer determined. On three own MEMS rocket logs (800 Hz, gyro biases 150-750 deg/h) 11 of
+the 12 linear combinations were 19 to 58 std off; with the curvature all 12 are within 1.8 std (std 0.65 to 34
+declared magnitudes), and one is still stated.
 
 **The tracking screen** (:func:`casep.checks.tracking_quality.screen_tracking`: stale fixes, the physics
 check against the IMU, the noise per stretch) runs once, on the first pass, where its warnings are
