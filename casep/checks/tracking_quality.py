@@ -50,8 +50,9 @@ from casep.io.flight import FlightData
 from casep.noise.robust import MAD_SIGMA
 
 __all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "stretch_noise", "noise_problem",
-           "determined", "determined_message", "imu_noise_effect", "imu_sample_noise", "STALE_MOTION", "JUMP_TOL",
-           "JUMP_RATE", "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
+           "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
+           "imu_noise_effect", "imu_sample_noise", "STALE_MOTION", "JUMP_TOL", "JUMP_RATE",
+           "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
 
 #: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
 STALE_MOTION = 0.5
@@ -593,35 +594,19 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
     Returns
     -------
     combinations : list of dict
-        ``terms`` (name -> weight on ``x / scale``, the `top` largest), ``weights`` (all, model order),
+        ``terms`` (name -> weight on ``x / scale``: the `top` largest and those that matter at the plausible
+        size, :func:`combination_terms`), ``more`` (how many terms the text leaves out), ``weights`` (all, model
+        order),
         ``estimate``, ``std``, ``correction`` (the estimate less the combination of `about`); best first.
     k : float
         The std factor.
     """
-    from casep.noise.whiteness import ar1_long_run_factor
-
     S, y, t = problem.sv(), problem.y, problem.t
-    noise = [x for x in stretches if x[3] > 0]
-    sig = np.full(t.size, max(x[3] for x in noise))
-    for a, b, _, sd in noise:
-        sig[(t >= a) & (t <= b)] = sd
+    sig = stretch_sigma(problem, stretches, scales)
     scale = np.array([scales.get(nm, 1.0) for nm in problem.names])
     n = len(problem.names)
-    for weighted_again in (False, True):
-        A = (S / sig[:, None, None]).reshape(-1, n) * scale
-        yw = (y / sig[:, None]).reshape(-1)
-        U, sv, Vt = np.linalg.svd(A, full_matrices=False)
-        keep = sv > sv[0] * 1e-12
-        z = (U[:, keep].T @ yw) / sv[keep]
-        r = yw - U[:, keep] @ (U[:, keep].T @ yw)
-        if weighted_again:
-            break
-        e = r.reshape(-1, 3)
-        for a, b, _, _sd in noise:  # the stretch's long-run variance: its sigma times sqrt(kappa)
-            m = (t >= a) & (t <= b)
-            es = e[m]
-            kappa = ar1_long_run_factor(np.sum(es[1:] * es[:-1], axis=0), np.sum(es * es, axis=0))
-            sig[m] *= math.sqrt(float(np.max(kappa)))
+    U, sv, Vt, keep, z, r = _weighted_svd(S, y, sig, scale)
+    yw = (y / sig[:, None]).reshape(-1)
     k = math.sqrt(max(1.0, float(r @ r) / max(yw.size - int(keep.sum()), 1)))
     extra = np.zeros(sv.size)
     seen = None if imu is None else imu_noise_effect(imu, t, (U[:, keep] / np.repeat(sig, 3)[:, None]).T)
@@ -633,18 +618,79 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
         std = math.sqrt((k / sv[i]) ** 2 + extra[i])
         if std >= 1.0:
             continue
-        j = np.argsort(-np.abs(Vt[i]))[:top]
-        sign = 1.0 if Vt[i, j[0]] >= 0 else -1.0
-        out.append({"terms": {problem.names[m]: sign * float(Vt[i, m]) for m in j},
-                    "estimate": sign * float(base[i] + z[i]), "std": std, "weights": (sign * Vt[i]).tolist(),
+        sign = 1.0 if Vt[i, np.argmax(np.abs(Vt[i]))] >= 0 else -1.0
+        out.append({"estimate": sign * float(base[i] + z[i]), "std": std, "weights": (sign * Vt[i]).tolist(),
                     "correction": sign * float(z[i])})
+    size = plausible_size(out)
+    for c in out:
+        c["terms"], c["more"] = combination_terms(problem.names, np.array(c["weights"]), c["std"], size, top)
     return out, k
+
+
+#: A combination's text lists at most this many terms (:func:`combination_terms`); its weights are all in the JSON.
+MAX_TERMS = 8
+
+
+def plausible_size(combos: list[dict]) -> float:
+    """The size, in declared magnitudes, a coefficient combination the flight does not determine plausibly has:
+    the declared magnitude (1), or the largest determined combination's estimate when that is larger (the
+    declared magnitudes then understate the instrument: a MEMS unit under a navigation-grade model). The text of a
+    combination (:func:`combination_terms`) and the curvature of the undetermined part
+    (:meth:`casep.workflows.imu_separate._Run.determined_curvature`) use it."""
+    return max([1.0] + [abs(float(c["estimate"])) for c in combos])
+
+
+def combination_terms(names: list[str], w: np.ndarray, std: float, size: float, top: int = 3) -> tuple[dict, int]:
+    """The terms a combination ``sum_j w_j x_j / scale_j`` (estimated to `std`) is written with: its `top` largest,
+    and every term that moves it by its std or more at the plausible `size` (``|w_j| size >= std``,
+    :func:`plausible_size`), at most :data:`MAX_TERMS`; and how many terms of weight >= 0.005 are not written
+    (a MEMS gyro bias of 500 declared magnitudes at weight 0.08 is 40 units of a combination known to 0.8)."""
+    order = np.argsort(-np.abs(w))
+    matter = int(np.sum(np.abs(w) * size >= std))
+    shown = order[:min(max(top, matter), MAX_TERMS)]
+    more = int(np.sum(np.abs(w[order[shown.size:]]) >= 0.005))
+    return {names[m]: float(w[m]) for m in shown}, more
+
+
+def stretch_sigma(problem, stretches: list, scales: dict[str, float]) -> np.ndarray:
+    """The noise (m/s) of each epoch of `problem` the combinations of :func:`determined` are weighted by: the
+    scatter of its stretch (the largest for epochs in no stretch), times ``sqrt(kappa_s)``, the AR(1) long-run
+    variance factor of the stretch's residuals of the fit weighted by the scatter alone (:func:`determined`)."""
+    from casep.noise.whiteness import ar1_long_run_factor
+
+    t = problem.t
+    noise = [x for x in stretches if x[3] > 0]
+    sig = np.full(t.size, max(x[3] for x in noise))
+    for a, b, _, sd in noise:
+        sig[(t >= a) & (t <= b)] = sd
+    scale = np.array([scales.get(nm, 1.0) for nm in problem.names])
+    e = _weighted_svd(problem.sv(), problem.y, sig, scale)[5].reshape(-1, 3)
+    for a, b, _, _sd in noise:  # the stretch's long-run variance: its sigma times sqrt(kappa)
+        m = (t >= a) & (t <= b)
+        es = e[m]
+        kappa = ar1_long_run_factor(np.sum(es[1:] * es[:-1], axis=0), np.sum(es * es, axis=0))
+        sig[m] *= math.sqrt(float(np.max(kappa)))
+    return sig
+
+
+def _weighted_svd(S: np.ndarray, y: np.ndarray, sig: np.ndarray, scale: np.ndarray) -> tuple:
+    """The fit of ``y / sig`` on ``S / sig`` in the declared magnitudes: ``A = U diag(s) V^T``, the components kept
+    (``s > 1e-12 s_max``), their estimates ``z_i = U_i . y_w / s_i`` and the weighted residual ``r``."""
+    n = S.shape[2]
+    A = (S / sig[:, None, None]).reshape(-1, n) * scale
+    yw = (y / sig[:, None]).reshape(-1)
+    U, sv, Vt = np.linalg.svd(A, full_matrices=False)
+    keep = sv > sv[0] * 1e-12
+    z = np.zeros(sv.size)
+    z[keep] = (U[:, keep].T @ yw) / sv[keep]
+    return U, sv, Vt, keep, z, yw - U[:, keep] @ (U[:, keep].T @ yw)
 
 
 def determined_message(why: str, combos: list[dict], k: float, n: int, scales: dict[str, float]) -> str:
     """The failure message of a flight whose tracking noise differs between stretches (`why`, :func:`noise_problem`):
     what it determines (:func:`determined`: `combos`, std factor `k`) of its `n` coefficients."""
-    said = "; ".join(" + ".join(f"{w:.2f} {nm}/{scales.get(nm, 1.0):g}" for nm, w in c["terms"].items())
+    said = "; ".join(" + ".join(f"{w:.2g} {nm}/{scales.get(nm, 1.0):g}" for nm, w in c["terms"].items())
+                     + (f" (+ {c['more']} smaller terms)" if c.get("more") else "")
                      + f" = {c['estimate']:.3g} +- {c['std']:.2g}" for c in combos[:6])
     return (f"failed: {why}: one noise level per axis weights them alike, so the std of the coefficients are not "
             f"honest. Weighted by each stretch's own noise (std x {k:.3g} for the weighted fit's misfit), the flight "

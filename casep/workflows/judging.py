@@ -4,7 +4,7 @@ separates a flight (:func:`casep.separate`, the raw-IMU and telemetry iterations
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -54,12 +54,17 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
 
 
 def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, scales: dict,
-                   about: np.ndarray | None = None) -> EstimateResult:
+                   about: np.ndarray | None = None,
+                   widen: Callable[[list[dict]], tuple[list[dict], str | None, dict | None]] | None = None
+                   ) -> EstimateResult:
     """`res` failed (status ``STATUS_TRACKING``) when the flight's screened tracking noise differs between
     stretches beyond :data:`casep.checks.tracking_quality.NOISE_RATIO`: its message says which combinations the
     flight determines (:func:`casep.checks.tracking_quality.determined`) instead of each coefficient;
     ``diagnostics["determined"]`` holds them (``combinations``, ``std_factor``, the ``scales`` they divide by);
-    `about`: the coefficients an iterated pass was linearised about (the combinations' estimates are totals)."""
+    `about`: the coefficients an iterated pass was linearised about (the combinations' estimates are totals);
+    `widen`: ``combos -> (combos, note, record)``, what the nonlinearity does to them (an iterated pass's
+    :meth:`casep.workflows.imu_separate._Run.determined_curvature`): the combinations said are its, `note` (or
+    None) follows them, `record` goes in ``diagnostics["determined"]["curvature"]``."""
     from casep.checks.tracking_quality import determined, determined_message, noise_problem
     from casep.estimators.registry import STATUS_TRACKING, failed
 
@@ -67,7 +72,13 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     if why is None or problem.y is None or problem.t is None:
         return res
     combos, k = determined(problem, flight.meta["tracking_screen"]["stretches"], scales, imu=flight, about=about)
-    res = failed(res, STATUS_TRACKING, determined_message(why, combos, k, len(problem.names), scales))
+    note, record = None, None
+    if widen is not None and combos:
+        combos, note, record = widen(combos)
+    said = determined_message(why, combos, k, len(problem.names), scales)
+    res = failed(res, STATUS_TRACKING, said if note is None else f"{said}; {note}")
     res.diagnostics["determined"] = {"combinations": combos, "std_factor": k,
                                      "scales": {nm: scales.get(nm, 1.0) for nm in problem.names}}
+    if record is not None:
+        res.diagnostics["determined"]["curvature"] = record
     return res

@@ -16,10 +16,14 @@ import pytest
 
 from casep.checks.tracking_quality import (
     DRIFT_MIN_PPM,
+    MAX_TERMS,
     NOISE_RATIO,
     clock_drift,
+    combination_terms,
+    determined_message,
     keep_screen,
     noise_problem,
+    plausible_size,
     screen_tracking,
 )
 from casep.exceptions import GapWarning, PlausibilityWarning, SaturationWarning, TrackingQualityWarning
@@ -267,3 +271,20 @@ def test_stale_tracking_inside_a_one_file_flight_is_left_out(tmp_path, rng):
         else:
             screened = screen_tracking(flight)  # no warning: the suite makes one an error
             assert screened.observed.all() and screened.meta["tracking_screen"]["stale"] == []
+
+
+def test_a_combination_is_written_with_every_term_that_matters_at_the_plausible_size():
+    """A term is written when it moves the combination by its std at the plausible size (``|w| size >= std``), the
+    three largest always, at most MAX_TERMS; the text counts the others of weight 0.005 or more."""
+    names = [f"c{j}" for j in range(12)]
+    w = np.array([0.9, -0.4, 0.1, 0.05, 0.01, 0.004, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    assert plausible_size([{"estimate": -80.0}, {"estimate": 3.0}]) == 80.0
+    assert plausible_size([{"estimate": 0.2}]) == 1.0  # never below the declared magnitude
+    terms, more = combination_terms(names, w, std=0.5, size=10.0)  # |w| >= 0.05
+    assert list(terms) == ["c0", "c1", "c2", "c3"] and terms["c1"] == -0.4 and more == 1  # 0.01 not written
+    terms, more = combination_terms(names, w, std=0.5, size=1.0)  # none but the largest three
+    assert list(terms) == ["c0", "c1", "c2"] and more == 2
+    terms, more = combination_terms(names, np.full(12, 0.2), std=0.01, size=1.0)
+    assert len(terms) == MAX_TERMS and more == 12 - MAX_TERMS
+    text = determined_message("noise", [{"terms": terms, "more": more, "estimate": 1.0, "std": 0.1}], 1.0, 12, {})
+    assert f"(+ {12 - MAX_TERMS} smaller terms) = 1 +- 0.1" in text

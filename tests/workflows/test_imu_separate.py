@@ -327,6 +327,55 @@ def test_an_imu_gap_is_named_by_the_failure_and_its_warnings_are_said_once(truth
 
 
 
+@pytest.fixture(scope="module")
+def stretched(truth_flight, tmp_path_factory):
+    """The MEMS flight with tracking of two noise levels: 0.01 m/s on the pad, lost for 3.5 s after lift-off (a
+    pause that splits the stretches), then 0.3 m/s (seeded): (imu, tracking, D)."""
+    t, w, f, nav, model = truth_flight
+    D = np.array([TRUTH[n] for n in model.names])
+    df, dw = body_errors(model, nav.q, f, w, t - t[0], D)
+    directory = tmp_path_factory.mktemp("stretched")
+    imu, trk = directory / "imu.csv", directory / "trk.csv"
+    write_table(imu, {"t": t, **{f"w_{a}": (w + dw)[:, i] for i, a in enumerate("xyz")},
+                      **{f"fb_{a}": (f + df)[:, i] for i, a in enumerate("xyz")}})
+    k = np.arange(0, t.size, int(RATE / TRK_RATE))
+    k = k[(t[k] < PAD + 0.5) | (t[k] > PAD + 4.0)]
+    v = nav.v[k] + np.where(t[k] < PAD, 0.01, 0.3)[:, None] * np.random.default_rng(1).standard_normal((k.size, 3))
+    write_table(trk, {"t": t[k], **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}})
+    return imu, trk, D
+
+
+def test_the_combinations_stretches_determine_carry_the_curvature_of_what_they_leave_undetermined(stretched):
+    """Tracking whose noise differs between stretches: the result fails and states the combinations the flight
+    determines (:func:`casep.checks.tracking_quality.determined`). The passes step only along those, so the rest of
+    the MEMS errors (gyro biases of 150-250 declared magnitudes) is never corrected, and to second order it moves
+    the determined combinations: their linear std are over 10 times too small here. ``_Run.determined_curvature``
+    draws the rest at its plausible size (the largest determined combination, in declared magnitudes): the std
+    carry the shift, a NonlinearityWarning gives it, the combinations whose std reach their declared magnitude are
+    left out, and those said are within 3.5 std of the truth (the linear ones 13-20 std off, seeds 1-3)."""
+    from casep.estimators.registry import STATUS_TRACKING
+    from casep.exceptions import NonlinearityWarning
+
+    imu, trk, D = stretched
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        it = separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=heading_of_x())
+    assert any(issubclass(w.category, NonlinearityWarning) for w in said)
+    assert it.status == STATUS_TRACKING and "not linear over what the flight does not determine" in it.message
+    det = it.result.diagnostics["determined"]
+    curv = det["curvature"]
+    assert curv["draws"] == curv["asked"] and curv["plausible_size"] > 10
+    x = np.array([D[i] / det["scales"][n] for i, n in enumerate(it.result.names)])
+    every = det["combinations"] + curv["left_out"]
+    z_linear = [(c["estimate"] - np.dot(c["weights"], x)) / c["std_linear"] for c in every]
+    assert np.max(np.abs(z_linear)) > 5  # what the linear std say is wrong ...
+    assert det["combinations"] and all(c["std"] < 1 for c in det["combinations"])
+    assert all(c["std"] >= 1 for c in curv["left_out"])
+    z = [(c["estimate"] - np.dot(c["weights"], x)) / c["std"] for c in det["combinations"]]
+    assert np.max(np.abs(z)) < 3.5, z  # ... and the std carrying the curvature hold
+    assert all(c["std"] > c["std_linear"] for c in every)
+
+
 def _pass_at(truth_flight, directory, size: float, D: np.ndarray):
     """A separation's first pass on the flight whose IMU carries TRUTH times `size` (tracking noise-free, sigma given),
     then one pass linearised at `D`: ``(run, result, problem)``."""
