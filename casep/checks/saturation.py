@@ -222,8 +222,7 @@ def white_noise(column: np.ndarray, ext: float) -> float:
 
     Over every window of 5 consecutive readings not all on a rail ``+-ext`` (a reading at the rail now and then is
     the noise of a quiet quantised stretch; five in a row say nothing of it) the third and fourth differences; in
-    stretches of
-    :data:`NOISE_BLOCK` windows ``s_k = median |D^k x| / (0.6745 sqrt(C(2k, k)))`` (white noise of std
+    stretches of :data:`NOISE_BLOCK` windows ``s_k = median |D^k x| / (0.6745 sqrt(C(2k, k)))`` (white noise of std
     ``sigma`` has ``D^k x`` of std ``sigma sqrt(C(2k, k))``: 20 and 70). A stretch is noise where ``s_4 >= s_3 /
     2`` (white noise: ``s_4 = s_3``; a smooth motion ``x(t)`` sampled every ``h`` has ``D^k x ~ h^k x^(k)``, so
     ``s_4 / s_3 ~ 0.53 omega h``, small), motion elsewhere (it says nothing of the noise). The result is the
@@ -270,8 +269,8 @@ def noise_cannot_hold(column: np.ndarray, ext: float) -> str | None:
     column = np.asarray(column, float)
     spans = [b - a for a, b in runs(column == ext)]
     L = max(spans, default=0)
-    sigma = white_noise(column, ext)
-    if L < CLIP_RUN or sigma == 0.0:
+    sigma = white_noise(column, ext) if L >= CLIP_RUN else 0.0
+    if sigma == 0.0:
         return None
     q = resolution(column, ext)
     p = q / (sigma * math.sqrt(2.0 * math.pi))
