@@ -63,6 +63,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 
 from casep._kernels import runs
+from casep.noise.robust import MAD_SIGMA
 from casep.units import ACC_RANGES_G, FULL_SCALE_TOLERANCE, G0, GYR_RANGES_DPS
 
 if TYPE_CHECKING:
@@ -222,7 +223,7 @@ def white_noise(column: np.ndarray, ext: float) -> float:
 
     Over every window of 5 consecutive readings not all on a rail ``+-ext`` (a reading at the rail now and then is
     the noise of a quiet quantised stretch; five in a row say nothing of it) the third and fourth differences; in
-    stretches of :data:`NOISE_BLOCK` windows ``s_k = median |D^k x| / (0.6745 sqrt(C(2k, k)))`` (white noise of std
+    stretches of :data:`NOISE_BLOCK` windows ``s_k = 1.4826 median |D^k x| / sqrt(C(2k, k))`` (white noise of std
     ``sigma`` has ``D^k x`` of std ``sigma sqrt(C(2k, k))``: 20 and 70). A stretch is noise where ``s_4 >= s_3 /
     2`` (white noise: ``s_4 = s_3``; a smooth motion ``x(t)`` sampled every ``h`` has ``D^k x ~ h^k x^(k)``, so
     ``s_4 / s_3 ~ 0.53 omega h``, small), motion elsewhere (it says nothing of the noise). The result is the
@@ -238,8 +239,8 @@ def white_noise(column: np.ndarray, ext: float) -> float:
     nb = d3.size // NOISE_BLOCK
     if nb == 0:
         return 0.0
-    s3 = np.median(d3[:nb * NOISE_BLOCK].reshape(nb, -1), axis=1) / (0.6745 * math.sqrt(20.0))
-    s4 = np.median(d4[:nb * NOISE_BLOCK].reshape(nb, -1), axis=1) / (0.6745 * math.sqrt(70.0))
+    s3 = MAD_SIGMA * np.median(d3[:nb * NOISE_BLOCK].reshape(nb, -1), axis=1) / math.sqrt(20.0)  # D^k x of white
+    s4 = MAD_SIGMA * np.median(d4[:nb * NOISE_BLOCK].reshape(nb, -1), axis=1) / math.sqrt(70.0)  # noise: C(2k, k)
     if np.any(s3 == 0.0):
         return 0.0
     noise = s4 >= 0.5 * s3
