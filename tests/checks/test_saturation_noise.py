@@ -58,6 +58,12 @@ def test_a_noisy_gyro_clipped_to_the_end_of_the_record_is_a_clip():
     assert len(said) == 1 and "w_x at its maximum 100 deg/s (a full scale +-100 deg/s implied" in said[0]
     assert "--gyr-range 100 declares it" in said[0] and f"{clipped.size} in a row" in said[0]
     assert np.array_equal(out.observed, out.t < clipped[0] / RATE)
+    from casep.navigation.imu import ImuData, check_imu  # casep navigate: the same rule, the rest marked
+
+    f = np.tile([G0, 0.0, 0.0], (w.shape[0], 1)) + 2e-3 * rng.standard_normal(w.shape)
+    with pytest.warns(SaturationWarning, match=rf"w_x: {clipped.size} samples at full scale \(a full scale \+-100 "):
+        imu = check_imu(ImuData(out.t, w, f))
+    assert imu.clipped is not None and np.array_equal(imu.clipped, np.arange(w.shape[0]) >= clipped[0])
 
 
 def test_the_stated_bound_holds_for_quantised_noise():
