@@ -24,7 +24,8 @@ sides (maximum, minimum):
     a gyro clipped at 24 deg/s), when
 
     - **noise cannot hold it** (:func:`noise_cannot_hold`): the column's white noise ``sigma`` off ``+-e``
-      (everywhere, its quietest stretch) is far above the step ``q`` its readings are resolved to, and its
+      (everywhere, its quietest stretch) is far above the step ``q`` its readings are resolved to
+      (:data:`NOISE_STEPS` steps or more: rounding scatters a noise-free record by a step or two), and its
       longest run of ``L`` readings equal to ``e`` has the bound ``N (q / (sigma sqrt(2 pi)))^(L-1)`` below
       :data:`NOISE_ALPHA`: each reading of a noisy sensor lands in the one cell of width ``q`` of the reading
       before it with probability at most ``q`` times the largest density of its noise, ``1 / (sigma sqrt(2
@@ -71,7 +72,7 @@ if TYPE_CHECKING:
 
 __all__ = ["held_full_scale", "held_mask", "HeldFullScale", "check_full_scale", "FULL_SCALE_UNITS",
            "with_full_scales", "screen_saturation", "SENSOR_COLUMNS",
-           "NOMINAL_RANGES", "ADC_BITS", "CLIP_RUN", "CLIP_MARGIN", "HELD_FRACTION", "NOISE_ALPHA",
+           "NOMINAL_RANGES", "ADC_BITS", "CLIP_RUN", "CLIP_MARGIN", "HELD_FRACTION", "NOISE_ALPHA", "NOISE_STEPS",
            "noise_cannot_hold", "white_noise", "resolution"]
 
 #: Word lengths of the converters raw counts come from.
@@ -88,6 +89,10 @@ HELD_FRACTION = 0.5
 NOISE_ALPHA = 1e-6
 #: Readings per stretch whose noise :func:`white_noise` estimates (the quietest stretch is the column's noise).
 NOISE_BLOCK = 256
+#: A column's noise says something of a run only when its std is this many resolution steps or more: rounding
+#: (a noise-free record computed in floating point, written to a few digits) scatters readings by a step or two,
+#: and a value held exactly there is a state, not a clip.
+NOISE_STEPS = 100.0
 #: The unit of each sensor's full scale at the edge (command line), and SI per that unit.
 FULL_SCALE_UNITS = {"accelerometer": ("g", G0), "gyro": ("deg/s", math.pi / 180.0)}
 #: The nominal ranges (+-) of each sensor, in the unit of FULL_SCALE_UNITS.
@@ -248,12 +253,12 @@ def white_noise(column: np.ndarray, ext: float) -> float:
 
 
 def resolution(column: np.ndarray, ext: float) -> float:
-    """The step `column`'s readings are resolved to at its extreme `ext`, at most: the larger of the decimal cell of
+    """The step `column`'s readings are resolved to at its extreme `ext`, at most: the largest of the decimal cell of
     `ext` (``10^(floor(log10 |ext|) - d + 1)``, ``d`` the fewest significant digits that give `ext` back: a
-    reading written with ``d`` digits or more) and the smallest gap between distinct readings (a column on a
-    grid, as counts times a sensitivity, has no smaller one)."""
+    reading written with ``d`` digits or more), the binary one (the spacing of doubles at `ext`) and the smallest
+    gap between distinct readings (a column on a grid, as counts times a sensitivity, has no smaller one)."""
     d = next(k for k in range(1, 18) if float(f"{ext:.{k}g}") == ext)
-    cell = 10.0 ** (math.floor(math.log10(abs(ext))) - d + 1)
+    cell = max(10.0 ** (math.floor(math.log10(abs(ext))) - d + 1), float(np.spacing(abs(ext))))
     u = np.unique(np.asarray(column, float))
     return max(cell, float(np.diff(u).min())) if u.size > 1 else cell
 
@@ -274,6 +279,8 @@ def noise_cannot_hold(column: np.ndarray, ext: float) -> str | None:
     if sigma == 0.0:
         return None
     q = resolution(column, ext)
+    if sigma < NOISE_STEPS * q:
+        return None  # noise at the rounding level, or quantised coarser than sigma >> q: it says nothing
     p = q / (sigma * math.sqrt(2.0 * math.pi))
     log_bound = math.log10(column.size) + (L - 1) * math.log10(p) if p < 1.0 else 0.0
     if log_bound > math.log10(NOISE_ALPHA):

@@ -81,8 +81,9 @@ def test_the_stated_bound_holds_for_quantised_noise():
 
 def test_columns_whose_noise_says_nothing_keep_the_exemption():
     """Not a clip: a noise-free record held at its extreme to its last sample (a state: a spin held by a
-    simulation); a quantised gyro (1/131 deg/s counts, noise 0.8 count) whose peak repeats; a gyro quiet on the pad
-    (0.2 count: its counts repeat) at the column's maximum, vibrating in flight (30 counts)."""
+    simulation); a quantised gyro (1/131 deg/s counts, noise 0.3 count) whose peak repeats; a gyro quiet on the pad
+    (0.2 count: its counts repeat) at the column's maximum, vibrating in flight (30 counts); a noise-free record
+    whose only scatter is floating-point rounding."""
     t = np.arange(6000) / RATE
     w = np.column_stack([0.3 * np.sin(2 * np.pi * t / 25), 0.2 * np.sin(2 * np.pi * t / 9), 0.1 * np.cos(t)])
     w[-800:, 0] = float(w[:, 0].max()) + 0.1
@@ -101,6 +102,14 @@ def test_columns_whose_noise_says_nothing_keep_the_exemption():
     assert _longest(col, top) >= 3 and white_noise(col, top) < lsb
     assert noise_cannot_hold(col, top) is None
     assert held_full_scale(np.column_stack([col, np.zeros((col.size, 2))]), "gyro") == []
+    # a noise-free record computed in floating point (rates corrected by estimated errors): steady levels
+    # scattered by rounding, a step or two of 2.2e-16, and one level, the column's minimum, held exactly
+    level = np.concatenate([np.full(1500, -1.2), np.full(300, -1.4609491200171125), np.full(200, -1.3)])
+    x = level + np.spacing(level) * np.round(1.5 * rng.standard_normal(level.size))  # a few units in the last place
+    x[1500:1800] = level[1500]
+    assert 0.0 < white_noise(x, float(x.min())) < 1e-15 and np.mean(x[:1500] != -1.2) > 0.5
+    assert noise_cannot_hold(x, float(x.min())) is None
+    assert held_full_scale(np.column_stack([x, np.zeros((x.size, 2))]), "gyro") == []
 
 
 def _longest(x: np.ndarray, v: float) -> int:
