@@ -38,7 +38,11 @@ rule is :func:`casep.checks.saturation.held_full_scale`, the one calibration use
 within :data:`casep.units.FULL_SCALE_TOLERANCE` of a nominal range (:data:`casep.units.GYR_RANGES_DPS`,
 :data:`casep.units.ACC_RANGES_G`), a tenth of it or more from the column's median (a static accelerometer
 reads 1 g for ever without clipping), in a column with noise (in a noise-free record a constant thrust near
-4 g is held exactly without any clipping: declare the full scale there). The attitude and velocity
+4 g is held exactly without any clipping: declare the full scale there); off every nominal range, a full scale
+the data imply (a run of equal readings the column's noise cannot make, left or held to the end, or in a
+column without noise a run entered and left). Increments are judged as the IMU gave them, each over its
+period (rad, m/s; compared with a full scale times the median step), not divided by the steps of ``t``,
+whose rounding would make a value held exactly look like noise. The attitude and velocity
 integrated through a clipped sample stay wrong for the rest of the record, so everything from the
 first clipped sample on is marked (``ImuData.clipped``; the navigation writes ``ins_valid = 0``
 there, and the separation leaves those rows out), with a :class:`~casep.exceptions.SaturationWarning`
@@ -56,7 +60,6 @@ import numpy as np
 
 from casep.checks.saturation import (
     CLIP_MARGIN,
-    CLIP_RUN,
     FULL_SCALE_UNITS,
     check_full_scale,
     held_full_scale,
@@ -162,7 +165,9 @@ def check_imu(imu: ImuData, *, gyr_range: float | None = None, acc_range: float 
         raise ValueError(f"{imu.source}: column t, row {k + 1}: time {t[k]:.10g} s does not increase")
     h_med = float(np.median(h))
     lost = gap_steps(t)
+    raw = None  # the increments as the IMU gave them, each over its period: the clip is judged on these
     if imu.kind == "increments":
+        raw = (np.asarray(imu.dtheta, float), np.asarray(imu.dv, float))
         cover = np.concatenate([[h_med], np.where(h > GAP_FACTOR * h_med, h_med, h)])  # what each row integrates
         scale = np.concatenate([[1.0], h])[:, None] / cover[:, None]
         scale[0] = 1.0
@@ -174,7 +179,7 @@ def check_imu(imu: ImuData, *, gyr_range: float | None = None, acc_range: float 
         _warn_gaps(imu, lost, h, h_med)
     imu.gaps = int(lost.size)
     _check_units(imu, declared=gyr_range is not None and float(np.abs(imu.w).max()) <= (1 + CLIP_MARGIN) * gyr_range)
-    imu.clipped = _check_clipped(imu, gyr_range, acc_range)
+    imu.clipped = _check_clipped(imu, gyr_range, acc_range, raw, h_med)
     return imu
 
 
@@ -277,38 +282,49 @@ def _warn_gaps(imu: ImuData, lost: np.ndarray, h: np.ndarray, h_med: float) -> N
                   GapWarning, stacklevel=3)
 
 
-def clipped_samples(x: np.ndarray, full_scale: float | None, sensor: str) -> np.ndarray:
+def clipped_samples(x: np.ndarray, full_scale: float | None, sensor: str, period: float | None = None) -> np.ndarray:
     """The (N, 3) readings of `x` at the sensor's full scale (:func:`casep.checks.saturation.held_full_scale`).
 
     Parameters
     ----------
     x : (N, 3) ndarray
-        Body rates (rad/s) or specific forces (m/s^2).
+        Body rates (rad/s) or specific forces (m/s^2); with `period`, their increments over it (rad, m/s).
     full_scale : float or None
-        The declared full scale, same unit; None: the nominal ranges of `sensor`.
+        The declared full scale, rad/s or m/s^2; None: the nominal ranges of `sensor`.
     sensor : str
         ``"gyro"`` or ``"accelerometer"``.
+    period : float, optional
+        The period each increment of `x` integrates, s (the readings' SI factor is ``1 / period``).
 
     Returns
     -------
     (N, 3) ndarray of bool
     """
     x = np.asarray(x, float)
-    return held_mask(held_full_scale(x, sensor, declared=full_scale), x.shape)
+    si = 1.0 if period is None else 1.0 / period
+    return held_mask(held_full_scale(x, sensor, si=si, declared=full_scale), x.shape)
 
 
-def _check_clipped(imu: ImuData, gyr_range: float | None, acc_range: float | None) -> np.ndarray | None:
-    """Samples from the first clipped one on (None when none is), with a SaturationWarning."""
+def _check_clipped(imu: ImuData, gyr_range: float | None, acc_range: float | None,
+                   raw: tuple[np.ndarray, np.ndarray] | None = None, period: float = 1.0) -> np.ndarray | None:
+    """Samples from the first clipped one on (None when none is), with a SaturationWarning.
+
+    Rates are screened as read; increments as read too (`raw`: each over the IMU's `period`, s), not divided by
+    the steps of ``t``, whose rounding would make a reading held exactly look like noise."""
     found = []
-    for cols, x, fs, sensor in ((RATE_COLUMNS, imu.w, gyr_range, "gyro"), (FORCE_COLUMNS, imu.f, acc_range,
-                                                                           "accelerometer")):
+    inc = raw is not None
+    for (cols, x, fs, sensor), r in zip(((DTHETA_COLUMNS if inc else RATE_COLUMNS, imu.w, gyr_range, "gyro"),
+                                         (DV_COLUMNS if inc else FORCE_COLUMNS, imu.f, acc_range, "accelerometer")),
+                                        raw or (None, None)):
         unit, per = FULL_SCALE_UNITS[sensor]
-        hit = clipped_samples(x, fs, sensor)
-        for j in np.flatnonzero(hit.any(axis=0)):
-            rows = np.flatnonzero(hit[:, j])
-            why = f"the declared {fs / per:g} {unit}" if fs is not None else \
-                f"a nominal range, {np.max(np.abs(x[rows, j])) / per:.5g} {unit}, held {CLIP_RUN}+ samples"
-            found.append((int(rows[0]), f"{cols[j]}: {rows.size} samples at full scale ({why}), rows "
+        x, si = (np.asarray(r, float), 1.0 / period) if r is not None else (x, 1.0)
+        col_unit = ("rad" if sensor == "gyro" else "m/s") if inc else ("rad/s" if sensor == "gyro" else "m/s^2")
+        for h in held_full_scale(x, sensor, si=si, declared=fs):
+            rows = np.flatnonzero(held_mask([h], x.shape)[:, h.axis])
+            why = f"the declared {fs / per:g} {unit}" if fs is not None else h.why
+            over = f" over {period:.6g} s" if inc else ""
+            found.append((int(rows[0]), f"{cols[h.axis]}: {rows.size} samples at full scale ({why}), its {h.side} "
+                                        f"{h.value:.6g} {col_unit}{over} = {h.value * si / per:.6g} {unit}, rows "
                                         f"{rows[0] + 1}..{rows[-1] + 1}, t = {imu.t[rows[0]]:.10g} .. "
                                         f"{imu.t[rows[-1]]:.10g} s"))
     if not found:

@@ -75,7 +75,8 @@ def test_clipped_gyro_samples_are_named_and_the_rest_of_the_flight_marked(clippe
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", GapWarning)  # the rates within the declared range: no PlausibilityWarning
         with pytest.warns(SaturationWarning, match=r"imu\.csv: the IMU clipped: w_y: \d+ samples at full scale \(the "
-                                                   r"declared 2000 deg/s\), rows \d+\.\.\d+, t = 3000\d\d\.\d+") as w:
+                                                   r"declared 2000 deg/s\), its maximum 34\.9066 rad/s = 2000 deg/s, "
+                                                   r"rows \d+\.\.\d+, t = 3000\d\d\.\d+") as w:
             imu = _imu(fl.imu, gyr_range=math.radians(2000.0))
         res = navigate(imu, fl.site, fl.align_window, heading_deg=fl.events["heading_deg"], heading_axis="z")
     first = fl.site.t0 + (fl.events["first_clipped"] - fl.site.t0) * (1 + 104e-6)  # the IMU clock runs fast
@@ -93,7 +94,8 @@ def test_clipping_without_a_declared_range_is_a_run_at_a_nominal_range(clipped_r
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", GapWarning)
         warnings.simplefilter("ignore", PlausibilityWarning)
-        with pytest.warns(SaturationWarning, match=r"w_y: \d+ samples at full scale \(a nominal range, 2000 deg/s"):
+        with pytest.warns(SaturationWarning, match=r"w_y: \d+ samples at full scale \(the nominal \+-2000 deg/s "
+                                                   r"range\), its (maximum|minimum) -?34\.9066 rad/s = -?2000 deg/s"):
             imu = _imu(fl.imu)
     assert imu.clipped is not None and imu.clipped[-1]
     # a quantised peak repeated 3 times at 1500 deg/s is no full scale: nothing clipped, no warning
