@@ -6,8 +6,10 @@ import json
 import math
 import os
 import signal
+import subprocess
 import sys
 import tempfile
+import time
 import traceback
 import warnings
 from pathlib import Path
@@ -158,6 +160,106 @@ def _one_blas_thread_per_xdist_worker():
 
     with threadpool_limits(limits=1, user_api="blas"):
         yield
+
+
+#: numba's kernels (casep._compiled) with the argument types casep's callers give them (casep._kernels: C-contiguous
+#: float64 arrays, int64 column indices), compiled into numba's on-disk cache by :func:`pytest_configure`.
+_COMPILE_KERNELS = """
+import pathlib, sys
+try:
+    from numba import types as T
+    from casep import _compiled as c
+    A1, A2, A3 = (T.Array(T.float64, d, "C") for d in (1, 2, 3))
+    I1, f8, i8 = T.Array(T.int64, 1, "C"), T.float64, T.int64
+    c.sv_integrate_chunk.compile((A3, A3, A2, A1, I1, I1, A2, A2, A2, A2, A3))
+    c.gmw_filter.compile((A2, A1, f8, f8, A1, A1, A2))
+    c.all_pole_filter.compile((A1, A2, A2))
+    c.rels_ud.compile((A3, A2, A1, A2, A1, f8, f8, i8, T.boolean, i8, A2, A2, A1, A2, i8))
+finally:
+    pathlib.Path(sys.argv[1]).touch()
+"""
+
+
+#: The test files that take the most CPU, most first (measured on the whole suite, CPU seconds per file: 65 for
+#: test_noise_model down to 10): :func:`pytest_collection_modifyitems` runs them first. With ``--dist loadfile``
+#: (pyproject) a file runs whole on one worker and the next file goes to the first worker free, so the long files
+#: are spread over both workers at the start and the short ones fill the end (no worker left alone with a long
+#: file at the end). A file not listed runs after these, in collection order.
+SLOW_FILES_FIRST = (
+    "noise/test_noise_model.py", "radar/test_radar.py", "radar/test_radar_setup.py", "docs/test_console_blocks.py",
+    "montecarlo/test_montecarlo_dask.py", "test_examples.py", "design/test_design.py", "workflows/test_imu_separate.py",
+    "workflows/test_flights.py", "reporting/test_report.py", "radar/test_radar_noise.py", "checks/test_setup_checks.py",
+    "montecarlo/test_montecarlo.py", "checks/test_plausibility.py", "calibration/test_multiposition_cli.py",
+    "estimators/test_gls.py", "workflows/test_noise_mixture_mc.py", "model/test_model_signals.py",
+    "calibration/test_ferraris_auto.py", "calibration/test_multiposition.py", "checks/test_late_start.py",
+    "calibration/test_multiposition_review.py", "radar/test_radar_review.py", "workflows/test_demo.py",
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    """The files of :data:`SLOW_FILES_FIRST` first, in its order; the order of the tests within a file kept."""
+    tests = Path(__file__).resolve().parent
+    rank = {name: k for k, name in enumerate(SLOW_FILES_FIRST)}
+
+    def key(item) -> int:
+        try:
+            name = Path(str(item.path)).resolve().relative_to(tests).as_posix()
+        except ValueError:
+            return len(rank)
+        return rank.get(name, len(rank))
+
+    items.sort(key=key)  # stable
+
+
+def _compile_casep_bytecode() -> None:
+    """casep's bytecode written once (``compileall``, into __pycache__ beside the sources, as Python does by itself
+    unless PYTHONDONTWRITEBYTECODE is set): with that variable set, every CLI command a test runs in a new
+    interpreter compiled again every casep module it imports. Python reads the bytecode whatever the variable."""
+    import compileall
+
+    root = Path(__file__).resolve().parents[1]
+    for folder in ("casep", "models"):
+        compileall.compile_dir(root / folder, quiet=1, workers=1)
+
+
+def pytest_configure(config):
+    """casep's bytecode first (:func:`_compile_casep_bytecode`). With pytest-xdist (`-n 2`), the controller then
+    compiles numba's kernels once, in a process of its own started
+    before the workers, into numba's cache (``cache=True``, beside casep/_compiled.py): on a fresh clone each worker
+    compiled them itself, about 6 s of CPU each, both at once. The workers wait for it
+    (:func:`_kernels_compiled_once`) while they only collect; they then load the cached machine code (the same
+    code numba would have compiled in each of them). A signature not listed is compiled where it is first called, as
+    without this."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        return
+    _compile_casep_bytecode()
+    if not getattr(config.option, "numprocesses", None):
+        return
+    folder = tempfile.mkdtemp(prefix="casep-kernels-")
+    done = os.path.join(folder, "done")
+    config._casep_kernels = (subprocess.Popen([sys.executable, "-c", _COMPILE_KERNELS, done],
+                                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL), folder)
+    os.environ["CASEP_TEST_KERNELS_DONE"] = done  # the workers, started after this, inherit it
+
+
+def pytest_unconfigure(config):
+    started = getattr(config, "_casep_kernels", None)
+    if started is not None:
+        started[0].wait()
+        import shutil
+
+        shutil.rmtree(started[1], ignore_errors=True)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _kernels_compiled_once():
+    """A worker's first test waits (at most 120 s) for the controller's compilation of numba's kernels."""
+    done = os.environ.get("CASEP_TEST_KERNELS_DONE")
+    if done and os.environ.get("PYTEST_XDIST_WORKER"):
+        end = time.monotonic() + 120.0
+        while not os.path.exists(done) and time.monotonic() < end:
+            time.sleep(0.05)
+    yield
 
 
 def finite_json(path) -> dict:
