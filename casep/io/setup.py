@@ -195,7 +195,7 @@ def setup_evidence(site: Any, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.nd
                         f"{dist / 1e3:.6g} km from the stated launch site, where the vehicle could be at most "
                         f"{reach / 1e3:.4g} km away (its speed then times the time since launch) + "
                         f"{POSITION_TOL / 1e3:g} km: the stated {where} is wrong")
-    if fit is not None and s_trk is not None and s_trk < PAD_REST_SPEED:
+    if fit is not None and s_trk is not None and s_std is not None and s_trk < PAD_REST_SPEED:
         gap, chi2, fails = _pad_mismatch(site, t_start, v_pad, e, fit)
         tol = max(PAD_VELOCITY_TOL, 5.0 * s_std)  # the scale of "the telemetry is at the pad's velocity"
         pad.update(mismatch_m_s=gap, chi2=chi2, tolerance_m_s=PAD_VELOCITY_TOL, alpha=PAD_ALPHA,
