@@ -64,7 +64,7 @@ def _velocity_at(t: np.ndarray, v: np.ndarray, t0: float) -> tuple[np.ndarray, n
 
     - ``s^2 q kappa``: the least-squares variance (``s^2`` the residual variance, ``q = [(A^T A)^-1]_00``)
       times the AR(1) long-run factor ``kappa = (1 + rho) / (1 - rho)`` of the residuals
-      (:func:`casep.noise.whiteness.ar1_long_run_factor`): right for noise correlated over much less than
+      (:func:`casep._kernels.ar1_long_run_factor`): right for noise correlated over much less than
       the window;
     - ``sigma^2``, the variance of one sample about a straight line over the samples at rest within
       :data:`PAD_NOISE_SPAN` s: noise correlated over the whole window (a GNSS velocity's Gauss-Markov
@@ -72,7 +72,7 @@ def _velocity_at(t: np.ndarray, v: np.ndarray, t0: float) -> tuple[np.ndarray, n
       sample's error, ``Var(c0) -> sigma^2 (sum w)^2 = sigma^2``, which the window's own residuals cannot
       show (the line takes it up).
     """
-    from casep.noise.whiteness import ar1_long_run_factor
+    from casep._kernels import ar1_long_run_factor
 
     period = float(np.median(np.diff(t))) if t.size > 1 else np.inf
     if not (t[0] <= t0 + period and t[-1] >= t0):
