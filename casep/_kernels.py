@@ -32,7 +32,8 @@ from typing import Callable, cast
 
 import numpy as np
 
-__all__ = ["ar1_terms", "runs", "gmw_filter", "gmw_filter_numpy", "joint_filter", "joint_filter_numpy",
+__all__ = ["ar1_long_run_factor", "ar1_terms", "runs", "gmw_filter", "gmw_filter_numpy", "joint_filter",
+           "joint_filter_numpy",
            "robust_filter_keep", "sv_integrate_chunk", "sv_integrate_chunk_numpy", "rels_ud", "lfilter",
            "NUMPY_SAMPLES"]
 
@@ -313,3 +314,12 @@ def _big(e, t, inv_tau, scale, thr, k: int, last: int) -> bool:
         if abs(nu) > thr:
             return True
     return False
+
+
+def ar1_long_run_factor(num: np.ndarray | float, den: np.ndarray | float) -> np.ndarray:
+    """``(1 + rho) / (1 - rho)`` with ``rho = num / den`` (the lag-1 autocorrelation of residuals: ``num`` the sum
+    of products of consecutive residuals, ``den`` the sum of squares) clipped to [0, 0.999]: the long-run
+    variance of AR(1) noise over its variance, the factor by which white-noise least squares understates the
+    variance of a smooth regressor's coefficient in such noise (at least 1; 1999 at most)."""
+    rho = np.clip(np.asarray(num, dtype=float) / np.maximum(np.asarray(den, dtype=float), 1e-300), 0.0, 0.999)
+    return (1.0 + rho) / (1.0 - rho)

@@ -374,6 +374,14 @@ MAGNITUDE_FAIL = 1e4
 #: Both judged on ``|estimate| - MAGNITUDE_Z std``: what the data say at least (5 std: two-sided
 #: P = 6e-7 per coefficient, so that noise in a poorly determined coefficient is not flagged).
 MAGNITUDE_Z = 5.0
+#: Magnitudes (SI) no coefficient of a linear error model can have, whatever its std: a scale factor or
+#: misalignment of 0.1 (1e5 ppm, 20600 arcsec) leaves second-order terms of 1 % of the signal, beyond what the
+#: first-order model describes; a gyro bias of 0.1 rad/s (5.7 deg/s, 20600 deg/h) turns the attitude by
+#: 0.1 rad within a second, where the small-angle attitude error of the model no longer holds. Such an
+#: estimate says the model does not describe the data (rates in deg/s in rad/s columns, a set-up or model
+#: mistake), not that the instrument is that bad: the result fails (status -5) even when a large std would
+#: hide it from the |estimate| - 5 std rule. By natural unit: dimensionless and angle units 0.1, rates 0.1 rad/s.
+LINEAR_LIMITS: dict[str, float] = {"ppm": 0.1, "arcsec": 0.1, "arcmin": 0.1, "mrad": 0.1, "deg/h": 0.1, "rad/s": 0.1}
 #: Methods whose estimates of poorly determined coefficients the regularisation sets, not the data (and whose
 #: std leave out that bias): beyond :data:`MAGNITUDE_FAIL` they get the warning, not a failure.
 REGULARISED = ("ridge", "pcr", "bounded")
@@ -414,6 +422,31 @@ def _std_factor(res: EstimateResult) -> float:
     wt = (res.diagnostics or {}).get("whiteness") or {}
     f = wt.get("std_factor_median") if isinstance(wt, dict) else None
     return float(f) if isinstance(f, (int, float)) and np.isfinite(f) and f > 1.0 else 1.0
+
+
+def _beyond_linear(res: EstimateResult, regularised: bool) -> EstimateResult:
+    """`res` failed (status -5) when an estimate's magnitude itself is beyond :data:`LINEAR_LIMITS` (named with
+    its std and the limit); recorded in ``diagnostics["beyond_linear"]``."""
+    import dataclasses
+
+    from casep.units import si_factor
+
+    rows: list[dict[str, Any]] = [
+        {"name": n, "estimate": float(x), "std": float(sd), "unit": u, "limit": LINEAR_LIMITS[u] / si_factor(u)}
+        for n, u, x, sd in zip(res.names, res.units, res.estimate,
+                               res.std if res.std is not None else np.full(len(res.names), np.nan))
+        if u in LINEAR_LIMITS and np.isfinite(x) and abs(x) * si_factor(u) >= LINEAR_LIMITS[u]]
+    if not rows or regularised:
+        return res
+    rows.sort(key=lambda r: -abs(float(r["estimate"])) / float(r["limit"]))
+    res = dataclasses.replace(res, diagnostics={**res.diagnostics, "beyond_linear": rows})
+    listed = "; ".join(f"{r['name']} {r['estimate']:.4g} +- {r['std']:.2g} {r['unit']} (limit {r['limit']:.3g})"
+                       for r in rows[:6]) + (f" and {len(rows) - 6} more" if len(rows) > 6 else "")
+    return failed(res, STATUS_MAGNITUDE,
+                  f"failed: {len(rows)} estimate(s) beyond what a linear error model can describe ({listed}: a scale "
+                  "factor or misalignment of 0.1, a gyro bias of 0.1 rad/s), whatever their std: the model does not "
+                  "describe these data, or the flight does not determine these coefficients. Check the units of the "
+                  "input (angular rates in deg/s in rad/s columns?), the set-up and the model")
 
 
 def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str = "", *,
@@ -463,6 +496,7 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
             rows.append({"name": name, "estimate": float(x), "std": sd, "unit": unit, "declared": float(scale),
                          "ratio": float(abs(x) / scale), "ratio_low": float(low / scale),
                          "ratio_low_noise": float(low_noise / scale)})
+    res = _beyond_linear(res, regularised)
     if not rows:
         return res
     rows.sort(key=lambda r: -r["ratio"])

@@ -14,6 +14,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from casep._kernels import ar1_long_run_factor  # the AR(1) rule, shared with the set-up checks of io
 from casep.noise.model import AXES
 from casep.results import Completed
 
@@ -25,15 +26,6 @@ ALPHA_FITTED = 1e-3
 
 __all__ = ["ALPHA_FITTED", "ar1_long_run_factor", "ljung_box", "WhitenessTest", "whiteness_test", "default_lags",
            "find_gaps", "segments_of"]
-
-
-def ar1_long_run_factor(num: np.ndarray | float, den: np.ndarray | float) -> np.ndarray:
-    """``(1 + rho) / (1 - rho)`` with ``rho = num / den`` (the lag-1 autocorrelation of residuals: ``num`` the sum
-    of products of consecutive residuals, ``den`` the sum of squares) clipped to [0, 0.999]: the long-run
-    variance of AR(1) noise over its variance, the factor by which white-noise least squares understates the
-    variance of a smooth regressor's coefficient in such noise (at least 1; 1999 at most)."""
-    rho = np.clip(np.asarray(num, dtype=float) / np.maximum(np.asarray(den, dtype=float), 1e-300), 0.0, 0.999)
-    return (1.0 + rho) / (1.0 - rho)
 
 
 def ljung_box(x: np.ndarray, lags: int, segments: np.ndarray | None = None) -> tuple[float, float]:
