@@ -27,6 +27,7 @@ import numpy as np
 from casep.estimators._base import (  # what a method's core uses (a method of one's own), and a result's judgement
     FAILURE_STATUSES,
     STATUS_DISAGREE,
+    STATUS_MAGNITUDE,
     STATUS_MISFIT,
     STATUS_NOT_CONVERGED,
     STATUS_PRIOR_CONFLICT,
@@ -63,7 +64,7 @@ from casep.estimators.rls import RELS, RLS
 __all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Method", "OPTIONS", "METHODS",
            "check_method_options", "describe", "run_method", "solver", "register", "unregister", "NOISE_OPTIONS",
            "option_ranges", "SIGMA", "SeveralFlights", "Labels", "Prepared", "prepare", "finish", "failed",
-           "check_magnitudes", "STATUS_SETUP", "STATUS_TRACKING", "STATUS_MISFIT",
+           "check_magnitudes", "STATUS_SETUP", "STATUS_MAGNITUDE", "STATUS_TRACKING", "STATUS_MISFIT",
            "STATUS_NOT_CONVERGED", "STATUS_DISAGREE", "STATUS_PRIOR_CONFLICT", "FAILURE_STATUSES", "option_label",
            "refusal"]
 

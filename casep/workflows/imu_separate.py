@@ -114,7 +114,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from casep.estimators.registry import STATUS_NOT_CONVERGED
+from casep.estimators.registry import STATUS_MAGNITUDE, STATUS_NOT_CONVERGED
 from casep.frames import LaunchSite
 from casep.navigation.imu import ImuData
 
@@ -596,7 +596,9 @@ class _Run:
         out = judge_setup(out, flight, model, noise_free=False)
         out = judge_tracking(out, flight, problem, model.scales, about=D, widen=widen)
         out.diagnostics["iterations"]["limit"] = float(self.limit) if np.isfinite(self.limit) else None
-        said = _outside_note(passes, len(out.names)) if iterate and out.success else None
+        # what the record leaves undetermined is said also beside a failure for estimates beyond the linear model
+        said = _outside_note(passes, len(out.names)) if iterate and (out.success or out.status == STATUS_MAGNITUDE) \
+            else None
         if said:
             from casep.exceptions import NonlinearityWarning
 
