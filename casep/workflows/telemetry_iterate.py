@@ -182,8 +182,9 @@ class _TelemetryRun(_Run):
                 new = pair_flight(inp.t_tel, quat_rotate(nav.q, nav.fb), nav.v, inp.t_trk - shift, inp.v_trk,
                                   signals=sig, interpolation=inp.interpolation, grid=inp.grid, source=f0.source)
             observed = np.asarray(new.observed) & np.asarray(f0.observed)
+            # the pair's other signals (the tracked state r_*, v_* of Earth-fixed tracking) on the same grid kept
             flight = dataclasses.replace(f0, f=new.f, dv=np.where(observed[:, None], new.dv, np.nan),
-                                         signals=new.signals, observed=observed)
+                                         signals={**f0.signals, **new.signals}, observed=observed)
         if model is None or not np.any(D):
             return flight
         return dataclasses.replace(flight, dv=flight.dv - _direct_velocity(model, flight, D))
@@ -233,9 +234,11 @@ def iterate_if_curved(res: EstimateResult, flight: Any, problem: Any, model: Any
     notes): ``(result, iterated)``. `res` as it is (a record in ``diagnostics["linearisation"]``) while its
     second-order remainder is below ``LINEAR_OFFSET_SHARE`` std; beyond it the iterated separation's result
     (`iterate` None or True; True iterates whatever the remainder), or, with `iterate` False, `res` with a
-    :class:`~casep.exceptions.NonlinearityWarning` (failed beyond :data:`FAIL_SHIFT` std). Anything else than a
-    strapdown telemetry pair with a strapdown model, a flight whose saturated rows were left out, or a result that
-    failed already (its failure says more than its curvature would): `res` unchanged."""
+    :class:`~casep.exceptions.NonlinearityWarning` (failed beyond :data:`FAIL_SHIFT` std). Whatever the tracking
+    frame: Earth-fixed tracking is paired launch-inertial (its ``r_*``, ``v_*`` kept in every pass's flight), and
+    rows a screen left out (tracking, saturation) stay out of every pass. Anything else than a strapdown telemetry
+    pair with a strapdown model, or a result that failed already (its failure says more than its curvature would):
+    `res` unchanged."""
     from casep.exceptions import NonlinearityWarning
     from casep.io.flight import FlightData
     from casep.io.pair import PairInputs
@@ -246,8 +249,7 @@ def iterate_if_curved(res: EstimateResult, flight: Any, problem: Any, model: Any
 
     inp = flight.meta.get("pair_inputs") if isinstance(flight, FlightData) else None
     if (not isinstance(inp, PairInputs) or not all(c in inp.signals for c in STRAPDOWN_COLUMNS)
-            or not isinstance(model, ErrorModel) or not imu_error_signals(model) or "state_from" in flight.meta
-            or (flight.meta.get("saturation") or {}).get("left_out") or not res.success):
+            or not isinstance(model, ErrorModel) or not imu_error_signals(model) or not res.success):
         return res, False
     from casep.model.loader import TIME_OFFSET, load_model
 

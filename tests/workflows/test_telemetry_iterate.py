@@ -119,3 +119,39 @@ def test_cli_no_iterate_on_telemetry_fails_the_curved_linear_pass(noise_free, ca
     assert "the linear model does not hold on this strapdown telemetry" in capsys.readouterr().err
     assert main(["separate", tel, tel, "--tracking", trk, "--iterate"]) == 2
     assert "--iterate is used with --imu IMU.csv or one strapdown telemetry file" in capsys.readouterr().err
+
+
+def test_earth_fixed_tracking_is_judged_as_the_launch_frame_one(noise_free, model, tmp_path):
+    """The MEMS flight's tracking written in ECEF (casep's own conversion, the pad's inertial velocity added to
+    telemetry and tracking alike so that the pad is at rest on the Earth) and read with ``tracking_frame="ecef"``:
+    the remainder is judged as on the launch-frame tracking (both with ``dt_trk``: the same shift to 1e-6 relative,
+    above the tolerance), and the linear pass kept (``iterate=False``) is said and failed, not a plain success."""
+    from casep.estimators.registry import STATUS_MISFIT
+    from casep.exceptions import NonlinearityWarning
+    from casep.frames import LaunchSite, launch_to_ecef
+
+    flight, _, tel, trk = noise_free
+    site = LaunchSite(67.89, 21.10, 330.0, 30.0, 0.0)
+    _, pad = launch_to_ecef(site, [0.0], np.zeros((1, 3)), np.zeros((1, 3)))  # v_E of a launch-inertial point at rest
+    c = -site.C.T @ pad[0]  # the pad's launch-inertial velocity at t0
+    v = np.column_stack([trk[f"v_trk_{a}"] for a in "xyz"]) + c
+    t = np.asarray(trk["t"])
+    r = np.vstack([np.zeros((1, 3)), np.cumsum((v[1:] + v[:-1]) / 2 * np.diff(t)[:, None], axis=0)])  # trapezoid
+    r_e, v_e = launch_to_ecef(site, t, r, v)
+    write_table(tmp_path / "tel.csv", {**tel, **{f"v_tel_{a}": tel[f"v_tel_{a}"] + c[i] for i, a in enumerate("xyz")}})
+    write_table(tmp_path / "trk.csv", {"t": t, **{f"r_ecef_{a}": r_e[:, i] for i, a in enumerate("xyz")},
+                                      **{f"v_ecef_{a}": v_e[:, i] for i, a in enumerate("xyz")}})
+    earth = casep.read_flight_pair(tmp_path / "tel.csv", tmp_path / "trk.csv", tracking_frame="ecef", site=site)
+    assert "state_from" in earth.meta
+    got = {}
+    for name, fl in (("launch", flight), ("ecef", earth)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")  # noise-free: conditioning and magnitude warnings besides
+            got[name] = casep.separate(fl, model, method="ols", noise="white", robust="none", sigma=0.1,
+                                       iterate=False, fit_time_offset=True)  # dt_trk: Earth-fixed tracking's default
+        said = [str(w.message) for w in caught if issubclass(w.category, NonlinearityWarning)]
+        assert any("does not hold on this strapdown telemetry" in m for m in said), (name, said)
+    lin, ref = got["ecef"].diagnostics["linearisation"], got["launch"].diagnostics["linearisation"]
+    assert lin["shift_std"] > 100 * lin["tol"] and not lin["iterated"], lin
+    assert lin["shift_std"] == pytest.approx(ref["shift_std"], rel=1e-6)
+    assert not got["ecef"].success and got["ecef"].status == STATUS_MISFIT
