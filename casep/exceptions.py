@@ -69,7 +69,8 @@ class BiasedStdWarning(CasepWarning):
 
 class NonlinearityWarning(CasepWarning):
     """An iterated separation whose pipeline is curved at one std of its own estimate: the message gives by how
-    many std the second-order terms move the estimate, and the std carry it."""
+    many std the second-order terms move the estimate, that the covariance gains their mean square, and, when the
+    second order outgrows the first, that the std are not reliable."""
 
 
 class NoiseNotWhiteWarning(CasepWarning):

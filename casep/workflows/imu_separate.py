@@ -126,8 +126,8 @@ if TYPE_CHECKING:
     from casep.navigation.result import NavigationResult
 
 __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
-           "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_DRAWS", "WORSE", "NARROW", "SIGNIFICANT", "std_shift",
-           "DETERMINED_DRAWS"]
+           "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_RELIABLE", "CURVATURE_DRAWS", "WORSE", "NARROW",
+           "SIGNIFICANT", "std_shift", "DETERMINED_DRAWS"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -140,6 +140,9 @@ _BLAME = "the errors are too large for the model, or the data are inconsistent w
 #: The curvature check: second-order shifts of the estimate above this (std, the largest over the combinations) are
 #: warned about (:meth:`_Run.curvature`).
 CURVATURE_TOL = 0.3
+#: Above this shift (std) the second-order term exceeds the first at one std: the covariance with its mean square is
+#: a second-order expansion outside its range, and the warning says the std are not reliable (:meth:`_Run.curvature`).
+CURVATURE_RELIABLE = 1.0
 #: ... from this many draws per coefficient of the estimate's own distribution (seeded: the same every run).
 CURVATURE_DRAWS = 1
 #: A step is outside the linear model when the residual's RMS after it is this many times that before it ...
@@ -630,7 +633,11 @@ class _Run:
 
         The covariance gains their mean square, ``C + mean(b b^T)`` (the truth is such a draw away: the estimate is
         off by ``b`` beside the noise); above :data:`CURVATURE_TOL` std along the combination it moves most
-        (``max eig C^-1 mean(b b^T)``) a :class:`~casep.exceptions.NonlinearityWarning` says so. Skipped (recorded)
+        (``max eig C^-1 mean(b b^T)``) a :class:`~casep.exceptions.NonlinearityWarning` says so, with the shift of
+        the mean ``mean(b)`` (the second order's bias, part of the mean square) beside it; above
+        :data:`CURVATURE_RELIABLE` std the second order outgrows the first at one std, and the warning says the std
+        are not reliable (the mean square at one std is then no bound on the error of an estimate whose truth is
+        that many std away). Skipped (recorded)
         when the covariance is not finite (undetermined coefficients). `draws`: ``K`` (default
         :data:`CURVATURE_DRAWS` per combination drawn along). After steps left combinations out
         (:func:`determined_step`'s `limit`, :meth:`iterate`), the draws ``L a`` lose their part along those (in the
@@ -672,16 +679,23 @@ class _Run:
         B = np.linalg.lstsq(M, np.array(R).T, rcond=None)[0]  # (n, K): the shift of each draw
         extra = B @ B.T / B.shape[1]
         shift = std_shift(C, extra)
+        bias = std_shift(C, np.outer(B.mean(axis=1), B.mean(axis=1)))  # the mean shift (in extra), said apart
         cov = C + extra
-        info = {"checked": True, "draws": len(R), "max_shift_std": shift, "tol": CURVATURE_TOL, "left_out": left_out,
+        info = {"checked": True, "draws": len(R), "max_shift_std": shift, "mean_shift_std": bias, "tol": CURVATURE_TOL,
+                "reliable_below": CURVATURE_RELIABLE, "left_out": left_out,
                 "std_factor": {nm: float(v) for nm, v in zip(names, np.sqrt(np.diag(cov) / np.diag(C)))}}
         message = res.message
         if shift > CURVATURE_TOL:
             worst = names[int(np.argmax(np.diag(cov) / np.diag(C)))]
             said = (f"the navigation is curved at one std of the estimate: its second-order terms move the estimate "
                     f"along one combination of the coefficients by up to {shift:.3g} of that combination's std "
-                    f"(RMS over {len(R)} draws, above {CURVATURE_TOL:g}); the std carry it (each coefficient's up to "
+                    f"(RMS over {len(R)} draws, above {CURVATURE_TOL:g}; their mean {bias:.3g}); its mean square is "
+                    f"added to the covariance (each coefficient's std up to "
                     f"{np.sqrt(np.max(np.diag(cov) / np.diag(C))):.3g} times its linear one, {worst})")
+            if shift > CURVATURE_RELIABLE:
+                said += (f"; above {CURVATURE_RELIABLE:g} the second-order term outgrows the first at one std, so the "
+                         f"expansion is not the error's distribution and the std are not reliable: check them against "
+                         f"a simulation of the flight")
             warnings.warn(said, NonlinearityWarning, stacklevel=4)
             message = f"{message}; {said}"
         diag = dict(res.diagnostics)
@@ -758,7 +772,8 @@ class _Run:
                 f"their plausible size ({rho:.3g} declared magnitudes, the largest determined combination's; "
                 f"{len(R)} draws) its second order moves {int(np.sum(shift > s))} of the {m} combinations by more "
                 f"than their linear std (up to {shift[j] / s[j]:.3g} times, {shift[j]:.3g} against {s[j]:.2g} "
-                f"declared magnitudes); the std carry it")
+                f"declared magnitudes); their std include it, a second-order expansion that is not reliable this far "
+                f"beyond its linear std: check them against a simulation of the flight")
         if len(kept) < m:
             note += f", and {m - len(kept)} no longer better than their declared magnitudes are left out"
         warnings.warn(note, NonlinearityWarning, stacklevel=5)

@@ -441,6 +441,7 @@ def test_the_curvature_at_one_std_is_carried_by_the_std_and_said(misaligned_pass
     import dataclasses
 
     from casep.exceptions import NonlinearityWarning
+    from casep.workflows.imu_separate import CURVATURE_RELIABLE
 
     run, res, problem, D = misaligned_pass
     said = r"move the estimate along one combination of the coefficients by up to [0-9.e+]+ of that combination.s std"
@@ -450,6 +451,10 @@ def test_the_curvature_at_one_std_is_carried_by_the_std_and_said(misaligned_pass
     assert big > 10 * out.diagnostics["curvature"]["tol"]
     assert np.all(out.std >= res.std) and np.max(out.std / res.std) > 1.1
     assert "curved" in out.message
+    # the mean shift (the second order's bias) is part of the mean square; above CURVATURE_RELIABLE std the
+    # expansion at one std is outside its range and the message says the std are not reliable, never that they hold
+    assert 0.0 <= out.diagnostics["curvature"]["mean_shift_std"] <= big * (1 + 1e-9)
+    assert big > CURVATURE_RELIABLE and "the std are not reliable" in out.message
     small = dataclasses.replace(res, covariance=res.covariance * 1e-8, std=res.std * 1e-4)
     with warnings.catch_warnings():
         warnings.simplefilter("error", NonlinearityWarning)
