@@ -69,6 +69,7 @@ from casep.io.tables import VTEL_COLUMNS, VTRK_COLUMNS, Table, apparent_velocity
 
 __all__ = [
     "read_json_table", "read_flight", "read_flight_pair", "write_flight", "write_table", "apparent_velocity_to_force",
+    "acceleration_signals",
 ]
 
 
@@ -320,11 +321,7 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     signals = tel.signals()
     tel.strapdown_signals(signals, extra)
     if not all(f"a_{a}" in signals for a in "xyz"):
-        # the kinematic acceleration for a time-offset term: d v_tel / dt (cubic spline), exact kinematics
-        from scipy.interpolate import CubicSpline
-
-        acc = CubicSpline(t_tel, v_tel, axis=0).derivative()(t_tel)
-        signals.update({f"a_{a}": acc[:, i] for i, a in enumerate("xyz")})
+        signals.update(acceleration_signals(t_tel, v_tel))
         extra["kinematic_acceleration"] = "a_x, a_y, a_z: d v_tel / dt (cubic spline of the telemetry velocity)"
     if tracking_frame != "launch":
         extra["tracking_frame"] = {"frame": tracking_frame, "site": site.to_dict()}
@@ -443,3 +440,13 @@ def read_json_table(path: str | os.PathLike, option: str) -> dict:
         raise ValueError(f"{option} {path}: must hold a JSON object keyed by coefficient name ({{\"Kg0x\": ...}}), "
                          f"got {found}")
     return data
+
+
+def acceleration_signals(t: np.ndarray, v: np.ndarray) -> dict[str, np.ndarray]:
+    """The kinematic acceleration of a time-offset term, ``a = dv/dt`` (derivative of the cubic spline through the
+    velocity `v` at the times `t`, m/s^2): signals ``a_x, a_y, a_z``. A pass that re-navigates the telemetry takes
+    its own velocity's (the offset's row is ``a(t) dt_trk`` of the corrected trajectory, not of the raw one)."""
+    from scipy.interpolate import CubicSpline
+
+    acc = CubicSpline(np.asarray(t, float), np.asarray(v, float), axis=0).derivative()(np.asarray(t, float))
+    return {f"a_{a}": acc[:, i] for i, a in enumerate("xyz")}

@@ -164,6 +164,7 @@ class _TelemetryRun(_Run):
     def flight(self, nav: Any, D: np.ndarray, model: ErrorModel | None) -> FlightData:
         """The corrected telemetry paired with the tracking as the flight was (same grid, same rows observed), less
         the model's direct velocity terms at `D`."""
+        from casep.io.files import acceleration_signals
         from casep.io.pair import pair_flight
         from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
         from casep.rotations import quat_rotate
@@ -176,6 +177,8 @@ class _TelemetryRun(_Run):
             sig = dict(inp.signals)
             for cols, arr in ((QUATERNION_COLUMNS, nav.q), (BODY_FORCE_COLUMNS, nav.fb), (BODY_RATE_COLUMNS, nav.w)):
                 sig.update({c: arr[:, i] for i, c in enumerate(cols)})
+            if "kinematic_acceleration" in f0.meta:  # the time offset's a(t): the corrected trajectory's, not the raw
+                sig.update(acceleration_signals(inp.t_tel, nav.v))
             shift = float(f0.meta.get("pair_shift_s", 0.0))
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # the pair's warnings were said when the flight was read
