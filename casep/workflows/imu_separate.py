@@ -114,7 +114,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from casep.estimators.registry import STATUS_MAGNITUDE, STATUS_NOT_CONVERGED
+from casep.estimators.registry import STATUS_NOT_CONVERGED
 from casep.frames import LaunchSite
 from casep.navigation.imu import ImuData
 
@@ -152,6 +152,8 @@ NARROW = 10.0
 #: A combination left out whose correction exceeds this many of its std: the iteration fails (it is determined, and
 #: the model is not linear over its size); below it, the record does not determine it (said, not iterated).
 SIGNIFICANT = 4.0
+#: A covariance's eigenvalue below this fraction of its largest is its rounding (:func:`_scaled_spectrum`).
+_SPECTRUM_RTOL = 1e-10
 #: The alignment's derivative is taken with steps that turn the attitude by about this much, rad.
 _ALIGN_STEP_RAD = 1e-6
 #: The curvature over what the tracking's stretches leave undetermined: this many seeded draws, each one navigation of
@@ -532,11 +534,15 @@ class _Run:
                 passes[-1]["rejected"] = list(rejected)
             if step.beyond:
                 passes[-1]["left_out"] = [{"std": sd, "z": z, "combination": nm} for sd, z, nm in step.beyond]
+                scale = np.array([model.scales.get(nm, 1.0) for nm in res.names])
+                passes[-1]["determined"] = [{"std": sd, "weights": w.tolist(), "estimate": float(w @ ((D + step.d)
+                                                                                                     / scale))}
+                                            for sd, w in step.kept]
             if not iterate:
                 break
             if _stopped(passes[-1], tol):
                 if spec is self.spec or step.combinations is not None:  # the stretches' combinations: any fit
-                    failure = _outside_failure(step, rejected)
+                    failure = _outside_failure(step, rejected, _plausible(D + step.d, model.scales, res.names))
                     break
                 spec, last = self.spec, None  # the same linearisation, solved as requested (another map)
                 res = _quiet_fit(problem, spec)
@@ -599,9 +605,9 @@ class _Run:
         out = judge_setup(out, flight, model, noise_free=False)
         out = judge_tracking(out, flight, problem, model.scales, about=D, widen=widen)
         out.diagnostics["iterations"]["limit"] = float(self.limit) if np.isfinite(self.limit) else None
-        # what the record leaves undetermined is said also beside a failure for estimates beyond the linear model
-        said = _outside_note(passes, len(out.names)) if iterate and (out.success or out.status == STATUS_MAGNITUDE) \
-            else None
+        # what the record leaves undetermined is said with every result that has estimates, failed or not
+        said = _outside_note(passes, len(out.names), _plausible(D, model.scales, out.names)) \
+            if iterate and (out.solution is not None or np.any(np.isfinite(out.estimate))) else None
         if said:
             from casep.exceptions import NonlinearityWarning
 
@@ -657,7 +663,8 @@ class _Run:
         left_out = []
         if np.isfinite(self.limit):  # only where the passes' steps were linear: no draw beyond (determined_step)
             scale = np.array([self.model_k.scales.get(nm, 1.0) if self.model_k else 1.0 for nm in names])
-            sig, q = _scaled_spectrum(C, scale)
+            N = 0 if res.solution is None else np.asarray(res.solution.null_space).reshape(len(names), -1).shape[1]
+            sig, q = _scaled_spectrum(C, scale, problem, float(res.sigma), N)
             left_out = [_combination(names, q[:, i]) for i in np.flatnonzero(sig > self.limit)]
             qb = q[:, sig > self.limit]
             L = scale[:, None] * (L / scale[:, None] - qb @ (qb.T @ (L / scale[:, None])))
@@ -934,6 +941,8 @@ class Step:
     beyond : list of (std, z, str)
         The combinations left out by the step's `limit`: their std (declared magnitudes), correction in that std,
         name.
+    kept : list of (std, weights)
+        The combinations stepped along (when some were left out): their std and weights on ``D / scale``.
     """
 
     d: np.ndarray
@@ -943,6 +952,7 @@ class Step:
     combinations: list | None = None
     widest: float = np.inf
     beyond: list = field(default_factory=list)
+    kept: list = field(default_factory=list)
 
 
 def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scales: dict[str, float],
@@ -999,22 +1009,24 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
     C = res.covariance if res.solution is None else res.solution.covariance
     std = res.std if res.std is not None else np.full(len(names), np.nan)
     P = np.eye(len(names))
-    widest, beyond = np.inf, []
+    widest, beyond, kept = np.inf, [], []
     N = np.zeros((len(names), 0)) if res.solution is None else \
         np.asarray(res.solution.null_space, dtype=float).reshape(len(names), -1)
     if C is not None and np.all(np.isfinite(C)) and np.all(np.isfinite(x)):
-        sig, q = _scaled_spectrum(C, scale)
+        sig, q = _scaled_spectrum(C, scale, problem, float(res.sigma), N.shape[1])
         out = sig > limit
         widest = float(sig[~out].max(initial=0.0))
         zq = q.T @ (x / scale) / np.where(sig > 0, sig, np.inf)  # each combination's correction in its std
         beyond = [(float(sig[i]), float(abs(zq[i])), _combination(names, q[:, i])) for i in np.flatnonzero(out)]
+        kept = [(float(sig[i]), q[:, i]) for i in np.flatnonzero(~out & (sig > 0))] if beyond else []
         N = np.hstack([N, scale[:, None] * q[:, out]])  # left out as the null space is
+        C = _in_covariance(sig, q, scale, ~out)  # what is stepped along, without the rounding of what is not
     if res.solution is not None or beyond:
         Q, _ = np.linalg.qr(N / scale[:, None])
         x = scale * (x / scale - Q @ (Q.T @ (x / scale)))
         Qn, _ = np.linalg.qr(N)
         P = P - Qn @ Qn.T  # row j: the part of coefficient j the flight determines (P N = 0)
-    if (res.solution is None and not beyond) or C is None or not np.all(np.isfinite(P @ C @ P.T)):  # own std
+    if C is None or not np.all(np.isfinite(P @ C @ P.T)):  # own std
         with np.errstate(divide="ignore", invalid="ignore"):
             z = np.abs(x) / std
     else:
@@ -1022,31 +1034,61 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
             z = np.abs(P @ x) / np.sqrt(np.clip(np.einsum("ij,jk,ik->i", P, C, P), 0.0, None))
     zf = np.where(np.isfinite(z), z, 0.0)
     j = int(np.argmax(zf))
-    return Step(x, float(zf[j]), _combination(names, scale * P[j]), std, widest=widest, beyond=beyond)
+    return Step(x, float(zf[j]), _combination(names, scale * P[j]), std, widest=widest, beyond=beyond, kept=kept)
 
 
-def _scaled_spectrum(C: np.ndarray, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _scaled_spectrum(C: np.ndarray, scale: np.ndarray, problem: Any = None, sigma: float = np.nan,
+                     nulls: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """``(sigma, q)``: the std (declared magnitudes) and directions (columns) of the combinations ``q_i . (D /
     scale)`` whose estimates are uncorrelated: ``C / (scale scale^T) = sum_i sigma_i^2 q_i q_i^T``; the null space's
-    (``sigma_i = 0`` from a pseudo-inverse covariance) included."""
+    (``sigma_i = 0`` from a pseudo-inverse covariance, `nulls` of them) included.
+
+    A covariance holds its small eigenvalues only to its rounding, ``n eps lambda_max``: on a record that leaves
+    combinations undetermined by 1e10 declared magnitudes (a pad at rest under ``strapdown33``) the best-determined
+    combinations' variances, ~1e-20 of the largest, are rounding of either sign, read as 0 (a null direction) or as
+    hundreds of declared magnitudes. When more than `nulls` eigenvalues are below :data:`_SPECTRUM_RTOL` of the
+    largest, the spectrum is taken from the design instead (`problem`'s S_V in the declared magnitudes, whose SVD
+    ``S diag(scale) / sigma = U diag(s) V^T`` resolves the largest ``s`` to rounding: ``sigma_i = 1 / s_i``,
+    ``q_i = V_i``; `sigma` the fit's noise, m/s: the white-noise covariance of the least-squares fit, which the
+    passes far from convergence are; the `nulls` smallest ``s_i``: the fit's null space, ``sigma_i = 0``)."""
     lam, q = np.linalg.eigh(C / np.outer(scale, scale))
-    return np.sqrt(np.clip(lam, 0.0, None)), q
+    if problem is None or problem.y is None or not sigma > 0 or np.sum(lam < lam.max() * _SPECTRUM_RTOL) <= nulls:
+        return np.sqrt(np.clip(lam, 0.0, None)), q
+    S, y = problem.sv(), problem.y
+    ok = np.all(np.isfinite(y), axis=1) & np.all(np.isfinite(S), axis=(1, 2))
+    _, s, Vt = np.linalg.svd(S[ok].reshape(-1, scale.size) * scale / sigma, full_matrices=False)
+    sig = 1.0 / np.where(s > 0, s, np.nan)
+    sig[s.size - nulls:] = 0.0  # the fit's null space: its smallest
+    return np.nan_to_num(sig, nan=np.inf), Vt.T
 
 
-def _outside_note(passes: list[dict], n: int) -> str | None:
-    """What a converged iteration says of the combinations its steps left out (:func:`determined_step`'s `limit`):
-    none, or how many, their std and names, why (the last rejected step), and that their estimates are linear."""
+def _in_covariance(sig: np.ndarray, q: np.ndarray, scale: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """The covariance (natural units) of the estimate's part along the combinations `keep` of the spectrum ``(sig,
+    q)`` (:func:`_scaled_spectrum`): ``scale q_k diag(sig_k^2) q_k^T scale``, without the rounding the combinations
+    left out would add (``sig`` up to 1e10 declared magnitudes: ``eps sig^2`` is larger than a kept one's variance)."""
+    B = scale[:, None] * q[:, keep] * sig[keep]
+    return B @ B.T
+
+
+def _outside_note(passes: list[dict], n: int, size: float = np.inf) -> str | None:
+    """What an iteration says of the combinations its steps left out (:func:`determined_step`'s `limit`):
+    none, or how many, their std and names, why (the last rejected step), and that their estimates are linear.
+    None when one of them is determined (:func:`_outside_failure`: std within the plausible `size`, correction above
+    :data:`SIGNIFICANT` std): that is a failure, not a note."""
     left = passes[-1].get("left_out") or []
     why = [r["why"] for p in passes for r in p.get("rejected", [])]
-    if not left or not why:
+    if not left or not why or any(c["z"] > SIGNIFICANT and c["std"] <= size for c in left):
         return None
     sd = sorted(c["std"] for c in left)
+    near = [c["z"] for c in left if c["std"] <= size]
     names = "; ".join(c["combination"] for c in sorted(left, key=lambda c: c["std"])[:3])
     return (f"the record determines {n - len(left)} of {n} combinations of the coefficients well enough to iterate; a "
             f"step along the other {len(left)} (std {sd[0]:.3g} to {sd[-1]:.3g} declared magnitudes: {names}"
-            f"{'; ...' if len(left) > 3 else ''}) leaves the linear model ({why[-1]}), and their corrections are "
-            f"noise (at most {max(c['z'] for c in left):.2g} std): the record does not determine them. Their estimates "
-            "are the last linear pass's, their std linear (not checked for curvature)")
+            f"{'; ...' if len(left) > 3 else ''}) leaves the linear model ({why[-1]}), and "
+            + (f"their corrections are noise (at most {max(near):.2g} std) or " if near else "")
+            + f"their std exceed the coefficients' plausible size ({size:.3g} declared magnitudes): the record does "
+            "not determine them. Their estimates are the last linear pass's, their std linear (not checked for "
+            "curvature)")
 
 
 def _rms(y: np.ndarray | None) -> float:
@@ -1056,16 +1098,30 @@ def _rms(y: np.ndarray | None) -> float:
     return float(np.sqrt(np.mean(y * y))) if y.size else 0.0
 
 
-def _outside_failure(step: Step, rejected: list[dict]) -> str | None:
+def _outside_failure(step: Step, rejected: list[dict], size: float = np.inf) -> str | None:
     """Why a converged iteration fails: a combination left out of the step (:func:`determined_step`'s `limit`,
     set by a rejected step: `rejected`) whose correction is above :data:`SIGNIFICANT` std. The record determines it,
-    and the model is not linear over its size: the errors are too large (None when every one left out is below)."""
-    big = [(sd, z, nm) for sd, z, nm in step.beyond if z > SIGNIFICANT]
+    and the model is not linear over its size: the errors are too large (None when every one left out is below).
+    One whose std exceeds the coefficients' plausible `size` (declared magnitudes, :func:`_plausible`) is not
+    determined whatever its correction (the rule of :func:`casep.checks.tracking_quality.determined`): on a pad at
+    rest under ``strapdown33`` such combinations have std of 1e6 declared magnitudes, and their corrections in the
+    white-noise std of the design (:func:`_scaled_spectrum`) say nothing of the instrument."""
+    big = [(sd, z, nm) for sd, z, nm in step.beyond if z > SIGNIFICANT and sd <= size]
     if not big:
         return None
     sd, z, nm = max(big, key=lambda b: b[1])
     return (f"failed: the correction of {nm} is {z:.3g} of its std ({sd:.3g} declared magnitudes), but a step along "
             f"it leaves the linear model ({rejected[-1]['why'] if rejected else 'rejected'}): " + _BLAME)
+
+
+def _plausible(D: np.ndarray, scales: dict[str, float], names: Any) -> float:
+    """The size (declared magnitudes) a coefficient combination plausibly has, from the estimate `D` the passes
+    stepped to (natural units; along the combinations they determine only):
+    :func:`casep.checks.tracking_quality.plausible_size` of its coefficients."""
+    from casep.checks.tracking_quality import plausible_size
+
+    scale = np.array([scales.get(nm, 1.0) for nm in names], dtype=float)[:D.size]
+    return plausible_size([{"estimate": float(v)} for v in D / scale if np.isfinite(v)])
 
 
 def _combination(names: list[str], w: np.ndarray, top: int = 3) -> str:
