@@ -98,10 +98,18 @@ step along what the pad does not determine is noise of 1e3-1e10 declared magnitu
 an accelerometer bias of several g), which the next pass cannot invert; the MEMS flights of the tests never reject
 a step (the residual's RMS after a step at most 3.2 times what it was: 38 steps of ``benchmarks/mc_imu_iterate.py
 --runs 4``).
+The combinations and their std come from the fit's covariance, or from the design when the covariance holds them only
+to its rounding (:func:`_scaled_spectrum`): on a pad at rest under ``strapdown33`` the best-determined combinations'
+variances are 1e-20 of the largest, read from the covariance as 0 (a null direction, stepped along unjudged) or as
+hundreds of declared magnitudes; the reviewer's 60 s pad record wandered for 17 passes (corrections of 65-93 std)
+and failed on the levelling, and with the spectrum of the design converges in 5 passes along the 4 combinations it
+determines.
 What is left out is judged when the passes converge: a combination whose correction is above :data:`SIGNIFICANT`
-std is determined but not linear over its size (failed); below, the record does not determine it, and a
-:class:`~casep.exceptions.NonlinearityWarning` says how many combinations it determines and which it does not
-(their estimates are one linear pass's, their std linear).
+std and whose std is within the coefficients' plausible size (:func:`_plausible`) is determined but not linear over
+its size (failed); otherwise the record does not determine it, and a :class:`~casep.exceptions.NonlinearityWarning`
+says how many combinations it determines and which it does not (their estimates are one linear pass's, their std
+linear), with any result that has a solution, failed or not; ``diagnostics["iterations"]["passes"][-1]["determined"]``
+lists the combinations stepped along (std, weights on ``D / scale``, estimate).
 """
 
 from __future__ import annotations
