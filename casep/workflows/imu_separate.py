@@ -115,6 +115,7 @@ lists the combinations stepped along (std, weights on ``D / scale``, estimate).
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import warnings
 from dataclasses import dataclass, field
@@ -1058,7 +1059,10 @@ def _scaled_spectrum(C: np.ndarray, scale: np.ndarray, problem: Any = None, sigm
     largest, the spectrum is taken from the design instead (`problem`'s S_V in the declared magnitudes, whose SVD
     ``S diag(scale) / sigma = U diag(s) V^T`` resolves the largest ``s`` to rounding: ``sigma_i = 1 / s_i``,
     ``q_i = V_i``; `sigma` the fit's noise, m/s: the white-noise covariance of the least-squares fit, which the
-    passes far from convergence are; the `nulls` smallest ``s_i``: the fit's null space, ``sigma_i = 0``)."""
+    passes far from convergence are; the `nulls` smallest ``s_i``: the fit's null space, ``sigma_i = 0``), times
+    ``sqrt(k)``, ``k >= 1`` the median over the combinations the covariance does resolve of ``q_i^T C q_i /
+    sigma_i^2``: a fit under correlated noise (Gauss-Markov tracking) has std that many times the white ones, 1 for
+    the white least-squares fit."""
     lam, q = np.linalg.eigh(C / np.outer(scale, scale))
     if problem is None or problem.y is None or not sigma > 0 or np.sum(lam < lam.max() * _SPECTRUM_RTOL) <= nulls:
         return np.sqrt(np.clip(lam, 0.0, None)), q
@@ -1067,7 +1071,11 @@ def _scaled_spectrum(C: np.ndarray, scale: np.ndarray, problem: Any = None, sigm
     _, s, Vt = np.linalg.svd(S[ok].reshape(-1, scale.size) * scale / sigma, full_matrices=False)
     sig = 1.0 / np.where(s > 0, s, np.nan)
     sig[s.size - nulls:] = 0.0  # the fit's null space: its smallest
-    return np.nan_to_num(sig, nan=np.inf), Vt.T
+    sig, q = np.nan_to_num(sig, nan=np.inf), Vt.T
+    # the fit's noise model (correlated noise: std above the white ones), where the covariance resolves it
+    seen = np.isfinite(sig) & (sig**2 > lam.max() * _SPECTRUM_RTOL)
+    ratio = np.einsum("ji,jk,ki->i", q[:, seen], C / np.outer(scale, scale), q[:, seen]) / sig[seen] ** 2
+    return sig * math.sqrt(max(1.0, float(np.median(ratio)) if ratio.size else 1.0)), q
 
 
 def _in_covariance(sig: np.ndarray, q: np.ndarray, scale: np.ndarray, keep: np.ndarray) -> np.ndarray:

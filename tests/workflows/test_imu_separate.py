@@ -517,19 +517,19 @@ def test_a_determined_combination_left_out_of_the_steps_fails_the_iteration():
     assert _outside_failure(Step(np.zeros(2), 0.0, "", np.ones(2), beyond=[(50.0, 0.7, "sg_z")]), why) is None
 
 
-PAD_ALIGN = (0.0, 4.0)
+PAD_ALIGN = (0.0, 3.0)
 
 
 @pytest.fixture(scope="module")
 def pad_only(tmp_path_factory):
-    """12 s at rest on the pad at 20 Hz (white noise 1e-3 m/s^2, 1e-5 rad/s), cut before lift-off, ``strapdown33``
+    """9 s at rest on the pad at 20 Hz (white noise 1e-3 m/s^2, 1e-5 rad/s), cut before lift-off, ``strapdown33``
     errors drawn at their declared magnitudes (seeded), tracking at 5 Hz with white noise (0.05 m/s; the passes'
     std of what the record determines are white-noise std, :func:`casep.workflows.imu_separate._scaled_spectrum`):
     (imu, tracking, site, truth in declared magnitudes by name, model)."""
     import dataclasses
 
-    site = dataclasses.replace(SITE, t0=15.0)
-    t = np.arange(0.0, 12.0, 0.05)
+    site = dataclasses.replace(SITE, t0=12.0)
+    t = np.arange(0.0, 9.0, 0.05)
     g_t = site.C.T @ normal_gravity_ecef(site.r_site)
     w = np.tile(C_TB.T @ site.earth_rate, (t.size, 1))
     f = np.tile(C_TB.T @ -g_t, (t.size, 1))
