@@ -29,11 +29,20 @@ telemetry's ``r_tel_*`` (else ``v_tel`` integrated from the origin: the gradient
 distance). It needs the launch site that ties the telemetry's frame to the Earth (:func:`telemetry_gravitation`:
 ``casep navigate``'s header, else the site given with Earth-fixed tracking); without one the telemetry's
 gravitation is taken uniform (the term left out).
-That is what a pass of the raw-IMU
-iteration (:mod:`casep.workflows.imu_separate`) navigates; :class:`_TelemetryRun` is that iteration with this
-re-navigation in place of the pad alignment and the navigation (the passes, the stop rule, the exact S_V of
-:func:`casep.model.strapdown.correction_errors`, the IMU's noise in the std and the curvature check at one
-std are the raw-IMU path's, called, not copied).
+
+That is what a pass of the raw-IMU iteration (:mod:`casep.workflows.imu_separate`) navigates; :class:`_TelemetryRun`
+is that iteration with this re-navigation in place of the pad alignment and the navigation (the passes, the stop
+rule, the exact S_V of :func:`casep.model.strapdown.correction_errors` and the curvature check at one std are the
+raw-IMU path's, called, not copied).
+
+**The INS's sensor noise.** ``v_tel`` holds the velocity and attitude random walks the INS integrated from its noisy
+sensors, which the tracking noise model does not describe; a pass's std carry them as the raw-IMU path's do
+(:meth:`_TelemetryRun.with_noise`: :func:`casep.workflows.imu_separate.with_imu_noise`, the densities measured on
+the telemetered record, the tracking noise refitted beside them). On 8 seeded 30 s MEMS boosts (0.02 m/s
+tracking at 10 Hz, IMU white noise 2e-3 m/s^2 and 1e-4 rad/s per 100 Hz sample, integrated by ``casep
+navigate``) the 128 z had RMS 1.09 and 95 % coverage 0.90 without the term, 0.74 and 0.99 with it (it raised the
+std by up to 2x); the same generator with a noise-free IMU gave 0.77 and 0.99. A linear result that stands (no
+iteration) keeps the tracking noise's std: the term is the iteration's, for errors large enough to iterate.
 
 **Rates the INS did not integrate.** The correction is the relative rotation ``B_r^T B_c`` of two integrations of
 the telemetered rates, so it assumes they are the rates the INS integrated (a real INS's telemetry). Noise added
@@ -262,9 +271,12 @@ class _TelemetryRun(_Run):
         return m
 
     def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
-        """`res` as it is: the std of the telemetry path are the tracking noise's, iterated or not (the linear
-        result's rule, so that a flight on either side of the remainder rule is judged alike)."""
-        return res
+        """`res` with the INS's own sensor noise in its std (:func:`casep.workflows.imu_separate.with_imu_noise`: the
+        velocity and attitude random walks the INS integrated into ``v_tel``, measured on the telemetered record,
+        the tracking noise refitted beside them; module notes)."""
+        from casep.workflows.imu_separate import with_imu_noise
+
+        return with_imu_noise(res, problem, flight)
 
     def gap_clause(self, sigma: float) -> str:
         """No raw record with gaps of its own: a failed iteration names none."""
