@@ -34,12 +34,7 @@ def run(args: argparse.Namespace) -> int:
     site = inputs.launch_site(args.launch_site, args.launch_time)
     res = navigate(read_imu(args.imu, **ranges), site, tuple(args.align), heading_deg=args.heading,
                    heading_axis=args.heading_axis)
-    lat, lon, h, az = args.launch_site
-    comments = [f"casep navigate {args.imu}: strapdown telemetry, launch-inertial frame",
-                f"launch site {lat:g} {lon:g} {h:g} azimuth {az:g} deg, launch time {args.launch_time:g} s",
-                "q: Hamilton, scalar first, body -> launch-inertial; SI units"] + \
-        (["ins_valid: 0 from the first clipped IMU sample on (not trusted)"] if res.invalid_from() is not None else [])
-    write_table(args.output, res.columns(), comments=comments)
+    write_table(args.output, res.columns(), comments=res.comments(args.imu))
     if args.json:
         outputs.write_json(res.to_dict(), args.json)
     print(res.text())

@@ -78,18 +78,12 @@ R_TEL_COLUMNS = ("r_tel_x", "r_tel_y", "r_tel_z")  # launch-inertial position (c
 _NAV_SITE = re.compile(r"^#\s*launch site (\S+) (\S+) (\S+) azimuth (\S+) deg, launch time (\S+) s")
 
 
-def start_speed(tab: Table, t: np.ndarray, v_tel: np.ndarray) -> float:
-    """The telemetry speed at the first sample relative to the Earth, m/s (the late-start check's
-    ``start_speed_m_s``, :func:`casep.checks.late_start.late_start_evidence`).
-
-    A telemetry in the launch-inertial frame (``casep navigate``'s output: its header names the frame
-    and the launch site, and it has the position ``r_tel_*``) carries the pad's own velocity from the
-    Earth's rotation (up to 465 m/s): the speed is then that of :func:`casep.frames.launch_to_ecef`,
-    ``|v_ECEF(t_0)|``; otherwise ``|v_tel(t_0)|`` (a frame with the pad at rest).
-    """
-    speed = float(np.linalg.norm(v_tel[0]))
+def navigation_site(tab: Table):
+    """The launch site of a telemetry in the launch-inertial frame (``casep navigate``'s output: its header names the
+    frame and the launch site, and it has the position ``r_tel_*``), a :class:`casep.frames.LaunchSite` whose ``t0``
+    is in the telemetry's time scale; None for any other table (no such header, Parquet, no ``r_tel_*``)."""
     if not tab.path.is_file() or is_parquet(tab.path) or not all(c in tab.columns for c in R_TEL_COLUMNS):
-        return speed
+        return None
     site, inertial = None, False
     with open(tab.path, encoding="utf-8", errors="replace") as fh:
         for line in fh:
@@ -98,14 +92,29 @@ def start_speed(tab: Table, t: np.ndarray, v_tel: np.ndarray) -> float:
             inertial |= "launch-inertial frame" in line
             site = _NAV_SITE.match(line) or site
     if site is None or not inertial:
-        return speed
-    from casep.frames import LaunchSite, launch_to_ecef
+        return None
+    from casep.frames import LaunchSite
 
     try:
         lat, lon, h, az, t0 = (float(g) for g in site.groups())
-        ls = LaunchSite(lat, lon, h, az, t0)
+        return LaunchSite(lat, lon, h, az, t0)
     except ValueError:
-        return speed
+        return None
+
+
+def start_speed(tab: Table, t: np.ndarray, v_tel: np.ndarray) -> float:
+    """The telemetry speed at the first sample relative to the Earth, m/s (the late-start check's
+    ``start_speed_m_s``, :func:`casep.checks.late_start.late_start_evidence`).
+
+    A telemetry in the launch-inertial frame (:func:`navigation_site`) carries the pad's own velocity from the
+    Earth's rotation (up to 465 m/s): the speed is then that of :func:`casep.frames.launch_to_ecef`,
+    ``|v_ECEF(t_0)|``; otherwise ``|v_tel(t_0)|`` (a frame with the pad at rest).
+    """
+    ls = navigation_site(tab)
+    if ls is None:
+        return float(np.linalg.norm(v_tel[0]))
+    from casep.frames import launch_to_ecef
+
     _, v_e = launch_to_ecef(ls, t[:1], tab.vectors(R_TEL_COLUMNS)[:1], v_tel[:1])
     return float(np.linalg.norm(v_e[0]))
 
@@ -283,8 +292,9 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
         S_V is integrated from the first telemetry sample, so the instrument errors before tracking
         starts are kept. dv is observed (``observed``) at the tracking times (or at the telemetry
         samples inside the tracking span) and NaN elsewhere. ``meta`` records the grid, the spans
-        (s), the samples before tracking (``unobserved``) and after it (``telemetry_dropped``), and
-        the telemetry speed at the first sample (``start_speed_m_s``).
+        (s), the samples before tracking (``unobserved``) and after it (``telemetry_dropped``),
+        the telemetry speed at the first sample (``start_speed_m_s``) and, for ``casep navigate``'s
+        telemetry, the launch site its header names (``telemetry_site``, :func:`navigation_site`).
     """
     if interpolation not in ("cubic", "linear"):
         raise ValueError(f"`interpolation` must be 'cubic' or 'linear', got {interpolation!r}")
@@ -330,6 +340,9 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
                          meta={"force": force_from, "telemetry": tel.src, "tracking": trk.src, **extra})
     flight.meta["rows_file"] = str(trk.path if flight.meta.get("rows_side") == "tracking" else tel.path)
     flight.meta["start_speed_m_s"] = start_speed(tel, t_tel, v_tel)
+    nav_site = navigation_site(tel)
+    if nav_site is not None:  # the telemetry's own frame (its gravitation: casep.workflows.telemetry_iterate)
+        flight.meta["telemetry_site"] = nav_site.to_dict()
     if shift_scale:
         flight.meta["time_shift_s"] = shift_scale
     if r_ecef is not None and v_ecef is not None:  # Earth-fixed tracking; the late-start check: speed relative

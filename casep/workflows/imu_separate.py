@@ -1246,7 +1246,8 @@ def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu:
     how = ("the tracking noise model fitted again by REML with the IMU's noise a known term (its random walks and "
            "the levelling tilt as a linear state), Cov(x) = A Sigma_track A^T + (A G)(A G)^T" if refit is not None
            else "Cov(x) = fit covariance + (A G)(A G)^T (a white noise model: the solver's sigma)")
-    return {"source": "measured on the record: the scatter of consecutive samples (MAD / sqrt 2), per sample",
+    return {"source": "measured on the record: the scatter of second differences of consecutive samples "
+                      "(MAD / sqrt 6), per sample",
             "accelerometer_m_s2": [float(v) for v in s[:3]], "gyro_rad_s": [float(v) for v in s[3:]],
             "sample_step_s": h, "vrw_m_s_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[:3]],
             "arw_rad_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[3:]],

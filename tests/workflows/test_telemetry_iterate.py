@@ -7,6 +7,7 @@ casep's), with MEMS-grade gyro biases (600-1000 deg/h: the attitude is off by ~1
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -80,8 +81,9 @@ def test_noise_free_mems_flight_is_iterated_to_the_truth(noise_free, model):
 
 def test_noisy_mems_flights_iterated_with_honest_std(tmp_path_factory, model):
     """Seeded 20 s flights, white tracking noise 0.02 m/s, fitted as white: iterated, every coefficient within 4 std,
-    RMS z of the 24 (two flights) in [0.5, 1.6]; ``benchmarks/mc_telemetry_iterate.py`` runs more flights for the
-    figures."""
+    RMS z of the 24 (two flights) in [0.5, 1.6], the INS's noise term in the std (what the record's second
+    differences read: motion only, this IMU is noise-free); ``benchmarks/mc_telemetry_iterate.py`` runs more flights
+    for the figures."""
     z = []
     for seed in (11, 12):
         flight, D, *_ = _pair(tmp_path_factory, f"mems{seed}", 20.0, seed=seed, errors=MEMS, imu_noise=False)
@@ -89,6 +91,7 @@ def test_noisy_mems_flights_iterated_with_honest_std(tmp_path_factory, model):
             warnings.simplefilter("ignore")  # the estimates are 100s of their declared (navigation-grade) magnitudes
             res = casep.separate(flight, model, noise="white", robust="none")
         assert res.success and res.diagnostics["linearisation"]["iterated"], res.message
+        assert res.diagnostics["noise"]["imu"]["std_factor_max"] >= 1.0  # the INS's noise term (here: motion only)
         z.extend((res.estimate - np.array([D[n] for n in model.names])) / res.std)
     z = np.array(z)
     assert np.abs(z).max() < 4.0 and 0.5 <= math.sqrt(np.mean(z**2)) <= 1.6, z.round(2)
@@ -124,8 +127,9 @@ def test_cli_no_iterate_on_telemetry_fails_the_curved_linear_pass(noise_free, ca
 def test_earth_fixed_tracking_is_judged_as_the_launch_frame_one(noise_free, model, tmp_path):
     """The MEMS flight's tracking written in ECEF (casep's own conversion, the pad's inertial velocity added to
     telemetry and tracking alike so that the pad is at rest on the Earth) and read with ``tracking_frame="ecef"``:
-    the remainder is judged as on the launch-frame tracking (both with ``dt_trk``: the same shift to 1e-6 relative,
-    above the tolerance), and the linear pass kept (``iterate=False``) is said and failed, not a plain success."""
+    the remainder is judged as on the launch-frame tracking (both with ``dt_trk`` and the site's gravitation, which
+    the launch-frame pair is given as a ``casep navigate`` header would: the same shift to 1e-6 relative, above the
+    tolerance), and the linear pass kept (``iterate=False``) is said and failed, not a plain success."""
     from casep.estimators.registry import STATUS_MISFIT
     from casep.exceptions import NonlinearityWarning
     from casep.frames import LaunchSite, launch_to_ecef
@@ -143,8 +147,9 @@ def test_earth_fixed_tracking_is_judged_as_the_launch_frame_one(noise_free, mode
                                       **{f"v_ecef_{a}": v_e[:, i] for i, a in enumerate("xyz")}})
     earth = casep.read_flight_pair(tmp_path / "tel.csv", tmp_path / "trk.csv", tracking_frame="ecef", site=site)
     assert "state_from" in earth.meta
+    launch = dataclasses.replace(flight, meta={**flight.meta, "telemetry_site": site.to_dict()})
     got = {}
-    for name, fl in (("launch", flight), ("ecef", earth)):
+    for name, fl in (("launch", launch), ("ecef", earth)):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")  # noise-free: conditioning and magnitude warnings besides
             got[name] = casep.separate(fl, model, method="ols", noise="white", robust="none", sigma=0.1,
@@ -176,3 +181,75 @@ def test_the_time_offset_term_of_a_pass_takes_the_corrected_trajectorys_accelera
     crlb = np.array([res.diagnostics["crlb_std"][n] for n in names])
     err = np.abs(res.estimate - np.append(truth, 20.0 if res.estimate[-1] > 0 else -20.0)) / crlb
     assert names[-1] == "dt_trk" and err.max() <= 0.05, dict(zip(names, err.round(4)))
+
+
+@pytest.fixture(scope="module")
+def launch_frame_ins():
+    """A 20 s boost at 20 Hz in the launch-inertial frame of a site, navigated by casep's navigator from a given
+    state twice: the clean record (the truth) and the record with ``MEMS`` (the model's own forward law,
+    :func:`casep.model.strapdown.body_errors`), the INS 31 m off after 20 s. Gravitation: the site's
+    (:func:`casep.navigation.strapdown.launch_gravitation`), evaluated by each navigation at its own position."""
+    from scipy.spatial.transform import Rotation
+
+    from casep.frames import LaunchSite, ecef_to_launch
+    from casep.model.strapdown import body_errors
+    from casep.navigation import ImuData, check_imu
+    from casep.navigation.navigator import navigate_from
+
+    site = LaunchSite(67.89, 21.1, 330.0, 30.0, 0.0)
+    t = np.arange(0.0, 20.0 + 1e-9, 0.05)
+    f = np.column_stack([30.0 + 15.0 * np.sin(0.4 * t), 2.0 * np.sin(0.7 * t), 1.5 * np.cos(0.45 * t)])
+    w = np.column_stack([np.minimum(t / 3.0, 1.0) * np.cos(0.2 * t), -0.02 + 0.1 * np.sin(0.5 * t),
+                         0.08 * np.sin(0.3 * t)])
+    q0 = Rotation.from_euler("zx", [80.0, 10.0], degrees=True).as_quat()[[3, 0, 1, 2]]
+    r0, v0 = ecef_to_launch(site, t[:1], site.r_site[None, :], np.zeros((1, 3)))  # on the pad at t0
+    clean = navigate_from(check_imu(ImuData(t, w, f)), site, q0, r0[0], v0[0])
+    model = casep.load_model("strapdown12")
+    D = np.array([MEMS[n] for n in model.names])
+    df, dw = body_errors(model, clean.q, f, w, t, D)
+    ins = navigate_from(check_imu(ImuData(t, w + dw, f + df)), site, q0, r0[0], v0[0])
+    return site, clean, ins, model, D
+
+
+def test_corrected_telemetry_carries_the_gravitation_along_the_corrected_path(launch_frame_ins):
+    """The INS's record corrected at the true coefficients re-navigates onto the clean navigation to rounding (1e-9
+    m/s; ~5e-13 measured: the same mechanisation, the gravitation difference integrated by the navigator's own rule
+    along the corrected position). Without the term (the gravitation kept at the INS's position, 31 m off) it is
+    5e-4 m/s off: first order in the position error, ``int Gamma (r_c - r_tel) dt``; with ``r_tel`` integrated from
+    ``v_tel`` instead of given, within 1e-7 m/s of the given one (the gradient barely changes over the distance)."""
+    from casep.navigation.strapdown import launch_gravitation
+    from casep.workflows.telemetry_iterate import corrected_telemetry
+
+    site, clean, ins, model, D = launch_frame_ins
+    G = launch_gravitation(site)
+    args = (model, ins.t, ins.q, ins.fb, ins.w, ins.v, D)
+    assert np.abs(ins.r - clean.r).max() > 30.0 and np.abs(ins.v - clean.v).max() > 3.0
+    exact = corrected_telemetry(*args, gravity=G, r=ins.r)
+    assert np.abs(exact.v - clean.v).max() < 1e-9, np.abs(exact.v - clean.v).max()
+    assert np.abs(corrected_telemetry(*args).v - clean.v).max() > 2e-4  # the term left out
+    assert np.abs(corrected_telemetry(*args, gravity=G).v - exact.v).max() < 1e-7
+
+
+def test_a_navigated_telemetry_pass_takes_its_sites_gravitation(launch_frame_ins, tmp_path):
+    """The INS written as ``casep navigate`` writes it (header with the site, ``r_tel_*``) and read as a pair: its
+    site in ``meta["telemetry_site"]``, and a pass of the iteration at the true coefficients gives the clean
+    navigation to 1e-9 m/s. The site of Earth-fixed tracking, its launch time in the tracking's scale, serves
+    (``time_shift_s``) when the telemetry names none; with no site, no gravitation (None)."""
+    from casep.estimators.spec import FitSpec
+    from casep.navigation.strapdown import launch_gravitation
+    from casep.workflows.telemetry_iterate import _TelemetryRun, telemetry_gravitation
+
+    site, clean, ins, model, D = launch_frame_ins
+    write_table(tmp_path / "tel.csv", ins.columns(), comments=ins.comments("imu.csv"))
+    k = slice(None, None, 4)
+    write_table(tmp_path / "trk.csv", {"t": clean.t[k], **{f"v_trk_{a}": clean.v[k, i] for i, a in enumerate("xyz")}})
+    flight = casep.read_flight_pair(tmp_path / "tel.csv", tmp_path / "trk.csv")
+    assert flight.meta["telemetry_site"] == site.to_dict()
+    run = _TelemetryRun(flight, model, "strapdown12", FitSpec.build("ols", noise="white", robust="none"), False)
+    assert np.abs(run.navigate(D).v - clean.v).max() < 1e-9
+    r = ins.r[::50]
+    shifted = {"tracking_frame": {"site": {**site.to_dict(), "t0": 100.0}}, "time_shift_s": 100.0}
+    G = telemetry_gravitation(dataclasses.replace(flight, meta=shifted))
+    assert G is not None and np.allclose(G(ins.t[::50], r), launch_gravitation(site)(ins.t[::50], r), rtol=0,
+                                         atol=1e-12)
+    assert telemetry_gravitation(dataclasses.replace(flight, meta={})) is None
