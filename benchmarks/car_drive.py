@@ -220,7 +220,7 @@ def _clock_trend(windows) -> None:
 
 def main() -> None:
     from casep.frames import LaunchSite
-    from casep.navigation.imu import read_imu
+    from casep.navigation.imu import read_imu, regular_time
     from casep.workflows.windows import separate_windows, window_consistency
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -233,6 +233,8 @@ def main() -> None:
     ap.add_argument("--noise", default=None, help="casep's --noise for every window (default: its default path)")
     ap.add_argument("--write-cut", default=None, help="write the converted cut here and stop")
     ap.add_argument("--cut", type=float, nargs=2, default=(0.0, 70.0))
+    ap.add_argument("--imu-time", choices=("tags", "uniform"), default="tags",
+                    help="IMU times: the logger's tags, or the uniform grid they jitter about (regular_time)")
     ap.add_argument("--velocity", choices=("rtklib", "positions"), default="rtklib",
                     help="tracked velocity: RTKLIB's filter state, or differenced RTK positions")
     args = ap.parse_args()
@@ -250,6 +252,14 @@ def main() -> None:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         imu = read_imu(imu_path)
+        if args.imu_time == "uniform":
+            grid = regular_time(imu.t)
+            if grid is None:
+                raise SystemExit("--imu-time uniform: the IMU's tags are not a jittered uniform grid")
+            print(f"IMU tags about their uniform grid: RMS {np.std(imu.t - grid) * 1e3:.2f} ms, largest "
+                  f"{np.max(np.abs(imu.t - grid)) * 1e3:.2f} ms; steps {np.min(np.diff(imu.t)) * 1e3:.1f}-"
+                  f"{np.max(np.diff(imu.t)) * 1e3:.1f} ms, grid step {np.mean(np.diff(grid)) * 1e3:.4f} ms")
+            imu.t = grid
         imu.t = imu.t + args.imu_shift
         import pandas as pd
 
