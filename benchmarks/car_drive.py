@@ -109,10 +109,14 @@ def course_rate_ratio(imu, trk, pad: tuple[float, float]) -> float:
     return float(np.sum(w * rate[use]) / np.sum(w * w))
 
 
-def spans_at_rest(trk, speed: float = 0.05, least: float = 5.0, trim: float = 1.0) -> list[tuple[float, float]]:
-    """Spans where the tracked speed stays below `speed` (m/s) for more than `least` s, `trim` s cut off each end."""
-    still = np.hypot(trk.v_east.to_numpy(), trk.v_north.to_numpy()) < speed
-    t = trk.t.to_numpy()
+def spans_at_rest(t: np.ndarray, ve: np.ndarray, vn: np.ndarray, speed: float = 0.05, least: float = 5.0,
+                  trim: float = 1.0) -> list[tuple[float, float]]:
+    """Spans where the speed stays below `speed` (m/s) for more than `least` s, `trim` s cut off each end.
+
+    Judged on RTKLIB's filter velocity, whatever velocity the windows use: its lag (0.14 s) is far
+    below the trim, and the differenced positions are too noisy for a 0.05 m/s threshold.
+    """
+    still = np.hypot(ve, vn) < speed
     edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
     spans = [(float(t[a]) + trim, float(t[b - 1]) - trim) for a, b in zip(edges[::2], edges[1::2])]
     return [(a, b) for a, b in spans if b - a > least - 2 * trim]
@@ -306,7 +310,8 @@ def main() -> None:
         print(f"  {what}: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, weighted mean "
               + ", ".join(f"{v:.2f}" for v in cc["weighted_mean"]))
     _clock_trend(res.windows)
-    rest = spans_at_rest(trk)
+    pos = read_rtklib_pos(os.path.join(args.data, "gnss_1934_sf.pos"))
+    rest = spans_at_rest(pos["t"] - t_ref, pos["ve"], pos["vn"])
     if len(rest) > 1:
         inst = print_rest(imu, rest)
         cc = window_consistency(res.windows, res.names, instability=inst)

@@ -10,12 +10,16 @@ Each check is a measurement independent of the windows' chi-square it is meant t
     RTKLIB's velocity (a Kalman-filter state) against the velocity differenced from its RTK
     positions, ``(r_{k+1} - r_k) / h`` at the mid-time: the lag of the filter velocity that
     minimises the difference, and the RMS difference with and without it.
+``tags``
+    The IMU's time tags against the uniform grid they jitter about (:func:`casep.navigation.imu.regular_time`),
+    and what integrating on the tags instead of the grid does to a window's velocity (the same samples,
+    the same start).
 ``static``
     The gyro biases where the car stands still (the start, 201-208 s, the end): their mean rates, with
     the Allan deviation (allantools) at a third of the span as the std of each mean. How much the
     biases move over the drive, measured without any window.
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/car_drive_causes.py nav rtk static --figures docs/results/figures
+    OPENBLAS_NUM_THREADS=1 python benchmarks/car_drive_causes.py nav rtk static tags --figures docs/results/figures
 """
 
 from __future__ import annotations
@@ -133,6 +137,63 @@ def check_rtk(data):
     return lags, tot
 
 
+def check_tags(imu, starts, length, outdir=None):
+    """Tags minus grid, and the velocity of casep's navigation on the tags minus on the grid, per window."""
+    from casep.frames import LaunchSite
+    from casep.navigation.imu import ImuData, regular_time
+    from casep.navigation.navigator import navigate_from
+
+    grid = regular_time(imu.t)
+    if grid is None:
+        print("  the tags are not a jittered uniform grid")
+        return
+    e = imu.t - grid
+    h = np.diff(imu.t)
+    print(f"  tags - grid: RMS {e.std() * 1e3:.2f} ms, largest {np.abs(e).max() * 1e3:.2f} ms; steps "
+          f"{h.min() * 1e3:.1f}-{h.max() * 1e3:.1f} ms ({np.mean(np.abs(h - np.median(h)) > 5e-4) * 100:.0f} % off "
+          f"the median), grid step {np.mean(np.diff(grid)) * 1e3:.4f} ms")
+    from casep.frames import ecef_to_launch
+    from casep.navigation.strapdown import launch_gravitation, quat_from_rotvec
+
+    site = LaunchSite(0.0, 0.0, 0.0, 0.0, 0.0)
+    r0, v0 = ecef_to_launch(site, np.zeros(1), site.r_site[None, :], np.zeros((1, 3)))
+    curves = []
+    for t_a in starts:
+        vs = []
+        sel = (imu.t >= t_a) & (imu.t <= t_a + length)
+        f0 = imu.f[sel][:100].mean(axis=0)  # levelled on the first second: body f0 turned onto the local up
+        up = -launch_gravitation(site)(np.zeros(1), r0)[0]
+        axis = np.cross(f0, up)
+        angle = math.atan2(np.linalg.norm(axis), float(f0 @ up))
+        q0 = quat_from_rotvec(axis / np.linalg.norm(axis) * angle)
+        for t in (imu.t, grid):
+            sub = ImuData(t[sel] - t[sel][0], imu.w[sel], imu.f[sel], source=imu.source)
+            vs.append(navigate_from(sub, site, q0, r0[0], v0[0]).v)
+        d = np.linalg.norm(vs[0] - vs[1], axis=1)
+        curves.append((t_a, d))
+        print(f"  window {t_a:6.1f} s: |v on the tags - v on the grid| RMS {np.sqrt(np.mean(d**2)):.3f} m/s, "
+              f"at the end {d[-1]:.3f} m/s")
+    if outdir:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(1, 2, figsize=(10, 3))
+        ax[0].plot(imu.t[:3000], e[:3000] * 1e3, ".", ms=2)
+        ax[0].set_xlabel("t, s")
+        ax[0].set_title("IMU time tags minus their uniform grid, ms", fontsize=9)
+        for t_a, d in curves:
+            ax[1].plot(np.arange(d.size) * float(np.mean(np.diff(grid))), d, label=f"window at {t_a:.0f} s")
+        ax[1].set_xlabel("time in the window, s")
+        ax[1].set_title("|velocity integrated on the tags - on the grid|, m/s", fontsize=9)
+        ax[1].legend(fontsize=7)
+        fig.tight_layout()
+        path = os.path.join(outdir, "car-drive-tags.png")
+        fig.savefig(path, dpi=80)
+        print("figure", path)
+
+
 def lag_figure(lags, tot, outdir: str) -> str:
     import matplotlib
 
@@ -156,24 +217,34 @@ def main() -> None:
     from casep.navigation.imu import read_imu
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("checks", nargs="+", choices=("nav", "rtk", "static"))
+    ap.add_argument("checks", nargs="+", choices=("nav", "rtk", "static", "tags"))
     ap.add_argument("--figures", default=None, help="folder for the PNG figure of the RTK velocity lag")
     ap.add_argument("--data", default=DATA)
     ap.add_argument("--out", default="car_drive_out")
+    ap.add_argument("--imu-time", choices=("tags", "uniform"), default="tags",
+                    help="nav: integrate on the IMU's tags or on their uniform grid (regular_time)")
     ap.add_argument("--starts", type=float, nargs="+", default=[66.7, 396.7, 456.7])
     args = ap.parse_args()
     if "rtk" in args.checks:
         lags, tot = check_rtk(args.data)
         if args.figures:
             print("figure", lag_figure(lags, tot, args.figures))
-    if {"nav", "static"} & set(args.checks):
+    if {"nav", "static", "tags"} & set(args.checks):
         import pandas as pd
 
-        imu_path, trk_path, _ = convert(args.data, args.out)
+        imu_path, trk_path, t_ref = convert(args.data, args.out)
         imu = read_imu(imu_path)
         trk = pd.read_csv(trk_path)
+        if args.imu_time == "uniform" and "nav" in args.checks:
+            from casep.navigation.imu import regular_time
+
+            grid = regular_time(imu.t)
+            imu.t = imu.t if grid is None else grid
+    if "tags" in args.checks:
+        check_tags(imu, args.starts, 30.0, args.figures)
     if "static" in args.checks:
-        print_rest(imu, spans_at_rest(trk))
+        pos = read_rtklib_pos(os.path.join(args.data, "gnss_1934_sf.pos"))
+        print_rest(imu, spans_at_rest(pos["t"] - t_ref, pos["ve"], pos["vn"]))
     if "nav" in args.checks:
         site = LaunchSite(float(trk.lat[0]), float(trk.lon[0]), float(trk.h[0]), 0.0, 0.0)
         moving = float(trk.t[np.hypot(trk.v_east, trk.v_north) > 0.3].iloc[0])
