@@ -177,10 +177,13 @@ def figures(res, outdir: str) -> list[str]:
     for k, (ax, n) in enumerate(zip(axes.ravel(), names)):
         x = [dict(zip(w.result.names, w.result.estimate))[n] for w in res.windows]
         s = [dict(zip(w.result.names, w.result.std))[n] for w in res.windows]
-        ax.errorbar(t, x, yerr=s, fmt="o", ms=3, capsize=2)
+        ok = np.array([bool(w.result.success) for w in res.windows])
+        ax.errorbar(t[ok], np.array(x)[ok], yerr=np.array(s)[ok], fmt="o", ms=3, capsize=2)
+        ax.plot(t[~ok], np.array(x)[~ok], "x", color="grey", label="not compared (failed)")
         ax.axhline(mean[k], color="k", lw=0.8)
         unit = res.windows[0].result.units[list(res.windows[0].result.names).index(n)]
-        ax.set_title(f"{n} ({unit}), chi2 {res.consistency['chi2_per_coefficient'][n]:.0f} / {len(t) - 1}", fontsize=9)
+        ax.set_title(f"{n} ({unit}), chi2 {res.consistency['chi2_per_coefficient'][n]:.0f} / "
+                     f"{res.consistency['used'] - 1}", fontsize=9)
     for ax in axes[1]:
         ax.set_xlabel("window start, s")
     fig.suptitle("car drive: biases per 30 s window (+- 1 std) and their weighted mean", fontsize=10)
