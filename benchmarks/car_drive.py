@@ -42,12 +42,42 @@ def read_rtklib_pos(path: str) -> dict[str, np.ndarray]:
             "vu": v[:, 15]}
 
 
-def convert(data: str, out: str, cut: tuple[float, float] | None = None) -> tuple[str, str, float]:
-    """casep's IMU file (t, w_*, fb_*) and geodetic tracking file, time from the first IMU sample."""
+def velocity_from_positions(pos: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The tracking at the mid-epochs: the mean ECEF velocity ``(r_{k+1} - r_k) / h_k`` between consecutive
+    RTK positions, turned into east, north, up at the mid-point (the mean of the two ECEF positions).
+
+    RTKLIB's velocity is a state of its Kalman filter: here it is the true velocity low-passed with a
+    time constant of about 0.14 s (``benchmarks/car_drive_causes.py rtk``), while the RTK positions are
+    tied to the carrier phase of each epoch. The differenced position is the mean velocity over the
+    interval, the velocity at the mid-time to ``jerk h^2 / 24`` (a few mm/s for a car at h = 0.25 s).
+    Only consecutive epochs at the nominal step are differenced.
+    """
+    import pymap3d as pm
+
+    x, y, z = pm.geodetic2ecef(pos["lat"], pos["lon"], pos["h"])
+    r = np.column_stack([x, y, z])
+    h = np.diff(pos["t"])
+    keep = np.abs(h - np.median(h)) < 1e-3
+    v = (np.diff(r, axis=0) / h[:, None])[keep]
+    mid = (0.5 * (r[1:] + r[:-1]))[keep]
+    lat, lon, alt = pm.ecef2geodetic(mid[:, 0], mid[:, 1], mid[:, 2])
+    ve, vn, vu = pm.ecef2enuv(v[:, 0], v[:, 1], v[:, 2], lat, lon)
+    return {"t": (0.5 * (pos["t"][1:] + pos["t"][:-1]))[keep], "lat": lat, "lon": lon, "h": alt, "ve": ve, "vn": vn,
+            "vu": vu}
+
+
+def convert(data: str, out: str, cut: tuple[float, float] | None = None,
+            velocity: str = "rtklib") -> tuple[str, str, float]:
+    """casep's IMU file (t, w_*, fb_*) and geodetic tracking file, time from the first IMU sample.
+
+    `velocity`: ``"rtklib"`` the .pos file's velocity, ``"positions"`` :func:`velocity_from_positions`.
+    """
     import pandas as pd
 
     imu = pd.read_csv(os.path.join(data, "imu_1934_gpst_raw.csv.gz")).to_numpy()
     pos = read_rtklib_pos(os.path.join(data, "gnss_1934_sf.pos"))
+    if velocity == "positions":
+        pos = velocity_from_positions(pos)
     t_ref = float(np.floor(imu[0, 0]))
     ti, tp = imu[:, 0] - t_ref, pos["t"] - t_ref
     si = np.ones(len(ti), bool) if cut is None else (ti >= cut[0]) & (ti <= cut[1])
@@ -79,6 +109,55 @@ def course_rate_ratio(imu, trk, pad: tuple[float, float]) -> float:
     return float(np.sum(w * rate[use]) / np.sum(w * w))
 
 
+def spans_at_rest(t: np.ndarray, ve: np.ndarray, vn: np.ndarray, speed: float = 0.05, least: float = 5.0,
+                  trim: float = 1.0) -> list[tuple[float, float]]:
+    """Spans where the speed stays below `speed` (m/s) for more than `least` s, `trim` s cut off each end.
+
+    Judged on RTKLIB's filter velocity, whatever velocity the windows use: its lag (0.14 s) is far
+    below the trim, and the differenced positions are too noisy for a 0.05 m/s threshold.
+    """
+    still = np.hypot(ve, vn) < speed
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(int), [0]])))
+    spans = [(float(t[a]) + trim, float(t[b - 1]) - trim) for a, b in zip(edges[::2], edges[1::2])]
+    return [(a, b) for a, b in spans if b - a > least - 2 * trim]
+
+
+def bias_instability(imu, spans) -> tuple[dict[str, float], list]:
+    """How much the biases move over the record, measured at rest: the gyro biases (deg/h) and the vertical
+    accelerometer's (|f|, mg) at each span, and as instability the RMS of their changes from the first span.
+
+    The std of each mean is the Allan deviation (allantools) at a third of its span. The horizontal
+    accelerometer biases are not seen at rest (the car stands on different slopes): no instability for them.
+    """
+    import allantools
+
+    deg_h = 180.0 / math.pi * 3600.0
+    rows = []
+    for a, b in spans:
+        m = (imu.t > a) & (imu.t < b)
+        rate = 1.0 / float(np.median(np.diff(imu.t[m])))
+        sd = [allantools.oadev(imu.w[m, c], rate=rate, data_type="freq", taus=np.array([(b - a) / 3.0]))[1][0] * deg_h
+              for c in range(3)]
+        rows.append((a, b, imu.w[m].mean(axis=0) * deg_h, np.array(sd),
+                     np.linalg.norm(imu.f[m].mean(axis=0)) / 9.80665e-3))
+    d_w = np.array([r[2] - rows[0][2] for r in rows[1:]])
+    d_f = np.array([r[4] - rows[0][4] for r in rows[1:]])
+    inst = {f"bg_{i}": float(np.sqrt(np.mean(d_w[:, k] ** 2))) for k, i in enumerate("xyz")}
+    inst["ba_z"] = float(np.sqrt(np.mean(d_f**2)))
+    return inst, rows
+
+
+def print_rest(imu, spans) -> dict[str, float]:
+    """Print :func:`bias_instability` span by span; return the instability."""
+    inst, rows = bias_instability(imu, spans)
+    for a, b, wm, sd, fm in rows:
+        print(f"  at rest {a:5.1f}-{b:5.1f} s: gyro rate " + ", ".join(f"{x:5.0f} +- {e:3.0f}" for x, e in zip(wm, sd))
+              + f" deg/h (x, y, z), |f| {fm:.1f} mg")
+    print("  bias instability measured at rest (RMS change from the first span): "
+          + ", ".join(f"{n} {v:.1f}" for n, v in inst.items()))
+    return inst
+
+
 def _rms(result) -> float:
     """RMS of a fit's residuals over its axes and samples, m/s."""
     return float(np.sqrt(np.nanmean(np.asarray(result.residuals, float) ** 2)))
@@ -98,10 +177,13 @@ def figures(res, outdir: str) -> list[str]:
     for k, (ax, n) in enumerate(zip(axes.ravel(), names)):
         x = [dict(zip(w.result.names, w.result.estimate))[n] for w in res.windows]
         s = [dict(zip(w.result.names, w.result.std))[n] for w in res.windows]
-        ax.errorbar(t, x, yerr=s, fmt="o", ms=3, capsize=2)
+        ok = np.array([bool(w.result.success) for w in res.windows])
+        ax.errorbar(t[ok], np.array(x)[ok], yerr=np.array(s)[ok], fmt="o", ms=3, capsize=2)
+        ax.plot(t[~ok], np.array(x)[~ok], "x", color="grey", label="not compared (failed)")
         ax.axhline(mean[k], color="k", lw=0.8)
         unit = res.windows[0].result.units[list(res.windows[0].result.names).index(n)]
-        ax.set_title(f"{n} ({unit}), chi2 {res.consistency['chi2_per_coefficient'][n]:.0f} / {len(t) - 1}", fontsize=9)
+        ax.set_title(f"{n} ({unit}), chi2 {res.consistency['chi2_per_coefficient'][n]:.0f} / "
+                     f"{res.consistency['used'] - 1}", fontsize=9)
     for ax in axes[1]:
         ax.set_xlabel("window start, s")
     fig.suptitle("car drive: biases per 30 s window (+- 1 std) and their weighted mean", fontsize=10)
@@ -145,7 +227,7 @@ def _clock_trend(windows) -> None:
 
 def main() -> None:
     from casep.frames import LaunchSite
-    from casep.navigation.imu import read_imu
+    from casep.navigation.imu import read_imu, regular_time
     from casep.workflows.windows import separate_windows, window_consistency
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -158,21 +240,33 @@ def main() -> None:
     ap.add_argument("--noise", default=None, help="casep's --noise for every window (default: its default path)")
     ap.add_argument("--write-cut", default=None, help="write the converted cut here and stop")
     ap.add_argument("--cut", type=float, nargs=2, default=(0.0, 70.0))
+    ap.add_argument("--imu-time", choices=("tags", "uniform"), default="tags",
+                    help="IMU times: the logger's tags, or the uniform grid they jitter about (regular_time)")
+    ap.add_argument("--velocity", choices=("rtklib", "positions"), default="rtklib",
+                    help="tracked velocity: RTKLIB's filter state, or differenced RTK positions")
     args = ap.parse_args()
     if args.write_cut:  # the IMU file gzipped (-9), as the test suite holds it
         import gzip
         import shutil
 
-        imu_path, trk_path, _ = convert(args.data, args.write_cut, tuple(args.cut))
+        imu_path, trk_path, _ = convert(args.data, args.write_cut, tuple(args.cut), args.velocity)
         with open(imu_path, "rb") as src, gzip.open(imu_path + ".gz", "wb", compresslevel=9) as dst:
             shutil.copyfileobj(src, dst)
         os.remove(imu_path)
         print(imu_path + ".gz", trk_path)
         return
-    imu_path, trk_path, t_ref = convert(args.data, args.out)
+    imu_path, trk_path, t_ref = convert(args.data, args.out, velocity=args.velocity)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         imu = read_imu(imu_path)
+        if args.imu_time == "uniform":
+            grid = regular_time(imu.t)
+            if grid is None:
+                raise SystemExit("--imu-time uniform: the IMU's tags are not a jittered uniform grid")
+            print(f"IMU tags about their uniform grid: RMS {np.std(imu.t - grid) * 1e3:.2f} ms, largest "
+                  f"{np.max(np.abs(imu.t - grid)) * 1e3:.2f} ms; steps {np.min(np.diff(imu.t)) * 1e3:.1f}-"
+                  f"{np.max(np.diff(imu.t)) * 1e3:.1f} ms, grid step {np.mean(np.diff(grid)) * 1e3:.4f} ms")
+            imu.t = grid
         imu.t = imu.t + args.imu_shift
         import pandas as pd
 
@@ -219,6 +313,13 @@ def main() -> None:
         print(f"  {what}: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, weighted mean "
               + ", ".join(f"{v:.2f}" for v in cc["weighted_mean"]))
     _clock_trend(res.windows)
+    pos = read_rtklib_pos(os.path.join(args.data, "gnss_1934_sf.pos"))
+    rest = spans_at_rest(pos["t"] - t_ref, pos["ve"], pos["vn"])
+    if len(rest) > 1:
+        inst = print_rest(imu, rest)
+        cc = window_consistency(res.windows, res.names, instability=inst)
+        print(f"  with it: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, predictions within "
+              f"1 std {cc['within_1_std']:.2f}, within 2 std {cc['within_2_std']:.2f}")
     print(f"held-out prediction of dv at the window end ({c['prediction_pairs']} ordered pairs x 3 axes): "
           f"within 1 std {c['within_1_std']:.2f} (0.68 expected), within 2 std {c['within_2_std']:.2f} (0.95), "
           f"median |z| {c['median_abs_z']:.2f} (0.67)")

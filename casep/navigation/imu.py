@@ -69,7 +69,7 @@ from casep.exceptions import GapWarning, PlausibilityWarning, SaturationWarning
 
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
            "GAP_FACTOR", "BRIDGE_MAX", "GapBridge", "bridge_gaps", "gap_steps", "clipped_samples", "sample_periods",
-           "with_rates"]
+           "with_rates", "regular_time"]
 
 RATE_COLUMNS = ("w_x", "w_y", "w_z")
 FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
@@ -336,6 +336,36 @@ def _check_clipped(imu: ImuData, gyr_range: float | None, acc_range: float | Non
     clipped = np.zeros(imu.t.size, bool)
     clipped[first:] = True
     return clipped
+
+
+def regular_time(t: np.ndarray, *, tolerance: float = 0.25) -> np.ndarray | None:
+    """The uniform grid a fixed-rate IMU's samples lie on, when their time tags only jitter about it; else None.
+
+    A MEMS IMU samples at its own output data rate; a logger that stamps each sample with its own
+    clock when it reads it (an integer millisecond counter, say) adds jitter to the tags, not to the
+    samples. Integrating ``w_k h_k`` with the tags' steps ``h_k`` then turns the jitter into angle
+    errors, ``sum_k w_k (e_k - e_{k-1})`` for tag errors ``e_k``: with vibration rates of several deg/s
+    a random walk in attitude. The grid ``t_k = a + b k`` is the least-squares line of the tags on the
+    sample index; it is returned when every tag lies within ``tolerance`` steps of it (a lost sample
+    would shift all later tags by a whole step, so none was lost and the rate did not change).
+
+    Parameters
+    ----------
+    t : (N,) array_like
+        Time tags, s, increasing.
+    tolerance : float
+        Largest distance of a tag from the grid, in steps ``b``.
+
+    Returns
+    -------
+    (N,) ndarray or None
+        The grid (its mean and mean step are the tags'), or None when a tag is farther from it.
+    """
+    t = np.asarray(t, float)
+    k = np.arange(t.size, dtype=float)
+    b, a = np.polyfit(k, t, 1)
+    grid = a + b * k
+    return grid if float(np.max(np.abs(t - grid))) <= tolerance * b else None
 
 
 def sample_periods(t: np.ndarray) -> np.ndarray:

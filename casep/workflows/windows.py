@@ -275,7 +275,8 @@ def _instrument(window: Window, names: Sequence[str]) -> tuple[np.ndarray, np.nd
     return res.estimate[idx], cov
 
 
-def window_consistency(windows: Sequence[Window], names: Sequence[str]) -> dict[str, Any]:
+def window_consistency(windows: Sequence[Window], names: Sequence[str],
+                       instability: dict[str, float] | None = None) -> dict[str, Any]:
     """Do the windows' instrument coefficients agree, and does each predict the others' dv?
 
     Agreement: with ``x_k``, ``C_k`` each window's estimate and covariance of the coefficients
@@ -284,6 +285,12 @@ def window_consistency(windows: Sequence[Window], names: Sequence[str]) -> dict[
         chi2 = sum_k (x_k - xbar)^T C_k^-1 (x_k - xbar),   dof = (K - 1) p
 
     (also per coefficient, from the diagonal); the windows agree when the p-value is above 1 %.
+
+    `instability` (coefficient name -> std, the coefficient's units) is how much the instrument's
+    coefficient itself wanders from window to window (a bias instability), measured apart from the
+    windows (an Allan deviation, the sensor at rest at several times): each window's true value is
+    then the common one plus an independent offset of that std, and ``C_k`` becomes
+    ``C_k + diag(sigma^2)`` everywhere below. It must not be estimated from the spread it is judged by.
 
     Prediction: window ``i``'s coefficients predict window ``j``'s dv at its end by
     ``s_j (x_i - x_j)`` away from what ``j``'s own fit gives (``s_j`` the rows of S_V at ``j``'s
@@ -295,7 +302,12 @@ def window_consistency(windows: Sequence[Window], names: Sequence[str]) -> dict[
     ok = [w for w in windows if w.result.success and w.result.covariance is not None]
     xs, covs = zip(*(_instrument(w, names) for w in ok)) if ok else ((), ())
     p = len(names)
-    out: dict[str, Any] = {"windows": len(windows), "used": len(ok), "names": list(names)}
+    wander = np.array([float((instability or {}).get(n, 0.0)) for n in names])
+    if np.any(~np.isfinite(wander)) or np.any(wander < 0.0):
+        raise ValueError(f"instability: each std must be finite and >= 0, got {instability!r}")
+    covs = tuple(c + np.diag(wander**2) for c in covs)
+    out: dict[str, Any] = {"windows": len(windows), "used": len(ok), "names": list(names),
+                           "instability": {n: float(v) for n, v in zip(names, wander)}}
     if len(ok) < 2:
         return {**out, "agree": False, "message": f"{len(ok)} window(s) with a covariance: nothing to compare"}
     W = [np.linalg.pinv(c) for c in covs]

@@ -67,6 +67,30 @@ def test_chi2_calibrated_on_consistent_windows():
     assert 0.02 < np.mean(np.array(pvals) < 0.05) < 0.09
 
 
+def test_instability_calibrates_chi2_of_wandering_coefficients():
+    """Windows whose true coefficients wander by a known std between windows: without it chi2/dof is far
+    above 1, with it (the same std, given, not estimated) near 1 and p-values uniform (seeded)."""
+    rng = np.random.default_rng(11)
+    wander = {"a": 2.0, "b": 0.5}
+    plain, given, pvals = [], [], []
+    for _ in range(200):
+        ws = []
+        for _k in range(5):
+            C = np.diag([0.3, 0.2]) ** 2
+            truth = np.array([3.0, -1.0]) + rng.normal(size=2) * [wander["a"], wander["b"]]
+            ws.append(_window(rng.multivariate_normal(truth, C), C))
+        plain.append(window_consistency(ws, ("a", "b"))["chi2"] / 8)
+        out = window_consistency(ws, ("a", "b"), instability=wander)
+        given.append(out["chi2"] / out["dof"])
+        pvals.append(out["p_value"])
+    assert np.mean(plain) > 10.0
+    assert np.mean(given) == pytest.approx(1.0, abs=0.1)  # std of the mean of 200: 0.035
+    assert 0.02 < np.mean(np.array(pvals) < 0.05) < 0.09
+    assert out["instability"] == wander
+    with pytest.raises(ValueError, match="instability"):
+        window_consistency(ws, ("a", "b"), instability={"a": -1.0})
+
+
 @pytest.fixture(scope="module")
 def car(tmp_path_factory):
     """The chain on the real cut: align 0-30 s, two 15 s windows from 36 s."""

@@ -1,0 +1,255 @@
+"""Why the car drive's windows disagree: measurements of the candidate causes, one by one.
+
+Each check is a measurement independent of the windows' chi-square it is meant to explain:
+
+``nav``
+    casep's navigation (fourth-order increments, coning and sculling, launch-inertial frame) against
+    an independent first-order integration (trapezoidal rate, Earth-fixed frame, Coriolis) of the
+    same window from the same state: how far apart are their velocities, against the window misfit?
+``rtk``
+    RTKLIB's velocity (a Kalman-filter state) against the velocity differenced from its RTK
+    positions, ``(r_{k+1} - r_k) / h`` at the mid-time: the lag of the filter velocity that
+    minimises the difference, and the RMS difference with and without it.
+``tags``
+    The IMU's time tags against the uniform grid they jitter about (:func:`casep.navigation.imu.regular_time`),
+    and what integrating on the tags instead of the grid does to a window's velocity (the same samples,
+    the same start).
+``static``
+    The gyro biases where the car stands still (the start, 201-208 s, the end): their mean rates, with
+    the Allan deviation (allantools) at a third of the span as the std of each mean. How much the
+    biases move over the drive, measured without any window.
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/car_drive_causes.py nav rtk static tags --figures docs/results/figures
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+from car_drive import DATA, convert, print_rest, read_rtklib_pos, spans_at_rest  # noqa: E402
+
+OMEGA_E = 7.292115e-5
+
+
+def _skew(a: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+def _expm_so3(phi: np.ndarray) -> np.ndarray:
+    """Rodrigues' formula, the rotation by the vector `phi` (rad)."""
+    a = float(np.linalg.norm(phi))
+    K = _skew(phi)
+    if a < 1e-12:
+        return np.eye(3) + K
+    return np.eye(3) + math.sin(a) / a * K + (1.0 - math.cos(a)) / a**2 * K @ K
+
+
+def first_order_ecef(t, w, f, C0, r0, v0):
+    """Independent strapdown in ECEF: rate trapezoid, ``C_k = R(-W h) C_{k-1} exp(h (w_{k-1}+w_k)/2)``,
+    ``v_k = v_{k-1} + h (C f)_trapezoid + h (g - 2 W x v_{k-1})``, normal gravity (with centrifugal)."""
+    from casep.gravity import normal_gravity_ecef
+
+    W = np.array([0.0, 0.0, OMEGA_E])
+    n = len(t)
+    C, r, v = C0.copy(), r0.copy(), v0.copy()
+    V = np.empty((n, 3))
+    V[0] = v
+    for k in range(1, n):
+        h = t[k] - t[k - 1]
+        C_new = _expm_so3(-W * h) @ C @ _expm_so3(0.5 * h * (w[k - 1] + w[k]))
+        a = 0.5 * (C @ f[k - 1] + C_new @ f[k]) + normal_gravity_ecef(r) - 2.0 * np.cross(W, v)
+        v_new = v + h * a
+        r = r + 0.5 * h * (v + v_new)
+        v, C = v_new, C_new
+        V[k] = v
+    return V
+
+
+def check_nav(imu, trk_path, site, pad, starts, length):
+    """casep's window navigation against :func:`first_order_ecef` from the same state."""
+    from casep.navigation.navigator import navigate
+    from casep.navigation.strapdown import quat_to_dcm
+    from casep.workflows import windows as W
+
+    trk = W._Tracking(trk_path)
+    nav0 = navigate(imu, site, pad, heading_deg=0.0)
+    a = nav0.alignment
+    from casep.navigation.imu import ImuData
+
+    imu = ImuData(imu.t, imu.w - (a.w_mean - a.C_tb.T @ site.earth_rate), imu.f, source=imu.source)
+    nav0 = navigate(imu, site, pad, heading_deg=0.0)
+    for t_a in starts:
+        j = int(np.searchsorted(nav0.t, t_a))
+        t_a = float(nav0.t[j])
+        C_eb = W._launch_from_ecef(site, t_a).T @ quat_to_dcm(nav0.q[j])
+        site_k, nav = W._navigate_window(imu, trk, t_a, t_a + length, C_eb)
+        _, v_casep = nav.earth_relative()
+        r0 = trk.at(t_a, trk.r_e)
+        sel = (imu.t >= t_a) & (imu.t <= t_a + length)
+        v_ind = first_order_ecef(imu.t[sel], imu.w[sel], imu.f[sel], C_eb, r0, v_casep[0])
+        d = v_casep - v_ind
+        wn = np.linalg.norm(imu.w[sel], axis=1)
+        print(f"  window {t_a:6.1f} s (max rate {math.degrees(wn.max()):.0f} deg/s): casep - first-order "
+              f"velocity RMS {np.sqrt(np.mean(d**2)):.4f} m/s, at the end {np.linalg.norm(d[-1]):.4f} m/s; "
+              f"casep - RTK RMS {np.sqrt(np.mean((v_casep - _interp3(trk.t, trk.v_e, nav.t))**2)):.3f} m/s "
+              f"(uncorrected, before the fit)")
+
+
+def _interp3(t, y, tq):
+    return np.column_stack([np.interp(tq, t, y[:, c]) for c in range(y.shape[1])])
+
+
+def check_rtk(data):
+    """The filter velocity against the differenced positions, and its lag."""
+    import pymap3d as pm
+
+    pos = read_rtklib_pos(os.path.join(data, "gnss_1934_sf.pos"))
+    t = pos["t"] - pos["t"][0]
+    e, n, u = pm.geodetic2enu(pos["lat"], pos["lon"], pos["h"], pos["lat"][0], pos["lon"][0], pos["h"][0])
+    r = np.column_stack([e, n, u])
+    h = np.diff(t)
+    ok = np.abs(h - np.median(h)) < 1e-3
+    tm = 0.5 * (t[1:] + t[:-1])
+    vd = np.diff(r, axis=0) / h[:, None]
+    vk = np.column_stack([pos["ve"], pos["vn"], pos["vu"]])
+    moving = np.hypot(vk[:, 0], vk[:, 1]) > 0.3
+    lags = np.arange(-0.40, 0.401, 0.01)
+    rms = []
+    for lag in lags:  # the filter velocity at t taken as the true velocity at t - lag
+        vk_at = _interp3(t - lag, vk, tm)
+        m = ok & (np.interp(tm, t, moving.astype(float)) > 0.5)
+        rms.append(np.sqrt(np.mean((vk_at[m] - vd[m]) ** 2, axis=0)))
+    rms = np.array(rms)
+    tot = np.sqrt(np.mean(rms[:, :2] ** 2, axis=1))
+    best = int(np.argmin(tot))
+    i0 = int(np.argmin(np.abs(lags)))
+    print(f"  RTKLIB velocity vs differenced RTK positions (4 Hz, moving epochs): horizontal RMS difference "
+          f"{tot[i0]:.4f} m/s at lag 0, least {tot[best]:.4f} m/s at lag {lags[best] * 1e3:+.0f} ms "
+          f"(the filter velocity is the true one {lags[best] * 1e3:.0f} ms late)")
+    print(f"  vertical RMS difference {rms[i0, 2]:.4f} m/s at lag 0; position std (median sdn) gives a differenced "
+          f"velocity noise of about {np.median(np.abs(np.diff(vd[:, 0]))) / math.sqrt(2):.3f} m/s")
+    return lags, tot
+
+
+def check_tags(imu, starts, length, outdir=None):
+    """Tags minus grid, and the velocity of casep's navigation on the tags minus on the grid, per window."""
+    from casep.frames import LaunchSite
+    from casep.navigation.imu import ImuData, regular_time
+    from casep.navigation.navigator import navigate_from
+
+    grid = regular_time(imu.t)
+    if grid is None:
+        print("  the tags are not a jittered uniform grid")
+        return
+    e = imu.t - grid
+    h = np.diff(imu.t)
+    print(f"  tags - grid: RMS {e.std() * 1e3:.2f} ms, largest {np.abs(e).max() * 1e3:.2f} ms; steps "
+          f"{h.min() * 1e3:.1f}-{h.max() * 1e3:.1f} ms ({np.mean(np.abs(h - np.median(h)) > 5e-4) * 100:.0f} % off "
+          f"the median), grid step {np.mean(np.diff(grid)) * 1e3:.4f} ms")
+    from casep.frames import ecef_to_launch
+    from casep.navigation.strapdown import launch_gravitation, quat_from_rotvec
+
+    site = LaunchSite(0.0, 0.0, 0.0, 0.0, 0.0)
+    r0, v0 = ecef_to_launch(site, np.zeros(1), site.r_site[None, :], np.zeros((1, 3)))
+    curves = []
+    for t_a in starts:
+        vs = []
+        sel = (imu.t >= t_a) & (imu.t <= t_a + length)
+        f0 = imu.f[sel][:100].mean(axis=0)  # levelled on the first second: body f0 turned onto the local up
+        up = -launch_gravitation(site)(np.zeros(1), r0)[0]
+        axis = np.cross(f0, up)
+        angle = math.atan2(np.linalg.norm(axis), float(f0 @ up))
+        q0 = quat_from_rotvec(axis / np.linalg.norm(axis) * angle)
+        for t in (imu.t, grid):
+            sub = ImuData(t[sel] - t[sel][0], imu.w[sel], imu.f[sel], source=imu.source)
+            vs.append(navigate_from(sub, site, q0, r0[0], v0[0]).v)
+        d = np.linalg.norm(vs[0] - vs[1], axis=1)
+        curves.append((t_a, d))
+        print(f"  window {t_a:6.1f} s: |v on the tags - v on the grid| RMS {np.sqrt(np.mean(d**2)):.3f} m/s, "
+              f"at the end {d[-1]:.3f} m/s")
+    if outdir:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(1, 2, figsize=(10, 3))
+        ax[0].plot(imu.t[:3000], e[:3000] * 1e3, ".", ms=2)
+        ax[0].set_xlabel("t, s")
+        ax[0].set_title("IMU time tags minus their uniform grid, ms", fontsize=9)
+        for t_a, d in curves:
+            ax[1].plot(np.arange(d.size) * float(np.mean(np.diff(grid))), d, label=f"window at {t_a:.0f} s")
+        ax[1].set_xlabel("time in the window, s")
+        ax[1].set_title("|velocity integrated on the tags - on the grid|, m/s", fontsize=9)
+        ax[1].legend(fontsize=7)
+        fig.tight_layout()
+        path = os.path.join(outdir, "car-drive-tags.png")
+        fig.savefig(path, dpi=80)
+        print("figure", path)
+
+
+def lag_figure(lags, tot, outdir: str) -> str:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    os.makedirs(outdir, exist_ok=True)
+    fig, ax = plt.subplots(figsize=(5, 3))
+    ax.plot(lags * 1e3, tot, "-")
+    ax.set_xlabel("lag of RTKLIB's velocity, ms")
+    ax.set_ylabel("RMS difference, m/s")
+    ax.set_title("RTKLIB velocity vs differenced RTK positions (horizontal)", fontsize=9)
+    fig.tight_layout()
+    p = os.path.join(outdir, "car-drive-rtk-lag.png")
+    fig.savefig(p, dpi=80)
+    return p
+
+
+def main() -> None:
+    from casep.frames import LaunchSite
+    from casep.navigation.imu import read_imu
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("checks", nargs="+", choices=("nav", "rtk", "static", "tags"))
+    ap.add_argument("--figures", default=None, help="folder for the PNG figure of the RTK velocity lag")
+    ap.add_argument("--data", default=DATA)
+    ap.add_argument("--out", default="car_drive_out")
+    ap.add_argument("--imu-time", choices=("tags", "uniform"), default="tags",
+                    help="nav: integrate on the IMU's tags or on their uniform grid (regular_time)")
+    ap.add_argument("--starts", type=float, nargs="+", default=[66.7, 396.7, 456.7])
+    args = ap.parse_args()
+    if "rtk" in args.checks:
+        lags, tot = check_rtk(args.data)
+        if args.figures:
+            print("figure", lag_figure(lags, tot, args.figures))
+    if {"nav", "static", "tags"} & set(args.checks):
+        import pandas as pd
+
+        imu_path, trk_path, t_ref = convert(args.data, args.out)
+        imu = read_imu(imu_path)
+        trk = pd.read_csv(trk_path)
+        if args.imu_time == "uniform" and "nav" in args.checks:
+            from casep.navigation.imu import regular_time
+
+            grid = regular_time(imu.t)
+            imu.t = imu.t if grid is None else grid
+    if "tags" in args.checks:
+        check_tags(imu, args.starts, 30.0, args.figures)
+    if "static" in args.checks:
+        pos = read_rtklib_pos(os.path.join(args.data, "gnss_1934_sf.pos"))
+        print_rest(imu, spans_at_rest(pos["t"] - t_ref, pos["ve"], pos["vn"]))
+    if "nav" in args.checks:
+        site = LaunchSite(float(trk.lat[0]), float(trk.lon[0]), float(trk.h[0]), 0.0, 0.0)
+        moving = float(trk.t[np.hypot(trk.v_east, trk.v_north) > 0.3].iloc[0])
+        check_nav(imu, trk_path, site, (0.0, moving - 5.0), args.starts, 30.0)
+
+
+if __name__ == "__main__":
+    main()
