@@ -414,8 +414,10 @@ def test_write_radar_simulation_round_trip(clean, tmp_path):
     assert math.isclose(st.lat_deg, STATIONS[0].lat_deg)
 
 
-def test_a_user_term_in_one_file(clean, tmp_path):
-    """The guide's example: refraction and a survey offset added to radar_biases in a model file of its own."""
+def test_a_user_term_in_one_file(clean_5hz, tmp_path):
+    """The guide's example: refraction and a survey offset added to radar_biases in a model file of its own
+    (radar at 5 Hz: the fit only has to take the user's terms)."""
+    clean = clean_5hz
     p = tmp_path / "my_radar.py"
     p.write_text('''
 import casadi as ca
@@ -438,9 +440,11 @@ def build():
     assert "S2.survey_up" in rr.result.names
 
 
-def test_joint_result_as_prior_and_truth_for_design_and_montecarlo(clean):
+def test_joint_result_as_prior_and_truth_for_design_and_montecarlo(clean_5hz):
     """A radar result as a prior (casep design --prior, casep montecarlo --truth-from-prior, separate --prior):
-    the instrument block only, the station terms marginalised out."""
+    the instrument block only, the station terms marginalised out (radar at 5 Hz: the prior is read from any
+    result)."""
+    clean = clean_5hz
     from casep.estimators.map import parse_prior, prior_from_result
     from casep.estimators.result import EstimateResult
 
