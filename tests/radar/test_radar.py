@@ -366,8 +366,8 @@ def test_cli_simulate_separate_diagnose_impact(tmp_path, capsys):
     # telemetry at 10 Hz, radar at 5 Hz (the docs' radar page runs the same): separate, diagnose and impact read a
     # quarter of the rows of 20 Hz and 20 Hz; the separation and its checks are the same code at any rate
     assert main(["simulate", "-o", str(tel), "--rate", "10", "--radar-rate", "5", "--rotating-earth", "--launch-site",
-                 "28.5", "-80.6", "3", "90", "--radar-station", str(tmp_path / "S1.json"), "--radar-station", str(tmp_path / "S2.json"),
-                 "--tracking-truth", str(truth)]) == 0
+                 "28.5", "-80.6", "3", "90", "--radar-station", str(tmp_path / "S1.json"), "--radar-station",
+                 str(tmp_path / "S2.json"), "--tracking-truth", str(truth)]) == 0
     out = capsys.readouterr().out
     assert "tel.S1.csv" in out
     side = json.loads((tmp_path / "tel.truth.json").read_text())
