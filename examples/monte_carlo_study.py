@@ -18,10 +18,10 @@ from casep.montecarlo import run_montecarlo, write_figure
 ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 ap.add_argument("--out", default=None, help="folder for mc.json, mc.csv and mc.png")
 ap.add_argument("--runs", type=int, default=200)
-ap.add_argument("--quick", action="store_true", help="10 runs at 10 Hz (for CI)")
+ap.add_argument("--quick", action="store_true", help="4 runs at 10 Hz (for CI)")
 args = ap.parse_args()
 out = Path(args.out or tempfile.mkdtemp(prefix="casep-mc-"))
-runs, rate = (10, 10.0) if args.quick else (args.runs, None)
+runs, rate = (4, 10.0) if args.quick else (args.runs, None)
 
 #%% Run: batched linear methods, per-run RELS and wavelet + RELS on all cores
 res = run_montecarlo("paper", runs=runs, methods=["ols", "rls", "rels", "wavelet+rels", "map"], seed=1, rate=rate)

@@ -215,18 +215,22 @@ def test_noise_free_one_station_recovered_to_1e6_of_crlb(clean):
 
 def test_time_bias_applied_exactly_is_recovered_to_first_order():
     """A 2 ms late time tag simulated exactly (state sampled at t - tau): the first-order term finds it
-    within 1-2 % of its CRLB std (the second-order remainder tau^2 rho''/2), range rate included."""
+    within 0.5-1 % of its CRLB std (the second-order remainder tau^2 rho''/2), range rate included.
+
+    Radar at 5 Hz (3.6 s of CPU instead of 9.2 at 20 Hz): max |z| 2.9e-4 without and 1.4e-3 with range rate
+    (at 20 Hz, std half as large: 5.8e-4 and 2.7e-3); the bounds keep the margin of the 20 Hz test (17x and 7x).
+    """
     tt = {"S1": {**TRUTH["S1"], "time_bias": 2.0}, "S2": {**TRUTH["S2"], "time_bias": -1.5}}
-    sim = simulate_radar(STATIONS, SITE, seed=0, telemetry_rate=20, radar_rate=20, tracking_truth=tt,
+    sim = simulate_radar(STATIONS, SITE, seed=0, telemetry_rate=20, radar_rate=5, tracking_truth=tt,
                          noise={"range": 0.0, "azimuth": 0.0, "elevation": 0.0, "range_rate": 0.0}, range_rate=True)
     rr, z = _noise_free_errors(sim, [dataclasses.replace(m, range_rate=None) for m in sim.radars])
-    assert np.max(np.abs(z)) < 1e-2, dict(zip(rr.result.names, z))
+    assert np.max(np.abs(z)) < 5e-3, dict(zip(rr.result.names, z))
     # with range rate (the time bias through the range acceleration from the telemetry's a_*)
     sigma = {**SIGMA, **{(s, "range_rate"): 0.05 for s in ("S1", "S2")}}
     res = separate_radar(sim.telemetry, list(sim.radars), SITE, sim.model, sim.tracking, sigma=sigma,
                          diagnostics=False).result
     z = (res.estimate - sim.truth_vector()) / res.std
-    assert np.max(np.abs(z)) < 2e-2, dict(zip(res.names, z))
+    assert np.max(np.abs(z)) < 1e-2, dict(zip(res.names, z))
 
 
 @pytest.mark.montecarlo
@@ -359,9 +363,11 @@ def test_cli_simulate_separate_diagnose_impact(tmp_path, capsys):
                                                              "h": s.h_m}))
     truth = tmp_path / "trk_truth.json"
     truth.write_text(json.dumps(TRUTH))
-    assert main(["simulate", "-o", str(tel), "--rate", "20", "--rotating-earth", "--launch-site", "28.5", "-80.6",
-                 "3", "90", "--radar-station", str(tmp_path / "S1.json"), "--radar-station", str(tmp_path / "S2.json"),
-                 "--tracking-truth", str(truth)]) == 0
+    # telemetry at 10 Hz, radar at 5 Hz (the docs' radar page runs the same): separate, diagnose and impact read a
+    # quarter of the rows of 20 Hz and 20 Hz; the separation and its checks are the same code at any rate
+    assert main(["simulate", "-o", str(tel), "--rate", "10", "--radar-rate", "5", "--rotating-earth", "--launch-site",
+                 "28.5", "-80.6", "3", "90", "--radar-station", str(tmp_path / "S1.json"), "--radar-station",
+                 str(tmp_path / "S2.json"), "--tracking-truth", str(truth)]) == 0
     out = capsys.readouterr().out
     assert "tel.S1.csv" in out
     side = json.loads((tmp_path / "tel.truth.json").read_text())
@@ -408,8 +414,10 @@ def test_write_radar_simulation_round_trip(clean, tmp_path):
     assert math.isclose(st.lat_deg, STATIONS[0].lat_deg)
 
 
-def test_a_user_term_in_one_file(clean, tmp_path):
-    """The guide's example: refraction and a survey offset added to radar_biases in a model file of its own."""
+def test_a_user_term_in_one_file(clean_5hz, tmp_path):
+    """The guide's example: refraction and a survey offset added to radar_biases in a model file of its own
+    (radar at 5 Hz: the fit only has to take the user's terms)."""
+    clean = clean_5hz
     p = tmp_path / "my_radar.py"
     p.write_text('''
 import casadi as ca
@@ -432,9 +440,11 @@ def build():
     assert "S2.survey_up" in rr.result.names
 
 
-def test_joint_result_as_prior_and_truth_for_design_and_montecarlo(clean):
+def test_joint_result_as_prior_and_truth_for_design_and_montecarlo(clean_5hz):
     """A radar result as a prior (casep design --prior, casep montecarlo --truth-from-prior, separate --prior):
-    the instrument block only, the station terms marginalised out."""
+    the instrument block only, the station terms marginalised out (radar at 5 Hz: the prior is read from any
+    result)."""
+    clean = clean_5hz
     from casep.estimators.map import parse_prior, prior_from_result
     from casep.estimators.result import EstimateResult
 
