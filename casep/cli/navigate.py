@@ -25,7 +25,7 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from casep.io.files import write_table
+    from casep.io.files import levelled_comment, write_table
     from casep.navigation.imu import read_imu
     from casep.navigation.navigator import navigate
 
@@ -37,7 +37,8 @@ def run(args: argparse.Namespace) -> int:
     lat, lon, h, az = args.launch_site
     comments = [f"casep navigate {args.imu}: strapdown telemetry, launch-inertial frame",
                 f"launch site {lat:g} {lon:g} {h:g} azimuth {az:g} deg, launch time {args.launch_time:g} s",
-                "q: Hamilton, scalar first, body -> launch-inertial; SI units"] + \
+                "q: Hamilton, scalar first, body -> launch-inertial; SI units",
+                levelled_comment(res.align_window, res.alignment)] + \
         (["ins_valid: 0 from the first clipped IMU sample on (not trusted)"] if res.invalid_from() is not None else [])
     write_table(args.output, res.columns(), comments=comments)
     if args.json:

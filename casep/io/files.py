@@ -68,6 +68,8 @@ from casep.io.pair import (
 from casep.io.tables import VTEL_COLUMNS, VTRK_COLUMNS, Table, apparent_velocity_to_force, table_force
 
 __all__ = [
+    "levelled_comment",
+    "levelling_record",
     "read_json_table", "read_flight", "read_flight_pair", "write_flight", "write_table", "apparent_velocity_to_force",
     "acceleration_signals",
 ]
@@ -76,6 +78,45 @@ __all__ = [
 R_TEL_COLUMNS = ("r_tel_x", "r_tel_y", "r_tel_z")  # launch-inertial position (casep navigate's output), m
 #: casep navigate's header line naming the launch site (casep/cli/navigate.py writes it)
 _NAV_SITE = re.compile(r"^#\s*launch site (\S+) (\S+) (\S+) azimuth (\S+) deg, launch time (\S+) s")
+#: casep navigate's header line naming its pad alignment (:func:`levelled_comment` writes it)
+_NAV_LEVELLED = re.compile(r"^#\s*alignment: levelled over \[(\S+), (\S+)\] s, heading (\S+)")
+
+
+def levelled_comment(window: tuple[float, float], alignment: Any) -> str:
+    """The header line of ``casep navigate``'s telemetry saying that casep aligned it on the pad: levelled by
+    the mean specific force over `window` (s) and headed as `alignment` (:class:`casep.navigation.alignment.Alignment`)
+    says; :func:`levelling_record` reads it back."""
+    how = "given" if alignment.method == "heading" else "gyrocompassed"
+    return (f"alignment: levelled over [{window[0]:.10g}, {window[1]:.10g}] s, heading {how} "
+            f"(body {alignment.heading_axis} at {alignment.heading_deg:.6g} deg)")
+
+
+def _header(tab: Table) -> list[str]:
+    """The ``#`` comment lines at the top of a CSV table (none for Parquet or a table not read from a file)."""
+    if not tab.path.is_file() or is_parquet(tab.path):
+        return []
+    lines = []
+    with open(tab.path, encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            if not line.startswith("#"):
+                break
+            lines.append(line)
+    return lines
+
+
+def levelling_record(tab: Table) -> dict | None:
+    """``{"window": [T1, T2], "heading": "given" | "gyrocompassed"}`` when `tab`'s header says ``casep navigate``
+    levelled it on the pad (:func:`levelled_comment`), else None: the levelling turned the accelerometer errors
+    on the pad into a start tilt, which a model without an initial attitude error cannot describe
+    (:func:`casep.checks.plausibility.levelling_problem`)."""
+    for line in _header(tab):
+        m = _NAV_LEVELLED.match(line)
+        if m is not None:
+            try:
+                return {"window": [float(m.group(1)), float(m.group(2))], "heading": m.group(3)}
+            except ValueError:
+                return None
+    return None
 
 
 def start_speed(tab: Table, t: np.ndarray, v_tel: np.ndarray) -> float:
@@ -88,15 +129,12 @@ def start_speed(tab: Table, t: np.ndarray, v_tel: np.ndarray) -> float:
     ``|v_ECEF(t_0)|``; otherwise ``|v_tel(t_0)|`` (a frame with the pad at rest).
     """
     speed = float(np.linalg.norm(v_tel[0]))
-    if not tab.path.is_file() or is_parquet(tab.path) or not all(c in tab.columns for c in R_TEL_COLUMNS):
+    if not all(c in tab.columns for c in R_TEL_COLUMNS):
         return speed
     site, inertial = None, False
-    with open(tab.path, encoding="utf-8", errors="replace") as fh:
-        for line in fh:
-            if not line.startswith("#"):
-                break
-            inertial |= "launch-inertial frame" in line
-            site = _NAV_SITE.match(line) or site
+    for line in _header(tab):
+        inertial |= "launch-inertial frame" in line
+        site = _NAV_SITE.match(line) or site
     if site is None or not inertial:
         return speed
     from casep.frames import LaunchSite, launch_to_ecef
@@ -157,6 +195,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
             "rows_file": str(tab.path)}  # sample k is data row k + 1 (locate_samples)
     if dv_from != "dv":
         meta["start_speed_m_s"] = start_speed(tab, t, v_tel)
+        meta["levelled"] = levelling_record(tab)
         meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.checks.plausibility
         meta["tracking_repeats"] = repeated_rows(tab, "launch", skip=~observed)  # for casep.checks.tracking_quality
     if not observed.all():
@@ -330,6 +369,7 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
                          meta={"force": force_from, "telemetry": tel.src, "tracking": trk.src, **extra})
     flight.meta["rows_file"] = str(trk.path if flight.meta.get("rows_side") == "tracking" else tel.path)
     flight.meta["start_speed_m_s"] = start_speed(tel, t_tel, v_tel)
+    flight.meta["levelled"] = levelling_record(tel)
     if shift_scale:
         flight.meta["time_shift_s"] = shift_scale
     if r_ecef is not None and v_ecef is not None:  # Earth-fixed tracking; the late-start check: speed relative
