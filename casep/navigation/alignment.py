@@ -133,15 +133,15 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
         known worse than 30 deg).
     """
     from casep.gravity import normal_gravity_ecef
+    from casep.navigation.imu import time_step_problem
 
     t1, t2 = window
     sel = (t >= t1) & (t <= t2)
     n = int(sel.sum())
     if not t1 < t2 or n < 2:
         h = float(np.median(np.diff(t))) if t.size > 1 else 0.0
-        # an IMU samples at 10 Hz-100 kHz: a median step of 0.1-100 "s" is one of 0.1-100 ms
-        hint = f"; its median time step is {h:g} s ({1 / h:.3g} Hz): is t in ms (divide by 1000)?" \
-            if 0.1 < h <= 100.0 else ""
+        why = time_step_problem(h) if h > 0 else None
+        hint = f"; its {why}" if why is not None else ""
         raise ValueError(f"--align {t1:g} {t2:g}: the window must hold at least 2 samples (it holds {n}; the file "
                          f"spans {t[0]:g} .. {t[-1]:g} s{hint})")
     f_mean, w_mean = f[sel].mean(axis=0), w[sel].mean(axis=0)

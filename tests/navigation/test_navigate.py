@@ -27,6 +27,7 @@ from casep.frames import LaunchSite, launch_to_ecef
 from casep.gravity import normal_gravity_ecef
 from casep.io.flight import FlightDataError
 from casep.navigation import TELEMETRY_COLUMNS, ImuData, check_imu, navigate, read_imu
+from casep.navigation.alignment import align
 from casep.rotations import quat_conjugate, quat_multiply
 
 SITE = LaunchSite(67.89, 21.1, 330.0, 30.0, 100.0)  # a northern range, launch azimuth 30 deg, t0 = 100 s
@@ -131,8 +132,11 @@ def test_alignment_refuses_what_is_not_at_rest_in_m_s2():
     with pytest.raises(ValueError, match="at least 2 samples") as e:
         navigate(check_imu(ImuData(t, w, f)), SITE, (50.0, 60.0), heading_deg=10.0)
     assert "in ms" not in str(e.value)
-    with pytest.raises(ValueError, match=r"at least 2 samples.*median time step is 10 s \(0\.1 Hz\): is t in ms"):
-        navigate(check_imu(ImuData(1e3 * t, w, f)), SITE, (0.0, 9.0), heading_deg=10.0)  # t of a 100 Hz IMU in ms
+    with pytest.raises(ValueError, match=r"imu.csv: column t: median time step 10 s \(0\.1 Hz\), outside the 5 Hz-1e\+06 Hz "
+                                         r"an IMU samples at: is t in ms \(divide by 1000\)\?"):
+        check_imu(ImuData(1e3 * t, w, f, source="imu.csv"))  # t of a 100 Hz IMU in ms, even with a window that fits
+    with pytest.raises(ValueError, match=r"at least 2 samples.*median time step 10 s \(0\.1 Hz\).*is t in ms"):
+        align(1e3 * t, w, f, (0.0, 9.0), SITE, heading_deg=10.0)  # the window's own hint, the same rule
     t, w, f = _stationary(100.0, 30.0, C_tb=Rotation.from_euler("YZX", [20.0, 1.0, -1.0], degrees=True).as_matrix())
     with pytest.raises(ValueError, match=r"y axis is 1\.\d+ deg from the vertical"):  # its azimuth fixes nothing
         navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 10.0), heading_deg=10.0, heading_axis="y")
