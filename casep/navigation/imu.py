@@ -285,21 +285,29 @@ def _warn_gaps(imu: ImuData, lost: np.ndarray, h: np.ndarray, h_med: float) -> N
     k = int(lost[np.argmax(h[lost])])
     missing = int(np.sum(np.round(h[lost] / h_med) - 1))
     br = bridge_gaps(t, imu.w, imu.f)
-    j = int(np.argmax(br.velocity))
-    i = int(np.argmax(br.attitude))
     fmax = float(np.linalg.norm(imu.f, axis=1).max())
     gaps = f"{lost.size} gap{'s' if lost.size > 1 else ''}"
     how = ("the rate and specific force bridged by a cubic fitted to the samples either side" if imu.kind == "rates"
            else "the increment after it held over it")
-    warnings.warn(f"{imu.source}: {gaps} in t (about {missing} samples lost at the median step "
-                  f"{h_med:.4g} s); the longest {h[k]:.4g} s after t = {t[k]:.10g} s (row {k + 1}): "
-                  f"integrated across it, {how}; "
-                  f"the velocity across the gap after t = {t[br.steps[j]]:.10g} s is known to about "
-                  f"{br.velocity[j]:.3g} m/s only (any path of the specific force between the two sides of its "
-                  f"{br.h[j]:.4g} s: {br.motion[j, 1]:.3g} m/s; the rest from its noise {br.noise[j, 1]:.3g} m/s^2), "
-                  "the attitude across the gap after t = "
-                  f"{t[br.steps[i]]:.10g} s to about {br.attitude[i]:.3g} rad (gyro noise {br.noise[i, 0]:.3g} rad/s "
-                  f"included; after it a velocity error grows by up to {fmax * br.attitude[i]:.3g} m/s per s)",
+
+    def known(m: int) -> str:  # what the bridge of gap m (an index of br.steps) leaves unknown
+        return (f"the velocity across it is known to about {br.velocity[m]:.3g} m/s only (any path of the specific "
+                f"force between the two sides of its {br.h[m]:.4g} s: {br.motion[m, 1]:.3g} m/s; the rest from its "
+                f"noise {br.noise[m, 1]:.3g} m/s^2), the attitude to about {br.attitude[m]:.3g} rad (gyro noise "
+                f"{br.noise[m, 0]:.3g} rad/s included; after it a velocity error grows by up to "
+                f"{fmax * br.attitude[m]:.3g} m/s per s)")
+
+    said = (f"{imu.source}: {gaps} in t (about {missing} samples lost at the median step "
+            f"{h_med:.4g} s); the longest {h[k]:.4g} s after t = {t[k]:.10g} s (row {k + 1}): "
+            f"integrated across it, {how}")
+    at = np.flatnonzero(br.steps == k)
+    if at.size:
+        said += f"; {known(int(at[0]))}"
+    worst = int(np.argmax(br.velocity)) if br.steps.size else -1
+    if worst >= 0 and (not at.size or (worst != int(at[0]) and br.velocity[worst] > br.velocity[at[0]])):
+        said += (f"; the velocity is least known across the {br.h[worst]:.4g} s gap after t = "
+                 f"{t[br.steps[worst]]:.10g} s: {known(worst)}")
+    warnings.warn(said,
                   GapWarning, stacklevel=3)
 
 
