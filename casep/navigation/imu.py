@@ -68,8 +68,8 @@ from casep.checks.saturation import (
 from casep.exceptions import GapWarning, PlausibilityWarning, SaturationWarning
 
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
-           "GAP_FACTOR", "BRIDGE_MAX", "IMU_STEP_RANGE", "time_step_problem", "GapBridge", "bridge_gaps", "gap_steps", "clipped_samples", "sample_periods",
-           "with_rates"]
+           "GAP_FACTOR", "BRIDGE_MAX", "IMU_STEP_RANGE", "time_step_problem", "GapBridge", "bridge_gaps",
+           "gap_steps", "clipped_samples", "sample_periods", "with_rates"]
 
 RATE_COLUMNS = ("w_x", "w_y", "w_z")
 FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")

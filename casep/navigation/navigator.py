@@ -82,7 +82,8 @@ def _check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite) -> N
     sel = (imu.t >= t1) & (imu.t <= t2)
     if int(sel.sum()) < 3:
         return
-    T, dt, g = t2 - t1, float(np.median(np.diff(imu.t[sel]))), res.alignment.g_pad
+    T, dt = t2 - t1, float(np.median(np.diff(imu.t[sel])))
+    g = res.alignment.g_pad if res.alignment is not None else 9.80665
     s_f = np.std(np.diff(imu.f[sel], axis=0), axis=0) / np.sqrt(2.0)
     s_w = np.std(np.diff(imu.w[sel], axis=0), axis=0) / np.sqrt(2.0)
     noise = float(np.sqrt(np.sum(s_f**2 * dt * T + g**2 * s_w**2 * dt * T**3 / 3.0)))
@@ -93,8 +94,9 @@ def _check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite) -> N
         rate = float(np.linalg.norm(imu.w[sel].mean(axis=0)))
         warnings.warn(f"--align {t1:g} {t2:g}: {imu.source}: the navigated speed reaches {drift:.3g} m/s within the "
                       f"{T:.3g} s window declared at rest, above the {allowed:.3g} m/s its sensors allow (the noise's "
-                      f"random walks {noise:.2g} m/s x {PAD_NOISE_FACTOR:g}, a gyro bias of {gyro_bias_allowance(site):.2g}"
-                      f" rad/s tilting it {bias:.2g} m/s x {PAD_BIAS_FACTOR:g}); mean pad rate {rate:.3g} rad/s: the "
+                      f"random walks {noise:.2g} m/s x {PAD_NOISE_FACTOR:g}, a gyro bias of "
+                      f"{gyro_bias_allowance(site):.2g} rad/s tilting it {bias:.2g} m/s x {PAD_BIAS_FACTOR:g}); "
+                      f"mean pad rate {rate:.3g} rad/s: the "
                       "vehicle moved in the window, or a gyro bias tilts the attitude within seconds and the "
                       "solution drifts as t^2 from there", AlignmentWarning, stacklevel=2)
 
