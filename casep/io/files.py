@@ -68,6 +68,7 @@ from casep.io.pair import (
 from casep.io.tables import VTEL_COLUMNS, VTRK_COLUMNS, Table, apparent_velocity_to_force, table_force
 
 __all__ = [
+    "default_model",
     "levelled_comment",
     "levelling_record",
     "read_json_table", "read_flight", "read_flight_pair", "write_flight", "write_table", "apparent_velocity_to_force",
@@ -102,6 +103,22 @@ def _header(tab: Table) -> list[str]:
                 break
             lines.append(line)
     return lines
+
+
+def default_model(flight: str | os.PathLike | None, imu: bool = False) -> str:
+    """The model ``casep separate`` takes without ``--model``: ``strapdown33`` for a raw IMU record (`imu`; the
+    levelling's own phi0 is added), ``strapdown15_phi0`` for a strapdown telemetry (`flight` with ``q_*``,
+    ``fb_*``, ``w_*``: body-frame errors, and a start attitude known only so well, a levelled one tilted by the
+    accelerometer biases: :func:`casep.checks.plausibility.levelling_problem`), else ``platform36``."""
+    if imu:
+        return "strapdown33"
+    if flight is None or not Path(flight).is_file():
+        return "platform36"
+    from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
+
+    cols = Table(flight).columns
+    strapdown = all(c in cols for c in QUATERNION_COLUMNS + BODY_FORCE_COLUMNS + BODY_RATE_COLUMNS)
+    return "strapdown15_phi0" if strapdown else "platform36"
 
 
 def levelling_record(tab: Table) -> dict | None:

@@ -1,13 +1,10 @@
 """A telemetry casep navigate levelled on the pad, separated with a strapdown model without an initial attitude
 error: the result fails naming the tilt and the model to use (casep.checks.plausibility.levelling_problem)."""
 
-from types import SimpleNamespace
-
 import numpy as np
 import pytest
 
 from casep.checks.plausibility import levelling_problem
-from casep.io.files import levelled_comment, levelling_record, read_flight, write_table
 from casep.io.flight import FlightData
 from casep.model.loader import load_model
 from casep.units import G0
@@ -20,22 +17,6 @@ def _flight(levelled):
     fl = FlightData(t=t, f=f, dv=np.zeros((t.size, 3)), source="tel.csv", signals=sig)
     fl.meta["levelled"] = levelled
     return fl
-
-
-def test_levelled_header_round_trip(tmp_path):
-    """The header line casep navigate writes is read back as the window and the heading's origin."""
-    al = SimpleNamespace(method="heading", heading_axis="x", heading_deg=200.0)
-    t = np.arange(4.0)
-    cols = {"t": t, "f_x": t * 0, "f_y": t * 0, "f_z": t * 0 + G0, "v_tel_x": t * 0, "v_tel_y": t * 0,
-            "v_tel_z": t * 0, "v_trk_x": t * 0, "v_trk_y": t * 0, "v_trk_z": t * 0}
-    path = tmp_path / "tel.csv"
-    write_table(path, cols, comments=["casep navigate imu.csv", levelled_comment((0.0, 38.5), al)])
-    from casep.io.tables import Table
-
-    assert levelling_record(Table(path)) == {"window": [0.0, 38.5], "heading": "given"}
-    assert read_flight(path).meta["levelled"] == {"window": [0.0, 38.5], "heading": "given"}
-    write_table(path, cols, comments=["another INS"])
-    assert read_flight(path).meta["levelled"] is None
 
 
 @pytest.mark.parametrize("name, fails", [("strapdown12", True), ("strapdown15_phi0", False), ("platform36", False)])
