@@ -83,7 +83,7 @@ from casep.units import G0
 
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
            "min_samples", "dv_noise", "misfit_problem", "MISFIT_RATIO", "MISFIT_NOISE_FLOOR",
-           "setup_problems", "warn_setup"]
+           "setup_problems", "warn_setup", "levelling_problem", "PHI0_MODELS"]
 
 
 # Specific force, m/s^2: a boost is ~1-30 g (1 g needed to lift off, ~100 g the hardest motors).
@@ -393,6 +393,43 @@ def setup_problems(flight: FlightData) -> list[str]:
     """The failed set-up checks of a flight (``meta["setup"]["problems"]``, :func:`casep.io.setup.setup_evidence`)."""
     ev = flight.meta.get("setup") if isinstance(flight.meta, dict) else None
     return list(ev.get("problems", [])) if isinstance(ev, dict) else []
+
+
+#: the shipped models with an initial attitude error, by the model without one they extend
+PHI0_MODELS = {"strapdown12": "strapdown15_phi0", "strapdown33": "strapdown42_extended"}
+
+
+def levelling_problem(flight: FlightData, model: Any, estimates: dict[str, float] | None = None) -> str | None:
+    """Why `model` cannot describe a telemetry that ``casep navigate`` levelled on the pad, or None.
+
+    Levelling makes the INS's mean specific force over the pad window vertical, so at the first sample
+    its attitude is off by ``phi0_h = u x (C delta_f) / g`` (a horizontal accelerometer bias ``b`` tilts it
+    by ``b / g`` rad): the velocity error on the pad is cancelled, and in flight the tilt returns it as
+    ``f x phi0``. A model whose accelerometer errors reach dv but which has no initial attitude error
+    (``initial_misalignment``) predicts ``b t`` on the pad instead, and its estimates are biased by many std
+    (an aircraft levelled over 38 s, strapdown12: ``ba_x`` 12 std off; with ``strapdown15_phi0``: 1.2).
+    The header line of :func:`casep.io.files.levelled_comment` (``flight.meta["levelled"]``) tells such a
+    telemetry; `estimates` (natural units, by name) give the tilt the estimate's ``ba_*`` (mg) leave.
+    """
+    lev = flight.meta.get("levelled") if isinstance(flight.meta, dict) else None
+    if not lev or not hasattr(model, "numeric") or "fb_x" not in model.signals:  # a strapdown model only
+        return None
+    if not model.numeric("accel_columns").size or np.any(model.numeric("phi0") != 0):
+        return None
+    (t1, t2), span = lev["window"], float(flight.t[-1] - flight.t[0])
+    tilt = ""
+    if estimates and all(f"ba_{a}" in estimates for a in "xyz") and all(f"fb_{a}" in flight.signals for a in "xyz"):
+        pad = (flight.t >= t1) & (flight.t <= t2)
+        u = np.array([flight.signals[f"fb_{a}"][pad if pad.any() else slice(None)].mean() for a in "xyz"])
+        b = np.array([estimates[f"ba_{a}"] for a in "xyz"]) * 1e-3  # mg -> g
+        phi = float(np.linalg.norm(np.cross(u / np.linalg.norm(u), b)))  # rad: the bias across the pad's vertical
+        tilt = (f" (the estimate's ba_x, ba_y, ba_z {b[0] * 1e3:.3g}, {b[1] * 1e3:.3g}, {b[2] * 1e3:.3g} mg: a start "
+                f"tilt of {phi * 206264.8:.3g} arcsec, {phi * G0 * span:.3g} m/s over the {span:.4g} s flight at 1 g)")
+    use = PHI0_MODELS.get(model.name.split("+")[0], "a model with the initial attitude error phi0_x..z")
+    return (f"{flight.source}: casep navigate levelled this telemetry on the pad over [{t1:g}, {t2:g}] s, which turns "
+            f"the accelerometer errors on the pad into a start attitude error{tilt}; model {model.name} has no "
+            f"initial attitude error to take it, so its estimates are biased: use {use} (phi0 free), or "
+            "`casep separate --imu` on the raw record (the levelling's own phi0 from the coefficients)")
 
 
 def warn_setup(flight: FlightData) -> list[str]:

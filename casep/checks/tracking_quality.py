@@ -51,7 +51,7 @@ from casep.noise.robust import MAD_SIGMA
 
 __all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
-           "imu_noise_effect", "imu_sample_noise", "STALE_MOTION", "JUMP_TOL", "JUMP_RATE",
+           "imu_noise_effect", "imu_sample_noise", "white_sample_std", "STALE_MOTION", "JUMP_TOL", "JUMP_RATE",
            "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
 
 #: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
@@ -362,9 +362,15 @@ def imu_sample_noise(flight: FlightData, t_rows: np.ndarray) -> tuple[np.ndarray
         return None
     h = float(np.median(np.diff(flight.t[i])))
     raw = np.column_stack([sig[f"{k}_{a}"][i] for k in ("fb", "w") for a in "xyz"])
-    d = np.diff(raw, 2, axis=0)  # white noise: var 6 s^2; a motion linear over three samples: none
-    s = np.median(np.abs(d - np.median(d, axis=0)), axis=0) * MAD_SIGMA / math.sqrt(6)  # per sample, 6 channels
-    return s, h, i
+    return white_sample_std(raw), h, i
+
+
+def white_sample_std(x: np.ndarray) -> np.ndarray:
+    """Per-column std of the white noise on the samples `x` (n, k) beside a smooth motion: the robust scatter of
+    the second differences, ``MAD(d2) * 1.4826 / sqrt(6)`` (white noise of std s gives ``var(d2) = 6 s^2``; a
+    motion linear over three samples gives none)."""
+    d = np.diff(np.asarray(x, dtype=float), 2, axis=0)
+    return np.median(np.abs(d - np.median(d, axis=0)), axis=0) * MAD_SIGMA / math.sqrt(6)
 
 
 def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray,

@@ -22,7 +22,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("flight", nargs="*", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "
                    "several files: one estimate of the shared coefficients, per-flight ones per flight "
                    "(every method of `casep methods`)")
-    options.add_model(p, None, "default platform36; strapdown33 with --imu")
+    options.add_model(p, None, "default platform36; strapdown15_phi0 on strapdown telemetry; strapdown33 with --imu")
     p.add_argument("--imu", metavar="IMU.csv", default=None,
                    help="a raw IMU record instead of FLIGHT (t, w_*, fb_* or t, dth_*, dvb_*, as casep navigate "
                         "reads it): navigated, paired with --tracking and separated; needs --launch-site, "
@@ -80,7 +80,8 @@ def run(args: argparse.Namespace) -> int:
                                 ("mode", args.threshold_mode), ("extension", args.extension),
                                 ("scaling", args.noise_scaling)) if v is not None}
     if args.model is None:  # the default model: one for every path, radar included
-        args.model = "strapdown33" if args.imu else "platform36"
+        from casep.io.files import default_model
+        args.model = default_model(args.flight[0] if args.flight else None, bool(args.imu))
     if args.radar:
         from casep.cli.radar import separate_radar
 

@@ -68,6 +68,9 @@ from casep.io.pair import (
 from casep.io.tables import VTEL_COLUMNS, VTRK_COLUMNS, Table, apparent_velocity_to_force, table_force
 
 __all__ = [
+    "default_model", "navigation_site",
+    "levelled_comment",
+    "levelling_record",
     "read_json_table", "read_flight", "read_flight_pair", "write_flight", "write_table", "apparent_velocity_to_force",
     "acceleration_signals",
 ]
@@ -76,6 +79,61 @@ __all__ = [
 R_TEL_COLUMNS = ("r_tel_x", "r_tel_y", "r_tel_z")  # launch-inertial position (casep navigate's output), m
 #: casep navigate's header line naming the launch site (casep/cli/navigate.py writes it)
 _NAV_SITE = re.compile(r"^#\s*launch site (\S+) (\S+) (\S+) azimuth (\S+) deg, launch time (\S+) s")
+#: casep navigate's header line naming its pad alignment (:func:`levelled_comment` writes it)
+_NAV_LEVELLED = re.compile(r"^#\s*alignment: levelled over \[(\S+), (\S+)\] s, heading (\S+)")
+
+
+def levelled_comment(window: tuple[float, float], alignment: Any) -> str:
+    """The header line of ``casep navigate``'s telemetry saying that casep aligned it on the pad: levelled by
+    the mean specific force over `window` (s) and headed as `alignment` (:class:`casep.navigation.alignment.Alignment`)
+    says; :func:`levelling_record` reads it back."""
+    how = "given" if alignment.method == "heading" else "gyrocompassed"
+    return (f"alignment: levelled over [{window[0]:.10g}, {window[1]:.10g}] s, heading {how} "
+            f"(body {alignment.heading_axis} at {alignment.heading_deg:.6g} deg)")
+
+
+def _header(tab: Table) -> list[str]:
+    """The ``#`` comment lines at the top of a CSV table (none for Parquet or a table not read from a file)."""
+    if not tab.path.is_file() or is_parquet(tab.path):
+        return []
+    lines = []
+    with open(tab.path, encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            if not line.startswith("#"):
+                break
+            lines.append(line)
+    return lines
+
+
+def default_model(flight: str | os.PathLike | None, imu: bool = False) -> str:
+    """The model ``casep separate`` takes without ``--model``: ``strapdown33`` for a raw IMU record (`imu`; the
+    levelling's own phi0 is added), ``strapdown15_phi0`` for a strapdown telemetry (`flight` with ``q_*``,
+    ``fb_*``, ``w_*``: body-frame errors, and a start attitude known only so well, a levelled one tilted by the
+    accelerometer biases: :func:`casep.checks.plausibility.levelling_problem`), else ``platform36``."""
+    if imu:
+        return "strapdown33"
+    if flight is None or not Path(flight).is_file():
+        return "platform36"
+    from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
+
+    cols = Table(flight).columns
+    strapdown = all(c in cols for c in QUATERNION_COLUMNS + BODY_FORCE_COLUMNS + BODY_RATE_COLUMNS)
+    return "strapdown15_phi0" if strapdown else "platform36"
+
+
+def levelling_record(tab: Table) -> dict | None:
+    """``{"window": [T1, T2], "heading": "given" | "gyrocompassed"}`` when `tab`'s header says ``casep navigate``
+    levelled it on the pad (:func:`levelled_comment`), else None: the levelling turned the accelerometer errors
+    on the pad into a start tilt, which a model without an initial attitude error cannot describe
+    (:func:`casep.checks.plausibility.levelling_problem`)."""
+    for line in _header(tab):
+        m = _NAV_LEVELLED.match(line)
+        if m is not None:
+            try:
+                return {"window": [float(m.group(1)), float(m.group(2))], "heading": m.group(3)}
+            except ValueError:
+                return None
+    return None
 
 
 def navigation_site(tab: Table):
@@ -85,12 +143,9 @@ def navigation_site(tab: Table):
     if not tab.path.is_file() or is_parquet(tab.path) or not all(c in tab.columns for c in R_TEL_COLUMNS):
         return None
     site, inertial = None, False
-    with open(tab.path, encoding="utf-8", errors="replace") as fh:
-        for line in fh:
-            if not line.startswith("#"):
-                break
-            inertial |= "launch-inertial frame" in line
-            site = _NAV_SITE.match(line) or site
+    for line in _header(tab):
+        inertial |= "launch-inertial frame" in line
+        site = _NAV_SITE.match(line) or site
     if site is None or not inertial:
         return None
     from casep.frames import LaunchSite
@@ -166,6 +221,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
             "rows_file": str(tab.path)}  # sample k is data row k + 1 (locate_samples)
     if dv_from != "dv":
         meta["start_speed_m_s"] = start_speed(tab, t, v_tel)
+        meta["levelled"] = levelling_record(tab)
         meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.checks.plausibility
         meta["tracking_repeats"] = repeated_rows(tab, "launch", skip=~observed)  # for casep.checks.tracking_quality
     if not observed.all():
@@ -343,6 +399,7 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     nav_site = navigation_site(tel)
     if nav_site is not None:  # the telemetry's own frame (its gravitation: casep.workflows.telemetry_iterate)
         flight.meta["telemetry_site"] = nav_site.to_dict()
+    flight.meta["levelled"] = levelling_record(tel)
     if shift_scale:
         flight.meta["time_shift_s"] = shift_scale
     if r_ecef is not None and v_ecef is not None:  # Earth-fixed tracking; the late-start check: speed relative

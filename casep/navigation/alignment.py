@@ -29,7 +29,8 @@ import numpy as np
 from casep.exceptions import AlignmentWarning, PlausibilityWarning
 from casep.frames import OMEGA_EARTH, LaunchSite
 
-__all__ = ["Alignment", "align", "HEADING_AXES", "course_rotation"]
+__all__ = ["Alignment", "align", "HEADING_AXES", "course_rotation", "gyro_bias_allowance", "mean_rate_std",
+           "EARTH_RATE_CHI2"]
 
 #: Body axes whose azimuth ``--heading`` may give.
 HEADING_AXES = ("x", "y", "z")
@@ -133,15 +134,15 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
         known worse than 30 deg).
     """
     from casep.gravity import normal_gravity_ecef
+    from casep.navigation.imu import time_step_problem
 
     t1, t2 = window
     sel = (t >= t1) & (t <= t2)
     n = int(sel.sum())
     if not t1 < t2 or n < 2:
         h = float(np.median(np.diff(t))) if t.size > 1 else 0.0
-        # an IMU samples at 10 Hz-100 kHz: a median step of 0.1-100 "s" is one of 0.1-100 ms
-        hint = f"; its median time step is {h:g} s ({1 / h:.3g} Hz): is t in ms (divide by 1000)?" \
-            if 0.1 < h <= 100.0 else ""
+        why = time_step_problem(h) if h > 0 else None
+        hint = f"; its {why}" if why is not None else ""
         raise ValueError(f"--align {t1:g} {t2:g}: the window must hold at least 2 samples (it holds {n}; the file "
                          f"spans {t[0]:g} .. {t[-1]:g} s{hint})")
     f_mean, w_mean = f[sel].mean(axis=0), w[sel].mean(axis=0)
@@ -170,6 +171,7 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
                              "from the vertical on the pad, so its azimuth does not fix the heading: give the azimuth "
                              "of a horizontal axis (--heading-axis)")
         C = _triad(up_b, axis, up_t, _horizontal(heading_deg, site))
+        _check_earth_rate(w[sel], w_mean, C, site, (t1, t2), rates_in, float(heading_deg))
         return Alignment(C, "heading", float(heading_deg) % 360.0, None, f_mean, w_mean, g0, n, heading_axis)
     if tilt < MIN_AXIS_TILT_RAD:  # its azimuth means nothing: report the most horizontal axis's
         heading_axis = HEADING_AXES[int(np.argmin(np.abs(up_b)))]
@@ -210,6 +212,71 @@ def _check_pad_rate(w_mean: np.ndarray, n: int, window: tuple[float, float], up_
     if rate > MAX_PAD_RATE or 0.8 * deg < ratio < 1.2 * deg:
         warnings.warn(f"{where}, {ratio:.1f} times the Earth rate {OMEGA_EARTH:.4g} rad/s: deg/s given as rad/s (57.3 "
                       "times), a gyro bias of that size, or a vehicle not at rest", PlausibilityWarning, stacklevel=3)
+
+
+#: The chi-square (3 degrees of freedom, 0.1 % false alarms) beyond which a mean pad rate disagrees with the
+#: Earth rate the alignment puts in body axes (:func:`_check_earth_rate`).
+EARTH_RATE_CHI2 = 16.27
+#: How much lower the chi-square of another sign per gyro axis must be to name it (a likelihood ratio of 90).
+SIGN_CHI2_MARGIN = 9.0
+
+
+def gyro_bias_allowance(site: LaunchSite) -> float:
+    """The gyro bias a gyro that finds north may have, rad/s: ``omega_E cos(lat) sin(30 deg)``, the horizontal
+    bias that turns a gyrocompassed heading by the 30 deg beyond which casep refuses it (3.0e-5 rad/s, 6 deg/h,
+    at 34 deg latitude). A gyro whose mean pad rate is beyond 3 times the Earth rate is of another grade (MEMS:
+    its bias hides the Earth rate), and no pad test of the Earth rate is made on it."""
+    omega_t = site.earth_rate
+    up = site.C.T @ (site.r_site / np.linalg.norm(site.r_site))  # near enough the vertical for a bound
+    return float(np.linalg.norm(omega_t - (omega_t @ up) * up)) * math.sin(GYROCOMPASS_LIMIT_RAD)
+
+
+def mean_rate_std(x: np.ndarray) -> np.ndarray:
+    """The std of the mean of each column of `x` (n, k) from its own scatter, corrected for AR(1) correlation:
+    ``s^2 / n (1 + rho) / (1 - rho)``, ``rho`` the lag-1 autocorrelation (clipped to [0, 0.99])."""
+    d = x - x.mean(axis=0)
+    var = np.mean(d**2, axis=0)
+    rho = np.clip(np.sum(d[1:] * d[:-1], axis=0) / np.maximum(np.sum(d**2, axis=0), 1e-300), 0.0, 0.99)
+    return np.sqrt(var / len(x) * (1 + rho) / (1 - rho))
+
+
+def _check_earth_rate(w_win: np.ndarray, w_mean: np.ndarray, C: np.ndarray, site: LaunchSite,
+                      window: tuple[float, float], rates_in: str, heading_deg: float) -> None:
+    """With the heading given, the mean pad rate against the Earth rate the alignment puts in body axes.
+
+    ``chi2(S) = sum_i (S_i w_mean_i - e_i)^2 / (s_i^2 + b^2)``, ``e = C^T omega_t``, ``s_i`` the std of the mean
+    rate (:func:`mean_rate_std`), ``b`` :func:`gyro_bias_allowance`, ``S`` a sign per gyro axis (``S = +1``:
+    as given). A warning when another ``S`` explains the pad rate better by more than :data:`SIGN_CHI2_MARGIN`
+    (gyro axes whose signs differ from the accelerometers'; negating all three accelerometers turns the levelled
+    attitude over about the heading axis and looks the same: the specific force at rest is +g up, and the pad
+    data cannot tell "+g down" from an upside-down vehicle with two gyro axes flipped), or when ``chi2(+1)`` is
+    beyond :data:`EARTH_RATE_CHI2` (a heading other than the one given, a larger gyro bias). Not made when the
+    mean rate exceeds 3 times the Earth rate (the gyro's bias hides it: MEMS) or the noise of the mean exceeds
+    ``b``: there the pad cannot tell.
+    """
+    b = gyro_bias_allowance(site)
+    s = mean_rate_std(w_win)
+    if np.linalg.norm(w_mean) > 3 * OMEGA_EARTH or float(np.max(s)) > b:
+        return
+    e = C.T @ site.earth_rate
+    signs = [np.array([sx, sy, sz]) for sx in (1, -1) for sy in (1, -1) for sz in (1, -1)]
+    chi2 = [float(np.sum((S * w_mean - e) ** 2 / (s**2 + b**2))) for S in signs]
+    k = int(np.argmin(chi2))
+    flipped = chi2[k] + SIGN_CHI2_MARGIN < chi2[0]
+    if not flipped and chi2[0] <= EARTH_RATE_CHI2:
+        return
+    said = (f"--align {window[0]:g} {window[1]:g}: {rates_in}: the mean body rate at rest "
+            f"({', '.join(f'{v:.3g}' for v in w_mean)}) rad/s is not the Earth rate the alignment puts in body axes "
+            f"({', '.join(f'{v:.3g}' for v in e)}) rad/s: chi-square {chi2[0]:.3g} over 3 axes against the noise of "
+            f"the mean ({', '.join(f'{v:.2g}' for v in s)} rad/s) and a gyro bias of up to {b:.2g} rad/s")
+    if flipped:
+        axes = ", ".join(a for a, v in zip("xyz", signs[k]) if v < 0)
+        said += (f"; with the signs of gyro {axes} changed it is {chi2[k]:.3g}: gyro axes whose signs differ from "
+                 "the accelerometers', or a specific force given as +g down (at rest it is +g up: negated, the "
+                 "levelling turns the vehicle over)")
+    else:
+        said += f" (> {EARTH_RATE_CHI2:g}): a heading other than {heading_deg:g} deg, or a larger gyro bias"
+    warnings.warn(said, AlignmentWarning, stacklevel=3)
 
 
 def _gyrocompass(w_win: np.ndarray, w_mean: np.ndarray, f_mean: np.ndarray, up_b: np.ndarray, up_t: np.ndarray,

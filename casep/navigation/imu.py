@@ -68,8 +68,8 @@ from casep.checks.saturation import (
 from casep.exceptions import GapWarning, PlausibilityWarning, SaturationWarning
 
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
-           "GAP_FACTOR", "BRIDGE_MAX", "GapBridge", "bridge_gaps", "gap_steps", "clipped_samples", "sample_periods",
-           "with_rates", "regular_time"]
+           "GAP_FACTOR", "BRIDGE_MAX", "IMU_STEP_RANGE", "time_step_problem", "GapBridge", "bridge_gaps",
+           "gap_steps", "clipped_samples", "sample_periods", "with_rates", "regular_time"]
 
 RATE_COLUMNS = ("w_x", "w_y", "w_z")
 FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
@@ -79,6 +79,9 @@ DV_COLUMNS = ("dvb_x", "dvb_y", "dvb_z")
 GAP_FACTOR = 1.5
 #: Samples on each side of a gap its bridge is fitted to, at most (:func:`bridge_gaps`).
 BRIDGE_MAX = 400
+#: The median time steps of an IMU record, s: 1 MHz to 5 Hz (IMUs sample at 10 Hz-100 kHz); outside, `t` is
+#: in another unit (:func:`check_imu` refuses it).
+IMU_STEP_RANGE = (1e-6, 0.2)
 #: Rates beyond this are refused (no gyro's full scale reaches it: deg/s declared rad/s), rad/s.
 MAX_RATE = 200.0
 #: Rates beyond this (2000 deg/s, the largest common full scale) and specific forces beyond 50 g are warned about.
@@ -142,6 +145,21 @@ def read_imu(path: str | os.PathLike, *, gyr_range: float | None = None, acc_ran
                      gyr_range=gyr_range, acc_range=acc_range)
 
 
+def time_step_problem(h: float) -> str | None:
+    """Why an IMU's median time step `h` (read as s) is not one, with the unit that would make it one, or None.
+
+    IMUs sample at 10 Hz-100 kHz; a median step outside :data:`IMU_STEP_RANGE` is a time column in ms, us or
+    ns (a 100 Hz IMU with t in ms has a step of 10 "s"), or not a time."""
+    lo, hi = IMU_STEP_RANGE
+    if lo <= h <= hi:
+        return None
+    fits = [u for u, k in (("ms (divide by 1000)", 1e-3), ("us (divide by 1e6)", 1e-6), ("ns (divide by 1e9)", 1e-9))
+            if lo <= h * k <= hi]
+    hint = f": is t in {fits[0]}?" if fits else ": is t in seconds?"
+    return (f"median time step {h:.4g} s ({1 / h:.4g} Hz), outside the {1 / hi:g} Hz-{1 / lo:.0e} Hz an IMU "
+            f"samples at{hint}")
+
+
 def check_imu(imu: ImuData, *, gyr_range: float | None = None, acc_range: float | None = None) -> ImuData:
     """Check an IMU record (gaps, units, clipped samples) and, for increments, fill ``w``, ``f``; returns it.
 
@@ -164,6 +182,9 @@ def check_imu(imu: ImuData, *, gyr_range: float | None = None, acc_range: float 
         k = int(np.flatnonzero(h <= 0)[0]) + 1
         raise ValueError(f"{imu.source}: column t, row {k + 1}: time {t[k]:.10g} s does not increase")
     h_med = float(np.median(h))
+    why = time_step_problem(h_med)
+    if why is not None:
+        raise ValueError(f"{imu.source}: column t: {why}")
     lost = gap_steps(t)
     raw = None  # the increments as the IMU gave them, each over its period: the clip is judged on these
     if imu.kind == "increments":
@@ -264,21 +285,29 @@ def _warn_gaps(imu: ImuData, lost: np.ndarray, h: np.ndarray, h_med: float) -> N
     k = int(lost[np.argmax(h[lost])])
     missing = int(np.sum(np.round(h[lost] / h_med) - 1))
     br = bridge_gaps(t, imu.w, imu.f)
-    j = int(np.argmax(br.velocity))
-    i = int(np.argmax(br.attitude))
     fmax = float(np.linalg.norm(imu.f, axis=1).max())
     gaps = f"{lost.size} gap{'s' if lost.size > 1 else ''}"
     how = ("the rate and specific force bridged by a cubic fitted to the samples either side" if imu.kind == "rates"
            else "the increment after it held over it")
-    warnings.warn(f"{imu.source}: {gaps} in t (about {missing} samples lost at the median step "
-                  f"{h_med:.4g} s); the longest {h[k]:.4g} s after t = {t[k]:.10g} s (row {k + 1}): "
-                  f"integrated across it, {how}; "
-                  f"the velocity across the gap after t = {t[br.steps[j]]:.10g} s is known to about "
-                  f"{br.velocity[j]:.3g} m/s only (any path of the specific force between the two sides of its "
-                  f"{br.h[j]:.4g} s: {br.motion[j, 1]:.3g} m/s; the rest from its noise {br.noise[j, 1]:.3g} m/s^2), "
-                  "the attitude across the gap after t = "
-                  f"{t[br.steps[i]]:.10g} s to about {br.attitude[i]:.3g} rad (gyro noise {br.noise[i, 0]:.3g} rad/s "
-                  f"included; after it a velocity error grows by up to {fmax * br.attitude[i]:.3g} m/s per s)",
+
+    def known(m: int) -> str:  # what the bridge of gap m (an index of br.steps) leaves unknown
+        return (f"the velocity across it is known to about {br.velocity[m]:.3g} m/s only (any path of the specific "
+                f"force between the two sides of its {br.h[m]:.4g} s: {br.motion[m, 1]:.3g} m/s; the rest from its "
+                f"noise {br.noise[m, 1]:.3g} m/s^2), the attitude to about {br.attitude[m]:.3g} rad (gyro noise "
+                f"{br.noise[m, 0]:.3g} rad/s included; after it a velocity error grows by up to "
+                f"{fmax * br.attitude[m]:.3g} m/s per s)")
+
+    said = (f"{imu.source}: {gaps} in t (about {missing} samples lost at the median step "
+            f"{h_med:.4g} s); the longest {h[k]:.4g} s after t = {t[k]:.10g} s (row {k + 1}): "
+            f"integrated across it, {how}")
+    at = np.flatnonzero(br.steps == k)
+    if at.size:
+        said += f"; {known(int(at[0]))}"
+    worst = int(np.argmax(br.velocity)) if br.steps.size else -1
+    if worst >= 0 and (not at.size or (worst != int(at[0]) and br.velocity[worst] > br.velocity[at[0]])):
+        said += (f"; the velocity is least known across the {br.h[worst]:.4g} s gap after t = "
+                 f"{t[br.steps[worst]]:.10g} s: {known(worst)}")
+    warnings.warn(said,
                   GapWarning, stacklevel=3)
 
 

@@ -10,6 +10,8 @@ is the pad's: ``C_L^b = C^T Rz(theta) C C_T^b`` (the Earth-fixed triad seen from
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from casep.frames import LaunchSite
@@ -21,7 +23,7 @@ __all__ = ["navigate", "navigate_from", "pad_state"]
 
 
 def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], *, heading_deg: float | None = None,
-             heading_axis: str = "x") -> NavigationResult:
+             heading_axis: str = "x", check_pad: bool = True) -> NavigationResult:
     """Align on the pad over `align_window` and navigate in the launch-inertial frame to the end of `imu`.
 
     Parameters
@@ -34,6 +36,9 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
         The span at rest on the pad, s; the navigation starts at its first sample.
     heading_deg, heading_axis
         See :func:`casep.navigation.alignment.align` (None: gyrocompassing, with a warning).
+    check_pad : bool, optional
+        Warn when the navigated speed over the window exceeds what the sensors allow at rest
+        (:func:`_check_pad_drift`); False for a simulator's own INS, whose pad is at rest by construction.
 
     Returns
     -------
@@ -46,7 +51,54 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
     res = navigate_from(imu, site, q0, r0, v0, t_start=t_s)
     res.alignment = alignment
     res.align_window = (float(align_window[0]), float(align_window[1]))
+    if check_pad:
+        _check_pad_drift(res, imu, site)
     return res
+
+
+#: The pad check's factor on the noise-driven speed (its std) and on the bias allowance's tilt.
+PAD_NOISE_FACTOR, PAD_BIAS_FACTOR = 5.0, 3.0
+
+
+def _check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite) -> None:
+    """Warn (:class:`casep.exceptions.AlignmentWarning`) when the navigated speed over the pad window exceeds what
+    the sensors allow a vehicle at rest.
+
+    Over the window of length ``T`` (median step ``dt``, per-sample std ``s_f``, ``s_w`` per axis:
+    :func:`casep.checks.tracking_quality.white_sample_std`), the levelling cancels the accelerometers' mean; what is
+    left is their white noise's velocity random walk ``s_f sqrt(dt T)``, the gyros' angle random walk turned
+    into a velocity by gravity, ``g s_w sqrt(dt) T^1.5 / sqrt 3``, and a horizontal gyro bias ``b``
+    (:func:`casep.navigation.alignment.gyro_bias_allowance`) tilting it, ``g b T^2 / 2``::
+
+        allowed = 5 sqrt(sum_i s_f,i^2 dt T + g^2 s_w,i^2 dt T^3 / 3) + 3 g b T^2 / 2
+
+    Beyond it the vehicle moved in the window, or a gyro bias far beyond a navigation gyro's tilts the
+    levelled attitude within seconds: the solution drifts as ``t^2`` from there on.
+    """
+    from casep.checks.tracking_quality import white_sample_std
+    from casep.exceptions import AlignmentWarning
+    from casep.navigation.alignment import gyro_bias_allowance
+
+    t1, t2 = res.align_window
+    sel = (imu.t >= t1) & (imu.t <= t2)
+    if int(sel.sum()) < 3:
+        return
+    T, dt = t2 - t1, float(np.median(np.diff(imu.t[sel])))
+    g = res.alignment.g_pad if res.alignment is not None else 9.80665
+    s_f, s_w = white_sample_std(imu.f[sel]), white_sample_std(imu.w[sel])
+    noise = float(np.sqrt(np.sum(s_f**2 * dt * T + g**2 * s_w**2 * dt * T**3 / 3.0)))
+    bias = g * gyro_bias_allowance(site) * T**2 / 2.0
+    allowed = PAD_NOISE_FACTOR * noise + PAD_BIAS_FACTOR * bias
+    drift = res.pad_drift()
+    if drift > allowed:
+        rate = float(np.linalg.norm(imu.w[sel].mean(axis=0)))
+        warnings.warn(f"--align {t1:g} {t2:g}: {imu.source}: the navigated speed reaches {drift:.3g} m/s within the "
+                      f"{T:.3g} s window declared at rest, above the {allowed:.3g} m/s its sensors allow (the noise's "
+                      f"random walks {noise:.2g} m/s x {PAD_NOISE_FACTOR:g}, a gyro bias of "
+                      f"{gyro_bias_allowance(site):.2g} rad/s tilting it {bias:.2g} m/s x {PAD_BIAS_FACTOR:g}); "
+                      f"mean pad rate {rate:.3g} rad/s: the "
+                      "vehicle moved in the window, or a gyro bias tilts the attitude within seconds and the "
+                      "solution drifts as t^2 from there", AlignmentWarning, stacklevel=2)
 
 
 def pad_state(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], *, heading_deg: float | None = None,

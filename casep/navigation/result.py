@@ -72,12 +72,16 @@ class NavigationResult:
 
     def comments(self, imu: str) -> list[str]:
         """The header lines of the telemetry file written from `imu` (the frame and the launch site, which
-        :func:`casep.io.files.navigation_site` reads back; the quaternion convention; the validity column)."""
+        :func:`casep.io.files.navigation_site` reads back; the quaternion convention; the pad alignment, which
+        :func:`casep.io.files.levelling_record` reads back; the validity column)."""
         s = self.site
+        from casep.io.files import levelled_comment
+
         clipped = [f"{VALID_COLUMN}: 0 from the first clipped IMU sample on (not trusted)"]
         return [f"casep navigate {imu}: strapdown telemetry, launch-inertial frame",
                 f"launch site {s.lat_deg:.12g} {s.lon_deg:.12g} {s.h_m:.12g} azimuth {s.azimuth_deg:.12g} deg, "
                 f"launch time {s.t0:.12g} s", "q: Hamilton, scalar first, body -> launch-inertial; SI units"] + \
+            ([levelled_comment(self.align_window, self.alignment)] if self.alignment is not None else []) + \
             (clipped if self.invalid_from() is not None else [])
 
     def invalid_from(self) -> float | None:

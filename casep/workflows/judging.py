@@ -28,13 +28,16 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     the model's declared magnitudes (:func:`casep.estimators._base.check_magnitudes`), except on noise-free
     data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
     set-up mistake (check_fit's NoiseFreeWarning says so)."""
-    from casep.checks.plausibility import misfit_problem, setup_problems
+    from casep.checks.plausibility import levelling_problem, misfit_problem, setup_problems
     from casep.estimators.registry import STATUS_MISFIT, STATUS_SETUP, check_magnitudes, failed
     from casep.regression.rows import mostly_runs
 
     problems = setup_problems(flight) if flight is not None else []
     if flight is not None and problems:
         res = failed(res, STATUS_SETUP, f"failed: set-up check of {flight.source}: " + "; ".join(problems))
+    why_level = levelling_problem(flight, model, dict(zip(res.names, res.estimate))) if flight is not None else None
+    if why_level is not None:
+        res = failed(res, STATUS_SETUP, f"failed: {why_level}")
     if flight is not None and not noise_free:
         rms = res.residual_rms
         why = misfit_problem(flight, rms, "xyz")  # the ratio first: the whiteness test is asked only then

@@ -27,6 +27,7 @@ from casep.frames import LaunchSite, launch_to_ecef
 from casep.gravity import normal_gravity_ecef
 from casep.io.flight import FlightDataError
 from casep.navigation import TELEMETRY_COLUMNS, ImuData, check_imu, navigate, read_imu
+from casep.navigation.alignment import EARTH_RATE_CHI2, align
 from casep.rotations import quat_conjugate, quat_multiply
 
 SITE = LaunchSite(67.89, 21.1, 330.0, 30.0, 100.0)  # a northern range, launch azimuth 30 deg, t0 = 100 s
@@ -131,8 +132,11 @@ def test_alignment_refuses_what_is_not_at_rest_in_m_s2():
     with pytest.raises(ValueError, match="at least 2 samples") as e:
         navigate(check_imu(ImuData(t, w, f)), SITE, (50.0, 60.0), heading_deg=10.0)
     assert "in ms" not in str(e.value)
-    with pytest.raises(ValueError, match=r"at least 2 samples.*median time step is 10 s \(0\.1 Hz\): is t in ms"):
-        navigate(check_imu(ImuData(1e3 * t, w, f)), SITE, (0.0, 9.0), heading_deg=10.0)  # t of a 100 Hz IMU in ms
+    with pytest.raises(ValueError, match=r"imu.csv: column t: median time step 10 s \(0\.1 Hz\), outside the "
+                                         r"5 Hz-1e\+06 Hz an IMU samples at: is t in ms \(divide by 1000\)\?"):
+        check_imu(ImuData(1e3 * t, w, f, source="imu.csv"))  # t of a 100 Hz IMU in ms, even with a window that fits
+    with pytest.raises(ValueError, match=r"at least 2 samples.*median time step 10 s \(0\.1 Hz\).*is t in ms"):
+        align(1e3 * t, w, f, (0.0, 9.0), SITE, heading_deg=10.0)  # the window's own hint, the same rule
     t, w, f = _stationary(100.0, 30.0, C_tb=Rotation.from_euler("YZX", [20.0, 1.0, -1.0], degrees=True).as_matrix())
     with pytest.raises(ValueError, match=r"y axis is 1\.\d+ deg from the vertical"):  # its azimuth fixes nothing
         navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 10.0), heading_deg=10.0, heading_axis="y")
@@ -218,11 +222,13 @@ def test_a_pad_rate_near_57_times_the_earth_rate_in_another_direction_is_only_wa
     # 57.3 times the Earth rate in magnitude, all of it horizontal: not the Earth rate in deg/s
     w_t = math.degrees(1.0) * 7.292115e-5 * north_t / np.linalg.norm(north_t)
     w = np.tile(C_TB.T @ w_t, (len(t), 1))
-    with pytest.warns(PlausibilityWarning, match=r"57\.3 times the Earth rate.*deg/s given as rad/s"):
+    with pytest.warns(PlausibilityWarning, match=r"57\.3 times the Earth rate.*deg/s given as rad/s"), \
+            pytest.warns(AlignmentWarning, match="speed reaches"):  # the rate tilts the pad: the pad check too
         navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 10.0), heading_deg=_heading_of_x())
     # 50 times the Earth rate in its direction: beyond the 5 % match, a warning
     _, w, _ = _stationary(100.0, 20.0)
-    with pytest.warns(PlausibilityWarning, match=r"50\.0 times the Earth rate"):
+    with pytest.warns(PlausibilityWarning, match=r"50\.0 times the Earth rate"), \
+            pytest.warns(AlignmentWarning, match="speed reaches"):
         navigate(check_imu(ImuData(t, 50.0 * w, f)), SITE, (0.0, 10.0), heading_deg=_heading_of_x())
 
 
@@ -305,3 +311,55 @@ def test_a_gravity_iteration_that_does_not_converge_is_a_failed_result():
     assert res.success and res.status == 0
     res.passes = MAX_PASSES + 1
     assert not res.success and res.status == 1 and "did not converge" in res.message
+
+
+def _alignment_warnings(imu, **kw) -> list[str]:
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        navigate(imu, SITE, (0.0, 10.0), heading_deg=_heading_of_x(), **kw)
+    return [str(r.message) for r in rec if r.category is AlignmentWarning]
+
+
+def test_gyro_signs_against_the_accelerometers_are_told_by_the_earth_rate_when_the_grade_allows():
+    """A navigation-grade pad (gyro noise 1e-6 rad/s at 100 Hz): gyro y, z negated, or the specific force given as
+    +g down, is named (the signs that explain the pad rate, chi-square 0 against ~30); as given, nothing; a MEMS
+    gyro (bias 1e-3 rad/s, 14 times the Earth rate) cannot tell the Earth rate: no sign is named."""
+    t, w, f = _stationary(100.0, 20.0, np.random.default_rng(3), sigma_a=1e-4, sigma_g=1e-6)
+    assert _alignment_warnings(check_imu(ImuData(t, w, f))) == []
+    for ww, ff in ((w * [1, -1, -1], f), (w, -f)):
+        said = [m for m in _alignment_warnings(check_imu(ImuData(t, ww, ff))) if "Earth rate the alignment" in m]
+        assert len(said) == 1 and "with the signs of gyro" in said[0] and "+g down" in said[0]
+        as_given = float(re.search(r"chi-square ([0-9.e+-]+) over", said[0]).group(1))
+        flipped = float(re.search(r"changed it is ([0-9.e+-]+):", said[0]).group(1))
+        assert as_given > EARTH_RATE_CHI2 / 2 and flipped + 9.0 < as_given  # +g down: about a tilted axis
+    mems = w + 1e-3
+    assert not any("signs of gyro" in m for m in _alignment_warnings(check_imu(ImuData(t, mems * [1, -1, -1], f))))
+
+
+def test_a_pad_that_drifts_beyond_its_sensors_is_warned_about():
+    """At rest with noise: no pad warning. A gyro bias of 0.02 rad/s (a consumer MEMS, under the 0.05 rad/s rate
+    warning) tilts the levelled attitude: within the 10 s window the speed reaches about g b T^2 / 2 = 9.8 m/s,
+    named with the allowance; the same without the check says nothing."""
+    t, w, f = _stationary(100.0, 20.0, np.random.default_rng(4), sigma_a=2e-3, sigma_g=1e-4)
+    assert _alignment_warnings(check_imu(ImuData(t, w, f))) == []
+    said = _alignment_warnings(check_imu(ImuData(t, w + [0.02, 0.0, 0.0], f)))
+    drift = float(re.search(r"speed reaches ([0-9.]+) m/s within the 10 s window", said[-1]).group(1))
+    allowed = float(re.search(r"above the ([0-9.e+-]+) m/s its sensors allow", said[-1]).group(1))
+    assert 3.0 < drift < 15.0 and allowed < 0.3
+    assert _alignment_warnings(check_imu(ImuData(t, w + [0.02, 0.0, 0.0], f)), check_pad=False) == []
+
+
+def test_the_lost_samples_warning_gives_the_longest_gaps_own_figures():
+    """A 1 s gap where the specific force is steady and a 0.2 s gap across a step of 1 m/s^2: the figures after
+    "the longest 1 s" are the 1 s gap's, and the 0.2 s gap, least known, is named with its own."""
+    t, w, f = _stationary(100.0, 40.0)
+    f = f + np.where(t[:, None] > 30.1, [1.0, 0.0, 0.0], 0.0)
+    keep = ((t < 20.0) | (t > 21.0)) & ((t < 30.0) | (t > 30.2))
+    with pytest.warns(GapWarning) as rec:
+        check_imu(ImuData(t[keep], w[keep], f[keep]))
+    msg = str(rec[0].message)
+    longest, rest = msg.split("the longest 1.02 s after t = 19.99 s")[1].split("least known across the 0.22 s gap")
+    assert "between the two sides of its 1.02 s" in longest and "its 0.22 s" in rest
+    v_long = float(re.search(r"known to about ([0-9.e+-]+) m/s", longest).group(1))
+    v_short = float(re.search(r"known to about ([0-9.e+-]+) m/s", rest).group(1))
+    assert v_short > v_long

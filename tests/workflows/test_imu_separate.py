@@ -421,7 +421,8 @@ def test_sv_of_a_pass_is_the_derivative_of_the_corrected_navigation(truth_flight
 
     def dv(Dj):
         fb, wb = corrected_imu(model, nav.q, imu.f, imu.w, t - t[0], Dj)
-        v = navigate(ImuData(t, wb, fb), SITE, ALIGN, heading_deg=heading_of_x()).v
+        # corrected off the truth by degrees of misalignment, the pad is not at rest: the pad check is not the question
+        v = navigate(ImuData(t, wb, fb), SITE, ALIGN, heading_deg=heading_of_x(), check_pad=False).v
         return v[rows] - nav.v[rows]
 
     for name in ("bg_x", "ba_x"):

@@ -1,0 +1,42 @@
+"""casep navigate's header line saying it levelled the telemetry (casep.io.files.levelled_comment, levelling_record)
+and the model casep separate takes by default (casep.io.files.default_model)."""
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from casep.io.files import default_model, levelled_comment, levelling_record, read_flight, write_table
+from casep.io.tables import Table
+from casep.units import G0
+
+
+def _cols(strapdown: bool) -> dict:
+    t = np.arange(4.0)
+    cols = {"t": t, "f_x": t * 0, "f_y": t * 0, "f_z": t * 0 + G0, "v_tel_x": t * 0, "v_tel_y": t * 0,
+            "v_tel_z": t * 0, "v_trk_x": t * 0, "v_trk_y": t * 0, "v_trk_z": t * 0}
+    if strapdown:
+        cols.update({"q_w": t * 0 + 1, "q_x": t * 0, "q_y": t * 0, "q_z": t * 0, "fb_x": t * 0, "fb_y": t * 0,
+                     "fb_z": t * 0 - G0, "w_x": t * 0, "w_y": t * 0, "w_z": t * 0})
+    return cols
+
+
+def test_levelled_header_round_trip(tmp_path):
+    """The header line casep navigate writes is read back as the window and the heading's origin."""
+    al = SimpleNamespace(method="heading", heading_axis="x", heading_deg=200.0)
+    cols = _cols(False)
+    path = tmp_path / "tel.csv"
+    write_table(path, cols, comments=["casep navigate imu.csv", levelled_comment((0.0, 38.5), al)])
+    assert levelling_record(Table(path)) == {"window": [0.0, 38.5], "heading": "given"}
+    assert read_flight(path).meta["levelled"] == {"window": [0.0, 38.5], "heading": "given"}
+    write_table(path, cols, comments=["another INS"])
+    assert read_flight(path).meta["levelled"] is None
+
+
+def test_strapdown_telemetry_defaults_to_a_model_with_phi0(tmp_path):
+    """Without --model: strapdown15_phi0 on a strapdown telemetry, platform36 on a platform one, strapdown33 on
+    a raw IMU record."""
+    write_table(tmp_path / "sd.csv", _cols(True))
+    write_table(tmp_path / "pl.csv", _cols(False))
+    assert default_model(tmp_path / "sd.csv") == "strapdown15_phi0"
+    assert default_model(tmp_path / "pl.csv") == "platform36"
+    assert default_model(None, imu=True) == "strapdown33" and default_model(None) == "platform36"
