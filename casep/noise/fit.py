@@ -39,6 +39,9 @@ likelihood ratio against Gauss-Markov exceeds :data:`AUTO_LR`. Each test has one
 boundary of its space under the null (tau = 0, resp. the white share = 0), so the null
 distribution is ``(chi2_0 + chi2_1) / 2`` (Self & Liang); 5.41 is its 1 % point. Separate axis
 scales are kept only when they beat one common scale by :data:`AUTO_LR_SCALE` (chi2_2 at 1 %).
+An axis the tests leave at the simpler kind is then probed (:data:`PROBE_SPACINGS`, :data:`PROBE_SHARE`):
+where the simpler kind does not beat the probe by :data:`AUTO_LR` (a short window, whose columns absorb
+the slow part of the noise) Gauss-Markov plus white is taken, with an ``UndecidedNoiseWarning``.
 """
 
 from __future__ import annotations
