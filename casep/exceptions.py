@@ -8,7 +8,7 @@ from typing import Any
 __all__ = ["CasepWarning", "IllConditionedWarning", "PlausibilityWarning", "NoiseFreeWarning",
            "OutlierWarning", "TimeOffsetWarning", "SetupWarning", "MagnitudeWarning", "NoiseLevelWarning",
            "GapWarning", "NoiseNotWhiteWarning", "ConsistencyWarning", "AlignmentWarning", "SaturationWarning",
-           "TrackingQualityWarning", "NonlinearityWarning",
+           "TrackingQualityWarning", "NonlinearityWarning", "UndecidedNoiseWarning",
            "option_label", "refusal", "refused_option"]
 
 
@@ -76,6 +76,11 @@ class NonlinearityWarning(CasepWarning):
 class NoiseNotWhiteWarning(CasepWarning):
     """A white-noise fit whose residuals are correlated: the message gives the test, its numbers
     and the factor by which the reported std are too small."""
+
+
+class UndecidedNoiseWarning(CasepWarning):
+    """The automatic noise choice on rows too few to tell the noise kinds apart (a short window): the
+    message gives the samples, the span, the axes and the margins; the conservative kind is taken."""
 
 
 class ConsistencyWarning(CasepWarning):

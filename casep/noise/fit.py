@@ -39,6 +39,9 @@ likelihood ratio against Gauss-Markov exceeds :data:`AUTO_LR`. Each test has one
 boundary of its space under the null (tau = 0, resp. the white share = 0), so the null
 distribution is ``(chi2_0 + chi2_1) / 2`` (Self & Liang); 5.41 is its 1 % point. Separate axis
 scales are kept only when they beat one common scale by :data:`AUTO_LR_SCALE` (chi2_2 at 1 %).
+An axis the tests leave at the simpler kind is then probed (:data:`PROBE_SPACINGS`, :data:`PROBE_SHARE`):
+where the simpler kind does not beat the probe by :data:`AUTO_LR` (a short window, whose columns absorb
+the slow part of the noise) Gauss-Markov plus white is taken, with an ``UndecidedNoiseWarning``.
 """
 
 from __future__ import annotations
@@ -314,11 +317,17 @@ def _auto(reml: Reml, gm: _Fit, lo: float, hi: float, xatol: float) -> NoiseMode
     taus0 = [gm.taus[j] if corr[j] else None for j in range(3)]
     cur = search.run(corr, taus0, polish_only=True) if (any(corr) and not all(corr)) else \
         _Fit(*_value_scales(reml, taus0, gm.scales))
+    # what the data cannot tell apart: the richer kind where the simpler one does not beat it at its probe
+    probe = _undecided(reml, search, cur, corr)
+    forced = [v is not None for v in probe]
+    if any(f and not c for f, c in zip(forced, corr)):  # white axes undecided: Gauss-Markov searched afresh
+        corr = [c or f for c, f in zip(corr, forced)]
+        cur = search.run(corr, [gm.taus[j] if corr[j] else None for j in range(3)])
     # Gauss-Markov plus white against Gauss-Markov on the Gauss-Markov axes
     lr_white: list[float | None] = [None, None, None]
-    tried = [corr[j] and _whitened_p(reml, cur, j) < SCREEN_P for j in range(3)]
+    tried = [corr[j] and (forced[j] or _whitened_p(reml, cur, j) < SCREEN_P) for j in range(3)]
     if any(tried):
-        mix = search.run(corr, cur.taus, tried, scales=cur.scales, polish_only=True)
+        mix = search.run(corr, cur.taus, tried, scales=cur.scales, polish_only=not any(forced))
         keep_w = [False] * 3
         for j in range(3):
             if not tried[j]:
@@ -327,7 +336,7 @@ def _auto(reml: Reml, gm: _Fit, lo: float, hi: float, xatol: float) -> NoiseMode
                               shares=[0.0 if k == j else w for k, w in enumerate(mix.shares)],
                               scales=mix.scales, polish_only=True, only=j)
             lr_j = max(null.value - mix.value, 0.0) if np.isfinite(null.value) else float("inf")
-            lr_white[j], keep_w[j] = lr_j, lr_j > AUTO_LR
+            lr_white[j], keep_w[j] = lr_j, lr_j > AUTO_LR or forced[j]
         if any(keep_w):
             shares = [mix.shares[j] if keep_w[j] else 0.0 for j in range(3)]
             cur = search.run(corr, mix.taus, keep_w, shares=shares, scales=mix.scales, polish_only=True)
@@ -336,8 +345,70 @@ def _auto(reml: Reml, gm: _Fit, lo: float, hi: float, xatol: float) -> NoiseMode
                                                        shares=cur.shares, polish_only=True)
     lr_scale = max(one.value - cur.value, 0.0) if np.isfinite(one.value - cur.value) else 0.0
     chosen = cur if lr_scale > AUTO_LR_SCALE else one
-    return _model("auto", chosen, reml, lr=tuple(float(v) for v in lr), lr_scale=float(lr_scale),
-                  lr_white=tuple(lr_white))
+    model = _model("auto", chosen, reml, lr=tuple(float(v) for v in lr), lr_scale=float(lr_scale),
+                   lr_white=tuple(lr_white))
+    if any(v is not None and v >= 0.0 for v in probe):  # said where the simpler kind fits better, not enough
+        model.extra["undecided"] = _warn_undecided(reml, [v if v is not None and v >= 0.0 else None
+                                                          for v in probe], lr)
+    return model
+
+
+#: ``auto``: probes of the next richer kind on an axis the tests left at the simpler one. A white axis
+#: is probed with Gauss-Markov noise of these correlation times, in median sample spacings (a
+#: correlation over 4 to 8 samples cuts the effective number of samples, and so widens the std, by
+#: about as much); a Gauss-Markov axis with Gauss-Markov plus white noise of this white share (tau
+#: refitted). Where the simpler kind does not beat the probe by :data:`AUTO_LR` the data cannot tell
+#: the two apart: a window of few samples per correlation time, whose coefficient columns absorb the
+#: slow part of the noise. The richer kind (REML) is then taken: the conservative choice, as the
+#: simpler one leaves the std too small when it is wrong. On a long flight the probes are beaten by
+#: tens to hundreds, so the tests' choice stands.
+PROBE_SPACINGS = (4.0, 8.0)
+PROBE_SHARE = 0.3
+
+
+def _undecided(reml: Reml, search: _Search, cur: _Fit, corr: Sequence[bool]) -> list[float | None]:
+    """Per axis the margin -2 ln Lambda by which the chosen kind beats its probe (module notes,
+    :data:`PROBE_SPACINGS`), where it is below :data:`AUTO_LR`; None where the choice stands. A negative
+    margin is a probe the likelihood prefers (a white part the screen let pass, glitches): taken, not said."""
+    dt = float(np.median(np.diff(reml.t)))
+    out: list[float | None] = [None, None, None]
+    for j in range(3):
+        if corr[j] and cur.shares[j] > 0:
+            continue
+        if corr[j]:
+            sh = [PROBE_SHARE if k == j else w for k, w in enumerate(cur.shares)]
+            vals = [search.run(corr, cur.taus, shares=sh, scales=cur.scales, only=j).value]
+        else:
+            vals = []
+            for m in PROBE_SPACINGS:
+                tt = list(cur.taus)
+                tt[j] = m * dt
+                vals.append(reml.fit_scales(tt, cur.scales)[0])
+        margin = min(vals) - cur.value
+        if np.isfinite(margin) and margin < AUTO_LR:
+            out[j] = float(margin)
+    return out
+
+
+def _warn_undecided(reml: Reml, probe: Sequence[float | None], lr: Sequence[float]) -> dict:
+    """The :class:`~casep.exceptions.UndecidedNoiseWarning` of the axes the probes left undecided; their numbers."""
+    import warnings
+
+    from casep.exceptions import UndecidedNoiseWarning
+    from casep.noise.model import AXES
+
+    dt = float(np.median(np.diff(reml.t)))
+    span = float(reml.t[-1] - reml.t[0])
+    info = {AXES[j]: {"probe_margin": probe[j], "lr_gm": float(lr[j])} for j in range(3) if probe[j] is not None}
+    taus = "/".join(f"{m * dt:.3g}" for m in PROBE_SPACINGS)
+    axes = ", ".join(f"{a} (margin {v['probe_margin']:.2f})" for a, v in info.items())
+    warnings.warn(UndecidedNoiseWarning(
+        f"{reml.pb.source}: noise auto: {reml.N} samples over {span:.3g} s for {reml.p} estimable combinations "
+        f"cannot tell the noise kinds apart on axes {axes}: the simpler kind beats Gauss-Markov noise of tau "
+        f"{taus} s (or a white share {PROBE_SHARE:g}) by -2 ln Lambda below {AUTO_LR:g}; Gauss-Markov plus white "
+        "taken there, the conservative choice (the simpler kind leaves the std too small when it is wrong)"),
+        stacklevel=4)
+    return info
 
 
 #: ``auto``: the white part is tried on a Gauss-Markov axis when the residuals whitened by the
