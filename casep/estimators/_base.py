@@ -484,8 +484,8 @@ def _say_not_determined(res: EstimateResult, scales: Mapping[str, float], source
              for j in idx}
     reasons = {**res.reasons, **{n: f"not determined: std {ratio[n]:.3g} x declared magnitude" for n in names}}
     listed = ", ".join(names[:8]) + (f" and {len(names) - 8} more" if len(names) > 8 else "")
-    message = (f"{res.message}; {len(names)} of {len(res.names)} not determined by the data (std at or above the "
-               f"model's declared magnitude: {listed})")
+    message = (f"{res.message}; {len(names)} of {len(res.names)} not determined by the data (std at or above their "
+               f"declared magnitudes: {listed})")
     res = dataclasses.replace(res, reasons=reasons, message=message,
                               diagnostics={**res.diagnostics, "not_determined": names})
     failing = {r["name"] for r in res.diagnostics.get("beyond_linear") or ()}

@@ -73,7 +73,7 @@ def test_an_undetermined_coefficient_beyond_the_linear_limit_is_said_not_determi
         out = check_magnitudes(res, scales)
     assert out.success and out.status == 1 and "beyond_linear" not in out.diagnostics, out.message
     assert out.diagnostics["not_determined"] == ["c0"]
-    assert "1 of 2 not determined by the data (std at or above the model's declared magnitude: c0)" in out.message
+    assert "1 of 2 not determined by the data (std at or above their declared magnitudes: c0)" in out.message
     notes = {r["name"]: r.get("reason", "") for r in out.coefficient_rows()}
     assert notes["c0"].startswith("not determined: std 7") and notes["c1"] == ""
     assert "not determined" in out.text().splitlines()[1]
