@@ -14,8 +14,9 @@ flight.
       below 1 g: warning; a vehicle needs ``f = T/m > 1 g`` to lift off, so a boost that
       includes lift-off always exceeds 1 g; a peak of a few units is the signature of ``f``
       in g (multiply by 9.80665); a peak just under 1 g (above ``F_AT_REST`` g) is an
-      accelerometer at rest in m/s^2 (a record with no lift-off), not ``f`` in g. Peak above 100 g: warning (cm/s^2, mm/s^2?). ``f`` in
-      ft/s^2 (factor 3.28) stays inside the plausible range and is *not* detectable.
+      accelerometer at rest in m/s^2 (a record with no lift-off), not ``f`` in g. Peak above
+      100 g: warning (cm/s^2, mm/s^2?). ``f`` in ft/s^2 (factor 3.28) stays inside the
+      plausible range and is *not* detectable.
     - **Time** ``t``. Median step below 1 us (above 1 MHz): error; no telemetry is sampled
       that fast (``t`` in 1e-12 s steps, or time in the wrong unit). Median step below
       0.1 ms (above 10 kHz) or above 1 s (below 1 Hz), or duration above 1 h: warning with

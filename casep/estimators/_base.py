@@ -478,9 +478,9 @@ def _say_not_determined(res: EstimateResult, scales: Mapping[str, float], source
     idx = [j for j in not_determined(res.names, res.std, scales) if res.names[j] not in res.reasons]
     if not idx:
         return res
-    assert res.std is not None  # not_determined found a finite std
+    std = np.asarray(res.std)  # not None: not_determined found a finite std
     names = [res.names[j] for j in idx]
-    ratio = {res.names[j]: float(res.std[j] / scales.get(res.names[j], scales.get(res.names[j].split("[")[0])))
+    ratio = {res.names[j]: float(std[j] / scales.get(res.names[j], scales.get(res.names[j].split("[")[0])))
              for j in idx}
     reasons = {**res.reasons, **{n: f"not determined: std {ratio[n]:.3g} x declared magnitude" for n in names}}
     listed = ", ".join(names[:8]) + (f" and {len(names) - 8} more" if len(names) > 8 else "")
@@ -493,7 +493,7 @@ def _say_not_determined(res: EstimateResult, scales: Mapping[str, float], source
             and abs(res.estimate[j]) * si_factor(res.units[j]) >= LINEAR_LIMITS[res.units[j]]]
     if wild:
         where = f"{source}: " if source else ""
-        listed = "; ".join(f"{res.names[j]} {res.estimate[j]:.4g} +- {res.std[j]:.2g} {res.units[j]} (limit "
+        listed = "; ".join(f"{res.names[j]} {res.estimate[j]:.4g} +- {std[j]:.2g} {res.units[j]} (limit "
                            f"{LINEAR_LIMITS[res.units[j]] / si_factor(res.units[j]):.3g})" for j in wild)
         warnings.warn(MagnitudeWarning(
             f"{where}not determined: {listed}: beyond what a linear error model can describe but within "

@@ -35,9 +35,9 @@ from casep.estimators._base import (  # what a method's core uses (a method of o
     STATUS_TRACKING,
     Prepared,
     check_magnitudes,
-    not_determined,
     failed,
     finish,
+    not_determined,
     prepare,
 )
 from casep.estimators._options import (

@@ -128,8 +128,8 @@ def coarse_time_offset(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, 
     lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
     best = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 1e-7 * max(step, 1e-3)})
     tau = float(best.x) if best.fun <= cost(float(grid[k])) else float(grid[k])
-    J = cost(tau)
-    return TimeAlignment(tau, J, cost(0.0), period, int(use.sum()), _tau_std(spline, tt, tau, lag, J))
+    j_min = cost(tau)
+    return TimeAlignment(tau, j_min, cost(0.0), period, int(use.sum()), _tau_std(spline, tt, tau, lag, j_min))
 
 
 def _tau_std(spline, tt: np.ndarray, tau: float, lag: int, J: float) -> float:

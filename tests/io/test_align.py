@@ -94,8 +94,9 @@ def test_bad_input():
 
 
 def test_the_offset_std_is_its_scatter_and_infinite_at_rest():
-    """0.5 m/s tracking noise, 40 ms late, 20 seeds: RMS (tau - 40 ms) / std near 1 (measured 0.94 on 40 seeds). At rest the
-    velocity increments do not change with the offset: the std is seconds, beyond AUTO_MAX_STD of the period."""
+    """0.5 m/s tracking noise, 40 ms late, 20 seeds: RMS (tau - 40 ms) / std near 1 (measured 0.94 on 40 seeds).
+    At rest the velocity increments do not change with the offset: the std is seconds, beyond AUTO_MAX_STD of the
+    period."""
     from casep.io.align import AUTO_MAX_STD
 
     t_tel, t_trk = np.arange(0.0, 80.0, 0.01), np.arange(0.0, 80.0, 0.1)
