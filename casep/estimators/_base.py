@@ -249,7 +249,7 @@ def finish(
             message = message or (f"{n - n_ok} of {n} coefficients not identifiable on this data "
                                   "(zero or exactly dependent columns); the other estimated")
         else:
-            status, message = STATUS_NONE_DETERMINED, message or "no coefficient is identifiable on this data"
+            status, message = -1, message or "no coefficient is identifiable on this data"
     failure = _failure(pb, name, getattr(declared, "hint", ""), np.where(und, 0.0, x), std, res)
     if failure is not None:
         status, message = failure
@@ -390,9 +390,6 @@ LINEAR_Z = 2.0
 #: Methods whose estimates of poorly determined coefficients the regularisation sets, not the data (and whose
 #: std leave out that bias): beyond :data:`MAGNITUDE_FAIL` they get the warning, not a failure.
 REGULARISED = ("ridge", "pcr", "bounded")
-#: Status of a result whose data determine no coefficient: none identifiable, or every std at or above its
-#: declared magnitude (check_magnitudes).
-STATUS_NONE_DETERMINED = -1
 #: Status of a result whose flight failed a set-up check (casep.checks.plausibility.setup_problems).
 STATUS_SETUP = -4
 #: Status of a result with estimates beyond :data:`MAGNITUDE_FAIL` times their declared magnitudes.
@@ -411,8 +408,7 @@ STATUS_DISAGREE = -9
 #: Status of a result whose prior the data contradict (casep.estimators.rls.prior_conflict).
 STATUS_PRIOR_CONFLICT = -10
 #: Every failure status above, by name: one status, one meaning (tests/estimators/test_statuses.py).
-FAILURE_STATUSES = {"none determined": STATUS_NONE_DETERMINED, "setup": STATUS_SETUP, "magnitude": STATUS_MAGNITUDE,
-                    "tracking": STATUS_TRACKING,
+FAILURE_STATUSES = {"setup": STATUS_SETUP, "magnitude": STATUS_MAGNITUDE, "tracking": STATUS_TRACKING,
                     "not converged": STATUS_NOT_CONVERGED, "misfit": STATUS_MISFIT, "disagree": STATUS_DISAGREE,
                     "prior conflict": STATUS_PRIOR_CONFLICT}
 
@@ -492,10 +488,6 @@ def _say_not_determined(res: EstimateResult, scales: Mapping[str, float], source
                f"declared magnitudes: {listed})")
     res = dataclasses.replace(res, reasons=reasons, message=message,
                               diagnostics={**res.diagnostics, "not_determined": names})
-    if len(idx) == sum(1 for n in res.names if scales.get(n, scales.get(n.split("[")[0]))):
-        res = failed(res, STATUS_NONE_DETERMINED, f"failed: the data determine none of the {len(idx)} coefficients "
-                     "with a declared magnitude (each std at or above it): the estimates say nothing about the "
-                     "instrument")
     failing = {r["name"] for r in res.diagnostics.get("beyond_linear") or ()}
     wild = [j for j in idx if res.units[j] in LINEAR_LIMITS and res.names[j] not in failing
             and abs(res.estimate[j]) * si_factor(res.units[j]) >= LINEAR_LIMITS[res.units[j]]]

@@ -77,11 +77,3 @@ def test_an_undetermined_coefficient_beyond_the_linear_limit_is_said_not_determi
     notes = {r["name"]: r.get("reason", "") for r in out.coefficient_rows()}
     assert notes["c0"].startswith("not determined: std 7") and notes["c1"] == ""
     assert "not determined" in out.text().splitlines()[1]
-
-
-def test_data_that_determine_no_coefficient_fail():
-    """Every std at or above its declared magnitude (a record at rest for a strapdown model): not a success."""
-    res = dataclasses.replace(_units_result([0.0, 0.0], 1.0, ["ppm", "ppm"]), estimate=np.array([5.0, 3.0]),
-                              std=np.array([20.0, 30.0]), residuals=np.zeros((4, 3)))
-    out = check_magnitudes(res, {"c0": 10.0, "c1": 10.0})
-    assert not out.success and out.status == -1 and "determine none of the 2 coefficients" in out.message
