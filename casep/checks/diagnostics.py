@@ -296,14 +296,18 @@ class Diagnostics(Completed):
         counts = {k: sum(v == k for v in self.identifiability.values())
                   for k in ("identifiable", "weak", "unidentifiable")}
         lines += ["", f"identifiable {counts['identifiable']}, weak {counts['weak']}, "
-                      f"unidentifiable {counts['unidentifiable']} of {len(self.names)}"]
+                      f"unidentifiable {counts['unidentifiable']} of {len(self.names)} (each coefficient on its own: "
+                      "unidentifiable means exactly dependent on others, so the data determine only combinations of "
+                      "it, which may still be known well: see the combinations below)"]
         if self.groups:
             lines.append(f"near-dependencies (condition index > {GROUP_INDEX:g}, proportion > {GROUP_PROPORTION}):")
             lines += ["  " + ", ".join(g) for g in self.groups]
         # the order is the equilibrated problem's singular values, largest first (condition index from 1): the
         # std are in the leading coefficient's units, so they are not comparable from line to line
         lines.append("best-determined combinations, best first by condition index (columns equilibrated); "
-                     "std in the units of the leading coefficient, not comparable between lines:")
+                     "std in the units of the leading coefficient, not comparable between lines; one led by a "
+                     "coefficient with small weights on the others determines that coefficient to about its std, "
+                     "up to those small terms:")
         for cmb in self.combinations:
             terms = " ".join(f"{'+' if w >= 0 else '-'} {abs(w):.3g} {n}" for n, w in cmb["combination"].items())
             lead = next(iter(cmb["combination"]), None)

@@ -13,8 +13,10 @@ flight.
       setbacks of 1e4 g last milliseconds and no platform INS flies through them). Peak
       below 1 g: warning; a vehicle needs ``f = T/m > 1 g`` to lift off, so a boost that
       includes lift-off always exceeds 1 g; a peak of a few units is the signature of ``f``
-      in g (multiply by 9.80665). Peak above 100 g: warning (cm/s^2, mm/s^2?). ``f`` in
-      ft/s^2 (factor 3.28) stays inside the plausible range and is *not* detectable.
+      in g (multiply by 9.80665); a peak just under 1 g (above ``F_AT_REST`` g) is an
+      accelerometer at rest in m/s^2 (a record with no lift-off), not ``f`` in g. Peak above
+      100 g: warning (cm/s^2, mm/s^2?). ``f`` in ft/s^2 (factor 3.28) stays inside the
+      plausible range and is *not* detectable.
     - **Time** ``t``. Median step below 1 us (above 1 MHz): error; no telemetry is sampled
       that fast (``t`` in 1e-12 s steps, or time in the wrong unit). Median step below
       0.1 ms (above 10 kHz) or above 1 s (below 1 Hz), or duration above 1 h: warning with
@@ -88,6 +90,8 @@ __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enou
 
 # Specific force, m/s^2: a boost is ~1-30 g (1 g needed to lift off, ~100 g the hardest motors).
 F_PEAK_LOW, F_PEAK_HIGH, F_PEAK_IMPOSSIBLE = G0, 100.0 * G0, 1e4 * G0
+# A peak below 1 g but above this fraction of it is an accelerometer at rest (|f| = local gravity), not f in g.
+F_AT_REST = 0.95
 # Time: telemetry is sampled at 1 Hz .. 10 kHz; nothing is sampled at 1 MHz; boosts last < 1 h.
 STEP_LOW, STEP_HIGH, STEP_IMPOSSIBLE, DURATION_HIGH = 1e-4, 1.0, 1e-6, 3600.0
 DW_HIGH = 2e4  # m/s: no rocket flight gains more than ~20 km/s of specific-force velocity
@@ -286,7 +290,11 @@ def _check_force(flight: FlightData) -> float:
         raise FlightDataError(flight.source, f"peak specific force {peak:.4g} m/s^2 ({peak / G0:.4g} g) is above "
                               f"{F_PEAK_IMPOSSIBLE / G0:.0e} g: not a boost flight in m/s^2.{hint}", cols.split(",")[0])
     if peak < F_PEAK_LOW:
-        hint = " It looks like f in g: multiply by 9.80665." if peak * G0 >= F_PEAK_LOW else ""
+        # f in g reads |f| ~ 1 at rest and a few in a boost; f in m/s^2 at rest reads |f| = g, just under 1 g
+        # (local gravity 9.78-9.83 m/s^2): a record with no lift-off, not a unit mistake
+        hint = (f" An accelerometer at rest reads |f| = g: the record holds no lift-off (a vehicle on the pad?); "
+                f"f in g would read about 1, not {peak:.3g}." if peak >= F_AT_REST * G0
+                else " It looks like f in g: multiply by 9.80665." if peak * G0 >= F_PEAK_LOW else "")
         _warn(f"{flight.source}: peak specific force ({cols}) is {peak:.4g} m/s^2 ({peak / G0:.3g} g), below "
               f"the 1 g any vehicle needs to lift off (boosts reach ~1-30 g).{hint}")
     elif peak > F_PEAK_HIGH:

@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from casep._kernels import ar1_long_run_factor
 from casep.checks.time_offset import kinematic_acceleration
 from casep.exceptions import TrackingQualityWarning
 from casep.io.flight import FlightData
@@ -211,8 +212,12 @@ def clock_drift(t: np.ndarray, dv: np.ndarray, a: np.ndarray, windows: int = DRI
             A[j::3, 9] = a[k, j]
         y = dv[k].reshape(-1)
         coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-        r = y - A @ coef
-        cov = np.linalg.pinv(A.T @ A) * float(r @ r) / max(3 * n - 10, 1)
+        r = (y - A @ coef).reshape(n, 3)
+        # correlated noise (Gauss-Markov, instrument errors the quadratics leave): the white-noise variance of the
+        # offset times the AR(1) long-run factor (1 + rho) / (1 - rho) of the residuals, rho their lag-1
+        # autocorrelation pooled over the axes
+        long_run = float(ar1_long_run_factor(np.sum(r[1:] * r[:-1]), np.sum(r[:-1] ** 2)))
+        cov = np.linalg.pinv(A.T @ A) * float(np.sum(r**2)) / max(3 * n - 10, 1) * long_run
         centre.append(tm)
         tau.append(coef[9])
         var.append(cov[9, 9])
@@ -319,7 +324,7 @@ def _warn(source: str, s: TrackingScreen, stale: str, rejected: str) -> None:
     if math.isfinite(s.drift_ppm) and abs(s.drift_ppm) > max(DRIFT_MIN_PPM, 4.0 * s.drift_std_ppm):
         warnings.warn(TrackingQualityWarning(
             f"{source}: the tracking time offset drifts by {s.drift_ppm:.4g} +- {s.drift_std_ppm:.2g} ppm "
-            f"({s.drift_ppm * 1e-4:.3g} ms per 100 s): the telemetry and tracking clocks run at different rates, "
+            f"({s.drift_ppm * 0.1:.3g} ms per 100 s): the telemetry and tracking clocks run at different rates, "
             "which one time offset (dt_trk) does not model; rescale the telemetry times by the drift"), stacklevel=3)
     noise = [x for x in s.stretches if x[3] > 0]
     if len(noise) > 1 and max(x[3] for x in noise) > NOISE_RATIO * min(x[3] for x in noise):

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -374,14 +374,19 @@ MAGNITUDE_FAIL = 1e4
 #: Both judged on ``|estimate| - MAGNITUDE_Z std``: what the data say at least (5 std: two-sided
 #: P = 6e-7 per coefficient, so that noise in a poorly determined coefficient is not flagged).
 MAGNITUDE_Z = 5.0
-#: Magnitudes (SI) no coefficient of a linear error model can have, whatever its std: a scale factor or
+#: Magnitudes (SI) no coefficient of a linear error model can have: a scale factor or
 #: misalignment of 0.1 (1e5 ppm, 20600 arcsec) leaves second-order terms of 1 % of the signal, beyond what the
 #: first-order model describes; a gyro bias of 0.1 rad/s (5.7 deg/s, 20600 deg/h) turns the attitude by
 #: 0.1 rad within a second, where the small-angle attitude error of the model no longer holds. Such an
 #: estimate says the model does not describe the data (rates in deg/s in rad/s columns, a set-up or model
-#: mistake), not that the instrument is that bad: the result fails (status -5) even when a large std would
-#: hide it from the |estimate| - 5 std rule. By natural unit: dimensionless and angle units 0.1, rates 0.1 rad/s.
+#: mistake), not that the instrument is that bad: the result fails (status -5) when the estimate is beyond
+#: the limit by more than :data:`LINEAR_Z` std, even when a large std hides it from the |estimate| - 5 std rule.
+#: By natural unit: dimensionless and angle units 0.1, rates 0.1 rad/s.
 LINEAR_LIMITS: dict[str, float] = {"ppm": 0.1, "arcsec": 0.1, "arcmin": 0.1, "mrad": 0.1, "deg/h": 0.1, "rad/s": 0.1}
+#: An estimate fails against :data:`LINEAR_LIMITS` when beyond it by more than this many std
+#: (``|x| - LINEAR_Z std >= limit``: its two-sided 95 % interval excludes the limit); within it the flight does not
+#: determine the coefficient (said as such, :func:`check_magnitudes`), which is no evidence of a unit mistake.
+LINEAR_Z = 2.0
 #: Methods whose estimates of poorly determined coefficients the regularisation sets, not the data (and whose
 #: std leave out that bias): beyond :data:`MAGNITUDE_FAIL` they get the warning, not a failure.
 REGULARISED = ("ridge", "pcr", "bounded")
@@ -431,11 +436,15 @@ def _beyond_linear(res: EstimateResult, regularised: bool) -> EstimateResult:
 
     from casep.units import si_factor
 
-    rows: list[dict[str, Any]] = [
+    beyond: list[dict[str, Any]] = [
         {"name": n, "estimate": float(x), "std": float(sd), "unit": u, "limit": LINEAR_LIMITS[u] / si_factor(u)}
         for n, u, x, sd in zip(res.names, res.units, res.estimate,
                                res.std if res.std is not None else np.full(len(res.names), np.nan))
         if u in LINEAR_LIMITS and np.isfinite(x) and abs(x) * si_factor(u) >= LINEAR_LIMITS[u]]
+    # beyond the limit significantly: |x| - LINEAR_Z std >= limit (a NaN std: judged on |x| alone). Within
+    # LINEAR_Z std of it the data do not determine the coefficient (its std is a large part of the limit):
+    # said by check_magnitudes as not determined, not a unit or model mistake
+    rows = [r for r in beyond if not abs(r["estimate"]) - LINEAR_Z * r["std"] < r["limit"]]
     if not rows or regularised:
         return res
     rows.sort(key=lambda r: -abs(float(r["estimate"])) / float(r["limit"]))
@@ -443,10 +452,54 @@ def _beyond_linear(res: EstimateResult, regularised: bool) -> EstimateResult:
     listed = "; ".join(f"{r['name']} {r['estimate']:.4g} +- {r['std']:.2g} {r['unit']} (limit {r['limit']:.3g})"
                        for r in rows[:6]) + (f" and {len(rows) - 6} more" if len(rows) > 6 else "")
     return failed(res, STATUS_MAGNITUDE,
-                  f"failed: {len(rows)} estimate(s) beyond what a linear error model can describe ({listed}: a scale "
-                  "factor or misalignment of 0.1, a gyro bias of 0.1 rad/s), whatever their std: the model does not "
-                  "describe these data, or the flight does not determine these coefficients. Check the units of the "
-                  "input (angular rates in deg/s in rad/s columns?), the set-up and the model")
+                  f"failed: {len(rows)} estimate(s) beyond what a linear error model can describe, by more than "
+                  f"{LINEAR_Z:g} std ({listed}: a scale factor or misalignment of 0.1, a gyro bias of 0.1 rad/s): "
+                  "the model does not describe these data. Check the units of the input (angular rates in deg/s in "
+                  "rad/s columns?), the set-up and the model")
+
+
+def not_determined(names: Sequence[str], std: np.ndarray | None, scales: Mapping[str, float]) -> list[int]:
+    """Indices of the coefficients the data do not determine: a finite std at or above the coefficient's declared
+    magnitude (``std_j >= s_j``: the data say less about it than the model's prior idea of its size)."""
+    sd = np.full(len(names), np.nan) if std is None else np.asarray(std, dtype=float)
+    return [j for j, n in enumerate(names)
+            if (s := scales.get(n, scales.get(n.split("[")[0]))) and np.isfinite(sd[j]) and sd[j] >= s]
+
+
+def _say_not_determined(res: EstimateResult, scales: Mapping[str, float], source: str) -> EstimateResult:
+    """`res` with its coefficients the data do not determine (:func:`not_determined`) in ``reasons`` (the note
+    column), ``diagnostics["not_determined"]`` and the message; a :class:`~casep.exceptions.MagnitudeWarning`
+    naming those whose estimate is beyond :data:`LINEAR_LIMITS` (within :data:`LINEAR_Z` std of it: noise of
+    an undetermined coefficient, not a unit mistake)."""
+    import dataclasses
+
+    from casep.units import si_factor
+
+    idx = [j for j in not_determined(res.names, res.std, scales) if res.names[j] not in res.reasons]
+    if not idx:
+        return res
+    std = np.asarray(res.std)  # not None: not_determined found a finite std
+    names = [res.names[j] for j in idx]
+    ratio = {res.names[j]: float(std[j] / scales.get(res.names[j], scales.get(res.names[j].split("[")[0])))
+             for j in idx}
+    reasons = {**res.reasons, **{n: f"not determined: std {ratio[n]:.3g} x declared magnitude" for n in names}}
+    listed = ", ".join(names[:8]) + (f" and {len(names) - 8} more" if len(names) > 8 else "")
+    message = (f"{res.message}; {len(names)} of {len(res.names)} not determined by the data (std at or above their "
+               f"declared magnitudes: {listed})")
+    res = dataclasses.replace(res, reasons=reasons, message=message,
+                              diagnostics={**res.diagnostics, "not_determined": names})
+    failing = {r["name"] for r in res.diagnostics.get("beyond_linear") or ()}
+    wild = [j for j in idx if res.units[j] in LINEAR_LIMITS and res.names[j] not in failing
+            and abs(res.estimate[j]) * si_factor(res.units[j]) >= LINEAR_LIMITS[res.units[j]]]
+    if wild:
+        where = f"{source}: " if source else ""
+        listed = "; ".join(f"{res.names[j]} {res.estimate[j]:.4g} +- {std[j]:.2g} {res.units[j]} (limit "
+                           f"{LINEAR_LIMITS[res.units[j]] / si_factor(res.units[j]):.3g})" for j in wild)
+        warnings.warn(MagnitudeWarning(
+            f"{where}not determined: {listed}: beyond what a linear error model can describe but within "
+            f"{LINEAR_Z:g} std of it; the flight does not determine these coefficients (their std are at or "
+            "above the declared magnitudes): their estimates say nothing about the instrument"), stacklevel=3)
+    return res
 
 
 def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str = "", *,
@@ -497,6 +550,7 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
                          "ratio": float(abs(x) / scale), "ratio_low": float(low / scale),
                          "ratio_low_noise": float(low_noise / scale)})
     res = _beyond_linear(res, regularised)
+    res = _say_not_determined(res, scales, source)
     if not rows:
         return res
     rows.sort(key=lambda r: -r["ratio"])

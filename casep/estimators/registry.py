@@ -37,6 +37,7 @@ from casep.estimators._base import (  # what a method's core uses (a method of o
     check_magnitudes,
     failed,
     finish,
+    not_determined,
     prepare,
 )
 from casep.estimators._options import (
@@ -64,7 +65,7 @@ from casep.estimators.rls import RELS, RLS
 __all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Method", "OPTIONS", "METHODS",
            "check_method_options", "describe", "run_method", "solver", "register", "unregister", "NOISE_OPTIONS",
            "option_ranges", "SIGMA", "SeveralFlights", "Labels", "Prepared", "prepare", "finish", "failed",
-           "check_magnitudes", "STATUS_SETUP", "STATUS_MAGNITUDE", "STATUS_TRACKING", "STATUS_MISFIT",
+           "check_magnitudes", "not_determined", "STATUS_SETUP", "STATUS_MAGNITUDE", "STATUS_TRACKING", "STATUS_MISFIT",
            "STATUS_NOT_CONVERGED", "STATUS_DISAGREE", "STATUS_PRIOR_CONFLICT", "FAILURE_STATUSES", "option_label",
            "refusal"]
 

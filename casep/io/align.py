@@ -23,13 +23,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["TimeAlignment", "coarse_time_offset", "EXPLAIN_GAIN", "EXPLAIN_F"]
+__all__ = ["TimeAlignment", "coarse_time_offset", "EXPLAIN_GAIN", "EXPLAIN_F", "AUTO_MAX_STD"]
 
 #: A coarse offset "explains" the data when it removes at least this fraction of J(0) ...
 EXPLAIN_GAIN = 0.2
 #: ... and its F statistic (:attr:`TimeAlignment.f_statistic`, chi-square 1 dof without an offset)
 #: exceeds this (P(chi2_1 > 25) ~ 6e-7).
 EXPLAIN_F = 25.0
+#: ``time_offset="auto"`` applies the coarse offset only when its std (:attr:`TimeAlignment.std`) is below this
+#: fraction of the tracking sample period: beyond it the record barely determines the offset (no acceleration to
+#: line up, a vehicle at rest), and a shift anywhere in the search range would be noise.
+AUTO_MAX_STD = 0.25
 
 
 @dataclass(frozen=True)
@@ -42,6 +46,7 @@ class TimeAlignment:
     cost_at_zero: float
     tracking_period: float
     samples: int
+    std: float = np.inf  # s: the least-squares std of tau for white tracking noise (coarse_time_offset)
 
     @property
     def gain(self) -> float:
@@ -73,7 +78,8 @@ class TimeAlignment:
     def to_dict(self) -> dict:
         return {"tau_s": self.tau, "cost": self.cost, "cost_at_zero": self.cost_at_zero,
                 "tracking_period_s": self.tracking_period, "samples": self.samples, "gain": self.gain,
-                "f_statistic": self.f_statistic if np.isfinite(self.f_statistic) else None, "explains": self.explains}
+                "f_statistic": self.f_statistic if np.isfinite(self.f_statistic) else None, "explains": self.explains,
+                "std_s": self.std if np.isfinite(self.std) else None}
 
 
 def coarse_time_offset(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray, *,
@@ -122,4 +128,22 @@ def coarse_time_offset(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, 
     lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
     best = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 1e-7 * max(step, 1e-3)})
     tau = float(best.x) if best.fun <= cost(float(grid[k])) else float(grid[k])
-    return TimeAlignment(tau, cost(tau), cost(0.0), period, int(use.sum()))
+    j_min = cost(tau)
+    return TimeAlignment(tau, j_min, cost(0.0), period, int(use.sum()), _tau_std(spline, tt, tau, lag, j_min))
+
+
+def _tau_std(spline, tt: np.ndarray, tau: float, lag: int, J: float) -> float:
+    """Std of the offset that minimises ``J`` (module notes), s, for white tracking noise of variance ``J / 6``
+    per axis (each increment's component ``e_k+L - e_k``: twice that; three axes).
+
+    Linearised at ``tau``: the increment's derivative ``g_k = -[a(t_k+L - tau) - a(t_k - tau)]``, and
+    ``tau^ - tau = sum_k g_k . (e_k+L - e_k) / sum_k |g_k|^2 = sum_j c_j . e_j / sum_k |g_k|^2`` with
+    ``c_j = g_j-L - g_j``: ``Var = sigma^2 sum_j |c_j|^2 / (sum_k |g_k|^2)^2``. Infinite when the velocity
+    increments do not change with the offset (no acceleration: a vehicle at rest)."""
+    acc = spline.derivative()(tt - tau)
+    g = -(acc[lag:] - acc[:-lag])
+    c = np.zeros_like(acc)
+    c[lag:] += g
+    c[:-lag] -= g
+    gg = float(np.sum(g**2))
+    return float(np.sqrt(J / 6.0 * np.sum(c**2)) / gg) if gg > 0 else np.inf

@@ -243,7 +243,7 @@ def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray
     """
     align = None
     if time_offset is None or time_offset == "auto":
-        from casep.io.align import coarse_time_offset
+        from casep.io.align import AUTO_MAX_STD, coarse_time_offset
 
         try:
             align = coarse_time_offset(t_tel, v_tel, t_trk, v_trk, max_offset=min(2.0, 0.25 * (t_trk[-1] - t_trk[0])))
@@ -257,6 +257,13 @@ def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray
     if time_offset == "auto":
         assert align is not None  # "auto" re-raised a failed alignment above
         shift = align.tau
+        if not align.std <= AUTO_MAX_STD * align.tracking_period:
+            shift = 0.0
+            warnings.warn(f"{tel.src} + {trk.src}: --time-offset auto: the velocities line up best with the tracking "
+                          f"tags {align.tau * 1e3:.4g} ms late, but that offset's std is {align.std * 1e3:.3g} ms, "
+                          f"more than {AUTO_MAX_STD:g} of a tracking sample period ({align.tracking_period * 1e3:.4g} "
+                          "ms): the record barely determines it (too little acceleration to line up: a vehicle at "
+                          "rest?). Not applied: the tags are used as they are", TimeOffsetWarning, stacklevel=3)
     elif time_offset is None:
         shift = 0.0
         if align is not None and align.exceeds_period and align.explains:

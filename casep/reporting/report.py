@@ -88,11 +88,13 @@ def determined(result: EstimateResult, scales: Mapping[str, float], top: int = 4
     dict
         ``{"determined": [names], "rest": [names], "combinations": [{"terms": {name: weight}, "std": s}]}``.
     """
+    from casep.estimators.registry import not_determined
+
     names = list(result.names)
     std = result.std if result.std is not None else np.full(len(names), np.nan)
     has = [j for j, n in enumerate(names) if n in scales and np.isfinite(std[j])]
-    det = [names[j] for j in has if std[j] < scales[names[j]]]
-    rest = [j for j in has if std[j] >= scales[names[j]]]
+    rest = [j for j in not_determined(names, std, scales) if names[j] in scales]
+    det = [names[j] for j in has if j not in rest]
     combos = []
     C = result.covariance
     if rest and C is not None and np.all(np.isfinite(C[np.ix_(rest, rest)])):

@@ -221,3 +221,16 @@ def test_best_determined_combinations_say_their_order_and_units(paper_problem, p
         unit = platform36.units[platform36.names.index(lead)]
         m = re.search(r"std (\S+) (\S+)\s+condition index (\S+)$", line)
         assert m and m.group(2) == unit and float(m.group(3)) == pytest.approx(c["condition_index"], rel=1e-2), line
+
+
+def test_the_counts_say_unidentifiable_is_per_coefficient_and_combinations_may_be_known():
+    """'unidentifiable' is a verdict on each coefficient alone; the text says that the combinations below may be
+    known well, and how to read one led by a single coefficient."""
+    from casep.checks.diagnostics import diagnose
+
+    rng = np.random.default_rng(0)
+    a = rng.standard_normal((20, 3))
+    S = np.stack([a, a, rng.standard_normal((20, 3))], axis=2)  # x0 and x1 exactly dependent
+    text = diagnose(S, names=["x0", "x1", "x2"], sigma=1.0).text()
+    assert "unidentifiable 2 of 3 (each coefficient on its own" in text
+    assert "determines that coefficient to about its std" in text

@@ -94,6 +94,18 @@ def test_force_in_g_warns_with_the_factor(paper20):
         check_flight(fl)
 
 
+def test_a_peak_of_one_g_in_m_per_s2_is_said_at_rest_not_f_in_g(paper20):
+    """An accelerometer at rest reads |f| = g, 9.805 m/s^2 (just under g0): f in g would read 1, so the hint is a
+    record without lift-off, not 'multiply by 9.80665'."""
+    f = paper20.flight.f
+    fl = _replace(paper20.flight, f=f * (9.805 / np.max(np.linalg.norm(f, axis=1))))
+    with pytest.warns(PlausibilityWarning) as rec:
+        check_flight(fl)
+    said = [str(w.message) for w in rec if "peak specific force" in str(w.message)]
+    assert len(said) == 1 and "9.805 m/s^2" in said[0], said
+    assert "at rest reads |f| = g" in said[0] and "multiply by 9.80665" not in said[0]
+
+
 @pytest.mark.parametrize("factor, unit", [(1e3, "ms"), (1e6, "us")])
 def test_time_in_ms_or_us_warns_with_the_unit(paper20, factor, unit):
     fl = _replace(paper20.flight, t=paper20.flight.t * factor)

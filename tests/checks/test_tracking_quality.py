@@ -154,6 +154,39 @@ def test_the_clock_drift_is_measured_in_windows(rng, ppm):
     assert math.isnan(clock_drift(t, dv, 0 * a)[0])  # no acceleration: no offset to see, not determined
 
 
+def _gm_white(rng, n, dt, tau_c, s_gm, s_w):
+    """(n, 3) Gauss-Markov (std `s_gm`, correlation time `tau_c`) plus white (std `s_w`) noise."""
+    from scipy.signal import lfilter
+
+    phi = math.exp(-dt / tau_c)
+    e = rng.normal(0.0, s_gm * math.sqrt(1 - phi**2), (n, 3))
+    e[0] = rng.normal(0.0, s_gm, 3)
+    return lfilter([1.0], [1.0, -phi], e, axis=0) + rng.normal(0.0, s_w, (n, 3))
+
+
+def test_the_clock_drift_std_holds_under_gauss_markov_noise():
+    """Tracking noise correlated over 2 s, no drift: each window's offset std takes the residuals' AR(1)
+    long-run factor, so the drift's z is about standard normal (60 seeded flights: RMS z 0.92; the white-residual
+    std gave 1.36). benchmarks/mc_clock_drift.py: the false-alarm rate and a 104 ppm drift found."""
+    t = np.arange(0.0, 300.0, 0.1)
+    a = np.column_stack([3 * np.sin(2 * np.pi * t / 7), 2 * np.cos(2 * np.pi * t / 13), 4 * np.sin(2 * np.pi * t / 40)])
+    z = []
+    for seed in range(60):
+        dv = a * 0.04 + _gm_white(np.random.default_rng(seed), t.size, 0.1, 2.0, 0.05, 0.0)
+        est, std = clock_drift(t, dv, a)
+        z.append(est / std)
+    rms = float(np.sqrt(np.mean(np.square(z))))
+    assert 0.75 < rms < 1.15, rms  # RMS of 60 z: sampling std ~0.09
+
+
+def test_the_drift_warning_says_the_offset_change_in_milliseconds():
+    """ppm x 100 s = 1e-4 s = 0.1 ms per ppm: 500 ppm is 50 ms per 100 s."""
+    from casep.checks.tracking_quality import TrackingScreen, _warn
+
+    with pytest.warns(TrackingQualityWarning, match=r"drifts by 500 \+- 10 ppm \(50 ms per 100 s\)"):
+        _warn("f.csv", TrackingScreen(drift_ppm=500.0, drift_std_ppm=10.0), "", "")
+
+
 def test_the_imu_noise_effect_is_the_closed_form_random_walk():
     """At rest, level (f = g up), attitude fixed: the accelerometer's white noise (per-sample std sa, step h) is a
     velocity random walk, Var dv = sa^2 h t, on every axis; the gyro's tilts the platform by a random walk whose

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 
 import casep
 from casep.estimators.registry import check_magnitudes
@@ -56,3 +57,23 @@ def test_beyond_the_linear_model_fails_whatever_the_std():
                                                                      reverse=True)
     ok = check_magnitudes(_units_result([0.9 * 20626.5, 0.9e5, 0.9 * 20626.5], 200.0, units), scales)
     assert ok.success and "beyond_linear" not in ok.diagnostics
+
+
+def test_an_undetermined_coefficient_beyond_the_linear_limit_is_said_not_determined():
+    """A strapdown flight's sa_y came out 1.37e5 +- 7.2e4 ppm (truth -250, z 1.9): beyond the 1e5 ppm a linear
+    model can describe, but within 2 std of it, and its std is 72 x the declared magnitude. The flight does not
+    determine it: a warning naming it, the note column and the summary line say so; not a failure with unit advice.
+    Determined coefficients (std below the declared magnitude) keep an empty note."""
+    from casep.exceptions import MagnitudeWarning
+
+    res = dataclasses.replace(_units_result([0.0, 0.0], 1.0, ["ppm", "ppm"]), estimate=np.array([1.373e5, 3.0]),
+                              std=np.array([7.2e4, 2.0]), residuals=np.zeros((4, 3)))
+    scales = {"c0": 1e3, "c1": 1e6}
+    with pytest.warns(MagnitudeWarning, match=r"not determined: c0 1\.\d+e\+05 \+- 7\.\de\+04 ppm \(limit 1e\+05\)"):
+        out = check_magnitudes(res, scales)
+    assert out.success and out.status == 1 and "beyond_linear" not in out.diagnostics, out.message
+    assert out.diagnostics["not_determined"] == ["c0"]
+    assert "1 of 2 not determined by the data (std at or above their declared magnitudes: c0)" in out.message
+    notes = {r["name"]: r.get("reason", "") for r in out.coefficient_rows()}
+    assert notes["c0"].startswith("not determined: std 7") and notes["c1"] == ""
+    assert "not determined" in out.text().splitlines()[1]

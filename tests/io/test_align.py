@@ -11,6 +11,7 @@ import pytest
 import casep
 from casep.exceptions import TimeOffsetWarning
 from casep.io.align import coarse_time_offset
+from casep.io.files import write_table
 from casep.simulation.simulate import simulate_two_rate
 
 
@@ -90,3 +91,37 @@ def test_bad_input():
         coarse_time_offset(t, _v(t), t, _v(t), max_offset=0.0)
     with pytest.raises(ValueError, match="fewer than 4 tracking samples"):
         coarse_time_offset(t, _v(t), t, _v(t), max_offset=2.4)
+
+
+def test_the_offset_std_is_its_scatter_and_infinite_at_rest():
+    """0.5 m/s tracking noise, 40 ms late, 20 seeds: RMS (tau - 40 ms) / std near 1 (measured 0.94 on 40 seeds).
+    At rest the velocity increments do not change with the offset: the std is seconds, beyond AUTO_MAX_STD of the
+    period."""
+    from casep.io.align import AUTO_MAX_STD
+
+    t_tel, t_trk = np.arange(0.0, 80.0, 0.01), np.arange(0.0, 80.0, 0.1)
+    z = []
+    for seed in range(20):
+        noise = np.random.default_rng(seed).normal(0.0, 0.5, (t_trk.size, 3))
+        a = coarse_time_offset(t_tel, _v(t_tel), t_trk, _v(t_trk - 0.04) + noise)
+        z.append((a.tau - 0.04) / a.std)
+    assert 0.7 < float(np.sqrt(np.mean(np.square(z)))) < 1.3, z  # RMS of 20 z: sampling std ~0.16
+    rest = np.random.default_rng(1).normal(0.0, 0.05, (t_trk.size, 3))
+    a = coarse_time_offset(t_tel, 0.01 * np.sin(t_tel / 7)[:, None] * np.ones(3), t_trk, rest)
+    assert a.std > AUTO_MAX_STD * a.tracking_period * 10
+
+
+def test_auto_leaves_an_offset_the_record_does_not_determine_unapplied(tmp_path):
+    """A vehicle at rest: the offset that lines up the velocities is noise; --time-offset auto does not apply it
+    and says so with its std."""
+    rng = np.random.default_rng(2)
+    t_tel, t_trk = np.arange(0.0, 40.0, 0.01), np.arange(0.0, 40.0, 0.1)
+    f = np.tile([0.0, 0.0, 9.805], (t_tel.size, 1))
+    write_table(tmp_path / "tel.csv", {"t": t_tel, **{f"f_{c}": f[:, i] for i, c in enumerate("xyz")},
+                                                **{f"v_tel_{c}": 0.01 * np.sin(t_tel / 7 + i) for i, c in
+                                                   enumerate("xyz")}})
+    v = rng.normal(0.0, 0.05, (t_trk.size, 3))
+    write_table(tmp_path / "trk.csv", {"t": t_trk, **{f"v_trk_{c}": v[:, i] for i, c in enumerate("xyz")}})
+    with pytest.warns(TimeOffsetWarning, match=r"auto: .* ms late, but that offset's std is .* Not applied"):
+        fl = casep.read_flight_pair(tmp_path / "tel.csv", tmp_path / "trk.csv", time_offset="auto")
+    assert fl.meta["time_alignment"]["applied_s"] == 0.0 and fl.meta["time_alignment"]["std_s"] > 0.025
