@@ -316,10 +316,11 @@ def _big(e, t, inv_tau, scale, thr, k: int, last: int) -> bool:
     return False
 
 
-def ar1_long_run_factor(num: np.ndarray | float, den: np.ndarray | float) -> np.ndarray:
+def ar1_long_run_factor(num: np.ndarray | float, den: np.ndarray | float, rho_max: float = 0.999) -> np.ndarray:
     """``(1 + rho) / (1 - rho)`` with ``rho = num / den`` (the lag-1 autocorrelation of residuals: ``num`` the sum
-    of products of consecutive residuals, ``den`` the sum of squares) clipped to [0, 0.999]: the long-run
+    of products of consecutive residuals, ``den`` the sum of squares) clipped to [0, `rho_max`]: the long-run
     variance of AR(1) noise over its variance, the factor by which white-noise least squares understates the
-    variance of a smooth regressor's coefficient in such noise (at least 1; 1999 at most)."""
-    rho = np.clip(np.asarray(num, dtype=float) / np.maximum(np.asarray(den, dtype=float), 1e-300), 0.0, 0.999)
+    variance of a smooth regressor's coefficient (or of a mean) in such noise (at least 1; 1999 at most with the
+    default `rho_max`)."""
+    rho = np.clip(np.asarray(num, dtype=float) / np.maximum(np.asarray(den, dtype=float), 1e-300), 0.0, rho_max)
     return (1.0 + rho) / (1.0 - rho)

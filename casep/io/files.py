@@ -115,8 +115,9 @@ def default_model(flight: str | os.PathLike | None, imu: bool = False) -> str:
     if flight is None or not Path(flight).is_file():
         return "platform36"
     from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
+    from casep.io.tables import header_columns
 
-    cols = Table(flight).columns
+    cols = header_columns(flight)  # the header alone: the flight is read once, by the separation
     strapdown = all(c in cols for c in QUATERNION_COLUMNS + BODY_FORCE_COLUMNS + BODY_RATE_COLUMNS)
     return "strapdown15_phi0" if strapdown else "platform36"
 

@@ -23,7 +23,7 @@ from casep.io.locate import csv_lines, is_parquet
 from casep.io.strapdown import STRAPDOWN_COLUMNS
 
 __all__ = ["Table", "table_force", "apparent_velocity_to_force", "CSV_SEPARATORS", "KNOWN_COLUMNS",
-           "APPARENT_COLUMNS", "VTEL_COLUMNS", "VTRK_COLUMNS"]
+           "APPARENT_COLUMNS", "VTEL_COLUMNS", "VTRK_COLUMNS", "header_columns"]
 
 APPARENT_COLUMNS = tuple(f"W_{a}" for a in AXES)
 VTEL_COLUMNS = tuple(f"v_tel_{a}" for a in AXES)
@@ -106,6 +106,16 @@ def _parquet_header(path: Path) -> list[str]:
     import pyarrow.parquet as pq
 
     return list(pq.read_schema(path).names)
+
+
+def header_columns(path: str | os.PathLike) -> list[str]:
+    """The column names of a flight file from its header alone, no data read (CSV: :func:`_csv_header`, Parquet:
+    its schema); [] when the header cannot be read (:class:`Table` then says why)."""
+    p = Path(path)
+    try:
+        return _parquet_header(p) if is_parquet(p) else _csv_header(p)[0]
+    except Exception:  # any unreadable file: the reader that follows names the problem
+        return []
 
 
 def _read_parquet_frame(path: Path) -> tuple[Any, dict[str, np.ndarray]]:

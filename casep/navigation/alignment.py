@@ -233,11 +233,13 @@ def gyro_bias_allowance(site: LaunchSite) -> float:
 
 def mean_rate_std(x: np.ndarray) -> np.ndarray:
     """The std of the mean of each column of `x` (n, k) from its own scatter, corrected for AR(1) correlation:
-    ``s^2 / n (1 + rho) / (1 - rho)``, ``rho`` the lag-1 autocorrelation (clipped to [0, 0.99])."""
+    ``s^2 / n (1 + rho) / (1 - rho)``, ``rho`` the lag-1 autocorrelation (clipped to [0, 0.99]:
+    :func:`casep._kernels.ar1_long_run_factor`)."""
+    from casep._kernels import ar1_long_run_factor
+
     d = x - x.mean(axis=0)
     var = np.mean(d**2, axis=0)
-    rho = np.clip(np.sum(d[1:] * d[:-1], axis=0) / np.maximum(np.sum(d**2, axis=0), 1e-300), 0.0, 0.99)
-    return np.sqrt(var / len(x) * (1 + rho) / (1 - rho))
+    return np.sqrt(var / len(x) * ar1_long_run_factor(np.sum(d[1:] * d[:-1], axis=0), np.sum(d**2, axis=0), 0.99))
 
 
 def _check_earth_rate(w_win: np.ndarray, w_mean: np.ndarray, C: np.ndarray, site: LaunchSite,
