@@ -81,6 +81,8 @@ R_TEL_COLUMNS = ("r_tel_x", "r_tel_y", "r_tel_z")  # launch-inertial position (c
 _NAV_SITE = re.compile(r"^#\s*launch site (\S+) (\S+) (\S+) azimuth (\S+) deg, launch time (\S+) s")
 #: casep navigate's header line naming its pad alignment (:func:`levelled_comment` writes it)
 _NAV_LEVELLED = re.compile(r"^#\s*alignment: levelled over \[(\S+), (\S+)\] s, heading (\S+)")
+#: casep simulate's header line naming the model that made the flight (casep.simulation.simulate.write_simulation)
+_SIM_MODEL = re.compile(r"^#\s*model (\S+), seed ")
 
 
 def levelled_comment(window: tuple[float, float], alignment: Any) -> str:
@@ -92,12 +94,14 @@ def levelled_comment(window: tuple[float, float], alignment: Any) -> str:
             f"(body {alignment.heading_axis} at {alignment.heading_deg:.6g} deg)")
 
 
-def _header(tab: Table) -> list[str]:
-    """The ``#`` comment lines at the top of a CSV table (none for Parquet or a table not read from a file)."""
-    if not tab.path.is_file() or is_parquet(tab.path):
+def _header(tab: Table | str | os.PathLike) -> list[str]:
+    """The ``#`` comment lines at the top of a CSV table or file (none for Parquet or a table not read from a
+    file); only the header is read."""
+    path = tab.path if isinstance(tab, Table) else Path(tab)
+    if not path.is_file() or is_parquet(path):
         return []
     lines = []
-    with open(tab.path, encoding="utf-8", errors="replace") as fh:
+    with open(path, encoding="utf-8", errors="replace") as fh:
         for line in fh:
             if not line.startswith("#"):
                 break
@@ -106,20 +110,38 @@ def _header(tab: Table) -> list[str]:
 
 
 def default_model(flight: str | os.PathLike | None, imu: bool = False) -> str:
-    """The model ``casep separate`` takes without ``--model``: ``strapdown33`` for a raw IMU record (`imu`; the
-    levelling's own phi0 is added), ``strapdown15_phi0`` for a strapdown telemetry (`flight` with ``q_*``,
-    ``fb_*``, ``w_*``: body-frame errors, and a start attitude known only so well, a levelled one tilted by the
-    accelerometer biases: :func:`casep.checks.plausibility.levelling_problem`), else ``platform36``."""
+    """The model ``casep separate`` takes without ``--model``, from the flight's header alone.
+
+    - a raw IMU record (`imu`): ``strapdown33`` (the levelling's own phi0 is added);
+    - a flight whose header names the shipped model that made it (``casep simulate``'s ``# model NAME, seed``
+      line): that model, or, when ``casep navigate`` levelled the telemetry on the pad, the same model with an
+      initial attitude error (:data:`casep.checks.plausibility.PHI0_MODELS`): the levelling turns the
+      accelerometer errors on the pad into a start tilt (:func:`casep.checks.plausibility.levelling_problem`);
+    - a strapdown telemetry (``q_*``, ``fb_*``, ``w_*``): ``strapdown42_extended``, every body-frame term of
+      strapdown33 (biases, scale factors, misalignments, g-sensitivity) plus the initial attitude error that a
+      telemetry levelled on the pad or starting after lift-off needs, accelerometer second order and lever arm.
+      A smaller model fails such data as a misfit instead of saying which terms the flight determines: a
+      roll programme's flight (strapdown-boost) made with strapdown33 fails strapdown15_phi0 with scale factors
+      of 100 %;
+    - anything else: ``platform36``.
+    """
     if imu:
         return "strapdown33"
     if flight is None or not Path(flight).is_file():
         return "platform36"
+    from casep.checks.plausibility import PHI0_MODELS
     from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
     from casep.io.tables import header_columns
+    from casep.model.loader import shipped_model_file
 
-    cols = header_columns(flight)  # the header alone: the flight is read once, by the separation
+    lines = _header(flight)  # the header alone: the flight is read once, by the separation
+    levelled = any(_NAV_LEVELLED.match(line) for line in lines)
+    named = next((m.group(1) for line in lines if (m := _SIM_MODEL.match(line))), None)
+    if named is not None and shipped_model_file(named) is not None:
+        return PHI0_MODELS.get(named, named) if levelled else named
+    cols = header_columns(flight)
     strapdown = all(c in cols for c in QUATERNION_COLUMNS + BODY_FORCE_COLUMNS + BODY_RATE_COLUMNS)
-    return "strapdown15_phi0" if strapdown else "platform36"
+    return "strapdown42_extended" if strapdown else "platform36"
 
 
 def levelling_record(tab: Table) -> dict | None:

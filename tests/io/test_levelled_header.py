@@ -5,6 +5,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from casep.checks.plausibility import PHI0_MODELS
 from casep.io.files import default_model, levelled_comment, levelling_record, read_flight, write_table
 from casep.io.tables import Table
 from casep.units import G0
@@ -32,11 +33,24 @@ def test_levelled_header_round_trip(tmp_path):
     assert read_flight(path).meta["levelled"] is None
 
 
-def test_strapdown_telemetry_defaults_to_a_model_with_phi0(tmp_path):
-    """Without --model: strapdown15_phi0 on a strapdown telemetry, platform36 on a platform one, strapdown33 on
-    a raw IMU record."""
+def test_strapdown_telemetry_defaults_to_a_model_that_covers_its_errors(tmp_path):
+    """Without --model: on a strapdown telemetry strapdown42_extended (every strapdown33 term plus phi0, which
+    the levelling needs: casep.checks.plausibility.levelling_problem), platform36 on a platform one, strapdown33
+    on a raw IMU record; the model casep simulate names in the header when it is a shipped one, with its phi0
+    twin (PHI0_MODELS) when casep navigate levelled the telemetry."""
+    al = SimpleNamespace(method="heading", heading_axis="x", heading_deg=200.0)
     write_table(tmp_path / "sd.csv", _cols(True))
     write_table(tmp_path / "pl.csv", _cols(False))
-    assert default_model(tmp_path / "sd.csv") == "strapdown15_phi0"
+    assert default_model(tmp_path / "sd.csv") == "strapdown42_extended"
     assert default_model(tmp_path / "pl.csv") == "platform36"
     assert default_model(None, imu=True) == "strapdown33" and default_model(None) == "platform36"
+    sim = ["casep simulated flight: scenario strapdown-boost", "model strapdown33, seed 0, rate 10 Hz; truth"]
+    write_table(tmp_path / "sim.csv", _cols(True), comments=sim)
+    assert default_model(tmp_path / "sim.csv") == "strapdown33"
+    write_table(tmp_path / "lev.csv", _cols(True), comments=[*sim, levelled_comment((0.0, 9.0), al)])
+    assert default_model(tmp_path / "lev.csv") == PHI0_MODELS["strapdown33"] == "strapdown42_extended"
+    write_table(tmp_path / "own.csv", _cols(True), comments=["model my_model, seed 3, rate 10 Hz"])
+    assert default_model(tmp_path / "own.csv") == "strapdown42_extended"  # not a shipped model: the rule
+    from casep.model.loader import load_model
+
+    assert {"phi0_x", "phi0_y", "phi0_z"} <= set(load_model(default_model(tmp_path / "sd.csv")).names)
