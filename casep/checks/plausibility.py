@@ -85,7 +85,8 @@ from casep.units import G0
 
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
            "min_samples", "dv_noise", "misfit_problem", "MISFIT_RATIO", "MISFIT_NOISE_FLOOR",
-           "setup_problems", "warn_setup", "levelling_problem", "PHI0_MODELS"]
+           "setup_problems", "warn_setup", "levelling_problem", "PHI0_MODELS", "RICHER_MODELS",
+           "UNIT_FACTORS", "unit_factor", "misfit_advice"]
 
 
 # Specific force, m/s^2: a boost is ~1-30 g (1 g needed to lift off, ~100 g the hardest motors).
@@ -537,8 +538,47 @@ MISFIT_RATIO = 100.0
 MISFIT_NOISE_FLOOR = 0.01
 
 
+#: Unit mix-ups by the factor they scale a quantity with (a quantity read in the wrong unit is this factor, or
+#: its inverse, times its true value): a fitted scale near one of them points to the mix-up.
+UNIT_FACTORS = ((1000.0, "a factor 1000: mm/s or km/s for m/s, mg for g, ms for s"),
+                (180.0 / np.pi, "57.3: degrees for radians (deg/s in rad/s columns?)"),
+                (G0, "9.81: g for m/s^2"), (3600.0, "3600: per hour for per second"),
+                (3.6, "3.6: km/h for m/s"))
+#: How close (relative) a ratio must come to a factor of :data:`UNIT_FACTORS` to name it.
+UNIT_FACTOR_TOL = 0.03
+#: The shipped models with more terms than a model, by the model: what to try when it does not describe a flight.
+RICHER_MODELS = {"strapdown12": "strapdown33 or strapdown42_extended",
+                 "strapdown15_phi0": "strapdown42_extended (strapdown33 with phi0)",
+                 "strapdown15_axial": "strapdown33 or strapdown42_extended",
+                 "strapdown6_window": "strapdown12_window", "strapdown33": "strapdown42_extended",
+                 "platform36": "platform39_misalignment, platform36_timeoffset or platform36_leverarm"}
+
+
+def unit_factor(ratio: float) -> str | None:
+    """The unit mix-up of :data:`UNIT_FACTORS` that `ratio` (or its inverse) matches within
+    :data:`UNIT_FACTOR_TOL`, or None (a ratio that is no unit factor, or not positive)."""
+    if not (np.isfinite(ratio) and ratio > 0):
+        return None
+    r = max(ratio, 1.0 / ratio)
+    return next((what for k, what in UNIT_FACTORS if abs(r / k - 1.0) <= UNIT_FACTOR_TOL), None)
+
+
+def misfit_advice(model: str, names, units, estimates) -> str:
+    """What to check when `model` does not describe a flight, most likely first: the model lacks terms the data
+    need (the richer shipped model, :data:`RICHER_MODELS`), a saturated sensor, the frame or set-up; a unit mix-up
+    only when a fitted scale points to it: a scale factor (ppm) whose ``1 + s`` is a factor of
+    :data:`UNIT_FACTORS` (:func:`unit_factor`; rates in deg/s read as rad/s fit ``sg = 57.3 - 1``)."""
+    richer = RICHER_MODELS.get(str(model).split("+")[0])
+    first = (f"model {model} may lack terms the data need: try {richer}" if richer else
+             f"model {model} may lack terms the data need (a richer model)")
+    hits = [f"{n} {x:.4g} ppm is a scale of {1.0 + x * 1e-6:.4g}, {what}" for n, u, x in zip(names, units, estimates)
+            if u == "ppm" and x is not None and np.isfinite(x) and (what := unit_factor(1.0 + x * 1e-6))]
+    units_part = f"; the numbers point to a unit mix-up: {'; '.join(hits[:3])}" if hits else ""
+    return f"{first}; else a saturated sensor the INS integrated, a frame or set-up mistake{units_part}"
+
+
 def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
-                   runs: tuple[int, int, int] | None = None) -> str | None:
+                   runs: tuple[int, int, int] | None = None, advice: str | None = None) -> str | None:
     """Why a fit's residuals are a model error rather than noise, or None.
 
     Tracking noise, white or correlated, has a sample-to-sample part: radar and GNSS velocities scatter by
@@ -565,6 +605,8 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
     runs : (int, int, int), optional
         A robust fit's rejections: (samples in runs, samples rejected, runs), when most are in runs; the
         message then names them instead of the whiteness test.
+    advice : str, optional
+        What to check, most likely first (:func:`misfit_advice`: the model's missing terms before units).
 
     Returns
     -------
@@ -583,8 +625,9 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
         (f"the robust fit rejected {runs[0]} of its {runs[1]} rejected samples in {runs[2]} run(s) of consecutive "
          "samples (a stretch the model cannot follow, not glitches)")
     return (f"residual RMS at least {MISFIT_RATIO:g} times the tracking's sample-to-sample noise, and {how}, "
-            f"on {len(bad)} axis(es) ({listed}): a model error (a saturated sensor the INS "
-            "integrated, a frame, set-up or unit mistake, a missing term), not noise; the estimates absorb it")
+            f"on {len(bad)} axis(es) ({listed}): a model error, not noise; the estimates absorb it: "
+            + (advice or "the model may lack terms the data need; else a saturated sensor the INS integrated, a frame "
+               "or set-up mistake"))
 
 
 def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5, locate=None) -> None:

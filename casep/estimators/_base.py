@@ -434,6 +434,7 @@ def _beyond_linear(res: EstimateResult, regularised: bool) -> EstimateResult:
     its std and the limit); recorded in ``diagnostics["beyond_linear"]``."""
     import dataclasses
 
+    from casep.checks.plausibility import misfit_advice
     from casep.units import si_factor
 
     beyond: list[dict[str, Any]] = [
@@ -454,8 +455,8 @@ def _beyond_linear(res: EstimateResult, regularised: bool) -> EstimateResult:
     return failed(res, STATUS_MAGNITUDE,
                   f"failed: {len(rows)} estimate(s) beyond what a linear error model can describe, by more than "
                   f"{LINEAR_Z:g} std ({listed}: a scale factor or misalignment of 0.1, a gyro bias of 0.1 rad/s): "
-                  "the model does not describe these data. Check the units of the input (angular rates in deg/s in "
-                  "rad/s columns?), the set-up and the model")
+                  "the model does not describe these data: " + misfit_advice(res.model, res.names, res.units,
+                                                                             res.estimate))
 
 
 def not_determined(names: Sequence[str], std: np.ndarray | None, scales: Mapping[str, float]) -> list[int]:

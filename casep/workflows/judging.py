@@ -28,7 +28,7 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     the model's declared magnitudes (:func:`casep.estimators._base.check_magnitudes`), except on noise-free
     data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
     set-up mistake (check_fit's NoiseFreeWarning says so)."""
-    from casep.checks.plausibility import levelling_problem, misfit_problem, setup_problems
+    from casep.checks.plausibility import levelling_problem, misfit_advice, misfit_problem, setup_problems
     from casep.estimators.registry import STATUS_MISFIT, STATUS_SETUP, check_magnitudes, failed
     from casep.regression.rows import mostly_runs
 
@@ -39,14 +39,15 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     if why_level is not None:
         res = failed(res, STATUS_SETUP, f"failed: {why_level}")
     if flight is not None and not noise_free:
-        rms = res.residual_rms
-        why = misfit_problem(flight, rms, "xyz")  # the ratio first: the whiteness test is asked only then
         rb = res.diagnostics.get("robust") or {}
         long = rb.get("rejected_runs") or []
-        if why is not None and not mostly_runs(int(rb.get("rejected_count") or 0), long):
-            why = misfit_problem(flight, rms, (res.diagnostics.get("whiteness") or {}).get("rejected") or ())
-        elif why is not None:  # the robust weights absorbed the misfit: its stretches rejected as runs of "glitches"
-            why = misfit_problem(flight, rms, "xyz", runs=(sum(long), int(rb["rejected_count"]), len(long)))
+        runs = (sum(long), int(rb.get("rejected_count") or 0), len(long)) \
+            if mostly_runs(int(rb.get("rejected_count") or 0), long) else None
+        # a robust fit's rejections in runs stand for the correlation (its weights absorbed the misfit as
+        # "glitches"); otherwise the axes the whiteness test rejects
+        correlated = "xyz" if runs is not None else (res.diagnostics.get("whiteness") or {}).get("rejected") or ()
+        why = misfit_problem(flight, res.residual_rms, correlated, runs=runs,
+                             advice=misfit_advice(res.model, res.names, res.units, res.estimate))
         if why is not None:
             res = failed(res, STATUS_MISFIT, f"failed: {flight.source}: {why}")
     if isinstance(model, ErrorModel) and model.name == res.model and not noise_free:

@@ -118,6 +118,25 @@ def test_misfit_rule_needs_both_the_ratio_and_correlated_residuals():
     assert misfit_problem(fl, {"x": big, "y": big, "z": big}, ()) is None
 
 
+def test_misfit_advice_puts_missing_terms_before_units():
+    """The misfit message says the model may lack terms (naming the richer shipped model) before anything else,
+    and a unit mix-up only when a fitted scale is a unit factor (1 + sa = 1/9.81: g read as m/s^2)."""
+    from casep.checks.plausibility import misfit_advice, misfit_problem, unit_factor
+    from casep.io.flight import FlightData
+
+    rng = np.random.default_rng(4)
+    t = np.arange(0.0, 60.0, 0.1)
+    fl = FlightData(t, np.tile([10.0, 20.0, 0.0], (t.size, 1)), rng.normal(0, 0.05, (t.size, 3)))
+    plain = misfit_advice("strapdown33", ["sa_x", "sg_x"], ["ppm", "ppm"], [300.0, -80.0])
+    why = misfit_problem(fl, {"x": 10.0, "y": 0.0, "z": 0.0}, ("x",), advice=plain)
+    assert why is not None and why.endswith(plain) and "unit" not in why
+    assert plain.startswith("model strapdown33 may lack terms the data need: try strapdown42_extended")
+    g = misfit_advice("strapdown12", ["sa_x"], ["ppm"], [(1.0 / 9.80665 - 1.0) * 1e6])
+    assert g.startswith("model strapdown12 may lack terms the data need: try strapdown33 or strapdown42_extended")
+    assert g.index("lack terms") < g.index("unit mix-up") and "9.81: g for m/s^2" in g
+    assert unit_factor(1000.0 * 1.02) and unit_factor(1 / 3600.0) and not unit_factor(1.5) and not unit_factor(-57.3)
+
+
 def test_a_clip_at_a_full_scale_nobody_declared_is_found_from_the_data(clipped_at_110):
     """w_x held at exactly 110 deg/s (no nominal range, none declared): the column's own extreme, repeated to all
     digits in a column that repeats nowhere else, is the full scale the data imply; said with the option that

@@ -50,7 +50,8 @@ def test_beyond_the_linear_model_fails_whatever_the_std():
     scales = {"c0": 1e6, "c1": 1e6, "c2": 1e6}  # declared magnitudes that let the |x| - 5 std rule pass
     bad = check_magnitudes(_units_result([1.07e6, 3.5e6, 0.0], 5e5, units), scales)
     assert not bad.success and bad.status == -5
-    assert "beyond what a linear error model can describe" in bad.message and "deg/s in rad/s columns" in bad.message
+    assert "beyond what a linear error model can describe" in bad.message and "may lack terms" in bad.message
+    assert "unit mix-up" not in bad.message  # a scale of 4.5 +- 1.3 is no unit factor
     rows = bad.diagnostics["beyond_linear"]
     assert {"c0", "c1"} <= {r["name"] for r in rows}
     assert [abs(r["estimate"]) / r["limit"] for r in rows] == sorted((abs(r["estimate"]) / r["limit"] for r in rows),
@@ -77,3 +78,18 @@ def test_an_undetermined_coefficient_beyond_the_linear_limit_is_said_not_determi
     notes = {r["name"]: r.get("reason", "") for r in out.coefficient_rows()}
     assert notes["c0"].startswith("not determined: std 7") and notes["c1"] == ""
     assert "not determined" in out.text().splitlines()[1]
+
+
+def test_beyond_linear_names_the_richer_model_first_and_units_only_when_a_scale_is_a_unit_factor():
+    """strapdown15_phi0 beyond the linear limits: the message names strapdown42_extended before anything else; a
+    gyro scale factor of 56.3e6 ppm (a scale of 57.3: rates in deg/s read as rad/s) adds the unit mix-up, a scale
+    factor of 2e5 ppm (1.2) does not."""
+    scales = {"c0": 1e6, "c1": 1e6}
+    for sg, units_said in ((56.3e6, True), (2e5, False)):
+        res = dataclasses.replace(_units_result([sg, 0.0], 1e3, ["ppm", "ppm"]), model="strapdown15_phi0")
+        bad = check_magnitudes(res, scales)
+        assert not bad.success and bad.status == -5
+        advice = bad.message.split("the model does not describe these data: ")[1]
+        assert advice.startswith("model strapdown15_phi0 may lack terms the data need: try strapdown42_extended")
+        assert ("unit mix-up: c0 5.63e+07 ppm is a scale of 57.3, 57.3: degrees for radians" in advice) == units_said
+        assert ("unit" in advice) == units_said

@@ -1,0 +1,29 @@
+"""casep.workflows.judging.judge_setup asks the misfit rule (casep.checks.plausibility.misfit_problem) once."""
+
+import dataclasses
+
+import numpy as np
+
+import casep
+import casep.checks.plausibility as plausibility
+from casep.io.flight import FlightData
+from casep.workflows.judging import judge_setup
+
+
+def test_judge_setup_calls_misfit_problem_once(monkeypatch):
+    """One call, with the axes the whiteness test rejected and the model's advice; its message fails the result."""
+    calls = []
+
+    def spy(flight, rms, correlated, **kw):
+        calls.append((tuple(correlated), kw))
+        return "a model error"
+
+    monkeypatch.setattr(plausibility, "misfit_problem", spy)
+    rng = np.random.default_rng(1)
+    t = np.arange(0.0, 20.0, 0.1)
+    fl = FlightData(t, np.tile([10.0, 0.0, 0.0], (t.size, 1)), rng.normal(0, 0.05, (t.size, 3)))
+    res = casep.solve_ols(rng.standard_normal((60, 1)), rng.standard_normal(60), names=["sa_x"], units=["ppm"])
+    res = dataclasses.replace(res, diagnostics={**res.diagnostics, "whiteness": {"rejected": ["y"]}})
+    out = judge_setup(res, fl, None)
+    assert len(calls) == 1 and calls[0][0] == ("y",) and calls[0][1]["runs"] is None and calls[0][1]["advice"]
+    assert not out.success and out.status == -8 and "a model error" in out.message
