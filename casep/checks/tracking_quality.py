@@ -50,7 +50,8 @@ from casep.exceptions import TrackingQualityWarning
 from casep.io.flight import FlightData
 from casep.noise.robust import MAD_SIGMA
 
-__all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "stretch_noise", "noise_problem",
+__all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "fit_clock_drift", "stretch_noise",
+           "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
            "imu_noise_effect", "imu_sample_noise", "white_sample_std", "STALE_MOTION", "JUMP_TOL", "JUMP_RATE",
            "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
@@ -246,13 +247,16 @@ def stretch_noise(t: np.ndarray, dv: np.ndarray) -> list[tuple[float, float, int
     return out
 
 
-def screen_tracking(flight: FlightData) -> FlightData:
+def screen_tracking(flight: FlightData, *, drift_warning: bool = True) -> FlightData:
     """`flight` without its stale and impossible tracking epochs (module notes), the findings warned and recorded.
 
     Only a telemetry + tracking pair formed at the tracking times with the telemetry's acceleration
     (:func:`casep.io.files.read_flight_pair`), or a one-file flight with ``v_tel_*`` and ``v_trk_*`` columns
     (:func:`casep.io.files.read_flight`), is screened, once; any other flight (or one screened already:
     ``meta["tracking_screen"]``) is returned as it is.
+
+    `drift_warning` False: the clock drift of the raw dv is recorded but not warned; a separation that follows
+    measures and warns it on its residuals (:func:`fit_clock_drift`).
 
     Warns
     -----
@@ -281,7 +285,7 @@ def screen_tracking(flight: FlightData) -> FlightData:
     screen.stretches = stretch_noise(t[keep], flight.dv[idx[keep]])
     screen.left_out_rows = [int(r) for r in _file_rows(flight)[idx[~keep]]]
     _warn(flight.source, screen, _located(flight, idx, stale) if stale.any() else "",
-          _located(flight, idx, rejected) if rejected.any() else "")
+          _located(flight, idx, rejected) if rejected.any() else "", drift_warning)
     if keep.all():
         return dataclasses.replace(flight, meta={**meta, "tracking_screen": screen.to_dict()})
     observed = flight.observed.copy()
@@ -308,8 +312,43 @@ def keep_screen(flight: FlightData, screen: dict | None) -> FlightData:
     return dataclasses.replace(flight, observed=observed, meta={**flight.meta, "tracking_screen": screen})
 
 
-def _warn(source: str, s: TrackingScreen, stale: str, rejected: str) -> None:
-    """The screen's TrackingQualityWarnings (`stale`, `rejected`: the runs located in the file)."""
+def _warn_drift(source: str, drift_ppm: float, drift_std_ppm: float, of: str) -> bool:
+    """Warn (TrackingQualityWarning) when the clock drift is beyond :data:`DRIFT_MIN_PPM` and 4 std; `of`: what it
+    was measured on, said in the message. Returns whether it warned."""
+    if not (math.isfinite(drift_ppm) and abs(drift_ppm) > max(DRIFT_MIN_PPM, 4.0 * drift_std_ppm)):
+        return False
+    warnings.warn(TrackingQualityWarning(
+        f"{source}: the tracking time offset drifts by {drift_ppm:.4g} +- {drift_std_ppm:.2g} ppm "
+        f"({drift_ppm * 0.1:.3g} ms per 100 s{of}): the telemetry and tracking clocks run at different rates, "
+        "which one time offset (dt_trk) does not model; rescale the telemetry times by the drift"), stacklevel=4)
+    return True
+
+
+def fit_clock_drift(flight: FlightData, residual: np.ndarray) -> tuple[float, float] | None:
+    """The clock drift (ppm, std; :func:`clock_drift`) measured on a fit's residuals ``dv - S_V D`` (`residual`,
+    (n, 3) at the flight's observed epochs) instead of the raw dv, warned as the screen warns; None when the flight
+    has no clock of its own to drift (not a pair of files) or the residuals do not match its epochs.
+
+    The raw dv holds the instrument errors, whose dv follows the acceleration too (an accelerometer scale factor
+    gives ``sa int f dt``): a window's offset fit takes part of them, differently in each window, and the line
+    through the windows' offsets then shows a drift there is not (1700 +- 300 ppm on an aircraft whose clock did
+    not drift). The fit's residuals keep the drift, which no error model term takes (a late tag ``eps t`` gives
+    ``dv = a eps t``), and lose the instrument errors."""
+    if flight.meta.get("format") != "pair":
+        return None
+    acc = _acceleration(flight)
+    idx = np.flatnonzero(flight.observed)
+    r = np.asarray(residual, dtype=float)
+    if acc is None or idx.size < 20 or r.shape != (idx.size, 3) or not np.all(np.isfinite(r)):
+        return None
+    drift, std = clock_drift(flight.t[idx], r, acc[idx])
+    _warn_drift(flight.source, drift, std, ", on the fit's residuals")
+    return drift, std
+
+
+def _warn(source: str, s: TrackingScreen, stale: str, rejected: str, drift: bool = True) -> None:
+    """The screen's TrackingQualityWarnings (`stale`, `rejected`: the runs located in the file; the clock drift
+    unless `drift` is False: a fit follows, whose residuals :func:`fit_clock_drift` measures it on)."""
     if s.stale:
         n = sum(k for *_, k in s.stale)
         warnings.warn(TrackingQualityWarning(
@@ -321,11 +360,8 @@ def _warn(source: str, s: TrackingScreen, stale: str, rejected: str) -> None:
             f"{source}: {n} tracking epochs fail the physics check against the telemetry (velocity jumps up to "
             f"{s.largest_jump_m_s:.4g} m/s, beyond {JUMP_TOL:g} m/s + {JUMP_RATE:g} m/s^2 x the time between epochs, "
             f"in stretches shorter than {MIN_SEGMENT_S:g} s) and are left out: {rejected}"), stacklevel=3)
-    if math.isfinite(s.drift_ppm) and abs(s.drift_ppm) > max(DRIFT_MIN_PPM, 4.0 * s.drift_std_ppm):
-        warnings.warn(TrackingQualityWarning(
-            f"{source}: the tracking time offset drifts by {s.drift_ppm:.4g} +- {s.drift_std_ppm:.2g} ppm "
-            f"({s.drift_ppm * 0.1:.3g} ms per 100 s): the telemetry and tracking clocks run at different rates, "
-            "which one time offset (dt_trk) does not model; rescale the telemetry times by the drift"), stacklevel=3)
+    if drift:
+        _warn_drift(source, s.drift_ppm, s.drift_std_ppm, "")
     noise = [x for x in s.stretches if x[3] > 0]
     if len(noise) > 1 and max(x[3] for x in noise) > NOISE_RATIO * min(x[3] for x in noise):
         ratio = max(x[3] for x in noise) / min(x[3] for x in noise)

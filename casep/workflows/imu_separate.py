@@ -476,7 +476,7 @@ class _Run:
             nav = self.navigate(D)
             flight = self.flight(nav, D, None if first else self.model_k)
         if first:  # the tracking screen of the first pass, said and kept for every pass (module notes)
-            flight = screen_tracking(flight)
+            flight = screen_tracking(flight, drift_warning=False)  # the drift: on the fit's residuals
             self.screen = flight.meta.get("tracking_screen")
         else:
             flight = keep_screen(flight, self.screen)

@@ -260,7 +260,7 @@ def _problem(flight: FlightData | Problem | str | os.PathLike, model: Any,
     from casep.checks.tracking_quality import screen_tracking
 
     # before the problem: the result is judged on what the screens found
-    flight = screen_saturation(screen_tracking(flight))
+    flight = screen_saturation(screen_tracking(flight, drift_warning=False))  # the drift: on the fit's residuals
     if fit_time_offset is None:
         from casep.io.pair import fits_time_offset
 
