@@ -85,7 +85,7 @@ from casep.units import G0
 
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
            "min_samples", "dv_noise", "misfit_problem", "MISFIT_RATIO", "MISFIT_NOISE_FLOOR",
-           "setup_problems", "warn_setup", "levelling_problem", "PHI0_MODELS", "RICHER_MODELS",
+           "setup_problems", "warn_setup", "levelling_problem", "RICHER_MODELS",
            "UNIT_FACTORS", "unit_factor", "misfit_advice"]
 
 
@@ -404,8 +404,6 @@ def setup_problems(flight: FlightData) -> list[str]:
     return list(ev.get("problems", [])) if isinstance(ev, dict) else []
 
 
-#: the shipped models with an initial attitude error, by the model without one they extend
-PHI0_MODELS = {"strapdown12": "strapdown15_phi0", "strapdown33": "strapdown42_extended"}
 
 
 def levelling_problem(flight: FlightData, model: Any, estimates: dict[str, float] | None = None) -> str | None:
@@ -434,6 +432,8 @@ def levelling_problem(flight: FlightData, model: Any, estimates: dict[str, float
         phi = float(np.linalg.norm(np.cross(u / np.linalg.norm(u), b)))  # rad: the bias across the pad's vertical
         tilt = (f" (the estimate's ba_x, ba_y, ba_z {b[0] * 1e3:.3g}, {b[1] * 1e3:.3g}, {b[2] * 1e3:.3g} mg: a start "
                 f"tilt of {phi * 206264.8:.3g} arcsec, {phi * G0 * span:.3g} m/s over the {span:.4g} s flight at 1 g)")
+    from casep.model.loader import PHI0_MODELS
+
     use = PHI0_MODELS.get(model.name.split("+")[0], "a model with the initial attitude error phi0_x..z")
     return (f"{flight.source}: casep navigate levelled this telemetry on the pad over [{t1:g}, {t2:g}] s, which turns "
             f"the accelerometer errors on the pad into a start attitude error{tilt}; model {model.name} has no "

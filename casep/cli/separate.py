@@ -24,7 +24,7 @@ def add_parser(sub: Any) -> None:
                    "(every method of `casep methods`)")
     options.add_model(p, None, "default: the shipped model a simulated flight's header names (its phi0 twin when "
                       "levelled), else strapdown42_extended on strapdown telemetry, platform36 otherwise; "
-                      "strapdown33 with --imu (casep.io.files.default_model)")
+                      "strapdown33 with --imu (casep.model.loader.default_model)")
     p.add_argument("--imu", metavar="IMU.csv", default=None,
                    help="a raw IMU record instead of FLIGHT (t, w_*, fb_* or t, dth_*, dvb_*, as casep navigate "
                         "reads it): navigated, paired with --tracking and separated; needs --launch-site, "
@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
                                 ("mode", args.threshold_mode), ("extension", args.extension),
                                 ("scaling", args.noise_scaling)) if v is not None}
     if args.model is None:  # the default model: one for every path, radar included
-        from casep.io.files import default_model
+        from casep.model.loader import default_model
         args.model = default_model(args.flight[0] if args.flight else None, bool(args.imu))
     if args.radar:
         from casep.cli.radar import separate_radar

@@ -68,7 +68,7 @@ from casep.io.pair import (
 from casep.io.tables import VTEL_COLUMNS, VTRK_COLUMNS, Table, apparent_velocity_to_force, table_force
 
 __all__ = [
-    "default_model", "navigation_site",
+    "header_facts", "navigation_site",
     "levelled_comment",
     "levelling_record",
     "read_json_table", "read_flight", "read_flight_pair", "write_flight", "write_table", "apparent_velocity_to_force",
@@ -109,39 +109,20 @@ def _header(tab: Table | str | os.PathLike) -> list[str]:
     return lines
 
 
-def default_model(flight: str | os.PathLike | None, imu: bool = False) -> str:
-    """The model ``casep separate`` takes without ``--model``, from the flight's header alone.
-
-    - a raw IMU record (`imu`): ``strapdown33`` (the levelling's own phi0 is added);
-    - a flight whose header names the shipped model that made it (``casep simulate``'s ``# model NAME, seed``
-      line): that model, or, when ``casep navigate`` levelled the telemetry on the pad, the same model with an
-      initial attitude error (:data:`casep.checks.plausibility.PHI0_MODELS`): the levelling turns the
-      accelerometer errors on the pad into a start tilt (:func:`casep.checks.plausibility.levelling_problem`);
-    - a strapdown telemetry (``q_*``, ``fb_*``, ``w_*``): ``strapdown42_extended``, every body-frame term of
-      strapdown33 (biases, scale factors, misalignments, g-sensitivity) plus the initial attitude error that a
-      telemetry levelled on the pad or starting after lift-off needs, accelerometer second order and lever arm.
-      A smaller model fails such data as a misfit instead of saying which terms the flight determines: a
-      roll programme's flight (strapdown-boost) made with strapdown33 fails strapdown15_phi0 with scale factors
-      of 100 %;
-    - anything else: ``platform36``.
-    """
-    if imu:
-        return "strapdown33"
-    if flight is None or not Path(flight).is_file():
-        return "platform36"
-    from casep.checks.plausibility import PHI0_MODELS
+def header_facts(flight: str | os.PathLike) -> dict:
+    """What a flight file's header alone says for choosing its model (:func:`casep.model.loader.default_model`):
+    ``simulated_model``, the model ``casep simulate`` names as the one that made the flight (its ``# model NAME,
+    seed`` line) or None; ``levelled``, whether ``casep navigate`` levelled it on the pad (:func:`levelled_comment`);
+    ``strapdown``, whether it has the strapdown telemetry's columns (``q_*``, ``fb_*``, ``w_*``). Only the header
+    is read (:func:`casep.io.tables.header_columns`): the flight is read once, by the separation."""
     from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
     from casep.io.tables import header_columns
-    from casep.model.loader import shipped_model_file
 
-    lines = _header(flight)  # the header alone: the flight is read once, by the separation
-    levelled = any(_NAV_LEVELLED.match(line) for line in lines)
-    named = next((m.group(1) for line in lines if (m := _SIM_MODEL.match(line))), None)
-    if named is not None and shipped_model_file(named) is not None:
-        return PHI0_MODELS.get(named, named) if levelled else named
+    lines = _header(flight)
     cols = header_columns(flight)
-    strapdown = all(c in cols for c in QUATERNION_COLUMNS + BODY_FORCE_COLUMNS + BODY_RATE_COLUMNS)
-    return "strapdown42_extended" if strapdown else "platform36"
+    return {"simulated_model": next((m.group(1) for line in lines if (m := _SIM_MODEL.match(line))), None),
+            "levelled": any(_NAV_LEVELLED.match(line) for line in lines),
+            "strapdown": all(c in cols for c in QUATERNION_COLUMNS + BODY_FORCE_COLUMNS + BODY_RATE_COLUMNS)}
 
 
 def levelling_record(tab: Table) -> dict | None:

@@ -44,7 +44,7 @@ __all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "availab
            "run_model_file", "with_time_offset", "add_time_offset",
            "TIME_OFFSET", "model_file_reference", "model_names", "where_in_file",
            "load_model_file", "shipped_model_dirs", "shipped_model_file", "model_record",
-           "load_recorded_model", "shipped_model"]
+           "load_recorded_model", "shipped_model", "default_model", "PHI0_MODELS"]
 
 
 def shipped_model_dirs() -> list[Path]:
@@ -464,3 +464,37 @@ def _check_sha256(have: str | None, path: str | None, sha256: str | None, model_
 
     warnings.warn(f"{msg} (the model shipped with this casep version); its coefficients are checked by name and unit",
                   CasepWarning, stacklevel=3)
+
+
+#: the shipped models with an initial attitude error, by the model without one they extend
+PHI0_MODELS = {"strapdown12": "strapdown15_phi0", "strapdown33": "strapdown42_extended"}
+
+
+def default_model(flight: str | os.PathLike | None, imu: bool = False) -> str:
+    """The model ``casep separate`` takes without ``--model``, from the flight's header alone
+    (:func:`casep.io.files.header_facts`).
+
+    - a raw IMU record (`imu`): ``strapdown33`` (the levelling's own phi0 is added);
+    - a flight whose header names the shipped model that made it (``casep simulate``'s ``# model NAME, seed``
+      line): that model, or, when ``casep navigate`` levelled the telemetry on the pad, the same model with an
+      initial attitude error (:data:`PHI0_MODELS`): the levelling turns the accelerometer errors on the pad into
+      a start tilt (:func:`casep.checks.plausibility.levelling_problem`);
+    - a strapdown telemetry (``q_*``, ``fb_*``, ``w_*``): ``strapdown42_extended``, every body-frame term of
+      strapdown33 (biases, scale factors, misalignments, g-sensitivity) plus the initial attitude error that a
+      telemetry levelled on the pad or starting after lift-off needs, accelerometer second order and lever arm.
+      A smaller model fails such data as a misfit instead of saying which terms the flight determines: a
+      roll programme's flight (strapdown-boost) made with strapdown33 fails strapdown15_phi0 with scale factors
+      of 100 %;
+    - anything else: ``platform36``.
+    """
+    if imu:
+        return "strapdown33"
+    if flight is None or not Path(flight).is_file():
+        return "platform36"
+    from casep.io.files import header_facts
+
+    facts = header_facts(flight)
+    named = facts["simulated_model"]
+    if named is not None and shipped_model_file(named) is not None:
+        return PHI0_MODELS.get(named, named) if facts["levelled"] else named
+    return "strapdown42_extended" if facts["strapdown"] else "platform36"

@@ -1,13 +1,13 @@
 """casep navigate's header line saying it levelled the telemetry (casep.io.files.levelled_comment, levelling_record)
-and the model casep separate takes by default (casep.io.files.default_model)."""
+and the model casep separate takes by default from it (casep.model.loader.default_model)."""
 
 from types import SimpleNamespace
 
 import numpy as np
 
-from casep.checks.plausibility import PHI0_MODELS
-from casep.io.files import default_model, levelled_comment, levelling_record, read_flight, write_table
+from casep.io.files import levelled_comment, levelling_record, read_flight, write_table
 from casep.io.tables import Table
+from casep.model.loader import PHI0_MODELS, default_model
 from casep.units import G0
 
 
