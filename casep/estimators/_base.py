@@ -249,7 +249,7 @@ def finish(
             message = message or (f"{n - n_ok} of {n} coefficients not identifiable on this data "
                                   "(zero or exactly dependent columns); the other estimated")
         else:
-            status, message = -1, message or "no coefficient is identifiable on this data"
+            status, message = STATUS_NONE_DETERMINED, message or "no coefficient is identifiable on this data"
     failure = _failure(pb, name, getattr(declared, "hint", ""), np.where(und, 0.0, x), std, res)
     if failure is not None:
         status, message = failure
@@ -390,6 +390,9 @@ LINEAR_Z = 2.0
 #: Methods whose estimates of poorly determined coefficients the regularisation sets, not the data (and whose
 #: std leave out that bias): beyond :data:`MAGNITUDE_FAIL` they get the warning, not a failure.
 REGULARISED = ("ridge", "pcr", "bounded")
+#: Status of a result whose data determine no coefficient: none identifiable (:func:`finish`), or no coefficient
+#: and no combination of them better than the declared magnitudes (check_magnitudes).
+STATUS_NONE_DETERMINED = -1
 #: Status of a result whose flight failed a set-up check (casep.checks.plausibility.setup_problems).
 STATUS_SETUP = -4
 #: Status of a result with estimates beyond :data:`MAGNITUDE_FAIL` times their declared magnitudes.
@@ -408,7 +411,8 @@ STATUS_DISAGREE = -9
 #: Status of a result whose prior the data contradict (casep.estimators.rls.prior_conflict).
 STATUS_PRIOR_CONFLICT = -10
 #: Every failure status above, by name: one status, one meaning (tests/estimators/test_statuses.py).
-FAILURE_STATUSES = {"setup": STATUS_SETUP, "magnitude": STATUS_MAGNITUDE, "tracking": STATUS_TRACKING,
+FAILURE_STATUSES = {"none determined": STATUS_NONE_DETERMINED, "setup": STATUS_SETUP, "magnitude": STATUS_MAGNITUDE,
+                    "tracking": STATUS_TRACKING,
                     "not converged": STATUS_NOT_CONVERGED, "misfit": STATUS_MISFIT, "disagree": STATUS_DISAGREE,
                     "prior conflict": STATUS_PRIOR_CONFLICT}
 
@@ -467,6 +471,20 @@ def not_determined(names: Sequence[str], std: np.ndarray | None, scales: Mapping
             if (s := scales.get(n, scales.get(n.split("[")[0]))) and np.isfinite(sd[j]) and sd[j] >= s]
 
 
+def _best_combination(res: EstimateResult, scales: Mapping[str, float]) -> float | None:
+    """The std of the best-determined combination of the coefficients, each divided by its declared magnitude
+    ``s``: ``sqrt(lambda_min(D^-1 P D^-1))``, ``D = diag(s)``, ``P`` the covariance (a unit vector of scaled
+    coefficients; below 1 the data determine that combination better than the magnitudes say). None when a
+    coefficient has no declared magnitude or the covariance is not finite (an exactly dependent group: its
+    combination is determined, said in its note)."""
+    s = np.array([scales.get(n, scales.get(n.split("[")[0])) or np.nan for n in res.names], dtype=float)
+    P = res.covariance
+    if P is None or not np.all(np.isfinite(s)) or not np.all(np.isfinite(P)):
+        return None
+    lam = np.linalg.eigvalsh(P / np.outer(s, s))
+    return float(np.sqrt(max(lam[0], 0.0)))
+
+
 def _say_not_determined(res: EstimateResult, scales: Mapping[str, float], source: str) -> EstimateResult:
     """`res` with its coefficients the data do not determine (:func:`not_determined`) in ``reasons`` (the note
     column), ``diagnostics["not_determined"]`` and the message; a :class:`~casep.exceptions.MagnitudeWarning`
@@ -489,6 +507,12 @@ def _say_not_determined(res: EstimateResult, scales: Mapping[str, float], source
                f"declared magnitudes: {listed})")
     res = dataclasses.replace(res, reasons=reasons, message=message,
                               diagnostics={**res.diagnostics, "not_determined": names})
+    best = _best_combination(res, scales) if len(idx) == len(res.names) else None
+    if best is not None and best >= 1.0:
+        res = failed(res, STATUS_NONE_DETERMINED, f"failed: the data determine none of the {len(idx)} coefficients "
+                     "nor any combination of them better than the declared magnitudes (the best-determined "
+                     f"combination, each coefficient divided by its magnitude, has std {best:.3g}): the estimates "
+                     "say nothing about the instrument")
     failing = {r["name"] for r in res.diagnostics.get("beyond_linear") or ()}
     wild = [j for j in idx if res.units[j] in LINEAR_LIMITS and res.names[j] not in failing
             and abs(res.estimate[j]) * si_factor(res.units[j]) >= LINEAR_LIMITS[res.units[j]]]

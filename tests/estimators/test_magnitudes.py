@@ -93,3 +93,16 @@ def test_beyond_linear_names_the_richer_model_first_and_units_only_when_a_scale_
         assert advice.startswith("model strapdown15_phi0 may lack terms the data need: try strapdown42_extended")
         assert ("unit mix-up: c0 5.63e+07 ppm is a scale of 57.3, 57.3: degrees for radians" in advice) == units_said
         assert ("unit" in advice) == units_said
+
+
+def test_data_that_determine_no_coefficient_and_no_combination_fail():
+    """Every std at or above its declared magnitude and uncorrelated: nothing determined, status -1. The same std
+    with a correlation of -0.9999 determine the sum c0 + c1 (scaled std 0.014 x 10 / 10): not failed by the rule,
+    each coefficient said not determined."""
+    base = _units_result([0.0, 0.0], 1.0, ["ppm", "ppm"])
+    for rho, fails in ((0.0, True), (-0.9999, False)):
+        P = np.array([[400.0, rho * 600.0], [rho * 600.0, 900.0]])  # std 20, 30 against magnitudes 10
+        res = dataclasses.replace(base, estimate=np.array([5.0, 3.0]), std=np.sqrt(np.diag(P)), covariance=P)
+        out = check_magnitudes(res, {"c0": 10.0, "c1": 10.0})
+        assert (not out.success and out.status == -1) == fails, out.message
+        assert ("nor any combination" in out.message) == fails and out.diagnostics["not_determined"] == ["c0", "c1"]
