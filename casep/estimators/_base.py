@@ -477,7 +477,7 @@ def _best_combination(res: EstimateResult, scales: Mapping[str, float]) -> float
     coefficients; below 1 the data determine that combination better than the magnitudes say). None when a
     coefficient has no declared magnitude or the covariance is not finite (an exactly dependent group: its
     combination is determined, said in its note)."""
-    s = np.array([scales.get(n, scales.get(n.split("[")[0])) or np.nan for n in res.names], dtype=float)
+    s = np.array([scales.get(n) or scales.get(n.split("[")[0]) or np.nan for n in res.names], dtype=float)
     P = res.covariance
     if P is None or not np.all(np.isfinite(s)) or not np.all(np.isfinite(P)):
         return None
