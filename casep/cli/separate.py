@@ -22,9 +22,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("flight", nargs="*", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "
                    "several files: one estimate of the shared coefficients, per-flight ones per flight "
                    "(every method of `casep methods`)")
-    options.add_model(p, None, "default: the shipped model a simulated flight's header names (its phi0 twin when "
-                      "levelled), else strapdown42_extended on strapdown telemetry, platform36 otherwise; "
-                      "strapdown33 with --imu (casep.model.loader.default_model)")
+    options.add_model(p, None, "default: the simulated model, strapdown42_extended (strapdown), platform36")
     p.add_argument("--imu", metavar="IMU.csv", default=None,
                    help="a raw IMU record instead of FLIGHT (t, w_*, fb_* or t, dth_*, dvb_*, as casep navigate "
                         "reads it): navigated, paired with --tracking and separated; needs --launch-site, "
