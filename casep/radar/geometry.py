@@ -81,6 +81,7 @@ def _function() -> ca.Function:
 
 
 _FUNCTION: ca.Function | None = None
+_GEOMETRY_ONLY: ca.Function | None = None
 
 
 def _shared_function() -> ca.Function:
@@ -91,18 +92,30 @@ def _shared_function() -> ca.Function:
     return _FUNCTION
 
 
+def _geometry_function() -> ca.Function:
+    """``_function()`` without its Jacobian output ``H`` (the same geometry expression, half the work):
+    for the finite differences that read ``h`` only."""
+    global _GEOMETRY_ONLY
+    if _GEOMETRY_ONLY is None:
+        f = _shared_function()
+        _GEOMETRY_ONLY = ca.Function("radar_g", f.sx_in(), [f(*f.sx_in())[0]], f.name_in(), ["geometry"])
+    return _GEOMETRY_ONLY
+
+
 #: ``_function()`` mapped serially over n samples, by n (the parameter vector shared: ``reduce_in``);
 #: a fit evaluates the same few sample counts many times.
-_MAPPED: dict[int, ca.Function] = {}
+_MAPPED: dict[tuple[int, bool], ca.Function] = {}
 
 
-def _mapped_function(n: int) -> ca.Function:
-    """``_shared_function()`` mapped over `n` samples (built once per `n`, at most 32 kept)."""
-    f = _MAPPED.get(n)
+def _mapped_function(n: int, jacobian: bool = True) -> ca.Function:
+    """``_shared_function()`` (or ``_geometry_function()`` without `jacobian`) mapped over `n` samples
+    (built once per `n`, at most 32 kept)."""
+    f = _MAPPED.get((n, jacobian))
     if f is None:
         if len(_MAPPED) >= 32:
             _MAPPED.clear()
-        f = _MAPPED[n] = _shared_function().map("radar_h_map", "serial", n, [3], [])
+        base = _shared_function() if jacobian else _geometry_function()
+        f = _MAPPED[(n, jacobian)] = base.map(base.name() + "_map", "serial", n, [3], [])
     return f
 
 
@@ -150,28 +163,32 @@ class RadarGeometry:
         if t.size == 0:
             return np.zeros((0, len(GEOMETRY_COLUMNS))), np.zeros((0, 4, 6))
         acc = np.zeros((t.size, 3)) if a is None else np.asarray(a, dtype=float).reshape(t.size, 3)
-        return self._evaluate(t, x, acc, self._p, a is None)
+        geo, H = self._evaluate(t, x, acc, self._p, a is None)
+        assert H is not None  # computed: jacobian=True
+        return geo, H
 
     def _evaluate(self, t: np.ndarray, x: np.ndarray, acc: np.ndarray, p: np.ndarray,
-                  no_acc: bool) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`evaluate` on the stacked state ``x = [r, v]`` with the parameter vector `p`."""
+                  no_acc: bool, jacobian: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`evaluate` on the stacked state ``x = [r, v]`` with the parameter vector `p`
+        (``H`` not computed, ``None``, without `jacobian`)."""
         # Evaluated through a CasADi FunctionBuffer straight into numpy arrays (converting the DM
         # results element by element cost as much as the evaluation). CasADi is column-major: the
         # mapped input x (6 x N) is the C-contiguous (N, 6) array, the output geometry (10 x N) is
         # (N, 10), and H (4 x 6N, sample after sample) is (N, 6, 4).
         n = t.size
-        buf, run = _mapped_function(n).buffer()
+        buf, run = _mapped_function(n, jacobian).buffer()
         args = [np.ascontiguousarray(a, dtype=float) for a in (x, acc, t - self.site.t0 - p[-1], p[:-1])]
         geo = np.empty((n, len(GEOMETRY_COLUMNS)))
-        Ht = np.empty((n, 6, 4))
+        Ht = np.empty((n, 6, 4)) if jacobian else None
         for i, a in enumerate(args):
             buf.set_arg(i, memoryview(a))  # type: ignore[arg-type, call-arg]  # size: the memoryview's
         buf.set_res(0, memoryview(geo))  # type: ignore[arg-type, call-arg]
-        buf.set_res(1, memoryview(Ht))  # type: ignore[arg-type, call-arg]
+        if Ht is not None:
+            buf.set_res(1, memoryview(Ht))  # type: ignore[arg-type, call-arg]
         run()
         if no_acc:
             geo[:, GEOMETRY_COLUMNS.index("range_acceleration")] = np.nan
-        return geo, Ht.transpose(0, 2, 1)
+        return geo, None if Ht is None else Ht.transpose(0, 2, 1)
 
     def setup_jacobian(self, t: np.ndarray, r: np.ndarray, v: np.ndarray, a: np.ndarray | None = None,
                        *, station: bool = True, step_time: float = 0.01, step_position: float = 1.0) -> np.ndarray:
@@ -195,8 +212,8 @@ class RadarGeometry:
         steps = [(step_time, np.zeros(3))] + ([(0.0, step_position * e) for e in np.eye(3)] if station else [])
         out = np.empty((t.size, 4, len(steps)))
         for k, (dt0, d) in enumerate(steps):
-            hp, _ = self._evaluate(t, x, acc, self._parameters(dt0, d), False)
-            hm, _ = self._evaluate(t, x, acc, self._parameters(-dt0, -d), False)
+            hp, _ = self._evaluate(t, x, acc, self._parameters(dt0, d), False, jacobian=False)
+            hm, _ = self._evaluate(t, x, acc, self._parameters(-dt0, -d), False, jacobian=False)
             diff = hp[:, :4] - hm[:, :4]
             diff[:, 1] = wrap_angle(diff[:, 1])
             out[:, :, k] = diff / (2.0 * (step_time if k == 0 else step_position))

@@ -372,8 +372,8 @@ class RadarRegression:
             k, r, v = len(s.types), s.r - s.SP @ D, s.v - s.SV @ D
             g = s.geometry
             x, acc = np.hstack([r, v]), np.asarray(s.a, dtype=float)
-            h1 = g._evaluate(s.t, x, acc, g._parameters(1e-3 * dt_ms, np.zeros(3)), False)[0][:, :k]
-            d = h1 - g._evaluate(s.t, x, acc, g._parameters(0.0, np.zeros(3)), False)[0][:, :k]
+            h1 = g._evaluate(s.t, x, acc, g._parameters(1e-3 * dt_ms, np.zeros(3)), False, jacobian=False)[0][:, :k]
+            d = h1 - g._evaluate(s.t, x, acc, g._parameters(0.0, np.zeros(3)), False, jacobian=False)[0][:, :k]
             if "azimuth" in s.types:
                 d[:, 1] = wrap_angle(d[:, 1])
             out.append(d - self._launch_time_column(s, D) * dt_ms)
