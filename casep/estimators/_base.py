@@ -463,12 +463,18 @@ def _beyond_linear(res: EstimateResult, regularised: bool) -> EstimateResult:
                                                                              res.estimate))
 
 
+def declared_magnitude(scales: Mapping[str, float], name: str) -> float | None:
+    """A coefficient's declared magnitude (natural units): by its name, else by its base name (a per-flight
+    coefficient ``ba_x[2]`` has the magnitude of ``ba_x``); None when the model declares none."""
+    return scales.get(name, scales.get(name.split("[")[0]))
+
+
 def not_determined(names: Sequence[str], std: np.ndarray | None, scales: Mapping[str, float]) -> list[int]:
     """Indices of the coefficients the data do not determine: a finite std at or above the coefficient's declared
     magnitude (``std_j >= s_j``: the data say less about it than the model's prior idea of its size)."""
     sd = np.full(len(names), np.nan) if std is None else np.asarray(std, dtype=float)
     return [j for j, n in enumerate(names)
-            if (s := scales.get(n, scales.get(n.split("[")[0]))) and np.isfinite(sd[j]) and sd[j] >= s]
+            if (s := declared_magnitude(scales, n)) and np.isfinite(sd[j]) and sd[j] >= s]
 
 
 def _best_combination(res: EstimateResult, scales: Mapping[str, float]) -> float | None:
@@ -477,7 +483,7 @@ def _best_combination(res: EstimateResult, scales: Mapping[str, float]) -> float
     coefficients; below 1 the data determine that combination better than the magnitudes say). None when a
     coefficient has no declared magnitude or the covariance is not finite (an exactly dependent group: its
     combination is determined, said in its note)."""
-    s = np.array([scales.get(n) or scales.get(n.split("[")[0]) or np.nan for n in res.names], dtype=float)
+    s = np.array([declared_magnitude(scales, n) or np.nan for n in res.names], dtype=float)
     P = res.covariance
     if P is None or not np.all(np.isfinite(s)) or not np.all(np.isfinite(P)):
         return None
@@ -499,8 +505,7 @@ def _say_not_determined(res: EstimateResult, scales: Mapping[str, float], source
         return res
     std = np.asarray(res.std)  # not None: not_determined found a finite std
     names = [res.names[j] for j in idx]
-    ratio = {res.names[j]: float(std[j] / scales.get(res.names[j], scales.get(res.names[j].split("[")[0])))
-             for j in idx}
+    ratio = {res.names[j]: float(std[j] / declared_magnitude(scales, res.names[j])) for j in idx}
     reasons = {**res.reasons, **{n: f"not determined: std {ratio[n]:.3g} x declared magnitude" for n in names}}
     listed = ", ".join(names[:8]) + (f" and {len(names) - 8} more" if len(names) > 8 else "")
     message = (f"{res.message}; {len(names)} of {len(res.names)} not determined by the data (std at or above their "
@@ -564,7 +569,7 @@ def check_magnitudes(res: EstimateResult, scales: dict[str, float], source: str 
         std = np.array([max(sd, crlb.get(n) or 0.0) if np.isfinite(sd) else sd for n, sd in zip(res.names, std)])
     factor = _std_factor(res)  # the whiteness test's measure of std too small: judged with std that large
     for name, unit, x, sd in zip(res.names, res.units, res.estimate, std):
-        scale = scales.get(name, scales.get(name.split("[")[0]))
+        scale = declared_magnitude(scales, name)
         if not np.isfinite(sd):
             continue  # a std the method does not define (a coefficient at a bound): the bound is the user's
         # |x| - 5 std: what the data say at least, so that a poorly determined coefficient's noise is not flagged

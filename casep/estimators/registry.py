@@ -35,6 +35,7 @@ from casep.estimators._base import (  # what a method's core uses (a method of o
     STATUS_TRACKING,
     Prepared,
     check_magnitudes,
+    declared_magnitude,
     failed,
     finish,
     not_determined,
@@ -65,7 +66,8 @@ from casep.estimators.rls import RELS, RLS
 __all__ = ["Rule", "Interval", "Choices", "CoefficientTable", "Option", "Method", "OPTIONS", "METHODS",
            "check_method_options", "describe", "run_method", "solver", "register", "unregister", "NOISE_OPTIONS",
            "option_ranges", "SIGMA", "SeveralFlights", "Labels", "Prepared", "prepare", "finish", "failed",
-           "check_magnitudes", "not_determined", "STATUS_SETUP", "STATUS_MAGNITUDE", "STATUS_TRACKING", "STATUS_MISFIT",
+           "check_magnitudes", "declared_magnitude", "not_determined", "STATUS_SETUP", "STATUS_MAGNITUDE",
+           "STATUS_TRACKING", "STATUS_MISFIT",
            "STATUS_NOT_CONVERGED", "STATUS_DISAGREE", "STATUS_PRIOR_CONFLICT", "FAILURE_STATUSES", "option_label",
            "refusal"]
 

@@ -283,7 +283,10 @@ def plot_estimates(result: EstimateResult, path: str | os.PathLike, *, prior: Ma
         except Exception:  # a model file moved since: fall back on the other scales
             scales = {}
     fallback, kind = estimate_scales(result, prior, bounds)
-    declared = np.array([scales.get(nm, scales.get(str(nm).split("[")[0], np.nan)) for nm in result.names], float)
+    from casep.estimators.registry import declared_magnitude
+
+    declared = np.array([np.nan if (d := declared_magnitude(scales, str(nm))) is None else d for nm in result.names],
+                        float)
     scale = np.where(np.isfinite(declared), declared, fallback)
     kind = ["declared magnitude" if np.isfinite(declared[j]) else kind[j] for j in range(n)]
     z = result.estimate / scale
