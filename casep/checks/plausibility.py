@@ -85,7 +85,7 @@ from casep.units import G0
 
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
            "min_samples", "dv_noise", "misfit_problem", "MISFIT_RATIO", "MISFIT_NOISE_FLOOR",
-           "setup_problems", "warn_setup", "levelling_problem", "RICHER_MODELS",
+           "setup_problems", "warn_setup", "levelling_problem",
            "UNIT_FACTORS", "unit_factor", "misfit_advice"]
 
 
@@ -546,12 +546,6 @@ UNIT_FACTORS = ((1000.0, "a factor 1000: mm/s or km/s for m/s, mg for g, ms for 
                 (3.6, "3.6: km/h for m/s"))
 #: How close (relative) a ratio must come to a factor of :data:`UNIT_FACTORS` to name it.
 UNIT_FACTOR_TOL = 0.03
-#: The shipped models with more terms than a model, by the model: what to try when it does not describe a flight.
-RICHER_MODELS = {"strapdown12": "strapdown33 or strapdown42_extended",
-                 "strapdown15_phi0": "strapdown42_extended (strapdown33 with phi0)",
-                 "strapdown15_axial": "strapdown33 or strapdown42_extended",
-                 "strapdown6_window": "strapdown12_window", "strapdown33": "strapdown42_extended",
-                 "platform36": "platform39_misalignment, platform36_timeoffset or platform36_leverarm"}
 
 
 def unit_factor(ratio: float) -> str | None:
@@ -565,9 +559,11 @@ def unit_factor(ratio: float) -> str | None:
 
 def misfit_advice(model: str, names, units, estimates) -> str:
     """What to check when `model` does not describe a flight, most likely first: the model lacks terms the data
-    need (the richer shipped model, :data:`RICHER_MODELS`), a saturated sensor, the frame or set-up; a unit mix-up
-    only when a fitted scale points to it: a scale factor (ppm) whose ``1 + s`` is a factor of
+    need (the richer shipped model, :data:`casep.model.loader.RICHER_MODELS`), a saturated sensor, the frame or
+    set-up; a unit mix-up only when a fitted scale points to it: a scale factor (ppm) whose ``1 + s`` is a factor of
     :data:`UNIT_FACTORS` (:func:`unit_factor`; rates in deg/s read as rad/s fit ``sg = 57.3 - 1``)."""
+    from casep.model.loader import RICHER_MODELS
+
     richer = RICHER_MODELS.get(str(model).split("+")[0])
     first = (f"model {model} may lack terms the data need: try {richer}" if richer else
              f"model {model} may lack terms the data need (a richer model)")

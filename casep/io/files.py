@@ -70,6 +70,7 @@ from casep.io.tables import VTEL_COLUMNS, VTRK_COLUMNS, Table, apparent_velocity
 __all__ = [
     "header_facts", "navigation_site",
     "levelled_comment",
+    "simulated_comment",
     "levelling_record",
     "read_json_table", "read_flight", "read_flight_pair", "write_flight", "write_table", "apparent_velocity_to_force",
     "acceleration_signals",
@@ -81,8 +82,15 @@ R_TEL_COLUMNS = ("r_tel_x", "r_tel_y", "r_tel_z")  # launch-inertial position (c
 _NAV_SITE = re.compile(r"^#\s*launch site (\S+) (\S+) (\S+) azimuth (\S+) deg, launch time (\S+) s")
 #: casep navigate's header line naming its pad alignment (:func:`levelled_comment` writes it)
 _NAV_LEVELLED = re.compile(r"^#\s*alignment: levelled over \[(\S+), (\S+)\] s, heading (\S+)")
-#: casep simulate's header line naming the model that made the flight (casep.simulation.simulate.write_simulation)
+#: casep simulate's header line naming the model that made the flight (:func:`simulated_comment` writes it)
 _SIM_MODEL = re.compile(r"^#\s*model (\S+), seed ")
+
+
+def simulated_comment(model: str, seed: int | None, rate_hz: float) -> str:
+    """The header line of ``casep simulate``'s flight naming the model that made it, its seed and its rate;
+    :func:`header_facts` reads the model back (:func:`casep.model.loader.default_model` separates the flight
+    with it)."""
+    return f"model {model}, seed {seed}, rate {rate_hz:.6g} Hz; truth in the .truth.json sidecar"
 
 
 def levelled_comment(window: tuple[float, float], alignment: Any) -> str:

@@ -44,7 +44,7 @@ __all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "availab
            "run_model_file", "with_time_offset", "add_time_offset",
            "TIME_OFFSET", "model_file_reference", "model_names", "where_in_file",
            "load_model_file", "shipped_model_dirs", "shipped_model_file", "model_record",
-           "load_recorded_model", "shipped_model", "default_model", "PHI0_MODELS"]
+           "load_recorded_model", "shipped_model", "default_model", "PHI0_MODELS", "RICHER_MODELS"]
 
 
 def shipped_model_dirs() -> list[Path]:
@@ -468,6 +468,13 @@ def _check_sha256(have: str | None, path: str | None, sha256: str | None, model_
 
 #: the shipped models with an initial attitude error, by the model without one they extend
 PHI0_MODELS = {"strapdown12": "strapdown15_phi0", "strapdown33": "strapdown42_extended"}
+#: the shipped models with more terms than a model, by the model: what to try when it does not describe a flight
+#: (:func:`casep.checks.plausibility.misfit_advice`)
+RICHER_MODELS = {"strapdown12": "strapdown33 or strapdown42_extended",
+                 "strapdown15_phi0": "strapdown42_extended (strapdown33 with phi0)",
+                 "strapdown15_axial": "strapdown33 or strapdown42_extended",
+                 "strapdown6_window": "strapdown12_window", "strapdown33": "strapdown42_extended",
+                 "platform36": "platform39_misalignment, platform36_timeoffset or platform36_leverarm"}
 
 
 def default_model(flight: str | os.PathLike | None, imu: bool = False) -> str:

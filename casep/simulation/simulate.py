@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from casep.io._atomic import atomic_open
-from casep.io.files import write_flight, write_table
+from casep.io.files import simulated_comment, write_flight, write_table
 from casep.io.flight import FlightData
 from casep.io.pair import STATE_SIGNALS
 from casep.model.error_model import ErrorModel, unknown_coefficient_message
@@ -350,8 +350,7 @@ def write_simulation(sim: SimulatedFlight, path: str | os.PathLike, *, imu: str 
         imu_columns = imu_table(sim.trajectory, sim.model, sim.truth, pad=imu_pad)
     write_flight(sim.flight, path, force=not sc.strapdown, comments=[
         f"casep simulated flight: scenario {sc.name} ({sc.description})",
-        f"model {sim.model.name}, seed {sim.seed}, rate {1.0 / float(np.median(np.diff(sim.flight.t))):.6g} Hz; "
-        "truth in the .truth.json sidecar",
+        simulated_comment(sim.model.name, sim.seed, 1.0 / float(np.median(np.diff(sim.flight.t)))),
     ])
     if imu_columns is not None:
         assert imu is not None

@@ -5,7 +5,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from casep.io.files import levelled_comment, levelling_record, read_flight, write_table
+from casep.io.files import header_facts, levelled_comment, levelling_record, read_flight, simulated_comment, write_table
 from casep.io.tables import Table
 from casep.model.loader import PHI0_MODELS, default_model
 from casep.units import G0
@@ -44,12 +44,13 @@ def test_strapdown_telemetry_defaults_to_a_model_that_covers_its_errors(tmp_path
     assert default_model(tmp_path / "sd.csv") == "strapdown42_extended"
     assert default_model(tmp_path / "pl.csv") == "platform36"
     assert default_model(None, imu=True) == "strapdown33" and default_model(None) == "platform36"
-    sim = ["casep simulated flight: scenario strapdown-boost", "model strapdown33, seed 0, rate 10 Hz; truth"]
+    sim = ["casep simulated flight: scenario strapdown-boost", simulated_comment("strapdown33", 0, 10.0)]
     write_table(tmp_path / "sim.csv", _cols(True), comments=sim)
+    assert header_facts(tmp_path / "sim.csv")["simulated_model"] == "strapdown33"
     assert default_model(tmp_path / "sim.csv") == "strapdown33"
     write_table(tmp_path / "lev.csv", _cols(True), comments=[*sim, levelled_comment((0.0, 9.0), al)])
     assert default_model(tmp_path / "lev.csv") == PHI0_MODELS["strapdown33"] == "strapdown42_extended"
-    write_table(tmp_path / "own.csv", _cols(True), comments=["model my_model, seed 3, rate 10 Hz"])
+    write_table(tmp_path / "own.csv", _cols(True), comments=[simulated_comment("my_model", 3, 10.0)])
     assert default_model(tmp_path / "own.csv") == "strapdown42_extended"  # not a shipped model: the rule
     from casep.model.loader import load_model
 
