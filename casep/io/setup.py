@@ -48,6 +48,8 @@ PAD_FIT_WINDOW = 2.0
 PAD_NOISE_SPAN = 10.0
 #: Tracking speed (m/s) below which a sample counts as at rest for the noise estimate.
 PAD_NOISE_REST = 2.0
+#: the median of chi-square on 1 degree of freedom: ``median(v^2) / CHI2_1_MEDIAN`` estimates ``sigma^2``
+CHI2_1_MEDIAN = 0.45493642311957283
 #: First tracked position farther from the site than (time since launch x speed) + this, m: wrong site.
 POSITION_TOL = 2000.0
 #: First telemetry sample this far (s) from the stated launch time: the time scales or the launch time are off.
@@ -70,7 +72,11 @@ def _velocity_at(t: np.ndarray, v: np.ndarray, t0: float) -> tuple[np.ndarray, n
       :data:`PAD_NOISE_SPAN` s: noise correlated over the whole window (a GNSS velocity's Gauss-Markov
       part, tau of a second or more) moves all the window's samples together, so ``c0`` errs by about one
       sample's error, ``Var(c0) -> sigma^2 (sum w)^2 = sigma^2``, which the window's own residuals cannot
-      show (the line takes it up).
+      show (the line takes it up). Of the two estimates of ``sigma^2`` the larger: the scatter about that
+      line, and ``median(v^2) / m1`` about zero, the velocity at rest (``m1`` = :data:`CHI2_1_MEDIAN`),
+      which keeps a Gauss-Markov part slower than :data:`PAD_NOISE_SPAN` (tau 20 s: the line alone failed
+      5.9 % of right set-ups, ``benchmarks/setup_pad_check.py``) and which the few samples of a lift-off
+      inside the span do not move.
     """
     from casep._kernels import ar1_long_run_factor
 
@@ -91,6 +97,10 @@ def _velocity_at(t: np.ndarray, v: np.ndarray, t0: float) -> tuple[np.ndarray, n
         B = np.column_stack([np.ones(rest.sum()), t[rest] - t0])
         rb = v[rest] - B @ np.linalg.lstsq(B, v[rest], rcond=None)[0]
         var = np.maximum(var, np.sum(rb**2, axis=0) / (rest.sum() - 2))
+        # sigma^2 about the velocity at rest, zero: ``median(v^2) / m1`` (``m1`` the median of chi-square on 1
+        # dof), which a Gauss-Markov part slower than the span keeps and the few samples after a lift-off in
+        # the span do not move
+        var = np.maximum(var, np.median(v[rest] ** 2, axis=0) / CHI2_1_MEDIAN)
     return coef[0], np.sqrt(var), coef[1]
 
 
