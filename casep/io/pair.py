@@ -433,6 +433,12 @@ def _valid_rows(t: np.ndarray, observed: np.ndarray, valid: np.ndarray, extra: d
     if not bad.any():
         return observed
     rows = np.flatnonzero(bad)
+    if not (observed & ~bad).any():
+        raise ValueError(
+            f"{source}: the telemetry column {VALID_COLUMN} marks the navigation solution as not trusted (a clipped "
+            f"IMU sample) on every observed row ({rows.size} rows, t = {t[rows[0]]:.10g} .. {t[rows[-1]]:.10g} s): "
+            "no tracked row is left to separate. Declare the sensor's full scale if the clipping is not real, or "
+            "use a flight whose tracking starts while the navigation is valid")
     extra["ins_invalid"] = {"from_s": float(t[rows[0]]), "to_s": float(t[rows[-1]]), "rows_left_out": int(rows.size)}
     warnings.warn(SaturationWarning(
         f"{source}: the telemetry column {VALID_COLUMN} marks the navigation solution as not trusted (a clipped IMU "

@@ -144,8 +144,9 @@ SCENARIOS: dict[str, Scenario] = {
                  vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=_PAPER_YAW),
                  noise=NoiseModel("ar1", TABLE1_NOISE_SIGMA, tau=1.0, gaps=_RANGE_GAPS, outlier_rate=0.005,
                                   outlier_sigma=2.0), rate=20.0),
-        Scenario("strapdown-boost", "strapdown IMU (strapdown33) on the paper boost with a roll programme, 50 Hz, "
-                 "Gauss-Markov 0.1 m/s tau 1 s plus white 0.05 m/s tracking noise, tracking from 6 s, gap 110-115 s",
+        Scenario("strapdown-boost", "strapdown IMU (strapdown33) on the paper boost with a roll programme, "
+                 "50 Hz by default, Gauss-Markov 0.1 m/s tau 1 s plus white 0.05 m/s tracking noise, tracking "
+                 "from 6 s, gap 110-115 s",
                  vehicle=dataclasses.replace(DEFAULT_VEHICLE, yaw=_PAPER_YAW), rate=50.0, model="strapdown33",
                  truth=dict(STRAPDOWN_TRUTH), roll=STRAPDOWN_ROLL,
                  noise=NoiseModel("ar1", TABLE1_NOISE_SIGMA, tau=1.0, white_sigma=0.05,

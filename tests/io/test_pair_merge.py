@@ -61,3 +61,23 @@ def test_near_duplicate_time_tags_of_the_files_still_warn():
     extra = np.array([t_tel[700] + 0.004, t_tel[700] + 0.004 + 2e-7])  # the tracking file's own pair, between samples
     msgs = _near_duplicate_warnings(_pair(t_tel, np.sort(np.concatenate([t_trk, extra]))))
     assert len(msgs) == 1 and "time step 2e-07 s" in msgs[0]
+
+
+def test_a_navigation_not_trusted_on_every_tracked_row_is_bad_input(tmp_path, capsys):
+    """``ins_valid`` 0 from before the first tracking epoch (an accelerometer clipped at lift-off, tracking from
+    later): exit 2 naming the file, the column and the rows, no traceback and no result written."""
+    from casep.cli import main
+    from casep.io.files import write_table
+
+    t = np.arange(0.0, 20.0, 0.1)
+    z = np.zeros_like(t)
+    write_table(tmp_path / "tel.csv", {"t": t, "f_x": z, "f_y": z - GRAVITY_LAUNCH[1], "f_z": z, "v_tel_x": z,
+                                       "v_tel_y": z, "v_tel_z": z, "ins_valid": (t < 3.0).astype(float)})
+    tt = np.arange(5.0, 20.0, 0.5)
+    write_table(tmp_path / "trk.csv", {"t": tt, "v_trk_x": tt * 0, "v_trk_y": tt * 0, "v_trk_z": tt * 0})
+    out = tmp_path / "res.json"
+    code = main(["separate", str(tmp_path / "tel.csv"), "--tracking", str(tmp_path / "trk.csv"), "--json", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err, err
+    assert "tel.csv" in err and "ins_valid" in err and "no tracked row is left" in err, err
+    assert not out.exists()
