@@ -624,6 +624,12 @@ class _Run:
             out = dataclasses.replace(out, message=f"{out.message}; {said}")
         if iterate and out.success:  # a failed result's std are not used: no curvature to carry
             out = self.curvature(out, problem, D)
+        elif not iterate and out.success:  # one linear pass: its second-order remainder judged, as a telemetry's
+            from casep.workflows.telemetry_iterate import linearisation_shift, one_pass_judged
+
+            shift = linearisation_shift(self, res, problem, flight, model.scales)
+            if shift is not None:
+                out = one_pass_judged(out, shift)
         return ImuSeparation(out, nav, flight, passes)
 
     def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:

@@ -88,7 +88,8 @@ if TYPE_CHECKING:
     from casep.model.error_model import ErrorModel
     from casep.navigation.strapdown import Gravity
 
-__all__ = ["corrected_telemetry", "telemetry_gravitation", "linearisation_shift", "iterate_if_curved",
+__all__ = ["corrected_telemetry", "telemetry_gravitation", "linearisation_shift", "linearisation_record",
+           "one_pass_judged", "iterate_if_curved",
            "CorrectedTelemetry", "FAIL_SHIFT"]
 
 #: A linear result kept (``iterate=False``) whose second-order remainder moves it by more than this (std) fails.
@@ -302,6 +303,38 @@ def linearisation_shift(run: _TelemetryRun, res: EstimateResult, problem: Any, f
     return std_shift(C, np.outer(b, b))
 
 
+def linearisation_record(shift: float | None) -> dict:
+    """``diagnostics["linearisation"]`` of a result judged by :func:`linearisation_shift`'s `shift` (std)."""
+    from casep.regression.linearisation import LINEAR_OFFSET_SHARE
+
+    return {"shift_std": shift if shift is None or np.isfinite(shift) else None, "tol": LINEAR_OFFSET_SHARE,
+            **({} if shift is None or np.isfinite(shift) else {"why": "the record does not invert at the estimate"}),
+            "rule": "the second-order remainder of the linear estimate moves it by shift_std std (along the "
+                    "combination it moves most); the linear result stands below tol"}
+
+
+def one_pass_judged(res: EstimateResult, shift: float) -> EstimateResult:
+    """A linear result kept without iterating (a strapdown telemetry's or a raw IMU record's ``iterate=False``)
+    judged by its second-order remainder `shift` (std, :func:`linearisation_shift`): as it is at or below
+    ``LINEAR_OFFSET_SHARE``; above it with a :class:`~casep.exceptions.NonlinearityWarning` in its message;
+    failed (status -8) beyond :data:`FAIL_SHIFT` std."""
+    from casep.estimators.registry import STATUS_MISFIT, failed
+    from casep.exceptions import NonlinearityWarning
+    from casep.regression.linearisation import LINEAR_OFFSET_SHARE
+
+    res.diagnostics["linearisation"] = {**linearisation_record(shift), "iterated": False}
+    if shift <= LINEAR_OFFSET_SHARE:
+        return res
+    said = (f"the linear model does not hold on this strapdown record: the second-order remainder at the "
+            f"estimate moves it by {shift:.3g} std along one combination of the coefficients (above "
+            f"{LINEAR_OFFSET_SHARE:g}): the linear std leave that out; separate with iterate (CLI: --iterate) to "
+            "re-navigate the corrected record")
+    warnings.warn(said, NonlinearityWarning, stacklevel=3)
+    if shift > FAIL_SHIFT:
+        return failed(res, STATUS_MISFIT, f"failed: {said}")  # the residuals hold the second order
+    return dataclasses.replace(res, message=f"{res.message}; {said}")
+
+
 def iterate_if_curved(res: EstimateResult, flight: Any, problem: Any, model: Any, spec: FitSpec,
                       iterate: bool | None) -> tuple[EstimateResult, bool]:
     """The result of :func:`casep.separate` on a strapdown telemetry pair, judged for its linearisation (module
@@ -313,7 +346,6 @@ def iterate_if_curved(res: EstimateResult, flight: Any, problem: Any, model: Any
     rows a screen left out (tracking, saturation) stay out of every pass. Anything else than a strapdown telemetry
     pair with a strapdown model, or a result that failed already (its failure says more than its curvature would):
     `res` unchanged."""
-    from casep.exceptions import NonlinearityWarning
     from casep.io.flight import FlightData
     from casep.io.pair import PairInputs
     from casep.io.strapdown import STRAPDOWN_COLUMNS
@@ -330,24 +362,12 @@ def iterate_if_curved(res: EstimateResult, flight: Any, problem: Any, model: Any
     base = load_model(model.source_file or model.name) if TIME_OFFSET in model.names else model
     run = _TelemetryRun(flight, base, model.source_file or model.name, spec, TIME_OFFSET in model.names)
     shift = linearisation_shift(run, res, problem, flight, model.scales)
-    record = {"shift_std": shift if shift is None or np.isfinite(shift) else None, "tol": LINEAR_OFFSET_SHARE,
-              **({} if shift is None or np.isfinite(shift) else {"why": "the record does not invert at the estimate"}),
-              "rule": "the second-order remainder of the linear estimate moves it by shift_std std (along the "
-                      "combination it moves most); the linear result stands below tol"}
+    record = linearisation_record(shift)
     if not iterate and (shift is None or shift <= LINEAR_OFFSET_SHARE):
         res.diagnostics["linearisation"] = {**record, "iterated": False}
         return res, False
     if iterate is False and shift is not None:
-        from casep.estimators.registry import STATUS_MISFIT, failed
-
-        said = (f"the linear model does not hold on this strapdown telemetry: the second-order remainder at the "
-                f"estimate moves it by {shift:.3g} std along one combination of the coefficients (above "
-                f"{LINEAR_OFFSET_SHARE:g}); separate with iterate (CLI: --iterate) to re-navigate the corrected record")
-        warnings.warn(said, NonlinearityWarning, stacklevel=3)
-        res.diagnostics["linearisation"] = {**record, "iterated": False}
-        if shift > FAIL_SHIFT:
-            return failed(res, STATUS_MISFIT, f"failed: {said}"), False  # the residuals hold the second order
-        return dataclasses.replace(res, message=f"{res.message}; {said}"), False
+        return one_pass_judged(res, shift), False
     out = run.iterate(True, ITERATE_TOL, MAX_ITERATIONS).result
     out.diagnostics["linearisation"] = {**record, "iterated": True}
     if shift is not None and shift > LINEAR_OFFSET_SHARE:

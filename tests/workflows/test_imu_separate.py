@@ -112,8 +112,10 @@ def test_one_linear_pass_is_biased_by_many_crlb_std_the_iteration_converges_to_t
 
 
 def test_the_command_line_no_iterate_and_its_refusals(noise_free, tmp_path, capsys):
-    """``casep separate --imu``: one linear pass with --no-iterate, the IMU file in the provenance; options of
-    --imu without it, and --imu without what it needs, refused with exit 2 before any work."""
+    """``casep separate --imu``: one linear pass with --no-iterate, the IMU file in the provenance; on this MEMS
+    record (its one pass 5 std and more off, the test above) its second-order remainder fails it (exit 1, the
+    message says so and names --iterate); options of --imu without it, and --imu without what it needs, refused
+    with exit 2 before any work."""
     import json
 
     from casep.cli import main
@@ -125,11 +127,14 @@ def test_the_command_line_no_iterate_and_its_refusals(noise_free, tmp_path, caps
            "--no-iterate", "--json", str(tmp_path / "r.json")]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        assert main(cmd) == 0
+        assert main(cmd) == 1
     out = capsys.readouterr().out
     assert "one linear pass (no iteration)" in out
     data = json.loads((tmp_path / "r.json").read_text())
     assert data["diagnostics"]["iterations"]["iterate"] is False and data["navigation"]["success"]
+    assert "the linear model does not hold on this strapdown record" in data["message"]
+    assert "--iterate" in data["message"]
+    assert data["diagnostics"]["linearisation"]["shift_std"] > 3.0
     assert "imu" in [i["role"] for i in data["provenance"]["inputs"]]
     assert main(["separate", str(imu), "--align", "0", "9"]) == 2
     assert "--align is used only with --imu" in capsys.readouterr().err

@@ -119,7 +119,7 @@ def test_cli_no_iterate_on_telemetry_fails_the_curved_linear_pass(noise_free, ca
         warnings.simplefilter("ignore")
         assert main(["separate", tel, "--tracking", trk, "--model", "strapdown12", "--noise", "white", "--robust",
                      "none", "--sigma", "0.1", "--no-iterate"]) == 1
-    assert "the linear model does not hold on this strapdown telemetry" in capsys.readouterr().err
+    assert "the linear model does not hold on this strapdown record" in capsys.readouterr().err
     assert main(["separate", tel, tel, "--tracking", trk, "--iterate"]) == 2
     assert "--iterate is used with --imu IMU.csv or one strapdown telemetry file" in capsys.readouterr().err
 
@@ -155,7 +155,7 @@ def test_earth_fixed_tracking_is_judged_as_the_launch_frame_one(noise_free, mode
             got[name] = casep.separate(fl, model, method="ols", noise="white", robust="none", sigma=0.1,
                                        iterate=False, fit_time_offset=True)  # dt_trk: Earth-fixed tracking's default
         said = [str(w.message) for w in caught if issubclass(w.category, NonlinearityWarning)]
-        assert any("does not hold on this strapdown telemetry" in m for m in said), (name, said)
+        assert any("does not hold on this strapdown record" in m for m in said), (name, said)
     lin, ref = got["ecef"].diagnostics["linearisation"], got["launch"].diagnostics["linearisation"]
     assert lin["shift_std"] > 100 * lin["tol"] and not lin["iterated"], lin
     assert lin["shift_std"] == pytest.approx(ref["shift_std"], rel=1e-6)
