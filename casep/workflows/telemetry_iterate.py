@@ -325,10 +325,15 @@ def one_pass_judged(res: EstimateResult, shift: float) -> EstimateResult:
     res.diagnostics["linearisation"] = {**linearisation_record(shift), "iterated": False}
     if shift <= LINEAR_OFFSET_SHARE:
         return res
-    said = (f"the linear model does not hold on this strapdown record: the second-order remainder at the "
-            f"estimate moves it by {shift:.3g} std along one combination of the coefficients (above "
-            f"{LINEAR_OFFSET_SHARE:g}): the linear std leave that out; separate with iterate (CLI: --iterate) to "
-            "re-navigate the corrected record")
+    if np.isfinite(shift):
+        said = (f"the linear model does not hold on this strapdown record: the second-order remainder at the "
+                f"estimate moves it by {shift:.3g} std along one combination of the coefficients (above "
+                f"{LINEAR_OFFSET_SHARE:g}): the linear std leave that out; separate with iterate (CLI: --iterate) to "
+                "re-navigate the corrected record")
+    else:
+        said = ("the linear model cannot be checked on this strapdown record: corrected by the linear estimate the "
+                "record does not invert (navigate), so how far its second order moves the estimate is unknown; "
+                "separate with iterate (CLI: --iterate) to re-navigate the corrected record pass by pass")
     warnings.warn(said, NonlinearityWarning, stacklevel=3)
     if shift > FAIL_SHIFT:
         return failed(res, STATUS_MISFIT, f"failed: {said}")  # the residuals hold the second order
