@@ -238,12 +238,18 @@ def main() -> None:
     ap.add_argument("--figures", default=None, help="folder for the PNG figures")
     ap.add_argument("--model", default="strapdown6_window", help="the window model (instrument terms + phi0 + dv0)")
     ap.add_argument("--noise", default=None, help="casep's --noise for every window (default: its default path)")
+    ap.add_argument("--std", default=None, choices=("model", "hac"), help="casep's --std for every window")
+    ap.add_argument("--robust", default=None, help="casep's --robust for every window")
     ap.add_argument("--write-cut", default=None, help="write the converted cut here and stop")
     ap.add_argument("--cut", type=float, nargs=2, default=(0.0, 70.0))
     ap.add_argument("--imu-time", choices=("tags", "uniform"), default="tags",
                     help="IMU times: the logger's tags, or the uniform grid they jitter about (regular_time)")
     ap.add_argument("--velocity", choices=("rtklib", "positions"), default="rtklib",
                     help="tracked velocity: RTKLIB's filter state, or differenced RTK positions")
+    ap.add_argument("--simulate", type=int, default=None, metavar="SEED",
+                    help="run the chain on the drive's simulated twin (car_drive_sim.py: its trajectory and noise, "
+                         "constant known biases; IMU on the grid, velocity from positions) instead of the data")
+    ap.add_argument("--end", type=float, default=None, help="use the record up to this time only, s")
     args = ap.parse_args()
     if args.write_cut:  # the IMU file gzipped (-9), as the test suite holds it
         import gzip
@@ -255,7 +261,13 @@ def main() -> None:
         os.remove(imu_path)
         print(imu_path + ".gz", trk_path)
         return
-    imu_path, trk_path, t_ref = convert(args.data, args.out, velocity=args.velocity)
+    truth = None
+    if args.simulate is not None:
+        from car_drive_sim import simulate
+
+        imu_path, trk_path, t_ref, truth = simulate(args.data, args.out, args.simulate)
+    else:
+        imu_path, trk_path, t_ref = convert(args.data, args.out, velocity=args.velocity)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         imu = read_imu(imu_path)
@@ -268,14 +280,19 @@ def main() -> None:
                   f"{np.max(np.diff(imu.t)) * 1e3:.1f} ms, grid step {np.mean(np.diff(grid)) * 1e3:.4f} ms")
             imu.t = grid
         imu.t = imu.t + args.imu_shift
+        if args.end is not None:
+            imu = type(imu)(imu.t[imu.t <= args.end], imu.w[imu.t <= args.end], imu.f[imu.t <= args.end],
+                            source=imu.source)
         import pandas as pd
 
         trk = pd.read_csv(trk_path)
         site = LaunchSite(float(trk.lat[0]), float(trk.lon[0]), float(trk.h[0]), 0.0, 0.0)
         moving = float(trk.t[np.hypot(trk.v_east, trk.v_north) > 0.3].iloc[0])
         c0 = time.process_time()
+        options = {k: v for k, v in (("noise", args.noise), ("std", args.std), ("robust", args.robust))
+                   if v is not None}
         res = separate_windows(imu, trk_path, site, (0.0, moving - 5.0), length=args.length, start=moving + 1.0,
-                               model=args.model, fit_options={} if args.noise is None else {"noise": args.noise})
+                               model=args.model, fit_options=options)
         cpu = time.process_time() - c0
     kinds: dict[str, int] = {}
     first: dict[str, str] = {}
@@ -313,9 +330,18 @@ def main() -> None:
         print(f"  {what}: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, weighted mean "
               + ", ".join(f"{v:.2f}" for v in cc["weighted_mean"]))
     _clock_trend(res.windows)
+    if truth is not None:
+        print("  true biases of the twin: " + ", ".join(f"{n} {truth[n]:g}" for n in res.names if n in truth)
+              + " (the gyro's less the pad's mean rate is what the windows see)")
+        ok = [w for w in res.windows if w.result.success]
+        for n in (n for n in res.names if n.startswith("ba_")):  # the pad removes no accelerometer bias
+            z = np.array([(dict(zip(w.result.names, w.result.estimate))[n] - truth[n])
+                          / dict(zip(w.result.names, w.result.std))[n] for w in ok])
+            print(f"  {n}: (estimate - truth) / std over the {z.size} windows: RMS {np.sqrt(np.mean(z**2)):.2f}, "
+                  f"mean {np.mean(z):+.2f}")
     pos = read_rtklib_pos(os.path.join(args.data, "gnss_1934_sf.pos"))
     rest = spans_at_rest(pos["t"] - t_ref, pos["ve"], pos["vn"])
-    if len(rest) > 1:
+    if len(rest) > 1 and truth is None:
         inst = print_rest(imu, rest)
         cc = window_consistency(res.windows, res.names, instability=inst)
         print(f"  with it: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, predictions within "

@@ -53,7 +53,8 @@ from casep.noise.robust import MAD_SIGMA
 __all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "fit_clock_drift", "stretch_noise",
            "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
-           "imu_noise_effect", "imu_sample_noise", "white_sample_std", "STALE_MOTION", "JUMP_TOL", "JUMP_RATE",
+           "imu_noise_effect", "imu_sample_noise", "white_sample_std",
+           "rest_white_std", "IMU_NOISE_AT_REST", "STALE_MOTION", "JUMP_TOL", "JUMP_RATE",
            "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
 
 #: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
@@ -413,8 +414,42 @@ def imu_sample_noise(flight: FlightData, t_rows: np.ndarray) -> tuple[np.ndarray
     if i.size < 10:
         return None
     h = float(np.median(np.diff(flight.t[i])))
+    given = flight.meta.get(IMU_NOISE_AT_REST) if isinstance(flight.meta, dict) else None
+    if given is not None:
+        return np.asarray(given, dtype=float), h, i
     raw = np.column_stack([sig[f"{k}_{a}"][i] for k in ("fb", "w") for a in "xyz"])
     return white_sample_std(raw), h, i
+
+
+#: A flight's ``meta`` key: the IMU's white noise per sample (6: ``fb_x, fb_y, fb_z`` m/s^2, ``w_x, w_y, w_z``
+#: rad/s) measured at rest by :func:`rest_white_std`, which :func:`imu_sample_noise` then takes instead of the
+#: record's own second differences.
+IMU_NOISE_AT_REST = "imu_white_std_at_rest"
+#: Averaging time at which :func:`rest_white_std` reads the noise density, s.
+REST_TAU_S = 1.0
+
+
+def rest_white_std(x: np.ndarray, h: float, tau: float = REST_TAU_S) -> np.ndarray:
+    """Per-column std per sample of the white noise that integrates into the random walks, measured on samples
+    `x` (n, k) at rest (step `h`, s): the overlapping Allan deviation at `tau` (at most a tenth of the span)
+    times ``sqrt(tau / h)`` (white noise of std ``s`` per sample has ``adev(tau) = s sqrt(h / tau)``).
+
+    :func:`white_sample_std` reads every sample-to-sample change as noise: vibration near the Nyquist
+    frequency (an engine, a road: real motion, or aliased, but zero-mean within a tenth of a second) then
+    counts as a white density that it is not, and the random walks it makes are too large by the ratio. At
+    `tau` the vibration is averaged out and what is left is the density a window of seconds integrates. A
+    noise whose Allan deviation still falls beyond `tau` (vibration slower than `tau`) is overstated, one
+    that rises (flicker, a bias that wanders) is not a white density at all: neither is made smaller here.
+    """
+    from casep.noise.identification import allan_deviation
+
+    x = np.asarray(x, dtype=float)
+    if x.ndim != 2 or x.shape[0] < 20 or not np.all(np.isfinite(x)) or not (np.isfinite(h) and h > 0):
+        raise ValueError(f"rest_white_std: `x` must be (n >= 20, k) finite samples and `h` > 0 s, got shape "
+                         f"{x.shape} and h = {h}")
+    tau = float(min(tau, x.shape[0] * h / 10.0))
+    return np.array([allan_deviation(x[:, c], h, np.array([tau]))[1][0] for c in range(x.shape[1])]) \
+        * math.sqrt(tau / h)
 
 
 def white_sample_std(x: np.ndarray) -> np.ndarray:

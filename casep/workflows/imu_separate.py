@@ -1197,7 +1197,7 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
     (``Sigma_track A^T`` by :func:`casep.noise.known.tracking_covariance_times`). A noise model not fitted (white:
     the solver's sigma) keeps the fit's covariance as the tracking part.
     """
-    from casep.checks.tracking_quality import imu_noise_effect, imu_sample_noise
+    from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_noise_effect, imu_sample_noise
     from casep.noise.model import NoiseModel, whiten, whiten_transpose
 
     nd = res.diagnostics.get("noise")
@@ -1207,6 +1207,7 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
     measured = imu_sample_noise(flight, t)
     if measured is None:
         return None
+    at_rest = isinstance(flight.meta, dict) and flight.meta.get(IMU_NOISE_AT_REST) is not None
     noise = NoiseModel.from_dict(nd)
     S = problem.sv()
     N, _, n = S.shape
@@ -1218,11 +1219,11 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
     C_imu = AG @ AG.T
     refit = _tracking_beside_imu(problem, flight, noise, levelling)
     if refit is None:
-        return None, C_imu, _imu_account(res, measured, np.asarray(res.covariance), C_imu, refit)
+        return None, C_imu, _imu_account(res, measured, np.asarray(res.covariance), C_imu, refit, at_rest)
     from casep.noise.known import tracking_covariance_times
 
     C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
-    return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit)
+    return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, at_rest)
 
 
 def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling: tuple | None) -> Any:
@@ -1241,7 +1242,8 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     return fit_tracking(X, np.asarray(problem.t, dtype=float), noise, known)[0]
 
 
-def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu: np.ndarray, refit: Any) -> dict:
+def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu: np.ndarray, refit: Any,
+                 at_rest: bool = False) -> dict:
     """What :func:`imu_noise_budget` used and found, for the result's noise record."""
     s, h, _ = measured
     C_fit = np.asarray(res.covariance)
@@ -1252,8 +1254,11 @@ def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu:
     how = ("the tracking noise model fitted again by REML with the IMU's noise a known term (its random walks and "
            "the levelling tilt as a linear state), Cov(x) = A Sigma_track A^T + (A G)(A G)^T" if refit is not None
            else "Cov(x) = fit covariance + (A G)(A G)^T (a white noise model: the solver's sigma)")
-    return {"source": "measured on the record: the scatter of second differences of consecutive samples "
-                      "(MAD / sqrt 6), per sample",
+    source = ("measured at rest: the Allan deviation at 1 s times sqrt(1 s / step), per sample "
+              "(casep.checks.tracking_quality.rest_white_std)" if at_rest else
+              "measured on the record: the scatter of second differences of consecutive samples (MAD / sqrt 6), "
+              "per sample")
+    return {"source": source,
             "accelerometer_m_s2": [float(v) for v in s[:3]], "gyro_rad_s": [float(v) for v in s[3:]],
             "sample_step_s": h, "vrw_m_s_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[:3]],
             "arw_rad_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[3:]],

@@ -150,13 +150,17 @@ def _navigate_window(imu, trk: _Tracking, t_a: float, t_b: float, C_eb: np.ndarr
     return site, nav
 
 
-def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fit_options: dict):
+def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fit_options: dict,
+                  imu_noise: np.ndarray | None = None):
+    from casep.checks.tracking_quality import IMU_NOISE_AT_REST
     from casep.io.files import read_flight_pair, write_table
     from casep.workflows.separate import separate
 
     tel = os.path.join(workdir, "window.parquet")
     write_table(tel, nav.columns())
     flight = read_flight_pair(tel, trk.path, tracking_frame="geodetic", site=site)
+    if imu_noise is not None:
+        flight.meta[IMU_NOISE_AT_REST] = imu_noise
     return flight, separate(flight, model, **fit_options)
 
 
@@ -174,7 +178,7 @@ def _attitude_error_end(model, result, flight) -> np.ndarray:
 
 def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: tuple[float, float], *,
                      length: float = 30.0, start: float | None = None, model: str = "strapdown6_window",
-                     attitude_passes: int = 3, gyro_bias_from_pad: bool = True,
+                     attitude_passes: int = 3, gyro_bias_from_pad: bool = True, imu_noise_from_pad: bool = True,
                      fit_options: dict | None = None) -> WindowsResult:
     """Align on the pad, cut the rest of `imu` into windows of `length` s and separate each (module docstring).
 
@@ -201,6 +205,11 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
         Navigations per window at most (the initial attitude corrected by ``phi0`` between them).
     gyro_bias_from_pad : bool
         Remove the pad's gyro biases before navigating.
+    imu_noise_from_pad : bool
+        The IMU's white noise density, which each window's std carries as velocity and attitude random
+        walks, measured on the pad (:func:`casep.checks.tracking_quality.rest_white_std`, the Allan
+        deviation at 1 s) instead of on each window's samples (their second differences, which count a
+        moving vehicle's vibration as white sensor noise: on a car drive 2-50 times the density at 1 s).
     fit_options : dict, optional
         Keywords of :func:`casep.separate` (default: none, its default noise path).
 
@@ -225,6 +234,12 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
     if gyro_bias_from_pad:
         imu = ImuData(imu.t, imu.w - (a.w_mean - a.C_tb.T @ site.earth_rate), imu.f, source=imu.source)
         nav0 = navigate(imu, site, align, heading_deg=0.0)
+    imu_noise = None
+    if imu_noise_from_pad:
+        from casep.checks.tracking_quality import rest_white_std
+
+        pad = (imu.t >= align[0]) & (imu.t <= align[1])
+        imu_noise = rest_white_std(np.column_stack([imu.f[pad], imu.w[pad]]), float(np.median(np.diff(imu.t[pad]))))
     t_a = float(align[1] if start is None else start)
     j = int(np.searchsorted(nav0.t, t_a))
     t_a = float(nav0.t[j])
@@ -242,7 +257,7 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
                 course = math.degrees(psi)
             for passes in range(1, attitude_passes + 1):
                 site_k, nav = _navigate_window(imu, trk, t_a, t_b, C_eb)
-                flight, res = _separate_nav(nav, site_k, trk, model, workdir, dict(fit_options or {}))
+                flight, res = _separate_nav(nav, site_k, trk, model, workdir, dict(fit_options or {}), imu_noise)
                 est = dict(zip(res.names, res.estimate))
                 phi0 = base.numeric("phi0") @ np.array([est[n] for n in base.names])
                 if np.linalg.norm(phi0) <= PHI0_LINEAR_RAD or passes == attitude_passes:

@@ -422,3 +422,37 @@ def test_on_residuals_the_windows_fit_no_trend_of_their_own():
     est, std = runs[0][:, 0], runs[0][:, 1]
     assert np.sum(np.abs(est) > np.maximum(DRIFT_MIN_PPM, 4 * std)) >= 6
     assert np.all(np.abs(est - 300.0) < 4 * std)
+
+
+def test_the_imu_noise_at_rest_ignores_vibration_near_nyquist():
+    """White noise of 1e-3 rad/s per sample at 100 Hz under a vibration of 0.02 rad/s at 43 Hz (an engine): the
+    second differences read the vibration as white noise (20x here), the Allan deviation at 1 s does not: its
+    reading is within 25 % of the white noise's std (30 s: about 40 independent averages; seeds 1-3), and a
+    flight carrying it under IMU_NOISE_AT_REST has it taken by imu_sample_noise instead of its own samples'."""
+    from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_sample_noise, rest_white_std, white_sample_std
+    from casep.io.flight import FlightData
+
+    h, s = 0.01, 1e-3
+    t = np.arange(0.0, 30.0, h)
+    n = t.size
+    for seed in (1, 2, 3):
+        rng = np.random.default_rng(seed)
+        x = 0.02 * np.sin(2 * np.pi * 43.0 * t[:, None] + rng.uniform(0, 6, 2)) + rng.normal(0, s, (n, 2))
+        assert np.all(white_sample_std(x) > 10 * s)
+        np.testing.assert_allclose(rest_white_std(x, h), s, rtol=0.25)
+    quat = {"q_w": np.ones(n), "q_x": np.zeros(n), "q_y": np.zeros(n), "q_z": np.zeros(n)}
+    sig = {**quat, **{f"{k}_{a}": rng.normal(0, 1.0, n) for k in ("fb", "w") for a in "xyz"}}
+    given = np.arange(1.0, 7.0) * 1e-3
+    meta = {"rows_index": np.full(n, -1), IMU_NOISE_AT_REST: given}
+    got, step, _ = imu_sample_noise(FlightData(t, np.zeros((n, 3)), np.zeros((n, 3)), meta=meta, signals=sig), t)
+    assert step == pytest.approx(h)
+    np.testing.assert_array_equal(got, given)
+
+
+def test_rest_white_std_refuses_bad_input():
+    from casep.checks.tracking_quality import rest_white_std
+
+    with pytest.raises(ValueError, match="rest_white_std"):
+        rest_white_std(np.zeros(50), 0.01)
+    with pytest.raises(ValueError, match="rest_white_std"):
+        rest_white_std(np.zeros((50, 3)), 0.0)
