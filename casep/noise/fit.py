@@ -115,6 +115,7 @@ class _LagProducts:
             self.B[g] = B + B.T
             self.C[g] = Pg.T @ Pg
         self.first = np.outer(X[0], X[0])
+        self._flat = [m.reshape(G, k * k) for m in (self.A, self.B, self.C)]  # views: the sums over d as one dot
         self.d = uniq
         self.count = np.bincount(inv, minlength=G)
 
@@ -122,8 +123,10 @@ class _LagProducts:
         """(M(tau), sum_k ln(1 - a_k^2))."""
         a, b = ar1_terms(self.d, tau)  # a_d, 1 - a_d^2
         c = -np.expm1(-self.d / tau)  # 1 - a_d without cancellation
-        M = self.first + np.tensordot(1.0 / b, self.A, 1) + np.tensordot(c / b, self.B, 1) \
-            + np.tensordot(c * c / b, self.C, 1)
+        k = self.first.shape[0]
+        A, B, C = self._flat  # np.tensordot(w, A, 1) is this dot of w (1, G) and A (G, k^2): its numbers, less overhead
+        M = self.first + np.dot((1.0 / b)[None, :], A).reshape(k, k) + np.dot((c / b)[None, :], B).reshape(k, k) \
+            + np.dot((c * c / b)[None, :], C).reshape(k, k)
         return M, float(self.count @ np.log(b))
 
 
