@@ -67,6 +67,31 @@ __all__ = ["fit_noise", "tau_search_bounds", "with_kind", "Reml", "estimable_bas
 
 _EPS = float(np.finfo(float).eps)
 
+
+def _lapack_kernels() -> tuple[Callable[..., np.ndarray], Callable[..., np.ndarray]]:
+    """(Cholesky L, inverse) of a float64 matrix: the LAPACK kernels of numpy.linalg.cholesky and inv without
+    their wrappers, the same numbers in a third of the time on the (p + 1)-square matrices of a REML fixed-point
+    step, where the wrappers' checks cost more than the factorisation. A Cholesky failure is a NaN factor
+    (:meth:`Reml._factor`)."""
+    try:
+        from numpy.linalg import _umath_linalg as ul
+
+        return ul.cholesky_lo, ul.inv
+    except ImportError:  # pragma: no cover - another numpy's layout
+        def chol(a: np.ndarray, signature: str = "d->d") -> np.ndarray:
+            try:
+                return np.linalg.cholesky(a)
+            except np.linalg.LinAlgError:
+                return np.full_like(a, np.nan)
+
+        def inv(a: np.ndarray, signature: str = "d->d") -> np.ndarray:
+            return np.linalg.inv(a)
+
+        return chol, inv
+
+
+_cholesky, _inv = _lapack_kernels()
+
 #: Search interval of the white share's logit ``ln(w / (1 - w))``: w in [6e-6, 0.99999].
 SHARE_LOGIT = (-12.0, 12.0)
 
@@ -90,6 +115,7 @@ class _LagProducts:
             self.B[g] = B + B.T
             self.C[g] = Pg.T @ Pg
         self.first = np.outer(X[0], X[0])
+        self._flat = [m.reshape(G, k * k) for m in (self.A, self.B, self.C)]  # views: the sums over d as one dot
         self.d = uniq
         self.count = np.bincount(inv, minlength=G)
 
@@ -97,8 +123,10 @@ class _LagProducts:
         """(M(tau), sum_k ln(1 - a_k^2))."""
         a, b = ar1_terms(self.d, tau)  # a_d, 1 - a_d^2
         c = -np.expm1(-self.d / tau)  # 1 - a_d without cancellation
-        M = self.first + np.tensordot(1.0 / b, self.A, 1) + np.tensordot(c / b, self.B, 1) \
-            + np.tensordot(c * c / b, self.C, 1)
+        k = self.first.shape[0]
+        A, B, C = self._flat  # np.tensordot(w, A, 1) is this dot of w (1, G) and A (G, k^2): its numbers, less overhead
+        M = self.first + np.dot((1.0 / b)[None, :], A).reshape(k, k) + np.dot((c / b)[None, :], B).reshape(k, k) \
+            + np.dot((c * c / b)[None, :], C).reshape(k, k)
         return M, float(self.count @ np.log(b))
 
 
@@ -160,17 +188,22 @@ class Reml:
     @staticmethod
     def _factor(Ms: np.ndarray, scales) -> np.ndarray | None:
         """Upper T with ``T^T T = G = sum_a M_a / r_a^2`` (`Ms` stacked (3, p + 1, p + 1)); None if not definite."""
-        G = Ms[0] / scales[0] ** 2 + Ms[1] / scales[1] ** 2 + Ms[2] / scales[2] ** 2
-        try:
-            return np.linalg.cholesky(G).T  # G = T^T T, T upper
-        except np.linalg.LinAlgError:
-            return None
+        G = Ms[0] / scales[0] ** 2
+        G += Ms[1] / scales[1] ** 2
+        G += Ms[2] / scales[2] ** 2
+        with np.errstate(invalid="ignore"):  # not definite: NaN (numpy.linalg.cholesky would raise)
+            L = _cholesky(G, signature="d->d")
+        return L.T if np.isfinite(L[-1, -1]) else None  # G = T^T T, T upper
 
     def evaluate(self, taus: Sequence[float | None], scales, shares: Sequence[float] = (0.0, 0.0, 0.0)
                  ) -> tuple[float, np.ndarray | None]:
         """(-2 l_R, T) at the given taus, scales and white shares."""
         gs = [self.gram(j, taus[j], shares[j]) for j in range(3)]
-        T = self._factor(np.stack([g[0] for g in gs]), scales)
+        return self._value(np.stack([g[0] for g in gs]), [g[1] for g in gs], scales)
+
+    def _value(self, Ms: np.ndarray, logdets: Sequence[float], scales) -> tuple[float, np.ndarray | None]:
+        """(-2 l_R, T) from the axes' Gram matrices `Ms` (3, p + 1, p + 1) and ``sum_k ln F_k`` (:meth:`gram`)."""
+        T = self._factor(Ms, scales)
         if T is None:
             return np.inf, None
         d = np.abs(np.diag(T)[: self.p])
@@ -179,7 +212,7 @@ class Reml:
         if not rss > 0 or np.any(d == 0):
             return np.inf, None
         val = ((m - self.p) * np.log(rss) + 2.0 * np.sum(np.log(d))
-               + sum(self.N * np.log(scales[j] ** 2) + gs[j][1] for j in range(3)))
+               + sum(self.N * np.log(scales[j] ** 2) + logdets[j] for j in range(3)))
         return float(val), T
 
     def fit_scales(self, taus: Sequence[float | None], scales: Sequence[float] | None = None,
@@ -189,29 +222,34 @@ class Reml:
         if not free:
             return self.evaluate(taus, (1.0, 1.0, 1.0), shares)[0], (1.0, 1.0, 1.0)
         sc = np.ones(3) if scales is None else np.array(scales, dtype=float)
-        Ms = np.stack([self.gram(j, taus[j], shares[j])[0] for j in range(3)])  # (3, p + 1, p + 1)
+        gs = [self.gram(j, taus[j], shares[j]) for j in range(3)]
+        Ms = np.stack([g[0] for g in gs])  # (3, p + 1, p + 1)
         p = self.p
+        Mpp, Myy = Ms[:, :p, :p], Ms[:, p, p]
+        v = np.empty(p + 1)  # (beta, -1)
+        v[p] = -1.0
         for _ in range(50):
             T = self._factor(Ms, sc)
             if T is None:
                 return np.inf, (float(sc[0]), float(sc[1]), float(sc[2]))
-            Ti = np.linalg.inv(T[:p, :p]) if p else np.zeros((0, 0))  # T_p^-1 (upper)
-            v = np.append(Ti @ T[:p, p], -1.0)  # (beta, -1): beta = T_p^-1 T[:p, p]
+            with np.errstate(over="ignore", divide="ignore"):  # as numpy.linalg.inv (T_p: a Cholesky factor's)
+                Ti = _inv(T[:p, :p], signature="d->d") if p else np.zeros((0, 0))  # T_p^-1 (upper)
+            np.matmul(Ti, T[:p, p], out=v[:p])  # beta = T_p^-1 T[:p, p]
             Ginv = Ti @ Ti.T  # (Z_w^T Z_w)^-1 = (T_p^T T_p)^-1
             rss = np.maximum(np.einsum("i,jik,k->j", v, Ms, v), 0.0)  # ||[Z_a y_a] (beta, -1)||^2
-            h = np.einsum("jik,ik->j", Ms[:, :p, :p], Ginv) / sc ** 2  # leverage of each axis' rows
+            h = np.einsum("jik,ik->j", Mpp, Ginv) / sc ** 2  # leverage of each axis' rows
             new = np.sqrt(rss / np.maximum(self.N - h, 1.0))  # r_a^2 = RSS_a / (N - h_a)
-            if not np.all(new > 0):
+            if not (new > 0).all():
                 return np.inf, (float(sc[0]), float(sc[1]), float(sc[2]))
             new /= new[0]
             # converged to 1e-7 in ln r, or to the rounding of RSS_a = v^T M_a v (relative eps M_a,pp / RSS_a):
             # below it the steps are rounding noise (residuals ~1e-8 of |dv|: ln r moves by O(1) at random)
-            tol = max(1e-7, 10.0 * _EPS * float(np.max(Ms[:, p, p] / np.maximum(rss, 1e-300))))
-            done = np.max(np.abs(np.log(new / sc))) < tol
+            tol = max(1e-7, 10.0 * _EPS * float((Myy / np.maximum(rss, 1e-300)).max()))
+            done = np.abs(np.log(new / sc)).max() < tol
             sc = new
             if done:
                 break
-        return self.evaluate(taus, sc, shares)[0], (float(sc[0]), float(sc[1]), float(sc[2]))
+        return self._value(Ms, [g[1] for g in gs], sc)[0], (float(sc[0]), float(sc[1]), float(sc[2]))
 
 
 def tau_search_bounds(t: np.ndarray) -> tuple[float, float]:

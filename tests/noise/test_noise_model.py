@@ -113,6 +113,25 @@ def test_reml_equals_the_dense_restricted_likelihood(rng):
         assert reml.evaluate(sets[0][0], (1.0, sc[1] * dy, sc[2]))[0] > val - 1e-9
 
 
+def test_reml_factor_equals_numpy_and_says_not_definite_without_a_warning(rng):
+    """The fixed point's Cholesky (numpy's LAPACK kernel without its wrapper): numpy.linalg.cholesky's factor bit
+    for bit on a definite Gram matrix, None (no exception, no warning: warnings are errors here) on one that is not;
+    its inverse of the factor is numpy.linalg.inv's, bit for bit."""
+    from casep.noise.fit import _inv
+
+    A = rng.normal(size=(3, 50, 6))
+    Ms = np.einsum("aki,akj->aij", A, A)
+    sc = np.array([1.0, 1.3, 0.7])
+    T = Reml._factor(Ms, sc)
+    G = Ms[0] / sc[0] ** 2 + Ms[1] / sc[1] ** 2 + Ms[2] / sc[2] ** 2
+    assert np.array_equal(T, np.linalg.cholesky(G).T)
+    assert np.array_equal(_inv(T[:5, :5], signature="d->d"), np.linalg.inv(T[:5, :5]))
+    bad = Ms.copy()
+    bad[:, 2, 2] = -1.0  # a negative diagonal: not definite
+    assert Reml._factor(bad, sc) is None
+    assert Reml._factor(np.full_like(Ms, np.nan), sc) is None
+
+
 @pytest.fixture(scope="module")
 def range_problem(platform36):
     """S_V of the paper-range-gm flight (20 Hz, tracking from 8 s, two dropouts) and its truth."""
