@@ -136,7 +136,8 @@ if TYPE_CHECKING:
 
 __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
            "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_RELIABLE", "CURVATURE_DRAWS", "WORSE", "NARROW",
-           "SIGNIFICANT", "std_shift", "DETERMINED_DRAWS"]
+           "SIGNIFICANT", "std_shift", "DETERMINED_DRAWS", "FAIL_SHIFT",
+           "linearisation_shift", "linearisation_record", "one_pass_judged"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -158,6 +159,9 @@ CURVATURE_DRAWS = 1
 WORSE = 10.0
 #: ... and the next step leaves out the combinations whose std exceeds the widest one stepped along, over this.
 NARROW = 10.0
+#: A linear result kept (``iterate=False``) whose second-order remainder moves it by more than this (std) fails
+#: (:func:`one_pass_judged`).
+FAIL_SHIFT = 3.0
 #: A combination left out whose correction exceeds this many of its std: the iteration fails (it is determined, and
 #: the model is not linear over its size); below it, the record does not determine it (said, not iterated).
 SIGNIFICANT = 4.0
@@ -625,8 +629,6 @@ class _Run:
         if iterate and out.success:  # a failed result's std are not used: no curvature to carry
             out = self.curvature(out, problem, D)
         elif not iterate and out.success:  # one linear pass: its second-order remainder judged, as a telemetry's
-            from casep.workflows.telemetry_iterate import linearisation_shift, one_pass_judged
-
             shift = linearisation_shift(self, res, problem, flight, model.scales)
             if shift is not None:
                 out = one_pass_judged(out, shift)
@@ -1288,3 +1290,58 @@ def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
     diag = {**res.diagnostics, "noise": {**res.diagnostics["noise"], "imu": account}}
     return dataclasses.replace(res, covariance=cov, std=std, solution=solution, diagnostics=diag)
 
+
+def linearisation_shift(run: Any, res: EstimateResult, problem: Any, flight: FlightData,
+                        scales: dict) -> float | None:
+    """How far the second-order remainder of a linear result moves it, in std (a strapdown telemetry's or a raw IMU
+    record's one pass, `run` its :class:`_Run`: :mod:`casep.workflows.telemetry_iterate`'s module notes; None when it
+    cannot be judged: no finite covariance, no rows; infinite when the record does not invert at the estimate)."""
+    C = res.covariance
+    if C is None or problem.y is None or not np.all(np.isfinite(C)):
+        return None
+    x = determined_step(res, problem, flight, scales).d
+    try:
+        y = run.rows(x)
+    except ValueError:
+        return np.inf
+    S = problem.sv()
+    r = (y - problem.y + np.einsum("ijk,k->ij", S, x)).reshape(-1)
+    b = np.linalg.lstsq(S.reshape(-1, len(res.names)), r, rcond=None)[0]
+    return std_shift(C, np.outer(b, b))
+
+
+def linearisation_record(shift: float | None) -> dict:
+    """``diagnostics["linearisation"]`` of a result judged by :func:`linearisation_shift`'s `shift` (std)."""
+    from casep.regression.linearisation import LINEAR_OFFSET_SHARE
+
+    return {"shift_std": shift if shift is None or np.isfinite(shift) else None, "tol": LINEAR_OFFSET_SHARE,
+            **({} if shift is None or np.isfinite(shift) else {"why": "the record does not invert at the estimate"}),
+            "rule": "the second-order remainder of the linear estimate moves it by shift_std std (along the "
+                    "combination it moves most); the linear result stands below tol"}
+
+
+def one_pass_judged(res: EstimateResult, shift: float) -> EstimateResult:
+    """A linear result kept without iterating (a strapdown telemetry's or a raw IMU record's ``iterate=False``)
+    judged by its second-order remainder `shift` (std, :func:`linearisation_shift`): as it is at or below
+    ``LINEAR_OFFSET_SHARE``; above it with a :class:`~casep.exceptions.NonlinearityWarning` in its message;
+    failed (status -8) beyond :data:`FAIL_SHIFT` std."""
+    from casep.estimators.registry import STATUS_MISFIT, failed
+    from casep.exceptions import NonlinearityWarning
+    from casep.regression.linearisation import LINEAR_OFFSET_SHARE
+
+    res.diagnostics["linearisation"] = {**linearisation_record(shift), "iterated": False}
+    if shift <= LINEAR_OFFSET_SHARE:
+        return res
+    if np.isfinite(shift):
+        said = (f"the linear model does not hold on this strapdown record: the second-order remainder at the "
+                f"estimate moves it by {shift:.3g} std along one combination of the coefficients (above "
+                f"{LINEAR_OFFSET_SHARE:g}): the linear std leave that out; separate with iterate (CLI: --iterate) to "
+                "re-navigate the corrected record")
+    else:
+        said = ("the linear model cannot be checked on this strapdown record: corrected by the linear estimate the "
+                "record does not invert (navigate), so how far its second order moves the estimate is unknown; "
+                "separate with iterate (CLI: --iterate) to re-navigate the corrected record pass by pass")
+    warnings.warn(said, NonlinearityWarning, stacklevel=3)
+    if shift > FAIL_SHIFT:
+        return failed(res, STATUS_MISFIT, f"failed: {said}")  # the residuals hold the second order
+    return dataclasses.replace(res, message=f"{res.message}; {said}")

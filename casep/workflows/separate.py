@@ -176,7 +176,7 @@ def separate(
         :mod:`casep.workflows.telemetry_iterate`) when the linear estimate's second-order remainder moves it by
         more than :data:`casep.regression.linearisation.LINEAR_OFFSET_SHARE` of its std; True iterates always;
         False keeps the linear result and warns beyond that share (failed beyond
-        :data:`casep.workflows.telemetry_iterate.FAIL_SHIFT` std). Ignored on other flights.
+        :data:`casep.workflows.imu_separate.FAIL_SHIFT` std). Ignored on other flights.
     radar : sequence, optional
         Radar measurements instead of tracking velocities: ``[(station, measurements), ...]``, each
         station a station JSON file or a :class:`casep.radar.stations.Station` and each measurement

@@ -79,7 +79,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from casep.workflows.imu_separate import ITERATE_TOL, MAX_ITERATIONS, _Run, determined_step, std_shift
+from casep.workflows.imu_separate import (
+    FAIL_SHIFT,
+    ITERATE_TOL,
+    MAX_ITERATIONS,
+    _Run,
+    linearisation_record,
+    linearisation_shift,
+    one_pass_judged,
+)
 
 if TYPE_CHECKING:
     from casep.estimators.result import EstimateResult
@@ -92,8 +100,6 @@ __all__ = ["corrected_telemetry", "telemetry_gravitation", "linearisation_shift"
            "one_pass_judged", "iterate_if_curved",
            "CorrectedTelemetry", "FAIL_SHIFT"]
 
-#: A linear result kept (``iterate=False``) whose second-order remainder moves it by more than this (std) fails.
-FAIL_SHIFT = 3.0
 
 
 @dataclass
@@ -283,61 +289,6 @@ class _TelemetryRun(_Run):
     def gap_clause(self, sigma: float) -> str:
         """No raw record with gaps of its own: a failed iteration names none."""
         return ""
-
-
-def linearisation_shift(run: _TelemetryRun, res: EstimateResult, problem: Any, flight: FlightData,
-                        scales: dict) -> float | None:
-    """How far the second-order remainder of a linear result moves it, in std (module notes; None when it
-    cannot be judged: no finite covariance, no rows; infinite when the record does not invert at the estimate)."""
-    C = res.covariance
-    if C is None or problem.y is None or not np.all(np.isfinite(C)):
-        return None
-    x = determined_step(res, problem, flight, scales).d
-    try:
-        y = run.rows(x)
-    except ValueError:
-        return np.inf
-    S = problem.sv()
-    r = (y - problem.y + np.einsum("ijk,k->ij", S, x)).reshape(-1)
-    b = np.linalg.lstsq(S.reshape(-1, len(res.names)), r, rcond=None)[0]
-    return std_shift(C, np.outer(b, b))
-
-
-def linearisation_record(shift: float | None) -> dict:
-    """``diagnostics["linearisation"]`` of a result judged by :func:`linearisation_shift`'s `shift` (std)."""
-    from casep.regression.linearisation import LINEAR_OFFSET_SHARE
-
-    return {"shift_std": shift if shift is None or np.isfinite(shift) else None, "tol": LINEAR_OFFSET_SHARE,
-            **({} if shift is None or np.isfinite(shift) else {"why": "the record does not invert at the estimate"}),
-            "rule": "the second-order remainder of the linear estimate moves it by shift_std std (along the "
-                    "combination it moves most); the linear result stands below tol"}
-
-
-def one_pass_judged(res: EstimateResult, shift: float) -> EstimateResult:
-    """A linear result kept without iterating (a strapdown telemetry's or a raw IMU record's ``iterate=False``)
-    judged by its second-order remainder `shift` (std, :func:`linearisation_shift`): as it is at or below
-    ``LINEAR_OFFSET_SHARE``; above it with a :class:`~casep.exceptions.NonlinearityWarning` in its message;
-    failed (status -8) beyond :data:`FAIL_SHIFT` std."""
-    from casep.estimators.registry import STATUS_MISFIT, failed
-    from casep.exceptions import NonlinearityWarning
-    from casep.regression.linearisation import LINEAR_OFFSET_SHARE
-
-    res.diagnostics["linearisation"] = {**linearisation_record(shift), "iterated": False}
-    if shift <= LINEAR_OFFSET_SHARE:
-        return res
-    if np.isfinite(shift):
-        said = (f"the linear model does not hold on this strapdown record: the second-order remainder at the "
-                f"estimate moves it by {shift:.3g} std along one combination of the coefficients (above "
-                f"{LINEAR_OFFSET_SHARE:g}): the linear std leave that out; separate with iterate (CLI: --iterate) to "
-                "re-navigate the corrected record")
-    else:
-        said = ("the linear model cannot be checked on this strapdown record: corrected by the linear estimate the "
-                "record does not invert (navigate), so how far its second order moves the estimate is unknown; "
-                "separate with iterate (CLI: --iterate) to re-navigate the corrected record pass by pass")
-    warnings.warn(said, NonlinearityWarning, stacklevel=3)
-    if shift > FAIL_SHIFT:
-        return failed(res, STATUS_MISFIT, f"failed: {said}")  # the residuals hold the second order
-    return dataclasses.replace(res, message=f"{res.message}; {said}")
 
 
 def iterate_if_curved(res: EstimateResult, flight: Any, problem: Any, model: Any, spec: FitSpec,
