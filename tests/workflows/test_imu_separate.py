@@ -475,9 +475,10 @@ def test_a_stationary_pad_record_is_iterated_only_along_what_it_determines(tmp_p
     Gauss-Newton step along those it does not determine is noise of 1e3-1e10 declared magnitudes (a scale factor of
     -2e5; a bias of g that the levelling refuses): each such step is rejected, the widest combinations are left out,
     and the iteration converges along the others with a warning that says so; every estimate is within its std (the
-    truth is 0). The estimates along what the record does not determine are far beyond what a linear error model
-    describes (scale factors of 1e7 ppm): never a success, the failure says what the record determines."""
-    from casep.estimators.registry import STATUS_MAGNITUDE
+    truth is 0). The estimates along what the record does not determine are beyond what a linear error model
+    describes (scale factors of 1e7 ppm) but not significantly so (their std exceed the limit, and none is beyond it
+    by the test at LINEAR_ALPHA over them): the right model on the right data is no failure; the result says which
+    coefficients the record does not determine and what it does determine."""
     from casep.exceptions import NonlinearityWarning
     from casep.gravity import normal_gravity
     from casep.workflows.imu_separate import SIGNIFICANT
@@ -499,15 +500,13 @@ def test_a_stationary_pad_record_is_iterated_only_along_what_it_determines(tmp_p
                                "strapdown12", heading_deg=90.0, tracking_frame="geodetic")
     res = out.result
     it = res.diagnostics["iterations"]
-    assert not out.success and res.status == STATUS_MAGNITUDE and it["converged"], out.message
-    assert "beyond what a linear error model can describe" in out.message
-    assert "does not determine them" in out.message
+    assert out.success and it["converged"], out.message
+    assert "not determined by the data" in out.message and "does not determine them" in out.message
     assert any("leaves the linear model" in str(w.message) for w in said)
     assert it["limit"] is not None and any(p.get("rejected") for p in it["passes"])
     left = it["passes"][-1]["left_out"]
     assert 1 <= len(left) < 13 and all(c["z"] < SIGNIFICANT and c["std"] > it["limit"] for c in left)
     assert np.all(np.isfinite(res.estimate)) and np.all(np.abs(res.estimate) / res.std < 4.0)
-    assert "curvature" not in res.diagnostics  # a failed result's std are not used
 
 
 def test_a_determined_combination_left_out_of_the_steps_fails_the_iteration():
