@@ -404,8 +404,6 @@ def setup_problems(flight: FlightData) -> list[str]:
     return list(ev.get("problems", [])) if isinstance(ev, dict) else []
 
 
-
-
 def levelling_problem(flight: FlightData, model: Any, estimates: dict[str, float] | None = None) -> str | None:
     """Why `model` cannot describe a telemetry that ``casep navigate`` levelled on the pad, or None.
 

@@ -441,15 +441,15 @@ def rest_white_std(x: np.ndarray, h: float, tau: float = REST_TAU_S) -> np.ndarr
     noise whose Allan deviation still falls beyond `tau` (vibration slower than `tau`) is overstated, one
     that rises (flicker, a bias that wanders) is not a white density at all: neither is made smaller here.
     """
-    from casep.noise.identification import allan_deviation
+    from casep.noise.identification import allan_deviation, avar_white
 
     x = np.asarray(x, dtype=float)
     if x.ndim != 2 or x.shape[0] < 20 or not np.all(np.isfinite(x)) or not (np.isfinite(h) and h > 0):
         raise ValueError(f"rest_white_std: `x` must be (n >= 20, k) finite samples and `h` > 0 s, got shape "
                          f"{x.shape} and h = {h}")
     tau = float(min(tau, x.shape[0] * h / 10.0))
-    return np.array([allan_deviation(x[:, c], h, np.array([tau]))[1][0] for c in range(x.shape[1])]) \
-        * math.sqrt(tau / h)
+    adev = np.array([allan_deviation(x[:, c], h, np.array([tau]))[1][0] for c in range(x.shape[1])])
+    return adev / math.sqrt(float(avar_white(np.array([tau]), h, 1.0)[0]))  # adev of unit white noise at tau
 
 
 def white_sample_std(x: np.ndarray) -> np.ndarray:

@@ -453,6 +453,11 @@ def _beyond_linear(res: EstimateResult, regularised: bool) -> EstimateResult:
     from casep.checks.plausibility import misfit_advice
     from casep.units import si_factor
 
+    std = res.std if res.std is not None else np.full(len(res.names), np.nan)
+    # the coefficients the data do not resolve at the scale of their limit: one test over all of them
+    loose = {n for n, u, sd in zip(res.names, res.units, std)
+             if u in LINEAR_LIMITS and np.isfinite(sd) and sd * si_factor(u) >= LINEAR_LIMITS[u]}
+
     def significant(r: dict) -> bool:  # |x| - z std >= limit, z as its std is below its limit or not
         z = (abs(r["estimate"]) - r["limit"]) / r["std"] if r["std"] > 0 else np.inf
         if not z >= LINEAR_Z:  # a NaN std: judged on |x| alone
@@ -461,14 +466,10 @@ def _beyond_linear(res: EstimateResult, regularised: bool) -> EstimateResult:
 
     beyond: list[dict[str, Any]] = [
         {"name": n, "estimate": float(x), "std": float(sd), "unit": u, "limit": LINEAR_LIMITS[u] / si_factor(u)}
-        for n, u, x, sd in zip(res.names, res.units, res.estimate,
-                               res.std if res.std is not None else np.full(len(res.names), np.nan))
+        for n, u, x, sd in zip(res.names, res.units, res.estimate, std)
         if u in LINEAR_LIMITS and np.isfinite(x) and abs(x) * si_factor(u) >= LINEAR_LIMITS[u]]
     # beyond the limit significantly (significant()); short of that the data do not determine the coefficient
     # (its std is a large part of the limit): said by check_magnitudes as not determined, not a model mistake
-    std = res.std if res.std is not None else np.full(len(res.names), np.nan)
-    loose = {n for n, u, sd in zip(res.names, res.units, std)
-             if u in LINEAR_LIMITS and np.isfinite(sd) and sd * si_factor(u) >= LINEAR_LIMITS[u]}
     rows = [r for r in beyond if significant(r)]
     if not rows or regularised:
         return res

@@ -101,7 +101,6 @@ __all__ = ["corrected_telemetry", "telemetry_gravitation", "linearisation_shift"
            "CorrectedTelemetry", "FAIL_SHIFT"]
 
 
-
 @dataclass
 class CorrectedTelemetry:
     """The telemetry at its own samples, corrected at some coefficients (:func:`corrected_telemetry`)."""
