@@ -228,6 +228,9 @@ def finish(
         raise TypeError(f"method {name}: extras must be {etype.__name__}, got {type(extras).__name__}")
     n = pb.n
     und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
+    bounded_by: dict[str, str] = {}
+    if undetermined is None and und.any() and cov is not None and np.all(np.isfinite(x)) and np.all(np.isfinite(cov)):
+        x, cov, und, bounded_by = _determined_up_to_partners(pb, x, np.asarray(cov, dtype=float), und)
     res = pb.residuals(x) if residuals is None else np.asarray(residuals, dtype=float).reshape(-1)
     est = np.where(und, np.nan, x)
     solution = _solution(pb, x, cov) if und.any() and np.all(np.isfinite(x)) else None
@@ -239,6 +242,7 @@ def finish(
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         std[und] = np.nan
     all_reasons = {k: v for k, v in unidentifiable_reasons(pb.ra, pb.names).items() if und[pb.names.index(k)]}
+    all_reasons.update(bounded_by)
     all_reasons.update(reasons or {})
     n_ok = int((~und).sum())
     if status is None:
@@ -280,16 +284,81 @@ def finish(
 NULL_ROUNDING = 1e-9
 
 
+#: The start of the note of an exactly dependent coefficient reported with an estimate (its partners follow).
+PARTNERS_NOTE = "exactly dependent on"
+
+#: An exactly dependent coefficient gets an estimate when its partners, each within its declared magnitude, move
+#: the combination that stands for it by at most this fraction of its std (the bias then adds at most 0.5 % to
+#: its mean square error).
+PARTNER_SHARE = 0.1
+
+
+def _null_space(pb: Prepared) -> np.ndarray:
+    """A basis of the null space of S_V in natural units, (n, k) (see :func:`_solution`)."""
+    v = pb.ra.Vt[pb.ra.rank:].T  # (n, k): Z v = 0, unit columns
+    v = np.where(np.abs(v) > NULL_ROUNDING, v, 0.0)  # rounding of the SVD: not a part of the dependency
+    scaled = pb.red.scale > 0
+    return np.where(scaled[:, None], v * pb.inv_c[:, None], v)
+
+
+def _determined_up_to_partners(pb: Prepared, x: np.ndarray, cov: np.ndarray, und: np.ndarray
+                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, str]]:
+    """The exactly dependent coefficients the data determine in practice: a dependency whose other members this
+    flight barely excites (a misalignment times a lateral specific force that is only the instrument's own error)
+    leaves the coefficient's combination equal to the coefficient itself up to a negligible share.
+
+    With ``D = diag(s)`` the declared magnitudes and ``Q`` an orthonormal basis of the null space in their units
+    (``D^-1 N``), the least-squares solution of least size in those units is ``x_w = Pi x``,
+    ``Pi = I - D Q Q^T D^-1`` (every least-squares solution differs from ``x`` by a null vector; ``S Pi x = S x``),
+    with covariance ``Pi C Pi^T`` (exact: each row of ``Pi`` is a determined combination, ``Pi N = 0``).
+    ``x_w_j`` is the combination ``(Pi^T e_j) . D``, which differs from ``D_j`` by ``-s_j (Q Q^T D^-1 D)_j``:
+    with every coefficient within its declared magnitude, at most ``b_j = s_j sum_i |(Q Q^T)_ji|``. Where
+    ``b_j <= PARTNER_SHARE std_j`` the coefficient is reported with ``x_w_j`` and its std, its note giving
+    ``b_j``; the others stay undetermined. Estimable coefficients keep their estimate and covariance (their rows
+    of ``Q`` are zero). Nothing changes when a member of a dependency has no declared magnitude.
+
+    Returns
+    -------
+    x, cov, und, notes
+        The solution, its covariance, the coefficients still without an estimate, and a note per coefficient
+        now reported.
+    """
+    mags = pb.problem.magnitudes
+    N = _null_space(pb)
+    if not mags or N.shape[1] == 0:
+        return x, cov, und, {}
+    s = np.array([declared_magnitude(mags, n) or np.nan for n in pb.names], dtype=float)
+    member = np.any(N != 0.0, axis=1) & ~pb.ra.zero  # a zero column's null vector is its own: any scale will do
+    if not np.all(np.isfinite(s[member]) & (s[member] > 0)):
+        return x, cov, und, {}
+    s = np.where(member, s, 1.0)
+    Q = np.linalg.qr(N / s[:, None])[0]  # null space in units of the declared magnitudes, orthonormal
+    P = Q @ Q.T
+    Pi = np.eye(pb.n) - (s[:, None] * P) / s[None, :]  # Pi = I - D Q Q^T D^-1
+    x_w = Pi @ x
+    cov_w = Pi @ cov @ Pi.T
+    cov_w = 0.5 * (cov_w + cov_w.T)
+    std_w = np.sqrt(np.clip(np.diag(cov_w), 0.0, None))
+    bound = s * np.sum(np.abs(P), axis=1)  # b_j = s_j sum_i |(Q Q^T)_ji|
+    now = und & ~pb.ra.zero & (bound <= PARTNER_SHARE * std_w)
+    if not now.any():
+        return x, cov, und, {}
+    notes = {}
+    for j in np.flatnonzero(now):
+        partners = [pb.names[k] for k in pb.ra.partners.get(int(j), [])]
+        listed = ", ".join(partners[:4]) + (", ..." if len(partners) > 4 else "")
+        notes[pb.names[j]] = (f"{PARTNERS_NOTE} {listed}, which move it by <= {bound[j]:.2g} {pb.units[j]} "
+                              f"({bound[j] / std_w[j]:.2g} std) within their declared magnitudes")
+    return x_w, cov_w, und & ~now, notes
+
+
 def _solution(pb: Prepared, x: np.ndarray, cov: np.ndarray | None) -> Solution:
     """The solver's `x` and `cov` with the null space of S_V in natural units (:mod:`casep.estimators.solution`).
 
     ``S = Z diag(c)``: a null vector ``v`` of the scaled ``Z`` is ``v / c`` in natural units; on a zero
     column (``c = 0``) any value is a null direction, kept as ``v``.
     """
-    v = pb.ra.Vt[pb.ra.rank:].T  # (n, k): Z v = 0, unit columns
-    v = np.where(np.abs(v) > NULL_ROUNDING, v, 0.0)  # rounding of the SVD: not a part of the dependency
-    scaled = pb.red.scale > 0
-    N = np.where(scaled[:, None], v * pb.inv_c[:, None], v)
+    N = _null_space(pb)
     C = None if cov is None or not np.all(np.isfinite(cov)) else np.array(cov, dtype=float)
     return Solution(np.array(x, dtype=float), C, N)
 
@@ -521,13 +590,17 @@ def _say_not_determined(res: EstimateResult, scales: Mapping[str, float], source
 
     from casep.units import si_factor
 
-    idx = [j for j in not_determined(res.names, res.std, scales) if res.names[j] not in res.reasons]
+    # a coefficient with a note of its own keeps it, except an exactly dependent one with an estimate (the note
+    # then says by how much its partners move it, in brackets after the std)
+    idx = [j for j in not_determined(res.names, res.std, scales)
+           if res.names[j] not in res.reasons or res.reasons[res.names[j]].startswith(PARTNERS_NOTE)]
     if not idx:
         return res
     std = np.asarray(res.std)  # not None: not_determined found a finite std
     names = [res.names[j] for j in idx]
     ratio = {res.names[j]: float(std[j] / declared_magnitude(scales, res.names[j])) for j in idx}
-    reasons = {**res.reasons, **{n: f"not determined: std {ratio[n]:.3g} x declared magnitude" for n in names}}
+    reasons = {**res.reasons, **{n: f"not determined: std {ratio[n]:.3g} x declared magnitude"
+                                 + (f" ({res.reasons[n]})" if n in res.reasons else "") for n in names}}
     listed = ", ".join(names[:8]) + (f" and {len(names) - 8} more" if len(names) > 8 else "")
     message = (f"{res.message}; {len(names)} of {len(res.names)} not determined by the data (std at or above their "
                f"declared magnitudes: {listed})")

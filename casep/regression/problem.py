@@ -138,6 +138,10 @@ class Problem:
         #: The telemetry's gaps ``((start, end), ...)``, s: across each the telemetry's velocity error may jump
         #: (an INS navigated across lost samples; :func:`casep.checks.time_offset.gap_columns`).
         self.gaps: tuple[tuple[float, float], ...] = ()
+        #: The model's declared magnitude per coefficient, natural units (``ErrorModel.scales``; empty: none known):
+        #: what bounds an exactly dependent coefficient's share of its dependency
+        #: (:func:`casep.estimators._base.finish`).
+        self.magnitudes: dict[str, float] = {}
         #: Where rows come from (file, line, time): ``locate(rows)`` for indices of this problem's rows.
         self._locate_flight: tuple[FlightData, np.ndarray] | None = None  # (flight, observed samples) of a flight's
         n = red.n
@@ -221,6 +225,7 @@ class Problem:
             pb._locate_flight = (flight, np.flatnonzero(obs))
             pb.interpolation_floor = float(flight.meta.get("interpolation_floor_m_s") or 0.0)
             pb.gaps = _telemetry_gaps(flight.meta)
+            pb.magnitudes = dict(model.scales)
             return pb
 
         def regenerate(rows: int) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
@@ -239,6 +244,7 @@ class Problem:
         pb._locate_flight = (flight, np.flatnonzero(obs))
         pb.interpolation_floor = float(flight.meta.get("interpolation_floor_m_s") or 0.0)
         pb.gaps = _telemetry_gaps(flight.meta)
+        pb.magnitudes = dict(model.scales)
         return pb
 
     def with_y(self, y: np.ndarray) -> "Problem":
@@ -263,6 +269,7 @@ class Problem:
         new = Problem(names=self.names, units=self.units, si_factors=self.si_factors, model=self.model,
                       source=self.source, row_unit=self.row_unit, **rows)
         new.gaps = self.gaps
+        new.magnitudes = self.magnitudes
         return new
 
     def subset(self, keep: np.ndarray) -> "Problem":

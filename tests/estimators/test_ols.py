@@ -150,3 +150,47 @@ def test_platform39_phi0_aliasing_and_recovery(platform39, truth36, flight_tf, r
     np.testing.assert_allclose(fit.estimate[-3:], D[36:], rtol=1e-6)
     noisy = casep.solve_ols(S[:, :, free], y + 0.1 * rng.standard_normal(y.shape))
     assert np.all(np.abs(noisy.estimate[-3:] - D[36:]) < 4 * noisy.std[-3:])
+
+
+def _partner_problem(rng, eps: float, magnitudes: dict | None):
+    """Columns a (a bias), b (a scale factor on f) and c = eps (alpha + beta f): c exactly dependent on a and b,
+    excited only by eps (a misalignment times the instrument's own lateral error when eps is small)."""
+    t = np.linspace(0.0, 100.0, 500)
+    f = 1.0 + 0.5 * np.sin(0.1 * t)
+    S = np.column_stack([t, t * f, eps * (0.3 * t + 0.7 * t * f)])
+    x = np.array([0.8, -0.5, 0.6])
+    y = S @ x + 0.05 * rng.standard_normal(t.size)
+    pb = casep.Problem.from_arrays(S, y, names=["a", "b", "c"], units=["mg", "ppm", "arcsec"])
+    if magnitudes is not None:
+        pb.magnitudes = magnitudes
+    return S, y, pb
+
+
+def test_dependent_on_a_barely_excited_partner_is_the_least_size_solution_in_declared_magnitudes(rng):
+    """With declared magnitudes s, a and b are reported with the least-squares solution of least size in units of s
+    (numpy's minimum-norm lstsq on S diag(s), times s) and its covariance sigma^2 D (S D)^+ (S D)^+T D; c, which
+    the data do not separate from a and b, stays without an estimate."""
+    s = np.array([1.0, 2.0, 60.0])
+    S, y, pb = _partner_problem(rng, 1e-8, {"a": 1.0, "b": 2.0, "c": 60.0})
+    res = casep.solve_ols(pb)
+    SD = S * s
+    ref = np.linalg.lstsq(SD, y, rcond=1e-12)[0] * s
+    sig2 = np.sum((y - S @ ref) ** 2) / (y.size - 2)
+    Pp = np.linalg.pinv(SD, rcond=1e-12)
+    cov = sig2 * (s[:, None] * (Pp @ Pp.T) * s[None, :])
+    assert res.status == 2 and np.isnan(res.estimate[2])
+    np.testing.assert_allclose(res.estimate[:2], ref[:2], rtol=1e-7)
+    np.testing.assert_allclose(res.std[:2], np.sqrt(np.diag(cov))[:2], rtol=1e-7)
+    np.testing.assert_allclose(res.covariance[:2, :2], cov[:2, :2], rtol=1e-6)
+    assert res.reasons["a"].startswith("exactly dependent on")
+    assert "within their declared magnitudes" in res.reasons["a"]
+    assert "only their combination is determined" in res.reasons["c"]
+    np.testing.assert_allclose(res.fitted_coefficients() @ S.T, S @ ref, rtol=1e-9)  # the same fitted values
+    assert abs(res.estimate[0] - 0.8) < 4 * res.std[0] and abs(res.estimate[1] + 0.5) < 4 * res.std[1]
+
+
+def test_dependent_on_a_well_excited_partner_or_without_magnitudes_stays_undetermined(rng):
+    for eps, mags in ((1.0, {"a": 1.0, "b": 2.0, "c": 60.0}), (1e-8, None), (1e-8, {"a": 1.0, "b": 2.0})):
+        res = casep.solve_ols(_partner_problem(rng, eps, mags)[2])
+        assert np.isnan(res.estimate).all(), (eps, mags)
+        assert all("only their combination is determined" in res.reasons[n] for n in "abc")
