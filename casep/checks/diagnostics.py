@@ -43,6 +43,7 @@ import numpy as np
 
 from casep.noise.model import whiten_series
 from casep.regression.linalg import (
+    PartnerBound,
     RankAnalysis,
     ReducedSystem,
     analyze_rank,
@@ -146,8 +147,9 @@ def ar1_whiten(S: np.ndarray, t: np.ndarray, sigma: float, tau: float, share: fl
 
 def crlb_covariance(S: np.ndarray, sigma: float, *, t: np.ndarray | None = None, tau: float | None = None,
                     prior_std: np.ndarray | None = None, rcond: float | None = None,
-                    prior_information: np.ndarray | None = None) -> np.ndarray:
-    """Cramer-Rao bound covariance in natural units (NaN rows for unidentifiable coefficients).
+                    prior_information: np.ndarray | None = None, mask: bool = True) -> np.ndarray:
+    """Cramer-Rao bound covariance in natural units (NaN rows for unidentifiable coefficients; with `mask`
+    False the pseudo-inverse's, whose rows are exact for determined combinations only).
 
     Parameters
     ----------
@@ -172,11 +174,12 @@ def crlb_covariance(S: np.ndarray, sigma: float, *, t: np.ndarray | None = None,
         F = ar1_whiten(S, t, sigma, tau).reshape(-1, S.shape[-1])
     else:
         F = S.reshape(-1, S.shape[-1]) / sigma
-    return _crlb_from_reduction(reduce_qr(F, np.zeros(F.shape[0])), 1.0, prior_std, rcond, prior_information)
+    return _crlb_from_reduction(reduce_qr(F, np.zeros(F.shape[0])), 1.0, prior_std, rcond, prior_information, mask)
 
 
 def _crlb_from_reduction(red: ReducedSystem, sigma: float, prior_std: np.ndarray | None,
-                         rcond: float | None, prior_information: np.ndarray | None = None) -> np.ndarray:
+                         rcond: float | None, prior_information: np.ndarray | None = None,
+                         mask: bool = True) -> np.ndarray:
     """The bound from the reduction of S (``F = S / sigma`` has the same R, column norms c / sigma)."""
     n = red.n
     c = np.where(red.scale > 0, red.scale, 1.0) / sigma
@@ -197,6 +200,8 @@ def _crlb_from_reduction(red: ReducedSystem, sigma: float, prior_std: np.ndarray
     r = int(np.sum(s > tol))
     W = Vt[:r].T / s[:r]
     cov = (W @ W.T) / np.outer(c, c)
+    if not mask:
+        return cov
     null = Vt[r:].T
     und = np.linalg.norm(null, axis=1) > 1e-8 if null.size else np.zeros(n, bool)
     cov[und, :] = np.nan
@@ -406,14 +411,31 @@ def diagnose(
             raise ValueError(f"`sigma` must be finite and > 0, got {sigma}")
         source = "given"
     col = collinearity(red, ra)
-    if tau is None:  # white: the bound from the reduction already made
-        cov = _crlb_from_reduction(red, sigma, prior_std, rcond, prior_information)
-    else:
-        cov = crlb_covariance(S.sv() if isinstance(S, Problem) else S, sigma, t=t, tau=tau, prior_std=prior_std,
-                              rcond=rcond, prior_information=prior_information)
-    sd = np.sqrt(np.diag(cov))
-    reasons = unidentifiable_reasons(ra, names)
     sc = _scales(names, None if prior_std is None else np.asarray(prior_std, float), scales)
+    # exactly dependent coefficients whose partners this flight barely excites: their bound is that of the solution
+    # of least size in declared magnitudes, as separate reports them (PartnerBound); not under a prior, which
+    # determines every coefficient itself
+    pbnd = PartnerBound.of(red, ra, [sc.get(n) for n in names]) \
+        if prior_std is None and prior_information is None else None
+
+    def bound(mask: bool) -> np.ndarray:
+        if tau is None:  # white: the bound from the reduction already made
+            return _crlb_from_reduction(red, sigma, prior_std, rcond, prior_information, mask)
+        return crlb_covariance(S.sv() if isinstance(S, Problem) else S, sigma, t=t, tau=tau, prior_std=prior_std,
+                               rcond=rcond, prior_information=prior_information, mask=mask)
+
+    cov = bound(pbnd is None)
+    reasons = unidentifiable_reasons(ra, names)
+    partner_notes: dict[str, str] = {}
+    if pbnd is not None:
+        cov = pbnd.covariance(cov)
+        now = pbnd.determined(ra.dependent, np.sqrt(np.clip(np.diag(cov), 0.0, None)))
+        und = ~ra.estimable & ~now
+        cov[und, :] = np.nan
+        cov[:, und] = np.nan
+        partner_notes = {names[j]: pbnd.note(int(j), float(np.sqrt(cov[j, j])), names, units[j])
+                         for j in np.flatnonzero(now)}
+    sd = np.sqrt(np.diag(cov))
     verdict: dict[str, str] = {}
     for j, nm in enumerate(names):
         if not np.isfinite(sd[j]):
@@ -424,6 +446,8 @@ def diagnose(
         else:
             verdict[nm] = "identifiable"
             reasons.pop(nm, None)
+        if nm in partner_notes:
+            reasons[nm] = f"{reasons[nm]}; {partner_notes[nm]}" if verdict[nm] == "weak" else partner_notes[nm]
     keep = np.flatnonzero(~ra.zero)
     combos = []
     if keep.size:

@@ -22,7 +22,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("flight", nargs="*", help="flight CSV or Parquet file (t, f_x.., dv_x.. or v_tel_x.., v_trk_x..); "
                    "several files: one estimate of the shared coefficients, per-flight ones per flight "
                    "(every method of `casep methods`)")
-    options.add_model(p, None, "default: the simulated model, strapdown42_extended (strapdown), platform36")
+    options.add_model(p)
     p.add_argument("--imu", metavar="IMU.csv", default=None,
                    help="a raw IMU record instead of FLIGHT (t, w_*, fb_* or t, dth_*, dvb_*, as casep navigate "
                         "reads it): navigated, paired with --tracking and separated; needs --launch-site, "
@@ -79,9 +79,7 @@ def run(args: argparse.Namespace) -> int:
     wopts = {k: v for k, v in (("wavelet", args.wavelet), ("level", args.level), ("rule", args.threshold_rule),
                                 ("mode", args.threshold_mode), ("extension", args.extension),
                                 ("scaling", args.noise_scaling)) if v is not None}
-    if args.model is None:  # the default model: one for every path, radar included
-        from casep.model.loader import default_model
-        args.model = default_model(args.flight[0] if args.flight else None, bool(args.imu))
+    options.flight_model(args, bool(args.imu))  # the default model: one for every path, radar included
     if args.radar:
         from casep.cli.radar import separate_radar
 

@@ -21,7 +21,15 @@ from casep.estimators._rules import SIGMA
 from casep.estimators.result import EstimateResult
 from casep.estimators.solution import Solution
 from casep.exceptions import IllConditionedWarning, MagnitudeWarning
-from casep.regression.linalg import RankAnalysis, ReducedSystem, condition_numbers, unidentifiable_reasons
+from casep.regression.linalg import (
+    PARTNERS_NOTE,
+    PartnerBound,
+    RankAnalysis,
+    ReducedSystem,
+    condition_numbers,
+    null_space,
+    unidentifiable_reasons,
+)
 from casep.regression.problem import Problem as RegressionProblem
 
 __all__ = ["Prepared", "prepare", "rows_of", "finish", "check_positive", "inverse_scale"]
@@ -229,8 +237,9 @@ def finish(
     n = pb.n
     und = (~pb.ra.estimable) if undetermined is None else np.asarray(undetermined, dtype=bool)
     bounded_by: dict[str, str] = {}
+    Pi = None
     if undetermined is None and und.any() and cov is not None and np.all(np.isfinite(x)) and np.all(np.isfinite(cov)):
-        x, cov, und, bounded_by = _determined_up_to_partners(pb, x, np.asarray(cov, dtype=float), und)
+        x, cov, und, bounded_by, Pi = _determined_up_to_partners(pb, x, np.asarray(cov, dtype=float), und)
     res = pb.residuals(x) if residuals is None else np.asarray(residuals, dtype=float).reshape(-1)
     est = np.where(und, np.nan, x)
     solution = _solution(pb, x, cov) if und.any() and np.all(np.isfinite(x)) else None
@@ -262,7 +271,7 @@ def finish(
     # CRLB std, VIF and near-dependency groups: computed on first use (a Monte Carlo run reads none of them)
     red, ra, names, inv_c = pb.red, pb.ra, pb.names, pb.inv_c
     diag = LazyDiagnostics({**base, **(diagnostics or {})}, _COLLINEARITY_KEYS,
-                           lambda: _collinearity_summary(red, ra, names, inv_c, float(sigma)))
+                           lambda: _collinearity_summary(red, ra, names, inv_c, float(sigma), ~und, Pi))
     note = _ill_conditioning_note(diag)
     if note:
         diag["warning"] = note
@@ -279,77 +288,25 @@ def finish(
     )
 
 
-#: Components of a unit null vector of the scaled columns below this are the SVD's rounding (a zero column's
-#: null vector leaks ~1e-12 into the others), not part of a dependency.
-NULL_ROUNDING = 1e-9
-
-
-#: The start of the note of an exactly dependent coefficient reported with an estimate (its partners follow).
-PARTNERS_NOTE = "exactly dependent on"
-
-#: An exactly dependent coefficient gets an estimate when its partners, each within its declared magnitude, move
-#: the combination that stands for it by at most this fraction of its std (the bias then adds at most 0.5 % to
-#: its mean square error).
-PARTNER_SHARE = 0.1
-
-
-def _null_space(pb: Prepared) -> np.ndarray:
-    """A basis of the null space of S_V in natural units, (n, k) (see :func:`_solution`)."""
-    v = pb.ra.Vt[pb.ra.rank:].T  # (n, k): Z v = 0, unit columns
-    v = np.where(np.abs(v) > NULL_ROUNDING, v, 0.0)  # rounding of the SVD: not a part of the dependency
-    scaled = pb.red.scale > 0
-    return np.where(scaled[:, None], v * pb.inv_c[:, None], v)
-
-
 def _determined_up_to_partners(pb: Prepared, x: np.ndarray, cov: np.ndarray, und: np.ndarray
-                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, str]]:
-    """The exactly dependent coefficients the data determine in practice: a dependency whose other members this
-    flight barely excites (a misalignment times a lateral specific force that is only the instrument's own error)
-    leaves the coefficient's combination equal to the coefficient itself up to a negligible share.
-
-    With ``D = diag(s)`` the declared magnitudes and ``Q`` an orthonormal basis of the null space in their units
-    (``D^-1 N``), the least-squares solution of least size in those units is ``x_w = Pi x``,
-    ``Pi = I - D Q Q^T D^-1`` (every least-squares solution differs from ``x`` by a null vector; ``S Pi x = S x``),
-    with covariance ``Pi C Pi^T`` (exact: each row of ``Pi`` is a determined combination, ``Pi N = 0``).
-    ``x_w_j`` is the combination ``(Pi^T e_j) . D``, which differs from ``D_j`` by ``-s_j (Q Q^T D^-1 D)_j``:
-    with every coefficient within its declared magnitude, at most ``b_j = s_j sum_i |(Q Q^T)_ji|``. Where
-    ``b_j <= PARTNER_SHARE std_j`` the coefficient is reported with ``x_w_j`` and its std, its note giving
-    ``b_j``; the others stay undetermined. Estimable coefficients keep their estimate and covariance (their rows
-    of ``Q`` are zero). Nothing changes when a member of a dependency has no declared magnitude.
-
-    Returns
-    -------
-    x, cov, und, notes
-        The solution, its covariance, the coefficients still without an estimate, and a note per coefficient
-        now reported.
-    """
+                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, str], np.ndarray | None]:
+    """The exactly dependent coefficients the data determine in practice (:class:`~casep.regression.linalg.PartnerBound`
+    with the problem's declared magnitudes): a dependency whose other members this flight barely excites (a
+    misalignment times a lateral specific force that is only the instrument's own error) leaves a coefficient's
+    combination equal to the coefficient up to a negligible share. Returns the solution of least size in units of
+    the magnitudes, its covariance, the coefficients still without an estimate, a note per one now reported and
+    the projection ``Pi``; `x`, `cov`, `und`, no notes and None when nothing changes."""
     mags = pb.problem.magnitudes
-    N = _null_space(pb)
-    if not mags or N.shape[1] == 0:
-        return x, cov, und, {}
-    s = np.array([declared_magnitude(mags, n) or np.nan for n in pb.names], dtype=float)
-    member = np.any(N != 0.0, axis=1) & ~pb.ra.zero  # a zero column's null vector is its own: any scale will do
-    if not np.all(np.isfinite(s[member]) & (s[member] > 0)):
-        return x, cov, und, {}
-    s = np.where(member, s, 1.0)
-    Q = np.linalg.qr(N / s[:, None])[0]  # null space in units of the declared magnitudes, orthonormal
-    P = Q @ Q.T
-    Pi = np.eye(pb.n) - (s[:, None] * P) / s[None, :]  # Pi = I - D Q Q^T D^-1
-    x_w = Pi @ x
-    cov_w = Pi @ cov @ Pi.T
-    cov_w = 0.5 * (cov_w + cov_w.T)
+    pbnd = PartnerBound.of(pb.red, pb.ra, [declared_magnitude(mags, n) for n in pb.names]) if mags else None
+    if pbnd is None:
+        return x, cov, und, {}, None
+    cov_w = pbnd.covariance(cov)
     std_w = np.sqrt(np.clip(np.diag(cov_w), 0.0, None))
-    bound = s * np.sum(np.abs(P), axis=1)  # b_j = s_j sum_i |(Q Q^T)_ji|
-    now = und & ~pb.ra.zero & (bound <= PARTNER_SHARE * std_w)
+    now = pbnd.determined(und & ~pb.ra.zero, std_w)
     if not now.any():
-        return x, cov, und, {}
-    notes = {}
-    for j in np.flatnonzero(now):
-        partners = [pb.names[k] for k in pb.ra.partners.get(int(j), [])]
-        listed = ", ".join(partners[:4]) + (", ..." if len(partners) > 4 else "")
-        notes[pb.names[j]] = (f"{PARTNERS_NOTE} {listed}, which move it by <= {bound[j]:.2g} {pb.units[j]} "
-                              f"({bound[j] / std_w[j]:.2g} std) within their declared magnitudes")
-    return x_w, cov_w, und & ~now, notes
+        return x, cov, und, {}, None
+    notes = {pb.names[j]: pbnd.note(int(j), float(std_w[j]), pb.names, pb.units[j]) for j in np.flatnonzero(now)}
+    return pbnd.Pi @ x, cov_w, und & ~now, notes, pbnd.Pi
 
 
 def _solution(pb: Prepared, x: np.ndarray, cov: np.ndarray | None) -> Solution:
@@ -358,7 +315,7 @@ def _solution(pb: Prepared, x: np.ndarray, cov: np.ndarray | None) -> Solution:
     ``S = Z diag(c)``: a null vector ``v`` of the scaled ``Z`` is ``v / c`` in natural units; on a zero
     column (``c = 0``) any value is a null direction, kept as ``v``.
     """
-    N = _null_space(pb)
+    N = null_space(pb.red, pb.ra)
     C = None if cov is None or not np.all(np.isfinite(cov)) else np.array(cov, dtype=float)
     return Solution(np.array(x, dtype=float), C, N)
 
@@ -397,13 +354,19 @@ _COLLINEARITY_KEYS = ("crlb_std", "vif", "groups")
 
 
 def _collinearity_summary(red: ReducedSystem, ra: RankAnalysis, names: Sequence[str], inv_c: np.ndarray,
-                          sigma: float) -> dict[str, Any]:
-    """White-noise CRLB std (sigma^2 (S^T S)^-1), uncentred VIF and near-dependency groups."""
+                          sigma: float, reported: np.ndarray | None = None, Pi: np.ndarray | None = None
+                          ) -> dict[str, Any]:
+    """White-noise CRLB std (sigma^2 (S^T S)^-1), uncentred VIF and near-dependency groups; `reported`: the
+    coefficients with an estimate (default: the estimable ones), `Pi` the projection onto the solution of least
+    size in declared magnitudes when some exactly dependent ones are among them
+    (:class:`~casep.regression.linalg.PartnerBound`: their bound is ``sqrt(diag(Pi C Pi^T))``)."""
     col = collinearity(red, ra)
     V, inv_s = ra.pinv_factors()
-    W = V * inv_s
-    crlb = sigma * np.sqrt(np.sum(W**2, axis=1)) * inv_c  # sqrt(diag(sigma^2 (S^T S)^+))
-    ok = ra.estimable
+    W = (V * inv_s) * inv_c[:, None]  # natural units: sigma^2 W W^T = sigma^2 (S^T S)^+
+    if Pi is not None:
+        W = Pi @ W
+    crlb = sigma * np.sqrt(np.sum(W**2, axis=1))  # sqrt(diag(sigma^2 (S^T S)^+)), or of Pi (S^T S)^+ Pi^T
+    ok = ra.estimable if reported is None else np.asarray(reported, dtype=bool)
 
     def f(v: float) -> float | None:
         return float(v) if np.isfinite(v) else None

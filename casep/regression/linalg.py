@@ -255,6 +255,91 @@ def analyze_rank(red: ReducedSystem, rcond: float | None = None) -> RankAnalysis
                         dependent=dependent, partners=partners)
 
 
+#: Components of a unit null vector of the scaled columns below this are the SVD's rounding (a zero column's
+#: null vector leaks ~1e-12 into the others), not part of a dependency.
+NULL_ROUNDING = 1e-9
+
+#: An exactly dependent coefficient is determined in practice when its partners, each within its declared
+#: magnitude, move the combination that stands for it by at most this fraction of its std (the bias then adds at
+#: most 0.5 % to its mean square error).
+PARTNER_SHARE = 0.1
+
+#: The start of the note of an exactly dependent coefficient determined in practice (its partners follow).
+PARTNERS_NOTE = "exactly dependent on"
+
+
+def null_space(red: ReducedSystem, ra: RankAnalysis) -> np.ndarray:
+    """A basis of the null space of S in natural units, (n, k): ``S N = 0``.
+
+    ``S = Z diag(c)``: a null vector ``v`` of the scaled ``Z`` is ``v / c`` in natural units; on a zero column
+    (``c = 0``) any value is a null direction, kept as ``v``.
+    """
+    v = ra.Vt[ra.rank:].T  # (n, k): Z v = 0, unit columns
+    v = np.where(np.abs(v) > NULL_ROUNDING, v, 0.0)  # rounding of the SVD: not a part of the dependency
+    scaled = red.scale > 0
+    return np.where(scaled[:, None], v / np.where(scaled, red.scale, 1.0)[:, None], v)
+
+
+@dataclass(frozen=True)
+class PartnerBound:
+    """What the declared magnitudes ``s`` say of exactly dependent coefficients.
+
+    With ``D = diag(s)`` and ``Q`` an orthonormal basis of the null space in units of the magnitudes
+    (``D^-1 N``), the least-squares solution of least size in those units is ``Pi x`` for any least-squares
+    solution ``x``: ``Pi = I - D Q Q^T D^-1`` (``S Pi = S``, ``Pi N = 0``: each row of ``Pi`` is a determined
+    combination, so ``Pi C Pi^T`` is its exact covariance for the solver's covariance ``C``). Its entry ``j`` is
+    the combination ``(Pi^T e_j) . D``, which differs from ``D_j`` by ``-s_j (Q Q^T D^-1 D)_j``: with every
+    coefficient within its declared magnitude, by at most ``bound_j = s_j sum_i |(Q Q^T)_ji|`` (0 for a
+    coefficient outside every dependency: its row of ``Q`` is zero).
+
+    Attributes
+    ----------
+    Pi : (n, n) ndarray
+    bound : (n,) ndarray
+        Natural units.
+    partners : dict[int, list[int]]
+        As :attr:`RankAnalysis.partners`.
+    """
+
+    Pi: np.ndarray
+    bound: np.ndarray
+    partners: dict
+
+    @classmethod
+    def of(cls, red: ReducedSystem, ra: RankAnalysis, magnitudes: Sequence[float | None]) -> PartnerBound | None:
+        """The bound of a rank-deficient reduction; None when it has no exact dependency or a member of one has no
+        declared magnitude (a zero column needs none: its null vector is its own)."""
+        N = null_space(red, ra)
+        if N.shape[1] == 0 or not (ra.dependent.any()):
+            return None
+        s = np.array([np.nan if m is None else m for m in magnitudes], dtype=float)
+        member = np.any(N != 0.0, axis=1) & ~ra.zero
+        if not np.all(np.isfinite(s[member]) & (s[member] > 0)):
+            return None
+        s = np.where(member, s, 1.0)
+        Q = np.linalg.qr(N / s[:, None])[0]  # the null space in units of the declared magnitudes, orthonormal
+        P = Q @ Q.T
+        Pi = np.eye(red.n) - (s[:, None] * P) / s[None, :]  # Pi = I - D Q Q^T D^-1
+        return cls(Pi=Pi, bound=s * np.sum(np.abs(P), axis=1), partners=ra.partners)
+
+    def covariance(self, C: np.ndarray) -> np.ndarray:
+        """``Pi C Pi^T`` (symmetrised)."""
+        Cw = self.Pi @ C @ self.Pi.T
+        return 0.5 * (Cw + Cw.T)
+
+    def determined(self, dependent: np.ndarray, std: np.ndarray) -> np.ndarray:
+        """Which of the `dependent` coefficients (bool mask) are determined in practice: ``bound_j <= PARTNER_SHARE
+        std_j``, `std` from :meth:`covariance`."""
+        return np.asarray(dependent, dtype=bool) & (self.bound <= PARTNER_SHARE * np.asarray(std, dtype=float))
+
+    def note(self, j: int, std: float, names: Sequence[str], unit: str) -> str:
+        """The note of coefficient `j` determined in practice: its partners and how far they move it."""
+        partners = [names[k] for k in self.partners.get(int(j), [])]
+        listed = ", ".join(partners[:4]) + (", ..." if len(partners) > 4 else "")
+        return (f"{PARTNERS_NOTE} {listed}, which move it by <= {self.bound[j]:.2g} {unit} "
+                f"({self.bound[j] / std:.2g} std) within their declared magnitudes")
+
+
 def condition_numbers(red: ReducedSystem, ra: RankAnalysis) -> dict[str, float | None]:
     """2-norm condition numbers of S over its non-zero columns.
 

@@ -234,3 +234,24 @@ def test_the_counts_say_unidentifiable_is_per_coefficient_and_combinations_may_b
     text = diagnose(S, names=["x0", "x1", "x2"], sigma=1.0).text()
     assert "unidentifiable 2 of 3 (each coefficient on its own" in text
     assert "determines that coefficient to about its std" in text
+
+
+def test_exactly_dependent_on_a_barely_excited_partner_has_the_bound_separate_reports(rng):
+    """Columns a, b and c = 1e-8 (0.3 a + 0.7 b): with declared magnitudes a and b have a bound, equal to the std
+    OLS reports with the same sigma (the solution of least size in declared magnitudes), and say how far c moves
+    them; c stays unidentifiable. Without magnitudes all three are unidentifiable."""
+    t = np.linspace(0.0, 100.0, 600)
+    f = 1.0 + 0.5 * np.sin(0.1 * t)
+    S = np.column_stack([t, t * f, 1e-8 * (0.3 * t + 0.7 * t * f)])
+    y = S @ np.array([0.8, -0.5, 0.6]) + 0.05 * rng.standard_normal(t.size)
+    scales = {"a": 1.0, "b": 2.0, "c": 60.0}
+    d = diagnose(_as_flight(S), names=["a", "b", "c"], units=["mg", "ppm", "arcsec"], sigma=0.05, scales=scales)
+    pb = casep.Problem.from_arrays(S, y, names=["a", "b", "c"], units=["mg", "ppm", "arcsec"])
+    pb.magnitudes = scales
+    res = casep.solve_ols(pb, sigma=0.05)
+    np.testing.assert_allclose(d.crlb_std[:2], res.std[:2], rtol=1e-8)
+    assert d.identifiability["c"] == "unidentifiable" and d.identifiability["a"] != "unidentifiable"
+    assert "within their declared magnitudes" in d.reasons["a"]
+    plain = diagnose(_as_flight(S), names=["a", "b", "c"], units=["mg", "ppm", "arcsec"], sigma=0.05,
+                     scales={"a": 1.0, "b": 2.0})
+    assert plain.unidentifiable == ["a", "b", "c"]
