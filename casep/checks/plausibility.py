@@ -451,7 +451,7 @@ def warn_setup(flight: FlightData) -> list[str]:
 
 
 def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.ndarray,
-              source: str = "<memory>", outliers_handled: bool = False, excluded=None) -> None:
+              source: str = "<memory>", outliers_handled: bool = False, excluded=None, noise=None) -> None:
     """Residual checks after an estimate: noise-free data, outliers, tracking time offset.
 
     Parameters
@@ -473,6 +473,9 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
     excluded : array_like of int, optional
         Samples the fit removed (a robust fit's glitches, excluded outliers): left out of the
         time-offset test, which would otherwise read them as a signal.
+    noise : NoiseModel, optional
+        The noise model the fit whitened its rows for: the time-offset test whitens its rows for it too
+        (:func:`casep.checks.time_offset.time_offset_test`).
 
     Warns
     -----
@@ -508,9 +511,9 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         keep[np.asarray(excluded, dtype=int)] = False
     if keep is None and shares_problem_test(S, dv):
         del r  # long flights: the shared test reads dv, not the residuals
-        test = problem_time_offset_test(S, t, f)
+        test = problem_time_offset_test(S, t, f, noise)
     else:
-        test = time_offset_test(S, r, t, f, keep=keep)
+        test = time_offset_test(S, r, t, f, keep=keep, noise=noise)
     if test is None:
         return
     from casep.model.loader import TIME_OFFSET

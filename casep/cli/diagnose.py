@@ -40,7 +40,7 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    options.flight_model(args)  # the default model: separate's
+    flight_options.flight_model(args)  # the default model: separate's
     if args.radar:
         from casep.cli.radar import diagnose_radar
 

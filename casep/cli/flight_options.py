@@ -123,3 +123,14 @@ def full_scales(args: argparse.Namespace) -> dict[str, float | None]:
         unit, si = FULL_SCALE_UNITS[sensor]
         out[key] = None if value is None else check_full_scale(value, key, "--" + key.replace("_", "-"), unit) * si
     return out
+
+
+def flight_model(args: Any, imu: bool = False) -> str:
+    """``args.model``, or the model the first flight file's header calls for
+    (:func:`casep.model.loader.default_model`): one default for every command that reads a flight."""
+    if args.model is None:
+        from casep.model.loader import default_model
+
+        flights = args.flight if isinstance(args.flight, list) else [args.flight] if args.flight else []
+        args.model = default_model(flights[0] if flights else None, imu)
+    return args.model

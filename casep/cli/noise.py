@@ -25,7 +25,7 @@ def run(args: argparse.Namespace) -> int:
 
     inputs.use_manifest(args)  # --manifest FLIGHTS.toml (one flight), or the flight file
     outputs.check({"--json": args.json}, inputs.input_files(args, "flight", "tracking"), {"--figures": args.figures})
-    model = load_model(options.flight_model(args))  # the default model: separate's
+    model = load_model(flight_options.flight_model(args))  # the default model: separate's
     noise, problem = flight_noise(inputs.read_one(args), model)
     print(noise.text())
     if args.json:

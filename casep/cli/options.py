@@ -137,24 +137,11 @@ def fit_spec(args: argparse.Namespace, given: dict[str, Any], **fit: Any) -> Any
     return FitSpec.build(args.method, options=given, **kw, **fit)
 
 
-#: What a flight command's ``--model`` is without it (:func:`casep.model.loader.default_model`).
-FLIGHT_MODEL = "default: the simulated model, strapdown42_extended (strapdown), platform36"
-
-
-def add_model(parser: Any, default: str | None = None, what: str = FLIGHT_MODEL) -> None:
-    """``--model NAME|FILE``; a flight command's default is None, resolved by :func:`flight_model`."""
+def add_model(parser: Any, default: str | None = None,
+              what: str = "default: the simulated model, strapdown42_extended (strapdown), platform36") -> None:
+    """``--model NAME|FILE``; a flight command's default is None, resolved by
+    :func:`casep.cli.flight_options.flight_model`."""
     parser.add_argument("--model", default=default, help=f"model name or .py file ({what})")
-
-
-def flight_model(args: Any, imu: bool = False) -> str:
-    """``args.model``, or the model the first flight file's header calls for
-    (:func:`casep.model.loader.default_model`): one default for every command that reads a flight."""
-    if args.model is None:
-        from casep.model.loader import default_model
-
-        flights = args.flight if isinstance(args.flight, list) else [args.flight] if args.flight else []
-        args.model = default_model(flights[0] if flights else None, imu)
-    return args.model
 
 
 def add_json(parser: Any, what: str) -> None:

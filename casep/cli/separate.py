@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     wopts = {k: v for k, v in (("wavelet", args.wavelet), ("level", args.level), ("rule", args.threshold_rule),
                                 ("mode", args.threshold_mode), ("extension", args.extension),
                                 ("scaling", args.noise_scaling)) if v is not None}
-    options.flight_model(args, bool(args.imu))  # the default model: one for every path, radar included
+    flight_options.flight_model(args, bool(args.imu))  # the default model: one for every path, radar included
     if args.radar:
         from casep.cli.radar import separate_radar
 

@@ -129,7 +129,7 @@ def fit(problem: Problem | Flights, spec: FitSpec, *, rows: Rows | JointRows | N
     if checks:
         check_fit(problem, problem._need_rows(), res, t=problem.t, f=problem.f, source=problem.source,  # type: ignore[arg-type]
                   outliers_handled="robust" in res.diagnostics or spec.noise.exclude_outliers is not None,
-                  excluded=out.excluded)
+                  excluded=out.excluded, noise=out.problem.noise)
     if checks and sigma is not None and not from_wavelet:
         check_sigma(problem, sigma, source=problem.source)  # the given sigma against the residuals
     if spec.outliers is not None:  # studentized residuals on the rows the method solved (whitened), samples named

@@ -255,3 +255,14 @@ def test_exactly_dependent_on_a_barely_excited_partner_has_the_bound_separate_re
     plain = diagnose(_as_flight(S), names=["a", "b", "c"], units=["mg", "ppm", "arcsec"], sigma=0.05,
                      scales={"a": 1.0, "b": 2.0})
     assert plain.unidentifiable == ["a", "b", "c"]
+
+
+def test_cli_diagnose_takes_the_model_separate_takes(tmp_path, capsys):
+    """A strapdown flight simulated with strapdown33 is diagnosed with strapdown33 without --model (it was
+    platform36, the platform model, on a strapdown file), as separate would fit it."""
+    f = str(tmp_path / "sd.csv")
+    assert main(["simulate", "--scenario", "strapdown-boost", "--rate", "5", "-o", f]) == 0
+    capsys.readouterr()
+    assert main(["diagnose", f, "--noise", "white"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("model strapdown33,") and "ba_x" in out and "Kg0x" not in out
