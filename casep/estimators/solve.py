@@ -528,7 +528,8 @@ def _check_flights(res: EstimateResult, rows: JointRows, spec: FitSpec) -> None:
         est = types.SimpleNamespace(estimate=xk, names=p.names, fitted_coefficients=lambda xk=xk: xk)
         excluded = None if rows.rows is None else np.flatnonzero(~rows.rows[k].keep)
         check_fit(p, p._need_rows(), est, t=p.t, f=p.f, source=p.source,  # type: ignore[arg-type]
-                  outliers_handled=robust or spec.noise.exclude_outliers is not None, excluded=excluded)
+                  outliers_handled=robust or spec.noise.exclude_outliers is not None, excluded=excluded,
+                  noise=None if rows.rows is None else rows.rows[k].noise)
         if rows.sigma_given and rows.denoised is None:
             check_sigma(p, float(jp.sigmas[k]), source=p.source)
 
