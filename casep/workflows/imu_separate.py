@@ -158,6 +158,9 @@ CURVATURE_DRAWS = 1
 WORSE = 10.0
 #: ... and the next step leaves out the combinations whose std exceeds the widest one stepped along, over this.
 NARROW = 10.0
+#: A noise-free record has converged when a pass's rows are at the data's rounding level and above this fraction of
+#: the pass before's (:meth:`_Run.at_rounding`; the passes no longer lower them).
+STALL = 0.1
 #: A combination left out whose correction exceeds this many of its std: the iteration fails (it is determined, and
 #: the model is not linear over its size); below it, the record does not determine it (said, not iterated).
 SIGNIFICANT = 4.0
@@ -321,6 +324,7 @@ class _Run:
         self.screen: dict | None = None  # the first pass's tracking screen, kept
         self.inputs_said = False  # whether the inputs' warnings were said before the first pass
         self.limit = np.inf  # the linear region of the last step (:func:`determined_step`), declared magnitudes
+        self.data_scale: float | None = None  # the largest of the first pass's rows (m/s): the data's scale
 
     # ------------------------------------------------------------------ one pass
     def navigate(self, D: np.ndarray) -> NavigationResult:
@@ -512,11 +516,25 @@ class _Run:
             if before is None:
                 return out
             rms = [_rms(p.y) for p in (before, out[4])]
-            if rms[1] <= WORSE * rms[0] or out[4].is_noise_free(rms[1]):
+            if rms[1] <= WORSE * rms[0] or self.at_rounding(rms[1]):
                 return out
             why = f"the residual grew from {rms[0]:.3g} to {rms[1]:.3g} m/s RMS"
         self.nav, self.imu_k, self.model_k, self.q_aligned, self.C_tb = state
         return why
+
+    def at_rounding(self, rms: float) -> bool:
+        """Whether a pass's rows of RMS `rms` (m/s) are at the rounding level of the data, the first pass's rows (the
+        velocity errors before any correction): :func:`casep.regression.problem.is_rounding_level`, the project's one
+        noise-free rule, on their largest magnitude. A later pass's own rows are residuals, and their rounding level
+        would be that of the residual itself: on a noise-free pad record (rows of 0.13 m/s before the first pass,
+        1e-11 to 8e-11 m/s from the fourth on) the passes rejected steps that took the rows from 1e-11 to 1e-9 m/s as
+        growing a hundredfold and never stopped. Without the pair's interpolation floor
+        (:meth:`casep.regression.problem.Problem.is_noise_free`): it bounds what the pair of files holds, not where the
+        passes' fixed point is (on the noise-free MEMS boost of the tests it is 3.3e-3 m/s, and rows below it left
+        coefficients 1e-4 off)."""
+        from casep.regression.problem import is_rounding_level
+
+        return self.data_scale is not None and is_rounding_level(float(rms), self.data_scale)
 
     def iterate(self, iterate: bool, tol: float, max_iterations: int) -> ImuSeparation:
         """Passes until the correction of every determined combination is below `tol` std (:func:`determined_step`;
@@ -530,15 +548,22 @@ class _Run:
         fast = _fast_spec(self.spec) if iterate else None
         spec = fast or self.spec
         res, nav, flight, model, problem = self.solve(None, spec)
+        self.data_scale = float(np.max(np.abs(problem.y), initial=0.0)) if problem.y is not None else None
         D = np.zeros(len(res.names))
         passes: list[dict] = []
         failure, last = None, None
         rejected: list[dict] = []  # the steps of this pass outside the linear model
         k, limit = 1, np.inf
+        rows_before = np.inf  # the RMS of the rows of the pass before (m/s)
         while True:
-            step = determined_step(res, problem, flight, model.scales, limit)
+            step = determined_step(res, problem, flight, model.scales, limit, about=D)
             how = "ols, white noise (while far)" if spec is fast else "as requested"
-            passes.append(_pass_record(k, res, step, D + step.d, how, _at_rounding(D, step, model.scales, res.names)))
+            # noise-free: the correction at the coefficients' rounding, or the rows at `D` at the data's and no longer
+            # falling (to under STALL of the pass before's): `D` fits the data to their rounding, a fixed point
+            rows = _rms(problem.y)
+            rounding = _at_rounding(D, step, model.scales, res.names) or (self.at_rounding(rows)
+                                                                           and rows > STALL * rows_before)
+            passes.append(_pass_record(k, res, step, D + res.fitted_coefficients(), how, rounding))
             if rejected:  # the same pass, its step narrowed
                 passes[-1]["rejected"] = list(rejected)
             if step.beyond:
@@ -573,9 +598,9 @@ class _Run:
                 limit, last = step.widest / NARROW, None
                 continue
             last = (D, step.d) if near else None
-            D, k, rejected = D + move, k + 1, []
+            D, k, rejected, rows_before = D + move, k + 1, [], _rms(problem.y)
             res, nav, flight, model, problem = trial
-        self.limit = limit
+        self.limit = step.limit
         from casep.estimators.solve import fit
 
         res = fit(problem, self.spec)  # the last linearisation, judged (its warnings are the result's)
@@ -915,8 +940,9 @@ def _quiet_fit(problem: Any, spec: FitSpec) -> EstimateResult:
 def _pass_record(k: int, res: EstimateResult, step: Step, total: np.ndarray, how: str, rounding: bool = False) -> dict:
     """One pass for ``diagnostics["iterations"]``: the largest correction of a determined combination in its std
     (`step`), whose, every coefficient's |correction| / std (None where the flight does not determine it), the
-    combinations' (with the tracking's stretches), and the estimate after it (`total`, natural units; the first
-    pass's is the one linear pass's)."""
+    combinations' (with the tracking's stretches), and the pass's estimate (`total`, natural units: the coefficients
+    it was linearised about plus its whole linear solution, whatever its step was restricted to; the first pass's is
+    the one linear pass's)."""
     std = res.std if res.std is not None else np.full(len(res.names), np.nan)
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.abs(res.estimate) / std
@@ -952,6 +978,9 @@ class Step:
         name.
     kept : list of (std, weights)
         The combinations stepped along (when some were left out): their std and weights on ``D / scale``.
+    limit : float
+        The std (declared magnitudes) above which combinations were left out: the `limit` asked, or the plausible
+        size of what the record determines when that is smaller (:func:`determined_step`).
     """
 
     d: np.ndarray
@@ -962,10 +991,11 @@ class Step:
     widest: float = np.inf
     beyond: list = field(default_factory=list)
     kept: list = field(default_factory=list)
+    limit: float = np.inf
 
 
 def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scales: dict[str, float],
-                    limit: float = np.inf) -> Step:
+                    limit: float = np.inf, about: np.ndarray | None = None) -> Step:
     """The correction of one pass along the combinations the flight determines, and its size in their std.
 
     Two cases, one per statement the result makes of what the flight determines:
@@ -1000,6 +1030,13 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
         d = scale * sum_{sigma_i <= limit} (q_i . z) q_i
 
     and ``max_z`` is taken over what is left. ``limit = inf`` (the default) is the full Gauss-Newton step.
+
+    **What the record determines** (`about`: the coefficients the pass was linearised about, natural units; the
+    iteration's passes give it): the step is also limited to the combinations whose std is below the plausible size
+    of the coefficients (:func:`_determined_size`), so that what the record does not determine stays where the prior
+    puts it (0) and the passes linearise about a plausible point: on a pad record followed by a short boost under
+    ``strapdown33`` the full step took a gyro scale factor to 2.7e3 declared magnitudes (std 7e3), and the
+    combinations stated as determined, gradients about that point, were up to 59 of their std off the truth.
     """
     from casep.checks.tracking_quality import determined, noise_problem
 
@@ -1023,14 +1060,20 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
         np.asarray(res.solution.null_space, dtype=float).reshape(len(names), -1)
     if C is not None and np.all(np.isfinite(C)) and np.all(np.isfinite(x)):
         sig, q = _scaled_spectrum(C, scale, problem, float(res.sigma), N.shape[1])
+        if about is not None:
+            limit = min(limit, _determined_size(sig, q.T @ ((np.asarray(about, dtype=float) + x) / scale)))
         out = sig > limit
         widest = float(sig[~out].max(initial=0.0))
         zq = q.T @ (x / scale) / np.where(sig > 0, sig, np.inf)  # each combination's correction in its std
         beyond = [(float(sig[i]), float(abs(zq[i])), _combination(names, q[:, i])) for i in np.flatnonzero(out)]
         kept = [(float(sig[i]), q[:, i]) for i in np.flatnonzero(~out & (sig > 0))] if beyond else []
-        N = np.hstack([N, scale[:, None] * q[:, out]])  # left out as the null space is
+        on = ~out & (sig > 0)  # stepped along: determined, not the null space (sig 0) nor left out
+        x = scale * (q[:, on] @ (q[:, on].T @ (x / scale)))  # the part of the correction along them, nothing else
+        N = scale[:, None] * q[:, ~on]  # left out as the null space is
         C = _in_covariance(sig, q, scale, ~out)  # what is stepped along, without the rounding of what is not
-    if res.solution is not None or beyond:
+        Qn, _ = np.linalg.qr(N)
+        P = P - Qn @ Qn.T  # row j: the part of coefficient j the flight determines (P N = 0)
+    elif res.solution is not None:
         Q, _ = np.linalg.qr(N / scale[:, None])
         x = scale * (x / scale - Q @ (Q.T @ (x / scale)))
         Qn, _ = np.linalg.qr(N)
@@ -1043,7 +1086,23 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
             z = np.abs(P @ x) / np.sqrt(np.clip(np.einsum("ij,jk,ik->i", P, C, P), 0.0, None))
     zf = np.where(np.isfinite(z), z, 0.0)
     j = int(np.argmax(zf))
-    return Step(x, float(zf[j]), _combination(names, scale * P[j]), std, widest=widest, beyond=beyond, kept=kept)
+    return Step(x, float(zf[j]), _combination(names, scale * P[j]), std, widest=widest, beyond=beyond, kept=kept,
+                limit=float(limit))
+
+
+def _determined_size(sig: np.ndarray, estimate: np.ndarray) -> float:
+    """The std (declared magnitudes) up to which a combination of the spectrum ``(sig, q)`` (:func:`_scaled_spectrum`)
+    is determined, its estimates `estimate` (``q_i . (D / scale)``): the plausible size of the coefficients
+    (:func:`casep.checks.tracking_quality.plausible_size`) from the combinations the record determines by themselves,
+    a std below the declared magnitude (:func:`casep.checks.tracking_quality.determined`'s rule) or an estimate above
+    :data:`SIGNIFICANT` of its std (not 0 whatever the prior: a MEMS unit under a navigation-grade model). A
+    combination whose std exceeds it says less of the instrument than its plausible size: the data do not determine
+    it. The fit's null space (``sig = 0``) is neither."""
+    from casep.checks.tracking_quality import plausible_size
+
+    est = np.abs(np.asarray(estimate, dtype=float))
+    own = (sig > 0) & np.isfinite(sig) & np.isfinite(est) & ((sig < 1.0) | (est > SIGNIFICANT * sig))
+    return plausible_size([{"estimate": float(v)} for v in est[own]])
 
 
 def _scaled_spectrum(C: np.ndarray, scale: np.ndarray, problem: Any = None, sigma: float = np.nan,
@@ -1060,20 +1119,24 @@ def _scaled_spectrum(C: np.ndarray, scale: np.ndarray, problem: Any = None, sigm
     ``S diag(scale) / sigma = U diag(s) V^T`` resolves the largest ``s`` to rounding: ``sigma_i = 1 / s_i``,
     ``q_i = V_i``; `sigma` the fit's noise, m/s: the white-noise covariance of the least-squares fit, which the
     passes far from convergence are; the `nulls` smallest ``s_i``: the fit's null space, ``sigma_i = 0``), times
-    ``sqrt(k)``, ``k >= 1`` the median over the combinations the covariance does resolve of ``q_i^T C q_i /
-    sigma_i^2``: a fit under correlated noise (Gauss-Markov tracking) has std that many times the white ones, 1 for
-    the white least-squares fit."""
+    ``sqrt(k)``, ``k >= 1`` the median over the combinations the covariance and the design both resolve of ``q_i^T C
+    q_i / sigma_i^2`` (1 when there is none): a fit under correlated noise (Gauss-Markov tracking) has std that many
+    times the white ones, 1 for the white least-squares fit."""
     lam, q = np.linalg.eigh(C / np.outer(scale, scale))
     if problem is None or problem.y is None or not sigma > 0 or np.sum(lam < lam.max() * _SPECTRUM_RTOL) <= nulls:
-        return np.sqrt(np.clip(lam, 0.0, None)), q
+        sig = np.sqrt(np.clip(lam, 0.0, None))
+        sig[:nulls] = 0.0  # the fit's null space: its smallest (rounding of either sign)
+        return sig, q
     S, y = problem.sv(), problem.y
     ok = np.all(np.isfinite(y), axis=1) & np.all(np.isfinite(S), axis=(1, 2))
     _, s, Vt = np.linalg.svd(S[ok].reshape(-1, scale.size) * scale / sigma, full_matrices=False)
     sig = 1.0 / np.where(s > 0, s, np.nan)
     sig[s.size - nulls:] = 0.0  # the fit's null space: its smallest
     sig, q = np.nan_to_num(sig, nan=np.inf), Vt.T
-    # the fit's noise model (correlated noise: std above the white ones), where the covariance resolves it
-    seen = np.isfinite(sig) & (sig**2 > lam.max() * _SPECTRUM_RTOL)
+    # the fit's noise model (correlated noise: std above the white ones), where the covariance resolves it and the
+    # design does too (a combination the design holds within _SPECTRUM_RTOL of its best variance: beyond, the
+    # covariance's value is its solver's rounding, 1e6-1e8 times the white one on a pad at rest)
+    seen = np.isfinite(sig) & (sig**2 > lam.max() * _SPECTRUM_RTOL) & (s**2 >= _SPECTRUM_RTOL * s.max() ** 2)
     ratio = np.einsum("ji,jk,ki->i", q[:, seen], C / np.outer(scale, scale), q[:, seen]) / sig[seen] ** 2
     return sig * math.sqrt(max(1.0, float(np.median(ratio)) if ratio.size else 1.0)), q
 
@@ -1088,19 +1151,22 @@ def _in_covariance(sig: np.ndarray, q: np.ndarray, scale: np.ndarray, keep: np.n
 
 def _outside_note(passes: list[dict], n: int, size: float = np.inf) -> str | None:
     """What an iteration says of the combinations its steps left out (:func:`determined_step`'s `limit`):
-    none, or how many, their std and names, why (the last rejected step), and that their estimates are linear.
+    none, or how many, their std and names, why (the last rejected step, or their std above the plausible size of
+    what the record determines), and that their estimates are linear.
     None when one of them is determined (:func:`_outside_failure`: std within the plausible `size`, correction above
     :data:`SIGNIFICANT` std): that is a failure, not a note."""
     left = passes[-1].get("left_out") or []
     why = [r["why"] for p in passes for r in p.get("rejected", [])]
-    if not left or not why or any(c["z"] > SIGNIFICANT and c["std"] <= size for c in left):
+    if not left or any(c["z"] > SIGNIFICANT and c["std"] <= size for c in left):
         return None
     sd = sorted(c["std"] for c in left)
     near = [c["z"] for c in left if c["std"] <= size]
     names = "; ".join(c["combination"] for c in sorted(left, key=lambda c: c["std"])[:3])
-    return (f"the record determines {n - len(left)} of {n} combinations of the coefficients well enough to iterate; a "
-            f"step along the other {len(left)} (std {sd[0]:.3g} to {sd[-1]:.3g} declared magnitudes: {names}"
-            f"{'; ...' if len(left) > 3 else ''}) leaves the linear model ({why[-1]}), and "
+    kept = len(passes[-1].get("determined") or [])  # the rest of the n: the fit's null space
+    return (f"the record determines {kept} of {n} combinations of the coefficients well enough to iterate; "
+            f"the other {len(left)} (std {sd[0]:.3g} to {sd[-1]:.3g} declared magnitudes: {names}"
+            f"{'; ...' if len(left) > 3 else ''}) are left at the prior (0)"
+            + (f", a step along them leaves the linear model ({why[-1]})" if why else "") + ", and "
             + (f"their corrections are noise (at most {max(near):.2g} std) or " if near else "")
             + f"their std exceed the coefficients' plausible size ({size:.3g} declared magnitudes): the record does "
             "not determine them. Their estimates are the last linear pass's, their std linear (not checked for "

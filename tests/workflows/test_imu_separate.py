@@ -95,7 +95,10 @@ def noise_free(truth_flight, tmp_path_factory):
 
 
 def test_one_linear_pass_is_biased_by_many_crlb_std_the_iteration_converges_to_the_truth(noise_free):
-    """The first pass is the one linear pass (its estimate recorded with the passes)."""
+    """The first pass is the one linear pass (its estimate recorded with the passes). Two combinations of the roll-axis
+    gyro terms have std of 920 and 4.9e3 declared magnitudes at sigma 0.1 m/s, above the plausible size of what the
+    flight determines (322): the passes leave them at the prior (``determined_step``), and their estimates are one
+    linear pass's about it, 0.019 CRLB std off for ``sa_x`` (every other coefficient within 0.001)."""
     imu, trk, D = noise_free
     it = _separate(imu, trk, spec=NOISE_FREE)
     res = it.result
@@ -105,7 +108,8 @@ def test_one_linear_pass_is_biased_by_many_crlb_std_the_iteration_converges_to_t
     z_it = (res.estimate - D) / crlb
     assert np.abs(z_one).max() > 5.0, z_one  # MEMS errors are not linear over 30 s
     assert it.success and res.diagnostics["iterations"]["converged"]
-    assert np.abs(z_it).max() <= 0.01, z_it
+    assert len(passes[-1]["left_out"]) == 2 and all(c["std"] > 322.0 for c in passes[-1]["left_out"])
+    assert np.abs(z_it).max() <= 0.025, z_it
     assert len(passes) >= 3 and passes[-1]["max_z"] < 0.1 <= passes[0]["max_z"]
     assert "iterations:" in it.text() and "converged" in it.text()
     assert np.allclose([passes[-1]["estimate"][n] for n in res.names], res.estimate, rtol=1e-12, atol=0)
@@ -304,7 +308,7 @@ def test_stale_tracking_is_screened_once_and_left_out_of_every_pass(truth_flight
     res = out.result
     assert out.success and res.diagnostics["iterations"]["converged"], out.message
     crlb = np.array([res.diagnostics["crlb_std"][n] for n in res.names])
-    assert np.abs((res.estimate - D) / crlb).max() <= 0.01
+    assert np.abs((res.estimate - D) / crlb).max() <= 0.025  # two combinations at the prior: the first test
 
 
 def test_an_imu_gap_is_named_by_the_failure_and_its_warnings_are_said_once(truth_flight, tmp_path):
@@ -467,9 +471,10 @@ def test_the_curvature_at_one_std_is_carried_by_the_std_and_said(misaligned_pass
 def test_a_stationary_pad_record_is_iterated_only_along_what_it_determines(tmp_path):
     """16 s at rest on the pad with a quiet IMU (5 Hz) and 1 Hz tracking at rest: the record determines a few
     combinations (the vertical accelerometer, the levelled gyros' drift), none of the scale factors. The full
-    Gauss-Newton step along those it does not determine is noise of 1e3-1e10 declared magnitudes (a scale factor of
-    -2e5; a bias of g that the levelling refuses): each such step is rejected, the widest combinations are left out,
-    and the iteration converges along the others with a warning that says so; every estimate is within its std (the
+    Gauss-Newton step along those it does not determine would be noise of 1e3-1e10 declared magnitudes (a scale factor
+    of -2e5; a bias of g that the levelling refuses): they are left at the prior (their std above the plausible size of
+    what the record determines), and the iteration converges along the others with a warning that says so; every
+    estimate is within its std (the
     truth is 0). The estimates along what the record does not determine are far beyond what a linear error model
     describes (scale factors of 1e7 ppm): never a success, the failure says what the record determines."""
     from casep.estimators.registry import STATUS_MAGNITUDE
@@ -497,8 +502,8 @@ def test_a_stationary_pad_record_is_iterated_only_along_what_it_determines(tmp_p
     assert not out.success and res.status == STATUS_MAGNITUDE and it["converged"], out.message
     assert "beyond what a linear error model can describe" in out.message
     assert "does not determine them" in out.message
-    assert any("leaves the linear model" in str(w.message) for w in said)
-    assert it["limit"] is not None and any(p.get("rejected") for p in it["passes"])
+    assert any("are left at the prior" in str(w.message) for w in said)
+    assert it["limit"] is not None
     left = it["passes"][-1]["left_out"]
     assert 1 <= len(left) < 13 and all(c["z"] < SIGNIFICANT and c["std"] > it["limit"] for c in left)
     assert np.all(np.isfinite(res.estimate)) and np.all(np.abs(res.estimate) / res.std < 4.0)
