@@ -72,7 +72,11 @@ columns) or a combination the result says the flight does not determine (the str
 :func:`casep.checks.tracking_quality.determined`) says nothing about the IMU: correcting the record by the
 solver's value there, or by 0 in place of a missing estimate (which drops the determined combination it
 is part of), would move the linearisation where the data do not say. :func:`determined_step` builds ``d_k``
-from the determined combinations only and measures it in their std.
+from the determined combinations only and measures it in their std. Nor does a combination whose std exceeds the
+plausible size of what the record determines (:func:`_determined_size`): it stays at the prior (0), so that the
+combinations the result states, gradients about ``D_k``, are evaluated at a plausible point (a pad record then a
+3 s boost under ``strapdown33``: corrections of 1e9 declared magnitudes and stated combinations 59 std off the truth
+before). Their std carry the record's own noise as the coefficients' do (:func:`combination_imu_noise`).
 
 Far from convergence the passes are solved by OLS under white noise, then as requested; once every
 correction is below :data:`ACCELERATE_BELOW` std, ``D_{k+1}`` is the secant (Anderson, depth one)
@@ -81,7 +85,8 @@ determined combination is below :data:`ITERATE_TOL` (0.1) of its std, ``|g . d_k
 for every ``g`` the result states as determined (:func:`determined_step`; Gauss-Newton with S_V as the
 Jacobian: its fixed point makes the residual orthogonal to S_V about the corrected trajectory, the
 noise-free truth included), or when the correction is at the rounding level of the coefficients
-(:func:`_at_rounding`: noise-free tracking makes every std rounding too), and fails (status
+(:func:`_at_rounding`: noise-free tracking makes every std rounding too) or the pass's rows are at the rounding
+level of the data and no longer fall (:meth:`_Run.at_rounding`, :data:`STALL`), and fails (status
 :data:`STATUS_NOT_CONVERGED`) after ``max_iterations`` passes or when a correction cannot be
 applied with nothing left to leave out (the message names an IMU gap whose bounds are large against
 the tracking noise: :func:`_gap_clause`). The estimate is ``D_k + d_k`` of the last pass, the std and
@@ -90,7 +95,8 @@ the combination it was).
 
 **Only where the linear model holds** (:meth:`_Run.trial`). A step whose correction cannot be applied (the
 record does not invert, the corrected pad is no longer at rest) or after which the residual's RMS is more than
-:data:`WORSE` times what it was is rejected, and the same pass steps again without the combinations whose std (in
+:data:`WORSE` times what it was (and above the data's rounding level: :meth:`_Run.at_rounding`) is
+rejected, and the same pass steps again without the combinations whose std (in
 the declared magnitudes) exceeds the widest one it stepped along over :data:`NARROW` (:func:`determined_step`'s
 ``limit``: the truncated Gauss-Newton step, the damping in the declared magnitudes, the stop rule still in std).
 Full rank does not make a record informative: on a stationary pad every coefficient has an estimate, and the full
@@ -136,7 +142,7 @@ if TYPE_CHECKING:
 
 __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
            "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_RELIABLE", "CURVATURE_DRAWS", "WORSE", "NARROW",
-           "SIGNIFICANT", "std_shift", "DETERMINED_DRAWS"]
+           "SIGNIFICANT", "std_shift", "DETERMINED_DRAWS", "STALL", "combination_imu_noise"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -627,6 +633,9 @@ class _Run:
         out = dataclasses.replace(res, estimate=estimate, diagnostics=diag, solution=solution,
                                   **model_record(self.base))
         out = self.with_noise(out, problem, flight)
+        if passes[-1].get("determined"):  # the stated combinations' std carry the record's noise as the coefficients'
+            passes[-1]["determined"] = self.combinations_with_noise(passes[-1]["determined"], out, problem, flight,
+                                                                    model.scales)
         if iterate and failure is None and not _stopped(passes[-1], tol) and out.success:
             failure = f"failed: the iteration stopped at pass {len(passes)} before converging"
         if failure is not None:
@@ -655,6 +664,22 @@ class _Run:
         """`res` with the record's own noise in its std, the pad levelling's start tilt with it
         (:func:`with_imu_noise`)."""
         return with_imu_noise(res, problem, flight, (self.window, self.levelling_jacobian()))
+
+    def combinations_with_noise(self, combos: list[dict], res: EstimateResult, problem: Any, flight: FlightData,
+                                scales: dict[str, float]) -> list[dict]:
+        """The combinations the passes stepped along (``passes[-1]["determined"]``) with the record's own noise in
+        their std, as :meth:`with_noise` puts it in the coefficients' (:func:`combination_imu_noise`; `res` the
+        result with it, its noise account holding the tracking noise refitted beside it). Each keeps its std without
+        it as ``std_tracking_noise_only``; unchanged when the flight does not hold the IMU's samples."""
+        scale = np.array([scales.get(nm, 1.0) for nm in res.names], dtype=float)
+        W = np.array([c["weights"] for c in combos], dtype=float)
+        var = combination_imu_noise(W, scale, res, problem, flight, (self.window, self.levelling_jacobian()))
+        if var is None:
+            return combos
+        trk, imu = var
+        trk = np.array([c["std"] ** 2 for c in combos]) if trk is None else trk
+        return [{**c, "std_tracking_noise_only": c["std"], "std": float(math.sqrt(a + b))}
+                for c, a, b in zip(combos, trk, imu)]
 
     def gap_clause(self, sigma: float) -> str:
         """What a failed iteration says of the record's gaps (:func:`_gap_clause`)."""
@@ -1094,14 +1119,14 @@ def _determined_size(sig: np.ndarray, estimate: np.ndarray) -> float:
     """The std (declared magnitudes) up to which a combination of the spectrum ``(sig, q)`` (:func:`_scaled_spectrum`)
     is determined, its estimates `estimate` (``q_i . (D / scale)``): the plausible size of the coefficients
     (:func:`casep.checks.tracking_quality.plausible_size`) from the combinations the record determines by themselves,
-    a std below the declared magnitude (:func:`casep.checks.tracking_quality.determined`'s rule) or an estimate above
-    :data:`SIGNIFICANT` of its std (not 0 whatever the prior: a MEMS unit under a navigation-grade model). A
-    combination whose std exceeds it says less of the instrument than its plausible size: the data do not determine
-    it. The fit's null space (``sig = 0``) is neither."""
+    a std below the declared magnitude (:func:`casep.checks.tracking_quality.determined`'s rule; their estimates of
+    hundreds of declared magnitudes make it a MEMS unit's under a navigation-grade model). A combination whose std
+    exceeds it says less of the instrument than its plausible size: the data do not determine it. The fit's null
+    space (``sig = 0``) is neither."""
     from casep.checks.tracking_quality import plausible_size
 
     est = np.abs(np.asarray(estimate, dtype=float))
-    own = (sig > 0) & np.isfinite(sig) & np.isfinite(est) & ((sig < 1.0) | (est > SIGNIFICANT * sig))
+    own = (sig > 0) & np.isfinite(sig) & np.isfinite(est) & (sig < 1.0)
     return plausible_size([{"estimate": float(v)} for v in est[own]])
 
 
@@ -1283,6 +1308,45 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
 
     C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
     return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit)
+
+
+def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: Any, flight: FlightData,
+                          levelling: tuple | None = None) -> tuple[np.ndarray | None, np.ndarray] | None:
+    """The variances of the combinations ``W (D / scale)`` (rows of `W`, declared magnitudes) under the noise of
+    :func:`imu_noise_budget`: ``(tracking part, IMU part)``, each (m,); the tracking part None when `res` (the result
+    :func:`with_imu_noise` made) holds no tracking noise refitted beside the IMU's (then the fit's own std stand). None
+    when the flight does not hold the IMU's samples or `res` no noise model.
+
+    The coefficients' budget forms ``A G (A G)^T`` whole, and on a pad at rest its entries along what the record does
+    not determine (1e10 declared magnitudes and more) round away the variance of what it does; so each combination's
+    estimator row is taken on its own: ``a = W P``, ``P`` the GLS estimator of ``D / scale`` (the pseudo-inverse of
+    the whitened design in the declared magnitudes, carried to the raw rows by
+    :func:`casep.noise.model.whiten_transpose`, as :func:`imu_noise_budget` does), its IMU variance ``||a G||^2``
+    (:func:`casep.checks.tracking_quality.imu_noise_effect`, with `levelling`) and its tracking variance ``a
+    Sigma_track a^T`` (:func:`casep.noise.known.tracking_covariance_times`)."""
+    from casep.checks.tracking_quality import imu_noise_effect
+    from casep.noise.known import tracking_covariance_times
+    from casep.noise.model import NoiseModel, whiten, whiten_transpose
+
+    nd = res.diagnostics.get("noise")
+    if problem.t is None or not isinstance(nd, dict) or "axes" not in nd or "imu" not in nd:
+        return None
+    t = np.asarray(problem.t, dtype=float)
+    S = problem.sv()
+    N, _, n = S.shape
+    m = W.shape[0]
+    U = whiten(S, np.zeros((N, 3)), t, NoiseModel.from_dict(nd))[0].reshape(3 * N, n) * scale
+    a = W @ np.linalg.pinv(U)  # (m, 3N): the combinations' estimators on the whitened rows
+    a = whiten_transpose(a.T.reshape(N, 3, m), t, NoiseModel.from_dict(nd)).reshape(3 * N, m).T  # ... on the raw rows
+    AG = imu_noise_effect(flight, t, a, levelling)
+    if AG is None:
+        return None
+    refit = nd["imu"].get("tracking_noise")
+    trk = None
+    if refit is not None:
+        trk = np.einsum("ij,ji->i", a, tracking_covariance_times(a.T.reshape(N, 3, m), t,
+                                                                 NoiseModel.from_dict(refit)).reshape(3 * N, m))
+    return trk, np.sum(AG**2, axis=1)
 
 
 def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling: tuple | None) -> Any:
