@@ -663,7 +663,12 @@ class _Run:
     def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
         """`res` with the record's own noise in its std, the pad levelling's start tilt with it
         (:func:`with_imu_noise`)."""
-        return with_imu_noise(res, problem, flight, (self.window, self.levelling_jacobian()))
+        return with_imu_noise(res, problem, flight, self.levelling())
+
+    def levelling(self) -> tuple | None:
+        """The pad window and the alignment's derivative along its mean specific force (:meth:`levelling_jacobian`):
+        the start tilt the accelerometer noise leaves (:func:`imu_noise_budget`'s `levelling`)."""
+        return self.window, self.levelling_jacobian()
 
     def combinations_with_noise(self, combos: list[dict], res: EstimateResult, problem: Any, flight: FlightData,
                                 scales: dict[str, float]) -> list[dict]:
@@ -673,7 +678,7 @@ class _Run:
         it as ``std_tracking_noise_only``; unchanged when the flight does not hold the IMU's samples."""
         scale = np.array([scales.get(nm, 1.0) for nm in res.names], dtype=float)
         W = np.array([c["weights"] for c in combos], dtype=float)
-        var = combination_imu_noise(W, scale, res, problem, flight, (self.window, self.levelling_jacobian()))
+        var = combination_imu_noise(W, scale, res, problem, flight, self.levelling())
         if var is None:
             return combos
         trk, imu = var
@@ -1085,9 +1090,12 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
         np.asarray(res.solution.null_space, dtype=float).reshape(len(names), -1)
     if C is not None and np.all(np.isfinite(C)) and np.all(np.isfinite(x)):
         sig, q = _scaled_spectrum(C, scale, problem, float(res.sigma), N.shape[1])
-        if about is not None:
-            limit = min(limit, _determined_size(sig, q.T @ ((np.asarray(about, dtype=float) + x) / scale)))
         out = sig > limit
+        if about is not None:  # what the record determines, the IMU's noise in the std that judge it
+            imu = combination_imu_noise(q.T, scale, res, problem, flight)
+            eff = sig if imu is None else np.where(sig > 0, np.sqrt(sig**2 + imu[1]), 0.0)
+            size = _determined_size(eff, q.T @ ((np.asarray(about, dtype=float) + x) / scale))
+            out, limit = out | (eff > size), min(limit, size)
         widest = float(sig[~out].max(initial=0.0))
         zq = q.T @ (x / scale) / np.where(sig > 0, sig, np.inf)  # each combination's correction in its std
         beyond = [(float(sig[i]), float(abs(zq[i])), _combination(names, q[:, i])) for i in np.flatnonzero(out)]
@@ -1119,14 +1127,17 @@ def _determined_size(sig: np.ndarray, estimate: np.ndarray) -> float:
     """The std (declared magnitudes) up to which a combination of the spectrum ``(sig, q)`` (:func:`_scaled_spectrum`)
     is determined, its estimates `estimate` (``q_i . (D / scale)``): the plausible size of the coefficients
     (:func:`casep.checks.tracking_quality.plausible_size`) from the combinations the record determines by themselves,
-    a std below the declared magnitude (:func:`casep.checks.tracking_quality.determined`'s rule; their estimates of
-    hundreds of declared magnitudes make it a MEMS unit's under a navigation-grade model). A combination whose std
-    exceeds it says less of the instrument than its plausible size: the data do not determine it. The fit's null
-    space (``sig = 0``) is neither."""
+    a std below the declared magnitude (:func:`casep.checks.tracking_quality.determined`'s rule) or an estimate above
+    :data:`SIGNIFICANT` of its std (not 0 whatever the prior: a MEMS unit under a navigation-grade model, whose gyro
+    biases of hundreds of declared magnitudes are estimated to tens). A combination whose std exceeds it says less of
+    the instrument than its plausible size: the data do not determine it. The fit's null space (``sig = 0``) is
+    neither. `sig` must hold the IMU's noise (:func:`combination_imu_noise`): with the tracking's alone, a gyro noisy
+    enough to tilt a pad by more than its tracking holds made noise look significant, and the steps walked to 550
+    declared magnitudes."""
     from casep.checks.tracking_quality import plausible_size
 
     est = np.abs(np.asarray(estimate, dtype=float))
-    own = (sig > 0) & np.isfinite(sig) & np.isfinite(est) & (sig < 1.0)
+    own = (sig > 0) & np.isfinite(sig) & np.isfinite(est) & ((sig < 1.0) | (est > SIGNIFICANT * sig))
     return plausible_size([{"estimate": float(v)} for v in est[own]])
 
 
@@ -1314,8 +1325,8 @@ def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult,
                           levelling: tuple | None = None) -> tuple[np.ndarray | None, np.ndarray] | None:
     """The variances of the combinations ``W (D / scale)`` (rows of `W`, declared magnitudes) under the noise of
     :func:`imu_noise_budget`: ``(tracking part, IMU part)``, each (m,); the tracking part None when `res` (the result
-    :func:`with_imu_noise` made) holds no tracking noise refitted beside the IMU's (then the fit's own std stand). None
-    when the flight does not hold the IMU's samples or `res` no noise model.
+    :func:`with_imu_noise` made, or a pass's fit) holds no tracking noise refitted beside the IMU's (then the fit's own
+    std stand). None when the flight does not hold the IMU's samples or `res` no noise model.
 
     The coefficients' budget forms ``A G (A G)^T`` whole, and on a pad at rest its entries along what the record does
     not determine (1e10 declared magnitudes and more) round away the variance of what it does; so each combination's
@@ -1329,7 +1340,7 @@ def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult,
     from casep.noise.model import NoiseModel, whiten, whiten_transpose
 
     nd = res.diagnostics.get("noise")
-    if problem.t is None or not isinstance(nd, dict) or "axes" not in nd or "imu" not in nd:
+    if problem.t is None or not isinstance(nd, dict) or "axes" not in nd:
         return None
     t = np.asarray(problem.t, dtype=float)
     S = problem.sv()
@@ -1341,7 +1352,7 @@ def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult,
     AG = imu_noise_effect(flight, t, a, levelling)
     if AG is None:
         return None
-    refit = nd["imu"].get("tracking_noise")
+    refit = (nd.get("imu") or {}).get("tracking_noise")
     trk = None
     if refit is not None:
         trk = np.einsum("ij,ji->i", a, tracking_covariance_times(a.T.reshape(N, 3, m), t,
