@@ -98,7 +98,12 @@ def test_one_linear_pass_is_biased_by_many_crlb_std_the_iteration_converges_to_t
     """The first pass is the one linear pass (its estimate recorded with the passes). Two combinations of the roll-axis
     gyro terms have std of 920 and 4.9e3 declared magnitudes at sigma 0.1 m/s, above the plausible size of what the
     flight determines (322): the passes leave them at the prior (``determined_step``), and their estimates are one
-    linear pass's about it, 0.019 CRLB std off for ``sa_x`` (every other coefficient within 0.001)."""
+    linear pass's about it, 0.019 CRLB std off for ``sa_x`` (every other coefficient within 0.001): the 0.01 CRLB std
+    of noise-free recovery holds for the 14 others. Not the data's rounding (the others are at 1e-4 to 1e-3): the
+    second order of linearising at 0 along two combinations whose truth is 132 and -51 declared magnitudes, which
+    at the sigma given the record does not determine (std 3 and 15 times the plausible size). Stepped to their
+    estimates (133 and -50, within the plausible size) ``sa_x`` was 0.011 off, the stop rule's 0.1 std then the
+    limit (main's passes, stepping along everything, stopped at 0.018 std and reached 1e-4)."""
     imu, trk, D = noise_free
     it = _separate(imu, trk, spec=NOISE_FREE)
     res = it.result
@@ -109,7 +114,8 @@ def test_one_linear_pass_is_biased_by_many_crlb_std_the_iteration_converges_to_t
     assert np.abs(z_one).max() > 5.0, z_one  # MEMS errors are not linear over 30 s
     assert it.success and res.diagnostics["iterations"]["converged"]
     assert len(passes[-1]["left_out"]) == 2 and all(c["std"] > 322.0 for c in passes[-1]["left_out"])
-    assert np.abs(z_it).max() <= 0.025, z_it
+    rest = [i for i, n in enumerate(res.names) if n != "sa_x"]
+    assert np.abs(z_it[rest]).max() <= 0.01 and abs(z_it[res.names.index("sa_x")]) <= 0.025, z_it
     assert len(passes) >= 3 and passes[-1]["max_z"] < 0.1 <= passes[0]["max_z"]
     assert "iterations:" in it.text() and "converged" in it.text()
     assert np.allclose([passes[-1]["estimate"][n] for n in res.names], res.estimate, rtol=1e-12, atol=0)
@@ -313,7 +319,10 @@ def test_stale_tracking_is_screened_once_and_left_out_of_every_pass(truth_flight
     res = out.result
     assert out.success and res.diagnostics["iterations"]["converged"], out.message
     crlb = np.array([res.diagnostics["crlb_std"][n] for n in res.names])
-    assert np.abs((res.estimate - D) / crlb).max() <= 0.025  # two combinations at the prior: the first test
+    # sa_x 0.019 off, the others within 0.001: two combinations at the prior (the first test says why)
+    z = (res.estimate - D) / crlb
+    rest = [i for i, n in enumerate(res.names) if n != "sa_x"]
+    assert np.abs(z[rest]).max() <= 0.01 and abs(z[res.names.index("sa_x")]) <= 0.025, z
 
 
 def test_an_imu_gap_is_named_by_the_failure_and_its_warnings_are_said_once(truth_flight, tmp_path):
