@@ -660,8 +660,7 @@ class _Run:
         out = judge_tracking(out, flight, problem, model.scales, about=D, widen=widen)
         out.diagnostics["iterations"]["limit"] = float(self.limit) if np.isfinite(self.limit) else None
         # what the record leaves undetermined is said with every result that has estimates, failed or not
-        said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", _plausible(D, model.scales,
-                                                                                                  out.names))) \
+        said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf)) \
             if iterate and (out.solution is not None or np.any(np.isfinite(out.estimate))) else None
         if said:
             from casep.exceptions import NonlinearityWarning
@@ -1249,10 +1248,11 @@ def _outside_failure(step: Step, rejected: list[dict], size: float = np.inf) -> 
     """Why a converged iteration fails: a combination left out of the step (:func:`determined_step`'s `limit`,
     set by a rejected step: `rejected`) whose correction is above :data:`SIGNIFICANT` std. The record determines it,
     and the model is not linear over its size: the errors are too large (None when every one left out is below).
-    One whose std exceeds the coefficients' plausible `size` (declared magnitudes, :func:`_plausible`) is not
-    determined whatever its correction (the rule of :func:`casep.checks.tracking_quality.determined`): on a pad at
-    rest under ``strapdown33`` such combinations have std of 1e6 declared magnitudes, and their corrections in the
-    white-noise std of the design (:func:`_scaled_spectrum`) say nothing of the instrument."""
+    One whose std exceeds the coefficients' plausible `size` (declared magnitudes: the one the step left
+    combinations out by, :func:`_step_size`) is not determined whatever its correction (the rule of
+    :func:`casep.checks.tracking_quality.determined`): on a pad at rest under ``strapdown33`` such combinations have
+    std of 1e6 declared magnitudes, and their corrections in the white-noise std of the design
+    (:func:`_scaled_spectrum`) say nothing of the instrument."""
     big = [(sd, z, nm) for sd, z, nm in step.beyond if z > SIGNIFICANT and sd <= size]
     if not big:
         return None
