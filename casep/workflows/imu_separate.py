@@ -72,7 +72,15 @@ columns) or a combination the result says the flight does not determine (the str
 :func:`casep.checks.tracking_quality.determined`) says nothing about the IMU: correcting the record by the
 solver's value there, or by 0 in place of a missing estimate (which drops the determined combination it
 is part of), would move the linearisation where the data do not say. :func:`determined_step` builds ``d_k``
-from the determined combinations only and measures it in their std.
+from the determined combinations only and measures it in their std. Nor does a combination whose std exceeds the
+plausible size of what the record determines (:func:`_determined_size`): it stays at the prior (0), so that the
+combinations the result states, gradients about ``D_k``, are evaluated at a plausible point (a pad record then a 3 s
+boost under ``strapdown33``: corrections of 1e9 declared magnitudes and stated combinations 59 std off the truth
+before). The std that leave a combination out are the ones its left-out correction is judged by
+(:func:`_outside_failure`) and the stop rule reads: the tracking's (the record's IMU noise is the same in every pass;
+a combination the tracking determines to 0.009 declared magnitudes is never left out because the record's noise,
+measured on a moving telemetry's second differences, puts its std at 1); the stated combinations' std carry the
+record's own noise as the coefficients' do (:func:`combination_imu_noise`).
 
 Far from convergence the passes are solved by OLS under white noise, then as requested; once every
 correction is below :data:`ACCELERATE_BELOW` std, ``D_{k+1}`` is the secant (Anderson, depth one)
@@ -81,7 +89,8 @@ determined combination is below :data:`ITERATE_TOL` (0.1) of its std, ``|g . d_k
 for every ``g`` the result states as determined (:func:`determined_step`; Gauss-Newton with S_V as the
 Jacobian: its fixed point makes the residual orthogonal to S_V about the corrected trajectory, the
 noise-free truth included), or when the correction is at the rounding level of the coefficients
-(:func:`_at_rounding`: noise-free tracking makes every std rounding too), and fails (status
+(:func:`_at_rounding`: noise-free tracking makes every std rounding too) or the pass's rows are at the rounding
+level of the data and no longer fall (:meth:`_Run.at_rounding`, :data:`STALL`), and fails (status
 :data:`STATUS_NOT_CONVERGED`) after ``max_iterations`` passes or when a correction cannot be
 applied with nothing left to leave out (the message names an IMU gap whose bounds are large against
 the tracking noise: :func:`_gap_clause`). The estimate is ``D_k + d_k`` of the last pass, the std and
@@ -90,7 +99,8 @@ the combination it was).
 
 **Only where the linear model holds** (:meth:`_Run.trial`). A step whose correction cannot be applied (the
 record does not invert, the corrected pad is no longer at rest) or after which the residual's RMS is more than
-:data:`WORSE` times what it was is rejected, and the same pass steps again without the combinations whose std (in
+:data:`WORSE` times what it was (and above the data's rounding level: :meth:`_Run.at_rounding`) is
+rejected, and the same pass steps again without the combinations whose std (in
 the declared magnitudes) exceeds the widest one it stepped along over :data:`NARROW` (:func:`determined_step`'s
 ``limit``: the truncated Gauss-Newton step, the damping in the declared magnitudes, the stop rule still in std).
 Full rank does not make a record informative: on a stationary pad every coefficient has an estimate, and the full
@@ -105,7 +115,8 @@ hundreds of declared magnitudes; the reviewer's 60 s pad record wandered for 17 
 and failed on the levelling, and with the spectrum of the design converges in 5 passes along the 4 combinations it
 determines.
 What is left out is judged when the passes converge: a combination whose correction is above :data:`SIGNIFICANT`
-std and whose std is within the coefficients' plausible size (:func:`_plausible`) is determined but not linear over
+std and whose std is within the coefficients' plausible size (the one it was left out by: :func:`_step_size`) is
+determined but not linear over
 its size (failed); otherwise the record does not determine it, and a :class:`~casep.exceptions.NonlinearityWarning`
 says how many combinations it determines and which it does not (their estimates are one linear pass's, their std
 linear), with any result that has a solution, failed or not; ``diagnostics["iterations"]["passes"][-1]["determined"]``
@@ -136,7 +147,7 @@ if TYPE_CHECKING:
 
 __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
            "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_RELIABLE", "CURVATURE_DRAWS", "WORSE", "NARROW",
-           "SIGNIFICANT", "std_shift", "DETERMINED_DRAWS", "FAIL_SHIFT",
+           "SIGNIFICANT", "std_shift", "DETERMINED_DRAWS", "FAIL_SHIFT", "STALL", "combination_imu_noise",
            "linearisation_shift", "linearisation_record", "one_pass_judged"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
@@ -162,6 +173,9 @@ NARROW = 10.0
 #: A linear result kept (``iterate=False``) whose second-order remainder moves it by more than this (std) fails
 #: (:func:`one_pass_judged`).
 FAIL_SHIFT = 3.0
+#: A noise-free record has converged when a pass's rows are at the data's rounding level and above this fraction of
+#: the pass before's (:meth:`_Run.at_rounding`; the passes no longer lower them).
+STALL = 0.1
 #: A combination left out whose correction exceeds this many of its std: the iteration fails (it is determined, and
 #: the model is not linear over its size); below it, the record does not determine it (said, not iterated).
 SIGNIFICANT = 4.0
@@ -325,6 +339,7 @@ class _Run:
         self.screen: dict | None = None  # the first pass's tracking screen, kept
         self.inputs_said = False  # whether the inputs' warnings were said before the first pass
         self.limit = np.inf  # the linear region of the last step (:func:`determined_step`), declared magnitudes
+        self.data_scale: float | None = None  # the largest of the first pass's rows (m/s): the data's scale
 
     # ------------------------------------------------------------------ one pass
     def navigate(self, D: np.ndarray) -> NavigationResult:
@@ -516,11 +531,25 @@ class _Run:
             if before is None:
                 return out
             rms = [_rms(p.y) for p in (before, out[4])]
-            if rms[1] <= WORSE * rms[0] or out[4].is_noise_free(rms[1]):
+            if rms[1] <= WORSE * rms[0] or self.at_rounding(rms[1]):
                 return out
             why = f"the residual grew from {rms[0]:.3g} to {rms[1]:.3g} m/s RMS"
         self.nav, self.imu_k, self.model_k, self.q_aligned, self.C_tb = state
         return why
+
+    def at_rounding(self, rms: float) -> bool:
+        """Whether a pass's rows of RMS `rms` (m/s) are at the rounding level of the data, the first pass's rows (the
+        velocity errors before any correction): :func:`casep.regression.problem.is_rounding_level`, the project's one
+        noise-free rule, on their largest magnitude. A later pass's own rows are residuals, and their rounding level
+        would be that of the residual itself: on a noise-free pad record (rows of 0.13 m/s before the first pass,
+        1e-11 to 8e-11 m/s from the fourth on) the passes rejected steps that took the rows from 1e-11 to 1e-9 m/s as
+        growing a hundredfold and never stopped. Without the pair's interpolation floor
+        (:meth:`casep.regression.problem.Problem.is_noise_free`): it bounds what the pair of files holds, not where the
+        passes' fixed point is (on the noise-free MEMS boost of the tests it is 3.3e-3 m/s, and rows below it left
+        coefficients 1e-4 off)."""
+        from casep.regression.problem import is_rounding_level
+
+        return self.data_scale is not None and is_rounding_level(float(rms), self.data_scale)
 
     def iterate(self, iterate: bool, tol: float, max_iterations: int) -> ImuSeparation:
         """Passes until the correction of every determined combination is below `tol` std (:func:`determined_step`;
@@ -534,19 +563,28 @@ class _Run:
         fast = _fast_spec(self.spec) if iterate else None
         spec = fast or self.spec
         res, nav, flight, model, problem = self.solve(None, spec)
+        self.data_scale = float(np.max(np.abs(problem.y), initial=0.0)) if problem.y is not None else None
         D = np.zeros(len(res.names))
         passes: list[dict] = []
         failure, last = None, None
         rejected: list[dict] = []  # the steps of this pass outside the linear model
         k, limit = 1, np.inf
+        rows_before = np.inf  # the RMS of the rows of the pass before (m/s)
         while True:
-            step = determined_step(res, problem, flight, model.scales, limit)
+            step = determined_step(res, problem, flight, model.scales, limit, about=D)
             how = "ols, white noise (while far)" if spec is fast else "as requested"
-            passes.append(_pass_record(k, res, step, D + step.d, how, _at_rounding(D, step, model.scales, res.names)))
+            # noise-free: the correction at the coefficients' rounding, or the rows at `D` at the data's and no longer
+            # falling (to under STALL of the pass before's): `D` fits the data to their rounding, a fixed point
+            rows = _rms(problem.y)
+            rounding = _at_rounding(D, step, model.scales, res.names) or (self.at_rounding(rows)
+                                                                           and rows > STALL * rows_before)
+            passes.append(_pass_record(k, res, step, D + res.fitted_coefficients(), how, rounding))
             if rejected:  # the same pass, its step narrowed
                 passes[-1]["rejected"] = list(rejected)
             if step.beyond:
                 passes[-1]["left_out"] = [{"std": sd, "z": z, "combination": nm} for sd, z, nm in step.beyond]
+                passes[-1]["plausible_size"] = _step_size(step, D, model.scales, res.names)
+            if step.kept:  # some combination left out: the ones stepped along, stated
                 scale = np.array([model.scales.get(nm, 1.0) for nm in res.names])
                 passes[-1]["determined"] = [{"std": sd, "weights": w.tolist(), "estimate": float(w @ ((D + step.d)
                                                                                                      / scale))}
@@ -555,7 +593,7 @@ class _Run:
                 break
             if _stopped(passes[-1], tol):
                 if spec is self.spec or step.combinations is not None:  # the stretches' combinations: any fit
-                    failure = _outside_failure(step, rejected, _plausible(D + step.d, model.scales, res.names))
+                    failure = _outside_failure(step, rejected, _step_size(step, D, model.scales, res.names))
                     break
                 spec, last = self.spec, None  # the same linearisation, solved as requested (another map)
                 res = _quiet_fit(problem, spec)
@@ -577,9 +615,9 @@ class _Run:
                 limit, last = step.widest / NARROW, None
                 continue
             last = (D, step.d) if near else None
-            D, k, rejected = D + move, k + 1, []
+            D, k, rejected, rows_before = D + move, k + 1, [], _rms(problem.y)
             res, nav, flight, model, problem = trial
-        self.limit = limit
+        self.limit = step.limit
         from casep.estimators.solve import fit
 
         res = fit(problem, self.spec)  # the last linearisation, judged (its warnings are the result's)
@@ -606,6 +644,9 @@ class _Run:
         out = dataclasses.replace(res, estimate=estimate, diagnostics=diag, solution=solution,
                                   **model_record(self.base))
         out = self.with_noise(out, problem, flight)
+        if passes[-1].get("determined"):  # the stated combinations' std carry the record's noise as the coefficients'
+            passes[-1]["determined"] = self.combinations_with_noise(passes[-1]["determined"], out, problem, flight,
+                                                                    model.scales)
         if iterate and failure is None and not _stopped(passes[-1], tol) and out.success:
             failure = f"failed: the iteration stopped at pass {len(passes)} before converging"
         if failure is not None:
@@ -619,7 +660,7 @@ class _Run:
         out = judge_tracking(out, flight, problem, model.scales, about=D, widen=widen)
         out.diagnostics["iterations"]["limit"] = float(self.limit) if np.isfinite(self.limit) else None
         # what the record leaves undetermined is said with every result that has estimates, failed or not
-        said = _outside_note(passes, len(out.names), _plausible(D, model.scales, out.names)) \
+        said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf)) \
             if iterate and (out.solution is not None or np.any(np.isfinite(out.estimate))) else None
         if said:
             from casep.exceptions import NonlinearityWarning
@@ -637,7 +678,28 @@ class _Run:
     def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
         """`res` with the record's own noise in its std, the pad levelling's start tilt with it
         (:func:`with_imu_noise`)."""
-        return with_imu_noise(res, problem, flight, (self.window, self.levelling_jacobian()))
+        return with_imu_noise(res, problem, flight, self.levelling())
+
+    def levelling(self) -> tuple | None:
+        """The pad window and the alignment's derivative along its mean specific force (:meth:`levelling_jacobian`):
+        the start tilt the accelerometer noise leaves (:func:`imu_noise_budget`'s `levelling`)."""
+        return self.window, self.levelling_jacobian()
+
+    def combinations_with_noise(self, combos: list[dict], res: EstimateResult, problem: Any, flight: FlightData,
+                                scales: dict[str, float]) -> list[dict]:
+        """The combinations the passes stepped along (``passes[-1]["determined"]``) with the record's own noise in
+        their std, as :meth:`with_noise` puts it in the coefficients' (:func:`combination_imu_noise`; `res` the
+        result with it, its noise account holding the tracking noise refitted beside it). Each keeps its std without
+        it as ``std_tracking_noise_only``; unchanged when the flight does not hold the IMU's samples."""
+        scale = np.array([scales.get(nm, 1.0) for nm in res.names], dtype=float)
+        W = np.array([c["weights"] for c in combos], dtype=float)
+        var = combination_imu_noise(W, scale, res, problem, flight, self.levelling())
+        if var is None:
+            return combos
+        trk, imu = var
+        trk = np.array([c["std"] ** 2 for c in combos]) if trk is None else trk
+        return [{**c, "std_tracking_noise_only": c["std"], "std": float(math.sqrt(a + b))}
+                for c, a, b in zip(combos, trk, imu)]
 
     def gap_clause(self, sigma: float) -> str:
         """What a failed iteration says of the record's gaps (:func:`_gap_clause`)."""
@@ -923,8 +985,9 @@ def _quiet_fit(problem: Any, spec: FitSpec) -> EstimateResult:
 def _pass_record(k: int, res: EstimateResult, step: Step, total: np.ndarray, how: str, rounding: bool = False) -> dict:
     """One pass for ``diagnostics["iterations"]``: the largest correction of a determined combination in its std
     (`step`), whose, every coefficient's |correction| / std (None where the flight does not determine it), the
-    combinations' (with the tracking's stretches), and the estimate after it (`total`, natural units; the first
-    pass's is the one linear pass's)."""
+    combinations' (with the tracking's stretches), and the pass's estimate (`total`, natural units: the coefficients
+    it was linearised about plus its whole linear solution, whatever its step was restricted to; the first pass's is
+    the one linear pass's)."""
     std = res.std if res.std is not None else np.full(len(res.names), np.nan)
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.abs(res.estimate) / std
@@ -960,6 +1023,11 @@ class Step:
         name.
     kept : list of (std, weights)
         The combinations stepped along (when some were left out): their std and weights on ``D / scale``.
+    limit : float
+        The std (declared magnitudes) above which combinations were left out: the `limit` asked, or the plausible
+        size of what the record determines when that is smaller (:func:`determined_step`).
+    size : float
+        That plausible size (:func:`_determined_size`; inf when the step did not judge it).
     """
 
     d: np.ndarray
@@ -970,10 +1038,12 @@ class Step:
     widest: float = np.inf
     beyond: list = field(default_factory=list)
     kept: list = field(default_factory=list)
+    limit: float = np.inf
+    size: float = np.inf
 
 
 def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scales: dict[str, float],
-                    limit: float = np.inf) -> Step:
+                    limit: float = np.inf, about: np.ndarray | None = None) -> Step:
     """The correction of one pass along the combinations the flight determines, and its size in their std.
 
     Two cases, one per statement the result makes of what the flight determines:
@@ -1008,6 +1078,21 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
         d = scale * sum_{sigma_i <= limit} (q_i . z) q_i
 
     and ``max_z`` is taken over what is left. ``limit = inf`` (the default) is the full Gauss-Newton step.
+
+    **What the record determines** (`about`: the coefficients the pass was linearised about, natural units; the
+    iteration's passes give it): the step is also limited to the combinations whose std is below the plausible size
+    of the coefficients (:func:`_determined_size`), so that what the record does not determine stays where the prior
+    puts it (0) and the passes linearise about a plausible point: on a pad record followed by a short boost under
+    ``strapdown33`` the full step took a gyro scale factor to 2.7e3 declared magnitudes (std 7e3), and the
+    combinations stated as determined, gradients about that point, were up to 59 of their std off the truth.
+    The std compared with that size are the ones the stop rule reads and :func:`_outside_failure` judges a left-out
+    correction by: the tracking's, the fit's own (``sig``). The record's IMU noise is the same in every pass (each
+    navigates the same record again), so it does not blur where the passes' fixed point is; it enters which
+    estimates count as evidence of the instrument's size (:func:`_determined_size`) and the std stated
+    (:meth:`_Run.combinations_with_noise`). With it in the std that leave combinations out, a clipped-gyro telemetry
+    (gyro noise measured on its own second differences, 3 times the noise written) had every combination left out,
+    ``ba_x`` among them at 0.0087 declared magnitudes (1.03 with the IMU's noise, the size 1.0), and failed on it
+    at 217 std of the tracking's.
     """
     from casep.checks.tracking_quality import determined, noise_problem
 
@@ -1026,19 +1111,29 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
     C = res.covariance if res.solution is None else res.solution.covariance
     std = res.std if res.std is not None else np.full(len(names), np.nan)
     P = np.eye(len(names))
-    widest, beyond, kept = np.inf, [], []
+    widest, beyond, kept, size = np.inf, [], [], np.inf
     N = np.zeros((len(names), 0)) if res.solution is None else \
         np.asarray(res.solution.null_space, dtype=float).reshape(len(names), -1)
     if C is not None and np.all(np.isfinite(C)) and np.all(np.isfinite(x)):
         sig, q = _scaled_spectrum(C, scale, problem, float(res.sigma), N.shape[1])
         out = sig > limit
+        if about is not None:  # what the record determines (the size: the IMU's noise in the std that judge it)
+            imu = combination_imu_noise(q.T, scale, res, problem, flight)
+            eff = sig if imu is None else np.where(sig > 0, np.sqrt(sig**2 + imu[1]), 0.0)
+            est = q.T @ ((np.asarray(about, dtype=float) + x) / scale)
+            size = _determined_size(eff, est)
+            out, limit = out | (sig > size), min(limit, size)
         widest = float(sig[~out].max(initial=0.0))
         zq = q.T @ (x / scale) / np.where(sig > 0, sig, np.inf)  # each combination's correction in its std
         beyond = [(float(sig[i]), float(abs(zq[i])), _combination(names, q[:, i])) for i in np.flatnonzero(out)]
         kept = [(float(sig[i]), q[:, i]) for i in np.flatnonzero(~out & (sig > 0))] if beyond else []
-        N = np.hstack([N, scale[:, None] * q[:, out]])  # left out as the null space is
+        on = ~out & (sig > 0)  # stepped along: determined, not the null space (sig 0) nor left out
+        x = scale * (q[:, on] @ (q[:, on].T @ (x / scale)))  # the part of the correction along them, nothing else
+        N = scale[:, None] * q[:, ~on]  # left out as the null space is
         C = _in_covariance(sig, q, scale, ~out)  # what is stepped along, without the rounding of what is not
-    if res.solution is not None or beyond:
+        Qn, _ = np.linalg.qr(N)
+        P = P - Qn @ Qn.T  # row j: the part of coefficient j the flight determines (P N = 0)
+    elif res.solution is not None:
         Q, _ = np.linalg.qr(N / scale[:, None])
         x = scale * (x / scale - Q @ (Q.T @ (x / scale)))
         Qn, _ = np.linalg.qr(N)
@@ -1051,7 +1146,27 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
             z = np.abs(P @ x) / np.sqrt(np.clip(np.einsum("ij,jk,ik->i", P, C, P), 0.0, None))
     zf = np.where(np.isfinite(z), z, 0.0)
     j = int(np.argmax(zf))
-    return Step(x, float(zf[j]), _combination(names, scale * P[j]), std, widest=widest, beyond=beyond, kept=kept)
+    return Step(x, float(zf[j]), _combination(names, scale * P[j]), std, widest=widest, beyond=beyond, kept=kept,
+                limit=float(limit), size=float(size))
+
+
+def _determined_size(sig: np.ndarray, estimate: np.ndarray) -> float:
+    """The std (declared magnitudes) up to which a combination of the spectrum ``(sig, q)`` (:func:`_scaled_spectrum`)
+    is determined, its estimates `estimate` (``q_i . (D / scale)``): the plausible size of the coefficients
+    (:func:`casep.checks.tracking_quality.plausible_size`) from the combinations the record determines by themselves,
+    a std below the declared magnitude (:func:`casep.checks.tracking_quality.determined`'s rule) or an estimate above
+    :data:`SIGNIFICANT` of its std (not 0 whatever the prior: a MEMS unit under a navigation-grade model, whose gyro
+    biases of hundreds of declared magnitudes are estimated to tens). A combination whose std exceeds it says less of
+    the instrument than its plausible size: the data do not determine it (that std is the tracking's:
+    :func:`determined_step`). The fit's null space (``sig = 0``) is neither. `sig` must hold the IMU's noise
+    (:func:`combination_imu_noise`): whether an estimate is evidence of the instrument's size is a question of its
+    error, the record's noise included; with the tracking's alone, a gyro noisy enough to tilt a pad by more than its
+    tracking holds made noise look significant, and the steps walked to 550 declared magnitudes."""
+    from casep.checks.tracking_quality import plausible_size
+
+    est = np.abs(np.asarray(estimate, dtype=float))
+    own = (sig > 0) & np.isfinite(sig) & np.isfinite(est) & ((sig < 1.0) | (est > SIGNIFICANT * sig))
+    return plausible_size([{"estimate": float(v)} for v in est[own]])
 
 
 def _scaled_spectrum(C: np.ndarray, scale: np.ndarray, problem: Any = None, sigma: float = np.nan,
@@ -1068,20 +1183,24 @@ def _scaled_spectrum(C: np.ndarray, scale: np.ndarray, problem: Any = None, sigm
     ``S diag(scale) / sigma = U diag(s) V^T`` resolves the largest ``s`` to rounding: ``sigma_i = 1 / s_i``,
     ``q_i = V_i``; `sigma` the fit's noise, m/s: the white-noise covariance of the least-squares fit, which the
     passes far from convergence are; the `nulls` smallest ``s_i``: the fit's null space, ``sigma_i = 0``), times
-    ``sqrt(k)``, ``k >= 1`` the median over the combinations the covariance does resolve of ``q_i^T C q_i /
-    sigma_i^2``: a fit under correlated noise (Gauss-Markov tracking) has std that many times the white ones, 1 for
-    the white least-squares fit."""
+    ``sqrt(k)``, ``k >= 1`` the median over the combinations the covariance and the design both resolve of ``q_i^T C
+    q_i / sigma_i^2`` (1 when there is none): a fit under correlated noise (Gauss-Markov tracking) has std that many
+    times the white ones, 1 for the white least-squares fit."""
     lam, q = np.linalg.eigh(C / np.outer(scale, scale))
     if problem is None or problem.y is None or not sigma > 0 or np.sum(lam < lam.max() * _SPECTRUM_RTOL) <= nulls:
-        return np.sqrt(np.clip(lam, 0.0, None)), q
+        sig = np.sqrt(np.clip(lam, 0.0, None))
+        sig[:nulls] = 0.0  # the fit's null space: its smallest (rounding of either sign)
+        return sig, q
     S, y = problem.sv(), problem.y
     ok = np.all(np.isfinite(y), axis=1) & np.all(np.isfinite(S), axis=(1, 2))
     _, s, Vt = np.linalg.svd(S[ok].reshape(-1, scale.size) * scale / sigma, full_matrices=False)
     sig = 1.0 / np.where(s > 0, s, np.nan)
     sig[s.size - nulls:] = 0.0  # the fit's null space: its smallest
     sig, q = np.nan_to_num(sig, nan=np.inf), Vt.T
-    # the fit's noise model (correlated noise: std above the white ones), where the covariance resolves it
-    seen = np.isfinite(sig) & (sig**2 > lam.max() * _SPECTRUM_RTOL)
+    # the fit's noise model (correlated noise: std above the white ones), where the covariance resolves it and the
+    # design does too (a combination the design holds within _SPECTRUM_RTOL of its best variance: beyond, the
+    # covariance's value is its solver's rounding, 1e6-1e8 times the white one on a pad at rest)
+    seen = np.isfinite(sig) & (sig**2 > lam.max() * _SPECTRUM_RTOL) & (s**2 >= _SPECTRUM_RTOL * s.max() ** 2)
     ratio = np.einsum("ji,jk,ki->i", q[:, seen], C / np.outer(scale, scale), q[:, seen]) / sig[seen] ** 2
     return sig * math.sqrt(max(1.0, float(np.median(ratio)) if ratio.size else 1.0)), q
 
@@ -1096,19 +1215,22 @@ def _in_covariance(sig: np.ndarray, q: np.ndarray, scale: np.ndarray, keep: np.n
 
 def _outside_note(passes: list[dict], n: int, size: float = np.inf) -> str | None:
     """What an iteration says of the combinations its steps left out (:func:`determined_step`'s `limit`):
-    none, or how many, their std and names, why (the last rejected step), and that their estimates are linear.
+    none, or how many, their std and names, why (the last rejected step, or their std above the plausible size of
+    what the record determines), and that their estimates are linear.
     None when one of them is determined (:func:`_outside_failure`: std within the plausible `size`, correction above
     :data:`SIGNIFICANT` std): that is a failure, not a note."""
     left = passes[-1].get("left_out") or []
     why = [r["why"] for p in passes for r in p.get("rejected", [])]
-    if not left or not why or any(c["z"] > SIGNIFICANT and c["std"] <= size for c in left):
+    if not left or any(c["z"] > SIGNIFICANT and c["std"] <= size for c in left):
         return None
     sd = sorted(c["std"] for c in left)
     near = [c["z"] for c in left if c["std"] <= size]
     names = "; ".join(c["combination"] for c in sorted(left, key=lambda c: c["std"])[:3])
-    return (f"the record determines {n - len(left)} of {n} combinations of the coefficients well enough to iterate; a "
-            f"step along the other {len(left)} (std {sd[0]:.3g} to {sd[-1]:.3g} declared magnitudes: {names}"
-            f"{'; ...' if len(left) > 3 else ''}) leaves the linear model ({why[-1]}), and "
+    kept = len(passes[-1].get("determined") or [])  # the rest of the n: the fit's null space
+    return (f"the record determines {kept} of {n} combinations of the coefficients well enough to iterate; "
+            f"the other {len(left)} (std {sd[0]:.3g} to {sd[-1]:.3g} declared magnitudes: {names}"
+            f"{'; ...' if len(left) > 3 else ''}) are left at the prior (0)"
+            + (f", a step along them leaves the linear model ({why[-1]})" if why else "") + ", and "
             + (f"their corrections are noise (at most {max(near):.2g} std) or " if near else "")
             + f"their std exceed the coefficients' plausible size ({size:.3g} declared magnitudes): the record does "
             "not determine them. Their estimates are the last linear pass's, their std linear (not checked for "
@@ -1126,10 +1248,11 @@ def _outside_failure(step: Step, rejected: list[dict], size: float = np.inf) -> 
     """Why a converged iteration fails: a combination left out of the step (:func:`determined_step`'s `limit`,
     set by a rejected step: `rejected`) whose correction is above :data:`SIGNIFICANT` std. The record determines it,
     and the model is not linear over its size: the errors are too large (None when every one left out is below).
-    One whose std exceeds the coefficients' plausible `size` (declared magnitudes, :func:`_plausible`) is not
-    determined whatever its correction (the rule of :func:`casep.checks.tracking_quality.determined`): on a pad at
-    rest under ``strapdown33`` such combinations have std of 1e6 declared magnitudes, and their corrections in the
-    white-noise std of the design (:func:`_scaled_spectrum`) say nothing of the instrument."""
+    One whose std exceeds the coefficients' plausible `size` (declared magnitudes: the one the step left
+    combinations out by, :func:`_step_size`) is not determined whatever its correction (the rule of
+    :func:`casep.checks.tracking_quality.determined`): on a pad at rest under ``strapdown33`` such combinations have
+    std of 1e6 declared magnitudes, and their corrections in the white-noise std of the design
+    (:func:`_scaled_spectrum`) say nothing of the instrument."""
     big = [(sd, z, nm) for sd, z, nm in step.beyond if z > SIGNIFICANT and sd <= size]
     if not big:
         return None
@@ -1146,6 +1269,12 @@ def _plausible(D: np.ndarray, scales: dict[str, float], names: Any) -> float:
 
     scale = np.array([scales.get(nm, 1.0) for nm in names], dtype=float)[:D.size]
     return plausible_size([{"estimate": float(v)} for v in D / scale if np.isfinite(v)])
+
+
+def _step_size(step: Step, D: np.ndarray, scales: dict[str, float], names: Any) -> float:
+    """The plausible size (declared magnitudes) a step's left-out combinations are judged by: the one
+    :func:`determined_step` left them out by (``step.size``), else :func:`_plausible` of ``D + step.d``."""
+    return float(step.size) if np.isfinite(step.size) else _plausible(D + step.d, scales, names)
 
 
 def _combination(names: list[str], w: np.ndarray, top: int = 3) -> str:
@@ -1226,6 +1355,45 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
 
     C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
     return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, at_rest)
+
+
+def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: Any, flight: FlightData,
+                          levelling: tuple | None = None) -> tuple[np.ndarray | None, np.ndarray] | None:
+    """The variances of the combinations ``W (D / scale)`` (rows of `W`, declared magnitudes) under the noise of
+    :func:`imu_noise_budget`: ``(tracking part, IMU part)``, each (m,); the tracking part None when `res` (the result
+    :func:`with_imu_noise` made, or a pass's fit) holds no tracking noise refitted beside the IMU's (then the fit's own
+    std stand). None when the flight does not hold the IMU's samples or `res` no noise model.
+
+    The coefficients' budget forms ``A G (A G)^T`` whole, and on a pad at rest its entries along what the record does
+    not determine (1e10 declared magnitudes and more) round away the variance of what it does; so each combination's
+    estimator row is taken on its own: ``a = W P``, ``P`` the GLS estimator of ``D / scale`` (the pseudo-inverse of
+    the whitened design in the declared magnitudes, carried to the raw rows by
+    :func:`casep.noise.model.whiten_transpose`, as :func:`imu_noise_budget` does), its IMU variance ``||a G||^2``
+    (:func:`casep.checks.tracking_quality.imu_noise_effect`, with `levelling`) and its tracking variance ``a
+    Sigma_track a^T`` (:func:`casep.noise.known.tracking_covariance_times`)."""
+    from casep.checks.tracking_quality import imu_noise_effect
+    from casep.noise.known import tracking_covariance_times
+    from casep.noise.model import NoiseModel, whiten, whiten_transpose
+
+    nd = res.diagnostics.get("noise")
+    if problem.t is None or not isinstance(nd, dict) or "axes" not in nd:
+        return None
+    t = np.asarray(problem.t, dtype=float)
+    S = problem.sv()
+    N, _, n = S.shape
+    m = W.shape[0]
+    U = whiten(S, np.zeros((N, 3)), t, NoiseModel.from_dict(nd))[0].reshape(3 * N, n) * scale
+    a = W @ np.linalg.pinv(U)  # (m, 3N): the combinations' estimators on the whitened rows
+    a = whiten_transpose(a.T.reshape(N, 3, m), t, NoiseModel.from_dict(nd)).reshape(3 * N, m).T  # ... on the raw rows
+    AG = imu_noise_effect(flight, t, a, levelling)
+    if AG is None:
+        return None
+    refit = (nd.get("imu") or {}).get("tracking_noise")
+    trk = None
+    if refit is not None:
+        trk = np.einsum("ij,ji->i", a, tracking_covariance_times(a.T.reshape(N, 3, m), t,
+                                                                 NoiseModel.from_dict(refit)).reshape(3 * N, m))
+    return trk, np.sum(AG**2, axis=1)
 
 
 def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling: tuple | None) -> Any:

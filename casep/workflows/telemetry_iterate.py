@@ -285,6 +285,10 @@ class _TelemetryRun(_Run):
 
         return with_imu_noise(res, problem, flight)
 
+    def levelling(self) -> tuple | None:
+        """No levelling of casep's own: the telemetry's INS was aligned by its flight computer."""
+        return None
+
     def gap_clause(self, sigma: float) -> str:
         """No raw record with gaps of its own: a failed iteration names none."""
         return ""

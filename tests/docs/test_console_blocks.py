@@ -82,6 +82,8 @@ EXPECTED_WARNINGS = {
                                   "first-flight.md shows and explains it",
     "the navigation is curved at one std": "a MEMS IMU's poorly determined combinations are degrees of attitude "
                                            "at one std: navigate.md shows the warning and explains it",
+    "the record determines ": "a MEMS IMU's roll-axis gyro combinations have std 4-20 times the plausible size of its "
+                              "errors and are left at the prior: navigate.md shows the warning and explains it",
 }
 _WARNING = re.compile(r"^(?:warning: |\S*Warning: )(.*)$", re.M)
 
