@@ -284,6 +284,56 @@ def test_a_noisy_pad_in_deg_s_is_a_warning_giving_the_chance_of_a_mems_bias_ther
         navigate(check_imu(ImuData(t, np.degrees(w), f)), SITE, (0.0, 9.0), heading_deg=_heading_of_x())
 
 
+def test_a_flight_in_deg_s_the_pad_cannot_tell_fails_its_separation(tmp_path, capsys):
+    """A MEMS rail launch (examples/make_example_mems.py's errors, its roll slowed to 0.3 rad/s) with its rates in
+    deg/s: 17 "rad/s" in flight, below every peak rule, and a pad rate of 2375 times the Earth rate (a MEMS bias
+    could be that): navigate warns only. In flight the attitude turns 57.3 times too far, and the separation with
+    the tracking (the default model, strapdown42_extended) fails (exit 1: residual RMS of metres per second), never
+    a plain success; in rad/s it succeeds."""
+    import casep
+    from casep.io.files import write_table
+    from casep.model.strapdown import body_errors
+    from casep.simulation.noise import white_noise
+
+    site = LaunchSite(67.89, 21.10, 330.0, 30.0, 10.0)
+    el = math.radians(80.0)
+    x, y = np.array([math.cos(el), math.sin(el), 0.0]), np.array([-math.sin(el), math.cos(el), 0.0])
+    C_tb = np.column_stack([x, y, np.cross(x, y)])
+    t = np.round(np.arange(0.0, 40.0, 0.05), 10)
+    w = np.tile(C_tb.T @ site.earth_rate, (t.size, 1))
+    f = np.tile(C_tb.T @ -(site.C.T @ normal_gravity_ecef(site.r_site)), (t.size, 1))
+    u = t[t >= site.t0] - site.t0
+    f[t >= site.t0] = np.column_stack([np.where(u < 20.0, 4 * 9.80665, -0.2 * 9.80665), 0 * u, 0 * u])
+    w[t >= site.t0] = np.column_stack([0.3 * np.minimum(u / 5.0, 1.0), -0.03 + 0 * u, 0.01 * np.sin(0.3 * u)])
+    nav = navigate(check_imu(ImuData(t, w, f)), site, (0.0, 9.0), heading_deg=30.0)
+    model = casep.load_model("strapdown15_axial")
+    truth = dict(ba_x=20.0, ba_y=-15.0, ba_z=10.0, sa_x=5000.0, ma_yx=1500.0, ma_zx=-1000.0, bg_x=200.0,
+                 bg_y=-150.0, bg_z=250.0, sg_x=3000.0, mg_yx=1000.0, mg_zx=-800.0, gg_xx=200.0, gg_yx=-100.0,
+                 gg_zx=150.0)
+    df, dw = body_errors(model, nav.q, f, w, t - t[0], np.array([truth[n] for n in model.names]))
+    k = slice(None, None, 4)
+    v = nav.v[k] + white_noise(t[k].size, 0.02, np.random.default_rng(1))
+    write_table(tmp_path / "trk.csv", {"t": t[k], **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}})
+    setup = ["--launch-site", "67.89", "21.10", "330", "30", "--launch-time", "10", "--align", "0", "9", "--heading",
+             "30"]
+    codes = {}
+    for unit, scale in (("deg", math.degrees(1.0)), ("rad", 1.0)):
+        write_table(tmp_path / f"imu_{unit}.csv", {"t": t, **{f"w_{a}": scale * (w + dw)[:, i] for i, a in
+                                                             enumerate("xyz")},
+                                                   **{f"fb_{a}": (f + df)[:, i] for i, a in enumerate("xyz")}})
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert main(["navigate", str(tmp_path / f"imu_{unit}.csv"), *setup, "-o",
+                         str(tmp_path / f"tel_{unit}.csv")]) == 0
+            codes[unit] = main(["separate", str(tmp_path / f"tel_{unit}.csv"), "--tracking", str(tmp_path / "trk.csv")])
+        out = capsys.readouterr()
+        said = "\n".join(str(c.message) for c in caught) + out.out + out.err
+        if unit == "deg":  # the pad warned, the separation failed
+            assert re.search(r"2375\.\d times the Earth rate.*deg/s given as rad/s", said), said[:3000]
+            assert "result not successful" in said
+    assert codes == {"deg": 1, "rad": 0}, (codes, [ln for ln in said.splitlines() if "fail" in ln])
+
+
 def test_deg_s_chance_against_seeded_biases():
     # the fraction of biases spread evenly over the MEMS ball whose deg/s reading matches the Earth rate
     # within tol, counted, against the closed form (ball and torus volumes)
