@@ -9,16 +9,21 @@ extrapolated back to the first sample); :func:`warn_late_start` warns
 
 from __future__ import annotations
 
+import math
 import warnings
 from typing import Any
 
 import numpy as np
 
 from casep.checks.plausibility import setup_problems
+from casep.exceptions import SetupWarning
+from casep.frames import OMEGA_EARTH
+from casep.gravity import WGS84_A
 from casep.io.flight import FlightData, LateStartWarning
 
 __all__ = ["late_start_evidence", "warn_late_start", "START_WINDOW_S", "START_DEGREE", "START_MIN_SAMPLES",
-           "START_CHI2", "START_DV_FLOOR", "PAD_SPEED", "INITIAL_TERMS"]
+           "START_CHI2", "START_DV_FLOOR", "PAD_SPEED", "INITIAL_TERMS", "EARTH_ROTATION_SPEED",
+           "frame_unknown_message"]
 
 #: Late-start test (:func:`late_start_evidence`): dv is fitted by a polynomial of degree
 #: ``START_DEGREE`` over the first ``START_WINDOW_S`` seconds (at least ``START_MIN_SAMPLES``
@@ -38,6 +43,27 @@ START_DV_FLOOR = 1e-3
 #: Telemetry speed at the first sample above which the vehicle is already flying, m/s (about
 #: 4 s after lift-off at 0.8 g net acceleration; the launch-inertial frame has the pad at rest).
 PAD_SPEED = 30.0
+
+
+#: The largest speed the Earth's rotation gives a point at rest on the surface in an inertial frame, m/s
+#: (``omega_E a``, the equator at sea level, 465.1 m/s; 1 % more for the pad's height).
+EARTH_ROTATION_SPEED = 1.01 * OMEGA_EARTH * WGS84_A
+
+
+def frame_unknown_message(source: str, speed: float) -> str:
+    """What a first-sample speed within :data:`EARTH_ROTATION_SPEED` means when no header names the telemetry's
+    frame: the pad carried by the Earth's rotation in casep's launch-inertial frame (``casep navigate``'s
+    telemetry, whose ``#`` lines name the frame and the site), or a flight that started after lift-off."""
+    lat = math.degrees(math.acos(min(1.0, speed / (OMEGA_EARTH * WGS84_A))))
+    return (f"{source}: the telemetry speed at the first sample is {speed:.4g} m/s and no header names its frame: "
+            f"in casep's launch-inertial frame (casep navigate's telemetry) a pad at rest moves with the Earth's "
+            f"rotation, {OMEGA_EARTH * WGS84_A:.4g} cos(lat) m/s, and {speed:.4g} m/s is that of a pad at about "
+            f"latitude +-{lat:.3g} deg; or the flight started after lift-off. The frame is unknown, so casep cannot "
+            f"tell (nor take the gravitation at the launch site). Missing: the header casep navigate writes (`# casep "
+            f"navigate ...: strapdown telemetry, launch-inertial frame` and `# launch site LAT LON H azimuth AZ deg, "
+            f"launch time T0 s`). Use: the telemetry with its header as casep navigate wrote it (or those two lines "
+            f"put back), or Earth-fixed tracking (--tracking-frame ecef or geodetic with --launch-site and "
+            f"--launch-time), which measures the speed relative to the pad")
 
 
 #: Initial terms a late start needs: (model.numeric key, what it is, a platform model that adds it, a strapdown
@@ -129,6 +155,10 @@ def warn_late_start(flight: FlightData, model: Any) -> dict:
     """Warn (:class:`LateStartWarning`) when the flight starts after lift-off and `model`
     lacks the initial velocity error dv0 or the initial misalignment phi0.
 
+    A first-sample speed within :data:`EARTH_ROTATION_SPEED` in a telemetry whose header does not name its
+    frame (``meta["start_frame_unnamed"]``, :func:`casep.io.files.frame_unnamed`) is no late start said as
+    one: a :class:`SetupWarning` says the frame is unknown and both readings (:func:`frame_unknown_message`).
+
     Parameters
     ----------
     flight : FlightData
@@ -142,6 +172,11 @@ def warn_late_start(flight: FlightData, model: Any) -> dict:
         The evidence (:func:`late_start_evidence`); empty when there is none.
     """
     ev = late_start_evidence(flight)
+    speed = ev.get("speed_m_s")
+    if speed is not None and flight.meta.get("start_frame_unnamed") and speed <= EARTH_ROTATION_SPEED:
+        # the speed may be the pad's in an inertial frame: say what is unknown instead of a late start
+        warnings.warn(frame_unknown_message(flight.source, speed), SetupWarning, stacklevel=3)
+        return ev
     strapdown = _is_strapdown(flight, model)
     missing = [(term, sd if strapdown else platform) for key, term, platform, sd in INITIAL_TERMS
                if not np.any(model.numeric(key))]

@@ -578,7 +578,17 @@ def _say_not_determined(res: EstimateResult, scales: Mapping[str, float], source
     failing = {r["name"] for r in res.diagnostics.get("beyond_linear") or ()}
     wild = [j for j in idx if res.units[j] in LINEAR_LIMITS and res.names[j] not in failing
             and abs(res.estimate[j]) * si_factor(res.units[j]) >= LINEAR_LIMITS[res.units[j]]]
-    if wild:
+    if wild:  # no estimate: the text, JSON, CSV and MAT give none (EstimateResult.withheld), the value stays here
+        rows: list[dict[str, Any]] = [
+            {"name": res.names[j], "value": float(res.estimate[j]), "std": float(std[j]), "unit": res.units[j],
+             "limit": LINEAR_LIMITS[res.units[j]] / si_factor(res.units[j])} for j in wild]
+        reasons = dict(res.reasons)
+        for j in wild:
+            reasons[res.names[j]] += (f"; its value {res.estimate[j]:.3g} is beyond what a linear error model can "
+                                      f"describe (limit {LINEAR_LIMITS[res.units[j]] / si_factor(res.units[j]):.3g}): "
+                                      "no estimate")
+        res = dataclasses.replace(res, reasons=reasons,
+                                  diagnostics={**res.diagnostics, "undetermined_beyond_linear": rows})
         where = f"{source}: " if source else ""
         listed = "; ".join(f"{res.names[j]} {res.estimate[j]:.4g} +- {std[j]:.2g} {res.units[j]} (limit "
                            f"{LINEAR_LIMITS[res.units[j]] / si_factor(res.units[j]):.3g})" for j in wild)

@@ -206,12 +206,34 @@ class EstimateResult:
         r = np.asarray(self.residuals).reshape(-1, 3)
         return {a: float(np.sqrt(np.mean(r[:, i] ** 2))) for i, a in enumerate(AXES)}
 
+    @property
+    def withheld(self) -> tuple[str, ...]:
+        """The coefficients the data do not determine whose solver value is beyond what a linear error model can
+        describe (``diagnostics["undetermined_beyond_linear"]``, :func:`casep.estimators._base.check_magnitudes`):
+        presented without an estimate, std or covariance (:meth:`presented`), like a coefficient not
+        identifiable; the value stays in that record and in ``estimate`` (the fit's own vector)."""
+        rows = (self.diagnostics or {}).get("undetermined_beyond_linear") or ()
+        return tuple(r["name"] for r in rows if isinstance(r, dict) and "name" in r)
+
+    def presented(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """The estimate and std as the text, the JSON, the CSV and the MAT file give them: NaN for the
+        coefficients :attr:`withheld` (and for those not identifiable)."""
+        est = np.array(self.estimate, dtype=float)
+        std = None if self.std is None else np.array(self.std, dtype=float)
+        off = [j for j, n in enumerate(self.names) if n in set(self.withheld)]
+        est[off] = np.nan
+        if std is not None:
+            std[off] = np.nan
+        return est, std
+
     def coefficient_rows(self) -> list[dict[str, Any]]:
-        """One dict per coefficient: name, unit, estimate, std (None where undefined), reason."""
+        """One dict per coefficient: name, unit, estimate, std (None where undefined or :attr:`withheld`),
+        reason."""
         rows = []
+        estimate, sd = self.presented()
         for j, (name, unit) in enumerate(zip(self.names, self.units)):
-            est = _json_float(self.estimate[j])
-            std = None if self.std is None or est is None else _json_float(self.std[j])
+            est = _json_float(estimate[j])
+            std = None if sd is None or est is None else _json_float(sd[j])
             row: dict[str, Any] = {"name": name, "unit": unit, "estimate": est, "std": std}
             if name in self.reasons:
                 row["reason"] = self.reasons[name]
@@ -295,15 +317,16 @@ class EstimateResult:
     def covariance_rows(self) -> list[list[float | None]] | None:
         """The n x n covariance in natural units, model order, as nested lists for JSON.
 
-        Rows and columns of coefficients without an estimate (and any entry that is not
-        finite) are null; None when the method defines no covariance
+        Rows and columns of coefficients without an estimate (or :attr:`withheld`; and any entry that
+        is not finite) are null; None when the method defines no covariance
         (``docs/guide/result-files.md``).
         """
         if self.covariance is None:
             return None
         C = np.array(self.covariance, dtype=float)
-        C[~self.identifiable, :] = np.nan
-        C[:, ~self.identifiable] = np.nan
+        shown = np.isfinite(self.presented()[0])
+        C[~shown, :] = np.nan
+        C[:, ~shown] = np.nan
         return [[_json_float(v) for v in row] for row in C]
 
     def to_pandas(self):
@@ -374,19 +397,21 @@ def write_mat(res: EstimateResult, path: str | os.PathLike, *, t: np.ndarray | N
     essentials.
 
     Variables: ``names``, ``units`` (cellstr); ``estimates``, ``std`` (n x 1 double, NaN
-    where missing), ``covariance`` (n x n, NaN rows/columns where missing), ``residuals``
+    where missing or :attr:`EstimateResult.withheld`), ``covariance`` (n x n, NaN rows/columns there), ``residuals``
     (N x 3, m/s), ``history`` (recursive methods), scalars ``sigma``, ``rank``, ``status``,
     ``success``, strings ``method``, ``model``, ``message``, ``std_kind``, ``reasons``
     (cellstr, "" where none) and the structs ``settings``, ``diagnostics``, ``denoise``, ``extras``
     where their fields are simple (numbers, strings, flat lists, nested such structs).
     """
     n = len(res.names)
+    estimate, sd = res.presented()
+    cov = res.covariance_rows()
     data: dict[str, Any] = {
         "names": np.array(res.names, dtype=object),
         "units": np.array(res.units, dtype=object),
-        "estimates": np.asarray(res.estimate, dtype=float),
-        "std": np.full(n, np.nan) if res.std is None else np.asarray(res.std, dtype=float),
-        "covariance": np.full((n, n), np.nan) if res.covariance is None else np.asarray(res.covariance, dtype=float),
+        "estimates": estimate,
+        "std": np.full(n, np.nan) if sd is None else sd,
+        "covariance": np.full((n, n), np.nan) if cov is None else np.array(cov, dtype=float),
         "residuals": np.asarray(res.residuals, dtype=float).reshape(-1, 3),
         "reasons": np.array([res.reasons.get(nm, "") for nm in res.names], dtype=object),
         "sigma": float(res.sigma), "rank": float(res.rank), "status": float(res.status),

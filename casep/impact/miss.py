@@ -160,9 +160,10 @@ def _coefficients(res, model, per_flight: Mapping[str, float] | None, source: st
     est = np.full(n, np.nan)
     status = []
     where = {nm: i for i, nm in enumerate(res.names)}
+    shown = res.presented()[0] if hasattr(res, "presented") else np.asarray(res.estimate, dtype=float)
     for j, nm in enumerate(names):
         if nm in where:
-            est[j] = res.estimate[where[nm]]
+            est[j] = shown[where[nm]]  # none where the result presents none (withheld: as read from its JSON)
             status.append("estimated" if np.isfinite(est[j]) else "no estimate")
         elif pf[j]:
             v = float(per_flight.get(nm, 0.0))
@@ -179,7 +180,10 @@ def _coefficients(res, model, per_flight: Mapping[str, float] | None, source: st
                          "miss std is G Cov G^T and needs the coefficients' covariance, not only their std"
                          f"{' (the file has std only)' if res.std is not None else ''}; casep separate --json "
                          "writes it")
-    C = np.asarray(res.covariance, dtype=float)
+    C = np.array(res.covariance, dtype=float)
+    hidden = np.isnan(shown) & np.isfinite(np.asarray(res.estimate, dtype=float))  # withheld: NaN rows, as its JSON
+    C[hidden, :] = np.nan
+    C[:, hidden] = np.nan
     cov = np.zeros((n, n))
     cov[np.ix_(inres, inres)] = C[np.ix_(idx[inres], idx[inres])]
     cov_source = f"the result's covariance ({res.std_kind})"

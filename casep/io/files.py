@@ -103,11 +103,21 @@ def levelled_comment(window: tuple[float, float], alignment: Any) -> str:
 
 
 def _header(tab: Table | str | os.PathLike) -> list[str]:
-    """The ``#`` comment lines at the top of a CSV table or file (none for Parquet or a table not read from a
-    file); only the header is read."""
+    """The ``#`` comment lines at the top of a CSV table or file, or the comments :func:`write_table` keeps in a
+    Parquet file's metadata, each as ``# line`` (none for a table not read from a file); only the header (the
+    Parquet schema) is read."""
     path = tab.path if isinstance(tab, Table) else Path(tab)
-    if not path.is_file() or is_parquet(path):
+    if not path.is_file():
         return []
+    if is_parquet(path):
+        try:
+            import pyarrow.parquet as pq
+
+            meta = pq.read_schema(path).metadata or {}
+        except (ImportError, OSError, ValueError):
+            return []
+        text = meta.get(b"comments", b"").decode("utf-8", errors="replace")
+        return [f"# {line}\n" for line in text.splitlines() if line]
     lines = []
     with open(path, encoding="utf-8", errors="replace") as fh:
         for line in fh:
@@ -151,8 +161,8 @@ def levelling_record(tab: Table) -> dict | None:
 def navigation_site(tab: Table):
     """The launch site of a telemetry in the launch-inertial frame (``casep navigate``'s output: its header names the
     frame and the launch site, and it has the position ``r_tel_*``), a :class:`casep.frames.LaunchSite` whose ``t0``
-    is in the telemetry's time scale; None for any other table (no such header, Parquet, no ``r_tel_*``)."""
-    if not tab.path.is_file() or is_parquet(tab.path) or not all(c in tab.columns for c in R_TEL_COLUMNS):
+    is in the telemetry's time scale; None for any other table (no such header or Parquet metadata, no ``r_tel_*``)."""
+    if not tab.path.is_file() or not all(c in tab.columns for c in R_TEL_COLUMNS):
         return None
     site, inertial = None, False
     for line in _header(tab):
@@ -169,13 +179,23 @@ def navigation_site(tab: Table):
         return None
 
 
+def frame_unnamed(tab: Table) -> bool:
+    """Whether `tab` has ``casep navigate``'s launch-inertial position ``r_tel_*`` in a file whose header does not
+    name its frame and launch site (:func:`navigation_site` None: the ``#`` lines dropped). Its velocity may
+    then be launch-inertial, the pad moving with the Earth's rotation, or in a frame with the pad at rest: the
+    first-sample speed cannot be read (:func:`casep.checks.late_start.warn_late_start`)."""
+    return tab.path.is_file() and all(c in tab.columns for c in R_TEL_COLUMNS) and navigation_site(tab) is None
+
+
 def start_speed(tab: Table, t: np.ndarray, v_tel: np.ndarray) -> float:
     """The telemetry speed at the first sample relative to the Earth, m/s (the late-start check's
     ``start_speed_m_s``, :func:`casep.checks.late_start.late_start_evidence`).
 
     A telemetry in the launch-inertial frame (:func:`navigation_site`) carries the pad's own velocity from the
     Earth's rotation (up to 465 m/s): the speed is then that of :func:`casep.frames.launch_to_ecef`,
-    ``|v_ECEF(t_0)|``; otherwise ``|v_tel(t_0)|`` (a frame with the pad at rest).
+    ``|v_ECEF(t_0)|``; otherwise ``|v_tel(t_0)|`` (a frame with the pad at rest). The readers record beside it
+    :func:`frame_unnamed` (``start_frame_unnamed``): a speed up to 465 m/s may then be the Earth's rotation
+    (:func:`casep.checks.late_start.warn_late_start` says so).
     """
     ls = navigation_site(tab)
     if ls is None:
@@ -233,6 +253,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
             "rows_file": str(tab.path)}  # sample k is data row k + 1 (locate_samples)
     if dv_from != "dv":
         meta["start_speed_m_s"] = start_speed(tab, t, v_tel)
+        meta["start_frame_unnamed"] = frame_unnamed(tab)
         meta["levelled"] = levelling_record(tab)
         meta["telemetry_velocity_change_m_s"] = (v_tel[-1] - v_tel[0]).tolist()  # for casep.checks.plausibility
         meta["tracking_repeats"] = repeated_rows(tab, "launch", skip=~observed)  # for casep.checks.tracking_quality
@@ -416,6 +437,7 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     flight.meta["rows_file"] = str(trk.path if flight.meta.get("rows_side") == "tracking" else tel.path)
     flight.meta["start_speed_m_s"] = start_speed(tel, t_tel, v_tel)
     nav_site = navigation_site(tel)
+    flight.meta["start_frame_unnamed"] = frame_unnamed(tel)
     if nav_site is not None:  # the telemetry's own frame (its gravitation: casep.workflows.telemetry_iterate)
         flight.meta["telemetry_site"] = nav_site.to_dict()
     flight.meta["levelled"] = levelling_record(tel)
@@ -435,6 +457,7 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
             warnings.warn(f"{tel.src} + {trk.src}: {clock['message']}; the fit's dt_trk estimates it",
                           TimeOffsetWarning, stacklevel=2)
         flight.meta["start_speed_m_s"] = ev["pad"]["speed_relative_m_s"]
+        flight.meta["start_frame_unnamed"] = False  # relative to the pad, from the Earth-fixed tracking
         flight.meta["tracking_frame"]["pad_velocity_m_s"] = ev["pad"]["pad_velocity_m_s"]
         flight.meta["setup"] = ev
     if r_ecef is not None and not any(c in flight.signals for c in STATE_SIGNALS):  # Earth-fixed: the state

@@ -30,7 +30,7 @@ from casep.exceptions import AlignmentWarning, PlausibilityWarning
 from casep.frames import OMEGA_EARTH, LaunchSite
 
 __all__ = ["Alignment", "align", "HEADING_AXES", "course_rotation", "gyro_bias_allowance", "mean_rate_std",
-           "EARTH_RATE_CHI2"]
+           "EARTH_RATE_CHI2", "deg_s_chance"]
 
 #: Body axes whose azimuth ``--heading`` may give.
 HEADING_AXES = ("x", "y", "z")
@@ -160,7 +160,7 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
                       "during the window: the vehicle may have moved (the levelling is its mean)",
                       AlignmentWarning, stacklevel=2)
     up_b, up_t = f_mean / fm, -g_t / g0
-    _check_pad_rate(w_mean, n, (t1, t2), up_b, up_t, site, rates_in)
+    s_mean = mean_rate_std(w[sel])
     if heading_axis not in HEADING_AXES:
         raise ValueError(f"heading_axis must be one of {HEADING_AXES}, got {heading_axis!r}")
     axis = np.eye(3)[HEADING_AXES.index(heading_axis)]
@@ -171,8 +171,10 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
                              "from the vertical on the pad, so its azimuth does not fix the heading: give the azimuth "
                              "of a horizontal axis (--heading-axis)")
         C = _triad(up_b, axis, up_t, _horizontal(heading_deg, site))
+        _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in, C.T @ site.earth_rate)
         _check_earth_rate(w[sel], w_mean, C, site, (t1, t2), rates_in, float(heading_deg))
         return Alignment(C, "heading", float(heading_deg) % 360.0, None, f_mean, w_mean, g0, n, heading_axis)
+    _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in)
     if tilt < MIN_AXIS_TILT_RAD:  # its azimuth means nothing: report the most horizontal axis's
         heading_axis = HEADING_AXES[int(np.argmin(np.abs(up_b)))]
     return _gyrocompass(w[sel], w_mean, f_mean, up_b, up_t, g0, site, n, (t1, t2), heading_axis)
@@ -180,19 +182,56 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
 
 #: A mean pad rate beyond this (2.9 deg/s, no gyro that navigates has such a bias) is warned about, rad/s.
 MAX_PAD_RATE = 0.05
-#: Rates are taken for deg/s when the pad rate divided by 57.2958 matches the Earth rate (its vertical and
-#: horizontal parts at the site) within this fraction of the Earth rate.
+#: Rates are taken for deg/s when the pad rate divided by 57.2958 matches the Earth rate, beyond the noise of
+#: the mean, within this fraction of the Earth rate: its vertical and horizontal parts when the heading is
+#: gyrocompassed (the pad rate fixes the heading then), all three body components when the heading is given.
+#: 5 % and 20 % (0.75 and 3 deg/h of gyro bias: tactical grade; the chance that a MEMS bias read in rad/s
+#: lands there, :func:`deg_s_chance`, is then 0.08-0.22 % and 0.15 %).
 DEG_S_MATCH = 0.05
+DEG_S_MATCH_HEADING = 0.20
+#: The noise of the mean pad rate (its std, :func:`mean_rate_std`) is allowed this many times in the match.
+DEG_S_NOISE_Z = 3.0
+#: The spread of the biases of gyros read in rad/s that the deg/s rule must not take for deg/s: a ball of
+#: this radius, rad/s (0.42 deg/s, 100 times the Earth rate: consumer MEMS), every bias in it equally likely.
+MEMS_BIAS_SPREAD = 100.0 * OMEGA_EARTH
+#: The largest chance that such a bias lands within the match by chance for which a match is an error; above
+#: it (the noise of the mean widens the match) a match is a warning. 0.25 %: the 5 % match of a
+#: gyrocompassed pad at the equator (0.22 %).
+DEG_S_CHANCE = 0.0025
 
 
-def _check_pad_rate(w_mean: np.ndarray, n: int, window: tuple[float, float], up_b: np.ndarray, up_t: np.ndarray,
-                    site: LaunchSite, rates_in: str) -> None:
+def deg_s_chance(tol: float, lat_deg: float, heading_given: bool) -> float:
+    """The chance that a gyro bias read in rad/s, spread evenly over a ball of :data:`MEMS_BIAS_SPREAD`,
+    matches the Earth rate in deg/s within ``tol`` (a fraction of the Earth rate) by chance.
+
+    Scaled by ``D = 57.2958`` the match is a ball of radius ``r = D tol omega_E`` about one point when the
+    heading is given (``4/3 pi r^3``), and a torus of tube radius ``r`` about the ring of radius
+    ``R = D omega_E cos(lat)`` when only the vertical and horizontal parts are compared (``2 pi R pi r^2``),
+    both divided by the ball's ``4/3 pi B^3`` (at most 1).
+    """
+    deg = math.degrees(1.0)
+    r = deg * tol * OMEGA_EARTH
+    vol = 4.0 / 3.0 * math.pi * r**3 if heading_given else \
+        2.0 * math.pi * (deg * OMEGA_EARTH * math.cos(math.radians(lat_deg))) * math.pi * r**2
+    return min(1.0, vol / (4.0 / 3.0 * math.pi * MEMS_BIAS_SPREAD**3))
+
+
+def _check_pad_rate(w_mean: np.ndarray, s_mean: np.ndarray, n: int, window: tuple[float, float], up_b: np.ndarray,
+                    up_t: np.ndarray, site: LaunchSite, rates_in: str, e_body: np.ndarray | None = None) -> None:
     """At rest the gyros measure the Earth rate (7.3e-5 rad/s) plus their bias.
 
-    Rates in deg/s read as rad/s give ``w = D omega_b`` with ``D = 180/pi = 57.2958``: an error when
-    the vertical and horizontal parts of ``w / D`` match the Earth rate's at the site,
-    ``|(w.u/D - omega_E sin(lat), |w_h|/D - omega_E cos(lat))| < DEG_S_MATCH omega_E``. A warning when
-    the mean is beyond :data:`MAX_PAD_RATE`, or about 57.3 times the Earth rate without that match.
+    Rates in deg/s read as rad/s give ``w = D (omega_b + b)`` with ``D = 180/pi = 57.2958``, and their
+    noise D times too: an error when ``w / D`` is the Earth rate at the site within
+    ``tol = m omega_E + DEG_S_NOISE_Z |s| / D`` (``s`` the std of the mean rate as read, `s_mean`): the
+    vertical and horizontal parts, ``|(w.u/D - omega_E sin(lat), |w_h|/D - omega_E cos(lat))| < tol`` with
+    ``m`` :data:`DEG_S_MATCH`; or, with the heading given (`e_body`, the Earth rate the alignment puts in
+    body axes), ``|w / D - e_body| < tol`` with ``m`` :data:`DEG_S_MATCH_HEADING` (a wrong heading only
+    misses a match).
+    Read in rad/s, a gyro's noise of the mean is ``|s|``, its tolerance ``|s| / D`` negligible: only its bias
+    lands it there, with the chance :func:`deg_s_chance`; when the noise widens the match so much that this
+    chance exceeds :data:`DEG_S_CHANCE`, a match is a warning (the pad cannot tell deg/s from a MEMS bias).
+    A warning too when the mean is beyond :data:`MAX_PAD_RATE`, or about 57.3 times the Earth rate without
+    that match.
     """
     deg = math.degrees(1.0)
     rate = float(np.linalg.norm(w_mean))
@@ -202,16 +241,38 @@ def _check_pad_rate(w_mean: np.ndarray, n: int, window: tuple[float, float], up_
     north_rate = float(np.linalg.norm(omega_t - up_rate * up_t))  # omega_E cos(lat)
     w_up = float(w_mean @ up_b)
     w_h = float(np.linalg.norm(w_mean - w_up * up_b))
-    match = math.hypot(w_up / deg - up_rate, w_h / deg - north_rate) / OMEGA_EARTH
+    noise = DEG_S_NOISE_Z * float(np.linalg.norm(s_mean)) / deg / OMEGA_EARTH
     where = f"--align {window[0]:g} {window[1]:g}: {rates_in}: mean body rate at rest {rate:.4g} rad/s over {n} samples"
-    if match < DEG_S_MATCH:
-        raise ValueError(f"{where}, {ratio:.2f} times the Earth rate {OMEGA_EARTH:.4g} rad/s: divided by 57.2958 it is "
-                         f"the Earth rate at latitude {site.lat_deg:g} deg (vertical {w_up / deg:.4g}, horizontal "
-                         f"{w_h / deg:.4g} rad/s, within {100 * match:.1f} %): the rates are in deg/s; give them in "
-                         "rad/s (multiply by pi/180)")
+    tests = [(math.hypot(w_up / deg - up_rate, w_h / deg - north_rate) / OMEGA_EARTH, DEG_S_MATCH + noise, False,
+              f"the Earth rate at latitude {site.lat_deg:g} deg (vertical {w_up / deg:.4g}, horizontal "
+              f"{w_h / deg:.4g} rad/s")]
+    if e_body is not None:  # the heading given fixes all three components (a wrong heading only misses a match)
+        tests.append((float(np.linalg.norm(w_mean / deg - e_body)) / OMEGA_EARTH, DEG_S_MATCH_HEADING + noise, True,
+                      f"the Earth rate the alignment puts in body axes ({', '.join(f'{v:.4g}' for v in w_mean / deg)} "
+                      f"against {', '.join(f'{v:.4g}' for v in e_body)} rad/s"))
+    judged = [(m, tol, deg_s_chance(tol, site.lat_deg, full), what) for m, tol, full, what in tests]
+    def said(match: float, tol: float, what: str) -> str:
+        return (f"{where}, {ratio:.2f} times the Earth rate {OMEGA_EARTH:.4g} rad/s: divided by 57.2958 it is {what}, "
+                f"within {100 * match:.1f} % of the Earth rate; allowed {100 * tol:.1f} %, of which "
+                f"{100 * noise:.1f} % the noise of the mean)")
+
+    for match, tol, chance, what in judged:
+        if match < tol and chance <= DEG_S_CHANCE:
+            raise ValueError(f"{said(match, tol, what)}: the rates are in deg/s; give them in rad/s "
+                             "(multiply by pi/180)")
+    for match, tol, chance, what in judged:
+        if match < tol:
+            warnings.warn(f"{said(match, tol, what)}: rates in deg/s? The noise leaves the pad unable to tell: a gyro "
+                          f"bias read in rad/s (MEMS, up to {math.degrees(MEMS_BIAS_SPREAD):.2g} deg/s) lands that "
+                          f"close with a chance of {100 * chance:.2g} % (an error below {100 * DEG_S_CHANCE:g} %); "
+                          "give rad/s (multiply by pi/180) if they are deg/s", PlausibilityWarning, stacklevel=3)
+            return
+    match, tol = min((m, t) for m, t, _, _ in judged)
     if rate > MAX_PAD_RATE or 0.8 * deg < ratio < 1.2 * deg:
         warnings.warn(f"{where}, {ratio:.1f} times the Earth rate {OMEGA_EARTH:.4g} rad/s: deg/s given as rad/s (57.3 "
-                      "times), a gyro bias of that size, or a vehicle not at rest", PlausibilityWarning, stacklevel=3)
+                      f"times; divided by 57.2958 it is {100 * match:.0f} % of the Earth rate off the Earth rate, "
+                      f"beyond the {100 * tol:.1f} % that makes it an error), a gyro bias of that size, or a vehicle "
+                      "not at rest", PlausibilityWarning, stacklevel=3)
 
 
 #: The chi-square (3 degrees of freedom, 0.1 % false alarms) beyond which a mean pad rate disagrees with the

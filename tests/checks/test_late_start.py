@@ -48,7 +48,7 @@ def test_no_late_start_alarm_on_flights_from_liftoff(scenario):
         assert late_start_evidence(fl) == {}, (scenario, seed)
 
 
-def _navigate_like_csv(path, site, speed_rel):
+def _navigate_like_csv(path, site, speed_rel, header=True):
     """A launch-inertial telemetry (casep navigate's header and columns) of a vehicle moving at `speed_rel` m/s
     relative to the Earth (east) at its first sample; the tracking the same velocity."""
     from casep.frames import ecef_to_launch, geodetic_to_ecef
@@ -64,7 +64,7 @@ def _navigate_like_csv(path, site, speed_rel):
             **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}}
     write_table(path, cols, comments=["casep navigate imu.csv: strapdown telemetry, launch-inertial frame",
                                       f"launch site {site.lat_deg:g} {site.lon_deg:g} {site.h_m:g} azimuth "
-                                      f"{site.azimuth_deg:g} deg, launch time {site.t0:g} s"])
+                                      f"{site.azimuth_deg:g} deg, launch time {site.t0:g} s"] if header else None)
     return float(np.linalg.norm(v[0]))
 
 
@@ -105,6 +105,66 @@ def test_a_strapdown_flight_is_never_told_to_use_a_platform_model(tmp_path):
     text = str(rec[0].message)
     assert "--model strapdown15_phi0" in text and "--model platform" not in text and "platform39" not in text
     assert "no shipped model of this kind has the initial velocity error dv0" in text
+
+
+def test_a_parquet_telemetry_names_its_frame_in_its_metadata(tmp_path):
+    """casep navigate -o TEL.parquet keeps its header lines as the file's metadata: read back, the frame and the
+    launch site are known, and a pad at rest starts at 0 m/s relative to the Earth (|v_tel| is 163 m/s)."""
+    pytest.importorskip("pyarrow")
+    from casep.frames import LaunchSite
+    from casep.io.files import read_flight
+
+    site = LaunchSite(69.29, 16.02, 20.0, 340.0, 8.0)
+    assert _navigate_like_csv(tmp_path / "nav.parquet", site, 0.0) > 150.0
+    flight = read_flight(tmp_path / "nav.parquet")
+    assert flight.meta["start_speed_m_s"] == pytest.approx(0.0, abs=1e-6)
+    assert flight.meta["start_frame_unnamed"] is False and late_start_evidence(flight) == {}
+
+
+class _Strapdown:  # the set-up model's answers the check reads
+    name = "strapdown15_axial"
+    signals = ("q_w", "q_x", "q_y", "q_z", "fb_x", "fb_y", "fb_z")
+
+    @staticmethod
+    def numeric(key):
+        return np.zeros((3, 0)) if key == "velocity_columns" else np.zeros((3, 15))
+
+
+def test_a_telemetry_whose_header_was_dropped_is_said_to_have_an_unknown_frame(tmp_path):
+    """casep navigate's telemetry of a pad at rest with its `#` header dropped: |v_tel(t0)| = 163 m/s is the pad's
+    Earth rotation at 69.3 deg, not a late start. The warning says the frame is unknown, both readings, and
+    Missing: / Use:; no late-start warning. Faster than the Earth's rotation can carry a pad: a late start still."""
+    import warnings
+
+    from casep.checks.late_start import EARTH_ROTATION_SPEED, warn_late_start
+    from casep.exceptions import SetupWarning
+    from casep.frames import LaunchSite
+    from casep.io.files import read_flight
+
+    site = LaunchSite(69.29, 16.02, 20.0, 340.0, 8.0)
+    speed = _navigate_like_csv(tmp_path / "nav.csv", site, 0.0, header=False)
+    flight = read_flight(tmp_path / "nav.csv")
+    assert flight.meta["start_frame_unnamed"] is True and flight.meta["start_speed_m_s"] == pytest.approx(speed)
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        warn_late_start(flight, _Strapdown())
+    assert [w.category for w in rec] == [SetupWarning]
+    text = str(rec[0].message)
+    assert f"the telemetry speed at the first sample is {speed:.4g} m/s and no header names its frame" in text
+    assert "a pad at about latitude +-69.2 deg" in text and "or the flight started after lift-off" in text
+    assert "Missing: the header casep navigate writes" in text and "Use: the telemetry with its header" in text
+    # with the header: the Earth-relative speed, 0, no warning
+    _navigate_like_csv(tmp_path / "nav.csv", site, 0.0)
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        warn_late_start(read_flight(tmp_path / "nav.csv"), _Strapdown())
+    assert not rec
+    # beyond what the Earth's rotation gives (465.1 m/s at the equator): flying at the first sample, whatever the frame
+    _navigate_like_csv(tmp_path / "nav.csv", site, 400.0, header=False)
+    flight = read_flight(tmp_path / "nav.csv")
+    assert flight.meta["start_speed_m_s"] > EARTH_ROTATION_SPEED
+    with pytest.warns(LateStartWarning, match="the flight seems to start after lift-off"):
+        warn_late_start(flight, _Strapdown())
 
 
 def test_start_speed_of_a_table_without_a_file_is_its_own(tmp_path):

@@ -81,6 +81,47 @@ def test_an_undetermined_coefficient_beyond_the_linear_limit_is_said_not_determi
     assert "not determined" in out.text().splitlines()[1]
 
 
+def test_an_undetermined_value_beyond_the_linear_limit_is_presented_as_no_estimate(tmp_path):
+    """The not-determined c0 at 1.37e5 +- 7.2e4 ppm (beyond the 1e5 ppm a linear model can describe) is no estimate:
+    the table, the JSON (estimate, std, covariance row and column null), the CSV and the MAT file give none, and
+    say so in its note; the value is kept under diagnostics["undetermined_beyond_linear"] (and in the fit's own
+    `estimate`). The JSON reads back to the same JSON; c1 keeps its estimate."""
+    import json
+
+    from scipy.io import loadmat
+
+    from casep.estimators.result import EstimateResult, write_csv, write_mat
+
+    sd = np.array([7.2e4, 2.0])
+    res = dataclasses.replace(_units_result([0.0, 0.0], 1.0, ["ppm", "ppm"]), estimate=np.array([1.373e5, 3.0]),
+                              std=sd, covariance=np.diag(sd**2), residuals=np.zeros((4, 3)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = check_magnitudes(res, {"c0": 1e3, "c1": 1e6})
+    assert out.success and out.withheld == ("c0",) and out.estimate[0] == 1.373e5
+    rec = out.diagnostics["undetermined_beyond_linear"]
+    assert rec == [{"name": "c0", "value": 1.373e5, "std": 7.2e4, "unit": "ppm", "limit": pytest.approx(1e5)}]
+    line = out.text().splitlines()[1].split()
+    assert line[:4] == ["c0", "ppm", "-", "-"]
+    assert "its value 1.37e+05 is beyond what a linear error model can describe (limit 1e+05): no estimate" in \
+        out.text().splitlines()[1]
+    d = json.loads(json.dumps(out.to_dict()))
+    c0 = d["coefficients"][0]
+    assert c0["estimate"] is None and c0["std"] is None and "no estimate" in c0["reason"]
+    assert d["estimates"] == [None, 3.0] and d["std"] == [None, 2.0]
+    assert d["covariance"] == [[None, None], [None, 4.0]]
+    back = EstimateResult.from_json(d)
+    d2 = json.loads(json.dumps(back.to_dict()))
+    for key in ("coefficients", "estimates", "std", "covariance"):
+        assert d2[key] == d[key], key
+    assert d2["diagnostics"]["undetermined_beyond_linear"] == d["diagnostics"]["undetermined_beyond_linear"]
+    write_csv(out, tmp_path / "r.csv")
+    assert (tmp_path / "r.csv").read_text().splitlines()[1].startswith("c0,ppm,,,not determined")
+    write_mat(out, tmp_path / "r.mat")
+    m = loadmat(tmp_path / "r.mat")
+    assert np.isnan(m["estimates"][0, 0]) and m["estimates"][1, 0] == 3.0 and np.isnan(m["covariance"][0]).all()
+
+
 def test_beyond_linear_names_the_richer_model_first_and_units_only_when_a_scale_is_a_unit_factor():
     """strapdown15_phi0 beyond the linear limits: the message names strapdown42_extended before anything else; a
     gyro scale factor of 56.3e6 ppm (a scale of 57.3: rates in deg/s read as rad/s) adds the unit mix-up, a scale

@@ -214,7 +214,7 @@ def test_a_pad_record_in_deg_s_is_an_error_naming_columns_ratio_and_fix(tmp_path
     assert res.pad_drift() < 1e-6
 
 
-def test_a_pad_rate_near_57_times_the_earth_rate_in_another_direction_is_only_warned_about():
+def test_a_pad_rate_near_57_times_the_earth_rate_is_judged_by_its_direction():
     t, _, f = _stationary(100.0, 20.0)
     up_t = -(SITE.C.T @ normal_gravity_ecef(SITE.r_site))
     up_t /= np.linalg.norm(up_t)
@@ -225,11 +225,135 @@ def test_a_pad_rate_near_57_times_the_earth_rate_in_another_direction_is_only_wa
     with pytest.warns(PlausibilityWarning, match=r"57\.3 times the Earth rate.*deg/s given as rad/s"), \
             pytest.warns(AlignmentWarning, match="speed reaches"):  # the rate tilts the pad: the pad check too
         navigate(check_imu(ImuData(t, w, f)), SITE, (0.0, 10.0), heading_deg=_heading_of_x())
-    # 50 times the Earth rate in its direction: beyond the 5 % match, a warning
+    # 46 times the Earth rate in its direction: divided by 57.3, 19.7 % short of it, within the 20 % match of the
+    # heading given: an error; gyrocompassed (the 5 % of the vertical and horizontal parts), a warning
     _, w, _ = _stationary(100.0, 20.0)
-    with pytest.warns(PlausibilityWarning, match=r"50\.0 times the Earth rate"), \
-            pytest.warns(AlignmentWarning, match="speed reaches"):
-        navigate(check_imu(ImuData(t, 50.0 * w, f)), SITE, (0.0, 10.0), heading_deg=_heading_of_x())
+    with pytest.raises(ValueError, match=r"46\.00 times the Earth rate.*within 19\.7 % of the Earth rate"):
+        navigate(check_imu(ImuData(t, 46.0 * w, f)), SITE, (0.0, 10.0), heading_deg=_heading_of_x())
+    with pytest.warns(PlausibilityWarning, match=r"46\.0 times the Earth rate.*20 % of the Earth rate off"), \
+            pytest.raises(ValueError, match="cannot find north"):
+        navigate(check_imu(ImuData(t, 46.0 * w, f)), SITE, (0.0, 10.0))
+
+
+def test_a_pad_record_in_deg_s_with_a_tactical_gyro_bias_is_an_error_with_the_heading_given():
+    # a 1 deg/h bias along the vertical is 6.7 % of the Earth rate: beyond the gyrocompassed 5 % (plus 3 std of
+    # the mean's noise, 1e-6 rad/s per sample: 0.2 %), within the 20 % of the three-axis match the heading allows
+    rng = np.random.default_rng(3)
+    t, w, f = _stationary(100.0, 20.0, rng, 1e-3, 1e-6)
+    up_b = f[0] / np.linalg.norm(f[0])
+    bias = np.radians(1.0 / 3600.0) * up_b
+    w_deg = np.degrees(w + bias)
+    with pytest.raises(ValueError, match=r"the Earth rate the alignment puts in body axes.*within 6\.\d % of the "
+                                         r"Earth rate; allowed 20\.\d %.*the rates are in deg/s"):
+        navigate(check_imu(ImuData(t, w_deg, f)), SITE, (0.0, 10.0), heading_deg=_heading_of_x())
+    # gyrocompassed, only the vertical and horizontal parts: 6.7 % is beyond 5.2 %, a warning with the numbers
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            navigate(check_imu(ImuData(t, w_deg, f)), SITE, (0.0, 10.0))
+        except ValueError as e:
+            assert "in deg/s" not in str(e)
+    assert any(re.search(r"deg/s given as rad/s \(57\.3 times; divided by 57\.2958 it is 7 % of the Earth rate off",
+                         str(c.message)) for c in caught)
+    # the same gyros in rad/s: no deg/s finding
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        navigate(check_imu(ImuData(t, w + bias, f)), SITE, (0.0, 10.0), heading_deg=_heading_of_x())
+    assert not any("deg/s" in str(c.message) for c in caught)
+
+
+def test_a_mems_bias_read_in_rad_s_near_57_times_the_earth_rate_is_no_error():
+    # a MEMS gyro in rad/s biased by 0.17 deg/s (41 times the Earth rate, the real car drive's) in the direction
+    # that comes closest to the Earth rate in deg/s: 28 % of the Earth rate off it, a warning at most
+    t, w, f = _stationary(100.0, 20.0)
+    e = w[0] / np.linalg.norm(w[0])
+    w_mems = w + np.radians(0.17) * e
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        navigate(check_imu(ImuData(t, w_mems, f)), SITE, (0.0, 10.0), heading_deg=_heading_of_x())
+    assert not any("the rates are in deg/s" in str(c.message) for c in caught)
+
+
+def test_a_noisy_pad_in_deg_s_is_a_warning_giving_the_chance_of_a_mems_bias_there():
+    # noise 1e-4 rad/s per sample, read 57.3 times larger: the match widens to 45 % of the Earth rate, where a
+    # MEMS bias read in rad/s lands with a chance of 1.7 %: the pad cannot tell, a warning naming the chance
+    rng = np.random.default_rng(4)
+    t, w, f = _stationary(50.0, 10.0, rng, 1e-2, 1e-4)
+    with pytest.warns(PlausibilityWarning, match=r"rates in deg/s\? The noise leaves the pad unable to tell.*"
+                                                 r"chance of \d\.?\d* %"):
+        navigate(check_imu(ImuData(t, np.degrees(w), f)), SITE, (0.0, 9.0), heading_deg=_heading_of_x())
+
+
+def test_a_flight_in_deg_s_the_pad_cannot_tell_fails_its_separation(tmp_path, capsys):
+    """A MEMS rail launch (examples/make_example_mems.py's errors, its roll slowed to 0.3 rad/s) with its rates in
+    deg/s: 17 "rad/s" in flight, below every peak rule, and a pad rate of 2375 times the Earth rate (a MEMS bias
+    could be that): navigate warns only. In flight the attitude turns 57.3 times too far, and the separation with
+    the tracking (the default model, strapdown42_extended) fails (exit 1: residual RMS of metres per second), never
+    a plain success; in rad/s it succeeds."""
+    import casep
+    from casep.io.files import write_table
+    from casep.model.strapdown import body_errors
+    from casep.simulation.noise import white_noise
+
+    site = LaunchSite(67.89, 21.10, 330.0, 30.0, 10.0)
+    el = math.radians(80.0)
+    x, y = np.array([math.cos(el), math.sin(el), 0.0]), np.array([-math.sin(el), math.cos(el), 0.0])
+    C_tb = np.column_stack([x, y, np.cross(x, y)])
+    t = np.round(np.arange(0.0, 40.0, 0.05), 10)
+    w = np.tile(C_tb.T @ site.earth_rate, (t.size, 1))
+    f = np.tile(C_tb.T @ -(site.C.T @ normal_gravity_ecef(site.r_site)), (t.size, 1))
+    u = t[t >= site.t0] - site.t0
+    f[t >= site.t0] = np.column_stack([np.where(u < 20.0, 4 * 9.80665, -0.2 * 9.80665), 0 * u, 0 * u])
+    w[t >= site.t0] = np.column_stack([0.3 * np.minimum(u / 5.0, 1.0), -0.03 + 0 * u, 0.01 * np.sin(0.3 * u)])
+    nav = navigate(check_imu(ImuData(t, w, f)), site, (0.0, 9.0), heading_deg=30.0)
+    model = casep.load_model("strapdown15_axial")
+    truth = dict(ba_x=20.0, ba_y=-15.0, ba_z=10.0, sa_x=5000.0, ma_yx=1500.0, ma_zx=-1000.0, bg_x=200.0,
+                 bg_y=-150.0, bg_z=250.0, sg_x=3000.0, mg_yx=1000.0, mg_zx=-800.0, gg_xx=200.0, gg_yx=-100.0,
+                 gg_zx=150.0)
+    df, dw = body_errors(model, nav.q, f, w, t - t[0], np.array([truth[n] for n in model.names]))
+    k = slice(None, None, 4)
+    v = nav.v[k] + white_noise(t[k].size, 0.02, np.random.default_rng(1))
+    write_table(tmp_path / "trk.csv", {"t": t[k], **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}})
+    setup = ["--launch-site", "67.89", "21.10", "330", "30", "--launch-time", "10", "--align", "0", "9", "--heading",
+             "30"]
+    codes = {}
+    for unit, scale in (("deg", math.degrees(1.0)), ("rad", 1.0)):
+        write_table(tmp_path / f"imu_{unit}.csv", {"t": t, **{f"w_{a}": scale * (w + dw)[:, i] for i, a in
+                                                             enumerate("xyz")},
+                                                   **{f"fb_{a}": (f + df)[:, i] for i, a in enumerate("xyz")}})
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert main(["navigate", str(tmp_path / f"imu_{unit}.csv"), *setup, "-o",
+                         str(tmp_path / f"tel_{unit}.csv")]) == 0
+            codes[unit] = main(["separate", str(tmp_path / f"tel_{unit}.csv"), "--tracking", str(tmp_path / "trk.csv")])
+        out = capsys.readouterr()
+        said = "\n".join(str(c.message) for c in caught) + out.out + out.err
+        if unit == "deg":  # the pad warned, the separation failed
+            assert re.search(r"2375\.\d times the Earth rate.*deg/s given as rad/s", said), said[:3000]
+            assert "result not successful" in said
+    assert codes == {"deg": 1, "rad": 0}, (codes, [ln for ln in said.splitlines() if "fail" in ln])
+
+
+def test_deg_s_chance_against_seeded_biases():
+    # the fraction of biases spread evenly over the MEMS ball whose deg/s reading matches the Earth rate
+    # within tol, counted, against the closed form (ball and torus volumes)
+    from casep.frames import OMEGA_EARTH
+    from casep.navigation.alignment import MEMS_BIAS_SPREAD, deg_s_chance
+
+    rng = np.random.default_rng(5)
+    n = 400_000
+    u = rng.normal(size=(n, 3))
+    b = u / np.linalg.norm(u, axis=1)[:, None] * MEMS_BIAS_SPREAD * rng.uniform(size=(n, 1)) ** (1 / 3)
+    lat = 20.0
+    e = OMEGA_EARTH * np.array([math.cos(math.radians(lat)), math.sin(math.radians(lat)), 0.0])  # north, up, east
+    w = (e + b) / math.degrees(1.0)
+    for tol, heading in ((0.3, True), (0.5, False)):
+        if heading:
+            hit = np.linalg.norm(w - e, axis=1) < tol * OMEGA_EARTH
+        else:
+            hit = np.hypot(w[:, 1] - e[1], np.hypot(w[:, 0], w[:, 2]) - e[0]) < tol * OMEGA_EARTH
+        p = deg_s_chance(tol, lat, heading)
+        assert abs(hit.mean() - p) < 4 * math.sqrt(p / n) + 1e-3 * p, (tol, heading, hit.mean(), p)
 
 
 def _write_imu(path, t, w, f, increments=False):
