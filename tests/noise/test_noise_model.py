@@ -7,6 +7,7 @@ seeded Monte Carlo of every registered method in Gauss-Markov noise with gaps (a
 
 from __future__ import annotations
 
+import functools
 import warnings
 
 import numpy as np
@@ -144,13 +145,20 @@ def range_problem(platform36):
     return pb.sv(), pb.t, np.asarray(sim.truth)
 
 
+@functools.cache
+def _names() -> tuple[str, ...]:
+    """platform36's coefficient names, its model loaded once per test process (a CasADi set-up, ~35 ms of CPU,
+    was repeated for every one of the ~240 seeded draws of this file)."""
+    return tuple(casep.load_model("platform36").names)
+
+
 def _draw(S, t, truth, seq, *, gm=True, glitches=0.0):
     rng = np.random.default_rng(seq)
     e = ar1_noise(t, 0.1, 1.0, rng) if gm else 0.1 * rng.standard_normal((t.size, 3))
     if glitches:
         hit = rng.random(e.shape) < glitches
         e = e + hit * rng.choice([-2.0, 2.0], size=e.shape)  # glitches of 2 m/s
-    return Problem.from_arrays(S, S @ truth + e, t, names=casep.load_model("platform36").names)
+    return Problem.from_arrays(S, S @ truth + e, t, names=_names())
 
 
 @pytest.mark.montecarlo
@@ -274,7 +282,7 @@ def _study(range_problem, runs: int, glitches: float, robust: str | None, seed: 
     from casep.estimators.registry import METHODS
 
     S, t, _ = range_problem
-    names = casep.load_model("platform36").names
+    names = _names()
     prior = {nm_: {"mean": 0.0, "std": 1.0} for nm_ in names}
     opts = {"map": {"prior": prior}, "rls": {"p0": 100.0}, "rels": {"p0": 100.0},
             "bounded": {"bounds": {"Ka0x": [-1e3, 1e3], "Ka0y": [-1e3, 1e3]}}}  # loose: never active
@@ -441,7 +449,7 @@ def test_a_few_gross_glitches_engage_the_robust_fit_with_honest_std(range_proble
         e = ar1_noise(t, 0.08, 1.5, rng) + 0.04 * rng.standard_normal((t.size, 3))
         hit = np.sort(rng.choice(np.arange(20, t.size - 20), 5, replace=False))
         e[hit, rng.integers(0, 3, 5)] += rng.choice([-3.0, 3.0], 5)
-        pb = Problem.from_arrays(S, S @ truth + e, t, names=casep.load_model("platform36").names)
+        pb = Problem.from_arrays(S, S @ truth + e, t, names=_names())
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", IllConditionedWarning)
             res = casep.separate(pb)
@@ -460,5 +468,5 @@ def test_gaussian_noise_alone_does_not_engage_the_robust_fit(range_problem):
     e = ar1_noise(t, 0.08, 1.5, rng) + 0.04 * rng.standard_normal((t.size, 3))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IllConditionedWarning)
-        res = casep.separate(Problem.from_arrays(S, S @ truth + e, t, names=casep.load_model("platform36").names))
+        res = casep.separate(Problem.from_arrays(S, S @ truth + e, t, names=_names()))
     assert "robust" not in res.diagnostics
