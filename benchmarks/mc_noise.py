@@ -11,7 +11,7 @@ runs the same on the 90-s window (``--window``) with 4 draws and asserts the whi
 per-coefficient z of the 36 coefficients of one draw are strongly correlated, so their figures need
 many draws (60 on that window, which this script prints with ``--window --runs 60 --seeds 30 31``).
 Then the white / Gauss-Markov choice of ``noise="auto"`` on the first 40 s, over ``--choices`` seeds
-of each kind of noise (the test suite runs 40).
+of each kind of noise (the test suite runs 40 white, 10 Gauss-Markov).
 
 Then REML tau on 0.5 % glitches with and without the robust filter over ``--glitch-seeds`` seeds (the test suite
 runs 10).
