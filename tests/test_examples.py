@@ -48,9 +48,8 @@ def test_collinearity_ridge_qp(tmp_path):
     assert diff < 1e-5
 
 
-def test_two_rate_workflow(tmp_path):
-    out = _run("two_rate_workflow.py", tmp_path, "--out", str(tmp_path))
-    assert "20 ms offset" in out and (tmp_path / "tracking.parquet").exists()
+# examples/two_rate_workflow.py --quick runs once, in tests/model/test_model_signals.py
+# (test_two_rate_example_dt_trk_removes_the_ka0y_bias), which asserts what it printed and wrote.
 
 
 @pytest.mark.montecarlo

@@ -331,6 +331,7 @@ def test_two_rate_example_dt_trk_removes_the_ka0y_bias(tmp_path):
                                 [example, "--quick", "--out", str(tmp_path)], tmp_path, path0=str(Path(example).parent),
                                 timeout=600)
     assert code == 0, err
+    assert "20 ms offset" in out and (tmp_path / "tracking.parquet").exists()  # the example's run (test_examples.py)
     line = next(ln for ln in out.splitlines() if ln.startswith("Ka0y"))
     before, after = (float(x) for x in line.split("bias/std ")[1].split(";")[0].split(" -> "))
     vs_ref = float(line.split("fitted - no offset ")[1].split()[0])
