@@ -7,13 +7,16 @@ and the draws, the reference being what each method's std describes (``tests/noi
 ``_study``: the truth; the method's own noise-free answer for ridge and pcr; a truth drawn from
 the prior for map, rls, rels), its RMS and 95 % coverage; and the error whitened by the stated covariance
 (``w``, ``conftest.whitened_error``): its RMS and how many draws pass their chi2 95 % point. The test suite
-runs the same on the 90-s window (``--window``) with 20 draws and asserts the whitened figures; the
+runs the same on the 90-s window (``--window``) with 4 draws and asserts the whitened figures; the
 per-coefficient z of the 36 coefficients of one draw are strongly correlated, so their figures need
 many draws (60 on that window, which this script prints with ``--window --runs 60 --seeds 30 31``).
 Then the white / Gauss-Markov choice of ``noise="auto"`` on the first 40 s, over ``--choices`` seeds
-of each kind of noise (the test suite runs 40).
+of each kind of noise (the test suite runs 40 white, 10 Gauss-Markov).
 
-Run:  python benchmarks/mc_noise.py [--runs 200] [--choices 100] [--window] [--seeds 40 41]
+Then REML tau on 0.5 % glitches with and without the robust filter over ``--glitch-seeds`` seeds (the test suite
+runs 10).
+
+Run:  python benchmarks/mc_noise.py [--runs 200] [--choices 100] [--window] [--seeds 40 41] [--glitch-seeds 20]
 """
 
 from __future__ import annotations
@@ -43,6 +46,8 @@ def main() -> None:
     ap.add_argument("--choices", type=int, default=100)
     ap.add_argument("--window", action="store_true", help="the test's rows only: 60 to 150 s")
     ap.add_argument("--seeds", type=int, nargs=2, default=(40, 41), help="of the two rows (the tests: 30 31)")
+    ap.add_argument("--glitch-seeds", type=int, default=20,
+                    help="REML tau with and without the robust filter on 0.5 %% glitches (the tests: 10)")
     args = ap.parse_args()
     warnings.simplefilter("ignore")
     sim = simulate_flight("paper-range-gm", seed=0)
@@ -65,6 +70,7 @@ def main() -> None:
                   f"| {np.sqrt(sum(q) / sum(w.size for w in ws[m])):.3f} | {over} of {len(q)} |", flush=True)
         print(f"({time.time() - t0:.0f} s)", file=sys.stderr)
     auto_choices(whole, args.choices)
+    glitch_taus(whole, args.glitch_seeds)
 
 
 def auto_choices(data, seeds: int) -> None:
@@ -81,6 +87,29 @@ def auto_choices(data, seeds: int) -> None:
                                                        "auto").tau) for k in range(seeds))
     print(f"noise='auto' on 40 s, {seeds} seeds each: white chosen on white noise {white}, "
           f"Gauss-Markov on Gauss-Markov noise {gm}")
+
+
+def glitch_taus(data, seeds: int) -> None:
+    """REML tau on 0.5 % glitches of 2 m/s, without and with the robust filter, per axis and seed (the draws of
+    ``test_reml_tau_with_glitches_is_robust``, which runs the first 10): the mean and std over the seeds that
+    its bounds are computed from."""
+    from test_noise_model import _draw
+
+    from casep.estimators.solve import prepare_rows
+    from casep.noise.fit import fit_noise
+
+    S, t, truth = data
+    plain, robust = [], []
+    for k in range(seeds):
+        pb = _draw(S, t, truth, np.random.SeedSequence(21, spawn_key=(k,)), glitches=0.005)
+        plain.append([v or 0.0 for v in fit_noise(pb, "gm").tau])
+        robust.append(prepare_rows(pb, "gm", robust="huber").noise.tau)
+    p, r = np.array(plain, dtype=float), np.array(robust, dtype=float)
+    mean, std = np.round(r.mean(axis=0), 3).tolist(), np.round(r.std(axis=0, ddof=1), 3).tolist()
+    med = np.median(r, axis=1)
+    print(f"REML tau on 0.5 % glitches, {seeds} seeds: without the filter mean {p.mean():.3f} s (max {p.max():.3f});"
+          f" with it per axis mean {mean} std {std}, seed medians {med.min():.3f}-{med.max():.3f}"
+          f" (std {med.std(ddof=1):.3f})")
 
 
 if __name__ == "__main__":

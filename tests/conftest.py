@@ -103,7 +103,7 @@ def whitened_error(err: np.ndarray, cov: np.ndarray, rank: int | None = None) ->
     return u / np.sqrt(lam)
 
 
-def dishonest_whitened(stats: dict, rms=(0.85, 1.15), false_alarm: float = 1e-3) -> dict:
+def dishonest_whitened(stats: dict, rms: tuple[float, float] | None = (0.85, 1.15), false_alarm: float = 1e-3) -> dict:
     """``{method: (RMS w, draws over their chi2 95 % point, the largest count allowed)}`` of the methods
     whose whitened errors (method -> one :func:`whitened_error` per draw) say the stated covariance is
     not honest.
@@ -116,6 +116,11 @@ def dishonest_whitened(stats: dict, rms=(0.85, 1.15), false_alarm: float = 1e-3)
     number of draws whose ``w^T w`` passes its chi2_r 95 % point, Binomial(draws, 0.05) when honest:
     at most the count exceeded with probability `false_alarm` (5 of 20): a few draws with a grossly
     wrong covariance fail it where the pooled RMS may not.
+
+    `rms` None, for a reduced run whose draws are too few for the 15 % band: the band from the statistic's
+    own scatter, ``sqrt(chi2_dof quantile / dof)`` at ``false_alarm / 4`` each side (at 4 draws of 36,
+    ``false_alarm`` 1e-4: [0.769, 1.245]), and the count at ``false_alarm / 2``: an honest covariance
+    fails the two together with probability at most `false_alarm`.
     """
     from scipy.stats import binom, chi2
 
@@ -125,8 +130,11 @@ def dishonest_whitened(stats: dict, rms=(0.85, 1.15), false_alarm: float = 1e-3)
         dof = sum(w.size for w in ws)
         r = float(np.sqrt(q.sum() / dof))
         over = int(sum(qk > chi2.ppf(0.95, w.size) for qk, w in zip(q, ws)))
-        limit = int(binom.isf(false_alarm, len(ws), 0.05))  # P(count > limit) <= false_alarm
-        if not (rms[0] <= r <= rms[1] and over <= limit):
+        p_count = false_alarm if rms is not None else false_alarm / 2
+        limit = int(binom.isf(p_count, len(ws), 0.05))  # P(count > limit) <= p_count
+        lo, hi = rms if rms is not None else (float(np.sqrt(chi2.ppf(false_alarm / 4, dof) / dof)),
+                                              float(np.sqrt(chi2.isf(false_alarm / 4, dof) / dof)))
+        if not (lo <= r <= hi and over <= limit):
             bad[m] = (round(r, 3), over, limit)
     return bad
 

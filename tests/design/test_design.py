@@ -240,16 +240,20 @@ def test_api_bad_input():
 
 
 def test_example_runs(tmp_path):
-    import subprocess
-    import sys
+    """``python examples/maneuver_design.py --quick`` in a forked child (:func:`conftest.run_forked`: no new
+    interpreter importing casep, NumPy, SciPy and CasADi again)."""
+    import runpy
     from pathlib import Path
 
-    script = Path(__file__).resolve().parents[2] / "examples" / "maneuver_design.py"
-    proc = subprocess.run([sys.executable, str(script), "--quick", "--out", str(tmp_path)], capture_output=True,
-                          text=True, cwd=tmp_path, timeout=600, check=False)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert "max 10.0 deg: A" in proc.stdout and (tmp_path / "maneuver_design.png").exists()
-    assert "reported std / design CRLB in [1.0000, 1.0000]" in proc.stdout
+    from conftest import run_forked
+
+    script = str(Path(__file__).resolve().parents[2] / "examples" / "maneuver_design.py")
+    code, out, err = run_forked(lambda: runpy.run_path(script, run_name="__main__"),
+                                [script, "--quick", "--out", str(tmp_path)], tmp_path, path0=str(Path(script).parent),
+                                timeout=600)
+    assert code == 0, err[-2000:]
+    assert "max 10.0 deg: A" in out and (tmp_path / "maneuver_design.png").exists()
+    assert "reported std / design CRLB in [1.0000, 1.0000]" in out
 
 
 def test_a_objective_over_a_subset(coarse):

@@ -8,12 +8,13 @@ simulated attitude, and a seeded Monte Carlo against the Cramer-Rao bound.
 from __future__ import annotations
 
 import dataclasses
-import subprocess
-import sys
+import runpy
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
 import pytest
+from conftest import run_forked
 
 import casep
 from casep.io.flight import FlightDataError
@@ -21,6 +22,14 @@ from casep.simulation.noise import NoiseModel
 from casep.simulation.scenarios import get_scenario
 from casep.simulation.simulate import simulate_flight
 from casep.units import DEG_PER_HOUR, G0
+
+
+def _casep(argv: list[str], cwd: Path | None = None) -> tuple[int, str, str]:
+    """``python -m casep ARGV`` as the entry point in a forked child (:func:`conftest.run_forked`): ``(status, out,
+    err)``, without a new interpreter's 1.2-1.5 s of CPU importing casep, NumPy, SciPy and CasADi."""
+    from casep.cli import main
+
+    return run_forked(lambda: main(argv), ["casep", *argv], cwd or Path.cwd())
 
 
 def _lstsq(S: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -91,10 +100,11 @@ def test_velocity_error_locked_after_setup():
 
 
 def test_models_verbose_lists_per_flight_and_signals():
-    out = subprocess.run([sys.executable, "-m", "casep", "models", "-v"], capture_output=True, text=True, check=True)
-    rows = {ln.split()[0]: ln for ln in out.stdout.splitlines() if ln.startswith("    ") and ln.split()}
+    code, stdout, err = _casep(["models", "-v"])
+    assert code == 0, err
+    rows = {ln.split()[0]: ln for ln in stdout.splitlines() if ln.startswith("    ") and ln.split()}
     assert rows["dt_trk"].split()[1] == "ms" and rows["dt_trk"].rstrip().endswith("per flight")
-    assert "signals: a_x, a_y, a_z" in out.stdout
+    assert "signals: a_x, a_y, a_z" in stdout
     assert rows["Kg0x_dot"].split()[1] == "deg/h/s"
 
 
@@ -257,10 +267,9 @@ def test_missing_signal_column_names_model_column_and_file(tmp_path):
     path = tmp_path / "plain.csv"
     casep.io.files.write_table(path, {"t": sim.flight.t, **{f"f_{a}": sim.flight.f[:, i] for i, a in enumerate("xyz")},
                                       **{f"dv_{a}": sim.flight.dv[:, i] for i, a in enumerate("xyz")}})
-    out = subprocess.run([sys.executable, "-m", "casep", "separate", str(path), "--model", "platform36_timeoffset"],
-                         capture_output=True, text=True)
-    assert out.returncode == 2
-    err = out.stderr.strip()
+    code, _, err = _casep(["separate", str(path), "--model", "platform36_timeoffset"], tmp_path)
+    assert code == 2
+    err = err.strip()
     assert len(err.splitlines()) == 1
     assert "platform36_timeoffset" in err and "`a_x`" in err and str(path) in err
     with pytest.raises(ValueError, match="needs flight column"):
@@ -283,9 +292,8 @@ def test_nan_signal_names_the_row(tmp_path):
     with pytest.raises(FlightDataError, match=r"column `a_y`, row 7.*platform36_timeoffset") as e:
         fl.model_signals(("a_x", "a_y"), "platform36_timeoffset")
     assert str(path) in str(e.value)
-    out = subprocess.run([sys.executable, "-m", "casep", "separate", str(path), "--model", "platform36_timeoffset"],
-                         capture_output=True, text=True)
-    assert out.returncode == 2 and "row 7" in out.stderr and "a_y" in out.stderr
+    code, _, err = _casep(["separate", str(path), "--model", "platform36_timeoffset"], tmp_path)
+    assert code == 2 and "row 7" in err and "a_y" in err
 
 
 def test_signals_round_trip_and_text_columns_ignored(tmp_path):
@@ -306,23 +314,24 @@ def test_simulate_cli_offset_and_lever_arm(tmp_path):
     import json
 
     out = tmp_path / "f.csv"
-    subprocess.run([sys.executable, "-m", "casep", "simulate", "--rate", "5", "--tracking-offset", "20",
-                    "--lever-arm", "1", "0", "0.5", "-o", str(out)], check=True, capture_output=True)
+    code, _, err = _casep(["simulate", "--rate", "5", "--tracking-offset", "20", "--lever-arm", "1", "0", "0.5", "-o",
+                           str(out)], tmp_path)
+    assert code == 0, err
     truth = json.loads((tmp_path / "f.truth.json").read_text())
     assert truth["tracking"] == {"time_offset_ms": 20.0, "lever_arm_m": [1.0, 0.0, 0.5]}
     fl = casep.read_flight(out)
     assert {"a_x", "r_z", "v_y", "att_pitch", "omega_z"} <= set(fl.signals)
-    bad = subprocess.run([sys.executable, "-m", "casep", "simulate", "--tracking-offset", "5000", "-o",
-                          str(tmp_path / "g.csv")], capture_output=True, text=True)
-    assert bad.returncode == 2 and "--tracking-offset" in bad.stderr
+    code, _, err = _casep(["simulate", "--tracking-offset", "5000", "-o", str(tmp_path / "g.csv")], tmp_path)
+    assert code == 2 and "--tracking-offset" in err
 
 
 def test_two_rate_example_dt_trk_removes_the_ka0y_bias(tmp_path):
-    from pathlib import Path
-
-    example = Path(__file__).resolve().parents[2] / "examples" / "two_rate_workflow.py"
-    out = subprocess.run([sys.executable, str(example), "--quick", "--out", str(tmp_path)], capture_output=True,
-                         text=True, timeout=600, check=True).stdout
+    example = str(Path(__file__).resolve().parents[2] / "examples" / "two_rate_workflow.py")
+    code, out, err = run_forked(lambda: runpy.run_path(example, run_name="__main__"),
+                                [example, "--quick", "--out", str(tmp_path)], tmp_path, path0=str(Path(example).parent),
+                                timeout=600)
+    assert code == 0, err
+    assert "20 ms offset" in out and (tmp_path / "tracking.parquet").exists()  # the example's run (test_examples.py)
     line = next(ln for ln in out.splitlines() if ln.startswith("Ka0y"))
     before, after = (float(x) for x in line.split("bias/std ")[1].split(";")[0].split(" -> "))
     vs_ref = float(line.split("fitted - no offset ")[1].split()[0])
@@ -334,9 +343,8 @@ def test_two_rate_example_dt_trk_removes_the_ka0y_bias(tmp_path):
 
 
 def test_model_signals_paper_example_runs(tmp_path):
-    from pathlib import Path
-
-    example = Path(__file__).resolve().parents[2] / "examples" / "model_signals_paper.py"
-    out = subprocess.run([sys.executable, str(example), "--quick"], capture_output=True, text=True, timeout=600,
-                         check=True, cwd=tmp_path).stdout
+    example = str(Path(__file__).resolve().parents[2] / "examples" / "model_signals_paper.py")
+    code, out, err = run_forked(lambda: runpy.run_path(example, run_name="__main__"), [example, "--quick"], tmp_path,
+                                path0=str(Path(example).parent), timeout=600)
+    assert code == 0, err
     assert "dt_trk" in out and "VIF" in out and "lever arm (1.5, -0.4, 0.3) m: new terms [1.5, -0.4, 0.3]" in out
