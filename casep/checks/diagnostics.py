@@ -339,6 +339,21 @@ def _scales(names: Sequence[str], prior_std: np.ndarray | None, scales: Mapping 
     return out
 
 
+def _partner_bound(bound: Any, pbnd: PartnerBound | None, ra: RankAnalysis, names: Sequence[str],
+                   units: Sequence[str]) -> tuple[np.ndarray, dict[str, str]]:
+    """The bound's covariance (``bound(mask)``: NaN rows for the unidentifiable when `mask`) and, with `pbnd`, that
+    of the solution of least size in declared magnitudes for the exactly dependent coefficients it determines in
+    practice, with their notes (:class:`~casep.regression.linalg.PartnerBound`)."""
+    if pbnd is None:
+        return bound(True), {}
+    cov = pbnd.covariance(bound(False))
+    now = pbnd.determined(ra.dependent, np.sqrt(np.clip(np.diag(cov), 0.0, None)))
+    und = ~ra.estimable & ~now
+    cov[und, :] = np.nan
+    cov[:, und] = np.nan
+    return cov, {names[j]: pbnd.note(j, float(np.sqrt(cov[j, j])), names, units[j]) for j in map(int, np.flatnonzero(now))}
+
+
 def diagnose(
     S: np.ndarray | Problem,
     y: np.ndarray | None = None,
@@ -424,17 +439,8 @@ def diagnose(
         return crlb_covariance(S.sv() if isinstance(S, Problem) else S, sigma, t=t, tau=tau, prior_std=prior_std,
                                rcond=rcond, prior_information=prior_information, mask=mask)
 
-    cov = bound(pbnd is None)
+    cov, partner_notes = _partner_bound(bound, pbnd, ra, names, units)
     reasons = unidentifiable_reasons(ra, names)
-    partner_notes: dict[str, str] = {}
-    if pbnd is not None:
-        cov = pbnd.covariance(cov)
-        now = pbnd.determined(ra.dependent, np.sqrt(np.clip(np.diag(cov), 0.0, None)))
-        und = ~ra.estimable & ~now
-        cov[und, :] = np.nan
-        cov[:, und] = np.nan
-        partner_notes = {names[j]: pbnd.note(int(j), float(np.sqrt(cov[j, j])), names, units[j])
-                         for j in np.flatnonzero(now)}
     sd = np.sqrt(np.diag(cov))
     verdict: dict[str, str] = {}
     for j, nm in enumerate(names):

@@ -513,6 +513,10 @@ class _Run:
                 warnings.simplefilter("ignore")  # S_V's warnings (integrated across a gap) said once, too
             model = self.model(nav, D)
             problem = flight_problem(flight, model)
+        # the passes step along the combinations the record determines exactly (estimable rows, module notes);
+        # an exactly dependent coefficient stays without an estimate here, whatever its partners' magnitudes
+        # (casep.regression.linalg.PartnerBound: a statement of the linear fit, not a step direction)
+        problem.magnitudes = {}
         self.model_k = model
         return _quiet_fit(problem, spec), nav, flight, model, problem
 
