@@ -218,9 +218,49 @@ def lag_figure(lags, tot, outdir: str) -> str:
     return p
 
 
+def course_shift(t_imu: np.ndarray, imu: np.ndarray, pos: dict, t_ref: float,
+                 spans: tuple[tuple[float, float], ...]) -> list[float]:
+    """Per span, the shift of the IMU's times (s) that best lines the vertical gyro rate up with the course rate
+    of the velocity differenced from the RTK positions (epochs above 3 m/s): ``course'(t) = -w_up(t_imu + shift)``
+    in the least-squares sense, on a 5 ms grid refined by a parabola; the gyro rate (pad's mean removed, projected
+    on the pad's vertical) is averaged over 0.25 s as the differenced velocity is. A clock whose offset drifts
+    gives a shift that moves from span to span."""
+    from casep.navigation.imu import regular_time
+
+    grid = regular_time(t_imu)
+    ti = t_imu if grid is None else grid
+    pad = ti < 30.0
+    up = imu[pad, 0:3].mean(axis=0)
+    up /= np.linalg.norm(up)
+    w_up = np.convolve((imu[:, 3:6] - imu[pad, 3:6].mean(axis=0)) @ up, np.ones(25) / 25, mode="same")
+    tp = pos["t"] - t_ref
+    rate = np.gradient(np.unwrap(np.arctan2(pos["ve"], pos["vn"])), tp)
+    fast = np.hypot(pos["ve"], pos["vn"]) > 3.0
+    lags = np.arange(-0.5, 0.3001, 0.005)
+    out = []
+    for a, b in spans:
+        use = fast & (tp > a) & (tp < b)
+        err = np.array([np.mean((rate[use] + np.interp(tp[use] - lag, ti, w_up)) ** 2) for lag in lags])
+        j = int(np.clip(np.argmin(err), 1, lags.size - 2))
+        y0, y1, y2 = err[j - 1:j + 2]
+        out.append(float(lags[j] + 0.005 * 0.5 * (y0 - y2) / (y0 - 2.0 * y1 + y2)))
+    return out
+
+
 def check_clock(data: str, outdir: str | None = None) -> None:
     """Print (and draw) the IMU's and the host's clocks from the time-tag files (module docstring, ``clock``)."""
+    import pandas as pd
+    from car_drive import velocity_from_positions
+
     c = imu_clock_from_arrivals(data)
+    raw = pd.read_csv(os.path.join(data, "imu_1934_gpst_raw.csv.gz")).to_numpy()
+    pos = velocity_from_positions(read_rtklib_pos(os.path.join(data, "gnss_1934_sf.pos")))
+    t_ref = float(np.floor(raw[0, 0]))
+    spans = ((40.0, 190.0), (190.0, 340.0), (340.0, 490.0), (40.0, 545.0))
+    for label, t in (("stretched (the data's)", raw[:, 0]), ("from the arrivals", c["t"])):
+        sh = course_shift(t - t_ref, raw[:, 1:7], pos, t_ref, spans)
+        print(f"IMU times {label}: the shift lining the gyro rate up with the RTK course rate, "
+              + ", ".join(f"{a:.0f}-{b:.0f} s {x * 1e3:.0f} ms" for (a, b), x in zip(spans, sh)))
     m, f = c["mapped_minus"], c["imu_floor"]
     scatter = np.std(f[:, 1] - np.polyval(c["imu_line"], f[:, 0]))
     print(f"IMU counter against the host (earliest arrival per 10 s): rate {c['imu_line'][0] * 1e6:.1f} ppm, "
