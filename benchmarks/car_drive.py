@@ -441,7 +441,7 @@ def main() -> None:
             print(f"  {n}: (estimate - truth) / std over the {z.size} windows: RMS {np.sqrt(np.mean(z**2)):.2f}, "
                   f"mean {np.mean(z):+.2f}")
     pos = read_rtklib_pos(os.path.join(args.data, "gnss_1934_sf.pos"))
-    rest = spans_at_rest(pos["t"] - t_ref, pos["ve"], pos["vn"])
+    rest = [(a, b) for a, b in spans_at_rest(pos["t"] - t_ref, pos["ve"], pos["vn"]) if b <= imu.t[-1]]  # --end
     if len(rest) > 1 and truth is None:
         inst = print_rest(imu, rest)
         cc = window_consistency(res.windows, res.names, instability=inst)
