@@ -66,15 +66,90 @@ def velocity_from_positions(pos: dict[str, np.ndarray]) -> dict[str, np.ndarray]
             "vu": vu}
 
 
+def _read_tag(path: str) -> tuple[float, np.ndarray]:
+    """An RTKLIB time-tag file: the host's start time (GPST s, Unix epoch) and its (tick ms, file offset) rows."""
+    import struct
+
+    with open(path, "rb") as fh:
+        fh.read(64)  # 60-byte text header, uint32 tick frequency
+        t0 = struct.unpack("<I", fh.read(4))[0] + struct.unpack("<d", fh.read(8))[0]
+        rec = np.frombuffer(fh.read(), dtype="<u4").reshape(-1, 2).astype(np.int64)
+    return t0, rec
+
+
+def _floor_line(t: np.ndarray, y: np.ndarray, bin_s: float = 10.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The least-squares line (slope, intercept) through the lowest `y` of each `bin_s` bin of `t` (a transfer
+    delay only adds: the earliest arrival in a bin is the clock), with the bins' centres and lowest values."""
+    edges = np.arange(t.min(), t.max() + bin_s, bin_s)
+    c, lo = [], []
+    for a, b in zip(edges[:-1], edges[1:]):
+        m = (t >= a) & (t < b)
+        if m.sum() > 5:
+            c.append(0.5 * (a + b))
+            lo.append(float(np.min(y[m])))
+    return np.polyfit(c, lo, 1), np.array(c), np.array(lo)
+
+
+def imu_clock_from_arrivals(data: str) -> dict[str, float | np.ndarray]:
+    """The IMU's sample times on the host's clock from when its lines arrived, and the host's clock against GPS.
+
+    ``imu_1934_gpst_raw.csv.gz`` maps the IMU's millisecond counter linearly onto [tag start, last tag]
+    (``align_imu.py``), which assumes the first sample at the file's opening and the last at the last write.
+    The time-tag file says when each block of lines reached the host (tick ms, file offset; the copy here lost
+    its carriage returns, one byte per line, which the offsets still count): the earliest arrival per 10 s, less
+    the counter, is a line in time (a constant transfer delay and the two clocks' rate difference). The GNSS
+    tag file's bursts (one per 0.25 s epoch) against the 0.25 s grid give the host clock's rate against GPS the
+    same way. Returns the corrected times (the earliest-arrival line: the transfer delay itself is unknown and
+    left in, a constant), the mapped times' rate error against it (ppm), their offset at start and end (s) and
+    the host's rate against GPS (ppm, with the scatter of its floor about its line, s).
+    """
+    import pandas as pd
+
+    t0, rec = _read_tag(os.path.join(data, "imu_1934.csv.tag"))
+    raw = open(os.path.join(data, "imu_1934.csv"), "rb").read()
+    starts = np.r_[0, np.flatnonzero(np.frombuffer(raw, np.uint8) == 10) + 1]
+    starts = starts + np.arange(starts.size)  # the CR each line had when the offsets were written
+    ms = np.array([float(ln.split(b",")[6]) if ln.count(b",") == 6 else np.nan for ln in raw.split(b"\n")]) / 1e3
+    first = ms[np.flatnonzero(np.isfinite(ms))[0]]
+    line = np.searchsorted(starts, rec[:, 1], side="right") - 2  # the last line complete before the offset
+    ok = (line >= 0) & np.isfinite(ms[np.clip(line, 0, ms.size - 1)])
+    tick = rec[ok, 0] / 1e3
+    (slope, icpt), ic, ilo = _floor_line(tick, tick - (ms[line[ok]] - first))
+    mapped = pd.read_csv(os.path.join(data, "imu_1934_gpst_raw.csv.gz")).to_numpy()[:, 0]
+    counter = ms[np.isfinite(ms)][1:-1] - first  # align_imu.py drops the first and the last line
+    arr = counter + (icpt + slope * counter) / (1.0 - slope)  # tick = counter + icpt + slope tick
+    corrected = t0 + arr
+    tg0, rg = _read_tag(os.path.join(data, "gnss_1934.ubx.tag"))
+    tk = rg[:, 0] / 1e3
+    bursts = tk[np.r_[True, np.diff(tk) > 0.08]]
+    late = bursts - bursts[0] - 0.25 * np.round((bursts - bursts[0]) / 0.25)
+    (g_slope, g_icpt), gc, glo = _floor_line(bursts, late)
+    d = mapped - corrected
+    return {"t": corrected, "rate_ppm": float(np.polyfit(counter, d, 1)[0] * 1e6), "start": float(d[0]),
+            "end": float(d[-1]), "host_gps_ppm": float(g_slope * 1e6),
+            "host_gps_scatter": float(np.std(glo - np.polyval([g_slope, g_icpt], gc))),
+            "imu_floor": np.column_stack([ic, ilo]), "imu_line": np.array([slope, icpt]),
+            "gnss_floor": np.column_stack([gc, glo]), "gnss_line": np.array([g_slope, g_icpt]),
+            "mapped_minus": np.column_stack([counter, d])}
+
+
 def convert(data: str, out: str, cut: tuple[float, float] | None = None,
-            velocity: str = "rtklib") -> tuple[str, str, float]:
+            velocity: str = "rtklib", imu_clock: str = "stretch") -> tuple[str, str, float]:
     """casep's IMU file (t, w_*, fb_*) and geodetic tracking file, time from the first IMU sample.
 
     `velocity`: ``"rtklib"`` the .pos file's velocity, ``"positions"`` :func:`velocity_from_positions`.
+    `imu_clock`: ``"stretch"`` the mapped file's times, ``"arrivals"`` :func:`imu_clock_from_arrivals`.
     """
     import pandas as pd
 
     imu = pd.read_csv(os.path.join(data, "imu_1934_gpst_raw.csv.gz")).to_numpy()
+    if imu_clock == "arrivals":
+        clock = imu_clock_from_arrivals(data)
+        imu[:, 0] = clock["t"]
+        print(f"IMU clock from the tags' arrivals: the mapped times run {clock['rate_ppm']:.0f} ppm fast against "
+              f"it ({clock['start'] * 1e3:.0f} ms at the start, {clock['end'] * 1e3:.0f} ms at the end); the host "
+              f"clock against GPS (GNSS bursts) {clock['host_gps_ppm']:.0f} ppm, floor scatter "
+              f"{clock['host_gps_scatter'] * 1e3:.0f} ms")
     pos = read_rtklib_pos(os.path.join(data, "gnss_1934_sf.pos"))
     if velocity == "positions":
         pos = velocity_from_positions(pos)
@@ -225,6 +300,26 @@ def _clock_trend(windows) -> None:
           f"(each window fits its own dt_trk, std {sd.min():.1f}-{sd.max():.1f} ms)")
 
 
+def save_windows(res, path: str) -> None:
+    """Pickle plain data per window (span, success, names, estimate, covariance, residuals and their times, the
+    S_V rows at the end) for analyses that need no new run."""
+    import pickle
+
+    rows = []
+    for w in res.windows:
+        r = w.result
+        rows.append({"t_start": w.t_start, "t_end": w.t_end, "success": bool(r.success), "names": list(r.names),
+                     "estimate": np.asarray(r.estimate, float),
+                     "covariance": None if r.covariance is None else np.asarray(r.covariance, float),
+                     "residuals": np.asarray(r.residuals, float),
+                     "t": np.asarray(getattr(r, "t", np.array([])), float),
+                     "sv_end": w.sv_end, "sv_names": list(w.sv_names),
+                     "noise": (r.diagnostics or {}).get("noise_model", (r.diagnostics or {}).get("noise"))})
+    with open(path, "wb") as fh:
+        pickle.dump({"names": list(res.names), "windows": rows}, fh)
+    print("saved", path)
+
+
 def main() -> None:
     from casep.frames import LaunchSite
     from casep.navigation.imu import read_imu, regular_time
@@ -246,10 +341,15 @@ def main() -> None:
                     help="IMU times: the logger's tags, or the uniform grid they jitter about (regular_time)")
     ap.add_argument("--velocity", choices=("rtklib", "positions"), default="rtklib",
                     help="tracked velocity: RTKLIB's filter state, or differenced RTK positions")
+    ap.add_argument("--imu-clock", choices=("stretch", "arrivals"), default="stretch",
+                    help="IMU counter onto GPST: the data's linear stretch, or the tags' earliest arrivals")
     ap.add_argument("--simulate", type=int, default=None, metavar="SEED",
                     help="run the chain on the drive's simulated twin (car_drive_sim.py: its trajectory and noise, "
                          "constant known biases; IMU on the grid, velocity from positions) instead of the data")
+    ap.add_argument("--sim-clock", type=float, nargs=2, default=(0.0, 0.0), metavar=("OFFSET_S", "PPM"),
+                    help="--simulate: the twin's IMU times written this far off (the data's: -0.140 279)")
     ap.add_argument("--end", type=float, default=None, help="use the record up to this time only, s")
+    ap.add_argument("--save", default=None, help="pickle each window's span, estimate, covariance, residuals here")
     args = ap.parse_args()
     if args.write_cut:  # the IMU file gzipped (-9), as the test suite holds it
         import gzip
@@ -265,9 +365,10 @@ def main() -> None:
     if args.simulate is not None:
         from car_drive_sim import simulate
 
-        imu_path, trk_path, t_ref, truth = simulate(args.data, args.out, args.simulate)
+        imu_path, trk_path, t_ref, truth = simulate(args.data, args.out, args.simulate, clock=tuple(args.sim_clock))
     else:
-        imu_path, trk_path, t_ref = convert(args.data, args.out, velocity=args.velocity)
+        imu_path, trk_path, t_ref = convert(args.data, args.out, velocity=args.velocity,
+                                            imu_clock=args.imu_clock)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         imu = read_imu(imu_path)
@@ -340,7 +441,7 @@ def main() -> None:
             print(f"  {n}: (estimate - truth) / std over the {z.size} windows: RMS {np.sqrt(np.mean(z**2)):.2f}, "
                   f"mean {np.mean(z):+.2f}")
     pos = read_rtklib_pos(os.path.join(args.data, "gnss_1934_sf.pos"))
-    rest = spans_at_rest(pos["t"] - t_ref, pos["ve"], pos["vn"])
+    rest = [(a, b) for a, b in spans_at_rest(pos["t"] - t_ref, pos["ve"], pos["vn"]) if b <= imu.t[-1]]  # --end
     if len(rest) > 1 and truth is None:
         inst = print_rest(imu, rest)
         cc = window_consistency(res.windows, res.names, instability=inst)
@@ -349,6 +450,8 @@ def main() -> None:
     print(f"held-out prediction of dv at the window end ({c['prediction_pairs']} ordered pairs x 3 axes): "
           f"within 1 std {c['within_1_std']:.2f} (0.68 expected), within 2 std {c['within_2_std']:.2f} (0.95), "
           f"median |z| {c['median_abs_z']:.2f} (0.67)")
+    if args.save:
+        save_windows(res, args.save)
     if args.figures:
         for p in figures(res, args.figures):
             print("figure", p)

@@ -14,12 +14,18 @@ Each check is a measurement independent of the windows' chi-square it is meant t
     The IMU's time tags against the uniform grid they jitter about (:func:`casep.navigation.imu.regular_time`),
     and what integrating on the tags instead of the grid does to a window's velocity (the same samples,
     the same start).
+``clock``
+    The IMU's counter against the host's clock (when its lines arrived, the IMU time-tag file) and the host's
+    clock against GPS (when the receiver's 4 Hz bursts arrived, the GNSS time-tag file): how far the data's
+    linear stretch of the counter onto GPS time (``imu_1934_gpst_raw.csv.gz``) is off, and how it drifts
+    (``car_drive.imu_clock_from_arrivals``).
 ``static``
     The gyro biases where the car stands still (the start, 201-208 s, the end): their mean rates, with
     the Allan deviation (allantools) at a third of the span as the std of each mean. How much the
     biases move over the drive, measured without any window.
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/car_drive_causes.py nav rtk static tags --figures docs/results/figures
+    OPENBLAS_NUM_THREADS=1 python benchmarks/car_drive_causes.py nav rtk static tags clock \
+        --figures docs/results/figures
 """
 
 from __future__ import annotations
@@ -32,7 +38,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from car_drive import DATA, convert, print_rest, read_rtklib_pos, spans_at_rest  # noqa: E402
+from car_drive import DATA, convert, imu_clock_from_arrivals, print_rest, read_rtklib_pos, spans_at_rest  # noqa: E402
 
 OMEGA_E = 7.292115e-5
 
@@ -212,12 +218,85 @@ def lag_figure(lags, tot, outdir: str) -> str:
     return p
 
 
+def course_shift(t_imu: np.ndarray, imu: np.ndarray, pos: dict, t_ref: float,
+                 spans: tuple[tuple[float, float], ...]) -> list[float]:
+    """Per span, the shift of the IMU's times (s) that best lines the vertical gyro rate up with the course rate
+    of the velocity differenced from the RTK positions (epochs above 3 m/s): ``course'(t) = -w_up(t_imu + shift)``
+    in the least-squares sense, on a 5 ms grid refined by a parabola; the gyro rate (pad's mean removed, projected
+    on the pad's vertical) is averaged over 0.25 s as the differenced velocity is. A clock whose offset drifts
+    gives a shift that moves from span to span."""
+    from casep.navigation.imu import regular_time
+
+    grid = regular_time(t_imu)
+    ti = t_imu if grid is None else grid
+    pad = ti < 30.0
+    up = imu[pad, 0:3].mean(axis=0)
+    up /= np.linalg.norm(up)
+    w_up = np.convolve((imu[:, 3:6] - imu[pad, 3:6].mean(axis=0)) @ up, np.ones(25) / 25, mode="same")
+    tp = pos["t"] - t_ref
+    rate = np.gradient(np.unwrap(np.arctan2(pos["ve"], pos["vn"])), tp)
+    fast = np.hypot(pos["ve"], pos["vn"]) > 3.0
+    lags = np.arange(-0.5, 0.3001, 0.005)
+    out = []
+    for a, b in spans:
+        use = fast & (tp > a) & (tp < b)
+        err = np.array([np.mean((rate[use] + np.interp(tp[use] - lag, ti, w_up)) ** 2) for lag in lags])
+        j = int(np.clip(np.argmin(err), 1, lags.size - 2))
+        y0, y1, y2 = err[j - 1:j + 2]
+        out.append(float(lags[j] + 0.005 * 0.5 * (y0 - y2) / (y0 - 2.0 * y1 + y2)))
+    return out
+
+
+def check_clock(data: str, outdir: str | None = None) -> None:
+    """Print (and draw) the IMU's and the host's clocks from the time-tag files (module docstring, ``clock``)."""
+    import pandas as pd
+    from car_drive import velocity_from_positions
+
+    c = imu_clock_from_arrivals(data)
+    raw = pd.read_csv(os.path.join(data, "imu_1934_gpst_raw.csv.gz")).to_numpy()
+    pos = velocity_from_positions(read_rtklib_pos(os.path.join(data, "gnss_1934_sf.pos")))
+    t_ref = float(np.floor(raw[0, 0]))
+    spans = ((40.0, 190.0), (190.0, 340.0), (340.0, 490.0), (40.0, 545.0))
+    for label, t in (("stretched (the data's)", raw[:, 0]), ("from the arrivals", c["t"])):
+        sh = course_shift(t - t_ref, raw[:, 1:7], pos, t_ref, spans)
+        print(f"IMU times {label}: the shift lining the gyro rate up with the RTK course rate, "
+              + ", ".join(f"{a:.0f}-{b:.0f} s {x * 1e3:.0f} ms" for (a, b), x in zip(spans, sh)))
+    m, f = c["mapped_minus"], c["imu_floor"]
+    scatter = np.std(f[:, 1] - np.polyval(c["imu_line"], f[:, 0]))
+    print(f"IMU counter against the host (earliest arrival per 10 s): rate {c['imu_line'][0] * 1e6:.1f} ppm, "
+          f"floor about its line RMS {scatter * 1e3:.2f} ms")
+    print(f"the data's stretched times minus that line: {c['start'] * 1e3:.0f} ms at the start, "
+          f"{c['end'] * 1e3:.0f} ms at the end, {c['rate_ppm']:.0f} ppm ({c['rate_ppm'] * 30e-3:.1f} ms per 30 s)")
+    print(f"host clock against GPS (earliest GNSS burst per 10 s against the 0.25 s grid): "
+          f"{c['host_gps_ppm']:.0f} ppm, floor about its line RMS {c['host_gps_scatter'] * 1e3:.0f} ms")
+    if outdir:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(1, 2, figsize=(10, 3))
+        ax[0].plot(m[:, 0], m[:, 1] * 1e3, lw=1)
+        ax[0].set_title("IMU times as mapped (linear stretch) minus the arrival line, ms", fontsize=9)
+        ax[1].plot(f[:, 0], (f[:, 1] - np.polyval(c["imu_line"], f[:, 0])) * 1e3, "o", ms=3, label="IMU lines")
+        g = c["gnss_floor"]
+        ax[1].plot(g[:, 0], (g[:, 1] - g[0, 1]) * 1e3, "s", ms=3, label="GNSS bursts (from the first)")
+        ax[1].legend(fontsize=8)
+        ax[1].set_title("earliest arrival per 10 s about the IMU's line; GNSS against GPS, ms", fontsize=9)
+        for a in ax:
+            a.set_xlabel("host time from the file's start, s")
+        fig.tight_layout()
+        path = os.path.join(outdir, "car-drive-clock.png")
+        fig.savefig(path, dpi=80)
+        print("figure", path)
+
+
 def main() -> None:
     from casep.frames import LaunchSite
     from casep.navigation.imu import read_imu
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("checks", nargs="+", choices=("nav", "rtk", "static", "tags"))
+    ap.add_argument("checks", nargs="+", choices=("nav", "rtk", "static", "tags", "clock"))
     ap.add_argument("--figures", default=None, help="folder for the PNG figure of the RTK velocity lag")
     ap.add_argument("--data", default=DATA)
     ap.add_argument("--out", default="car_drive_out")
@@ -225,6 +304,8 @@ def main() -> None:
                     help="nav: integrate on the IMU's tags or on their uniform grid (regular_time)")
     ap.add_argument("--starts", type=float, nargs="+", default=[66.7, 396.7, 456.7])
     args = ap.parse_args()
+    if "clock" in args.checks:
+        check_clock(args.data, args.figures)
     if "rtk" in args.checks:
         lags, tot = check_rtk(args.data)
         if args.figures:

@@ -81,13 +81,16 @@ def _noise(x: np.ndarray, fs: float, pad: np.ndarray, rng: np.random.Generator) 
 def simulate(data: str, out: str, seed: int, pos_white: float = 0.003, pos_gm: float = 0.005,
              pos_tau: float = 10.0, noise: bool = True,
              biases: dict[str, float] | None = None,
-             record: dict | None = None) -> tuple[str, str, float, dict[str, float]]:
+             record: dict | None = None,
+             clock: tuple[float, float] = (0.0, 0.0)) -> tuple[str, str, float, dict[str, float]]:
     """Write the twin's IMU file (on the real IMU's uniform grid) and geodetic tracking file (velocity from
     differenced positions); return their paths, the time origin (GPST s) and the true biases.
 
     `noise` False: no IMU or position noise and no rounding (the exact truth, for checks); `biases`: other
     true biases (default :data:`TRUE_BIASES`); `record`, a dict, receives the truth at the IMU samples
-    (``t``, ``C_eb`` body -> ECEF, ``r_e``, ``v_e``)."""
+    (``t``, ``C_eb`` body -> ECEF, ``r_e``, ``v_e``); `clock` (offset s, rate ppm): the IMU's samples taken at
+    ``t`` are written at ``t + offset + rate 1e-6 (t - t_0)`` (a mapping of the IMU's counter onto GPS time that
+    runs fast, as the data's does: ``car_drive.imu_clock_from_arrivals``)."""
     import pandas as pd
     import pymap3d as pm
     from car_drive import read_rtklib_pos, velocity_from_positions
@@ -156,11 +159,13 @@ def simulate(data: str, out: str, seed: int, pos_white: float = 0.003, pos_gm: f
     trk = velocity_from_positions(sim_pos)
     os.makedirs(out, exist_ok=True)
     imu_path, trk_path = os.path.join(out, "imu.csv"), os.path.join(out, "tracking.csv")
-    pd.DataFrame({"t": t, "w_x": w[:, 0], "w_y": w[:, 1], "w_z": w[:, 2], "fb_x": fb[:, 0], "fb_y": fb[:, 1],
+    t_label = t + clock[0] + clock[1] * 1e-6 * (t - t[0])
+    pd.DataFrame({"t": t_label, "w_x": w[:, 0], "w_y": w[:, 1], "w_z": w[:, 2], "fb_x": fb[:, 0], "fb_y": fb[:, 1],
                   "fb_z": fb[:, 2]}).to_csv(imu_path, index=False, float_format="%.10g")
     pd.DataFrame({"t": trk["t"] - t_ref, "lat": trk["lat"], "lon": trk["lon"], "h": trk["h"], "v_east": trk["ve"],
                   "v_north": trk["vn"], "v_up": trk["vu"]}).to_csv(trk_path, index=False, float_format="%.11g")
     print(f"simulated twin (seed {seed}): {t.size} IMU samples {t[0]:.2f}-{t[-1]:.2f} s, largest |a_h| "
           f"{np.max(np.hypot(a_t[:, 0], a_t[:, 1])):.2f} m/s^2, largest |w| {math.degrees(np.max(np.abs(w_c))):.1f} "
-          f"deg/s; true biases " + ", ".join(f"{k} {v:g}" for k, v in b.items()))
+          f"deg/s; true biases " + ", ".join(f"{k} {v:g}" for k, v in b.items())
+          + (f"; IMU times written {clock[0] * 1e3:g} ms + {clock[1]:g} ppm off" if any(clock) else ""))
     return imu_path, trk_path, t_ref, dict(b)

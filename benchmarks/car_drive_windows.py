@@ -1,0 +1,116 @@
+"""The car drive's windows, read back from saved runs (``car_drive.py --save``): what their disagreement looks like.
+
+For each saved run, on the windows that succeeded in every run given (matched by start, so that runs compare on
+the same spans):
+
+- :func:`casep.workflows.windows.window_consistency` of the six biases (and of the run's other instrument terms),
+  without and with the bias instability measured at rest, and of ``dt_trk``;
+- the structure of the disagreement in time: for each separation of k windows the mean of
+  ``d^T (C_i + C_j)^-1 d / p`` over the pairs ``d = x_i - x_j`` (1 at every k for constant biases; rising with k
+  for a bias that wanders slower than a window, a Gauss-Markov or random-walk bias), and per coefficient the mean
+  ``z^2`` of adjacent pairs against pairs 4 or more windows apart;
+- per window: the fit's residual RMS and lag-one autocorrelation (a white velocity noise gives 0, the
+  velocity differenced from white positions -1/2, a misfit slower than the 0.25 s epochs near +1), the RMS of
+  the vertical body rate and the RMS of the antenna's lever-arm velocity ``|w x l|`` (5 cm, not modelled).
+
+    python benchmarks/car_drive_windows.py RUN.pkl [RUN2.pkl ...] --imu car_drive_out/imu.csv
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pickle
+import sys
+import types
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+from car_drive import LEVER_ARM_CAR  # noqa: E402
+
+#: The bias instability measured at rest on this drive (``car_drive.py``'s print_rest: RMS change of the means
+#: at the three stops from the first), deg/h and mg.
+INSTABILITY_AT_REST = {"bg_x": 56.5, "bg_y": 57.7, "bg_z": 28.0, "ba_z": 0.5}
+SIX = ("ba_x", "ba_y", "ba_z", "bg_x", "bg_y", "bg_z")
+
+
+def _windows(run: dict, keep: set[int]) -> list:
+    out = []
+    for w in run["windows"]:
+        if round(w["t_start"] / 30.0) in keep:
+            res = types.SimpleNamespace(names=tuple(w["names"]), estimate=w["estimate"], covariance=w["covariance"],
+                                        success=True)
+            out.append(types.SimpleNamespace(result=res, sv_end=w["sv_end"], sv_names=tuple(w["sv_names"]),
+                                             raw=w))
+    return out
+
+
+def structure(ws: list, names: tuple[str, ...]) -> list[tuple[int, int, float]]:
+    """(separation k, pairs, mean chi-square per coefficient of the pairs' differences) for k = 1 .. K-1."""
+    X, C = [], []
+    for w in ws:
+        idx = [w.result.names.index(n) for n in names]
+        X.append(w.result.estimate[idx])
+        C.append(w.result.covariance[np.ix_(idx, idx)])
+    out = []
+    for k in range(1, len(ws)):
+        v = [float((X[i] - X[i + k]) @ np.linalg.pinv(C[i] + C[i + k]) @ (X[i] - X[i + k])) / len(names)
+             for i in range(len(ws) - k)]
+        out.append((k, len(v), float(np.mean(v))))
+    return out
+
+
+def main() -> None:
+    from casep.workflows.windows import window_consistency
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("runs", nargs="+", help="pickles written by car_drive.py --save")
+    ap.add_argument("--imu", default=None, help="the converted IMU file (t, w_*, fb_*) for the rates per window")
+    args = ap.parse_args()
+    runs = [pickle.load(open(p, "rb")) for p in args.runs]
+    keep = set.intersection(*[{round(w["t_start"] / 30.0) for w in r["windows"] if w["success"]} for r in runs])
+    print(f"{len(keep)} windows succeeded in every run: starts near " + ", ".join(f"{30 * k}" for k in sorted(keep)))
+    imu = None
+    if args.imu:
+        import pandas as pd
+
+        imu = pd.read_csv(args.imu)
+    for path, run in zip(args.runs, runs):
+        ws = _windows(run, keep)
+        print(f"== {path}")
+        sets = [SIX] + ([tuple(n for n in run["names"] if n not in ("dt_trk",))]
+                        if tuple(run["names"]) != SIX else [])
+        for names in sets:
+            for inst in (None, INSTABILITY_AT_REST):
+                c = window_consistency(ws, names, instability=inst)
+                print(f"  {len(names)} coefficients, {'with' if inst else 'without'} the instability at rest: chi2 "
+                      f"{c['chi2']:.1f} on {c['dof']} dof, p = {c['p_value']:.2g}; predictions within 1 / 2 std "
+                      f"{c['within_1_std']:.2f} / {c['within_2_std']:.2f}")
+        c = window_consistency(ws, ("dt_trk",))
+        print(f"  dt_trk: chi2 {c['chi2']:.1f} on {c['dof']} dof, weighted mean {c['weighted_mean'][0]:.1f} ms")
+        print("  structure in time (six biases): " + ", ".join(f"k={k} {m:.2f}" for k, _, m in structure(ws, SIX)))
+        for n in SIX:
+            x = np.array([w.result.estimate[w.result.names.index(n)] for w in ws])
+            s2 = np.array([w.result.covariance[w.result.names.index(n), w.result.names.index(n)] for w in ws])
+            near = [(x[k] - x[k + 1]) ** 2 / (s2[k] + s2[k + 1]) for k in range(len(x) - 1)]
+            far = [(x[a] - x[b]) ** 2 / (s2[a] + s2[b]) for a in range(len(x)) for b in range(a + 4, len(x))]
+            print(f"    {n}: adjacent pairs mean z^2 {np.mean(near):.2f}, pairs >= 4 windows apart {np.mean(far):.2f}")
+        print("  start  resid RMS  lag-1 acf  |w_z| RMS deg/s  |w x l| RMS m/s")
+        for w in ws:
+            r = np.asarray(w.raw["residuals"], float).reshape(-1, 3)
+            r = r[np.all(np.isfinite(r), axis=1)]
+            rc = r - r.mean(axis=0)
+            lag1 = np.sum(rc[1:] * rc[:-1]) / np.sum(rc**2)
+            line = f"  {w.raw['t_start']:6.1f}  {np.sqrt(np.mean(r**2)):8.3f}  {lag1:+8.2f}"
+            if imu is not None:
+                m = (imu.t >= w.raw["t_start"]) & (imu.t <= w.raw["t_end"])
+                om = imu[["w_x", "w_y", "w_z"]].to_numpy()[m]
+                lever = np.cross(om, LEVER_ARM_CAR)  # the lever arm's size matters here, not its body axes
+                line += (f"  {np.degrees(np.sqrt(np.mean(om[:, 2] ** 2))):14.1f}"
+                         f"  {np.sqrt(np.mean(np.sum(lever**2, axis=1))):14.3f}")
+            print(line)
+
+
+if __name__ == "__main__":
+    main()
