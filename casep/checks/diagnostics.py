@@ -351,7 +351,8 @@ def _partner_bound(bound: Any, pbnd: PartnerBound | None, ra: RankAnalysis, name
     und = ~ra.estimable & ~now
     cov[und, :] = np.nan
     cov[:, und] = np.nan
-    return cov, {names[j]: pbnd.note(j, float(np.sqrt(cov[j, j])), names, units[j]) for j in map(int, np.flatnonzero(now))}
+    return cov, {names[j]: pbnd.note(j, float(np.sqrt(cov[j, j])), names, units[j])
+                 for j in map(int, np.flatnonzero(now))}
 
 
 def diagnose(
