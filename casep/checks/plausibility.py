@@ -558,18 +558,23 @@ def unit_factor(ratio: float) -> str | None:
     return next((what for k, what in UNIT_FACTORS if abs(r / k - 1.0) <= UNIT_FACTOR_TOL), None)
 
 
-def misfit_advice(model: str, names, units, estimates) -> str:
+def misfit_advice(model: str, names, units, estimates, std=None) -> str:
     """What to check when `model` does not describe a flight, most likely first: the model lacks terms the data
     need (the richer shipped model, :data:`casep.model.loader.RICHER_MODELS`), a saturated sensor, the frame or
     set-up; a unit mix-up only when a fitted scale points to it: a scale factor (ppm) whose ``1 + s`` is a factor of
-    :data:`UNIT_FACTORS` (:func:`unit_factor`; rates in deg/s read as rad/s fit ``sg = 57.3 - 1``)."""
+    :data:`UNIT_FACTORS` (:func:`unit_factor`; rates in deg/s read as rad/s fit ``sg = 57.3 - 1``) and, with
+    `std`, is determined to within that match (``2 std <= UNIT_FACTOR_TOL`` of the factor: an undetermined scale
+    of 56 +- 20 says nothing of units)."""
     from casep.model.loader import RICHER_MODELS
 
     richer = RICHER_MODELS.get(str(model).split("+")[0])
     first = (f"model {model} may lack terms the data need: try {richer}" if richer else
              f"model {model} may lack terms the data need (a richer model)")
-    hits = [f"{n} {x:.4g} ppm is a scale of {1.0 + x * 1e-6:.4g}, {what}" for n, u, x in zip(names, units, estimates)
-            if u == "ppm" and x is not None and np.isfinite(x) and (what := unit_factor(1.0 + x * 1e-6))]
+    sd = [None] * len(names) if std is None else list(std)
+    hits = [f"{n} {x:.4g} ppm is a scale of {1.0 + x * 1e-6:.4g}, {what}"
+            for n, u, x, e in zip(names, units, estimates, sd)
+            if u == "ppm" and x is not None and np.isfinite(x) and (what := unit_factor(1.0 + x * 1e-6))
+            and (e is None or (np.isfinite(e) and 2 * e * 1e-6 <= UNIT_FACTOR_TOL * abs(1.0 + x * 1e-6)))]
     units_part = f"; the numbers point to a unit mix-up: {'; '.join(hits[:3])}" if hits else ""
     return f"{first}; else a saturated sensor the INS integrated, a frame or set-up mistake{units_part}"
 

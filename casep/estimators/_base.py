@@ -513,7 +513,7 @@ def _beyond_linear(res: EstimateResult, regularised: bool) -> EstimateResult:
                   f"failed: {len(rows)} estimate(s) beyond what a linear error model can describe, by more than "
                   f"{LINEAR_Z:g} std ({listed}: a scale factor or misalignment of 0.1, a gyro bias of 0.1 rad/s): "
                   "the model does not describe these data: " + misfit_advice(res.model, res.names, res.units,
-                                                                             res.estimate))
+                                                                             res.estimate, res.std))
 
 
 def declared_magnitude(scales: Mapping[str, float], name: str) -> float | None:

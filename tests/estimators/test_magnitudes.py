@@ -137,6 +137,16 @@ def test_beyond_linear_names_the_richer_model_first_and_units_only_when_a_scale_
         assert ("unit" in advice) == units_said
 
 
+def test_an_undetermined_scale_near_a_unit_factor_names_no_unit_mix_up():
+    """A scale factor of 55.5e6 +- 2e7 ppm (a scale of 56.5, 2 std = 40 beyond the 3 % match of 57.3): the data do
+    not say it is 57.3, so no unit mix-up is named; the same value +- 1e5 ppm names it."""
+    from casep.checks.plausibility import misfit_advice
+
+    for sd, said in ((2e7, False), (1e5, True)):
+        advice = misfit_advice("strapdown33", ["sg_y"], ["ppm"], [55.5e6], [sd])
+        assert ("degrees for radians" in advice) == said, advice
+
+
 def test_data_that_determine_no_coefficient_and_no_combination_fail():
     """Every std at or above its declared magnitude and uncorrelated: nothing determined, status -1. The same std
     with a correlation of -0.9999 determine the sum c0 + c1 (scaled std 0.014 x 10 / 10): not failed by the rule,
