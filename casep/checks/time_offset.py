@@ -148,7 +148,7 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray,
     and ``kappa = 1``: the lag-1 factor describes AR(1) noise only, and for Gauss-Markov plus white noise,
     whose lag-1 correlation the white part lowers while the long-run variance keeps the Gauss-Markov
     part's, it is several times too small (the strapdown-boost scenario at 50 Hz, tau 1 s, 0.1 + 0.05 m/s:
-    kappa ~8 against a long-run factor ~80; RMS t 2.9 over 30 flights, |t| > 5 in 3 of 30).
+    kappa ~8 against a long-run factor ~80; RMS t 3.3 over 30 flights, ``|t| > 5`` in 4 of 30).
 
     ``G``: the velocity and attitude jumps the telemetry's gaps may leave (:func:`gap_columns`),
     nuisance columns between S and ``[a | j]``: a jump at a burnout inside a gap is not an offset,
