@@ -299,11 +299,15 @@ class PartnerBound:
         Natural units.
     partners : dict[int, list[int]]
         As :attr:`RankAnalysis.partners`.
+    s, P : ndarray
+        The declared magnitudes (1 outside every dependency) and ``Q Q^T``.
     """
 
     Pi: np.ndarray
     bound: np.ndarray
     partners: dict
+    s: np.ndarray
+    P: np.ndarray
 
     @classmethod
     def of(cls, red: ReducedSystem, ra: RankAnalysis, magnitudes: Sequence[float | None]) -> PartnerBound | None:
@@ -320,7 +324,7 @@ class PartnerBound:
         Q = np.linalg.qr(N / s[:, None])[0]  # the null space in units of the declared magnitudes, orthonormal
         P = Q @ Q.T
         Pi = np.eye(red.n) - (s[:, None] * P) / s[None, :]  # Pi = I - D Q Q^T D^-1
-        return cls(Pi=Pi, bound=s * np.sum(np.abs(P), axis=1), partners=ra.partners)
+        return cls(Pi=Pi, bound=s * np.sum(np.abs(P), axis=1), partners=ra.partners, s=s, P=P)
 
     def covariance(self, C: np.ndarray) -> np.ndarray:
         """``Pi C Pi^T`` (symmetrised)."""
@@ -333,11 +337,15 @@ class PartnerBound:
         return np.asarray(dependent, dtype=bool) & (self.bound <= PARTNER_SHARE * np.asarray(std, dtype=float))
 
     def note(self, j: int, std: float, names: Sequence[str], unit: str) -> str:
-        """The note of coefficient `j` determined in practice: its partners and how far they move it."""
-        partners = [names[k] for k in self.partners.get(int(j), [])]
+        """The note of coefficient `j` determined in practice: the partners that move it (each one's share
+        ``s_j |(Q Q^T)_ji|`` at least 1 % of the bound, largest first) and how far."""
+        share = self.s[j] * np.abs(self.P[j])
+        share[j] = 0.0
+        order = [k for k in np.argsort(-share) if share[k] >= 0.01 * self.bound[j] and share[k] > 0.0]
+        partners = [names[k] for k in order] or [names[k] for k in self.partners.get(int(j), [])]
         listed = ", ".join(partners[:4]) + (", ..." if len(partners) > 4 else "")
         return (f"{PARTNERS_NOTE} {listed}, which move it by <= {self.bound[j]:.2g} {unit} "
-                f"({self.bound[j] / std:.2g} std) within their declared magnitudes")
+                f"({self.bound[j] / std:.2g} of its std) within their declared magnitudes")
 
 
 def condition_numbers(red: ReducedSystem, ra: RankAnalysis) -> dict[str, float | None]:
