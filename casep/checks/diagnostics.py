@@ -314,10 +314,12 @@ class Diagnostics(Completed):
                      "coefficient with small weights on the others determines that coefficient to about its std, "
                      "up to those small terms:")
         for cmb in self.combinations:
-            terms = " ".join(f"{'+' if w >= 0 else '-'} {abs(w):.3g} {n}" for n, w in cmb["combination"].items())
+            terms = " ".join((f"{'-' if w < 0 else ''}{abs(w):.3g} {n}" if k == 0 else  # "-1 ba_x", not a bullet
+                              f"{'+' if w >= 0 else '-'} {abs(w):.3g} {n}")
+                             for k, (n, w) in enumerate(cmb["combination"].items()))
             lead = next(iter(cmb["combination"]), None)
             unit = self.units[self.names.index(lead)] if lead in self.names else ""
-            lines.append(f"  {terms.lstrip('+ ')}   std {cmb['std']:.3g}{' ' + unit if unit else ''}   "
+            lines.append(f"  {terms}   std {cmb['std']:.3g}{' ' + unit if unit else ''}   "
                          f"condition index {cmb['condition_index']:.3g}")
         return "\n".join(lines)
 

@@ -27,6 +27,7 @@ def run(args: argparse.Namespace) -> int:
     outputs.check({"--json": args.json}, inputs.input_files(args, "flight", "tracking"), {"--figures": args.figures})
     model = load_model(flight_options.flight_model(args))  # the default model: separate's
     noise, problem = flight_noise(inputs.read_one(args), model)
+    print(f"model {model.name}, {problem.source}")
     print(noise.text())
     if args.json:
         outputs.write_json({"model": model.name, "source": problem.source, **noise.to_dict()}, args.json)
