@@ -348,13 +348,11 @@ def _partner_bound(bound: Any, pbnd: PartnerBound | None, ra: RankAnalysis, name
     practice, with their notes (:class:`~casep.regression.linalg.PartnerBound`)."""
     if pbnd is None:
         return bound(True), {}
-    cov = pbnd.covariance(bound(False))
-    now = pbnd.determined(ra.dependent, np.sqrt(np.clip(np.diag(cov), 0.0, None)))
+    cov, now, notes = pbnd.reported(bound(False), ra.dependent, names, units)
     und = ~ra.estimable & ~now
     cov[und, :] = np.nan
     cov[:, und] = np.nan
-    return cov, {names[j]: pbnd.note(j, float(np.sqrt(cov[j, j])), names, units[j])
-                 for j in map(int, np.flatnonzero(now))}
+    return cov, notes
 
 
 def diagnose(

@@ -300,12 +300,9 @@ def _determined_up_to_partners(pb: Prepared, x: np.ndarray, cov: np.ndarray, und
     pbnd = PartnerBound.of(pb.red, pb.ra, [declared_magnitude(mags, n) for n in pb.names]) if mags else None
     if pbnd is None:
         return x, cov, und, {}, None
-    cov_w = pbnd.covariance(cov)
-    std_w = np.sqrt(np.clip(np.diag(cov_w), 0.0, None))
-    now = pbnd.determined(und & ~pb.ra.zero, std_w)
+    cov_w, now, notes = pbnd.reported(cov, und & ~pb.ra.zero, pb.names, pb.units)
     if not now.any():
         return x, cov, und, {}, None
-    notes = {pb.names[j]: pbnd.note(int(j), float(std_w[j]), pb.names, pb.units[j]) for j in np.flatnonzero(now)}
     return pbnd.Pi @ x, cov_w, und & ~now, notes, pbnd.Pi
 
 

@@ -336,6 +336,16 @@ class PartnerBound:
         std_j``, `std` from :meth:`covariance`."""
         return np.asarray(dependent, dtype=bool) & (self.bound <= PARTNER_SHARE * np.asarray(std, dtype=float))
 
+    def reported(self, C: np.ndarray, dependent: np.ndarray, names: Sequence[str], units: Sequence[str]
+                 ) -> tuple[np.ndarray, np.ndarray, dict[str, str]]:
+        """``(Pi C Pi^T, determined, notes)`` for the solver's covariance `C` (rows exact for determined
+        combinations): which of the `dependent` coefficients are determined in practice (:meth:`determined`)
+        and the note of each (:meth:`note`)."""
+        Cw = self.covariance(C)
+        std = np.sqrt(np.clip(np.diag(Cw), 0.0, None))
+        now = self.determined(dependent, std)
+        return Cw, now, {names[j]: self.note(j, float(std[j]), names, units[j]) for j in map(int, np.flatnonzero(now))}
+
     def note(self, j: int, std: float, names: Sequence[str], unit: str) -> str:
         """The note of coefficient `j` determined in practice: the partners that move it (each one's share
         ``s_j |(Q Q^T)_ji|`` at least 1 % of the bound, largest first) and how far."""
