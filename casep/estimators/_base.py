@@ -32,7 +32,7 @@ from casep.regression.linalg import (
 )
 from casep.regression.problem import Problem as RegressionProblem
 
-__all__ = ["Prepared", "prepare", "rows_of", "finish", "check_positive", "inverse_scale"]
+__all__ = ["Prepared", "prepare", "rows_of", "finish", "determined_up_to_partners", "check_positive", "inverse_scale"]
 
 
 
@@ -239,7 +239,7 @@ def finish(
     bounded_by: dict[str, str] = {}
     Pi = None
     if undetermined is None and und.any() and cov is not None and np.all(np.isfinite(x)) and np.all(np.isfinite(cov)):
-        x, cov, und, bounded_by, Pi = _determined_up_to_partners(pb, x, np.asarray(cov, dtype=float), und)
+        x, cov, und, bounded_by, Pi = determined_up_to_partners(pb, x, np.asarray(cov, dtype=float), und)
     res = pb.residuals(x) if residuals is None else np.asarray(residuals, dtype=float).reshape(-1)
     est = np.where(und, np.nan, x)
     solution = _solution(pb, x, cov) if und.any() and np.all(np.isfinite(x)) else None
@@ -288,7 +288,7 @@ def finish(
     )
 
 
-def _determined_up_to_partners(pb: Prepared, x: np.ndarray, cov: np.ndarray, und: np.ndarray
+def determined_up_to_partners(pb: Prepared, x: np.ndarray, cov: np.ndarray, und: np.ndarray
                                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, str], np.ndarray | None]:
     """The exactly dependent coefficients the data determine in practice (:class:`~casep.regression.linalg.PartnerBound`
     with the problem's declared magnitudes): a dependency whose other members this flight barely excites (a

@@ -21,14 +21,16 @@ threshold is explicit (`rcond`) and its consequences are in the result.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Unpack
 
 import numpy as np
 
-from casep.estimators._base import Prepared, finish, prepare
+from casep.estimators._base import Prepared, determined_up_to_partners, finish, prepare
 from casep.estimators._options import Labels, Method
 from casep.regression.linalg import REFINE_ABOVE, qr_forward_error, refine_least_squares
+from casep.regression.problem import Problem as RegressionProblem
 
 if TYPE_CHECKING:
     from casep.estimators.result import EstimateResult
@@ -153,6 +155,24 @@ class LinearMap:
             std = sd[:, None] * sig[None, :]
         und = self.undetermined[:, None]
         return np.where(und, np.nan, X), np.where(und, np.nan, std)
+
+    def up_to_partners(self, S: np.ndarray, names: Sequence[str], magnitudes: Mapping[str, float],
+                       sigma: float) -> LinearMap:
+        """The map as the solver's result reports it (:func:`casep.estimators._base.finish`): the exactly dependent
+        coefficients the data determine in practice (:class:`~casep.regression.linalg.PartnerBound` with the declared
+        `magnitudes`) get the solution of least size in units of the magnitudes, ``D = Pi (K y + b)``, covariance
+        ``Pi C Pi^T``. `S` is the map's ``(m, n)`` regression, `sigma` the noise std at which the rule judges a
+        coefficient's std (the covariance is per unit noise variance when ``dof`` is set)."""
+        if not (magnitudes and self.undetermined.any()):
+            return self
+        S_arr = np.asarray(S, dtype=float)
+        pb = prepare(RegressionProblem.from_arrays(S_arr, np.zeros(S_arr.shape[:-1]), names=names,
+                                                   magnitudes=magnitudes), None, None, None, None, None)
+        unit = sigma**2 if self.dof is not None else 1.0
+        _, _, und, _, Pi = determined_up_to_partners(pb, np.zeros(pb.n), self.cov * unit, self.undetermined)
+        if Pi is None:
+            return self
+        return LinearMap(Pi @ self.K, Pi @ self.b, Pi @ self.cov @ Pi.T, self.dof, und)
 
 
 def scaled_factors(S: np.ndarray, rcond: float | None = None):

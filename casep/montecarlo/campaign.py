@@ -19,7 +19,6 @@ from typing import Any
 
 import numpy as np
 
-from casep.checks.diagnostics import crlb_covariance
 from casep.estimators.bounded import parse_bounds
 from casep.estimators.map import parse_prior
 from casep.estimators.spec import NoiseSpec
@@ -30,7 +29,7 @@ from casep.montecarlo.methods import MethodSpec, fit_spec
 from casep.montecarlo.progress import Progress, progress_mode
 from casep.montecarlo.result import MonteCarloResult
 from casep.montecarlo.store import Store
-from casep.montecarlo.tasks import Context, chunks, per_run_noise
+from casep.montecarlo.tasks import Context, chunks, per_run_noise, reported_crlb
 from casep.simulation.scenarios import Scenario
 from casep.simulation.simulate import scenario_setup, sv_inputs
 
@@ -228,7 +227,7 @@ def _context(scenario: str | Scenario, rate: float | None, seed: int, flight: An
         keep = sc.noise.keep_mask(t_all)  # tracking gaps: no rows there
         t = t_all[keep]
         S = build_sv(model, t_all, f_all, signals=sig)[keep]
-        crlb = np.sqrt(np.diag(crlb_covariance(S, sigma, t=t if tau else None, tau=tau)))
+        crlb = reported_crlb(S, t, sigma, tau, model)
     fits = {}
     for spec in other:  # each method's fit request, checked here, before any run
         try:

@@ -155,11 +155,13 @@ def _supplied(spec: MethodSpec, names: Sequence[str], prior: Mapping | None,
 
 
 def linear_maps(S: np.ndarray, names: Sequence[str], sigma: float, methods: Sequence[str],
-                prior: Mapping | None = None) -> dict[str, Any]:
+                prior: Mapping | None = None, magnitudes: Mapping[str, float] | None = None) -> dict[str, Any]:
     """The estimators' own linear maps (``D = K y + b``) of the linear `methods`, registry defaults.
 
     Each is the method's ``linear_map`` (:class:`casep.estimators.ols.LinearMap`) at the
-    options of its spec, a prior (given, else the demo's) weighed at the scenario's `sigma`.
+    options of its spec, a prior (given, else the demo's) weighed at the scenario's `sigma`, and
+    with the model's declared `magnitudes` reporting exactly dependent coefficients as the solver's
+    result does (:meth:`~casep.estimators.ols.LinearMap.up_to_partners`).
     `S` is the stacked ``(rows, n)`` regression matrix.
     """
     out: dict[str, Any] = {}
@@ -167,7 +169,8 @@ def linear_maps(S: np.ndarray, names: Sequence[str], sigma: float, methods: Sequ
         spec = parse_method(text)
         build = _REGISTRY[spec.name].linear_map
         assert build is not None, f"{text} is not linear"  # the caller asks for the linear specs only
-        out[text] = build(S, names=names, sigma=sigma, **_supplied(spec, names, prior, None))
+        lm = build(S, names=names, sigma=sigma, **_supplied(spec, names, prior, None))
+        out[text] = lm.up_to_partners(S, names, magnitudes, sigma) if magnitudes else lm
     return out
 
 
@@ -195,7 +198,8 @@ def fit_spec(spec: MethodSpec, names: Sequence[str], noise: Any, *, sigma: float
 
 def solve_runs(spec: Any, ys: Sequence[np.ndarray], flights: Sequence[tuple[np.ndarray, np.ndarray]], *,
                names: Sequence[str], rows: Sequence[Any] | None = None,
-               shared: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+               shared: tuple[np.ndarray, np.ndarray] | None = None,
+               magnitudes: Mapping[str, float] | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """Each run of a chunk through the one entry point :func:`casep.estimators.solve.fit`: estimates and stds,
     ``(runs, n)`` each.
 
@@ -203,8 +207,9 @@ def solve_runs(spec: Any, ys: Sequence[np.ndarray], flights: Sequence[tuple[np.n
     ``(S_V, t)``; `rows` each run's rows prepared once for every method
     (:func:`casep.estimators.solve.rows_for`; None: prepared here, per method); `shared` the ``(S_V, t)``
     all runs share (nominal campaigns: the method's ``shared_options``, e.g. GLS's one REML lattice
-    for the chunk). The std is None when the method reports none. The residual checks are left out
-    (a campaign judges its runs by their numbers).
+    for the chunk); `magnitudes` the model's declared ones (the problem's, as ``casep separate``'s). The std
+    is None when the method reports none. The residual checks are left out (a campaign judges its runs by
+    their numbers).
     """
     import dataclasses
 
@@ -219,7 +224,7 @@ def solve_runs(spec: Any, ys: Sequence[np.ndarray], flights: Sequence[tuple[np.n
         rows = [None] * len(ys)
     outs = []
     for y, extra, (S, t), rw in zip(ys, per_run, flights, rows):
-        problem = rw.problem if rw is not None else Problem.from_arrays(S, y, t, names=names)
+        problem = rw.problem if rw is not None else Problem.from_arrays(S, y, t, names=names, magnitudes=magnitudes)
         run_spec = dataclasses.replace(spec, options={**spec.options, **extra}) if extra else spec
         r = fit(problem, run_spec, rows=rw, checks=False)
         outs.append((r.estimate, r.std))

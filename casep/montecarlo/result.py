@@ -8,9 +8,11 @@ coefficient (bounded least squares reports none on a bound; null when the method
 With a truth prior each run's error is against its own drawn truth and ``true`` is the prior
 mean.
 
-A coefficient is *determined* when its CRLB std is finite; the others (a zero or exactly dependent
-column: only combinations of them are determined, no method gives each an estimate) are listed as
-such and left out of the summary, which pools over the determined ones: ``RMS z`` =
+A coefficient is *determined* when its CRLB std is finite, the bound as ``casep separate`` and
+``casep diagnose`` report it (:func:`casep.montecarlo.tasks.reported_crlb`: an exactly dependent
+coefficient whose partners the flight barely excites has the bound of the solution of least size in
+declared magnitudes); the others (a zero or exactly dependent column: only combinations of them are
+determined, no method gives each an estimate) are listed as such and left out of the summary, which pools over the determined ones: ``RMS z`` =
 ``sqrt(mean(((estimate - truth) / std)^2))`` and the 95 % coverage over every run and determined
 coefficient with a std.
 """

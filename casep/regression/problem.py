@@ -17,7 +17,7 @@ Rows are ``(N, 3)`` samples x axes; ``S.reshape(3 N, n)`` is the stacked regress
 
 from __future__ import annotations
 
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -154,9 +154,10 @@ class Problem:
     def from_arrays(cls, S: np.ndarray, y: np.ndarray, t: np.ndarray | None = None, *,
                     names: Sequence[str] | None = None, units: Sequence[str] | None = None,
                     si_factors: Sequence[float] | np.ndarray | None = None, model: str | None = None,
-                    f: np.ndarray | None = None, row_unit: str = "m/s") -> "Problem":
+                    f: np.ndarray | None = None, row_unit: str = "m/s",
+                    magnitudes: Mapping[str, float] | None = None) -> "Problem":
         """A problem from ``S`` ``(N, 3, n)`` or ``(m, n)`` and ``y`` ``(N, 3)`` or ``(m,)`` (kept whole; `row_unit`:
-        the unit of ``y``, for messages)."""
+        the unit of ``y``, for messages; `magnitudes`: the model's declared ones, :attr:`magnitudes`)."""
         S_arr = np.asarray(S, dtype=float)
         if S_arr.ndim not in (2, 3):
             raise ValueError(f"`S` must be (m, n) or (N, 3, n), got {S_arr.ndim}-D")
@@ -173,8 +174,10 @@ class Problem:
         names = tuple(f"c{j}" for j in range(n)) if names is None else tuple(names)
         units = ("",) * n if units is None else tuple(units)
         si = np.ones(n) if si_factors is None else np.asarray(si_factors, dtype=float)
-        return cls(names=names, units=units, si_factors=si, red=reduce_qr(S_arr, y_arr, names=names), y=y_arr, t=t,
-                   model=model, S=S_arr, f=f, row_unit=row_unit)
+        pb = cls(names=names, units=units, si_factors=si, red=reduce_qr(S_arr, y_arr, names=names), y=y_arr, t=t,
+                 model=model, S=S_arr, f=f, row_unit=row_unit)
+        pb.magnitudes = dict(magnitudes or {})
+        return pb
 
     @classmethod
     def from_reduction(cls, red: ReducedSystem, *, names: Sequence[str], units: Sequence[str],

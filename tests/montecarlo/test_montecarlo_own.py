@@ -81,8 +81,10 @@ def test_dispersion_draws_kept_per_run(tmp_path):
 
 def test_montecarlo_on_own_strapdown_flight_reads_its_signal_columns(tmp_path):
     """A strapdown flight file (q_*, fb_*, w_*, no f_*) runs: S_V is built from its own signal columns (the CRLB
-    of the runs is that of casep.build_sv on the file's columns), and the summary names the terms the flight
-    cannot determine (an axial-thrust boost: 24 of strapdown33's) and pools RMS z and coverage over the rest."""
+    of the runs is that of casep.build_sv on the file's columns, as casep diagnose and separate report it), and
+    the summary names the terms the flight cannot determine (an axial-thrust boost: 12 of strapdown33's, exactly
+    dependent on partners it excites; 12 more exactly dependent ones are determined in practice, reported as
+    separate reports them) and pools RMS z and coverage over the rest."""
     import casep
     from casep.montecarlo import run_montecarlo
     from casep.simulation.simulate import simulate_flight, write_simulation
@@ -95,10 +97,13 @@ def test_montecarlo_on_own_strapdown_flight_reads_its_signal_columns(tmp_path):
     fl = casep.read_flight(flight)
     model = casep.load_model(truth["model"])
     S = casep.build_sv(model, fl.t, fl.f, signals=fl.signals)
-    sd = np.sqrt(np.diag(casep.checks.crlb_covariance(S, 1.0)))
-    assert np.array_equal(res.determined, np.isfinite(sd)) and int(res.determined.sum()) == 9
+    strict = np.isfinite(np.diag(casep.checks.crlb_covariance(S, 1.0)))
+    sd = casep.checks.diagnose(S, sigma=1.0, names=model.names, units=model.units, scales=model.scales).crlb_std
+    assert strict.sum() == 9 and np.array_equal(res.determined, np.isfinite(sd)) and int(res.determined.sum()) == 21
     ok = res.determined
     np.testing.assert_allclose(res.crlb_std[ok] / sd[ok], res.crlb_std[ok][0] / sd[ok][0], rtol=1e-6)  # one sigma
+    # every run's OLS estimate exists exactly where the bound is finite (separate's rule, one function)
+    assert np.array_equal(np.isfinite(res.estimates["ols"]).all(axis=0), ok)
     text, d = res.text(), res.to_dict()
-    assert "determined 9 of 33 coefficients" in text and "unidentifiable 24" in text and "RMS z" in text
-    assert len(d["unidentifiable"]) == 24 and d["methods"]["ols"]["determined"]["count"] == 27
+    assert "determined 21 of 33 coefficients" in text and "unidentifiable 12" in text and "RMS z" in text
+    assert len(d["unidentifiable"]) == 12 and d["methods"]["ols"]["determined"]["count"] == 63
