@@ -10,7 +10,8 @@
 # scale factor, a quarter to half a degree of misalignment, 150-250 deg/h gyro biases, ...) by the model's
 # own equations. The true coefficients are in the tracking file's header. A test record, not a flight.
 #
-# Run:  python examples/make_example_mems.py   (rewrites both files byte for byte)
+# Run:  python examples/make_example_mems.py   (rewrites both files; the truth is navigated by casep, so the last
+# digits may differ on another CPU or BLAS: tests/test_examples.py holds them equal to 1e-9)
 """
 
 import argparse
