@@ -12,9 +12,9 @@ A coefficient is *determined* when its CRLB std is finite, the bound as ``casep 
 ``casep diagnose`` report it (:func:`casep.montecarlo.tasks.reported_crlb`: an exactly dependent
 coefficient whose partners the flight barely excites has the bound of the solution of least size in
 declared magnitudes); the others (a zero or exactly dependent column: only combinations of them are
-determined, no method gives each an estimate) are listed as such and left out of the summary, which pools over the determined ones: ``RMS z`` =
-``sqrt(mean(((estimate - truth) / std)^2))`` and the 95 % coverage over every run and determined
-coefficient with a std.
+determined, no method gives each an estimate) are listed as such and left out of the summary, which
+pools over the determined ones: ``RMS z`` = ``sqrt(mean(((estimate - truth) / std)^2))`` and the 95 %
+coverage over every run and determined coefficient with a std.
 """
 
 from __future__ import annotations

@@ -186,3 +186,20 @@ def test_one_wild_estimate_among_many_undetermined_is_noise_a_far_one_fails():
     # the same estimate of a determined coefficient (std below its magnitude) fails at 2 std
     det = dataclasses.replace(base, estimate=np.r_[3e4 + 2.5 * 4e3, np.zeros(n - 1)], std=np.full(n, 4e3))
     assert not check_magnitudes(det, scales).success
+
+
+def test_accelerometer_biases_and_per_g_terms_have_linear_limits():
+    """An accelerometer bias of 1 g (levelled with it, the attitude is 45 deg off) is beyond what a linear model
+    describes: an undetermined -11 g (-1.1e4 mg +- 9e3) is withheld; a well-determined 300 mg and 1.5e4 ug/g keep
+    their estimates; an undetermined 2e5 ug/g (a scale factor of 0.2) and 3e4 deg/h/g (0.15 rad/s at 1 g) are
+    withheld like a 2e5 ppm."""
+    sd = np.array([9e3, 5.0, 1e3, 1.5e5, 3e4])
+    res = dataclasses.replace(_units_result([0.0] * 5, 1.0, ["mg", "mg", "ug/g", "ug/g", "deg/h/g"]),
+                              estimate=np.array([-1.1e4, 300.0, 1.5e4, 2e5, 3e4]), std=sd,
+                              covariance=np.diag(sd**2), residuals=np.zeros((4, 3)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = check_magnitudes(res, {"c0": 10.0, "c1": 100.0, "c2": 1e4, "c3": 1e3, "c4": 10.0})
+    assert out.success and out.withheld == ("c0", "c3", "c4"), (out.withheld, out.message)
+    limits = {r["name"]: r["limit"] for r in out.diagnostics["undetermined_beyond_linear"]}
+    assert limits == {"c0": pytest.approx(1e3), "c3": pytest.approx(1e5), "c4": pytest.approx(20626.48, rel=1e-5)}
