@@ -227,7 +227,7 @@ def _context(scenario: str | Scenario, rate: float | None, seed: int, flight: An
         keep = sc.noise.keep_mask(t_all)  # tracking gaps: no rows there
         t = t_all[keep]
         S = build_sv(model, t_all, f_all, signals=sig)[keep]
-        crlb = reported_crlb(S, t, sigma, tau, model)
+        crlb = reported_crlb(S, t, sigma, tau, names, model.scales)
     fits = {}
     for spec in other:  # each method's fit request, checked here, before any run
         try:
@@ -237,7 +237,7 @@ def _context(scenario: str | Scenario, rate: float | None, seed: int, flight: An
             raise ValueError(f"method `{spec.text}`: {exc}") from None
     ctx = Context(scenario=sc, names=names, sigma=sigma, tau=tau, seed=seed, truth=truth_v, prior=prior,
                   bounds=bounds, truth_prior=tp, dispersions=dispersions, S=S, t=t, crlb=crlb, noise=noise, fits=fits,
-                  linear=linear)
+                  linear=linear, magnitudes=dict(model.scales))
     return ctx, own, model.units
 
 

@@ -59,6 +59,7 @@ class Context:
     noise: Any = None  # the NoiseSpec the methods assume (None: white, no robust fit)
     fits: Mapping[str, Any] = field(default_factory=dict)  # each per-run method's FitSpec, by its text
     linear: tuple[str, ...] = ()  # the batched methods of the campaign
+    magnitudes: Mapping[str, float] = field(default_factory=dict)  # the model's declared ones (ErrorModel.scales)
 
 
     @cached_property
@@ -73,7 +74,7 @@ class Context:
         """The linear maps of the batched methods on the nominal trajectory."""
         assert self.S is not None
         return linear_maps(self.S.reshape(-1, self.S.shape[-1]), self.names, self.sigma, self.linear, self.prior,
-                           self.model.scales)
+                           self.magnitudes)
 
     def __getstate__(self) -> dict[str, Any]:
         # the cached model (CasADi, not picklable) and maps are rebuilt where they are used
@@ -86,13 +87,13 @@ def per_run_noise(noise: Any) -> bool:
     return noise is not None and (noise.kind != "white" or noise.robust is not None)
 
 
-def reported_crlb(S: np.ndarray, t: np.ndarray, sigma: float, tau: float | None, model: Any) -> np.ndarray:
+def reported_crlb(S: np.ndarray, t: np.ndarray, sigma: float, tau: float | None, names: Sequence[str],
+                  magnitudes: Mapping[str, float]) -> np.ndarray:
     """The CRLB std per coefficient of the regression `S` ``(N, 3, n)`` as the results report it
-    (:func:`casep.checks.diagnostics.diagnose` with the model's declared magnitudes): NaN for an unidentifiable
+    (:func:`casep.checks.diagnostics.diagnose` with the model's declared `magnitudes`): NaN for an unidentifiable
     coefficient, the bound of the solution of least size in declared magnitudes for an exactly dependent one
     whose partners the flight barely excites; Gauss-Markov (`tau`) or white."""
-    return diagnose(S, sigma=sigma, t=t if tau else None, tau=tau, names=model.names, units=model.units,
-                    scales=model.scales).crlb_std
+    return diagnose(S, sigma=sigma, t=t if tau else None, tau=tau, names=names, scales=magnitudes).crlb_std
 
 
 Flight = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, float]]
@@ -126,7 +127,7 @@ def flight(ctx: Context, k: int) -> Flight:
     keep = ctx.scenario.noise.keep_mask(traj.t)  # tracking gaps: no rows there
     S = build_sv(ctx.model, traj.t, force, signals=signals)[keep]
     t = traj.t[keep]
-    return S, t, truth, reported_crlb(S, t, ctx.sigma, ctx.tau, ctx.model), values
+    return S, t, truth, reported_crlb(S, t, ctx.sigma, ctx.tau, ctx.names, ctx.magnitudes), values
 
 
 def run_task(ctx: Context, linear: Sequence[MethodSpec], other: Sequence[MethodSpec],
@@ -156,7 +157,7 @@ def run_task(ctx: Context, linear: Sequence[MethodSpec], other: Sequence[MethodS
                 groups = [(ctx.nominal_maps, ctx.S, list(range(len(runs))))]
             else:
                 groups = [(linear_maps(S.reshape(-1, S.shape[-1]), ctx.names, ctx.sigma, texts, ctx.prior,
-                                       ctx.model.scales), S, [j])
+                                       ctx.magnitudes), S, [j])
                           for j, (S, *_rest) in enumerate(flights)]
             est_l = {m: np.empty((len(runs), n)) for m in texts}
             std_l = {m: np.empty((len(runs), n)) for m in texts}
@@ -173,13 +174,13 @@ def run_task(ctx: Context, linear: Sequence[MethodSpec], other: Sequence[MethodS
             from casep.estimators.solve import rows_for
             from casep.regression.problem import Problem
 
-            rows = [rows_for(Problem.from_arrays(S, y, t, names=ctx.names, magnitudes=ctx.model.scales), ctx.noise)
+            rows = [rows_for(Problem.from_arrays(S, y, t, names=ctx.names, magnitudes=ctx.magnitudes), ctx.noise)
                     for y, (S, t, *_) in zip(ys, flights)]
         shared = (ctx.S, ctx.t) if ctx.dispersions is None and ctx.S is not None and ctx.t is not None else None
         for spec in other:
             est[spec.text], std[spec.text] = solve_runs(ctx.fits[spec.text], ys, [(S, t) for S, t, *_ in flights],
                                                         names=ctx.names, rows=rows, shared=shared,
-                                                        magnitudes=ctx.model.scales)
+                                                        magnitudes=ctx.magnitudes)
     draws = {name: np.array([f[4][name] for f in flights]) for name in (flights[0][4] if flights else {})}
     return {"runs": np.asarray(runs, dtype=np.int64), "truth": np.array([f[2] for f in flights]),
             "crlb": np.array([f[3] for f in flights]), "est": est, "std": std, "draws": draws}
