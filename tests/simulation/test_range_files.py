@@ -128,6 +128,9 @@ def test_a_partly_null_parquet_dv_row_is_refused(tmp_path):
 def _chi2(flight, sim):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IllConditionedWarning)  # near-dependencies of platform36: reported, expected
+        # a lateral scale factor this flight does not determine (Ka1z -104 +- 94 mg/g, declared 0.5) may land beyond
+        # the 100 mg/g a linear model describes: withheld from the table, said; the fit's estimate is kept
+        warnings.simplefilter("ignore", casep.exceptions.MagnitudeWarning)
         res = casep.separate(flight, sim.model)
     e = res.estimate - sim.truth  # natural units
     return float(e @ np.linalg.solve(res.covariance, e))
