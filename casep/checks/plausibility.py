@@ -522,12 +522,21 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         # with dt_trk in the model the offset is estimated: a(t) lies in the span of S_V, its test is moot
         _warn(f"{source}: residuals track the kinematic acceleration a = f + g: a tracking time offset of "
               f"{1e3 * test.offset:.3g} +- {1e3 * test.offset_std:.2g} ms would explain them "
-              f"(t = {test.offset_t:.3g}{_freed(test)}); model it (dt_trk) or align the time tags.", TimeOffsetWarning)
+              f"(t = {test.offset_t:.3g}{_freed(test)}); model it ({_offset_advice(result)}) or align the time tags.",
+              TimeOffsetWarning)
     # An offset dt also gives the jerk term -dt^2/2 (second order of v(t - dt)): one warning then.
     if not offset and abs(test.jerk_t) > OFFSET_T and test.jerk_rms > EFFECT_MIN:
         _warn(f"{source}: residuals track the jerk da/dt: coefficient {test.jerk:.3g} +- {test.jerk_std:.2g} s^2 "
               f"(t = {test.jerk_t:.3g}{_freed(test)}); tracking smoothing or interpolation that distorts the velocity?",
               TimeOffsetWarning)
+
+
+def _offset_advice(result) -> str:
+    """How to model the tracking time offset: the fit's model with ``+dt_trk`` (casep.model.loader.load_model)."""
+    from casep.model.loader import TIME_OFFSET_SUFFIX
+
+    name = getattr(result, "model", "") or "MODEL"
+    return f"dt_trk: --model {name}{TIME_OFFSET_SUFFIX}, or a model file with its term"
 
 
 def _freed(test) -> str:

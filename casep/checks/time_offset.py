@@ -29,13 +29,14 @@ from casep.units import G0
 
 __all__ = ["TimeOffsetTest", "time_offset_test", "kinematic_acceleration", "GRAVITY_LAUNCH", "row_blocks",
            "is_problem", "shares_problem_test", "problem_time_offset_test", "gap_columns", "acceleration_steps",
-           "step_rows", "STEP_RATIO", "STEP_MAX_ROWS", "EFFECT_MIN"]
+           "step_rows", "STEP_RATIO", "STEP_WINDOW", "STEP_MAX_ROWS", "EFFECT_MIN"]
 
 #: Gravity in the launch-inertial (platform) frame, x downrange, y up: flat, uniform Earth.
 GRAVITY_LAUNCH = np.array([0.0, -G0, 0.0])
-#: A sample-to-sample change of the acceleration, less the trend of its neighbours' changes (what the jerk
-#: term carries), beyond this many times its median over the flight is a step (:func:`acceleration_steps`).
+#: A sample-to-sample change of the acceleration beyond this many times the median of the changes within
+#: :data:`STEP_WINDOW` samples of it is a step (:func:`acceleration_steps`).
 STEP_RATIO = 10.0
+STEP_WINDOW = 5
 #: Samples freed after (or before) a step at most: an offset bound beyond this many samples is no step's.
 STEP_MAX_ROWS = 25
 #: m/s: RMS of a term's part outside span S_V below which it cannot matter against any tracking noise (keeps
@@ -135,19 +136,21 @@ def acceleration_steps(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The samples ``k`` at which the acceleration `a` (N, 3) steps between samples ``k - 1`` and ``k`` (a
     burnout), and the steps' sizes, m/s^2.
 
-    The change ``da_k = a_k - a_(k-1)`` is a step where it differs from both its neighbours' changes (a smooth
-    acceleration, or a kink, changes as its neighbour does: what the jerk term carries) by more than
-    :data:`STEP_RATIO` times the median of that difference over the flight (a noisy specific force: the median
-    is the noise's, and only a change standing out of it is a step); its size is the smaller difference.
+    The change ``da_k = a_k - a_(k-1)`` is a step where its norm exceeds :data:`STEP_RATIO` times the median of
+    the norms of the changes within :data:`STEP_WINDOW` samples of it: a change within one sample that stands out of
+    the changes around it (a smooth acceleration, however fast, or a kink changes as its neighbours do; a noisy
+    specific force's median is its noise's). A step that an averaging accelerometer spreads over two samples
+    gives two changes, each found. Its size is the norm of the change.
     """
+    from scipy.ndimage import median_filter
+
     a = np.asarray(a, dtype=float).reshape(-1, 3)
     if a.shape[0] < 4:
         return np.zeros(0, dtype=int), np.zeros(0)
-    d = np.diff(a, axis=0)  # d[k - 1] = a_k - a_(k-1)
-    jump = np.linalg.norm(np.diff(d, axis=0), axis=1)  # |d_(k+1) - d_k|
-    s = np.minimum(np.append(jump, np.inf), np.insert(jump, 0, np.inf))  # against both neighbours (edges: one)
+    s = np.linalg.norm(np.diff(a, axis=0), axis=1)  # s[k - 1] = |a_k - a_(k-1)|
     s[~np.isfinite(s)] = 0.0
-    big = np.flatnonzero(s > STEP_RATIO * float(np.median(s)))
+    around = median_filter(s, size=2 * STEP_WINDOW + 1, mode="nearest")
+    big = np.flatnonzero(s > STEP_RATIO * around)
     return big + 1, s[big]
 
 

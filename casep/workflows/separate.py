@@ -298,6 +298,9 @@ def _fit_offset_if_found(flight: Any, problem: Problem, model: Any, spec: FitSpe
             box["flight"], box["problem"] = flights[0], pb
         return fit(pb, LOCATING_FIT, checks=False) if quick else fit(pb, spec)
 
+    if not pair and isinstance(model, ErrorModel) and TIME_OFFSET in model.names and isinstance(flight, FlightData):
+        res, problem, flight = _offset_fit_freeing_steps(flight, problem, model, spec)
+        return res, problem, model, flight
     if not pair or not isinstance(model, ErrorModel) or (fit_time_offset is not None and not fit_time_offset):
         return fit(problem, spec), problem, model, flight
     if fit_time_offset or TIME_OFFSET in model.names:
@@ -305,6 +308,47 @@ def _fit_offset_if_found(flight: Any, problem: Problem, model: Any, spec: FitSpe
     res = refit_on_offset(lambda: fit(problem, spec), lambda: fit_at([flight]), flights=lambda: [flight],
                           fit_at=fit_at)
     return res, box["problem"], box["model"], box["flight"]
+
+
+def _offset_fit_freeing_steps(flight: FlightData, problem: Problem, model: ErrorModel,
+                              spec: FitSpec) -> tuple[EstimateResult, Problem, FlightData]:
+    """:func:`fit` of a one-file flight whose model has ``dt_trk``, with the samples whose tracking straddles a step
+    of the acceleration (a burnout within one sample) at the offset found left out
+    (:func:`casep.checks.time_offset.step_rows`: the first-order ``a(t) dt_trk`` jumps there where ``v(t - dt)``
+    ramps, and under Gauss-Markov noise the offset is read mostly off that step), fitted again until they
+    settle. Returns the result (its message naming the samples left out), its problem and flight."""
+    from casep.checks.time_offset import acceleration_steps, kinematic_acceleration, step_rows
+    from casep.model.loader import TIME_OFFSET
+
+    res = fit(problem, spec)
+    steps = acceleration_steps(kinematic_acceleration(flight.t, flight.f))
+    if not steps[0].size:
+        return res, problem, flight
+    j = list(res.names).index(TIME_OFFSET)
+    free, fitted = np.zeros(0, dtype=int), flight
+    for _ in range(4):  # the samples left out follow the offset found, which follows them: a few passes settle
+        if res.std is None:  # a method without std: no bound to free the samples within
+            break
+        si = float(res.si_factors[j])
+        dt, std = float(res.estimate[j]) * si, float(res.std[j]) * si
+        if not (np.isfinite(dt) and np.isfinite(std)):
+            break
+        rows = step_rows(flight.t, steps, dt, std)
+        rows = rows[flight.observed[rows]]
+        if np.array_equal(rows, free) or rows.size >= int(flight.observed.sum()) // 2:
+            break
+        free = rows
+        observed = flight.observed.copy()
+        observed[free] = False
+        fitted = dataclasses.replace(flight, observed=observed)
+        problem = flight_problem(fitted, model)
+        res = fit(problem, spec)
+    if free.size:
+        note = (f"{free.size} sample(s) at a step of the acceleration left out (t = "
+                f"{', '.join(f'{x:.10g}' for x in flight.t[free[:6]])}{' ...' if free.size > 6 else ''} s): "
+                "the first-order dt_trk term a(t) dt_trk does not hold where the tracking straddles the step")
+        res = dataclasses.replace(res, message=f"{res.message}; {note}")
+    return res, problem, fitted
 
 
 def refit_on_offset(first: Callable[[], EstimateResult], again: Callable[[], EstimateResult],

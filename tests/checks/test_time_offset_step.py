@@ -54,9 +54,15 @@ def _noise(t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 
 def test_acceleration_steps_finds_the_step_not_the_smooth_flight():
+    """The 3 g step and nothing else (the lateral wobble's change within a sample, <= 0.028 m/s^2, adds < 2e-5 to
+    the step's norm); the same 3 g over a 1 s cosine taper is no step."""
     t, f, _ = _rows()
     at, size = acceleration_steps(f + GRAVITY_LAUNCH)
-    assert list(t[at]) == [STEP_T] and abs(size[0] - 3.0 * G0) < 1e-6, (t[at], size)
+    assert list(t[at]) == [STEP_T] and abs(size[0] - 3.0 * G0) < 1e-4, (t[at], size)
+    taper = 0.5 - 0.5 * np.cos(np.pi * np.clip(t - STEP_T, 0.0, 1.0))  # 0 -> 1 over [STEP_T, STEP_T + 1]
+    smooth = f.copy()
+    smooth[:, :2] = ((5.0 - 3.0 * taper) * G0)[:, None] * UP[:2]
+    assert acceleration_steps(smooth + GRAVITY_LAUNCH)[0].size == 0
 
 
 def test_offset_at_a_step_is_found_within_its_std():
