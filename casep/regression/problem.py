@@ -403,8 +403,10 @@ class Problem:
 
     def rank(self, rcond: float | None = None) -> RankAnalysis:
         """The rank analysis of the reduction (cached per `rcond`)."""
-        if rcond not in self._ranks:
-            self._ranks[rcond] = analyze_rank(self.red, rcond)
+        if rcond not in self._ranks:  # the declared magnitudes: a column at the rounding level is a zero one
+            mags = [self.magnitudes.get(n, self.magnitudes.get(n.split("[")[0])) for n in self.names] \
+                if self.magnitudes else None
+            self._ranks[rcond] = analyze_rank(self.red, rcond, magnitudes=mags)
         return self._ranks[rcond]
 
     def ls_rss(self, rcond: float | None = None) -> float:
