@@ -1,6 +1,7 @@
 """The time-offset warning's advice on a one-file flight (t, f_*, v_tel_*, v_trk_*): the command it names runs
 (the kinematic acceleration a = f + g of casep.io.flight.FlightData.model_signals), and its dt_trk, fitted with the
-samples whose tracking straddles the burnout left out, finds the offset within its std."""
+samples whose tracking straddles the burnout left out, finds the offset within its std (seed 1, --noise gmw: 33.6 +- 3.0
+ms; without leaving them out 21.7 +- 2.3; before, the advised run failed: missing column a_x)."""
 
 from __future__ import annotations
 
@@ -46,14 +47,14 @@ def _flight(path, seed: int = 1) -> None:
 def test_offset_advice_runs_on_a_one_file_flight(tmp_path, capsys):
     path = tmp_path / "boost.csv"
     _flight(path)
-    main(["separate", str(path), "--model", "platform36"])
+    main(["separate", str(path), "--model", "platform36", "--noise", "gmw"])
     err = "".join(capsys.readouterr())
     said = [line for line in err.splitlines() if "would explain them" in line]
     assert said, err
     advice = re.search(r"--model (\S+),", said[0])
     assert advice and advice.group(1) == "platform36+dt_trk", said[0]
     out = tmp_path / "res.json"
-    main(["separate", str(path), "--model", advice.group(1), "--json", str(out)])
+    main(["separate", str(path), "--model", advice.group(1), "--noise", "gmw", "--json", str(out)])
     res = json.loads(out.read_text())
     dt = next(c for c in res["coefficients"] if c["name"] == "dt_trk")
     assert abs(dt["estimate"] - 1e3 * OFFSET) < 3.0 * dt["std"], dt
