@@ -59,3 +59,4 @@ def test_offset_advice_runs_on_a_one_file_flight(tmp_path, capsys):
     dt = next(c for c in res["coefficients"] if c["name"] == "dt_trk")
     assert abs(dt["estimate"] - 1e3 * OFFSET) < 3.0 * dt["std"], dt
     assert "at a step of the acceleration left out" in res["message"], res["message"]
+
