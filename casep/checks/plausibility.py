@@ -59,6 +59,7 @@ from typing import Any
 import numpy as np
 
 from casep.checks.time_offset import (
+    EFFECT_MIN,
     is_problem,
     kinematic_acceleration,
     problem_time_offset_test,
@@ -99,8 +100,6 @@ DW_HIGH = 2e4  # m/s: no rocket flight gains more than ~20 km/s of specific-forc
 DV_NOISE_HIGH = 5.0  # m/s: tracking noise is 0.01-1 m/s
 OUTLIER_Z = 10.0  # robust sigma of the spike statistic; Gaussian P(|z| > 10) ~ 1.5e-23
 OFFSET_T = 5.0  # |t| of the offset / jerk terms; Gaussian P(|t| > 5) ~ 6e-7
-EFFECT_MIN = 1e-3  # m/s: RMS of a term's part outside span S_V below which it cannot matter against
-#                   any tracking noise (keeps noise-free data, where every effect is "significant", quiet)
 NOISE_FLOOR = 1e-3  # m/s: an outlier must exceed OUTLIER_Z times at least this (interpolation ripple
 #                    of noise-free two-rate data at staging is ~1e-4 m/s)
 MAD_SIGMA = 1.482602218505602  # sigma = MAD / Phi^-1(3/4) for Gaussian data
@@ -523,12 +522,27 @@ def check_fit(S: np.ndarray, dv: np.ndarray, result, *, t: np.ndarray, f: np.nda
         # with dt_trk in the model the offset is estimated: a(t) lies in the span of S_V, its test is moot
         _warn(f"{source}: residuals track the kinematic acceleration a = f + g: a tracking time offset of "
               f"{1e3 * test.offset:.3g} +- {1e3 * test.offset_std:.2g} ms would explain them "
-              f"(t = {test.offset_t:.3g}); model it (dt_trk) or align the time tags.", TimeOffsetWarning)
+              f"(t = {test.offset_t:.3g}{_freed(test)}); model it ({_offset_advice(result)}) or align the time tags.",
+              TimeOffsetWarning)
     # An offset dt also gives the jerk term -dt^2/2 (second order of v(t - dt)): one warning then.
     if not offset and abs(test.jerk_t) > OFFSET_T and test.jerk_rms > EFFECT_MIN:
         _warn(f"{source}: residuals track the jerk da/dt: coefficient {test.jerk:.3g} +- {test.jerk_std:.2g} s^2 "
-              f"(t = {test.jerk_t:.3g}); tracking smoothing or interpolation that distorts the velocity?",
+              f"(t = {test.jerk_t:.3g}{_freed(test)}); tracking smoothing or interpolation that distorts the velocity?",
               TimeOffsetWarning)
+
+
+def _offset_advice(result) -> str:
+    """How to model the tracking time offset: the fit's model with ``+dt_trk`` (casep.model.loader.load_model)."""
+    from casep.model.loader import TIME_OFFSET_SUFFIX
+
+    name = getattr(result, "model", "") or "MODEL"
+    return f"dt_trk: --model {name}{TIME_OFFSET_SUFFIX}, or a model file with its term"
+
+
+def _freed(test) -> str:
+    """What a time-offset test's message says of the samples it freed at steps of the acceleration."""
+    return (f"; {test.freed} sample(s) at a step of the acceleration, where the first-order term a(t) dt does "
+            "not hold, left out" if test.freed else "")
 
 
 #: A fit's residual RMS above this many times the tracking's sample-to-sample noise (:func:`dv_noise`, at least

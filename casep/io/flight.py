@@ -22,6 +22,9 @@ import numpy as np
 
 from casep.exceptions import CasepWarning
 
+#: The kinematic acceleration signals of a tracking time offset's term ``a(t) dt_trk``, m/s^2.
+ACCELERATION_SIGNALS = ("a_x", "a_y", "a_z")
+
 __all__ = ["FlightData", "FlightDataError", "LateStartWarning", "MAX_ABS_VALUE", "DUPLICATE_STEP", "too_large"]
 
 AXES = ("x", "y", "z")
@@ -184,7 +187,11 @@ class FlightData:
             a column is not finite.
         """
         out = {}
+        derived = self._kinematic_acceleration(names)
         for c in names:
+            if c in derived:
+                out[c] = derived[c]
+                continue
             if c not in self.signals:
                 have = ", ".join(self.signals) or "none"
                 raise FlightDataError(self.source, f"missing column that model `{model}` needs (the flight's "
@@ -196,6 +203,20 @@ class FlightData:
                                                    f"`{model}` uses)", c, r + 1)
             out[c] = values
         return out
+
+    def _kinematic_acceleration(self, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+        """The kinematic acceleration signals ``a_x, a_y, a_z`` a model asks for (a tracking time offset's
+        ``a(t) dt_trk``) when a one-file flight has none of them: ``f + g`` with flat-Earth gravity
+        (:func:`casep.checks.time_offset.kinematic_acceleration`, the time-offset test's own ``a``). A pair
+        derives them from its telemetry velocity when it reads the files (:func:`casep.io.files.read_flight_pair`)."""
+        wanted = [c for c in ACCELERATION_SIGNALS if c in names]
+        pair = isinstance(self.meta, dict) and self.meta.get("format") == "pair"
+        if not wanted or pair or any(c in self.signals for c in ACCELERATION_SIGNALS):
+            return {}
+        from casep.checks.time_offset import kinematic_acceleration
+
+        a = kinematic_acceleration(self.t, self.f)
+        return {c: a[:, i] for i, c in enumerate(ACCELERATION_SIGNALS) if c in wanted}
 
     def _observed_mask(self, n: int) -> np.ndarray:
         if self.observed is None:

@@ -282,7 +282,8 @@ def load_model(model: str | os.PathLike | ErrorModel) -> ErrorModel:
     Parameters
     ----------
     model : str, path or ErrorModel
-        ``"platform36"``, ``"models/my_model.py"`` or a declared model.
+        ``"platform36"``, ``"models/my_model.py"`` or a declared model; a name or path ending in ``+dt_trk``
+        (``"platform36+dt_trk"``): that model with the tracking time offset added (:func:`with_time_offset`).
 
     Returns
     -------
@@ -291,6 +292,8 @@ def load_model(model: str | os.PathLike | ErrorModel) -> ErrorModel:
     """
     if isinstance(model, ErrorModel):
         return model.setup()
+    if str(model).endswith(TIME_OFFSET_SUFFIX) and str(model) != TIME_OFFSET_SUFFIX:  # platform36+dt_trk
+        return with_time_offset(str(model)[: -len(TIME_OFFSET_SUFFIX)])
     return load_model_file(find_model_file(model))
 
 

@@ -21,7 +21,8 @@ from typing import Callable, Iterable, Iterator, Sequence, cast
 
 import numpy as np
 
-__all__ = ["ReducedSystem", "reduce_qr", "reduce_qr_blocks", "RankAnalysis", "analyze_rank", "least_squares_rss",
+__all__ = ["ReducedSystem", "reduce_qr", "reduce_qr_blocks", "RankAnalysis", "analyze_rank", "rounding_columns",
+           "least_squares_rss",
            "DEFAULT_BLOCK_ROWS", "qr_forward_error", "refine_least_squares", "REFINE_ABOVE"]
 
 #: Rows per TSQR block: bounds the temporary copy to ~block x (n + 1) doubles.
@@ -198,6 +199,8 @@ class RankAnalysis:
         Non-zero columns that take part in an exact linear dependency.
     partners : dict[int, list[int]]
         For each dependent column, the other columns of its dependency, strongest first.
+    rounding : (n,) bool ndarray
+        Non-zero columns at the rounding level (:func:`rounding_columns`): counted in `zero`, left out of the SVD.
     """
 
     U: np.ndarray
@@ -208,6 +211,7 @@ class RankAnalysis:
     zero: np.ndarray
     dependent: np.ndarray
     partners: dict
+    rounding: np.ndarray | None = None
 
     @property
     def estimable(self) -> np.ndarray:
@@ -220,7 +224,25 @@ class RankAnalysis:
         return self.Vt[:r].T, 1.0 / self.s[:r]
 
 
-def analyze_rank(red: ReducedSystem, rcond: float | None = None) -> RankAnalysis:
+def rounding_columns(red: ReducedSystem, magnitudes: Sequence[float | None]) -> np.ndarray:
+    """The non-zero columns that are rounding noise relative to their declared magnitudes: whose effect at the
+    magnitude, ``||S_j|| s_j`` (m/s over the rows), is at or below the rounding level
+    (:func:`casep.regression.problem.rounding_level`) of the largest such effect. A column the flight excites only
+    through numbers at the rounding level (a misalignment times a lateral specific force of 1e-15 m/s^2) carries
+    no information on its coefficient: its direction is the rounding's, independent of every other column, so it
+    would get a plain estimate of any size. A column without a declared magnitude is never one."""
+    from casep.regression.problem import rounding_level
+
+    s = np.array([np.nan if m is None else m for m in magnitudes], dtype=float)
+    effect = red.scale * np.abs(s)
+    known = np.isfinite(effect) & (red.scale > 0)
+    if not known.any():
+        return np.zeros(red.n, dtype=bool)
+    return known & (effect <= rounding_level(float(np.max(effect[known]))))
+
+
+def analyze_rank(red: ReducedSystem, rcond: float | None = None,
+                 magnitudes: Sequence[float | None] | None = None) -> RankAnalysis:
     """Find the numerical rank, the zero columns and the exactly dependent ones.
 
     Parameters
@@ -231,16 +253,24 @@ def analyze_rank(red: ReducedSystem, rcond: float | None = None) -> RankAnalysis
         as LAPACK's rank rules: exact dependencies computed in floating point land near
         1e-16 * s_max, while the worst real collinearity of a boost flight (equilibrated
         condition number ~1e6) is ten orders of magnitude above it.
+    magnitudes : sequence of float or None, optional
+        The declared magnitude of each coefficient (natural units): the columns at the rounding level relative to
+        them (:func:`rounding_columns`) count as zero columns.
     """
     n, m = red.n, red.m
     if rcond is None:
         rcond = max(m, n) * np.finfo(float).eps
     elif not np.isfinite(rcond) or rcond < 0 or rcond >= 1:
         raise ValueError(f"`rcond` must be in [0, 1), got {rcond}")
-    U, s, Vt = np.linalg.svd(red.R)
+    rounding = np.zeros(n, dtype=bool) if magnitudes is None else rounding_columns(red, magnitudes)
+    R = red.R
+    if rounding.any():
+        R = R.copy()
+        R[:, rounding] = 0.0  # a zero column from here on: no estimate, no part of a dependency
+    U, s, Vt = np.linalg.svd(R)
     smax = s[0] if s.size else 0.0
     rank = int(np.sum(s > rcond * smax)) if smax > 0 else 0
-    zero = red.scale == 0.0
+    zero = (red.scale == 0.0) | rounding
     Vnull = Vt[rank:].T  # (n, n - rank): exact null space of Z
     row_norm = np.linalg.norm(Vnull, axis=1) if Vnull.size else np.zeros(n)
     dependent = (row_norm > _NULL_ROW_TOL) & ~zero
@@ -252,7 +282,7 @@ def analyze_rank(red: ReducedSystem, rcond: float | None = None) -> RankAnalysis
         big = np.flatnonzero(np.abs(w) > 1e-6 * max(np.abs(w).max(), 1e-300))
         partners[int(j)] = [int(k) for k in big[np.argsort(-np.abs(w[big]))]]
     return RankAnalysis(U=U, s=s, Vt=Vt, rank=rank, rcond=float(rcond), zero=zero,
-                        dependent=dependent, partners=partners)
+                        dependent=dependent, partners=partners, rounding=rounding)
 
 
 #: Components of a unit null vector of the scaled columns below this are the SVD's rounding (a zero column's
@@ -276,7 +306,7 @@ def null_space(red: ReducedSystem, ra: RankAnalysis) -> np.ndarray:
     """
     v = ra.Vt[ra.rank:].T  # (n, k): Z v = 0, unit columns
     v = np.where(np.abs(v) > NULL_ROUNDING, v, 0.0)  # rounding of the SVD: not a part of the dependency
-    scaled = red.scale > 0
+    scaled = (red.scale > 0) & ~ra.zero  # a column at the rounding level is a zero one (analyze_rank)
     return np.where(scaled[:, None], v / np.where(scaled, red.scale, 1.0)[:, None], v)
 
 
@@ -379,9 +409,14 @@ def condition_numbers(red: ReducedSystem, ra: RankAnalysis) -> dict[str, float |
 
 def unidentifiable_reasons(ra: RankAnalysis, names: tuple[str, ...] | list[str]) -> dict[str, str]:
     """Why each zero or exactly dependent coefficient gets no estimate, keyed by name."""
+    from casep.regression.problem import NOISE_FREE
+
     reasons: dict[str, str] = {}
+    rounding = ra.rounding if ra.rounding is not None else np.zeros(len(names), dtype=bool)
     for j in np.flatnonzero(ra.zero):
-        reasons[names[j]] = "zero column: this flight does not excite the term"
+        reasons[names[j]] = (f"column at the rounding level: at its declared magnitude it moves dv by {NOISE_FREE:g} "
+                             "or less of the largest term's, so this flight does not excite the term"
+                             if rounding[j] else "zero column: this flight does not excite the term")
     for j in np.flatnonzero(ra.dependent):
         twins = [names[k] for k in ra.partners.get(int(j), [])]
         with_ = ", ".join(twins[:6]) + (", ..." if len(twins) > 6 else "")

@@ -121,7 +121,7 @@ class Problem:
         self.row_unit = row_unit
         self._S = S
         self._regenerate = regenerate
-        self._ranks: dict[float | None, RankAnalysis] = {}
+        self._ranks: dict[tuple, RankAnalysis] = {}
         #: First row (sample) of each segment: flights stacked into one problem
         #: (:class:`casep.regression.joint.JointProblem`) are segments; one flight is one segment. A
         #: recursive method's noise memory restarts at each segment.
@@ -406,9 +406,14 @@ class Problem:
 
     def rank(self, rcond: float | None = None) -> RankAnalysis:
         """The rank analysis of the reduction (cached per `rcond`)."""
-        if rcond not in self._ranks:
-            self._ranks[rcond] = analyze_rank(self.red, rcond)
-        return self._ranks[rcond]
+        # the declared magnitudes: a column at the rounding level relative to them is a zero one (cached with them:
+        # a caller may clear them after a first look)
+        mags = tuple(self.magnitudes.get(n, self.magnitudes.get(n.split("[")[0])) for n in self.names) \
+            if self.magnitudes else None
+        key = (rcond, mags)
+        if key not in self._ranks:
+            self._ranks[key] = analyze_rank(self.red, rcond, magnitudes=mags)
+        return self._ranks[key]
 
     def ls_rss(self, rcond: float | None = None) -> float:
         """Least-squares residual sum of squares ``rho^2 + ||U_{r+}^T q||^2`` (the part of q off range R)."""

@@ -298,6 +298,9 @@ def _fit_offset_if_found(flight: Any, problem: Problem, model: Any, spec: FitSpe
             box["flight"], box["problem"] = flights[0], pb
         return fit(pb, LOCATING_FIT, checks=False) if quick else fit(pb, spec)
 
+    if not pair and isinstance(model, ErrorModel) and TIME_OFFSET in model.names and isinstance(flight, FlightData):
+        res, problem, flight = _offset_fit_freeing_steps(flight, problem, model, spec)
+        return res, problem, model, flight
     if not pair or not isinstance(model, ErrorModel) or (fit_time_offset is not None and not fit_time_offset):
         return fit(problem, spec), problem, model, flight
     if fit_time_offset or TIME_OFFSET in model.names:
@@ -305,6 +308,71 @@ def _fit_offset_if_found(flight: Any, problem: Problem, model: Any, spec: FitSpe
     res = refit_on_offset(lambda: fit(problem, spec), lambda: fit_at([flight]), flights=lambda: [flight],
                           fit_at=fit_at)
     return res, box["problem"], box["model"], box["flight"]
+
+
+def _offset_fit_freeing_steps(flight: FlightData, problem: Problem, model: ErrorModel,
+                              spec: FitSpec) -> tuple[EstimateResult, Problem, FlightData]:
+    """:func:`fit` of a one-file flight whose model has ``dt_trk``, the samples at a step of the acceleration left
+    out (:func:`free_step_samples`). Returns the result, its problem and flight."""
+    box: dict[str, Any] = {"problem": problem}
+
+    def fit_at(flights: Sequence[FlightData]) -> EstimateResult:
+        if flights[0] is not flight:
+            box["problem"] = flight_problem(flights[0], model)
+        return fit(box["problem"], spec)
+
+    res, fitted = free_step_samples([flight], fit_at)
+    return res, box["problem"], fitted[0]
+
+
+def free_step_samples(flights: Sequence[FlightData],
+                      fit_at: Callable[[Sequence[FlightData]], EstimateResult]) -> tuple[EstimateResult, list]:
+    """``fit_at(flights)`` (one-file flights, a model with ``dt_trk``: one per flight), with the samples whose
+    tracking straddles a step of the acceleration (a burnout within one sample) at the offset found left out
+    (:func:`casep.checks.time_offset.step_rows`: the first-order ``a(t) dt_trk`` jumps there where ``v(t - dt)``
+    ramps, and under Gauss-Markov noise the offset is read mostly off that step), fitted again until they
+    settle. Returns the result (its message naming the samples left out) and the flights it was fitted on.
+    (:func:`casep.workflows.flights.separate_flights` does not call it yet: several flights fitted jointly keep
+    every sample.)"""
+    from casep.checks.time_offset import acceleration_steps, kinematic_acceleration, step_rows
+
+    res = fit_at(flights)
+    steps = [acceleration_steps(kinematic_acceleration(fl.t, fl.f)) for fl in flights]
+    idx = _offset_columns(res.names)
+    if not any(st[0].size for st in steps) or len(idx) != len(flights):
+        return res, list(flights)
+    free = [np.zeros(0, dtype=int) for _ in flights]
+    fitted = list(flights)
+    for _ in range(4):  # the samples left out follow the offsets found, which follow them: a few passes settle
+        if res.std is None:  # a method without std: no bound to free the samples within
+            break
+        dt, sd = res.estimate[idx] * res.si_factors[idx], res.std[idx] * res.si_factors[idx]
+        rows = [np.zeros(0, dtype=int) if not (np.isfinite(d) and np.isfinite(e)) else
+                (r := step_rows(fl.t, st, float(d), float(e)))[fl.observed[r]]
+                for fl, st, d, e in zip(flights, steps, dt, sd)]
+        if all(np.array_equal(r, f) for r, f in zip(rows, free)) or \
+                any(r.size >= int(fl.observed.sum()) // 2 for r, fl in zip(rows, flights)):
+            break
+        free = rows
+        fitted = [fl if not r.size else dataclasses.replace(fl, observed=_without(fl.observed, r))
+                  for fl, r in zip(flights, rows)]
+        res = fit_at(fitted)
+    said = [f"{r.size} sample(s) at a step of the acceleration left out"
+            + (f" of {fl.source}" if len(flights) > 1 else "")
+            + f" (t = {', '.join(f'{x:.10g}' for x in fl.t[r[:6]])}{' ...' if r.size > 6 else ''} s)"
+            for fl, r in zip(flights, free) if r.size]
+    if said:
+        note = ("; ".join(said) + ": the first-order dt_trk term a(t) dt_trk does not hold where the tracking "
+                "straddles the step")
+        res = dataclasses.replace(res, message=f"{res.message}; {note}")
+    return res, fitted
+
+
+def _without(observed: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """`observed` with the samples `rows` not observed."""
+    out = np.array(observed, dtype=bool)
+    out[rows] = False
+    return out
 
 
 def refit_on_offset(first: Callable[[], EstimateResult], again: Callable[[], EstimateResult],

@@ -267,11 +267,11 @@ def test_missing_signal_column_names_model_column_and_file(tmp_path):
     path = tmp_path / "plain.csv"
     casep.io.files.write_table(path, {"t": sim.flight.t, **{f"f_{a}": sim.flight.f[:, i] for i, a in enumerate("xyz")},
                                       **{f"dv_{a}": sim.flight.dv[:, i] for i, a in enumerate("xyz")}})
-    code, _, err = _casep(["separate", str(path), "--model", "platform36_timeoffset"], tmp_path)
+    code, _, err = _casep(["separate", str(path), "--model", "platform36_leverarm"], tmp_path)
     assert code == 2
     err = err.strip()
     assert len(err.splitlines()) == 1
-    assert "platform36_timeoffset" in err and "`a_x`" in err and str(path) in err
+    assert "platform36_leverarm" in err and "missing column" in err and "`omega_x`" in err and str(path) in err
     with pytest.raises(ValueError, match="needs flight column"):
         casep.build_sv(casep.load_model("platform36_timeoffset"), sim.flight.t, sim.flight.f)
 
