@@ -418,6 +418,12 @@ def main() -> None:
         print(f"{w.t_start:6.1f} {w.passes:4d} {course:>8s} {_rms(r):6.3f} {e['dt_trk']:6.1f}+-{s['dt_trk']:4.1f}  "
               + "  ".join(f"{e[n]:7.1f}+-{s[n]:5.1f}" for n in shown))
     c = res.consistency
+    if "chi2" not in c:  # fewer than two windows succeeded: nothing to compare
+        print(f"no comparison: {c.get('message')}; windows failed: "
+              + "; ".join(f"{w.t_start:.1f} s: {w.result.message}" for w in res.windows if not w.result.success))
+        if args.save:
+            save_windows(res, args.save)
+        return
     print(f"chi-square of the windows against their weighted mean: {c['chi2']:.1f} on {c['dof']} dof, "
           f"p = {c['p_value']:.3g}: {'agree' if c['agree'] else 'do NOT agree'}")
     print("  per coefficient (dof " + f"{c['used'] - 1}): " + ", ".join(f"{n} {v:.0f}"

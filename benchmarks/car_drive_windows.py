@@ -11,9 +11,14 @@ the same spans):
   ``z^2`` of adjacent pairs against pairs 4 or more windows apart;
 - per window: the fit's residual RMS and lag-one autocorrelation (a white velocity noise gives 0, the
   velocity differenced from white positions -1/2, a misfit slower than the 0.25 s epochs near +1), the RMS of
-  the vertical body rate and the RMS of the antenna's lever-arm velocity ``|w x l|`` (5 cm, not modelled).
+  the vertical body rate and the RMS of the antenna's lever-arm velocity ``|w x l|`` (5 cm, not modelled);
+- with ``--tracking``: each bias against the window's mean ground speed (the tracked horizontal speed smoothed by
+  a first-order lag of time constant tau, tau = 0 the speed itself), a weighted line through the windows (weights
+  their std): its chi-square against the weighted mean's, and the line fitted on every other window predicting
+  the rest (a dependence found by the windows it is judged on would not predict the others).
 
-    python benchmarks/car_drive_windows.py RUN.pkl [RUN2.pkl ...] --imu car_drive_out/imu.csv
+    python benchmarks/car_drive_windows.py RUN.pkl [RUN2.pkl ...] --imu car_drive_out/imu.csv \
+        --tracking car_drive_out/tracking.csv
 """
 
 from __future__ import annotations
@@ -61,12 +66,58 @@ def structure(ws: list, names: tuple[str, ...]) -> list[tuple[int, int, float]]:
     return out
 
 
+def _lagged(t: np.ndarray, x: np.ndarray, tau: float) -> np.ndarray:
+    """`x` through a first-order lag of time constant `tau` s (tau = 0: `x` itself)."""
+    if tau <= 0.0:
+        return x
+    out = np.empty_like(x)
+    out[0] = x[0]
+    for k in range(1, x.size):
+        a = 1.0 - np.exp(-(t[k] - t[k - 1]) / tau)
+        out[k] = out[k - 1] + a * (x[k] - out[k - 1])
+    return out
+
+
+def _line_chi2(x: np.ndarray, y: np.ndarray, s: np.ndarray, fit: np.ndarray,
+               test: np.ndarray) -> tuple[float, float, float]:
+    """A weighted line through (x, y) on the windows `fit`; on `test`: the chi-square of y about its weighted mean,
+    and of the line's residuals about theirs (a common offset is free: the speed term is judged, not the level);
+    and the slope."""
+    w = 1.0 / s[fit]
+    X = np.column_stack([np.ones(fit.size), x[fit]])
+    b = np.linalg.lstsq(X * w[:, None], y[fit] * w, rcond=None)[0]
+    W = 1.0 / s[test] ** 2
+    r = y[test] - b[1] * x[test]
+    return (float(np.sum(W * (y[test] - np.average(y[test], weights=W)) ** 2)),
+            float(np.sum(W * (r - np.average(r, weights=W)) ** 2)), float(b[1]))
+
+
+def speed_dependence(ws: list, trk, names: tuple[str, ...] = SIX, taus: tuple[float, ...] = (0.0, 20.0, 80.0)) -> None:
+    """Print each coefficient's dependence on the window's mean ground speed (module notes)."""
+    t = trk.t.to_numpy()
+    speed = np.hypot(trk.v_east.to_numpy(), trk.v_north.to_numpy())
+    every, even, odd = np.arange(len(ws)), np.arange(0, len(ws), 2), np.arange(1, len(ws), 2)
+    for tau in taus:
+        lag = _lagged(t, speed, tau)
+        x = np.array([lag[(t >= w.raw["t_start"]) & (t <= w.raw["t_end"])].mean() for w in ws])
+        for n in names:
+            y = np.array([w.result.estimate[w.result.names.index(n)] for w in ws])
+            s = np.array([np.sqrt(w.result.covariance[w.result.names.index(n), w.result.names.index(n)]) for w in ws])
+            c0, c1, b = _line_chi2(x, y, s, every, every)
+            e0, e1, be = _line_chi2(x, y, s, even, odd)
+            o0, o1, bo = _line_chi2(x, y, s, odd, even)
+            print(f"    tau {tau:3.0f} s, {n}: slope {b:+.3g} per m/s, chi2 {c0:.1f} -> {c1:.1f} "
+                  f"({len(ws) - 1} -> {len(ws) - 2} dof); fitted on even windows (slope {be:+.3g}) the odd ones "
+                  f"{e0:.1f} -> {e1:.1f}, on odd (slope {bo:+.3g}) the even ones {o0:.1f} -> {o1:.1f}")
+
+
 def main() -> None:
     from casep.workflows.windows import window_consistency
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("runs", nargs="+", help="pickles written by car_drive.py --save")
     ap.add_argument("--imu", default=None, help="the converted IMU file (t, w_*, fb_*) for the rates per window")
+    ap.add_argument("--tracking", default=None, help="the converted tracking file: each bias against the speed")
     args = ap.parse_args()
     runs = [pickle.load(open(p, "rb")) for p in args.runs]
     keep = set.intersection(*[{round(w["t_start"] / 30.0) for w in r["windows"] if w["success"]} for r in runs])
@@ -96,6 +147,11 @@ def main() -> None:
             near = [(x[k] - x[k + 1]) ** 2 / (s2[k] + s2[k + 1]) for k in range(len(x) - 1)]
             far = [(x[a] - x[b]) ** 2 / (s2[a] + s2[b]) for a in range(len(x)) for b in range(a + 4, len(x))]
             print(f"    {n}: adjacent pairs mean z^2 {np.mean(near):.2f}, pairs >= 4 windows apart {np.mean(far):.2f}")
+        if args.tracking:
+            import pandas as pd
+
+            print("  each bias against the window's mean ground speed (a weighted line):")
+            speed_dependence(ws, pd.read_csv(args.tracking))
         print("  start  resid RMS  lag-1 acf  |w_z| RMS deg/s  |w x l| RMS m/s")
         for w in ws:
             r = np.asarray(w.raw["residuals"], float).reshape(-1, 3)

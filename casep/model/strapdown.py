@@ -154,7 +154,8 @@ def imu_error_signals(model: Any) -> tuple[str, ...]:
 
 
 def body_errors(model: Any, q: np.ndarray, fb: np.ndarray, w: np.ndarray, t: np.ndarray,
-                coefficients: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                coefficients: np.ndarray,
+                signals: dict[str, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The body-axis sensor errors of a set-up strapdown model at the inputs and coefficients given.
 
     ``delta_f = C^T Delta(f_nav, t, signals, D)`` and ``delta_w = -C^T phidot(...)``, each (N, 3), from
@@ -173,16 +174,21 @@ def body_errors(model: Any, q: np.ndarray, fb: np.ndarray, w: np.ndarray, t: np.
         Time since the flight's first sample, s.
     coefficients : (n,) ndarray
         In the model's natural units.
+    signals : dict, optional
+        Further flight columns the errors use (name -> (N,) array at the same samples), beside ``q_*``,
+        ``fb_*``, ``w_*`` (a window flight's ``ground_speed``).
     """
     from casep.io.strapdown import quaternion_dcm_array
 
-    cols = {**dict(zip(QUATERNION_COLUMNS, np.asarray(q, float).T)), **dict(zip(BODY_FORCE_COLUMNS, fb.T)),
+    cols = {**{k: np.asarray(v, float) for k, v in (signals or {}).items()},
+            **dict(zip(QUATERNION_COLUMNS, np.asarray(q, float).T)), **dict(zip(BODY_FORCE_COLUMNS, fb.T)),
             **dict(zip(BODY_RATE_COLUMNS, w.T))}
     missing = [c for c in model.signals if c not in cols]
     if missing and set(missing) & set(imu_error_signals(model)):
         raise ValueError(f"model `{model.name}`: its IMU errors use column(s) "
                          f"{', '.join(sorted(set(missing) & set(imu_error_signals(model))))}, which raw IMU data "
-                         "do not have (a strapdown model's sensor errors use q_*, fb_*, w_* only)")
+                         "do not have (a strapdown model's sensor errors use q_*, fb_*, w_* and the columns passed "
+                         "as signals only)")
     n = len(t)
     C = quaternion_dcm_array(q)
     values = {"f": np.einsum("kij,kj->ki", C, fb).T, "t": np.asarray(t, float)[None, :],
@@ -194,8 +200,8 @@ def body_errors(model: Any, q: np.ndarray, fb: np.ndarray, w: np.ndarray, t: np.
 
 
 def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured: np.ndarray, t: np.ndarray,
-                  coefficients: np.ndarray, *,
-                  start: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  coefficients: np.ndarray, *, start: tuple[np.ndarray, np.ndarray] | None = None,
+                  signals: dict[str, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The IMU record without the model's errors: the inverse of ``measured = true + error(true)``.
 
     The model's sensor errors are functions of the true inputs (:func:`body_errors`: the forward law
@@ -222,6 +228,8 @@ def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured
         The measured body specific force (m/s^2) and rate (rad/s).
     start : (fb, w), optional
         Where the iteration starts (default the measured record): a correction at nearby coefficients.
+    signals : dict, optional
+        Further flight columns the errors use (:func:`body_errors`).
 
     Raises
     ------
@@ -236,7 +244,7 @@ def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured
     moved, growing, n_steps = np.inf, 0, 0
     while n_steps < CORRECTION_MAX_STEPS:
         n_steps += 1
-        df, dw = body_errors(model, q, fb, w, t, coefficients)
+        df, dw = body_errors(model, q, fb, w, t, coefficients, signals)
         new_fb, new_w = fb_m - df, w_m - dw
         step = np.abs(np.hstack([new_fb - fb, new_w - w])) / scale
         fb, w = new_fb, new_w

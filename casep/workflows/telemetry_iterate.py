@@ -122,7 +122,8 @@ def strapdown_arrays(inp: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def corrected_telemetry(model: ErrorModel, t: np.ndarray, q: np.ndarray, fb: np.ndarray, w: np.ndarray,
                         v: np.ndarray, D: np.ndarray, start: tuple[np.ndarray, np.ndarray] | None = None,
-                        gravity: Gravity | None = None, r: np.ndarray | None = None) -> CorrectedTelemetry:
+                        gravity: Gravity | None = None, r: np.ndarray | None = None,
+                        signals: dict[str, np.ndarray] | None = None) -> CorrectedTelemetry:
     """The telemetry re-navigated with its record corrected at `D` (module notes: ``C_c``, ``v_c``).
 
     Parameters
@@ -142,6 +143,8 @@ def corrected_telemetry(model: ErrorModel, t: np.ndarray, q: np.ndarray, fb: np.
     r : (N, 3) ndarray, optional
         The telemetry's position ``r_tel`` (m), where its INS evaluated `gravity`; None: `v` integrated from the
         origin (trapezoid).
+    signals : dict, optional
+        Further telemetry columns the model's sensor errors use (name -> (N,) array; a window's ``ground_speed``).
     """
     from casep.model.strapdown import corrected_attitude, corrected_imu
     from casep.navigation.strapdown import (
@@ -156,7 +159,7 @@ def corrected_telemetry(model: ErrorModel, t: np.ndarray, q: np.ndarray, fb: np.
     D = np.asarray(D, float)[:model.n_coefficients]
     if not np.any(D):
         return CorrectedTelemetry(q, fb, w, v)
-    fb_c, w_c = corrected_imu(model, q, fb, w, t - t[0], D, start=start)
+    fb_c, w_c = corrected_imu(model, q, fb, w, t - t[0], D, start=start, signals=signals)
     phi0, dv0 = model.numeric("phi0") @ D, model.numeric("dv0") @ D
     inc_r, inc_c = increments_from_rates(t, w, fb), increments_from_rates(t, w_c, fb_c)
     B_r = propagate_attitude(q[0], inc_r)
@@ -231,7 +234,9 @@ class _TelemetryRun(_Run):
         t = np.asarray(self.inp.t_tel, float)
         last = self.imu_k
         tel = corrected_telemetry(self.base, t, q, fb, w, np.asarray(self.inp.v_tel, float), D,
-                                  start=(last.fb, last.w), gravity=self.gravity, r=self.r_tel)
+                                  start=(last.fb, last.w), gravity=self.gravity, r=self.r_tel,
+                                  signals={c: np.asarray(self.inp.signals[c], float) for c in self.base.signals
+                                           if c in self.inp.signals})
         self.imu_k = tel
         return tel
 

@@ -9,7 +9,10 @@ cuts it into windows of a few tens of seconds, and for each one
    (site = the tracked point, azimuth 0, launch time = the window's start);
 2. separates it (:func:`casep.separate`, the default noise path; Earth-fixed tracking brings the
    tracking time offset ``dt_trk``) with a window model: the instrument terms plus the initial
-   attitude error ``phi0`` and initial velocity error ``dv0`` (``models/strapdown6_window.py``);
+   attitude error ``phi0`` and initial velocity error ``dv0`` (``models/strapdown6_window.py``); the
+   window's flight carries the tracked ground speed as the column :data:`GROUND_SPEED_COLUMN` (m/s,
+   the horizontal tracked velocity's size at each sample) for a model whose terms depend on it
+   (``models/strapdown7_speed_window.py``);
 3. when ``|phi0|`` is beyond :data:`PHI0_LINEAR_RAD` (the ``f x phi`` term is then no longer linear),
    turns the starting attitude by the estimated ``phi0`` (``C_true = R(phi0) C_ins``,
    :func:`casep.model.strapdown.corrected_attitude`) and
@@ -36,7 +39,7 @@ import numpy as np
 from casep.frames import LaunchSite
 
 __all__ = ["Window", "WindowsResult", "separate_windows", "window_consistency", "NUISANCE_PREFIXES",
-           "PHI0_LINEAR_RAD"]
+           "PHI0_LINEAR_RAD", "GROUND_SPEED_COLUMN"]
 
 #: Coefficients that belong to one window only (not compared across windows): initial states, time offset.
 NUISANCE_PREFIXES = ("phi0_", "dv0_", "dt_trk")
@@ -108,6 +111,10 @@ class WindowsResult:
         return "\n".join(lines)
 
 
+#: the window flight's column of the tracked ground speed, m/s (a signal a window model may use)
+GROUND_SPEED_COLUMN = "ground_speed"
+
+
 def _launch_from_ecef(site: LaunchSite, t: float) -> np.ndarray:
     """The rotation L <- ECEF at time `t` (columns: the ECEF axes in L)."""
     from casep.frames import ecef_to_launch_vector
@@ -157,7 +164,8 @@ def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fi
     from casep.workflows.separate import separate
 
     tel = os.path.join(workdir, "window.parquet")
-    write_table(tel, nav.columns())
+    v_en = np.column_stack([np.interp(nav.t, trk.t, trk.v_enu[:, c]) for c in (0, 1)])
+    write_table(tel, {**nav.columns(), GROUND_SPEED_COLUMN: np.hypot(v_en[:, 0], v_en[:, 1])})
     flight = read_flight_pair(tel, trk.path, tracking_frame="geodetic", site=site)
     if imu_noise is not None:
         flight.meta[IMU_NOISE_AT_REST] = imu_noise
