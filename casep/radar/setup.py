@@ -46,6 +46,17 @@ def _rss_fit(F: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray, np.ndarra
     return float(r @ r), b, np.sqrt(np.sum(Rinv**2, axis=1))
 
 
+def _compressed(X: np.ndarray) -> np.ndarray:
+    """The rows of `X` (m, k) replaced by the ``k`` of its triangular factor ``R`` (``X = Q R``, ``Q`` orthonormal
+    columns): ``R^T R = X^T X``, so every least-squares fit of one of X's columns on others (:func:`_rss_fit`:
+    its RSS, estimate and std) is the same on R's columns, at the cost of a k-column problem instead of an m-row
+    one. X as it is when it has no more rows than columns."""
+    if X.shape[0] <= X.shape[1]:
+        return X
+    R: np.ndarray = np.linalg.qr(X, mode="r")  # type: ignore[assignment]  # mode "r": the array R alone
+    return R
+
+
 def check_setup(lin: Any, whiten: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None
                 ) -> dict[str, Any]:
     """The chi-square each set-up hypothesis explains, per station, with its estimate (see the module notes).
@@ -77,6 +88,9 @@ def check_setup(lin: Any, whiten: Callable[[np.ndarray], tuple[np.ndarray, np.nd
     X = np.column_stack([lin.S, lin.y, *_position_columns(lin)]
                         + ([reg.launch_time_rows(lin.D0)] if aliased else []))
     Xw = X * lin.weights[:, None] if whiten is None else whiten(X)[0].reshape(-1, X.shape[1])
+    own = [_own_data_test(reg, i, Xw[:, :n], Xw[:, n], Xw[:, n + 1 + 3 * i:n + 4 + 3 * i])
+           for i in range(len(reg.stations))]  # on row subsets: before the rows are compressed
+    Xw = _compressed(Xw)  # every hypothesis below is a fit on these columns: one QR of the rows for all of them
     F, y = Xw[:, :n], Xw[:, n]
     G = [Xw[:, n + 1 + 3 * i:n + 4 + 3 * i] for i in range(len(reg.stations))]
     rss0, b0, std0 = _rss_fit(F, y)
@@ -99,7 +113,7 @@ def check_setup(lin: Any, whiten: Callable[[np.ndarray], tuple[np.ndarray, np.nd
                 f"{b:.4g} ms explains chi-square {d:.4g}, p = {chi2.sf(d, 1):.2g}; the stations' time tags "
                 "and positions explain the rest); it is estimated with the other terms, so the instrument estimate "
                 "accounts for it: correct --launch-time (or the telemetry's time scale)")
-    out["stations"], out["failures"] = _station_positions(reg, F, y, G, (rss0, b0, std0))
+    out["stations"], out["failures"] = _station_positions(reg, F, y, G, (rss0, b0, std0), own)
     if launch_warning and not out["failures"]:  # a wrong station position also moves dt_launch: named alone
         out["warnings"].append(launch_warning)
     return out
@@ -223,8 +237,8 @@ def _wrong(info: dict) -> bool:
     return pos["p"] < SETUP_P and float(np.linalg.norm([pos["east"], pos["north"], pos["up"]])) > POSITION_LIMIT
 
 
-def _station_positions(reg: Any, F: np.ndarray, y: np.ndarray, G: list[np.ndarray], fit0: tuple
-                       ) -> tuple[dict[str, dict], list[str]]:
+def _station_positions(reg: Any, F: np.ndarray, y: np.ndarray, G: list[np.ndarray], fit0: tuple,
+                       own: list[dict[str, float]]) -> tuple[dict[str, dict], list[str]]:
     """The position hypothesis of every station and the failure messages of the significant ones.
 
     Each station's position is first fitted alone (with the fit's terms, the other stations' positions
@@ -233,14 +247,15 @@ def _station_positions(reg: Any, F: np.ndarray, y: np.ndarray, G: list[np.ndarra
     one is wrong: fitting one's position moves the other's error into its own terms and the
     instrument's, so the larger chi-square is not the wrong station's, see the module notes); with
     three or more the station whose position, fitted, explains most is named, then the others are
-    tested again with it fitted (the station whose removal makes the others agree).
+    tested again with it fitted (the station whose removal makes the others agree). `own`: each station's
+    :func:`_own_data_test`.
     """
     rss0, b0, std0 = fit0
     names = [s.meas.station.name for s in reg.stations]
     alone = {i: _rss_fit(np.hstack([F, G[i]]), y) for i in range(len(G))}
     stations = {names[i]: _station_info(reg, i, rss0, alone[i], b0, std0) for i in alone}
     for i in alone:
-        stations[names[i]]["own_data"] = _own_data_test(reg, i, F, y, G[i])
+        stations[names[i]]["own_data"] = own[i]
     if not any(_wrong(stations[n]) for n in names):
         return stations, []
     if len(G) == 2:
@@ -290,7 +305,9 @@ def _own_data_test(reg: Any, i: int, F: np.ndarray, y: np.ndarray, Gi: np.ndarra
     rows = np.any(Gi != 0, axis=1) | np.any(F[:, cols] != 0, axis=1)
     Fi = F[rows]
     Fi = Fi[:, np.any(Fi != 0, axis=0)]
-    d = max(_rss_fit(Fi, y[rows])[0] - _rss_fit(np.hstack([Fi, Gi[rows]]), y[rows])[0], 0.0)
+    X = _compressed(np.column_stack([Fi, Gi[rows], y[rows]]))  # both fits on these columns (_compressed)
+    k = Fi.shape[1]
+    d = max(_rss_fit(X[:, :k], X[:, -1])[0] - _rss_fit(X[:, :-1], X[:, -1])[0], 0.0)
     return {"dchi2": float(d), "p": float(chi2.sf(d, 3))}
 
 
