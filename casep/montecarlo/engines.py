@@ -36,7 +36,7 @@ def _fresh_offload_executor() -> None:
     its workers) for ever on its first message over 10 MiB. Measured: a Monte Carlo in a forked child of a
     process that had run one campaign hung until killed (tests/montecarlo/test_montecarlo_dask.py).
     """
-    utils = sys.modules.get("distributed.utils")
+    utils: Any = sys.modules.get("distributed.utils")
     if utils is None or not hasattr(utils, "_offload_executor"):
         return
     from concurrent.futures import ThreadPoolExecutor
