@@ -254,34 +254,3 @@ def test_summary_records_the_rate():
 
     res = run_montecarlo("paper", runs=2, methods=["ols"], seed=1, rate=2.0, noise="white")
     assert res.to_dict()["rate_hz"] == 2.0
-
-
-def test_a_campaign_in_a_forked_child_of_a_process_that_used_dask_runs(tmp_path):
-    """Dask's offload thread (``distributed.utils.offload``: the scheduler orders each submitted graph there) is
-    not copied by a fork, and its executor never starts another: a campaign on Dask in a forked child of a process
-    that had used Dask waited for ever on its first task (tests/test_examples.py's Monte Carlo example, run in a
-    forked child of a test process that had run this file's campaigns, hung until its 600 s alarm), and a
-    worker forked from such a process waited for ever on its first message over 10 MiB (a second 100 Hz campaign
-    in one Python session hung in its scatter). casep.montecarlo.engines gives a forked child a new executor; the
-    child here is killed after 180 s."""
-    import asyncio
-
-    from conftest import run_forked
-    from distributed.utils import offload
-
-    asyncio.run(offload(lambda: None))  # this process's offload thread runs, as after a campaign on Dask here
-
-    def campaign() -> None:
-        # every message (de)serialised on the offload thread (Dask: those over 10 MiB, as a 100 Hz campaign's
-        # context): the workers, forked from this child once its own offload thread runs, must have theirs
-        import distributed.comm.utils
-
-        distributed.comm.utils.OFFLOAD_THRESHOLD = 1
-        asyncio.run(offload(lambda: None))  # this child's offload thread runs before it forks the workers
-        res = run_montecarlo("paper", runs=2, methods=["ols", "bounded"], seed=3, rate=1.0, workers=2, dask=True,
-                             progress=False, noise="white")
-        print(res.estimates["bounded"].shape)
-
-    code, out, err = run_forked(campaign, ["campaign"], tmp_path, timeout=180)
-    assert code == 0, err[-2000:]
-    assert out.strip() == "(2, 36)"
