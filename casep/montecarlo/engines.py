@@ -34,7 +34,7 @@ def _fresh_offload_executor() -> None:
     it never runs: a cluster started in that child (a campaign in a forked process) waits for ever on its
     first submitted task, and a worker forked from such a process (``casep montecarlo``'s LocalCluster forks
     its workers) for ever on its first message over 10 MiB. Measured: a Monte Carlo in a forked child of a
-    process that had run one campaign hung until killed (tests/montecarlo/test_montecarlo.py).
+    process that had run one campaign hung until killed, every time; with this hook it runs.
     """
     utils: Any = sys.modules.get("distributed.utils")
     if utils is None or not hasattr(utils, "_offload_executor"):

@@ -376,30 +376,3 @@ def test_forked_workers_holding_each_others_pipes_end_with_a_sigkilled_parent(tm
             if _alive(pid):
                 os.kill(pid, signal.SIGKILL)
         proc.communicate()
-
-
-def test_a_campaign_in_a_forked_child_of_a_process_that_used_dask_runs(tmp_path):
-    """Dask's offload thread (``distributed.utils.offload``: the scheduler orders each submitted graph there, the
-    comms (de)serialise messages over 10 MiB there) is not copied by a fork, and its executor never starts
-    another: a campaign on Dask in a forked child of a process that had used Dask waited for ever on its first
-    task (tests/test_examples.py's Monte Carlo example, run in a forked child of a test process that had run
-    tests/montecarlo/test_montecarlo_dask.py, hung until its 600 s alarm), and a worker forked from such a process
-    waited for ever on its first message over 10 MiB (a second 100 Hz campaign in one Python session hung in its
-    scatter). casep.montecarlo.engines gives every forked child a new executor; the child here is killed after
-    180 s. (Here, not beside a module-scoped running cluster: a fork while another cluster's threads run is a
-    hazard of its own.)"""
-    import asyncio
-
-    from conftest import run_forked
-    from distributed.utils import offload
-
-    asyncio.run(offload(lambda: None))  # this process's offload thread runs, as after a campaign on Dask here
-
-    def campaign() -> None:
-        res = run_montecarlo("paper", runs=2, methods=["ols", "bounded"], seed=3, rate=1.0, workers=2, dask=True,
-                             progress=False, noise="white")
-        print(res.estimates["bounded"].shape)
-
-    code, out, err = run_forked(campaign, ["campaign"], tmp_path, timeout=180)
-    assert code == 0, err[-2000:]
-    assert out.strip() == "(2, 36)"
