@@ -42,19 +42,13 @@ ALIGN = (0.0, 7.5)
 def clean_flight():
     """The clean 50 Hz record (t, w, f), its navigation (the truth) and the site."""
     from casep.frames import LaunchSite
-    from casep.gravity import normal_gravity_ecef
     from casep.navigation import ImuData, check_imu, navigate
+    from casep.simulation.strapdown import rail_launch
 
     site = LaunchSite(*SITE)
-    el = math.radians(84.0)
-    x, y = np.array([math.cos(el), math.sin(el), 0.0]), np.array([-math.sin(el), math.cos(el), 0.0])
-    C_tb = np.column_stack([x, y, np.cross(x, y)])
     t = np.round(np.arange(0.0, 45.0, 0.02), 10)
-    w = np.tile(C_tb.T @ site.earth_rate, (t.size, 1))
-    f = np.tile(C_tb.T @ -(site.C.T @ normal_gravity_ecef(site.r_site)), (t.size, 1))
-    u = t[t >= site.t0] - site.t0
-    f[t >= site.t0] = np.column_stack([np.where(u < 12.0, 6 * 9.80665, -0.3 * 9.80665), 0.05 * np.sin(0.7 * u), 0 * u])
-    w[t >= site.t0] = np.column_stack([3.0 * np.minimum(u / 6.0, 1.0), -0.04 + 0 * u, 0.02 * np.sin(0.5 * u)])
+    w, f = rail_launch(site, t, elevation_deg=84.0, boost_g=6.0, burn_s=12.0, coast_g=-0.3, lateral=(0.05, 0.7),
+                       roll=(3.0, 6.0), pitch_rate=-0.04, yaw=(0.02, 0.5))
     nav = navigate(check_imu(ImuData(t, w, f)), site, ALIGN, heading_deg=SITE[3])
     return t, w, f, nav, site
 

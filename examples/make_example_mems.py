@@ -15,7 +15,6 @@
 """
 
 import argparse
-import math
 from pathlib import Path
 
 import numpy as np
@@ -29,25 +28,18 @@ TRUTH = dict(ba_x=20.0, ba_y=-15.0, ba_z=10.0, sa_x=5000.0, ma_yx=1500.0, ma_zx=
 def main() -> None:
     import casep
     from casep.frames import LaunchSite
-    from casep.gravity import normal_gravity_ecef
     from casep.io.files import write_table
     from casep.model.strapdown import body_errors
     from casep.navigation import ImuData, check_imu, navigate
     from casep.simulation.noise import ar1_noise, white_noise
+    from casep.simulation.strapdown import rail_launch
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out-dir", type=Path, default=OUT, help="output folder (default examples/data/imu)")
     out = ap.parse_args().out_dir
     site = LaunchSite(67.89, 21.10, 330.0, 30.0, 10.0)  # launch azimuth 30 deg, lift-off at t = 10 s
-    el = math.radians(80.0)
-    x, y = np.array([math.cos(el), math.sin(el), 0.0]), np.array([-math.sin(el), math.cos(el), 0.0])
-    C_tb = np.column_stack([x, y, np.cross(x, y)])  # body -> launch triad: x along the rail
     t = np.round(np.arange(0.0, 40.0, 0.05), 10)
-    w = np.tile(C_tb.T @ site.earth_rate, (t.size, 1))
-    f = np.tile(C_tb.T @ -(site.C.T @ normal_gravity_ecef(site.r_site)), (t.size, 1))
-    u = t[t >= site.t0] - site.t0
-    f[t >= site.t0] = np.column_stack([np.where(u < 20.0, 4 * 9.80665, -0.2 * 9.80665), 0 * u, 0 * u])
-    w[t >= site.t0] = np.column_stack([2.0 * np.minimum(u / 5.0, 1.0), -0.03 + 0 * u, 0.01 * np.sin(0.3 * u)])
+    w, f = rail_launch(site, t, elevation_deg=80.0, boost_g=4.0, burn_s=20.0, coast_g=-0.2, roll=(2.0, 5.0))
     nav = navigate(check_imu(ImuData(t, w, f)), site, (0.0, 9.0), heading_deg=30.0)  # the truth
     model = casep.load_model("strapdown15_axial")
     df, dw = body_errors(model, nav.q, f, w, t - t[0], np.array([TRUTH[n] for n in model.names]))

@@ -8,6 +8,7 @@ finish, in any order.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
 import sys
 import threading
@@ -20,6 +21,31 @@ from casep.montecarlo.tasks import Context, run_task
 __all__ = ["DaskEngine", "InProcess", "Terminated", "sigterm_raises"]
 
 Job = tuple[Any, tuple[Any, ...]]
+
+
+def _fresh_offload_executor() -> None:
+    """In a forked child: a new executor for :func:`distributed.utils.offload` (registered with
+    :func:`os.register_at_fork` when this module is imported; nothing when Dask is not loaded).
+
+    Dask runs part of its work on one module-level thread (``distributed.utils._offload_executor``): the
+    scheduler orders every submitted graph there, and the comms (de)serialise messages over 10 MiB there. A
+    fork copies that executor but not its thread, and the executor never starts another one (its count of
+    threads is already at its maximum), so in a child forked from a process that has used Dask the work sent to
+    it never runs: a cluster started in that child (a campaign in a forked process) waits for ever on its
+    first submitted task, and a worker forked from such a process (``casep montecarlo``'s LocalCluster forks
+    its workers) for ever on its first message over 10 MiB. Measured: a Monte Carlo in a forked child of a
+    process that had run one campaign hung until killed, every time; with this hook it runs.
+    """
+    utils: Any = sys.modules.get("distributed.utils")
+    if utils is None or not hasattr(utils, "_offload_executor"):
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    utils._offload_executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="Dask-Offload")
+
+
+if hasattr(os, "register_at_fork"):  # POSIX
+    os.register_at_fork(after_in_child=_fresh_offload_executor)
 
 
 class InProcess:
@@ -79,7 +105,6 @@ def _ending_workers_at_once(cluster: Any) -> Any:
     the nanny's request to close, and the nanny waits for it (about 4 s on two workers) before it kills; its
     task's result would be thrown away anyway. A campaign that ends normally closes its idle workers as usual."""
     import logging
-    import os
 
     def on_exit(exc_type: Any, exc: Any, tb: Any) -> bool:
         if exc_type is not None:

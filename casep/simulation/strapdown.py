@@ -31,7 +31,7 @@ from casep.io.strapdown import quaternion_dcm_array
 from casep.model.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
 from casep.simulation.trajectory import BoostTrajectory, body_to_platform
 
-__all__ = ["RollProgramme", "rolled", "strapdown_signals", "imu_table", "IMU_COLUMNS"]
+__all__ = ["RollProgramme", "rolled", "strapdown_signals", "imu_table", "IMU_COLUMNS", "rail_launch"]
 
 #: The columns of a raw IMU file before the truth columns.
 IMU_COLUMNS = ("t",) + BODY_RATE_COLUMNS + BODY_FORCE_COLUMNS
@@ -164,3 +164,32 @@ def imu_table(traj: BoostTrajectory, model: Any, truth: np.ndarray, *, pad: floa
         out[f"true_v_{a}"] = vel[:, i]
     return out
 
+
+def rail_launch(site: Any, t: np.ndarray, *, elevation_deg: float, boost_g: float, burn_s: float, coast_g: float,
+                lateral: tuple[float, float] = (0.0, 0.0), roll: tuple[float, float] = (2.0, 5.0),
+                pitch_rate: float = -0.03, yaw: tuple[float, float] = (0.01, 0.3)) -> tuple[np.ndarray, np.ndarray]:
+    """True body rate and specific force ``(w, f)``, (N, 3) each, of a rail launch: a raw IMU record's truth.
+
+    Body x lies along the rail, elevated `elevation_deg` above the horizontal in the launch triad's x-y plane
+    (x downrange at the site's azimuth, y up). Until lift-off (``site.t0``) the IMU stands still: ``w`` is the
+    Earth's rate and ``f`` the reaction to normal gravity, both in body axes. From lift-off, ``u = t - t0``:
+    ``f = (g0 boost_g`` for ``u < burn_s`` else ``g0 coast_g, lateral[0] sin(lateral[1] u), 0)`` and
+    ``w = (roll[0] min(u / roll[1], 1), pitch_rate, yaw[0] sin(yaw[1] u))`` (rad/s). Navigating it
+    (:func:`casep.navigation.navigate`) gives the flight that the examples, tests and benchmarks perturb.
+    """
+    import math
+
+    from casep.gravity import normal_gravity_ecef
+    from casep.units import G0
+
+    el = math.radians(elevation_deg)
+    x, y = np.array([math.cos(el), math.sin(el), 0.0]), np.array([-math.sin(el), math.cos(el), 0.0])
+    C_tb = np.column_stack([x, y, np.cross(x, y)])  # body -> launch triad: x along the rail
+    w = np.tile(C_tb.T @ site.earth_rate, (t.size, 1))
+    f = np.tile(C_tb.T @ -(site.C.T @ normal_gravity_ecef(site.r_site)), (t.size, 1))
+    u = t[t >= site.t0] - site.t0
+    side = lateral[0] * np.sin(lateral[1] * u) if lateral[0] else 0 * u
+    f[t >= site.t0] = np.column_stack([np.where(u < burn_s, boost_g * G0, coast_g * G0), side, 0 * u])
+    w[t >= site.t0] = np.column_stack([roll[0] * np.minimum(u / roll[1], 1.0), pitch_rate + 0 * u,
+                                       yaw[0] * np.sin(yaw[1] * u)])
+    return w, f

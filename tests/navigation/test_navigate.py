@@ -294,17 +294,11 @@ def test_a_flight_in_deg_s_the_pad_cannot_tell_fails_its_separation(tmp_path, ca
     from casep.io.files import write_table
     from casep.model.strapdown import body_errors
     from casep.simulation.noise import white_noise
+    from casep.simulation.strapdown import rail_launch
 
     site = LaunchSite(67.89, 21.10, 330.0, 30.0, 10.0)
-    el = math.radians(80.0)
-    x, y = np.array([math.cos(el), math.sin(el), 0.0]), np.array([-math.sin(el), math.cos(el), 0.0])
-    C_tb = np.column_stack([x, y, np.cross(x, y)])
     t = np.round(np.arange(0.0, 40.0, 0.05), 10)
-    w = np.tile(C_tb.T @ site.earth_rate, (t.size, 1))
-    f = np.tile(C_tb.T @ -(site.C.T @ normal_gravity_ecef(site.r_site)), (t.size, 1))
-    u = t[t >= site.t0] - site.t0
-    f[t >= site.t0] = np.column_stack([np.where(u < 20.0, 4 * 9.80665, -0.2 * 9.80665), 0 * u, 0 * u])
-    w[t >= site.t0] = np.column_stack([0.3 * np.minimum(u / 5.0, 1.0), -0.03 + 0 * u, 0.01 * np.sin(0.3 * u)])
+    w, f = rail_launch(site, t, elevation_deg=80.0, boost_g=4.0, burn_s=20.0, coast_g=-0.2, roll=(0.3, 5.0))
     nav = navigate(check_imu(ImuData(t, w, f)), site, (0.0, 9.0), heading_deg=30.0)
     model = casep.load_model("strapdown15_axial")
     truth = dict(ba_x=20.0, ba_y=-15.0, ba_z=10.0, sa_x=5000.0, ma_yx=1500.0, ma_zx=-1000.0, bg_x=200.0,
