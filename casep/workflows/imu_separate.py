@@ -135,6 +135,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from casep.estimators.registry import STATUS_NOT_CONVERGED
+from casep.exceptions import GapWarning, SaturationWarning
 from casep.frames import LaunchSite
 from casep.navigation.imu import ImuData
 
@@ -372,7 +373,15 @@ class _Run:
         from casep.io.tables import Table
 
         tel = Table.from_columns(nav.columns(), f"{self.imu.source} (navigated)")
-        flight = read_flight_pair(tel, self.tracking, **self.pair)
+        # the clipped samples are the IMU record's, found and said once when it was read (casep.navigation.imu:
+        # from where on, and that the separation leaves those rows out) and marked ins_valid = 0: the pair's warning
+        # of the rows it leaves out for them (their count: meta["ins_invalid"]) and the saturation screen of a
+        # telemetry (casep.checks.saturation.screen_saturation), finding them again on the navigated rates, would
+        # say them twice more
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", category=SaturationWarning)
+            flight = read_flight_pair(tel, self.tracking, **self.pair)
+        flight.meta["saturation"] = _imu_saturation(self.imu)
         # the late-start check: the speed relative to the pad (launch-inertial v_tel carries the Earth's rotation)
         flight.meta["start_speed_m_s"] = float(np.linalg.norm(nav.earth_relative()[1][0]))
         if model is None or not np.any(D):
@@ -510,7 +519,10 @@ class _Run:
         self.nav = nav
         with warnings.catch_warnings():
             if quiet:
-                warnings.simplefilter("ignore")  # S_V's warnings (integrated across a gap) said once, too
+                warnings.simplefilter("ignore")  # S_V's warnings said once, too
+            # the navigated telemetry's gaps are the IMU's, said when it was read with what they leave unknown
+            # (casep.navigation.imu: one GapWarning); S_V's own of the same gaps would say them twice
+            warnings.filterwarnings("ignore", category=GapWarning)
             model = self.model(nav, D)
             problem = flight_problem(flight, model)
         # the passes step along the combinations the record determines exactly (estimable rows, module notes);
@@ -883,6 +895,15 @@ class _Run:
         finally:
             self.imu_k, self.q_aligned, self.C_tb = state
         return flight.observed_rows(flight.t)[1]
+
+
+def _imu_saturation(imu: ImuData) -> dict | None:
+    """``meta["saturation"]`` of a flight navigated from `imu` (:func:`casep.checks.saturation.screen_saturation`'s
+    record): None when the record did not clip, else where it did, as :func:`casep.navigation.imu.check_imu` found it
+    (its SaturationWarning said so; the navigation marks the solution from there ``ins_valid = 0``)."""
+    if imu.clipped is None or not np.any(imu.clipped):
+        return None
+    return {"from_s": float(imu.t[int(np.argmax(imu.clipped))]), "found": ["the IMU record (casep.navigation.imu)"]}
 
 
 def std_shift(C: np.ndarray, extra: np.ndarray) -> float:
