@@ -675,20 +675,24 @@ class _Run:
         out = judge_setup(out, flight, model, noise_free=False)
         out = judge_tracking(out, flight, problem, model.scales, about=D, widen=widen)
         out.diagnostics["iterations"]["limit"] = float(self.limit) if np.isfinite(self.limit) else None
-        # what the record leaves undetermined is said with every result that has estimates, failed or not
+        # what the record leaves undetermined is said with every result that has estimates, failed or not, of the
+        # iteration or of one linear pass (its pass steps along what the record determines as an iteration's first)
         said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf)) \
-            if iterate and (out.solution is not None or np.any(np.isfinite(out.estimate))) else None
+            if out.solution is not None or np.any(np.isfinite(out.estimate)) else None
         if said:
             from casep.exceptions import NonlinearityWarning
 
             warnings.warn(said, NonlinearityWarning, stacklevel=3)
-            out = dataclasses.replace(out, message=f"{out.message}; {said}")
+            if iterate:
+                out = dataclasses.replace(out, message=f"{out.message}; {said}")
         if iterate and out.success:  # a failed result's std are not used: no curvature to carry
             out = self.curvature(out, problem, D)
         elif not iterate and out.success:  # one linear pass: its second-order remainder judged, as a telemetry's
             shift = linearisation_shift(self, res, problem, flight, model.scales)
             if shift is not None:
                 out = one_pass_judged(out, shift)
+        if said and not iterate:  # after the judgement, whose failure message replaces a success's
+            out = dataclasses.replace(out, message=f"{out.message}; {said}")
         return ImuSeparation(out, nav, flight, passes)
 
     def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:

@@ -764,3 +764,21 @@ def test_a_noise_free_pad_record_converges_at_the_rounding_level(tmp_path):
     best = sorted(it["passes"][-1]["determined"], key=lambda c: c["std"])[:3]
     for c in best:
         assert abs(c["estimate"] - np.dot(c["weights"], T)) <= 5e-3 * max(abs(np.dot(c["weights"], T)), 1.0), c
+
+
+def test_one_linear_pass_states_the_combinations_the_record_determines(tmp_path):
+    """One pass (``iterate=False``) on 9 s of pad and 3 s of boost under ``strapdown15_axial``: its statement of
+    what the record determines is the iteration's (``_outside_note``: how many of the 15 combinations, the others
+    left at the prior), in the message whether the pass is judged a success or not (here it fails: the record does
+    not invert at the linear estimate, which replaced the message), and as many combinations as it counts are in the
+    pass's record (``determined``), each within 4 std of the truth."""
+    imu, trk, site, heading, truth = pad_record(tmp_path, 3, "strapdown15_axial", boost=3.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = separate_imu(imu, trk, site, PAD_ALIGN, "strapdown15_axial", heading_deg=heading, iterate=False)
+    last = out.result.diagnostics["iterations"]["passes"][-1]
+    k = len(last.get("determined") or [])
+    assert 0 < k < 15
+    assert f"the record determines {k} of 15 combinations of the coefficients" in out.message, out.message
+    z = stated_z(out, truth)
+    assert np.all(np.abs(z) < 4.0), z
