@@ -647,21 +647,28 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
 
 
 def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5, locate=None) -> None:
-    """Name the rows whose residual spikes above :data:`OUTLIER_Z` robust sigma."""
-    if r.shape[0] < 5:
-        return
-    d = _spikes(r)
+    """Name the rows whose residual spikes above :data:`OUTLIER_Z` robust sigma of their own stretch.
+
+    Each stretch of the tracking (:func:`casep.checks.tracking_quality.stretches`: split at its pauses) is judged
+    by its own noise level: one sigma over a quiet pad and a noisy flight after a reacquisition (0.06 against
+    1.7 m/s) is the pad's, and would name every flight epoch an outlier. A stretch too short for a noise level of
+    its own is not judged."""
+    from casep.checks.tracking_quality import stretches
+
     hits = []
-    for i in range(3):
-        s_d, s_r = _robust_sigma(d[:, i]), _robust_sigma(r[:, i])
-        # in robust sigma of d, and at least as many of r (correlated noise has s_d << s_r)
-        z = np.abs(d[:, i]) / max(s_d, s_r, NOISE_FLOOR)
-        # a spike A at row k gives d = A at k and -A/2 at k +- 1: keep the local maxima only
-        peak = (z > OUTLIER_Z) & (z >= np.roll(z, 1)) & (z >= np.roll(z, -1))
-        for j in np.flatnonzero(peak):
-            k = j + 1  # row of r (0-based)
-            noise = s_d / np.sqrt(1.5)  # white-noise sigma from the spike statistic, blind to smooth misfit
-            hits.append((float(z[j]), k, i, float(d[j, i]), float(d[j, i] / noise) if noise > 0 else np.inf))
+    for a, b in stretches(t):
+        rs = r[a:b]
+        d = _spikes(rs)
+        for i in range(3):
+            s_d, s_r = _robust_sigma(d[:, i]), _robust_sigma(rs[:, i])
+            # in robust sigma of d, and at least as many of r (correlated noise has s_d << s_r)
+            z = np.abs(d[:, i]) / max(s_d, s_r, NOISE_FLOOR)
+            # a spike A at row k gives d = A at k and -A/2 at k +- 1: keep the local maxima only
+            peak = (z > OUTLIER_Z) & (z >= np.roll(z, 1)) & (z >= np.roll(z, -1))
+            for j in np.flatnonzero(peak):
+                k = a + j + 1  # row of r (0-based)
+                noise = s_d / np.sqrt(1.5)  # white-noise sigma from the spike statistic, blind to smooth misfit
+                hits.append((float(z[j]), k, i, float(d[j, i]), float(d[j, i] / noise) if noise > 0 else np.inf))
     if not hits:
         return
     hits.sort(reverse=True)

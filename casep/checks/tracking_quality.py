@@ -50,8 +50,8 @@ from casep.exceptions import TrackingQualityWarning
 from casep.io.flight import FlightData
 from casep.noise.robust import MAD_SIGMA
 
-__all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "fit_clock_drift", "stretch_noise",
-           "noise_problem",
+__all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "clock_drift_unmeasured",
+           "fit_clock_drift", "clock_drift_record", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
            "imu_noise_effect", "imu_sample_noise", "white_sample_std",
            "rest_white_std", "IMU_NOISE_AT_REST", "STALE_MOTION", "JUMP_TOL", "JUMP_RATE",
@@ -64,11 +64,17 @@ JUMP_TOL = 10.0
 JUMP_RATE = 2.0
 #: ... cuts the epochs into segments; a segment shorter than this (s) is left out.
 MIN_SEGMENT_S = 3.0
+#: A stretch has a noise level of its own with this many epochs or more (:func:`stretches`).
+MIN_STRETCH_EPOCHS = 5
 #: A clock drift is warned about beyond this (ppm) and 4 std.
 DRIFT_MIN_PPM = 20.0
 #: Windows for the drift, and the least spread of the acceleration (m/s^2) that lets a window see an offset.
 DRIFT_WINDOWS = 6
 DRIFT_MIN_ACCEL = 2.0
+#: A window sees an offset with this many epochs or more; the drift needs this many such windows (a line
+#: through the windows' offsets and a scatter to check it against).
+DRIFT_MIN_EPOCHS = 10
+DRIFT_MIN_WINDOWS = 3
 #: Stretches of the tracking whose noise differs by more than this factor are warned about.
 NOISE_RATIO = 5.0
 #: The IMU's white noise is carried to the tracking epochs in blocks of this length, s (:func:`imu_noise_effect`).
@@ -205,11 +211,9 @@ def clock_drift(t: np.ndarray, dv: np.ndarray, a: np.ndarray, windows: int = DRI
         Degree of the polynomial trend each axis has of its own in each window, fitted beside the offset: 2 on a
         raw dv (the instrument errors' slow part), 0 on a fit's residuals (:func:`fit_clock_drift`).
     """
-    edges = np.linspace(t[0], t[-1], windows + 1)
     centre, tau, var = [], [], []
-    for lo, hi in zip(edges[:-1], edges[1:]):
-        k = (t >= lo) & (t <= hi)
-        if k.sum() < 10 or np.max(np.ptp(a[k], axis=0)) < DRIFT_MIN_ACCEL:
+    for lo, hi, k in _drift_windows(t, a, windows):
+        if k is None:
             continue
         tm = 0.5 * (lo + hi)
         n = int(k.sum())
@@ -230,7 +234,7 @@ def clock_drift(t: np.ndarray, dv: np.ndarray, a: np.ndarray, windows: int = DRI
         centre.append(tm)
         tau.append(coef[-1])
         var.append(cov[-1, -1])
-    if len(tau) < 3:
+    if len(tau) < DRIFT_MIN_WINDOWS:
         return math.nan, math.nan
     w = 1.0 / np.maximum(np.asarray(var), 1e-30)
     X = np.column_stack([np.ones(len(tau)), np.asarray(centre) - np.mean(centre)])
@@ -241,14 +245,64 @@ def clock_drift(t: np.ndarray, dv: np.ndarray, a: np.ndarray, windows: int = DRI
     return float(line[1]) * 1e6, math.sqrt(cov[1, 1] * birge) * 1e6  # errors the trends left in, the std grow
 
 
-def stretch_noise(t: np.ndarray, dv: np.ndarray) -> list[tuple[float, float, int, float]]:
-    """Per stretch (split at pauses of MIN_SEGMENT_S or more) with 5 epochs or more: ``(t_first, t_last, epochs,
-    scatter m/s)``, the scatter the MAD of the changes of dv (their median removed) over sqrt 2, largest axis."""
-    cut = np.flatnonzero(np.diff(t) >= MIN_SEGMENT_S) + 1
-    out = []
-    for a, b in zip(np.concatenate([[0], cut]), np.concatenate([cut, [t.size]])):
-        if b - a < 5:
+def _drift_windows(t: np.ndarray, a: np.ndarray, windows: int = DRIFT_WINDOWS
+                   ) -> list[tuple[float, float, np.ndarray | None]]:
+    """The windows :func:`clock_drift` cuts the epochs `t` into: ``(t_lo, t_hi, mask)``, the mask of the window's
+    epochs, or None where the window cannot see an offset (fewer than :data:`DRIFT_MIN_EPOCHS` epochs, or the
+    acceleration `a` spreads by less than :data:`DRIFT_MIN_ACCEL` over them on every axis)."""
+    edges = np.linspace(t[0], t[-1], windows + 1)
+    out: list[tuple[float, float, np.ndarray | None]] = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        k = (t >= lo) & (t <= hi)
+        seen = k.sum() >= DRIFT_MIN_EPOCHS and np.max(np.ptp(a[k], axis=0)) >= DRIFT_MIN_ACCEL
+        out.append((float(lo), float(hi), k if seen else None))
+    return out
+
+
+def clock_drift_unmeasured(t: np.ndarray, a: np.ndarray, windows: int = DRIFT_WINDOWS) -> str:
+    """Why :func:`clock_drift` gives NaN for epochs `t` (s) and the acceleration `a` there (m/s^2): the windows
+    that see an offset and why the others do not, as text; an empty string when enough windows see one."""
+    if t.size < 2:
+        return f"{t.size} tracking epoch(s): no time span to measure a drift over"
+    wins = _drift_windows(t, a, windows)
+    seen = sum(k is not None for *_, k in wins)
+    if seen >= DRIFT_MIN_WINDOWS:
+        return ""
+    few, still = [], []
+    for lo, hi, k in wins:
+        if k is not None:
             continue
+        m = (t >= lo) & (t <= hi)
+        n = int(m.sum())
+        if n < DRIFT_MIN_EPOCHS:
+            few.append(f"{lo:.4g}..{hi:.4g} s ({n})")
+        else:
+            still.append(f"{lo:.4g}..{hi:.4g} s ({float(np.max(np.ptp(a[m], axis=0))):.2g} m/s^2)")
+    parts = []
+    if few:
+        parts.append(f"{len(few)} have fewer than {DRIFT_MIN_EPOCHS} epochs ({', '.join(few)})")
+    if still:
+        parts.append(f"in {len(still)} the acceleration spreads by less than {DRIFT_MIN_ACCEL:g} m/s^2, so a "
+                     f"time offset does not show ({', '.join(still)})")
+    return (f"only {seen} of the {windows} windows the tracking's time span is cut into see a time offset, "
+            f"{DRIFT_MIN_WINDOWS} needed: {'; '.join(parts)}")
+
+
+def stretches(t: np.ndarray) -> list[tuple[int, int]]:
+    """The stretches of the epochs `t` (s, increasing): ``(first, stop)`` index ranges split at pauses of
+    :data:`MIN_SEGMENT_S` or more, each with :data:`MIN_STRETCH_EPOCHS` epochs or more (fewer give no noise level
+    of their own): the split every per-stretch noise level uses."""
+    t = np.asarray(t, dtype=float)
+    cut = np.flatnonzero(np.diff(t) >= MIN_SEGMENT_S) + 1
+    return [(int(a), int(b)) for a, b in zip(np.concatenate([[0], cut]), np.concatenate([cut, [t.size]]))
+            if b - a >= MIN_STRETCH_EPOCHS]
+
+
+def stretch_noise(t: np.ndarray, dv: np.ndarray) -> list[tuple[float, float, int, float]]:
+    """Per stretch (:func:`stretches`): ``(t_first, t_last, epochs, scatter m/s)``, the scatter the MAD of the
+    changes of dv (their median removed) over sqrt 2, largest axis."""
+    out = []
+    for a, b in stretches(t):
         d = np.diff(dv[a:b], axis=0)
         mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
         out.append((float(t[a]), float(t[b - 1]), int(b - a), float(np.max(mad)) * MAD_SIGMA / math.sqrt(2)))
@@ -356,6 +410,26 @@ def fit_clock_drift(flight: FlightData, residual: np.ndarray) -> tuple[float, fl
     drift, std = clock_drift(flight.t[idx], r, acc[idx], order=0)
     _warn_drift(flight.source, drift, std, ", on the fit's residuals")
     return drift, std
+
+
+def clock_drift_record(flight: FlightData, residual: np.ndarray) -> dict | None:
+    """:func:`fit_clock_drift` as ``diagnostics["clock_drift"]`` records it: ``ppm``, ``std_ppm`` (None where not
+    measured), ``on`` and, where the drift is not measured, ``why_not`` (:func:`clock_drift_unmeasured`), which a
+    TrackingQualityWarning says too; None where :func:`fit_clock_drift` gives None (no clock of its own)."""
+    drift = fit_clock_drift(flight, residual)
+    if drift is None:
+        return None
+    record: dict = {"ppm": drift[0] if math.isfinite(drift[0]) else None,
+                    "std_ppm": drift[1] if math.isfinite(drift[1]) else None, "on": "the fit's residuals"}
+    if record["ppm"] is None:
+        acc = _acceleration(flight)
+        idx = np.flatnonzero(flight.observed)
+        why = clock_drift_unmeasured(flight.t[idx], acc[idx]) if acc is not None else "no telemetry acceleration"
+        record["why_not"] = why or "the windows' offsets do not give a line"
+        warnings.warn(TrackingQualityWarning(
+            f"{flight.source}: the tracking clock's drift against the telemetry's is not measured (a drift would "
+            f"go unnoticed, and dt_trk would be its mean offset): {record['why_not']}"), stacklevel=3)
+    return record
 
 
 def _warn(source: str, s: TrackingScreen, stale: str, rejected: str, drift: bool = True) -> None:

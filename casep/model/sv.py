@@ -38,7 +38,7 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 
 from casep._kernels import sv_integrate_chunk
-from casep.exceptions import CasepWarning
+from casep.exceptions import GapWarning
 from casep.model.error_model import ErrorModel
 
 __all__ = ["build_sv", "SVBuilder", "DEFAULT_CHUNK", "cumulative_sp"]
@@ -245,7 +245,7 @@ def _warn_gaps(dt: np.ndarray, t: np.ndarray) -> None:
             f"`t` has {big.size} gap(s) longer than {GAP_FACTOR:g}x the median step {med:.3g} s (largest "
             f"{dt[k]:.3g} s before sample {k + 1}, t = {t[k]:.6g} s): S_V is integrated across them by the "
             "trapezoid rule, which is inaccurate where the specific force changes inside a gap",
-            CasepWarning, stacklevel=3)
+            GapWarning, stacklevel=3)
 
 
 def build_sv(model: ErrorModel, t: np.ndarray, f: np.ndarray, *, chunk: int = DEFAULT_CHUNK,

@@ -135,6 +135,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from casep.estimators.registry import STATUS_NOT_CONVERGED
+from casep.exceptions import GapWarning, SaturationWarning
 from casep.frames import LaunchSite
 from casep.navigation.imu import ImuData
 
@@ -372,7 +373,15 @@ class _Run:
         from casep.io.tables import Table
 
         tel = Table.from_columns(nav.columns(), f"{self.imu.source} (navigated)")
-        flight = read_flight_pair(tel, self.tracking, **self.pair)
+        # the clipped samples are the IMU record's, found and said once when it was read (casep.navigation.imu:
+        # from where on, and that the separation leaves those rows out) and marked ins_valid = 0: the pair's warning
+        # of the rows it leaves out for them (their count: meta["ins_invalid"]) and the saturation screen of a
+        # telemetry (casep.checks.saturation.screen_saturation), finding them again on the navigated rates, would
+        # say them twice more
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", category=SaturationWarning)
+            flight = read_flight_pair(tel, self.tracking, **self.pair)
+        flight.meta["saturation"] = _imu_saturation(self.imu)
         # the late-start check: the speed relative to the pad (launch-inertial v_tel carries the Earth's rotation)
         flight.meta["start_speed_m_s"] = float(np.linalg.norm(nav.earth_relative()[1][0]))
         if model is None or not np.any(D):
@@ -510,7 +519,10 @@ class _Run:
         self.nav = nav
         with warnings.catch_warnings():
             if quiet:
-                warnings.simplefilter("ignore")  # S_V's warnings (integrated across a gap) said once, too
+                warnings.simplefilter("ignore")  # S_V's warnings said once, too
+            # the navigated telemetry's gaps are the IMU's, said when it was read with what they leave unknown
+            # (casep.navigation.imu: one GapWarning); S_V's own of the same gaps would say them twice
+            warnings.filterwarnings("ignore", category=GapWarning)
             model = self.model(nav, D)
             problem = flight_problem(flight, model)
         # the passes step along the combinations the record determines exactly (estimable rows, module notes);
@@ -663,20 +675,24 @@ class _Run:
         out = judge_setup(out, flight, model, noise_free=False)
         out = judge_tracking(out, flight, problem, model.scales, about=D, widen=widen)
         out.diagnostics["iterations"]["limit"] = float(self.limit) if np.isfinite(self.limit) else None
-        # what the record leaves undetermined is said with every result that has estimates, failed or not
+        # what the record leaves undetermined is said with every result that has estimates, failed or not, of the
+        # iteration or of one linear pass (its pass steps along what the record determines as an iteration's first)
         said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf)) \
-            if iterate and (out.solution is not None or np.any(np.isfinite(out.estimate))) else None
+            if out.solution is not None or np.any(np.isfinite(out.estimate)) else None
         if said:
             from casep.exceptions import NonlinearityWarning
 
             warnings.warn(said, NonlinearityWarning, stacklevel=3)
-            out = dataclasses.replace(out, message=f"{out.message}; {said}")
+            if iterate:
+                out = dataclasses.replace(out, message=f"{out.message}; {said}")
         if iterate and out.success:  # a failed result's std are not used: no curvature to carry
             out = self.curvature(out, problem, D)
         elif not iterate and out.success:  # one linear pass: its second-order remainder judged, as a telemetry's
             shift = linearisation_shift(self, res, problem, flight, model.scales)
             if shift is not None:
                 out = one_pass_judged(out, shift)
+        if said and not iterate:  # after the judgement, whose failure message replaces a success's
+            out = dataclasses.replace(out, message=f"{out.message}; {said}")
         return ImuSeparation(out, nav, flight, passes)
 
     def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
@@ -883,6 +899,15 @@ class _Run:
         finally:
             self.imu_k, self.q_aligned, self.C_tb = state
         return flight.observed_rows(flight.t)[1]
+
+
+def _imu_saturation(imu: ImuData) -> dict | None:
+    """``meta["saturation"]`` of a flight navigated from `imu` (:func:`casep.checks.saturation.screen_saturation`'s
+    record): None when the record did not clip, else where it did, as :func:`casep.navigation.imu.check_imu` found it
+    (its SaturationWarning said so; the navigation marks the solution from there ``ins_valid = 0``)."""
+    if imu.clipped is None or not np.any(imu.clipped):
+        return None
+    return {"from_s": float(imu.t[int(np.argmax(imu.clipped))]), "found": ["the IMU record (casep.navigation.imu)"]}
 
 
 def std_shift(C: np.ndarray, extra: np.ndarray) -> float:

@@ -71,16 +71,15 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     :meth:`casep.workflows.imu_separate._Run.determined_curvature`): the combinations said are its, `note` (or
     None) follows them, `record` goes in ``diagnostics["determined"]["curvature"]``. The tracking clock's drift is
     measured on the fit's residuals (:func:`casep.checks.tracking_quality.fit_clock_drift`), warned beyond its
-    threshold and recorded in ``diagnostics["clock_drift"]``."""
-    from casep.checks.tracking_quality import determined, determined_message, fit_clock_drift, noise_problem
+    threshold and recorded in ``diagnostics["clock_drift"]``
+    (:func:`casep.checks.tracking_quality.clock_drift_record`: where not measured, why)."""
+    from casep.checks.tracking_quality import clock_drift_record, determined, determined_message, noise_problem
     from casep.estimators.registry import STATUS_TRACKING, failed
 
     if problem.y is not None:  # the clock drift, on the residuals: the raw dv's instrument errors fake one
-        drift = fit_clock_drift(flight, problem.raw_residuals(res.fitted_coefficients()))
+        drift = clock_drift_record(flight, problem.raw_residuals(res.fitted_coefficients()))
         if drift is not None:
-            res = dataclasses.replace(res, diagnostics={**res.diagnostics, "clock_drift": {
-                "ppm": drift[0] if np.isfinite(drift[0]) else None,
-                "std_ppm": drift[1] if np.isfinite(drift[1]) else None, "on": "the fit's residuals"}})
+            res = dataclasses.replace(res, diagnostics={**res.diagnostics, "clock_drift": drift})
     why = noise_problem(flight)
     if why is None or problem.y is None or problem.t is None:
         return res

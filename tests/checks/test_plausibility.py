@@ -409,3 +409,21 @@ def test_force_in_g_or_time_in_ms_is_named_before_the_velocity(tmp_path, column,
         warnings.simplefilter("ignore", PlausibilityWarning)  # the peak force or the time step is named too
         check_flight(casep.read_flight(path))
     assert e.value.column == ("f_x" if column == "f" else "t") and e.value.source == str(path)
+
+
+def test_outliers_are_judged_by_their_own_stretchs_noise():
+    """A pad of 101 epochs at 0.06 m/s, a 27 s pause, 14 flight epochs at 1.7 m/s: judged by one sigma (the pad's)
+    every flight epoch was an outlier; each stretch by its own noise, none is, and a 40 m/s spike in the flight
+    stretch still is (named by its sample and time)."""
+    from casep.checks.plausibility import _check_outliers
+
+    rng = np.random.default_rng(11)
+    t = np.concatenate([np.arange(50.0, 60.05, 0.1), np.arange(87.0, 101.0, 1.0)])
+    r = np.where((t < 80)[:, None], 0.06, 1.7) * rng.standard_normal((t.size, 3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", OutlierWarning)
+        _check_outliers(r, t, "f.csv")
+    k = int(np.flatnonzero(t == 93.0)[0])
+    r[k, 1] += 40.0
+    with pytest.warns(OutlierWarning, match=r"f.csv: 1 outlier\(s\) in dv: sample 108 \(t = 93 s\) dv_y \+3\d\.\d m/s"):
+        _check_outliers(r, t, "f.csv")

@@ -326,8 +326,11 @@ def test_stale_tracking_is_screened_once_and_left_out_of_every_pass(truth_flight
 
 
 def test_an_imu_gap_is_named_by_the_failure_and_its_warnings_are_said_once(truth_flight, tmp_path):
-    """A 1 s IMU gap in the roll ramp: S_V's warning (integrated across the gap) once, not once per pass, and the
-    failure names the gap and its bounds (the navigation's) rather than the errors' size."""
+    """A 1 s IMU gap in the roll ramp: said once, by the IMU's GapWarning (what the gap leaves unknown), not again
+    by S_V of the navigated telemetry (integrated across the same gap) nor once per pass (the pair's warning that the
+    tracking samples inside it are left out stays: another fact), and the failure names the gap and its bounds (the
+    navigation's) rather than the errors' size."""
+    from casep.exceptions import GapWarning
     from casep.navigation import read_imu
 
     path, trk, _ = write_flight(tmp_path, truth_flight)
@@ -338,11 +341,35 @@ def test_an_imu_gap_is_named_by_the_failure_and_its_warnings_are_said_once(truth
         imu = check_imu(ImuData(full.t[keep], full.w[keep], full.f[keep]))
         out = separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=heading_of_x(), max_iterations=2,
                            spec=FitSpec.build("ols", noise="white", sigma=0.001, robust="none"))
-    assert sum("S_V is integrated across them" in str(w.message) for w in seen) == 1
+    gaps = [str(w.message) for w in seen if w.category is GapWarning]
+    assert sum(" in t (about 20 samples lost" in m for m in gaps) == 1, gaps  # the IMU's
+    assert not any("S_V is integrated across them" in str(w.message) for w in seen)
     assert not out.success and out.status == STATUS_NOT_CONVERGED
     assert "the IMU gap of 1.05 s after t = 11.95 s" in out.message, out.message
     assert "too large for the model" not in out.message
 
+
+
+def test_a_clipped_gyro_is_said_once_by_the_imu_check(truth_flight, tmp_path):
+    """The roll rate held at the nominal full scale of 1000 deg/s from 30 s on: the IMU check says it (a
+    SaturationWarning naming the record's rows and that the separation leaves them out; the navigation marks
+    ins_valid = 0); neither the pair's warning of the rows ins_valid leaves out nor the saturation screen of the
+    navigated telemetry (the same samples found again on the navigated rates) says it again."""
+    from casep.exceptions import SaturationWarning
+
+    imu_path, trk, _ = write_flight(tmp_path, truth_flight)
+    full = casep.navigation.read_imu(imu_path)
+    w = full.w + np.random.default_rng(5).normal(0.0, 1e-5, full.w.shape)  # noise: a rail is judged off it
+    w[full.t >= 30.0, 0] = math.radians(1000.0)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        imu = check_imu(ImuData(full.t, w, full.f))
+        out = separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=heading_of_x(), iterate=False,
+                           spec=FitSpec.build("ols", noise="white", sigma=0.001, robust="none"))
+    said = [str(x.message) for x in seen if x.category is SaturationWarning]
+    assert len(said) == 1 and "the IMU clipped: w_x" in said[0], said
+    assert not out.flight.observed[out.flight.t >= 30.0].any() and out.flight.observed[out.flight.t < 29.9].sum() > 100
+    assert out.flight.meta["saturation"]["from_s"] == pytest.approx(30.0)
 
 
 @pytest.fixture(scope="module")
@@ -737,3 +764,21 @@ def test_a_noise_free_pad_record_converges_at_the_rounding_level(tmp_path):
     best = sorted(it["passes"][-1]["determined"], key=lambda c: c["std"])[:3]
     for c in best:
         assert abs(c["estimate"] - np.dot(c["weights"], T)) <= 5e-3 * max(abs(np.dot(c["weights"], T)), 1.0), c
+
+
+def test_one_linear_pass_states_the_combinations_the_record_determines(tmp_path):
+    """One pass (``iterate=False``) on 9 s of pad and 3 s of boost under ``strapdown15_axial``: its statement of
+    what the record determines is the iteration's (``_outside_note``: how many of the 15 combinations, the others
+    left at the prior), in the message whether the pass is judged a success or not (here it fails: the record does
+    not invert at the linear estimate, which replaced the message), and as many combinations as it counts are in the
+    pass's record (``determined``), each within 4 std of the truth."""
+    imu, trk, site, heading, truth = pad_record(tmp_path, 3, "strapdown15_axial", boost=3.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = separate_imu(imu, trk, site, PAD_ALIGN, "strapdown15_axial", heading_deg=heading, iterate=False)
+    last = out.result.diagnostics["iterations"]["passes"][-1]
+    k = len(last.get("determined") or [])
+    assert 0 < k < 15
+    assert f"the record determines {k} of 15 combinations of the coefficients" in out.message, out.message
+    z = stated_z(out, truth)
+    assert np.all(np.abs(z) < 4.0), z
