@@ -674,6 +674,8 @@ class _Run:
                 return self.determined_curvature(combos, problem, flight, D)
         out = judge_setup(out, flight, model, noise_free=False)
         out = judge_tracking(out, flight, problem, model.scales, about=D, widen=widen)
+        if iterate and passes[-1].get("determined") and not out.diagnostics.get("determined"):
+            out = _with_determined(out, passes[-1], model.scales)
         out.diagnostics["iterations"]["limit"] = float(self.limit) if np.isfinite(self.limit) else None
         # what the record leaves undetermined is said with every result that has estimates, failed or not, of the
         # iteration or of one linear pass (its pass steps along what the record determines as an iteration's first)
@@ -1264,6 +1266,30 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf) -> str | Non
             + f"their std exceed the coefficients' plausible size ({size:.3g} declared magnitudes): the record does "
             "not determine them. Their estimates are the last linear pass's, their std linear (not checked for "
             "curvature)")
+
+
+def _with_determined(res: EstimateResult, last: dict, scales: dict[str, float]) -> EstimateResult:
+    """`res` with the combinations the iteration's last pass stepped along (``last["determined"]``, their std with
+    the record's noise) in ``diagnostics["determined"]`` (``combinations`` with ``terms``, ``more``, ``weights``,
+    ``estimate``, ``std``; the ``scales`` the weights divide by: :func:`judge_tracking`'s record) and its message
+    stating them, value and std: what the flight determines when its steps left combinations out and the
+    coefficients one by one are not determined."""
+    from casep.checks.tracking_quality import combination_terms, plausible_size
+
+    names = list(res.names)
+    combos = sorted(({**c} for c in last["determined"]), key=lambda c: c["std"])
+    size = plausible_size(combos)
+    for c in combos:
+        c["terms"], c["more"] = combination_terms(names, np.array(c["weights"]), c["std"], size)
+    diag = {**res.diagnostics, "determined": {"combinations": combos, "std_factor": None, "from": "iterations",
+                                              "scales": {nm: scales.get(nm, 1.0) for nm in names}}}
+    said = "; ".join(" + ".join(f"{w:.2g} {nm}/{scales.get(nm, 1.0):g}" for nm, w in c["terms"].items())
+                     + (f" (+ {c['more']} smaller terms)" if c.get("more") else "")
+                     + f" = {c['estimate']:.4g} +- {c['std']:.2g}" for c in combos[:6])
+    msg = (f"{res.message}; the iterated passes stepped along {len(combos)} combinations (coefficient / declared "
+           f"magnitude) the flight determines: {said}" + ("; ..." if len(combos) > 6 else "")
+           + " (all in diagnostics.determined)")
+    return dataclasses.replace(res, diagnostics=diag, message=msg)
 
 
 def _rms(y: np.ndarray | None) -> float:

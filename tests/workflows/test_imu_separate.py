@@ -782,3 +782,27 @@ def test_one_linear_pass_states_the_combinations_the_record_determines(tmp_path)
     assert f"the record determines {k} of 15 combinations of the coefficients" in out.message, out.message
     z = stated_z(out, truth)
     assert np.all(np.abs(z) < 4.0), z
+
+
+def test_the_combinations_stepped_along_are_stated_in_the_result(tmp_path):
+    """30 s at rest, ``strapdown12`` (seed 1): the coefficients one by one are not determined, the iterated passes step
+    along 3 combinations. The result states them, value and std, in ``diagnostics["determined"]`` (the last pass's,
+    with their terms and the scales their weights divide by) and in its message; each within 4 std of the truth's
+    combination (a 1e-4 chance per combination for honest std)."""
+    imu, trk, site, heading, truth = pad_record(tmp_path, 1, "strapdown12", pad=30.0, imu_noise=(1e-3, 5e-5),
+                                                trk_noise=0.01)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = separate_imu(imu, trk, site, PAD_ALIGN, "strapdown12", heading_deg=heading)
+    res = out.result
+    last = res.diagnostics["iterations"]["passes"][-1]["determined"]
+    det = res.diagnostics["determined"]
+    assert len(det["combinations"]) == len(last) == 3
+    assert sorted(c["std"] for c in det["combinations"]) == sorted(c["std"] for c in last)
+    assert set(det["scales"]) == set(res.names)
+    T = np.array([truth.get(n, 0.0) for n in res.names])  # pad_record's truth: in declared magnitudes
+    for c in det["combinations"]:
+        assert c["terms"] and set(c["terms"]) <= set(res.names)
+        assert abs(c["estimate"] - np.dot(c["weights"], T)) < 4.0 * c["std"], c
+        assert f"= {c['estimate']:.4g} +- {c['std']:.2g}" in res.message
+    assert "combinations (coefficient / declared magnitude) the flight determines" in res.message
