@@ -266,7 +266,7 @@ def _result(ctx: Context, methods: list[str], units: tuple[str, ...], groups: li
                             dispersions=tuple(ctx.dispersions) if ctx.dispersions else (), resumed=resumed,
                             tasks=tasks, draws=draws,
                             noise={"simulated": {**ctx.scenario.noise.to_dict(), "text": ctx.scenario.noise.describe()},
-                                   "fit": _fit_record(ctx.noise)})
+                                   "fit": _fit_record(ctx.noise)}, magnitudes=dict(ctx.magnitudes))
 
 
 def _fit_record(noise: NoiseSpec | None) -> dict[str, Any]:

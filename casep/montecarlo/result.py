@@ -64,6 +64,8 @@ class MonteCarloResult(Completed):
     # the noise: {"simulated": the runs' noise (casep.simulation.noise.NoiseModel.to_dict() plus "text"),
     # "fit": {"noise", "tau", "robust"} the methods assume}
     noise: dict[str, Any] = field(default_factory=dict)
+    # the model's declared magnitudes (ErrorModel.scales): which coefficients the CRLB determines better than them
+    magnitudes: dict[str, float] = field(default_factory=dict)
 
     def stats(self, method: str) -> dict[str, np.ndarray]:
         """bias, rms, efficiency, coverage95 arrays of one method (NaN where undefined)."""
@@ -124,6 +126,7 @@ class MonteCarloResult(Completed):
         det = self.determined
         out["determined"] = [n for n, d in zip(self.names, det) if d]
         out["unidentifiable"] = [n for n, d in zip(self.names, det) if not d]
+        out["not_determined"] = [self.names[j] for j in self._not_determined()]
         out["methods"] = methods
         return out
 
@@ -176,16 +179,28 @@ class MonteCarloResult(Completed):
                          f"{cov_s:>17} {self.seconds.get(meth, float('nan')):>8.2f}")
         return "\n".join(lines + self._determined_lines())
 
+    def _not_determined(self) -> list[int]:
+        """The coefficients whose CRLB std is at or above their declared magnitudes: what ``casep separate`` calls
+        not determined (:func:`casep.estimators._base.not_determined`, one rule)."""
+        from casep.estimators._base import not_determined
+
+        return not_determined(self.names, self.crlb_std, self.magnitudes)
+
     def _determined_lines(self) -> list[str]:
         """Which coefficients the flights determine, and each method's RMS z and coverage over them."""
         det = self.determined
         if det.all():
-            head = f"all {det.size} coefficients determined"
+            head = f"all {det.size} coefficients determined (a finite CRLB std)"
         else:
             bad = [n for n, d in zip(self.names, det) if not d]
             head = (f"determined {int(det.sum())} of {det.size} coefficients (the statistics are over these); "
                     f"unidentifiable {len(bad)} (only combinations of them are determined): {', '.join(bad)}")
         lines = [head]
+        nd = self._not_determined()
+        if nd:
+            lines.append(f"  of these, {len(nd)} have a CRLB std at or above their declared magnitudes (casep separate "
+                         f"says 'not determined' of them; the statistics include them): "
+                         f"{', '.join(self.names[j] for j in nd)}")
         for meth in self.estimates:
             p = self.pooled(meth)
             if p["rms_z"] is not None:

@@ -107,3 +107,17 @@ def test_montecarlo_on_own_strapdown_flight_reads_its_signal_columns(tmp_path):
     text, d = res.text(), res.to_dict()
     assert "determined 21 of 33 coefficients" in text and "unidentifiable 12" in text and "RMS z" in text
     assert len(d["unidentifiable"]) == 12 and d["methods"]["ols"]["determined"]["count"] == 63
+
+
+def test_montecarlo_says_which_determined_coefficients_separate_calls_not_determined(tmp_path):
+    """The summary's 'determined' is a finite CRLB std; the coefficients whose bound is at or above their declared
+    magnitudes (casep separate's 'not determined', the same function) are named as such, in the text and JSON."""
+    from casep.estimators._base import not_determined
+    from casep.montecarlo import run_montecarlo
+
+    res = run_montecarlo("paper", runs=2, methods=["ols"], workers=1, progress=False, noise="white")
+    nd = not_determined(res.names, res.crlb_std, res.magnitudes)
+    assert res.magnitudes and 0 < len(nd) < int(res.determined.sum())
+    d = res.to_dict()
+    assert d["not_determined"] == [res.names[j] for j in nd]
+    assert f"of these, {len(nd)} have a CRLB std at or above their declared magnitudes" in res.text()
