@@ -139,6 +139,29 @@ def dishonest_whitened(stats: dict, rms: tuple[float, float] | None = (0.85, 1.1
     return bad
 
 
+def gm_white_noise(t: np.ndarray, rng: np.random.Generator, tau: float, gm: float, white: float) -> np.ndarray:
+    """``(N, 3)`` Gauss-Markov (std `gm`, correlation time `tau`; exact discretisation, stationary start) plus white
+    (std `white`) noise per axis at times `t`, written independently of casep's simulation."""
+    phi = np.exp(-np.diff(t) / tau)
+    e = rng.standard_normal((t.size, 3))
+    g = np.empty((t.size, 3))
+    g[0] = gm * e[0]
+    for k in range(1, t.size):
+        g[k] = phi[k - 1] * g[k - 1] + gm * np.sqrt(1.0 - phi[k - 1] ** 2) * e[k]
+    return g + white * rng.standard_normal((t.size, 3))
+
+
+def bias_scale_rows(t: np.ndarray, f: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """``S (N, 3, 7)`` of a boost with specific force `f`: initial velocity errors, accelerometer biases and the
+    scale factor along the unit thrust direction `up` (its column the integral of ``f . up`` along `up`)."""
+    F = np.concatenate([[np.zeros(3)], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(t)[:, None], axis=0)])
+    S = np.zeros((t.size, 3, 7))
+    S[:, :, :3] = np.eye(3)
+    S[:, :, 3:6] = t[:, None, None] * np.eye(3)
+    S[:, :, 6] = np.einsum("ki,i->k", F, up)[:, None] * up
+    return S
+
+
 def noise_free_errors(flight, model, truth, sigma: float = 0.1):
     """Separate a noise-free flight with platform36 OLS (its ill-conditioning warning expected) and
     return ``(result, |estimate - truth| / CRLB std at noise sigma)``: how exactly the pipeline recovers

@@ -4,6 +4,7 @@ t-statistic is standard normal; the lag-1 AR(1) factor alone makes it several ti
 from __future__ import annotations
 
 import numpy as np
+from conftest import bias_scale_rows, gm_white_noise
 
 from casep.checks.time_offset import GRAVITY_LAUNCH, time_offset_test
 from casep.noise.model import NoiseModel
@@ -20,23 +21,11 @@ def _rows():
     up = np.array([0.1, 0.99, 0.0]) / np.linalg.norm([0.1, 0.99, 0.0])
     f = np.where(t < 30.0, 5.0 * G0, 2.0 * G0)[:, None] * up
     f[:, 2] += 2.0 * np.sin(0.7 * t)
-    F = np.concatenate([[np.zeros(3)], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(t)[:, None], axis=0)])
-    S = np.zeros((t.size, 3, 7))
-    S[:, :, :3] = np.eye(3)
-    S[:, :, 3:6] = t[:, None, None] * np.eye(3)
-    S[:, :, 6] = np.einsum("ki,i->k", F, up)[:, None] * up
-    return t, f, S
+    return t, f, bias_scale_rows(t, f, up)
 
 
 def _noise(t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Gauss-Markov (exact discretisation, stationary start) plus white noise per axis, independent of casep."""
-    phi = np.exp(-np.diff(t) / TAU)
-    e = rng.standard_normal((t.size, 3))
-    g = np.empty((t.size, 3))
-    g[0] = GM * e[0]
-    for k in range(1, t.size):
-        g[k] = phi[k - 1] * g[k - 1] + GM * np.sqrt(1.0 - phi[k - 1] ** 2) * e[k]
-    return g + WHITE * rng.standard_normal((t.size, 3))
+    return gm_white_noise(t, rng, TAU, GM, WHITE)
 
 
 def test_offset_t_is_standard_normal_when_whitened_for_the_noise_model():

@@ -5,6 +5,7 @@ those samples (casep.checks.time_offset.step_rows) and finds the offset within i
 from __future__ import annotations
 
 import numpy as np
+from conftest import bias_scale_rows, gm_white_noise
 
 from casep.checks.time_offset import GRAVITY_LAUNCH, acceleration_steps, time_offset_test
 from casep.noise.model import NoiseModel
@@ -34,23 +35,11 @@ def _late(t: np.ndarray, dt: float) -> np.ndarray:
 def _rows():
     t = np.arange(0.0, 60.0, 1.0 / RATE)
     f = _force(t)
-    F = np.concatenate([[np.zeros(3)], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(t)[:, None], axis=0)])
-    S = np.zeros((t.size, 3, 7))  # initial velocity errors, accelerometer biases, the scale factor along UP
-    S[:, :, :3] = np.eye(3)
-    S[:, :, 3:6] = t[:, None, None] * np.eye(3)
-    S[:, :, 6] = np.einsum("ki,i->k", F, UP)[:, None] * UP
-    return t, f, S
+    return t, f, bias_scale_rows(t, f, UP)  # initial velocity errors, accelerometer biases, the scale factor
 
 
 def _noise(t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Gauss-Markov (exact discretisation, stationary start) plus white noise per axis, independent of casep."""
-    phi = np.exp(-np.diff(t) / TAU)
-    e = rng.standard_normal((t.size, 3))
-    g = np.empty((t.size, 3))
-    g[0] = GM * e[0]
-    for k in range(1, t.size):
-        g[k] = phi[k - 1] * g[k - 1] + GM * np.sqrt(1.0 - phi[k - 1] ** 2) * e[k]
-    return g + WHITE * rng.standard_normal((t.size, 3))
+    return gm_white_noise(t, rng, TAU, GM, WHITE)
 
 
 def test_acceleration_steps_finds_the_step_not_the_smooth_flight():
