@@ -36,8 +36,10 @@ import math
 import numpy as np
 
 from casep.frames import OMEGA_EARTH
+from casep.units import G0
 
-__all__ = ["normal_gravity", "normal_gravity_ecef", "gravitation_ecef", "WGS84_A", "WGS84_F", "WGS84_GM",
+__all__ = ["GRAVITY_LAUNCH", "kinematic_acceleration",
+           "normal_gravity", "normal_gravity_ecef", "gravitation_ecef", "WGS84_A", "WGS84_F", "WGS84_GM",
            "GAMMA_E", "GAMMA_P"]
 
 #: WGS84 semi-major axis (m) and flattening.
@@ -135,3 +137,17 @@ def normal_gravity(latitude_deg: float, height_m: float = 0.0) -> float:
     n = WGS84_A / math.sqrt(1.0 - e2 * math.sin(phi) ** 2)  # prime-vertical radius of curvature
     r = np.array([(n + height_m) * math.cos(phi), 0.0, (n * (1.0 - e2) + height_m) * math.sin(phi)])
     return float(np.linalg.norm(normal_gravity_ecef(r)))
+
+
+#: Gravity in the launch-inertial (platform) frame, x downrange, y up: flat, uniform Earth.
+GRAVITY_LAUNCH = np.array([0.0, -G0, 0.0])
+
+
+def kinematic_acceleration(t: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """``a = f + g`` in the launch-inertial frame with uniform gravity :data:`GRAVITY_LAUNCH`, m/s^2.
+
+    A flat-Earth approximation: true gravity falls by 3 % at 100 km altitude and turns by
+    ~1 deg per 110 km of downrange; a few per cent of g is negligible against a boost's
+    10-50 m/s^2 for detecting an offset (it only scales the offset estimate by ~1e-3).
+    """
+    return np.asarray(f, dtype=float) + GRAVITY_LAUNCH

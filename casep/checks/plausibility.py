@@ -652,11 +652,12 @@ def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5, loc
     Each stretch of the tracking (:func:`casep.checks.tracking_quality.stretches`: split at its pauses) is judged
     by its own noise level: one sigma over a quiet pad and a noisy flight after a reacquisition (0.06 against
     1.7 m/s) is the pad's, and would name every flight epoch an outlier. A stretch too short for a noise level of
-    its own is not judged."""
+    its own is not judged; rows without times (a problem from arrays) are one stretch."""
     from casep.checks.tracking_quality import stretches
 
+    timed = np.ndim(t) == 1 and len(t) == len(r)
     hits = []
-    for a, b in stretches(t):
+    for a, b in stretches(t) if timed else [(0, len(r))]:
         rs = r[a:b]
         d = _spikes(rs)
         for i in range(3):
@@ -677,7 +678,7 @@ def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5, loc
 
         places = [where(loc) for loc in locate([k for _, k, *_ in hits[:top]])]
     else:
-        places = [f"sample {k + 1} (t = {t[k]:.6g} s)" for _, k, *_ in hits[:top]]
+        places = [f"sample {k + 1}" + (f" (t = {t[k]:.6g} s)" if timed else "") for _, k, *_ in hits[:top]]
     rows = "; ".join(f"{p} dv_{'xyz'[i]} {size:+.3g} m/s = {zr:+.3g} noise sigma"
                      for p, (_, k, i, size, zr) in zip(places, hits[:top]))
     more = f" and {len(hits) - top} more" if len(hits) > top else ""

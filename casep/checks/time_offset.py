@@ -24,15 +24,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from casep.gravity import GRAVITY_LAUNCH, kinematic_acceleration
 from casep.regression.linalg import reduce_qr_blocks
-from casep.units import G0
 
 __all__ = ["TimeOffsetTest", "time_offset_test", "kinematic_acceleration", "GRAVITY_LAUNCH", "row_blocks",
            "is_problem", "shares_problem_test", "problem_time_offset_test", "gap_columns", "acceleration_steps",
            "step_rows", "STEP_RATIO", "STEP_WINDOW", "STEP_MAX_ROWS", "EFFECT_MIN"]
 
-#: Gravity in the launch-inertial (platform) frame, x downrange, y up: flat, uniform Earth.
-GRAVITY_LAUNCH = np.array([0.0, -G0, 0.0])
 #: A sample-to-sample change of the acceleration beyond this many times the median of the changes within
 #: :data:`STEP_WINDOW` samples of it is a step (:func:`acceleration_steps`).
 STEP_RATIO = 10.0
@@ -73,16 +71,6 @@ class TimeOffsetTest:
     offset_rms: float = 0.0
     jerk_rms: float = 0.0
     freed: int = 0
-
-
-def kinematic_acceleration(t: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """``a = f + g`` in the launch-inertial frame with uniform gravity :data:`GRAVITY_LAUNCH`, m/s^2.
-
-    A flat-Earth approximation: true gravity falls by 3 % at 100 km altitude and turns by
-    ~1 deg per 110 km of downrange; a few per cent of g is negligible against a boost's
-    10-50 m/s^2 for detecting an offset (it only scales the offset estimate by ~1e-3).
-    """
-    return np.asarray(f, dtype=float) + GRAVITY_LAUNCH
 
 
 def row_blocks(S) -> tuple:

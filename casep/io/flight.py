@@ -207,13 +207,13 @@ class FlightData:
     def _kinematic_acceleration(self, names: tuple[str, ...]) -> dict[str, np.ndarray]:
         """The kinematic acceleration signals ``a_x, a_y, a_z`` a model asks for (a tracking time offset's
         ``a(t) dt_trk``) when a one-file flight has none of them: ``f + g`` with flat-Earth gravity
-        (:func:`casep.checks.time_offset.kinematic_acceleration`, the time-offset test's own ``a``). A pair
+        (:func:`casep.gravity.kinematic_acceleration`, the time-offset test's own ``a``). A pair
         derives them from its telemetry velocity when it reads the files (:func:`casep.io.files.read_flight_pair`)."""
         wanted = [c for c in ACCELERATION_SIGNALS if c in names]
         pair = isinstance(self.meta, dict) and self.meta.get("format") == "pair"
         if not wanted or pair or any(c in self.signals for c in ACCELERATION_SIGNALS):
             return {}
-        from casep.checks.time_offset import kinematic_acceleration
+        from casep.gravity import kinematic_acceleration
 
         a = kinematic_acceleration(self.t, self.f)
         return {c: a[:, i] for i, c in enumerate(ACCELERATION_SIGNALS) if c in wanted}

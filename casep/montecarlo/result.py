@@ -182,7 +182,7 @@ class MonteCarloResult(Completed):
     def _not_determined(self) -> list[int]:
         """The coefficients whose CRLB std is at or above their declared magnitudes: what ``casep separate`` calls
         not determined (:func:`casep.estimators._base.not_determined`, one rule)."""
-        from casep.estimators._base import not_determined
+        from casep.estimators.registry import not_determined
 
         return not_determined(self.names, self.crlb_std, self.magnitudes)
 

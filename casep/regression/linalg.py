@@ -224,15 +224,15 @@ class RankAnalysis:
         return self.Vt[:r].T, 1.0 / self.s[:r]
 
 
-def rounding_columns(red: ReducedSystem, magnitudes: Sequence[float | None]) -> np.ndarray:
+def rounding_columns(red: ReducedSystem, magnitudes: Sequence[float | None],
+                     rounding_level: Callable[[float], float]) -> np.ndarray:
     """The non-zero columns that are rounding noise relative to their declared magnitudes: whose effect at the
     magnitude, ``||S_j|| s_j`` (m/s over the rows), is at or below the rounding level
     (:func:`casep.regression.problem.rounding_level`) of the largest such effect. A column the flight excites only
     through numbers at the rounding level (a misalignment times a lateral specific force of 1e-15 m/s^2) carries
     no information on its coefficient: its direction is the rounding's, independent of every other column, so it
-    would get a plain estimate of any size. A column without a declared magnitude is never one."""
-    from casep.regression.problem import rounding_level
-
+    would get a plain estimate of any size. A column without a declared magnitude is never one. `rounding_level`:
+    :func:`casep.regression.problem.rounding_level` (passed in: the problem module builds on this one)."""
     s = np.array([np.nan if m is None else m for m in magnitudes], dtype=float)
     effect = red.scale * np.abs(s)
     known = np.isfinite(effect) & (red.scale > 0)
@@ -242,7 +242,8 @@ def rounding_columns(red: ReducedSystem, magnitudes: Sequence[float | None]) -> 
 
 
 def analyze_rank(red: ReducedSystem, rcond: float | None = None,
-                 magnitudes: Sequence[float | None] | None = None) -> RankAnalysis:
+                 magnitudes: Sequence[float | None] | None = None,
+                 rounding_level: Callable[[float], float] | None = None) -> RankAnalysis:
     """Find the numerical rank, the zero columns and the exactly dependent ones.
 
     Parameters
@@ -255,14 +256,17 @@ def analyze_rank(red: ReducedSystem, rcond: float | None = None,
         condition number ~1e6) is ten orders of magnitude above it.
     magnitudes : sequence of float or None, optional
         The declared magnitude of each coefficient (natural units): the columns at the rounding level relative to
-        them (:func:`rounding_columns`) count as zero columns.
+        them (:func:`rounding_columns`, with `rounding_level`, required with them) count as zero columns.
     """
     n, m = red.n, red.m
     if rcond is None:
         rcond = max(m, n) * np.finfo(float).eps
     elif not np.isfinite(rcond) or rcond < 0 or rcond >= 1:
         raise ValueError(f"`rcond` must be in [0, 1), got {rcond}")
-    rounding = np.zeros(n, dtype=bool) if magnitudes is None else rounding_columns(red, magnitudes)
+    if magnitudes is not None and rounding_level is None:
+        raise ValueError("`rounding_level` is required with `magnitudes`")
+    rounding = np.zeros(n, dtype=bool) if magnitudes is None or rounding_level is None \
+        else rounding_columns(red, magnitudes, rounding_level)
     R = red.R
     if rounding.any():
         R = R.copy()
@@ -409,13 +413,11 @@ def condition_numbers(red: ReducedSystem, ra: RankAnalysis) -> dict[str, float |
 
 def unidentifiable_reasons(ra: RankAnalysis, names: tuple[str, ...] | list[str]) -> dict[str, str]:
     """Why each zero or exactly dependent coefficient gets no estimate, keyed by name."""
-    from casep.regression.problem import NOISE_FREE
-
     reasons: dict[str, str] = {}
     rounding = ra.rounding if ra.rounding is not None else np.zeros(len(names), dtype=bool)
     for j in np.flatnonzero(ra.zero):
-        reasons[names[j]] = (f"column at the rounding level: at its declared magnitude it moves dv by {NOISE_FREE:g} "
-                             "or less of the largest term's, so this flight does not excite the term"
+        reasons[names[j]] = ("column at the rounding level: at its declared magnitude its effect on dv is at the "
+                             "rounding level of the largest term's, so this flight does not excite the term"
                              if rounding[j] else "zero column: this flight does not excite the term")
     for j in np.flatnonzero(ra.dependent):
         twins = [names[k] for k in ra.partners.get(int(j), [])]

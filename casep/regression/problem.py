@@ -412,7 +412,7 @@ class Problem:
             if self.magnitudes else None
         key = (rcond, mags)
         if key not in self._ranks:
-            self._ranks[key] = analyze_rank(self.red, rcond, magnitudes=mags)
+            self._ranks[key] = analyze_rank(self.red, rcond, magnitudes=mags, rounding_level=rounding_level)
         return self._ranks[key]
 
     def ls_rss(self, rcond: float | None = None) -> float:

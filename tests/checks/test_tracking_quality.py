@@ -458,11 +458,12 @@ def test_rest_white_std_refuses_bad_input():
         rest_white_std(np.zeros((50, 3)), 0.0)
 
 
-def test_a_clock_drift_not_measured_says_why_in_the_record_and_a_warning():
+def test_a_clock_drift_not_measured_says_why_in_the_record():
     """A pad at rest (10 Hz, 50..60 s) and 14 epochs of a 1 Hz flight (87..100 s): of the 6 windows the drift is
     measured in, none has both 10 epochs and an acceleration that spreads (a pad's has none), so the drift is NaN;
-    the record says why (the windows, their epochs and spreads) and so does a warning, where before it held
-    ``ppm: None`` alone. A flight of 300 s of manoeuvres at 10 Hz has its drift measured, and no ``why_not``."""
+    the record says why (the windows, their epochs and spreads), where before it held ``ppm: None`` alone; no
+    warning (a short or quiet flight cannot show a drift). A flight of 300 s of manoeuvres at 10 Hz has its drift
+    measured, and no ``why_not``."""
     from casep.checks.tracking_quality import DRIFT_MIN_ACCEL, clock_drift_record, clock_drift_unmeasured
     from casep.io.flight import FlightData
 
@@ -474,14 +475,14 @@ def test_a_clock_drift_not_measured_says_why_in_the_record_and_a_warning():
     dv = np.random.default_rng(3).normal(0.0, 0.05, (t.size, 3))
     fl = FlightData(t, f, dv, source="pair.csv", meta={"format": "pair"},
                     signals={f"a_{c}": a[:, i] for i, c in enumerate("xyz")})
-    with pytest.warns(TrackingQualityWarning, match=r"pair.csv: the tracking clock's drift .* is not measured") as rec:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TrackingQualityWarning)  # said in the record, not warned
         record = clock_drift_record(fl, dv)
     assert record["ppm"] is None and record["std_ppm"] is None
     why = record["why_not"]
     assert why == clock_drift_unmeasured(t, a)
     assert why.startswith("only 0 of the 6 windows") and f"less than {DRIFT_MIN_ACCEL:g} m/s^2" in why
     assert "fewer than 10 epochs" in why
-    assert why in str(next(w.message for w in rec if w.category is TrackingQualityWarning))
     # measured: no reason, no warning of it
     fl2, r2 = _tilted_pair(0.0)
     with warnings.catch_warnings():

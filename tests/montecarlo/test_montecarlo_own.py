@@ -112,7 +112,7 @@ def test_montecarlo_on_own_strapdown_flight_reads_its_signal_columns(tmp_path):
 def test_montecarlo_says_which_determined_coefficients_separate_calls_not_determined(tmp_path):
     """The summary's 'determined' is a finite CRLB std; the coefficients whose bound is at or above their declared
     magnitudes (casep separate's 'not determined', the same function) are named as such, in the text and JSON."""
-    from casep.estimators._base import not_determined
+    from casep.estimators.registry import not_determined
     from casep.montecarlo import run_montecarlo
 
     res = run_montecarlo("paper", runs=2, methods=["ols"], workers=1, progress=False, noise="white")

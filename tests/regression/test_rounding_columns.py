@@ -11,7 +11,7 @@ import numpy as np
 from casep.estimators.solve import fit
 from casep.estimators.spec import FitSpec
 from casep.regression.linalg import rounding_columns
-from casep.regression.problem import Problem
+from casep.regression.problem import Problem, rounding_level
 
 
 def _problem(weak: float, seed: int = 0) -> tuple[Problem, np.ndarray]:
@@ -40,7 +40,7 @@ def test_rounding_column_gets_no_estimate_and_a_note():
     """Before: c got a plain estimate, -0.24 +- 0.13 (its truth 0.5 is below the rounding of y): rounding noise
     fitted to rounding noise."""
     pb, x = _problem(1e-16)
-    assert list(rounding_columns(pb.red, [1.0, 1.0, 1.0])) == [False, False, True]
+    assert list(rounding_columns(pb.red, [1.0, 1.0, 1.0], rounding_level)) == [False, False, True]
     res = _fit(pb)
     assert np.allclose(res.estimate[:2], x[:2], rtol=0, atol=1e-12), res.estimate
     assert not res.identifiable[2] and np.isnan(res.estimate[2]) and np.isnan(res.std[2])
@@ -50,10 +50,10 @@ def test_rounding_column_gets_no_estimate_and_a_note():
 def test_small_column_above_the_rounding_level_keeps_its_estimate():
     """1e-6 of the others (a weakly excited term, three orders above the 1e-9 rule): estimated, not zeroed."""
     pb, _ = _problem(1e-6)
-    assert not rounding_columns(pb.red, [1.0, 1.0, 1.0]).any()
+    assert not rounding_columns(pb.red, [1.0, 1.0, 1.0], rounding_level).any()
     assert bool(_fit(pb).identifiable[2])
 
 
 def test_no_declared_magnitude_no_rounding_rule():
     pb, _ = _problem(1e-16)
-    assert not rounding_columns(pb.red, [1.0, 1.0, None]).any()
+    assert not rounding_columns(pb.red, [1.0, 1.0, None], rounding_level).any()
