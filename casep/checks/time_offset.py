@@ -130,14 +130,15 @@ def acceleration_steps(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     specific force's median is its noise's). A step that an averaging accelerometer spreads over two samples
     gives two changes, each found. Its size is the norm of the change.
     """
-    from scipy.ndimage import median_filter
-
     a = np.asarray(a, dtype=float).reshape(-1, 3)
     if a.shape[0] < 4:
         return np.zeros(0, dtype=int), np.zeros(0)
     s = np.linalg.norm(np.diff(a, axis=0), axis=1)  # s[k - 1] = |a_k - a_(k-1)|
     s[~np.isfinite(s)] = 0.0
-    around = median_filter(s, size=2 * STEP_WINDOW + 1, mode="nearest")
+    # the running median over 2 STEP_WINDOW + 1 changes, the ends repeated (NumPy: SciPy's import is not paid on
+    # every separate for it)
+    padded = np.pad(s, STEP_WINDOW, mode="edge")
+    around = np.median(np.lib.stride_tricks.sliding_window_view(padded, 2 * STEP_WINDOW + 1), axis=1)
     big = np.flatnonzero(s > STEP_RATIO * around)
     return big + 1, s[big]
 

@@ -456,3 +456,14 @@ def test_parser_and_command_refusals_have_one_form(capsys):
     assert main(["separate", "missing.csv"]) == 2
     command = capsys.readouterr().err
     assert command.startswith("casep: error: ") and command.count("\n") == 1, command
+
+
+def test_separate_on_the_example_flight_does_not_import_scipy():
+    """`casep separate` on the example flight runs on NumPy, CasADi and pandas: SciPy's import (about 0.15 s, a
+    sixth of the command) is paid only by the paths that need it (the burnout-step median was one)."""
+    flight = Path(__file__).resolve().parents[2] / "examples" / "data" / "example_flight.csv"
+    code = ("import sys, io, contextlib; from casep.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()): status = main(['separate', sys.argv[1]])\n"
+            "print(status, 'scipy' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code, str(flight)], capture_output=True, text=True, check=True).stdout
+    assert out.split()[-2:] == ["0", "False"], out
