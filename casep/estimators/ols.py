@@ -169,10 +169,10 @@ class LinearMap:
         pb = prepare(RegressionProblem.from_arrays(S_arr, np.zeros(S_arr.shape[:-1]), names=names,
                                                    magnitudes=magnitudes), None, None, None, None, None)
         unit = sigma**2 if self.dof is not None else 1.0
-        _, _, und, _, Pi = determined_up_to_partners(pb, np.zeros(pb.n), self.cov * unit, self.undetermined)
+        _, cov_w, und, _, Pi = determined_up_to_partners(pb, np.zeros(pb.n), self.cov * unit, self.undetermined)
         if Pi is None:
             return self
-        return LinearMap(Pi @ self.K, Pi @ self.b, Pi @ self.cov @ Pi.T, self.dof, und)
+        return LinearMap(Pi @ self.K, Pi @ self.b, cov_w / unit, self.dof, und)  # cov_w = Pi C Pi^T, at `unit`
 
 
 def scaled_factors(S: np.ndarray, rcond: float | None = None):
