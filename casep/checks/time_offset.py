@@ -253,7 +253,7 @@ def time_offset_test(S: np.ndarray, r: np.ndarray, t: np.ndarray, f: np.ndarray,
     """
     t = np.asarray(t, dtype=float)
     test = _augmented_test(S, r, t, f, keep, gaps, noise, np.zeros(0, dtype=int))
-    steps = acceleration_steps(np.asarray(f, dtype=float).reshape(-1, 3) + GRAVITY_LAUNCH)
+    steps = acceleration_steps(kinematic_acceleration(t, np.asarray(f, dtype=float).reshape(-1, 3)))
     free = np.zeros(0, dtype=int)
     for _ in range(4):  # the freed samples follow the offset found, which follows them: a few passes settle
         if test is None or not steps[0].size:
