@@ -476,7 +476,9 @@ PHI0_MODELS = {"strapdown12": "strapdown15_phi0", "strapdown33": "strapdown42_ex
 RICHER_MODELS = {"strapdown12": "strapdown33 or strapdown42_extended",
                  "strapdown15_phi0": "strapdown42_extended (strapdown33 with phi0)",
                  "strapdown15_axial": "strapdown33 or strapdown42_extended",
-                 "strapdown6_window": "strapdown12_window", "strapdown33": "strapdown42_extended",
+                 "strapdown6_window": "strapdown12_window, or for a ground vehicle strapdown9_vehicle_window or "
+                                      "strapdown7_speed_window",
+                 "strapdown33": "strapdown42_extended",
                  "platform36": "platform39_misalignment, platform36_timeoffset or platform36_leverarm"}
 
 

@@ -15,6 +15,27 @@ def test_builtin_models_are_listed():
     assert "platform36" in names and "platform39_misalignment" in names
 
 
+def test_richer_models_extend_the_model_and_list_every_window_model():
+    """Each model RICHER_MODELS names for a model (outside parentheses, which describe) is shipped and declares every
+    coefficient of it; every shipped window model that extends strapdown6_window is named for it (a window's misfit
+    advice names them all)."""
+    import re
+
+    from casep.model.loader import RICHER_MODELS, shipped_model
+
+    shipped = set(casep.available_models())
+    for base, advice in RICHER_MODELS.items():
+        named = [n for n in re.findall(r"[a-z][a-z0-9_]+", re.sub(r"\([^)]*\)", "", advice)) if n in shipped]
+        assert named, (base, advice)
+        have = set(shipped_model(base).names)
+        for n in named:
+            assert have < set(shipped_model(n).names), (base, n)
+    windows = {n for n in shipped if n.endswith("_window") and n != "strapdown6_window"
+               and set(shipped_model("strapdown6_window").names) < set(shipped_model(n).names)}
+    assert windows == {"strapdown12_window", "strapdown9_vehicle_window", "strapdown7_speed_window"}
+    assert all(n in RICHER_MODELS["strapdown6_window"] for n in windows)
+
+
 def test_load_by_path_and_env(tmp_path, monkeypatch):
     src = textwrap.dedent(
         """
