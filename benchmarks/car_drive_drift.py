@@ -12,6 +12,14 @@ Reads a run saved by ``car_drive.py --save`` and the converted files it wrote (`
   script prints the forward one ``f_x + g grade`` with the grade before and after each stop.
 - **what the windows would need**: per coefficient, the ``tau`` that brings the windows' chi-square about their
   weighted mean to its dof (the same rule), to hold against the stops' ``tau``, which is measured without them.
+- **the biases in the drive, without the windows' fits**: the vertical gyro bias per window from the course
+  (:func:`course_bias`), the pitch-axis gyro bias from the road's grade (:func:`pitch_bias`; too coarse to judge
+  by, printed to show it) and the forward accelerometer bias from the tracked speed and grade
+  (:func:`forward_bias`), each against the fit's value of the same combination; their scatter over the windows
+  is an upper bound of how much the bias moves (it holds the method's own error too);
+- the six biases' chi-square with each measured movement as the instability of
+  :func:`casep.workflows.windows.window_consistency` (none; car_drive.py's RMS change at the stops; the stops'
+  movement beyond their means' own std; the upper bounds from the drive);
 - **the candidates** for what moves the windows' biases: each coefficient against a per-window quantity (a
   weighted line through the windows, its chi-square about the weighted mean and about the line, and the line
   fitted on every other window predicting the rest, as ``car_drive_windows.py`` does for the speed): the
@@ -189,7 +197,10 @@ def course_bias(ws: list[dict], imu, trk, ratio: float, fast: float = 3.0, strai
           f"{r[:, 1].std(ddof=1):.0f} (k = -1/ratio); the fits' {r[:, 2].std(ddof=1):.0f} (their std "
           f"{r[:, 3].min():.0f}-{r[:, 3].max():.0f}); the fits less the course, chi-square on {len(r)} (the course's "
           f"as known): {float(np.sum(((r[:, 2] - r[:, 0]) / r[:, 3]) ** 2)):.1f} (k = 1), "
-          f"{float(np.sum(((r[:, 2] - r[:, 1]) / r[:, 3]) ** 2)):.1f} (k = -1/ratio); the fits about their weighted "
+          f"{float(np.sum(((r[:, 2] - r[:, 1]) / r[:, 3]) ** 2)):.1f} (k = -1/ratio); with the course's scatter "
+          f"(k = 1) added to each fit's variance "
+          f"{float(np.sum((r[:, 2] - r[:, 0]) ** 2 / (r[:, 3] ** 2 + r[:, 0].var(ddof=1)))):.1f}; the fits about their "
+          "weighted "
           f"mean {float(np.sum(((r[:, 2] - np.average(r[:, 2], weights=r[:, 3] ** -2.0)) / r[:, 3]) ** 2)):.1f} "
           f"on {len(r) - 1}")
     return r
@@ -261,6 +272,67 @@ def pitch_bias(ws: list[dict], imu, trk, fast: float = 3.0, straight: float = 3.
           f"{r[:, 1].std(ddof=1):.0f} (their std {r[:, 2].min():.0f}-{r[:, 2].max():.0f}); the fits less the grade's, "
           f"chi-square {float(np.sum(((r[:, 1] - r[:, 0]) / r[:, 2]) ** 2)):.1f} on {len(r)}; the fits about their "
           f"weighted mean {about:.1f} on {len(r) - 1}")
+    return r
+
+
+def forward_bias(ws: list[dict], imu, trk, slowest: float = 2.0) -> np.ndarray:
+    """Print each window's forward accelerometer bias from the tracking, without the window's fit, against the fit's.
+
+    Over a window the mean specific force along the car's forward axis is the mean along-track acceleration
+    (the speed's change over the window, from the tracked speeds at its ends) plus gravity along the road's grade
+    (``g sin atan(v_up / |v_h|)``, the mean over the window's epochs; the grade under the car as it drove) plus
+    the bias; the pad's own slope is a common offset, so only the windows' differences are judged (the fits less
+    these, about their weighted mean: chi-square on n - 1). The forward axis in the body is that of
+    :func:`pitch_bias`; the fit's value is ``e_fwd . ba``. Windows where the car goes slower than `slowest` m/s
+    (the grade is then not read) are left out. Not taken out: the suspension's pitch under acceleration and
+    the lateral force leaking through an error of the forward axis."""
+    from scipy.ndimage import uniform_filter1d
+
+    t = imu.t.to_numpy()
+    f = imu[["fb_x", "fb_y", "fb_z"]].to_numpy()
+    pad = (t > 0.0) & (t < float(trk.t[np.hypot(trk.v_east, trk.v_north) > 0.3].iloc[0]) - 5.0)
+    u = f[pad].mean(axis=0) / np.linalg.norm(f[pad].mean(axis=0))
+    tt, ve, vn, vu = (trk[c].to_numpy() for c in ("t", "v_east", "v_north", "v_up"))
+    speed = np.hypot(ve, vn)
+    along = np.gradient(speed, tt)
+    rate = np.degrees(np.gradient(np.unwrap(np.arctan2(ve, vn)), tt))
+    f_s = uniform_filter1d(f, 25, axis=0)
+    f_h = np.column_stack([np.interp(tt, t, c) for c in (f_s - np.outer(f_s @ u, u)).T])
+    use = (speed > 3.0) & (np.abs(rate) < 3.0)
+    slope = np.linalg.lstsq(np.column_stack([np.ones(use.sum()), along[use]]), f_h[use], rcond=None)[0][1]
+    e_fwd = slope / np.linalg.norm(slope)
+    g = 9.80665
+    rows = []
+    print(f"the forward accelerometer bias per window from the tracking (mg; forward axis in the body "
+          f"{np.round(e_fwd, 3)}; windows faster than {slowest:g} m/s throughout):")
+    print("  window   mean f_fwd  speed change/T  g grade   the rest   the fit's e_fwd.ba")
+    for win in ws:
+        a, b = win["t_start"], win["t_end"]
+        q = (tt >= a) & (tt <= b)
+        if speed[q].min() < slowest:
+            continue
+        m = (t >= a) & (t <= b)
+        F = float((f[m] @ e_fwd).mean())
+        A = float(np.interp(b, tt, speed) - np.interp(a, tt, speed)) / (b - a)
+        Gr = float(g * np.sin(np.arctan2(vu[q], speed[q])).mean())
+        i = [win["names"].index(n) for n in ("ba_x", "ba_y", "ba_z")]
+        fit = float(e_fwd @ win["estimate"][i])
+        sd = float(np.sqrt(e_fwd @ win["covariance"][np.ix_(i, i)] @ e_fwd))
+        rest = (F - A - Gr) / G_MG
+        rows.append((rest, fit, sd))
+        print(f"  {a:6.1f}  {F / G_MG:8.1f}  {A / G_MG:8.1f}  {Gr / G_MG:8.1f}  {rest:8.1f}   {fit:+6.1f} +- {sd:4.1f}")
+    r = np.array(rows)
+    d = r[:, 1] - r[:, 0]
+    w = r[:, 2] ** -2.0
+    w2 = 1.0 / (r[:, 2] ** 2 + r[:, 0].var(ddof=1))
+    exact = float(np.sum(w * (d - np.average(d, weights=w)) ** 2))
+    wide = float(np.sum(w2 * (d - np.average(d, weights=w2)) ** 2))
+    print(f"  scatter (std) over {len(r)} windows: from the tracking {r[:, 0].std(ddof=1):.1f}, the fits' "
+          f"{r[:, 1].std(ddof=1):.1f} (their std {r[:, 2].min():.1f}-{r[:, 2].max():.1f}); the fits less the "
+          f"tracking's about their weighted mean: chi-square {exact:.1f} on {len(r) - 1} "
+          f"({wide:.1f} with the tracking's "
+          f"scatter added to each fit's variance); the fits about theirs "
+          f"{float(np.sum(w * (r[:, 1] - np.average(r[:, 1], weights=w)) ** 2)):.1f} on {len(r) - 1}")
     return r
 
 
@@ -351,17 +423,7 @@ def main() -> None:
     wide = {n: excess_std(stop[n][0], stop[n][1] / np.sqrt(3.0)) for n in stop}
     print("  (with each stop mean's std taken as the Allan deviation at the whole span, a third of the above for "
           "white noise: " + ", ".join(f"{n} {v:.1f}" for n, v in wide.items()) + ")")
-    from casep.workflows.windows import window_consistency
-
-    wins = _windows(run, {round(w["t_start"] / 30.0) for w in ws})
-    for label, inst in (("none", None), ("the RMS change at the stops (car_drive.py)", INSTABILITY_AT_REST),
-                        ("the stops' movement beyond their means' std", moved),
-                        ("the same, means' std a third", wide)):
-        c = window_consistency(wins, SIX, instability=inst)
-        print(f"  six biases, instability {label}: chi2 {c['chi2']:.1f} on {c['dof']} dof, p = {c['p_value']:.2g}; "
-              f"predictions within 1 / 2 std {c['within_1_std']:.2f} / {c['within_2_std']:.2f}; per coefficient "
-              + ", ".join(f"{n} {v:.0f}" for n, v in c["chi2_per_coefficient"].items()))
-    course_bias(ws, imu, trk, args.course_ratio)
+    course = course_bias(ws, imu, trk, args.course_ratio)
     for fast, straight in ((5.0, 3.0), (3.0, 1.5), (3.0, 6.0)):
         r = course_bias(ws, imu, trk, args.course_ratio, fast=fast, straight=straight, quiet=True)
         print(f"  the same with faster than {fast:g} m/s, turning slower than {straight:g} deg/s: {len(r)} windows, "
@@ -369,6 +431,20 @@ def main() -> None:
               f"the fits less the course, chi-square {float(np.sum(((r[:, 2] - r[:, 0]) / r[:, 3]) ** 2)):.1f} "
               f"(k = 1)")
     pitch_bias(ws, imu, trk)
+    fwd = forward_bias(ws, imu, trk)
+    from casep.workflows.windows import window_consistency
+
+    wins = _windows(run, {round(w["t_start"] / 30.0) for w in ws})
+    for label, inst in (("none", None), ("the RMS change at the stops (car_drive.py)", INSTABILITY_AT_REST),
+                        ("the stops' movement beyond their means' std", moved),
+                        ("the same, means' std a third", wide),
+                        ("in the drive, upper bounds: ba_x the forward bias's scatter, bg_z the course's, the rest "
+                         "car_drive.py's", {**INSTABILITY_AT_REST, "ba_x": float(fwd[:, 0].std(ddof=1)),
+                                            "bg_z": float(course[:, 0].std(ddof=1))})):
+        c = window_consistency(wins, SIX, instability=inst)
+        print(f"  six biases, instability {label}: chi2 {c['chi2']:.1f} on {c['dof']} dof, p = {c['p_value']:.2g}; "
+              f"predictions within 1 / 2 std {c['within_1_std']:.2f} / {c['within_2_std']:.2f}; per coefficient "
+              + ", ".join(f"{n} {v:.0f}" for n, v in c["chi2_per_coefficient"].items()))
     cand = per_window(ws, imu, trk)
     print("the candidates' correlation with the speed: " + ", ".join(
         f"{k} {np.corrcoef(x, cand['speed (m/s)'])[0, 1]:+.2f}" for k, x in cand.items() if k != "speed (m/s)"))
