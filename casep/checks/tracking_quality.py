@@ -48,7 +48,7 @@ from casep._kernels import ar1_long_run_factor
 from casep.checks.time_offset import kinematic_acceleration
 from casep.exceptions import TrackingQualityWarning
 from casep.io.flight import FlightData
-from casep.noise.robust import MAD_SIGMA
+from casep.noise.robust import MAD_SIGMA, MIN_SEGMENT_S, stretches
 
 __all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "clock_drift_unmeasured",
            "fit_clock_drift", "clock_drift_record", "stretches", "stretch_noise", "noise_problem",
@@ -62,10 +62,9 @@ STALE_MOTION = 0.5
 #: The physics check: a jump of dv between consecutive epochs above JUMP_TOL + JUMP_RATE dt (m/s, m/s^2) ...
 JUMP_TOL = 10.0
 JUMP_RATE = 2.0
-#: ... cuts the epochs into segments; a segment shorter than this (s) is left out.
-MIN_SEGMENT_S = 3.0
-#: A stretch has a noise level of its own with this many epochs or more (:func:`stretches`).
-MIN_STRETCH_EPOCHS = 5
+#: ... cuts the epochs into segments; a segment shorter than MIN_SEGMENT_S (s) is left out, and a pause that long
+#: splits them into stretches with a noise level each (:func:`casep.noise.robust.stretches`, the robust filter's
+#: split: one rule in the lower layer)
 #: A clock drift is warned about beyond this (ppm) and 4 std.
 DRIFT_MIN_PPM = 20.0
 #: Windows for the drift, and the least spread of the acceleration (m/s^2) that lets a window see an offset.
@@ -286,16 +285,6 @@ def clock_drift_unmeasured(t: np.ndarray, a: np.ndarray, windows: int = DRIFT_WI
                      f"time offset does not show ({', '.join(still)})")
     return (f"only {seen} of the {windows} windows the tracking's time span is cut into see a time offset, "
             f"{DRIFT_MIN_WINDOWS} needed: {'; '.join(parts)}")
-
-
-def stretches(t: np.ndarray) -> list[tuple[int, int]]:
-    """The stretches of the epochs `t` (s, increasing): ``(first, stop)`` index ranges split at pauses of
-    :data:`MIN_SEGMENT_S` or more, each with :data:`MIN_STRETCH_EPOCHS` epochs or more (fewer give no noise level
-    of their own): the split every per-stretch noise level uses."""
-    t = np.asarray(t, dtype=float)
-    cut = np.flatnonzero(np.diff(t) >= MIN_SEGMENT_S) + 1
-    return [(int(a), int(b)) for a, b in zip(np.concatenate([[0], cut]), np.concatenate([cut, [t.size]]))
-            if b - a >= MIN_STRETCH_EPOCHS]
 
 
 def stretch_noise(t: np.ndarray, dv: np.ndarray) -> list[tuple[float, float, int, float]]:
