@@ -67,7 +67,11 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
 
     The flights become one :class:`~casep.regression.joint.Flights` fitted through the one entry point
     :func:`casep.estimators.solve.fit`, so every rule of the request (noise model per flight and axis, tau,
-    robust fit, std kind, outlier exclusion and flags, de-noising) applies to each flight as to one alone.
+    robust fit, std kind, outlier exclusion and flags, de-noising) applies to each flight as to one alone. The
+    time-offset rules of one flight too: with ``dt_trk`` (one per flight), each one-file flight's samples whose
+    tracking straddles a step of the acceleration are left out (:func:`casep.workflows.separate.free_step_samples`,
+    ``settings["step_samples_left_out"]``); pairs of files get ``dt_trk`` when their residuals show an offset
+    and are re-paired at it (:func:`casep.workflows.separate.refit_on_offset`).
 
     Parameters
     ----------
