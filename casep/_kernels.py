@@ -259,8 +259,8 @@ def robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
     """Sequential robust filter (see :mod:`casep.noise.robust`): reject a sample whose innovation
     from the last kept one exceeds ``thr`` on any axis, at most ``max_run`` in a row.
 
-    e (N, 3) residuals; t (N,); inv_tau (3,) = 1 / tau (0 for white); scale (3,) = r_a s;
-    keep (N,) bool, written.
+    e (N, 3) residuals; t (N,); inv_tau (3,) = 1 / tau (0 for white); scale (3,) = r_a s, or (N, 3): each sample's
+    (a noise level per stretch of the tracking); keep (N,) bool, written.
 
     While every sample is kept the last kept one is the previous sample, so the innovations are
     computed for all samples at once; the samples near or over the threshold, and the run after a
@@ -276,11 +276,12 @@ def _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
     keep[:] = True
     if N == 0:
         return
-    # innovation of each sample from the previous one: nu_k = (e_k - a_k e_{k-1}) / (scale sqrt(1 - a_k^2)),
-    # a_k = exp(-dt_k / tau); e_k / scale on a white axis and for the first sample
+    scale = np.broadcast_to(np.asarray(scale, dtype=float), e.shape)  # each sample's scale
+    # innovation of each sample from the previous one: nu_k = (e_k - a_k e_{k-1}) / (scale_k sqrt(1 - a_k^2)),
+    # a_k = exp(-dt_k / tau); e_k / scale_k on a white axis and for the first sample
     nu = e / scale
     a, b = ar1_terms(np.diff(t)[:, None] * inv_tau, 1.0)  # a_k, 1 - a_k^2 of dt_k / tau
-    corr = (e[1:] - a * e[:-1]) / (scale * np.sqrt(b))
+    corr = (e[1:] - a * e[:-1]) / (scale[1:] * np.sqrt(b))
     nu[1:] = np.where(inv_tau == 0.0, nu[1:], corr)
     near = np.abs(nu).max(axis=1) > thr * (1.0 - 1e-9)  # decided exactly below
     near |= ~np.isfinite(nu).all(axis=1)
@@ -307,10 +308,10 @@ def _big(e, t, inv_tau, scale, thr, k: int, last: int) -> bool:
     """Whether sample k's innovation from sample `last` (-1: none) exceeds `thr` on any axis."""
     for j in range(3):
         if inv_tau[j] == 0.0 or last < 0:
-            nu = e[k, j] / scale[j]
+            nu = e[k, j] / scale[k, j]
         else:
             a, b = ar1_terms((t[k] - t[last]) * inv_tau[j], 1.0)  # a_k, 1 - a_k^2
-            nu = (e[k, j] - float(a) * e[last, j]) / (scale[j] * math.sqrt(float(b)))
+            nu = (e[k, j] - float(a) * e[last, j]) / (scale[k, j] * math.sqrt(float(b)))
         if abs(nu) > thr:
             return True
     return False

@@ -36,6 +36,7 @@ zero columns are left out (they are unidentifiable by definition).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar, Mapping, Sequence
 
@@ -52,7 +53,7 @@ from casep.regression.linalg import (
     reduce_qr,
     unidentifiable_reasons,
 )
-from casep.regression.problem import Problem
+from casep.regression.problem import Problem, rounding_level
 from casep.results import Completed, deprecated_alias
 
 __all__ = ["Diagnostics", "diagnose", "diagnose_noise", "crlb_covariance", "collinearity", "ar1_whiten",
@@ -341,6 +342,20 @@ def _scales(names: Sequence[str], prior_std: np.ndarray | None, scales: Mapping 
     return out
 
 
+def _bound(S: Any, red: ReducedSystem, ra: RankAnalysis, sigma: float, t: np.ndarray | None, tau: float | None,
+           prior_std: np.ndarray | None, rcond: float | None, prior_information: np.ndarray | None,
+           mask: bool) -> np.ndarray:
+    """:func:`diagnose`'s bound (white: from the reduction already made; Gauss-Markov: :func:`crlb_covariance`),
+    as the fit's: a column at the rounding level (the rank analysis' ``rounding``) is a zero column."""
+    rounding = ra.rounding if ra.rounding is not None and ra.rounding.any() else None
+    if tau is None:
+        red_b = red if rounding is None else replace(red, R=np.where(rounding, 0.0, red.R))
+        return _crlb_from_reduction(red_b, sigma, prior_std, rcond, prior_information, mask)
+    S_b = S.sv() if isinstance(S, Problem) else np.asarray(S, dtype=float)
+    return crlb_covariance(S_b if rounding is None else np.where(rounding, 0.0, S_b), sigma, t=t, tau=tau,
+                           prior_std=prior_std, rcond=rcond, prior_information=prior_information, mask=mask)
+
+
 def _partner_bound(bound: Any, pbnd: PartnerBound | None, ra: RankAnalysis, names: Sequence[str],
                    units: Sequence[str]) -> tuple[np.ndarray, dict[str, str]]:
     """The bound's covariance (``bound(mask)``: NaN rows for the unidentifiable when `mask`) and, with `pbnd`, that
@@ -411,7 +426,10 @@ def diagnose(
         units = ("",) * n if units is None else tuple(units)
         yy = np.zeros(S.shape[:2]) if y is None else np.asarray(y, dtype=float)
         red = reduce_qr(S, yy)
-        ra = analyze_rank(red, rcond)
+        # the declared magnitudes (`scales`), as a Problem's rank analysis takes them: a column at the rounding level
+        # relative to them counts as zero (casep.regression.linalg.rounding_columns)
+        mags = None if not scales else [None if scales.get(nm) is None else float(scales[nm]) for nm in names]
+        ra = analyze_rank(red, rcond, magnitudes=mags, rounding_level=rounding_level)
     if len(names) != n or len(units) != n:
         raise ValueError(f"`names` and `units` must have {n} entries")
     if sigma is None:
@@ -434,12 +452,7 @@ def diagnose(
     pbnd = PartnerBound.of(red, ra, [sc.get(n) for n in names]) \
         if prior_std is None and prior_information is None else None
 
-    def bound(mask: bool) -> np.ndarray:
-        if tau is None:  # white: the bound from the reduction already made
-            return _crlb_from_reduction(red, sigma, prior_std, rcond, prior_information, mask)
-        return crlb_covariance(S.sv() if isinstance(S, Problem) else S, sigma, t=t, tau=tau, prior_std=prior_std,
-                               rcond=rcond, prior_information=prior_information, mask=mask)
-
+    bound = functools.partial(_bound, S, red, ra, sigma, t, tau, prior_std, rcond, prior_information)
     cov, partner_notes = _partner_bound(bound, pbnd, ra, names, units)
     reasons = unidentifiable_reasons(ra, names)
     sd = np.sqrt(np.diag(cov))

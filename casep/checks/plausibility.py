@@ -649,11 +649,11 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
 def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5, locate=None) -> None:
     """Name the rows whose residual spikes above :data:`OUTLIER_Z` robust sigma of their own stretch.
 
-    Each stretch of the tracking (:func:`casep.checks.tracking_quality.stretches`: split at its pauses) is judged
+    Each stretch of the tracking (:func:`casep.noise.robust.stretches`: split at its pauses) is judged
     by its own noise level: one sigma over a quiet pad and a noisy flight after a reacquisition (0.06 against
     1.7 m/s) is the pad's, and would name every flight epoch an outlier. A stretch too short for a noise level of
     its own is not judged; rows without times (a problem from arrays) are one stretch."""
-    from casep.checks.tracking_quality import stretches
+    from casep.noise.robust import stretches
 
     timed = np.ndim(t) == 1 and len(t) == len(r)
     hits = []

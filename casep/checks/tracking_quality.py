@@ -23,7 +23,9 @@ finds, on a telemetry + tracking pair formed at the tracking times:
   the std scaled up by the line's reduced chi-square when the windows disagree more than their own
   std say (instrument errors the quadratics leave in bias each window differently). A slope beyond
   :data:`DRIFT_MIN_PPM` and 4 std is warned about (a single ``dt_trk`` does not model it);
-  otherwise the figures are recorded.
+  otherwise the figures are recorded. On a fit's residuals, where too few windows see an offset (a boost and a
+  coast: the coast's acceleration barely changes), the whole flight is fitted at once, ``a (tau + eps t)``
+  beside a constant per axis: the coast's steady acceleration carries the drift's ramp.
 
 - **noise that changes between stretches** (stretches: the kept epochs split at pauses of
   :data:`MIN_SEGMENT_S` or more): the robust scatter of ``d(dv)`` per stretch (the median change
@@ -48,7 +50,7 @@ from casep._kernels import ar1_long_run_factor
 from casep.checks.time_offset import kinematic_acceleration
 from casep.exceptions import TrackingQualityWarning
 from casep.io.flight import FlightData
-from casep.noise.robust import MAD_SIGMA
+from casep.noise.robust import MAD_SIGMA, MIN_SEGMENT_S, stretches
 
 __all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "clock_drift_unmeasured",
            "fit_clock_drift", "clock_drift_record", "stretches", "stretch_noise", "noise_problem",
@@ -62,10 +64,9 @@ STALE_MOTION = 0.5
 #: The physics check: a jump of dv between consecutive epochs above JUMP_TOL + JUMP_RATE dt (m/s, m/s^2) ...
 JUMP_TOL = 10.0
 JUMP_RATE = 2.0
-#: ... cuts the epochs into segments; a segment shorter than this (s) is left out.
-MIN_SEGMENT_S = 3.0
-#: A stretch has a noise level of its own with this many epochs or more (:func:`stretches`).
-MIN_STRETCH_EPOCHS = 5
+#: ... cuts the epochs into segments; a segment shorter than MIN_SEGMENT_S (s) is left out, and a pause that long
+#: splits them into stretches with a noise level each (:func:`casep.noise.robust.stretches`, the robust filter's
+#: split: one rule in the lower layer)
 #: A clock drift is warned about beyond this (ppm) and 4 std.
 DRIFT_MIN_PPM = 20.0
 #: Windows for the drift, and the least spread of the acceleration (m/s^2) that lets a window see an offset.
@@ -195,7 +196,9 @@ def _impossible(t: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, float]:
 
 def clock_drift(t: np.ndarray, dv: np.ndarray, a: np.ndarray, windows: int = DRIFT_WINDOWS,
                 order: int = 2) -> tuple[float, float]:
-    """The drift of the tracking time offset, ppm, and its std (module notes); NaN when fewer than 2 windows see it.
+    """The drift of the tracking time offset, ppm, and its std (module notes); on a fit's residuals (`order` 0) where
+    fewer than :data:`DRIFT_MIN_WINDOWS` windows see an offset, the whole flight at once
+    (:func:`_whole_flight_drift`: a boost and a coast); NaN when neither sees it.
 
     Parameters
     ----------
@@ -215,27 +218,12 @@ def clock_drift(t: np.ndarray, dv: np.ndarray, a: np.ndarray, windows: int = DRI
     for lo, hi, k in _drift_windows(t, a, windows):
         if k is None:
             continue
-        tm = 0.5 * (lo + hi)
-        n = int(k.sum())
-        m = order + 1  # trend terms per axis
-        A = np.zeros((3 * n, 3 * m + 1))
-        for j in range(3):  # rows of axis j: its own polynomial trend, and the shared offset
-            for p in range(m):
-                A[j::3, m * j + p] = ((t[k] - tm) / (hi - lo)) ** p
-            A[j::3, -1] = a[k, j]
-        y = dv[k].reshape(-1)
-        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-        r = (y - A @ coef).reshape(n, 3)
-        # correlated noise (Gauss-Markov, instrument errors the quadratics leave): the white-noise variance of the
-        # offset times the AR(1) long-run factor (1 + rho) / (1 - rho) of the residuals, rho their lag-1
-        # autocorrelation pooled over the axes
-        long_run = float(ar1_long_run_factor(np.sum(r[1:] * r[:-1]), np.sum(r[:-1] ** 2)))
-        cov = np.linalg.pinv(A.T @ A) * float(np.sum(r**2)) / max(3 * n - A.shape[1], 1) * long_run
-        centre.append(tm)
+        coef, cov = _offset_fit(t[k], dv[k], a[k], lo, hi, order)
+        centre.append(0.5 * (lo + hi))
         tau.append(coef[-1])
         var.append(cov[-1, -1])
     if len(tau) < DRIFT_MIN_WINDOWS:
-        return math.nan, math.nan
+        return _whole_flight_drift(t, dv, a, order)
     w = 1.0 / np.maximum(np.asarray(var), 1e-30)
     X = np.column_stack([np.ones(len(tau)), np.asarray(centre) - np.mean(centre)])
     cov = np.linalg.inv(X.T @ (w[:, None] * X))
@@ -243,6 +231,61 @@ def clock_drift(t: np.ndarray, dv: np.ndarray, a: np.ndarray, windows: int = DRI
     res = np.asarray(tau) - X @ line
     birge = max(1.0, float(np.sum(w * res**2)) / (len(tau) - 2))  # the windows disagree more than their std say:
     return float(line[1]) * 1e6, math.sqrt(cov[1, 1] * birge) * 1e6  # errors the trends left in, the std grow
+
+
+def _offset_fit(t: np.ndarray, dv: np.ndarray, a: np.ndarray, lo: float, hi: float, order: int,
+                drift: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The least-squares fit of one window (epochs `t` in ``[lo, hi]``): ``dv`` ~ each axis' polynomial trend of
+    degree `order` + ``a tau`` (+ ``a (t - t_mid) eps`` with `drift`), its coefficients (``tau`` then ``eps``
+    last) and their covariance. Correlated noise (Gauss-Markov, instrument errors the trends leave): the
+    white-noise covariance times the AR(1) long-run factor ``(1 + rho) / (1 - rho)`` of the residuals, ``rho``
+    their lag-1 autocorrelation pooled over the axes."""
+    tm = 0.5 * (lo + hi)
+    n, m = t.size, order + 1  # trend terms per axis
+    A = np.zeros((3 * n, 3 * m + 1 + int(drift)))
+    for j in range(3):  # rows of axis j: its own polynomial trend, and the shared offset (and its drift)
+        for p in range(m):
+            A[j::3, m * j + p] = ((t - tm) / (hi - lo)) ** p
+        A[j::3, 3 * m] = a[:, j]
+        if drift:
+            A[j::3, 3 * m + 1] = a[:, j] * (t - tm)
+    y = dv.reshape(-1)
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    r = (y - A @ coef).reshape(n, 3)
+    long_run = float(ar1_long_run_factor(np.sum(r[1:] * r[:-1]), np.sum(r[:-1] ** 2)))
+    return coef, np.linalg.pinv(A.T @ A) * float(np.sum(r**2)) / max(3 * n - A.shape[1], 1) * long_run
+
+
+def _whole_flight_drift(t: np.ndarray, dv: np.ndarray, a: np.ndarray, order: int) -> tuple[float, float]:
+    """The drift (ppm, std) from the whole flight at once, where too few windows see an offset (a boost and a
+    coast: the acceleration changes in the boost only): one fit of ``a (tau + eps (t - t_mid))`` beside a
+    constant per axis (:func:`_offset_fit` over the whole span, `eps` the drift). On a fit's residuals only
+    (`order` 0, :func:`fit_clock_drift`): on the raw dv a trend per axis over the whole flight does not hold the
+    instrument errors, whose dv follows the acceleration too. NaN where `order` is not 0 or the whole flight does
+    not see a drift (:func:`_whole_flight_unseen`)."""
+    if order != 0 or _whole_flight_unseen(t, a):
+        return math.nan, math.nan
+    coef, cov = _offset_fit(t, dv, a, float(t[0]), float(t[-1]), 0, drift=True)
+    return float(coef[-1]) * 1e6, math.sqrt(max(float(cov[-1, -1]), 0.0)) * 1e6
+
+
+def _whole_flight_unseen(t: np.ndarray, a: np.ndarray, windows: int = DRIFT_WINDOWS) -> str:
+    """Why the whole flight at once (:func:`_whole_flight_drift`) does not see a drift, or an empty string: its
+    acceleration must spread by :data:`DRIFT_MIN_ACCEL` (the offset apart from the constants), and be that large
+    (median norm) over :data:`DRIFT_MIN_EPOCHS` epochs or more in :data:`DRIFT_MIN_WINDOWS` of the windows (the
+    drift's ramp ``a eps t`` over a span: a coast's steady acceleration carries it, a pad's none)."""
+    spread = float(np.max(np.ptp(a, axis=0))) if t.size else 0.0
+    if not spread >= DRIFT_MIN_ACCEL:
+        return f"over the whole flight the acceleration spreads by {spread:.2g} m/s^2"
+    edges = np.linspace(t[0], t[-1], windows + 1)
+    carry = 0
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        k = (t >= lo) & (t <= hi)
+        carry += int(k.sum() >= DRIFT_MIN_EPOCHS and np.median(np.linalg.norm(a[k], axis=1)) >= DRIFT_MIN_ACCEL)
+    if carry < DRIFT_MIN_WINDOWS:
+        return (f"nor the whole flight at once: its acceleration is {DRIFT_MIN_ACCEL:g} m/s^2 or more over "
+                f"{DRIFT_MIN_EPOCHS} epochs in {carry} of the windows, {DRIFT_MIN_WINDOWS} needed")
+    return ""
 
 
 def _drift_windows(t: np.ndarray, a: np.ndarray, windows: int = DRIFT_WINDOWS
@@ -284,18 +327,9 @@ def clock_drift_unmeasured(t: np.ndarray, a: np.ndarray, windows: int = DRIFT_WI
     if still:
         parts.append(f"in {len(still)} the acceleration spreads by less than {DRIFT_MIN_ACCEL:g} m/s^2, so a "
                      f"time offset does not show ({', '.join(still)})")
+    whole = _whole_flight_unseen(t, a, windows)
     return (f"only {seen} of the {windows} windows the tracking's time span is cut into see a time offset, "
-            f"{DRIFT_MIN_WINDOWS} needed: {'; '.join(parts)}")
-
-
-def stretches(t: np.ndarray) -> list[tuple[int, int]]:
-    """The stretches of the epochs `t` (s, increasing): ``(first, stop)`` index ranges split at pauses of
-    :data:`MIN_SEGMENT_S` or more, each with :data:`MIN_STRETCH_EPOCHS` epochs or more (fewer give no noise level
-    of their own): the split every per-stretch noise level uses."""
-    t = np.asarray(t, dtype=float)
-    cut = np.flatnonzero(np.diff(t) >= MIN_SEGMENT_S) + 1
-    return [(int(a), int(b)) for a, b in zip(np.concatenate([[0], cut]), np.concatenate([cut, [t.size]]))
-            if b - a >= MIN_STRETCH_EPOCHS]
+            f"{DRIFT_MIN_WINDOWS} needed: {'; '.join(parts)}" + (f"; {whole}" if whole else ""))
 
 
 def stretch_noise(t: np.ndarray, dv: np.ndarray) -> list[tuple[float, float, int, float]]:

@@ -35,7 +35,8 @@ import numpy as np
 from casep._kernels import ar1_terms
 from casep.noise.model import NoiseModel
 
-__all__ = ["ROBUST_FUNCTIONS", "RobustWeights", "robust_filter", "HUBER_C", "BISQUARE_C", "REJECT", "MAX_RUN"]
+__all__ = ["ROBUST_FUNCTIONS", "RobustWeights", "robust_filter", "stretches", "HUBER_C", "BISQUARE_C", "REJECT",
+           "MAX_RUN", "MIN_SEGMENT_S", "MIN_STRETCH_EPOCHS"]
 
 ROBUST_FUNCTIONS = ("huber", "bisquare")
 HUBER_C = 1.345
@@ -44,6 +45,23 @@ BISQUARE_C = 4.685
 REJECT = 4.0
 #: Consecutive rejections after which the filter accepts again (a step, not a glitch).
 MAX_RUN = 10
+#: A pause of the tracking this long or more (s) splits its epochs into stretches (:func:`stretches`); the tracking
+#: screen also leaves out a segment between jumps shorter than this
+#: (:mod:`casep.checks.tracking_quality`).
+MIN_SEGMENT_S = 3.0
+#: A stretch has a noise level of its own with this many epochs or more (:func:`stretches`).
+MIN_STRETCH_EPOCHS = 5
+
+
+def stretches(t: np.ndarray) -> list[tuple[int, int]]:
+    """The stretches of the epochs `t` (s, increasing): ``(first, stop)`` index ranges split at pauses of
+    :data:`MIN_SEGMENT_S` or more, each with :data:`MIN_STRETCH_EPOCHS` epochs or more (fewer give no noise level
+    of their own): the split every per-stretch noise level uses (the robust filter's scale, the outlier check,
+    the tracking screen's noise per stretch)."""
+    t = np.asarray(t, dtype=float)
+    cut = np.flatnonzero(np.diff(t) >= MIN_SEGMENT_S) + 1
+    return [(int(a), int(b)) for a, b in zip(np.concatenate([[0], cut]), np.concatenate([cut, [t.size]]))
+            if b - a >= MIN_STRETCH_EPOCHS]
 MAD_SIGMA = 1.482602218505602  # sigma = MAD / Phi^-1(3/4)
 
 
@@ -58,15 +76,25 @@ class RobustWeights:
     weights : (N, 3) ndarray
         Weight of each kept sample's axis row (1 for rejected samples: unused).
     u : (N, 3) ndarray
-        Standardized innovations ``nu / s``.
+        Standardized innovations ``nu / s_k``, each by the scale of its stretch.
     scale : float
-        Robust scale ``s`` of the innovations (in units of the x-axis noise std).
+        Robust scale ``s`` of the innovations (in units of the x-axis noise std), over the whole flight.
+    precision : (N,) ndarray, optional
+        Each sample's ``(s / s_k)^2``, ``s_k`` the scale of its stretch of the tracking (:func:`stretches`): the
+        weight that whitens its rows to the scale ``s`` (default 1 everywhere); the rows a fit solves carry it
+        times `weights`.
     """
 
     keep: np.ndarray
     weights: np.ndarray
     u: np.ndarray
     scale: float
+    precision: np.ndarray | None = None
+
+    @property
+    def row_weights(self) -> np.ndarray:
+        """The weights of the rows a fit solves: `weights` times `precision`."""
+        return self.weights if self.precision is None else self.weights * self.precision[:, None]
 
     @property
     def rejected(self) -> np.ndarray:
@@ -109,7 +137,10 @@ def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, fu
         Correlation time and relative scale per axis.
     function : {"huber", "bisquare"}
     scale : float, optional
-        Known innovation scale (the x-axis noise std, m/s); default 1.4826 MAD of the innovations.
+        Known innovation scale (the x-axis noise std, m/s); default 1.4826 MAD of the innovations, per stretch of
+        the tracking (:func:`stretches`: split at its pauses, as the outlier check judges them), so that a noisier
+        stretch after a reacquisition is judged by its own noise, not the quiet one's, and its rows weighted by it
+        (``precision``); epochs outside a stretch take the whole flight's.
     reject : float, optional
         Rejection threshold in scale units (default :data:`REJECT` for Huber, ``c`` for bisquare).
     floor : float, optional
@@ -127,24 +158,33 @@ def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, fu
     # pass 1: innovations from the previous sample; scale from their MAD (glitches are few)
     keep = np.ones(N, dtype=bool)
     nu = _innovations(e, t, noise, keep)
-    s = float(scale) if scale is not None else float(MAD_SIGMA * np.median(np.abs(nu - np.median(nu, axis=0))))
+    s = float(scale) if scale is not None else _mad_scale(nu)
     s = max(s, float(floor))  # s = max(1.4826 MAD, floor)
     if not s > 0:
         return RobustWeights(keep, np.ones_like(e), np.zeros_like(e), 0.0)
+    sk = np.full(N, s)  # each sample's scale: its stretch's (a stretch without scatter of its own: the flight's)
+    if scale is None and N == t.size:
+        for a, b in stretches(t):
+            sk[a:b] = max(_mad_scale(nu[a:b]), float(floor)) or s
     # pass 2: sequential, from the last accepted sample (a rejected one is a gap)
-    keep = _sequential(e, t, noise, s, thr)
+    keep = _sequential(e, t, noise, sk, thr)
     nu = _innovations(e, t, noise, keep)
-    u = nu / s
+    u = nu / sk[:, None]
     au = np.abs(u)
     if function == "huber":
         w = np.minimum(1.0, c / np.maximum(au, 1e-300))  # w = min(1, c / |u|)
     else:
         w = np.where(au < c, (1.0 - (u / c) ** 2) ** 2, 0.0)  # Tukey's bisquare
     w[~keep] = 1.0
-    return RobustWeights(keep, w, u, s)
+    return RobustWeights(keep, w, u, s, None if np.all(sk == s) else (s / sk) ** 2)
 
 
-def _sequential(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: float, thr: float) -> np.ndarray:
+def _mad_scale(nu: np.ndarray) -> float:
+    """1.4826 MAD of innovations ``(n, 3)`` (their median per axis removed), all axes together."""
+    return float(MAD_SIGMA * np.median(np.abs(nu - np.median(nu, axis=0))))
+
+
+def _sequential(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: np.ndarray, thr: float) -> np.ndarray:
     """Keep mask of the sequential filter (compiled: :func:`casep._kernels.robust_filter_keep`), its start
     decided backward.
 
@@ -158,18 +198,18 @@ def _sequential(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: float, thr: 
     keep = _forward(e, t, noise, s, thr)
     if keep.size == 0 or keep[0]:
         return keep  # the first sample has no prediction but passed: nothing to decide backward
-    back = _forward(e[::-1], t[-1] - t[::-1], noise, s, thr)[::-1]  # the time-reversed filter
+    back = _forward(e[::-1], t[-1] - t[::-1], noise, s[::-1], thr)[::-1]  # the time-reversed filter
     both = np.flatnonzero(keep & back)
     if both.size:
         keep[:both[0]] = back[:both[0]]
     return keep
 
 
-def _forward(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: float, thr: float) -> np.ndarray:
+def _forward(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: np.ndarray, thr: float) -> np.ndarray:
     from casep._kernels import robust_filter_keep
 
     inv_tau = np.array([0.0 if tau is None else 1.0 / tau for tau in noise.tau])
-    scale = s * np.asarray(noise.scale, dtype=float)
+    scale = np.asarray(s, dtype=float)[:, None] * np.asarray(noise.scale, dtype=float)  # (N, 3): each sample's
     keep = np.ones(e.shape[0], dtype=np.bool_)
     robust_filter_keep(np.ascontiguousarray(e, dtype=float), np.ascontiguousarray(t, dtype=float), inv_tau, scale,
                        float(thr), MAX_RUN, keep)

@@ -178,6 +178,9 @@ class JointProblem(Problem):
         super().__init__(names=layout.joint_names, units=units, si_factors=si, red=red, y=y,
                          model=problems[0].model, source=" + ".join(p.source for p in problems), row_unit="")
         self.problems = tuple(problems)
+        # the flights' declared magnitudes (a per-flight name[label] finds its model name's): the rank analysis of
+        # the joint reduction counts a column at the rounding level relative to them as zero, as one flight's does
+        self.magnitudes = dict(problems[0].magnitudes)
         self.raw = tuple(raw) if raw is not None else self.problems
         self.interpolated = tuple(bool(v) for v in interpolated) if interpolated else (False,) * len(problems)
         self.sigmas = tuple(float(s) for s in sigmas)

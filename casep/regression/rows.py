@@ -241,7 +241,7 @@ def _robust(problem, nm, noise, tau, function):
             refits += 1
             rw = robust_filter(r, problem.t, nm, function=function, floor=floor)
         changed = not np.array_equal(rw.keep, keep)
-        keep, weights = rw.keep, rw.weights
+        keep, weights = rw.keep, rw.row_weights  # each stretch's rows at its own noise level, robustly weighted
         x_new, sd = _ls(_rows(problem, keep, nm, weights))
         move = float(np.max(np.abs(x_new - x) / sd))
         x = x_new
@@ -251,23 +251,29 @@ def _robust(problem, nm, noise, tau, function):
     if tau is not None and noise != "white" and not keep.all():  # given tau: the scales and sigma on the kept rows
         nm = _noise_model(problem.subset(keep), noise, tau)
     kept_noise_free = (problem if keep.all() else problem.subset(keep)).is_noise_free()  # then sigma estimated
-    sigma = _robust_sigma(rw, keep, function, _row_scale(problem, keep, nm, x)) \
+    sigma = _robust_sigma(rw, keep, function, _row_scale(problem, keep, nm, x, rw.precision if rw else None)) \
         if rw is not None and not kept_noise_free else None
     info = {"function": function, "iterations": len(history), "rejected_count": int((~keep).sum()),
             "scale": rw.scale if rw is not None else None, "sigma_effective": sigma,
-            "downweighted": int(np.sum(weights[keep] < 1.0)) if weights is not None else 0,
+            "downweighted": int(np.sum(rw.weights[keep] < 1.0)) if rw is not None else 0,
             "rejected_runs": rejected_runs(keep),
             "noise_refits": refits, "history": history}
     return nm, keep, weights, info
 
 
-def _row_scale(problem: Problem, keep: np.ndarray, nm: NoiseModel, x: np.ndarray) -> float:
+def _row_scale(problem: Problem, keep: np.ndarray, nm: NoiseModel, x: np.ndarray,
+               precision: np.ndarray | None = None) -> float:
     """Robust scale (1.4826 MAD) of the kept samples' residuals on the exactly whitened rows, the rows the
-    methods solve. On an axis with a white part the robust filter's innovations are those of the Gauss-Markov
-    part alone, several times wider than the exact (Kalman) innovations: their scale is not the rows' own."""
+    methods solve (each times the square root of its stretch's `precision`, :class:`casep.noise.robust.
+    RobustWeights`: at the one scale). On an axis with a white part the robust filter's innovations are those of
+    the Gauss-Markov part alone, several times wider than the exact (Kalman) innovations: their scale is not the
+    rows' own."""
     from casep.noise.robust import MAD_SIGMA
 
-    r = _rows(problem, keep, nm, None).residuals(x).reshape(-1)
+    per_sample = _rows(problem, keep, nm, None).residuals(x).reshape(-1, 3)
+    if precision is not None:
+        per_sample = per_sample * np.sqrt(precision[keep])[:, None]
+    r = per_sample.reshape(-1)
     return float(MAD_SIGMA * np.median(np.abs(r - np.median(r))))
 
 

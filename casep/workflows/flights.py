@@ -27,7 +27,7 @@ import numpy as np
 from casep.checks.flight import flight_problem
 from casep.estimators.registry import METHODS, STATUS_DISAGREE
 from casep.estimators.result import EstimateResult
-from casep.estimators.solve import fit, flight_sigmas, joint_rows
+from casep.estimators.solve import JointRows, fit, flight_sigmas, joint_rows
 from casep.estimators.spec import FitSpec
 from casep.regression.joint import Flights, JointLayout, JointProblem
 from casep.regression.problem import Problem
@@ -67,7 +67,11 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
 
     The flights become one :class:`~casep.regression.joint.Flights` fitted through the one entry point
     :func:`casep.estimators.solve.fit`, so every rule of the request (noise model per flight and axis, tau,
-    robust fit, std kind, outlier exclusion and flags, de-noising) applies to each flight as to one alone.
+    robust fit, std kind, outlier exclusion and flags, de-noising) applies to each flight as to one alone. The
+    time-offset rules of one flight too: with ``dt_trk`` (one per flight), each one-file flight's samples whose
+    tracking straddles a step of the acceleration are left out (:func:`casep.workflows.separate.free_step_samples`,
+    ``settings["step_samples_left_out"]``); pairs of files get ``dt_trk`` when their residuals show an offset
+    and are re-paired at it (:func:`casep.workflows.separate.refit_on_offset`).
 
     Parameters
     ----------
@@ -118,24 +122,31 @@ def separate_flights(flights: Sequence, model, method: str = "ols", *, sigma: fl
     from casep.io.files import read_flight
     from casep.io.flight import FlightData
     from casep.model.loader import TIME_OFFSET
-    from casep.workflows.separate import LOCATING_FIT, refit_on_offset, repair_on_offset
+    from casep.workflows.separate import LOCATING_FIT, free_step_samples, refit_on_offset, repair_on_offset
 
     flights = [fl if isinstance(fl, (FlightData, Problem)) else read_flight(fl) for fl in flights]  # read once
     box: dict[str, Any] = {}
 
+    def fit_freeing(fls: Sequence, fit_time_offset: bool | None) -> EstimateResult:
+        # the rule of one flight: with dt_trk, each one-file flight's samples at a step of the acceleration left out
+        def fit_at(f: Sequence) -> tuple[EstimateResult, JointRows]:
+            return _joint_fit(f, model, fit_time_offset, spec, sigma, box, labels)(), box["rows"]
+
+        res, box["rows"], _ = free_step_samples(fls, fit_at)
+        return res
+
     def fit_at(fls: Sequence, quick: bool = False) -> EstimateResult:  # the fit with dt_trk of the flights given
         if quick:
             return _joint_fit(fls, model, True, LOCATING_FIT, sigma, {}, labels, checks=False)()
-        return _joint_fit(fls, model, True, spec, sigma, box, labels)()
+        return fit_freeing(fls, True)
 
     if fit_time_offset is not None and not fit_time_offset:  # the caller decided
-        return _joint_fit(flights, model, False, spec, sigma, box, labels)(), box["rows"].joint
+        return fit_freeing(flights, False), box["rows"].joint
     if fit_time_offset:
         return repair_on_offset(flights, fit_at), box["rows"].joint
     # the rule of one flight (refit_on_offset): pairs of files whose residuals show an offset get dt_trk, re-paired
     # at the offset found when the linearised dt_trk does not hold it (repair_on_offset)
-    first = _joint_fit(flights, model, None, spec, sigma, box, labels)
-    res = refit_on_offset(first, _joint_fit(flights, model, True, spec, sigma, box, labels),
+    res = refit_on_offset(lambda: fit_freeing(flights, None), lambda: fit_freeing(flights, True),
                           wanted=lambda: TIME_OFFSET not in box["model"].names and any(box["paired_files"]),
                           flights=lambda: flights, fit_at=fit_at)
     return res, box["rows"].joint

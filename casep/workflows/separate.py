@@ -286,7 +286,7 @@ def _fit_offset_if_found(flight: Any, problem: Problem, model: Any, spec: FitSpe
     (:func:`repair_on_offset`). Returns the result, its problem, model and flight (re-paired or as given)."""
     from casep.model.loader import TIME_OFFSET, with_time_offset
 
-    pair = isinstance(flight, FlightData) and isinstance(flight.meta, dict) and flight.meta.get("format") == "pair"
+    pair = isinstance(flight, FlightData) and not frees_steps(flight)
     box: dict[str, Any] = {"problem": problem, "model": model, "flight": flight}
 
     def fit_at(flights: Sequence[FlightData], quick: bool = False) -> EstimateResult:
@@ -298,7 +298,7 @@ def _fit_offset_if_found(flight: Any, problem: Problem, model: Any, spec: FitSpe
             box["flight"], box["problem"] = flights[0], pb
         return fit(pb, LOCATING_FIT, checks=False) if quick else fit(pb, spec)
 
-    if not pair and isinstance(model, ErrorModel) and TIME_OFFSET in model.names and isinstance(flight, FlightData):
+    if frees_steps(flight) and isinstance(model, ErrorModel) and TIME_OFFSET in model.names:
         res, problem, flight = _offset_fit_freeing_steps(flight, problem, model, spec)
         return res, problem, model, flight
     if not pair or not isinstance(model, ErrorModel) or (fit_time_offset is not None and not fit_time_offset):
@@ -314,40 +314,50 @@ def _offset_fit_freeing_steps(flight: FlightData, problem: Problem, model: Error
                               spec: FitSpec) -> tuple[EstimateResult, Problem, FlightData]:
     """:func:`fit` of a one-file flight whose model has ``dt_trk``, the samples at a step of the acceleration left
     out (:func:`free_step_samples`). Returns the result, its problem and flight."""
-    box: dict[str, Any] = {"problem": problem}
+    def fit_at(flights: Sequence[FlightData]) -> tuple[EstimateResult, Problem]:
+        pb = problem if flights[0] is flight else flight_problem(flights[0], model)
+        return fit(pb, spec), pb
 
-    def fit_at(flights: Sequence[FlightData]) -> EstimateResult:
-        if flights[0] is not flight:
-            box["problem"] = flight_problem(flights[0], model)
-        return fit(box["problem"], spec)
-
-    res, fitted = free_step_samples([flight], fit_at)
-    return res, box["problem"], fitted[0]
+    res, fitted_problem, fitted = free_step_samples([flight], fit_at)
+    return res, fitted_problem, fitted[0]
 
 
-def free_step_samples(flights: Sequence[FlightData],
-                      fit_at: Callable[[Sequence[FlightData]], EstimateResult]) -> tuple[EstimateResult, list]:
-    """``fit_at(flights)`` (one-file flights, a model with ``dt_trk``: one per flight), with the samples whose
-    tracking straddles a step of the acceleration (a burnout within one sample) at the offset found left out
-    (:func:`casep.checks.time_offset.step_rows`: the first-order ``a(t) dt_trk`` jumps there where ``v(t - dt)``
-    ramps, and under Gauss-Markov noise the offset is read mostly off that step), fitted again until they
-    settle. Returns the result (its message naming the samples left out) and the flights it was fitted on.
-    (:func:`casep.workflows.flights.separate_flights` does not call it yet: several flights fitted jointly keep
-    every sample.)"""
+def frees_steps(flight: Any) -> bool:
+    """Whether the samples of `flight` at a step of the acceleration are left out of a fit with ``dt_trk``
+    (:func:`free_step_samples`): a one-file flight (its specific force gives the kinematic acceleration); a pair
+    of files is re-paired at the offset instead (:func:`repair_on_offset`)."""
+    return isinstance(flight, FlightData) \
+        and not (isinstance(flight.meta, dict) and flight.meta.get("format") == "pair")
+
+
+def free_step_samples(flights: Sequence[Any],
+                      fit_at: Callable[[Sequence[Any]], tuple[EstimateResult, _T]]
+                      ) -> tuple[EstimateResult, _T, list]:
+    """``fit_at(flights)`` (a model with ``dt_trk``: one per flight), with the samples whose tracking straddles a
+    step of the acceleration (a burnout within one sample) at the offset found left out of each flight that
+    :func:`frees_steps` (:func:`casep.checks.time_offset.step_rows`: the first-order ``a(t) dt_trk`` jumps there
+    where ``v(t - dt)`` ramps, and under Gauss-Markov noise the offset is read mostly off that step), fitted again
+    until they settle. The rule of one flight and of several fitted jointly.
+
+    `fit_at` returns the result and what it was fitted on (its problem); only the last fit's warnings are said.
+    Returns the result (its message naming the samples left out, ``settings["step_samples_left_out"]`` their
+    indices per flight), what `fit_at` returned with it, and the flights it was fitted on.
+    """
     from casep.checks.time_offset import acceleration_steps, kinematic_acceleration, step_rows
 
-    res = fit_at(flights)
-    steps = [acceleration_steps(kinematic_acceleration(fl.t, fl.f)) for fl in flights]
+    (res, fitted_on), caught = _recorded(lambda: fit_at(flights))
     idx = _offset_columns(res.names)
-    if not any(st[0].size for st in steps) or len(idx) != len(flights):
-        return res, list(flights)
+    steps = [acceleration_steps(kinematic_acceleration(fl.t, fl.f)) if frees_steps(fl)
+             else (np.zeros(0, dtype=int), np.zeros(0)) for fl in flights] if len(idx) == len(flights) else []
+    if not any(st[0].size for st in steps):
+        return _replayed(res, caught), fitted_on, list(flights)
     free = [np.zeros(0, dtype=int) for _ in flights]
     fitted = list(flights)
     for _ in range(4):  # the samples left out follow the offsets found, which follow them: a few passes settle
         if res.std is None:  # a method without std: no bound to free the samples within
             break
         dt, sd = res.estimate[idx] * res.si_factors[idx], res.std[idx] * res.si_factors[idx]
-        rows = [np.zeros(0, dtype=int) if not (np.isfinite(d) and np.isfinite(e)) else
+        rows = [np.zeros(0, dtype=int) if not (st[0].size and np.isfinite(d) and np.isfinite(e)) else
                 (r := step_rows(fl.t, st, float(d), float(e)))[fl.observed[r]]
                 for fl, st, d, e in zip(flights, steps, dt, sd)]
         if all(np.array_equal(r, f) for r, f in zip(rows, free)) or \
@@ -356,7 +366,7 @@ def free_step_samples(flights: Sequence[FlightData],
         free = rows
         fitted = [fl if not r.size else dataclasses.replace(fl, observed=_without(fl.observed, r))
                   for fl, r in zip(flights, rows)]
-        res = fit_at(fitted)
+        (res, fitted_on), caught = _recorded(functools.partial(fit_at, fitted))
     said = [f"{r.size} sample(s) at a step of the acceleration left out"
             + (f" of {fl.source}" if len(flights) > 1 else "")
             + f" (t = {', '.join(f'{x:.10g}' for x in fl.t[r[:6]])}{' ...' if r.size > 6 else ''} s)"
@@ -364,8 +374,10 @@ def free_step_samples(flights: Sequence[FlightData],
     if said:
         note = ("; ".join(said) + ": the first-order dt_trk term a(t) dt_trk does not hold where the tracking "
                 "straddles the step")
-        res = dataclasses.replace(res, message=f"{res.message}; {note}")
-    return res, fitted
+        res = dataclasses.replace(res, message=f"{res.message}; {note}",
+                                  settings={**res.settings, "step_samples_left_out": [[int(k) for k in r]
+                                                                                       for r in free]})
+    return _replayed(res, caught), fitted_on, fitted
 
 
 def _without(observed: np.ndarray, rows: np.ndarray) -> np.ndarray:

@@ -57,3 +57,42 @@ def test_small_column_above_the_rounding_level_keeps_its_estimate():
 def test_no_declared_magnitude_no_rounding_rule():
     pb, _ = _problem(1e-16)
     assert not rounding_columns(pb.red, [1.0, 1.0, None], rounding_level).any()
+
+
+def test_joint_fit_counts_a_rounding_column_as_zero():
+    """Several flights fitted jointly (casep.regression.joint): the same rule on the joint reduction. Before: c got
+    a plain estimate from the two flights' rounding noise (the joint problem carried no declared magnitudes)."""
+    from casep.regression.joint import Flights, JointLayout, JointProblem
+
+    (pa, x), (pb, _) = _problem(1e-16, seed=0), _problem(1e-16, seed=1)
+    layout = JointLayout(("a", "b", "c"), [False, False, False], ("A", "B"))
+    assert list(JointProblem([pa, pb], [1.0, 1.0], layout).rank().zero) == [False, False, True]
+    res = _fit(Flights((pa, pb), layout))
+    assert np.allclose(res.estimate[:2], x[:2], rtol=0, atol=1e-12), res.estimate
+    assert not res.identifiable[2] and np.isnan(res.estimate[2]) and np.isnan(res.std[2])
+    assert "rounding level" in res.reasons["c"], res.reasons
+
+
+def test_diagnose_counts_a_rounding_column_as_zero():
+    """diagnose (``casep diagnose``: a flight's Problem, its noise model fitted; raw arrays with their `scales`; the
+    joint problem of several flights): no bound for the rounding column, the others' as without it. Before: c's
+    CRLB std 0.13 (the bound ignored the rank analysis' rounding columns; raw arrays and the joint problem did not
+    apply the rule at all)."""
+    from casep.checks.diagnostics import diagnose, diagnose_noise
+    from casep.regression.joint import JointLayout, JointProblem
+
+    pb, _ = _problem(1e-16)
+    without = diagnose(pb.sv()[:, :, :2], pb.y, names=("a", "b"), sigma=1e-3).crlb_std
+    scales = {"a": 1.0, "b": 1.0, "c": 1.0}
+    for d in (diagnose(pb, sigma=1e-3), diagnose(pb.sv(), pb.y, names=("a", "b", "c"), scales=scales, sigma=1e-3)):
+        assert np.isnan(d.crlb_std[2]) and d.identifiability["c"] == "unidentifiable"
+        assert "rounding level" in d.reasons["c"], d.reasons
+        np.testing.assert_allclose(d.crlb_std[:2], without, rtol=1e-9)
+    gm = diagnose(pb.sv(), pb.y, names=("a", "b", "c"), scales=scales, sigma=1e-3, t=pb.t, tau=5.0)
+    assert np.isnan(gm.crlb_std[2]) and np.all(np.isfinite(gm.crlb_std[:2]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # noise-free rows: the noise model at their rounding
+        assert np.isnan(diagnose_noise(pb, "white").crlb_std[2])
+    other, _ = _problem(1e-16, seed=1)
+    jp = JointProblem([pb, other], [1.0, 1.0], JointLayout(("a", "b", "c"), [False] * 3, ("A", "B")))
+    assert np.isnan(diagnose(jp, sigma=1.0).crlb_std[2])

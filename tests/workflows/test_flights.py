@@ -26,8 +26,20 @@ def two():
     return _flight(1, 20.0, 0.05), _flight(2, -7.0, 0.2)
 
 
+def _kept(flight, res, k):
+    """Flight `k`'s samples that the joint fit kept: all but those at the burnout's step of the acceleration that
+    the fit with dt_trk left out (the rule of one flight, casep.workflows.separate.free_step_samples), which must
+    be next to that step (samples 1051-1055 of the paper boost at 10 Hz)."""
+    out = np.ones(flight.t.size, dtype=bool)
+    left = res.settings["step_samples_left_out"][k]
+    assert left and min(left) >= 1049 and max(left) <= 1057, left
+    out[left] = False
+    return out
+
+
 def test_joint_ols_equals_weighted_stacked_least_squares(two):
-    """Independent construction: both flights' S_V with a dt_trk column each, weighted by 1/sigma_k."""
+    """Independent construction: both flights' S_V with a dt_trk column each, weighted by 1/sigma_k, without the
+    samples at the burnout's step that the joint fit left out (the same rows on both sides)."""
     a, b = two
     model = a.model
     with warnings.catch_warnings():
@@ -37,13 +49,14 @@ def test_joint_ols_equals_weighted_stacked_least_squares(two):
     n = model.n_coefficients
     blocks = []
     for k, sim in enumerate((a, b)):
+        keep = _kept(sim.flight, res, k)
         S = casep.build_sv(model, sim.flight.t, sim.flight.f,
-                           signals=sim.flight.model_signals(model.signals, model.name)).reshape(-1, n)
+                           signals=sim.flight.model_signals(model.signals, model.name))[keep].reshape(-1, n)
         big = np.zeros((S.shape[0], n + 1))
         shared = [c for c in range(n) if c != j]
         big[:, :n - 1] = S[:, shared]
         big[:, n - 1 + k] = S[:, j]
-        blocks.append((big / jp.sigmas[k], sim.flight.dv.reshape(-1) / jp.sigmas[k]))
+        blocks.append((big / jp.sigmas[k], sim.flight.dv[keep].reshape(-1) / jp.sigmas[k]))
     A = np.vstack([x for x, _ in blocks])
     y = np.concatenate([v for _, v in blocks])
     c = np.linalg.norm(A, axis=0)
@@ -305,7 +318,7 @@ def test_rls_in_sequence_over_flights_equals_the_joint_bayesian_estimate(two):
     np.testing.assert_allclose(res.estimate, ref.estimate, rtol=1e-7, atol=1e-9 * np.max(np.abs(ref.estimate)))
     np.testing.assert_allclose(res.std, ref.std, rtol=1e-6)
     # the history runs over both flights, flight 2's rows after flight 1's
-    assert jp.segment_starts == (0, a.flight.n_observed)
+    assert jp.segment_starts == (0, int(_kept(a.flight, res, 0).sum()))
 
 
 def test_gls_jointly_whitens_each_flight_with_its_own_tau(two):
@@ -322,10 +335,10 @@ def test_gls_jointly_whitens_each_flight_with_its_own_tau(two):
     n, j = model.n_coefficients, model.index("dt_trk")
     rows = []
     for k, sim in enumerate((a, b)):
-        fl = sim.flight
-        S = casep.build_sv(model, fl.t, fl.f, signals=fl.model_signals(model.signals, model.name))
-        Sw = ar1_whiten(S, fl.t, 1.0, taus[0]).reshape(-1, n)
-        yw = ar1_whiten(fl.dv[:, :, None], fl.t, 1.0, taus[0]).reshape(-1)
+        fl, keep = sim.flight, _kept(sim.flight, res, k)  # the samples at the burnout's step left out
+        S = casep.build_sv(model, fl.t, fl.f, signals=fl.model_signals(model.signals, model.name))[keep]
+        Sw = ar1_whiten(S, fl.t[keep], 1.0, taus[0]).reshape(-1, n)
+        yw = ar1_whiten(fl.dv[keep][:, :, None], fl.t[keep], 1.0, taus[0]).reshape(-1)
         big = np.zeros((Sw.shape[0], n + 1))
         shared = [c for c in range(n) if c != j]
         big[:, :n - 1], big[:, n - 1 + k] = Sw[:, shared], Sw[:, j]
@@ -335,14 +348,15 @@ def test_gls_jointly_whitens_each_flight_with_its_own_tau(two):
     c = np.linalg.norm(A, axis=0)
     ref = np.linalg.lstsq(A / c, y, rcond=None)[0] / c
     np.testing.assert_allclose(res.estimate, ref, rtol=1e-7, atol=1e-9 * np.max(np.abs(ref)))
-    # REML per flight: each flight's tau is its own GLS tau on the same rows (casep.separate of one flight with
-    # dt_trk also leaves out the samples at a step of the acceleration: the fit itself, not separate, here)
+    # REML per flight: each flight's tau is its own GLS tau on the same rows (those the joint fit kept: the fit
+    # itself, not separate, here, on each flight without the samples the joint fit left out at the burnout's step)
     from casep.checks.flight import flight_problem
     from casep.estimators.solve import fit
     from casep.estimators.spec import FitSpec
 
     auto, _ = _quiet(separate_flights, [a.flight, b.flight], model, "gls")
-    own = [_quiet(fit, flight_problem(f, model), FitSpec.build("gls")).extras.tau for f in (a.flight, b.flight)]
+    kept = [dataclasses.replace(f, observed=f.observed & _kept(f, auto, k)) for k, f in enumerate((a.flight, b.flight))]
+    own = [_quiet(fit, flight_problem(f, model), FitSpec.build("gls")).extras.tau for f in kept]
     np.testing.assert_allclose(list(auto.extras.flight_taus.values()), own, rtol=1e-9)
 
 
@@ -357,7 +371,8 @@ def test_huber_jointly_flags_an_outlier_in_one_flight_and_resists_it(two):
     spoilt, _ = _quiet(separate_flights, [a.flight, bad], a.model, "ols", noise="white", robust="none")
     rows = hub.extras.outliers["largest"]
     assert hub.extras.outliers["count"] >= 20
-    assert {(r["sample"], r["axis"]) for r in rows[:20]} == {(a.flight.n_observed + i, "y") for i in range(200, 220)}
+    first = int(_kept(a.flight, hub, 0).sum())  # flight 1's samples kept (those at the burnout's step left out)
+    assert {(r["sample"], r["axis"]) for r in rows[:20]} == {(first + i, "y") for i in range(200, 220)}
     label = hub.names[-1].split("[")[1].rstrip("]")  # flight 2's label, as in its dt_trk[...]
     assert {(r["flight"], r["flight_sample"]) for r in rows[:20]} == {(label, i) for i in range(200, 220)}
     assert 5 * np.max(np.abs(hub.estimate - ols.estimate) / ols.std) \
