@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -162,14 +163,16 @@ def _added(suggested: str, model: Any) -> str:
     from casep.model.loader import shipped_model
 
     names = getattr(model, "names", None)
-    other = shipped_model(suggested) if names is not None else None
+    if names is None:
+        return ""
+    other = shipped_model(suggested)
     if other is None:
         return ""
     added = [n for n in other.names if n not in set(names)]
     return f" (the {len(names)} terms of `{model.name}` and {', '.join(added)})"
 
 
-def _models(missing: list[tuple[str, tuple[str, ...]]], model: Any) -> str:
+def _models(missing: Sequence[tuple[str, Sequence[str]]], model: Any) -> str:
     """The models that add the missing initial terms, said: the first shipped one that keeps every coefficient of
     `model` (a model with fewer would trade the terms the data may need for the initial ones); when none does, the
     term added to a copy of `model` (the shipped file showing how); a term no shipped model of the flight's kind has."""

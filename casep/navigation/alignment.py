@@ -145,9 +145,9 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
     ------
     ValueError
         Fewer than 2 samples in the window, a mean specific force more than `accel_bias_tolerance` from
-        the normal gravity (not at rest, or not in m/s^2: the message says which fits), rates in deg/s (the pad rate is the Earth rate times
-        57.3), a heading axis within 2 deg of the vertical, or gyros that cannot find north (heading
-        known worse than 30 deg).
+        the normal gravity (not at rest, or not in m/s^2: the message says which fits), rates in deg/s
+        (the pad rate is the Earth rate times 57.3), a heading axis within 2 deg of the vertical, or gyros
+        that cannot find north (heading known worse than 30 deg).
     """
     from casep.gravity import normal_gravity_ecef
     from casep.navigation.imu import time_step_problem

@@ -117,12 +117,12 @@ def _check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite) -> N
             deg = rate * np.pi / 180.0
             hint = (f"; divided by 57.2958 it is {deg:.3g} rad/s ({np.degrees(deg):.3g} deg/s), a gyro bias: the rates "
                     "look like deg/s, give rad/s (multiply by pi/180)" if deg <= MAX_PAD_RATE else "")
-            raise ValueError(f"--align {t1:g} {t2:g}: {imu.source}: columns {cols}, rows {rows[0] + 1}-{rows[-1] + 1}: "
-                             f"mean body rate {rate:.4g} rad/s ({np.degrees(rate):.4g} deg/s) over the {T:.3g} s window "
-                             f"declared at rest, beyond the {MAX_PAD_RATE:g} rad/s bias of any gyro that navigates, "
-                             f"and the navigated speed reaches {drift:.3g} m/s in it, above the {allowed:.3g} m/s its "
-                             f"sensors allow: the navigation is wrong from its first seconds{hint}; or the vehicle "
-                             "turned in the window (give a window at rest)")
+            raise ValueError(f"--align {t1:g} {t2:g}: {imu.source}: columns {cols}, rows {rows[0] + 1}-"
+                             f"{rows[-1] + 1}: mean body rate {rate:.4g} rad/s ({np.degrees(rate):.4g} deg/s) over "
+                             f"the {T:.3g} s window declared at rest, beyond the {MAX_PAD_RATE:g} rad/s bias of any "
+                             f"gyro that navigates, and the navigated speed reaches {drift:.3g} m/s in it, above the "
+                             f"{allowed:.3g} m/s its sensors allow: the navigation is wrong from its first "
+                             f"seconds{hint}; or the vehicle turned in the window (give a window at rest)")
         warnings.warn(f"--align {t1:g} {t2:g}: {imu.source}: the navigated speed reaches {drift:.3g} m/s within the "
                       f"{T:.3g} s window declared at rest, above the {allowed:.3g} m/s its sensors allow (the noise's "
                       f"random walks {noise:.2g} m/s x {PAD_NOISE_FACTOR:g}, a gyro bias of "

@@ -146,9 +146,9 @@ def test_alignment_refuses_what_is_not_at_rest_in_m_s2():
 def test_a_pad_accelerometer_bias_is_told_from_units_and_motion():
     """The mean pad |f| against the normal gravity: a 65 mg bias along the vertical (a consumer MEMS; the old rule,
     5 % of g, refused it) is a warning giving its size in mg and the levelling goes on, the pad check allowing the
-    speed it drives, b T; 40 mg (within 5 % of g) and 20 mg across the vertical (|f| changes by 0.2 mg): nothing. 150 mg is beyond the 80 mg default: an error giving the size and the
-    option, which accepts it when raised. f in ft/s^2: an error naming the unit and its fix; a pad that moves by
-    0.3 g: an error saying it moved."""
+    speed it drives, b T; 40 mg (within 5 % of g) and 20 mg across the vertical (|f| changes by 0.2 mg): nothing.
+    150 mg is beyond the 80 mg default: an error giving the size and the option, which accepts it when raised. f in
+    ft/s^2: an error naming the unit and its fix; a pad that moves by 0.3 g: an error saying it moved."""
     t, w, f = _stationary(100.0, 30.0, np.random.default_rng(5), sigma_a=1e-3, sigma_g=1e-5)
     up = f[0] / np.linalg.norm(f[0])
     across = np.cross(up, [1.0, 0.0, 0.0])
@@ -169,8 +169,8 @@ def test_a_pad_accelerometer_bias_is_told_from_units_and_motion():
         navigate(biased, SITE, (0.0, 10.0), heading_deg=10.0)
     with pytest.warns(AlignmentWarning, match=r"bias of about 150 mg along the vertical \(within the 200 mg"):
         navigate(biased, SITE, (0.0, 10.0), heading_deg=10.0, accel_bias_tolerance=0.2 * 9.80665)
-    with pytest.raises(ValueError, match=r"look like they are in ft/s\^2 \(\|f\| read so is 9\.8\d* m/s\^2: multiply by "
-                                         r"0\.3048\)"):
+    with pytest.raises(ValueError, match=r"look like they are in ft/s\^2 \(\|f\| read so is 9\.8\d* m/s\^2: "
+                                         r"multiply by 0\.3048\)"):
         navigate(check_imu(ImuData(t, w, f / 0.3048)), SITE, (0.0, 10.0), heading_deg=10.0)
     moving = f.copy()
     moving[500:700] += 0.3 * 9.80665 * up * 5.0  # 1.5 g for 2 s of the 10 s window: the mean is 0.3 g off

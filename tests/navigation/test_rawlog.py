@@ -84,7 +84,8 @@ def test_clipped_gyro_samples_are_named_and_the_rest_of_the_flight_marked(clippe
     # the pad speed, 0.337 m/s over the 7 s window, is its vertical accelerometer bias's b T (|f| - g = 0.048 m/s^2,
     # 4.9 mg): the levelling cannot cancel it, and the pad check allows it (no "speed reaches")
     assert not [r for r in rec if "speed reaches" in str(r.message)]
-    assert res.pad_drift() == pytest.approx((np.linalg.norm(res.alignment.f_mean) - res.alignment.g_pad) * 7.0, rel=0.05)
+    vertical_bias = np.linalg.norm(res.alignment.f_mean) - res.alignment.g_pad
+    assert res.pad_drift() == pytest.approx(vertical_bias * 7.0, rel=0.05)
     first = fl.site.t0 + (fl.events["first_clipped"] - fl.site.t0) * (1 + 104e-6)  # the IMU clock runs fast
     k = int(np.argmin(res.valid))
     assert first - 0.05 < res.t[k] <= first + 1e-9  # within 1 % of the full scale: the samples just before count
