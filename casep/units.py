@@ -27,6 +27,9 @@ ACC_RANGES_G = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 12.0, 16.0, 24.0, 30.0,
 GYR_RANGES_DPS = (125.0, 150.0, 245.0, 250.0, 300.0, 400.0, 450.0, 500.0, 1000.0, 2000.0, 4000.0)
 #: A physical reading within this fraction of a nominal range is at full scale.
 FULL_SCALE_TOLERANCE = 0.03
+#: The largest accelerometer bias of consumer MEMS, m/s^2 (80 mg): a specific force off by up to this much is an
+#: instrument error the separation estimates, not a unit mistake or a wrong column.
+MEMS_ACCEL_BIAS = 0.08 * 9.80665
 
 _MG = 1e-3 * G0  # one milli-g in m/s^2
 _UG = 1e-6 * G0  # one micro-g in m/s^2

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -66,12 +67,13 @@ def frame_unknown_message(source: str, speed: float) -> str:
             f"--launch-time), which measures the speed relative to the pad")
 
 
-#: Initial terms a late start needs: (model.numeric key, what it is, a platform model that adds it, a strapdown
-#: model that adds it or None: no shipped strapdown model has dv0).
+#: Initial terms a late start needs: (model.numeric key, what it is, the platform models that add it, the strapdown
+#: models that add it, smallest first; none: no shipped strapdown model has dv0). A model is suggested only when
+#: it keeps every coefficient of the model in use (:func:`_models`).
 INITIAL_TERMS = (
-    ("dv0", "initial velocity error dv0 (dv0x, dv0y, dv0z, m/s)", "platform36_dv0", None),
-    ("phi0", "initial platform misalignment phi0 (phi0x, phi0y, phi0z, arcsec)", "platform39_misalignment",
-     "strapdown15_phi0"),
+    ("dv0", "initial velocity error dv0 (dv0x, dv0y, dv0z, m/s)", ("platform36_dv0",), ()),
+    ("phi0", "initial platform misalignment phi0 (phi0x, phi0y, phi0z, arcsec)", ("platform39_misalignment",),
+     ("strapdown15_phi0", "strapdown42_extended")),
 )
 
 
@@ -141,11 +143,57 @@ def late_start_evidence(flight: FlightData) -> dict:
     return out
 
 
-def _models(missing: list[tuple[str, str | None]]) -> str:
-    """The models that add the missing initial terms, said (a term no shipped model of the flight's kind has)."""
-    have = [m[1] for m in missing if m[1]]
-    lack = [m[0].split(" (")[0] for m in missing if not m[1]]
-    out = f"--model {' or '.join(have)}" if have else ""
+def _dropped(suggested: str, model: Any) -> list[str] | None:
+    """The coefficients of `model` the shipped model `suggested` lacks ([] when it keeps them all; None when it is
+    not shipped). A model without names (nothing to compare): []."""
+    from casep.model.loader import shipped_model
+
+    names = getattr(model, "names", None)
+    if names is None:
+        return []
+    other = shipped_model(suggested)
+    if other is None:
+        return None
+    return [n for n in names if n not in set(other.names)]
+
+
+def _added(suggested: str, model: Any) -> str:
+    """`` (strapdown33's 33 terms and phi0_x, ...)``: what the shipped model `suggested` adds to `model`'s
+    coefficients; "" when `model` has no names or the suggestion is not shipped."""
+    from casep.model.loader import shipped_model
+
+    names = getattr(model, "names", None)
+    if names is None:
+        return ""
+    other = shipped_model(suggested)
+    if other is None:
+        return ""
+    added = [n for n in other.names if n not in set(names)]
+    return f" (the {len(names)} terms of `{model.name}` and {', '.join(added)})"
+
+
+def _models(missing: Sequence[tuple[str, Sequence[str]]], model: Any) -> str:
+    """The models that add the missing initial terms, said: the first shipped one that keeps every coefficient of
+    `model` (a model with fewer would trade the terms the data may need for the initial ones); when none does, the
+    term added to a copy of `model` (the shipped file showing how); a term no shipped model of the flight's kind has."""
+    have, copy, lack = [], [], []
+    for term, candidates in missing:
+        what = term.split(" (")[0]
+        if not candidates:
+            lack.append(what)
+            continue
+        drops = {c: _dropped(c, model) for c in candidates}
+        keeper = next((c for c, d in drops.items() if d == []), None)
+        if keeper is not None:
+            have.append(keeper + _added(keeper, model))
+            continue
+        first, dropped = candidates[0], drops[candidates[0]] or []
+        copy.append(f"the {what} ({first}.py in models/ shows how: its declare and set_initial_* lines; --model "
+                    f"{first} would drop {len(dropped)} of the {len(getattr(model, 'names', ()))} terms of "
+                    f"`{model.name}`: {', '.join(dropped[:6])}{' ...' if len(dropped) > 6 else ''})")
+    out = f"--model {' or '.join(dict.fromkeys(have))}" if have else ""
+    if copy:
+        out += ("; " if out else "") + f"add to a copy of `{model.name}` " + " and ".join(copy)
     if lack:
         out += ("; " if out else "") + f"no shipped model of this kind has the {' and '.join(lack)}: add it to a copy"
     return out
@@ -201,7 +249,7 @@ def warn_late_start(flight: FlightData, model: Any) -> dict:
         f"{flight.source}: the flight seems to start after lift-off{maybe} (t0 = {flight.t[0]:.6g} s): "
         f"{'; '.join(what)}. Model `{model.name}` has no {' and no '.join(m[0] for m in missing)}: errors "
         f"accumulated before t0 will bias the estimates. Use data from lift-off, or a model with the initial "
-        f"terms: {_models(missing)} (models/README.md shows how to combine them). "
+        f"terms: {_models(missing, model)} (models/README.md shows how to combine them). "
         f"A tracking time offset also gives dv(t0) != 0 (dv = a(t) dt_trk): `casep separate` (casep.check_fit) "
         f"tests the residuals for one; if it finds one, model the offset instead ({offset})."),
         stacklevel=3)

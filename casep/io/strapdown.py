@@ -35,6 +35,13 @@ Checks, each naming the file, the columns, the rows and the numbers:
 
   A flight that turns by less than :data:`MIN_ROTATION` in all gets no comparison (nothing to see).
 
+- **velocity against the specific force** (files with ``v_tel_*``): the INS's velocity is the integral of
+  ``C(q) fb + g``; over windows of :data:`KINEMATIC_WINDOW` the misfit ``(v_tel(b) - v_tel(a) - int_a^b
+  (C(q) fb + g) dt) / (b - a)`` turned into body axes (the attitude at the window's middle), its median over
+  the windows per body axis: beyond :data:`KINEMATIC_LIMIT` an error naming the ``fb_*`` column (``fb`` in g,
+  an offset of g in a column, a column that is not the INS's), beyond :data:`KINEMATIC_WARN` a warning
+  (:func:`check_kinematics`).
+
 A body-rate peak above :data:`RATE_PEAK_HIGH` is a warning (deg/s?); so are ``f_*`` columns beside the
 strapdown ones that differ from ``C(q) fb`` by more than :data:`FORCE_TOL` (1 %) RMS. The specific force's units are
 checked on the computed ``f`` by :func:`casep.checks.plausibility.check_flight` (a peak below 1 g: ``fb``
@@ -49,6 +56,7 @@ from typing import Any
 import numpy as np
 
 from casep.exceptions import PlausibilityWarning
+from casep.gravity import kinematic_acceleration
 from casep.io.flight import FlightDataError
 from casep.rotations import (
     increments_from_deltas,
@@ -59,7 +67,8 @@ from casep.rotations import (
     rotation_increments,
 )
 
-__all__ = ["StrapdownWarning", "strapdown_force", "check_strapdown", "compare_force", "FORCE_TOL",
+__all__ = ["StrapdownWarning", "strapdown_force", "check_strapdown", "compare_force", "FORCE_TOL", "check_kinematics",
+           "KINEMATIC_WINDOW", "KINEMATIC_LIMIT", "KINEMATIC_WARN",
            "quaternion_dcm_array", "RATE_READINGS", "NORM_TOL", "RATE_TOL", "GAIN_TOL", "GAIN_Z", "MIN_ROTATION",
            "RATE_PEAK_HIGH",
            "CONVENTIONS", "STRAPDOWN_COLUMNS", "QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS"]
@@ -400,3 +409,126 @@ def strapdown_force(tab: Any, t: np.ndarray) -> tuple[np.ndarray, dict[str, Any]
     q, info = check_strapdown(tab.src, t, q, fb, w, error=tab.error)
     f = np.einsum("kij,kj->ki", quaternion_dcm_array(q), fb)
     return f, info, q
+
+
+#: Windows of the kinematic check, s: long enough that the velocity's noise over it is small against the limit
+#: (0.1 m/s of noise makes 0.14 m/s^2), short enough that the attitude hardly turns within one.
+KINEMATIC_WINDOW = 1.0
+#: The least steps in a window of the kinematic check (a slow record's windows are longer than KINEMATIC_WINDOW).
+KINEMATIC_MIN_STEPS = 4
+#: Median misfit of a body axis (m/s^2) beyond which the velocity and the specific force cannot be the same INS's:
+#: 3 m/s^2 (0.31 g), almost 4 times the largest MEMS bias (:data:`casep.units.MEMS_ACCEL_BIAS`, 80 mg, an
+#: instrument error the separation estimates); the flat-Earth gravity of :func:`casep.gravity.kinematic_acceleration`
+#: errs by 0.3 m/s^2 at 100 km altitude and 0.17 m/s^2 per 100 km downrange. ``fb`` in g misses by ``|fb| (1 -
+#: 1/9.81)``, 8.8 m/s^2 in level flight; a column offset by a g, by that g.
+KINEMATIC_LIMIT = 3.0
+#: ... and beyond which it is a warning: twice the largest MEMS bias.
+KINEMATIC_WARN = 2.0 * 0.08 * 9.80665
+
+
+def _kinematic_windows(t: np.ndarray) -> np.ndarray:
+    """Row indices of the window edges of :func:`check_kinematics`: every :data:`KINEMATIC_WINDOW` s and at least
+    :data:`KINEMATIC_MIN_STEPS` steps apart."""
+    edges = [0]
+    while True:
+        k = edges[-1]
+        j = max(int(np.searchsorted(t, t[k] + KINEMATIC_WINDOW)), k + KINEMATIC_MIN_STEPS)
+        if j > t.size - 1:
+            break
+        edges.append(j)
+    return np.array(edges, dtype=int)
+
+
+def _kinematic_misfit(t: np.ndarray, q: np.ndarray, fb: np.ndarray, v: np.ndarray,
+                      edges: np.ndarray) -> np.ndarray:
+    """The misfit ``d(v_tel)/dt - (C fb + g)`` of each window in body axes, m/s^2, (W, 3): minus the constant offset
+    of ``fb`` that explains it (NaN where the window's attitude turns too much to tell the axes apart).
+
+    ``dv - int (C fb + g) dt = (int C dt) b`` over the window: ``b = (int C dt)^-1 (dv - int (C fb + g) dt)``, exact
+    for a constant offset however the body turns; the
+    mean of ``C`` is near ``C_mid`` while the body turns little, and loses its rank only when it turns by a whole
+    revolution about an axis in the window (condition number beyond 10: NaN).
+    """
+    C = quaternion_dcm_array(q)
+    a = kinematic_acceleration(t, np.einsum("kij,kj->ki", C, fb))
+    h = np.diff(t)
+    integral = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (a[1:] + a[:-1]) * h[:, None], axis=0)])
+    C_int = np.concatenate([np.zeros((1, 3, 3)), np.cumsum(0.5 * (C[1:] + C[:-1]) * h[:, None, None], axis=0)])
+    i, j = edges[:-1], edges[1:]
+    miss = v[j] - v[i] - (integral[j] - integral[i])
+    M = C_int[j] - C_int[i]
+    sv = np.linalg.svd(M, compute_uv=False)
+    ok = sv[:, -1] > 0.1 * sv[:, 0]
+    b = np.full((i.size, 3), np.nan)
+    b[ok] = np.linalg.solve(M[ok], miss[ok][:, :, None])[:, :, 0]
+    return b  # d(v_tel)/dt - (C fb + g) in body axes: minus the offset fb carries
+
+
+def check_kinematics(src: str, t: np.ndarray, q: np.ndarray, fb: np.ndarray, v_tel: np.ndarray, *,
+                     error: Any = None) -> dict[str, Any]:
+    """The INS's velocity against its specific force: ``d v_tel / dt = C(q) fb + g`` (module notes).
+
+    Parameters
+    ----------
+    src : str
+        The file, for messages.
+    t : (N,) s; q : (N, 4) sign-continuous unit quaternions; fb : (N, 3) m/s^2; v_tel : (N, 3) m/s
+    error : callable, optional
+        ``error(message, column, row) -> Exception``; default a :class:`~casep.io.flight.FlightDataError` of `src`.
+
+    Returns
+    -------
+    dict
+        ``median_misfit_m_s2`` (body axes), ``windows``, ``window_s``; empty when the record holds fewer than
+        three windows.
+
+    Raises
+    ------
+    FlightDataError
+        A body axis's median misfit beyond :data:`KINEMATIC_LIMIT`, naming its ``fb_*`` column.
+
+    Warns
+    -----
+    StrapdownWarning
+        A median misfit beyond :data:`KINEMATIC_WARN`.
+    """
+    if error is None:
+        def error(message: str, column: str | None = None, row: int | None = None) -> Exception:
+            return FlightDataError(src, message, column, row)
+    edges = _kinematic_windows(t)
+    if edges.size < 4:
+        return {}
+    m = _kinematic_misfit(t, q, fb, v_tel, edges)
+    if int(np.sum(np.isfinite(m[:, 0]))) < 3:
+        return {}
+    med = np.nanmedian(m, axis=0)
+    info = {"median_misfit_m_s2": med.tolist(), "windows": int(np.sum(np.isfinite(m[:, 0]))),
+            "window_s": float(np.median(np.diff(t[edges])))}
+    k = int(np.argmax(np.abs(med)))
+    size = float(abs(med[k]))
+    if size <= KINEMATIC_WARN:
+        return info
+    col = BODY_FORCE_COLUMNS[k]
+    beyond = np.flatnonzero(np.abs(m[:, k]) > KINEMATIC_WARN)
+    rows = f"rows {edges[0] + 1}-{edges[-1] + 1}"
+    text = (f"the telemetered velocity (v_tel_*) and the specific force (q_*, fb_*) disagree: d(v_tel)/dt - (C(q) fb "
+            f"+ g) in body axes has the median {', '.join(f'{x:.3g}' for x in med)} m/s^2 (x, y, z) over "
+            f"{info['windows']} windows of {info['window_s']:.3g} s ({rows}); {col} is off by {size:.3g} m/s^2 "
+            f"({1000 * size / 9.80665:.3g} mg), beyond {KINEMATIC_WARN / 9.80665 * 1000:.3g} mg in {beyond.size} of "
+            f"the windows, where the largest MEMS bias is 80 mg")
+    scaled = np.nanmedian(_kinematic_misfit(t, q, 9.80665 * fb, v_tel, edges), axis=0)
+    if float(np.max(np.abs(scaled))) <= KINEMATIC_WARN:
+        hint = (f". Read in g (times 9.80665) fb fits: median misfit {', '.join(f'{x:.3g}' for x in scaled)} m/s^2: "
+                f"give {', '.join(BODY_FORCE_COLUMNS)} in m/s^2 (multiply by 9.80665)")
+        col = ", ".join(BODY_FORCE_COLUMNS)
+    elif abs(size / 9.80665 - round(size / 9.80665)) < 0.1:
+        hint = (f" ({size / 9.80665:.3g} g: an offset of whole g in {col}?). Give the INS's own body specific force, "
+                "m/s^2, in body axes, and the velocity it integrated")
+    else:
+        hint = (". Give the INS's own body specific force (m/s^2, body axes) and the velocity it integrated, in the "
+                "launch-inertial frame, on one time base")
+    if size > KINEMATIC_LIMIT:
+        raise error(f"{text}; beyond {KINEMATIC_LIMIT:g} m/s^2 no instrument error explains it{hint}", col, None)
+    warnings.warn(StrapdownWarning(f"{src}: {text}: an accelerometer bias that large, or a column that is not the "
+                                   f"INS's{hint}"), stacklevel=4)
+    return info

@@ -20,7 +20,7 @@ import numpy as np
 
 from casep.io.flight import AXES, DV_COLUMNS, FORCE_COLUMNS, FlightDataError, too_large
 from casep.io.locate import csv_lines, is_parquet
-from casep.io.strapdown import STRAPDOWN_COLUMNS
+from casep.io.strapdown import BODY_FORCE_COLUMNS, STRAPDOWN_COLUMNS
 
 __all__ = ["Table", "table_force", "apparent_velocity_to_force", "CSV_SEPARATORS", "KNOWN_COLUMNS",
            "APPARENT_COLUMNS", "VTEL_COLUMNS", "VTRK_COLUMNS", "header_columns"]
@@ -392,6 +392,11 @@ def table_force(tab: Table, t: np.ndarray) -> tuple[np.ndarray, str]:
 
         f_body, info, q = strapdown_force(tab, t)
         tab.strapdown = {"info": info, "q": q}
+        if tab.has(VTEL_COLUMNS):  # the INS's velocity must be the integral of C(q) fb + g
+            from casep.io.strapdown import check_kinematics
+
+            info["kinematics"] = check_kinematics(tab.src, t, q, tab.vectors(BODY_FORCE_COLUMNS),
+                                                  tab.vectors(VTEL_COLUMNS), error=tab.error)
         if not given:
             return f_body, "q, fb"
         if tab.has(FORCE_COLUMNS):

@@ -28,8 +28,10 @@ import numpy as np
 
 from casep.exceptions import AlignmentWarning, PlausibilityWarning
 from casep.frames import OMEGA_EARTH, LaunchSite
+from casep.units import G0, MEMS_ACCEL_BIAS
 
-__all__ = ["Alignment", "align", "HEADING_AXES", "course_rotation", "gyro_bias_allowance", "mean_rate_std",
+__all__ = ["Alignment", "align", "HEADING_AXES", "MAX_PAD_RATE", "ACCEL_BIAS_TOLERANCE", "AT_REST_SILENT",
+           "FORCE_UNITS", "course_rotation", "gyro_bias_allowance", "mean_rate_std",
            "EARTH_RATE_CHI2", "deg_s_chance"]
 
 #: Body axes whose azimuth ``--heading`` may give.
@@ -38,6 +40,17 @@ HEADING_AXES = ("x", "y", "z")
 GYROCOMPASS_LIMIT_RAD = math.radians(30.0)
 #: The heading axis must lean at least this far from the vertical for its azimuth to fix a heading, rad.
 MIN_AXIS_TILT_RAD = math.radians(2.0)
+#: The accelerometer bias the mean pad specific force may differ from the normal gravity by, m/s^2: the largest of
+#: consumer MEMS, 80 mg (:data:`casep.units.MEMS_ACCEL_BIAS`). Beyond it, an error; beyond
+#: :data:`AT_REST_SILENT` a warning with the number (the bias is then part of what a separation estimates).
+ACCEL_BIAS_TOLERANCE = MEMS_ACCEL_BIAS
+#: Mean pad specific force within this of the normal gravity, m/s^2: said nothing of (49 mg, 5 % of g: the MEMS
+#: biases of most records, which a separation estimates, and the normal gravity's omission of the local anomaly,
+#: 1e-4 g).
+AT_REST_SILENT = 0.05 * G0
+#: The unit mistakes the pad's |f| is compared with: name, factor to m/s^2, the fix.
+FORCE_UNITS = (("g", G0, "multiply by 9.80665"), ("ft/s^2", 0.3048, "multiply by 0.3048"),
+               ("cm/s^2 (gal)", 0.01, "divide by 100"), ("mm/s^2", 0.001, "divide by 1000"))
 
 
 @dataclass(frozen=True)
@@ -105,7 +118,7 @@ def _azimuth(v_t: np.ndarray, site: LaunchSite) -> float:
 
 def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, float], site: LaunchSite, *,
           heading_deg: float | None = None, heading_axis: str = "x",
-          rates_in: str = "columns w_x, w_y, w_z") -> Alignment:
+          rates_in: str = "columns w_x, w_y, w_z", accel_bias_tolerance: float = ACCEL_BIAS_TOLERANCE) -> Alignment:
     """Level over `window` and fix the heading (given, or by gyrocompassing with a warning).
 
     Parameters
@@ -124,14 +137,17 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
         within 2 deg of the vertical).
     rates_in : str
         Where the rates come from, for messages (file and columns).
+    accel_bias_tolerance : float, optional
+        The accelerometer bias (m/s^2) the mean specific force may differ from the normal gravity by
+        (:func:`_check_pad_force`); default :data:`ACCEL_BIAS_TOLERANCE` (80 mg, consumer MEMS).
 
     Raises
     ------
     ValueError
-        Fewer than 2 samples in the window, a mean specific force more than 5 % from the normal
-        gravity (not at rest, or not in m/s^2), rates in deg/s (the pad rate is the Earth rate times
-        57.3), a heading axis within 2 deg of the vertical, or gyros that cannot find north (heading
-        known worse than 30 deg).
+        Fewer than 2 samples in the window, a mean specific force more than `accel_bias_tolerance` from
+        the normal gravity (not at rest, or not in m/s^2: the message says which fits), rates in deg/s
+        (the pad rate is the Earth rate times 57.3), a heading axis within 2 deg of the vertical, or gyros
+        that cannot find north (heading known worse than 30 deg).
     """
     from casep.gravity import normal_gravity_ecef
     from casep.navigation.imu import time_step_problem
@@ -149,12 +165,8 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
     g_t = site.C.T @ normal_gravity_ecef(site.r_site)
     g0 = float(np.linalg.norm(g_t))
     fm = float(np.linalg.norm(f_mean))
-    if abs(fm / g0 - 1.0) > 0.05:
-        hint = " (the specific force looks like it is in g: give m/s^2)" if 0.9 < fm < 1.1 else \
-            " (the vehicle moved, or the accelerometers are not in m/s^2)"
-        raise ValueError(f"--align {t1:g} {t2:g}: mean specific force {fm:.5g} m/s^2 over {n} samples, normal gravity "
-                         f"at the pad {g0:.5g} m/s^2: not at rest on the pad{hint}")
     moved = float(np.max(np.linalg.norm(f[sel] - f_mean, axis=1)))
+    _check_pad_force(fm, g0, moved, n, (t1, t2), accel_bias_tolerance)
     if moved > 0.1 * g0:
         warnings.warn(f"--align {t1:g} {t2:g}: the specific force departs from its mean by up to {moved:.3g} m/s^2 "
                       "during the window: the vehicle may have moved (the levelling is its mean)",
@@ -178,6 +190,43 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
     if tilt < MIN_AXIS_TILT_RAD:  # its azimuth means nothing: report the most horizontal axis's
         heading_axis = HEADING_AXES[int(np.argmin(np.abs(up_b)))]
     return _gyrocompass(w[sel], w_mean, f_mean, up_b, up_t, g0, site, n, (t1, t2), heading_axis)
+
+
+def _check_pad_force(fm: float, g0: float, moved: float, n: int, window: tuple[float, float],
+                     tolerance: float) -> None:
+    """The mean pad specific force ``|f|`` against the normal gravity ``g0`` (m/s^2).
+
+    Within :data:`AT_REST_SILENT`: nothing. Within `tolerance` (an accelerometer bias along the vertical): a
+    :class:`~casep.exceptions.AlignmentWarning` with the size in mg, and the levelling goes on (the bias tilts it
+    by at most ``b_h / g``; a separation estimates the bias with the rest). Beyond it a ``ValueError`` with the
+    reason that fits: ``|f|`` times a unit's factor (:data:`FORCE_UNITS`) within `tolerance` of ``g0`` (the
+    accelerometers are in that unit), a specific force that varies in the window by more than 0.1 g (the vehicle
+    moved), or else a steady offset beyond the tolerance (a bias that large, or a vehicle not at rest).
+    """
+    off = fm - g0
+    where = (f"--align {window[0]:g} {window[1]:g}: mean specific force {fm:.5g} m/s^2 over {n} samples, normal "
+             f"gravity at the pad {g0:.5g} m/s^2 ({1000 * off / G0:+.3g} mg)")
+    if abs(off) <= min(AT_REST_SILENT, tolerance):
+        return
+    if abs(off) <= tolerance:
+        warnings.warn(f"{where}: an accelerometer bias of about {1000 * abs(off) / G0:.3g} mg along the vertical "
+                      f"(within the {1000 * tolerance / G0:.3g} mg of consumer MEMS accepted); the levelling goes on "
+                      "and a separation estimates the bias", AlignmentWarning, stacklevel=3)
+        return
+    units = [f"in {name} (|f| read so is {fm * k:.5g} m/s^2: {fix})" for name, k, fix in FORCE_UNITS
+             if abs(fm * k - g0) <= tolerance]
+    if units:
+        why = ("the accelerometers look like they are " + " or ".join(units) + f"; else an offset of "
+               f"{1000 * abs(off) / G0:.4g} mg, beyond the {1000 * tolerance / G0:.3g} mg of any MEMS bias")
+    elif moved > 0.1 * g0:
+        why = (f"the specific force departs from its mean by up to {moved:.3g} m/s^2 in the window: the vehicle "
+               "moved (give a window at rest)")
+    else:
+        why = (f"steady within {moved:.3g} m/s^2, {1000 * abs(off) / G0:.3g} mg from gravity, beyond the "
+               f"{1000 * tolerance / G0:.3g} mg accelerometer bias accepted (--accel-bias-tolerance MG, default "
+               f"{1000 * ACCEL_BIAS_TOLERANCE / G0:.3g} mg, the largest of consumer MEMS): an accelerometer bias that "
+               "large, accelerometers not in m/s^2, or a vehicle not at rest")
+    raise ValueError(f"{where}: not at rest on the pad in m/s^2: {why}")
 
 
 #: A mean pad rate beyond this (2.9 deg/s, no gyro that navigates has such a bias) is warned about, rad/s.

@@ -23,7 +23,8 @@ __all__ = ["navigate", "navigate_from", "pad_state"]
 
 
 def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], *, heading_deg: float | None = None,
-             heading_axis: str = "x", check_pad: bool = True) -> NavigationResult:
+             heading_axis: str = "x", check_pad: bool = True, accel_bias_tolerance: float | None = None
+             ) -> NavigationResult:
     """Align on the pad over `align_window` and navigate in the launch-inertial frame to the end of `imu`.
 
     Parameters
@@ -36,6 +37,8 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
         The span at rest on the pad, s; the navigation starts at its first sample.
     heading_deg, heading_axis
         See :func:`casep.navigation.alignment.align` (None: gyrocompassing, with a warning).
+    accel_bias_tolerance : float, optional
+        See :func:`casep.navigation.alignment.align` (None: its default, 80 mg).
     check_pad : bool, optional
         Warn when the navigated speed over the window exceeds what the sensors allow at rest
         (:func:`_check_pad_drift`); False for a simulator's own INS, whose pad is at rest by construction.
@@ -45,9 +48,15 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
     NavigationResult
         The strapdown telemetry from ``T1`` on: attitude, measured body rate and specific force,
         launch-inertial velocity and position.
+
+    Raises
+    ------
+    ValueError
+        The alignment's (:func:`casep.navigation.alignment.align`), and with `check_pad` a pad rate beyond any
+        navigating gyro's bias with a navigated speed beyond what the sensors allow at rest (:func:`_check_pad_drift`).
     """
     q0, r0, v0, t_s, alignment = pad_state(imu, site, align_window, heading_deg=heading_deg,
-                                           heading_axis=heading_axis)
+                                           heading_axis=heading_axis, accel_bias_tolerance=accel_bias_tolerance)
     res = navigate_from(imu, site, q0, r0, v0, t_start=t_s)
     res.alignment = alignment
     res.align_window = (float(align_window[0]), float(align_window[1]))
@@ -70,14 +79,21 @@ def _check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite) -> N
     into a velocity by gravity, ``g s_w sqrt(dt) T^1.5 / sqrt 3``, and a horizontal gyro bias ``b``
     (:func:`casep.navigation.alignment.gyro_bias_allowance`) tilting it, ``g b T^2 / 2``::
 
-        allowed = 5 sqrt(sum_i s_f,i^2 dt T + g^2 s_w,i^2 dt T^3 / 3) + 3 g b T^2 / 2
+        allowed = 5 sqrt(sum_i s_f,i^2 dt T + g^2 s_w,i^2 dt T^3 / 3) + 3 g b T^2 / 2 + | |f_mean| - g | T
+
+    (the last term: the levelling cancels the accelerometers' mean across the vertical only; the part along it,
+    an accelerometer bias the alignment accepted, drives the speed as ``b T``).
 
     Beyond it the vehicle moved in the window, or a gyro bias far beyond a navigation gyro's tilts the
-    levelled attitude within seconds: the solution drifts as ``t^2`` from there on.
+    levelled attitude within seconds: the solution drifts as ``t^2`` from there on. When, besides, the mean pad
+    rate is beyond :data:`casep.navigation.alignment.MAX_PAD_RATE` (no gyro that navigates has such a bias: rates
+    in deg/s read as rad/s, or a vehicle turning on the pad) the navigation is worthless from its first
+    seconds: a ``ValueError`` naming the rate columns, the window's rows and the numbers (the same rule as the
+    pad rate's warning, :func:`casep.navigation.alignment.align`).
     """
     from casep.checks.tracking_quality import white_sample_std
     from casep.exceptions import AlignmentWarning
-    from casep.navigation.alignment import gyro_bias_allowance
+    from casep.navigation.alignment import MAX_PAD_RATE, gyro_bias_allowance
 
     t1, t2 = res.align_window
     sel = (imu.t >= t1) & (imu.t <= t2)
@@ -88,21 +104,38 @@ def _check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite) -> N
     s_f, s_w = white_sample_std(imu.f[sel]), white_sample_std(imu.w[sel])
     noise = float(np.sqrt(np.sum(s_f**2 * dt * T + g**2 * s_w**2 * dt * T**3 / 3.0)))
     bias = g * gyro_bias_allowance(site) * T**2 / 2.0
-    allowed = PAD_NOISE_FACTOR * noise + PAD_BIAS_FACTOR * bias
+    # the levelling cancels the accelerometers' mean across the vertical, not along it: |f| - g accepted by the
+    # alignment (an accelerometer bias, casep.navigation.alignment.ACCEL_BIAS_TOLERANCE) drives the speed as b T
+    vertical = abs(float(np.linalg.norm(res.alignment.f_mean)) - g) * T if res.alignment is not None else 0.0
+    allowed = PAD_NOISE_FACTOR * noise + PAD_BIAS_FACTOR * bias + vertical
     drift = res.pad_drift()
     if drift > allowed:
         rate = float(np.linalg.norm(imu.w[sel].mean(axis=0)))
+        if rate > MAX_PAD_RATE:
+            rows = np.flatnonzero(sel)
+            cols = ", ".join(DTHETA_COLUMNS if imu.kind == "increments" else RATE_COLUMNS)
+            deg = rate * np.pi / 180.0
+            hint = (f"; divided by 57.2958 it is {deg:.3g} rad/s ({np.degrees(deg):.3g} deg/s), a gyro bias: the rates "
+                    "look like deg/s, give rad/s (multiply by pi/180)" if deg <= MAX_PAD_RATE else "")
+            raise ValueError(f"--align {t1:g} {t2:g}: {imu.source}: columns {cols}, rows {rows[0] + 1}-"
+                             f"{rows[-1] + 1}: mean body rate {rate:.4g} rad/s ({np.degrees(rate):.4g} deg/s) over "
+                             f"the {T:.3g} s window declared at rest, beyond the {MAX_PAD_RATE:g} rad/s bias of any "
+                             f"gyro that navigates, and the navigated speed reaches {drift:.3g} m/s in it, above the "
+                             f"{allowed:.3g} m/s its sensors allow: the navigation is wrong from its first "
+                             f"seconds{hint}; or the vehicle turned in the window (give a window at rest)")
         warnings.warn(f"--align {t1:g} {t2:g}: {imu.source}: the navigated speed reaches {drift:.3g} m/s within the "
                       f"{T:.3g} s window declared at rest, above the {allowed:.3g} m/s its sensors allow (the noise's "
                       f"random walks {noise:.2g} m/s x {PAD_NOISE_FACTOR:g}, a gyro bias of "
-                      f"{gyro_bias_allowance(site):.2g} rad/s tilting it {bias:.2g} m/s x {PAD_BIAS_FACTOR:g}); "
+                      f"{gyro_bias_allowance(site):.2g} rad/s tilting it {bias:.2g} m/s x {PAD_BIAS_FACTOR:g}"
+                      + (f", the vertical accelerometer bias {vertical:.2g} m/s" if vertical else "") + "); "
                       f"mean pad rate {rate:.3g} rad/s: the "
                       "vehicle moved in the window, or a gyro bias tilts the attitude within seconds and the "
                       "solution drifts as t^2 from there", AlignmentWarning, stacklevel=2)
 
 
 def pad_state(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], *, heading_deg: float | None = None,
-              heading_axis: str = "x") -> tuple[np.ndarray, np.ndarray, np.ndarray, float, Alignment]:
+              heading_axis: str = "x", accel_bias_tolerance: float | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, Alignment]:
     """The state :func:`navigate` starts from: ``(q0, r0, v0, t_start, alignment)``.
 
     The attitude (Hamilton, scalar first, body -> launch-inertial), position (m) and velocity (m/s) of
@@ -116,7 +149,9 @@ def pad_state(imu: ImuData, site: LaunchSite, align_window: tuple[float, float],
     if not isinstance(site, LaunchSite):
         raise TypeError(f"`site` must be a casep.frames.LaunchSite, got {type(site).__name__}")
     cols = ", ".join(DTHETA_COLUMNS if imu.kind == "increments" else RATE_COLUMNS)
+    tol = {} if accel_bias_tolerance is None else {"accel_bias_tolerance": accel_bias_tolerance}
     alignment = align(imu.t, imu.w, imu.f, align_window, site, heading_deg=heading_deg, heading_axis=heading_axis,
+                      **tol,
                       rates_in=f"{imu.source}, columns {cols}")
     t_s = imu.t[np.searchsorted(imu.t, align_window[0])][None]
     r0, v0 = ecef_to_launch(site, t_s, site.r_site[None, :], np.zeros((1, 3)))

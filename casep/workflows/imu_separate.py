@@ -258,7 +258,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                  iterate: bool = True, tol: float = ITERATE_TOL, max_iterations: int | None = None,
                  tracking_frame: str = "launch", grid: str = "tracking", time_offset: float | str | None = None,
                  time_shift: float = 0.0, fit_time_offset: bool | None = None, gyr_range: float | None = None,
-                 acc_range: float | None = None) -> ImuSeparation:
+                 acc_range: float | None = None, accel_bias_tolerance: float | None = None) -> ImuSeparation:
     """Separate a strapdown IMU's errors from its raw data and tracking (module notes).
 
     Parameters
@@ -289,6 +289,8 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     gyr_range, acc_range : float, optional
         With `imu` a path: the sensors' declared full scales, rad/s and m/s^2 (:func:`casep.navigation.read_imu`:
         the rows from the first clipped sample on are left out); an ImuData was checked when it was read.
+    accel_bias_tolerance : float, optional
+        :func:`casep.navigation.alignment.align` (m/s^2; None: its default, 80 mg).
 
     Returns
     -------
@@ -317,6 +319,8 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                source, spec, heading_deg, heading_axis,
                {"tracking_frame": tracking_frame, "grid": grid, "time_offset": time_offset, "time_shift": time_shift},
                fit_time_offset)
+    if accel_bias_tolerance is not None:
+        run.heading["accel_bias_tolerance"] = accel_bias_tolerance
     return run.iterate(iterate, tol, int(max_iterations))
 
 

@@ -107,6 +107,44 @@ def test_a_strapdown_flight_is_never_told_to_use_a_platform_model(tmp_path):
     assert "no shipped model of this kind has the initial velocity error dv0" in text
 
 
+def test_the_late_start_advice_never_drops_the_terms_of_the_model_in_use(tmp_path):
+    """strapdown33 lacking phi0: the advice is strapdown42_extended (its 33 terms and phi0, named with what else it
+    adds), never strapdown15_phi0, which would drop 21 of them; strapdown12: strapdown15_phi0 (12 + phi0). A model
+    with a term no shipped model has: add phi0 to a copy, naming how many terms the shipped one would drop."""
+    import casep
+    from casep.checks.late_start import warn_late_start
+    from casep.frames import LaunchSite
+    from casep.io.files import read_flight
+
+    _navigate_like_csv(tmp_path / "nav.csv", LaunchSite(69.29, 16.02, 20.0, 340.0, 8.0), 100.0)
+    flight = read_flight(tmp_path / "nav.csv")
+
+    def advice(model) -> str:
+        with pytest.warns(LateStartWarning) as rec:
+            warn_late_start(flight, model)
+        return str(rec[0].message)
+
+    text = advice(casep.load_model("strapdown33"))
+    assert "--model strapdown42_extended (the 33 terms of `strapdown33` and ka2_x" in text and "phi0_x" in text
+    assert "strapdown15_phi0" not in text
+    assert "--model strapdown15_phi0 (the 12 terms of `strapdown12` and phi0_x, phi0_y, phi0_z)" in advice(
+        casep.load_model("strapdown12"))
+
+    class Custom:  # a user's model: strapdown12's terms and one of its own
+        name = "mine"
+        names = casep.load_model("strapdown12").names + ("k_own",)
+        signals = ("q_w", "q_x", "q_y", "q_z", "fb_x", "fb_y", "fb_z")
+
+        @staticmethod
+        def numeric(key):
+            return np.zeros((3, 0)) if key == "velocity_columns" else np.zeros((3, 13))
+
+    text = advice(Custom())
+    assert ("add to a copy of `mine` the initial platform misalignment phi0 (strapdown15_phi0.py in models/ shows "
+            "how: its declare and set_initial_* lines; --model strapdown15_phi0 would drop 1 of the 13 terms of "
+            "`mine`: k_own)") in text and "with the initial terms: add to a copy of `mine`" in text
+
+
 def test_a_parquet_telemetry_names_its_frame_in_its_metadata(tmp_path):
     """casep navigate -o TEL.parquet keeps its header lines as the file's metadata: read back, the frame and the
     launch site are known, and a pad at rest starts at 0 m/s relative to the Earth (|v_tel| is 163 m/s)."""
