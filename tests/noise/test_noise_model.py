@@ -117,8 +117,9 @@ def test_reml_equals_the_dense_restricted_likelihood(rng):
 def test_reml_factor_equals_numpy_and_says_not_definite_without_a_warning(rng):
     """The fixed point's Cholesky (numpy's LAPACK kernel without its wrapper): numpy.linalg.cholesky's factor bit
     for bit on a definite Gram matrix, None (no exception, no warning: warnings are errors here) on one that is not;
-    its inverse of the factor is numpy.linalg.inv's, bit for bit."""
-    from casep.noise.fit import _inv
+    its inverse of the upper factor (LAPACK's triangular inverse) numpy.linalg.inv's to rounding, and a zero on the
+    diagonal said (info > 0)."""
+    from casep.noise.fit import _upper_inv
 
     A = rng.normal(size=(3, 50, 6))
     Ms = np.einsum("aki,akj->aij", A, A)
@@ -126,11 +127,55 @@ def test_reml_factor_equals_numpy_and_says_not_definite_without_a_warning(rng):
     T = Reml._factor(Ms, sc)
     G = Ms[0] / sc[0] ** 2 + Ms[1] / sc[1] ** 2 + Ms[2] / sc[2] ** 2
     assert np.array_equal(T, np.linalg.cholesky(G).T)
-    assert np.array_equal(_inv(T[:5, :5], signature="d->d"), np.linalg.inv(T[:5, :5]))
+    Ti, info = _upper_inv(T[:5, :5])
+    assert info == 0
+    np.testing.assert_allclose(Ti, np.linalg.inv(T[:5, :5]), rtol=1e-12, atol=1e-14 * np.abs(Ti).max())
+    singular = np.triu(T[:5, :5])
+    singular[2, 2] = 0.0
+    assert _upper_inv(singular)[1] > 0
     bad = Ms.copy()
     bad[:, 2, 2] = -1.0  # a negative diagonal: not definite
     assert Reml._factor(bad, sc) is None
     assert Reml._factor(np.full_like(Ms, np.nan), sc) is None
+
+
+def _fit_scales_reference(reml: Reml, taus, shares) -> tuple[float, np.ndarray]:
+    """The axis scales' REML fixed point written with numpy.linalg alone (general inverse, explicit sums), as
+    Reml.fit_scales computed it before its triangular inverse and single dots: r_a^2 = RSS_a / (N - h_a)."""
+    Ms = np.stack([reml.gram(j, taus[j], shares[j])[0] for j in range(3)])
+    p, sc = reml.p, np.ones(3)
+    for _ in range(200):
+        G = sum(Ms[a] / sc[a] ** 2 for a in range(3))
+        T = np.linalg.cholesky(G).T
+        beta = np.linalg.inv(T[:p, :p]) @ T[:p, p]
+        v = np.append(beta, -1.0)
+        Ginv = np.linalg.inv(G[:p, :p])
+        rss = np.array([v @ Ms[a] @ v for a in range(3)])
+        h = np.array([np.trace(Ms[a, :p, :p] @ Ginv) for a in range(3)]) / sc ** 2
+        new = np.sqrt(rss / (reml.N - h))
+        new /= new[0]
+        done = np.abs(np.log(new / sc)).max() < 1e-12
+        sc = new
+        if done:
+            break
+    return reml.evaluate(taus, sc, shares)[0], sc
+
+
+def test_reml_fixed_point_equals_the_numpy_reference(range_problem):
+    """Reml.fit_scales (triangular inverse, the axis sums as single dots) reaches the fixed point of the plain
+    numpy.linalg iteration: -2 l_R within 1e-9 (relative 1e-12) and the scales within 1e-6 (its stopping rule,
+    1e-7 in ln r), Gauss-Markov, Gauss-Markov plus white and white axes."""
+    S, t, truth = range_problem
+    rng = np.random.default_rng(8)
+    e = ar1_noise(t, 0.08, 1.5, rng) * np.array([1.0, 1.6, 0.7]) + 0.04 * rng.standard_normal((t.size, 3))
+    pb = Problem.from_arrays(S, S @ truth + e, t, names=_names())
+    reml = Reml(pb, estimable_basis(pb))
+    for taus, shares in (((1.5, 1.5, 1.5), (0.0, 0.0, 0.0)), ((0.7, 2.5, None), (0.2, 0.0, 0.0)),
+                         ((None, None, None), (0.0, 0.0, 0.0))):
+        val, sc = reml.fit_scales(taus, shares=shares)
+        ref, sc_ref = _fit_scales_reference(reml, taus, shares)
+        assert val == pytest.approx(ref, rel=1e-12, abs=1e-9)
+        np.testing.assert_allclose(sc, sc_ref, rtol=1e-6)
 
 
 @pytest.fixture(scope="module")
