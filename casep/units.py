@@ -29,7 +29,7 @@ GYR_RANGES_DPS = (125.0, 150.0, 245.0, 250.0, 300.0, 400.0, 450.0, 500.0, 1000.0
 FULL_SCALE_TOLERANCE = 0.03
 #: The largest accelerometer bias of consumer MEMS, m/s^2 (80 mg): a specific force off by up to this much is an
 #: instrument error the separation estimates, not a unit mistake or a wrong column.
-MEMS_ACCEL_BIAS = 0.08 * 9.80665
+MEMS_ACCEL_BIAS = 0.08 * G0
 
 _MG = 1e-3 * G0  # one milli-g in m/s^2
 _UG = 1e-6 * G0  # one micro-g in m/s^2

@@ -66,6 +66,7 @@ from casep.rotations import (
     quat_to_rotvec,
     rotation_increments,
 )
+from casep.units import G0, MEMS_ACCEL_BIAS
 
 __all__ = ["StrapdownWarning", "strapdown_force", "check_strapdown", "compare_force", "FORCE_TOL", "check_kinematics",
            "KINEMATIC_WINDOW", "KINEMATIC_LIMIT", "KINEMATIC_WARN",
@@ -423,7 +424,7 @@ KINEMATIC_MIN_STEPS = 4
 #: 1/9.81)``, 8.8 m/s^2 in level flight; a column offset by a g, by that g.
 KINEMATIC_LIMIT = 3.0
 #: ... and beyond which it is a warning: twice the largest MEMS bias.
-KINEMATIC_WARN = 2.0 * 0.08 * 9.80665
+KINEMATIC_WARN = 2.0 * MEMS_ACCEL_BIAS
 
 
 def _kinematic_windows(t: np.ndarray) -> np.ndarray:
@@ -514,15 +515,15 @@ def check_kinematics(src: str, t: np.ndarray, q: np.ndarray, fb: np.ndarray, v_t
     text = (f"the telemetered velocity (v_tel_*) and the specific force (q_*, fb_*) disagree: d(v_tel)/dt - (C(q) fb "
             f"+ g) in body axes has the median {', '.join(f'{x:.3g}' for x in med)} m/s^2 (x, y, z) over "
             f"{info['windows']} windows of {info['window_s']:.3g} s ({rows}); {col} is off by {size:.3g} m/s^2 "
-            f"({1000 * size / 9.80665:.3g} mg), beyond {KINEMATIC_WARN / 9.80665 * 1000:.3g} mg in {beyond.size} of "
-            f"the windows, where the largest MEMS bias is 80 mg")
-    scaled = np.nanmedian(_kinematic_misfit(t, q, 9.80665 * fb, v_tel, edges), axis=0)
+            f"({1000 * size / G0:.3g} mg), beyond {KINEMATIC_WARN / G0 * 1000:.3g} mg in {beyond.size} of "
+            f"the windows, where the largest MEMS bias is {MEMS_ACCEL_BIAS / G0 * 1000:.3g} mg")
+    scaled = np.nanmedian(_kinematic_misfit(t, q, G0 * fb, v_tel, edges), axis=0)
     if float(np.max(np.abs(scaled))) <= KINEMATIC_WARN:
         hint = (f". Read in g (times 9.80665) fb fits: median misfit {', '.join(f'{x:.3g}' for x in scaled)} m/s^2: "
                 f"give {', '.join(BODY_FORCE_COLUMNS)} in m/s^2 (multiply by 9.80665)")
         col = ", ".join(BODY_FORCE_COLUMNS)
-    elif abs(size / 9.80665 - round(size / 9.80665)) < 0.1:
-        hint = (f" ({size / 9.80665:.3g} g: an offset of whole g in {col}?). Give the INS's own body specific force, "
+    elif abs(size / G0 - round(size / G0)) < 0.1:
+        hint = (f" ({size / G0:.3g} g: an offset of whole g in {col}?). Give the INS's own body specific force, "
                 "m/s^2, in body axes, and the velocity it integrated")
     else:
         hint = (". Give the INS's own body specific force (m/s^2, body axes) and the velocity it integrated, in the "
