@@ -693,7 +693,8 @@ class _Run:
         out.diagnostics["iterations"]["limit"] = float(self.limit) if np.isfinite(self.limit) else None
         # what the record leaves undetermined is said with every result that has estimates, failed or not, of the
         # iteration or of one linear pass (its pass steps along what the record determines as an iteration's first)
-        said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf)) \
+        smaller = None if "a smaller model" in out.message else SMALLER_MODELS.get(self.base.name)
+        said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf), smaller) \
             if out.solution is not None or np.any(np.isfinite(out.estimate)) else None
         if said:
             from casep.exceptions import NonlinearityWarning
@@ -1299,10 +1300,11 @@ def _in_covariance(sig: np.ndarray, q: np.ndarray, scale: np.ndarray, keep: np.n
     return B @ B.T
 
 
-def _outside_note(passes: list[dict], n: int, size: float = np.inf) -> str | None:
+def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str | None = None) -> str | None:
     """What an iteration says of the combinations its steps left out (:func:`determined_step`'s `limit`):
     none, or how many, their std and names, why (the last rejected step, or their std above the plausible size of
-    what the record determines), and that their estimates are linear.
+    what the record determines), and that their estimates are linear; when they are most of the combinations, the
+    smaller shipped models to try (`smaller`, :data:`SMALLER_MODELS`; None: not said).
     None when one of them is determined (:func:`_outside_failure`: std within the plausible `size`, correction above
     :data:`SIGNIFICANT` std): that is a failure, not a note."""
     left = passes[-1].get("left_out") or []
@@ -1320,7 +1322,8 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf) -> str | Non
             + (f"their corrections are noise (at most {max(near):.2g} std) or " if near else "")
             + f"their std exceed the coefficients' plausible size ({size:.3g} declared magnitudes): the record does "
             "not determine them. Their estimates are the last linear pass's, their std linear (not checked for "
-            "curvature)")
+            "curvature)" + (f"; with most of the combinations undetermined, a smaller model ({smaller}) leaves less "
+                            "undetermined" if smaller and len(left) > kept else ""))
 
 
 def _with_determined(res: EstimateResult, last: dict, scales: dict[str, float]) -> EstimateResult:
