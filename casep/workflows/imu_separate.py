@@ -59,6 +59,14 @@ and leaves out those no longer determined. On three own MEMS rocket logs (800 Hz
 the 12 linear combinations were 19 to 58 std off; with the curvature all 12 are within 1.8 std (std 0.65 to 34
 declared magnitudes), and one is still stated.
 
+**The curvature over what the passes leave out.** The same holds for the combinations the steps leave out
+(below): the stated ones are gradients about where the passes left the rest, hundreds of declared magnitudes from a
+MEMS unit's truth. :meth:`_Run.left_out_curvature` draws the rest at the plausible size, carries the shift in the
+stated combinations' std (:meth:`_Run.determined_curvature`, the stated combinations' own size their limit), says it
+with the smaller shipped models (:data:`SMALLER_MODELS`), and fails the result when no draw can be navigated. On 4
+seeded MEMS boosts under ``strapdown33`` the stated combinations were 36, 8.7, 0.75 and 14 std RMS off the truth, each
+a success; with the shift in their std 1.17, 0.19, 0.14 and 0.63.
+
 **The tracking screen** (:func:`casep.checks.tracking_quality.screen_tracking`: stale fixes, the physics
 check against the IMU, the noise per stretch) runs once, on the first pass, where its warnings are
 said; every later pass leaves out the same tracking rows (:func:`casep.checks.tracking_quality.keep_screen`).
@@ -149,7 +157,7 @@ if TYPE_CHECKING:
 __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
            "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_RELIABLE", "CURVATURE_DRAWS", "WORSE", "NARROW",
            "SIGNIFICANT", "std_shift", "DETERMINED_DRAWS", "FAIL_SHIFT", "STALL", "combination_imu_noise",
-           "linearisation_shift", "linearisation_record", "one_pass_judged"]
+           "linearisation_shift", "linearisation_record", "one_pass_judged", "SMALLER_MODELS"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -187,6 +195,10 @@ _ALIGN_STEP_RAD = 1e-6
 #: The curvature over what the tracking's stretches leave undetermined: this many seeded draws, each one navigation of
 #: the record (:meth:`_Run.determined_curvature`).
 DETERMINED_DRAWS = 4
+#: The shipped strapdown models with fewer terms than a model, by the model: what to try when a raw record determines
+#: too little of it to be linear over the rest (:meth:`_Run.left_out_curvature`; the levelling's phi0 is added to any).
+SMALLER_MODELS = {"strapdown42_extended": "strapdown33, strapdown15_axial or strapdown12",
+                  "strapdown33": "strapdown15_axial or strapdown12", "strapdown15_axial": "strapdown12"}
 
 
 @dataclass
@@ -678,12 +690,15 @@ class _Run:
                 return self.determined_curvature(combos, problem, flight, D)
         out = judge_setup(out, flight, model, noise_free=False)
         out = judge_tracking(out, flight, problem, model.scales, about=D, widen=widen)
+        if iterate and out.success and passes[-1].get("determined") and not out.diagnostics.get("determined"):
+            out = self.left_out_curvature(out, passes[-1], problem, flight, D)
         if iterate and passes[-1].get("determined") and not out.diagnostics.get("determined"):
             out = _with_determined(out, passes[-1], model.scales)
         out.diagnostics["iterations"]["limit"] = float(self.limit) if np.isfinite(self.limit) else None
         # what the record leaves undetermined is said with every result that has estimates, failed or not, of the
         # iteration or of one linear pass (its pass steps along what the record determines as an iteration's first)
-        said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf)) \
+        smaller = None if "a smaller model" in out.message else SMALLER_MODELS.get(self.base.name)
+        said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf), smaller) \
             if out.solution is not None or np.any(np.isfinite(out.estimate)) else None
         if said:
             from casep.exceptions import NonlinearityWarning
@@ -700,6 +715,41 @@ class _Run:
         if said and not iterate:  # after the judgement, whose failure message replaces a success's
             out = dataclasses.replace(out, message=f"{out.message}; {said}")
         return ImuSeparation(out, nav, flight, passes)
+
+    def left_out_curvature(self, res: EstimateResult, last: dict, problem: Any, flight: FlightData,
+                           D: np.ndarray) -> EstimateResult:
+        """`res` with the curvature of what the passes left out in the std of the combinations it states (``last``:
+        the last pass's record, its ``determined`` the combinations stepped along, their std with the record's noise;
+        updated in place, the curvature's record in ``last["curvature"]``).
+
+        The combinations the steps leave out (:func:`determined_step`) stay where the passes put them, and the truth
+        is the instrument's plausible size away there. The stated combinations are gradients about that point, and
+        their linear std leave out the second order over that distance: on 4 seeded MEMS boosts under
+        ``strapdown33`` (``tests/workflows/test_imu_separate.py``) 3 were a success with the stated combinations 9
+        to 36 std RMS off the truth (up to 101), and the second-order remainder of the pass over the distance to the
+        truth was their whole error (RMS z 0.8 to 1.3 once taken off). :meth:`determined_curvature` draws the rest
+        at the plausible size ``rho`` of the stated combinations (:func:`casep.checks.tracking_quality.plausible_size`),
+        carries the shift in their std, says it, and leaves out those whose std reach ``rho`` (no longer determined:
+        :func:`_determined_size`'s rule); when it moves them by more than their linear std the message names the
+        smaller shipped models (:data:`SMALLER_MODELS`), which leave less undetermined. No draw that can be
+        navigated: the stated combinations cannot be checked, and the result fails (status ``STATUS_MISFIT``, as
+        :func:`one_pass_judged` fails a linear pass whose record does not invert at the estimate)."""
+        from casep.checks.tracking_quality import plausible_size
+        from casep.estimators.registry import STATUS_MISFIT, failed
+
+        combos = last["determined"]
+        kept, note, record = self.determined_curvature(combos, problem, flight, D, keep=plausible_size(combos))
+        last["determined"], last["curvature"] = kept, record
+        if note is None:
+            return res
+        smaller = SMALLER_MODELS.get(self.base.name)
+        if smaller:
+            note += (f"; the record determines {len(combos)} of {len(res.names)} combinations of `{self.base.name}`: "
+                     f"a smaller model ({smaller}) leaves less undetermined")
+        if not record["checked"]:
+            return failed(res, STATUS_MISFIT, f"failed: {note}, so whether the combinations stated are what the "
+                                              "record determines is unknown")
+        return dataclasses.replace(res, message=f"{res.message}; {note}")
 
     def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
         """`res` with the record's own noise in its std, the pad levelling's start tilt with it
@@ -815,7 +865,7 @@ class _Run:
         return dataclasses.replace(res, covariance=cov, std=np.sqrt(np.diag(cov)), message=message, diagnostics=diag)
 
     def determined_curvature(self, combos: list[dict], problem: Any, flight: FlightData,
-                             D: np.ndarray) -> tuple[list[dict], str | None, dict]:
+                             D: np.ndarray, keep: float = 1.0) -> tuple[list[dict], str | None, dict]:
         """The combinations a flight with stretches of different tracking noise determines
         (:func:`casep.checks.tracking_quality.determined`, linearised about `D`) with the navigation's second order
         over what it does not determine in their std; what is said of it; the record.
@@ -836,8 +886,11 @@ class _Run:
         estimates it makes, weighted as :func:`~casep.checks.tracking_quality.determined` weights them (``sigma``
         of :func:`~casep.checks.tracking_quality.stretch_sigma`, ``A = (S_V / sigma) scale``). Each variance gains
         ``mean(beta_i^2)``; a shift above the linear std is said (:class:`~casep.exceptions.NonlinearityWarning`),
-        and a combination whose std grows to its declared magnitude or more is no longer determined (left out of the
-        list, kept in the record's ``left_out``).
+        and a combination whose std grows to `keep` declared magnitudes or more is no longer determined (left out of
+        the list, kept in the record's ``left_out``): the stretches' rule, the declared magnitude (1); the iteration's
+        left-out combinations' (:meth:`finish`), the plausible size ``rho`` (:func:`_determined_size`'s rule). The
+        weighting ``sigma`` is 1 when no stretch has a scatter (noise-free tracking). The record holds ``shift_std``
+        (each shift over its linear std) and ``checked`` (whether any draw could be navigated).
         """
         from casep.checks.tracking_quality import combination_terms, plausible_size, stretch_sigma
         from casep.exceptions import NonlinearityWarning
@@ -849,8 +902,9 @@ class _Run:
         s = np.array([c["std"] for c in combos])
         Q = np.linalg.svd(W)[2][m:].T  # (n, n - m): the rest, orthonormal
         rho = plausible_size(combos)
-        sig = stretch_sigma(problem, flight.meta["tracking_screen"]["stretches"], self.model_k.scales
-                            if self.model_k else {})
+        stretches = (flight.meta.get("tracking_screen") or {}).get("stretches") or []
+        sig = stretch_sigma(problem, stretches, self.model_k.scales if self.model_k else {}) \
+            if any(x[3] > 0 for x in stretches) else np.ones(problem.t.size)
         S = problem.sv()
         R = []
         rng = np.random.default_rng(0)
@@ -861,7 +915,8 @@ class _Run:
             except ValueError:  # the record does not invert there
                 continue
             R.append(((y - problem.y + np.einsum("ijk,k->ij", S, delta)) / sig[:, None]).reshape(-1))
-        record: dict[str, Any] = {"draws": len(R), "asked": DETERMINED_DRAWS, "plausible_size": rho}
+        record: dict[str, Any] = {"draws": len(R), "asked": DETERMINED_DRAWS, "plausible_size": rho,
+                                  "checked": bool(R)}
         if not R:
             note = (f"the record does not invert with the undetermined coefficients at their plausible size ({rho:.3g} "
                     "declared magnitudes): the combinations' std are linear, their curvature not checked")
@@ -875,8 +930,8 @@ class _Run:
         for c in out:  # the terms that matter against the std it now has
             c["terms"], c["more"] = combination_terms(names, np.array(c["weights"]), c["std"], rho)
         record["shift_std"] = [float(v) for v in shift / s]
-        kept = [c for c in out if c["std"] < 1.0]
-        record["left_out"] = [c for c in out if c["std"] >= 1.0]
+        kept = [c for c in out if c["std"] < keep]
+        record["left_out"] = [c for c in out if c["std"] >= keep]
         if not np.any(shift > s):
             return kept, None, record
         j = int(np.argmax(shift / s))
@@ -887,7 +942,8 @@ class _Run:
                 f"declared magnitudes); their std include it, a second-order expansion that is not reliable this far "
                 f"beyond its linear std: check them against a simulation of the flight")
         if len(kept) < m:
-            note += f", and {m - len(kept)} no longer better than their declared magnitudes are left out"
+            note += (f", and {m - len(kept)} " + ("no longer better than their declared magnitudes are left out"
+                                                   if keep == 1.0 else "whose std now reach that size are left out"))
         warnings.warn(note, NonlinearityWarning, stacklevel=5)
         return kept, note, record
 
@@ -1248,10 +1304,11 @@ def _in_covariance(sig: np.ndarray, q: np.ndarray, scale: np.ndarray, keep: np.n
     return B @ B.T
 
 
-def _outside_note(passes: list[dict], n: int, size: float = np.inf) -> str | None:
+def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str | None = None) -> str | None:
     """What an iteration says of the combinations its steps left out (:func:`determined_step`'s `limit`):
     none, or how many, their std and names, why (the last rejected step, or their std above the plausible size of
-    what the record determines), and that their estimates are linear.
+    what the record determines), and that their estimates are linear; when they are most of the combinations, the
+    smaller shipped models to try (`smaller`, :data:`SMALLER_MODELS`; None: not said).
     None when one of them is determined (:func:`_outside_failure`: std within the plausible `size`, correction above
     :data:`SIGNIFICANT` std): that is a failure, not a note."""
     left = passes[-1].get("left_out") or []
@@ -1269,7 +1326,8 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf) -> str | Non
             + (f"their corrections are noise (at most {max(near):.2g} std) or " if near else "")
             + f"their std exceed the coefficients' plausible size ({size:.3g} declared magnitudes): the record does "
             "not determine them. Their estimates are the last linear pass's, their std linear (not checked for "
-            "curvature)")
+            "curvature)" + (f"; with most of the combinations undetermined, a smaller model ({smaller}) leaves less "
+                            "undetermined" if smaller and len(left) > kept else ""))
 
 
 def _with_determined(res: EstimateResult, last: dict, scales: dict[str, float]) -> EstimateResult:

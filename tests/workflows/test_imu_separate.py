@@ -265,14 +265,23 @@ def test_undetermined_coefficients_never_enter_the_imu_correction(noise_free, tm
     imu, trk, _ = noise_free
     model = tmp_path / "strapdown16_twin.py"
     model.write_text(TWIN_MODEL)
-    applied = []
-    navigate_pass = imu_separate._Run.navigate
+    applied, drawing = [], []
+    navigate_pass, rows = imu_separate._Run.navigate, imu_separate._Run.rows
 
     def spy(self, D):
-        applied.append(np.array(D[:self.base.n_coefficients], dtype=float))
+        if not drawing:
+            applied.append(np.array(D[:self.base.n_coefficients], dtype=float))
         return navigate_pass(self, D)
 
+    def drawn(self, D):  # the curvature's draws navigate through rows: no pass's correction
+        drawing.append(True)
+        try:
+            return rows(self, D)
+        finally:
+            drawing.pop()
+
     monkeypatch.setattr(imu_separate._Run, "navigate", spy)
+    monkeypatch.setattr(imu_separate._Run, "rows", drawn)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         out = separate_imu(imu, trk, SITE, ALIGN, model, heading_deg=heading_of_x(), spec=NOISE_FREE)
@@ -599,7 +608,8 @@ def test_a_pad_record_under_strapdown33_converges_on_the_few_combinations_it_det
     """On a pad at rest ``strapdown33`` has 33 coefficients and the record determines a handful of combinations;
     the rest have std of 1e3-1e11 declared magnitudes, and the covariance holds the determined ones' variances
     (1e-20 of its largest) only to its rounding. The passes step along what the record determines, converge in a
-    few passes and say how many combinations that is; each one stated is within 4 std of the truth."""
+    few passes and say how many combinations that is, and, most of them undetermined, the smaller models to try; each
+    one stated is within 4 std of the truth."""
     from casep.exceptions import NonlinearityWarning
     from casep.workflows.imu_separate import SIGNIFICANT
 
@@ -618,6 +628,7 @@ def test_a_pad_record_under_strapdown33_converges_on_the_few_combinations_it_det
     errors = [(np.dot(c["weights"], T) - c["estimate"]) / c["std"] for c in last["determined"]]
     assert np.all(np.abs(errors) < 4.0), errors
     assert "the record determines" in out.message
+    assert "a smaller model (strapdown15_axial or strapdown12) leaves less undetermined" in out.message, out.message
 
 
 #: Body z up, body x along the launch azimuth (the launch triad's x downrange, y up).
@@ -670,24 +681,28 @@ def test_a_pad_then_a_short_boost_is_linearised_at_the_prior_along_what_it_does_
     gradients about that point, were up to 59 std off the truth. The passes step only along what the record
     determines (std below the plausible size): every correction a pass applies stays within a few declared
     magnitudes, and each combination stated is within 3 std of the truth. (The curvature's draws after the passes,
-    one std of the result's covariance with the IMU's noise in it, are no pass's correction: not counted.)"""
+    one std of the result's covariance with the IMU's noise in it or the rest at its plausible size, are no pass's
+    correction: not counted.)"""
     import casep.workflows.imu_separate as imu_separate
 
     imu, trk, site, heading, truth = pad_record(tmp_path, 3, "strapdown33", boost=3.0)
     applied, drawing = [], []
-    navigate_pass, curvature = imu_separate._Run.navigate, imu_separate._Run.curvature
+    navigate_pass, rows = imu_separate._Run.navigate, imu_separate._Run.rows
 
     def spy(self, D):
         if not drawing:
             applied.append(np.array(D[:self.base.n_coefficients], dtype=float))
         return navigate_pass(self, D)
 
-    def drawn(self, *args, **kwargs):
+    def drawn(self, D):  # the curvature's draws navigate through rows: no pass's correction
         drawing.append(True)
-        return curvature(self, *args, **kwargs)
+        try:
+            return rows(self, D)
+        finally:
+            drawing.pop()
 
     monkeypatch.setattr(imu_separate._Run, "navigate", spy)
-    monkeypatch.setattr(imu_separate._Run, "curvature", drawn)
+    monkeypatch.setattr(imu_separate._Run, "rows", drawn)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         out = separate_imu(imu, trk, site, PAD_ALIGN, "strapdown33", heading_deg=heading)
@@ -764,6 +779,49 @@ def test_a_noise_free_pad_record_converges_at_the_rounding_level(tmp_path):
     best = sorted(it["passes"][-1]["determined"], key=lambda c: c["std"])[:3]
     for c in best:
         assert abs(c["estimate"] - np.dot(c["weights"], T)) <= 5e-3 * max(abs(np.dot(c["weights"], T)), 1.0), c
+
+
+def mems_truth(seed: int) -> dict:
+    """``strapdown33`` errors of a MEMS unit in declared magnitudes, drawn with `seed`: gyro biases N(0, 800) deg/h,
+    the other terms N(0, 5), no g-sensitivity (the sizes of the reviewer's clean MEMS rocket flights: gyro biases of
+    440 to 1620 deg/h, the rest within 40 declared magnitudes)."""
+    names = casep.load_model("strapdown33").names
+    rng = np.random.default_rng(100 + seed)
+    z = rng.standard_normal(len(names)) * 5.0
+    gyro = rng.standard_normal(3) * 800.0
+    truth = dict(zip(names, z))
+    truth.update(bg_x=gyro[0], bg_y=gyro[1], bg_z=gyro[2], **{n: 0.0 for n in names if n.startswith("gg")})
+    return truth
+
+
+def test_the_combinations_stated_carry_the_curvature_of_what_the_passes_leave_out(tmp_path):
+    """9 s on the pad then 3 s of boost (20 Hz) with MEMS errors under ``strapdown33`` (:func:`mems_truth`), 4 seeds:
+    the record determines 9 or 10 of the 34 combinations, and the passes leave the rest where they put it, hundreds
+    of declared magnitudes from the truth. The combinations stated were gradients about that point and their linear
+    std left out the second order over that distance: each seed was a plain success, and 3 of the 4 stated
+    combinations 36, 8.7 and 14 std RMS off the truth (up to 101 std; the second-order remainder of the pass over
+    the distance to the truth accounted for it: RMS 0.97, 0.82, 1.34 once taken off). With the rest drawn at its
+    plausible size (``_Run.left_out_curvature``) the shift is carried in their std: RMS z 1.17, 0.19, 0.14, 0.63
+    (honest; conservative where the draws overstate the rest), the shift, 90-950 times the linear std, said in the
+    message with the smaller models."""
+    z_all = []
+    for seed in range(4):
+        directory = tmp_path / str(seed)
+        directory.mkdir()
+        imu, trk, site, heading, truth = pad_record(directory, seed, "strapdown33", boost=3.0, truth=mems_truth(seed))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            out = separate_imu(imu, trk, site, PAD_ALIGN, "strapdown33", heading_deg=heading)
+        z = stated_z(out, truth)
+        assert z.size >= 5, out.message
+        assert np.all(np.abs(z) < 4.0), (seed, z)  # no stated combination off by more than its std can say
+        z_all.append(z)
+        record = out.result.diagnostics["iterations"]["passes"][-1]["curvature"]
+        assert record["checked"] and max(record["shift_std"]) > 10.0, record
+        assert "not linear over what the flight does not determine" in out.message, out.message
+        assert "a smaller model (strapdown15_axial or strapdown12)" in out.message, out.message
+    rms = float(np.sqrt(np.mean(np.concatenate(z_all) ** 2)))
+    assert rms <= 1.5, (rms, z_all)
 
 
 def test_one_linear_pass_states_the_combinations_the_record_determines(tmp_path):
