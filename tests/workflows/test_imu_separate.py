@@ -824,6 +824,43 @@ def test_the_combinations_stated_carry_the_curvature_of_what_the_passes_leave_ou
     assert rms <= 1.5, (rms, z_all)
 
 
+def test_draws_that_do_not_invert_leave_the_curvature_no_bound_and_the_result_fails(tmp_path, monkeypatch):
+    """Seed 0 of the test above (all 4 draws navigate, shift up to 92 linear std: a success) with every second draw
+    made not to invert, as the far draws of a reviewer's clean 800 Hz MEMS rocket did (2 of 4, its stated
+    combinations 2.4 std RMS off with the 2 that navigated): the mean square of the near draws is no bound, and the
+    result fails (``STATUS_MISFIT``) saying how many draws were lost, instead of presenting the combinations."""
+    from casep.estimators.registry import STATUS_MISFIT
+    from casep.workflows.imu_separate import _Run
+
+    imu, trk, site, heading, truth = pad_record(tmp_path, 0, "strapdown33", boost=3.0, truth=mems_truth(0))
+    inside, calls = [False], [0]
+    drawn, rows = _Run.determined_curvature, _Run.rows
+
+    def determined_curvature(self, *args, **kw):
+        inside[0] = True
+        try:
+            return drawn(self, *args, **kw)
+        finally:
+            inside[0] = False
+
+    def every_second_fails(self, D):
+        if inside[0]:
+            calls[0] += 1
+            if calls[0] % 2 == 0:
+                raise ValueError("the record does not invert there")
+        return rows(self, D)
+
+    monkeypatch.setattr(_Run, "determined_curvature", determined_curvature)
+    monkeypatch.setattr(_Run, "rows", every_second_fails)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = separate_imu(imu, trk, site, PAD_ALIGN, "strapdown33", heading_deg=heading)
+    record = out.result.diagnostics["iterations"]["passes"][-1]["curvature"]
+    assert calls[0] == 4 and record["draws"] == 2 and max(record["shift_std"]) > 1.0, record
+    assert not out.success and out.result.status == STATUS_MISFIT, out.message
+    assert "2 of the 4 draws do not invert" in out.message and "no bound on the error" in out.message, out.message
+
+
 def test_one_linear_pass_states_the_combinations_the_record_determines(tmp_path):
     """One pass (``iterate=False``) on 9 s of pad and 3 s of boost under ``strapdown15_axial``: its statement of
     what the record determines is the iteration's (``_outside_note``: how many of the 15 combinations, the others
