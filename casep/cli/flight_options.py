@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from casep.cli.types import finite_float, time_offset
+from casep.cli.types import finite_float, positive_float, time_offset
 
 __all__ = ["FRAMES", "add_tracking", "add_grid", "add_frames", "add_launch_site", "add_alignment", "add_radar",
            "add_own_trajectory", "add_full_scales", "full_scales"]
@@ -72,22 +72,18 @@ def add_alignment(parser: Any, *, required: bool = False, what: str = "") -> Non
                              "warning saying how well the heading is known")
     parser.add_argument("--heading-axis", choices=("x", "y", "z"), default="x",
                         help="the body axis whose azimuth --heading gives (default x)")
-    parser.add_argument("--accel-bias-tolerance", type=finite_float, default=None, metavar="MG",
+    parser.add_argument("--accel-bias-tolerance", type=positive_float, default=None, metavar="MG",
                         help="the accelerometer bias, mg, by which the mean specific force over --align may differ "
                              "from the normal gravity (a warning beyond 49 mg, 5 %% of g; beyond it an error saying "
                              "what fits: units, a vehicle that moved); default 80 mg, the largest of consumer MEMS")
 
 
 def accel_bias_tolerance(args: Any) -> float | None:
-    """``--accel-bias-tolerance MG`` in m/s^2 when given (positive), else None (the alignment's default)."""
+    """``--accel-bias-tolerance MG`` (positive: its type) in m/s^2 when given, else None (the alignment's default)."""
     from casep.units import G0
 
     mg = getattr(args, "accel_bias_tolerance", None)
-    if mg is None:
-        return None
-    if not mg > 0:
-        raise ValueError(f"--accel-bias-tolerance {mg:g}: must be a positive number of mg")
-    return float(mg) * 1e-3 * G0
+    return None if mg is None else float(mg) * 1e-3 * G0
 
 
 def add_radar(parser: Any) -> None:

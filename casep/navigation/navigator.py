@@ -19,7 +19,7 @@ from casep.navigation.alignment import Alignment
 from casep.navigation.imu import DTHETA_COLUMNS, RATE_COLUMNS, ImuData
 from casep.navigation.result import NavigationResult
 
-__all__ = ["navigate", "navigate_from", "pad_state"]
+__all__ = ["navigate", "navigate_from", "pad_state", "check_pad_drift"]
 
 
 def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], *, heading_deg: float | None = None,
@@ -41,7 +41,7 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
         See :func:`casep.navigation.alignment.align` (None: its default, 80 mg).
     check_pad : bool, optional
         Warn when the navigated speed over the window exceeds what the sensors allow at rest
-        (:func:`_check_pad_drift`); False for a simulator's own INS, whose pad is at rest by construction.
+        (:func:`check_pad_drift`); False for a simulator's own INS, whose pad is at rest by construction.
 
     Returns
     -------
@@ -53,7 +53,7 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
     ------
     ValueError
         The alignment's (:func:`casep.navigation.alignment.align`), and with `check_pad` a pad rate beyond any
-        navigating gyro's bias with a navigated speed beyond what the sensors allow at rest (:func:`_check_pad_drift`).
+        navigating gyro's bias with a navigated speed beyond what the sensors allow at rest (:func:`check_pad_drift`).
     """
     q0, r0, v0, t_s, alignment = pad_state(imu, site, align_window, heading_deg=heading_deg,
                                            heading_axis=heading_axis, accel_bias_tolerance=accel_bias_tolerance)
@@ -61,7 +61,7 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
     res.alignment = alignment
     res.align_window = (float(align_window[0]), float(align_window[1]))
     if check_pad:
-        _check_pad_drift(res, imu, site)
+        check_pad_drift(res, imu, site)
     return res
 
 
@@ -69,7 +69,7 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
 PAD_NOISE_FACTOR, PAD_BIAS_FACTOR = 5.0, 3.0
 
 
-def _check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite) -> None:
+def check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite, *, warn: bool = True) -> None:
     """Warn (:class:`casep.exceptions.AlignmentWarning`) when the navigated speed over the pad window exceeds what
     the sensors allow a vehicle at rest.
 
@@ -89,7 +89,8 @@ def _check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite) -> N
     rate is beyond :data:`casep.navigation.alignment.MAX_PAD_RATE` (no gyro that navigates has such a bias: rates
     in deg/s read as rad/s, or a vehicle turning on the pad) the navigation is worthless from its first
     seconds: a ``ValueError`` naming the rate columns, the window's rows and the numbers (the same rule as the
-    pad rate's warning, :func:`casep.navigation.alignment.align`).
+    pad rate's warning, :func:`casep.navigation.alignment.align`). ``warn=False``: that error only (a separation
+    from the raw record, whose passes estimate the gyro biases that tilt the pad).
     """
     from casep.checks.tracking_quality import white_sample_std
     from casep.exceptions import AlignmentWarning
@@ -123,6 +124,8 @@ def _check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite) -> N
                              f"gyro that navigates, and the navigated speed reaches {drift:.3g} m/s in it, above the "
                              f"{allowed:.3g} m/s its sensors allow: the navigation is wrong from its first "
                              f"seconds{hint}; or the vehicle turned in the window (give a window at rest)")
+        if not warn:
+            return
         warnings.warn(f"--align {t1:g} {t2:g}: {imu.source}: the navigated speed reaches {drift:.3g} m/s within the "
                       f"{T:.3g} s window declared at rest, above the {allowed:.3g} m/s its sensors allow (the noise's "
                       f"random walks {noise:.2g} m/s x {PAD_NOISE_FACTOR:g}, a gyro bias of "

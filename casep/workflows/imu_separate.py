@@ -363,7 +363,7 @@ class _Run:
         """The IMU corrected by `D` (at the attitude of the last navigation), aligned and navigated."""
         from casep.model.strapdown import corrected_attitude, corrected_imu
         from casep.navigation.imu import with_rates
-        from casep.navigation.navigator import navigate_from, pad_state
+        from casep.navigation.navigator import check_pad_drift, navigate_from, pad_state
         from casep.rotations import dcm_to_quat, quat_to_dcm
 
         imu = self.imu
@@ -380,6 +380,8 @@ class _Run:
         nav = navigate_from(imu, self.nav_site, q0, r0, v0 - dv0, t_start=t_s)
         nav.alignment, nav.align_window = alignment, (float(self.window[0]), float(self.window[1]))
         nav.source = self.imu.source
+        if self.nav is None:  # the record as given: rates that no navigating gyro has on a pad are refused
+            check_pad_drift(nav, imu, self.nav_site, warn=False)
         self.imu_k = imu
         return nav
 

@@ -326,7 +326,8 @@ def test_a_flight_in_deg_s_the_earth_rate_cannot_tell_is_refused_by_the_pad_chec
     deg/s: 17 "rad/s" in flight, below every peak rule, and a pad rate of 2375 times the Earth rate, too far from it
     for the Earth-rate match to tell deg/s from a MEMS bias. As read, 0.17 rad/s is beyond the bias of any gyro that
     navigates and the pad solution drifts beyond what the sensors allow: navigate exits 2 naming the columns, the
-    window's rows and the numbers, and writes nothing; in rad/s it navigates, and the separation with the tracking
+    window's rows and the numbers, and writes nothing (so does ``separate --imu``, by the same rule); in rad/s it
+    navigates, and the separation with the tracking
     (the default model, strapdown42_extended) succeeds."""
     import casep
     from casep.io.files import write_table
@@ -360,6 +361,13 @@ def test_a_flight_in_deg_s_the_earth_rate_cannot_tell_is_refused_by_the_pad_chec
                      r"above the [0-9.e+-]+ m/s its sensors allow.*divided by 57\.2958 it is 0\.00\d+ rad/s.*look like "
                      r"deg/s", err), err
     assert not out.exists()
+    # the separation from the raw record navigates it the same way and refuses it by the same rule, before any pass
+    assert main(["separate", "--imu", str(tmp_path / "imu_deg.csv"), "--tracking", str(tmp_path / "trk.csv"),
+                 *setup, "--json", str(tmp_path / "sep_deg.json")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(r"imu_deg\.csv: columns w_x, w_y, w_z, rows 1-181: mean body rate 0\.17\d* rad/s .*look like "
+                     r"deg/s", err), err
+    assert not (tmp_path / "sep_deg.json").exists()
     assert main(["navigate", str(tmp_path / "imu_rad.csv"), *setup, "-o", str(tmp_path / "tel_rad.csv")]) == 0
     assert main(["separate", str(tmp_path / "tel_rad.csv"), "--tracking", str(tmp_path / "trk.csv")]) == 0
 
