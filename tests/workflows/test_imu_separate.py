@@ -152,6 +152,31 @@ def test_the_command_line_no_iterate_and_its_refusals(noise_free, tmp_path, caps
     assert "needs --align T1 T2" in capsys.readouterr().err
 
 
+def spy_passes(monkeypatch) -> list:
+    """The corrections the passes navigate with (a list the run fills); the curvature's draws, which navigate
+    through ``_Run.rows``, are not passes and are not recorded."""
+    import casep.workflows.imu_separate as imu_separate
+
+    applied, drawing = [], []
+    navigate_pass, rows = imu_separate._Run.navigate, imu_separate._Run.rows
+
+    def spy(self, D):
+        if not drawing:
+            applied.append(np.array(D[:self.base.n_coefficients], dtype=float))
+        return navigate_pass(self, D)
+
+    def drawn(self, D):
+        drawing.append(True)
+        try:
+            return rows(self, D)
+        finally:
+            drawing.pop()
+
+    monkeypatch.setattr(imu_separate._Run, "navigate", spy)
+    monkeypatch.setattr(imu_separate._Run, "rows", drawn)
+    return applied
+
+
 def test_errors_far_too_large_are_refused_by_the_pad_rule(truth_flight, tmp_path):
     """The gyro errors 30 times the MEMS truth's: a pad rate of 0.089 rad/s (5.1 deg/s), beyond the bias of any gyro
     that navigates, and the pad solution drifts far beyond what the sensors allow: refused before any pass by
@@ -263,28 +288,11 @@ def test_undetermined_coefficients_never_enter_the_imu_correction(noise_free, tm
     along the null direction (``ba_x = ba_x2``: neither is an estimate, 0 in place of them would drop their
     determined sum), the iteration converges, and the determined sum is recovered to far below its std, where
     the one linear pass is many std off."""
-    import casep.workflows.imu_separate as imu_separate
 
     imu, trk, _ = noise_free
     model = tmp_path / "strapdown16_twin.py"
     model.write_text(TWIN_MODEL)
-    applied, drawing = [], []
-    navigate_pass, rows = imu_separate._Run.navigate, imu_separate._Run.rows
-
-    def spy(self, D):
-        if not drawing:
-            applied.append(np.array(D[:self.base.n_coefficients], dtype=float))
-        return navigate_pass(self, D)
-
-    def drawn(self, D):  # the curvature's draws navigate through rows: no pass's correction
-        drawing.append(True)
-        try:
-            return rows(self, D)
-        finally:
-            drawing.pop()
-
-    monkeypatch.setattr(imu_separate._Run, "navigate", spy)
-    monkeypatch.setattr(imu_separate._Run, "rows", drawn)
+    applied = spy_passes(monkeypatch)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         out = separate_imu(imu, trk, SITE, ALIGN, model, heading_deg=heading_of_x(), spec=NOISE_FREE)
@@ -686,26 +694,8 @@ def test_a_pad_then_a_short_boost_is_linearised_at_the_prior_along_what_it_does_
     magnitudes, and each combination stated is within 3 std of the truth. (The curvature's draws after the passes,
     one std of the result's covariance with the IMU's noise in it or the rest at its plausible size, are no pass's
     correction: not counted.)"""
-    import casep.workflows.imu_separate as imu_separate
-
     imu, trk, site, heading, truth = pad_record(tmp_path, 3, "strapdown33", boost=3.0)
-    applied, drawing = [], []
-    navigate_pass, rows = imu_separate._Run.navigate, imu_separate._Run.rows
-
-    def spy(self, D):
-        if not drawing:
-            applied.append(np.array(D[:self.base.n_coefficients], dtype=float))
-        return navigate_pass(self, D)
-
-    def drawn(self, D):  # the curvature's draws navigate through rows: no pass's correction
-        drawing.append(True)
-        try:
-            return rows(self, D)
-        finally:
-            drawing.pop()
-
-    monkeypatch.setattr(imu_separate._Run, "navigate", spy)
-    monkeypatch.setattr(imu_separate._Run, "rows", drawn)
+    applied = spy_passes(monkeypatch)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         out = separate_imu(imu, trk, site, PAD_ALIGN, "strapdown33", heading_deg=heading)
