@@ -210,8 +210,8 @@ def _check_pad_force(fm: float, g0: float, moved: float, n: int, window: tuple[f
         return
     if abs(off) <= tolerance:
         warnings.warn(f"{where}: an accelerometer bias of about {1000 * abs(off) / G0:.3g} mg along the vertical "
-                      f"(within the {1000 * tolerance / G0:.3g} mg accepted, --accel-bias-tolerance); the levelling goes on "
-                      "and a separation estimates the bias", AlignmentWarning, stacklevel=3)
+                      f"(within the {1000 * tolerance / G0:.3g} mg accepted, --accel-bias-tolerance); the levelling "
+                      "goes on and a separation estimates the bias", AlignmentWarning, stacklevel=3)
         return
     units = [f"in {name} (|f| read so is {fm * k:.5g} m/s^2: {fix})" for name, k, fix in FORCE_UNITS
              if abs(fm * k - g0) <= tolerance]
