@@ -277,11 +277,8 @@ def _whole_flight_unseen(t: np.ndarray, a: np.ndarray, windows: int = DRIFT_WIND
     spread = float(np.max(np.ptp(a, axis=0))) if t.size else 0.0
     if not spread >= DRIFT_MIN_ACCEL:
         return f"over the whole flight the acceleration spreads by {spread:.2g} m/s^2"
-    edges = np.linspace(t[0], t[-1], windows + 1)
-    carry = 0
-    for lo, hi in zip(edges[:-1], edges[1:]):
-        k = (t >= lo) & (t <= hi)
-        carry += int(k.sum() >= DRIFT_MIN_EPOCHS and np.median(np.linalg.norm(a[k], axis=1)) >= DRIFT_MIN_ACCEL)
+    carry = sum(int(k.sum() >= DRIFT_MIN_EPOCHS and np.median(np.linalg.norm(a[k], axis=1)) >= DRIFT_MIN_ACCEL)
+                for _, _, k in _window_masks(t, windows))
     if carry < DRIFT_MIN_WINDOWS:
         return (f"nor the whole flight at once: its acceleration is {DRIFT_MIN_ACCEL:g} m/s^2 or more over "
                 f"{DRIFT_MIN_EPOCHS} epochs in {carry} of the windows, {DRIFT_MIN_WINDOWS} needed")
@@ -293,13 +290,17 @@ def _drift_windows(t: np.ndarray, a: np.ndarray, windows: int = DRIFT_WINDOWS
     """The windows :func:`clock_drift` cuts the epochs `t` into: ``(t_lo, t_hi, mask)``, the mask of the window's
     epochs, or None where the window cannot see an offset (fewer than :data:`DRIFT_MIN_EPOCHS` epochs, or the
     acceleration `a` spreads by less than :data:`DRIFT_MIN_ACCEL` over them on every axis)."""
-    edges = np.linspace(t[0], t[-1], windows + 1)
     out: list[tuple[float, float, np.ndarray | None]] = []
-    for lo, hi in zip(edges[:-1], edges[1:]):
-        k = (t >= lo) & (t <= hi)
+    for lo, hi, k in _window_masks(t, windows):
         seen = k.sum() >= DRIFT_MIN_EPOCHS and np.max(np.ptp(a[k], axis=0)) >= DRIFT_MIN_ACCEL
-        out.append((float(lo), float(hi), k if seen else None))
+        out.append((lo, hi, k if seen else None))
     return out
+
+
+def _window_masks(t: np.ndarray, windows: int) -> list[tuple[float, float, np.ndarray]]:
+    """The `windows` equal spans of the epochs `t` (s) the drift rules judge: ``(t_lo, t_hi, mask)``."""
+    edges = np.linspace(t[0], t[-1], windows + 1)
+    return [(float(lo), float(hi), (t >= lo) & (t <= hi)) for lo, hi in zip(edges[:-1], edges[1:])]
 
 
 def clock_drift_unmeasured(t: np.ndarray, a: np.ndarray, windows: int = DRIFT_WINDOWS) -> str:
