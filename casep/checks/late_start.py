@@ -143,33 +143,18 @@ def late_start_evidence(flight: FlightData) -> dict:
     return out
 
 
-def _dropped(suggested: str, model: Any) -> list[str] | None:
-    """The coefficients of `model` the shipped model `suggested` lacks ([] when it keeps them all; None when it is
-    not shipped). A model without names (nothing to compare): []."""
+def _compared(suggested: str, model: Any) -> tuple[list[str], list[str]] | None:
+    """The coefficients of `model` the shipped model `suggested` lacks, and those it adds; ([], []) for a model
+    without names (nothing to compare); None when `suggested` is not shipped."""
     from casep.model.loader import shipped_model
 
     names = getattr(model, "names", None)
     if names is None:
-        return []
+        return [], []
     other = shipped_model(suggested)
     if other is None:
         return None
-    return [n for n in names if n not in set(other.names)]
-
-
-def _added(suggested: str, model: Any) -> str:
-    """`` (strapdown33's 33 terms and phi0_x, ...)``: what the shipped model `suggested` adds to `model`'s
-    coefficients; "" when `model` has no names or the suggestion is not shipped."""
-    from casep.model.loader import shipped_model
-
-    names = getattr(model, "names", None)
-    if names is None:
-        return ""
-    other = shipped_model(suggested)
-    if other is None:
-        return ""
-    added = [n for n in other.names if n not in set(names)]
-    return f" (the {len(names)} terms of `{model.name}` and {', '.join(added)})"
+    return [n for n in names if n not in set(other.names)], [n for n in other.names if n not in set(names)]
 
 
 def _models(missing: Sequence[tuple[str, Sequence[str]]], model: Any) -> str:
@@ -182,12 +167,14 @@ def _models(missing: Sequence[tuple[str, Sequence[str]]], model: Any) -> str:
         if not candidates:
             lack.append(what)
             continue
-        drops = {c: _dropped(c, model) for c in candidates}
-        keeper = next((c for c, d in drops.items() if d == []), None)
+        compared = {c: _compared(c, model) for c in candidates}
+        keeper = next((c for c, d in compared.items() if d is not None and not d[0]), None)
         if keeper is not None:
-            have.append(keeper + _added(keeper, model))
+            added = (compared[keeper] or ([], []))[1]
+            have.append(keeper + (f" (the {len(model.names)} terms of `{model.name}` and {', '.join(added)})"
+                                  if getattr(model, "names", None) is not None else ""))
             continue
-        first, dropped = candidates[0], drops[candidates[0]] or []
+        first, dropped = candidates[0], (compared[candidates[0]] or ([], []))[0]
         copy.append(f"the {what} ({first}.py in models/ shows how: its declare and set_initial_* lines; --model "
                     f"{first} would drop {len(dropped)} of the {len(getattr(model, 'names', ()))} terms of "
                     f"`{model.name}`: {', '.join(dropped[:6])}{' ...' if len(dropped) > 6 else ''})")
