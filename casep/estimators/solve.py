@@ -44,7 +44,7 @@ from casep.regression.rows import Rows, prepare_rows
 # Rows and prepare_rows live in casep.regression.rows (the data's), re-exported here beside solve_problem
 __all__ = ["fit", "fit_flights", "joint_rows", "JointRows", "flight_sigmas", "rows_for", "solve_problem",
            "solve_spec", "noise_account", "prepare_rows", "Rows", "Solved", "hac_covariance", "with_hac",
-           "STD_CHOICES"]
+           "richer_noise_factor", "STD_CHOICES"]
 
 
 @dataclass
@@ -322,6 +322,16 @@ def with_hac(res: EstimateResult, solved: Problem) -> EstimateResult:
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     std[und] = np.nan
     return dataclasses.replace(res, covariance=cov, std=std, settings={**res.settings, "std": "hac"})
+
+
+def richer_noise_factor(res: EstimateResult, problem: Problem) -> float:
+    """How far too small the std of a white-noise least-squares fit `res` of `problem` are: the median ratio of
+    the Gauss-Markov plus white (REML) std to its own (:func:`_gm_factor`, the whiteness test's measure), at least 1;
+    1 where it cannot be measured (no times, a given noise, noise-free rows)."""
+    if problem.t is None or problem.y is None or problem.is_noise_free():
+        return 1.0
+    med = _gm_factor(res, prepare_rows(problem, "white", robust="none"))[0]
+    return max(1.0, float(med)) if med is not None and np.isfinite(med) else 1.0
 
 
 def _gm_factor(res: EstimateResult, rows: Rows) -> tuple[float | None, float | None]:

@@ -1197,7 +1197,14 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
     (:meth:`_Run.combinations_with_noise`). With it in the std that leave combinations out, a clipped-gyro telemetry
     (gyro noise measured on its own second differences, 3 times the noise written) had every combination left out,
     ``ba_x`` among them at 0.0087 declared magnitudes (1.03 with the IMU's noise, the size 1.0), and failed on it
-    at 217 std of the tracking's.
+    at 217 std of the tracking's. The passes far from convergence are white-noise least squares (:func:`_fast_spec`),
+    whose std are too small under correlated tracking noise (Gauss-Markov plus white: 2.2 to 2.6 times on a 20 s, 5
+    Hz rail launch, by the true covariance and a Monte Carlo of 300 draws); judged by them, noise looked significant
+    (an estimate of 92 declared magnitudes at 10 of its white std, 3.8 of its true ones), the plausible size became
+    92, the passes stepped along combinations of that std and linearised so far from the truth that the combinations
+    stated were 14 to 50 std off (the shipped MEMS example of ``docs/guide/navigate.md``: up to 152). So in a
+    white-noise pass the std that judge the size are multiplied by the Gauss-Markov plus white fit's factor
+    (:func:`casep.estimators.solve.richer_noise_factor`, the whiteness test's measure).
     """
     from casep.checks.tracking_quality import determined, noise_problem
 
@@ -1225,6 +1232,10 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
         if about is not None:  # what the record determines (the size: the IMU's noise in the std that judge it)
             imu = combination_imu_noise(q.T, scale, res, problem, flight)
             eff = sig if imu is None else np.where(sig > 0, np.sqrt(sig**2 + imu[1]), 0.0)
+            if (res.settings or {}).get("noise") == "white" and problem.t is not None:
+                from casep.estimators.solve import richer_noise_factor
+
+                eff = eff * richer_noise_factor(res, problem)  # white std under correlated noise: too small
             est = q.T @ ((np.asarray(about, dtype=float) + x) / scale)
             size = _determined_size(eff, est)
             out, limit = out | (sig > size), min(limit, size)
