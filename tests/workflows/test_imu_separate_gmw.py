@@ -1,0 +1,83 @@
+"""Raw-IMU separation under Gauss-Markov plus white tracking noise: the combinations stated hold their std.
+
+A 20 s rail launch at 10 Hz (6 s on the pad, 6 g for 10 s, a roll programme) with ``strapdown15_axial`` errors drawn
+at their declared magnitudes, tracked at 5 Hz with Gauss-Markov (0.05 m/s, tau 1 s) plus white (0.03 m/s) noise:
+the usual radar or GNSS mixture, on a flight short enough that the noise model is hard to tell from the data. The
+full-size Monte Carlo is ``benchmarks/mc_imu_gmw_combinations.py``.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import casep
+from casep.frames import LaunchSite
+from casep.io.files import write_table
+from casep.model.strapdown import body_errors
+from casep.navigation import ImuData, check_imu, navigate
+from casep.simulation.noise import ar1_noise, white_noise
+from casep.simulation.strapdown import rail_launch
+from casep.workflows.imu_separate import separate_imu
+
+SITE = LaunchSite(28.46, -80.53, 3.0, 95.0, 6.0)  # lift-off at t = 6 s
+ALIGN, HEADING, MODEL = (0.0, 5.5), 95.0, "strapdown15_axial"
+#: Tracking noise per axis: Gauss-Markov std (m/s) and correlation time (s), white std (m/s).
+GM_STD, GM_TAU, WHITE_STD = 0.05, 1.0, 0.03
+
+
+@pytest.fixture(scope="module")
+def launch():
+    """The clean record ``t, w, f`` and its navigation (the truth)."""
+    t = np.round(np.arange(0.0, 20.0, 0.1), 10)
+    w, f = rail_launch(SITE, t, elevation_deg=84.0, boost_g=6.0, burn_s=10.0, coast_g=-0.3, roll=(1.5, 3.0))
+    return t, w, f, navigate(check_imu(ImuData(t, w, f)), SITE, ALIGN, heading_deg=HEADING)
+
+
+def flight(directory, launch, seed: int):
+    """IMU and tracking files of the launch with errors drawn at the declared magnitudes (`seed`) and the tracking
+    noise drawn after them; returns (imu, tracking, truth in declared magnitudes)."""
+    t, w, f, nav = launch
+    m = casep.load_model(MODEL)
+    rng = np.random.default_rng(seed)
+    z = rng.standard_normal(len(m.names))
+    df, dw = body_errors(m, nav.q, f, w, t - t[0], z * np.array([m.scales[n] for n in m.names]))
+    imu, trk = directory / f"imu{seed}.csv", directory / f"trk{seed}.csv"
+    write_table(imu, {"t": t, **{f"w_{a}": (w + dw)[:, i] for i, a in enumerate("xyz")},
+                      **{f"fb_{a}": (f + df)[:, i] for i, a in enumerate("xyz")}})
+    k = slice(None, None, 2)
+    v = nav.v[k] + ar1_noise(t[k], GM_STD, GM_TAU, rng) + white_noise(t[k].size, WHITE_STD, rng)
+    write_table(trk, {"t": t[k], **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}})
+    return imu, trk, z
+
+
+def test_the_combinations_stated_hold_their_std_under_gauss_markov_plus_white_tracking(launch, tmp_path):
+    """Seeds 0-3, the default fit: every result a success stating combinations, each within 4 of its std of the
+    truth, and the 24 z pooled with an RMS of at most 1.75.
+
+    Before the passes far from convergence judged the instrument's plausible size by std that carry the tracking
+    noise's correlation (:func:`casep.workflows.imu_separate.determined_step`), their white std (2.2 to 2.6 times
+    too small here) made noise look like evidence of errors of ~90 declared magnitudes, the passes linearised that far
+    from the truth, and seed 1 stated combinations 13.6 and 27.4 std off (seed 5: 5.8; pooled RMS z of seeds 0-5:
+    5.5). Now seeds 0-11 (the benchmark) give a pooled RMS of 1.65, 85 % within 1.96 std, and seeds 8 and 10 one
+    combination 6.9 and 5.6 std off: the std are still too small on a flight this short. It is the noise model's
+    plug-in estimate from 100 epochs per axis, not the passes: the first pass's linear fit alone over 60 noise draws
+    gives RMS z 1.31 (1.26 with Gauss-Markov plus white forced; seed 8's default took white noise on an axis whose
+    noise is Gauss-Markov, by a likelihood ratio of 1.6). Seeds 0-3 are within 3.3 std (RMS 1.49); the bounds hold
+    that known shortfall and fail the defect by an order of magnitude (|z| < 4 fails its seed 1 alone)."""
+    z = []
+    for seed in range(4):
+        imu, trk, truth = flight(tmp_path, launch, seed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # conditioning, what the record leaves undetermined: said by the result
+            out = separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=HEADING)
+        assert out.success, (seed, out.message)
+        combos = out.result.diagnostics["determined"]["combinations"]
+        assert combos, seed
+        zs = np.array([(c["estimate"] - np.dot(c["weights"], truth)) / c["std"] for c in combos])
+        assert np.all(np.abs(zs) < 4.0), (seed, zs)
+        z.append(zs)
+    rms = float(np.sqrt(np.mean(np.concatenate(z) ** 2)))
+    assert rms <= 1.75, rms
