@@ -370,11 +370,14 @@ def check_enough_samples(flight: FlightData, n_coefficients: int, model_name: st
     need = min_samples(n_coefficients)
     n = flight.n_observed
     if n < need:
+        from casep.checks.tracking_quality import screen_summary
+
         part = "" if n == flight.n_samples else f" observed (tracking covers {n} of {flight.n_samples})"
+        screened = screen_summary(flight.meta.get("tracking_screen"))
         raise FlightDataError(
             flight.source,
             f"{n} samples{part} are too few for model `{model_name}` with "
-            f"{n_coefficients} coefficients: need at least {need}",
+            f"{n_coefficients} coefficients: need at least {need}" + (f"; {screened}" if screened else ""),
             "t", int(np.flatnonzero(flight.observed)[-1]) + 1 if n else flight.n_samples,
         )
 

@@ -105,6 +105,27 @@ class TrackingScreen:
         return out
 
 
+def screen_summary(screen: dict | None, top: int = 3) -> str:
+    """What a flight's tracking screen (``meta["tracking_screen"]``, :meth:`TrackingScreen.to_dict`) left out, in a
+    clause: how many epochs of how many, the stale and the physics-rejected spans (the first `top` of each, by time);
+    "" when it left out none."""
+    if not screen or screen.get("kept", 0) >= screen.get("epochs", 0):
+        return ""
+
+    def spans(key: str, what: str) -> str:
+        runs = screen.get(key) or []
+        if not runs:
+            return ""
+        said = ", ".join(f"t = {a:.6g}..{b:.6g} s ({n})" for a, b, n in runs[:top])
+        more = f" and {len(runs) - top} more" if len(runs) > top else ""
+        return f"{what} {sum(n for _, _, n in runs)} in {len(runs)} span{'s' if len(runs) > 1 else ''}: {said}{more}"
+
+    parts = [p for p in (spans("stale", "stale (repeated fixes)"), spans("rejected", "rejected by the physics check"))
+             if p]
+    return (f"the tracking screen left out {screen['epochs'] - screen['kept']} of its {screen['epochs']} epochs"
+            + (f" ({'; '.join(parts)})" if parts else ""))
+
+
 def _spans(t: np.ndarray, flagged: np.ndarray) -> list[tuple[float, float, int]]:
     """Runs of consecutive flagged epochs: ``(t_first, t_last, count)``."""
     x = np.concatenate([[0], flagged.astype(np.int8), [0]])

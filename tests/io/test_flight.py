@@ -28,6 +28,26 @@ def test_enough_samples_rule():
     check_enough_samples(casep.FlightData(np.arange(14.0), np.zeros((14, 3)), np.zeros((14, 3))), 36, "m")
 
 
+def test_too_few_samples_after_the_tracking_screen_says_what_it_left_out():
+    """A flight whose tracking the screen mostly left out (a receiver repeating its last fix, then lagged 1 Hz
+    steps the physics check rejects): the error says how many epochs of how many and where, not only the count."""
+    from casep.checks.tracking_quality import TrackingScreen
+
+    screen = TrackingScreen(stale=[(2.1, 27.9, 259), (28.1, 29.9, 19), (30.1, 30.9, 9), (31.1, 31.9, 9)],
+                            rejected=[(0.0, 2.0, 21)], epochs=320, kept=3).to_dict()
+    obs = np.zeros(320, bool)
+    obs[[22, 50, 80]] = True
+    fl = casep.FlightData(np.arange(320.0) / 10, np.zeros((320, 3)), np.zeros((320, 3)), source="s.csv",
+                          observed=obs, meta={"tracking_screen": screen})
+    with pytest.raises(FlightDataError) as err:
+        check_enough_samples(fl, 33, "strapdown33")
+    msg = str(err.value)
+    assert "3 samples observed (tracking covers 3 of 320) are too few" in msg
+    assert "the tracking screen left out 317 of its 320 epochs" in msg
+    assert "stale (repeated fixes) 296 in 4 spans: t = 2.1..27.9 s (259)" in msg and "and 1 more" in msg
+    assert "rejected by the physics check 21 in 1 span: t = 0..2 s (21)" in msg
+
+
 def test_observed_mask_selects_regression_rows(tmp_path):
     t = np.arange(10.0)
     dv = np.ones((10, 3))
