@@ -73,7 +73,7 @@ if TYPE_CHECKING:
 __all__ = ["held_full_scale", "held_mask", "HeldFullScale", "check_full_scale", "FULL_SCALE_UNITS",
            "with_full_scales", "screen_saturation", "SENSOR_COLUMNS",
            "NOMINAL_RANGES", "ADC_BITS", "CLIP_RUN", "CLIP_MARGIN", "HELD_FRACTION", "NOISE_ALPHA", "NOISE_STEPS",
-           "noise_cannot_hold", "white_noise", "resolution"]
+           "noise_cannot_hold", "white_noise", "resolution", "DECLARED_EXCEEDED", "beyond_declared"]
 
 #: Word lengths of the converters raw counts come from.
 ADC_BITS = (8, 10, 12, 14, 16, 18, 20, 24, 32)
@@ -81,6 +81,10 @@ ADC_BITS = (8, 10, 12, 14, 16, 18, 20, 24, 32)
 CLIP_RUN = 3
 #: With a declared full scale F, a reading at or beyond (1 - CLIP_MARGIN) F is at it (module notes).
 CLIP_MARGIN = 0.01
+#: A reading beyond this many times the declared full scale is no clipped reading: the declared range (or the
+#: column's unit) is wrong (:func:`beyond_declared`). Sensors read a little past their nominal range (a few per
+#: cent, the scale factor's tolerance), not half as much again.
+DECLARED_EXCEEDED = 1.5
 #: Without a declared full scale: a physical column whose consecutive samples are equal this often has no
 #: noise (a simulated record), so a value held at its extreme says nothing of the sensor's range.
 HELD_FRACTION = 0.5
@@ -124,6 +128,19 @@ def check_full_scale(value, name: str, flag: str, unit: str) -> float:
     if not (math.isfinite(v) and v > 0):
         raise refusal(name, flag, f"a finite number > 0 ({unit})", value)
     return v
+
+
+def beyond_declared(x: np.ndarray, declared: float, si: float = 1.0) -> list[tuple[int, int, float]]:
+    """The columns of readings `x` (SI per unit `si`) that go beyond :data:`DECLARED_EXCEEDED` times the declared
+    full scale `declared` (SI): ``(column, first row beyond, largest |reading| in SI)``; a sensor clipped at its
+    range reads at it, not past it, so such a column says the declared range is wrong."""
+    x = np.abs(np.asarray(x, float)) * si
+    out = []
+    for j in range(x.shape[1]):
+        over = np.flatnonzero(x[:, j] > DECLARED_EXCEEDED * declared)
+        if over.size:
+            out.append((j, int(over[0]), float(x[:, j].max())))
+    return out
 
 
 def held_full_scale(x: np.ndarray, sensor: str, *, si: float | None = 1.0, declared: float | None = None,

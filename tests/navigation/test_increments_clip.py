@@ -66,3 +66,22 @@ def test_clipped_increments_are_found_and_said_in_their_own_unit(declared):
     assert f"dth_x: {N - first} samples at full scale ({why}" in said
     assert "its maximum 0.00872665 rad over 0.005 s = 100 deg/s" in said and "dth_y" not in said and "dvb" not in said
     assert imu.clipped is not None and np.array_equal(imu.clipped, np.arange(N) >= first)
+
+
+@pytest.mark.parametrize("kind", ["rates", "increments"])
+def test_a_declared_full_scale_the_record_exceeds_is_refused_naming_column_and_row(kind):
+    """The same roll read up to 100 deg/s, declared with --gyr-range 20: a sensor clipped at 20 deg/s cannot read
+    100 (main called the whole roll clipped at the declared 20 and navigated the rest); refused, naming the column,
+    the first row beyond 1.5 times the declared range, the reading and the option. 100 deg/s declared: no error."""
+    rng = np.random.default_rng(2)
+    t, dth, dv = _boost(rng, (1e-4, 2e-3))
+    dth[:, 0] = np.minimum(dth[:, 0], math.radians(100.0) * H)
+    imu = ImuData(t, np.zeros_like(dth), np.zeros_like(dv), "increments", dth, dv) if kind == "increments" else \
+        ImuData(t, dth / H, dv / H)
+    first = int(np.flatnonzero(np.abs(dth[:, 0]) > 1.5 * math.radians(20.0) * H)[0])
+    col = "dth_x" if kind == "increments" else "w_x"
+    with pytest.raises(ValueError, match=rf"column `{col}`, row {first + 1} \(t = .*\): the gyro reads up to 100 "
+                                         r"deg/s, 5 times the declared full scale 20 deg/s \(--gyr-range\)"):
+        check_imu(imu, gyr_range=math.radians(20.0))
+    with pytest.warns(SaturationWarning):
+        check_imu(imu, gyr_range=math.radians(100.0))
