@@ -349,7 +349,7 @@ def _check_clipped(imu: ImuData, gyr_range: float | None, acc_range: float | Non
         unit, per = FULL_SCALE_UNITS[sensor]
         x, si = (np.asarray(r, float), 1.0 / period) if r is not None else (x, 1.0)
         beyond = beyond_declared(x, fs, si) if fs is not None else []
-        if beyond:
+        if beyond and fs is not None:
             j, row, top = beyond[0]
             flag = "--gyr-range" if sensor == "gyro" else "--acc-range"
             raise ValueError(f"{imu.source}: column `{cols[j]}`, row {row + 1} (t = {imu.t[row]:.10g} s): the "
