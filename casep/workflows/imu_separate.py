@@ -700,7 +700,8 @@ class _Run:
         # what the record leaves undetermined is said with every result that has estimates, failed or not, of the
         # iteration or of one linear pass (its pass steps along what the record determines as an iteration's first)
         smaller = None if "a smaller model" in out.message else SMALLER_MODELS.get(self.base.name)
-        said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf), smaller) \
+        alone = int(np.isfinite(out.estimate).sum()) - len(out.diagnostics.get("not_determined") or ())
+        said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf), smaller, alone) \
             if out.solution is not None or np.any(np.isfinite(out.estimate)) else None
         if said:
             from casep.exceptions import NonlinearityWarning
@@ -1318,11 +1319,13 @@ def _in_covariance(sig: np.ndarray, q: np.ndarray, scale: np.ndarray, keep: np.n
     return B @ B.T
 
 
-def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str | None = None) -> str | None:
+def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str | None = None,
+                  alone: int | None = None) -> str | None:
     """What an iteration says of the combinations its steps left out (:func:`determined_step`'s `limit`):
     none, or how many, their std and names, why (the last rejected step, or their std above the plausible size of
-    what the record determines), and that their estimates are linear; when they are most of the combinations, the
-    smaller shipped models to try (`smaller`, :data:`SMALLER_MODELS`; None: not said).
+    what the record determines), and that their estimates are linear; when they are most of the combinations, or
+    no coefficient is determined on its own (`alone`, how many are: 0), the smaller shipped models to try
+    (`smaller`, :data:`SMALLER_MODELS`; None: not said).
     None when one of them is determined (:func:`_outside_failure`: std within the plausible `size`, correction above
     :data:`SIGNIFICANT` std): that is a failure, not a note."""
     left = passes[-1].get("left_out") or []
@@ -1333,6 +1336,8 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str
     near = [c["z"] for c in left if c["std"] <= size]
     names = "; ".join(c["combination"] for c in sorted(left, key=lambda c: c["std"])[:3])
     kept = len(passes[-1].get("determined") or [])  # the rest of the n: the fit's null space
+    why_smaller = "most of the combinations undetermined" if len(left) > kept else \
+        "no coefficient determined on its own" if alone == 0 else None
     return (f"the record determines {kept} of {n} combinations of the coefficients well enough to iterate; "
             f"the other {len(left)} (std {sd[0]:.3g} to {sd[-1]:.3g} declared magnitudes: {names}"
             f"{'; ...' if len(left) > 3 else ''}) are left at the prior (0)"
@@ -1340,8 +1345,8 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str
             + (f"their corrections are noise (at most {max(near):.2g} std) or " if near else "")
             + f"their std exceed the coefficients' plausible size ({size:.3g} declared magnitudes): the record does "
             "not determine them. Their estimates are the last linear pass's, their std linear (not checked for "
-            "curvature)" + (f"; with most of the combinations undetermined, a smaller model ({smaller}) leaves less "
-                            "undetermined" if smaller and len(left) > kept else ""))
+            "curvature)" + (f"; with {why_smaller}, a smaller model ({smaller}) leaves less undetermined"
+                            if smaller and why_smaller else ""))
 
 
 def _with_determined(res: EstimateResult, last: dict, scales: dict[str, float]) -> EstimateResult:

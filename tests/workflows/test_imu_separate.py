@@ -894,3 +894,21 @@ def test_the_combinations_stepped_along_are_stated_in_the_result(tmp_path):
         assert abs(c["estimate"] - np.dot(c["weights"], T)) < 4.0 * c["std"], c
         assert f"= {c['estimate']:.4g} +- {c['std']:.2g}" in res.message
     assert "combinations (coefficient / declared magnitude) the flight determines" in res.message
+
+
+def test_the_smaller_models_are_advised_when_no_coefficient_is_determined_on_its_own():
+    """A record that determines 17 of strapdown33's combinations and leaves 7 out (a reviewer's raw boost: its
+    stated combinations right, max |z| 0.31) determines no coefficient on its own: the smaller shipped models are
+    named then too, not only when most combinations are left out; with coefficients determined alone they are not."""
+    from casep.workflows.imu_separate import SMALLER_MODELS, _outside_note
+
+    w = [0.0] * 33
+    passes = [{"determined": [{"std": 0.1, "weights": w, "estimate": 0.0}] * 17,
+               "left_out": [{"std": 3.0 + k, "z": 0.1, "combination": f"c{k}"} for k in range(7)]}]
+    smaller = SMALLER_MODELS["strapdown33"]
+    advice = f"with no coefficient determined on its own, a smaller model ({smaller}) leaves less undetermined"
+    assert advice in (_outside_note(passes, 33, 1.4, smaller, alone=0) or "")
+    assert "a smaller model" not in (_outside_note(passes, 33, 1.4, smaller, alone=2) or "x")
+    most = [{**passes[0], "left_out": passes[0]["left_out"] * 3}]  # 21 left out of 38: most, whatever alone says
+    assert "with most of the combinations undetermined, a smaller model" in (_outside_note(most, 33, 1.4, smaller,
+                                                                                           alone=2) or "")
