@@ -708,7 +708,7 @@ class _Run:
 
             warnings.warn(said, NonlinearityWarning, stacklevel=3)
             if iterate:
-                out = dataclasses.replace(out, message=f"{out.message}; {said}")
+                out = _with_line(out, said)
         if iterate and out.success:  # a failed result's std are not used: no curvature to carry
             out = self.curvature(out, problem, D)
         elif not iterate and out.success:  # one linear pass: its second-order remainder judged, as a telemetry's
@@ -716,8 +716,8 @@ class _Run:
             if shift is not None:
                 out = one_pass_judged(out, shift)
         if said and not iterate:  # after the judgement, whose failure message replaces a success's
-            out = dataclasses.replace(out, message=f"{out.message}; {said}")
-        return ImuSeparation(out, nav, flight, passes)
+            out = _with_line(out, said)
+        return ImuSeparation(_advice_first(out, SMALLER_MODELS.get(self.base.name)), nav, flight, passes)
 
     def left_out_curvature(self, res: EstimateResult, last: dict, problem: Any, flight: FlightData,
                            D: np.ndarray) -> EstimateResult:
@@ -764,7 +764,7 @@ class _Run:
                           f"invert (the far ones), and the {record['draws']} that do already move a stated combination "
                           f"by {worst:.3g} times its linear std (above {CURVATURE_RELIABLE:g}): the std stated are no "
                           "bound on the error, so the combinations are not presented as a result")
-        return dataclasses.replace(res, message=f"{res.message}; {note}")
+        return _with_line(res, note)
 
     def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
         """`res` with the record's own noise in its std, the pad levelling's start tilt with it
@@ -874,7 +874,7 @@ class _Run:
                          f"expansion is not the error's distribution and the std are not reliable: check them against "
                          f"a simulation of the flight")
             warnings.warn(said, NonlinearityWarning, stacklevel=4)
-            message = f"{message}; {said}"
+            message = f"{message}\n{said}"  # a line of its own (_with_line)
         diag = dict(res.diagnostics)
         diag["curvature"] = info
         return dataclasses.replace(res, covariance=cov, std=np.sqrt(np.diag(cov)), message=message, diagnostics=diag)
@@ -1367,10 +1367,27 @@ def _with_determined(res: EstimateResult, last: dict, scales: dict[str, float]) 
     said = "; ".join(" + ".join(f"{w:.2g} {nm}/{scales.get(nm, 1.0):g}" for nm, w in c["terms"].items())
                      + (f" (+ {c['more']} smaller terms)" if c.get("more") else "")
                      + f" = {c['estimate']:.4g} +- {c['std']:.2g}" for c in combos[:6])
-    msg = (f"{res.message}; the iterated passes stepped along {len(combos)} combinations (coefficient / declared "
+    msg = (f"{res.message}\nthe iterated passes stepped along {len(combos)} combinations (coefficient / declared "
            f"magnitude) the flight determines: {said}" + ("; ..." if len(combos) > 6 else "")
            + " (all in diagnostics.determined)")
     return dataclasses.replace(res, diagnostics=diag, message=msg)
+
+
+def _with_line(res: EstimateResult, part: str) -> EstimateResult:
+    """`res` with `part` on a line of its own after its message: a raw-IMU result's message is its status reason
+    (and the advice, :func:`_advice_first`) on the first line, each finding of the passes (the combinations stated,
+    those left out, the curvature) on a line below, not one paragraph of thousands of characters."""
+    return dataclasses.replace(res, message=f"{res.message}\n{part}")
+
+
+def _advice_first(res: EstimateResult, smaller: str | None) -> EstimateResult:
+    """`res` with the smaller shipped models (`smaller`, :data:`SMALLER_MODELS`) named on its message's first line
+    when a line below advises them (the reason there), so that the first line holds the status reason and the
+    advice."""
+    first, _, rest = res.message.partition("\n")
+    if not smaller or "a smaller model" not in rest or "a smaller model" in first:
+        return res
+    return dataclasses.replace(res, message=f"{first}; try a smaller model ({smaller}): why below\n{rest}")
 
 
 def _rms(y: np.ndarray | None) -> float:
