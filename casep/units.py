@@ -30,6 +30,9 @@ FULL_SCALE_TOLERANCE = 0.03
 #: The largest accelerometer bias of consumer MEMS, m/s^2 (80 mg): a specific force off by up to this much is an
 #: instrument error the separation estimates, not a unit mistake or a wrong column.
 MEMS_ACCEL_BIAS = 0.08 * G0
+#: The largest gyro bias of consumer MEMS, rad/s (1500 deg/h, 0.42 deg/s, about 100 times the Earth rate): a mean
+#: rate at rest up to this much is an instrument error the separation estimates, not a unit mistake.
+MEMS_GYRO_BIAS = 1500.0 * DEG_PER_HOUR
 
 _MG = 1e-3 * G0  # one milli-g in m/s^2
 _UG = 1e-6 * G0  # one micro-g in m/s^2

@@ -146,5 +146,5 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ValueError, TypeError, OSError) as exc:  # FlightDataError, ModelDefinitionError among them
         print(f"casep: error: {exc}", file=sys.stderr)
         return 2
-    print_warnings(caught)  # casep's warnings become lines of the report (ill-conditioning: in the table)
+    print_warnings(caught)  # casep's warnings on stderr, after the report (ill-conditioning: in the table)
     return status

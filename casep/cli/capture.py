@@ -1,12 +1,14 @@
-"""casep's warnings during a command: recorded, then printed as ``warning:`` lines of the report.
+"""casep's warnings during a command: recorded, then printed as ``warning:`` lines on stderr, after the report.
 
-The ill-conditioning warning is not printed (the table says it); warnings that are not casep's
-are passed on to Python's warning machinery as they were.
+The report (the table, the summary) is stdout, so that it can be redirected or piped clean; the warnings go with
+the errors. The ill-conditioning warning is not printed (the table says it); warnings that are not casep's are
+passed on to Python's warning machinery as they were.
 """
 
 from __future__ import annotations
 
 import contextlib
+import sys
 import warnings
 from typing import Iterator
 
@@ -45,10 +47,10 @@ def report_lines(caught: list[warnings.WarningMessage]) -> list[str]:
 
 
 def print_warnings(caught: list[warnings.WarningMessage]) -> None:
-    """Print casep's warnings as ``warning:`` lines; pass the others on."""
+    """Print casep's warnings as ``warning:`` lines on stderr; pass the others on."""
     for w in caught:
         if issubclass(w.category, CasepWarning) and not issubclass(w.category, IllConditionedWarning):
-            print(f"warning: {w.message}")
+            print(f"warning: {w.message}", file=sys.stderr)
         elif not issubclass(w.category, CasepWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 

@@ -82,5 +82,6 @@ def status(res: Any) -> int:
     """
     if res.success:
         return 0
-    print(f"casep: result not successful: {res.message}", file=sys.stderr)
+    said = res.message.replace("\n", "\n  ")  # its reason first; each further line a finding, indented
+    print(f"casep: result not successful: {said}", file=sys.stderr)
     return 1

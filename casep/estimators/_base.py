@@ -262,8 +262,13 @@ def finish(
             status = 2
             message = message or (f"{n - n_ok} of {n} coefficients not identifiable on this data "
                                   "(zero or exactly dependent columns); the other estimated")
+        elif pb.ra.rank:  # every coefficient exactly dependent, but their combinations determined: a result
+            status = 2
+            message = message or (f"no coefficient is identifiable on its own on this data (zero or exactly "
+                                  f"dependent columns); the data determine {pb.ra.rank} combinations of the {n}")
         else:
-            status, message = STATUS_NONE_DETERMINED, message or "no coefficient is identifiable on this data"
+            status, message = STATUS_NONE_DETERMINED, message or ("no coefficient nor any combination of them is "
+                                                                  "identifiable on this data (every column zero)")
     failure = _failure(pb, name, getattr(declared, "hint", ""), np.where(und, 0.0, x), std, res)
     if failure is not None:
         status, message = failure
@@ -432,8 +437,9 @@ LINEAR_ALPHA = 0.01
 #: Methods whose estimates of poorly determined coefficients the regularisation sets, not the data (and whose
 #: std leave out that bias): beyond :data:`MAGNITUDE_FAIL` they get the warning, not a failure.
 REGULARISED = ("ridge", "pcr", "bounded")
-#: Status of a result whose data determine no coefficient: none identifiable (:func:`finish`), or no coefficient
-#: and no combination of them better than the declared magnitudes (check_magnitudes).
+#: Status of a result whose data determine nothing: no coefficient and no combination of them identifiable (rank 0,
+#: :func:`finish`; every coefficient exactly dependent but the fit of rank r > 0 determines r combinations: status 2,
+#: a result), or no coefficient and no combination of them better than the declared magnitudes (check_magnitudes).
 STATUS_NONE_DETERMINED = -1
 #: Status of a result whose flight failed a set-up check (casep.checks.plausibility.setup_problems).
 STATUS_SETUP = -4

@@ -78,8 +78,8 @@ def solve_ols(S: np.ndarray | Problem, y: np.ndarray | None = None, **labels: Un
     Returns
     -------
     EstimateResult
-        ``status`` 1: every coefficient estimated; 2: some are not identifiable on this
-        data (reported NaN with a reason); -1: none is.
+        ``status`` 1: every coefficient estimated; 2: some (or all, their combinations determined) are not
+        identifiable on this data (reported NaN with a reason); -1: nothing is (rank 0).
     """
     return OLS.call(S, y, **labels)
 

@@ -60,7 +60,7 @@ class FlightDataError(ValueError):
     message : str
         What is wrong.
     column : str, optional
-        Offending column.
+        Offending column (several: their names separated by commas).
     row : int or str, optional
         1-based data row (after the header), or ``"header"``.
     line : int, optional
@@ -71,8 +71,10 @@ class FlightDataError(ValueError):
                  row: int | str | None = None, line: int | None = None) -> None:
         self.source, self.column, self.row, self.line = source, column, row, line
         where = []
-        if column is not None:
-            where.append(f"column `{column}`")
+        if column is not None:  # several, comma-separated: "columns `fb_x`, `fb_y`, `fb_z`"
+            names = [c.strip() for c in column.split(",")]
+            where.append(f"column `{column}`" if len(names) == 1 else
+                         "columns " + ", ".join(f"`{c}`" for c in names))
         if row is not None:
             where.append((f"row {row}" if row != "header" else "header")
                          + (f" (line {line})" if line is not None else ""))

@@ -47,9 +47,13 @@ __all__ = ["corrected_attitude", "correction_errors",
            "CORRECTION_TOL", "CORRECTION_FLOOR", "CORRECTION_MAX_STEPS", "CORRECTION_GROWING"]
 
 #: The fixed-point inversion of :func:`corrected_imu` stops when a step moves no input by more than this
-#: relative amount, against its sensor's largest input (a few units in the last place of a double).
+#: relative amount (a few units in the last place of a double), relative to the rounding of what forms the step:
+#: the largest norm of the measured, corrected or error vectors (force and rate each their own) over the record.
+#: The measured inputs alone are no such scale: a lateral specific force measured at 1e-6 m/s^2 whose
+#: misalignment error is 0.05 m/s^2 is corrected to 0.05, whose last digit moves 7e-18, 4.5e-12 of 1.5e-6.
 CORRECTION_TOL = 1e-15
-#: ... or when it no longer contracts below this (the rounding of the errors' own evaluation) ...
+#: ... or when it no longer contracts below this (the rounding of the errors' own evaluation, the rotations
+#: to the navigation frame and back amplified by the map's own gain) ...
 CORRECTION_FLOOR = 1e-12
 #: ... or after this many steps: not converged (sensor errors too large for the record to be invertible) ...
 CORRECTION_MAX_STEPS = 60
@@ -213,8 +217,9 @@ def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured
     (or `start`)
     (``x = (fb, w)``). It contracts by the size of the errors' dependence on the inputs (scale
     factors, misalignments, g-sensitivity: 1e-2 for a MEMS IMU, so each step gains two digits) and
-    stops when a step moves no input by more than :data:`CORRECTION_TOL` of its sensor's largest input (or no longer
-    contracts, below :data:`CORRECTION_FLOOR`: the rounding of the errors' own evaluation). For strapdown33
+    stops when a step moves no input by more than :data:`CORRECTION_TOL` of the largest force or rate vector of
+    the record (measured, corrected or error: the rounding of the step's terms), or no longer contracts below
+    :data:`CORRECTION_FLOOR` of it (the rounding of the errors' own evaluation). For strapdown33
     this is the closed form ``fb = (I + M_a)^{-1} (fb_m - b_a)``, ``w = (I + M_g)^{-1} (w_m - b_g -
     G fb / g0)`` (``M`` scale factors on the diagonal, misalignments off it, ``G`` g-sensitivity),
     which the tests check.
@@ -240,25 +245,30 @@ def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured
     """
     fb_m, w_m = np.asarray(fb_measured, float), np.asarray(w_measured, float)
     fb, w = (fb_m.copy(), w_m.copy()) if start is None else (np.asarray(start[0], float), np.asarray(start[1], float))
-    # a step is measured against its sensor's largest input over the three axes: the misalignments and the
-    # g-sensitivity mix the axes, so the rounding of an axis's error is that of the largest (an axis the flight
-    # barely excites, fb_z at 1.5e-6 m/s^2 on a rail launch, stalled at 4.5e-12 of its own largest value)
-    scale = np.maximum(np.repeat([np.abs(fb_m).max(initial=0.0), np.abs(w_m).max(initial=0.0)], 3), 1e-300)
-    moved, growing, n_steps = np.inf, 0, 0
+
+    def norms(*vectors: np.ndarray) -> float:  # the largest row norm of a vector group over the record
+        return max(float(np.sqrt(np.einsum("ki,ki->k", v, v)).max(initial=0.0)) for v in vectors)
+
+    measured = (max(norms(fb_m), 1e-300), max(norms(w_m), 1e-300))
+    moved, size, growing, n_steps = np.inf, np.inf, 0, 0
     while n_steps < CORRECTION_MAX_STEPS:
         n_steps += 1
         df, dw = body_errors(model, q, fb, w, t, coefficients, signals)
         new_fb, new_w = fb_m - df, w_m - dw
-        step = np.abs(np.hstack([new_fb - fb, new_w - w])) / scale
+        steps = (np.abs(new_fb - fb).max(initial=0.0), np.abs(new_w - w).max(initial=0.0))
+        # the rounding of the step: its terms' size (measured, corrected, error), force and rate each
+        terms = (max(measured[0], norms(new_fb, df)), max(measured[1], norms(new_w, dw)))
         fb, w = new_fb, new_w
-        if not np.all(np.isfinite(step)):
+        if not all(np.isfinite(v) for v in (*steps, *terms)):
             break
-        moved, before = float(step.max()), moved
-        if moved <= CORRECTION_TOL or (moved >= before and moved <= CORRECTION_FLOOR):
+        moved = max(s / r for s, r in zip(steps, terms))
+        # whether it contracts: the step against the fixed measured size (the terms grow with a diverging record)
+        size, size_before = max(s / r for s, r in zip(steps, measured)), size
+        if moved <= CORRECTION_TOL or (size >= size_before and moved <= CORRECTION_FLOOR):
             return fb, w  # converged, or at the rounding of the error evaluation itself
-        growing = growing + 1 if moved > before else 0
+        growing = growing + 1 if size > size_before else 0
         if growing == CORRECTION_GROWING:
             break  # diverging: no contraction grows that long (the f -> w coupling for one step at most)
     raise ValueError(f"model `{model.name}`: the sensor errors at the coefficients given do not invert (the last "
-                     f"fixed-point step still moved an input by {moved:.3g} of its sensor's largest input after "
+                     f"fixed-point step still moved an input by {moved:.3g} of the largest force or rate after "
                      f"{n_steps} steps): errors as large as the measured rates or forces")

@@ -28,7 +28,7 @@ import numpy as np
 
 from casep.exceptions import AlignmentWarning, PlausibilityWarning
 from casep.frames import OMEGA_EARTH, LaunchSite
-from casep.units import G0, MEMS_ACCEL_BIAS
+from casep.units import G0, MEMS_ACCEL_BIAS, MEMS_GYRO_BIAS
 
 __all__ = ["Alignment", "align", "HEADING_AXES", "MAX_PAD_RATE", "ACCEL_BIAS_TOLERANCE", "AT_REST_SILENT",
            "FORCE_UNITS", "course_rotation", "gyro_bias_allowance", "mean_rate_std",
@@ -204,28 +204,30 @@ def _check_pad_force(fm: float, g0: float, moved: float, n: int, window: tuple[f
     moved), or else a steady offset beyond the tolerance (a bias that large, or a vehicle not at rest).
     """
     off = fm - g0
+    # the tolerance said as what it is: the default (consumer MEMS) or the user's own
+    accepted = (f"the {1000 * tolerance / G0:.3g} mg accelerometer bias accepted (--accel-bias-tolerance MG, "
+                + ("the default, the largest of consumer MEMS)" if tolerance == ACCEL_BIAS_TOLERANCE else
+                   f"given; the default {1000 * ACCEL_BIAS_TOLERANCE / G0:.3g} mg is the largest of consumer MEMS)"))
     where = (f"--align {window[0]:g} {window[1]:g}: mean specific force {fm:.5g} m/s^2 over {n} samples, normal "
              f"gravity at the pad {g0:.5g} m/s^2 ({1000 * off / G0:+.3g} mg)")
     if abs(off) <= min(AT_REST_SILENT, tolerance):
         return
     if abs(off) <= tolerance:
-        warnings.warn(f"{where}: an accelerometer bias of about {1000 * abs(off) / G0:.3g} mg along the vertical "
-                      f"(within the {1000 * tolerance / G0:.3g} mg accepted, --accel-bias-tolerance); the levelling "
-                      "goes on and a separation estimates the bias", AlignmentWarning, stacklevel=3)
+        warnings.warn(f"{where}: an accelerometer bias of about {1000 * abs(off) / G0:.3g} mg along the vertical, "
+                      f"within {accepted}; the levelling goes on and a separation estimates the bias",
+                      AlignmentWarning, stacklevel=3)
         return
     units = [f"in {name} (|f| read so is {fm * k:.5g} m/s^2: {fix})" for name, k, fix in FORCE_UNITS
              if abs(fm * k - g0) <= tolerance]
     if units:
         why = ("the accelerometers look like they are " + " or ".join(units) + f"; else an offset of "
-               f"{1000 * abs(off) / G0:.4g} mg, beyond the {1000 * tolerance / G0:.3g} mg of any MEMS bias")
+               f"{1000 * abs(off) / G0:.4g} mg, beyond {accepted}")
     elif moved > 0.1 * g0:
         why = (f"the specific force departs from its mean by up to {moved:.3g} m/s^2 in the window: the vehicle "
                "moved (give a window at rest)")
     else:
-        why = (f"steady within {moved:.3g} m/s^2, {1000 * abs(off) / G0:.3g} mg from gravity, beyond the "
-               f"{1000 * tolerance / G0:.3g} mg accelerometer bias accepted (--accel-bias-tolerance MG, default "
-               f"{1000 * ACCEL_BIAS_TOLERANCE / G0:.3g} mg, the largest of consumer MEMS): an accelerometer bias that "
-               "large, accelerometers not in m/s^2, or a vehicle not at rest")
+        why = (f"steady within {moved:.3g} m/s^2, {1000 * abs(off) / G0:.3g} mg from gravity, beyond {accepted}: an "
+               "accelerometer bias that large, accelerometers not in m/s^2, or a vehicle not at rest")
     raise ValueError(f"{where}: not at rest on the pad in m/s^2: {why}")
 
 
@@ -241,12 +243,20 @@ DEG_S_MATCH_HEADING = 0.20
 #: The noise of the mean pad rate (its std, :func:`mean_rate_std`) is allowed this many times in the match.
 DEG_S_NOISE_Z = 3.0
 #: The spread of the biases of gyros read in rad/s that the deg/s rule must not take for deg/s: a ball of
-#: this radius, rad/s (0.42 deg/s, 100 times the Earth rate: consumer MEMS), every bias in it equally likely.
-MEMS_BIAS_SPREAD = 100.0 * OMEGA_EARTH
+#: this radius, rad/s (:data:`casep.units.MEMS_GYRO_BIAS`, 0.42 deg/s, 100 times the Earth rate: consumer MEMS),
+#: every bias in it equally likely.
+MEMS_BIAS_SPREAD = MEMS_GYRO_BIAS
 #: The largest chance that such a bias lands within the match by chance for which a match is an error; above
 #: it (the noise of the mean widens the match) a match is a warning. 0.25 %: the 5 % match of a
 #: gyrocompassed pad at the equator (0.22 %).
 DEG_S_CHANCE = 0.0025
+#: Beyond every match, a mean rate that divided by 57.2958 is still near the Earth rate is warned about as deg/s
+#: when a consumer MEMS bias read in rad/s lands that near with at most this chance (1 %), judged by the most
+#: specific comparison (all three components when the heading is given): a tactical gyro's 1 deg/h in deg/s,
+#: gyrocompassed (6.7 % off, 0.15 % at 68 deg latitude), is; a MEMS gyro's 615 deg/h bias with the heading given
+#: (a reviewer's record at 33 deg: 59 % off the Earth rate in body axes, 3.9 %), or a rate 57 times the Earth rate
+#: across it (the size of a MEMS bias, 860 deg/h), is not.
+DEG_S_WARN_CHANCE = 0.01
 
 
 def deg_s_chance(tol: float, lat_deg: float, heading_given: bool) -> float:
@@ -279,8 +289,11 @@ def _check_pad_rate(w_mean: np.ndarray, s_mean: np.ndarray, n: int, window: tupl
     Read in rad/s, a gyro's noise of the mean is ``|s|``, its tolerance ``|s| / D`` negligible: only its bias
     lands it there, with the chance :func:`deg_s_chance`; when the noise widens the match so much that this
     chance exceeds :data:`DEG_S_CHANCE`, a match is a warning (the pad cannot tell deg/s from a MEMS bias).
-    A warning too when the mean is beyond :data:`MAX_PAD_RATE`, or about 57.3 times the Earth rate without
-    that match.
+    A warning too when the mean is beyond :data:`MAX_PAD_RATE` (no gyro that navigates has such a bias), or when
+    it is near the Earth rate in deg/s beyond the match but a MEMS bias lands that near with at most
+    :data:`DEG_S_WARN_CHANCE` (the comparison of all three components when the heading is given: the gyrocompassed
+    one ignores the heading, and a MEMS bias matches it 57 times as often). Its magnitude alone (about 57.3 times
+    the Earth rate) says nothing: that is the size of a consumer MEMS bias (:data:`MEMS_BIAS_SPREAD`).
     """
     deg = math.degrees(1.0)
     rate = float(np.linalg.norm(w_mean))
@@ -316,11 +329,13 @@ def _check_pad_rate(w_mean: np.ndarray, s_mean: np.ndarray, n: int, window: tupl
                           f"close with a chance of {100 * chance:.2g} % (an error below {100 * DEG_S_CHANCE:g} %); "
                           "give rad/s (multiply by pi/180) if they are deg/s", PlausibilityWarning, stacklevel=3)
             return
-    match, tol = min((m, t) for m, t, _, _ in judged)
-    if rate > MAX_PAD_RATE or 0.8 * deg < ratio < 1.2 * deg:
+    match, tol, _, _ = judged[-1]  # the most specific: all three components when the heading is given
+    chance = deg_s_chance(match, site.lat_deg, e_body is not None)
+    if rate > MAX_PAD_RATE or chance <= DEG_S_WARN_CHANCE:
         warnings.warn(f"{where}, {ratio:.1f} times the Earth rate {OMEGA_EARTH:.4g} rad/s: deg/s given as rad/s (57.3 "
                       f"times; divided by 57.2958 it is {100 * match:.0f} % of the Earth rate off the Earth rate, "
-                      f"beyond the {100 * tol:.1f} % that makes it an error), a gyro bias of that size, or a vehicle "
+                      f"beyond the {100 * tol:.1f} % that makes it an error; a consumer MEMS bias read in rad/s lands "
+                      f"that near with a chance of {100 * chance:.2g} %), a gyro bias of that size, or a vehicle "
                       "not at rest", PlausibilityWarning, stacklevel=3)
 
 

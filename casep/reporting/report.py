@@ -222,7 +222,8 @@ def report_html(result: EstimateResult, figures: Sequence[str | os.PathLike] = (
         f"{int(result.n_samples)} samples, rank {int(result.rank)}/{len(result.names)}, "
         + (f"noise scale {result.sigma:.4g} (rows whitened: dimensionless)</p>" if result.sigma_source == "whitened"
            else f"sigma {result.sigma:.4g} m/s</p>"),
-        f"<p class=\"{state}\" id=\"status\">status {int(result.status)}: {_esc(result.message)}"
+        f"<p class=\"{state}\" id=\"status\">status {int(result.status)}: "
+        + _esc(result.message).replace("\n", "<br>\n")  # a message of several lines (its findings), as written
         + (f" ({len(warnings)} warning(s) below)" if warnings and result.success else "") + "</p>",
         _headline(result, model),
     ]

@@ -700,14 +700,15 @@ class _Run:
         # what the record leaves undetermined is said with every result that has estimates, failed or not, of the
         # iteration or of one linear pass (its pass steps along what the record determines as an iteration's first)
         smaller = None if "a smaller model" in out.message else SMALLER_MODELS.get(self.base.name)
-        said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf), smaller) \
+        alone = int(np.isfinite(out.estimate).sum()) - len(out.diagnostics.get("not_determined") or ())
+        said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf), smaller, alone) \
             if out.solution is not None or np.any(np.isfinite(out.estimate)) else None
         if said:
             from casep.exceptions import NonlinearityWarning
 
             warnings.warn(said, NonlinearityWarning, stacklevel=3)
             if iterate:
-                out = dataclasses.replace(out, message=f"{out.message}; {said}")
+                out = _with_line(out, said)
         if iterate and out.success:  # a failed result's std are not used: no curvature to carry
             out = self.curvature(out, problem, D)
         elif not iterate and out.success:  # one linear pass: its second-order remainder judged, as a telemetry's
@@ -715,8 +716,8 @@ class _Run:
             if shift is not None:
                 out = one_pass_judged(out, shift)
         if said and not iterate:  # after the judgement, whose failure message replaces a success's
-            out = dataclasses.replace(out, message=f"{out.message}; {said}")
-        return ImuSeparation(out, nav, flight, passes)
+            out = _with_line(out, said)
+        return ImuSeparation(_advice_first(out, SMALLER_MODELS.get(self.base.name)), nav, flight, passes)
 
     def left_out_curvature(self, res: EstimateResult, last: dict, problem: Any, flight: FlightData,
                            D: np.ndarray) -> EstimateResult:
@@ -763,7 +764,7 @@ class _Run:
                           f"invert (the far ones), and the {record['draws']} that do already move a stated combination "
                           f"by {worst:.3g} times its linear std (above {CURVATURE_RELIABLE:g}): the std stated are no "
                           "bound on the error, so the combinations are not presented as a result")
-        return dataclasses.replace(res, message=f"{res.message}; {note}")
+        return _with_line(res, note)
 
     def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
         """`res` with the record's own noise in its std, the pad levelling's start tilt with it
@@ -873,7 +874,7 @@ class _Run:
                          f"expansion is not the error's distribution and the std are not reliable: check them against "
                          f"a simulation of the flight")
             warnings.warn(said, NonlinearityWarning, stacklevel=4)
-            message = f"{message}; {said}"
+            message = f"{message}\n{said}"  # a line of its own (_with_line)
         diag = dict(res.diagnostics)
         diag["curvature"] = info
         return dataclasses.replace(res, covariance=cov, std=np.sqrt(np.diag(cov)), message=message, diagnostics=diag)
@@ -1329,11 +1330,13 @@ def _in_covariance(sig: np.ndarray, q: np.ndarray, scale: np.ndarray, keep: np.n
     return B @ B.T
 
 
-def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str | None = None) -> str | None:
+def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str | None = None,
+                  alone: int | None = None) -> str | None:
     """What an iteration says of the combinations its steps left out (:func:`determined_step`'s `limit`):
     none, or how many, their std and names, why (the last rejected step, or their std above the plausible size of
-    what the record determines), and that their estimates are linear; when they are most of the combinations, the
-    smaller shipped models to try (`smaller`, :data:`SMALLER_MODELS`; None: not said).
+    what the record determines), and that their estimates are linear; when they are most of the combinations, or
+    no coefficient is determined on its own (`alone`, how many are: 0), the smaller shipped models to try
+    (`smaller`, :data:`SMALLER_MODELS`; None: not said).
     None when one of them is determined (:func:`_outside_failure`: std within the plausible `size`, correction above
     :data:`SIGNIFICANT` std): that is a failure, not a note."""
     left = passes[-1].get("left_out") or []
@@ -1344,6 +1347,8 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str
     near = [c["z"] for c in left if c["std"] <= size]
     names = "; ".join(c["combination"] for c in sorted(left, key=lambda c: c["std"])[:3])
     kept = len(passes[-1].get("determined") or [])  # the rest of the n: the fit's null space
+    why_smaller = "most of the combinations undetermined" if len(left) > kept else \
+        "no coefficient determined on its own" if alone == 0 else None
     return (f"the record determines {kept} of {n} combinations of the coefficients well enough to iterate; "
             f"the other {len(left)} (std {sd[0]:.3g} to {sd[-1]:.3g} declared magnitudes: {names}"
             f"{'; ...' if len(left) > 3 else ''}) are left at the prior (0)"
@@ -1351,8 +1356,8 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str
             + (f"their corrections are noise (at most {max(near):.2g} std) or " if near else "")
             + f"their std exceed the coefficients' plausible size ({size:.3g} declared magnitudes): the record does "
             "not determine them. Their estimates are the last linear pass's, their std linear (not checked for "
-            "curvature)" + (f"; with most of the combinations undetermined, a smaller model ({smaller}) leaves less "
-                            "undetermined" if smaller and len(left) > kept else ""))
+            "curvature)" + (f"; with {why_smaller}, a smaller model ({smaller}) leaves less undetermined"
+                            if smaller and why_smaller else ""))
 
 
 def _with_determined(res: EstimateResult, last: dict, scales: dict[str, float]) -> EstimateResult:
@@ -1373,10 +1378,27 @@ def _with_determined(res: EstimateResult, last: dict, scales: dict[str, float]) 
     said = "; ".join(" + ".join(f"{w:.2g} {nm}/{scales.get(nm, 1.0):g}" for nm, w in c["terms"].items())
                      + (f" (+ {c['more']} smaller terms)" if c.get("more") else "")
                      + f" = {c['estimate']:.4g} +- {c['std']:.2g}" for c in combos[:6])
-    msg = (f"{res.message}; the iterated passes stepped along {len(combos)} combinations (coefficient / declared "
+    msg = (f"{res.message}\nthe iterated passes stepped along {len(combos)} combinations (coefficient / declared "
            f"magnitude) the flight determines: {said}" + ("; ..." if len(combos) > 6 else "")
            + " (all in diagnostics.determined)")
     return dataclasses.replace(res, diagnostics=diag, message=msg)
+
+
+def _with_line(res: EstimateResult, part: str) -> EstimateResult:
+    """`res` with `part` on a line of its own after its message: a raw-IMU result's message is its status reason
+    (and the advice, :func:`_advice_first`) on the first line, each finding of the passes (the combinations stated,
+    those left out, the curvature) on a line below, not one paragraph of thousands of characters."""
+    return dataclasses.replace(res, message=f"{res.message}\n{part}")
+
+
+def _advice_first(res: EstimateResult, smaller: str | None) -> EstimateResult:
+    """`res` with the smaller shipped models (`smaller`, :data:`SMALLER_MODELS`) named on its message's first line
+    when a line below advises them (the reason there), so that the first line holds the status reason and the
+    advice."""
+    first, _, rest = res.message.partition("\n")
+    if not smaller or "a smaller model" not in rest or "a smaller model" in first:
+        return res
+    return dataclasses.replace(res, message=f"{first}; try a smaller model ({smaller}): why below\n{rest}")
 
 
 def _rms(y: np.ndarray | None) -> float:

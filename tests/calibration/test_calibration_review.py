@@ -207,13 +207,13 @@ def test_fuse_of_a_ground_and_a_flight_that_disagree_is_not_a_success(platform_g
     pair = [str(w.message) for w in caught if "ground ground.json and flight bad.json disagree" in str(w.message)]
     assert len(pair) == 1 and "p 0.0001 (below 0.001)" in pair[0] and "Ka0x" in pair[0], pair
     assert not res.success and res.status == 2 and "disagree" in res.message and "DISAGREE" in text
-    # the command: the warning after the table, exit 1, the JSON written with success false
+    # the command: the table on stdout, the warning on stderr, exit 1, the JSON written with success false
     gpath, fpath, out = tmp_path / "ground.json", tmp_path / "bad.json", tmp_path / "fused.json"
     gpath.write_text(json.dumps(cal.to_dict()))
     fpath.write_text(json.dumps(bad.to_dict()))
     assert main(["fuse", str(gpath), str(fpath), "--json", str(out)]) == 1
-    stdout = capsys.readouterr().out
-    assert stdout.rindex("warning:") > stdout.index("consistency of the results")
+    printed = capsys.readouterr()
+    assert "consistency of the results" in printed.out and "warning:" in printed.err
     assert json.loads(out.read_text())["success"] is False
 
 

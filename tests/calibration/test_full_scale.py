@@ -80,10 +80,10 @@ def test_a_declared_gyro_range_off_the_nominal_ones_is_saturation(tmp_path, caps
         assert check_gyro_saturation(gyr, moving, "deg/s", "s", declared_range(math.radians(200), "deg/s", "gyro"))
     p = tmp_path / "clip.txt"
     np.savetxt(p, np.column_stack([h.acc, gyr]), fmt="%.10g")
-    rc, out, _ = _run([str(p), "--rate", "100", "--acc-unit", "m/s^2", "--gyr-unit", "deg/s", "--gyr-range", "200"],
+    rc, _, err = _run([str(p), "--rate", "100", "--acc-unit", "m/s^2", "--gyr-unit", "deg/s", "--gyr-range", "200"],
                       tmp_path / "b.json", capsys)
     assert rc == 1 and re.search(r"gyro [xyz]: \d+ samples at its (maximum 200|minimum -200) \(the declared full "
-                                 r"scale -?200\)", out), out[-2000:]
+                                 r"scale -?200\)", err), err[-2000:]  # a warning: on stderr
 
 
 @pytest.mark.parametrize("gyr_range, warned", [("500", False), ("250", True)])

@@ -219,10 +219,10 @@ def test_a_gyro_that_clips_in_the_turns_is_a_warning_and_no_success(tmp_path, ca
         warnings.simplefilter("always")
         rc = main(["calibrate", str(p), "--rate", "100", "--segments", "auto", "--acc-unit", "m/s^2",
                    "--json", str(out)])
-    # the calibration's warnings are casep's: printed as `warning:` lines of the report, not Python warnings
+    # the calibration's warnings are casep's: printed as `warning:` lines on stderr, not Python warnings
     assert not caught, [f"{w.category.__name__}: {w.message}" for w in caught]
     std = capsys.readouterr()
-    sat = [ln for ln in std.out.splitlines() if ln.startswith("warning: ") and "the sensor saturates" in ln]
+    sat = [ln for ln in std.err.splitlines() if ln.startswith("warning: ") and "the sensor saturates" in ln]
     assert len(sat) == 1 and re.search(r"gyro [xyz]: \d+ samples at its (maximum 32767|minimum -32768)", sat[0]), sat
     assert "SaturationWarning" not in std.err and "handturned.py" not in std.err
     assert rc == 1 and json.loads(out.read_text())["success"] is False

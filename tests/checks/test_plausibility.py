@@ -269,15 +269,15 @@ def _write(tmp_path, fl: casep.FlightData, name: str) -> Path:
 def test_cli_separate_prints_the_unit_warning(tmp_path, capsys, paper20):
     p = _write(tmp_path, _replace(paper20.flight, f=paper20.flight.f / G0), "in_g.csv")
     assert main(["separate", str(p)]) == 0
-    out = capsys.readouterr().out
-    line = [s for s in out.splitlines() if s.startswith("warning: ") and "peak specific force" in s]
+    err = capsys.readouterr().err  # the warnings on stderr, the table on stdout
+    line = [s for s in err.splitlines() if s.startswith("warning: ") and "peak specific force" in s]
     assert len(line) == 1 and "multiply by 9.80665" in line[0] and str(p) in line[0]
 
 
 def test_cli_diagnose_prints_the_unit_warning(tmp_path, capsys, paper20):
     p = _write(tmp_path, _replace(paper20.flight, t=paper20.flight.t * 1e3), "in_ms.csv")
     assert main(["diagnose", str(p), "--sigma", "0.1"]) == 0
-    assert "warning: " in capsys.readouterr().out
+    assert "warning: " in capsys.readouterr().err
 
 
 def test_cli_impossible_flight_exit_2(tmp_path, capsys, paper20):

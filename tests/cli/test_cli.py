@@ -358,10 +358,10 @@ def test_models_lists_the_others_and_reports_the_broken_one(tmp_path, monkeypatc
                                       "    m.name = 'mine'\n    return m\n")
     monkeypatch.setenv("CASEP_MODEL_PATH", str(tmp_path))
     assert main(["models"]) == 0
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
     assert "platform36" in out and "platform39_misalignment" in out and "mine " in out
     assert (f"warning: model `aaa_broken` not listed: model file {tmp_path / 'aaa_broken.py'}, line 1: "
-            "SyntaxError:") in out
+            "SyntaxError:") in err and "warning:" not in out  # the list on stdout, clean; the warnings on stderr
 
 
 def test_models_exit_2_when_none_loads(tmp_path, monkeypatch, capsys):
@@ -371,7 +371,7 @@ def test_models_exit_2_when_none_loads(tmp_path, monkeypatch, capsys):
     assert main(["models"]) == 2
     cap = capsys.readouterr()
     assert "none of the 1 model files loads" in cap.err
-    assert "model file" in cap.out and "line 1: ImportError: gone" in cap.out
+    assert "model file" in cap.err and "line 1: ImportError: gone" in cap.err
 
 
 # --- a reader that closes early ends casep quietly --------------------------

@@ -18,7 +18,7 @@ def test_separate_json_records_the_units_warnings(tmp_path, capsys):
     df["t"] *= 1e3  # times in ms
     df.to_csv(tmp_path / "g.csv", index=False)
     status = main(["separate", str(tmp_path / "g.csv"), "--json", str(tmp_path / "r.json")])
-    printed = capsys.readouterr().out
+    printed = capsys.readouterr().err
     res = json.loads((tmp_path / "r.json").read_text())
     recorded = res["provenance"]["warnings"]
     shown = [line.removeprefix("warning: ") for line in printed.splitlines()

@@ -361,8 +361,9 @@ def test_cli_pair_with_late_tracking_counts_observed_samples(tmp_path, capsys):
     assert main(["separate", str(tel), "--tracking", str(trk), "--json", str(tmp_path / "r.json")]) == 0
     assert json.loads((tmp_path / "r.json").read_text())["n_samples"] == n_obs
     assert main(["diagnose", str(tel), "--tracking", str(trk), "--tau", "1"]) == 0
-    out = capsys.readouterr().out
-    assert f"model platform36, {n_obs} samples" in out and "warning: " not in out.replace("warning: ill-cond", "")
+    out, err = capsys.readouterr()
+    assert f"model platform36, {n_obs} samples" in out
+    assert "warning: " not in (out + err).replace("warning: ill-cond", "")
 
 
 def test_two_rate_ols_coverage_is_honest_on_the_tracking_grid(rng):

@@ -41,7 +41,7 @@ def test_provenance_everywhere(late_pair, tmp_path, capsys):
     argv = ["separate", str(tel), "--tracking", str(trk), "--model", "platform36_timeoffset", "--sigma", "0.5",
             "--json", str(js), "--mat", str(mat), "--report", str(rep)]
     assert main(argv) == 0
-    assert "given noise sigma 0.5 m/s disagrees" in capsys.readouterr().out  # a warning: the status is not green
+    assert "given noise sigma 0.5 m/s disagrees" in capsys.readouterr().err  # a warning: the status is not green
     prov = json.loads(js.read_text())["provenance"]
     files = {f["role"]: f for f in prov["inputs"]}
     assert files["telemetry"]["file"] == str(tel) and files["telemetry"]["sha256"] == _sha(tel)

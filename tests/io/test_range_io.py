@@ -209,8 +209,8 @@ def test_fuse_consistency_equals_the_two_result_closed_form(files, capsys):
     assert ov["dof"] == 36
     assert ov["chi2"] == pytest.approx(chi2, rel=1e-6)
     assert res.success and 0.01 < ov["p_value"]
-    s, out, _ = _run(capsys, "fuse", files / "ra.json", files / "rb.json")
-    assert s == 0 and "sigma -" in out and "nan" not in out and "chi2" in out and "warning" not in out
+    s, out, err = _run(capsys, "fuse", files / "ra.json", files / "rb.json")
+    assert s == 0 and "sigma -" in out and "nan" not in out and "chi2" in out and "warning" not in out + err
 
 
 def _shifted(res: dict, t: float) -> dict:
@@ -230,9 +230,9 @@ def test_fuse_warns_with_the_numbers_between_the_thresholds(files, tmp_path, cap
     """chi2 = 70 on 36 dof: p 6e-4, a warning naming chi2, dof and p; still a success."""
     ra = _load(files / "ra.json")
     p = _write(tmp_path / "shift.json", _shifted(ra, np.sqrt(70.0)))
-    s, out, _ = _run(capsys, "fuse", files / "ra.json", p)
+    s, out, err = _run(capsys, "fuse", files / "ra.json", p)
     assert s == 0
-    assert "warning: the fused results disagree: chi2 70 on 36 dof, p 0.000" in out
+    assert "warning: the fused results disagree: chi2 70 on 36 dof, p 0.000" in err
 
 
 def test_fuse_results_1000_std_apart_is_a_failed_result(files, tmp_path, capsys):

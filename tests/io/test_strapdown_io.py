@@ -74,7 +74,7 @@ def test_non_unit_quaternion_names_columns_row_and_numbers(tmp_path):
     with pytest.raises(FlightDataError) as exc:
         casep.read_flight(write(tmp_path / "sd.csv", t, q, fb, w))
     msg = str(exc.value)
-    assert "q_w, q_x, q_y, q_z" in msg and "row 37" in msg and "1.001" in msg
+    assert "columns `q_w`, `q_x`, `q_y`, `q_z`" in msg and "row 37" in msg and "1.001" in msg
     assert "2 of 1000 rows" in msg and "row 501" in msg and "0.99" in msg
 
 
@@ -97,7 +97,7 @@ def test_quaternions_of_another_convention_are_refused(tmp_path, transform, what
     with pytest.raises(FlightDataError) as exc:
         casep.read_flight(write(tmp_path / "sd.csv", t, transform(q), fb, w))
     msg = str(exc.value)
-    assert f"look {what}" in msg and "q_w, q_x, q_y, q_z" in msg and "% off" in msg
+    assert f"look {what}" in msg and "columns `q_w`, `q_x`, `q_y`, `q_z`" in msg and "% off" in msg
 
 
 def test_unexplained_disagreement_warns_with_its_size(tmp_path):
@@ -215,7 +215,7 @@ def test_rates_the_attitude_did_not_integrate_are_refused(tmp_path, wrong, what)
     with pytest.raises(FlightDataError) as exc:
         casep.read_flight(write(tmp_path / "sd.csv", t, q, fb, wrong(w)))
     msg = str(exc.value)
-    assert "column `w_x, w_y, w_z`" in msg and "deg/s RMS" in msg and "worst" in msg and "t = " in msg, what
+    assert "columns `w_x`, `w_y`, `w_z`" in msg and "deg/s RMS" in msg and "worst" in msg and "t = " in msg, what
     G = gain_in(msg)
     expected = {"times 3": np.eye(3) / 3, "w_z negated": np.diag([1.0, 1.0, -1.0]),
                 "w_x and w_y swapped": np.eye(3)[[1, 0, 2]], "times 1.1": np.eye(3) / 1.1}[what]
@@ -313,8 +313,9 @@ def test_the_velocity_is_checked_against_the_specific_force_naming_the_column(tm
                                               r"2\.4\d m/s\^2 \(2[45]\d mg\), beyond 160 mg in 19 of the windows"):
         casep.read_flight(write_tel(tmp_path / "b250.csv", t, q, fb + [0.0, 0.0, 0.25 * 9.80665], w, v_tel,
                                     v_trk))
-    with pytest.raises(FlightDataError, match=r"column `fb_x, fb_y, fb_z`: .*\(rows 1-951\); fb_x is off by 2\d\.\d "
-                                              r"m/s\^2 .*Read in g \(times 9\.80665\) fb fits.*multiply by 9\.80665"):
+    with pytest.raises(FlightDataError, match=r"columns `fb_x`, `fb_y`, `fb_z`: .*\(rows 1-951\); fb_x is off by "
+                                              r"2\d\.\d m/s\^2 .*Read in g \(times 9\.80665\) fb fits.*"
+                                              r"multiply by 9\.80665"):
         casep.read_flight(write_tel(tmp_path / "g.csv", t, q, fb / 9.80665, w, v_tel, v_trk))
     with pytest.raises(FlightDataError, match=r"column `fb_y`: .*median -?0\.0\d*, -29\.4, -?0\.0\d* m/s\^2 .*fb_y "
                                               r"is off by 29\.4 m/s\^2 \(3e\+03 mg\).*\(3 g: an offset of whole g in "

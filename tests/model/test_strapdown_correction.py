@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import casep
-from casep.model.strapdown import CORRECTION_GROWING, body_errors, corrected_imu
+from casep.model.strapdown import CORRECTION_GROWING, CORRECTION_MAX_STEPS, body_errors, corrected_imu
 from casep.navigation.imu import ImuData, sample_periods, with_rates
 from casep.units import G0
 
@@ -99,8 +99,8 @@ def test_an_axis_the_record_barely_excites_converges_at_its_sensors_rounding():
     """A rail launch's body z force is ~1e-6 m/s^2 while x carries 59: the misalignments mix x into z's error,
     whose rounding is then 4.5e-12 of z's own largest value. Measured against z alone the steps stalled there and
     this correction (a pass of ``casep separate --imu`` on a tactical record: its coefficients at full precision,
-    the stall depends on the last bits) was refused after 60 steps ("do not invert"); measured against the
-    accelerometer's largest input it converges, to a fixed point of ``x + delta(x) = x_measured`` within rounding."""
+    the stall depends on the last bits) was refused after 60 steps ("do not invert"); measured against the rounding
+    of the forces that form the step it converges, to a fixed point of ``x + delta(x) = x_measured`` within rounding."""
     from casep.frames import LaunchSite
     from casep.navigation import check_imu, navigate
     from casep.simulation.strapdown import rail_launch
@@ -121,6 +121,38 @@ def test_an_axis_the_record_barely_excites_converges_at_its_sensors_rounding():
     ef, ew = body_errors(model, q, fb_c, w_c, t, D)
     assert np.abs(fb_c + ef - fb_m).max() <= 1e-14 * np.abs(fb_m).max()
     assert np.abs(w_c + ew - w_m).max() <= 1e-14 * np.abs(w_m).max()
+
+
+def test_a_lateral_force_measured_near_zero_converges_to_rounding(strapdown33, rng):
+    """A tactical boost: the lateral specific forces measured at 1e-9 m/s^2, the misalignments turning 0.15 m/s^2
+    of the axial force into them. The corrected lateral force is 0.15, whose last digit (2e-17) is 1e-8 of the
+    measured column: the inversion converges to the rounding of the forces it forms, and is accepted (relative to
+    the measured column alone, its last digit's flicker read as "does not invert" on 8 of 8 seeds)."""
+    q, fb_m, w_m, t = _record(rng, 2000)
+    fb_m[:, 1:] *= 1e-10
+    D = np.zeros(strapdown33.n_coefficients)
+    for name, value in (("ma_zx", 1000.0), ("ma_yx", -700.0), ("sa_x", 2000.0), ("ba_z", 5.0), ("gg_zx", 300.0)):
+        D[strapdown33.index(name)] = value
+    Ma, Mg, G, ba, bg = _closed_form(strapdown33, D)
+    fb_c, w_c = corrected_imu(strapdown33, q, fb_m, w_m, t, D)
+    fb_inv = np.linalg.solve(np.eye(3) + Ma, (fb_m - ba).T).T
+    w_inv = np.linalg.solve(np.eye(3) + Mg, (w_m - bg - fb_inv @ G.T).T).T
+    assert np.abs(fb_c[:, 1:]).max() > 0.1  # the lateral forces corrected far from their measured 1e-9
+    assert np.abs(fb_c - fb_inv).max() <= 8e-15 * np.abs(fb_inv).max()
+    assert np.abs(w_c - w_inv).max() <= 8e-15 * np.abs(w_inv).max()
+
+
+def test_a_map_that_does_not_contract_is_refused(strapdown33, rng):
+    """A scale factor of -100 %: the measured force is no longer a function of the true one, each step moves the
+    record by the measured force again (gain 1, no contraction): refused after the steps allowed, not accepted at
+    a rounding floor. A slow contraction (-99 %: gain 0.99) does not reach rounding in them either."""
+    q, fb, w, t = _record(rng, 50)
+    for sa in (-1e6, -0.99e6):
+        D = np.zeros(strapdown33.n_coefficients)
+        D[strapdown33.index("sa_x")] = sa
+        with pytest.raises(ValueError, match="do not invert") as refused:
+            corrected_imu(strapdown33, q, fb, w, t, D)
+        assert f"after {CORRECTION_MAX_STEPS} steps" in str(refused.value)
 
 
 def test_increments_take_the_corrected_rates_times_their_periods(rng):

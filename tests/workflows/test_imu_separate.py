@@ -640,6 +640,9 @@ def test_a_pad_record_under_strapdown33_converges_on_the_few_combinations_it_det
     assert np.all(np.abs(errors) < 4.0), errors
     assert "the record determines" in out.message
     assert "a smaller model (strapdown15_axial or strapdown12) leaves less undetermined" in out.message, out.message
+    first, *below = out.message.split("\n")  # the reason and the advice first, each finding on a line below
+    assert "try a smaller model (strapdown15_axial or strapdown12)" in first and len(first) < 400, first
+    assert any(line.startswith("the record determines") for line in below), below
 
 
 #: Body z up, body x along the launch azimuth (the launch triad's x downrange, y up).
@@ -894,3 +897,44 @@ def test_the_combinations_stepped_along_are_stated_in_the_result(tmp_path):
         assert abs(c["estimate"] - np.dot(c["weights"], T)) < 4.0 * c["std"], c
         assert f"= {c['estimate']:.4g} +- {c['std']:.2g}" in res.message
     assert "combinations (coefficient / declared magnitude) the flight determines" in res.message
+
+
+def test_the_smaller_models_are_advised_when_no_coefficient_is_determined_on_its_own():
+    """A record that determines 17 of strapdown33's combinations and leaves 7 out (a reviewer's raw boost: its
+    stated combinations right, max |z| 0.31) determines no coefficient on its own: the smaller shipped models are
+    named then too, not only when most combinations are left out; with coefficients determined alone they are not."""
+    from casep.workflows.imu_separate import SMALLER_MODELS, _outside_note
+
+    w = [0.0] * 33
+    passes = [{"determined": [{"std": 0.1, "weights": w, "estimate": 0.0}] * 17,
+               "left_out": [{"std": 3.0 + k, "z": 0.1, "combination": f"c{k}"} for k in range(7)]}]
+    smaller = SMALLER_MODELS["strapdown33"]
+    advice = f"with no coefficient determined on its own, a smaller model ({smaller}) leaves less undetermined"
+    assert advice in (_outside_note(passes, 33, 1.4, smaller, alone=0) or "")
+    assert "a smaller model" not in (_outside_note(passes, 33, 1.4, smaller, alone=2) or "x")
+    most = [{**passes[0], "left_out": passes[0]["left_out"] * 3}]  # 21 left out of 38: most, whatever alone says
+    assert "with most of the combinations undetermined, a smaller model" in (_outside_note(most, 33, 1.4, smaller,
+                                                                                           alone=2) or "")
+
+
+def test_a_raw_imu_message_is_its_reason_and_advice_then_a_line_per_finding():
+    """The findings of the passes each on a line of their own (_with_line), the smaller models named on the first
+    line when a line below advises them (_advice_first); nothing said twice, nothing lost."""
+    import dataclasses
+
+    from casep.workflows.imu_separate import _advice_first, _with_line
+
+    res = casep.solve_ols(np.vstack([np.eye(3)] * 2), np.arange(6.0))
+    res = dataclasses.replace(res, message="no coefficient is identifiable on its own")
+    out = _with_line(_with_line(res, "the iterated passes stepped along 2 combinations"),
+                     "the record determines 2 of 3 ...; with no coefficient determined on its own, a smaller model "
+                     "(m1 or m2) leaves less undetermined")
+    out = _advice_first(out, "m1 or m2")
+    lines = out.message.split("\n")
+    assert lines[0] == "no coefficient is identifiable on its own; try a smaller model (m1 or m2): why below"
+    assert lines[1:] == ["the iterated passes stepped along 2 combinations",
+                         "the record determines 2 of 3 ...; with no coefficient determined on its own, a smaller "
+                         "model (m1 or m2) leaves less undetermined"]
+    assert _advice_first(out, "m1 or m2").message == out.message  # said once
+    plain = _with_line(res, "the iterated passes stepped along 2 combinations")
+    assert _advice_first(plain, "m1 or m2") is plain  # no line advises them: the first line unchanged
