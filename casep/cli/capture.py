@@ -28,16 +28,19 @@ def recorded(passed_on: bool = True) -> Iterator[list[warnings.WarningMessage]]:
     enclosing recorder (:func:`casep.cli.main`'s) to print; the list stays available (the
     HTML report quotes them).
     """
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", CasepWarning)
-        _OPEN.append(caught)
-        try:
-            yield caught
-        finally:
-            del _OPEN[next(i for i, c in enumerate(_OPEN) if c is caught)]
-    if passed_on:
-        for w in caught:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    caught: list[warnings.WarningMessage] = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", CasepWarning)
+            _OPEN.append(caught)
+            try:
+                yield caught
+            finally:
+                del _OPEN[next(i for i, c in enumerate(_OPEN) if c is caught)]
+    finally:  # passed on when the block raises too: the enclosing recorder says them before the error
+        if passed_on:
+            for w in caught:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
 def report_lines(caught: list[warnings.WarningMessage]) -> list[str]:
