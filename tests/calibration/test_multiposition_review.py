@@ -58,7 +58,7 @@ def test_a_gyro_at_its_nominal_range_in_deg_s_is_saturation(tmp_path, capsys):
     rc, out, err = _run([str(p), "--rate", "100", "--acc-unit", "m/s^2", "--gyr-unit", "deg/s"],
                         tmp_path / "c.json", capsys)
     assert rc == 1 and re.search(r"gyro [xyz]: \d+ samples at its (maximum 250|minimum -250) \(the nominal "
-                                 r"\+-250 deg/s range\)", out), out[-2000:]
+                                 r"\+-250 deg/s range\)", err), err[-2000:]  # a warning: on stderr
 
 
 def test_an_accelerometer_clipped_in_static_poses_is_named_and_those_poses_left_out(tmp_path, capsys):
@@ -72,9 +72,9 @@ def test_an_accelerometer_clipped_in_static_poses_is_named_and_those_poses_left_
     rc, out, err = _run([str(p), "--rate", "100"], out_json, capsys)
     m = re.search(r"the accelerometer saturates in (\d+) of (\d+) static poses, left out of the fit: pose rows "
                   r"\d+-\d+: [xyz] at its (maximum 65535 \(the unsigned 16-bit converter's limit 65535\)|minimum 0 "
-                  r"\(the unsigned converter's limit 0\)) in \d+% of its samples", out)
-    assert m and int(m.group(1)) >= 2, out[-3000:] + err
-    assert "inside motions" not in out and "turns inside" not in out
+                  r"\(the unsigned converter's limit 0\)) in \d+% of its samples", err)
+    assert m and int(m.group(1)) >= 2, out[-3000:] + err  # a warning: on stderr
+    assert "inside motions" not in out + err and "turns inside" not in out + err
     # the poses left, the coefficients within 4 std of the truth
     assert rc == 0, err
     d = json.loads(out_json.read_text())
