@@ -135,17 +135,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.argv = ["casep", *(sys.argv[1:] if argv is None else argv)]  # the command line, for the provenance
     from casep.io._atomic import output_group
 
-    # All outputs of a command appear together or none (a failed second output leaves no first);
-    # not for montecarlo, whose --out folder keeps every finished part for a resume.
-    group = contextlib.nullcontext() if args.command == "montecarlo" else output_group()
-    caught: list = []
+    # outputs all or none (not montecarlo: its --out keeps each finished part); the warnings said before an error too
+    group, caught = contextlib.nullcontext() if args.command == "montecarlo" else output_group(), []
     try:
         with blas_threads_limited(), recorded(passed_on=False) as caught, group:
             status = int(_command(args.command).run(args))
     except BrokenPipeError:
         raise  # the reader left: quiet exit, see _quiet_on_broken_pipe
     except (ValueError, TypeError, OSError) as exc:  # FlightDataError, ModelDefinitionError among them
-        print_warnings(caught)  # what the command found before it stopped (a screen's findings explain the error)
+        print_warnings(caught)
         print(f"casep: error: {exc}", file=sys.stderr)
         return 2
     print_warnings(caught)  # casep's warnings on stderr, after the report (ill-conditioning: in the table)
