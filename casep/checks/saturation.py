@@ -356,7 +356,18 @@ def screen_saturation(flight: FlightData) -> FlightData:
             continue
         fs = declared.get("gyr_range" if sensor == "gyro" else "acc_range")
         unit, per = FULL_SCALE_UNITS[sensor]
-        for h in held_full_scale(np.column_stack([sig[c] for c in cols]), sensor, declared=fs):
+        x = np.column_stack([sig[c] for c in cols])
+        beyond = beyond_declared(x, fs) if fs is not None else []
+        if beyond and fs is not None:  # the raw-IMU path's refusal (casep.navigation.imu), here for telemetry
+            from casep.io.flight import FlightDataError
+
+            j, row, top = beyond[0]
+            flag = "--gyr-range" if sensor == "gyro" else "--acc-range"
+            raise FlightDataError(flight.source, f"the {sensor} reads up to {top / per:.6g} {unit} (t = "
+                                  f"{t_src[row]:.10g} s), {top / fs:.3g} times the declared full scale {fs / per:g} "
+                                  f"{unit} ({flag}): a sensor clipped at its range reads at it, not past it; declare "
+                                  "the sensor's range (or check the column's unit)", cols[j], row + 1)
+        for h in held_full_scale(x, sensor, declared=fs):
             n = sum(b - a for a, b in h.runs)
             a0, b1 = h.runs[0][0], h.runs[-1][1] - 1
             first = min(first, float(t_src[a0]))

@@ -136,6 +136,21 @@ def test_a_declared_gyro_range_finds_the_clip_in_telemetry(clipped_at_110, tmp_p
     assert doc["success"] and max(abs(x) for x in z) < 4.0
 
 
+def test_a_declared_gyro_range_the_telemetry_exceeds_is_refused(clipped_at_110, tmp_path, capsys):
+    """The same telemetry (clipped at 110 deg/s) declared with ``--gyr-range 20``: a gyro clipped at 20 cannot read
+    110, so the declared range is wrong: exit 2 naming the column, the reading and the option, nothing written (the
+    raw-IMU path's rule, :func:`casep.checks.saturation.beyond_declared`)."""
+    from casep.cli import main
+
+    tel, trk, _, _ = clipped_at_110
+    code = main(["separate", str(tel), "--tracking", str(trk), "--model", "strapdown12", "--gyr-range", "20",
+                 "--json", str(tmp_path / "r.json")])
+    err = capsys.readouterr().err
+    assert code == 2 and not (tmp_path / "r.json").exists()
+    assert "column `w_x`, row " in err and "the gyro reads up to 110.0" in err
+    assert "5.5 times the declared full scale 20 deg/s (--gyr-range)" in err
+
+
 def test_misfit_rule_needs_both_the_ratio_and_correlated_residuals():
     """misfit_problem on white dv of 0.05 m/s: a residual RMS 200 x that on a correlated axis is named; the
     same RMS on an axis the noise model whitened, or 50 x on a correlated one, is not."""
