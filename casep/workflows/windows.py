@@ -298,8 +298,27 @@ def _instrument(window: Window, names: Sequence[str]) -> tuple[np.ndarray, np.nd
     return res.estimate[idx], cov
 
 
+def _joint_chi2(xs: Sequence[np.ndarray], covs: Sequence[np.ndarray], gains: Sequence[np.ndarray],
+                P_c: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Chi-square of windows about their common value when a left-out vector ``c ~ (0, P_c)``, the same in every
+    window, moves window ``k``'s estimate by ``A_k c``: the stacked estimates' covariance has blocks
+    ``delta_ij C_i + A_i P_c A_j^T``; returns (chi2, generalised least-squares common value, joint covariance)."""
+    K, p = len(xs), len(xs[0])
+    A = np.vstack([np.asarray(a, float).reshape(p, -1) for a in gains])
+    S = A @ P_c @ A.T
+    for k, c in enumerate(covs):
+        S[k * p:(k + 1) * p, k * p:(k + 1) * p] += c
+    H = np.tile(np.eye(p), (K, 1))
+    x = np.concatenate(xs)
+    Si = np.linalg.pinv(S)
+    xbar = np.linalg.solve(H.T @ Si @ H, H.T @ Si @ x)
+    r = x - H @ xbar
+    return float(r @ Si @ r), xbar, S
+
+
 def window_consistency(windows: Sequence[Window], names: Sequence[str],
-                       instability: dict[str, float] | None = None) -> dict[str, Any]:
+                       instability: dict[str, float] | None = None,
+                       consider: tuple[Sequence[np.ndarray], np.ndarray] | None = None) -> dict[str, Any]:
     """Do the windows' instrument coefficients agree, and does each predict the others' dv?
 
     Agreement: with ``x_k``, ``C_k`` each window's estimate and covariance of the coefficients
@@ -315,6 +334,14 @@ def window_consistency(windows: Sequence[Window], names: Sequence[str],
     then the common one plus an independent offset of that std, and ``C_k`` becomes
     ``C_k + diag(sigma^2)`` everywhere below. It must not be estimated from the spread it is judged by.
 
+    `consider` = (gains, P_c): instrument terms the windows' model leaves out (scale factors, misalignments),
+    the same vector ``c`` of covariance ``P_c`` in every window, moving window ``k``'s estimate by ``A_k c``
+    (``gains[k]`` = ``A_k``, p x m, one per window in `windows`' order; the consider gain
+    ``(S_w^T W S_w)^-1 S_w^T W S_c``). The windows' estimates are then correlated: chi2 is that of the stacked
+    estimates about their generalised-least-squares common value against the joint covariance of blocks
+    ``delta_ij C_i + A_i P_c A_j^T`` (a gain common to all windows shifts them all alike and adds nothing), and
+    a prediction's std uses ``C_i + C_j + (A_i - A_j) P_c (A_i - A_j)^T``.
+
     Prediction: window ``i``'s coefficients predict window ``j``'s dv at its end by
     ``s_j (x_i - x_j)`` away from what ``j``'s own fit gives (``s_j`` the rows of S_V at ``j``'s
     last sample, instrument columns), with std ``sqrt(s_j (C_i + C_j) s_j^T)`` per axis; the fractions
@@ -329,15 +356,29 @@ def window_consistency(windows: Sequence[Window], names: Sequence[str],
     if np.any(~np.isfinite(wander)) or np.any(wander < 0.0):
         raise ValueError(f"instability: each std must be finite and >= 0, got {instability!r}")
     covs = tuple(c + np.diag(wander**2) for c in covs)
+    gains: list[np.ndarray] | None = None
+    if consider is not None:
+        all_gains, P_c = consider
+        P_c = np.atleast_2d(np.asarray(P_c, float))
+        if len(all_gains) != len(windows):
+            raise ValueError(f"consider: {len(all_gains)} gains for {len(windows)} windows")
+        gains = [np.asarray(g, float).reshape(p, P_c.shape[0])
+                 for g, w in zip(all_gains, windows) if w.result.success and w.result.covariance is not None]
     out: dict[str, Any] = {"windows": len(windows), "used": len(ok), "names": list(names),
                            "instability": {n: float(v) for n, v in zip(names, wander)}}
     if len(ok) < 2:
         return {**out, "agree": False, "message": f"{len(ok)} window(s) with a covariance: nothing to compare"}
-    W = [np.linalg.pinv(c) for c in covs]
-    xbar = np.linalg.solve(sum(W), sum(w @ x for w, x in zip(W, xs)))
-    chi2 = float(sum((x - xbar) @ w @ (x - xbar) for w, x in zip(W, xs)))
     dof = (len(ok) - 1) * p
-    per = {n: float(sum((x[i] - xbar[i]) ** 2 / c[i, i] for x, c in zip(xs, covs))) for i, n in enumerate(names)}
+    if gains is None:
+        W = [np.linalg.pinv(c) for c in covs]
+        xbar = np.linalg.solve(sum(W), sum(w @ x for w, x in zip(W, xs)))
+        chi2 = float(sum((x - xbar) @ w @ (x - xbar) for w, x in zip(W, xs)))
+        per = {n: float(sum((x[i] - xbar[i]) ** 2 / c[i, i] for x, c in zip(xs, covs)))
+               for i, n in enumerate(names)}
+    else:
+        chi2, xbar, _ = _joint_chi2(xs, covs, gains, P_c)
+        per = {n: _joint_chi2([x[[i]] for x in xs], [c[np.ix_([i], [i])] for c in covs],
+                              [g[[i]] for g in gains], P_c)[0] for i, n in enumerate(names)}
     z = []
     for j, wj in enumerate(ok):
         if not wj.sv_end.size or not set(names) <= set(wj.sv_names):
@@ -345,7 +386,11 @@ def window_consistency(windows: Sequence[Window], names: Sequence[str],
         s = wj.sv_end[:, [wj.sv_names.index(n) for n in names]]
         for i in range(len(ok)):
             if i != j:
-                sd = np.sqrt(np.einsum("ap,pq,aq->a", s, covs[i] + covs[j], s))
+                cij = covs[i] + covs[j]
+                if gains is not None:
+                    dA = gains[i] - gains[j]
+                    cij = cij + dA @ P_c @ dA.T
+                sd = np.sqrt(np.einsum("ap,pq,aq->a", s, cij, s))
                 z.append(s @ (xs[i] - xs[j]) / sd)
     zz = np.abs(np.concatenate(z)) if z else np.array([])
     pval = float(chi2_dist.sf(chi2, dof))

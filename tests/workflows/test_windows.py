@@ -91,6 +91,49 @@ def test_instability_calibrates_chi2_of_wandering_coefficients():
         window_consistency(ws, ("a", "b"), instability={"a": -1.0})
 
 
+def test_consider_two_windows_closed_form_and_common_gain_adds_nothing():
+    """Two windows with left-out terms: chi2 = d^T (C1 + C2 + dA P dA^T)^-1 d (dA = A1 - A2), the prediction std
+    the same; a gain common to both windows leaves chi2 as without it."""
+    C1 = np.array([[2.0, 0.3], [0.3, 1.0]])
+    C2 = np.array([[0.5, -0.1], [-0.1, 3.0]])
+    x1, x2 = np.array([1.0, -2.0]), np.array([2.5, 0.5])
+    s = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    A1, A2 = np.array([[1.0, 0.5, 0.0], [0.0, -1.0, 2.0]]), np.array([[-0.5, 0.0, 1.0], [1.5, 0.2, 0.0]])
+    P = np.diag([0.4, 1.0, 0.25])
+    ws = [_window(x1, C1, s), _window(x2, C2, s)]
+    out = window_consistency(ws, ("a", "b"), consider=([A1, A2], P))
+    d, dA = x1 - x2, A1 - A2
+    Cd = C1 + C2 + dA @ P @ dA.T
+    assert out["chi2"] == pytest.approx(d @ np.linalg.solve(Cd, d), rel=1e-10)
+    z = np.abs(s @ d / np.sqrt(np.einsum("ap,pq,aq->a", s, Cd, s)))
+    assert out["median_abs_z"] == pytest.approx(np.median(np.concatenate([z, z])), rel=1e-12)
+    assert out["chi2_per_coefficient"]["a"] == pytest.approx(d[0] ** 2 / Cd[0, 0], rel=1e-10)
+    same = window_consistency(ws, ("a", "b"), consider=([A1, A1], P))
+    assert same["chi2"] == pytest.approx(window_consistency(ws, ("a", "b"))["chi2"], rel=1e-10)
+    with pytest.raises(ValueError, match="consider"):
+        window_consistency(ws, ("a", "b"), consider=([A1], P))
+
+
+def test_consider_calibrates_chi2_of_left_out_terms():
+    """Windows whose estimates carry left-out terms c (the same c in every window, a gain A_k per window): without
+    the consider covariance chi2/dof is far above 1, with it near 1 and p-values uniform (seeded)."""
+    rng = np.random.default_rng(13)
+    gains = [rng.normal(size=(2, 3)) for _ in range(5)]
+    P = np.diag([1.0, 0.5, 2.0]) ** 2
+    C = np.diag([0.3, 0.2]) ** 2
+    plain, given, pvals = [], [], []
+    for _ in range(200):
+        c = rng.multivariate_normal(np.zeros(3), P)
+        ws = [_window(rng.multivariate_normal(np.array([3.0, -1.0]) + A @ c, C), C) for A in gains]
+        plain.append(window_consistency(ws, ("a", "b"))["chi2"] / 8)
+        out = window_consistency(ws, ("a", "b"), consider=(gains, P))
+        given.append(out["chi2"] / out["dof"])
+        pvals.append(out["p_value"])
+    assert np.mean(plain) > 10.0
+    assert np.mean(given) == pytest.approx(1.0, abs=0.1)  # std of the mean of 200: 0.035
+    assert 0.02 < np.mean(np.array(pvals) < 0.05) < 0.09
+
+
 @pytest.fixture(scope="module")
 def car(tmp_path_factory):
     """The chain on the real cut: align 0-30 s, two 15 s windows from 36 s."""
