@@ -67,7 +67,7 @@ from casep.checks.time_offset import (
     shares_problem_test,
     time_offset_test,
 )
-from casep.checks.tracking_quality import _velocity_change
+from casep.checks.tracking_quality import _velocity_change, screen_summary
 from casep.exceptions import (
     NoiseFreeWarning,
     NoiseLevelWarning,
@@ -370,8 +370,6 @@ def check_enough_samples(flight: FlightData, n_coefficients: int, model_name: st
     need = min_samples(n_coefficients)
     n = flight.n_observed
     if n < need:
-        from casep.checks.tracking_quality import screen_summary
-
         part = "" if n == flight.n_samples else f" observed (tracking covers {n} of {flight.n_samples})"
         screened = screen_summary(flight.meta.get("tracking_screen"))
         raise FlightDataError(

@@ -130,17 +130,26 @@ def check_full_scale(value, name: str, flag: str, unit: str) -> float:
     return v
 
 
-def beyond_declared(x: np.ndarray, declared: float, si: float = 1.0) -> list[tuple[int, int, float]]:
-    """The columns of readings `x` (SI per unit `si`) that go beyond :data:`DECLARED_EXCEEDED` times the declared
-    full scale `declared` (SI): ``(column, first row beyond, largest |reading| in SI)``; a sensor clipped at its
-    range reads at it, not past it, so such a column says the declared range is wrong."""
+def beyond_declared(x: np.ndarray, sensor: str, declared: float | None, si: float = 1.0
+                    ) -> tuple[int, int, str] | None:
+    """The first column of readings `x` (SI per unit `si`) that goes beyond :data:`DECLARED_EXCEEDED` times the
+    declared full scale `declared` (SI; None: nothing declared, nothing to judge): ``(column, first row beyond, what
+    it says)``, the text naming the largest reading, the ratio and the option; None when every column stays within.
+    A sensor clipped at its range reads at it, not past it, so such a column says the declared range is wrong."""
+    if declared is None:
+        return None
     x = np.abs(np.asarray(x, float)) * si
-    out = []
     for j in range(x.shape[1]):
         over = np.flatnonzero(x[:, j] > DECLARED_EXCEEDED * declared)
         if over.size:
-            out.append((j, int(over[0]), float(x[:, j].max())))
-    return out
+            unit, per = FULL_SCALE_UNITS[sensor]
+            top = float(x[:, j].max())
+            flag = "--gyr-range" if sensor == "gyro" else "--acc-range"
+            return j, int(over[0]), (f"the {sensor} reads up to {top / per:.6g} {unit}, {top / declared:.3g} times "
+                                     f"the declared full scale {declared / per:g} {unit} ({flag}): a sensor clipped "
+                                     "at its range reads at it, not past it; declare the sensor's range (or check "
+                                     "the column's unit)")
+    return None
 
 
 def held_full_scale(x: np.ndarray, sensor: str, *, si: float | None = 1.0, declared: float | None = None,
@@ -357,16 +366,12 @@ def screen_saturation(flight: FlightData) -> FlightData:
         fs = declared.get("gyr_range" if sensor == "gyro" else "acc_range")
         unit, per = FULL_SCALE_UNITS[sensor]
         x = np.column_stack([sig[c] for c in cols])
-        beyond = beyond_declared(x, fs) if fs is not None else []
-        if beyond and fs is not None:  # the raw-IMU path's refusal (casep.navigation.imu), here for telemetry
+        beyond = beyond_declared(x, sensor, fs)
+        if beyond is not None:  # the raw-IMU path's refusal (casep.navigation.imu), here for telemetry
             from casep.io.flight import FlightDataError
 
-            j, row, top = beyond[0]
-            flag = "--gyr-range" if sensor == "gyro" else "--acc-range"
-            raise FlightDataError(flight.source, f"the {sensor} reads up to {top / per:.6g} {unit} (t = "
-                                  f"{t_src[row]:.10g} s), {top / fs:.3g} times the declared full scale {fs / per:g} "
-                                  f"{unit} ({flag}): a sensor clipped at its range reads at it, not past it; declare "
-                                  "the sensor's range (or check the column's unit)", cols[j], row + 1)
+            j, row, said = beyond
+            raise FlightDataError(flight.source, f"at t = {t_src[row]:.10g} s {said}", cols[j], row + 1)
         for h in held_full_scale(x, sensor, declared=fs):
             n = sum(b - a for a, b in h.runs)
             a0, b1 = h.runs[0][0], h.runs[-1][1] - 1

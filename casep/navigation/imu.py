@@ -348,14 +348,10 @@ def _check_clipped(imu: ImuData, gyr_range: float | None, acc_range: float | Non
                                         raw or (None, None)):
         unit, per = FULL_SCALE_UNITS[sensor]
         x, si = (np.asarray(r, float), 1.0 / period) if r is not None else (x, 1.0)
-        beyond = beyond_declared(x, fs, si) if fs is not None else []
-        if beyond and fs is not None:
-            j, row, top = beyond[0]
-            flag = "--gyr-range" if sensor == "gyro" else "--acc-range"
-            raise ValueError(f"{imu.source}: column `{cols[j]}`, row {row + 1} (t = {imu.t[row]:.10g} s): the "
-                             f"{sensor} reads up to {top / per:.6g} {unit}, {top / fs:.3g} times the declared full "
-                             f"scale {fs / per:g} {unit} ({flag}): a sensor clipped at its range reads at it, not "
-                             f"past it; declare the sensor's range (or check the column's unit)")
+        beyond = beyond_declared(x, sensor, fs, si)
+        if beyond is not None:
+            j, row, said = beyond
+            raise ValueError(f"{imu.source}: column `{cols[j]}`, row {row + 1} (t = {imu.t[row]:.10g} s): {said}")
         col_unit = ("rad" if sensor == "gyro" else "m/s") if inc else ("rad/s" if sensor == "gyro" else "m/s^2")
         for h in held_full_scale(x, sensor, si=si, declared=fs):
             rows = np.flatnonzero(held_mask([h], x.shape)[:, h.axis])

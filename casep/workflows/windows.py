@@ -349,7 +349,8 @@ def window_consistency(windows: Sequence[Window], names: Sequence[str],
     """
     from scipy.stats import chi2 as chi2_dist
 
-    ok = [w for w in windows if w.result.success and w.result.covariance is not None]
+    used = [k for k, w in enumerate(windows) if w.result.success and w.result.covariance is not None]
+    ok = [windows[k] for k in used]
     xs, covs = zip(*(_instrument(w, names) for w in ok)) if ok else ((), ())
     p = len(names)
     wander = np.array([float((instability or {}).get(n, 0.0)) for n in names])
@@ -362,8 +363,7 @@ def window_consistency(windows: Sequence[Window], names: Sequence[str],
         P_c = np.atleast_2d(np.asarray(P_c, float))
         if len(all_gains) != len(windows):
             raise ValueError(f"consider: {len(all_gains)} gains for {len(windows)} windows")
-        gains = [np.asarray(g, float).reshape(p, P_c.shape[0])
-                 for g, w in zip(all_gains, windows) if w.result.success and w.result.covariance is not None]
+        gains = [np.asarray(all_gains[k], float).reshape(p, P_c.shape[0]) for k in used]
     out: dict[str, Any] = {"windows": len(windows), "used": len(ok), "names": list(names),
                            "instability": {n: float(v) for n, v in zip(names, wander)}}
     if len(ok) < 2:
