@@ -119,12 +119,12 @@ def test_batched_tau_matches_per_run_reml():
     S, Y, t = _paper_ar1_runs(8, rate=5.0)
     calls = []
 
-    def counting(S_, Y_, t_, tau):
-        calls.append(Y_.shape[-1])
-        return neg2(S_, Y_, t_, tau)
+    def counting(self, tau, share=0.0):
+        calls.append(self.Y.shape[-1])
+        return evaluate(self, tau, share)
 
-    neg2 = gls._neg2_reml
-    with mock.patch.object(gls, "_neg2_reml", counting):
+    neg2, evaluate = gls._neg2_reml, gls._Reml.__call__
+    with mock.patch.object(gls._Reml, "__call__", counting):
         taus = gls.estimate_tau_many(S, Y, t)
         n_batch = len(calls)
         per_run = [estimate_tau(S, Y[..., r], t) for r in range(Y.shape[-1])]
@@ -145,6 +145,43 @@ def test_neg2_reml_columns_equal_single_runs():
     many = _neg2_reml(S, Y, t, 0.8)
     one = [_neg2_reml(S, Y[..., r:r + 1], t, 0.8)[0] for r in range(3)]
     np.testing.assert_allclose(many, one, rtol=0, atol=1e-8)
+
+
+def test_formed_objective_equals_the_qr_one_and_finds_the_same_noise():
+    """_Reml (S factored once, a Gram matrix per evaluation) against _neg2_reml (a QR of the whole whitened
+    matrix per evaluation): the same values to 1e-8 over the whole search box of (ln tau, white share), every
+    run; and estimate_noise's (tau, white share) through either objective equal to 1e-7 relative, on
+    Gauss-Markov data (share 0 kept) and on Gauss-Markov plus white data (the white part kept)."""
+    from unittest import mock
+
+    from casep.estimators import gls
+
+    S, Y, t = _paper_ar1_runs(3, rate=5.0)
+    reml = gls._Reml(S, Y, t)
+    lo, hi = gls.tau_search_bounds(t)
+    for x in np.linspace(lo, hi, 7):
+        for w in (0.0, 1.0 / (1.0 + np.exp(12.0)), 0.1, 0.5, 1.0 / (1.0 + np.exp(-12.0))):
+            np.testing.assert_allclose(reml(float(np.exp(x)), w), gls._neg2_reml(S, Y, t, float(np.exp(x)), w),
+                                       rtol=0, atol=1e-8)
+    rng = np.random.default_rng(5)
+    y_white = Y[..., 0] + 0.1 * rng.standard_normal(Y[..., 0].shape)
+    found = [gls.estimate_noise(S, y, t) for y in (Y[..., 0], y_white)]
+    with mock.patch.object(gls._Reml, "__call__", lambda self, tau, share=0.0: gls._neg2_reml(self.S, self.Y, self.t,
+                                                                                            tau, share)):
+        reference = [gls.estimate_noise(S, y, t) for y in (Y[..., 0], y_white)]
+    assert found[0][1] == reference[0][1] == 0.0 and found[1][1] > 0.1
+    np.testing.assert_allclose(found, reference, rtol=1e-7, atol=0)
+
+
+def test_rank_deficient_regression_uses_the_qr_objective():
+    """A regression with two equal columns: the objective is _neg2_reml's own (its QR handles them)."""
+    from casep.estimators import gls
+
+    S, Y, t = _paper_ar1_runs(1, rate=5.0)
+    S = np.concatenate([S, S[:, :, :1]], axis=2)
+    reml = gls._Reml(S, Y, t)
+    assert not reml.full
+    np.testing.assert_array_equal(reml(0.8, 0.1), gls._neg2_reml(S, Y, t, 0.8, 0.1))
 
 
 def test_lattice_vertex_exact_for_polynomials():
