@@ -118,7 +118,10 @@ def reduce_qr(S: np.ndarray, y: np.ndarray, *, block_rows: int = DEFAULT_BLOCK_R
     scale = np.sqrt(sq)
     inv = np.where(scale > 0, 1.0 / np.where(scale > 0, scale, 1.0), 0.0)
     Racc = np.zeros((0, n + 1))
-    work = np.empty((min(block_rows, m) + n + 1, n + 1))
+    # Fortran order, LAPACK's: numpy.linalg.qr copies its input into that layout, column by column, which from a
+    # C-ordered array is a strided read of every row per column (the same R bit for bit; 16 % less CPU at 11703 x 37,
+    # 37 % at 200000 x 37)
+    work = np.empty((min(block_rows, m) + n + 1, n + 1), order="F")
     for s in range(0, m, block_rows):
         blk = S[s : s + block_rows]
         k0 = Racc.shape[0]
@@ -163,7 +166,7 @@ def reduce_qr_blocks(blocks: Iterable[tuple[np.ndarray, np.ndarray]], n: int,
             raise ValueError(f"`y` is not finite at row {m + int(np.flatnonzero(~np.isfinite(y_blk))[0])}")
         if not np.all(np.isfinite(S_blk)):
             raise ValueError(_first_bad(S_blk, names, m))
-        M = np.empty((Racc.shape[0] + S_blk.shape[0], n + 1))
+        M = np.empty((Racc.shape[0] + S_blk.shape[0], n + 1), order="F")  # LAPACK's layout, as reduce_qr's
         M[: Racc.shape[0]] = Racc
         M[Racc.shape[0]:, :n] = S_blk
         M[Racc.shape[0]:, n] = y_blk
