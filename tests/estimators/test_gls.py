@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 from conftest import dishonest_whitened, whitened_error
@@ -97,11 +99,19 @@ def test_bad_arguments(paper_problem):
         casep.solve_gls(S, y, t[:-1])
 
 
-def _paper_ar1_runs(k, seed=11, rate=10.0):
+@functools.cache
+def _paper_ar1_setup(rate):
+    """paper-ar1's scenario, trajectory, S_V (read-only: shared by the tests of this process) and truth."""
     from casep.simulation.simulate import scenario_setup
 
     sc, traj, model, truth = scenario_setup("paper-ar1", rate)
     S = casep.build_sv(model, traj.t, traj.specific_force)
+    S.setflags(write=False)
+    return sc, traj, S, truth
+
+
+def _paper_ar1_runs(k, seed=11, rate=10.0):
+    sc, traj, S, truth = _paper_ar1_setup(rate)
     rng = np.random.default_rng(seed)
     Y = np.stack([S @ truth + sc.noise.sample(traj.t, rng) for _ in range(k)], axis=-1)
     return S, Y, traj.t
