@@ -184,14 +184,20 @@ def test_formed_objective_equals_the_qr_one_and_finds_the_same_noise():
 
 
 def test_rank_deficient_regression_uses_the_qr_objective():
-    """A regression with two equal columns: the objective is _neg2_reml's own (its QR handles them)."""
+    """A regression with two equal columns: the objective is _neg2_reml's own (its QR handles them); with a zero
+    column, the formed one, equal to it."""
     from casep.estimators import gls
 
     S, Y, t = _paper_ar1_runs(1, rate=5.0)
-    S = np.concatenate([S, S[:, :, :1]], axis=2)
-    reml = gls._Reml(S, Y, t)
+    S2 = np.concatenate([S, S[:, :, :1]], axis=2)
+    reml = gls._Reml(S2, Y, t)
     assert not reml.full
-    np.testing.assert_array_equal(reml(0.8, 0.1), gls._neg2_reml(S, Y, t, 0.8, 0.1))
+    np.testing.assert_array_equal(reml(0.8, 0.1), gls._neg2_reml(S2, Y, t, 0.8, 0.1))
+    S0 = np.concatenate([S, np.zeros(S.shape[:2] + (1,))], axis=2)  # a zero column: dropped by both, p counts it
+    reml = gls._Reml(S0, Y, t)
+    assert reml.full
+    for w in (0.0, 0.1):
+        np.testing.assert_allclose(reml(0.8, w), gls._neg2_reml(S0, Y, t, 0.8, w), rtol=0, atol=1e-8)
 
 
 def test_lattice_vertex_exact_for_polynomials():
