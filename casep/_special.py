@@ -1,4 +1,5 @@
-"""Two tail probabilities on the command line's path, in the standard library (``math``).
+"""Two tail probabilities on the command line's path, in the standard library (``math``), and the normal
+distribution's ratio of the standard deviation to the median absolute deviation.
 
 ``scipy.special`` would give them, at the price of its import (0.1-0.6 s of CPU, with the array-API layer
 it brings when it is the first SciPy module loaded): ``casep separate`` needs only these two numbers.
@@ -10,7 +11,10 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["normal_sf", "chi2_sf"]
+__all__ = ["normal_sf", "chi2_sf", "MAD_SIGMA"]
+
+#: ``sigma = MAD_SIGMA * MAD`` for Gaussian data: ``1 / Phi^-1(3/4)``.
+MAD_SIGMA = 1.482602218505602
 
 
 def normal_sf(x: float) -> float:

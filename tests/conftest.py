@@ -416,7 +416,7 @@ def _ins_acc(t):  # kinematic acceleration, launch frame (y up), m/s^2
 
 def ins_telemetry(clip_dps: float = math.inf, seed: int = 3, *, errors: dict | None = None, noise: float = NOISE,
                   imu_noise: bool = True, growth: float = 0.03, dur: float = DUR, trk_rate: float = TRK_RATE,
-                  spike: tuple[float, float] | None = None):
+                  spike: tuple[float, float] | None = None, integrates_clip: bool = True):
     """Telemetry (t, q_*, fb_*, w_*, v_tel_*), tracking (t, v_trk_*), the truth of strapdown12's coefficients and the
     gyro samples held at the full scale `clip_dps`.
 
@@ -425,7 +425,9 @@ def ins_telemetry(clip_dps: float = math.inf, seed: int = 3, *, errors: dict | N
     (``fb (1 + sa) + ba``). The truth drawn from `seed` (ba ~ 1 mg, sa ~ 200 ppm, bg ~ 3 deg/h, sg ~ 300 ppm),
     `errors` (natural units) replacing any of it; `dur` (s) and `trk_rate` (Hz) the flight's length and tracking
     rate; `imu_noise`: white noise on the written rates (1e-3 rad/s off the
-    rail) and forces (1e-2 m/s^2) the INS did not integrate; `noise`: white tracking noise, m/s.
+    rail) and forces (1e-2 m/s^2) the INS did not integrate; `noise`: white tracking noise, m/s; `integrates_clip`
+    False: the INS integrates the measured rates unclipped (its own gyro did not clip), while the written ``w_*``
+    are clipped at `clip_dps` (a logger's channel of narrower range than the INS's).
     """
     from casep.units import G0
 
@@ -448,6 +450,9 @@ def ins_telemetry(clip_dps: float = math.inf, seed: int = 3, *, errors: dict | N
     def gyro(w):
         return np.clip(w * (1 + sg) + bg, -fs, fs)
 
+    def integrated(w):
+        return gyro(w) if integrates_clip else w * (1 + sg) + bg
+
     g = np.array([0.0, -G0, 0.0])
     h, n = 1 / (RATE * SUB), int(round(dur * RATE * SUB))
     q = qi = _qexp(np.array([0.0, 0.0, 0.3]))
@@ -464,10 +469,10 @@ def ins_telemetry(clip_dps: float = math.inf, seed: int = 3, *, errors: dict | N
         tm = t + h / 2
         wm = rate(tm)
         fbm = _dcm(_qmul(q, _qexp(wm * h / 2))).T @ (_ins_acc(tm) - g)
-        qim = _qmul(qi, _qexp(gyro(wm) * h / 2))
+        qim = _qmul(qi, _qexp(integrated(wm) * h / 2))
         v = v + h * _ins_acc(tm)
         vi = vi + h * (_dcm(qim) @ (fbm * (1 + sa) + ba) + g)
-        q, qi = _qmul(q, _qexp(wm * h)), _qmul(qi, _qexp(gyro(wm) * h))
+        q, qi = _qmul(q, _qexp(wm * h)), _qmul(qi, _qexp(integrated(wm) * h))
         q, qi = q / np.linalg.norm(q), qi / np.linalg.norm(qi)
     R, V = np.array(rows), np.array(truth_v)
     held = np.abs(R[:, 8:11]) >= fs * (1 - 1e-12)

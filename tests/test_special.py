@@ -34,3 +34,16 @@ def test_chi2_sf_edges():
 def test_normal_sf_is_scipys():
     x = np.linspace(-8.0, 8.0, 161)
     np.testing.assert_allclose([normal_sf(float(v)) for v in x], ndtr(-x), rtol=1e-13, atol=0.0)
+
+
+def test_mad_sigma_is_the_normal_ratio_of_std_to_mad():
+    """``MAD_SIGMA = 1 / Phi^-1(3/4)`` (the standard library's normal quantile), the one constant of every MAD scale."""
+    import statistics
+
+    from casep._special import MAD_SIGMA
+    from casep.checks import plausibility
+    from casep.estimators import huber
+    from casep.noise import robust
+
+    assert abs(MAD_SIGMA - 1.0 / statistics.NormalDist().inv_cdf(0.75)) < 1e-15
+    assert robust.MAD_SIGMA is huber.MAD_SIGMA is plausibility.MAD_SIGMA

@@ -45,6 +45,7 @@ from casep.calibration.segment import Segmentation, detect_static
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Session
 from casep.estimators.result import EstimateResult
 from casep.exceptions import CasepWarning
+from casep.fullscale import beyond_declared
 from casep.results import OfEstimate
 
 __all__ = ["MultipositionCalibration", "calibrate_multiposition", "calibrate_multiposition_file", "ferraris_view",
@@ -388,6 +389,7 @@ def calibrate_multiposition(session: Session, segmentation: Segmentation | None 
     fa, sa_unit, ba_unit = _unit(session.acc_unit, ACC_UNITS, "m/s^2")
     fg, sg_unit, bg_unit = _unit(session.gyr_unit, GYR_UNITS, "rad/s")
     acc, gyr = session.acc * fa, session.gyr * fg
+    _refuse_beyond_declared(session, acc, gyr, acc_range, gyr_range)
     held: list[warnings.WarningMessage] = []
     try:
         with warnings.catch_warnings(record=True) as held:
@@ -742,6 +744,20 @@ def _drop_clipped(seg: Segmentation, session: Session, acc_range) -> Segmentatio
                    turns_deg=[t for i, t in enumerate(seg.turns_deg) if i not in bad])
 
 
+def _refuse_beyond_declared(session: Session, acc: np.ndarray, gyr: np.ndarray, acc_range: float | None,
+                            gyr_range: float | None) -> None:
+    """A ValueError naming the file, the column, the row and the numbers when a sensor reads beyond
+    :data:`casep.fullscale.DECLARED_EXCEEDED` times its declared full scale (`acc`, `gyr` and the ranges SI; the
+    rule of the raw-IMU and telemetry paths, :func:`casep.fullscale.beyond_declared`): a sensor clipped at its range
+    reads at it, so the declared range (or the column's unit) is wrong."""
+    for k, (x, sensor, fs) in enumerate(((acc, "accelerometer", acc_range), (gyr, "gyro", gyr_range))):
+        beyond = beyond_declared(x, sensor, fs)
+        if beyond is not None:
+            j, i, said = beyond
+            raise ValueError(f"{session.source}: column `{session.columns[3 * k + j]}`, row {session.file_row(i)} "
+                             f"(t = {session.t[i]:.10g} s): {said}")
+
+
 def calibrate_multiposition_file(session: str | os.PathLike, *, rate: float | None = None, acc_columns=None,
                                  gyr_columns=None, acc_unit: str = "a.u.", gyr_unit: str = "a.u.",
                                  **kwargs) -> MultipositionCalibration:
@@ -772,4 +788,4 @@ def _read_plain(path, rate, acc_unit, gyr_unit) -> Session:
         raise ValueError(f"session file {path}: needs 6 finite columns ax ay az wx wy wz, got {a.shape[1]}"
                          + (f" (row {bad[0] + 1} not finite)" if bad.size else ""))
     return Session(t=np.arange(len(a)) / float(rate), acc=a[:, :3], gyr=a[:, 3:], rate=float(rate), source=str(path),
-                   acc_unit=acc_unit, gyr_unit=gyr_unit)
+                   acc_unit=acc_unit, gyr_unit=gyr_unit, columns=("ax", "ay", "az", "wx", "wy", "wz"), header_lines=0)

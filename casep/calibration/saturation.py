@@ -1,6 +1,6 @@
 """Saturation of a hand-turned session: readings held at the sensor's full scale.
 
-The rule is :func:`casep.checks.saturation.held_full_scale`, the one navigation uses too: a run of
+The rule is :func:`casep.fullscale.held_full_scale`, the one navigation uses too: a run of
 3 or more readings at a full scale (a declared one, within 1 % of it; else a converter's limit for raw
 counts, a nominal range for a physical unit, held at the column's extreme). This module turns the
 session's units into it and judges what a saturated reading spoils.
@@ -51,7 +51,7 @@ def declared_range(full_scale_si: float | None, unit: str, sensor: str) -> float
 def saturated_runs(x: np.ndarray, sensor: str, unit: str, declared: float | None = None,
                    min_run: int = CLIP_RUN) -> list[HeldFullScale]:
     """Per axis and side at full scale: ``(axis, side, value, why, runs)``, the runs of at least `min_run`
-    readings at it (:func:`casep.checks.saturation.held_full_scale` in the session's `unit`; `declared`: SI)."""
+    readings at it (:func:`casep.fullscale.held_full_scale` in the session's `unit`; `declared`: SI)."""
     si = None if unit == RAW_UNIT else (ACC_UNITS if sensor == "accelerometer" else GYR_UNITS)[unit]
     return held_full_scale(x, sensor, si=si, declared=declared, min_run=min_run)
 

@@ -114,6 +114,11 @@ class Session:
     t_column : bool
         True when `t` is the file's own time column; False when it was made from `rate` (then a
         wrong rate scales every turn integral, :func:`casep.calibration.checks.check_turn_angles`).
+    columns : tuple of 6 str
+        The file's accelerometer and gyro columns, x, y, z each (for messages).
+    header_lines : int
+        Lines above the first sample in the file (a CSV's header: 1; a headerless text file: 0), so that
+        :meth:`file_row` gives the line a message names.
     """
 
     t: np.ndarray
@@ -126,6 +131,8 @@ class Session:
     rows: np.ndarray | None = None
     labels: np.ndarray | None = None
     t_column: bool = False
+    columns: tuple[str, ...] = ("acc_x", "acc_y", "acc_z", "gyr_x", "gyr_y", "gyr_z")
+    header_lines: int = 1
 
     def __post_init__(self) -> None:
         n = len(self.t)
@@ -140,6 +147,11 @@ class Session:
     @property
     def n_samples(self) -> int:
         return len(self.t)
+
+    def file_row(self, i: int) -> int:
+        """The file's line (1 the first) of sample `i` (time order), as the reader's messages count it."""
+        assert self.rows is not None  # set by __post_init__
+        return int(self.rows[i]) + 1 + self.header_lines
 
 
 def ferraris_segment(name: str, rows: np.ndarray, angle_deg: float = -360.0) -> Segment:
@@ -252,7 +264,8 @@ def read_session(path: str | os.PathLike, *, rate: float | None = None, acc_colu
                            for s in raw], dtype=object)
     return Session(t=ts, acc=np.column_stack([data[c] for c in acc_columns])[order],
                    gyr=np.column_stack([data[c] for c in gyr_columns])[order], rate=float(rate), source=src,
-                   acc_unit=acc_unit, gyr_unit=gyr_unit, rows=order, labels=labels, t_column="t" in df.columns)
+                   acc_unit=acc_unit, gyr_unit=gyr_unit, rows=order, labels=labels, t_column="t" in df.columns,
+                   columns=tuple(cols))
 
 
 def check_time_unit(rate_t: float, src: str) -> None:

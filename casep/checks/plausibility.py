@@ -58,6 +58,7 @@ from typing import Any
 
 import numpy as np
 
+from casep._special import MAD_SIGMA  # sigma = MAD_SIGMA * MAD for Gaussian data
 from casep.checks.time_offset import (
     EFFECT_MIN,
     is_problem,
@@ -102,7 +103,6 @@ OUTLIER_Z = 10.0  # robust sigma of the spike statistic; Gaussian P(|z| > 10) ~ 
 OFFSET_T = 5.0  # |t| of the offset / jerk terms; Gaussian P(|t| > 5) ~ 6e-7
 NOISE_FLOOR = 1e-3  # m/s: an outlier must exceed OUTLIER_Z times at least this (interpolation ripple
 #                    of noise-free two-rate data at staging is ~1e-4 m/s)
-MAD_SIGMA = 1.482602218505602  # sigma = MAD / Phi^-1(3/4) for Gaussian data
 
 
 def _warn(message: str, category: type[Warning] = PlausibilityWarning) -> None:

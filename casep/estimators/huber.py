@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Unpack
 
 import numpy as np
 
+from casep._special import MAD_SIGMA  # sigma = MAD_SIGMA * MAD for Gaussian data
 from casep.estimators._base import Prepared, finish, prepare
 from casep.estimators._options import Interval, Labels, Method, Option, SeveralFlights
 from casep.estimators.ols import least_squares
@@ -43,7 +44,6 @@ __all__ = ["solve_huber", "HUBER_C", "HUBER", "HuberExtras"]
 
 #: Huber's tuning constant: 95 % asymptotic efficiency at the Gaussian.
 HUBER_C = 1.345
-MAD_SIGMA = 1.482602218505602  # sigma = MAD / Phi^-1(3/4)
 _MAX_FLAGS = 50
 
 #: Its solver keywords (not command-line options).

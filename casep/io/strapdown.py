@@ -35,6 +35,14 @@ Checks, each naming the file, the columns, the rows and the numbers:
 
   A flight that turns by less than :data:`MIN_ROTATION` in all gets no comparison (nothing to see).
 
+  A disagreement that coincides with a clipped gyro is no axis, sign or factor: when the comparison
+  disagrees and body-rate readings are held at a full scale (:func:`casep.fullscale.held_full_scale`,
+  the saturation rule of calibration, navigation and the telemetry's screen; no declared full scale
+  is known here), the steps those readings reach (:data:`CLIP_REACH`) are left out and the rest is
+  compared again: agreeing, it is a warning that the gyro clipped (column, value, full scale, rows,
+  times: the INS's attitude followed the motion, the written rate did not; ``meta["strapdown"]
+  ["rate_clipped"]``); disagreeing, the finding above on the rest, saying the clip was left out.
+
 - **velocity against the specific force** (files with ``v_tel_*``): the INS's velocity is the integral of
   ``C(q) fb + g``; over windows of :data:`KINEMATIC_WINDOW` the misfit ``(v_tel(b) - v_tel(a) - int_a^b
   (C(q) fb + g) dt) / (b - a)`` turned into body axes (the attitude at the window's middle), its median over
@@ -56,6 +64,7 @@ from typing import Any
 import numpy as np
 
 from casep.exceptions import PlausibilityWarning
+from casep.fullscale import held_full_scale, held_mask
 from casep.gravity import kinematic_acceleration
 from casep.io.flight import FlightDataError
 from casep.rotations import (
@@ -70,8 +79,8 @@ from casep.units import G0, MEMS_ACCEL_BIAS
 
 __all__ = ["StrapdownWarning", "strapdown_force", "check_strapdown", "compare_force", "FORCE_TOL", "check_kinematics",
            "KINEMATIC_WINDOW", "KINEMATIC_LIMIT", "KINEMATIC_WARN",
-           "quaternion_dcm_array", "RATE_READINGS", "NORM_TOL", "RATE_TOL", "GAIN_TOL", "GAIN_Z", "MIN_ROTATION",
-           "RATE_PEAK_HIGH",
+           "quaternion_dcm_array", "RATE_READINGS", "NORM_TOL", "CLIP_REACH", "RATE_TOL", "GAIN_TOL", "GAIN_Z",
+           "MIN_ROTATION", "RATE_PEAK_HIGH",
            "CONVENTIONS", "STRAPDOWN_COLUMNS", "QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS"]
 
 #: The strapdown telemetry columns (``docs/reference/file-formats.md``): the INS attitude (Hamilton unit
@@ -166,22 +175,26 @@ def _fits(steps: dict[str, np.ndarray], inc: np.ndarray) -> dict[str, dict[str, 
     return fits
 
 
-def _rate_evidence(t: np.ndarray, q: np.ndarray, w: np.ndarray) -> dict[str, Any]:
+def _rate_evidence(t: np.ndarray, q: np.ndarray, w: np.ndarray, keep: np.ndarray | None = None) -> dict[str, Any]:
     """How well each reading of the quaternions (:data:`CONVENTIONS`) matches the integrated rate.
 
     The rate is read the way of :data:`RATE_READINGS` under which some reading of the quaternions
-    (scaled or not) fits best.
+    (scaled or not) fits best. `keep` ((N-1,) bool): the steps compared (default all); rows and times stay the
+    file's.
     """
     dt = np.diff(t)
-    inc = rotation_increments(t, w)  # the navigator's dtheta + coning of each step, rad
+    keep = np.ones(dt.size, bool) if keep is None else keep
+    inc = rotation_increments(t, w)[keep]  # the navigator's dtheta + coning of each step, rad
     total = float(np.sum(np.linalg.norm(inc, axis=1)))
     out: dict[str, Any] = {"rotation_rad": total, "rows": int(t.size)}
-    if total < MIN_ROTATION or t.size < 3:
+    if total < MIN_ROTATION or t.size < 3 or keep.sum() < 2:
         return out
-    steps = {name: _step_rotations(transform(q)) for name, transform in CONVENTIONS.items()}
+    steps = {name: _step_rotations(transform(q))[keep] for name, transform in CONVENTIONS.items()}
+    step_index = np.flatnonzero(keep)  # step i of the comparison: the file's rows step_index[i] + 1, + 2
+    dt = dt[keep]
     best: tuple[float, str, np.ndarray, dict[str, dict[str, float]]] | None = None
     for reading, rotation_vectors in RATE_READINGS.items():
-        inc = rotation_vectors(t, w)
+        inc = rotation_vectors(t, w)[keep]
         fits = _fits(steps, inc)
         fit = min(min(f["mismatch"], f["scaled_mismatch"]) for f in fits.values())
         if best is None or fit < best[0]:
@@ -191,8 +204,9 @@ def _rate_evidence(t: np.ndarray, q: np.ndarray, w: np.ndarray) -> dict[str, Any
     rv = steps[next(iter(CONVENTIONS))]
     err = np.linalg.norm(rv - inc, axis=1) / dt  # rad/s per step
     gain, bias, systematic = _rate_gain(rv, inc, dt)
+    worst = int(step_index[int(np.argmax(err))])
     out.update(fits=fits, rate_reading=reading, rms_rate_error_rad_s=float(np.sqrt(np.mean(err**2))),
-               worst_row=int(np.argmax(err)) + 2, worst_t=float(t[int(np.argmax(err)) + 1]),
+               worst_row=worst + 2, worst_t=float(t[worst + 1]),
                worst_rate_error_rad_s=float(err.max()), rms_rate_rad_s=float(np.sqrt(np.mean(np.sum(w**2, 1)))),
                rate_gain=[[float(x) if np.isfinite(x) else None for x in row] for row in gain],
                rate_bias_rad_s=bias.tolist(), systematic=systematic)
@@ -323,31 +337,89 @@ def check_strapdown(src: str, t: np.ndarray, q: np.ndarray, fb: np.ndarray, w: n
             "vehicles: is it in deg/s (multiply by pi/180)?"), stacklevel=3)
     ev = _rate_evidence(t, q, w)
     info.update({k: v for k, v in ev.items() if k != "fits"})
-    if "fits" in ev:
-        _judge_rate_fits(src, ev, error)
+    if "fits" in ev and not _agrees(ev):
+        note, clip = "", _clipped_rates(t, w)
+        if clip is not None:  # judged off the clipped readings: a clip is no axis, sign or factor
+            keep, said = clip
+            ev = _rate_evidence(t, q, w, keep)
+            info["rate_clipped"] = said
+            if "fits" not in ev or _agrees(ev):
+                _warn_clip_only(src, ev, said, keep)
+                return q, info
+            note = (f". The gyro also clipped ({'; '.join(said)}): the {int((~keep).sum())} steps at and next to "
+                    "those readings are left out of this comparison")
+        _judge_rate_fits(src, ev, error, note)
     return q, info
 
 
-def _judge_rate_fits(src: str, ev: dict[str, Any], error: Any) -> None:
-    """Error or warning from :func:`_rate_evidence` (module notes)."""
+def _agrees(ev: dict[str, Any]) -> bool:
+    """Whether :func:`_rate_evidence` finds the attitude and the integrated rate in agreement (module notes)."""
+    return bool(ev["fits"][next(iter(ev["fits"]))]["mismatch"] <= RATE_TOL and ev["systematic"] <= GAIN_TOL)
+
+
+#: Samples on either side of a clipped reading whose steps a clip reaches: the integrated rate of step k (rows k, k+1)
+#: is a cubic through the readings k-1..k+2 (:func:`casep.rotations.rotation_increments`).
+CLIP_REACH = 2
+
+
+def _clipped_rates(t: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, list[str]] | None:
+    """The body-rate readings held at a full scale (:func:`casep.fullscale.held_full_scale`, the saturation rule of
+    calibration, navigation and the telemetry's saturation screen; no declared full scale is known here): the
+    ``(N-1,)`` steps no clipped reading reaches (:data:`CLIP_REACH`) and what was found (column, side, value, full
+    scale, rows, times), or None when no reading is held."""
+    found = held_full_scale(w, "gyro")
+    if not found:
+        return None
+    held = held_mask(found, w.shape).any(axis=1)
+    reach = np.convolve(held.astype(float), np.ones(2 * CLIP_REACH), mode="full")  # [j]: held in j+1-2 CLIP_REACH..j
+    near = reach[CLIP_REACH: CLIP_REACH + t.size - 1] > 0  # step k: held in k - CLIP_REACH + 1 .. k + CLIP_REACH
+    said = []
+    for h in found:
+        n = sum(b - a for a, b in h.runs)
+        a0, b1 = h.runs[0][0], h.runs[-1][1] - 1
+        said.append(f"{BODY_RATE_COLUMNS[h.axis]} held at its {h.side} {h.value / _DEG:.6g} deg/s ({h.why}) for {n} "
+                    f"samples in {len(h.runs)} run(s), rows {a0 + 1}..{b1 + 1}, t = {t[a0]:.10g} .. {t[b1]:.10g} s")
+    return ~near, said
+
+
+def _warn_clip_only(src: str, ev: dict[str, Any], said: list[str], keep: np.ndarray) -> None:
+    """The :class:`StrapdownWarning` of an attitude that disagrees with the body rate only at its clipped readings."""
+    off = f"off the {int((~keep).sum())} steps at and next to those readings"
+    if "fits" in ev:
+        mine = ev["fits"][next(iter(ev["fits"]))]
+        rest = (f"only there: {off} they agree within {100 * mine['mismatch']:.2g} % (the gain G departs from the "
+                f"identity by {100 * ev['systematic']:.2g} %), so the INS integrated the motion, not the clipped "
+                "readings, and w_* there are not the rates it integrated")
+    else:
+        rest = f"there; {off} the record turns too little to compare them"
+    warnings.warn(StrapdownWarning(
+        f"{src}: the gyro clipped: {'; '.join(said)}. The attitude (q_*) disagrees with the integrated body rate "
+        f"({', '.join(BODY_RATE_COLUMNS)}) {rest}. A separation leaves the rows from the first clipped reading on "
+        "out of its fit (the saturation screen); declare the gyro's range with --gyr-range if it is known"),
+        stacklevel=4)
+
+
+def _judge_rate_fits(src: str, ev: dict[str, Any], error: Any, note: str = "") -> None:
+    """Error or warning from :func:`_rate_evidence` (module notes); `note` ends each message (what the comparison
+    left out)."""
     fits = ev["fits"]
     declared = next(iter(fits))
     mine = fits[declared]
     wcols = ", ".join(BODY_RATE_COLUMNS)
-    if mine["mismatch"] <= RATE_TOL and ev["systematic"] <= GAIN_TOL:
+    if _agrees(ev):
         return
     if mine["mismatch"] > RATE_TOL and mine["scaled_mismatch"] <= RATE_TOL and abs(mine["scale"] / _DEG - 1.0) < 0.1:
         raise error(f"the body rate looks like deg/s, not rad/s: the attitude (q_*) turns by {mine['scale']:.5g} "
                     f"times the integrated rate (1/{1 / mine['scale']:.4g}; pi/180 = 1/57.30), which then agrees "
                     f"within {100 * mine['scaled_mismatch']:.2g} % (as rad/s it is {100 * mine['mismatch']:.3g} % "
-                    f"off, over rows 1-{ev['rows']}). Give {wcols} in rad/s: multiply by pi/180", "w_x", None)
+                    f"off, over rows 1-{ev['rows']}). Give {wcols} in rad/s: multiply by pi/180{note}", "w_x", None)
     for name, fit in list(fits.items())[1:]:
         if fit["mismatch"] <= RATE_TOL < mine["mismatch"]:
             raise error(f"the quaternions look {name}: read so, the integrated body rate ({wcols}) agrees with "
                         f"their steps within {100 * fit['mismatch']:.2g} %, read as declared (Hamilton, scalar "
                         f"first, body to navigation) it is {100 * mine['mismatch']:.3g} % off (rows 1-{ev['rows']}). "
                         "Convert them to "
-                        "the declared convention", ", ".join(QUATERNION_COLUMNS), None)
+                        f"the declared convention{note}", ", ".join(QUATERNION_COLUMNS), None)
     what = (f"the attitude (q_*) disagrees with the integrated body rate ({wcols}) by "
             f"{ev['rms_rate_error_rad_s'] / _DEG:.3g} deg/s RMS ({100 * mine['mismatch']:.3g} % of the step rotation; "
             f"worst {ev['worst_rate_error_rad_s'] / _DEG:.3g} deg/s at row {ev['worst_row']}, "
@@ -360,11 +432,11 @@ def _judge_rate_fits(src: str, ev: dict[str, Any], error: Any) -> None:
                     f" (? where the flight does not determine it; an element {100 * ev['systematic']:.3g} % away "
                     f"from the identity, beyond the {100 * GAIN_TOL:g} % "
                     "a gyro compensation could apply): these are not the rates the INS integrated (axes swapped, a "
-                    "sign, a factor?). Give the INS's own body rate, in rad/s, body axes", wcols, None)
+                    f"sign, a factor?). Give the INS's own body rate, in rad/s, body axes{note}", wcols, None)
     warnings.warn(StrapdownWarning(
         f"{src}: {what}; no other quaternion convention or rate unit explains it, and its systematic part (a gain) is "
         f"{100 * ev['systematic']:.2g} % (bias {', '.join(f'{b / _DEG:.3g}' for b in ev['rate_bias_rad_s'])} deg/s): "
-        "check that q, fb and w are the INS's own, on one time base"), stacklevel=4)
+        f"check that q, fb and w are the INS's own, on one time base{note}"), stacklevel=4)
 
 
 #: RMS of ``f - C(q) fb`` relative to the RMS of f above which a file's f_* and its strapdown columns disagree.

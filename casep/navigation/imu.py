@@ -31,10 +31,10 @@ is the attitude across the gap, rad (after it a velocity error grows by up to ``
 second); for the specific force the velocity across it, m/s.
 
 Clipped samples (:func:`clipped_samples`): a reading at the sensor's full scale is not the motion. The
-rule is :func:`casep.checks.saturation.held_full_scale`, the one calibration uses too: a run of
-:data:`~casep.checks.saturation.CLIP_RUN` (3) samples or more at a full scale: with a declared one
+rule is :func:`casep.fullscale.held_full_scale`, the one calibration uses too: a run of
+:data:`~casep.fullscale.CLIP_RUN` (3) samples or more at a full scale: with a declared one
 (``gyr_range`` rad/s, ``acc_range`` m/s^2) a component at or beyond 99 % of it
-(:data:`~casep.checks.saturation.CLIP_MARGIN`); without one, the column's extreme value held, where it lies
+(:data:`~casep.fullscale.CLIP_MARGIN`); without one, the column's extreme value held, where it lies
 within :data:`casep.units.FULL_SCALE_TOLERANCE` of a nominal range (:data:`casep.units.GYR_RANGES_DPS`,
 :data:`casep.units.ACC_RANGES_G`), a tenth of it or more from the column's median (a static accelerometer
 reads 1 g for ever without clipping), in a column with noise (in a noise-free record a constant thrust near
@@ -313,7 +313,7 @@ def _warn_gaps(imu: ImuData, lost: np.ndarray, h: np.ndarray, h_med: float) -> N
 
 
 def clipped_samples(x: np.ndarray, full_scale: float | None, sensor: str, period: float | None = None) -> np.ndarray:
-    """The (N, 3) readings of `x` at the sensor's full scale (:func:`casep.checks.saturation.held_full_scale`).
+    """The (N, 3) readings of `x` at the sensor's full scale (:func:`casep.fullscale.held_full_scale`).
 
     Parameters
     ----------

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from casep._kernels import ar1_terms
+from casep._special import MAD_SIGMA  # sigma = MAD_SIGMA * MAD for Gaussian data
 from casep.noise.model import NoiseModel
 
 __all__ = ["ROBUST_FUNCTIONS", "RobustWeights", "robust_filter", "stretches", "HUBER_C", "BISQUARE_C", "REJECT",
@@ -62,7 +63,6 @@ def stretches(t: np.ndarray) -> list[tuple[int, int]]:
     cut = np.flatnonzero(np.diff(t) >= MIN_SEGMENT_S) + 1
     return [(int(a), int(b)) for a, b in zip(np.concatenate([[0], cut]), np.concatenate([cut, [t.size]]))
             if b - a >= MIN_STRETCH_EPOCHS]
-MAD_SIGMA = 1.482602218505602  # sigma = MAD / Phi^-1(3/4)
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,14 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from casep.estimators.pcr import DEFAULT_MAX_CONDITION_INDEX
-from casep.estimators.registry import METHODS
+from casep.estimators.registry import (
+    METHODS,
+    STATUS_MAGNITUDE,
+    STATUS_MISFIT,
+    STATUS_NOT_CONVERGED,
+    STATUS_SETUP,
+)
+from casep.estimators.registry import failed as mark_failed
 from casep.estimators.result import EstimateResult
 from casep.estimators.solve import fit
 from casep.estimators.spec import FitSpec
@@ -112,7 +119,8 @@ class RadarResult(OfEstimate):
 
     ``success``, ``status`` and ``message`` are the joint estimate's (a linearisation that did
     not converge, residuals far above the noise, a wrong station position or station terms far
-    beyond their magnitudes make it a failure); :meth:`text` is what the command line prints,
+    beyond their magnitudes make it a failure, with the status of the first of them in the status table,
+    :data:`casep.estimators.registry.FAILURE_STATUSES`); :meth:`text` is what the command line prints,
     :meth:`to_dict` the result JSON with a ``radar`` section and the ``provenance``.
     """
 
@@ -270,11 +278,11 @@ def separate_radar(telemetry: Telemetry | str | os.PathLike, radars: Sequence, s
     x = res.fitted_coefficients()  # of the rows as solved (at the launch time re-solved at: dt_launch the rest)
     summary = _summary(reg, lin, rn, res, x)
     failed, suspicious = _judge(reg, lin, rn, res, summary)
-    failed += [unsettled] if unsettled else []
+    failed += [(STATUS_NOT_CONVERGED, unsettled)] if unsettled else []
     res = _with_shift(res, reg, steps)
     whiteness = rn.whiteness(x) if not failed else {}  # a failed fit's residuals hold its set-up error: said already
-    if failed:  # a probably wrong result is never a plain success
-        res = dataclasses.replace(res, success=False, status=-1, message="; ".join(failed))
+    if failed:  # a probably wrong result is never a plain success: the first failure's status, every message
+        res = mark_failed(res, failed[0][0], "; ".join(text for _, text in failed))
     from casep.model.loader import model_record
 
     res = dataclasses.replace(
@@ -370,24 +378,27 @@ def _summary(reg: RadarRegression, lin: LinearisedRadar, rn: RadarNoise, res: Es
 
 
 def _judge(reg: RadarRegression, lin: LinearisedRadar, rn: RadarNoise, res: EstimateResult,
-           summary: dict) -> tuple[list[str], list[str]]:
+           summary: dict) -> tuple[list[tuple[int, str]], list[str]]:
     """``(failures, warnings)`` of a radar fit: the linearisation, the set-up (launch time, station positions,
     whitened by the noise model), the residuals against the noise, the station terms against their
-    magnitudes; the set-up warnings are issued here, the others returned."""
+    magnitudes; the set-up warnings are issued here, the others returned. Each failure with its status of the
+    status table (:data:`casep.estimators.registry.FAILURE_STATUSES`): a linearisation that did not converge
+    ``STATUS_NOT_CONVERGED``, a set-up error ``STATUS_SETUP``, residuals far above the noise ``STATUS_MISFIT``,
+    station terms far above their magnitudes ``STATUS_MAGNITUDE``."""
     x = res.fitted_coefficients()
     setup = check_setup(lin, rn.whiten) if lin.converged else None
-    failed = [] if lin.converged else [lin.convergence_message]
+    failed = [] if lin.converged else [(STATUS_NOT_CONVERGED, lin.convergence_message)]
     if setup:  # a set-up error named first: it explains the misfits the other checks see
-        failed += setup["failures"]
+        failed += [(STATUS_SETUP, f) for f in setup["failures"]]
     # residuals and station terms are checked at a converged linearisation only (else already failed)
     bad, suspicious = lin.residual_check(x) if lin.converged else ([], [])
     if bad:
-        failed.append("radar residuals far above the noise: " + "; ".join(bad))
+        failed.append((STATUS_MISFIT, "radar residuals far above the noise: " + "; ".join(bad)))
     # station terms are judged against their magnitudes only when no station position is wrong (they absorb it)
     big, large = _tracking_magnitude_check(reg, res, (setup or {}).get("aliased")) if lin.converged and not failed \
         else ([], [])
     if big:
-        failed.append("station terms far above their declared magnitudes: " + "; ".join(big))
+        failed.append((STATUS_MAGNITUDE, "station terms far above their declared magnitudes: " + "; ".join(big)))
     suspicious += large
     if setup:
         summary["setup"] = {k: setup[k] for k in ("launch_time", "stations", "aliased") if k in setup}

@@ -123,3 +123,51 @@ def test_the_converter_zero_is_mid_scale_only_for_unsigned_counts():
     assert converter(np.array([2100.0, 2000.0, 1990.0]), np.array([[1000.0, 3000.0, 2048.0]])) == (12, 2048.0)
     assert converter(np.array([32900.0, 32700.0, 32800.0]), np.array([[16400.0, 49000.0, 32768.0]])) == (16, 32768.0)
     assert converter(np.array([3.0, -2.0, 1.0]), np.array([[70000.0, 0.0, -5.0]])) == (18, 0.0)
+
+
+def _first_beyond(x: np.ndarray, limit: float) -> tuple[int, int]:
+    """The first column of `x` with a reading beyond `limit` in magnitude, and that reading's index."""
+    j = next(j for j in range(x.shape[1]) if np.any(np.abs(x[:, j]) > limit))
+    return j, int(np.flatnonzero(np.abs(x[:, j]) > limit)[0])
+
+
+def test_a_declared_gyro_range_the_session_exceeds_is_refused(tmp_path, capsys):
+    """The +-200 deg/s session declared ``--gyr-range 20``: a gyro clipped at 20 deg/s cannot read 200, so the
+    declared range is wrong: exit 2 naming the column, the file's row, the time, the largest reading and the ratio,
+    nothing written (the raw-IMU and telemetry paths' rule, :func:`casep.fullscale.beyond_declared`)."""
+    h = simulate_hand_session(16, seed=24, motion_s=(0.8, 1.0), angle_deg=(140.0, 170.0))
+    gyr = np.clip(np.degrees(h.gyr), -200.0, 200.0)
+    p = tmp_path / "clip.txt"
+    np.savetxt(p, np.column_stack([h.acc, gyr]), fmt="%.10g")
+    out = tmp_path / "c.json"
+    rc, _, err = _run([str(p), "--rate", "100", "--acc-unit", "m/s^2", "--gyr-unit", "deg/s", "--gyr-range", "20"],
+                      out, capsys)
+    j, i = _first_beyond(gyr, 30.0)  # DECLARED_EXCEEDED (1.5) times 20 deg/s
+    top = np.abs(gyr[:, j]).max()
+    assert rc == 2 and not out.exists()
+    assert f"{p}: column `w{'xyz'[j]}`, row {i + 1} (t = {i / 100:.10g} s): the gyro reads up to {top:.6g} deg/s, " \
+           f"{top / 20:.3g} times the declared full scale 20 deg/s (--gyr-range)" in err, err
+
+
+def test_a_declared_accelerometer_range_a_csv_session_exceeds_is_refused(tmp_path, capsys):
+    """A CSV session in g (header, time column) declared ``--acc-range 0.5``: the static poses read 1 g, twice the
+    declared range: exit 2 naming the column, the file's line (the header is line 1) and the time; the API's
+    Session refuses it alike, with its own column names."""
+    h = simulate_hand_session(16, seed=43)
+    acc = h.acc / G
+    p = tmp_path / "s.csv"
+    t = np.arange(len(acc)) / h.rate
+    cols = np.column_stack([t, acc, h.gyr])
+    np.savetxt(p, cols, delimiter=",", fmt="%.10g", comments="",
+               header="t,acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z")
+    out = tmp_path / "c.json"
+    rc, _, err = _run([str(p), "--acc-unit", "g", "--gyr-unit", "rad/s", "--acc-range", "0.5"], out, capsys)
+    j, i = _first_beyond(acc, 0.75)
+    top = np.abs(acc[:, j]).max()
+    said = (f"the accelerometer reads up to {top:.6g} g, {top / 0.5:.3g} times the declared full scale 0.5 g "
+            "(--acc-range)")
+    assert rc == 2 and not out.exists()
+    assert f"{p}: column `acc_{'xyz'[j]}`, row {i + 2} (t = {t[i]:.10g} s): {said}" in err, err
+    ses = Session(t=t, acc=h.acc, gyr=h.gyr, rate=h.rate, acc_unit="m/s^2", gyr_unit="rad/s")
+    with pytest.raises(ValueError, match=re.escape(f"column `acc_{'xyz'[j]}`, row {i + 2}")):
+        calibrate_multiposition(ses, acc_full_scale=0.5 * G)
