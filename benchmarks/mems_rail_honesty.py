@@ -90,8 +90,11 @@ def figures(res) -> dict:
     lam, V = np.linalg.eigh(C / np.outer(s, s))
     proj = V.T @ (e / s)
     det = lam < 1.0
+    last = res.diagnostics["iterations"]["passes"][-1]
+    truth = np.array([TRUTH[n] for n in names]) / s  # declared magnitudes, as the stated combinations' weights
+    stated = np.array([(c["estimate"] - np.dot(c["weights"], truth)) / c["std"] for c in last.get("determined", [])])
     return {"z": z, "chi2": float(e @ np.linalg.solve(C, e)), "chi2_det": float(np.sum(proj[det] ** 2 / lam[det])),
-            "dof_det": int(det.sum())}
+            "dof_det": int(det.sum()), "stated": stated}
 
 
 def main() -> None:
@@ -103,24 +106,29 @@ def main() -> None:
     args = ap.parse_args()
     warnings.simplefilter("ignore")
     clean = clean_flight()
-    zs, chi, cpu = [], [], time.process_time()
+    zs, chi, told, cpu = [], [], [], time.process_time()
     with tempfile.TemporaryDirectory() as tmp:
         for seed in args.seeds:
             imu, trk = write_seed(Path(tmp), seed, clean)
             out = separate_imu(imu, trk, LaunchSite(*SITE), ALIGN, MODEL, heading_deg=SITE[3])
             r = figures(out.result)
             zs.append(r["z"])
+            told.append(r["stated"])
             chi.append((r["chi2_det"], r["dof_det"], r["chi2"]))
             it = out.result.diagnostics["iterations"]
             print(f"seed {seed}: status {out.status}, {len(it['passes'])} passes; "
                   f"RMS z {np.sqrt(np.mean(r['z']**2)):.3f}, coverage {np.mean(np.abs(r['z']) < 1.96):.3f}; "
                   f"chi2 determined {r['chi2_det']:.1f}/{r['dof_det']}, "
-                  f"all {r['chi2']:.1f}/15; {out.message[:90]}", flush=True)
+                  f"all {r['chi2']:.1f}/15; stated {r['stated'].size}, max |z| "
+                  f"{np.max(np.abs(r['stated']), initial=0.0):.2f}; {out.message[:90]}", flush=True)
     z = np.concatenate(zs)
     c = np.array(chi)
+    zt = np.concatenate(told)
     print(f"{len(args.seeds)} seeds, {time.process_time() - cpu:.0f} CPU s: RMS z {np.sqrt(np.mean(z**2)):.3f}, "
           f"coverage {np.mean(np.abs(z) < 1.96):.3f}; chi2/dof determined {c[:, 0].sum() / c[:, 1].sum():.2f} "
-          f"(per seed {', '.join(f'{a / b:.2f}' for a, b in c[:, :2])}), all 15 {c[:, 2].mean() / 15:.2f}")
+          f"(per seed {', '.join(f'{a / b:.2f}' for a, b in c[:, :2])}), all 15 {c[:, 2].mean() / 15:.2f}; the "
+          f"combinations stated: {zt.size}, RMS z {np.sqrt(np.mean(zt**2)) if zt.size else np.nan:.3f}, "
+          f"within 1.96 std {np.mean(np.abs(zt) < 1.96) if zt.size else np.nan:.3f}")
 
 
 if __name__ == "__main__":
