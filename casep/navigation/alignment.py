@@ -344,6 +344,11 @@ def _check_pad_rate(w_mean: np.ndarray, s_mean: np.ndarray, n: int, window: tupl
 EARTH_RATE_CHI2 = 16.27
 #: How much lower the chi-square of another sign per gyro axis must be to name it (a likelihood ratio of 90).
 SIGN_CHI2_MARGIN = 9.0
+#: Another sign per gyro axis whose chi-square is within this (3 degrees of freedom, 95 %) while the signs as given
+#: are beyond :data:`EARTH_RATE_CHI2` is an error, not a warning: the navigation from such a pad turns the
+#: vehicle's attitude about the wrong axes (a reviewer's aircraft record with gyro y, z negated: 37.9 as given, 0.218
+#: flipped, the navigation 14 km underground after 7 minutes and exit 0).
+SIGN_CHI2_CONSISTENT = 7.815
 
 
 def gyro_bias_allowance(site: LaunchSite) -> float:
@@ -401,6 +406,12 @@ def _check_earth_rate(w_win: np.ndarray, w_mean: np.ndarray, C: np.ndarray, site
         said += (f"; with the signs of gyro {axes} changed it is {chi2[k]:.3g}: gyro axes whose signs differ from "
                  "the accelerometers', or a specific force given as +g down (at rest it is +g up: negated, the "
                  "levelling turns the vehicle over)")
+        if chi2[0] > EARTH_RATE_CHI2 and chi2[k] <= SIGN_CHI2_CONSISTENT:
+            cols = ", ".join(f"w_{a}" for a, v in zip("xyz", signs[k]) if v < 0)
+            raise ValueError(f"{said}. As given beyond {EARTH_RATE_CHI2:g} (0.1 %), with those signs within "
+                             f"{SIGN_CHI2_CONSISTENT:g} (95 %): negate {cols}, or give the specific force +g up at "
+                             "rest (fb_* negated), whichever the IMU's data sheet says; the navigation would turn "
+                             "the attitude about the wrong axes")
     else:
         said += f" (> {EARTH_RATE_CHI2:g}): a heading other than {heading_deg:g} deg, or a larger gyro bias"
     warnings.warn(said, AlignmentWarning, stacklevel=3)

@@ -126,14 +126,25 @@ def check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite, *, wa
                              f"seconds{hint}; or the vehicle turned in the window (give a window at rest)")
         if not warn:
             return
+        # the pad's own mean rate less the Earth rate in body axes, across the vertical: its horizontal gyro bias
+        from casep.rotations import quat_to_dcm
+
+        b_rate = imu.w[sel].mean(axis=0) - quat_to_dcm(res.q[0]).T @ site.earth_rate
+        up = res.alignment.f_mean / np.linalg.norm(res.alignment.f_mean) if res.alignment is not None else None
+        own = float(np.linalg.norm(b_rate - (b_rate @ up) * up)) if up is not None else 0.0
+        tilt = g * own * T**2 / 2.0
+        why = (f"the pad's own mean horizontal rate less the Earth rate, {own:.3g} rad/s (a gyro bias of that size), "
+               f"tilts it by {tilt:.2g} m/s x {PAD_BIAS_FACTOR:g}: the vehicle need not have moved; "
+               "the solution drifts as t^2 from there (`casep separate --imu` estimates the gyro biases)"
+               if drift <= PAD_NOISE_FACTOR * noise + PAD_BIAS_FACTOR * tilt + vertical else
+               "the vehicle moved in the window, or a gyro bias tilts the attitude within seconds and the solution "
+               "drifts as t^2 from there")
         warnings.warn(f"--align {t1:g} {t2:g}: {imu.source}: the navigated speed reaches {drift:.3g} m/s within the "
                       f"{T:.3g} s window declared at rest, above the {allowed:.3g} m/s its sensors allow (the noise's "
                       f"random walks {noise:.2g} m/s x {PAD_NOISE_FACTOR:g}, a gyro bias of "
                       f"{gyro_bias_allowance(site):.2g} rad/s tilting it {bias:.2g} m/s x {PAD_BIAS_FACTOR:g}"
                       + (f", the vertical accelerometer bias {vertical:.2g} m/s" if vertical else "") + "); "
-                      f"mean pad rate {rate:.3g} rad/s: the "
-                      "vehicle moved in the window, or a gyro bias tilts the attitude within seconds and the "
-                      "solution drifts as t^2 from there", AlignmentWarning, stacklevel=2)
+                      f"mean pad rate {rate:.3g} rad/s: {why}", AlignmentWarning, stacklevel=2)
 
 
 def pad_state(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], *, heading_deg: float | None = None,

@@ -27,7 +27,7 @@ from casep.frames import LaunchSite, launch_to_ecef
 from casep.gravity import normal_gravity_ecef
 from casep.io.flight import FlightDataError
 from casep.navigation import TELEMETRY_COLUMNS, ImuData, check_imu, navigate, read_imu
-from casep.navigation.alignment import EARTH_RATE_CHI2, align
+from casep.navigation.alignment import EARTH_RATE_CHI2, SIGN_CHI2_CONSISTENT, align
 from casep.rotations import quat_conjugate, quat_multiply
 
 SITE = LaunchSite(67.89, 21.1, 330.0, 30.0, 100.0)  # a northern range, launch azimuth 30 deg, t0 = 100 s
@@ -505,13 +505,32 @@ def test_gyro_signs_against_the_accelerometers_are_told_by_the_earth_rate_when_t
     t, w, f = _stationary(100.0, 20.0, np.random.default_rng(3), sigma_a=1e-4, sigma_g=1e-6)
     assert _alignment_warnings(check_imu(ImuData(t, w, f))) == []
     for ww, ff in ((w * [1, -1, -1], f), (w, -f)):
-        said = [m for m in _alignment_warnings(check_imu(ImuData(t, ww, ff))) if "Earth rate the alignment" in m]
+        try:
+            said = [m for m in _alignment_warnings(check_imu(ImuData(t, ww, ff))) if "Earth rate the alignment" in m]
+        except ValueError as exc:  # decisive: an error (test below)
+            said, refused = [str(exc)], True
+        else:
+            refused = False
         assert len(said) == 1 and "with the signs of gyro" in said[0] and "+g down" in said[0]
         as_given = float(re.search(r"chi-square ([0-9.e+-]+) over", said[0]).group(1))
         flipped = float(re.search(r"changed it is ([0-9.e+-]+):", said[0]).group(1))
         assert as_given > EARTH_RATE_CHI2 / 2 and flipped + 9.0 < as_given  # +g down: about a tilted axis
+        assert refused == (as_given > EARTH_RATE_CHI2 and flipped <= SIGN_CHI2_CONSISTENT), (as_given, flipped)
     mems = w + 1e-3
     assert not any("signs of gyro" in m for m in _alignment_warnings(check_imu(ImuData(t, mems * [1, -1, -1], f))))
+
+
+def test_gyro_signs_the_earth_rate_decides_are_refused():
+    """A navigation-grade pad (gyro noise 1e-7 rad/s at 100 Hz, 60 s) with gyro y, z negated: as given the pad rate
+    is far beyond the Earth rate (chi-square > 16.3), with those signs within it: an error naming the columns to
+    negate and both numbers, nothing navigated (a reviewer's aircraft record: exit 0 and 14 km underground)."""
+    t, w, f = _stationary(100.0, 60.0, np.random.default_rng(5), sigma_a=1e-4, sigma_g=1e-7)
+    with pytest.raises(ValueError, match=r"negate w_y, w_z") as exc:
+        _alignment_warnings(check_imu(ImuData(t, w * [1, -1, -1], f)))
+    as_given = float(re.search(r"chi-square ([0-9.e+-]+) over", str(exc.value)).group(1))
+    flipped = float(re.search(r"changed it is ([0-9.e+-]+):", str(exc.value)).group(1))
+    assert as_given > EARTH_RATE_CHI2 and flipped <= SIGN_CHI2_CONSISTENT
+    assert _alignment_warnings(check_imu(ImuData(t, w, f))) == []  # as recorded: nothing
 
 
 def test_a_pad_that_drifts_beyond_its_sensors_is_warned_about():
@@ -524,7 +543,17 @@ def test_a_pad_that_drifts_beyond_its_sensors_is_warned_about():
     drift = float(re.search(r"speed reaches ([0-9.]+) m/s within the 10 s window", said[-1]).group(1))
     allowed = float(re.search(r"above the ([0-9.e+-]+) m/s its sensors allow", said[-1]).group(1))
     assert 3.0 < drift < 15.0 and allowed < 0.3
+    assert "the vehicle need not have moved" in said[-1]  # the pad's own rate, 0.02 rad/s, explains it
     assert _alignment_warnings(check_imu(ImuData(t, w + [0.02, 0.0, 0.0], f)), check_pad=False) == []
+
+
+def test_a_pad_drift_its_own_rate_does_not_explain_says_the_vehicle_moved():
+    """At rest, then a push of 0.05 m/s^2 along x for the window's second half (no rate): the speed reaches 0.25
+    m/s, which neither the noise nor the pad's own horizontal rate explains: the vehicle moved."""
+    t, w, f = _stationary(100.0, 20.0, np.random.default_rng(4), sigma_a=2e-4, sigma_g=1e-6)
+    f = f + np.where((t[:, None] > 5.0) & (t[:, None] < 10.0), [0.05, 0.0, 0.0], 0.0)
+    said = [m for m in _alignment_warnings(check_imu(ImuData(t, w, f))) if "declared at rest" in m]
+    assert said and "the vehicle moved in the window" in said[-1] and "need not have moved" not in said[-1]
 
 
 def test_the_lost_samples_warning_gives_the_longest_gaps_own_figures():
