@@ -25,7 +25,8 @@ term is minus the bias of ``Phi(theta_hat)`` (its second-order Taylor term, ``th
   (:class:`casep.noise.fit.Reml`: one whitening per trial, ``(p + 1)``-square matrices).
 * ``Q_ij`` (zero between axes, whose noises are independent): ``G_i = (d Sigma_a^-1 / d theta_i) X_a`` by central
   differences of ``W^T W X_a`` (the whitening and its transpose, :mod:`casep.noise.model`) and ``Sigma_a G_j`` by
-  the exponential kernel's forward and backward recursions (:func:`_colour`): O(N p) per parameter, never an
+  the exponential kernel's forward and backward recursions
+  (:func:`casep.noise.known.axis_covariance_times`): O(N p) per parameter, never an
   N x N matrix.
 * ``W``: twice the inverse Hessian of ``-2 l_R`` (the observed REML information) by central differences, the
   variances not profiled.
@@ -44,8 +45,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from casep._kernels import ar1_terms
 from casep.noise.fit import SHARE_LOGIT, Reml, estimable_basis, tau_search_bounds
+from casep.noise.known import axis_covariance_times
 from casep.noise.model import NoiseModel, _series_transpose, whiten_series
 
 __all__ = ["Inflation", "parameter_inflation", "STEP"]
@@ -84,23 +85,6 @@ class Inflation:
     def natural(self) -> np.ndarray:
         """``Phi_A - Phi`` in natural units, (n, n)."""
         return self.basis @ self.delta @ self.basis.T
-
-
-def _colour(V: np.ndarray, t: np.ndarray, tau: float | None, share: float) -> np.ndarray:
-    """``R V`` for the unit-variance correlation ``R = (1 - w) exp(-|t_k - t_l| / tau) + w I`` of one axis.
-
-    ``sum_l exp(-|t_k - t_l| / tau) v_l = f_k + b_k - v_k`` with the forward ``f_k = v_k + a_k f_(k-1)`` and
-    backward ``b_k = v_k + a_(k+1) b_(k+1)`` sums (``a_k = exp(-(t_k - t_(k-1)) / tau)``): O(N) per column."""
-    if tau is None:
-        return V.copy()
-    a = ar1_terms(np.diff(t), tau)[0]
-    F = np.array(V, dtype=float)
-    B = np.array(V, dtype=float)
-    for k in range(1, V.shape[0]):
-        F[k] += a[k - 1] * F[k - 1]
-    for k in range(V.shape[0] - 2, -1, -1):
-        B[k] += a[k] * B[k + 1]
-    return (1.0 - share) * (F + B - V) + share * V
 
 
 class _Point:
@@ -236,7 +220,9 @@ def _q(reml: Reml, pt: _Point, gs: list[tuple[int, np.ndarray]], i: int, k: int)
     for a in set(axes_i) & set(axes_k):
         gi = Gi[axes_i.index(a)]
         gk = Gk[axes_k.index(a)]
-        out += gi.T @ (v[a] * _colour(gk, reml.t, taus[a], shares[a]))
+        # Sigma_a G_k: unit-variance correlation (1 - w) exp(-|dt| / tau) + w I (white axis: I), times v_a
+        c, d = (1.0 - shares[a], shares[a]) if taus[a] is not None else (0.0, 1.0)
+        out += gi.T @ (v[a] * axis_covariance_times(gk, reml.t, taus[a], c, d))
     return out
 
 
@@ -289,7 +275,8 @@ def parameter_inflation(problem, noise: NoiseModel, *, raw: bool = False) -> Inf
     delta = Phi @ inner @ Phi - 0.5 * bias
     delta = 0.5 * (delta + delta.T)
     if raw:
-        return Inflation(estimable_basis(problem), Phi, delta, list(pt.names))
+        return Inflation(estimable_basis(problem), Phi, delta, list(pt.names),
+                         {"lambda": Phi @ inner @ Phi, "bias": -0.5 * bias})
     # never narrower than the plug-in: the negative part of delta in Phi's metric dropped
     Lc = np.linalg.cholesky(Phi)
     Li = np.linalg.inv(Lc)

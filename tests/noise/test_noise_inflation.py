@@ -8,10 +8,9 @@ import time
 import warnings
 
 import numpy as np
-import pytest
 
 from casep.estimators.ols import solve_ols
-from casep.noise.fit import Reml, estimable_basis
+from casep.noise.fit import estimable_basis
 from casep.noise.inflation import parameter_inflation
 from casep.regression.problem import Problem
 from casep.regression.rows import prepare_rows
@@ -70,7 +69,7 @@ def _dense_kenward_roger(pb: Problem, nm) -> np.ndarray:
         return v * ((1 - w) * np.exp(-D / tau) + w * np.eye(N))
 
     def neg2(x):
-        A, val, Sy = np.zeros((p, p)), 0.0, []
+        A, val = np.zeros((p, p)), 0.0
         b = np.zeros(p)
         yy = 0.0
         for a in range(3):
