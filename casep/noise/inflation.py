@@ -49,10 +49,13 @@ from casep.noise.fit import SHARE_LOGIT, Reml, estimable_basis, tau_search_bound
 from casep.noise.known import axis_covariance_times
 from casep.noise.model import NoiseModel, _series_transpose, whiten_series
 
-__all__ = ["Inflation", "parameter_inflation", "STEP"]
+__all__ = ["Inflation", "parameter_inflation", "t_variance_factor", "STEP", "MIN_DOF"]
 
 #: Central-difference step in the parameters (ln tau, logit w; relative in the variances).
 STEP = 2e-3
+#: The fewest degrees of freedom a coefficient's std is given (``nu / (nu - 2)`` is 2 there; below it the
+#: t variance grows without bound, and a record so short is said by its other checks).
+MIN_DOF = 4.0
 #: A parameter within this distance of an end of its search interval (ln tau, logit w) is held.
 _AT_EDGE = 0.05
 
@@ -81,10 +84,24 @@ class Inflation:
     delta: np.ndarray
     parameters: list[str]
     info: dict = field(default_factory=dict)
+    dof: np.ndarray | None = None
 
-    def natural(self) -> np.ndarray:
-        """``Phi_A - Phi`` in natural units, (n, n)."""
-        return self.basis @ self.delta @ self.basis.T
+    def natural(self, t_variance: bool = True) -> np.ndarray:
+        """What the noise parameters add to the covariance in natural units, (n, n): ``Phi_A - Phi``; with
+        `t_variance` (and :attr:`dof`) ``D Phi_A D - Phi``, ``D = diag(sqrt(nu_k / (nu_k - 2)))`` (module notes)."""
+        plug = self.basis @ self.phi @ self.basis.T
+        adj = plug + self.basis @ self.delta @ self.basis.T
+        if t_variance and self.dof is not None:
+            f = np.sqrt(t_variance_factor(self.dof))
+            adj = adj * np.outer(f, f)
+        return adj - plug
+
+
+def t_variance_factor(dof: np.ndarray) -> np.ndarray:
+    """``nu / (nu - 2)``, the variance of Student's t with `dof` degrees of freedom, with `dof` held at
+    :data:`MIN_DOF` or more (1 where infinite)."""
+    nu = np.maximum(np.asarray(dof, dtype=float), MIN_DOF)
+    return np.where(np.isfinite(nu), nu / (nu - 2.0), 1.0)
 
 
 class _Point:
@@ -283,9 +300,27 @@ def parameter_inflation(problem, noise: NoiseModel, *, raw: bool = False) -> Inf
     d, V = np.linalg.eigh(Li @ delta @ Li.T)
     delta = Lc @ ((V * np.clip(d, 0.0, None)) @ V.T) @ Lc.T
     basis = estimable_basis(problem)
-    plug, added = np.diag(basis @ Phi @ basis.T), np.diag(basis @ delta @ basis.T)
+    dof = _satterthwaite(basis, Phi, delta, Pd, W)
+    inf = Inflation(basis, Phi, delta, list(pt.names), dof=dof)
+    plug = np.diag(basis @ Phi @ basis.T)
     ok = plug > 0
-    rel = np.sqrt((plug[ok] + added[ok]) / plug[ok]) if ok.any() else np.ones(1)
-    return Inflation(basis, Phi, delta, list(pt.names),
-                     {"std_factor_median": float(np.median(rel)), "std_factor_max": float(np.max(rel)),
-                      "information_directions": int(keep.sum()), "parameters": list(pt.names)})
+    rel = np.sqrt((plug[ok] + np.diag(inf.natural())[ok]) / plug[ok]) if ok.any() else np.ones(1)
+    fin = dof[ok & np.isfinite(dof)]
+    inf.info.update({"std_factor_median": float(np.median(rel)), "std_factor_max": float(np.max(rel)),
+                     "dof_min": float(fin.min()) if fin.size else None,
+                     "dof_median": float(np.median(fin)) if fin.size else None,
+                     "information_directions": int(keep.sum()), "parameters": list(pt.names)})
+    return inf
+
+
+def _satterthwaite(basis: np.ndarray, Phi: np.ndarray, delta: np.ndarray, Pd: list[np.ndarray],
+                   W: np.ndarray) -> np.ndarray:
+    """Each natural coefficient's degrees of freedom ``nu_k = 2 (Phi_A)_kk^2 / Var((Phi(theta_hat))_kk)``,
+    ``Var = g^T W g`` with ``g_i = d (Phi)_kk / d theta_i = -(B Phi P_i Phi B^T)_kk`` (Kenward and Roger's
+    Satterthwaite step); inf where the plug-in does not depend on the parameters."""
+    A = basis @ Phi
+    g = np.stack([-np.einsum("kp,pq,kq->k", A, P, A) for P in Pd])  # (parameters, n)
+    var = np.einsum("ik,ij,jk->k", g, W, g)
+    adj = np.einsum("kp,pq,kq->k", basis, Phi + delta, basis)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(var > 0, 2.0 * adj**2 / np.where(var > 0, var, 1.0), np.inf)
