@@ -140,16 +140,16 @@ def test_the_correction_equals_the_dense_kenward_roger_formula():
 
 
 def test_plug_in_std_are_too_small_on_short_records_and_the_corrected_ones_hold():
-    """Seeded Monte Carlo (seeds 0-119, 60 samples per axis at 5 Hz, Gauss-Markov tau 1 s std 0.05 plus white
-    0.03, six coefficients, noise 'gmw' by REML): pooled over the 720 z values the plug-in std's RMS z is above
-    1.08 (measured 1.12) and the corrected std's within [0.93, 1.07] (measured ...), coverage of 1.96 std
-    0.93-0.97 (measured ...); the std ratio of RMS z's 1.12 -> ~1.0 is ~3 standard errors of the pooled estimate
-    at this size (the pooled RMS's sampling std ~0.03 with the draws' correlation). CPU < 20 s."""
+    """Seeded Monte Carlo (seeds 0-59, 60 samples per axis at 5 Hz, Gauss-Markov tau 1 s std 0.05 plus white
+    0.03, six coefficients, noise 'gmw' by REML: nine noise parameters): pooled over the 360 z values the plug-in
+    std give RMS z 1.275 and coverage of 1.96 std 0.872; the corrected ones (Kenward-Roger with the t variance)
+    0.942 and 0.953. Bounds: plug-in RMS z above 1.12, corrected RMS z in [0.85, 1.10] and coverage in
+    [0.92, 0.98] (the pooled RMS z's sampling std is about 0.05 at this size). 19-21 s CPU."""
     c0 = time.process_time()
     z0, z1 = [], []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        for seed in range(120):
+        for seed in range(60):
             pb = _draw(seed, 60)
             rows = prepare_rows(pb, "gmw", robust=None)
             res = solve_ols(rows.solved)
@@ -163,9 +163,9 @@ def test_plug_in_std_are_too_small_on_short_records_and_the_corrected_ones_hold(
     cover = float(np.mean(np.abs(z1) <= 1.96))
     print(f"plug-in RMS z {rms0:.3f} coverage {np.mean(np.abs(z0) <= 1.96):.3f}; corrected RMS z {rms1:.3f} "
           f"coverage {cover:.3f}; {time.process_time() - c0:.1f} s CPU")
-    assert rms0 > 1.08
-    assert 0.93 <= rms1 <= 1.07
-    assert 0.93 <= cover <= 0.97
+    assert rms0 > 1.12
+    assert 0.85 <= rms1 <= 1.10
+    assert 0.92 <= cover <= 0.98
 
 
 def test_a_known_correlation_and_one_scale_need_no_correction():
@@ -183,9 +183,8 @@ def test_a_known_correlation_and_one_scale_need_no_correction():
 
 def test_the_correction_falls_as_one_over_the_record_length():
     """The noise parameters' uncertainty is O(1/N): the std factor's excess ``f^2 - 1`` (median over the
-    coefficients, noise 'gmw' fitted on one seeded draw per length) falls at least twice per 4 times the samples
-    (1/N: 4; faster on the shortest record, where the second-order terms are large) and is below 1 % at 1600
-    samples per axis. Measured (100, 400, 1600 samples): 0.24, 0.019, 0.0039 without the t variance."""
+    coefficients, noise 'gmw' fitted on one seeded draw per length) falls by about 4 per 4 times the samples.
+    Measured (100, 400, 1600 samples per axis): 0.415, 0.108, 0.0224 (ratios 0.26, 0.21)."""
     excess = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -195,7 +194,6 @@ def test_the_correction_falls_as_one_over_the_record_length():
             assert inf is not None
             excess.append(inf.info["std_factor_median"] ** 2 - 1.0)
     print("f^2 - 1:", excess)
-    assert excess[0] > 0.02
-    assert excess[1] < 0.5 * excess[0]
-    assert excess[2] < 0.5 * excess[1]
-    assert excess[2] < 0.01
+    assert excess[0] > 0.1
+    assert 0.1 < excess[1] / excess[0] < 0.4
+    assert 0.1 < excess[2] / excess[1] < 0.4
