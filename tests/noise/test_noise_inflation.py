@@ -197,3 +197,26 @@ def test_the_correction_falls_as_one_over_the_record_length():
     assert excess[0] > 0.1
     assert 0.1 < excess[1] / excess[0] < 0.4
     assert 0.1 < excess[2] / excess[1] < 0.4
+
+
+def test_every_least_squares_fit_under_a_reml_noise_model_carries_it():
+    """The rule is applied where the rows are solved (:func:`casep.estimators.solve.solve_spec`, the path of
+    ``casep separate`` and of every raw-IMU pass): OLS under noise 'gmw' reports the corrected std and says what it
+    added; under white noise of one std nothing is added."""
+    from casep.estimators.solve import noise_parameter_covariance, solve_problem
+
+    pb = _draw(4, 60)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rows = prepare_rows(pb, "gmw", robust=None)
+        plug = solve_ols(rows.solved)
+        res = solve_problem(pb, "ols", noise="gmw", robust=None).result
+        white = solve_problem(pb, "ols", noise="white").result
+    added = noise_parameter_covariance(res)
+    inf = parameter_inflation(pb, rows.noise)
+    assert added is not None and inf is not None
+    np.testing.assert_allclose(added, inf.natural(), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(res.std, np.sqrt(plug.std**2 + np.diag(added)), rtol=1e-12)
+    assert np.all(res.std > plug.std)
+    assert res.diagnostics["noise_parameters"]["dof_min"] > 0.0
+    assert noise_parameter_covariance(white) is None
