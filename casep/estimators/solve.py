@@ -346,15 +346,16 @@ def with_noise_parameters(res: EstimateResult, rows: Rows) -> EstimateResult:
         inf = None
     if inf is None:
         return res
-    cov = np.array(res.covariance, dtype=float)
-    und = ~np.isfinite(np.diag(cov))
-    cov = cov + inf.natural()
+    before = np.array(res.covariance, dtype=float)
+    und = ~np.isfinite(np.diag(before))
+    cov = inf.adjusted(np.where(np.isfinite(before), before, 0.0))
     cov[und, :] = np.nan
     cov[:, und] = np.nan
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     std[und] = res.std[und] if res.std is not None else np.nan
     diag = {**res.diagnostics, "noise_parameters": {**inf.info, "rule": "kenward-roger",
-                                                      "covariance_added": inf.natural().tolist()}}
+                                                      "covariance_added": np.where(und[:, None] | und[None, :], 0.0,
+                                                                                   cov - before).tolist()}}
     return dataclasses.replace(res, covariance=cov, std=std, diagnostics=diag)
 
 

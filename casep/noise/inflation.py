@@ -38,11 +38,13 @@ Roger's Satterthwaite step, per coefficient ``k``)::
     nu_k = 2 (Phi_A)_kk^2 / Var(Phi_kk(theta_hat)),    Var = g^T W g,    g_i = d Phi_kk / d theta_i = -(Phi P_i Phi)_kk
 
 whose variance is ``nu / (nu - 2)``, not 1. casep's std mean that ``z`` has unit variance (RMS z 1, its Monte Carlo
-checks), so each coefficient's std is ``sqrt(Phi_A,kk nu_k / (nu_k - 2))`` (the covariance ``D Phi_A D``,
-``D = diag(sqrt(nu_k / (nu_k - 2)))``; ``nu`` held at :data:`MIN_DOF` or more). The 1.96-std interval is then
+checks), so the covariance is ``Phi_A nu / (nu - 2)`` with ``nu`` the median of the coefficients' ``nu_k`` (held at
+:data:`MIN_DOF` or more): one factor, so that the covariance keeps its correlations (a factor per coefficient would
+break the near-dependencies of an ill-conditioned fit, whose combinations are determined far better than its
+coefficients). The 1.96-std interval is then
 ``t_nu``'s 95 % interval to within a percent for ``nu >= 6`` (``1.96 sqrt(nu / (nu - 2))`` against its quantile).
 Measured (``tests/noise/test_noise_inflation.py``, 60 samples per axis, nine parameters): plug-in RMS z 1.28,
-coverage 0.87; ``Phi_A`` alone 1.09-1.16, 0.90-0.92; with the t variance 0.94-0.96, 0.95.
+coverage 0.87; ``Phi_A`` alone 1.09-1.16, 0.90-0.92; with the t variance 0.98, 0.944.
 
 Parametrisation (the bias term depends on it): ``ln tau``, the white share's logit and the variances ``v_a``
 themselves (REML variance estimates are unbiased, so a covariance linear in them has no bias term of its own).
@@ -99,15 +101,20 @@ class Inflation:
     info: dict = field(default_factory=dict)
     dof: np.ndarray | None = None
 
-    def natural(self, t_variance: bool = True) -> np.ndarray:
-        """What the noise parameters add to the covariance in natural units, (n, n): ``Phi_A - Phi``; with
-        `t_variance` (and :attr:`dof`) ``D Phi_A D - Phi``, ``D = diag(sqrt(nu_k / (nu_k - 2)))`` (module notes)."""
-        plug = self.basis @ self.phi @ self.basis.T
-        adj = plug + self.basis @ self.delta @ self.basis.T
-        if t_variance and self.dof is not None:
-            f = np.sqrt(t_variance_factor(self.dof))
-            adj = adj * np.outer(f, f)
-        return adj - plug
+    def natural(self) -> np.ndarray:
+        """``Phi_A - Phi`` in natural units, (n, n) (without the t variance: :meth:`adjusted`)."""
+        return self.basis @ self.delta @ self.basis.T
+
+    @property
+    def t_factor(self) -> float:
+        """The t variance ``nu / (nu - 2)`` at the median of the coefficients' degrees of freedom (module notes)."""
+        fin = self.dof[np.isfinite(self.dof)] if self.dof is not None else np.zeros(0)
+        return float(t_variance_factor(np.median(fin))) if fin.size else 1.0
+
+    def adjusted(self, covariance: np.ndarray) -> np.ndarray:
+        """The covariance a least-squares fit reported (``Phi`` in natural units, the solver's own numbers) with the
+        noise parameters' uncertainty: ``t_factor (covariance + B delta B^T)``."""
+        return self.t_factor * (np.asarray(covariance, dtype=float) + self.natural())
 
 
 def t_variance_factor(dof: np.ndarray) -> np.ndarray:
@@ -317,11 +324,11 @@ def parameter_inflation(problem, noise: NoiseModel, *, raw: bool = False) -> Inf
     inf = Inflation(basis, Phi, delta, list(pt.names), dof=dof)
     plug = np.diag(basis @ Phi @ basis.T)
     ok = plug > 0
-    rel = np.sqrt((plug[ok] + np.diag(inf.natural())[ok]) / plug[ok]) if ok.any() else np.ones(1)
+    rel = np.sqrt(np.diag(inf.adjusted(basis @ Phi @ basis.T))[ok] / plug[ok]) if ok.any() else np.ones(1)
     fin = dof[ok & np.isfinite(dof)]
     inf.info.update({"std_factor_median": float(np.median(rel)), "std_factor_max": float(np.max(rel)),
                      "dof_min": float(fin.min()) if fin.size else None,
-                     "dof_median": float(np.median(fin)) if fin.size else None,
+                     "dof_median": float(np.median(fin)) if fin.size else None, "t_factor": inf.t_factor,
                      "information_directions": int(keep.sum()), "parameters": list(pt.names)})
     return inf
 
