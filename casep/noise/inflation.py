@@ -266,13 +266,25 @@ def _q(reml: Reml, pt: _Point, gs: list[tuple[int, np.ndarray]], i: int, k: int)
 def parameter_inflation(problem, noise: NoiseModel, *, raw: bool = False) -> Inflation | None:
     """The correction of the least-squares covariance of `problem`'s rows whitened by the REML noise model `noise`
     for the noise parameters' uncertainty (module notes); None when nothing was estimated (white noise of one std,
-    a model not from REML, rows without times, no free parameter at the estimate)."""
+    a model not from REML, rows without times, no free parameter at the estimate).
+
+    Parameters
+    ----------
+    problem : Problem
+        The rows the noise model was fitted on (samples kept), in time order with their times.
+    noise : NoiseModel
+        Its REML fit (with ``sigma``).
+    raw : bool
+        Return Kenward and Roger's correction as it is (negative parts kept, no degrees of freedom), with
+        ``info["lambda"]`` and ``info["bias"]`` its two parts: for tests.
+    """
     if noise.rule not in ("reml", "given") or problem.t is None or problem.y is None or noise.sigma is None \
             or not np.isfinite(noise.sigma) or noise.sigma <= 0:
         return None
     if all(t is None for t in noise.tau) and all(s == 1.0 for s in noise.scale):
         return None  # white noise of one std: nothing but sigma, which the std's own estimate carries
-    reml = Reml(problem, estimable_basis(problem))
+    basis = estimable_basis(problem)
+    reml = Reml(problem, basis)
     p = reml.p
     if p == 0:
         return None
@@ -312,14 +324,13 @@ def parameter_inflation(problem, noise: NoiseModel, *, raw: bool = False) -> Inf
     delta = Phi @ inner @ Phi - 0.5 * bias
     delta = 0.5 * (delta + delta.T)
     if raw:
-        return Inflation(estimable_basis(problem), Phi, delta, list(pt.names),
+        return Inflation(basis, Phi, delta, list(pt.names),
                          {"lambda": Phi @ inner @ Phi, "bias": -0.5 * bias})
     # never narrower than the plug-in: the negative part of delta in Phi's metric dropped
     Lc = np.linalg.cholesky(Phi)
     Li = np.linalg.inv(Lc)
     d, V = np.linalg.eigh(Li @ delta @ Li.T)
     delta = Lc @ ((V * np.clip(d, 0.0, None)) @ V.T) @ Lc.T
-    basis = estimable_basis(problem)
     dof = _satterthwaite(basis, Phi, delta, Pd, W)
     inf = Inflation(basis, Phi, delta, list(pt.names), dof=dof)
     plug = np.diag(basis @ Phi @ basis.T)
