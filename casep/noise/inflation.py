@@ -117,7 +117,7 @@ class Inflation:
         return self.t_factor * (np.asarray(covariance, dtype=float) + self.natural())
 
 
-def t_variance_factor(dof: np.ndarray) -> np.ndarray:
+def t_variance_factor(dof: np.ndarray | float) -> np.ndarray:
     """``nu / (nu - 2)``, the variance of Student's t with `dof` degrees of freedom, with `dof` held at
     :data:`MIN_DOF` or more (1 where infinite)."""
     nu = np.maximum(np.asarray(dof, dtype=float), MIN_DOF)
