@@ -220,3 +220,30 @@ def test_every_least_squares_fit_under_a_reml_noise_model_carries_it():
     assert np.all(res.std > plug.std)
     assert res.diagnostics["noise_parameters"]["dof_min"] > 0.0
     assert noise_parameter_covariance(white) is None
+
+
+def test_the_kernels_equal_dense_matrices():
+    """The compiled first-order recursion (both ways) against a loop; the transposed whitening times the whitening,
+    ``W^T W X``, against the dense inverse covariance; ``Sigma X`` (:func:`casep.noise.known.axis_covariance_times`)
+    against the dense covariance (jittered times with a gap, Gauss-Markov plus white), to 1e-10."""
+    from casep._kernels import first_order
+    from casep.noise.known import axis_covariance_times
+    from casep.noise.model import _series_transpose, whiten_series
+
+    rng = np.random.default_rng(21)
+    t = np.cumsum(np.concatenate([[0.0], 0.1 * (1 + 0.4 * rng.uniform(-1, 1, 79))]))
+    t[40:] += 3.0
+    X = rng.normal(size=(80, 4))
+    a = rng.uniform(0, 1, 80)
+    fwd, bwd = X.copy(), X.copy()
+    for k in range(1, 80):
+        fwd[k] += a[k] * fwd[k - 1]
+    for k in range(78, -1, -1):
+        bwd[k] += a[k] * bwd[k + 1]
+    np.testing.assert_allclose(first_order(a, X), fwd, rtol=1e-13)
+    np.testing.assert_allclose(first_order(a, X, reverse=True), bwd, rtol=1e-13)
+    tau, w = 0.7, 0.3
+    C = (1 - w) * np.exp(-np.abs(t[:, None] - t[None, :]) / tau) + w * np.eye(80)
+    WtW = _series_transpose(whiten_series(X, t, tau, w)[0], t, tau, w)
+    np.testing.assert_allclose(WtW, np.linalg.solve(C, X), rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(axis_covariance_times(X, t, tau, 1 - w, w), C @ X, rtol=1e-10, atol=1e-12)
