@@ -201,10 +201,14 @@ def setup_evidence(site: Any, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.nd
              f"deg, launch time {site.t0:.10g} s")
     problems = []
     if dist > reach + POSITION_TOL:
+        swapped = _swapped_distance(r_ecef[0], site)
+        cause = (f"its latitude and longitude swapped put it {swapped / 1e3:.4g} km from the site: latitude and "
+                 "longitude swapped, in the tracking file or in --launch-site" if swapped <= reach + POSITION_TOL
+                 else f"the stated {where} is wrong")
         problems.append(f"the first tracked position (t = {t_trk[0]:.10g} s, {since:.4g} s after the launch time) is "
                         f"{dist / 1e3:.6g} km from the stated launch site, where the vehicle could be at most "
                         f"{reach / 1e3:.4g} km away (its speed then times the time since launch) + "
-                        f"{POSITION_TOL / 1e3:g} km: the stated {where} is wrong")
+                        f"{POSITION_TOL / 1e3:g} km: {cause}")
     if fit is not None and s_trk is not None and s_std is not None and s_trk < PAD_REST_SPEED:
         gap, chi2, fails = _pad_mismatch(site, t_start, v_pad, e, fit)
         tol = max(PAD_VELOCITY_TOL, 5.0 * s_std)  # the scale of "the telemetry is at the pad's velocity"
@@ -236,3 +240,14 @@ def setup_evidence(site: Any, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.nd
                         "launch time in the tracking file's time scale and how the time scales relate (time_shift)")
     return {"spans": spans, "pad": pad, "first_tracked": first, "problems": problems}
 
+
+def _swapped_distance(r_ecef: np.ndarray, site: Any) -> float:
+    """The distance (m) from the launch site of the ECEF position `r_ecef` with its geodetic latitude and
+    longitude swapped (inf when the swapped latitude is no latitude)."""
+    from casep.frames import ecef_to_geodetic, geodetic_to_ecef
+
+    lat, lon, h, *_ = ecef_to_geodetic(np.asarray(r_ecef, float)[None, :], np.zeros((1, 3)))
+    if abs(float(lon[0])) > 90.0:
+        return float("inf")
+    r, _ = geodetic_to_ecef(lon, lat, h, [0.0], [0.0], [0.0])
+    return float(np.linalg.norm(r[0] - site.r_site))

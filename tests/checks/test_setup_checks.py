@@ -81,6 +81,17 @@ def test_wrong_site_or_azimuth_is_caught_with_numbers(pair, change, numbers):
     assert not [w for w in caught if issubclass(w.category, (casep.LateStartWarning, TimeOffsetWarning))]
 
 
+def test_latitude_and_longitude_swapped_are_named_not_the_site(pair):
+    """The site stated with its latitude and longitude swapped (-80.6, 28.5): the first tracked position is
+    thousands of km from it, and with the tracking's latitude and longitude swapped it is at it: the message says
+    so instead of "the stated site is wrong"."""
+    fl, res, caught = _separate(*pair, dataclasses.replace(SITE, lat_deg=SITE.lon_deg, lon_deg=SITE.lat_deg))
+    text = " ".join(str(w.message) for w in caught if w.category is SetupWarning)
+    assert re.search(r"km from the stated launch site", text), text
+    assert "latitude and longitude swapped, in the tracking file or in --launch-site" in text, text
+    assert not res.success and res.status == -4
+
+
 def test_time_offset_warning_only_when_the_shift_explains_the_data(pair):
     """With the site 3900 km east the best shift is 385 ms but removes 0.3 % of the misfit: no offset warning
     (main: "tracking time tags look 385 ms late"); a real 300 ms offset removes 92 % and is still reported."""
