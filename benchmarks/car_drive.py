@@ -30,6 +30,19 @@ import numpy as np
 DATA = "/work/shared/data/rtklibexplorer_car"
 #: GNSS antenna minus IMU, car axes (forward, right, down), m (the data's drive_config.py).
 LEVER_ARM_CAR = np.array([0.0, -0.05, 0.0])
+#: The std of the instrument terms the window model leaves out (strapdown33's names and units), the consider
+#: covariance P_c (diagonal) of the windows' comparison: typical figures of a consumer MEMS IMU of the ICM-42688 /
+#: ICM-45686 class (the data folder holds no datasheet): sensitivity (scale factor) tolerance 0.5 %, cross-axis
+#: sensitivity (misalignment) 0.3 deg, gyro linear-acceleration sensitivity 0.1 deg/s/g. Fixed before any run
+#: with them, not fitted to the chi-square.
+LEFT_OUT_STD = {**{f"s{k}_{i}": 5000.0 for k in "ag" for i in "xyz"},
+                **{f"m{k}_{i}{j}": 1080.0 for k in "ag" for i in "xyz" for j in "xyz" if i != j},
+                **{f"gg_{i}{j}": 360.0 for i in "xyz" for j in "xyz"}}
+
+
+def left_out_covariance(names) -> np.ndarray:
+    """P_c of :data:`LEFT_OUT_STD` for the left-out terms `names` (their order)."""
+    return np.diag([LEFT_OUT_STD[n] ** 2 for n in names])
 
 
 def read_rtklib_pos(path: str) -> dict[str, np.ndarray]:
@@ -314,16 +327,17 @@ def save_windows(res, path: str) -> None:
                      "residuals": np.asarray(r.residuals, float),
                      "t": np.asarray(getattr(r, "t", np.array([])), float),
                      "sv_end": w.sv_end, "sv_names": list(w.sv_names),
+                     "consider_gain": w.consider_gain, "consider_names": list(w.consider_names),
                      "noise": (r.diagnostics or {}).get("noise_model", (r.diagnostics or {}).get("noise"))})
     with open(path, "wb") as fh:
-        pickle.dump({"names": list(res.names), "windows": rows}, fh)
+        pickle.dump({"names": list(res.names), "windows": rows, "left_out_std": LEFT_OUT_STD}, fh)
     print("saved", path)
 
 
 def main() -> None:
     from casep.frames import LaunchSite
     from casep.navigation.imu import read_imu, regular_time
-    from casep.workflows.windows import separate_windows, window_consistency
+    from casep.workflows.windows import consider_rows, separate_windows, window_consistency
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=DATA)
@@ -350,6 +364,11 @@ def main() -> None:
                     help="--simulate: the twin's IMU times written this far off (the data's: -0.140 279)")
     ap.add_argument("--end", type=float, default=None, help="use the record up to this time only, s")
     ap.add_argument("--save", default=None, help="pickle each window's span, estimate, covariance, residuals here")
+    ap.add_argument("--consider", default="strapdown33",
+                    help="a model holding the terms the window model leaves out: each window's consider gain for the "
+                         "comparison with P_c from LEFT_OUT_STD ('none': no gains)")
+    ap.add_argument("--sim-left-out", action="store_true",
+                    help="--simulate: add the left-out terms to the twin, drawn from N(0, P_c) with the seed")
     args = ap.parse_args()
     if args.write_cut:  # the IMU file gzipped (-9), as the test suite holds it
         import gzip
@@ -365,7 +384,12 @@ def main() -> None:
     if args.simulate is not None:
         from car_drive_sim import simulate
 
-        imu_path, trk_path, t_ref, truth = simulate(args.data, args.out, args.simulate, clock=tuple(args.sim_clock))
+        left_out = None
+        if args.sim_left_out:
+            rng = np.random.default_rng([args.simulate, 7])
+            left_out = {n: float(rng.normal(0.0, sd)) for n, sd in LEFT_OUT_STD.items()}
+        imu_path, trk_path, t_ref, truth = simulate(args.data, args.out, args.simulate, clock=tuple(args.sim_clock),
+                                                    left_out=left_out)
     else:
         imu_path, trk_path, t_ref = convert(args.data, args.out, velocity=args.velocity,
                                             imu_clock=args.imu_clock)
@@ -393,7 +417,8 @@ def main() -> None:
         options = {k: v for k, v in (("noise", args.noise), ("std", args.std), ("robust", args.robust))
                    if v is not None}
         res = separate_windows(imu, trk_path, site, (0.0, moving - 5.0), length=args.length, start=moving + 1.0,
-                               model=args.model, fit_options=options)
+                               model=args.model, fit_options=options,
+                               consider=None if args.consider == "none" else args.consider)
         cpu = time.process_time() - c0
     kinds: dict[str, int] = {}
     first: dict[str, str] = {}
@@ -448,11 +473,22 @@ def main() -> None:
                   f"mean {np.mean(z):+.2f}")
     pos = read_rtklib_pos(os.path.join(args.data, "gnss_1934_sf.pos"))
     rest = [(a, b) for a, b in spans_at_rest(pos["t"] - t_ref, pos["ve"], pos["vn"]) if b <= imu.t[-1]]  # --end
+    inst = None
     if len(rest) > 1 and truth is None:
         inst = print_rest(imu, rest)
         cc = window_consistency(res.windows, res.names, instability=inst)
         print(f"  with it: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, predictions within "
               f"1 std {cc['within_1_std']:.2f}, within 2 std {cc['within_2_std']:.2f}")
+    if args.consider != "none":
+        terms = res.windows[0].consider_names
+        P_c = left_out_covariance(terms)
+        for label, inst_k in [("", None)] + ([(" and the instability at rest", inst)] if inst is not None else []):
+            cc = window_consistency(res.windows, res.names, instability=inst_k,
+                                    consider=(consider_rows(res.windows, res.names), P_c))
+            print(f"  with the left-out terms ({len(terms)} of {args.consider}, P_c from LEFT_OUT_STD) as consider "
+                  f"parameters{label}: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, predictions "
+                  f"within 1 std {cc['within_1_std']:.2f}, within 2 std {cc['within_2_std']:.2f}; per coefficient "
+                  + ", ".join(f"{n} {v:.0f}" for n, v in cc["chi2_per_coefficient"].items()))
     print(f"held-out prediction of dv at the window end ({c['prediction_pairs']} ordered pairs x 3 axes): "
           f"within 1 std {c['within_1_std']:.2f} (0.68 expected), within 2 std {c['within_2_std']:.2f} (0.95), "
           f"median |z| {c['median_abs_z']:.2f} (0.67)")

@@ -5,7 +5,8 @@ windows see except what is under suspicion on the real one (a model that does no
 move): the trajectory (the RTK positions smoothed), the IMU's own noise as measured on the drive, the
 RTK epochs, their noise and their rounding, the same conversion (velocity from differenced positions)
 and the same chain (:func:`casep.workflows.windows.separate_windows`); the IMU's errors are the six
-constant biases of ``strapdown6_window`` and nothing else. If the windows of the twin agree
+constant biases of ``strapdown6_window`` and nothing else (or, with `left_out`, also constant scale factors,
+misalignments and g-sensitivity: the terms the window model leaves out). If the windows of the twin agree
 (chi-square near its dof), casep's std are right for this chain and a disagreement on the real drive
 is the data's or the model's; if not, the std are wrong.
 
@@ -78,11 +79,29 @@ def _noise(x: np.ndarray, fs: float, pad: np.ndarray, rng: np.random.Generator) 
     return high + low
 
 
+def left_out_errors(fb: np.ndarray, w: np.ndarray, c: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    """The sensor errors of strapdown33's terms other than the biases (``models/strapdown33.py``: ``sa_i`` ppm,
+    ``ma_ij`` arcsec, ``sg_i`` ppm, ``mg_ij`` arcsec, ``gg_ij`` deg/h/g; a term not in `c` is 0) for the body
+    specific force `fb` (N, 3) m/s^2 and rate `w` (N, 3) rad/s: ``(delta_f, delta_w)``, m/s^2 and rad/s."""
+    arcsec, deg_h = math.pi / 648000.0, math.pi / 180.0 / 3600.0
+    df, dw = np.zeros_like(fb), np.zeros_like(w)
+    for a, i in enumerate("xyz"):
+        df[:, a] += c.get(f"sa_{i}", 0.0) * 1e-6 * fb[:, a]
+        dw[:, a] += c.get(f"sg_{i}", 0.0) * 1e-6 * w[:, a]
+        for b, j in enumerate("xyz"):
+            if j != i:
+                df[:, a] += c.get(f"ma_{i}{j}", 0.0) * arcsec * fb[:, b]
+                dw[:, a] += c.get(f"mg_{i}{j}", 0.0) * arcsec * w[:, b]
+            dw[:, a] += c.get(f"gg_{i}{j}", 0.0) * deg_h * fb[:, b] / 9.80665
+    return df, dw
+
+
 def simulate(data: str, out: str, seed: int, pos_white: float = 0.003, pos_gm: float = 0.005,
              pos_tau: float = 10.0, noise: bool = True,
              biases: dict[str, float] | None = None,
              record: dict | None = None,
-             clock: tuple[float, float] = (0.0, 0.0)) -> tuple[str, str, float, dict[str, float]]:
+             clock: tuple[float, float] = (0.0, 0.0),
+             left_out: dict[str, float] | None = None) -> tuple[str, str, float, dict[str, float]]:
     """Write the twin's IMU file (on the real IMU's uniform grid) and geodetic tracking file (velocity from
     differenced positions); return their paths, the time origin (GPST s) and the true biases.
 
@@ -90,7 +109,8 @@ def simulate(data: str, out: str, seed: int, pos_white: float = 0.003, pos_gm: f
     true biases (default :data:`TRUE_BIASES`); `record`, a dict, receives the truth at the IMU samples
     (``t``, ``C_eb`` body -> ECEF, ``r_e``, ``v_e``); `clock` (offset s, rate ppm): the IMU's samples taken at
     ``t`` are written at ``t + offset + rate 1e-6 (t - t_0)`` (a mapping of the IMU's counter onto GPS time that
-    runs fast, as the data's does: ``car_drive.imu_clock_from_arrivals``)."""
+    runs fast, as the data's does: ``car_drive.imu_clock_from_arrivals``); `left_out`: strapdown33's other terms
+    (scale factors, misalignments, g-sensitivity; :func:`left_out_errors`) added to the IMU, constant over the drive."""
     import pandas as pd
     import pymap3d as pm
     from car_drive import read_rtklib_pos, velocity_from_positions
@@ -143,6 +163,9 @@ def simulate(data: str, out: str, seed: int, pos_white: float = 0.003, pos_gm: f
     if record is not None:
         record.update(t=t, C_eb=C_et @ C_tb, r_e=r_e, v_e=v_e)
     b = dict(TRUE_BIASES if biases is None else biases)
+    if left_out:
+        df, dw = left_out_errors(fb, w, left_out)
+        fb, w = fb + df, w + dw
     fb += np.array([b[f"ba_{a}"] for a in "xyz"]) * 9.80665e-3
     w += np.radians(np.array([b[f"bg_{a}"] for a in "xyz"]) / 3600.0)
     real = raw[keep]
@@ -167,5 +190,7 @@ def simulate(data: str, out: str, seed: int, pos_white: float = 0.003, pos_gm: f
     print(f"simulated twin (seed {seed}): {t.size} IMU samples {t[0]:.2f}-{t[-1]:.2f} s, largest |a_h| "
           f"{np.max(np.hypot(a_t[:, 0], a_t[:, 1])):.2f} m/s^2, largest |w| {math.degrees(np.max(np.abs(w_c))):.1f} "
           f"deg/s; true biases " + ", ".join(f"{k} {v:g}" for k, v in b.items())
-          + (f"; IMU times written {clock[0] * 1e3:g} ms + {clock[1]:g} ppm off" if any(clock) else ""))
-    return imu_path, trk_path, t_ref, dict(b)
+          + (f"; IMU times written {clock[0] * 1e3:g} ms + {clock[1]:g} ppm off" if any(clock) else "")
+          + (f"; left-out terms {len(left_out)} (" + ", ".join(f"{k} {v:.3g}" for k, v in left_out.items()) + ")"
+             if left_out else ""))
+    return imu_path, trk_path, t_ref, {**b, **(left_out or {})}

@@ -4,7 +4,8 @@ For each saved run, on the windows that succeeded in every run given (matched by
 the same spans):
 
 - :func:`casep.workflows.windows.window_consistency` of the six biases (and of the run's other instrument terms),
-  without and with the bias instability measured at rest, and of ``dt_trk``;
+  without and with the bias instability measured at rest, with the left-out terms' consider gains when the run
+  saved them (``car_drive.py --consider``, P_c from ``car_drive.LEFT_OUT_STD``), and of ``dt_trk``;
 - the structure of the disagreement in time: for each separation of k windows the mean of
   ``d^T (C_i + C_j)^-1 d / p`` over the pairs ``d = x_i - x_j`` (1 at every k for constant biases; rising with k
   for a bias that wanders slower than a window, a Gauss-Markov or random-walk bias), and per coefficient the mean
@@ -32,7 +33,7 @@ import types
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from car_drive import LEVER_ARM_CAR  # noqa: E402
+from car_drive import LEVER_ARM_CAR, left_out_covariance  # noqa: E402
 
 #: The bias instability measured at rest on this drive (``car_drive.py``'s print_rest: RMS change of the means
 #: at the three stops from the first), deg/h and mg.
@@ -47,7 +48,8 @@ def _windows(run: dict, keep: set[int]) -> list:
             res = types.SimpleNamespace(names=tuple(w["names"]), estimate=w["estimate"], covariance=w["covariance"],
                                         success=True)
             out.append(types.SimpleNamespace(result=res, sv_end=w["sv_end"], sv_names=tuple(w["sv_names"]),
-                                             raw=w))
+                                             raw=w, t_start=w["t_start"], consider_gain=w.get("consider_gain"),
+                                             consider_names=tuple(w.get("consider_names", ()))))
     return out
 
 
@@ -112,7 +114,7 @@ def speed_dependence(ws: list, trk, names: tuple[str, ...] = SIX, taus: tuple[fl
 
 
 def main() -> None:
-    from casep.workflows.windows import window_consistency
+    from casep.workflows.windows import consider_rows, window_consistency
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("runs", nargs="+", help="pickles written by car_drive.py --save")
@@ -138,6 +140,15 @@ def main() -> None:
                 print(f"  {len(names)} coefficients, {'with' if inst else 'without'} the instability at rest: chi2 "
                       f"{c['chi2']:.1f} on {c['dof']} dof, p = {c['p_value']:.2g}; predictions within 1 / 2 std "
                       f"{c['within_1_std']:.2f} / {c['within_2_std']:.2f}")
+        if ws and all(w.consider_gain is not None for w in ws):  # car_drive.py --consider: the left-out terms
+            P_c = left_out_covariance(ws[0].consider_names)
+            for inst in (None, INSTABILITY_AT_REST):
+                c = window_consistency(ws, SIX, instability=inst, consider=(consider_rows(ws, SIX), P_c))
+                print(f"  six biases, the {len(P_c)} left-out terms as consider parameters (P_c from LEFT_OUT_STD), "
+                      f"{'with' if inst else 'without'} the instability at rest: chi2 {c['chi2']:.1f} on {c['dof']} "
+                      f"dof, p = {c['p_value']:.2g}; predictions within 1 / 2 std {c['within_1_std']:.2f} / "
+                      f"{c['within_2_std']:.2f}; per coefficient "
+                      + ", ".join(f"{n} {v:.0f}" for n, v in c["chi2_per_coefficient"].items()))
         c = window_consistency(ws, ("dt_trk",))
         print(f"  dt_trk: chi2 {c['chi2']:.1f} on {c['dof']} dof, weighted mean {c['weighted_mean'][0]:.1f} ms")
         print("  structure in time (six biases): " + ", ".join(f"k={k} {m:.2f}" for k, _, m in structure(ws, SIX)))

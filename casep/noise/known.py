@@ -105,12 +105,19 @@ class TrackingParameters:
         return cls(c, tuple(noise.tau), d)
 
     def model(self, kind: str, rule: str, **extra) -> NoiseModel:
-        """The :class:`NoiseModel` of these parameters (``sigma`` the x axis' std, scales relative to it)."""
+        """The :class:`NoiseModel` of these parameters (``sigma`` the x axis' std, scales relative to it).
+
+        An axis whose Gauss-Markov variance is below the rounding of its white one (the white share rounds to 1:
+        the search drove ``c`` to nothing) is white: its correlation time is dropped."""
         var = np.array(self.c) + np.array(self.d)
         sd = np.sqrt(var)
-        share = tuple(0.0 if self.tau[j] is None else float(self.d[j] / var[j]) for j in range(3))
-        return NoiseModel(kind=kind, tau=tuple(self.tau), scale=tuple(float(v) for v in sd / sd[0]), rule=rule,
-                          sigma=float(sd[0]), share=share, extra=dict(extra))
+        share = [0.0 if self.tau[j] is None else float(self.d[j] / var[j]) for j in range(3)]
+        tau = list(self.tau)
+        for j in range(3):
+            if share[j] >= 1.0:
+                tau[j], share[j] = None, 0.0
+        return NoiseModel(kind=kind, tau=tuple(tau), scale=tuple(float(v) for v in sd / sd[0]), rule=rule,
+                          sigma=float(sd[0]), share=tuple(share), extra=dict(extra))
 
 
 def joint_whiten(X: np.ndarray, t: np.ndarray, theta: TrackingParameters, known: KnownStates

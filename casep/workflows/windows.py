@@ -38,8 +38,8 @@ import numpy as np
 
 from casep.frames import LaunchSite
 
-__all__ = ["Window", "WindowsResult", "separate_windows", "window_consistency", "NUISANCE_PREFIXES",
-           "PHI0_LINEAR_RAD", "GROUND_SPEED_COLUMN"]
+__all__ = ["Window", "WindowsResult", "separate_windows", "window_consistency", "consider_gain", "consider_rows",
+           "gain_rows", "NUISANCE_PREFIXES", "PHI0_LINEAR_RAD", "GROUND_SPEED_COLUMN"]
 
 #: Coefficients that belong to one window only (not compared across windows): initial states, time offset.
 NUISANCE_PREFIXES = ("phi0_", "dv0_", "dt_trk")
@@ -60,6 +60,10 @@ class Window:
     heading_from_course_deg: float | None
     sv_end: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((3, 0)))
     sv_names: tuple[str, ...] = ()
+    #: With ``separate_windows(consider=...)``: the consider gain of the left-out terms (rows the result's names,
+    #: columns :attr:`consider_names`; :func:`consider_gain`), else None.
+    consider_gain: np.ndarray | None = field(repr=False, default=None)
+    consider_names: tuple[str, ...] = ()
 
 
 @dataclass
@@ -187,7 +191,8 @@ def _attitude_error_end(model, result, flight) -> np.ndarray:
 def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: tuple[float, float], *,
                      length: float = 30.0, start: float | None = None, model: str = "strapdown6_window",
                      attitude_passes: int = 3, gyro_bias_from_pad: bool = True, imu_noise_from_pad: bool = True,
-                     fit_options: dict | None = None) -> WindowsResult:
+                     fit_options: dict | None = None, consider: str | None = None,
+                     consider_terms: Sequence[str] | None = None) -> WindowsResult:
     """Align on the pad, cut the rest of `imu` into windows of `length` s and separate each (module docstring).
 
     Parameters
@@ -220,6 +225,13 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
         moving vehicle's vibration as white sensor noise: on a car drive 2-50 times the density at 1 s).
     fit_options : dict, optional
         Keywords of :func:`casep.separate` (default: none, its default noise path).
+    consider : str, optional
+        A model that holds instrument terms the window model leaves out (``"strapdown33"``: scale factors,
+        misalignments, g-sensitivity): each window's :attr:`Window.consider_gain` is then :func:`consider_gain` of
+        `consider_terms` (default: the consider model's terms that the window model does not hold) on the
+        window's last navigation, for ``window_consistency(..., consider=(gains, P_c))``.
+    consider_terms : sequence of str, optional
+        The left-out terms (names of the `consider` model).
 
     Returns
     -------
@@ -276,12 +288,81 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
 
             S = build_sv(base, flight.t, flight.f, signals=flight.signals)
             windows.append(Window(t_a, float(nav.t[-1]), site_k, res, passes, course, S[-1], base.names))
+            if consider is not None:
+                extra = load_model(consider)
+                terms = tuple(consider_terms) if consider_terms is not None else \
+                    tuple(n for n in extra.names if n not in base.names)
+                windows[-1].consider_gain = consider_gain(flight, res, base, extra, terms)
+                windows[-1].consider_names = terms
             phi_end = _attitude_error_end(base, res, flight)
             t_a = float(nav.t[-1])
             C_lb = corrected_attitude(quat_to_dcm(nav.q[-1]), phi_end)
             C_eb = _launch_from_ecef(site_k, t_a).T @ C_lb
     names = tuple(n for n in base.names if not n.startswith(NUISANCE_PREFIXES))
     return WindowsResult(windows, names, window_consistency(windows, names))
+
+
+def gain_rows(S_w: np.ndarray, S_c: np.ndarray, t: np.ndarray, noise: Any = None) -> np.ndarray:
+    """The consider gain ``A = (S_w^T W S_w)^-1 S_w^T W S_c`` (n x m) of a fit of the columns `S_w` (N, 3, n)
+    whose data also hold ``S_c c`` (`S_c` (N, 3, m)), ``W`` the inverse of the rows' covariance under `noise`
+    (a :class:`casep.noise.model.NoiseModel`; None: white, ordinary least squares), rows at the times `t` (N,).
+
+    The fit's estimate of its own columns moves by ``A c``. Both sets of columns are whitened as the fit whitens
+    its rows (:func:`casep.noise.model.whiten`), then ``A`` is the least-squares solution of the whitened ``S_w``
+    for the whitened ``S_c`` (columns of ``S_w`` scaled to unit norm first; a column the rows do not determine
+    takes the minimum-norm solution, as the fit's pseudo-inverse does)."""
+    from casep.noise.model import NoiseModel, whiten
+
+    S_w, S_c = np.asarray(S_w, float), np.asarray(S_c, float)
+    N, _, n = S_w.shape
+    m = S_c.shape[2]
+    noise = NoiseModel.white() if noise is None else noise
+    both = whiten(np.concatenate([S_w, S_c], axis=2), np.zeros((N, 3)), np.asarray(t, float), noise)[0]
+    U = both.reshape(3 * N, n + m)
+    scale = np.linalg.norm(U[:, :n], axis=0)
+    scale[scale == 0.0] = 1.0
+    A = np.linalg.lstsq(U[:, :n] / scale, U[:, n:], rcond=None)[0]
+    return A / scale[:, None]
+
+
+def consider_gain(flight, result, fit_model, consider_model, terms: Sequence[str]) -> np.ndarray:
+    """The consider gain of one window's fit (:func:`gain_rows`): rows the names of `result` (its model `fit_model`,
+    plus ``dt_trk`` when the fit added it), columns `terms`, S_V columns of `consider_model` (set up) along the
+    same flight, whitened by the fit's noise model (``result.diagnostics["noise"]``; white when it has none).
+
+    What it does not take: the robust filter's row weights and rejected rows (the fit's final pass keeps all
+    rows at weights near 1 on a clean window) and the passes of an iterated fit (the gain is the linear fit's at
+    the window's last navigation)."""
+    from casep.checks.flight import flight_problem
+    from casep.model.loader import TIME_OFFSET, load_model, with_time_offset
+    from casep.noise.model import NoiseModel
+
+    model = load_model(with_time_offset(fit_model)) if TIME_OFFSET in result.names else fit_model
+    if tuple(model.names) != tuple(result.names):
+        raise ValueError(f"consider_gain: the fit's names {tuple(result.names)} are not its model's {model.names}")
+    missing = [n for n in terms if n not in consider_model.names]
+    if missing:
+        raise ValueError(f"consider_gain: {missing} not in the consider model `{consider_model.name}`")
+    pb_w = flight_problem(flight, model, keep_sv=True)
+    pb_c = flight_problem(flight, consider_model, keep_sv=True)
+    if pb_w.t is None or pb_c.t is None or not np.array_equal(pb_w.t, pb_c.t):
+        raise ValueError("consider_gain: the two models' rows are not the same samples")
+    cols = [consider_model.names.index(n) for n in terms]
+    nd = (result.diagnostics or {}).get("noise")
+    noise = NoiseModel.from_dict(nd) if isinstance(nd, dict) and "axes" in nd else None
+    return gain_rows(pb_w.sv(), pb_c.sv()[:, :, cols], pb_w.t, noise)
+
+
+def consider_rows(windows: Sequence[Window], names: Sequence[str]) -> list[np.ndarray]:
+    """Each window's :attr:`Window.consider_gain` restricted to the rows `names`: the gains of
+    ``window_consistency(windows, names, consider=(gains, P_c))``, columns :attr:`Window.consider_names`."""
+    out = []
+    for w in windows:
+        if w.consider_gain is None:
+            raise ValueError(f"window at {w.t_start:.3f} s has no consider gain (separate_windows(consider=...))")
+        rows = list(w.result.names)
+        out.append(np.asarray(w.consider_gain, float)[[rows.index(n) for n in names]])
+    return out
 
 
 def _up(r_e: np.ndarray) -> np.ndarray:

@@ -137,3 +137,16 @@ def test_with_no_known_term_the_fit_is_the_remls():
     np.testing.assert_allclose(a.tau, b.tau, rtol=0.03)
     np.testing.assert_allclose(np.sqrt(a.c), np.sqrt(b.c), rtol=0.01)
     np.testing.assert_allclose(np.sqrt(a.d), np.sqrt(b.d), rtol=0.01)
+
+
+def test_a_gauss_markov_part_searched_down_to_nothing_makes_the_axis_white():
+    """The search may drive an axis' Gauss-Markov variance below the rounding of its white one (seen on a car
+    window): the white share then rounds to 1, which no noise model holds; the axis is white, its covariance the
+    same to the rounding, the other axes as they were."""
+    t = np.cumsum(np.full(30, 0.25))
+    theta = TrackingParameters((1e-30, 9e-4, 0.0), (3e5, 1.0, None), (4e-4, 2e-4, 5e-4))
+    noise = theta.model("gmw", "REML")
+    assert noise.tau == (None, 1.0, None) and noise.share[0] == 0.0
+    assert noise.share[1] == pytest.approx(2e-4 / 11e-4, rel=1e-12)
+    white = TrackingParameters((0.0, 9e-4, 0.0), (None, 1.0, None), (4e-4, 2e-4, 5e-4))
+    assert np.allclose(_track_dense(TrackingParameters.of(noise), t), _track_dense(white, t), rtol=1e-12, atol=0.0)

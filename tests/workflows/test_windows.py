@@ -21,7 +21,7 @@ import pytest
 from scipy.stats import chi2 as chi2_dist
 
 from casep.frames import LaunchSite
-from casep.workflows.windows import PHI0_LINEAR_RAD, Window, window_consistency
+from casep.workflows.windows import PHI0_LINEAR_RAD, Window, consider_rows, gain_rows, window_consistency
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "car_drive"
 
@@ -134,6 +134,36 @@ def test_consider_calibrates_chi2_of_left_out_terms():
     assert 0.02 < np.mean(np.array(pvals) < 0.05) < 0.09
 
 
+def test_gain_rows_is_the_dense_gls_refit_of_the_left_out_terms():
+    """The consider gain under Gauss-Markov (plus white) noise per axis on uneven times: against the GLS solution
+    with the rows' covariance written out as a dense matrix (closed form), and a noise-free refit of data holding
+    ``S_w x + S_c c`` moves the estimate from ``x`` by exactly ``A c``; white noise is ordinary least squares."""
+    from casep.noise.model import NoiseModel
+
+    rng = np.random.default_rng(5)
+    N, n, m = 60, 4, 3
+    t = np.cumsum(rng.uniform(0.05, 0.3, N))
+    S_w, S_c = rng.normal(size=(N, 3, n)), rng.normal(size=(N, 3, m))
+    S_w[:, :, 0] *= 1e3  # columns of very different sizes, as natural units give
+    noise = NoiseModel.gauss_markov((0.4, 1.5, 0.8), scale=(1.0, 2.5, 0.5), share=(0.3, 0.0, 0.6))
+    A = gain_rows(S_w, S_c, t, noise)
+    Sigma = np.zeros((3 * N, 3 * N))  # rows in sample-major order (sample k, axis a) -> 3 k + a
+    dt = np.abs(t[:, None] - t[None, :])
+    for a in range(3):
+        corr = (1.0 - noise.share[a]) * np.exp(-dt / noise.tau[a]) + noise.share[a] * np.eye(N)
+        Sigma[a::3, a::3] = noise.scale[a] ** 2 * corr
+    Sw, Sc = S_w.reshape(3 * N, n), S_c.reshape(3 * N, m)
+    Si = np.linalg.inv(Sigma)
+    dense = np.linalg.solve(Sw.T @ Si @ Sw, Sw.T @ Si @ Sc)
+    assert np.allclose(A, dense, rtol=1e-8, atol=1e-12 * np.abs(dense).max())
+    x, c = rng.normal(size=n), rng.normal(size=m)
+    y = Sw @ x + Sc @ c
+    refit = np.linalg.solve(Sw.T @ Si @ Sw, Sw.T @ Si @ y)
+    assert np.allclose(refit - x, A @ c, rtol=1e-8, atol=1e-10)
+    ols = np.linalg.lstsq(Sw, Sc, rcond=None)[0]
+    assert np.allclose(gain_rows(S_w, S_c, t), ols, rtol=1e-8, atol=1e-12 * np.abs(ols).max())
+
+
 @pytest.fixture(scope="module")
 def car(tmp_path_factory):
     """The chain on the real cut: align 0-30 s, two 15 s windows from 36 s."""
@@ -151,7 +181,8 @@ def car(tmp_path_factory):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the fits' own warnings (noise, whiteness) are not what is tested here
         res = separate_windows(imu, DATA / "tracking.csv", site, (0.0, 30.0), length=15.0, start=36.0,
-                               attitude_passes=2, fit_options={"noise": "gmw", "robust": None})
+                               attitude_passes=2, fit_options={"noise": "gmw", "robust": None},
+                               consider="strapdown33")
     return imu, site, res
 
 
@@ -160,6 +191,7 @@ def test_car_drive_cut(car):
     _heading_from_the_course(car)
     _windows_agree(car)
     _vertical_accelerometer_bias_is_the_pads(car)
+    _consider_gains_of_a_car_window(car)
 
 
 def _heading_from_the_course(car):
@@ -207,3 +239,24 @@ def _vertical_accelerometer_bias_is_the_pads(car):
         ba_sd = float(np.sqrt(np.sum((up * np.array([sd[f"ba_{i}"] for i in "xyz"])) ** 2)))
         # the pad's mean is known to ~0.002 m/s^2 (0.2 mg); engine vibration makes it 0.5 mg at most
         assert abs(up @ ba - excess_mg) < 3.0 * math.hypot(ba_sd, 0.5), (w.t_start, up @ ba, excess_mg, ba_sd)
+
+
+def _consider_gains_of_a_car_window(car):
+    """The windows' consider gains of strapdown33's other terms: with the specific force near g on z all along, the
+    z accelerometer's scale factor is a bias of ``mean(fb_z) / g0`` (1e-3 mg per ppm) and the z gyro's sensitivity
+    to fb_z a gyro bias of ``mean(fb_z) / g0`` (deg/h per deg/h/g); the gains go into the comparison's covariance."""
+    imu, _, res = car
+    for w in res.windows:
+        assert w.consider_gain is not None and w.consider_gain.shape == (len(w.result.names), 27)
+        assert "sa_z" in w.consider_names and "ba_z" not in w.consider_names
+        sel = (imu.t >= w.t_start) & (imu.t <= w.t_end)
+        fz = float(np.mean(imu.f[sel, 2])) / 9.80665
+        gain = dict(zip(w.consider_names, w.consider_gain[list(w.result.names).index("ba_z")]))
+        assert gain["sa_z"] == pytest.approx(fz * 1e-3, rel=0.01), (w.t_start, gain["sa_z"], fz)
+        gain = dict(zip(w.consider_names, w.consider_gain[list(w.result.names).index("bg_z")]))
+        assert gain["gg_zz"] == pytest.approx(fz, rel=0.03), (w.t_start, gain["gg_zz"], fz)
+    names = ("ba_x", "ba_y", "ba_z")
+    gains = consider_rows(res.windows, names)
+    assert [g.shape for g in gains] == [(3, 27)] * 2
+    out = window_consistency(res.windows, names, consider=(gains, np.diag(np.full(27, 1e-6))))
+    assert out["chi2"] == pytest.approx(window_consistency(res.windows, names)["chi2"], rel=1e-3)
