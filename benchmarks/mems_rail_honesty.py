@@ -22,7 +22,6 @@ Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/mems_rail_honesty.py [--seeds 1 2
 from __future__ import annotations
 
 import argparse
-import math
 import tempfile
 import time
 import warnings
@@ -58,6 +57,7 @@ def write_seed(d: Path, seed: int, clean) -> tuple[Path, Path]:
     import casep
     from casep.io.files import write_table
     from casep.model.strapdown import body_errors
+    from casep.simulation.noise import ar1_noise, white_noise
 
     t, w, f, nav, _ = clean
     model = casep.load_model(MODEL)
@@ -67,12 +67,7 @@ def write_seed(d: Path, seed: int, clean) -> tuple[Path, Path]:
                       **{f"fb_{c}": (f + df)[:, i] for i, c in enumerate("xyz")}})
     rng = np.random.default_rng(seed)
     tk = t[::5]
-    phi = math.exp(-0.1 / 1.0)
-    gm = np.zeros((tk.size, 3))
-    gm[0] = 0.05 * rng.standard_normal(3)
-    for i in range(1, tk.size):
-        gm[i] = phi * gm[i - 1] + 0.05 * math.sqrt(1 - phi**2) * rng.standard_normal(3)
-    v = nav.v[::5] + gm + 0.03 * rng.standard_normal((tk.size, 3))
+    v = nav.v[::5] + ar1_noise(tk, 0.05, 1.0, rng) + white_noise(tk.size, 0.03, rng)
     write_table(trk, {"t": tk, **{f"v_trk_{c}": v[:, i] for i, c in enumerate("xyz")}})
     return imu, trk
 

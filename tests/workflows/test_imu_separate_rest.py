@@ -8,7 +8,6 @@ mostly linearisation error, put ``bg_x`` at -9380 deg/h (the truth -120).
 
 from __future__ import annotations
 
-import math
 import warnings
 
 import numpy as np
@@ -19,6 +18,7 @@ from casep.frames import LaunchSite
 from casep.io.files import write_table
 from casep.model.strapdown import body_errors
 from casep.navigation import ImuData, check_imu, navigate
+from casep.simulation.noise import ar1_noise, white_noise
 from casep.simulation.strapdown import rail_launch
 from casep.workflows.imu_separate import separate_imu
 
@@ -44,12 +44,7 @@ def rail(tmp_path_factory):
                       **{f"fb_{c}": (f + df)[:, i] for i, c in enumerate("xyz")}})
     rng = np.random.default_rng(6)
     tk = t[::5]
-    phi = math.exp(-0.1 / 1.0)
-    gm = np.zeros((tk.size, 3))
-    gm[0] = 0.05 * rng.standard_normal(3)
-    for i in range(1, tk.size):
-        gm[i] = phi * gm[i - 1] + 0.05 * math.sqrt(1 - phi**2) * rng.standard_normal(3)
-    v = nav.v[::5] + gm + 0.03 * rng.standard_normal((tk.size, 3))
+    v = nav.v[::5] + ar1_noise(tk, 0.05, 1.0, rng) + white_noise(tk.size, 0.03, rng)
     write_table(trk, {"t": tk, **{f"v_trk_{c}": v[:, i] for i, c in enumerate("xyz")}})
     return imu, trk, np.array([TRUTH[n] / model.scales[n] for n in model.names])
 
