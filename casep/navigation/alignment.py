@@ -118,7 +118,8 @@ def _azimuth(v_t: np.ndarray, site: LaunchSite) -> float:
 
 def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, float], site: LaunchSite, *,
           heading_deg: float | None = None, heading_axis: str = "x",
-          rates_in: str = "columns w_x, w_y, w_z", accel_bias_tolerance: float = ACCEL_BIAS_TOLERANCE) -> Alignment:
+          rates_in: str = "columns w_x, w_y, w_z", accel_bias_tolerance: float = ACCEL_BIAS_TOLERANCE,
+          as_given: bool = True) -> Alignment:
     """Level over `window` and fix the heading (given, or by gyrocompassing with a warning).
 
     Parameters
@@ -140,6 +141,10 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
     accel_bias_tolerance : float, optional
         The accelerometer bias (m/s^2) the mean specific force may differ from the normal gravity by
         (:func:`_check_pad_force`); default :data:`ACCEL_BIAS_TOLERANCE` (80 mg, consumer MEMS).
+    as_given : bool
+        The record as its file gives it (gyro signs the Earth rate decides are an error,
+        :func:`_check_earth_rate`); False for a record an estimate has corrected (the passes of a separation from
+        raw data: a trial correction is judged by its residuals, the warning is said once on the record as given).
 
     Raises
     ------
@@ -184,7 +189,7 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
                              "of a horizontal axis (--heading-axis)")
         C = _triad(up_b, axis, up_t, _horizontal(heading_deg, site))
         _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in, C.T @ site.earth_rate)
-        _check_earth_rate(w[sel], w_mean, C, site, (t1, t2), rates_in, float(heading_deg))
+        _check_earth_rate(w[sel], w_mean, C, site, (t1, t2), rates_in, float(heading_deg), as_given)
         return Alignment(C, "heading", float(heading_deg) % 360.0, None, f_mean, w_mean, g0, n, heading_axis)
     _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in)
     if tilt < MIN_AXIS_TILT_RAD:  # its azimuth means nothing: report the most horizontal axis's
@@ -373,7 +378,7 @@ def mean_rate_std(x: np.ndarray) -> np.ndarray:
 
 
 def _check_earth_rate(w_win: np.ndarray, w_mean: np.ndarray, C: np.ndarray, site: LaunchSite,
-                      window: tuple[float, float], rates_in: str, heading_deg: float) -> None:
+                      window: tuple[float, float], rates_in: str, heading_deg: float, refuse: bool = True) -> None:
     """With the heading given, the mean pad rate against the Earth rate the alignment puts in body axes.
 
     ``chi2(S) = sum_i (S_i w_mean_i - e_i)^2 / (s_i^2 + b^2)``, ``e = C^T omega_t``, ``s_i`` the std of the mean
@@ -382,7 +387,9 @@ def _check_earth_rate(w_win: np.ndarray, w_mean: np.ndarray, C: np.ndarray, site
     (gyro axes whose signs differ from the accelerometers'; negating all three accelerometers turns the levelled
     attitude over about the heading axis and looks the same: the specific force at rest is +g up, and the pad
     data cannot tell "+g down" from an upside-down vehicle with two gyro axes flipped), or when ``chi2(+1)`` is
-    beyond :data:`EARTH_RATE_CHI2` (a heading other than the one given, a larger gyro bias). Not made when the
+    beyond :data:`EARTH_RATE_CHI2` (a heading other than the one given, a larger gyro bias); an error (`refuse`)
+    when that other sign is within :data:`SIGN_CHI2_CONSISTENT` and the given one beyond :data:`EARTH_RATE_CHI2`.
+    Not made when the
     mean rate exceeds 3 times the Earth rate (the gyro's bias hides it: MEMS) or the noise of the mean exceeds
     ``b``: there the pad cannot tell.
     """
@@ -406,7 +413,7 @@ def _check_earth_rate(w_win: np.ndarray, w_mean: np.ndarray, C: np.ndarray, site
         said += (f"; with the signs of gyro {axes} changed it is {chi2[k]:.3g}: gyro axes whose signs differ from "
                  "the accelerometers', or a specific force given as +g down (at rest it is +g up: negated, the "
                  "levelling turns the vehicle over)")
-        if chi2[0] > EARTH_RATE_CHI2 and chi2[k] <= SIGN_CHI2_CONSISTENT:
+        if refuse and chi2[0] > EARTH_RATE_CHI2 and chi2[k] <= SIGN_CHI2_CONSISTENT:
             cols = ", ".join(f"w_{a}" for a, v in zip("xyz", signs[k]) if v < 0)
             raise ValueError(f"{said}. As given beyond {EARTH_RATE_CHI2:g} (0.1 %), with those signs within "
                              f"{SIGN_CHI2_CONSISTENT:g} (95 %): negate {cols}, or give the specific force +g up at "

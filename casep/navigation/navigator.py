@@ -148,13 +148,14 @@ def check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite, *, wa
 
 
 def pad_state(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], *, heading_deg: float | None = None,
-              heading_axis: str = "x", accel_bias_tolerance: float | None = None
+              heading_axis: str = "x", accel_bias_tolerance: float | None = None, as_given: bool = True
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, Alignment]:
     """The state :func:`navigate` starts from: ``(q0, r0, v0, t_start, alignment)``.
 
     The attitude (Hamilton, scalar first, body -> launch-inertial), position (m) and velocity (m/s) of
     the pad at rest at the alignment window's first sample ``t_start``, and the alignment itself
-    (:func:`casep.navigation.alignment.align`; arguments as :func:`navigate`).
+    (:func:`casep.navigation.alignment.align`; arguments as :func:`navigate`; `as_given` False for a record an
+    estimate has corrected, as :func:`~casep.navigation.alignment.align` takes it).
     """
     from casep.frames import ecef_to_launch, ecef_to_launch_vector
     from casep.navigation.alignment import align
@@ -165,7 +166,7 @@ def pad_state(imu: ImuData, site: LaunchSite, align_window: tuple[float, float],
     cols = ", ".join(DTHETA_COLUMNS if imu.kind == "increments" else RATE_COLUMNS)
     tol = {} if accel_bias_tolerance is None else {"accel_bias_tolerance": accel_bias_tolerance}
     alignment = align(imu.t, imu.w, imu.f, align_window, site, heading_deg=heading_deg, heading_axis=heading_axis,
-                      **tol,
+                      **tol, as_given=as_given,
                       rates_in=f"{imu.source}, columns {cols}")
     t_s = imu.t[np.searchsorted(imu.t, align_window[0])][None]
     r0, v0 = ecef_to_launch(site, t_s, site.r_site[None, :], np.zeros((1, 3)))

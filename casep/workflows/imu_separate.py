@@ -390,7 +390,8 @@ class _Run:
             fb, w = corrected_imu(self.base, self.nav.q, imu.f[i0:], imu.w[i0:], imu.t[i0:] - imu.t[i0], D,
                                   start=(self.imu_k.f[i0:], self.imu_k.w[i0:]))  # from the last pass's
             imu = with_rates(imu, np.vstack([imu.w[:i0], w]), np.vstack([imu.f[:i0], fb]))
-        q0, r0, v0, t_s, alignment = pad_state(imu, self.nav_site, self.window, **self.heading)
+        q0, r0, v0, t_s, alignment = pad_state(imu, self.nav_site, self.window, **self.heading,
+                                               as_given=self.nav is None)
         self.q_aligned, self.C_tb = q0, alignment.C_tb
         phi0, dv0 = self.base.numeric("phi0") @ D, self.base.numeric("dv0") @ D  # the model's own initial terms
         q0 = dcm_to_quat(corrected_attitude(quat_to_dcm(q0), phi0))
@@ -512,13 +513,14 @@ class _Run:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # a gyrocompassing warning per step: said once, by the pass itself
             C_ref = align(tt, np.tile(w_mean, (2, 1)), np.tile(f_mean, (2, 1)), self.window, self.nav_site,
-                          **self.heading).C_tb
+                          **self.heading, as_given=False).C_tb  # a derivative's perturbed means, not a record
             for j, ((df, dw), h) in enumerate(zip(directions, steps)):
                 if h == 0:
                     continue
                 phi = [R @ Rotation.from_matrix(C_ref @ align(tt, np.tile(w_mean + s * dw, (2, 1)),
                                                              np.tile(f_mean + s * df, (2, 1)), self.window,
-                                                             self.nav_site, **self.heading).C_tb.T).as_rotvec()
+                                                             self.nav_site, **self.heading,
+                                                             as_given=False).C_tb.T).as_rotvec()
                        for s in (h, -h)]
                 A[:, j] = (phi[0] - phi[1]) / (2 * h)
         return A
