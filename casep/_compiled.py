@@ -10,8 +10,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["rels_ud", "sv_integrate_chunk", "all_pole_filter", "gmw_filter", "joint_filter", "first_order",
-           "gmw_gains"]
+__all__ = ["rels_ud", "sv_integrate_chunk", "all_pole_filter", "gmw_filter", "joint_filter"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -314,27 +313,3 @@ def joint_filter(X, T, Q, H, P0, a, qb, d, out):  # pragma: no cover
         _acc(W, nu, False, 1.0, m)
         _acc(W, W, True, -1.0, P)
     return logdet
-
-
-@numba.njit(cache=True, nogil=True)
-def first_order(a, X, out):  # pragma: no cover
-    """``out_0 = X_0``, ``out_k = X_k + a_k out_(k-1)`` down the rows of X (K, n)
-    (:func:`casep._kernels.first_order`)."""
-    K, n = X.shape
-    for j in range(n):
-        out[0, j] = X[0, j]
-    for k in range(1, K):
-        for j in range(n):
-            out[k, j] = X[k, j] + a[k] * out[k - 1, j]
-
-
-@numba.njit(cache=True, nogil=True)
-def gmw_gains(a, b, share, F, G):  # pragma: no cover
-    """The innovation variances F and gains G of :func:`gmw_filter` (:func:`casep._kernels.gmw_gains`)."""
-    q = 1.0 - share
-    P = 0.0
-    for k in range(a.size):
-        Pm = a[k] * a[k] * P + q * b[k]
-        F[k] = Pm + share
-        G[k] = Pm / F[k]
-        P = Pm * share / F[k]

@@ -87,35 +87,6 @@ def gmw_filter(X: np.ndarray, dt: np.ndarray, tau: float, share: float, m: np.nd
     return float(kernel(X, dt, float(tau), float(share), m, P, out))
 
 
-def first_order(a: np.ndarray, X: np.ndarray, reverse: bool = False) -> np.ndarray:
-    """The first-order recursion ``out_k = X_k + a_k out_(k-1)`` (``out_0 = X_0``) down the rows of `X` (K, n), or
-    up them with `reverse` (``out_(K-1) = X_(K-1)``, ``out_k = X_k + a_k out_(k+1)``); compiled
-    (:func:`casep._compiled.first_order`). ``a`` (K,): ``a_0`` (resp. ``a_(K-1)``) is not used."""
-    from casep._compiled import first_order as kernel
-
-    X = np.asarray(X, dtype=float)
-    a = np.asarray(a, dtype=float)
-    if reverse:
-        out = np.empty_like(X)
-        kernel(np.ascontiguousarray(a[::-1]), np.ascontiguousarray(X[::-1]), out)
-        return out[::-1]
-    out = np.empty_like(X)
-    kernel(np.ascontiguousarray(a), np.ascontiguousarray(X), out)
-    return out
-
-
-def gmw_gains(dt: np.ndarray, tau: float, share: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(a, F, K)``: the AR(1) factors, innovation variances and gains of :func:`gmw_filter` on the steps `dt`
-    (``dt_0 = inf``: the first sample), from the times and the parameters only; compiled
-    (:func:`casep._compiled.gmw_gains`)."""
-    from casep._compiled import gmw_gains as kernel
-
-    a, b = ar1_terms(dt, tau)
-    F, K = np.empty(a.size), np.empty(a.size)
-    kernel(np.ascontiguousarray(a), np.ascontiguousarray(b), float(share), F, K)
-    return a, F, K
-
-
 def gmw_filter_numpy(X: np.ndarray, dt: np.ndarray, tau: float, share: float, m: np.ndarray, P: np.ndarray,
                      out: np.ndarray) -> float:
     """:func:`gmw_filter` as a plain loop over the samples (the reference of the compiled kernel)."""

@@ -44,8 +44,7 @@ from casep.regression.rows import Rows, prepare_rows
 # Rows and prepare_rows live in casep.regression.rows (the data's), re-exported here beside solve_problem
 __all__ = ["fit", "fit_flights", "joint_rows", "JointRows", "flight_sigmas", "rows_for", "solve_problem",
            "solve_spec", "noise_account", "prepare_rows", "Rows", "Solved", "hac_covariance", "with_hac",
-           "richer_noise_factor", "with_noise_parameters", "noise_parameter_covariance",
-           "STD_CHOICES"]
+           "richer_noise_factor", "STD_CHOICES"]
 
 
 @dataclass
@@ -206,8 +205,6 @@ def solve_spec(problem: Problem, spec: FitSpec, *, rows: Rows | None = None, che
         res = dataclasses.replace(res, sigma_source="robust", settings={**res.settings, "sigma": "estimated"})
     if ns.std == "hac":
         res = with_hac(res, rows.solved)
-    elif meth.hac and opts.get("sigma") is None:  # sigma estimated from the rows, as the noise model
-        res = with_noise_parameters(res, rows)
     return Solved(_finish(rows, res, check_white), rows.solved, rows.noise, np.flatnonzero(~rows.keep),
                   rows.weights)
 
@@ -325,45 +322,6 @@ def with_hac(res: EstimateResult, solved: Problem) -> EstimateResult:
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     std[und] = np.nan
     return dataclasses.replace(res, covariance=cov, std=std, settings={**res.settings, "std": "hac"})
-
-
-def with_noise_parameters(res: EstimateResult, rows: Rows) -> EstimateResult:
-    """`res`, least squares on `rows` whitened by a REML noise model, with the noise parameters' uncertainty in
-    its covariance and std (:func:`casep.noise.inflation.parameter_inflation`: Kenward-Roger, the plug-in
-    covariance ``Phi(theta_hat)`` plus what ``theta_hat``'s scatter adds and its bias takes). Unchanged where
-    nothing was estimated (white noise of one std, noise-free rows) or the rows are robustly weighted (the
-    formula is that of least squares on the whitened rows); what it did in ``diagnostics["noise_parameters"]``.
-    """
-    from casep.noise.inflation import parameter_inflation
-
-    if rows.weights is not None or res.covariance is None or rows.noise.rule not in ("reml", "given") \
-            or rows.noise.is_white or not rows.solved.has_rows:
-        return res
-    raw = rows.problem if rows.keep.all() else rows.problem.subset(rows.keep)
-    try:
-        inf = parameter_inflation(raw, rows.noise)
-    except (ValueError, np.linalg.LinAlgError):
-        inf = None
-    if inf is None:
-        return res
-    before = np.array(res.covariance, dtype=float)
-    und = ~np.isfinite(np.diag(before))
-    cov = inf.adjusted(np.where(np.isfinite(before), before, 0.0))
-    cov[und, :] = np.nan
-    cov[:, und] = np.nan
-    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    std[und] = res.std[und] if res.std is not None else np.nan
-    diag = {**res.diagnostics, "noise_parameters": {**inf.info, "rule": "kenward-roger",
-                                                      "covariance_added": np.where(und[:, None] | und[None, :], 0.0,
-                                                                                   cov - before).tolist()}}
-    return dataclasses.replace(res, covariance=cov, std=std, diagnostics=diag)
-
-
-def noise_parameter_covariance(res: EstimateResult) -> np.ndarray | None:
-    """What :func:`with_noise_parameters` added to `res`'s covariance (natural units, n x n), None if nothing:
-    for a caller that forms the covariance again under the same noise model (the raw-IMU path's budget)."""
-    rec = res.diagnostics.get("noise_parameters")
-    return None if not isinstance(rec, dict) or "covariance_added" not in rec else np.array(rec["covariance_added"])
 
 
 def richer_noise_factor(res: EstimateResult, problem: Problem) -> float:

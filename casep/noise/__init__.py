@@ -11,8 +11,6 @@ so :mod:`casep.regression` can whiten its rows with this package.
   likelihood-ratio test)
 - :mod:`casep.noise.known`: REML of the tracking noise beside a known noise term in state-space form
   (the IMU's own noise of ``casep separate --imu``), never an N x N matrix
-- :mod:`casep.noise.inflation`: the noise parameters' uncertainty in the std of a fit under a REML noise model
-  (Kenward-Roger, with the t variance)
 - :mod:`casep.noise.whiteness`: the Ljung-Box test of whitened residuals, gaps and segments
 - :mod:`casep.noise.robust`: the robust filter on the innovations (glitches, row weights)
 - :mod:`casep.noise.identification`: Allan deviation and the noise processes it shows

@@ -48,11 +48,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from casep._kernels import ar1_terms, first_order, joint_filter
+from casep._kernels import ar1_terms, joint_filter
 from casep.noise.model import AXES, NoiseModel
 
 __all__ = ["KnownStates", "TrackingParameters", "joint_whiten", "restricted_likelihood", "fit_tracking",
-           "tracking_covariance_times", "axis_covariance_times"]
+           "tracking_covariance_times"]
 
 
 @dataclass(frozen=True)
@@ -197,20 +197,19 @@ def tracking_covariance_times(V: np.ndarray, t: np.ndarray, noise: NoiseModel) -
     theta = TrackingParameters.of(noise)
     V = np.asarray(V, dtype=float)
     out = np.empty_like(V)
+    N = t.size
     for j, _ in enumerate(AXES):
-        out[:, j, :] = axis_covariance_times(V[:, j, :], t, theta.tau[j], theta.c[j], theta.d[j])
+        v = V[:, j, :]
+        out[:, j, :] = theta.d[j] * v
+        if theta.tau[j] is None:
+            continue
+        a = np.concatenate([[0.0], ar1_terms(np.diff(t), theta.tau[j])[0]])
+        fwd, bwd = np.empty_like(v), np.empty_like(v)
+        fwd[0] = v[0]
+        for i in range(1, N):
+            fwd[i] = v[i] + a[i] * fwd[i - 1]
+        bwd[-1] = v[-1]
+        for i in range(N - 2, -1, -1):
+            bwd[i] = v[i] + a[i + 1] * bwd[i + 1]
+        out[:, j, :] += theta.c[j] * (fwd + bwd - v)
     return out
-
-
-def axis_covariance_times(v: np.ndarray, t: np.ndarray, tau: float | None, c: float, d: float) -> np.ndarray:
-    """``Sigma v`` for the rows `v` (N, k) of one axis whose noise is Gauss-Markov of variance `c` and correlation
-    time `tau` (None: none) plus white of variance `d`: the forward and backward AR(1) recursions of the module
-    notes (compiled, :func:`casep._kernels.first_order`). O(N k)."""
-    v = np.asarray(v, dtype=float)
-    out = d * v
-    if tau is None:
-        return out
-    a = np.concatenate([[0.0], ar1_terms(np.diff(t), tau)[0]])  # a_i between samples i - 1 and i
-    fwd = first_order(a, v)
-    bwd = first_order(np.concatenate([a[1:], [0.0]]), v, reverse=True)  # b_i = v_i + a_(i+1) b_(i+1)
-    return out + c * (fwd + bwd - v)

@@ -47,7 +47,7 @@ from typing import Any, ClassVar, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
-from casep._kernels import ar1_terms, first_order, gmw_filter, gmw_gains
+from casep._kernels import ar1_terms, gmw_filter
 from casep.results import Completed
 
 __all__ = ["NOISE_KINDS", "AUTO_LR", "AUTO_LR_SCALE", "NoiseModel", "whiten", "whiten_blocks", "whiten_axis",
@@ -301,16 +301,21 @@ def _series_transpose(V: np.ndarray, t: np.ndarray, tau: float | None, share: fl
     dt = np.empty(t.size)
     dt[0] = np.inf
     np.subtract(t[1:], t[:-1], out=dt[1:])
-    a, F, K = gmw_gains(dt, tau, share)  # the gains of gmw_filter (they depend on the times and the parameters only)
+    a, b = ar1_terms(dt, tau)
+    F, K = np.empty(t.size), np.empty(t.size)
+    P = 0.0
+    for k in range(t.size):  # the gains of gmw_filter (they depend on the times and the parameters only)
+        Pm = a[k] * a[k] * P + (1.0 - share) * b[k]
+        F[k] = Pm + share
+        K[k] = Pm / F[k]
+        P = Pm * share / F[k]
     g = 1.0 / np.sqrt(F)
     alpha = a * (1.0 - K)
     Z = V * g[:, None]
-    if t.size > 1:  # rho_k = c_k + alpha_(k+1) rho_(k+1), c_k = -a_(k+1) g_(k+1) v_(k+1), rho_(N-1) = 0
-        c = np.zeros_like(V)
-        c[:-1] = -(a[1:] * g[1:])[:, None] * V[1:]
-        coef = np.zeros(t.size)
-        coef[:-1] = alpha[1:]
-        Z += K[:, None] * first_order(coef, c, reverse=True)
+    rho = np.zeros(V.shape[1])
+    for k in range(t.size - 2, -1, -1):
+        rho = -a[k + 1] * g[k + 1] * V[k + 1] + alpha[k + 1] * rho
+        Z[k] += K[k] * rho
     return Z
 
 

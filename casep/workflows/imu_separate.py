@@ -852,13 +852,7 @@ class _Run:
         var = combination_imu_noise(W, scale, res, problem, flight, self.levelling())
         if var is None:
             return combos
-        from casep.estimators.solve import noise_parameter_covariance
-
         trk, imu = var
-        added = noise_parameter_covariance(res)  # the noise parameters' uncertainty (with_noise's covariance)
-        if trk is not None and added is not None:
-            Ws = W / scale
-            trk = trk + np.einsum("ij,jk,ik->i", Ws, added, Ws)
         trk = np.array([c["std"] ** 2 for c in combos]) if trk is None else trk
         return [{**c, "std_tracking_noise_only": c["std"], "std": float(math.sqrt(a + b))}
                 for c, a, b in zip(combos, trk, imu)]
@@ -1712,13 +1706,8 @@ def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
     budget = imu_noise_budget(res, problem, flight, levelling)
     if budget is None:
         return res
-    from casep.estimators.solve import noise_parameter_covariance
-
     C_trk, C_imu, account = budget
     C_fit = np.asarray(res.covariance)
-    added = noise_parameter_covariance(res)  # the noise parameters' uncertainty, in the fit's covariance
-    if C_trk is not None and added is not None:
-        C_trk = C_trk + added
     # the tracking part: refitted (the minimum-norm solution's, finite where the fit's is not), else the fit's own
     cov = C_fit + C_imu if C_trk is None else np.where(np.isfinite(C_fit), C_trk + C_imu, np.nan)
     std = None if res.std is None else np.where(np.isfinite(res.std), np.sqrt(np.clip(np.diag(cov), 0.0, None)), np.nan)
