@@ -248,6 +248,9 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
 
     trk = _Tracking(tracking)
     base = load_model(model)
+    extra = load_model(consider) if consider is not None else None  # built and set up once, for every window
+    terms = () if extra is None else tuple(consider_terms) if consider_terms is not None else \
+        tuple(n for n in extra.names if n not in base.names)
     nav0 = navigate(imu, site, align, heading_deg=0.0)
     a = nav0.alignment
     assert a is not None  # navigate always aligns
@@ -288,10 +291,7 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
 
             S = build_sv(base, flight.t, flight.f, signals=flight.signals)
             windows.append(Window(t_a, float(nav.t[-1]), site_k, res, passes, course, S[-1], base.names))
-            if consider is not None:
-                extra = load_model(consider)
-                terms = tuple(consider_terms) if consider_terms is not None else \
-                    tuple(n for n in extra.names if n not in base.names)
+            if extra is not None:
                 windows[-1].consider_gain = consider_gain(flight, res, base, extra, terms)
                 windows[-1].consider_names = terms
             phi_end = _attitude_error_end(base, res, flight)
