@@ -575,7 +575,7 @@ class _Run:
         pass kept): the correction does not invert, or the residual's RMS grows more than :data:`WORSE` times that
         of the pass before (`before`, the rows the step was fitted to; not at the rounding level; None: not judged,
         a step that cannot be narrowed: the stretches' combinations, or no covariance)."""
-        state = (self.nav, self.imu_k, self.model_k, self.q_aligned, self.C_tb)
+        state = self._state()
         try:
             out = self.solve(D, spec)
         except ValueError as exc:
@@ -587,8 +587,16 @@ class _Run:
             if rms[1] <= WORSE * rms[0] or self.at_rounding(rms[1]):
                 return out
             why = f"the residual grew from {rms[0]:.3g} to {rms[1]:.3g} m/s RMS"
-        self.nav, self.imu_k, self.model_k, self.q_aligned, self.C_tb = state
+        self._restore(state)
         return why
+
+    def _state(self) -> tuple:
+        """What a pass leaves on the run (navigation, corrected IMU, model, aligned attitude, triad), to restore."""
+        return self.nav, self.imu_k, self.model_k, self.q_aligned, self.C_tb
+
+    def _restore(self, state: tuple) -> None:
+        """The run as :meth:`_state` found it."""
+        self.nav, self.imu_k, self.model_k, self.q_aligned, self.C_tb = state
 
     def back_to_prior(self, D: np.ndarray, move: np.ndarray, back: tuple[np.ndarray, int], spec: FitSpec,
                       trial: tuple) -> tuple[np.ndarray, tuple]:
@@ -607,7 +615,7 @@ class _Run:
         two points apart."""
         from casep._special import chi2_sf
 
-        state = (self.nav, self.imu_k, self.model_k, self.q_aligned, self.C_tb)
+        state = self._state()
         pull, k = back
         other = self.trial(D + move - pull, spec, None)
         if not isinstance(other, str):
@@ -615,7 +623,7 @@ class _Run:
             var = ssr[0] / max(trial[0].residuals.size - len(trial[0].names), 1)
             if var > 0 and chi2_sf(k, max(ssr[1] - ssr[0], 0.0) / var) > BACK_TO_PRIOR_P:
                 return move - pull, other
-        self.nav, self.imu_k, self.model_k, self.q_aligned, self.C_tb = state
+        self._restore(state)
         return move, trial
 
     def at_rounding(self, rms: float) -> bool:
@@ -666,7 +674,7 @@ class _Run:
                 passes[-1]["left_out"] = [{"std": sd, "z": z, "combination": nm} for sd, z, nm in step.beyond]
                 passes[-1]["plausible_size"] = _step_size(step, D, model.scales, res.names)
             if step.kept:  # some combination left out: the ones stepped along, stated
-                scale = np.array([model.scales.get(nm, 1.0) for nm in res.names])
+                scale = _scale_of(model.scales, res.names)
                 passes[-1]["determined"] = [{"std": sd, "weights": w.tolist(), "estimate": float(w @ ((D + step.d)
                                                                                                      / scale))}
                                             for sd, w in step.kept]
@@ -847,7 +855,7 @@ class _Run:
         their std, as :meth:`with_noise` puts it in the coefficients' (:func:`combination_imu_noise`; `res` the
         result with it, its noise account holding the tracking noise refitted beside it). Each keeps its std without
         it as ``std_tracking_noise_only``; unchanged when the flight does not hold the IMU's samples."""
-        scale = np.array([scales.get(nm, 1.0) for nm in res.names], dtype=float)
+        scale = _scale_of(scales, res.names)
         W = np.array([c["weights"] for c in combos], dtype=float)
         var = combination_imu_noise(W, scale, res, problem, flight, self.levelling())
         if var is None:
@@ -897,7 +905,7 @@ class _Run:
         L = V * np.sqrt(lam)
         left_out = []
         if np.isfinite(self.limit):  # only where the passes' steps were linear: no draw beyond (determined_step)
-            scale = np.array([self.model_k.scales.get(nm, 1.0) if self.model_k else 1.0 for nm in names])
+            scale = _scale_of(self.model_k.scales if self.model_k else {}, names)
             N = 0 if res.solution is None else np.asarray(res.solution.null_space).reshape(len(names), -1).shape[1]
             sig, q = _scaled_spectrum(C, scale, problem, float(res.sigma), N)
             left_out = [_combination(names, q[:, i]) for i in np.flatnonzero(sig > self.limit)]
@@ -983,7 +991,7 @@ class _Run:
         self.rest_shift = None
         names = list(problem.names)
         n, m = len(names), len(combos)
-        scale = np.array([self.model_k.scales.get(nm, 1.0) if self.model_k else 1.0 for nm in names])
+        scale = _scale_of(self.model_k.scales if self.model_k else {}, names)
         W = np.array([c["weights"] for c in combos])
         s = np.array([c["std"] for c in combos])
         Q = np.linalg.svd(W)[2][m:].T  # (n, n - m): the rest, orthonormal
@@ -1107,7 +1115,7 @@ def _at_rounding(D: np.ndarray, step: Step, scales: dict[str, float], names: Any
     """
     from casep.regression.problem import is_rounding_level
 
-    scale = np.array([scales.get(nm, 1.0) for nm in names], dtype=float)[:D.size]
+    scale = _scale_of(scales, names)[:D.size]
     z, Z = step.d[:D.size] / scale, (D + step.d)[:D.size] / scale
     if not (np.all(np.isfinite(z)) and np.any(Z)):
         return False
@@ -1291,7 +1299,7 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
     from casep.checks.tracking_quality import determined, noise_problem
 
     names = list(res.names)
-    scale = np.array([scales.get(nm, 1.0) for nm in names], dtype=float)
+    scale = _scale_of(scales, names)
     if noise_problem(flight) is not None and problem.y is not None and problem.t is not None:
         combos, _ = determined(problem, flight.meta["tracking_screen"]["stretches"], scales, imu=flight)
         if not combos:
@@ -1507,6 +1515,11 @@ def _outside_failure(step: Step, rejected: list[dict], size: float = np.inf) -> 
             f"it leaves the linear model ({rejected[-1]['why'] if rejected else 'rejected'}): " + _BLAME)
 
 
+def _scale_of(scales: dict[str, float], names: Any) -> np.ndarray:
+    """The declared magnitudes (natural units) of the coefficients `names`, 1 for a name without one."""
+    return np.array([scales.get(nm, 1.0) for nm in names], dtype=float)
+
+
 def _beyond_plausible(step: Step, D: np.ndarray, scales: dict[str, float], names: Any) -> tuple[np.ndarray, int] | None:
     """The part of `D` (natural units) along the combinations `step` judged undetermined (``step.undetermined``)
     further from the prior than :data:`BACK_BEYOND` times their plausible size (``step.size``, declared magnitudes),
@@ -1514,7 +1527,7 @@ def _beyond_plausible(step: Step, D: np.ndarray, scales: dict[str, float], names
     U = step.undetermined
     if U is None or not U.size or not np.isfinite(step.size):
         return None
-    scale = np.array([scales.get(nm, 1.0) for nm in names], dtype=float)
+    scale = _scale_of(scales, names)
     c = U.T @ (D / scale)
     far = np.abs(c) > BACK_BEYOND * step.size
     return (scale * (U[:, far] @ c[far]), int(far.sum())) if far.any() else None
@@ -1526,7 +1539,7 @@ def _plausible(D: np.ndarray, scales: dict[str, float], names: Any) -> float:
     :func:`casep.checks.tracking_quality.plausible_size` of its coefficients."""
     from casep.checks.tracking_quality import plausible_size
 
-    scale = np.array([scales.get(nm, 1.0) for nm in names], dtype=float)[:D.size]
+    scale = _scale_of(scales, names)[:D.size]
     return plausible_size([{"estimate": float(v)} for v in D / scale if np.isfinite(v)])
 
 
