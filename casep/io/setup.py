@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["setup_evidence", "PAD_VELOCITY_TOL", "PAD_ALPHA", "PAD_REST_SPEED", "PAD_FIT_WINDOW", "PAD_NOISE_SPAN",
+__all__ = ["setup_evidence", "earth_relative_tracking", "EARTH_RELATIVE_RATIO", "PAD_VELOCITY_TOL", "PAD_ALPHA", "PAD_REST_SPEED", "PAD_FIT_WINDOW", "PAD_NOISE_SPAN",
            "POSITION_TOL", "LAUNCH_GAP_TOL"]
 
 #: ``|d| = |v_tel(t0) - v_pad - C u|`` above this (m/s) and significant (:data:`PAD_ALPHA`): the stated site,
@@ -251,3 +251,52 @@ def _swapped_distance(r_ecef: np.ndarray, site: Any) -> float:
         return float("inf")
     r, _ = geodetic_to_ecef(lon, lat, h, [0.0], [0.0], [0.0])
     return float(np.linalg.norm(r[0] - site.r_site))
+
+
+#: A launch-frame tracking whose velocity at its first epochs differs from the navigated telemetry's by the pad's
+#: Earth-rotation velocity ``v_pad``: ``|dv0|`` above :data:`PAD_REST_SPEED` and more than this many times
+#: ``|dv0 - v_pad|`` (an INS aligned on the pad starts within metres per second of the truth).
+EARTH_RELATIVE_RATIO = 10.0
+
+
+def earth_relative_tracking(site: Any, t: np.ndarray, dv: np.ndarray) -> str | None:
+    """Why a tracking taken as launch-inertial is relative to the rotating Earth, or None.
+
+    A telemetry casep navigated from the pad (``casep separate --imu``) is launch-inertial: on the pad it moves
+    with the Earth's rotation, ``v_pad`` (329 m/s at latitude 45 deg). A tracking file in the same frame does too,
+    so ``dv = v_tel - v_trk`` near the launch is the INS error of a few seconds of flight: metres per second. A
+    tracking relative to the Earth (a receiver's local-level velocity, launch-fixed axes, or a simulation without
+    the Earth's rotation) leaves ``dv ~ v_pad`` instead. With ``dv0`` the straight-line fit of dv at the first
+    epoch over :data:`PAD_FIT_WINDOW` s (:func:`_velocity_at`), the tracking is Earth-relative when ``|dv0| >``
+    :data:`PAD_REST_SPEED` and ``|dv0| >`` :data:`EARTH_RELATIVE_RATIO` ``|dv0 - v_pad|``.
+
+    Parameters
+    ----------
+    site : casep.frames.LaunchSite
+        The launch site and time of the telemetry's launch-inertial frame, in the time scale of `t`.
+    t, dv : (M,), (M, 3) arrays
+        The observed tracking epochs (s) and ``v_tel - v_trk`` there (m/s, launch-inertial axes).
+    """
+    from casep.frames import ecef_to_launch
+
+    t, dv = np.asarray(t, dtype=float), np.asarray(dv, dtype=float)
+    if t.size < 4 or t[0] - site.t0 > PAD_NOISE_SPAN:  # the first epoch long after the launch: INS errors grown
+        return None
+    fit = _velocity_at(t, dv, float(t[0]))
+    if fit is None:
+        return None
+    dv0 = fit[0]
+    v_pad = ecef_to_launch(site, [float(t[0])], [site.r_site], [[0.0, 0.0, 0.0]])[1][0]
+    gap, rest = float(np.linalg.norm(dv0)), float(np.linalg.norm(dv0 - v_pad))
+    if not (gap > PAD_REST_SPEED and gap > EARTH_RELATIVE_RATIO * rest):
+        return None
+    vec = ", ".join(f"{x:.4g}" for x in dv0)
+    pad = ", ".join(f"{x:.4g}" for x in v_pad)
+    return (f"at the first tracking epoch (t = {t[0]:.10g} s, {t[0] - site.t0:+.3g} s from the launch time) the "
+            f"telemetry and tracking velocities differ by ({vec}) m/s, |dv| {gap:.4g} m/s, where an INS aligned on the "
+            f"pad is off by metres per second: that is the pad's velocity in the launch-inertial frame, ({pad}) m/s "
+            f"(the Earth's rotation at latitude {site.lat_deg:.6g} deg), to within {rest:.3g} m/s. The tracking is "
+            "relative to the rotating Earth (local-level or launch-fixed axes, or a simulation without the Earth's "
+            "rotation), not launch-inertial as --tracking-frame launch takes it: give the receiver's Earth-fixed "
+            "file (--tracking-frame ecef or geodetic), or its velocity turned into the launch-inertial frame "
+            "(casep.frames.ecef_to_launch)")

@@ -418,6 +418,13 @@ class _Run:
             warnings.filterwarnings("ignore", category=SaturationWarning)
             flight = read_flight_pair(tel, self.tracking, **self.pair)
         flight.meta["saturation"] = _imu_saturation(self.imu)
+        if self.pair["tracking_frame"] == "launch":  # taken as launch-inertial: the pad's rotation says if it is
+            from casep.io.setup import earth_relative_tracking
+
+            obs = np.asarray(flight.observed)
+            why = earth_relative_tracking(self.nav_site, flight.t[obs], flight.dv[obs])
+            if why is not None:
+                flight.meta["setup"] = {"problems": [why]}
         # the late-start check: the speed relative to the pad (launch-inertial v_tel carries the Earth's rotation)
         flight.meta["start_speed_m_s"] = float(np.linalg.norm(nav.earth_relative()[1][0]))
         if model is None or not np.any(D):
@@ -652,6 +659,10 @@ class _Run:
         fast = _fast_spec(self.spec) if iterate else None
         spec = fast or self.spec
         res, nav, flight, model, problem = self.solve(None, spec)
+        from casep.checks.plausibility import setup_problems
+
+        if setup_problems(flight):  # a set-up mistake (site, frame, times): passes would fit it, not the instrument
+            iterate = False  # one pass, which the set-up judgement fails (judge_setup, in finish)
         self.data_scale = float(np.max(np.abs(problem.y), initial=0.0)) if problem.y is not None else None
         D = np.zeros(len(res.names))
         passes: list[dict] = []

@@ -12,6 +12,7 @@ clean record, and the noise-free truth is the iteration's fixed point.
 from __future__ import annotations
 
 import math
+import re
 import warnings
 
 import numpy as np
@@ -938,3 +939,29 @@ def test_a_raw_imu_message_is_its_reason_and_advice_then_a_line_per_finding():
     assert _advice_first(out, "m1 or m2").message == out.message  # said once
     plain = _with_line(res, "the iterated passes stepped along 2 combinations")
     assert _advice_first(plain, "m1 or m2") is plain  # no line advises them: the first line unchanged
+
+
+def test_tracking_relative_to_the_rotating_earth_taken_as_launch_inertial_is_a_set_up_failure(truth_flight, tmp_path):
+    """The truth flight's tracking given relative to the rotating Earth, in the launch triad's axes (a receiver's
+    local-level velocity, or a simulation without the Earth's rotation), as launch-frame tracking: the navigated
+    telemetry moves with the pad (175.6 m/s at Esrange) where the tracking is at rest, and every pass would fit
+    that. The result fails the set-up check naming the frame after one pass; main iterated and failed on the
+    linear model's limits."""
+    from casep.estimators.registry import STATUS_SETUP
+    from casep.frames import OMEGA_EARTH, launch_to_ecef
+
+    imu, trk, _ = write_flight(tmp_path, truth_flight)
+    t, nav = truth_flight[0], truth_flight[3]
+    k = slice(None, None, int(RATE / TRK_RATE))
+    v_earth = launch_to_ecef(SITE, t[k], nav.r[k], nav.v[k])[1] @ SITE.C  # ECEF Earth-relative -> launch axes
+    write_table(trk, {"t": t[k], **{f"v_trk_{a}": v_earth[:, i] for i, a in enumerate("xyz")}})
+    out = _separate(imu, trk)
+    res = out.result
+    assert not out.success and res.status == STATUS_SETUP, res.message
+    assert res.message.startswith("failed: set-up check of"), res.message
+    said = re.search(r"\|dv\| ([\d.]+) m/s.*the Earth's rotation at latitude 67\.89 deg\), to within ([\d.e-]+) m/s",
+                     res.message)
+    pad_speed = OMEGA_EARTH * math.hypot(*SITE.r_site[:2])  # omega_E times the pad's distance from the axis
+    assert said and abs(float(said[1]) - pad_speed) < 0.1 and float(said[2]) < 0.1, (pad_speed, res.message)
+    assert "relative to the rotating Earth" in res.message and "--tracking-frame ecef" in res.message
+    assert len(res.diagnostics["iterations"]["passes"]) == 1  # not iterated: the passes would fit the frame
