@@ -15,7 +15,8 @@ finds, on a telemetry + tracking pair formed at the tracking times:
   ``JUMP_TOL + JUMP_RATE dt`` (10 m/s, plus 2 m/s^2 = 200 mg of instrument error acceleration per
   second between them) is a tracking velocity change the IMU rules out. The epochs are cut into
   segments at such jumps; a segment shorter than :data:`MIN_SEGMENT_S` is left out (a glitch or a
-  burst of wrong epochs between consistent stretches); when no segment is that long, the longest is kept.
+  burst of wrong epochs between consistent stretches), except the first when it joins the flight's first
+  sample, where dv is 0 (the pad), under the same rule; when no segment is kept, the longest is.
 - **clock drift**: the time offset of the tracking against the telemetry estimated in
   :data:`DRIFT_WINDOWS` windows (``dv ~ quadratic in t + a(t) tau_w`` per window, each axis its own
   quadratic, one ``tau_w``; windows whose acceleration barely changes cannot see it and are skipped),
@@ -199,8 +200,13 @@ def _stale(flight: FlightData, idx: np.ndarray, V: np.ndarray) -> np.ndarray:
     return is_rep & (moved > STALE_MOTION)
 
 
-def _impossible(t: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, float]:
-    """Epochs in segments shorter than MIN_SEGMENT_S between jumps the IMU rules out; and the largest jump, m/s."""
+def _impossible(t: np.ndarray, dv: np.ndarray, start: float | None = None) -> tuple[np.ndarray, float]:
+    """Epochs in segments shorter than MIN_SEGMENT_S between jumps the IMU rules out; and the largest jump, m/s.
+
+    `start` (s, at or before ``t[0]``): where dv is 0, the first telemetry sample (the model's ``S_V(t0) = 0``; an
+    INS aligned on the pad starts at the pad's velocity). It is an epoch like the others: the first segment, when
+    its first dv is within the jump rule of 0 since `start`, holds the pad and is kept however short (a receiver
+    that loses lock a second after lift-off leaves only that second of right fixes before its wrong ones)."""
     if t.size < 2:
         return np.zeros(t.size, bool), 0.0
     jump = np.linalg.norm(np.diff(dv, axis=0), axis=1)
@@ -209,6 +215,8 @@ def _impossible(t: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, float]:
     first = np.flatnonzero(np.concatenate([[True], cut]))
     last = np.concatenate([first[1:] - 1, [t.size - 1]])
     long = t[last] - t[first] >= MIN_SEGMENT_S
+    if start is not None and start <= t[0] and np.linalg.norm(dv[0]) <= JUMP_TOL + JUMP_RATE * (t[0] - start):
+        long[0] = True  # joined to the pad's dv = 0
     if not long.any():
         long[np.argmax(t[last] - t[first])] = True
     largest = float(jump[cut].max()) if cut.any() else 0.0
@@ -390,7 +398,7 @@ def screen_tracking(flight: FlightData, *, drift_warning: bool = True) -> Flight
     t = flight.t[idx]
     stale = _stale(flight, idx, V)
     fresh = np.flatnonzero(~stale)
-    bad_fresh, largest = _impossible(t[fresh], flight.dv[idx[fresh]])
+    bad_fresh, largest = _impossible(t[fresh], flight.dv[idx[fresh]], float(flight.t[0]))
     rejected = np.zeros(idx.size, bool)
     rejected[fresh[bad_fresh]] = True
     keep = ~(stale | rejected)

@@ -16,6 +16,11 @@ Earth-relative velocity at the file's own time tags) to measure them:
 - the **first tracked position** against the site: the vehicle cannot be further from the pad
   than its speed times the time since launch (a boost speeds up monotonically).
 
+A tracking taken as launch-inertial (``--tracking-frame launch``) beside a telemetry casep navigated from the pad
+has no site of its own to check, but the pad's rotation still shows: :func:`earth_relative_tracking` finds a
+tracking relative to the rotating Earth by ``dv`` at its first epochs being the pad's launch-inertial velocity
+(:mod:`casep.workflows.imu_separate` records it as a set-up problem).
+
 :func:`casep.io.files.read_flight_pair` records :func:`setup_evidence` in ``flight.meta["setup"]``;
 the checks of a flight before estimation (:func:`casep.checks.plausibility.warn_setup`) warn with it.
 """
@@ -26,8 +31,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["setup_evidence", "earth_relative_tracking", "EARTH_RELATIVE_RATIO", "PAD_VELOCITY_TOL", "PAD_ALPHA", "PAD_REST_SPEED", "PAD_FIT_WINDOW", "PAD_NOISE_SPAN",
-           "POSITION_TOL", "LAUNCH_GAP_TOL"]
+__all__ = ["setup_evidence", "earth_relative_tracking", "EARTH_RELATIVE_RATIO", "PAD_VELOCITY_TOL", "PAD_ALPHA",
+           "PAD_REST_SPEED", "PAD_FIT_WINDOW", "PAD_NOISE_SPAN", "POSITION_TOL", "LAUNCH_GAP_TOL"]
 
 #: ``|d| = |v_tel(t0) - v_pad - C u|`` above this (m/s) and significant (:data:`PAD_ALPHA`): the stated site,
 #: azimuth or launch time does not match the telemetry. An INS aligned on the pad starts within mm/s of

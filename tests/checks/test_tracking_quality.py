@@ -143,6 +143,30 @@ def test_a_repeated_fix_is_stale_only_when_the_vehicle_moved(rng):
     assert np.array_equal(screen_tracking(at_rest).observed, at_rest.observed)  # at rest a repeat is right
 
 
+def test_a_short_first_stretch_joined_to_the_pad_is_kept(rng):
+    """Lock lost 2 s after the start: 21 right fixes, a second of fresh-looking wrong ones (+50 m/s), then a
+    lagged solution (1 s late: dv = 20 m/s on y, consistent over 57 s). The right 2 s are shorter than
+    MIN_SEGMENT_S, but their dv is 0 from the first sample on (the pad): kept, the wrong second alone left out
+    (main left out the right 2 s too, and kept the lagged rest). The same 2 s off by 50 m/s join nothing: left out."""
+    flight = _clean_pair(rng)
+    t = flight.t
+    obs = np.flatnonzero(flight.observed)
+    a = np.column_stack([flight.signals[f"a_{c}"] for c in "xyz"])
+    dv = flight.dv.copy()
+    late = obs[t[obs] >= 3.0 - 1e-9]
+    dv[late] += a[late] * 1.0  # v_trk(t) = v_tel(t - 1 s): dv = a 1 s
+    wrong = obs[(t[obs] > 2.05) & (t[obs] < 2.95)]
+    dv[wrong] += 50.0
+    with pytest.warns(TrackingQualityWarning, match=r"9 tracking epochs fail the physics check.* t = 2\.1\.\.2\.9 s \(9\)"):
+        screened = screen_tracking(dataclasses.replace(flight, dv=dv))
+    kept = screened.observed
+    assert kept[obs[t[obs] <= 2.0 + 1e-9]].all() and not kept[wrong].any() and kept[late].all()
+    dv[obs[t[obs] <= 2.0 + 1e-9]] += 50.0  # the first 2 s not at the pad's dv = 0: a short stretch like any
+    with pytest.warns(TrackingQualityWarning, match=r"30 tracking epochs fail the physics check.* t = 0\.\.2\.9 s \(30\)"):
+        screened = screen_tracking(dataclasses.replace(flight, dv=dv))
+    assert not screened.observed[obs[t[obs] < 2.95]].any() and screened.observed[late].all()
+
+
 @pytest.mark.parametrize("ppm", [0.0, 500.0])
 def test_the_clock_drift_is_measured_in_windows(rng, ppm):
     t = np.arange(0.0, 100.0, 0.1)
