@@ -157,12 +157,14 @@ def test_a_short_first_stretch_joined_to_the_pad_is_kept(rng):
     dv[late] += a[late] * 1.0  # v_trk(t) = v_tel(t - 1 s): dv = a 1 s
     wrong = obs[(t[obs] > 2.05) & (t[obs] < 2.95)]
     dv[wrong] += 50.0
-    with pytest.warns(TrackingQualityWarning, match=r"9 tracking epochs fail the physics check.* t = 2\.1\.\.2\.9 s \(9\)"):
+    said = r"9 tracking epochs fail the physics check.* t = 2\.1\.\.2\.9 s \(9\)"
+    with pytest.warns(TrackingQualityWarning, match=said):
         screened = screen_tracking(dataclasses.replace(flight, dv=dv))
     kept = screened.observed
     assert kept[obs[t[obs] <= 2.0 + 1e-9]].all() and not kept[wrong].any() and kept[late].all()
     dv[obs[t[obs] <= 2.0 + 1e-9]] += 50.0  # the first 2 s not at the pad's dv = 0: a short stretch like any
-    with pytest.warns(TrackingQualityWarning, match=r"30 tracking epochs fail the physics check.* t = 0\.\.2\.9 s \(30\)"):
+    said = r"30 tracking epochs fail the physics check.* t = 0\.\.2\.9 s \(30\)"
+    with pytest.warns(TrackingQualityWarning, match=said):
         screened = screen_tracking(dataclasses.replace(flight, dv=dv))
     assert not screened.observed[obs[t[obs] < 2.95]].any() and screened.observed[late].all()
 
