@@ -30,6 +30,11 @@ import numpy as np
 DATA = "/work/shared/data/rtklibexplorer_car"
 #: GNSS antenna minus IMU, car axes (forward, right, down), m (the data's drive_config.py).
 LEVER_ARM_CAR = np.array([0.0, -0.05, 0.0])
+#: The same in the IMU's body axes (x back, y right, z up: the mounting's roll and yaw of 180 deg; its 5-7 deg
+#: misalignment turns it by under 5 mm), the lever arm terms ``l_*`` of strapdown42_extended, and the std it is
+#: taken with (the misalignment's 5 mm, the antenna's phase centre): stated before any run with them.
+LEVER_ARM_IMU = {"l_x": 0.0, "l_y": -0.05, "l_z": 0.0}
+LEVER_ARM_STD = 0.01
 #: The std of the instrument terms the window model leaves out (strapdown33's names and units), the consider
 #: covariance P_c (diagonal) of the windows' comparison: typical figures of a consumer MEMS IMU of the ICM-42688 /
 #: ICM-45686 class (the data folder holds no datasheet): sensitivity (scale factor) tolerance 0.5 %, cross-axis
@@ -235,6 +240,28 @@ def bias_instability(imu, spans) -> tuple[dict[str, float], list]:
     return inst, rows
 
 
+def horizontal_instability(imu, spans) -> dict[str, float]:
+    """The horizontal accelerometer biases' instability at rest (mg): at each span the Allan deviation of ``fb_x``,
+    ``fb_y`` at a third of the span (as :func:`bias_instability` takes each mean's std), the largest over the spans.
+
+    The change between the stops cannot be read for them (the car stands on different slopes); within a stop the
+    slope is fixed, so what the Allan deviation shows at its longest tau is the bias's own wander (or the car
+    rocking on its springs, which the record cannot tell apart: an upper bound either way).
+    """
+    import allantools
+
+    out = {}
+    for c, n in ((0, "ba_x"), (1, "ba_y")):
+        sd = []
+        for a, b in spans:
+            m = (imu.t > a) & (imu.t < b)
+            rate = 1.0 / float(np.median(np.diff(imu.t[m])))
+            sd.append(allantools.oadev(imu.f[m, c], rate=rate, data_type="freq",
+                                       taus=np.array([(b - a) / 3.0]))[1][0] / 9.80665e-3)
+        out[n] = float(max(sd))
+    return out
+
+
 def print_rest(imu, spans) -> dict[str, float]:
     """Print :func:`bias_instability` span by span; return the instability."""
     inst, rows = bias_instability(imu, spans)
@@ -369,6 +396,8 @@ def main() -> None:
                          "comparison with P_c from LEFT_OUT_STD ('none': no gains)")
     ap.add_argument("--sim-left-out", action="store_true",
                     help="--simulate: add the left-out terms to the twin, drawn from N(0, P_c) with the seed")
+    ap.add_argument("--sim-lever-arm", action="store_true",
+                    help="--simulate: the twin's positions are the antenna's, LEVER_ARM_IMU from the IMU")
     args = ap.parse_args()
     if args.write_cut:  # the IMU file gzipped (-9), as the test suite holds it
         import gzip
@@ -388,8 +417,9 @@ def main() -> None:
         if args.sim_left_out:
             rng = np.random.default_rng([args.simulate, 7])
             left_out = {n: float(rng.normal(0.0, sd)) for n, sd in LEFT_OUT_STD.items()}
+        lever = np.array(list(LEVER_ARM_IMU.values())) if args.sim_lever_arm else None
         imu_path, trk_path, t_ref, truth = simulate(args.data, args.out, args.simulate, clock=tuple(args.sim_clock),
-                                                    left_out=left_out)
+                                                    left_out=left_out, lever_arm=lever)
     else:
         imu_path, trk_path, t_ref = convert(args.data, args.out, velocity=args.velocity,
                                             imu_clock=args.imu_clock)
@@ -479,12 +509,18 @@ def main() -> None:
         cc = window_consistency(res.windows, res.names, instability=inst)
         print(f"  with it: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, predictions within "
               f"1 std {cc['within_1_std']:.2f}, within 2 std {cc['within_2_std']:.2f}")
+        hor = horizontal_instability(imu, rest)
+        print("  horizontal accelerometers at rest, the largest Allan deviation at a third of a stop: "
+              + ", ".join(f"{n} {v:.2f} mg" for n, v in hor.items()))
     if args.consider != "none":
-        terms = res.windows[0].consider_names
+        # the gains of the terms LEFT_OUT_STD holds (a larger consider model's others, lever arm and second
+        # order, are kept in --save for car_drive_windows.py)
+        held = [k for k, n in enumerate(res.windows[0].consider_names) if n in LEFT_OUT_STD]
+        terms = tuple(res.windows[0].consider_names[k] for k in held)
         P_c = left_out_covariance(terms)
         for label, inst_k in [("", None)] + ([(" and the instability at rest", inst)] if inst is not None else []):
-            cc = window_consistency(res.windows, res.names, instability=inst_k,
-                                    consider=(consider_rows(res.windows, res.names), P_c))
+            gains = [g[:, held] for g in consider_rows(res.windows, res.names)]
+            cc = window_consistency(res.windows, res.names, instability=inst_k, consider=(gains, P_c))
             print(f"  with the left-out terms ({len(terms)} of {args.consider}, P_c from LEFT_OUT_STD) as consider "
                   f"parameters{label}: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, predictions "
                   f"within 1 std {cc['within_1_std']:.2f}, within 2 std {cc['within_2_std']:.2f}; per coefficient "

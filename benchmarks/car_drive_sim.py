@@ -101,7 +101,8 @@ def simulate(data: str, out: str, seed: int, pos_white: float = 0.003, pos_gm: f
              biases: dict[str, float] | None = None,
              record: dict | None = None,
              clock: tuple[float, float] = (0.0, 0.0),
-             left_out: dict[str, float] | None = None) -> tuple[str, str, float, dict[str, float]]:
+             left_out: dict[str, float] | None = None,
+             lever_arm: np.ndarray | None = None) -> tuple[str, str, float, dict[str, float]]:
     """Write the twin's IMU file (on the real IMU's uniform grid) and geodetic tracking file (velocity from
     differenced positions); return their paths, the time origin (GPST s) and the true biases.
 
@@ -110,7 +111,9 @@ def simulate(data: str, out: str, seed: int, pos_white: float = 0.003, pos_gm: f
     (``t``, ``C_eb`` body -> ECEF, ``r_e``, ``v_e``); `clock` (offset s, rate ppm): the IMU's samples taken at
     ``t`` are written at ``t + offset + rate 1e-6 (t - t_0)`` (a mapping of the IMU's counter onto GPS time that
     runs fast, as the data's does: ``car_drive.imu_clock_from_arrivals``); `left_out`: strapdown33's other terms
-    (scale factors, misalignments, g-sensitivity; :func:`left_out_errors`) added to the IMU, constant over the drive."""
+    (scale factors, misalignments, g-sensitivity; :func:`left_out_errors`) added to the IMU, constant over the drive;
+    `lever_arm` (m, body axes, from the IMU): the positions are the antenna's at ``r + C l`` (the data's 5 cm,
+    ``car_drive.LEVER_ARM_IMU``), the IMU's otherwise."""
     import pandas as pd
     import pymap3d as pm
     from car_drive import read_rtklib_pos, velocity_from_positions
@@ -171,6 +174,9 @@ def simulate(data: str, out: str, seed: int, pos_white: float = 0.003, pos_gm: f
     real = raw[keep]
     pad = t < tp[moving][0] - 5.0
     enu_m = np.column_stack([s(tp) for s in sp])
+    if lever_arm is not None:  # the antenna at C_tb l from the IMU, at the tracking epochs
+        C_tb_p = _rot_z(psi(tp)) @ _rot_y(-theta(tp)) @ M
+        enu_m = enu_m + np.einsum("nij,j->ni", C_tb_p, np.asarray(lever_arm, float))
     if noise:
         w += np.column_stack([_noise(real[:, 4 + c], fs, pad, rng) for c in range(3)])
         fb += np.column_stack([_noise(real[:, 1 + c], fs, pad, rng) for c in range(3)])
@@ -192,5 +198,6 @@ def simulate(data: str, out: str, seed: int, pos_white: float = 0.003, pos_gm: f
           f"deg/s; true biases " + ", ".join(f"{k} {v:g}" for k, v in b.items())
           + (f"; IMU times written {clock[0] * 1e3:g} ms + {clock[1]:g} ppm off" if any(clock) else "")
           + (f"; left-out terms {len(left_out)} (" + ", ".join(f"{k} {v:.3g}" for k, v in left_out.items()) + ")"
-             if left_out else ""))
+             if left_out else "")
+          + (f"; antenna at {np.asarray(lever_arm)} m from the IMU (body axes)" if lever_arm is not None else ""))
     return imu_path, trk_path, t_ref, {**b, **(left_out or {})}

@@ -33,11 +33,14 @@ import types
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from car_drive import LEVER_ARM_CAR, left_out_covariance  # noqa: E402
+from car_drive import LEFT_OUT_STD, LEVER_ARM_CAR, LEVER_ARM_IMU, LEVER_ARM_STD, left_out_covariance  # noqa: E402
 
 #: The bias instability measured at rest on this drive (``car_drive.py``'s print_rest: RMS change of the means
 #: at the three stops from the first), deg/h and mg.
 INSTABILITY_AT_REST = {"bg_x": 56.5, "bg_y": 57.7, "bg_z": 28.0, "ba_z": 0.5}
+#: The horizontal accelerometer biases' instability at rest (``car_drive.horizontal_instability``: the largest Allan
+#: deviation at a third of a stop, mg), which the stops' changes cannot give (slopes).
+HORIZONTAL_AT_REST = {"ba_x": 0.39, "ba_y": 1.54}
 SIX = ("ba_x", "ba_y", "ba_z", "bg_x", "bg_y", "bg_z")
 
 
@@ -51,6 +54,48 @@ def _windows(run: dict, keep: set[int]) -> list:
                                              raw=w, t_start=w["t_start"], consider_gain=w.get("consider_gain"),
                                              consider_names=tuple(w.get("consider_names", ()))))
     return out
+
+
+def lever_arm_corrected(ws: list) -> tuple[list, np.ndarray] | None:
+    """The windows with the antenna's known lever arm taken out, and the consider covariance of the left-out terms
+    and the lever arm; None when the run's consider model has no lever arm (``car_drive.py --consider
+    strapdown42_extended`` has).
+
+    Window k's fit, which has no lever arm, moves by ``A_k l`` (its consider gain on ``l_*``) when the tracking
+    follows the antenna at ``C l`` from the IMU: each estimate less ``A_k l`` (:data:`car_drive.LEVER_ARM_IMU`,
+    from the data's drive_config), and the gains restricted to the terms of :data:`car_drive.LEFT_OUT_STD` plus
+    ``l_*`` at :data:`car_drive.LEVER_ARM_STD`, for ``window_consistency(..., consider=...)``.
+    """
+    names = ws[0].consider_names if ws else ()
+    if not ws or not set(LEVER_ARM_IMU) <= set(names):
+        return None
+    lever = [names.index(n) for n in LEVER_ARM_IMU]
+    held = [k for k, n in enumerate(names) if n in LEFT_OUT_STD] + lever
+    l_vec = np.array(list(LEVER_ARM_IMU.values()))
+    out = []
+    for w in ws:
+        G = np.asarray(w.consider_gain, float)
+        res = types.SimpleNamespace(names=w.result.names, estimate=w.result.estimate - G[:, lever] @ l_vec,
+                                    covariance=w.result.covariance, success=True)
+        out.append(types.SimpleNamespace(result=res, sv_end=w.sv_end, sv_names=w.sv_names, raw=w.raw,
+                                         t_start=w.t_start, consider_gain=G[:, held],
+                                         consider_names=tuple(names[k] for k in held)))
+    P_c = np.diag([LEFT_OUT_STD[names[k]] ** 2 for k in held[:-len(lever)]] + [LEVER_ARM_STD**2] * len(lever))
+    return out, P_c
+
+
+def per_window_z(ws: list, names: tuple[str, ...], inst: dict[str, float]) -> None:
+    """Print each window's (x_k - weighted mean) / sqrt(C_k + instability^2) for `names`, one row a window."""
+    print("    start  " + "  ".join(f"{n:>7s}" for n in names) + "   (z about the weighted mean, with the instability)")
+    cols = []
+    for n in names:
+        x = np.array([w.result.estimate[w.result.names.index(n)] for w in ws])
+        v = np.array([w.result.covariance[w.result.names.index(n), w.result.names.index(n)] for w in ws])
+        v = v + inst.get(n, 0.0) ** 2
+        m = np.sum(x / v) / np.sum(1.0 / v)
+        cols.append((x - m) / np.sqrt(v))
+    for k, w in enumerate(ws):
+        print(f"    {w.raw['t_start']:5.0f}  " + "  ".join(f"{c[k]:+7.2f}" for c in cols))
 
 
 def structure(ws: list, names: tuple[str, ...]) -> list[tuple[int, int, float]]:
@@ -141,14 +186,40 @@ def main() -> None:
                       f"{c['chi2']:.1f} on {c['dof']} dof, p = {c['p_value']:.2g}; predictions within 1 / 2 std "
                       f"{c['within_1_std']:.2f} / {c['within_2_std']:.2f}")
         if ws and all(w.consider_gain is not None for w in ws):  # car_drive.py --consider: the left-out terms
-            P_c = left_out_covariance(ws[0].consider_names)
+            held = [k for k, n in enumerate(ws[0].consider_names) if n in LEFT_OUT_STD]  # those with a P_c figure
+            P_c = left_out_covariance([ws[0].consider_names[k] for k in held])
+            rows = [g[:, held] for g in consider_rows(ws, SIX)]
             for inst in (None, INSTABILITY_AT_REST):
-                c = window_consistency(ws, SIX, instability=inst, consider=(consider_rows(ws, SIX), P_c))
+                c = window_consistency(ws, SIX, instability=inst, consider=(rows, P_c))
                 print(f"  six biases, the {len(P_c)} left-out terms as consider parameters (P_c from LEFT_OUT_STD), "
                       f"{'with' if inst else 'without'} the instability at rest: chi2 {c['chi2']:.1f} on {c['dof']} "
                       f"dof, p = {c['p_value']:.2g}; predictions within 1 / 2 std {c['within_1_std']:.2f} / "
                       f"{c['within_2_std']:.2f}; per coefficient "
                       + ", ".join(f"{n} {v:.0f}" for n, v in c["chi2_per_coefficient"].items()))
+            both = {**INSTABILITY_AT_REST, **HORIZONTAL_AT_REST}
+            lv = lever_arm_corrected(ws)
+            cases = [("left-out terms, the instability at rest and the horizontal accelerometers' (HORIZONTAL_AT_REST)",
+                      ws, rows, P_c, both)]
+            if lv is not None:
+                lws, lP = lv
+                lg = consider_rows(lws, SIX)
+                cases += [(f"the lever arm {LEVER_ARM_IMU} m taken out (std {LEVER_ARM_STD} m), left-out terms, "
+                           "the instability at rest", lws, lg, lP, INSTABILITY_AT_REST),
+                          ("and the horizontal accelerometers' instability too", lws, lg, lP, both)]
+            for label, w_, g_, P_, inst in cases:
+                c = window_consistency(w_, SIX, instability=inst, consider=(g_, P_))
+                print(f"  six biases, {label}: chi2 {c['chi2']:.1f} on {c['dof']} dof, p = {c['p_value']:.2g}; "
+                      f"predictions within 1 / 2 std {c['within_1_std']:.2f} / {c['within_2_std']:.2f}; per "
+                      "coefficient " + ", ".join(f"{n} {v:.0f}" for n, v in c["chi2_per_coefficient"].items()))
+            if lv is not None:
+                print("  the lever arm's shift of each window's biases, A_k l (mg, deg/h):")
+                for w in ws:
+                    G = np.asarray(w.consider_gain, float)
+                    idx = [w.consider_names.index(n) for n in LEVER_ARM_IMU]
+                    d = G[:, idx] @ np.array(list(LEVER_ARM_IMU.values()))
+                    print(f"    {w.raw['t_start']:5.0f}  " + "  ".join(
+                        f"{n} {d[w.result.names.index(n)]:+7.2f}" for n in SIX))
+            per_window_z(ws, SIX, both)
         c = window_consistency(ws, ("dt_trk",))
         print(f"  dt_trk: chi2 {c['chi2']:.1f} on {c['dof']} dof, weighted mean {c['weighted_mean'][0]:.1f} ms")
         print("  structure in time (six biases): " + ", ".join(f"k={k} {m:.2f}" for k, _, m in structure(ws, SIX)))
