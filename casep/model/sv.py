@@ -78,6 +78,12 @@ def _bind(setter: Any, i: int, array: np.ndarray) -> None:
     setter(i, memoryview(array))  # type: ignore[arg-type]
 
 
+#: :func:`evaluate_samples`' mapped functions by (function, n), the function held so that its id stays its own: CasADi
+#: keeps a map only while a reference to it lives, and a model's outputs are evaluated at the same sample counts
+#: many times (each coefficient's body errors over the pad window). At most 64 kept.
+_MAPPED: dict[tuple[int, int], tuple[Any, Any]] = {}
+
+
 def evaluate_samples(fn: Any, values: Mapping[str, np.ndarray], n: int) -> np.ndarray:
     """The one-output CasADi function `fn` at each of `n` samples: ``(n, rows)``, row k the output at sample k.
 
@@ -88,7 +94,12 @@ def evaluate_samples(fn: Any, values: Mapping[str, np.ndarray], n: int) -> np.nd
     samples: 2.8 ms against 0.35 ms). An output with structural zeros (a model without that term) goes through
     the call (a buffer holds the nonzeros only).
     """
-    mapped = fn.map(n)
+    held = _MAPPED.get((id(fn), n))
+    if held is None or held[0] is not fn:
+        if len(_MAPPED) >= 64:
+            _MAPPED.clear()
+        held = _MAPPED[(id(fn), n)] = (fn, fn.map(n))
+    mapped = held[1]
     if not mapped.sparsity_out(0).is_dense():  # a buffer holds the output's nonzeros only: the plain call
         return np.array(mapped(*(values[name] for name in fn.name_in()))).T
     buf, evaluate = mapped.buffer()
