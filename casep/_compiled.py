@@ -238,6 +238,25 @@ def _acc(A, B, transpose_b, sign, out):  # pragma: no cover
 
 
 @numba.njit(cache=True, nogil=True)
+def _acc_times_sparse_t(A, B, rows, count, out):  # pragma: no cover
+    """``out += A B^T`` as :func:`_acc` (``transpose_b``, sign 1) computes it, with the terms ``x B[j, l]`` of a zero
+    ``B[j, l]`` left out: column ``l`` of `B` is nonzero in the rows ``rows[l, :count[l]]`` (increasing) only. Each
+    ``out[i, j]`` receives the same products in the same order (l increasing), less the ones that are zero; adding
+    a zero does not change a sum started at +0 (round to nearest never makes -0 of nonzero terms), so the numbers are
+    :func:`_acc`'s (for finite `A`). A transition that is nearly the identity (the known states' ``Phi``) then costs
+    ``n nnz`` instead of ``n^3``."""
+    n, m = A.shape
+    for i in range(n):
+        for l in range(m):
+            x = A[i, l]
+            if x == 0.0:
+                continue
+            for q in range(count[l]):
+                j = rows[l, q]
+                out[i, j] += x * B[j, l]
+
+
+@numba.njit(cache=True, nogil=True)
 def joint_filter(X, T, Q, H, P0, a, qb, d, out):  # pragma: no cover
     """Kalman whitening of Gauss-Markov plus white noise per axis beside a known linear state
     (:func:`casep._kernels.joint_filter`: the equations); returns ``sum ln det F_r``. The same recursion as
@@ -252,6 +271,8 @@ def joint_filter(X, T, Q, H, P0, a, qb, d, out):  # pragma: no cover
             P[i, j] = P0[i, j]
     m = np.zeros((n, k))
     Phi = np.zeros((n, n))
+    rows = np.zeros((n, n), dtype=np.int64)  # Phi's nonzero rows per column (_acc_times_sparse_t)
+    count = np.zeros(n, dtype=np.int64)
     Hx = np.zeros((3, n))
     logdet = 0.0
     for r in range(M):
@@ -264,10 +285,17 @@ def joint_filter(X, T, Q, H, P0, a, qb, d, out):  # pragma: no cover
         for i in range(3):
             Phi[s + i, s + i] = a[r, i]
             Hx[i, s + i] = 1.0
+        for l in range(n):
+            c = 0
+            for j in range(n):
+                if Phi[j, l] != 0.0:
+                    rows[l, c] = j
+                    c += 1
+            count[l] = c
         tmp = np.zeros((n, n))
         _acc(Phi, P, False, 1.0, tmp)
         P = np.zeros((n, n))
-        _acc(tmp, Phi, True, 1.0, P)  # Phi P Phi^T
+        _acc_times_sparse_t(tmp, Phi, rows, count, P)  # Phi P Phi^T
         for i in range(s):
             for j in range(s):
                 P[i, j] += Q[r, i, j]

@@ -198,8 +198,10 @@ def body_errors(model: Any, q: np.ndarray, fb: np.ndarray, w: np.ndarray, t: np.
     values = {"f": np.einsum("kij,kj->ki", C, fb).T, "t": np.asarray(t, float)[None, :],
               "signals": np.array([cols.get(c, np.zeros(n)) for c in model.signals]),
               "D": np.repeat(np.asarray(coefficients, float)[:, None], n, 1)}
+    from casep.model.sv import evaluate_samples
+
     fn = model.functions
-    delta, phidot = (np.array(fn[k].map(n)(*(values[a] for a in fn[k].name_in()))).T for k in ("Delta", "phidot"))
+    delta, phidot = (evaluate_samples(fn[k], values, n) for k in ("Delta", "phidot"))
     return np.einsum("kji,kj->ki", C, delta), -np.einsum("kji,kj->ki", C, phidot)
 
 

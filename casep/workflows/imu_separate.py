@@ -1577,12 +1577,14 @@ def _combination(names: list[str], w: np.ndarray, top: int = 3) -> str:
 
 def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np.ndarray:
     """The model's direct velocity error ``velocity_error(f, t, signals; D)`` (m/s) at every flight sample (N, 3)."""
+    from casep.model.sv import evaluate_samples
+
     fn = model.functions["velocity_error"]
     n = flight.t.size
     values = {"f": flight.f.T, "t": (flight.t - flight.t[0])[None, :],
               "signals": np.array([flight.signals[c] for c in model.signals]).reshape(-1, n),
               "D": np.repeat(D[:, None], n, 1)}
-    return np.array(fn.map(n)(*(values[a] for a in fn.name_in()))).T
+    return evaluate_samples(fn, values, n)
 
 
 def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,

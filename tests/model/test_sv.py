@@ -149,3 +149,25 @@ def test_data_gap_warns_with_numbers(platform36):
                       match=r"1 gap\(s\) longer than 10x the median step 0.01 s \(largest 2.01 s before sample 1001, "
                       r"t = 12 s\)"):
         casep.build_sv(platform36, t, excitation_force(t))
+
+
+@pytest.mark.parametrize("name", ["strapdown15_axial", "platform36_leverarm"])
+def test_evaluate_samples_is_the_mapped_call_bit_for_bit(name):
+    """evaluate_samples (a buffer over the mapped function) returns the numbers of ``fn.map(n)(...)``, transposed:
+    a model's outputs (dense), and a function whose output has structural zeros (the plain call)."""
+    import casadi as ca
+
+    from casep.model.sv import evaluate_samples
+
+    rng = np.random.default_rng(5)
+    fn = casep.load_model(name).functions
+    x = ca.SX.sym("x", 2)
+    sparse = ca.Function("sparse", [x], [ca.vertcat(x[0] * x[1], ca.SX(1, 1), x[0])], ["x"], ["y"])
+    assert not sparse.sparsity_out(0).is_dense()
+    for f in (fn["Delta"], fn["phidot"], fn["velocity_error"], sparse):
+        n = 37
+        values = {a: rng.standard_normal((f.size_in(i)[0], n)) for i, a in enumerate(f.name_in())}
+        ref = np.array(f.map(n)(*(values[a] for a in f.name_in()))).T
+        got = evaluate_samples(f, values, n)
+        assert got.shape == ref.shape == (n, f.size1_out(0))
+        assert np.array_equal(got, ref)
