@@ -843,11 +843,13 @@ class _Run:
     def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
         """`res` with the record's own noise in its std, the pad levelling's start tilt with it
         (:func:`with_imu_noise`)."""
-        return with_imu_noise(res, problem, flight, self.levelling(), self.tau_profile(problem))
+        return with_imu_noise(res, problem, flight, self.levelling())
 
     def tau_profile(self, problem: Any) -> tuple | None:
-        """:func:`casep.noise.fit.tau_profile` of `problem`'s rows (the last pass's, formed once for the coefficients'
-        and the stated combinations' std: :func:`tau_spread`); None without times or a finite Gauss-Markov fit."""
+        """:func:`casep.noise.fit.tau_profile` of `problem`'s rows (the last pass's, formed once; the stated
+        combinations' std: :func:`tau_spread`); None without times or a finite Gauss-Markov fit. Not in the
+        coefficients' covariance yet: there it failed a 16 s pad record with 16 white tracking epochs (tau's
+        profile flat to 15 s, the best-determined coefficient's std 17.8 declared magnitudes: "determines none")."""
         from casep.noise.fit import tau_profile
 
         if self._tau_profile is not None and self._tau_profile[0] is problem:
