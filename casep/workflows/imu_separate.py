@@ -373,6 +373,7 @@ class _Run:
         self.inputs_said = False  # whether the inputs' warnings were said before the first pass
         self.limit = np.inf  # the linear region of the last step (:func:`determined_step`), declared magnitudes
         self.rest_shift: np.ndarray | None = None  # mean square shift of the rest's draws (determined_curvature)
+        self._tau_profile: tuple | None = None  # (problem, its tau_profile): formed once per problem
         self.data_scale: float | None = None  # the largest of the first pass's rows (m/s): the data's scale
 
     # ------------------------------------------------------------------ one pass
@@ -855,6 +856,26 @@ class _Run:
         (:func:`with_imu_noise`)."""
         return with_imu_noise(res, problem, flight, self.levelling())
 
+    def tau_profile(self, problem: Any) -> tuple | None:
+        """:func:`casep.noise.fit.tau_profile` of `problem`'s rows (the last pass's, formed once; the stated
+        combinations' std: :func:`tau_spread`); None without times or a finite Gauss-Markov fit. Not in the
+        coefficients' covariance yet: there it failed a 16 s pad record with 16 white tracking epochs (tau's
+        profile flat to 15 s, the best-determined coefficient's std 17.8 declared magnitudes: "determines none")."""
+        from casep.noise.fit import tau_profile
+
+        if self._tau_profile is not None and self._tau_profile[0] is problem:
+            return self._tau_profile[1]
+        out = None
+        if problem.y is not None and problem.t is not None:
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # the profile's fits: the chosen model's fit says what it finds
+                    out = tau_profile(problem)
+            except ValueError:  # no finite Gauss-Markov likelihood (noise-free rows)
+                out = None
+        self._tau_profile = (problem, out)
+        return out
+
     def levelling(self) -> tuple | None:
         """The pad window and the alignment's derivative along its mean specific force (:meth:`levelling_jacobian`):
         the start tilt the accelerometer noise leaves (:func:`imu_noise_budget`'s `levelling`)."""
@@ -868,7 +889,7 @@ class _Run:
         it as ``std_tracking_noise_only``; unchanged when the flight does not hold the IMU's samples."""
         scale = _scale_of(scales, res.names)
         W = np.array([c["weights"] for c in combos], dtype=float)
-        var = combination_imu_noise(W, scale, res, problem, flight, self.levelling())
+        var = combination_imu_noise(W, scale, res, problem, flight, self.levelling(), self.tau_profile(problem))
         if var is None:
             return combos
         trk, imu = var
@@ -1587,8 +1608,8 @@ def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np
     return evaluate_samples(fn, values, n)
 
 
-def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
-                     levelling: tuple | None = None) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
+def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, levelling: tuple | None = None,
+                     profile: tuple | None = None) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
     """The estimate's covariance with the IMU's own white noise: ``(tracking part, IMU part, what was used)`` (None
     when the flight does not hold the IMU's samples, or the result has no covariance; the tracking part None: the
     fit's own covariance).
@@ -1610,8 +1631,9 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
 
         Cov(x) = A Sigma_track(theta) A^T + (A G) (A G)^T
 
-    (``Sigma_track A^T`` by :func:`casep.noise.known.tracking_covariance_times`). A noise model not fitted (white:
-    the solver's sigma) keeps the fit's covariance as the tracking part.
+    (``Sigma_track A^T`` by :func:`casep.noise.known.tracking_covariance_times`), with `profile`
+    (:meth:`_Run.tau_profile`) plus what the uncertainty of the correlation times adds (:func:`tau_spread`). A noise
+    model not fitted (white: the solver's sigma) keeps the fit's covariance as the tracking part.
     """
     from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_noise_effect, imu_sample_noise
     from casep.noise.model import NoiseModel, whiten, whiten_transpose
@@ -1639,11 +1661,17 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
     from casep.noise.known import tracking_covariance_times
 
     C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
-    return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, at_rest)
+    C_trk = C_trk + tau_spread(A, problem, profile)
+    account = _imu_account(res, measured, C_trk, C_imu, refit, at_rest)
+    if profile is not None:  # the correlation times the tracking part was averaged over (tau_spread)
+        account["tau_spread_s"] = {ax: [min(nm.tau[j] for _, nm in pts), max(nm.tau[j] for _, nm in pts)]
+                                   for j, (ax, pts) in enumerate(zip("xyz", profile[1]))}
+    return C_trk, C_imu, account
 
 
 def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: Any, flight: FlightData,
-                          levelling: tuple | None = None) -> tuple[np.ndarray | None, np.ndarray] | None:
+                          levelling: tuple | None = None, profile: tuple | None = None
+                          ) -> tuple[np.ndarray | None, np.ndarray] | None:
     """The variances of the combinations ``W (D / scale)`` (rows of `W`, declared magnitudes) under the noise of
     :func:`imu_noise_budget`: ``(tracking part, IMU part)``, each (m,); the tracking part None when `res` (the result
     :func:`with_imu_noise` made, or a pass's fit) holds no tracking noise refitted beside the IMU's (then the fit's own
@@ -1655,7 +1683,8 @@ def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult,
     the whitened design in the declared magnitudes, carried to the raw rows by
     :func:`casep.noise.model.whiten_transpose`, as :func:`imu_noise_budget` does), its IMU variance ``||a G||^2``
     (:func:`casep.checks.tracking_quality.imu_noise_effect`, with `levelling`) and its tracking variance ``a
-    Sigma_track a^T`` (:func:`casep.noise.known.tracking_covariance_times`)."""
+    Sigma_track a^T`` (:func:`casep.noise.known.tracking_covariance_times`). With `profile` (:meth:`_Run.tau_profile`)
+    the tracking part gains what the uncertainty of the tracking noise's correlation times adds (:func:`tau_spread`)."""
     from casep.checks.tracking_quality import imu_noise_effect
     from casep.noise.known import tracking_covariance_times
     from casep.noise.model import NoiseModel, whiten, whiten_transpose
@@ -1678,7 +1707,41 @@ def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult,
     if refit is not None:
         trk = np.einsum("ij,ji->i", a, tracking_covariance_times(a.T.reshape(N, 3, m), t,
                                                                  NoiseModel.from_dict(refit)).reshape(3 * N, m))
+        trk = trk + np.diag(tau_spread(a, problem, profile))
     return trk, np.sum(AG**2, axis=1)
+
+
+def tau_spread(a: np.ndarray, problem: Any, profile: tuple | None) -> np.ndarray:
+    """The covariance (m, m) the uncertainty of the tracking noise's correlation times adds to the estimators `a`
+    (m, 3N: rows on the raw rows of `problem`, axis-interleaved); `profile` :func:`casep.noise.fit.tau_profile`'s of
+    `problem` (:meth:`_Run.tau_profile`; None: zero).
+
+    The tracking noise's covariance of the estimators is ``a Sigma_track(theta) a^T`` at the fitted ``theta``; a
+    short record holds each axis's tau only to a factor of several, and over that range the variance of a
+    combination can change several times (a 20 s rail launch at 5 Hz, tau 1 s, Gauss-Markov plus white:
+    ``benchmarks/mc_imu_gmw_combinations.py``; REML's tau from white to 9.5 s over its 12 seeds, the best-determined
+    combination's variance 6 times the fitted one's under the true noise). Per axis, the mean of ``a Sigma a^T`` over
+    the posterior of that axis's tau (the profile's 95 % interval, weighted by the restricted likelihood, the other
+    axes at the Gauss-Markov plus white fit) less its value at that fit, its positive part (the eigenvalues below 0
+    dropped), summed over the axes (the axes one at a time). The profile is of the rows with the IMU's noise in them
+    (not beside it: :func:`_tracking_beside_imu`), as the fit that chose the noise model saw them."""
+    from casep.noise.known import tracking_covariance_times
+
+    t = np.asarray(problem.t, dtype=float)
+    N, m = t.size, a.shape[0]
+    extra = np.zeros((m, m))
+    if profile is None:
+        return extra
+
+    def cov(noise: Any) -> np.ndarray:
+        return a @ tracking_covariance_times(a.T.reshape(N, 3, m), t, noise).reshape(3 * N, m)
+
+    base, axes = profile
+    c0 = cov(base)
+    for points in axes:
+        lam, V = np.linalg.eigh(sum(w * cov(nm) for w, nm in points) - c0)
+        extra += (V * np.clip(lam, 0.0, None)) @ V.T
+    return extra
 
 
 def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling: tuple | None) -> Any:
@@ -1726,10 +1789,10 @@ def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu:
 
 
 def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
-                   levelling: tuple | None = None) -> EstimateResult:
+                   levelling: tuple | None = None, profile: tuple | None = None) -> EstimateResult:
     """`res` with the IMU's own noise in its covariance and std and said in its noise account
-    (:func:`imu_noise_budget`; `res` itself when the flight does not hold the IMU's samples)."""
-    budget = imu_noise_budget(res, problem, flight, levelling)
+    (:func:`imu_noise_budget`, `profile` its; `res` itself when the flight does not hold the IMU's samples)."""
+    budget = imu_noise_budget(res, problem, flight, levelling, profile)
     if budget is None:
         return res
     C_trk, C_imu, account = budget
