@@ -1608,8 +1608,8 @@ def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np
     return evaluate_samples(fn, values, n)
 
 
-def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, levelling: tuple | None = None,
-                     profile: tuple | None = None) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
+def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
+                     levelling: tuple | None = None) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
     """The estimate's covariance with the IMU's own white noise: ``(tracking part, IMU part, what was used)`` (None
     when the flight does not hold the IMU's samples, or the result has no covariance; the tracking part None: the
     fit's own covariance).
@@ -1631,9 +1631,9 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
 
         Cov(x) = A Sigma_track(theta) A^T + (A G) (A G)^T
 
-    (``Sigma_track A^T`` by :func:`casep.noise.known.tracking_covariance_times`), with `profile`
-    (:meth:`_Run.tau_profile`) plus what the uncertainty of the correlation times adds (:func:`tau_spread`). A noise
-    model not fitted (white: the solver's sigma) keeps the fit's covariance as the tracking part.
+    (``Sigma_track A^T`` by :func:`casep.noise.known.tracking_covariance_times`). A noise model not fitted (white:
+    the solver's sigma) keeps the fit's covariance as the tracking part. The uncertainty of the correlation times
+    (:func:`tau_spread`) is in the stated combinations' std only (:meth:`_Run.tau_profile` says why).
     """
     from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_noise_effect, imu_sample_noise
     from casep.noise.model import NoiseModel, whiten, whiten_transpose
@@ -1661,12 +1661,7 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     from casep.noise.known import tracking_covariance_times
 
     C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
-    C_trk = C_trk + tau_spread(A, problem, profile)
-    account = _imu_account(res, measured, C_trk, C_imu, refit, at_rest)
-    if profile is not None:  # the correlation times the tracking part was averaged over (tau_spread)
-        account["tau_spread_s"] = {ax: [min(nm.tau[j] for _, nm in pts), max(nm.tau[j] for _, nm in pts)]
-                                   for j, (ax, pts) in enumerate(zip("xyz", profile[1]))}
-    return C_trk, C_imu, account
+    return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, at_rest)
 
 
 def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: Any, flight: FlightData,
@@ -1789,10 +1784,10 @@ def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu:
 
 
 def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
-                   levelling: tuple | None = None, profile: tuple | None = None) -> EstimateResult:
+                   levelling: tuple | None = None) -> EstimateResult:
     """`res` with the IMU's own noise in its covariance and std and said in its noise account
-    (:func:`imu_noise_budget`, `profile` its; `res` itself when the flight does not hold the IMU's samples)."""
-    budget = imu_noise_budget(res, problem, flight, levelling, profile)
+    (:func:`imu_noise_budget`; `res` itself when the flight does not hold the IMU's samples)."""
+    budget = imu_noise_budget(res, problem, flight, levelling)
     if budget is None:
         return res
     C_trk, C_imu, account = budget
