@@ -14,7 +14,9 @@ flight.
       below 1 g: warning; a vehicle needs ``f = T/m > 1 g`` to lift off, so a boost that
       includes lift-off always exceeds 1 g; a peak of a few units is the signature of ``f``
       in g (multiply by 9.80665); a peak just under 1 g (above ``F_AT_REST`` g) is an
-      accelerometer at rest in m/s^2 (a record with no lift-off), not ``f`` in g. Peak above
+      accelerometer at rest in m/s^2 (a record with no lift-off), not ``f`` in g. Strapdown
+      telemetry's body specific force (``fb_*``, no ``f_*``) peaking below ``F_AT_REST`` g but
+      above 1 g read in g: error (its accelerometers read g at rest or in level flight). Peak above
       100 g: warning (cm/s^2, mm/s^2?). ``f`` in ft/s^2 (factor 3.28) stays inside the
       plausible range and is *not* detectable.
     - **Time** ``t``. Median step below 1 us (above 1 MHz): error; no telemetry is sampled
@@ -289,6 +291,17 @@ def _check_force(flight: FlightData) -> float:
         hint = _unit_hint(peak, F_PEAK_LOW, F_PEAK_HIGH, (("cm/s^2", 1e-2), ("mm/s^2", 1e-3), ("um/s^2", 1e-6)))
         raise FlightDataError(flight.source, f"peak specific force {peak:.4g} m/s^2 ({peak / G0:.4g} g) is above "
                               f"{F_PEAK_IMPOSSIBLE / G0:.0e} g: not a boost flight in m/s^2.{hint}", cols.split(",")[0])
+    if peak < F_PEAK_LOW and F_PEAK_LOW <= peak * G0 and peak < F_AT_REST * G0 and flight.meta.get("force") == "q, fb":
+        # the body specific force of a strapdown INS: its accelerometers read |fb| = g at rest and in level flight,
+        # more under thrust or lift; a record that never comes near 1 g (F_AT_REST) but would peak above it in g is
+        # fb in g, as the velocity check of a file with v_tel_* and the pad check of raw IMU data refuse it
+        k = int(np.argmax(np.linalg.norm(flight.f, axis=1)))
+        raise FlightDataError(
+            flight.source, f"the body specific force peaks at {peak:.4g} m/s^2 ({peak / G0:.3g} g) at t = "
+            f"{flight.t[k]:.6g} s and never reaches the {F_AT_REST:g} g an accelerometer reads at rest or in level "
+            f"flight: fb_* in m/s^2 cannot be a strapdown INS's; read in g (times {G0:g}) it peaks at "
+            f"{peak * G0:.4g} m/s^2 ({peak:.3g} g). Give fb_x, fb_y, fb_z in m/s^2 (multiply by {G0:g})",
+            "fb_x, fb_y, fb_z", k + 1)
     if peak < F_PEAK_LOW:
         # f in g reads |f| ~ 1 at rest and a few in a boost; f in m/s^2 at rest reads |f| = g, just under 1 g
         # (local gravity 9.78-9.83 m/s^2): a record with no lift-off, not a unit mistake

@@ -44,6 +44,7 @@ import dataclasses
 import math
 import warnings
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -52,9 +53,14 @@ from casep.checks.time_offset import kinematic_acceleration
 from casep.exceptions import TrackingQualityWarning
 from casep.io.flight import FlightData
 from casep.noise.robust import MAD_SIGMA, MIN_SEGMENT_S, stretches
+from casep.regression.linalg import reduce_qr_blocks
+
+if TYPE_CHECKING:
+    from casep.regression.problem import Problem
 
 __all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "clock_drift_unmeasured",
-           "fit_clock_drift", "clock_drift_record", "stretches", "stretch_noise", "noise_problem",
+           "fit_clock_drift", "clock_drift_record",
+           "offset_halves", "halves_line", "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
            "imu_noise_effect", "imu_sample_noise", "white_sample_std",
            "rest_white_std", "IMU_NOISE_AT_REST", "STALE_MOTION", "JUMP_TOL", "JUMP_RATE",
@@ -438,10 +444,29 @@ def keep_screen(flight: FlightData, screen: dict | None) -> FlightData:
     return dataclasses.replace(flight, observed=observed, meta={**flight.meta, "tracking_screen": screen})
 
 
+def drift_determined(drift_ppm: float, drift_std_ppm: float) -> bool:
+    """The clock-drift rule: a drift beyond :data:`DRIFT_MIN_PPM` and 4 std (warned about)."""
+    return math.isfinite(drift_ppm) and abs(drift_ppm) > max(DRIFT_MIN_PPM, 4.0 * drift_std_ppm)
+
+
+def halves_line(h: dict) -> str:
+    """The report's line of :func:`offset_halves`' record `h`: the two offsets, the drift, and either that it is
+    beyond the rule (warned) or how large a drift the one ``dt_trk`` may have taken in without a word (2 std)."""
+    text = (f"tracking clock drift (dt_trk split at the middle of the flight): {h['first_ms']:.3g} ms seen at "
+            f"t = {h['t_first_s']:.4g} s, {h['second_ms']:.3g} ms at t = {h['t_second_s']:.4g} s: "
+            f"{h['ppm']:.3g} +- {h['std_ppm']:.2g} ppm")
+    if drift_determined(h["ppm"], h["std_ppm"]):
+        return text + " (beyond 4 std: the clocks run at different rates, which one dt_trk does not model)"
+    bound = abs(h["ppm"]) + 2.0 * h["std_ppm"]
+    ms = bound * (h["t_second_s"] - h["t_first_s"]) * 1e-3
+    return (text + f"; not determined: a drift up to {bound:.3g} ppm ({ms:.2g} ms between those times) would be "
+            "taken into the one dt_trk unseen")
+
+
 def _warn_drift(source: str, drift_ppm: float, drift_std_ppm: float, of: str) -> bool:
     """Warn (TrackingQualityWarning) when the clock drift is beyond :data:`DRIFT_MIN_PPM` and 4 std; `of`: what it
     was measured on, said in the message. Returns whether it warned."""
-    if not (math.isfinite(drift_ppm) and abs(drift_ppm) > max(DRIFT_MIN_PPM, 4.0 * drift_std_ppm)):
+    if not drift_determined(drift_ppm, drift_std_ppm):
         return False
     warnings.warn(TrackingQualityWarning(
         f"{source}: the tracking time offset drifts by {drift_ppm:.4g} +- {drift_std_ppm:.2g} ppm "
@@ -474,6 +499,72 @@ def fit_clock_drift(flight: FlightData, residual: np.ndarray) -> tuple[float, fl
     drift, std = clock_drift(flight.t[idx], r, acc[idx], order=0)
     _warn_drift(flight.source, drift, std, ", on the fit's residuals")
     return drift, std
+
+
+def offset_halves(source: str, problem: Problem) -> dict | None:
+    """The clock drift seen by the fit itself: its time offset (``dt_trk``) split at the middle of the observed
+    span, one for each half, beside every other coefficient of the fit (OLS on its raw rows, S_V block by block;
+    the std white times the AR(1) long-run factor of the residuals, as :func:`_offset_fit`). A drift ``eps`` makes
+    the two offsets differ by ``eps (t2 - t1)``, ``t_i`` the half's time weighted by how much it sees of the
+    offset (``|a|^2``); warned as :func:`clock_drift` (:func:`_warn_drift`), and said either way in the report
+    (:func:`halves_line`). On a coast alone the drift's ramp ``a eps t`` is an accelerometer bias's: the second
+    half sees the drift only where its acceleration changes. The residuals' test (:func:`fit_clock_drift`) cannot
+    see a drift the fit took into its other coefficients and its offset; this one measures it, or says how large
+    a drift the flight leaves unseen (a MEMS rocket's 104 ppm over 40 s: 64 +- 93 ppm, where the residuals gave
+    -2914 +- 30291 ppm). `source`: the flight, for the message.
+
+    Returns
+    -------
+    dict or None
+        ``first_ms``, ``second_ms`` (the two offsets, in the coefficient's unit scaled to ms), ``difference_ms``,
+        ``std_ms``, ``t_first_s``, ``t_second_s``, ``ppm``, ``std_ppm``; None when the fit has no time offset, no
+        rows, or a half sees none of it.
+    """
+    from casep.model.loader import TIME_OFFSET
+
+    names = list(problem.names)
+    if TIME_OFFSET not in names:
+        return None
+    raw = problem.raw_problem()
+    if raw.y is None or raw.t is None or not raw.has_rows:
+        return None
+    y, t = np.asarray(raw.y, dtype=float), np.asarray(raw.t, dtype=float)
+    if y.ndim != 2 or t.shape != (y.shape[0],):
+        return None
+    j = names.index(TIME_OFFSET)
+    late = t >= 0.5 * (t[0] + t[-1])
+    seen = np.zeros(t.size)  # how much each epoch sees of the offset, |a|^2
+
+    def rows():  # [S_V, the offset's column over the second half], block by block (S_V is not held whole)
+        for sl, S_b, y_b in raw.blocks():
+            c = S_b[:, :, j]
+            seen[sl] = np.sum(c**2, axis=1)
+            yield np.concatenate([S_b, (c * late[sl, None])[:, :, None]], axis=2), y_b
+
+    red = reduce_qr_blocks(rows(), len(names) + 1)
+    if not (np.sum(seen[late]) > 0 and np.sum(seen[~late]) > 0):
+        return None
+    U, sv, Vt = np.linalg.svd(red.R)
+    live = sv > max(red.m, red.n) * np.finfo(float).eps * sv[0]
+    inv = Vt[live].T / sv[live]  # R^+ = V diag(1/s) U^T, scaled coordinates
+    z = inv @ (U[:, live].T @ red.qty)
+    x = np.where(red.scale > 0, z / np.where(red.scale > 0, red.scale, 1.0), 0.0)  # natural units
+    r = np.empty_like(y)
+    for sl, S_b, y_b in raw.blocks():  # the residuals, in time order (their AR(1) long-run factor)
+        r[sl] = y_b - S_b @ x[:-1] - S_b[:, :, j] * late[sl, None] * x[-1]
+    long_run = float(ar1_long_run_factor(np.sum(r[1:] * r[:-1]), np.sum(r[:-1] ** 2)))
+    var = float(np.sum(r**2)) / max(r.size - int(live.sum()), 1) * long_run
+    std_x = math.sqrt(var * float(np.sum(inv[-1] ** 2))) / red.scale[-1]  # sqrt((R^T R)^+_nn), natural unit
+    to_ms = float(problem.si_factors[j]) * 1e3  # the coefficient's unit in ms
+    first, diff, std = x[j] * to_ms, x[-1] * to_ms, std_x * to_ms
+    t1, t2 = (float(np.sum(seen[k] * t[k]) / np.sum(seen[k])) for k in (~late, late))
+    out = {"first_ms": float(first), "second_ms": float(first + diff), "difference_ms": float(diff),
+           "std_ms": float(std), "t_first_s": t1, "t_second_s": t2,
+           "ppm": float(diff / (t2 - t1) * 1e3), "std_ppm": float(std / (t2 - t1) * 1e3)}
+    _warn_drift(source, out["ppm"], out["std_ppm"],
+                f", the fit's time offset {first:.3g} ms over its first half (seen at t = {t1:.4g} s) and "
+                f"{first + diff:.3g} ms over its second (t = {t2:.4g} s), differing by {diff:.3g} +- {std:.2g} ms")
+    return out
 
 
 def clock_drift_record(flight: FlightData, residual: np.ndarray) -> dict | None:

@@ -52,8 +52,9 @@ Checks, each naming the file, the columns, the rows and the numbers:
 
 A body-rate peak above :data:`RATE_PEAK_HIGH` is a warning (deg/s?); so are ``f_*`` columns beside the
 strapdown ones that differ from ``C(q) fb`` by more than :data:`FORCE_TOL` (1 %) RMS. The specific force's units are
-checked on the computed ``f`` by :func:`casep.checks.plausibility.check_flight` (a peak below 1 g: ``fb``
-in g), which names the ``fb_*`` columns.
+checked on the computed ``f`` by :func:`casep.checks.plausibility.check_flight`, which names the ``fb_*`` columns:
+a peak below :data:`casep.checks.plausibility.F_AT_REST` g that read in g exceeds 1 g is ``fb`` in g, an error
+(its accelerometers read g at rest and in level flight).
 """
 
 from __future__ import annotations

@@ -374,9 +374,13 @@ class Problem:
 
     def raw_residuals(self, x: np.ndarray, *, all_samples: bool = True) -> np.ndarray:
         """``dv - S x`` of the raw rows: of every sample of the parent (default), or of this problem's own."""
+        return self.raw_problem(all_samples=all_samples).residuals(x)
+
+    def raw_problem(self, *, all_samples: bool = True) -> Problem:
+        """The problem of the raw rows (not whitened): the parent's every sample (default), or this one's own."""
         if all_samples and self.parent is not None:
-            return self.parent.residuals(x)
-        return (self._unwhitened if self._unwhitened is not None else self).residuals(x)
+            return self.parent
+        return self._unwhitened if self._unwhitened is not None else self
 
     # ----------------------------------------------------------------- properties
     @property

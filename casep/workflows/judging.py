@@ -70,14 +70,25 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     `widen`: ``combos -> (combos, note, record)``, what the nonlinearity does to them (an iterated pass's
     :meth:`casep.workflows.imu_separate._Run.determined_curvature`): the combinations said are its, `note` (or
     None) follows them, `record` goes in ``diagnostics["determined"]["curvature"]``. The tracking clock's drift is
-    measured on the fit's residuals (:func:`casep.checks.tracking_quality.fit_clock_drift`), warned beyond its
-    threshold and recorded in ``diagnostics["clock_drift"]``
+    measured on the fit's residuals (:func:`casep.checks.tracking_quality.fit_clock_drift`) and, with ``dt_trk`` in
+    the fit, by that offset split between the flight's halves (:func:`casep.checks.tracking_quality.offset_halves`,
+    ``["halves"]``), warned beyond its threshold and recorded in ``diagnostics["clock_drift"]``
     (:func:`casep.checks.tracking_quality.clock_drift_record`: where not measured, why)."""
-    from casep.checks.tracking_quality import clock_drift_record, determined, determined_message, noise_problem
+    from casep.checks.tracking_quality import (
+        clock_drift_record,
+        determined,
+        determined_message,
+        noise_problem,
+        offset_halves,
+    )
     from casep.estimators.registry import STATUS_TRACKING, failed
 
     if problem.y is not None:  # the clock drift, on the residuals: the raw dv's instrument errors fake one
         drift = clock_drift_record(flight, problem.raw_residuals(res.fitted_coefficients()))
+        # and by the fit's own time offset split in two, on a pair of files (a clock of its own)
+        halves = offset_halves(flight.source, problem) if flight.meta.get("format") == "pair" else None
+        if drift is not None and halves is not None:
+            drift["halves"] = halves
         if drift is not None:
             res = dataclasses.replace(res, diagnostics={**res.diagnostics, "clock_drift": drift})
     why = noise_problem(flight)

@@ -184,16 +184,35 @@ def test_the_navigators_own_output_on_vibrating_data_passes(kind, reading, round
         check_strapdown("nav.csv", nav.t, nav.q, nav.fb, np.degrees(nav.w))
 
 
-def test_body_force_in_g_is_warned_naming_the_fb_columns_and_the_factor(tmp_path):
+def test_body_force_in_g_is_refused_naming_the_fb_columns_the_row_and_the_factor(tmp_path):
+    """A dv-only strapdown file whose fb_* are in g (peak 3.2 g read as 3.2 m/s^2): before, a success with a
+    warning; its accelerometers never read the g of rest or level flight, so it is refused as the velocity check of
+    a file with v_tel_* refuses it."""
     t, q, fb, w, _ = motion()
     fl = casep.read_flight(write(tmp_path / "sd.csv", t, q, fb / 9.80665, w))  # about 3.2 g written in m/s^2
     from casep.checks.plausibility import check_flight
 
-    with pytest.warns(casep.PlausibilityWarning) as rec:
+    norm = np.linalg.norm(fb, axis=1) / 9.80665
+    k = int(np.argmax(norm))
+    with pytest.raises(FlightDataError) as exc:
         check_flight(fl)
-    msg = " ".join(str(r.message) for r in rec if "peak specific force" in str(r.message))
-    peak = np.max(np.linalg.norm(fb, axis=1)) / 9.80665
-    assert "fb_x, fb_y, fb_z (as C(q) fb)" in msg and f"is {peak:.4g} m/s^2" in msg and "multiply by 9.80665" in msg
+    msg = str(exc.value)
+    assert exc.value.column == "fb_x, fb_y, fb_z" and exc.value.row == k + 1, msg
+    assert f"peaks at {norm[k]:.4g} m/s^2" in msg and f"t = {t[k]:.6g} s" in msg and "multiply by 9.80665" in msg
+
+
+@pytest.mark.parametrize("what, scale", [("at rest, in m/s^2", None), ("a coast in vacuum, 0.05 g", 0.05 * 9.80665)])
+def test_low_body_force_in_m_s2_is_not_refused(tmp_path, what, scale):
+    """The rule's other side: an accelerometer at rest reads g (never refused), and a coast whose fb stays below 1
+    m/s^2 is no g reading (read in g it would not reach 1 g): a warning, as before, not an error."""
+    t, q, fb, w, _ = motion()
+    fb = fb / np.linalg.norm(fb, axis=1)[:, None] * (9.80665 if scale is None else scale)
+    fl = casep.read_flight(write(tmp_path / "sd.csv", t, q, fb, w))
+    from casep.checks.plausibility import check_flight
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        check_flight(fl)
 
 
 def gain_in(msg: str) -> np.ndarray:
