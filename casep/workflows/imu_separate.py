@@ -166,7 +166,7 @@ if TYPE_CHECKING:
 __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
            "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_RELIABLE", "CURVATURE_DRAWS", "WORSE", "NARROW",
            "SIGNIFICANT", "std_shift", "DETERMINED_DRAWS", "FAIL_SHIFT", "STALL", "combination_imu_noise",
-           "linearisation_shift", "linearisation_record", "one_pass_judged", "SMALLER_MODELS"]
+           "linearisation_shift", "linearisation_record", "one_pass_judged", "SMALLER_MODELS", "prior_fits_p"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -206,6 +206,9 @@ STALL = 0.1
 SIGNIFICANT = 4.0
 #: A covariance's eigenvalue below this fraction of its largest is its rounding (:func:`_scaled_spectrum`).
 _SPECTRUM_RTOL = 1e-10
+#: A covariance's quadratic form is read where it exceeds its rounding, ``n eps`` times its largest eigenvalue, by
+#: this factor (:func:`_scaled_spectrum`).
+_RESOLVED = 100.0
 #: The alignment's derivative is taken with steps that turn the attitude by about this much, rad.
 _ALIGN_STEP_RAD = 1e-6
 #: The curvature over what the tracking's stretches leave undetermined: this many seeded draws, each one navigation of
@@ -607,7 +610,7 @@ class _Run:
         self.nav, self.imu_k, self.model_k, self.q_aligned, self.C_tb = state
 
     def back_to_prior(self, D: np.ndarray, move: np.ndarray, back: tuple[np.ndarray, int], spec: FitSpec,
-                      trial: tuple) -> tuple[np.ndarray, tuple]:
+                      trial: tuple, noise_factor: float = 1.0) -> tuple[np.ndarray, tuple]:
         """The step `move` from `D` (its pass `trial`), or ``move - back`` (its pass) when the record fits as well
         with the estimate's part along what it does not determine, beyond its plausible size (`back`,
         :func:`_beyond_plausible`), back at the prior.
@@ -620,16 +623,24 @@ class _Run:
         the residuals' sum of squares after the pass's fit grows by less than a chi-square on as many degrees of
         freedom as there are combinations taken back exceeds with probability :data:`BACK_TO_PRIOR_P` (in the
         variance of the residuals of the step kept): the likelihood ratio's test that the record cannot tell the
-        two points apart."""
-        from casep._special import chi2_sf
+        two points apart.
 
+        Under correlated tracking noise (Gauss-Markov plus white) that variance is not the growth's scale: the growth
+        is ``dx^T S^T S dx`` of the estimate's move ``dx``, whose variance is `noise_factor` squared times the white
+        one (:func:`casep.estimators.solve.richer_noise_factor`, the white passes' factor), so the statistic is
+
+            chi^2 = (SSR_prior - SSR_kept) / (s^2 noise_factor^2)
+
+        With ``s^2`` alone, a tactical aircraft flight (5 Hz GNSS, tau 2.5 s, factor 4.0) kept the first pass's
+        ``ma_zy`` 78 declared magnitudes from the truth: the prior, 0.8 from it, grew the sum by 9.8 to 18.9 of
+        ``s^2`` on 2 combinations (p 0.007 to 8e-5), 0.6 to 1.2 in the noise's own scale."""
         state = self._state()
         pull, k = back
         other = self.trial(D + move - pull, spec, None)
         if not isinstance(other, str):
             ssr = [float(np.sum(np.square(t[0].residuals))) for t in (trial, other)]
-            var = ssr[0] / max(trial[0].residuals.size - len(trial[0].names), 1)
-            if var > 0 and chi2_sf(k, max(ssr[1] - ssr[0], 0.0) / var) > BACK_TO_PRIOR_P:
+            dof = trial[0].residuals.size - len(trial[0].names)
+            if prior_fits_p(ssr[0], ssr[1], dof, k, noise_factor) > BACK_TO_PRIOR_P:
                 return move - pull, other
         self._restore(state)
         return move, trial
@@ -671,8 +682,10 @@ class _Run:
         rejected: list[dict] = []  # the steps of this pass outside the linear model
         k, limit = 1, np.inf
         rows_before = np.inf  # the RMS of the rows of the pass before (m/s)
+        noise_factor = 1.0  # the white passes' std under the record's correlated noise (Step.noise_factor)
         while True:
             step = determined_step(res, problem, flight, model.scales, limit, about=D)
+            noise_factor = step.noise_factor if spec is fast else noise_factor
             how = "ols, white noise (while far)" if spec is fast else "as requested"
             # noise-free: the correction at the coefficients' rounding, or the rows at `D` at the data's and no longer
             # falling (to under STALL of the pass before's): `D` fits the data to their rounding, a fixed point
@@ -708,7 +721,7 @@ class _Run:
             trial = self.trial(D + move, spec, problem if 0 < step.widest < np.inf else None)
             back = _beyond_plausible(step, D + move, model.scales, res.names)
             if back is not None and not isinstance(trial, str):
-                move, trial = self.back_to_prior(D, move, back, spec, trial)
+                move, trial = self.back_to_prior(D, move, back, spec, trial, noise_factor)
             if isinstance(trial, str):  # outside the linear model: the same pass, the widest combinations left out
                 if not 0 < step.widest < np.inf:  # nothing to narrow (no covariance, or no combination left)
                     failure = f"failed: pass {k + 1} could not take the step of pass {k} ({trial}): " + _BLAME
@@ -1251,6 +1264,9 @@ class Step:
         size of what the record determines when that is smaller (:func:`determined_step`).
     size : float
         That plausible size (:func:`_determined_size`; inf when the step did not judge it).
+    noise_factor : float
+        How many times too small the pass's white-noise std are under the record's correlated tracking noise
+        (:func:`casep.estimators.solve.richer_noise_factor`; 1 when the pass was not white, or not judged).
     undetermined : (n, k) ndarray or None
         The combinations (orthonormal, on ``D / scale``) the record does not determine: std above the plausible size,
         or the fit's null space (:meth:`_Run.back_to_prior`).
@@ -1267,6 +1283,7 @@ class Step:
     limit: float = np.inf
     size: float = np.inf
     undetermined: np.ndarray | None = None
+    noise_factor: float = 1.0
 
 
 def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scales: dict[str, float],
@@ -1345,7 +1362,7 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
     C = res.covariance if res.solution is None else res.solution.covariance
     std = res.std if res.std is not None else np.full(len(names), np.nan)
     P = np.eye(len(names))
-    widest, beyond, kept, size, undetermined = np.inf, [], [], np.inf, None
+    widest, beyond, kept, size, undetermined, factor = np.inf, [], [], np.inf, None, 1.0
     N = np.zeros((len(names), 0)) if res.solution is None else \
         np.asarray(res.solution.null_space, dtype=float).reshape(len(names), -1)
     if C is not None and np.all(np.isfinite(C)) and np.all(np.isfinite(x)):
@@ -1357,7 +1374,8 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
             if (res.settings or {}).get("noise") == "white" and problem.t is not None:
                 from casep.estimators.solve import richer_noise_factor
 
-                eff = eff * richer_noise_factor(res, problem)  # white std under correlated noise: too small
+                factor = richer_noise_factor(res, problem)
+                eff = eff * factor  # white std under correlated noise: too small
             est = q.T @ ((np.asarray(about, dtype=float) + x) / scale)
             size = _determined_size(eff, est)
             out, limit = out | (sig > size), min(limit, size)
@@ -1386,7 +1404,7 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
     zf = np.where(np.isfinite(z), z, 0.0)
     j = int(np.argmax(zf))
     return Step(x, float(zf[j]), _combination(names, scale * P[j]), std, widest=widest, beyond=beyond, kept=kept,
-                limit=float(limit), size=float(size), undetermined=undetermined)
+                limit=float(limit), size=float(size), undetermined=undetermined, noise_factor=float(factor))
 
 
 def _determined_size(sig: np.ndarray, estimate: np.ndarray) -> float:
@@ -1438,9 +1456,15 @@ def _scaled_spectrum(C: np.ndarray, scale: np.ndarray, problem: Any = None, sigm
     sig, q = np.nan_to_num(sig, nan=np.inf), Vt.T
     # the fit's noise model (correlated noise: std above the white ones), where the covariance resolves it and the
     # design does too (a combination the design holds within _SPECTRUM_RTOL of its best variance: beyond, the
-    # covariance's value is its solver's rounding, 1e6-1e8 times the white one on a pad at rest)
-    seen = np.isfinite(sig) & (sig**2 > lam.max() * _SPECTRUM_RTOL) & (s**2 >= _SPECTRUM_RTOL * s.max() ** 2)
-    ratio = np.einsum("ji,jk,ki->i", q[:, seen], C / np.outer(scale, scale), q[:, seen]) / sig[seen] ** 2
+    # covariance's value is its solver's rounding, 1e6-1e8 times the white one on a pad at rest). The covariance
+    # resolves a quadratic form q^T C q above its rounding, n eps lambda_max, by _RESOLVED times: its value, not the
+    # white one, is judged against it (a tactical aircraft flight, equilibrated condition 1e9: white std 1e-4 to 1e6
+    # declared magnitudes, the largest eigenvalue 1.8e13; by the white std no combination was resolved by both, and
+    # the Gauss-Markov plus white fit's std were taken as the white ones, 4 times too small)
+    cq = np.einsum("ji,jk,ki->i", q, C / np.outer(scale, scale), q)
+    seen = np.isfinite(sig) & (cq > _RESOLVED * scale.size * np.finfo(float).eps * lam.max()) \
+        & (s**2 >= _SPECTRUM_RTOL * s.max() ** 2)
+    ratio = cq[seen] / sig[seen] ** 2
     return sig * math.sqrt(max(1.0, float(np.median(ratio)) if ratio.size else 1.0)), q
 
 
@@ -1450,6 +1474,24 @@ def _in_covariance(sig: np.ndarray, q: np.ndarray, scale: np.ndarray, keep: np.n
     left out would add (``sig`` up to 1e10 declared magnitudes: ``eps sig^2`` is larger than a kept one's variance)."""
     B = scale[:, None] * q[:, keep] * sig[keep]
     return B @ B.T
+
+
+def prior_fits_p(ssr_kept: float, ssr_prior: float, dof: int, k: int, noise_factor: float = 1.0) -> float:
+    """The p-value of the likelihood ratio's test that a record fits as well with `k` combinations at the prior as
+    where the fit kept them (:meth:`_Run.back_to_prior`): the residuals' sums of squares after each fit
+    (`ssr_kept`, `ssr_prior`, m^2/s^2), the kept fit's residual degrees of freedom `dof`, and `noise_factor`, how many
+    times too small white-noise std are under the record's correlated noise
+    (:func:`casep.estimators.solve.richer_noise_factor`)::
+
+        s^2 = SSR_kept / dof
+        chi^2 = max(SSR_prior - SSR_kept, 0) / (s^2 noise_factor^2)  ~  chi^2_k
+        p = P(chi^2_k > chi^2)
+
+    0 when that variance is 0 (a noise-free record: the fit kept is exact, the prior taken on no evidence)."""
+    from casep._special import chi2_sf
+
+    var = ssr_kept / max(dof, 1) * noise_factor**2
+    return chi2_sf(k, max(ssr_prior - ssr_kept, 0.0) / var) if var > 0 else 0.0
 
 
 def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str | None = None,
