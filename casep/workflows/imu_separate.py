@@ -358,6 +358,9 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
 class _Run:
     """One separation: the inputs, and a pass at given coefficients."""
 
+    #: (problem, its tau_profile), formed once per problem (:meth:`tau_profile`; a subclass's too)
+    _tau_profile: tuple | None = None
+
     def __init__(self, imu: ImuData, tracking: Any, nav_site: LaunchSite, site: LaunchSite, window: tuple,
                  base: ErrorModel, source: Any, spec: FitSpec, heading_deg: float | None, heading_axis: str,
                  pair: dict, fit_time_offset: bool | None) -> None:
@@ -376,7 +379,6 @@ class _Run:
         self.inputs_said = False  # whether the inputs' warnings were said before the first pass
         self.limit = np.inf  # the linear region of the last step (:func:`determined_step`), declared magnitudes
         self.rest_shift: np.ndarray | None = None  # mean square shift of the rest's draws (determined_curvature)
-        self._tau_profile: tuple | None = None  # (problem, its tau_profile): formed once per problem
         self.data_scale: float | None = None  # the largest of the first pass's rows (m/s): the data's scale
 
     # ------------------------------------------------------------------ one pass
