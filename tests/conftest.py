@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -486,3 +487,24 @@ def ins_telemetry(clip_dps: float = math.inf, seed: int = 3, *, errors: dict | N
                                                                            else 0.0)
                        for i, a in enumerate("xyz")}}
     return tel, trk, D, held
+
+
+@contextlib.contextmanager
+def benchmark_module(name: str, prefix: str | None = None):
+    """The module ``benchmarks/<name>.py``, loaded for a test; afterwards ``sys.path`` as it was and the modules it
+    imported whose names start with `prefix` (default `name`) forgotten (a benchmark puts its folder on the path and
+    imports its siblings)."""
+    import importlib.util
+
+    path, modules = list(sys.path), set(sys.modules)
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).resolve().parents[1] / "benchmarks"
+                                                  / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    try:
+        yield mod
+    finally:
+        sys.path[:] = path
+        for other in set(sys.modules) - modules:
+            if other.startswith(prefix or name):
+                del sys.modules[other]

@@ -3,27 +3,16 @@ values' chi-square about their weighted mean to its dof (the stops' movement, wh
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
-
-_BENCH = Path(__file__).resolve().parents[2] / "benchmarks" / "car_drive_drift.py"
 
 
 @pytest.fixture(scope="module")
 def drift():
-    path, modules = list(sys.path), set(sys.modules)
-    spec = importlib.util.spec_from_file_location("car_drive_drift", _BENCH)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    yield mod
-    sys.path[:] = path
-    for name in set(sys.modules) - modules:
-        if name.startswith("car_drive"):
-            del sys.modules[name]
+    from conftest import benchmark_module
+
+    with benchmark_module("car_drive_drift", prefix="car_drive") as mod:
+        yield mod
 
 
 def test_excess_std_closed_form_and_zero(drift):

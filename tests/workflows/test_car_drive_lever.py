@@ -3,28 +3,18 @@ antenna's lever arm times the known arm, and the consider covariance of the left
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 import types
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-_BENCH = Path(__file__).resolve().parents[2] / "benchmarks" / "car_drive_windows.py"
-
 
 @pytest.fixture(scope="module")
 def cdw():
-    path, modules = list(sys.path), set(sys.modules)
-    spec = importlib.util.spec_from_file_location("car_drive_windows", _BENCH)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    yield mod
-    sys.path[:] = path
-    for name in set(sys.modules) - modules:
-        if name.startswith("car_drive"):
-            del sys.modules[name]
+    from conftest import benchmark_module
+
+    with benchmark_module("car_drive_windows", prefix="car_drive") as mod:
+        yield mod
 
 
 def _window(names, estimate, gain, consider_names):

@@ -66,14 +66,7 @@ def test_the_combinations_stated_hold_their_std_under_gauss_markov_plus_white_tr
     order of magnitude (|z| < 4 fails its seed 1 alone)."""
     z = []
     for seed in range(4):
-        imu, trk, truth = flight(tmp_path, launch, seed)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # conditioning, what the record leaves undetermined: said by the result
-            out = separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=HEADING)
-        assert out.success, (seed, out.message)
-        combos = out.result.diagnostics["determined"]["combinations"]
-        assert combos, seed
-        zs = np.array([(c["estimate"] - np.dot(c["weights"], truth)) / c["std"] for c in combos])
+        zs = _stated_z(tmp_path, launch, seed)
         assert np.all(np.abs(zs) < 4.0), (seed, zs)
         z.append(zs)
     rms = float(np.sqrt(np.mean(np.concatenate(z) ** 2)))
@@ -88,12 +81,18 @@ def test_the_correlation_times_uncertainty_is_in_the_std_of_the_combinations_sta
     correlation times' profile likelihood in the std (:func:`casep.workflows.imu_separate.tau_spread`) every
     combination stated is within 3 std, and the z is no longer the plug-in one."""
     for seed in (8, 10):
-        imu, trk, truth = flight(tmp_path, launch, seed)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # conditioning, what the record leaves undetermined: said by the result
-            out = separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=HEADING)
-        assert out.success, (seed, out.message)
-        combos = out.result.diagnostics["determined"]["combinations"]
-        assert combos, seed
-        zs = np.array([(c["estimate"] - np.dot(c["weights"], truth)) / c["std"] for c in combos])
+        zs = _stated_z(tmp_path, launch, seed)
         assert np.all(np.abs(zs) < 3.0), (seed, zs)
+
+
+def _stated_z(tmp_path, launch, seed: int) -> np.ndarray:
+    """The seed's flight separated with the defaults (a success, some combination stated), and each stated
+    combination's (estimate - truth) / std."""
+    imu, trk, truth = flight(tmp_path, launch, seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # conditioning, what the record leaves undetermined: said by the result
+        out = separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=HEADING)
+    assert out.success, (seed, out.message)
+    combos = out.result.diagnostics["determined"]["combinations"]
+    assert combos, seed
+    return np.array([(c["estimate"] - np.dot(c["weights"], truth)) / c["std"] for c in combos])
