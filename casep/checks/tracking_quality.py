@@ -53,7 +53,7 @@ from casep.checks.time_offset import kinematic_acceleration
 from casep.exceptions import TrackingQualityWarning
 from casep.io.flight import FlightData
 from casep.noise.robust import MAD_SIGMA, MIN_SEGMENT_S, stretches
-from casep.regression.linalg import reduce_qr_blocks
+from casep.regression.linalg import analyze_rank, reduce_qr_blocks
 
 if TYPE_CHECKING:
     from casep.regression.problem import Problem
@@ -460,7 +460,7 @@ def halves_line(h: dict) -> str:
     bound = abs(h["ppm"]) + 2.0 * h["std_ppm"]
     ms = bound * (h["t_second_s"] - h["t_first_s"]) * 1e-3
     return (text + f"; not determined: a drift up to {bound:.3g} ppm ({ms:.2g} ms between those times) would be "
-            "taken into the one dt_trk unseen")
+            "taken into the one dt_trk unseen (a drift known otherwise: --clock-drift PPM)")
 
 
 def _warn_drift(source: str, drift_ppm: float, drift_std_ppm: float, of: str) -> bool:
@@ -471,7 +471,8 @@ def _warn_drift(source: str, drift_ppm: float, drift_std_ppm: float, of: str) ->
     warnings.warn(TrackingQualityWarning(
         f"{source}: the tracking time offset drifts by {drift_ppm:.4g} +- {drift_std_ppm:.2g} ppm "
         f"({drift_ppm * 0.1:.3g} ms per 100 s{of}): the telemetry and tracking clocks run at different rates, "
-        "which one time offset (dt_trk) does not model; rescale the telemetry times by the drift"), stacklevel=4)
+        "which one time offset (dt_trk) does not model: state it (--clock-drift PPM, manifest clock_drift_ppm)"),
+        stacklevel=4)
     return True
 
 
@@ -544,16 +545,16 @@ def offset_halves(source: str, problem: Problem) -> dict | None:
     red = reduce_qr_blocks(rows(), len(names) + 1)
     if not (np.sum(seen[late]) > 0 and np.sum(seen[~late]) > 0):
         return None
-    U, sv, Vt = np.linalg.svd(red.R)
-    live = sv > max(red.m, red.n) * np.finfo(float).eps * sv[0]
-    inv = Vt[live].T / sv[live]  # R^+ = V diag(1/s) U^T, scaled coordinates
-    z = inv @ (U[:, live].T @ red.qty)
+    ra = analyze_rank(red)  # the project's rank rule (max(m, n) eps of the largest singular value)
+    V_r, s_inv = ra.pinv_factors()
+    inv = V_r * s_inv  # R^+ = V_r diag(1/s_r) U_r^T, scaled coordinates
+    z = inv @ (ra.U[:, : ra.rank].T @ red.qty)
     x = np.where(red.scale > 0, z / np.where(red.scale > 0, red.scale, 1.0), 0.0)  # natural units
     r = np.empty_like(y)
     for sl, S_b, y_b in raw.blocks():  # the residuals, in time order (their AR(1) long-run factor)
         r[sl] = y_b - S_b @ x[:-1] - S_b[:, :, j] * late[sl, None] * x[-1]
     long_run = float(ar1_long_run_factor(np.sum(r[1:] * r[:-1]), np.sum(r[:-1] ** 2)))
-    var = float(np.sum(r**2)) / max(r.size - int(live.sum()), 1) * long_run
+    var = float(np.sum(r**2)) / max(r.size - ra.rank, 1) * long_run
     std_x = math.sqrt(var * float(np.sum(inv[-1] ** 2))) / red.scale[-1]  # sqrt((R^T R)^+_nn), natural unit
     to_ms = float(problem.si_factors[j]) * 1e3  # the coefficient's unit in ms
     first, diff, std = x[j] * to_ms, x[-1] * to_ms, std_x * to_ms

@@ -20,7 +20,7 @@ def add_tracking(parser: Any, help: str) -> None:
 
 
 def add_grid(parser: Any, manifest: bool = True) -> None:
-    """``--grid``, ``--time-offset``, ``--time-shift`` and (unless `manifest` is false) ``--manifest``."""
+    """``--grid``, ``--time-offset``, ``--time-shift``, ``--clock-drift``; ``--manifest`` unless `manifest` is false."""
     parser.add_argument("--grid", choices=("tracking", "telemetry"), default="tracking",
                         help="with --tracking: form dv at the tracking times (default: one row per tracking "
                              "sample, white noise, honest std) or at the telemetry times (tracking interpolated: "
@@ -33,6 +33,9 @@ def add_grid(parser: Any, manifest: bool = True) -> None:
                         help="with --tracking: how the time scales relate, tracking time minus telemetry time "
                              "(tracking in seconds of day, telemetry from lift-off at 12:00:00: 43200); default 0 "
                              "(one scale)")
+    parser.add_argument("--clock-drift", type=finite_float, default=0.0, metavar="PPM",
+                        help="with --tracking: tracking time tags late by PPM 1e-6 t more at telemetry time t (a clock "
+                             "drift, as casep reports it), taken out; default 0 (dt_trk fits a constant offset)")
     if manifest:  # impact has its own (a manifest of one flight, with its result)
         parser.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
                             help="TOML manifest listing each flight's telemetry, tracking, frame, site, launch time "
@@ -70,8 +73,7 @@ def add_alignment(parser: Any, *, required: bool = False, what: str = "") -> Non
                         help=f"{what}azimuth of the horizontal projection of the body axis --heading-axis, deg from "
                              "north, clockwise (a rail launch: the rail azimuth); default: gyrocompassing, with a "
                              "warning saying how well the heading is known")
-    parser.add_argument("--heading-axis", choices=("x", "y", "z"), default="x",
-                        help="the body axis whose azimuth --heading gives (default x)")
+    parser.add_argument("--heading-axis", choices=("x", "y", "z"), default="x", help="--heading's axis (default x)")
     parser.add_argument("--accel-bias-tolerance", type=positive_float, default=None, metavar="MG",
                         help="the accelerometer bias, mg, by which the mean specific force over --align may differ "
                              "from the normal gravity (a warning beyond 49 mg, 5 %% of g; beyond it an error saying "

@@ -43,6 +43,7 @@ def separate_imu(args: argparse.Namespace, spec: Any, ranges: dict) -> int:
                            heading_axis=args.heading_axis, spec=spec, iterate=args.iterate is not False,
                            max_iterations=args.max_iterations, tracking_frame=args.tracking_frame,
                            grid=args.grid, time_offset=args.time_offset, time_shift=args.time_shift,
+                           clock_drift=args.clock_drift,
                            accel_bias_tolerance=flight_options.accel_bias_tolerance(args), **ranges)
     res, flight = out.result, out.flight
     prov = outputs.provenance(args, [flight], {"imu": args.imu})

@@ -57,9 +57,11 @@ from casep.io.pair import (
     STATE_SIGNALS,
     check_launch_time,
     check_tracking_frame,
+    clock_drift_ppm,
     no_overlap_message,
     pair_flight,
     repeated_rows,
+    telemetry_time,
     time_shift_seconds,
     tracking_hint,
     tracking_velocity,
@@ -331,7 +333,7 @@ def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray
 def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.PathLike, *,
                      interpolation: str = "cubic", grid: str = "tracking",
                      time_offset: float | str | None = None, tracking_frame: str = "launch",
-                     site=None, time_shift: float = 0.0) -> FlightData:
+                     site=None, time_shift: float = 0.0, clock_drift: float = 0.0) -> FlightData:
     """Combine a telemetry file and a tracking file recorded at different rates.
 
     Parameters
@@ -379,6 +381,11 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
         tags ``T`` become ``T - time_shift`` in the telemetry's scale; the launch time stays in the
         tracking scale. Default 0 (one time scale). Telemetry and tracking that do not overlap
         after it are an error that gives both spans.
+    clock_drift : float, optional
+        How the clocks' rates differ, ppm: the tracking time tags late by ``clock_drift 1e-6 t`` more at
+        telemetry time ``t`` (``T - time_shift = t (1 + clock_drift 1e-6)``, :func:`casep.io.pair.telemetry_time`;
+        the drift the clock-drift checks measure, same sign), taken out of the tags before the pair is formed.
+        Default 0 (one rate; the fit's ``dt_trk`` takes a constant offset, not a drift).
 
     Returns
     -------
@@ -413,8 +420,8 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     v_trk, r_ecef, v_ecef = tracking_velocity(trk, t_raw, tracking_frame, site)  # launch-inertial
     if t_raw.size < (4 if interpolation == "cubic" else 2):
         raise trk.error(f"{t_raw.size} tracking samples are too few for {interpolation} interpolation", "t", t_raw.size)
-    shift_scale = time_shift_seconds(time_shift)
-    t_trk = t_raw - shift_scale  # the telemetry's time scale
+    shift_scale, drift = time_shift_seconds(time_shift), clock_drift_ppm(clock_drift)
+    t_trk = telemetry_time(t_raw, shift_scale, drift)  # the telemetry's time scale
     span = (t_raw[-1] - t_raw[0]) / max(float(t_tel[-1] - t_tel[0]), 1e-300)
     if 300.0 < span < 3000.0:  # the tracking's times span ~1000 x the telemetry's: its t in ms
         raise trk.error(f"tracking time [{t_raw[0]:.10g}, {t_raw[-1]:.10g}] spans {span:.4g} x the telemetry's "
@@ -443,11 +450,14 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     flight.meta["levelled"] = levelling_record(tel)
     if shift_scale:
         flight.meta["time_shift_s"] = shift_scale
+    if drift:
+        flight.meta["clock_drift_ppm"] = drift
     if r_ecef is not None and v_ecef is not None:  # Earth-fixed tracking; the late-start check: speed relative
         # to the pad, not the Earth's rotation
         from casep.io.setup import setup_evidence
 
-        ev = setup_evidence(site, t_tel, v_tel, t_raw, r_ecef, v_ecef, time_shift=shift_scale)
+        ev = setup_evidence(site, t_tel, v_tel, t_raw, r_ecef, v_ecef, time_shift=shift_scale,
+                            clock_drift=drift)
         clock = ev["pad"].get("clock_offset")
         if clock is not None:
             import warnings

@@ -19,7 +19,8 @@ from casep.io.tables import VTRK_COLUMNS, Table
 
 __all__ = ["pair_flight", "PAIR_GRIDS", "STATE_SIGNALS", "GAP_FACTOR", "GAP_MIN_S", "MAX_TIME_OFFSET",
            "MAX_LAUNCH_TIME_GAP", "check_tracking_frame", "tracking_velocity", "tracking_hint", "with_tracked_state",
-           "time_shift_seconds", "check_launch_time", "no_overlap_message",
+           "time_shift_seconds", "MAX_CLOCK_DRIFT_PPM", "clock_drift_ppm", "telemetry_time", "tracking_time",
+           "check_launch_time", "no_overlap_message",
            "check_earth_fixed_units", "fits_time_offset", "VALID_COLUMN", "repeated_rows", "PairInputs", "repaired",
            "offset_second_order"]
 
@@ -193,6 +194,36 @@ def time_shift_seconds(value) -> float:
             or not np.isfinite(value):
         raise ValueError(f"`time_shift` (tracking time minus telemetry time, s) must be a finite number, got {value!r}")
     return float(value)
+
+
+#: A stated clock drift beyond this, ppm (1 %), is no drift of a clock (a crystal's is tens of ppm): a unit slip.
+MAX_CLOCK_DRIFT_PPM = 1e4
+
+
+def clock_drift_ppm(value) -> float:
+    """`clock_drift`: a finite number of ppm within :data:`MAX_CLOCK_DRIFT_PPM`."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(value):
+        raise ValueError(f"`clock_drift` (the tracking time offset's drift, ppm) must be finite, got {value!r}")
+    ppm = float(value)
+    if abs(ppm) > MAX_CLOCK_DRIFT_PPM:
+        raise ValueError(f"`clock_drift` {ppm:g} ppm is {abs(ppm) * 1e-4:.3g} % of the time: a clock drifts by "
+                         f"at most {MAX_CLOCK_DRIFT_PPM:g} ppm (give ppm, not a fraction or ms)")
+    return ppm
+
+
+def telemetry_time(T, shift: float = 0.0, drift_ppm: float = 0.0):
+    """The telemetry time of tracking time `T`: ``t = (T - shift) / (1 + eps)``, ``eps = drift_ppm 1e-6``.
+
+    `shift` is tracking time minus telemetry time at telemetry time 0; a drift ``eps`` makes the tracking time tags
+    late by ``eps t`` more at telemetry time ``t`` (``T - shift = t (1 + eps)``): the drift the clock-drift checks
+    measure (:mod:`casep.checks.tracking_quality`, a late tag's ``dv = a eps t``), in the same sign."""
+    return (np.asarray(T, dtype=float) - shift) / (1.0 + drift_ppm * 1e-6)
+
+
+def tracking_time(t, shift: float = 0.0, drift_ppm: float = 0.0):
+    """The inverse of :func:`telemetry_time`: ``T = t (1 + eps) + shift``."""
+    return np.asarray(t, dtype=float) * (1.0 + drift_ppm * 1e-6) + shift
 
 
 def check_launch_time(trk: Table, t_raw: np.ndarray, site) -> None:

@@ -60,6 +60,7 @@ def flight_provenance(flight) -> dict[str, Any]:
         out["tracking_frame"] = meta.get("tracking_frame", {"frame": "launch"})
         out["time_alignment"] = meta.get("time_alignment")
         out["time_shift_s"] = meta.get("time_shift_s", 0.0)
+        out["clock_drift_ppm"] = meta.get("clock_drift_ppm", 0.0)
         out["spans_s"] = {k: meta.get(f"{k}_span_s") for k in ("telemetry", "tracking", "observed")}
     else:
         out["files"] = {"flight": flight.source}

@@ -31,6 +31,8 @@ from typing import Any
 
 import numpy as np
 
+from casep.io.pair import tracking_time
+
 __all__ = ["setup_evidence", "earth_relative_tracking", "EARTH_RELATIVE_RATIO", "PAD_VELOCITY_TOL", "PAD_ALPHA",
            "PAD_REST_SPEED", "PAD_FIT_WINDOW", "PAD_NOISE_SPAN", "POSITION_TOL", "LAUNCH_GAP_TOL"]
 
@@ -153,7 +155,7 @@ def _pad_mismatch(site: Any, t_start: float, v_pad: np.ndarray, e: np.ndarray, f
 
 
 def setup_evidence(site: Any, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, r_ecef: np.ndarray,
-                   v_ecef: np.ndarray, *, time_shift: float = 0.0) -> dict:
+                   v_ecef: np.ndarray, *, time_shift: float = 0.0, clock_drift: float = 0.0) -> dict:
     """The numbers of the set-up checks of an Earth-fixed telemetry + tracking pair (module notes).
 
     Parameters
@@ -164,8 +166,9 @@ def setup_evidence(site: Any, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.nd
         Telemetry times (telemetry time scale) and launch-inertial velocity, s and m/s.
     t_trk, r_ecef, v_ecef : (M,), (M, 3), (M, 3) arrays
         Tracking times (tracking time scale), ECEF position and Earth-relative velocity, s, m, m/s.
-    time_shift : float
-        Tracking time minus telemetry time, s.
+    time_shift, clock_drift : float
+        Tracking time minus telemetry time (at telemetry time 0), s, and the clocks' drift, ppm
+        (:func:`casep.io.pair.telemetry_time`).
 
     Returns
     -------
@@ -182,7 +185,7 @@ def setup_evidence(site: Any, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.nd
 
     t_tel, v_tel, t_trk = (np.asarray(a, dtype=float) for a in (t_tel, v_tel, t_trk))
     r_ecef, v_ecef = np.asarray(r_ecef, dtype=float), np.asarray(v_ecef, dtype=float)
-    t_start = float(t_tel[0] + time_shift)  # the first telemetry sample in the tracking time scale
+    t_start = float(tracking_time(t_tel[0], time_shift, clock_drift))  # the first telemetry sample, tracking scale
     v_pad = ecef_to_launch(site, [t_start], [site.r_site], [[0.0, 0.0, 0.0]])[1][0]
     e = v_tel[0] - v_pad
     fit = _velocity_at(t_trk, v_ecef, t_start)

@@ -172,6 +172,8 @@ def _provenance_html(prov: Mapping[str, Any]) -> str:
             items["time alignment"] = {"applied shift (s)": ta.get("applied_s"), "coarse offset (s)": ta.get("tau_s")}
         if f.get("time_shift_s"):
             items["time scales: tracking - telemetry (s)"] = f["time_shift_s"]
+        if f.get("clock_drift_ppm"):
+            items["clock drift taken out of the tracking time tags (ppm)"] = f["clock_drift_ppm"]
         if f.get("grid"):
             items["grid"] = f["grid"]
         if f.get("exclusions"):

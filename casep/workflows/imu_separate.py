@@ -288,8 +288,9 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                  heading_deg: float | None = None, heading_axis: str = "x", spec: FitSpec | None = None,
                  iterate: bool = True, tol: float = ITERATE_TOL, max_iterations: int | None = None,
                  tracking_frame: str = "launch", grid: str = "tracking", time_offset: float | str | None = None,
-                 time_shift: float = 0.0, fit_time_offset: bool | None = None, gyr_range: float | None = None,
-                 acc_range: float | None = None, accel_bias_tolerance: float | None = None) -> ImuSeparation:
+                 time_shift: float = 0.0, clock_drift: float = 0.0, fit_time_offset: bool | None = None,
+                 gyr_range: float | None = None, acc_range: float | None = None,
+                 accel_bias_tolerance: float | None = None) -> ImuSeparation:
     """Separate a strapdown IMU's errors from its raw data and tracking (module notes).
 
     Parameters
@@ -300,7 +301,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
         The tracking file (frame `tracking_frame`; :func:`casep.io.files.read_flight_pair`).
     site : LaunchSite
         Launch point, azimuth and launch time, ``t0`` in the tracking file's time scale (the IMU's is
-        ``t0 - time_shift``).
+        ``(t0 - time_shift) / (1 + clock_drift 1e-6)``, :func:`casep.io.pair.telemetry_time`).
     align_window : (T1, T2)
         The span at rest on the pad, in the IMU's time scale, s.
     model : name, path or ErrorModel
@@ -314,7 +315,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
         False: one linear pass.
     tol, max_iterations
         The stop rule and the passes allowed (None: :data:`MAX_ITERATIONS`).
-    tracking_frame, grid, time_offset, time_shift, fit_time_offset
+    tracking_frame, grid, time_offset, time_shift, clock_drift, fit_time_offset
         As :func:`casep.io.files.read_flight_pair` and :func:`casep.separate` (the time offset found by
         ``"auto"`` on the first pass is kept for the others).
     gyr_range, acc_range : float, optional
@@ -346,10 +347,13 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     spec = FitSpec.build() if spec is None else spec
     base = load_model(model)
     source = model if isinstance(model, (str, os.PathLike)) else (base.source_file or base.name)
-    run = _Run(imu, tracking, dataclasses.replace(site, t0=site.t0 - time_shift), site, tuple(align_window), base,
+    from casep.io.pair import clock_drift_ppm, telemetry_time
+
+    t0_imu = float(telemetry_time(site.t0, time_shift, clock_drift_ppm(clock_drift)))  # the IMU's time scale
+    run = _Run(imu, tracking, dataclasses.replace(site, t0=t0_imu), site, tuple(align_window), base,
                source, spec, heading_deg, heading_axis,
-               {"tracking_frame": tracking_frame, "grid": grid, "time_offset": time_offset, "time_shift": time_shift},
-               fit_time_offset)
+               {"tracking_frame": tracking_frame, "grid": grid, "time_offset": time_offset, "time_shift": time_shift,
+                "clock_drift": clock_drift}, fit_time_offset)
     if accel_bias_tolerance is not None:
         run.heading["accel_bias_tolerance"] = accel_bias_tolerance
     return run.iterate(iterate, tol, int(max_iterations))
@@ -430,7 +434,8 @@ class _Run:
             obs = np.asarray(flight.observed)
             why = earth_relative_tracking(self.nav_site, flight.t[obs], flight.dv[obs])
             if why is not None:
-                flight.meta["setup"] = {"problems": [why]}
+                setup = flight.meta.setdefault("setup", {})
+                setup["problems"] = [*setup.get("problems", []), why]  # beside any the pair found
         # the late-start check: the speed relative to the pad (launch-inertial v_tel carries the Earth's rotation)
         flight.meta["start_speed_m_s"] = float(np.linalg.norm(nav.earth_relative()[1][0]))
         if model is None or not np.any(D):

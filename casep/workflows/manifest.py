@@ -23,6 +23,7 @@ geodetic flight from another are estimated together::
     launch_time_s = 43200.0           # tracking in seconds of day ...
     time_shift_s = 43200.0            # ... = telemetry time (from lift-off) + 43200 s
     time_offset_ms = "auto"           # optional: tracking latency, ms, or "auto"
+    clock_drift_ppm = 0.0             # optional: tracking tags late by ppm 1e-6 t more at telemetry time t
     grid = "tracking"                 # optional: tracking (default) | telemetry
 
     [fit]                             # optional: the fit request (casep.FitSpec), as casep.separate's keywords
@@ -49,6 +50,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
 
+from casep.io.pair import MAX_CLOCK_DRIFT_PPM
+
 __all__ = ["Manifest", "ManifestFlight", "ManifestSite", "read_manifest"]
 
 
@@ -73,6 +76,7 @@ class ManifestFlight(BaseModel):
     site: ManifestSite | None = None
     launch_time_s: float | None = Field(default=None, allow_inf_nan=False)
     time_shift_s: float = Field(default=0.0, allow_inf_nan=False)
+    clock_drift_ppm: float = Field(default=0.0, ge=-MAX_CLOCK_DRIFT_PPM, le=MAX_CLOCK_DRIFT_PPM, allow_inf_nan=False)
     time_offset_ms: float | Literal["auto"] | None = None  # finite: checked below (a Field constraint would
     # apply to "auto" too)
     grid: Literal["tracking", "telemetry"] = "tracking"
@@ -96,6 +100,7 @@ class ManifestFlight(BaseModel):
             raise ValueError("`site` and `launch_time_s` are used only with frame 'ecef' or 'geodetic'")
         if self.tracking is None:
             for key, given in (("frame", earth_fixed), ("time_shift_s", self.time_shift_s != 0.0),
+                               ("clock_drift_ppm", self.clock_drift_ppm != 0.0),
                                ("time_offset_ms", self.time_offset_ms is not None),
                                ("grid", self.grid != "tracking")):
                 if given:
@@ -120,6 +125,7 @@ class ManifestFlight(BaseModel):
         offset = self.time_offset_ms
         kw = {"tracking_frame": self.frame, "site": self.launch_site()} if self.frame != "launch" else {}
         return read_flight_pair(self.telemetry, self.tracking, grid=self.grid, time_shift=self.time_shift_s,
+                                clock_drift=self.clock_drift_ppm,
                                 time_offset=offset if offset in (None, "auto") else offset * 1e-3, **kw)
 
     def to_dict(self) -> dict:

@@ -188,20 +188,22 @@ def telemetry_gravitation(flight: FlightData) -> Gravity | None:
     (:func:`casep.navigation.strapdown.launch_gravitation`), or None when no launch site ties the frame to the
     Earth. The site of ``casep navigate``'s header (``meta["telemetry_site"]``, its launch time in the
     telemetry's time scale), else the one given with Earth-fixed tracking (``meta["tracking_frame"]``, its launch
-    time in the tracking's scale: the telemetry's time plus ``meta["time_shift_s"]``)."""
+    time in the tracking's scale: :func:`casep.io.pair.tracking_time` of the telemetry's, with ``meta["time_shift_s"]``
+    and ``meta["clock_drift_ppm"]``)."""
     from casep.frames import LaunchSite
+    from casep.io.pair import tracking_time
     from casep.navigation.strapdown import launch_gravitation
 
     meta = flight.meta if isinstance(flight.meta, dict) else {}
-    shift = 0.0
+    shift, drift = 0.0, 0.0
     site = meta.get("telemetry_site")
     if site is None:
         site = (meta.get("tracking_frame") or {}).get("site")
-        shift = float(meta.get("time_shift_s", 0.0))
+        shift, drift = float(meta.get("time_shift_s", 0.0)), float(meta.get("clock_drift_ppm", 0.0))
     if site is None:
         return None
     G = launch_gravitation(LaunchSite(**site))
-    return G if not shift else (lambda t, r: G(t + shift, r))
+    return G if not (shift or drift) else (lambda t, r: G(tracking_time(t, shift, drift), r))
 
 
 class _TelemetryRun(_Run):
