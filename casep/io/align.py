@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["TimeAlignment", "coarse_time_offset", "EXPLAIN_GAIN", "EXPLAIN_F", "AUTO_MAX_STD"]
+__all__ = ["TimeAlignment", "coarse_time_offset", "unaligned_lateness", "EXPLAIN_GAIN", "EXPLAIN_F", "AUTO_MAX_STD"]
 
 #: A coarse offset "explains" the data when it removes at least this fraction of J(0) ...
 EXPLAIN_GAIN = 0.2
@@ -80,6 +80,20 @@ class TimeAlignment:
                 "tracking_period_s": self.tracking_period, "samples": self.samples, "gain": self.gain,
                 "f_statistic": self.f_statistic if np.isfinite(self.f_statistic) else None, "explains": self.explains,
                 "std_s": self.std if np.isfinite(self.std) else None}
+
+
+def unaligned_lateness(record: dict | None) -> float | None:
+    """The tracking tags' coarse lateness, s, that a pair left in place (no ``time_offset`` given) although it
+    exceeds a tracking sample period and explains the data (:attr:`TimeAlignment.exceeds_period`,
+    :attr:`TimeAlignment.explains`): the reader's warning, and what a fit that then fails says of its cause (a
+    first-order ``dt_trk`` does not take it). `record`: ``meta["time_alignment"]`` (:meth:`TimeAlignment.to_dict`
+    with the reader's ``mode``). None otherwise."""
+    if not record or record.get("mode") != "none" or not record.get("explains"):
+        return None
+    tau, period = record.get("tau_s"), record.get("tracking_period_s")
+    if tau is None or period is None or not abs(tau) > period:
+        return None
+    return float(tau)
 
 
 def coarse_time_offset(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray, *,

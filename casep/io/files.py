@@ -276,10 +276,10 @@ def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray
     offset exceeds a tracking sample period and explains the misfit; a number: that shift (a warning
     beyond :data:`MAX_TIME_OFFSET`).
     """
+    from casep.io.align import AUTO_MAX_STD, coarse_time_offset, unaligned_lateness
+
     align = None
     if time_offset is None or time_offset == "auto":
-        from casep.io.align import AUTO_MAX_STD, coarse_time_offset
-
         try:
             align = coarse_time_offset(t_tel, v_tel, t_trk, v_trk, max_offset=min(2.0, 0.25 * (t_trk[-1] - t_trk[0])))
         except ValueError:
@@ -301,7 +301,7 @@ def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray
                           "rest?). Not applied: the tags are used as they are", TimeOffsetWarning, stacklevel=3)
     elif time_offset is None:
         shift = 0.0
-        if align is not None and align.exceeds_period and align.explains:
+        if align is not None and unaligned_lateness({**align.to_dict(), "mode": "none"}) is not None:
             # only when the shift explains the data: a wrong site or frame leaves a misfit no shift removes
             warnings.warn(f"{tel.src} + {trk.src}: the tracking time tags look {align.tau * 1e3:.1f} ms late "
                           f"(velocity increments line up best there: mean squared difference {align.cost:.3g} against "

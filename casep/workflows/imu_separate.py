@@ -774,7 +774,7 @@ class _Run:
         if iterate and failure is None and not _stopped(passes[-1], tol) and out.success:
             failure = f"failed: the iteration stopped at pass {len(passes)} before converging"
         if failure is not None:
-            gap = self.gap_clause(float(out.sigma))
+            gap = self.gap_clause(float(out.sigma)) or _late_tags_clause(flight)
             out = failed(out, STATUS_NOT_CONVERGED, failure.replace(_BLAME, gap) if gap else failure)
         widen = None
         if iterate and failure is None:  # the combinations' curvature over what the flight does not determine
@@ -1132,6 +1132,21 @@ def std_shift(C: np.ndarray, extra: np.ndarray) -> float:
     keep = lam > lam.max() * 1e-14
     W = V[:, keep] / np.sqrt(lam[keep])
     return float(np.sqrt(max(np.linalg.eigvalsh(W.T @ extra @ W).max(), 0.0)))
+
+
+def _late_tags_clause(flight: FlightData) -> str:
+    """What a failed iteration says of tracking time tags the pair found late by more than a sample period and
+    left in place (:func:`casep.io.align.unaligned_lateness`); else nothing."""
+    from casep.io.align import unaligned_lateness
+
+    record = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
+    tau = unaligned_lateness(record)
+    if tau is None:
+        return ""
+    assert record is not None
+    return (f"the tracking time tags look {tau * 1e3:.1f} ms late (said when the pair was read), more than a "
+            f"tracking sample period ({record['tracking_period_s'] * 1e3:.4g} ms), which a first-order dt_trk does "
+            "not take: align them (--time-offset auto) and separate again")
 
 
 def _gap_clause(imu: ImuData, sigma: float) -> str:

@@ -125,3 +125,16 @@ def test_auto_leaves_an_offset_the_record_does_not_determine_unapplied(tmp_path)
     with pytest.warns(TimeOffsetWarning, match=r"auto: .* ms late, but that offset's std is .* Not applied"):
         fl = casep.read_flight_pair(tmp_path / "tel.csv", tmp_path / "trk.csv", time_offset="auto")
     assert fl.meta["time_alignment"]["applied_s"] == 0.0 and fl.meta["time_alignment"]["std_s"] > 0.025
+
+
+def test_the_lateness_left_in_place_is_the_readers_warning_rule():
+    """unaligned_lateness: the coarse offset when no time_offset was given, it exceeds a sample period and explains
+    the data; None when it was applied (auto or given), is within a period, or explains nothing."""
+    from casep.io.align import unaligned_lateness
+
+    rec = {"mode": "none", "explains": True, "tau_s": 0.297, "tracking_period_s": 0.2}
+    assert unaligned_lateness(rec) == 0.297
+    assert unaligned_lateness({**rec, "tau_s": -0.25}) == -0.25
+    for change in ({"mode": "auto"}, {"mode": "given"}, {"explains": False}, {"tau_s": 0.15}, {"tau_s": None}):
+        assert unaligned_lateness({**rec, **change}) is None, change
+    assert unaligned_lateness(None) is None and unaligned_lateness({}) is None

@@ -272,6 +272,22 @@ def test_a_pass_count_bound_that_is_reached_is_a_failed_result(noise_free):
     assert not it["converged"] and len(it["passes"]) == 2 and it["passes"][-1]["max_z"] >= it["tol"]
 
 
+def test_a_failure_names_the_late_tracking_tags_the_reader_found(noise_free, tmp_path):
+    """The same bound reached with the tracking's tags 400 ms late (two 5 Hz periods), which the reader warned of
+    and left in place: the failure says that cause and its remedy instead of the generic blame."""
+    import pandas as pd
+
+    imu, trk, _ = noise_free
+    late = tmp_path / "late.csv"
+    df = pd.read_csv(trk)
+    df["t"] = df["t"] + 0.4
+    df.to_csv(late, index=False)
+    out = _separate(imu, late, spec=NOISE_FREE, max_iterations=2)
+    assert not out.success and out.status == STATUS_NOT_CONVERGED
+    assert re.search(r"tracking time tags look (39\d|40\d)\.\d ms late .*--time-offset auto", out.message), out.message
+    assert "too large for the model" not in out.message
+
+
 def test_noise_free_tracking_with_the_std_estimated_stops_at_the_rounding_level(noise_free):
     """Noise-free tracking and sigma estimated from the residuals: every std is rounding, so ``|d| < 0.1 std`` can
     never hold; the iteration stops when the correction is at the rounding level of the coefficients (the
