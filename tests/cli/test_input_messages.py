@@ -50,3 +50,16 @@ def test_truth_from_prior_reads_a_result_file(tmp_path):
     assert set(table) == set(m.names)
     assert table["Kg0x"]["mean"] == pytest.approx(res.estimate[0], rel=1e-12)
     assert table["Kg0x"]["std"] == pytest.approx(res.std[0], rel=1e-12)
+
+
+def test_a_launch_site_value_the_site_refuses_is_named_by_its_option(capsys, tmp_path):
+    """`--launch-site 97.89 ...`: exit 2 naming --launch-site LAT (the site's own rule gave `lat_deg`)."""
+    from casep.cli import main
+
+    imu = tmp_path / "imu.csv"
+    imu.write_text("t,w_x,w_y,w_z,fb_x,fb_y,fb_z\n" + "\n".join(f"{0.01 * k:.2f},0,0,0,0,0,9.8" for k in range(300)))
+    code = main(["navigate", str(imu), "--launch-site", "97.89", "21.1", "330", "30", "--launch-time", "1",
+                 "--align", "0", "2", "--heading", "30", "-o", str(tmp_path / "tel.csv")])
+    err = capsys.readouterr().err
+    assert code == 2 and "--launch-site LAT: " in err and "97.89" in err, err
+    assert not (tmp_path / "tel.csv").exists()
