@@ -211,7 +211,38 @@ def _rate_evidence(t: np.ndarray, q: np.ndarray, w: np.ndarray, keep: np.ndarray
                worst_rate_error_rad_s=float(err.max()), rms_rate_rad_s=float(np.sqrt(np.mean(np.sum(w**2, 1)))),
                rate_gain=[[float(x) if np.isfinite(x) else None for x in row] for row in gain],
                rate_bias_rad_s=bias.tolist(), systematic=systematic)
+    if not _agrees(out) and keep.all():  # a time skew between q and w: a lag at which they agree
+        lag = _lag_agreement(t, w, rv, dt)
+        if lag is not None:
+            out["lag"] = lag
     return out
+
+
+#: Samples of skew between the attitude and the body rate tried when they disagree (:func:`_lag_agreement`).
+MAX_LAG = 3
+
+
+def _lag_agreement(t: np.ndarray, w: np.ndarray, rv: np.ndarray, dt: np.ndarray) -> dict[str, float] | None:
+    """The skew of the attitude against the body rate, in samples, at which the quaternion steps `rv` and the
+    rate's rotation vectors (each of :data:`RATE_READINGS`) agree by :func:`_agrees`' rule (mismatch within
+    :data:`RATE_TOL`, gain within :data:`GAIN_TOL` of the identity): step ``i + k`` of the attitude against step
+    ``i`` of the rate, ``k > 0`` the attitude late. The (reading, ``|k| <=`` :data:`MAX_LAG`) of least mismatch;
+    None when it is ``k = 0`` (no skew explains the disagreement better than none) or none agrees."""
+    best: dict[str, float] | None = None
+    for reading in RATE_READINGS.values():
+        inc = reading(t, w)
+        for k in range(-MAX_LAG, MAX_LAG + 1):
+            a, b, d = (rv[k:], inc[:-k], dt[:-k]) if k > 0 else (rv[:k], inc[-k:], dt[-k:]) if k < 0 else (rv, inc, dt)
+            if a.shape[0] < 3:
+                continue
+            mismatch = _mismatch(a, b)
+            if mismatch > RATE_TOL or (best is not None and mismatch >= best["mismatch"]):
+                continue
+            systematic = _rate_gain(a, b, d)[2]
+            if systematic <= GAIN_TOL:
+                best = {"samples": float(k), "seconds": float(k * np.median(dt)), "mismatch": float(mismatch),
+                        "systematic": float(systematic)}
+    return best if best is not None and best["samples"] != 0 else None
 
 
 def _determined(A: np.ndarray) -> np.ndarray:
@@ -426,6 +457,14 @@ def _judge_rate_fits(src: str, ev: dict[str, Any], error: Any, note: str = "") -
             f"worst {ev['worst_rate_error_rad_s'] / _DEG:.3g} deg/s at row {ev['worst_row']}, "
             f"t = {ev['worst_t']:.6g} s; "
             f"rows 1-{ev['rows']}), against {ev['rms_rate_rad_s'] / _DEG:.3g} deg/s RMS body rate")
+    lag = ev.get("lag")
+    if lag is not None:
+        k, sec = int(lag["samples"]), lag["seconds"]
+        raise error(f"{what}: the attitude (q_*) is {abs(k)} sample(s) ({abs(sec) * 1e3:.4g} ms) "
+                    f"{'later' if k > 0 else 'earlier'} than the body rate ({wcols}): shifted by that they agree "
+                    f"within {100 * lag['mismatch']:.2g} % (gain within {100 * lag['systematic']:.2g} % of the "
+                    "identity). The INS's attitude and rate are on different time bases: put them on one (move "
+                    f"q_* by {-sec * 1e3:+.4g} ms){note}", ", ".join(QUATERNION_COLUMNS), None)
     if ev["systematic"] > GAIN_TOL:
         G = np.array(ev["rate_gain"], dtype=float)
         raise error(f"{what}. The quaternion steps are G times the integrated rate with G = "

@@ -244,6 +244,28 @@ def test_rates_the_attitude_did_not_integrate_are_refused(tmp_path, wrong, what)
     assert np.all(np.isnan(G[:, ~turning])) and np.abs(G - expected)[:, turning].max() < 0.02
 
 
+@pytest.mark.parametrize("k", [2, 3, -2])
+def test_an_attitude_skewed_against_the_rate_is_named_as_a_skew(tmp_path, k):
+    """q_* k samples late (or early) against w_* (20 ms at 50 Hz each) under a changing roll rate: the gain the skew
+    makes looks like axes mixed (beyond GAIN_TOL; a reviewer's 20 Hz roll: 14.6 % off-diagonal for one sample), but
+    shifted back they agree: the refusal names the skew, its direction and milliseconds, not swapped axes. (One
+    sample here stays within RATE_TOL and GAIN_TOL: read, as any disagreement that small.)"""
+    t = np.arange(1000) / RATE  # motion()'s closed form with a roll rate that changes (a constant one hides a skew)
+    phi, phi_dot = 1.5 * t + 2.0 * np.sin(1.3 * t), 1.5 + 2.6 * np.cos(1.3 * t)
+    theta, theta_dot = 0.2 * np.sin(0.3 * t), 0.06 * np.cos(0.3 * t)
+    q = (Rotation.from_euler("z", theta[:, None]) * Rotation.from_euler("x", phi[:, None])).as_quat(scalar_first=True)
+    w = np.column_stack([phi_dot, np.sin(phi) * theta_dot, np.cos(phi) * theta_dot])
+    fb = np.column_stack([30.0 + np.sin(t), 0.5 * np.cos(t), 0.2 * np.ones(t.size)])
+    skewed = np.roll(q, k, axis=0)  # row i holds the attitude of row i - k: late by k samples
+    sl = slice(abs(k), t.size - abs(k))  # the rows np.roll wrapped around left out
+    with pytest.raises(FlightDataError) as exc:
+        casep.read_flight(write(tmp_path / "sd.csv", t[sl], skewed[sl], fb[sl], w[sl]))
+    msg = str(exc.value)
+    when = "later" if k > 0 else "earlier"
+    assert f"is {abs(k)} sample(s) ({20 * abs(k)} ms) {when} than the body rate" in msg, msg
+    assert f"move q_* by {-20 * k:+d} ms" in msg and "columns `q_w`, `q_x`, `q_y`, `q_z`" in msg, msg
+
+
 def test_a_small_compensation_gain_and_a_bias_stay_a_warning(tmp_path):
     """2 % scale and 0.1 rad/s bias on the file's rate (a calibration the INS applied before integrating):
     below GAIN_TOL, the warning with the numbers."""
