@@ -240,13 +240,31 @@ def bias_instability(imu, spans) -> tuple[dict[str, float], list]:
     return inst, rows
 
 
-def horizontal_instability(imu, spans) -> dict[str, float]:
+def tilt_free_force(f: np.ndarray, w: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The specific force at rest less what the body's small rotations make of it (m/s^2, rows as `f`).
+
+    At rest the body turns by ``theta(t) = int (w - mean w) dt`` (the gyros' rate less its mean, the bias and the
+    Earth rate; trapezoid, mean removed) about its mean attitude, and the mean specific force ``f0`` seen in the
+    turned body is ``f0 + f0 x theta`` to first order (``C = I - [theta x]`` carries the body vectors back): a car
+    rocking on its springs moves ``fb_y`` by ``+g theta_x`` and ``fb_x`` by ``-g theta_y`` with z up. What is left
+    is the accelerometers' own error plus ``f0 x`` the integrated gyro noise (so an upper bound still), plus the
+    lateral acceleration of a sensor above the rocking axis (``h theta''``, small below the rocking frequency).
+    """
+    f, w, t = np.asarray(f, float), np.asarray(w, float), np.asarray(t, float)
+    dw = w - w.mean(axis=0)
+    theta = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (dw[1:] + dw[:-1]) * np.diff(t)[:, None], axis=0)])
+    theta -= theta.mean(axis=0)
+    return f - np.cross(f.mean(axis=0), theta)
+
+
+def horizontal_instability(imu, spans, tilt: bool = True) -> dict[str, float]:
     """The horizontal accelerometer biases' instability at rest (mg): at each span the Allan deviation of ``fb_x``,
     ``fb_y`` at a third of the span (as :func:`bias_instability` takes each mean's std), the largest over the spans.
 
     The change between the stops cannot be read for them (the car stands on different slopes); within a stop the
-    slope is fixed, so what the Allan deviation shows at its longest tau is the bias's own wander (or the car
-    rocking on its springs, which the record cannot tell apart: an upper bound either way).
+    slope is fixed, but the car rocks on its springs with the engine running, and ``g`` times the rocking angle is
+    in ``fb_x``, ``fb_y``. With `tilt` (default) the rotation the gyros measure is taken out first
+    (:func:`tilt_free_force`); what is left still holds the integrated gyro noise: an upper bound of the bias's own.
     """
     import allantools
 
@@ -256,7 +274,8 @@ def horizontal_instability(imu, spans) -> dict[str, float]:
         for a, b in spans:
             m = (imu.t > a) & (imu.t < b)
             rate = 1.0 / float(np.median(np.diff(imu.t[m])))
-            sd.append(allantools.oadev(imu.f[m, c], rate=rate, data_type="freq",
+            f = tilt_free_force(imu.f[m], imu.w[m], imu.t[m]) if tilt else imu.f[m]
+            sd.append(allantools.oadev(f[:, c], rate=rate, data_type="freq",
                                        taus=np.array([(b - a) / 3.0]))[1][0] / 9.80665e-3)
         out[n] = float(max(sd))
     return out
@@ -509,9 +528,10 @@ def main() -> None:
         cc = window_consistency(res.windows, res.names, instability=inst)
         print(f"  with it: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, predictions within "
               f"1 std {cc['within_1_std']:.2f}, within 2 std {cc['within_2_std']:.2f}")
-        hor = horizontal_instability(imu, rest)
-        print("  horizontal accelerometers at rest, the largest Allan deviation at a third of a stop: "
-              + ", ".join(f"{n} {v:.2f} mg" for n, v in hor.items()))
+        hor, rocking = horizontal_instability(imu, rest), horizontal_instability(imu, rest, tilt=False)
+        print("  horizontal accelerometers at rest, the largest Allan deviation at a third of a stop, the rotation "
+              "the gyros measure taken out: " + ", ".join(f"{n} {v:.2f} mg" for n, v in hor.items())
+              + " (with the car's rocking left in: " + ", ".join(f"{n} {v:.2f}" for n, v in rocking.items()) + ")")
     if args.consider != "none":
         # the gains of the terms LEFT_OUT_STD holds (a larger consider model's others, lever arm and second
         # order, are kept in --save for car_drive_windows.py)

@@ -24,7 +24,14 @@ Each check is a measurement independent of the windows' chi-square it is meant t
     the Allan deviation (allantools) at a third of the span as the std of each mean. How much the
     biases move over the drive, measured without any window.
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/car_drive_causes.py nav rtk static tags clock \
+``rocking``
+    Is the horizontal accelerometers' wander at rest the sensor or the car rocking on its springs? At each stop:
+    the Allan deviation (allantools) of ``fb_x``, ``fb_y``, ``fb_z``; ``fb_y`` against ``g`` times the roll angle
+    the x gyro measures (``fb_x`` against the pitch angle, y gyro), both low-passed at 2 Hz: correlation and slope
+    (``g`` = 9.81 m/s^2/rad if it is tilt), their coherence (SciPy) by band, and the Allan deviation with that tilt
+    taken out (``car_drive.tilt_free_force``); then ``car_drive.horizontal_instability`` with and without it.
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/car_drive_causes.py nav rtk static tags clock rocking \
         --figures docs/results/figures
 """
 
@@ -291,12 +298,50 @@ def check_clock(data: str, outdir: str | None = None) -> None:
         print("figure", path)
 
 
+def check_rocking(imu, spans) -> None:
+    """Print the stops' tilt analysis (module notes, ``rocking``)."""
+    import allantools
+    from car_drive import horizontal_instability, tilt_free_force
+    from scipy import signal
+
+    mg = 9.80665e-3
+    for a, b in spans:
+        m = (imu.t > a) & (imu.t < b)
+        t, f, w = imu.t[m], imu.f[m] - imu.f[m].mean(axis=0), imu.w[m] - imu.w[m].mean(axis=0)
+        fs = 1.0 / float(np.median(np.diff(t)))
+        taus = np.array([1.0, 3.0, (b - a) / 3.0])
+        theta = np.cumsum(w, axis=0) / fs
+        theta -= theta.mean(axis=0)
+        free = tilt_free_force(imu.f[m], imu.w[m], t)
+        print(f"stop {a:.1f}-{b:.1f} s, Allan deviation at {np.round(taus, 1)} s (mg):")
+        for c in range(3):
+            ad = allantools.oadev(f[:, c], rate=fs, data_type="freq", taus=taus)[1] / mg
+            print(f"  fb_{'xyz'[c]} {np.round(ad, 2)}")
+        lp = signal.butter(4, 2.0 / (fs / 2.0))
+        for c_f, c_w, sign in ((1, 0, 1.0), (0, 1, -1.0)):
+            y, x = signal.filtfilt(*lp, f[:, c_f]), signal.filtfilt(*lp, theta[:, c_w])
+            slope = np.linalg.lstsq(np.column_stack([np.ones_like(x), x, t - t.mean()]), y, rcond=None)[0][1]
+            fr, coh = signal.coherence(f[:, c_f], w[:, c_w], fs=fs, nperseg=256)
+            bands = ((0.4, 1.0), (1.0, 3.0), (3.0, 10.0))
+            cb = [float(coh[(fr >= lo) & (fr < hi)].mean()) for lo, hi in bands]
+            ad_free = allantools.oadev(free[:, c_f], rate=fs, data_type="freq", taus=taus)[1] / mg
+            ad_tilt = allantools.oadev(9.80665 * theta[:, c_w], rate=fs, data_type="freq", taus=taus)[1] / mg
+            print(f"  fb_{'xyz'[c_f]} against {'+' if sign > 0 else '-'}g x the angle about {'xyz'[c_w]} (below 2 Hz): "
+                  f"correlation {sign * np.corrcoef(y, x)[0, 1]:+.2f}, slope {sign * slope:+.2f} m/s^2/rad; coherence "
+                  + ", ".join(f"{lo:g}-{hi:g} Hz {v:.2f}" for (lo, hi), v in zip(bands, cb))
+                  + f"; Allan deviation less the tilt {np.round(ad_free, 2)} mg "
+                  f"(the tilt's own {np.round(ad_tilt, 2)})")
+    print("horizontal_instability: the tilt taken out "
+          + ", ".join(f"{n} {v:.2f} mg" for n, v in horizontal_instability(imu, spans).items()) + "; left in "
+          + ", ".join(f"{n} {v:.2f} mg" for n, v in horizontal_instability(imu, spans, tilt=False).items()))
+
+
 def main() -> None:
     from casep.frames import LaunchSite
     from casep.navigation.imu import read_imu
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("checks", nargs="+", choices=("nav", "rtk", "static", "tags", "clock"))
+    ap.add_argument("checks", nargs="+", choices=("nav", "rtk", "static", "tags", "clock", "rocking"))
     ap.add_argument("--figures", default=None, help="folder for the PNG figure of the RTK velocity lag")
     ap.add_argument("--data", default=DATA)
     ap.add_argument("--out", default="car_drive_out")
@@ -310,7 +355,7 @@ def main() -> None:
         lags, tot = check_rtk(args.data)
         if args.figures:
             print("figure", lag_figure(lags, tot, args.figures))
-    if {"nav", "static", "tags"} & set(args.checks):
+    if {"nav", "static", "tags", "rocking"} & set(args.checks):
         import pandas as pd
 
         imu_path, trk_path, t_ref = convert(args.data, args.out)
@@ -323,9 +368,13 @@ def main() -> None:
             imu.t = imu.t if grid is None else grid
     if "tags" in args.checks:
         check_tags(imu, args.starts, 30.0, args.figures)
-    if "static" in args.checks:
+    if {"static", "rocking"} & set(args.checks):
         pos = read_rtklib_pos(os.path.join(args.data, "gnss_1934_sf.pos"))
-        print_rest(imu, spans_at_rest(pos["t"] - t_ref, pos["ve"], pos["vn"]))
+        rest = spans_at_rest(pos["t"] - t_ref, pos["ve"], pos["vn"])
+        if "static" in args.checks:
+            print_rest(imu, rest)
+        if "rocking" in args.checks:
+            check_rocking(imu, rest)
     if "nav" in args.checks:
         site = LaunchSite(float(trk.lat[0]), float(trk.lon[0]), float(trk.h[0]), 0.0, 0.0)
         moving = float(trk.t[np.hypot(trk.v_east, trk.v_north) > 0.3].iloc[0])

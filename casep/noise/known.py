@@ -159,11 +159,14 @@ def fit_tracking(X: np.ndarray, t: np.ndarray, start: NoiseModel, known: KnownSt
     """The tracking noise by REML beside the known term (module notes), the kinds per axis of `start` (a fitted
     model: its parameters start the search; a given tau stays given): ``(model, -2 l_R)``.
 
-    Free are, per axis, ``ln c`` (Gauss-Markov), ``ln d`` (white part) and ``ln tau`` (unless given). The model
-    returned has rule ``"REML beside the IMU noise"`` (``"tau given, REML beside ..."``) and the fitted ``-2 l_R``.
+    Free are, per axis, ``ln c`` (Gauss-Markov), ``ln d`` (white part) and ``ln tau`` (unless given; within
+    :func:`casep.noise.fit.tau_search_bounds` of `t`, the interval :func:`casep.noise.fit.fit_noise` searches).
+    The model returned has rule ``"REML beside the IMU noise"`` (``"tau given, REML beside ..."``) and the fitted
+    ``-2 l_R``.
     """
-    from casep.noise.fit import nelder_mead
+    from casep.noise.fit import nelder_mead, tau_search_bounds
 
+    lo, hi = tau_search_bounds(np.asarray(t, dtype=float))
     theta0 = TrackingParameters.of(start)
     free_tau = start.rule != "given"
     slots: list[tuple[str, int]] = []
@@ -175,10 +178,15 @@ def fit_tracking(X: np.ndarray, t: np.ndarray, start: NoiseModel, known: KnownSt
         if theta0.d[j] > 0 or theta0.tau[j] is None:
             slots.append(("d", j))
     x0 = np.log([getattr(theta0, name)[j] for name, j in slots])
+    # ln tau stays in fit_noise's search interval: beyond the record's span a Gauss-Markov term is a random
+    # constant plus a random walk, which the likelihood cannot tell apart from one another (c and tau trade)
+    low = np.array([lo if name == "tau" else -700.0 for name, _ in slots])
+    high = np.array([hi if name == "tau" else 700.0 for name, _ in slots])
+    x0 = np.clip(x0, low, high)
 
     def theta(x: np.ndarray) -> TrackingParameters:
         v = {"c": list(theta0.c), "tau": list(theta0.tau), "d": list(theta0.d)}
-        for (name, j), value in zip(slots, np.exp(np.clip(x, -700.0, 700.0))):
+        for (name, j), value in zip(slots, np.exp(np.clip(x, low, high))):
             v[name][j] = float(value)
         return TrackingParameters(tuple(v["c"]), tuple(v["tau"]), tuple(v["d"]))
 

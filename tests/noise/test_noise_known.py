@@ -150,3 +150,29 @@ def test_a_gauss_markov_part_searched_down_to_nothing_makes_the_axis_white():
     assert noise.share[1] == pytest.approx(2e-4 / 11e-4, rel=1e-12)
     white = TrackingParameters((0.0, 9e-4, 0.0), (None, 1.0, None), (4e-4, 2e-4, 5e-4))
     assert np.allclose(_track_dense(TrackingParameters.of(noise), t), _track_dense(white, t), rtol=1e-12, atol=0.0)
+
+
+def test_the_correlation_time_stays_within_the_records_span_as_in_fit_noise():
+    """A velocity error that is a random walk plus white noise (a Gauss-Markov term slower than any record): the
+    restricted likelihood grows with tau beyond the record's span, where ``c`` and ``tau`` trade (seen on car
+    windows: tau 9e5 s, std 17 m/s). The search keeps ln tau within :func:`casep.noise.fit.tau_search_bounds`, as
+    fit_noise does, so with no known term both end at the upper bound with the same std (1 % in the std, 1e-9 in
+    tau), not beyond it."""
+    from casep.noise.fit import tau_search_bounds
+
+    rng = np.random.default_rng(1)
+    t = 0.25 * np.arange(120)
+    S = rng.normal(size=(t.size, 3, 2))
+    e = 0.02 * np.cumsum(rng.standard_normal((t.size, 3)), axis=0) + 0.01 * rng.standard_normal((t.size, 3))
+    pb = Problem.from_arrays(S, S @ np.array([1.0, -2.0]) + e, t)
+    reml = fit_noise(pb, "gmw")
+    hi = np.exp(tau_search_bounds(t)[1])
+    assert reml.tau[1] == pytest.approx(hi, rel=1e-9) and reml.tau[2] == pytest.approx(hi, rel=1e-9)  # at its bound
+    zero = KnownStates(np.ones((t.size, 1, 1)), np.zeros((t.size, 1, 1)), np.zeros((t.size, 3, 1)), np.zeros((1, 1)))
+    X = np.stack(Reml(pb, estimable_basis(pb)).Z, axis=1)
+    got, _ = fit_tracking(X, t, reml, zero, xatol=1e-3)
+    a, b = TrackingParameters.of(got), TrackingParameters.of(reml)
+    assert all(x is not None and x <= hi * (1.0 + 1e-9) for x in a.tau)
+    np.testing.assert_allclose(a.tau, b.tau, rtol=1e-2)
+    np.testing.assert_allclose(np.sqrt(a.c), np.sqrt(b.c), rtol=1e-2)
+    np.testing.assert_allclose(np.sqrt(a.d), np.sqrt(b.d), rtol=1e-2)
