@@ -99,3 +99,24 @@ def test_a_record_too_short_to_bound_tau_says_so_and_its_spread_is_scipys_genera
         want += (c0 @ V * np.clip(lam, 0.0, None)) @ V.T @ c0
     assert np.all(np.isfinite(extra)) and np.abs(want).max() > 0
     np.testing.assert_allclose(extra, want, rtol=0, atol=1e-9 * np.abs(want).max())
+
+
+def test_an_unbounded_correlation_time_is_said_with_its_numbers():
+    """The warning names the axes whose kept interval reaches the record length, with the interval, the record length
+    and the largest std factor; a record that bounds every axis says nothing."""
+    import warnings
+
+    from casep.exceptions import UndecidedNoiseWarning
+    from casep.workflows.imu_separate import warn_tau_unbounded
+
+    record = {"record_s": 15.0, "std_factor_max": 1.21, "std_factor_worst": "dt_trk",
+              "axes": {"x": {"kept_s": [0.2, 15.0], "bounded": False}, "y": {"kept_s": [0.4, 3.6], "bounded": True},
+                       "z": {"kept_s": [0.84, 15.0], "bounded": False}}}
+    with pytest.warns(UndecidedNoiseWarning, match=r"on axes x \(0\.2 to 15 s\), z \(0\.84 to 15 s\): .*\(15 s, "
+                                                   r"rec\)\..*up to 1\.21 x \(dt_trk\)") as said:
+        warn_tau_unbounded("rec", record)
+    assert len(said) == 1 and " y " not in str(said[0].message)
+    record["axes"] = {ax: {**v, "bounded": True} for ax, v in record["axes"].items()}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_tau_unbounded("rec", record)
