@@ -62,8 +62,8 @@ from casep.noise.model import (
     whiten_series,
 )
 
-__all__ = ["fit_noise", "tau_search_bounds", "tau_profile", "with_kind", "Reml", "estimable_basis", "bounded_minimum",
-           "nelder_mead", "SHARE_LOGIT"]
+__all__ = ["fit_noise", "tau_search_bounds", "tau_profile", "tau_kept", "with_kind", "Reml", "estimable_basis",
+           "bounded_minimum", "nelder_mead", "SHARE_LOGIT"]
 
 _EPS = float(np.finfo(float).eps)
 
@@ -357,7 +357,14 @@ def tau_profile(problem, points: int = PROFILE_POINTS, level: float = PROFILE_LR
     restricted likelihood (``exp(-(-2 l_R - min) / 2)``, the weights of an axis summing to 1): the posterior of
     ``ln tau`` on that interval. A few hundred epochs hold tau to a factor of several (a 20 s record of tau 1 s:
     REML's tau from 0.14 to 9.5 s over 12 seeds), and a combination's variance can grow several times over that
-    range (:func:`casep.workflows.imu_separate.tau_spread`)."""
+    range (:func:`casep.workflows.imu_separate.tau_spread`).
+
+    The search interval's top is the record length, and it caps the average: beyond it the record cannot tell a
+    Gauss-Markov noise from a drift its coefficients absorb (the profile stays flat) while the scale REML gives it,
+    and so the variance it adds along a bias, keeps growing with tau; an uncapped average over what the record does
+    not bound is no std. An axis whose kept interval reaches the record length has a tau the record does not bound
+    from above (:func:`tau_kept` says which): the average there stops at the record length, and the caller says so.
+    The bottom needs no such cap: a Gauss-Markov noise of tau below the sample spacing is white noise."""
     base = fit_noise(problem, "gmw")
     lo, hi = tau_search_bounds(problem.t)
     grid = np.exp(np.linspace(lo, hi, int(points)))
@@ -374,6 +381,18 @@ def tau_profile(problem, points: int = PROFILE_POINTS, level: float = PROFILE_LR
         w = np.exp(-d[keep] / 2.0)
         out.append([(float(v), f) for v, f in zip(w / w.sum(), [f for f, k in zip(fits, keep) if k])])
     return base, out
+
+
+def tau_kept(t: np.ndarray, profile: tuple) -> list[tuple[float, float, bool]]:
+    """Per axis of a :func:`tau_profile` of rows at times `t`: the smallest and largest tau kept (s) and whether the
+    kept interval reaches the search interval's top, the record length (:func:`tau_search_bounds`): then the record
+    does not bound that axis's tau from above (:func:`tau_profile`'s notes)."""
+    top = float(np.exp(tau_search_bounds(np.asarray(t, dtype=float))[1]))
+    out = []
+    for j, points in enumerate(profile[1]):
+        taus = [float(nm.tau[j]) for _, nm in points]
+        out.append((min(taus), max(taus), max(taus) >= top * (1.0 - 1e-9)))
+    return out
 
 
 class _Fit:

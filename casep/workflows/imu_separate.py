@@ -874,13 +874,12 @@ class _Run:
     def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
         """`res` with the record's own noise in its std, the pad levelling's start tilt with it
         (:func:`with_imu_noise`)."""
-        return with_imu_noise(res, problem, flight, self.levelling())
+        return with_imu_noise(res, problem, flight, self.levelling(), self.tau_profile(problem))
 
     def tau_profile(self, problem: Any) -> tuple | None:
-        """:func:`casep.noise.fit.tau_profile` of `problem`'s rows (the last pass's, formed once; the stated
-        combinations' std: :func:`tau_spread`); None without times or a finite Gauss-Markov fit. Not in the
-        coefficients' covariance yet: there it failed a 16 s pad record with 16 white tracking epochs (tau's
-        profile flat to 15 s, the best-determined coefficient's std 17.8 declared magnitudes: "determines none")."""
+        """:func:`casep.noise.fit.tau_profile` of `problem`'s rows (the last pass's, formed once; the coefficients'
+        and the stated combinations' std, one rule: :func:`tau_spread`); None without times or a finite
+        Gauss-Markov fit."""
         from casep.noise.fit import tau_profile
 
         if self._tau_profile is not None and self._tau_profile[0] is problem:
@@ -1672,8 +1671,8 @@ def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np
     return evaluate_samples(fn, values, n)
 
 
-def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
-                     levelling: tuple | None = None) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
+def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, levelling: tuple | None = None,
+                     profile: tuple | None = None) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
     """The estimate's covariance with the IMU's own white noise: ``(tracking part, IMU part, what was used)`` (None
     when the flight does not hold the IMU's samples, or the result has no covariance; the tracking part None: the
     fit's own covariance).
@@ -1696,8 +1695,11 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
         Cov(x) = A Sigma_track(theta) A^T + (A G) (A G)^T
 
     (``Sigma_track A^T`` by :func:`casep.noise.known.tracking_covariance_times`). A noise model not fitted (white:
-    the solver's sigma) keeps the fit's covariance as the tracking part. The uncertainty of the correlation times
-    (:func:`tau_spread`) is in the stated combinations' std only (:meth:`_Run.tau_profile` says why).
+    the solver's sigma) keeps the fit's covariance as the tracking part. With `profile` (:meth:`_Run.tau_profile`)
+    the tracking part gains what the uncertainty of the correlation times adds (:func:`tau_spread`, as the stated
+    combinations' std do: :func:`combination_imu_noise`), and the account says over which correlation times, whether
+    the record bounds them and by how much it raises the std (``tau_profile``: :func:`warn_tau_unbounded` says when
+    the record does not bound them).
     """
     from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_noise_effect, imu_sample_noise
     from casep.noise.model import NoiseModel, whiten, whiten_transpose
@@ -1725,7 +1727,12 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData,
     from casep.noise.known import tracking_covariance_times
 
     C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
-    return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, at_rest)
+    if profile is None:
+        return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, at_rest)
+    spread = tau_spread(A, problem, profile)
+    account = _imu_account(res, measured, C_trk + spread, C_imu, refit, at_rest)
+    account["tau_profile"] = _tau_record(res, t, profile, C_trk + C_imu, spread)
+    return C_trk + spread, C_imu, account
 
 
 def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: Any, flight: FlightData,
@@ -1781,9 +1788,12 @@ def tau_spread(a: np.ndarray, problem: Any, profile: tuple | None) -> np.ndarray
     ``benchmarks/mc_imu_gmw_combinations.py``; REML's tau from white to 9.5 s over its 12 seeds, the best-determined
     combination's variance 6 times the fitted one's under the true noise). Per axis, the mean of ``a Sigma a^T`` over
     the posterior of that axis's tau (the profile's 95 % interval, weighted by the restricted likelihood, the other
-    axes at the Gauss-Markov plus white fit) less its value at that fit, its positive part (the eigenvalues below 0
-    dropped), summed over the axes (the axes one at a time). The profile is of the rows with the IMU's noise in them
-    (not beside it: :func:`_tracking_beside_imu`), as the fit that chose the noise model saw them."""
+    axes at the Gauss-Markov plus white fit) less its value at that fit, its part that adds variance to that value
+    (:func:`relative_positive_part`: the same in any units), summed over the axes (the axes one at a time). The
+    average stops at the record length (:func:`casep.noise.fit.tau_profile`'s notes), where the record does not bound
+    tau (said: :func:`warn_tau_unbounded`). The coefficients' covariance (:func:`imu_noise_budget`) and the stated
+    combinations' std (:func:`combination_imu_noise`) both gain it. The profile is of the rows with the IMU's noise
+    in them (not beside it: :func:`_tracking_beside_imu`), as the fit that chose the noise model saw them."""
     from casep.noise.known import tracking_covariance_times
 
     t = np.asarray(problem.t, dtype=float)
@@ -1798,9 +1808,74 @@ def tau_spread(a: np.ndarray, problem: Any, profile: tuple | None) -> np.ndarray
     base, axes = profile
     c0 = cov(base)
     for points in axes:
-        lam, V = np.linalg.eigh(sum(w * cov(nm) for w, nm in points) - c0)
-        extra += (V * np.clip(lam, 0.0, None)) @ V.T
+        extra += relative_positive_part(sum(w * cov(nm) for w, nm in points) - c0, c0)
     return extra
+
+
+def relative_positive_part(M: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """The part of the symmetric `M` that adds variance to the covariance `C` (both (m, m)): with the generalized
+    eigenvectors ``M v = lam C v`` (``V^T C V = I``), ``C V diag(max(lam, 0)) V^T C``; zero along `C`'s null space.
+
+    Each ``lam`` is the factor by which `M` changes the variance of one combination relative to `C`'s, so the part is
+    the same whatever units the coefficients are in (a congruence ``R M R^T``, ``R C R^T`` gives ``R P R^T``). The
+    positive part in the coefficients' own units (``eigh(M)``) is not: on a 16 s pad record at rest, where ``M`` spans
+    1e22 (natural units) along what the record does not determine, it raised the best-determined combination's std
+    from 0.05 to 17.6 declared magnitudes, and the record "determined none". Here `C` is equilibrated (unit
+    diagonal) before its eigen-decomposition, so its directions hold to eps times its condition number relative to
+    their own variance; directions below ``m eps`` of its largest eigenvalue are its null space."""
+    m = C.shape[0]
+    d = np.sqrt(np.clip(np.diag(C), 0.0, None))
+    inv = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 0.0)
+    lam0, Q = np.linalg.eigh(C * np.outer(inv, inv))
+    if not lam0.size or not lam0[-1] > 0:
+        return np.zeros_like(C)
+    keep = lam0 > m * np.finfo(float).eps * lam0[-1]
+    R = Q[:, keep] * np.sqrt(lam0[keep])  # C (equilibrated) = R R^T
+    T = Q[:, keep] / np.sqrt(lam0[keep])  # R^T T = I
+    lam, V = np.linalg.eigh(T.T @ (M * np.outer(inv, inv)) @ T)
+    RV = R @ V
+    return (RV * np.clip(lam, 0.0, None)) @ RV.T * np.outer(d, d)
+
+
+def _tau_record(res: EstimateResult, t: np.ndarray, profile: tuple, C: np.ndarray, spread: np.ndarray) -> dict:
+    """What :func:`tau_spread` averaged the tracking noise over, for the noise account: per axis the correlation
+    times kept (s) and whether the record bounds them (:func:`casep.noise.fit.tau_kept`), the record's length, and
+    the largest factor the spread raises a coefficient's std by (over `C`, the covariance without it)."""
+    from casep.noise.fit import tau_kept
+    from casep.noise.model import AXES
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.sqrt((np.diag(C) + np.diag(spread)) / np.diag(C))
+    ok = np.isfinite(ratio) & np.isfinite(np.asarray(res.covariance).diagonal())
+    worst = int(np.argmax(np.where(ok, ratio, -np.inf))) if ok.any() else 0
+    return {"record_s": float(t[-1] - t[0]),
+            "axes": {ax: {"kept_s": [lo, hi], "bounded": not top}
+                     for ax, (lo, hi, top) in zip(AXES, tau_kept(t, profile))},
+            "std_factor_max": float(ratio[worst]) if ok.any() else None, "std_factor_worst": res.names[worst],
+            "rule": "per axis the tracking covariance averaged over tau's profile likelihood (its 95 % interval, "
+                    "weighted by the restricted likelihood, uniform in ln tau up to the record length), less its value "
+                    "at the fit, its part that adds variance (casep.workflows.imu_separate.tau_spread)"}
+
+
+def warn_tau_unbounded(source: Any, record: dict) -> None:
+    """A :class:`~casep.exceptions.UndecidedNoiseWarning` when the record does not bound the tracking noise's
+    correlation time on some axis (`record` the noise account's ``tau_profile``, :func:`_tau_record`): its numbers."""
+    from casep.exceptions import UndecidedNoiseWarning
+    from casep.noise.fit import PROFILE_LR
+
+    loose = {ax: v["kept_s"] for ax, v in record["axes"].items() if not v["bounded"]}
+    if not loose:
+        return
+    factor = record["std_factor_max"]
+    warnings.warn(UndecidedNoiseWarning(
+        "the record does not bound the tracking noise's correlation time on axes "
+        + ", ".join(f"{ax} ({lo:.3g} to {hi:.3g} s)" for ax, (lo, hi) in loose.items())
+        + f": its profile likelihood stays within {PROFILE_LR:g} of its best up to the record length "
+        f"({record['record_s']:.3g} s, {source}). The std "
+        "carry the tracking noise averaged over tau up to the record length, no further (beyond it the record cannot "
+        "tell the noise from a drift its coefficients absorb)"
+        + ("" if factor is None else f"; that raises them by up to {factor:.3g} x ({record['std_factor_worst']})")),
+        stacklevel=3)
 
 
 def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling: tuple | None) -> Any:
@@ -1848,13 +1923,15 @@ def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu:
 
 
 def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
-                   levelling: tuple | None = None) -> EstimateResult:
+                   levelling: tuple | None = None, profile: tuple | None = None) -> EstimateResult:
     """`res` with the IMU's own noise in its covariance and std and said in its noise account
     (:func:`imu_noise_budget`; `res` itself when the flight does not hold the IMU's samples)."""
-    budget = imu_noise_budget(res, problem, flight, levelling)
+    budget = imu_noise_budget(res, problem, flight, levelling, profile)
     if budget is None:
         return res
     C_trk, C_imu, account = budget
+    if "tau_profile" in account:
+        warn_tau_unbounded(problem.source, account["tau_profile"])
     C_fit = np.asarray(res.covariance)
     # the tracking part: refitted (the minimum-norm solution's, finite where the fit's is not), else the fit's own
     cov = C_fit + C_imu if C_trk is None else np.where(np.isfinite(C_fit), C_trk + C_imu, np.nan)

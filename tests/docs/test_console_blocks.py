@@ -84,6 +84,8 @@ EXPECTED_WARNINGS = {
                                            "at one std: navigate.md shows the warning and explains it",
     "the record determines ": "a MEMS IMU's roll-axis gyro combinations have std 4-20 times the plausible size of its "
                               "errors and are left at the prior: navigate.md shows the warning and explains it",
+    "the record does not bound the tracking noise's correlation time": "a 40 s MEMS launch's tracking holds one "
+        "axis's correlation time from 1.3 s up to the record length: navigate.md shows the warning and explains it",
     "the navigation is not linear over what the flight does not determine": "a MEMS IMU's combinations left at the "
         "prior move the ones stated by their second order: navigate.md shows the warning and explains it",
 }

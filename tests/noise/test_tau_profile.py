@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from casep.noise.fit import PROFILE_LR, PROFILE_POINTS, fit_noise, tau_profile, tau_search_bounds
+from casep.noise.fit import PROFILE_LR, PROFILE_POINTS, fit_noise, tau_kept, tau_profile, tau_search_bounds
 from casep.regression.problem import Problem
 from casep.simulation.noise import ar1_noise
 
@@ -43,6 +43,11 @@ def test_the_profile_points_are_the_fits_at_their_tau_weighted_by_their_likeliho
         d = np.array(vals) - min(vals)
         assert np.all(d < PROFILE_LR)
         np.testing.assert_allclose([w for w, _ in points], np.exp(-d / 2) / np.sum(np.exp(-d / 2)), rtol=1e-12)
+        # tau_kept: the kept interval's ends, and whether it reaches the grid's top (the record length, 19.8 s)
+        lo_j, hi_j, top_j = tau_kept(pb.t, (base, axes))[j]
+        taus = [nm.tau[j] for _, nm in points]
+        assert (lo_j, hi_j) == (min(taus), max(taus))
+        assert top_j == (abs(hi_j - (pb.t[-1] - pb.t[0])) < 1e-9)
 
 
 def test_the_kept_interval_holds_the_true_tau_about_as_often_as_its_level_says():
