@@ -184,6 +184,11 @@ def reduce_qr_blocks(blocks: Iterable[tuple[np.ndarray, np.ndarray]], n: int,
     return ReducedSystem(R=R, qty=Rfull[:n, n].copy(), rho2=float(Rfull[n, n] ** 2), scale=scale, m=m)
 
 
+#: The least coupling of two coefficients in the null space that puts them in one exactly dependent group
+#: (:meth:`RankAnalysis.exact_groups`).
+GROUP_SHARE = 0.1
+
+
 @dataclass(frozen=True)
 class RankAnalysis:
     """SVD-based rank analysis of a :class:`ReducedSystem`.
@@ -193,7 +198,8 @@ class RankAnalysis:
     U, s, Vt : ndarray
         SVD of ``R`` (scaled coordinates).
     rank : int
-        Number of singular values above ``rcond * s[0]``.
+        Number of singular values above ``rcond * s[0]``, less the directions at the rounding level relative to the
+        declared magnitudes (:func:`rounding_directions`; their rows of `Vt` keep only their members).
     rcond : float
         Relative threshold used.
     zero : (n,) bool ndarray
@@ -215,6 +221,33 @@ class RankAnalysis:
     dependent: np.ndarray
     partners: dict
     rounding: np.ndarray | None = None
+
+    def exact_groups(self) -> list[list[int]]:
+        """The exactly dependent coefficients in groups, each sorted, in the order of their first member: the
+        coefficients tied by a coupling ``|P_jk| / sqrt(P_jj P_kk)`` of at least :data:`GROUP_SHARE` of the
+        null-space projector ``P = V_null V_null^T`` (scaled coordinates), and those tied to them. The closure of
+        `partners` reaches further: a rotation of the IMU about one body axis takes an initial attitude error mostly
+        about one navigation axis and a little (~1e-3) about the others, which ties each such group to the next."""
+        Vnull = self.Vt[self.rank:].T
+        member = self.dependent & ~self.zero
+        P = Vnull @ Vnull.T
+        d = np.sqrt(np.clip(np.diag(P), 0.0, None))
+        tied = (np.abs(P) >= GROUP_SHARE * np.outer(d, d)) & member[:, None] & member[None, :]
+        groups: list[list[int]] = []
+        seen: set[int] = set()
+        for j in map(int, np.flatnonzero(member)):
+            if j in seen:
+                continue
+            group, todo = {j}, [j]
+            while todo:
+                for k in map(int, np.flatnonzero(tied[todo.pop()])):
+                    if k not in group:
+                        group.add(k)
+                        todo.append(k)
+            seen |= group
+            if len(group) > 1:
+                groups.append(sorted(group))
+        return groups
 
     @property
     def estimable(self) -> np.ndarray:
@@ -242,6 +275,61 @@ def rounding_columns(red: ReducedSystem, magnitudes: Sequence[float | None],
     if not known.any():
         return np.zeros(red.n, dtype=bool)
     return known & (effect <= rounding_level(float(np.max(effect[known]))))
+
+
+#: Relative singular value (columns equilibrated) at or below which a direction at the rounding level of the
+#: declared magnitudes is an exact dependency (:func:`rounding_directions`): half the digits of double precision,
+#: what a dependency exact in the model keeps of its exactness through the numerical integration of S_V (the
+#: strapdown IMU rotated against the body: 7e-11), four orders below the worst real collinearity of a flight
+#: (equilibrated condition numbers up to ~1e6: those directions are small at the declared magnitudes when a
+#: member's column is small, and stay estimable on noise-free data).
+DEPENDENT_SINGULAR = float(np.sqrt(np.finfo(float).eps))
+
+#: A member of a direction at the rounding level (:func:`rounding_directions`) moves the data at its declared
+#: magnitude by more than this fraction of the largest member; the others are that level's leak (~1e-7), no part
+#: of the dependency.
+ROUNDING_MEMBER = 1e-3
+
+
+def rounding_directions(red: ReducedSystem, s: np.ndarray, Vt: np.ndarray, magnitudes: Sequence[float | None],
+                        rounding_level: Callable[[float], float], rounding: np.ndarray) -> np.ndarray:
+    """The smallest singular directions (`s`, `Vt` of the scaled ``R``, largest first) that are rounding noise
+    relative to the declared magnitudes: :func:`rounding_columns`' rule for a combination of columns.
+
+    A direction ``v`` is the change ``x = v / c`` of the coefficients (natural units); scaled so that its largest
+    member is at its declared magnitude (``max_j |x_j| / s_j = 1``) it moves the data by ``s_k / max_j |x_j| / s_j``
+    (m/s over the rows). At or below the rounding level of the largest column effect ``||S_j|| s_j`` it carries no
+    information: an exact dependency of the model (the whole IMU rotated against the body, taken up by an initial
+    attitude error) that the discretisation of S_V leaves at 1e-11 of the largest singular value instead of
+    1e-16. Only at or below :data:`DEPENDENT_SINGULAR` of the largest singular value. Counted from the smallest
+    up, stopping at the first that is not; a direction with a member (a component above :data:`NULL_ROUNDING`)
+    without a declared magnitude is never one.
+
+    Returns
+    -------
+    (k, n) ndarray
+        The k directions found (the last k rows of `Vt`), each with its members only (:data:`ROUNDING_MEMBER`),
+        orthonormal.
+    """
+    mags = np.array([np.nan if m is None else m for m in magnitudes], dtype=float)
+    effect = red.scale * np.abs(mags)
+    known = np.isfinite(effect) & (effect > 0) & ~rounding
+    if not known.any():
+        return np.zeros((0, red.n))
+    level = rounding_level(float(np.max(effect[known])))
+    found: list[np.ndarray] = []
+    for k in range(s.size - 1, -1, -1):
+        v = np.abs(Vt[k])
+        member = v > NULL_ROUNDING
+        if not member.any() or not np.all(known[member]):
+            break
+        w = np.where(member, v / np.where(known, effect, 1.0), 0.0)  # in units of the declared magnitudes
+        if s[k] > DEPENDENT_SINGULAR * s[0] or s[k] / float(w.max()) > level:
+            break
+        found.append(np.where(w > ROUNDING_MEMBER * w.max(), Vt[k], 0.0))
+    if not found:
+        return np.zeros((0, red.n))
+    return np.linalg.qr(np.array(found[::-1]).T)[0].T
 
 
 def analyze_rank(red: ReducedSystem, rcond: float | None = None,
@@ -277,6 +365,12 @@ def analyze_rank(red: ReducedSystem, rcond: float | None = None,
     U, s, Vt = np.linalg.svd(R)
     smax = s[0] if s.size else 0.0
     rank = int(np.sum(s > rcond * smax)) if smax > 0 else 0
+    if magnitudes is not None and rounding_level is not None:
+        at_rounding = rounding_directions(red, s[:rank], Vt[:rank], magnitudes, rounding_level, rounding)
+        if at_rounding.shape[0]:
+            Vt = Vt.copy()
+            Vt[rank - at_rounding.shape[0]:rank] = at_rounding
+            rank -= at_rounding.shape[0]
     zero = (red.scale == 0.0) | rounding
     Vnull = Vt[rank:].T  # (n, n - rank): exact null space of Z
     row_norm = np.linalg.norm(Vnull, axis=1) if Vnull.size else np.zeros(n)
@@ -401,16 +495,17 @@ def condition_numbers(red: ReducedSystem, ra: RankAnalysis) -> dict[str, float |
     ``condition_number`` is for S in natural units, ``condition_number_equilibrated`` for
     the columns scaled to unit norm (never centred: the model has no intercept). Zero
     columns are left out (they are reported as unidentifiable); ``None`` stands for an
-    infinite value, i.e. exactly dependent non-zero columns.
+    infinite value: exactly dependent non-zero columns as `ra` decides (its rank below their count), the one
+    rule of the rank, so that a full rank never stands beside an infinite condition number.
     """
     keep = ~ra.zero
-    if not np.any(keep):
+    if not np.any(keep) or ra.rank < int(np.sum(keep)):  # the rank analysis' dependency: the one rule
         return {"condition_number": None, "condition_number_equilibrated": None}
     out: dict[str, float | None] = {}
     for key, M in (("condition_number", red.R[:, keep] * red.scale[keep]),
                    ("condition_number_equilibrated", red.R[:, keep])):
         s = np.linalg.svd(M, compute_uv=False)
-        out[key] = float(s[0] / s[-1]) if s[-1] > ra.rcond * s[0] else None
+        out[key] = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
     return out
 
 
