@@ -21,6 +21,8 @@ from typing import Callable, Iterable, Iterator, Sequence, cast
 
 import numpy as np
 
+from casep._special import chi2_sf
+
 __all__ = ["ReducedSystem", "reduce_qr", "reduce_qr_blocks", "RankAnalysis", "analyze_rank", "rounding_columns",
            "least_squares_rss",
            "DEFAULT_BLOCK_ROWS", "qr_forward_error", "refine_least_squares", "REFINE_ABOVE"]
@@ -291,8 +293,72 @@ DEPENDENT_SINGULAR = float(np.sqrt(np.finfo(float).eps))
 ROUNDING_MEMBER = 1e-3
 
 
-def rounding_directions(red: ReducedSystem, s: np.ndarray, Vt: np.ndarray, magnitudes: Sequence[float | None],
-                        rounding_level: Callable[[float], float], rounding: np.ndarray) -> np.ndarray:
+#: A direction at the rounding level is needed by the data (:func:`direction_needed`) when dropping it raises the
+#: residual sum of squares by more than the noise gives with this chance: the likelihood-ratio test of the
+#: coefficient along it being zero, one degree of freedom.
+NEEDED_ALPHA = 1e-3
+
+
+def direction_needed(growth: float, sigma2: float, level: float) -> bool:
+    """Whether the data need a singular direction: the residual sum of squares grows by `growth` without it
+    (``(u_k^T Q^T y)^2``, the fit's part along it) beyond both what its own rounding explains (`level` squared: the
+    most the direction moves the data at the declared magnitudes, :func:`rounding_directions`) and the noise:
+    ``chi2_1 sf(growth / sigma2) < NEEDED_ALPHA`` (`sigma2` the noise variance per row). A direction the flight
+    cannot separate from the others gets only noise along it; one that carries an error beyond the declared
+    magnitudes (the reason it was small at them) gets the error, far above the noise."""
+    if growth <= level**2:
+        return False
+    if sigma2 <= 0.0:
+        return True
+    return chi2_sf(1, growth / sigma2) < NEEDED_ALPHA
+
+
+def member_null_direction(R: np.ndarray, v: np.ndarray, member: np.ndarray, tol: float,
+                          found: Sequence[np.ndarray]) -> np.ndarray | None:
+    """The direction on the `member` columns alone closest to the singular direction `v` that the data cannot
+    see: `v` restricted to the members and projected on the right singular vectors of ``R[:, member]`` whose
+    singular values are at most `tol`, orthogonal to the directions already `found`; None when that leaves nothing
+    (the members alone are not dependent: the direction's bulk lay on the other columns).
+
+    Unit, on the members only, ``||R n|| <= tol``: exactly the direction the warning names, so that the null space
+    downstream (:func:`null_space`, :class:`PartnerBound`) is one of the data."""
+    idx = np.flatnonzero(member)
+    _, sm, Wt = np.linalg.svd(R[:, idx])
+    basis = Wt[sm <= tol]  # (j, |members|): R is square, so there are as many singular values as members
+    if basis.shape[0] == 0:
+        return None
+    for f in found:  # orthogonal to the directions already found (n is zero off the members: f . n = f_m . n_m)
+        fm = f[idx]
+        norm_f = float(np.linalg.norm(fm))
+        if norm_f > 0.0:
+            basis = basis - np.outer(basis @ fm, fm) / norm_f**2
+    _, sv, bt = np.linalg.svd(basis, full_matrices=False)
+    basis = bt[sv > 0.5]  # an orthonormal basis of what is left
+    if basis.shape[0] == 0:
+        return None
+    x = basis.T @ (basis @ v[idx])
+    norm = float(np.linalg.norm(x))
+    if norm == 0.0:
+        return None
+    n = np.zeros_like(v)
+    n[idx] = x / norm
+    return n
+
+
+def constraint_growth(s: np.ndarray, Vt: np.ndarray, b: np.ndarray, n: np.ndarray) -> float:
+    """How much the residual sum of squares grows when the fit is kept from moving along `n` (scaled
+    coordinates): ``(n^T z)^2 / (n^T (R^T R)^-1 n)`` with ``z`` the least-squares solution, the likelihood-ratio
+    statistic (times the noise variance) of ``n^T z = 0``. From the SVD ``R = U diag(s) V^T`` (over the numerical
+    rank: `s`, the first rows of `Vt`) and ``b = U^T Q^T y``: with ``a_i = (v_i . n) / s_i``, ``(a . b)^2 / (a . a)``;
+    ``b_k^2`` for ``n = v_k``."""
+    a = (Vt[: s.size] @ n) / s
+    aa = float(a @ a)
+    return float(a @ b[: s.size]) ** 2 / aa if aa > 0 else 0.0
+
+
+def rounding_directions(red: ReducedSystem, U: np.ndarray, s: np.ndarray, Vt: np.ndarray,
+                        magnitudes: Sequence[float | None], rounding_level: Callable[[float], float],
+                        rounding: np.ndarray, sigma2: float) -> np.ndarray:
     """The smallest singular directions (`s`, `Vt` of the scaled ``R``, largest first) that are rounding noise
     relative to the declared magnitudes: :func:`rounding_columns`' rule for a combination of columns.
 
@@ -305,11 +371,27 @@ def rounding_directions(red: ReducedSystem, s: np.ndarray, Vt: np.ndarray, magni
     up, stopping at the first that is not; a direction with a member (a component above :data:`NULL_ROUNDING`)
     without a declared magnitude is never one.
 
+    And only when the direction on its members alone is still one the data cannot see
+    (:func:`member_null_direction`: the direction the warning names is a dependency, not the leftover of one whose
+    bulk lies on well-excited columns) and the data do not need it (:func:`direction_needed` of
+    :func:`constraint_growth`): small at the declared magnitudes is not small on a record whose errors are far
+    beyond them (a MEMS unit under a tactical model).
+
+    Parameters
+    ----------
+    red : ReducedSystem
+    U, s, Vt : ndarray
+        The SVD of the scaled ``R`` over the numerical rank (``U`` its first columns, ``s`` largest first).
+    magnitudes, rounding_level, rounding
+        As :func:`analyze_rank` and :func:`rounding_columns`.
+    sigma2 : float
+        The noise variance per row (the residual mean square of the fit at the numerical rank).
+
     Returns
     -------
     (k, n) ndarray
-        The k directions found (the last k rows of `Vt`), each with its members only (:data:`ROUNDING_MEMBER`),
-        orthonormal.
+        The k directions found (in place of the last k rows of `Vt`), each on its members only
+        (:data:`ROUNDING_MEMBER`, :func:`member_null_direction`), orthonormal.
     """
     mags = np.array([np.nan if m is None else m for m in magnitudes], dtype=float)
     effect = red.scale * np.abs(mags)
@@ -317,6 +399,7 @@ def rounding_directions(red: ReducedSystem, s: np.ndarray, Vt: np.ndarray, magni
     if not known.any():
         return np.zeros((0, red.n))
     level = rounding_level(float(np.max(effect[known])))
+    b = U.T @ red.qty  # the fit's part along each direction: dropping direction k raises the RSS by b_k^2
     found: list[np.ndarray] = []
     for k in range(s.size - 1, -1, -1):
         v = np.abs(Vt[k])
@@ -326,7 +409,10 @@ def rounding_directions(red: ReducedSystem, s: np.ndarray, Vt: np.ndarray, magni
         w = np.where(member, v / np.where(known, effect, 1.0), 0.0)  # in units of the declared magnitudes
         if s[k] > DEPENDENT_SINGULAR * s[0] or s[k] / float(w.max()) > level:
             break
-        found.append(np.where(w > ROUNDING_MEMBER * w.max(), Vt[k], 0.0))
+        n = member_null_direction(red.R, Vt[k], w > ROUNDING_MEMBER * w.max(), DEPENDENT_SINGULAR * s[0], found)
+        if n is None or direction_needed(constraint_growth(s, Vt, b, n), sigma2, level):
+            break
+        found.append(n)
     if not found:
         return np.zeros((0, red.n))
     return np.linalg.qr(np.array(found[::-1]).T)[0].T
@@ -366,7 +452,9 @@ def analyze_rank(red: ReducedSystem, rcond: float | None = None,
     smax = s[0] if s.size else 0.0
     rank = int(np.sum(s > rcond * smax)) if smax > 0 else 0
     if magnitudes is not None and rounding_level is not None:
-        at_rounding = rounding_directions(red, s[:rank], Vt[:rank], magnitudes, rounding_level, rounding)
+        sigma2 = (red.rho2 + float(np.sum((U[:, rank:].T @ red.qty) ** 2))) / max(m - rank, 1)
+        at_rounding = rounding_directions(red, U[:, :rank], s[:rank], Vt[:rank], magnitudes, rounding_level,
+                                          rounding, sigma2)
         if at_rounding.shape[0]:
             Vt = Vt.copy()
             Vt[rank - at_rounding.shape[0]:rank] = at_rounding
