@@ -103,13 +103,13 @@ def collinearity(red: ReducedSystem, ra: RankAnalysis) -> dict[str, Any]:
         return out
     _, s, Vt = np.linalg.svd(red.R[:, keep])
     Vt = _canonical_ties(s, Vt)
-    tol = ra.rcond * s[0]
-    live = s > tol
+    live = np.arange(s.size) < ra.rank  # the rank analysis' rule: its zero singular values are these
     safe = np.where(live, s, 1.0)
     eta = np.where(live, s[0] / safe, np.inf)
     phi = np.where(live[:, None], Vt**2 / safe[:, None] ** 2, 0.0)  # phi_jk = V_jk^2 / s_k^2, as (k, j)
-    # A zero singular value gives infinite variance to the columns that load on it.
-    inf_load = ~live[:, None] & (np.abs(Vt) > 1e-8)
+    # A zero singular value gives infinite variance to the columns that load on it (its members as the rank
+    # analysis names them: a dependency at the rounding level leaks ~1e-7 into every column)
+    inf_load = ~live[:, None] & (np.abs(Vt) > 1e-8) & ra.dependent[keep][None, :]
     tot = phi.sum(axis=0)
     dependent = inf_load.any(axis=0)
     tot = np.where(dependent, np.inf, tot)

@@ -273,7 +273,8 @@ def finish(
     if failure is not None:
         status, message = failure
     base = {**condition_numbers(pb.red, pb.ra), "sigma": float(sigma), "rank": pb.ra.rank,
-            "unidentifiable": [pb.names[j] for j in np.flatnonzero(und)]}
+            "unidentifiable": [pb.names[j] for j in np.flatnonzero(und)],
+            "exact_groups": [[pb.names[j] for j in g] for g in pb.ra.exact_groups()]}
     # CRLB std, VIF and near-dependency groups: computed on first use (a Monte Carlo run reads none of them)
     red, ra, names, inv_c = pb.red, pb.ra, pb.names, pb.inv_c
     diag = LazyDiagnostics({**base, **(diagnostics or {})}, _COLLINEARITY_KEYS,
@@ -389,12 +390,18 @@ def _ill_conditioning_note(diag: dict[str, Any]) -> str | None:
     if not bad and not und:
         return None
     parts = []
+    exact = diag.get("exact_groups") or []
     if ce is None:
-        parts.append("exactly dependent columns")
+        if not exact:
+            parts.append("exactly dependent columns")
     elif ce > ILL_CONDITIONED:
         parts.append(f"equilibrated condition number {ce:.3g} (> {ILL_CONDITIONED:g})")
-    if diag["groups"]:
-        parts.append("near-dependencies " + "; ".join("[" + ", ".join(g) + "]" for g in diag["groups"]))
+    if exact:
+        parts.append("exactly dependent (the data cannot separate these, only a combination of each group: fix or "
+                     "drop one of each) " + "; ".join("[" + ", ".join(g) + "]" for g in exact))
+    near = [g for g in diag["groups"] if not any(set(g) <= set(e) for e in exact)]
+    if near:
+        parts.append("near-dependencies " + "; ".join("[" + ", ".join(g) + "]" for g in near))
     if und:
         parts.append(f"{len(und)} unidentifiable: " + ", ".join(und))
     return "ill-conditioned regression: " + "; ".join(parts) + ". See `casep diagnose`."

@@ -21,6 +21,8 @@ from typing import Callable, Iterable, Iterator, Sequence, cast
 
 import numpy as np
 
+from casep._special import chi2_sf
+
 __all__ = ["ReducedSystem", "reduce_qr", "reduce_qr_blocks", "RankAnalysis", "analyze_rank", "rounding_columns",
            "least_squares_rss",
            "DEFAULT_BLOCK_ROWS", "qr_forward_error", "refine_least_squares", "REFINE_ABOVE"]
@@ -184,6 +186,11 @@ def reduce_qr_blocks(blocks: Iterable[tuple[np.ndarray, np.ndarray]], n: int,
     return ReducedSystem(R=R, qty=Rfull[:n, n].copy(), rho2=float(Rfull[n, n] ** 2), scale=scale, m=m)
 
 
+#: The least coupling of two coefficients in the null space that puts them in one exactly dependent group
+#: (:meth:`RankAnalysis.exact_groups`).
+GROUP_SHARE = 0.1
+
+
 @dataclass(frozen=True)
 class RankAnalysis:
     """SVD-based rank analysis of a :class:`ReducedSystem`.
@@ -193,7 +200,8 @@ class RankAnalysis:
     U, s, Vt : ndarray
         SVD of ``R`` (scaled coordinates).
     rank : int
-        Number of singular values above ``rcond * s[0]``.
+        Number of singular values above ``rcond * s[0]``, less the directions at the rounding level relative to the
+        declared magnitudes (:func:`rounding_directions`; their rows of `Vt` keep only their members).
     rcond : float
         Relative threshold used.
     zero : (n,) bool ndarray
@@ -215,6 +223,33 @@ class RankAnalysis:
     dependent: np.ndarray
     partners: dict
     rounding: np.ndarray | None = None
+
+    def exact_groups(self) -> list[list[int]]:
+        """The exactly dependent coefficients in groups, each sorted, in the order of their first member: the
+        coefficients tied by a coupling ``|P_jk| / sqrt(P_jj P_kk)`` of at least :data:`GROUP_SHARE` of the
+        null-space projector ``P = V_null V_null^T`` (scaled coordinates), and those tied to them. The closure of
+        `partners` reaches further: a rotation of the IMU about one body axis takes an initial attitude error mostly
+        about one navigation axis and a little (~1e-3) about the others, which ties each such group to the next."""
+        Vnull = self.Vt[self.rank:].T
+        member = self.dependent & ~self.zero
+        P = Vnull @ Vnull.T
+        d = np.sqrt(np.clip(np.diag(P), 0.0, None))
+        tied = (np.abs(P) >= GROUP_SHARE * np.outer(d, d)) & member[:, None] & member[None, :]
+        groups: list[list[int]] = []
+        seen: set[int] = set()
+        for j in map(int, np.flatnonzero(member)):
+            if j in seen:
+                continue
+            group, todo = {j}, [j]
+            while todo:
+                for k in map(int, np.flatnonzero(tied[todo.pop()])):
+                    if k not in group:
+                        group.add(k)
+                        todo.append(k)
+            seen |= group
+            if len(group) > 1:
+                groups.append(sorted(group))
+        return groups
 
     @property
     def estimable(self) -> np.ndarray:
@@ -242,6 +277,145 @@ def rounding_columns(red: ReducedSystem, magnitudes: Sequence[float | None],
     if not known.any():
         return np.zeros(red.n, dtype=bool)
     return known & (effect <= rounding_level(float(np.max(effect[known]))))
+
+
+#: Relative singular value (columns equilibrated) at or below which a direction at the rounding level of the
+#: declared magnitudes is an exact dependency (:func:`rounding_directions`): half the digits of double precision,
+#: what a dependency exact in the model keeps of its exactness through the numerical integration of S_V (the
+#: strapdown IMU rotated against the body: 7e-11), four orders below the worst real collinearity of a flight
+#: (equilibrated condition numbers up to ~1e6: those directions are small at the declared magnitudes when a
+#: member's column is small, and stay estimable on noise-free data).
+DEPENDENT_SINGULAR = float(np.sqrt(np.finfo(float).eps))
+
+#: A member of a direction at the rounding level (:func:`rounding_directions`) moves the data at its declared
+#: magnitude by more than this fraction of the largest member; the others are that level's leak (~1e-7), no part
+#: of the dependency.
+ROUNDING_MEMBER = 1e-3
+
+
+#: A direction at the rounding level is needed by the data (:func:`direction_needed`) when dropping it raises the
+#: residual sum of squares by more than the noise gives with this chance: the likelihood-ratio test of the
+#: coefficient along it being zero, one degree of freedom.
+NEEDED_ALPHA = 1e-3
+
+
+def direction_needed(growth: float, sigma2: float, level: float) -> bool:
+    """Whether the data need a singular direction: the residual sum of squares grows by `growth` without it
+    (``(u_k^T Q^T y)^2``, the fit's part along it) beyond both what its own rounding explains (`level` squared: the
+    most the direction moves the data at the declared magnitudes, :func:`rounding_directions`) and the noise:
+    ``chi2_1 sf(growth / sigma2) < NEEDED_ALPHA`` (`sigma2` the noise variance per row). A direction the flight
+    cannot separate from the others gets only noise along it; one that carries an error beyond the declared
+    magnitudes (the reason it was small at them) gets the error, far above the noise."""
+    if growth <= level**2:
+        return False
+    if sigma2 <= 0.0:
+        return True
+    return chi2_sf(1, growth / sigma2) < NEEDED_ALPHA
+
+
+def member_null_direction(R: np.ndarray, v: np.ndarray, member: np.ndarray, tol: float,
+                          found: Sequence[np.ndarray]) -> np.ndarray | None:
+    """The direction on the `member` columns alone closest to the singular direction `v` that the data cannot
+    see: `v` restricted to the members and projected on the right singular vectors of ``R[:, member]`` whose
+    singular values are at most `tol`, orthogonal to the directions already `found`; None when that leaves nothing
+    (the members alone are not dependent: the direction's bulk lay on the other columns).
+
+    Unit, on the members only, ``||R n|| <= tol``: exactly the direction the warning names, so that the null space
+    downstream (:func:`null_space`, :class:`PartnerBound`) is one of the data."""
+    idx = np.flatnonzero(member)
+    _, sm, Wt = np.linalg.svd(R[:, idx])
+    basis = Wt[sm <= tol]  # (j, |members|): R is square, so there are as many singular values as members
+    if basis.shape[0] == 0:
+        return None
+    for f in found:  # orthogonal to the directions already found (n is zero off the members: f . n = f_m . n_m)
+        fm = f[idx]
+        norm_f = float(np.linalg.norm(fm))
+        if norm_f > 0.0:
+            basis = basis - np.outer(basis @ fm, fm) / norm_f**2
+    _, sv, bt = np.linalg.svd(basis, full_matrices=False)
+    basis = bt[sv > 0.5]  # an orthonormal basis of what is left
+    if basis.shape[0] == 0:
+        return None
+    x = basis.T @ (basis @ v[idx])
+    norm = float(np.linalg.norm(x))
+    if norm == 0.0:
+        return None
+    n = np.zeros_like(v)
+    n[idx] = x / norm
+    return n
+
+
+def constraint_growth(s: np.ndarray, Vt: np.ndarray, b: np.ndarray, n: np.ndarray) -> float:
+    """How much the residual sum of squares grows when the fit is kept from moving along `n` (scaled
+    coordinates): ``(n^T z)^2 / (n^T (R^T R)^-1 n)`` with ``z`` the least-squares solution, the likelihood-ratio
+    statistic (times the noise variance) of ``n^T z = 0``. From the SVD ``R = U diag(s) V^T`` (over the numerical
+    rank: `s`, the first rows of `Vt`) and ``b = U^T Q^T y``: with ``a_i = (v_i . n) / s_i``, ``(a . b)^2 / (a . a)``;
+    ``b_k^2`` for ``n = v_k``."""
+    a = (Vt[: s.size] @ n) / s
+    aa = float(a @ a)
+    return float(a @ b[: s.size]) ** 2 / aa if aa > 0 else 0.0
+
+
+def rounding_directions(red: ReducedSystem, U: np.ndarray, s: np.ndarray, Vt: np.ndarray,
+                        magnitudes: Sequence[float | None], rounding_level: Callable[[float], float],
+                        rounding: np.ndarray, sigma2: float) -> np.ndarray:
+    """The smallest singular directions (`s`, `Vt` of the scaled ``R``, largest first) that are rounding noise
+    relative to the declared magnitudes: :func:`rounding_columns`' rule for a combination of columns.
+
+    A direction ``v`` is the change ``x = v / c`` of the coefficients (natural units); scaled so that its largest
+    member is at its declared magnitude (``max_j |x_j| / s_j = 1``) it moves the data by ``s_k / max_j |x_j| / s_j``
+    (m/s over the rows). At or below the rounding level of the largest column effect ``||S_j|| s_j`` it carries no
+    information: an exact dependency of the model (the whole IMU rotated against the body, taken up by an initial
+    attitude error) that the discretisation of S_V leaves at 1e-11 of the largest singular value instead of
+    1e-16. Only at or below :data:`DEPENDENT_SINGULAR` of the largest singular value. Counted from the smallest
+    up, stopping at the first that is not; a direction with a member (a component above :data:`NULL_ROUNDING`)
+    without a declared magnitude is never one.
+
+    And only when the direction on its members alone is still one the data cannot see
+    (:func:`member_null_direction`: the direction the warning names is a dependency, not the leftover of one whose
+    bulk lies on well-excited columns) and the data do not need it (:func:`direction_needed` of
+    :func:`constraint_growth`): small at the declared magnitudes is not small on a record whose errors are far
+    beyond them (a MEMS unit under a tactical model).
+
+    Parameters
+    ----------
+    red : ReducedSystem
+    U, s, Vt : ndarray
+        The SVD of the scaled ``R`` over the numerical rank (``U`` its first columns, ``s`` largest first).
+    magnitudes, rounding_level, rounding
+        As :func:`analyze_rank` and :func:`rounding_columns`.
+    sigma2 : float
+        The noise variance per row (the residual mean square of the fit at the numerical rank).
+
+    Returns
+    -------
+    (k, n) ndarray
+        The k directions found (in place of the last k rows of `Vt`), each on its members only
+        (:data:`ROUNDING_MEMBER`, :func:`member_null_direction`), orthonormal.
+    """
+    mags = np.array([np.nan if m is None else m for m in magnitudes], dtype=float)
+    effect = red.scale * np.abs(mags)
+    known = np.isfinite(effect) & (effect > 0) & ~rounding
+    if not known.any():
+        return np.zeros((0, red.n))
+    level = rounding_level(float(np.max(effect[known])))
+    b = U.T @ red.qty  # the fit's part along each direction: dropping direction k raises the RSS by b_k^2
+    found: list[np.ndarray] = []
+    for k in range(s.size - 1, -1, -1):
+        v = np.abs(Vt[k])
+        member = v > NULL_ROUNDING
+        if not member.any() or not np.all(known[member]):
+            break
+        w = np.where(member, v / np.where(known, effect, 1.0), 0.0)  # in units of the declared magnitudes
+        if s[k] > DEPENDENT_SINGULAR * s[0] or s[k] / float(w.max()) > level:
+            break
+        n = member_null_direction(red.R, Vt[k], w > ROUNDING_MEMBER * w.max(), DEPENDENT_SINGULAR * s[0], found)
+        if n is None or direction_needed(constraint_growth(s, Vt, b, n), sigma2, level):
+            break
+        found.append(n)
+    if not found:
+        return np.zeros((0, red.n))
+    return np.linalg.qr(np.array(found[::-1]).T)[0].T
 
 
 def analyze_rank(red: ReducedSystem, rcond: float | None = None,
@@ -277,6 +451,14 @@ def analyze_rank(red: ReducedSystem, rcond: float | None = None,
     U, s, Vt = np.linalg.svd(R)
     smax = s[0] if s.size else 0.0
     rank = int(np.sum(s > rcond * smax)) if smax > 0 else 0
+    if magnitudes is not None and rounding_level is not None:
+        sigma2 = (red.rho2 + float(np.sum((U[:, rank:].T @ red.qty) ** 2))) / max(m - rank, 1)
+        at_rounding = rounding_directions(red, U[:, :rank], s[:rank], Vt[:rank], magnitudes, rounding_level,
+                                          rounding, sigma2)
+        if at_rounding.shape[0]:
+            Vt = Vt.copy()
+            Vt[rank - at_rounding.shape[0]:rank] = at_rounding
+            rank -= at_rounding.shape[0]
     zero = (red.scale == 0.0) | rounding
     Vnull = Vt[rank:].T  # (n, n - rank): exact null space of Z
     row_norm = np.linalg.norm(Vnull, axis=1) if Vnull.size else np.zeros(n)
@@ -401,16 +583,17 @@ def condition_numbers(red: ReducedSystem, ra: RankAnalysis) -> dict[str, float |
     ``condition_number`` is for S in natural units, ``condition_number_equilibrated`` for
     the columns scaled to unit norm (never centred: the model has no intercept). Zero
     columns are left out (they are reported as unidentifiable); ``None`` stands for an
-    infinite value, i.e. exactly dependent non-zero columns.
+    infinite value: exactly dependent non-zero columns as `ra` decides (its rank below their count), the one
+    rule of the rank, so that a full rank never stands beside an infinite condition number.
     """
     keep = ~ra.zero
-    if not np.any(keep):
+    if not np.any(keep) or ra.rank < int(np.sum(keep)):  # the rank analysis' dependency: the one rule
         return {"condition_number": None, "condition_number_equilibrated": None}
     out: dict[str, float | None] = {}
     for key, M in (("condition_number", red.R[:, keep] * red.scale[keep]),
                    ("condition_number_equilibrated", red.R[:, keep])):
         s = np.linalg.svd(M, compute_uv=False)
-        out[key] = float(s[0] / s[-1]) if s[-1] > ra.rcond * s[0] else None
+        out[key] = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
     return out
 
 
