@@ -15,12 +15,13 @@ the rocket does 80-90 m/s), then a solution 0.4 s late, updated once a second, w
 
 Each seed writes the two files and runs ``casep separate --imu IMU --tracking GNSS --tracking-frame geodetic
 --launch-site ... --launch-time ... --align ... --heading ... --heading-axis y --gyr-range 2000 --model
-strapdown15_phi0 --json OUT`` in a subprocess; printed: the exit code, the warnings casep printed (first line of
-each), what it left out, whether every pad epoch was kept, and z = (estimate - truth) / std of every combination the
-result states (``diagnostics.determined``), the truth being the injected coefficients and, as the free ``phi0``, the
-attitude error of the levelling of the truly corrected IMU (``benchmarks/rocket_rawlog.py``'s rule, which is what the
-given heading's error leaves once the model carries the levelling's own ``A D``). Then the RMS z, the coverage and the
-largest z over the seeds.
+strapdown15_phi0 --json OUT`` in a subprocess (its command, stdout and stderr kept in ``outN.log``); printed: the
+exit code and status, the first line of the message, what casep listed (IMU gaps, clipped samples, stale and wrong
+tracking epochs, a failed set-up check, the tracking lines its robust step rejected), and z = (estimate - truth) /
+std of every combination the result states (``diagnostics.determined``), the truth being the injected coefficients
+and, as the free ``phi0``, the attitude error of the levelling of the truly corrected IMU
+(``benchmarks/rocket_rawlog.py``'s rule, which is what the given heading's error leaves once the model carries the
+levelling's own ``A D``). Then the RMS z, the coverage and the largest z over the seeds.
 
 Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/rocket_flight.py [--seeds 1 2 3] [--frame geodetic|ecef]
                                                                [--heading-error 0.2] [--keep DIR]
@@ -37,6 +38,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -181,14 +183,12 @@ def main() -> None:
             c1 = time.process_time()
             proc, res = run(fl, args.frame, d / f"out{seed}.json")
             ch = resource_children()
-            warns = [ln for ln in proc.stderr.splitlines() if "Warning" in ln or "error" in ln.lower()]
             z = zs(res, phi0_truth(fl)) if res else []
             pooled += z
             print(f"seed {seed}: exit {proc.returncode}, status {res.get('status')}; simulated in {c1 - c0:.1f} CPU s, "
                   f"casep {ch:.1f} CPU s")
             print("  " + (res.get("message") or proc.stderr.strip()[-400:]).splitlines()[0][:300])
-            for w in warns:
-                print("  stderr: " + w[:300])
+            print("  said: " + ", ".join(f"{k} {v}" for k, v in listed(proc.stdout + proc.stderr).items()))
             print(f"  events: gaps {[(round(a, 3), round(n, 3)) for a, n in fl['events']['gaps']]}, first clipped "
                   f"{fl['events']['first_clipped']}, stale {fl['events']['stale']}, wrong {fl['events']['wrong']}")
             print(f"  {len(z)} combinations stated, z " + " ".join(f"{v:+.2f}" for v in z), flush=True)
@@ -196,6 +196,24 @@ def main() -> None:
     if a.size:
         print(f"pooled: {a.size} z from {len(args.seeds)} seeds, RMS {np.sqrt(np.mean(a**2)):.3f}, within 1.96 std "
               f"{np.mean(np.abs(a) < 1.96):.3f}, largest |z| {np.max(np.abs(a)):.2f}")
+
+
+def listed(said: str) -> dict[str, Any]:
+    """What casep's output lists of the faults (the numbers it prints), and the tracking file's lines its robust step
+    rejected as glitches (line 202 is lift-off, one line per 0.1 s)."""
+    import re
+
+    def num(pattern: str) -> Any:
+        m = re.search(pattern, said)
+        return m.group(1) if m else None
+
+    robust = re.search(r"sample\(s\) rejected as glitches: (.*?), \d+ row", said)
+    rejected = [int(x) for x in re.findall(r"line (\d+) of", robust.group(1))] if robust else []
+    return {"IMU gaps": num(r"(\d+) gaps? in t"), "longest gap s": num(r"the longest ([0-9.]+) s"),
+            "clipped": num(r"the IMU clipped: (w_\w: \d+) samples"),
+            "stale epochs": num(r"(\d+) stale tracking epochs"),
+            "physics-check epochs": num(r"(\d+) tracking epochs fail the physics check"),
+            "set-up failed": "set-up check" in said, "robust-rejected tracking lines": rejected}
 
 
 def resource_children() -> float:
