@@ -335,7 +335,9 @@ def heading_turn(site: Any, t: np.ndarray, v_tel: np.ndarray, v_trk: np.ndarray,
     :data:`HEADING_MIN_SPEED`, over :data:`HEADING_SPAN` s from the first: the turn ``psi`` (deg, clockwise seen from
     above, as an azimuth) that best maps the tracked onto the navigated ``u_h`` (``atan2(sum a x b, sum a . b)``),
     and the RMS misfit as given and after the turn. An INS started from a heading ``e`` deg clockwise of the truth
-    navigates a velocity turned by ``e``.
+    navigates a velocity turned by ``e``. (:func:`casep.navigation.alignment.course_rotation` takes the same angle,
+    counterclockwise, from the velocity changes since the first common epoch, to correct a heading; a rocket's
+    tracking that comes back in the coast changes by a metre per second there: here the start is the pad at rest.)
 
     Parameters
     ----------
