@@ -92,9 +92,20 @@ def truth(tf):
     lat0, lon0, h0, psi0 = np.radians(SITE[0]), np.radians(SITE[1]), SITE[2], np.radians(SITE[3])
     V, psi, gam, yaw, pitch, roll = kinematics(tf, psi0)
     vn = np.stack([V * np.cos(gam) * np.cos(psi), V * np.cos(gam) * np.sin(psi), -V * np.sin(gam)], 1)
+    p, fb, wb = earth_truth(tf, (lat0, lon0, h0), vn, c_bn(yaw, pitch, roll))
+    return p, vn, fb, wb
+
+
+def earth_truth(tf, start, vn, Cbn):
+    """The strapdown truth of a given motion on the rotating WGS84 Earth with J2 gravitation.
+
+    Parameters: the fine time grid `tf` (s, uniform), the start (lat, lon in rad, h in m), the NED velocity relative
+    to the Earth `vn` (k, 3) and the body-to-NED attitude `Cbn` (k, 3, 3). Returns the geodetic position (lat, lon
+    rad, h m) (k, 3), the body specific force (k, 3) and the body rate against inertial space (k, 3): the
+    velocity's and the attitude's derivatives by second-order central differences."""
     dt = tf[1] - tf[0]
     p = np.empty((tf.size, 3))
-    p[0] = lat0, lon0, h0
+    p[0] = start
 
     def rates(la, hh, v):
         sL = np.sin(la)
@@ -110,10 +121,10 @@ def truth(tf):
     om = np.array([0, 0, OM])
     fe = np.gradient(ve, dt, axis=0, edge_order=2) + 2 * np.cross(om, ve) + np.cross(om, np.cross(om, r)) \
         - gravitation(r)
-    Cbe = np.einsum("kij,kjl->kil", Cne, c_bn(yaw, pitch, roll))
+    Cbe = np.einsum("kij,kjl->kil", Cne, Cbn)
     W = np.einsum("kji,kjl->kil", Cbe, np.gradient(Cbe, dt, axis=0, edge_order=2))
     web = np.stack([W[:, 2, 1] - W[:, 1, 2], W[:, 0, 2] - W[:, 2, 0], W[:, 1, 0] - W[:, 0, 1]], 1) / 2
-    return p, vn, np.einsum("kji,kj->ki", Cbe, fe), np.einsum("kji,j->ki", Cbe, om) + web
+    return p, np.einsum("kji,kj->ki", Cbe, fe), np.einsum("kji,j->ki", Cbe, om) + web
 
 
 def with_errors(fb, wb, c):

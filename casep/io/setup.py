@@ -33,7 +33,8 @@ import numpy as np
 
 from casep.io.pair import tracking_time
 
-__all__ = ["setup_evidence", "earth_relative_tracking", "EARTH_RELATIVE_RATIO", "PAD_VELOCITY_TOL", "PAD_ALPHA",
+__all__ = ["setup_evidence", "earth_relative_tracking", "heading_turn", "heading_problem", "HEADING_TURN_LIMIT",
+           "EARTH_RELATIVE_RATIO", "PAD_VELOCITY_TOL", "PAD_ALPHA",
            "PAD_REST_SPEED", "PAD_FIT_WINDOW", "PAD_NOISE_SPAN", "POSITION_TOL", "LAUNCH_GAP_TOL"]
 
 #: ``|d| = |v_tel(t0) - v_pad - C u|`` above this (m/s) and significant (:data:`PAD_ALPHA`): the stated site,
@@ -308,3 +309,95 @@ def earth_relative_tracking(site: Any, t: np.ndarray, dv: np.ndarray) -> str | N
             "rotation), not launch-inertial as --tracking-frame launch takes it: give the receiver's Earth-fixed "
             "file (--tracking-frame ecef or geodetic), or its velocity turned into the launch-inertial frame "
             "(casep.frames.ecef_to_launch)")
+
+
+#: The turn (deg) of the navigated horizontal velocity against the tracking's beyond which the heading the navigation
+#: started from is taken as wrong: the 30 deg beyond which casep refuses a gyrocompassed heading
+#: (``casep.navigation.alignment.GYROCOMPASS_LIMIT_RAD``). An INS aligned within a few degrees turns the horizontal
+#: velocity by that much; the instrument errors of a MEMS IMU over a minute turn a 25 m/s horizontal velocity by a few
+#: degrees, the tracking's errors of metres per second by several.
+HEADING_TURN_LIMIT = 30.0
+#: Earth-relative horizontal tracking speed (m/s) from which an epoch's direction is compared (a near-vertical rocket
+#: has 25 m/s at burnout; below 10 m/s the tracking's errors of a few m/s leave the direction tens of degrees open).
+HEADING_MIN_SPEED = 10.0
+#: Seconds from the first such epoch over which the directions are compared: early, before the INS errors grow.
+HEADING_SPAN = 60.0
+#: Fewest epochs the comparison needs.
+HEADING_MIN_EPOCHS = 5
+#: The turn must explain the horizontal misfit: the RMS of ``u_tel - u_trk`` more than this many times the RMS of
+#: ``u_tel - R(turn) u_trk``.
+HEADING_RATIO = 3.0
+
+
+def heading_turn(site: Any, t: np.ndarray, v_tel: np.ndarray, v_trk: np.ndarray, r: np.ndarray) -> dict | None:
+    """The turn about the vertical between the navigated and the tracked horizontal velocity early in flight.
+
+    With ``u`` the velocity relative to the rotating Earth (:func:`casep.frames.launch_to_ecef`) in the launch triad
+    fixed to the Earth (``C^T v_E``), its horizontal part taken in its x-z plane (y is up at the pad), and the epochs
+    after the launch time where the tracking's ``|u_h|`` is at least
+    :data:`HEADING_MIN_SPEED`, over :data:`HEADING_SPAN` s from the first: the turn ``psi`` (deg, clockwise seen from
+    above, as an azimuth) that best maps the tracked onto the navigated ``u_h`` (``atan2(sum a x b, sum a . b)``),
+    and the RMS misfit as given and after the turn. An INS started from a heading ``e`` deg clockwise of the truth
+    navigates a velocity turned by ``e``. (:func:`casep.navigation.alignment.course_rotation` takes the same angle,
+    counterclockwise, from the velocity changes since the first common epoch, to correct a heading; a rocket's
+    tracking that comes back in the coast changes by a metre per second there: here the start is the pad at rest.)
+
+    Parameters
+    ----------
+    site : casep.frames.LaunchSite
+        The launch site and time (time scale of `t`).
+    t : (M,) array
+        Observed tracking epochs, s.
+    v_tel, v_trk, r : (M, 3) arrays
+        Navigated and tracked velocity (m/s) and the tracked position (m), launch-inertial.
+
+    Returns
+    -------
+    dict or None
+        ``turn_deg``, ``misfit_m_s`` (as given), ``rest_m_s`` (after the turn), ``epochs``, ``span_s`` (first and
+        last epoch), ``speed_m_s`` (median tracked horizontal speed); None when fewer than
+        :data:`HEADING_MIN_EPOCHS` epochs qualify.
+    """
+    from casep.frames import launch_to_ecef
+
+    t = np.asarray(t, float)
+    C = site.C
+    a = (launch_to_ecef(site, t, r, v_trk)[1] @ C)[:, [0, 2]]  # C^T v_E: the launch triad fixed to the Earth
+    b = (launch_to_ecef(site, t, r, v_tel)[1] @ C)[:, [0, 2]]
+    speed = np.linalg.norm(a, axis=1)
+    finite = np.all(np.isfinite(a), axis=1) & np.all(np.isfinite(b), axis=1)
+    ok = (t > site.t0) & (speed >= HEADING_MIN_SPEED) & finite
+    if np.count_nonzero(ok) < HEADING_MIN_EPOCHS:
+        return None
+    ok &= t <= t[ok][0] + HEADING_SPAN
+    a, b, tt = a[ok], b[ok], t[ok]
+    # launch z is at the azimuth of x + 90 deg: (x, z) -> the angle clockwise from x
+    psi = float(np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]),
+                           np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
+    c, s = np.cos(psi), np.sin(psi)
+    turned = np.column_stack([c * a[:, 0] - s * a[:, 1], s * a[:, 0] + c * a[:, 1]])
+    return {"turn_deg": float(np.degrees(psi)), "misfit_m_s": float(np.sqrt(np.mean(np.sum((b - a) ** 2, axis=1)))),
+            "rest_m_s": float(np.sqrt(np.mean(np.sum((b - turned) ** 2, axis=1)))), "epochs": int(tt.size),
+            "span_s": [float(tt[0]), float(tt[-1])], "speed_m_s": float(np.median(speed[ok]))}
+
+
+def heading_problem(site: Any, t: np.ndarray, v_tel: np.ndarray, v_trk: np.ndarray, r: np.ndarray,
+                    heading: str) -> str | None:
+    """Why the heading the navigation started from is wrong (:func:`heading_turn` beyond
+    :data:`HEADING_TURN_LIMIT`, the turn explaining the misfit by :data:`HEADING_RATIO`), or None.
+
+    `heading` says where the heading came from (``"--heading 120 (body y)"``, ``"gyrocompassing"``); the other
+    arguments as :func:`heading_turn`.
+    """
+    h = heading_turn(site, t, v_tel, v_trk, r)
+    if h is None or abs(h["turn_deg"]) <= HEADING_TURN_LIMIT or h["misfit_m_s"] <= HEADING_RATIO * h["rest_m_s"]:
+        return None
+    side = "clockwise" if h["turn_deg"] > 0 else "anticlockwise"
+    return (f"the navigated horizontal velocity (relative to the Earth) is turned {abs(h['turn_deg']):.3g} deg {side} "
+            f"(seen from above) from the tracking's over {h['epochs']} epochs, t = {h['span_s'][0]:.10g}.."
+            f"{h['span_s'][1]:.10g} s (median horizontal speed {h['speed_m_s']:.3g} m/s): they differ by "
+            f"{h['misfit_m_s']:.3g} m/s RMS, by {h['rest_m_s']:.3g} m/s once turned back (> "
+            f"{HEADING_TURN_LIMIT:g} deg, the turn explaining more than {HEADING_RATIO:g} times the misfit). The "
+            f"heading of the alignment ({heading}) is about {h['turn_deg']:+.3g} deg off: an azimuth of another "
+            "body axis (--heading-axis), or of another reference (magnetic, grid); no instrument error of a navigating "
+            "IMU turns the velocity so far")

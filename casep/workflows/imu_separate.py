@@ -371,6 +371,7 @@ class _Run:
         self.imu, self.tracking, self.nav_site, self.site, self.window = imu, tracking, nav_site, site, window
         self.base, self.source, self.spec = base, source, spec
         self.heading: dict[str, Any] = {"heading_deg": heading_deg, "heading_axis": heading_axis}
+        self.heading_said: str | None = None  # the heading check's finding (heading_check), on the first pass
         self.pair, self.fit_time_offset = dict(pair), fit_time_offset
         if pair["tracking_frame"] != "launch":
             self.pair["site"] = site
@@ -428,6 +429,9 @@ class _Run:
             warnings.filterwarnings("ignore", category=SaturationWarning)
             flight = read_flight_pair(tel, self.tracking, **self.pair)
         flight.meta["saturation"] = _imu_saturation(self.imu)
+        if self.heading_said is not None:  # found on the first pass's screened epochs (heading_check)
+            flight.meta["setup"] = {**(flight.meta.get("setup") or {})}
+            flight.meta["setup"]["problems"] = [*flight.meta["setup"].get("problems", []), self.heading_said]
         if self.pair["tracking_frame"] == "launch":  # taken as launch-inertial: the pad's rotation says if it is
             from casep.io.setup import earth_relative_tracking
 
@@ -441,6 +445,27 @@ class _Run:
         if model is None or not np.any(D):
             return flight
         return dataclasses.replace(flight, dv=flight.dv - _direct_velocity(model, flight, D))
+
+    def heading_check(self, flight: FlightData) -> str | None:
+        """Why the navigation's start heading is wrong (:func:`casep.io.setup.heading_problem`: the navigated
+        horizontal velocity turned from the tracked one early in flight), recorded as a set-up problem of `flight`
+        (and of every later pass), or None; not made without the tracked state (``r_*``, ``v_*``: an Earth-fixed
+        tracking)."""
+        from casep.io.pair import STATE_SIGNALS
+        from casep.io.setup import heading_problem
+
+        if not all(c in flight.signals for c in STATE_SIGNALS):
+            return None
+        obs = np.asarray(flight.observed)
+        r = np.column_stack([flight.signals[f"r_{a}"] for a in "xyz"])[obs]
+        v = np.column_stack([flight.signals[f"v_{a}"] for a in "xyz"])[obs]
+        h, axis = self.heading["heading_deg"], self.heading["heading_axis"]
+        said = "gyrocompassing" if h is None else f"--heading {h:g} deg, of body axis {axis}"
+        why = heading_problem(self.nav_site, flight.t[obs], v + flight.dv[obs], v, r, said)
+        if why is not None:
+            flight.meta["setup"] = {**(flight.meta.get("setup") or {})}
+            flight.meta["setup"]["problems"] = [*flight.meta["setup"].get("problems", []), why]
+        return why
 
     def model(self, nav: NavigationResult, D: np.ndarray) -> ErrorModel:
         """The model linearised about the correction at `D` (:func:`casep.model.strapdown.correction_errors`)
@@ -561,6 +586,7 @@ class _Run:
         if first:  # the tracking screen of the first pass, said and kept for every pass (module notes)
             flight = screen_tracking(flight, drift_warning=False)  # the drift: on the fit's residuals
             self.screen = flight.meta.get("tracking_screen")
+            self.heading_said = self.heading_check(flight)
         else:
             flight = keep_screen(flight, self.screen)
         if first:
