@@ -430,16 +430,14 @@ class _Run:
             flight = read_flight_pair(tel, self.tracking, **self.pair)
         flight.meta["saturation"] = _imu_saturation(self.imu)
         if self.heading_said is not None:  # found on the first pass's screened epochs (heading_check)
-            flight.meta["setup"] = {**(flight.meta.get("setup") or {})}
-            flight.meta["setup"]["problems"] = [*flight.meta["setup"].get("problems", []), self.heading_said]
+            _add_setup_problem(flight, self.heading_said)
         if self.pair["tracking_frame"] == "launch":  # taken as launch-inertial: the pad's rotation says if it is
             from casep.io.setup import earth_relative_tracking
 
             obs = np.asarray(flight.observed)
             why = earth_relative_tracking(self.nav_site, flight.t[obs], flight.dv[obs])
             if why is not None:
-                setup = flight.meta.setdefault("setup", {})
-                setup["problems"] = [*setup.get("problems", []), why]  # beside any the pair found
+                _add_setup_problem(flight, why)
         # the late-start check: the speed relative to the pad (launch-inertial v_tel carries the Earth's rotation)
         flight.meta["start_speed_m_s"] = float(np.linalg.norm(nav.earth_relative()[1][0]))
         if model is None or not np.any(D):
@@ -463,8 +461,7 @@ class _Run:
         said = "gyrocompassing" if h is None else f"--heading {h:g} deg, of body axis {axis}"
         why = heading_problem(self.nav_site, flight.t[obs], v + flight.dv[obs], v, r, said)
         if why is not None:
-            flight.meta["setup"] = {**(flight.meta.get("setup") or {})}
-            flight.meta["setup"]["problems"] = [*flight.meta["setup"].get("problems", []), why]
+            _add_setup_problem(flight, why)
         return why
 
     def model(self, nav: NavigationResult, D: np.ndarray) -> ErrorModel:
@@ -1157,6 +1154,14 @@ def std_shift(C: np.ndarray, extra: np.ndarray) -> float:
     keep = lam > lam.max() * 1e-14
     W = V[:, keep] / np.sqrt(lam[keep])
     return float(np.sqrt(max(np.linalg.eigvalsh(W.T @ extra @ W).max(), 0.0)))
+
+
+def _add_setup_problem(flight: FlightData, why: str) -> None:
+    """A set-up problem of `flight` (``meta["setup"]["problems"]``: the failure :func:`casep.workflows.judging.
+    judge_setup` makes of it), beside any the pair found; the pair's record is copied, not changed."""
+    setup = {**(flight.meta.get("setup") or {})}
+    setup["problems"] = [*setup.get("problems", []), why]
+    flight.meta["setup"] = setup
 
 
 def _late_tags_clause(flight: FlightData) -> str:
