@@ -280,7 +280,7 @@ def estimable_basis(problem) -> np.ndarray:
     return inv_c[:, None] * V * inv_s  # S c^-1 V s^-1 = Q U_r: orthonormal columns spanning S
 
 
-def fit_noise(problem, kind: str = "auto", tau=None, *, xatol: float = 5e-3) -> NoiseModel:
+def fit_noise(problem, kind: str = "auto", tau=None, *, xatol: float = 5e-3, reml: Reml | None = None) -> NoiseModel:
     """The noise model of a problem's rows (module notes).
 
     Parameters
@@ -297,6 +297,9 @@ def fit_noise(problem, kind: str = "auto", tau=None, *, xatol: float = 5e-3) -> 
         Given correlation time(s), s (``gm`` and ``gmw`` only).
     xatol : float
         Tolerance of the searches in ln tau (and the white share's logit).
+    reml : Reml, optional
+        The REML evaluator of this `problem` (``Reml(problem, estimable_basis(problem))``) to reuse, with the Gram
+        matrices it has cached (:func:`tau_profile`'s fits of one problem); the same numbers as a new one.
 
     Returns
     -------
@@ -316,7 +319,10 @@ def fit_noise(problem, kind: str = "auto", tau=None, *, xatol: float = 5e-3) -> 
         raise ValueError(f"problem `{problem.source}`: a Gauss-Markov noise model needs rows (N, 3) with their times")
     if problem.n_samples < 3:
         raise ValueError(f"problem `{problem.source}`: {problem.n_samples} samples are too few to fit a noise model")
-    reml = Reml(problem, estimable_basis(problem))
+    if reml is None:
+        reml = Reml(problem, estimable_basis(problem))
+    elif reml.pb is not problem:
+        raise ValueError("`reml` is another problem's")
     lo, hi = tau_search_bounds(problem.t)
     if taus_given is not None:
         if kind == "gm":
@@ -366,6 +372,7 @@ def tau_profile(problem, points: int = PROFILE_POINTS, level: float = PROFILE_LR
     from above (:func:`tau_kept` says which): the average there stops at the record length, and the caller says so.
     The bottom needs no such cap: a Gauss-Markov noise of tau below the sample spacing is white noise."""
     base = fit_noise(problem, "gmw")
+    reml = Reml(problem, estimable_basis(problem))  # one evaluator for every point: its Gram matrices cached once
     lo, hi = tau_search_bounds(problem.t)
     grid = np.exp(np.linspace(lo, hi, int(points)))
     out: list[list[tuple[float, NoiseModel]]] = []
@@ -374,7 +381,7 @@ def tau_profile(problem, points: int = PROFILE_POINTS, level: float = PROFILE_LR
         for tj in grid:
             tt = [float(v) for v in base.tau]
             tt[j] = float(tj)
-            fits.append(fit_noise(problem, "gmw", tau=tt))
+            fits.append(fit_noise(problem, "gmw", tau=tt, reml=reml))
         d = np.array([f.extra["neg2_reml"] for f in fits], dtype=float)
         d = d - np.min(d[np.isfinite(d)])
         keep = np.isfinite(d) & (d < level)

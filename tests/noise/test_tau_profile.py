@@ -6,7 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from casep.noise.fit import PROFILE_LR, PROFILE_POINTS, fit_noise, tau_kept, tau_profile, tau_search_bounds
+from casep.noise.fit import (
+    PROFILE_LR,
+    PROFILE_POINTS,
+    Reml,
+    estimable_basis,
+    fit_noise,
+    tau_kept,
+    tau_profile,
+    tau_search_bounds,
+)
 from casep.regression.problem import Problem
 from casep.simulation.noise import ar1_noise
 
@@ -48,6 +57,17 @@ def test_the_profile_points_are_the_fits_at_their_tau_weighted_by_their_likeliho
         taus = [nm.tau[j] for _, nm in points]
         assert (lo_j, hi_j) == (min(taus), max(taus))
         assert top_j == (abs(hi_j - (pb.t[-1] - pb.t[0])) < 1e-9)
+
+
+def test_a_reused_evaluator_gives_a_new_ones_numbers_and_another_problems_is_refused():
+    """``fit_noise(..., reml=...)`` (tau_profile's points share one evaluator and its cached Gram matrices): the
+    models equal (bit for bit) those of a fresh evaluator, in any order of the fits; another problem's is an error."""
+    pb = _problem(5)
+    reml = Reml(pb, estimable_basis(pb))
+    for tau in ([0.5, 1.0, 2.0], [0.5, 1.0, 2.0], [3.0, 1.0, 2.0], None):
+        assert fit_noise(pb, "gmw", tau=tau, reml=reml) == fit_noise(pb, "gmw", tau=tau)
+    with pytest.raises(ValueError, match="`reml` is another problem's"):
+        fit_noise(_problem(6), "gmw", reml=reml)
 
 
 def test_the_kept_interval_holds_the_true_tau_about_as_often_as_its_level_says():
