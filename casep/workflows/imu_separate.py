@@ -910,9 +910,9 @@ class _Run:
         ``G``). Its column is the derivative of a pass (the record corrected at `D`, aligned at the heading,
         navigated and paired: :meth:`rows`) along the heading, by central differences of
         :data:`HEADING_STEP_DEG`, times its std."""
-        h0 = self.heading["heading_deg"]
-        if h0 is None or not self.heading_std > 0:
+        if not self.heading_std > 0:  # exact, gyrocompassed, or no alignment (a telemetry's passes)
             return None
+        h0 = self.heading["heading_deg"]
         ys = []
         try:
             for s in (HEADING_STEP_DEG, -HEADING_STEP_DEG):
