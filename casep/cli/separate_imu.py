@@ -9,14 +9,22 @@ from typing import Any
 from casep.cli import flight_options, inputs, outputs
 from casep.cli.capture import recorded, report_lines
 from casep.cli.separate_output import figures_and_report, print_result
+from casep.cli.types import finite_float
 
-__all__ = ["imu_only", "separate_imu"]
+__all__ = ["imu_only", "separate_imu", "add_heading_std"]
+
+
+def add_heading_std(parser: Any) -> None:
+    """``--heading-std DEG``: the std of ``--heading`` (casep.workflows.imu_separate.HEADING_STD_DEG by default)."""
+    parser.add_argument("--heading-std", type=finite_float, default=None, metavar="DEG",
+                        help="with --imu --heading: the heading's std, deg (default 0.1: a surveyed rail and the "
+                             "IMU's mounting on it), carried into the std; 0: the heading exact")
 
 
 def imu_only(args: argparse.Namespace) -> None:
     """`--imu` with what it needs; its options without it: an error, not ignored."""
     if not args.imu:
-        for flag, value in (("--align", args.align), ("--heading", args.heading),
+        for flag, value in (("--align", args.align), ("--heading", args.heading), ("--heading-std", args.heading_std),
                             ("--max-iterations", args.max_iterations),
                             ("--accel-bias-tolerance", args.accel_bias_tolerance),
                             ("--heading-axis", None if args.heading_axis == "x" else args.heading_axis)):
@@ -29,6 +37,9 @@ def imu_only(args: argparse.Namespace) -> None:
                         ("--launch-time T0", args.launch_time), ("--align T1 T2", args.align)):
         if value is None:
             raise ValueError(f"--imu {args.imu} needs {flag}")
+    if args.heading_std is not None and (args.heading is None or args.heading_std < 0):
+        raise ValueError(f"--heading-std {args.heading_std:g}: the std of --heading, deg, a number >= 0 with "
+                         "--heading DEG (without it the alignment gyrocompasses and says how well it knows it)")
     if len(args.tracking) != 1:
         raise ValueError(f"--tracking given {len(args.tracking)} times: --imu takes one tracking file")
 
@@ -44,7 +55,8 @@ def separate_imu(args: argparse.Namespace, spec: Any, ranges: dict) -> int:
                            max_iterations=args.max_iterations, tracking_frame=args.tracking_frame,
                            grid=args.grid, time_offset=args.time_offset, time_shift=args.time_shift,
                            clock_drift=args.clock_drift,
-                           accel_bias_tolerance=flight_options.accel_bias_tolerance(args), **ranges)
+                           accel_bias_tolerance=flight_options.accel_bias_tolerance(args),
+                           heading_std_deg=args.heading_std, **ranges)
     res, flight = out.result, out.flight
     prov = outputs.provenance(args, [flight], {"imu": args.imu})
     if args.json:

@@ -166,7 +166,8 @@ if TYPE_CHECKING:
 __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
            "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_RELIABLE", "CURVATURE_DRAWS", "WORSE", "NARROW",
            "SIGNIFICANT", "std_shift", "DETERMINED_DRAWS", "FAIL_SHIFT", "STALL", "combination_imu_noise",
-           "linearisation_shift", "linearisation_record", "one_pass_judged", "SMALLER_MODELS", "prior_fits_p"]
+           "linearisation_shift", "linearisation_record", "one_pass_judged", "SMALLER_MODELS", "prior_fits_p",
+           "HEADING_STD_DEG", "HEADING_STEP_DEG"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -204,6 +205,13 @@ STALL = 0.1
 #: A combination left out whose correction exceeds this many of its std: the iteration fails (it is determined, and
 #: the model is not linear over its size); below it, the record does not determine it (said, not iterated).
 SIGNIFICANT = 4.0
+#: The std of a given heading when none is given, deg (:meth:`_Run.heading_rows`): a launcher rail's azimuth surveyed
+#: to a few hundredths of a degree, and the IMU's mounting on the rail about the vertical, which a bracket holds to a
+#: tenth of a degree at best; on a rail launch the lateral terms cannot tell the heading from the coefficients, and
+#: the MEMS example's stated combinations (``docs/guide/navigate.md``) move by up to 4 of their std per 0.1 deg.
+HEADING_STD_DEG = 0.1
+#: The heading's derivative: central differences of a pass navigated at the heading plus and minus this, deg.
+HEADING_STEP_DEG = 0.1
 #: A covariance's eigenvalue below this fraction of its largest is its rounding (:func:`_scaled_spectrum`).
 _SPECTRUM_RTOL = 1e-10
 #: A covariance's quadratic form is read where it exceeds its rounding, ``n eps`` times its largest eigenvalue, by
@@ -290,7 +298,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                  tracking_frame: str = "launch", grid: str = "tracking", time_offset: float | str | None = None,
                  time_shift: float = 0.0, clock_drift: float = 0.0, fit_time_offset: bool | None = None,
                  gyr_range: float | None = None, acc_range: float | None = None,
-                 accel_bias_tolerance: float | None = None) -> ImuSeparation:
+                 accel_bias_tolerance: float | None = None, heading_std_deg: float | None = None) -> ImuSeparation:
     """Separate a strapdown IMU's errors from its raw data and tracking (module notes).
 
     Parameters
@@ -323,6 +331,9 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
         the rows from the first clipped sample on are left out); an ImuData was checked when it was read.
     accel_bias_tolerance : float, optional
         :func:`casep.navigation.alignment.align` (m/s^2; None: its default, 80 mg).
+    heading_std_deg : float, optional
+        The std of `heading_deg`, deg (None: :data:`HEADING_STD_DEG`; 0: the heading exact), carried into the std
+        and covariance as a consider parameter (:meth:`_Run.heading_rows`); only with `heading_deg`.
 
     Returns
     -------
@@ -339,6 +350,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
         raise ValueError(f"`max_iterations` must be an integer >= 1, got {max_iterations!r}")
     if not isinstance(site, LaunchSite):
         raise TypeError(f"`site` must be a casep.frames.LaunchSite, got {type(site).__name__}")
+    heading_std = _heading_std(heading_deg, heading_std_deg)
     if not isinstance(imu, ImuData):
         imu = read_imu(imu, gyr_range=gyr_range, acc_range=acc_range)
     elif gyr_range is not None or acc_range is not None:
@@ -356,6 +368,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                 "clock_drift": clock_drift}, fit_time_offset)
     if accel_bias_tolerance is not None:
         run.heading["accel_bias_tolerance"] = accel_bias_tolerance
+    run.heading_std = heading_std
     return run.iterate(iterate, tol, int(max_iterations))
 
 
@@ -364,6 +377,10 @@ class _Run:
 
     #: (problem, its tau_profile), formed once per problem (:meth:`tau_profile`; a subclass's too)
     _tau_profile: tuple | None = None
+    #: the given heading's std, deg (:meth:`heading_rows`; 0: exact, or gyrocompassed)
+    heading_std: float = 0.0
+    #: (problem, the rows' shift for one std of the heading), formed once per problem by :meth:`finish`
+    _heading: tuple | None = None
 
     def __init__(self, imu: ImuData, tracking: Any, nav_site: LaunchSite, site: LaunchSite, window: tuple,
                  base: ErrorModel, source: Any, spec: FitSpec, heading_deg: float | None, heading_axis: str,
@@ -790,6 +807,7 @@ class _Run:
         solution = None if res.solution is None else dataclasses.replace(res.solution, x=total)
         out = dataclasses.replace(res, estimate=estimate, diagnostics=diag, solution=solution,
                                   **model_record(self.base))
+        self._heading = (problem, self.heading_rows(D))
         out = self.with_noise(out, problem, flight)
         if passes[-1].get("determined"):  # the stated combinations' std carry the record's noise as the coefficients'
             passes[-1]["determined"] = self.combinations_with_noise(passes[-1]["determined"], out, problem, flight,
@@ -897,7 +915,45 @@ class _Run:
     def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
         """`res` with the record's own noise in its std, the pad levelling's start tilt with it
         (:func:`with_imu_noise`)."""
-        return with_imu_noise(res, problem, flight, self.levelling(), self.tau_profile(problem))
+        heading = self.heading_effect(problem)
+        out = with_imu_noise(res, problem, flight, self.levelling(), self.tau_profile(problem), heading)
+        if heading is not None and out is not res and out.std is not None:
+            n = len(out.names)
+            a = combination_estimators(np.eye(n), np.ones(n), out, problem)
+            if a is not None:
+                out.diagnostics["heading"] = {"coefficients": heading_record(
+                    self.heading["heading_deg"], self.heading_std, a @ heading.reshape(-1), out.std, list(out.names))}
+        return out
+
+    def heading_rows(self, D: np.ndarray) -> np.ndarray | None:
+        """The shift of a pass's rows (N, 3, m/s) at `D` for one std of the given heading (None: gyrocompassed, or
+        the heading exact, or a pass at the heading's steps cannot be navigated).
+
+        On a rail launch the lateral terms cannot tell the heading from the coefficients: a heading error turns the
+        thrust's velocity about the vertical, a lateral velocity error that the coefficients fit, and a heading taken
+        as exact gives estimates off by many std with residuals as good as the right heading's. The heading is a
+        consider parameter: not fitted, its uncertainty carried into the estimate's covariance through the same
+        estimator as the record's noise (:func:`imu_noise_budget`, :func:`combination_imu_noise`: one more column of
+        ``G``). Its column is the derivative of a pass (the record corrected at `D`, aligned at the heading,
+        navigated and paired: :meth:`rows`) along the heading, by central differences of
+        :data:`HEADING_STEP_DEG`, times its std."""
+        if not self.heading_std > 0:  # exact, gyrocompassed, or no alignment (a telemetry's passes)
+            return None
+        h0 = self.heading["heading_deg"]
+        ys = []
+        try:
+            for s in (HEADING_STEP_DEG, -HEADING_STEP_DEG):
+                self.heading["heading_deg"] = h0 + s
+                ys.append(self.rows(D))
+        except ValueError:  # the record does not invert there: no column (the std without it)
+            return None
+        finally:
+            self.heading["heading_deg"] = h0
+        return (ys[0] - ys[1]) / (2 * HEADING_STEP_DEG) * self.heading_std
+
+    def heading_effect(self, problem: Any) -> np.ndarray | None:
+        """:meth:`heading_rows` of `problem`'s pass (None before :meth:`finish` formed it, or for another problem)."""
+        return self._heading[1] if self._heading is not None and self._heading[0] is problem else None
 
     def tau_profile(self, problem: Any) -> tuple | None:
         """:func:`casep.noise.fit.tau_profile` of `problem`'s rows (the last pass's, formed once; the coefficients'
@@ -931,13 +987,22 @@ class _Run:
         it as ``std_tracking_noise_only``; unchanged when the flight does not hold the IMU's samples."""
         scale = _scale_of(scales, res.names)
         W = np.array([c["weights"] for c in combos], dtype=float)
-        var = combination_imu_noise(W, scale, res, problem, flight, self.levelling(), self.tau_profile(problem))
+        heading = self.heading_effect(problem)
+        var = combination_imu_noise(W, scale, res, problem, flight, self.levelling(), self.tau_profile(problem),
+                                    heading)
         if var is None:
             return combos
         trk, imu = var
         trk = np.array([c["std"] ** 2 for c in combos]) if trk is None else trk
-        return [{**c, "std_tracking_noise_only": c["std"], "std": float(math.sqrt(a + b))}
-                for c, a, b in zip(combos, trk, imu)]
+        out = [{**c, "std_tracking_noise_only": c["std"], "std": float(math.sqrt(a + b))}
+               for c, a, b in zip(combos, trk, imu)]
+        if heading is not None:
+            shift = combination_estimators(W, scale, res, problem) @ heading.reshape(-1)
+            out = [{**c, "heading_shift": float(h)} for c, h in zip(out, shift)]
+            record = heading_record(self.heading["heading_deg"], self.heading_std, shift,
+                                    np.array([c["std"] for c in out]), [_combination(list(res.names), w) for w in W])
+            res.diagnostics["heading"] = {**res.diagnostics.get("heading", {}), "combinations": record}
+        return out
 
     def gap_clause(self, sigma: float) -> str:
         """What a failed iteration says of the record's gaps (:func:`_gap_clause`)."""
@@ -1703,7 +1768,8 @@ def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np
 
 
 def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, levelling: tuple | None = None,
-                     profile: tuple | None = None) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
+                     profile: tuple | None = None, heading: np.ndarray | None = None
+                     ) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
     """The estimate's covariance with the IMU's own white noise: ``(tracking part, IMU part, what was used)`` (None
     when the flight does not hold the IMU's samples, or the result has no covariance; the tracking part None: the
     fit's own covariance).
@@ -1714,7 +1780,9 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     carried to the tracking epochs as ``dv = G xi`` (``Sigma_imu = G G^T``;
     :func:`casep.checks.tracking_quality.imu_noise_effect`; with `levelling`, the pad window and the alignment's
     derivative along the mean specific force (:meth:`_Run.levelling_jacobian`), the start tilt its accelerometer
-    noise leaves too). The rows' covariance is ``Sigma = Sigma_track(theta) + Sigma_imu``.
+    noise leaves too; with `heading`, the rows' shift for one std of the given heading (:meth:`_Run.heading_rows`),
+    one more column of ``G``: a consider parameter, not a noise the tracking's refit sees). The rows' covariance is
+    ``Sigma = Sigma_track(theta) + Sigma_imu``.
 
     The fit's noise model was fitted to residuals that hold the IMU's noise as well. Where it was fitted (REML),
     ``theta`` is fitted again by the restricted likelihood of the whole ``Sigma``, ``Sigma_imu`` known
@@ -1751,6 +1819,7 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     AG = imu_noise_effect(flight, t, A, levelling)
     if AG is None:
         return None
+    AG = with_heading(AG, A, heading)
     C_imu = AG @ AG.T
     refit = _tracking_beside_imu(problem, flight, noise, levelling)
     if refit is None:
@@ -1767,8 +1836,8 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
 
 
 def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: Any, flight: FlightData,
-                          levelling: tuple | None = None, profile: tuple | None = None
-                          ) -> tuple[np.ndarray | None, np.ndarray] | None:
+                          levelling: tuple | None = None, profile: tuple | None = None,
+                          heading: np.ndarray | None = None) -> tuple[np.ndarray | None, np.ndarray] | None:
     """The variances of the combinations ``W (D / scale)`` (rows of `W`, declared magnitudes) under the noise of
     :func:`imu_noise_budget`: ``(tracking part, IMU part)``, each (m,); the tracking part None when `res` (the result
     :func:`with_imu_noise` made, or a pass's fit) holds no tracking noise refitted beside the IMU's (then the fit's own
@@ -1781,9 +1850,35 @@ def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult,
     :func:`casep.noise.model.whiten_transpose`, as :func:`imu_noise_budget` does), its IMU variance ``||a G||^2``
     (:func:`casep.checks.tracking_quality.imu_noise_effect`, with `levelling`) and its tracking variance ``a
     Sigma_track a^T`` (:func:`casep.noise.known.tracking_covariance_times`). With `profile` (:meth:`_Run.tau_profile`)
-    the tracking part gains what the uncertainty of the tracking noise's correlation times adds (:func:`tau_spread`)."""
+    the tracking part gains what the uncertainty of the tracking noise's correlation times adds (:func:`tau_spread`);
+    with `heading` (:meth:`_Run.heading_rows`) the IMU part gains the given heading's (:func:`with_heading`)."""
     from casep.checks.tracking_quality import imu_noise_effect
     from casep.noise.known import tracking_covariance_times
+    from casep.noise.model import NoiseModel
+
+    a = combination_estimators(W, scale, res, problem)
+    if a is None:
+        return None
+    nd = res.diagnostics["noise"]
+    t = np.asarray(problem.t, dtype=float)
+    N, m = t.size, W.shape[0]
+    AG = imu_noise_effect(flight, t, a, levelling)
+    if AG is None:
+        return None
+    AG = with_heading(AG, a, heading)
+    refit = (nd.get("imu") or {}).get("tracking_noise")
+    trk = None
+    if refit is not None:
+        trk = np.einsum("ij,ji->i", a, tracking_covariance_times(a.T.reshape(N, 3, m), t,
+                                                                 NoiseModel.from_dict(refit)).reshape(3 * N, m))
+        trk = trk + np.diag(tau_spread(a, problem, profile))
+    return trk, np.sum(AG**2, axis=1)
+
+
+def combination_estimators(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: Any) -> np.ndarray | None:
+    """The estimators (m, 3N) of the combinations ``W (D / scale)`` on the raw rows of `problem` (axis-interleaved): the
+    rows of ``W P``, ``P`` the GLS estimator of ``D / scale`` under `res`'s noise model (:func:`combination_imu_noise`);
+    None without times or a noise model."""
     from casep.noise.model import NoiseModel, whiten, whiten_transpose
 
     nd = res.diagnostics.get("noise")
@@ -1795,17 +1890,46 @@ def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult,
     m = W.shape[0]
     U = whiten(S, np.zeros((N, 3)), t, NoiseModel.from_dict(nd))[0].reshape(3 * N, n) * scale
     a = W @ np.linalg.pinv(U)  # (m, 3N): the combinations' estimators on the whitened rows
-    a = whiten_transpose(a.T.reshape(N, 3, m), t, NoiseModel.from_dict(nd)).reshape(3 * N, m).T  # ... on the raw rows
-    AG = imu_noise_effect(flight, t, a, levelling)
-    if AG is None:
-        return None
-    refit = (nd.get("imu") or {}).get("tracking_noise")
-    trk = None
-    if refit is not None:
-        trk = np.einsum("ij,ji->i", a, tracking_covariance_times(a.T.reshape(N, 3, m), t,
-                                                                 NoiseModel.from_dict(refit)).reshape(3 * N, m))
-        trk = trk + np.diag(tau_spread(a, problem, profile))
-    return trk, np.sum(AG**2, axis=1)
+    return whiten_transpose(a.T.reshape(N, 3, m), t, NoiseModel.from_dict(nd)).reshape(3 * N, m).T  # ... raw rows
+
+
+def with_heading(AG: np.ndarray, a: np.ndarray, heading: np.ndarray | None) -> np.ndarray:
+    """``A G`` (k, p) of the estimators `a` (k, 3N) with the given heading's column: ``a s``, `heading` ``s`` (N, 3)
+    the rows' shift for one std of the heading (:meth:`_Run.heading_rows`); `AG` itself without one. The estimate is
+    linear in the rows, so a heading off by ``e`` std moves it by ``e a s``, and its variance over the heading's
+    uncertainty is ``(a s)^2``: the consider term, formed here for the coefficients (:func:`imu_noise_budget`) and the
+    stated combinations (:func:`combination_imu_noise`) alike."""
+    if heading is None:
+        return AG
+    return np.column_stack([AG, a @ np.asarray(heading, dtype=float).reshape(-1)])
+
+
+def heading_record(heading_deg: float, std_deg: float, shift: np.ndarray, std: np.ndarray, names: list[str]) -> dict:
+    """``diagnostics["heading"]``: the given heading, its std, and how far one std of it moves the estimates
+    (`shift`; `std` their std with the heading's term, `names` theirs): their largest shift per
+    :data:`HEADING_STEP_DEG`, in their std without the heading's term (how much the result depends on the heading)."""
+    without = np.sqrt(np.clip(np.asarray(std, dtype=float) ** 2 - shift**2, 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.abs(shift) / without * HEADING_STEP_DEG / std_deg
+    z = np.where(np.isfinite(z), z, 0.0)
+    worst = int(np.argmax(z)) if z.size else 0
+    return {"heading_deg": float(heading_deg), "std_deg": float(std_deg), "step_deg": HEADING_STEP_DEG,
+            "max_shift_std_per_step": float(z.max(initial=0.0)), "worst": names[worst] if names else None,
+            "rule": "a consider parameter: the rows' derivative along the heading (central differences of a pass "
+                    "navigated at the heading plus and minus the step) times its std, through the estimator, in the "
+                    "covariance and the stated combinations' std"}
+
+
+def _heading_std(heading_deg: float | None, heading_std_deg: float | None) -> float:
+    """The given heading's std, deg (:data:`HEADING_STD_DEG` by default; 0 when gyrocompassed)."""
+    if heading_std_deg is None:
+        return HEADING_STD_DEG if heading_deg is not None else 0.0
+    if not (math.isfinite(heading_std_deg) and heading_std_deg >= 0):
+        raise ValueError(f"`heading_std_deg` must be a finite number >= 0 (deg), got {heading_std_deg!r}")
+    if heading_deg is None:
+        raise ValueError("`heading_std_deg` is the std of `heading_deg`: give the heading (without it the pad "
+                         "alignment gyrocompasses, and says how well it knows the heading)")
+    return float(heading_std_deg)
 
 
 def tau_spread(a: np.ndarray, problem: Any, profile: tuple | None) -> np.ndarray:
@@ -1954,10 +2078,12 @@ def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu:
 
 
 def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
-                   levelling: tuple | None = None, profile: tuple | None = None) -> EstimateResult:
-    """`res` with the IMU's own noise in its covariance and std and said in its noise account
-    (:func:`imu_noise_budget`; `res` itself when the flight does not hold the IMU's samples)."""
-    budget = imu_noise_budget(res, problem, flight, levelling, profile)
+                   levelling: tuple | None = None, profile: tuple | None = None,
+                   heading: np.ndarray | None = None) -> EstimateResult:
+    """`res` with the IMU's own noise (and with `heading` the given heading's uncertainty) in its covariance and std
+    and said in its noise account (:func:`imu_noise_budget`; `res` itself when the flight does not hold the IMU's
+    samples)."""
+    budget = imu_noise_budget(res, problem, flight, levelling, profile, heading)
     if budget is None:
         return res
     C_trk, C_imu, account = budget
