@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from casep.cli.site import launch_site
+
 __all__ = ["read_one", "read_all", "use_manifest", "frame_options", "launch_site", "input_files", "coefficient_file",
            "own_trajectory"]
 
@@ -26,25 +28,6 @@ def frame_options(args: argparse.Namespace) -> dict[str, Any]:
         raise ValueError(f"--tracking-frame {frame} needs both --launch-site LAT LON H AZ and --launch-time T0, "
                          f"got only {'--launch-site' if t0 is None else '--launch-time'}")
     return {"tracking_frame": frame, "site": None if lsite is None or t0 is None else launch_site(lsite, t0)}
-
-
-def launch_site(values: list[float], t0: float) -> Any:
-    """The :class:`casep.frames.LaunchSite` of ``--launch-site LAT LON H AZ`` and a launch time `t0`."""
-    from casep.frames import LaunchSite
-
-    lat, lon, h, az = values
-    try:
-        return LaunchSite(lat, lon, h, az, t0)
-    except ValueError as e:  # the site's own rule, said with the option that gave the value
-        option = next((o for f, o in _SITE_OPTIONS.items() if f"`{f}`" in str(e)), None)
-        if option is None:
-            raise
-        raise ValueError(f"{option}: {e}") from None
-
-
-#: LaunchSite's fields and the command-line option each comes from.
-_SITE_OPTIONS = {"lat_deg": "--launch-site LAT", "lon_deg": "--launch-site LON", "h_m": "--launch-site H",
-                 "azimuth_deg": "--launch-site AZ", "t0": "--launch-time T0"}
 
 
 def _pair(args: argparse.Namespace, flight: str, tracking: str, frames: dict[str, Any]) -> Any:
