@@ -18,7 +18,9 @@ flight.
       telemetry's body specific force (``fb_*``, no ``f_*``) peaking below ``F_AT_REST`` g but
       above 1 g read in g: error (its accelerometers read g at rest or in level flight). Peak above
       100 g: warning (cm/s^2, mm/s^2?). ``f`` in ft/s^2 (factor 3.28) stays inside the
-      plausible range and is *not* detectable.
+      plausible range and is *not* detectable. A strapdown record's ``C(q) fb`` whose time mean along the
+      vertical (y, up) is below -0.5 g: error (over any span it is g plus the vertical speed gained over
+      the span's length; an accelerometer's sign or a navigation frame other than casep's launch frame).
     - **Time** ``t``. Median step below 1 us (above 1 MHz): error; no telemetry is sampled
       that fast (``t`` in 1e-12 s steps, or time in the wrong unit). Median step below
       0.1 ms (above 10 kHz) or above 1 s (below 1 Hz), or duration above 1 h: warning with
