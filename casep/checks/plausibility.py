@@ -18,7 +18,9 @@ flight.
       telemetry's body specific force (``fb_*``, no ``f_*``) peaking below ``F_AT_REST`` g but
       above 1 g read in g: error (its accelerometers read g at rest or in level flight). Peak above
       100 g: warning (cm/s^2, mm/s^2?). ``f`` in ft/s^2 (factor 3.28) stays inside the
-      plausible range and is *not* detectable.
+      plausible range and is *not* detectable. A strapdown record's ``C(q) fb`` whose time mean along the
+      vertical (y, up) is below -0.5 g: error (over any span it is g plus the vertical speed gained over
+      the span's length; an accelerometer's sign or a navigation frame other than casep's launch frame).
     - **Time** ``t``. Median step below 1 us (above 1 MHz): error; no telemetry is sampled
       that fast (``t`` in 1e-12 s steps, or time in the wrong unit). Median step below
       0.1 ms (above 10 kHz) or above 1 s (below 1 Hz), or duration above 1 h: warning with
@@ -302,6 +304,8 @@ def _check_force(flight: FlightData) -> float:
             f"flight: fb_* in m/s^2 cannot be a strapdown INS's; read in g (times {G0:g}) it peaks at "
             f"{peak * G0:.4g} m/s^2 ({peak:.3g} g). Give fb_x, fb_y, fb_z in m/s^2 (multiply by {G0:g})",
             "fb_x, fb_y, fb_z", k + 1)
+    if flight.meta.get("force") == "q, fb":
+        _check_vertical_force(flight)
     if peak < F_PEAK_LOW:
         # f in g reads |f| ~ 1 at rest and a few in a boost; f in m/s^2 at rest reads |f| = g, just under 1 g
         # (local gravity 9.78-9.83 m/s^2): a record with no lift-off, not a unit mistake
@@ -316,6 +320,33 @@ def _check_force(flight: FlightData) -> float:
         _warn(f"{flight.source}: peak specific force ({cols}) is {peak:.4g} m/s^2 ({peak / G0:.4g} g), above "
               f"the {F_PEAK_HIGH / G0:g} g of the hardest rocket motors.{hint}")
     return peak
+
+
+#: The least mean vertical specific force (in g) of a strapdown record: over any span ``T`` it is ``g + (v_up(end) -
+#: v_up(start)) / T``, at least 0 unless the vehicle gains downward speed faster than in free fall (thrust
+#: downward); below -0.5 g the record's ``C(q) fb`` cannot be a vehicle's.
+F_UP_MEAN_MIN = -0.5
+
+
+def _check_vertical_force(flight: FlightData) -> None:
+    """A strapdown record's ``C(q) fb`` whose mean along the launch frame's vertical (y, up) is below
+    :data:`F_UP_MEAN_MIN` g: a FlightDataError naming the ``fb_*`` columns (an accelerometer's sign, or
+    quaternions whose navigation frame is not casep's launch frame, y up)."""
+    t = flight.t
+    T = float(t[-1] - t[0]) if t.size > 1 else 0.0
+    if T <= 0.0:
+        return
+    up = float(np.sum(0.5 * (flight.f[1:, 1] + flight.f[:-1, 1]) * np.diff(t))) / T  # time mean of f_y
+    if up >= F_UP_MEAN_MIN * G0:
+        return
+    k = int(np.argmin(flight.f[:, 1]))
+    raise FlightDataError(
+        flight.source, f"the specific force C(q) fb points down on average: its mean along the launch frame's "
+        f"vertical (y, up) is {up:.4g} m/s^2 ({up / G0:.3g} g) over t = {t[0]:.6g} .. {t[-1]:.6g} s, lowest "
+        f"{flight.f[k, 1]:.4g} m/s^2 at t = {t[k]:.6g} s. Over any span it is g plus the vertical speed gained over "
+        "the span's length, at least 0 unless the vehicle is driven downward faster than it falls: an "
+        "accelerometer's sign (fb_*), or quaternions whose navigation frame is not casep's launch frame (x downrange, "
+        "y up)", "fb_x, fb_y, fb_z", k + 1)
 
 
 def _check_time(flight: FlightData) -> None:

@@ -201,6 +201,32 @@ def test_body_force_in_g_is_refused_naming_the_fb_columns_the_row_and_the_factor
     assert f"peaks at {norm[k]:.4g} m/s^2" in msg and f"t = {t[k]:.6g} s" in msg and "multiply by 9.80665" in msg
 
 
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_a_specific_force_that_points_down_on_average_is_refused(tmp_path, sign):
+    """A boost pitched 80 deg up at 3 g along the body's x axis: C(q) fb's time mean along the launch frame's
+    vertical is about 2.95 g (g plus the vertical speed gained over the span). With fb_x negated (an accelerometer's
+    sign) it is -2.95 g, which no vehicle reaches unless driven downward faster than it falls: refused, naming the
+    fb columns and the numbers; the right sign reads."""
+    from casep.checks.plausibility import check_flight
+
+    n = 500
+    t = np.arange(n) / RATE
+    pitch = np.radians(80.0)
+    q = np.tile([np.cos(pitch / 2), 0.0, 0.0, np.sin(pitch / 2)], (n, 1))  # body x turned 80 deg about z: up
+    fb = np.column_stack([sign * 3.0 * 9.80665 * np.ones(n), np.zeros(n), np.zeros(n)])
+    up = float(np.sin(pitch) * 3.0 * 9.80665)
+    fl = casep.read_flight(write(tmp_path / "sd.csv", t, q, fb, np.zeros((n, 3))))
+    assert np.mean(fl.f[:, 1]) == pytest.approx(sign * up, rel=1e-12)
+    if sign > 0:
+        check_flight(fl)
+        return
+    with pytest.raises(FlightDataError) as exc:
+        check_flight(fl)
+    msg = str(exc.value)
+    assert exc.value.column == "fb_x, fb_y, fb_z" and "points down on average" in msg, msg
+    assert f"is {-up:.4g} m/s^2 ({-up / 9.80665:.3g} g) over t = 0 .. {t[-1]:.6g} s" in msg, msg
+
+
 @pytest.mark.parametrize("what, scale", [("at rest, in m/s^2", None), ("a coast in vacuum, 0.05 g", 0.05 * 9.80665)])
 def test_low_body_force_in_m_s2_is_not_refused(tmp_path, what, scale):
     """The rule's other side: an accelerometer at rest reads g (never refused), and a coast whose fb stays below 1
