@@ -105,6 +105,9 @@ def run(args: argparse.Namespace) -> int:
         from casep.simulation.earth_fixed import read_truth
         truth = read_truth(args.truth, load_model(args.model or get_scenario(args.scenario).model))
     if args.tracking_frame != "launch":
+        if args.imu_output is not None:
+            raise ValueError("--imu-output is written with a strapdown scenario's launch-inertial flight: leave out "
+                             "--tracking-frame ecef|geodetic")
         return _earth_fixed(args, site, truth, scenario)
     from casep.simulation.simulate import simulate_flight, write_simulation
 
@@ -119,6 +122,9 @@ def run(args: argparse.Namespace) -> int:
           f"{s['burnout_speed_m_s'] / 1e3:.2f} km/s at {s['burnout_altitude_m'] / 1e3:.0f} km, "
           f"flight-path angle {s['burnout_flight_path_deg']:.1f} deg")
     print(f"wrote {flight_path}{'' if args.imu_output is None else ', ' + str(args.imu_output)} and {side}")
+    if args.imu_output is not None and site is None:
+        print("note: the raw IMU is of a non-rotating Earth (no Earth rate, spherical gravity), which `casep navigate` "
+              "does not assume: for a record it navigates, add --rotating-earth --launch-site")
     return 0
 
 

@@ -133,6 +133,12 @@ def write_earth_fixed_flight(telemetry: str | os.PathLike, site: Any, *, frame: 
     out = Path(telemetry)
     trk = Path(tracking) if tracking else tracking_path(out)
     sc = get_scenario(scenario)
+    if sc.strapdown:
+        raise ValueError(f"--tracking-frame {frame}: scenario `{sc.name}` is a strapdown flight (its telemetry is "
+                         "q_*, fb_*, w_*), and the Earth-fixed files are a platform flight's (t, f_*, v_tel_*, a_*): "
+                         "leave out --tracking-frame (the flight file's r_*, v_* are its tracking, launch-inertial; "
+                         "--imu-output FILE adds the raw IMU with the truth true_r_*, true_v_*), or simulate a "
+                         "platform scenario (paper, ...) with --tracking-frame")
     if model is not None or truth is not None:
         sc = dataclasses.replace(sc, model=os.fspath(model) if model else sc.model,
                                  truth=sc.truth if truth is None else dict(truth))
