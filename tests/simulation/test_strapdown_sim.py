@@ -214,20 +214,32 @@ def test_error_free_rotating_earth_imu_navigates_back_to_its_truth(rotating_imu)
     assert np.linalg.norm(res.r[-1] - d["true_r"][i[-1]]) < 40.0  # m (measured 28 m) after 225 s
 
 
-def test_strapdown_scenario_refuses_earth_fixed_tracking(tmp_path, capsys):
-    """--tracking-frame ecef|geodetic writes a platform flight's files: a strapdown scenario is refused, naming
-    what to do, before any file is written; so is --imu-output beside it. Without --rotating-earth the raw IMU
-    says it is of a non-rotating Earth."""
+def test_strapdown_scenario_writes_earth_fixed_tracking(tmp_path, capsys):
+    """--tracking-frame ecef with a strapdown scenario: the flight, its raw IMU and the tracking in ECEF, which
+    casep.frames.ecef_to_launch turns back into the flight file's tracked r_*, v_* (a round trip through the
+    rotation by omega_E t and the launch triad: to 1e-6 m and m/s); --tracking-rate (the flight's own rate)
+    is refused before any file is written. Without --rotating-earth the raw IMU says it is of a non-rotating Earth."""
+    import pandas as pd
+
     from casep.cli.app import main
+    from casep.frames import ecef_to_launch
 
     base = ["simulate", "--scenario", "strapdown-boost", "--rate", "5", "--rotating-earth", "--launch-site", "28.5",
             "-80.6", "3", "100", "--tracking-frame", "ecef", "-o", str(tmp_path / "t.csv")]
-    assert main(base) == 2
-    err = capsys.readouterr().err
-    assert "strapdown flight" in err and "leave out --tracking-frame" in err and "platform scenario" in err
-    assert main(base + ["--imu-output", str(tmp_path / "imu.csv")]) == 2
-    assert "--imu-output" in capsys.readouterr().err
-    assert not list(tmp_path.iterdir())
-    assert main(["simulate", "--scenario", "strapdown-boost", "--rate", "5", "-o", str(tmp_path / "t.csv"),
-                 "--imu-output", str(tmp_path / "imu.csv")]) == 0
+    assert main(base + ["--tracking-rate", "5"]) == 2
+    assert "--tracking-rate" in capsys.readouterr().err and not list(tmp_path.iterdir())
+    assert main(base + ["--imu-output", str(tmp_path / "imu.csv")]) == 0
+    assert "t.tracking.csv" in capsys.readouterr().out
+    flight, trk = (pd.read_csv(tmp_path / name, comment="#") for name in ("t.csv", "t.tracking.csv"))
+    t = trk["t"].to_numpy()
+    r_l, v_l = ecef_to_launch(ROTATING_SITE, t, *(trk[[f"{p}_ecef_{a}" for a in "xyz"]].to_numpy()
+                                                   for p in ("r", "v")))
+    tf = flight["t"].to_numpy()
+    rows = np.searchsorted(tf, t)
+    assert t.size < tf.size and np.array_equal(tf[rows], t)  # the observed samples: from 6 s, not in the gap
+    for p, got in (("r", r_l), ("v", v_l)):
+        assert np.max(np.abs(got - flight[[f"{p}_{a}" for a in "xyz"]].to_numpy()[rows])) < 1e-6
+    assert (tmp_path / "imu.csv").exists()
+    assert main(["simulate", "--scenario", "strapdown-boost", "--rate", "5", "-o", str(tmp_path / "n.csv"),
+                 "--imu-output", str(tmp_path / "n_imu.csv")]) == 0
     assert "non-rotating Earth" in capsys.readouterr().out
