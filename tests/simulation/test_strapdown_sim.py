@@ -199,8 +199,9 @@ def test_rotating_earth_pad_reads_the_earth_rate_and_wgs84_normal_gravity(rotati
 def test_error_free_rotating_earth_imu_navigates_back_to_its_truth(rotating_imu):
     """Two independent codes, one world: the simulator's error-free raw IMU, aligned on its pad and navigated by
     casep.navigation.navigate, gives the simulator's true velocity: on the pad to rounding (1e-8 m/s; measured
-    1.2e-10), in flight within 0.4 m/s (measured 0.30 m/s at burnout, 50 Hz: a sampled record cannot place the steps
-    of the specific force at lift-off and staging within a sample; 0.076 m/s at 200 Hz)."""
+    1.2e-10), in flight within 0.4 m/s (measured 0.30 m/s at burnout, 50 Hz: a record of sampled rates cannot place
+    within a sample the steps of the specific force at lift-off and staging and of the pitch rate at the kick's start
+    and end, whose tilt grows into the velocity; 0.076 m/s at 200 Hz: first order in the step)."""
     from casep.navigation import ImuData, check_imu, navigate
 
     d = rotating_imu
