@@ -43,13 +43,15 @@ def add_parser(sub: Any) -> None:
                    help="with --rotating-earth: ecef or geodetic writes two files, the telemetry (-o: t, f_*, "
                         "v_tel_*, a_*) and the tracking in that frame (--tracking-output); default launch: the "
                         "one-file flight")
-    p.add_argument("--tracking-rate", type=rate, default=20.0, metavar="HZ",
-                   help="with --tracking-frame ecef|geodetic: tracking sample rate (default 20)")
+    p.add_argument("--tracking-rate", type=rate, default=None, metavar="HZ",
+                   help="with --tracking-frame ecef|geodetic: tracking sample rate (default 20; a strapdown "
+                        "scenario's tracking is the flight's, at --rate)")
     p.add_argument("--tracking-output", metavar="FILE", default=None,
                    help="with --tracking-frame ecef|geodetic: tracking file (default <stem>.tracking<suffix>)")
     p.add_argument("--imu-output", metavar="FILE", default=None,
                    help="with a strapdown scenario (strapdown-boost): also write the raw IMU data, t, w_x/y/z (rad/s) "
-                        "and fb_x/y/z (m/s^2) as measured, with the truth true_q_*, true_r_*, true_v_*")
+                        "and fb_x/y/z (m/s^2) as measured, with the truth true_q_*, true_r_*, true_v_*; with "
+                        "--rotating-earth the record casep navigate navigates back to the truth")
     p.add_argument("--imu-pad", type=float, default=0.0, metavar="SECONDS",
                    help="with --imu-output: SECONDS standing on the pad before lift-off (t < 0), for an alignment")
     add_simulate_radar(p)  # --radar-station, --tracking-truth, --radar-rate, noise
@@ -67,6 +69,7 @@ def _site(args: argparse.Namespace) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
+    from casep.simulation.earth_fixed import read_truth, tracking_path, write_strapdown_earth_fixed
     from casep.simulation.simulate import truth_path
 
     site = _site(args)  # --rotating-earth --launch-site (tracking frames)
@@ -76,7 +79,6 @@ def run(args: argparse.Namespace) -> int:
         if args.noise_free:
             raise ValueError("--noise-free is the tracking velocity's: with --radar-station the radar noise is "
                              "--range-noise and --angle-noise")
-
         return simulate_radar(args, site)
     radar_only(args, ("tracking_truth", "radar_rate", "range_noise", "angle_noise", "radar_range_rate"))
     from casep.simulation.scenarios import get_scenario
@@ -91,8 +93,6 @@ def run(args: argparse.Namespace) -> int:
     if args.tracking_frame == "launch" and args.tracking_output is not None:
         raise ValueError("--tracking-output needs --tracking-frame ecef|geodetic")
     if args.tracking_frame != "launch":
-        from casep.simulation.earth_fixed import tracking_path
-
         files = {"-o": out, "--tracking-output": args.tracking_output or tracking_path(out), **files}
     outputs.check(files, inputs.input_files(args, "truth"))
     if args.tracking_frame != "launch" and args.lever_arm is not None:
@@ -102,23 +102,33 @@ def run(args: argparse.Namespace) -> int:
     truth = None
     if args.truth:  # {"Kg0x": v, ...} or a sidecar {"coefficients": {...}}, checked against the model
         from casep.model.loader import load_model
-        from casep.simulation.earth_fixed import read_truth
         truth = read_truth(args.truth, load_model(args.model or get_scenario(args.scenario).model))
-    if args.tracking_frame != "launch":
+    strapdown = get_scenario(args.scenario).strapdown  # its tracking: the flight's own, at the flight's rate
+    if args.tracking_frame != "launch" and not strapdown:
+        if args.imu_output is not None:
+            raise ValueError(f"--imu-output needs a strapdown scenario (strapdown-boost); `{args.scenario}` is not")
         return _earth_fixed(args, site, truth, scenario)
+    if strapdown and args.tracking_rate is not None:
+        raise ValueError("--tracking-rate: a strapdown scenario's tracking is the flight's, at --rate: leave it out")
     from casep.simulation.simulate import simulate_flight, write_simulation
 
     sim = simulate_flight(scenario, seed=args.seed, rate=args.rate, model=args.model, truth=truth,
                           time_offset=args.tracking_offset * 1e-3, lever_arm=args.lever_arm,  # ms -> s
                           **({"rotating_earth": True, "site": site} if site is not None else {}))
-    flight_path, side = write_simulation(sim, out, imu=args.imu_output, imu_pad=args.imu_pad)
+    flight_path, side = write_simulation(sim, out, imu=args.imu_output, imu_pad=args.imu_pad) \
+        if args.tracking_frame == "launch" else write_strapdown_earth_fixed(
+            sim, out, files["--tracking-output"], frame=args.tracking_frame, imu=args.imu_output, imu_pad=args.imu_pad)
     s = sim.trajectory.summary()
     print(f"scenario {sim.scenario.name}: {sim.flight.n_samples} samples at {sim.scenario.rate:g} Hz, "
           f"{s['duration_s']:.1f} s powered flight")
     print(f"lift-off {s['liftoff_specific_force_g']:.2f} g, max {s['max_specific_force_g']:.2f} g; burnout "
           f"{s['burnout_speed_m_s'] / 1e3:.2f} km/s at {s['burnout_altitude_m'] / 1e3:.0f} km, "
           f"flight-path angle {s['burnout_flight_path_deg']:.1f} deg")
-    print(f"wrote {flight_path}{'' if args.imu_output is None else ', ' + str(args.imu_output)} and {side}")
+    print(f"wrote {flight_path}{'' if args.imu_output is None else ', ' + str(args.imu_output)}"
+          f"{'' if args.tracking_frame == 'launch' else ', ' + str(files['--tracking-output'])} and {side}")
+    if args.imu_output is not None and site is None:
+        print("note: the raw IMU is of a non-rotating Earth (no Earth rate, spherical gravity), which `casep navigate` "
+              "does not assume: for a record it navigates, add --rotating-earth --launch-site")
     return 0
 
 
@@ -128,12 +138,12 @@ def _earth_fixed(args: argparse.Namespace, site: Any, truth: Any, scenario: Any)
 
     ef = write_earth_fixed_flight(args.output, site, frame=args.tracking_frame, tracking=args.tracking_output,
                                   scenario=scenario, seed=args.seed, telemetry_rate=args.rate,
-                                  tracking_rate=args.tracking_rate, time_offset_ms=args.tracking_offset,
+                                  tracking_rate=args.tracking_rate or 20.0, time_offset_ms=args.tracking_offset,
                                   model=args.model, truth=truth)
     d = ef.data
     print(f"scenario {ef.scenario.name}, rotating Earth at ({site.lat_deg:g} deg, {site.lon_deg:g} deg, "
           f"{site.h_m:g} m), azimuth {site.azimuth_deg:g} deg: telemetry {d.t_tel.size} samples, tracking "
-          f"({args.tracking_frame}) {d.t_trk.size} samples at {args.tracking_rate:g} Hz")
+          f"({args.tracking_frame}) {d.t_trk.size} samples at {args.tracking_rate or 20.0:g} Hz")
     print(f"wrote {ef.telemetry}, {ef.tracking} and {ef.truth}; read back with: casep separate {ef.telemetry} "
           f"--tracking {ef.tracking} --tracking-frame {args.tracking_frame} --launch-site "
           f"{' '.join(f'{v:g}' for v in args.launch_site)} --launch-time 0")

@@ -5,7 +5,9 @@ through :func:`write_earth_fixed_flight`: the telemetry (``t, f_*, v_tel_*, a_*`
 the tracking in the Earth-fixed frame (:meth:`casep.simulation.simulate.TwoRateData.write`, converted
 by :mod:`casep.frames` with the launch site; lift-off is t = 0) and the truth sidecar
 (``<stem>.truth.json``, docs/reference/file-formats.md) that records the model, the true
-coefficients, the noise, the trajectory, the seed and the tracking set-up.
+coefficients, the noise, the trajectory, the seed and the tracking set-up. A strapdown scenario's
+(:func:`write_strapdown_earth_fixed`): its flight file, truth sidecar and raw IMU, and its own tracking
+(the flight's ``r_*, v_*``) in the Earth-fixed frame.
 
 :func:`read_truth` reads a ``--truth`` file (``{"Kg0x": value, ...}`` or a truth sidecar) and
 checks it against the model, for any simulation.
@@ -20,7 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["EarthFixedFlight", "write_earth_fixed_flight", "earth_fixed_truth", "read_truth", "tracking_path"]
+__all__ = ["EarthFixedFlight", "write_earth_fixed_flight", "write_strapdown_earth_fixed", "earth_fixed_truth",
+           "read_truth", "tracking_path"]
 
 
 def tracking_path(telemetry: str | os.PathLike) -> Path:
@@ -133,6 +136,9 @@ def write_earth_fixed_flight(telemetry: str | os.PathLike, site: Any, *, frame: 
     out = Path(telemetry)
     trk = Path(tracking) if tracking else tracking_path(out)
     sc = get_scenario(scenario)
+    if sc.strapdown:
+        raise ValueError(f"--tracking-frame {frame}: scenario `{sc.name}` is a strapdown flight (its telemetry is "
+                         "q_*, fb_*, w_*): write it with write_strapdown_earth_fixed (what casep simulate does)")
     if model is not None or truth is not None:
         sc = dataclasses.replace(sc, model=os.fspath(model) if model else sc.model,
                                  truth=sc.truth if truth is None else dict(truth))
@@ -146,3 +152,44 @@ def write_earth_fixed_flight(telemetry: str | os.PathLike, site: Any, *, frame: 
         with atomic_open(truth_path(out)) as fh:  # as write_simulation writes its sidecar
             fh.write(json.dumps(record, indent=2) + "\n")
     return EarthFixedFlight(d, sc, out, trk, truth_path(out), record)
+
+
+def write_strapdown_earth_fixed(sim: Any, telemetry: str | os.PathLike, tracking: str | os.PathLike, *,
+                                frame: str, imu: str | os.PathLike | None = None, imu_pad: float = 0.0
+                                ) -> tuple[Path, Path]:
+    """A rotating-Earth strapdown flight's files with its tracking in an Earth-fixed frame, all or none.
+
+    The flight file, truth sidecar and raw IMU of :func:`casep.simulation.simulate.write_simulation`, and the
+    tracking file: the flight's tracked position and velocity (``r_*``, ``v_*``, launch-inertial, the velocity with
+    its noise) at its observed samples, turned into ECEF (``t, r_ecef_*, v_ecef_*``) by
+    :func:`casep.frames.launch_to_ecef` or into geodetic (``t, lat, lon, h, v_east, v_north, v_up``) by
+    :func:`casep.frames.ecef_to_geodetic`, with the flight's launch site (lift-off t = 0).
+
+    Returns
+    -------
+    (Path, Path)
+        The flight file and the truth sidecar (`tracking` as given).
+    """
+    import numpy as np
+
+    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS, ecef_to_geodetic, launch_to_ecef
+    from casep.io._atomic import output_group
+    from casep.io.files import write_table
+    from casep.simulation.simulate import write_simulation
+
+    site = sim.trajectory.site
+    if frame not in ("ecef", "geodetic") or site is None:
+        raise ValueError(f"--tracking-frame {frame}: needs 'ecef' or 'geodetic' and a rotating-Earth flight "
+                         "(--rotating-earth --launch-site)")
+    fl = sim.flight
+    keep = np.asarray(fl.observed, bool)
+    r, v = (np.column_stack([fl.signals[f"{p}_{a}"][keep] for a in "xyz"]) for p in ("r", "v"))
+    r_e, v_e = launch_to_ecef(site, fl.t[keep], r, v)
+    values = (*r_e.T, *v_e.T) if frame == "ecef" else ecef_to_geodetic(r_e, v_e)
+    names = ECEF_COLUMNS if frame == "ecef" else GEODETIC_COLUMNS
+    with output_group():
+        paths = write_simulation(sim, telemetry, imu=imu, imu_pad=imu_pad)
+        write_table(tracking, {"t": fl.t[keep], **dict(zip(names[1:], values))}, comments=[
+            f"casep simulated tracking, {frame} (WGS84), launch site {site.to_dict()} (t0: lift-off, t = 0); the "
+            f"flight's tracked r_*, v_* at its observed samples"])
+    return paths

@@ -98,6 +98,23 @@ class RotatingEarth:
         self.k = self.w / OMEGA_EARTH  # unit vector of the axis
         self.omega = OMEGA_EARTH
         self.c0 = np.array([0.0, -R_EARTH, 0.0])  # the sphere's centre at lift-off (t = 0)
+        from casep.navigation.strapdown import launch_gravitation
+
+        self._gravitation = launch_gravitation(site)  # the navigator's own: WGS84, turning with the Earth
+
+    def gravity(self, t: np.ndarray | float, pos: np.ndarray) -> np.ndarray:
+        """The gravitation (mass attraction, what an inertial platform does not sense) at launch-inertial
+        positions `pos` (3,) or (M, 3), m, and times `t`, s: WGS84's,
+        :func:`casep.navigation.strapdown.launch_gravitation`, the field :func:`casep.navigation.navigate`
+        integrates; m/s^2, the shape of `pos`."""
+        pos = np.asarray(pos, dtype=float)
+        g = self._gravitation(np.atleast_1d(np.asarray(t, dtype=float)), np.atleast_2d(pos))
+        return g[0] if pos.ndim == 1 else g
+
+    def pad(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Position and velocity (M, 3), m and m/s, of the launch point at times `t` (M,), turning with the Earth."""
+        pos = self._turned(np.zeros(3), t)  # the launch point is the origin at lift-off
+        return pos, np.cross(self.w, pos - self.o)
 
     def rotate(self, p: np.ndarray, t: float) -> np.ndarray:
         """`p` (about the axis point) turned by omega_E t about the axis (Rodrigues)."""
@@ -111,8 +128,12 @@ class RotatingEarth:
 
     def centres(self, t: np.ndarray) -> np.ndarray:
         """The sphere's centre at each of the times `t` (M,), (M, 3) m (:meth:`centre` at many times)."""
+        return self._turned(self.c0, t)
+
+    def _turned(self, point: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """The Earth-fixed `point` (3,) at lift-off, at each of the times `t` (M,): (M, 3) m (Rodrigues)."""
         a = self.omega * np.asarray(t, dtype=float)[:, None]
-        k, p = self.k, self.c0 - self.o
+        k, p = self.k, point - self.o
         return self.o + p * np.cos(a) + np.cross(k, p) * np.sin(a) + k * (k @ p) * (1.0 - np.cos(a))
 
     def air_velocity(self, pos: np.ndarray) -> np.ndarray:

@@ -98,8 +98,7 @@ def _tracked_point(traj: BoostTrajectory, times: np.ndarray, lever: np.ndarray) 
     early = times < t0
     earth = traj.earth
     if early.any() and earth is not None:  # rotating Earth: on the pad, turning with the Earth
-        pos[early] = [earth.o + earth.rotate(-earth.o, tk) for tk in times[early]]
-        vel[early] = np.cross(earth.w, pos[early] - earth.o)
+        pos[early], vel[early] = earth.pad(times[early])
     late = times > t1
     if late.any():  # after burnout: ballistic, r + v dt + g dt^2 / 2 with gravity g at burnout
         g = acceleration[-1] - traj.specific_force[-1]

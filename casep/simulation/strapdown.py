@@ -16,7 +16,9 @@ it, so a flight read back from its file has exactly the S_V it was simulated wit
 
 Raw IMU output (:func:`imu_table`): ``t, w_x, w_y, w_z, fb_x, fb_y, fb_z`` as the IMU measured them,
 optionally after a stationary pad segment before lift-off (t < 0), with the truth trajectory beside
-them (``true_q_*``, ``true_r_*``, ``true_v_*``; launch-inertial, non-rotating Earth).
+them (``true_q_*``, ``true_r_*``, ``true_v_*``; launch-inertial). On a rotating-Earth trajectory the pad turns
+with the Earth and the whole record is what :func:`casep.navigation.navigate` reproduces (the simulator's
+gravitation is the navigator's, :mod:`casep.simulation.trajectory`).
 """
 
 from __future__ import annotations
@@ -129,8 +131,12 @@ def imu_table(traj: BoostTrajectory, model: Any, truth: np.ndarray, *, pad: floa
     """The raw IMU file's columns (module notes), with `pad` s standing on the pad before lift-off.
 
     On the pad (t < 0, at the flight's median sample step) the vehicle stands at its lift-off attitude,
-    at rest in the non-rotating launch frame: ``fb = C0^T (-g)``, g the gravity at lift-off, ``w = 0``,
-    measured with the model's errors there. Truth: ``true_q_*`` (scalar first, body to navigation),
+    measured with the model's errors there. Over a non-rotating Earth it is at rest in the launch frame:
+    ``fb = C0^T (-g)``, g the gravity at lift-off, ``w = 0``. On a rotating-Earth trajectory it turns with the
+    Earth (``traj.earth``): attitude ``C(t) = R(omega_E t) C0``, position and velocity those of the launch
+    point, ``w = C^T w_E`` (the Earth rate) and ``fb = C^T (w_E x v - G)`` (the reaction to WGS84 normal
+    gravity, ``G`` the gravitation :func:`casep.navigation.navigate` integrates), so that the record, pad and
+    flight, is what the navigator reproduces. Truth: ``true_q_*`` (scalar first, body to navigation),
     ``true_r_*`` (m) and ``true_v_*`` (m/s), launch-inertial.
     """
     if not (np.isfinite(pad) and pad >= 0):
@@ -140,20 +146,16 @@ def imu_table(traj: BoostTrajectory, model: Any, truth: np.ndarray, *, pad: floa
     q = np.column_stack([cols[c] for c in QUATERNION_COLUMNS])
     fb, w = (np.column_stack([cols[c] for c in names]) for names in (BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS))
     if pad > 0:
-        assert traj.acceleration is not None
         step = float(np.median(np.diff(t)))
         t_pad = t[0] - step * np.arange(int(np.ceil(pad / step - 1e-9)), 0, -1)
-        k = t_pad.size
-        C0 = np.repeat(quaternion_dcm_array(q[:1]), k, axis=0)
-        g = traj.acceleration[0] - traj.specific_force[0]  # gravity at lift-off, m/s^2
-        fb_pad = np.repeat((C0[0].T @ -g)[None, :], k, axis=0)
-        df, dw = _body_errors(model, C0, np.repeat(q[:1], k, 0), fb_pad, np.zeros((k, 3)), t_pad, truth)
+        q_pad, w_pad, fb_pad, pos_pad, vel_pad = _on_the_pad(traj, q[0], t_pad)
+        df, dw = _body_errors(model, quaternion_dcm_array(q_pad), q_pad, fb_pad, w_pad, t_pad, truth)
         t = np.concatenate([t_pad, t])
-        q = np.concatenate([np.repeat(q[:1], k, 0), q])
+        q = np.concatenate([q_pad, q])
         fb = np.concatenate([fb_pad + df, fb])
-        w = np.concatenate([dw, w])
-        pos = np.concatenate([np.repeat(pos[:1], k, 0), pos])
-        vel = np.concatenate([np.zeros((k, 3)), vel])
+        w = np.concatenate([w_pad + dw, w])
+        pos = np.concatenate([pos_pad, pos])
+        vel = np.concatenate([vel_pad, vel])
     out = {"t": t}
     out.update({c: w[:, i] for i, c in enumerate(BODY_RATE_COLUMNS)})
     out.update({c: fb[:, i] for i, c in enumerate(BODY_FORCE_COLUMNS)})
@@ -163,6 +165,27 @@ def imu_table(traj: BoostTrajectory, model: Any, truth: np.ndarray, *, pad: floa
     for i, a in enumerate("xyz"):
         out[f"true_v_{a}"] = vel[:, i]
     return out
+
+
+def _on_the_pad(traj: BoostTrajectory, q0: np.ndarray, t_pad: np.ndarray) -> tuple[np.ndarray, ...]:
+    """True attitude (K, 4), body rate, body specific force, position and velocity (K, 3) of the vehicle standing
+    on the pad at times `t_pad` (K,) before lift-off, at its lift-off attitude `q0` (:func:`imu_table`'s notes)."""
+    from casep.rotations import quat_from_rotvec, quat_multiply
+
+    k = t_pad.size
+    earth = traj.earth
+    if earth is None:  # at rest in the non-rotating launch frame
+        assert traj.acceleration is not None
+        q_pad = np.repeat(q0[None, :], k, axis=0)
+        f = np.repeat((traj.specific_force[0] - traj.acceleration[0])[None, :], k, axis=0)  # -g, g at lift-off
+        pos, vel = np.repeat(traj.position[:1], k, axis=0), np.zeros((k, 3))
+    else:  # turning with the Earth: the attitude turned back by omega_E t, the pad's point and velocity
+        q_pad = quat_multiply(quat_from_rotvec(earth.w[None, :] * t_pad[:, None]), q0)
+        pos, vel = earth.pad(t_pad)
+        f = np.cross(earth.w, vel) - earth.gravity(t_pad, pos)  # f = a - G, a = w x v the centripetal acceleration
+    C = quaternion_dcm_array(q_pad)
+    w = np.zeros((k, 3)) if earth is None else np.einsum("kji,j->ki", C, earth.w)  # w_b = C^T w_E
+    return q_pad, w, np.einsum("kji,kj->ki", C, f), pos, vel
 
 
 def rail_launch(site: Any, t: np.ndarray, *, elevation_deg: float, boost_g: float, burn_s: float, coast_g: float,

@@ -7,8 +7,8 @@ Assumptions (every one is a choice, stated here and in docs/guide/simulation.md)
   not rotate in this frame (launch-site velocity and Coriolis terms are left out: they
   change the trajectory, not the error-separation problem).
 - **Earth**: sphere of radius ``R_E = 6 371 000`` m, centre at ``(0, -R_E, 0)``;
-  inverse-square gravity ``g = -mu r / |r|^3`` with ``mu = 3.986004418e14`` m^3/s^2;
-  altitude ``h = |r| - R_E``.
+  inverse-square gravity ``g = -mu r / |r|^3`` with ``mu = 3.986004418e14`` m^3/s^2 (over a rotating
+  Earth WGS84's instead: below); altitude ``h = |r| - R_E``.
 - **Atmosphere**: U.S. Standard Atmosphere 1976 below 84.852 km geopotential (seven layers,
   hydrostatic), exponential above with the last layer's scale height; speed of sound
   ``sqrt(1.4 R T)``.
@@ -38,7 +38,10 @@ Assumptions (every one is a choice, stated here and in docs/guide/simulation.md)
   term: the frame is inertial); what changes is the Earth. It turns at ``omega_E`` about the WGS84
   polar axis (``site.earth_rate`` in launch axes, through ``site.earth_centre``), as
   :mod:`casep.frames` assumes, and the simulator's sphere turns with it rigidly (its centre starts
-  at ``(0, -R_E, 0)`` and circles the axis), so gravity and altitude follow the rotating sphere. The
+  at ``(0, -R_E, 0)`` and circles the axis), so the altitude (the atmosphere's) follows the rotating
+  sphere; the gravitation is WGS84's at the vehicle's Earth-fixed position
+  (:func:`casep.navigation.strapdown.launch_gravitation`, the field :func:`casep.navigation.navigate`
+  integrates, so a raw IMU simulated on this trajectory navigates back to it). The
   vehicle starts with the velocity of the pad, ``w x (0 - o)`` (329 m/s east at 45 deg); drag,
   Mach number and the gravity-turn attitude use the velocity relative to the co-rotating
   atmosphere ``v_rel = v - w x (r - o)`` (whose rate is ``a - w x v``). The platform is inertial, so
@@ -258,7 +261,7 @@ def _forces(vehicle, stage, kind, t, t0, t1, x, state):
     earth = state.get("earth")
     r = pos + np.array([0.0, R_EARTH, 0.0]) if earth is None else pos - earth.centre(t)
     rn = math.sqrt(r @ r)
-    grav = -MU_EARTH * r / rn**3
+    grav = -MU_EARTH * r / rn**3 if earth is None else earth.gravity(t, pos)  # rotating: WGS84's (module notes)
     h = rn - R_EARTH
     rho, a = atmosphere(h)
     vel = air_relative(state, pos, vel)  # relative to the (co-rotating) air
@@ -319,7 +322,7 @@ def _sampled(vehicle: Vehicle, stage: Stage, kind: str, t: np.ndarray, t0: float
     earth = state.get("earth")
     r = pos + np.array([0.0, R_EARTH, 0.0]) if earth is None else pos - earth.centres(t)
     rn = np.sqrt(np.sum(r * r, axis=1))
-    grav = -MU_EARTH * r / (rn**3)[:, None]  # g = -mu r / |r|^3
+    grav = -MU_EARTH * r / (rn**3)[:, None] if earth is None else earth.gravity(t, pos)  # g = -mu r / |r|^3
     rho, a_sound = atmosphere_many(rn - R_EARTH)
     v_rel = air_relative(state, pos, vel)  # relative to the (co-rotating) air
     speed = np.sqrt(np.sum(v_rel * v_rel, axis=1))
