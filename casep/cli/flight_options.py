@@ -76,14 +76,16 @@ def add_alignment(parser: Any, *, required: bool = False, what: str = "") -> Non
                         help="the accelerometer bias, mg, by which the mean specific force over --align may differ "
                              "from the normal gravity (a warning beyond 49 mg, 5 %% of g; beyond it an error saying "
                              "what fits: units, a vehicle that moved); default 80 mg, the largest of consumer MEMS")
+    parser.add_argument("--gyro-bias-tolerance", type=positive_float, default=None, metavar="DEG_S",
+                        help="the gyro bias, deg/s, the pad rate may reach (navigated, warned of: an MPU-9150's is "
+                             "up to 20 deg/s); default 2.9 deg/s: beyond it no gyro navigates")
 
 
-def accel_bias_tolerance(args: Any) -> float | None:
-    """``--accel-bias-tolerance MG`` (positive: its type) in m/s^2 when given, else None (the alignment's default)."""
-    from casep.units import G0
-
-    mg = getattr(args, "accel_bias_tolerance", None)
-    return None if mg is None else float(mg) * 1e-3 * G0
+def bias_tolerances(args: Any) -> dict[str, Any]:
+    """``--accel-bias-tolerance MG`` (m/s^2), ``--gyro-bias-tolerance DEG_S`` (rad/s) given: align's keywords."""
+    from casep.units import DEG_PER_HOUR, G0
+    given = (("accel_bias_tolerance", 1e-3 * G0), ("gyro_bias_tolerance", 3600.0 * DEG_PER_HOUR))
+    return {k: float(getattr(args, k)) * si for k, si in given if getattr(args, k, None) is not None}
 
 
 def add_radar(parser: Any) -> None:

@@ -33,8 +33,7 @@ def run(args: argparse.Namespace) -> int:
     outputs.check({"--output": args.output, "--json": args.json}, [args.imu])
     site = inputs.launch_site(args.launch_site, args.launch_time)
     res = navigate(read_imu(args.imu, **ranges), site, tuple(args.align), heading_deg=args.heading,
-                   heading_axis=args.heading_axis,
-                   accel_bias_tolerance=flight_options.accel_bias_tolerance(args))
+                   heading_axis=args.heading_axis, **flight_options.bias_tolerances(args))
     write_table(args.output, res.columns(), comments=res.comments(args.imu))
     if args.json:
         outputs.write_json(res.to_dict(), args.json)

@@ -19,6 +19,7 @@ def imu_only(args: argparse.Namespace) -> None:
         for flag, value in (("--align", args.align), ("--heading", args.heading),
                             ("--max-iterations", args.max_iterations),
                             ("--accel-bias-tolerance", args.accel_bias_tolerance),
+                            ("--gyro-bias-tolerance", args.gyro_bias_tolerance),
                             ("--heading-axis", None if args.heading_axis == "x" else args.heading_axis)):
             if value is not None:
                 raise ValueError(f"{flag} is used only with --imu IMU.csv")
@@ -43,7 +44,7 @@ def separate_imu(args: argparse.Namespace, spec: Any, ranges: dict) -> int:
                            heading_axis=args.heading_axis, spec=spec, iterate=args.iterate is not False,
                            max_iterations=args.max_iterations, tracking_frame=args.tracking_frame,
                            grid=args.grid, time_offset=args.time_offset, time_shift=args.time_shift,
-                           accel_bias_tolerance=flight_options.accel_bias_tolerance(args), **ranges)
+                           **flight_options.bias_tolerances(args), **ranges)
     res, flight = out.result, out.flight
     prov = outputs.provenance(args, [flight], {"imu": args.imu})
     if args.json:

@@ -289,7 +289,8 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                  iterate: bool = True, tol: float = ITERATE_TOL, max_iterations: int | None = None,
                  tracking_frame: str = "launch", grid: str = "tracking", time_offset: float | str | None = None,
                  time_shift: float = 0.0, fit_time_offset: bool | None = None, gyr_range: float | None = None,
-                 acc_range: float | None = None, accel_bias_tolerance: float | None = None) -> ImuSeparation:
+                 acc_range: float | None = None, accel_bias_tolerance: float | None = None,
+                 gyro_bias_tolerance: float | None = None) -> ImuSeparation:
     """Separate a strapdown IMU's errors from its raw data and tracking (module notes).
 
     Parameters
@@ -322,6 +323,8 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
         the rows from the first clipped sample on are left out); an ImuData was checked when it was read.
     accel_bias_tolerance : float, optional
         :func:`casep.navigation.alignment.align` (m/s^2; None: its default, 80 mg).
+    gyro_bias_tolerance : float, optional
+        :func:`casep.navigation.alignment.large_pad_rate` (rad/s; None: its default, 2.9 deg/s).
 
     Returns
     -------
@@ -350,8 +353,9 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                source, spec, heading_deg, heading_axis,
                {"tracking_frame": tracking_frame, "grid": grid, "time_offset": time_offset, "time_shift": time_shift},
                fit_time_offset)
-    if accel_bias_tolerance is not None:
-        run.heading["accel_bias_tolerance"] = accel_bias_tolerance
+    for name, value in (("accel_bias_tolerance", accel_bias_tolerance), ("gyro_bias_tolerance", gyro_bias_tolerance)):
+        if value is not None:
+            run.heading[name] = value
     return run.iterate(iterate, tol, int(max_iterations))
 
 
@@ -405,7 +409,8 @@ class _Run:
         nav.alignment, nav.align_window = alignment, (float(self.window[0]), float(self.window[1]))
         nav.source = self.imu.source
         if self.nav is None:  # the record as given: rates that no navigating gyro has on a pad are refused
-            check_pad_drift(nav, imu, self.nav_site, warn=False)
+            check_pad_drift(nav, imu, self.nav_site, warn=False,
+                            gyro_bias_tolerance=self.heading.get("gyro_bias_tolerance"))
         self.imu_k = imu
         return nav
 
