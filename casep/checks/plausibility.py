@@ -192,7 +192,8 @@ def _check_velocity_units(flight: FlightData) -> None:
         _units_ratio(trk, tel, source, "v_trk_x", lambda g, e, r: (
             f"the tracking velocity (v_trk_x, v_trk_y, v_trk_z of {source}) changes by {g:.4g} m/s but the "
             f"telemetered velocity (v_tel_* of {flight.meta.get('telemetry', 'the telemetry')}) by {e:.4g} m/s "
-            f"over the same times (ratio {r:.3g}, expected {{lo:g}}-{{hi:g}}): the two files disagree on units."),
+            f"over the same times (ratio {r:.3g} over the flight, expected {{lo:g}}-{{hi:g}}): the two files "
+            "disagree on units."),
             "v_trk")
 
 
@@ -251,19 +252,23 @@ def _unexplained_by_scale(measured: np.ndarray, expected: np.ndarray) -> float:
 
 
 def _units_ratio(measured, expected, source: str, column: str, what, columns: str) -> None:
-    """The units rule of a velocity change against the one it must equal: ``|measured| / |expected|`` (last rows)
-    outside :data:`VELOCITY_RATIO_RANGE`, the changes a scaled copy of each other (:func:`_unexplained_by_scale`
-    within :data:`SCALED_COPY_UNEXPLAINED`; rows are epochs, one row for the end alone), warns with the unit that
-    fits, outside :data:`VELOCITY_RATIO_REFUSED` (a unit's factor) raises a
-    :class:`~casep.io.flight.FlightDataError` naming `source` and `column`.
+    """The units rule of a velocity change against the one it must equal: the ratio, the least-squares scale
+    ``k = sum(m . e) / sum(e . e)`` over the rows (epochs; one row for the end alone), outside
+    :data:`VELOCITY_RATIO_RANGE`, the changes a scaled copy of each other (:func:`_unexplained_by_scale`
+    within :data:`SCALED_COPY_UNEXPLAINED`), warns with the unit that fits, outside :data:`VELOCITY_RATIO_REFUSED`
+    (a unit's factor) raises a :class:`~casep.io.flight.FlightDataError` naming `source` and `column`. The scale of
+    every epoch, not the last one's ratio: a vehicle that ends where it started at rest (a car drive) has a last
+    change of its speed near zero, and the navigation's drift over the whole flight would make any ratio of it.
 
-    `what(|measured|, |expected|, ratio)`: the message, with ``{lo}``, ``{hi}`` for the range.
+    `what(|measured|, |expected|, ratio)`: the message (the changes at the epoch of the largest expected one), with
+    ``{lo}``, ``{hi}`` for the range.
     """
     m, x = np.atleast_2d(np.asarray(measured, float)), np.atleast_2d(np.asarray(expected, float))
-    e, g = float(np.linalg.norm(x[-1])), float(np.linalg.norm(m[-1]))
+    i = int(np.argmax(np.linalg.norm(x, axis=1)))
+    e, g = float(np.linalg.norm(x[i])), float(np.linalg.norm(m[i]))
     if e < 1.0:  # no velocity gained: nothing to compare
         return
-    ratio = g / e
+    ratio = float(np.sum(m * x)) / float(np.sum(x * x))
     lo, hi = VELOCITY_RATIO_RANGE
     if lo <= ratio <= hi or _unexplained_by_scale(m, x) > SCALED_COPY_UNEXPLAINED:
         return

@@ -6,9 +6,9 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from casep.cli.types import finite_float, positive_float, time_offset
+from casep.cli.types import finite_float, time_offset
 
-__all__ = ["FRAMES", "add_tracking", "add_grid", "add_frames", "add_launch_site", "add_alignment", "add_radar",
+__all__ = ["FRAMES", "add_tracking", "add_grid", "add_frames", "add_launch_site", "add_radar",
            "add_own_trajectory", "add_full_scales", "full_scales"]
 
 FRAMES = ("launch", "ecef", "geodetic")
@@ -62,30 +62,6 @@ def add_launch_site(parser: Any, *, required: bool = False, scale: str = "the tr
     parser.add_argument("--launch-time", type=float, default=None, required=required, metavar="T0",
                         help=f"launch time in {scale} time scale, s (the launch-inertial frame is the "
                              "Earth-fixed launch triad at T0)")
-
-
-def add_alignment(parser: Any, *, required: bool = False, what: str = "") -> None:
-    """``--align T1 T2``, ``--heading DEG``, ``--heading-axis AXIS``: the pad alignment of a raw IMU record."""
-    parser.add_argument("--align", type=finite_float, nargs=2, required=required, default=None, metavar=("T1", "T2"),
-                        help=f"{what}the span at rest on the pad, s (the IMU's time scale): levelling by the mean "
-                             "specific force, and the start of the navigation")
-    parser.add_argument("--heading", type=finite_float, default=None, metavar="DEG",
-                        help=f"{what}azimuth of the horizontal projection of the body axis --heading-axis, deg from "
-                             "north, clockwise (a rail launch: the rail azimuth); default: gyrocompassing, with a "
-                             "warning saying how well the heading is known")
-    parser.add_argument("--heading-axis", choices=("x", "y", "z"), default="x", help="--heading's axis (default x)")
-    parser.add_argument("--accel-bias-tolerance", type=positive_float, default=None, metavar="MG",
-                        help="the accelerometer bias, mg, by which the mean specific force over --align may differ "
-                             "from the normal gravity (a warning beyond 49 mg, 5 %% of g; beyond it an error saying "
-                             "what fits: units, a vehicle that moved); default 80 mg, the largest of consumer MEMS")
-
-
-def accel_bias_tolerance(args: Any) -> float | None:
-    """``--accel-bias-tolerance MG`` (positive: its type) in m/s^2 when given, else None (the alignment's default)."""
-    from casep.units import G0
-
-    mg = getattr(args, "accel_bias_tolerance", None)
-    return None if mg is None else float(mg) * 1e-3 * G0
 
 
 def add_radar(parser: Any) -> None:

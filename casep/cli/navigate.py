@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from casep.cli import flight_options, inputs, options, outputs
+from casep.cli import alignment, flight_options, inputs, options, outputs
 
 
 def add_parser(sub: Any) -> None:
@@ -15,7 +15,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("imu", help="IMU file: t, w_x..w_z (rad/s), fb_x..fb_z (m/s^2); or t, dth_x..dth_z (rad), "
                                "dvb_x..dvb_z (m/s), each over the sample period ending at t")
     flight_options.add_launch_site(p, required=True, scale="the IMU's")
-    flight_options.add_alignment(p, required=True)
+    alignment.add_alignment(p, required=True)
     flight_options.add_full_scales(p, "the solution from the first clipped sample on is marked ins_valid = 0 (and left "
                                "out of a separation)")
     p.add_argument("-o", "--output", metavar="TEL.csv", required=True,
@@ -33,8 +33,7 @@ def run(args: argparse.Namespace) -> int:
     outputs.check({"--output": args.output, "--json": args.json}, [args.imu])
     site = inputs.launch_site(args.launch_site, args.launch_time)
     res = navigate(read_imu(args.imu, **ranges), site, tuple(args.align), heading_deg=args.heading,
-                   heading_axis=args.heading_axis,
-                   accel_bias_tolerance=flight_options.accel_bias_tolerance(args))
+                   heading_axis=args.heading_axis, **alignment.bias_tolerances(args))
     write_table(args.output, res.columns(), comments=res.comments(args.imu))
     if args.json:
         outputs.write_json(res.to_dict(), args.json)

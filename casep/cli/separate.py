@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from casep.cli import flight_options, inputs, options, outputs
+from casep.cli import alignment, flight_options, inputs, options, outputs
 from casep.cli.capture import recorded, report_lines
 from casep.cli.radar import radar_only
 from casep.cli.separate_imu import add_heading_std, imu_only, separate_imu
@@ -27,7 +27,7 @@ def add_parser(sub: Any) -> None:
                    help="a raw IMU record instead of FLIGHT (t, w_*, fb_* or t, dth_*, dvb_*, as casep navigate "
                         "reads it): navigated, paired with --tracking and separated; needs --launch-site, "
                         "--launch-time (the tracking file's time scale) and --align")
-    flight_options.add_alignment(p, what="with --imu: ")
+    alignment.add_alignment(p, what="with --imu: ")
     add_heading_std(p)
     flight_options.add_full_scales(p, "with --imu, or a strapdown telemetry file (w_*, fb_*): the rows from the "
                                    "first clipped sample on are left out")

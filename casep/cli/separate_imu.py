@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from casep.cli import flight_options, inputs, outputs
+from casep.cli import alignment, inputs, outputs
 from casep.cli.capture import recorded, report_lines
 from casep.cli.separate_output import figures_and_report, print_result
 from casep.cli.types import finite_float
@@ -27,6 +27,7 @@ def imu_only(args: argparse.Namespace) -> None:
         for flag, value in (("--align", args.align), ("--heading", args.heading), ("--heading-std", args.heading_std),
                             ("--max-iterations", args.max_iterations),
                             ("--accel-bias-tolerance", args.accel_bias_tolerance),
+                            ("--gyro-bias-tolerance", args.gyro_bias_tolerance),
                             ("--heading-axis", None if args.heading_axis == "x" else args.heading_axis)):
             if value is not None:
                 raise ValueError(f"{flag} is used only with --imu IMU.csv")
@@ -54,9 +55,8 @@ def separate_imu(args: argparse.Namespace, spec: Any, ranges: dict) -> int:
                            heading_axis=args.heading_axis, spec=spec, iterate=args.iterate is not False,
                            max_iterations=args.max_iterations, tracking_frame=args.tracking_frame,
                            grid=args.grid, time_offset=args.time_offset, time_shift=args.time_shift,
-                           clock_drift=args.clock_drift,
-                           accel_bias_tolerance=flight_options.accel_bias_tolerance(args),
-                           heading_std_deg=args.heading_std, **ranges)
+                           clock_drift=args.clock_drift, heading_std_deg=args.heading_std,
+                           **alignment.bias_tolerances(args), **ranges)
     res, flight = out.result, out.flight
     prov = outputs.provenance(args, [flight], {"imu": args.imu})
     if args.json:

@@ -330,7 +330,7 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
             "unobserved": int((~observed).sum()), "telemetry_dropped": int((~keep).sum()),
             "start_speed_m_s": float(np.linalg.norm(v_tel[0])),
             "telemetry_velocity_change_m_s": (v_tel[keep][-1] - v_tel[0]).tolist(),  # for casep.checks.plausibility
-            **_tracking_change(t_tel, v_tel, t_trk, v_trk),
+            **_tracking_change(t_tel, v_tel, t_trk, v_trk, (meta or {}).get("tracking_frame", {}).get("site")),
             "interpolation_floor_m_s": interpolation_floor(*((t_trk, v_trk) if grid == "telemetry" else (t_tel, v_tel)),
                                                            carry, 4 if interpolation == "cubic" else 2)}
     meta["pair_inputs"] = PairInputs(t_tel, f, v_tel, t_trk, v_trk, signals, interpolation, grid, source)
@@ -414,10 +414,16 @@ def interpolation_floor(t: np.ndarray, v: np.ndarray, carry, order: int) -> floa
 
 
 def _tracking_change(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray,
-                     epochs: int = 64) -> dict:
+                     site: dict | None = None, epochs: int = 64) -> dict:
     """The tracking velocity changes from the first tracking sample inside the telemetry to up to `epochs` later
     ones spread over it, and the telemetry's over the same times (linear interpolation): one unit makes them
-    scaled copies with ratio ~1 (the plausibility check's units rule), rows ``[epoch][axis]``."""
+    scaled copies with ratio ~1 (the plausibility check's units rule), rows ``[epoch][axis]``.
+
+    With the `site` of Earth-fixed tracking (:meth:`casep.frames.LaunchSite.to_dict`) both are relative to the pad
+    at rest on the rotating Earth: the pad's launch-inertial velocity ``omega_E x r``, turning with the Earth
+    (2.6 m/s in 120 s at 51 deg), is taken from both, so a vehicle at rest changes by nothing in either and the
+    navigation's drift is not compared with the Earth's rotation. The times are the telemetry's, not the launch
+    time's scale: an offset ``d`` turns the pad's change by ``omega_E d``, 4e-3 rad for a minute."""
     inside = np.flatnonzero((t_trk >= t_tel[0]) & (t_trk <= t_tel[-1]))
     if inside.size < 2:
         return {}
@@ -425,8 +431,15 @@ def _tracking_change(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_
     b = inside[np.unique(np.linspace(1, inside.size - 1, min(epochs, inside.size - 1)).round().astype(int))]
     tel = np.column_stack([np.interp(t_trk[b], t_tel, v_tel[:, i]) - np.interp(t_trk[a], t_tel, v_tel[:, i])
                            for i in range(3)])
-    return {"tracking_velocity_change_m_s": (v_trk[b] - v_trk[a]).tolist(),
-            "telemetry_velocity_change_at_tracking_m_s": tel.tolist()}
+    trk = v_trk[b] - v_trk[a]
+    if site is not None:
+        from casep.frames import LaunchSite, ecef_to_launch
+
+        pad = LaunchSite(**site)
+        tp = t_trk[np.concatenate([[a], b])]
+        v_pad = ecef_to_launch(pad, tp, np.tile(pad.r_site, (tp.size, 1)), np.zeros((tp.size, 3)))[1]
+        trk, tel = trk - (v_pad[1:] - v_pad[0]), tel - (v_pad[1:] - v_pad[0])
+    return {"tracking_velocity_change_m_s": trk.tolist(), "telemetry_velocity_change_at_tracking_m_s": tel.tolist()}
 
 
 def _merge_times(t_tel: np.ndarray, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

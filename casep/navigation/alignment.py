@@ -32,7 +32,7 @@ from casep.units import G0, MEMS_ACCEL_BIAS, MEMS_GYRO_BIAS
 
 __all__ = ["Alignment", "align", "HEADING_AXES", "MAX_PAD_RATE", "ACCEL_BIAS_TOLERANCE", "AT_REST_SILENT",
            "FORCE_UNITS", "course_rotation", "gyro_bias_allowance", "mean_rate_std",
-           "EARTH_RATE_CHI2", "deg_s_chance"]
+           "EARTH_RATE_CHI2", "deg_s_chance", "large_pad_rate"]
 
 #: Body axes whose azimuth ``--heading`` may give.
 HEADING_AXES = ("x", "y", "z")
@@ -119,7 +119,7 @@ def _azimuth(v_t: np.ndarray, site: LaunchSite) -> float:
 def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, float], site: LaunchSite, *,
           heading_deg: float | None = None, heading_axis: str = "x",
           rates_in: str = "columns w_x, w_y, w_z", accel_bias_tolerance: float = ACCEL_BIAS_TOLERANCE,
-          as_given: bool = True) -> Alignment:
+          as_given: bool = True, gyro_bias_tolerance: float | None = None) -> Alignment:
     """Level over `window` and fix the heading (given, or by gyrocompassing with a warning).
 
     Parameters
@@ -141,6 +141,8 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
     accel_bias_tolerance : float, optional
         The accelerometer bias (m/s^2) the mean specific force may differ from the normal gravity by
         (:func:`_check_pad_force`); default :data:`ACCEL_BIAS_TOLERANCE` (80 mg, consumer MEMS).
+    gyro_bias_tolerance : float, optional
+        The gyro bias (rad/s) the mean pad rate may reach (:func:`large_pad_rate`); None: :data:`MAX_PAD_RATE`.
     as_given : bool
         The record as its file gives it (gyro signs the Earth rate decides are an error,
         :func:`_check_earth_rate`); False for a record an estimate has corrected (the passes of a separation from
@@ -188,10 +190,12 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
                              "from the vertical on the pad, so its azimuth does not fix the heading: give the azimuth "
                              "of a horizontal axis (--heading-axis)")
         C = _triad(up_b, axis, up_t, _horizontal(heading_deg, site))
-        _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in, C.T @ site.earth_rate)
+        _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in, C.T @ site.earth_rate,
+                        large=large_pad_rate(w_mean, up_b, w, gyro_bias_tolerance))
         _check_earth_rate(w[sel], w_mean, C, site, (t1, t2), rates_in, float(heading_deg), as_given)
         return Alignment(C, "heading", float(heading_deg) % 360.0, None, f_mean, w_mean, g0, n, heading_axis)
-    _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in)
+    _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in,
+                    large=large_pad_rate(w_mean, up_b, w, gyro_bias_tolerance))
     if tilt < MIN_AXIS_TILT_RAD:  # its azimuth means nothing: report the most horizontal axis's
         heading_axis = HEADING_AXES[int(np.argmin(np.abs(up_b)))]
     return _gyrocompass(w[sel], w_mean, f_mean, up_b, up_t, g0, site, n, (t1, t2), heading_axis)
@@ -236,8 +240,67 @@ def _check_pad_force(fm: float, g0: float, moved: float, n: int, window: tuple[f
     raise ValueError(f"{where}: not at rest on the pad in m/s^2: {why}")
 
 
-#: A mean pad rate beyond this (2.9 deg/s, no gyro that navigates has such a bias) is warned about, rad/s.
+#: A mean pad rate beyond this (2.9 deg/s, no gyro that navigates has such a bias) is warned about, rad/s; the
+#: default gyro bias tolerance (:func:`large_pad_rate`).
 MAX_PAD_RATE = 0.05
+
+
+def large_pad_rate(w_mean: np.ndarray, up_b: np.ndarray, w: np.ndarray, tolerance: float | None = None
+                   ) -> tuple[bool, str] | None:
+    """The one rule for a mean pad rate beyond :data:`MAX_PAD_RATE`: a unit slip (deg/s read as rad/s) or a large
+    gyro bias, told apart by the numbers where they can be.
+
+    Parameters
+    ----------
+    w_mean : (3,) ndarray
+        The mean body rate over the pad window as read, rad/s.
+    up_b : (3,) ndarray
+        The vertical in body axes (the mean specific force's direction).
+    w : (N, 3) ndarray
+        The whole record's rates as read, rad/s (their peak).
+    tolerance : float, optional
+        The gyro bias accepted, rad/s (``--gyro-bias-tolerance``); None: :data:`MAX_PAD_RATE`.
+
+    Returns
+    -------
+    (refused, text) or None
+        None when the rate is within both :data:`MAX_PAD_RATE` and `tolerance`. Else ``refused`` True with what it
+        is: rates in deg/s when the record's peak rate is beyond the 2000 deg/s of common gyros
+        (:data:`casep.navigation.imu.WARN_RATE`: the rates of a moving vehicle read 57.3 times too large),
+        whatever the tolerance; otherwise "a gyro bias of X deg/s, or rates in deg/s" (the pad cannot tell: a
+        bias is steady at rest as the Earth rate read in deg/s is; the Earth-rate match,
+        :func:`_check_pad_rate`, tells them apart only when the gyro's own bias is small), refused beyond
+        `tolerance`, and within it (``refused`` False) accepted with how fast the navigation's attitude drifts.
+    """
+    from casep.navigation.imu import WARN_RATE
+
+    tol = MAX_PAD_RATE if tolerance is None else float(tolerance)
+    rate = float(np.linalg.norm(w_mean))
+    if rate <= min(tol, MAX_PAD_RATE):
+        return None
+    peak = float(np.max(np.linalg.norm(w, axis=1))) if len(w) else 0.0
+    deg = math.degrees(1.0)
+    if peak > WARN_RATE and rate > MAX_PAD_RATE:
+        return True, (f"the rates are in deg/s: the pad rate is beyond the {MAX_PAD_RATE:g} rad/s bias of any gyro "
+                      f"that navigates and the record's peak rate {peak:.4g} rad/s ({math.degrees(peak):.4g} deg/s) "
+                      f"beyond the 2000 deg/s of common gyros (divided by 57.2958 they are {rate / deg:.3g} and "
+                      f"{peak / deg:.3g} rad/s): give rad/s (multiply by pi/180)")
+    h = float(np.linalg.norm(w_mean - (w_mean @ up_b) * up_b))  # across the vertical: it tilts the levelling
+    both = (f"a gyro bias of {math.degrees(rate):.3g} deg/s, or rates in deg/s (divided by 57.2958 it is "
+            f"{rate / deg:.3g} rad/s, {rate / deg / OMEGA_EARTH:.3g} times the Earth rate, a bias of "
+            f"{rate:.3g} deg/s; the record's peak rate {peak:.3g} rad/s is within the 2000 deg/s of common gyros "
+            "either way): the pad cannot tell")
+    drift = (f"the navigation's attitude drifts by {math.degrees(rate):.3g} deg/s, {math.degrees(h):.3g} deg/s of "
+             f"it tilting the vertical (a velocity error of g b t^2/2, {G0 * h / 2.0:.3g} m/s after 1 s)")
+    if rate > tol:
+        given = ("beyond the 0.05 rad/s bias of any gyro that navigates" if tolerance is None else
+                 f"beyond the --gyro-bias-tolerance {math.degrees(tol):g} deg/s given")
+        return True, (f"{both}; in deg/s give rad/s (multiply by pi/180); a bias that large, {given}: "
+                      f"{drift}; --gyro-bias-tolerance {math.ceil(math.degrees(rate) * 10.0) / 10.0:g} (deg/s) "
+                      "navigates with it")
+    return False, (f"{both}; a bias within the --gyro-bias-tolerance {math.degrees(tol):g} deg/s given: {drift} "
+                   "until a separation estimates the bias (`casep separate --imu`); in deg/s give rad/s (multiply "
+                   "by pi/180)")
 #: Rates are taken for deg/s when the pad rate divided by 57.2958 matches the Earth rate, beyond the noise of
 #: the mean, within this fraction of the Earth rate: its vertical and horizontal parts when the heading is
 #: gyrocompassed (the pad rate fixes the heading then), all three body components when the heading is given.
@@ -281,7 +344,8 @@ def deg_s_chance(tol: float, lat_deg: float, heading_given: bool) -> float:
 
 
 def _check_pad_rate(w_mean: np.ndarray, s_mean: np.ndarray, n: int, window: tuple[float, float], up_b: np.ndarray,
-                    up_t: np.ndarray, site: LaunchSite, rates_in: str, e_body: np.ndarray | None = None) -> None:
+                    up_t: np.ndarray, site: LaunchSite, rates_in: str, e_body: np.ndarray | None = None, *,
+                    large: tuple[bool, str] | None = None) -> None:
     """At rest the gyros measure the Earth rate (7.3e-5 rad/s) plus their bias.
 
     Rates in deg/s read as rad/s give ``w = D (omega_b + b)`` with ``D = 180/pi = 57.2958``, and their
@@ -294,7 +358,7 @@ def _check_pad_rate(w_mean: np.ndarray, s_mean: np.ndarray, n: int, window: tupl
     Read in rad/s, a gyro's noise of the mean is ``|s|``, its tolerance ``|s| / D`` negligible: only its bias
     lands it there, with the chance :func:`deg_s_chance`; when the noise widens the match so much that this
     chance exceeds :data:`DEG_S_CHANCE`, a match is a warning (the pad cannot tell deg/s from a MEMS bias).
-    A warning too when the mean is beyond :data:`MAX_PAD_RATE` (no gyro that navigates has such a bias), or when
+    A warning too when the mean is beyond :data:`MAX_PAD_RATE` (`large`, :func:`large_pad_rate`'s verdict), or when
     it is near the Earth rate in deg/s beyond the match but a MEMS bias lands that near with at most
     :data:`DEG_S_WARN_CHANCE` (the comparison of all three components when the heading is given: the gyrocompassed
     one ignores the heading, and a MEMS bias matches it 57 times as often). Its magnitude alone (about 57.3 times
@@ -334,13 +398,17 @@ def _check_pad_rate(w_mean: np.ndarray, s_mean: np.ndarray, n: int, window: tupl
                           f"close with a chance of {100 * chance:.2g} % (an error below {100 * DEG_S_CHANCE:g} %); "
                           "give rad/s (multiply by pi/180) if they are deg/s", PlausibilityWarning, stacklevel=3)
             return
+    if large is not None:  # beyond any navigating gyro's bias: the one rule's verdict, said once
+        warnings.warn(f"{where} ({math.degrees(rate):.4g} deg/s): {large[1]}; or a vehicle not at rest",
+                      PlausibilityWarning, stacklevel=3)
+        return
     match, tol, _, _ = judged[-1]  # the most specific: all three components when the heading is given
     chance = deg_s_chance(match, site.lat_deg, e_body is not None)
-    if rate > MAX_PAD_RATE or chance <= DEG_S_WARN_CHANCE:
+    if chance <= DEG_S_WARN_CHANCE:
         warnings.warn(f"{where}, {ratio:.1f} times the Earth rate {OMEGA_EARTH:.4g} rad/s: deg/s given as rad/s (57.3 "
-                      f"times; divided by 57.2958 it is {100 * match:.0f} % of the Earth rate off the Earth rate, "
+                      f"times; divided by 57.2958 it differs from the Earth rate by {100 * match:.0f} % of it, "
                       f"beyond the {100 * tol:.1f} % that makes it an error; a consumer MEMS bias read in rad/s lands "
-                      f"that near with a chance of {100 * chance:.2g} %), a gyro bias of that size, or a vehicle "
+                      f"that near with a chance of only {100 * chance:.2g} %), a gyro bias of that size, or a vehicle "
                       "not at rest", PlausibilityWarning, stacklevel=3)
 
 

@@ -23,8 +23,8 @@ __all__ = ["navigate", "navigate_from", "pad_state", "check_pad_drift"]
 
 
 def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], *, heading_deg: float | None = None,
-             heading_axis: str = "x", check_pad: bool = True, accel_bias_tolerance: float | None = None
-             ) -> NavigationResult:
+             heading_axis: str = "x", check_pad: bool = True, accel_bias_tolerance: float | None = None,
+             gyro_bias_tolerance: float | None = None) -> NavigationResult:
     """Align on the pad over `align_window` and navigate in the launch-inertial frame to the end of `imu`.
 
     Parameters
@@ -39,6 +39,9 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
         See :func:`casep.navigation.alignment.align` (None: gyrocompassing, with a warning).
     accel_bias_tolerance : float, optional
         See :func:`casep.navigation.alignment.align` (None: its default, 80 mg).
+    gyro_bias_tolerance : float, optional
+        The gyro bias (rad/s) the mean pad rate may reach (:func:`casep.navigation.alignment.large_pad_rate`;
+        None: :data:`casep.navigation.alignment.MAX_PAD_RATE`, 2.9 deg/s).
     check_pad : bool, optional
         Warn when the navigated speed over the window exceeds what the sensors allow at rest
         (:func:`check_pad_drift`); False for a simulator's own INS, whose pad is at rest by construction.
@@ -56,12 +59,13 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
         navigating gyro's bias with a navigated speed beyond what the sensors allow at rest (:func:`check_pad_drift`).
     """
     q0, r0, v0, t_s, alignment = pad_state(imu, site, align_window, heading_deg=heading_deg,
-                                           heading_axis=heading_axis, accel_bias_tolerance=accel_bias_tolerance)
+                                           heading_axis=heading_axis, accel_bias_tolerance=accel_bias_tolerance,
+                                           gyro_bias_tolerance=gyro_bias_tolerance)
     res = navigate_from(imu, site, q0, r0, v0, t_start=t_s)
     res.alignment = alignment
     res.align_window = (float(align_window[0]), float(align_window[1]))
     if check_pad:
-        check_pad_drift(res, imu, site)
+        check_pad_drift(res, imu, site, gyro_bias_tolerance=gyro_bias_tolerance)
     return res
 
 
@@ -69,7 +73,8 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
 PAD_NOISE_FACTOR, PAD_BIAS_FACTOR = 5.0, 3.0
 
 
-def check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite, *, warn: bool = True) -> None:
+def check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite, *, warn: bool = True,
+                    gyro_bias_tolerance: float | None = None) -> None:
     """Warn (:class:`casep.exceptions.AlignmentWarning`) when the navigated speed over the pad window exceeds what
     the sensors allow a vehicle at rest.
 
@@ -86,15 +91,16 @@ def check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite, *, wa
 
     Beyond it the vehicle moved in the window, or a gyro bias far beyond a navigation gyro's tilts the
     levelled attitude within seconds: the solution drifts as ``t^2`` from there on. When, besides, the mean pad
-    rate is beyond :data:`casep.navigation.alignment.MAX_PAD_RATE` (no gyro that navigates has such a bias: rates
-    in deg/s read as rad/s, or a vehicle turning on the pad) the navigation is worthless from its first
-    seconds: a ``ValueError`` naming the rate columns, the window's rows and the numbers (the same rule as the
-    pad rate's warning, :func:`casep.navigation.alignment.align`). ``warn=False``: that error only (a separation
-    from the raw record, whose passes estimate the gyro biases that tilt the pad).
+    rate is one :func:`casep.navigation.alignment.large_pad_rate` refuses (rates in deg/s read as rad/s, or a
+    gyro bias beyond `gyro_bias_tolerance`, default :data:`~casep.navigation.alignment.MAX_PAD_RATE`) the navigation
+    is worthless from its first seconds: a ``ValueError`` naming the rate columns, the window's rows and the numbers
+    (the same rule as the pad rate's warning, :func:`casep.navigation.alignment.align`); a bias within the
+    tolerance is the warning. ``warn=False``: that error only (a separation from the raw record, whose passes
+    estimate the gyro biases that tilt the pad).
     """
     from casep.checks.tracking_quality import white_sample_std
     from casep.exceptions import AlignmentWarning
-    from casep.navigation.alignment import MAX_PAD_RATE, gyro_bias_allowance
+    from casep.navigation.alignment import gyro_bias_allowance, large_pad_rate
 
     t1, t2 = res.align_window
     sel = (imu.t >= t1) & (imu.t <= t2)
@@ -111,19 +117,18 @@ def check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite, *, wa
     allowed = PAD_NOISE_FACTOR * noise + PAD_BIAS_FACTOR * bias + vertical
     drift = res.pad_drift()
     if drift > allowed:
-        rate = float(np.linalg.norm(imu.w[sel].mean(axis=0)))
-        if rate > MAX_PAD_RATE:
+        w_mean = imu.w[sel].mean(axis=0)
+        rate = float(np.linalg.norm(w_mean))
+        f_mean = res.alignment.f_mean if res.alignment is not None else imu.f[sel].mean(axis=0)
+        large = large_pad_rate(w_mean, f_mean / np.linalg.norm(f_mean), imu.w, gyro_bias_tolerance)
+        if large is not None and large[0]:
             rows = np.flatnonzero(sel)
             cols = ", ".join(DTHETA_COLUMNS if imu.kind == "increments" else RATE_COLUMNS)
-            deg = rate * np.pi / 180.0
-            hint = (f"; divided by 57.2958 it is {deg:.3g} rad/s ({np.degrees(deg):.3g} deg/s), a gyro bias: the rates "
-                    "look like deg/s, give rad/s (multiply by pi/180)" if deg <= MAX_PAD_RATE else "")
             raise ValueError(f"--align {t1:g} {t2:g}: {imu.source}: columns {cols}, rows {rows[0] + 1}-"
                              f"{rows[-1] + 1}: mean body rate {rate:.4g} rad/s ({np.degrees(rate):.4g} deg/s) over "
-                             f"the {T:.3g} s window declared at rest, beyond the {MAX_PAD_RATE:g} rad/s bias of any "
-                             f"gyro that navigates, and the navigated speed reaches {drift:.3g} m/s in it, above the "
-                             f"{allowed:.3g} m/s its sensors allow: the navigation is wrong from its first "
-                             f"seconds{hint}; or the vehicle turned in the window (give a window at rest)")
+                             f"the {T:.3g} s window declared at rest, and the navigated speed reaches {drift:.3g} m/s "
+                             f"in it, above the {allowed:.3g} m/s its sensors allow: the navigation is wrong from its "
+                             f"first seconds: {large[1]}; or the vehicle turned in the window (give a window at rest)")
         if not warn:
             return
         # the pad's own mean rate less the Earth rate in body axes, across the vertical: its horizontal gyro bias
@@ -148,8 +153,8 @@ def check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite, *, wa
 
 
 def pad_state(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], *, heading_deg: float | None = None,
-              heading_axis: str = "x", accel_bias_tolerance: float | None = None, as_given: bool = True
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, Alignment]:
+              heading_axis: str = "x", accel_bias_tolerance: float | None = None, as_given: bool = True,
+              gyro_bias_tolerance: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, Alignment]:
     """The state :func:`navigate` starts from: ``(q0, r0, v0, t_start, alignment)``.
 
     The attitude (Hamilton, scalar first, body -> launch-inertial), position (m) and velocity (m/s) of
@@ -166,7 +171,7 @@ def pad_state(imu: ImuData, site: LaunchSite, align_window: tuple[float, float],
     cols = ", ".join(DTHETA_COLUMNS if imu.kind == "increments" else RATE_COLUMNS)
     tol = {} if accel_bias_tolerance is None else {"accel_bias_tolerance": accel_bias_tolerance}
     alignment = align(imu.t, imu.w, imu.f, align_window, site, heading_deg=heading_deg, heading_axis=heading_axis,
-                      **tol, as_given=as_given,
+                      **tol, as_given=as_given, gyro_bias_tolerance=gyro_bias_tolerance,
                       rates_in=f"{imu.source}, columns {cols}")
     t_s = imu.t[np.searchsorted(imu.t, align_window[0])][None]
     r0, v0 = ecef_to_launch(site, t_s, site.r_site[None, :], np.zeros((1, 3)))

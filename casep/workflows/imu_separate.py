@@ -298,7 +298,8 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                  tracking_frame: str = "launch", grid: str = "tracking", time_offset: float | str | None = None,
                  time_shift: float = 0.0, clock_drift: float = 0.0, fit_time_offset: bool | None = None,
                  gyr_range: float | None = None, acc_range: float | None = None,
-                 accel_bias_tolerance: float | None = None, heading_std_deg: float | None = None) -> ImuSeparation:
+                 accel_bias_tolerance: float | None = None, gyro_bias_tolerance: float | None = None,
+                 heading_std_deg: float | None = None) -> ImuSeparation:
     """Separate a strapdown IMU's errors from its raw data and tracking (module notes).
 
     Parameters
@@ -331,6 +332,8 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
         the rows from the first clipped sample on are left out); an ImuData was checked when it was read.
     accel_bias_tolerance : float, optional
         :func:`casep.navigation.alignment.align` (m/s^2; None: its default, 80 mg).
+    gyro_bias_tolerance : float, optional
+        :func:`casep.navigation.alignment.large_pad_rate` (rad/s; None: its default, 2.9 deg/s).
     heading_std_deg : float, optional
         The std of `heading_deg`, deg (None: :data:`HEADING_STD_DEG`; 0: the heading exact), carried into the std
         and covariance as a consider parameter (:meth:`_Run.heading_rows`); only with `heading_deg`.
@@ -366,8 +369,9 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                source, spec, heading_deg, heading_axis,
                {"tracking_frame": tracking_frame, "grid": grid, "time_offset": time_offset, "time_shift": time_shift,
                 "clock_drift": clock_drift}, fit_time_offset)
-    if accel_bias_tolerance is not None:
-        run.heading["accel_bias_tolerance"] = accel_bias_tolerance
+    for name, value in (("accel_bias_tolerance", accel_bias_tolerance), ("gyro_bias_tolerance", gyro_bias_tolerance)):
+        if value is not None:
+            run.heading[name] = value
     run.heading_std = heading_std
     return run.iterate(iterate, tol, int(max_iterations))
 
@@ -427,7 +431,8 @@ class _Run:
         nav.alignment, nav.align_window = alignment, (float(self.window[0]), float(self.window[1]))
         nav.source = self.imu.source
         if self.nav is None:  # the record as given: rates that no navigating gyro has on a pad are refused
-            check_pad_drift(nav, imu, self.nav_site, warn=False)
+            check_pad_drift(nav, imu, self.nav_site, warn=False,
+                            gyro_bias_tolerance=self.heading.get("gyro_bias_tolerance"))
         self.imu_k = imu
         return nav
 

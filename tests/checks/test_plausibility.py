@@ -389,6 +389,46 @@ def test_tracking_units_on_a_drifting_window(factor):
                 check_flight(flight)
 
 
+@pytest.mark.parametrize("factor", [1.0, 3.28084])
+def test_tracking_units_of_a_car_at_rest_then_driving_on_the_rotating_earth(factor):
+    """Groves' car profile in miniature: 40 s at rest at 51 deg, then a drive north peaking at 20 m/s that ends at
+    rest, tracked in ECEF and turned into the launch-inertial frame; the navigated telemetry drifts by 5 m/s (a tilt
+    error growing as t^2). In that frame a vehicle at rest changes velocity by the Earth's rotation turning
+    ``omega_E x r`` (2.6 m/s over 120 s at 51 deg: ``|omega_E x r_s| omega_E T``), which the units rule must not
+    compare with the drift: both files relative to the pad, their changes a copy of the drive (scale 1 within the
+    drift), no units warning (before, the last epoch's ratio: 0.42, a warning). The same tracking in ft/s (its ECEF
+    velocity 3.28 times) is refused (before, it was not: the Earth's turn in both files hid the factor)."""
+    from casep.frames import LaunchSite, ecef_to_launch
+    from casep.io.pair import pair_flight
+
+    site = LaunchSite(51.0, 0.0, 10.0, 0.0, 60.0)
+    t = np.arange(0.0, 120.0, 0.02)
+    speed = np.where(t > 40.0, 20.0 * np.sin(np.pi * (t - 40.0) / 80.0) ** 2, 0.0)
+    s = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(t))])
+    lat = np.radians(site.lat_deg)
+    north = np.array([-np.sin(lat), 0.0, np.cos(lat)])  # at longitude 0
+    r_e, v_e = site.r_site + np.outer(s, north), np.outer(speed, north)
+    v_l = ecef_to_launch(site, t, r_e, v_e)[1]
+    pad = ecef_to_launch(site, t[[0, -1]], np.tile(site.r_site, (2, 1)), np.zeros((2, 3)))[1]
+    assert np.linalg.norm(pad[1] - pad[0]) == pytest.approx(
+        7.292115e-5**2 * np.linalg.norm(site.r_site[:2]) * 120.0, rel=1e-3)  # the pad's turn: 2.6 m/s
+    v_tel = v_l + np.outer((t / 120.0) ** 2, [4.0, 3.0, 0.0])  # the drift: 5 m/s at the end
+    k = slice(1, None, 10)
+    v_trk = ecef_to_launch(site, t[k], r_e[k], factor * v_e[k])[1]
+    flight = pair_flight(t, np.gradient(v_tel, t, axis=0) - GRAVITY_LAUNCH, v_tel, t[k], v_trk,
+                         source="tel.csv + trk.csv", meta={"telemetry": "tel.csv", "tracking": "trk.csv",
+                                                           "tracking_frame": {"frame": "ecef", "site": site.to_dict()}})
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")  # not a boost: only the units rule counts here
+        if factor == 1.0:
+            check_flight(flight)
+        else:
+            # the scale over the flight's changes: the drift, uncorrelated with 3.28 times the drive, lowers it
+            with pytest.raises(FlightDataError, match=r"trk\.csv.*v_trk_x.*ratio 2\.\d+ over the flight.*ft/s"):
+                check_flight(flight)
+    assert not any("units" in str(c.message) for c in caught), [str(c.message) for c in caught]
+
+
 @pytest.mark.parametrize("column, match", [
     ("f", r"column `f_x`.*ratio 3\.2\d.* f_x, f_y, f_z are in g, multiply them by 9\.80665"),
     ("t", r"column `t`.*ratio 0\.001.*t is in ms, divide it by 1000")])

@@ -328,8 +328,8 @@ def test_a_pad_record_in_deg_s_with_a_tactical_gyro_bias_is_an_error_with_the_he
             navigate(check_imu(ImuData(t, w_deg, f)), SITE, (0.0, 10.0))
         except ValueError as e:
             assert "in deg/s" not in str(e)
-    assert any(re.search(r"deg/s given as rad/s \(57\.3 times; divided by 57\.2958 it is 7 % of the Earth rate off",
-                         str(c.message)) for c in caught)
+    assert any(re.search(r"deg/s given as rad/s \(57\.3 times; divided by 57\.2958 it differs from the Earth rate by "
+                         r"7 % of it", str(c.message)) for c in caught)
     # the same gyros in rad/s: no deg/s finding
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -394,20 +394,91 @@ def test_a_flight_in_deg_s_the_earth_rate_cannot_tell_is_refused_by_the_pad_chec
     out = tmp_path / "tel_deg.csv"
     assert main(["navigate", str(tmp_path / "imu_deg.csv"), *setup, "-o", str(out)]) == 2
     err = capsys.readouterr().err
-    assert re.search(r"imu_deg\.csv: columns w_x, w_y, w_z, rows 1-181: mean body rate 0\.17\d* rad/s .* beyond the "
-                     r"0\.05 rad/s bias of any gyro that navigates, and the navigated speed reaches [0-9.]+ m/s in it, "
-                     r"above the [0-9.e+-]+ m/s its sensors allow.*divided by 57\.2958 it is 0\.00\d+ rad/s.*look like "
-                     r"deg/s", err), err
+    assert re.search(r"imu_deg\.csv: columns w_x, w_y, w_z, rows 1-181: mean body rate 0\.17\d* rad/s .* the "
+                     r"navigated speed reaches [0-9.]+ m/s in it, above the [0-9.e+-]+ m/s its sensors allow.*a gyro "
+                     r"bias of 9\.9\d deg/s, or rates in deg/s \(divided by 57\.2958 it is 0\.00\d+ rad/s.*beyond the "
+                     r"0\.05 rad/s bias of any gyro that navigates", err), err
     assert not out.exists()
     # the separation from the raw record navigates it the same way and refuses it by the same rule, before any pass
     assert main(["separate", "--imu", str(tmp_path / "imu_deg.csv"), "--tracking", str(tmp_path / "trk.csv"),
                  *setup, "--json", str(tmp_path / "sep_deg.json")]) == 2
     err = capsys.readouterr().err
-    assert re.search(r"imu_deg\.csv: columns w_x, w_y, w_z, rows 1-181: mean body rate 0\.17\d* rad/s .*look like "
+    assert re.search(r"imu_deg\.csv: columns w_x, w_y, w_z, rows 1-181: mean body rate 0\.17\d* rad/s .*or rates in "
                      r"deg/s", err), err
     assert not (tmp_path / "sep_deg.json").exists()
     assert main(["navigate", str(tmp_path / "imu_rad.csv"), *setup, "-o", str(tmp_path / "tel_rad.csv")]) == 0
     assert main(["separate", str(tmp_path / "tel_rad.csv"), "--tracking", str(tmp_path / "trk.csv")]) == 0
+
+
+def _biased_pad(bias: np.ndarray, turn: float = 0.0, scale: float = 1.0):
+    """20 s at rest at SITE, 100 Hz, with a constant gyro bias `bias` (rad/s, body axes), then 1 s turning about
+    body x at `turn` rad/s; the rates times `scale` (57.2958: deg/s)."""
+    t, w, f = _stationary(100.0, 21.0)
+    w = w + bias
+    w[t >= 20.0, 0] += turn
+    return check_imu(ImuData(t, scale * w, f))
+
+
+def test_a_large_gyro_bias_is_navigated_within_its_tolerance_and_said_how_fast_the_attitude_drifts(tmp_path, capsys):
+    """A gyro bias of 0.084 rad/s (the MPU-9150 #4 z gyro's 4.8 deg/s of mikoff/imu-calib's table), across the
+    vertical, on a pad at rest, rates in rad/s: a pad rate beyond the 0.05 rad/s of any gyro that navigates,
+    whose deg/s reading (0.084 deg/s) no Earth-rate match can tell from a bias, and a peak rate within 2000 deg/s.
+    By default refused, saying both readings and the option; with --gyro-bias-tolerance 5 navigated, with a warning
+    whose attitude drift is the bias (4.81 deg/s) and whose velocity error after 1 s is ``g b_h / 2``; both checked
+    against the navigation itself (the angle turned in 1 s, the speed relative to the Earth)."""
+    from casep.io.files import write_table
+
+    _, _, f = _stationary(1.0, 1.0)
+    across = np.cross(f[0], [1.0, 0.0, 0.0])
+    b = 0.084 * across / np.linalg.norm(across)  # across the vertical: it tilts the levelling at its full size
+    imu = _biased_pad(b)
+    with pytest.raises(ValueError, match=r"a gyro bias of 4\.8\d deg/s, or rates in deg/s \(divided by 57\.2958 it is "
+                                         r"0\.00147 rad/s, 20\.1 times the Earth rate.*the pad cannot tell.*beyond the "
+                                         r"0\.05 rad/s bias of any gyro that navigates.*--gyro-bias-tolerance 4\.9 "):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            navigate(imu, SITE, (0.0, 5.0), heading_deg=_heading_of_x())
+    with warnings.catch_warnings(), pytest.warns(PlausibilityWarning, match=r"a bias within the --gyro-bias-tolerance "
+                                                 r"5 deg/s given: the navigation's attitude drifts by 4\.8\d deg/s, "
+                                                 r"4\.8\d deg/s of it tilting the vertical"):
+        warnings.simplefilter("ignore", AlignmentWarning)  # the pad check's: the speed the bias drives, said too
+        res = navigate(imu, SITE, (0.0, 5.0), heading_deg=_heading_of_x(), gyro_bias_tolerance=math.radians(5.0))
+    k = int(np.searchsorted(res.t, 1.0))
+    turned = np.linalg.norm(Rotation.from_quat(quat_multiply(quat_conjugate(res.q[0]), res.q[k])[[1, 2, 3, 0]])
+                            .as_rotvec())
+    assert turned == pytest.approx(0.084, rel=2e-3)  # the bias over 1 s, the Earth rate 1e-3 of it
+    up = res.alignment.f_mean / np.linalg.norm(res.alignment.f_mean)
+    b_h = float(np.linalg.norm(b - (b @ up) * up))
+    _, v_e = launch_to_ecef(SITE, res.t, res.r, res.v)
+    assert np.linalg.norm(v_e[k]) == pytest.approx(9.82 * b_h / 2.0, rel=0.02)  # small angle: 4.8 deg, 0.1 %
+    # the CLI's option, in deg/s, reaches the same rule
+    write_table(tmp_path / "imu.csv", {"t": imu.t, **{f"w_{a}": imu.w[:, i] for i, a in enumerate("xyz")},
+                                       **{f"fb_{a}": imu.f[:, i] for i, a in enumerate("xyz")}})
+    h = f"{_heading_of_x():.6f}"
+    setup = [str(tmp_path / "imu.csv"), "--launch-site", "67.89", "21.1", "330", "30", "--launch-time", "100",
+             "--align", "0", "5", "--heading", h, "-o", str(tmp_path / "tel.csv")]
+    assert main(["navigate", *setup]) == 2
+    assert "--gyro-bias-tolerance 4.9 (deg/s) navigates with it" in capsys.readouterr().err
+    assert main(["navigate", *setup, "--gyro-bias-tolerance", "5"]) == 0
+    assert re.search(r"attitude drifts by 4\.8\d deg/s", capsys.readouterr().err)
+
+
+def test_rates_in_deg_s_whose_peak_no_gyro_reads_are_refused_whatever_the_gyro_bias_tolerance():
+    """A MEMS gyro (bias 0.003 rad/s, 620 deg/h) in deg/s turning at 2 rad/s: a pad rate of 0.17 "rad/s" as read, too
+    far from the Earth rate for its match, but a peak of 115 "rad/s", beyond the 2000 deg/s of common gyros: deg/s,
+    refused even with a 20 deg/s tolerance; the same record in rad/s navigates with no pad-rate warning."""
+    b = np.array([0.002, -0.0015, 0.0015])
+    deg = math.degrees(1.0)
+    with pytest.raises(ValueError, match=r"the rates are in deg/s: the pad rate is beyond the 0\.05 rad/s bias of any "
+                                         r"gyro that navigates and the record's peak rate 11\d\.\d rad/s"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            navigate(_biased_pad(b, 2.0, deg), SITE, (0.0, 5.0), heading_deg=_heading_of_x(),
+                     gyro_bias_tolerance=math.radians(20.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PlausibilityWarning)
+        warnings.simplefilter("ignore", AlignmentWarning)
+        assert navigate(_biased_pad(b, 2.0), SITE, (0.0, 5.0), heading_deg=_heading_of_x()).success
 
 
 def _write_imu(path, t, w, f, increments=False):
