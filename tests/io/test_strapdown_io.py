@@ -273,7 +273,7 @@ def test_rates_the_attitude_did_not_integrate_are_refused(tmp_path, wrong, what)
 @pytest.mark.parametrize("k", [2, 3, -2])
 def test_an_attitude_skewed_against_the_rate_is_named_as_a_skew(tmp_path, k):
     """q_* k samples late (or early) against w_* (20 ms at 50 Hz each) under a changing roll rate: the gain the skew
-    makes looks like axes mixed (beyond GAIN_TOL; a reviewer's 20 Hz roll: 14.6 % off-diagonal for one sample), but
+    makes looks like axes mixed (beyond GAIN_TOL; a 20 Hz roll: 14.6 % off-diagonal for one sample), but
     shifted back they agree: the refusal names the skew, its direction and milliseconds, not swapped axes. (One
     sample here stays within RATE_TOL and GAIN_TOL: read, as any disagreement that small.)"""
     t = np.arange(1000) / RATE  # motion()'s closed form with a roll rate that changes (a constant one hides a skew)
