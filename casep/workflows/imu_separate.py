@@ -383,6 +383,8 @@ class _Run:
     _tau_profile: tuple | None = None
     #: the given heading's std, deg (:meth:`heading_rows`; 0: exact, or gyrocompassed)
     heading_std: float = 0.0
+    #: the heading check's finding (:meth:`heading_check`, on the first pass; a class default: a telemetry's passes)
+    heading_said: str | None = None
     #: (problem, the rows' shift for one std of the heading), formed once per problem by :meth:`finish`
     _heading: tuple | None = None
 
@@ -392,7 +394,7 @@ class _Run:
         self.imu, self.tracking, self.nav_site, self.site, self.window = imu, tracking, nav_site, site, window
         self.base, self.source, self.spec = base, source, spec
         self.heading: dict[str, Any] = {"heading_deg": heading_deg, "heading_axis": heading_axis}
-        self.heading_said: str | None = None  # the heading check's finding (heading_check), on the first pass
+        self.heading_said = None
         self.pair, self.fit_time_offset = dict(pair), fit_time_offset
         if pair["tracking_frame"] != "launch":
             self.pair["site"] = site
@@ -474,12 +476,13 @@ class _Run:
         from casep.io.pair import STATE_SIGNALS
         from casep.io.setup import heading_problem
 
-        if not all(c in flight.signals for c in STATE_SIGNALS):
+        heading = getattr(self, "heading", None)  # a telemetry's passes (_TelemetryRun) have no pad alignment
+        if heading is None or not all(c in flight.signals for c in STATE_SIGNALS):
             return None
         obs = np.asarray(flight.observed)
         r = np.column_stack([flight.signals[f"r_{a}"] for a in "xyz"])[obs]
         v = np.column_stack([flight.signals[f"v_{a}"] for a in "xyz"])[obs]
-        h, axis = self.heading["heading_deg"], self.heading["heading_axis"]
+        h, axis = heading["heading_deg"], heading["heading_axis"]
         said = "gyrocompassing" if h is None else f"--heading {h:g} deg, of body axis {axis}"
         why = heading_problem(self.nav_site, flight.t[obs], v + flight.dv[obs], v, r, said)
         if why is not None:
