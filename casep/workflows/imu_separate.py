@@ -394,7 +394,6 @@ class _Run:
         self.imu, self.tracking, self.nav_site, self.site, self.window = imu, tracking, nav_site, site, window
         self.base, self.source, self.spec = base, source, spec
         self.heading: dict[str, Any] = {"heading_deg": heading_deg, "heading_axis": heading_axis}
-        self.heading_said = None
         self.pair, self.fit_time_offset = dict(pair), fit_time_offset
         if pair["tracking_frame"] != "launch":
             self.pair["site"] = site
@@ -1809,7 +1808,7 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     the record does not bound them).
     """
     from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_noise_effect, imu_sample_noise
-    from casep.noise.model import NoiseModel, whiten, whiten_transpose
+    from casep.noise.model import NoiseModel
 
     nd = res.diagnostics.get("noise")
     if res.covariance is None or problem.t is None or not isinstance(nd, dict) or "axes" not in nd:
@@ -1820,10 +1819,9 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
         return None
     at_rest = isinstance(flight.meta, dict) and flight.meta.get(IMU_NOISE_AT_REST) is not None
     noise = NoiseModel.from_dict(nd)
-    S = problem.sv()
-    N, _, n = S.shape
-    U = whiten(S, np.zeros((N, 3)), t, noise)[0].reshape(3 * N, n)
-    A = whiten_transpose(np.linalg.pinv(U).T.reshape(N, 3, n), t, noise).reshape(3 * N, n).T  # (n, 3N)
+    N, n = t.size, len(res.names)
+    A = combination_estimators(np.eye(n), np.ones(n), res, problem)  # (n, 3N): the coefficients' estimators
+    assert A is not None  # times and a noise model: checked above
     AG = imu_noise_effect(flight, t, A, levelling)
     if AG is None:
         return None
