@@ -180,6 +180,7 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
                       AlignmentWarning, stacklevel=2)
     up_b, up_t = f_mean / fm, -g_t / g0
     s_mean = mean_rate_std(w[sel])
+    large = large_pad_rate(w_mean, up_b, w, gyro_bias_tolerance)
     if heading_axis not in HEADING_AXES:
         raise ValueError(f"heading_axis must be one of {HEADING_AXES}, got {heading_axis!r}")
     axis = np.eye(3)[HEADING_AXES.index(heading_axis)]
@@ -191,11 +192,10 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
                              "of a horizontal axis (--heading-axis)")
         C = _triad(up_b, axis, up_t, _horizontal(heading_deg, site))
         _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in, C.T @ site.earth_rate,
-                        large=large_pad_rate(w_mean, up_b, w, gyro_bias_tolerance))
+                        large=large)
         _check_earth_rate(w[sel], w_mean, C, site, (t1, t2), rates_in, float(heading_deg), as_given)
         return Alignment(C, "heading", float(heading_deg) % 360.0, None, f_mean, w_mean, g0, n, heading_axis)
-    _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in,
-                    large=large_pad_rate(w_mean, up_b, w, gyro_bias_tolerance))
+    _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in, large=large)
     if tilt < MIN_AXIS_TILT_RAD:  # its azimuth means nothing: report the most horizontal axis's
         heading_axis = HEADING_AXES[int(np.argmin(np.abs(up_b)))]
     return _gyrocompass(w[sel], w_mean, f_mean, up_b, up_t, g0, site, n, (t1, t2), heading_axis)
