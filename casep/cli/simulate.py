@@ -138,12 +138,12 @@ def _earth_fixed(args: argparse.Namespace, site: Any, truth: Any, scenario: Any)
 
     ef = write_earth_fixed_flight(args.output, site, frame=args.tracking_frame, tracking=args.tracking_output,
                                   scenario=scenario, seed=args.seed, telemetry_rate=args.rate,
-                                  tracking_rate=args.tracking_rate or 20.0, time_offset_ms=args.tracking_offset,
-                                  model=args.model, truth=truth)
+                                  time_offset_ms=args.tracking_offset, model=args.model, truth=truth,
+                                  **({} if args.tracking_rate is None else {"tracking_rate": args.tracking_rate}))
     d = ef.data
     print(f"scenario {ef.scenario.name}, rotating Earth at ({site.lat_deg:g} deg, {site.lon_deg:g} deg, "
           f"{site.h_m:g} m), azimuth {site.azimuth_deg:g} deg: telemetry {d.t_tel.size} samples, tracking "
-          f"({args.tracking_frame}) {d.t_trk.size} samples at {args.tracking_rate or 20.0:g} Hz")
+          f"({args.tracking_frame}) {d.t_trk.size} samples at {ef.truth_record['tracking']['rate_hz']:g} Hz")
     print(f"wrote {ef.telemetry}, {ef.tracking} and {ef.truth}; read back with: casep separate {ef.telemetry} "
           f"--tracking {ef.tracking} --tracking-frame {args.tracking_frame} --launch-site "
           f"{' '.join(f'{v:g}' for v in args.launch_site)} --launch-time 0")
