@@ -22,11 +22,16 @@ Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/aircraft_flight.py [--seeds 1 2] 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+from zfigures import z_figures  # noqa: E402
 
 A, F = 6378137.0, 1 / 298.257223563
 E2 = F * (2 - F)
@@ -206,8 +211,7 @@ def main() -> None:
             print(f"  {z.size} combinations stated, z " + " ".join(f"{v:+.2f}" for v in z), flush=True)
     z = np.concatenate(pooled)
     if z.size:
-        print(f"pooled: {z.size} z from {len(pooled)} seeds, RMS {np.sqrt(np.mean(z**2)):.3f}, "
-              f"within 1.96 std {np.mean(np.abs(z) < 1.96):.3f}, largest |z| {np.max(np.abs(z)):.2f}")
+        print(f"pooled: {z.size} z from {len(pooled)} seeds, " + z_figures(z))
 
 
 if __name__ == "__main__":

@@ -19,11 +19,16 @@ Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/mc_imu_gmw_combinations.py [--see
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+from zfigures import z_figures  # noqa: E402
 
 
 def main() -> None:
@@ -81,15 +86,12 @@ def main() -> None:
                   + " ".join(f"{v:+.2f}" for v in z) + f"; {zc.size} coefficients, z "
                   + " ".join(f"{v:+.2f}" for v in zc), flush=True)
     z = np.concatenate(pooled)
-    print(f"pooled: {z.size} z from {len(pooled)} seeds, RMS {np.sqrt(np.mean(z**2)):.3f}, "
-          f"within 1.96 std {np.mean(np.abs(z) < 1.96):.3f}, largest |z| {np.max(np.abs(z)):.2f}")
+    print(f"pooled: {z.size} z from {len(pooled)} seeds, " + z_figures(z))
     za = np.concatenate(along)
-    print(f"coefficients' covariance along the combinations stated: {za.size} z, RMS {np.sqrt(np.mean(za**2)):.3f}, "
-          f"within 1.96 std {np.mean(np.abs(za) < 1.96):.3f}, largest |z| {np.max(np.abs(za)):.2f}")
+    print(f"coefficients' covariance along the combinations stated: {za.size} z, " + z_figures(za))
     zc = np.concatenate(coef)
     if zc.size:
-        print(f"coefficients: {zc.size} z from {len(coef)} seeds, RMS {np.sqrt(np.mean(zc**2)):.3f}, "
-              f"within 1.96 std {np.mean(np.abs(zc) < 1.96):.3f}, largest |z| {np.max(np.abs(zc)):.2f}")
+        print(f"coefficients: {zc.size} z from {len(coef)} seeds, " + z_figures(zc))
 
 
 if __name__ == "__main__":

@@ -44,6 +44,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
 from aircraft_flight import G0, c_bn, c_ne, earth_truth, geod2ecef, ramp, with_errors  # noqa: E402
+from zfigures import z_figures  # noqa: E402
 
 FINE_HZ = 3200  # the generator's grid: the body rate's central difference is 2e-6 of it at the 3 rad/s roll
 ELEVATION, THRUST_G, BURN, TAIL, ROLL_DPS, TUMBLE_START, TUMBLE_DPS = 85.0, 9.0, 4.0, 0.3, 180.0, 45.0, 2600.0
@@ -194,8 +195,7 @@ def main() -> None:
             print(f"  {len(z)} combinations stated, z " + " ".join(f"{v:+.2f}" for v in z), flush=True)
     a = np.asarray(pooled)
     if a.size:
-        print(f"pooled: {a.size} z from {len(args.seeds)} seeds, RMS {np.sqrt(np.mean(a**2)):.3f}, within 1.96 std "
-              f"{np.mean(np.abs(a) < 1.96):.3f}, largest |z| {np.max(np.abs(a)):.2f}")
+        print(f"pooled: {a.size} z from {len(args.seeds)} seeds, " + z_figures(a))
 
 
 def listed(said: str) -> dict[str, Any]:
