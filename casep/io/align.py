@@ -79,7 +79,7 @@ class TimeAlignment:
         return {"tau_s": self.tau, "cost": self.cost, "cost_at_zero": self.cost_at_zero,
                 "tracking_period_s": self.tracking_period, "samples": self.samples, "gain": self.gain,
                 "f_statistic": self.f_statistic if np.isfinite(self.f_statistic) else None, "explains": self.explains,
-                "std_s": self.std if np.isfinite(self.std) else None}
+                "exceeds_period": self.exceeds_period, "std_s": self.std if np.isfinite(self.std) else None}
 
 
 def unaligned_lateness(record: dict | None) -> float | None:
@@ -88,12 +88,9 @@ def unaligned_lateness(record: dict | None) -> float | None:
     :attr:`TimeAlignment.explains`): the reader's warning, and what a fit that then fails says of its cause (a
     first-order ``dt_trk`` does not take it). `record`: ``meta["time_alignment"]`` (:meth:`TimeAlignment.to_dict`
     with the reader's ``mode``). None otherwise."""
-    if not record or record.get("mode") != "none" or not record.get("explains"):
+    if not record or record.get("mode") != "none" or not record.get("explains") or not record.get("exceeds_period"):
         return None
-    tau, period = record.get("tau_s"), record.get("tracking_period_s")
-    if tau is None or period is None or not abs(tau) > period:
-        return None
-    return float(tau)
+    return float(record["tau_s"])
 
 
 def coarse_time_offset(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray, *,

@@ -130,11 +130,16 @@ def test_auto_leaves_an_offset_the_record_does_not_determine_unapplied(tmp_path)
 def test_the_lateness_left_in_place_is_the_readers_warning_rule():
     """unaligned_lateness: the coarse offset when no time_offset was given, it exceeds a sample period and explains
     the data; None when it was applied (auto or given), is within a period, or explains nothing."""
-    from casep.io.align import unaligned_lateness
+    from casep.io.align import TimeAlignment, unaligned_lateness
 
-    rec = {"mode": "none", "explains": True, "tau_s": 0.297, "tracking_period_s": 0.2}
-    assert unaligned_lateness(rec) == 0.297
-    assert unaligned_lateness({**rec, "tau_s": -0.25}) == -0.25
-    for change in ({"mode": "auto"}, {"mode": "given"}, {"explains": False}, {"tau_s": 0.15}, {"tau_s": None}):
-        assert unaligned_lateness({**rec, **change}) is None, change
+    def record(tau: float, cost: float = 1.0, mode: str = "none") -> dict:
+        # 1000 samples at 5 Hz, the misfit at zero 10x the shifted one: the shift explains the data
+        return {**TimeAlignment(tau, cost, 10.0, 0.2, 1000).to_dict(), "mode": mode}
+
+    assert record(0.297)["explains"] and record(0.297)["exceeds_period"]
+    assert unaligned_lateness(record(0.297)) == 0.297
+    assert unaligned_lateness(record(-0.25)) == -0.25
+    for rec in (record(0.297, mode="auto"), record(0.297, mode="given"), record(0.297, cost=9.99), record(0.15),
+                record(-0.2)):
+        assert unaligned_lateness(rec) is None, rec
     assert unaligned_lateness(None) is None and unaligned_lateness({}) is None
