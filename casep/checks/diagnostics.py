@@ -37,6 +37,7 @@ zero columns are left out (they are unidentifiable by definition).
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar, Mapping, Sequence
 
@@ -218,6 +219,26 @@ def _combination(v: np.ndarray, c: np.ndarray, names: Sequence[str], top: int = 
     return {names[j]: float(round(w[j], 4)) for j in order if abs(w[j]) >= 1e-3}, float(big)
 
 
+def _others_at_scale(v: np.ndarray, c: np.ndarray, names: Sequence[str], scales: Mapping[str, float]
+                     ) -> float | None:
+    """The size of a combination's terms beside its leading one at their scales, in the leading coefficient's units:
+    ``sqrt(sum_j (w_j s_j)^2)`` over every other term (``w = v c / max|v c|`` the weights per unit of each
+    coefficient, as :func:`_combination`'s; ``s_j`` the :func:`_scales` yardstick, prior std or declared
+    magnitude). What the combination leaves of the leading coefficient beside its std when the others are known only
+    to their scales; None when a term has no scale."""
+    w = v * c
+    w = w / np.max(np.abs(w))
+    lead = int(np.argmax(np.abs(w)))
+    total = 0.0
+    for j, nm in enumerate(names):
+        if j == lead or w[j] == 0.0:
+            continue
+        if nm not in scales:
+            return None
+        total += (w[j] * scales[nm]) ** 2
+    return float(math.sqrt(total))
+
+
 @dataclass(frozen=True)
 class Diagnostics(Completed):
     """What the flight determines, per coefficient and per combination (see module notes)."""
@@ -312,16 +333,18 @@ class Diagnostics(Completed):
         # std are in the leading coefficient's units, so they are not comparable from line to line
         lines.append("best-determined combinations, best first by condition index (columns equilibrated); "
                      "std in the units of the leading coefficient, not comparable between lines; one led by a "
-                     "coefficient with small weights on the others determines that coefficient to about its std, "
-                     "up to those small terms:")
+                     "coefficient determines that coefficient only to the other terms' size as well: 'others' is "
+                     "their root sum square at their scales (weight times scale), which the std does not hold:")
         for cmb in self.combinations:
             terms = " ".join((f"{'-' if w < 0 else ''}{abs(w):.3g} {n}" if k == 0 else  # "-1 ba_x", not a bullet
                               f"{'+' if w >= 0 else '-'} {abs(w):.3g} {n}")
                              for k, (n, w) in enumerate(cmb["combination"].items()))
             lead = next(iter(cmb["combination"]), None)
             unit = self.units[self.names.index(lead)] if lead in self.names else ""
+            others = cmb.get("others_at_scale")
             lines.append(f"  {terms}   std {cmb['std']:.3g}{' ' + unit if unit else ''}   "
-                         f"condition index {cmb['condition_index']:.3g}")
+                         + (f"others {others:.3g}{' ' + unit if unit else ''}   " if others is not None else "")
+                         + f"condition index {cmb['condition_index']:.3g}")
         return "\n".join(lines)
 
 
@@ -474,8 +497,10 @@ def diagnose(
         _, s, Vt = np.linalg.svd(red.R[:, keep])
         c = red.scale[keep]
         for k in range(min(n_combinations, int(np.sum(s > ra.rcond * s[0])))):
-            w, big = _combination(Vt[k], c, [names[j] for j in keep])
+            kept = [names[j] for j in keep]
+            w, big = _combination(Vt[k], c, kept)
             combos.append({"combination": w, "std": float(sigma / (s[k] * big)),
+                           "others_at_scale": _others_at_scale(Vt[k], c, kept, sc),
                            "condition_index": float(s[0] / s[k])})
     cn = condition_numbers(red, ra)
     noise = {"model": "white"} if tau is None else {"model": "ar1", "tau": float(tau)}

@@ -219,8 +219,9 @@ def test_best_determined_combinations_say_their_order_and_units(paper_problem, p
     for line, c in zip(lines, d.combinations):
         lead = next(iter(c["combination"]))
         unit = platform36.units[platform36.names.index(lead)]
-        m = re.search(r"std (\S+) (\S+)\s+condition index (\S+)$", line)
-        assert m and m.group(2) == unit and float(m.group(3)) == pytest.approx(c["condition_index"], rel=1e-2), line
+        m = re.search(r"std (\S+) (\S+)\s+(?:others (\S+) (\S+)\s+)?condition index (\S+)$", line)
+        assert m and m.group(2) == unit and float(m.group(5)) == pytest.approx(c["condition_index"], rel=1e-2), line
+        assert m.group(3) is not None and m.group(4) == unit, line  # the paper model declares every scale
 
 
 def test_the_counts_say_unidentifiable_is_per_coefficient_and_combinations_may_be_known():
@@ -233,7 +234,23 @@ def test_the_counts_say_unidentifiable_is_per_coefficient_and_combinations_may_b
     S = np.stack([a, a, rng.standard_normal((20, 3))], axis=2)  # x0 and x1 exactly dependent
     text = diagnose(S, names=["x0", "x1", "x2"], sigma=1.0).text()
     assert "unidentifiable 2 of 3 (each coefficient on its own" in text
-    assert "determines that coefficient to about its std" in text
+    assert "determines that coefficient only to the other terms' size as well" in text
+
+
+def test_a_combination_says_what_its_other_terms_leave_of_its_leading_coefficient():
+    """Columns a and b = 2 a + 1e-4 c (c another signal), magnitudes 1 and 10: the best-determined combination is,
+    per unit, ``b + 0.5 a`` (the data see ``a + 2 b`` up to the 1e-4 part), led by b; with a known to its magnitude 1
+    it leaves b to ``0.5 * 1`` (closed form), far above the combination's std: the line says both."""
+    t = np.linspace(0.0, 1.0, 400)
+    a, c = np.sin(3.0 * t), np.cos(7.0 * t)
+    S = np.stack([np.column_stack([a, 2.0 * a + 1e-4 * c])] * 3, axis=1)  # (N, 3 axes, 2 coefficients)
+    d = diagnose(S, names=["a", "b"], units=["mg", "mg"], sigma=1e-3, scales={"a": 1.0, "b": 10.0})
+    best = next(c for c in d.combinations if next(iter(c["combination"])) == "b")
+    assert best["combination"]["a"] / best["combination"]["b"] == pytest.approx(0.5, rel=1e-3)  # the SVD's sign
+    assert best["others_at_scale"] == pytest.approx(0.5, rel=1e-3)
+    assert best["std"] < 1e-2 * best["others_at_scale"]
+    line = next(ln for ln in d.text().splitlines() if ln.strip().lstrip("-").startswith("1 b"))
+    assert f"others {best['others_at_scale']:.3g} mg" in line, line
 
 
 def test_exactly_dependent_on_a_barely_excited_partner_has_the_bound_separate_reports(rng):
