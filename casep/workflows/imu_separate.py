@@ -213,7 +213,7 @@ DESCENT_SLACK = 1.0
 #: them (each pass leaves the combinations it does not determine where they are, about a new linearisation). A
 #: noise-free pad record under ``strapdown33`` reaches rows of 7.4e-8 m/s (the fit's own 6.4e-13), where a step's
 #: rows rise to 6.9e-7 m/s and the later passes' fall to 1.3e-10 (its rounding level): a monotone rule rejected that
-#: step and every halving of it, and failed the record. The bound never exceeds the first pass's rows.
+#: step and every halving of it, and failed the record. No pass's rows exceed the first's by more than sigma^2 a pass.
 DESCENT_MEMORY = 3
 #: ... such a step is halved up to this many times (to 1/16: a backtracking line search) before the pass steps again
 #: without its widest combinations (:data:`NARROW`).
