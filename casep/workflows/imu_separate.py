@@ -101,7 +101,8 @@ record's own noise as the coefficients' do (:func:`combination_imu_noise`).
 
 Far from convergence the passes are solved by OLS under white noise, then as requested; once every
 correction is below :data:`ACCELERATE_BELOW` std, ``D_{k+1}`` is the secant (Anderson, depth one)
-step through the last two passes (:func:`_secant_step`). It stops when the correction of every
+step through the last two passes (:func:`_secant_step`, its metric the corrections of the combinations stepped along
+in their std: under ``strapdown33`` no coefficient has a std of its own). It stops when the correction of every
 determined combination is below :data:`ITERATE_TOL` (0.1) of its std, ``|g . d_k| < 0.1 std(g . d_k)``
 for every ``g`` the result states as determined (:func:`determined_step`; Gauss-Newton with S_V as the
 Jacobian: its fixed point makes the residual orthogonal to S_V about the corrected trajectory, the
@@ -115,16 +116,21 @@ covariance those of its linearisation; ``diagnostics["iterations"]`` lists every
 the combination it was).
 
 **Only where the linear model holds** (:meth:`_Run.trial`). A step whose correction cannot be applied (the
-record does not invert, the corrected pad is no longer at rest) or after which the residual's RMS is more than
-:data:`WORSE` times what it was (and above the data's rounding level: :meth:`_Run.at_rounding`) is
-rejected, and the same pass steps again without the combinations whose std (in
+record does not invert, the corrected pad is no longer at rest) or that does not descend is rejected: in a white
+pass (whose objective is the rows' sum of squares) when that sum after it exceeds the largest of the last
+:data:`DESCENT_MEMORY` passes' by more than :data:`DESCENT_SLACK` ``sigma^2`` (a non-monotone descent), in a pass
+solved as requested when the residual's RMS is more than :data:`WORSE` times what it was; never at the data's
+rounding level (:meth:`_Run.at_rounding`). A white pass's step that does not descend is first halved, up to
+:data:`HALVINGS` times (a backtracking line search, ``passes[k]["damped"]`` the fraction taken); beyond that, or for
+any other rejection, the same pass steps again without the combinations whose std (in
 the declared magnitudes) exceeds the widest one it stepped along over :data:`NARROW` (:func:`determined_step`'s
 ``limit``: the truncated Gauss-Newton step, the damping in the declared magnitudes, the stop rule still in std).
 Full rank does not make a record informative: on a stationary pad every coefficient has an estimate, and the full
 step along what the pad does not determine is noise of 1e3-1e10 declared magnitudes (a gyro scale factor of -2e5,
-an accelerometer bias of several g), which the next pass cannot invert; the MEMS flights of the tests never reject
-a step (the residual's RMS after a step at most 3.2 times what it was: 38 steps of ``benchmarks/mc_imu_iterate.py
---runs 4``).
+an accelerometer bias of several g), which the next pass cannot invert. On the shipped MEMS example under the
+default ``strapdown33`` the first pass's full step (2.9e3 declared magnitudes along combinations of std up to 1.6e3)
+raised the rows' RMS from 13.6 to 16.8 m/s; under the tenfold rule alone it was kept, the passes crept back by 0.64 a
+pass and the run failed at 20, and with the descent rule half that step is taken and the run converges in 8.
 The combinations and their std come from the fit's covariance, or from the design when the covariance holds them only
 to its rounding (:func:`_scaled_spectrum`): on a pad at rest under ``strapdown33`` the best-determined combinations'
 variances are 1e-20 of the largest, read from the covariance as 0 (a null direction, stepped along unjudged) or as
@@ -165,7 +171,9 @@ if TYPE_CHECKING:
 
 __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_TOL", "MAX_ITERATIONS",
            "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_RELIABLE", "CURVATURE_DRAWS", "WORSE", "NARROW",
-           "SIGNIFICANT", "std_shift", "DETERMINED_DRAWS", "FAIL_SHIFT", "STALL", "combination_imu_noise",
+           "SIGNIFICANT", "DESCENT_SLACK", "DESCENT_MEMORY", "HALVINGS",
+           "std_shift", "DETERMINED_DRAWS", "FAIL_SHIFT", "STALL",
+           "combination_imu_noise",
            "linearisation_shift", "linearisation_record", "one_pass_judged", "SMALLER_MODELS", "prior_fits_p",
            "HEADING_STD_DEG", "HEADING_STEP_DEG"]
 
@@ -192,8 +200,26 @@ CURVATURE_TOL = 0.3
 CURVATURE_RELIABLE = 1.0
 #: ... from this many draws per coefficient of the estimate's own distribution (seeded: the same every run).
 CURVATURE_DRAWS = 1
-#: A step is outside the linear model when the residual's RMS after it is this many times that before it ...
+#: A step is outside the linear model when the residual's RMS after it is this many times that before it (a pass
+#: solved as requested: its noise model's metric is not the rows' plain sum of squares) ...
 WORSE = 10.0
+#: ... or, in a white least-squares pass (:func:`_fast_spec`, whose objective is the rows' plain sum of squares), when
+#: that sum after it exceeds the largest of the last :data:`DESCENT_MEMORY` passes' by more than this many times the
+#: fit's variance ``sigma^2`` (one unit of its chi-square: a rise the data cannot tell from none). The Gauss-Newton
+#: step must descend (:meth:`_Run.trial`) ...
+DESCENT_SLACK = 1.0
+#: ... against the largest sum of this many passes (the pass before and those before it): a non-monotone descent
+#: (Grippo, Lampariello and Lucidi's line search), since the passes are Gauss-Newton on an objective that moves with
+#: them (each pass leaves the combinations it does not determine where they are, about a new linearisation). A
+#: noise-free pad record under ``strapdown33`` reaches rows of 7.4e-8 m/s (the fit's own 6.4e-13), where a step's
+#: rows rise to 6.9e-7 m/s and the later passes' fall to 1.3e-10 (its rounding level): a monotone rule rejected that
+#: step and every halving of it, and failed the record. No pass's rows exceed the first's by more than sigma^2 a pass.
+DESCENT_MEMORY = 3
+#: ... such a step is halved up to this many times (to 1/16: a backtracking line search) before the pass steps again
+#: without its widest combinations (:data:`NARROW`).
+HALVINGS = 4
+#: How :meth:`_Run.trial` says a step does not descend.
+_NO_DESCENT = "the step does not descend"
 #: ... and the next step leaves out the combinations whose std exceeds the widest one stepped along, over this.
 NARROW = 10.0
 #: A linear result kept (``iterate=False``) whose second-order remainder moves it by more than this (std) fails
@@ -287,7 +313,9 @@ def iteration_lines(diagnostics: dict) -> list[str]:
         for r in p.get("rejected", []):
             lines.append(f"  pass {p['iteration']}: a step along combinations of std up to {r['widest']:.3g} declared "
                          f"magnitudes rejected ({r['why']})")
-        lines.append(f"  pass {p['iteration']}: largest correction {p['max_z']:.3g} std ({p['worst']}); {p['fit']}")
+        damped = f"; {p['damped']:g} of its step taken (the full step does not descend)" if p.get("damped") else ""
+        lines.append(f"  pass {p['iteration']}: largest correction {p['max_z']:.3g} std ({p['worst']}); {p['fit']}"
+                     + damped)
     return lines
 
 
@@ -635,11 +663,19 @@ class _Run:
         return _quiet_fit(problem, spec), nav, flight, model, problem
 
     # ------------------------------------------------------------------ the iteration
-    def trial(self, D: np.ndarray, spec: FitSpec, before: Any) -> tuple | str:
+    def trial(self, D: np.ndarray, spec: FitSpec, before: Any, bound: float | None = None) -> tuple | str:
         """The pass at `D` (:meth:`solve`), or why the step to `D` leaves the linear model (the state of the last
-        pass kept): the correction does not invert, or the residual's RMS grows more than :data:`WORSE` times that
-        of the pass before (`before`, the rows the step was fitted to; not at the rounding level; None: not judged,
-        a step that cannot be narrowed: the stretches' combinations, or no covariance)."""
+        pass kept): the correction does not invert, or the step does not descend: with `bound` (a white pass, m^2/s^2:
+        :meth:`iterate`'s non-monotone bound) the rows' sum of squares after it exceeds `bound`, otherwise their RMS
+        grows more than :data:`WORSE` times that of the pass before (`before`, the rows the step was fitted to);
+        never at the rounding level (:meth:`at_rounding`). `before` None: not judged (a step that cannot be narrowed:
+        the stretches' combinations, or no covariance).
+
+        The white passes minimise the rows' plain sum of squares, so their Gauss-Newton steps must lower it: with the
+        tenfold rule alone, the first pass of the shipped MEMS example under ``strapdown33`` stepped 2.9e3 declared
+        magnitudes along combinations of std up to 1.6e3, raised the rows' RMS from 13.6 to 16.8 m/s, and the passes
+        then crept back by 0.64 a pass from a point whose rows' RMS was 0.062 m/s (the white fixed point's 0.033) and
+        did not converge in 20."""
         state = self._state()
         try:
             out = self.solve(D, spec)
@@ -649,9 +685,19 @@ class _Run:
             if before is None:
                 return out
             rms = [_rms(p.y) for p in (before, out[4])]
-            if rms[1] <= WORSE * rms[0] or self.at_rounding(rms[1]):
+            if self.at_rounding(rms[1]):
                 return out
-            why = f"the residual grew from {rms[0]:.3g} to {rms[1]:.3g} m/s RMS"
+            if bound is None:
+                if rms[1] <= WORSE * rms[0]:
+                    return out
+                why = f"the residual grew from {rms[0]:.3g} to {rms[1]:.3g} m/s RMS"
+            else:
+                ssr = _ssr(out[4].y)
+                if ssr <= bound:
+                    return out
+                why = (f"{_NO_DESCENT}: the rows' sum of squares after it is {ssr:.4g} m^2/s^2 (RMS {rms[1]:.3g} m/s, "
+                       f"{rms[0]:.3g} before it), above {bound:.4g}, the largest of the last {DESCENT_MEMORY} passes' "
+                       "and one sigma^2")
         self._restore(state)
         return why
 
@@ -737,6 +783,7 @@ class _Run:
         k, limit = 1, np.inf
         rows_before = np.inf  # the RMS of the rows of the pass before (m/s)
         noise_factor = 1.0  # the white passes' std under the record's correlated noise (Step.noise_factor)
+        history = [_ssr(problem.y)]  # the rows' sum of squares of every pass (m^2/s^2; DESCENT_MEMORY)
         while True:
             step = determined_step(res, problem, flight, model.scales, limit, about=D)
             noise_factor = step.noise_factor if spec is fast else noise_factor
@@ -772,7 +819,20 @@ class _Run:
                 break
             near = step.max_z < ACCELERATE_BELOW
             move = _secant_step(D, step.d, step.metric, last) if near else step.d
-            trial = self.trial(D + move, spec, problem if 0 < step.widest < np.inf else None)
+            judged = problem if 0 < step.widest < np.inf else None
+            bound = max(history[-DESCENT_MEMORY:]) + DESCENT_SLACK * float(res.sigma) ** 2 \
+                if spec is fast and np.isfinite(res.sigma) else None  # the non-monotone descent (DESCENT_MEMORY)
+            trial = self.trial(D + move, spec, judged, bound)
+            if isinstance(trial, str) and move is not step.d:  # the secant step rejected: the pass's own step first
+                move = step.d
+                trial = self.trial(D + move, spec, judged, bound)
+            alpha = 1.0  # a white pass's step that does not descend: halved (a backtracking line search) ...
+            while isinstance(trial, str) and trial.startswith(_NO_DESCENT) and alpha > 0.5**HALVINGS:
+                alpha *= 0.5
+                move = alpha * step.d
+                trial = self.trial(D + move, spec, judged, bound)
+            if alpha < 1.0 and not isinstance(trial, str):
+                passes[-1]["damped"] = alpha
             back = _beyond_plausible(step, D + move, model.scales, res.names)
             if back is not None and not isinstance(trial, str):
                 move, trial = self.back_to_prior(D, move, back, spec, trial, noise_factor)
@@ -788,6 +848,7 @@ class _Run:
             last = (D, step.d) if near else None
             D, k, rejected, rows_before = D + move, k + 1, [], _rms(problem.y)
             res, nav, flight, model, problem = trial
+            history.append(_ssr(problem.y))
         self.limit = step.limit
         from casep.estimators.solve import fit
 
@@ -1297,27 +1358,31 @@ def _stopped(record: dict, tol: float) -> bool:
     return bool(record["max_z"] < tol or record.get("rounding"))
 
 
-def _secant_step(D: np.ndarray, d: np.ndarray, std: np.ndarray | None, last: tuple | None) -> np.ndarray:
+def _secant_step(D: np.ndarray, d: np.ndarray, whiten: np.ndarray | None, last: tuple | None) -> np.ndarray:
     """The step from `D` after a pass that found the correction `d`: `d` itself, or with the pass before (`last`,
-    its ``(D, d)``) the Anderson (secant) step of depth one, on the corrections in std.
+    its ``(D, d)``) the Anderson (secant) step of depth one, on the corrections of the determined combinations in
+    their std (`whiten`, :attr:`Step.metric`: ``f = W d``).
 
     The passes are the fixed-point map ``G(D) = D + d(D)``. Near its fixed point the map is linear, and with
     noise its contraction along a poorly determined direction can be close to 1 or to -1 (the residual's
-    curvature, not the Jacobian, sets it: Gauss-Newton on a non-zero residual). With ``f = d / std``,
-    ``x = D / std`` and ``df = f - f_last``::
+    curvature, not the Jacobian, sets it: Gauss-Newton on a non-zero residual). With ``f = W d``,
+    ``f_last = W d_last`` and ``df = f - f_last``::
 
-        gamma = (f . df) / (df . df),      x_next = x + f - gamma ((x + f) - (x_last + f_last))
+        gamma = (f . df) / (df . df),      D_next = D + d - gamma ((D + d) - (D_last + d_last))
 
     the root of the secant through the last two passes along their difference (for a contraction ``rho``
-    in one direction: the fixed point in one step, whatever ``rho``).
+    in one direction: the fixed point in one step, whatever ``rho``). The metric is the covariance's restricted to
+    the combinations the pass steps along, the one the stop rule reads: a coefficient's own std is no metric when
+    the model has exactly dependent columns (``strapdown33`` on a rail launch: every coefficient is in a dependent
+    group, no std is finite, and with them as the metric ``df`` was 0 and no pass ever took the secant step; the
+    shipped MEMS example then contracted by 0.64 a pass and did not converge in 20).
     """
-    if last is None or std is None:
+    if last is None or whiten is None or whiten.size == 0:
         return d
-    s = np.where(np.isfinite(std) & (std > 0), std, np.inf)
-    f, f_last = d / s, last[1] / s
+    f, f_last = whiten @ d, whiten @ last[1]
     df = f - f_last
     den = float(df @ df)
-    if not den > 0:
+    if not (np.isfinite(den) and den > 0):
         return d
     gamma = float(f @ df) / den
     return d - gamma * ((D + d) - (last[0] + last[1]))
@@ -1372,8 +1437,11 @@ class Step:
         The largest correction of a determined combination, in its std (:func:`determined_step`).
     worst : str
         The coefficient (or combination) with the largest correction in its std.
-    metric : (n,) ndarray
-        The per-coefficient scale of the secant step (:func:`_secant_step`).
+    metric : (k, n) ndarray
+        The secant step's metric (:func:`_secant_step`): ``W d`` the correction `d` (natural units) of each
+        combination the step is along, in its std (``W = diag(1 / sigma_i) q_i^T / scale`` over the stepped
+        combinations; with the tracking's stretches ``V_i / (std_i scale)``; without a covariance the coefficients'
+        own std, where finite).
     combinations : list of dict or None
         With the tracking's stretches: :func:`casep.checks.tracking_quality.determined`'s combinations.
     widest : float
@@ -1476,17 +1544,20 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
     if noise_problem(flight) is not None and problem.y is not None and problem.t is not None:
         combos, _ = determined(problem, flight.meta["tracking_screen"]["stretches"], scales, imu=flight)
         if not combos:
-            return Step(np.zeros(len(names)), 0.0, "(no combination determined)", scale, combos)
+            return Step(np.zeros(len(names)), 0.0, "(no combination determined)", np.zeros((0, len(names))), combos)
         V = np.array([c["weights"] for c in combos])
         c = np.array([c["correction"] for c in combos])
         s = np.array([c["std"] for c in combos])
         z = c / s
-        return Step(scale * (V.T @ c), float(np.linalg.norm(z)), _combination(names, V.T @ (z / s)), scale, combos)
+        return Step(scale * (V.T @ c), float(np.linalg.norm(z)), _combination(names, V.T @ (z / s)),
+                    V / s[:, None] / scale, combos)
     x = res.fitted_coefficients()
     C = res.covariance if res.solution is None else res.solution.covariance
     std = res.std if res.std is not None else np.full(len(names), np.nan)
     P = np.eye(len(names))
     widest, beyond, kept, size, undetermined, factor = np.inf, [], [], np.inf, None, 1.0
+    own = np.isfinite(std) & (std > 0)
+    metric = np.eye(len(names))[own] / std[own, None]  # no covariance: the coefficients' own std, where finite
     N = np.zeros((len(names), 0)) if res.solution is None else \
         np.asarray(res.solution.null_space, dtype=float).reshape(len(names), -1)
     if C is not None and np.all(np.isfinite(C)) and np.all(np.isfinite(x)):
@@ -1510,6 +1581,7 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
         on = ~out & (sig > 0)  # stepped along: determined, not the null space (sig 0) nor left out
         undetermined = q[:, (sig > size) | (sig == 0)] if about is not None else None  # scaled, orthonormal
         x = scale * (q[:, on] @ (q[:, on].T @ (x / scale)))  # the part of the correction along them, nothing else
+        metric = q[:, on].T / sig[on, None] / scale  # their corrections in their std (the secant step's metric)
         N = scale[:, None] * q[:, ~on]  # left out as the null space is
         C = _in_covariance(sig, q, scale, ~out)  # what is stepped along, without the rounding of what is not
         Qn, _ = np.linalg.qr(N)
@@ -1527,7 +1599,7 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
             z = np.abs(P @ x) / np.sqrt(np.clip(np.einsum("ij,jk,ik->i", P, C, P), 0.0, None))
     zf = np.where(np.isfinite(z), z, 0.0)
     j = int(np.argmax(zf))
-    return Step(x, float(zf[j]), _combination(names, scale * P[j]), std, widest=widest, beyond=beyond, kept=kept,
+    return Step(x, float(zf[j]), _combination(names, scale * P[j]), metric, widest=widest, beyond=beyond, kept=kept,
                 limit=float(limit), size=float(size), undetermined=undetermined, noise_factor=float(factor))
 
 
@@ -1687,6 +1759,12 @@ def _advice_first(res: EstimateResult, smaller: str | None) -> EstimateResult:
     if not smaller or "a smaller model" not in rest or "a smaller model" in first:
         return res
     return dataclasses.replace(res, message=f"{first}; try a smaller model ({smaller}): why below\n{rest}")
+
+
+def _ssr(y: np.ndarray | None) -> float:
+    """The sum of squares of a pass's rows (m^2/s^2; the finite ones)."""
+    y = np.asarray(y, dtype=float)
+    return float(np.sum(np.square(y[np.isfinite(y)])))
 
 
 def _rms(y: np.ndarray | None) -> float:

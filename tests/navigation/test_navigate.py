@@ -604,6 +604,25 @@ def test_gyro_signs_the_earth_rate_decides_are_refused():
     assert _alignment_warnings(check_imu(ImuData(t, w, f))) == []  # as recorded: nothing
 
 
+def test_a_gyro_bias_of_a_few_earth_rates_is_not_taken_for_a_sign():
+    """A quiet pad (gyro noise 1e-7 rad/s) whose y gyro has a bias of -4 times its Earth-rate component (-46 deg/h, a
+    MEMS gyro's ordinary size; the mean rate 2.4 Earth rates, under the 3 beyond which no test is made): as given the
+    chi-square is 261, with gyro y negated 65, better by far but no fit (beyond 16.27). The warning named the sign
+    flip; it now says that no sign fits, and the bias the signs as given need (the closed form ``w_mean - e``)."""
+    from casep.navigation.alignment import gyro_bias_allowance
+
+    t, w, f = _stationary(100.0, 60.0, np.random.default_rng(5), sigma_a=1e-4, sigma_g=1e-7)
+    e = C_TB.T @ SITE.earth_rate
+    beta = np.array([0.0, -4.0 * e[1], 0.0])
+    as_given, flipped = (float(np.sum((S * (e + beta) - e) ** 2)) / gyro_bias_allowance(SITE) ** 2
+                         for S in (np.ones(3), np.array([1.0, -1.0, 1.0])))
+    assert as_given > flipped + 9.0 and flipped > EARTH_RATE_CHI2  # the flip is better, and fits no better than none
+    said = [m for m in _alignment_warnings(check_imu(ImuData(t, w + beta, f))) if "Earth rate the alignment" in m]
+    assert len(said) == 1 and "signs of gyro" not in said[0] and "no other sign per gyro axis" in said[0], said
+    need = re.search(r"need ([-0-9.e+]+), ([-0-9.e+]+), ([-0-9.e+]+) deg/h", said[0])
+    assert need and abs(float(need.group(2)) - np.degrees(beta[1]) * 3600) < 0.01 * abs(np.degrees(beta[1]) * 3600)
+
+
 def test_a_pad_that_drifts_beyond_its_sensors_is_warned_about():
     """At rest with noise: no pad warning. A gyro bias of 0.02 rad/s (a consumer MEMS, under the 0.05 rad/s rate
     warning) tilts the levelled attitude: within the 10 s window the speed reaches about g b T^2 / 2 = 9.8 m/s,
