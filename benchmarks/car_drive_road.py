@@ -160,8 +160,10 @@ def main() -> None:
                       f"{int(np.sum(v < chi2[tuple(sorted((pos[id(x)], pos[id(y)])))]))}" for x, y in pairs)
     with_ = np.mean([x for k, x in chi2.items() if set(k) & set(idx)])
     without = np.mean([x for k, x in chi2.items() if not set(k) & set(idx)])
+    adjacent = np.mean([chi2[k, k + 1] for k in range(len(ws) - 1)])
     print(f"  every pair of windows ({v.size}): chi2 on 6 dof mean {v.mean():.2f}, median {np.median(v):.2f} (6 and "
-          f"5.35 if they agreed); the pairs with a window at {', '.join(f'{w.t_start:.0f}' for w in singled)} s "
+          f"5.35 if they agreed), adjacent pairs {adjacent:.2f}; the pairs with a window at "
+          f"{', '.join(f'{w.t_start:.0f}' for w in singled)} s "
           f"{with_:.2f}, the others {without:.2f}; the retraced pairs' ranks among all (from 0): {ranks}")
     compare([w for w in ws if all(w is not x for x in singled)], "without the windows at 217 s and 486 s")
     compare([w for w in ws if all(w is not x for x in singled[1:])], "without the window at 486 s")
