@@ -417,6 +417,8 @@ def main() -> None:
     ap.add_argument("--sim-clock", type=float, nargs=2, default=(0.0, 0.0), metavar=("OFFSET_S", "PPM"),
                     help="--simulate: the twin's IMU times written this far off (the data's: -0.140 279)")
     ap.add_argument("--end", type=float, default=None, help="use the record up to this time only, s")
+    ap.add_argument("--offset", type=float, default=0.0,
+                    help="start the windows this much later, s (the same drive cut at other places)")
     ap.add_argument("--save", default=None, help="pickle each window's span, estimate, covariance, residuals here")
     ap.add_argument("--consider", default="strapdown33",
                     help="a model holding the terms the window model leaves out: each window's consider gain for the "
@@ -473,8 +475,8 @@ def main() -> None:
         c0 = time.process_time()
         options = {k: v for k, v in (("noise", args.noise), ("std", args.std), ("robust", args.robust))
                    if v is not None}
-        res = separate_windows(imu, trk_path, site, (0.0, moving - 5.0), length=args.length, start=moving + 1.0,
-                               model=args.model, fit_options=options,
+        res = separate_windows(imu, trk_path, site, (0.0, moving - 5.0), length=args.length,
+                               start=moving + 1.0 + args.offset, model=args.model, fit_options=options,
                                consider=None if args.consider == "none" else args.consider)
         cpu = time.process_time() - c0
     kinds: dict[str, int] = {}
