@@ -56,11 +56,11 @@ def read_rtklib_pos(path: str) -> dict[str, np.ndarray]:
     t = np.array([calendar.timegm(datetime.datetime.strptime(r[0] + " " + r[1], "%Y/%m/%d %H:%M:%S.%f").timetuple())
                   + float("0." + r[1].split(".")[1]) for r in rows])
     v = np.array([[float(x) for x in r[2:]] for r in rows])
-    return {"t": t, "lat": v[:, 0], "lon": v[:, 1], "h": v[:, 2], "q": v[:, 3], "vn": v[:, 13], "ve": v[:, 14],
-            "vu": v[:, 15]}
+    return {"t": t, "lat": v[:, 0], "lon": v[:, 1], "h": v[:, 2], "q": v[:, 3], "ns": v[:, 4], "vn": v[:, 13],
+            "ve": v[:, 14], "vu": v[:, 15]}
 
 
-def velocity_from_positions(pos: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+def velocity_from_positions(pos: dict[str, np.ndarray], same_satellites: bool = False) -> dict[str, np.ndarray]:
     """The tracking at the mid-epochs: the mean ECEF velocity ``(r_{k+1} - r_k) / h_k`` between consecutive
     RTK positions, turned into east, north, up at the mid-point (the mean of the two ECEF positions).
 
@@ -68,7 +68,11 @@ def velocity_from_positions(pos: dict[str, np.ndarray]) -> dict[str, np.ndarray]
     time constant of about 0.14 s (``benchmarks/car_drive_causes.py rtk``), while the RTK positions are
     tied to the carrier phase of each epoch. The differenced position is the mean velocity over the
     interval, the velocity at the mid-time to ``jerk h^2 / 24`` (a few mm/s for a car at h = 0.25 s).
-    Only consecutive epochs at the nominal step are differenced.
+    Only consecutive epochs at the nominal step are differenced. With `same_satellites`, only consecutive epochs
+    that are both fixed (``q`` 1) and have the same number of satellites (``ns``): an RTK position's error (the
+    multipath and the residual atmosphere of each satellite, weighted by the geometry) changes with the set of
+    satellites, so a difference across a change of the set holds the change of that error over 0.25 s as velocity.
+    On this drive it does not help: the windows agree less without those differences (docs/results/car-drive.md).
     """
     import pymap3d as pm
 
@@ -76,6 +80,8 @@ def velocity_from_positions(pos: dict[str, np.ndarray]) -> dict[str, np.ndarray]
     r = np.column_stack([x, y, z])
     h = np.diff(pos["t"])
     keep = np.abs(h - np.median(h)) < 1e-3
+    if same_satellites:
+        keep &= (pos["ns"][1:] == pos["ns"][:-1]) & (pos["q"][1:] == 1) & (pos["q"][:-1] == 1)
     v = (np.diff(r, axis=0) / h[:, None])[keep]
     mid = (0.5 * (r[1:] + r[:-1]))[keep]
     lat, lon, alt = pm.ecef2geodetic(mid[:, 0], mid[:, 1], mid[:, 2])
@@ -155,7 +161,8 @@ def convert(data: str, out: str, cut: tuple[float, float] | None = None,
             velocity: str = "rtklib", imu_clock: str = "stretch") -> tuple[str, str, float]:
     """casep's IMU file (t, w_*, fb_*) and geodetic tracking file, time from the first IMU sample.
 
-    `velocity`: ``"rtklib"`` the .pos file's velocity, ``"positions"`` :func:`velocity_from_positions`.
+    `velocity`: ``"rtklib"`` the .pos file's velocity, ``"positions"`` :func:`velocity_from_positions`,
+    ``"same-satellites"`` the same across no change of the satellite count or fix.
     `imu_clock`: ``"stretch"`` the mapped file's times, ``"arrivals"`` :func:`imu_clock_from_arrivals`.
     """
     import pandas as pd
@@ -169,8 +176,8 @@ def convert(data: str, out: str, cut: tuple[float, float] | None = None,
               f"clock against GPS (GNSS bursts) {clock['host_gps_ppm']:.0f} ppm, floor scatter "
               f"{clock['host_gps_scatter'] * 1e3:.0f} ms")
     pos = read_rtklib_pos(os.path.join(data, "gnss_1934_sf.pos"))
-    if velocity == "positions":
-        pos = velocity_from_positions(pos)
+    if velocity in ("positions", "same-satellites"):
+        pos = velocity_from_positions(pos, same_satellites=velocity == "same-satellites")
     t_ref = float(np.floor(imu[0, 0]))
     ti, tp = imu[:, 0] - t_ref, pos["t"] - t_ref
     si = np.ones(len(ti), bool) if cut is None else (ti >= cut[0]) & (ti <= cut[1])
@@ -399,8 +406,9 @@ def main() -> None:
     ap.add_argument("--cut", type=float, nargs=2, default=(0.0, 70.0))
     ap.add_argument("--imu-time", choices=("tags", "uniform"), default="tags",
                     help="IMU times: the logger's tags, or the uniform grid they jitter about (regular_time)")
-    ap.add_argument("--velocity", choices=("rtklib", "positions"), default="rtklib",
-                    help="tracked velocity: RTKLIB's filter state, or differenced RTK positions")
+    ap.add_argument("--velocity", choices=("rtklib", "positions", "same-satellites"), default="rtklib",
+                    help="tracked velocity: RTKLIB's filter state, or differenced RTK positions (same-satellites: "
+                         "not across a change of the satellite count or of the fix)")
     ap.add_argument("--imu-clock", choices=("stretch", "arrivals"), default="stretch",
                     help="IMU counter onto GPST: the data's linear stretch, or the tags' earliest arrivals")
     ap.add_argument("--simulate", type=int, default=None, metavar="SEED",
@@ -409,6 +417,8 @@ def main() -> None:
     ap.add_argument("--sim-clock", type=float, nargs=2, default=(0.0, 0.0), metavar=("OFFSET_S", "PPM"),
                     help="--simulate: the twin's IMU times written this far off (the data's: -0.140 279)")
     ap.add_argument("--end", type=float, default=None, help="use the record up to this time only, s")
+    ap.add_argument("--offset", type=float, default=0.0,
+                    help="start the windows this much later, s (the same drive cut at other places)")
     ap.add_argument("--save", default=None, help="pickle each window's span, estimate, covariance, residuals here")
     ap.add_argument("--consider", default="strapdown33",
                     help="a model holding the terms the window model leaves out: each window's consider gain for the "
@@ -465,8 +475,8 @@ def main() -> None:
         c0 = time.process_time()
         options = {k: v for k, v in (("noise", args.noise), ("std", args.std), ("robust", args.robust))
                    if v is not None}
-        res = separate_windows(imu, trk_path, site, (0.0, moving - 5.0), length=args.length, start=moving + 1.0,
-                               model=args.model, fit_options=options,
+        res = separate_windows(imu, trk_path, site, (0.0, moving - 5.0), length=args.length,
+                               start=moving + 1.0 + args.offset, model=args.model, fit_options=options,
                                consider=None if args.consider == "none" else args.consider)
         cpu = time.process_time() - c0
     kinds: dict[str, int] = {}
