@@ -282,14 +282,11 @@ def _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep, pred=None) -> 
     scale = np.broadcast_to(np.asarray(scale, dtype=float), e.shape)  # each sample's scale
     # innovation of each sample from the previous one: nu_k = (e_k - a_k e_{k-1}) / (scale_k sqrt(1 - a_k^2)),
     # a_k = exp(-dt_k / tau); e_k / scale_k on a white axis and for the first sample
+    # with `pred` the innovations' variance only grows: the candidates of the noise alone include every rejection,
+    # and each is decided below with the prediction's variance (a glitch is rare, so is the scalar formula)
+    nu = e / scale
     a, b = ar1_terms(np.diff(t)[:, None] * inv_tau, 1.0)  # a_k, 1 - a_k^2 of dt_k / tau
-    if pred is None:
-        nu = e / scale
-        corr = (e[1:] - a * e[:-1]) / (scale[1:] * np.sqrt(b))
-    else:  # the fit's prediction variance added: |G_k - a_k G_{k-1}|^2 (|G_k|^2 on a white axis, the first sample)
-        nu = e / np.sqrt(scale**2 + np.sum(pred**2, axis=2))
-        corr = (e[1:] - a * e[:-1]) / np.sqrt(scale[1:] ** 2 * b + np.sum((pred[1:] - a[:, :, None] * pred[:-1]) ** 2,
-                                                                           axis=2))
+    corr = (e[1:] - a * e[:-1]) / (scale[1:] * np.sqrt(b))
     nu[1:] = np.where(inv_tau == 0.0, nu[1:], corr)
     near = np.abs(nu).max(axis=1) > thr * (1.0 - 1e-9)  # decided exactly below
     near |= ~np.isfinite(nu).all(axis=1)

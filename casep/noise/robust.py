@@ -191,7 +191,10 @@ def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, fu
     keep = _sequential(e, t, noise, sk, thr, G)
     nu = _innovations(e, t, noise, keep)
     u = nu / sk[:, None]
-    au = np.abs(u) if G is None else np.abs(u) / _inflation(t, noise, keep, sk, G)
+    au = np.abs(u)
+    if G is not None:  # Huber's weight is 1 up to c whatever widens the innovation: those rows need no inflation
+        rows = np.flatnonzero(np.any(au > c, axis=1)) if function == "huber" else np.arange(N)
+        au[rows] /= _inflation(t, noise, keep, sk, G, rows)
     if function == "huber":
         w = np.minimum(1.0, c / np.maximum(au, 1e-300))  # w = min(1, c / |u|)
     else:
@@ -200,21 +203,21 @@ def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, fu
     return RobustWeights(keep, w, u, s, None if np.all(sk == s) else (s / sk) ** 2)
 
 
-def _inflation(t: np.ndarray, noise: NoiseModel, keep: np.ndarray, sk: np.ndarray, G: np.ndarray) -> np.ndarray:
-    """``sqrt(1 + |G_k - a_k G_j|^2 / ((r_a s_k)^2 (1 - a_k^2)))`` (N, 3): by how much the fit's prediction variance
-    widens each innovation (``j`` the last kept sample before ``k``; ``|G_k|^2`` over ``(r_a s_k)^2`` on a white
-    axis and with no ``j``)."""
-    N = t.size
+def _inflation(t: np.ndarray, noise: NoiseModel, keep: np.ndarray, sk: np.ndarray, G: np.ndarray,
+               rows: np.ndarray) -> np.ndarray:
+    """``sqrt(1 + |G_k - a_k G_j|^2 / ((r_a s_k)^2 (1 - a_k^2)))`` (len(rows), 3) of the samples `rows`: by how much the
+    fit's prediction variance widens each innovation (``j`` the last kept sample before ``k``; ``|G_k|^2`` over
+    ``(r_a s_k)^2`` on a white axis and with no ``j``)."""
     idx = np.flatnonzero(keep)
-    pos = np.searchsorted(idx, np.arange(N), side="left") - 1
+    pos = np.searchsorted(idx, rows, side="left") - 1
     last = np.where(pos >= 0, idx[np.maximum(pos, 0)], -1)
     has = last >= 0
-    out = np.empty((N, 3))
+    out = np.empty((rows.size, 3))
     for j in range(3):
-        var = (sk * noise.scale[j]) ** 2
-        d = G[:, j].copy()
+        var = (sk[rows] * noise.scale[j]) ** 2
+        d = G[rows, j].copy()
         if noise.tau[j] is not None:
-            a, b = ar1_terms(t[has] - t[last[has]], noise.tau[j])
+            a, b = ar1_terms(t[rows[has]] - t[last[has]], noise.tau[j])
             d[has] -= a[:, None] * G[last[has], j]
             var[has] *= b
         out[:, j] = np.sqrt(1.0 + np.sum(d**2, axis=1) / var)

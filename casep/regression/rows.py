@@ -106,13 +106,13 @@ def _ls_factor(pb: Problem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return x, np.where(ok, sd, np.inf), sig * (V * inv_s) * inv_c[:, None]
 
 
-def _predicted(problem: Problem, L: np.ndarray) -> np.ndarray:
-    """``G = S L`` (N, 3, r) of a problem's raw rows (block by block): the factor of the variance of what a fit with
-    the covariance ``L L^T`` predicts at each sample (:func:`casep.noise.robust.robust_filter`'s `predicted`)."""
-    G = np.empty((problem.n_samples, 3, L.shape[1]))
-    for sl, S_b, _ in problem.blocks():
-        G[sl] = S_b @ L
-    return G
+def _predicted(problem: Problem, x: np.ndarray, L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The residuals ``y - S x`` (N, 3) of a problem's raw rows and ``G = S L`` (N, 3, r), in one pass over its
+    blocks: the factor of the variance of what a fit with the covariance ``L L^T`` predicts at each sample
+    (:func:`casep.noise.robust.robust_filter`'s `predicted`)."""
+    r, G = problem.residuals_and_product(x, L)
+    assert G is not None
+    return r, G
 
 
 #: ``robust="auto"``: the robust fit engages when the robust filter rejects more samples than
@@ -140,7 +140,8 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[i
     floor = problem.rounding_floor()
     for _ in range(_MAX_ROBUST_ITER):
         x, _, L = _ls_factor(_rows(problem, keep, nm, None))
-        rw = robust_filter(problem.residuals(x), problem.t, nm, floor=floor, predicted=_predicted(problem, L))
+        r, G = _predicted(problem, x, L)
+        rw = robust_filter(r, problem.t, nm, floor=floor, predicted=G)
         if np.array_equal(rw.keep, keep) or 3 * int(rw.keep.sum()) <= problem.n:  # too few rows left to refit
             break
         keep = rw.keep
@@ -249,8 +250,7 @@ def _robust(problem, nm, noise, tau, function):
     floor = problem.rounding_floor()  # the robust scale is never below the noise-free level
     rw = None
     for it in range(1, _MAX_ROBUST_ITER + 1):
-        r = problem.residuals(x)
-        G = _predicted(problem, L)  # the fit's own uncertainty at each sample: not a glitch
+        r, G = _predicted(problem, x, L)  # and the fit's own uncertainty at each sample: not a glitch
         rw = robust_filter(r, problem.t, nm, function=function, floor=floor, predicted=G)
         if not np.array_equal(rw.keep, keep) and noise != "white" and tau is None and refits < 2:
             # the correlation time on the kept samples only: glitches cannot collapse it
