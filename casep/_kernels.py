@@ -255,12 +255,15 @@ def lfilter(b, a, x, axis: int = -1) -> np.ndarray:
     return scipy_lfilter(b, a, x, axis=axis)
 
 
-def robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
+def robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep, pred=None) -> None:
     """Sequential robust filter (see :mod:`casep.noise.robust`): reject a sample whose innovation
     from the last kept one exceeds ``thr`` on any axis, at most ``max_run`` in a row.
 
     e (N, 3) residuals; t (N,); inv_tau (3,) = 1 / tau (0 for white); scale (3,) = r_a s, or (N, 3): each sample's
-    (a noise level per stretch of the tracking); keep (N,) bool, written.
+    (a noise level per stretch of the tracking); keep (N,) bool, written; pred (N, 3, r), optional: each sample's
+    fitted value's factor ``G_k = S_k L`` (``L L^T`` the fit's coefficient covariance): the innovation from sample
+    ``j`` has the variance ``(scale_k^2 (1 - a^2) + |G_k - a G_j|^2)`` (``|G_k|^2`` added on a white axis and
+    for a sample with no prediction), the Kalman filter's ``H P H^T + R``.
 
     While every sample is kept the last kept one is the previous sample, so the innovations are
     computed for all samples at once; the samples near or over the threshold, and the run after a
@@ -268,10 +271,10 @@ def robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
     compiled loop this replaces). Glitches are rare, so the loop is short.
     """
     with np.errstate(divide="ignore", invalid="ignore"):  # as compiled: a zero step or scale gives inf, not a warning
-        _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep)
+        _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep, pred)
 
 
-def _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
+def _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep, pred=None) -> None:
     N = e.shape[0]
     keep[:] = True
     if N == 0:
@@ -279,6 +282,8 @@ def _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
     scale = np.broadcast_to(np.asarray(scale, dtype=float), e.shape)  # each sample's scale
     # innovation of each sample from the previous one: nu_k = (e_k - a_k e_{k-1}) / (scale_k sqrt(1 - a_k^2)),
     # a_k = exp(-dt_k / tau); e_k / scale_k on a white axis and for the first sample
+    # with `pred` the innovations' variance only grows: the candidates of the noise alone include every rejection,
+    # and each is decided below with the prediction's variance (a glitch is rare, so is the scalar formula)
     nu = e / scale
     a, b = ar1_terms(np.diff(t)[:, None] * inv_tau, 1.0)  # a_k, 1 - a_k^2 of dt_k / tau
     corr = (e[1:] - a * e[:-1]) / (scale[1:] * np.sqrt(b))
@@ -294,7 +299,7 @@ def _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
         last = k - 1
         run = 0
         while k < N:
-            if _big(e, t, inv_tau, scale, thr, k, last) and run < max_run:
+            if _big(e, t, inv_tau, scale, thr, k, last, pred) and run < max_run:
                 keep[k] = False
                 run += 1
                 k += 1
@@ -304,14 +309,19 @@ def _robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep) -> None:
                 break
 
 
-def _big(e, t, inv_tau, scale, thr, k: int, last: int) -> bool:
+def _big(e, t, inv_tau, scale, thr, k: int, last: int, pred=None) -> bool:
     """Whether sample k's innovation from sample `last` (-1: none) exceeds `thr` on any axis."""
     for j in range(3):
         if inv_tau[j] == 0.0 or last < 0:
-            nu = e[k, j] / scale[k, j]
+            sd = scale[k, j] if pred is None else math.sqrt(scale[k, j] ** 2 + float(pred[k, j] @ pred[k, j]))
+            nu = e[k, j] / sd
         else:
             a, b = ar1_terms((t[k] - t[last]) * inv_tau[j], 1.0)  # a_k, 1 - a_k^2
-            nu = (e[k, j] - float(a) * e[last, j]) / (scale[k, j] * math.sqrt(float(b)))
+            if pred is None:
+                nu = (e[k, j] - float(a) * e[last, j]) / (scale[k, j] * math.sqrt(float(b)))
+            else:
+                d = pred[k, j] - float(a) * pred[last, j]
+                nu = (e[k, j] - float(a) * e[last, j]) / math.sqrt(scale[k, j] ** 2 * float(b) + float(d @ d))
         if abs(nu) > thr:
             return True
     return False

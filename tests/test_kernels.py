@@ -41,8 +41,9 @@ def test_sv_kernel_by_flight_length(monkeypatch):
     assert sv_integrate_chunk(NUMPY_SAMPLES) is sv_integrate_chunk_numpy
 
 
-def _reference_keep(e, t, inv_tau, scale, thr, max_run):
-    """The sequential filter as a plain loop (the compiled kernel it replaced, line for line)."""
+def _reference_keep(e, t, inv_tau, scale, thr, max_run, pred=None):
+    """The sequential filter as a plain loop (the compiled kernel it replaced, line for line); with `pred`, the
+    fit's prediction variance ``|G_k - a G_last|^2`` added to the innovation's (``|G_k|^2`` with no ``last``)."""
     N = e.shape[0]
     keep = np.ones(N, dtype=bool)
     last, run = -1, 0
@@ -50,10 +51,16 @@ def _reference_keep(e, t, inv_tau, scale, thr, max_run):
         big = False
         for j in range(3):
             if inv_tau[j] == 0.0 or last < 0:
-                nu = e[k, j] / scale[j]
+                q = 0.0 if pred is None else sum(g * g for g in pred[k, j])
+                nu = e[k, j] / (scale[j] if pred is None else math.sqrt(scale[j] ** 2 + q))
             else:
                 x = (t[k] - t[last]) * inv_tau[j]
-                nu = (e[k, j] - math.exp(-x) * e[last, j]) / (scale[j] * math.sqrt(-math.expm1(-2.0 * x)))
+                a = math.exp(-x)
+                if pred is None:
+                    nu = (e[k, j] - a * e[last, j]) / (scale[j] * math.sqrt(-math.expm1(-2.0 * x)))
+                else:
+                    q = sum((g - a * h) ** 2 for g, h in zip(pred[k, j], pred[last, j]))
+                    nu = (e[k, j] - a * e[last, j]) / math.sqrt(scale[j] ** 2 * -math.expm1(-2.0 * x) + q)
             if abs(nu) > thr:
                 big = True
                 break
@@ -80,6 +87,25 @@ def test_robust_filter_is_the_compiled_loop(inv_tau, max_run):
     k0, k1 = _reference_keep(e, t, *args), np.zeros(N, dtype=bool)
     robust_filter_keep(e, t, *args, k1)
     assert (~k0).sum() > (40 if max_run else -1)  # the test has rejections to agree on
+    assert np.array_equal(k0, k1)
+
+
+@pytest.mark.parametrize("inv_tau", [(0.0, 0.0, 0.0), (2.0, 0.0, 0.5), (50.0, 50.0, 50.0)])
+def test_robust_filter_with_the_fits_prediction_is_a_plain_loop(inv_tau):
+    """With the prediction factor G (N, 3, r): the vectorised kernel and its scalar recursion against a plain loop
+    (the same rejections; prediction std up to twice the noise's, so some glitches are kept)."""
+    rng = np.random.default_rng(8)
+    N = 3000
+    t = np.cumsum(rng.uniform(0.005, 0.015, N))
+    e = rng.normal(size=(N, 3))
+    pred = rng.normal(size=(N, 3, 4)) * rng.uniform(0.0, 1.0, (N, 1, 1))
+    for i in rng.choice(N, 40, replace=False):
+        e[i: i + rng.integers(1, 8)] += rng.choice([-1, 1]) * rng.uniform(3, 30)
+    e[0] += 20.0
+    args = (np.array(inv_tau), np.array([1.0, 1.3, 0.8]), 4.0, 5)
+    k0, k1 = _reference_keep(e, t, *args, pred=pred), np.zeros(N, dtype=bool)
+    robust_filter_keep(e, t, *args, k1, pred)
+    assert 40 < (~k0).sum() < (~_reference_keep(e, t, *args)).sum()  # rejections, fewer than without G
     assert np.array_equal(k0, k1)
 
 

@@ -20,6 +20,19 @@ On an axis with a white part (Gauss-Markov plus white) the innovations are those
 Gauss-Markov part, as above: the white part inflates them by a common factor that the robust scale
 ``s`` absorbs (an approximation; the whitening of the fit itself is exact).
 
+A fit's residual at a sample is also the error of the fit's prediction there: where the coefficients are
+poorly determined and the regressors change fast (at lift-off the specific force jumps tenfold, so scale
+factors, misalignments, the attitude error and a time-tag error ``a dt`` all grow by as much) that error is
+far larger than the noise, and a good epoch would be rejected for what the fit cannot say. Given the fit's
+factor ``G_k = S_k L`` (``L L^T`` its coefficient covariance), the innovation's variance is that of a Kalman
+filter carrying the coefficients as its state, ``H P H^T + R``::
+
+    var(nu_k) = (r_a s_k)^2 (1 - a_k^2) + |G_k - a_k G_j|^2
+
+(``|G_k|^2`` on a white axis): a glitch is a sample beyond what the noise and the fit's own uncertainty
+allow together. Where the fit determines the coefficients well, ``|G|^2`` is about ``n / N`` of the noise
+variance and changes nothing.
+
 More than :data:`MAX_RUN` rejections in a row are taken as a real change (a step the model does
 not have), not a glitch: the run is accepted again, so the filter cannot lose track. The samples
 before the first one accepted have no prediction forward; they are judged backward, from the
@@ -124,7 +137,8 @@ def _innovations(e: np.ndarray, t: np.ndarray, noise: NoiseModel, keep: np.ndarr
 
 
 def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, function: str = "huber",
-                  scale: float | None = None, reject: float | None = None, floor: float = 0.0) -> RobustWeights:
+                  scale: float | None = None, reject: float | None = None, floor: float = 0.0,
+                  predicted: np.ndarray | None = None) -> RobustWeights:
     """Robust weights and rejected samples of a fit's raw residuals ``(N, 3)`` (module notes).
 
     Parameters
@@ -147,6 +161,10 @@ def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, fu
         Least innovation scale, m/s: what the data carry without noise (rounding, the interpolation of a pair
         of files; :func:`casep.regression.problem.is_rounding_level`). On noise-free data the MAD is ~0 and,
         unfloored, every rounding-level residual would be a rejection.
+    predicted : (N, 3, r) array_like, optional
+        The fit's prediction factor ``G = S L`` (m/s; ``S`` the rows' sensitivities, ``L L^T`` the fit's
+        coefficient covariance): the innovations' variance gains the fit's prediction variance (module notes),
+        in the rejections and the weights (``u`` stays the innovation over the noise alone).
     """
     if function not in ROBUST_FUNCTIONS:
         raise ValueError(f"`robust` must be one of {', '.join(ROBUST_FUNCTIONS)}, got {function!r}")
@@ -166,11 +184,17 @@ def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, fu
     if scale is None and N == t.size:
         for a, b in stretches(t):
             sk[a:b] = max(_mad_scale(nu[a:b]), float(floor)) or s
+    G = None if predicted is None else np.asarray(predicted, dtype=float)
+    if G is not None and G.shape[:2] != e.shape:
+        raise ValueError(f"`predicted` must have the shape (N, 3, r) of the residuals (N, 3), got {G.shape}")
     # pass 2: sequential, from the last accepted sample (a rejected one is a gap)
-    keep = _sequential(e, t, noise, sk, thr)
+    keep = _sequential(e, t, noise, sk, thr, G)
     nu = _innovations(e, t, noise, keep)
     u = nu / sk[:, None]
     au = np.abs(u)
+    if G is not None:  # Huber's weight is 1 up to c whatever widens the innovation: those rows need no inflation
+        rows = np.flatnonzero(np.any(au > c, axis=1)) if function == "huber" else np.arange(N)
+        au[rows] /= _inflation(t, noise, keep, sk, G, rows)
     if function == "huber":
         w = np.minimum(1.0, c / np.maximum(au, 1e-300))  # w = min(1, c / |u|)
     else:
@@ -179,12 +203,34 @@ def robust_filter(residuals: np.ndarray, t: np.ndarray, noise: NoiseModel, *, fu
     return RobustWeights(keep, w, u, s, None if np.all(sk == s) else (s / sk) ** 2)
 
 
+def _inflation(t: np.ndarray, noise: NoiseModel, keep: np.ndarray, sk: np.ndarray, G: np.ndarray,
+               rows: np.ndarray) -> np.ndarray:
+    """``sqrt(1 + |G_k - a_k G_j|^2 / ((r_a s_k)^2 (1 - a_k^2)))`` (len(rows), 3) of the samples `rows`: by how much the
+    fit's prediction variance widens each innovation (``j`` the last kept sample before ``k``; ``|G_k|^2`` over
+    ``(r_a s_k)^2`` on a white axis and with no ``j``)."""
+    idx = np.flatnonzero(keep)
+    pos = np.searchsorted(idx, rows, side="left") - 1
+    last = np.where(pos >= 0, idx[np.maximum(pos, 0)], -1)
+    has = last >= 0
+    out = np.empty((rows.size, 3))
+    for j in range(3):
+        var = (sk[rows] * noise.scale[j]) ** 2
+        d = G[rows, j].copy()
+        if noise.tau[j] is not None:
+            a, b = ar1_terms(t[rows[has]] - t[last[has]], noise.tau[j])
+            d[has] -= a[:, None] * G[last[has], j]
+            var[has] *= b
+        out[:, j] = np.sqrt(1.0 + np.sum(d**2, axis=1) / var)
+    return out
+
+
 def _mad_scale(nu: np.ndarray) -> float:
     """1.4826 MAD of innovations ``(n, 3)`` (their median per axis removed), all axes together."""
     return float(MAD_SIGMA * np.median(np.abs(nu - np.median(nu, axis=0))))
 
 
-def _sequential(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: np.ndarray, thr: float) -> np.ndarray:
+def _sequential(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: np.ndarray, thr: float,
+                G: np.ndarray | None = None) -> np.ndarray:
     """Keep mask of the sequential filter (compiled: :func:`casep._kernels.robust_filter_keep`), its start
     decided backward.
 
@@ -195,22 +241,23 @@ def _sequential(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: np.ndarray, 
     directions keep, are judged backward, each from the next kept sample; from ``k0`` on the
     forward decisions stand (each depends only on the kept samples from ``k0``).
     """
-    keep = _forward(e, t, noise, s, thr)
+    keep = _forward(e, t, noise, s, thr, G)
     if keep.size == 0 or keep[0]:
         return keep  # the first sample has no prediction but passed: nothing to decide backward
-    back = _forward(e[::-1], t[-1] - t[::-1], noise, s[::-1], thr)[::-1]  # the time-reversed filter
+    back = _forward(e[::-1], t[-1] - t[::-1], noise, s[::-1], thr, None if G is None else G[::-1])[::-1]  # reversed
     both = np.flatnonzero(keep & back)
     if both.size:
         keep[:both[0]] = back[:both[0]]
     return keep
 
 
-def _forward(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: np.ndarray, thr: float) -> np.ndarray:
+def _forward(e: np.ndarray, t: np.ndarray, noise: NoiseModel, s: np.ndarray, thr: float,
+             G: np.ndarray | None = None) -> np.ndarray:
     from casep._kernels import robust_filter_keep
 
     inv_tau = np.array([0.0 if tau is None else 1.0 / tau for tau in noise.tau])
     scale = np.asarray(s, dtype=float)[:, None] * np.asarray(noise.scale, dtype=float)  # (N, 3): each sample's
     keep = np.ones(e.shape[0], dtype=np.bool_)
     robust_filter_keep(np.ascontiguousarray(e, dtype=float), np.ascontiguousarray(t, dtype=float), inv_tau, scale,
-                       float(thr), MAX_RUN, keep)
+                       float(thr), MAX_RUN, keep, None if G is None else np.ascontiguousarray(G))
     return keep

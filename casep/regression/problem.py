@@ -495,13 +495,21 @@ class Problem:
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         """``y - S x`` in the shape of ``y``, block by block (NaN in `x` count as 0)."""
+        return self.residuals_and_product(x, None)[0]
+
+    def residuals_and_product(self, x: np.ndarray, L: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`residuals` and, in the same pass over the blocks, ``S L`` (shape of ``y`` + ``(r,)``) of a matrix
+        `L` (n, r) (None: not computed)."""
         y = self._need_rows()
         x = np.asarray(x, dtype=float)
         x = np.where(np.isnan(x), 0.0, x)  # NaN (no estimate) counts as 0; inf stays inf
         r = np.empty_like(y)
+        SL = None if L is None else np.empty(y.shape + (L.shape[1],))
         for sl, S_b, y_b in self.blocks():
             r[sl] = y_b - S_b @ x
-        return r
+            if SL is not None:
+                SL[sl] = S_b @ L
+        return r, SL
 
     def __repr__(self) -> str:
         where = "kept" if self._S is not None else ("regenerated" if self._regenerate else "none")

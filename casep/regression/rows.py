@@ -83,11 +83,18 @@ def _rows(problem: Problem, keep: np.ndarray, nm: NoiseModel, weights) -> Proble
 
 
 def _ls(pb: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_ls_factor` without the covariance factor."""
+    x, sd, _ = _ls_factor(pb)
+    return x, sd
+
+
+def _ls_factor(pb: Problem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Least-squares estimate (the minimum-norm solution: its fitted values are the least-squares ones also
     where a coefficient is undetermined, :mod:`casep.estimators.solution`) and unit-free std (inf where
     undetermined) of a problem, from its reduction.
 
-    ``x = c^-1 V_r diag(1/s_r) U_r^T q`` on the scaled columns; std ``sigma sqrt(diag((Z^T Z)^+)) / c``.
+    ``x = c^-1 V_r diag(1/s_r) U_r^T q`` on the scaled columns; std ``sigma sqrt(diag((Z^T Z)^+)) / c``; and the
+    factor ``L = sigma c^-1 V_r diag(1/s_r)`` (n, r) of the covariance ``L L^T = sigma^2 (Z^T Z)^+``.
     """
     ra, red = pb.rank(), pb.red
     V, inv_s = ra.pinv_factors()
@@ -96,7 +103,16 @@ def _ls(pb: Problem) -> tuple[np.ndarray, np.ndarray]:
     sig = float(np.sqrt(pb.ls_rss() / max(red.m - ra.rank, 1)))
     sd = sig * np.sqrt(np.sum((V * inv_s) ** 2, axis=1)) * inv_c
     ok = ra.estimable & (sd > 0)
-    return x, np.where(ok, sd, np.inf)
+    return x, np.where(ok, sd, np.inf), sig * (V * inv_s) * inv_c[:, None]
+
+
+def _predicted(problem: Problem, x: np.ndarray, L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The residuals ``y - S x`` (N, 3) of a problem's raw rows and ``G = S L`` (N, 3, r), in one pass over its
+    blocks: the factor of the variance of what a fit with the covariance ``L L^T`` predicts at each sample
+    (:func:`casep.noise.robust.robust_filter`'s `predicted`)."""
+    r, G = problem.residuals_and_product(x, L)
+    assert G is not None
+    return r, G
 
 
 #: ``robust="auto"``: the robust fit engages when the robust filter rejects more samples than
@@ -123,8 +139,9 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[i
     keep = np.ones(problem.n_samples, dtype=bool)
     floor = problem.rounding_floor()
     for _ in range(_MAX_ROBUST_ITER):
-        x, _ = _ls(_rows(problem, keep, nm, None))
-        rw = robust_filter(problem.residuals(x), problem.t, nm, floor=floor)
+        x, _, L = _ls_factor(_rows(problem, keep, nm, None))
+        r, G = _predicted(problem, x, L)
+        rw = robust_filter(r, problem.t, nm, floor=floor, predicted=G)
         if np.array_equal(rw.keep, keep) or 3 * int(rw.keep.sum()) <= problem.n:  # too few rows left to refit
             break
         keep = rw.keep
@@ -229,20 +246,20 @@ def _robust(problem, nm, noise, tau, function):
     weights = None
     refits = 0
     history = []
-    x, sd = _ls(_rows(problem, keep, nm, weights))
+    x, sd, L = _ls_factor(_rows(problem, keep, nm, weights))
     floor = problem.rounding_floor()  # the robust scale is never below the noise-free level
     rw = None
     for it in range(1, _MAX_ROBUST_ITER + 1):
-        r = problem.residuals(x)
-        rw = robust_filter(r, problem.t, nm, function=function, floor=floor)
+        r, G = _predicted(problem, x, L)  # and the fit's own uncertainty at each sample: not a glitch
+        rw = robust_filter(r, problem.t, nm, function=function, floor=floor, predicted=G)
         if not np.array_equal(rw.keep, keep) and noise != "white" and tau is None and refits < 2:
             # the correlation time on the kept samples only: glitches cannot collapse it
             nm = _noise_model(problem.subset(rw.keep), noise, None)
             refits += 1
-            rw = robust_filter(r, problem.t, nm, function=function, floor=floor)
+            rw = robust_filter(r, problem.t, nm, function=function, floor=floor, predicted=G)
         changed = not np.array_equal(rw.keep, keep)
         keep, weights = rw.keep, rw.row_weights  # each stretch's rows at its own noise level, robustly weighted
-        x_new, sd = _ls(_rows(problem, keep, nm, weights))
+        x_new, sd, L = _ls_factor(_rows(problem, keep, nm, weights))
         move = float(np.max(np.abs(x_new - x) / sd))
         x = x_new
         history.append({"iteration": it, "rejected": int((~keep).sum()), "max_step_std": move})
