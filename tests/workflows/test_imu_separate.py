@@ -727,7 +727,23 @@ def test_a_pad_then_a_short_boost_is_linearised_at_the_prior_along_what_it_does_
     assert z.size >= 2 and np.all(np.abs(z) < 3.0), z
 
 
-def test_the_stated_combinations_std_carry_the_imu_noise(tmp_path):
+@pytest.fixture(scope="module")
+def noisy_gyro_rest(tmp_path_factory):
+    """``{seed: (separation, truth)}`` of 30 s at rest with a noisy gyro (5e-5 rad/s per sample at 20 Hz), tracking
+    0.01 m/s, ``strapdown12`` at its declared magnitudes, seeds 0-3 separated with the defaults: once per module,
+    read by the IMU-noise test (all four) and by the stated-combinations test (seed 1)."""
+    runs = {}
+    for seed in range(4):
+        directory = tmp_path_factory.mktemp(f"rest{seed}")
+        imu, trk, site, heading, truth = pad_record(directory, seed, "strapdown12", pad=30.0, imu_noise=(1e-3, 5e-5),
+                                                    trk_noise=0.01)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            runs[seed] = separate_imu(imu, trk, site, PAD_ALIGN, "strapdown12", heading_deg=heading), truth
+    return runs
+
+
+def test_the_stated_combinations_std_carry_the_imu_noise(noisy_gyro_rest):
     """30 s at rest with a noisy gyro (5e-5 rad/s per sample at 20 Hz: its attitude random walk tilts the pad as much
     as a 0.5 deg/h bias does), tracking 0.01 m/s, ``strapdown12`` at its declared magnitudes, 4 seeds: the
     combinations the record determines are the vertical accelerometer and the two horizontal gyros' tilt drift. With
@@ -736,13 +752,7 @@ def test_the_stated_combinations_std_carry_the_imu_noise(tmp_path):
     of freedom at 0.1 % each side, 0.51-1.66, a little wider: the z of one run share its IMU noise)."""
     z = []
     for seed in range(4):
-        directory = tmp_path / str(seed)
-        directory.mkdir()
-        imu, trk, site, heading, truth = pad_record(directory, seed, "strapdown12", pad=30.0, imu_noise=(1e-3, 5e-5),
-                                                    trk_noise=0.01)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            out = separate_imu(imu, trk, site, PAD_ALIGN, "strapdown12", heading_deg=heading)
+        out, truth = noisy_gyro_rest[seed]
         assert out.result.diagnostics["iterations"]["converged"], out.message
         combos = out.result.diagnostics["iterations"]["passes"][-1]["determined"]
         assert len(combos) == 3 and all(c["std"] > c["std_tracking_noise_only"] for c in combos)
@@ -892,16 +902,12 @@ def test_one_linear_pass_states_the_combinations_the_record_determines(tmp_path)
     assert np.all(np.abs(z) < 4.0), z
 
 
-def test_the_combinations_stepped_along_are_stated_in_the_result(tmp_path):
+def test_the_combinations_stepped_along_are_stated_in_the_result(noisy_gyro_rest):
     """30 s at rest, ``strapdown12`` (seed 1): the coefficients one by one are not determined, the iterated passes step
     along 3 combinations. The result states them, value and std, in ``diagnostics["determined"]`` (the last pass's,
     with their terms and the scales their weights divide by) and in its message; each within 4 std of the truth's
     combination (a 1e-4 chance per combination for honest std)."""
-    imu, trk, site, heading, truth = pad_record(tmp_path, 1, "strapdown12", pad=30.0, imu_noise=(1e-3, 5e-5),
-                                                trk_noise=0.01)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        out = separate_imu(imu, trk, site, PAD_ALIGN, "strapdown12", heading_deg=heading)
+    out, truth = noisy_gyro_rest[1]  # the IMU-noise test's seed 1
     res = out.result
     last = res.diagnostics["iterations"]["passes"][-1]["determined"]
     det = res.diagnostics["determined"]
