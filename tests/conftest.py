@@ -182,12 +182,17 @@ def noise_free_errors(flight, model, truth, sigma: float = 0.1):
 @pytest.fixture(scope="session", autouse=True)
 def _one_blas_thread_per_xdist_worker():
     """With pytest-xdist (`-n 2`), each worker process uses one BLAS thread: two workers on two
-    cores, not four threads fighting for them (oversubscription made a Monte Carlo 30x slower)."""
+    cores, not four threads fighting for them (oversubscription made a Monte Carlo 30x slower).
+
+    threadpoolctl limits the libraries loaded when it is called: SciPy's own OpenBLAS (scipy.libs, not NumPy's)
+    loads with scipy.linalg, which the first test may not have imported yet, and then kept its default threads
+    (2 on 2 cores) for the whole run. It is loaded first."""
     import os
 
     if not os.environ.get("PYTEST_XDIST_WORKER"):
         yield
         return
+    import scipy.linalg  # noqa: F401  (SciPy's BLAS library loaded, so that the limit reaches it)
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1, user_api="blas"):

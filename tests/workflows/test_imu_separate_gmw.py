@@ -54,8 +54,10 @@ def flight(directory, launch, seed: int):
 
 
 def test_the_combinations_stated_hold_their_std_under_gauss_markov_plus_white_tracking(launch, tmp_path):
-    """Seeds 0-3, the default fit: every result a success stating combinations, each within 4 of its std of the
-    truth, and the 24 z pooled with an RMS of at most 1.75.
+    """Seeds 1 and 3 (seeds 0-11: ``benchmarks/mc_imu_gmw_combinations.py``), the default fit: every result a
+    success stating combinations, each within 4 of its std of the truth, and their z pooled (6 each) with an RMS of
+    at most 1.75: 12 independent unit normals exceed it with probability 2.5e-4 (the z of one seed are correlated,
+    which widens the RMS's spread; measured 0.80 and 0.60).
 
     Before the passes far from convergence judged the instrument's plausible size by std that carry the tracking
     noise's correlation (:func:`casep.workflows.imu_separate.determined_step`), their white std (2.2 to 2.6 times
@@ -63,9 +65,9 @@ def test_the_combinations_stated_hold_their_std_under_gauss_markov_plus_white_tr
     from the truth, and seed 1 stated combinations 13.6 and 27.4 std off (seed 5: 5.8; pooled RMS z of seeds 0-5:
     5.5). With the plug-in noise model seeds 0-11 (the benchmark) gave a pooled RMS of 1.45, 87 % within 1.96 std;
     with the correlation times' uncertainty in the std (next test) 0.88, 94 %. The bounds fail the defect by an
-    order of magnitude (|z| < 4 fails its seed 1 alone)."""
+    order of magnitude (|z| < 4 fails its seed 1 alone; seeds 0-3 here gave 21 z, RMS 0.56)."""
     z = []
-    for seed in range(4):
+    for seed in (1, 3):
         zs = _stated_z(tmp_path, launch, seed)
         assert np.all(np.abs(zs) < 4.0), (seed, zs)
         z.append(zs)
