@@ -22,7 +22,8 @@ def blas_threads_limited() -> Any:
     on a loaded 2-core machine ``casep separate`` of a 100 Hz range flight took 158 s with two BLAS
     threads and 18 s with one (``python benchmarks/bench_blas_threads.py``, medians of 3).
     Before NumPy loads, the environment is set (the BLAS library reads it once, when it loads;
-    child processes inherit it); after, threadpoolctl limits the loaded libraries.
+    child processes inherit it); after, threadpoolctl limits the loaded libraries, SciPy's own BLAS library (a
+    second OpenBLAS beside NumPy's) loaded first, since one loaded later keeps its default threads.
     """
     if any(v in os.environ for v in BLAS_THREAD_VARS):
         yield
@@ -39,6 +40,7 @@ def blas_threads_limited() -> Any:
                 else:
                     os.environ[v] = old
         return
+    import scipy.linalg  # noqa: F401  (SciPy's own BLAS library, loaded now so that the limit reaches it)
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1):
