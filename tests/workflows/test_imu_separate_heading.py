@@ -109,3 +109,76 @@ def test_the_heading_std_is_checked(heading, std, said):
     with pytest.raises(ValueError, match="heading_std_deg.*" + said):
         separate_imu("no-such-imu.csv", "no-such-trk.csv", SITE, ALIGN, MODEL, heading_deg=heading,
                      heading_std_deg=std)
+
+
+def _gls_problem(c_true: float, seed: int = 3):
+    """A linear problem ``y = S x + d c + e`` on 60 epochs (5 Hz) with Gauss-Markov noise per axis (tau 1, 2, 0.5 s,
+    scales 1, 1.5, 0.8, sigma 0.05 m/s), the fakes :func:`heading_conflict` reads, and the design and covariance
+    written out whole (3N x 3N, axis-interleaved) for an independent GLS."""
+    from types import SimpleNamespace
+
+    from casep.noise.model import NoiseModel
+
+    rng = np.random.default_rng(seed)
+    N, n, sigma = 60, 4, 0.05
+    t = np.arange(N) * 0.2
+    tau, scale = (1.0, 2.0, 0.5), (1.0, 1.5, 0.8)
+    S, d = rng.standard_normal((N, 3, n)), rng.standard_normal((N, 3))
+    cov = np.zeros((3 * N, 3 * N))
+    for j in range(3):  # AR(1) of unit stationary variance on the times, times the axis's scale
+        cov[j::3, j::3] = scale[j] ** 2 * np.exp(-np.abs(t[:, None] - t[None, :]) / tau[j])
+    e = np.linalg.cholesky(cov) @ rng.standard_normal(3 * N) * sigma
+    y = np.einsum("ijk,k->ij", S, rng.standard_normal(n)) + d * c_true + e.reshape(N, 3)
+    noise = NoiseModel(kind="gm", tau=tau, scale=scale).to_dict()
+    res = SimpleNamespace(names=[f"c{k}" for k in range(n)], sigma=sigma, diagnostics={"noise": noise})
+    problem = SimpleNamespace(t=t, y=y, sv=lambda: S)
+    X = np.column_stack([S.reshape(3 * N, n), d.reshape(-1)])
+    return res, problem, d, X, y.reshape(-1), cov * sigma**2
+
+
+@pytest.mark.parametrize("c_true", [0.0, 3.0])
+def test_the_heading_test_is_the_gls_coefficient_of_the_heading_column(c_true):
+    """:func:`heading_conflict`'s estimate of the heading's error and its std (the fit's noise, the flight holding no
+    IMU samples) against GLS written out with the full covariance (``(X^T C^-1 X)^-1 X^T C^-1 y``, ``X = [S, d]``):
+    equal to rounding; its sign is the heading given less the true (the rows at ``H`` are ``y(H_true) + d (H -
+    H_true)``), the suggestion ``H - c``, and z the prior predictive ``|c| / sqrt(stated^2 + std^2)``."""
+    from types import SimpleNamespace
+
+    from casep.estimators.rls import PRIOR_CONFLICT_Z
+    from casep.workflows.imu_separate import heading_conflict
+
+    res, problem, d, X, y, cov = _gls_problem(c_true)
+    Ci = np.linalg.inv(cov)
+    M = np.linalg.inv(X.T @ Ci @ X)
+    beta = M @ X.T @ Ci @ y
+    rec = heading_conflict(res, problem, SimpleNamespace(signals={}, meta={}), d, 95.0, 0.1)
+    assert rec is not None
+    np.testing.assert_allclose(rec["estimate_deg"], beta[-1], rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(rec["std_deg"], np.sqrt(M[-1, -1]), rtol=1e-8)
+    assert rec["z"] == pytest.approx(abs(beta[-1]) / np.hypot(0.1, np.sqrt(M[-1, -1])), rel=1e-8)
+    assert rec["suggested_heading_deg"] == pytest.approx(95.0 - rec["estimate_deg"])
+    assert rec["conflict"] == (rec["z"] > PRIOR_CONFLICT_Z)
+    if c_true:  # 3 deg off, known to about 0.01 deg: the data contradict a std of 0.1 deg
+        assert rec["std_deg"] < 0.05 and rec["conflict"] and abs(rec["estimate_deg"] - c_true) < 5 * rec["std_deg"]
+    else:
+        assert not rec["conflict"]
+
+
+def test_what_a_result_says_of_the_heading_test():
+    """The failure's message (a conflict) gives the data's estimate and std, the stated std and both suggestions;
+    a record that knows the heading less well than its stated std says that no error of it would show; one that knows
+    it better (and agrees) says nothing."""
+    from casep.workflows.imu_separate import heading_message, heading_unchecked
+
+    rec = {"heading_deg": 32.0, "stated_std_deg": 0.1, "estimate_deg": 2.04, "std_deg": 0.21, "z": 8.6,
+           "limit_z": 5.0, "suggested_heading_deg": 29.96, "conflict": True}
+    said = heading_message(rec, "x")
+    for part in ("--heading 32 deg", "+2.04 +- 0.21 deg", "--heading-std 0.1 deg", "--heading 29.96",
+                 "--heading-std 2"):
+        assert part in said, said
+    assert heading_unchecked(rec) is None  # the failure says it
+    loose = {**rec, "estimate_deg": -19.2, "std_deg": 55.5, "z": 0.35, "conflict": False}
+    assert "no error of the heading would show" in heading_unchecked(loose)
+    some = {**loose, "std_deg": 1.5}
+    assert "no error of the heading below 7.52 deg" in heading_unchecked(some)
+    assert heading_unchecked({**loose, "std_deg": 0.05}) is None
