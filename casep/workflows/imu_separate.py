@@ -939,12 +939,17 @@ class _Run:
     def heading_judged(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
         """`res` with the test of the given heading against the data (:func:`heading_conflict`) in
         ``diagnostics["heading"]["test"]``; where the data contradict it, said (:class:`casep.exceptions.SetupWarning`,
-        :func:`heading_message`) and failed (status ``STATUS_PRIOR_CONFLICT``: the heading's std is its prior)."""
+        :func:`heading_message`) and failed (status ``STATUS_PRIOR_CONFLICT``: the heading's std is its prior). Not
+        on noise-free rows (:meth:`at_rounding`, :meth:`casep.regression.problem.Problem.is_noise_free`): their std
+        are rounding, and the passes' remainder at their fixed point would read as a heading error."""
         from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
         from casep.exceptions import SetupWarning
 
         per_deg = self.heading_derivative(problem)
-        if per_deg is None:
+        if per_deg is None or problem.y is None:
+            return res
+        rms = problem.ls_rms()
+        if self.at_rounding(rms) or problem.is_noise_free(rms):  # no noise: no std to test the heading against
             return res
         record = heading_conflict(res, problem, flight, per_deg, self.heading["heading_deg"], self.heading_std,
                                   self.levelling(), self.tau_profile(problem))
@@ -2028,7 +2033,7 @@ def heading_message(record: dict, axis: str) -> str:
     """What a result says when the data contradict the given heading (:func:`heading_conflict`'s `record`)."""
     h, c, sd, st = (record[k] for k in ("heading_deg", "estimate_deg", "std_deg", "stated_std_deg"))
     return (f"the data contradict the heading given: at --heading {h:g} deg (body axis {axis}, --heading-std "
-            f"{st:g} deg) the rows hold a turn of the boost's velocity that puts the heading {c:+.3g} +- {sd:.2g} deg "
+            f"{st:g} deg) the rows hold a turn of the velocity that puts the heading {c:+.3g} +- {sd:.2g} deg "
             f"off (z = {record['z']:.3g} against the stated std and the estimate's, above {record['limit_z']:g}); "
             f"the coefficients absorb it, so the estimate is off by more than its std say. Check the heading "
             f"(--heading {record['suggested_heading_deg']:.4g} is what the data point to) or state how well it is "
@@ -2045,11 +2050,15 @@ def heading_unchecked(record: dict | None) -> str | None:
     if record is None or record["conflict"] or not record["std_deg"] > record["stated_std_deg"]:
         return None
     seen = record["limit_z"] * math.hypot(record["stated_std_deg"], record["std_deg"])
-    unseen = "no error of the heading" if seen >= 180 else f"no error of the heading below {seen:.3g} deg"
-    return (f"the record does not check the heading given (--heading {record['heading_deg']:g} deg): its own estimate "
-            f"of the heading's error, with the coefficients free, is {record['estimate_deg']:+.3g} +- "
-            f"{record['std_deg']:.3g} deg, and {unseen} would show in it; the estimate and its std hold as far as the "
-            f"heading is within its stated std (--heading-std {record['stated_std_deg']:g} deg)")
+    given = f"the heading given (--heading {record['heading_deg']:g} deg)"
+    if seen >= 180:
+        head, unseen = f"the record does not check {given}", "no error of the heading would show in it"
+    else:
+        head, unseen = f"the record checks {given} only to {seen:.3g} deg", "a smaller error would not show in it"
+    return (f"{head}: its own estimate of the heading's error, with the coefficients free, is "
+            f"{record['estimate_deg']:+.3g} +- {record['std_deg']:.3g} deg, and {unseen} (z {record['limit_z']:g}); "
+            f"the estimate and its std hold as far as the heading is within its stated std (--heading-std "
+            f"{record['stated_std_deg']:g} deg)")
 
 
 def _heading_std(heading_deg: float | None, heading_std_deg: float | None) -> float:

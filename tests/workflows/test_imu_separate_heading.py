@@ -178,7 +178,64 @@ def test_what_a_result_says_of_the_heading_test():
         assert part in said, said
     assert heading_unchecked(rec) is None  # the failure says it
     loose = {**rec, "estimate_deg": -19.2, "std_deg": 55.5, "z": 0.35, "conflict": False}
-    assert "no error of the heading would show" in heading_unchecked(loose)
+    assert "the record does not check the heading given (--heading 32 deg): its own estimate of the heading's " \
+           "error, with the coefficients free, is -19.2 +- 55.5 deg" in heading_unchecked(loose)
     some = {**loose, "std_deg": 1.5}
-    assert "no error of the heading below 7.52 deg" in heading_unchecked(some)
+    assert "the record checks the heading given (--heading 32 deg) only to 7.52 deg" in heading_unchecked(some)
     assert heading_unchecked({**loose, "std_deg": 0.05}) is None
+
+
+@pytest.fixture(scope="module")
+def aircraft(tmp_path_factory):
+    """A flight whose data determine the heading: the tactical aircraft of ``benchmarks/aircraft_flight.py`` (its own
+    strapdown generator) cut to 2.8 min (60 s on the ground, a take-off roll, a climb, one coordinated turn), its IMU
+    at 25 Hz with ``strapdown12``'s errors (the benchmark's draw of seed 1, the other terms of ``strapdown33`` zero),
+    GNSS velocity and position at 5 Hz with Gauss-Markov plus white noise."""
+    from conftest import benchmark_module
+
+    with benchmark_module("aircraft_flight") as af:
+        full = af.with_errors
+        kept = ("ba_", "sa_", "bg_", "sg_")
+        af.with_errors = lambda fb, wb, c: full(fb, wb, {k: v if k.startswith(kept) else 0.0 for k, v in c.items()})
+        imu, trk, _ = af.flight(1, 2.8, 25, tmp_path_factory.mktemp("aircraft"))
+        site, align, heading = LaunchSite(*af.SITE, af.T_REST), (1.0, af.T_REST - 5.0), af.SITE[3]
+    return imu, trk, site, align, heading
+
+
+def test_a_heading_the_data_contradict_fails_the_result(aircraft):
+    """Where the turns determine the heading (to 0.2-0.4 deg here), the test holds at the true heading (a success,
+    z below 1; the message says to what the record checks the heading) and, with the heading given 2 deg off at its
+    default std of 0.1 deg, finds it: the estimated offset within 2 of its std of +2 deg, a SetupWarning with the
+    numbers and the heading to try, and the result failed (status -10), not a success whose estimate carries the
+    turn."""
+    from casep.estimators.registry import STATUS_PRIOR_CONFLICT
+    from casep.exceptions import SetupWarning
+
+    imu, trk, site, align, heading = aircraft
+
+    def run(h):
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            out = separate_imu(imu, trk, site, align, "strapdown12", heading_deg=h, tracking_frame="geodetic")
+        return out, [str(w.message) for w in seen if w.category is SetupWarning]
+
+    right, said = run(heading)
+    test = right.result.diagnostics["heading"]["test"]
+    assert right.success and not said and not test["conflict"] and test["z"] < 1.0, (test, right.message)
+    assert test["std_deg"] < 0.5 and "the record checks the heading given (--heading 70 deg) only to" in right.message
+    wrong, said = run(heading + 2.0)
+    test = wrong.result.diagnostics["heading"]["test"]
+    assert not wrong.success and wrong.result.status == STATUS_PRIOR_CONFLICT, wrong.message
+    assert test["conflict"] and abs(test["estimate_deg"] - 2.0) < 2 * test["std_deg"], test
+    assert len(said) == 1 and "the data contradict the heading given" in said[0], said
+    assert f"--heading {test['suggested_heading_deg']:.4g}" in said[0] and "--heading-std" in said[0]
+    assert said[0] in wrong.message
+
+
+def test_a_rail_launch_says_the_record_does_not_check_the_heading(launch):
+    """On the rail launch the lateral terms fit a heading error: the data's own std of it is many degrees, the test
+    holds (no failure), and the result says the record does not check the heading given."""
+    out = _separate(launch, HEADING, None)
+    test = out.result.diagnostics["heading"]["test"]
+    assert not test["conflict"] and test["std_deg"] > 1.0, test
+    assert "the record does not check the heading given (--heading 95 deg)" in out.message
