@@ -941,12 +941,15 @@ class _Run:
         ``diagnostics["heading"]["test"]``; where the data contradict it, said (:class:`casep.exceptions.SetupWarning`,
         :func:`heading_message`) and failed (status ``STATUS_PRIOR_CONFLICT``: the heading's std is its prior). Not
         on noise-free rows (:meth:`at_rounding`, :meth:`casep.regression.problem.Problem.is_noise_free`): their std
-        are rounding, and the passes' remainder at their fixed point would read as a heading error."""
+        are rounding, and the passes' remainder at their fixed point would read as a heading error; nor on a flight
+        with a set-up problem (:func:`casep.checks.plausibility.setup_problems`: a wrong tracking frame, a heading
+        turned beyond 30 deg), whose rows are that mistake, not a heading within the linear model's reach."""
+        from casep.checks.plausibility import setup_problems
         from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
         from casep.exceptions import SetupWarning
 
         per_deg = self.heading_derivative(problem)
-        if per_deg is None or problem.y is None:
+        if per_deg is None or problem.y is None or setup_problems(flight):  # a set-up mistake: its failure says it
             return res
         rms = problem.ls_rms()
         if self.at_rounding(rms) or problem.is_noise_free(rms):  # no noise: no std to test the heading against
