@@ -954,8 +954,9 @@ class _Run:
         rms = problem.ls_rms()
         if self.at_rounding(rms) or problem.is_noise_free(rms):  # no noise: no std to test the heading against
             return res
-        record = heading_conflict(res, problem, flight, per_deg, self.heading["heading_deg"], self.heading_std,
-                                  self.levelling(), self.tau_profile(problem))
+        record = heading_conflict(self.with_heading_noise(res, problem, per_deg), problem, flight, per_deg,
+                                  self.heading["heading_deg"], self.heading_std, self.levelling(),
+                                  self.tau_profile(problem))
         if record is None:
             return res
         res.diagnostics["heading"] = {**res.diagnostics.get("heading", {}), "test": record}
@@ -964,6 +965,26 @@ class _Run:
         said = heading_message(record, self.heading["heading_axis"])
         warnings.warn(said, SetupWarning, stacklevel=4)
         return failed(res, STATUS_PRIOR_CONFLICT, f"failed: {said}")
+
+    def with_heading_noise(self, res: EstimateResult, problem: Any, per_deg: np.ndarray) -> EstimateResult:
+        """`res` whose noise model and sigma are those of the fit (as requested) of `problem`'s rows with the
+        heading's error as one more coefficient (its column `per_deg`, :meth:`heading_rows`), the noise the rows hold
+        once a turn of the velocity is fitted too (:func:`heading_conflict`'s whitening and std; `res` itself where
+        that fit has no noise model). The fit's own noise model was fitted to residuals that hold what its
+        coefficients cannot fit of a wrong heading, and took it for tracking noise: on an aircraft whose turns
+        determine the heading to 0.12-0.21 deg, a heading 2 deg off raised the std of its estimate to 0.37 deg."""
+        from casep.regression.problem import Problem
+
+        try:
+            joint = _quiet_fit(Problem.from_arrays(np.concatenate([problem.sv(), per_deg[:, :, None]], axis=2),
+                                                   problem.y, problem.t, names=[*res.names, "heading"]), self.spec)
+        except (ValueError, np.linalg.LinAlgError):  # no fit of the augmented rows: the fit's own noise stands
+            return res
+        nd = joint.diagnostics.get("noise")
+        if not isinstance(nd, dict) or "axes" not in nd or joint.sigma is None:
+            return res
+        noise = {k: v for k, v in nd.items() if k != "imu"}  # no refit beside the IMU's: its sigma, the IMU's added
+        return dataclasses.replace(res, sigma=joint.sigma, diagnostics={**res.diagnostics, "noise": noise})
 
     def heading_rows(self, D: np.ndarray) -> np.ndarray | None:
         """The rows' derivative (N, 3, m/s per deg) at `D` along the given heading (None: gyrocompassed, no alignment
@@ -1997,7 +2018,9 @@ def heading_conflict(res: EstimateResult, problem: Any, flight: FlightData, per_
     (:func:`combination_estimators` with ``d`` as one more column, the fit's whitening) is ``c = a y``, deg, the
     heading given less the one the record points to. Its std is that of any linear estimator on the rows
     (:func:`estimator_noise`: the tracking noise refitted beside the IMU's, the uncertainty of its correlation times,
-    the IMU's own noise; the fit's own ``sigma`` where the noise was not refitted). Under the stated heading (its
+    the IMU's own noise; the fit's own ``sigma`` where the noise was not refitted), under `res`'s noise model, which
+    whitens the rows: :meth:`_Run.with_heading_noise` gives the one fitted with the heading's column in the design
+    (the rows' noise once a turn of the velocity is fitted too). Under the stated heading (its
     error ``N(0, std_deg^2)``) ``c`` is ``N(0, std_deg^2 + std_c^2)`` (the prior predictive, as
     :func:`casep.estimators.rls.prior_conflict` tests RLS's prior), and beyond
     :data:`casep.estimators.rls.PRIOR_CONFLICT_Z` of that the data contradict the heading and its std (``conflict``):

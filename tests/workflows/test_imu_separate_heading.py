@@ -203,11 +203,11 @@ def aircraft(tmp_path_factory):
 
 
 def test_a_heading_the_data_contradict_fails_the_result(aircraft):
-    """Where the turns determine the heading (to 0.2-0.4 deg here), the test holds at the true heading (a success,
-    z below 1; the message says to what the record checks the heading) and, with the heading given 2 deg off at its
-    default std of 0.1 deg, finds it: the estimated offset within 2 of its std of +2 deg, a SetupWarning with the
-    numbers and the heading to try, and the result failed (status -10), not a success whose estimate carries the
-    turn."""
+    """Where the turns determine the heading (to 0.15 deg here), the test holds at the true heading (a success, z well
+    below the limit of 5; the message says to what the record checks the heading) and, with the heading given 2 deg
+    off at its default std of 0.1 deg, finds it: the estimated offset within 2 of its std of +2 deg, a SetupWarning
+    with the numbers and the heading to try, and the result failed (status -10), not a success whose estimate
+    carries the turn."""
     from casep.estimators.registry import STATUS_PRIOR_CONFLICT
     from casep.exceptions import SetupWarning
 
@@ -221,7 +221,7 @@ def test_a_heading_the_data_contradict_fails_the_result(aircraft):
 
     right, said = run(heading)
     test = right.result.diagnostics["heading"]["test"]
-    assert right.success and not said and not test["conflict"] and test["z"] < 1.0, (test, right.message)
+    assert right.success and not said and not test["conflict"] and test["z"] < 3.0, (test, right.message)
     assert test["std_deg"] < 0.5 and "the record checks the heading given (--heading 70 deg) only to" in right.message
     wrong, said = run(heading + 2.0)
     test = wrong.result.diagnostics["heading"]["test"]
