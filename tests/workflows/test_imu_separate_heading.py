@@ -227,6 +227,7 @@ def test_a_heading_the_data_contradict_fails_the_result(aircraft):
     test = wrong.result.diagnostics["heading"]["test"]
     assert not wrong.success and wrong.result.status == STATUS_PRIOR_CONFLICT, wrong.message
     assert test["conflict"] and abs(test["estimate_deg"] - 2.0) < 2 * test["std_deg"], test
+    assert abs(test["at_suggested_deg"]) < test["std_deg"], test  # navigated at the heading it points to: no turn left
     assert len(said) == 1 and "the data contradict the heading given" in said[0], said
     assert f"--heading {test['suggested_heading_deg']:.4g}" in said[0] and "--heading-std" in said[0]
     assert said[0] in wrong.message
