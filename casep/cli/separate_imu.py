@@ -18,7 +18,9 @@ def add_heading_std(parser: Any) -> None:
     """``--heading-std DEG``: the std of ``--heading`` (casep.workflows.imu_separate.HEADING_STD_DEG by default)."""
     parser.add_argument("--heading-std", type=finite_float, default=None, metavar="DEG",
                         help="with --imu --heading: the heading's std, deg (default 0.1: a surveyed rail and the "
-                             "IMU's mounting on it), carried into the std; 0: the heading exact")
+                             "IMU's mounting on it), carried into the std; 0: the heading exact. The data's own "
+                             "estimate of the heading is tested against it: a heading they contradict fails the "
+                             "result (status -10)")
 
 
 def imu_only(args: argparse.Namespace) -> None:

@@ -463,7 +463,8 @@ STATUS_MISFIT = -8
 #: Status of a several-flight result whose flights disagree on the shared coefficients
 #: (casep.workflows.flights.judge_consistency).
 STATUS_DISAGREE = -9
-#: Status of a result whose prior the data contradict (casep.estimators.rls.prior_conflict).
+#: Status of a result whose prior the data contradict (casep.estimators.rls.prior_conflict; a raw-IMU separation's
+#: given heading and its std: casep.workflows.imu_separate.heading_conflict).
 STATUS_PRIOR_CONFLICT = -10
 #: Every failure status above, by name: one status, one meaning (tests/estimators/test_statuses.py).
 FAILURE_STATUSES = {"none determined": STATUS_NONE_DETERMINED, "setup": STATUS_SETUP, "magnitude": STATUS_MAGNITUDE,

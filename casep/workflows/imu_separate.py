@@ -413,7 +413,7 @@ class _Run:
     heading_std: float = 0.0
     #: the heading check's finding (:meth:`heading_check`, on the first pass; a class default: a telemetry's passes)
     heading_said: str | None = None
-    #: (problem, the rows' shift for one std of the heading), formed once per problem by :meth:`finish`
+    #: (problem, the rows' derivative along the heading per deg), formed once per problem by :meth:`finish`
     _heading: tuple | None = None
 
     def __init__(self, imu: ImuData, tracking: Any, nav_site: LaunchSite, site: LaunchSite, window: tuple,
@@ -885,6 +885,7 @@ class _Run:
         if failure is not None:
             gap = self.gap_clause(float(out.sigma)) or _late_tags_clause(flight)
             out = failed(out, STATUS_NOT_CONVERGED, failure.replace(_BLAME, gap) if gap else failure)
+        out = self.heading_judged(out, problem, flight, D)
         widen = None
         if iterate and failure is None:  # the combinations' curvature over what the flight does not determine
             def widen(combos: list[dict]) -> tuple[list[dict], str | None, dict | None]:
@@ -916,6 +917,9 @@ class _Run:
                 out = one_pass_judged(out, shift)
         if said and not iterate:  # after the judgement, whose failure message replaces a success's
             out = _with_line(out, said)
+        unchecked = heading_unchecked((out.diagnostics.get("heading") or {}).get("test"))
+        if unchecked:  # last: a failure's message replaces a success's
+            out = _with_line(out, unchecked)
         return ImuSeparation(_advice_first(out, SMALLER_MODELS.get(self.base.name)), nav, flight, passes)
 
     def left_out_curvature(self, res: EstimateResult, last: dict, problem: Any, flight: FlightData,
@@ -993,33 +997,110 @@ class _Run:
                     self.heading["heading_deg"], self.heading_std, a @ heading.reshape(-1), out.std, list(out.names))}
         return out
 
+    def heading_judged(self, res: EstimateResult, problem: Any, flight: FlightData,
+                       D: np.ndarray) -> EstimateResult:
+        """`res` with the test of the given heading against the data (:func:`heading_conflict`) in
+        ``diagnostics["heading"]["test"]``; where the data contradict it, said (:class:`casep.exceptions.SetupWarning`,
+        :func:`heading_message`) and failed (status ``STATUS_PRIOR_CONFLICT``: the heading's std is its prior). Not
+        on noise-free rows (:meth:`at_rounding`, :meth:`casep.regression.problem.Problem.is_noise_free`): their std
+        are rounding, and the passes' remainder at their fixed point would read as a heading error; nor on a flight
+        with a set-up problem (:func:`casep.checks.plausibility.setup_problems`: a wrong tracking frame, a heading
+        turned beyond 30 deg), whose rows are that mistake, not a heading within the linear model's reach. A conflict
+        stands only where the linear model holds out to the heading the data point to: the pass's rows navigated at
+        it (at `D`) put the heading's error there below half of the error found (``at_suggested_deg``); else the
+        estimate is the passes' remainder, not a turn the data show (a rail launch under ``strapdown12``: -26 +- 5.5
+        deg at the true heading)."""
+        from casep.checks.plausibility import setup_problems
+        from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
+        from casep.exceptions import SetupWarning
+
+        per_deg = self.heading_derivative(problem)
+        if per_deg is None or problem.y is None or setup_problems(flight):  # a set-up mistake: its failure says it
+            return res
+        rms = problem.ls_rms()
+        if self.at_rounding(rms) or problem.is_noise_free(rms):  # no noise: no std to test the heading against
+            return res
+        noise, h0 = self.with_heading_noise(res, problem, per_deg), self.heading["heading_deg"]
+        args = (self.levelling(), self.tau_profile(problem))
+        record = heading_conflict(noise, problem, flight, per_deg, h0, self.heading_std, *args)
+        if record is None:
+            return res
+        res.diagnostics["heading"] = {**res.diagnostics.get("heading", {}), "test": record}
+        if not record["conflict"]:
+            return res
+        # the linear model at the heading the data point to: the pass's rows there, the same estimator
+        try:
+            self.heading["heading_deg"] = record["suggested_heading_deg"]
+            there = self.rows(D)
+        except ValueError:
+            there = None
+        finally:
+            self.heading["heading_deg"] = h0
+        again = None if there is None else heading_conflict(noise, problem.with_y(there), flight, per_deg, h0,
+                                                            self.heading_std, *args)
+        record["at_suggested_deg"] = None if again is None else again["estimate_deg"]
+        if again is None or not abs(again["estimate_deg"]) < abs(record["estimate_deg"]) / 2:
+            record["conflict"] = False  # beyond the linear model's reach: not a finding of the data
+            return res
+        said = heading_message(record, self.heading["heading_axis"])
+        warnings.warn(said, SetupWarning, stacklevel=4)
+        return failed(res, STATUS_PRIOR_CONFLICT, f"failed: {said}")
+
+    def with_heading_noise(self, res: EstimateResult, problem: Any, per_deg: np.ndarray) -> EstimateResult:
+        """`res` whose noise model and sigma are those of the fit (as requested) of `problem`'s rows with the
+        heading's error as one more coefficient (its column `per_deg`, :meth:`heading_rows`), the noise the rows hold
+        once a turn of the velocity is fitted too (:func:`heading_conflict`'s whitening and std; `res` itself where
+        that fit has no noise model). The fit's own noise model was fitted to residuals that hold what its
+        coefficients cannot fit of a wrong heading, and took it for tracking noise: on an aircraft whose turns
+        determine the heading to 0.12-0.21 deg, a heading 2 deg off raised the std of its estimate to 0.37 deg."""
+        from casep.regression.problem import Problem
+
+        try:
+            joint = _quiet_fit(Problem.from_arrays(np.concatenate([problem.sv(), per_deg[:, :, None]], axis=2),
+                                                   problem.y, problem.t, names=[*res.names, "heading"]), self.spec)
+        except (ValueError, np.linalg.LinAlgError):  # no fit of the augmented rows: the fit's own noise stands
+            return res
+        nd = joint.diagnostics.get("noise")
+        if not isinstance(nd, dict) or "axes" not in nd or joint.sigma is None:
+            return res
+        noise = {k: v for k, v in nd.items() if k != "imu"}  # no refit beside the IMU's: its sigma, the IMU's added
+        return dataclasses.replace(res, sigma=joint.sigma, diagnostics={**res.diagnostics, "noise": noise})
+
     def heading_rows(self, D: np.ndarray) -> np.ndarray | None:
-        """The shift of a pass's rows (N, 3, m/s) at `D` for one std of the given heading (None: gyrocompassed, or
-        the heading exact, or a pass at the heading's steps cannot be navigated).
+        """The rows' derivative (N, 3, m/s per deg) at `D` along the given heading (None: gyrocompassed, no alignment
+        (a telemetry's passes), or a pass at the heading's steps cannot be navigated).
 
         On a rail launch the lateral terms cannot tell the heading from the coefficients: a heading error turns the
         thrust's velocity about the vertical, a lateral velocity error that the coefficients fit, and a heading taken
         as exact gives estimates off by many std with residuals as good as the right heading's. The heading is a
         consider parameter: not fitted, its uncertainty carried into the estimate's covariance through the same
         estimator as the record's noise (:func:`imu_noise_budget`, :func:`combination_imu_noise`: one more column of
-        ``G``). Its column is the derivative of a pass (the record corrected at `D`, aligned at the heading,
-        navigated and paired: :meth:`rows`) along the heading, by central differences of
-        :data:`HEADING_STEP_DEG`, times its std."""
-        if not self.heading_std > 0:  # exact, gyrocompassed, or no alignment (a telemetry's passes)
+        ``G``, this derivative times the heading's std: :meth:`heading_effect`), and tested against the data
+        (:func:`heading_conflict`, at any std, 0 too). It is the derivative of a pass (the record corrected at `D`,
+        aligned at the heading, navigated and paired: :meth:`rows`) along the heading, by central differences of
+        :data:`HEADING_STEP_DEG`."""
+        heading = getattr(self, "heading", None)  # a telemetry's passes (_TelemetryRun) have no pad alignment
+        if heading is None or heading["heading_deg"] is None:
             return None
-        h0 = self.heading["heading_deg"]
+        h0 = heading["heading_deg"]
         ys = []
         try:
             for s in (HEADING_STEP_DEG, -HEADING_STEP_DEG):
-                self.heading["heading_deg"] = h0 + s
+                heading["heading_deg"] = h0 + s
                 ys.append(self.rows(D))
-        except ValueError:  # the record does not invert there: no column (the std without it)
+        except ValueError:  # the record does not invert there: no column (the std without it, no test)
             return None
         finally:
-            self.heading["heading_deg"] = h0
-        return (ys[0] - ys[1]) / (2 * HEADING_STEP_DEG) * self.heading_std
+            heading["heading_deg"] = h0
+        return (ys[0] - ys[1]) / (2 * HEADING_STEP_DEG)
 
     def heading_effect(self, problem: Any) -> np.ndarray | None:
+        """The shift of `problem`'s rows (N, 3, m/s) for one std of the given heading: :meth:`heading_rows` times
+        :attr:`heading_std` (None before :meth:`finish` formed it, for another problem, or the heading exact)."""
+        per_deg = self.heading_derivative(problem)
+        return None if per_deg is None or not self.heading_std > 0 else per_deg * self.heading_std
+
+    def heading_derivative(self, problem: Any) -> np.ndarray | None:
         """:meth:`heading_rows` of `problem`'s pass (None before :meth:`finish` formed it, or for another problem)."""
         return self._heading[1] if self._heading is not None and self._heading[0] is problem else None
 
@@ -1936,16 +2017,23 @@ def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult,
     Sigma_track a^T`` (:func:`casep.noise.known.tracking_covariance_times`). With `profile` (:meth:`_Run.tau_profile`)
     the tracking part gains what the uncertainty of the tracking noise's correlation times adds (:func:`tau_spread`);
     with `heading` (:meth:`_Run.heading_rows`) the IMU part gains the given heading's (:func:`with_heading`)."""
+    a = combination_estimators(W, scale, res, problem)
+    return None if a is None else estimator_noise(a, res, problem, flight, levelling, profile, heading)
+
+
+def estimator_noise(a: np.ndarray, res: EstimateResult, problem: Any, flight: FlightData,
+                    levelling: tuple | None = None, profile: tuple | None = None,
+                    heading: np.ndarray | None = None) -> tuple[np.ndarray | None, np.ndarray] | None:
+    """The variances of the estimators `a` (m, 3N: rows on the raw rows of `problem`, axis-interleaved) under the
+    noise of :func:`imu_noise_budget`: ``(tracking part, IMU part)``, as :func:`combination_imu_noise` (its rule, for
+    any linear estimator on the rows: the stated combinations' and :func:`heading_conflict`'s)."""
     from casep.checks.tracking_quality import imu_noise_effect
     from casep.noise.known import tracking_covariance_times
     from casep.noise.model import NoiseModel
 
-    a = combination_estimators(W, scale, res, problem)
-    if a is None:
-        return None
     nd = res.diagnostics["noise"]
     t = np.asarray(problem.t, dtype=float)
-    N, m = t.size, W.shape[0]
+    N, m = t.size, a.shape[0]
     AG = imu_noise_effect(flight, t, a, levelling)
     if AG is None:
         return None
@@ -1959,10 +2047,19 @@ def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult,
     return trk, np.sum(AG**2, axis=1)
 
 
-def combination_estimators(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: Any) -> np.ndarray | None:
+def combination_estimators(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: Any,
+                           column: np.ndarray | None = None) -> np.ndarray | None:
     """The estimators (m, 3N) of the combinations ``W (D / scale)`` on the raw rows of `problem` (axis-interleaved): the
     rows of ``W P``, ``P`` the GLS estimator of ``D / scale`` under `res`'s noise model (:func:`combination_imu_noise`);
-    None without times or a noise model."""
+    None without times or a noise model. With `column` (N, 3) the design gains it as one more column (the rows'
+    derivative along the heading: :func:`heading_conflict`), `W` one more entry per row for its coefficient."""
+    out = _estimators(W, scale, res, problem, column)
+    return None if out is None else out[1]
+
+
+def _estimators(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: Any,
+                column: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`combination_estimators` on the whitened rows and on the raw rows: ``(W P_w, W P)``, each (m, 3N)."""
     from casep.noise.model import NoiseModel, whiten, whiten_transpose
 
     nd = res.diagnostics.get("noise")
@@ -1970,11 +2067,13 @@ def combination_estimators(W: np.ndarray, scale: np.ndarray, res: EstimateResult
         return None
     t = np.asarray(problem.t, dtype=float)
     S = problem.sv()
+    if column is not None:
+        S, scale = np.concatenate([S, np.asarray(column, dtype=float)[:, :, None]], axis=2), np.append(scale, 1.0)
     N, _, n = S.shape
     m = W.shape[0]
     U = whiten(S, np.zeros((N, 3)), t, NoiseModel.from_dict(nd))[0].reshape(3 * N, n) * scale
     a = W @ np.linalg.pinv(U)  # (m, 3N): the combinations' estimators on the whitened rows
-    return whiten_transpose(a.T.reshape(N, 3, m), t, NoiseModel.from_dict(nd)).reshape(3 * N, m).T  # ... raw rows
+    return a, whiten_transpose(a.T.reshape(N, 3, m), t, NoiseModel.from_dict(nd)).reshape(3 * N, m).T  # ... raw rows
 
 
 def with_heading(AG: np.ndarray, a: np.ndarray, heading: np.ndarray | None) -> np.ndarray:
@@ -2002,6 +2101,87 @@ def heading_record(heading_deg: float, std_deg: float, shift: np.ndarray, std: n
             "rule": "a consider parameter: the rows' derivative along the heading (central differences of a pass "
                     "navigated at the heading plus and minus the step) times its std, through the estimator, in the "
                     "covariance and the stated combinations' std"}
+
+
+def heading_conflict(res: EstimateResult, problem: Any, flight: FlightData, per_deg: np.ndarray | None,
+                     heading_deg: float, std_deg: float, levelling: tuple | None = None,
+                     profile: tuple | None = None) -> dict | None:
+    """The data's own estimate of the given heading's error, and its test against the stated std: the record
+    ``diagnostics["heading"]["test"]`` (None without the rows' derivative along the heading, `per_deg` (N, 3, m/s per
+    deg: :meth:`_Run.heading_rows`), or without a noise model).
+
+    The rows at the given heading ``H`` are, to first order, ``y = S x + d (H - H_true) + e`` (``d`` = `per_deg`):
+    the heading's error is one more coefficient of the design, and its GLS estimate after projecting out ``S``
+    (:func:`combination_estimators` with ``d`` as one more column, the fit's whitening) is ``c = a y``, deg, the
+    heading given less the one the record points to. Its std is that of any linear estimator on the rows
+    (:func:`estimator_noise`: the tracking noise refitted beside the IMU's, the uncertainty of its correlation times,
+    the IMU's own noise; the fit's own ``sigma`` where the noise was not refitted), under `res`'s noise model, which
+    whitens the rows: :meth:`_Run.with_heading_noise` gives the one fitted with the heading's column in the design
+    (the rows' noise once a turn of the velocity is fitted too). Under the stated heading (its
+    error ``N(0, std_deg^2)``) ``c`` is ``N(0, std_deg^2 + std_c^2)`` (the prior predictive, as
+    :func:`casep.estimators.rls.prior_conflict` tests RLS's prior), and beyond
+    :data:`casep.estimators.rls.PRIOR_CONFLICT_Z` of that the data contradict the heading and its std (``conflict``):
+    the rows the fit explains by its coefficients are a turned boost, and the estimate is off by what the heading's
+    consider term does not cover."""
+    from casep.estimators.rls import PRIOR_CONFLICT_Z
+
+    if per_deg is None or problem.y is None or not np.all(np.isfinite(per_deg)):
+        return None
+    n = len(res.names)
+    W = np.zeros((1, n + 1))
+    W[0, n] = 1.0
+    est = _estimators(W, np.ones(n), res, problem, per_deg)
+    if est is None:
+        return None
+    a_w, a = est
+    offset = float(a[0] @ np.asarray(problem.y, dtype=float).reshape(-1))
+    own = float(res.sigma) ** 2 * float(np.sum(a_w**2))  # the fit's own noise (its whitening, its sigma)
+    var = estimator_noise(a, res, problem, flight, levelling, profile)
+    if var is None:
+        var_c = own
+    else:
+        var_c = (own if var[0] is None else float(var[0][0])) + float(var[1][0])
+    std_c = math.sqrt(max(var_c, 0.0))
+    scale = math.hypot(std_deg, std_c)
+    z = abs(offset) / scale if scale > 0 else (np.inf if offset else 0.0)
+    return {"estimate_deg": offset, "std_deg": std_c, "heading_deg": float(heading_deg),
+            "stated_std_deg": float(std_deg), "z": float(z), "limit_z": PRIOR_CONFLICT_Z,
+            "suggested_heading_deg": float(heading_deg) - offset, "conflict": bool(z > PRIOR_CONFLICT_Z),
+            "rule": "the heading's error as one more coefficient (the rows' derivative along it, the fit's "
+                    "whitening, S_V projected out), its std under the rows' noise; z = |estimate| / sqrt(stated "
+                    "std^2 + its std^2) (prior predictive) beyond limit_z: the data contradict the heading"}
+
+
+def heading_message(record: dict, axis: str) -> str:
+    """What a result says when the data contradict the given heading (:func:`heading_conflict`'s `record`)."""
+    h, c, sd, st = (record[k] for k in ("heading_deg", "estimate_deg", "std_deg", "stated_std_deg"))
+    return (f"the data contradict the heading given: at --heading {h:g} deg (body axis {axis}, --heading-std "
+            f"{st:g} deg) the rows hold a turn of the velocity that puts the heading {c:+.3g} +- {sd:.2g} deg "
+            f"off (z = {record['z']:.3g} against the stated std and the estimate's, above {record['limit_z']:g}); "
+            f"the coefficients absorb it, so the estimate is off by more than its std say. Check the heading "
+            f"(--heading {record['suggested_heading_deg']:.4g} is what the data point to) or state how well it is "
+            f"known (--heading-std {max(abs(c), sd):.2g} or more)")
+
+
+def heading_unchecked(record: dict | None) -> str | None:
+    """What a result says when the record knows the given heading less well than its stated std
+    (:func:`heading_conflict`'s `record`: the data's own std of the heading's error above the stated std), or None
+    (no test, a conflict: said by the failure, or a record that checks the heading). On a rail launch the lateral
+    terms fit a heading error as well as the heading (``docs/guide/navigate.md``: the MEMS example's record knows it
+    to 55 deg): no test of the data can then see a wrong heading, and the result holds only as far as the heading is
+    within its stated std, which the message says."""
+    if record is None or record["conflict"] or not record["std_deg"] > record["stated_std_deg"]:
+        return None
+    seen = record["limit_z"] * math.hypot(record["stated_std_deg"], record["std_deg"])
+    given = f"the heading given (--heading {record['heading_deg']:g} deg)"
+    if seen >= 180:
+        head, unseen = f"the record does not check {given}", "no error of the heading would show in it"
+    else:
+        head, unseen = f"the record checks {given} only to {seen:.3g} deg", "a smaller error would not show in it"
+    return (f"{head}: its own estimate of the heading's error, with the coefficients free, is "
+            f"{record['estimate_deg']:+.3g} +- {record['std_deg']:.3g} deg, and {unseen} (z {record['limit_z']:g}); "
+            f"the estimate and its std hold as far as the heading is within its stated std (--heading-std "
+            f"{record['stated_std_deg']:g} deg)")
 
 
 def _heading_std(heading_deg: float | None, heading_std_deg: float | None) -> float:

@@ -124,3 +124,134 @@ def test_the_heading_std_is_checked(heading, std, said):
     with pytest.raises(ValueError, match="heading_std_deg.*" + said):
         separate_imu("no-such-imu.csv", "no-such-trk.csv", SITE, ALIGN, MODEL, heading_deg=heading,
                      heading_std_deg=std)
+
+
+def _gls_problem(c_true: float, seed: int = 3):
+    """A linear problem ``y = S x + d c + e`` on 60 epochs (5 Hz) with Gauss-Markov noise per axis (tau 1, 2, 0.5 s,
+    scales 1, 1.5, 0.8, sigma 0.05 m/s), the fakes :func:`heading_conflict` reads, and the design and covariance
+    written out whole (3N x 3N, axis-interleaved) for an independent GLS."""
+    from types import SimpleNamespace
+
+    from casep.noise.model import NoiseModel
+
+    rng = np.random.default_rng(seed)
+    N, n, sigma = 60, 4, 0.05
+    t = np.arange(N) * 0.2
+    tau, scale = (1.0, 2.0, 0.5), (1.0, 1.5, 0.8)
+    S, d = rng.standard_normal((N, 3, n)), rng.standard_normal((N, 3))
+    cov = np.zeros((3 * N, 3 * N))
+    for j in range(3):  # AR(1) of unit stationary variance on the times, times the axis's scale
+        cov[j::3, j::3] = scale[j] ** 2 * np.exp(-np.abs(t[:, None] - t[None, :]) / tau[j])
+    e = np.linalg.cholesky(cov) @ rng.standard_normal(3 * N) * sigma
+    y = np.einsum("ijk,k->ij", S, rng.standard_normal(n)) + d * c_true + e.reshape(N, 3)
+    noise = NoiseModel(kind="gm", tau=tau, scale=scale).to_dict()
+    res = SimpleNamespace(names=[f"c{k}" for k in range(n)], sigma=sigma, diagnostics={"noise": noise})
+    problem = SimpleNamespace(t=t, y=y, sv=lambda: S)
+    X = np.column_stack([S.reshape(3 * N, n), d.reshape(-1)])
+    return res, problem, d, X, y.reshape(-1), cov * sigma**2
+
+
+@pytest.mark.parametrize("c_true", [0.0, 3.0])
+def test_the_heading_test_is_the_gls_coefficient_of_the_heading_column(c_true):
+    """:func:`heading_conflict`'s estimate of the heading's error and its std (the fit's noise, the flight holding no
+    IMU samples) against GLS written out with the full covariance (``(X^T C^-1 X)^-1 X^T C^-1 y``, ``X = [S, d]``):
+    equal to rounding; its sign is the heading given less the true (the rows at ``H`` are ``y(H_true) + d (H -
+    H_true)``), the suggestion ``H - c``, and z the prior predictive ``|c| / sqrt(stated^2 + std^2)``."""
+    from types import SimpleNamespace
+
+    from casep.estimators.rls import PRIOR_CONFLICT_Z
+    from casep.workflows.imu_separate import heading_conflict
+
+    res, problem, d, X, y, cov = _gls_problem(c_true)
+    Ci = np.linalg.inv(cov)
+    M = np.linalg.inv(X.T @ Ci @ X)
+    beta = M @ X.T @ Ci @ y
+    rec = heading_conflict(res, problem, SimpleNamespace(signals={}, meta={}), d, 95.0, 0.1)
+    assert rec is not None
+    np.testing.assert_allclose(rec["estimate_deg"], beta[-1], rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(rec["std_deg"], np.sqrt(M[-1, -1]), rtol=1e-8)
+    assert rec["z"] == pytest.approx(abs(beta[-1]) / np.hypot(0.1, np.sqrt(M[-1, -1])), rel=1e-8)
+    assert rec["suggested_heading_deg"] == pytest.approx(95.0 - rec["estimate_deg"])
+    assert rec["conflict"] == (rec["z"] > PRIOR_CONFLICT_Z)
+    if c_true:  # 3 deg off, known to about 0.01 deg: the data contradict a std of 0.1 deg
+        assert rec["std_deg"] < 0.05 and rec["conflict"] and abs(rec["estimate_deg"] - c_true) < 5 * rec["std_deg"]
+    else:
+        assert not rec["conflict"]
+
+
+def test_what_a_result_says_of_the_heading_test():
+    """The failure's message (a conflict) gives the data's estimate and std, the stated std and both suggestions;
+    a record that knows the heading less well than its stated std says that no error of it would show; one that knows
+    it better (and agrees) says nothing."""
+    from casep.workflows.imu_separate import heading_message, heading_unchecked
+
+    rec = {"heading_deg": 32.0, "stated_std_deg": 0.1, "estimate_deg": 2.04, "std_deg": 0.21, "z": 8.6,
+           "limit_z": 5.0, "suggested_heading_deg": 29.96, "conflict": True}
+    said = heading_message(rec, "x")
+    for part in ("--heading 32 deg", "+2.04 +- 0.21 deg", "--heading-std 0.1 deg", "--heading 29.96",
+                 "--heading-std 2"):
+        assert part in said, said
+    assert heading_unchecked(rec) is None  # the failure says it
+    loose = {**rec, "estimate_deg": -19.2, "std_deg": 55.5, "z": 0.35, "conflict": False}
+    assert "the record does not check the heading given (--heading 32 deg): its own estimate of the heading's " \
+           "error, with the coefficients free, is -19.2 +- 55.5 deg" in heading_unchecked(loose)
+    some = {**loose, "std_deg": 1.5}
+    assert "the record checks the heading given (--heading 32 deg) only to 7.52 deg" in heading_unchecked(some)
+    assert heading_unchecked({**loose, "std_deg": 0.05}) is None
+
+
+@pytest.fixture(scope="module")
+def aircraft(tmp_path_factory):
+    """A flight whose data determine the heading: the tactical aircraft of ``benchmarks/aircraft_flight.py`` (its own
+    strapdown generator) cut to 2.8 min (60 s on the ground, a take-off roll, a climb, one coordinated turn), its IMU
+    at 25 Hz with ``strapdown12``'s errors (the benchmark's draw of seed 1, the other terms of ``strapdown33`` zero),
+    GNSS velocity and position at 5 Hz with Gauss-Markov plus white noise."""
+    from conftest import benchmark_module
+
+    with benchmark_module("aircraft_flight") as af:
+        full = af.with_errors
+        kept = ("ba_", "sa_", "bg_", "sg_")
+        af.with_errors = lambda fb, wb, c: full(fb, wb, {k: v if k.startswith(kept) else 0.0 for k, v in c.items()})
+        imu, trk, _ = af.flight(1, 2.8, 25, tmp_path_factory.mktemp("aircraft"))
+        site, align, heading = LaunchSite(*af.SITE, af.T_REST), (1.0, af.T_REST - 5.0), af.SITE[3]
+    return imu, trk, site, align, heading
+
+
+def test_a_heading_the_data_contradict_fails_the_result(aircraft):
+    """Where the turns determine the heading (to 0.15 deg here), the test holds at the true heading (a success, z well
+    below the limit of 5; the message says to what the record checks the heading) and, with the heading given 2 deg
+    off at its default std of 0.1 deg, finds it: the estimated offset within 2 of its std of +2 deg, a SetupWarning
+    with the numbers and the heading to try, and the result failed (status -10), not a success whose estimate
+    carries the turn."""
+    from casep.estimators.registry import STATUS_PRIOR_CONFLICT
+    from casep.exceptions import SetupWarning
+
+    imu, trk, site, align, heading = aircraft
+
+    def run(h):
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            out = separate_imu(imu, trk, site, align, "strapdown12", heading_deg=h, tracking_frame="geodetic")
+        return out, [str(w.message) for w in seen if w.category is SetupWarning]
+
+    right, said = run(heading)
+    test = right.result.diagnostics["heading"]["test"]
+    assert right.success and not said and not test["conflict"] and test["z"] < 3.0, (test, right.message)
+    assert test["std_deg"] < 0.5 and "the record checks the heading given (--heading 70 deg) only to" in right.message
+    wrong, said = run(heading + 2.0)
+    test = wrong.result.diagnostics["heading"]["test"]
+    assert not wrong.success and wrong.result.status == STATUS_PRIOR_CONFLICT, wrong.message
+    assert test["conflict"] and abs(test["estimate_deg"] - 2.0) < 2 * test["std_deg"], test
+    assert abs(test["at_suggested_deg"]) < test["std_deg"], test  # navigated at the heading it points to: no turn left
+    assert len(said) == 1 and "the data contradict the heading given" in said[0], said
+    assert f"--heading {test['suggested_heading_deg']:.4g}" in said[0] and "--heading-std" in said[0]
+    assert said[0] in wrong.message
+
+
+def test_a_rail_launch_says_the_record_does_not_check_the_heading(launch):
+    """On the rail launch the lateral terms fit a heading error: the data's own std of it is many degrees, the test
+    holds (no failure), and the result says the record does not check the heading given."""
+    out = _separate(launch, HEADING, None)
+    test = out.result.diagnostics["heading"]["test"]
+    assert not test["conflict"] and test["std_deg"] > 1.0, test
+    assert "the record does not check the heading given (--heading 95 deg)" in out.message
