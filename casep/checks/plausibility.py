@@ -92,7 +92,7 @@ from casep.units import G0
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
            "min_samples", "dv_noise", "misfit_problem", "MISFIT_RATIO", "MISFIT_NOISE_FLOOR",
            "setup_problems", "warn_setup", "levelling_problem",
-           "UNIT_FACTORS", "unit_factor", "misfit_advice"]
+           "UNIT_FACTORS", "unit_factor", "misfit_advice", "time_unit_factors"]
 
 
 # Specific force, m/s^2: a boost is ~1-30 g (1 g needed to lift off, ~100 g the hardest motors).
@@ -376,14 +376,19 @@ def _check_time(flight: FlightData) -> None:
               f"{h / steps[k]:.3g} times below the median step {h:.4g} s: a near-duplicate time tag?")
 
 
-def _time_units(h: float, T: float) -> list[str]:
-    """The units of t that bring a median step `h` and a duration `T` (both read as s) into the range of boost
-    telemetry, when they are out of it; [] when in range or when none fits."""
+def time_unit_factors(h: float, T: float) -> list[tuple[str, float]]:
+    """The units of t, with the factor to seconds, that bring a median step `h` and a duration `T` (both read as s)
+    into the range of boost telemetry, when they are out of it; [] when in range or when none fits."""
     if STEP_LOW <= h <= STEP_HIGH and T <= DURATION_HIGH:
         return []
     scales = (("ms (divide by 1000)", 1e-3), ("us (divide by 1e6)", 1e-6), ("ns (divide by 1e9)", 1e-9),
               ("min (multiply by 60)", 60.0), ("h (multiply by 3600)", 3600.0))
-    return [u for u, k in scales if STEP_LOW <= h * k <= STEP_HIGH and T * k <= DURATION_HIGH]
+    return [(u, k) for u, k in scales if STEP_LOW <= h * k <= STEP_HIGH and T * k <= DURATION_HIGH]
+
+
+def _time_units(h: float, T: float) -> list[str]:
+    """The names of :func:`time_unit_factors`."""
+    return [u for u, _ in time_unit_factors(h, T)]
 
 
 def dv_noise(flight: FlightData) -> np.ndarray:

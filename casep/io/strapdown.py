@@ -367,21 +367,88 @@ def check_strapdown(src: str, t: np.ndarray, q: np.ndarray, fb: np.ndarray, w: n
             f"{src}: body rate ({', '.join(BODY_RATE_COLUMNS)}) peaks at {peak[k]:.4g} rad/s ({peak[k] / _DEG:.4g} "
             f"deg/s, {peak[k] / (2 * np.pi):.3g} rev/s) at row {k + 1}, above the {RATE_PEAK_HIGH:g} rad/s of "
             "vehicles: is it in deg/s (multiply by pi/180)?"), stacklevel=3)
-    ev = _rate_evidence(t, q, w)
+    across, lost = _lost_rows(src, t)
+    if lost:
+        info["lost_rows"] = lost
+    ev = _rate_evidence(t, q, w, across)
     info.update({k: v for k, v in ev.items() if k != "fits"})
     if "fits" in ev and not _agrees(ev):
-        note, clip = "", _clipped_rates(t, w)
+        _time_unit_explains(t, q, w, across, ev, error)
+        note, clip = _lost_note(lost, across), _clipped_rates(t, w)
         if clip is not None:  # judged off the clipped readings: a clip is no axis, sign or factor
             keep, said = clip
-            ev = _rate_evidence(t, q, w, keep)
+            ev = _rate_evidence(t, q, w, keep if across is None else keep & across)
             info["rate_clipped"] = said
             if "fits" not in ev or _agrees(ev):
                 _warn_clip_only(src, ev, said, keep)
                 return q, info
-            note = (f". The gyro also clipped ({'; '.join(said)}): the {int((~keep).sum())} steps at and next to "
-                    "those readings are left out of this comparison")
+            note += (f". The gyro also clipped ({'; '.join(said)}): the {int((~keep).sum())} steps at and next to "
+                     "those readings are left out of this comparison")
         _judge_rate_fits(src, ev, error, note)
     return q, info
+
+
+def _lost_rows(src: str, t: np.ndarray) -> tuple[np.ndarray | None, list[dict[str, float]]]:
+    """The telemetry's lost rows: the ``(N-1,)`` steps of the attitude/rate comparison that no gap reaches (None
+    without a gap) and each gap (rows before and after, times, length), warned of with a :class:`StrapdownWarning`.
+
+    A gap is a step over :data:`casep.navigation.imu.GAP_FACTOR` median steps (:func:`casep.navigation.imu.gap_steps`,
+    the IMU's rule for lost samples: the same rates integrated). The integrated rate of a step is a cubic through the
+    readings around it (:data:`CLIP_REACH`): over a gap it guesses the motion, so the gap's step and its neighbours
+    are left out of the comparison, not judged as the INS's rate."""
+    from casep.navigation.imu import GAP_FACTOR, gap_steps
+
+    if t.size < 3:
+        return None, []
+    steps = gap_steps(t)
+    if not steps.size:
+        return None, []
+    h = float(np.median(np.diff(t)))
+    lost = [{"row_before": int(k) + 1, "row_after": int(k) + 2, "t_before": float(t[k]), "t_after": float(t[k + 1]),
+             "length_s": float(t[k + 1] - t[k]), "rows_lost": int(round((t[k + 1] - t[k]) / h)) - 1} for k in steps]
+    keep = np.ones(t.size - 1, bool)
+    for k in steps:
+        keep[max(k - CLIP_REACH + 1, 0): k + CLIP_REACH] = False
+    listed = "; ".join(_gap_text(g) for g in lost[:5]) + (f"; and {len(lost) - 5} more" if len(lost) > 5 else "")
+    warnings.warn(StrapdownWarning(
+        f"{src}: column t: the telemetry lost rows: {len(lost)} gap(s) over {GAP_FACTOR:g} x the median step "
+        f"{h:.4g} s ({listed}); the attitude/rate comparison leaves the {int((~keep).sum())} steps across and next "
+        "to them out (a rate integrated over a gap guesses the motion)"), stacklevel=4)
+    return keep, lost
+
+
+def _gap_text(g: dict[str, float]) -> str:
+    """One gap of :func:`_lost_rows`: its length, the rows and times on either side."""
+    return (f"{g['length_s']:.4g} s, ~{g['rows_lost']} row(s) lost between rows {g['row_before']} and "
+            f"{g['row_after']}, t = {g['t_before']:.10g} .. {g['t_after']:.10g} s")
+
+
+def _lost_note(lost: list[dict[str, float]], keep: np.ndarray | None) -> str:
+    """What a finding of the comparison says of the gaps it left out ('' without any)."""
+    if not lost or keep is None:
+        return ""
+    return (f". The telemetry lost rows ({'; '.join(_gap_text(g) for g in lost[:3])}{' ...' if len(lost) > 3 else ''}):"
+            f" the {int((~keep).sum())} steps across and next to the gaps are left out of this comparison")
+
+
+def _time_unit_explains(t: np.ndarray, q: np.ndarray, w: np.ndarray, keep: np.ndarray | None, ev: dict[str, Any],
+                        error: Any) -> None:
+    """Before the body rate is blamed: t in another unit than s also breaks the comparison (the step's rotation is the
+    rate times a step 1000 times too long). When the median step and the span are out of the range of telemetry
+    (:func:`casep.checks.plausibility.time_unit_factors`, the rule the flight check warns with) and the time in a unit
+    that fits makes the attitude and the rate agree (:func:`_agrees`), an error naming ``t``."""
+    from casep.checks.plausibility import time_unit_factors
+
+    h, span = float(np.median(np.diff(t))), float(t[-1] - t[0])
+    for unit, k in time_unit_factors(h, span):
+        alt = _rate_evidence(k * t, q, w, keep)
+        if "fits" in alt and _agrees(alt):
+            mine = ev["fits"][next(iter(ev["fits"]))]
+            raise error(f"t looks like {unit.split(' ')[0]}, not s: median time step {h:.4g} s ({1 / h:.4g} Hz) over "
+                        f"{span:.4g} s; read as {unit.split(' ')[0]} the attitude (q_*) and the integrated body rate "
+                        f"({', '.join(BODY_RATE_COLUMNS)}) agree within "
+                        f"{100 * alt['fits'][next(iter(alt['fits']))]['mismatch']:.2g} %, read as s they are "
+                        f"{100 * mine['mismatch']:.3g} % off. Give t in s: t is in {unit}", "t", None)
 
 
 def _agrees(ev: dict[str, Any]) -> bool:
