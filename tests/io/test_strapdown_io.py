@@ -9,9 +9,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import casep
+import casep.io.strapdown as sd
 from casep.io.files import write_table
 from casep.io.flight import FlightDataError
-import casep.io.strapdown as sd
 from casep.io.strapdown import StrapdownWarning
 
 RATE = 50.0
@@ -446,8 +446,7 @@ def test_lost_rows_are_named_and_left_out_of_the_comparison(lost):
 def test_a_wrong_rate_with_lost_rows_is_refused_and_says_the_gap_was_left_out():
     t, q, fb, w, _ = motion()
     keep = np.r_[0:300, 400:t.size]
-    with pytest.warns(StrapdownWarning, match="lost rows"), \
-            pytest.raises(FlightDataError, match=r"not the rates the INS integrated .*The telemetry lost rows \(2\.02 s, "
-                                                 r"~100 row\(s\) lost between rows 300 and 301.*left out of this "
-                                                 r"comparison"):
+    said = (r"not the rates the INS integrated .*The telemetry lost rows \(2\.02 s, ~100 row\(s\) lost between rows "
+            r"300 and 301.*left out of this comparison")
+    with pytest.warns(StrapdownWarning, match="lost rows"), pytest.raises(FlightDataError, match=said):
         sd.check_strapdown("sd.csv", t[keep], q[keep], fb[keep], 1.1 * w[keep])
