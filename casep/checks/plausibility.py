@@ -91,7 +91,7 @@ from casep.units import G0
 
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
            "min_samples", "dv_noise", "misfit_problem", "MISFIT_RATIO", "MISFIT_NOISE_FLOOR",
-           "setup_problems", "warn_setup", "levelling_problem",
+           "setup_problems", "warn_setup", "levelling_problem", "SLOW_NOISE_SHARE", "SLOW_NOISE_RATIO",
            "UNIT_FACTORS", "unit_factor", "misfit_advice", "time_unit_factors"]
 
 
@@ -606,6 +606,13 @@ MISFIT_RATIO = 100.0
 #: m/s: the noise the ratio is taken against at least (the low end of radar and GNSS tracking noise), so that
 #: tracking held between fixes (no sample-to-sample scatter) is not read as noise-free.
 MISFIT_NOISE_FLOOR = 0.01
+#: A fitted Gauss-Markov correlation time at least this share of the span of the tracked epochs: the noise model
+#: takes the residuals for a noise as slow as the record, which the record cannot tell from the drift a model error
+#: (or the coefficients) leaves (:func:`misfit_problem`) ...
+SLOW_NOISE_SHARE = 0.5
+#: ... and, on that axis, a residual RMS above this many times the tracking's sample-to-sample noise: a model error
+#: absorbed as noise. Honest correlated tracking noise (tau about a second) is far below both.
+SLOW_NOISE_RATIO = 10.0
 
 
 #: Unit mix-ups by the factor they scale a quantity with (a quantity read in the wrong unit is this factor, or
@@ -649,7 +656,8 @@ def misfit_advice(model: str, names, units, estimates, std=None) -> str:
 
 
 def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
-                   runs: tuple[int, int, int] | None = None, advice: str | None = None) -> str | None:
+                   runs: tuple[int, int, int] | None = None, advice: str | None = None,
+                   noise: dict | None = None) -> str | None:
     """Why a fit's residuals are a model error rather than noise, or None.
 
     Tracking noise, white or correlated, has a sample-to-sample part: radar and GNSS velocities scatter by
@@ -663,7 +671,10 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
     A robust fit can hide the same misfit from the whiteness test: it rejects the stretch the model cannot
     follow as "glitches" and down-weights the rest; rejections mostly in runs of consecutive samples
     (`runs`, :func:`casep.regression.rows.mostly_runs`) then stand for the correlation, since a glitch is
-    isolated.
+    isolated. A noise model can also whiten such a misfit away: a Gauss-Markov noise whose fitted correlation time
+    is :data:`SLOW_NOISE_SHARE` of the tracked span or more (as slow as the record: the noise model fits the
+    signal) on an axis whose residual RMS is :data:`SLOW_NOISE_RATIO` times the sample-to-sample noise or more
+    (`noise`, the result's ``diagnostics["noise"]``) is the same finding, said with the correlation time.
 
     Parameters
     ----------
@@ -678,6 +689,8 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
         message then names them instead of the whiteness test.
     advice : str, optional
         What to check, most likely first (:func:`misfit_advice`: the model's missing terms before units).
+    noise : dict, optional
+        The fitted noise model's record (``diagnostics["noise"]``: per axis ``tau_s``).
 
     Returns
     -------
@@ -686,19 +699,44 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
     """
     if flight.n_observed < 5:
         return None
-    noise = np.maximum(dv_noise(flight), MISFIT_NOISE_FLOOR)
-    bad = [(a, float(residual_rms.get(a) or 0.0), float(noise[i])) for i, a in enumerate("xyz")
-           if a in correlated and (residual_rms.get(a) or 0.0) > MISFIT_RATIO * noise[i]]
+    sample = np.maximum(dv_noise(flight), MISFIT_NOISE_FLOOR)
+    bad = [(a, float(residual_rms.get(a) or 0.0), float(sample[i])) for i, a in enumerate("xyz")
+           if a in correlated and (residual_rms.get(a) or 0.0) > MISFIT_RATIO * sample[i]]
+    advice = advice or ("the model may lack terms the data need; else a saturated sensor the INS integrated, a frame "
+                        "or set-up mistake")
     if not bad:
-        return None
+        return _slow_noise_problem(flight, residual_rms, noise, sample, advice)
     listed = ", ".join(f"{a} {r:.4g} m/s = {r / n:.3g} x {n:.2g} m/s" for a, r, n in bad)
     how = "correlated after the noise model" if runs is None else \
         (f"the robust fit rejected {runs[0]} of its {runs[1]} rejected samples in {runs[2]} run(s) of consecutive "
          "samples (a stretch the model cannot follow, not glitches)")
     return (f"residual RMS at least {MISFIT_RATIO:g} times the tracking's sample-to-sample noise, and {how}, "
-            f"on {len(bad)} axis(es) ({listed}): a model error, not noise; the estimates absorb it: "
-            + (advice or "the model may lack terms the data need; else a saturated sensor the INS integrated, a frame "
-               "or set-up mistake"))
+            f"on {len(bad)} axis(es) ({listed}): a model error, not noise; the estimates absorb it: " + advice)
+
+
+def _slow_noise_problem(flight: FlightData, residual_rms: dict, noise: dict | None, sample: np.ndarray,
+                        advice: str) -> str | None:
+    """:func:`misfit_problem`'s finding of a noise model as slow as the record over residuals far above the
+    sample-to-sample noise `sample` (m/s per axis; :data:`SLOW_NOISE_SHARE`, :data:`SLOW_NOISE_RATIO`), or None."""
+    axes = (noise or {}).get("axes") if isinstance(noise, dict) else None
+    if not isinstance(axes, dict):
+        return None
+    tt = flight.t[flight.observed]
+    span = float(tt[-1] - tt[0]) if tt.size > 1 else 0.0
+    if not span > 0:
+        return None
+    slow = []
+    for i, a in enumerate("xyz"):
+        tau, r = (axes.get(a) or {}).get("tau_s"), float(residual_rms.get(a) or 0.0)
+        if isinstance(tau, (int, float)) and tau >= SLOW_NOISE_SHARE * span and r > SLOW_NOISE_RATIO * sample[i]:
+            slow.append(f"{a} tau {tau:.3g} s, residual RMS {r:.4g} m/s = {r / sample[i]:.3g} x {sample[i]:.2g} m/s")
+    if not slow:
+        return None
+    return (f"the noise model took the residuals for a Gauss-Markov noise as slow as the record ({span:.4g} s of "
+            f"tracking; correlation time at least {SLOW_NOISE_SHARE:g} of it) with a residual RMS at least "
+            f"{SLOW_NOISE_RATIO:g} times the tracking's sample-to-sample noise, on {len(slow)} axis(es) "
+            f"({'; '.join(slow)}): a noise the record cannot tell from a drift, fitted over a misfit that is likelier "
+            "a model error (the noise model fits the signal); the estimates and their std rest on it: " + advice)
 
 
 def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5, locate=None) -> None:

@@ -51,7 +51,8 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
         # "glitches"); otherwise the axes the whiteness test rejects
         correlated = "xyz" if runs is not None else (res.diagnostics.get("whiteness") or {}).get("rejected") or ()
         why = misfit_problem(flight, res.residual_rms, correlated, runs=runs,
-                             advice=misfit_advice(res.model, res.names, res.units, res.estimate, res.std))
+                             advice=misfit_advice(res.model, res.names, res.units, res.estimate, res.std),
+                             noise=res.diagnostics.get("noise"))
         if why is not None:
             res = failed(res, STATUS_MISFIT, f"failed: {flight.source}: {why}")
     if isinstance(model, ErrorModel) and model.name == res.model and not noise_free:
