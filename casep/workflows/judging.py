@@ -36,6 +36,9 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     problems = setup_problems(flight) if flight is not None else []
     if flight is not None and problems:
         res = failed(res, STATUS_SETUP, f"failed: set-up check of {flight.source}: " + "; ".join(problems))
+    why_lost = _lost_rows_problem(flight)
+    if why_lost is not None:
+        res = failed(res, STATUS_SETUP, f"failed: {flight.source if flight is not None else ''}: {why_lost}")
     why_late = _lateness_left(res, flight)
     if why_late is not None:
         res = failed(res, STATUS_SETUP, f"failed: {flight.source if flight is not None else ''}: {why_late}")
@@ -126,3 +129,12 @@ def _lateness_left(res: EstimateResult, flight: FlightData | None) -> str | None
     if any(n.startswith(TIME_OFFSET + "[") for n in res.names):  # several flights: each its own, not told apart here
         return None
     return lateness_left(record, None, None)
+
+
+def _lost_rows_problem(flight: FlightData | None) -> str | None:
+    """:func:`casep.io.strapdown.lost_rows_problem` of the flight's strapdown telemetry."""
+    from casep.io.strapdown import lost_rows_problem
+
+    if flight is None or not isinstance(flight.meta, dict):
+        return None
+    return lost_rows_problem(flight.meta.get("strapdown"))

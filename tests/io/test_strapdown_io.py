@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import numpy as np
@@ -435,10 +436,20 @@ def test_lost_rows_are_named_and_left_out_of_the_comparison(lost):
     assert len(caught) == 1, said
     n = lost.stop - lost.start
     assert (f"column t: the telemetry lost rows: 1 gap(s) over 1.5 x the median step 0.02 s ({0.02 * (n + 1):.4g} s, "
-            f"~{n} row(s) lost between rows {k + 1} and {k + 2}, t = {t[k]:.10g} .. {t[k + 1]:.10g} s)") in said, said
-    assert info["lost_rows"] == [{"row_before": k + 1, "row_after": k + 2, "t_before": t[k], "t_after": t[k + 1],
-                                  "length_s": t[k + 1] - t[k], "rows_lost": n}]
+            f"~{n} row(s) lost between rows {k + 1} and {k + 2}, t = {t[k]:.10g} .. {t[k + 1]:.10g} s, the body "
+            "turning by") in said, said
+    assert {k: v for k, v in info["lost_rows"][0].items() if k != "turn_rad"} == {
+        "row_before": k + 1, "row_after": k + 2, "t_before": t[k], "t_after": t[k + 1], "length_s": t[k + 1] - t[k],
+        "rows_lost": n}
     assert info["rms_rate_error_rad_s"] < 1e-4 * info["rms_rate_rad_s"]
+    turn = info["lost_rows"][0]["turn_rad"]
+    assert turn == pytest.approx(1.5 * 0.02 * (n + 1), rel=0.01)  # the roll rate 1.5 rad/s times the gap
+    why = sd.lost_rows_problem(info)
+    assert (why is not None) == (turn > sd.GAP_TURN_LIMIT) == (n > 100)  # 3.9 rad: S_V across it is not known
+    if why is not None:
+        assert re.search(r"the telemetry lost rows while the body turned \(2\.62 s, ~130 row\(s\) lost between rows "
+                         r"300 and 301, t = 5\.98 \.\. 8\.6 s, the body turning by 22\d deg across it; beyond 44\.4 deg\)",
+                         why), why
     if n > 100:  # what the gap did to the comparison: it disagrees
         assert not sd._agrees(sd._rate_evidence(t, q, w))
 
