@@ -72,7 +72,7 @@ from casep.checks.time_offset import (
     shares_problem_test,
     time_offset_test,
 )
-from casep.checks.tracking_quality import _velocity_change, screen_summary
+from casep.checks.tracking_quality import _velocity_change, screen_summary, stretch_noise
 from casep.exceptions import (
     NoiseFreeWarning,
     NoiseLevelWarning,
@@ -674,7 +674,8 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
     isolated. A noise model can also whiten such a misfit away: a Gauss-Markov noise whose fitted correlation time
     is :data:`SLOW_NOISE_SHARE` of the tracked span or more (as slow as the record: the noise model fits the
     signal) on an axis whose residual RMS is :data:`SLOW_NOISE_RATIO` times the sample-to-sample noise or more
-    (`noise`, the result's ``diagnostics["noise"]``) is the same finding, said with the correlation time.
+    (at least its noisiest stretch's: a noise that differs between stretches is judged elsewhere) (`noise`, the
+    result's ``diagnostics["noise"]``) is the same finding, said with the correlation time.
 
     Parameters
     ----------
@@ -717,7 +718,9 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
 def _slow_noise_problem(flight: FlightData, residual_rms: dict, noise: dict | None, sample: np.ndarray,
                         advice: str) -> str | None:
     """:func:`misfit_problem`'s finding of a noise model as slow as the record over residuals far above the
-    sample-to-sample noise `sample` (m/s per axis; :data:`SLOW_NOISE_SHARE`, :data:`SLOW_NOISE_RATIO`), or None."""
+    sample-to-sample noise `sample` (m/s per axis, at least the noisiest stretch's scatter:
+    :func:`casep.checks.tracking_quality.stretch_noise`; :data:`SLOW_NOISE_SHARE`, :data:`SLOW_NOISE_RATIO`), or
+    None."""
     axes = (noise or {}).get("axes") if isinstance(noise, dict) else None
     if not isinstance(axes, dict):
         return None
@@ -725,6 +728,10 @@ def _slow_noise_problem(flight: FlightData, residual_rms: dict, noise: dict | No
     span = float(tt[-1] - tt[0]) if tt.size > 1 else 0.0
     if not span > 0:
         return None
+    # against the noisiest stretch's scatter where the noise differs between stretches (a quiet pad, a noisy
+    # flight after a reacquisition): the robust scatter of the whole record is the quiet one's
+    noisiest = max((n for *_, n in stretch_noise(tt, flight.dv[flight.observed])), default=0.0)
+    sample = np.maximum(sample, noisiest)
     slow = []
     for i, a in enumerate("xyz"):
         tau, r = (axes.get(a) or {}).get("tau_s"), float(residual_rms.get(a) or 0.0)
