@@ -81,7 +81,17 @@ from casep.exceptions import (
     SetupWarning,
     TimeOffsetWarning,
 )
-from casep.io.flight import DUPLICATE_STEP, DV_COLUMNS, FlightData, FlightDataError  # DUPLICATE_STEP: the one rule
+from casep.io.flight import (  # DUPLICATE_STEP, the time range: the one rule
+    DUPLICATE_STEP,
+    DURATION_HIGH,
+    DV_COLUMNS,
+    STEP_HIGH,
+    STEP_IMPOSSIBLE,
+    STEP_LOW,
+    FlightData,
+    FlightDataError,
+    time_unit_factors,
+)
 from casep.regression.problem import (  # NOISE_FREE re-exported: the one constant
     NOISE_FREE,
     is_rounding_level,
@@ -92,15 +102,15 @@ from casep.units import G0
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
            "min_samples", "dv_noise", "misfit_problem", "MISFIT_RATIO", "MISFIT_NOISE_FLOOR",
            "setup_problems", "warn_setup", "levelling_problem", "SLOW_NOISE_SHARE", "SLOW_NOISE_RATIO",
-           "UNIT_FACTORS", "unit_factor", "misfit_advice", "time_unit_factors"]
+           "UNIT_FACTORS", "unit_factor", "misfit_advice"]
 
 
 # Specific force, m/s^2: a boost is ~1-30 g (1 g needed to lift off, ~100 g the hardest motors).
 F_PEAK_LOW, F_PEAK_HIGH, F_PEAK_IMPOSSIBLE = G0, 100.0 * G0, 1e4 * G0
 # A peak below 1 g but above this fraction of it is an accelerometer at rest (|f| = local gravity), not f in g.
 F_AT_REST = 0.95
-# Time: telemetry is sampled at 1 Hz .. 10 kHz; nothing is sampled at 1 MHz; boosts last < 1 h.
-STEP_LOW, STEP_HIGH, STEP_IMPOSSIBLE, DURATION_HIGH = 1e-4, 1.0, 1e-6, 3600.0
+# Time: telemetry is sampled at 1 Hz .. 10 kHz; nothing is sampled at 1 MHz; boosts last < 1 h (casep.io.flight's,
+# the readers' rule of a time unit: time_unit_factors).
 DW_HIGH = 2e4  # m/s: no rocket flight gains more than ~20 km/s of specific-force velocity
 DV_NOISE_HIGH = 5.0  # m/s: tracking noise is 0.01-1 m/s
 OUTLIER_Z = 10.0  # robust sigma of the spike statistic; Gaussian P(|z| > 10) ~ 1.5e-23
@@ -374,16 +384,6 @@ def _check_time(flight: FlightData) -> None:
     if steps[k] < DUPLICATE_STEP * h:
         _warn(f"{flight.source}: column `t`, row {k + 2}: time step {steps[k]:.3g} s from the previous row, "
               f"{h / steps[k]:.3g} times below the median step {h:.4g} s: a near-duplicate time tag?")
-
-
-def time_unit_factors(h: float, T: float) -> list[tuple[str, float]]:
-    """The units of t, with the factor to seconds, that bring a median step `h` and a duration `T` (both read as s)
-    into the range of boost telemetry, when they are out of it; [] when in range or when none fits."""
-    if STEP_LOW <= h <= STEP_HIGH and T <= DURATION_HIGH:
-        return []
-    scales = (("ms (divide by 1000)", 1e-3), ("us (divide by 1e6)", 1e-6), ("ns (divide by 1e9)", 1e-9),
-              ("min (multiply by 60)", 60.0), ("h (multiply by 3600)", 3600.0))
-    return [(u, k) for u, k in scales if STEP_LOW <= h * k <= STEP_HIGH and T * k <= DURATION_HIGH]
 
 
 def _time_units(h: float, T: float) -> list[str]:

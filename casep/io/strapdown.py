@@ -67,7 +67,7 @@ import numpy as np
 from casep.exceptions import PlausibilityWarning
 from casep.fullscale import held_full_scale, held_mask
 from casep.gravity import kinematic_acceleration
-from casep.io.flight import FlightDataError
+from casep.io.flight import LOST_SAMPLE_FACTOR, FlightDataError, gap_steps, time_unit_factors
 from casep.rotations import (
     increments_from_deltas,
     quat_conjugate,
@@ -413,11 +413,10 @@ def _lost_rows(src: str, t: np.ndarray, q: np.ndarray,
     without a gap) and each gap (rows before and after, times, length, the body's turn across it:
     :func:`_gap_turn`), warned of with a :class:`StrapdownWarning`.
 
-    A gap is a step over :data:`casep.navigation.imu.GAP_FACTOR` median steps (:func:`casep.navigation.imu.gap_steps`,
+    A gap is a step over :data:`casep.io.flight.LOST_SAMPLE_FACTOR` median steps (:func:`casep.io.flight.gap_steps`,
     the IMU's rule for lost samples: the same rates integrated). The integrated rate of a step is a cubic through the
     readings around it (:data:`CLIP_REACH`): over a gap it guesses the motion, so the gap's step and its neighbours
     are left out of the comparison, not judged as the INS's rate."""
-    from casep.navigation.imu import GAP_FACTOR, gap_steps
 
     if t.size < 3:
         return None, []
@@ -433,7 +432,7 @@ def _lost_rows(src: str, t: np.ndarray, q: np.ndarray,
         keep[max(k - CLIP_REACH + 1, 0): k + CLIP_REACH] = False
     listed = "; ".join(_gap_text(g) for g in lost[:5]) + (f"; and {len(lost) - 5} more" if len(lost) > 5 else "")
     warnings.warn(StrapdownWarning(
-        f"{src}: column t: the telemetry lost rows: {len(lost)} gap(s) over {GAP_FACTOR:g} x the median step "
+        f"{src}: column t: the telemetry lost rows: {len(lost)} gap(s) over {LOST_SAMPLE_FACTOR:g} x the median step "
         f"{h:.4g} s ({listed}); the attitude/rate comparison leaves the {int((~keep).sum())} steps across and next "
         "to them out (a rate integrated over a gap guesses the motion)"), stacklevel=4)
     return keep, lost
@@ -472,10 +471,8 @@ def _time_unit_explains(t: np.ndarray, q: np.ndarray, w: np.ndarray, keep: np.nd
                         error: Any) -> None:
     """Before the body rate is blamed: t in another unit than s also breaks the comparison (the step's rotation is the
     rate times a step 1000 times too long). When the median step and the span are out of the range of telemetry
-    (:func:`casep.checks.plausibility.time_unit_factors`, the rule the flight check warns with) and the time in a unit
+    (:func:`casep.io.flight.time_unit_factors`, the rule the flight check warns with) and the time in a unit
     that fits makes the attitude and the rate agree (:func:`_agrees`), an error naming ``t``."""
-    from casep.checks.plausibility import time_unit_factors
-
     h, span = float(np.median(np.diff(t))), float(t[-1] - t[0])
     for unit, k in time_unit_factors(h, span):
         alt = _rate_evidence(k * t, q, w, keep)
