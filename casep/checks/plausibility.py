@@ -72,7 +72,7 @@ from casep.checks.time_offset import (
     shares_problem_test,
     time_offset_test,
 )
-from casep.checks.tracking_quality import _velocity_change, screen_summary
+from casep.checks.tracking_quality import _velocity_change, screen_summary, stretch_noise
 from casep.exceptions import (
     NoiseFreeWarning,
     NoiseLevelWarning,
@@ -81,7 +81,17 @@ from casep.exceptions import (
     SetupWarning,
     TimeOffsetWarning,
 )
-from casep.io.flight import DUPLICATE_STEP, DV_COLUMNS, FlightData, FlightDataError  # DUPLICATE_STEP: the one rule
+from casep.io.flight import (  # DUPLICATE_STEP, the time range: the one rule
+    DUPLICATE_STEP,
+    DURATION_HIGH,
+    DV_COLUMNS,
+    STEP_HIGH,
+    STEP_IMPOSSIBLE,
+    STEP_LOW,
+    FlightData,
+    FlightDataError,
+    time_unit_factors,
+)
 from casep.regression.problem import (  # NOISE_FREE re-exported: the one constant
     NOISE_FREE,
     is_rounding_level,
@@ -91,7 +101,7 @@ from casep.units import G0
 
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
            "min_samples", "dv_noise", "misfit_problem", "MISFIT_RATIO", "MISFIT_NOISE_FLOOR",
-           "setup_problems", "warn_setup", "levelling_problem",
+           "setup_problems", "warn_setup", "levelling_problem", "SLOW_NOISE_SHARE", "SLOW_NOISE_RATIO",
            "UNIT_FACTORS", "unit_factor", "misfit_advice"]
 
 
@@ -99,8 +109,8 @@ __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enou
 F_PEAK_LOW, F_PEAK_HIGH, F_PEAK_IMPOSSIBLE = G0, 100.0 * G0, 1e4 * G0
 # A peak below 1 g but above this fraction of it is an accelerometer at rest (|f| = local gravity), not f in g.
 F_AT_REST = 0.95
-# Time: telemetry is sampled at 1 Hz .. 10 kHz; nothing is sampled at 1 MHz; boosts last < 1 h.
-STEP_LOW, STEP_HIGH, STEP_IMPOSSIBLE, DURATION_HIGH = 1e-4, 1.0, 1e-6, 3600.0
+# Time: telemetry is sampled at 1 Hz .. 10 kHz; nothing is sampled at 1 MHz; boosts last < 1 h (casep.io.flight's,
+# the readers' rule of a time unit: time_unit_factors).
 DW_HIGH = 2e4  # m/s: no rocket flight gains more than ~20 km/s of specific-force velocity
 DV_NOISE_HIGH = 5.0  # m/s: tracking noise is 0.01-1 m/s
 OUTLIER_Z = 10.0  # robust sigma of the spike statistic; Gaussian P(|z| > 10) ~ 1.5e-23
@@ -377,13 +387,8 @@ def _check_time(flight: FlightData) -> None:
 
 
 def _time_units(h: float, T: float) -> list[str]:
-    """The units of t that bring a median step `h` and a duration `T` (both read as s) into the range of boost
-    telemetry, when they are out of it; [] when in range or when none fits."""
-    if STEP_LOW <= h <= STEP_HIGH and T <= DURATION_HIGH:
-        return []
-    scales = (("ms (divide by 1000)", 1e-3), ("us (divide by 1e6)", 1e-6), ("ns (divide by 1e9)", 1e-9),
-              ("min (multiply by 60)", 60.0), ("h (multiply by 3600)", 3600.0))
-    return [u for u, k in scales if STEP_LOW <= h * k <= STEP_HIGH and T * k <= DURATION_HIGH]
+    """The names of :func:`time_unit_factors`."""
+    return [u for u, _ in time_unit_factors(h, T)]
 
 
 def dv_noise(flight: FlightData) -> np.ndarray:
@@ -601,6 +606,13 @@ MISFIT_RATIO = 100.0
 #: m/s: the noise the ratio is taken against at least (the low end of radar and GNSS tracking noise), so that
 #: tracking held between fixes (no sample-to-sample scatter) is not read as noise-free.
 MISFIT_NOISE_FLOOR = 0.01
+#: A fitted Gauss-Markov correlation time at least this share of the span of the tracked epochs: the noise model
+#: takes the residuals for a noise as slow as the record, which the record cannot tell from the drift a model error
+#: (or the coefficients) leaves (:func:`misfit_problem`) ...
+SLOW_NOISE_SHARE = 0.5
+#: ... and, on that axis, a residual RMS above this many times the tracking's sample-to-sample noise: a model error
+#: absorbed as noise. Honest correlated tracking noise (tau about a second) is far below both.
+SLOW_NOISE_RATIO = 10.0
 
 
 #: Unit mix-ups by the factor they scale a quantity with (a quantity read in the wrong unit is this factor, or
@@ -644,7 +656,8 @@ def misfit_advice(model: str, names, units, estimates, std=None) -> str:
 
 
 def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
-                   runs: tuple[int, int, int] | None = None, advice: str | None = None) -> str | None:
+                   runs: tuple[int, int, int] | None = None, advice: str | None = None,
+                   noise: dict | None = None) -> str | None:
     """Why a fit's residuals are a model error rather than noise, or None.
 
     Tracking noise, white or correlated, has a sample-to-sample part: radar and GNSS velocities scatter by
@@ -658,7 +671,11 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
     A robust fit can hide the same misfit from the whiteness test: it rejects the stretch the model cannot
     follow as "glitches" and down-weights the rest; rejections mostly in runs of consecutive samples
     (`runs`, :func:`casep.regression.rows.mostly_runs`) then stand for the correlation, since a glitch is
-    isolated.
+    isolated. A noise model can also whiten such a misfit away: a Gauss-Markov noise whose fitted correlation time
+    is :data:`SLOW_NOISE_SHARE` of the tracked span or more (as slow as the record: the noise model fits the
+    signal) on an axis whose residual RMS is :data:`SLOW_NOISE_RATIO` times the sample-to-sample noise or more
+    (at least its noisiest stretch's: a noise that differs between stretches is judged elsewhere) (`noise`, the
+    result's ``diagnostics["noise"]``) is the same finding, said with the correlation time.
 
     Parameters
     ----------
@@ -673,6 +690,8 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
         message then names them instead of the whiteness test.
     advice : str, optional
         What to check, most likely first (:func:`misfit_advice`: the model's missing terms before units).
+    noise : dict, optional
+        The fitted noise model's record (``diagnostics["noise"]``: per axis ``tau_s``).
 
     Returns
     -------
@@ -681,19 +700,50 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
     """
     if flight.n_observed < 5:
         return None
-    noise = np.maximum(dv_noise(flight), MISFIT_NOISE_FLOOR)
-    bad = [(a, float(residual_rms.get(a) or 0.0), float(noise[i])) for i, a in enumerate("xyz")
-           if a in correlated and (residual_rms.get(a) or 0.0) > MISFIT_RATIO * noise[i]]
+    sample = np.maximum(dv_noise(flight), MISFIT_NOISE_FLOOR)
+    bad = [(a, float(residual_rms.get(a) or 0.0), float(sample[i])) for i, a in enumerate("xyz")
+           if a in correlated and (residual_rms.get(a) or 0.0) > MISFIT_RATIO * sample[i]]
+    advice = advice or ("the model may lack terms the data need; else a saturated sensor the INS integrated, a frame "
+                        "or set-up mistake")
     if not bad:
-        return None
+        return _slow_noise_problem(flight, residual_rms, noise, sample, advice)
     listed = ", ".join(f"{a} {r:.4g} m/s = {r / n:.3g} x {n:.2g} m/s" for a, r, n in bad)
     how = "correlated after the noise model" if runs is None else \
         (f"the robust fit rejected {runs[0]} of its {runs[1]} rejected samples in {runs[2]} run(s) of consecutive "
          "samples (a stretch the model cannot follow, not glitches)")
     return (f"residual RMS at least {MISFIT_RATIO:g} times the tracking's sample-to-sample noise, and {how}, "
-            f"on {len(bad)} axis(es) ({listed}): a model error, not noise; the estimates absorb it: "
-            + (advice or "the model may lack terms the data need; else a saturated sensor the INS integrated, a frame "
-               "or set-up mistake"))
+            f"on {len(bad)} axis(es) ({listed}): a model error, not noise; the estimates absorb it: " + advice)
+
+
+def _slow_noise_problem(flight: FlightData, residual_rms: dict, noise: dict | None, sample: np.ndarray,
+                        advice: str) -> str | None:
+    """:func:`misfit_problem`'s finding of a noise model as slow as the record over residuals far above the
+    sample-to-sample noise `sample` (m/s per axis, at least the noisiest stretch's scatter:
+    :func:`casep.checks.tracking_quality.stretch_noise`; :data:`SLOW_NOISE_SHARE`, :data:`SLOW_NOISE_RATIO`), or
+    None."""
+    axes = (noise or {}).get("axes") if isinstance(noise, dict) else None
+    if not isinstance(axes, dict):
+        return None
+    tt = flight.t[flight.observed]
+    span = float(tt[-1] - tt[0]) if tt.size > 1 else 0.0
+    if not span > 0:
+        return None
+    # against the noisiest stretch's scatter where the noise differs between stretches (a quiet pad, a noisy
+    # flight after a reacquisition): the robust scatter of the whole record is the quiet one's
+    noisiest = max((n for *_, n in stretch_noise(tt, flight.dv[flight.observed])), default=0.0)
+    sample = np.maximum(sample, noisiest)
+    slow = []
+    for i, a in enumerate("xyz"):
+        tau, r = (axes.get(a) or {}).get("tau_s"), float(residual_rms.get(a) or 0.0)
+        if isinstance(tau, (int, float)) and tau >= SLOW_NOISE_SHARE * span and r > SLOW_NOISE_RATIO * sample[i]:
+            slow.append(f"{a} tau {tau:.3g} s, residual RMS {r:.4g} m/s = {r / sample[i]:.3g} x {sample[i]:.2g} m/s")
+    if not slow:
+        return None
+    return (f"the noise model took the residuals for a Gauss-Markov noise as slow as the record ({span:.4g} s of "
+            f"tracking; correlation time at least {SLOW_NOISE_SHARE:g} of it) with a residual RMS at least "
+            f"{SLOW_NOISE_RATIO:g} times the tracking's sample-to-sample noise, on {len(slow)} axis(es) "
+            f"({'; '.join(slow)}): a noise the record cannot tell from a drift, fitted over a misfit that is likelier "
+            "a model error (the noise model fits the signal); the estimates and their std rest on it: " + advice)
 
 
 def _check_outliers(r: np.ndarray, t: np.ndarray, source: str, top: int = 5, locate=None) -> None:

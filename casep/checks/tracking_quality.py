@@ -7,10 +7,10 @@ derives from the telemetry velocity (signals ``a_*``). With ``dv = v_tel - v_trk
 epochs, the tracking's own change between two epochs is ``dV - d(dv)``. :func:`screen_tracking`
 finds, on a telemetry + tracking pair formed at the tracking times:
 
-- **stale epochs**: a row whose position and velocity repeat the previous row's exactly
-  (``meta["tracking_repeats"]``, :func:`casep.io.pair.repeated_rows`) while the telemetry moved by more
-  than :data:`STALE_MOTION` since the fix it repeats. The fix itself is kept (it was right at its
-  time); its repeats are left out. On the pad a repeated fix of a vehicle at rest is kept.
+- **stale epochs**: a row whose velocity repeats the previous row's exactly (a repeated fix, or a velocity held
+  while the positions go on; ``meta["tracking_repeats"]``, :func:`casep.io.pair.repeated_rows`) while the
+  telemetry moved by more than :data:`STALE_MOTION` since the fix it repeats. The fix itself is kept (it was
+  right at its time); its repeats are left out. On the pad a repeated fix of a vehicle at rest is kept.
 - **impossible jumps** (the physics check): between consecutive remaining epochs, ``|d(dv)|`` above
   ``JUMP_TOL + JUMP_RATE dt`` (10 m/s, plus 2 m/s^2 = 200 mg of instrument error acceleration per
   second between them) is a tracking velocity change the IMU rules out. The epochs are cut into
@@ -592,8 +592,8 @@ def _warn(source: str, s: TrackingScreen, stale: str, rejected: str, drift: bool
     if s.stale:
         n = sum(k for *_, k in s.stale)
         warnings.warn(TrackingQualityWarning(
-            f"{source}: {n} stale tracking epochs (a fix repeated while the telemetry moved by more than "
-            f"{STALE_MOTION:g} m/s since it) left out, in {len(s.stale)} span(s): {stale}"), stacklevel=3)
+            f"{source}: {n} stale tracking epochs (a fix or its velocity repeated while the telemetry moved by more "
+            f"than {STALE_MOTION:g} m/s since it) left out, in {len(s.stale)} span(s): {stale}"), stacklevel=3)
     if s.rejected:
         n = sum(k for *_, k in s.rejected)
         warnings.warn(TrackingQualityWarning(

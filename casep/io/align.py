@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["TimeAlignment", "coarse_time_offset", "unaligned_lateness", "EXPLAIN_GAIN", "EXPLAIN_F", "AUTO_MAX_STD"]
+__all__ = ["TimeAlignment", "coarse_time_offset", "unaligned_lateness", "late_tags_clause", "lateness_left",
+           "LATENESS_Z", "EXPLAIN_GAIN", "EXPLAIN_F", "AUTO_MAX_STD"]
 
 #: A coarse offset "explains" the data when it removes at least this fraction of J(0) ...
 EXPLAIN_GAIN = 0.2
@@ -91,6 +92,43 @@ def unaligned_lateness(record: dict | None) -> float | None:
     if not record or record.get("mode") != "none" or not record.get("explains") or not record.get("exceeds_period"):
         return None
     return float(record["tau_s"])
+
+
+def late_tags_clause(record: dict | None) -> str:
+    """What a result says of tracking time tags the pair found late by more than a sample period and left in place
+    (:func:`unaligned_lateness`); else ''."""
+    tau = unaligned_lateness(record)
+    if tau is None:
+        return ""
+    assert record is not None
+    return (f"the tracking time tags look {tau * 1e3:.1f} ms late (said when the pair was read), more than a "
+            f"tracking sample period ({record['tracking_period_s'] * 1e3:.4g} ms), which a first-order dt_trk does "
+            "not take: align them (--time-offset auto) and separate again")
+
+
+#: The fit's tracking offset (``dt_trk``) accounts for a lateness left in place when it is within this many std
+#: (its own and the coarse offset's, combined) of it (:func:`lateness_left`).
+LATENESS_Z = 3.0
+
+
+def lateness_left(record: dict | None, offset_s: float | None, offset_std_s: float | None) -> str | None:
+    """Why a fit's result is probably wrong because the pair's tracking tags are late by more than a sample period,
+    left in place (:func:`unaligned_lateness`) and not taken by the fit: its tracking offset `offset_s` (the
+    estimated ``dt_trk`` including any re-pairing, s; None without that term: 0) differs from the lateness by more
+    than :data:`LATENESS_Z` std (`offset_std_s` and the coarse offset's ``std_s`` combined). None otherwise."""
+    tau = unaligned_lateness(record)
+    if tau is None:
+        return None
+    assert record is not None
+    dt = float(offset_s) if offset_s is not None else 0.0
+    have = offset_s is not None and bool(np.isfinite(dt))
+    own = float(offset_std_s) if have and offset_std_s is not None and np.isfinite(offset_std_s) else 0.0
+    sd = float(np.hypot(own, record.get("std_s") or 0.0))
+    if have and abs(dt - tau) <= LATENESS_Z * sd:
+        return None
+    fit = (f"the fit's dt_trk {dt * 1e3:.4g} +- {own * 1e3:.2g} ms is {abs(dt - tau) / sd:.3g} std "
+           "from it" if have and sd > 0 else "the fit has no dt_trk to take it")
+    return f"{late_tags_clause(record)} ({fit}: the estimates absorb the rest)"
 
 
 def coarse_time_offset(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray, *,

@@ -25,7 +25,9 @@ from casep.exceptions import CasepWarning
 #: The kinematic acceleration signals of a tracking time offset's term ``a(t) dt_trk``, m/s^2.
 ACCELERATION_SIGNALS = ("a_x", "a_y", "a_z")
 
-__all__ = ["FlightData", "FlightDataError", "LateStartWarning", "MAX_ABS_VALUE", "DUPLICATE_STEP", "too_large"]
+__all__ = ["FlightData", "FlightDataError", "LateStartWarning", "MAX_ABS_VALUE", "DUPLICATE_STEP", "too_large",
+           "LOST_SAMPLE_FACTOR", "gap_steps", "STEP_LOW", "STEP_HIGH", "STEP_IMPOSSIBLE", "DURATION_HIGH",
+           "time_unit_factors"]
 
 AXES = ("x", "y", "z")
 FORCE_COLUMNS = tuple(f"f_{a}" for a in AXES)
@@ -36,6 +38,29 @@ DV_COLUMNS = tuple(f"dv_{a}" for a in AXES)
 #: (:func:`casep.io.pair.pair_flight`) takes a tracking epoch that close to a telemetry sample for that
 #: sample, so the grid casep builds never holds one.
 DUPLICATE_STEP = 1e-3
+#: A step longer than this many median steps has lost samples (an IMU record's, and a strapdown telemetry's
+#: rates integrated alike: :func:`gap_steps`).
+LOST_SAMPLE_FACTOR = 1.5
+# Time: telemetry is sampled at 1 Hz .. 10 kHz; nothing is sampled at 1 MHz; boosts last < 1 h.
+STEP_LOW, STEP_HIGH, STEP_IMPOSSIBLE, DURATION_HIGH = 1e-4, 1.0, 1e-6, 3600.0
+
+
+def gap_steps(t: np.ndarray) -> np.ndarray:
+    """Indices ``k`` of the steps ``t[k] -> t[k+1]`` that lost samples (over :data:`LOST_SAMPLE_FACTOR` median
+    steps)."""
+    h = np.diff(np.asarray(t, float))
+    return np.flatnonzero(h > LOST_SAMPLE_FACTOR * float(np.median(h)))
+
+
+def time_unit_factors(h: float, T: float) -> list[tuple[str, float]]:
+    """The units of t, with the factor to seconds, that bring a median step `h` and a duration `T` (both read as s)
+    into the range of boost telemetry (:data:`STEP_LOW` .. :data:`STEP_HIGH`, below :data:`DURATION_HIGH`), when
+    they are out of it; [] when in range or when none fits."""
+    if STEP_LOW <= h <= STEP_HIGH and T <= DURATION_HIGH:
+        return []
+    scales = (("ms (divide by 1000)", 1e-3), ("us (divide by 1e6)", 1e-6), ("ns (divide by 1e9)", 1e-9),
+              ("min (multiply by 60)", 60.0), ("h (multiply by 3600)", 3600.0))
+    return [(u, k) for u, k in scales if STEP_LOW <= h * k <= STEP_HIGH and T * k <= DURATION_HIGH]
 
 #: Largest magnitude accepted in any flight column (t, f, W, dv, v_tel, v_trk), SI units.
 #: S_V holds products up to third order in f (the [f x] Phi term with Phi ~ int W^2 dt) and

@@ -101,13 +101,15 @@ def tracking_velocity(trk: Table, t_trk: np.ndarray, tracking_frame: str,
 
 
 def repeated_rows(trk: Table, tracking_frame: str, skip: np.ndarray | None = None) -> np.ndarray:
-    """The tracking rows (0-based) whose position and velocity columns repeat the previous row's exactly: a receiver
-    that has lost lock and repeats its last fix. A record of the file, not a judgement
-    (:mod:`casep.checks.tracking_quality` judges them against the telemetry's motion). Rows `skip` (a boolean
-    mask: rows without tracking) are left out; a row is compared with the previous row not skipped."""
+    """The tracking rows (0-based) whose velocity columns repeat the previous row's exactly: a receiver that has
+    lost lock and repeats its last fix, or its last velocity while its positions go on (the velocity is what the
+    separation compares; a stale velocity beside fresh positions is as wrong as a repeated fix). A record of the
+    file, not a judgement (:mod:`casep.checks.tracking_quality` judges them against the telemetry's motion). Rows
+    `skip` (a boolean mask: rows without tracking) are left out; a row is compared with the previous row not
+    skipped."""
     from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS
 
-    cols = {"launch": VTRK_COLUMNS, "ecef": ECEF_COLUMNS[1:], "geodetic": GEODETIC_COLUMNS[1:]}[tracking_frame]
+    cols = {"launch": VTRK_COLUMNS, "ecef": ECEF_COLUMNS[4:], "geodetic": GEODETIC_COLUMNS[4:]}[tracking_frame]
     x = trk.vectors(tuple(cols), skip=skip)
     idx = np.arange(x.shape[0]) if skip is None else np.flatnonzero(~skip)
     x = x[idx]

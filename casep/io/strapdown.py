@@ -67,7 +67,7 @@ import numpy as np
 from casep.exceptions import PlausibilityWarning
 from casep.fullscale import held_full_scale, held_mask
 from casep.gravity import kinematic_acceleration
-from casep.io.flight import FlightDataError
+from casep.io.flight import LOST_SAMPLE_FACTOR, FlightDataError, gap_steps, time_unit_factors
 from casep.rotations import (
     increments_from_deltas,
     quat_conjugate,
@@ -78,7 +78,8 @@ from casep.rotations import (
 )
 from casep.units import G0, MEMS_ACCEL_BIAS
 
-__all__ = ["StrapdownWarning", "strapdown_force", "check_strapdown", "compare_force", "FORCE_TOL", "check_kinematics",
+__all__ = ["StrapdownWarning", "strapdown_force", "lost_rows_problem", "GAP_TURN_LIMIT",
+           "check_strapdown", "compare_force", "FORCE_TOL", "check_kinematics",
            "KINEMATIC_WINDOW", "KINEMATIC_LIMIT", "KINEMATIC_WARN",
            "quaternion_dcm_array", "RATE_READINGS", "NORM_TOL", "CLIP_REACH", "RATE_TOL", "GAIN_TOL", "GAIN_Z",
            "MIN_ROTATION", "RATE_PEAK_HIGH",
@@ -367,21 +368,121 @@ def check_strapdown(src: str, t: np.ndarray, q: np.ndarray, fb: np.ndarray, w: n
             f"{src}: body rate ({', '.join(BODY_RATE_COLUMNS)}) peaks at {peak[k]:.4g} rad/s ({peak[k] / _DEG:.4g} "
             f"deg/s, {peak[k] / (2 * np.pi):.3g} rev/s) at row {k + 1}, above the {RATE_PEAK_HIGH:g} rad/s of "
             "vehicles: is it in deg/s (multiply by pi/180)?"), stacklevel=3)
-    ev = _rate_evidence(t, q, w)
+    across, lost = _lost_rows(src, t, q, w)
+    if lost:
+        info["lost_rows"] = lost
+    ev = _rate_evidence(t, q, w, across)
     info.update({k: v for k, v in ev.items() if k != "fits"})
     if "fits" in ev and not _agrees(ev):
-        note, clip = "", _clipped_rates(t, w)
+        _time_unit_explains(t, q, w, across, ev, error)
+        note, clip = _lost_note(lost, across), _clipped_rates(t, w)
         if clip is not None:  # judged off the clipped readings: a clip is no axis, sign or factor
             keep, said = clip
-            ev = _rate_evidence(t, q, w, keep)
+            ev = _rate_evidence(t, q, w, keep if across is None else keep & across)
             info["rate_clipped"] = said
             if "fits" not in ev or _agrees(ev):
                 _warn_clip_only(src, ev, said, keep)
                 return q, info
-            note = (f". The gyro also clipped ({'; '.join(said)}): the {int((~keep).sum())} steps at and next to "
-                    "those readings are left out of this comparison")
+            note += (f". The gyro also clipped ({'; '.join(said)}): the {int((~keep).sum())} steps at and next to "
+                     "those readings are left out of this comparison")
         _judge_rate_fits(src, ev, error, note)
     return q, info
+
+
+#: The turn of the body across a gap in the telemetry (rad) beyond which the model's S_V, integrated across it by
+#: the trapezoid rule from the attitude at its ends, is not known: for a turn ``theta`` about a fixed axis the
+#: trapezoid's ``(1 + cos theta) / 2`` against the exact mean ``sin theta / theta`` misses by ``theta^2 / 12`` of
+#: the gap's increment, beyond :data:`RATE_TOL` (the disagreement of the step rotations the rate comparison
+#: accepts) above ``sqrt(12 RATE_TOL)``, 0.77 rad (44 deg).
+GAP_TURN_LIMIT = float(np.sqrt(12.0 * RATE_TOL))
+
+
+def _gap_turn(t: np.ndarray, q: np.ndarray, w: np.ndarray, k: int) -> float:
+    """The body's turn across the gap of step ``k`` (rad): the larger of the rate at its ends times its length (the
+    trapezoid of ``|w|``) and the rotation between its quaternions (a turn of more than half a revolution shows as
+    less: the rates say it)."""
+    h = float(t[k + 1] - t[k])
+    by_rate = 0.5 * (float(np.linalg.norm(w[k])) + float(np.linalg.norm(w[k + 1]))) * h
+    by_attitude = float(np.linalg.norm(_step_rotations(q[k:k + 2])[0]))
+    return max(by_rate, by_attitude)
+
+
+def _lost_rows(src: str, t: np.ndarray, q: np.ndarray,
+               w: np.ndarray) -> tuple[np.ndarray | None, list[dict[str, float]]]:
+    """The telemetry's lost rows: the ``(N-1,)`` steps of the attitude/rate comparison that no gap reaches (None
+    without a gap) and each gap (rows before and after, times, length, the body's turn across it:
+    :func:`_gap_turn`), warned of with a :class:`StrapdownWarning`.
+
+    A gap is a step over :data:`casep.io.flight.LOST_SAMPLE_FACTOR` median steps (:func:`casep.io.flight.gap_steps`,
+    the IMU's rule for lost samples: the same rates integrated). The integrated rate of a step is a cubic through the
+    readings around it (:data:`CLIP_REACH`): over a gap it guesses the motion, so the gap's step and its neighbours
+    are left out of the comparison, not judged as the INS's rate."""
+
+    if t.size < 3:
+        return None, []
+    steps = gap_steps(t)
+    if not steps.size:
+        return None, []
+    h = float(np.median(np.diff(t)))
+    lost = [{"row_before": int(k) + 1, "row_after": int(k) + 2, "t_before": float(t[k]), "t_after": float(t[k + 1]),
+             "length_s": float(t[k + 1] - t[k]), "rows_lost": int(round((t[k + 1] - t[k]) / h)) - 1,
+             "turn_rad": _gap_turn(t, q, w, int(k))} for k in steps]
+    keep = np.ones(t.size - 1, bool)
+    for k in steps:
+        keep[max(k - CLIP_REACH + 1, 0): k + CLIP_REACH] = False
+    listed = "; ".join(_gap_text(g) for g in lost[:5]) + (f"; and {len(lost) - 5} more" if len(lost) > 5 else "")
+    warnings.warn(StrapdownWarning(
+        f"{src}: column t: the telemetry lost rows: {len(lost)} gap(s) over {LOST_SAMPLE_FACTOR:g} x the median step "
+        f"{h:.4g} s ({listed}); the attitude/rate comparison leaves the {int((~keep).sum())} steps across and next "
+        "to them out (a rate integrated over a gap guesses the motion)"), stacklevel=4)
+    return keep, lost
+
+
+def _gap_text(g: dict[str, float]) -> str:
+    """One gap of :func:`_lost_rows`: its length, the rows and times on either side."""
+    return (f"{g['length_s']:.4g} s, ~{g['rows_lost']} row(s) lost between rows {g['row_before']} and "
+            f"{g['row_after']}, t = {g['t_before']:.10g} .. {g['t_after']:.10g} s, the body turning by "
+            f"{g['turn_rad'] / _DEG:.3g} deg across it")
+
+
+def lost_rows_problem(info: dict[str, Any] | None) -> str | None:
+    """Why a separation of strapdown telemetry with lost rows is probably wrong: a gap across which the body turned
+    by more than :data:`GAP_TURN_LIMIT` (the S_V of body-frame errors across it is not known; every row after it
+    carries that); `info` the flight's ``meta["strapdown"]``. None otherwise."""
+    lost = [g for g in (info or {}).get("lost_rows") or () if g.get("turn_rad", 0.0) > GAP_TURN_LIMIT]
+    if not lost:
+        return None
+    return (f"the telemetry lost rows while the body turned ({'; '.join(_gap_text(g) for g in lost[:3])}"
+            f"{' ...' if len(lost) > 3 else ''}; beyond {GAP_TURN_LIMIT / _DEG:.3g} deg): the model's S_V is "
+            "integrated across the gap from the attitude at its ends, which does not know the turn inside it, and "
+            "every row after it carries that error; the estimates absorb it. Give the lost rows, or separate the "
+            "stretch before the gap")
+
+
+def _lost_note(lost: list[dict[str, float]], keep: np.ndarray | None) -> str:
+    """What a finding of the comparison says of the gaps it left out ('' without any)."""
+    if not lost or keep is None:
+        return ""
+    return (f". The telemetry lost rows ({'; '.join(_gap_text(g) for g in lost[:3])}{' ...' if len(lost) > 3 else ''}):"
+            f" the {int((~keep).sum())} steps across and next to the gaps are left out of this comparison")
+
+
+def _time_unit_explains(t: np.ndarray, q: np.ndarray, w: np.ndarray, keep: np.ndarray | None, ev: dict[str, Any],
+                        error: Any) -> None:
+    """Before the body rate is blamed: t in another unit than s also breaks the comparison (the step's rotation is the
+    rate times a step 1000 times too long). When the median step and the span are out of the range of telemetry
+    (:func:`casep.io.flight.time_unit_factors`, the rule the flight check warns with) and the time in a unit
+    that fits makes the attitude and the rate agree (:func:`_agrees`), an error naming ``t``."""
+    h, span = float(np.median(np.diff(t))), float(t[-1] - t[0])
+    for unit, k in time_unit_factors(h, span):
+        alt = _rate_evidence(k * t, q, w, keep)
+        if "fits" in alt and _agrees(alt):
+            mine = ev["fits"][next(iter(ev["fits"]))]
+            raise error(f"t looks like {unit.split(' ')[0]}, not s: median time step {h:.4g} s ({1 / h:.4g} Hz) over "
+                        f"{span:.4g} s; read as {unit.split(' ')[0]} the attitude (q_*) and the integrated body rate "
+                        f"({', '.join(BODY_RATE_COLUMNS)}) agree within "
+                        f"{100 * alt['fits'][next(iter(alt['fits']))]['mismatch']:.2g} %, read as s they are "
+                        f"{100 * mine['mismatch']:.3g} % off. Give t in s: t is in {unit}", "t", None)
 
 
 def _agrees(ev: dict[str, Any]) -> bool:

@@ -67,6 +67,7 @@ from casep.checks.saturation import (
     held_mask,
 )
 from casep.exceptions import GapWarning, PlausibilityWarning, SaturationWarning
+from casep.io.flight import LOST_SAMPLE_FACTOR, gap_steps
 
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
            "GAP_FACTOR", "BRIDGE_MAX", "IMU_STEP_RANGE", "time_step_problem", "GapBridge", "bridge_gaps",
@@ -76,8 +77,8 @@ RATE_COLUMNS = ("w_x", "w_y", "w_z")
 FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
 DTHETA_COLUMNS = ("dth_x", "dth_y", "dth_z")
 DV_COLUMNS = ("dvb_x", "dvb_y", "dvb_z")
-#: A step longer than this many median steps has lost samples.
-GAP_FACTOR = 1.5
+#: A step longer than this many median steps has lost samples (:data:`casep.io.flight.LOST_SAMPLE_FACTOR`).
+GAP_FACTOR = LOST_SAMPLE_FACTOR
 #: Samples on each side of a gap its bridge is fitted to, at most (:func:`bridge_gaps`).
 BRIDGE_MAX = 400
 #: The median time steps of an IMU record, s: 1 MHz to 5 Hz (IMUs sample at 10 Hz-100 kHz); outside, `t` is
@@ -203,12 +204,6 @@ def check_imu(imu: ImuData, *, gyr_range: float | None = None, acc_range: float 
     _check_units(imu, declared=gyr_range is not None and float(np.abs(imu.w).max()) <= (1 + CLIP_MARGIN) * gyr_range)
     imu.clipped = _check_clipped(imu, gyr_range, acc_range, raw, h_med)
     return imu
-
-
-def gap_steps(t: np.ndarray) -> np.ndarray:
-    """Indices ``k`` of the steps ``t[k] -> t[k+1]`` that lost samples (over :data:`GAP_FACTOR` median steps)."""
-    h = np.diff(np.asarray(t, float))
-    return np.flatnonzero(h > GAP_FACTOR * float(np.median(h)))
 
 
 @dataclass

@@ -1380,17 +1380,10 @@ def _add_setup_problem(flight: FlightData, why: str) -> None:
 
 def _late_tags_clause(flight: FlightData) -> str:
     """What a failed iteration says of tracking time tags the pair found late by more than a sample period and
-    left in place (:func:`casep.io.align.unaligned_lateness`); else nothing."""
-    from casep.io.align import unaligned_lateness
+    left in place (:func:`casep.io.align.late_tags_clause`); else nothing."""
+    from casep.io.align import late_tags_clause
 
-    record = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
-    tau = unaligned_lateness(record)
-    if tau is None:
-        return ""
-    assert record is not None
-    return (f"the tracking time tags look {tau * 1e3:.1f} ms late (said when the pair was read), more than a "
-            f"tracking sample period ({record['tracking_period_s'] * 1e3:.4g} ms), which a first-order dt_trk does "
-            "not take: align them (--time-offset auto) and separate again")
+    return late_tags_clause(flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None)
 
 
 def _gap_clause(imu: ImuData, sigma: float) -> str:

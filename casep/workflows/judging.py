@@ -36,6 +36,12 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     problems = setup_problems(flight) if flight is not None else []
     if flight is not None and problems:
         res = failed(res, STATUS_SETUP, f"failed: set-up check of {flight.source}: " + "; ".join(problems))
+    why_lost = _lost_rows_problem(flight)
+    if why_lost is not None:
+        res = failed(res, STATUS_SETUP, f"failed: {flight.source if flight is not None else ''}: {why_lost}")
+    why_late = _lateness_left(res, flight)
+    if why_late is not None:
+        res = failed(res, STATUS_SETUP, f"failed: {flight.source if flight is not None else ''}: {why_late}")
     why_level = levelling_problem(flight, model, dict(zip(res.names, res.estimate))) if flight is not None else None
     if why_level is not None:
         res = failed(res, STATUS_SETUP, f"failed: {why_level}")
@@ -48,7 +54,8 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
         # "glitches"); otherwise the axes the whiteness test rejects
         correlated = "xyz" if runs is not None else (res.diagnostics.get("whiteness") or {}).get("rejected") or ()
         why = misfit_problem(flight, res.residual_rms, correlated, runs=runs,
-                             advice=misfit_advice(res.model, res.names, res.units, res.estimate, res.std))
+                             advice=misfit_advice(res.model, res.names, res.units, res.estimate, res.std),
+                             noise=res.diagnostics.get("noise"))
         if why is not None:
             res = failed(res, STATUS_MISFIT, f"failed: {flight.source}: {why}")
     if isinstance(model, ErrorModel) and model.name == res.model and not noise_free:
@@ -105,3 +112,29 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     if record is not None:
         res.diagnostics["determined"]["curvature"] = record
     return res
+
+
+def _lateness_left(res: EstimateResult, flight: FlightData | None) -> str | None:
+    """:func:`casep.io.align.lateness_left` of the flight's pair and the result's ``dt_trk`` (ms in the result)."""
+    from casep.io.align import lateness_left
+    from casep.model.loader import TIME_OFFSET
+
+    if flight is None or not isinstance(flight.meta, dict):
+        return None
+    record = flight.meta.get("time_alignment")
+    if TIME_OFFSET in res.names:
+        j = res.names.index(TIME_OFFSET)
+        sd = None if res.std is None else 1e-3 * float(res.std[j])
+        return lateness_left(record, 1e-3 * float(res.estimate[j]), sd)
+    if any(n.startswith(TIME_OFFSET + "[") for n in res.names):  # several flights: each its own, not told apart here
+        return None
+    return lateness_left(record, None, None)
+
+
+def _lost_rows_problem(flight: FlightData | None) -> str | None:
+    """:func:`casep.io.strapdown.lost_rows_problem` of the flight's strapdown telemetry."""
+    from casep.io.strapdown import lost_rows_problem
+
+    if flight is None or not isinstance(flight.meta, dict):
+        return None
+    return lost_rows_problem(flight.meta.get("strapdown"))

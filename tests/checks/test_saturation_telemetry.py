@@ -10,6 +10,7 @@ and scale factor per axis).
 from __future__ import annotations
 
 import math
+import re
 import warnings
 
 import numpy as np
@@ -288,3 +289,37 @@ def test_a_robust_fit_on_a_model_error_is_not_a_plain_success(tmp_path):
     assert not res.success and res.status == STATUS_MISFIT
     assert "correlated after the noise model" \
         in res.message and "(x " in res.message and ", z " in res.message
+
+
+def test_misfit_rule_names_a_noise_model_as_slow_as_the_record():
+    """White dv of 0.05 m/s over 60 s: residuals of 1.9 m/s (39 x the sample noise) that the noise model took for a
+    Gauss-Markov noise of tau 40 s (2/3 of the record: it fits the signal) are named, with the axis, tau and ratio,
+    though the whitened residuals pass (main: a plain success, the reviewer's dv_x/dv_z swap absorbed as tau 135-189
+    s on a 184 s record). Honest correlated noise (tau 1.2 s), a slow noise whose residuals are near the sample
+    noise (8 x), or one near the noise of the record's noisiest stretch (a quiet pad and a noisy flight: the simulated
+    rocket's 0.035 against 1.7 m/s), is not named."""
+    from casep.checks.plausibility import SLOW_NOISE_RATIO, SLOW_NOISE_SHARE, misfit_problem
+    from casep.io.flight import FlightData
+
+    rng = np.random.default_rng(4)
+    t = np.arange(0.0, 60.0, 0.1)
+    fl = FlightData(t, np.tile([10.0, 20.0, 0.0], (t.size, 1)), rng.normal(0, 0.05, (t.size, 3)))
+    span = t[-1] - t[0]
+
+    def noise(tau):
+        return {"axes": {a: {"model": "gauss-markov+white", "tau_s": tau} for a in "xyz"}}
+
+    rms = {"x": 1.9, "y": 0.2, "z": 0.06}
+    why = misfit_problem(fl, rms, (), noise=noise(40.0))
+    assert why is not None and re.search(r"as slow as the record \(59\.9 s .* on 1 axis\(es\) \(x tau 40 s, residual "
+                                         r"RMS 1\.9 m/s = 38\.7 x 0\.049 m/s\): .*the noise model fits the signal",
+                                         why), why
+    assert misfit_problem(fl, rms, (), noise=noise(1.2)) is None
+    assert misfit_problem(fl, rms, (), noise=noise(0.99 * SLOW_NOISE_SHARE * span)) is None
+    assert misfit_problem(fl, {"x": 0.8 * SLOW_NOISE_RATIO * 0.05, "y": 0.2, "z": 0.2}, (), noise=noise(40.0)) is None
+    assert misfit_problem(fl, rms, ()) is None  # without the noise record: the rule of correlated residuals alone
+    tt = np.concatenate([np.arange(0.0, 20.0, 0.1), np.arange(25.0, 60.0, 0.1)])  # a pause of 5 s: two stretches
+    dv = np.where((tt < 22.0)[:, None], 1.0, 20.0) * rng.normal(0, 0.05, (tt.size, 3))  # 0.05, then 1 m/s
+    noisy = FlightData(tt, np.tile([10.0, 20.0, 0.0], (tt.size, 1)), dv)
+    assert misfit_problem(noisy, rms, (), noise=noise(40.0)) is None
+    assert misfit_problem(noisy, {"x": 15.0, "y": 0.2, "z": 0.2}, (), noise=noise(40.0)) is not None

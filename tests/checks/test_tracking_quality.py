@@ -543,3 +543,27 @@ def test_a_coasting_rockets_drift_is_measured_over_the_whole_flight(ppm):
     est, std = clock_drift(t, dv, a, order=0)
     assert abs(est - ppm) < 4 * std and std < DRIFT_MIN_PPM / 4, (est, std)
     assert math.isnan(clock_drift(t, dv, a)[0])
+
+
+@pytest.mark.parametrize("frame", ["ecef", "geodetic", "launch"])
+def test_a_repeated_velocity_beside_fresh_positions_is_a_repeat(tmp_path, frame):
+    """A receiver that holds its velocity while its positions go on (rows 5-8), or holds its position while its
+    velocity goes on (rows 12-14): the velocity is what the separation compares, so the held velocity's rows are
+    repeats for the screen (main: only rows whose position and velocity both repeat, and the held velocity became
+    1855 "glitches"); the held position's are not."""
+    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS
+    from casep.io.files import write_table
+    from casep.io.pair import VTRK_COLUMNS, repeated_rows
+    from casep.io.tables import Table
+
+    n = 20
+    t = 0.1 * np.arange(n)
+    pos = np.column_stack([6.4e6 + 100.0 * t, 1e3 + 3.0 * t ** 2, 2e3 + t])
+    vel = np.column_stack([100.0 + 0 * t, 6.0 * t, 1.0 + 0.5 * t])
+    vel[5:9] = vel[4]
+    pos[12:15] = pos[11]
+    cols = {"launch": ((), VTRK_COLUMNS), "ecef": (ECEF_COLUMNS[1:4], ECEF_COLUMNS[4:]),
+            "geodetic": (GEODETIC_COLUMNS[1:4], GEODETIC_COLUMNS[4:])}[frame]
+    table = {"t": t, **{c: pos[:, i] for i, c in enumerate(cols[0])}, **{c: vel[:, i] for i, c in enumerate(cols[1])}}
+    write_table(tmp_path / "trk.csv", table)
+    assert repeated_rows(Table(tmp_path / "trk.csv"), frame).tolist() == [5, 6, 7, 8]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import casep
+import casep.io.strapdown as sd
 from casep.io.files import write_table
 from casep.io.flight import FlightDataError
 from casep.io.strapdown import StrapdownWarning
@@ -388,3 +390,74 @@ def test_the_velocity_is_checked_against_the_specific_force_naming_the_column(tm
                                               r"is off by 29\.4 m/s\^2 \(3e\+03 mg\).*\(3 g: an offset of whole g in "
                                               r"fb_y\?\)"):
         casep.read_flight(write_tel(tmp_path / "y3g.csv", t, q, fb + [0.0, 3 * 9.80665, 0.0], w, v_tel, v_trk))
+
+
+def test_t_in_ms_is_named_not_the_body_rate(tmp_path):
+    """The closed-form rolling body (50 Hz, 20 s) with t in ms: the quaternions turn by 1/1000 of the rate
+    integrated over steps of 20 "s"; main blamed w_* ("axes swapped, a sign, a factor?"). Read in ms (the
+    telemetry's time-unit rule) they agree: an error naming column t, and the same file in s reads cleanly."""
+    t, q, fb, w, _ = motion()
+    with pytest.raises(FlightDataError, match=r"column `t`: t looks like ms, not s: median time step 20 s .* agree "
+                                              r"within .*t is in ms \(divide by 1000\)") as exc:
+        casep.read_flight(write(tmp_path / "ms.csv", 1e3 * t, q, fb, w))
+    assert "not the rates the INS integrated" not in str(exc.value)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fl = casep.read_flight(write(tmp_path / "s.csv", t, q, fb, w))
+    assert "lost_rows" not in fl.meta["strapdown"]
+
+
+def test_t_in_ms_that_does_not_explain_the_disagreement_is_not_blamed():
+    """t in ms and a body rate with two axes swapped: read in s they still disagree, so t is not named."""
+    t, q, fb, w, _ = motion()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StrapdownWarning)
+        try:
+            sd.check_strapdown("sd.csv", 1e3 * t, q, fb, w[:, [0, 2, 1]])
+        except FlightDataError as exc:
+            assert "t looks like" not in str(exc)
+
+
+@pytest.mark.parametrize("lost", [slice(300, 430), slice(500, 501), slice(1, 3)])
+def test_lost_rows_are_named_and_left_out_of_the_comparison(lost):
+    """Rows lost while the body rolls at 1.5 rad/s (130 rows: 3.9 rad turned in the gap, more than the half turn a
+    quaternion step can show; one row; rows next to the first): the rate integrated over the gap is not what the
+    attitude shows across it (the comparison with every step disagrees: main refused such files, blaming w_* or a
+    skew between q and w). The gap is warned of with its rows, times and length,
+    and the comparison without the steps across it agrees with the rate to rounding."""
+    t, q, fb, w, _ = motion()
+    keep = np.ones(t.size, bool)
+    keep[lost] = False
+    t, q, fb, w = t[keep], q[keep], fb[keep], w[keep]
+    k = lost.start - 1  # 0-based row before the gap
+    with pytest.warns(StrapdownWarning) as caught:
+        _, info = sd.check_strapdown("sd.csv", t, q, fb, w)
+    said = " | ".join(str(m.message) for m in caught)
+    assert len(caught) == 1, said
+    n = lost.stop - lost.start
+    assert (f"column t: the telemetry lost rows: 1 gap(s) over 1.5 x the median step 0.02 s ({0.02 * (n + 1):.4g} s, "
+            f"~{n} row(s) lost between rows {k + 1} and {k + 2}, t = {t[k]:.10g} .. {t[k + 1]:.10g} s, the body "
+            "turning by") in said, said
+    assert {k: v for k, v in info["lost_rows"][0].items() if k != "turn_rad"} == {
+        "row_before": k + 1, "row_after": k + 2, "t_before": t[k], "t_after": t[k + 1], "length_s": t[k + 1] - t[k],
+        "rows_lost": n}
+    assert info["rms_rate_error_rad_s"] < 1e-4 * info["rms_rate_rad_s"]
+    turn = info["lost_rows"][0]["turn_rad"]
+    assert turn == pytest.approx(1.5 * 0.02 * (n + 1), rel=0.01)  # the roll rate 1.5 rad/s times the gap
+    why = sd.lost_rows_problem(info)
+    assert (why is not None) == (turn > sd.GAP_TURN_LIMIT) == (n > 100)  # 3.9 rad: S_V across it is not known
+    if why is not None:
+        said = (r"the telemetry lost rows while the body turned \(2\.62 s, ~130 row\(s\) lost between rows 300 and "
+                r"301, t = 5\.98 \.\. 8\.6 s, the body turning by 22\d deg across it; beyond 44\.4 deg\)")
+        assert re.search(said, why), why
+    if n > 100:  # what the gap did to the comparison: it disagrees
+        assert not sd._agrees(sd._rate_evidence(t, q, w))
+
+
+def test_a_wrong_rate_with_lost_rows_is_refused_and_says_the_gap_was_left_out():
+    t, q, fb, w, _ = motion()
+    keep = np.r_[0:300, 400:t.size]
+    said = (r"not the rates the INS integrated .*The telemetry lost rows \(2\.02 s, ~100 row\(s\) lost between rows "
+            r"300 and 301.*left out of this comparison")
+    with pytest.warns(StrapdownWarning, match="lost rows"), pytest.raises(FlightDataError, match=said):
+        sd.check_strapdown("sd.csv", t[keep], q[keep], fb[keep], 1.1 * w[keep])

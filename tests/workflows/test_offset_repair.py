@@ -106,3 +106,22 @@ def test_an_offset_that_does_not_settle_fails(monkeypatch):
         res = _separate(fl, fit_time_offset=True, noise="white", robust="none")
     assert not res.success and res.status == casep.estimators.registry.STATUS_TRACKING
     assert "tracking time offset not settled: re-paired at the offset found 1 times" in res.message, res.message
+
+
+def test_a_lateness_left_in_place_fails_a_result_whose_dt_trk_does_not_take_it():
+    """The pair 100 ms late at 20 Hz tracking, its reader's record saying so (left in place, explaining the data):
+    with dt_trk fitted (and re-paired) the offset is taken, a success; without dt_trk the coefficients absorb the
+    lateness: failed as a set-up problem naming it (casep.io.align.lateness_left), not a plain success."""
+    from casep.estimators.registry import STATUS_SETUP
+
+    _, fl = _pair(0.1)
+    record = {"mode": "none", "explains": True, "tau_s": 0.1003, "tracking_period_s": 0.05, "std_s": 0.0005}
+    fl = dataclasses.replace(fl, meta={**fl.meta, "time_alignment": record})
+    res = _separate(fl, fit_time_offset=True)
+    assert res.success, res.message
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", casep.exceptions.NoiseNotWhiteWarning)
+        warnings.simplefilter("ignore", casep.exceptions.TimeOffsetWarning)  # the residuals' own test says it too
+        res = _separate(fl, fit_time_offset=False, noise="white", robust="none")
+    assert not res.success and res.status == STATUS_SETUP
+    assert "tracking time tags look 100.3 ms late" in res.message and "the fit has no dt_trk" in res.message
