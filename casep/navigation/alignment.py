@@ -490,7 +490,8 @@ def _check_earth_rate(w_win: np.ndarray, w_mean: np.ndarray, C: np.ndarray, site
                  + "; ".join(f"{c.what}: a bias of {c.bias / dh:.3g} deg/h, {c.factor:.3g} times as likely"
                              for c in causes)
                  + f" (the evidence of each against the set-up as given, for a gyro bias of any grade from "
-                   f"{GRADE_FLOOR / dh:g} to {b / dh:.3g} deg/h, beyond {CAUSE_FACTOR:g} times named)"
+                   f"{GRADE_FLOOR / dh:g} to {b / dh:.3g} deg/h, the allowance of a gyro that finds north, beyond "
+                   f"{CAUSE_FACTOR:g} times named; a larger bias can mimic them)"
                  + (": the pad rate alone cannot tell these apart" if len(causes) > 1 else "")
                  + "; the navigation from a wrong set-up turns the attitude and the velocity away from the truth")
     if flipped:
@@ -514,8 +515,11 @@ def _check_earth_rate(w_win: np.ndarray, w_mean: np.ndarray, C: np.ndarray, site
 #: log-uniform from this (a navigation-grade gyro's 0.001 deg/h, rad/s) to :func:`gyro_bias_allowance`.
 GRADE_FLOOR = math.radians(0.001 / 3600.0)
 #: A set-up mistake is named when the pad rate's evidence for it is this many times that for the set-up as given
-#: (synthetic pads, correct set-ups, gyro bias N(0, sigma^2) per axis: none of 60 named at sigma 1 and 3 deg/h, 2 of
-#: 60 at 6.6 deg/h, the allowance at 28 deg; the reviewer's swap, latitude sign and 90 deg heading named at 1e3-7e3).
+#: (synthetic correct pads, gyro bias N(0, sigma^2) per axis: none of 60 named at sigma 1 and 3 deg/h, 2 of 60 at
+#: 6.6 deg/h, about the allowance, 7 of 59 at 10 deg/h, beyond it; a reviewer's 1.5 deg/h gyro with two horizontal
+#: columns swapped, the latitude's sign or the heading 90 deg off: 1e3 to 7e3). With the grades up to sqrt(3)
+#: times the Earth rate (every pad the test is made on) the swap and the heading fall to 70-95: the pad rate
+#: determines them only for a gyro that finds north.
 CAUSE_FACTOR = 300.0
 
 
