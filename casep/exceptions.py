@@ -30,7 +30,8 @@ class NoiseFreeWarning(CasepWarning):
 
 
 class OutlierWarning(CasepWarning):
-    """Isolated dv values far outside the noise: the message names the rows and their size."""
+    """Isolated values far outside the noise (dv, or single IMU samples): the message names the rows and their
+    size."""
 
 
 class TimeOffsetWarning(CasepWarning):

@@ -70,7 +70,8 @@ from casep.units import ACC_RANGES_G, FULL_SCALE_TOLERANCE, G0, GYR_RANGES_DPS
 
 __all__ = ["held_full_scale", "held_mask", "HeldFullScale", "FULL_SCALE_UNITS", "NOMINAL_RANGES", "ADC_BITS",
            "CLIP_RUN", "CLIP_MARGIN", "HELD_FRACTION", "NOISE_ALPHA", "NOISE_BLOCK", "NOISE_STEPS",
-           "noise_cannot_hold", "white_noise", "resolution", "DECLARED_EXCEEDED", "beyond_declared"]
+           "noise_cannot_hold", "white_noise", "resolution", "RESOLUTION_READINGS", "DECLARED_EXCEEDED",
+           "beyond_declared"]
 
 #: Word lengths of the converters raw counts come from.
 ADC_BITS = (8, 10, 12, 14, 16, 18, 20, 24, 32)
@@ -94,6 +95,9 @@ NOISE_BLOCK = 256
 #: (a noise-free record computed in floating point, written to a few digits) scatters readings by a step or two,
 #: and a value held exactly there is a state, not a clip.
 NOISE_STEPS = 100.0
+#: Readings nearest the extreme in magnitude whose decimal cells say how finely a column is written
+#: (:func:`resolution`).
+RESOLUTION_READINGS = 64
 #: The unit of each sensor's full scale at the edge (command line), and SI per that unit.
 FULL_SCALE_UNITS = {"accelerometer": ("g", G0), "gyro": ("deg/s", math.pi / 180.0)}
 #: The nominal ranges (+-) of each sensor, in the unit of FULL_SCALE_UNITS.
@@ -261,14 +265,36 @@ def white_noise(column: np.ndarray, ext: float) -> float:
 
 
 def resolution(column: np.ndarray, ext: float) -> float:
-    """The step `column`'s readings are resolved to at its extreme `ext`, at most: the largest of the decimal cell of
-    `ext` (``10^(floor(log10 |ext|) - d + 1)``, ``d`` the fewest significant digits that give `ext` back: a
-    reading written with ``d`` digits or more), the binary one (the spacing of doubles at `ext`) and the smallest
-    gap between distinct readings (a column on a grid, as counts times a sensitivity, has no smaller one)."""
-    d = next(k for k in range(1, 18) if float(f"{ext:.{k}g}") == ext)
-    cell = max(10.0 ** (math.floor(math.log10(abs(ext))) - d + 1), float(np.spacing(abs(ext))))
-    u = np.unique(np.asarray(column, float))
+    """The step `column`'s readings are resolved to at its extreme `ext`, at most: the largest of the decimal cell
+    the column is written to near `ext`, the binary one (the spacing of doubles at `ext`) and the smallest gap
+    between distinct readings (a column on a grid, as counts times a sensitivity, has no smaller one).
+
+    The decimal cell of a reading ``v`` is ``10^(floor(log10 |v|) - d + 1)``, ``d`` the fewest significant digits
+    that give ``v`` back. The column's cell near `ext` is the finest of the cells of the
+    :data:`RESOLUTION_READINGS` readings off the rails ``+-ext`` nearest ``|ext|`` in magnitude, each raised to the
+    decade of `ext` when it lies in a lower one (a column written to a fixed number of significant digits has a
+    cell ten times coarser a decade up; one written to fixed decimals keeps it, and is overstated, the safe side).
+    Not the cell of `ext` alone: a sensor clipped at a round value (exactly 1 rad/s) writes it in one digit while
+    every other reading carries all of its digits; only a column with no other reading falls back on it."""
+    c = np.asarray(column, float)
+    off = c[(np.abs(c) != abs(ext)) & (c != 0.0) & np.isfinite(c)]
+    decade = math.floor(math.log10(abs(ext)))
+    if off.size:
+        near = off[np.argsort(np.abs(np.abs(off) - abs(ext)), kind="stable")[:RESOLUTION_READINGS]]
+        cell = min(_decimal_cell(float(v)) * 10.0 ** max(0, decade - math.floor(math.log10(abs(float(v)))))
+                   for v in near)
+    else:
+        cell = _decimal_cell(ext)
+    cell = max(cell, float(np.spacing(abs(ext))))
+    u = np.unique(c[np.isfinite(c)])
     return max(cell, float(np.diff(u).min())) if u.size > 1 else cell
+
+
+def _decimal_cell(v: float) -> float:
+    """The decimal cell a nonzero reading `v` is written to: ``10^(floor(log10 |v|) - d + 1)``, ``d`` the fewest
+    significant digits that give `v` back."""
+    d = next(k for k in range(1, 18) if float(f"{v:.{k}g}") == v)
+    return 10.0 ** (math.floor(math.log10(abs(v))) - d + 1)
 
 
 def noise_cannot_hold(column: np.ndarray, ext: float) -> str | None:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -32,7 +33,8 @@ from casep.units import G0, MEMS_ACCEL_BIAS, MEMS_GYRO_BIAS
 
 __all__ = ["Alignment", "align", "HEADING_AXES", "MAX_PAD_RATE", "ACCEL_BIAS_TOLERANCE", "AT_REST_SILENT",
            "FORCE_UNITS", "course_rotation", "gyro_bias_allowance", "mean_rate_std",
-           "EARTH_RATE_CHI2", "deg_s_chance", "large_pad_rate"]
+           "EARTH_RATE_CHI2", "deg_s_chance", "large_pad_rate", "pad_rate_causes", "PadRateCause",
+           "GRADE_FLOOR", "CAUSE_FACTOR"]
 
 #: Body axes whose azimuth ``--heading`` may give.
 HEADING_AXES = ("x", "y", "z")
@@ -193,7 +195,8 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
         C = _triad(up_b, axis, up_t, _horizontal(heading_deg, site))
         _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in, C.T @ site.earth_rate,
                         large=large)
-        _check_earth_rate(w[sel], w_mean, C, site, (t1, t2), rates_in, float(heading_deg), as_given)
+        _check_earth_rate(w[sel], w_mean, C, site, (t1, t2), rates_in, float(heading_deg), as_given,
+                          pad=(up_b, up_t, axis))
         return Alignment(C, "heading", float(heading_deg) % 360.0, None, f_mean, w_mean, g0, n, heading_axis)
     _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in, large=large)
     if tilt < MIN_AXIS_TILT_RAD:  # its azimuth means nothing: report the most horizontal axis's
@@ -446,7 +449,8 @@ def mean_rate_std(x: np.ndarray) -> np.ndarray:
 
 
 def _check_earth_rate(w_win: np.ndarray, w_mean: np.ndarray, C: np.ndarray, site: LaunchSite,
-                      window: tuple[float, float], rates_in: str, heading_deg: float, refuse: bool = True) -> None:
+                      window: tuple[float, float], rates_in: str, heading_deg: float, refuse: bool = True,
+                      pad: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> None:
     """With the heading given, the mean pad rate against the Earth rate the alignment puts in body axes.
 
     ``chi2(S) = sum_i (S_i w_mean_i - e_i)^2 / (s_i^2 + b^2)``, ``e = C^T omega_t``, ``s_i`` the std of the mean
@@ -459,7 +463,9 @@ def _check_earth_rate(w_win: np.ndarray, w_mean: np.ndarray, C: np.ndarray, site
     data cannot tell "+g down" from an upside-down vehicle with two gyro axes flipped), or when ``chi2(+1)`` is
     beyond :data:`EARTH_RATE_CHI2` (a heading other than the one given, a larger gyro bias); an error (`refuse`)
     when that other sign is within :data:`SIGN_CHI2_CONSISTENT` and the given one beyond :data:`EARTH_RATE_CHI2`.
-    Not made when the
+    A warning too, naming them, when set-up mistakes explain the pad rate far better than the set-up as given
+    (:func:`pad_rate_causes`; `pad` is the alignment's vertical in body and triad axes and the heading axis, which
+    the other headings need). Not made when the
     mean rate exceeds 3 times the Earth rate (the gyro's bias hides it: MEMS) or the noise of the mean exceeds
     ``b``: there the pad cannot tell.
     """
@@ -475,12 +481,24 @@ def _check_earth_rate(w_win: np.ndarray, w_mean: np.ndarray, C: np.ndarray, site
     # rates lowers the chi-square of some flip by chance, and naming it sent a MEMS user after a sign (a 25 deg/h
     # bias on an upright z gyro at 68 N: 74.9 as given, 44.5 with z negated)
     flipped = chi2[k] + SIGN_CHI2_MARGIN < chi2[0] and chi2[k] <= EARTH_RATE_CHI2
-    if not flipped and chi2[0] <= EARTH_RATE_CHI2:
+    causes = pad_rate_causes(w_mean, s, e, b, site, heading_deg, *pad) if pad is not None else []
+    if not flipped and chi2[0] <= EARTH_RATE_CHI2 and not causes:
         return
     said = (f"--align {window[0]:g} {window[1]:g}: {rates_in}: the mean body rate at rest "
             f"({', '.join(f'{v:.3g}' for v in w_mean)}) rad/s is not the Earth rate the alignment puts in body axes "
             f"({', '.join(f'{v:.3g}' for v in e)}) rad/s: chi-square {chi2[0]:.3g} over 3 axes against the noise of "
             f"the mean ({', '.join(f'{v:.2g}' for v in s)} rad/s) and a gyro bias of up to {b:.2g} rad/s")
+    named = ""
+    if causes:
+        dh = math.radians(1.0 / 3600.0)
+        named = (f". As given the pad rate needs a gyro bias of {float(np.linalg.norm(w_mean - e)) / dh:.3g} deg/h; "
+                 + "; ".join(f"{c.what}: a bias of {c.bias / dh:.3g} deg/h, {c.factor:.3g} times as likely"
+                             for c in causes)
+                 + f" (the evidence of each against the set-up as given, for a gyro bias of any grade from "
+                   f"{GRADE_FLOOR / dh:g} to {b / dh:.3g} deg/h, the allowance of a gyro that finds north, beyond "
+                   f"{CAUSE_FACTOR:g} times named; a larger bias can mimic them)"
+                 + (": the pad rate alone cannot tell these apart" if len(causes) > 1 else "")
+                 + "; the navigation from a wrong set-up turns the attitude and the velocity away from the truth")
     if flipped:
         axes = ", ".join(a for a, v in zip("xyz", signs[k]) if v < 0)
         said += (f"; with the signs of gyro {axes} changed it is {chi2[k]:.3g}: gyro axes whose signs differ from "
@@ -488,16 +506,105 @@ def _check_earth_rate(w_win: np.ndarray, w_mean: np.ndarray, C: np.ndarray, site
                  "levelling turns the vehicle over)")
         if refuse and chi2[0] > EARTH_RATE_CHI2 and chi2[k] <= SIGN_CHI2_CONSISTENT:
             cols = ", ".join(f"w_{a}" for a, v in zip("xyz", signs[k]) if v < 0)
-            raise ValueError(f"{said}. As given beyond {EARTH_RATE_CHI2:g} (0.1 %), with those signs within "
+            raise ValueError(f"{said}{named}. As given beyond {EARTH_RATE_CHI2:g} (0.1 %), with those signs within "
                              f"{SIGN_CHI2_CONSISTENT:g} (95 %): negate {cols}, or give the specific force +g up at "
-                             "rest (fb_* negated), whichever the IMU's data sheet says; the navigation would turn "
-                             "the attitude about the wrong axes")
-    else:
+                             "rest (fb_* negated), whichever the IMU's data sheet says (or the set-up named above); "
+                             "the navigation would turn the attitude about the wrong axes")
+    elif not causes:  # beyond the bound as given (else it returned), no sign and no set-up explains it
         need = np.degrees(w_mean - e) * 3600.0
         said += (f" (> {EARTH_RATE_CHI2:g}, and no other sign per gyro axis within it): a heading other than "
                  f"{heading_deg:g} deg, or a larger gyro bias (the signs as given need "
                  f"{', '.join(f'{v:.3g}' for v in need)} deg/h, x, y, z: a MEMS gyro's is often larger)")
+    said += named
     warnings.warn(said, AlignmentWarning, stacklevel=3)
+
+
+#: The gyro grades the pad-rate evidence weighs (:func:`pad_rate_causes`): a bias of std ``sigma`` per axis, ``sigma``
+#: log-uniform from this (a navigation-grade gyro's 0.001 deg/h, rad/s) to :func:`gyro_bias_allowance`.
+GRADE_FLOOR = math.radians(0.001 / 3600.0)
+#: A set-up mistake is named when the pad rate's evidence for it is this many times that for the set-up as given
+#: (synthetic correct pads, gyro bias N(0, sigma^2) per axis: none of 60 named at sigma 1 and 3 deg/h, 2 of 60 at
+#: 6.6 deg/h, about the allowance, 7 of 59 at 10 deg/h, beyond it; a reviewer's 1.5 deg/h gyro with two horizontal
+#: columns swapped, the latitude's sign or the heading 90 deg off: 1e3 to 7e3). With the grades up to sqrt(3)
+#: times the Earth rate (every pad the test is made on) the swap and the heading fall to 70-95: the pad rate
+#: determines them only for a gyro that finds north.
+CAUSE_FACTOR = 300.0
+
+
+class PadRateCause(NamedTuple):
+    """A set-up mistake that explains the pad rate (:func:`pad_rate_causes`): ``what`` it is (the best of its kind,
+    with its numbers), ``bias`` the gyro bias it leaves (rad/s), ``factor`` its evidence over the set-up as given."""
+
+    what: str
+    bias: float
+    factor: float
+
+
+def _log_evidence(r: np.ndarray, s: np.ndarray, b: float) -> np.ndarray:
+    """``log p(r)`` of pad-rate residuals `r` (..., 3) (rad/s): a gyro bias ``N(0, sigma^2 I)`` plus the noise of the
+    mean ``N(0, diag s^2)``, ``sigma`` log-uniform on [:data:`GRADE_FLOOR`, `b`] (241 grades)."""
+    sig = np.geomspace(min(GRADE_FLOOR, b), b, 241)
+    var = np.asarray(s, float) ** 2 + sig[:, None] ** 2  # (G, 3)
+    ll = -0.5 * np.sum(r[..., None, :] ** 2 / var + np.log(2.0 * math.pi * var), axis=-1)  # (..., G)
+    top = ll.max(axis=-1)
+    return top + np.log(np.mean(np.exp(ll - top[..., None]), axis=-1))
+
+
+def pad_rate_causes(w_mean: np.ndarray, s: np.ndarray, e: np.ndarray, b: float, site: LaunchSite,
+                    heading_deg: float, up_b: np.ndarray, up_t: np.ndarray, axis: np.ndarray) -> list[PadRateCause]:
+    """The set-up mistakes the mean pad rate `w_mean` (rad/s, std of the mean `s`) names, against the Earth rate the
+    alignment puts in body axes `e`, strongest first.
+
+    Each hypothesis ``H`` predicts a pad rate ``e_H`` (read from the gyros as ``w_H``); its residual ``r_H = w_H -
+    e_H`` is the gyro bias plus the noise of the mean. With the bias of unknown grade (:func:`_log_evidence`: std
+    ``sigma`` per axis, log-uniform from :data:`GRADE_FLOOR` to `b`, :func:`gyro_bias_allowance`), the evidence
+    ``p(r_H)`` weighs a small residual against a large one without a fixed bias allowance: a 1 deg/h gyro's pad
+    rate explained to 1.5 deg/h by a mistake and to 19 deg/h as given favours the mistake by about 10^4, where a
+    chi-square with a 6.6 deg/h allowance cannot tell (8 against 16.3). The kinds, each the mean evidence over its
+    members (the look-elsewhere cost of trying many): the gyro columns permuted (5 permutations times 8 signs),
+    their signs (7), the latitude's sign (the vertical Earth rate ``omega_E sin(lat)`` negated), the heading (every
+    degree of azimuth, the given one among them: uniform over the circle). A kind is named when its evidence
+    exceeds :data:`CAUSE_FACTOR` times that of the
+    set-up as given, with its best member. The pad rate is one vector: a swap of two horizontal axes is a heading
+    mirrored, a negated vertical gyro a latitude of the other sign, and all that fit are named.
+    """
+    import itertools
+
+    ev0 = float(_log_evidence(w_mean - e, s, b))
+    u = up_b / np.linalg.norm(up_b)
+    signs = [np.array(S, float) for S in itertools.product((1, -1), repeat=3)]
+    perms = [p for p in itertools.permutations(range(3)) if p != (0, 1, 2)]
+    kinds: list[tuple[str, list[tuple[str, np.ndarray, np.ndarray]]]] = []
+
+    def cols(p: tuple[int, ...], S: np.ndarray) -> str:
+        return ", ".join(f"{'-' if S[i] < 0 else ''}w_{'xyz'[p[i]]}" for i in range(3))
+
+    kinds.append(("gyro axes", [(f"the gyro axes x, y, z read from {cols(p, S)}", S * w_mean[list(p)],
+                                 np.asarray(s)[list(p)]) for p in perms for S in signs]))
+    kinds.append(("gyro signs", [(f"the gyro signs as {cols((0, 1, 2), S)}", S * w_mean, s) for S in signs[1:]]))
+    e_lat = e - 2.0 * float(e @ u) * u  # the vertical Earth rate omega_E sin(lat) negated
+    heads = [(heading_deg + d) % 360.0 for d in range(360)]
+    kinds_e = [(f"a latitude of {-site.lat_deg:g} deg (the sign of --launch-site's latitude: given {site.lat_deg:g})",
+                e_lat)] + [(f"a heading of {h:g} deg (the gyrocompass heading of the pad rate; given {heading_deg:g}, "
+                            f"off by {((h - heading_deg + 180.0) % 360.0) - 180.0:+g} deg)",
+                            _triad(up_b, axis, up_t, _horizontal(h, site)).T @ site.earth_rate) for h in heads]
+    out = []
+    for name, members in kinds:
+        r = np.array([w - e for _, w, _ in members])
+        ev = np.array([float(_log_evidence(r[i], members[i][2], b)) for i in range(len(members))])
+        out.append((name, ev, [m[0] for m in members], r))
+    lat_r = w_mean - kinds_e[0][1]
+    out.append(("latitude", np.array([float(_log_evidence(lat_r, s, b))]), [kinds_e[0][0]], lat_r[None, :]))
+    head_r = np.array([w_mean - x for _, x in kinds_e[1:]])
+    out.append(("heading", _log_evidence(head_r, s, b), [m for m, _ in kinds_e[1:]], head_r))
+    causes = []
+    for _, ev, names, r in out:
+        log_mean = float(ev.max() + np.log(np.mean(np.exp(ev - ev.max()))))  # the kind's mean evidence
+        factor = math.exp(min(700.0, log_mean - ev0))
+        if factor >= CAUSE_FACTOR:
+            k = int(np.argmax(ev))
+            causes.append(PadRateCause(names[k], float(np.linalg.norm(r[k])), factor))
+    return sorted(causes, key=lambda c: -c.factor)
 
 
 def _gyrocompass(w_win: np.ndarray, w_mean: np.ndarray, f_mean: np.ndarray, up_b: np.ndarray, up_t: np.ndarray,

@@ -71,7 +71,8 @@ from casep.io.flight import LOST_SAMPLE_FACTOR, gap_steps
 
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
            "GAP_FACTOR", "BRIDGE_MAX", "IMU_STEP_RANGE", "time_step_problem", "GapBridge", "bridge_gaps",
-           "gap_steps", "clipped_samples", "sample_periods", "with_rates", "regular_time"]
+           "gap_steps", "clipped_samples", "sample_periods", "with_rates", "regular_time", "single_sample_spikes",
+           "SPIKE_BLOCK", "SPIKE_ROUNDING"]
 
 RATE_COLUMNS = ("w_x", "w_y", "w_z")
 FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
@@ -203,6 +204,7 @@ def check_imu(imu: ImuData, *, gyr_range: float | None = None, acc_range: float 
     imu.gaps = int(lost.size)
     _check_units(imu, declared=gyr_range is not None and float(np.abs(imu.w).max()) <= (1 + CLIP_MARGIN) * gyr_range)
     imu.clipped = _check_clipped(imu, gyr_range, acc_range, raw, h_med)
+    _warn_spikes(imu, h_med)
     return imu
 
 
@@ -414,6 +416,104 @@ def with_rates(imu: ImuData, w: np.ndarray, f: np.ndarray) -> ImuData:
         step = sample_periods(imu.t)[:, None]
         out.dtheta, out.dv = out.w * step, out.f * step
     return out
+
+
+#: Rows per block whose scatter is the yardstick of a single-sample spike (:func:`single_sample_spikes`).
+SPIKE_BLOCK = 64
+#: The yardstick is at least this fraction of the column's largest reading: a noise-free record's rounding (rates from
+#: increments divided by steps of ``t`` written to a few digits) scatters readings by parts in 10^10, no spike.
+SPIKE_ROUNDING = 1e-9
+
+
+def single_sample_spikes(x: np.ndarray) -> list[tuple[int, int, float, float]]:
+    """Single-sample spikes of readings `x` (N, k): ``(row, column, size, z)``, largest ``z`` first.
+
+    A spike is a reading off both neighbours on the same side, by ``a_k = s min(|x_k - x_{k-1}|, |x_k - x_{k+1}|)``
+    (both differences of sign ``s``), standing alone: higher above them than they differ from each other
+    (``|a_k| > |x_{k+1} - x_{k-1}|``) and than twice the steps just beyond them (``|x_{k-1} - x_{k-2}|``,
+    ``|x_{k+2} - x_{k+1}|``: the sampled peak of a smooth pulse stands a third of those above its neighbours, a
+    spike in a quiet or noisy stretch many times them), and alone in its neighbourhood (no other such reading of
+    half its bar, ``OUTLIER_Z / 2``, within two rows: a burst of vibration is motion, not one bad sample). A step
+    (thrust on or off), a ramp or a corner of the motion leaves one difference near zero, or the neighbours apart:
+    the change persists. ``a_k`` is judged against the record's local sample-to-sample variation over blocks of
+    :data:`SPIKE_BLOCK` rows: the larger of the white-noise sigma ``1.4826 MAD(d) / sqrt(1.5)`` of the spike
+    statistic ``d_k = x_k - (x_{k-1} + x_{k+1}) / 2`` (the one :func:`casep.checks.plausibility.check_fit` judges
+    dv outliers by) and ``1.4826 median |x_k - x_{k-1}| / sqrt(2)`` (both sigma for white noise; the second the
+    step of a smooth motion), at each row the largest of its block and the two beside it (a vibrating flight next
+    to a quiet pad is judged by the flight's), and at least the column's resolution (the smallest gap between its
+    distinct readings: a one-count step of a quantised sensor is no spike) and :data:`SPIKE_ROUNDING` of its
+    largest reading. A spike is ``|a_k| > OUTLIER_Z`` (10) times that (:data:`casep.checks.plausibility.OUTLIER_Z`:
+    Gaussian noise gives two differences of that size at one sample with a chance below 1e-23)."""
+    from casep._special import MAD_SIGMA
+    from casep.checks.plausibility import OUTLIER_Z
+
+    x = np.asarray(x, float)
+    out: list[tuple[int, int, float, float]] = []
+    if x.shape[0] < 3:
+        return out
+    d1, d2 = x[1:-1] - x[:-2], x[1:-1] - x[2:]
+    a = np.where(np.sign(d1) == np.sign(d2), np.sign(d1) * np.minimum(np.abs(d1), np.abs(d2)), 0.0)
+    step = np.abs(np.diff(x, axis=0))  # |x_k - x_{k-1}|, row k - 1
+    outer = np.maximum(np.vstack([np.zeros((1, x.shape[1])), step[:-2]]),  # the steps just outside the neighbours
+                       np.vstack([step[2:], np.zeros((1, x.shape[1]))]))
+    # higher above its neighbours than they differ, and than twice the steps beyond them (a smooth peak: a third)
+    alone = (np.abs(a) > np.abs(x[2:] - x[:-2])) & (np.abs(a) > 2.0 * outer)
+    d = x[1:-1] - 0.5 * (x[:-2] + x[2:])
+    nb = -(-d.shape[0] // SPIKE_BLOCK)
+    for j in range(x.shape[1]):
+        blocks = [d[i * SPIKE_BLOCK:(i + 1) * SPIKE_BLOCK, j] for i in range(nb)]
+        steps = [d1[i * SPIKE_BLOCK:(i + 1) * SPIKE_BLOCK, j] for i in range(nb)]
+        s = np.maximum([MAD_SIGMA * np.median(np.abs(b - np.median(b))) / math.sqrt(1.5) for b in blocks],
+                       [MAD_SIGMA * np.median(np.abs(b)) / math.sqrt(2.0) for b in steps])
+        s = np.maximum(s, np.maximum(np.r_[s[1:], 0.0], np.r_[0.0, s[:-1]]))  # with the blocks beside it
+        u = np.unique(x[:, j])
+        q = float(np.diff(u).min()) if u.size > 1 else 0.0
+        floor = max(q, SPIKE_ROUNDING * float(np.abs(x[:, j]).max()))
+        scale = np.maximum(np.repeat(s, SPIKE_BLOCK)[:d.shape[0]], floor)
+        z_all = np.abs(a[:, j]) / np.where(scale > 0, scale, np.inf)
+        z_all[(scale == 0) & (a[:, j] != 0)] = np.inf
+        near = alone[:, j] & (z_all > OUTLIER_Z / 2)  # half the bar: a burst's quieter members count
+        crowd = np.zeros_like(near)
+        for m in (1, 2):  # another such reading within two rows
+            crowd[m:] |= near[:-m]
+            crowd[:-m] |= near[m:]
+        hit = alone[:, j] & ~crowd & (z_all > OUTLIER_Z)
+        for k in np.flatnonzero(hit):
+            out.append((int(k) + 1, j, float(a[k, j]), float(z_all[k])))
+    return sorted(out, key=lambda r: -r[3])
+
+
+def _warn_spikes(imu: ImuData, h_med: float, top: int = 5) -> None:
+    """An :class:`~casep.exceptions.OutlierWarning` naming the single-sample spikes of the rates and specific forces
+    (:func:`single_sample_spikes`): column, row, time, size, and what the navigation takes from each (the
+    velocity a specific-force spike adds, the attitude a rate spike turns and the velocity error it grows per
+    second). The samples are navigated as read."""
+    from casep.exceptions import OutlierWarning
+
+    inc = imu.kind == "increments"
+    found = [(z, k, "w", j, size) for k, j, size, z in single_sample_spikes(imu.w)]
+    found += [(z, k, "f", j, size) for k, j, size, z in single_sample_spikes(imu.f)]
+    if not found:
+        return
+    found.sort(reverse=True)
+    said = []
+    for z, k, kind, j, size in found[:top]:
+        step = float(imu.t[k] - imu.t[k - 1])
+        if kind == "f":
+            col = DV_COLUMNS[j] if inc else FORCE_COLUMNS[j]
+            what = f"{size:+.4g} m/s^2 off both neighbours, adding {size * step:+.3g} m/s to the velocity"
+        else:
+            col = DTHETA_COLUMNS[j] if inc else RATE_COLUMNS[j]
+            turn = abs(size) * step
+            what = (f"{size:+.4g} rad/s ({math.degrees(size):+.4g} deg/s) off both neighbours, turning the attitude "
+                    f"by {math.degrees(turn):.3g} deg (a velocity error growing by "
+                    f"{turn * float(np.linalg.norm(imu.f[k])):.3g} m/s per s)")
+        said.append(f"{col} row {k + 1} (t = {imu.t[k]:.10g} s): {what}, {z:.3g} times the local noise")
+    more = f" and {len(found) - top} more" if len(found) > top else ""
+    warnings.warn(f"{imu.source}: {len(found)} single-sample spike(s) in the IMU record: " + "; ".join(said) + more
+                  + ". A change that persists (thrust on or off) is no spike; these samples are navigated as read: "
+                  "each is a glitch (replace it by the mean of its neighbours) or a shock shorter than the sample "
+                  "period (keep it)", OutlierWarning, stacklevel=3)
 
 
 def _check_units(imu: ImuData, declared: bool = False) -> None:

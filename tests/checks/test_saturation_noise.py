@@ -119,3 +119,37 @@ def _longest(x: np.ndarray, v: float) -> int:
         cur = cur + 1 if e == v else 0
         best = max(best, cur)
     return best
+
+
+def test_a_noisy_gyro_clipped_at_a_round_value_for_most_of_the_record_is_a_clip():
+    """Roll 60 deg/s then 120 deg/s, noise 2e-3 rad/s, clipped at exactly 1 rad/s (57.3 deg/s, no nominal range),
+    written with all digits: the clipped value, written "1", is the column's median (most of the record is clipped)
+    and one significant digit, yet every other reading carries 17; the run is a clip, found where the true roll
+    exceeded 1 rad/s. The same record written to 4 significant digits (a reading near 1 rad/s resolved to 1e-3,
+    half the noise) says nothing and is not flagged."""
+    rng = np.random.default_rng(5)
+    true = _roll(8000, rng, 2e-3)
+    w = _text(np.clip(true, -1.0, 1.0), 17)
+    assert np.median(w[:, 0]) == 1.0 and float(f"{w[:, 0].max():.1g}") == 1.0
+    assert resolution(w[:, 0], 1.0) < 1e-6  # the readings' gaps, not the cell of "1"
+    over = np.flatnonzero(true[:, 0] > 1.0)  # independent of the rule: where the roll exceeded the range
+    found = held_full_scale(w, "gyro")
+    assert [(h.axis, h.side) for h in found] == [(0, "maximum")]
+    assert found[0].runs[0][0] == over[0] and found[0].runs[-1][1] == w.shape[0]
+    assert sum(b - a for a, b in found[0].runs) >= 0.99 * over.size
+    coarse = _text(np.clip(true, -1.0, 1.0), 4)
+    assert resolution(coarse[:, 0], 1.0) == pytest.approx(1e-3) and held_full_scale(coarse, "gyro") == []
+
+
+@pytest.mark.parametrize("session", range(5))
+def test_real_mpu9150_sessions_at_rest_are_no_clip(session):
+    """Five real MPU-9150 sessions (tests/data/mikoff_mpu9150: five decimals, at rest between hand turns, its
+    quantised readings repeat) and the real car drive (tests/data/car_drive: at rest for 35 s): nothing is at full
+    scale."""
+    from pathlib import Path
+
+    data = Path(__file__).resolve().parents[1] / "data"
+    a = np.loadtxt(data / "mikoff_mpu9150" / f"imu{session}.log.gz")
+    assert held_full_scale(a[:, 3:6], "gyro") == [] and held_full_scale(a[:, 0:3], "accelerometer") == []
+    car = np.loadtxt(data / "car_drive" / "imu.csv.gz", delimiter=",", skiprows=1)
+    assert held_full_scale(car[:, 1:4], "gyro") == [] and held_full_scale(car[:, 4:7], "accelerometer") == []
