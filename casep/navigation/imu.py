@@ -77,7 +77,7 @@ from casep.exceptions import GapWarning, PlausibilityWarning, SaturationWarning
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
            "GAP_FACTOR", "BRIDGE_MAX", "IMU_STEP_RANGE", "time_step_problem", "GapBridge", "bridge_gaps",
            "gap_steps", "clipped_samples", "sample_periods", "with_rates", "regular_time", "SampleSteps",
-           "sample_steps", "STEP_FACTOR", "steps_said"]
+           "sample_steps", "split_steps", "STEP_FACTOR", "steps_said"]
 
 RATE_COLUMNS = ("w_x", "w_y", "w_z")
 FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
@@ -98,8 +98,10 @@ WARN_FORCE = 50 * 9.80665
 #: A jump between consecutive samples beyond this many times the column's sample-to-sample noise is a step
 #: (:func:`sample_steps`).
 STEP_FACTOR = 10.0
-#: ... and beyond this fraction of the sensor's largest reading in the record (a noise-free record has no noise).
-STEP_FLOOR = 1e-6
+#: ... and beyond this fraction of the sensor's largest reading in the record (a noise-free record has no noise),
+#: and this share of the interval's own difference (a step split over two intervals by a sample at its middle,
+#: which the integration takes exactly, is none).
+STEP_FLOOR, STEP_SHARE = 1e-6, 0.5
 
 
 @dataclass
@@ -342,24 +344,54 @@ def sample_steps(t: np.ndarray, w: np.ndarray, f: np.ndarray) -> SampleSteps:
     integral over it is then anywhere within ``(x_{k+1} - x_k) h / 2`` of the trapezoid's (the step at either
     end), the same bound as a gap's motion term (:func:`bridge_gaps`). A step is a jump :func:`_jumps` finds beyond
     :data:`STEP_FACTOR` times the column's sample-to-sample noise (the robust scatter of its second differences,
-    ``1.4826 MAD``: a white noise's jumps stay within about 5 of it) and beyond :data:`STEP_FLOOR` of the sensor's
-    largest reading; the intervals touching a gap are the bridge's (:func:`bridge_gaps`)."""
+    ``1.4826 MAD``: a white noise's jumps stay within about 5 of it), beyond :data:`STEP_FLOOR` of the sensor's
+    largest reading and beyond :data:`STEP_SHARE` of the interval's own difference (a sample at a step's middle
+    splits it over two intervals, and the trapezoid integrates the pair exactly); the intervals touching a gap are
+    the bridge's (:func:`bridge_gaps`)."""
     t, w, f = np.asarray(t, float), np.asarray(w, float), np.asarray(f, float)
+    found, _, jumps = _step_axes(t, w, f)
     h = np.diff(t)
-    found = np.zeros(h.size, bool)
-    jumps = []
+    k = np.flatnonzero(found)
+    dw, df = jumps[0][k], jumps[1][k]
+    return SampleSteps(k, h[k], dw, df, np.linalg.norm(dw, axis=1) * h[k] / 2, np.linalg.norm(df, axis=1) * h[k] / 2)
+
+
+def _step_axes(t: np.ndarray, w: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray]]:
+    """:func:`sample_steps`'s rule: ``(found (N-1,), [axes of w, of f] (N-1, 3) bool, [jumps of w, of f])``."""
+    found = np.zeros(t.size - 1, bool)
+    jumps, axes = [], []
     for x in (w, f):
         J = _jumps(x)
         d2 = np.diff(x, 2, axis=0)
         scale = 1.4826 * np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0) if len(x) > 3 else np.zeros(3)
         floor = STEP_FLOOR * float(np.max(np.abs(x))) if x.size else 0.0
-        found |= np.any(np.abs(J) > STEP_FACTOR * np.maximum(scale, floor), axis=1) & (float(np.max(np.abs(x))) > 0)
+        big = (np.abs(J) > STEP_FACTOR * np.maximum(scale, floor)) \
+            & (np.abs(J) > STEP_SHARE * np.abs(np.diff(x, axis=0))) & (float(np.max(np.abs(x))) > 0)
+        for g in gap_steps(t):  # a gap is bridged, its neighbours' differences span it
+            big[max(g - 1, 0):g + 2] = False
+        found |= np.any(big, axis=1)
         jumps.append(J)
-    for g in gap_steps(t):  # a gap is bridged, its neighbours' differences span it
-        found[max(g - 1, 0):g + 2] = False
-    k = np.flatnonzero(found)
-    dw, df = jumps[0][k], jumps[1][k]
-    return SampleSteps(k, h[k], dw, df, np.linalg.norm(dw, axis=1) * h[k] / 2, np.linalg.norm(df, axis=1) * h[k] / 2)
+        axes.append(big)
+    return found, axes, jumps
+
+
+def split_steps(t: np.ndarray, w: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`w`, `f` with the sample after each step between samples (:func:`sample_steps`) holding the mean of it and the
+    sample before, on the axes that step: for a simulated record whose truth steps exactly at a sample time ``t_k+1``
+    (ignition, a pitch kick) and which samples the value after it, so that the integration takes the step exactly.
+    With ``m = (x_k + x_k+1) / 2`` the two trapezoids around the sample sum to ``(x_k + m) h / 2 + (m + x_k+2) h / 2 =
+    x_k h + (x_k+1 + x_k+2) h / 2``: the value before the step held up to it, then the trapezoid (exact for a constant
+    before the step; the velocity is off by ``|dx| h / 4`` at ``t_k+1`` alone); read as is, the sample after the
+    step leaves it off by ``|dx| h / 2`` for the rest of the record. Not for a real record: where its steps fell is
+    unknown (:func:`casep.workflows.imu_separate.step_rows` carries that)."""
+    t, w, f = np.asarray(t, float), np.asarray(w, float).copy(), np.asarray(f, float).copy()
+    if t.size < 4:
+        return w, f
+    _, axes, _ = _step_axes(t, w, f)
+    for x, big in zip((w, f), axes):
+        k, c = np.nonzero(big)
+        x[k + 1, c] = 0.5 * (x[k, c] + x[k + 1, c])  # the right side is evaluated before the assignment
+    return w, f
 
 
 #: The steps a warning lists one by one, at most (the largest bounds first).

@@ -387,8 +387,10 @@ class _Run:
     heading_said: str | None = None
     #: (problem, the rows' shift for one std of the heading), formed once per problem by :meth:`finish`
     _heading: tuple | None = None
-    #: (problem, the rows' shift for one std of each step between samples: :meth:`step_rows`), formed by :meth:`finish`
+    #: (problem, the rows' shift for one std of each step between samples: :func:`step_rows`), formed by :meth:`finish`
     _steps: tuple | None = None
+    #: the raw record (a class default: a telemetry's passes have none, and no steps between samples to carry)
+    imu: ImuData | None = None
 
     def __init__(self, imu: ImuData, tracking: Any, nav_site: LaunchSite, site: LaunchSite, window: tuple,
                  base: ErrorModel, source: Any, spec: FitSpec, heading_deg: float | None, heading_axis: str,
@@ -1934,7 +1936,7 @@ def consider_columns(heading: np.ndarray | None, steps: np.ndarray | None) -> np
 MAX_STEP_COLUMNS = 100
 
 
-def step_rows(imu: ImuData, nav: NavigationResult, problem: Any) -> np.ndarray | None:
+def step_rows(imu: ImuData | None, nav: NavigationResult, problem: Any) -> np.ndarray | None:
     """The shift of the rows (N, 3, S) at `problem`'s epochs for one std of each step between samples of `imu`
     (:func:`casep.navigation.imu.sample_steps`) the navigation `nav` integrates across; None without one.
 
@@ -1947,8 +1949,8 @@ def step_rows(imu: ImuData, nav: NavigationResult, problem: Any) -> np.ndarray |
     largest bounds of ``|dv|`` at the record's end)."""
     from casep.rotations import quat_rotate, quat_to_dcm
 
-    st = imu.steps
-    if st is None or not st.k.size or problem.t is None or nav.t.size < 2:
+    st = None if imu is None else imu.steps
+    if imu is None or st is None or not st.k.size or problem.t is None or nav.t.size < 2:
         return None
     i0 = int(np.searchsorted(imu.t, nav.t[0]))
     keep = (st.k >= i0) & (st.k < i0 + nav.t.size - 1)
@@ -1993,12 +1995,12 @@ def with_consider(res: EstimateResult, problem: Any, cols: np.ndarray) -> Estima
     return dataclasses.replace(res, covariance=cov, std=std)
 
 
-def with_steps(out: EstimateResult, before: EstimateResult, problem: Any, imu: ImuData) -> EstimateResult:
+def with_steps(out: EstimateResult, before: EstimateResult, problem: Any, imu: ImuData | None) -> EstimateResult:
     """`out` (its covariance holding the steps between samples: :func:`step_rows`) with the steps said: in
     ``diagnostics["sampled_steps"]`` and a line of its message, with how much they raise the std (against
     `before`'s, the fit's)."""
-    st = imu.steps
-    if st is None or out.std is None or before.std is None:
+    st = None if imu is None else imu.steps
+    if imu is None or st is None or out.std is None or before.std is None:
         return out
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.asarray(out.std, float) / np.asarray(before.std, float)

@@ -99,3 +99,28 @@ def test_step_column_against_a_finer_navigation():
     predicted = -math.sqrt(3.0) * cols[:, :, 0]
     assert float(np.linalg.norm(predicted[-1] - predicted[0])) > 0.3  # the attitude step's part grows, m/s
     np.testing.assert_allclose(diff, predicted, atol=0.01 * float(np.max(np.abs(predicted))))
+
+
+def test_split_steps_makes_a_simulated_step_exact():
+    """A record sampled right-continuous at a step that falls on a sample (a simulator's lift-off): read as is, its
+    navigation is off by ``|dF| h / 2`` for the rest of the record; with :func:`split_steps` (the sample after the step
+    the mean of its sides) it holds no step and navigates to the finer navigation of the same motion within 1e-3 of
+    that (the attitude step too), and the record without steps is left as it was."""
+    from casep.navigation.imu import split_steps
+
+    rec = _record(H, 20.0, 1.0, mid=False)
+    w, f = split_steps(rec.t, rec.w, rec.f)
+    assert sample_steps(rec.t, w, f).k.size == 0
+    assert np.count_nonzero(np.any(w != rec.w, axis=1) | np.any(f != rec.f, axis=1)) == 1  # the sample at 1.0 s
+    fine = check_imu(_record(H / 50, 20.0, 1.0, mid=True))  # the step at 1.0 s exactly
+    q0, r0, v0 = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3), np.zeros(3)
+    nav_f = navigate_from(fine, SITE, q0, r0, v0)
+    ref = np.column_stack([np.interp(rec.t, nav_f.t, nav_f.v[:, c]) for c in range(3)])[rec.t > 1.5]
+    as_is = navigate_from(check_imu(_record(H, 20.0, 1.0, mid=False)), SITE, q0, r0, v0).v[rec.t > 1.5]
+    split = navigate_from(check_imu(ImuData(rec.t, w, f, "rates")), SITE, q0, r0, v0).v[rec.t > 1.5]
+    bound = np.linalg.norm(F1 - F0) * H / 2
+    assert np.linalg.norm(as_is[0] - ref[0]) == pytest.approx(bound, rel=0.02)
+    assert float(np.max(np.linalg.norm(split - ref, axis=1))) < 1e-3 * bound
+    same = _record(H, 20.0, 1.0, mid=True)
+    w2, f2 = split_steps(same.t, same.w, same.f)
+    assert np.array_equal(w2, same.w) and np.array_equal(f2, same.f)

@@ -26,6 +26,7 @@ from casep.gravity import normal_gravity_ecef
 from casep.io.files import write_table
 from casep.model.strapdown import body_errors
 from casep.navigation import ImuData, check_imu, navigate
+from casep.navigation.imu import split_steps
 from casep.workflows.imu_separate import STATUS_NOT_CONVERGED, separate_imu
 
 SITE = LaunchSite(67.89, 21.1, 330.0, 30.0, 10.0)  # lift-off at t = 10 s
@@ -54,6 +55,7 @@ def clean_record() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     u = t[t >= PAD] - PAD
     f[t >= PAD] = np.column_stack([np.where(u < 20.0, 40.0, -2.0), 0 * u, 0 * u])
     w[t >= PAD] = np.column_stack([2.0 * np.minimum(u / 5.0, 1.0), -0.03 + 0 * u, 0.01 * np.sin(0.3 * u)])
+    w, f = split_steps(t, w, f)  # lift-off and burn-out at a sample: the navigation (the truth) takes them exactly
     return t, w, f
 
 
