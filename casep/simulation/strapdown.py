@@ -202,9 +202,10 @@ def rail_launch(site: Any, t: np.ndarray, *, elevation_deg: float, boost_g: floa
     Earth's rate and ``f`` the reaction to normal gravity, both in body axes. From lift-off, ``u = t - t0``:
     ``f = (g0 boost_g`` for ``u < burn_s`` else ``g0 coast_g, lateral[0] sin(lateral[1] u), 0)`` and
     ``w = (roll[0] min(u / roll[1], 1), pitch_rate, yaw[0] sin(yaw[1] u))`` (rad/s). Navigating it
-    (:func:`casep.navigation.navigate`) gives the flight that the examples, tests and benchmarks perturb. The samples
-    at lift-off and burn-out hold the mean of their sides (:func:`casep.navigation.imu.split_steps`): the integration
-    takes those steps exactly.
+    (:func:`casep.navigation.navigate`) gives the flight that the examples, tests and benchmarks perturb. Lift-off and
+    burn-out fall on samples, which read the value after them: a step between samples
+    (:func:`casep.navigation.imu.sample_steps`), whose ambiguity ``casep separate --imu`` carries in the std;
+    :func:`casep.navigation.imu.split_steps` of the record takes it away where the truth is its own navigation.
     """
     import math
 
@@ -221,4 +222,4 @@ def rail_launch(site: Any, t: np.ndarray, *, elevation_deg: float, boost_g: floa
     f[t >= site.t0] = np.column_stack([np.where(u < burn_s, boost_g * G0, coast_g * G0), side, 0 * u])
     w[t >= site.t0] = np.column_stack([roll[0] * np.minimum(u / roll[1], 1.0), pitch_rate + 0 * u,
                                        yaw[0] * np.sin(yaw[1] * u)])
-    return split_steps(t, w, f)  # lift-off and burn-out at a sample: split there, integrated exactly
+    return w, f
