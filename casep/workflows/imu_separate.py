@@ -389,8 +389,6 @@ class _Run:
     _heading: tuple | None = None
     #: (problem, the rows' shift for one std of each step between samples: :func:`step_rows`), formed by :meth:`finish`
     _steps: tuple | None = None
-    #: the raw record (a class default: a telemetry's passes have none, and no steps between samples to carry)
-    imu: ImuData | None = None
 
     def __init__(self, imu: ImuData, tracking: Any, nav_site: LaunchSite, site: LaunchSite, window: tuple,
                  base: ErrorModel, source: Any, spec: FitSpec, heading_deg: float | None, heading_axis: str,
@@ -819,7 +817,8 @@ class _Run:
         out = dataclasses.replace(res, estimate=estimate, diagnostics=diag, solution=solution,
                                   **model_record(self.base))
         self._heading = (problem, self.heading_rows(D))
-        self._steps = (problem, step_rows(self.imu, nav, problem))
+        # a telemetry's passes (casep.workflows.telemetry_iterate) have no raw record, and no steps between samples
+        self._steps = (problem, step_rows(getattr(self, "imu", None), nav, problem))
         out = self.with_noise(out, problem, flight)
         if passes[-1].get("determined"):  # the stated combinations' std carry the record's noise as the coefficients'
             passes[-1]["determined"] = self.combinations_with_noise(passes[-1]["determined"], out, problem, flight,
@@ -932,7 +931,8 @@ class _Run:
         out = with_imu_noise(res, problem, flight, self.levelling(), self.tau_profile(problem),
                              consider_columns(heading, steps))
         if steps is not None:
-            out = with_steps(out if out is not res else with_consider(res, problem, steps), res, problem, self.imu)
+            out = with_steps(out if out is not res else with_consider(res, problem, steps), res, problem,
+                             getattr(self, "imu", None))
         if heading is not None and out is not res and out.std is not None:
             n = len(out.names)
             a = combination_estimators(np.eye(n), np.ones(n), out, problem)

@@ -46,8 +46,11 @@ def heading_of_x() -> float:
     return (SITE.azimuth_deg + math.degrees(math.atan2(x_t[2], x_t[0]))) % 360.0
 
 
-def clean_record() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``t, w, f``: at rest on the rotating Earth until PAD, then thrust along x, a roll ramp to 2 rad/s, pitch-over."""
+def clean_record(split: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``t, w, f``: at rest on the rotating Earth until PAD, then thrust along x, a roll ramp to 2 rad/s, pitch-over.
+    Lift-off and burn-out fall on samples, which read the value after them: steps between samples, whose ambiguity
+    the separation carries in the std (:func:`casep.workflows.imu_separate.step_rows`); `split`: the sample at each
+    holds the mean of its sides (:func:`casep.navigation.imu.split_steps`), integrated exactly, no step left."""
     g_t = SITE.C.T @ normal_gravity_ecef(SITE.r_site)
     t = np.arange(0.0, T_END, 1.0 / RATE)
     w = np.tile(C_TB.T @ SITE.earth_rate, (t.size, 1))
@@ -55,17 +58,27 @@ def clean_record() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     u = t[t >= PAD] - PAD
     f[t >= PAD] = np.column_stack([np.where(u < 20.0, 40.0, -2.0), 0 * u, 0 * u])
     w[t >= PAD] = np.column_stack([2.0 * np.minimum(u / 5.0, 1.0), -0.03 + 0 * u, 0.01 * np.sin(0.3 * u)])
-    w, f = split_steps(t, w, f)  # lift-off and burn-out at a sample: the navigation (the truth) takes them exactly
-    return t, w, f
+    return (t, *split_steps(t, w, f)) if split else (t, w, f)
+
+
+def _truth_flight(split: bool = False):
+    t, w, f = clean_record(split)
+    nav = navigate(check_imu(ImuData(t, w, f)), SITE, ALIGN, heading_deg=heading_of_x())
+    model = casep.load_model(MODEL)
+    return t, w, f, nav, model
 
 
 @pytest.fixture(scope="module")
 def truth_flight():
     """The clean record, its navigation (the truth) and the model (``truth_flight.__wrapped__()`` outside pytest)."""
-    t, w, f = clean_record()
-    nav = navigate(check_imu(ImuData(t, w, f)), SITE, ALIGN, heading_deg=heading_of_x())
-    model = casep.load_model(MODEL)
-    return t, w, f, nav, model
+    return _truth_flight()
+
+
+@pytest.fixture(scope="module")
+def split_flight():
+    """:func:`truth_flight` of the record split at its steps (``clean_record(split=True)``): the truth, its own
+    navigation, then holds no ambiguity the separation would carry, and the std hold the tracking noise alone."""
+    return _truth_flight(split=True)
 
 
 def write_flight(directory, truth_flight, gyro_scale: float = 1.0, noise: np.ndarray | None = None):
@@ -95,6 +108,11 @@ def _separate(imu, trk, **kw):
 @pytest.fixture(scope="module")
 def noise_free(truth_flight, tmp_path_factory):
     return write_flight(tmp_path_factory.mktemp("nf"), truth_flight)
+
+
+@pytest.fixture(scope="module")
+def noise_free_split(split_flight, tmp_path_factory):
+    return write_flight(tmp_path_factory.mktemp("nfs"), split_flight)
 
 
 def test_one_linear_pass_is_biased_by_many_crlb_std_the_iteration_converges_to_the_truth(noise_free):
@@ -223,13 +241,15 @@ def separate_default(imu, trk, **kw):
         return separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=heading_of_x(), **kw)
 
 
-def test_seeded_monte_carlo_iterated_std_hold_under_gauss_markov_plus_white_noise(truth_flight, tmp_path):
+def test_seeded_monte_carlo_iterated_std_hold_under_gauss_markov_plus_white_noise(split_flight, tmp_path):
     """Two seeded draws of the tracking noise (the full size: benchmarks/mc_imu_iterate.py): every run converges,
     and the 30 z = (estimate - truth) / std have an RMS near 1: within 0.50-1.52, wider than the 0.62-1.41 of 30
-    independent unit normals at 0.1 % each side, since the 15 z of one draw are correlated."""
+    independent unit normals at 0.1 % each side, since the 15 z of one draw are correlated. The record split at its
+    steps (:func:`split_flight`): with them the std carry their ambiguity too, which this truth (the record's own
+    navigation, the middle of it) does not hold."""
     z = []
     for seed in (1, 2):
-        imu, trk, D = noisy_flight(tmp_path, truth_flight, seed)
+        imu, trk, D = noisy_flight(tmp_path, split_flight, seed)
         out = separate_default(imu, trk)
         assert out.success and out.result.diagnostics["iterations"]["converged"], out.message
         z.append((out.result.estimate - D) / out.result.std)
@@ -302,13 +322,13 @@ def test_noise_free_tracking_with_the_std_estimated_stops_at_the_rounding_level(
     assert np.allclose(out.result.estimate, D, rtol=1e-8, atol=0), out.result.estimate - D
 
 
-def test_undetermined_coefficients_never_enter_the_imu_correction(noise_free, tmp_path, monkeypatch):
+def test_undetermined_coefficients_never_enter_the_imu_correction(noise_free_split, tmp_path, monkeypatch):
     """Exactly dependent columns (``ba_x``, ``ba_x2``): every pass corrects the IMU by coefficients with no part
     along the null direction (``ba_x = ba_x2``: neither is an estimate, 0 in place of them would drop their
     determined sum), the iteration converges, and the determined sum is recovered to far below its std, where
     the one linear pass is many std off."""
 
-    imu, trk, _ = noise_free
+    imu, trk, _ = noise_free_split  # the steps split: the one linear pass many std off the tracking alone
     model = tmp_path / "strapdown16_twin.py"
     model.write_text(TWIN_MODEL)
     applied = spy_passes(monkeypatch)
