@@ -26,7 +26,7 @@ from casep.gravity import normal_gravity_ecef
 from casep.io.files import write_table
 from casep.model.strapdown import body_errors
 from casep.navigation import ImuData, check_imu, navigate
-from casep.navigation.imu import split_steps
+from casep.navigation.imu import read_imu, split_steps
 from casep.workflows.imu_separate import STATUS_NOT_CONVERGED, separate_imu
 
 SITE = LaunchSite(67.89, 21.1, 330.0, 30.0, 10.0)  # lift-off at t = 10 s
@@ -255,6 +255,29 @@ def test_seeded_monte_carlo_iterated_std_hold_under_gauss_markov_plus_white_nois
         z.append((out.result.estimate - D) / out.result.std)
     rms = float(np.sqrt(np.mean(np.concatenate(z) ** 2)))
     assert 0.50 <= rms <= 1.52, rms
+
+
+def test_steps_between_samples_are_said_and_in_the_std(truth_flight, split_flight, tmp_path):
+    """The record as sampled (lift-off and burn-out read after their steps: 0.77 and 1.06 m/s of velocity bound) and
+    the tracking of the motion whose steps fall at those samples (the split record's navigation: the bound's
+    extreme): the steps are said (a line of the message, ``diagnostics["sampled_steps"]`` with times and bounds),
+    their consider columns raise the std, and every coefficient stays within 3 std of the truth."""
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    imu, _, D = noisy_flight(tmp_path / "a", truth_flight, 1)
+    _, trk, _ = noisy_flight(tmp_path / "b", split_flight, 1)
+    out = separate_default(imu, trk)
+    res = out.result
+    assert out.success, out.message
+    rec = res.diagnostics["sampled_steps"]
+    assert rec["count"] == 2 and np.allclose(rec["t_s"], [PAD - 1.0 / RATE, PAD + 20.0 - 1.0 / RATE])
+    f = read_imu(imu).f  # as measured (the MEMS scale factors and misalignments on the thrust's step)
+    k = np.round(np.array(rec["t_s"]) * RATE).astype(int)  # the interval k: t[k] .. t[k+1]
+    assert np.allclose(rec["velocity_bound_m_s"], np.linalg.norm(f[k + 1] - f[k], axis=1) / RATE / 2,
+                       rtol=1e-3)  # |df| h / 2, df the jump beside its neighbours' differences (thrust constant)
+    assert rec["std_factor_max"] > 1.0 and "step(s) between consecutive IMU samples" in out.message
+    z = (res.estimate - D) / res.std
+    assert np.all(np.abs(z) < 3.0), z
 
 
 #: strapdown15_axial with the x accelerometer bias written twice: ``ba_x`` and ``ba_x2`` have the same column
