@@ -30,6 +30,12 @@ samples' basis, ``s`` their residual std) and that of the lost samples themselve
 is the attitude across the gap, rad (after it a velocity error grows by up to ``|f|`` times it per
 second); for the specific force the velocity across it, m/s.
 
+Steps between consecutive rate samples (:func:`sample_steps`: lift-off, staging, a pitch kick): a sampled record
+does not say where in the interval the step fell, and the integration (a straight line between samples) leaves the
+velocity and attitude across it unknown within ``|x_k+1 - x_k| h / 2``. They are found when the record is read
+(``ImuData.steps``), printed by ``casep navigate`` (:func:`steps_said`) and carried in the std of ``casep separate
+--imu`` (:func:`casep.workflows.imu_separate.step_rows`).
+
 Clipped samples (:func:`clipped_samples`): a reading at the sensor's full scale is not the motion. The
 rule is :func:`casep.fullscale.held_full_scale`, the one calibration uses too: a run of
 :data:`~casep.fullscale.CLIP_RUN` (3) samples or more at a full scale: with a declared one
@@ -72,7 +78,7 @@ from casep.io.flight import LOST_SAMPLE_FACTOR, gap_steps
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
            "GAP_FACTOR", "BRIDGE_MAX", "IMU_STEP_RANGE", "time_step_problem", "GapBridge", "bridge_gaps",
            "gap_steps", "clipped_samples", "sample_periods", "with_rates", "regular_time", "single_sample_spikes",
-           "SPIKE_BLOCK", "SPIKE_ROUNDING"]
+           "SPIKE_BLOCK", "SPIKE_ROUNDING", "SampleSteps", "sample_steps", "split_steps", "STEP_FACTOR", "steps_said"]
 
 RATE_COLUMNS = ("w_x", "w_y", "w_z")
 FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
@@ -90,6 +96,13 @@ MAX_RATE = 200.0
 #: Rates beyond this (2000 deg/s, the largest common full scale) and specific forces beyond 50 g are warned about.
 WARN_RATE = 35.0
 WARN_FORCE = 50 * 9.80665
+#: A jump between consecutive samples beyond this many times the column's sample-to-sample noise is a step
+#: (:func:`sample_steps`).
+STEP_FACTOR = 10.0
+#: ... and beyond this fraction of the sensor's largest reading in the record (a noise-free record has no noise),
+#: and this share of the interval's own difference (a step split over two intervals by a sample at its middle,
+#: which the integration takes exactly, is none).
+STEP_FLOOR, STEP_SHARE = 1e-6, 0.5
 
 
 @dataclass
@@ -124,6 +137,8 @@ class ImuData:
     source: str = "<memory>"
     gaps: int = 0
     clipped: np.ndarray | None = None
+    #: The steps between consecutive rate samples (:func:`sample_steps`; None: increments, or none checked).
+    steps: SampleSteps | None = None
 
 
 def read_imu(path: str | os.PathLike, *, gyr_range: float | None = None, acc_range: float | None = None) -> ImuData:
@@ -205,6 +220,8 @@ def check_imu(imu: ImuData, *, gyr_range: float | None = None, acc_range: float 
     _check_units(imu, declared=gyr_range is not None and float(np.abs(imu.w).max()) <= (1 + CLIP_MARGIN) * gyr_range)
     imu.clipped = _check_clipped(imu, gyr_range, acc_range, raw, h_med)
     _warn_spikes(imu, h_med)
+    if imu.kind == "rates":
+        imu.steps = sample_steps(t, imu.w, imu.f)
     return imu
 
 
@@ -275,6 +292,129 @@ def bridge_gaps(t: np.ndarray, w: np.ndarray, f: np.ndarray) -> GapBridge:
         out.dtheta[g], out.attitude[g], out.motion[g, 0], out.noise[g, 0] = _bridge_one(t, w, int(k), lo, hi, h_med)
         out.dv[g], out.velocity[g], out.motion[g, 1], out.noise[g, 1] = _bridge_one(t, f, int(k), lo, hi, h_med)
     return out
+
+
+@dataclass
+class SampleSteps:
+    """The steps between consecutive rate samples (:func:`sample_steps`) and what each leaves unknown.
+
+    Attributes
+    ----------
+    k : (S,) ndarray of int
+        The interval ``t[k] -> t[k+1]`` holding each step.
+    h : (S,) ndarray
+        Its length, s.
+    dw, df : (S, 3) ndarray
+        The step of the body rate (rad/s) and of the body specific force (m/s^2), body axes.
+    attitude, velocity : (S,) ndarray
+        The bounds ``|dw| h / 2`` (rad) and ``|df| h / 2`` (m/s) of what the integration over the interval leaves
+        unknown.
+    """
+
+    k: np.ndarray
+    h: np.ndarray
+    dw: np.ndarray
+    df: np.ndarray
+    attitude: np.ndarray
+    velocity: np.ndarray
+
+
+def _jumps(x: np.ndarray) -> np.ndarray:
+    """Per interval ``k`` (N-1, 3): the part of the difference ``d_k = x[k+1] - x[k]`` that neither neighbour's
+    difference shares, ``sign(a) min(|a|, |b|)`` with ``a = d_k - d_{k-1}``, ``b = d_k - d_{k+1}`` when they have
+    one sign, else 0 (0 at the record's ends). A step of size ``D`` gives ``D``; a ramp, a smooth curve and a kink
+    (one of ``a``, ``b`` about 0, or of opposite signs) give none."""
+    d = np.diff(x, axis=0)
+    out = np.zeros_like(d)
+    a, b = d[1:-1] - d[:-2], d[1:-1] - d[2:]
+    out[1:-1] = np.where(np.sign(a) == np.sign(b), np.sign(a) * np.minimum(np.abs(a), np.abs(b)), 0.0)
+    return out
+
+
+def sample_steps(t: np.ndarray, w: np.ndarray, f: np.ndarray) -> SampleSteps:
+    """The steps of the body rate `w` (rad/s) and specific force `f` (m/s^2) sampled at `t` (module notes).
+
+    A rate record samples the rate and the specific force; it does not say how they went between two samples, and
+    the integration takes them as straight lines (the trapezoid). Where a signal steps between ``t_k`` and
+    ``t_{k+1}`` (thrust at lift-off, staging, a pitch kick) the step happened somewhere in the interval; its
+    integral over it is then anywhere within ``(x_{k+1} - x_k) h / 2`` of the trapezoid's (the step at either
+    end), the same bound as a gap's motion term (:func:`bridge_gaps`). A step is a jump :func:`_jumps` finds beyond
+    :data:`STEP_FACTOR` times the column's sample-to-sample noise (the robust scatter of its second differences,
+    ``1.4826 MAD``: a white noise's jumps stay within about 5 of it), beyond :data:`STEP_FLOOR` of the sensor's
+    largest reading and beyond :data:`STEP_SHARE` of the interval's own difference (a sample at a step's middle
+    splits it over two intervals, and the trapezoid integrates the pair exactly); the intervals touching a gap are
+    the bridge's (:func:`bridge_gaps`)."""
+    t, w, f = np.asarray(t, float), np.asarray(w, float), np.asarray(f, float)
+    found, _, jumps = _step_axes(t, w, f)
+    h = np.diff(t)
+    k = np.flatnonzero(found)
+    dw, df = jumps[0][k], jumps[1][k]
+    return SampleSteps(k, h[k], dw, df, np.linalg.norm(dw, axis=1) * h[k] / 2, np.linalg.norm(df, axis=1) * h[k] / 2)
+
+
+def _step_axes(t: np.ndarray, w: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray]]:
+    """:func:`sample_steps`'s rule: ``(found (N-1,), [axes of w, of f] (N-1, 3) bool, [jumps of w, of f])``."""
+    found = np.zeros(t.size - 1, bool)
+    jumps, axes = [], []
+    for x in (w, f):
+        J = _jumps(x)
+        d2 = np.diff(x, 2, axis=0)
+        scale = 1.4826 * np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0) if len(x) > 3 else np.zeros(3)
+        floor = STEP_FLOOR * float(np.max(np.abs(x))) if x.size else 0.0
+        big = (np.abs(J) > STEP_FACTOR * np.maximum(scale, floor)) \
+            & (np.abs(J) > STEP_SHARE * np.abs(np.diff(x, axis=0))) & (float(np.max(np.abs(x))) > 0)
+        for g in gap_steps(t):  # a gap is bridged, its neighbours' differences span it
+            big[max(g - 1, 0):g + 2] = False
+        found |= np.any(big, axis=1)
+        jumps.append(J)
+        axes.append(big)
+    return found, axes, jumps
+
+
+def split_steps(t: np.ndarray, w: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`w`, `f` with the sample after each step between samples (:func:`sample_steps`) holding the mean of it and the
+    sample before, on the axes that step: for a simulated record whose truth steps exactly at a sample time ``t_k+1``
+    (ignition, a pitch kick) and which samples the value after it, so that the integration takes the step exactly.
+    With ``m = (x_k + x_k+1) / 2`` the two trapezoids around the sample sum to ``(x_k + m) h / 2 + (m + x_k+2) h / 2 =
+    x_k h + (x_k+1 + x_k+2) h / 2``: the value before the step held up to it, then the trapezoid (exact for a constant
+    before the step; the velocity is off by ``|dx| h / 4`` at ``t_k+1`` alone); read as is, the sample after the
+    step leaves it off by ``|dx| h / 2`` for the rest of the record. Not for a real record: where its steps fell is
+    unknown (:func:`casep.workflows.imu_separate.step_rows` carries that)."""
+    t, w, f = np.asarray(t, float), np.asarray(w, float).copy(), np.asarray(f, float).copy()
+    if t.size < 4:
+        return w, f
+    _, axes, _ = _step_axes(t, w, f)
+    for x, big in zip((w, f), axes):
+        k, c = np.nonzero(big)
+        x[k + 1, c] = 0.5 * (x[k, c] + x[k + 1, c])  # the right side is evaluated before the assignment
+    return w, f
+
+
+#: The steps a warning lists one by one, at most (the largest bounds first).
+STEPS_LISTED = 3
+
+
+def steps_said(imu: ImuData) -> str | None:
+    """What the steps between samples of `imu` (:func:`sample_steps`) leave unknown: their count, and the largest
+    (:data:`STEPS_LISTED`) with time, rows, size and bounds; None without one. ``casep navigate`` prints it, and
+    ``casep separate --imu`` says it with the std that carry them (:func:`casep.workflows.imu_separate.step_rows`)."""
+    st = imu.steps
+    if st is None or not st.k.size:
+        return None
+    fmax = float(np.linalg.norm(imu.f, axis=1).max())
+    order = np.argsort(-(st.velocity + fmax * st.attitude))[:STEPS_LISTED]
+    each = "; ".join(
+        f"t = {imu.t[st.k[i]]:.10g} .. {imu.t[st.k[i] + 1]:.10g} s (rows {st.k[i] + 1}-{st.k[i] + 2}): specific force "
+        f"step {np.linalg.norm(st.df[i]):.4g} m/s^2, body rate step {np.linalg.norm(st.dw[i]):.4g} rad/s: the velocity "
+        f"across it unknown within +-{st.velocity[i]:.3g} m/s, the attitude within +-{st.attitude[i]:.3g} rad (a "
+        f"velocity error growing by up to {fmax * st.attitude[i]:.3g} m/s per s)" for i in order)
+    n = st.k.size
+    return (f"{imu.source}: {n} step{'s' if n > 1 else ''} between consecutive samples of fb_*/w_* (a jump beyond "
+            f"{STEP_FACTOR:g} times the sample-to-sample noise): a sampled record does not say where in the interval "
+            "a step happened, and the integration takes the signal as a straight line between the samples, so the "
+            f"velocity and attitude across each are known within half the step times the interval only; {each}"
+            + (f"; and {n - len(order)} more" if n > len(order) else "")
+            + " (increments, dth_* and dvb_*, leave no such ambiguity)")
 
 
 def _warn_gaps(imu: ImuData, lost: np.ndarray, h: np.ndarray, h_med: float) -> None:

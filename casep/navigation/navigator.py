@@ -201,6 +201,7 @@ def navigate_from(imu: ImuData, site: LaunchSite, q0: np.ndarray, r0: np.ndarray
     NavigationResult
         Without an alignment (``alignment`` None).
     """
+    from casep.navigation.imu import steps_said
     from casep.navigation.strapdown import (
         Increments,
         body_velocity_increments,
@@ -233,7 +234,8 @@ def navigate_from(imu: ImuData, site: LaunchSite, q0: np.ndarray, r0: np.ndarray
     return NavigationResult(t=t, q=q, fb=imu.f[i0:], w=imu.w[i0:], v=v, r=r, site=site, alignment=None,
                             kind=imu.kind, gaps=imu.gaps, passes=passes, source=imu.source,
                             align_window=(float(t[0]), float(t[0])),
-                            valid=None if imu.clipped is None else ~np.asarray(imu.clipped[i0:], bool))
+                            valid=None if imu.clipped is None else ~np.asarray(imu.clipped[i0:], bool),
+                            steps_said=steps_said(imu))
 
 
 def _bridged(inc, t: np.ndarray, w: np.ndarray, f: np.ndarray):

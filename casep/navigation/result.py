@@ -43,6 +43,8 @@ class NavigationResult:
     valid : (N,) ndarray of bool or None
         False from the first clipped IMU sample on (the solution is wrong there); None: nothing clipped.
         Written as the column :data:`VALID_COLUMN` (1 or 0) when some sample is not valid.
+    steps_said : str or None
+        What the record's steps between samples leave unknown (:func:`casep.navigation.imu.steps_said`); None: none.
     """
 
     t: np.ndarray
@@ -60,6 +62,7 @@ class NavigationResult:
     align_window: tuple[float, float] = (0.0, 0.0)
     settings: dict = field(default_factory=dict)
     valid: np.ndarray | None = None
+    steps_said: str | None = None
 
     def columns(self) -> dict[str, np.ndarray]:
         """The strapdown telemetry as named columns (:data:`TELEMETRY_COLUMNS`, and :data:`VALID_COLUMN` when
@@ -130,7 +133,7 @@ class NavigationResult:
                 "t_end": float(self.t[-1]), "site": self.site.to_dict(), "align_window": list(self.align_window),
                 "alignment": None if self.alignment is None else self.alignment.to_dict(), "gaps": self.gaps,
                 "gravity_passes": self.passes, "pad_drift_m_s": self.pad_drift(),
-                "invalid_from_s": self.invalid_from(),
+                "invalid_from_s": self.invalid_from(), "steps": self.steps_said,
                 "end": {"v_tel": self.v[-1].tolist(), "r_tel": self.r[-1].tolist(), "v_ecef": v_e[-1].tolist(),
                         "r_ecef": r_e[-1].tolist()}}
 
@@ -146,6 +149,8 @@ class NavigationResult:
                  f"{self.t[-1]:.6g} s" + (f", {self.gaps} gap(s) integrated across" if self.gaps else "")]
         if a is not None:
             lines += self._alignment_lines(a)
+        if self.steps_said is not None:
+            lines.append(f"  steps      {self.steps_said}")
         if self.invalid_from() is not None:
             lines.append(f"  clipped    the IMU clipped at t = {self.invalid_from():.10g} s: the solution from there "
                          f"on is marked {VALID_COLUMN} = 0 (the separation leaves it out)")

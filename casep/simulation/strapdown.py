@@ -16,8 +16,10 @@ it, so a flight read back from its file has exactly the S_V it was simulated wit
 
 Raw IMU output (:func:`imu_table`): ``t, w_x, w_y, w_z, fb_x, fb_y, fb_z`` as the IMU measured them,
 optionally after a stationary pad segment before lift-off (t < 0), with the truth trajectory beside
-them (``true_q_*``, ``true_r_*``, ``true_v_*``; launch-inertial). On a rotating-Earth trajectory the pad turns
-with the Earth and the whole record is what :func:`casep.navigation.navigate` reproduces (the simulator's
+them (``true_q_*``, ``true_r_*``, ``true_v_*``; launch-inertial). A step of the truth at a sample time (lift-off
+after the pad, the pitch kick's ends) is written as the mean of its sides at that sample
+(:func:`casep.navigation.imu.split_steps`), which the integration takes exactly. On a rotating-Earth trajectory
+the pad turns with the Earth and the whole record is what :func:`casep.navigation.navigate` reproduces (the simulator's
 gravitation is the navigator's, :mod:`casep.simulation.trajectory`).
 """
 
@@ -31,6 +33,7 @@ import numpy as np
 
 from casep.io.strapdown import quaternion_dcm_array
 from casep.model.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
+from casep.navigation.imu import split_steps
 from casep.simulation.trajectory import BoostTrajectory, body_to_platform
 
 __all__ = ["RollProgramme", "rolled", "strapdown_signals", "imu_table", "IMU_COLUMNS", "rail_launch"]
@@ -156,6 +159,7 @@ def imu_table(traj: BoostTrajectory, model: Any, truth: np.ndarray, *, pad: floa
         w = np.concatenate([w_pad + dw, w])
         pos = np.concatenate([pos_pad, pos])
         vel = np.concatenate([vel_pad, vel])
+    w, fb = split_steps(t, w, fb)  # a step at a sample (lift-off, a pitch kick): the record the navigation recovers
     out = {"t": t}
     out.update({c: w[:, i] for i, c in enumerate(BODY_RATE_COLUMNS)})
     out.update({c: fb[:, i] for i, c in enumerate(BODY_FORCE_COLUMNS)})
@@ -198,7 +202,10 @@ def rail_launch(site: Any, t: np.ndarray, *, elevation_deg: float, boost_g: floa
     Earth's rate and ``f`` the reaction to normal gravity, both in body axes. From lift-off, ``u = t - t0``:
     ``f = (g0 boost_g`` for ``u < burn_s`` else ``g0 coast_g, lateral[0] sin(lateral[1] u), 0)`` and
     ``w = (roll[0] min(u / roll[1], 1), pitch_rate, yaw[0] sin(yaw[1] u))`` (rad/s). Navigating it
-    (:func:`casep.navigation.navigate`) gives the flight that the examples, tests and benchmarks perturb.
+    (:func:`casep.navigation.navigate`) gives the flight that the examples, tests and benchmarks perturb. Lift-off and
+    burn-out fall on samples, which read the value after them: a step between samples
+    (:func:`casep.navigation.imu.sample_steps`), whose ambiguity ``casep separate --imu`` carries in the std;
+    :func:`casep.navigation.imu.split_steps` of the record takes it away where the truth is its own navigation.
     """
     import math
 

@@ -415,6 +415,8 @@ class _Run:
     heading_said: str | None = None
     #: (problem, the rows' derivative along the heading per deg), formed once per problem by :meth:`finish`
     _heading: tuple | None = None
+    #: (problem, the rows' shift for one std of each step between samples: :func:`step_rows`), formed by :meth:`finish`
+    _steps: tuple | None = None
 
     def __init__(self, imu: ImuData, tracking: Any, nav_site: LaunchSite, site: LaunchSite, window: tuple,
                  base: ErrorModel, source: Any, spec: FitSpec, heading_deg: float | None, heading_axis: str,
@@ -876,6 +878,8 @@ class _Run:
         out = dataclasses.replace(res, estimate=estimate, diagnostics=diag, solution=solution,
                                   **model_record(self.base))
         self._heading = (problem, self.heading_rows(D))
+        # a telemetry's passes (casep.workflows.telemetry_iterate) have no raw record, and no steps between samples
+        self._steps = (problem, step_rows(getattr(self, "imu", None), nav, problem))
         out = self.with_noise(out, problem, flight)
         if passes[-1].get("determined"):  # the stated combinations' std carry the record's noise as the coefficients'
             passes[-1]["determined"] = self.combinations_with_noise(passes[-1]["determined"], out, problem, flight,
@@ -988,7 +992,12 @@ class _Run:
         """`res` with the record's own noise in its std, the pad levelling's start tilt with it
         (:func:`with_imu_noise`)."""
         heading = self.heading_effect(problem)
-        out = with_imu_noise(res, problem, flight, self.levelling(), self.tau_profile(problem), heading)
+        steps = self.steps_effect(problem)
+        out = with_imu_noise(res, problem, flight, self.levelling(), self.tau_profile(problem),
+                             consider_columns(heading, steps))
+        if steps is not None:
+            out = with_steps(out if out is not res else with_consider(res, problem, steps), res, problem,
+                             getattr(self, "imu", None))
         if heading is not None and out is not res and out.std is not None:
             n = len(out.names)
             a = combination_estimators(np.eye(n), np.ones(n), out, problem)
@@ -1094,6 +1103,11 @@ class _Run:
             heading["heading_deg"] = h0
         return (ys[0] - ys[1]) / (2 * HEADING_STEP_DEG)
 
+    def steps_effect(self, problem: Any) -> np.ndarray | None:
+        """:func:`step_rows` of `problem`'s pass (None before :meth:`finish` formed it, for another problem, or
+        without steps)."""
+        return self._steps[1] if self._steps is not None and self._steps[0] is problem else None
+
     def heading_effect(self, problem: Any) -> np.ndarray | None:
         """The shift of `problem`'s rows (N, 3, m/s) for one std of the given heading: :meth:`heading_rows` times
         :attr:`heading_std` (None before :meth:`finish` formed it, for another problem, or the heading exact)."""
@@ -1138,7 +1152,7 @@ class _Run:
         W = np.array([c["weights"] for c in combos], dtype=float)
         heading = self.heading_effect(problem)
         var = combination_imu_noise(W, scale, res, problem, flight, self.levelling(), self.tau_profile(problem),
-                                    heading)
+                                    consider_columns(heading, self.steps_effect(problem)))
         if var is None:
             return combos
         trk, imu = var
@@ -2074,10 +2088,107 @@ def with_heading(AG: np.ndarray, a: np.ndarray, heading: np.ndarray | None) -> n
     the rows' shift for one std of the heading (:meth:`_Run.heading_rows`); `AG` itself without one. The estimate is
     linear in the rows, so a heading off by ``e`` std moves it by ``e a s``, and its variance over the heading's
     uncertainty is ``(a s)^2``: the consider term, formed here for the coefficients (:func:`imu_noise_budget`) and the
-    stated combinations (:func:`combination_imu_noise`) alike."""
+    stated combinations (:func:`combination_imu_noise`) alike. `heading` (N, 3, c): c such columns (each an
+    independent consider parameter: :func:`consider_columns`)."""
     if heading is None:
         return AG
-    return np.column_stack([AG, a @ np.asarray(heading, dtype=float).reshape(-1)])
+    return np.column_stack([AG, a @ np.asarray(heading, dtype=float).reshape(a.shape[1], -1)])
+
+
+def consider_columns(heading: np.ndarray | None, steps: np.ndarray | None) -> np.ndarray | None:
+    """The consider columns (N, 3, c) of the given heading (:meth:`_Run.heading_rows`, (N, 3)) and of the record's
+    steps between samples (:func:`step_rows`, (N, 3, S)), each the rows' shift for one std; None without either."""
+    cols = [np.asarray(c, dtype=float).reshape(c.shape[0], 3, -1) for c in (heading, steps) if c is not None]
+    return np.concatenate(cols, axis=2) if cols else None
+
+
+#: The steps between samples carried as consider columns, at most (the largest effects; :func:`step_rows`).
+MAX_STEP_COLUMNS = 100
+
+
+def step_rows(imu: ImuData | None, nav: NavigationResult, problem: Any) -> np.ndarray | None:
+    """The shift of the rows (N, 3, S) at `problem`'s epochs for one std of each step between samples of `imu`
+    (:func:`casep.navigation.imu.sample_steps`) the navigation `nav` integrates across; None without one.
+
+    Where a step fell in its interval ``[t_k, t_k+1]`` is unknown: the integration's error over it is ``s (x_k+1 -
+    x_k) h / 2`` with ``s`` uniform in [-1, 1] (std ``1/sqrt 3``), one ``s`` for the rate and the specific force (one
+    event). In the launch frame (``C`` the attitude at ``t_k``) the velocity is off by ``u = C df h / 2`` from the
+    interval's middle on, and the attitude by ``psi = C dw h / 2``, which turns the specific force integrated since,
+    ``dv(t) = u + psi x int f dt`` (first order; ``f = C fb``). Each step is a consider parameter, as the given heading
+    is (:func:`with_heading`): not fitted, its uncertainty in the covariance. At most :data:`MAX_STEP_COLUMNS` (the
+    largest bounds of ``|dv|`` at the record's end)."""
+    from casep.rotations import quat_rotate, quat_to_dcm
+
+    st = None if imu is None else imu.steps
+    if imu is None or st is None or not st.k.size or problem.t is None or nav.t.size < 2:
+        return None
+    i0 = int(np.searchsorted(imu.t, nav.t[0]))
+    keep = (st.k >= i0) & (st.k < i0 + nav.t.size - 1)
+    if nav.valid is not None:  # clipped from there on: those rows are left out
+        keep &= np.concatenate([nav.valid, [False]])[np.clip(st.k - i0 + 1, 0, nav.t.size)]
+    if not np.any(keep):
+        return None
+    j = st.k[keep] - i0
+    t = np.asarray(problem.t, dtype=float)
+    fL = quat_rotate(nav.q, nav.fb)
+    F = np.vstack([np.zeros(3), np.cumsum(0.5 * (fL[1:] + fL[:-1]) * np.diff(nav.t)[:, None], axis=0)])
+    Ft = np.column_stack([np.interp(t, nav.t, F[:, c]) for c in range(3)])
+    C = quat_to_dcm(nav.q[j])
+    u = np.einsum("sij,sj->si", C, st.df[keep]) * (st.h[keep] / 2)[:, None]
+    psi = np.einsum("sij,sj->si", C, st.dw[keep]) * (st.h[keep] / 2)[:, None]
+    ts = 0.5 * (nav.t[j] + nav.t[j + 1])
+    Fs = 0.5 * (F[j] + F[j + 1])
+    after = t[:, None] >= ts[None, :]  # (N, S)
+    cols = (u[None, :, :] + np.cross(psi[None, :, :], Ft[:, None, :] - Fs[None, :, :])) * after[:, :, None]
+    cols = np.transpose(cols, (0, 2, 1)) / math.sqrt(3.0)  # (N, 3, S), one std of the uniform s
+    if cols.shape[2] > MAX_STEP_COLUMNS:
+        cols = cols[:, :, np.argsort(-np.linalg.norm(cols[-1], axis=0))[:MAX_STEP_COLUMNS]]
+    return cols
+
+
+def with_consider(res: EstimateResult, problem: Any, cols: np.ndarray) -> EstimateResult:
+    """`res` whose covariance gains the consider columns `cols` (N, 3, c; :func:`with_heading`) through its own
+    estimators (:func:`combination_estimators`; a fit without a noise model: the OLS pseudo-inverse of S_V); for a
+    result :func:`with_imu_noise` did not extend (a flight without the IMU's samples or noise)."""
+    if res.covariance is None:
+        return res
+    n = len(res.names)
+    a = combination_estimators(np.eye(n), np.ones(n), res, problem)
+    if a is None:
+        S = problem.sv()
+        a = np.linalg.pinv(S.reshape(-1, S.shape[2]))
+    g = a @ np.asarray(cols, dtype=float).reshape(a.shape[1], -1)
+    C_fit = np.asarray(res.covariance)
+    cov = np.where(np.isfinite(C_fit), C_fit + g @ g.T, np.nan)
+    std = None if res.std is None else np.where(np.isfinite(res.std), np.sqrt(np.clip(np.diag(cov), 0.0, None)),
+                                                np.nan)
+    return dataclasses.replace(res, covariance=cov, std=std)
+
+
+def with_steps(out: EstimateResult, before: EstimateResult, problem: Any, imu: ImuData | None) -> EstimateResult:
+    """`out` (its covariance holding the steps between samples: :func:`step_rows`) with the steps said: in
+    ``diagnostics["sampled_steps"]`` and a line of its message, with how much they raise the std (against
+    `before`'s, the fit's)."""
+    st = None if imu is None else imu.steps
+    if imu is None or st is None or out.std is None or before.std is None:
+        return out
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.asarray(out.std, float) / np.asarray(before.std, float)
+    finite = np.isfinite(ratio)
+    worst = int(np.argmax(np.where(finite, ratio, -np.inf))) if np.any(finite) else 0
+    big = int(np.argmax(st.velocity + st.attitude))
+    record = {"count": int(st.k.size), "t_s": [float(imu.t[k]) for k in st.k], "velocity_bound_m_s":
+              [float(v) for v in st.velocity], "attitude_bound_rad": [float(v) for v in st.attitude],
+              "rule": "each a velocity and attitude step at its interval's middle, uniform within +-(x_k+1 - x_k) h/2 "
+                      "(casep.workflows.imu_separate.step_rows), a consider parameter in the covariance"}
+    line = (f"the record's {st.k.size} step(s) between consecutive IMU samples (the largest at t = "
+            f"{imu.t[st.k[big]]:.6g} s: velocity unknown within +-{st.velocity[big]:.3g} m/s, attitude within "
+            f"+-{st.attitude[big]:.3g} rad) are in the std as consider parameters")
+    if np.any(finite):
+        record["std_factor_max"], record["std_factor_worst"] = float(ratio[worst]), out.names[worst]
+        line += f" (they and the IMU noise raise them by up to {ratio[worst]:.3g} x, {out.names[worst]})"
+    diag = {**out.diagnostics, "sampled_steps": record}
+    return _with_line(dataclasses.replace(out, diagnostics=diag), line)
 
 
 def heading_record(heading_deg: float, std_deg: float, shift: np.ndarray, std: np.ndarray, names: list[str]) -> dict:

@@ -26,6 +26,7 @@ from casep.gravity import normal_gravity_ecef
 from casep.io.files import write_table
 from casep.model.strapdown import body_errors
 from casep.navigation import ImuData, check_imu, navigate
+from casep.navigation.imu import read_imu, split_steps
 from casep.workflows.imu_separate import STATUS_NOT_CONVERGED, separate_imu
 
 SITE = LaunchSite(67.89, 21.1, 330.0, 30.0, 10.0)  # lift-off at t = 10 s
@@ -45,8 +46,11 @@ def heading_of_x() -> float:
     return (SITE.azimuth_deg + math.degrees(math.atan2(x_t[2], x_t[0]))) % 360.0
 
 
-def clean_record() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``t, w, f``: at rest on the rotating Earth until PAD, then thrust along x, a roll ramp to 2 rad/s, pitch-over."""
+def clean_record(split: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``t, w, f``: at rest on the rotating Earth until PAD, then thrust along x, a roll ramp to 2 rad/s, pitch-over.
+    Lift-off and burn-out fall on samples, which read the value after them: steps between samples, whose ambiguity
+    the separation carries in the std (:func:`casep.workflows.imu_separate.step_rows`); `split`: the sample at each
+    holds the mean of its sides (:func:`casep.navigation.imu.split_steps`), integrated exactly, no step left."""
     g_t = SITE.C.T @ normal_gravity_ecef(SITE.r_site)
     t = np.arange(0.0, T_END, 1.0 / RATE)
     w = np.tile(C_TB.T @ SITE.earth_rate, (t.size, 1))
@@ -54,16 +58,27 @@ def clean_record() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     u = t[t >= PAD] - PAD
     f[t >= PAD] = np.column_stack([np.where(u < 20.0, 40.0, -2.0), 0 * u, 0 * u])
     w[t >= PAD] = np.column_stack([2.0 * np.minimum(u / 5.0, 1.0), -0.03 + 0 * u, 0.01 * np.sin(0.3 * u)])
-    return t, w, f
+    return (t, *split_steps(t, w, f)) if split else (t, w, f)
+
+
+def _truth_flight(split: bool = False):
+    t, w, f = clean_record(split)
+    nav = navigate(check_imu(ImuData(t, w, f)), SITE, ALIGN, heading_deg=heading_of_x())
+    model = casep.load_model(MODEL)
+    return t, w, f, nav, model
 
 
 @pytest.fixture(scope="module")
 def truth_flight():
     """The clean record, its navigation (the truth) and the model (``truth_flight.__wrapped__()`` outside pytest)."""
-    t, w, f = clean_record()
-    nav = navigate(check_imu(ImuData(t, w, f)), SITE, ALIGN, heading_deg=heading_of_x())
-    model = casep.load_model(MODEL)
-    return t, w, f, nav, model
+    return _truth_flight()
+
+
+@pytest.fixture(scope="module")
+def split_flight():
+    """:func:`truth_flight` of the record split at its steps (``clean_record(split=True)``): the truth, its own
+    navigation, then holds no ambiguity the separation would carry, and the std hold the tracking noise alone."""
+    return _truth_flight(split=True)
 
 
 def write_flight(directory, truth_flight, gyro_scale: float = 1.0, noise: np.ndarray | None = None):
@@ -93,6 +108,11 @@ def _separate(imu, trk, **kw):
 @pytest.fixture(scope="module")
 def noise_free(truth_flight, tmp_path_factory):
     return write_flight(tmp_path_factory.mktemp("nf"), truth_flight)
+
+
+@pytest.fixture(scope="module")
+def noise_free_split(split_flight, tmp_path_factory):
+    return write_flight(tmp_path_factory.mktemp("nfs"), split_flight)
 
 
 def test_one_linear_pass_is_biased_by_many_crlb_std_the_iteration_converges_to_the_truth(noise_free):
@@ -221,18 +241,43 @@ def separate_default(imu, trk, **kw):
         return separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=heading_of_x(), **kw)
 
 
-def test_seeded_monte_carlo_iterated_std_hold_under_gauss_markov_plus_white_noise(truth_flight, tmp_path):
+def test_seeded_monte_carlo_iterated_std_hold_under_gauss_markov_plus_white_noise(split_flight, tmp_path):
     """Two seeded draws of the tracking noise (the full size: benchmarks/mc_imu_iterate.py): every run converges,
     and the 30 z = (estimate - truth) / std have an RMS near 1: within 0.50-1.52, wider than the 0.62-1.41 of 30
-    independent unit normals at 0.1 % each side, since the 15 z of one draw are correlated."""
+    independent unit normals at 0.1 % each side, since the 15 z of one draw are correlated. The record split at its
+    steps (:func:`split_flight`): with them the std carry their ambiguity too, which this truth (the record's own
+    navigation, the middle of it) does not hold."""
     z = []
     for seed in (1, 2):
-        imu, trk, D = noisy_flight(tmp_path, truth_flight, seed)
+        imu, trk, D = noisy_flight(tmp_path, split_flight, seed)
         out = separate_default(imu, trk)
         assert out.success and out.result.diagnostics["iterations"]["converged"], out.message
         z.append((out.result.estimate - D) / out.result.std)
     rms = float(np.sqrt(np.mean(np.concatenate(z) ** 2)))
     assert 0.50 <= rms <= 1.52, rms
+
+
+def test_steps_between_samples_are_said_and_in_the_std(truth_flight, split_flight, tmp_path):
+    """The record as sampled (lift-off and burn-out read after their steps: 0.77 and 1.06 m/s of velocity bound) and
+    the tracking of the motion whose steps fall at those samples (the split record's navigation: the bound's
+    extreme): the steps are said (a line of the message, ``diagnostics["sampled_steps"]`` with times and bounds),
+    their consider columns raise the std, and every coefficient stays within 3 std of the truth."""
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    imu, _, D = noisy_flight(tmp_path / "a", truth_flight, 1)
+    _, trk, _ = noisy_flight(tmp_path / "b", split_flight, 1)
+    out = separate_default(imu, trk)
+    res = out.result
+    assert out.success, out.message
+    rec = res.diagnostics["sampled_steps"]
+    assert rec["count"] == 2 and np.allclose(rec["t_s"], [PAD - 1.0 / RATE, PAD + 20.0 - 1.0 / RATE])
+    f = read_imu(imu).f  # as measured (the MEMS scale factors and misalignments on the thrust's step)
+    k = np.round(np.array(rec["t_s"]) * RATE).astype(int)  # the interval k: t[k] .. t[k+1]
+    assert np.allclose(rec["velocity_bound_m_s"], np.linalg.norm(f[k + 1] - f[k], axis=1) / RATE / 2,
+                       rtol=1e-3)  # |df| h / 2, df the jump beside its neighbours' differences (thrust constant)
+    assert rec["std_factor_max"] > 1.0 and "step(s) between consecutive IMU samples" in out.message
+    z = (res.estimate - D) / res.std
+    assert np.all(np.abs(z) < 3.0), z
 
 
 #: strapdown15_axial with the x accelerometer bias written twice: ``ba_x`` and ``ba_x2`` have the same column
@@ -300,13 +345,13 @@ def test_noise_free_tracking_with_the_std_estimated_stops_at_the_rounding_level(
     assert np.allclose(out.result.estimate, D, rtol=1e-8, atol=0), out.result.estimate - D
 
 
-def test_undetermined_coefficients_never_enter_the_imu_correction(noise_free, tmp_path, monkeypatch):
+def test_undetermined_coefficients_never_enter_the_imu_correction(noise_free_split, tmp_path, monkeypatch):
     """Exactly dependent columns (``ba_x``, ``ba_x2``): every pass corrects the IMU by coefficients with no part
     along the null direction (``ba_x = ba_x2``: neither is an estimate, 0 in place of them would drop their
     determined sum), the iteration converges, and the determined sum is recovered to far below its std, where
     the one linear pass is many std off."""
 
-    imu, trk, _ = noise_free
+    imu, trk, _ = noise_free_split  # the steps split: the one linear pass many std off the tracking alone
     model = tmp_path / "strapdown16_twin.py"
     model.write_text(TWIN_MODEL)
     applied = spy_passes(monkeypatch)
