@@ -510,7 +510,7 @@ def _check_earth_rate(w_win: np.ndarray, w_mean: np.ndarray, C: np.ndarray, site
                              f"{SIGN_CHI2_CONSISTENT:g} (95 %): negate {cols}, or give the specific force +g up at "
                              "rest (fb_* negated), whichever the IMU's data sheet says (or the set-up named above); "
                              "the navigation would turn the attitude about the wrong axes")
-    elif not causes:  # beyond the bound as given (else it returned), no sign and no set-up explains it
+    elif chi2[0] > EARTH_RATE_CHI2:  # beyond the bound as given, no sign explains it (a set-up named may)
         need = np.degrees(w_mean - e) * 3600.0
         said += (f" (> {EARTH_RATE_CHI2:g}, and no other sign per gyro axis within it): a heading other than "
                  f"{heading_deg:g} deg, or a larger gyro bias (the signs as given need "
@@ -564,8 +564,9 @@ def pad_rate_causes(w_mean: np.ndarray, s: np.ndarray, e: np.ndarray, b: float, 
     members (the look-elsewhere cost of trying many): the gyro columns permuted (5 permutations times 8 signs),
     their signs (7), the latitude's sign (the vertical Earth rate ``omega_E sin(lat)`` negated), the heading (every
     degree of azimuth, the given one among them: uniform over the circle). A kind is named when its evidence
-    exceeds :data:`CAUSE_FACTOR` times that of the
-    set-up as given, with its best member. The pad rate is one vector: a swap of two horizontal axes is a heading
+    exceeds :data:`CAUSE_FACTOR` times that of the set-up as given and its best member explains the pad rate
+    (chi-square within :data:`EARTH_RATE_CHI2` against the noise of the mean and the allowance `b`, the rule another
+    gyro sign is named by), with that member. The pad rate is one vector: a swap of two horizontal axes is a heading
     mirrored, a negated vertical gyro a latitude of the other sign, and all that fit are named.
     """
     import itertools
@@ -601,8 +602,12 @@ def pad_rate_causes(w_mean: np.ndarray, s: np.ndarray, e: np.ndarray, b: float, 
     for _, ev, names, r in out:
         log_mean = float(ev.max() + np.log(np.mean(np.exp(ev - ev.max()))))  # the kind's mean evidence
         factor = math.exp(min(700.0, log_mean - ev0))
-        if factor >= CAUSE_FACTOR:
-            k = int(np.argmax(ev))
+        k = int(np.argmax(ev))
+        # named only where it explains the pad rate within the bound, as another sign is (_check_earth_rate): a
+        # MEMS bias of a few Earth rates makes some mistake far likelier than the set-up as given by chance (a
+        # -46 deg/h y gyro at 68 N: a latitude's sign 4e43 times, needing 22 deg/h against an allowance of 2.9)
+        explains = float(np.sum(r[k] ** 2 / (np.asarray(s) ** 2 + b**2))) <= EARTH_RATE_CHI2
+        if factor >= CAUSE_FACTOR and explains:
             causes.append(PadRateCause(names[k], float(np.linalg.norm(r[k])), factor))
     return sorted(causes, key=lambda c: -c.factor)
 

@@ -115,7 +115,10 @@ def test_a_lateness_left_in_place_fails_a_result_whose_dt_trk_does_not_take_it()
     from casep.estimators.registry import STATUS_SETUP
 
     _, fl = _pair(0.1)
-    record = {"mode": "none", "explains": True, "tau_s": 0.1003, "tracking_period_s": 0.05, "std_s": 0.0005}
+    from casep.io.align import TimeAlignment
+
+    # the reader's record: the shift removes 90 % of the misfit over 3000 samples (it explains the data)
+    record = {**TimeAlignment(0.1003, 0.1, 1.0, 0.05, 3000, std=0.0005).to_dict(), "mode": "none"}
     fl = dataclasses.replace(fl, meta={**fl.meta, "time_alignment": record})
     res = _separate(fl, fit_time_offset=True)
     assert res.success, res.message
