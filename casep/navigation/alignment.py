@@ -525,7 +525,7 @@ GRADE_FLOOR = math.radians(0.001 / 3600.0)
 #: A set-up mistake is named when the pad rate's evidence for it is this many times that for the set-up as given
 #: (synthetic correct pads, gyro bias N(0, sigma^2) per axis: none of 60 named at sigma 1 and 3 deg/h, 2 of 60 at
 #: 6.6 deg/h, about the allowance, 7 of 59 at 10 deg/h, beyond it: ``benchmarks/pad_rate_causes_mc.py --seed 1``;
-#: a reviewer's 1.5 deg/h gyro with two horizontal columns swapped, the latitude's sign or the heading 90 deg off:
+#: a 1.5 deg/h gyro with two horizontal columns swapped, the latitude's sign or the heading 90 deg off:
 #: 1e3 to 7e3). With the grades up to sqrt(3) times the Earth rate (every pad the test is made on) the swap and the
 #: heading fall to 70-95: the pad rate determines them only for a gyro that finds north.
 CAUSE_FACTOR = 300.0

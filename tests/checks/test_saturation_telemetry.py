@@ -294,7 +294,7 @@ def test_a_robust_fit_on_a_model_error_is_not_a_plain_success(tmp_path):
 def test_misfit_rule_names_a_noise_model_as_slow_as_the_record():
     """White dv of 0.05 m/s over 60 s: residuals of 1.9 m/s (39 x the sample noise) that the noise model took for a
     Gauss-Markov noise of tau 40 s (2/3 of the record: it fits the signal) are named, with the axis, tau and ratio,
-    though the whitened residuals pass (main: a plain success, the reviewer's dv_x/dv_z swap absorbed as tau 135-189
+    though the whitened residuals pass (a dv_x/dv_z swap absorbed as tau 135-189
     s on a 184 s record). Honest correlated noise (tau 1.2 s), a slow noise whose residuals are near the sample
     noise (8 x), or one near the noise of the record's noisiest stretch (a quiet pad and a noisy flight: the simulated
     rocket's 0.035 against 1.7 m/s), is not named."""

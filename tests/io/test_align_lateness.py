@@ -17,7 +17,7 @@ def _record(tau: float = 1.0016, explains: bool = True, mode: str = "none") -> d
     return {**TimeAlignment(tau, cost, 1.0, 0.05, 3000, std=0.0004).to_dict(), "mode": mode}
 
 
-#: The reviewer's raw-IMU flight with tracking 1 s late: the pair's record (tau, period, explains, std).
+#: A raw-IMU flight with tracking 1 s late: the pair's record (tau, period, explains, std).
 LATE = _record()
 
 

@@ -29,7 +29,7 @@ def _boost(n: int, rng, noise_w: float, noise_f: float):
 
 @pytest.mark.parametrize("noise", [0.0, 1.0])
 def test_a_single_sample_glitch_is_named_and_a_thrust_step_is_not(noise):
-    """+50 m/s^2 on one fb_x sample (the reviewer's glitch: 2.5 m/s at 20 Hz) during the boost, with and without
+    """+50 m/s^2 on one fb_x sample (a glitch: 2.5 m/s at 20 Hz) during the boost, with and without
     sensor noise: one warning naming fb_x, the row, the time, the size and the velocity it adds (size times the
     step, computed here); the thrust steps on and off (4 g), the corners of the motion are no spike."""
     rng = np.random.default_rng(4)

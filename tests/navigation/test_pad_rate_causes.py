@@ -18,8 +18,8 @@ from casep.frames import LaunchSite
 from casep.gravity import normal_gravity_ecef
 from casep.navigation.alignment import align
 
-SITE = LaunchSite(28.5, -80.6, 10.0, 90.0, 0.0)  # the reviewer's site
-#: The reviewer's pad attitude (body -> launch triad: x east, y up, z south at azimuth 90): body x up, body z
+SITE = LaunchSite(28.5, -80.6, 10.0, 90.0, 0.0)  # a coastal launch site, azimuth 90 deg
+#: A pad attitude (body -> launch triad: x east, y up, z south at azimuth 90): body x up, body z
 #: horizontal at azimuth 180 deg, body y west (a rocket on its rail), tilted by a degree.
 C_TB = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]) @ \
     Rotation.from_euler("XY", [1.0, 0.5], degrees=True).as_matrix()
@@ -53,7 +53,7 @@ def test_the_set_up_as_given_is_not_warned_about():
 
 
 def test_swapped_gyro_columns_are_named_with_the_heading_they_mimic():
-    """w_y, w_z swapped (the reviewer's i_swapw): body y and z are the horizontal axes, so the swap is a heading
+    """w_y, w_z swapped: body y and z are the horizontal axes, so the swap is a heading
     mirrored; both are named, the swap with the columns, with the bias each leaves against the one as given."""
     t, w, f = _pad(np.random.default_rng(2))
     said = _said(t, w[:, [0, 2, 1]], f)
