@@ -40,9 +40,9 @@ def imu_only(args: argparse.Namespace) -> None:
                         ("--launch-time T0", args.launch_time), ("--align T1 T2", args.align)):
         if value is None:
             raise ValueError(f"--imu {args.imu} needs {flag}")
-    if args.heading_std is not None and (args.heading is None or args.heading_std < 0):
-        raise ValueError(f"--heading-std {args.heading_std:g}: the std of --heading, deg, a number >= 0 with "
-                         "--heading DEG (without it the alignment gyrocompasses and says how well it knows it)")
+    from casep.workflows.imu_separate import given_heading_std
+
+    given_heading_std(args.heading, args.heading_std, ("--heading DEG", f"--heading-std {args.heading_std}"))
     if len(args.tracking) != 1:
         raise ValueError(f"--tracking given {len(args.tracking)} times: --imu takes one tracking file")
 

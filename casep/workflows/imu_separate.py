@@ -175,7 +175,7 @@ __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_
            "std_shift", "DETERMINED_DRAWS", "FAIL_SHIFT", "STALL",
            "combination_imu_noise",
            "linearisation_shift", "linearisation_record", "one_pass_judged", "SMALLER_MODELS", "prior_fits_p",
-           "HEADING_STD_DEG", "HEADING_STEP_DEG"]
+           "HEADING_STD_DEG", "HEADING_STEP_DEG", "given_heading_std"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -381,7 +381,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
         raise ValueError(f"`max_iterations` must be an integer >= 1, got {max_iterations!r}")
     if not isinstance(site, LaunchSite):
         raise TypeError(f"`site` must be a casep.frames.LaunchSite, got {type(site).__name__}")
-    heading_std = _heading_std(heading_deg, heading_std_deg)
+    heading_std = given_heading_std(heading_deg, heading_std_deg)
     if not isinstance(imu, ImuData):
         imu = read_imu(imu, gyr_range=gyr_range, acc_range=acc_range)
     elif gyr_range is not None or acc_range is not None:
@@ -2288,15 +2288,18 @@ def heading_unchecked(record: dict | None) -> str | None:
             f"{record['stated_std_deg']:g} deg)")
 
 
-def _heading_std(heading_deg: float | None, heading_std_deg: float | None) -> float:
-    """The given heading's std, deg (:data:`HEADING_STD_DEG` by default; 0 when gyrocompassed)."""
+def given_heading_std(heading_deg: float | None, heading_std_deg: float | None,
+                names: tuple[str, str] = ("`heading_deg`", "`heading_std_deg`")) -> float:
+    """The given heading's std, deg (:data:`HEADING_STD_DEG` by default; 0 when gyrocompassed); the one rule of
+    ``--heading-std`` (the command line checks it with this before any work, `names` its flags)."""
+    heading, std = names
     if heading_std_deg is None:
         return HEADING_STD_DEG if heading_deg is not None else 0.0
     if not (math.isfinite(heading_std_deg) and heading_std_deg >= 0):
-        raise ValueError(f"`heading_std_deg` must be a finite number >= 0 (deg), got {heading_std_deg!r}")
+        raise ValueError(f"{std} must be a finite number >= 0 (deg), got {heading_std_deg!r}")
     if heading_deg is None:
-        raise ValueError("`heading_std_deg` is the std of `heading_deg`: give the heading (without it the pad "
-                         "alignment gyrocompasses, and says how well it knows the heading)")
+        raise ValueError(f"{std} is the std of {heading}: give the heading (without it the pad alignment "
+                         "gyrocompasses, and says how well it knows the heading)")
     return float(heading_std_deg)
 
 

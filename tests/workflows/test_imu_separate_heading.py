@@ -11,6 +11,7 @@ errors drawn at their declared magnitudes, tracked at 5 Hz with white noise of 0
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import numpy as np
@@ -128,6 +129,20 @@ def test_the_heading_std_is_checked(heading, std, said):
     with pytest.raises(ValueError, match="heading_std_deg.*" + said):
         separate_imu("no-such-imu.csv", "no-such-trk.csv", SITE, ALIGN, MODEL, heading_deg=heading,
                      heading_std_deg=std)
+
+
+@pytest.mark.parametrize("extra, said", [
+    (["--heading", "30", "--heading-std", "-0.1"], r"--heading-std -0\.1 must be a finite number >= 0"),
+    (["--heading-std", "0.1"], r"--heading-std 0\.1 is the std of --heading DEG")])
+def test_the_command_line_checks_the_heading_std_with_the_same_rule(tmp_path, capsys, extra, said):
+    """``casep separate --imu`` refuses the same std by the same rule (given_heading_std), naming its flags, exit 2,
+    before any file is read."""
+    from casep.cli import main
+
+    rc = main(["separate", "--imu", str(tmp_path / "no-such-imu.csv"), "--tracking", str(tmp_path / "no-such.csv"),
+               "--launch-site", "67.89", "21.1", "330", "30", "--launch-time", "10", "--align", "0", "9", *extra])
+    assert rc == 2
+    assert re.search(said, capsys.readouterr().err)
 
 
 def _gls_problem(c_true: float, seed: int = 3):
