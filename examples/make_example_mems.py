@@ -3,8 +3,10 @@
 #%% What it is
 # A rocket on a rail at Esrange (67.89 N, 21.10 E, 330 m), body x along the rail at 80 deg elevation
 # towards azimuth 30 deg. 10 s at rest on the pad, then 30 s of axial boost (4 g for 20 s, then -0.2 g
-# of drag) with a roll programme rising to 2 rad/s and a slow pitch-over, at 20 Hz. The clean record is
-# navigated by casep itself (heading given), and that navigation is the truth: the tracking file is its
+# of drag) with a roll programme rising to 2 rad/s and a slow pitch-over, at 20 Hz. Lift-off and burnout fall on
+# samples: each is written as the mean of its two sides there (casep.navigation.imu.split_steps, as casep's
+# simulator does), so the record has no step between samples whose place in the interval it leaves unknown. The
+# clean record is navigated by casep itself (heading given), and that navigation is the truth: the tracking file is its
 # launch-inertial velocity at 5 Hz plus Gauss-Markov (tau 1 s, 0.03 m/s) and white (0.02 m/s) noise; the
 # IMU file is the clean record plus the errors of a MEMS IMU (strapdown15_axial: 10-20 mg biases, a 0.5 %
 # scale factor, a quarter to half a degree of misalignment, 150-250 deg/h gyro biases, ...) by the model's
@@ -31,6 +33,7 @@ def main() -> None:
     from casep.io.files import write_table
     from casep.model.strapdown import body_errors
     from casep.navigation import ImuData, check_imu, navigate
+    from casep.navigation.imu import split_steps
     from casep.simulation.noise import ar1_noise, white_noise
     from casep.simulation.strapdown import rail_launch
 
@@ -40,6 +43,7 @@ def main() -> None:
     site = LaunchSite(67.89, 21.10, 330.0, 30.0, 10.0)  # launch azimuth 30 deg, lift-off at t = 10 s
     t = np.round(np.arange(0.0, 40.0, 0.05), 10)
     w, f = rail_launch(site, t, elevation_deg=80.0, boost_g=4.0, burn_s=20.0, coast_g=-0.2, roll=(2.0, 5.0))
+    w, f = split_steps(t, w, f)  # lift-off and burnout at their samples: the record the navigation takes exactly
     nav = navigate(check_imu(ImuData(t, w, f)), site, (0.0, 9.0), heading_deg=30.0)  # the truth
     model = casep.load_model("strapdown15_axial")
     df, dw = body_errors(model, nav.q, f, w, t - t[0], np.array([TRUTH[n] for n in model.names]))

@@ -130,7 +130,8 @@ step along what the pad does not determine is noise of 1e3-1e10 declared magnitu
 an accelerometer bias of several g), which the next pass cannot invert. On the shipped MEMS example under the
 default ``strapdown33`` the first pass's full step (2.9e3 declared magnitudes along combinations of std up to 1.6e3)
 raised the rows' RMS from 13.6 to 16.8 m/s; under the tenfold rule alone it was kept, the passes crept back by 0.64 a
-pass and the run failed at 20, and with the descent rule half that step is taken and the run converges in 8.
+pass and the run failed at 20, and with the descent rule half that step is taken and the run converges (in 10
+passes since the example's lift-off and burnout are split at their samples).
 The combinations and their std come from the fit's covariance, or from the design when the covariance holds them only
 to its rounding (:func:`_scaled_spectrum`): on a pad at rest under ``strapdown33`` the best-determined combinations'
 variances are 1e-20 of the largest, read from the covariance as 0 (a null direction, stepped along unjudged) or as
@@ -234,7 +235,7 @@ SIGNIFICANT = 4.0
 #: The std of a given heading when none is given, deg (:meth:`_Run.heading_rows`): a launcher rail's azimuth surveyed
 #: to a few hundredths of a degree, and the IMU's mounting on the rail about the vertical, which a bracket holds to a
 #: tenth of a degree at best; on a rail launch the lateral terms cannot tell the heading from the coefficients, and
-#: the MEMS example's stated combinations (``docs/guide/navigate.md``) move by up to 4 of their std per 0.1 deg.
+#: the MEMS example's stated combinations (``docs/guide/navigate.md``) move by up to 6 of their std per 0.1 deg.
 HEADING_STD_DEG = 0.1
 #: The heading's derivative: central differences of a pass navigated at the heading plus and minus this, deg.
 HEADING_STEP_DEG = 0.1
@@ -2272,7 +2273,7 @@ def heading_unchecked(record: dict | None) -> str | None:
     (:func:`heading_conflict`'s `record`: the data's own std of the heading's error above the stated std), or None
     (no test, a conflict: said by the failure, or a record that checks the heading). On a rail launch the lateral
     terms fit a heading error as well as the heading (``docs/guide/navigate.md``: the MEMS example's record knows it
-    to 55 deg): no test of the data can then see a wrong heading, and the result holds only as far as the heading is
+    to 44 deg): no test of the data can then see a wrong heading, and the result holds only as far as the heading is
     within its stated std, which the message says."""
     if record is None or record["conflict"] or not record["std_deg"] > record["stated_std_deg"]:
         return None
