@@ -122,7 +122,7 @@ def _azimuth(v_t: np.ndarray, site: LaunchSite) -> float:
 def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, float], site: LaunchSite, *,
           heading_deg: float | None = None, heading_axis: str = "x",
           rates_in: str = "columns w_x, w_y, w_z", accel_bias_tolerance: float = ACCEL_BIAS_TOLERANCE,
-          as_given: bool = True, gyro_bias_tolerance: float | None = None) -> Alignment:
+          as_given: bool = True, gyro_bias_tolerance: float | None = None, judge_earth_rate: bool = True) -> Alignment:
     """Level over `window` and fix the heading (given, or by gyrocompassing with a warning).
 
     Parameters
@@ -150,6 +150,10 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
         The record as its file gives it (gyro signs the Earth rate decides are an error,
         :func:`_check_earth_rate`); False for a record an estimate has corrected (the passes of a separation from
         raw data: a trial correction is judged by its residuals, the warning is said once on the record as given).
+    judge_earth_rate : bool
+        False, with `as_given` False: :func:`_check_earth_rate`, whose only outcome there is a warning, is not made
+        (the perturbed means of a derivative of the attitude, whose warnings the caller discards: the pass's own
+        alignment says them once). The attitude is the same.
 
     Raises
     ------
@@ -196,8 +200,9 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
         C = _triad(up_b, axis, up_t, _horizontal(heading_deg, site))
         _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in, C.T @ site.earth_rate,
                         large=large)
-        _check_earth_rate(w[sel], w_mean, C, site, (t1, t2), rates_in, float(heading_deg), as_given,
-                          pad=(up_b, up_t, axis))
+        if as_given or judge_earth_rate:
+            _check_earth_rate(w[sel], w_mean, C, site, (t1, t2), rates_in, float(heading_deg), as_given,
+                              pad=(up_b, up_t, axis))
         return Alignment(C, "heading", float(heading_deg) % 360.0, None, f_mean, w_mean, g0, n, heading_axis)
     _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in, large=large)
     if tilt < MIN_AXIS_TILT_RAD:  # its azimuth means nothing: report the most horizontal axis's
