@@ -97,12 +97,13 @@ class Alignment:
 
 
 def _triad(e1: np.ndarray, s_b: np.ndarray, E1: np.ndarray, s_t: np.ndarray) -> np.ndarray:
-    """``C_T^b`` from the vertical (`e1` body, `E1` triad) and a second direction (`s_b`, `s_t`)."""
-    def frame(a: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``C_T^b`` from the vertical (`e1` body, `E1` triad) and a second direction (`s_b`, `s_t`); `s_t` may hold many
+    directions (..., 3): one matrix each (..., 3, 3)."""
+    def frame(a: np.ndarray, s: np.ndarray) -> np.ndarray:  # a one vector, s one or many
         a = a / np.linalg.norm(a)
-        b = s - (s @ a) * a
-        b = b / np.linalg.norm(b)
-        return np.column_stack([a, b, np.cross(a, b)])
+        b = s - (s @ a)[..., None] * a
+        b = b / (np.linalg.norm(b) if b.ndim == 1 else np.linalg.norm(b, axis=-1, keepdims=True))
+        return np.stack([np.broadcast_to(a, b.shape), b, np.cross(a, b)], axis=-1)
 
     return frame(E1, s_t) @ frame(e1, s_b).T
 
@@ -121,7 +122,7 @@ def _azimuth(v_t: np.ndarray, site: LaunchSite) -> float:
 def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, float], site: LaunchSite, *,
           heading_deg: float | None = None, heading_axis: str = "x",
           rates_in: str = "columns w_x, w_y, w_z", accel_bias_tolerance: float = ACCEL_BIAS_TOLERANCE,
-          as_given: bool = True, gyro_bias_tolerance: float | None = None) -> Alignment:
+          as_given: bool = True, gyro_bias_tolerance: float | None = None, judge_earth_rate: bool = True) -> Alignment:
     """Level over `window` and fix the heading (given, or by gyrocompassing with a warning).
 
     Parameters
@@ -149,6 +150,10 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
         The record as its file gives it (gyro signs the Earth rate decides are an error,
         :func:`_check_earth_rate`); False for a record an estimate has corrected (the passes of a separation from
         raw data: a trial correction is judged by its residuals, the warning is said once on the record as given).
+    judge_earth_rate : bool
+        False, with `as_given` False: :func:`_check_earth_rate`, whose only outcome there is a warning, is not made
+        (the perturbed means of a derivative of the attitude, whose warnings the caller discards: the pass's own
+        alignment says them once). The attitude is the same.
 
     Raises
     ------
@@ -195,8 +200,9 @@ def align(t: np.ndarray, w: np.ndarray, f: np.ndarray, window: tuple[float, floa
         C = _triad(up_b, axis, up_t, _horizontal(heading_deg, site))
         _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in, C.T @ site.earth_rate,
                         large=large)
-        _check_earth_rate(w[sel], w_mean, C, site, (t1, t2), rates_in, float(heading_deg), as_given,
-                          pad=(up_b, up_t, axis))
+        if as_given or judge_earth_rate:
+            _check_earth_rate(w[sel], w_mean, C, site, (t1, t2), rates_in, float(heading_deg), as_given,
+                              pad=(up_b, up_t, axis))
         return Alignment(C, "heading", float(heading_deg) % 360.0, None, f_mean, w_mean, g0, n, heading_axis)
     _check_pad_rate(w_mean, s_mean, n, (t1, t2), up_b, up_t, site, rates_in, large=large)
     if tilt < MIN_AXIS_TILT_RAD:  # its azimuth means nothing: report the most horizontal axis's
@@ -542,9 +548,10 @@ class PadRateCause(NamedTuple):
 
 def _log_evidence(r: np.ndarray, s: np.ndarray, b: float) -> np.ndarray:
     """``log p(r)`` of pad-rate residuals `r` (..., 3) (rad/s): a gyro bias ``N(0, sigma^2 I)`` plus the noise of the
-    mean ``N(0, diag s^2)``, ``sigma`` log-uniform on [:data:`GRADE_FLOOR`, `b`] (241 grades)."""
+    mean ``N(0, diag s^2)`` (`s` (3,), or one per residual (..., 3)), ``sigma`` log-uniform on
+    [:data:`GRADE_FLOOR`, `b`] (241 grades)."""
     sig = np.geomspace(min(GRADE_FLOOR, b), b, 241)
-    var = np.asarray(s, float) ** 2 + sig[:, None] ** 2  # (G, 3)
+    var = np.asarray(s, float)[..., None, :] ** 2 + sig[:, None] ** 2  # (..., G, 3)
     ll = -0.5 * np.sum(r[..., None, :] ** 2 / var + np.log(2.0 * math.pi * var), axis=-1)  # (..., G)
     top = ll.max(axis=-1)
     return top + np.log(np.mean(np.exp(ll - top[..., None]), axis=-1))
@@ -585,19 +592,19 @@ def pad_rate_causes(w_mean: np.ndarray, s: np.ndarray, e: np.ndarray, b: float, 
     kinds.append(("gyro signs", [(f"the gyro signs as {cols((0, 1, 2), S)}", S * w_mean, s) for S in signs[1:]]))
     e_lat = e - 2.0 * float(e @ u) * u  # the vertical Earth rate omega_E sin(lat) negated
     heads = [(heading_deg + d) % 360.0 for d in range(360)]
-    kinds_e = [(f"a latitude of {-site.lat_deg:g} deg (the sign of --launch-site's latitude: given {site.lat_deg:g})",
-                e_lat)] + [(f"a heading of {h:g} deg (the gyrocompass heading of the pad rate; given {heading_deg:g}, "
-                            f"off by {((h - heading_deg + 180.0) % 360.0) - 180.0:+g} deg)",
-                            _triad(up_b, axis, up_t, _horizontal(h, site)).T @ site.earth_rate) for h in heads]
+    lat_name = f"a latitude of {-site.lat_deg:g} deg (the sign of --launch-site's latitude: given {site.lat_deg:g})"
+    head_names = [f"a heading of {h:g} deg (the gyrocompass heading of the pad rate; given {heading_deg:g}, off by "
+                  f"{((h - heading_deg + 180.0) % 360.0) - 180.0:+g} deg)" for h in heads]
+    C_heads = _triad(up_b, axis, up_t, np.array([_horizontal(h, site) for h in heads]))  # (360, 3, 3), one per heading
     out = []
     for name, members in kinds:
         r = np.array([w - e for _, w, _ in members])
-        ev = np.array([float(_log_evidence(r[i], members[i][2], b)) for i in range(len(members))])
+        ev = _log_evidence(r, np.array([m[2] for m in members]), b)
         out.append((name, ev, [m[0] for m in members], r))
-    lat_r = w_mean - kinds_e[0][1]
-    out.append(("latitude", np.array([float(_log_evidence(lat_r, s, b))]), [kinds_e[0][0]], lat_r[None, :]))
-    head_r = np.array([w_mean - x for _, x in kinds_e[1:]])
-    out.append(("heading", _log_evidence(head_r, s, b), [m for m, _ in kinds_e[1:]], head_r))
+    lat_r = w_mean - e_lat
+    out.append(("latitude", np.array([float(_log_evidence(lat_r, s, b))]), [lat_name], lat_r[None, :]))
+    head_r = w_mean - np.swapaxes(C_heads, -1, -2) @ site.earth_rate
+    out.append(("heading", _log_evidence(head_r, s, b), head_names, head_r))
     causes = []
     for _, ev, names, r in out:
         log_mean = float(ev.max() + np.log(np.mean(np.exp(ev - ev.max()))))  # the kind's mean evidence

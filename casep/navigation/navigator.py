@@ -163,15 +163,15 @@ def pad_state(imu: ImuData, site: LaunchSite, align_window: tuple[float, float],
     estimate has corrected, as :func:`~casep.navigation.alignment.align` takes it).
     """
     from casep.frames import ecef_to_launch, ecef_to_launch_vector
-    from casep.navigation.alignment import align
+    from casep.navigation.alignment import ACCEL_BIAS_TOLERANCE, align
     from casep.navigation.strapdown import dcm_to_quat
 
     if not isinstance(site, LaunchSite):
         raise TypeError(f"`site` must be a casep.frames.LaunchSite, got {type(site).__name__}")
     cols = ", ".join(DTHETA_COLUMNS if imu.kind == "increments" else RATE_COLUMNS)
-    tol = {} if accel_bias_tolerance is None else {"accel_bias_tolerance": accel_bias_tolerance}
+    tol = ACCEL_BIAS_TOLERANCE if accel_bias_tolerance is None else accel_bias_tolerance
     alignment = align(imu.t, imu.w, imu.f, align_window, site, heading_deg=heading_deg, heading_axis=heading_axis,
-                      **tol, as_given=as_given, gyro_bias_tolerance=gyro_bias_tolerance,
+                      accel_bias_tolerance=tol, as_given=as_given, gyro_bias_tolerance=gyro_bias_tolerance,
                       rates_in=f"{imu.source}, columns {cols}")
     t_s = imu.t[np.searchsorted(imu.t, align_window[0])][None]
     r0, v0 = ecef_to_launch(site, t_s, site.r_site[None, :], np.zeros((1, 3)))

@@ -608,14 +608,15 @@ class _Run:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # a gyrocompassing warning per step: said once, by the pass itself
             C_ref = align(tt, np.tile(w_mean, (2, 1)), np.tile(f_mean, (2, 1)), self.window, self.nav_site,
-                          **self.heading, as_given=False).C_tb  # a derivative's perturbed means, not a record
+                          **self.heading, as_given=False, judge_earth_rate=False).C_tb  # a derivative's means
             for j, ((df, dw), h) in enumerate(zip(directions, steps)):
                 if h == 0:
                     continue
                 phi = [R @ Rotation.from_matrix(C_ref @ align(tt, np.tile(w_mean + s * dw, (2, 1)),
                                                              np.tile(f_mean + s * df, (2, 1)), self.window,
                                                              self.nav_site, **self.heading,
-                                                             as_given=False).C_tb.T).as_rotvec()
+                                                             as_given=False, judge_earth_rate=False).C_tb.T
+                                               ).as_rotvec()
                        for s in (h, -h)]
                 A[:, j] = (phi[0] - phi[1]) / (2 * h)
         return A

@@ -107,3 +107,21 @@ def test_real_mpu9150_pads_name_nothing(session):
         align(t[:600], a[:600, 3:6], a[:600, 0:3], (0.0, 5.99), LaunchSite(55.0, 83.0, 150.0, 0.0, 0.0),
               heading_deg=0.0, heading_axis=flat)
     assert not any("times as likely" in str(r.message) for r in rec)
+
+
+def test_a_derivatives_alignment_skips_only_the_earth_rate_warning():
+    """``judge_earth_rate=False`` (the perturbed means of a derivative, not a record as given): the same attitude as
+    the alignment that judges the pad rate, without its warning; a record as given is judged whatever it says."""
+    t, w, f = _pad(np.random.default_rng(2))
+    w = w[:, [0, 2, 1]]  # swapped columns: warned about (test_swapped_gyro_columns_are_named_...)
+    heading = _heading_of(C_TB, SITE, 2)
+    runs = {}
+    for as_given, judge in ((False, True), (False, False), (True, False)):
+        with warnings.catch_warnings(record=True) as rec:
+            warnings.simplefilter("always")
+            runs[as_given, judge] = align(t, w, f, (t[0], t[-1]), SITE, heading_deg=heading, heading_axis="z",
+                                          as_given=as_given, judge_earth_rate=judge).C_tb
+        said = [str(r.message) for r in rec if issubclass(r.category, AlignmentWarning)]
+        assert len(said) == (0 if (not as_given and not judge) else 1), (as_given, judge, said)
+    assert np.array_equal(runs[False, True], runs[False, False])
+    assert np.array_equal(runs[False, True], runs[True, False])
