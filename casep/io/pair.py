@@ -137,11 +137,28 @@ def check_earth_fixed_units(trk: Table, t: np.ndarray, r: np.ndarray, v: np.ndar
     speed = float(np.median(np.linalg.norm(v, axis=1)))
     rate = float(np.median(np.linalg.norm(np.gradient(r, t, axis=0), axis=1)))
     if speed > 1.0 and rate > 1.0 and not 0.1 < rate / speed < 10.0:
+        _check_time_unit(trk, t, rate / speed)
         likely = ("the velocity in km/s" if 300 < rate / speed < 3000 else
                   "the position in km" if 300 < speed / rate < 3000 else "the two in different units")
         raise trk.error(f"the tracked position changes at a median {rate:.4g} m/s but the tracked velocity is a median "
                         f"{speed:.4g} m/s (ratio {rate / speed:.4g}): {likely}? Positions must be in m, velocities in "
                         "m/s", col)
+
+
+def _check_time_unit(trk: Table, t: np.ndarray, ratio: float) -> None:
+    """Refuse tracking whose ``t`` is in another unit where that explains its position's rate against its velocity
+    (`ratio`, ``median |dr/dt| / median |v|`` with ``t`` read as s): its median step and span out of the range of
+    flight data and a unit of :func:`casep.io.flight.time_unit_factors` (the telemetry's rule) that brings them in
+    and the ratio within 0.1-10 (t in ms reads the position's rate 1000 times slow, as a position in km would)."""
+    from casep.io.flight import time_unit_factors
+
+    h, span = float(np.median(np.diff(t))), float(t[-1] - t[0])
+    for unit, k in time_unit_factors(h, span):
+        name, how = unit.split(" ", 1)  # "ms", "(divide by 1000)"
+        if 0.1 < ratio / k < 10.0:
+            raise trk.error(f"t looks like {name}, not s: a median step of {h:.4g} and a span of {span:.4g} 's' are "
+                            f"not a flight's, and read in {name} the tracked position's rate agrees with its velocity "
+                            f"(ratio {ratio / k:.3g}; {ratio:.3g} as s): give t in s {how}", "t")
 
 
 def tracking_hint(trk: Table, tracking_frame: str) -> str:

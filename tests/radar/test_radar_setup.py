@@ -282,6 +282,16 @@ def test_ecef_tracking_in_km_is_refused(tmp_path):
         read_flight_pair(tmp_path / "tel.csv", tmp_path / "kms.csv", tracking_frame="ecef", site=ls)
     assert main(["separate", str(tmp_path / "tel.csv"), "--tracking", str(tmp_path / "km.csv"), "--tracking-frame",
                  "ecef", "--launch-site", *site, "--launch-time", "0"]) == 2
+    # t in ms reads the position's rate 1000 times slow, as a position in km would: the time is named, not h or r
+    for c in ("v_ecef_x", "v_ecef_y", "v_ecef_z"):
+        trk[c] = trk[c] * 1000.0
+    trk.to_csv(tmp_path / "m.csv", index=False)
+    read_flight_pair(tmp_path / "tel.csv", tmp_path / "m.csv", tracking_frame="ecef", site=ls)  # m, m/s, s: read
+    trk["t"] = trk["t"] * 1000.0
+    trk.to_csv(tmp_path / "ms.csv", index=False)
+    with pytest.raises(ValueError, match=r"column `t`: t looks like ms, not s: a median step of 100 and a span of "
+                                         r".*\(ratio 1; 0\.001 as s\): give t in s \(divide by 1000\)"):
+        read_flight_pair(tmp_path / "tel.csv", tmp_path / "ms.csv", tracking_frame="ecef", site=ls)
 
 
 # ----------------------------------------------------------------------------- simulator: mask and zenith
