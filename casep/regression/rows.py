@@ -140,8 +140,10 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[i
     floor = problem.rounding_floor()
     for _ in range(_MAX_ROBUST_ITER):
         x, _, L = _ls_factor(_rows(problem, keep, nm, None))
-        r, G = _predicted(problem, x, L)
-        rw = robust_filter(r, problem.t, nm, floor=floor, predicted=G)
+        rw = robust_filter(problem.residuals(x), problem.t, nm, floor=floor)
+        if not rw.keep.all():  # the fit's prediction variance only widens an innovation: with no rejection on the
+            r, G = _predicted(problem, x, L)  # noise alone there is none with it (and u is the noise's either way)
+            rw = robust_filter(r, problem.t, nm, floor=floor, predicted=G)
         if np.array_equal(rw.keep, keep) or 3 * int(rw.keep.sum()) <= problem.n:  # too few rows left to refit
             break
         keep = rw.keep
