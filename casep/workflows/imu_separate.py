@@ -1041,12 +1041,9 @@ class _Run:
             return res
         # the linear model at the heading the data point to: the pass's rows there, the same estimator
         try:
-            self.heading["heading_deg"] = record["suggested_heading_deg"]
-            there = self.rows(D)
+            there = self.rows_at_heading(D, record["suggested_heading_deg"])
         except ValueError:
             there = None
-        finally:
-            self.heading["heading_deg"] = h0
         again = None if there is None else heading_conflict(noise, problem.with_y(there), flight, per_deg, h0,
                                                             self.heading_std, *args)
         record["at_suggested_deg"] = None if again is None else again["estimate_deg"]
@@ -1094,16 +1091,21 @@ class _Run:
         if heading is None or heading["heading_deg"] is None:
             return None
         h0 = heading["heading_deg"]
-        ys = []
         try:
-            for s in (HEADING_STEP_DEG, -HEADING_STEP_DEG):
-                heading["heading_deg"] = h0 + s
-                ys.append(self.rows(D))
+            ys = [self.rows_at_heading(D, h0 + s) for s in (HEADING_STEP_DEG, -HEADING_STEP_DEG)]
         except ValueError:  # the record does not invert there: no column (the std without it, no test)
             return None
-        finally:
-            heading["heading_deg"] = h0
         return (ys[0] - ys[1]) / (2 * HEADING_STEP_DEG)
+
+    def rows_at_heading(self, D: np.ndarray, heading_deg: float) -> np.ndarray:
+        """:meth:`rows` at `D` with the pad aligned at `heading_deg` instead of the given heading (restored after;
+        ValueError where the record does not invert there)."""
+        h0 = self.heading["heading_deg"]
+        try:
+            self.heading["heading_deg"] = heading_deg
+            return self.rows(D)
+        finally:
+            self.heading["heading_deg"] = h0
 
     def steps_effect(self, problem: Any) -> np.ndarray | None:
         """:func:`step_rows` of `problem`'s pass (None before :meth:`finish` formed it, for another problem, or
@@ -1153,8 +1155,10 @@ class _Run:
         scale = _scale_of(scales, res.names)
         W = np.array([c["weights"] for c in combos], dtype=float)
         heading = self.heading_effect(problem)
-        var = combination_imu_noise(W, scale, res, problem, flight, self.levelling(), self.tau_profile(problem),
-                                    consider_columns(heading, self.steps_effect(problem)))
+        a = combination_estimators(W, scale, res, problem)  # once: their noise (combination_imu_noise's rule) and
+        var = None if a is None else estimator_noise(  # the heading's shift
+            a, res, problem, flight, self.levelling(), self.tau_profile(problem),
+            consider_columns(heading, self.steps_effect(problem)))
         if var is None:
             return combos
         trk, imu = var
@@ -1162,7 +1166,8 @@ class _Run:
         out = [{**c, "std_tracking_noise_only": c["std"], "std": float(math.sqrt(a + b))}
                for c, a, b in zip(combos, trk, imu)]
         if heading is not None:
-            shift = combination_estimators(W, scale, res, problem) @ heading.reshape(-1)
+            assert a is not None  # var is not None
+            shift = a @ heading.reshape(-1)
             out = [{**c, "heading_shift": float(h)} for c, h in zip(out, shift)]
             record = heading_record(self.heading["heading_deg"], self.heading_std, shift,
                                     np.array([c["std"] for c in out]), [_combination(list(res.names), w) for w in W])
