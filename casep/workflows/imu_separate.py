@@ -995,17 +995,18 @@ class _Run:
         (:func:`with_imu_noise`)."""
         heading = self.heading_effect(problem)
         steps = self.steps_effect(problem)
+        n = len(res.names)
+        # the coefficients' estimators, formed once for the budget and the heading's record (the budget's refit
+        # changes the covariance, not the noise model that whitens the rows, so they are the same)
+        a = None if heading is None else combination_estimators(np.eye(n), np.ones(n), res, problem)
         out = with_imu_noise(res, problem, flight, self.levelling(), self.tau_profile(problem),
-                             consider_columns(heading, steps))
+                             consider_columns(heading, steps), estimators=a)
         if steps is not None:
             out = with_steps(out if out is not res else with_consider(res, problem, steps), res, problem,
                              getattr(self, "imu", None))
-        if heading is not None and out is not res and out.std is not None:
-            n = len(out.names)
-            a = combination_estimators(np.eye(n), np.ones(n), out, problem)
-            if a is not None:
-                out.diagnostics["heading"] = {"coefficients": heading_record(
-                    self.heading["heading_deg"], self.heading_std, a @ heading.reshape(-1), out.std, list(out.names))}
+        if heading is not None and a is not None and out is not res and out.std is not None:
+            out.diagnostics["heading"] = {"coefficients": heading_record(
+                self.heading["heading_deg"], self.heading_std, a @ heading.reshape(-1), out.std, list(out.names))}
         return out
 
     def heading_judged(self, res: EstimateResult, problem: Any, flight: FlightData,
@@ -1948,8 +1949,8 @@ def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np
 
 
 def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, levelling: tuple | None = None,
-                     profile: tuple | None = None, heading: np.ndarray | None = None
-                     ) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
+                     profile: tuple | None = None, heading: np.ndarray | None = None,
+                     estimators: np.ndarray | None = None) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
     """The estimate's covariance with the IMU's own white noise: ``(tracking part, IMU part, what was used)`` (None
     when the flight does not hold the IMU's samples, or the result has no covariance; the tracking part None: the
     fit's own covariance).
@@ -1978,7 +1979,8 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     the tracking part gains what the uncertainty of the correlation times adds (:func:`tau_spread`, as the stated
     combinations' std do: :func:`combination_imu_noise`), and the account says over which correlation times, whether
     the record bounds them and by how much it raises the std (``tau_profile``: :func:`warn_tau_unbounded` says when
-    the record does not bound them).
+    the record does not bound them). `estimators`: ``A`` when the caller formed it already
+    (:func:`combination_estimators` of the identity on `res`).
     """
     from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_noise_effect, imu_sample_noise
     from casep.noise.model import NoiseModel
@@ -1993,8 +1995,8 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     at_rest = isinstance(flight.meta, dict) and flight.meta.get(IMU_NOISE_AT_REST) is not None
     noise = NoiseModel.from_dict(nd)
     N, n = t.size, len(res.names)
-    A = combination_estimators(np.eye(n), np.ones(n), res, problem)  # (n, 3N): the coefficients' estimators
-    assert A is not None  # times and a noise model: checked above
+    A = estimators if estimators is not None else combination_estimators(np.eye(n), np.ones(n), res, problem)
+    assert A is not None  # (n, 3N), the coefficients' estimators: times and a noise model checked above
     AG = imu_noise_effect(flight, t, A, levelling)
     if AG is None:
         return None
@@ -2457,11 +2459,11 @@ def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu:
 
 def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
                    levelling: tuple | None = None, profile: tuple | None = None,
-                   heading: np.ndarray | None = None) -> EstimateResult:
+                   heading: np.ndarray | None = None, estimators: np.ndarray | None = None) -> EstimateResult:
     """`res` with the IMU's own noise (and with `heading` the given heading's uncertainty) in its covariance and std
-    and said in its noise account (:func:`imu_noise_budget`; `res` itself when the flight does not hold the IMU's
-    samples)."""
-    budget = imu_noise_budget(res, problem, flight, levelling, profile, heading)
+    and said in its noise account (:func:`imu_noise_budget`, `estimators` passed on; `res` itself when the flight
+    does not hold the IMU's samples)."""
+    budget = imu_noise_budget(res, problem, flight, levelling, profile, heading, estimators)
     if budget is None:
         return res
     C_trk, C_imu, account = budget
