@@ -294,7 +294,9 @@ def _skew_std(t: np.ndarray, w: np.ndarray, rv: np.ndarray, keep: np.ndarray, re
     inc_{i-1}) / 2`` the change of the rate's rotation vectors (`reading` of :data:`RATE_READINGS`) per sample:
     least squares of ``rv - inc = -tau a`` over the steps whose neighbours are compared too, ``std^2 = sum_c s_c^2
     sum_i a_ic^2 / (sum a.a)^2`` with ``s_c^2`` axis c's residual long-run variance (:func:`_long_run_variance`:
-    the cubic spreads a reading over neighbouring steps). A skew shows only where the rate changes from step to
+    the cubic spreads a reading over neighbouring steps), at least ``NORM_TOL^2``: the attitude is known to the
+    1e-6 its unit check accepts, so residuals at rounding level (noise-free data) do not pretend to tell a skew from a
+    rate that changes by as little. A skew shows only where the rate changes from step to
     step: on a constant rate (a pitch kick's once its step is left out) ``sum a.a`` is ~0 and the std unbounded.
     Also ``motion_rad``: the RMS of ``|a|`` (rad per sample), ``steps``: how many steps it used."""
     inc = reading(t, w)
@@ -310,7 +312,7 @@ def _skew_std(t: np.ndarray, w: np.ndarray, rv: np.ndarray, keep: np.ndarray, re
     if n < 3 or aa <= 0.0:
         return {"tau": 0.0, "std": float("inf"), "motion_rad": 0.0, "steps": n}
     tau = -float(np.sum(e * da)) / aa
-    s2 = _long_run_variance(e + tau * da)
+    s2 = np.maximum(_long_run_variance(e + tau * da), NORM_TOL**2)  # no better than the attitude's resolution
     std = float(np.sqrt(np.sum(s2 * np.sum(da * da, axis=0))) / aa)
     return {"tau": tau, "std": std, "motion_rad": float(np.sqrt(aa / n)), "steps": n}
 
