@@ -43,6 +43,15 @@ Checks, each naming the file, the columns, the rows and the numbers:
   times: the INS's attitude followed the motion, the written rate did not; ``meta["strapdown"]
   ["rate_clipped"]``); disagreeing, the finding above on the rest, saying the clip was left out.
 
+  The body rate's steps between samples (:func:`casep.io.flight.signal_steps`, the IMU record's rule: a pitch
+  kick, a roll programme switched on) and the steps next to them are left out of the comparison
+  (:func:`_rate_steps`: the integrated rate rings across a step). A time skew of the attitude against the rate
+  shows only where the rate changes from step to step: when the two agree, the skew the compared steps tell and
+  its std (:func:`_skew_std`); a std beyond :data:`SKEW_STD_MAX` samples is a :class:`StrapdownWarning` that the
+  skew is not checked (with the std, the steps used, any rate step left out). When they disagree and agree at a
+  skew (:func:`_lag_agreement`, on pairs of steps that reach across no step left out) the error names it, or the
+  range of skews at which they agree when the record cannot tell it closer.
+
 - **velocity against the specific force** (files with ``v_tel_*``): the INS's velocity is the integral of
   ``C(q) fb + g``; over windows of :data:`KINEMATIC_WINDOW` the misfit ``(v_tel(b) - v_tel(a) - int_a^b
   (C(q) fb + g) dt) / (b - a)`` turned into body axes (the attitude at the window's middle), its median over
@@ -82,7 +91,7 @@ __all__ = ["StrapdownWarning", "strapdown_force", "lost_rows_problem", "GAP_TURN
            "check_strapdown", "compare_force", "FORCE_TOL", "check_kinematics",
            "KINEMATIC_WINDOW", "KINEMATIC_LIMIT", "KINEMATIC_WARN",
            "quaternion_dcm_array", "RATE_READINGS", "NORM_TOL", "CLIP_REACH", "RATE_TOL", "GAIN_TOL", "GAIN_Z",
-           "MIN_ROTATION", "RATE_PEAK_HIGH",
+           "SKEW_STD_MAX", "MAX_LAG", "MIN_ROTATION", "RATE_PEAK_HIGH",
            "CONVENTIONS", "STRAPDOWN_COLUMNS", "QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS"]
 
 #: The strapdown telemetry columns (``docs/reference/file-formats.md``): the INS attitude (Hamilton unit
