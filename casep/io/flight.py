@@ -22,12 +22,52 @@ import numpy as np
 
 from casep.exceptions import CasepWarning
 
+#: A jump between consecutive samples beyond this many times the column's sample-to-sample noise is a step
+#: (:func:`signal_steps`).
+STEP_FACTOR = 10.0
+#: ... and beyond this fraction of the sensor's largest reading in the record (a noise-free record has no noise),
+#: and this share of the interval's own difference (a step split over two intervals by a sample at its middle,
+#: which the integration takes exactly, is none).
+STEP_FLOOR, STEP_SHARE = 1e-6, 0.5
+
+
+def _jumps(x: np.ndarray) -> np.ndarray:
+    """Per interval ``k`` (N-1, 3): the part of the difference ``d_k = x[k+1] - x[k]`` that neither neighbour's
+    difference shares, ``sign(a) min(|a|, |b|)`` with ``a = d_k - d_{k-1}``, ``b = d_k - d_{k+1}`` when they have
+    one sign, else 0 (0 at the record's ends). A step of size ``D`` gives ``D``; a ramp, a smooth curve and a kink
+    (one of ``a``, ``b`` about 0, or of opposite signs) give none."""
+    d = np.diff(x, axis=0)
+    out = np.zeros_like(d)
+    a, b = d[1:-1] - d[:-2], d[1:-1] - d[2:]
+    out[1:-1] = np.where(np.sign(a) == np.sign(b), np.sign(a) * np.minimum(np.abs(a), np.abs(b)), 0.0)
+    return out
+
+
+def signal_steps(t: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The steps of a signal `x` (N, 3) sampled at `t` between consecutive samples: ``(axes (N-1, 3) bool, jumps
+    (N-1, 3))``, a jump :func:`_jumps` finds beyond :data:`STEP_FACTOR` times the column's sample-to-sample noise (the
+    robust scatter of its second differences, ``1.4826 MAD``), beyond :data:`STEP_FLOOR` of its largest reading and
+    beyond :data:`STEP_SHARE` of the interval's own difference; the intervals touching a gap (:func:`gap_steps`)
+    are none (a gap's neighbours' differences span it). The rule of an IMU record's steps
+    (:func:`casep.navigation.imu.sample_steps`) and of a strapdown telemetry's rate steps."""
+    x = np.asarray(x, float)
+    J = _jumps(x)
+    d2 = np.diff(x, 2, axis=0)
+    scale = 1.4826 * np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0) if len(x) > 3 else np.zeros(3)
+    floor = STEP_FLOOR * float(np.max(np.abs(x))) if x.size else 0.0
+    big = (np.abs(J) > STEP_FACTOR * np.maximum(scale, floor)) \
+        & (np.abs(J) > STEP_SHARE * np.abs(np.diff(x, axis=0))) & (float(np.max(np.abs(x))) > 0)
+    for g in gap_steps(t):
+        big[max(g - 1, 0):g + 2] = False
+    return big, J
+
+
 #: The kinematic acceleration signals of a tracking time offset's term ``a(t) dt_trk``, m/s^2.
 ACCELERATION_SIGNALS = ("a_x", "a_y", "a_z")
 
 __all__ = ["FlightData", "FlightDataError", "LateStartWarning", "MAX_ABS_VALUE", "DUPLICATE_STEP", "too_large",
            "LOST_SAMPLE_FACTOR", "gap_steps", "STEP_LOW", "STEP_HIGH", "STEP_IMPOSSIBLE", "DURATION_HIGH",
-           "time_unit_factors"]
+           "time_unit_factors", "STEP_FACTOR", "STEP_FLOOR", "STEP_SHARE", "signal_steps"]
 
 AXES = ("x", "y", "z")
 FORCE_COLUMNS = tuple(f"f_{a}" for a in AXES)

@@ -43,6 +43,15 @@ Checks, each naming the file, the columns, the rows and the numbers:
   times: the INS's attitude followed the motion, the written rate did not; ``meta["strapdown"]
   ["rate_clipped"]``); disagreeing, the finding above on the rest, saying the clip was left out.
 
+  The body rate's steps between samples (:func:`casep.io.flight.signal_steps`, the IMU record's rule: a pitch
+  kick, a roll programme switched on) and the steps next to them are left out of the comparison
+  (:func:`_rate_steps`: the integrated rate rings across a step). A time skew of the attitude against the rate
+  shows only where the rate changes from step to step: when the two agree, the skew the compared steps tell and
+  its std (:func:`_skew_std`); a std beyond :data:`SKEW_STD_MAX` samples is a :class:`StrapdownWarning` that the
+  skew is not checked (with the std, the steps used, any rate step left out). When they disagree and agree at a
+  skew (:func:`_lag_agreement`, on pairs of steps that reach across no step left out) the error names it, or the
+  range of skews at which they agree when the record cannot tell it closer.
+
 - **velocity against the specific force** (files with ``v_tel_*``): the INS's velocity is the integral of
   ``C(q) fb + g``; over windows of :data:`KINEMATIC_WINDOW` the misfit ``(v_tel(b) - v_tel(a) - int_a^b
   (C(q) fb + g) dt) / (b - a)`` turned into body axes (the attitude at the window's middle), its median over
@@ -67,7 +76,7 @@ import numpy as np
 from casep.exceptions import PlausibilityWarning
 from casep.fullscale import held_full_scale, held_mask
 from casep.gravity import kinematic_acceleration
-from casep.io.flight import LOST_SAMPLE_FACTOR, FlightDataError, gap_steps, time_unit_factors
+from casep.io.flight import LOST_SAMPLE_FACTOR, FlightDataError, gap_steps, signal_steps, time_unit_factors
 from casep.rotations import (
     increments_from_deltas,
     quat_conjugate,
@@ -82,7 +91,7 @@ __all__ = ["StrapdownWarning", "strapdown_force", "lost_rows_problem", "GAP_TURN
            "check_strapdown", "compare_force", "FORCE_TOL", "check_kinematics",
            "KINEMATIC_WINDOW", "KINEMATIC_LIMIT", "KINEMATIC_WARN",
            "quaternion_dcm_array", "RATE_READINGS", "NORM_TOL", "CLIP_REACH", "RATE_TOL", "GAIN_TOL", "GAIN_Z",
-           "MIN_ROTATION", "RATE_PEAK_HIGH",
+           "SKEW_STD_MAX", "MAX_LAG", "MIN_ROTATION", "RATE_PEAK_HIGH",
            "CONVENTIONS", "STRAPDOWN_COLUMNS", "QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS"]
 
 #: The strapdown telemetry columns (``docs/reference/file-formats.md``): the INS attitude (Hamilton unit
@@ -182,18 +191,20 @@ def _rate_evidence(t: np.ndarray, q: np.ndarray, w: np.ndarray, keep: np.ndarray
 
     The rate is read the way of :data:`RATE_READINGS` under which some reading of the quaternions
     (scaled or not) fits best. `keep` ((N-1,) bool): the steps compared (default all); rows and times stay the
-    file's.
+    file's. When they disagree, the skew at which they agree (``lag``, :func:`_lag_agreement`); when they agree,
+    the skew they tell and its std (``skew``, :func:`_skew_std`).
     """
-    dt = np.diff(t)
-    keep = np.ones(dt.size, bool) if keep is None else keep
+    dt_all = np.diff(t)
+    keep = np.ones(dt_all.size, bool) if keep is None else keep
     inc = rotation_increments(t, w)[keep]  # the navigator's dtheta + coning of each step, rad
     total = float(np.sum(np.linalg.norm(inc, axis=1)))
     out: dict[str, Any] = {"rotation_rad": total, "rows": int(t.size)}
     if total < MIN_ROTATION or t.size < 3 or keep.sum() < 2:
         return out
-    steps = {name: _step_rotations(transform(q))[keep] for name, transform in CONVENTIONS.items()}
+    every = {name: _step_rotations(transform(q)) for name, transform in CONVENTIONS.items()}
+    steps = {name: rv[keep] for name, rv in every.items()}
     step_index = np.flatnonzero(keep)  # step i of the comparison: the file's rows step_index[i] + 1, + 2
-    dt = dt[keep]
+    dt = dt_all[keep]
     best: tuple[float, str, np.ndarray, dict[str, dict[str, float]]] | None = None
     for reading, rotation_vectors in RATE_READINGS.items():
         inc = rotation_vectors(t, w)[keep]
@@ -211,11 +222,14 @@ def _rate_evidence(t: np.ndarray, q: np.ndarray, w: np.ndarray, keep: np.ndarray
                worst_row=worst + 2, worst_t=float(t[worst + 1]),
                worst_rate_error_rad_s=float(err.max()), rms_rate_rad_s=float(np.sqrt(np.mean(np.sum(w**2, 1)))),
                rate_gain=[[float(x) if np.isfinite(x) else None for x in row] for row in gain],
-               rate_bias_rad_s=bias.tolist(), systematic=systematic)
-    if not _agrees(out) and keep.all():  # a time skew between q and w: a lag at which they agree
-        lag = _lag_agreement(t, w, rv, dt)
+               rate_bias_rad_s=bias.tolist(), systematic=systematic, steps_compared=int(keep.sum()))
+    rv_all = every[next(iter(CONVENTIONS))]
+    if not _agrees(out):  # a time skew between q and w: a lag at which they agree
+        lag = _lag_agreement(t, w, rv_all, keep)
         if lag is not None:
             out["lag"] = lag
+    else:
+        out["skew"] = {**_skew_std(t, w, rv_all, keep, RATE_READINGS[reading]), "sample_s": float(np.median(dt))}
     return out
 
 
@@ -223,27 +237,93 @@ def _rate_evidence(t: np.ndarray, q: np.ndarray, w: np.ndarray, keep: np.ndarray
 MAX_LAG = 3
 
 
-def _lag_agreement(t: np.ndarray, w: np.ndarray, rv: np.ndarray, dt: np.ndarray) -> dict[str, float] | None:
-    """The skew of the attitude against the body rate, in samples, at which the quaternion steps `rv` and the
-    rate's rotation vectors (each of :data:`RATE_READINGS`) agree by :func:`_agrees`' rule (mismatch within
-    :data:`RATE_TOL`, gain within :data:`GAIN_TOL` of the identity): step ``i + k`` of the attitude against step
-    ``i`` of the rate, ``k > 0`` the attitude late. The (reading, ``|k| <=`` :data:`MAX_LAG`) of least mismatch;
-    None when it is ``k = 0`` (no skew explains the disagreement better than none) or none agrees."""
-    best: dict[str, float] | None = None
+def _pairs(keep: np.ndarray, k: int) -> np.ndarray:
+    """The rate's steps ``i`` paired with the attitude's step ``i + k`` (``k > 0``: the attitude ``k`` samples late)
+    whose steps from ``i`` to ``i + k`` are all compared (`keep`: no pair reaches across a step left out, a gap or a
+    rate step)."""
+    out = np.concatenate([[0], np.cumsum(~keep)])  # out[b] - out[a]: steps a..b-1 left out
+    i = np.arange(max(0, -k), keep.size - max(0, k))
+    return i[out[np.maximum(i, i + k) + 1] - out[np.minimum(i, i + k)] == 0]
+
+
+def _lagged(rv: np.ndarray, inc: np.ndarray, dt: np.ndarray, keep: np.ndarray,
+            k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Step ``i + k`` of the attitude `rv` against step ``i`` of the rate `inc` over the pairs of :func:`_pairs`;
+    ``(rv, inc, dt)`` of those pairs."""
+    i = _pairs(keep, k)
+    return rv[i + k], inc[i], dt[i]
+
+
+def _lag_agreement(t: np.ndarray, w: np.ndarray, rv: np.ndarray, keep: np.ndarray) -> dict[str, Any] | None:
+    """The skew of the attitude against the body rate, in samples, at which the quaternion steps `rv` ((N-1, 3), all
+    the file's) and the rate's rotation vectors (each of :data:`RATE_READINGS`) agree by :func:`_agrees`' rule
+    (mismatch within :data:`RATE_TOL`, gain within :data:`GAIN_TOL` of the identity) over the compared steps
+    (`keep`, :func:`_lagged`): step ``i + k`` of the attitude against step ``i`` of the rate, ``k > 0`` the attitude
+    late. The (reading, ``|k| <=`` :data:`MAX_LAG`) of least mismatch, with ``agreeing``, every skew at which they
+    agree, and ``std_samples``, the std of the skew around it (:func:`_skew_std`; a record whose rate changes only at
+    a step between samples, left out, cannot tell the skew closer than the agreeing range); None when it is
+    ``k = 0`` (no skew explains the disagreement better than none) or none agrees."""
+    best: dict[str, Any] | None = None
+    agreeing: set[int] = set()
+    dt = np.diff(t)
+    fitting = None
     for reading in RATE_READINGS.values():
         inc = reading(t, w)
         for k in range(-MAX_LAG, MAX_LAG + 1):
-            a, b, d = (rv[k:], inc[:-k], dt[:-k]) if k > 0 else (rv[:k], inc[-k:], dt[-k:]) if k < 0 else (rv, inc, dt)
+            a, b, d = _lagged(rv, inc, dt, keep, k)
             if a.shape[0] < 3:
                 continue
             mismatch = _mismatch(a, b)
-            if mismatch > RATE_TOL or (best is not None and mismatch >= best["mismatch"]):
+            if mismatch > RATE_TOL:
                 continue
             systematic = _rate_gain(a, b, d)[2]
             if systematic <= GAIN_TOL:
-                best = {"samples": float(k), "seconds": float(k * np.median(dt)), "mismatch": float(mismatch),
-                        "systematic": float(systematic)}
-    return best if best is not None and best["samples"] != 0 else None
+                agreeing.add(k)
+                if best is None or mismatch < best["mismatch"]:
+                    best = {"samples": float(k), "seconds": float(k * np.median(dt)), "mismatch": float(mismatch),
+                            "systematic": float(systematic)}
+                    fitting = reading
+    if best is None or best["samples"] == 0:
+        return None
+    told = _skew_std(t, w, rv, keep, fitting, int(best["samples"]))
+    return {**best, "agreeing": sorted(agreeing), "std_samples": told["std"]}
+
+
+#: The std of the skew (samples) beyond which a record cannot tell a sample's lateness (:func:`_skew_std`): a skew of
+#: one sample is then within 3 std of none.
+SKEW_STD_MAX = 1.0 / 3.0
+
+
+def _skew_std(t: np.ndarray, w: np.ndarray, rv: np.ndarray, keep: np.ndarray, reading: Any,
+              k: int = 0) -> dict[str, float]:
+    """The skew of the attitude against the body rate, in samples, that the compared steps (`keep`) tell, beyond the
+    whole `k` (the lag at which they are compared, :func:`_lagged`), and its std: ``tau`` and ``std``.
+
+    An attitude late by ``tau`` samples steps by ``rv_i = inc_{i - tau} ~ inc_i - tau a_i``, ``a_i = (inc_{i+1} -
+    inc_{i-1}) / 2`` the change of the rate's rotation vectors (`reading` of :data:`RATE_READINGS`) per sample:
+    least squares of ``rv - inc = -tau a`` over the steps whose neighbours are compared too, ``std^2 = sum_c s_c^2
+    sum_i a_ic^2 / (sum a.a)^2`` with ``s_c^2`` axis c's residual long-run variance (:func:`_long_run_variance`:
+    the cubic spreads a reading over neighbouring steps), at least ``NORM_TOL^2``: the attitude is known to the
+    1e-6 its unit check accepts, so residuals at rounding level (noise-free data) do not pretend to tell a skew from a
+    rate that changes by as little. A skew shows only where the rate changes from step to
+    step: on a constant rate (a pitch kick's once its step is left out) ``sum a.a`` is ~0 and the std unbounded.
+    Also ``motion_rad``: the RMS of ``|a|`` (rad per sample), ``steps``: how many steps it used."""
+    inc = reading(t, w)
+    acc = np.zeros_like(inc)
+    acc[1:-1] = 0.5 * (inc[2:] - inc[:-2])
+    inner = keep.copy()  # the steps whose neighbours are compared too
+    inner[0] = inner[-1] = False
+    inner[1:-1] &= keep[:-2] & keep[2:]
+    i = _pairs(inner, k)
+    e, da = rv[i + k] - inc[i], acc[i]
+    aa = float(np.sum(da * da))
+    n = int(e.shape[0])
+    if n < 3 or aa <= 0.0:
+        return {"tau": 0.0, "std": float("inf"), "motion_rad": 0.0, "steps": n}
+    tau = -float(np.sum(e * da)) / aa
+    s2 = np.maximum(_long_run_variance(e + tau * da), NORM_TOL**2)  # no better than the attitude's resolution
+    std = float(np.sqrt(np.sum(s2 * np.sum(da * da, axis=0))) / aa)
+    return {"tau": tau, "std": std, "motion_rad": float(np.sqrt(aa / n)), "steps": n}
 
 
 def _determined(A: np.ndarray) -> np.ndarray:
@@ -371,11 +451,17 @@ def check_strapdown(src: str, t: np.ndarray, q: np.ndarray, fb: np.ndarray, w: n
     across, lost = _lost_rows(src, t, q, w)
     if lost:
         info["lost_rows"] = lost
+    kicks, kicked = _rate_steps(t, w)
+    if kicks is not None:
+        info["rate_steps"] = kicked
+        across = kicks if across is None else kicks & across
     ev = _rate_evidence(t, q, w, across)
     info.update({k: v for k, v in ev.items() if k != "fits"})
+    if "fits" in ev and _agrees(ev) and not ev["skew"]["std"] <= SKEW_STD_MAX:
+        _warn_skew_unseen(src, t, ev, kicks, kicked)
     if "fits" in ev and not _agrees(ev):
         _time_unit_explains(t, q, w, across, ev, error)
-        note, clip = _lost_note(lost, across), _clipped_rates(t, w)
+        note, clip = _lost_note(lost, across) + _steps_note(kicks, kicked), _clipped_rates(t, w)
         if clip is not None:  # judged off the clipped readings: a clip is no axis, sign or factor
             keep, said = clip
             ev = _rate_evidence(t, q, w, keep if across is None else keep & across)
@@ -495,6 +581,67 @@ def _agrees(ev: dict[str, Any]) -> bool:
 CLIP_REACH = 2
 
 
+def _rate_steps(t: np.ndarray, w: np.ndarray) -> tuple[np.ndarray | None, list[dict[str, float]]]:
+    """The body rate's steps between samples (:func:`casep.io.flight.signal_steps`, the rule of an IMU record's
+    steps: a pitch kick, a roll programme switched on): the ``(N-1,)`` steps of the attitude/rate comparison none
+    of them reaches (None without any) and each step (the rows and times on either side, its size).
+
+    The integrated rate of step ``k`` is a cubic through the readings ``k-1 .. k+2`` (:data:`CLIP_REACH`), which a
+    jump in interval ``j`` makes ring over steps ``j-1 .. j+1``, while the attitude's step rotations follow the
+    motion: those steps say nothing of the rate or of a skew (a 10 Hz record cut 2 s after its pitch kick read as
+    one sample late), and are left out of the comparison."""
+    if t.size < 5:
+        return None, []
+    big, jumps = signal_steps(t, w)
+    at = np.flatnonzero(np.any(big, axis=1))
+    if at.size == 0:
+        return None, []
+    keep = np.ones(t.size - 1, bool)
+    for j in at:
+        keep[max(j - CLIP_REACH + 1, 0): j + CLIP_REACH] = False
+    said = [{"row_before": int(j) + 1, "row_after": int(j) + 2, "t_before": float(t[j]), "t_after": float(t[j + 1]),
+             "step_rad_s": float(np.linalg.norm(jumps[j]))} for j in at]
+    return keep, said
+
+
+def _steps_text(kicked: list[dict[str, float]]) -> str:
+    """The rate's steps of :func:`_rate_steps`, listed (the first three)."""
+    return "; ".join(f"{s['step_rad_s'] / _DEG:.3g} deg/s between rows {s['row_before']} and {s['row_after']}, "
+                     f"t = {s['t_before']:.10g} .. {s['t_after']:.10g} s" for s in kicked[:3]) \
+        + (f"; and {len(kicked) - 3} more" if len(kicked) > 3 else "")
+
+
+def _steps_note(keep: np.ndarray | None, kicked: list[dict[str, float]]) -> str:
+    """What a finding of the comparison says of the rate's steps it left out ('' without any)."""
+    if keep is None:
+        return ""
+    return (f". The body rate steps between samples ({_steps_text(kicked)}): the {int((~keep).sum())} steps "
+            "across and next to them are left out of this comparison (the integrated rate rings across a step)")
+
+
+def _warn_skew_unseen(src: str, t: np.ndarray, ev: dict[str, Any], kicks: np.ndarray | None,
+                      kicked: list[dict[str, float]]) -> None:
+    """The :class:`StrapdownWarning` of an attitude that agrees with the body rate on a record that cannot tell
+    whether the two are on one time base: the skew's std (:func:`_skew_std`) beyond :data:`SKEW_STD_MAX` samples."""
+    sk = ev["skew"]
+    h = sk["sample_s"]
+    told = (f"the skew's std is {sk['std']:.3g} samples ({sk['std'] * h:.3g} s)" if np.isfinite(sk["std"])
+            else "the skew is not determined at all")
+    left = ("" if kicks is None else
+            f"; the {int((~kicks).sum())} steps across and next to the body rate's steps between samples "
+            f"({_steps_text(kicked)}), the motion that would show a skew, are left out: the integrated rate rings "
+            "across a step and says nothing of a skew")
+    warnings.warn(StrapdownWarning(
+        f"{src}: the attitude (q_*) and the body rate ({', '.join(BODY_RATE_COLUMNS)}) agree, but this record cannot "
+        f"tell whether they are on one time base: a skew shows only where the rate changes from step to step, and "
+        f"over the {sk['steps']} steps it uses (of {ev['steps_compared']} compared, rows 1-{ev['rows']}, "
+        f"{ev['rotation_rad'] / _DEG:.3g} deg turned) the rate's rotation changes by {sk['motion_rad'] / _DEG:.3g} "
+        f"deg RMS per sample: {told}, beyond the {SKEW_STD_MAX:.2g} sample ({SKEW_STD_MAX * h * 1e3:.3g} ms) that "
+        f"tells a sample's lateness{left}. The time skew of q_* against w_* is not checked: an attitude a sample "
+        "late or early would pass unseen (its error, the body rate times the skew, reaches the navigation-frame "
+        "specific force C(q) fb); make sure the INS wrote them on one time base"), stacklevel=4)
+
+
 def _clipped_rates(t: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, list[str]] | None:
     """The body-rate readings held at a full scale (:func:`casep.fullscale.held_full_scale`, the saturation rule of
     calibration, navigation and the telemetry's saturation screen; no declared full scale is known here): the
@@ -561,6 +708,19 @@ def _judge_rate_fits(src: str, ev: dict[str, Any], error: Any, note: str = "") -
     lag = ev.get("lag")
     if lag is not None:
         k, sec = int(lag["samples"]), lag["seconds"]
+        side = [j for j in lag["agreeing"] if j * k > 0]
+        if len(side) > 1 and not lag["std_samples"] <= SKEW_STD_MAX:  # the record tells the skew only within a range
+            h = sec / k
+            lo, hi = min(side, key=abs), max(side, key=abs)
+            more, late = " or more" if abs(hi) == MAX_LAG else "", "later" if k > 0 else "earlier"
+            raise error(f"{what}: the attitude (q_*) is {abs(lo)} to {abs(hi)}{more} samples "
+                        f"({abs(lo * h) * 1e3:.4g} to {abs(hi * h) * 1e3:.4g} ms{more}) {late} "
+                        f"than the body rate ({wcols}): shifted by any of those they agree (within "
+                        f"{100 * lag['mismatch']:.2g} % at best; this record cannot tell the skew closer: its std "
+                        f"there is {lag['std_samples']:.3g} samples, the rate hardly changes from step to step in the "
+                        "steps compared). The INS's attitude and rate are on different time bases: "
+                        f"put them on one (find the INS's skew: q_* is at least {abs(lo * h) * 1e3:.4g} ms "
+                        f"{'late' if k > 0 else 'early'}){note}", ", ".join(QUATERNION_COLUMNS), None)
         raise error(f"{what}: the attitude (q_*) is {abs(k)} sample(s) ({abs(sec) * 1e3:.4g} ms) "
                     f"{'later' if k > 0 else 'earlier'} than the body rate ({wcols}): shifted by that they agree "
                     f"within {100 * lag['mismatch']:.2g} % (gain within {100 * lag['systematic']:.2g} % of the "

@@ -73,7 +73,7 @@ from casep.checks.saturation import (
     held_mask,
 )
 from casep.exceptions import GapWarning, PlausibilityWarning, SaturationWarning
-from casep.io.flight import LOST_SAMPLE_FACTOR, gap_steps
+from casep.io.flight import LOST_SAMPLE_FACTOR, STEP_FACTOR, gap_steps, signal_steps
 
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
            "GAP_FACTOR", "BRIDGE_MAX", "IMU_STEP_RANGE", "time_step_problem", "GapBridge", "bridge_gaps",
@@ -96,13 +96,6 @@ MAX_RATE = 200.0
 #: Rates beyond this (2000 deg/s, the largest common full scale) and specific forces beyond 50 g are warned about.
 WARN_RATE = 35.0
 WARN_FORCE = 50 * 9.80665
-#: A jump between consecutive samples beyond this many times the column's sample-to-sample noise is a step
-#: (:func:`sample_steps`).
-STEP_FACTOR = 10.0
-#: ... and beyond this fraction of the sensor's largest reading in the record (a noise-free record has no noise),
-#: and this share of the interval's own difference (a step split over two intervals by a sample at its middle,
-#: which the integration takes exactly, is none).
-STEP_FLOOR, STEP_SHARE = 1e-6, 0.5
 
 
 @dataclass
@@ -319,18 +312,6 @@ class SampleSteps:
     velocity: np.ndarray
 
 
-def _jumps(x: np.ndarray) -> np.ndarray:
-    """Per interval ``k`` (N-1, 3): the part of the difference ``d_k = x[k+1] - x[k]`` that neither neighbour's
-    difference shares, ``sign(a) min(|a|, |b|)`` with ``a = d_k - d_{k-1}``, ``b = d_k - d_{k+1}`` when they have
-    one sign, else 0 (0 at the record's ends). A step of size ``D`` gives ``D``; a ramp, a smooth curve and a kink
-    (one of ``a``, ``b`` about 0, or of opposite signs) give none."""
-    d = np.diff(x, axis=0)
-    out = np.zeros_like(d)
-    a, b = d[1:-1] - d[:-2], d[1:-1] - d[2:]
-    out[1:-1] = np.where(np.sign(a) == np.sign(b), np.sign(a) * np.minimum(np.abs(a), np.abs(b)), 0.0)
-    return out
-
-
 def sample_steps(t: np.ndarray, w: np.ndarray, f: np.ndarray) -> SampleSteps:
     """The steps of the body rate `w` (rad/s) and specific force `f` (m/s^2) sampled at `t` (module notes).
 
@@ -338,12 +319,12 @@ def sample_steps(t: np.ndarray, w: np.ndarray, f: np.ndarray) -> SampleSteps:
     the integration takes them as straight lines (the trapezoid). Where a signal steps between ``t_k`` and
     ``t_{k+1}`` (thrust at lift-off, staging, a pitch kick) the step happened somewhere in the interval; its
     integral over it is then anywhere within ``(x_{k+1} - x_k) h / 2`` of the trapezoid's (the step at either
-    end), the same bound as a gap's motion term (:func:`bridge_gaps`). A step is a jump :func:`_jumps` finds beyond
-    :data:`STEP_FACTOR` times the column's sample-to-sample noise (the robust scatter of its second differences,
-    ``1.4826 MAD``: a white noise's jumps stay within about 5 of it), beyond :data:`STEP_FLOOR` of the sensor's
-    largest reading and beyond :data:`STEP_SHARE` of the interval's own difference (a sample at a step's middle
-    splits it over two intervals, and the trapezoid integrates the pair exactly); the intervals touching a gap are
-    the bridge's (:func:`bridge_gaps`)."""
+    end), the same bound as a gap's motion term (:func:`bridge_gaps`). A step is a jump
+    :func:`casep.io.flight.signal_steps` finds beyond :data:`STEP_FACTOR` times the column's sample-to-sample noise
+    (the robust scatter of its second differences, ``1.4826 MAD``: a white noise's jumps stay within about 5 of it),
+    beyond a millionth of the sensor's largest reading and beyond half the interval's own difference (a sample at a
+    step's middle splits it over two intervals, and the trapezoid integrates the pair exactly); the intervals
+    touching a gap are the bridge's (:func:`bridge_gaps`)."""
     t, w, f = np.asarray(t, float), np.asarray(w, float), np.asarray(f, float)
     found, _, jumps = _step_axes(t, w, f)
     h = np.diff(t)
@@ -357,14 +338,7 @@ def _step_axes(t: np.ndarray, w: np.ndarray, f: np.ndarray) -> tuple[np.ndarray,
     found = np.zeros(t.size - 1, bool)
     jumps, axes = [], []
     for x in (w, f):
-        J = _jumps(x)
-        d2 = np.diff(x, 2, axis=0)
-        scale = 1.4826 * np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0) if len(x) > 3 else np.zeros(3)
-        floor = STEP_FLOOR * float(np.max(np.abs(x))) if x.size else 0.0
-        big = (np.abs(J) > STEP_FACTOR * np.maximum(scale, floor)) \
-            & (np.abs(J) > STEP_SHARE * np.abs(np.diff(x, axis=0))) & (float(np.max(np.abs(x))) > 0)
-        for g in gap_steps(t):  # a gap is bridged, its neighbours' differences span it
-            big[max(g - 1, 0):g + 2] = False
+        big, J = signal_steps(t, x)
         found |= np.any(big, axis=1)
         jumps.append(J)
         axes.append(big)
