@@ -1,0 +1,88 @@
+"""A strapdown telemetry's dv signs and frame (casep.workflows.telemetry_frame): a simulated strapdown boost written as
+the reviewer's file (``casep simulate --scenario strapdown-boost --rate 10``), one dv column negated or the attitude
+turned by scipy about the launch frame's y (the mutation independent of casep's rotations), separated with
+strapdown15_axial: the mistake fails the result naming the column or the rotation; the file as simulated is not
+flagged."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.spatial.transform import Rotation
+
+import casep
+from casep.estimators.registry import STATUS_SETUP
+from casep.exceptions import SetupWarning
+from casep.simulation.simulate import simulate_flight, write_simulation
+
+MODEL = "strapdown15_axial"
+
+
+@pytest.fixture(scope="module")
+def sd_file(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("frame") / "sd.csv"
+    write_simulation(simulate_flight("strapdown-boost", seed=0, rate=10.0), path)
+    return path
+
+
+def _mutated(src: Path, name: str, change) -> Path:
+    """`src` with `change` applied to its table, written beside it with its header comments."""
+    head = [ln for ln in src.read_text().splitlines() if ln.startswith("#")]
+    d = pd.read_csv(src, comment="#")
+    change(d)
+    dst = src.with_name(name)
+    with open(dst, "w") as fh:
+        fh.write("\n".join(head) + "\n")
+        d.to_csv(fh, index=False, float_format="%.17g")
+    return dst
+
+
+def _separate(path: Path):
+    """The result and the SetupWarnings said on the way (other warnings of the flight, such as its conditioning,
+    recorded and left alone)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = casep.separate(str(path), model=MODEL)
+    return res, [w for w in caught if issubclass(w.category, SetupWarning)]
+
+
+def test_the_file_as_simulated_names_no_sign_and_no_rotation(sd_file):
+    res, said = _separate(sd_file)
+    assert res.success and not said
+    frame = res.diagnostics["frame"]
+    assert not frame["conflict"] and max(frame["z"]) < 3.0
+    signs = res.diagnostics.get("dv_signs")  # formed only when a negated axis fits better by least squares
+    assert signs is None or signs["named"] is None
+
+
+def test_a_negated_dv_column_fails_the_result_naming_it(sd_file):
+    def negate(d):
+        d["dv_z"] = -d["dv_z"]
+
+    res, said = _separate(_mutated(sd_file, "neg_dvz.csv", negate))
+    assert not res.success and res.status == STATUS_SETUP
+    assert res.diagnostics["dv_signs"]["named"] == "dv_z"
+    assert res.diagnostics["dv_signs"]["factor"] > 1e6
+    assert "dv_z looks negated" in res.message and "negate it" in res.message
+    assert said
+
+
+def test_an_attitude_turned_in_azimuth_fails_the_result_naming_the_rotation(sd_file):
+    def turn(d):
+        q = d[["q_x", "q_y", "q_z", "q_w"]].to_numpy()  # scipy: scalar last
+        qq = (Rotation.from_euler("y", 10.0, degrees=True) * Rotation.from_quat(q)).as_quat()
+        d[["q_x", "q_y", "q_z", "q_w"]] = qq * np.where(qq[:, 3:] < 0, -1.0, 1.0)
+
+    res, said = _separate(_mutated(sd_file, "turned_y10.csv", turn))
+    assert not res.success and res.status == STATUS_SETUP
+    frame = res.diagnostics["frame"]
+    rot, sd = np.array(frame["rotation_deg"]), np.array(frame["std_deg"])
+    assert frame["conflict"] and frame["located"]
+    assert abs(rot[1] - 10.0) < 3 * sd[1] and sd[1] < 1.5  # the rotation imposed, within its std
+    assert abs(rot[0]) < 3 * sd[0] and abs(rot[2]) < 3 * sd[2]
+    assert "about y" in res.message and "deg apart" in res.message
+    assert said
