@@ -239,7 +239,8 @@ def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
     res, problem, model, flight = _fit_offset_if_found(flight, problem, model, spec, fit_time_offset)
     from casep.workflows.telemetry_frame import judge_frame
 
-    res = judge_frame(res, flight, problem, spec)  # a dv axis's sign, the attitude's frame: before the misfit's
+    # a dv axis's sign, the attitude's frame: before the misfit's failure, which they explain
+    res = judge_frame(res, flight, problem, spec, LOCATING_FIT)
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model,
                       noise_free=problem.is_noise_free())
     if isinstance(flight, FlightData) and isinstance(model, ErrorModel):

@@ -182,20 +182,21 @@ def _columns(v: np.ndarray) -> np.ndarray:
     return np.stack([np.cross(v, E[k]) for k in range(3)], axis=2) * (math.pi / 180.0)
 
 
-def _located(problem: Any, S: np.ndarray, y: np.ndarray, names: list[str]) -> tuple[np.ndarray, bool] | None:
-    """The rotation (rad) that least squares locates (module notes: the design turned by it, Gauss-Newton steps
-    until one is below a tenth of its std) and whether it was located within :data:`FRAME_STEPS`."""
+def _located(problem: Any, S: np.ndarray, y: np.ndarray, names: list[str],
+             locating: Any) -> tuple[np.ndarray, bool] | None:
+    """The rotation (rad) that least squares locates with the fit `locating` (module notes: the design turned by
+    it, Gauss-Newton steps until one is below a tenth of its std) and whether it was located within
+    :data:`FRAME_STEPS`."""
     from casep.regression.problem import Problem
     from casep.workflows.imu_separate import _quiet_fit
-    from casep.workflows.separate import LOCATING_FIT
 
     rho = np.zeros(3)
     for _ in range(FRAME_STEPS):
         Sc = _turned(S, rho)
         try:
-            x = _quiet_fit(Problem.from_arrays(Sc, y, problem.t, names=names[:-3]), LOCATING_FIT).estimate
+            x = _quiet_fit(Problem.from_arrays(Sc, y, problem.t, names=names[:-3]), locating).estimate
             loc = _quiet_fit(Problem.from_arrays(np.concatenate([Sc, _columns(Sc @ np.asarray(x, float))], axis=2),
-                                                 y, problem.t, names=names), LOCATING_FIT)
+                                                 y, problem.t, names=names), locating)
         except (ValueError, np.linalg.LinAlgError):
             return None
         if loc.std is None:
@@ -209,24 +210,25 @@ def _located(problem: Any, S: np.ndarray, y: np.ndarray, names: list[str]) -> tu
     return rho, False
 
 
-def frame_record(res: EstimateResult, problem: Any, flight: FlightData, spec: Any) -> dict | None:
+def frame_record(res: EstimateResult, problem: Any, flight: FlightData, spec: Any, locating: Any) -> dict | None:
     """The attitude's rotation against ``dv``'s frame (module notes): ``{"rotation_deg", "std_deg", "z", "located",
-    "last_step_deg", "conflict", ...}`` (deg about the navigation axes x, y, z), or None without a noise model."""
+    "last_step_deg", "conflict", ...}`` (deg about the navigation axes x, y, z), or None without a noise model.
+    `spec` the fit as asked (the test's noise), `locating` the least-squares fit that locates the rotation
+    (:data:`casep.workflows.separate.LOCATING_FIT`, the time offset's)."""
     from casep.estimators.rls import PRIOR_CONFLICT_Z
     from casep.regression.problem import Problem
     from casep.workflows.imu_separate import _quiet_fit, column_estimates, with_columns_noise
-    from casep.workflows.separate import LOCATING_FIT
 
     y = np.asarray(problem.y, dtype=float)
     S = problem.sv()
     names = [*res.names, "rot_x", "rot_y", "rot_z"]
-    found = _located(problem, S, y, names)
+    found = _located(problem, S, y, names, locating)
     if found is None:
         return None
     rho, located = found
     there = Problem.from_arrays(_turned(S, rho), y, problem.t, names=list(res.names))
     try:
-        x = _quiet_fit(there, LOCATING_FIT).estimate
+        x = _quiet_fit(there, locating).estimate
     except (ValueError, np.linalg.LinAlgError):
         return None
     cols = _columns(there.sv() @ np.asarray(x, float))
@@ -280,11 +282,12 @@ def frame_message(record: dict, warn: bool = False) -> str:
             f"{', '.join(f'{-v:+.3g}' for v in rot)} deg about x, y, z), and run again")
 
 
-def judge_frame(res: EstimateResult, flight: Any, problem: Any, spec: Any) -> EstimateResult:
+def judge_frame(res: EstimateResult, flight: Any, problem: Any, spec: Any, locating: Any) -> EstimateResult:
     """`res` failed (``STATUS_SETUP``) when a strapdown telemetry file's ``dv`` axis looks negated
     (:func:`dv_sign_record`, files with ``dv_*``) or its attitude is turned against ``dv``'s frame
     (:func:`frame_record`); the records in ``diagnostics["dv_signs"]`` and ``diagnostics["frame"]``. Anything but a
-    strapdown telemetry file (:func:`applies`), noise-free rows or a flight that failed a set-up check: `res`."""
+    strapdown telemetry file (:func:`applies`), noise-free rows or a flight that failed a set-up check: `res`.
+    `spec` the fit as asked, `locating` the least-squares fit that locates a rotation (:func:`frame_record`)."""
     from casep.checks.plausibility import setup_problems
     from casep.estimators.registry import STATUS_SETUP, failed
     from casep.exceptions import SetupWarning
@@ -301,7 +304,7 @@ def judge_frame(res: EstimateResult, flight: Any, problem: Any, spec: Any) -> Es
                 said = dv_sign_message(signs, res.residual_rms)
                 warnings.warn(f"{flight.source}: {said}", SetupWarning, stacklevel=3)
                 return failed(res, STATUS_SETUP, f"failed: {flight.source}: {said}")
-    record = frame_record(res, problem, flight, spec)
+    record = frame_record(res, problem, flight, spec, locating)
     if record is None:
         return res
     res.diagnostics["frame"] = record
