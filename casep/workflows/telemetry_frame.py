@@ -70,8 +70,8 @@ FRAME_STEPS = 8
 FRAME_AXES = ("x (downrange at the launch azimuth)", "y (up at the launch point: an azimuth)", "z (cross-range)")
 #: A rotation beyond this many std on an axis but within the failing limit (PRIOR_CONFLICT_Z) is a warning: on the
 #: simulated strapdown boost (10 and 20 Hz, 12 seeds) 3 deg in azimuth is determined at 2.7-5.7 std (9 of 12 beyond
-#: 4) while it moves sa_x by up to 7 std; the 12 flights as simulated reached 2.0 at most (Gaussian: 2e-4 of
-#: correct flights beyond 4 on one of three axes). ``python benchmarks/telemetry_frame_mc.py``.
+#: 4) while it moves sa_x by up to 7 std; 40 flights as simulated (10, 20, 50 Hz) reached 3.7 at most (Gaussian:
+#: 2e-4 of correct flights beyond 4 on one of three axes). ``python benchmarks/telemetry_frame_mc.py``.
 FRAME_WARN_Z = 4.0
 #: A rotation located beyond this (deg) is said as a large one: the small-angle column locates a local fit there, not
 #: the rotation (the attitude 90 deg about x located at 122 deg about another axis), so it is named as indicative.
