@@ -1057,23 +1057,12 @@ class _Run:
 
     def with_heading_noise(self, res: EstimateResult, problem: Any, per_deg: np.ndarray) -> EstimateResult:
         """`res` whose noise model and sigma are those of the fit (as requested) of `problem`'s rows with the
-        heading's error as one more coefficient (its column `per_deg`, :meth:`heading_rows`), the noise the rows hold
-        once a turn of the velocity is fitted too (:func:`heading_conflict`'s whitening and std; `res` itself where
-        that fit has no noise model). The fit's own noise model was fitted to residuals that hold what its
-        coefficients cannot fit of a wrong heading, and took it for tracking noise: on an aircraft whose turns
-        determine the heading to 0.12-0.21 deg, a heading 2 deg off raised the std of its estimate to 0.37 deg."""
-        from casep.regression.problem import Problem
-
-        try:
-            joint = _quiet_fit(Problem.from_arrays(np.concatenate([problem.sv(), per_deg[:, :, None]], axis=2),
-                                                   problem.y, problem.t, names=[*res.names, "heading"]), self.spec)
-        except (ValueError, np.linalg.LinAlgError):  # no fit of the augmented rows: the fit's own noise stands
-            return res
-        nd = joint.diagnostics.get("noise")
-        if not isinstance(nd, dict) or "axes" not in nd or joint.sigma is None:
-            return res
-        noise = {k: v for k, v in nd.items() if k != "imu"}  # no refit beside the IMU's: its sigma, the IMU's added
-        return dataclasses.replace(res, sigma=joint.sigma, diagnostics={**res.diagnostics, "noise": noise})
+        heading's error as one more coefficient (:func:`with_columns_noise`, the column `per_deg`,
+        :meth:`heading_rows`): the noise the rows hold once a turn of the velocity is fitted too. The fit's own noise
+        model was fitted to residuals that hold what its coefficients cannot fit of a wrong heading, and took it for
+        tracking noise: on an aircraft whose turns determine the heading to 0.12-0.21 deg, a heading 2 deg off
+        raised the std of its estimate to 0.37 deg."""
+        return with_columns_noise(res, problem, per_deg, self.spec, ["heading"])
 
     def heading_rows(self, D: np.ndarray) -> np.ndarray | None:
         """The rows' derivative (N, 3, m/s per deg) at `D` along the given heading (None: gyrocompassed, no alignment
@@ -2068,7 +2057,8 @@ def combination_estimators(W: np.ndarray, scale: np.ndarray, res: EstimateResult
     """The estimators (m, 3N) of the combinations ``W (D / scale)`` on the raw rows of `problem` (axis-interleaved): the
     rows of ``W P``, ``P`` the GLS estimator of ``D / scale`` under `res`'s noise model (:func:`combination_imu_noise`);
     None without times or a noise model. With `column` (N, 3) the design gains it as one more column (the rows'
-    derivative along the heading: :func:`heading_conflict`), `W` one more entry per row for its coefficient."""
+    derivative along the heading: :func:`heading_conflict`), `W` one more entry per row for its coefficient; (N, 3, k):
+    k more columns (a frame's rotation about three axes: :mod:`casep.workflows.telemetry_frame`), k more entries."""
     out = _estimators(W, scale, res, problem, column)
     return None if out is None else out[1]
 
@@ -2084,7 +2074,8 @@ def _estimators(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: 
     t = np.asarray(problem.t, dtype=float)
     S = problem.sv()
     if column is not None:
-        S, scale = np.concatenate([S, np.asarray(column, dtype=float)[:, :, None]], axis=2), np.append(scale, 1.0)
+        extra = np.asarray(column, dtype=float).reshape(S.shape[0], 3, -1)
+        S, scale = np.concatenate([S, extra], axis=2), np.append(scale, np.ones(extra.shape[2]))
     N, _, n = S.shape
     m = W.shape[0]
     U = whiten(S, np.zeros((N, 3)), t, NoiseModel.from_dict(nd))[0].reshape(3 * N, n) * scale
@@ -2240,21 +2231,10 @@ def heading_conflict(res: EstimateResult, problem: Any, flight: FlightData, per_
 
     if per_deg is None or problem.y is None or not np.all(np.isfinite(per_deg)):
         return None
-    n = len(res.names)
-    W = np.zeros((1, n + 1))
-    W[0, n] = 1.0
-    est = _estimators(W, np.ones(n), res, problem, per_deg)
+    est = column_estimates(res, problem, flight, per_deg, levelling, profile)
     if est is None:
         return None
-    a_w, a = est
-    offset = float(a[0] @ np.asarray(problem.y, dtype=float).reshape(-1))
-    own = float(res.sigma) ** 2 * float(np.sum(a_w**2))  # the fit's own noise (its whitening, its sigma)
-    var = estimator_noise(a, res, problem, flight, levelling, profile)
-    if var is None:
-        var_c = own
-    else:
-        var_c = (own if var[0] is None else float(var[0][0])) + float(var[1][0])
-    std_c = math.sqrt(max(var_c, 0.0))
+    offset, std_c = float(est[0][0]), float(est[1][0])
     scale = math.hypot(std_deg, std_c)
     z = abs(offset) / scale if scale > 0 else (np.inf if offset else 0.0)
     return {"estimate_deg": offset, "std_deg": std_c, "heading_deg": float(heading_deg),
@@ -2263,6 +2243,53 @@ def heading_conflict(res: EstimateResult, problem: Any, flight: FlightData, per_
             "rule": "the heading's error as one more coefficient (the rows' derivative along it, the fit's "
                     "whitening, S_V projected out), its std under the rows' noise; z = |estimate| / sqrt(stated "
                     "std^2 + its std^2) (prior predictive) beyond limit_z: the data contradict the heading"}
+
+
+def column_estimates(res: EstimateResult, problem: Any, flight: FlightData, columns: np.ndarray,
+                     levelling: tuple | None = None, profile: tuple | None = None
+                     ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The GLS estimates (k,) of `columns` (N, 3) or (N, 3, k) as k more coefficients of `problem`'s design (S_V
+    projected out, `res`'s whitening), each with the others free, and their std (k,): :func:`heading_conflict`'s rule
+    for the heading's column, one place for every such test (a frame's rotation about three axes:
+    :mod:`casep.workflows.telemetry_frame`). The std are those of any linear estimator on the rows
+    (:func:`estimator_noise`: the tracking noise refitted beside the IMU's, the uncertainty of its correlation
+    times, the IMU's own noise; the fit's own ``sigma`` with its whitening where the noise was not refitted). None
+    without times or a noise model."""
+    n = len(res.names)
+    k = np.asarray(columns).reshape(np.asarray(columns).shape[0], 3, -1).shape[2]
+    W = np.zeros((k, n + k))
+    W[:, n:] = np.eye(k)
+    est = _estimators(W, np.ones(n), res, problem, columns)
+    if est is None:
+        return None
+    a_w, a = est
+    offset = a @ np.asarray(problem.y, dtype=float).reshape(-1)
+    own = float(res.sigma) ** 2 * np.sum(a_w**2, axis=1)  # the fit's own noise (its whitening, its sigma)
+    var = estimator_noise(a, res, problem, flight, levelling, profile)
+    var_c = own if var is None else (own if var[0] is None else np.asarray(var[0], float)) + np.asarray(var[1], float)
+    return offset, np.sqrt(np.maximum(var_c, 0.0))
+
+
+def with_columns_noise(res: EstimateResult, problem: Any, columns: np.ndarray, spec: FitSpec,
+                       names: list[str]) -> EstimateResult:
+    """`res` whose noise model and sigma are those of the fit (`spec`) of `problem`'s rows with `columns` (N, 3) or
+    (N, 3, k) as k more coefficients (`names`): the noise the rows hold once what the columns describe is fitted
+    too, which :func:`column_estimates` whitens with (`res` itself where that fit has no noise model). A fit's own
+    noise model was fitted to residuals that hold what its coefficients cannot fit, and takes it for tracking noise
+    (:meth:`_Run.with_heading_noise`)."""
+    from casep.regression.problem import Problem
+
+    cols = np.asarray(columns, dtype=float).reshape(np.asarray(columns).shape[0], 3, -1)
+    try:
+        joint = _quiet_fit(Problem.from_arrays(np.concatenate([problem.sv(), cols], axis=2), problem.y, problem.t,
+                                               names=[*res.names, *names]), spec)
+    except (ValueError, np.linalg.LinAlgError):  # no fit of the augmented rows: the fit's own noise stands
+        return res
+    nd = joint.diagnostics.get("noise")
+    if not isinstance(nd, dict) or "axes" not in nd or joint.sigma is None:
+        return res
+    noise = {k: v for k, v in nd.items() if k != "imu"}  # no refit beside the IMU's: its sigma, the IMU's added
+    return dataclasses.replace(res, sigma=joint.sigma, diagnostics={**res.diagnostics, "noise": noise})
 
 
 def heading_message(record: dict, axis: str) -> str:

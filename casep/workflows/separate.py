@@ -233,9 +233,14 @@ def separate(
 
 def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
             fit_time_offset: bool | None) -> tuple[EstimateResult, Problem, Any, Any]:
-    """The fit (:func:`_fit_offset_if_found`) judged (:func:`judge_setup`, :func:`judge_tracking`), with its model's
-    record: the result, its problem, model and flight."""
+    """The fit (:func:`_fit_offset_if_found`) judged (a strapdown telemetry's dv signs and frame:
+    :func:`casep.workflows.telemetry_frame.judge_frame`; :func:`judge_setup`, :func:`judge_tracking`), with its
+    model's record: the result, its problem, model and flight."""
     res, problem, model, flight = _fit_offset_if_found(flight, problem, model, spec, fit_time_offset)
+    from casep.workflows.telemetry_frame import judge_frame
+
+    # a dv axis's sign, the attitude's frame: before the misfit's failure, which they explain
+    res = judge_frame(res, flight, problem, spec, LOCATING_FIT)
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model,
                       noise_free=problem.is_noise_free())
     if isinstance(flight, FlightData) and isinstance(model, ErrorModel):
