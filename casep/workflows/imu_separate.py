@@ -498,23 +498,37 @@ class _Run:
             return flight
         return dataclasses.replace(flight, dv=flight.dv - _direct_velocity(model, flight, D))
 
-    def heading_check(self, flight: FlightData) -> str | None:
+    def heading_check(self, flight: FlightData, nav: NavigationResult | None = None) -> str | None:
         """Why the navigation's start heading is wrong (:func:`casep.io.setup.heading_problem`: the navigated
         horizontal velocity turned from the tracked one early in flight), recorded as a set-up problem of `flight`
-        (and of every later pass), or None; not made without the tracked state (``r_*``, ``v_*``: an Earth-fixed
-        tracking)."""
+        (and of every later pass), or None. With the tracked state (``r_*``, ``v_*``: an Earth-fixed tracking) from
+        it; with launch-frame tracking from the navigation `nav` (its position, within the INS's drift of the truth:
+        the Earth's rotation about it, ``omega_E x r``, is what turns the launch-inertial velocity into the
+        Earth-relative one, 0.07 m/s per km of error) and the tracked velocity ``v_tel - dv``; not made without
+        either."""
         from casep.io.pair import STATE_SIGNALS
         from casep.io.setup import heading_problem
 
         heading = getattr(self, "heading", None)  # a telemetry's passes (_TelemetryRun) have no pad alignment
-        if heading is None or not all(c in flight.signals for c in STATE_SIGNALS):
+        if heading is None:
             return None
         obs = np.asarray(flight.observed)
-        r = np.column_stack([flight.signals[f"r_{a}"] for a in "xyz"])[obs]
-        v = np.column_stack([flight.signals[f"v_{a}"] for a in "xyz"])[obs]
+        t = flight.t[obs]
+        if all(c in flight.signals for c in STATE_SIGNALS):
+            r = np.column_stack([flight.signals[f"r_{a}"] for a in "xyz"])[obs]
+            v = np.column_stack([flight.signals[f"v_{a}"] for a in "xyz"])[obs]
+        elif nav is not None and self.pair.get("tracking_frame") == "launch":
+            from casep.checks.plausibility import setup_problems
+
+            if setup_problems(flight):  # a tracking relative to the Earth (earth_relative_tracking): not turned
+                return None
+            r = np.column_stack([np.interp(t, nav.t, nav.r[:, i]) for i in range(3)])
+            v = np.column_stack([np.interp(t, nav.t, nav.v[:, i]) for i in range(3)]) - flight.dv[obs]
+        else:
+            return None
         h, axis = heading["heading_deg"], heading["heading_axis"]
         said = "gyrocompassing" if h is None else f"--heading {h:g} deg, of body axis {axis}"
-        why = heading_problem(self.nav_site, flight.t[obs], v + flight.dv[obs], v, r, said)
+        why = heading_problem(self.nav_site, t, v + flight.dv[obs], v, r, said)
         if why is not None:
             _add_setup_problem(flight, why)
         return why
@@ -639,7 +653,7 @@ class _Run:
         if first:  # the tracking screen of the first pass, said and kept for every pass (module notes)
             flight = screen_tracking(flight, drift_warning=False)  # the drift: on the fit's residuals
             self.screen = flight.meta.get("tracking_screen")
-            self.heading_said = self.heading_check(flight)
+            self.heading_said = self.heading_check(flight, nav)
         else:
             flight = keep_screen(flight, self.screen)
         if first:
