@@ -223,7 +223,8 @@ def test_a_turn_beyond_the_linear_test_says_its_heading_is_approximate():
     """Where the rows navigated at the heading the test points to still hold a turn beyond HEADING_SETTLED_Z of its
     std (``settled`` False), the message says the test is linear and that heading approximate, and points to the
     heading's axis and reference first; a settled record (or one from before the rule) keeps the plain advice. The
-    numbers: the aircraft with launch-frame tracking and the heading 25 deg off (read as +24.1, 1.8 deg left at 70.9)."""
+    numbers: the aircraft with launch-frame tracking and the heading 25 deg off (read as +24.1, 1.8 deg left at
+    70.9)."""
     from casep.workflows.imu_separate import heading_message
 
     rec = {"heading_deg": 95.0, "stated_std_deg": 0.1, "estimate_deg": 24.1, "std_deg": 0.26, "z": 86.9,
