@@ -205,18 +205,20 @@ def _stale(flight: FlightData, idx: np.ndarray, V: np.ndarray) -> np.ndarray:
     is_rep[0] = False
     anchor = np.maximum.accumulate(np.where(~is_rep, np.arange(idx.size), 0))  # the fix each epoch repeats
     moved = np.linalg.norm(V[idx] - V[idx[anchor]], axis=1)
-    return (is_rep & (moved > STALE_MOTION)) | _held(V[idx], flight.dv[idx])
+    return (is_rep & (moved > STALE_MOTION)) | _held(flight.t[idx], V[idx], flight.dv[idx])
 
 
 #: A tracking velocity that changes between two epochs by at most this share of what the telemetry's velocity
 #: changed (the kinematic acceleration integrated) is held there (:func:`_held`) ...
 HELD_SHARE = 0.1
-#: ... and a run of such epochs over which the telemetry moved by more than :data:`STALE_MOTION` while the tracking
-#: changed by at most this share of it is stale, however it jitters.
+#: ... and a run of such epochs over which the telemetry moved by more than :data:`STALE_MOTION` plus
+#: :data:`JUMP_RATE` times its duration (the instrument errors' share: a MEMS INS on the pad drifts by 0.2 m/s per s
+#: while a right tracking holds still) while the tracking changed by at most this share of it is stale, however it
+#: jitters.
 HELD_RUN_SHARE = 0.1
 
 
-def _held(V: np.ndarray, dv: np.ndarray) -> np.ndarray:
+def _held(t: np.ndarray, V: np.ndarray, dv: np.ndarray) -> np.ndarray:
     """The epochs of a tracking velocity held while the vehicle accelerates: not repeated exactly (a receiver that
     holds its last velocity and adds a few mm/s of jitter; :func:`casep.io.pair.repeated_rows` finds exact repeats
     only) but the physics rules it out.
@@ -224,9 +226,10 @@ def _held(V: np.ndarray, dv: np.ndarray) -> np.ndarray:
     The tracking's own change between consecutive epochs is ``dV - d(dv)`` (``V`` the telemetry's velocity change,
     ``dv = v_tel - v_trk``). An epoch is held when that change is at most :data:`HELD_SHARE` of ``|dV|``; a run of
     held epochs is stale when over it (from the epoch before it, the last fresh one) the telemetry moved by more than
-    :data:`STALE_MOTION` and the tracking by at most :data:`HELD_RUN_SHARE` of that. An honest tracking follows the
-    telemetry to within its noise and the INS's drift: at 10 Hz in a 1.7 g boost the velocity changes by 1.7 m/s per
-    epoch, 10 times a GNSS velocity's noise and 100 times 10 % of it; on the pad or at a steady speed ``dV`` is
+    :data:`STALE_MOTION` plus :data:`JUMP_RATE` times the run's duration (what instrument errors could move it: the
+    physics check's allowance) and the tracking by at most :data:`HELD_RUN_SHARE` of that. An honest tracking follows
+    the telemetry to within its noise and the INS's drift: at 10 Hz in a 1.7 g boost the velocity changes by 1.7 m/s
+    per epoch, 10 times a GNSS velocity's noise and 100 times 10 % of it; on the pad or at a steady speed ``dV`` is
     below the noise and no run moves by STALE_MOTION."""
     n = V.shape[0]
     out = np.zeros(n, bool)
@@ -241,7 +244,7 @@ def _held(V: np.ndarray, dv: np.ndarray) -> np.ndarray:
     for a, b in zip(edges[::2], edges[1::2]):  # epochs a..b-1 held; a - 1 the last fresh one
         moved = float(np.linalg.norm(V[b - 1] - V[a - 1]))
         changed = float(np.linalg.norm(own[b - 1] - own[a - 1]))
-        if moved > STALE_MOTION and changed <= HELD_RUN_SHARE * moved:
+        if moved > STALE_MOTION + JUMP_RATE * float(t[b - 1] - t[a - 1]) and changed <= HELD_RUN_SHARE * moved:
             out[a:b] = True
     return out
 

@@ -158,6 +158,18 @@ def test_a_velocity_held_with_a_jitter_is_stale(rng):
     assert np.array_equal(screen_tracking(at_rest).observed, at_rest.observed)
 
 
+def test_a_still_tracking_beside_a_drifting_ins_is_not_held():
+    """A right tracking of a vehicle at rest (noise-free, constant) beside a MEMS INS drifting at 20 mg: the telemetry
+    moves by 2 m/s over 10 s, within the instrument errors' allowance (JUMP_RATE per s), so nothing is held; the same
+    tracking beside a 2 g boost is held from its second epoch on."""
+    from casep.checks.tracking_quality import _held
+
+    t = np.arange(0.0, 10.0, 0.1)
+    for accel, held in ((0.2, 0), (20.0, t.size - 1)):
+        V = np.column_stack([accel * t, 0 * t, 0 * t])
+        assert int(_held(t, V, V).sum()) == held  # dv = v_tel - v_trk = V: the tracking still
+
+
 @pytest.mark.parametrize("accel", [20.0, 1.0, 0.1])
 def test_an_honest_tracking_is_never_held(accel):
     """50 seeds of an honest 10 Hz tracking (0.05 m/s white noise) of a vehicle accelerating at 2 g, 0.1 g and
