@@ -63,7 +63,8 @@ __all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "c
            "offset_halves", "halves_line", "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
            "imu_noise_effect", "imu_sample_noise", "white_sample_std",
-           "rest_white_std", "IMU_NOISE_AT_REST", "STALE_MOTION", "JUMP_TOL", "JUMP_RATE",
+           "rest_white_std", "IMU_NOISE_AT_REST", "STALE_MOTION", "HELD_SHARE", "HELD_RUN_SHARE", "JUMP_TOL",
+           "JUMP_RATE",
            "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
 
 #: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
@@ -197,13 +198,55 @@ def _file_rows(flight: FlightData) -> np.ndarray:
 
 
 def _stale(flight: FlightData, idx: np.ndarray, V: np.ndarray) -> np.ndarray:
-    """Of the observed epochs `idx`: the repeats of a fix while the telemetry moved by more than STALE_MOTION."""
+    """Of the observed epochs `idx`: the repeats of a fix while the telemetry moved by more than STALE_MOTION, and
+    the epochs of a velocity held with a jitter (:func:`_held`)."""
     rows = _file_rows(flight)[idx]
     is_rep = np.isin(rows, np.asarray(flight.meta.get("tracking_repeats", []), dtype=int))
     is_rep[0] = False
     anchor = np.maximum.accumulate(np.where(~is_rep, np.arange(idx.size), 0))  # the fix each epoch repeats
     moved = np.linalg.norm(V[idx] - V[idx[anchor]], axis=1)
-    return is_rep & (moved > STALE_MOTION)
+    return (is_rep & (moved > STALE_MOTION)) | _held(flight.t[idx], V[idx], flight.dv[idx])
+
+
+#: A tracking velocity that changes between two epochs by at most this share of what the telemetry's velocity
+#: changed (the kinematic acceleration integrated) is held there (:func:`_held`) ...
+HELD_SHARE = 0.1
+#: ... and a run of such epochs over which the telemetry moved by more than :data:`STALE_MOTION` plus
+#: :data:`JUMP_RATE` times its duration (the instrument errors' share: a MEMS INS on the pad drifts by 0.2 m/s per s
+#: while a right tracking holds still) while the tracking changed by at most this share of it is stale, however it
+#: jitters.
+HELD_RUN_SHARE = 0.1
+
+
+def _held(t: np.ndarray, V: np.ndarray, dv: np.ndarray) -> np.ndarray:
+    """The epochs of a tracking velocity held while the vehicle accelerates: not repeated exactly (a receiver that
+    holds its last velocity and adds a few mm/s of jitter; :func:`casep.io.pair.repeated_rows` finds exact repeats
+    only) but the physics rules it out.
+
+    The tracking's own change between consecutive epochs is ``dV - d(dv)`` (``V`` the telemetry's velocity change,
+    ``dv = v_tel - v_trk``). An epoch is held when that change is at most :data:`HELD_SHARE` of ``|dV|``; a run of
+    held epochs is stale when over it (from the epoch before it, the last fresh one) the telemetry moved by more than
+    :data:`STALE_MOTION` plus :data:`JUMP_RATE` times the run's duration (what instrument errors could move it: the
+    physics check's allowance) and the tracking by at most :data:`HELD_RUN_SHARE` of that. An honest tracking follows
+    the telemetry to within its noise and the INS's drift: at 10 Hz in a 1.7 g boost the velocity changes by 1.7 m/s
+    per epoch, 10 times a GNSS velocity's noise and 100 times 10 % of it; on the pad or at a steady speed ``dV`` is
+    below the noise and no run moves by STALE_MOTION."""
+    n = V.shape[0]
+    out = np.zeros(n, bool)
+    if n < 3:
+        return out
+    own = V - dv  # the tracking's velocity, less a constant (v_tel - V at the first sample)
+    dV = np.linalg.norm(np.diff(V, axis=0), axis=1)
+    dT = np.linalg.norm(np.diff(own, axis=0), axis=1)
+    held = np.concatenate([[False], dT <= HELD_SHARE * dV])
+    x = np.concatenate([[0], held.astype(np.int8), [0]])
+    edges = np.flatnonzero(np.diff(x))
+    for a, b in zip(edges[::2], edges[1::2]):  # epochs a..b-1 held; a - 1 the last fresh one
+        moved = float(np.linalg.norm(V[b - 1] - V[a - 1]))
+        changed = float(np.linalg.norm(own[b - 1] - own[a - 1]))
+        if moved > STALE_MOTION + JUMP_RATE * float(t[b - 1] - t[a - 1]) and changed <= HELD_RUN_SHARE * moved:
+            out[a:b] = True
+    return out
 
 
 def _impossible(t: np.ndarray, dv: np.ndarray, start: float | None = None) -> tuple[np.ndarray, float]:
@@ -592,8 +635,9 @@ def _warn(source: str, s: TrackingScreen, stale: str, rejected: str, drift: bool
     if s.stale:
         n = sum(k for *_, k in s.stale)
         warnings.warn(TrackingQualityWarning(
-            f"{source}: {n} stale tracking epochs (a fix or its velocity repeated while the telemetry moved by more "
-            f"than {STALE_MOTION:g} m/s since it) left out, in {len(s.stale)} span(s): {stale}"), stacklevel=3)
+            f"{source}: {n} stale tracking epochs (a fix or its velocity repeated, or held within "
+            f"{HELD_SHARE:g} of the telemetry's change, while the telemetry moved by more than {STALE_MOTION:g} m/s "
+            f"since it) left out, in {len(s.stale)} span(s): {stale}"), stacklevel=3)
     if s.rejected:
         n = sum(k for *_, k in s.rejected)
         warnings.warn(TrackingQualityWarning(

@@ -458,6 +458,11 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
 
         ev = setup_evidence(site, t_tel, v_tel, t_raw, r_ecef, v_ecef, time_shift=shift_scale,
                             clock_drift=drift)
+        from casep.io.setup import header_site_problem
+
+        other_site = header_site_problem(site, nav_site)
+        if other_site is not None:
+            ev["problems"].append(other_site)
         clock = ev["pad"].get("clock_offset")
         if clock is not None:
             import warnings

@@ -21,8 +21,9 @@ __all__ = ["pair_flight", "PAIR_GRIDS", "STATE_SIGNALS", "GAP_FACTOR", "GAP_MIN_
            "MAX_LAUNCH_TIME_GAP", "check_tracking_frame", "tracking_velocity", "tracking_hint", "with_tracked_state",
            "time_shift_seconds", "MAX_CLOCK_DRIFT_PPM", "clock_drift_ppm", "telemetry_time", "tracking_time",
            "check_launch_time", "no_overlap_message",
-           "check_earth_fixed_units", "fits_time_offset", "VALID_COLUMN", "repeated_rows", "PairInputs", "repaired",
-           "offset_second_order"]
+           "check_earth_fixed_units", "check_velocity_columns", "velocity_column_misfit", "COLUMN_WINDOW_S",
+           "COLUMN_RATIO", "COLUMN_MISFIT_MIN", "fits_time_offset", "VALID_COLUMN", "repeated_rows", "PairInputs",
+           "repaired", "offset_second_order"]
 
 #: The telemetry column marking the samples whose navigation solution is trusted (1) or not (0: after a clipped
 #: IMU sample, :mod:`casep.navigation.imu`): :func:`pair_flight` leaves the rows where it is below 1 out.
@@ -97,6 +98,10 @@ def tracking_velocity(trk: Table, t_trk: np.ndarray, tracking_frame: str,
                                 col, int(bad[0]) + 1)
         r, v = geodetic_to_ecef(lat, lon, h, ve, vn, vu)
     check_earth_fixed_units(trk, t_trk, r, v, tracking_frame)
+    if tracking_frame == "geodetic":
+        check_velocity_columns(trk, t_trk, r, np.column_stack([ve, vn, vu]), tracking_frame, _enu_axes(lat, lon))
+    else:
+        check_velocity_columns(trk, t_trk, r, v, tracking_frame)
     return ecef_to_launch(site, t_trk, r, v)[1], r, v
 
 
@@ -143,6 +148,126 @@ def check_earth_fixed_units(trk: Table, t: np.ndarray, r: np.ndarray, v: np.ndar
         raise trk.error(f"the tracked position changes at a median {rate:.4g} m/s but the tracked velocity is a median "
                         f"{speed:.4g} m/s (ratio {rate / speed:.4g}): {likely}? Positions must be in m, velocities in "
                         "m/s", col)
+
+
+#: Seconds of tracking over which the position's change is compared with the integrated velocity
+#: (:func:`velocity_column_misfit`): long enough that a position noise of metres averages to a fraction of a m/s.
+COLUMN_WINDOW_S = 2.0
+#: A reading of the velocity columns (another order, other signs) is named when it brings the position's rate and
+#: the velocity this many times closer (RMS) than the columns as read: it explains the misfit, 90 % of it or more.
+COLUMN_RATIO = 10.0
+#: ... and the columns as read miss the position's rate by more than this (m/s RMS): a disagreement beyond a
+#: tracking's noise and lag.
+COLUMN_MISFIT_MIN = 1.0
+
+
+def _windows(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end rows of consecutive windows of about :data:`COLUMN_WINDOW_S` s of tracking, none across a
+    pause (a step over 3 median steps: the velocity is not integrated across it)."""
+    if t.size < 3:
+        return np.zeros(0, int), np.zeros(0, int)
+    dt = np.diff(t)
+    h = float(np.median(dt))
+    if not h > 0:
+        return np.zeros(0, int), np.zeros(0, int)
+    n = max(2, int(round(COLUMN_WINDOW_S / h)))
+    starts, ends = [], []
+    cut = np.concatenate([[0], np.flatnonzero(~(dt <= 3.0 * h)) + 1, [t.size]])
+    for a, b in zip(cut[:-1], cut[1:]):
+        for i in range(a, b - n, n):
+            starts.append(i)
+            ends.append(i + n)
+    return np.asarray(starts, int), np.asarray(ends, int)
+
+
+def velocity_column_misfit(t: np.ndarray, r: np.ndarray, c: np.ndarray, basis: np.ndarray | None,
+                           maps: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per window (:func:`_windows`) and per reading of the velocity columns, the mean misfit of the tracked
+    position's change against the velocity integrated over the window (trapezoid), m/s.
+
+    ``r`` (M, 3) ECEF positions (m); ``c`` (M, 3) the file's velocity columns; ``basis`` (M, 3, 3) the ECEF
+    directions of the columns at each row (east, north, up for geodetic tracking: columns of the matrix), None for
+    ECEF columns; ``maps`` (K, 3, 3): the velocity in the columns' axes read as ``maps[k] @ c``. Returns the
+    misfits (K, W) (norm of the window's mean misfit vector), the window starts and ends (rows)."""
+    i0, i1 = _windows(t)
+    if i0.size == 0:
+        return np.zeros((maps.shape[0], 0)), i0, i1
+    B = np.broadcast_to(np.eye(3), (t.size, 3, 3)) if basis is None else basis
+    g = B[:, :, :, None] * c[:, None, None, :]  # (M, 3, i, j): direction i of the columns times column j
+    dt = np.diff(t)
+    steps = 0.5 * (g[1:] + g[:-1]) * dt[:, None, None, None]
+    cum = np.concatenate([np.zeros((1, 3, 3, 3)), np.cumsum(steps, axis=0)], axis=0)
+    J = cum[i1] - cum[i0]  # (W, 3, i, j): integral over each window
+    span = (t[i1] - t[i0])[None, :, None]
+    d = ((r[i1] - r[i0])[None] - np.einsum("kij,wxij->kwx", maps, J)) / span
+    return np.linalg.norm(d, axis=2), i0, i1
+
+
+def _readings() -> list[tuple[tuple[int, ...], tuple[int, ...]]]:
+    """The readings of three velocity columns: a permutation ``p`` and signs ``s`` (column i holds ``s_i`` times
+    component ``p_i``), the columns as read first, then by the number of changes."""
+    import itertools
+
+    out = [(p, s) for p in itertools.permutations(range(3)) for s in itertools.product((1, -1), repeat=3)]
+    return sorted(out, key=lambda ps: (sum(a != b for a, b in zip(ps[0], range(3))) + ps[1].count(-1)))
+
+
+def _enu_axes(lat_deg: np.ndarray, lon_deg: np.ndarray) -> np.ndarray:
+    """(M, 3, 3): the ECEF directions of east, north and up (columns) at each geodetic latitude and longitude (deg),
+    the axes of :func:`casep.frames.geodetic_to_ecef`'s velocity."""
+    la, lo = np.radians(np.asarray(lat_deg, float)), np.radians(np.asarray(lon_deg, float))
+    sa, ca, so, co = np.sin(la), np.cos(la), np.sin(lo), np.cos(lo)
+    e = np.column_stack([-so, co, np.zeros_like(la)])
+    n = np.column_stack([-sa * co, -sa * so, ca])
+    u = np.column_stack([ca * co, ca * so, sa])
+    return np.stack([e, n, u], axis=2)
+
+
+def check_velocity_columns(trk: Table, t: np.ndarray, r: np.ndarray, c: np.ndarray, frame: str,
+                           basis: np.ndarray | None = None) -> None:
+    """Refuse Earth-fixed tracking whose velocity columns are in another order or of another sign than their
+    names say (east and north swapped, v_up holding the downward velocity, a NED file read as ENU), naming the
+    columns and the numbers.
+
+    The tracked position's change over windows of :data:`COLUMN_WINDOW_S` s is the velocity integrated over them:
+    with ``D_w = r(end) - r(start) - integral v dt`` (ECEF, the velocity columns turned by their own axes at each
+    row) per window, the misfit of a reading of the columns is the RMS of ``|D_w| / T_w`` over the windows. Each of
+    the 47 other readings (an order of the three columns times their signs) is weighed against the columns as
+    read; the simplest reading within a factor 2 of the best is named when the best is :data:`COLUMN_RATIO`
+    times closer than the columns as read (it explains the misfit), and these miss by more than
+    :data:`COLUMN_MISFIT_MIN`. A correct file is the best reading itself (any other adds a velocity component
+    that the positions do not follow), so it is never named; a tracking whose noise hides the mistake is not
+    either. ``c`` (M, 3) are the file's velocity columns, ``basis`` their ECEF axes per row (:func:`_enu_axes` for
+    geodetic tracking; None: ECEF columns); ``r`` the ECEF positions."""
+    from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS
+
+    names = GEODETIC_COLUMNS[4:] if frame == "geodetic" else ECEF_COLUMNS[4:]
+    axes = ("east", "north", "up") if frame == "geodetic" else ("ECEF x", "ECEF y", "ECEF z")
+    readings = _readings()
+    maps = np.zeros((len(readings), 3, 3))
+    for k, (p, s) in enumerate(readings):
+        for i in range(3):
+            maps[k, p[i], i] = s[i]  # component p_i = s_i column i
+    d, i0, _ = velocity_column_misfit(t, r, np.asarray(c, float), basis, maps)
+    ok = np.all(np.isfinite(d), axis=0)
+    if np.count_nonzero(ok) < 3:
+        return
+    rms = np.sqrt(np.mean(d[:, ok] ** 2, axis=1))
+    best = float(rms.min())
+    if not (rms[0] > COLUMN_MISFIT_MIN and rms[0] > COLUMN_RATIO * best):
+        return
+    k = next(k for k in range(len(readings)) if rms[k] <= 2.0 * best)
+    p, s = readings[k]
+    holds = ", ".join(f"{names[i]} the {'' if s[i] > 0 else 'negated '}{axes[p[i]]} velocity"
+                      for i in range(3) if (p[i], s[i]) != (i, 1))
+    second = float(np.sort(rms)[1]) if k == int(np.argmin(rms)) else best
+    raise trk.error(f"the velocity columns do not follow the tracked position: over {np.count_nonzero(ok)} windows "
+                    f"of {COLUMN_WINDOW_S:g} s the position's change and the integrated velocity differ by "
+                    f"{rms[0]:.4g} m/s RMS as the columns are named, by {rms[k]:.3g} m/s if they hold {holds} "
+                    f"({rms[0] / rms[k]:.3g} times closer; of the 47 other orders and signs of the columns the next "
+                    f"closest misses by {second:.3g} m/s): {holds}? Give the velocity columns in the order and sign "
+                    "their names say (a swapped pair, a downward velocity in v_up, a NED file read as ENU)",
+                    names[next(i for i in range(3) if (p[i], s[i]) != (i, 1))])
 
 
 def _check_time_unit(trk: Table, t: np.ndarray, ratio: float) -> None:

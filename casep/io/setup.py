@@ -33,7 +33,8 @@ import numpy as np
 
 from casep.io.pair import tracking_time
 
-__all__ = ["setup_evidence", "earth_relative_tracking", "heading_turn", "heading_problem", "HEADING_TURN_LIMIT",
+__all__ = ["setup_evidence", "header_site_problem", "HEADER_SITE_DEG", "HEADER_SITE_M", "earth_relative_tracking",
+           "heading_turn", "heading_problem", "HEADING_TURN_LIMIT",
            "EARTH_RELATIVE_RATIO", "PAD_VELOCITY_TOL", "PAD_ALPHA",
            "PAD_REST_SPEED", "PAD_FIT_WINDOW", "PAD_NOISE_SPAN", "POSITION_TOL", "LAUNCH_GAP_TOL"]
 
@@ -248,6 +249,37 @@ def setup_evidence(site: Any, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.nd
                         f"{LAUNCH_GAP_TOL:g} s. State the "
                         "launch time in the tracking file's time scale and how the time scales relate (time_shift)")
     return {"spans": spans, "pad": pad, "first_tracked": first, "problems": problems}
+
+
+#: The stated launch site and the one a telemetry's header names (``casep navigate`` writes 12 significant digits)
+#: differ when a latitude, longitude or azimuth differs by more than this (deg) ...
+HEADER_SITE_DEG = 1e-7
+#: ... or the height by more than this (m).
+HEADER_SITE_M = 1e-3
+
+
+def header_site_problem(site: Any, header: Any) -> str | None:
+    """Why the stated launch site (`site`, the one the tracking is turned into the launch-inertial frame with) is not
+    the one the telemetry was navigated in (`header`: :func:`casep.io.files.navigation_site`, ``casep navigate``'s
+    header), or None. The two frames then differ: an azimuth 3 deg off turns a 4 km/s velocity by 210 m/s, which the
+    fit takes for instrument errors far beyond any instrument's. The launch times are not compared (each in its
+    own file's time scale)."""
+    if header is None:
+        return None
+    diffs = []
+    for name, a, b, tol, unit in (("latitude", site.lat_deg, header.lat_deg, HEADER_SITE_DEG, "deg"),
+                                  ("longitude", site.lon_deg, header.lon_deg, HEADER_SITE_DEG, "deg"),
+                                  ("height", site.h_m, header.h_m, HEADER_SITE_M, "m"),
+                                  ("azimuth", site.azimuth_deg, header.azimuth_deg, HEADER_SITE_DEG, "deg")):
+        d = ((a - b + 180.0) % 360.0) - 180.0 if name in ("longitude", "azimuth") else a - b
+        if abs(d) > tol:
+            diffs.append(f"{name} {a:.10g} against {b:.10g} {unit} ({d:+.4g} {unit})")
+    if not diffs:
+        return None
+    return (f"the stated launch site is not the one the telemetry was navigated in (its header: {header.lat_deg:.10g} "
+            f"deg, {header.lon_deg:.10g} deg, {header.h_m:.10g} m, azimuth {header.azimuth_deg:.10g} deg): "
+            f"{'; '.join(diffs)}. The tracking is turned into the stated site's launch frame, the telemetry is in the "
+            "header's: state the header's site (--launch-site), or navigate the IMU again at the stated one")
 
 
 def _swapped_distance(r_ecef: np.ndarray, site: Any) -> float:

@@ -106,16 +106,19 @@ def test_a_later_pass_keeps_the_first_screen_unsaid(rocket):
     assert keep_screen(later, None) is later
 
 
-def _clean_pair(rng, repeats=(), glitch=None, at_rest=False):
+def _clean_pair(rng, repeats=(), glitch=None, at_rest=False, held=None, accel=20.0):
     t_tel = np.arange(0.0, 60.0, 0.01)
     acc = np.zeros((t_tel.size, 3)) if at_rest else np.column_stack(
-        [5 * np.sin(0.3 * t_tel), 20 + 0 * t_tel, 3 * np.cos(0.2 * t_tel)])
+        [5 * np.sin(0.3 * t_tel), accel + 0 * t_tel, 3 * np.cos(0.2 * t_tel)])
     v_tel = np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (acc[1:] + acc[:-1]) * 0.01, axis=0)])
     t_trk = np.arange(0.0, 60.0, 0.1)
     v_trk = np.column_stack([np.interp(t_trk, t_tel, v_tel[:, i]) for i in range(3)])
     v_trk += rng.normal(0, 0.05, v_trk.shape)
     for k in repeats:
         v_trk[k] = v_trk[k - 1]
+    if held is not None:  # rows a..b-1 hold row a - 1's velocity with a jitter (m/s)
+        a, b, jitter = held
+        v_trk[a:b] = v_trk[a - 1] + rng.normal(0, jitter, (b - a, 3))
     if glitch is not None:
         v_trk[glitch] += 50.0
     signals = {f"a_{c}": acc[:, i] for i, c in enumerate("xyz")}
@@ -141,6 +144,41 @@ def test_a_repeated_fix_is_stale_only_when_the_vehicle_moved(rng):
     assert screened.meta["tracking_screen"]["stale"] == [(30.1, 30.3, 3)]
     at_rest = _clean_pair(rng, repeats=(301, 302, 303), at_rest=True)
     assert np.array_equal(screen_tracking(at_rest).observed, at_rest.observed)  # at rest a repeat is right
+
+
+def test_a_velocity_held_with_a_jitter_is_stale(rng):
+    """A tracking velocity held over 2 s with 3 mm/s of jitter (no exact repeat for repeated_rows to find) while the
+    telemetry accelerates at 2 g: its epochs are stale, left out and listed; held on the pad it is right."""
+    stale = r"20 stale tracking epochs .* in 1 span\(s\): t = 30\.1\.\.32 s \(20\)"
+    with pytest.warns(TrackingQualityWarning, match=stale):
+        screened = screen_tracking(_clean_pair(rng, held=(301, 321, 0.003)))
+    assert screened.meta["tracking_screen"]["stale"] == [(30.1, 32.0, 20)]
+    assert not screened.observed[np.flatnonzero(screened.t >= 30.05)[:1]].any()
+    at_rest = _clean_pair(rng, held=(301, 321, 0.003), at_rest=True)
+    assert np.array_equal(screen_tracking(at_rest).observed, at_rest.observed)
+
+
+def test_a_still_tracking_beside_a_drifting_ins_is_not_held():
+    """A right tracking of a vehicle at rest (noise-free, constant) beside a MEMS INS drifting at 20 mg: the telemetry
+    moves by 2 m/s over 10 s, within the instrument errors' allowance (JUMP_RATE per s), so nothing is held; the same
+    tracking beside a 2 g boost is held from its second epoch on."""
+    from casep.checks.tracking_quality import _held
+
+    t = np.arange(0.0, 10.0, 0.1)
+    for accel, held in ((0.2, 0), (20.0, t.size - 1)):
+        V = np.column_stack([accel * t, 0 * t, 0 * t])
+        assert int(_held(t, V, V).sum()) == held  # dv = v_tel - v_trk = V: the tracking still
+
+
+@pytest.mark.parametrize("accel", [20.0, 1.0, 0.1])
+def test_an_honest_tracking_is_never_held(accel):
+    """50 seeds of an honest 10 Hz tracking (0.05 m/s white noise) of a vehicle accelerating at 2 g, 0.1 g and
+    0.01 g: no epoch is taken for a held velocity (none of 200 seeds each measured)."""
+    flagged = 0
+    for seed in range(50):
+        flight = _clean_pair(np.random.default_rng(seed), accel=accel)
+        flagged += int(flight.n_observed - screen_tracking(flight).n_observed)
+    assert flagged == 0
 
 
 def test_a_short_first_stretch_joined_to_the_pad_is_kept(rng):

@@ -1034,3 +1034,27 @@ def test_tracking_relative_to_the_rotating_earth_taken_as_launch_inertial_is_a_s
     assert said and abs(float(said[1]) - pad_speed) < 0.1 and float(said[2]) < 0.1, (pad_speed, res.message)
     assert "relative to the rotating Earth" in res.message and "--tracking-frame ecef" in res.message
     assert len(res.diagnostics["iterations"]["passes"]) == 1  # not iterated: the passes would fit the frame
+
+
+@pytest.mark.parametrize("off", [90.0, -45.0])
+def test_a_heading_far_off_with_launch_frame_tracking_is_a_set_up_failure(truth_flight, noise_free, off):
+    """Launch-frame tracking (no tracked position): the heading given 90 (45) deg off turns the navigated horizontal
+    velocity by that much from the tracked one, measured against the navigation's own position (the Earth's rotation
+    about it). The result fails the set-up check naming the heading and the turn, as it does with Earth-fixed
+    tracking; before, the linear heading test read such a turn as a smaller one (a 90 deg error as 65 deg) and
+    advised a heading that was not the data's."""
+    from casep.estimators.registry import STATUS_SETUP
+
+    imu, trk, _ = noise_free
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=heading_of_x() + off)
+    res = out.result
+    assert not out.success and res.status == STATUS_SETUP, res.message
+    said = re.search(r"The heading of the alignment \(--heading [\d.]+ deg, of body axis x\) is about "
+                     r"([-+\d.]+) deg off", res.message)
+    # the turn is the heading's error plus what this record's MEMS errors (gyro biases of 200 deg/h, misalignments of
+    # 1500 arcsec under 10 g) turn the velocity in its first 30 s: 6.2 and 6.6 deg measured
+    assert said and abs(float(said[1]) - off) < 10.0, res.message
+    right = _separate(imu, trk)
+    assert "set-up check" not in right.message and "heading of the alignment" not in right.message

@@ -219,6 +219,25 @@ def test_what_a_result_says_of_the_heading_test():
     assert heading_unchecked({**loose, "std_deg": 0.05}) is None
 
 
+def test_a_turn_beyond_the_linear_test_says_its_heading_is_approximate():
+    """Where the rows navigated at the heading the test points to still hold a turn beyond HEADING_SETTLED_Z of its
+    std (``settled`` False), the message says the test is linear and that heading approximate, and points to the
+    heading's axis and reference first; a settled record (or one from before the rule) keeps the plain advice. The
+    numbers: the aircraft with launch-frame tracking and the heading 25 deg off (read as +24.1, 1.8 deg left at
+    70.9)."""
+    from casep.workflows.imu_separate import heading_message
+
+    rec = {"heading_deg": 95.0, "stated_std_deg": 0.1, "estimate_deg": 24.1, "std_deg": 0.26, "z": 86.9,
+           "limit_z": 5.0, "suggested_heading_deg": 70.9, "conflict": True, "at_suggested_deg": 1.77,
+           "settled": False}
+    said = heading_message(rec, "x")
+    assert "beyond its reach" in said and "70.9 deg, the rows still hold +1.8 deg" in said, said
+    assert "approximate" in said and "--heading-axis" in said and "magnetic" in said
+    for settled in ({**rec, "settled": True}, {k: v for k, v in rec.items() if k != "settled"}):
+        plain = heading_message(settled, "x")
+        assert "beyond its reach" not in plain and "--heading 70.9 is what the data point to" in plain
+
+
 @pytest.fixture(scope="module")
 def aircraft(tmp_path_factory):
     """A flight whose data determine the heading: the tactical aircraft of ``benchmarks/aircraft_flight.py`` (its own
@@ -274,3 +293,29 @@ def test_a_rail_launch_says_the_record_does_not_check_the_heading(launch):
     test = out.result.diagnostics["heading"]["test"]
     assert not test["conflict"] and test["std_deg"] > 1.0, test
     assert "the record does not check the heading given (--heading 95 deg)" in out.message
+
+
+def test_a_step_that_fails_on_a_wrong_heading_blames_the_heading(aircraft, tmp_path):
+    """Launch-frame tracking (the aircraft's GNSS velocity turned into the launch-inertial frame) and the heading given
+    10 deg off: the iteration's step leaves the linear model (the coefficients cannot take the turn). The failure
+    blames the heading the data contradict (its reading within 2 std of +10 deg), not errors too large for the model
+    (what it said before, the heading only further on)."""
+    import pandas as pd
+
+    from casep.frames import ecef_to_launch, geodetic_to_ecef
+
+    imu, trk, site, align, heading = aircraft
+    g = pd.read_csv(trk, comment="#")
+    r, v = geodetic_to_ecef(g.lat, g.lon, g.h, g.v_east, g.v_north, g.v_up)
+    v_l = ecef_to_launch(site, g.t.to_numpy(), r, v)[1]
+    launch = tmp_path / "launch.csv"
+    write_table(launch, {"t": g.t.to_numpy(), **{f"v_trk_{a}": v_l[:, i] for i, a in enumerate("xyz")}})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = separate_imu(imu, launch, site, align, "strapdown12", heading_deg=heading + 10.0)
+    test = out.result.diagnostics["heading"]["test"]
+    assert not out.success and test["conflict"] and abs(test["estimate_deg"] - 10.0) < 2 * test["std_deg"], test
+    assert "leaves the linear model" in out.message, out.message  # the step failed ...
+    assert "the errors are too large for the model, or the data are inconsistent" not in out.message
+    assert f"the heading given is the likelier cause: the data put it {test['estimate_deg']:+.3g} deg off" \
+        in out.message, out.message
