@@ -26,6 +26,10 @@ def test_the_rule_on_sites():
     assert header_site_problem(SITE, SITE) is None
     assert header_site_problem(SITE, dataclasses.replace(SITE, lat_deg=float(f"{SITE.lat_deg + 1e-13:.12g}"))) is None
     assert header_site_problem(SITE, dataclasses.replace(SITE, t0=100.0)) is None
+    # stated to 5 decimals and the height to the metre: the same frame to well below any tracking's noise
+    assert header_site_problem(SITE, dataclasses.replace(SITE, lat_deg=SITE.lat_deg + 4e-6, h_m=330.9)) is None
+    said = header_site_problem(SITE, dataclasses.replace(SITE, lon_deg=SITE.lon_deg + 2e-5))
+    assert said is not None and "longitude" in said, said
     assert header_site_problem(SITE, None) is None
     said = header_site_problem(dataclasses.replace(SITE, azimuth_deg=33.0), SITE)
     assert "azimuth 33 against 30 deg (+3 deg)" in said and "latitude" not in said, said
