@@ -302,10 +302,9 @@ def not_inverted(model: Any, coefficients: np.ndarray, last: np.ndarray, n_steps
     """Why :func:`corrected_imu` did not invert a record at `coefficients` (natural units): the columns its last
     fixed-point step still moved (`last`, per column ``fb_x .. w_z``, of the largest force or rate of the record)
     and the coefficients that scale those columns' inputs (:func:`input_scaling`), those beyond what a linear
-    error model can describe first (:data:`casep.estimators._base.LINEAR_LIMITS`: a scale factor or misalignment
+    error model can describe first (:data:`casep.units.LINEAR_LIMITS`: a scale factor or misalignment
     of 0.1)."""
-    from casep.estimators._base import LINEAR_LIMITS
-    from casep.units import si_factor
+    from casep.units import LINEAR_LIMITS, si_factor
 
     columns = (*BODY_FORCE_COLUMNS, *BODY_RATE_COLUMNS)
     unsettled = [j for j in np.argsort(-np.nan_to_num(last, nan=np.inf)) if not last[j] <= CORRECTION_FLOOR]
