@@ -31,7 +31,7 @@ from casep.regression.linalg import (
     unidentifiable_reasons,
 )
 from casep.regression.problem import Problem as RegressionProblem
-from casep.units import G0
+from casep.units import LINEAR_LIMITS
 
 __all__ = ["Prepared", "prepare", "rows_of", "finish", "determined_up_to_partners", "check_positive", "inverse_scale"]
 
@@ -416,20 +416,7 @@ MAGNITUDE_FAIL = 1e4
 #: Both judged on ``|estimate| - MAGNITUDE_Z std``: what the data say at least (5 std: two-sided
 #: P = 6e-7 per coefficient, so that noise in a poorly determined coefficient is not flagged).
 MAGNITUDE_Z = 5.0
-#: Magnitudes (SI) no coefficient of a linear error model can have: a scale factor or
-#: misalignment of 0.1 (1e5 ppm, 20600 arcsec) leaves second-order terms of 1 % of the signal, beyond what the
-#: first-order model describes; a gyro bias of 0.1 rad/s (5.7 deg/s, 20600 deg/h) turns the attitude by
-#: 0.1 rad within a second, where the small-angle attitude error of the model no longer holds. Such an
-#: estimate says the model does not describe the data (rates in deg/s in rad/s columns, a set-up or model
-#: mistake), not that the instrument is that bad: the result fails (status -5) when the estimate is beyond
-#: the limit by more than :data:`LINEAR_Z` std, even when a large std hides it from the |estimate| - 5 std rule.
-#: An accelerometer bias of 1 g is gravity itself: levelled with it, the attitude is off by 45 deg (the
-#: alignment's small-angle tilt ``b / g`` is 1 rad), and no accelerometer is that far off. Per-g terms (the unit
-#: divided by g: the error at 1 g) have the limit of their kind: 0.1 as a scale factor, 0.1 rad/s as a drift.
-#: By natural unit (SI): dimensionless and angle units 0.1, rates 0.1 rad/s, biases 1 g.
-LINEAR_LIMITS: dict[str, float] = {"ppm": 0.1, "arcsec": 0.1, "arcmin": 0.1, "mrad": 0.1, "deg/h": 0.1, "rad/s": 0.1,
-                                   "mg": G0, "ug": G0, "mg/g": 0.1 * G0, "ug/g": 0.1 * G0, "deg/h/g": 0.1,
-                                   "rad/s/g": 0.1}
+#: :data:`casep.units.LINEAR_LIMITS`: magnitudes (SI) no coefficient of a linear error model can have.
 #: An estimate fails against :data:`LINEAR_LIMITS` when beyond it by more than this many std
 #: (``|x| - LINEAR_Z std >= limit``: its two-sided 95 % interval excludes the limit); within it the flight does not
 #: determine the coefficient (said as such, :func:`check_magnitudes`), which is no evidence of a unit mistake.

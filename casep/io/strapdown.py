@@ -68,6 +68,7 @@ a peak below :data:`casep.checks.plausibility.F_AT_REST` g that read in g exceed
 
 from __future__ import annotations
 
+import math
 import warnings
 from typing import Any
 
@@ -85,7 +86,7 @@ from casep.rotations import (
     quat_to_rotvec,
     rotation_increments,
 )
-from casep.units import G0, MEMS_ACCEL_BIAS
+from casep.units import G0, MEMS_ACCEL_BIAS, RATE_UNIT_MISTAKES, unit_factorisation, unit_mistakes
 
 __all__ = ["StrapdownWarning", "strapdown_force", "lost_rows_problem", "GAP_TURN_LIMIT",
            "check_strapdown", "compare_force", "FORCE_TOL", "check_kinematics",
@@ -556,19 +557,46 @@ def _lost_note(lost: list[dict[str, float]], keep: np.ndarray | None) -> str:
 def _time_unit_explains(t: np.ndarray, q: np.ndarray, w: np.ndarray, keep: np.ndarray | None, ev: dict[str, Any],
                         error: Any) -> None:
     """Before the body rate is blamed: t in another unit than s also breaks the comparison (the step's rotation is the
-    rate times a step 1000 times too long). When the median step and the span are out of the range of telemetry
-    (:func:`casep.io.flight.time_unit_factors`, the rule the flight check warns with) and the time in a unit
-    that fits makes the attitude and the rate agree (:func:`_agrees`), an error naming ``t``."""
+    rate times a step 1000 times too long), alone or with the body rate in another unit than rad/s (t in ms and w in
+    deg/s: the attitude turns by ``(pi/180) / 1000`` of the rate integrated over the file's steps). Each choice of
+    unit mistakes with a time unit (:func:`casep.units.unit_mistakes` over the units of t that bring the median step
+    and the span into the range of telemetry, :func:`casep.io.flight.time_unit_factors`, the rule the flight check
+    warns with, and :data:`casep.units.RATE_UNIT_MISTAKES`), fewest first: the first in whose units the attitude
+    and the rate agree (:func:`_agrees`) is an error naming each (``t``, and ``w_*`` with it). The body rate's unit
+    alone is :func:`_judge_rate_fits`' (judged off any clipped readings)."""
     h, span = float(np.median(np.diff(t))), float(t[-1] - t[0])
-    for unit, k in time_unit_factors(h, span):
-        alt = _rate_evidence(k * t, q, w, keep)
-        if "fits" in alt and _agrees(alt):
-            mine = ev["fits"][next(iter(ev["fits"]))]
-            raise error(f"t looks like {unit.split(' ')[0]}, not s: median time step {h:.4g} s ({1 / h:.4g} Hz) over "
-                        f"{span:.4g} s; read as {unit.split(' ')[0]} the attitude (q_*) and the integrated body rate "
-                        f"({', '.join(BODY_RATE_COLUMNS)}) agree within "
-                        f"{100 * alt['fits'][next(iter(alt['fits']))]['mismatch']:.2g} %, read as s they are "
-                        f"{100 * mine['mismatch']:.3g} % off. Give t in s: t is in {unit}", "t", None)
+    time_units = time_unit_factors(h, span)
+    mine = ev["fits"][next(iter(ev["fits"]))]
+    for found in unit_mistakes((time_units, RATE_UNIT_MISTAKES)):
+        in_time = [(u, k) for u, k in found if (u, k) in time_units]
+        if not in_time:
+            continue
+        k_t, k_w = in_time[0][1], math.prod(k for u, k in found if (u, k) not in time_units)
+        alt = _rate_evidence(k_t * t, q, k_w * w, keep)
+        if not ("fits" in alt and _agrees(alt)):
+            continue
+        agree = 100 * alt["fits"][next(iter(alt["fits"]))]["mismatch"]
+        unit = in_time[0][0].split(" ")[0]
+        if len(found) == 1:
+            raise error(f"t looks like {unit}, not s: median time step {h:.4g} s ({1 / h:.4g} Hz) over "
+                        f"{span:.4g} s; read as {unit} the attitude (q_*) and the integrated body rate "
+                        f"({', '.join(BODY_RATE_COLUMNS)}) agree within {agree:.2g} %, read as s they are "
+                        f"{100 * mine['mismatch']:.3g} % off. Give t in s: t is in {in_time[0][0]}", "t", None)
+        parts = {u: (u.split(" (")[0], u.split(" (")[1].rstrip(")")) for u, _ in found}  # unit, its fix
+        rates = [u for u, k in found if (u, k) not in time_units]
+        gain = np.array(ev["rate_gain"], dtype=float).diagonal()
+        turned = np.where(np.isfinite(gain), np.sum(w**2, axis=0), -1.0)
+        a = int(np.argmax(turned))
+        said = f"G = {gain[a]:.4g} on {BODY_RATE_COLUMNS[a]} (the axis that turns most), " if turned[a] >= 0 else ""
+        factors = " x ".join(f"{k:.5g} ({parts[u][0]})" for u, k in found)
+        wcols = ", ".join(BODY_RATE_COLUMNS)
+        raise error(f"t looks like {unit}, not s, and the body rate ({wcols}) like "
+                    f"{' and '.join(parts[r][0] for r in rates)}, not rad/s: the quaternion steps turn by {said}the "
+                    f"product of their factors {factors} = {k_t * k_w:.4g}, times the integrated rate; read in those "
+                    f"units (t: median step {h:.4g}, span {span:.4g}) the attitude (q_*) and the integrated body rate "
+                    f"agree within {agree:.2g} %, read as s and rad/s they are {100 * mine['mismatch']:.3g} % off. "
+                    f"Give t in s ({unit}: {parts[in_time[0][0]][1]}) and {wcols} in rad/s "
+                    f"({'; '.join(f'{parts[r][0]}: {parts[r][1]}' for r in rates)})", f"t, {wcols}", None)
 
 
 def _agrees(ev: dict[str, Any]) -> bool:
@@ -688,7 +716,8 @@ def _judge_rate_fits(src: str, ev: dict[str, Any], error: Any, note: str = "") -
     wcols = ", ".join(BODY_RATE_COLUMNS)
     if _agrees(ev):
         return
-    if mine["mismatch"] > RATE_TOL and mine["scaled_mismatch"] <= RATE_TOL and abs(mine["scale"] / _DEG - 1.0) < 0.1:
+    if (mine["mismatch"] > RATE_TOL and mine["scaled_mismatch"] <= RATE_TOL
+            and unit_factorisation(mine["scale"], (RATE_UNIT_MISTAKES,)) == RATE_UNIT_MISTAKES[:1]):
         raise error(f"the body rate looks like deg/s, not rad/s: the attitude (q_*) turns by {mine['scale']:.5g} "
                     f"times the integrated rate (1/{1 / mine['scale']:.4g}; pi/180 = 1/57.30), which then agrees "
                     f"within {100 * mine['scaled_mismatch']:.2g} % (as rad/s it is {100 * mine['mismatch']:.3g} % "

@@ -43,7 +43,8 @@ if TYPE_CHECKING:
 
 __all__ = ["corrected_attitude", "correction_errors",
            "QUATERNION_COLUMNS", "BODY_FORCE_COLUMNS", "BODY_RATE_COLUMNS", "STRAPDOWN_COLUMNS",
-           "quaternion_dcm", "strapdown_inputs", "body_errors", "corrected_imu", "imu_error_signals",
+           "quaternion_dcm", "strapdown_inputs", "body_errors", "corrected_imu", "imu_error_signals", "input_scaling",
+           "not_inverted",
            "CORRECTION_TOL", "CORRECTION_FLOOR", "CORRECTION_MAX_STEPS", "CORRECTION_GROWING"]
 
 #: The fixed-point inversion of :func:`corrected_imu` stops when a step moves no input by more than this
@@ -253,13 +254,16 @@ def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured
 
     measured = (max(norms(fb_m), 1e-300), max(norms(w_m), 1e-300))
     moved, size, growing, n_steps = np.inf, np.inf, 0, 0
+    last = np.full(6, np.nan)  # the last step per column (fb_x .. w_z), of its group's size
     while n_steps < CORRECTION_MAX_STEPS:
         n_steps += 1
         df, dw = body_errors(model, q, fb, w, t, coefficients, signals)
         new_fb, new_w = fb_m - df, w_m - dw
-        steps = (np.abs(new_fb - fb).max(initial=0.0), np.abs(new_w - w).max(initial=0.0))
+        per_column = (np.abs(new_fb - fb).max(axis=0, initial=0.0), np.abs(new_w - w).max(axis=0, initial=0.0))
+        steps = (per_column[0].max(initial=0.0), per_column[1].max(initial=0.0))
         # the rounding of the step: its terms' size (measured, corrected, error), force and rate each
         terms = (max(measured[0], norms(new_fb, df)), max(measured[1], norms(new_w, dw)))
+        last = np.concatenate([per_column[0] / measured[0], per_column[1] / measured[1]])
         fb, w = new_fb, new_w
         if not all(np.isfinite(v) for v in (*steps, *terms)):
             break
@@ -271,6 +275,64 @@ def corrected_imu(model: Any, q: np.ndarray, fb_measured: np.ndarray, w_measured
         growing = growing + 1 if size > size_before else 0
         if growing == CORRECTION_GROWING:
             break  # diverging: no contraction grows that long (the f -> w coupling for one step at most)
-    raise ValueError(f"model `{model.name}`: the sensor errors at the coefficients given do not invert (the last "
-                     f"fixed-point step still moved an input by {moved:.3g} of the largest force or rate after "
-                     f"{n_steps} steps): errors as large as the measured rates or forces")
+    raise ValueError(not_inverted(model, coefficients, last, n_steps))
+
+
+def input_scaling(model: Any) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The coefficients of a set-up strapdown model that scale or turn its inputs: those on which the derivative
+    of the body force errors (first) and of the body rate errors (second) with respect to the inputs (the
+    specific force, ``fb_*``, ``w_*``) depends (scale factors, misalignments, g-sensitivity; not the biases). They
+    alone decide whether :func:`corrected_imu` inverts: its fixed-point map's derivative is theirs."""
+    import casadi as ca
+
+    fn = model.functions
+    sig = ca.SX.sym("s", len(model.signals))
+    f, t, D = ca.SX.sym("f", 3), ca.SX.sym("t"), ca.SX.sym("D", model.n_coefficients)
+    inputs = ca.vertcat(f, *(sig[i] for i, c in enumerate(model.signals)
+                             if c in BODY_FORCE_COLUMNS or c in BODY_RATE_COLUMNS))
+    out = []
+    for name in ("Delta", "phidot"):
+        args = {"f": f, "t": t, "signals": sig, "D": D}
+        J = ca.jacobian(fn[name].call({k: args[k] for k in fn[name].name_in()})[name], inputs)
+        out.append(tuple(n for j, n in enumerate(model.names) if ca.depends_on(J, D[j])))
+    return out[0], out[1]
+
+
+def not_inverted(model: Any, coefficients: np.ndarray, last: np.ndarray, n_steps: int) -> str:
+    """Why :func:`corrected_imu` did not invert a record at `coefficients` (natural units): the columns its last
+    fixed-point step still moved (`last`, per column ``fb_x .. w_z``, of the largest force or rate of the record)
+    and the coefficients that scale those columns' inputs (:func:`input_scaling`), those beyond what a linear
+    error model can describe first (:data:`casep.units.LINEAR_LIMITS`: a scale factor or misalignment
+    of 0.1)."""
+    from casep.units import LINEAR_LIMITS, si_factor
+
+    columns = (*BODY_FORCE_COLUMNS, *BODY_RATE_COLUMNS)
+    unsettled = [j for j in np.argsort(-np.nan_to_num(last, nan=np.inf)) if not last[j] <= CORRECTION_FLOOR]
+    moved = ", ".join(f"{columns[j]} by {last[j]:.3g}" if np.isfinite(last[j]) else f"{columns[j]} beyond any number"
+                      for j in unsettled)
+    force, rate = input_scaling(model)
+    groups = ({*force} if any(j < 3 for j in unsettled) else set()) | ({*rate} if any(j >= 3 for j in unsettled)
+                                                                       else set())
+    D = np.asarray(coefficients, float)
+
+    def share(j: int) -> float:  # the coefficient's size against its linear limit (0 without one)
+        u = model.units[j]
+        return abs(D[j]) * si_factor(u) / LINEAR_LIMITS[u] if u in LINEAR_LIMITS and np.isfinite(D[j]) else 0.0
+
+    involved = sorted((j for j, n in enumerate(model.names) if n in groups and D[j] != 0), key=lambda j: -share(j))
+    beyond = [j for j in involved if share(j) >= 1.0]
+    def one(j: int) -> str:
+        u = model.units[j]
+        return f"{model.names[j]} {D[j]:.4g} {u}" + (f" (limit {LINEAR_LIMITS[u] / si_factor(u):.3g})"
+                                                     if u in LINEAR_LIMITS else "")
+
+    listed = "; ".join(one(j) for j in (beyond or involved)[:6])
+    more = len(beyond or involved) - 6
+    listed += f" and {more} more" if more > 0 else ""
+    which = (f"beyond what a linear error model can describe: {listed}" if beyond
+             else f"largest against what a linear error model can describe: {listed}" if involved
+             else "none of them scales the inputs")
+    return (f"model `{model.name}`: the sensor errors at the coefficients given do not invert: after {n_steps} "
+            f"steps the last fixed-point step still moved {moved or 'no column'} (of the largest force or rate): "
+            f"errors as large as the measured rates or forces; the coefficients that scale those columns' inputs are "
+            f"{which}")

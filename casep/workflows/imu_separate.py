@@ -154,7 +154,7 @@ import math
 import os
 import warnings
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -175,8 +175,8 @@ __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_
            "SIGNIFICANT", "DESCENT_SLACK", "DESCENT_MEMORY", "HALVINGS",
            "std_shift", "DETERMINED_DRAWS", "FAIL_SHIFT", "STALL",
            "combination_imu_noise",
-           "linearisation_shift", "linearisation_record", "one_pass_judged", "SMALLER_MODELS", "prior_fits_p",
-           "HEADING_STD_DEG", "HEADING_STEP_DEG", "HEADING_SETTLED_Z", "given_heading_std"]
+           "linearisation_shift", "linearisation_record", "one_pass_judged", "Shift", "shift_said", "SMALLER_MODELS",
+           "prior_fits_p", "HEADING_STD_DEG", "HEADING_STEP_DEG", "HEADING_SETTLED_Z", "given_heading_std"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -943,7 +943,7 @@ class _Run:
             out = self.curvature(out, problem, D)
         elif not iterate and out.success:  # one linear pass: its second-order remainder judged, as a telemetry's
             shift = linearisation_shift(self, res, problem, flight, model.scales)
-            if shift is not None:
+            if shift.std is not None:
                 out = one_pass_judged(out, shift)
         if said and not iterate:  # after the judgement, whose failure message replaces a success's
             out = _with_line(out, said)
@@ -2549,38 +2549,62 @@ def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
     return dataclasses.replace(res, covariance=cov, std=std, solution=solution, diagnostics=diag)
 
 
+class Shift(NamedTuple):
+    """:func:`linearisation_shift`'s judgement: `std` how far the second-order remainder moves the linear result (in
+    its std; None: not judged; infinite: not known), `why` the reason the record does not invert at the estimate when
+    it is not known (:func:`casep.model.strapdown.not_inverted`'s columns and coefficients)."""
+
+    std: float | None
+    why: str | None = None
+
+
 def linearisation_shift(run: Any, res: EstimateResult, problem: Any, flight: FlightData,
-                        scales: dict) -> float | None:
+                        scales: dict) -> Shift:
     """How far the second-order remainder of a linear result moves it, in std (a strapdown telemetry's or a raw IMU
     record's one pass, `run` its :class:`_Run`: :mod:`casep.workflows.telemetry_iterate`'s module notes; None when it
-    cannot be judged: no finite covariance, no rows; infinite when the record does not invert at the estimate)."""
+    cannot be judged: no finite covariance, no rows; infinite when the record does not invert at the estimate, with
+    why)."""
     C = res.covariance
     if C is None or problem.y is None or not np.all(np.isfinite(C)):
-        return None
+        return Shift(None)
     x = determined_step(res, problem, flight, scales).d
     try:
         y = run.rows(x)
-    except ValueError:
-        return np.inf
+    except ValueError as e:
+        return Shift(np.inf, str(e))
     S = problem.sv()
     r = (y - problem.y + np.einsum("ijk,k->ij", S, x)).reshape(-1)
     b = np.linalg.lstsq(S.reshape(-1, len(res.names)), r, rcond=None)[0]
-    return std_shift(C, np.outer(b, b))
+    return Shift(std_shift(C, np.outer(b, b)))
 
 
-def linearisation_record(shift: float | None) -> dict:
-    """``diagnostics["linearisation"]`` of a result judged by :func:`linearisation_shift`'s `shift` (std)."""
+def linearisation_record(shift: Shift) -> dict:
+    """``diagnostics["linearisation"]`` of a result judged by :func:`linearisation_shift`'s `shift`."""
     from casep.regression.linearisation import LINEAR_OFFSET_SHARE
 
-    return {"shift_std": shift if shift is None or np.isfinite(shift) else None, "tol": LINEAR_OFFSET_SHARE,
-            **({} if shift is None or np.isfinite(shift) else {"why": "the record does not invert at the estimate"}),
+    known = shift.std is None or np.isfinite(shift.std)
+    return {"shift_std": shift.std if known else None, "tol": LINEAR_OFFSET_SHARE,
+            **({} if known else {"why": "the record does not invert at the estimate"
+                                        + (f": {shift.why}" if shift.why else "")}),
             "rule": "the second-order remainder of the linear estimate moves it by shift_std std (along the "
                     "combination it moves most); the linear result stands below tol"}
 
 
-def one_pass_judged(res: EstimateResult, shift: float) -> EstimateResult:
+def shift_said(shift: Shift) -> str:
+    """What moved a linear result (:func:`linearisation_shift`'s `shift`, judged): the second-order remainder by so
+    many std, or, where the record does not invert at the estimate, that and why (never an infinite shift)."""
+    from casep.regression.linearisation import LINEAR_OFFSET_SHARE
+
+    if shift.std is not None and np.isfinite(shift.std):
+        return (f"the linear estimate's second-order remainder moved it by {shift.std:.3g} std (above "
+                f"{LINEAR_OFFSET_SHARE:g})")
+    return ("the linear estimate could not be checked for its second order: the record does not invert at the "
+            "estimate" + (f": {shift.why}" if shift.why else ""))
+
+
+def one_pass_judged(res: EstimateResult, shift: Shift) -> EstimateResult:
     """A linear result kept without iterating (a strapdown telemetry's or a raw IMU record's ``iterate=False``)
-    judged by its second-order remainder `shift` (std, :func:`linearisation_shift`): as it is at or below
+    judged by its second-order remainder `shift` (:func:`linearisation_shift`, not None): as it is at or below
     ``LINEAR_OFFSET_SHARE``; above it with a :class:`~casep.exceptions.NonlinearityWarning` in its message;
     failed (status -8) beyond :data:`FAIL_SHIFT` std."""
     from casep.estimators.registry import STATUS_MISFIT, failed
@@ -2588,18 +2612,20 @@ def one_pass_judged(res: EstimateResult, shift: float) -> EstimateResult:
     from casep.regression.linearisation import LINEAR_OFFSET_SHARE
 
     res.diagnostics["linearisation"] = {**linearisation_record(shift), "iterated": False}
-    if shift <= LINEAR_OFFSET_SHARE:
+    why, std = shift.why, float(shift.std if shift.std is not None else np.nan)
+    if std <= LINEAR_OFFSET_SHARE:
         return res
-    if np.isfinite(shift):
+    if np.isfinite(std):
         said = (f"the linear model does not hold on this strapdown record: the second-order remainder at the "
-                f"estimate moves it by {shift:.3g} std along one combination of the coefficients (above "
+                f"estimate moves it by {std:.3g} std along one combination of the coefficients (above "
                 f"{LINEAR_OFFSET_SHARE:g}): the linear std leave that out; separate with iterate (CLI: --iterate) to "
                 "re-navigate the corrected record")
     else:
         said = ("the linear model cannot be checked on this strapdown record: corrected by the linear estimate the "
-                "record does not invert (navigate), so how far its second order moves the estimate is unknown; "
-                "separate with iterate (CLI: --iterate) to re-navigate the corrected record pass by pass")
+                f"record does not invert (navigate){f': {why}' if why else ''}, so how far its second order moves "
+                "the estimate is unknown; separate with iterate (CLI: --iterate) to re-navigate the corrected record "
+                "pass by pass")
     warnings.warn(said, NonlinearityWarning, stacklevel=3)
-    if shift > FAIL_SHIFT:
+    if std > FAIL_SHIFT:
         return failed(res, STATUS_MISFIT, f"failed: {said}")  # the residuals hold the second order
     return dataclasses.replace(res, message=f"{res.message}; {said}")

@@ -87,6 +87,7 @@ from casep.workflows.imu_separate import (
     linearisation_record,
     linearisation_shift,
     one_pass_judged,
+    shift_said,
 )
 
 if TYPE_CHECKING:
@@ -329,16 +330,15 @@ def iterate_if_curved(res: EstimateResult, flight: Any, problem: Any, model: Any
     run = _TelemetryRun(flight, base, model.source_file or model.name, spec, TIME_OFFSET in model.names)
     shift = linearisation_shift(run, res, problem, flight, model.scales)
     record = linearisation_record(shift)
-    if not iterate and (shift is None or shift <= LINEAR_OFFSET_SHARE):
+    if not iterate and (shift.std is None or shift.std <= LINEAR_OFFSET_SHARE):
         res.diagnostics["linearisation"] = {**record, "iterated": False}
         return res, False
-    if iterate is False and shift is not None:
+    if iterate is False and shift.std is not None:
         return one_pass_judged(res, shift), False
     out = run.iterate(True, ITERATE_TOL, MAX_ITERATIONS).result
     out.diagnostics["linearisation"] = {**record, "iterated": True}
-    if shift is not None and shift > LINEAR_OFFSET_SHARE:
-        note = (f"iterated: the linear estimate's second-order remainder moved it by {shift:.3g} std (above "
-                f"{LINEAR_OFFSET_SHARE:g}); the record re-navigated at the estimate in "
+    if shift.std is not None and shift.std > LINEAR_OFFSET_SHARE:
+        note = (f"iterated: {shift_said(shift)}; the record re-navigated at the estimate in "
                 f"{len(out.diagnostics['iterations']['passes'])} passes")
         out = dataclasses.replace(out, message=f"{out.message}; {note}")
     return out, True

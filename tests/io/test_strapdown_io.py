@@ -409,6 +409,43 @@ def test_t_in_ms_is_named_not_the_body_rate(tmp_path):
     assert "lost_rows" not in fl.meta["strapdown"]
 
 
+def test_t_in_ms_and_the_body_rate_in_deg_s_are_both_named(tmp_path):
+    """The closed-form rolling body with t in ms and w_* in deg/s at once: the quaternions turn by (pi/180)/1000 of
+    the rate integrated over the file's steps, which neither unit alone explains (main: "not the rates the INS
+    integrated (axes swapped, a sign, a factor?)"). Read in both units they agree: one error naming t and w_*, each
+    unit with its fix, and the gain against the product of the two factors."""
+    t, q, fb, w, _ = motion()
+    with pytest.raises(FlightDataError, match=r"columns `t`, `w_x`, `w_y`, `w_z`: t looks like ms, not s, and the body "
+                                              r"rate \(w_x, w_y, w_z\) like deg/s, not rad/s") as exc:
+        casep.read_flight(write(tmp_path / "msdeg.csv", 1e3 * t, q, fb, np.degrees(w)))
+    said = str(exc.value)
+    assert "0.001 (ms) x 0.017453 (deg/s) = 1.745e-05" in said, said
+    assert "Give t in s (ms: divide by 1000) and w_x, w_y, w_z in rad/s (deg/s: multiply by pi/180)" in said, said
+    assert "not the rates the INS integrated" not in said
+
+
+def test_unit_factorisation_names_each_factor_of_a_gain():
+    """The one rule: a gain is the product of at most one unit mistake per quantity, within 10 %: (pi/180)/1000
+    (times 1.03) is ms and deg/s, pi/180 deg/s alone, g0/1000 ms and g; 1 (and 0.95) no mistake; 1e-6 and 1.2 pi/180
+    none of the units offered (us is no unit of a 10 Hz record over 200 s)."""
+    from casep.io.flight import time_unit_factors
+    from casep.units import FORCE_UNIT_MISTAKES, G0, RATE_UNIT_MISTAKES, unit_factorisation
+
+    time = time_unit_factors(100.0, 2e5)  # a 10 Hz record over 200 s, written in ms
+    assert [u for u, _ in time] == ["ms (divide by 1000)"]
+    groups = (time, RATE_UNIT_MISTAKES, FORCE_UNIT_MISTAKES)
+
+    def named(gain):
+        found = unit_factorisation(gain, groups)
+        return None if found is None else [u.split(" (")[0] for u, _ in found]
+
+    assert named(np.pi / 180 / 1000 * 1.03) == ["ms", "deg/s"]
+    assert named(np.pi / 180) == ["deg/s"]
+    assert named(G0 * 1e-3) == ["ms", "g"]
+    assert named(1.0) == [] and named(0.95) == []
+    assert named(1e-6) is None and named(np.pi / 180 * 1.2) is None
+
+
 def test_t_in_ms_that_does_not_explain_the_disagreement_is_not_blamed():
     """t in ms and a body rate with two axes swapped: read in s they still disagree, so t is not named."""
     t, q, fb, w, _ = motion()

@@ -210,3 +210,21 @@ def test_the_errors_of_the_correction_are_its_derivative(strapdown33):
         assert np.abs(eff - base).max() > 1e-4 * np.abs(base).max(), name
         np.testing.assert_allclose(np.hstack(body_errors(own, q, fb, w, t, unit[j])), base, rtol=1e-12,
                                    atol=1e-15 * np.abs(base).max(), err_msg=name)
+
+
+def test_a_refusal_names_the_columns_and_the_coefficients_that_scale_them(strapdown33, rng):
+    """The fixed point ``x = x_m - s x`` of a scale factor ``s`` alone diverges along its own axis only (gain
+    ``|s|`` > 1); a bias only shifts the record (the map's derivative does not depend on it). So with sa_x at
+    -150 % beside biases far beyond any plausible size, the refusal names the column fb_x alone, and sa_x, not the
+    biases, as the coefficient beyond what a linear error model can describe."""
+    q, fb, w, t = _record(rng, 50)
+    D = np.zeros(strapdown33.n_coefficients)
+    for name, value in (("sa_x", -1.5e6), ("ba_x", 5e6), ("bg_y", 1e7)):
+        D[strapdown33.index(name)] = value
+    with pytest.raises(ValueError, match="do not invert") as refused:
+        corrected_imu(strapdown33, q, fb, w, t, D)
+    said = str(refused.value)
+    moved = said.split("still moved ")[1].split(" (of the largest")[0]
+    assert [part.split(" by ")[0] for part in moved.split(", ")] == ["fb_x"]
+    assert "beyond what a linear error model can describe: sa_x -1.5e+06 ppm (limit 1e+05)" in said
+    assert "ba_x" not in said and "bg_y" not in said

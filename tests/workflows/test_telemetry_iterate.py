@@ -253,3 +253,32 @@ def test_a_navigated_telemetry_pass_takes_its_sites_gravitation(launch_frame_ins
     assert G is not None and np.allclose(G(ins.t[::50], r), launch_gravitation(site)(ins.t[::50], r), rtol=0,
                                          atol=1e-12)
     assert telemetry_gravitation(dataclasses.replace(flight, meta={})) is None
+
+
+def test_a_linear_estimate_that_does_not_invert_is_said_with_its_reason(noise_free, model, monkeypatch):
+    """The MEMS flight with the record made not to invert at the linear estimate (the check's one call of the rows:
+    the refusal of :func:`casep.model.strapdown.corrected_imu`, which names the columns and coefficients): the
+    iterated result says that the linear estimate could not be checked and why, in its message and in
+    ``diagnostics["linearisation"]["why"]``, not an infinite shift ("moved it by inf std")."""
+    from casep.workflows.telemetry_iterate import _TelemetryRun
+
+    flight, *_ = noise_free
+    rows, calls = _TelemetryRun.rows, [0]
+    reason = "model `strapdown12`: the sensor errors at the coefficients given do not invert: w_z by 3.2"
+
+    def first_refused(self, D):
+        calls[0] += 1
+        if calls[0] == 1:
+            raise ValueError(reason)
+        return rows(self, D)
+
+    monkeypatch.setattr(_TelemetryRun, "rows", first_refused)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = casep.separate(flight, model, method="ols", noise="white", robust="none", sigma=0.1)
+    lin = res.diagnostics["linearisation"]
+    assert lin["iterated"] and lin["shift_std"] is None, lin
+    assert lin["why"] == f"the record does not invert at the estimate: {reason}", lin
+    assert ("iterated: the linear estimate could not be checked for its second order: the record does not invert at "
+            f"the estimate: {reason}; the record re-navigated") in res.message, res.message
+    assert "inf std" not in res.message
