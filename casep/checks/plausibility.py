@@ -100,7 +100,7 @@ from casep.regression.problem import (  # NOISE_FREE re-exported: the one consta
 from casep.units import G0
 
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
-           "min_samples", "dv_noise", "misfit_problem", "MISFIT_RATIO", "MISFIT_NOISE_FLOOR",
+           "min_samples", "dv_noise", "misfit_problem", "misfit_noise_floor", "MISFIT_RATIO", "MISFIT_NOISE_FLOOR",
            "setup_problems", "warn_setup", "levelling_problem", "SLOW_NOISE_SHARE", "SLOW_NOISE_RATIO",
            "UNIT_FACTORS", "unit_factor", "misfit_advice"]
 
@@ -604,7 +604,8 @@ def _freed(test) -> str:
 #: :data:`MISFIT_NOISE_FLOOR`) on an axis whose residuals the noise model leaves correlated is a model error.
 MISFIT_RATIO = 100.0
 #: m/s: the noise the ratio is taken against at least (the low end of radar and GNSS tracking noise), so that
-#: tracking held between fixes (no sample-to-sample scatter) is not read as noise-free.
+#: tracking held between fixes (no sample-to-sample scatter) is not read as noise-free; not on a record with no
+#: sample-to-sample change at that level at all (:func:`misfit_noise_floor`).
 MISFIT_NOISE_FLOOR = 0.01
 #: A fitted Gauss-Markov correlation time at least this share of the span of the tracked epochs: the noise model
 #: takes the residuals for a noise as slow as the record, which the record cannot tell from the drift a model error
@@ -700,7 +701,7 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
     """
     if flight.n_observed < 5:
         return None
-    sample = np.maximum(dv_noise(flight), MISFIT_NOISE_FLOOR)
+    sample = np.maximum(dv_noise(flight), misfit_noise_floor(flight))
     bad = [(a, float(residual_rms.get(a) or 0.0), float(sample[i])) for i, a in enumerate("xyz")
            if a in correlated and (residual_rms.get(a) or 0.0) > MISFIT_RATIO * sample[i]]
     advice = advice or ("the model may lack terms the data need; else a saturated sensor the INS integrated, a frame "
@@ -713,6 +714,30 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
          "samples (a stretch the model cannot follow, not glitches)")
     return (f"residual RMS at least {MISFIT_RATIO:g} times the tracking's sample-to-sample noise, and {how}, "
             f"on {len(bad)} axis(es) ({listed}): a model error, not noise; the estimates absorb it: " + advice)
+
+
+def misfit_noise_floor(flight: FlightData) -> float:
+    """The sample-to-sample noise (m/s) :func:`misfit_problem` takes the tracking's to be at least.
+
+    :data:`MISFIT_NOISE_FLOOR` where anything in the observed dv changes from one sample to the next by that much
+    (the spike statistic of :func:`dv_noise` within each stretch of the tracking, :func:`casep.noise.robust.stretches`,
+    any row, any axis): noise, or the step where tracking held between
+    fixes is refreshed, whose holds would otherwise read as noise-free. A record with no such change anywhere carries
+    no tracking noise at that level and holds no fixes (a simulated flight with noise-free tracking): the floor is
+    then the pair's interpolation floor (``meta["interpolation_floor_m_s"]``, what carrying one file's velocity to
+    the other's times errs by; 0 for one file), the residual a noise-free pair leaves, as
+    :meth:`casep.regression.problem.Problem.is_noise_free` takes it. Under the fixed floor such a record's misfit went
+    unjudged: on the noise-free ``strapdown-boost`` (strapdown33's errors, the 15-term ``strapdown15_axial`` fitted)
+    a residual of 5 mm/s, 600 times the record's sample-to-sample change, whitened by a Gauss-Markov noise of
+    188 s, was a success with a gyro bias 569 of its std off."""
+    from casep.noise.robust import stretches
+
+    tt, dv = flight.t[flight.observed], flight.dv[flight.observed]
+    d = [np.abs(_spikes(dv[a:b])) for a, b in stretches(tt)]
+    if d and max(float(np.nanmax(x)) for x in d) < MISFIT_NOISE_FLOOR:
+        meta = flight.meta if isinstance(flight.meta, dict) else {}
+        return float(meta.get("interpolation_floor_m_s") or 0.0)
+    return MISFIT_NOISE_FLOOR
 
 
 def _slow_noise_problem(flight: FlightData, residual_rms: dict, noise: dict | None, sample: np.ndarray,
