@@ -100,7 +100,7 @@ from casep.regression.problem import (  # NOISE_FREE re-exported: the one consta
 from casep.units import G0
 
 __all__ = ["NOISE_FREE", "check_flight", "check_fit", "check_sigma", "check_enough_samples", "check_dv_not_zero",
-           "min_samples", "dv_noise", "misfit_problem", "MISFIT_RATIO", "MISFIT_NOISE_FLOOR",
+           "min_samples", "dv_noise", "misfit_problem", "misfit_noise_floor", "MISFIT_RATIO", "MISFIT_NOISE_FLOOR",
            "setup_problems", "warn_setup", "levelling_problem", "SLOW_NOISE_SHARE", "SLOW_NOISE_RATIO",
            "UNIT_FACTORS", "unit_factor", "misfit_advice"]
 
@@ -604,7 +604,8 @@ def _freed(test) -> str:
 #: :data:`MISFIT_NOISE_FLOOR`) on an axis whose residuals the noise model leaves correlated is a model error.
 MISFIT_RATIO = 100.0
 #: m/s: the noise the ratio is taken against at least (the low end of radar and GNSS tracking noise), so that
-#: tracking held between fixes (no sample-to-sample scatter) is not read as noise-free.
+#: tracking held between fixes (no sample-to-sample scatter) is not read as noise-free; the slow noise's rule
+#: drops it on a record with no sample-to-sample change at that level at all (:func:`misfit_noise_floor`).
 MISFIT_NOISE_FLOOR = 0.01
 #: A fitted Gauss-Markov correlation time at least this share of the span of the tracked epochs: the noise model
 #: takes the residuals for a noise as slow as the record, which the record cannot tell from the drift a model error
@@ -700,13 +701,16 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
     """
     if flight.n_observed < 5:
         return None
-    sample = np.maximum(dv_noise(flight), MISFIT_NOISE_FLOOR)
+    own = dv_noise(flight)
+    sample = np.maximum(own, MISFIT_NOISE_FLOOR)
     bad = [(a, float(residual_rms.get(a) or 0.0), float(sample[i])) for i, a in enumerate("xyz")
            if a in correlated and (residual_rms.get(a) or 0.0) > MISFIT_RATIO * sample[i]]
     advice = advice or ("the model may lack terms the data need; else a saturated sensor the INS integrated, a frame "
                         "or set-up mistake")
     if not bad:
-        return _slow_noise_problem(flight, residual_rms, noise, sample, advice)
+        quiet = misfit_noise_floor(flight)
+        return _slow_noise_problem(flight, residual_rms, noise, np.maximum(own, quiet), advice,
+                                   by_stretch=quiet >= MISFIT_NOISE_FLOOR)
     listed = ", ".join(f"{a} {r:.4g} m/s = {r / n:.3g} x {n:.2g} m/s" for a, r, n in bad)
     how = "correlated after the noise model" if runs is None else \
         (f"the robust fit rejected {runs[0]} of its {runs[1]} rejected samples in {runs[2]} run(s) of consecutive "
@@ -715,12 +719,43 @@ def misfit_problem(flight: FlightData, residual_rms: dict, correlated, *,
             f"on {len(bad)} axis(es) ({listed}): a model error, not noise; the estimates absorb it: " + advice)
 
 
+def misfit_noise_floor(flight: FlightData) -> float:
+    """The sample-to-sample noise (m/s) :func:`misfit_problem` takes the tracking's to be at least when it judges a
+    noise model as slow as the record (:data:`SLOW_NOISE_SHARE`, :data:`SLOW_NOISE_RATIO`).
+
+    :data:`MISFIT_NOISE_FLOOR` where anything in the observed dv changes from one sample to the next by that much
+    (the spike statistic of :func:`dv_noise` within each stretch of the tracking, :func:`casep.noise.robust.stretches`,
+    any row, any axis): noise, or the step where tracking held between
+    fixes is refreshed, whose holds would otherwise read as noise-free. A record with no such change anywhere carries
+    no tracking noise at that level and holds no fixes (a simulated flight with noise-free tracking): the floor is
+    then the pair's interpolation floor (``meta["interpolation_floor_m_s"]``, what carrying one file's velocity to
+    the other's times errs by; 0 for one file), the residual a noise-free pair leaves, as
+    :meth:`casep.regression.problem.Problem.is_noise_free` takes it. On such a record nothing supports a tracking
+    noise at all, and a Gauss-Markov noise as slow as the record over residuals far above its own sample-to-sample
+    change is the noise model fitting the signal. Under the fixed floor that misfit went unjudged: on the noise-free
+    ``strapdown-boost`` (strapdown33's errors, the 15-term ``strapdown15_axial`` fitted) a residual of 0.2 to 5 mm/s,
+    38 to 670 times the record's sample-to-sample change, whitened by a Gauss-Markov noise of 188 s (the record
+    190 s), was a success with a gyro bias 569 of its std off. The 100-times rule keeps the fixed floor: a correct
+    model's residual on a quiet record (an iterated pass's remainder, 2e-6 m/s on a noise-free car window, 100 times
+    its 1.8e-8 m/s sample-to-sample change) is smooth and correlated too, and is no misfit."""
+    from casep.noise.robust import stretches
+
+    tt, dv = flight.t[flight.observed], flight.dv[flight.observed]
+    d = [np.abs(_spikes(dv[a:b])) for a, b in stretches(tt)]
+    if d and max(float(np.nanmax(x, initial=0.0)) for x in d) < MISFIT_NOISE_FLOOR:
+        meta = flight.meta if isinstance(flight.meta, dict) else {}
+        return float(meta.get("interpolation_floor_m_s") or 0.0)
+    return MISFIT_NOISE_FLOOR
+
+
 def _slow_noise_problem(flight: FlightData, residual_rms: dict, noise: dict | None, sample: np.ndarray,
-                        advice: str) -> str | None:
+                        advice: str, by_stretch: bool = True) -> str | None:
     """:func:`misfit_problem`'s finding of a noise model as slow as the record over residuals far above the
-    sample-to-sample noise `sample` (m/s per axis, at least the noisiest stretch's scatter:
+    sample-to-sample noise `sample` (m/s per axis, with `by_stretch` at least the noisiest stretch's scatter:
     :func:`casep.checks.tracking_quality.stretch_noise`; :data:`SLOW_NOISE_SHARE`, :data:`SLOW_NOISE_RATIO`), or
-    None."""
+    None. Without `by_stretch` (a record with no sample-to-sample change at :data:`MISFIT_NOISE_FLOOR`:
+    :func:`misfit_noise_floor`) the stretches' scatter, from first differences, is the slope of a smooth dv, not
+    noise."""
     axes = (noise or {}).get("axes") if isinstance(noise, dict) else None
     if not isinstance(axes, dict):
         return None
@@ -730,7 +765,7 @@ def _slow_noise_problem(flight: FlightData, residual_rms: dict, noise: dict | No
         return None
     # against the noisiest stretch's scatter where the noise differs between stretches (a quiet pad, a noisy
     # flight after a reacquisition): the robust scatter of the whole record is the quiet one's
-    noisiest = max((n for *_, n in stretch_noise(tt, flight.dv[flight.observed])), default=0.0)
+    noisiest = max((n for *_, n in stretch_noise(tt, flight.dv[flight.observed])), default=0.0) if by_stretch else 0.0
     sample = np.maximum(sample, noisiest)
     slow = []
     for i, a in enumerate("xyz"):

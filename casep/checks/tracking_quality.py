@@ -769,13 +769,20 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray
     if terms is None:
         return None
     W = np.asarray(weights, dtype=float).reshape(-1, t_rows.size, 3)
-    out = np.zeros((W.shape[0], terms.t_end.size, 6))
-    for r, tr in enumerate(t_rows):
-        after = terms.t_end <= tr
-        dF = terms.F_rows[r] - terms.F_mid[after]  # (b, 3): the attitude error acts from the block's middle on
-        G_r = np.concatenate([terms.ga[after], -np.cross(dF[:, :, None], terms.gg[after], axisa=1, axisb=1, axisc=1)],
-                             2)
-        out[:, after] += np.einsum("ki,bij->kbj", W[:, r], G_r)  # G_r: (b, 3 axes, 6 noise variables)
+    # Block b counts at the epochs r with t_end_b <= t_r; with dF = F_r - F_mid_b (the attitude error acts from the
+    # block's middle on) its column j is ga_b[:, j] and -dF x gg_b[:, j], seen through W_r: W_r . (dF x g) =
+    # g . (W_r x dF). Summed over those epochs: Ws_b = sum W_r, Xs_b = sum W_r x F_r (suffix sums over the epochs in
+    # time order), so out[b] = ga_b^T Ws_b and -gg_b^T (Xs_b - Ws_b x F_mid_b): every epoch once, not once per block.
+    order = np.argsort(t_rows, kind="stable")
+    Wo = W[:, order]
+    Xo = np.cross(Wo, terms.F_rows[order][None], axis=2)
+    zero = np.zeros((W.shape[0], 1, 3))
+    Ws = np.concatenate([np.cumsum(Wo[:, ::-1], axis=1)[:, ::-1], zero], 1)  # [:, i]: the epochs from the i-th on
+    Xs = np.concatenate([np.cumsum(Xo[:, ::-1], axis=1)[:, ::-1], zero], 1)
+    first = np.searchsorted(np.asarray(t_rows, dtype=float)[order], terms.t_end, side="left")
+    Wb, Xb = Ws[:, first], Xs[:, first]  # (k, B, 3)
+    out = np.concatenate([np.einsum("kbi,bij->kbj", Wb, terms.ga),
+                          -np.einsum("kbi,bij->kbj", Xb - np.cross(Wb, terms.F_mid[None], axis=2), terms.gg)], 2)
     if terms.level is not None:
         win, Phi, F0 = terms.level  # blocks in the window, phi0 per unit xi (bw, 3, 3), F at the window's start
         dF = terms.F_rows - F0  # (M, 3): phi0 acts from the start on

@@ -2563,11 +2563,23 @@ def linearisation_shift(run: Any, res: EstimateResult, problem: Any, flight: Fli
     """How far the second-order remainder of a linear result moves it, in std (a strapdown telemetry's or a raw IMU
     record's one pass, `run` its :class:`_Run`: :mod:`casep.workflows.telemetry_iterate`'s module notes; None when it
     cannot be judged: no finite covariance, no rows; infinite when the record does not invert at the estimate, with
-    why)."""
+    why).
+
+    Judged on what the flight determines, as the iteration's first pass steps (:func:`determined_step` about 0):
+    the rows at the linear estimate's part along the combinations whose std is below the plausible size of the
+    coefficients, and the remainder's shift ``b`` along those combinations only, ``|W b|`` (``W`` the step's
+    metric: each combination's correction in its std; ``sqrt(b^T C^+ b)`` over them). Not over every combination:
+    an undetermined one's linear estimate (thousands of declared magnitudes, std as large) navigates the record
+    far from any plausible instrument, and its own remainder, in its own std, says nothing of the determined ones.
+    On the tactical-grade Groves flight under ``strapdown33`` (18 of 34 combinations determined) the shift over
+    every combination was 2.3e3 std and the telemetry iterated 6 passes."""
     C = res.covariance
     if C is None or problem.y is None or not np.all(np.isfinite(C)):
         return Shift(None)
-    x = determined_step(res, problem, flight, scales).d
+    step = determined_step(res, problem, flight, scales, about=np.zeros(len(res.names)))
+    if not step.metric.size:  # nothing determined: nothing whose linearity to judge
+        return Shift(0.0)
+    x = step.d
     try:
         y = run.rows(x)
     except ValueError as e:
@@ -2575,7 +2587,7 @@ def linearisation_shift(run: Any, res: EstimateResult, problem: Any, flight: Fli
     S = problem.sv()
     r = (y - problem.y + np.einsum("ijk,k->ij", S, x)).reshape(-1)
     b = np.linalg.lstsq(S.reshape(-1, len(res.names)), r, rcond=None)[0]
-    return Shift(std_shift(C, np.outer(b, b)))
+    return Shift(float(np.linalg.norm(step.metric @ b)))
 
 
 def linearisation_record(shift: Shift) -> dict:

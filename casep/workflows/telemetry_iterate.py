@@ -52,15 +52,17 @@ attitude random walk that turns the correction about the wrong axes: on a 150 s 
 flight with the rates as integrated gave 0.53.
 
 **When the linear result stands** (:func:`linearisation_shift`). The pass at the linear estimate ``x``
-(its part the flight determines) gives the rows the nonlinear model predicts; their remainder about the
+(its part along the combinations the flight determines, as the iteration's first pass steps: std below the
+plausible size of the coefficients) gives the rows the nonlinear model predicts; their remainder about the
 linear model, ``r = y(x) - (y(0) - S_V x)``, moves the least-squares estimate by ``b = S_V^+ r``. (Its even part
 alone, ``(y(x) + y(-x)) / 2 - y(0)``, free of any first-order difference between S_V's quadrature and the
 re-navigation's, gave the same shifts to 2 % on three navigation-grade flights, 0.011-0.095 std: one pass is
-enough.) The linear
-result stands while ``sqrt(b^T C^+ b)`` (the shift along the combination it moves most, in that combination's
-std) is below :data:`casep.regression.linearisation.LINEAR_OFFSET_SHARE`, the rule the tracking offset and
-the radar launch time are held to; beyond it :func:`separate` iterates (``iterate=None``, the default) or,
-with ``iterate=False``, the linear result carries a :class:`~casep.exceptions.NonlinearityWarning` with the
+enough.) The linear result stands while ``sqrt(b^T C^+ b)`` over the determined combinations (the shift along
+the one it moves most, in that combination's std; an undetermined combination's linear estimate, its std as large,
+says nothing of the linearity of what the result states) is below
+:data:`casep.regression.linearisation.LINEAR_OFFSET_SHARE`, the rule the tracking offset and the radar launch time
+are held to; beyond it :func:`separate` iterates (``iterate=None``, the default) or, with ``iterate=False``,
+the linear result carries a :class:`~casep.exceptions.NonlinearityWarning` with the
 shift (and fails, status ``STATUS_MISFIT``: the residuals hold the model's second order, when the shift exceeds
 :data:`FAIL_SHIFT` std: an estimate that far off is no success).
 

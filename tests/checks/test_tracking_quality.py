@@ -334,6 +334,39 @@ def test_the_imu_noise_state_is_the_imu_noise_effect(levelled):
     np.testing.assert_allclose(known.dense(), G @ G.T, rtol=0, atol=1e-12 * np.abs(G @ G.T).max())
 
 
+def test_the_imu_noise_effect_sums_each_epoch_once_in_any_order():
+    """``weights @ G`` by the suffix sums of :func:`imu_noise_effect` against its definition summed epoch by epoch
+    (each block's columns at every epoch after it: ``ga`` and ``-(F_r - F_mid) x gg``), the epochs out of time order,
+    one before any block ends, one at a block's last sample, several weight rows: to 1e-12."""
+    from scipy.spatial.transform import Rotation
+
+    from casep.checks.tracking_quality import _imu_noise_blocks, imu_noise_effect
+    from casep.io.flight import FlightData
+
+    rng = np.random.default_rng(8)
+    t = np.arange(0.0, 6.0, 0.05)
+    n = t.size
+    q = Rotation.from_rotvec(np.column_stack([0.3 * t, 0.1 * np.sin(t), 0.05 * t])).as_quat()  # x y z w
+    f = np.column_stack([np.sin(t), 9.8 + 2 * t, np.cos(2 * t)])
+    sig = {"q_w": q[:, 3], "q_x": q[:, 0], "q_y": q[:, 1], "q_z": q[:, 2],
+           **{f"fb_{a}": f[:, i] + rng.normal(0, 0.05, n) for i, a in enumerate("xyz")},
+           **{f"w_{a}": rng.normal(0, 2e-3, n) for a in "xyz"}}
+    flight = FlightData(t, f, np.zeros((n, 3)), meta={"rows_index": np.full(n, -1)}, signals=sig)
+    rows = np.array([4.0, 0.02, 5.5, 1.3, 3.3, 2.0, 0.5])
+    terms = _imu_noise_blocks(flight, rows, None)
+    assert rows.min() < terms.t_end.min() and np.isin(terms.t_end, rows).any()
+    W = rng.normal(size=(4, 3 * rows.size))
+    ref = np.zeros((4, terms.t_end.size, 6))
+    for r, tr in enumerate(rows):
+        after = terms.t_end <= tr
+        dF = terms.F_rows[r] - terms.F_mid[after]
+        G_r = np.concatenate([terms.ga[after], -np.cross(dF[:, :, None], terms.gg[after], axisa=1, axisb=1,
+                                                          axisc=1)], 2)
+        ref[:, after] += np.einsum("ki,bij->kbj", W.reshape(4, rows.size, 3)[:, r], G_r)
+    got = imu_noise_effect(flight, rows, W)
+    np.testing.assert_allclose(got, ref.reshape(4, -1), rtol=0, atol=1e-12 * np.abs(ref).max())
+
+
 def test_a_correlated_stretch_is_weighted_by_its_long_run_variance():
     """One offset seen by a quiet white stretch and by a stretch of Gauss-Markov noise whose epoch-to-epoch changes
     look quiet (lag-1 correlation 0.95: its mean is 28 times less certain than white noise of that scatter says).
