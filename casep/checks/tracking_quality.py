@@ -489,8 +489,9 @@ def keep_screen(flight: FlightData, screen: dict | None) -> FlightData:
     The passes of an iteration that re-navigates the same IMU record and pairs it with the same tracking
     (:mod:`casep.workflows.imu_separate`) keep the first pass's screen: a fixed point needs the same rows
     in every pass, and what the screen tests (a repeated fix while the IMU moved by more than
-    :data:`STALE_MOTION`, jumps beyond :data:`JUMP_TOL` + :data:`JUMP_RATE` dt) is larger by orders of
-    magnitude than what a correction of the IMU's errors changes between passes.
+    :data:`STALE_MOTION`, jumps beyond :data:`JUMP_TOL` + :data:`JUMP_RATE` dt, or beyond :data:`EXCURSION_SIGMAS`
+    sigma of the noise between consecutive epochs) is larger by orders of magnitude than what a correction of
+    the IMU's errors (smooth in time) changes between passes.
     """
     if screen is None:
         return flight
