@@ -63,6 +63,7 @@ from casep.exceptions import TrackingQualityWarning
 from casep.io.flight import FlightData
 from casep.noise.robust import MAD_SIGMA, MIN_SEGMENT_S, stretches
 from casep.regression.linalg import analyze_rank, reduce_qr_blocks
+from casep.regression.rows import GLITCH_GROSS
 
 if TYPE_CHECKING:
     from casep.regression.problem import Problem
@@ -80,9 +81,9 @@ STALE_MOTION = 0.5
 #: The physics check: a jump of dv between consecutive epochs above JUMP_TOL + JUMP_RATE dt (m/s, m/s^2) ...
 JUMP_TOL = 10.0
 JUMP_RATE = 2.0
-#: An excursion's jumps: beyond this many robust sigma of the stretch's epoch-to-epoch change of dv (as the fit's
-#: gross glitch, :data:`casep.regression.rows.GLITCH_GROSS`: Gaussian noise gives P = 1.6e-23 per axis).
-EXCURSION_SIGMAS = 10.0
+#: An excursion's jumps: beyond this many robust sigma of the stretch's epoch-to-epoch change of dv: the fit's gross
+#: glitch (:data:`casep.regression.rows.GLITCH_GROSS`, 10: Gaussian noise gives P = 1.6e-23 per axis).
+EXCURSION_SIGMAS = GLITCH_GROSS
 #: ... cuts the epochs into segments; a segment shorter than MIN_SEGMENT_S (s) is left out, and a pause that long
 #: splits them into stretches with a noise level each (:func:`casep.noise.robust.stretches`, the robust filter's
 #: split: one rule in the lower layer)
