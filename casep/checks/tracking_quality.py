@@ -17,6 +17,15 @@ finds, on a telemetry + tracking pair formed at the tracking times:
   segments at such jumps; a segment shorter than :data:`MIN_SEGMENT_S` is left out (a glitch or a
   burst of wrong epochs between consistent stretches), except the first when it joins the flight's first
   sample, where dv is 0 (the pad), under the same rule; when no segment is kept, the longest is.
+- **excursions** (the physics check at the tracking's own noise level): wrong epochs a few m/s off while the
+  vehicle does tens or hundreds of m/s stay below that rule, but not below the tracking's own noise. Between
+  consecutive epochs of a stretch, ``|d(dv)|`` above :data:`EXCURSION_SIGMAS` robust sigma of the stretch's
+  epoch-to-epoch changes (per axis, 1.4826 MAD) plus ``JUMP_RATE dt`` plus what a time-tag error of
+  :data:`casep.model.loader.TIME_OFFSET_MAGNITUDE_MS` makes of the acceleration's change (``|d a| dt_trk``) is a
+  jump; a jump away and a jump back within :data:`MIN_SEGMENT_S` whose sum is within the same rule (the
+  dv returns to its course: the epochs between them were off by one offset) leave the epochs between them out.
+  A lone jump (a step that stays: a time tag at lift-off, a change of the receiver's solution) leaves nothing
+  out; the fit judges it.
 - **clock drift**: the time offset of the tracking against the telemetry estimated in
   :data:`DRIFT_WINDOWS` windows (``dv ~ quadratic in t + a(t) tau_w`` per window, each axis its own
   quadratic, one ``tau_w``; windows whose acceleration barely changes cannot see it and are skipped),
@@ -54,6 +63,7 @@ from casep.exceptions import TrackingQualityWarning
 from casep.io.flight import FlightData
 from casep.noise.robust import MAD_SIGMA, MIN_SEGMENT_S, stretches
 from casep.regression.linalg import analyze_rank, reduce_qr_blocks
+from casep.regression.rows import GLITCH_GROSS
 
 if TYPE_CHECKING:
     from casep.regression.problem import Problem
@@ -64,7 +74,7 @@ __all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "c
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
            "imu_noise_effect", "imu_sample_noise", "white_sample_std",
            "rest_white_std", "IMU_NOISE_AT_REST", "STALE_MOTION", "HELD_SHARE", "HELD_RUN_SHARE", "JUMP_TOL",
-           "JUMP_RATE",
+           "JUMP_RATE", "EXCURSION_SIGMAS",
            "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
 
 #: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
@@ -72,6 +82,9 @@ STALE_MOTION = 0.5
 #: The physics check: a jump of dv between consecutive epochs above JUMP_TOL + JUMP_RATE dt (m/s, m/s^2) ...
 JUMP_TOL = 10.0
 JUMP_RATE = 2.0
+#: An excursion's jumps: beyond this many robust sigma of the stretch's epoch-to-epoch change of dv: the fit's gross
+#: glitch (:data:`casep.regression.rows.GLITCH_GROSS`, 10: Gaussian noise gives P = 1.6e-23 per axis).
+EXCURSION_SIGMAS = GLITCH_GROSS
 #: ... cuts the epochs into segments; a segment shorter than MIN_SEGMENT_S (s) is left out, and a pause that long
 #: splits them into stretches with a noise level each (:func:`casep.noise.robust.stretches`, the robust filter's
 #: split: one rule in the lower layer)
@@ -104,6 +117,8 @@ class TrackingScreen:
     kept: int = 0
     stretches: list = field(default_factory=list)
     left_out_rows: list = field(default_factory=list)
+    excursions: list = field(default_factory=list)
+    largest_excursion_m_s: float = 0.0
 
     def to_dict(self) -> dict:
         """Plain data (JSON: NaN as null)."""
@@ -128,7 +143,8 @@ def screen_summary(screen: dict | None, top: int = 3) -> str:
         more = f" and {len(runs) - top} more" if len(runs) > top else ""
         return f"{what} {sum(n for _, _, n in runs)} in {len(runs)} span{'s' if len(runs) > 1 else ''}: {said}{more}"
 
-    parts = [p for p in (spans("stale", "stale (repeated fixes)"), spans("rejected", "rejected by the physics check"))
+    parts = [p for p in (spans("stale", "stale (repeated fixes)"), spans("rejected", "rejected by the physics check"),
+                         spans("excursions", "off the telemetry's course and back (the physics check at the noise)"))
              if p]
     return (f"the tracking screen left out {screen['epochs'] - screen['kept']} of its {screen['epochs']} epochs"
             + (f" ({'; '.join(parts)})" if parts else ""))
@@ -270,6 +286,42 @@ def _impossible(t: np.ndarray, dv: np.ndarray, start: float | None = None) -> tu
         long[np.argmax(t[last] - t[first])] = True
     largest = float(jump[cut].max()) if cut.any() else 0.0
     return ~long[seg], largest
+
+
+def _excursions(t: np.ndarray, dv: np.ndarray, acc: np.ndarray) -> tuple[np.ndarray, float]:
+    """Epochs between a jump of dv away from its course and the jump back (module notes: excursions), of the epochs
+    `t` (s) with `dv` and the telemetry's kinematic acceleration `acc` there (m/s, m/s^2); and the largest of those
+    jumps, m/s.
+
+    A jump: ``|d(dv)|`` between consecutive epochs of a stretch (:func:`stretches`) beyond ``EXCURSION_SIGMAS s +
+    JUMP_RATE dt + |d a| dt_trk``, ``s`` the stretch's robust sigma of the change (1.4826 MAD, its largest axis; a
+    stretch without scatter has no jump). A jump away and the next jump back within :data:`MIN_SEGMENT_S` whose sum is
+    within ``EXCURSION_SIGMAS sqrt(2) s`` plus both jumps' other allowances (the dv returns where it would have
+    been) leave the epochs between them out; any other jump leaves nothing out."""
+    from casep.model.loader import TIME_OFFSET_MAGNITUDE_MS
+
+    out = np.zeros(t.size, bool)
+    if t.size < 3:
+        return out, 0.0
+    d = np.diff(dv, axis=0)
+    s = np.zeros(d.shape[0])  # each change's stretch's robust sigma of the change, m/s (0: none)
+    for a, b in stretches(t):
+        dd = d[a:b - 1]
+        s[a:b - 1] = MAD_SIGMA * float(np.max(np.median(np.abs(dd - np.median(dd, axis=0)), axis=0)))
+    other = JUMP_RATE * np.diff(t) + np.linalg.norm(np.diff(acc, axis=0), axis=1) * TIME_OFFSET_MAGNITUDE_MS * 1e-3
+    jump = np.linalg.norm(d, axis=1)
+    cuts = np.flatnonzero((s > 0) & (jump > EXCURSION_SIGMAS * s + other))
+    largest, i = 0.0, 0
+    while i + 1 < cuts.size:
+        a, b = cuts[i], cuts[i + 1]  # away between epochs a and a + 1, back between b and b + 1
+        back = np.linalg.norm(d[a] + d[b]) <= EXCURSION_SIGMAS * math.sqrt(2.0) * max(s[a], s[b]) + other[a] + other[b]
+        if t[b] - t[a + 1] < MIN_SEGMENT_S and back:
+            out[a + 1:b + 1] = True
+            largest = max(largest, float(jump[a]), float(jump[b]))
+            i += 2
+        else:
+            i += 1
+    return out, largest
 
 
 def clock_drift(t: np.ndarray, dv: np.ndarray, a: np.ndarray, windows: int = DRIFT_WINDOWS,
@@ -450,17 +502,22 @@ def screen_tracking(flight: FlightData, *, drift_warning: bool = True) -> Flight
     bad_fresh, largest = _impossible(t[fresh], flight.dv[idx[fresh]], float(flight.t[0]))
     rejected = np.zeros(idx.size, bool)
     rejected[fresh[bad_fresh]] = True
-    keep = ~(stale | rejected)
+    rest = np.flatnonzero(~(stale | rejected))  # the physics check at the tracking's noise, on what is left
+    off, largest_off = _excursions(t[rest], flight.dv[idx[rest]], acc[idx[rest]])
+    excursion = np.zeros(idx.size, bool)
+    excursion[rest[off]] = True
+    keep = ~(stale | rejected | excursion)
     a = acc[idx[keep]]
     own_clock = meta.get("format") == "pair"  # a one-file flight's rows tag telemetry and tracking alike
     drift, drift_std = clock_drift(t[keep], flight.dv[idx[keep]], a) if own_clock and keep.sum() >= 20 \
         else (math.nan, math.nan)
     screen = TrackingScreen(_spans(t, stale), _spans(t, rejected), largest, drift, drift_std, int(idx.size),
-                            int(keep.sum()))
+                            int(keep.sum()), excursions=_spans(t, excursion), largest_excursion_m_s=largest_off)
     screen.stretches = stretch_noise(t[keep], flight.dv[idx[keep]])
     screen.left_out_rows = [int(r) for r in _file_rows(flight)[idx[~keep]]]
     _warn(flight.source, screen, _located(flight, idx, stale) if stale.any() else "",
-          _located(flight, idx, rejected) if rejected.any() else "", drift_warning)
+          _located(flight, idx, rejected) if rejected.any() else "", drift_warning,
+          _located(flight, idx, excursion) if excursion.any() else "")
     if keep.all():
         return dataclasses.replace(flight, meta={**meta, "tracking_screen": screen.to_dict()})
     observed = flight.observed.copy()
@@ -476,8 +533,9 @@ def keep_screen(flight: FlightData, screen: dict | None) -> FlightData:
     The passes of an iteration that re-navigates the same IMU record and pairs it with the same tracking
     (:mod:`casep.workflows.imu_separate`) keep the first pass's screen: a fixed point needs the same rows
     in every pass, and what the screen tests (a repeated fix while the IMU moved by more than
-    :data:`STALE_MOTION`, jumps beyond :data:`JUMP_TOL` + :data:`JUMP_RATE` dt) is larger by orders of
-    magnitude than what a correction of the IMU's errors changes between passes.
+    :data:`STALE_MOTION`, jumps beyond :data:`JUMP_TOL` + :data:`JUMP_RATE` dt, or beyond :data:`EXCURSION_SIGMAS`
+    sigma of the noise between consecutive epochs) is larger by orders of magnitude than what a correction of
+    the IMU's errors (smooth in time) changes between passes.
     """
     if screen is None:
         return flight
@@ -629,9 +687,9 @@ def clock_drift_record(flight: FlightData, residual: np.ndarray) -> dict | None:
     return record
 
 
-def _warn(source: str, s: TrackingScreen, stale: str, rejected: str, drift: bool = True) -> None:
-    """The screen's TrackingQualityWarnings (`stale`, `rejected`: the runs located in the file; the clock drift
-    unless `drift` is False: a fit follows, whose residuals :func:`fit_clock_drift` measures it on)."""
+def _warn(source: str, s: TrackingScreen, stale: str, rejected: str, drift: bool = True, excursions: str = "") -> None:
+    """The screen's TrackingQualityWarnings (`stale`, `rejected`, `excursions`: the runs located in the file; the clock
+    drift unless `drift` is False: a fit follows, whose residuals :func:`fit_clock_drift` measures it on)."""
     if s.stale:
         n = sum(k for *_, k in s.stale)
         warnings.warn(TrackingQualityWarning(
@@ -644,6 +702,14 @@ def _warn(source: str, s: TrackingScreen, stale: str, rejected: str, drift: bool
             f"{source}: {n} tracking epochs fail the physics check against the telemetry (velocity jumps up to "
             f"{s.largest_jump_m_s:.4g} m/s, beyond {JUMP_TOL:g} m/s + {JUMP_RATE:g} m/s^2 x the time between epochs, "
             f"in stretches shorter than {MIN_SEGMENT_S:g} s) and are left out: {rejected}"), stacklevel=3)
+    if s.excursions:
+        n = sum(k for *_, k in s.excursions)
+        warnings.warn(TrackingQualityWarning(
+            f"{source}: {n} tracking epochs in {len(s.excursions)} span(s) are off the telemetry's course: the "
+            f"velocity difference jumps away (by up to {s.largest_excursion_m_s:.3g} m/s, beyond {EXCURSION_SIGMAS:g} "
+            "robust sigma of its epoch-to-epoch change in the stretch) and back within "
+            f"{MIN_SEGMENT_S:g} s, a motion the IMU rules out (the physics check at the tracking's noise); they are "
+            f"wrong epochs and left out: {excursions}"), stacklevel=3)
     if drift:
         _warn_drift(source, s.drift_ppm, s.drift_std_ppm, "")
     noise = [x for x in s.stretches if x[3] > 0]

@@ -233,7 +233,8 @@ def noise_account(rows: Rows | None, asked: str, noise: NoiseModel | None = None
 
     ``noise``: the noise model (`noise`, default the rows') with the kind `asked` (and a `note`);
     ``robust``: what the robust fit did with the samples it rejected, located in their files;
-    ``excluded``: the samples removed as flagged outliers, located. The last two only when they apply.
+    ``excluded``: the samples removed as flagged outliers, located; ``misfit_runs``: the runs of rejections that kept
+    robust "auto" off (:attr:`casep.regression.rows.Rows.misfit_runs`). The last three only when they apply.
     """
     if noise is None:
         assert rows is not None  # the rows' own noise model
@@ -243,6 +244,8 @@ def noise_account(rows: Rows | None, asked: str, noise: NoiseModel | None = None
         return out
     if rows.robust is not None and rows.problem.t is not None:
         out["robust"] = {**rows.robust, "rejected": _places(rows.problem, np.flatnonzero(~rows.keep)[:200])}
+    if rows.misfit_runs is not None:  # robust "auto" not engaged: runs, not glitches (the std do not cover them)
+        out["misfit_runs"] = rows.misfit_runs
     if rows.excluded is not None:
         ex = rows.excluded
         locs = _places(rows.problem, [r["sample"] for r in ex["samples"]])

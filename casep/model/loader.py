@@ -42,7 +42,7 @@ from casep.model.error_model import ErrorModel, ModelDefinitionError
 
 __all__ = ["ModelFileError", "build_model", "load_model", "model_dirs", "available_models", "find_model_file",
            "run_model_file", "with_time_offset", "add_time_offset",
-           "TIME_OFFSET", "model_file_reference", "model_names", "where_in_file",
+           "TIME_OFFSET", "TIME_OFFSET_MAGNITUDE_MS", "model_file_reference", "model_names", "where_in_file",
            "load_model_file", "shipped_model_dirs", "shipped_model_file", "model_record",
            "load_recorded_model", "shipped_model", "default_model", "PHI0_MODELS", "RICHER_MODELS"]
 
@@ -312,6 +312,8 @@ def load_model_file(path: Path, kind: type[SymbolicModel] = ErrorModel) -> Any:
 TIME_OFFSET = "dt_trk"
 #: The name of a model with the term added: ``platform36+dt_trk``.
 TIME_OFFSET_SUFFIX = "+" + TIME_OFFSET
+#: The declared magnitude of ``dt_trk``, ms: the tracking time-tag delay a model with the term expects.
+TIME_OFFSET_MAGNITUDE_MS = 20.0
 
 
 def with_time_offset(model: str | os.PathLike | ErrorModel) -> ErrorModel:
@@ -338,7 +340,7 @@ def add_time_offset(m: ErrorModel) -> ErrorModel:
 
     m.description = f"{m.description or m.name} + tracking time offset dt_trk (ms, per flight)"
     m.name = f"{m.name}{TIME_OFFSET_SUFFIX}"  # its file is the base model's (load_recorded_model adds the term)
-    c = m.declare(dt_trk=("ms", 20.0), per_flight=True)  # tracking time-tag delay, ms (SI: s)
+    c = m.declare(dt_trk=("ms", TIME_OFFSET_MAGNITUDE_MS), per_flight=True)  # tracking time-tag delay, ms (SI: s)
     a = ca.vertcat(m.signal("a_x"), m.signal("a_y"), m.signal("a_z"))  # kinematic acceleration, m/s^2
     m.set_velocity_error(m.output("velocity_error") + a * c.dt_trk)  # dv += a(t) dt_trk (a lever arm kept)
     return m

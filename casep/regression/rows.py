@@ -32,7 +32,7 @@ from casep.noise.robust import MAX_RUN, robust_filter
 from casep.noise.spec import NoiseSpec
 from casep.regression.problem import NOISE_FREE, Problem  # NOISE_FREE re-exported: the one noise-free constant
 
-__all__ = ["Rows", "prepare_rows", "NOISE_FREE", "GLITCH_SIGMAS", "rejected_runs", "mostly_runs"]
+__all__ = ["Rows", "prepare_rows", "NOISE_FREE", "GLITCH_SIGMAS", "rejected_runs", "mostly_runs", "misfit_runs_text"]
 
 _MAX_ROBUST_ITER = 12
 _MAX_EXCLUDE_PASSES = 6
@@ -59,6 +59,10 @@ class Rows:
         The samples removed as flagged outliers.
     asked : str
         The noise kind asked for.
+    misfit_runs : dict or None
+        Robust "auto" not engaged because most of the samples the robust filter would reject lie in runs (a smooth
+        misfit of the model, :func:`mostly_runs`): ``found``, ``in_runs`` and ``runs`` (``first``, ``last``: where
+        each run's first and last sample come from, :meth:`Problem.locate`; ``samples``); the std do not cover it.
     """
 
     problem: Problem
@@ -69,6 +73,7 @@ class Rows:
     robust: dict | None = None
     excluded: dict | None = None
     asked: str = "auto"
+    misfit_runs: dict | None = None
 
     @property
     def sigma(self) -> float | None:
@@ -126,10 +131,10 @@ GLITCH_MIN = 3
 GLITCH_GROSS = 10.0
 
 
-def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[int]]:
+def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[tuple[int, int]]]:
     """(rejections of the robust filter on the least-squares residuals, the count Gaussian noise gives,
-    the rejections beyond :data:`GLITCH_GROSS`, the lengths of the runs of rejections as long as the filter's
-    :data:`casep.noise.robust.MAX_RUN`: a step or a smooth misfit, not a glitch)."""
+    the rejections beyond :data:`GLITCH_GROSS`, the runs of rejections as long as the filter's
+    :data:`casep.noise.robust.MAX_RUN` (``(first, stop)`` samples): a step or a smooth misfit, not a glitch)."""
     from casep._special import normal_sf  # without importing scipy.special (its import, 0.1-0.6 s)
     from casep.noise.robust import REJECT
 
@@ -149,7 +154,8 @@ def _glitches(problem: Problem, nm: NoiseModel) -> tuple[int, float, int, list[i
         keep = rw.keep
     expected = problem.n_samples * (1.0 - (1.0 - 2.0 * normal_sf(REJECT)) ** 3)  # P(|z| > REJECT), any axis
     gross = int(np.sum(~rw.keep & np.any(np.abs(rw.u) > GLITCH_GROSS, axis=1)))
-    return int((~rw.keep).sum()), float(expected), gross, rejected_runs(rw.keep)
+    long = [(a, b) for a, b in runs(~rw.keep) if b - a >= MAX_RUN]
+    return int((~rw.keep).sum()), float(expected), gross, long
 
 
 def rejected_runs(keep: np.ndarray) -> list[int]:
@@ -164,18 +170,48 @@ def mostly_runs(found: int, long: list[int]) -> bool:
     return 2 * sum(long) > found
 
 
-def _warn_misfit(problem: Problem, found: int, runs: list[int]) -> None:
-    """Say that the least-squares residuals hold runs, not glitches (:func:`prepare_rows`)."""
+#: The runs a misfit warning and record name (the rest counted).
+MISFIT_RUNS_SAID = 6
+
+
+def _misfit_runs(problem: Problem, found: int, spans: list[tuple[int, int]]) -> dict:
+    """The record of :attr:`Rows.misfit_runs`: the runs `spans` (``(first, stop)`` samples) located in their files."""
+    said = spans[:MISFIT_RUNS_SAID]
+    locs = problem.locate([k for a, b in said for k in (a, b - 1)])
+    return {"found": int(found), "in_runs": int(sum(b - a for a, b in spans)), "count": len(spans),
+            "runs": [{"first": locs[2 * i], "last": locs[2 * i + 1], "samples": int(b - a)}
+                     for i, (a, b) in enumerate(said)]}
+
+
+def misfit_runs_text(record: dict) -> str:
+    """Where the runs of a :attr:`Rows.misfit_runs` record lie: ``lines 1083..1102 of f.csv, t = 60..60.95 s (20)``,
+    each run, the first :data:`MISFIT_RUNS_SAID` of them."""
+    from pathlib import Path
+
+    parts = []
+    for r in record["runs"]:
+        first, last = r["first"], r["last"]
+        at = "" if first.get("file") is None else (
+            f"lines {first['line']}..{last['line']}" if first.get("line") is not None else
+            f"rows {first['row']}..{last['row']}") + f" of {Path(first['file']).name}, "
+        parts.append(f"{at}t = {first['t']:.10g}..{last['t']:.10g} s ({r['samples']})")
+    more = record["count"] - len(record["runs"])
+    return ", ".join(parts) + (f" and {more} more" if more > 0 else "")
+
+
+def _warn_misfit(problem: Problem, record: dict, shortest: int) -> None:
+    """Say that the least-squares residuals hold runs, not glitches, and where (:func:`prepare_rows`)."""
     import warnings
 
     from casep.exceptions import NoiseNotWhiteWarning
     from casep.noise.robust import REJECT
 
     warnings.warn(NoiseNotWhiteWarning(
-        f"{problem.source}: {sum(runs)} of the {found} samples the robust filter would reject lie in {len(runs)} "
-        f"run(s) of {min(runs)} or more consecutive samples beyond {REJECT:g} robust sigma: a smooth misfit of the "
-        "model (a missing term, a frame or time-tag error, or instrument errors too large for the linear model), "
-        "not isolated glitches; the robust fit is not engaged, and the std do not cover the misfit"), stacklevel=3)
+        f"{problem.source}: {record['in_runs']} of the {record['found']} samples the robust filter would reject lie "
+        f"in {record['count']} run(s) of {shortest} or more consecutive samples beyond {REJECT:g} robust sigma "
+        f"({misfit_runs_text(record)}): a smooth misfit of the model (a missing term, a frame or time-tag error, "
+        "or instrument errors too large for the linear model) or a block of wrong tracking epochs, not isolated "
+        "glitches; the robust fit is not engaged, and the std do not cover the misfit"), stacklevel=3)
 
 
 def prepare_rows(problem: Problem, noise: str | NoiseSpec = "auto", tau=None, robust: str | None = "auto",
@@ -210,16 +246,19 @@ def prepare_rows(problem: Problem, noise: str | NoiseSpec = "auto", tau=None, ro
     weights = None
     robust_info = None
     auto = None
+    misfit = None
     if robust == "auto":
         robust = None
         if not noise_free and exclude_outliers is None and problem.t is not None and problem.y is not None \
                 and problem.y.ndim == 2:
-            found, expected, gross, runs = _glitches(problem, nm)
+            found, expected, gross, spans = _glitches(problem, nm)
             limit = expected + GLITCH_SIGMAS * np.sqrt(expected) + GLITCH_MIN
             auto = {"glitches_found": found, "expected_from_noise": expected, "limit": float(limit),
                     "gross": gross, "gross_sigmas": GLITCH_GROSS}
-            if mostly_runs(found, runs):  # a smooth misfit, which rejecting its peaks would bias
-                _warn_misfit(problem, found, runs)
+            long = [b - a for a, b in spans]
+            if mostly_runs(found, long):  # a smooth misfit, which rejecting its peaks would bias
+                misfit = _misfit_runs(problem, found, spans)
+                _warn_misfit(problem, misfit, min(long))
             elif found > limit or gross:
                 robust = "huber"
     if robust is not None:
@@ -230,7 +269,7 @@ def prepare_rows(problem: Problem, noise: str | NoiseSpec = "auto", tau=None, ro
     excluded_info = None
     if exclude_outliers is not None:
         solved, keep, excluded_info, nm = _exclude(problem, solved, nm, keep, weights, exclude_outliers, noise, tau)
-    return Rows(problem, solved, nm, keep, weights, robust_info, excluded_info, noise)
+    return Rows(problem, solved, nm, keep, weights, robust_info, excluded_info, noise, misfit)
 
 
 def _noise_model(problem: Problem, noise: str, tau, noise_free: bool | None = None) -> NoiseModel:

@@ -80,7 +80,8 @@ magnitudes from 8.51 to 1.79.
 check against the IMU, the noise per stretch) runs once, on the first pass, where its warnings are
 said; every later pass leaves out the same tracking rows (:func:`casep.checks.tracking_quality.keep_screen`).
 A fixed point needs the same rows in every pass (a row that came and went between passes would move it),
-and what the screen tests (a repeated fix while the IMU moved by 0.5 m/s, jumps beyond 10 m/s + 2 m/s^2 dt)
+and what the screen tests (a repeated fix while the IMU moved by 0.5 m/s, jumps beyond 10 m/s + 2 m/s^2 dt or
+beyond 10 sigma of the epoch-to-epoch noise and back)
 is far above what correcting the IMU changes between passes; the first pass is also what ``casep navigate``
 then ``casep separate`` screens, so both paths leave out the same epochs.
 

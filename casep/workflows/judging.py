@@ -25,7 +25,9 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     (:func:`casep.checks.plausibility.setup_problems`: launch site, azimuth, launch time, time scales), failed
     (status -8) when its residuals are a model error, not noise (:func:`casep.checks.plausibility.misfit_problem`:
     100 times the tracking's sample-to-sample noise and correlated after the noise model, or, in a robust fit,
-    with most of the samples it rejected in runs: :func:`casep.regression.rows.mostly_runs`), and against
+    with most of the samples it rejected in runs: :func:`casep.regression.rows.mostly_runs`; or robust "auto"
+    left off because most of the samples it would reject lie in runs: ``diagnostics["misfit_runs"]``, the runs
+    named), and against
     the model's declared magnitudes (:func:`casep.estimators._base.check_magnitudes`), except on noise-free
     data (`noise_free`), where every std is rounding and a biased method's estimate is its bias, not a
     set-up mistake (check_fit's NoiseFreeWarning says so)."""
@@ -58,6 +60,9 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
                              noise=res.diagnostics.get("noise"))
         if why is not None:
             res = failed(res, STATUS_MISFIT, f"failed: {flight.source}: {why}")
+        found = res.diagnostics.get("misfit_runs")
+        if found:  # robust "auto" left off for runs of rejections: a misfit neither the noise model nor the std cover
+            res = failed(res, STATUS_MISFIT, f"failed: {flight.source}: {_runs_problem(found)}")
     if isinstance(model, ErrorModel) and model.name == res.model and not noise_free:
         meth = _REGISTRY.get(res.method)
         res = check_magnitudes(res, model.scales, source=flight.source if flight is not None else "",
@@ -112,6 +117,19 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     if record is not None:
         res.diagnostics["determined"]["curvature"] = record
     return res
+
+
+def _runs_problem(found: dict) -> str:
+    """The failure of a fit whose residuals hold runs of rejections (``diagnostics["misfit_runs"]``, the record of
+    :attr:`casep.regression.rows.Rows.misfit_runs`), with where they lie."""
+    from casep.noise.robust import REJECT
+    from casep.regression.rows import misfit_runs_text
+
+    return (f"the residuals hold {found['in_runs']} of the {found['found']} samples beyond {REJECT:g} robust sigma in "
+            f"{found['count']} run(s) of consecutive samples ({misfit_runs_text(found)}): a smooth misfit of the "
+            "model (a missing term, a frame or time-tag error, instrument errors too large for the linear model) "
+            "or a block of wrong tracking epochs, not noise; the std do not cover it (check those times; wrong "
+            "epochs left out of the tracking file, or the term added, give a result)")
 
 
 def _lateness_left(res: EstimateResult, flight: FlightData | None) -> str | None:

@@ -60,9 +60,15 @@ def test_a_smooth_misfit_is_said_and_not_filtered_as_glitches(kind):
         with pytest.warns(NoiseNotWhiteWarning, match=rf"in 3 run\(s\) of {MAX_RUN} or more .* smooth misfit"):
             rows = prepare_rows(pb, "white")
         assert rows.robust is None and rows.keep.all()
+        # the runs recorded where they lie (the result then fails: casep.workflows.judging), around each bump
+        runs = rows.misfit_runs["runs"]
+        assert rows.misfit_runs["count"] == len(runs) == 3 and rows.misfit_runs["in_runs"] >= 3 * MAX_RUN
+        for r, c in zip(runs, (15.0, 30.0, 45.0)):
+            assert c - 1.5 < r["first"]["t"] < r["last"]["t"] < c + 1.5 and r["samples"] >= MAX_RUN, runs
     else:
         rows = prepare_rows(pb, "white")
         assert rows.robust is not None and rows.robust["automatic"]["glitches_found"] >= 12
+        assert rows.misfit_runs is None
 
 
 @pytest.mark.parametrize("robust", ["auto", "huber"])
