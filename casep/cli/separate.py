@@ -135,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
     if prior is not None:  # the prior (a ground calibration) against the flight estimated alone
         from casep.workflows.coefficients import with_prior_consistency
 
-        res, cons = with_prior_consistency(res, flight, model, prior, sigma=spec.sigma)
+        res, cons = with_prior_consistency(res, flight, model, prior, spec=spec, iterate=args.iterate)
     align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
     prov = outputs.provenance(args, [flight])
     if args.json:

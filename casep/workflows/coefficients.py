@@ -117,7 +117,8 @@ def read_scales(path: str | os.PathLike, names: Sequence[str]) -> dict[str, floa
 
 
 def with_prior_consistency(result: Any, flight: Any, model: Any, prior: Mapping[str, Any], *,
-                           sigma: float | None = None) -> tuple[Any, Any]:
+                           sigma: float | None = None, spec: Any = None,
+                           iterate: bool | None = None) -> tuple[Any, Any]:
     """The prior (a ground calibration, say) compared with the flight estimated alone, recorded in the result.
 
     Parameters
@@ -130,7 +131,11 @@ def with_prior_consistency(result: Any, flight: Any, model: Any, prior: Mapping[
     prior : mapping
         The prior as :func:`read_coefficient_file` returns it.
     sigma : float, optional
-        Noise std, m/s (default: estimated).
+        Noise std, m/s (default: `spec`'s, else estimated).
+    spec : FitSpec, optional
+        The request of `result`: the flight alone is fitted under its noise model (method ``ols``, no prior).
+    iterate : bool, optional
+        As :func:`casep.workflows.separate.separate`'s.
 
     Returns
     -------
@@ -146,7 +151,7 @@ def with_prior_consistency(result: Any, flight: Any, model: Any, prior: Mapping[
 
     cons = None
     try:
-        cons = flight_prior_consistency(flight, model, prior, sigma=sigma)
+        cons = flight_prior_consistency(flight, model, prior, sigma=sigma, spec=spec, iterate=iterate)
         summary = cons.to_dict()
     except ValueError as exc:  # the flight alone determines none of the prior's coefficients
         cons, summary = None, {"not_compared": str(exc)}
