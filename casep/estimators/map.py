@@ -48,8 +48,8 @@ if TYPE_CHECKING:
     from casep.estimators.result import EstimateResult
     from casep.regression.problem import Problem
 
-__all__ = ["solve_map", "parse_prior", "prior_information", "prior_from_result", "per_flight_names", "MAP",
-           "MAPExtras"]
+__all__ = ["solve_map", "parse_prior", "prior_information", "prior_from_result", "per_flight_names", "shift_prior",
+           "MAP", "MAPExtras"]
 
 #: Its option (``casep separate --prior``), required.
 PRIOR = Option("prior", "--prior", None, (CoefficientTable("{name: {mean, std}}"),),
@@ -186,6 +186,14 @@ def prior_information(prior: Mapping, names: Sequence[str], source: str = "`prio
     Ws[np.arange(single.size), single] = 1.0 / tau[single]  # e_j / tau_j
     W = np.vstack([Ws, *blocks])
     return W, W @ mu, mu, tau
+
+
+def shift_prior(prior: Mapping, shift: Mapping[str, float]) -> dict:
+    """`prior` (``{name: {"mean", "std"}, "correlation": ...}``, natural units) with each listed mean moved by
+    ``-shift[name]``, its std and correlations kept: the prior of a correction ``x = D - shift`` (a fit
+    linearised at `shift`). Names without a shift keep their mean."""
+    return {k: ({**v, "mean": float(v["mean"]) - float(shift[k])} if k != CORRELATION and k in shift
+                and isinstance(v, Mapping) and is_number(v.get("mean")) else v) for k, v in prior.items()}
 
 
 def per_flight_names(result, model=None) -> set[str]:
