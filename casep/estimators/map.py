@@ -204,7 +204,7 @@ def per_flight_names(result, model=None) -> set[str]:
     `model` (ErrorModel or name) defaults to the result's own; a result whose model cannot be found
     is an error (guessing would silently treat a flight's own time offset as shared).
     """
-    from casep.model.loader import load_model, load_recorded_model
+    from casep.model.loader import TIME_OFFSET_SUFFIX, load_model, load_recorded_model, with_time_offset
 
     if model is None:  # a shipped model by its name; any other only when named (never run on a result's word)
         if not result.model:
@@ -213,6 +213,8 @@ def per_flight_names(result, model=None) -> set[str]:
                                     where=f"the result of model `{result.model}`", option="`model` (--model)")
     else:
         model = load_model(model)
+        if result.model and result.model == model.name + TIME_OFFSET_SUFFIX:
+            model = with_time_offset(model)  # the model given, with the result's flight's own tracking offset
     own = {n for n, pf in zip(model.names, model.per_flight) if pf}
     stations = set((result.diagnostics or {}).get("tracking_terms") or ())  # a radar result's station errors
     return own | stations | {n for n in result.names if "[" in n}

@@ -123,13 +123,16 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
     if len(results) < 2:
         raise ValueError(f"fuse needs two or more results, got {len(results)}")
     labels = [f"result {k + 1}" for k in range(len(results))] if labels is None else [str(v) for v in labels]
+    from casep.model.loader import base_model_name
+
     first = results[0]
-    for r, lab in zip(results[1:], labels[1:]):
-        if r.model and first.model and r.model != first.model:
+    for r, lab in zip(results[1:], labels[1:]):  # a flight's own tracking offset (`+dt_trk`): the same instrument
+        if r.model and first.model and base_model_name(r.model) != base_model_name(first.model):
             raise ValueError(f"results of different models: `{first.model}` ({labels[0]}) and `{r.model}` ({lab}); "
                              "fuse only results of one model")
     own = per_flight_names(first, model)
     names = [n for n in first.names if n not in own]
+    shared = base_model_name(first.model) if first.model else first.model  # no per-flight term is fused
     unit0 = dict(zip(first.names, first.units))
     xs, Ls, ds = _fusion_inputs(results, labels, names, unit0)
 
@@ -175,7 +178,7 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
             warnings.warn(what, ConsistencyWarning, stacklevel=2)
     idx0 = [list(first.names).index(nm) for nm in names]
     return dataclasses.replace(
-        first, method="fused", names=tuple(names), units=tuple(first.units[i] for i in idx0),
+        first, model=shared, method="fused", names=tuple(names), units=tuple(first.units[i] for i in idx0),
         estimate=est, std=np.sqrt(np.diag(cov)), covariance=cov, reasons={}, residuals=np.zeros((0, 3)),
         si_factors=np.asarray(first.si_factors)[idx0], history=None, history_std=None, status=status,
         message=message, success=success, sigma=math.nan,
