@@ -482,6 +482,10 @@ def test_per_flight_coefficients_are_not_fused_or_carried_as_a_prior(two):
     idx = [list(joint.names).index(n) for n in fused.names]
     # 1e-4 std: inverting the marginal covariances (correlations up to 1 - 1e-10) costs digits
     assert np.max(np.abs(fused.estimate - joint.estimate[idx]) / joint.std[idx]) < 1e-4
+    # what the two do not determine, said as the joint fit says it (the one rule: the model's magnitudes)
+    undetermined = {n: r for n, r in fused.reasons.items() if r.startswith("not determined")}
+    assert undetermined and undetermined == {n: r for n, r in joint.reasons.items()
+                                             if n in fused.names and r.startswith("not determined")}
     prior = prior_from_result(ra)
     assert "dt_trk" not in prior and "dt_trk" not in prior["correlation"]["names"]
     chained = _quiet(solve_map, pb, prior=prior, sigma=0.2)
