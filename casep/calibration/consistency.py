@@ -10,15 +10,14 @@ are right. On the coefficients both determine (a finite estimate and variance in
 
 The covariances are used whole (the correlations of a calibration's scale and bias, of a
 flight's collinear coefficients). The flight estimate must not already contain the ground result
-(a MAP estimate with it as prior is correlated with it): :func:`flight_prior_consistency` refits
-the flight alone for that reason (its own fit: least squares under its noise model, as
-``casep separate FLIGHT`` fits it).
+(a MAP estimate with it as prior is correlated with it):
+:func:`casep.workflows.prior_consistency.flight_prior_consistency` refits the flight alone for that
+reason (its own fit: least squares under its noise model, as ``casep separate FLIGHT`` fits it).
 """
 
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
@@ -26,7 +25,7 @@ import numpy as np
 
 from casep.results import deprecated_alias
 
-__all__ = ["Consistency", "consistency", "ground_prior", "flight_prior_consistency", "ground_versus_flight",
+__all__ = ["Consistency", "consistency", "ground_prior", "ground_versus_flight",
            "ground_flight_checks",
            "as_gaussian", "DISAGREE_P", "DISAGREE_Z"]
 
@@ -191,7 +190,7 @@ def consistency(ground, flight, *, names: Sequence[str] | None = None,
     if fmethod in METHODS and "prior" in METHODS[fmethod].required:
         raise ValueError("the flight estimate is a MAP estimate: it contains its prior and is not independent of "
                          "the ground result. Use: a flight-only estimate (--method ols), or "
-                         "flight_prior_consistency()")
+                         "casep.workflows.prior_consistency.flight_prior_consistency()")
     common = [n for n in gn if n in fn and (names is None or n in names)]
     if not common:
         raise ValueError(f"no coefficient in common between the {labels[0]} ({', '.join(gn[:6])}...) and the "
@@ -274,53 +273,6 @@ def ground_prior(ground, flight_model) -> dict:
     out: dict = {names[j]: {"mean": float(mean[j]), "std": float(s)} for j, s in zip(keep, sd)}
     out["correlation"] = {"names": [names[j] for j in keep], "matrix": (Ck / np.outer(sd, sd)).tolist()}
     return out
-
-
-def flight_prior_consistency(flight, model, prior: Mapping, *, sigma: float | None = None, spec=None,
-                             iterate: bool | None = None) -> Consistency:
-    """Consistency of a prior (e.g. a ground calibration) with the flight estimated alone.
-
-    ``casep separate --prior`` reports it: the MAP estimate contains the prior, so the flight is
-    fitted again without it and compared on the coefficients it determines. The flight alone is the
-    flight's own fit, the one ``casep separate FLIGHT`` makes and ``casep fuse`` combines:
-    :func:`casep.workflows.separate.separate` with the request of the estimate that used the prior
-    (`spec`: its noise model, robust fit, std kind, sigma and de-noising) but method ``ols`` and no
-    prior, so that the flight's std are those of its noise (a white-noise
-    fit of Gauss-Markov rows would understate them and double the chi-square).
-
-    Parameters
-    ----------
-    flight : FlightData or path
-    model : ErrorModel or str
-    prior : mapping
-        The prior (natural units), as ``casep separate --prior`` reads it.
-    sigma : float, optional
-        Noise std, m/s (default: `spec`'s, else estimated).
-    spec : FitSpec, optional
-        The request of the estimate that used the prior (default: the default request).
-    iterate : bool, optional
-        As :func:`casep.workflows.separate.separate`'s.
-    """
-    from casep.exceptions import CasepWarning
-    from casep.model.loader import load_model
-    from casep.workflows.separate import separate
-
-    model = load_model(model)
-    alone = _flight_alone_spec(spec, sigma)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", CasepWarning)  # the separation itself reports the flight's conditioning
-        res = separate(flight, model, spec=alone, iterate=iterate)
-    return consistency(prior, res, labels=("prior", "flight alone"))
-
-
-def _flight_alone_spec(spec=None, sigma: float | None = None):
-    """The request of a flight estimated alone: `spec` (a :class:`casep.FitSpec`; default the default request)
-    with method ``ols``, no method option (the prior) and no outlier flags, its noise model, sigma and
-    de-noising kept; `sigma` given replaces the spec's."""
-    from casep.estimators.spec import FitSpec
-
-    spec = FitSpec() if spec is None else spec
-    return FitSpec("ols", {}, spec.sigma if sigma is None else sigma, spec.noise)
 
 
 def ground_versus_flight(results: Sequence, labels: Sequence[str]) -> tuple[list, str]:

@@ -8,7 +8,7 @@ with a consistency test of their agreement.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -116,6 +116,16 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
         :data:`casep.io.result_json.MAX_RESULT_VALUE`, a covariance that is not positive definite,
         the same result twice.
     """
+    from casep.estimators.registry import check_magnitudes
+
+    fused, scales = _fused(results, labels, model)
+    # what the results together do not determine, said as a joint fit of the flights says it (the model's magnitudes)
+    return check_magnitudes(fused, scales)
+
+
+def _fused(results: Sequence[EstimateResult], labels: Sequence[str] | None,
+           model: Any) -> tuple[EstimateResult, dict[str, float]]:
+    """:func:`fuse` before the fused estimates are judged against the model's magnitudes: the result and those."""
     import dataclasses
     import warnings
 
@@ -123,7 +133,6 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
 
     from casep.estimators.joint import Consistency, coefficient_consistency, largest_disagreements
     from casep.estimators.map import per_flight_names, result_model
-    from casep.estimators.registry import check_magnitudes
     from casep.exceptions import ConsistencyWarning
     if len(results) < 2:
         raise ValueError(f"fuse needs two or more results, got {len(results)}")
@@ -181,7 +190,7 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
             success, status = False, 2
             message += "; " + what
         else:
-            warnings.warn(what, ConsistencyWarning, stacklevel=2)
+            warnings.warn(what, ConsistencyWarning, stacklevel=3)
     idx0 = [list(first.names).index(nm) for nm in names]
     fused = dataclasses.replace(
         first, model=shared, method="fused", names=tuple(names), units=tuple(first.units[i] for i in idx0),
@@ -195,8 +204,7 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
                              "sigma": float(r.sigma) if np.isfinite(r.sigma) else None}
                             for r, lab in zip(results, labels)], "sigma": "each input's own"},
         n_samples=int(sum(r.n_samples for r in results)), stored_residual_rms={a: None for a in "xyz"})
-    # what the results together do not determine, said as a joint fit of the flights says it (the model's magnitudes)
-    return check_magnitudes(fused, inst.scales)
+    return fused, inst.scales
 
 
 def fuse_with_ground(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
@@ -221,11 +229,12 @@ def fuse_with_ground(results: Sequence[EstimateResult], labels: Sequence[str] | 
     import warnings
 
     from casep.calibration.consistency import DISAGREE_P, ground_flight_checks
+    from casep.estimators.registry import check_magnitudes
     from casep.exceptions import ConsistencyWarning
 
     labels = [f"result {k + 1}" for k in range(len(results))] if labels is None else [str(v) for v in labels]
     mapped, checks, text = ground_flight_checks(results, labels)
-    res = fuse(mapped, labels=labels, model=model)
+    res, scales = _fused(mapped, labels, model)
     bad = [c for c in checks if not c.consistent]
     if bad:
         what = "; ".join(f"{c.labels[0]} and {c.labels[1]} disagree: chi2 {c.chi2:.4g} on {c.dof} dof, p "
@@ -236,4 +245,4 @@ def fuse_with_ground(results: Sequence[EstimateResult], labels: Sequence[str] | 
         warnings.warn(what, ConsistencyWarning, stacklevel=2)
         res = dataclasses.replace(res, success=False, status=res.status if res.status <= 0 else 2,
                                   message=f"{res.message}; {what}")
-    return res, text
+    return check_magnitudes(res, scales), text  # after the pairs: a disagreement is the first failure

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from casep.calibration.consistency import flight_prior_consistency
 from casep.exceptions import CasepWarning
 from casep.simulation.simulate import simulate_flight
 from casep.workflows.fusion import fuse
+from casep.workflows.prior_consistency import flight_prior_consistency
 from casep.workflows.separate import separate
 
 MODEL = "platform36"
