@@ -33,8 +33,8 @@ __getattr__, __dir__ = attach(__name__, {
     "casep.calibration.calibrate": ("calibrate_files",),
     "casep.calibration.checks": ("RotationSignWarning", "PositionMisfitWarning", "TimeGapWarning"),
     "casep.calibration.imucal": ("to_imucal", "from_imucal", "read_imucal", "write_imucal", "imucal_prior"),
-    "casep.calibration.consistency": ("Consistency", "ground_prior", "flight_prior_consistency",
-                                      "ground_versus_flight", "ground_flight_checks"),
+    "casep.calibration.consistency": ("Consistency", "ground_prior", "ground_versus_flight",
+                                      "ground_flight_checks"),
     "casep.calibration.segment": ("detect_static", "Segmentation"),
     "casep.calibration.handturned": ("calibrate_multiposition", "calibrate_multiposition_file",
                                      "MultipositionCalibration"),
@@ -47,6 +47,6 @@ __all__ = ["CalibrationModel", "Session", "Segment", "SegmentError", "read_sessi
            "load_calibration_model", "calibration_models", "RotationSignWarning", "PositionMisfitWarning",
            "TimeGapWarning", "to_imucal", "from_imucal",
            "read_imucal", "write_imucal", "imucal_prior", "Consistency", "ground_prior",
-           "flight_prior_consistency", "ground_versus_flight", "ground_flight_checks", "detect_static",
+           "ground_versus_flight", "ground_flight_checks", "detect_static",
            "Segmentation", "calibrate_multiposition", "calibrate_multiposition_file", "MultipositionCalibration",
            "normal_gravity", "find_ferraris_segments", "FerrarisSegmentation"]

@@ -10,14 +10,14 @@ are right. On the coefficients both determine (a finite estimate and variance in
 
 The covariances are used whole (the correlations of a calibration's scale and bias, of a
 flight's collinear coefficients). The flight estimate must not already contain the ground result
-(a MAP estimate with it as prior is correlated with it): :func:`flight_prior_consistency` refits
-the flight alone (OLS) for that reason.
+(a MAP estimate with it as prior is correlated with it):
+:func:`casep.workflows.prior_consistency.flight_prior_consistency` refits the flight alone for that
+reason (its own fit: least squares under its noise model, as ``casep separate FLIGHT`` fits it).
 """
 
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
@@ -25,7 +25,7 @@ import numpy as np
 
 from casep.results import deprecated_alias
 
-__all__ = ["Consistency", "consistency", "ground_prior", "flight_prior_consistency", "ground_versus_flight",
+__all__ = ["Consistency", "consistency", "ground_prior", "ground_versus_flight",
            "ground_flight_checks",
            "as_gaussian", "DISAGREE_P", "DISAGREE_Z"]
 
@@ -190,7 +190,7 @@ def consistency(ground, flight, *, names: Sequence[str] | None = None,
     if fmethod in METHODS and "prior" in METHODS[fmethod].required:
         raise ValueError("the flight estimate is a MAP estimate: it contains its prior and is not independent of "
                          "the ground result. Use: a flight-only estimate (--method ols), or "
-                         "flight_prior_consistency()")
+                         "casep.workflows.prior_consistency.flight_prior_consistency()")
     common = [n for n in gn if n in fn and (names is None or n in names)]
     if not common:
         raise ValueError(f"no coefficient in common between the {labels[0]} ({', '.join(gn[:6])}...) and the "
@@ -273,24 +273,6 @@ def ground_prior(ground, flight_model) -> dict:
     out: dict = {names[j]: {"mean": float(mean[j]), "std": float(s)} for j, s in zip(keep, sd)}
     out["correlation"] = {"names": [names[j] for j in keep], "matrix": (Ck / np.outer(sd, sd)).tolist()}
     return out
-
-
-def flight_prior_consistency(flight, model, prior: Mapping, *, sigma: float | None = None) -> Consistency:
-    """Consistency of a prior (e.g. a ground calibration) with a flight estimated alone (OLS).
-
-    ``casep separate --prior`` reports it: the MAP estimate contains the prior, so the flight is
-    refitted without it (its S_V built once more) and compared on the coefficients it determines.
-    """
-    from casep.checks.flight import flight_problem
-    from casep.estimators.ols import solve_ols
-    from casep.exceptions import CasepWarning
-    from casep.model.loader import load_model
-
-    model = load_model(model)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", CasepWarning)  # the separation itself reports the flight's conditioning
-        res = solve_ols(flight_problem(flight, model), sigma=sigma)
-    return consistency(prior, res, labels=("prior", "flight alone"))
 
 
 def ground_versus_flight(results: Sequence, labels: Sequence[str]) -> tuple[list, str]:

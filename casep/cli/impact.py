@@ -38,6 +38,8 @@ def add_parser(sub: Any) -> None:
 def _manifest(args: argparse.Namespace) -> None:
     """`--manifest`: its one flight's telemetry file as FLIGHT and its `result` unless --result is given."""
     if not getattr(args, "manifest", None):
+        if args.flight and not args.result:
+            _result_as_flight(args.flight)
         if not args.flight or not args.result:
             raise ValueError("impact needs FLIGHT and --result RESULT.json (or --manifest FLIGHTS.toml)")
         return
@@ -56,6 +58,29 @@ def _manifest(args: argparse.Namespace) -> None:
         if f.result is None:
             raise ValueError(f"--manifest {args.manifest}: the flight has no `result`; give --result RESULT.json")
         args.result = str(f.result)
+
+
+def _result_as_flight(path: str) -> None:
+    """FLIGHT given a result JSON (and no --result): an error saying so, with the usage (the result's own flight files,
+    from its provenance, when it names them)."""
+    from pathlib import Path
+
+    from casep.io.result_json import load_json, looks_like_result
+
+    if Path(path).suffix.lower() != ".json":
+        return
+    try:
+        data = load_json(path, "FLIGHT")
+    except ValueError:
+        return  # not JSON: read as a flight, which says what is wrong with it
+    if not looks_like_result(data):
+        return
+    prov = data.get("provenance") if isinstance(data.get("provenance"), dict) else {}
+    roles = {i.get("role"): i.get("file") for i in prov.get("inputs") or () if isinstance(i, dict)}
+    flight = roles.get("flight") or roles.get("telemetry") or "FLIGHT"
+    tracking = f" --tracking {roles['tracking']}" if roles.get("tracking") and roles.get("telemetry") else ""
+    raise ValueError(f"{path} is a result JSON, not a flight file: impact applies a result to the flight it was "
+                     f"estimated on. Use: casep impact {flight}{tracking} --result {path}")
 
 
 def _per_flight(items: list[str] | None) -> dict[str, float]:

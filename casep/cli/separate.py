@@ -133,9 +133,9 @@ def run(args: argparse.Namespace) -> int:
         res = separate(flight, model, spec=spec, iterate=args.iterate)
     cons = None
     if prior is not None:  # the prior (a ground calibration) against the flight estimated alone
-        from casep.workflows.coefficients import with_prior_consistency
+        from casep.workflows.prior_consistency import with_prior_consistency
 
-        res, cons = with_prior_consistency(res, flight, model, prior, sigma=spec.sigma)
+        res, cons = with_prior_consistency(res, flight, model, prior, spec=spec, iterate=args.iterate)
     align = flight.meta.get("time_alignment") if isinstance(flight.meta, dict) else None
     prov = outputs.provenance(args, [flight])
     if args.json:

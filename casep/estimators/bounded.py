@@ -43,7 +43,7 @@ if TYPE_CHECKING:
     from casep.estimators.result import EstimateResult
     from casep.regression.problem import Problem
 
-__all__ = ["solve_bounded", "parse_bounds", "BOUNDED", "BoundedExtras"]
+__all__ = ["solve_bounded", "parse_bounds", "shift_bounds", "BOUNDED", "BoundedExtras"]
 
 #: Its option (``casep separate --bounds``), required.
 BOUNDS = Option("bounds", "--bounds", None, (CoefficientTable("{name: [lo, hi] | value}"),),
@@ -162,6 +162,19 @@ def _active_set(R, q, lo, hi, fixed, rcond) -> np.ndarray | None:
             return z
         state[j] = 0
     return None
+
+
+def shift_bounds(bounds: Mapping, shift: Mapping[str, float]) -> dict:
+    """`bounds` (``{name: [lo, hi] | value}``, natural units) moved by ``-shift[name]``, open sides kept: the box
+    of a correction ``x = D - shift`` (a fit linearised at `shift`). Names without a shift keep theirs."""
+    def moved(v: Any, d: float) -> Any:
+        if is_number(v):
+            return float(v) - d
+        if isinstance(v, (list, tuple)) and len(v) == 2:
+            return [e if e is None or not is_number(e) else float(e) - d for e in v]
+        return v  # not a bound: parse_bounds says so
+
+    return {k: moved(v, float(shift[k])) if k in shift else v for k, v in bounds.items()}
 
 
 def parse_bounds(bounds: Mapping, names: Sequence[str], source: str = "`bounds`"):

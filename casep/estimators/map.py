@@ -48,8 +48,8 @@ if TYPE_CHECKING:
     from casep.estimators.result import EstimateResult
     from casep.regression.problem import Problem
 
-__all__ = ["solve_map", "parse_prior", "prior_information", "prior_from_result", "per_flight_names", "MAP",
-           "MAPExtras"]
+__all__ = ["solve_map", "parse_prior", "prior_information", "prior_from_result", "per_flight_names", "shift_prior",
+           "result_model", "MAP", "MAPExtras"]
 
 #: Its option (``casep separate --prior``), required.
 PRIOR = Option("prior", "--prior", None, (CoefficientTable("{name: {mean, std}}"),),
@@ -188,26 +188,43 @@ def prior_information(prior: Mapping, names: Sequence[str], source: str = "`prio
     return W, W @ mu, mu, tau
 
 
+def shift_prior(prior: Mapping, shift: Mapping[str, float]) -> dict:
+    """`prior` (``{name: {"mean", "std"}, "correlation": ...}``, natural units) with each listed mean moved by
+    ``-shift[name]``, its std and correlations kept: the prior of a correction ``x = D - shift`` (a fit
+    linearised at `shift`). Names without a shift keep their mean."""
+    return {k: ({**v, "mean": float(v["mean"]) - float(shift[k])} if k != CORRELATION and k in shift
+                and isinstance(v, Mapping) and is_number(v.get("mean")) else v) for k, v in prior.items()}
+
+
 def per_flight_names(result, model=None) -> set[str]:
     """The coefficients of a result that belong to one flight (the model's ``per_flight=True`` ones,
     a several-flights result's ``name[file]`` and a radar result's station terms ``S1.range_bias``):
     they are not shared with another flight.
 
-    `model` (ErrorModel or name) defaults to the result's own; a result whose model cannot be found
-    is an error (guessing would silently treat a flight's own time offset as shared).
+    `model` (ErrorModel or name) defaults to the result's own (:func:`result_model`); a result whose model cannot
+    be found is an error (guessing would silently treat a flight's own time offset as shared).
     """
-    from casep.model.loader import load_model, load_recorded_model
+    model = result_model(result, model)
+    own = {n for n, pf in zip(model.names, model.per_flight) if pf}
+    stations = set((result.diagnostics or {}).get("tracking_terms") or ())  # a radar result's station errors
+    return own | stations | {n for n in result.names if "[" in n}
+
+
+def result_model(result, model=None):
+    """The model of `result`, set up: `model` (ErrorModel or name) when given, with the result's flight's own tracking
+    offset when the result's model is that model plus it (``name+dt_trk``); else the shipped model the result names
+    (:func:`casep.model.loader.load_recorded_model`: never a file on the result's word)."""
+    from casep.model.loader import TIME_OFFSET_SUFFIX, load_model, load_recorded_model, with_time_offset
 
     if model is None:  # a shipped model by its name; any other only when named (never run on a result's word)
         if not result.model:
             raise ValueError("the result names no model: give `model` to tell its per-flight coefficients")
-        model = load_recorded_model(result.model, sha256=result.model_sha256, model_file=result.model_file,
-                                    where=f"the result of model `{result.model}`", option="`model` (--model)")
-    else:
-        model = load_model(model)
-    own = {n for n, pf in zip(model.names, model.per_flight) if pf}
-    stations = set((result.diagnostics or {}).get("tracking_terms") or ())  # a radar result's station errors
-    return own | stations | {n for n in result.names if "[" in n}
+        return load_recorded_model(result.model, sha256=result.model_sha256, model_file=result.model_file,
+                                   where=f"the result of model `{result.model}`", option="`model` (--model)")
+    model = load_model(model)
+    if result.model and result.model == model.name + TIME_OFFSET_SUFFIX:
+        model = with_time_offset(model)  # the model given, with the result's flight's own tracking offset
+    return model
 
 
 def prior_from_result(result, names: Sequence[str] | None = None, model=None) -> dict:

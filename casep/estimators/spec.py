@@ -21,6 +21,7 @@ the values.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
@@ -150,6 +151,23 @@ class FitSpec:
                                  f"{', '.join(OPTIONS)}")
         ns = NoiseSpec(noise, tau, robust, std, exclude_outliers, denoise, dict(wavelet_options or {}))
         return cls(method, all_opts, sigma, ns, outliers, keywords)
+
+    def about(self, names: Any, at: Any) -> FitSpec:
+        """The request for the correction ``x = D - at`` of a fit linearised at `at` (natural units, one value per name
+        of `names`: an iteration's pass solves for the step from where the passes stand): a prior's means and the
+        bounds moved by ``-at`` (:func:`casep.estimators.map.shift_prior`,
+        :func:`casep.estimators.bounded.shift_bounds`; std, correlations and open sides kept), so that the prior and
+        the box stay on the coefficients ``D`` and not on the step. The spec itself when it has neither as a table,
+        or `at` is 0."""
+        from casep.estimators.bounded import shift_bounds
+        from casep.estimators.map import shift_prior
+
+        shift = {str(n): float(v) for n, v in zip(names, at) if math.isfinite(v) and v != 0.0}
+        tables = {k: f(self.options[k], shift) for k, f in (("prior", shift_prior), ("bounds", shift_bounds))
+                  if isinstance(self.options.get(k), Mapping)}
+        if not shift or not tables:
+            return self
+        return dataclasses.replace(self, options={**self.options, **tables})
 
     def to_dict(self) -> dict[str, Any]:
         """The request as plain data (options as given; files by name)."""

@@ -333,6 +333,13 @@ def with_time_offset(model: str | os.PathLike | ErrorModel) -> ErrorModel:
     return m
 
 
+def base_model_name(name: str) -> str:
+    """The name of the model without the per-flight tracking time offset :func:`with_time_offset` adds
+    (``platform36+dt_trk`` -> ``platform36``): the instrument's model, which flights with and without the term share."""
+    return name[: -len(TIME_OFFSET_SUFFIX)] if name.endswith(TIME_OFFSET_SUFFIX) and name != TIME_OFFSET_SUFFIX \
+        else name
+
+
 def add_time_offset(m: ErrorModel) -> ErrorModel:
     """Declare ``dt_trk`` (ms, per flight) in an unlocked model and add ``a(t) dt_trk`` to its direct velocity
     error (:func:`with_time_offset`); renames it ``<name>+dt_trk``. Returns `m`, still unlocked."""
@@ -370,7 +377,7 @@ def model_record(model: ErrorModel) -> ModelRecord:
 def shipped_model(name: str) -> ErrorModel | None:
     """The model shipped with casep called `name` (``platform36``, ``platform36+dt_trk``), set up; None
     for any other name: a name read from a file never runs a file that is not casep's own."""
-    base = name[: -len(TIME_OFFSET_SUFFIX)] if name.endswith(TIME_OFFSET_SUFFIX) else name
+    base = base_model_name(name)
     path = shipped_model_file(base)
     if path is None:
         return None
@@ -442,7 +449,7 @@ def load_recorded_model(name: str | None, *, sha256: str | None = None, model_fi
                          "API model=...)")
     shipped = shipped_model(name)
     if shipped is None:
-        base = name[: -len(TIME_OFFSET_SUFFIX)] if name.endswith(TIME_OFFSET_SUFFIX) else name
+        base = base_model_name(name)
         recorded = f" (model file {model_file}" + (f", sha256 {sha256}" if sha256 else "") + ")" if model_file else ""
         file = model_file or (base if _path_like(base) else f"path/to/{base}.py")
         raise ValueError(f"{where} is of model `{name}`{recorded}, which is not shipped with casep; a model file "

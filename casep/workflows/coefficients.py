@@ -16,13 +16,11 @@ Every form is checked against the model's coefficient names; errors name the opt
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
-import warnings
-from typing import Any, Mapping, Sequence
+from typing import Any, Sequence
 
-__all__ = ["read_coefficient_file", "read_truth_prior", "read_scales", "with_prior_consistency"]
+__all__ = ["read_coefficient_file", "read_truth_prior", "read_scales"]
 
 
 def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[str], *,
@@ -114,44 +112,6 @@ def read_scales(path: str | os.PathLike, names: Sequence[str]) -> dict[str, floa
         if not isinstance(v, (int, float)) or isinstance(v, bool) or not (v > 0 and math.isfinite(v)):
             raise ValueError(f"--scales {path}: `{k}` must be a finite number > 0, got {v!r}")
     return scales
-
-
-def with_prior_consistency(result: Any, flight: Any, model: Any, prior: Mapping[str, Any], *,
-                           sigma: float | None = None) -> tuple[Any, Any]:
-    """The prior (a ground calibration, say) compared with the flight estimated alone, recorded in the result.
-
-    Parameters
-    ----------
-    result : EstimateResult
-        The estimate that used `prior`.
-    flight : FlightData
-        Its flight.
-    model : ErrorModel
-    prior : mapping
-        The prior as :func:`read_coefficient_file` returns it.
-    sigma : float, optional
-        Noise std, m/s (default: estimated).
-
-    Returns
-    -------
-    result : EstimateResult
-        A copy with ``diagnostics["prior_consistency"]``: the comparison's summary, or
-        ``{"not_compared": why}`` when the flight alone determines none of the prior's coefficients
-        (a :class:`~casep.exceptions.CasepWarning` says so).
-    consistency : Consistency or None
-        :func:`casep.calibration.consistency.flight_prior_consistency`, None when not compared.
-    """
-    from casep.calibration.consistency import flight_prior_consistency
-    from casep.exceptions import CasepWarning
-
-    cons = None
-    try:
-        cons = flight_prior_consistency(flight, model, prior, sigma=sigma)
-        summary = cons.to_dict()
-    except ValueError as exc:  # the flight alone determines none of the prior's coefficients
-        cons, summary = None, {"not_compared": str(exc)}
-        warnings.warn(f"prior not compared with the flight alone: {exc}", CasepWarning, stacklevel=2)
-    return dataclasses.replace(result, diagnostics={**result.diagnostics, "prior_consistency": summary}), cons
 
 
 def read_truth_prior(path: str | os.PathLike, names: Sequence[str], *, model: Any = None) -> dict[str, Any]:

@@ -8,7 +8,7 @@ with a consistency test of their agreement.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -76,7 +76,11 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
     Each result's shared coefficients are used with their marginal covariance: per-flight
     coefficients (the model's ``per_flight=True`` ones such as ``dt_trk``, and a several-flights
     result's ``name[file]``) are left out, as each flight has its own (marginalising a Gaussian is
-    taking its block). For independent flights this is the joint estimate exactly (the marginal
+    taking its block). A result whose model gained its flight's own tracking offset (``name+dt_trk``:
+    ``--imu``, Earth-fixed tracking) is of the same instrument as one of ``name``; the fused result is of
+    ``name``. What the results together do not determine is said as a joint fit says it (the model's
+    declared magnitudes, :func:`casep.estimators.registry.check_magnitudes`: ``reasons``, the message).
+    For independent flights this is the joint estimate exactly (the marginal
     likelihood of the shared coefficients factorises), so fusing two OLS results equals estimating
     both flights at once with the same sigmas. Computed in coordinates scaled by each
     coefficient's std (Cholesky factor of the correlation matrix; no squared condition number of
@@ -106,30 +110,44 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
     Raises
     ------
     ValueError
-        Results of different models (naming both), a result without covariance, a coefficient
+        Results of different instrument models (naming both), a result without covariance, a coefficient
         without an estimate (its information is not in the covariance), a coefficient in another
         unit than in the first result, a value that is not finite or beyond
         :data:`casep.io.result_json.MAX_RESULT_VALUE`, a covariance that is not positive definite,
         the same result twice.
     """
+    from casep.estimators.registry import check_magnitudes
+
+    fused, scales = _fused(results, labels, model)
+    # what the results together do not determine, said as a joint fit of the flights says it (the model's magnitudes)
+    return check_magnitudes(fused, scales)
+
+
+def _fused(results: Sequence[EstimateResult], labels: Sequence[str] | None,
+           model: Any) -> tuple[EstimateResult, dict[str, float]]:
+    """:func:`fuse` before the fused estimates are judged against the model's magnitudes: the result and those."""
     import dataclasses
     import warnings
 
     from scipy import linalg, stats
 
     from casep.estimators.joint import Consistency, coefficient_consistency, largest_disagreements
-    from casep.estimators.map import per_flight_names
+    from casep.estimators.map import per_flight_names, result_model
     from casep.exceptions import ConsistencyWarning
     if len(results) < 2:
         raise ValueError(f"fuse needs two or more results, got {len(results)}")
     labels = [f"result {k + 1}" for k in range(len(results))] if labels is None else [str(v) for v in labels]
+    from casep.model.loader import base_model_name
+
     first = results[0]
-    for r, lab in zip(results[1:], labels[1:]):
-        if r.model and first.model and r.model != first.model:
+    for r, lab in zip(results[1:], labels[1:]):  # a flight's own tracking offset (`+dt_trk`): the same instrument
+        if r.model and first.model and base_model_name(r.model) != base_model_name(first.model):
             raise ValueError(f"results of different models: `{first.model}` ({labels[0]}) and `{r.model}` ({lab}); "
                              "fuse only results of one model")
-    own = per_flight_names(first, model)
+    inst = result_model(first, model)
+    own = per_flight_names(first, inst)
     names = [n for n in first.names if n not in own]
+    shared = base_model_name(first.model) if first.model else first.model  # no per-flight term is fused
     unit0 = dict(zip(first.names, first.units))
     xs, Ls, ds = _fusion_inputs(results, labels, names, unit0)
 
@@ -172,10 +190,10 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
             success, status = False, 2
             message += "; " + what
         else:
-            warnings.warn(what, ConsistencyWarning, stacklevel=2)
+            warnings.warn(what, ConsistencyWarning, stacklevel=3)
     idx0 = [list(first.names).index(nm) for nm in names]
-    return dataclasses.replace(
-        first, method="fused", names=tuple(names), units=tuple(first.units[i] for i in idx0),
+    fused = dataclasses.replace(
+        first, model=shared, method="fused", names=tuple(names), units=tuple(first.units[i] for i in idx0),
         estimate=est, std=np.sqrt(np.diag(cov)), covariance=cov, reasons={}, residuals=np.zeros((0, 3)),
         si_factors=np.asarray(first.si_factors)[idx0], history=None, history_std=None, status=status,
         message=message, success=success, sigma=math.nan,
@@ -186,6 +204,7 @@ def fuse(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
                              "sigma": float(r.sigma) if np.isfinite(r.sigma) else None}
                             for r, lab in zip(results, labels)], "sigma": "each input's own"},
         n_samples=int(sum(r.n_samples for r in results)), stored_residual_rms={a: None for a in "xyz"})
+    return fused, inst.scales
 
 
 def fuse_with_ground(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,
@@ -210,11 +229,12 @@ def fuse_with_ground(results: Sequence[EstimateResult], labels: Sequence[str] | 
     import warnings
 
     from casep.calibration.consistency import DISAGREE_P, ground_flight_checks
+    from casep.estimators.registry import check_magnitudes
     from casep.exceptions import ConsistencyWarning
 
     labels = [f"result {k + 1}" for k in range(len(results))] if labels is None else [str(v) for v in labels]
     mapped, checks, text = ground_flight_checks(results, labels)
-    res = fuse(mapped, labels=labels, model=model)
+    res, scales = _fused(mapped, labels, model)
     bad = [c for c in checks if not c.consistent]
     if bad:
         what = "; ".join(f"{c.labels[0]} and {c.labels[1]} disagree: chi2 {c.chi2:.4g} on {c.dof} dof, p "
@@ -225,4 +245,4 @@ def fuse_with_ground(results: Sequence[EstimateResult], labels: Sequence[str] | 
         warnings.warn(what, ConsistencyWarning, stacklevel=2)
         res = dataclasses.replace(res, success=False, status=res.status if res.status <= 0 else 2,
                                   message=f"{res.message}; {what}")
-    return res, text
+    return check_magnitudes(res, scales), text  # after the pairs: a disagreement is the first failure

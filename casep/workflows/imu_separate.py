@@ -155,7 +155,7 @@ import math
 import os
 import warnings
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any, Mapping, NamedTuple
 
 import numpy as np
 
@@ -686,7 +686,7 @@ class _Run:
         # (casep.regression.linalg.PartnerBound: a statement of the linear fit, not a step direction)
         problem.magnitudes = {}
         self.model_k = model
-        return _quiet_fit(problem, spec), nav, flight, model, problem
+        return _quiet_fit(problem, spec.about(model.names, D)), nav, flight, model, problem
 
     # ------------------------------------------------------------------ the iteration
     def trial(self, D: np.ndarray, spec: FitSpec, before: Any, bound: float | None = None) -> tuple | str:
@@ -837,7 +837,7 @@ class _Run:
                     failure = _outside_failure(step, rejected, _step_size(step, D, model.scales, res.names))
                     break
                 spec, last = self.spec, None  # the same linearisation, solved as requested (another map)
-                res = _quiet_fit(problem, spec)
+                res = _quiet_fit(problem, spec.about(res.names, D))
                 continue
             if k == max_iterations:
                 failure = (f"failed: the iteration did not converge in {max_iterations} passes (the last correction "
@@ -878,7 +878,8 @@ class _Run:
         self.limit = step.limit
         from casep.estimators.solve import fit
 
-        res = fit(problem, self.spec)  # the last linearisation, judged (its warnings are the result's)
+        # the last linearisation, judged (its warnings are the result's); a prior or bounds on the coefficients
+        res = _settings_on_coefficients(fit(problem, self.spec.about(res.names, D)), D)
         return self.finish(res, nav, flight, model, problem, D, passes, failure, (iterate, tol, max_iterations))
 
     def finish(self, res: EstimateResult, nav: NavigationResult, flight: FlightData, model: ErrorModel,
@@ -1057,7 +1058,7 @@ class _Run:
         rms = problem.ls_rms()
         if self.at_rounding(rms) or problem.is_noise_free(rms):  # no noise: no std to test the heading against
             return res
-        noise, h0 = self.with_heading_noise(res, problem, per_deg), self.heading["heading_deg"]
+        noise, h0 = self.with_heading_noise(res, problem, per_deg, D), self.heading["heading_deg"]
         args = (self.levelling(), self.tau_profile(problem))
         record = heading_conflict(noise, problem, flight, per_deg, h0, self.heading_std, *args)
         if record is None:
@@ -1081,14 +1082,16 @@ class _Run:
         warnings.warn(said, SetupWarning, stacklevel=4)
         return failed(res, STATUS_PRIOR_CONFLICT, f"failed: {said}")
 
-    def with_heading_noise(self, res: EstimateResult, problem: Any, per_deg: np.ndarray) -> EstimateResult:
+    def with_heading_noise(self, res: EstimateResult, problem: Any, per_deg: np.ndarray,
+                           D: np.ndarray | None = None) -> EstimateResult:
         """`res` whose noise model and sigma are those of the fit (as requested) of `problem`'s rows with the
         heading's error as one more coefficient (:func:`with_columns_noise`, the column `per_deg`,
-        :meth:`heading_rows`): the noise the rows hold once a turn of the velocity is fitted too. The fit's own noise
-        model was fitted to residuals that hold what its coefficients cannot fit of a wrong heading, and took it for
-        tracking noise: on an aircraft whose turns determine the heading to 0.12-0.21 deg, a heading 2 deg off
-        raised the std of its estimate to 0.37 deg."""
-        return with_columns_noise(res, problem, per_deg, self.spec, ["heading"])
+        :meth:`heading_rows`; the spec's prior about `D`, where `problem` is linear): the noise the rows hold once a
+        turn of the velocity is fitted too. The fit's own noise model was fitted to residuals that hold what its
+        coefficients cannot fit of a wrong heading, and took it for tracking noise: on an aircraft whose turns
+        determine the heading to 0.12-0.21 deg, a heading 2 deg off raised the std of its estimate to 0.37 deg."""
+        return with_columns_noise(res, problem, per_deg, self.spec if D is None else self.spec.about(res.names, D),
+                                  ["heading"])
 
     def heading_rows(self, D: np.ndarray) -> np.ndarray | None:
         """The rows' derivative (N, 3, m/s per deg) at `D` along the given heading (None: gyrocompassed, no alignment
@@ -1507,6 +1510,18 @@ def _fast_spec(spec: FitSpec) -> FitSpec | None:
     if spec.method != "ols" or spec.noise.denoise not in (None, "none") or spec.options:
         return None
     return FitSpec.build("ols", noise="white", robust="none", sigma=spec.sigma)
+
+
+def _settings_on_coefficients(res: EstimateResult, D: np.ndarray) -> EstimateResult:
+    """`res`, a fit of the correction from `D` (:meth:`casep.FitSpec.about`), with the prior and bounds it records
+    (``settings``) back on the coefficients, as given."""
+    from casep.estimators.bounded import shift_bounds
+    from casep.estimators.map import shift_prior
+
+    back = {n: -float(d) for n, d in zip(res.names, D) if np.isfinite(d) and d != 0.0}
+    moved = {k: f(res.settings[k], back) for k, f in (("prior", shift_prior), ("bounds", shift_bounds))
+             if isinstance(res.settings.get(k), Mapping)}
+    return dataclasses.replace(res, settings={**res.settings, **moved}) if back and moved else res
 
 
 def _quiet_fit(problem: Any, spec: FitSpec) -> EstimateResult:

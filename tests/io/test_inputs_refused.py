@@ -66,6 +66,14 @@ def test_impact_refuses_a_result_of_another_flight_naming_both(files, capsys):
     assert s == 0 and "predicted miss" in out, err
 
 
+def test_impact_given_a_result_as_its_flight_says_so_with_the_usage(files, capsys):
+    """`casep impact a.json`: the file is a result, and the command to give names its flight (from its provenance)."""
+    s, out, err = _run(capsys, "impact", files / "a.json")
+    assert s == 2 and out == "", err
+    assert f"{files / 'a.json'} is a result JSON, not a flight file" in err, err
+    assert f"Use: casep impact {files / 'a.csv'} --result {files / 'a.json'}" in err, err
+
+
 def test_impact_warns_when_the_flight_is_read_from_no_file(files):
     import casep
     from casep.exceptions import CasepWarning

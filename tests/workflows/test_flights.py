@@ -482,6 +482,10 @@ def test_per_flight_coefficients_are_not_fused_or_carried_as_a_prior(two):
     idx = [list(joint.names).index(n) for n in fused.names]
     # 1e-4 std: inverting the marginal covariances (correlations up to 1 - 1e-10) costs digits
     assert np.max(np.abs(fused.estimate - joint.estimate[idx]) / joint.std[idx]) < 1e-4
+    # what the two do not determine, said as the joint fit says it (the one rule: the model's magnitudes)
+    undetermined = {n: r for n, r in fused.reasons.items() if r.startswith("not determined")}
+    assert undetermined and undetermined == {n: r for n, r in joint.reasons.items()
+                                             if n in fused.names and r.startswith("not determined")}
     prior = prior_from_result(ra)
     assert "dt_trk" not in prior and "dt_trk" not in prior["correlation"]["names"]
     chained = _quiet(solve_map, pb, prior=prior, sigma=0.2)
@@ -655,3 +659,41 @@ def test_several_pairs_model_a_time_offset_by_the_rule_of_one_flight():
     j = [i for i, n in enumerate(res.names) if n.startswith("dt_trk") and "tel1" in n]
     assert len(j) == 1, res.names
     assert abs(res.estimate[j[0]] - 40.0) < 4.0 * res.std[j[0]], (res.estimate[j[0]], res.std[j[0]])
+
+
+def test_a_flight_with_its_own_tracking_offset_fuses_with_one_without():
+    """`--imu` and Earth-fixed tracking add the flight's own dt_trk (model ``platform36+dt_trk``): its result fuses
+    with a ``platform36`` result on the shared coefficients (dt_trk marginalised: its covariance block dropped), as
+    the information sum written out here; a result of another instrument model is still refused."""
+    from casep.estimators.map import per_flight_names
+    from casep.estimators.result import EstimateResult
+    from casep.workflows.fusion import fuse
+
+    base = casep.load_model("platform36")
+    rng = np.random.default_rng(5)
+
+    def result(model, names, units):
+        n = len(names)
+        A = rng.normal(size=(n, n))
+        C = A @ A.T / n + 0.1 * np.eye(n)
+        return EstimateResult(method="ols", names=tuple(names), units=tuple(units), estimate=rng.normal(size=n),
+                              std=np.sqrt(np.diag(C)), covariance=C, reasons={}, residuals=np.zeros((0, 3)),
+                              sigma=0.1, rank=n, status=1, message="", success=True, si_factors=np.ones(n),
+                              model=model)
+
+    a = result("platform36+dt_trk", [*base.names, "dt_trk"], [*base.units, "ms"])
+    b = result("platform36", base.names, base.units)
+    assert per_flight_names(a) == per_flight_names(a, "platform36") == {"dt_trk"}
+    for pair in ((a, b), (b, a)):
+        fused = fuse(list(pair), labels=["1", "2"])
+        assert fused.names == tuple(base.names) and fused.model == "platform36"
+        n = len(base.names)
+        Ia, Ib = np.linalg.inv(a.covariance[:n, :n]), np.linalg.inv(b.covariance)
+        cov = np.linalg.inv(Ia + Ib)
+        np.testing.assert_allclose(fused.covariance, cov, rtol=1e-8, atol=1e-12)
+        np.testing.assert_allclose(fused.estimate, cov @ (Ia @ a.estimate[:n] + Ib @ b.estimate), rtol=1e-8,
+                                   atol=1e-10)
+    other = result("platform36_leverarm", casep.load_model("platform36_leverarm").names,
+                   casep.load_model("platform36_leverarm").units)
+    with pytest.raises(ValueError, match="results of different models"):
+        fuse([a, other])

@@ -142,6 +142,21 @@ def test_one_linear_pass_is_biased_by_many_crlb_std_the_iteration_converges_to_t
     assert np.allclose([passes[-1]["estimate"][n] for n in res.names], res.estimate, rtol=1e-12, atol=0)
 
 
+def test_the_passes_of_a_map_fit_keep_the_prior_on_the_coefficients(noise_free):
+    """Noise-free rows and a prior centred on the truth: the truth is the posterior mode and the passes reach it.
+    Each pass fits the correction from where the passes stand (:meth:`casep.FitSpec.about`); a pass that took the
+    prior's mean as the correction's pulled the coefficients away from the truth and did not converge."""
+    imu, trk, D = noise_free
+    names = casep.load_model(MODEL).names
+    prior = {n: {"mean": float(v), "std": 0.3 * abs(float(v))} for n, v in zip(names, D)}
+    spec = FitSpec.build("map", options={"prior": prior}, noise="white", sigma=0.1, robust="none")
+    it = _separate(imu, trk, spec=spec)
+    res = it.result
+    assert it.success and res.diagnostics["iterations"]["converged"], res.message
+    assert np.abs((res.estimate - D) / res.std).max() < 0.01, ((res.estimate - D) / res.std).round(4)
+    assert res.settings["prior"]["bg_x"]["mean"] == pytest.approx(TRUTH["bg_x"])  # as given, not the step's
+
+
 def test_the_command_line_no_iterate_and_its_refusals(noise_free, tmp_path, capsys):
     """``casep separate --imu``: one linear pass with --no-iterate, the IMU file in the provenance; on this MEMS
     record (its one pass 5 std and more off, the test above) its second-order remainder fails it (exit 1, the
