@@ -532,11 +532,13 @@ def _gap_text(g: dict[str, float]) -> str:
             f"{g['turn_rad'] / _DEG:.3g} deg across it")
 
 
-def lost_rows_problem(info: dict[str, Any] | None) -> str | None:
+def lost_rows_problem(info: dict[str, Any] | None, last_used: float = np.inf) -> str | None:
     """Why a separation of strapdown telemetry with lost rows is probably wrong: a gap across which the body turned
     by more than :data:`GAP_TURN_LIMIT` (the S_V of body-frame errors across it is not known; every row after it
-    carries that); `info` the flight's ``meta["strapdown"]``. None otherwise."""
-    lost = [g for g in (info or {}).get("lost_rows") or () if g.get("turn_rad", 0.0) > GAP_TURN_LIMIT]
+    carries that); `info` the flight's ``meta["strapdown"]``. None otherwise. A gap after the last row the fit uses
+    (`last_used`, s: a clipped IMU's rows after its first clipped sample are left out) reaches no row of the fit."""
+    lost = [g for g in (info or {}).get("lost_rows") or ()
+            if g.get("turn_rad", 0.0) > GAP_TURN_LIMIT and g["t_after"] <= last_used]
     if not lost:
         return None
     return (f"the telemetry lost rows while the body turned ({'; '.join(_gap_text(g) for g in lost[:3])}"

@@ -155,4 +155,5 @@ def _lost_rows_problem(flight: FlightData | None) -> str | None:
 
     if flight is None or not isinstance(flight.meta, dict):
         return None
-    return lost_rows_problem(flight.meta.get("strapdown"))
+    used = flight.t[flight.observed] if flight.observed is not None else flight.t
+    return lost_rows_problem(flight.meta.get("strapdown"), float(used[-1]) if used.size else -np.inf)

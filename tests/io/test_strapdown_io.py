@@ -489,6 +489,9 @@ def test_lost_rows_are_named_and_left_out_of_the_comparison(lost):
         said = (r"the telemetry lost rows while the body turned \(2\.62 s, ~130 row\(s\) lost between rows 300 and "
                 r"301, t = 5\.98 \.\. 8\.6 s, the body turning by 22\d deg across it; beyond 44\.4 deg\)")
         assert re.search(said, why), why
+        # a gap after the fit's last row (a clipped IMU's rows left out from its first clip) reaches no row of it
+        assert sd.lost_rows_problem(info, last_used=t[k]) is None
+        assert sd.lost_rows_problem(info, last_used=t[k + 1]) == why
     if n > 100:  # what the gap did to the comparison: it disagrees
         assert not sd._agrees(sd._rate_evidence(t, q, w))
 

@@ -44,3 +44,22 @@ def test_runs_that_kept_the_robust_fit_off_fail_the_result_with_their_times():
     assert not out.success and out.status == -8
     assert "20 of the 23 samples" in out.message and "lines 53..72 of trk.csv, t = 5..6.9 s (20)" in out.message
     assert "the std do not cover it" in out.message
+
+
+def test_a_turn_across_lost_rows_fails_only_where_the_fit_uses_rows_after_it():
+    """A gap across which the body turned beyond GAP_TURN_LIMIT fails the result (status -4) when observed rows follow
+    it; after the fit's last observed row (a clipped IMU's rows left out from its first clipped sample) it reaches no
+    row of the fit and the result stands."""
+    from casep.io.strapdown import GAP_TURN_LIMIT
+
+    rng = np.random.default_rng(2)
+    t = np.arange(0.0, 20.0, 0.1)
+    gap = {"row_before": 150, "row_after": 151, "t_before": 14.9, "t_after": 15.0, "length_s": 0.1, "rows_lost": 3,
+           "turn_rad": 2.0 * GAP_TURN_LIMIT}
+    res = casep.solve_ols(rng.standard_normal((60, 1)), rng.standard_normal(60), names=["sa_x"], units=["ppm"])
+    for last, fails in ((19.9, True), (14.0, False)):
+        fl = FlightData(t, np.tile([10.0, 0.0, 0.0], (t.size, 1)), rng.normal(0, 0.05, (t.size, 3)),
+                        meta={"strapdown": {"lost_rows": [gap]}}, observed=t <= last)
+        out = judge_setup(res, fl, None)
+        assert out.success != fails and (out.status == -4) == fails, (last, out.status, out.message)
+        assert ("the telemetry lost rows while the body turned" in out.message) == fails, out.message
