@@ -154,7 +154,7 @@ import math
 import os
 import warnings
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 
@@ -242,6 +242,9 @@ HEADING_STEP_DEG = 0.1
 #: The IMU clock drift's derivative: central differences of a pass navigated with its tags stretched by plus and minus
 #: this, ppm (the rows are linear in it to parts in 10^4 over a flight: a crystal's drift of tens of ppm).
 CLOCK_STEP_PPM = 100.0
+#: The data's estimate of an IMU clock drift beyond the one given, beyond this many of its std but not beyond the
+#: clock-drift rule (:func:`casep.checks.tracking_quality.drift_determined`), is warned: the std do not cover it.
+CLOCK_HINT_Z = 3.0
 #: A covariance's eigenvalue below this fraction of its largest is its rounding (:func:`_scaled_spectrum`).
 _SPECTRUM_RTOL = 1e-10
 #: A covariance's quadratic form is read where it exceeds its rounding, ``n eps`` times its largest eigenvalue, by
@@ -1081,7 +1084,8 @@ class _Run:
         ``diagnostics["clock_drift"]``: a drift the data see beyond the one given, said
         (:class:`casep.exceptions.TrackingQualityWarning`, :func:`clock_message`) and failed (status
         ``STATUS_PRIOR_CONFLICT``: the drift given is taken as exact); a record that would not see a drift beyond
-        :data:`casep.checks.tracking_quality.DRIFT_MIN_PPM`, said in a line of the result. Not without a raw
+        :data:`casep.checks.tracking_quality.DRIFT_MIN_PPM`, said in a line of the result (and warned where the data
+        point to one beyond :data:`CLOCK_HINT_Z` std: their std do not cover it). Not without a raw
         record (a telemetry's passes), on noise-free rows (no std to test against) nor on a flight with a set-up
         problem (its rows are that mistake)."""
         from casep.checks.plausibility import setup_problems
@@ -1094,37 +1098,65 @@ class _Run:
         rms = problem.ls_rms()
         if self.at_rounding(rms) or problem.is_noise_free(rms):
             return res
-        record = clock_check(res, problem, flight, self.clock_rows(D), self.clock_ppm, self.levelling(),
+        if problem.t is None:
+            return res
+        record = clock_check(res, problem, flight, self.clock_rows(D, problem.t), self.clock_ppm, self.levelling(),
                              self.tau_profile(problem))
         if record is None:
             return res
         res.diagnostics["clock_drift"] = record
         said = clock_message(record)
-        if record["determined"]:
+        if record["determined"] or record["indicated"]:
             warnings.warn(f"{flight.source}: {said}", TrackingQualityWarning, stacklevel=4)
+        if record["determined"]:
             return failed(res, STATUS_PRIOR_CONFLICT, f"failed: {said}")
-        return _with_line(res, said) if record["unseen_ppm"] > DRIFT_MIN_PPM else res
+        return _with_line(res, said) if record["indicated"] or record["unseen_ppm"] > DRIFT_MIN_PPM else res
 
-    def clock_rows(self, D: np.ndarray) -> np.ndarray | None:
-        """The rows' derivative (N, 3, m/s per ppm) at `D` along the IMU clock's drift (:meth:`rows_at_clock`, central
-        differences of :data:`CLOCK_STEP_PPM`); None where a pass there cannot be navigated."""
+    def clock_rows(self, D: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+        """The rows' derivative (N, 3, m/s per ppm) at `D` and the pass's epochs `t` along the IMU clock's drift
+        (:meth:`rows_at_clock`, central differences of :data:`CLOCK_STEP_PPM`; one-sided from the rows at `D` at an
+        epoch that one side's stretched record no longer reaches, at either end); None where a pass there cannot be
+        navigated or an epoch is on neither side."""
+        t = np.asarray(t, dtype=float)
         try:
-            ys = [self.rows_at_clock(D, s) for s in (CLOCK_STEP_PPM, -CLOCK_STEP_PPM)]
+            sides = [self.rows_at_clock(D, s) for s in (CLOCK_STEP_PPM, -CLOCK_STEP_PPM)]
         except ValueError:
             return None
-        return (ys[0] - ys[1]) / (2 * CLOCK_STEP_PPM)
+        # an epoch that a telemetry sample tags moves with the stretch (a sample's own time, by ppm t at most): each
+        # side's row of an epoch is its nearest within that (NaN where it has none)
+        reach = CLOCK_STEP_PPM * 1e-6 * np.abs(t - self.nav_site.t0) + 1e-9
+        if t.size > 1:
+            reach = np.minimum(reach, 0.5 * float(np.min(np.diff(t))))
+        on = []
+        for t_s, y_s in sides:
+            on.append(np.full((t.size, 3), np.nan))
+            if t_s.size == 0:
+                continue
+            k = np.clip(np.searchsorted(t_s, t), 1, max(t_s.size - 1, 1)) if t_s.size > 1 else np.zeros(t.size, int)
+            k = np.where(np.abs(t_s[k - 1] - t) < np.abs(t_s[k] - t), k - 1, k) if t_s.size > 1 else k
+            hit = np.abs(t_s[k] - t) <= reach
+            on[-1][hit] = y_s[k[hit]]
+        out = (on[0] - on[1]) / (2 * CLOCK_STEP_PPM)
+        edge = ~np.all(np.isfinite(out), axis=1)
+        if edge.any():
+            t_0, y_0 = self.rows_at_clock(D, 0.0)
+            if t_0.shape != t.shape or not np.allclose(t_0, t, rtol=0, atol=1e-9):
+                return None
+            one = np.where(np.isfinite(on[0]), (on[0] - y_0) / CLOCK_STEP_PPM, (y_0 - on[1]) / CLOCK_STEP_PPM)
+            out[edge] = one[edge]
+        return out if np.all(np.isfinite(out)) else None
 
-    def rows_at_clock(self, D: np.ndarray, ppm: float) -> np.ndarray:
-        """:meth:`rows` at `D` with the IMU's tags and the pad window stretched by a drift `ppm` more about the launch
-        time (:func:`casep.navigation.imu.on_clock`: the rate, not an offset, the launch time's tag kept), restored
-        after."""
+    def rows_at_clock(self, D: np.ndarray, ppm: float) -> tuple[np.ndarray, np.ndarray]:
+        """The epochs and :meth:`rows` at `D` with the IMU's tags and the pad window stretched by a drift `ppm` more
+        about the launch time (:func:`casep.navigation.imu.on_clock`: the rate, not an offset, the launch time's tag
+        kept), restored after."""
         from casep.navigation.imu import on_clock
 
         imu, window, t0 = self.imu, self.window, self.nav_site.t0
         try:
             self.imu = on_clock(imu, ppm, about=t0)
             self.window = tuple(t0 + (w - t0) * (1.0 + ppm * 1e-6) for w in window)
-            return self.rows(D)
+            return self.rows(D, times=True)
         finally:
             self.imu, self.window = imu, window
 
@@ -1430,9 +1462,15 @@ class _Run:
         warnings.warn(note, NonlinearityWarning, stacklevel=5)
         return kept, note, record
 
-    def rows(self, D: np.ndarray) -> np.ndarray:
+    @overload
+    def rows(self, D: np.ndarray) -> np.ndarray: ...
+
+    @overload
+    def rows(self, D: np.ndarray, times: Literal[True]) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def rows(self, D: np.ndarray, times: bool = False) -> Any:
         """A pass's rows at `D` (the record corrected, navigated and paired, the first pass's screen kept), about the
-        last navigation; the state of the last pass is left as it was."""
+        last navigation (with `times`: their epochs, then the rows); the state of the last pass is left as it was."""
         from casep.checks.tracking_quality import keep_screen
 
         state = (self.imu_k, self.q_aligned, self.C_tb)
@@ -1443,7 +1481,8 @@ class _Run:
                 flight = keep_screen(self.flight(nav, D, self.model_k), self.screen)
         finally:
             self.imu_k, self.q_aligned, self.C_tb = state
-        return flight.observed_rows(flight.t)[1]
+        _, y, t = flight.observed_rows(flight.t)
+        return (t, y) if times else y
 
 
 def _imu_saturation(imu: ImuData) -> dict | None:
@@ -2372,13 +2411,17 @@ def clock_check(res: EstimateResult, problem: Any, flight: FlightData, per_ppm: 
     offset, std_c = found
     return {"ppm": float(given_ppm) - offset, "std_ppm": std_c, "given_ppm": float(given_ppm),
             "beyond_given_ppm": -offset, "determined": bool(drift_determined(offset, std_c)),
+            "indicated": bool(abs(offset) > CLOCK_HINT_Z * std_c),
             "unseen_ppm": abs(offset) + 2.0 * std_c, "on": "the IMU clock's rate as one more coefficient (the rows' "
             "derivative along it, the fit's whitening, S_V projected out)"}
 
 
 def clock_message(record: dict) -> str:
     """What a result says of :func:`clock_check`'s `record`: a drift the data see beyond the one given (the failure),
-    or how large a drift would hide in the scale factors unseen (a line of the result)."""
+    one they point to (beyond :data:`CLOCK_HINT_Z` std, a warning), or how large a drift would hide in the scale
+    factors unseen (a line of the result)."""
+    from casep.checks.tracking_quality import DRIFT_MIN_PPM
+
     given = f"--clock-drift {record['given_ppm']:g} ppm" if record["given_ppm"] else "no clock drift given"
     effect = ("a clock running fast by d stretches every integration step (a common scale factor d on every gyro "
               "and accelerometer) and tags the states d t late against the tracking")
@@ -2387,6 +2430,14 @@ def clock_message(record: dict) -> str:
                 f"{record['beyond_given_ppm']:+.4g} +- {record['std_ppm']:.2g} ppm more, estimated beside the "
                 f"coefficients ({effect}); the coefficients take it in, so the estimate is off by more than its std "
                 f"say: state it (--clock-drift {record['ppm']:.4g}, manifest clock_drift_ppm)")
+    if record["indicated"]:
+        return (f"the rows point to an IMU clock drift of {record['beyond_given_ppm']:+.4g} +- "
+                f"{record['std_ppm']:.2g} ppm beyond {given} (estimated beside the coefficients, more than "
+                f"{CLOCK_HINT_Z:g} of its std from 0 but not beyond the clock-drift rule: {DRIFT_MIN_PPM:g} ppm and 4 "
+                f"std): {effect}; the coefficients take it in, and their std do not cover it. State the clock's drift "
+                f"if it is known (--clock-drift PPM; these data point to {record['ppm']:.4g} +- "
+                f"{record['std_ppm']:.2g}), else read the estimate as off by up to {record['unseen_ppm']:.3g} ppm of "
+                "every scale factor")
     return (f"the record checks the IMU clock's rate only to {record['unseen_ppm']:.3g} ppm: with {given}, its own "
             f"estimate of a drift beyond it, with the coefficients free, is {record['beyond_given_ppm']:+.3g} +- "
             f"{record['std_ppm']:.2g} ppm, and a smaller one would be taken into the scale factors unseen ({effect}); "
