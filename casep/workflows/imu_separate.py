@@ -1101,7 +1101,8 @@ class _Run:
         if problem.t is None:
             return res
         record = clock_check(res, problem, flight, self.clock_rows(D, problem.t), self.clock_ppm, self.levelling(),
-                             self.tau_profile(problem))
+                             self.tau_profile(problem),
+                             consider_columns(self.heading_effect(problem), self.steps_effect(problem)))
         if record is None:
             return res
         res.diagnostics["clock_drift"] = record
@@ -2364,10 +2365,12 @@ def heading_conflict(res: EstimateResult, problem: Any, flight: FlightData, per_
 
 
 def extra_coefficient(res: EstimateResult, problem: Any, flight: FlightData, column: np.ndarray | None,
-                      levelling: tuple | None = None, profile: tuple | None = None) -> tuple[float, float] | None:
+                      levelling: tuple | None = None, profile: tuple | None = None,
+                      consider: np.ndarray | None = None) -> tuple[float, float] | None:
     """One more coefficient of the design, its column `column` (N, 3: the rows' derivative along it), estimated
     beside the fit's: its GLS estimate after projecting out ``S`` (:func:`combination_estimators`, the fit's
-    whitening) and its std under the rows' noise (:func:`estimator_noise`; the fit's own ``sigma`` where the noise
+    whitening) and its std under the rows' noise (:func:`estimator_noise`, with the `consider` columns
+    (:func:`consider_columns`) as the stated combinations' std carry them; the fit's own ``sigma`` where the noise
     was not refitted); None without the column, rows or a noise model (:func:`heading_conflict`,
     :func:`clock_check`)."""
     if column is None or problem.y is None or not np.all(np.isfinite(column)):
@@ -2381,7 +2384,7 @@ def extra_coefficient(res: EstimateResult, problem: Any, flight: FlightData, col
     a_w, a = est
     offset = float(a[0] @ np.asarray(problem.y, dtype=float).reshape(-1))
     own = float(res.sigma) ** 2 * float(np.sum(a_w**2))  # the fit's own noise (its whitening, its sigma)
-    var = estimator_noise(a, res, problem, flight, levelling, profile)
+    var = estimator_noise(a, res, problem, flight, levelling, profile, consider)
     if var is None:
         var_c = own
     else:
@@ -2390,7 +2393,8 @@ def extra_coefficient(res: EstimateResult, problem: Any, flight: FlightData, col
 
 
 def clock_check(res: EstimateResult, problem: Any, flight: FlightData, per_ppm: np.ndarray | None,
-                given_ppm: float, levelling: tuple | None = None, profile: tuple | None = None) -> dict | None:
+                given_ppm: float, levelling: tuple | None = None, profile: tuple | None = None,
+                consider: np.ndarray | None = None) -> dict | None:
     """The data's own estimate of the IMU clock's drift beyond the one given (`given_ppm`, taken out of the IMU's
     tags: :func:`casep.navigation.imu.on_clock`), the record ``diagnostics["clock_drift"]`` of a separation from raw
     IMU data (None without the rows' derivative along the drift, `per_ppm`: :meth:`_Run.clock_rows`).
@@ -2402,10 +2406,12 @@ def clock_check(res: EstimateResult, problem: Any, flight: FlightData, per_ppm: 
     tag ``dv = a eps t``, is not this one: on a boost at steady thrust the stretch and the tags' lateness cancel, and
     on a record whose IMU clock ran 104 ppm fast it said -47.8 +- 7.9 ppm). Beyond the clock-drift rule
     (:func:`casep.checks.tracking_quality.drift_determined`: the data see a drift, ``determined``); else the drift
-    that may hide in the scale factors unseen, ``|estimate| + 2 std`` (``unseen_ppm``)."""
+    that may hide in the scale factors unseen, ``|estimate| + 2 std`` (``unseen_ppm``). Its std carry the `consider`
+    columns (the given heading's, the steps between samples': where a thrust step fell in its interval moves the
+    rows as a late tag does)."""
     from casep.checks.tracking_quality import drift_determined
 
-    found = extra_coefficient(res, problem, flight, per_ppm, levelling, profile)
+    found = extra_coefficient(res, problem, flight, per_ppm, levelling, profile, consider)
     if found is None:
         return None
     offset, std_c = found
@@ -2432,7 +2438,7 @@ def clock_message(record: dict) -> str:
                 f"say: state it (--clock-drift {record['ppm']:.4g}, manifest clock_drift_ppm)")
     if record["indicated"]:
         return (f"the rows point to an IMU clock drift of {record['beyond_given_ppm']:+.4g} +- "
-                f"{record['std_ppm']:.2g} ppm beyond {given} (estimated beside the coefficients, more than "
+                f"{record['std_ppm']:.2g} ppm more, with {given} (estimated beside the coefficients, more than "
                 f"{CLOCK_HINT_Z:g} of its std from 0 but not beyond the clock-drift rule: {DRIFT_MIN_PPM:g} ppm and 4 "
                 f"std): {effect}; the coefficients take it in, and their std do not cover it. State the clock's drift "
                 f"if it is known (--clock-drift PPM; these data point to {record['ppm']:.4g} +- "
