@@ -163,3 +163,24 @@ def test_a_clock_that_does_not_drift_is_not_flagged(flights):
     assert "state it (--clock-drift" not in out.message
     z = _z(out, truth)
     assert z.size and np.all(np.abs(z) < 3.0), z
+
+
+def test_what_a_result_says_of_the_clock_test():
+    """A drift determined: the drift beyond the one given, its std and the --clock-drift to state (the total); one
+    the data point to (beyond 3 std, not the rule): that the std do not cover it and what the data point to; else
+    how large a drift the record leaves unseen."""
+    from casep.workflows.imu_separate import clock_message
+
+    rec = {"ppm": -104.2, "std_ppm": 12.0, "given_ppm": 0.0, "beyond_given_ppm": -104.2, "determined": True,
+           "indicated": True, "unseen_ppm": 128.2}
+    said = clock_message(rec)
+    for part in ("no clock drift given", "-104.2 +- 12 ppm", "--clock-drift -104.2", "scale factor"):
+        assert part in said, said
+    hint = clock_message({**rec, "ppm": -70.6, "beyond_given_ppm": -70.6, "std_ppm": 23.0, "determined": False,
+                          "unseen_ppm": 116.6})
+    for part in ("-70.6 +- 23 ppm", "std do not cover it", "point to -70.6", "117 ppm"):
+        assert part in hint, hint
+    quiet = clock_message({**rec, "ppm": -70.0, "given_ppm": -104.0, "beyond_given_ppm": 34.0, "std_ppm": 23.0,
+                           "determined": False, "indicated": False, "unseen_ppm": 80.0})
+    for part in ("checks the IMU clock's rate only to 80 ppm", "--clock-drift -104 ppm", "+34 +- 23 ppm"):
+        assert part in quiet, quiet
