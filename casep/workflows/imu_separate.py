@@ -154,7 +154,7 @@ import math
 import os
 import warnings
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Literal, overload
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -1157,7 +1157,7 @@ class _Run:
         try:
             self.imu = on_clock(imu, ppm, about=t0)
             self.window = tuple(t0 + (w - t0) * (1.0 + ppm * 1e-6) for w in window)
-            return self.rows(D, times=True)
+            return self.timed_rows(D)
         finally:
             self.imu, self.window = imu, window
 
@@ -1463,15 +1463,13 @@ class _Run:
         warnings.warn(note, NonlinearityWarning, stacklevel=5)
         return kept, note, record
 
-    @overload
-    def rows(self, D: np.ndarray) -> np.ndarray: ...
-
-    @overload
-    def rows(self, D: np.ndarray, times: Literal[True]) -> tuple[np.ndarray, np.ndarray]: ...
-
-    def rows(self, D: np.ndarray, times: bool = False) -> Any:
+    def rows(self, D: np.ndarray) -> np.ndarray:
         """A pass's rows at `D` (the record corrected, navigated and paired, the first pass's screen kept), about the
-        last navigation (with `times`: their epochs, then the rows); the state of the last pass is left as it was."""
+        last navigation; the state of the last pass is left as it was."""
+        return self.timed_rows(D)[1]
+
+    def timed_rows(self, D: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`rows` with their epochs first: ``(t, rows)``."""
         from casep.checks.tracking_quality import keep_screen
 
         state = (self.imu_k, self.q_aligned, self.C_tb)
@@ -1483,7 +1481,7 @@ class _Run:
         finally:
             self.imu_k, self.q_aligned, self.C_tb = state
         _, y, t = flight.observed_rows(flight.t)
-        return (t, y) if times else y
+        return t, y
 
 
 def _imu_saturation(imu: ImuData) -> dict | None:
