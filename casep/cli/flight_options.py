@@ -35,7 +35,8 @@ def add_grid(parser: Any, manifest: bool = True) -> None:
                              "(one scale)")
     parser.add_argument("--clock-drift", type=finite_float, default=0.0, metavar="PPM",
                         help="with --tracking: the telemetry clock is PPM parts per million slow against the tracking's"
-                             " (tags late by PPM 1e-6 t at telemetry time t: the drift casep reports); default 0")
+                             " (tags late by PPM 1e-6 t at telemetry time t: the drift casep reports; with --imu, "
+                             "taken out of the IMU's own tags and steps); default 0")
     if manifest:  # impact has its own (a manifest of one flight, with its result)
         parser.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
                             help="TOML manifest listing each flight's telemetry, tracking, frame, site, launch time "

@@ -61,6 +61,8 @@ def flight_provenance(flight) -> dict[str, Any]:
         out["time_alignment"] = meta.get("time_alignment")
         out["time_shift_s"] = meta.get("time_shift_s", 0.0)
         out["clock_drift_ppm"] = meta.get("clock_drift_ppm", 0.0)
+        if meta.get("clock_drift_of"):
+            out["clock_drift_of"] = meta["clock_drift_of"]
         out["spans_s"] = {k: meta.get(f"{k}_span_s") for k in ("telemetry", "tracking", "observed")}
     else:
         out["files"] = {"flight": flight.source}

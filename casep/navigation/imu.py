@@ -78,7 +78,8 @@ from casep.io.flight import LOST_SAMPLE_FACTOR, STEP_FACTOR, gap_steps, signal_s
 __all__ = ["ImuData", "read_imu", "check_imu", "RATE_COLUMNS", "FORCE_COLUMNS", "DTHETA_COLUMNS", "DV_COLUMNS",
            "GAP_FACTOR", "BRIDGE_MAX", "IMU_STEP_RANGE", "time_step_problem", "GapBridge", "bridge_gaps",
            "gap_steps", "clipped_samples", "sample_periods", "with_rates", "regular_time", "single_sample_spikes",
-           "SPIKE_BLOCK", "SPIKE_ROUNDING", "SampleSteps", "sample_steps", "split_steps", "STEP_FACTOR", "steps_said"]
+           "SPIKE_BLOCK", "SPIKE_ROUNDING", "SampleSteps", "sample_steps", "split_steps", "STEP_FACTOR", "steps_said",
+           "on_clock"]
 
 RATE_COLUMNS = ("w_x", "w_y", "w_z")
 FORCE_COLUMNS = ("fb_x", "fb_y", "fb_z")
@@ -529,6 +530,33 @@ def with_rates(imu: ImuData, w: np.ndarray, f: np.ndarray) -> ImuData:
     if imu.kind == "increments":
         step = sample_periods(imu.t)[:, None]
         out.dtheta, out.dv = out.w * step, out.f * step
+    return out
+
+
+def on_clock(imu: ImuData, drift_ppm: float, about: float = 0.0) -> ImuData:
+    """`imu` with its time tags at the tracking clock's rate: ``about + (t - about) (1 + drift_ppm 1e-6)``
+    (:func:`casep.io.pair.tracking_time` without its shift, about IMU time 0 by default; `drift_ppm` as
+    ``clock_drift``: the tracking time tags late by ``drift_ppm 1e-6 t`` more at IMU time ``t``).
+
+    An IMU clock running fast by ``d`` tags true time ``t`` as ``t (1 + d)``: its samples are right each (a rate
+    or specific force as sensed, an increment over the true interval) and only its tags and steps are stretched,
+    so a navigation on them integrates every rate over steps ``(1 + d)`` too long (a common scale factor ``d`` on
+    every gyro and accelerometer, gravity's integral too) and its states sit ``d t`` late against the tracking.
+    Rates keep their readings; increments keep theirs, divided by the steps anew (:func:`sample_periods`); the
+    record itself when `drift_ppm` is 0."""
+    import dataclasses
+
+    from casep.io.pair import tracking_time
+
+    if drift_ppm == 0.0:
+        return imu
+    t = tracking_time(imu.t - about, 0.0, drift_ppm) + about
+    out = dataclasses.replace(imu, t=t)
+    if imu.kind == "increments":
+        step = sample_periods(t)[:, None]
+        out.w, out.f = np.asarray(imu.dtheta, float) / step, np.asarray(imu.dv, float) / step
+    else:
+        out.steps = sample_steps(t, imu.w, imu.f)
     return out
 
 

@@ -247,6 +247,12 @@ HEADING_STEP_DEG = 0.1
 #: test points to with the coefficients' correction held walked to 68.8 deg, past the true 70 (the correction
 #: absorbed part of the turn), so the rule says where the test stops being exact instead of searching.
 HEADING_SETTLED_Z = 3.0
+#: The IMU clock drift's derivative: central differences of a pass navigated with its tags stretched by plus and minus
+#: this, ppm (the rows are linear in it to parts in 10^4 over a flight: a crystal's drift of tens of ppm).
+CLOCK_STEP_PPM = 100.0
+#: The data's estimate of an IMU clock drift beyond the one given, beyond this many of its std but not beyond the
+#: clock-drift rule (:func:`casep.checks.tracking_quality.drift_determined`), is warned: the std do not cover it.
+CLOCK_HINT_Z = 3.0
 #: A covariance's eigenvalue below this fraction of its largest is its rounding (:func:`_scaled_spectrum`).
 _SPECTRUM_RTOL = 1e-10
 #: A covariance's quadratic form is read where it exceeds its rounding, ``n eps`` times its largest eigenvalue, by
@@ -350,6 +356,12 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
         ``(t0 - time_shift) / (1 + clock_drift 1e-6)``, :func:`casep.io.pair.telemetry_time`).
     align_window : (T1, T2)
         The span at rest on the pad, in the IMU's time scale, s.
+    clock_drift : float
+        The IMU clock's drift against the tracking's, ppm: the tracking time tags late by ``clock_drift 1e-6 t``
+        more at IMU time ``t`` (an IMU clock fast by 104 ppm: about -104). Taken out of the IMU's own tags and
+        steps before it is navigated (:func:`casep.navigation.imu.on_clock`), not out of the tracking's: a clock
+        that runs fast stretches every integration step, a common scale factor on every sensor, beside the
+        tags' drift against the tracking.
     model : name, path or ErrorModel
         A strapdown model (its sensor errors in ``q_*``, ``fb_*``, ``w_*``), default ``strapdown33``.
     heading_deg, heading_axis
@@ -361,7 +373,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
         False: one linear pass.
     tol, max_iterations
         The stop rule and the passes allowed (None: :data:`MAX_ITERATIONS`).
-    tracking_frame, grid, time_offset, time_shift, clock_drift, fit_time_offset
+    tracking_frame, grid, time_offset, time_shift, fit_time_offset
         As :func:`casep.io.files.read_flight_pair` and :func:`casep.separate` (the time offset found by
         ``"auto"`` on the first pass is kept for the others).
     gyr_range, acc_range : float, optional
@@ -399,13 +411,19 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     spec = FitSpec.build() if spec is None else spec
     base = load_model(model)
     source = model if isinstance(model, (str, os.PathLike)) else (base.source_file or base.name)
-    from casep.io.pair import clock_drift_ppm, telemetry_time
+    from casep.io.pair import clock_drift_ppm, telemetry_time, tracking_time
+    from casep.navigation.imu import on_clock
 
-    t0_imu = float(telemetry_time(site.t0, time_shift, clock_drift_ppm(clock_drift)))  # the IMU's time scale
-    run = _Run(imu, tracking, dataclasses.replace(site, t0=t0_imu), site, tuple(align_window), base,
+    # a clock drift is the IMU's: its tags and steps put at the tracking clock's rate (on_clock), the pad window with
+    # them; the navigation then integrates over the true steps and its states pair with the tracking by the shift
+    drift = clock_drift_ppm(clock_drift)
+    t0_imu = float(telemetry_time(site.t0, time_shift))  # the launch time on the IMU's tags, at the tracking's rate
+    window = tuple(float(tracking_time(w, 0.0, drift)) for w in align_window)
+    run = _Run(on_clock(imu, drift), tracking, dataclasses.replace(site, t0=t0_imu), site, window, base,
                source, spec, heading_deg, heading_axis,
                {"tracking_frame": tracking_frame, "grid": grid, "time_offset": time_offset, "time_shift": time_shift,
-                "clock_drift": clock_drift}, fit_time_offset)
+                "clock_drift": 0.0}, fit_time_offset)
+    run.clock_ppm = drift
     for name, value in (("accel_bias_tolerance", accel_bias_tolerance), ("gyro_bias_tolerance", gyro_bias_tolerance)):
         if value is not None:
             run.heading[name] = value
@@ -420,6 +438,8 @@ class _Run:
     _tau_profile: tuple | None = None
     #: the given heading's std, deg (:meth:`heading_rows`; 0: exact, or gyrocompassed)
     heading_std: float = 0.0
+    #: the IMU clock's drift taken out of its tags, ppm (:func:`casep.navigation.imu.on_clock`; 0: none, a telemetry)
+    clock_ppm: float = 0.0
     #: the heading check's finding (:meth:`heading_check`, on the first pass; a class default: a telemetry's passes)
     heading_said: str | None = None
     #: (problem, the rows' derivative along the heading per deg), formed once per problem by :meth:`finish`
@@ -491,6 +511,8 @@ class _Run:
             warnings.filterwarnings("ignore", category=SaturationWarning)
             flight = read_flight_pair(tel, self.tracking, **self.pair)
         flight.meta["saturation"] = _imu_saturation(self.imu)
+        if self.clock_ppm:  # out of the IMU's own tags and steps (separate_imu), not the tracking's
+            flight.meta["clock_drift_ppm"], flight.meta["clock_drift_of"] = self.clock_ppm, "imu"
         if self.heading_said is not None:  # found on the first pass's screened epochs (heading_check)
             _add_setup_problem(flight, self.heading_said)
         if self.pair["tracking_frame"] == "launch":  # taken as launch-inertial: the pad's rotation says if it is
@@ -918,12 +940,15 @@ class _Run:
         test = (out.diagnostics.get("heading") or {}).get("test") or {}
         if test.get("conflict") and _BLAME in out.message:  # the step failed on the turn the heading leaves
             out = dataclasses.replace(out, message=out.message.replace(_BLAME, _heading_blame(test)))
+        out = self.clock_judged(out, problem, flight, D)
         widen = None
         if iterate and failure is None:  # the combinations' curvature over what the flight does not determine
             def widen(combos: list[dict]) -> tuple[list[dict], str | None, dict | None]:
                 return self.determined_curvature(combos, problem, flight, D)
         out = judge_setup(out, flight, model, noise_free=False)
-        out = judge_tracking(out, flight, problem, model.scales, about=D, widen=widen)
+        # the tracking clock's tests measure a late tag's drift, which is not a raw IMU clock's (clock_judged)
+        out = judge_tracking(out, flight, problem, model.scales, about=D, widen=widen,
+                             tag_clock=getattr(self, "imu", None) is None)
         if iterate and out.success and passes[-1].get("determined") and not out.diagnostics.get("determined"):
             out = self.left_out_curvature(out, passes[-1], problem, flight, D)
         if iterate and passes[-1].get("determined") and not out.diagnostics.get("determined"):
@@ -1081,6 +1106,88 @@ class _Run:
         said = heading_message(record, self.heading["heading_axis"])
         warnings.warn(said, SetupWarning, stacklevel=4)
         return failed(res, STATUS_PRIOR_CONFLICT, f"failed: {said}")
+
+    def clock_judged(self, res: EstimateResult, problem: Any, flight: FlightData, D: np.ndarray) -> EstimateResult:
+        """`res` with the test of the IMU clock's rate against the data (:func:`clock_check`) in
+        ``diagnostics["clock_drift"]``: a drift the data see beyond the one given, said
+        (:class:`casep.exceptions.TrackingQualityWarning`, :func:`clock_message`) and failed (status
+        ``STATUS_PRIOR_CONFLICT``: the drift given is taken as exact); a record that would not see a drift beyond
+        :data:`casep.checks.tracking_quality.DRIFT_MIN_PPM`, said in a line of the result (and warned where the data
+        point to one beyond :data:`CLOCK_HINT_Z` std: their std do not cover it). Not without a raw
+        record (a telemetry's passes), on noise-free rows (no std to test against) nor on a flight with a set-up
+        problem (its rows are that mistake)."""
+        from casep.checks.plausibility import setup_problems
+        from casep.checks.tracking_quality import DRIFT_MIN_PPM
+        from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
+        from casep.exceptions import TrackingQualityWarning
+
+        if getattr(self, "imu", None) is None or problem.y is None or setup_problems(flight):
+            return res
+        rms = problem.ls_rms()
+        if self.at_rounding(rms) or problem.is_noise_free(rms):
+            return res
+        if problem.t is None:
+            return res
+        record = clock_check(res, problem, flight, self.clock_rows(D, problem.t), self.clock_ppm, self.levelling(),
+                             self.tau_profile(problem),
+                             consider_columns(self.heading_effect(problem), self.steps_effect(problem)))
+        if record is None:
+            return res
+        res.diagnostics["clock_drift"] = record
+        said = clock_message(record)
+        if record["determined"] or record["indicated"]:
+            warnings.warn(f"{flight.source}: {said}", TrackingQualityWarning, stacklevel=4)
+        if record["determined"]:
+            return failed(res, STATUS_PRIOR_CONFLICT, f"failed: {said}")
+        return _with_line(res, said) if record["indicated"] or record["unseen_ppm"] > DRIFT_MIN_PPM else res
+
+    def clock_rows(self, D: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+        """The rows' derivative (N, 3, m/s per ppm) at `D` and the pass's epochs `t` along the IMU clock's drift
+        (:meth:`rows_at_clock`, central differences of :data:`CLOCK_STEP_PPM`; one-sided from the rows at `D` at an
+        epoch that one side's stretched record no longer reaches, at either end); None where a pass there cannot be
+        navigated or an epoch is on neither side."""
+        t = np.asarray(t, dtype=float)
+        try:
+            sides = [self.rows_at_clock(D, s) for s in (CLOCK_STEP_PPM, -CLOCK_STEP_PPM)]
+        except ValueError:
+            return None
+        # an epoch that a telemetry sample tags moves with the stretch (a sample's own time, by ppm t at most): each
+        # side's row of an epoch is its nearest within that (NaN where it has none)
+        reach = CLOCK_STEP_PPM * 1e-6 * np.abs(t - self.nav_site.t0) + 1e-9
+        if t.size > 1:
+            reach = np.minimum(reach, 0.5 * float(np.min(np.diff(t))))
+        on = []
+        for t_s, y_s in sides:
+            on.append(np.full((t.size, 3), np.nan))
+            if t_s.size == 0:
+                continue
+            k = np.clip(np.searchsorted(t_s, t), 1, max(t_s.size - 1, 1)) if t_s.size > 1 else np.zeros(t.size, int)
+            k = np.where(np.abs(t_s[k - 1] - t) < np.abs(t_s[k] - t), k - 1, k) if t_s.size > 1 else k
+            hit = np.abs(t_s[k] - t) <= reach
+            on[-1][hit] = y_s[k[hit]]
+        out = (on[0] - on[1]) / (2 * CLOCK_STEP_PPM)
+        edge = ~np.all(np.isfinite(out), axis=1)
+        if edge.any():
+            t_0, y_0 = self.rows_at_clock(D, 0.0)
+            if t_0.shape != t.shape or not np.allclose(t_0, t, rtol=0, atol=1e-9):
+                return None
+            one = np.where(np.isfinite(on[0]), (on[0] - y_0) / CLOCK_STEP_PPM, (y_0 - on[1]) / CLOCK_STEP_PPM)
+            out[edge] = one[edge]
+        return out if np.all(np.isfinite(out)) else None
+
+    def rows_at_clock(self, D: np.ndarray, ppm: float) -> tuple[np.ndarray, np.ndarray]:
+        """The epochs and :meth:`rows` at `D` with the IMU's tags and the pad window stretched by a drift `ppm` more
+        about the launch time (:func:`casep.navigation.imu.on_clock`: the rate, not an offset, the launch time's tag
+        kept), restored after."""
+        from casep.navigation.imu import on_clock
+
+        imu, window, t0 = self.imu, self.window, self.nav_site.t0
+        try:
+            self.imu = on_clock(imu, ppm, about=t0)
+            self.window = tuple(t0 + (w - t0) * (1.0 + ppm * 1e-6) for w in window)
+            return self.timed_rows(D)
+        finally:
+            self.imu, self.window = imu, window
 
     def with_heading_noise(self, res: EstimateResult, problem: Any, per_deg: np.ndarray,
                            D: np.ndarray | None = None) -> EstimateResult:
@@ -1378,6 +1485,10 @@ class _Run:
     def rows(self, D: np.ndarray) -> np.ndarray:
         """A pass's rows at `D` (the record corrected, navigated and paired, the first pass's screen kept), about the
         last navigation; the state of the last pass is left as it was."""
+        return self.timed_rows(D)[1]
+
+    def timed_rows(self, D: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`rows` with their epochs first: ``(t, rows)``."""
         from casep.checks.tracking_quality import keep_screen
 
         state = (self.imu_k, self.q_aligned, self.C_tb)
@@ -1388,7 +1499,8 @@ class _Run:
                 flight = keep_screen(self.flight(nav, D, self.model_k), self.screen)
         finally:
             self.imu_k, self.q_aligned, self.C_tb = state
-        return flight.observed_rows(flight.t)[1]
+        _, y, t = flight.observed_rows(flight.t)
+        return t, y
 
 
 def _imu_saturation(imu: ImuData) -> dict | None:
@@ -2278,8 +2390,6 @@ def heading_conflict(res: EstimateResult, problem: Any, flight: FlightData, per_
     consider term does not cover."""
     from casep.estimators.rls import PRIOR_CONFLICT_Z
 
-    if per_deg is None or problem.y is None or not np.all(np.isfinite(per_deg)):
-        return None
     est = column_estimates(res, problem, flight, per_deg, levelling, profile)
     if est is None:
         return None
@@ -2294,16 +2404,19 @@ def heading_conflict(res: EstimateResult, problem: Any, flight: FlightData, per_
                     "std^2 + its std^2) (prior predictive) beyond limit_z: the data contradict the heading"}
 
 
-def column_estimates(res: EstimateResult, problem: Any, flight: FlightData, columns: np.ndarray,
-                     levelling: tuple | None = None, profile: tuple | None = None
-                     ) -> tuple[np.ndarray, np.ndarray] | None:
+def column_estimates(res: EstimateResult, problem: Any, flight: FlightData, columns: np.ndarray | None,
+                     levelling: tuple | None = None, profile: tuple | None = None,
+                     consider: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """The GLS estimates (k,) of `columns` (N, 3) or (N, 3, k) as k more coefficients of `problem`'s design (S_V
     projected out, `res`'s whitening), each with the others free, and their std (k,): :func:`heading_conflict`'s rule
     for the heading's column, one place for every such test (a frame's rotation about three axes:
     :mod:`casep.workflows.telemetry_frame`). The std are those of any linear estimator on the rows
     (:func:`estimator_noise`: the tracking noise refitted beside the IMU's, the uncertainty of its correlation
-    times, the IMU's own noise; the fit's own ``sigma`` with its whitening where the noise was not refitted). None
-    without times or a noise model."""
+    times, the IMU's own noise, the `consider` columns (:func:`consider_columns`) as the stated combinations' std
+    carry them; the fit's own ``sigma`` with its whitening where the noise was not refitted). None without the
+    columns, rows, times or a noise model (:func:`heading_conflict`, :func:`clock_check`)."""
+    if columns is None or problem.y is None or not np.all(np.isfinite(columns)):
+        return None
     n = len(res.names)
     k = np.asarray(columns).reshape(np.asarray(columns).shape[0], 3, -1).shape[2]
     W = np.zeros((k, n + k))
@@ -2314,7 +2427,7 @@ def column_estimates(res: EstimateResult, problem: Any, flight: FlightData, colu
     a_w, a = est
     offset = a @ np.asarray(problem.y, dtype=float).reshape(-1)
     own = float(res.sigma) ** 2 * np.sum(a_w**2, axis=1)  # the fit's own noise (its whitening, its sigma)
-    var = estimator_noise(a, res, problem, flight, levelling, profile)
+    var = estimator_noise(a, res, problem, flight, levelling, profile, consider)
     var_c = own if var is None else (own if var[0] is None else np.asarray(var[0], float)) + np.asarray(var[1], float)
     return offset, np.sqrt(np.maximum(var_c, 0.0))
 
@@ -2339,6 +2452,65 @@ def with_columns_noise(res: EstimateResult, problem: Any, columns: np.ndarray, s
         return res
     noise = {k: v for k, v in nd.items() if k != "imu"}  # no refit beside the IMU's: its sigma, the IMU's added
     return dataclasses.replace(res, sigma=joint.sigma, diagnostics={**res.diagnostics, "noise": noise})
+
+
+def clock_check(res: EstimateResult, problem: Any, flight: FlightData, per_ppm: np.ndarray | None,
+                given_ppm: float, levelling: tuple | None = None, profile: tuple | None = None,
+                consider: np.ndarray | None = None) -> dict | None:
+    """The data's own estimate of the IMU clock's drift beyond the one given (`given_ppm`, taken out of the IMU's
+    tags: :func:`casep.navigation.imu.on_clock`), the record ``diagnostics["clock_drift"]`` of a separation from raw
+    IMU data (None without the rows' derivative along the drift, `per_ppm`: :meth:`_Run.clock_rows`).
+
+    A clock running fast by ``d`` stretches every integration step: a common scale factor ``d`` on every gyro and
+    accelerometer (gravity's integral too), and the states ``d t`` late against the tracking. The drift is one more
+    coefficient of the design (:func:`column_estimates`), so the estimate is the drift *beside* the scale factors,
+    not the tracking time offset's drift (:func:`casep.checks.tracking_quality.offset_halves`, whose model, a late
+    tag ``dv = a eps t``, is not this one: on a boost at steady thrust the stretch and the tags' lateness cancel, and
+    on a record whose IMU clock ran 104 ppm fast it said -47.8 +- 7.9 ppm). Beyond the clock-drift rule
+    (:func:`casep.checks.tracking_quality.drift_determined`: the data see a drift, ``determined``); else the drift
+    that may hide in the scale factors unseen, ``|estimate| + 2 std`` (``unseen_ppm``). Its std carry the `consider`
+    columns (the given heading's, the steps between samples': where a thrust step fell in its interval moves the
+    rows as a late tag does)."""
+    from casep.checks.tracking_quality import drift_determined
+
+    est = column_estimates(res, problem, flight, per_ppm, levelling, profile, consider)
+    if est is None:
+        return None
+    offset, std_c = float(est[0][0]), float(est[1][0])
+    return {"ppm": float(given_ppm) - offset, "std_ppm": std_c, "given_ppm": float(given_ppm),
+            "beyond_given_ppm": -offset, "determined": bool(drift_determined(offset, std_c)),
+            "indicated": bool(abs(offset) > CLOCK_HINT_Z * std_c),
+            "unseen_ppm": abs(offset) + 2.0 * std_c, "on": "the IMU clock's rate as one more coefficient (the rows' "
+            "derivative along it, the fit's whitening, S_V projected out)"}
+
+
+def clock_message(record: dict) -> str:
+    """What a result says of :func:`clock_check`'s `record`: a drift the data see beyond the one given (the failure),
+    one they point to (beyond :data:`CLOCK_HINT_Z` std, a warning), or how large a drift would hide in the scale
+    factors unseen (a line of the result)."""
+    from casep.checks.tracking_quality import DRIFT_MIN_PPM
+
+    given = f"--clock-drift {record['given_ppm']:g} ppm" if record["given_ppm"] else "no clock drift given"
+    effect = ("a clock running fast by d stretches every integration step (a common scale factor d on every gyro "
+              "and accelerometer) and tags the states d t late against the tracking")
+    if record["determined"]:
+        return (f"the IMU clock's rate does not match the tracking's: with {given}, the rows hold a drift of "
+                f"{record['beyond_given_ppm']:+.4g} +- {record['std_ppm']:.2g} ppm more, estimated beside the "
+                f"coefficients ({effect}); the coefficients take it in, so the estimate is off by more than its std "
+                f"say: state it (--clock-drift {record['ppm']:.4g}, manifest clock_drift_ppm)")
+    if record["indicated"]:
+        return (f"the rows point to an IMU clock drift of {record['beyond_given_ppm']:+.4g} +- "
+                f"{record['std_ppm']:.2g} ppm more, with {given} (estimated beside the coefficients, more than "
+                f"{CLOCK_HINT_Z:g} of its std from 0 but not beyond the clock-drift rule: {DRIFT_MIN_PPM:g} ppm and 4 "
+                f"std): {effect}; the coefficients take it in, and their std do not cover it. State the clock's drift "
+                f"if it is known (--clock-drift PPM; these data point to {record['ppm']:.4g} +- "
+                f"{record['std_ppm']:.2g}), else read the estimate as off by up to {record['unseen_ppm']:.3g} ppm of "
+                "every scale factor")
+    return (f"the record checks the IMU clock's rate only to {record['unseen_ppm']:.3g} ppm: with {given}, its own "
+            f"estimate of a drift beyond it, with the coefficients free, is {record['beyond_given_ppm']:+.3g} +- "
+            f"{record['std_ppm']:.2g} ppm, and a smaller one would be taken into the scale factors unseen ({effect}); "
+            "the estimate and its std hold as far as the IMU clock runs at the tracking's rate (a drift known "
+            "otherwise: --clock-drift PPM)")
 
 
 def heading_message(record: dict, axis: str) -> str:

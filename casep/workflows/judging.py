@@ -72,8 +72,8 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
 
 def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, scales: dict,
                    about: np.ndarray | None = None,
-                   widen: Callable[[list[dict]], tuple[list[dict], str | None, dict | None]] | None = None
-                   ) -> EstimateResult:
+                   widen: Callable[[list[dict]], tuple[list[dict], str | None, dict | None]] | None = None,
+                   tag_clock: bool = True) -> EstimateResult:
     """`res` failed (status ``STATUS_TRACKING``) when the flight's screened tracking noise differs between
     stretches beyond :data:`casep.checks.tracking_quality.NOISE_RATIO`: its message says which combinations the
     flight determines (:func:`casep.checks.tracking_quality.determined`) instead of each coefficient;
@@ -85,7 +85,9 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     measured on the fit's residuals (:func:`casep.checks.tracking_quality.fit_clock_drift`) and, with ``dt_trk`` in
     the fit, by that offset split between the flight's halves (:func:`casep.checks.tracking_quality.offset_halves`,
     ``["halves"]``), warned beyond its threshold and recorded in ``diagnostics["clock_drift"]``
-    (:func:`casep.checks.tracking_quality.clock_drift_record`: where not measured, why)."""
+    (:func:`casep.checks.tracking_quality.clock_drift_record`: where not measured, why); not with `tag_clock` False
+    (a separation from raw IMU data: its clock's drift stretches the steps too, which a late tag's model does not
+    hold; :meth:`casep.workflows.imu_separate._Run.clock_judged` tests it)."""
     from casep.checks.tracking_quality import (
         clock_drift_record,
         determined,
@@ -95,7 +97,8 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     )
     from casep.estimators.registry import STATUS_TRACKING, failed
 
-    if problem.y is not None:  # the clock drift, on the residuals: the raw dv's instrument errors fake one
+    if problem.y is not None and tag_clock:  # the clock drift, on the residuals: the raw dv's instrument errors
+        # fake one
         drift = clock_drift_record(flight, problem.raw_residuals(res.fitted_coefficients()))
         # and by the fit's own time offset split in two, on a pair of files (a clock of its own)
         halves = offset_halves(flight.source, problem) if flight.meta.get("format") == "pair" else None

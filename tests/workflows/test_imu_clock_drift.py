@@ -1,0 +1,186 @@
+"""Raw-IMU separation with an IMU clock that drifts against the tracking's (GPS) time.
+
+An IMU clock running fast by ``d`` tags true time ``t`` as ``t (1 + d)``: its samples are right, its steps and tags
+stretched. A navigation on the stretched steps integrates every rate ``(1 + d)`` too long (a common scale factor
+``d`` on every sensor, gravity's integral too), and its states sit ``d t`` late. ``clock_drift`` is taken out of the
+IMU's own tags (:func:`casep.navigation.imu.on_clock`), and the separation tests the IMU clock's rate as one more
+coefficient beside the fit's (:func:`casep.workflows.imu_separate.clock_check`).
+
+The flight: a 40 s rail launch at 10 Hz (6 s on the pad, 6 g for 10 s, a coast with a lateral weave) with
+``strapdown15_axial`` errors drawn at their declared magnitudes, tracked (true time) at 5 Hz with white noise of
+0.03 m/s; the IMU's tags ``t (1 + d)`` for d = +-104 ppm (a sounding rocket's flight computer) and 0.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import casep
+from casep.frames import LaunchSite
+from casep.io.files import write_table
+from casep.model.strapdown import body_errors
+from casep.navigation import ImuData, check_imu, navigate
+from casep.navigation.imu import on_clock, split_steps
+from casep.simulation.noise import white_noise
+from casep.simulation.strapdown import rail_launch
+from casep.workflows.imu_separate import separate_imu
+
+SITE = LaunchSite(28.46, -80.53, 3.0, 95.0, 6.0)  # lift-off at t = 6 s
+ALIGN, HEADING, MODEL = (0.0, 5.5), 95.0, "strapdown15_axial"
+WHITE_STD = 0.03
+DRIFT = 104e-6
+
+
+def _truth(duration: float = 40.0, turning: bool = True):
+    t = np.round(np.arange(0.0, duration, 0.1), 10)
+    turns = {} if turning else {"roll": (0.0, 1.0), "pitch_rate": 0.0, "yaw": (0.0, 1.0)}
+    w, f = rail_launch(SITE, t, elevation_deg=84.0, boost_g=6.0, burn_s=10.0, coast_g=-0.3, lateral=(3.0, 0.4),
+                       **{"roll": (1.5, 3.0), **turns})
+    w, f = split_steps(t, w, f)
+    return t, w, f
+
+
+def _given(d: float) -> float:
+    """The ``clock_drift`` (ppm) of an IMU whose tags are ``t (1 + d)``: the tracking tags ``T = t_imu / (1 + d)``,
+    ``T = t_imu (1 + eps)``."""
+    return (1.0 / (1.0 + d) - 1.0) * 1e6
+
+
+@pytest.fixture(scope="module")
+def flights(tmp_path_factory):
+    """``flights(d)``: (IMU file with tags ``t (1 + d)``, tracking file, truth in declared magnitudes), seed 0."""
+    t, w, f = _truth()
+    nav = navigate(check_imu(ImuData(t, w, f)), SITE, ALIGN, heading_deg=HEADING)
+    m = casep.load_model(MODEL)
+    rng = np.random.default_rng(0)
+    z = rng.standard_normal(len(m.names))
+    df, dw = body_errors(m, nav.q, f, w, t - t[0], z * np.array([m.scales[n] for n in m.names]))
+    directory = tmp_path_factory.mktemp("clock")
+    trk = directory / "trk.csv"
+    k = slice(None, None, 2)
+    v = nav.v[k] + white_noise(t[k].size, WHITE_STD, rng)
+    write_table(trk, {"t": t[k], **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}})
+    files = {}
+    for d in (DRIFT, -DRIFT, 0.0):
+        imu = directory / f"imu{d:+g}.csv"
+        write_table(imu, {"t": t * (1.0 + d), **{f"w_{a}": (w + dw)[:, i] for i, a in enumerate("xyz")},
+                          **{f"fb_{a}": (f + df)[:, i] for i, a in enumerate("xyz")}})
+        files[d] = imu
+    done: dict = {}
+
+    def get(d: float, given: float = 0.0):
+        if (d, given) not in done:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # conditioning, what the record leaves undetermined: said by it
+                align = tuple(a * (1.0 + d) for a in ALIGN)  # the pad span on the IMU's tags
+                done[d, given] = separate_imu(files[d], trk, SITE, align, MODEL, heading_deg=HEADING,
+                                              clock_drift=given)
+        return done[d, given], z
+
+    return get
+
+
+def _z(out, truth) -> np.ndarray:
+    det = out.result.diagnostics.get("determined") or {}
+    combos = det.get("combinations") or out.result.diagnostics["iterations"]["passes"][-1]["determined"]
+    return np.array([(c["estimate"] - np.dot(c["weights"], truth)) / c["std"] for c in combos])
+
+
+@pytest.mark.parametrize("kind", ["rates", "increments"])
+def test_a_clock_drift_stretches_every_step_and_on_clock_takes_it_out(kind):
+    """Navigated on tags ``t (1 + d)``, a record's velocity at each sample is the true one plus ``d`` times its
+    change since the start (rates: every rate integrated over a step ``(1 + d)`` too long, on a flight that does not
+    turn, whose attitude the stretched gyros would turn too; increments: gravity's integral alone, on a turning
+    one), to O(d^2 v) and the position's effect on gravity; :func:`on_clock` with the drift it implies puts the
+    navigation back on the true one to rounding."""
+    t, w, f = _truth(30.0, turning=kind == "increments")
+    d = 1e-3  # large: the stretch far above the second-order remainder
+
+    def record(tags):
+        if kind == "rates":
+            return check_imu(ImuData(tags, w, f))
+        h = np.concatenate([[0.1], np.diff(t)])[:, None]  # increments over the true steps
+        return check_imu(ImuData(tags, 0 * w, 0 * f, "increments", w * h, f * h))
+
+    true = navigate(record(t), SITE, ALIGN, heading_deg=HEADING)
+    stretched = navigate(record(t * (1 + d)), SITE, tuple(a * (1 + d) for a in ALIGN), heading_deg=HEADING)
+    back = navigate(on_clock(record(t * (1 + d)), _given(d)), SITE, ALIGN, heading_deg=HEADING)
+    np.testing.assert_allclose(back.t, true.t, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(back.v, true.v, rtol=0, atol=1e-6)
+    dv = stretched.v - true.v
+    change = true.v - true.v[0]
+    if kind == "rates":  # every integral stretched: d times the velocity's change
+        np.testing.assert_allclose(dv, d * change, rtol=0, atol=0.02 * d * np.max(np.abs(change)))
+    else:  # the increments right, gravity's integral stretched: d g (t - t_start), g the pad's gravity to 1 %
+        from casep.gravity import normal_gravity_ecef
+
+        g = SITE.C.T @ normal_gravity_ecef(SITE.r_site)
+        expected = d * np.outer(true.t - true.t[0], g)
+        np.testing.assert_allclose(dv, expected, rtol=0, atol=0.01 * np.max(np.abs(expected)))
+
+
+@pytest.mark.parametrize("d", [DRIFT, -DRIFT])
+def test_a_drift_given_recovers_the_truth_within_the_std(flights, d):
+    """The drift given (--clock-drift, in the tracking tags' sign): success, every stated combination within 3 of
+    its std of the truth, the drift recorded as the IMU's and the data's own estimate of a drift beyond it not
+    determined and within 3 std of 0."""
+    out, truth = flights(d, _given(d))
+    assert out.success, out.message
+    z = _z(out, truth)
+    assert z.size and np.all(np.abs(z) < 3.0), z
+    assert out.flight.meta["clock_drift_of"] == "imu"
+    assert out.flight.meta["clock_drift_ppm"] == pytest.approx(_given(d))
+    rec = out.result.diagnostics["clock_drift"]
+    assert not rec["determined"] and abs(rec["beyond_given_ppm"]) < 3 * rec["std_ppm"], rec
+    assert "halves" not in rec  # the late-tag tests do not measure an IMU clock's drift
+
+
+@pytest.mark.parametrize("d", [DRIFT, -DRIFT])
+def test_a_drift_not_given_is_estimated_within_its_std_and_either_failed_or_said(flights, d):
+    """No drift given: the data's own estimate of the IMU clock's drift holds the true one within 3 of its std; the
+    result fails naming it and advising it where the data determine it, else says how large a drift the record
+    leaves unseen (at least the true one within 3 std, so the true one is within what it names)."""
+    out, _ = flights(d, 0.0)
+    rec = out.result.diagnostics["clock_drift"]
+    assert abs(rec["ppm"] - _given(d)) < 3 * rec["std_ppm"], rec
+    if rec["determined"]:
+        assert not out.success and "state it (--clock-drift" in out.message, out.message
+    else:
+        assert "the record checks the IMU clock's rate only to" in out.message, out.message
+        assert rec["unseen_ppm"] > abs(_given(d)) - 3 * rec["std_ppm"]
+
+
+def test_a_clock_that_does_not_drift_is_not_flagged(flights):
+    """The IMU clock on the tracking's: success, the drift's estimate within 3 std of 0, not determined, and the
+    late-tag drift advice absent."""
+    out, truth = flights(0.0, 0.0)
+    assert out.success, out.message
+    rec = out.result.diagnostics["clock_drift"]
+    assert not rec["determined"] and abs(rec["ppm"]) < 3 * rec["std_ppm"], rec
+    assert "state it (--clock-drift" not in out.message
+    z = _z(out, truth)
+    assert z.size and np.all(np.abs(z) < 3.0), z
+
+
+def test_what_a_result_says_of_the_clock_test():
+    """A drift determined: the drift beyond the one given, its std and the --clock-drift to state (the total); one
+    the data point to (beyond 3 std, not the rule): that the std do not cover it and what the data point to; else
+    how large a drift the record leaves unseen."""
+    from casep.workflows.imu_separate import clock_message
+
+    rec = {"ppm": -104.2, "std_ppm": 12.0, "given_ppm": 0.0, "beyond_given_ppm": -104.2, "determined": True,
+           "indicated": True, "unseen_ppm": 128.2}
+    said = clock_message(rec)
+    for part in ("no clock drift given", "-104.2 +- 12 ppm", "--clock-drift -104.2", "scale factor"):
+        assert part in said, said
+    hint = clock_message({**rec, "ppm": -70.6, "beyond_given_ppm": -70.6, "std_ppm": 23.0, "determined": False,
+                          "unseen_ppm": 116.6})
+    for part in ("-70.6 +- 23 ppm", "std do not cover it", "point to -70.6", "117 ppm"):
+        assert part in hint, hint
+    quiet = clock_message({**rec, "ppm": -70.0, "given_ppm": -104.0, "beyond_given_ppm": 34.0, "std_ppm": 23.0,
+                           "determined": False, "indicated": False, "unseen_ppm": 80.0})
+    for part in ("checks the IMU clock's rate only to 80 ppm", "--clock-drift -104 ppm", "+34 +- 23 ppm"):
+        assert part in quiet, quiet
