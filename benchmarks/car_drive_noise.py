@@ -205,14 +205,15 @@ def compare(run_path: str, noise_path: str) -> None:
     run = pickle.load(open(run_path, "rb"))
     recs = pickle.load(open(noise_path, "rb"))["windows"]
     ok = [w for w in run["windows"] if w["success"]]
-    pairs = []
+    pairs: list[tuple[dict, dict]] = []
     for w in ok:
         r = min(recs, key=lambda r: abs(r["t0"] - w["t_start"]))
         # the result's covariance is the record's plus what the iteration adds after it (its curvature): a few %
         same = abs(r["t0"] - w["t_start"]) < 1.0 and np.allclose(np.diag(r["cov"]), np.diag(w["covariance"]),
                                                                   rtol=0.1, atol=0)
-        if not same:
-            raise SystemExit(f"window {w['t_start']:.1f}: no noise record with its covariance")
+        if not same:  # the iteration's last pass is not the record's: left out, said
+            print(f"window {w['t_start']:.1f}: no noise record with its std within 10 %: left out")
+            continue
         pairs.append((w, r))
     names = tuple(ok[0]["names"])
     analyse([r for _, r in pairs])
