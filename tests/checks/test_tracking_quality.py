@@ -310,20 +310,11 @@ def test_the_imu_noise_state_is_the_imu_noise_effect(levelled):
     :func:`imu_noise_effect` at the epochs, to 1e-12, on a turning, accelerating record; with the levelling's start
     tilt (a window over the first 2 s, a levelling Jacobian of rank 2 as levelling alone gives) as well: the tilt
     acts from the first epoch on, before the window's noise has ended (the state's Gaussian bridge)."""
-    from scipy.spatial.transform import Rotation
 
     from casep.checks.tracking_quality import imu_noise_effect, imu_noise_states
-    from casep.io.flight import FlightData
 
     rng = np.random.default_rng(3)
-    t = np.arange(0.0, 6.0, 0.05)
-    n = t.size
-    q = Rotation.from_rotvec(np.column_stack([0.3 * t, 0.1 * np.sin(t), 0.05 * t])).as_quat()  # x y z w
-    f = np.column_stack([np.sin(t), 9.8 + 2 * t, np.cos(2 * t)])
-    sig = {"q_w": q[:, 3], "q_x": q[:, 0], "q_y": q[:, 1], "q_z": q[:, 2],
-           **{f"fb_{a}": f[:, i] + rng.normal(0, 0.05, n) for i, a in enumerate("xyz")},
-           **{f"w_{a}": rng.normal(0, 2e-3, n) for a in "xyz"}}
-    flight = FlightData(t, f, np.zeros((n, 3)), meta={"rows_index": np.full(n, -1)}, signals=sig)
+    flight = _turning_record(rng)
     rows = np.array([0.5, 1.0, 1.3, 1.7, 2.0, 3.1, 3.3, 4.0, 5.5])
     L = 0.01 * rng.normal(size=(3, 3))
     L[:, 2] = 0.0
@@ -338,20 +329,11 @@ def test_the_imu_noise_effect_sums_each_epoch_once_in_any_order():
     """``weights @ G`` by the suffix sums of :func:`imu_noise_effect` against its definition summed epoch by epoch
     (each block's columns at every epoch after it: ``ga`` and ``-(F_r - F_mid) x gg``), the epochs out of time order,
     one before any block ends, one at a block's last sample, several weight rows: to 1e-12."""
-    from scipy.spatial.transform import Rotation
 
     from casep.checks.tracking_quality import _imu_noise_blocks, imu_noise_effect
-    from casep.io.flight import FlightData
 
     rng = np.random.default_rng(8)
-    t = np.arange(0.0, 6.0, 0.05)
-    n = t.size
-    q = Rotation.from_rotvec(np.column_stack([0.3 * t, 0.1 * np.sin(t), 0.05 * t])).as_quat()  # x y z w
-    f = np.column_stack([np.sin(t), 9.8 + 2 * t, np.cos(2 * t)])
-    sig = {"q_w": q[:, 3], "q_x": q[:, 0], "q_y": q[:, 1], "q_z": q[:, 2],
-           **{f"fb_{a}": f[:, i] + rng.normal(0, 0.05, n) for i, a in enumerate("xyz")},
-           **{f"w_{a}": rng.normal(0, 2e-3, n) for a in "xyz"}}
-    flight = FlightData(t, f, np.zeros((n, 3)), meta={"rows_index": np.full(n, -1)}, signals=sig)
+    flight = _turning_record(rng)
     rows = np.array([4.0, 0.02, 5.5, 1.3, 3.3, 2.0, 0.5])
     terms = _imu_noise_blocks(flight, rows, None)
     assert rows.min() < terms.t_end.min() and np.isin(terms.t_end, rows).any()
@@ -638,3 +620,19 @@ def test_a_repeated_velocity_beside_fresh_positions_is_a_repeat(tmp_path, frame)
     table = {"t": t, **{c: pos[:, i] for i, c in enumerate(cols[0])}, **{c: vel[:, i] for i, c in enumerate(cols[1])}}
     write_table(tmp_path / "trk.csv", table)
     assert repeated_rows(Table(tmp_path / "trk.csv"), frame).tolist() == [5, 6, 7, 8]
+
+
+def _turning_record(rng):
+    """A turning, accelerating strapdown record (6 s at 20 Hz) with noisy body force and rate, no tracking rows."""
+    from scipy.spatial.transform import Rotation
+
+    from casep.io.flight import FlightData
+
+    t = np.arange(0.0, 6.0, 0.05)
+    n = t.size
+    q = Rotation.from_rotvec(np.column_stack([0.3 * t, 0.1 * np.sin(t), 0.05 * t])).as_quat()  # x y z w
+    f = np.column_stack([np.sin(t), 9.8 + 2 * t, np.cos(2 * t)])
+    sig = {"q_w": q[:, 3], "q_x": q[:, 0], "q_y": q[:, 1], "q_z": q[:, 2],
+           **{f"fb_{a}": f[:, i] + rng.normal(0, 0.05, n) for i, a in enumerate("xyz")},
+           **{f"w_{a}": rng.normal(0, 2e-3, n) for a in "xyz"}}
+    return FlightData(t, f, np.zeros((n, 3)), meta={"rows_index": np.full(n, -1)}, signals=sig)
