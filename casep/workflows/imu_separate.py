@@ -251,7 +251,9 @@ HEADING_SETTLED_Z = 3.0
 #: this, ppm (the rows are linear in it to parts in 10^4 over a flight: a crystal's drift of tens of ppm).
 CLOCK_STEP_PPM = 100.0
 #: The data's estimate of an IMU clock drift beyond the one given, beyond this many of its std but not beyond the
-#: clock-drift rule (:func:`casep.checks.tracking_quality.drift_determined`), is warned: the std do not cover it.
+#: clock-drift rule (:func:`casep.checks.tracking_quality.drift_determined`), fails the result as well: the
+#: coefficients take the drift in and their std do not cover it (a record whose clock runs 104 ppm slow read +84.9 +-
+#: 23 ppm and left ``dt_trk`` 10 std off); a clock on the tracking's rate reaches it on 0.27 % of records.
 CLOCK_HINT_Z = 3.0
 #: A covariance's eigenvalue below this fraction of its largest is its rounding (:func:`_scaled_spectrum`).
 _SPECTRUM_RTOL = 1e-10
@@ -1109,11 +1111,11 @@ class _Run:
 
     def clock_judged(self, res: EstimateResult, problem: Any, flight: FlightData, D: np.ndarray) -> EstimateResult:
         """`res` with the test of the IMU clock's rate against the data (:func:`clock_check`) in
-        ``diagnostics["clock_drift"]``: a drift the data see beyond the one given, said
+        ``diagnostics["clock_drift"]``: a drift the data see beyond the one given (the clock-drift rule, or beyond
+        :data:`CLOCK_HINT_Z` of its std: the std do not cover it), said
         (:class:`casep.exceptions.TrackingQualityWarning`, :func:`clock_message`) and failed (status
         ``STATUS_PRIOR_CONFLICT``: the drift given is taken as exact); a record that would not see a drift beyond
-        :data:`casep.checks.tracking_quality.DRIFT_MIN_PPM`, said in a line of the result (and warned where the data
-        point to one beyond :data:`CLOCK_HINT_Z` std: their std do not cover it). Not without a raw
+        :data:`casep.checks.tracking_quality.DRIFT_MIN_PPM`, said in a line of the result. Not without a raw
         record (a telemetry's passes), on noise-free rows (no std to test against) nor on a flight with a set-up
         problem (its rows are that mistake)."""
         from casep.checks.plausibility import setup_problems
@@ -1137,9 +1139,9 @@ class _Run:
         said = clock_message(record)
         if record["determined"] or record["indicated"]:
             warnings.warn(f"{flight.source}: {said}", TrackingQualityWarning, stacklevel=4)
-        if record["determined"]:
+        if record["determined"] or record["indicated"]:
             return failed(res, STATUS_PRIOR_CONFLICT, f"failed: {said}")
-        return _with_line(res, said) if record["indicated"] or record["unseen_ppm"] > DRIFT_MIN_PPM else res
+        return _with_line(res, said) if record["unseen_ppm"] > DRIFT_MIN_PPM else res
 
     def clock_rows(self, D: np.ndarray, t: np.ndarray) -> np.ndarray | None:
         """The rows' derivative (N, 3, m/s per ppm) at `D` and the pass's epochs `t` along the IMU clock's drift
@@ -2486,7 +2488,7 @@ def clock_check(res: EstimateResult, problem: Any, flight: FlightData, per_ppm: 
 
 def clock_message(record: dict) -> str:
     """What a result says of :func:`clock_check`'s `record`: a drift the data see beyond the one given (the failure),
-    one they point to (beyond :data:`CLOCK_HINT_Z` std, a warning), or how large a drift would hide in the scale
+    one they point to (beyond :data:`CLOCK_HINT_Z` std, a failure too), or how large a drift would hide in the scale
     factors unseen (a line of the result)."""
     from casep.checks.tracking_quality import DRIFT_MIN_PPM
 
@@ -2503,9 +2505,9 @@ def clock_message(record: dict) -> str:
                 f"{record['std_ppm']:.2g} ppm more, with {given} (estimated beside the coefficients, more than "
                 f"{CLOCK_HINT_Z:g} of its std from 0 but not beyond the clock-drift rule: {DRIFT_MIN_PPM:g} ppm and 4 "
                 f"std): {effect}; the coefficients take it in, and their std do not cover it. State the clock's drift "
-                f"if it is known (--clock-drift PPM; these data point to {record['ppm']:.4g} +- "
-                f"{record['std_ppm']:.2g}), else read the estimate as off by up to {record['unseen_ppm']:.3g} ppm of "
-                "every scale factor")
+                f"(--clock-drift PPM, measured against a reference clock; these data point to {record['ppm']:.4g} +- "
+                f"{record['std_ppm']:.2g}, not precise enough to state: a drift of up to "
+                f"{record['unseen_ppm']:.3g} ppm would move every scale factor by as much)")
     return (f"the record checks the IMU clock's rate only to {record['unseen_ppm']:.3g} ppm: with {given}, its own "
             f"estimate of a drift beyond it, with the coefficients free, is {record['beyond_given_ppm']:+.3g} +- "
             f"{record['std_ppm']:.2g} ppm, and a smaller one would be taken into the scale factors unseen ({effect}); "

@@ -148,6 +148,8 @@ def test_a_drift_not_given_is_estimated_within_its_std_and_either_failed_or_said
     assert abs(rec["ppm"] - _given(d)) < 3 * rec["std_ppm"], rec
     if rec["determined"]:
         assert not out.success and "state it (--clock-drift" in out.message, out.message
+    elif rec["indicated"]:  # beyond 3 std: the std do not cover it
+        assert not out.success and out.status == -10 and "their std do not cover it" in out.message, out.message
     else:
         assert "the record checks the IMU clock's rate only to" in out.message, out.message
         assert rec["unseen_ppm"] > abs(_given(d)) - 3 * rec["std_ppm"]
@@ -178,9 +180,28 @@ def test_what_a_result_says_of_the_clock_test():
         assert part in said, said
     hint = clock_message({**rec, "ppm": -70.6, "beyond_given_ppm": -70.6, "std_ppm": 23.0, "determined": False,
                           "unseen_ppm": 116.6})
-    for part in ("-70.6 +- 23 ppm", "std do not cover it", "point to -70.6", "117 ppm"):
+    for part in ("-70.6 +- 23 ppm", "std do not cover it", "point to -70.6", "up to 117 ppm"):
         assert part in hint, hint
     quiet = clock_message({**rec, "ppm": -70.0, "given_ppm": -104.0, "beyond_given_ppm": 34.0, "std_ppm": 23.0,
                            "determined": False, "indicated": False, "unseen_ppm": 80.0})
     for part in ("checks the IMU clock's rate only to 80 ppm", "--clock-drift -104 ppm", "+34 +- 23 ppm"):
         assert part in quiet, quiet
+
+
+def test_a_drift_beyond_three_std_fails_the_result(flights, monkeypatch):
+    """The data pointing to a drift beyond CLOCK_HINT_Z of its std, but not beyond the clock-drift rule: the result
+    fails (the std do not cover it), status -10, its message saying so (the clock test's record as it would read
+    it, forced to that case; the clean record itself is not flagged)."""
+    import casep.workflows.imu_separate as imu_separate
+
+    real = imu_separate.clock_check
+
+    def pointing(*args, **kw):
+        rec = real(*args, **kw)
+        return None if rec is None else {**rec, "determined": False, "indicated": True, "beyond_given_ppm": 84.9,
+                                         "ppm": -84.9, "std_ppm": 23.0, "unseen_ppm": 130.9}
+
+    monkeypatch.setattr(imu_separate, "clock_check", pointing)
+    out, _ = flights(0.0, 1e-9)  # a drift given that is none: a run of its own, not the cached clean one
+    assert not out.success and out.status == -10, out.message
+    assert "their std do not cover it" in out.message and "+84.9 +- 23 ppm" in out.message, out.message
