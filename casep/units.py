@@ -105,8 +105,9 @@ def si_factor(unit: str) -> float:
 #: 0.1 rad within a second, where the small-angle attitude error of the model no longer holds. Such an
 #: estimate says the model does not describe the data (rates in deg/s in rad/s columns, a set-up or model
 #: mistake), not that the instrument is that bad: the result fails (status -5) when the estimate is beyond
-#: the limit by more than ``LINEAR_Z`` std (casep.estimators), even when a large std hides it from the |estimate| - 5
-#: std rule; a record corrected by coefficients beyond it may not invert (:func:`casep.model.strapdown.not_inverted`).
+#: the limit by more than ``LINEAR_Z`` std (casep.estimators), even when a large std hides it from the
+#: ``|estimate| - 5 std`` rule; a record corrected by coefficients beyond it may not invert
+#: (:func:`casep.model.strapdown.not_inverted`).
 #: An accelerometer bias of 1 g is gravity itself: levelled with it, the attitude is off by 45 deg (the
 #: alignment's small-angle tilt ``b / g`` is 1 rad), and no accelerometer is that far off. Per-g terms (the unit
 #: divided by g: the error at 1 g) have the limit of their kind: 0.1 as a scale factor, 0.1 rad/s as a drift.
