@@ -68,7 +68,7 @@ from casep.regression.rows import GLITCH_GROSS
 if TYPE_CHECKING:
     from casep.regression.problem import Problem
 
-__all__ = ["TrackingScreen", "screen_tracking", "keep_screen", "clock_drift", "clock_drift_unmeasured",
+__all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "keep_screen", "clock_drift", "clock_drift_unmeasured",
            "fit_clock_drift", "clock_drift_record",
            "offset_halves", "halves_line", "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
@@ -214,14 +214,25 @@ def _file_rows(flight: FlightData) -> np.ndarray:
 
 
 def _stale(flight: FlightData, idx: np.ndarray, V: np.ndarray) -> np.ndarray:
-    """Of the observed epochs `idx`: the repeats of a fix while the telemetry moved by more than STALE_MOTION, and
-    the epochs of a velocity held with a jitter (:func:`_held`)."""
+    """Of the observed epochs `idx`: :func:`stale_epochs` (the file's repeated rows ``meta["tracking_repeats"]``)."""
     rows = _file_rows(flight)[idx]
     is_rep = np.isin(rows, np.asarray(flight.meta.get("tracking_repeats", []), dtype=int))
-    is_rep[0] = False
-    anchor = np.maximum.accumulate(np.where(~is_rep, np.arange(idx.size), 0))  # the fix each epoch repeats
-    moved = np.linalg.norm(V[idx] - V[idx[anchor]], axis=1)
-    return (is_rep & (moved > STALE_MOTION)) | _held(flight.t[idx], V[idx], flight.dv[idx])
+    return stale_epochs(flight.t[idx], V[idx], flight.dv[idx], is_rep)
+
+
+def stale_epochs(t: np.ndarray, V: np.ndarray, dv: np.ndarray, repeated: np.ndarray) -> np.ndarray:
+    """The stale tracking epochs (module notes), (N,) bool: the repeats of a fix (`repeated`, the epochs whose file
+    row repeats the previous one's velocity, :func:`casep.io.pair.repeated_rows`) while the telemetry moved by more
+    than :data:`STALE_MOTION` since the fix, and the epochs of a velocity held with a jitter (:func:`_held`). `t`:
+    the epochs' times (s), `V`: the telemetry's velocity change there (m/s, any constant), `dv`: ``v_tel - v_trk``
+    there (m/s). The one rule of the screen (:func:`screen_tracking`) and of the coarse time alignment
+    (:func:`casep.io.align.fresh_epochs`)."""
+    is_rep = np.asarray(repeated, bool).copy()
+    if is_rep.size:
+        is_rep[0] = False
+    anchor = np.maximum.accumulate(np.where(~is_rep, np.arange(is_rep.size), 0))  # the fix each epoch repeats
+    moved = np.linalg.norm(V - V[anchor], axis=1)
+    return (is_rep & (moved > STALE_MOTION)) | _held(t, V, dv)
 
 
 #: A tracking velocity that changes between two epochs by at most this share of what the telemetry's velocity

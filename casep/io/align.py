@@ -15,6 +15,10 @@ over ``|tau| <= max_offset`` (``v_tel`` a cubic spline of the telemetry samples)
 on all samples. Measured on the paper scenarios (20 Hz, 0.1 m/s noise): offsets of 0, 20 and
 300 ms found to within 0.7 ms. The model term ``dt_trk`` (first order: ``dv += a dt_trk``) then
 estimates what is left with its Cramer-Rao std; the flight's offset is their sum.
+
+The offset is judged on the tracking epochs the fit uses (:func:`fresh_epochs`): a receiver that holds each 1 Hz
+velocity over its 20 Hz epochs lags the vehicle by up to a second between fixes, which the screen leaves out
+(:func:`casep.checks.tracking_quality.stale_epochs`) and which would otherwise read as tags some 400 ms late.
 """
 
 from __future__ import annotations
@@ -23,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["TimeAlignment", "coarse_time_offset", "unaligned_lateness", "late_tags_clause", "lateness_left",
-           "LATENESS_Z", "EXPLAIN_GAIN", "EXPLAIN_F", "AUTO_MAX_STD"]
+__all__ = ["TimeAlignment", "coarse_time_offset", "fresh_epochs", "unaligned_lateness", "late_tags_clause",
+           "lateness_left", "LATENESS_Z", "EXPLAIN_GAIN", "EXPLAIN_F", "AUTO_MAX_STD"]
 
 #: A coarse offset "explains" the data when it removes at least this fraction of J(0) ...
 EXPLAIN_GAIN = 0.2
@@ -129,6 +133,27 @@ def lateness_left(record: dict | None, offset_s: float | None, offset_std_s: flo
     fit = (f"the fit's dt_trk {dt * 1e3:.4g} +- {own * 1e3:.2g} ms is {abs(dt - tau) / sd:.3g} std "
            "from it" if have and sd > 0 else "the fit has no dt_trk to take it")
     return f"{late_tags_clause(record)} ({fit}: the estimates absorb the rest)"
+
+
+def fresh_epochs(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray,
+                 repeated: np.ndarray) -> np.ndarray:
+    """The tracking epochs not stale, (M,) bool: :func:`casep.checks.tracking_quality.stale_epochs` (the screen's
+    rule, with the telemetry's velocity change ``v_tel`` itself, a cubic spline at the tracking times) on the
+    unshifted tags; `repeated` (M,) bool: the epochs whose file row repeats the previous one's velocity. Epochs
+    outside the telemetry's span are kept (:func:`coarse_time_offset` does not use them)."""
+    from scipy.interpolate import CubicSpline
+
+    from casep.checks.tracking_quality import stale_epochs
+
+    t_tel, t_trk = np.asarray(t_tel, dtype=float), np.asarray(t_trk, dtype=float)
+    fresh = np.ones(t_trk.size, bool)
+    inside = np.flatnonzero((t_trk >= t_tel[0]) & (t_trk <= t_tel[-1]))
+    if inside.size < 3:
+        return fresh
+    V = CubicSpline(t_tel, np.asarray(v_tel, dtype=float), axis=0)(t_trk[inside])
+    fresh[inside] = ~stale_epochs(t_trk[inside], V, V - np.asarray(v_trk, dtype=float)[inside],
+                                  np.asarray(repeated, bool)[inside])
+    return fresh
 
 
 def coarse_time_offset(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray, *,

@@ -269,19 +269,28 @@ def read_flight(path: str | os.PathLike) -> FlightData:
 
 
 def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray,
-                    v_trk: np.ndarray, time_offset: float | str | None) -> tuple[float, dict[str, Any]]:
+                    v_trk: np.ndarray, time_offset: float | str | None,
+                    repeats: np.ndarray) -> tuple[float, dict[str, Any]]:
     """The shift of the tracking time tags :func:`read_flight_pair` applies, s, and its ``time_alignment`` record.
 
-    ``"auto"``: the coarse offset that lines up the velocities; None: none, with a warning when that
+    ``"auto"``: the coarse offset that lines up the velocities of the epochs not stale
+    (:func:`casep.io.align.fresh_epochs`; `repeats`: the file's repeated rows, :func:`repeated_rows`; the record's
+    ``stale_left_out`` counts the others); None: none, with a warning when that
     offset exceeds a tracking sample period and explains the misfit; a number: that shift (a warning
     beyond :data:`MAX_TIME_OFFSET`).
     """
-    from casep.io.align import AUTO_MAX_STD, coarse_time_offset, unaligned_lateness
+    from casep.io.align import AUTO_MAX_STD, coarse_time_offset, fresh_epochs, unaligned_lateness
 
-    align = None
+    align, stale = None, 0
     if time_offset is None or time_offset == "auto":
+        # on the epochs the fit uses: a held (stale) velocity lags the vehicle and would read as late tags
+        repeated = np.zeros(t_trk.size, bool)
+        repeated[repeats] = True
+        fresh = fresh_epochs(t_tel, v_tel, t_trk, v_trk, repeated)
+        stale = int((~fresh).sum())
         try:
-            align = coarse_time_offset(t_tel, v_tel, t_trk, v_trk, max_offset=min(2.0, 0.25 * (t_trk[-1] - t_trk[0])))
+            align = coarse_time_offset(t_tel, v_tel, t_trk[fresh], v_trk[fresh],
+                                       max_offset=min(2.0, 0.25 * (t_trk[-1] - t_trk[0])))
         except ValueError:
             if time_offset == "auto":
                 raise
@@ -327,7 +336,8 @@ def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray
                 "different origins, state it with time_shift (--time-shift SECONDS, manifest time_shift_s)."),
                 stacklevel=3)
     mode = "auto" if time_offset == "auto" else ("none" if time_offset is None else "given")
-    return shift, {**(align.to_dict() if align is not None else {}), "applied_s": shift, "mode": mode}
+    return shift, {**(align.to_dict() if align is not None else {}), **({"stale_left_out": stale} if stale else {}),
+                   "applied_s": shift, "mode": mode}
 
 
 def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.PathLike, *,
@@ -359,8 +369,9 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     time_offset : float, "auto" or None, optional
         Tracking time tags late by this many seconds: they are shifted back before the pair is
         formed. ``"auto"``: the coarse offset that lines up the velocities
-        (:func:`casep.io.align.coarse_time_offset`; the model term ``dt_trk`` then finds the
-        rest). None (default): no shift, but the coarse offset is still computed and a
+        (:func:`casep.io.align.coarse_time_offset`, on the tracking epochs the stale screen keeps:
+        :func:`casep.io.align.fresh_epochs`; the model term ``dt_trk`` then finds the rest). None
+        (default): no shift, but the coarse offset is still computed and a
         :class:`~casep.exceptions.TimeOffsetWarning` gives it when it exceeds a tracking sample
         period (a first-order ``dt_trk`` is not meant for that). ``meta["time_alignment"]`` records it.
     tracking_frame : {"launch", "ecef", "geodetic"}, optional
@@ -429,8 +440,9 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     inside = (t_tel >= t_trk[0]) & (t_tel <= t_trk[-1])
     if inside.sum() < 2:
         raise tel.error(no_overlap_message(t_tel, t_raw, shift_scale), "t")
-    shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset)
-    extra: dict[str, Any] = {"time_alignment": alignment, "tracking_repeats": repeated_rows(trk, tracking_frame)}
+    repeats = repeated_rows(trk, tracking_frame)
+    shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset, repeats)
+    extra: dict[str, Any] = {"time_alignment": alignment, "tracking_repeats": repeats}
     signals = tel.signals()
     tel.strapdown_signals(signals, extra)
     if not all(f"a_{a}" in signals for a in "xyz"):

@@ -143,3 +143,52 @@ def test_the_lateness_left_in_place_is_the_readers_warning_rule():
                 record(-0.2)):
         assert unaligned_lateness(rec) is None, rec
     assert unaligned_lateness(None) is None and unaligned_lateness({}) is None
+
+
+def _stepped(d, jitter: float, seed: int = 0):
+    """`d` with its 20 Hz tracking velocity held at each whole second's fix (a receiver's 1 Hz solution after
+    reacquisition), `jitter` m/s of white noise on the held epochs (0: exact repeats)."""
+    import dataclasses
+
+    k = np.floor(d.t_trk + 1e-9).astype(int)
+    first = np.flatnonzero(np.concatenate([[True], np.diff(k) > 0]))
+    held = d.v_trk[first[np.searchsorted(first, np.arange(k.size), side="right") - 1]].copy()
+    held[np.setdiff1d(np.arange(k.size), first)] += np.random.default_rng(seed).normal(
+        0.0, jitter, (k.size - first.size, 3)) if jitter else 0.0
+    return dataclasses.replace(d, v_trk=held)
+
+
+@pytest.mark.parametrize("jitter", [0.0, 0.005])
+def test_a_held_tracking_velocity_is_not_called_late(tmp_path, jitter):
+    """A 20 Hz tracking velocity held at 1 Hz steps lags the vehicle by up to a second between fixes (unscreened:
+    "400 ms late"); the alignment judges the epochs the stale screen keeps: no warning, the offset within 3 std of
+    0 and dt_trk's total (auto shift + fit) within 3 std of 0. The same stepped tracking 400 ms late is still found
+    (at the 1 s period of its fresh epochs, within a period: not warned), and 20 Hz tracking 400 ms late is warned."""
+    d = simulate_two_rate("paper", seed=5, telemetry_rate=20.0, tracking_rate=20.0, time_offset=0.0)
+    tel, trk = tmp_path / "tel.csv", tmp_path / "trk.csv"
+    _stepped(d, jitter).write(tel, trk)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TimeOffsetWarning)
+        fl = casep.read_flight_pair(tel, trk)
+        auto = casep.read_flight_pair(tel, trk, time_offset="auto")
+    rec = fl.meta["time_alignment"]
+    assert rec["stale_left_out"] > 0.9 * d.t_trk.size and rec["tracking_period_s"] == pytest.approx(1.0)
+    assert abs(rec["tau_s"]) < 3 * rec["std_s"] and rec["std_s"] < 0.01, rec
+    shift = auto.meta["time_alignment"]["applied_s"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # ill-conditioned; the stale epochs left out
+        res = casep.separate(auto, "platform36_timeoffset")
+    j = list(res.names).index("dt_trk")
+    assert res.status >= 0, res.message
+    assert abs(shift * 1e3 + res.estimate[j]) < 3 * res.std[j], (shift, res.estimate[j], res.std[j])
+    for late, data, warned in ((0.4, _stepped(simulate_two_rate("paper", seed=5, telemetry_rate=20.0,
+                                                                tracking_rate=20.0, time_offset=0.4), jitter), False),
+                               (0.4, simulate_two_rate("paper", seed=5, telemetry_rate=20.0, tracking_rate=20.0,
+                                                       time_offset=0.4), True)):
+        data.write(tel, trk)
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            rec = casep.read_flight_pair(tel, trk).meta["time_alignment"]
+        assert abs(rec["tau_s"] - late) < max(3 * rec["std_s"], 2e-3), rec
+        assert any(issubclass(w.category, TimeOffsetWarning) and "ms late" in str(w.message)
+                   for w in seen) == warned, [str(w.message) for w in seen]
