@@ -18,9 +18,10 @@ so neither is held to a noise the other's misfit chose). The kind's evidence is 
 rows to within the noise: its fit leaves no misfit by the rule that judges every result
 (:func:`casep.checks.plausibility.misfit_problem`), the pad's two conditions. Two axes negated are the third
 negated with every coefficient of the other sign (the same residuals): the message says so. All three negated fit
-as well as none (every coefficient of the other sign): the rows cannot tell. The restricted likelihoods are formed
-only when some axis negated lowers the least-squares residual sum of squares (a file whose every negation fits
-worse, as a correct one's does, costs one least-squares projection).
+as well as none (every coefficient of the other sign): the rows cannot tell. A sign is checked where its negation is
+below ``1/CAUSE_FACTOR`` as likely as the file as given (the simulated boosts as written: e^-29 and below); on a short
+record the rows cannot tell (the first 20 s: every negation within a factor 30), and the result says which signs
+are not checked (:func:`dv_sign_unchecked`).
 
 **The frame** (:func:`frame_record`): the attitude turned by a constant small rotation ``rho`` (rad, about the
 navigation axes) against ``dv``'s frame, ``C_given = R(rho) C``, makes S_V the turned one, ``S_given = R S``
@@ -42,7 +43,11 @@ determine, where the linear model holds out to it (located, and the last step be
 heading's confirmation) and the axis is determined well enough for that (its std times the limit within
 :data:`FRAME_LARGE_DEG`: about the cross-range axis, known to 5-7 deg on the simulated boost, the steps of a
 correct flight wandered to 22 deg, z 3.7). The heading of a raw-IMU separation is the same test about the
-vertical with a stated std.
+vertical with a stated std. The fits take the coefficients without an estimate of a rank-deficient design (the
+default strapdown33 on a boost, rank 21 of 33) as the fit's own solution does
+(:meth:`casep.estimators.result.EstimateResult.fitted_coefficients`). An axis is checked where it is judged and the
+rotation located; the others are said in the result's message (:func:`frame_unchecked`), and a judged axis beyond
+:data:`FRAME_WARN_Z` std warns whether or not the rotation was located.
 
 A named sign or rotation fails the result with the status of a set-up mistake (``STATUS_SETUP``), naming the
 column or the rotation and what to do; a rotation beyond :data:`FRAME_WARN_Z` std but within the limit is a
@@ -62,7 +67,8 @@ import numpy as np
 from casep.estimators.result import EstimateResult
 from casep.io.flight import FlightData
 
-__all__ = ["dv_sign_record", "frame_record", "judge_frame", "FRAME_STEPS", "FRAME_AXES", "FRAME_LARGE_DEG",
+__all__ = ["dv_sign_record", "dv_sign_unchecked", "frame_record", "frame_unchecked", "judge_frame",
+           "FRAME_STEPS", "FRAME_AXES", "FRAME_LARGE_DEG",
            "FRAME_WARN_Z"]
 
 #: At most this many least-squares steps locate the frame's rotation (each turns the design by the rotation found).
@@ -330,7 +336,8 @@ def frame_unchecked(record: dict | None) -> str | None:
 def judge_frame(res: EstimateResult, flight: Any, problem: Any, spec: Any, locating: Any) -> EstimateResult:
     """`res` failed (``STATUS_SETUP``) when a strapdown telemetry file's ``dv`` axis looks negated
     (:func:`dv_sign_record`, files with ``dv_*``) or its attitude is turned against ``dv``'s frame
-    (:func:`frame_record`); the records in ``diagnostics["dv_signs"]`` and ``diagnostics["frame"]``. Anything but a
+    (:func:`frame_record`); the records in ``diagnostics["dv_signs"]`` and ``diagnostics["frame"]``; the signs and
+    axes the rows do not check said in its message (:func:`dv_sign_unchecked`, :func:`frame_unchecked`). Anything but a
     strapdown telemetry file (:func:`applies`), noise-free rows or a flight that failed a set-up check: `res`.
     `spec` the fit as asked, `locating` the least-squares fit that locates a rotation (:func:`frame_record`)."""
     from casep.checks.plausibility import setup_problems
