@@ -18,9 +18,10 @@ so neither is held to a noise the other's misfit chose). The kind's evidence is 
 rows to within the noise: its fit leaves no misfit by the rule that judges every result
 (:func:`casep.checks.plausibility.misfit_problem`), the pad's two conditions. Two axes negated are the third
 negated with every coefficient of the other sign (the same residuals): the message says so. All three negated fit
-as well as none (every coefficient of the other sign): the rows cannot tell. The restricted likelihoods are formed
-only when some axis negated lowers the least-squares residual sum of squares (a file whose every negation fits
-worse, as a correct one's does, costs one least-squares projection).
+as well as none (every coefficient of the other sign): the rows cannot tell. A sign is checked where its negation is
+below ``1/CAUSE_FACTOR`` as likely as the file as given (the simulated boosts as written: e^-29 and below); on a short
+record the rows cannot tell (the first 20 s: every negation within a factor 30), and the result says which signs
+are not checked (:func:`dv_sign_unchecked`).
 
 **The frame** (:func:`frame_record`): the attitude turned by a constant small rotation ``rho`` (rad, about the
 navigation axes) against ``dv``'s frame, ``C_given = R(rho) C``, makes S_V the turned one, ``S_given = R S``
@@ -42,7 +43,11 @@ determine, where the linear model holds out to it (located, and the last step be
 heading's confirmation) and the axis is determined well enough for that (its std times the limit within
 :data:`FRAME_LARGE_DEG`: about the cross-range axis, known to 5-7 deg on the simulated boost, the steps of a
 correct flight wandered to 22 deg, z 3.7). The heading of a raw-IMU separation is the same test about the
-vertical with a stated std.
+vertical with a stated std. The fits take the coefficients without an estimate of a rank-deficient design (the
+default strapdown33 on a boost, rank 21 of 33) as the fit's own solution does
+(:meth:`casep.estimators.result.EstimateResult.fitted_coefficients`). An axis is checked where it is judged and the
+rotation located; the others are said in the result's message (:func:`frame_unchecked`), and a judged axis beyond
+:data:`FRAME_WARN_Z` std warns whether or not the rotation was located.
 
 A named sign or rotation fails the result with the status of a set-up mistake (``STATUS_SETUP``), naming the
 column or the rotation and what to do; a rotation beyond :data:`FRAME_WARN_Z` std but within the limit is a
@@ -52,6 +57,7 @@ flight that failed a set-up check already (its rows are that mistake).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from typing import Any
@@ -61,7 +67,8 @@ import numpy as np
 from casep.estimators.result import EstimateResult
 from casep.io.flight import FlightData
 
-__all__ = ["dv_sign_record", "frame_record", "judge_frame", "FRAME_STEPS", "FRAME_AXES", "FRAME_LARGE_DEG",
+__all__ = ["dv_sign_record", "dv_sign_unchecked", "frame_record", "frame_unchecked", "judge_frame",
+           "FRAME_STEPS", "FRAME_AXES", "FRAME_LARGE_DEG",
            "FRAME_WARN_Z"]
 
 #: At most this many least-squares steps locate the frame's rotation (each turns the design by the rotation found).
@@ -86,22 +93,11 @@ def applies(flight: Any) -> bool:
     return isinstance(meta.get("strapdown"), dict) and meta.get("format") != "pair"
 
 
-def _ls_rss(S: np.ndarray, ys: list[np.ndarray]) -> np.ndarray:
-    """The least-squares residual sums of squares of each rows `ys` (N, 3) on the design `S` (N, 3, n), its columns
-    equilibrated and its null space cut at 1e-10 of the largest singular value."""
-    A = S.reshape(-1, S.shape[2])
-    norm = np.linalg.norm(A, axis=0)
-    A = A / np.where(norm > 0, norm, 1.0)
-    U, s, _ = np.linalg.svd(A, full_matrices=False)
-    U = U[:, s > s[0] * 1e-10] if s.size and s[0] > 0 else U[:, :0]
-    Y = np.column_stack([y.reshape(-1) for y in ys])
-    return np.sum(Y**2, axis=0) - np.sum((U.T @ Y) ** 2, axis=0)
-
-
 def dv_sign_record(problem: Any, flight: FlightData, spec: Any) -> dict | None:
     """The test of each ``dv`` axis's sign (module notes): ``{"ln_ratio": [x, y, z], "factor", "best", "explains",
-    "named", "rule"}`` (``ln_ratio`` the log-evidence of each axis negated over the file as given; ``named`` the
-    column, or None), or None when no axis negated fits better by least squares (nothing to weigh)."""
+    "named", "checked", "rule"}`` (``ln_ratio`` the log-evidence of each axis negated over the file as given;
+    ``named`` the column, or None; ``checked`` the columns whose negation the rows reject, less likely than the file
+    as given by more than ``limit_factor``: the others' signs the rows cannot tell), or None without the noise fits."""
     from casep.checks.plausibility import misfit_problem
     from casep.navigation.alignment import CAUSE_FACTOR
     from casep.noise.fit import fit_noise
@@ -113,9 +109,6 @@ def dv_sign_record(problem: Any, flight: FlightData, spec: Any) -> dict | None:
         yy = y.copy()
         yy[:, a] = -yy[:, a]
         flips.append(yy)
-    rss = _ls_rss(problem.sv(), [y, *flips])
-    if not np.any(rss[1:] < rss[0]):
-        return None
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the hypotheses' noise fits: judged here, not said
@@ -132,9 +125,11 @@ def dv_sign_record(problem: Any, flight: FlightData, spec: Any) -> dict | None:
     k = int(np.argmax(ln))
     record: dict[str, Any] = {"ln_ratio": ln.tolist(), "factor": factor, "limit_factor": CAUSE_FACTOR,
                               "best": f"dv_{_AXES[k]}", "explains": None, "named": None,
+                              "checked": [f"dv_{a}" for a, v in zip(_AXES, ln) if v < -math.log(CAUSE_FACTOR)],
                               "rule": "each dv axis negated against the file as given: restricted likelihoods with "
                                       "the noise refitted (Gauss-Markov plus white), the mean evidence over the three "
-                                      "beyond limit_factor and the best one's fit leaving no misfit (misfit_problem)"}
+                                      "beyond limit_factor and the best one's fit leaving no misfit (misfit_problem); "
+                                      "an axis checked where its negation is below 1/limit_factor"}
     if factor < CAUSE_FACTOR:
         return record
     alt = _quiet_fit(problem.with_y(flips[k]), spec)
@@ -160,6 +155,25 @@ def dv_sign_message(record: dict, given_rms: dict | None) -> str:
             f"The noise model absorbs the misfit of a dv axis of the wrong sign and the estimates are off by more "
             f"than their std say: check {col}'s sign (dv = v_tel - v_trk, in the frame of q_*), negate it and "
             f"run again")
+
+
+def dv_sign_unchecked(record: dict | None) -> str | None:
+    """What a result says of the ``dv`` axes whose sign the rows cannot tell (:func:`dv_sign_record`: an axis negated
+    not below ``1/limit_factor`` as likely as the file as given), or None when every sign is checked."""
+    from casep.navigation.alignment import CAUSE_FACTOR
+
+    if record is None:
+        return "the dv signs are not checked on this record (no noise fit to weigh them with)"
+    left = [f"dv_{a}" for a in _AXES if f"dv_{a}" not in record["checked"]]
+    if not left:
+        return None
+    ratios = ", ".join(f"{a} {math.exp(min(700.0, v)):.3g}" for a, v in zip(_AXES, record["ln_ratio"]))
+    also = ""
+    if record["factor"] >= CAUSE_FACTOR and record["explains"] is False:
+        also = f"; {record['best']} negated is favoured but its fit leaves residuals the noise does not explain"
+    return (f"the sign of {', '.join(left)} is not checked on this record: the rows cannot tell (with each dv axis "
+            f"negated they are {ratios} times as likely as the file as given; a sign is checked where its negation "
+            f"is below 1/{CAUSE_FACTOR:g} as likely{also})")
 
 
 def _turned(S: np.ndarray, rho: np.ndarray) -> np.ndarray:
@@ -197,8 +211,8 @@ def _located(problem: Any, S: np.ndarray, y: np.ndarray, names: list[str],
     for _ in range(FRAME_STEPS):
         Sc = _turned(S, rho)
         try:
-            x = _quiet_fit(Problem.from_arrays(Sc, y, problem.t, names=names[:-3]), locating).estimate
-            loc = _quiet_fit(Problem.from_arrays(np.concatenate([Sc, _columns(Sc @ np.asarray(x, float))], axis=2),
+            x = _quiet_fit(Problem.from_arrays(Sc, y, problem.t, names=names[:-3]), locating).fitted_coefficients()
+            loc = _quiet_fit(Problem.from_arrays(np.concatenate([Sc, _columns(Sc @ x)], axis=2),
                                                  y, problem.t, names=names), locating)
         except (ValueError, np.linalg.LinAlgError):
             return None
@@ -231,10 +245,10 @@ def frame_record(res: EstimateResult, problem: Any, flight: FlightData, spec: An
     rho, located = found
     there = Problem.from_arrays(_turned(S, rho), y, problem.t, names=list(res.names))
     try:
-        x = _quiet_fit(there, locating).estimate
+        x = _quiet_fit(there, locating).fitted_coefficients()
     except (ValueError, np.linalg.LinAlgError):
         return None
-    cols = _columns(there.sv() @ np.asarray(x, float))
+    cols = _columns(there.sv() @ x)
     noise = with_columns_noise(res, there, cols, spec, names[-3:])
     est = column_estimates(noise, there, flight, cols)
     if est is None:
@@ -255,10 +269,14 @@ def frame_record(res: EstimateResult, problem: Any, flight: FlightData, spec: An
         return bool(located and np.any(axes) and np.all(np.abs(last[axes]) < 0.5 * np.abs(total[axes])))
 
     conflict = reach(beyond)
+    # an axis is checked where it is judged and the rotation located; a judged axis beyond the warning's z is said
+    # whether or not the rotation was located or the linear model confirmed out to it
+    checked = judged if located else np.zeros(3, dtype=bool)
     return {"rotation_deg": total.tolist(), "std_deg": std.tolist(), "z": z.tolist(), "limit_z": PRIOR_CONFLICT_Z,
             "warn_z": FRAME_WARN_Z, "judged": [a for a, j in zip(_AXES, judged) if j],
+            "checked": [a for a, c in zip(_AXES, checked) if c],
             "located": located, "last_step_deg": last.tolist(),
-            "conflict": conflict, "warn": bool(not conflict and reach(seen)),
+            "conflict": conflict, "warn": bool(not conflict and np.any(seen)),
             "rule": "the attitude's rotation about each navigation axis as three more coefficients (the rows' "
                     "derivative along it, (S x) x e_k), located by least squares with the design turned by it, then "
                     "its GLS estimate there with the noise refitted beside it (column_estimates, heading_conflict's "
@@ -280,11 +298,14 @@ def frame_message(record: dict, warn: bool = False) -> str:
                 f"one navigation frame (casep's launch-inertial frame: y up at the launch point, x downrange at the "
                 f"launch azimuth; q_* rotating body vectors into it) and run again")
     if warn:
+        how = (f"beyond {FRAME_WARN_Z:g} std but within the {record['limit_z']:g} that fail a result"
+               if z[k] <= record["limit_z"] else
+               f"beyond the {record['limit_z']:g} std that fail a result, but not confirmed (the rotation "
+               f"{'located, the linear model not holding out to it' if record['located'] else 'not located'})")
         return (f"the rows point to the attitude (q_*) turned against dv's frame by {each}, mostly about "
-                f"{FRAME_AXES[k]}: beyond {FRAME_WARN_Z:g} std but within the {record['limit_z']:g} that fail a "
-                f"result. If q_* and dv_* may be in different navigation frames, check: S_V takes the attitude's "
-                f"frame and the coefficients absorb such a turn (3 deg in azimuth moved sa_x by up to 7 std on a "
-                f"simulated boost)")
+                f"{FRAME_AXES[k]}: {how}. If q_* and dv_* may be in different navigation frames, check: S_V takes "
+                f"the attitude's frame and the coefficients absorb such a turn (3 deg in azimuth moved sa_x by up "
+                f"to 7 std on a simulated boost)")
     return (f"the attitude (q_*) and the velocity error (dv_*) are in navigation frames {angle:.3g} deg apart: the "
             f"rows put the attitude turned by {each} against dv's frame (stated to agree; beyond "
             f"{record['limit_z']:g} std named), mostly about {FRAME_AXES[k]}. S_V takes the attitude's frame, so the "
@@ -294,10 +315,29 @@ def frame_message(record: dict, warn: bool = False) -> str:
             f"{', '.join(f'{-v:+.3g}' for v in rot)} deg about x, y, z), and run again")
 
 
+def frame_unchecked(record: dict | None) -> str | None:
+    """What a result says of the navigation axes its frame test does not check (:func:`frame_record`: the rotation
+    not located, or an axis not judged), or None when every axis is checked."""
+    if record is None:
+        return "the frame of q_* against dv_* is not checked on this record (no fit of its rotation)"
+    left = [a for a in _AXES if a not in record["checked"]]
+    if not left:
+        return None
+    rot, sd, z = (np.asarray(record[k], float) for k in ("rotation_deg", "std_deg", "z"))
+    each = ", ".join(f"{rot[i]:+.3g} +- {sd[i]:.2g} deg about {_AXES[i]} (z {z[i]:.3g})" for i in range(3))
+    why = ("the least-squares steps did not settle on a rotation" if not record["located"] else
+           f"known to +- {', '.join(f'{sd[_AXES.index(a)]:.2g}' for a in left)} deg: a rotation at the "
+           f"{record['limit_z']:g} std that fail would be beyond the {FRAME_LARGE_DEG:g} deg the small-angle test "
+           f"reaches")
+    return (f"the frame of q_* against dv_* is not checked about {', '.join(left)} on this record ({why}; the rows "
+            f"put the attitude turned by {each})")
+
+
 def judge_frame(res: EstimateResult, flight: Any, problem: Any, spec: Any, locating: Any) -> EstimateResult:
     """`res` failed (``STATUS_SETUP``) when a strapdown telemetry file's ``dv`` axis looks negated
     (:func:`dv_sign_record`, files with ``dv_*``) or its attitude is turned against ``dv``'s frame
-    (:func:`frame_record`); the records in ``diagnostics["dv_signs"]`` and ``diagnostics["frame"]``. Anything but a
+    (:func:`frame_record`); the records in ``diagnostics["dv_signs"]`` and ``diagnostics["frame"]``; the signs and
+    axes the rows do not check said in its message (:func:`dv_sign_unchecked`, :func:`frame_unchecked`). Anything but a
     strapdown telemetry file (:func:`applies`), noise-free rows or a flight that failed a set-up check: `res`.
     `spec` the fit as asked, `locating` the least-squares fit that locates a rotation (:func:`frame_record`)."""
     from casep.checks.plausibility import setup_problems
@@ -308,6 +348,7 @@ def judge_frame(res: EstimateResult, flight: Any, problem: Any, spec: Any, locat
         return res
     if problem.is_noise_free():
         return res
+    notes = []
     if flight.meta.get("dv") == "dv":
         signs = dv_sign_record(problem, flight, spec)
         if signs is not None:
@@ -316,14 +357,16 @@ def judge_frame(res: EstimateResult, flight: Any, problem: Any, spec: Any, locat
                 said = dv_sign_message(signs, res.residual_rms)
                 warnings.warn(f"{flight.source}: {said}", SetupWarning, stacklevel=3)
                 return failed(res, STATUS_SETUP, f"failed: {flight.source}: {said}")
+        notes.append(dv_sign_unchecked(signs))
     record = frame_record(res, problem, flight, spec, locating)
-    if record is None:
-        return res
-    res.diagnostics["frame"] = record
-    if not record["conflict"]:
+    if record is not None:
+        res.diagnostics["frame"] = record
+        if record["conflict"]:
+            said = frame_message(record)
+            warnings.warn(f"{flight.source}: {said}", SetupWarning, stacklevel=3)
+            return failed(res, STATUS_SETUP, f"failed: {flight.source}: {said}")
         if record["warn"]:
             warnings.warn(f"{flight.source}: {frame_message(record, warn=True)}", SetupWarning, stacklevel=3)
-        return res
-    said = frame_message(record)
-    warnings.warn(f"{flight.source}: {said}", SetupWarning, stacklevel=3)
-    return failed(res, STATUS_SETUP, f"failed: {flight.source}: {said}")
+    notes.append(frame_unchecked(record))
+    said = "; ".join(n for n in notes if n)
+    return dataclasses.replace(res, message=f"{res.message}; {said}") if said else res

@@ -30,10 +30,12 @@ def sd_file(tmp_path_factory) -> Path:
 
 
 def _mutated(src: Path, name: str, change) -> Path:
-    """`src` with `change` applied to its table, written beside it with its header comments."""
+    """`src` with `change` applied to its table (in place, or returning the new table), written beside it with its
+    header comments."""
     head = [ln for ln in src.read_text().splitlines() if ln.startswith("#")]
     d = pd.read_csv(src, comment="#")
-    change(d)
+    out = change(d)  # a table changed in place, or a new one
+    d = d if out is None else out
     dst = src.with_name(name)
     with open(dst, "w") as fh:
         fh.write("\n".join(head) + "\n")
@@ -41,12 +43,31 @@ def _mutated(src: Path, name: str, change) -> Path:
     return dst
 
 
-def _separate(path: Path):
+def _turn_y(deg: float):
+    """The change that premultiplies the attitude by `deg` about the launch frame's y (scipy: scalar last)."""
+    def turn(d):
+        q = d[["q_x", "q_y", "q_z", "q_w"]].to_numpy()
+        qq = (Rotation.from_euler("y", deg, degrees=True) * Rotation.from_quat(q)).as_quat()
+        d[["q_x", "q_y", "q_z", "q_w"]] = qq * np.where(qq[:, 3:] < 0, -1.0, 1.0)
+    return turn
+
+
+def _cut(seconds: float, then=None):
+    """The change that keeps the rows up to `seconds`, then applies `then`."""
+    def cut(d):
+        d = d[d["t"] <= seconds].copy()
+        if then is not None:
+            then(d)
+        return d
+    return cut
+
+
+def _separate(path: Path, model: str = MODEL):
     """The result and the SetupWarnings said on the way (other warnings of the flight, such as its conditioning,
     recorded and left alone)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res = casep.separate(str(path), model=MODEL)
+        res = casep.separate(str(path), model=model)
     return res, [w for w in caught if issubclass(w.category, SetupWarning)]
 
 
@@ -55,8 +76,70 @@ def test_the_file_as_simulated_names_no_sign_and_no_rotation(sd_file):
     assert res.success and not said
     frame = res.diagnostics["frame"]
     assert not frame["conflict"] and max(frame["z"]) < 3.0
-    signs = res.diagnostics.get("dv_signs")  # formed only when a negated axis fits better by least squares
-    assert signs is None or signs["named"] is None
+    signs = res.diagnostics["dv_signs"]  # every axis's negation rejected: each sign checked
+    assert signs["named"] is None and signs["checked"] == ["dv_x", "dv_y", "dv_z"]
+    assert "dv signs" not in res.message and "sign of" not in res.message
+    assert set(frame["checked"]) >= {"x", "y"} and frame["located"]
+
+
+def test_the_default_model_checks_the_frame_too(sd_file):
+    """strapdown33's design is rank-deficient on a boost (rank 21 of 33): the rotation is located with the fit's own
+    rank handling (its fitted coefficients), so 10 deg in azimuth fails the result as with strapdown15_axial (it
+    passed with nothing said when the frame test gave up on the coefficients without an estimate)."""
+    res, said = _separate(_mutated(sd_file, "turned_y10_sd33.csv", _turn_y(10.0)), model="strapdown33")
+    assert res.rank is not None and res.rank < len(res.names)
+    assert not res.success and res.status == STATUS_SETUP
+    frame = res.diagnostics["frame"]
+    rot, sd = np.array(frame["rotation_deg"]), np.array(frame["std_deg"])
+    assert frame["conflict"] and abs(rot[1] - 10.0) < 3 * sd[1] and sd[1] < 2.5
+    assert "about y" in res.message and said
+
+
+def test_a_short_record_says_the_axes_its_frame_test_does_not_check(sd_file):
+    """The first 100 s with the attitude 10 deg off in azimuth: the rotation is known to 15 deg about y there, not
+    judged, and the result says the frame is not checked about those axes (a success with nothing said before)."""
+    res, _ = _separate(_mutated(sd_file, "cut100_turned_y10.csv", _cut(100.0, _turn_y(10.0))))
+    frame = res.diagnostics["frame"]
+    left = [a for a in "xyz" if a not in frame["checked"]]
+    assert "y" in left
+    assert f"the frame of q_* against dv_* is not checked about {', '.join(left)} on this record" in res.message
+
+
+def test_a_short_record_says_the_dv_signs_it_cannot_tell(sd_file):
+    """The first 20 s with dv_y negated: the rows cannot tell any sign (each negation within a factor 300 of the
+    file as given), and the result says so (a success with nothing said of the signs before)."""
+    def negate(d):
+        d["dv_y"] = -d["dv_y"]
+
+    res, _ = _separate(_mutated(sd_file, "cut20_neg_dvy.csv", _cut(20.0, negate)))
+    signs = res.diagnostics["dv_signs"]
+    assert signs["named"] is None and "dv_y" not in signs["checked"]
+    assert "is not checked on this record: the rows cannot tell" in res.message
+    assert "dv_y" in res.message.split("is not checked on this record")[0].rsplit("the sign of", 1)[1]
+
+
+def test_the_rotation_is_located_on_a_rank_deficient_design():
+    """:func:`casep.workflows.telemetry_frame._located` on a design with a zero column and two equal ones (the
+    coefficients without an estimate of a rank-deficient fit) and rows turned by scipy's rotation of 6 deg about y:
+    the rotation found within 0.05 deg of it (it gave up, None, before)."""
+    from casep.regression.problem import Problem
+    from casep.workflows.separate import LOCATING_FIT
+    from casep.workflows.telemetry_frame import _located
+
+    rng = np.random.default_rng(3)
+    N = 300
+    S = rng.standard_normal((N, 3, 5))
+    S[:, :, 3] = S[:, :, 0]
+    S[:, :, 4] = 0.0
+    x = np.array([1.0, -2.0, 0.5, 1.0, 0.0])
+    rho = np.radians([0.0, 6.0, 0.0])
+    R = Rotation.from_rotvec(rho).as_matrix()
+    y = np.einsum("ji,njk->nik", R, S) @ x + 1e-3 * rng.standard_normal((N, 3))
+    t = np.arange(N) * 0.1
+    names = [f"c{k}" for k in range(5)] + ["rot_x", "rot_y", "rot_z"]
+    found = _located(Problem.from_arrays(S, y, t, names=names[:5]), S, y, names, LOCATING_FIT)
+    assert found is not None and found[1]
+    np.testing.assert_allclose(np.degrees(found[0]), [0.0, 6.0, 0.0], atol=0.05)
 
 
 def test_a_negated_dv_column_fails_the_result_naming_it(sd_file):
