@@ -132,6 +132,6 @@ def conflict_message(cons: Any, most: int = 3) -> str:
                        f"(z {cons.z[j]:.3g})"
                        for j in order)
     return (f"failed: prior conflict: the flight alone DISAGREES with the prior (chi2 {cons.chi2:.4g} on {cons.dof} "
-            f"dof, p {cons.p_value:.3g}); {where}: {listed}. The estimate would average the two, and its std "
-            "would not cover either: check that the prior is of this instrument (serial, units, axes, sign "
+            f"dof, p {cons.p_value:.3g}); {where}: {listed}. The estimate would average the two, an estimate of "
+            "neither: check that the prior is of this instrument (serial, units, axes, sign "
             "conventions) and, if the instrument changed since, drop the prior (estimate without --prior)")
