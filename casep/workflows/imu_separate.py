@@ -1960,7 +1960,8 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str
     if late:
         ls = sorted(late, key=lambda c: c["std"])
         rest.append(f"{len(late)} stepped along, whose std with the record's noise and the curvature "
-                    f"({ls[0]['std']:.3g} to {ls[-1]['std']:.3g} declared magnitudes: "
+                    f"({ls[0]['std']:.3g}" + (f" to {ls[-1]['std']:.3g}" if len(ls) > 1 else "")
+                    + " declared magnitudes: "
                     + "; ".join(_combination(list(names), np.array(c["weights"])) if names is not None and
                                 "weights" in c else "combination " + " ".join(
                                     f"{v:+.2f} {k}" for k, v in (c.get("terms") or {}).items()).lstrip("+")

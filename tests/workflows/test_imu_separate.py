@@ -1100,3 +1100,6 @@ def test_the_note_on_what_the_record_leaves_out_counts_every_combination():
     said = _outside_note(passes(12, 4, 0), 16, 1.6, names=names)
     assert "determines 12 of 16 combinations of the coefficients well enough to iterate; the other 4 (std 10 to 13" \
         in said, said
+    said = _outside_note(passes(11, 4, 1), 16, 1.6, names=names)
+    assert "determines 11 of 16" in said and "the other 5: 1 stepped along, whose std with the record's noise and " \
+        "the curvature (2 declared magnitudes: c8) reach" in said, said
