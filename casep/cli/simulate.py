@@ -40,9 +40,9 @@ def add_parser(sub: Any) -> None:
                    help="with --rotating-earth: launch point (deg, deg, m above WGS84) and azimuth of x (deg from "
                         "north, clockwise); lift-off is t = 0 (read back with --launch-time 0)")
     p.add_argument("--tracking-frame", choices=FRAMES, default="launch",
-                   help="with --rotating-earth: ecef or geodetic writes two files, the telemetry (-o: t, f_*, "
-                        "v_tel_*, a_*) and the tracking in that frame (--tracking-output); default launch: the "
-                        "one-file flight")
+                   help="with --rotating-earth: ecef or geodetic writes two files, the telemetry (-o: t, f_*, v_tel_*, "
+                        "a_*; a strapdown scenario's t, dv_*, q_*, fb_*, w_*, raw IMU with --imu-output) and the "
+                        "tracking in that frame (--tracking-output); default launch: the one-file flight")
     p.add_argument("--tracking-rate", type=rate, default=None, metavar="HZ",
                    help="with --tracking-frame ecef|geodetic: tracking sample rate (default 20; a strapdown "
                         "scenario's tracking is the flight's, at --rate)")

@@ -43,7 +43,7 @@ def check_distinct_inputs(paths: Sequence[str | os.PathLike]) -> None:
     ValueError
         Naming both result files and the shared input with the start of its SHA-256.
     """
-    seen: dict[str, tuple[str, str]] = {}  # sha256 -> (result file, the file it names)
+    seen: dict[str, tuple[str, str, str]] = {}  # sha256 -> (result file, the file it names, that file's role)
     for path in paths:
         own = _digest(path)
         try:
@@ -51,17 +51,42 @@ def check_distinct_inputs(paths: Sequence[str | os.PathLike]) -> None:
                 prov = json.load(fh).get("provenance") or {}
         except (OSError, ValueError, AttributeError):
             prov = {}  # read and checked by the result reader; a hand-written result has no provenance
-        named = [(own, str(path))] if own else []
+        named = [(own, str(path), "result")] if own else []
         for inp in prov.get("inputs", []) if isinstance(prov, dict) else []:
             if isinstance(inp, dict) and inp.get("sha256") and inp.get("role", "") not in NOT_DATA:
-                named.append((inp["sha256"], str(inp.get("file", ""))))
-        for d, name in named:
+                named.append((inp["sha256"], str(inp.get("file", "")), str(inp.get("role") or "input")))
+        for d, name, role in named:
             if d in seen and seen[d][0] != str(path):
-                raise ValueError(f"RESULT {path} and {seen[d][0]} were estimated from the same input file {name} "
-                                 f"(sha256 {d[:12]}...): fusing them counts its data twice (std too small by sqrt 2); "
-                                 "give each flight's result once")
-        for d, name in named:
-            seen.setdefault(d, (str(path), name))
+                earlier = [(e, f, r) for e, (q, f, r) in seen.items() if q == seen[d][0]]
+                raise ValueError(_shared_message(seen[d], (str(path), name, role), d, earlier, named))
+        for d, name, role in named:
+            seen.setdefault(d, (str(path), name, role))
+
+
+def _shared_message(first: tuple[str, str, str], second: tuple[str, str, str], digest: str,
+                    named1: Sequence[tuple[str, str, str]], named2: Sequence[tuple[str, str, str]]) -> str:
+    """Why two results are not fused: each result with the file it read (its own name and role) and the content
+    they share; a shared data record makes them one flight's data counted twice whatever else differs."""
+    (p1, f1, r1), (p2, f2, r2) = first, second
+    what = r1 if r1 == r2 else f"{r1}/{r2}"
+    if r1 == r2 == "result":
+        shared = f"RESULT {p1} and {p2} are the same file content (one result given twice)"
+    elif "result" in (r1, r2):
+        own, holder, role = (p1, p2, r2) if r1 == "result" else (p2, p1, r1)
+        shared = f"RESULT {holder} was made from RESULT {own} (its input, role {role})"
+    elif f1 == f2:
+        shared = f"RESULT {p1} and {p2} both read the {what} file {f1}"
+    else:
+        shared = (f"RESULT {p1} read the {r1} file {f1} and {p2} the {r2} file {f2}, and the two files have the "
+                  "same content")
+    d1, d2 = {d for d, _, _ in named1}, {d for d, _, _ in named2}
+    own1 = [f"{r} {f}" for d, f, r in named1 if d not in d2 and r != "result"]
+    own2 = [f"{r} {f}" for d, f, r in named2 if d not in d1 and r != "result"]
+    differ = (f"; their other inputs differ ({p1}: {', '.join(own1) or '-'}; {p2}: {', '.join(own2) or '-'}), but "
+              "the record they share makes them two estimates of one flight's data, not independent ones"
+              if own1 or own2 else "")
+    return (f"{shared} (sha256 {digest[:12]}...){differ}: fusing them counts its data twice (std too small by "
+            "sqrt 2); give each flight's result once")
 
 
 def read_results_to_fuse(paths: Sequence[str | os.PathLike], model: Any = None) -> list[Any]:

@@ -191,6 +191,12 @@ def _fused(results: Sequence[EstimateResult], labels: Sequence[str] | None,
             message += "; " + what
         else:
             warnings.warn(what, ConsistencyWarning, stacklevel=3)
+    left = _left_out(results, labels, names)
+    if left:
+        message += ("; per-flight terms left out of the fusion (each flight has its own): " + "; ".join(
+            f"{lab}: " + ", ".join(f"{n} {v['estimate']:.4g}" + (f" +- {v['std']:.2g}" if v["std"] is not None else "")
+                                   + (f" {v['unit']}" if v["unit"] else "") for n, v in terms.items())
+            for lab, terms in left.items()))
     idx0 = [list(first.names).index(nm) for nm in names]
     fused = dataclasses.replace(
         first, model=shared, method="fused", names=tuple(names), units=tuple(first.units[i] for i in idx0),
@@ -201,10 +207,25 @@ def _fused(results: Sequence[EstimateResult], labels: Sequence[str] | None,
         diagnostics={"consistency": {"overall": overall.to_dict(), "per_coefficient": per,
                                      "test": "sum_k (D_k - D)^T C_k^-1 (D_k - D) ~ chi2((K-1) n)"}},
         settings={"fused": [{"file": lab, "method": r.method, "n_samples": int(r.n_samples),
-                             "sigma": float(r.sigma) if np.isfinite(r.sigma) else None}
+                             "sigma": float(r.sigma) if np.isfinite(r.sigma) else None,
+                             **({"left_out": left[lab]} if lab in left else {})}
                             for r, lab in zip(results, labels)], "sigma": "each input's own"},
         n_samples=int(sum(r.n_samples for r in results)), stored_residual_rms={a: None for a in "xyz"})
     return fused, inst.scales
+
+
+def _left_out(results: Sequence[EstimateResult], labels: Sequence[str],
+              names: Sequence[str]) -> dict[str, dict[str, dict[str, Any]]]:
+    """Each result's coefficients not fused (its per-flight terms, such as ``dt_trk``), by label:
+    ``{label: {name: {"estimate", "std", "unit"}}}`` (natural units; std None when not given)."""
+    out: dict[str, dict[str, dict[str, Any]]] = {}
+    for r, lab in zip(results, labels):
+        std = np.asarray(r.std, dtype=float) if r.std is not None else np.full(len(r.names), np.nan)
+        terms = {n: {"estimate": float(r.estimate[j]), "std": float(std[j]) if np.isfinite(std[j]) else None,
+                     "unit": r.units[j]} for j, n in enumerate(r.names) if n not in names}
+        if terms:
+            out[lab] = terms
+    return out
 
 
 def fuse_with_ground(results: Sequence[EstimateResult], labels: Sequence[str] | None = None,

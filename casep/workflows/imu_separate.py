@@ -155,7 +155,7 @@ import math
 import os
 import warnings
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Mapping, NamedTuple
+from typing import TYPE_CHECKING, Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -960,7 +960,8 @@ class _Run:
         # iteration or of one linear pass (its pass steps along what the record determines as an iteration's first)
         smaller = None if "a smaller model" in out.message else SMALLER_MODELS.get(self.base.name)
         alone = int(np.isfinite(out.estimate).sum()) - len(out.diagnostics.get("not_determined") or ())
-        said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf), smaller, alone) \
+        said = _outside_note(passes, len(out.names), passes[-1].get("plausible_size", np.inf), smaller, alone,
+                             out.names) \
             if out.solution is not None or np.any(np.isfinite(out.estimate)) else None
         if said:
             from casep.exceptions import NonlinearityWarning
@@ -1013,7 +1014,7 @@ class _Run:
             return self.with_rest_shift(res)
         smaller = SMALLER_MODELS.get(self.base.name)
         if smaller:
-            note += (f"; the record determines {len(combos)} of {len(res.names)} combinations of `{self.base.name}`: "
+            note += (f"; the record determines {len(kept)} of {len(res.names)} combinations of `{self.base.name}`: "
                      f"a smaller model ({smaller}) leaves less undetermined")
         if not record["checked"]:
             return failed(res, STATUS_MISFIT, f"failed: {note}, so whether the combinations stated are what the "
@@ -1931,12 +1932,16 @@ def prior_fits_p(ssr_kept: float, ssr_prior: float, dof: int, k: int, noise_fact
 
 
 def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str | None = None,
-                  alone: int | None = None) -> str | None:
+                  alone: int | None = None, names: Sequence[str] | None = None) -> str | None:
     """What an iteration says of the combinations its steps left out (:func:`determined_step`'s `limit`):
     none, or how many, their std and names, why (the last rejected step, or their std above the plausible size of
     what the record determines), and that their estimates are linear; when they are most of the combinations, or
     no coefficient is determined on its own (`alone`, how many are: 0), the smaller shipped models to try
-    (`smaller`, :data:`SMALLER_MODELS`; None: not said).
+    (`smaller`, :data:`SMALLER_MODELS`; None: not said). The counts add up to the `n` combinations: those the
+    last pass states (``determined``), those its step left out at the prior (``left_out``), those it stepped along
+    whose std with the record's noise and the curvature reach the plausible size
+    (:meth:`_Run.left_out_curvature`'s ``curvature["left_out"]``, named by the coefficient `names`) and the fit's
+    null space (the rest).
     None when one of them is determined (:func:`_outside_failure`: std within the plausible `size`, correction above
     :data:`SIGNIFICANT` std): that is a failure, not a note."""
     left = passes[-1].get("left_out") or []
@@ -1945,12 +1950,30 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str
         return None
     sd = sorted(c["std"] for c in left)
     near = [c["z"] for c in left if c["std"] <= size]
-    names = "; ".join(c["combination"] for c in sorted(left, key=lambda c: c["std"])[:3])
-    kept = len(passes[-1].get("determined") or [])  # the rest of the n: the fit's null space
-    why_smaller = "most of the combinations undetermined" if len(left) > kept else \
+    names_left = "; ".join(c["combination"] for c in sorted(left, key=lambda c: c["std"])[:3])
+    kept = len(passes[-1].get("determined") or [])
+    # stepped along but not stated: their std with the record's noise and the curvature reach the plausible size
+    curv = passes[-1].get("curvature")
+    late = (curv.get("left_out") or []) if isinstance(curv, dict) else []
+    null = max(n - kept - len(left) - len(late), 0)  # the rest of the n: the fit's null space
+    why_smaller = "most of the combinations undetermined" if len(left) + len(late) > kept else \
         "no coefficient determined on its own" if alone == 0 else None
+    rest = []
+    if late:
+        ls = sorted(late, key=lambda c: c["std"])
+        rest.append(f"{len(late)} stepped along, whose std with the record's noise and the curvature "
+                    f"({ls[0]['std']:.3g}" + (f" to {ls[-1]['std']:.3g}" if len(ls) > 1 else "")
+                    + " declared magnitudes: "
+                    + "; ".join(_combination(list(names), np.array(c["weights"])) if names is not None and
+                                "weights" in c else "combination " + " ".join(
+                                    f"{v:+.2f} {k}" for k, v in (c.get("terms") or {}).items()).lstrip("+")
+                                for c in ls[:3]) + f"{'; ...' if len(late) > 3 else ''}) reach the coefficients' "
+                    f"plausible size ({size:.3g})")
+    if null:
+        rest.append(f"{null} in the fit's null space (no information at all)")
+    other = f"the other {n - kept}: {', '.join(rest)}, and {len(left)}" if rest else f"the other {len(left)}"
     return (f"the record determines {kept} of {n} combinations of the coefficients well enough to iterate; "
-            f"the other {len(left)} (std {sd[0]:.3g} to {sd[-1]:.3g} declared magnitudes: {names}"
+            f"{other} (std {sd[0]:.3g} to {sd[-1]:.3g} declared magnitudes: {names_left}"
             f"{'; ...' if len(left) > 3 else ''}) are left at the prior (0)"
             + (f", a step along them leaves the linear model ({why[-1]})" if why else "") + ", and "
             + (f"their corrections are noise (at most {max(near):.2g} std) or " if near else "")

@@ -11,7 +11,7 @@ import dataclasses
 import warnings
 from typing import Any, Mapping
 
-__all__ = ["flight_prior_consistency", "with_prior_consistency"]
+__all__ = ["conflict_message", "flight_prior_consistency", "with_prior_consistency"]
 
 
 def flight_prior_consistency(flight: Any, model: Any, prior: Mapping[str, Any], *, sigma: float | None = None,
@@ -89,7 +89,11 @@ def with_prior_consistency(result: Any, flight: Any, model: Any, prior: Mapping[
     result : EstimateResult
         A copy with ``diagnostics["prior_consistency"]``: the comparison's summary, or
         ``{"not_compared": why}`` when the flight alone determines none of the prior's coefficients
-        (a :class:`~casep.exceptions.CasepWarning` says so).
+        (a :class:`~casep.exceptions.CasepWarning` says so). When the two disagree (the comparison's verdict,
+        :attr:`casep.calibration.consistency.Consistency.consistent`: overall p below
+        :data:`casep.calibration.consistency.DISAGREE_P`) the copy is failed, status
+        :data:`casep.estimators.registry.STATUS_PRIOR_CONFLICT`, naming the coefficients that disagree most
+        (:func:`conflict_message`): the estimate would average a prior the flight contradicts into it.
     consistency : Consistency or None
         :func:`flight_prior_consistency`, None when not compared.
     """
@@ -102,4 +106,32 @@ def with_prior_consistency(result: Any, flight: Any, model: Any, prior: Mapping[
     except ValueError as exc:  # the flight alone determines none of the prior's coefficients
         cons, summary = None, {"not_compared": str(exc)}
         warnings.warn(f"prior not compared with the flight alone: {exc}", CasepWarning, stacklevel=2)
-    return dataclasses.replace(result, diagnostics={**result.diagnostics, "prior_consistency": summary}), cons
+    result = dataclasses.replace(result, diagnostics={**result.diagnostics, "prior_consistency": summary})
+    if cons is not None and not cons.consistent:
+        from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
+
+        result = failed(result, STATUS_PRIOR_CONFLICT, conflict_message(cons))
+    return result, cons
+
+
+def conflict_message(cons: Any, most: int = 3) -> str:
+    """Why an estimate with a prior the flight alone disagrees with fails: the verdict (chi-square, p), the `most`
+    coefficients furthest apart (prior, flight alone, z) and what to do."""
+    import numpy as np
+
+    from casep.calibration.consistency import DISAGREE_Z
+
+    z = np.abs(np.nan_to_num(np.asarray(cons.z, dtype=float)))
+    beyond = int(np.sum(z > DISAGREE_Z))
+    order = [int(j) for j in np.argsort(-z, kind="stable")[:max(1, min(most, beyond))]]
+    where = (f"{beyond} coefficient(s) more than {DISAGREE_Z:g} std apart, furthest" if beyond else
+             f"no coefficient more than {DISAGREE_Z:g} std apart alone (the two disagree on a combination of "
+             "correlated coefficients), furthest")
+    listed = "; ".join(f"{cons.names[j]} {cons.ground[j]:.4g} +- {cons.ground_std[j]:.2g} {cons.units[j]} in the "
+                       f"prior, {cons.flight[j]:.4g} +- {cons.flight_std[j]:.2g} in the flight alone "
+                       f"(z {cons.z[j]:.3g})"
+                       for j in order)
+    return (f"failed: prior conflict: the flight alone DISAGREES with the prior (chi2 {cons.chi2:.4g} on {cons.dof} "
+            f"dof, p {cons.p_value:.3g}); {where}: {listed}. The estimate would average the two, an estimate of "
+            "neither: check that the prior is of this instrument (serial, units, axes, sign "
+            "conventions) and, if the instrument changed since, drop the prior (estimate without --prior)")

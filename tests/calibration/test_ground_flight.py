@@ -139,6 +139,10 @@ def test_separate_with_ground_prior_reports_consistency_and_fuse_too(ground_cal,
     assert json.loads(out.read_text())["success"] is False
     pc = json.loads(out.read_text())["diagnostics"]["prior_consistency"]
     assert not pc["overall"]["consistent"] and "Ka0x" in pc["disagree"]
+    # the prior conflict said in the failed result's message, naming the coefficient and what to do
+    message = json.loads(out.read_text())["message"]
+    assert "prior conflict: the flight alone DISAGREES with the prior" in message and "Ka0x" in message
+    assert "drop the prior" in message
     # fuse: the ground result with a flight-only result, consistency printed first
     ols = tmp_path / "ols.json"
     assert main(["separate", str(flight_csv), "--json", str(ols)]) == 0

@@ -38,7 +38,7 @@ def test_fuse_refuses_two_results_of_the_same_data(two_results, capsys):
     d = two_results
     assert main(["fuse", str(d / "r1.json"), str(d / "r2.json")]) == 2
     err = capsys.readouterr().err
-    assert "same input file" in err and "a.csv" in err and "counts its data twice" in err
+    assert "both read the flight file" in err and "a.csv" in err and "counts its data twice" in err
 
 
 def test_failed_results_are_no_input(two_results, capsys):

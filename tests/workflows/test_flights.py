@@ -479,6 +479,12 @@ def test_per_flight_coefficients_are_not_fused_or_carried_as_a_prior(two):
     joint, _ = _quiet(separate_flights, [pa, pb], m, "ols", sigma=[0.05, 0.2])
     fused = fuse([ra, rb], labels=["A", "B"])
     assert "dt_trk" not in fused.names and [f["file"] for f in fused.settings["fused"]] == ["A", "B"]
+    # said, with each flight's own value: not dropped silently
+    for r, f in zip((ra, rb), fused.settings["fused"]):
+        j = list(r.names).index("dt_trk")
+        assert f["left_out"] == {"dt_trk": {"estimate": r.estimate[j], "std": r.std[j], "unit": r.units[j]}}
+        assert f"{f['file']}: dt_trk {r.estimate[j]:.4g} +- {r.std[j]:.2g} {r.units[j]}" in fused.message
+    assert "per-flight terms left out of the fusion" in fused.message
     idx = [list(joint.names).index(n) for n in fused.names]
     # 1e-4 std: inverting the marginal covariances (correlations up to 1 - 1e-10) costs digits
     assert np.max(np.abs(fused.estimate - joint.estimate[idx]) / joint.std[idx]) < 1e-4

@@ -1073,3 +1073,33 @@ def test_a_heading_far_off_with_launch_frame_tracking_is_a_set_up_failure(truth_
     assert said and abs(float(said[1]) - off) < 10.0, res.message
     right = _separate(imu, trk)
     assert "set-up check" not in right.message and "heading of the alignment" not in right.message
+
+
+def test_the_note_on_what_the_record_leaves_out_counts_every_combination():
+    """``_outside_note``'s counts add up to the model's combinations: the stated ones, those the step left at the
+    prior, those stepped along whose std with the noise and curvature reach the plausible size, and the null space
+    (a reviewer's record: "determines 8 of 16 ... the other 4", the 4 the curvature check dropped unsaid)."""
+    from casep.workflows.imu_separate import _outside_note
+
+    names = [f"c{j}" for j in range(16)]
+
+    def passes(kept, left, late):
+        w = np.eye(16)
+        return [{"determined": [{"std": 0.5}] * kept,
+                 "left_out": [{"std": 10.0 + k, "z": 0.1, "combination": f"c{k}"} for k in range(left)],
+                 "curvature": {"left_out": [{"std": 2.0 + k, "weights": w[8 + k].tolist()} for k in range(late)]}}]
+
+    said = _outside_note(passes(8, 4, 4), 16, 1.6, names=names)
+    assert "determines 8 of 16 combinations" in said and "the other 8: 4 stepped along, whose std with the " \
+        "record's noise and the curvature (2 to 5 declared magnitudes: c8; c9; c10; ...) reach the coefficients' " \
+        "plausible size (1.6), and 4 (std 10 to 13 declared magnitudes: c0; c1; c2; ...) are left at the prior" \
+        in said, said
+    said = _outside_note(passes(10, 2, 0), 16, 1.6, names=names)
+    assert "determines 10 of 16" in said and "the other 6: 4 in the fit's null space (no information at all), and " \
+        "2 (std 10 to 11" in said, said
+    said = _outside_note(passes(12, 4, 0), 16, 1.6, names=names)
+    assert "determines 12 of 16 combinations of the coefficients well enough to iterate; the other 4 (std 10 to 13" \
+        in said, said
+    said = _outside_note(passes(11, 4, 1), 16, 1.6, names=names)
+    assert "determines 11 of 16" in said and "the other 5: 1 stepped along, whose std with the record's noise and " \
+        "the curvature (2 declared magnitudes: c8) reach" in said, said

@@ -56,3 +56,42 @@ def test_prior_versus_flight_alone_chi2_is_calibrated():
     assert dof == 36 * len(pairs)
     assert stats.chi2.ppf(1e-4, dof) < chi2 < stats.chi2.isf(1e-4, dof), (chi2, dof)
     assert np.isfinite(chi2)
+
+
+def test_a_prior_the_flight_disagrees_with_fails_the_estimate_and_another_seed_does_not():
+    """The MAP estimate with a prior: the prior from another flight of the same instrument (seed 1) is used (success);
+    the same prior with one well-determined coefficient moved 8 of its std is contradicted by the flight (the
+    consistency verdict, overall p < DISAGREE_P) and the estimate fails with the prior-conflict status, naming the
+    coefficient and what to do, instead of reporting the average of the two as a success."""
+    from casep.calibration.consistency import DISAGREE_P
+    from casep.estimators.map import prior_from_result
+    from casep.estimators.registry import STATUS_PRIOR_CONFLICT
+    from casep.estimators.spec import FitSpec
+    from casep.workflows.prior_consistency import with_prior_consistency
+
+    own = _own_fit(_flight(1))
+    prior = prior_from_result(own)
+    flight = _flight(2)
+
+    def estimate(p):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", CasepWarning)
+            spec = FitSpec("map", {"prior": p})
+            return with_prior_consistency(separate(flight, MODEL, spec=spec), flight, MODEL, p, spec=spec)
+
+    res, cons = estimate(prior)
+    assert cons.consistent and res.success, (cons.p_value, res.message)
+    # the best-determined coefficient relative to its std (least shadowed by correlations): moved by 8 std
+    name = min(cons.names, key=lambda n: prior[n]["std"] / max(abs(prior[n]["mean"]), 1e-300))
+    bad = {**prior, name: {"mean": prior[name]["mean"] + 8.0 * prior[name]["std"], "std": prior[name]["std"]}}
+    res_bad, cons_bad = estimate(bad)
+    assert cons_bad.p_value < DISAGREE_P and name in cons_bad.disagree
+    # here the MAP fit's own misfit check fails it first (failed() keeps the first status); the conflict is said
+    assert not res_bad.success
+    assert "prior conflict" in res_bad.message and name in res_bad.message and "drop the prior" in res_bad.message
+    assert res_bad.diagnostics["prior_consistency"]["overall"]["consistent"] is False
+    # an estimate no other check fails, with a prior the flight contradicts: the prior-conflict status
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CasepWarning)
+        flagged, _ = with_prior_consistency(res, flight, MODEL, bad, spec=FitSpec("map", {"prior": bad}))
+    assert not flagged.success and flagged.status == STATUS_PRIOR_CONFLICT and name in flagged.message
