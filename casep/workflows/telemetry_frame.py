@@ -14,7 +14,7 @@ many parameters as the file as given, so their evidence is the ratio of their re
 model refitted (Gauss-Markov plus white on every axis, REML: :func:`casep.noise.fit.fit_noise`; the richest kind,
 so neither is held to a noise the other's misfit chose). The kind's evidence is the mean over its three members
 (the look-elsewhere cost of trying three); it is named, with its best member, when that exceeds
-:data:`casep.navigation.alignment.CAUSE_FACTOR` times the evidence of the file as given and the member explains the
+:data:`SIGN_NAME_FACTOR` times the evidence of the file as given and the member explains the
 rows to within the noise: its fit leaves no misfit by the rule that judges every result
 (:func:`casep.checks.plausibility.misfit_problem`), the pad's two conditions. Two axes negated are the third
 negated with every coefficient of the other sign (the same residuals): the message says so. All three negated fit
@@ -69,7 +69,7 @@ from casep.io.flight import FlightData
 
 __all__ = ["dv_sign_record", "dv_sign_unchecked", "frame_record", "frame_unchecked", "judge_frame",
            "FRAME_STEPS", "FRAME_AXES", "FRAME_LARGE_DEG",
-           "FRAME_WARN_Z"]
+           "FRAME_WARN_Z", "SIGN_NAME_FACTOR"]
 
 #: At most this many least-squares steps locate the frame's rotation (each turns the design by the rotation found).
 FRAME_STEPS = 8
@@ -91,6 +91,13 @@ def applies(flight: Any) -> bool:
     (a pair's passes re-navigate: :mod:`casep.workflows.telemetry_iterate`)."""
     meta = flight.meta if isinstance(flight, FlightData) and isinstance(flight.meta, dict) else {}
     return isinstance(meta.get("strapdown"), dict) and meta.get("format") != "pair"
+
+
+#: The evidence of a dv axis negated over the file as given beyond which it is named (with the fit's misfit rule):
+#: e^16. Not the pad's :data:`casep.navigation.alignment.CAUSE_FACTOR` (300): with the noise refitted per hypothesis,
+#: correct records cut to 60 s gave a negation up to e^8.4 (50 Hz, seed 100: 2.2e3 on the mean of the three) and
+#: full ones below e^-21.7, while a negated axis gave e^33 to e^66 on every full simulated boost at 10-50 Hz.
+SIGN_NAME_FACTOR = math.exp(16.0)
 
 
 def dv_sign_record(problem: Any, flight: FlightData, spec: Any) -> dict | None:
@@ -128,9 +135,10 @@ def dv_sign_record(problem: Any, flight: FlightData, spec: Any) -> dict | None:
                               "checked": [f"dv_{a}" for a, v in zip(_AXES, ln) if v < -math.log(CAUSE_FACTOR)],
                               "rule": "each dv axis negated against the file as given: restricted likelihoods with "
                                       "the noise refitted (Gauss-Markov plus white), the mean evidence over the three "
-                                      "beyond limit_factor and the best one's fit leaving no misfit (misfit_problem); "
+                                      "beyond name_factor and the best one's fit leaving no misfit (misfit_problem); "
                                       "an axis checked where its negation is below 1/limit_factor"}
-    if factor < CAUSE_FACTOR:
+    record["name_factor"] = SIGN_NAME_FACTOR
+    if factor < SIGN_NAME_FACTOR:
         return record
     alt = _quiet_fit(problem.with_y(flips[k]), spec)
     why = misfit_problem(flight, alt.residual_rms, (), noise=alt.diagnostics.get("noise"))
@@ -150,7 +158,7 @@ def dv_sign_message(record: dict, given_rms: dict | None) -> str:
     was = ", ".join(f"{a} {float(given_rms[a]):.3g}" for a in _AXES if given_rms and a in given_rms)
     return (f"{col} looks negated: with its sign changed the rows are {record['factor']:.3g} times as likely as "
             f"the file as given (restricted likelihoods with the noise refitted, each dv axis's sign tried; beyond "
-            f"{record['limit_factor']:g} named) and the fit leaves residuals the noise explains (RMS {rms} m/s; as "
+            f"{record['name_factor']:.3g} named) and the fit leaves residuals the noise explains (RMS {rms} m/s; as "
             f"given {was} m/s); equally {others[0]} and {others[1]} negated with every coefficient of the other sign. "
             f"The noise model absorbs the misfit of a dv axis of the wrong sign and the estimates are off by more "
             f"than their std say: check {col}'s sign (dv = v_tel - v_trk, in the frame of q_*), negate it and "
@@ -171,6 +179,9 @@ def dv_sign_unchecked(record: dict | None) -> str | None:
     also = ""
     if record["factor"] >= CAUSE_FACTOR and record["explains"] is False:
         also = f"; {record['best']} negated is favoured but its fit leaves residuals the noise does not explain"
+    elif record["factor"] >= CAUSE_FACTOR:
+        also = (f"; {record['best']} negated is favoured by {record['factor']:.3g}, below the {SIGN_NAME_FACTOR:.3g} "
+                "that names a sign: correct records cut short reach such factors")
     return (f"the sign of {', '.join(left)} is not checked on this record: the rows cannot tell (with each dv axis "
             f"negated they are {ratios} times as likely as the file as given; a sign is checked where its negation "
             f"is below 1/{CAUSE_FACTOR:g} as likely{also})")

@@ -232,3 +232,18 @@ def test_column_estimates_of_three_columns_are_their_gls_coefficients():
     assert est is not None
     np.testing.assert_allclose(est[0], beta[-3:], rtol=1e-8, atol=1e-12)
     np.testing.assert_allclose(est[1], np.sqrt(np.diag(M)[-3:]), rtol=1e-8)
+
+
+def test_a_sign_is_named_only_beyond_its_own_factor(monkeypatch):
+    """A negation favoured beyond the pad's factor (300) but below SIGN_NAME_FACTOR (a correct record cut to 60 s
+    reached e^8.4) is not named: the result says the sign is not checked and why; beyond it, named."""
+    import math
+
+    from casep.navigation.alignment import CAUSE_FACTOR
+    from casep.workflows import telemetry_frame as tf
+
+    rec = {"ln_ratio": [8.35, -1.6, 7.7], "factor": 2158.0, "limit_factor": CAUSE_FACTOR, "best": "dv_x",
+           "explains": None, "named": None, "checked": [], "name_factor": tf.SIGN_NAME_FACTOR}
+    said = tf.dv_sign_unchecked(rec)
+    assert said is not None and "dv_x negated is favoured by 2.16e+03" in said and "not checked" in said, said
+    assert tf.SIGN_NAME_FACTOR > math.exp(8.4) * 100 and tf.SIGN_NAME_FACTOR < math.exp(29.0) / 100
