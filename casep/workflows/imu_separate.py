@@ -1813,7 +1813,7 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
                 factor = richer_noise_factor(res, problem)
                 eff = eff * factor  # white std under correlated noise: too small
             est = q.T @ ((np.asarray(about, dtype=float) + x) / scale)
-            size = _determined_size(eff, est)
+            size = _determined_size(eff, est, _linear_reach(q, scale, res.units))
             out, limit = out | (sig > size), min(limit, size)
         widest = float(sig[~out].max(initial=0.0))
         zq = q.T @ (x / scale) / np.where(sig > 0, sig, np.inf)  # each combination's correction in its std
@@ -1844,13 +1844,19 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
                 limit=float(limit), size=float(size), undetermined=undetermined, noise_factor=float(factor))
 
 
-def _determined_size(sig: np.ndarray, estimate: np.ndarray) -> float:
+def _determined_size(sig: np.ndarray, estimate: np.ndarray, reach: np.ndarray | None = None) -> float:
     """The std (declared magnitudes) up to which a combination of the spectrum ``(sig, q)`` (:func:`_scaled_spectrum`)
     is determined, its estimates `estimate` (``q_i . (D / scale)``): the plausible size of the coefficients
     (:func:`casep.checks.tracking_quality.plausible_size`) from the combinations the record determines by themselves,
     a std below the declared magnitude (:func:`casep.checks.tracking_quality.determined`'s rule) or an estimate above
     :data:`SIGNIFICANT` of its std (not 0 whatever the prior: a MEMS unit under a navigation-grade model, whose gyro
-    biases of hundreds of declared magnitudes are estimated to tens). A combination whose std exceeds it says less of
+    biases of hundreds of declared magnitudes are estimated to tens) whose std is below its linear limit (`reach`,
+    declared magnitudes: :func:`_linear_reach`; None: not judged). A combination the data do not resolve at the scale
+    of what a linear error model can describe (the coefficients the check against :data:`casep.units.LINEAR_LIMITS`
+    tests as a family, ``casep.estimators._base``) is no evidence of the instrument's size, significant or not: a
+    strapdown-boost record at 20 Hz under ``strapdown33`` estimated a combination of std 4.5e9 declared magnitudes
+    (scale factors of 1e12 ppm) at 5.6 of its std, set the size to 2.6e10 by it, and failed on another of std 1.9e9
+    at 7.8 as determined but not linear. A combination whose std exceeds it says less of
     the instrument than its plausible size: the data do not determine it (that std is the tracking's:
     :func:`determined_step`). The fit's null space (``sig = 0``) is neither. `sig` must hold the IMU's noise
     (:func:`combination_imu_noise`): whether an estimate is evidence of the instrument's size is a question of its
@@ -1859,8 +1865,21 @@ def _determined_size(sig: np.ndarray, estimate: np.ndarray) -> float:
     from casep.checks.tracking_quality import plausible_size
 
     est = np.abs(np.asarray(estimate, dtype=float))
-    own = (sig > 0) & np.isfinite(sig) & np.isfinite(est) & ((sig < 1.0) | (est > SIGNIFICANT * sig))
+    resolved = np.ones(est.shape, dtype=bool) if reach is None else sig < reach
+    own = (sig > 0) & np.isfinite(sig) & np.isfinite(est) & ((sig < 1.0) | ((est > SIGNIFICANT * sig) & resolved))
     return plausible_size([{"estimate": float(v)} for v in est[own]])
+
+
+def _linear_reach(q: np.ndarray, scale: np.ndarray, units: Any) -> np.ndarray:
+    """Each combination's linear limit (declared magnitudes): the size ``c`` of ``q_i . (D / scale)`` at which a
+    coefficient of ``D = scale q_i c`` reaches what a linear error model can describe
+    (:data:`casep.units.LINEAR_LIMITS`, by the coefficients' `units`), ``min_j L_j / (|q_ji| scale_j si_j)``; inf for
+    a combination of coefficients without a limit."""
+    from casep.units import LINEAR_LIMITS, si_factor
+
+    L = np.array([LINEAR_LIMITS[u] / si_factor(u) if u in LINEAR_LIMITS else np.inf for u in units], dtype=float)
+    with np.errstate(divide="ignore"):
+        return np.min((L / scale)[:, None] / np.abs(q), axis=0, initial=np.inf)
 
 
 def _scaled_spectrum(C: np.ndarray, scale: np.ndarray, problem: Any = None, sigma: float = np.nan,
