@@ -18,7 +18,7 @@ estimates what is left with its Cramer-Rao std; the flight's offset is their sum
 
 The offset is judged on the tracking epochs the fit uses (:func:`fresh_epochs`): a receiver that holds each 1 Hz
 velocity over its 20 Hz epochs lags the vehicle by up to a second between fixes, which the screen leaves out
-(:func:`casep.checks.tracking_quality.stale_epochs`) and which would otherwise read as tags some 400 ms late.
+(:func:`casep.io.pair.stale_epochs`) and which would otherwise read as tags some 400 ms late.
 """
 
 from __future__ import annotations
@@ -137,13 +137,13 @@ def lateness_left(record: dict | None, offset_s: float | None, offset_std_s: flo
 
 def fresh_epochs(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray,
                  repeated: np.ndarray) -> np.ndarray:
-    """The tracking epochs not stale, (M,) bool: :func:`casep.checks.tracking_quality.stale_epochs` (the screen's
+    """The tracking epochs not stale, (M,) bool: :func:`casep.io.pair.stale_epochs` (the screen's
     rule, with the telemetry's velocity change ``v_tel`` itself, a cubic spline at the tracking times) on the
     unshifted tags; `repeated` (M,) bool: the epochs whose file row repeats the previous one's velocity. Epochs
     outside the telemetry's span are kept (:func:`coarse_time_offset` does not use them)."""
     from scipy.interpolate import CubicSpline
 
-    from casep.checks.tracking_quality import stale_epochs
+    from casep.io.pair import stale_epochs
 
     t_tel, t_trk = np.asarray(t_tel, dtype=float), np.asarray(t_trk, dtype=float)
     fresh = np.ones(t_trk.size, bool)

@@ -22,7 +22,8 @@ __all__ = ["pair_flight", "PAIR_GRIDS", "STATE_SIGNALS", "GAP_FACTOR", "GAP_MIN_
            "time_shift_seconds", "MAX_CLOCK_DRIFT_PPM", "clock_drift_ppm", "telemetry_time", "tracking_time",
            "check_launch_time", "no_overlap_message",
            "check_earth_fixed_units", "check_velocity_columns", "velocity_column_misfit", "COLUMN_WINDOW_S",
-           "COLUMN_RATIO", "COLUMN_MISFIT_MIN", "fits_time_offset", "VALID_COLUMN", "repeated_rows", "PairInputs",
+           "COLUMN_RATIO", "COLUMN_MISFIT_MIN", "fits_time_offset", "VALID_COLUMN", "repeated_rows",
+           "stale_epochs", "held_epochs", "STALE_MOTION", "JUMP_RATE", "HELD_SHARE", "HELD_RUN_SHARE", "PairInputs",
            "repaired", "offset_second_order"]
 
 #: The telemetry column marking the samples whose navigation solution is trusted (1) or not (0: after a clipped
@@ -103,6 +104,70 @@ def tracking_velocity(trk: Table, t_trk: np.ndarray, tracking_frame: str,
     else:
         check_velocity_columns(trk, t_trk, r, v, tracking_frame)
     return ecef_to_launch(site, t_trk, r, v)[1], r, v
+
+
+#: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
+STALE_MOTION = 0.5
+#: The instrument errors' allowance of the physics check (:mod:`casep.checks.tracking_quality`, with its
+#: ``JUMP_TOL``) and of a held velocity's run, m/s^2.
+JUMP_RATE = 2.0
+
+
+def stale_epochs(t: np.ndarray, V: np.ndarray, dv: np.ndarray, repeated: np.ndarray) -> np.ndarray:
+    """The stale tracking epochs (:mod:`casep.checks.tracking_quality`'s notes), (N,) bool: the repeats of a fix
+    (`repeated`, the epochs whose file row repeats the previous one's velocity, :func:`repeated_rows`) while the
+    telemetry moved by more than :data:`STALE_MOTION` since the fix, and the epochs of a velocity held with a jitter
+    (:func:`held_epochs`). `t`: the epochs' times (s), `V`: the telemetry's velocity change there (m/s, any constant),
+    `dv`: ``v_tel - v_trk`` there (m/s). The one rule of the screen
+    (:func:`casep.checks.tracking_quality.screen_tracking`) and of the coarse time alignment
+    (:func:`casep.io.align.fresh_epochs`)."""
+    is_rep = np.asarray(repeated, bool).copy()
+    if is_rep.size:
+        is_rep[0] = False
+    anchor = np.maximum.accumulate(np.where(~is_rep, np.arange(is_rep.size), 0))  # the fix each epoch repeats
+    moved = np.linalg.norm(V - V[anchor], axis=1)
+    return (is_rep & (moved > STALE_MOTION)) | held_epochs(t, V, dv)
+
+
+#: A tracking velocity that changes between two epochs by at most this share of what the telemetry's velocity
+#: changed (the kinematic acceleration integrated) is held there (:func:`held_epochs`) ...
+HELD_SHARE = 0.1
+#: ... and a run of such epochs over which the telemetry moved by more than :data:`STALE_MOTION` plus
+#: :data:`JUMP_RATE` times its duration (the instrument errors' share: a MEMS INS on the pad drifts by 0.2 m/s per s
+#: while a right tracking holds still) while the tracking changed by at most this share of it is stale, however it
+#: jitters.
+HELD_RUN_SHARE = 0.1
+
+
+def held_epochs(t: np.ndarray, V: np.ndarray, dv: np.ndarray) -> np.ndarray:
+    """The epochs of a tracking velocity held while the vehicle accelerates: not repeated exactly (a receiver that
+    holds its last velocity and adds a few mm/s of jitter; :func:`casep.io.pair.repeated_rows` finds exact repeats
+    only) but the physics rules it out.
+
+    The tracking's own change between consecutive epochs is ``dV - d(dv)`` (``V`` the telemetry's velocity change,
+    ``dv = v_tel - v_trk``). An epoch is held when that change is at most :data:`HELD_SHARE` of ``|dV|``; a run of
+    held epochs is stale when over it (from the epoch before it, the last fresh one) the telemetry moved by more than
+    :data:`STALE_MOTION` plus :data:`JUMP_RATE` times the run's duration (what instrument errors could move it: the
+    physics check's allowance) and the tracking by at most :data:`HELD_RUN_SHARE` of that. An honest tracking follows
+    the telemetry to within its noise and the INS's drift: at 10 Hz in a 1.7 g boost the velocity changes by 1.7 m/s
+    per epoch, 10 times a GNSS velocity's noise and 100 times 10 % of it; on the pad or at a steady speed ``dV`` is
+    below the noise and no run moves by STALE_MOTION."""
+    n = V.shape[0]
+    out = np.zeros(n, bool)
+    if n < 3:
+        return out
+    own = V - dv  # the tracking's velocity, less a constant (v_tel - V at the first sample)
+    dV = np.linalg.norm(np.diff(V, axis=0), axis=1)
+    dT = np.linalg.norm(np.diff(own, axis=0), axis=1)
+    held = np.concatenate([[False], dT <= HELD_SHARE * dV])
+    x = np.concatenate([[0], held.astype(np.int8), [0]])
+    edges = np.flatnonzero(np.diff(x))
+    for a, b in zip(edges[::2], edges[1::2]):  # epochs a..b-1 held; a - 1 the last fresh one
+        moved = float(np.linalg.norm(V[b - 1] - V[a - 1]))
+        changed = float(np.linalg.norm(own[b - 1] - own[a - 1]))
+        if moved > STALE_MOTION + JUMP_RATE * float(t[b - 1] - t[a - 1]) and changed <= HELD_RUN_SHARE * moved:
+            out[a:b] = True
+    return out
 
 
 def repeated_rows(trk: Table, tracking_frame: str, skip: np.ndarray | None = None) -> np.ndarray:

@@ -162,7 +162,7 @@ def test_a_still_tracking_beside_a_drifting_ins_is_not_held():
     """A right tracking of a vehicle at rest (noise-free, constant) beside a MEMS INS drifting at 20 mg: the telemetry
     moves by 2 m/s over 10 s, within the instrument errors' allowance (JUMP_RATE per s), so nothing is held; the same
     tracking beside a 2 g boost is held from its second epoch on."""
-    from casep.checks.tracking_quality import _held
+    from casep.io.pair import held_epochs as _held
 
     t = np.arange(0.0, 10.0, 0.1)
     for accel, held in ((0.2, 0), (20.0, t.size - 1)):
