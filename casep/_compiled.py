@@ -144,7 +144,7 @@ def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, 
             for j in range(n):
                 dz -= h[j] * x[j]
             innov[k, axis] = dz
-            _bierman(U, D, x, h, f, b, r, dz, 0)
+            _bierman(U, D, x, h, f, b, r, dz, np.int64(0))  # not the literal 0: one signature, compiled once
             if n_c > 0:
                 e = dz
                 if posterior:

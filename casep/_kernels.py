@@ -9,7 +9,8 @@ longer than a short flight's whole computation. So:
   flight of up to :data:`NUMPY_SAMPLES` samples, compiled for a longer one;
 - :func:`robust_filter_keep`: vectorised while every sample is kept, the scalar recursion (``math``, as the
   compiled loop it replaced) near the threshold and after a rejection;
-- :func:`lfilter`: the all-pole filter of RELS, compiled (``scipy.signal`` would cost more to import);
+- :func:`lfilter`: the all-pole filter of RELS, a loop over Python floats for up to :data:`PYTHON_FILTER_STEPS`
+  steps (:func:`all_pole_filter_python`), compiled beyond (``scipy.signal`` would cost more to import);
 - :func:`rels_ud`: the Bierman U-D recursion, compiled;
 - :func:`ar1_terms`: the one place of the AR(1) step coefficients ``a = exp(-dt / tau)`` and
   ``1 - a^2 = -expm1(-2 dt / tau)`` (no cancellation when ``dt << tau``); every whitening of casep calls it;
@@ -35,7 +36,7 @@ import numpy as np
 __all__ = ["ar1_long_run_factor", "ar1_terms", "runs", "gmw_filter", "gmw_filter_numpy", "joint_filter",
            "joint_filter_numpy",
            "robust_filter_keep", "sv_integrate_chunk", "sv_integrate_chunk_numpy", "rels_ud", "lfilter",
-           "NUMPY_SAMPLES"]
+           "NUMPY_SAMPLES", "PYTHON_FILTER_STEPS", "all_pole_filter_python"]
 
 
 #: The longest flight whose S_V :func:`sv_integrate_chunk` integrates in numpy (unless numba is loaded already);
@@ -45,6 +46,12 @@ __all__ = ["ar1_long_run_factor", "ar1_terms", "runs", "gmw_filter", "gmw_filter
 #: loses at most 0.33 s to numpy, a shorter one saves numba's set-up whenever nothing else needs it
 #: (``casep separate`` on a 100 Hz range flight).
 NUMPY_SAMPLES = 1 << 17
+
+#: The most samples times the filter's order (one at least) that :func:`lfilter`'s all-pole filter runs as a loop over
+#: Python floats (:func:`all_pole_filter_python`) instead of the compiled kernel: 0.3-0.7 us a step, 0.04-0.09 s at
+#: this size, against 0.3-0.5 s of CPU to compile the kernel on its first call (a new clone, a new numba cache) and
+#: about 0.1 s to load it from numba's cache (``casep demo``'s RELS: 58 503 steps twice).
+PYTHON_FILTER_STEPS = 1 << 17
 
 
 def runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -238,21 +245,47 @@ def rels_ud(H, y, x, U, D, weight, forgetting, n_c, posterior, stride, history, 
 
 def lfilter(b, a, x, axis: int = -1) -> np.ndarray:
     """``scipy.signal.lfilter(b, a, x, axis)``; an all-pole filter (``b = [1]``, ``a[0] = 1``) of a 2-D `x` along
-    axis 0 compiled (:func:`casep._compiled.all_pole_filter`: the same operations, so the same numbers)
-    without importing ``scipy.signal`` (0.3-0.5 s with the ``scipy.stats`` it imports)."""
+    axis 0 as a loop over Python floats up to :data:`PYTHON_FILTER_STEPS` steps (:func:`all_pole_filter_python`),
+    compiled beyond (:func:`casep._compiled.all_pole_filter`): the same operations, so the same numbers, without
+    importing ``scipy.signal`` (0.3-0.5 s with the ``scipy.stats`` it imports)."""
     a = np.asarray(a, dtype=float)
     x = np.asarray(x)
     ax = axis % x.ndim if x.ndim else axis
     if list(np.ravel(b)) == [1.0] and a.ndim == 1 and a.size and a[0] == 1.0 and x.ndim == 2 and ax == 0 \
             and x.dtype == np.float64:
-        from casep._compiled import all_pole_filter
-
         y = np.empty_like(x)
-        all_pole_filter(np.ascontiguousarray(a), x, y)
+        if x.size * max(a.size - 1, 1) <= PYTHON_FILTER_STEPS:
+            all_pole_filter_python(a, x, y)
+        else:
+            from casep._compiled import all_pole_filter
+
+            all_pole_filter(np.ascontiguousarray(a), x, y)
         return y
     from scipy.signal import lfilter as scipy_lfilter
 
     return scipy_lfilter(b, a, x, axis=axis)
+
+
+def all_pole_filter_python(a: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
+    """:func:`casep._compiled.all_pole_filter` (``y = lfilter([1], a, x, axis=0)``, x and y (N, m), ``a[0] = 1``) as a
+    loop over Python floats: the same operations in the same order (IEEE doubles both), so the same numbers."""
+    N, m = x.shape
+    K = a.size - 1
+    coef = [float(v) for v in a]
+    for j in range(m):
+        col = x[:, j].tolist()
+        out = [0.0] * N
+        if K == 0:
+            out = [xn * 1.0 for xn in col]
+        else:
+            Z = [0.0] * K
+            for k, xn in enumerate(col):
+                yn = Z[0] + 1.0 * xn  # y = z_0 + b_0 x
+                for i in range(K - 1):
+                    Z[i] = Z[i + 1] + xn * 0.0 - yn * coef[i + 1]  # z_i = z_(i+1) + b_(i+1) x - a_(i+1) y
+                Z[K - 1] = xn * 0.0 - yn * coef[K]
+                out[k] = yn
+        y[:, j] = out
 
 
 def robust_filter_keep(e, t, inv_tau, scale, thr, max_run, keep, pred=None) -> None:

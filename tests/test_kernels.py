@@ -9,7 +9,14 @@ import numpy as np
 import pytest
 
 from casep import _compiled
-from casep._kernels import NUMPY_SAMPLES, robust_filter_keep, sv_integrate_chunk, sv_integrate_chunk_numpy
+from casep._kernels import (
+    NUMPY_SAMPLES,
+    PYTHON_FILTER_STEPS,
+    all_pole_filter_python,
+    robust_filter_keep,
+    sv_integrate_chunk,
+    sv_integrate_chunk_numpy,
+)
 
 
 @pytest.mark.parametrize("gcols, acols", [(np.arange(15), np.arange(15, 36)),  # platform36: two ranges
@@ -110,15 +117,32 @@ def test_robust_filter_with_the_fits_prediction_is_a_plain_loop(inv_tau):
 
 
 @pytest.mark.parametrize("a", [[1.0, -0.9], [1.0, 0.5, -0.2], [1.0, 0.3, 0.1, -0.05], [1.0]])
-def test_all_pole_filter_is_scipys_lfilter(a):
+@pytest.mark.parametrize("python_steps", [PYTHON_FILTER_STEPS, 0])  # the loop over Python floats, the compiled one
+def test_all_pole_filter_is_scipys_lfilter(a, python_steps, monkeypatch):
     from scipy.signal import lfilter as scipy_lfilter
 
+    from casep import _kernels
     from casep._kernels import lfilter
 
+    monkeypatch.setattr(_kernels, "PYTHON_FILTER_STEPS", python_steps)
     x = np.random.default_rng(5).normal(size=(3000, 3))
     x[7, 1] = 0.0
+    x[9, 2] = -0.0
     assert np.array_equal(lfilter([1.0], a, x, axis=0), scipy_lfilter([1.0], a, x, axis=0))
     assert np.array_equal(lfilter([1.0, 0.5], a, x, axis=0), scipy_lfilter([1.0, 0.5], a, x, axis=0))  # scipy's
+
+
+def test_all_pole_filter_python_is_the_compiled_loop():
+    """The two all-pole filters on the same input, non-finite and signed-zero samples included: the same bits."""
+    rng = np.random.default_rng(6)
+    x = rng.normal(size=(500, 4))
+    x[3, 0], x[10, 1], x[20, 2], x[30, 3] = np.inf, np.nan, -0.0, 0.0
+    for a in ([1.0, -0.9], [1.0, 0.5, -0.2, 0.1], [1.0]):
+        y0, y1 = np.empty_like(x), np.empty_like(x)
+        _compiled.all_pole_filter(np.array(a), x, y0)
+        all_pole_filter_python(np.array(a), x, y1)
+        assert np.array_equal(y0, y1, equal_nan=True)
+        assert np.array_equal(np.signbit(y0), np.signbit(y1))
 
 
 def test_runs_against_a_plain_loop():
