@@ -27,6 +27,7 @@ from casep.io.files import write_table
 from casep.model.strapdown import body_errors
 from casep.navigation import ImuData, check_imu, navigate
 from casep.navigation.imu import read_imu, split_steps
+from casep.simulation.strapdown import with_drawn_errors
 from casep.workflows.imu_separate import STATUS_NOT_CONVERGED, separate_imu
 
 SITE = LaunchSite(67.89, 21.1, 330.0, 30.0, 10.0)  # lift-off at t = 10 s
@@ -747,9 +748,9 @@ def pad_record(directory, seed: int, model: str, *, pad: float = 9.0, boost: flo
     rng = np.random.default_rng(seed)
     nav = navigate(check_imu(ImuData(t, w, f)), site, PAD_ALIGN, heading_deg=heading)
     m = casep.load_model(model)
-    z = rng.standard_normal(len(m.names)) if truth is None else np.array([truth.get(n, 0.0) for n in m.names])
-    df, dw = body_errors(m, nav.q, f, w, t - t[0], z * np.array([m.scales[n] for n in m.names]))
-    f, w = f + df + rng.normal(0.0, imu_noise[0], f.shape), w + dw + rng.normal(0.0, imu_noise[1], w.shape)
+    w_m, f_m, z = with_drawn_errors(m, nav.q, w, f, t, rng,
+                                    z=None if truth is None else np.array([truth.get(n, 0.0) for n in m.names]))
+    f, w = f_m + rng.normal(0.0, imu_noise[0], f.shape), w_m + rng.normal(0.0, imu_noise[1], w.shape)
     imu, trk = directory / "imu.csv", directory / "trk.csv"
     write_table(imu, {"t": t, **{f"w_{a}": w[:, i] for i, a in enumerate("xyz")},
                       **{f"fb_{a}": f[:, i] for i, a in enumerate("xyz")}})
