@@ -697,7 +697,9 @@ def imu_sample_noise(flight: FlightData, t_rows: np.ndarray) -> tuple[np.ndarray
     index = flight.meta.get("rows_index") if isinstance(flight.meta, dict) else None
     if index is None or not all(c in sig for c in ("q_w", "q_x", "q_y", "q_z", "fb_x", "w_x")) or t_rows.size == 0:
         return None
-    own = np.asarray(index) < 0  # the telemetry's own samples (the tracking epochs were inserted among them)
+    # the telemetry's own samples, a tracking epoch on one of them included (its columns are the file's); the tracking
+    # epochs inserted between them, their columns interpolated, left out
+    own = np.array(flight.meta.get("telemetry_samples", np.asarray(index) < 0), dtype=bool)
     if "ins_valid" in sig:
         own &= np.asarray(sig["ins_valid"]) > 0
     own &= flight.t <= t_rows[-1]

@@ -304,6 +304,45 @@ def test_the_imu_noise_is_measured_beside_the_motion():
     assert np.all(clean < 0.5 * np.array([sa] * 3 + [sg] * 3)), clean
 
 
+@pytest.mark.parametrize("grid", ["tracking", "telemetry"])
+def test_the_imu_noise_is_measured_on_every_telemetry_sample_a_tracking_epoch_on_one_included(grid):
+    """A pair whose 20 Hz tracking epochs fall on the 20 Hz telemetry's samples from 3 s on, after a quiet pad
+    (constant rate and force, noise-free: a simulated IMU standing still), the flight's samples (rates and forces
+    ramping) with white noise of 1e-4 rad/s and 2e-3 m/s^2: the noise is measured on all the telemetry's samples up to
+    the last epoch (the same numbers as :func:`white_sample_std` of the file's columns, and within 10 % of the noise
+    drawn). Before, the samples with a tracking epoch on them were left out as if inserted: only the pad's 60 were
+    left and the noise read ~1e-16 (the IMU's random walks dropped out of the std, and the IMU noise's blocks
+    integrated F across the 117 s without samples); on the telemetry grid no sample was the telemetry's own: no IMU
+    noise at all."""
+    from casep.checks.tracking_quality import imu_sample_noise, white_sample_std
+    from casep.io.pair import pair_flight
+
+    rng = np.random.default_rng(11)
+    h, sg, sa = 0.05, 1e-4, 2e-3
+    t_tel = np.round(np.arange(0.0, 120.0, h), 10)
+    n = t_tel.size
+    flying = t_tel >= 3.0
+    cols = {**{f"w_{a}": np.where(flying, 0.1 * k + 0.01 * t_tel + rng.normal(0, sg, n), 1e-5)
+               for k, a in enumerate("xyz")},
+            **{f"fb_{a}": np.where(flying, 30.0 - 5 * k - 0.1 * t_tel + rng.normal(0, sa, n), 9.8 * (a == "z"))
+               for k, a in enumerate("xyz")},
+            "q_w": np.ones(n), "q_x": np.zeros(n), "q_y": np.zeros(n), "q_z": np.zeros(n)}
+    f = np.column_stack([cols[f"fb_{a}"] for a in "xyz"])
+    v_tel = np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (f[1:] + f[:-1]) * h, axis=0)])
+    t_trk = t_tel[flying]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        flight = pair_flight(t_tel, f, v_tel, t_trk, v_tel[flying], signals=cols, grid=grid, source="pair")
+    got = imu_sample_noise(flight, flight.t[np.asarray(flight.observed)])
+    assert got is not None
+    s, step, i = got
+    assert step == pytest.approx(h) and i.size == n
+    np.testing.assert_array_equal(flight.t[i], t_tel)
+    raw = np.column_stack([cols[f"{k}_{a}"] for k in ("fb", "w") for a in "xyz"])
+    np.testing.assert_allclose(s, white_sample_std(raw), rtol=1e-9)
+    np.testing.assert_allclose(s, [sa] * 3 + [sg] * 3, rtol=0.10)
+
+
 @pytest.mark.parametrize("levelled", [False, True])
 def test_the_imu_noise_state_is_the_imu_noise_effect(levelled):
     """The linear state of the IMU's white noise (:func:`imu_noise_states`) has the covariance ``G G^T`` of
