@@ -369,7 +369,9 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     heading_deg, heading_axis
         :func:`casep.navigation.navigate` (None: gyrocompassing, with a warning).
     spec : FitSpec, optional
-        The fit request (default :meth:`FitSpec.build`: OLS, the noise model chosen by the data).
+        The fit request (default :meth:`FitSpec.build`: OLS, the noise model chosen by the data). Its ``prior`` or
+        ``bounds`` may be a JSON file's path, read as :func:`casep.separate` and ``casep separate --prior`` read it
+        (:func:`casep.workflows.coefficients.read_coefficient_file`; a result of this very flight refused).
     iterate : bool
         Iterate until the correction of every determined combination is below `tol` of its std (default);
         False: one linear pass.
@@ -405,6 +407,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     if not isinstance(site, LaunchSite):
         raise TypeError(f"`site` must be a casep.frames.LaunchSite, got {type(site).__name__}")
     heading_std = given_heading_std(heading_deg, heading_std_deg)
+    files = [str(p) for p in (imu, tracking) if isinstance(p, (str, os.PathLike)) and os.path.isfile(p)]
     if not isinstance(imu, ImuData):
         imu = read_imu(imu, gyr_range=gyr_range, acc_range=acc_range)
     elif gyr_range is not None or acc_range is not None:
@@ -412,6 +415,10 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                          "for clipping as it is read), or pass the IMU file's path")
     spec = FitSpec.build() if spec is None else spec
     base = load_model(model)
+    from casep.workflows.separate import _with_tables
+
+    # a prior or bounds given as a file read as casep.separate and the CLI read it (a result of this flight refused)
+    spec = _with_tables(spec, None, base, files)
     source = model if isinstance(model, (str, os.PathLike)) else (base.source_file or base.name)
     from casep.io.pair import clock_drift_ppm, telemetry_time, tracking_time
     from casep.navigation.imu import on_clock

@@ -526,20 +526,22 @@ def _beyond_linear(flights: Sequence[Any], dt: np.ndarray, sd: np.ndarray) -> np
                      for fl, d, s in zip(flights, dt, sd)], dtype=bool)
 
 
-def _with_tables(spec: FitSpec, flight: Any, model: Any) -> FitSpec:
+def _with_tables(spec: FitSpec, flight: Any, model: Any, data_files: Sequence[str] | None = None) -> FitSpec:
     """`spec` with its bounds or prior table read when given as a JSON file, as on the command line
     (:func:`casep.workflows.coefficients.read_coefficient_file`: a ground calibration, a result's posterior,
-    a result of this very flight refused)."""
+    a result of this very flight refused; the flight's files: `data_files`, else those `flight` was read from)."""
     from casep.io.provenance import flight_files
     from casep.workflows.coefficients import read_coefficient_file
 
+    if data_files is None:
+        data_files = flight_files(flight) if isinstance(flight, FlightData) else ()
     opts = dict(spec.options)
     for k in ("bounds", "prior"):
         path = opts.get(k)
         if isinstance(path, (str, os.PathLike)):
             names = flight.names if isinstance(flight, Problem) else model.names
             opts[k] = read_coefficient_file(path, k, names, model=None if isinstance(flight, Problem) else model,
-                                            data_files=flight_files(flight) if isinstance(flight, FlightData) else ())
+                                            data_files=data_files)
     return spec if opts == dict(spec.options) else dataclasses.replace(spec, options=opts)
 
 
