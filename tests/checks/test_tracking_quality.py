@@ -314,7 +314,7 @@ def test_the_imu_noise_is_measured_on_every_telemetry_sample_a_tracking_epoch_on
     left and the noise read ~1e-16 (the IMU's random walks dropped out of the std, and the IMU noise's blocks
     integrated F across the 117 s without samples); on the telemetry grid no sample was the telemetry's own: no IMU
     noise at all."""
-    from casep.checks.tracking_quality import imu_sample_noise, white_sample_std
+    from casep.checks.tracking_quality import imu_sample_noise, unresolved_noise, white_sample_std
     from casep.io.pair import pair_flight
 
     rng = np.random.default_rng(11)
@@ -341,6 +341,45 @@ def test_the_imu_noise_is_measured_on_every_telemetry_sample_a_tracking_epoch_on
     raw = np.column_stack([cols[f"{k}_{a}"] for k in ("fb", "w") for a in "xyz"])
     np.testing.assert_allclose(s, white_sample_std(raw), rtol=1e-9)
     np.testing.assert_allclose(s, [sa] * 3 + [sg] * 3, rtol=0.10)
+    assert unresolved_noise(flight, s, i) == []
+
+
+def test_a_noise_the_samples_do_not_show_is_not_measured():
+    """A noise-free record (a turning, accelerating flight at 20 Hz, 60 % of it standing still first) reads a
+    per-sample std at its values' rounding (the second differences at rest are zero, the MAD takes them): every column
+    is said not measured, beside its noisy twin (2e-3 m/s^2, 1e-4 rad/s: none), and the report says so instead of
+    "measured on the record"; one column quantised beside white noise it does not hide is measured."""
+    from casep.checks.tracking_quality import imu_sample_noise, unresolved_noise
+    from casep.io.flight import FlightData
+    from casep.reporting.noise_text import imu_noise_line
+
+    rng = np.random.default_rng(2)
+    h = 0.05
+    t = np.arange(0.0, 100.0, h)
+    n = t.size
+    move = t >= 60.0
+    clean = {**{f"w_{a}": np.where(move, np.sin(0.5 * t + k), 7e-5) for k, a in enumerate("xyz")},
+             **{f"fb_{a}": np.where(move, 20.0 * np.cos(0.2 * t + k), 9.8 * (a == "z")) for k, a in enumerate("xyz")}}
+    quat = {"q_w": np.ones(n), "q_x": np.zeros(n), "q_y": np.zeros(n), "q_z": np.zeros(n)}
+    meta = {"rows_index": np.full(n, -1)}
+
+    def measured(cols):
+        fl = FlightData(t, np.zeros((n, 3)), np.zeros((n, 3)), meta=meta, signals={**quat, **cols})
+        s, _, i = imu_sample_noise(fl, t)
+        return s, unresolved_noise(fl, s, i)
+
+    s, unseen = measured(clean)
+    assert np.all(s < 1e-12) and unseen == ["fb_x", "fb_y", "fb_z", "w_x", "w_y", "w_z"], (s, unseen)
+    noisy = {c: x + rng.normal(0, 1e-4 if c[0] == "w" else 2e-3, n) for c, x in clean.items()}
+    assert measured(noisy)[1] == []
+    steps = {**noisy, "fb_x": np.round(noisy["fb_x"] / 1e-3) * 1e-3}  # a 1e-3 m/s^2 quantum under 2e-3 of noise
+    assert measured(steps)[1] == []
+    account = {"accelerometer_m_s2": list(s[:3]), "gyro_rad_s": list(s[3:]), "sample_step_s": h,
+               "std_factor_max": 1.0, "std_factor_worst": "ba_x", "not_measured": unseen}
+    line = imu_noise_line(account)
+    assert line.startswith("IMU noise not measured") and "measured on the record" not in line, line
+    line = imu_noise_line({**account, "not_measured": ["w_x"]})
+    assert "not measured on w_x" in line, line
 
 
 @pytest.mark.parametrize("levelled", [False, True])
