@@ -415,10 +415,10 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                          "for clipping as it is read), or pass the IMU file's path")
     spec = FitSpec.build() if spec is None else spec
     base = load_model(model)
-    from casep.workflows.separate import _with_tables
+    from casep.workflows.coefficients import with_tables
 
     # a prior or bounds given as a file read as casep.separate and the CLI read it (a result of this flight refused)
-    spec = _with_tables(spec, None, base, files)
+    spec = with_tables(spec, None, base, files)
     source = model if isinstance(model, (str, os.PathLike)) else (base.source_file or base.name)
     from casep.io.pair import clock_drift_ppm, telemetry_time, tracking_time
     from casep.navigation.imu import on_clock
