@@ -45,24 +45,21 @@ def rail_files(seed: int, model_name: str, gm: bool, directory: Path) -> tuple[P
     import casep
     from casep.frames import LaunchSite
     from casep.io.files import write_table
-    from casep.model.strapdown import body_errors
     from casep.navigation import ImuData, check_imu, navigate
     from casep.navigation.imu import split_steps
     from casep.simulation.noise import ar1_noise, white_noise
-    from casep.simulation.strapdown import rail_launch
+    from casep.simulation.strapdown import rail_launch, with_drawn_errors
 
     site = LaunchSite(*RAIL_SITE)
     t = np.round(np.arange(0.0, 20.0, 0.1), 10)
     w, f = rail_launch(site, t, elevation_deg=84.0, boost_g=6.0, burn_s=10.0, coast_g=-0.3, roll=(1.5, 3.0))
     w, f = split_steps(t, w, f)
     nav = navigate(check_imu(ImuData(t, w, f)), site, RAIL_ALIGN, heading_deg=RAIL_HEADING)
-    m = casep.load_model(model_name)
     rng = np.random.default_rng(seed)
-    z = rng.standard_normal(len(m.names))
-    df, dw = body_errors(m, nav.q, f, w, t - t[0], z * np.array([m.scales[n] for n in m.names]))
+    w_m, f_m, _ = with_drawn_errors(casep.load_model(model_name), nav.q, w, f, t, rng)
     imu, trk = directory / f"rail_imu{seed}.csv", directory / f"rail_trk{seed}.csv"
-    write_table(imu, {"t": t, **{f"w_{a}": (w + dw)[:, i] for i, a in enumerate("xyz")},
-                      **{f"fb_{a}": (f + df)[:, i] for i, a in enumerate("xyz")}})
+    write_table(imu, {"t": t, **{f"w_{a}": w_m[:, i] for i, a in enumerate("xyz")},
+                      **{f"fb_{a}": f_m[:, i] for i, a in enumerate("xyz")}})
     k = slice(None, None, 2)
     v = nav.v[k] + white_noise(t[k].size, 0.03, rng)
     if gm:

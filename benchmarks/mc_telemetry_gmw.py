@@ -18,6 +18,7 @@ Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/mc_telemetry_gmw.py [--seeds 1 ..
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import os
 import sys
@@ -28,7 +29,7 @@ import warnings
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from mc_telemetry_iterate import MEMS, _simulator  # noqa: E402
+from mc_telemetry_iterate import mems_flights  # noqa: E402
 
 
 def gauss_markov(t: np.ndarray, sd: float, tau: float, rng: np.random.Generator) -> np.ndarray:
@@ -41,10 +42,16 @@ def gauss_markov(t: np.ndarray, sd: float, tau: float, rng: np.random.Generator)
     return g
 
 
+def gm_plus_white(trk: dict, *, rng: np.random.Generator, gm: float, tau: float, white: float) -> None:
+    """Adds per-axis Gauss-Markov (`gm` m/s, `tau` s) plus white (`white` m/s) noise to the tracking columns."""
+    for ax in "xyz":
+        trk[f"v_trk_{ax}"] = (trk[f"v_trk_{ax}"] + gauss_markov(trk["t"], gm, tau, rng)
+                              + rng.normal(0.0, white, trk["t"].size))
+
+
 def main() -> None:
     import casep
     import casep.workflows.telemetry_iterate as ti
-    from casep.io.files import write_table
     from casep.workflows.imu_separate import with_imu_noise
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -55,9 +62,7 @@ def main() -> None:
     ap.add_argument("--tau", type=float, default=3.0)
     ap.add_argument("--white", type=float, default=0.02)
     a = ap.parse_args()
-    ins = _simulator()
-    model = casep.load_model("strapdown12")
-    truth = np.array([MEMS[n] for n in model.names])
+    model, truth, make_flight = mems_flights()
     stated = ti._TelemetryRun.with_noise
 
     def with_spread(self, res, problem, flight):
@@ -67,15 +72,9 @@ def main() -> None:
     c0 = time.process_time()
     with tempfile.TemporaryDirectory() as tmp:
         for seed in a.seeds:
-            tel, trk, _, _ = ins(seed=seed, errors=MEMS, imu_noise=False, growth=0.0, noise=0.0, dur=a.dur,
-                                 trk_rate=a.trk_rate)
             rng = np.random.default_rng([seed, 99])
-            for ax in "xyz":
-                trk[f"v_trk_{ax}"] = (trk[f"v_trk_{ax}"] + gauss_markov(trk["t"], a.gm, a.tau, rng)
-                                      + rng.normal(0.0, a.white, trk["t"].size))
-            write_table(os.path.join(tmp, "tel.csv"), tel)
-            write_table(os.path.join(tmp, "trk.csv"), trk)
-            flight = casep.read_flight_pair(os.path.join(tmp, "tel.csv"), os.path.join(tmp, "trk.csv"))
+            flight = make_flight(seed, tmp, a.dur, a.trk_rate, 0.0,
+                                 functools.partial(gm_plus_white, rng=rng, gm=a.gm, tau=a.tau, white=a.white))
             for key, how in (("as stated", stated), ("with the tau spread", with_spread)):
                 ti._TelemetryRun.with_noise = how  # type: ignore[method-assign]
                 try:

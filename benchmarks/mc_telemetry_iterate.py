@@ -43,6 +43,26 @@ def _simulator():
     return mod.ins_telemetry
 
 
+def mems_flights():
+    """The strapdown12 model, its true coefficients (:data:`MEMS`, natural units) and ``flight(seed, directory, dur,
+    trk_rate, noise, tracking_noise=None)``: one seed's telemetry and tracking (the INS of :func:`_simulator` with the
+    MEMS errors, no IMU noise, white tracking noise `noise` m/s), written to `directory` and read back as a flight;
+    ``tracking_noise(trk)``, if given, adds to the tracking columns before they are written."""
+    ins = _simulator()
+    model = casep.load_model("strapdown12")
+
+    def flight(seed: int, directory, dur: float, trk_rate: float, noise: float, tracking_noise=None):
+        tel, trk, _, _ = ins(seed=seed, errors=MEMS, imu_noise=False, growth=0.0, noise=noise, dur=dur,
+                             trk_rate=trk_rate)
+        if tracking_noise is not None:
+            tracking_noise(trk)
+        write_table(Path(directory) / "tel.csv", tel)
+        write_table(Path(directory) / "trk.csv", trk)
+        return casep.read_flight_pair(Path(directory) / "tel.csv", Path(directory) / "trk.csv")
+
+    return model, np.array([MEMS[n] for n in model.names]), flight
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3, 4, 5, 6])
@@ -50,17 +70,11 @@ def main() -> None:
     ap.add_argument("--trk-rate", type=float, default=2.0)
     ap.add_argument("--noise", type=float, default=0.02)
     a = ap.parse_args()
-    ins = _simulator()
-    model = casep.load_model("strapdown12")
-    truth = np.array([MEMS[n] for n in model.names])
+    model, truth, make_flight = mems_flights()
     pooled: dict[str, list] = {"iterated": [], "linear": []}
     with tempfile.TemporaryDirectory() as tmp:
         for seed in a.seeds:
-            tel, trk, _, _ = ins(seed=seed, errors=MEMS, imu_noise=False, growth=0.0, noise=a.noise, dur=a.dur,
-                                 trk_rate=a.trk_rate)
-            write_table(Path(tmp) / "tel.csv", tel)
-            write_table(Path(tmp) / "trk.csv", trk)
-            flight = casep.read_flight_pair(Path(tmp) / "tel.csv", Path(tmp) / "trk.csv")
+            flight = make_flight(seed, tmp, a.dur, a.trk_rate, a.noise)
             line = [f"seed {seed:3d}"]
             for kind, it in (("iterated", None), ("linear", False)):
                 t0 = time.process_time()

@@ -73,7 +73,7 @@ __all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "keep_screen", "
            "fit_clock_drift", "clock_drift_record",
            "offset_halves", "halves_line", "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
-           "imu_noise_effect", "imu_sample_noise", "white_sample_std",
+           "imu_noise_effect", "imu_sample_noise", "white_sample_std", "unresolved_noise", "NOISE_RESOLUTION_SHARE",
            "rest_white_std", "IMU_NOISE_AT_REST", "STALE_MOTION", "HELD_SHARE", "HELD_RUN_SHARE", "JUMP_TOL",
            "JUMP_RATE", "EXCURSION_SIGMAS",
            "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
@@ -697,7 +697,9 @@ def imu_sample_noise(flight: FlightData, t_rows: np.ndarray) -> tuple[np.ndarray
     index = flight.meta.get("rows_index") if isinstance(flight.meta, dict) else None
     if index is None or not all(c in sig for c in ("q_w", "q_x", "q_y", "q_z", "fb_x", "w_x")) or t_rows.size == 0:
         return None
-    own = np.asarray(index) < 0  # the telemetry's own samples (the tracking epochs were inserted among them)
+    # the telemetry's own samples, a tracking epoch on one of them included (its columns are the file's); the tracking
+    # epochs inserted between them, their columns interpolated, left out
+    own = np.array(flight.meta.get("telemetry_samples", np.asarray(index) < 0), dtype=bool)
     if "ins_valid" in sig:
         own &= np.asarray(sig["ins_valid"]) > 0
     own &= flight.t <= t_rows[-1]
@@ -708,8 +710,25 @@ def imu_sample_noise(flight: FlightData, t_rows: np.ndarray) -> tuple[np.ndarray
     given = flight.meta.get(IMU_NOISE_AT_REST) if isinstance(flight.meta, dict) else None
     if given is not None:
         return np.asarray(given, dtype=float), h, i
-    raw = np.column_stack([sig[f"{k}_{a}"][i] for k in ("fb", "w") for a in "xyz"])
+    raw = np.column_stack([sig[c][i] for c in IMU_NOISE_COLUMNS])
     return white_sample_std(raw), h, i
+
+
+#: A per-sample std measured at or below this share of its column's largest magnitude is the samples' rounding, not
+#: an instrument's noise: a real IMU's is above 1e-6 of its range (a navigation-grade unit at 100 Hz: ~3e-6 rad/s of a
+#: 1 rad/s rate, ~5e-4 m/s^2 of 50 m/s^2), a noise-free record's second differences are its values' rounding (1e-16).
+NOISE_RESOLUTION_SHARE = 1e-9
+#: The IMU columns of :func:`imu_sample_noise`'s ``s``, in its order.
+IMU_NOISE_COLUMNS = ("fb_x", "fb_y", "fb_z", "w_x", "w_y", "w_z")
+
+
+def unresolved_noise(flight: FlightData, s: np.ndarray, samples: np.ndarray) -> list[str]:
+    """The IMU columns whose per-sample std `s` measured on `samples` (:func:`imu_sample_noise`) is at or below
+    :data:`NOISE_RESOLUTION_SHARE` of the column's largest magnitude there: the record does not show their noise
+    (noise-free, held or smoothed samples, or most of them at rest without noise), which is then not measured."""
+    sig = flight.signals
+    return [c for c, v in zip(IMU_NOISE_COLUMNS, s)
+            if not v > NOISE_RESOLUTION_SHARE * float(np.max(np.abs(np.asarray(sig[c])[samples]), initial=0.0))]
 
 
 #: A flight's ``meta`` key: the IMU's white noise per sample (6: ``fb_x, fb_y, fb_z`` m/s^2, ``w_x, w_y, w_z``

@@ -477,8 +477,9 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
     (its dv is still evaluated at the tracking time; :func:`_merge_times`), so the grid holds no
     near-duplicate time tag of casep's making; the others are inserted, with ``f`` and the signals
     linearly interpolated (S_V integrates ``f`` by the trapezoid rule, so a linearly interpolated
-    sample leaves its first-order terms unchanged). Tracking samples outside the telemetry span are dropped (counted in
-    ``meta["tracking_dropped"]``).
+    sample leaves its first-order terms unchanged); ``meta["telemetry_samples"]`` marks the telemetry's own samples
+    (with or without a tracking epoch on them), whose columns are the file's. Tracking samples outside the telemetry
+    span are dropped (counted in ``meta["tracking_dropped"]``).
     """
     from scipy.interpolate import CubicSpline
 
@@ -506,7 +507,7 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
         f_out = f[keep]
         sig = {k: v[keep] for k, v in signals.items()}
         how = f"v_tel - v_trk at telemetry times ({interpolation} interpolation of tracking)"
-        extra.update(rows_side="telemetry", rows_index=np.flatnonzero(keep))
+        extra.update(rows_side="telemetry", rows_index=np.flatnonzero(keep), telemetry_samples=np.ones(t.size, bool))
     else:
         use = (t_trk >= t_tel[0]) & (t_trk <= t_tel[-1])
         in_gap = _inside(t_trk, tel_gaps) & use
@@ -528,6 +529,7 @@ def pair_flight(t_tel: np.ndarray, f: np.ndarray, v_tel: np.ndarray, t_trk: np.n
         rows_index = np.full(t.size, -1)
         rows_index[idx] = np.flatnonzero(use)  # the tracking data row of each observed sample
         extra["rows_index"] = rows_index
+        extra["telemetry_samples"] = np.isin(t, t_keep)  # a tracking epoch on a telemetry sample is still that sample
     if VALID_COLUMN in sig:
         observed = _valid_rows(t, observed, sig[VALID_COLUMN], extra, source)
     if trk_gaps or tel_gaps:

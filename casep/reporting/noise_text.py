@@ -45,8 +45,17 @@ def imu_noise_line(account: dict) -> str:
     """One line of what the IMU's own noise adds to the std (:func:`casep.workflows.imu_separate.imu_noise_budget`)."""
     acc, gyr = max(account["accelerometer_m_s2"]), max(account["gyro_rad_s"])
     factor = account["std_factor_max"]
+    unseen = account.get("not_measured") or []
+    if len(unseen) == 6:
+        return ("IMU noise not measured: the record's IMU samples show none above their rounding (per sample at "
+                f"most {acc:.3g} m/s^2 and {gyr:.3g} rad/s: noise-free, held or smoothed samples), so the std carry "
+                "no IMU noise; an instrument's noise is stated as the flight's meta[IMU_NOISE_AT_REST] (Python: "
+                "casep.checks.tracking_quality, rest_white_std of a stationary record)")
     return (f"IMU noise (measured on the record, per sample up to {acc:.3g} m/s^2 and {gyr:.3g} rad/s at "
-            f"{account['sample_step_s']:.3g} s): its velocity and attitude random walks are in the std"
+            f"{account['sample_step_s']:.3g} s"
+            + (f"; not measured on {', '.join(unseen)}: no noise above their samples' rounding, none carried"
+               if unseen else "")
+            + "): its velocity and attitude random walks are in the std"
             + ("" if factor is None else f" (they raise them by up to {factor:.3g} x, {account['std_factor_worst']})")
             + ("" if not account.get("tracking_noise") else
                "; beside them the tracking " + noise_line(account["tracking_noise"])))

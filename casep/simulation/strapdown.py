@@ -36,7 +36,8 @@ from casep.model.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERN
 from casep.navigation.imu import split_steps
 from casep.simulation.trajectory import BoostTrajectory, body_to_platform
 
-__all__ = ["RollProgramme", "rolled", "strapdown_signals", "imu_table", "IMU_COLUMNS", "rail_launch"]
+__all__ = ["RollProgramme", "rolled", "strapdown_signals", "imu_table", "IMU_COLUMNS", "rail_launch",
+           "with_drawn_errors"]
 
 #: The columns of a raw IMU file before the truth columns.
 IMU_COLUMNS = ("t",) + BODY_RATE_COLUMNS + BODY_FORCE_COLUMNS
@@ -91,10 +92,11 @@ def rolled(traj: BoostTrajectory, roll: RollProgramme) -> BoostTrajectory:
     return dataclasses.replace(traj, attitude=att, body_rate=w)
 
 
-def _body_errors(model: Any, C: np.ndarray, q: np.ndarray, fb: np.ndarray, w: np.ndarray, t: np.ndarray,
+def _body_errors(model: Any, q: np.ndarray, fb: np.ndarray, w: np.ndarray, t: np.ndarray,
                  truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Body-frame ``delta_f = C^T Delta`` and ``delta_w = -C^T phidot`` of `model` at `truth` (natural units):
-    :func:`casep.model.strapdown.body_errors` (`C` is C(q), kept for the callers)."""
+    """Body-frame ``delta_f = C^T Delta`` and ``delta_w = -C^T phidot`` (``C = C(q)``) of `model` at `truth`
+    (natural units), time counted from ``t[0]``: :func:`casep.model.strapdown.body_errors`, after checking that the
+    model uses no column a strapdown simulation does not make."""
     from casep.model.strapdown import body_errors
 
     missing = [c for c in model.signals if c not in QUATERNION_COLUMNS + BODY_FORCE_COLUMNS + BODY_RATE_COLUMNS]
@@ -123,7 +125,7 @@ def strapdown_signals(traj: BoostTrajectory, model: Any, truth: np.ndarray) -> t
     q *= np.where(q[:, :1] < 0, -1.0, 1.0)  # w >= 0 (either sign is the attitude)
     fb = np.einsum("kji,kj->ki", C, traj.specific_force)  # fb = C^T f
     w = traj.body_rate
-    df, dw = _body_errors(model, C, q, fb, w, traj.t, truth)
+    df, dw = _body_errors(model, q, fb, w, traj.t, truth)
     fb_m, w_m = fb + df, w + dw
     cols = {**dict(zip(QUATERNION_COLUMNS, q.T)), **dict(zip(BODY_FORCE_COLUMNS, fb_m.T)),
             **dict(zip(BODY_RATE_COLUMNS, w_m.T))}
@@ -152,7 +154,7 @@ def imu_table(traj: BoostTrajectory, model: Any, truth: np.ndarray, *, pad: floa
         step = float(np.median(np.diff(t)))
         t_pad = t[0] - step * np.arange(int(np.ceil(pad / step - 1e-9)), 0, -1)
         q_pad, w_pad, fb_pad, pos_pad, vel_pad = _on_the_pad(traj, q[0], t_pad)
-        df, dw = _body_errors(model, quaternion_dcm_array(q_pad), q_pad, fb_pad, w_pad, t_pad, truth)
+        df, dw = _body_errors(model, q_pad, fb_pad, w_pad, t_pad, truth)
         t = np.concatenate([t_pad, t])
         q = np.concatenate([q_pad, q])
         fb = np.concatenate([fb_pad + df, fb])
@@ -223,3 +225,46 @@ def rail_launch(site: Any, t: np.ndarray, *, elevation_deg: float, boost_g: floa
     w[t >= site.t0] = np.column_stack([roll[0] * np.minimum(u / roll[1], 1.0), pitch_rate + 0 * u,
                                        yaw[0] * np.sin(yaw[1] * u)])
     return w, f
+
+
+def with_drawn_errors(model: Any, q: np.ndarray, w: np.ndarray, fb: np.ndarray, t: np.ndarray,
+                      rng: np.random.Generator, *, z: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A raw IMU record measured with the body-frame errors of `model` drawn at their declared magnitudes.
+
+    The coefficients are ``z * scales`` (natural units, the model's declared magnitudes), ``z`` a standard normal
+    draw of one number per coefficient, in the model's order, taken from `rng` before anything else (so that a
+    seeded generator gives the same coefficients, and the draws after them, as drawing them by hand). The errors
+    are :func:`casep.model.strapdown.body_errors` at the true attitude, rate and specific force.
+
+    Parameters
+    ----------
+    model : ErrorModel
+        A strapdown model (its IMU errors use ``q_*``, ``fb_*``, ``w_*`` only), set up.
+    q : (N, 4) ndarray
+        True attitude, Hamilton, scalar first, body to navigation (a navigation's ``q``).
+    w, fb : (N, 3) ndarray
+        True body rate (rad/s) and specific force (m/s^2).
+    t : (N,) ndarray
+        Sample times, s; the errors' time is counted from ``t[0]``.
+    rng : numpy.random.Generator
+        Draws ``z``; later draws (tracking noise) continue from it.
+    z : (n,) ndarray, optional
+        The coefficients in declared magnitudes, given instead of drawn (`rng` then untouched).
+
+    Returns
+    -------
+    w_measured, fb_measured : (N, 3) ndarray
+        ``w + delta_w`` and ``fb + delta_f``.
+    z : (n,) ndarray
+        The coefficients in declared magnitudes (the truth a separation is scored against).
+    """
+    if z is None:
+        z = rng.standard_normal(len(model.names))
+    z = np.asarray(z, dtype=float)
+    if z.shape != (len(model.names),):
+        raise ValueError(f"`z` must hold one number per coefficient of `{model.name}` ({len(model.names)}), "
+                         f"got shape {z.shape}")
+    scales = np.array([model.scales[n] for n in model.names])
+    df, dw = _body_errors(model, q, fb, w, np.asarray(t, dtype=float), z * scales)
+    return w + dw, fb + df, z

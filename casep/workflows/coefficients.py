@@ -20,7 +20,7 @@ import math
 import os
 from typing import Any, Sequence
 
-__all__ = ["read_coefficient_file", "read_truth_prior", "read_scales"]
+__all__ = ["read_coefficient_file", "read_truth_prior", "read_scales", "with_tables"]
 
 
 def read_coefficient_file(path: str | os.PathLike, kind: str, names: Sequence[str], *,
@@ -131,3 +131,37 @@ def read_truth_prior(path: str | os.PathLike, names: Sequence[str], *, model: An
     table = {k: v for k, v in table.items() if k != "correlation"}  # a result's covariance: its marginals
     parse_prior(table, names, source=where)
     return table
+
+
+def with_tables(spec: Any, flight: Any, model: Any, data_files: Sequence[str] | None = None) -> Any:
+    """`spec` (a :class:`~casep.estimators.spec.FitSpec`) with its ``bounds`` or ``prior`` read when given as a JSON
+    file's path, as on the command line (:func:`read_coefficient_file`: a ground calibration, a result's posterior, a
+    result of this very flight refused).
+
+    Parameters
+    ----------
+    spec : FitSpec
+        The fit request; returned itself when neither table is a path.
+    flight : FlightData, Problem or None
+        A Problem's coefficient names are the table's; otherwise `model`'s.
+    model : ErrorModel
+        The model the table is checked against (unless `flight` is a Problem).
+    data_files : sequence of str, optional
+        The flight's data files (a result estimated on them is refused); None: those a FlightData was read from.
+    """
+    import dataclasses
+
+    from casep.io.flight import FlightData
+    from casep.io.provenance import flight_files
+    from casep.regression.problem import Problem
+
+    if data_files is None:
+        data_files = flight_files(flight) if isinstance(flight, FlightData) else ()
+    opts = dict(spec.options)
+    for k in ("bounds", "prior"):
+        path = opts.get(k)
+        if isinstance(path, (str, os.PathLike)):
+            names = flight.names if isinstance(flight, Problem) else model.names
+            opts[k] = read_coefficient_file(path, k, names, model=None if isinstance(flight, Problem) else model,
+                                            data_files=data_files)
+    return spec if opts == dict(spec.options) else dataclasses.replace(spec, options=opts)

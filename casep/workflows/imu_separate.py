@@ -369,7 +369,9 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     heading_deg, heading_axis
         :func:`casep.navigation.navigate` (None: gyrocompassing, with a warning).
     spec : FitSpec, optional
-        The fit request (default :meth:`FitSpec.build`: OLS, the noise model chosen by the data).
+        The fit request (default :meth:`FitSpec.build`: OLS, the noise model chosen by the data). Its ``prior`` or
+        ``bounds`` may be a JSON file's path, read as :func:`casep.separate` and ``casep separate --prior`` read it
+        (:func:`casep.workflows.coefficients.read_coefficient_file`; a result of this very flight refused).
     iterate : bool
         Iterate until the correction of every determined combination is below `tol` of its std (default);
         False: one linear pass.
@@ -405,6 +407,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     if not isinstance(site, LaunchSite):
         raise TypeError(f"`site` must be a casep.frames.LaunchSite, got {type(site).__name__}")
     heading_std = given_heading_std(heading_deg, heading_std_deg)
+    files = [str(p) for p in (imu, tracking) if isinstance(p, (str, os.PathLike)) and os.path.isfile(p)]
     if not isinstance(imu, ImuData):
         imu = read_imu(imu, gyr_range=gyr_range, acc_range=acc_range)
     elif gyr_range is not None or acc_range is not None:
@@ -412,6 +415,10 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                          "for clipping as it is read), or pass the IMU file's path")
     spec = FitSpec.build() if spec is None else spec
     base = load_model(model)
+    from casep.workflows.coefficients import with_tables
+
+    # a prior or bounds given as a file read as casep.separate and the CLI read it (a result of this flight refused)
+    spec = with_tables(spec, None, base, files)
     source = model if isinstance(model, (str, os.PathLike)) else (base.source_file or base.name)
     from casep.io.pair import clock_drift_ppm, telemetry_time, tracking_time
     from casep.navigation.imu import on_clock
@@ -2176,7 +2183,7 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     the record does not bound them). `estimators`: ``A`` when the caller formed it already
     (:func:`combination_estimators` of the identity on `res`).
     """
-    from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_noise_effect, imu_sample_noise
+    from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_noise_effect, imu_sample_noise, unresolved_noise
     from casep.noise.model import NoiseModel
 
     nd = res.diagnostics.get("noise")
@@ -2187,6 +2194,7 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     if measured is None:
         return None
     at_rest = isinstance(flight.meta, dict) and flight.meta.get(IMU_NOISE_AT_REST) is not None
+    unresolved = () if at_rest else tuple(unresolved_noise(flight, measured[0], measured[2]))
     noise = NoiseModel.from_dict(nd)
     N, n = t.size, len(res.names)
     A = estimators if estimators is not None else combination_estimators(np.eye(n), np.ones(n), res, problem)
@@ -2198,14 +2206,14 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     C_imu = AG @ AG.T
     refit = _tracking_beside_imu(problem, flight, noise, levelling)
     if refit is None:
-        return None, C_imu, _imu_account(res, measured, np.asarray(res.covariance), C_imu, refit, at_rest)
+        return None, C_imu, _imu_account(res, measured, np.asarray(res.covariance), C_imu, refit, at_rest, unresolved)
     from casep.noise.known import tracking_covariance_times
 
     C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
     if profile is None:
-        return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, at_rest)
+        return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, at_rest, unresolved)
     spread = tau_spread(A, problem, profile)
-    account = _imu_account(res, measured, C_trk + spread, C_imu, refit, at_rest)
+    account = _imu_account(res, measured, C_trk + spread, C_imu, refit, at_rest, unresolved)
     account["tau_profile"] = _tau_record(res, t, profile, C_trk + C_imu, spread)
     return C_trk + spread, C_imu, account
 
@@ -2731,8 +2739,9 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
 
 
 def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu: np.ndarray, refit: Any,
-                 at_rest: bool = False) -> dict:
-    """What :func:`imu_noise_budget` used and found, for the result's noise record."""
+                 at_rest: bool = False, unresolved: tuple = ()) -> dict:
+    """What :func:`imu_noise_budget` used and found, for the result's noise record (`unresolved`: the columns whose
+    noise the record does not show, :func:`casep.checks.tracking_quality.unresolved_noise`: not measured)."""
     s, h, _ = measured
     C_fit = np.asarray(res.covariance)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -2748,6 +2757,7 @@ def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu:
               "per sample")
     return {"source": source,
             "accelerometer_m_s2": [float(v) for v in s[:3]], "gyro_rad_s": [float(v) for v in s[3:]],
+            "not_measured": list(unresolved),
             "sample_step_s": h, "vrw_m_s_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[:3]],
             "arw_rad_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[3:]],
             "std_factor_max": float(finite.max()) if finite.size else None, "std_factor_worst": res.names[worst],

@@ -222,7 +222,9 @@ def separate(
     if spec is None:
         spec = FitSpec.build(**fit_kw)  # every check of the request, once
     flight, problem, model = _problem(flight, model, fit_time_offset)
-    spec = _with_tables(spec, flight, model)
+    from casep.workflows.coefficients import with_tables
+
+    spec = with_tables(spec, flight, model)
     from casep.workflows.telemetry_iterate import iterate_if_curved
 
     (res, problem, model, flight), caught = _recorded(lambda: _linear(flight, problem, model, spec, fit_time_offset))
@@ -524,23 +526,6 @@ def _beyond_linear(flights: Sequence[Any], dt: np.ndarray, sd: np.ndarray) -> np
     return np.array([isinstance(fl, FlightData) and bool(np.isfinite(d))
                      and offset_second_order(fl, float(d)) > LINEAR_OFFSET_SHARE * s
                      for fl, d, s in zip(flights, dt, sd)], dtype=bool)
-
-
-def _with_tables(spec: FitSpec, flight: Any, model: Any) -> FitSpec:
-    """`spec` with its bounds or prior table read when given as a JSON file, as on the command line
-    (:func:`casep.workflows.coefficients.read_coefficient_file`: a ground calibration, a result's posterior,
-    a result of this very flight refused)."""
-    from casep.io.provenance import flight_files
-    from casep.workflows.coefficients import read_coefficient_file
-
-    opts = dict(spec.options)
-    for k in ("bounds", "prior"):
-        path = opts.get(k)
-        if isinstance(path, (str, os.PathLike)):
-            names = flight.names if isinstance(flight, Problem) else model.names
-            opts[k] = read_coefficient_file(path, k, names, model=None if isinstance(flight, Problem) else model,
-                                            data_files=flight_files(flight) if isinstance(flight, FlightData) else ())
-    return spec if opts == dict(spec.options) else dataclasses.replace(spec, options=opts)
 
 
 def _separate_radar(telemetry, model, fit_kw: dict, radar: Sequence, site, tracking_model,

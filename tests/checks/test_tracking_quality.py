@@ -304,6 +304,84 @@ def test_the_imu_noise_is_measured_beside_the_motion():
     assert np.all(clean < 0.5 * np.array([sa] * 3 + [sg] * 3)), clean
 
 
+@pytest.mark.parametrize("grid", ["tracking", "telemetry"])
+def test_the_imu_noise_is_measured_on_every_telemetry_sample_a_tracking_epoch_on_one_included(grid):
+    """A pair whose 20 Hz tracking epochs fall on the 20 Hz telemetry's samples from 3 s on, after a quiet pad
+    (constant rate and force, noise-free: a simulated IMU standing still), the flight's samples (rates and forces
+    ramping) with white noise of 1e-4 rad/s and 2e-3 m/s^2: the noise is measured on all the telemetry's samples up to
+    the last epoch (the same numbers as :func:`white_sample_std` of the file's columns, and within 10 % of the noise
+    drawn). Before, the samples with a tracking epoch on them were left out as if inserted: only the pad's 60 were
+    left and the noise read ~1e-16 (the IMU's random walks dropped out of the std, and the IMU noise's blocks
+    integrated F across the 117 s without samples); on the telemetry grid no sample was the telemetry's own: no IMU
+    noise at all."""
+    from casep.checks.tracking_quality import imu_sample_noise, unresolved_noise, white_sample_std
+    from casep.io.pair import pair_flight
+
+    rng = np.random.default_rng(11)
+    h, sg, sa = 0.05, 1e-4, 2e-3
+    t_tel = np.round(np.arange(0.0, 120.0, h), 10)
+    n = t_tel.size
+    flying = t_tel >= 3.0
+    cols = {**{f"w_{a}": np.where(flying, 0.1 * k + 0.01 * t_tel + rng.normal(0, sg, n), 1e-5)
+               for k, a in enumerate("xyz")},
+            **{f"fb_{a}": np.where(flying, 30.0 - 5 * k - 0.1 * t_tel + rng.normal(0, sa, n), 9.8 * (a == "z"))
+               for k, a in enumerate("xyz")},
+            "q_w": np.ones(n), "q_x": np.zeros(n), "q_y": np.zeros(n), "q_z": np.zeros(n)}
+    f = np.column_stack([cols[f"fb_{a}"] for a in "xyz"])
+    v_tel = np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (f[1:] + f[:-1]) * h, axis=0)])
+    t_trk = t_tel[flying]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        flight = pair_flight(t_tel, f, v_tel, t_trk, v_tel[flying], signals=cols, grid=grid, source="pair")
+    got = imu_sample_noise(flight, flight.t[np.asarray(flight.observed)])
+    assert got is not None
+    s, step, i = got
+    assert step == pytest.approx(h) and i.size == n
+    np.testing.assert_array_equal(flight.t[i], t_tel)
+    raw = np.column_stack([cols[f"{k}_{a}"] for k in ("fb", "w") for a in "xyz"])
+    np.testing.assert_allclose(s, white_sample_std(raw), rtol=1e-9)
+    np.testing.assert_allclose(s, [sa] * 3 + [sg] * 3, rtol=0.10)
+    assert unresolved_noise(flight, s, i) == []
+
+
+def test_a_noise_the_samples_do_not_show_is_not_measured():
+    """A noise-free record (a turning, accelerating flight at 20 Hz, 60 % of it standing still first) reads a
+    per-sample std at its values' rounding (the second differences at rest are zero, the MAD takes them): every column
+    is said not measured, beside its noisy twin (2e-3 m/s^2, 1e-4 rad/s: none), and the report says so instead of
+    "measured on the record"; one column quantised beside white noise it does not hide is measured."""
+    from casep.checks.tracking_quality import imu_sample_noise, unresolved_noise
+    from casep.io.flight import FlightData
+    from casep.reporting.noise_text import imu_noise_line
+
+    rng = np.random.default_rng(2)
+    h = 0.05
+    t = np.arange(0.0, 100.0, h)
+    n = t.size
+    move = t >= 60.0
+    clean = {**{f"w_{a}": np.where(move, np.sin(0.5 * t + k), 7e-5) for k, a in enumerate("xyz")},
+             **{f"fb_{a}": np.where(move, 20.0 * np.cos(0.2 * t + k), 9.8 * (a == "z")) for k, a in enumerate("xyz")}}
+    quat = {"q_w": np.ones(n), "q_x": np.zeros(n), "q_y": np.zeros(n), "q_z": np.zeros(n)}
+    meta = {"rows_index": np.full(n, -1)}
+
+    def measured(cols):
+        fl = FlightData(t, np.zeros((n, 3)), np.zeros((n, 3)), meta=meta, signals={**quat, **cols})
+        s, _, i = imu_sample_noise(fl, t)
+        return s, unresolved_noise(fl, s, i)
+
+    s, unseen = measured(clean)
+    assert np.all(s < 1e-12) and unseen == ["fb_x", "fb_y", "fb_z", "w_x", "w_y", "w_z"], (s, unseen)
+    noisy = {c: x + rng.normal(0, 1e-4 if c[0] == "w" else 2e-3, n) for c, x in clean.items()}
+    assert measured(noisy)[1] == []
+    steps = {**noisy, "fb_x": np.round(noisy["fb_x"] / 1e-3) * 1e-3}  # a 1e-3 m/s^2 quantum under 2e-3 of noise
+    assert measured(steps)[1] == []
+    account = {"accelerometer_m_s2": list(s[:3]), "gyro_rad_s": list(s[3:]), "sample_step_s": h,
+               "std_factor_max": 1.0, "std_factor_worst": "ba_x", "not_measured": unseen}
+    line = imu_noise_line(account)
+    assert line.startswith("IMU noise not measured") and "measured on the record" not in line, line
+    line = imu_noise_line({**account, "not_measured": ["w_x"]})
+    assert "not measured on w_x" in line, line
+
+
 @pytest.mark.parametrize("levelled", [False, True])
 def test_the_imu_noise_state_is_the_imu_noise_effect(levelled):
     """The linear state of the IMU's white noise (:func:`imu_noise_states`) has the covariance ``G G^T`` of

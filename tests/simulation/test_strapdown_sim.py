@@ -251,3 +251,40 @@ def test_strapdown_scenario_writes_earth_fixed_tracking(tmp_path, capsys):
     assert main(["simulate", "--scenario", "strapdown-boost", "--rate", "5", "-o", str(tmp_path / "n.csv"),
                  "--imu-output", str(tmp_path / "n_imu.csv")]) == 0
     assert "non-rotating Earth" in capsys.readouterr().out
+
+
+def test_with_drawn_errors_draws_declared_magnitudes_first_and_applies_strapdown12_by_hand():
+    """strapdown12's errors written out by hand (``delta_f_i = ba_i + sa_i fb_i``, ``delta_w_i = bg_i + sg_i w_i``,
+    mg, ppm, deg/h at declared magnitudes 1, 300, 1, 100) at a turning attitude: the measured record, the ``z``
+    drawn first from the generator (its next draw is a fresh generator's 13th), and ``z`` given leaving it untouched."""
+    from scipy.spatial.transform import Rotation
+
+    from casep.simulation.strapdown import with_drawn_errors
+    from casep.units import G0
+
+    model = casep.load_model("strapdown12")
+    n = 50
+    t = 3.0 + 0.1 * np.arange(n)
+    q = Rotation.from_rotvec(np.outer(t, [0.3, -0.2, 0.5])).as_quat(scalar_first=True)
+    w = np.column_stack([0.3 + 0 * t, -0.2 + 0.01 * t, np.sin(t)])
+    fb = np.column_stack([60.0 - t, 2.0 * np.cos(t), -9.0 + 0 * t])
+    rng = np.random.default_rng(7)
+    w_m, fb_m, z = with_drawn_errors(model, q, w, fb, t, rng)
+    fresh = np.random.default_rng(7).standard_normal(13)
+    np.testing.assert_array_equal(z, fresh[:12])
+    assert rng.standard_normal() == fresh[12]
+    assert model.names == tuple(f"{k}_{a}" for k in ("ba", "sa", "bg", "sg") for a in "xyz")
+    c = dict(zip(model.names, z * np.repeat([1.0, 300.0, 1.0, 100.0], 3)))
+    for i, a in enumerate("xyz"):
+        np.testing.assert_allclose(fb_m[:, i] - fb[:, i], c[f"ba_{a}"] * 1e-3 * G0 + c[f"sa_{a}"] * 1e-6 * fb[:, i],
+                                   rtol=1e-9, atol=1e-14)
+        np.testing.assert_allclose(w_m[:, i] - w[:, i],
+                                   np.radians(c[f"bg_{a}"] / 3600.0) + c[f"sg_{a}"] * 1e-6 * w[:, i],
+                                   rtol=1e-9, atol=1e-16)
+    rng = np.random.default_rng(7)
+    w_g, fb_g, z_g = with_drawn_errors(model, q, w, fb, t, rng, z=z)
+    np.testing.assert_array_equal(w_g, w_m)
+    np.testing.assert_array_equal(fb_g, fb_m)
+    assert rng.standard_normal() == fresh[0]
+    with pytest.raises(ValueError, match="one number per coefficient"):
+        with_drawn_errors(model, q, w, fb, t, rng, z=z[:5])

@@ -21,11 +21,10 @@ import pytest
 import casep
 from casep.frames import LaunchSite
 from casep.io.files import write_table
-from casep.model.strapdown import body_errors
 from casep.navigation import ImuData, check_imu, navigate
 from casep.navigation.imu import on_clock, split_steps
 from casep.simulation.noise import white_noise
-from casep.simulation.strapdown import rail_launch
+from casep.simulation.strapdown import rail_launch, with_drawn_errors
 from casep.workflows.imu_separate import separate_imu
 
 SITE = LaunchSite(28.46, -80.53, 3.0, 95.0, 6.0)  # lift-off at t = 6 s
@@ -54,10 +53,8 @@ def flights(tmp_path_factory):
     """``flights(d)``: (IMU file with tags ``t (1 + d)``, tracking file, truth in declared magnitudes), seed 0."""
     t, w, f = _truth()
     nav = navigate(check_imu(ImuData(t, w, f)), SITE, ALIGN, heading_deg=HEADING)
-    m = casep.load_model(MODEL)
     rng = np.random.default_rng(0)
-    z = rng.standard_normal(len(m.names))
-    df, dw = body_errors(m, nav.q, f, w, t - t[0], z * np.array([m.scales[n] for n in m.names]))
+    w_m, f_m, z = with_drawn_errors(casep.load_model(MODEL), nav.q, w, f, t, rng)
     directory = tmp_path_factory.mktemp("clock")
     trk = directory / "trk.csv"
     k = slice(None, None, 2)
@@ -66,8 +63,8 @@ def flights(tmp_path_factory):
     files = {}
     for d in (DRIFT, -DRIFT, 0.0):
         imu = directory / f"imu{d:+g}.csv"
-        write_table(imu, {"t": t * (1.0 + d), **{f"w_{a}": (w + dw)[:, i] for i, a in enumerate("xyz")},
-                          **{f"fb_{a}": (f + df)[:, i] for i, a in enumerate("xyz")}})
+        write_table(imu, {"t": t * (1.0 + d), **{f"w_{a}": w_m[:, i] for i, a in enumerate("xyz")},
+                          **{f"fb_{a}": f_m[:, i] for i, a in enumerate("xyz")}})
         files[d] = imu
     done: dict = {}
 

@@ -27,6 +27,7 @@ from casep.io.files import write_table
 from casep.model.strapdown import body_errors
 from casep.navigation import ImuData, check_imu, navigate
 from casep.navigation.imu import read_imu, split_steps
+from casep.simulation.strapdown import with_drawn_errors
 from casep.workflows.imu_separate import STATUS_NOT_CONVERGED, separate_imu
 
 SITE = LaunchSite(67.89, 21.1, 330.0, 30.0, 10.0)  # lift-off at t = 10 s
@@ -747,9 +748,9 @@ def pad_record(directory, seed: int, model: str, *, pad: float = 9.0, boost: flo
     rng = np.random.default_rng(seed)
     nav = navigate(check_imu(ImuData(t, w, f)), site, PAD_ALIGN, heading_deg=heading)
     m = casep.load_model(model)
-    z = rng.standard_normal(len(m.names)) if truth is None else np.array([truth.get(n, 0.0) for n in m.names])
-    df, dw = body_errors(m, nav.q, f, w, t - t[0], z * np.array([m.scales[n] for n in m.names]))
-    f, w = f + df + rng.normal(0.0, imu_noise[0], f.shape), w + dw + rng.normal(0.0, imu_noise[1], w.shape)
+    w_m, f_m, z = with_drawn_errors(m, nav.q, w, f, t, rng,
+                                    z=None if truth is None else np.array([truth.get(n, 0.0) for n in m.names]))
+    f, w = f_m + rng.normal(0.0, imu_noise[0], f.shape), w_m + rng.normal(0.0, imu_noise[1], w.shape)
     imu, trk = directory / "imu.csv", directory / "trk.csv"
     write_table(imu, {"t": t, **{f"w_{a}": w[:, i] for i, a in enumerate("xyz")},
                       **{f"fb_{a}": f[:, i] for i, a in enumerate("xyz")}})
@@ -1103,3 +1104,32 @@ def test_the_note_on_what_the_record_leaves_out_counts_every_combination():
     said = _outside_note(passes(11, 4, 1), 16, 1.6, names=names)
     assert "determines 11 of 16" in said and "the other 5: 1 stepped along, whose std with the record's noise and " \
         "the curvature (2 declared magnitudes: c8) reach" in said, said
+
+
+def test_a_prior_given_as_a_file_is_read_by_the_one_loader(tmp_path, monkeypatch):
+    """``separate_imu(..., spec=FitSpec.build("map", prior=PATH))`` reads the file as ``casep separate --prior`` and
+    :func:`casep.separate` do (:func:`casep.workflows.coefficients.read_coefficient_file`): the run gets the table, and
+    a name the model does not have is the loader's error naming the file (before: the path went on as the table)."""
+    import json
+
+    import casep.workflows.imu_separate as ims
+    from casep.workflows.coefficients import read_coefficient_file
+
+    imu, trk, site, heading, _ = pad_record(tmp_path, 1, "strapdown12", pad=5.0, boost=1.0)
+    prior = tmp_path / "prior.json"
+    prior.write_text(json.dumps({"ba_x": {"mean": 0.5, "std": 2.0}, "bg_z": {"mean": 0.0, "std": 3.0}}))
+    seen = {}
+
+    def stop(self, *args):
+        seen["spec"] = self.spec
+        raise StopIteration
+
+    monkeypatch.setattr(ims._Run, "iterate", stop)
+    with pytest.raises(StopIteration):
+        separate_imu(imu, trk, site, PAD_ALIGN, "strapdown12", heading_deg=heading,
+                     spec=FitSpec.build("map", prior=str(prior)))
+    assert seen["spec"].options["prior"] == read_coefficient_file(prior, "prior", casep.load_model("strapdown12").names)
+    prior.write_text(json.dumps({"ba_q": {"mean": 0.0, "std": 1.0}}))
+    with pytest.raises(ValueError, match=f"--prior {prior}.*ba_q"):
+        separate_imu(imu, trk, site, PAD_ALIGN, "strapdown12", heading_deg=heading,
+                     spec=FitSpec.build("map", prior=prior))

@@ -16,10 +16,9 @@ import pytest
 import casep
 from casep.frames import LaunchSite
 from casep.io.files import write_table
-from casep.model.strapdown import body_errors
 from casep.navigation import ImuData, check_imu, navigate
 from casep.simulation.noise import ar1_noise, white_noise
-from casep.simulation.strapdown import rail_launch
+from casep.simulation.strapdown import rail_launch, with_drawn_errors
 from casep.workflows.imu_separate import separate_imu
 
 SITE = LaunchSite(28.46, -80.53, 3.0, 95.0, 6.0)  # lift-off at t = 6 s
@@ -40,13 +39,11 @@ def flight(directory, launch, seed: int):
     """IMU and tracking files of the launch with errors drawn at the declared magnitudes (`seed`) and the tracking
     noise drawn after them; returns (imu, tracking, truth in declared magnitudes)."""
     t, w, f, nav = launch
-    m = casep.load_model(MODEL)
     rng = np.random.default_rng(seed)
-    z = rng.standard_normal(len(m.names))
-    df, dw = body_errors(m, nav.q, f, w, t - t[0], z * np.array([m.scales[n] for n in m.names]))
+    w_m, f_m, z = with_drawn_errors(casep.load_model(MODEL), nav.q, w, f, t, rng)
     imu, trk = directory / f"imu{seed}.csv", directory / f"trk{seed}.csv"
-    write_table(imu, {"t": t, **{f"w_{a}": (w + dw)[:, i] for i, a in enumerate("xyz")},
-                      **{f"fb_{a}": (f + df)[:, i] for i, a in enumerate("xyz")}})
+    write_table(imu, {"t": t, **{f"w_{a}": w_m[:, i] for i, a in enumerate("xyz")},
+                      **{f"fb_{a}": f_m[:, i] for i, a in enumerate("xyz")}})
     k = slice(None, None, 2)
     v = nav.v[k] + ar1_noise(t[k], GM_STD, GM_TAU, rng) + white_noise(t[k].size, WHITE_STD, rng)
     write_table(trk, {"t": t[k], **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}})

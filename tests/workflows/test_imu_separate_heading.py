@@ -20,11 +20,10 @@ import pytest
 import casep
 from casep.frames import LaunchSite
 from casep.io.files import write_table
-from casep.model.strapdown import body_errors
 from casep.navigation import ImuData, check_imu, navigate
 from casep.navigation.imu import split_steps
 from casep.simulation.noise import white_noise
-from casep.simulation.strapdown import rail_launch
+from casep.simulation.strapdown import rail_launch, with_drawn_errors
 from casep.workflows.imu_separate import separate_imu
 
 SITE = LaunchSite(28.46, -80.53, 3.0, 95.0, 6.0)  # lift-off at t = 6 s
@@ -41,14 +40,12 @@ def launch(tmp_path_factory):
     # sides), which the integration takes exactly, so the heading is the only consider parameter
     w, f = split_steps(t, w, f)
     nav = navigate(check_imu(ImuData(t, w, f)), SITE, ALIGN, heading_deg=HEADING)
-    m = casep.load_model(MODEL)
     rng = np.random.default_rng(0)
-    z = rng.standard_normal(len(m.names))
-    df, dw = body_errors(m, nav.q, f, w, t - t[0], z * np.array([m.scales[n] for n in m.names]))
+    w_m, f_m, z = with_drawn_errors(casep.load_model(MODEL), nav.q, w, f, t, rng)
     directory = tmp_path_factory.mktemp("heading")
     imu, trk = directory / "imu.csv", directory / "trk.csv"
-    write_table(imu, {"t": t, **{f"w_{a}": (w + dw)[:, i] for i, a in enumerate("xyz")},
-                      **{f"fb_{a}": (f + df)[:, i] for i, a in enumerate("xyz")}})
+    write_table(imu, {"t": t, **{f"w_{a}": w_m[:, i] for i, a in enumerate("xyz")},
+                      **{f"fb_{a}": f_m[:, i] for i, a in enumerate("xyz")}})
     k = slice(None, None, 2)
     v = nav.v[k] + white_noise(t[k].size, WHITE_STD, rng)
     write_table(trk, {"t": t[k], **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}})
