@@ -1,0 +1,107 @@
+"""Monte Carlo of the IMU clock drift carried in the std: are a raw-IMU separation's std honest when the flight
+computer's clock drifts against the tracking's (GPS) time by an amount nobody gave?
+
+The flight of ``tests/workflows/test_imu_clock_drift.py`` (a 40 s rail launch at 10 Hz: 6 s on the pad, 6 g for
+10 s, a coast with a lateral weave; tracking at 5 Hz, white noise 0.03 m/s), per seed ``strapdown15_axial`` errors
+drawn at their declared magnitudes, new tracking noise, and an IMU clock drift ``d ~ N(0, std^2)`` (``--std``,
+default :data:`casep.workflows.imu_separate.CLOCK_DRIFT_STD_PPM`): the IMU's tags ``t (1 + d)``. Each seed is
+separated with :func:`casep.workflows.imu_separate.separate_imu` with no drift given (its default drift std carried:
+``clock_drift_std`` None). Printed per seed: the drift, the data's own estimate of it, the status, and the RMS z of
+the stated combinations with the carry and without it (their std less the drift's shift, ``drift_shift``); then the
+pooled z over the successes (the results a user is given: a drift the data see fails with the advice to state it)
+and over every seed.
+
+Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/mc_clock_carry.py [--seeds 0 1 ...] [--std 50]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "workflows"))
+
+
+def record(directory: Path, seed: int, d: float):
+    """(IMU file with tags ``t (1 + d)``, tracking file, truth in declared magnitudes) of seed `seed`."""
+    import test_imu_clock_drift as fl
+
+    import casep
+    from casep.io.files import write_table
+    from casep.model.strapdown import body_errors
+    from casep.navigation import ImuData, check_imu, navigate
+    from casep.simulation.noise import white_noise
+
+    t, w, f = fl._truth()
+    nav = navigate(check_imu(ImuData(t, w, f)), fl.SITE, fl.ALIGN, heading_deg=fl.HEADING)
+    m = casep.load_model(fl.MODEL)
+    rng = np.random.default_rng(1000 + seed)
+    z = rng.standard_normal(len(m.names))
+    df, dw = body_errors(m, nav.q, f, w, t - t[0], z * np.array([m.scales[n] for n in m.names]))
+    k = slice(None, None, 2)
+    v = nav.v[k] + white_noise(t[k].size, fl.WHITE_STD, rng)
+    trk, imu = directory / "trk.csv", directory / "imu.csv"
+    write_table(trk, {"t": t[k], **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}})
+    write_table(imu, {"t": t * (1.0 + d), **{f"w_{a}": (w + dw)[:, i] for i, a in enumerate("xyz")},
+                      **{f"fb_{a}": (f + df)[:, i] for i, a in enumerate("xyz")}})
+    return imu, trk, z
+
+
+def stated(out, truth) -> tuple[np.ndarray, np.ndarray]:
+    """z of the stated combinations with the drift carried, and without it (std less the drift's shift)."""
+    combos = out.result.diagnostics["iterations"]["passes"][-1].get("determined") or []
+    err = np.array([c["estimate"] - np.dot(c["weights"], truth) for c in combos])
+    std = np.array([c["std"] for c in combos])
+    shift = np.array([c.get("drift_shift", 0.0) for c in combos])
+    return err / std, err / np.sqrt(np.clip(std**2 - shift**2, 1e-300, None))
+
+
+def main() -> None:
+    import test_imu_clock_drift as fl
+    from mc_strapdown import _line  # the same summary line (benchmarks/ is the script's folder)
+
+    from casep.workflows.imu_separate import CLOCK_DRIFT_STD_PPM, separate_imu
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=list(range(30)))
+    ap.add_argument("--std", type=float, default=CLOCK_DRIFT_STD_PPM, help="the drifts' std, ppm")
+    args = ap.parse_args()
+    warnings.simplefilter("ignore")
+    pooled: dict[str, list] = {"ok": [], "ok0": [], "all": [], "all0": []}
+    t0 = time.process_time()
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in args.seeds:
+            directory = Path(tmp) / str(seed)
+            directory.mkdir()
+            d = float(np.random.default_rng(seed).normal(0.0, args.std)) * 1e-6
+            imu, trk, truth = record(directory, seed, d)
+            align = tuple(a * (1.0 + d) for a in fl.ALIGN)
+            out = separate_imu(imu, trk, fl.SITE, align, fl.MODEL, heading_deg=fl.HEADING,
+                               clock_drift_std=args.std)
+            rec = out.result.diagnostics.get("clock_drift") or {}
+            z, z0 = stated(out, truth)
+            if z.size:
+                pooled["all"].append(z)
+                pooled["all0"].append(z0)
+                if out.success:
+                    pooled["ok"].append(z)
+                    pooled["ok0"].append(z0)
+            eff = (rec.get("carried") or {}).get("effective_std_ppm", np.nan)
+            print(f"seed {seed}: drift {fl._given(d):+7.1f} ppm, estimated {rec.get('ppm', np.nan):+7.1f} +- "
+                  f"{rec.get('std_ppm', np.nan):5.1f} (carried {eff:5.1f}), status {out.status:3d}, {z.size} "
+                  f"combinations, RMS z {np.sqrt(np.mean(z**2)) if z.size else np.nan:.3f} with the carry, "
+                  f"{np.sqrt(np.mean(z0**2)) if z0.size else np.nan:.3f} without", flush=True)
+    print(f"{len(args.seeds)} seeds, drift std {args.std:g} ppm, {time.process_time() - t0:.0f} CPU s")
+    for key, name in (("ok", "successes"), ("ok0", "  no carry"), ("all", "every seed"), ("all0", "  no carry")):
+        if pooled[key]:
+            print(_line(name, np.concatenate(pooled[key])))
+
+
+if __name__ == "__main__":
+    main()
