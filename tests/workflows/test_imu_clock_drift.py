@@ -13,6 +13,7 @@ The flight: a 40 s rail launch at 10 Hz (6 s on the pad, 6 g for 10 s, a coast w
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import numpy as np
@@ -273,3 +274,21 @@ def test_the_drift_carried_is_the_shift_a_drift_given_makes(flights):
     factor = np.array([rec["std_factor"][nm] for nm in given.result.names])
     std = given.result.std
     np.testing.assert_allclose(std**2 / factor**2 + shift**2, std**2, rtol=1e-9)
+
+
+def test_the_command_line_checks_the_clock_drift_std(tmp_path, capsys):
+    """``casep separate --imu`` refuses a negative drift std by the rule of ``separate_imu`` (given_clock_std), exit 2,
+    before any file is read; without ``--imu`` the option is refused too; the defaults: 50 ppm without a drift
+    given, 2 ppm with one."""
+    from casep.cli import main
+    from casep.workflows.imu_separate import CLOCK_DRIFT_STD_PPM, CLOCK_GIVEN_STD_PPM, given_clock_std
+
+    rc = main(["separate", "--imu", str(tmp_path / "no-such-imu.csv"), "--tracking", str(tmp_path / "no-such.csv"),
+               "--launch-site", "67.89", "21.1", "330", "30", "--launch-time", "10", "--align", "0", "9",
+               "--clock-drift-std", "-5"])
+    assert rc == 2
+    assert re.search(r"--clock-drift-std must be a finite number >= 0", capsys.readouterr().err)
+    assert main(["separate", str(tmp_path / "no-such.csv"), "--clock-drift-std", "5"]) == 2
+    assert "--clock-drift-std is used only with --imu" in capsys.readouterr().err
+    assert given_clock_std(0.0, None) == CLOCK_DRIFT_STD_PPM and given_clock_std(-104.0, None) == CLOCK_GIVEN_STD_PPM
+    assert given_clock_std(0.0, 0.0) == 0.0
