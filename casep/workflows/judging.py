@@ -135,8 +135,8 @@ def _ins_clock_said(res: EstimateResult, flight: FlightData) -> EstimateResult:
     (``strapdown15_phi0``): ``sa_x`` and ``sg_x`` moved by +132 and +104 ppm (3.1 and 3.0 std) from the same record's
     on a true clock, the other coefficients by 1.4 std at most."""
     ppm = float(flight.meta.get("clock_drift_ppm") or 0.0)
-    if not ppm or flight.meta.get("clock_drift_of") == "imu":
-        return res
+    if not ppm or flight.meta.get("clock_drift_of") == "imu" or "clock_drift_given" in res.diagnostics:
+        return res  # none, a raw record's own steps, or said already (a telemetry's iteration judges its last pass)
     said = (f"the clock drift given ({ppm:g} ppm) is taken out of the tracking time tags only: if it is the "
             "telemetry's own clock (a flight computer's) that drifts, its INS integrated over steps that much too "
             f"long, and that integration is not corrected: a common scale factor of {-ppm:+.3g} ppm on every gyro "
