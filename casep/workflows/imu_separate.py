@@ -2673,23 +2673,28 @@ def clock_message(record: dict) -> str:
     given = f"--clock-drift {record['given_ppm']:g} ppm" if record["given_ppm"] else "no clock drift given"
     effect = ("a clock running fast by d stretches every integration step (a common scale factor d on every gyro "
               "and accelerometer) and tags the states d t late against the tracking")
+    carried = record.get("carried") or {}
+    covered = bool(carried) and carried["effective_std_ppm"] >= abs(record["beyond_given_ppm"])
+    carry = (f"their std carry it at {carried['effective_std_ppm']:.3g} ppm (--clock-drift-std "
+             f"{carried['std_ppm']:g}), as wide as a drift unknown to that std makes them" if covered else "")
     if record["determined"]:
         return (f"the IMU clock's rate does not match the tracking's: with {given}, the rows hold a drift of "
                 f"{record['beyond_given_ppm']:+.4g} +- {record['std_ppm']:.2g} ppm more, estimated beside the "
-                f"coefficients ({effect}); the coefficients take it in, so the estimate is off by more than its std "
-                f"say: state it (--clock-drift {record['ppm']:.4g}, manifest clock_drift_ppm)")
+                f"coefficients ({effect}); the coefficients take it in, "
+                + (f"and {carry}" if covered else "so the estimate is off by more than its std say")
+                + f": state it (--clock-drift {record['ppm']:.4g}, manifest clock_drift_ppm)")
     if record["indicated"]:
         return (f"the rows point to an IMU clock drift of {record['beyond_given_ppm']:+.4g} +- "
                 f"{record['std_ppm']:.2g} ppm more, with {given} (estimated beside the coefficients, more than "
                 f"{CLOCK_HINT_Z:g} of its std from 0 but not beyond the clock-drift rule: {DRIFT_MIN_PPM:g} ppm and 4 "
-                f"std): {effect}; the coefficients take it in, and their std do not cover it. State the clock's drift "
-                f"(--clock-drift PPM, measured against a reference clock; these data point to {record['ppm']:.4g} +- "
+                f"std): {effect}; the coefficients take it in, and "
+                + (carry if covered else "their std do not cover it") + ". State the clock's drift "
+                + f"(--clock-drift PPM, measured against a reference clock; these data point to {record['ppm']:.4g} +- "
                 f"{record['std_ppm']:.2g}, not precise enough to state: a drift of up to "
                 f"{record['unseen_ppm']:.3g} ppm would move every scale factor by as much)")
     head = (f"the record checks the IMU clock's rate only to {record['unseen_ppm']:.3g} ppm: with {given}, its own "
             f"estimate of a drift beyond it, with the coefficients free, is {record['beyond_given_ppm']:+.3g} +- "
             f"{record['std_ppm']:.2g} ppm, and a smaller one would be taken into the scale factors unseen ({effect})")
-    carried = record.get("carried")
     if carried:
         return f"{head}; {carried_said(carried)}"
     return (f"{head}; the estimate and its std hold as far as the IMU clock runs at the tracking's rate (a drift known "
