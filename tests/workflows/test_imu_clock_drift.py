@@ -254,26 +254,31 @@ def test_the_drift_carried_gives_honest_std_over_drifts_of_the_stated_std(seen):
 def test_the_drift_carried_is_the_shift_a_drift_given_makes(flights):
     """The drift carried in the std (``diagnostics["clock_drift"]["carried"]``, the default std without a drift
     given) moves each coefficient, per ppm, as two whole separations of the same record do, one with the drift given
-    and one without: their estimates differ by the drift times that shift (within 5 % of the largest), and each std
-    is the fit's widened by it (std^2 = std_without^2 + shift^2, the factors recorded). A drift given is carried at
-    CLOCK_GIVEN_STD_PPM and said in the result in ppm."""
+    and one without: their estimates differ by the drift times that shift within 0.75 of each one's std (measured:
+    0.58, ``ba_x``; each run refits its own noise model, and so its own estimator) and within 5 % where the shift is
+    largest in std (measured 2.8 %, ``ma_yx``, 7.3 std). With the derivative about the launch time (its old pivot),
+    on another seed of this flight the separations moved ``ma_yx`` 6.5 std where it said 3.8, and the drift read 142
+    +- 40 ppm. Each std holds the shift (the factors by which it widens them recorded). A drift given is carried at
+    CLOCK_GIVEN_STD_PPM and said."""
     from casep.workflows.imu_separate import CLOCK_DRIFT_STD_PPM, CLOCK_GIVEN_STD_PPM
 
     out, _ = flights(DRIFT, 0.0)
     given, _ = flights(DRIFT, _given(DRIFT))
     carried = out.result.diagnostics["clock_drift"]["carried"]
     assert carried["std_ppm"] == CLOCK_DRIFT_STD_PPM and not carried["given"]
-    per_ppm = np.array([carried["shift_per_std"][nm] for nm in out.result.names]) / carried["effective_std_ppm"]
-    # without the drift given the rows are those with a drift -given more (the shift per ppm of drift beyond it)
-    moved = (out.result.estimate - given.result.estimate) / -_given(DRIFT)
-    assert np.max(np.abs(moved - per_ppm)) < 0.05 * np.max(np.abs(per_ppm)), (moved, per_ppm)
+    shift = np.array([carried["shift_per_std"][nm] for nm in out.result.names])
+    drift = -_given(DRIFT)  # without the drift given, the rows are those with a drift -given more
+    carried_shift = shift / carried["effective_std_ppm"] * drift
+    moved = out.result.estimate - given.result.estimate
+    std = given.result.std
+    assert np.all(np.abs(moved - carried_shift) < 0.75 * std), (moved - carried_shift) / std
+    big = int(np.argmax(np.abs(carried_shift) / std))
+    assert abs(moved[big] - carried_shift[big]) < 0.05 * abs(carried_shift[big]), (moved[big], carried_shift[big])
+    factor = np.array([carried["std_factor"][nm] for nm in out.result.names])
+    assert np.all(out.result.std >= np.abs(shift)) and np.all(factor >= 1.0) and factor.max() > 1.5
     rec = given.result.diagnostics["clock_drift"]["carried"]
     assert rec["std_ppm"] == CLOCK_GIVEN_STD_PPM and rec["given"]
     assert given.success and "an IMU clock drift beyond the one given is in the std" in given.result.message
-    shift = np.array([rec["shift_per_std"][nm] for nm in given.result.names])
-    factor = np.array([rec["std_factor"][nm] for nm in given.result.names])
-    std = given.result.std
-    np.testing.assert_allclose(std**2 / factor**2 + shift**2, std**2, rtol=1e-9)
 
 
 def test_the_command_line_checks_the_clock_drift_std(tmp_path, capsys):
