@@ -60,6 +60,49 @@ def record(directory: Path, seed: int, d: float):
     return imu, trk, z
 
 
+def boost(directory: Path, seed: int, d: float):
+    """The ``strapdown-boost`` scenario at 20 Hz (``casep simulate --rotating-earth --tracking-frame ecef
+    --imu-output``, 20 s on the pad), its IMU's tags ``t (1 + d)``: (IMU file, tracking file, truth by name)."""
+    import json
+    import subprocess
+
+    import pandas as pd
+
+    tel, imu = directory / "tel.csv", directory / "imu.csv"
+    subprocess.run([sys.executable, "-m", "casep", "simulate", "--scenario", "strapdown-boost", "--rate", "20",
+                    "--seed", str(seed), "--rotating-earth", "--launch-site", "34.6", "-120.6", "100", "200",
+                    "--tracking-frame", "ecef", "--imu-output", str(imu),
+                    "--imu-pad", "20", "-o", str(tel)], check=True, capture_output=True)
+    lines = imu.read_text().splitlines(keepends=True)
+    head = [x for x in lines if x.startswith("#")]
+    df = pd.read_csv(imu, comment="#")
+    df["t"] = df["t"] * (1.0 + d)
+    with open(imu, "w") as fh:
+        fh.writelines(head)
+        df.to_csv(fh, index=False, float_format="%.10g")
+    truth = json.loads((directory / "tel.truth.json").read_text())["coefficients"]
+    return imu, directory / "tel.tracking.csv", {**truth, "dt_trk": 0.0}
+
+
+def coefficient_z(out, truth: dict, scales: dict) -> tuple[np.ndarray, np.ndarray]:
+    """z of the coefficients the result determines (std below their declared magnitude `scales`; ``phi0_*`` left
+    out: their truth is the levelling's tilt) against `truth` (natural units, as the result's), with the carry and
+    without it (the std less the drift's shift)."""
+    res = out.result
+    carried = (res.diagnostics.get("clock_drift") or {}).get("carried") or {}
+    shift = carried.get("shift_per_std") or {}
+    z, z0 = [], []
+    for i, nm in enumerate(res.names):
+        e, s = float(res.estimate[i]), float(res.std[i])
+        if nm.startswith("phi0") or nm not in truth or not (np.isfinite(e) and np.isfinite(s) and s > 0):
+            continue
+        if s >= scales.get(nm, np.inf):
+            continue
+        z.append((e - truth[nm]) / s)
+        z0.append((e - truth[nm]) / np.sqrt(max(s**2 - shift.get(nm, 0.0) ** 2, 1e-300)))
+    return np.array(z), np.array(z0)
+
+
 def stated(out, truth) -> tuple[np.ndarray, np.ndarray]:
     """z of the stated combinations with the drift carried, and without it (std less the drift's shift)."""
     combos = out.result.diagnostics["iterations"]["passes"][-1].get("determined") or []
@@ -78,6 +121,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=list(range(30)))
     ap.add_argument("--std", type=float, default=CLOCK_DRIFT_STD_PPM, help="the drifts' std, ppm")
+    ap.add_argument("--boost", action="store_true", help="the 20 Hz strapdown-boost (strapdown15_phi0, dt_trk), z of "
+                    "the determined coefficients against the truth, instead of the rail launch")
     args = ap.parse_args()
     warnings.simplefilter("ignore")
     pooled: dict[str, list] = {"ok": [], "ok0": [], "all": [], "all0": []}
@@ -87,12 +132,23 @@ def main() -> None:
             directory = Path(tmp) / str(seed)
             directory.mkdir()
             d = float(np.random.default_rng(seed).normal(0.0, args.std)) * 1e-6
-            imu, trk, truth = record(directory, seed, d)
-            align = tuple(a * (1.0 + d) for a in fl.ALIGN)
-            out = separate_imu(imu, trk, fl.SITE, align, fl.MODEL, heading_deg=fl.HEADING,
-                               clock_drift_std=args.std)
+            if args.boost:
+                import casep
+                from casep.frames import LaunchSite
+
+                imu, trk, truth = boost(directory, seed, d)
+                model = "strapdown15_phi0"
+                out = separate_imu(imu, trk, LaunchSite(34.6, -120.6, 100.0, 200.0, 0.0), (-19.0, -1.0), model,
+                                   heading_deg=20.0, heading_axis="y", tracking_frame="ecef",
+                                   clock_drift_std=args.std)
+                z, z0 = coefficient_z(out, truth, casep.load_model(model).scales)
+            else:
+                imu, trk, truth = record(directory, seed, d)
+                align = tuple(a * (1.0 + d) for a in fl.ALIGN)
+                out = separate_imu(imu, trk, fl.SITE, align, fl.MODEL, heading_deg=fl.HEADING,
+                                   clock_drift_std=args.std)
+                z, z0 = stated(out, truth)
             rec = out.result.diagnostics.get("clock_drift") or {}
-            z, z0 = stated(out, truth)
             if z.size:
                 pooled["all"].append(z)
                 pooled["all0"].append(z0)
@@ -102,9 +158,11 @@ def main() -> None:
             eff = (rec.get("carried") or {}).get("effective_std_ppm", np.nan)
             print(f"seed {seed}: drift {fl._given(d):+7.1f} ppm, estimated {rec.get('ppm', np.nan):+7.1f} +- "
                   f"{rec.get('std_ppm', np.nan):5.1f} (carried {eff:5.1f}), status {out.status:3d}, {z.size} "
-                  f"combinations, RMS z {np.sqrt(np.mean(z**2)) if z.size else np.nan:.3f} with the carry, "
+                  f"{'coefficients' if args.boost else 'combinations'}, RMS z "
+                  f"{np.sqrt(np.mean(z**2)) if z.size else np.nan:.3f} with the carry, "
                   f"{np.sqrt(np.mean(z0**2)) if z0.size else np.nan:.3f} without", flush=True)
-    print(f"{len(args.seeds)} seeds, drift std {args.std:g} ppm, {time.process_time() - t0:.0f} CPU s")
+    what = "coefficients" if args.boost else "combinations"
+    print(f"{len(args.seeds)} seeds, drift std {args.std:g} ppm, {what}, {time.process_time() - t0:.0f} CPU s")
     for key, name in (("ok", "successes"), ("ok0", "  no carry"), ("all", "every seed"), ("all0", "  no carry")):
         if pooled[key]:
             print(_line(name, np.concatenate(pooled[key])))
