@@ -8,7 +8,7 @@ from typing import Any
 from casep.cli import alignment, flight_options, inputs, options, outputs
 from casep.cli.capture import recorded, report_lines
 from casep.cli.radar import radar_only
-from casep.cli.separate_imu import add_heading_std, imu_only, separate_imu
+from casep.cli.separate_imu import add_imu_stds, imu_only, separate_imu
 from casep.cli.separate_output import figures_and_report, print_result
 from casep.cli.types import order, positive_int, ranged
 from casep.estimators.registry import METHODS
@@ -28,7 +28,7 @@ def add_parser(sub: Any) -> None:
                         "reads it): navigated, paired with --tracking and separated; needs --launch-site, "
                         "--launch-time (the tracking file's time scale) and --align")
     alignment.add_alignment(p, what="with --imu: ")
-    add_heading_std(p)
+    add_imu_stds(p)
     flight_options.add_full_scales(p, "with --imu, or a strapdown telemetry file (w_*, fb_*): the rows from the "
                                    "first clipped sample on are left out")
     p.add_argument("--iterate", action=argparse.BooleanOptionalAction, default=None,

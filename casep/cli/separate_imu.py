@@ -11,7 +11,7 @@ from casep.cli.capture import recorded, report_lines
 from casep.cli.separate_output import figures_and_report, print_result
 from casep.cli.types import finite_float
 
-__all__ = ["imu_only", "separate_imu", "add_heading_std"]
+__all__ = ["imu_only", "separate_imu", "add_heading_std", "add_imu_stds"]
 
 
 def add_heading_std(parser: Any) -> None:
@@ -23,10 +23,21 @@ def add_heading_std(parser: Any) -> None:
                              "result (status -10)")
 
 
+def add_imu_stds(parser: Any) -> None:
+    """``--heading-std DEG`` (:func:`add_heading_std`) and ``--clock-drift-std PPM``: the std of the IMU clock's drift
+    beyond ``--clock-drift`` (casep.workflows.imu_separate.CLOCK_DRIFT_STD_PPM, CLOCK_GIVEN_STD_PPM by default)."""
+    add_heading_std(parser)
+    parser.add_argument("--clock-drift-std", type=finite_float, default=None, metavar="PPM",
+                        help="with --imu: the std of the IMU clock's drift against the tracking's beyond "
+                             "--clock-drift, ppm (default 50 without --clock-drift: a flight computer's crystal; 2 "
+                             "with it: a drift measured against GPS time), carried into the std; 0: the rate exact")
+
+
 def imu_only(args: argparse.Namespace) -> None:
     """`--imu` with what it needs; its options without it: an error, not ignored."""
     if not args.imu:
         for flag, value in (("--align", args.align), ("--heading", args.heading), ("--heading-std", args.heading_std),
+                            ("--clock-drift-std", args.clock_drift_std),
                             ("--max-iterations", args.max_iterations),
                             ("--accel-bias-tolerance", args.accel_bias_tolerance),
                             ("--gyro-bias-tolerance", args.gyro_bias_tolerance),
@@ -40,9 +51,10 @@ def imu_only(args: argparse.Namespace) -> None:
                         ("--launch-time T0", args.launch_time), ("--align T1 T2", args.align)):
         if value is None:
             raise ValueError(f"--imu {args.imu} needs {flag}")
-    from casep.workflows.imu_separate import given_heading_std
+    from casep.workflows.imu_separate import given_clock_std, given_heading_std
 
     given_heading_std(args.heading, args.heading_std, ("--heading DEG", f"--heading-std {args.heading_std}"))
+    given_clock_std(args.clock_drift, args.clock_drift_std, "--clock-drift-std")
     if len(args.tracking) != 1:
         raise ValueError(f"--tracking given {len(args.tracking)} times: --imu takes one tracking file")
 
@@ -58,6 +70,7 @@ def separate_imu(args: argparse.Namespace, spec: Any, ranges: dict) -> int:
                            max_iterations=args.max_iterations, tracking_frame=args.tracking_frame,
                            grid=args.grid, time_offset=args.time_offset, time_shift=args.time_shift,
                            clock_drift=args.clock_drift, heading_std_deg=args.heading_std,
+                           clock_drift_std=args.clock_drift_std,
                            **alignment.bias_tolerances(args), **ranges)
     res, flight = out.result, out.flight
     prov = outputs.provenance(args, [flight], {"imu": args.imu})

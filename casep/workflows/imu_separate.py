@@ -255,6 +255,16 @@ CLOCK_STEP_PPM = 100.0
 #: coefficients take the drift in and their std do not cover it (a record whose clock runs 104 ppm slow read +84.9 +-
 #: 23 ppm and left ``dt_trk`` 10 std off); a clock on the tracking's rate reaches it on 0.27 % of records.
 CLOCK_HINT_Z = 3.0
+#: The std of the IMU clock's drift against the tracking's (GPS) time when none is given, ppm (``--clock-drift-std``;
+#: :meth:`_Run.with_clock`). A flight computer's clock is an undisciplined crystal: its frequency tolerance at 25 C
+#: (10 to 30 ppm), its change over the operating temperatures (10 to 50 ppm) and its ageing (a few ppm a year) add up
+#: to the +-100 ppm a microcontroller's timing budget allows, taken here as two std; a sounding rocket's flight
+#: computer ran 104 ppm fast against GPS time (two std of this).
+CLOCK_DRIFT_STD_PPM = 50.0
+#: The std of a drift given (``--clock-drift``) when its std is not, ppm: measured against GPS time on the ground or a
+#: previous flight (to well below a ppm over minutes), it holds in flight to the crystal's change with temperature
+#: between then and the flight, a few ppm.
+CLOCK_GIVEN_STD_PPM = 2.0
 #: A covariance's eigenvalue below this fraction of its largest is its rounding (:func:`_scaled_spectrum`).
 _SPECTRUM_RTOL = 1e-10
 #: A covariance's quadratic form is read where it exceeds its rounding, ``n eps`` times its largest eigenvalue, by
@@ -344,7 +354,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
                  time_shift: float = 0.0, clock_drift: float = 0.0, fit_time_offset: bool | None = None,
                  gyr_range: float | None = None, acc_range: float | None = None,
                  accel_bias_tolerance: float | None = None, gyro_bias_tolerance: float | None = None,
-                 heading_std_deg: float | None = None) -> ImuSeparation:
+                 heading_std_deg: float | None = None, clock_drift_std: float | None = None) -> ImuSeparation:
     """Separate a strapdown IMU's errors from its raw data and tracking (module notes).
 
     Parameters
@@ -390,6 +400,10 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     heading_std_deg : float, optional
         The std of `heading_deg`, deg (None: :data:`HEADING_STD_DEG`; 0: the heading exact), carried into the std
         and covariance as a consider parameter (:meth:`_Run.heading_rows`); only with `heading_deg`.
+    clock_drift_std : float, optional
+        The std of the IMU clock's drift beyond `clock_drift`, ppm (None: :data:`CLOCK_DRIFT_STD_PPM` without a drift
+        given, :data:`CLOCK_GIVEN_STD_PPM` with one; 0: the clock's rate exact), carried into the std and covariance
+        as a consider parameter (:meth:`_Run.with_clock`).
 
     Returns
     -------
@@ -407,6 +421,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     if not isinstance(site, LaunchSite):
         raise TypeError(f"`site` must be a casep.frames.LaunchSite, got {type(site).__name__}")
     heading_std = given_heading_std(heading_deg, heading_std_deg)
+    clock_std = given_clock_std(clock_drift, clock_drift_std)
     files = [str(p) for p in (imu, tracking) if isinstance(p, (str, os.PathLike)) and os.path.isfile(p)]
     if not isinstance(imu, ImuData):
         imu = read_imu(imu, gyr_range=gyr_range, acc_range=acc_range)
@@ -436,7 +451,7 @@ def separate_imu(imu: ImuData | str | os.PathLike, tracking: str | os.PathLike, 
     for name, value in (("accel_bias_tolerance", accel_bias_tolerance), ("gyro_bias_tolerance", gyro_bias_tolerance)):
         if value is not None:
             run.heading[name] = value
-    run.heading_std = heading_std
+    run.heading_std, run.clock_std = heading_std, clock_std
     return run.iterate(iterate, tol, int(max_iterations))
 
 
@@ -449,6 +464,12 @@ class _Run:
     heading_std: float = 0.0
     #: the IMU clock's drift taken out of its tags, ppm (:func:`casep.navigation.imu.on_clock`; 0: none, a telemetry)
     clock_ppm: float = 0.0
+    #: the std of the IMU clock's drift beyond :attr:`clock_ppm`, ppm (:meth:`with_clock`; 0: the rate exact)
+    clock_std: float = 0.0
+    #: (problem, the clock test's record (:func:`clock_check`), the rows' shift for the drift carried): with_clock's
+    _clock: tuple | None = None
+    #: whether the pairing measured the time offset on the data (``time_offset="auto"``: :meth:`clock_pivot`)
+    offset_measured: bool = False
     #: the heading check's finding (:meth:`heading_check`, on the first pass; a class default: a telemetry's passes)
     heading_said: str | None = None
     #: (problem, the rows' derivative along the heading per deg), formed once per problem by :meth:`finish`
@@ -703,6 +724,7 @@ class _Run:
             align = flight.meta.get("time_alignment") or {}
             if self.pair["time_offset"] == "auto":  # the offset of the first pass, kept (the grid stays)
                 self.pair["time_offset"] = align.get("applied_s", 0.0) or None
+                self.offset_measured = True
         self.nav = nav
         with warnings.catch_warnings():
             if quiet:
@@ -937,6 +959,7 @@ class _Run:
         # a telemetry's passes (casep.workflows.telemetry_iterate) have no raw record, and no steps between samples
         self._steps = (problem, step_rows(getattr(self, "imu", None), nav, problem))
         out = self.with_noise(out, problem, flight)
+        out = self.with_clock(out, problem, flight, D)
         if passes[-1].get("determined"):  # the stated combinations' std carry the record's noise as the coefficients'
             passes[-1]["determined"] = self.combinations_with_noise(passes[-1]["determined"], out, problem, flight,
                                                                     model.scales)
@@ -1117,39 +1140,65 @@ class _Run:
         warnings.warn(said, SetupWarning, stacklevel=4)
         return failed(res, STATUS_PRIOR_CONFLICT, f"failed: {said}")
 
-    def clock_judged(self, res: EstimateResult, problem: Any, flight: FlightData, D: np.ndarray) -> EstimateResult:
+    def with_clock(self, res: EstimateResult, problem: Any, flight: FlightData, D: np.ndarray) -> EstimateResult:
         """`res` with the test of the IMU clock's rate against the data (:func:`clock_check`) in
-        ``diagnostics["clock_drift"]``: a drift the data see beyond the one given (the clock-drift rule, or beyond
-        :data:`CLOCK_HINT_Z` of its std: the std do not cover it), said
-        (:class:`casep.exceptions.TrackingQualityWarning`, :func:`clock_message`) and failed (status
-        ``STATUS_PRIOR_CONFLICT``: the drift given is taken as exact); a record that would not see a drift beyond
-        :data:`casep.checks.tracking_quality.DRIFT_MIN_PPM`, said in a line of the result. Not without a raw
-        record (a telemetry's passes), on noise-free rows (no std to test against) nor on a flight with a set-up
-        problem (its rows are that mistake)."""
+        ``diagnostics["clock_drift"]`` and, with a drift std (:attr:`clock_std`, ``--clock-drift-std``), the drift's
+        uncertainty in its covariance and std (:func:`clock_carried`, :func:`with_drift`), the record and the rows'
+        shift for the drift carried kept for :meth:`clock_judged` and the stated combinations
+        (:meth:`drift_effect`). A drift not given is not known: a crystal's tens of ppm move every scale factor by
+        as much, and a record that cannot tell them apart takes them in unseen; the drift is carried as the heading
+        is, a consider parameter (the estimate the fit's, its std wider by the drift's effect). Not without a raw
+        record (a telemetry's passes), on noise-free rows (no std to test against or widen) nor on a flight with a
+        set-up problem (its rows are that mistake)."""
         from casep.checks.plausibility import setup_problems
-        from casep.checks.tracking_quality import DRIFT_MIN_PPM
-        from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
-        from casep.exceptions import TrackingQualityWarning
 
-        if getattr(self, "imu", None) is None or problem.y is None or setup_problems(flight):
+        self._clock = None
+        if getattr(self, "imu", None) is None or problem.y is None or problem.t is None or setup_problems(flight):
             return res
         rms = problem.ls_rms()
         if self.at_rounding(rms) or problem.is_noise_free(rms):
             return res
-        if problem.t is None:
-            return res
-        record = clock_check(res, problem, flight, self.clock_rows(D, problem.t), self.clock_ppm, self.levelling(),
+        per_ppm = self.clock_rows(D, problem.t)
+        record = clock_check(res, problem, flight, per_ppm, self.clock_ppm, self.levelling(),
                              self.tau_profile(problem),
                              consider_columns(self.heading_effect(problem), self.steps_effect(problem)))
         if record is None:
             return res
+        column = None
+        if self.clock_std > 0 and per_ppm is not None:
+            record["carried"] = clock_carried(record, self.clock_std)
+            column = per_ppm * record["carried"]["effective_std_ppm"]
+            res = with_drift(res, problem, column, record["carried"])
+        self._clock = (problem, record, column)
+        res.diagnostics["clock_drift"] = record
+        return res
+
+    def drift_effect(self, problem: Any) -> np.ndarray | None:
+        """The shift of `problem`'s rows (N, 3, m/s) for the IMU clock's drift carried (:meth:`with_clock`; None
+        before it, for another problem, or no drift carried)."""
+        return self._clock[2] if self._clock is not None and self._clock[0] is problem else None
+
+    def clock_judged(self, res: EstimateResult, problem: Any, flight: FlightData, D: np.ndarray) -> EstimateResult:
+        """`res` judged by the test of the IMU clock's rate (:meth:`with_clock`'s record,
+        ``diagnostics["clock_drift"]``): a drift the data see beyond the one given (the clock-drift rule, or beyond
+        :data:`CLOCK_HINT_Z` of its std), said (:class:`casep.exceptions.TrackingQualityWarning`,
+        :func:`clock_message`) and failed (status ``STATUS_PRIOR_CONFLICT``: state it); else the drift carried in the
+        std and how much it widens them, or a record that would not see a drift beyond
+        :data:`casep.checks.tracking_quality.DRIFT_MIN_PPM`, said in a line of the result. `res` itself where
+        :meth:`with_clock` made no test."""
+        from casep.checks.tracking_quality import DRIFT_MIN_PPM
+        from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
+        from casep.exceptions import TrackingQualityWarning
+
+        if self._clock is None or self._clock[0] is not problem:
+            return res
+        record = self._clock[1]
         res.diagnostics["clock_drift"] = record
         said = clock_message(record)
         if record["determined"] or record["indicated"]:
             warnings.warn(f"{flight.source}: {said}", TrackingQualityWarning, stacklevel=4)
-        if record["determined"] or record["indicated"]:
             return failed(res, STATUS_PRIOR_CONFLICT, f"failed: {said}")
-        return _with_line(res, said) if record["unseen_ppm"] > DRIFT_MIN_PPM else res
+        return _with_line(res, said) if record["unseen_ppm"] > DRIFT_MIN_PPM or record.get("carried") else res
 
     def clock_rows(self, D: np.ndarray, t: np.ndarray) -> np.ndarray | None:
         """The rows' derivative (N, 3, m/s per ppm) at `D` and the pass's epochs `t` along the IMU clock's drift
@@ -1163,7 +1212,7 @@ class _Run:
             return None
         # an epoch that a telemetry sample tags moves with the stretch (a sample's own time, by ppm t at most): each
         # side's row of an epoch is its nearest within that (NaN where it has none)
-        reach = CLOCK_STEP_PPM * 1e-6 * np.abs(t - self.nav_site.t0) + 1e-9
+        reach = CLOCK_STEP_PPM * 1e-6 * np.abs(t - self.clock_pivot()) + 1e-9
         if t.size > 1:
             reach = np.minimum(reach, 0.5 * float(np.min(np.diff(t))))
         on = []
@@ -1185,13 +1234,24 @@ class _Run:
             out[edge] = one[edge]
         return out if np.all(np.isfinite(out)) else None
 
+    def clock_pivot(self) -> float:
+        """The IMU time (its tags at the tracking clock's rate, s) about which a drift beyond the one given stretches
+        them (:meth:`rows_at_clock`): 0, where ``T - time_shift = t (1 + clock_drift 1e-6)`` ties the two clocks (a
+        drift given is taken out about it: :func:`casep.navigation.imu.on_clock`), so that the pairing of a record
+        whose clock drifts by ``d`` more is late by ``d t`` at IMU time ``t``; where the pairing measured the time
+        offset on the data (``time_offset="auto"``) the launch time, near where that measurement ties them. A fitted
+        time offset (``dt_trk``) takes in the difference. About the launch time alone, on a rail launch without
+        ``dt_trk`` whose IMU clock tags 0 six seconds before lift-off, the test read a drift of 104 ppm as 185 +- 19
+        and the rows moved under it twice as far as that derivative said (the offset of 6 s times the drift, 0.6 ms,
+        is 0.04 m/s at 6 g)."""
+        return float(self.nav_site.t0) if self.offset_measured else 0.0
+
     def rows_at_clock(self, D: np.ndarray, ppm: float) -> tuple[np.ndarray, np.ndarray]:
         """The epochs and :meth:`rows` at `D` with the IMU's tags and the pad window stretched by a drift `ppm` more
-        about the launch time (:func:`casep.navigation.imu.on_clock`: the rate, not an offset, the launch time's tag
-        kept), restored after."""
+        about :meth:`clock_pivot` (:func:`casep.navigation.imu.on_clock`), restored after."""
         from casep.navigation.imu import on_clock
 
-        imu, window, t0 = self.imu, self.window, self.nav_site.t0
+        imu, window, t0 = self.imu, self.window, self.clock_pivot()
         try:
             self.imu = on_clock(imu, ppm, about=t0)
             self.window = tuple(t0 + (w - t0) * (1.0 + ppm * 1e-6) for w in window)
@@ -1294,13 +1354,17 @@ class _Run:
         a = combination_estimators(W, scale, res, problem)  # once: their noise (combination_imu_noise's rule) and
         var = None if a is None else estimator_noise(  # the heading's shift
             a, res, problem, flight, self.levelling(), self.tau_profile(problem),
-            consider_columns(heading, self.steps_effect(problem)))
+            consider_columns(heading, self.steps_effect(problem), self.drift_effect(problem)))
         if var is None:
             return combos
         trk, imu = var
         trk = np.array([c["std"] ** 2 for c in combos]) if trk is None else trk
         out = [{**c, "std_tracking_noise_only": c["std"], "std": float(math.sqrt(a + b))}
                for c, a, b in zip(combos, trk, imu)]
+        drift = self.drift_effect(problem)
+        if drift is not None:
+            assert a is not None  # var is not None
+            out = [{**c, "drift_shift": float(h)} for c, h in zip(out, a @ drift.reshape(-1))]
         if heading is not None:
             assert a is not None  # var is not None
             shift = a @ heading.reshape(-1)
@@ -2308,10 +2372,11 @@ def with_heading(AG: np.ndarray, a: np.ndarray, heading: np.ndarray | None) -> n
     return np.column_stack([AG, a @ np.asarray(heading, dtype=float).reshape(a.shape[1], -1)])
 
 
-def consider_columns(heading: np.ndarray | None, steps: np.ndarray | None) -> np.ndarray | None:
-    """The consider columns (N, 3, c) of the given heading (:meth:`_Run.heading_rows`, (N, 3)) and of the record's
-    steps between samples (:func:`step_rows`, (N, 3, S)), each the rows' shift for one std; None without either."""
-    cols = [np.asarray(c, dtype=float).reshape(c.shape[0], 3, -1) for c in (heading, steps) if c is not None]
+def consider_columns(*columns: np.ndarray | None) -> np.ndarray | None:
+    """The consider columns (N, 3, c) of the given heading (:meth:`_Run.heading_rows`, (N, 3)), of the record's
+    steps between samples (:func:`step_rows`, (N, 3, S)) and of the IMU clock's drift (:meth:`_Run.drift_effect`,
+    (N, 3)), each the rows' shift for one std; None without any."""
+    cols = [np.asarray(c, dtype=float).reshape(c.shape[0], 3, -1) for c in columns if c is not None]
     return np.concatenate(cols, axis=2) if cols else None
 
 
@@ -2536,6 +2601,77 @@ def clock_check(res: EstimateResult, problem: Any, flight: FlightData, per_ppm: 
             "derivative along it, the fit's whitening, S_V projected out)"}
 
 
+def clock_carried(record: dict, std_ppm: float) -> dict:
+    """How the IMU clock's drift beyond the one given, of std `std_ppm` (ppm), is carried in the std, given the data's
+    own estimate of it (:func:`clock_check`'s `record`: ``c = beyond_given_ppm`` of std ``s = std_ppm``): the record
+    ``diagnostics["clock_drift"]["carried"]`` (:func:`with_drift` adds how much it widens the std).
+
+    The estimate is the fit's, which takes a drift ``d`` in: it is off by ``g d`` beside its noise (``g`` its shift
+    per ppm, the rows' derivative along the drift through its estimator). With ``d ~ N(0, sigma^2)`` and ``c = d +
+    N(0, s^2)``, the drift given ``c`` is ``N(m, v)``, ``m = sigma^2 c / (sigma^2 + s^2)``, ``v = sigma^2 s^2 /
+    (sigma^2 + s^2)``, and the mean square of ``g d`` given ``c`` is ``g g^T (m^2 + v)``: the drift is a consider
+    parameter of std ``sqrt(m^2 + v)`` (``effective_std_ppm``), as the heading is one of its stated std. Where the data
+    do not see the drift (``s >> sigma``) that is ``sigma``; where they do, ``sqrt(c^2 + s^2)``: the drift they
+    point to, not the prior's. The fit's noise error is taken as uncorrelated with ``c``'s (exactly so for the GLS
+    estimator under the rows' noise model, whose error is uncorrelated with any contrast of the rows): the std are
+    then those of the fit's estimate over the drifts and noises that give ``c``, whatever the test later does with
+    ``c``."""
+    sigma, c, s = float(std_ppm), float(record["beyond_given_ppm"]), float(record["std_ppm"])
+    total = sigma**2 + s**2
+    m, v = (sigma**2 * c / total, sigma**2 * s**2 / total) if total > 0 else (0.0, 0.0)
+    return {"std_ppm": sigma, "effective_std_ppm": math.sqrt(m**2 + v), "mean_ppm": m, "posterior_std_ppm":
+            math.sqrt(v), "given": bool(record["given_ppm"]),
+            "rule": "a consider parameter: the rows' derivative along the IMU clock's drift times the drift's root "
+                    "mean square given the data's own estimate of it (prior N(0, std_ppm^2)), through the estimator, "
+                    "in the covariance and the stated combinations' std; the estimate is the fit's"}
+
+
+def with_drift(res: EstimateResult, problem: Any, column: np.ndarray, carried: dict) -> EstimateResult:
+    """`res` whose covariance (and its solution's) gains the IMU clock drift's consider column `column` (N, 3: the
+    rows' shift for its effective std, :func:`clock_carried`) through the coefficients' estimators
+    (:func:`combination_estimators`, as :func:`with_heading` carries the heading), `carried` (updated) saying how
+    much it widens which std (``std_factor``, ``widened``: the largest factors first)."""
+    n = len(res.names)
+    if res.covariance is None:
+        return res
+    a = combination_estimators(np.eye(n), np.ones(n), res, problem)
+    if a is None:  # a fit without a noise model: the OLS pseudo-inverse of S_V (with_consider's rule)
+        S = problem.sv()
+        a = np.linalg.pinv(S.reshape(-1, S.shape[2]))
+    g = a @ np.asarray(column, dtype=float).reshape(-1)
+    C = np.asarray(res.covariance)
+    extra = np.outer(g, g)
+    cov = np.where(np.isfinite(C), C + extra, np.nan)
+    std = None if res.std is None else np.where(np.isfinite(res.std), np.sqrt(np.clip(np.diag(cov), 0.0, None)), np.nan)
+    solution = res.solution
+    if solution is not None and solution.covariance is not None:
+        solution = dataclasses.replace(solution, covariance=solution.covariance + extra)
+    if std is not None and res.std is not None:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.asarray(std, float) / np.asarray(res.std, float)
+        factors = {nm: float(r) for nm, r in zip(res.names, ratio) if np.isfinite(r)}
+        carried["std_factor"] = factors
+        carried["widened"] = sorted(factors, key=lambda k: -factors[k])[:3]
+    carried["shift_per_std"] = {nm: float(v) for nm, v in zip(res.names, g)}
+    return dataclasses.replace(res, covariance=cov, std=std, solution=solution)
+
+
+def carried_said(carried: dict) -> str:
+    """What a result says of the IMU clock drift carried in its std (:func:`clock_carried`'s record)."""
+    of = "beyond the one given" if carried["given"] else "not given"
+    line = (f"an IMU clock drift {of} is in the std as a consider parameter of std {carried['std_ppm']:.3g} ppm "
+            f"(--clock-drift-std), {carried['effective_std_ppm']:.3g} ppm after the data's own estimate of it")
+    factors = carried.get("std_factor") or {}
+    worst = [k for k in carried.get("widened", []) if factors.get(k, 1.0) > 1.0 + 5e-4]
+    if worst:
+        line += ": it widens " + ", ".join(f"{k} {factors[k]:.3g} x" for k in worst)
+        rest = sum(1 for v in factors.values() if v > 1.0 + 5e-4) - len(worst)
+        line += f" (and {rest} more)" if rest > 0 else ""
+    else:
+        line += ": it widens none by 0.05 % or more"
+    return line
+
+
 def clock_message(record: dict) -> str:
     """What a result says of :func:`clock_check`'s `record`: a drift the data see beyond the one given (the failure),
     one they point to (beyond :data:`CLOCK_HINT_Z` std, a failure too), or how large a drift would hide in the scale
@@ -2545,24 +2681,32 @@ def clock_message(record: dict) -> str:
     given = f"--clock-drift {record['given_ppm']:g} ppm" if record["given_ppm"] else "no clock drift given"
     effect = ("a clock running fast by d stretches every integration step (a common scale factor d on every gyro "
               "and accelerometer) and tags the states d t late against the tracking")
+    carried = record.get("carried") or {}
+    covered = bool(carried) and carried["effective_std_ppm"] >= abs(record["beyond_given_ppm"])
+    carry = (f"their std carry it at {carried['effective_std_ppm']:.3g} ppm (--clock-drift-std "
+             f"{carried['std_ppm']:g}), as wide as a drift unknown to that std makes them" if covered else "")
     if record["determined"]:
         return (f"the IMU clock's rate does not match the tracking's: with {given}, the rows hold a drift of "
                 f"{record['beyond_given_ppm']:+.4g} +- {record['std_ppm']:.2g} ppm more, estimated beside the "
-                f"coefficients ({effect}); the coefficients take it in, so the estimate is off by more than its std "
-                f"say: state it (--clock-drift {record['ppm']:.4g}, manifest clock_drift_ppm)")
+                f"coefficients ({effect}); the coefficients take it in, "
+                + (f"and {carry}" if covered else "so the estimate is off by more than its std say")
+                + f": state it (--clock-drift {record['ppm']:.4g}, manifest clock_drift_ppm)")
     if record["indicated"]:
         return (f"the rows point to an IMU clock drift of {record['beyond_given_ppm']:+.4g} +- "
                 f"{record['std_ppm']:.2g} ppm more, with {given} (estimated beside the coefficients, more than "
                 f"{CLOCK_HINT_Z:g} of its std from 0 but not beyond the clock-drift rule: {DRIFT_MIN_PPM:g} ppm and 4 "
-                f"std): {effect}; the coefficients take it in, and their std do not cover it. State the clock's drift "
-                f"(--clock-drift PPM, measured against a reference clock; these data point to {record['ppm']:.4g} +- "
+                f"std): {effect}; the coefficients take it in, and "
+                + (carry if covered else "their std do not cover it") + ". State the clock's drift "
+                + f"(--clock-drift PPM, measured against a reference clock; these data point to {record['ppm']:.4g} +- "
                 f"{record['std_ppm']:.2g}, not precise enough to state: a drift of up to "
                 f"{record['unseen_ppm']:.3g} ppm would move every scale factor by as much)")
-    return (f"the record checks the IMU clock's rate only to {record['unseen_ppm']:.3g} ppm: with {given}, its own "
+    head = (f"the record checks the IMU clock's rate only to {record['unseen_ppm']:.3g} ppm: with {given}, its own "
             f"estimate of a drift beyond it, with the coefficients free, is {record['beyond_given_ppm']:+.3g} +- "
-            f"{record['std_ppm']:.2g} ppm, and a smaller one would be taken into the scale factors unseen ({effect}); "
-            "the estimate and its std hold as far as the IMU clock runs at the tracking's rate (a drift known "
-            "otherwise: --clock-drift PPM)")
+            f"{record['std_ppm']:.2g} ppm, and a smaller one would be taken into the scale factors unseen ({effect})")
+    if carried:
+        return f"{head}; {carried_said(carried)}"
+    return (f"{head}; the estimate and its std hold as far as the IMU clock runs at the tracking's rate (a drift known "
+            "otherwise: --clock-drift PPM, and its std: --clock-drift-std PPM)")
 
 
 def heading_message(record: dict, axis: str) -> str:
@@ -2619,6 +2763,17 @@ def given_heading_std(heading_deg: float | None, heading_std_deg: float | None,
         raise ValueError(f"{std} is the std of {heading}: give the heading (without it the pad alignment "
                          "gyrocompasses, and says how well it knows the heading)")
     return float(heading_std_deg)
+
+
+def given_clock_std(clock_drift: float, clock_drift_std: float | None,
+                    name: str = "`clock_drift_std`") -> float:
+    """The std of the IMU clock's drift beyond the one given, ppm (:data:`CLOCK_DRIFT_STD_PPM` without a drift given,
+    :data:`CLOCK_GIVEN_STD_PPM` with one); the one rule of ``--clock-drift-std`` (`name` its flag)."""
+    if clock_drift_std is None:
+        return CLOCK_GIVEN_STD_PPM if clock_drift else CLOCK_DRIFT_STD_PPM
+    if not (math.isfinite(clock_drift_std) and clock_drift_std >= 0):
+        raise ValueError(f"{name} must be a finite number >= 0 (ppm), got {clock_drift_std!r}")
+    return float(clock_drift_std)
 
 
 def tau_spread(a: np.ndarray, problem: Any, profile: tuple | None) -> np.ndarray:

@@ -106,6 +106,8 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
             drift["halves"] = halves
         if drift is not None:
             res = dataclasses.replace(res, diagnostics={**res.diagnostics, "clock_drift": drift})
+    if tag_clock:
+        res = _ins_clock_said(res, flight)
     why = noise_problem(flight)
     if why is None or problem.y is None or problem.t is None:
         return res
@@ -120,6 +122,30 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     if record is not None:
         res.diagnostics["determined"]["curvature"] = record
     return res
+
+
+def _ins_clock_said(res: EstimateResult, flight: FlightData) -> EstimateResult:
+    """`res` saying that a clock drift given for a telemetry (``flight.meta["clock_drift_ppm"]``, taken out of the
+    tracking time tags: :func:`casep.io.pair.telemetry_time`) leaves the INS's own integration as it ran: where the
+    drift is the flight computer's clock's, every step of the INS's integration was that much too long, a common scale
+    factor ``-ppm`` on every gyro and accelerometer (gravity's integral too) that the scale factors take in. Recorded in
+    ``diagnostics["clock_drift_given"]``; nothing without a drift given, or with the drift taken out of a raw IMU
+    record's own steps (``clock_drift_of`` "imu": :func:`casep.navigation.imu.on_clock`). Measured on a strapdown
+    telemetry navigated from a raw record whose clock ran 104 ppm fast, separated with ``--clock-drift -104``
+    (``strapdown15_phi0``): ``sa_x`` and ``sg_x`` moved by +132 and +104 ppm (3.1 and 3.0 std) from the same record's
+    on a true clock, the other coefficients by 1.4 std at most."""
+    ppm = float(flight.meta.get("clock_drift_ppm") or 0.0)
+    if not ppm or flight.meta.get("clock_drift_of") == "imu" or "clock_drift_given" in res.diagnostics:
+        return res  # none, a raw record's own steps, or said already (a telemetry's iteration judges its last pass)
+    said = (f"the clock drift given ({ppm:g} ppm) is taken out of the tracking time tags only: if it is the "
+            "telemetry's own clock (a flight computer's) that drifts, its INS integrated over steps that much too "
+            f"long, and that integration is not corrected: a common scale factor of {-ppm:+.3g} ppm on every gyro "
+            "and accelerometer (gravity's integral too) that the scale factors take in (from raw IMU data, "
+            "casep separate --imu takes the drift out of the IMU's own steps)")
+    diag = {**res.diagnostics, "clock_drift_given": {"ppm": ppm, "taken_out_of": "the tracking time tags",
+                                                     "ins_integration_corrected": False,
+                                                     "scale_factor_if_ins_clock_ppm": -ppm}}
+    return dataclasses.replace(res, message=f"{res.message}; {said}", diagnostics=diag)
 
 
 def _runs_problem(found: dict) -> str:

@@ -94,3 +94,20 @@ def test_the_manifest_states_it_and_names_the_field(files, tmp_path):
     bad.write_text(f'[[flight]]\ntelemetry = "{tel}"\ntracking = "{trk}"\nclock_drift_ppm = 2e4\n')
     with pytest.raises(ValueError, match="clock_drift_ppm"):
         read_manifest(bad)
+
+
+def test_a_telemetry_separated_with_a_drift_says_the_ins_integration_is_not_corrected(files, tmp_path):
+    """The drift given is taken out of the tracking tags only: the result says that the telemetry's INS, where its
+    own clock drifts, integrated over steps that much too long (a common scale factor of minus the drift on every
+    sensor, not corrected), and records it in ``diagnostics["clock_drift_given"]``."""
+    import json
+
+    tel, trk = files
+    out = tmp_path / "r.json"
+    main(["separate", str(tel), "--tracking", str(trk), "--time-shift", "43200", "--clock-drift", str(EPS_PPM),
+          "--json", str(out)])
+    res = json.loads(out.read_text())
+    said = res["diagnostics"]["clock_drift_given"]
+    assert said["ppm"] == EPS_PPM and said["ins_integration_corrected"] is False
+    assert said["scale_factor_if_ins_clock_ppm"] == -EPS_PPM
+    assert "that integration is not corrected" in res["message"] and "-1e+03 ppm" in res["message"], res["message"]
