@@ -131,8 +131,9 @@ step along what the pad does not determine is noise of 1e3-1e10 declared magnitu
 an accelerometer bias of several g), which the next pass cannot invert. On the shipped MEMS example under the
 default ``strapdown33`` the first pass's full step (2.9e3 declared magnitudes along combinations of std up to 1.6e3)
 raised the rows' RMS from 13.6 to 16.8 m/s; under the tenfold rule alone it was kept, the passes crept back by 0.64 a
-pass and the run failed at 20, and with the descent rule half that step is taken and the run converges (in 10
-passes since the example's lift-off and burnout are split at their samples).
+pass and the run failed at 20, and with the descent rule half that step was taken and the run converged in 10 passes
+(that first step's size was an estimate beyond its linear limit, which :func:`_determined_size` no longer takes as
+evidence of the instrument's size: the full step then descends, and the run converges in 5).
 The combinations and their std come from the fit's covariance, or from the design when the covariance holds them only
 to its rounding (:func:`_scaled_spectrum`): on a pad at rest under ``strapdown33`` the best-determined combinations'
 variances are 1e-20 of the largest, read from the covariance as 0 (a null direction, stepped along unjudged) or as
@@ -1416,7 +1417,7 @@ class _Run:
         if np.isfinite(self.limit):  # only where the passes' steps were linear: no draw beyond (determined_step)
             scale = _scale_of(self.model_k.scales if self.model_k else {}, names)
             N = 0 if res.solution is None else np.asarray(res.solution.null_space).reshape(len(names), -1).shape[1]
-            sig, q = _scaled_spectrum(C, scale, problem, float(res.sigma), N)
+            sig, q = _scaled_spectrum(C, scale, problem, float(res.sigma), N, res.diagnostics.get("noise"))
             left_out = [_combination(names, q[:, i]) for i in np.flatnonzero(sig > self.limit)]
             qb = q[:, sig > self.limit]
             L = scale[:, None] * (L / scale[:, None] - qb @ (qb.T @ (L / scale[:, None])))
@@ -1873,7 +1874,7 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
     N = np.zeros((len(names), 0)) if res.solution is None else \
         np.asarray(res.solution.null_space, dtype=float).reshape(len(names), -1)
     if C is not None and np.all(np.isfinite(C)) and np.all(np.isfinite(x)):
-        sig, q = _scaled_spectrum(C, scale, problem, float(res.sigma), N.shape[1])
+        sig, q = _scaled_spectrum(C, scale, problem, float(res.sigma), N.shape[1], res.diagnostics.get("noise"))
         out = sig > limit
         if about is not None:  # what the record determines (the size: the IMU's noise in the std that judge it)
             imu = combination_imu_noise(q.T, scale, res, problem, flight)
@@ -1921,13 +1922,19 @@ def _determined_size(sig: np.ndarray, estimate: np.ndarray, reach: np.ndarray | 
     (:func:`casep.checks.tracking_quality.plausible_size`) from the combinations the record determines by themselves,
     a std below the declared magnitude (:func:`casep.checks.tracking_quality.determined`'s rule) or an estimate above
     :data:`SIGNIFICANT` of its std (not 0 whatever the prior: a MEMS unit under a navigation-grade model, whose gyro
-    biases of hundreds of declared magnitudes are estimated to tens) whose std is below its linear limit (`reach`,
-    declared magnitudes: :func:`_linear_reach`; None: not judged). A combination the data do not resolve at the scale
-    of what a linear error model can describe (the coefficients the check against :data:`casep.units.LINEAR_LIMITS`
-    tests as a family, ``casep.estimators._base``) is no evidence of the instrument's size, significant or not: a
-    strapdown-boost record at 20 Hz under ``strapdown33`` estimated a combination of std 4.5e9 declared magnitudes
-    (scale factors of 1e12 ppm) at 5.6 of its std, set the size to 2.6e10 by it, and failed on another of std 1.9e9
-    at 7.8 as determined but not linear. A combination whose std exceeds it says less of
+    biases of hundreds of declared magnitudes are estimated to tens) whose std and estimate are below its linear
+    limit (`reach`, declared magnitudes: :func:`_linear_reach`; None: not judged). A combination the data do not
+    resolve at the scale of what a linear error model can describe (the coefficients the check against
+    :data:`casep.units.LINEAR_LIMITS` tests as a family, ``casep.estimators._base``) is no evidence of the instrument's
+    size, significant or not: a strapdown-boost record at 20 Hz under ``strapdown33`` estimated a combination of std
+    4.5e9 declared magnitudes (scale factors of 1e12 ppm) at 5.6 of its std, set the size to 2.6e10 by it, and failed
+    on another of std 1.9e9 at 7.8 as determined but not linear. Nor is an estimate beyond that limit, which no
+    coefficient of a linear error model can have (the rule of :data:`casep.units.LINEAR_LIMITS`): on a MEMS rail
+    launch under ``strapdown33`` (``benchmarks/mc_imu_iterate.py``, seed 3; the truth 448 declared magnitudes from
+    the prior in all) a pass far from the truth estimated a combination of std 249 at -1085 (its limit 890, the truth
+    +47: linearisation error, 4.3 of its std), the size became 1.6e3, the passes kept the first pass's values of 1.9e3
+    along what they left out, and the curvature's draws at that size did not invert: the run failed. A combination
+    whose std exceeds it says less of
     the instrument than its plausible size: the data do not determine it (that std is the tracking's:
     :func:`determined_step`). The fit's null space (``sig = 0``) is neither. `sig` must hold the IMU's noise
     (:func:`combination_imu_noise`): whether an estimate is evidence of the instrument's size is a question of its
@@ -1936,7 +1943,7 @@ def _determined_size(sig: np.ndarray, estimate: np.ndarray, reach: np.ndarray | 
     from casep.checks.tracking_quality import plausible_size
 
     est = np.abs(np.asarray(estimate, dtype=float))
-    resolved = np.ones(est.shape, dtype=bool) if reach is None else sig < reach
+    resolved = np.ones(est.shape, dtype=bool) if reach is None else (sig < reach) & (est < reach)
     own = (sig > 0) & np.isfinite(sig) & np.isfinite(est) & ((sig < 1.0) | ((est > SIGNIFICANT * sig) & resolved))
     return plausible_size([{"estimate": float(v)} for v in est[own]])
 
@@ -1954,7 +1961,7 @@ def _linear_reach(q: np.ndarray, scale: np.ndarray, units: Any) -> np.ndarray:
 
 
 def _scaled_spectrum(C: np.ndarray, scale: np.ndarray, problem: Any = None, sigma: float = np.nan,
-                     nulls: int = 0) -> tuple[np.ndarray, np.ndarray]:
+                     nulls: int = 0, noise: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(sigma, q)``: the std (declared magnitudes) and directions (columns) of the combinations ``q_i . (D /
     scale)`` whose estimates are uncorrelated: ``C / (scale scale^T) = sum_i sigma_i^2 q_i q_i^T``; the null space's
     (``sigma_i = 0`` from a pseudo-inverse covariance, `nulls` of them) included.
@@ -1968,8 +1975,10 @@ def _scaled_spectrum(C: np.ndarray, scale: np.ndarray, problem: Any = None, sigm
     ``q_i = V_i``; `sigma` the fit's noise, m/s: the white-noise covariance of the least-squares fit, which the
     passes far from convergence are; the `nulls` smallest ``s_i``: the fit's null space, ``sigma_i = 0``), times
     ``sqrt(k)``, ``k >= 1`` the median over the combinations the covariance and the design both resolve of ``q_i^T C
-    q_i / sigma_i^2`` (1 when there is none): a fit under correlated noise (Gauss-Markov tracking) has std that many
-    times the white ones, 1 for the white least-squares fit."""
+    q_i / sigma_i^2`` (when there is none, the same median of the variances of the combinations' estimators under the
+    fit's `noise` model, ``res.diagnostics["noise"]``: :func:`_whitened_ratio`; 1 without one): a fit under
+    correlated noise (Gauss-Markov tracking) has std that many times the white ones, 1 for the white least-squares
+    fit."""
     lam, q = np.linalg.eigh(C / np.outer(scale, scale))
     if problem is None or problem.y is None or not sigma > 0 or np.sum(lam < lam.max() * _SPECTRUM_RTOL) <= nulls:
         sig = np.sqrt(np.clip(lam, 0.0, None))
@@ -1992,7 +2001,39 @@ def _scaled_spectrum(C: np.ndarray, scale: np.ndarray, problem: Any = None, sigm
     seen = np.isfinite(sig) & (cq > _RESOLVED * scale.size * np.finfo(float).eps * lam.max()) \
         & (s**2 >= _SPECTRUM_RTOL * s.max() ** 2)
     ratio = cq[seen] / sig[seen] ** 2
+    if not ratio.size and noise is not None:  # none above the covariance's rounding: the noise model's own estimators
+        ratio = _whitened_ratio(sig, q, s, scale, problem, sigma, noise)
     return sig * math.sqrt(max(1.0, float(np.median(ratio)) if ratio.size else 1.0)), q
+
+
+def _whitened_ratio(sig: np.ndarray, q: np.ndarray, s: np.ndarray, scale: np.ndarray, problem: Any, sigma: float,
+                    noise: dict) -> np.ndarray:
+    """``var_i / sigma_i^2`` of the combinations ``q_i`` of the design's spectrum (:func:`_scaled_spectrum`) it resolves
+    (``s_i^2 >= _SPECTRUM_RTOL s_max^2``, finite ``sigma_i``, not the null space): ``var_i`` the variance of the
+    combination's estimate under the fit's noise model `noise` (``res.diagnostics["noise"]``), from the estimators on
+    the rows whitened by it (:func:`_estimators`' rule: the rows of ``q_i^T (W S diag(scale))^+``, their squared norm
+    times the noise model's variance, `sigma` squared when it states none),
+    not from the covariance: an estimator's variance is held to its own rounding, where ``q_i^T C q_i`` is held to the
+    covariance's largest eigenvalue's (a 20 Hz rolling boost under ``strapdown33``, combinations undetermined by 1e12
+    declared magnitudes: no Gauss-Markov variance was above that rounding, and the white std, 3 to 5 times too small,
+    were taken). Empty when the noise model cannot whiten the rows (no times, no fitted noise)."""
+    from casep.noise.model import NoiseModel, whiten
+
+    if problem.t is None or not isinstance(noise, dict) or "axes" not in noise:
+        return np.zeros(0)
+    model = NoiseModel.from_dict(noise)
+    if model.is_white:
+        return np.zeros(0)  # the design's own std
+    use = np.isfinite(sig) & (sig > 0) & (s**2 >= _SPECTRUM_RTOL * s.max() ** 2)
+    if not use.any():
+        return np.zeros(0)
+    S, y = problem.sv(), problem.y
+    ok = np.all(np.isfinite(y), axis=1) & np.all(np.isfinite(S), axis=(1, 2))  # the rows the design path uses
+    t = np.asarray(problem.t, dtype=float)[ok]
+    U = whiten(S[ok], np.zeros((t.size, 3)), t, model)[0].reshape(3 * t.size, -1) * scale
+    a = q[:, use].T @ np.linalg.pinv(U)  # the combinations' estimators on the rows whitened to the x axis's std
+    std = model.sigma if model.sigma is not None and model.sigma > 0 else sigma  # the noise model's own, m/s
+    return std**2 * np.sum(a**2, axis=1) / sig[use] ** 2
 
 
 def _in_covariance(sig: np.ndarray, q: np.ndarray, scale: np.ndarray, keep: np.ndarray) -> np.ndarray:
