@@ -80,3 +80,17 @@ def test_cli_noise_needs_imu_output_and_is_said_in_the_header(tmp_path, capsys):
     head = [line for line in (tmp_path / "imu.csv").read_text().splitlines() if line.startswith("#")]
     assert any("angle random walk 0.3 deg/sqrt(h), velocity random walk 0.05 m/s/sqrt(h)" in line
                and "gyros +-20 deg/s" in line for line in head), head
+
+
+def test_the_separation_measures_the_stated_density_on_the_moving_record(tables):
+    """The telemetry path measures the IMU's white noise on the record itself (second differences, MAD:
+    casep.checks.tracking_quality.white_sample_std) beside the boost's motion, as drawn: the MAD's relative std on
+    3900 samples is ~2 % (efficiency 0.37; the second differences' correlation raises it to ~2.5 %): 4 of them."""
+    from casep.checks.tracking_quality import white_sample_std
+
+    _, noisy, _ = tables
+    h = float(np.median(np.diff(noisy["t"])))
+    flight = noisy["t"] > 0
+    measured = white_sample_std(np.column_stack([noisy["fb"][flight], noisy["w"][flight]]))
+    expect = np.repeat([VRW / 60 / math.sqrt(h), ARW * math.pi / 180 / 60 / math.sqrt(h)], 3)
+    assert np.all(np.abs(measured / expect - 1) < 0.10), measured / expect
