@@ -168,10 +168,12 @@ def _located(flight: FlightData, idx: np.ndarray, flagged: np.ndarray, top: int 
     parts = []
     for i, (a, b) in enumerate(runs[:top]):
         first, last = locs[2 * i], locs[2 * i + 1]
+        one = b - a == 1  # one epoch: its line and time, not a span from it to itself
+        key = "line" if first["line"] is not None else "row"
         at = "" if first["file"] is None else (
-            f"lines {first['line']}..{last['line']}" if first["line"] is not None else
-            f"rows {first['row']}..{last['row']}") + f" of {Path(first['file']).name}, "
-        parts.append(f"{at}t = {first['t']:.10g}..{last['t']:.10g} s ({b - a})")
+            f"{key} {first[key]}" if one else f"{key}s {first[key]}..{last[key]}") + f" of {Path(first['file']).name}, "
+        span = f"{first['t']:.10g} s" if one else f"{first['t']:.10g}..{last['t']:.10g} s"
+        parts.append(f"{at}t = {span} ({b - a})")
     return ", ".join(parts) + (f" and {len(runs) - top} more" if len(runs) > top else "")
 
 

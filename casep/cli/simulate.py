@@ -8,6 +8,7 @@ from typing import Any
 
 from casep.cli import inputs, outputs
 from casep.cli.flight_options import FRAMES
+from casep.cli.imu_output import add_imu_output, imu_sensor
 from casep.cli.radar import add_simulate_radar, radar_only
 from casep.cli.types import rate
 
@@ -48,12 +49,7 @@ def add_parser(sub: Any) -> None:
                         "scenario's tracking is the flight's, at --rate)")
     p.add_argument("--tracking-output", metavar="FILE", default=None,
                    help="with --tracking-frame ecef|geodetic: tracking file (default <stem>.tracking<suffix>)")
-    p.add_argument("--imu-output", metavar="FILE", default=None,
-                   help="with a strapdown scenario (strapdown-boost): also write the raw IMU data, t, w_x/y/z (rad/s) "
-                        "and fb_x/y/z (m/s^2) as measured, with the truth true_q_*, true_r_*, true_v_*; with "
-                        "--rotating-earth the record casep navigate navigates back to the truth")
-    p.add_argument("--imu-pad", type=float, default=0.0, metavar="SECONDS",
-                   help="with --imu-output: SECONDS standing on the pad before lift-off (t < 0), for an alignment")
+    add_imu_output(p)  # --imu-output, --imu-pad, the sensors' noise and full scales
     add_simulate_radar(p)  # --radar-station, --tracking-truth, --radar-rate, noise
 
 
@@ -99,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--lever-arm is not available with --tracking-frame ecef|geodetic yet; leave it out")
     if args.seed < 0:
         raise ValueError(f"`--seed` must be >= 0, got {args.seed}")
+    sensor = imu_sensor(args)  # the raw IMU's white noise and full scales (None: noise-free)
     truth = None
     if args.truth:  # {"Kg0x": v, ...} or a sidecar {"coefficients": {...}}, checked against the model
         from casep.model.loader import load_model
@@ -115,9 +112,9 @@ def run(args: argparse.Namespace) -> int:
     sim = simulate_flight(scenario, seed=args.seed, rate=args.rate, model=args.model, truth=truth,
                           time_offset=args.tracking_offset * 1e-3, lever_arm=args.lever_arm,  # ms -> s
                           **({"rotating_earth": True, "site": site} if site is not None else {}))
-    flight_path, side = write_simulation(sim, out, imu=args.imu_output, imu_pad=args.imu_pad) \
-        if args.tracking_frame == "launch" else write_strapdown_earth_fixed(
-            sim, out, files["--tracking-output"], frame=args.tracking_frame, imu=args.imu_output, imu_pad=args.imu_pad)
+    imu = {"imu": args.imu_output, "imu_pad": args.imu_pad, "imu_sensor": sensor}
+    flight_path, side = write_simulation(sim, out, **imu) if args.tracking_frame == "launch" else \
+        write_strapdown_earth_fixed(sim, out, files["--tracking-output"], frame=args.tracking_frame, **imu)
     s = sim.trajectory.summary()
     print(f"scenario {sim.scenario.name}: {sim.flight.n_samples} samples at {sim.scenario.rate:g} Hz, "
           f"{s['duration_s']:.1f} s powered flight")

@@ -155,11 +155,12 @@ def write_earth_fixed_flight(telemetry: str | os.PathLike, site: Any, *, frame: 
 
 
 def write_strapdown_earth_fixed(sim: Any, telemetry: str | os.PathLike, tracking: str | os.PathLike, *,
-                                frame: str, imu: str | os.PathLike | None = None, imu_pad: float = 0.0
-                                ) -> tuple[Path, Path]:
+                                frame: str, imu: str | os.PathLike | None = None, imu_pad: float = 0.0,
+                                imu_sensor: Any = None) -> tuple[Path, Path]:
     """A rotating-Earth strapdown flight's files with its tracking in an Earth-fixed frame, all or none.
 
-    The flight file, truth sidecar and raw IMU of :func:`casep.simulation.simulate.write_simulation`, and the
+    The flight file, truth sidecar and raw IMU (`imu_pad`, `imu_sensor` as there) of
+    :func:`casep.simulation.simulate.write_simulation`, and the
     tracking file: the flight's tracked position and velocity (``r_*``, ``v_*``, launch-inertial, the velocity with
     its noise) at its observed samples, turned into ECEF (``t, r_ecef_*, v_ecef_*``) by
     :func:`casep.frames.launch_to_ecef` or into geodetic (``t, lat, lon, h, v_east, v_north, v_up``) by
@@ -188,7 +189,7 @@ def write_strapdown_earth_fixed(sim: Any, telemetry: str | os.PathLike, tracking
     values = (*r_e.T, *v_e.T) if frame == "ecef" else ecef_to_geodetic(r_e, v_e)
     names = ECEF_COLUMNS if frame == "ecef" else GEODETIC_COLUMNS
     with output_group():
-        paths = write_simulation(sim, telemetry, imu=imu, imu_pad=imu_pad)
+        paths = write_simulation(sim, telemetry, imu=imu, imu_pad=imu_pad, imu_sensor=imu_sensor)
         write_table(tracking, {"t": fl.t[keep], **dict(zip(names[1:], values))}, comments=[
             f"casep simulated tracking, {frame} (WGS84), launch site {site.to_dict()} (t0: lift-off, t = 0); the "
             f"flight's tracked r_*, v_* at its observed samples"])

@@ -51,7 +51,7 @@ from casep.model.loader import load_model
 from casep.model.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
 from casep.model.sv import build_sv
 from casep.simulation.scenarios import Scenario, get_scenario
-from casep.simulation.strapdown import rolled, strapdown_signals
+from casep.simulation.strapdown import SensorNoise, rolled, strapdown_signals
 from casep.simulation.trajectory import BoostTrajectory, body_to_platform, simulate_boost
 
 if TYPE_CHECKING:
@@ -331,11 +331,13 @@ def truth_path(path: str | os.PathLike) -> Path:
 
 
 def write_simulation(sim: SimulatedFlight, path: str | os.PathLike, *, imu: str | os.PathLike | None = None,
-                     imu_pad: float = 0.0) -> tuple[Path, Path]:
+                     imu_pad: float = 0.0, imu_sensor: SensorNoise | None = None) -> tuple[Path, Path]:
     """Write the flight file (CSV or Parquet by extension) and its truth sidecar.
 
     `imu`: a strapdown flight's raw IMU file too (:func:`casep.simulation.strapdown.imu_table`), with
-    `imu_pad` s on the pad before lift-off. Everything is checked before the first file is written.
+    `imu_pad` s on the pad before lift-off and `imu_sensor` its white noise and full scales
+    (:class:`casep.simulation.strapdown.SensorNoise`; None: noise-free). Everything is checked before the first
+    file is written.
     """
     path = Path(path)
     sc = sim.scenario
@@ -346,7 +348,7 @@ def write_simulation(sim: SimulatedFlight, path: str | os.PathLike, *, imu: str 
                              "flight")
         from casep.simulation.strapdown import imu_table
 
-        imu_columns = imu_table(sim.trajectory, sim.model, sim.truth, pad=imu_pad)
+        imu_columns = imu_table(sim.trajectory, sim.model, sim.truth, pad=imu_pad, sensor=imu_sensor)
     write_flight(sim.flight, path, force=not sc.strapdown, comments=[
         f"casep simulated flight: scenario {sc.name} ({sc.description})",
         simulated_comment(sim.model.name, sim.seed, 1.0 / float(np.median(np.diff(sim.flight.t)))),
@@ -356,7 +358,8 @@ def write_simulation(sim: SimulatedFlight, path: str | os.PathLike, *, imu: str 
         write_table(imu, imu_columns, comments=[
             f"casep simulated raw IMU: scenario {sc.name}, model {sim.model.name}, seed {sim.seed}",
             "w_* body rate rad/s and fb_* body specific force m/s^2 as measured; true_q_* (Hamilton, scalar first, "
-            "body to launch-inertial), true_r_* m, true_v_* m/s: the truth"])
+            "body to launch-inertial), true_r_* m, true_v_* m/s: the truth",
+            "noise-free (the model's errors only)" if imu_sensor is None else imu_sensor.comment()])
     side = truth_path(path)
     with atomic_open(side) as fh:
         fh.write(json.dumps(sim.truth_dict(), indent=2) + "\n")

@@ -20,7 +20,9 @@ them (``true_q_*``, ``true_r_*``, ``true_v_*``; launch-inertial). A step of the 
 after the pad, the pitch kick's ends) is written as the mean of its sides at that sample
 (:func:`casep.navigation.imu.split_steps`), which the integration takes exactly. On a rotating-Earth trajectory
 the pad turns with the Earth and the whole record is what :func:`casep.navigation.navigate` reproduces (the simulator's
-gravitation is the navigator's, :mod:`casep.simulation.trajectory`).
+gravitation is the navigator's, :mod:`casep.simulation.trajectory`). By default the record is noise-free (the
+model's errors only, to rounding); :class:`SensorNoise` adds the sensors' white noise (angle and velocity random
+walk densities, drawn per sample) and clips the readings at declared full scales, as a real IMU's record has them.
 """
 
 from __future__ import annotations
@@ -35,12 +37,72 @@ from casep.io.strapdown import quaternion_dcm_array
 from casep.model.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
 from casep.navigation.imu import split_steps
 from casep.simulation.trajectory import BoostTrajectory, body_to_platform
+from casep.units import G0
 
 __all__ = ["RollProgramme", "rolled", "strapdown_signals", "imu_table", "IMU_COLUMNS", "rail_launch",
-           "with_drawn_errors"]
+           "with_drawn_errors", "SensorNoise"]
 
 #: The columns of a raw IMU file before the truth columns.
 IMU_COLUMNS = ("t",) + BODY_RATE_COLUMNS + BODY_FORCE_COLUMNS
+
+
+#: One hour's square root in seconds' (a density per sqrt(h) divided by it is per sqrt(s)).
+SQRT_HOUR_S = 60.0
+
+
+@dataclass(frozen=True)
+class SensorNoise:
+    """The raw IMU record's white sensor noise and full scales (:func:`imu_table`).
+
+    ``arw_deg_sqrt_h``: the gyros' angle random walk, deg/sqrt(h); ``vrw_m_s_sqrt_h``: the accelerometers' velocity
+    random walk, m/s/sqrt(h) (1 m/s/sqrt(h) = 1700 ug/sqrt(Hz)); 0: none. A density ``N`` per sqrt(s) sampled at
+    the step ``h`` is a per-sample std ``N / sqrt(h)``, independent between samples and axes, drawn from
+    ``numpy.random.default_rng(seed)``. ``gyr_range_rad_s``, ``acc_range_m_s2``: full scales (SI), the readings
+    (noise included) clipped to ``+-`` them; None: not clipped."""
+
+    arw_deg_sqrt_h: float = 0.0
+    vrw_m_s_sqrt_h: float = 0.0
+    seed: int = 0
+    gyr_range_rad_s: float | None = None
+    acc_range_m_s2: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("arw_deg_sqrt_h", "vrw_m_s_sqrt_h"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v >= 0):
+                raise ValueError(f"SensorNoise `{name}` must be a finite number >= 0, got {v!r}")
+        for name in ("gyr_range_rad_s", "acc_range_m_s2"):
+            v = getattr(self, name)
+            if v is not None and not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+                raise ValueError(f"SensorNoise `{name}` must be None or a finite number > 0, got {v!r}")
+
+    def per_sample(self, h: float) -> tuple[float, float]:
+        """The per-sample std at step `h` (s): ``(gyro rad/s, accelerometer m/s^2)``."""
+        arw = np.radians(self.arw_deg_sqrt_h) / SQRT_HOUR_S  # rad/sqrt(s)
+        vrw = self.vrw_m_s_sqrt_h / SQRT_HOUR_S  # m/s/sqrt(s)
+        return float(arw / np.sqrt(h)), float(vrw / np.sqrt(h))
+
+    def apply(self, t: np.ndarray, w: np.ndarray, fb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """`w` (rad/s) and `fb` (m/s^2), (n, 3) at the times `t`, with the noise (at the median step) and clipped."""
+        sw, sf = self.per_sample(float(np.median(np.diff(t))))
+        rng = np.random.default_rng(self.seed)
+        w = w + rng.normal(0.0, 1.0, w.shape) * sw
+        fb = fb + rng.normal(0.0, 1.0, fb.shape) * sf
+        if self.gyr_range_rad_s is not None:
+            w = np.clip(w, -self.gyr_range_rad_s, self.gyr_range_rad_s)
+        if self.acc_range_m_s2 is not None:
+            fb = np.clip(fb, -self.acc_range_m_s2, self.acc_range_m_s2)
+        return w, fb
+
+    def comment(self) -> str:
+        """The raw IMU file's header line saying what was added."""
+        ranges = [f"{lab} +-{v:.6g} {u}" for lab, v, u in (
+            ("gyros", None if self.gyr_range_rad_s is None else np.degrees(self.gyr_range_rad_s), "deg/s"),
+            ("accelerometers", None if self.acc_range_m_s2 is None else self.acc_range_m_s2 / G0, "g"))
+            if v is not None]
+        return (f"sensor white noise: angle random walk {self.arw_deg_sqrt_h:g} deg/sqrt(h), velocity random walk "
+                f"{self.vrw_m_s_sqrt_h:g} m/s/sqrt(h) (seed {self.seed}); full scale: "
+                + (", ".join(ranges) if ranges else "none (not clipped)"))
 
 
 @dataclass(frozen=True)
@@ -132,8 +194,10 @@ def strapdown_signals(traj: BoostTrajectory, model: Any, truth: np.ndarray) -> t
     return np.einsum("kij,kj->ki", C, fb_m), {k: np.ascontiguousarray(v) for k, v in cols.items()}
 
 
-def imu_table(traj: BoostTrajectory, model: Any, truth: np.ndarray, *, pad: float = 0.0) -> dict[str, np.ndarray]:
-    """The raw IMU file's columns (module notes), with `pad` s standing on the pad before lift-off.
+def imu_table(traj: BoostTrajectory, model: Any, truth: np.ndarray, *, pad: float = 0.0,
+              sensor: SensorNoise | None = None) -> dict[str, np.ndarray]:
+    """The raw IMU file's columns (module notes), with `pad` s standing on the pad before lift-off, and with
+    `sensor` the sensors' white noise and full scales (:class:`SensorNoise`; None: noise-free, not clipped).
 
     On the pad (t < 0, at the flight's median sample step) the vehicle stands at its lift-off attitude,
     measured with the model's errors there. Over a non-rotating Earth it is at rest in the launch frame:
@@ -162,6 +226,8 @@ def imu_table(traj: BoostTrajectory, model: Any, truth: np.ndarray, *, pad: floa
         pos = np.concatenate([pos_pad, pos])
         vel = np.concatenate([vel_pad, vel])
     w, fb = split_steps(t, w, fb)  # a step at a sample (lift-off, a pitch kick): the record the navigation recovers
+    if sensor is not None:
+        w, fb = sensor.apply(t, w, fb)
     out = {"t": t}
     out.update({c: w[:, i] for i, c in enumerate(BODY_RATE_COLUMNS)})
     out.update({c: fb[:, i] for i, c in enumerate(BODY_FORCE_COLUMNS)})

@@ -125,3 +125,17 @@ def test_a_flight_with_a_block_of_wrong_epochs_is_separated_without_them(tmp_pat
     assert status == 0 and clean["success"] and "off the telemetry's course" not in printed
     assert res["n_samples"] == clean["n_samples"] - 20
     assert np.abs(z - z_clean).max() < 0.5, (z, z_clean)  # 20 of ~3000 epochs fewer: the same result
+
+
+
+def test_one_epoch_left_out_is_named_by_its_time_not_as_a_span_to_itself(rng):
+    flight = _pair(rng)
+    k = int(np.flatnonzero(flight.observed & (np.abs(flight.t - 30.0) < 1e-9))[0])
+    dv = flight.dv.copy()
+    dv[k, 2] += 50.0  # one epoch 50 m/s off: beyond the gross jump rule (10 m/s), alone
+    with pytest.warns(TrackingQualityWarning) as caught:
+        screened = screen_tracking(dataclasses.replace(flight, dv=dv))
+    said = " ".join(str(w.message) for w in caught)
+    assert "1 tracking epochs fail the physics check" in said and "t = 30 s (1)" in said, said
+    assert "30..30" not in said
+    assert np.array_equal(screened.observed, flight.observed & (np.arange(flight.t.size) != k))

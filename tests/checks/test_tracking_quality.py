@@ -131,7 +131,7 @@ def test_a_clean_pair_passes_untouched_and_a_glitch_goes_alone(rng):
     screened = screen_tracking(flight)  # no warning: the suite makes one an error
     assert np.array_equal(screened.observed, flight.observed)
     assert screened.meta["tracking_screen"]["stale"] == [] and screened.meta["tracking_screen"]["rejected"] == []
-    glitch = r"1 tracking epochs fail the physics check .* jumps up to 86\.\d.* t = 20\.\.20 s \(1\)"
+    glitch = r"1 tracking epochs fail the physics check .* jumps up to 86\.\d.* t = 20 s \(1\)"
     with pytest.warns(TrackingQualityWarning, match=glitch):
         screened = screen_tracking(_clean_pair(rng, glitch=200))
     assert screened.n_observed == flight.n_observed - 1
