@@ -1110,3 +1110,53 @@ def test_the_note_on_what_the_record_leaves_out_counts_every_combination():
     said = _outside_note(passes(11, 4, 1), 16, 1.6, names=names)
     assert "determines 11 of 16" in said and "the other 5: 1 stepped along, whose std with the record's noise and " \
         "the curvature (2 declared magnitudes: c8) reach" in said, said
+
+
+def test_the_last_pass_is_judged_with_the_rows_it_prepared(monkeypatch):
+    """``_Run.judged_fit`` of the problem the last pass fitted (``_Run.pass_fit``) under the same noise request does
+    not fit its noise model again: it solves the rows that pass prepared and says their preparation's warnings (held
+    back in the pass) once; estimate, std, sigma and noise account are a fresh ``fit``'s, to the bit. Another problem
+    or another noise request is fitted afresh."""
+    import casep.estimators.solve as solve
+    from casep.regression.problem import Problem
+    from casep.simulation.noise import ar1_noise, white_noise
+    from casep.workflows.imu_separate import _Run
+
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 60.0, 0.2)
+    S = np.zeros((t.size, 3, 4))
+    S[:, :, 0], S[:, 0, 1], S[:, 1, 2], S[:, 2, 3] = 1.0, t, np.sin(0.2 * t), t**2 / 60.0
+    y = S @ np.array([0.3, -0.02, 0.5, 0.1]) + ar1_noise(t, 0.1, 2.0, rng) + white_noise(t.size, 0.03, rng)
+    problem = Problem.from_arrays(S, y, t, names=["b", "s", "c", "q"])
+    spec = FitSpec.build("ols")  # the default: the noise model chosen by the data (REML)
+    prepared, rows_for = [], solve.rows_for
+
+    def counted(*args, **kw):
+        prepared.append(1)
+        warnings.warn("rows prepared", UserWarning, stacklevel=2)
+        return rows_for(*args, **kw)
+
+    monkeypatch.setattr(solve, "rows_for", counted)
+    run = _Run.__new__(_Run)  # the fits read nothing of the run's inputs
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        run.pass_fit(problem, spec)
+    assert not said and len(prepared) == 1  # the pass: quiet
+    with warnings.catch_warnings(record=True) as fresh_said:
+        warnings.simplefilter("always")
+        fresh = solve.fit(problem, spec)
+    with warnings.catch_warnings(record=True) as judged_said:
+        warnings.simplefilter("always")
+        judged = run.judged_fit(problem, spec)
+    assert len(prepared) == 2  # the fresh fit's preparation, none for the judged one
+    assert [str(w.message) for w in judged_said] == [str(w.message) for w in fresh_said]
+    assert [str(w.message) for w in judged_said].count("rows prepared") == 1
+    assert judged.diagnostics["noise"]["kind"] != "white", judged.diagnostics["noise"]  # a fitted noise model
+    assert np.array_equal(judged.estimate, fresh.estimate) and np.array_equal(judged.std, fresh.std)
+    assert judged.sigma == fresh.sigma and judged.diagnostics["noise"] == fresh.diagnostics["noise"]
+    other = problem.with_y(y + white_noise(t.size, 0.01, rng))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        again = run.judged_fit(other, spec)
+        run.judged_fit(problem, FitSpec.build("ols", noise="gm"))
+    assert len(prepared) == 4 and not np.array_equal(again.estimate, fresh.estimate)
