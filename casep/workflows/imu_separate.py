@@ -477,6 +477,8 @@ class _Run:
     _heading: tuple | None = None
     #: (problem, the rows' shift for one std of each step between samples: :func:`step_rows`), formed by :meth:`finish`
     _steps: tuple | None = None
+    #: (problem, noise request, rows, the warnings their preparation gave) of the last pass's fit (:meth:`pass_fit`)
+    _rows: tuple | None = None
 
     def __init__(self, imu: ImuData, tracking: Any, nav_site: LaunchSite, site: LaunchSite, window: tuple,
                  base: ErrorModel, source: Any, spec: FitSpec, heading_deg: float | None, heading_axis: str,
@@ -740,7 +742,35 @@ class _Run:
         # (casep.regression.linalg.PartnerBound: a statement of the linear fit, not a step direction)
         problem.magnitudes = {}
         self.model_k = model
-        return _quiet_fit(problem, spec.about(model.names, D)), nav, flight, model, problem
+        return self.pass_fit(problem, spec.about(model.names, D)), nav, flight, model, problem
+
+    def pass_fit(self, problem: Any, spec: FitSpec) -> EstimateResult:
+        """:func:`_quiet_fit` of a pass, its rows (:func:`casep.estimators.solve.rows_for`: the noise model fitted, the
+        robust weights) and the warnings their preparation gave kept for :meth:`judged_fit` of the same problem."""
+        if not _rows_reusable(spec):
+            return _quiet_fit(problem, spec)
+        from casep.estimators.solve import fit, rows_for
+
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            rows = rows_for(problem, spec.noise)
+        self._rows = (problem, spec.noise, rows, list(said))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return fit(problem, spec, rows=rows, checks=False)
+
+    def judged_fit(self, problem: Any, spec: FitSpec) -> EstimateResult:
+        """``fit(problem, spec)``, its warnings shown: with the rows of the last pass's fit (:meth:`pass_fit`) when
+        they are this problem's (the same object) under the same noise request, their preparation's warnings said
+        again; the same numbers, without fitting the same noise model twice."""
+        from casep.estimators.solve import fit
+
+        kept = self._rows
+        if kept is None or kept[0] is not problem or kept[1] != spec.noise or not _rows_reusable(spec):
+            return fit(problem, spec)
+        for w in kept[3]:
+            warnings.warn(w.message, w.category, stacklevel=2)
+        return fit(problem, spec, rows=kept[2])
 
     # ------------------------------------------------------------------ the iteration
     def trial(self, D: np.ndarray, spec: FitSpec, before: Any, bound: float | None = None) -> tuple | str:
@@ -891,7 +921,7 @@ class _Run:
                     failure = _outside_failure(step, rejected, _step_size(step, D, model.scales, res.names))
                     break
                 spec, last = self.spec, None  # the same linearisation, solved as requested (another map)
-                res = _quiet_fit(problem, spec.about(res.names, D))
+                res = self.pass_fit(problem, spec.about(res.names, D))
                 continue
             if k == max_iterations:
                 failure = (f"failed: the iteration did not converge in {max_iterations} passes (the last correction "
@@ -930,10 +960,8 @@ class _Run:
             res, nav, flight, model, problem = trial
             history.append(_ssr(problem.y))
         self.limit = step.limit
-        from casep.estimators.solve import fit
-
         # the last linearisation, judged (its warnings are the result's); a prior or bounds on the coefficients
-        res = _settings_on_coefficients(fit(problem, self.spec.about(res.names, D)), D)
+        res = _settings_on_coefficients(self.judged_fit(problem, self.spec.about(res.names, D)), D)
         return self.finish(res, nav, flight, model, problem, D, passes, failure, (iterate, tol, max_iterations))
 
     def finish(self, res: EstimateResult, nav: NavigationResult, flight: FlightData, model: ErrorModel,
@@ -1697,6 +1725,14 @@ def _fast_spec(spec: FitSpec) -> FitSpec | None:
     if spec.method != "ols" or spec.noise.denoise not in (None, "none") or spec.options:
         return None
     return FitSpec.build("ols", noise="white", robust="none", sigma=spec.sigma)
+
+
+def _rows_reusable(spec: FitSpec) -> bool:
+    """Whether a fit as `spec` asks solves the rows :func:`casep.estimators.solve.rows_for` prepares from its problem
+    (not a method that fits its own noise model, nor de-noised rows)."""
+    from casep.estimators.registry import METHODS
+
+    return METHODS[spec.method].own_noise_model is None and spec.noise.denoise in (None, "none")
 
 
 def _settings_on_coefficients(res: EstimateResult, D: np.ndarray) -> EstimateResult:

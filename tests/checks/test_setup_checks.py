@@ -33,10 +33,10 @@ SITE = LaunchSite(28.5, -80.6, 3.0, 90.0, 0.0)
 
 @pytest.fixture(scope="module")
 def pair(tmp_path_factory):
-    """Telemetry and ECEF tracking of the paper flight at 20 Hz, white noise 0.1 m/s."""
+    """Telemetry and ECEF tracking of the paper flight at 10 Hz, white noise 0.1 m/s."""
     from casep.simulation.simulate import simulate_two_rate
 
-    d = simulate_two_rate("paper", seed=0, telemetry_rate=20.0, tracking_rate=20.0, rotating_earth=True, site=SITE)
+    d = simulate_two_rate("paper", seed=0, telemetry_rate=10.0, tracking_rate=10.0, rotating_earth=True, site=SITE)
     folder = tmp_path_factory.mktemp("setup")
     tel, trk = folder / "tel.csv", folder / "trk.csv"
     d.write(tel, trk, tracking_frame="ecef")

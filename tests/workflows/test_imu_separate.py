@@ -1052,8 +1052,15 @@ def test_tracking_relative_to_the_rotating_earth_taken_as_launch_inertial_is_a_s
     assert len(res.diagnostics["iterations"]["passes"]) == 1  # not iterated: the passes would fit the frame
 
 
+@pytest.fixture(scope="module")
+def noise_free_right(noise_free):
+    """The default separation of the noise-free flight at the right heading (one for every heading far off below)."""
+    imu, trk, _ = noise_free
+    return _separate(imu, trk)
+
+
 @pytest.mark.parametrize("off", [90.0, -45.0])
-def test_a_heading_far_off_with_launch_frame_tracking_is_a_set_up_failure(truth_flight, noise_free, off):
+def test_a_heading_far_off_with_launch_frame_tracking_is_a_set_up_failure(noise_free, noise_free_right, off):
     """Launch-frame tracking (no tracked position): the heading given 90 (45) deg off turns the navigated horizontal
     velocity by that much from the tracked one, measured against the navigation's own position (the Earth's rotation
     about it). The result fails the set-up check naming the heading and the turn, as it does with Earth-fixed
@@ -1072,7 +1079,7 @@ def test_a_heading_far_off_with_launch_frame_tracking_is_a_set_up_failure(truth_
     # the turn is the heading's error plus what this record's MEMS errors (gyro biases of 200 deg/h, misalignments of
     # 1500 arcsec under 10 g) turn the velocity in its first 30 s: 6.2 and 6.6 deg measured
     assert said and abs(float(said[1]) - off) < 10.0, res.message
-    right = _separate(imu, trk)
+    right = noise_free_right
     assert "set-up check" not in right.message and "heading of the alignment" not in right.message
 
 
@@ -1133,3 +1140,53 @@ def test_a_prior_given_as_a_file_is_read_by_the_one_loader(tmp_path, monkeypatch
     with pytest.raises(ValueError, match=f"--prior {prior}.*ba_q"):
         separate_imu(imu, trk, site, PAD_ALIGN, "strapdown12", heading_deg=heading,
                      spec=FitSpec.build("map", prior=prior))
+
+
+def test_the_last_pass_is_judged_with_the_rows_it_prepared(monkeypatch):
+    """``_Run.judged_fit`` of the problem the last pass fitted (``_Run.pass_fit``) under the same noise request does
+    not fit its noise model again: it solves the rows that pass prepared and says their preparation's warnings (held
+    back in the pass) once; estimate, std, sigma and noise account are a fresh ``fit``'s, to the bit. Another problem
+    or another noise request is fitted afresh."""
+    import casep.estimators.solve as solve
+    from casep.regression.problem import Problem
+    from casep.simulation.noise import ar1_noise, white_noise
+    from casep.workflows.imu_separate import _Run
+
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 60.0, 0.2)
+    S = np.zeros((t.size, 3, 4))
+    S[:, :, 0], S[:, 0, 1], S[:, 1, 2], S[:, 2, 3] = 1.0, t, np.sin(0.2 * t), t**2 / 60.0
+    y = S @ np.array([0.3, -0.02, 0.5, 0.1]) + ar1_noise(t, 0.1, 2.0, rng) + white_noise(t.size, 0.03, rng)
+    problem = Problem.from_arrays(S, y, t, names=["b", "s", "c", "q"])
+    spec = FitSpec.build("ols")  # the default: the noise model chosen by the data (REML)
+    prepared, rows_for = [], solve.rows_for
+
+    def counted(*args, **kw):
+        prepared.append(1)
+        warnings.warn("rows prepared", UserWarning, stacklevel=2)
+        return rows_for(*args, **kw)
+
+    monkeypatch.setattr(solve, "rows_for", counted)
+    run = _Run.__new__(_Run)  # the fits read nothing of the run's inputs
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        run.pass_fit(problem, spec)
+    assert not said and len(prepared) == 1  # the pass: quiet
+    with warnings.catch_warnings(record=True) as fresh_said:
+        warnings.simplefilter("always")
+        fresh = solve.fit(problem, spec)
+    with warnings.catch_warnings(record=True) as judged_said:
+        warnings.simplefilter("always")
+        judged = run.judged_fit(problem, spec)
+    assert len(prepared) == 2  # the fresh fit's preparation, none for the judged one
+    assert [str(w.message) for w in judged_said] == [str(w.message) for w in fresh_said]
+    assert [str(w.message) for w in judged_said].count("rows prepared") == 1
+    assert judged.diagnostics["noise"]["kind"] != "white", judged.diagnostics["noise"]  # a fitted noise model
+    assert np.array_equal(judged.estimate, fresh.estimate) and np.array_equal(judged.std, fresh.std)
+    assert judged.sigma == fresh.sigma and judged.diagnostics["noise"] == fresh.diagnostics["noise"]
+    other = problem.with_y(y + white_noise(t.size, 0.01, rng))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        again = run.judged_fit(other, spec)
+        run.judged_fit(problem, FitSpec.build("ols", noise="gm"))
+    assert len(prepared) == 4 and not np.array_equal(again.estimate, fresh.estimate)
