@@ -65,3 +65,21 @@ def test_a_white_only_imu_keeps_its_std_with_the_term(tmp_path):
     held = res1.diagnostics["noise"]["imu"]["instability"]
     assert res1.success and held["accelerometer_mg"] < 0.03 and held["gyro_deg_h"] < 2.0, held
     np.testing.assert_allclose(res1.std, res0.std, rtol=0.02)
+
+
+def test_the_correlation_time_asked_for_is_checked():
+    """The flight's ``meta[IMU_INSTABILITY_TAU]``: None leaves the term out, a positive time is taken, zero, a
+    negative or a non-finite time or a text is an error naming the value."""
+    import pytest
+
+    from casep.io.flight import FlightData
+    from casep.workflows.imu_separate import instability_tau
+
+    def flight(value):
+        meta = {} if value is None else {IMU_INSTABILITY_TAU: value}
+        return FlightData(np.arange(3.0), np.zeros((3, 3)), np.zeros((3, 3)), meta=meta)
+
+    assert instability_tau(flight(None)) is None and instability_tau(flight(20)) == 20.0
+    for bad in (0.0, -5.0, math.inf, "20"):
+        with pytest.raises(ValueError, match="correlation time > 0 s"):
+            instability_tau(flight(bad))
