@@ -427,6 +427,9 @@ def main() -> None:
                     help="--simulate: add the left-out terms to the twin, drawn from N(0, P_c) with the seed")
     ap.add_argument("--sim-lever-arm", action="store_true",
                     help="--simulate: the twin's positions are the antenna's, LEVER_ARM_IMU from the IMU")
+    ap.add_argument("--imu-instability", type=float, default=None, metavar="TAU_S",
+                    help="each window's std with the IMU's bias instability of this correlation time, its size fitted "
+                         "per window beside the tracking noise (separate_windows' imu_instability_tau)")
     args = ap.parse_args()
     if args.write_cut:  # the IMU file gzipped (-9), as the test suite holds it
         import gzip
@@ -477,7 +480,8 @@ def main() -> None:
                    if v is not None}
         res = separate_windows(imu, trk_path, site, (0.0, moving - 5.0), length=args.length,
                                start=moving + 1.0 + args.offset, model=args.model, fit_options=options,
-                               consider=None if args.consider == "none" else args.consider)
+                               consider=None if args.consider == "none" else args.consider,
+                               imu_instability_tau=args.imu_instability)
         cpu = time.process_time() - c0
     kinds: dict[str, int] = {}
     first: dict[str, str] = {}
@@ -501,6 +505,12 @@ def main() -> None:
         course = "" if w.heading_from_course_deg is None else f"{w.heading_from_course_deg:.1f}"
         print(f"{w.t_start:6.1f} {w.passes:4d} {course:>8s} {_rms(r):6.3f} {e['dt_trk']:6.1f}+-{s['dt_trk']:4.1f}  "
               + "  ".join(f"{e[n]:7.1f}+-{s[n]:5.1f}" for n in shown))
+    if args.imu_instability is not None:
+        sizes = [((w.result.diagnostics.get("noise") or {}).get("imu") or {}).get("instability") or {}
+                 for w in res.windows]
+        print(f"IMU bias instability (tau {args.imu_instability:g} s) fitted per window, accelerometer mg / gyro "
+              "deg/h: " + ", ".join(f"{w.t_start:.0f} s {s.get('accelerometer_mg', math.nan):.3g} / "
+                                    f"{s.get('gyro_deg_h', math.nan):.3g}" for w, s in zip(res.windows, sizes)))
     c = res.consistency
     if "chi2" not in c:  # fewer than two windows succeeded: nothing to compare
         print(f"no comparison: {c.get('message')}; windows failed: "

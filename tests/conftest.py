@@ -425,7 +425,8 @@ def _ins_acc(t):  # kinematic acceleration, launch frame (y up), m/s^2
 
 def ins_telemetry(clip_dps: float = math.inf, seed: int = 3, *, errors: dict | None = None, noise: float = NOISE,
                   imu_noise: bool = True, growth: float = 0.03, dur: float = DUR, trk_rate: float = TRK_RATE,
-                  spike: tuple[float, float] | None = None, integrates_clip: bool = True):
+                  spike: tuple[float, float] | None = None, integrates_clip: bool = True,
+                  bias_noise: tuple[float, float, float] | None = None):
     """Telemetry (t, q_*, fb_*, w_*, v_tel_*), tracking (t, v_trk_*), the truth of strapdown12's coefficients and the
     gyro samples held at the full scale `clip_dps`.
 
@@ -436,7 +437,10 @@ def ins_telemetry(clip_dps: float = math.inf, seed: int = 3, *, errors: dict | N
     rate; `imu_noise`: white noise on the written rates (1e-3 rad/s off the
     rail) and forces (1e-2 m/s^2) the INS did not integrate; `noise`: white tracking noise, m/s; `integrates_clip`
     False: the INS integrates the measured rates unclipped (its own gyro did not clip), while the written ``w_*``
-    are clipped at `clip_dps` (a logger's channel of narrower range than the INS's).
+    are clipped at `clip_dps` (a logger's channel of narrower range than the INS's); `bias_noise` ``(s_a, s_g, tau)``:
+    a bias instability the INS integrates and writes, a first-order Gauss-Markov bias per body axis (stationary std
+    `s_a` m/s^2 and `s_g` rad/s, correlation time `tau` s; :func:`casep.simulation.noise.ar1_noise`) on every sample
+    and integration step, drawn from ``(seed, 17)``.
     """
     from casep.units import G0
 
@@ -456,31 +460,46 @@ def ins_telemetry(clip_dps: float = math.inf, seed: int = 3, *, errors: dict | N
             w[0] += math.radians(spike[1]) * (1 - ((t - spike[0]) / 0.3) ** 2) ** 2
         return w
 
-    def gyro(w):
-        return np.clip(w * (1 + sg) + bg, -fs, fs)
-
-    def integrated(w):
-        return gyro(w) if integrates_clip else w * (1 + sg) + bg
-
     g = np.array([0.0, -G0, 0.0])
     h, n = 1 / (RATE * SUB), int(round(dur * RATE * SUB))
+    wander = np.zeros((2 * n + 1, 6))  # the bias instability at the steps and their midpoints (index 2 t / h)
+    if bias_noise is not None:
+        from casep.simulation.noise import ar1_noise
+
+        brng = np.random.default_rng([seed, 17])
+        half = np.arange(2 * n + 1) * h / 2
+        wander = np.column_stack([ar1_noise(half, bias_noise[0], bias_noise[2], brng),
+                                  ar1_noise(half, bias_noise[1], bias_noise[2], brng)])
+    at = [0]  # the index of the time the sensors are read at
+
+    def gyro(w):
+        return np.clip(w * (1 + sg) + bg + wander[at[0], 3:], -fs, fs)
+
+    def integrated(w):
+        return gyro(w) if integrates_clip else w * (1 + sg) + bg + wander[at[0], 3:]
+
+    def accel(f):
+        return f * (1 + sa) + ba + wander[at[0], :3]
+
     q = qi = _qexp(np.array([0.0, 0.0, 0.3]))
     v, vi = np.zeros(3), np.zeros(3)
     rows, truth_v = [], []
     for k in range(n + 1):
         t = k * h
         if k % SUB == 0:
+            at[0] = 2 * k
             fb = _dcm(q).T @ (_ins_acc(t) - g)
-            rows.append([t, *qi, *(fb * (1 + sa) + ba), *gyro(rate(t)), *vi])
+            rows.append([t, *qi, *accel(fb), *gyro(rate(t)), *vi])
             truth_v.append([t, *v])
         if k == n:
             break
         tm = t + h / 2
+        at[0] = 2 * k + 1
         wm = rate(tm)
         fbm = _dcm(_qmul(q, _qexp(wm * h / 2))).T @ (_ins_acc(tm) - g)
         qim = _qmul(qi, _qexp(integrated(wm) * h / 2))
         v = v + h * _ins_acc(tm)
-        vi = vi + h * (_dcm(qim) @ (fbm * (1 + sa) + ba) + g)
+        vi = vi + h * (_dcm(qim) @ accel(fbm) + g)
         q, qi = _qmul(q, _qexp(wm * h)), _qmul(qi, _qexp(integrated(wm) * h))
         q, qi = q / np.linalg.norm(q), qi / np.linalg.norm(qi)
     R, V = np.array(rows), np.array(truth_v)

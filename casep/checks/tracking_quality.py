@@ -74,6 +74,7 @@ __all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "keep_screen", "
            "offset_halves", "halves_line", "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
            "imu_noise_effect", "imu_sample_noise", "white_sample_std", "unresolved_noise", "NOISE_RESOLUTION_SHARE",
+           "imu_bias_effect", "IMU_INSTABILITY_TAU",
            "rest_white_std", "IMU_NOISE_AT_REST", "STALE_MOTION", "HELD_SHARE", "HELD_RUN_SHARE", "JUMP_TOL",
            "JUMP_RATE", "EXCURSION_SIGMAS",
            "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
@@ -773,7 +774,8 @@ def white_sample_std(x: np.ndarray) -> np.ndarray:
 
 
 def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray,
-                     levelling: tuple[tuple[float, float], np.ndarray] | None = None) -> np.ndarray | None:
+                     levelling: tuple[tuple[float, float], np.ndarray] | None = None,
+                     instability: tuple[float, float, float] | None = None) -> np.ndarray | None:
     """``weights @ G`` (k, m): ``G`` (3M, m) the velocity errors ``dv`` at the M epochs `t_rows` (rows x, y, z per
     epoch) that the IMU's white noise makes, per unit of m independent standard normal variables
     (``Cov = G G^T``), seen through `weights` (k, 3M) (``G`` itself is never held: it grows with epochs times
@@ -804,11 +806,33 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray
     start, ``phi0 = L mean(delta_f)``, which acts from the first sample on: ``dv(t) += (F(t) - F(T1)) x phi0``.
     A block's share of the window mean is its samples inside the window (a block cut by ``T2``: within one
     block's noise). A gyrocompassed heading's gyro noise is not carried.
+
+    With `instability` (``(tau, q_a, q_g)``: the IMU's bias instability of :func:`imu_bias_effect`, correlation time
+    ``tau`` s, variances ``q_a`` (m/s^2)^2 and ``q_g`` (rad/s)^2 per body axis) its columns follow the white noise's:
+    ``G = [G_white, sqrt(q_a) G_a, sqrt(q_g) G_g]``.
     """
     terms = _imu_noise_blocks(flight, t_rows, levelling)
     if terms is None:
         return None
     W = np.asarray(weights, dtype=float).reshape(-1, t_rows.size, 3)
+    out = _seen_blocks(terms, t_rows, W, terms.ga, terms.gg)
+    if terms.level is not None:
+        win, Phi, F0 = terms.level  # blocks in the window, phi0 per unit xi (bw, 3, 3), F at the window's start
+        dF = terms.F_rows - F0  # (M, 3): phi0 acts from the start on
+        G = np.cross(dF[:, None, :, None], Phi[None], axisa=2, axisb=2, axisc=2)  # (M, bw, 3 axes, 3 xi)
+        out[:, win, :3] += np.einsum("kmi,mbij->kbj", W, G)
+    white = out.reshape(W.shape[0], -1)
+    if instability is None:
+        return white
+    tau, q_a, q_g = instability
+    E_a, E_g = _bias_columns(terms, t_rows, W, tau)
+    return np.column_stack([white, math.sqrt(q_a) * E_a, math.sqrt(q_g) * E_g])
+
+
+def _seen_blocks(terms: "_ImuBlocks", t_rows: np.ndarray, W: np.ndarray, ga: np.ndarray, gg: np.ndarray
+                 ) -> np.ndarray:
+    """``(k, B, 6)``: the velocity errors at the epochs that each block's accelerometer (``ga``, B x 3 x 3) and gyro
+    (``gg``) error per unit ``xi`` make, seen through `W` (k, M, 3) (:func:`imu_noise_effect`)."""
     # Block b counts at the epochs r with t_end_b <= t_r; with dF = F_r - F_mid_b (the attitude error acts from the
     # block's middle on) its column j is ga_b[:, j] and -dF x gg_b[:, j], seen through W_r: W_r . (dF x g) =
     # g . (W_r x dF). Summed over those epochs: Ws_b = sum W_r, Xs_b = sum W_r x F_r (suffix sums over the epochs in
@@ -821,14 +845,58 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray
     Xs = np.concatenate([np.cumsum(Xo[:, ::-1], axis=1)[:, ::-1], zero], 1)
     first = np.searchsorted(np.asarray(t_rows, dtype=float)[order], terms.t_end, side="left")
     Wb, Xb = Ws[:, first], Xs[:, first]  # (k, B, 3)
-    out = np.concatenate([np.einsum("kbi,bij->kbj", Wb, terms.ga),
-                          -np.einsum("kbi,bij->kbj", Xb - np.cross(Wb, terms.F_mid[None], axis=2), terms.gg)], 2)
-    if terms.level is not None:
-        win, Phi, F0 = terms.level  # blocks in the window, phi0 per unit xi (bw, 3, 3), F at the window's start
-        dF = terms.F_rows - F0  # (M, 3): phi0 acts from the start on
-        G = np.cross(dF[:, None, :, None], Phi[None], axisa=2, axisb=2, axisc=2)  # (M, bw, 3 axes, 3 xi)
-        out[:, win, :3] += np.einsum("kmi,mbij->kbj", W, G)
-    return out.reshape(W.shape[0], -1)
+    return np.concatenate([np.einsum("kbi,bij->kbj", Wb, ga),
+                           -np.einsum("kbi,bij->kbj", Xb - np.cross(Wb, terms.F_mid[None], axis=2), gg)], 2)
+
+
+#: A flight's ``meta`` key: the correlation time (s) of the IMU's bias instability (:func:`imu_bias_effect`), whose
+#: size the tracking noise's refit beside the IMU's noise then fits (:func:`casep.noise.known.fit_tracking`); absent:
+#: the IMU's noise is white only.
+IMU_INSTABILITY_TAU = "imu_instability_tau_s"
+
+
+def imu_bias_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray, tau: float
+                    ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The IMU's bias instability seen through `weights` (k, 3M): ``(G_a, G_g)``, each (k, 3B), the velocity errors at
+    the epochs `t_rows` per unit variance of a first-order Gauss-Markov bias per body axis of the accelerometers and
+    the gyros (``Cov = q_a G_a G_a^T + q_g G_g G_g^T``); None when the flight does not hold the IMU's samples.
+
+    The bias ``b`` (body axes) is stationary with variance ``q`` and correlation time `tau`, held over each block of
+    :func:`imu_noise_effect` (``b_j`` at the block's mean time ``t_j``): ``b_0 ~ N(0, q)``, ``b_j = a_j b_(j-1) +
+    w_j``, ``a_j = exp(-(t_j - t_(j-1)) / tau)``, ``Var w_j = q (1 - a_j^2)``. A block's bias is an error of the
+    sensor held for its ``n_j`` samples, so it enters as the white noise's does with ``s h sqrt(n_j)`` replaced by
+    ``h n_j`` (``dv_dot = C delta_f + f x phi``, ``phidot = -C delta_w``)::
+
+        dv(t) = sum_j E_j b_j,   E_j = C_j h n_j (accelerometer),  -[F(t) - F(t_j)] x C_j h n_j (gyro)
+
+    and with ``b_j = sum_(l <= j) (a_(l+1) .. a_j) w_l`` the columns of ``w_l`` per unit std are
+    ``R_l sqrt(1 - a_l^2)`` (``R_l = E_l + a_(l+1) R_(l+1)``, a backward recursion over the blocks; ``a_0 = 0``).
+    A white bias (``tau`` below the block) is the white noise's, a constant one (``tau`` beyond the record) the
+    model's bias itself: the estimate's bias absorbs it, and its variance ``q`` is then the estimate's."""
+    terms = _imu_noise_blocks(flight, t_rows, None)
+    if terms is None:
+        return None
+    W = np.asarray(weights, dtype=float).reshape(-1, t_rows.size, 3)
+    return _bias_columns(terms, t_rows, W, tau)
+
+
+def _bias_columns(terms: "_ImuBlocks", t_rows: np.ndarray, W: np.ndarray, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`imu_bias_effect`'s ``(G_a, G_g)`` on the blocks `terms`."""
+    if not (np.isfinite(tau) and tau > 0):
+        raise ValueError(f"the IMU's bias instability needs a correlation time > 0 s, got {tau}")
+    E = _seen_blocks(terms, t_rows, W, terms.unit, terms.unit)  # (k, B, 6) per unit bias held over the block
+    a = _bias_transitions(terms.t_mid, tau)
+    R = np.empty_like(E)
+    R[:, -1] = E[:, -1]
+    for j in range(E.shape[1] - 2, -1, -1):
+        R[:, j] = E[:, j] + a[j + 1] * R[:, j + 1]
+    R *= np.sqrt(1.0 - a**2)[None, :, None]
+    return R[:, :, :3].reshape(W.shape[0], -1), R[:, :, 3:].reshape(W.shape[0], -1)
+
+
+def _bias_transitions(t_mid: np.ndarray, tau: float) -> np.ndarray:
+    """``a_j`` (B,) of :func:`imu_bias_effect`: ``exp(-(t_j - t_(j-1)) / tau)``, ``a_0 = 0`` (the stationary start)."""
+    return np.concatenate([[0.0], np.exp(-np.diff(t_mid) / tau)])
 
 
 @dataclass(frozen=True)
@@ -843,6 +911,8 @@ class _ImuBlocks:
     F_mid: np.ndarray
     F_rows: np.ndarray
     level: tuple | None
+    unit: np.ndarray  # (B, 3, 3): C_j h n_j, the velocity (attitude) error per unit bias held over the block
+    t_mid: np.ndarray  # (B,): the blocks' mean sample times
 
 
 def _imu_noise_blocks(flight: FlightData, t_rows: np.ndarray, levelling: tuple | None) -> _ImuBlocks | None:
@@ -870,7 +940,9 @@ def _imu_noise_blocks(flight: FlightData, t_rows: np.ndarray, levelling: tuple |
     root = h * np.sqrt(n_eff)[:, None, None]
     F_rows = np.column_stack([np.interp(t_rows, t, F[:, a]) for a in range(3)])
     level = None if levelling is None else _levelling_noise(t, F, block, (nb, used, n_eff), s[:3], levelling)
-    return _ImuBlocks(t_end, Cj * s[:3] * root, Cj * s[3:] * root, F_mid, F_rows, level)
+    t_mid = np.bincount(block, t, nb)[used] / counts[used]
+    return _ImuBlocks(t_end, Cj * s[:3] * root, Cj * s[3:] * root, F_mid, F_rows, level,
+                      Cj * (h * n_eff)[:, None, None], t_mid)
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
@@ -881,7 +953,8 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return out
 
 
-def imu_noise_states(flight: FlightData, t_rows: np.ndarray, levelling: tuple | None = None):
+def imu_noise_states(flight: FlightData, t_rows: np.ndarray, levelling: tuple | None = None,
+                     instability_tau: float | None = None):
     """The noise of :func:`imu_noise_effect` at the epochs `t_rows` as a linear state
     (:class:`casep.noise.known.KnownStates`; the same ``Cov = G G^T``, exactly); None when the flight does not hold
     the IMU's samples.
@@ -904,6 +977,13 @@ def imu_noise_states(flight: FlightData, t_rows: np.ndarray, levelling: tuple | 
 
     (the conditional law of ``xi_j`` given the rest of the sum: exact). ``T_r`` and ``Q_r`` compose the blocks
     ended in ``(t_(r-1), t_r]`` (for r = 0, up to ``t_0``).
+
+    With `instability_tau` the bias instability of :func:`imu_bias_effect` (correlation time `instability_tau`, s)
+    is carried too, its size left free: six more states, the biases ``b_a``, ``b_g`` (body axes) held over block
+    ``j``, which add ``E_j b_j`` (``V += C_j h n_j b_a``, ``Phi += C_j h n_j b_g``, ``Psi += F_j x C_j h n_j b_g``)
+    and then move on, ``b <- a_(j+1) b + w``. Their prior and noise are per unit variance, in the state's
+    ``parts`` (``q_a``: the accelerometers', ``q_g``: the gyros'): :meth:`casep.noise.known.KnownStates.scaled`
+    forms the covariance at given ``(q_a, q_g)``, exactly ``Sigma_white + q_a G_a G_a^T + q_g G_g G_g^T``.
     """
     from casep.noise.known import KnownStates
 
@@ -911,14 +991,15 @@ def imu_noise_states(flight: FlightData, t_rows: np.ndarray, levelling: tuple | 
     if terms is None:
         return None
     B, M = terms.t_end.size, t_rows.size
-    s = 9 if terms.level is None else 15
+    s0 = 9 if terms.level is None else 15
+    s = s0 + (0 if instability_tau is None else 6)
     Lv = np.zeros((B, 3, 3))
     P0 = np.zeros((s, s))
     if terms.level is not None:
         win, Phi, F0 = terms.level
         Lv[np.flatnonzero(win)] = Phi
         Sig = np.cumsum((Lv @ np.swapaxes(Lv, 1, 2))[::-1], axis=0)[::-1]  # Sigma_j: the blocks from j on
-        P0[9:, 9:] = np.tile(Sig[0], (2, 2))
+        P0[9:15, 9:15] = np.tile(Sig[0], (2, 2))
     H = np.zeros((M, 3, s))
     H[:, :, :3] = np.eye(3)
     H[:, :, 3:6] = -_skew(terms.F_rows)
@@ -926,12 +1007,25 @@ def imu_noise_states(flight: FlightData, t_rows: np.ndarray, levelling: tuple | 
     if terms.level is not None:
         H[:, :, 9:12] = _skew(terms.F_rows - F0)
     T, Q = np.tile(np.eye(s), (M, 1, 1)), np.zeros((M, s, s))
+    parts: list[tuple[np.ndarray, np.ndarray]] = []
+    if instability_tau is not None:
+        a_b = np.append(_bias_transitions(terms.t_mid, instability_tau), 0.0)
+        for k in range(2):  # the accelerometers' and the gyros' per unit variance: stationary prior, no noise yet
+            P0_k = np.zeros((s, s))
+            P0_k[s0 + 3 * k:s0 + 3 * k + 3, s0 + 3 * k:s0 + 3 * k + 3] = np.eye(3)
+            parts.append((np.zeros((M, s, s)), P0_k))
     epoch = np.searchsorted(t_rows, terms.t_end, side="left")  # the first epoch at or after the block's end
     for j in range(B):
         r = int(epoch[j])
         if r >= M:
             break
         A, G = np.eye(s), np.zeros((s, 6))
+        if instability_tau is not None:  # the block's bias acts, then moves on to the next block's
+            A[:3, s0:s0 + 3] = terms.unit[j]
+            A[3:6, s0 + 3:] = terms.unit[j]
+            A[6:9, s0 + 3:] = _skew(terms.F_mid[j]) @ terms.unit[j]
+            A[s0:, :] *= 0.0
+            A[s0:, s0:] = a_b[j + 1] * np.eye(6)
         G[3:6, 3:] = terms.gg[j]
         G[6:9, 3:] = _skew(terms.F_mid[j]) @ terms.gg[j]
         if np.any(Lv[j]):
@@ -940,14 +1034,18 @@ def imu_noise_states(flight: FlightData, t_rows: np.ndarray, levelling: tuple | 
             e_cov = np.eye(3) - Lv[j].T @ Si @ Lv[j]
             lam, vec = np.linalg.eigh(0.5 * (e_cov + e_cov.T))
             root = vec * np.sqrt(np.clip(lam, 0.0, None))
-            A[:3, 12:] = terms.ga[j] @ K
-            A[12:, 12:] -= Lv[j] @ K
-            G[:3, :3], G[12:, :3] = terms.ga[j] @ root, -Lv[j] @ root
+            A[:3, 12:15] = terms.ga[j] @ K
+            A[12:15, 12:15] -= Lv[j] @ K
+            G[:3, :3], G[12:15, :3] = terms.ga[j] @ root, -Lv[j] @ root
         else:
             G[:3, :3] = terms.ga[j]
         T[r] = A @ T[r]
         Q[r] = A @ Q[r] @ A.T + G @ G.T
-    return KnownStates(T, Q, H, P0)
+        for k, (Q_k, _) in enumerate(parts):
+            w = np.zeros(s)
+            w[s0 + 3 * k:s0 + 3 * k + 3] = 1.0 - a_b[j + 1] ** 2
+            Q_k[r] = A @ Q_k[r] @ A.T + np.diag(w)
+    return KnownStates(T, Q, H, P0, tuple(parts))
 
 
 def _block_samples(t: np.ndarray, counts: np.ndarray, used: np.ndarray, h: float) -> np.ndarray:

@@ -52,7 +52,13 @@ from casep._kernels import ar1_terms, joint_filter
 from casep.noise.model import AXES, NoiseModel
 
 __all__ = ["KnownStates", "TrackingParameters", "joint_whiten", "restricted_likelihood", "fit_tracking",
-           "tracking_covariance_times"]
+           "tracking_covariance_times", "PART_RANGE"]
+
+#: How far (natural logarithm, down and up) :func:`fit_tracking` moves a part's variance from its start: e^-25 is
+#: 1e-11 of the start (a part that small adds nothing a record tells from none: it is then 0), e^20 4.9e8 of it.
+PART_RANGE = (25.0, 20.0)
+#: The grid per part (over that range, steps of 3.2: a factor 5 in std) whose best point starts the simplex.
+PART_GRID = 15
 
 
 @dataclass(frozen=True)
@@ -65,6 +71,20 @@ class KnownStates:
     Q: np.ndarray
     H: np.ndarray
     P0: np.ndarray
+    #: Terms of unknown size: ``(Q_k (M, s, s), P0_k (s, s))`` per unit of their variance ``q_k``, which
+    #: :meth:`scaled` adds (the IMU's bias instability: :func:`casep.checks.tracking_quality.imu_noise_states`).
+    parts: tuple = ()
+
+    def scaled(self, q) -> "KnownStates":
+        """The known term with its `parts` at the variances `q` (one per part): ``Q + sum q_k Q_k``, ``P0 + sum q_k
+        P0_k`` (the transitions do not depend on them, so the covariance is ``Sigma + sum q_k Sigma_k``, exactly)."""
+        if len(q) != len(self.parts):
+            raise ValueError(f"{len(self.parts)} parts, {len(q)} variances given")
+        Q, P0 = self.Q.copy(), self.P0.copy()
+        for q_k, (Q_k, P0_k) in zip(q, self.parts):
+            Q += q_k * Q_k
+            P0 += q_k * P0_k
+        return KnownStates(self.T, Q, self.H, P0)
 
     def dense(self) -> np.ndarray:
         """``Sigma_known`` (3M, 3M), rows epoch by epoch, x y z: for tests on small cases only."""
@@ -155,7 +175,7 @@ def restricted_likelihood(X: np.ndarray, t: np.ndarray, theta: TrackingParameter
 
 
 def fit_tracking(X: np.ndarray, t: np.ndarray, start: NoiseModel, known: KnownStates, *,
-                 xatol: float = 5e-3, maxfun: int = 600) -> tuple[NoiseModel, float]:
+                 xatol: float = 5e-3, maxfun: int = 600, part_start: tuple = ()) -> tuple[NoiseModel, float]:
     """The tracking noise by REML beside the known term (module notes), the kinds per axis of `start` (a fitted
     model: its parameters start the search; a given tau stays given): ``(model, -2 l_R)``.
 
@@ -163,6 +183,11 @@ def fit_tracking(X: np.ndarray, t: np.ndarray, start: NoiseModel, known: KnownSt
     :func:`casep.noise.fit.tau_search_bounds` of `t`, the interval :func:`casep.noise.fit.fit_noise` searches).
     The model returned has rule ``"REML beside the IMU noise"`` (``"tau given, REML beside ..."``) and the fitted
     ``-2 l_R``.
+
+    A known term with `parts` (:meth:`KnownStates.scaled`) has their variances ``q_k`` free too, ``ln q_k`` from
+    `part_start` (one per part, > 0) within ``[ln q0 - PART_RANGE[0], ln q0 + PART_RANGE[1]]`` (below it the part
+    adds nothing the rows can tell from none: it is then ``q_k = 0``); the model's ``extra["known_scales"]`` holds
+    them.
     """
     from casep.noise.fit import nelder_mead, tau_search_bounds
 
@@ -183,20 +208,37 @@ def fit_tracking(X: np.ndarray, t: np.ndarray, start: NoiseModel, known: KnownSt
     low = np.array([lo if name == "tau" else -700.0 for name, _ in slots])
     high = np.array([hi if name == "tau" else 700.0 for name, _ in slots])
     x0 = np.clip(x0, low, high)
+    n_t = x0.size
+    if len(part_start) != len(known.parts) or any(not (q > 0) for q in part_start):
+        raise ValueError(f"fit_tracking: one positive start per part of the known term ({len(known.parts)}), got "
+                         f"{part_start}")
+    lq = np.log(np.asarray(part_start, dtype=float))
+    x0 = np.concatenate([x0, lq])
+    low = np.concatenate([low, lq - PART_RANGE[0]])
+    high = np.concatenate([high, lq + PART_RANGE[1]])
 
     def theta(x: np.ndarray) -> TrackingParameters:
         v = {"c": list(theta0.c), "tau": list(theta0.tau), "d": list(theta0.d)}
-        for (name, j), value in zip(slots, np.exp(np.clip(x, low, high))):
+        for (name, j), value in zip(slots, np.exp(np.clip(x[:n_t], low[:n_t], high[:n_t]))):
             v[name][j] = float(value)
         return TrackingParameters(tuple(v["c"]), tuple(v["tau"]), tuple(v["d"]))
 
-    def value(x: np.ndarray) -> float:
-        return restricted_likelihood(X, t, theta(x), known)
+    def scales(x: np.ndarray) -> list[float]:
+        xq = np.clip(x[n_t:], low[n_t:], high[n_t:])
+        return [0.0 if v <= lo else float(np.exp(v)) for v, lo in zip(xq, low[n_t:])]
 
-    best = nelder_mead(value, x0, np.full(x0.size, 0.5), xatol, maxfun=maxfun)
+    def value(x: np.ndarray) -> float:
+        return restricted_likelihood(X, t, theta(x), known.scaled(scales(x)) if known.parts else known)
+
+    if known.parts:  # the parts' variances span orders of magnitude: the simplex starts at the best of a grid
+        grid = np.linspace(-PART_RANGE[0], PART_RANGE[1], PART_GRID)
+        cands = np.array(np.meshgrid(*[v + grid for v in lq], indexing="ij")).reshape(len(known.parts), -1).T
+        x0[n_t:] = cands[int(np.argmin([value(np.concatenate([x0[:n_t], c])) for c in cands]))]
+    best = nelder_mead(value, x0, np.full(x0.size, 0.5), xatol, maxfun=maxfun + 200 * len(known.parts))
     val = value(best)
     rule = ("REML" if free_tau else "tau given, REML") + " beside the IMU noise"
-    return theta(best).model(start.kind, rule, neg2_reml=val), val
+    extra = {"neg2_reml": val} if not known.parts else {"neg2_reml": val, "known_scales": scales(best)}
+    return theta(best).model(start.kind, rule, **extra), val
 
 
 def tracking_covariance_times(V: np.ndarray, t: np.ndarray, noise: NoiseModel) -> np.ndarray:

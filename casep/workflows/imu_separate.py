@@ -2340,21 +2340,23 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     N, n = t.size, len(res.names)
     A = estimators if estimators is not None else combination_estimators(np.eye(n), np.ones(n), res, problem)
     assert A is not None  # (n, 3N), the coefficients' estimators: times and a noise model checked above
-    AG = imu_noise_effect(flight, t, A, levelling)
+    refit = _tracking_beside_imu(problem, flight, noise, levelling)
+    instability = _instability(refit, flight)
+    AG = imu_noise_effect(flight, t, A, levelling, None if instability is None else instability[:3])
     if AG is None:
         return None
     AG = with_heading(AG, A, heading)
     C_imu = AG @ AG.T
-    refit = _tracking_beside_imu(problem, flight, noise, levelling)
     if refit is None:
-        return None, C_imu, _imu_account(res, measured, np.asarray(res.covariance), C_imu, refit, at_rest, unresolved)
+        return None, C_imu, _imu_account(res, measured, np.asarray(res.covariance), C_imu, refit, at_rest, unresolved,
+                                         flight)
     from casep.noise.known import tracking_covariance_times
 
     C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
     if profile is None:
-        return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, at_rest, unresolved)
+        return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, at_rest, unresolved, flight)
     spread = tau_spread(A, problem, profile)
-    account = _imu_account(res, measured, C_trk + spread, C_imu, refit, at_rest, unresolved)
+    account = _imu_account(res, measured, C_trk + spread, C_imu, refit, at_rest, unresolved, flight)
     account["tau_profile"] = _tau_record(res, t, profile, C_trk + C_imu, spread)
     return C_trk + spread, C_imu, account
 
@@ -2393,7 +2395,9 @@ def estimator_noise(a: np.ndarray, res: EstimateResult, problem: Any, flight: Fl
     nd = res.diagnostics["noise"]
     t = np.asarray(problem.t, dtype=float)
     N, m = t.size, a.shape[0]
-    AG = imu_noise_effect(flight, t, a, levelling)
+    held = (nd.get("imu") or {}).get("instability")
+    AG = imu_noise_effect(flight, t, a, levelling, None if not held or held.get("variances") is None else
+                          (held["tau_s"], *held["variances"]))
     if AG is None:
         return None
     AG = with_heading(AG, a, heading)
@@ -2956,24 +2960,85 @@ def warn_tau_unbounded(source: Any, record: dict) -> None:
 
 def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling: tuple | None) -> Any:
     """The tracking noise model fitted again by REML with the IMU's noise a known term
-    (:func:`casep.noise.known.fit_tracking`); None when the fit's model has no fitted sigma (white noise)."""
-    from casep.checks.tracking_quality import imu_noise_states
+    (:func:`casep.noise.known.fit_tracking`); None when the fit's model has no fitted sigma (white noise).
+
+    With the flight's ``meta[IMU_INSTABILITY_TAU]`` (:data:`casep.checks.tracking_quality.IMU_INSTABILITY_TAU`) the
+    IMU's bias instability of that correlation time is a term of the known noise whose two variances (the
+    accelerometers', the gyros') the same REML fits beside the tracking noise (:func:`_instability` reads them):
+    started at the white noise's variance averaged over the correlation time, ``s^2 h / tau`` (the sensor's mean over
+    its axes)."""
+    from casep.checks.tracking_quality import imu_noise_states, imu_sample_noise
     from casep.noise.fit import Reml, estimable_basis
     from casep.noise.known import fit_tracking
 
     if noise.sigma is None or not np.isfinite(noise.sigma) or problem.y is None:
         return None
-    known = imu_noise_states(flight, np.asarray(problem.t, dtype=float), levelling)
+    t = np.asarray(problem.t, dtype=float)
+    tau = instability_tau(flight)
+    known = imu_noise_states(flight, t, levelling, tau)
     if known is None:
         return None
+    start: tuple = ()
+    if tau is not None:
+        measured = imu_sample_noise(flight, t)
+        assert measured is not None  # the states above need the IMU's samples
+        s, h, _ = measured
+        start = tuple(max(float(np.mean(s[k:k + 3] ** 2)) * h / tau, 1e-30) for k in (0, 3))
     X = np.stack(Reml(problem, estimable_basis(problem)).Z, axis=1)  # (N, 3, p + 1): [Z dv] per axis
-    return fit_tracking(X, np.asarray(problem.t, dtype=float), noise, known)[0]
+    return fit_tracking(X, t, noise, known, part_start=start)[0]
+
+
+def instability_tau(flight: FlightData) -> float | None:
+    """The correlation time (s) of the IMU's bias instability the flight asks for
+    (``meta[IMU_INSTABILITY_TAU]``, :data:`casep.checks.tracking_quality.IMU_INSTABILITY_TAU`), None: white IMU
+    noise only; a value that is not a finite positive time is an error naming it."""
+    from casep.checks.tracking_quality import IMU_INSTABILITY_TAU
+
+    tau = flight.meta.get(IMU_INSTABILITY_TAU) if isinstance(flight.meta, dict) else None
+    if tau is None:
+        return None
+    if not (isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0):
+        raise ValueError(f"the IMU's bias instability needs a correlation time > 0 s, got {tau!r}")
+    return float(tau)
+
+
+def _instability(refit: Any, flight: FlightData) -> tuple[float, float, float, bool] | None:
+    """``(tau, q_a, q_g, fitted)`` of the IMU's bias instability the flight asks for (:func:`instability_tau`): the
+    variances the refit beside the IMU's noise fitted (:func:`_tracking_beside_imu`); None when not asked for, or
+    when no refit was made (a white tracking noise model: nothing fitted them; the account says so)."""
+    tau = instability_tau(flight)
+    if tau is None or refit is None or "known_scales" not in refit.extra:
+        return None
+    q_a, q_g = refit.extra["known_scales"]
+    return tau, float(q_a), float(q_g), True
+
+
+def _instability_record(refit: Any, flight: FlightData) -> dict | None:
+    """The noise account's ``instability``: the IMU's bias instability asked for (None when not), its correlation
+    time and the fitted sizes in natural units (mg, deg/h; per body axis, the stationary std)."""
+    from casep.units import G0
+
+    tau = instability_tau(flight)
+    if tau is None:
+        return None
+    got = _instability(refit, flight)
+    out: dict = {"tau_s": tau, "variances": None if got is None else [got[1], got[2]],
+                 "rule": "a first-order Gauss-Markov bias per body axis of the accelerometers and the gyros, "
+                         "correlation time given, its two variances fitted by the restricted likelihood beside the "
+                         "tracking noise (casep.checks.tracking_quality.imu_bias_effect)"}
+    if got is None:
+        out["note"] = "not fitted: the tracking noise model is white (the solver's sigma); the term is left out"
+        return out
+    out["accelerometer_mg"] = math.sqrt(got[1]) / G0 * 1e3
+    out["gyro_deg_h"] = math.degrees(math.sqrt(got[2])) * 3600.0
+    return out
 
 
 def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu: np.ndarray, refit: Any,
-                 at_rest: bool = False, unresolved: tuple = ()) -> dict:
+                 at_rest: bool = False, unresolved: tuple = (), flight: FlightData | None = None) -> dict:
     """What :func:`imu_noise_budget` used and found, for the result's noise record (`unresolved`: the columns whose
-    noise the record does not show, :func:`casep.checks.tracking_quality.unresolved_noise`: not measured)."""
+    noise the record does not show, :func:`casep.checks.tracking_quality.unresolved_noise`: not measured; `flight`:
+    the record whose low-frequency IMU noise, when requested, is said)."""
     s, h, _ = measured
     C_fit = np.asarray(res.covariance)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -2996,6 +3061,7 @@ def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu:
             "std_tracking_noise_only": {nm: (float(v) if np.isfinite(v) else None)
                                         for nm, v in zip(res.names, np.sqrt(np.diag(C_fit)))},
             "tracking_noise": None if refit is None else refit.to_dict(),
+            "instability": None if flight is None else _instability_record(refit, flight),
             "rule": "the velocity and attitude random walks (and, with the pad window, the levelling's start tilt) "
                     "carried to the estimate exactly; the estimate is the fit's; " + how}
 

@@ -162,8 +162,8 @@ def _navigate_window(imu, trk: _Tracking, t_a: float, t_b: float, C_eb: np.ndarr
 
 
 def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fit_options: dict,
-                  imu_noise: np.ndarray | None = None):
-    from casep.checks.tracking_quality import IMU_NOISE_AT_REST
+                  imu_noise: np.ndarray | None = None, instability_tau: float | None = None):
+    from casep.checks.tracking_quality import IMU_INSTABILITY_TAU, IMU_NOISE_AT_REST
     from casep.io.files import read_flight_pair, write_table
     from casep.workflows.separate import separate
 
@@ -173,6 +173,8 @@ def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fi
     flight = read_flight_pair(tel, trk.path, tracking_frame="geodetic", site=site)
     if imu_noise is not None:
         flight.meta[IMU_NOISE_AT_REST] = imu_noise
+    if instability_tau is not None:
+        flight.meta[IMU_INSTABILITY_TAU] = instability_tau
     return flight, separate(flight, model, **fit_options)
 
 
@@ -192,7 +194,8 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
                      length: float = 30.0, start: float | None = None, model: str = "strapdown6_window",
                      attitude_passes: int = 3, gyro_bias_from_pad: bool = True, imu_noise_from_pad: bool = True,
                      fit_options: dict | None = None, consider: str | None = None,
-                     consider_terms: Sequence[str] | None = None) -> WindowsResult:
+                     consider_terms: Sequence[str] | None = None,
+                     imu_instability_tau: float | None = None) -> WindowsResult:
     """Align on the pad, cut the rest of `imu` into windows of `length` s and separate each (module docstring).
 
     Parameters
@@ -232,6 +235,11 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
         window's last navigation, for ``window_consistency(..., consider=(gains, P_c))``.
     consider_terms : sequence of str, optional
         The left-out terms (names of the `consider` model).
+    imu_instability_tau : float, optional
+        The correlation time (s) of a bias instability of the IMU in each window's std beside its white noise
+        (:func:`casep.checks.tracking_quality.imu_bias_effect`): its size per sensor fitted on each window by the
+        restricted likelihood beside the tracking noise (``diagnostics["noise"]["imu"]["instability"]``, mg and
+        deg/h). Default: white IMU noise only.
 
     Returns
     -------
@@ -280,7 +288,8 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
                 course = math.degrees(psi)
             for passes in range(1, attitude_passes + 1):
                 site_k, nav = _navigate_window(imu, trk, t_a, t_b, C_eb)
-                flight, res = _separate_nav(nav, site_k, trk, model, workdir, dict(fit_options or {}), imu_noise)
+                flight, res = _separate_nav(nav, site_k, trk, model, workdir, dict(fit_options or {}), imu_noise,
+                                            imu_instability_tau)
                 est = dict(zip(res.names, res.estimate))
                 phi0 = base.numeric("phi0") @ np.array([est[n] for n in base.names])
                 if np.linalg.norm(phi0) <= PHI0_LINEAR_RAD or passes == attitude_passes:

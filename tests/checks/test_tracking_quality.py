@@ -403,6 +403,58 @@ def test_the_imu_noise_state_is_the_imu_noise_effect(levelled):
     np.testing.assert_allclose(known.dense(), G @ G.T, rtol=0, atol=1e-12 * np.abs(G @ G.T).max())
 
 
+@pytest.mark.parametrize("levelled", [False, True])
+def test_the_imu_bias_instability_state_is_its_effect(levelled):
+    """The bias instability's six states (:func:`imu_noise_states` with a correlation time, scaled to ``(q_a, q_g)``)
+    have the covariance ``G G^T`` of :func:`imu_noise_effect` with the instability's columns, to 1e-11, with and
+    without the levelling's states beside them; the parts add linearly (twice ``q``: twice the instability's
+    covariance)."""
+    from casep.checks.tracking_quality import imu_noise_effect, imu_noise_states
+
+    rng = np.random.default_rng(3)
+    flight = _turning_record(rng)
+    rows = np.array([0.5, 1.0, 1.3, 1.7, 2.0, 3.1, 3.3, 4.0, 5.5])
+    L = 0.01 * rng.normal(size=(3, 3))
+    L[:, 2] = 0.0
+    levelling = ((0.0, 2.0), L) if levelled else None
+    q = (4e-4, 3e-6)  # (m/s^2)^2, (rad/s)^2: of the white noise's size over a block
+    known = imu_noise_states(flight, rows, levelling, instability_tau=2.5)
+    assert known.T.shape[1] == (21 if levelled else 15) and len(known.parts) == 2
+    for k in (1.0, 2.0):
+        G = imu_noise_effect(flight, rows, np.eye(3 * rows.size), levelling, (2.5, k * q[0], k * q[1]))
+        np.testing.assert_allclose(known.scaled([k * q[0], k * q[1]]).dense(), G @ G.T, rtol=0,
+                                   atol=1e-11 * np.abs(G @ G.T).max())
+    white = imu_noise_effect(flight, rows, np.eye(3 * rows.size), levelling)
+    np.testing.assert_allclose(known.scaled([0.0, 0.0]).dense(), white @ white.T, rtol=0,
+                               atol=1e-12 * np.abs(white @ white.T).max())
+
+
+def test_the_imu_bias_effect_is_a_gauss_markov_bias_summed_by_definition():
+    """:func:`imu_bias_effect` against its definition formed densely: the blocks' biases with ``Cov(b_j, b_l) = q
+    exp(-|t_j - t_l| / tau)`` (block mean times), each acting at the epochs after its block as ``C_j h n_j b_a`` and
+    ``-(F_r - F_j) x C_j h n_j b_g``: ``E Cov_b E^T`` to 1e-10, at a correlation time of a block and of a record."""
+    from casep.checks.tracking_quality import _imu_noise_blocks, imu_bias_effect
+
+    rng = np.random.default_rng(8)
+    flight = _turning_record(rng)
+    rows = np.array([0.3, 1.3, 2.0, 3.3, 4.0, 5.5])
+    terms = _imu_noise_blocks(flight, rows, None)
+    B = terms.t_end.size
+    for tau in (0.2, 6.0):
+        E = np.zeros((3 * rows.size, B, 6))  # per unit bias of each block and axis
+        for r, tr in enumerate(rows):
+            after = np.flatnonzero(terms.t_end <= tr)
+            dF = terms.F_rows[r] - terms.F_mid[after]
+            E[3 * r:3 * r + 3, after, :3] = np.moveaxis(terms.unit[after], 0, 1)
+            E[3 * r:3 * r + 3, after, 3:] = -np.moveaxis(np.cross(dF[:, :, None], terms.unit[after], axisa=1,
+                                                                  axisb=1, axisc=1), 0, 1)
+        corr = np.exp(-np.abs(np.subtract.outer(terms.t_mid, terms.t_mid)) / tau)
+        for k, sl in enumerate((slice(0, 3), slice(3, 6))):
+            want = np.einsum("ibx,bc,jcx->ij", E[:, :, sl], corr, E[:, :, sl])
+            G = imu_bias_effect(flight, rows, np.eye(3 * rows.size), tau)[k]
+            np.testing.assert_allclose(G @ G.T, want, rtol=0, atol=1e-10 * np.abs(want).max())
+
+
 def test_the_imu_noise_effect_sums_each_epoch_once_in_any_order():
     """``weights @ G`` by the suffix sums of :func:`imu_noise_effect` against its definition summed epoch by epoch
     (each block's columns at every epoch after it: ``ga`` and ``-(F_r - F_mid) x gg``), the epochs out of time order,
