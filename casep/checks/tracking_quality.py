@@ -60,6 +60,7 @@ import numpy as np
 from casep._kernels import ar1_long_run_factor
 from casep.checks.time_offset import kinematic_acceleration
 from casep.exceptions import TrackingQualityWarning
+from casep.io.files import ONE_FILE_TELEMETRY
 from casep.io.flight import FlightData
 from casep.io.pair import HELD_RUN_SHARE, HELD_SHARE, JUMP_RATE, STALE_MOTION, stale_epochs
 from casep.noise.robust import MAD_SIGMA, MIN_SEGMENT_S, stretches
@@ -204,7 +205,7 @@ def _screened(meta: dict) -> bool:
         return False
     if meta.get("format") == "pair":
         return meta.get("rows_side") == "tracking" and "rows_index" in meta
-    return meta.get("dv") == "v_tel - v_trk" and "tracking_repeats" in meta
+    return meta.get("dv") == ONE_FILE_TELEMETRY and "tracking_repeats" in meta
 
 
 def _file_rows(flight: FlightData) -> np.ndarray:
@@ -695,14 +696,25 @@ def noise_problem(flight: FlightData) -> str | None:
 def imu_sample_noise(flight: FlightData, t_rows: np.ndarray) -> tuple[np.ndarray, float, np.ndarray] | None:
     """The IMU's white noise as :func:`imu_noise_effect` measures it: ``(s, h, samples)``, ``s`` (6,) the per-sample
     std of ``fb_x, fb_y, fb_z`` (m/s^2) and ``w_x, w_y, w_z`` (rad/s), ``h`` the sample step (s), ``samples`` the
-    telemetry's own samples up to the last epoch of `t_rows`; None when the flight does not hold them."""
+    telemetry's own samples up to the last epoch of `t_rows`; None when the flight does not hold them.
+
+    A flight holds them when its velocity is a navigated telemetry's, ``v_tel``, integrated from its ``q, fb, w``
+    (so it carries their noise): a telemetry paired with a tracking file (:func:`casep.io.pair.pair_flight`), or one
+    file with ``v_tel_*`` and ``v_trk_*`` (:func:`casep.io.files.read_flight`: every row a telemetry sample). Not a
+    file of ``dv_*`` (or a simulated flight): nothing says its dv was integrated from the samples beside it (a
+    simulation's is the linear model's, its samples without noise)."""
     sig = flight.signals
-    index = flight.meta.get("rows_index") if isinstance(flight.meta, dict) else None
-    if index is None or not all(c in sig for c in ("q_w", "q_x", "q_y", "q_z", "fb_x", "w_x")) or t_rows.size == 0:
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    if not all(c in sig for c in ("q_w", "q_x", "q_y", "q_z", "fb_x", "w_x")) or t_rows.size == 0:
         return None
-    # the telemetry's own samples, a tracking epoch on one of them included (its columns are the file's); the tracking
-    # epochs inserted between them, their columns interpolated, left out
-    own = np.array(flight.meta.get("telemetry_samples", np.asarray(index) < 0), dtype=bool)
+    if "rows_index" in meta:
+        # the telemetry's own samples, a tracking epoch on one of them included (its columns are the file's); the
+        # tracking epochs inserted between them, their columns interpolated, left out
+        own = np.array(meta.get("telemetry_samples", np.asarray(meta["rows_index"]) < 0), dtype=bool)
+    elif meta.get("dv") == ONE_FILE_TELEMETRY and meta.get("format") != "pair":
+        own = np.ones(flight.t.size, dtype=bool)  # one file: its rows are the telemetry's samples
+    else:
+        return None
     if "ins_valid" in sig:
         own &= np.asarray(sig["ins_valid"]) > 0
     own &= flight.t <= t_rows[-1]

@@ -44,7 +44,7 @@ from casep.regression.rows import Rows, prepare_rows
 # Rows and prepare_rows live in casep.regression.rows (the data's), re-exported here beside solve_problem
 __all__ = ["fit", "fit_flights", "joint_rows", "JointRows", "flight_sigmas", "rows_for", "solve_problem",
            "solve_spec", "noise_account", "prepare_rows", "Rows", "Solved", "hac_covariance", "with_hac",
-           "richer_noise_factor", "STD_CHOICES"]
+           "richer_noise_factor", "STD_CHOICES", "kept_samples"]
 
 
 @dataclass
@@ -234,7 +234,9 @@ def noise_account(rows: Rows | None, asked: str, noise: NoiseModel | None = None
     ``noise``: the noise model (`noise`, default the rows') with the kind `asked` (and a `note`);
     ``robust``: what the robust fit did with the samples it rejected, located in their files;
     ``excluded``: the samples removed as flagged outliers, located; ``misfit_runs``: the runs of rejections that kept
-    robust "auto" off (:attr:`casep.regression.rows.Rows.misfit_runs`). The last three only when they apply.
+    robust "auto" off (:attr:`casep.regression.rows.Rows.misfit_runs`); ``removed_samples``: every sample the fit left
+    out (a robust fit's rejections and the excluded outliers; ``robust["rejected"]`` locates the first 200 only), read
+    back by :func:`kept_samples`. The last four only when they apply.
     """
     if noise is None:
         assert rows is not None  # the rows' own noise model
@@ -250,7 +252,17 @@ def noise_account(rows: Rows | None, asked: str, noise: NoiseModel | None = None
         ex = rows.excluded
         locs = _places(rows.problem, [r["sample"] for r in ex["samples"]])
         out["excluded"] = {**ex, "samples": [{**r, **loc} for r, loc in zip(ex["samples"], locs)]}
+    if not rows.keep.all():
+        out["removed_samples"] = [int(k) for k in np.flatnonzero(~rows.keep)]
     return out
+
+
+def kept_samples(diagnostics: Mapping[str, Any], n_samples: int) -> np.ndarray:
+    """The samples (N,) bool a fit kept, from its result's diagnostics (:func:`noise_account`'s ``removed_samples``):
+    what its noise model was fitted on and its method solved; all of them when the fit removed none."""
+    keep = np.ones(n_samples, dtype=bool)
+    keep[np.asarray(diagnostics.get("removed_samples") or [], dtype=int)] = False
+    return keep
 
 
 def _finish(rows: Rows, res: EstimateResult, check_white: bool) -> EstimateResult:

@@ -75,8 +75,12 @@ __all__ = [
     "simulated_comment",
     "levelling_record",
     "read_json_table", "read_flight", "read_flight_pair", "write_flight", "write_table", "apparent_velocity_to_force",
-    "acceleration_signals",
+    "acceleration_signals", "ONE_FILE_TELEMETRY",
 ]
+
+#: ``meta["dv"]`` of a one-file flight whose dv is its navigated telemetry's velocity less its tracking's
+#: (:func:`read_flight` of ``v_tel_*`` with ``v_trk_*``; a pair's says at which times it was formed).
+ONE_FILE_TELEMETRY = "v_tel - v_trk"
 
 
 R_TEL_COLUMNS = ("r_tel_x", "r_tel_y", "r_tel_z")  # launch-inertial position (casep navigate's output), m
@@ -249,7 +253,7 @@ def read_flight(path: str | os.PathLike) -> FlightData:
         v_tel = tab.vectors(VTEL_COLUMNS)
         # the same rule for v_trk (an INS log at 50 Hz with its 10 Hz GNSS fixes): three empty cells, untracked
         untracked = tab.all_missing(VTRK_COLUMNS)
-        dv, dv_from = v_tel - tab.vectors(VTRK_COLUMNS, skip=untracked), "v_tel - v_trk"
+        dv, dv_from = v_tel - tab.vectors(VTRK_COLUMNS, skip=untracked), ONE_FILE_TELEMETRY
         observed = ~untracked
     meta: dict[str, Any] = {"format": "parquet" if is_parquet(tab.path) else "csv", "force": force_from, "dv": dv_from,
             "rows_file": str(tab.path)}  # sample k is data row k + 1 (locate_samples)

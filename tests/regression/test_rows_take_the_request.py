@@ -90,3 +90,24 @@ def test_spikes_on_noise_free_rows_are_exactly_the_glitches(robust):
     assert sorted(np.flatnonzero(~rows.keep)) == sorted(spikes)
     x, _ = rows_module._ls(rows.solved)
     np.testing.assert_allclose(x, x_true, rtol=0, atol=1e-9)
+
+
+def test_a_fit_says_every_sample_it_removed():
+    """The result of a robust fit names every sample it left out (``removed_samples``, not only the 200 it locates),
+    and :func:`casep.estimators.solve.kept_samples` reads them back; a fit that removed none says none."""
+    from casep.estimators.solve import fit, kept_samples
+    from casep.estimators.spec import FitSpec
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 120.0, 0.1)
+    S = rng.normal(size=(t.size, 3, 4))
+    y = S @ np.array([1.0, -2.0, 0.5, 3.0]) + 0.01 * rng.normal(size=(t.size, 3))
+    spikes = np.sort(rng.choice(np.arange(20, t.size - 20), 210, replace=False))
+    clean = Problem.from_arrays(S, y.copy(), t)
+    y[spikes, rng.integers(3, size=spikes.size)] += 5.0
+    spec = FitSpec.build("ols", noise="white", robust="huber")
+    res = fit(Problem.from_arrays(S, y, t), spec, checks=False)
+    assert res.diagnostics["removed_samples"] == spikes.tolist() and len(res.diagnostics["robust"]["rejected"]) == 200
+    assert np.array_equal(kept_samples(res.diagnostics, t.size), ~np.isin(np.arange(t.size), spikes))
+    plain = fit(clean, FitSpec.build("ols", noise="white", robust="none"), checks=False)
+    assert "removed_samples" not in plain.diagnostics and kept_samples(plain.diagnostics, t.size).all()
