@@ -71,7 +71,8 @@ if TYPE_CHECKING:
 
 __all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "keep_screen", "clock_drift", "clock_drift_unmeasured",
            "fit_clock_drift", "clock_drift_record",
-           "offset_halves", "halves_line", "drift_determined", "stretches", "stretch_noise", "noise_problem",
+           "offset_halves", "halves_line", "telemetry_clock_line",
+           "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
            "imu_noise_effect", "imu_sample_noise", "white_sample_std",
            "rest_white_std", "IMU_NOISE_AT_REST", "STALE_MOTION", "HELD_SHARE", "HELD_RUN_SHARE", "JUMP_TOL",
@@ -515,6 +516,17 @@ def halves_line(h: dict) -> str:
     ms = bound * (h["t_second_s"] - h["t_first_s"]) * 1e-3
     return (text + f"; not determined: a drift up to {bound:.3g} ppm ({ms:.2g} ms between those times) would be "
             "taken into the one dt_trk unseen (a drift known otherwise: --clock-drift PPM)")
+
+
+def telemetry_clock_line(record: dict) -> str:
+    """The report's line of :func:`casep.workflows.telemetry_clock.telemetry_clock_record`'s `record`."""
+    given = f"--clock-drift {record['given_ppm']:g} given" if record["given_ppm"] else "no clock drift given"
+    text = (f"telemetry clock drift ({given}; estimated beside the coefficients, tags and integration steps): "
+            f"{record['ppm']:.4g} +- {record['std_ppm']:.2g} ppm")
+    if record["determined"]:
+        return text + " (beyond the clock-drift rule: the clocks run at different rates)"
+    return (text + f"; not determined: a drift of up to {record['unseen_ppm']:.3g} ppm beyond the one given would be "
+            "taken into the coefficients unseen (a drift known otherwise: --clock-drift PPM)")
 
 
 def _warn_drift(source: str, drift_ppm: float, drift_std_ppm: float, of: str) -> bool:

@@ -67,6 +67,7 @@ from casep.io.pair import (
     tracking_velocity,
     with_tracked_state,
 )
+from casep.io.strapdown import STRAPDOWN_COLUMNS, clock_stretch
 from casep.io.tables import VTEL_COLUMNS, VTRK_COLUMNS, Table, apparent_velocity_to_force, table_force
 
 __all__ = [
@@ -441,10 +442,15 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     if inside.sum() < 2:
         raise tel.error(no_overlap_message(t_tel, t_raw, shift_scale), "t")
     repeats = repeated_rows(trk, tracking_frame)
-    shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset, repeats)
-    extra: dict[str, Any] = {"time_alignment": alignment, "tracking_repeats": repeats}
     signals = tel.signals()
-    tel.strapdown_signals(signals, extra)
+    strapdown: dict[str, Any] = {}
+    tel.strapdown_signals(signals, strapdown)
+    stretched = drift and all(c in signals for c in STRAPDOWN_COLUMNS)
+    if stretched:  # the INS integrated over its clock's steps: the given drift out of its velocity as well
+        v_tel = v_tel + drift * 1e-6 * clock_stretch(t_tel, *(np.column_stack([signals[c] for c in cols]) for cols in (
+            STRAPDOWN_COLUMNS[:4], STRAPDOWN_COLUMNS[4:7], STRAPDOWN_COLUMNS[7:10])), v_tel)
+    shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset, repeats)
+    extra: dict[str, Any] = {"time_alignment": alignment, "tracking_repeats": repeats, **strapdown}
     if not all(f"a_{a}" in signals for a in "xyz"):
         signals.update(acceleration_signals(t_tel, v_tel))
         extra["kinematic_acceleration"] = "a_x, a_y, a_z: d v_tel / dt (cubic spline of the telemetry velocity)"
@@ -464,6 +470,8 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
         flight.meta["time_shift_s"] = shift_scale
     if drift:
         flight.meta["clock_drift_ppm"] = drift
+        if stretched:
+            flight.meta["clock_drift_of"] = "telemetry"
     if r_ecef is not None and v_ecef is not None:  # Earth-fixed tracking; the late-start check: speed relative
         # to the pad, not the Earth's rotation
         from casep.io.setup import setup_evidence
