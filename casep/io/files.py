@@ -447,8 +447,9 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     tel.strapdown_signals(signals, strapdown)
     stretched = drift and all(c in signals for c in STRAPDOWN_COLUMNS)
     if stretched:  # the INS integrated over its clock's steps: the given drift out of its velocity as well
-        v_tel = v_tel + drift * 1e-6 * clock_stretch(t_tel, *(np.column_stack([signals[c] for c in cols]) for cols in (
-            STRAPDOWN_COLUMNS[:4], STRAPDOWN_COLUMNS[4:7], STRAPDOWN_COLUMNS[7:10])), v_tel)
+        q, fb, w = (np.column_stack([signals[c] for c in cols])
+                    for cols in (STRAPDOWN_COLUMNS[:4], STRAPDOWN_COLUMNS[4:7], STRAPDOWN_COLUMNS[7:10]))
+        v_tel = v_tel + drift * 1e-6 * clock_stretch(t_tel, q, fb, w, v_tel)
     shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset, repeats)
     extra: dict[str, Any] = {"time_alignment": alignment, "tracking_repeats": repeats, **strapdown}
     if not all(f"a_{a}" in signals for a in "xyz"):
