@@ -48,6 +48,7 @@ from typing import Any
 
 import numpy as np
 
+from casep.gravity import launch_gravitation
 from casep.io._atomic import atomic_open
 from casep.io.flight import DV_COLUMNS, FORCE_COLUMNS, FlightData
 from casep.io.locate import is_parquet
@@ -449,7 +450,11 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     if stretched:  # the INS integrated over its clock's steps: the given drift out of its velocity as well
         q, fb, w = (np.column_stack([signals[c] for c in cols])
                     for cols in (STRAPDOWN_COLUMNS[:4], STRAPDOWN_COLUMNS[4:7], STRAPDOWN_COLUMNS[7:10]))
-        v_tel = v_tel + drift * 1e-6 * clock_stretch(t_tel, q, fb, w, v_tel)
+        gsite = navigation_site(tel) or site  # the INS's gravitation through its position error, where known
+        r_ins = tel.vectors(R_TEL_COLUMNS) if gsite is not None and all(c in tel.columns for c in R_TEL_COLUMNS) \
+            else None
+        v_tel = v_tel + drift * 1e-6 * clock_stretch(t_tel, q, fb, w, v_tel, r_ins,
+                                                     None if r_ins is None else launch_gravitation(gsite))
     shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset, repeats)
     extra: dict[str, Any] = {"time_alignment": alignment, "tracking_repeats": repeats, **strapdown}
     if not all(f"a_{a}" in signals for a in "xyz"):

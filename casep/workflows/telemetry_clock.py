@@ -42,7 +42,9 @@ def drift_column(flight: FlightData, t: np.ndarray) -> np.ndarray | None:
     """The rows' change (N, 3), m/s per ppm of the drift ``eps`` (module notes), at the times `t` (s, the problem's
     rows) of a strapdown telemetry pair; None where the flight is not one (no ``pair_inputs`` with the strapdown
     signals, no kinematic acceleration)."""
+    from casep.io.files import R_TEL_COLUMNS
     from casep.io.strapdown import clock_stretch
+    from casep.workflows.telemetry_iterate import telemetry_gravitation
 
     meta = flight.meta if isinstance(flight.meta, dict) else {}
     inp = meta.get("pair_inputs")
@@ -53,8 +55,12 @@ def drift_column(flight: FlightData, t: np.ndarray) -> np.ndarray | None:
         return None
     sig = inp.signals
     t_tel = np.asarray(inp.t_tel, dtype=float)
+    gravitation = telemetry_gravitation(flight)
+    r = np.column_stack([np.asarray(sig[c], dtype=float) for c in R_TEL_COLUMNS]) \
+        if gravitation is not None and all(c in sig for c in R_TEL_COLUMNS) else None
     E = clock_stretch(t_tel, np.column_stack([sig[c] for c in cols[:4]]), np.column_stack([sig[c] for c in cols[4:7]]),
-                      np.column_stack([sig[c] for c in cols[7:]]), np.asarray(inp.v_tel, dtype=float))
+                      np.column_stack([sig[c] for c in cols[7:]]), np.asarray(inp.v_tel, dtype=float), r,
+                      None if r is None else gravitation)
     t = np.asarray(t, dtype=float)
     rows = np.searchsorted(flight.t, t)
     if np.any(rows >= flight.t.size) or not np.allclose(flight.t[np.minimum(rows, flight.t.size - 1)], t):
@@ -93,9 +99,10 @@ def telemetry_clock_record(res: EstimateResult, flight: FlightData, problem: Any
 
 
 def _sign_named(record: dict) -> bool:
-    """The drift the data point to is the given one's opposite, within the rule's 4 std."""
+    """The drift the data point to (which contradict the given one: the rule) is the given one's opposite, within the
+    rule's 4 std."""
     g = record["given_ppm"]
-    return g != 0.0 and abs(record["ppm"] + g) <= 4.0 * record["std_ppm"] < abs(g)
+    return g != 0.0 and abs(record["ppm"] + g) <= 4.0 * record["std_ppm"]
 
 
 def judge_telemetry_clock(res: EstimateResult, flight: FlightData, problem: Any) -> EstimateResult | None:
