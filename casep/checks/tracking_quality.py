@@ -519,14 +519,18 @@ def halves_line(h: dict) -> str:
 
 
 def telemetry_clock_line(record: dict) -> str:
-    """The report's line of :func:`casep.workflows.telemetry_clock.telemetry_clock_record`'s `record`."""
+    """The report's line of :func:`casep.workflows.telemetry_clock.telemetry_clock_record`'s `record`: the drift, and
+    either that it is beyond the rule or the drifts the data allow (2 std) and where the rule would warn."""
     given = f"--clock-drift {record['given_ppm']:g} given" if record["given_ppm"] else "no clock drift given"
     text = (f"telemetry clock drift ({given}; estimated beside the coefficients, tags and integration steps): "
             f"{record['ppm']:.4g} +- {record['std_ppm']:.2g} ppm")
     if record["determined"]:
         return text + " (beyond the clock-drift rule: the clocks run at different rates)"
-    return (text + f"; not determined: a drift of up to {record['unseen_ppm']:.3g} ppm beyond the one given would be "
-            "taken into the coefficients unseen (a drift known otherwise: --clock-drift PPM)")
+    b, sd = record["beyond_given_ppm"], record["std_ppm"]
+    rule = max(DRIFT_MIN_PPM, 4.0 * sd)
+    return (text + f"; not determined: the data allow {b - 2 * sd:.3g} to {b + 2 * sd:.3g} ppm beyond the one given "
+            f"(2 std), which the coefficients would take in unseen; the test warns only beyond {rule:.3g} ppm "
+            f"({DRIFT_MIN_PPM:g} ppm and 4 std) (a drift known otherwise: --clock-drift PPM)")
 
 
 def _warn_drift(source: str, drift_ppm: float, drift_std_ppm: float, of: str) -> bool:

@@ -397,8 +397,12 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     clock_drift : float, optional
         How the clocks' rates differ, ppm: the tracking time tags late by ``clock_drift 1e-6 t`` more at
         telemetry time ``t`` (``T - time_shift = t (1 + clock_drift 1e-6)``, :func:`casep.io.pair.telemetry_time`;
-        the drift the clock-drift checks measure, same sign), taken out of the tags before the pair is formed.
-        Default 0 (one rate; the fit's ``dt_trk`` takes a constant offset, not a drift).
+        the drift the clock-drift checks measure, same sign: negative when the telemetry clock runs fast), taken
+        out of the tags before the pair is formed. A strapdown telemetry (``q_*``, ``fb_*``, ``w_*``) was
+        integrated by its INS over its clock's steps: the drift is taken out of its velocity too, ``v_tel + eps E``
+        (:func:`casep.io.strapdown.clock_stretch`, with the gravitation where the telemetry's header or `site`
+        gives the launch site; ``meta["clock_drift_of"]`` ``"telemetry"``). Default 0 (one rate; the fit's
+        ``dt_trk`` takes a constant offset, not a drift).
 
     Returns
     -------
