@@ -96,13 +96,10 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
         offset_halves,
     )
     from casep.estimators.registry import STATUS_TRACKING, failed
-    from casep.workflows.telemetry_clock import judge_telemetry_clock
 
-    clocked = judge_telemetry_clock(res, flight, problem) if problem.y is not None and tag_clock else None
-    if clocked is not None:  # a strapdown telemetry: its clock's drift with its exact effect, tags and steps
-        res = clocked
-    elif problem.y is not None and tag_clock:  # the clock drift, on the residuals: the raw dv's instrument errors
-        # fake one
+    # the clock drift, on the residuals: the raw dv's instrument errors fake one (not where a strapdown telemetry's
+    # clock was tested with its exact effect, its tags and steps: casep.workflows.telemetry_clock)
+    if problem.y is not None and tag_clock and "telemetry" not in (res.diagnostics.get("clock_drift") or {}):
         drift = clock_drift_record(flight, problem.raw_residuals(res.fitted_coefficients()))
         # and by the fit's own time offset split in two, on a pair of files (a clock of its own)
         halves = offset_halves(flight.source, problem) if flight.meta.get("format") == "pair" else None

@@ -35,7 +35,30 @@ import numpy as np
 from casep.estimators.result import EstimateResult
 from casep.io.flight import FlightData
 
-__all__ = ["drift_column", "telemetry_clock_record", "judge_telemetry_clock"]
+__all__ = ["drift_column", "telemetry_clock_record", "judge_telemetry_clock", "telemetry_gravitation"]
+
+
+def telemetry_gravitation(flight: FlightData) -> Any:
+    """The gravitation of a strapdown telemetry's frame at the telemetry's times and launch-inertial positions
+    (:func:`casep.navigation.strapdown.launch_gravitation`), or None when no launch site ties the frame to the
+    Earth. The site of ``casep navigate``'s header (``meta["telemetry_site"]``, its launch time in the
+    telemetry's time scale), else the one given with Earth-fixed tracking (``meta["tracking_frame"]``, its launch
+    time in the tracking's scale: :func:`casep.io.pair.tracking_time` of the telemetry's, with ``meta["time_shift_s"]``
+    and ``meta["clock_drift_ppm"]``)."""
+    from casep.frames import LaunchSite
+    from casep.gravity import launch_gravitation
+    from casep.io.pair import tracking_time
+
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    shift, drift = 0.0, 0.0
+    site = meta.get("telemetry_site")
+    if site is None:
+        site = (meta.get("tracking_frame") or {}).get("site")
+        shift, drift = float(meta.get("time_shift_s", 0.0)), float(meta.get("clock_drift_ppm", 0.0))
+    if site is None:
+        return None
+    G = launch_gravitation(LaunchSite(**site))
+    return G if not (shift or drift) else (lambda t, r: G(tracking_time(t, shift, drift), r))
 
 
 def drift_column(flight: FlightData, t: np.ndarray) -> np.ndarray | None:
@@ -44,7 +67,6 @@ def drift_column(flight: FlightData, t: np.ndarray) -> np.ndarray | None:
     signals, no kinematic acceleration)."""
     from casep.io.files import R_TEL_COLUMNS
     from casep.io.strapdown import clock_stretch
-    from casep.workflows.telemetry_iterate import telemetry_gravitation
 
     meta = flight.meta if isinstance(flight.meta, dict) else {}
     inp = meta.get("pair_inputs")
@@ -109,11 +131,15 @@ def judge_telemetry_clock(res: EstimateResult, flight: FlightData, problem: Any)
     """`res` with ``diagnostics["clock_drift"]`` the record of :func:`telemetry_clock_record` (its ``telemetry``
     key, ``ppm``, ``std_ppm`` and ``on`` too), warned (TrackingQualityWarning) when no drift was given and the data
     see one, failed (``STATUS_SETUP``) when the given one is contradicted; None where the record cannot be formed
-    (not a strapdown telemetry pair: the tag-only tests apply)."""
+    (not a strapdown telemetry pair: the tag-only tests apply), on noise-free rows and on a flight with a set-up
+    problem (as :meth:`casep.workflows.imu_separate._Run.clock_judged`)."""
+    from casep.checks.plausibility import setup_problems
     from casep.checks.tracking_quality import DRIFT_MIN_PPM
     from casep.estimators.registry import STATUS_SETUP, failed
     from casep.exceptions import TrackingQualityWarning
 
+    if problem.y is None or problem.is_noise_free() or setup_problems(flight):  # no std to test against; rows that
+        return None  # are a set-up mistake
     record = telemetry_clock_record(res, flight, problem)
     if record is None:
         return None
