@@ -527,10 +527,14 @@ def telemetry_clock_line(record: dict) -> str:
     if record["determined"]:
         return text + " (beyond the clock-drift rule: the clocks run at different rates)"
     b, sd = record["beyond_given_ppm"], record["std_ppm"]
-    rule = max(DRIFT_MIN_PPM, 4.0 * sd)
+    rule = record.get("warns_beyond_ppm") or max(DRIFT_MIN_PPM, 4.0 * sd)
+    moves = record.get("moves") or []
+    moved = (f"; a drift of {rule:.3g} ppm not modelled would move " + ", ".join(
+        f"{m['name']} by {m['z']:+.2g} std" for m in moves)) if moves else ""
     return (text + f"; not determined: the data allow {b - 2 * sd:.3g} to {b + 2 * sd:.3g} ppm beyond the one given "
-            f"(2 std), which the coefficients would take in unseen; the test warns only beyond {rule:.3g} ppm "
-            f"({DRIFT_MIN_PPM:g} ppm and 4 std) (a drift known otherwise: --clock-drift PPM)")
+            f"(2 std, to first order in the drift), which the coefficients would take in unseen; the test warns only "
+            f"beyond {rule:.3g} ppm ({DRIFT_MIN_PPM:g} ppm and 4 std){moved} (a drift known otherwise: "
+            "--clock-drift PPM)")
 
 
 def _warn_drift(source: str, drift_ppm: float, drift_std_ppm: float, of: str) -> bool:

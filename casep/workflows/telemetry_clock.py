@@ -35,7 +35,10 @@ import numpy as np
 from casep.estimators.result import EstimateResult
 from casep.io.flight import FlightData
 
-__all__ = ["drift_column", "telemetry_clock_record", "judge_telemetry_clock", "telemetry_gravitation"]
+__all__ = ["drift_column", "telemetry_clock_record", "judge_telemetry_clock", "telemetry_gravitation", "MOVES_SAID"]
+
+#: The coefficients a drift at the edge of the test moves most, said at most this many (:func:`_moves`).
+MOVES_SAID = 3
 
 
 def telemetry_gravitation(flight: FlightData) -> Any:
@@ -98,7 +101,7 @@ def telemetry_clock_record(res: EstimateResult, flight: FlightData, problem: Any
     ``std_ppm``, ``given_ppm``, ``beyond_given_ppm``, ``determined`` (the clock-drift rule on the drift beyond the
     given one), ``unseen_ppm`` (``|beyond| + 2 std``: a drift that size would be taken into the coefficients without
     a word), ``on``; None where there is no column or no noise model to whiten with."""
-    from casep.checks.tracking_quality import drift_determined
+    from casep.checks.tracking_quality import DRIFT_MIN_PPM, drift_determined
     from casep.workflows.imu_separate import column_estimates
 
     if problem.y is None or problem.t is None:
@@ -114,10 +117,32 @@ def telemetry_clock_record(res: EstimateResult, flight: FlightData, problem: Any
         return None
     beyond, std = float(est[0][0]), float(est[1][0])
     given = float(flight.meta.get("clock_drift_ppm", 0.0))
+    rule = max(DRIFT_MIN_PPM, 4.0 * std)
     return {"ppm": given + beyond, "std_ppm": std, "given_ppm": given, "beyond_given_ppm": beyond,
             "determined": bool(drift_determined(beyond, std)), "unseen_ppm": abs(beyond) + 2.0 * std,
+            "warns_beyond_ppm": rule, "moves": _moves(res, problem, col, rule),
             "on": "the telemetry clock's rate as one more coefficient (its tags and the INS's integration steps, "
                   "the fit's whitening, S_V projected out)"}
+
+
+def _moves(res: EstimateResult, problem: Any, col: np.ndarray, ppm: float) -> list[dict]:
+    """The coefficients a drift of `ppm` not modelled moves most, in their std (at most :data:`MOVES_SAID`, those
+    beyond 1 std): the fit's own least-squares solution (its rank rule, its scaling) of the rows the drift adds
+    (`col` (N, 3) per ppm), ``name``, ``shift`` (the coefficient's unit), ``z``."""
+    from casep.regression.linalg import analyze_rank, reduce_qr_blocks
+
+    S = problem.sv()
+    n = S.shape[2]
+    red = reduce_qr_blocks(iter([(S, ppm * np.asarray(col, dtype=float))]), n)
+    ra = analyze_rank(red)
+    V_r, s_inv = ra.pinv_factors()
+    z = (V_r * s_inv) @ (ra.U[:, : ra.rank].T @ red.qty)
+    shift = np.where(red.scale > 0, z / np.where(red.scale > 0, red.scale, 1.0), 0.0)
+    std = np.asarray(res.std, dtype=float) if res.std is not None else np.full(n, np.nan)
+    ok = np.isfinite(std) & (std > 0) & np.isfinite(np.asarray(res.estimate, dtype=float))
+    zs = np.where(ok, np.abs(shift) / np.where(ok, std, 1.0), 0.0)
+    order = [int(k) for k in np.argsort(-zs) if zs[k] > 1.0][:MOVES_SAID]
+    return [{"name": res.names[k], "shift": float(shift[k]), "z": float(shift[k] / std[k])} for k in order]
 
 
 def _sign_named(record: dict) -> bool:
