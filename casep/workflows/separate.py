@@ -246,7 +246,8 @@ def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
     if isinstance(flight, FlightData) and isinstance(model, ErrorModel):
         from casep.workflows.telemetry_clock import judge_telemetry_clock
 
-        res = judge_telemetry_clock(res, flight, problem) or res  # a strapdown telemetry's clock, tags and steps
+        # a strapdown telemetry's clock, its tags and steps
+        res = judge_telemetry_clock(res, flight, problem, model.scales) or res
         res = judge_tracking(res, flight, problem, model.scales)
     if not isinstance(flight, Problem) and isinstance(model, ErrorModel):
         from casep.model.loader import model_record

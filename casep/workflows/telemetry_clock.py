@@ -95,12 +95,14 @@ def drift_column(flight: FlightData, t: np.ndarray) -> np.ndarray | None:
     return 1e-6 * (a * t[:, None] - E_t)
 
 
-def telemetry_clock_record(res: EstimateResult, flight: FlightData, problem: Any) -> dict | None:
+def telemetry_clock_record(res: EstimateResult, flight: FlightData, problem: Any,
+                           scales: dict | None = None) -> dict | None:
     """The drift beyond the one given, estimated as one more coefficient (:func:`drift_column`,
     :func:`casep.workflows.imu_separate.column_estimates`): ``ppm`` (the clocks' drift the data point to),
     ``std_ppm``, ``given_ppm``, ``beyond_given_ppm``, ``determined`` (the clock-drift rule on the drift beyond the
-    given one), ``unseen_ppm`` (``|beyond| + 2 std``: a drift that size would be taken into the coefficients without
-    a word), ``on``; None where there is no column or no noise model to whiten with."""
+    given one), ``unseen_ppm`` (``|beyond| + 2 std``), ``warns_beyond_ppm`` (the rule's threshold), ``moves`` (what a
+    drift that large, not modelled, does to the determined coefficients: :func:`_moves`, `scales` the model's
+    declared magnitudes), ``on``; None where there is no column or no noise model to whiten with."""
     from casep.checks.tracking_quality import DRIFT_MIN_PPM, drift_determined
     from casep.workflows.imu_separate import column_estimates
 
@@ -120,15 +122,17 @@ def telemetry_clock_record(res: EstimateResult, flight: FlightData, problem: Any
     rule = max(DRIFT_MIN_PPM, 4.0 * std)
     return {"ppm": given + beyond, "std_ppm": std, "given_ppm": given, "beyond_given_ppm": beyond,
             "determined": bool(drift_determined(beyond, std)), "unseen_ppm": abs(beyond) + 2.0 * std,
-            "warns_beyond_ppm": rule, "moves": _moves(res, problem, col, rule),
+            "warns_beyond_ppm": rule, "moves": _moves(res, problem, col, rule, scales),
             "on": "the telemetry clock's rate as one more coefficient (its tags and the INS's integration steps, "
                   "the fit's whitening, S_V projected out)"}
 
 
-def _moves(res: EstimateResult, problem: Any, col: np.ndarray, ppm: float) -> list[dict]:
+def _moves(res: EstimateResult, problem: Any, col: np.ndarray, ppm: float, scales: dict | None) -> list[dict]:
     """The coefficients a drift of `ppm` not modelled moves most, in their std (at most :data:`MOVES_SAID`, those
-    beyond 1 std): the fit's own least-squares solution (its rank rule, its scaling) of the rows the drift adds
-    (`col` (N, 3) per ppm), ``name``, ``shift`` (the coefficient's unit), ``z``."""
+    beyond 1 std): the least-squares solution (the project's rank rule) of the rows the drift adds (`col` (N, 3) per
+    ppm), ``name``, ``shift`` (the coefficient's unit), ``z``; only coefficients the flight determines (std below
+    their declared magnitude in `scales`, or without one: the time offset): an undetermined one's shift lies along
+    what the rows cannot tell apart, and says nothing."""
     from casep.regression.linalg import analyze_rank, reduce_qr_blocks
 
     S = problem.sv()
@@ -139,7 +143,8 @@ def _moves(res: EstimateResult, problem: Any, col: np.ndarray, ppm: float) -> li
     z = (V_r * s_inv) @ (ra.U[:, : ra.rank].T @ red.qty)
     shift = np.where(red.scale > 0, z / np.where(red.scale > 0, red.scale, 1.0), 0.0)
     std = np.asarray(res.std, dtype=float) if res.std is not None else np.full(n, np.nan)
-    ok = np.isfinite(std) & (std > 0) & np.isfinite(np.asarray(res.estimate, dtype=float))
+    mag = np.array([(scales or {}).get(nm, np.inf) for nm in res.names], dtype=float)
+    ok = np.isfinite(std) & (std > 0) & np.isfinite(np.asarray(res.estimate, dtype=float)) & (std < mag)
     zs = np.where(ok, np.abs(shift) / np.where(ok, std, 1.0), 0.0)
     order = [int(k) for k in np.argsort(-zs) if zs[k] > 1.0][:MOVES_SAID]
     return [{"name": res.names[k], "shift": float(shift[k]), "z": float(shift[k] / std[k])} for k in order]
@@ -152,7 +157,8 @@ def _sign_named(record: dict) -> bool:
     return g != 0.0 and abs(record["ppm"] + g) <= 4.0 * record["std_ppm"]
 
 
-def judge_telemetry_clock(res: EstimateResult, flight: FlightData, problem: Any) -> EstimateResult | None:
+def judge_telemetry_clock(res: EstimateResult, flight: FlightData, problem: Any,
+                          scales: dict | None = None) -> EstimateResult | None:
     """`res` with ``diagnostics["clock_drift"]`` the record of :func:`telemetry_clock_record` (its ``telemetry``
     key, ``ppm``, ``std_ppm`` and ``on`` too), warned (TrackingQualityWarning) when no drift was given and the data
     see one, failed (``STATUS_SETUP``) when the given one is contradicted; None where the record cannot be formed
@@ -165,7 +171,7 @@ def judge_telemetry_clock(res: EstimateResult, flight: FlightData, problem: Any)
 
     if problem.y is None or problem.is_noise_free() or setup_problems(flight):  # no std to test against; rows that
         return None  # are a set-up mistake
-    record = telemetry_clock_record(res, flight, problem)
+    record = telemetry_clock_record(res, flight, problem, scales)
     if record is None:
         return None
     out = dataclasses.replace(res, diagnostics={**res.diagnostics, "clock_drift": {

@@ -214,7 +214,7 @@ class _TelemetryRun(_Run):
     def clock_judged(self, res: EstimateResult, problem: Any, flight: FlightData, D: np.ndarray) -> EstimateResult:
         """The telemetry clock's drift with its exact effect (:func:`casep.workflows.telemetry_clock
         .judge_telemetry_clock`) in place of the raw record's (a telemetry has none)."""
-        return judge_telemetry_clock(res, flight, problem) or res
+        return judge_telemetry_clock(res, flight, problem, self.base.scales) or res
 
     def navigate(self, D: np.ndarray) -> CorrectedTelemetry:  # type: ignore[override]  # the pass's state, as nav
         """The telemetry corrected at `D` (from the last pass's correction)."""
