@@ -129,19 +129,18 @@ def telemetry_clock_record(res: EstimateResult, flight: FlightData, problem: Any
 
 def _moves(res: EstimateResult, problem: Any, col: np.ndarray, ppm: float, scales: dict | None) -> list[dict]:
     """The coefficients a drift of `ppm` not modelled moves most, in their std (at most :data:`MOVES_SAID`, those
-    beyond 1 std): the least-squares solution (the project's rank rule) of the rows the drift adds (`col` (N, 3) per
-    ppm), ``name``, ``shift`` (the coefficient's unit), ``z``; only coefficients the flight determines (std below
-    their declared magnitude in `scales`, or without one: the time offset): an undetermined one's shift lies along
-    what the rows cannot tell apart, and says nothing."""
-    from casep.regression.linalg import analyze_rank, reduce_qr_blocks
+    beyond 1 std): the fit's estimator (its noise model's whitening: the rule of
+    :func:`casep.workflows.imu_separate.column_estimates`) on the rows the drift adds (`col` (N, 3) per ppm),
+    ``name``, ``shift`` (the coefficient's unit), ``z``; only coefficients the flight determines (std below their
+    declared magnitude in `scales`, or without one: the time offset): an undetermined one's shift lies along what
+    the rows cannot tell apart, and says nothing."""
+    from casep.workflows.imu_separate import _estimators
 
-    S = problem.sv()
-    n = S.shape[2]
-    red = reduce_qr_blocks(iter([(S, ppm * np.asarray(col, dtype=float))]), n)
-    ra = analyze_rank(red)
-    V_r, s_inv = ra.pinv_factors()
-    z = (V_r * s_inv) @ (ra.U[:, : ra.rank].T @ red.qty)
-    shift = np.where(red.scale > 0, z / np.where(red.scale > 0, red.scale, 1.0), 0.0)
+    n = len(res.names)
+    est = _estimators(np.eye(n), np.ones(n), res, problem)  # the fit's estimator: its whitening, on the raw rows
+    if est is None:
+        return []
+    shift = est[1] @ (ppm * np.asarray(col, dtype=float)).reshape(-1)
     std = np.asarray(res.std, dtype=float) if res.std is not None else np.full(n, np.nan)
     mag = np.array([(scales or {}).get(nm, np.inf) for nm in res.names], dtype=float)
     ok = np.isfinite(std) & (std > 0) & np.isfinite(np.asarray(res.estimate, dtype=float)) & (std < mag)

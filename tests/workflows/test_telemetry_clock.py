@@ -119,3 +119,18 @@ def test_a_drift_not_given_is_estimated_and_a_wrong_sign_fails(pairs):
     rec = wrong.diagnostics["clock_drift"]["telemetry"]
     if rec["determined"]:
         assert not wrong.success and "opposite of the one given" in wrong.message, wrong.message
+
+
+def test_what_an_unmodelled_drift_moves_is_what_it_moved(pairs):
+    """The record's ``moves`` (what a drift at the test's edge, not modelled, does to the determined coefficients)
+    scaled to the true drift is how far the estimates moved between the drift not given and given, to half their std
+    (the noise model refitted to residuals that hold the drift, and the drift's second order, are not in it)."""
+    res, _ = pairs(DRIFT)
+    given, _ = pairs(DRIFT, 0, _given(DRIFT))
+    rec = res.diagnostics["clock_drift"]["telemetry"]
+    assert rec["moves"], rec
+    for m in rec["moves"]:
+        k = res.names.index(m["name"])
+        moved = res.estimate[k] - given.estimate[k]
+        predicted = m["shift"] * _given(DRIFT) / rec["warns_beyond_ppm"]
+        assert abs(moved - predicted) < 0.5 * res.std[k] and moved * predicted > 0, (m, moved, predicted)
