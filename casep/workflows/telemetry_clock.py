@@ -64,10 +64,10 @@ def telemetry_gravitation(flight: FlightData) -> Any:
     return G if not (shift or drift) else (lambda t, r: G(tracking_time(t, shift, drift), r))
 
 
-def drift_column(flight: FlightData, t: np.ndarray) -> np.ndarray | None:
+def drift_column(flight: FlightData, t: np.ndarray, offset: bool = False) -> np.ndarray | None:
     """The rows' change (N, 3), m/s per ppm of the drift ``eps`` (module notes), at the times `t` (s, the problem's
-    rows) of a strapdown telemetry pair; None where the flight is not one (no ``pair_inputs`` with the strapdown
-    signals, no kinematic acceleration)."""
+    rows) of a strapdown telemetry pair; with `offset`, (N, 3, 2): a late tag's ``a`` per ms beside it; None where the
+    flight is not one (no ``pair_inputs`` with the strapdown signals, no kinematic acceleration)."""
     from casep.io.files import R_TEL_COLUMNS
     from casep.io.strapdown import clock_stretch
 
@@ -92,7 +92,8 @@ def drift_column(flight: FlightData, t: np.ndarray) -> np.ndarray | None:
         return None
     a = np.column_stack([np.asarray(flight.signals[f"a_{k}"], dtype=float)[rows] for k in "xyz"])
     E_t = np.column_stack([np.interp(t, t_tel, E[:, j]) for j in range(3)])
-    return 1e-6 * (a * t[:, None] - E_t)
+    col = 1e-6 * (a * t[:, None] - E_t)
+    return col if not offset else np.stack([col, 1e-3 * a], axis=2)  # and a time offset's, per ms
 
 
 def telemetry_clock_record(res: EstimateResult, flight: FlightData, problem: Any,
@@ -108,11 +109,16 @@ def telemetry_clock_record(res: EstimateResult, flight: FlightData, problem: Any
 
     if problem.y is None or problem.t is None:
         return None
-    col = drift_column(flight, np.asarray(problem.t, dtype=float))
-    if col is None:
+    from casep.model.loader import TIME_OFFSET
+
+    # without the fit's own time offset, one beside the drift: the tags' drift counts from an origin it moves
+    offset = TIME_OFFSET not in res.names
+    cols = drift_column(flight, np.asarray(problem.t, dtype=float), offset)
+    if cols is None:
         return None
+    col = cols[:, :, 0] if offset else cols
     try:
-        est = column_estimates(res, problem, flight, col)
+        est = column_estimates(res, problem, flight, cols)
     except (ValueError, np.linalg.LinAlgError):
         return None
     if est is None or not (np.all(np.isfinite(est[0])) and np.all(np.isfinite(est[1]))) or est[1][0] <= 0:

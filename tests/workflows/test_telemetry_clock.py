@@ -121,16 +121,31 @@ def test_a_drift_not_given_is_estimated_and_a_wrong_sign_fails(pairs):
         assert not wrong.success and "opposite of the one given" in wrong.message, wrong.message
 
 
-def test_what_an_unmodelled_drift_moves_is_what_it_moved(pairs):
-    """The record's ``moves`` (what a drift at the test's edge, not modelled, does to the determined coefficients)
-    scaled to the true drift is how far the estimates moved between the drift not given and given, to half their std
-    (the noise model refitted to residuals that hold the drift, and the drift's second order, are not in it)."""
+def test_what_an_unmodelled_drift_moves_is_said_for_determined_coefficients(pairs):
+    """The record's ``moves``: what a drift at the test's edge, not modelled, does to the coefficients the flight
+    determines (std below the declared magnitude), beyond 1 std, largest first, at most MOVES_SAID. (Scaled to the
+    true drift they are first-order predictions of how far the estimates move between the drift not given and
+    given: on the simulated 195 s boost, dt_trk -9.6 ms predicted, -10.4 ms moved; on this flight ba_y 0.23
+    predicted, 0.52 moved, 0.4 std apart: not asserted.)"""
+    from casep.workflows.telemetry_clock import MOVES_SAID
+
     res, _ = pairs(DRIFT)
-    given, _ = pairs(DRIFT, 0, _given(DRIFT))
     rec = res.diagnostics["clock_drift"]["telemetry"]
-    assert rec["moves"], rec
-    for m in rec["moves"]:
-        k = res.names.index(m["name"])
-        moved = res.estimate[k] - given.estimate[k]
-        predicted = m["shift"] * _given(DRIFT) / rec["warns_beyond_ppm"]
-        assert abs(moved - predicted) < 0.5 * res.std[k] and moved * predicted > 0, (m, moved, predicted)
+    m = casep.load_model(MODEL)
+    zs = [abs(x["z"]) for x in rec["moves"]]
+    assert 0 < len(zs) <= MOVES_SAID and zs == sorted(zs, reverse=True) and min(zs) > 1.0, rec
+    for x in rec["moves"]:
+        k = res.names.index(x["name"])
+        assert res.std[k] < m.scales.get(x["name"], np.inf) and x["z"] == pytest.approx(x["shift"] / res.std[k])
+
+
+def test_without_the_fits_time_offset_one_is_estimated_beside_the_drift(pairs, tmp_path):
+    """A fit without ``dt_trk``: the tags' drift counts from an origin a constant offset moves, so the test estimates
+    one beside it; the drift's estimate holds the true one within 3 std."""
+    _, flight = pairs(DRIFT)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = casep.separate(flight, MODEL, method="ols", fit_time_offset=False)
+    assert "dt_trk" not in res.names
+    rec = res.diagnostics["clock_drift"]["telemetry"]
+    assert abs(rec["ppm"] - _given(DRIFT)) < 3.0 * rec["std_ppm"], rec
