@@ -40,7 +40,7 @@ from casep.units import G0
 
 __all__ = ["GRAVITY_LAUNCH", "kinematic_acceleration",
            "normal_gravity", "normal_gravity_ecef", "gravitation_ecef", "WGS84_A", "WGS84_F", "WGS84_GM",
-           "GAMMA_E", "GAMMA_P"]
+           "GAMMA_E", "GAMMA_P", "launch_gravitation"]
 
 #: WGS84 semi-major axis (m) and flattening.
 WGS84_A = 6378137.0
@@ -151,3 +151,18 @@ def kinematic_acceleration(t: np.ndarray, f: np.ndarray) -> np.ndarray:
     10-50 m/s^2 for detecting an offset (it only scales the offset estimate by ~1e-3).
     """
     return np.asarray(f, dtype=float) + GRAVITY_LAUNCH
+
+
+def launch_gravitation(site):  # -> (t, r) -> gravitation
+    """The gravitation in L at launch-inertial positions and times: ``C^T Rz(theta) G(r_E)``.
+
+    ``r_E`` from :func:`casep.frames.launch_to_ecef`, ``G`` :func:`casep.gravity.gravitation_ecef`,
+    the vector turned back with :func:`casep.frames.ecef_to_launch_vector`.
+    """
+    from casep.frames import ecef_to_launch_vector, launch_to_ecef
+
+    def gravity(t: np.ndarray, r: np.ndarray) -> np.ndarray:
+        r_e, _ = launch_to_ecef(site, t, r, np.zeros_like(r))
+        return ecef_to_launch_vector(site, t, gravitation_ecef(r_e))
+
+    return gravity

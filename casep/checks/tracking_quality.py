@@ -63,6 +63,7 @@ from casep.exceptions import TrackingQualityWarning
 from casep.io.files import ONE_FILE_TELEMETRY
 from casep.io.flight import FlightData
 from casep.io.pair import HELD_RUN_SHARE, HELD_SHARE, JUMP_RATE, STALE_MOTION, stale_epochs
+from casep.noise.model import whiten_blocks
 from casep.noise.robust import MAD_SIGMA, MIN_SEGMENT_S, stretches
 from casep.regression.linalg import analyze_rank, reduce_qr_blocks
 from casep.regression.rows import GLITCH_GROSS
@@ -72,7 +73,8 @@ if TYPE_CHECKING:
 
 __all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "keep_screen", "clock_drift", "clock_drift_unmeasured",
            "fit_clock_drift", "clock_drift_record",
-           "offset_halves", "halves_line", "drift_determined", "stretches", "stretch_noise", "noise_problem",
+           "offset_halves", "halves_line", "telemetry_clock_line",
+           "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
            "imu_noise_effect", "imu_sample_noise", "white_sample_std", "unresolved_noise", "NOISE_RESOLUTION_SHARE",
            "imu_bias_effect", "IMU_INSTABILITY_TAU",
@@ -521,6 +523,25 @@ def halves_line(h: dict) -> str:
             "taken into the one dt_trk unseen (a drift known otherwise: --clock-drift PPM)")
 
 
+def telemetry_clock_line(record: dict) -> str:
+    """The report's line of :func:`casep.workflows.telemetry_clock.telemetry_clock_record`'s `record`: the drift, and
+    either that it is beyond the rule or the drifts the data allow (2 std) and where the rule would warn."""
+    given = f"--clock-drift {record['given_ppm']:g} given" if record["given_ppm"] else "no clock drift given"
+    text = (f"telemetry clock drift ({given}; estimated beside the coefficients, tags and integration steps): "
+            f"{record['ppm']:.4g} +- {record['std_ppm']:.2g} ppm")
+    if record["determined"]:
+        return text + " (beyond the clock-drift rule: the clocks run at different rates)"
+    b, sd = record["beyond_given_ppm"], record["std_ppm"]
+    rule = record.get("warns_beyond_ppm") or max(DRIFT_MIN_PPM, 4.0 * sd)
+    moves = record.get("moves") or []
+    moved = (f"; a drift of {rule:.3g} ppm not modelled would move " + ", ".join(
+        f"{m['name']} by {m['z']:+.2g} std" for m in moves)) if moves else ""
+    return (text + f"; not determined: the data allow {b - 2 * sd:.3g} to {b + 2 * sd:.3g} ppm beyond the one given "
+            f"(2 std, to first order in the drift), which the coefficients would take in unseen; the test warns only "
+            f"beyond {rule:.3g} ppm ({DRIFT_MIN_PPM:g} ppm and 4 std){moved} (a drift known otherwise: "
+            "--clock-drift PPM)")
+
+
 def _warn_drift(source: str, drift_ppm: float, drift_std_ppm: float, of: str) -> bool:
     """Warn (TrackingQualityWarning) when the clock drift is beyond :data:`DRIFT_MIN_PPM` and 4 std; `of`: what it
     was measured on, said in the message. Returns whether it warned."""
@@ -560,12 +581,16 @@ def fit_clock_drift(flight: FlightData, residual: np.ndarray) -> tuple[float, fl
     return drift, std
 
 
-def offset_halves(source: str, problem: Problem) -> dict | None:
+def offset_halves(source: str, problem: Problem, noise: dict | None = None) -> dict | None:
     """The clock drift seen by the fit itself: its time offset (``dt_trk``) split at the middle of the observed
     span, one for each half, beside every other coefficient of the fit (OLS on its raw rows, S_V block by block;
     the std white times the AR(1) long-run factor of the residuals, as :func:`_offset_fit`). A drift ``eps`` makes
     the two offsets differ by ``eps (t2 - t1)``, ``t_i`` the half's time weighted by how much it sees of the
-    offset (``|a|^2``); warned as :func:`clock_drift` (:func:`_warn_drift`), and said either way in the report
+    offset (``|a|^2``); with the fit's noise model (`noise`, ``diagnostics["noise"]`` with its ``axes``) the rows are
+    whitened by it, its Gauss-Markov part as well as its white (GLS): the AR(1) factor of the residuals misses the
+    long-run variance of a Gauss-Markov plus white mixture (at 50 Hz, tau 1 s, 0.1 + 0.05 m/s: lag-1 correlation
+    0.78, a factor 8 where the mixture's is near 80), and its std were 3-5 x too small: 34.4 +- 6.3 ppm on a clean
+    simulated boost. Warned as :func:`clock_drift` (:func:`_warn_drift`), and said either way in the report
     (:func:`halves_line`). On a coast alone the drift's ramp ``a eps t`` is an accelerometer bias's: the second
     half sees the drift only where its acceleration changes. The residuals' test (:func:`fit_clock_drift`) cannot
     see a drift the fit took into its other coefficients and its offset; this one measures it, or says how large
@@ -594,13 +619,18 @@ def offset_halves(source: str, problem: Problem) -> dict | None:
     late = t >= 0.5 * (t[0] + t[-1])
     seen = np.zeros(t.size)  # how much each epoch sees of the offset, |a|^2
 
-    def rows():  # [S_V, the offset's column over the second half], block by block (S_V is not held whole)
-        for sl, S_b, y_b in raw.blocks():
+    model = _noise_model(noise)
+
+    def rows():  # [S_V, the offset's column over the second half], block by block (S_V is not held whole), in
+        for sl, S_b, y_b in raw.blocks():  # time order, whitened by the fit's noise model where it has one
             c = S_b[:, :, j]
             seen[sl] = np.sum(c**2, axis=1)
-            yield np.concatenate([S_b, (c * late[sl, None])[:, :, None]], axis=2), y_b
+            yield sl, np.concatenate([S_b, (c * late[sl, None])[:, :, None]], axis=2), y_b
 
-    red = reduce_qr_blocks(rows(), len(names) + 1)
+    def whitened():
+        return rows() if model is None else whiten_blocks(rows(), t, model)
+
+    red = reduce_qr_blocks(((S_b, y_b) for _, S_b, y_b in whitened()), len(names) + 1)
     if not (np.sum(seen[late]) > 0 and np.sum(seen[~late]) > 0):
         return None
     ra = analyze_rank(red)  # the project's rank rule (max(m, n) eps of the largest singular value)
@@ -609,9 +639,9 @@ def offset_halves(source: str, problem: Problem) -> dict | None:
     z = inv @ (ra.U[:, : ra.rank].T @ red.qty)
     x = np.where(red.scale > 0, z / np.where(red.scale > 0, red.scale, 1.0), 0.0)  # natural units
     r = np.empty_like(y)
-    for sl, S_b, y_b in raw.blocks():  # the residuals, in time order (their AR(1) long-run factor)
-        r[sl] = y_b - S_b @ x[:-1] - S_b[:, :, j] * late[sl, None] * x[-1]
-    long_run = float(ar1_long_run_factor(np.sum(r[1:] * r[:-1]), np.sum(r[:-1] ** 2)))
+    for sl, S_b, y_b in whitened():  # the residuals, in time order (their AR(1) long-run factor: 1 when whitened)
+        r[sl] = y_b - S_b @ x
+    long_run = 1.0 if model is not None else float(ar1_long_run_factor(np.sum(r[1:] * r[:-1]), np.sum(r[:-1] ** 2)))
     var = float(np.sum(r**2)) / max(r.size - ra.rank, 1) * long_run
     std_x = math.sqrt(var * float(np.sum(inv[-1] ** 2))) / red.scale[-1]  # sqrt((R^T R)^+_nn), natural unit
     to_ms = float(problem.si_factors[j]) * 1e3  # the coefficient's unit in ms
@@ -624,6 +654,18 @@ def offset_halves(source: str, problem: Problem) -> dict | None:
                 f", the fit's time offset {first:.3g} ms over its first half (seen at t = {t1:.4g} s) and "
                 f"{first + diff:.3g} ms over its second (t = {t2:.4g} s), differing by {diff:.3g} +- {std:.2g} ms")
     return out
+
+
+def _noise_model(noise: dict | None):
+    """The :class:`casep.noise.model.NoiseModel` of a fit's ``diagnostics["noise"]`` record, or None without one."""
+    from casep.noise.model import NoiseModel
+
+    if not isinstance(noise, dict) or "axes" not in noise:
+        return None
+    try:
+        return NoiseModel.from_dict(noise)
+    except (KeyError, TypeError, ValueError):
+        return None
 
 
 def clock_drift_record(flight: FlightData, residual: np.ndarray) -> dict | None:

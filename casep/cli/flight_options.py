@@ -34,9 +34,11 @@ def add_grid(parser: Any, manifest: bool = True) -> None:
                              "(tracking in seconds of day, telemetry from lift-off at 12:00:00: 43200); default 0 "
                              "(one scale)")
     parser.add_argument("--clock-drift", type=finite_float, default=0.0, metavar="PPM",
-                        help="with --tracking: the telemetry clock is PPM parts per million slow against the tracking's"
-                             " (tags late by PPM 1e-6 t at telemetry time t: the drift casep reports; with --imu, "
-                             "taken out of the IMU's own tags and steps); default 0")
+                        help="with --tracking: how fast the tracking (GPS) clock runs against the telemetry's, ppm: "
+                             "NEGATIVE when the telemetry (or IMU) clock runs fast, e.g. a flight computer 104 ppm "
+                             "fast: --clock-drift -104 (the sign casep reports; taken out of the tracking tags and, "
+                             "for a strapdown telemetry or with --imu, out of the INS's integration steps too; a "
+                             "drift the data contradict fails); default 0")
     if manifest:  # impact has its own (a manifest of one flight, with its result)
         parser.add_argument("--manifest", metavar="FLIGHTS.toml", default=None,
                             help="TOML manifest listing each flight's telemetry, tracking, frame, site, launch time "

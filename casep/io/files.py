@@ -48,6 +48,7 @@ from typing import Any
 
 import numpy as np
 
+from casep.gravity import launch_gravitation
 from casep.io._atomic import atomic_open
 from casep.io.flight import DV_COLUMNS, FORCE_COLUMNS, FlightData
 from casep.io.locate import is_parquet
@@ -67,6 +68,7 @@ from casep.io.pair import (
     tracking_velocity,
     with_tracked_state,
 )
+from casep.io.strapdown import STRAPDOWN_COLUMNS, clock_stretch
 from casep.io.tables import VTEL_COLUMNS, VTRK_COLUMNS, Table, apparent_velocity_to_force, table_force
 
 __all__ = [
@@ -399,8 +401,12 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     clock_drift : float, optional
         How the clocks' rates differ, ppm: the tracking time tags late by ``clock_drift 1e-6 t`` more at
         telemetry time ``t`` (``T - time_shift = t (1 + clock_drift 1e-6)``, :func:`casep.io.pair.telemetry_time`;
-        the drift the clock-drift checks measure, same sign), taken out of the tags before the pair is formed.
-        Default 0 (one rate; the fit's ``dt_trk`` takes a constant offset, not a drift).
+        the drift the clock-drift checks measure, same sign: negative when the telemetry clock runs fast), taken
+        out of the tags before the pair is formed. A strapdown telemetry (``q_*``, ``fb_*``, ``w_*``) was
+        integrated by its INS over its clock's steps: the drift is taken out of its velocity too, ``v_tel + eps E``
+        (:func:`casep.io.strapdown.clock_stretch`, with the gravitation where the telemetry's header or `site`
+        gives the launch site; ``meta["clock_drift_of"]`` ``"telemetry"``). Default 0 (one rate; the fit's
+        ``dt_trk`` takes a constant offset, not a drift).
 
     Returns
     -------
@@ -445,10 +451,20 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     if inside.sum() < 2:
         raise tel.error(no_overlap_message(t_tel, t_raw, shift_scale), "t")
     repeats = repeated_rows(trk, tracking_frame)
-    shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset, repeats)
-    extra: dict[str, Any] = {"time_alignment": alignment, "tracking_repeats": repeats}
     signals = tel.signals()
-    tel.strapdown_signals(signals, extra)
+    strapdown: dict[str, Any] = {}
+    tel.strapdown_signals(signals, strapdown)
+    stretched = drift and all(c in signals for c in STRAPDOWN_COLUMNS)
+    if stretched:  # the INS integrated over its clock's steps: the given drift out of its velocity as well
+        q, fb, w = (np.column_stack([signals[c] for c in cols])
+                    for cols in (STRAPDOWN_COLUMNS[:4], STRAPDOWN_COLUMNS[4:7], STRAPDOWN_COLUMNS[7:10]))
+        gsite = navigation_site(tel) or site  # the INS's gravitation through its position error, where known
+        r_ins = tel.vectors(R_TEL_COLUMNS) if gsite is not None and all(c in tel.columns for c in R_TEL_COLUMNS) \
+            else None
+        v_tel = v_tel + drift * 1e-6 * clock_stretch(t_tel, q, fb, w, v_tel, r_ins,
+                                                     None if r_ins is None else launch_gravitation(gsite))
+    shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset, repeats)
+    extra: dict[str, Any] = {"time_alignment": alignment, "tracking_repeats": repeats, **strapdown}
     if not all(f"a_{a}" in signals for a in "xyz"):
         signals.update(acceleration_signals(t_tel, v_tel))
         extra["kinematic_acceleration"] = "a_x, a_y, a_z: d v_tel / dt (cubic spline of the telemetry velocity)"
@@ -468,6 +484,8 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
         flight.meta["time_shift_s"] = shift_scale
     if drift:
         flight.meta["clock_drift_ppm"] = drift
+        if stretched:
+            flight.meta["clock_drift_of"] = "telemetry"
     if r_ecef is not None and v_ecef is not None:  # Earth-fixed tracking; the late-start check: speed relative
         # to the pad, not the Earth's rotation
         from casep.io.setup import setup_evidence

@@ -32,6 +32,7 @@ from typing import Callable
 
 import numpy as np
 
+from casep.gravity import launch_gravitation  # the gravitation in L (one place: io needs it too)
 from casep.rotations import (
     Increments,
     dcm_to_quat,
@@ -84,22 +85,6 @@ def body_velocity_increments(inc: Increments) -> np.ndarray:
     c2 = np.where(small, 1.0 / 6.0 - a2 / 120.0, (1.0 - np.sinc(a / np.pi)) / safe)
     c = np.cross(phi, dv)
     return dv + c1 * c + c2 * np.cross(phi, c) + inc.sculling
-
-
-def launch_gravitation(site) -> Gravity:
-    """The gravitation in L at launch-inertial positions and times: ``C^T Rz(theta) G(r_E)``.
-
-    ``r_E`` from :func:`casep.frames.launch_to_ecef`, ``G`` :func:`casep.gravity.gravitation_ecef`,
-    the vector turned back with :func:`casep.frames.ecef_to_launch_vector`.
-    """
-    from casep.frames import ecef_to_launch_vector, launch_to_ecef
-    from casep.gravity import gravitation_ecef
-
-    def gravity(t: np.ndarray, r: np.ndarray) -> np.ndarray:
-        r_e, _ = launch_to_ecef(site, t, r, np.zeros_like(r))
-        return ecef_to_launch_vector(site, t, gravitation_ecef(r_e))
-
-    return gravity
 
 
 def _gravity_on_grid(gravity: Gravity, t: np.ndarray, r: np.ndarray, spacing_s: float) -> np.ndarray:

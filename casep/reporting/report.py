@@ -173,7 +173,8 @@ def _provenance_html(prov: Mapping[str, Any]) -> str:
         if f.get("time_shift_s"):
             items["time scales: tracking - telemetry (s)"] = f["time_shift_s"]
         if f.get("clock_drift_ppm"):
-            of = "the IMU's time tags and steps" if f.get("clock_drift_of") == "imu" else "the tracking time tags"
+            of = {"imu": "the IMU's time tags and steps", "telemetry": "the tracking time tags and the telemetry "
+                  "INS's steps (its velocity)"}.get(f.get("clock_drift_of"), "the tracking time tags")
             items[f"clock drift taken out of {of} (ppm)"] = f["clock_drift_ppm"]
         if f.get("grid"):
             items["grid"] = f["grid"]

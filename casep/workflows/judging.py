@@ -97,11 +97,13 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     )
     from casep.estimators.registry import STATUS_TRACKING, failed
 
-    if problem.y is not None and tag_clock:  # the clock drift, on the residuals: the raw dv's instrument errors
-        # fake one
+    # the clock drift, on the residuals: the raw dv's instrument errors fake one (not where a strapdown telemetry's
+    # clock was tested with its exact effect, its tags and steps: casep.workflows.telemetry_clock)
+    if problem.y is not None and tag_clock and "telemetry" not in (res.diagnostics.get("clock_drift") or {}):
         drift = clock_drift_record(flight, problem.raw_residuals(res.fitted_coefficients()))
         # and by the fit's own time offset split in two, on a pair of files (a clock of its own)
-        halves = offset_halves(flight.source, problem) if flight.meta.get("format") == "pair" else None
+        halves = offset_halves(flight.source, problem, res.diagnostics.get("noise")) \
+            if flight.meta.get("format") == "pair" else None
         if drift is not None and halves is not None:
             drift["halves"] = halves
         if drift is not None:

@@ -246,6 +246,10 @@ def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model,
                       noise_free=problem.is_noise_free())
     if isinstance(flight, FlightData) and isinstance(model, ErrorModel):
+        from casep.workflows.telemetry_clock import judge_telemetry_clock
+
+        # a strapdown telemetry's clock, its tags and steps
+        res = judge_telemetry_clock(res, flight, problem, model.scales) or res
         res = judge_tracking(res, flight, problem, model.scales)
     if not isinstance(flight, Problem) and isinstance(model, ErrorModel):
         from casep.model.loader import model_record

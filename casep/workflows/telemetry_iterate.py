@@ -91,6 +91,7 @@ from casep.workflows.imu_separate import (
     one_pass_judged,
     shift_said,
 )
+from casep.workflows.telemetry_clock import judge_telemetry_clock, telemetry_gravitation
 
 if TYPE_CHECKING:
     from casep.estimators.result import EstimateResult
@@ -186,29 +187,6 @@ def corrected_telemetry(model: ErrorModel, t: np.ndarray, q: np.ndarray, fb: np.
     return CorrectedTelemetry(q_c, fb_c, w_c, v_c)
 
 
-def telemetry_gravitation(flight: FlightData) -> Gravity | None:
-    """The gravitation of a strapdown telemetry's frame at the telemetry's times and launch-inertial positions
-    (:func:`casep.navigation.strapdown.launch_gravitation`), or None when no launch site ties the frame to the
-    Earth. The site of ``casep navigate``'s header (``meta["telemetry_site"]``, its launch time in the
-    telemetry's time scale), else the one given with Earth-fixed tracking (``meta["tracking_frame"]``, its launch
-    time in the tracking's scale: :func:`casep.io.pair.tracking_time` of the telemetry's, with ``meta["time_shift_s"]``
-    and ``meta["clock_drift_ppm"]``)."""
-    from casep.frames import LaunchSite
-    from casep.io.pair import tracking_time
-    from casep.navigation.strapdown import launch_gravitation
-
-    meta = flight.meta if isinstance(flight.meta, dict) else {}
-    shift, drift = 0.0, 0.0
-    site = meta.get("telemetry_site")
-    if site is None:
-        site = (meta.get("tracking_frame") or {}).get("site")
-        shift, drift = float(meta.get("time_shift_s", 0.0)), float(meta.get("clock_drift_ppm", 0.0))
-    if site is None:
-        return None
-    G = launch_gravitation(LaunchSite(**site))
-    return G if not (shift or drift) else (lambda t, r: G(tracking_time(t, shift, drift), r))
-
-
 class _TelemetryRun(_Run):
     """The raw-IMU iteration (:class:`casep.workflows.imu_separate._Run`) on a strapdown telemetry pair: a pass
     re-navigates the telemetry's record corrected at ``D`` (:func:`corrected_telemetry`) and pairs it with the same
@@ -232,6 +210,11 @@ class _TelemetryRun(_Run):
         self.q_aligned, self.C_tb = np.array([1.0, 0.0, 0.0, 0.0]), np.eye(3)  # no alignment: the state `rows` keeps
         self.screen: dict | None = None
         self.inputs_said = True  # by the linear separation that asked for the iteration
+
+    def clock_judged(self, res: EstimateResult, problem: Any, flight: FlightData, D: np.ndarray) -> EstimateResult:
+        """The telemetry clock's drift with its exact effect (:func:`casep.workflows.telemetry_clock
+        .judge_telemetry_clock`) in place of the raw record's (a telemetry has none)."""
+        return judge_telemetry_clock(res, flight, problem, self.base.scales) or res
 
     def navigate(self, D: np.ndarray) -> CorrectedTelemetry:  # type: ignore[override]  # the pass's state, as nav
         """The telemetry corrected at `D` (from the last pass's correction)."""

@@ -66,3 +66,37 @@ def test_the_report_says_the_drift_either_way():
     line = halves_line(h)
     assert "64.4 +- 93 ppm" in line and "not determined: a drift up to 251 ppm (6.5 ms" in line, line
     assert "beyond 4 std" in halves_line({**h, "ppm": 500.0})
+
+
+def test_under_gauss_markov_plus_white_noise_the_fits_noise_model_gives_the_std():
+    """Gauss-Markov (tau 1 s, 0.01 m/s) plus white (0.005 m/s) noise at 50 Hz on the two-boost flight without drift:
+    with the fit's noise model (the true one here) the drift's z over 8 seeds have RMS within [0.5, 1.6] and none
+    beyond 3.5; the AR(1) factor of the residuals alone (no noise model) gives std 3-5 x too small (RMS z 3.7)."""
+    from casep.noise.model import NoiseModel
+    from casep.simulation.noise import ar1_noise
+
+    t = np.arange(0.0, 40.0, 0.02)
+    boost = (t < 6.0) | ((t >= 25.0) & (t < 30.0))
+    a = np.zeros((t.size, 3))
+    a[:, 2] = np.where(boost, 98.0, -9.8)
+    a[:, 0] = np.where(boost, 10.0 * np.sin(t), -0.5)
+    S = np.zeros((t.size, 3, 4))
+    for i in range(3):
+        S[:, i, i] = t
+    S[:, :, 3] = a * 1e-3
+    share = 0.005**2 / (0.005**2 + 0.01**2)
+    noise = NoiseModel(kind="gmw", tau=(1.0, 1.0, 1.0), share=(share,) * 3).to_dict()
+    z_model, z_ar1 = [], []
+    for seed in range(8):
+        rng = np.random.default_rng(seed)
+        y = a * 1e-3 + ar1_noise(t, 0.01, 1.0, rng) + 0.005 * rng.standard_normal((t.size, 3))
+        pb = Problem.from_arrays(S, y, t, names=("b_x", "b_y", "b_z", "dt_trk"), units=("m/s^2",) * 3 + ("ms",),
+                                 si_factors=[1.0, 1.0, 1.0, 1e-3])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", TrackingQualityWarning)
+            h, h0 = offset_halves("gmw.csv", pb, noise), offset_halves("gmw.csv", pb)
+        z_model.append(h["ppm"] / h["std_ppm"])
+        z_ar1.append(h0["ppm"] / h0["std_ppm"])
+    rms = float(np.sqrt(np.mean(np.square(z_model))))
+    assert 0.5 <= rms <= 1.6 and np.all(np.abs(z_model) < 3.5), z_model
+    assert float(np.sqrt(np.mean(np.square(z_ar1)))) > 2.0, z_ar1

@@ -1,0 +1,151 @@
+"""A strapdown telemetry whose INS ran on a clock that drifts against the tracking's (GPS) time.
+
+The INS integrated its samples over its own clock's steps and tagged its states with it: a clock fast by ``d``
+stretches every integration step (:func:`casep.io.strapdown.clock_stretch`) and tags the states ``d t`` late. The
+separation of the telemetry pair tests the drift as one more coefficient with that exact effect
+(:mod:`casep.workflows.telemetry_clock`), and a drift given is taken out of the tags and the velocity.
+
+The flight: the 40 s rail launch of ``tests/workflows/test_imu_clock_drift.py`` (10 Hz, 6 s on the pad, a 6 g boost,
+a weaving coast) with ``strapdown15_axial`` errors at their declared magnitudes, navigated by ``casep navigate``'s
+navigator on the IMU's tags ``t (1 + d)``, tracked in true time at 5 Hz with 0.03 m/s of white noise.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import casep
+from casep.gravity import launch_gravitation
+from casep.io.files import read_flight_pair, write_table
+from casep.io.strapdown import clock_stretch
+from casep.model.strapdown import body_errors
+from casep.navigation import ImuData, check_imu, navigate
+from casep.simulation.noise import white_noise
+from tests.workflows.test_imu_clock_drift import ALIGN, HEADING, MODEL, SITE, WHITE_STD, _given, _truth
+
+DRIFT = 104e-6
+
+
+def _nav(t, w, f, d):
+    return navigate(check_imu(ImuData(t * (1.0 + d), w, f)), SITE, tuple(a * (1.0 + d) for a in ALIGN),
+                    heading_deg=HEADING)
+
+
+def test_the_stretch_is_what_a_drifting_clock_does_to_the_navigation():
+    """Navigated on tags ``t (1 + d)``, each sample's velocity is the one navigated on true time plus ``d`` times
+    :func:`clock_stretch` (the velocity's change, the gyros' common scale factor through the attitude, the gravity
+    gradient through the position error), on a rolling, turning flight, to 1 % of the effect (the second order:
+    ``d`` times the attitude error it makes); without the gyros' and the gradient's parts it is 15 % off."""
+    t, w, f = _truth(30.0)
+    d = 1e-4
+    true, stretched = _nav(t, w, f, 0.0), _nav(t, w, f, d)
+    E = clock_stretch(true.t, true.q, true.fb, true.w, true.v, true.r, launch_gravitation(SITE))
+    dv = stretched.v - true.v
+    scale = np.max(np.abs(d * E))
+    assert np.max(np.abs(dv - d * E)) < 0.01 * scale
+    assert np.max(np.abs(dv - d * (true.v - true.v[0]))) > 0.1 * scale
+
+
+@pytest.fixture(scope="module")
+def pairs(tmp_path_factory):
+    """``pairs(d, seed, given)``: the separation of the telemetry navigated on tags ``t (1 + d)``, paired with the
+    tracking of `seed`'s noise, `given` the drift stated (ppm)."""
+    t, w, f = _truth()
+    nav0 = _nav(t, w, f, 0.0)
+    m = casep.load_model(MODEL)
+    z = np.random.default_rng(0).standard_normal(len(m.names))
+    df, dw = body_errors(m, nav0.q, f, w, t - t[0], z * np.array([m.scales[n] for n in m.names]))
+    directory = tmp_path_factory.mktemp("telclock")
+    tel = {}
+    for d in (DRIFT, 0.0):
+        nav = _nav(t, w + dw, f + df, d)
+        tel[d] = directory / f"tel{d:+g}.csv"
+        write_table(tel[d], nav.columns(), comments=nav.comments("imu.csv"))
+    done: dict = {}
+
+    def get(d: float, seed: int = 0, given: float = 0.0):
+        if (d, seed, given) not in done:
+            trk = directory / f"trk{seed}.csv"
+            if not trk.exists():
+                k = slice(None, None, 2)
+                v = nav0.v[k] + white_noise(t[k].size, WHITE_STD, np.random.default_rng(100 + seed))
+                write_table(trk, {"t": t[k], **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}})
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # conditioning, what the record leaves undetermined: said by it
+                flight = read_flight_pair(tel[d], trk, clock_drift=given)
+                done[d, seed, given] = casep.separate(flight, MODEL, method="ols"), flight
+        return done[d, seed, given]
+
+    return get
+
+
+def test_a_clock_on_the_tracking_rate_is_within_its_std(pairs):
+    """No drift: the drift's estimate within 3 of its std of 0 on each of two tracking noise draws, not determined
+    (the fuller Monte Carlo: ``benchmarks/telemetry_clock_mc.py``)."""
+    zs = []
+    for seed in range(2):
+        res, _ = pairs(0.0, seed)
+        rec = res.diagnostics["clock_drift"]["telemetry"]
+        assert not rec["determined"], rec
+        zs.append(rec["ppm"] / rec["std_ppm"])
+    assert np.all(np.abs(zs) < 3.0), zs
+
+
+def test_a_drift_given_takes_it_out_of_the_tags_and_the_velocity(pairs):
+    """The drift given (casep's sign: -104 for a clock 104 ppm fast): the estimates those of the same flight on a
+    clock without drift to 0.2 of their std, the drift beyond the one given within 3 std of 0, success kept."""
+    res0, _ = pairs(0.0)
+    res, flight = pairs(DRIFT, 0, _given(DRIFT))
+    assert flight.meta["clock_drift_of"] == "telemetry"
+    ok = np.isfinite(res0.std) & (res0.std > 0)
+    assert np.all(np.abs(res.estimate - res0.estimate)[ok] < 0.2 * res0.std[ok])
+    rec = res.diagnostics["clock_drift"]["telemetry"]
+    assert abs(rec["beyond_given_ppm"]) < 3.0 * rec["std_ppm"] and not rec["determined"], rec
+    assert res.success == res0.success
+
+
+def test_a_drift_not_given_is_estimated_and_a_wrong_sign_fails(pairs):
+    """Not given: the estimate holds the true drift within 3 std, and a drift that large is warned about or within
+    what the record says goes unseen. Given with the wrong sign: where the data determine the difference, the result
+    fails naming the sign."""
+    res, _ = pairs(DRIFT)
+    rec = res.diagnostics["clock_drift"]["telemetry"]
+    assert abs(rec["ppm"] - _given(DRIFT)) < 3.0 * rec["std_ppm"], rec
+    assert rec["determined"] or rec["unseen_ppm"] >= abs(_given(DRIFT)) - 3.0 * rec["std_ppm"]
+    wrong, _ = pairs(DRIFT, 0, -_given(DRIFT))
+    rec = wrong.diagnostics["clock_drift"]["telemetry"]
+    if rec["determined"]:
+        assert not wrong.success and "opposite of the one given" in wrong.message, wrong.message
+
+
+def test_what_an_unmodelled_drift_moves_is_said_for_determined_coefficients(pairs):
+    """The record's ``moves``: what a drift at the test's edge, not modelled, does to the coefficients the flight
+    determines (std below the declared magnitude), beyond 1 std, largest first, at most MOVES_SAID. (Scaled to the
+    true drift they are first-order predictions of how far the estimates move between the drift not given and
+    given: on the simulated 195 s boost, dt_trk -9.6 ms predicted, -10.4 ms moved; on this flight ba_y 0.23
+    predicted, 0.52 moved, 0.4 std apart: not asserted.)"""
+    from casep.workflows.telemetry_clock import MOVES_SAID
+
+    res, _ = pairs(DRIFT)
+    rec = res.diagnostics["clock_drift"]["telemetry"]
+    m = casep.load_model(MODEL)
+    zs = [abs(x["z"]) for x in rec["moves"]]
+    assert 0 < len(zs) <= MOVES_SAID and zs == sorted(zs, reverse=True) and min(zs) > 1.0, rec
+    for x in rec["moves"]:
+        k = res.names.index(x["name"])
+        assert res.std[k] < m.scales.get(x["name"], np.inf) and x["z"] == pytest.approx(x["shift"] / res.std[k])
+
+
+def test_without_the_fits_time_offset_one_is_estimated_beside_the_drift(pairs, tmp_path):
+    """A fit without ``dt_trk``: the tags' drift counts from an origin a constant offset moves, so the test estimates
+    one beside it; the drift's estimate holds the true one within 3 std."""
+    _, flight = pairs(DRIFT)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = casep.separate(flight, MODEL, method="ols", fit_time_offset=False)
+    assert "dt_trk" not in res.names
+    rec = res.diagnostics["clock_drift"]["telemetry"]
+    assert abs(rec["ppm"] - _given(DRIFT)) < 3.0 * rec["std_ppm"], rec
