@@ -244,6 +244,10 @@ def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model,
                       noise_free=problem.is_noise_free())
     if isinstance(flight, FlightData) and isinstance(model, ErrorModel):
+        from casep.workflows.omitted_terms import judge_omitted
+
+        res = judge_omitted(res, flight, problem, model)  # the richer model's terms beside the fit
+    if isinstance(flight, FlightData) and isinstance(model, ErrorModel):
         res = judge_tracking(res, flight, problem, model.scales)
     if not isinstance(flight, Problem) and isinstance(model, ErrorModel):
         from casep.model.loader import model_record
