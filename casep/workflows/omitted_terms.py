@@ -11,8 +11,8 @@ column beside the fit (:func:`casep.workflows.imu_separate.column_estimates`, th
 beside them, which cost 5.5 s on a 20 Hz boost), judged jointly: the Wald chi-square ``c^T C^-1 c`` on as many dof,
 at the consistency rule of several flights (:data:`casep.estimators.joint.FAIL_P`, 1e-6: a correct model fails
 once in 10^6 flights where the std hold). Beyond it the result fails with the status of a model error
-(``STATUS_MISFIT``), naming what the rows determine of the terms (least norm, natural units, std) and the richer
-model.
+(``STATUS_MISFIT``), naming the combinations of the terms the rows determine beyond 3 std (each term over its declared
+magnitude, in natural units), their estimates and std, and the richer model.
 
 **The absorbed part.** On the simulated strapdown boost the rows' test sees nothing (chi-square 2-5 on 6 dof with
 every strapdown33 term drawn; the terms' non-centrality 0.007): the pitch-plane gyro terms strapdown15_axial lacks
@@ -36,15 +36,17 @@ from casep.estimators.result import EstimateResult
 from casep.io.flight import FlightData
 
 __all__ = ["omitted_record", "judge_omitted", "richer_model", "alias_line", "omitted_message", "OMITTED_NAMED",
-           "OMITTED_RCOND"]
+           "OMITTED_RCOND", "OMITTED_WEIGHT"]
 
 #: A combination of the extra columns is determined beside the fit where its singular value (the columns less their
 #: projection on the whitened design, each per declared magnitude) is above this share of the largest: the rest are
 #: the design's null space at rounding (strapdown33's 12 beyond rank 21 on the boost: 1e-16 of the largest; the
 #: determined ones down to 1e-3).
 OMITTED_RCOND = 1e-8
-#: The terms named in a failure, at most (each alone beside the fit, farthest from 0 in its std first).
-OMITTED_NAMED = 6
+#: The determined combinations named in a failure, at most (farthest from 0 in their std first) ...
+OMITTED_NAMED = 3
+#: ... each by its terms of at least this weight (a unit vector of the terms per declared magnitude).
+OMITTED_WEIGHT = 0.3
 
 
 def richer_model(model: str) -> str | None:
@@ -103,8 +105,9 @@ def _determined(res: EstimateResult, problem: Any, cols: np.ndarray) -> np.ndarr
 
 def omitted_record(res: EstimateResult, problem: Any, flight: FlightData, model: Any) -> tuple[dict, np.ndarray] | None:
     """The test of the richer model's extra terms beside the fit (module notes): ``{"richer", "terms", "chi2", "dof",
-    "p_value", "fail_p", "each", "alias", "rule"}`` (``each``: the terms by what the rows determine of them, the
-    least-norm estimate of the determined combinations in natural units with its std and z; ``alias``: how far the
+    "p_value", "fail_p", "each", "alias", "rule"}`` (``each``: the determined combinations, farthest from 0 in their std
+    first, each its terms ``(name, weight, declared magnitude, unit)`` (a unit vector of the terms over their declared
+    magnitudes), estimate, std and z; ``alias``: how far the
     terms at their declared magnitudes move the fit's estimates, in the fit's std), and the extra columns per declared
     magnitude (N, 3, k: the consider columns); None without a richer shipped model or a noise model."""
     from casep._special import chi2_sf
@@ -132,10 +135,12 @@ def omitted_record(res: EstimateResult, problem: Any, flight: FlightData, model:
         c, _, C = est
         record["chi2"] = chi2 = float(c @ np.linalg.solve(C, c))
         record["p_value"] = chi2_sf(record["dof"], chi2)
-        x, sd = scale * (V @ c), scale * np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", V, C, V), 0.0))
-        each = [{"name": nm, "estimate": float(xi), "std": float(si), "unit": u,
-                 "z": float(abs(xi) / si) if si > 0 else 0.0} for nm, xi, si, u in zip(names, x, sd, units)]
-        record["each"] = sorted(each, key=lambda r: -r["z"])
+        sd = np.sqrt(np.maximum(np.diag(C), 0.0))
+        combos = [{"terms": [(names[j], float(V[j, i]), float(scale[j]), units[j])
+                             for j in np.argsort(-np.abs(V[:, i])) if abs(V[j, i]) >= OMITTED_WEIGHT],
+                   "estimate": float(c[i]), "std": float(sd[i]), "z": float(abs(c[i]) / sd[i]) if sd[i] > 0 else 0.0}
+                  for i in range(c.size)]
+        record["each"] = sorted(combos, key=lambda r: -r["z"])
     return record, scaled
 
 
@@ -173,14 +178,14 @@ def _alias(res: EstimateResult, problem: Any, scaled: np.ndarray) -> dict:
 
 def omitted_message(record: dict) -> str:
     """What a failed result says of :func:`omitted_record`."""
-    named = record["each"][:OMITTED_NAMED]
-    terms = "; ".join(f"{r['name']} {r['estimate']:+.4g} +- {r['std']:.2g} {r['unit']} (z {r['z']:.3g})"
-                      for r in named)
+    named = [r for r in record["each"] if r["z"] > 3.0][:OMITTED_NAMED] or record["each"][:1]
+    terms = "; ".join(" + ".join(f"{w:+.2g} {nm}/({s:g} {u})" for nm, w, s, u in r["terms"])
+                      + f" = {r['estimate']:+.4g} +- {r['std']:.2g} (z {r['z']:.3g})" for r in named)
     return (f"the rows hold terms the model lacks: of {record['richer']}'s {len(record['terms'])} further terms, "
             f"the {record['dof']} combination(s) the flight determines beside the fit are {record['chi2']:.4g} from 0 "
             f"(Wald chi-square on {record['dof']} dof, p {record['p_value']:.3g}; fail below {record['fail_p']:g}); "
-            f"what the rows determine of them (least norm): {terms}. The estimates take in what those terms do and "
-            f"are off by more than their std say: fit {record['richer']} (or a model with these terms)")
+            f"the rows determine (each term over its declared magnitude): {terms}. The estimates take in what those "
+            f"terms do and are off by more than their std say: fit {record['richer']} (or a model with these terms)")
 
 
 def alias_line(record: dict) -> str | None:
