@@ -179,7 +179,7 @@ def _alias(res: EstimateResult, problem: Any, scaled: np.ndarray) -> dict:
 def omitted_message(record: dict) -> str:
     """What a failed result says of :func:`omitted_record`."""
     named = [r for r in record["each"] if r["z"] > 3.0][:OMITTED_NAMED] or record["each"][:1]
-    terms = "; ".join(" + ".join(f"{w:+.2g} {nm}/({s:g} {u})" for nm, w, s, u in r["terms"])
+    terms = "; ".join(" ".join(f"{w:+.2g} {nm}/({s:g} {u})" for nm, w, s, u in r["terms"])
                       + f" = {r['estimate']:+.4g} +- {r['std']:.2g} (z {r['z']:.3g})" for r in named)
     return (f"the rows hold terms the model lacks: of {record['richer']}'s {len(record['terms'])} further terms, "
             f"the {record['dof']} combination(s) the flight determines beside the fit are {record['chi2']:.4g} from 0 "
