@@ -2384,10 +2384,12 @@ def combination_imu_noise(W: np.ndarray, scale: np.ndarray, res: EstimateResult,
 
 def estimator_noise(a: np.ndarray, res: EstimateResult, problem: Any, flight: FlightData,
                     levelling: tuple | None = None, profile: tuple | None = None,
-                    heading: np.ndarray | None = None) -> tuple[np.ndarray | None, np.ndarray] | None:
+                    heading: np.ndarray | None = None,
+                    full: bool = False) -> tuple[np.ndarray | None, np.ndarray] | None:
     """The variances of the estimators `a` (m, 3N: rows on the raw rows of `problem`, axis-interleaved) under the
     noise of :func:`imu_noise_budget`: ``(tracking part, IMU part)``, as :func:`combination_imu_noise` (its rule, for
-    any linear estimator on the rows: the stated combinations' and :func:`heading_conflict`'s)."""
+    any linear estimator on the rows: the stated combinations' and :func:`heading_conflict`'s); with `full` their
+    covariances (m, m) instead (a joint test of several estimators: :mod:`casep.workflows.omitted_terms`)."""
     from casep.checks.tracking_quality import imu_noise_effect
     from casep.noise.known import tracking_covariance_times
     from casep.noise.model import NoiseModel
@@ -2404,10 +2406,10 @@ def estimator_noise(a: np.ndarray, res: EstimateResult, problem: Any, flight: Fl
     refit = (nd.get("imu") or {}).get("tracking_noise")
     trk = None
     if refit is not None:
-        trk = np.einsum("ij,ji->i", a, tracking_covariance_times(a.T.reshape(N, 3, m), t,
-                                                                 NoiseModel.from_dict(refit)).reshape(3 * N, m))
-        trk = trk + np.diag(tau_spread(a, problem, profile))
-    return trk, np.sum(AG**2, axis=1)
+        times = tracking_covariance_times(a.T.reshape(N, 3, m), t, NoiseModel.from_dict(refit)).reshape(3 * N, m)
+        spread = tau_spread(a, problem, profile)
+        trk = a @ times + spread if full else np.einsum("ij,ji->i", a, times) + np.diag(spread)
+    return trk, (AG @ AG.T if full else np.sum(AG**2, axis=1))
 
 
 def combination_estimators(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: Any,
@@ -2604,7 +2606,7 @@ def heading_conflict(res: EstimateResult, problem: Any, flight: FlightData, per_
 
 def column_estimates(res: EstimateResult, problem: Any, flight: FlightData, columns: np.ndarray | None,
                      levelling: tuple | None = None, profile: tuple | None = None,
-                     consider: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+                     consider: np.ndarray | None = None, covariance: bool = False) -> tuple[np.ndarray, ...] | None:
     """The GLS estimates (k,) of `columns` (N, 3) or (N, 3, k) as k more coefficients of `problem`'s design (S_V
     projected out, `res`'s whitening), each with the others free, and their std (k,): :func:`heading_conflict`'s rule
     for the heading's column, one place for every such test (a frame's rotation about three axes:
@@ -2612,7 +2614,8 @@ def column_estimates(res: EstimateResult, problem: Any, flight: FlightData, colu
     (:func:`estimator_noise`: the tracking noise refitted beside the IMU's, the uncertainty of its correlation
     times, the IMU's own noise, the `consider` columns (:func:`consider_columns`) as the stated combinations' std
     carry them; the fit's own ``sigma`` with its whitening where the noise was not refitted). None without the
-    columns, rows, times or a noise model (:func:`heading_conflict`, :func:`clock_check`)."""
+    columns, rows, times or a noise model (:func:`heading_conflict`, :func:`clock_check`). With `covariance` their
+    covariance (k, k) too, as a third item (a joint test of the columns: :mod:`casep.workflows.omitted_terms`)."""
     if columns is None or problem.y is None or not np.all(np.isfinite(columns)):
         return None
     n = len(res.names)
@@ -2624,9 +2627,12 @@ def column_estimates(res: EstimateResult, problem: Any, flight: FlightData, colu
         return None
     a_w, a = est
     offset = a @ np.asarray(problem.y, dtype=float).reshape(-1)
-    own = float(res.sigma) ** 2 * np.sum(a_w**2, axis=1)  # the fit's own noise (its whitening, its sigma)
-    var = estimator_noise(a, res, problem, flight, levelling, profile, consider)
+    # the fit's own noise (its whitening, its sigma)
+    own = float(res.sigma) ** 2 * (a_w @ a_w.T if covariance else np.sum(a_w**2, axis=1))
+    var = estimator_noise(a, res, problem, flight, levelling, profile, consider, full=covariance)
     var_c = own if var is None else (own if var[0] is None else np.asarray(var[0], float)) + np.asarray(var[1], float)
+    if covariance:
+        return offset, np.sqrt(np.maximum(np.diag(var_c), 0.0)), var_c
     return offset, np.sqrt(np.maximum(var_c, 0.0))
 
 
