@@ -2608,8 +2608,8 @@ def heading_first(res: EstimateResult) -> EstimateResult:
         fails += [f for f in more if f and f != said.removeprefix("failed: ")]
         if head:
             lines.append(head)
-    others = ("\nwith the heading that far off, the other findings may be its consequences (judge them once the "
-              "heading is right): " + "; ".join(fails)) if fails else ""
+    others = ("\nwith the turn named above (the heading, or the frames), the other findings may be its consequences "
+              "(judge them once it is set right): " + "; ".join(fails)) if fails else ""
     message = "\n".join([said + others, *lines])
     return dataclasses.replace(res, status=STATUS_PRIOR_CONFLICT, success=False, message=message)
 

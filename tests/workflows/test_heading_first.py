@@ -105,7 +105,8 @@ def test_the_heading_is_named_first_and_the_other_failures_after_it(monkeypatch,
     others = ["the noise model took", "2 estimate(s) beyond"]
     if before is not None:
         others.insert(0, "the correction of bg_y")
-    assert second.startswith("with the heading that far off, the other findings may be its consequences"), second
+    assert second.startswith("with the turn named above (the heading, or the frames), the other findings may be its "
+                                     "consequences"), second
     at = [second.index(o) for o in others]
     assert at == sorted(at), second
     assert rest == ["the record checks the IMU clock's rate only to 95 ppm"], rest
