@@ -221,14 +221,16 @@ def judge_telemetry_heading(res: EstimateResult, flight: Any, problem: Any, mode
     """`res`, a strapdown telemetry's failed result, with the turn about the vertical tested
     (:func:`telemetry_heading_record`, in ``diagnostics["heading"]["test"]``); a turn named is said
     (:class:`casep.exceptions.SetupWarning`) and put first (:func:`casep.workflows.imu_separate.heading_first`:
-    status ``STATUS_PRIOR_CONFLICT``, the other failures after it). A success, anything but a strapdown telemetry,
+    status ``STATUS_PRIOR_CONFLICT``, the other failures after it). A success, a set-up failure (a dv sign, the
+    attitude's frame: :func:`casep.workflows.telemetry_frame.judge_frame`), anything but a strapdown telemetry,
     noise-free rows or a flight that failed a set-up check: `res` unchanged."""
     from casep.checks.plausibility import setup_problems
-    from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
+    from casep.estimators.registry import STATUS_PRIOR_CONFLICT, STATUS_SETUP, failed
     from casep.exceptions import SetupWarning
     from casep.workflows.imu_separate import heading_first
 
-    if res.success or not isinstance(flight, FlightData) or problem.y is None or setup_problems(flight):
+    if res.success or res.status == STATUS_SETUP or not isinstance(flight, FlightData) or problem.y is None \
+            or setup_problems(flight):  # a set-up mistake named already (a dv sign, the attitude's frame)
         return res
     if problem.is_noise_free():
         return res
