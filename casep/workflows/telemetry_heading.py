@@ -65,6 +65,26 @@ def _integrated_force(flight: FlightData) -> np.ndarray:
     return np.vstack([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
 
 
+def _minimum(grid: np.ndarray, scan: np.ndarray, ssr: Any) -> tuple[float, bool]:
+    """The turn (deg) at the least-squares profile's minimum: the scan's (`grid`, `scan`) refined by golden section
+    between its neighbours to :data:`LOCATE_TOL_DEG` (`ssr` the profile), and whether it lies inside the scan."""
+    k = int(np.argmin(scan))
+    lo, hi = float(grid[max(k - 1, 0)]), float(grid[min(k + 1, grid.size - 1)])
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    c, d = hi - g * (hi - lo), lo + g * (hi - lo)
+    fc, fd = ssr(c), ssr(d)
+    while hi - lo > LOCATE_TOL_DEG:
+        if fc < fd:
+            hi, d, fd = d, c, fc
+            c = hi - g * (hi - lo)
+            fc = ssr(c)
+        else:
+            lo, c, fc = c, d, fd
+            d = lo + g * (hi - lo)
+            fd = ssr(d)
+    return 0.5 * (lo + hi), 0 < k < grid.size - 1
+
+
 def telemetry_heading_record(res: EstimateResult, problem: Any, flight: FlightData, model: Any, spec: Any,
                              locating: Any) -> dict | None:
     """The turn of a strapdown telemetry about the vertical against its tracking (module notes): ``{"turn_deg",
@@ -134,22 +154,7 @@ def telemetry_heading_record(res: EstimateResult, problem: Any, flight: FlightDa
                 other = np.array([ssr(d, "tracking") for d in grid])
                 if other.min() < scan.min():
                     kind, scan = "tracking", other
-            k = int(np.argmin(scan))
-            located = 0 < k < grid.size - 1
-            lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
-            g = (math.sqrt(5.0) - 1.0) / 2.0
-            c, d = hi - g * (hi - lo), lo + g * (hi - lo)
-            fc, fd = ssr(c), ssr(d)
-            while hi - lo > LOCATE_TOL_DEG:  # golden section on the profile between the scan's neighbours
-                if fc < fd:
-                    hi, d, fd = d, c, fc
-                    c = hi - g * (hi - lo)
-                    fc = ssr(c)
-                else:
-                    lo, c, fc = c, d, fd
-                    d = lo + g * (hi - lo)
-                    fd = ssr(d)
-            turn = 0.5 * (lo + hi)
+            turn, located = _minimum(grid, scan, ssr)
             n0, n_at = neg2(0.0), neg2(turn)
             n_plus, n_minus = neg2(turn + CURVATURE_STEP_DEG), neg2(turn - CURVATURE_STEP_DEG)
             fit_there = _quiet_fit(at(turn), spec)
@@ -221,17 +226,17 @@ def judge_telemetry_heading(res: EstimateResult, flight: Any, problem: Any, mode
     """`res`, a strapdown telemetry's failed result, with the turn about the vertical tested
     (:func:`telemetry_heading_record`, in ``diagnostics["heading"]["test"]``); a turn named is said
     (:class:`casep.exceptions.SetupWarning`) and put first (:func:`casep.workflows.imu_separate.heading_first`:
-    status ``STATUS_PRIOR_CONFLICT``, the other failures after it). A success, a set-up failure (a dv sign, the
-    attitude's frame: :func:`casep.workflows.telemetry_frame.judge_frame`), anything but a strapdown telemetry,
+    status ``STATUS_PRIOR_CONFLICT``, the other failures after it). A success, a dv sign or the attitude's frame
+    named (:func:`casep.workflows.telemetry_frame.judge_frame`), anything but a strapdown telemetry,
     noise-free rows or a flight that failed a set-up check: `res` unchanged."""
     from casep.checks.plausibility import setup_problems
-    from casep.estimators.registry import STATUS_PRIOR_CONFLICT, STATUS_SETUP, failed
+    from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
     from casep.exceptions import SetupWarning
     from casep.workflows.imu_separate import heading_first
 
-    if res.success or res.status == STATUS_SETUP or not isinstance(flight, FlightData) or problem.y is None \
-            or setup_problems(flight):  # a set-up mistake named already (a dv sign, the attitude's frame)
-        return res
+    named = (res.diagnostics.get("dv_signs") or {}).get("named") or (res.diagnostics.get("frame") or {}).get("conflict")
+    if res.success or named or not isinstance(flight, FlightData) or problem.y is None or setup_problems(flight):
+        return res  # named already: a dv sign, the attitude's frame (judge_frame)
     if problem.is_noise_free():
         return res
     record = telemetry_heading_record(res, problem, flight, model, spec, locating)
