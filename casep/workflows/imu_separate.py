@@ -939,7 +939,8 @@ class _Run:
         if failure is not None:
             gap = self.gap_clause(float(out.sigma)) or _late_tags_clause(flight)
             out = failed(out, STATUS_NOT_CONVERGED, failure.replace(_BLAME, gap) if gap else failure)
-        out = self.heading_judged(out, problem, flight, D)
+        # the passes settled (the stop rule met: a success, or a combination left out after it) or stopped before
+        out = self.heading_judged(out, problem, flight, D, settled=_stopped(passes[-1], tol))
         test = (out.diagnostics.get("heading") or {}).get("test") or {}
         if test.get("conflict") and _BLAME in out.message:  # the step failed on the turn the heading leaves
             out = dataclasses.replace(out, message=out.message.replace(_BLAME, _heading_blame(test)))
@@ -1066,28 +1067,35 @@ class _Run:
         return out
 
     def heading_judged(self, res: EstimateResult, problem: Any, flight: FlightData,
-                       D: np.ndarray) -> EstimateResult:
+                       D: np.ndarray, settled: bool = True) -> EstimateResult:
         """`res` with the test of the given heading against the data (:func:`heading_conflict`) in
         ``diagnostics["heading"]["test"]``; where the data contradict it, said (:class:`casep.exceptions.SetupWarning`,
         :func:`heading_message`) and failed (status ``STATUS_PRIOR_CONFLICT``: the heading's std is its prior). Not
         on noise-free rows (:meth:`at_rounding`, :meth:`casep.regression.problem.Problem.is_noise_free`): their std
         are rounding, and the passes' remainder at their fixed point would read as a heading error; nor on a flight
         with a set-up problem (:func:`casep.checks.plausibility.setup_problems`: a wrong tracking frame, a heading
-        turned beyond 30 deg), whose rows are that mistake, not a heading within the linear model's reach. A test
-        beyond its limit is a conflict, and the heading is named (first: :func:`heading_first`), whatever else
-        fails: the coefficients absorb a wrong heading's turn, and the misfit, the estimates beyond the linear model
-        and the step that leaves it are its consequences. The pass's rows navigated at the heading the data point to
-        (at `D`: ``at_suggested_deg``) say how far the linear test reaches: a turn left there beyond
-        :data:`HEADING_SETTLED_Z` of its std makes the heading it points to approximate (``settled`` False), which
-        the message says. (A rule that took a turn left there above half of the one found for the passes'
-        remainder, no conflict, hid a heading 10 deg off on the simulated strapdown boost: +9.63 +- 0.55 deg, z 17,
-        -6.96 deg left at the suggested 200.44 deg, the truth 200.07, where the coefficients fitted at the wrong
-        heading had absorbed the turn; the rail launch under ``strapdown12`` it was made for reads z 0.26 to 0.85 at
-        the true heading now, 5 seeds: ``python benchmarks/heading_test_mc.py rail --model strapdown12 --seeds 1 2
-        3 4 5 --offsets 0``.)"""
+        turned beyond 30 deg), whose rows are that mistake, not a heading within the linear model's reach. Judged
+        only where the record determines the heading within the small-angle reach (its std times the limit within
+        :data:`casep.workflows.telemetry_frame.FRAME_LARGE_DEG`, the frame test's rule): an iteration stopped two
+        passes early read -417 +- 34 deg. Where the passes `settled` (the stop rule met: a success, or a
+        combination left out after it), a test beyond its limit is a conflict and the heading is named first
+        (:func:`heading_first`), whatever else fails: the coefficients absorb a wrong heading's turn, and the
+        misfit, the estimates beyond the linear model and the step that leaves it are its consequences. The pass's
+        rows navigated at the heading the data point to (at `D`: ``at_suggested_deg``) say how far the linear test
+        reaches: a turn left there beyond :data:`HEADING_SETTLED_Z` of its std makes the heading it points to
+        approximate (``settled`` False), which the message says. (A rule that took a turn left there above half of
+        the one found for the passes' remainder, no conflict, hid a heading 10 deg off on the simulated strapdown
+        boost: +9.63 +- 0.55 deg, z 17, -6.96 deg left at the suggested 200.44 deg, the truth 200.07, where the
+        coefficients fitted at the wrong heading had absorbed the turn; the rail launch under ``strapdown12`` it was
+        made for reads z 0.26 to 0.85 at the true heading now, 5 seeds: ``python benchmarks/heading_test_mc.py rail
+        --model strapdown12 --seeds 1 2 3 4 5 --offsets 0``.) Where the passes stopped before settling (the pass
+        bound, a step that could not be taken), the rows hold the passes' remainder, and that rule stands: a
+        conflict only where the turn left at the suggestion is below half of the one found, said after the
+        failure that stopped them (an IMU gap stopped at two passes read +2.14 +- 0.08 deg, 0.35 left)."""
         from casep.checks.plausibility import setup_problems
         from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
         from casep.exceptions import SetupWarning
+        from casep.workflows.telemetry_frame import FRAME_LARGE_DEG
 
         per_deg = self.heading_derivative(problem)
         if per_deg is None or problem.y is None or setup_problems(flight):  # a set-up mistake: its failure says it
@@ -1101,6 +1109,10 @@ class _Run:
         if record is None:
             return res
         res.diagnostics["heading"] = {**res.diagnostics.get("heading", {}), "test": record}
+        record["judged"] = bool(record["std_deg"] * record["limit_z"] <= FRAME_LARGE_DEG)
+        record["first"] = bool(settled)
+        if not record["judged"]:
+            record["conflict"] = False  # beyond the small-angle reach: the test says nothing
         if not record["conflict"]:
             return res
         # the linear model at the heading the data point to: the pass's rows there, the same estimator
@@ -1111,6 +1123,9 @@ class _Run:
         again = None if there is None else heading_conflict(noise, problem.with_y(there), flight, per_deg, h0,
                                                             self.heading_std, *args)
         record["at_suggested_deg"] = None if again is None else again["estimate_deg"]
+        if not settled and (again is None or not abs(again["estimate_deg"]) < abs(record["estimate_deg"]) / 2):
+            record["conflict"] = False  # passes stopped before settling: their remainder, not a turn the data show
+            return res
         record["settled"] = bool(again is not None
                                  and abs(again["estimate_deg"]) <= HEADING_SETTLED_Z * again["std_deg"])
         said = heading_message(record, self.heading["heading_axis"])
@@ -2596,8 +2611,8 @@ def heading_first(res: EstimateResult) -> EstimateResult:
 
     test = (res.diagnostics.get("heading") or {}).get("test") or {}
     said = test.get("said")
-    if not test.get("conflict") or not said or said not in res.message:
-        return res
+    if not test.get("conflict") or not test.get("first", True) or not said or said not in res.message:
+        return res  # no conflict, or one read on passes stopped before settling: said after what stopped them
     # every failure of the message (the first line's, and those appended after a later line: failed() adds to the
     # message's end) but the heading's, in their order; the message's other lines kept
     fails, lines = [], []

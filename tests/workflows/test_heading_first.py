@@ -39,9 +39,10 @@ def _record(estimate: float, std: float, heading: float = 210.067) -> dict:
             "limit_z": 5.0, "suggested_heading_deg": heading - estimate, "conflict": bool(z > 5.0)}
 
 
-def _judged(monkeypatch, res: _Res, first: dict, again: dict) -> _Res:
+def _judged(monkeypatch, res: _Res, first: dict, again: dict, settled: bool = True, said: int | None = None) -> _Res:
     """:meth:`_Run.heading_judged` on a stand-in run whose heading test reads `first` at the given heading and
-    `again` at the heading it points to."""
+    `again` at the heading it points to (`settled`: the passes met their stop rule; `said`: the SetupWarnings
+    expected, one for a conflict by default)."""
     reads = iter([first, again])
     monkeypatch.setattr(imu_separate, "heading_conflict", lambda *a, **k: dict(next(reads)))
     problem = SimpleNamespace(y=np.ones((4, 3)), ls_rms=lambda: 0.1, is_noise_free=lambda rms: False,
@@ -52,9 +53,9 @@ def _judged(monkeypatch, res: _Res, first: dict, again: dict) -> _Res:
                           rows_at_heading=lambda D, h: np.zeros((4, 3)))
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")
-        out = _Run.heading_judged(run, res, problem, SimpleNamespace(meta={}), np.zeros(3))
-    said = [str(w.message) for w in seen if w.category is SetupWarning]
-    assert len(said) == (1 if first["conflict"] else 0), said
+        out = _Run.heading_judged(run, res, problem, SimpleNamespace(meta={}), np.zeros(3), settled=settled)
+    warned = [str(w.message) for w in seen if w.category is SetupWarning]
+    assert len(warned) == ((1 if first["conflict"] else 0) if said is None else said), warned
     return out
 
 
@@ -111,3 +112,26 @@ def test_the_heading_is_named_first_and_the_other_failures_after_it(monkeypatch,
     assert at == sorted(at), second
     assert rest == ["the record checks the IMU clock's rate only to 95 ppm"], rest
     assert heading_first(_Res(message="failed: x", success=False, status=-5)).status == -5  # no test: unchanged
+
+
+def test_passes_stopped_before_settling_keep_the_half_rule_and_their_own_failure_first(monkeypatch):
+    """An iteration stopped at its pass bound (an IMU gap in the roll ramp, two passes: +2.14 +- 0.078 deg, z 17,
+    0.35 deg left at the heading it points to): the rows hold the passes' remainder, so the heading is said after the
+    failure that stopped them (status kept, heading_first leaves it); with the turn left there above half of the one
+    found, no conflict at all."""
+    stopped = failed(_Res(), STATUS_NOT_CONVERGED, "failed: the iteration did not converge in 2 passes: the IMU gap")
+    out = heading_first(_judged(monkeypatch, stopped, _record(2.14, 0.078), _record(0.35, 0.078, 207.9),
+                                settled=False))
+    test = out.diagnostics["heading"]["test"]
+    assert test["conflict"] and not test["first"] and out.status == STATUS_NOT_CONVERGED, test
+    assert out.message.startswith("failed: the iteration did not converge") and "contradict the heading" in out.message
+    stopped = failed(_Res(), STATUS_NOT_CONVERGED, "failed: the iteration did not converge in 2 passes")
+    out = _judged(monkeypatch, stopped, _record(2.14, 0.078), _record(1.5, 0.078, 207.9), settled=False, said=0)
+    assert not out.diagnostics["heading"]["test"]["conflict"] and out.message.endswith("2 passes")
+
+
+def test_a_heading_known_beyond_the_small_angle_reach_is_not_judged(monkeypatch):
+    """-417 +- 34 deg (late tracking tags, two passes): std times the limit beyond 30 deg, no conflict, no warning."""
+    out = _judged(monkeypatch, _Res(), _record(-417.5, 34.4), _record(278.9, 34.4), said=0)
+    test = out.diagnostics["heading"]["test"]
+    assert not test["judged"] and not test["conflict"] and out.success
