@@ -178,7 +178,7 @@ __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_
            "combination_imu_noise",
            "linearisation_shift", "linearisation_record", "one_pass_judged", "Shift", "shift_said", "SMALLER_MODELS",
            "prior_fits_p", "HEADING_STD_DEG", "HEADING_STEP_DEG", "HEADING_SETTLED_Z", "given_heading_std",
-           "heading_first"]
+           "heading_first", "SMALL_ANGLE_REACH_DEG"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -248,6 +248,11 @@ HEADING_STEP_DEG = 0.1
 #: test points to with the coefficients' correction held walked to 68.8 deg, past the true 70 (the correction
 #: absorbed part of the turn), so the rule says where the test stops being exact instead of searching.
 HEADING_SETTLED_Z = 3.0
+#: The reach of the small-angle tests, deg: a heading (or a frame's rotation about an axis) whose std times the
+#: test's limit exceeds it is not judged (:meth:`_Run.heading_judged`;
+#: :data:`casep.workflows.telemetry_frame.FRAME_LARGE_DEG` is this): beyond it the first-order column locates a local
+#: fit, not the turn (an iteration stopped two passes early read the heading -417 +- 34 deg off).
+SMALL_ANGLE_REACH_DEG = 30.0
 #: The IMU clock drift's derivative: central differences of a pass navigated with its tags stretched by plus and minus
 #: this, ppm (the rows are linear in it to parts in 10^4 over a flight: a crystal's drift of tens of ppm).
 CLOCK_STEP_PPM = 100.0
@@ -1076,7 +1081,7 @@ class _Run:
         with a set-up problem (:func:`casep.checks.plausibility.setup_problems`: a wrong tracking frame, a heading
         turned beyond 30 deg), whose rows are that mistake, not a heading within the linear model's reach. Judged
         only where the record determines the heading within the small-angle reach (its std times the limit within
-        :data:`casep.workflows.telemetry_frame.FRAME_LARGE_DEG`, the frame test's rule): an iteration stopped two
+        :data:`SMALL_ANGLE_REACH_DEG`, the frame test's rule): an iteration stopped two
         passes early read -417 +- 34 deg. Where the passes `settled` (the stop rule met: a success, or a
         combination left out after it), a test beyond its limit is a conflict and the heading is named first
         (:func:`heading_first`), whatever else fails: the coefficients absorb a wrong heading's turn, and the
@@ -1095,8 +1100,6 @@ class _Run:
         from casep.checks.plausibility import setup_problems
         from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
         from casep.exceptions import SetupWarning
-        from casep.workflows.telemetry_frame import FRAME_LARGE_DEG
-
         per_deg = self.heading_derivative(problem)
         if per_deg is None or problem.y is None or setup_problems(flight):  # a set-up mistake: its failure says it
             return res
@@ -1109,7 +1112,7 @@ class _Run:
         if record is None:
             return res
         res.diagnostics["heading"] = {**res.diagnostics.get("heading", {}), "test": record}
-        record["judged"] = bool(record["std_deg"] * record["limit_z"] <= FRAME_LARGE_DEG)
+        record["judged"] = bool(record["std_deg"] * record["limit_z"] <= SMALL_ANGLE_REACH_DEG)
         record["first"] = bool(settled)
         if not record["judged"]:
             record["conflict"] = False  # beyond the small-angle reach: the test says nothing
