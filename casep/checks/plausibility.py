@@ -468,7 +468,9 @@ def levelling_problem(flight: FlightData, model: Any, estimates: dict[str, float
     (``initial_misalignment``) predicts ``b t`` on the pad instead, and its estimates are biased by many std
     (an aircraft levelled over 38 s, strapdown12: ``ba_x`` 12 std off; with ``strapdown15_phi0``: 1.2).
     The header line of :func:`casep.io.files.levelled_comment` (``flight.meta["levelled"]``) tells such a
-    telemetry; `estimates` (natural units, by name) give the tilt the estimate's ``ba_*`` (mg) leave.
+    telemetry; `estimates` (natural units, by name: the coefficients the flight determines) give the tilt the
+    estimate's ``ba_*`` (mg) leave; where one of them is missing from `estimates` (not determined) the message says
+    so and gives no size.
     """
     lev = flight.meta.get("levelled") if isinstance(flight.meta, dict) else None
     if not lev or not hasattr(model, "numeric") or "fb_x" not in model.signals:  # a strapdown model only
@@ -484,6 +486,10 @@ def levelling_problem(flight: FlightData, model: Any, estimates: dict[str, float
         phi = float(np.linalg.norm(np.cross(u / np.linalg.norm(u), b)))  # rad: the bias across the pad's vertical
         tilt = (f" (the estimate's ba_x, ba_y, ba_z {b[0] * 1e3:.3g}, {b[1] * 1e3:.3g}, {b[2] * 1e3:.3g} mg: a start "
                 f"tilt of {phi * 206264.8:.3g} arcsec, {phi * G0 * span:.3g} m/s over the {span:.4g} s flight at 1 g)")
+    elif estimates is not None and all(f"ba_{a}" in model.names for a in "xyz"):
+        left = [f"ba_{a}" for a in "xyz" if f"ba_{a}" not in estimates]
+        tilt = (f" (its size is not given: the flight does not determine {', '.join(left)}, and a tilt formed from "
+                "their values would say nothing)")
     from casep.model.loader import PHI0_MODELS
 
     use = PHI0_MODELS.get(model.name.split("+")[0], "a model with the initial attitude error phi0_x..z")

@@ -89,7 +89,8 @@ R_TEL_COLUMNS = ("r_tel_x", "r_tel_y", "r_tel_z")  # launch-inertial position (c
 #: casep navigate's header line naming the launch site (casep/cli/navigate.py writes it)
 _NAV_SITE = re.compile(r"^#\s*launch site (\S+) (\S+) (\S+) azimuth (\S+) deg, launch time (\S+) s")
 #: casep navigate's header line naming its pad alignment (:func:`levelled_comment` writes it)
-_NAV_LEVELLED = re.compile(r"^#\s*alignment: levelled over \[(\S+), (\S+)\] s, heading (\S+)")
+_NAV_LEVELLED = re.compile(r"^#\s*alignment: levelled over \[(\S+), (\S+)\] s, heading (\S+)"
+                           r"(?: \(body (\S+) at (\S+) deg\))?")
 #: casep simulate's header line naming the model that made the flight (:func:`simulated_comment` writes it)
 _SIM_MODEL = re.compile(r"^#\s*model (\S+), seed ")
 
@@ -152,15 +153,18 @@ def header_facts(flight: str | os.PathLike) -> dict:
 
 
 def levelling_record(tab: Table) -> dict | None:
-    """``{"window": [T1, T2], "heading": "given" | "gyrocompassed"}`` when `tab`'s header says ``casep navigate``
-    levelled it on the pad (:func:`levelled_comment`), else None: the levelling turned the accelerometer errors
+    """``{"window": [T1, T2], "heading": "given" | "gyrocompassed", "heading_axis", "heading_deg"}`` when `tab`'s
+    header says ``casep navigate`` levelled it on the pad (:func:`levelled_comment`; the body axis and its heading,
+    deg, None where the line does not give them), else None: the levelling turned the accelerometer errors
     on the pad into a start tilt, which a model without an initial attitude error cannot describe
-    (:func:`casep.checks.plausibility.levelling_problem`)."""
+    (:func:`casep.checks.plausibility.levelling_problem`); the heading is the one the telemetry's turn about the
+    vertical is held against (:mod:`casep.workflows.telemetry_heading`)."""
     for line in _header(tab):
         m = _NAV_LEVELLED.match(line)
         if m is not None:
             try:
-                return {"window": [float(m.group(1)), float(m.group(2))], "heading": m.group(3)}
+                return {"window": [float(m.group(1)), float(m.group(2))], "heading": m.group(3),
+                        "heading_axis": m.group(4), "heading_deg": None if m.group(5) is None else float(m.group(5))}
             except ValueError:
                 return None
     return None

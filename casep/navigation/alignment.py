@@ -334,6 +334,12 @@ DEG_S_CHANCE = 0.0025
 #: (a reviewer's record at 33 deg: 59 % off the Earth rate in body axes, 3.9 %), or a rate 57 times the Earth rate
 #: across it (the size of a MEMS bias, 860 deg/h), is not.
 DEG_S_WARN_CHANCE = 0.01
+#: A match (the noise of the mean widening it) that a consumer MEMS bias read in rad/s lands in with a chance above
+#: this (5 %) says nothing of the unit, and no deg/s hint is given: the real car drive's pad (a MEMS gyro in rad/s,
+#: 0.19 deg/s of bias, 45 times the Earth rate, on a vibrating pad) matched the Earth rate in deg/s within the 59 % the
+#: noise allowed with a chance of 24 %, and was hinted "rates in deg/s?". Rates truly in deg/s with a MEMS bias read
+#: as rad/s are 57 times it, beyond :data:`MAX_PAD_RATE` from 0.05 deg/s of bias on: the large-rate rule says them.
+DEG_S_HINT_CHANCE = 0.05
 
 
 def deg_s_chance(tol: float, lat_deg: float, heading_given: bool) -> float:
@@ -367,6 +373,7 @@ def _check_pad_rate(w_mean: np.ndarray, s_mean: np.ndarray, n: int, window: tupl
     Read in rad/s, a gyro's noise of the mean is ``|s|``, its tolerance ``|s| / D`` negligible: only its bias
     lands it there, with the chance :func:`deg_s_chance`; when the noise widens the match so much that this
     chance exceeds :data:`DEG_S_CHANCE`, a match is a warning (the pad cannot tell deg/s from a MEMS bias).
+    A match whose chance exceeds :data:`DEG_S_HINT_CHANCE` says nothing of the unit and is not said.
     A warning too when the mean is beyond :data:`MAX_PAD_RATE` (`large`, :func:`large_pad_rate`'s verdict), or when
     it is near the Earth rate in deg/s beyond the match but a MEMS bias lands that near with at most
     :data:`DEG_S_WARN_CHANCE` (the comparison of all three components when the heading is given: the gyrocompassed
@@ -401,11 +408,15 @@ def _check_pad_rate(w_mean: np.ndarray, s_mean: np.ndarray, n: int, window: tupl
             raise ValueError(f"{said(match, tol, what)}: the rates are in deg/s; give them in rad/s "
                              "(multiply by pi/180)")
     for match, tol, chance, what in judged:
-        if match < tol:
+        if match < tol and chance <= DEG_S_HINT_CHANCE:
             warnings.warn(f"{said(match, tol, what)}: rates in deg/s? The noise leaves the pad unable to tell: a gyro "
                           f"bias read in rad/s (MEMS, up to {math.degrees(MEMS_BIAS_SPREAD):.2g} deg/s) lands that "
-                          f"close with a chance of {100 * chance:.2g} % (an error below {100 * DEG_S_CHANCE:g} %); "
-                          "give rad/s (multiply by pi/180) if they are deg/s", PlausibilityWarning, stacklevel=3)
+                          f"close with a chance of {100 * chance:.2g} % (an error below {100 * DEG_S_CHANCE:g} %). "
+                          f"Both readings: in rad/s, a gyro bias of {math.degrees(rate):.3g} deg/s "
+                          f"({math.degrees(rate) * 3600:.3g} deg/h: a MEMS gyro's); in deg/s, the Earth rate within "
+                          f"{100 * match:.0f} % of it, a bias of about {math.degrees(match * OMEGA_EARTH) * 3600:.2g} "
+                          "deg/h. Give rad/s (multiply by pi/180) if they are deg/s", PlausibilityWarning,
+                          stacklevel=3)
             return
     if large is not None:  # beyond any navigating gyro's bias: the one rule's verdict, said once
         warnings.warn(f"{where} ({math.degrees(rate):.4g} deg/s): {large[1]}; or a vehicle not at rest",

@@ -5,7 +5,7 @@ separates a flight (:func:`casep.separate`, the raw-IMU and telemetry iterations
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
@@ -44,7 +44,7 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
     why_late = _lateness_left(res, flight)
     if why_late is not None:
         res = failed(res, STATUS_SETUP, f"failed: {flight.source if flight is not None else ''}: {why_late}")
-    why_level = levelling_problem(flight, model, dict(zip(res.names, res.estimate))) if flight is not None else None
+    why_level = levelling_problem(flight, model, _determined_estimates(res, model)) if flight is not None else None
     if why_level is not None:
         res = failed(res, STATUS_SETUP, f"failed: {why_level}")
     if flight is not None and not noise_free:
@@ -188,3 +188,18 @@ def _lost_rows_problem(flight: FlightData | None) -> str | None:
         return None
     used = flight.t[flight.observed] if flight.observed is not None else flight.t
     return lost_rows_problem(flight.meta.get("strapdown"), float(used[-1]) if used.size else -np.inf)
+
+
+def _determined_estimates(res: EstimateResult, model: Any) -> dict[str, float]:
+    """`res`'s estimates (natural units, by name) of the coefficients the flight determines: a finite estimate and
+    std, the std below the declared magnitude (:func:`casep.estimators.registry.not_determined`'s rule); the others'
+    values are the solver's in directions the data do not fix, and figures formed from them say nothing (a levelled
+    telemetry under strapdown33: ba_y, ba_z of 6e6 and 1.3e7 mg, "a start tilt of 2.93e+09 arcsec")."""
+    from casep.estimators.registry import not_determined
+
+    if res.std is None or res.estimate is None:
+        return {}
+    scales = getattr(model, "scales", None) or {}
+    left = set(not_determined(res.names, res.std, scales))
+    return {n: float(x) for j, (n, x, sd) in enumerate(zip(res.names, res.estimate, res.std))
+            if j not in left and np.isfinite(x) and np.isfinite(sd)}

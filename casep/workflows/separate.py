@@ -236,7 +236,9 @@ def separate(
 def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
             fit_time_offset: bool | None) -> tuple[EstimateResult, Problem, Any, Any]:
     """The fit (:func:`_fit_offset_if_found`) judged (a strapdown telemetry's dv signs and frame:
-    :func:`casep.workflows.telemetry_frame.judge_frame`; :func:`judge_setup`, :func:`judge_tracking`), with its
+    :func:`casep.workflows.telemetry_frame.judge_frame`; :func:`judge_setup`, :func:`judge_tracking`; a failed
+    strapdown telemetry's turn about the vertical: :func:`casep.workflows.telemetry_heading.judge_telemetry_heading`),
+    with its
     model's record: the result, its problem, model and flight."""
     res, problem, model, flight = _fit_offset_if_found(flight, problem, model, spec, fit_time_offset)
     from casep.workflows.telemetry_frame import judge_frame
@@ -257,6 +259,10 @@ def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
         # a strapdown telemetry's clock, its tags and steps
         res = judge_telemetry_clock(res, flight, problem, model.scales) or res
         res = judge_tracking(res, flight, problem, model.scales)
+        from casep.workflows.telemetry_heading import judge_telemetry_heading
+
+        # a strapdown telemetry turned about the vertical against its tracking: named before the failures it explains
+        res = judge_telemetry_heading(res, flight, problem, model, spec, LOCATING_FIT)
     if not isinstance(flight, Problem) and isinstance(model, ErrorModel):
         from casep.model.loader import model_record
 

@@ -66,6 +66,7 @@ import numpy as np
 
 from casep.estimators.result import EstimateResult
 from casep.io.flight import FlightData
+from casep.workflows.imu_separate import SMALL_ANGLE_REACH_DEG
 
 __all__ = ["dv_sign_record", "dv_sign_unchecked", "frame_record", "frame_unchecked", "judge_frame",
            "FRAME_STEPS", "FRAME_AXES", "FRAME_LARGE_DEG",
@@ -82,7 +83,7 @@ FRAME_AXES = ("x (downrange at the launch azimuth)", "y (up at the launch point:
 FRAME_WARN_Z = 4.0
 #: A rotation located beyond this (deg) is said as a large one: the small-angle column locates a local fit there, not
 #: the rotation (the attitude 90 deg about x located at 122 deg about another axis), so it is named as indicative.
-FRAME_LARGE_DEG = 30.0
+FRAME_LARGE_DEG = SMALL_ANGLE_REACH_DEG
 _AXES = "xyz"
 
 

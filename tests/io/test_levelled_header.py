@@ -22,13 +22,15 @@ def _cols(strapdown: bool) -> dict:
 
 
 def test_levelled_header_round_trip(tmp_path):
-    """The header line casep navigate writes is read back as the window and the heading's origin."""
+    """The header line casep navigate writes is read back as the window, the heading's origin, its body axis and
+    value."""
     al = SimpleNamespace(method="heading", heading_axis="x", heading_deg=200.0)
     cols = _cols(False)
     path = tmp_path / "tel.csv"
     write_table(path, cols, comments=["casep navigate imu.csv", levelled_comment((0.0, 38.5), al)])
-    assert levelling_record(Table(path)) == {"window": [0.0, 38.5], "heading": "given"}
-    assert read_flight(path).meta["levelled"] == {"window": [0.0, 38.5], "heading": "given"}
+    back = {"window": [0.0, 38.5], "heading": "given", "heading_axis": "x", "heading_deg": 200.0}
+    assert levelling_record(Table(path)) == back
+    assert read_flight(path).meta["levelled"] == back
     write_table(path, cols, comments=["another INS"])
     assert read_flight(path).meta["levelled"] is None
 

@@ -1,0 +1,251 @@
+"""A strapdown telemetry turned about the vertical against its tracking: the heading of the INS that wrote it.
+
+A strapdown INS aligned on the pad at a wrong heading (``casep navigate --heading``, or a flight computer's) integrates
+its specific force turned about the pad's vertical by the heading's error ``h``: ``v_tel - v_0 - int g ~ R_up(h) int
+f``, so the rows hold ``dv ~ (R_up(h) - I) V`` (``V`` the specific force integrated from the first sample,
+``int C f dt``), to first order ``h e_up x V``, a turn of the boost's velocity. A tracking written in a frame turned
+about the vertical (an azimuth off) leaves the same rows. A body-frame model takes part of it into its coefficients
+(a misalignment, a gyro bias about the vertical) and the rest looks like a model error or a noise as slow as the
+record: the result blamed the model (``casep navigate`` 10 and 3 deg off, then ``casep separate`` on its telemetry:
+"a Gauss-Markov noise as slow as the record ... likelier a model error"; the tracking turned by 10 deg: "try
+strapdown33").
+
+The test (:func:`telemetry_heading_record`), on a telemetry whose linear result failed: the turn about the launch
+frame's y axis (up at the launch point, the pad) is located by least squares as the frame's rotation is
+(:mod:`casep.workflows.telemetry_frame`: Gauss-Newton, the rows and S_V turned back by the turn found, until a step
+is below a tenth of its std; the first-order column does not hold a turn of degrees over a boost of km/s), then
+tested there as the raw-IMU path's heading is (:func:`casep.workflows.imu_separate.heading_conflict`'s rule:
+:func:`casep.workflows.imu_separate.column_estimates`, the noise refitted beside the column, S_V projected out;
+``z = |turn| / sqrt(stated std^2 + its std^2)`` against :data:`casep.estimators.rls.PRIOR_CONFLICT_Z`). The stated std
+is :data:`casep.workflows.imu_separate.HEADING_STD_DEG` where ``casep navigate``'s header says the heading was given,
+else 0 (the telemetry and the tracking stated in one frame). A model's own initial attitude error about the vertical
+(``phi0`` mapped onto the y axis) is that turn to first order: it is left out of the test's design, which otherwise
+could not tell them apart (the first order takes a turn of degrees only in part, the misfit is its second order).
+A turn is named (``conflict``) where the test is beyond its limit, the turn was located, the flight determines it
+within the small-angle reach (its std times the limit within
+:data:`casep.workflows.telemetry_frame.FRAME_LARGE_DEG`) and the rows turned back leave no misfit by the rule that
+failed the result (:func:`casep.checks.plausibility.misfit_problem`, the dv sign test's condition): then the heading
+is named first (:func:`casep.workflows.imu_separate.heading_first`, status ``STATUS_PRIOR_CONFLICT``).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import Any
+
+import numpy as np
+
+from casep.estimators.result import EstimateResult
+from casep.io.flight import FlightData
+
+__all__ = ["telemetry_heading_record", "telemetry_heading_message", "judge_telemetry_heading"]
+
+#: The launch frame's axis up at the launch point (casep's launch-inertial frame: y up, x downrange).
+_UP = 1
+#: The turn is scanned over +-FRAME_LARGE_DEG in steps of this (deg), the least-squares residual's profile ...
+SCAN_STEP_DEG = 3.0
+#: ... refined by golden section to this (deg) ...
+LOCATE_TOL_DEG = 0.01
+#: ... and its std from the restricted likelihood's curvature over plus and minus this (deg).
+CURVATURE_STEP_DEG = 0.5
+
+
+def _turn(a: np.ndarray, rad: float) -> np.ndarray:
+    """`a` (N, 3) or (N, 3, n) turned about the launch frame's y axis by `rad` (right-handed)."""
+    c, s = math.cos(rad), math.sin(rad)
+    R = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    return np.einsum("ij,nj...->ni...", R, a)
+
+
+def _integrated_force(flight: FlightData) -> np.ndarray:
+    """The navigation-frame specific force integrated from the flight's first sample (trapezoid), (N, 3) m/s."""
+    t, f = np.asarray(flight.t, float), np.asarray(flight.f, float)
+    steps = 0.5 * (f[1:] + f[:-1]) * np.diff(t)[:, None]
+    return np.vstack([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
+
+
+def _minimum(grid: np.ndarray, scan: np.ndarray, ssr: Any) -> tuple[float, bool]:
+    """The turn (deg) at the least-squares profile's minimum: the scan's (`grid`, `scan`) refined by golden section
+    between its neighbours to :data:`LOCATE_TOL_DEG` (`ssr` the profile), and whether it lies inside the scan."""
+    k = int(np.argmin(scan))
+    lo, hi = float(grid[max(k - 1, 0)]), float(grid[min(k + 1, grid.size - 1)])
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    c, d = hi - g * (hi - lo), lo + g * (hi - lo)
+    fc, fd = ssr(c), ssr(d)
+    while hi - lo > LOCATE_TOL_DEG:
+        if fc < fd:
+            hi, d, fd = d, c, fc
+            c = hi - g * (hi - lo)
+            fc = ssr(c)
+        else:
+            lo, c, fc = c, d, fd
+            d = lo + g * (hi - lo)
+            fd = ssr(d)
+    return 0.5 * (lo + hi), 0 < k < grid.size - 1
+
+
+def telemetry_heading_record(res: EstimateResult, problem: Any, flight: FlightData, model: Any, spec: Any,
+                             locating: Any) -> dict | None:
+    """The turn of a strapdown telemetry about the vertical against its tracking (module notes): ``{"turn_deg",
+    "std_deg", "z", "limit_z", "stated_std_deg", "located", "explains", "conflict", "heading_deg",
+    "suggested_heading_deg", ...}`` (``turn_deg`` right-handed about the launch frame's y axis; the heading given,
+    body axis clockwise from north, less it is the one the rows point to), or None without a strapdown telemetry,
+    rows, times or a fit."""
+    from casep.checks.plausibility import misfit_problem
+    from casep.estimators.rls import PRIOR_CONFLICT_Z
+    from casep.noise.fit import fit_noise
+    from casep.regression.problem import Problem
+    from casep.workflows.imu_separate import HEADING_STD_DEG, _quiet_fit
+    from casep.workflows.telemetry_frame import FRAME_LARGE_DEG
+
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    if not isinstance(meta.get("strapdown"), dict) or problem.y is None or problem.t is None:
+        return None
+    obs = np.asarray(flight.observed)
+    V = _integrated_force(flight)[obs]
+    y0 = np.asarray(problem.y, dtype=float)
+    if V.shape != y0.shape:
+        return None
+    S = problem.sv()
+    names = list(res.names)
+    phi0 = getattr(model, "numeric", None)
+    vertical = np.zeros(len(names), dtype=bool)
+    if callable(phi0):
+        try:
+            up = np.asarray(phi0("phi0"), float)[_UP]
+            vertical[:up.size] = up != 0
+        except (KeyError, ValueError, IndexError):
+            pass
+    keep = ~vertical
+    S, names = S[:, :, keep], [n for n, k in zip(names, keep) if k]
+
+    # the tracked velocity at the rows (the telemetry's, interpolated, less dv): a tracking turned in azimuth
+    inp = meta.get("pair_inputs")
+    tracked = None
+    if inp is not None and getattr(inp, "v_tel", None) is not None:
+        t_obs = np.asarray(problem.t, float)
+        v_tel = np.column_stack([np.interp(t_obs, np.asarray(inp.t_tel, float), np.asarray(inp.v_tel, float)[:, i])
+                                 for i in range(3)])
+        tracked = v_tel - y0
+    kind = "telemetry"
+
+    def at(deg: float, which: str | None = None) -> Any:
+        rad = math.radians(deg)
+        if (which or kind) == "telemetry":  # the INS's attitude and integrated force turned back
+            Vt = _turn(V, -rad)
+            return Problem.from_arrays(_turn(S, -rad), y0 + Vt - V, problem.t, names=names)
+        assert tracked is not None  # the tracking turned back: the attitude, and S_V, as given
+        return Problem.from_arrays(S, y0 - _turn(tracked, rad) + tracked, problem.t, names=names)
+
+    def ssr(deg: float, which: str | None = None) -> float:
+        rms = _quiet_fit(at(deg, which), locating).residual_rms or {}
+        return float(sum(float(v) ** 2 for v in rms.values() if v is not None))
+
+    def neg2(deg: float) -> float:
+        return float(fit_noise(at(deg), "gmw").extra["neg2_reml"])
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the hypotheses' fits: judged here, not said
+            grid = np.arange(-FRAME_LARGE_DEG, FRAME_LARGE_DEG + SCAN_STEP_DEG / 2, SCAN_STEP_DEG)
+            scan = np.array([ssr(d) for d in grid])
+            if tracked is not None:  # the tracking turned instead: the hypothesis whose best turn fits better
+                other = np.array([ssr(d, "tracking") for d in grid])
+                if other.min() < scan.min():
+                    kind, scan = "tracking", other
+            turn, located = _minimum(grid, scan, ssr)
+            n0, n_at = neg2(0.0), neg2(turn)
+            n_plus, n_minus = neg2(turn + CURVATURE_STEP_DEG), neg2(turn - CURVATURE_STEP_DEG)
+            fit_there = _quiet_fit(at(turn), spec)
+    except (ValueError, np.linalg.LinAlgError, KeyError):
+        return None
+    if not all(np.isfinite([n0, n_at, n_plus, n_minus])):
+        return None
+    curv = (n_plus + n_minus - 2.0 * n_at) / CURVATURE_STEP_DEG**2  # -2 ln L'' = 2 / std^2
+    std = math.sqrt(2.0 / curv) if curv > 0 else math.inf
+    lr = max(n0 - n_at, 0.0)
+    lev: dict = meta["levelled"] if isinstance(meta.get("levelled"), dict) else {}
+    given = lev.get("heading") == "given" and lev.get("heading_deg") is not None
+    stated = HEADING_STD_DEG if given and kind == "telemetry" else 0.0
+    z = min(math.sqrt(lr), abs(turn) / math.hypot(stated, std))
+    why = misfit_problem(flight, fit_there.residual_rms or {}, (), noise=fit_there.diagnostics.get("noise"))
+    judged = std * PRIOR_CONFLICT_Z <= FRAME_LARGE_DEG
+    heading = float(lev["heading_deg"]) if given else None
+    return {"turn_deg": turn, "std_deg": std, "turned": kind, "z": float(z), "ln_ratio": lr / 2.0,
+            "limit_z": PRIOR_CONFLICT_Z, "stated_std_deg": stated, "located": bool(located), "judged": bool(judged),
+            "explains": why is None,
+            "left_out": [n for n, v in zip(res.names, vertical) if v],
+            "residual_rms_turned": {a: float(v) for a, v in (fit_there.residual_rms or {}).items() if v is not None},
+            "heading_deg": heading, "heading_axis": lev.get("heading_axis") if given else None,
+            "suggested_heading_deg": None if heading is None or kind != "telemetry" else heading + turn,
+            "conflict": bool(located and judged and why is None and z > PRIOR_CONFLICT_Z),
+            "rule": "the rows and S_V turned back about the launch frame's vertical (y) by the turn that minimises "
+                    "the least-squares residual (scanned over +-30 deg, refined by golden section; a model's phi0 "
+                    "about y left out); the restricted likelihood with the noise refitted (Gauss-Markov plus white) "
+                    "there against the rows as given (z = sqrt of -2 ln of their ratio) and the turn against its "
+                    "std (the likelihood's curvature) and the stated std, the smaller of the two z beyond limit_z, "
+                    "the turn located inside the scan, determined within the small-angle reach and the turned rows "
+                    "leaving no misfit: the telemetry's heading (or the tracking's azimuth) is off"}
+
+
+def telemetry_heading_message(record: dict, source: str) -> str:
+    """What a result says when the telemetry is turned about the vertical against its tracking
+    (:func:`telemetry_heading_record`'s conflict): the telemetry's heading (the INS's attitude and integrated force
+    turned) or the tracking's azimuth (the tracked velocity turned), whichever fits the rows better."""
+    turn, sd, z = record["turn_deg"], record["std_deg"], record["z"]
+    rms = ", ".join(f"{a} {v:.3g}" for a, v in record["residual_rms_turned"].items())
+    which = "the tracked velocity" if record.get("turned") == "tracking" else "the telemetry (its attitude and " \
+        "integrated specific force)"
+    head = (f"{source}: the telemetry and the tracking are turned about the vertical against each other: the rows "
+            f"fit with {which} turned by {turn:+.3g} +- {sd:.2g} deg about the launch frame's y axis (up at the "
+            f"pad; z = {z:.3g} against the stated std {record['stated_std_deg']:g} deg and the estimate's, above "
+            f"{record['limit_z']:g}), and leave residuals the noise explains there (RMS {rms} m/s). The "
+            f"coefficients absorb such a turn and the misfit is its remainder")
+    if record.get("left_out"):
+        head += (f" ({', '.join(record['left_out'])}, the model's initial attitude error about the vertical, is "
+                 f"that turn to first order: a turn of degrees is beyond it)")
+    if record.get("turned") == "tracking":
+        return head + (": a tracking written in a frame turned in azimuth (check its frame: the launch azimuth, "
+                       "--launch-site AZ, and the axes its velocity is given in), or a wrong heading of the INS "
+                       "that wrote the telemetry")
+    if record["heading_deg"] is not None:
+        return head + (f": a wrong heading of the INS. casep navigate aligned it at the heading given (body "
+                       f"{record['heading_axis']} at {record['heading_deg']:g} deg): check it (its body axis, true "
+                       f"north, not magnetic or grid); the data point to about {record['suggested_heading_deg']:.4g} "
+                       f"deg (+- {record['std_deg']:.2g}; the coefficients take part of a turn, so it is "
+                       f"approximate): navigate again with --heading {record['suggested_heading_deg']:.4g} and "
+                       "separate again (the test then says what is left)")
+    return head + (": a wrong heading of the INS that wrote the telemetry, or a tracking written in a frame turned in "
+                   "azimuth: check the INS's heading at alignment and the tracking's frame (its azimuth, "
+                   "--launch-site AZ)")
+
+
+def judge_telemetry_heading(res: EstimateResult, flight: Any, problem: Any, model: Any, spec: Any,
+                            locating: Any) -> EstimateResult:
+    """`res`, a strapdown telemetry's failed result, with the turn about the vertical tested
+    (:func:`telemetry_heading_record`, in ``diagnostics["heading"]["test"]``); a turn named is said
+    (:class:`casep.exceptions.SetupWarning`) and put first (:func:`casep.workflows.imu_separate.heading_first`:
+    status ``STATUS_PRIOR_CONFLICT``, the other failures after it). A success, a dv sign or the attitude's frame
+    named (:func:`casep.workflows.telemetry_frame.judge_frame`), anything but a strapdown telemetry,
+    noise-free rows or a flight that failed a set-up check: `res` unchanged."""
+    from casep.checks.plausibility import setup_problems
+    from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
+    from casep.exceptions import SetupWarning
+    from casep.workflows.imu_separate import heading_first
+
+    named = (res.diagnostics.get("dv_signs") or {}).get("named") or (res.diagnostics.get("frame") or {}).get("conflict")
+    if res.success or named or not isinstance(flight, FlightData) or problem.y is None or setup_problems(flight):
+        return res  # named already: a dv sign, the attitude's frame (judge_frame)
+    if problem.is_noise_free():
+        return res
+    record = telemetry_heading_record(res, problem, flight, model, spec, locating)
+    if record is None:
+        return res
+    res.diagnostics["heading"] = {**(res.diagnostics.get("heading") or {}), "test": record}
+    if not record["conflict"]:
+        return res
+    said = telemetry_heading_message(record, flight.source)
+    record["said"] = f"failed: {said}"
+    warnings.warn(said, SetupWarning, stacklevel=3)
+    return heading_first(failed(res, STATUS_PRIOR_CONFLICT, record["said"]))
