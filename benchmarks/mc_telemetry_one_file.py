@@ -13,9 +13,10 @@ over 57 (0.91). Over the 15 coefficients (undetermined ones included): 1.735 (0.
 
 :func:`casep.separate` end to end (its linear result carries the IMU term when it widens a determined combination's
 std by more than ``IMU_NOISE_SHARE``, 5 %: :func:`casep.workflows.imu_separate.with_imu_noise_beyond`), on the one
-file and on the same flight as a telemetry + tracking pair: 12 seeds, 1.06 over 57 (0.91) and 1.04 over 54
-(0.91), every seed carried and linear (before, the one file's std were the tracking noise's alone, and the pair's
-remainder judged in them iterated).
+file and on the same flight as a telemetry + tracking pair: 12 seeds, the one file 1.060 over 57 (0.912), every
+seed linear with the term carried (before: the tracking noise's std alone); the pair 1.047 over 56 (0.929): 3 seeds
+linear with the term carried, 9 iterated (their remainder, judged in the tracking noise's std, 0.42-2.97 std; the
+passes carry the noise as before).
 
 Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/mc_telemetry_one_file.py [--seeds 1 .. 12]
 """
