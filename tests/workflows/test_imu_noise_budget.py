@@ -304,3 +304,19 @@ def test_whiten_transpose_is_the_transpose_of_whiten():
         v = rng.standard_normal((200, 3, 2))
         lhs, rhs = np.einsum("kjc,kj->c", v, u), np.einsum("kjc,kj->c", whiten_transpose(v, t, nm), e)
         assert np.allclose(lhs, rhs, rtol=1e-12, atol=1e-12)
+
+
+def test_the_widening_is_over_the_determined_combinations_only():
+    """:func:`imu_noise_widening` on covariances whose answer is known: diagonal in declared magnitudes, the largest
+    ``sqrt(1 + c_imu / c)`` over the coefficients with std below 1 (an undetermined one's larger ratio ignored); a
+    rotated pair the same as unrotated (the combination, not the coefficient); 1 when nothing is determined."""
+    from casep.workflows.imu_separate import imu_noise_widening
+
+    scale = np.array([2.0, 10.0, 0.5])
+    C = np.diag([0.1, 0.5, 3.0]) * np.outer(scale, scale)  # std 0.32, 0.71, 1.7 declared magnitudes
+    Ci = np.diag([0.01, 0.2, 30.0]) * np.outer(scale, scale)
+    assert imu_noise_widening(C, Ci, scale) == pytest.approx(np.sqrt(1.4))  # 0.2 / 0.5, not 30 / 3
+    R = np.array([[0.6, -0.8, 0.0], [0.8, 0.6, 0.0], [0.0, 0.0, 1.0]])
+    Cr, Cir = (R @ (M / np.outer(scale, scale)) @ R.T * np.outer(scale, scale) for M in (C, Ci))
+    assert imu_noise_widening(Cr, Cir, scale) == pytest.approx(np.sqrt(1.4))
+    assert imu_noise_widening(C * 100, Ci, scale) == 1.0
