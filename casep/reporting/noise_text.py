@@ -51,11 +51,15 @@ def imu_noise_line(account: dict) -> str:
                 f"most {acc:.3g} m/s^2 and {gyr:.3g} rad/s: noise-free, held or smoothed samples), so the std carry "
                 "no IMU noise; an instrument's noise is stated as the flight's meta[IMU_NOISE_AT_REST] (Python: "
                 "casep.checks.tracking_quality, rest_white_std of a stationary record)")
-    return (f"IMU noise (measured on the record, per sample up to {acc:.3g} m/s^2 and {gyr:.3g} rad/s at "
+    head = (f"IMU noise (measured on the record, per sample up to {acc:.3g} m/s^2 and {gyr:.3g} rad/s at "
             f"{account['sample_step_s']:.3g} s"
             + (f"; not measured on {', '.join(unseen)}: no noise above their samples' rounding, none carried"
-               if unseen else "")
-            + "): its velocity and attitude random walks are in the std"
+               if unseen else "") + ")")
+    if account.get("carried") is False:  # a linear telemetry result's: below the share
+        widen = 100 * (account["determined_std_factor_max"] - 1)
+        return (f"{head}: not in the std: with the tracking noise as fitted its velocity and attitude random walks "
+                f"widen the determined combinations' std by at most {widen:.2g} % (below {100 * account['share']:g} %)")
+    return (head + ": its velocity and attitude random walks are in the std"
             + ("" if factor is None else f" (they raise them by up to {factor:.3g} x, {account['std_factor_worst']})")
             + ("" if not account.get("tracking_noise") else
                "; beside them the tracking " + noise_line(account["tracking_noise"])))

@@ -176,7 +176,7 @@ __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_
            "STATUS_NOT_CONVERGED", "CURVATURE_TOL", "CURVATURE_RELIABLE", "CURVATURE_DRAWS", "WORSE", "NARROW",
            "SIGNIFICANT", "DESCENT_SLACK", "DESCENT_MEMORY", "HALVINGS",
            "std_shift", "DETERMINED_DRAWS", "FAIL_SHIFT", "STALL",
-           "combination_imu_noise",
+           "combination_imu_noise", "with_imu_noise_beyond", "imu_noise_widening", "IMU_NOISE_SHARE",
            "linearisation_shift", "linearisation_record", "one_pass_judged", "Shift", "shift_said", "SMALLER_MODELS",
            "prior_fits_p", "HEADING_STD_DEG", "HEADING_STEP_DEG", "HEADING_SETTLED_Z", "given_heading_std",
            "heading_first", "SMALL_ANGLE_REACH_DEG"]
@@ -3157,6 +3157,72 @@ def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
         solution = dataclasses.replace(solution, covariance=(solution.covariance if C_trk is None else C_trk) + C_imu)
     diag = {**res.diagnostics, "noise": {**res.diagnostics["noise"], "imu": account}}
     return dataclasses.replace(res, covariance=cov, std=std, solution=solution, diagnostics=diag)
+
+
+#: A linear telemetry result (no iteration) carries the IMU's noise (:func:`with_imu_noise`, the tracking noise refitted
+#: beside it) when that noise, carried to the estimate with the tracking noise as fitted, widens some combination the
+#: flight determines by more than this share of its std (:func:`with_imu_noise_beyond`). Below it the std left out
+#: are at most 5 % short: a 95 % interval then still covers 93.8 % (``1.96 / 1.05`` std), and the refit beside the
+#: IMU's noise would only lower the tracking part (the fit's noise model already holds the IMU's noise it saw).
+IMU_NOISE_SHARE = 0.05
+
+
+def imu_noise_widening(C: np.ndarray, C_imu: np.ndarray, scale: np.ndarray) -> float:
+    """The largest factor by which the covariance `C_imu` widens the std of a combination `C` determines,
+    ``sqrt(1 + max v^T C_imu v / v^T C v)`` over the combinations ``v`` (coefficients in their declared magnitudes
+    `scale`) whose std under `C` is below 1 (the span of its eigenvectors with eigenvalues below 1, above its rounding
+    ``n eps lambda_max``); 1 when it determines none."""
+    inv = 1.0 / np.asarray(scale, dtype=float)
+    lam, V = np.linalg.eigh(C * np.outer(inv, inv))
+    keep = (lam < 1.0) & (lam > lam.size * np.finfo(float).eps * max(float(lam[-1]), 0.0))
+    if not keep.any():
+        return 1.0
+    T = V[:, keep] / np.sqrt(lam[keep])  # T^T C T = I over the determined span
+    mu = np.linalg.eigvalsh(T.T @ (C_imu * np.outer(inv, inv)) @ T)
+    return float(np.sqrt(1.0 + max(float(mu[-1]), 0.0)))
+
+
+def with_imu_noise_beyond(res: EstimateResult, problem: Any, flight: FlightData, scales: Mapping[str, float],
+                          share: float | None = None) -> EstimateResult:
+    """A linear navigated-telemetry result (a pair or one file; no iteration) with its IMU's noise in its std when
+    it matters: first its effect on the estimate with the tracking noise as fitted, ``(A G)(A G)^T``
+    (:func:`casep.checks.tracking_quality.imu_noise_effect`, no refit); beyond `share` of the std of some determined
+    combination (:func:`imu_noise_widening`, `scales` the declared magnitudes; `share` None:
+    :data:`IMU_NOISE_SHARE`) the full term of :func:`with_imu_noise`
+    (the iterated path's: the tracking noise refitted beside it), the account's ``carried`` True; below it `res` with
+    the account (``carried`` False, the widening said). `res` itself when the flight does not hold the IMU's samples
+    or the result has no finite covariance or noise model."""
+    from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_noise_effect, imu_sample_noise, unresolved_noise
+
+    C, nd = res.covariance, res.diagnostics.get("noise")
+    if C is None or problem.t is None or not isinstance(nd, dict) or "axes" not in nd:
+        return res
+    t = np.asarray(problem.t, dtype=float)
+    measured = imu_sample_noise(flight, t)
+    if measured is None or not np.all(np.isfinite(C)):
+        return res if measured is None else with_imu_noise(res, problem, flight)
+    n = len(res.names)
+    A = combination_estimators(np.eye(n), np.ones(n), res, problem)
+    AG = None if A is None else imu_noise_effect(flight, t, A)
+    if AG is None:
+        return res
+    C_imu = AG @ AG.T
+    share = IMU_NOISE_SHARE if share is None else share
+    factor = imu_noise_widening(np.asarray(C), C_imu, np.array([scales.get(nm, 1.0) for nm in res.names]))
+    said = {"carried": factor - 1.0 > share, "determined_std_factor_max": factor, "share": share,
+            "share_rule": "a linear telemetry result carries the IMU's noise when, carried with the tracking noise as "
+                          "fitted, it widens some determined combination's std by more than share"}
+    if said["carried"]:
+        out = with_imu_noise(res, problem, flight, estimators=A)
+        if out is not res:
+            out.diagnostics["noise"]["imu"].update(said)
+        return out
+    at_rest = isinstance(flight.meta, dict) and flight.meta.get(IMU_NOISE_AT_REST) is not None
+    unresolved = () if at_rest else tuple(unresolved_noise(flight, measured[0], measured[2]))
+    account = {**_imu_account(res, measured, np.asarray(C), C_imu, None, at_rest, unresolved), **said}
+    account["rule"] = ("not carried: the velocity and attitude random walks, carried to the estimate with the "
+                       "tracking noise as fitted, widen no determined combination's std by more than share")
+    return dataclasses.replace(res, diagnostics={**res.diagnostics, "noise": {**nd, "imu": account}})
 
 
 class Shift(NamedTuple):
