@@ -132,8 +132,8 @@ an accelerometer bias of several g), which the next pass cannot invert. On the s
 default ``strapdown33`` the first pass's full step (2.9e3 declared magnitudes along combinations of std up to 1.6e3)
 raised the rows' RMS from 13.6 to 16.8 m/s; under the tenfold rule alone it was kept, the passes crept back by 0.64 a
 pass and the run failed at 20, and with the descent rule half that step was taken and the run converged in 10 passes
-(that first step's size was an estimate beyond its linear limit, which :func:`_determined_size` no longer takes as
-evidence of the instrument's size: the full step then descends, and the run converges in 5).
+(that first step's size came from an estimate beyond its linear limit, which :func:`_determined_size` does not take
+as evidence of the instrument's size: the full step then descends, and the run converges in 5).
 The combinations and their std come from the fit's covariance, or from the design when the covariance holds them only
 to its rounding (:func:`_scaled_spectrum`): on a pad at rest under ``strapdown33`` the best-determined combinations'
 variances are 1e-20 of the largest, read from the covariance as 0 (a null direction, stepped along unjudged) or as

@@ -238,8 +238,7 @@ def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
     """The fit (:func:`_fit_offset_if_found`) judged (a strapdown telemetry's dv signs and frame:
     :func:`casep.workflows.telemetry_frame.judge_frame`; :func:`judge_setup`, :func:`judge_tracking`; a failed
     strapdown telemetry's turn about the vertical: :func:`casep.workflows.telemetry_heading.judge_telemetry_heading`),
-    with its
-    model's record: the result, its problem, model and flight."""
+    with its model's record: the result, its problem, model and flight."""
     res, problem, model, flight = _fit_offset_if_found(flight, problem, model, spec, fit_time_offset)
     from casep.workflows.telemetry_frame import judge_frame
 
