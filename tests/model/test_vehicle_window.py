@@ -14,6 +14,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+import pytest
 
 import casep
 from casep.estimators.spec import FitSpec
@@ -79,8 +80,15 @@ def separate_car_window(tmp_path, model_name: str, truth: dict[str, float], erro
         return separate(flight, model_name, spec=NOISE_FREE, **options)
 
 
-def test_noise_free_recovery_on_a_simulated_car_window(tmp_path):
-    res = separate_car_window(tmp_path, MODEL, TRUTH)
+@pytest.fixture(scope="module")
+def window(tmp_path_factory):
+    """The car window with `TRUTH`'s errors separated by `MODEL`, once per module (the tests read it, never change
+    it): the recovery test's result and the next test's model without the vertical accelerometer's cross-axis terms."""
+    return separate_car_window(tmp_path_factory.mktemp("window"), MODEL, TRUTH)
+
+
+def test_noise_free_recovery_on_a_simulated_car_window(window):
+    res = window
     est = dict(zip(res.names, res.estimate))
     sd = dict(zip(res.names, res.std))
     z = {n: (est[n] - TRUTH[n]) / sd[n] for n in TRUTH}
@@ -109,7 +117,7 @@ def build():
 '''
 
 
-def test_the_vertical_accelerometer_cross_axis_terms_are_nearly_a_rotation_of_the_imu(tmp_path):
+def test_the_vertical_accelerometer_cross_axis_terms_are_nearly_a_rotation_of_the_imu(tmp_path, window):
     """With ma_zx, ma_zy added, the same window is nearly singular: a rotation of the whole IMU about a level axis
     (mg_xz = e, ma_zx = -e, ba_x = e g, an attitude error) is seen only through the small pitch and roll rates and
     the horizontal force's own terms, so ma_zx, mg_xz and phi0_z get std hundreds of times those without it
@@ -117,7 +125,7 @@ def test_the_vertical_accelerometer_cross_axis_terms_are_nearly_a_rotation_of_th
     path = tmp_path / "strapdown11_with_ma_z.py"
     path.write_text(WITH_MA_Z)
     res = separate_car_window(tmp_path, str(path), {**TRUTH, "ma_zx": 600.0, "ma_zy": -500.0})
-    without = separate_car_window(tmp_path, MODEL, TRUTH)
+    without = window
     sd, sd0 = dict(zip(res.names, res.std)), dict(zip(without.names, without.std))
     assert sd["ma_zx"] > 1e4 and sd["mg_xz"] > 100.0 * sd0["mg_xz"] and sd["phi0_z"] > 100.0 * sd0["phi0_z"], sd
 
