@@ -191,3 +191,16 @@ def test_a_drift_not_given_is_carried_in_the_std(pairs):
     np.testing.assert_array_equal(clean.estimate, clean0.estimate)
     assert not clean.diagnostics["clock_drift"]["telemetry"]["determined"]
     assert np.all(clean.std[ok] >= clean0.std[ok])
+
+
+def test_the_command_line_takes_the_drift_std_for_a_telemetry(tmp_path, capsys):
+    """``casep separate TEL --tracking TRK --clock-drift-std PPM``: checked by the --imu path's rule
+    (given_clock_std) before any file is read, exit 2 for a negative one; without --tracking refused."""
+    from casep.cli import main
+
+    args = ["separate", str(tmp_path / "no-such.csv"), "--tracking", str(tmp_path / "no-such-trk.csv")]
+    assert main([*args, "--clock-drift-std", "-5"]) == 2
+    assert "--clock-drift-std must be a finite number >= 0" in capsys.readouterr().err
+    assert main([args[0], args[1], "--clock-drift-std", "5"]) == 2
+    assert "--clock-drift-std is used only with --imu IMU.csv or a telemetry with --tracking" in \
+        capsys.readouterr().err
