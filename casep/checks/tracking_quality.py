@@ -529,8 +529,10 @@ def telemetry_clock_line(record: dict) -> str:
     given = f"--clock-drift {record['given_ppm']:g} given" if record["given_ppm"] else "no clock drift given"
     text = (f"telemetry clock drift ({given}; estimated beside the coefficients, tags and integration steps): "
             f"{record['ppm']:.4g} +- {record['std_ppm']:.2g} ppm")
+    carried = (record.get("carried") or {}).get("said")  # the drift carried in the std, said by its workflow
+    tail = f"; {carried}" if carried else ""
     if record["determined"]:
-        return text + " (beyond the clock-drift rule: the clocks run at different rates)"
+        return text + " (beyond the clock-drift rule: the clocks run at different rates)" + tail
     b, sd = record["beyond_given_ppm"], record["std_ppm"]
     rule = record.get("warns_beyond_ppm") or max(DRIFT_MIN_PPM, 4.0 * sd)
     moves = record.get("moves") or []
@@ -539,7 +541,7 @@ def telemetry_clock_line(record: dict) -> str:
     return (text + f"; not determined: the data allow {b - 2 * sd:.3g} to {b + 2 * sd:.3g} ppm beyond the one given "
             f"(2 std, to first order in the drift), which the coefficients would take in unseen; the test warns only "
             f"beyond {rule:.3g} ppm ({DRIFT_MIN_PPM:g} ppm and 4 std){moved} (a drift known otherwise: "
-            "--clock-drift PPM)")
+            "--clock-drift PPM)" + tail)
 
 
 def _warn_drift(source: str, drift_ppm: float, drift_std_ppm: float, of: str) -> bool:

@@ -35,7 +35,8 @@ def _pair(args: argparse.Namespace, flight: str, tracking: str, frames: dict[str
 
     return read_flight_pair(flight, tracking, grid=args.grid, time_offset=args.time_offset,
                             time_shift=getattr(args, "time_shift", 0.0),
-                            clock_drift=getattr(args, "clock_drift", 0.0), **frames)
+                            clock_drift=getattr(args, "clock_drift", 0.0),
+                            clock_drift_std=getattr(args, "clock_drift_std", None), **frames)
 
 
 def read_one(args: argparse.Namespace) -> Any:
@@ -84,7 +85,8 @@ def use_manifest(args: argparse.Namespace) -> Any:
     on_line: frozenset[str] = getattr(args, "given", frozenset())  # given, whatever the values (cli.app.Parser)
     given = (["the flight files"] if flights else []) + [
         "--" + dest.replace("_", "-") for dest in ("tracking", "tracking_frame", "launch_site", "launch_time",
-                                                   "time_shift", "clock_drift", "time_offset", "grid")
+                                                   "time_shift", "clock_drift", "clock_drift_std", "time_offset",
+                                                   "grid")
         if dest in on_line]
     if given:
         raise ValueError(f"--manifest {path} lists the flights with their files and set-up: leave out "

@@ -25,25 +25,32 @@ def add_heading_std(parser: Any) -> None:
 
 def add_imu_stds(parser: Any) -> None:
     """``--heading-std DEG`` (:func:`add_heading_std`) and ``--clock-drift-std PPM``: the std of the IMU clock's drift
-    beyond ``--clock-drift`` (casep.workflows.imu_separate.CLOCK_DRIFT_STD_PPM, CLOCK_GIVEN_STD_PPM by default)."""
+    (``--imu``, a strapdown telemetry's) beyond ``--clock-drift`` (casep.workflows.imu_separate.CLOCK_DRIFT_STD_PPM,
+    CLOCK_GIVEN_STD_PPM by default)."""
     add_heading_std(parser)
     parser.add_argument("--clock-drift-std", type=finite_float, default=None, metavar="PPM",
-                        help="with --imu: the std of the IMU clock's drift against the tracking's beyond "
-                             "--clock-drift, ppm (default 50 without --clock-drift: a flight computer's crystal; 2 "
-                             "with it: a drift measured against GPS time), carried into the std; 0: the rate exact")
+                        help="with --imu, or a strapdown telemetry with --tracking: the std of the IMU's (the "
+                             "INS's) clock drift against the tracking's beyond --clock-drift, ppm (default 50 "
+                             "without --clock-drift: a flight computer's crystal; 2 with it: a drift measured against "
+                             "GPS time), carried into the std; 0: the rate exact")
 
 
 def imu_only(args: argparse.Namespace) -> None:
     """`--imu` with what it needs; its options without it: an error, not ignored."""
     if not args.imu:
         for flag, value in (("--align", args.align), ("--heading", args.heading), ("--heading-std", args.heading_std),
-                            ("--clock-drift-std", args.clock_drift_std),
                             ("--max-iterations", args.max_iterations),
                             ("--accel-bias-tolerance", args.accel_bias_tolerance),
                             ("--gyro-bias-tolerance", args.gyro_bias_tolerance),
                             ("--heading-axis", None if args.heading_axis == "x" else args.heading_axis)):
             if value is not None:
                 raise ValueError(f"{flag} is used only with --imu IMU.csv")
+        if args.clock_drift_std is not None:  # a strapdown telemetry's clock too (casep.workflows.telemetry_clock)
+            if not args.tracking:
+                raise ValueError("--clock-drift-std is used only with --imu IMU.csv or a telemetry with --tracking")
+            from casep.workflows.imu_separate import given_clock_std
+
+            given_clock_std(args.clock_drift, args.clock_drift_std, "--clock-drift-std")
         return
     if args.flight or args.manifest:
         raise ValueError("--imu IMU.csv is the flight: give no FLIGHT file or --manifest with it")

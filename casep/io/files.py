@@ -353,7 +353,8 @@ def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray
 def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.PathLike, *,
                      interpolation: str = "cubic", grid: str = "tracking",
                      time_offset: float | str | None = None, tracking_frame: str = "launch",
-                     site=None, time_shift: float = 0.0, clock_drift: float = 0.0) -> FlightData:
+                     site=None, time_shift: float = 0.0, clock_drift: float = 0.0,
+                     clock_drift_std: float | None = None) -> FlightData:
     """Combine a telemetry file and a tracking file recorded at different rates.
 
     Parameters
@@ -411,6 +412,10 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
         (:func:`casep.io.strapdown.clock_stretch`, with the gravitation where the telemetry's header or `site`
         gives the launch site; ``meta["clock_drift_of"]`` ``"telemetry"``). Default 0 (one rate; the fit's
         ``dt_trk`` takes a constant offset, not a drift).
+    clock_drift_std : float, optional
+        A strapdown telemetry's: the std of its clock's drift beyond `clock_drift`, ppm, carried into the
+        separation's std (``meta["clock_drift_std_ppm"]``, checked there; the rule and its defaults:
+        :func:`casep.workflows.imu_separate.given_clock_std`, the one of ``--imu``); 0: the rate exact.
 
     Returns
     -------
@@ -486,6 +491,7 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     flight.meta["levelled"] = levelling_record(tel)
     if shift_scale:
         flight.meta["time_shift_s"] = shift_scale
+    flight.meta.update({} if clock_drift_std is None else {"clock_drift_std_ppm": clock_drift_std})
     if drift:
         flight.meta["clock_drift_ppm"] = drift
         if stretched:
@@ -494,8 +500,7 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
         # to the pad, not the Earth's rotation
         from casep.io.setup import setup_evidence
 
-        ev = setup_evidence(site, t_tel, v_tel, t_raw, r_ecef, v_ecef, time_shift=shift_scale,
-                            clock_drift=drift)
+        ev = setup_evidence(site, t_tel, v_tel, t_raw, r_ecef, v_ecef, time_shift=shift_scale, clock_drift=drift)
         from casep.io.setup import header_site_problem
 
         other_site = header_site_problem(site, nav_site)

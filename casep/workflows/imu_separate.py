@@ -2769,10 +2769,11 @@ def with_drift(res: EstimateResult, problem: Any, column: np.ndarray, carried: d
     return dataclasses.replace(res, covariance=cov, std=std, solution=solution)
 
 
-def carried_said(carried: dict) -> str:
-    """What a result says of the IMU clock drift carried in its std (:func:`clock_carried`'s record)."""
+def carried_said(carried: dict, clock: str = "an IMU clock drift") -> str:
+    """What a result says of the IMU clock drift carried in its std (:func:`clock_carried`'s record; `clock` whose:
+    a strapdown telemetry's INS clock, :mod:`casep.workflows.telemetry_clock`)."""
     of = "beyond the one given" if carried["given"] else "not given"
-    line = (f"an IMU clock drift {of} is in the std as a consider parameter of std {carried['std_ppm']:.3g} ppm "
+    line = (f"{clock} {of} is in the std as a consider parameter of std {carried['std_ppm']:.3g} ppm "
             f"(--clock-drift-std), {carried['effective_std_ppm']:.3g} ppm after the data's own estimate of it")
     factors = carried.get("std_factor") or {}
     worst = [k for k in carried.get("widened", []) if factors.get(k, 1.0) > 1.0 + 5e-4]

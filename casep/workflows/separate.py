@@ -229,6 +229,11 @@ def separate(
 
     (res, problem, model, flight), caught = _recorded(lambda: _linear(flight, problem, model, spec, fit_time_offset))
     res, iterated = iterate_if_curved(res, flight, problem, model, spec, iterate)
+    if not iterated and isinstance(flight, FlightData):
+        from casep.workflows.telemetry_clock import carry_telemetry_clock
+
+        # the telemetry clock's drift, after the IMU noise that sets the covariance anew (an iteration carries it)
+        res = carry_telemetry_clock(res, flight, problem)
     # the linear result's warnings are said with it; an iterated result says its own (the inputs' were said above)
     return res if iterated else _replayed(res, caught)
 
@@ -256,7 +261,7 @@ def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
         from casep.workflows.telemetry_clock import judge_telemetry_clock
 
         # a strapdown telemetry's clock, its tags and steps
-        res = judge_telemetry_clock(res, flight, problem, model.scales) or res
+        res = judge_telemetry_clock(res, flight, problem, model.scales, carry=False) or res  # carried: separate
         res = judge_tracking(res, flight, problem, model.scales)
         from casep.workflows.telemetry_heading import judge_telemetry_heading
 

@@ -35,7 +35,8 @@ import numpy as np
 from casep.estimators.result import EstimateResult
 from casep.io.flight import FlightData
 
-__all__ = ["drift_column", "telemetry_clock_record", "judge_telemetry_clock", "telemetry_gravitation", "MOVES_SAID"]
+__all__ = ["drift_column", "telemetry_clock_record", "judge_telemetry_clock", "carry_telemetry_clock",
+           "telemetry_gravitation", "MOVES_SAID"]
 
 #: The coefficients a drift at the edge of the test moves most, said at most this many (:func:`_moves`).
 MOVES_SAID = 3
@@ -134,7 +135,8 @@ def telemetry_clock_record(res: EstimateResult, flight: FlightData, problem: Any
 
 
 def _moves(res: EstimateResult, problem: Any, col: np.ndarray, ppm: float, scales: dict | None) -> list[dict]:
-    """The coefficients a drift of `ppm` not modelled moves most, in their std (at most :data:`MOVES_SAID`, those
+    """The coefficients a drift of `ppm` not modelled moves most, in the fit's std (before the drift is carried,
+    :func:`carry_telemetry_clock`; at most :data:`MOVES_SAID`, those
     beyond 1 std): the fit's estimator (its noise model's whitening: the rule of
     :func:`casep.workflows.imu_separate.column_estimates`) on the rows the drift adds (`col` (N, 3) per ppm),
     ``name``, ``shift`` (the coefficient's unit), ``z``; only coefficients the flight determines (std below their
@@ -155,6 +157,31 @@ def _moves(res: EstimateResult, problem: Any, col: np.ndarray, ppm: float, scale
     return [{"name": res.names[k], "shift": float(shift[k]), "z": float(shift[k] / std[k])} for k in order]
 
 
+def carry_telemetry_clock(res: EstimateResult, flight: FlightData, problem: Any) -> EstimateResult:
+    """`res` with the drift beyond the one given (its record ``diagnostics["clock_drift"]["telemetry"]``,
+    :func:`judge_telemetry_clock`) carried in its covariance and std as the ``--imu`` path carries it
+    (:func:`casep.workflows.imu_separate.clock_carried`, :func:`casep.workflows.imu_separate.with_drift`: a consider
+    parameter, its std ``meta["clock_drift_std_ppm"]`` by :func:`casep.workflows.imu_separate.given_clock_std`'s
+    rule), said in the record's ``carried``; `res` itself without a record, with one carried already, or with a
+    std of 0. A drift the data cannot tell goes into the scale factors and the time offset unseen: a line alone
+    (:func:`casep.checks.tracking_quality.telemetry_clock_line`) left the std as if the clocks ran at one rate."""
+    from casep.workflows.imu_separate import carried_said, clock_carried, given_clock_std, with_drift
+
+    record = (res.diagnostics.get("clock_drift") or {}).get("telemetry")
+    if record is None or "carried" in record or problem.t is None:
+        return res
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    std = given_clock_std(record["given_ppm"], meta.get("clock_drift_std_ppm"), "`clock_drift_std`")
+    col = drift_column(flight, np.asarray(problem.t, dtype=float)) if std > 0 else None
+    if col is None:
+        return res
+    carried = clock_carried(record, std)
+    out = with_drift(res, problem, col * carried["effective_std_ppm"], carried)
+    carried["said"] = carried_said(carried, "a telemetry clock drift")
+    clock = {**res.diagnostics["clock_drift"], "telemetry": {**record, "carried": carried}}
+    return dataclasses.replace(out, diagnostics={**out.diagnostics, "clock_drift": clock})
+
+
 def _sign_named(record: dict) -> bool:
     """The drift the data point to (which contradict the given one: the rule) is the given one's opposite, within the
     rule's 4 std."""
@@ -163,9 +190,11 @@ def _sign_named(record: dict) -> bool:
 
 
 def judge_telemetry_clock(res: EstimateResult, flight: FlightData, problem: Any,
-                          scales: dict | None = None) -> EstimateResult | None:
+                          scales: dict | None = None, carry: bool = True) -> EstimateResult | None:
     """`res` with ``diagnostics["clock_drift"]`` the record of :func:`telemetry_clock_record` (its ``telemetry``
-    key, ``ppm``, ``std_ppm`` and ``on`` too), warned (TrackingQualityWarning) when no drift was given and the data
+    key, ``ppm``, ``std_ppm`` and ``on`` too), with `carry` the drift carried in its covariance and std
+    (:func:`carry_telemetry_clock`; without it, later: the linear result's IMU noise refits the tracking noise and
+    sets the covariance anew), warned (TrackingQualityWarning) when no drift was given and the data
     see one, failed (``STATUS_SETUP``) when the given one is contradicted; None where the record cannot be formed
     (not a strapdown telemetry pair: the tag-only tests apply), on noise-free rows and on a flight with a set-up
     problem (as :meth:`casep.workflows.imu_separate._Run.clock_judged`)."""
@@ -181,6 +210,8 @@ def judge_telemetry_clock(res: EstimateResult, flight: FlightData, problem: Any,
         return None
     out = dataclasses.replace(res, diagnostics={**res.diagnostics, "clock_drift": {
         "ppm": record["ppm"], "std_ppm": record["std_ppm"], "on": record["on"], "telemetry": record}})
+    if carry:
+        out = carry_telemetry_clock(out, flight, problem)
     if not record["determined"]:
         return out
     effect = (f"{record['beyond_given_ppm']:+.4g} +- {record['std_ppm']:.2g} ppm beyond the one given, beyond "

@@ -27,6 +27,7 @@ from casep.simulation.noise import white_noise
 from tests.workflows.test_imu_clock_drift import ALIGN, HEADING, MODEL, SITE, WHITE_STD, _given, _truth
 
 DRIFT = 104e-6
+DRIFT80 = 80e-6
 
 
 def _nav(t, w, f, d):
@@ -60,14 +61,15 @@ def pairs(tmp_path_factory):
     df, dw = body_errors(m, nav0.q, f, w, t - t[0], z * np.array([m.scales[n] for n in m.names]))
     directory = tmp_path_factory.mktemp("telclock")
     tel = {}
-    for d in (DRIFT, 0.0):
+    for d in (DRIFT, 0.0, DRIFT80):
         nav = _nav(t, w + dw, f + df, d)
         tel[d] = directory / f"tel{d:+g}.csv"
         write_table(tel[d], nav.columns(), comments=nav.comments("imu.csv"))
     done: dict = {}
 
-    def get(d: float, seed: int = 0, given: float = 0.0):
-        if (d, seed, given) not in done:
+    def get(d: float, seed: int = 0, given: float = 0.0, **kw):
+        key = (d, seed, given, *sorted(kw.items()))
+        if key not in done:
             trk = directory / f"trk{seed}.csv"
             if not trk.exists():
                 k = slice(None, None, 2)
@@ -75,9 +77,9 @@ def pairs(tmp_path_factory):
                 write_table(trk, {"t": t[k], **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}})
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # conditioning, what the record leaves undetermined: said by it
-                flight = read_flight_pair(tel[d], trk, clock_drift=given)
-                done[d, seed, given] = casep.separate(flight, MODEL, method="ols"), flight
-        return done[d, seed, given]
+                flight = read_flight_pair(tel[d], trk, clock_drift=given, **kw)
+                done[key] = casep.separate(flight, MODEL, method="ols"), flight
+        return done[key]
 
     return get
 
@@ -131,12 +133,14 @@ def test_what_an_unmodelled_drift_moves_is_said_for_determined_coefficients(pair
 
     res, _ = pairs(DRIFT)
     rec = res.diagnostics["clock_drift"]["telemetry"]
+    fit, _ = pairs(DRIFT, clock_drift_std=0.0)  # the fit's std: before the drift is carried
     m = casep.load_model(MODEL)
     zs = [abs(x["z"]) for x in rec["moves"]]
     assert 0 < len(zs) <= MOVES_SAID and zs == sorted(zs, reverse=True) and min(zs) > 1.0, rec
+    assert rec["moves"] == fit.diagnostics["clock_drift"]["telemetry"]["moves"]
     for x in rec["moves"]:
         k = res.names.index(x["name"])
-        assert res.std[k] < m.scales.get(x["name"], np.inf) and x["z"] == pytest.approx(x["shift"] / res.std[k])
+        assert fit.std[k] < m.scales.get(x["name"], np.inf) and x["z"] == pytest.approx(x["shift"] / fit.std[k])
 
 
 def test_without_the_fits_time_offset_one_is_estimated_beside_the_drift(pairs, tmp_path):
@@ -149,3 +153,54 @@ def test_without_the_fits_time_offset_one_is_estimated_beside_the_drift(pairs, t
     assert "dt_trk" not in res.names
     rec = res.diagnostics["clock_drift"]["telemetry"]
     assert abs(rec["ppm"] - _given(DRIFT)) < 3.0 * rec["std_ppm"], rec
+
+
+def test_a_drift_not_given_is_carried_in_the_std(pairs):
+    """An IMU clock 80 ppm fast, not given, the tracking offset fitted (``time_offset="auto"``): the coefficients
+    the record says a drift moves (``moves``) are off by up to 4.8 std with the rate taken as exact
+    (``clock_drift_std=0``: the std before the carry) and within 3 std with the drift carried at the --imu path's
+    default (50 ppm: sa_x 4.78 -> 2.70 std, dt_trk 1.47 -> 0.32); the estimates themselves unchanged. The carry is
+    the rank-one term of the drift's column: the covariances differ by ``g g^T`` (``g`` the record's shift per
+    effective std). A clean record: the same estimates, and the record's drift not determined."""
+    m = casep.load_model(MODEL)
+    z = np.random.default_rng(0).standard_normal(len(m.names))  # the fixture's errors
+    truth = dict(zip(m.names, z * np.array([m.scales[n] for n in m.names])))
+    off = {}
+    for std in (None, 0.0):
+        res, _ = pairs(DRIFT80, time_offset="auto", clock_drift_std=std)
+        rec = res.diagnostics["clock_drift"]["telemetry"]
+        moved = [x["name"] for x in rec["moves"]]
+        assert "dt_trk" in moved, rec["moves"]
+        off[std] = {nm: (res.estimate[res.names.index(nm)] - truth.get(nm, 0.0)) / res.std[res.names.index(nm)]
+                    for nm in moved}
+        assert ("carried" in rec) == (std is None)
+    assert max(abs(v) for v in off[0.0].values()) > 4.0, off
+    assert max(abs(v) for v in off[None].values()) < 3.0, off
+    carried, _ = pairs(DRIFT80, time_offset="auto")
+    exact, _ = pairs(DRIFT80, time_offset="auto", clock_drift_std=0.0)
+    rec = carried.diagnostics["clock_drift"]["telemetry"]["carried"]
+    assert rec["std_ppm"] == 50.0 and not rec["given"] and "a telemetry clock drift not given" in rec["said"]
+    np.testing.assert_array_equal(carried.estimate, exact.estimate)
+    g = np.array([rec["shift_per_std"][nm] for nm in carried.names])
+    ok = np.isfinite(exact.std)
+    C, C0 = np.asarray(carried.covariance), np.asarray(exact.covariance)
+    np.testing.assert_allclose((C - C0)[np.ix_(ok, ok)], np.outer(g, g)[np.ix_(ok, ok)],
+                               atol=1e-9 * np.max(np.abs(np.outer(g, g))))
+    clean, _ = pairs(0.0, time_offset="auto")
+    clean0, _ = pairs(0.0, time_offset="auto", clock_drift_std=0.0)
+    np.testing.assert_array_equal(clean.estimate, clean0.estimate)
+    assert not clean.diagnostics["clock_drift"]["telemetry"]["determined"]
+    assert np.all(clean.std[ok] >= clean0.std[ok])
+
+
+def test_the_command_line_takes_the_drift_std_for_a_telemetry(tmp_path, capsys):
+    """``casep separate TEL --tracking TRK --clock-drift-std PPM``: checked by the --imu path's rule
+    (given_clock_std) before any file is read, exit 2 for a negative one; without --tracking refused."""
+    from casep.cli import main
+
+    args = ["separate", str(tmp_path / "no-such.csv"), "--tracking", str(tmp_path / "no-such-trk.csv")]
+    assert main([*args, "--clock-drift-std", "-5"]) == 2
+    assert "--clock-drift-std must be a finite number >= 0" in capsys.readouterr().err
+    assert main([args[0], args[1], "--clock-drift-std", "5"]) == 2
+    assert "--clock-drift-std is used only with --imu IMU.csv or a telemetry with --tracking" in \
+        capsys.readouterr().err
