@@ -179,7 +179,7 @@ __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_
            "combination_imu_noise", "with_imu_noise_beyond", "imu_noise_widening", "IMU_NOISE_SHARE",
            "linearisation_shift", "linearisation_record", "one_pass_judged", "Shift", "shift_said", "SMALLER_MODELS",
            "prior_fits_p", "HEADING_STD_DEG", "HEADING_STEP_DEG", "HEADING_SETTLED_Z", "given_heading_std",
-           "heading_first", "SMALL_ANGLE_REACH_DEG"]
+           "heading_first", "SMALL_ANGLE_REACH_DEG", "within_small_angle_reach"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -254,6 +254,15 @@ HEADING_SETTLED_Z = 3.0
 #: :data:`casep.workflows.telemetry_frame.FRAME_LARGE_DEG` is this): beyond it the first-order column locates a local
 #: fit, not the turn (an iteration stopped two passes early read the heading -417 +- 34 deg off).
 SMALL_ANGLE_REACH_DEG = 30.0
+
+
+def within_small_angle_reach(std_deg, limit_z: float):
+    """Whether a small-angle test judges an angle of std `std_deg` (deg; a float or an array) at its limit `limit_z`:
+    ``std * limit <= SMALL_ANGLE_REACH_DEG`` (a rotation at the limit within the first-order column's reach). The one
+    rule of the heading (:meth:`_Run.heading_judged`), the attitude's frame
+    (:mod:`casep.workflows.telemetry_frame`) and a telemetry's turn about the vertical
+    (:mod:`casep.workflows.telemetry_heading`)."""
+    return np.asarray(std_deg) * limit_z <= SMALL_ANGLE_REACH_DEG
 #: The IMU clock drift's derivative: central differences of a pass navigated with its tags stretched by plus and minus
 #: this, ppm (the rows are linear in it to parts in 10^4 over a flight: a crystal's drift of tens of ppm).
 CLOCK_STEP_PPM = 100.0
@@ -1171,7 +1180,7 @@ class _Run:
         if record is None:
             return res
         res.diagnostics["heading"] = {**res.diagnostics.get("heading", {}), "test": record}
-        record["judged"] = bool(record["std_deg"] * record["limit_z"] <= SMALL_ANGLE_REACH_DEG)
+        record["judged"] = bool(within_small_angle_reach(record["std_deg"], record["limit_z"]))
         record["first"] = bool(settled)
         if not record["judged"]:
             record["conflict"] = False  # beyond the small-angle reach: the test says nothing

@@ -66,7 +66,7 @@ import numpy as np
 
 from casep.estimators.result import EstimateResult
 from casep.io.flight import FlightData
-from casep.workflows.imu_separate import SMALL_ANGLE_REACH_DEG
+from casep.workflows.imu_separate import SMALL_ANGLE_REACH_DEG, within_small_angle_reach
 
 __all__ = ["dv_sign_record", "dv_sign_unchecked", "frame_record", "frame_unchecked", "judge_frame",
            "FRAME_STEPS", "FRAME_AXES", "FRAME_LARGE_DEG",
@@ -272,7 +272,7 @@ def frame_record(res: EstimateResult, problem: Any, flight: FlightData, spec: An
     # an axis is judged where the flight determines it well enough that a rotation at the limit is within the
     # small-angle reach (std times the limit within FRAME_LARGE_DEG): about a poorly determined axis (the cross-range
     # z, 5-7 deg) the steps wander to tens of degrees, where the first-order std no longer describes the estimate
-    judged = std * PRIOR_CONFLICT_Z <= FRAME_LARGE_DEG
+    judged = within_small_angle_reach(std, PRIOR_CONFLICT_Z)
     beyond, seen = judged & (z > PRIOR_CONFLICT_Z), judged & (z > FRAME_WARN_Z)
 
     def reach(axes: np.ndarray) -> bool:

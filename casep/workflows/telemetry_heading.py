@@ -96,7 +96,7 @@ def telemetry_heading_record(res: EstimateResult, problem: Any, flight: FlightDa
     from casep.estimators.rls import PRIOR_CONFLICT_Z
     from casep.noise.fit import fit_noise
     from casep.regression.problem import Problem
-    from casep.workflows.imu_separate import HEADING_STD_DEG, _quiet_fit
+    from casep.workflows.imu_separate import HEADING_STD_DEG, _quiet_fit, within_small_angle_reach
     from casep.workflows.telemetry_frame import FRAME_LARGE_DEG
 
     meta = flight.meta if isinstance(flight.meta, dict) else {}
@@ -170,7 +170,7 @@ def telemetry_heading_record(res: EstimateResult, problem: Any, flight: FlightDa
     stated = HEADING_STD_DEG if given and kind == "telemetry" else 0.0
     z = min(math.sqrt(lr), abs(turn) / math.hypot(stated, std))
     why = misfit_problem(flight, fit_there.residual_rms or {}, (), noise=fit_there.diagnostics.get("noise"))
-    judged = std * PRIOR_CONFLICT_Z <= FRAME_LARGE_DEG
+    judged = within_small_angle_reach(std, PRIOR_CONFLICT_Z)
     heading = float(lev["heading_deg"]) if given else None
     return {"turn_deg": turn, "std_deg": std, "turned": kind, "z": float(z), "ln_ratio": lr / 2.0,
             "limit_z": PRIOR_CONFLICT_Z, "stated_std_deg": stated, "located": bool(located), "judged": bool(judged),
