@@ -257,9 +257,11 @@ def tilt_free_force(f: np.ndarray, w: np.ndarray, t: np.ndarray) -> np.ndarray:
     is the accelerometers' own error plus ``f0 x`` the integrated gyro noise (so an upper bound still), plus the
     lateral acceleration of a sensor above the rocking axis (``h theta''``, small below the rocking frequency).
     """
+    from casep._kernels import cumulative_trapezoid
+
     f, w, t = np.asarray(f, float), np.asarray(w, float), np.asarray(t, float)
     dw = w - w.mean(axis=0)
-    theta = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (dw[1:] + dw[:-1]) * np.diff(t)[:, None], axis=0)])
+    theta = cumulative_trapezoid(dw, t)
     theta -= theta.mean(axis=0)
     return f - np.cross(f.mean(axis=0), theta)
 

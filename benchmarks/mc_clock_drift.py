@@ -21,6 +21,7 @@ import sys
 
 import numpy as np
 
+from casep._kernels import cumulative_trapezoid
 from casep.checks.tracking_quality import DRIFT_MIN_PPM, clock_drift
 
 
@@ -53,7 +54,7 @@ def instrument(t: np.ndarray, a: np.ndarray, seed: int) -> tuple[np.ndarray, np.
     rng = np.random.default_rng(10_000 + seed)
 
     def integral(x: np.ndarray) -> np.ndarray:
-        return np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (x[1:] + x[:-1]) * np.diff(t)[:, None], axis=0)])
+        return cumulative_trapezoid(x, t)
 
     f = a + np.array([0.0, 0.0, 9.81])
     cols = np.zeros((t.size, 3, 13))

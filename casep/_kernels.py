@@ -14,6 +14,9 @@ longer than a short flight's whole computation. So:
 - :func:`rels_ud`: the Bierman U-D recursion, compiled;
 - :func:`ar1_terms`: the one place of the AR(1) step coefficients ``a = exp(-dt / tau)`` and
   ``1 - a^2 = -expm1(-2 dt / tau)`` (no cancellation when ``dt << tau``); every whitening of casep calls it;
+- :func:`cumulative_trapezoid`: the running trapezoid integral of samples over their times, zero at the first
+  sample, the one place of that sum (``np.cumsum`` of ``(y_(k-1) + y_k) / 2 * dt_k``: sequential, so the same numbers
+  as the loop);
 - :func:`runs`: the runs of True in a mask (start, end), the one run-length rule of the robust fit's misfit
   check and of the saturation and static-pose checks;
 - :func:`gmw_filter`: the innovations (Kalman-filter) whitening of Gauss-Markov plus white noise, compiled
@@ -33,8 +36,8 @@ from typing import Callable, cast
 
 import numpy as np
 
-__all__ = ["ar1_long_run_factor", "ar1_terms", "runs", "gmw_filter", "gmw_filter_numpy", "joint_filter",
-           "joint_filter_numpy",
+__all__ = ["ar1_long_run_factor", "ar1_terms", "cumulative_trapezoid", "runs", "gmw_filter", "gmw_filter_numpy",
+           "joint_filter", "joint_filter_numpy",
            "robust_filter_keep", "sv_integrate_chunk", "sv_integrate_chunk_numpy", "rels_ud", "lfilter",
            "NUMPY_SAMPLES", "PYTHON_FILTER_STEPS", "all_pole_filter_python"]
 
@@ -52,6 +55,16 @@ NUMPY_SAMPLES = 1 << 17
 #: this size, against 0.3-0.5 s of CPU to compile the kernel on its first call (a new clone, a new numba cache) and
 #: about 0.1 s to load it from numba's cache (``casep demo``'s RELS: 58 503 steps twice).
 PYTHON_FILTER_STEPS = 1 << 17
+
+
+def cumulative_trapezoid(y: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The trapezoid integral of the samples `y` (N, ...) over their times `t` (N,) from the first sample, (N, ...):
+    ``Y_0 = 0``, ``Y_k = Y_(k-1) + (y_(k-1) + y_k) / 2 * (t_k - t_(k-1))``, a sequential sum along the first axis."""
+    y = np.asarray(y, dtype=float)
+    dt = np.diff(np.asarray(t, dtype=float)).reshape((-1,) + (1,) * (y.ndim - 1))
+    out = np.zeros_like(y)
+    np.cumsum(0.5 * (y[1:] + y[:-1]) * dt, axis=0, out=out[1:])
+    return out
 
 
 def runs(mask: np.ndarray) -> list[tuple[int, int]]:

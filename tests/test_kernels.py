@@ -161,3 +161,36 @@ def test_runs_against_a_plain_loop():
                     expected.append((start, k))
                     start = None
             assert runs(mask) == expected
+
+
+def test_cumulative_trapezoid_against_the_closed_form_of_a_parabola():
+    """On uneven steps the trapezoid of ``t^2`` from ``t_0`` is ``(t^3 - t_0^3) / 3 + sum h^3 / 6`` (each step's
+    trapezoid overshoots the parabola's integral by ``h^3 / 6``), and that of a line is exact; zero at the first
+    sample; every trailing axis integrated alike."""
+    from casep._kernels import cumulative_trapezoid
+
+    rng = np.random.default_rng(11)
+    t = 1.5 + np.cumsum(rng.uniform(0.01, 0.2, 400))
+    h = np.diff(t)
+    parabola = (t**3 - t[0] ** 3) / 3 + np.concatenate([[0.0], np.cumsum(h**3 / 6)])
+    line = 2.0 * (t - t[0]) - 0.75 * (t**2 - t[0] ** 2)  # int (2 - 1.5 t) dt
+    y = np.stack([t**2, 2.0 - 1.5 * t], axis=1)[:, :, None] * np.array([1.0, -4.0])  # (N, 2, 2)
+    got = cumulative_trapezoid(y, t)
+    assert got.shape == y.shape and np.all(got[0] == 0.0)
+    np.testing.assert_allclose(got[:, 0, 0], parabola, rtol=1e-13)
+    np.testing.assert_allclose(got[:, 1, 0], line, rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(got[:, :, 1], -4.0 * got[:, :, 0])  # a power of two times: exact
+    np.testing.assert_array_equal(cumulative_trapezoid(t**2, t), got[:, 0, 0])  # one dimension
+
+
+def test_cumulative_trapezoid_is_the_sequential_sum():
+    """The sum step by step in a plain loop, bit for bit (the numbers the callers had before it was shared)."""
+    from casep._kernels import cumulative_trapezoid
+
+    rng = np.random.default_rng(5)
+    t, y = np.cumsum(rng.uniform(0.001, 0.02, 300)), rng.normal(size=(300, 3))
+    expected = np.zeros_like(y)
+    for k in range(1, t.size):
+        expected[k] = expected[k - 1] + 0.5 * (y[k] + y[k - 1]) * (t[k] - t[k - 1])
+    assert np.array_equal(cumulative_trapezoid(y, t), expected)
+    assert cumulative_trapezoid(y[:1], t[:1]).tolist() == [[0.0, 0.0, 0.0]]

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from casep._kernels import cumulative_trapezoid
 from casep.gravity import GRAVITY_LAUNCH, kinematic_acceleration
 from casep.regression.linalg import reduce_qr_blocks
 
@@ -111,7 +112,7 @@ def gap_columns(t: np.ndarray, f: np.ndarray, gaps) -> np.ndarray:
             continue
         k = int(np.argmax(after))
         F = np.zeros((t.size, 3))  # integral_b^t f ds at the rows after the gap (from its first row)
-        F[k + 1:] = np.cumsum(0.5 * (f[k + 1:] + f[k:-1]) * np.diff(t[k:])[:, None], axis=0)
+        F[k:] = cumulative_trapezoid(f[k:], t[k:])
         C = np.zeros((t.size, 3, 6))
         C[after, :, :3] = np.eye(3)
         for j in range(3):

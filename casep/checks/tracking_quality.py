@@ -57,7 +57,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from casep._kernels import ar1_long_run_factor
+from casep._kernels import ar1_long_run_factor, cumulative_trapezoid
 from casep.checks.time_offset import kinematic_acceleration
 from casep.exceptions import TrackingQualityWarning
 from casep.io.files import ONE_FILE_TELEMETRY
@@ -196,8 +196,7 @@ def _acceleration(flight: FlightData) -> np.ndarray | None:
 
 def _velocity_change(a: np.ndarray, t: np.ndarray) -> np.ndarray:
     """``V(t) = int a dt`` (trapezoid) of the kinematic acceleration `a` at times `t`, (N, 3) m/s."""
-    inc = 0.5 * (a[1:] + a[:-1]) * np.diff(t)[:, None]
-    return np.vstack([np.zeros((1, 3)), np.cumsum(inc, axis=0)])
+    return cumulative_trapezoid(a, t)
 
 
 def _screened(meta: dict) -> bool:
@@ -983,7 +982,7 @@ def _imu_noise_blocks(flight: FlightData, t_rows: np.ndarray, levelling: tuple |
     t = flight.t[i]
     C = quat_to_dcm(np.column_stack([sig[f"q_{a}"][i] for a in "wxyz"]))
     f = flight.f[i]
-    F = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(t)[:, None], axis=0)])
+    F = cumulative_trapezoid(f, t)
     block = np.floor((t - t[0]) / IMU_NOISE_BLOCK_S).astype(int)
     nb = int(block[-1]) + 1
     counts = np.bincount(block, minlength=nb)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from casep._kernels import cumulative_trapezoid
 from casep.io.flight import DUPLICATE_STEP, FlightData
 from casep.io.tables import VTRK_COLUMNS, Table
 
@@ -259,9 +260,7 @@ def velocity_column_misfit(t: np.ndarray, r: np.ndarray, c: np.ndarray, basis: n
         return np.zeros((maps.shape[0], 0)), i0, i1
     B = np.broadcast_to(np.eye(3), (t.size, 3, 3)) if basis is None else basis
     g = B[:, :, :, None] * c[:, None, None, :]  # (M, 3, i, j): direction i of the columns times column j
-    dt = np.diff(t)
-    steps = 0.5 * (g[1:] + g[:-1]) * dt[:, None, None, None]
-    cum = np.concatenate([np.zeros((1, 3, 3, 3)), np.cumsum(steps, axis=0)], axis=0)
+    cum = cumulative_trapezoid(g, t)
     J = cum[i1] - cum[i0]  # (W, 3, i, j): integral over each window
     span = (t[i1] - t[i0])[None, :, None]
     d = ((r[i1] - r[i0])[None] - np.einsum("kij,wxij->kwx", maps, J)) / span

@@ -74,6 +74,7 @@ from typing import Any
 
 import numpy as np
 
+from casep._kernels import cumulative_trapezoid
 from casep.exceptions import PlausibilityWarning
 from casep.fullscale import held_full_scale, held_mask
 from casep.gravity import kinematic_acceleration
@@ -191,12 +192,9 @@ def clock_stretch(t: np.ndarray, q: np.ndarray, fb: np.ndarray, w: np.ndarray, v
     :data:`STRETCH_STEP` of scale, divided by it."""
     t, v = np.asarray(t, dtype=float), np.asarray(v, dtype=float)
     C = quaternion_dcm_array(np.asarray(q, dtype=float))
-    dt = np.diff(t)[:, None]
 
-    def integral(x: np.ndarray) -> np.ndarray:  # cumulative trapezoid, 0 at the first sample
-        out = np.zeros_like(x)
-        np.cumsum(0.5 * (x[1:] + x[:-1]) * dt, axis=0, out=out[1:])
-        return out
+    def integral(x: np.ndarray) -> np.ndarray:  # 0 at the first sample
+        return cumulative_trapezoid(x, t)
 
     phi = -integral(np.einsum("nij,nj->ni", C, np.asarray(w, dtype=float)))
     f_nav = np.einsum("nij,nj->ni", C, np.asarray(fb, dtype=float))
@@ -897,9 +895,7 @@ def _kinematic_misfit(t: np.ndarray, q: np.ndarray, fb: np.ndarray, v: np.ndarra
     """
     C = quaternion_dcm_array(q)
     a = kinematic_acceleration(t, np.einsum("kij,kj->ki", C, fb))
-    h = np.diff(t)
-    integral = np.concatenate([np.zeros((1, 3)), np.cumsum(0.5 * (a[1:] + a[:-1]) * h[:, None], axis=0)])
-    C_int = np.concatenate([np.zeros((1, 3, 3)), np.cumsum(0.5 * (C[1:] + C[:-1]) * h[:, None, None], axis=0)])
+    integral, C_int = cumulative_trapezoid(a, t), cumulative_trapezoid(C, t)
     i, j = edges[:-1], edges[1:]
     miss = v[j] - v[i] - (integral[j] - integral[i])
     M = C_int[j] - C_int[i]

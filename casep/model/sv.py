@@ -37,7 +37,7 @@ from typing import Any, Iterator, Mapping
 
 import numpy as np
 
-from casep._kernels import sv_integrate_chunk
+from casep._kernels import cumulative_trapezoid, sv_integrate_chunk
 from casep.exceptions import GapWarning
 from casep.model.error_model import ErrorModel
 
@@ -291,15 +291,11 @@ def build_sv(model: ErrorModel, t: np.ndarray, f: np.ndarray, *, chunk: int = DE
 
 
 def cumulative_sp(S: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """S_P = cumulative trapezoid of S_V over `t`, zero at the first sample: ``(N, 3, n)``.
+    """S_P = cumulative trapezoid of S_V over `t`, zero at the first sample: ``(N, 3, n)``
+    (:func:`casep._kernels.cumulative_trapezoid`).
 
     Notes
     -----
     ``S_P[0] = 0``, ``S_P[k] = S_P[k-1] + (S_V[k-1] + S_V[k]) (t_k - t_{k-1}) / 2``.
     """
-    S = np.asarray(S, dtype=float)
-    t = np.asarray(t, dtype=float)
-    out = np.zeros_like(S)
-    dt = np.diff(t)[:, None, None]
-    np.cumsum(0.5 * (S[1:] + S[:-1]) * dt, axis=0, out=out[1:])  # trapezoid per step, summed
-    return out
+    return cumulative_trapezoid(S, t)

@@ -32,6 +32,7 @@ from typing import Callable
 
 import numpy as np
 
+from casep._kernels import cumulative_trapezoid
 from casep.gravity import launch_gravitation  # the gravitation in L (one place: io needs it too)
 from casep.rotations import (
     Increments,
@@ -144,7 +145,7 @@ def propagate_translation(t: np.ndarray, dV: np.ndarray, r0: np.ndarray, v0: np.
             passes += 1
             g = _gravity_on_grid(gravity, tt, rr, gravity_spacing_s) if gravity is not None else np.zeros_like(rr)
             vv = v[s] + np.vstack([np.zeros(3), np.cumsum(dV[s:e] + 0.5 * (g[:-1] + g[1:]) * hh, axis=0)])
-            new = r[s] + np.vstack([np.zeros(3), np.cumsum(0.5 * (vv[:-1] + vv[1:]) * hh, axis=0)])
+            new = r[s] + cumulative_trapezoid(vv, tt)
             moved = float(np.max(np.abs(new - rr)))
             rr = new
             if gravity is None or moved < tol_m:

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from casep._kernels import cumulative_trapezoid
 from casep.frames import LaunchSite
 
 __all__ = ["Telemetry", "read_telemetry", "integrate_position", "hermite", "interp_linear", "PAD_SPEED"]
@@ -47,8 +48,7 @@ class Telemetry:
 
 def integrate_position(t: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Position from the launch point (r(t_0) = 0) by the trapezoid rule on the velocity."""
-    dt = np.diff(t)[:, None]
-    return np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (v[1:] + v[:-1]) * dt, axis=0)])
+    return cumulative_trapezoid(v, t)
 
 
 def read_telemetry(path: str | os.PathLike, site: LaunchSite | None = None) -> Telemetry:

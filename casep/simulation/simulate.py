@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from casep._kernels import cumulative_trapezoid
 from casep.io._atomic import atomic_open
 from casep.io.files import simulated_comment, write_flight, write_table
 from casep.io.flight import FlightData
@@ -447,8 +448,7 @@ def simulate_two_rate(scenario: str | Scenario = "paper", *, seed: int = 0, tele
     sc, traj, model, truth = scenario_setup(scenario, telemetry_rate, rotating_earth=rotating_earth, site=site)
     rng = np.random.default_rng(seed)
     v_tel = traj.velocity + build_sv(model, traj.t, traj.specific_force) @ truth
-    dt = np.diff(traj.t)[:, None]
-    W = np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (traj.specific_force[1:] + traj.specific_force[:-1]) * dt, 0)])
+    W = cumulative_trapezoid(traj.specific_force, traj.t)
     lo, hi = max(traj.t[0], traj.t[0] + time_offset), min(traj.t[-1], traj.t[-1] + time_offset)
     if tracking_start is not None:
         if not lo <= tracking_start < hi:

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from casep._kernels import cumulative_trapezoid
 from casep.io.strapdown import quaternion_dcm_array
 from casep.model.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
 from casep.navigation.imu import split_steps
@@ -126,7 +127,7 @@ class RollProgramme:
         """Roll angle (rad) and rate (rad/s) at times `t`."""
         t = np.asarray(t, dtype=float)
         kt, kr = np.asarray(self.times), np.radians(self.rates)
-        at_knot = np.concatenate([[0.0], np.cumsum(0.5 * (kr[1:] + kr[:-1]) * np.diff(kt))])
+        at_knot = cumulative_trapezoid(kr, kt)
         i = np.clip(np.searchsorted(kt, t, side="right") - 1, 0, kt.size - 2)
         u = np.clip(t - kt[i], 0.0, None)
         slope = (kr[i + 1] - kr[i]) / (kt[i + 1] - kt[i])

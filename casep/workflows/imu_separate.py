@@ -160,6 +160,7 @@ from typing import TYPE_CHECKING, Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
+from casep._kernels import cumulative_trapezoid
 from casep.estimators.registry import STATUS_NOT_CONVERGED
 from casep.exceptions import GapWarning, SaturationWarning
 from casep.frames import LaunchSite
@@ -2527,7 +2528,7 @@ def step_rows(imu: ImuData | None, nav: NavigationResult, problem: Any) -> np.nd
     j = st.k[keep] - i0
     t = np.asarray(problem.t, dtype=float)
     fL = quat_rotate(nav.q, nav.fb)
-    F = np.vstack([np.zeros(3), np.cumsum(0.5 * (fL[1:] + fL[:-1]) * np.diff(nav.t)[:, None], axis=0)])
+    F = cumulative_trapezoid(fL, nav.t)
     Ft = np.column_stack([np.interp(t, nav.t, F[:, c]) for c in range(3)])
     C = quat_to_dcm(nav.q[j])
     u = np.einsum("sij,sj->si", C, st.df[keep]) * (st.h[keep] / 2)[:, None]

@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from casep._kernels import cumulative_trapezoid
 from casep.estimators.result import EstimateResult
 from casep.io.flight import FlightData
 
@@ -60,9 +61,7 @@ def _turn(a: np.ndarray, rad: float) -> np.ndarray:
 
 def _integrated_force(flight: FlightData) -> np.ndarray:
     """The navigation-frame specific force integrated from the flight's first sample (trapezoid), (N, 3) m/s."""
-    t, f = np.asarray(flight.t, float), np.asarray(flight.f, float)
-    steps = 0.5 * (f[1:] + f[:-1]) * np.diff(t)[:, None]
-    return np.vstack([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
+    return cumulative_trapezoid(flight.f, flight.t)
 
 
 def _minimum(grid: np.ndarray, scan: np.ndarray, ssr: Any) -> tuple[float, bool]:

@@ -89,6 +89,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from casep._kernels import cumulative_trapezoid
 from casep.workflows.imu_separate import (
     FAIL_SHIFT,
     ITERATE_TOL,
@@ -183,8 +184,7 @@ def corrected_telemetry(model: ErrorModel, t: np.ndarray, q: np.ndarray, fb: np.
     if gravity is None:
         v_c = v - dv0 + np.vstack([np.zeros((1, 3)), np.cumsum(step, axis=0)])
         return CorrectedTelemetry(q_c, fb_c, w_c, v_c)
-    h = np.diff(t)[:, None]
-    r_tel = r if r is not None else np.vstack([np.zeros((1, 3)), np.cumsum(0.5 * (v[1:] + v[:-1]) * h, axis=0)])
+    r_tel = r if r is not None else cumulative_trapezoid(v, t)
 
     def difference(tt: np.ndarray, rr: np.ndarray) -> np.ndarray:  # G(t, r_c) - G(t, r_tel) at samples of t
         at = np.column_stack([np.interp(tt, t, r_tel[:, i]) for i in range(3)])
