@@ -830,7 +830,8 @@ def white_sample_std(x: np.ndarray) -> np.ndarray:
 
 def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray,
                      levelling: tuple[tuple[float, float], np.ndarray] | None = None,
-                     instability: tuple[float, float, float] | None = None) -> np.ndarray | None:
+                     instability: tuple[float, float, float] | None = None,
+                     noise: tuple[np.ndarray, float, np.ndarray] | None = None) -> np.ndarray | None:
     """``weights @ G`` (k, m): ``G`` (3M, m) the velocity errors ``dv`` at the M epochs `t_rows` (rows x, y, z per
     epoch) that the IMU's white noise makes, per unit of m independent standard normal variables
     (``Cov = G G^T``), seen through `weights` (k, 3M) (``G`` itself is never held: it grows with epochs times
@@ -865,8 +866,11 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray
     With `instability` (``(tau, q_a, q_g)``: the IMU's bias instability of :func:`imu_bias_effect`, correlation time
     ``tau`` s, variances ``q_a`` (m/s^2)^2 and ``q_g`` (rad/s)^2 per body axis) its columns follow the white noise's:
     ``G = [G_white, sqrt(q_a) G_a, sqrt(q_g) G_g]``.
+
+    `noise`: :func:`imu_sample_noise` of `flight` and `t_rows` when the caller measured it already (None: measured
+    here).
     """
-    terms = _imu_noise_blocks(flight, t_rows, levelling)
+    terms = _imu_noise_blocks(flight, t_rows, levelling, noise)
     if terms is None:
         return None
     W = np.asarray(weights, dtype=float).reshape(-1, t_rows.size, 3)
@@ -970,11 +974,13 @@ class _ImuBlocks:
     t_mid: np.ndarray  # (B,): the blocks' mean sample times
 
 
-def _imu_noise_blocks(flight: FlightData, t_rows: np.ndarray, levelling: tuple | None) -> _ImuBlocks | None:
-    """The IMU noise's blocks (:func:`imu_noise_effect`); None when the flight does not hold the IMU's samples."""
+def _imu_noise_blocks(flight: FlightData, t_rows: np.ndarray, levelling: tuple | None,
+                      noise: tuple[np.ndarray, float, np.ndarray] | None = None) -> _ImuBlocks | None:
+    """The IMU noise's blocks (:func:`imu_noise_effect`; `noise` :func:`imu_sample_noise`'s, measured here when None);
+    None when the flight does not hold the IMU's samples."""
     from casep.rotations import quat_to_dcm
 
-    noise = imu_sample_noise(flight, t_rows)
+    noise = imu_sample_noise(flight, t_rows) if noise is None else noise
     if noise is None:
         return None
     s, h, i = noise

@@ -2326,9 +2326,33 @@ def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np
     return evaluate_samples(fn, values, n)
 
 
+class ImuNoise(NamedTuple):
+    """The IMU's white noise as the budget measures it (:func:`imu_noise_measured`): `sample` the ``(s, h, samples)``
+    of :func:`casep.checks.tracking_quality.imu_sample_noise`, `at_rest` whether it is the one measured at rest
+    (``meta[IMU_NOISE_AT_REST]``), `unresolved` the columns whose noise the record does not show
+    (:func:`casep.checks.tracking_quality.unresolved_noise`; none when measured at rest)."""
+
+    sample: tuple
+    at_rest: bool
+    unresolved: tuple
+
+
+def imu_noise_measured(flight: FlightData, t: np.ndarray) -> ImuNoise | None:
+    """The IMU's white noise of `flight` up to the last epoch of `t` (:class:`ImuNoise`), measured once for
+    :func:`imu_noise_budget` and :func:`with_imu_noise_beyond`; None when the flight does not hold the IMU's samples."""
+    from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_sample_noise, unresolved_noise
+
+    measured = imu_sample_noise(flight, t)
+    if measured is None:
+        return None
+    at_rest = isinstance(flight.meta, dict) and flight.meta.get(IMU_NOISE_AT_REST) is not None
+    return ImuNoise(measured, at_rest, () if at_rest else tuple(unresolved_noise(flight, measured[0], measured[2])))
+
+
 def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, levelling: tuple | None = None,
                      profile: tuple | None = None, heading: np.ndarray | None = None,
-                     estimators: np.ndarray | None = None) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
+                     estimators: np.ndarray | None = None,
+                     measured: ImuNoise | None = None) -> tuple[np.ndarray | None, np.ndarray, dict] | None:
     """The estimate's covariance with the IMU's own white noise: ``(tracking part, IMU part, what was used)`` (None
     when the flight does not hold the IMU's samples, or the result has no covariance; the tracking part None: the
     fit's own covariance).
@@ -2358,41 +2382,39 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     combinations' std do: :func:`combination_imu_noise`), and the account says over which correlation times, whether
     the record bounds them and by how much it raises the std (``tau_profile``: :func:`warn_tau_unbounded` says when
     the record does not bound them). `estimators`: ``A`` when the caller formed it already
-    (:func:`combination_estimators` of the identity on `res`).
+    (:func:`combination_estimators` of the identity on `res`); `measured`: the IMU's noise when the caller measured
+    it already (:func:`imu_noise_measured` of `flight` and the problem's times).
     """
-    from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_noise_effect, imu_sample_noise, unresolved_noise
+    from casep.checks.tracking_quality import imu_noise_effect
     from casep.noise.model import NoiseModel
 
     nd = res.diagnostics.get("noise")
     if res.covariance is None or problem.t is None or not isinstance(nd, dict) or "axes" not in nd:
         return None
     t = np.asarray(problem.t, dtype=float)
-    measured = imu_sample_noise(flight, t)
+    measured = imu_noise_measured(flight, t) if measured is None else measured
     if measured is None:
         return None
-    at_rest = isinstance(flight.meta, dict) and flight.meta.get(IMU_NOISE_AT_REST) is not None
-    unresolved = () if at_rest else tuple(unresolved_noise(flight, measured[0], measured[2]))
     noise = NoiseModel.from_dict(nd)
     N, n = t.size, len(res.names)
     A = estimators if estimators is not None else combination_estimators(np.eye(n), np.ones(n), res, problem)
     assert A is not None  # (n, 3N), the coefficients' estimators: times and a noise model checked above
     refit = _tracking_beside_imu(problem, flight, noise, levelling, res.diagnostics)
     instability = _instability(refit, flight)
-    AG = imu_noise_effect(flight, t, A, levelling, None if instability is None else instability[:3])
+    AG = imu_noise_effect(flight, t, A, levelling, None if instability is None else instability[:3], measured.sample)
     if AG is None:
         return None
     AG = with_heading(AG, A, heading)
     C_imu = AG @ AG.T
     if refit is None:
-        return None, C_imu, _imu_account(res, measured, np.asarray(res.covariance), C_imu, refit, at_rest, unresolved,
-                                         flight)
+        return None, C_imu, _imu_account(res, measured, np.asarray(res.covariance), C_imu, refit, flight)
     from casep.noise.known import tracking_covariance_times
 
     C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
     if profile is None:
-        return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, at_rest, unresolved, flight)
+        return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, flight)
     spread = tau_spread(A, problem, profile)
-    account = _imu_account(res, measured, C_trk + spread, C_imu, refit, at_rest, unresolved, flight)
+    account = _imu_account(res, measured, C_trk + spread, C_imu, refit, flight)
     account["tau_profile"] = _tau_record(res, t, profile, C_trk + C_imu, spread)
     return C_trk + spread, C_imu, account
 
@@ -3115,12 +3137,11 @@ def _instability_record(refit: Any, flight: FlightData) -> dict | None:
     return out
 
 
-def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu: np.ndarray, refit: Any,
-                 at_rest: bool = False, unresolved: tuple = (), flight: FlightData | None = None) -> dict:
-    """What :func:`imu_noise_budget` used and found, for the result's noise record (`unresolved`: the columns whose
-    noise the record does not show, :func:`casep.checks.tracking_quality.unresolved_noise`: not measured; `flight`:
-    the record whose low-frequency IMU noise, when requested, is said)."""
-    s, h, _ = measured
+def _imu_account(res: EstimateResult, measured: ImuNoise, C_trk: np.ndarray, C_imu: np.ndarray, refit: Any,
+                 flight: FlightData | None = None) -> dict:
+    """What :func:`imu_noise_budget` used and found, for the result's noise record (`measured`: the IMU's noise, its
+    columns not measured said; `flight`: the record whose low-frequency IMU noise, when requested, is said)."""
+    (s, h, _), at_rest, unresolved = measured
     C_fit = np.asarray(res.covariance)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.sqrt((np.diag(C_trk) + np.diag(C_imu)) / np.diag(C_fit))
@@ -3149,11 +3170,12 @@ def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu:
 
 def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
                    levelling: tuple | None = None, profile: tuple | None = None,
-                   heading: np.ndarray | None = None, estimators: np.ndarray | None = None) -> EstimateResult:
+                   heading: np.ndarray | None = None, estimators: np.ndarray | None = None,
+                   measured: ImuNoise | None = None) -> EstimateResult:
     """`res` with the IMU's own noise (and with `heading` the given heading's uncertainty) in its covariance and std
-    and said in its noise account (:func:`imu_noise_budget`, `estimators` passed on; `res` itself when the flight
-    does not hold the IMU's samples)."""
-    budget = imu_noise_budget(res, problem, flight, levelling, profile, heading, estimators)
+    and said in its noise account (:func:`imu_noise_budget`, `estimators` and `measured` passed on; `res` itself when
+    the flight does not hold the IMU's samples)."""
+    budget = imu_noise_budget(res, problem, flight, levelling, profile, heading, estimators, measured)
     if budget is None:
         return res
     C_trk, C_imu, account = budget
@@ -3203,18 +3225,18 @@ def with_imu_noise_beyond(res: EstimateResult, problem: Any, flight: FlightData,
     (the iterated path's: the tracking noise refitted beside it), the account's ``carried`` True; below it `res` with
     the account (``carried`` False, the widening said). `res` itself when the flight does not hold the IMU's samples
     or the result has no finite covariance or noise model."""
-    from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_noise_effect, imu_sample_noise, unresolved_noise
+    from casep.checks.tracking_quality import imu_noise_effect
 
     C, nd = res.covariance, res.diagnostics.get("noise")
     if C is None or problem.t is None or not isinstance(nd, dict) or "axes" not in nd:
         return res
     t = np.asarray(problem.t, dtype=float)
-    measured = imu_sample_noise(flight, t)
+    measured = imu_noise_measured(flight, t)  # once: the effect, the account and the full term's budget take it
     if measured is None or not np.all(np.isfinite(C)):
-        return res if measured is None else with_imu_noise(res, problem, flight)
+        return res if measured is None else with_imu_noise(res, problem, flight, measured=measured)
     n = len(res.names)
     A = combination_estimators(np.eye(n), np.ones(n), res, problem)
-    AG = None if A is None else imu_noise_effect(flight, t, A)
+    AG = None if A is None else imu_noise_effect(flight, t, A, noise=measured.sample)
     if AG is None:
         return res
     C_imu = AG @ AG.T
@@ -3224,13 +3246,11 @@ def with_imu_noise_beyond(res: EstimateResult, problem: Any, flight: FlightData,
             "share_rule": "a linear telemetry result carries the IMU's noise when, carried with the tracking noise as "
                           "fitted, it widens some determined combination's std by more than share"}
     if said["carried"]:
-        out = with_imu_noise(res, problem, flight, estimators=A)
+        out = with_imu_noise(res, problem, flight, estimators=A, measured=measured)
         if out is not res:
             out.diagnostics["noise"]["imu"].update(said)
         return out
-    at_rest = isinstance(flight.meta, dict) and flight.meta.get(IMU_NOISE_AT_REST) is not None
-    unresolved = () if at_rest else tuple(unresolved_noise(flight, measured[0], measured[2]))
-    account = {**_imu_account(res, measured, np.asarray(C), C_imu, None, at_rest, unresolved), **said}
+    account = {**_imu_account(res, measured, np.asarray(C), C_imu, None), **said}
     account["rule"] = ("not carried: the velocity and attitude random walks, carried to the estimate with the "
                        "tracking noise as fitted, widen no determined combination's std by more than share")
     return dataclasses.replace(res, diagnostics={**res.diagnostics, "noise": {**nd, "imu": account}})

@@ -265,10 +265,32 @@ def test_a_noise_free_telemetry_keeps_its_std_without_the_refit(clean, tmp_path,
     """A telemetry navigated from a noise-free IMU (the same 20 Hz boost): the IMU's noise the record shows (its
     motion's second differences) widens no determined combination by the share, so the std are the fit's, bit for
     bit, the account says it was below the share, and the full term's REML refit is never run (the added time is
-    the estimators times the IMU noise's columns only)."""
+    the estimators times the IMU noise's columns only); the IMU's noise is measured once for the effect and the
+    account."""
+    from casep.checks import tracking_quality
     from casep.workflows import imu_separate, telemetry_iterate
 
-    res = _separated(clean, tmp_path, 3, "one file", gyro=0.0, acc=0.0)
+    measured, beyond, inside = [], telemetry_iterate.with_imu_noise_beyond, []
+
+    def counted(*a, **k):  # the IMU noise's measurements in each call of with_imu_noise_beyond
+        measured.append(0)
+        inside.append(True)
+        try:
+            return beyond(*a, **k)
+        finally:
+            inside.pop()
+
+    def measure(*a, **k):
+        if inside:
+            measured[-1] += 1
+        return sample_noise(*a, **k)
+
+    sample_noise = tracking_quality.imu_sample_noise
+    with monkeypatch.context() as mp:
+        mp.setattr(telemetry_iterate, "with_imu_noise_beyond", counted)
+        mp.setattr(tracking_quality, "imu_sample_noise", measure)
+        res = _separated(clean, tmp_path, 3, "one file", gyro=0.0, acc=0.0)
+    assert measured == [1]
     imu = res.diagnostics["noise"]["imu"]
     assert imu["carried"] is False and imu["determined_std_factor_max"] - 1 <= imu["share"], imu
     assert "not in the std" in "\n".join(_lines(res))
