@@ -522,14 +522,16 @@ def halves_line(h: dict) -> str:
             "taken into the one dt_trk unseen (a drift known otherwise: --clock-drift PPM)")
 
 
-def telemetry_clock_line(record: dict) -> str:
+def telemetry_clock_line(record: dict, carried: dict | None = None) -> str:
     """The report's line of :func:`casep.workflows.telemetry_clock.telemetry_clock_record`'s `record`: the drift, and
-    either that it is beyond the rule or the drifts the data allow (2 std) and where the rule would warn."""
+    either that it is beyond the rule or the drifts the data allow (2 std) and where the rule would warn; with
+    `carried` (``diagnostics["clock_drift"]["carried"]``: :func:`casep.workflows.telemetry_clock.carry_telemetry_clock`)
+    what its std carry of it."""
     given = f"--clock-drift {record['given_ppm']:g} given" if record["given_ppm"] else "no clock drift given"
     text = (f"telemetry clock drift ({given}; estimated beside the coefficients, tags and integration steps): "
             f"{record['ppm']:.4g} +- {record['std_ppm']:.2g} ppm")
-    carried = (record.get("carried") or {}).get("said")  # the drift carried in the std, said by its workflow
-    tail = f"; {carried}" if carried else ""
+    said = (carried or {}).get("said")  # the drift carried in the std, said by its workflow
+    tail = f"; {said}" if said else ""
     if record["determined"]:
         return text + " (beyond the clock-drift rule: the clocks run at different rates)" + tail
     b, sd = record["beyond_given_ppm"], record["std_ppm"]

@@ -105,12 +105,12 @@ def noise_lines(diagnostics: Mapping[str, Any], joint: bool = False) -> list[str
         parts = ", ".join(f"{g['length']:.3g} s before {g['where']}" for g in gaps[:SHOWN])
         lines.append(f"tracking gaps: {len(gaps)} longer than 3 sample periods: {parts}"
                      f"{', ...' if len(gaps) > SHOWN else ''}")
-    tel_clock = (diagnostics.get("clock_drift") or {}).get("telemetry")
-    if tel_clock:
+    clock = diagnostics.get("clock_drift") or {}
+    if clock.get("telemetry"):
         from casep.checks.tracking_quality import telemetry_clock_line
 
-        lines.append(telemetry_clock_line(tel_clock))
-    halves = (diagnostics.get("clock_drift") or {}).get("halves")
+        lines.append(telemetry_clock_line(clock["telemetry"], clock.get("carried")))
+    halves = clock.get("halves")
     if halves:
         from casep.checks.tracking_quality import halves_line
 

@@ -24,6 +24,7 @@ geodetic flight from another are estimated together::
     time_shift_s = 43200.0            # ... = telemetry time (from lift-off) + 43200 s
     time_offset_ms = "auto"           # optional: tracking latency, ms, or "auto"
     clock_drift_ppm = 0.0             # optional: tracking tags late by ppm 1e-6 t more at telemetry time t
+    clock_drift_std_ppm = 50.0        # optional: a strapdown telemetry's, as --clock-drift-std PPM
     grid = "tracking"                 # optional: tracking (default) | telemetry
 
     [fit]                             # optional: the fit request (casep.FitSpec), as casep.separate's keywords
@@ -77,6 +78,7 @@ class ManifestFlight(BaseModel):
     launch_time_s: float | None = Field(default=None, allow_inf_nan=False)
     time_shift_s: float = Field(default=0.0, allow_inf_nan=False)
     clock_drift_ppm: float = Field(default=0.0, ge=-MAX_CLOCK_DRIFT_PPM, le=MAX_CLOCK_DRIFT_PPM, allow_inf_nan=False)
+    clock_drift_std_ppm: float | None = None  # checked below by --clock-drift-std's rule (given_clock_std)
     time_offset_ms: float | Literal["auto"] | None = None  # finite: checked below (a Field constraint would
     # apply to "auto" too)
     grid: Literal["tracking", "telemetry"] = "tracking"
@@ -91,6 +93,15 @@ class ManifestFlight(BaseModel):
             raise ValueError(f"must be within +-1e5 ms, got {v:g}")
         return v
 
+    @field_validator("clock_drift_std_ppm")
+    @classmethod
+    def _clock_std(cls, v):
+        if v is not None:
+            from casep.workflows.imu_separate import given_clock_std
+
+            given_clock_std(0.0, v, "the std")  # the one rule of --clock-drift-std (its default: at the separation)
+        return v
+
     @model_validator(mode="after")
     def _rules(self) -> ManifestFlight:
         earth_fixed = self.frame != "launch"
@@ -101,6 +112,7 @@ class ManifestFlight(BaseModel):
         if self.tracking is None:
             for key, given in (("frame", earth_fixed), ("time_shift_s", self.time_shift_s != 0.0),
                                ("clock_drift_ppm", self.clock_drift_ppm != 0.0),
+                               ("clock_drift_std_ppm", self.clock_drift_std_ppm is not None),
                                ("time_offset_ms", self.time_offset_ms is not None),
                                ("grid", self.grid != "tracking")):
                 if given:
@@ -125,7 +137,7 @@ class ManifestFlight(BaseModel):
         offset = self.time_offset_ms
         kw = {"tracking_frame": self.frame, "site": self.launch_site()} if self.frame != "launch" else {}
         return read_flight_pair(self.telemetry, self.tracking, grid=self.grid, time_shift=self.time_shift_s,
-                                clock_drift=self.clock_drift_ppm,
+                                clock_drift=self.clock_drift_ppm, clock_drift_std=self.clock_drift_std_ppm,
                                 time_offset=offset if offset in (None, "auto") else offset * 1e-3, **kw)
 
     def to_dict(self) -> dict:

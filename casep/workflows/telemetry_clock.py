@@ -162,13 +162,15 @@ def carry_telemetry_clock(res: EstimateResult, flight: FlightData, problem: Any)
     :func:`judge_telemetry_clock`) carried in its covariance and std as the ``--imu`` path carries it
     (:func:`casep.workflows.imu_separate.clock_carried`, :func:`casep.workflows.imu_separate.with_drift`: a consider
     parameter, its std ``meta["clock_drift_std_ppm"]`` by :func:`casep.workflows.imu_separate.given_clock_std`'s
-    rule), said in the record's ``carried``; `res` itself without a record, with one carried already, or with a
-    std of 0. A drift the data cannot tell goes into the scale factors and the time offset unseen: a line alone
-    (:func:`casep.checks.tracking_quality.telemetry_clock_line`) left the std as if the clocks ran at one rate."""
+    rule), said in ``diagnostics["clock_drift"]["carried"]``, the key of the ``--imu`` path's; `res` itself without a
+    record, with one carried already, or with a std of 0. A drift the data cannot tell goes into the scale factors
+    and the time offset unseen: a line alone (:func:`casep.checks.tracking_quality.telemetry_clock_line`) left the
+    std as if the clocks ran at one rate."""
     from casep.workflows.imu_separate import carried_said, clock_carried, given_clock_std, with_drift
 
-    record = (res.diagnostics.get("clock_drift") or {}).get("telemetry")
-    if record is None or "carried" in record or problem.t is None:
+    clock = res.diagnostics.get("clock_drift") or {}
+    record = clock.get("telemetry")
+    if record is None or "carried" in clock or problem.t is None:
         return res
     meta = flight.meta if isinstance(flight.meta, dict) else {}
     std = given_clock_std(record["given_ppm"], meta.get("clock_drift_std_ppm"), "`clock_drift_std`")
@@ -178,8 +180,7 @@ def carry_telemetry_clock(res: EstimateResult, flight: FlightData, problem: Any)
     carried = clock_carried(record, std)
     out = with_drift(res, problem, col * carried["effective_std_ppm"], carried)
     carried["said"] = carried_said(carried, "a telemetry clock drift")
-    clock = {**res.diagnostics["clock_drift"], "telemetry": {**record, "carried": carried}}
-    return dataclasses.replace(out, diagnostics={**out.diagnostics, "clock_drift": clock})
+    return dataclasses.replace(out, diagnostics={**out.diagnostics, "clock_drift": {**clock, "carried": carried}})
 
 
 def _sign_named(record: dict) -> bool:

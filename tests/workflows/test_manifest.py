@@ -122,6 +122,11 @@ def _write(folder, name, text):
      r"flight 1, key `site.lat_deg`: Input should be less than or equal to 89.999 \(got 95.0\)"),
     ('[[flight]]\ntelemetry = "a_tel.csv"\ntracking = "a_trk.csv"\nframe = "mars"\n', r"key `frame`: Input should be"),
     ('[[flight]]\ntelemetry = "a_tel.csv"\ntime_shift_s = 5\n', r"`time_shift_s` describes a tracking file"),
+    ('[[flight]]\ntelemetry = "a_tel.csv"\nclock_drift_std_ppm = 5\n', r"`clock_drift_std_ppm` describes a tracking"),
+    ('[[flight]]\ntelemetry = "a_tel.csv"\ntracking = "a_trk.csv"\nclock_drift_std_ppm = -1\n',
+     r"flight 1, key `clock_drift_std_ppm`: Value error, the std must be a finite number >= 0 \(ppm\), got -1.0"),
+    ('[[flight]]\ntelemetry = "a_tel.csv"\ntracking = "a_trk.csv"\nclock_drift_std_ppm = nan\n',
+     r"key `clock_drift_std_ppm`: Value error, the std must be a finite number >= 0 \(ppm\), got nan"),
     ('[[flight]]\ntelemetry = "missing.csv"\n', r"flight 1, key `telemetry`: file .*missing.csv does not exist"),
     ('[[flight]]\ntelemetry = "a_tel.csv"\n[[flight]]\ntelemetry = "./a_tel.csv"\n',
      r"flights 1 and 2 have the same telemetry file"),
@@ -134,6 +139,19 @@ def test_manifest_errors_name_file_flight_and_key(ranges, body, message):
     with pytest.raises(ValueError, match=message) as exc:
         casep.read_manifest(p)
     assert "bad.toml" in str(exc.value)
+
+
+def test_manifest_clock_drift_std_reaches_the_flight(ranges):
+    """``clock_drift_std_ppm`` is read into the flight as ``read_flight_pair(clock_drift_std=...)`` puts it (0: the
+    rate exact, accepted), and left out without it (the default then the separation's, as without the option)."""
+    text = '[[flight]]\ntelemetry = "b_tel.csv"\ntracking = "b_trk_launch.csv"\n'
+    for extra, want in (("clock_drift_std_ppm = 7.5\n", 7.5), ("clock_drift_std_ppm = 0\n", 0.0), ("", None)):
+        man = casep.read_manifest(_write(ranges, "std.toml", text + extra))
+        assert man.flights[0].clock_drift_std_ppm == want
+        flight = man.flights[0].read()
+        assert flight.meta.get("clock_drift_std_ppm") == want
+        direct = casep.read_flight_pair(ranges / "b_tel.csv", ranges / "b_trk_launch.csv", clock_drift_std=want)
+        assert direct.meta.get("clock_drift_std_ppm") == want
 
 
 def test_cli_manifest_rules_and_repeated_options(ranges, capsys):

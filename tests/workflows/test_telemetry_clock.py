@@ -173,13 +173,17 @@ def test_a_drift_not_given_is_carried_in_the_std(pairs):
         assert "dt_trk" in moved, rec["moves"]
         off[std] = {nm: (res.estimate[res.names.index(nm)] - truth.get(nm, 0.0)) / res.std[res.names.index(nm)]
                     for nm in moved}
-        assert ("carried" in rec) == (std is None)
+        assert ("carried" in res.diagnostics["clock_drift"]) == (std is None) and "carried" not in rec  # one place
     assert max(abs(v) for v in off[0.0].values()) > 4.0, off
     assert max(abs(v) for v in off[None].values()) < 3.0, off
     carried, _ = pairs(DRIFT80, time_offset="auto")
     exact, _ = pairs(DRIFT80, time_offset="auto", clock_drift_std=0.0)
-    rec = carried.diagnostics["clock_drift"]["telemetry"]["carried"]
+    rec = carried.diagnostics["clock_drift"]["carried"]  # the --imu path's key
     assert rec["std_ppm"] == 50.0 and not rec["given"] and "a telemetry clock drift not given" in rec["said"]
+    from casep.reporting.noise_text import noise_lines
+
+    assert any(line.endswith("; " + rec["said"]) for line in noise_lines(carried.diagnostics))  # the printed line
+    assert carried.to_dict()["diagnostics"]["clock_drift"]["carried"]["said"] == rec["said"]  # the JSON
     np.testing.assert_array_equal(carried.estimate, exact.estimate)
     g = np.array([rec["shift_per_std"][nm] for nm in carried.names])
     ok = np.isfinite(exact.std)
