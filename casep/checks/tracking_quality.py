@@ -57,7 +57,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from casep._kernels import ar1_long_run_factor, cumulative_trapezoid
+from casep._kernels import ar1_long_run_factor, cumulative_trapezoid, runs
 from casep.checks.time_offset import kinematic_acceleration
 from casep.exceptions import TrackingQualityWarning
 from casep.io.files import ONE_FILE_TELEMETRY
@@ -138,12 +138,12 @@ def screen_summary(screen: dict | None, top: int = 3) -> str:
         return ""
 
     def spans(key: str, what: str) -> str:
-        runs = screen.get(key) or []
-        if not runs:
+        found = screen.get(key) or []
+        if not found:
             return ""
-        said = ", ".join(f"t = {a:.6g}..{b:.6g} s ({n})" for a, b, n in runs[:top])
-        more = f" and {len(runs) - top} more" if len(runs) > top else ""
-        return f"{what} {sum(n for _, _, n in runs)} in {len(runs)} span{'s' if len(runs) > 1 else ''}: {said}{more}"
+        said = ", ".join(f"t = {a:.6g}..{b:.6g} s ({n})" for a, b, n in found[:top])
+        more = f" and {len(found) - top} more" if len(found) > top else ""
+        return f"{what} {_span_epochs(found)} in {len(found)} span{'s' if len(found) > 1 else ''}: {said}{more}"
 
     parts = [p for p in (spans("stale", "stale (repeated fixes)"), spans("rejected", "rejected by the physics check"),
                          spans("excursions", "off the telemetry's course and back (the physics check at the noise)"))
@@ -152,11 +152,14 @@ def screen_summary(screen: dict | None, top: int = 3) -> str:
             + (f" ({'; '.join(parts)})" if parts else ""))
 
 
+def _span_epochs(spans: list) -> int:
+    """The epochs in spans ``(t_first, t_last, epochs)`` (:class:`TrackingScreen`'s), summed."""
+    return sum(n for *_, n in spans)
+
+
 def _spans(t: np.ndarray, flagged: np.ndarray) -> list[tuple[float, float, int]]:
-    """Runs of consecutive flagged epochs: ``(t_first, t_last, count)``."""
-    x = np.concatenate([[0], flagged.astype(np.int8), [0]])
-    edges = np.flatnonzero(np.diff(x))
-    return [(float(t[a]), float(t[b - 1]), int(b - a)) for a, b in zip(edges[::2], edges[1::2])]
+    """Runs of consecutive flagged epochs (:func:`casep._kernels.runs`): ``(t_first, t_last, count)``."""
+    return [(float(t[a]), float(t[b - 1]), b - a) for a, b in runs(flagged)]
 
 
 def _located(flight: FlightData, idx: np.ndarray, flagged: np.ndarray, top: int = 6) -> str:
@@ -165,12 +168,10 @@ def _located(flight: FlightData, idx: np.ndarray, flagged: np.ndarray, top: int 
 
     from casep.io.locate import locate_samples
 
-    x = np.concatenate([[0], flagged.astype(np.int8), [0]])
-    edges = np.flatnonzero(np.diff(x))
-    runs = list(zip(edges[::2], edges[1::2]))
-    locs = locate_samples(flight, [idx[k] for a, b in runs[:top] for k in (a, b - 1)])
+    flagged_runs = runs(flagged)
+    locs = locate_samples(flight, [idx[k] for a, b in flagged_runs[:top] for k in (a, b - 1)])
     parts = []
-    for i, (a, b) in enumerate(runs[:top]):
+    for i, (a, b) in enumerate(flagged_runs[:top]):
         first, last = locs[2 * i], locs[2 * i + 1]
         one = b - a == 1  # one epoch: its line and time, not a span from it to itself
         key = "line" if first["line"] is not None else "row"
@@ -178,7 +179,7 @@ def _located(flight: FlightData, idx: np.ndarray, flagged: np.ndarray, top: int 
             f"{key} {first[key]}" if one else f"{key}s {first[key]}..{last[key]}") + f" of {Path(first['file']).name}, "
         span = f"{first['t']:.10g} s" if one else f"{first['t']:.10g}..{last['t']:.10g} s"
         parts.append(f"{at}t = {span} ({b - a})")
-    return ", ".join(parts) + (f" and {len(runs) - top} more" if len(runs) > top else "")
+    return ", ".join(parts) + (f" and {len(flagged_runs) - top} more" if len(flagged_runs) > top else "")
 
 
 def _acceleration(flight: FlightData) -> np.ndarray | None:
@@ -693,19 +694,19 @@ def _warn(source: str, s: TrackingScreen, stale: str, rejected: str, drift: bool
     """The screen's TrackingQualityWarnings (`stale`, `rejected`, `excursions`: the runs located in the file; the clock
     drift unless `drift` is False: a fit follows, whose residuals :func:`fit_clock_drift` measures it on)."""
     if s.stale:
-        n = sum(k for *_, k in s.stale)
+        n = _span_epochs(s.stale)
         warnings.warn(TrackingQualityWarning(
             f"{source}: {n} stale tracking epochs (a fix or its velocity repeated, or held within "
             f"{HELD_SHARE:g} of the telemetry's change, while the telemetry moved by more than {STALE_MOTION:g} m/s "
             f"since it) left out, in {len(s.stale)} span(s): {stale}"), stacklevel=3)
     if s.rejected:
-        n = sum(k for *_, k in s.rejected)
+        n = _span_epochs(s.rejected)
         warnings.warn(TrackingQualityWarning(
             f"{source}: {n} tracking epochs fail the physics check against the telemetry (velocity jumps up to "
             f"{s.largest_jump_m_s:.4g} m/s, beyond {JUMP_TOL:g} m/s + {JUMP_RATE:g} m/s^2 x the time between epochs, "
             f"in stretches shorter than {MIN_SEGMENT_S:g} s) and are left out: {rejected}"), stacklevel=3)
     if s.excursions:
-        n = sum(k for *_, k in s.excursions)
+        n = _span_epochs(s.excursions)
         warnings.warn(TrackingQualityWarning(
             f"{source}: {n} tracking epochs in {len(s.excursions)} span(s) are off the telemetry's course: the "
             f"velocity difference jumps away (by up to {s.largest_excursion_m_s:.3g} m/s, beyond {EXCURSION_SIGMAS:g} "

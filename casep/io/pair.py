@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from casep._kernels import cumulative_trapezoid
+from casep._kernels import cumulative_trapezoid, runs
 from casep.io.flight import DUPLICATE_STEP, FlightData
 from casep.io.tables import VTRK_COLUMNS, Table
 
@@ -161,9 +161,7 @@ def held_epochs(t: np.ndarray, V: np.ndarray, dv: np.ndarray) -> np.ndarray:
     dV = np.linalg.norm(np.diff(V, axis=0), axis=1)
     dT = np.linalg.norm(np.diff(own, axis=0), axis=1)
     held = np.concatenate([[False], dT <= HELD_SHARE * dV])
-    x = np.concatenate([[0], held.astype(np.int8), [0]])
-    edges = np.flatnonzero(np.diff(x))
-    for a, b in zip(edges[::2], edges[1::2]):  # epochs a..b-1 held; a - 1 the last fresh one
+    for a, b in runs(held):  # epochs a..b-1 held; a - 1 the last fresh one
         moved = float(np.linalg.norm(V[b - 1] - V[a - 1]))
         changed = float(np.linalg.norm(own[b - 1] - own[a - 1]))
         if moved > STALE_MOTION + JUMP_RATE * float(t[b - 1] - t[a - 1]) and changed <= HELD_RUN_SHARE * moved:

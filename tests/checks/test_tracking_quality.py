@@ -766,3 +766,17 @@ def _turning_record(rng):
            **{f"fb_{a}": f[:, i] + rng.normal(0, 0.05, n) for i, a in enumerate("xyz")},
            **{f"w_{a}": rng.normal(0, 2e-3, n) for a in "xyz"}}
     return FlightData(t, f, np.zeros((n, 3)), meta={"rows_index": np.full(n, -1)}, signals=sig)
+
+
+def test_the_screen_summary_counts_the_epochs_of_every_span():
+    """The summary's counts are the spans' epochs summed (the warnings' rule), its spans the flagged runs
+    (:func:`casep._kernels.runs`) with a run at either end of the record."""
+    from casep.checks.tracking_quality import _spans, screen_summary
+
+    t = np.arange(12) * 0.5
+    flagged = np.array([1, 1, 0, 0, 1, 0, 1, 1, 1, 0, 1, 1], dtype=bool)
+    spans = _spans(t, flagged)
+    assert spans == [(0.0, 0.5, 2), (2.0, 2.0, 1), (3.0, 4.0, 3), (5.0, 5.5, 2)]
+    said = screen_summary({"epochs": 12, "kept": 4, "stale": spans, "rejected": [(9.0, 9.0, 1)]}, top=2)
+    assert said.startswith("the tracking screen left out 8 of its 12 epochs (stale (repeated fixes) 8 in 4 spans: "
+                           "t = 0..0.5 s (2), t = 2..2 s (1) and 2 more; rejected by the physics check 1 in 1 span:")
