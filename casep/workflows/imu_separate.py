@@ -1126,10 +1126,9 @@ class _Run:
         (:func:`with_imu_noise`)."""
         heading = self.heading_effect(problem)
         steps = self.steps_effect(problem)
-        n = len(res.names)
         # the coefficients' estimators, formed once for the budget and the heading's record (the budget's refit
         # changes the covariance, not the noise model that whitens the rows, so they are the same)
-        a = None if heading is None else combination_estimators(np.eye(n), np.ones(n), res, problem)
+        a = None if heading is None else coefficient_estimators(res, problem)
         out = with_imu_noise(res, problem, flight, self.levelling(), self.tau_profile(problem),
                              consider_columns(heading, steps), estimators=a)
         if steps is not None:
@@ -2397,7 +2396,7 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
         return None
     noise = NoiseModel.from_dict(nd)
     N, n = t.size, len(res.names)
-    A = estimators if estimators is not None else combination_estimators(np.eye(n), np.ones(n), res, problem)
+    A = estimators if estimators is not None else coefficient_estimators(res, problem)
     assert A is not None  # (n, 3N), the coefficients' estimators: times and a noise model checked above
     refit = _tracking_beside_imu(problem, flight, noise, levelling, res.diagnostics)
     instability = _instability(refit, flight)
@@ -2479,6 +2478,30 @@ def combination_estimators(W: np.ndarray, scale: np.ndarray, res: EstimateResult
     k more columns (a frame's rotation about three axes: :mod:`casep.workflows.telemetry_frame`), k more entries."""
     out = _estimators(W, scale, res, problem, column)
     return None if out is None else out[1]
+
+
+def coefficient_estimators(res: EstimateResult, problem: Any) -> np.ndarray | None:
+    """The coefficients' own estimators (n, 3N) on the raw rows of `problem`: :func:`combination_estimators` of the
+    identity (None as it)."""
+    n = len(res.names)
+    return combination_estimators(np.eye(n), np.ones(n), res, problem)
+
+
+def consider_estimators(res: EstimateResult, problem: Any) -> np.ndarray:
+    """What a consider column goes through to the coefficients (n, 3N): :func:`coefficient_estimators`, and for a fit
+    without a noise model the OLS pseudo-inverse of S_V (:func:`with_consider`, :func:`with_drift`)."""
+    a = coefficient_estimators(res, problem)
+    if a is None:
+        S = problem.sv()
+        a = np.linalg.pinv(S.reshape(-1, S.shape[2]))
+    return a
+
+
+def widened_std(res: EstimateResult, cov: np.ndarray) -> np.ndarray | None:
+    """The std of `res` under its covariance widened to `cov` (a consider term, the IMU's noise): NaN where the fit's
+    is NaN (a coefficient it does not determine stays so); None where `res` has none."""
+    return None if res.std is None else np.where(np.isfinite(res.std), np.sqrt(np.clip(np.diag(cov), 0.0, None)),
+                                                 np.nan)
 
 
 def _estimators(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: Any,
@@ -2571,17 +2594,11 @@ def with_consider(res: EstimateResult, problem: Any, cols: np.ndarray) -> Estima
     result :func:`with_imu_noise` did not extend (a flight without the IMU's samples or noise)."""
     if res.covariance is None:
         return res
-    n = len(res.names)
-    a = combination_estimators(np.eye(n), np.ones(n), res, problem)
-    if a is None:
-        S = problem.sv()
-        a = np.linalg.pinv(S.reshape(-1, S.shape[2]))
+    a = consider_estimators(res, problem)
     g = a @ np.asarray(cols, dtype=float).reshape(a.shape[1], -1)
     C_fit = np.asarray(res.covariance)
     cov = np.where(np.isfinite(C_fit), C_fit + g @ g.T, np.nan)
-    std = None if res.std is None else np.where(np.isfinite(res.std), np.sqrt(np.clip(np.diag(cov), 0.0, None)),
-                                                np.nan)
-    return dataclasses.replace(res, covariance=cov, std=std)
+    return dataclasses.replace(res, covariance=cov, std=widened_std(res, cov))
 
 
 def with_steps(out: EstimateResult, before: EstimateResult, problem: Any, imu: ImuData | None) -> EstimateResult:
@@ -2776,18 +2793,13 @@ def with_drift(res: EstimateResult, problem: Any, column: np.ndarray, carried: d
     rows' shift for its effective std, :func:`clock_carried`) through the coefficients' estimators
     (:func:`combination_estimators`, as :func:`with_heading` carries the heading), `carried` (updated) saying how
     much it widens which std (``std_factor``, ``widened``: the largest factors first)."""
-    n = len(res.names)
     if res.covariance is None:
         return res
-    a = combination_estimators(np.eye(n), np.ones(n), res, problem)
-    if a is None:  # a fit without a noise model: the OLS pseudo-inverse of S_V (with_consider's rule)
-        S = problem.sv()
-        a = np.linalg.pinv(S.reshape(-1, S.shape[2]))
-    g = a @ np.asarray(column, dtype=float).reshape(-1)
+    g = consider_estimators(res, problem) @ np.asarray(column, dtype=float).reshape(-1)
     C = np.asarray(res.covariance)
     extra = np.outer(g, g)
     cov = np.where(np.isfinite(C), C + extra, np.nan)
-    std = None if res.std is None else np.where(np.isfinite(res.std), np.sqrt(np.clip(np.diag(cov), 0.0, None)), np.nan)
+    std = widened_std(res, cov)
     solution = res.solution
     if solution is not None and solution.covariance is not None:
         solution = dataclasses.replace(solution, covariance=solution.covariance + extra)
@@ -3184,7 +3196,7 @@ def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
     C_fit = np.asarray(res.covariance)
     # the tracking part: refitted (the minimum-norm solution's, finite where the fit's is not), else the fit's own
     cov = C_fit + C_imu if C_trk is None else np.where(np.isfinite(C_fit), C_trk + C_imu, np.nan)
-    std = None if res.std is None else np.where(np.isfinite(res.std), np.sqrt(np.clip(np.diag(cov), 0.0, None)), np.nan)
+    std = widened_std(res, cov)
     solution = res.solution
     if solution is not None and solution.covariance is not None:
         solution = dataclasses.replace(solution, covariance=(solution.covariance if C_trk is None else C_trk) + C_imu)
@@ -3234,8 +3246,7 @@ def with_imu_noise_beyond(res: EstimateResult, problem: Any, flight: FlightData,
     measured = imu_noise_measured(flight, t)  # once: the effect, the account and the full term's budget take it
     if measured is None or not np.all(np.isfinite(C)):
         return res if measured is None else with_imu_noise(res, problem, flight, measured=measured)
-    n = len(res.names)
-    A = combination_estimators(np.eye(n), np.ones(n), res, problem)
+    A = coefficient_estimators(res, problem)
     AG = None if A is None else imu_noise_effect(flight, t, A, noise=measured.sample)
     if AG is None:
         return res

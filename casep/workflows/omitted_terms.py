@@ -154,10 +154,9 @@ def _alias(res: EstimateResult, problem: Any, scaled: np.ndarray) -> dict:
     """How far the extra terms at their declared magnitudes (`scaled`, their columns per magnitude) move the fit's
     estimates: the largest shift of any combination in the fit's std (``sqrt`` of the largest eigenvalue of ``G G^T``
     against the fit's covariance, ``G`` the fit's estimators times the columns) and of each coefficient."""
-    from casep.workflows.imu_separate import combination_estimators
+    from casep.workflows.imu_separate import coefficient_estimators
 
-    n = len(res.names)
-    a = combination_estimators(np.eye(n), np.ones(n), res, problem)
+    a = coefficient_estimators(res, problem)
     P = None if res.covariance is None else np.asarray(res.covariance, float)
     if a is None or P is None or not np.all(np.isfinite(P)):
         return {}
