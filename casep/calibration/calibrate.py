@@ -48,6 +48,7 @@ from casep.calibration.rows import (
     unit_text,
 )
 from casep.calibration.session import ACC_UNITS, GYR_UNITS, Segment, Session
+from casep.regression.linalg import covariance_std, undetermined_nan
 from casep.regression.problem import rounding_level
 from casep.units import G0
 
@@ -180,10 +181,7 @@ def _combined(method: str, model: Any, units: Sequence[str], est: np.ndarray, co
     """The EstimateResult over both sensors' coefficients (block-diagonal covariance; the worse status)."""
     from casep.estimators.result import EstimateResult
 
-    und = ~np.isfinite(est)
-    cov[und, :] = np.nan
-    cov[:, und] = np.nan
-    std = np.sqrt(np.clip(np.diag(cov), 0, None))
+    std = covariance_std(undetermined_nan(cov, ~np.isfinite(est)))
     parts = list(sensors.values())
     # worst of the two: a failure (<= 0) if either failed, else 2 (some not identifiable) over 1
     status = min(r.status for r in parts) if any(r.status <= 0 for r in parts) else max(r.status for r in parts)

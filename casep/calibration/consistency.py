@@ -23,6 +23,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from casep.regression.linalg import covariance_std
 from casep.results import deprecated_alias
 
 __all__ = ["Consistency", "consistency", "ground_prior", "ground_versus_flight",
@@ -229,7 +230,7 @@ def consistency(ground, flight, *, names: Sequence[str] | None = None,
     chi2 = float(np.sum(proj**2 / lam[keep]))
     dof = int(keep.sum())
     return Consistency(names=nm, units=un, ground=gm[gi], ground_std=np.sqrt(np.diag(gC)[gi]), flight=fm[fi],
-                       flight_std=np.sqrt(np.clip(np.diag(fC)[fi], 0, None)), difference=d, difference_std=sd, z=z,
+                       flight_std=covariance_std(fC)[fi], difference=d, difference_std=sd, z=z,
                        p=p, chi2=chi2, dof=dof, p_value=float(chi2_dist.sf(chi2, dof)), left_out=left, labels=labels)
 
 

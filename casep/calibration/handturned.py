@@ -46,6 +46,7 @@ from casep.calibration.session import ACC_UNITS, GYR_UNITS, RAW_UNIT, Session
 from casep.estimators.result import EstimateResult
 from casep.exceptions import CasepWarning
 from casep.fullscale import beyond_declared
+from casep.regression.linalg import covariance_std
 from casep.results import OfEstimate
 
 __all__ = ["MultipositionCalibration", "calibrate_multiposition", "calibrate_multiposition_file", "ferraris_view",
@@ -83,7 +84,7 @@ def ferraris_view(M_of_x, x: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.
         e[i] = h
         G[:, i] = (np.linalg.inv(M_of_x(x + e)) - np.linalg.inv(M_of_x(x - e))).ravel() / (2 * h)
     C = np.where(np.isfinite(C), C, 0.0)
-    return M, np.sqrt(np.clip(np.diag(G @ C @ G.T), 0, None)).reshape(3, 3)
+    return M, covariance_std(G @ C @ G.T).reshape(3, 3)
 
 
 @dataclass(frozen=True)
@@ -319,7 +320,7 @@ def _result(acc: AccFit, gyro: GyroFit, units: tuple, n: int, message: str, succ
     C[:9, :9], C[9:18, 9:18] = acc.covariance, gyro.covariance
     C[18:, 18:] = np.diag(gyro.bias_std ** 2)
     return EstimateResult(method="levenberg-marquardt", names=names, units=units, estimate=est,
-                          std=np.sqrt(np.clip(np.diag(C), 0, None)), covariance=C, reasons={},
+                          std=covariance_std(C), covariance=C, reasons={},
                           residuals=np.zeros((0, 3)), sigma=math.nan, rank=21, status=1 if success else 0,
                           message=message, success=success, si_factors=np.ones(21), model="multiposition",
                           diagnostics={"accelerometer": separation(_jacobian(acc), ACC_NAMES),
@@ -498,7 +499,7 @@ def bias_si(fit: AccFit | GyroFit, zero: float) -> dict:
         e[i] = h
         G[:, i] = (off(x + e) - off(x - e)) / (2 * h)
     C = np.where(np.isfinite(C), C, 0.0)
-    return {"estimate": off(x).tolist(), "std": np.sqrt(np.clip(np.diag(G @ C @ G.T), 0, None)).tolist(),
+    return {"estimate": off(x).tolist(), "std": covariance_std(G @ C @ G.T).tolist(),
             "unit": "m/s^2" if isinstance(fit, AccFit) else "rad/s", "zero_counts": zero}
 
 

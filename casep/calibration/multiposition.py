@@ -43,6 +43,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from casep.regression.linalg import covariance_std
+
 __all__ = ["AccFit", "GyroFit", "fit_accelerometer", "fit_gyro", "acc_matrix", "gyro_matrix", "rotations",
            "integrate_motions", "gyro_residuals", "ACC_NAMES", "GYRO_NAMES"]
 
@@ -136,7 +138,7 @@ class AccFit:
 
     @property
     def std(self) -> np.ndarray:
-        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+        return covariance_std(self.covariance)
 
     def calibrate(self, a: np.ndarray) -> np.ndarray:
         """``T_a K_a (a - b_a)`` of readings `a` (n, 3), m/s^2."""
@@ -243,7 +245,7 @@ class GyroFit:
 
     @property
     def std(self) -> np.ndarray:
-        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+        return covariance_std(self.covariance)
 
 
 def gyro_residuals(x: np.ndarray, gyr: np.ndarray, rate: float, motions: list[tuple[int, int]],

@@ -52,6 +52,7 @@ from casep.regression.linalg import (
     condition_numbers,
     least_squares_rss,
     reduce_qr,
+    undetermined_nan,
     unidentifiable_reasons,
 )
 from casep.regression.problem import Problem, rounding_level
@@ -205,10 +206,7 @@ def _crlb_from_reduction(red: ReducedSystem, sigma: float, prior_std: np.ndarray
     if not mask:
         return cov
     null = Vt[r:].T
-    und = np.linalg.norm(null, axis=1) > 1e-8 if null.size else np.zeros(n, bool)
-    cov[und, :] = np.nan
-    cov[:, und] = np.nan
-    return cov
+    return undetermined_nan(cov, np.linalg.norm(null, axis=1) > 1e-8 if null.size else np.zeros(n, bool))
 
 
 def _combination(v: np.ndarray, c: np.ndarray, names: Sequence[str], top: int = 5) -> tuple[dict[str, float], float]:
@@ -387,10 +385,7 @@ def _partner_bound(bound: Any, pbnd: PartnerBound | None, ra: RankAnalysis, name
     if pbnd is None:
         return bound(True), {}
     cov, now, notes = pbnd.reported(bound(False), ra.dependent, names, units)
-    und = ~ra.estimable & ~now
-    cov[und, :] = np.nan
-    cov[:, und] = np.nan
-    return cov, notes
+    return undetermined_nan(cov, ~ra.estimable & ~now), notes
 
 
 def diagnose(

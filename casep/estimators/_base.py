@@ -27,7 +27,9 @@ from casep.regression.linalg import (
     RankAnalysis,
     ReducedSystem,
     condition_numbers,
+    covariance_std,
     null_space,
+    undetermined_nan,
     unidentifiable_reasons,
 )
 from casep.regression.problem import Problem as RegressionProblem
@@ -246,11 +248,8 @@ def finish(
     solution = _solution(pb, x, cov) if und.any() and np.all(np.isfinite(x)) else None
     std = None
     if cov is not None:
-        cov = np.array(cov, dtype=float)
-        cov[und, :] = np.nan
-        cov[:, und] = np.nan
-        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        std[und] = np.nan
+        cov = undetermined_nan(np.array(cov, dtype=float), und)
+        std = covariance_std(cov)  # NaN where undetermined
     all_reasons = {k: v for k, v in unidentifiable_reasons(pb.ra, pb.names).items() if und[pb.names.index(k)]}
     all_reasons.update(bounded_by)
     all_reasons.update(reasons or {})

@@ -29,7 +29,7 @@ import numpy as np
 
 from casep.estimators._base import Prepared, determined_up_to_partners, finish, prepare
 from casep.estimators._options import Labels, Method
-from casep.regression.linalg import REFINE_ABOVE, qr_forward_error, refine_least_squares
+from casep.regression.linalg import REFINE_ABOVE, covariance_std, qr_forward_error, refine_least_squares
 from casep.regression.problem import Problem as RegressionProblem
 
 if TYPE_CHECKING:
@@ -147,7 +147,7 @@ class LinearMap:
     def apply(self, S: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Estimates and std for data columns ``Y`` (m, runs): ``(n, runs)`` each, NaN where undetermined."""
         X = self.K @ Y + self.b[:, None]  # D = K y + b, every run at once
-        sd = np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
+        sd = covariance_std(self.cov)
         if self.dof is None:
             std = np.repeat(sd[:, None], Y.shape[1], axis=1)
         else:

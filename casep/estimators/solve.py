@@ -38,6 +38,7 @@ from casep.exceptions import NoiseNotWhiteWarning
 from casep.noise.model import NoiseModel
 from casep.noise.whiteness import ALPHA_FITTED, default_lags, find_gaps, whiteness_test
 from casep.regression.joint import Flights, JointProblem
+from casep.regression.linalg import covariance_std, undetermined_nan
 from casep.regression.problem import Problem
 from casep.regression.rows import Rows, prepare_rows
 
@@ -330,12 +331,8 @@ def hac_covariance(problem: Problem, x: np.ndarray, lags: int | None = None) -> 
 
 def with_hac(res: EstimateResult, solved: Problem) -> EstimateResult:
     """`res` with its covariance and std replaced by the Newey-West ones (:func:`hac_covariance`)."""
-    cov = hac_covariance(solved, _x(res))
-    und = np.isnan(res.estimate)
-    cov[und, :] = np.nan
-    cov[:, und] = np.nan
-    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    std[und] = np.nan
+    cov = undetermined_nan(hac_covariance(solved, _x(res)), np.isnan(res.estimate))
+    std = covariance_std(cov)  # NaN where undetermined
     return dataclasses.replace(res, covariance=cov, std=std, settings={**res.settings, "std": "hac"})
 
 

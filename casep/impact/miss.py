@@ -43,6 +43,7 @@ from casep.impact.result import Group, ImpactAnalysis
 from casep.io.flight import FlightData
 from casep.io.trajectory import read_trajectory
 from casep.model.sv import cumulative_sp  # S_P = int S_V dt (the tracking layer uses it too)
+from casep.regression.linalg import covariance_std
 
 __all__ = ["ImpactAnalysis", "impact_analysis", "burnout_state", "position_sensitivity", "cumulative_sp",
            "STATE_COLUMNS", "CORRELATION_GROUP"]
@@ -203,7 +204,7 @@ def _groups(res, names: Sequence[str], cov: np.ndarray | None, known: np.ndarray
     if cov is None:
         return [], "none (the result has no groups and no covariance)"
     # Fallback: connected components of |rho_ij| > CORRELATION_GROUP among the estimated coefficients.
-    d = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    d = covariance_std(cov)
     with np.errstate(invalid="ignore", divide="ignore"):
         rho = cov / np.outer(d, d)
     link = (np.abs(np.nan_to_num(rho)) > CORRELATION_GROUP) & np.outer(known, known)
@@ -259,7 +260,7 @@ def _linear_miss(res, names: Sequence[str], coef: _Coefficients, G: np.ndarray,
         sel = [np.eye(len(names))[m].sum(axis=0) for m in gidx]
         cov = None if C is None else G @ C @ G.T
         grp = [(np.sum(G[:, m] * D[m], axis=1),
-                None if C is None else np.sqrt(np.clip(np.diag((G * s) @ C @ (G * s).T), 0.0, None)))
+                None if C is None else covariance_std((G * s) @ C @ (G * s).T))
                for m, s in zip(gidx, sel)]
         return _LinearMiss(np.where(ok, miss, np.nan), cov, ok, D, grp, note)
     # map the result's solution onto the model's coefficients (tracking terms of a radar fit: no miss)
@@ -281,7 +282,7 @@ def _linear_miss(res, names: Sequence[str], coef: _Coefficients, G: np.ndarray,
         Gg = np.zeros_like(G)
         Gg[:, m] = G[:, m]
         v, c, _ = comb(Gg)
-        grp.append((v, None if c is None else np.sqrt(np.clip(np.diag(c), 0.0, None))))
+        grp.append((v, None if c is None else covariance_std(c)))
     note = ""
     if not ok.all():
         N = P.T @ sol.null_space  # null directions in model order
@@ -386,5 +387,5 @@ def impact_analysis(flight, result, model=None, trajectory=None, *,
         flight=flight.source, trajectory=None if trajectory is None else target.source, result=rsource,
         reasons=coef.reasons, determined=lin.determined, undetermined_note=lin.note,
         coefficient_std=None if coef.covariance is None else np.where(
-            known, np.sqrt(np.clip(np.diag(np.nan_to_num(coef.covariance)), 0.0, None)),
+            known, covariance_std(np.nan_to_num(coef.covariance)),
             np.where(have, 0.0, np.nan)))

@@ -135,7 +135,9 @@ class ImpactAnalysis(Completed):
     @property
     def std(self) -> np.ndarray | None:
         """Std of the predicted miss (downrange, crossrange), m."""
-        return None if self.cov is None else np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
+        from casep.regression.linalg import covariance_std
+
+        return None if self.cov is None else covariance_std(self.cov)
 
     @property
     def dx_b(self) -> np.ndarray:

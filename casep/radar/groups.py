@@ -9,6 +9,8 @@ import math
 
 import numpy as np
 
+from casep.regression.linalg import covariance_std
+
 __all__ = ["estimate_group_sigmas", "group_reductions", "stacked_ls"]
 
 
@@ -56,7 +58,7 @@ def estimate_group_sigmas(S: np.ndarray, y: np.ndarray, rows: list[np.ndarray], 
         if done:
             break
     x, cov = stacked_ls(red, sigma)
-    return sigma, x, np.sqrt(np.clip(np.diag(cov), 0, None))
+    return sigma, x, covariance_std(cov)
 
 
 def group_reductions(S: np.ndarray, y: np.ndarray, rows: list[np.ndarray]) -> list[tuple]:

@@ -24,7 +24,7 @@ import numpy as np
 from casep._special import chi2_sf
 
 __all__ = ["ReducedSystem", "reduce_qr", "reduce_qr_blocks", "RankAnalysis", "analyze_rank", "rounding_columns",
-           "least_squares_rss",
+           "least_squares_rss", "covariance_std", "undetermined_nan",
            "DEFAULT_BLOCK_ROWS", "qr_forward_error", "refine_least_squares", "REFINE_ABOVE"]
 
 #: Rows per TSQR block: bounds the temporary copy to ~block x (n + 1) doubles.
@@ -60,6 +60,20 @@ class ReducedSystem:
     def n(self) -> int:
         """Number of coefficients."""
         return int(self.scale.size)
+
+
+def covariance_std(C: np.ndarray) -> np.ndarray:
+    """The std of the entries of a covariance `C` (n, n): the square root of its diagonal, a rounding's negative
+    variance read as 0 and NaN kept (an undetermined coefficient's); the one rule of casep's std."""
+    return np.sqrt(np.clip(np.diag(C), 0.0, None))
+
+
+def undetermined_nan(cov: np.ndarray, und: np.ndarray) -> np.ndarray:
+    """`cov` (n, n) with the rows and columns of the coefficients `und` (n, bool) NaN, in place (returned): what a
+    result states of the coefficients it does not determine (their std then NaN: :func:`covariance_std`)."""
+    cov[und, :] = np.nan
+    cov[:, und] = np.nan
+    return cov
 
 
 def _column(j: int, names: Sequence[str] | None) -> str:
@@ -561,7 +575,7 @@ class PartnerBound:
         combinations): which of the `dependent` coefficients are determined in practice (:meth:`determined`)
         and the note of each (:meth:`note`)."""
         Cw = self.covariance(C)
-        std = np.sqrt(np.clip(np.diag(Cw), 0.0, None))
+        std = covariance_std(Cw)
         now = self.determined(dependent, std)
         return Cw, now, {names[j]: self.note(j, float(std[j]), names, units[j]) for j in map(int, np.flatnonzero(now))}
 

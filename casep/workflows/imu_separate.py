@@ -2500,8 +2500,9 @@ def consider_estimators(res: EstimateResult, problem: Any) -> np.ndarray:
 def widened_std(res: EstimateResult, cov: np.ndarray) -> np.ndarray | None:
     """The std of `res` under its covariance widened to `cov` (a consider term, the IMU's noise): NaN where the fit's
     is NaN (a coefficient it does not determine stays so); None where `res` has none."""
-    return None if res.std is None else np.where(np.isfinite(res.std), np.sqrt(np.clip(np.diag(cov), 0.0, None)),
-                                                 np.nan)
+    from casep.regression.linalg import covariance_std
+
+    return None if res.std is None else np.where(np.isfinite(res.std), covariance_std(cov), np.nan)
 
 
 def _estimators(W: np.ndarray, scale: np.ndarray, res: EstimateResult, problem: Any,
@@ -3009,8 +3010,10 @@ def relative_positive_part(M: np.ndarray, C: np.ndarray) -> np.ndarray:
     from 0.05 to 17.6 declared magnitudes, and the record "determined none". Here `C` is equilibrated (unit
     diagonal) before its eigen-decomposition, so its directions hold to eps times its condition number relative to
     their own variance; directions below ``m eps`` of its largest eigenvalue are its null space."""
+    from casep.regression.linalg import covariance_std
+
     m = C.shape[0]
-    d = np.sqrt(np.clip(np.diag(C), 0.0, None))
+    d = covariance_std(C)
     inv = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 0.0)
     lam0, Q = np.linalg.eigh(C * np.outer(inv, inv))
     if not lam0.size or not lam0[-1] > 0:
