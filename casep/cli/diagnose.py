@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     from casep.checks.diagnostics import diagnose, diagnose_noise
     from casep.checks.flight import flight_problem
 
-    problem = flight_problem(flight, model)  # reduced block by block: S_V never whole (white bound)
+    problem = flight_problem(flight, model, bound=True)  # S_V never whole (white bound)
     kw: dict[str, Any] = {"prior_std": prior_std, "prior_information": prior_rows,
                           "scales": model.scales if scales is None else scales}
     if args.sigma is not None or args.tau is not None:

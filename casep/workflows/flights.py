@@ -415,8 +415,9 @@ def diagnose_flights(flights: Sequence, model, *, sigma: float | Sequence[float]
         if prior_std is not None:
             raise ValueError("give `prior` or `prior_std`, not both")
         Wp, _, _, prior_std = prior_information(prior, model.names)
-    problems = [fl if isinstance(fl, Problem) else
-                flight_problem(fl if isinstance(fl, FlightData) else read_flight(fl), model) for fl in flights]
+    problems = [fl if isinstance(fl, Problem) else  # a model that cannot describe a flight refused (bound=True)
+                flight_problem(fl if isinstance(fl, FlightData) else read_flight(fl), model, bound=True)
+                for fl in flights]
     noise_lines = None
     if sigma is None and noise != "white":
         from casep.regression.rows import prepare_rows
