@@ -611,29 +611,36 @@ class _Run:
             _add_setup_problem(flight, why)
         return why
 
-    def model(self, nav: NavigationResult, D: np.ndarray) -> ErrorModel:
+    def model(self, nav: NavigationResult, D: np.ndarray, source: Any = None) -> ErrorModel:
         """The model linearised about the correction at `D` (:func:`casep.model.strapdown.correction_errors`)
         with the alignment's attitude error ``phi0 += A D`` (and ``dt_trk`` when fitted), set up: its S_V is the
-        derivative of a pass (navigate the record corrected at `D`, pair) with respect to `D`."""
+        derivative of a pass (navigate the record corrected at `D`, pair) with respect to `D`. `source` another
+        model file's (the richer model of :mod:`casep.workflows.omitted_terms`), about the same correction (its
+        terms the run's model lacks at 0)."""
         import casadi as ca
 
         from casep.model.loader import add_time_offset
 
-        A = self.alignment_sensitivity(nav, self._linearised(D).setup())
-        m = self._linearised(D)
+        A = self.alignment_sensitivity(nav, self._linearised(D, source).setup())
+        m = self._linearised(D, source)
         m.set_initial_misalignment(m.output("initial_misalignment") + ca.mtimes(ca.DM(A), ca.vertcat(*m.symbols)))
         if self.fit_time_offset:
             add_time_offset(m)
         m.setup()
         return m
 
-    def _linearised(self, D: np.ndarray) -> ErrorModel:
-        """The model file's model, unlocked, its sensor errors those of the correction at `D`."""
+    def _linearised(self, D: np.ndarray, source: Any = None) -> ErrorModel:
+        """The model file's model (or `source`'s: its coefficients the run's model lacks at 0), unlocked, its sensor
+        errors those of the correction at `D`."""
         from casep.model.loader import build_model
         from casep.model.strapdown import correction_errors
 
-        m = build_model(self.source)
-        correction_errors(m, D[:self.base.n_coefficients])
+        m = build_model(self.source if source is None else source)
+        own = D[:self.base.n_coefficients]
+        if source is not None:
+            at = dict(zip(self.base.names, own))
+            own = np.array([at.get(nm, 0.0) for nm in m.names[:m.n_coefficients]], dtype=float)
+        correction_errors(m, own)
         return m
 
     def alignment_sensitivity(self, nav: NavigationResult, model: ErrorModel | None = None) -> np.ndarray:
@@ -652,7 +659,7 @@ class _Run:
         imu, (t1, t2) = self.imu_k, self.window
         sel = (imu.t >= t1) & (imu.t <= t2)
         k = np.searchsorted(nav.t, imu.t[sel])
-        n = self.base.n_coefficients
+        n = model.n_coefficients
         unit = np.eye(n)
         per = [body_errors(model, nav.q[k], imu.f[sel], imu.w[sel], imu.t[sel] - nav.t[0], unit[j])
                for j in range(n)]

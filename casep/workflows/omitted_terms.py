@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import warnings
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -35,8 +37,8 @@ import numpy as np
 from casep.estimators.result import EstimateResult
 from casep.io.flight import FlightData
 
-__all__ = ["omitted_record", "judge_omitted", "richer_model", "alias_line", "omitted_message", "OMITTED_NAMED",
-           "OMITTED_RCOND", "OMITTED_WEIGHT"]
+__all__ = ["omitted_record", "judge_omitted", "runs_on", "richer_model", "alias_line", "omitted_message",
+           "OMITTED_NAMED", "OMITTED_RCOND", "OMITTED_WEIGHT"]
 
 #: A combination of the extra columns is determined beside the fit where its singular value (the columns less their
 #: projection on the whitened design, each per declared magnitude) is above this share of the largest: the rest are
@@ -58,9 +60,12 @@ def richer_model(model: str) -> str | None:
     return found.group(1) if found else None
 
 
-def _extra_columns(res: EstimateResult, problem: Any, flight: FlightData, richer: Any) -> tuple | None:
+def _extra_columns(res: EstimateResult, problem: Any, flight: FlightData, richer: Any,
+                   at_pass: Callable[[], Any] | None = None) -> tuple | None:
     """The richer model's columns (N, 3, k) at `problem`'s epochs that `res` lacks, their names, units and declared
-    magnitudes; None where the richer model does not hold every term of the fit or the rows do not match."""
+    magnitudes; None where the richer model does not hold every term of the fit or the rows do not match. `at_pass`:
+    the richer model as a pass of an iterated separation linearises it (its S_V that pass's derivative), else
+    `richer` itself."""
     from casep.checks.flight import flight_problem
     from casep.model.loader import TIME_OFFSET
 
@@ -70,7 +75,9 @@ def _extra_columns(res: EstimateResult, problem: Any, flight: FlightData, richer
     extra = [j for j, n in enumerate(richer.names) if n not in res.names]
     if not extra:
         return None
-    rp = flight_problem(flight, richer, keep_sv=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the flight's S_V warnings (gaps, conditioning): the fit's, said with it
+        rp = flight_problem(flight, richer if at_pass is None else at_pass(), keep_sv=True)
     t, tr = np.asarray(problem.t, float), np.asarray(rp.t, float)
     idx = np.searchsorted(tr, t)
     if np.any(idx >= tr.size) or not np.allclose(tr[np.minimum(idx, tr.size - 1)], t, rtol=0.0, atol=1e-9):
@@ -100,16 +107,22 @@ def _determined(res: EstimateResult, problem: Any, cols: np.ndarray) -> np.ndarr
     Q = u[:, s > s[0] * max(U.shape) * np.finfo(float).eps] if s.size and s[0] > 0 else u[:, :0]
     left = E - Q @ (Q.T @ E)
     _, sv, vt = np.linalg.svd(left, full_matrices=False)
-    return vt[sv > OMITTED_RCOND * sv[0]].T if sv.size and sv[0] > 0 else vt[:0].T
+    # beyond the projection's rounding too (the columns' own scale): columns wholly in the design's span leave only
+    # rounding, which OMITTED_RCOND of its own largest would take for combinations the rows determine
+    rounding = max(both.shape) * np.finfo(float).eps * (np.linalg.norm(E, 2) if E.size else 0.0)
+    return vt[sv > max(OMITTED_RCOND * sv[0], rounding)].T if sv.size and sv[0] > rounding else vt[:0].T
 
 
-def omitted_record(res: EstimateResult, problem: Any, flight: FlightData, model: Any) -> tuple[dict, np.ndarray] | None:
+def omitted_record(res: EstimateResult, problem: Any, flight: FlightData, model: Any,
+                   at_pass: Callable[[str], Any] | None = None) -> tuple[dict, np.ndarray] | None:
     """The test of the richer model's extra terms beside the fit (module notes): ``{"richer", "terms", "chi2", "dof",
     "p_value", "fail_p", "each", "alias", "rule"}`` (``each``: the determined combinations, farthest from 0 in their std
     first, each its terms ``(name, weight, declared magnitude, unit)`` (a unit vector of the terms over their declared
     magnitudes), estimate, std and z; ``alias``: how far the
     terms at their declared magnitudes move the fit's estimates, in the fit's std), and the extra columns per declared
-    magnitude (N, 3, k: the consider columns); None without a richer shipped model or a noise model."""
+    magnitude (N, 3, k: the consider columns); None without a richer shipped model or a noise model. `at_pass`: the
+    richer model (by name) as the pass of an iterated separation that gave `problem` linearises it
+    (:meth:`casep.workflows.imu_separate._Run.model`)."""
     from casep._special import chi2_sf
     from casep.estimators.joint import FAIL_P
     from casep.model.loader import load_model
@@ -118,7 +131,8 @@ def omitted_record(res: EstimateResult, problem: Any, flight: FlightData, model:
     name = richer_model(getattr(model, "name", res.model))
     if name is None:
         return None
-    found = _extra_columns(res, problem, flight, load_model(name))
+    found = _extra_columns(res, problem, flight, load_model(name),
+                           None if at_pass is None else (lambda: at_pass(name)))
     if found is None:
         return None
     cols, names, units, scale = found
@@ -127,7 +141,8 @@ def omitted_record(res: EstimateResult, problem: Any, flight: FlightData, model:
     if V is None:
         return None
     record: dict[str, Any] = {"richer": name, "terms": names, "chi2": 0.0, "dof": int(V.shape[1]), "p_value": 1.0,
-                              "fail_p": FAIL_P, "each": [], "alias": _alias(res, problem, scaled), "rule": RULE}
+                              "fail_p": FAIL_P, "each": [], "alias": _alias(res, problem, scaled), "rule": RULE,
+                              "coefficients": len(res.names)}
     if V.shape[1]:
         est = column_estimates(res, problem, flight, scaled @ V, covariance=True)
         if est is None:
@@ -159,8 +174,14 @@ def _alias(res: EstimateResult, problem: Any, scaled: np.ndarray) -> dict:
     n = len(res.names)
     a = combination_estimators(np.eye(n), np.ones(n), res, problem)
     P = None if res.covariance is None else np.asarray(res.covariance, float)
-    if a is None or P is None or not np.all(np.isfinite(P)):
+    if a is None or P is None:
         return {}
+    # the coefficients the fit states (a finite std); a rank-deficient fit's others have none to carry the terms in
+    keep = np.isfinite(np.diag(P)) & (np.nan_to_num(np.diag(P)) > 0)
+    if not keep.any() or not np.all(np.isfinite(P[np.ix_(keep, keep)])):
+        return {}
+    names = [nm for nm, k in zip(res.names, keep) if k]
+    a, P = a[keep], P[np.ix_(keep, keep)]
     g = a @ scaled.reshape(a.shape[1], -1)
     A = g @ g.T
     try:
@@ -173,7 +194,7 @@ def _alias(res: EstimateResult, problem: Any, scaled: np.ndarray) -> dict:
         each = np.sqrt(np.diag(A)) / np.sqrt(np.diag(P))
     worst = int(np.nanargmax(each)) if np.any(np.isfinite(each)) else 0
     return {"combination_std": float(np.sqrt(max(lam[-1], 0.0))), "coefficient_std": float(np.nanmax(each)),
-            "worst": res.names[worst]}
+            "worst": names[worst], "stated": len(names)}
 
 
 def omitted_message(record: dict) -> str:
@@ -188,33 +209,43 @@ def omitted_message(record: dict) -> str:
             f"terms do and are off by more than their std say: fit {record['richer']} (or a model with these terms)")
 
 
-def alias_line(record: dict) -> str | None:
-    """The line of a result whose std carry the richer model's terms as consider parameters, or None."""
+def alias_line(record: dict) -> str:
+    """The line of a result the test of :func:`omitted_record` passed: its std carry the richer model's terms as
+    consider parameters (the coefficients it states with a std), or, where it states none, that only the
+    combinations the rows determine beside the fit were tested."""
     al = record.get("alias") or {}
+    tested = (f"the {record['dof']} combination(s) it determines beside the fit: chi-square {record['chi2']:.3g}, p "
+              f"{record['p_value']:.3g}")
     if not al:
-        return None
-    return (f"{record['richer']}'s {len(record['terms'])} terms this model leaves out are in the std as consider "
-            f"parameters at their declared magnitudes: the fit cannot tell them from its own coefficients (the "
-            f"{record['dof']} combination(s) it determines beside the fit: chi-square {record['chi2']:.3g}, p "
-            f"{record['p_value']:.3g}) and at those sizes they move the best-determined combination by "
+        return (f"of {record['richer']}'s {len(record['terms'])} terms this model leaves out, only the combinations "
+                f"the rows determine beside the fit were tested ({tested}); the fit states no coefficient with a std, "
+                f"so what its own columns take of them is not in any std: fit {record['richer']} for its combinations")
+    part = "" if al.get("stated", 0) >= record.get("coefficients", 0) else \
+        f" (in the std of the {al['stated']} of {record['coefficients']} coefficients the fit states)"
+    return (f"{record['richer']}'s {len(record['terms'])} terms this model leaves out are in the std{part} as "
+            f"consider parameters at their declared magnitudes: the fit cannot tell them from its own coefficients "
+            f"({tested}) and at those sizes they move the best-determined combination by "
             f"{al['combination_std']:.3g} of its std without them (a coefficient by up to "
             f"{al['coefficient_std']:.3g}, {al['worst']}); fit {record['richer']} for its combinations instead")
 
 
-def judge_omitted(res: EstimateResult, flight: Any, problem: Any, model: Any) -> EstimateResult:
+def judge_omitted(res: EstimateResult, flight: Any, problem: Any, model: Any,
+                  at_pass: Callable[[str], Any] | None = None) -> EstimateResult:
     """`res` failed (``STATUS_MISFIT``) when the richer shipped model's extra terms are beyond
     :data:`casep.estimators.joint.FAIL_P` beside the fit (:func:`omitted_record`, in ``diagnostics["omitted_terms"]``);
     else its covariance carrying them at their declared magnitudes as consider parameters
-    (:func:`casep.workflows.imu_separate.with_consider`), said in a line. Anything but a strapdown telemetry file
-    (:func:`casep.workflows.telemetry_frame.applies`), noise-free rows or a result failed already: `res`."""
+    (:func:`casep.workflows.imu_separate.with_consider`), said in a line (:func:`alias_line`). The one rule of every
+    strapdown path: a telemetry file, a telemetry paired with tracking and a raw IMU record's pass
+    (:func:`runs_on`; an iterated separation's last pass, `at_pass` its linearisation of the richer model:
+    :meth:`casep.workflows.imu_separate._Run.finish`). Anything else, noise-free rows or a result failed already:
+    `res`."""
     from casep.estimators.registry import STATUS_MISFIT, failed
     from casep.workflows.imu_separate import with_consider
-    from casep.workflows.telemetry_frame import applies
 
-    if not res.success or not applies(flight) or problem.y is None or problem.t is None or problem.is_noise_free():
+    if not res.success or not runs_on(flight) or problem.y is None or problem.t is None or problem.is_noise_free():
         return res
     try:
-        found = omitted_record(res, problem, flight, model)
+        found = omitted_record(res, problem, flight, model, at_pass)
     except (ValueError, np.linalg.LinAlgError):
         return res
     if found is None:
@@ -224,7 +255,13 @@ def judge_omitted(res: EstimateResult, flight: Any, problem: Any, model: Any) ->
     if record["p_value"] < record["fail_p"]:
         return failed(res, STATUS_MISFIT, f"failed: {flight.source}: {omitted_message(record)}")
     line = alias_line(record)
-    if line is None:
-        return res
-    out = with_consider(res, problem, scaled)
+    out = with_consider(res, problem, scaled) if record["alias"] else res
     return dataclasses.replace(out, message=f"{out.message}; {line}")
+
+
+def runs_on(flight: Any) -> bool:
+    """Whether :func:`judge_omitted` tests `flight`: strapdown rows (``q_*``, ``fb_*``, ``w_*``), read from one file,
+    a telemetry paired with tracking, or a raw IMU record navigated and paired (a pass of
+    :mod:`casep.workflows.imu_separate`)."""
+    meta = flight.meta if isinstance(flight, FlightData) and isinstance(flight.meta, dict) else {}
+    return isinstance(meta.get("strapdown"), dict)
