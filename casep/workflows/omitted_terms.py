@@ -7,7 +7,7 @@ can take, which its coefficients absorb, and what it leaves. Only the second is 
 **The rows' test.** The extra columns less their projection on the whitened design leave a few combinations
 (strapdown33 on the strapdown boost is rank 21 of 33: six beside strapdown15_axial; the null space, below
 :data:`OMITTED_RCOND` of the largest singular value, is left). Their GLS estimates and covariance are those of any
-column beside the fit (:func:`casep.workflows.imu_separate.column_estimates`, the fit's noise model: not refitted
+column beside the fit (:func:`casep.workflows.row_estimators.column_estimates`, the fit's noise model: not refitted
 beside them, which cost 5.5 s on a 20 Hz boost), judged jointly: the Wald chi-square ``c^T C^-1 c`` on as many dof,
 at the consistency rule of several flights (:data:`casep.estimators.joint.FAIL_P`, 1e-6: a correct model fails
 once in 10^6 flights where the std hold). Beyond it the result fails with the status of a model error
@@ -19,7 +19,7 @@ every strapdown33 term drawn; the terms' non-centrality 0.007): the pitch-plane 
 act almost wholly through its own columns (``sum of squares 1.3e3 sigma^2 absorbed``), so its determined
 combinations are 30-40 std off and no test on the rows can tell. That part is carried as consider parameters: each
 extra term at its declared magnitude (its prior std) through the fit's estimators
-(:func:`casep.workflows.imu_separate.with_consider`, the given heading's rule), said in a line with how far those
+(:func:`casep.workflows.row_estimators.with_consider`, the given heading's rule), said in a line with how far those
 terms move the best-determined combination in its std without them. Strapdown telemetry read from one file only
 (:func:`casep.workflows.telemetry_frame.applies`), not noise-free rows, not a result failed already.
 """
@@ -37,14 +37,17 @@ import numpy as np
 from casep.estimators.result import EstimateResult
 from casep.io.flight import FlightData
 
-__all__ = ["omitted_record", "judge_omitted", "runs_on", "richer_model", "alias_line", "omitted_message",
-           "OMITTED_NAMED", "OMITTED_RCOND", "OMITTED_WEIGHT"]
+__all__ = ["omitted_record", "judge_omitted", "runs_on", "JUDGED_ELSEWHERE", "richer_model", "alias_line",
+           "omitted_message", "OMITTED_NAMED", "OMITTED_RCOND", "OMITTED_WEIGHT"]
 
 #: A combination of the extra columns is determined beside the fit where its singular value (the columns less their
 #: projection on the whitened design, each per declared magnitude) is above this share of the largest: the rest are
 #: the design's null space at rounding (strapdown33's 12 beyond rank 21 on the boost: 1e-16 of the largest; the
 #: determined ones down to 1e-3).
 OMITTED_RCOND = 1e-8
+#: A flight's ``meta`` key naming the workflow that judges the terms its model leaves out itself (the windows of
+#: :mod:`casep.workflows.windows`: their comparison carries them, ``separate_windows(consider=...)``): not tested here.
+JUDGED_ELSEWHERE = "omitted_terms_judged_by"
 #: The determined combinations named in a failure, at most (farthest from 0 in their std first) ...
 OMITTED_NAMED = 3
 #: ... each by its terms of at least this weight (a unit vector of the terms per declared magnitude).
@@ -126,7 +129,7 @@ def omitted_record(res: EstimateResult, problem: Any, flight: FlightData, model:
     from casep._special import chi2_sf
     from casep.estimators.joint import FAIL_P
     from casep.model.loader import load_model
-    from casep.workflows.imu_separate import column_estimates
+    from casep.workflows.row_estimators import column_estimates
 
     name = richer_model(getattr(model, "name", res.model))
     if name is None:
@@ -169,7 +172,7 @@ def _alias(res: EstimateResult, problem: Any, scaled: np.ndarray) -> dict:
     """How far the extra terms at their declared magnitudes (`scaled`, their columns per magnitude) move the fit's
     estimates: the largest shift of any combination in the fit's std (``sqrt`` of the largest eigenvalue of ``G G^T``
     against the fit's covariance, ``G`` the fit's estimators times the columns) and of each coefficient."""
-    from casep.workflows.imu_separate import combination_estimators
+    from casep.workflows.row_estimators import combination_estimators
 
     n = len(res.names)
     a = combination_estimators(np.eye(n), np.ones(n), res, problem)
@@ -234,15 +237,19 @@ def judge_omitted(res: EstimateResult, flight: Any, problem: Any, model: Any,
     """`res` failed (``STATUS_MISFIT``) when the richer shipped model's extra terms are beyond
     :data:`casep.estimators.joint.FAIL_P` beside the fit (:func:`omitted_record`, in ``diagnostics["omitted_terms"]``);
     else its covariance carrying them at their declared magnitudes as consider parameters
-    (:func:`casep.workflows.imu_separate.with_consider`), said in a line (:func:`alias_line`). The one rule of every
+    (:func:`casep.workflows.row_estimators.with_consider`), said in a line (:func:`alias_line`). The one rule of every
     strapdown path: a telemetry file, a telemetry paired with tracking and a raw IMU record's pass
     (:func:`runs_on`; an iterated separation's last pass, `at_pass` its linearisation of the richer model:
-    :meth:`casep.workflows.imu_separate._Run.finish`). Anything else, noise-free rows or a result failed already:
-    `res`."""
+    :meth:`casep.workflows.imu_separate._Run.finish`). Anything else, noise-free rows, a flight that failed a set-up
+    check (:func:`casep.checks.plausibility.setup_problems`: the heading, the tracking's frame) or a result failed
+    already: `res`."""
+    from casep.checks.plausibility import setup_problems
     from casep.estimators.registry import STATUS_MISFIT, failed
-    from casep.workflows.imu_separate import with_consider
+    from casep.workflows.row_estimators import with_consider
 
     if not res.success or not runs_on(flight) or problem.y is None or problem.t is None or problem.is_noise_free():
+        return res
+    if setup_problems(flight):  # a set-up check failed (a heading, a frame): its failure names the cause, not terms
         return res
     try:
         found = omitted_record(res, problem, flight, model, at_pass)
@@ -262,6 +269,6 @@ def judge_omitted(res: EstimateResult, flight: Any, problem: Any, model: Any,
 def runs_on(flight: Any) -> bool:
     """Whether :func:`judge_omitted` tests `flight`: strapdown rows (``q_*``, ``fb_*``, ``w_*``), read from one file,
     a telemetry paired with tracking, or a raw IMU record navigated and paired (a pass of
-    :mod:`casep.workflows.imu_separate`)."""
+    :mod:`casep.workflows.imu_separate`); not a flight whose workflow judges them itself (:data:`JUDGED_ELSEWHERE`)."""
     meta = flight.meta if isinstance(flight, FlightData) and isinstance(flight.meta, dict) else {}
-    return isinstance(meta.get("strapdown"), dict)
+    return isinstance(meta.get("strapdown"), dict) and not meta.get(JUDGED_ELSEWHERE)

@@ -575,6 +575,44 @@ def test_sv_of_a_pass_is_the_derivative_of_the_corrected_navigation(truth_flight
         assert np.linalg.norm(J - S[:, :, j]) <= 0.01 * np.linalg.norm(S[:, :, j]), name
 
 
+def test_the_richer_models_columns_at_a_pass_are_the_derivative_of_the_corrected_navigation(truth_flight,
+                                                                                            misaligned_pass):
+    """The omitted terms' test of a raw IMU record (:mod:`casep.workflows.omitted_terms`, on the last pass) takes the
+    richer model's columns as the pass linearises it (``_Run.model`` with strapdown33's file, its further terms at 0):
+    its columns of the run's own terms are the pass's S_V, and a term the run's model lacks is the derivative of an
+    independent whole pass: the record corrected by strapdown33 at ``D`` with that term at ``+- h``
+    (:func:`corrected_imu`), levelled and navigated again, less the tracking (the rule of the test above, 1 %)."""
+    from casep.checks.flight import flight_problem
+    from casep.checks.tracking_quality import keep_screen
+    from casep.model.strapdown import corrected_imu
+
+    t, w, f, nav, model = truth_flight
+    run, _, problem, D = misaligned_pass
+    richer = casep.load_model("strapdown33")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # as the pass's own S_V
+        flight = keep_screen(run.flight(run.nav, D, run.model_k), run.screen)
+        rp = flight_problem(flight, run.model(run.nav, D, "strapdown33"))
+    assert np.array_equal(rp.t, problem.t)
+    S, Sr = problem.sv(), rp.sv()
+    own = [richer.names.index(n) for n in model.names]
+    assert np.allclose(Sr[:, :, own], S, rtol=0.0, atol=1e-9 * np.abs(S).max())
+    Dr = np.zeros(len(richer.names))
+    Dr[own] = D
+    rows = np.searchsorted(t, problem.t - 1e-9)
+
+    def dv(Dj):
+        fb, wb = corrected_imu(richer, nav.q, run.imu.f, run.imu.w, t - t[0], Dj)
+        v = navigate(ImuData(t, wb, fb), SITE, ALIGN, heading_deg=heading_of_x(), check_pad=False).v
+        return v[rows] - nav.v[rows]
+
+    for name in ("ma_xz", "sg_y"):
+        j = richer.names.index(name)
+        h = 100.0 * richer.scales[name]
+        J = -(dv(Dr + h * np.eye(Dr.size)[j]) - dv(Dr - h * np.eye(Dr.size)[j])) / (2 * h)
+        assert np.linalg.norm(J - Sr[:, :, j]) <= 0.01 * np.linalg.norm(Sr[:, :, j]), name
+
+
 def test_the_curvature_at_one_std_is_carried_by_the_std_and_said(misaligned_pass):
     """The curvature check (``_Run.curvature``, 4 seeded draws) on the MEMS pass: a draw one std away moves the
     estimate by many std through the second-order terms, so the std grow and a NonlinearityWarning gives the shift.
