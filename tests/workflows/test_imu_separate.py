@@ -268,6 +268,9 @@ def test_seeded_monte_carlo_iterated_std_hold_under_gauss_markov_plus_white_nois
         imu, trk, D = noisy_flight(tmp_path, split_flight, seed)
         out = separate_default(imu, trk)
         assert out.success and out.result.diagnostics["iterations"]["converged"], out.message
+        # the omitted terms' test on the last pass (casep.workflows.omitted_terms): the truth is the model's own
+        assert out.result.diagnostics["omitted_terms"]["richer"] == "strapdown33"
+        assert out.result.diagnostics["omitted_terms"]["p_value"] > 1e-3
         z.append((out.result.estimate - D) / out.result.std)
     rms = float(np.sqrt(np.mean(np.concatenate(z) ** 2)))
     assert 0.50 <= rms <= 1.52, rms
