@@ -20,8 +20,17 @@ act almost wholly through its own columns (``sum of squares 1.3e3 sigma^2 absorb
 combinations are 30-40 std off and no test on the rows can tell. That part is carried as consider parameters: each
 extra term at its declared magnitude (its prior std) through the fit's estimators
 (:func:`casep.workflows.row_estimators.with_consider`, the given heading's rule), said in a line with how far those
-terms move the best-determined combination in its std without them. Strapdown telemetry read from one file only
-(:func:`casep.workflows.telemetry_frame.applies`), not noise-free rows, not a result failed already.
+terms move the best-determined combination in its std without them.
+
+**Where.** Every strapdown path, one rule (:func:`judge_omitted`, :func:`runs_on`): a telemetry read from one file
+(before the frame's test), a telemetry paired with tracking (its linear result once the remainder's test keeps it,
+:func:`casep.workflows.telemetry_iterate.iterate_if_curved`) and an iterated separation's last pass (a pair's or a
+raw IMU record's, :meth:`casep.workflows.imu_separate._Run.finish`: the richer model linearised about the pass's
+correction as the pass's own, its pad alignment included). Not noise-free rows, a flight that failed a set-up check,
+the windows of :mod:`casep.workflows.windows` (their comparison carries what they leave out), nor a result failed
+already. A rank-deficient fit (``strapdown33`` on the boost: 12 of 33 exactly dependent) tests the combinations the
+rows determine beside it and carries the terms in the std of the coefficients it states (the others have none); a
+fit that states none says that only the determined part was tested.
 """
 
 from __future__ import annotations
