@@ -50,7 +50,7 @@ def _record(res, problem, flight, out) -> None:
     from casep.checks.tracking_quality import imu_noise_states
     from casep.noise.known import tracking_covariance_times
     from casep.noise.model import NoiseModel
-    from casep.workflows.imu_separate import combination_estimators, tau_spread
+    from casep.workflows.row_estimators import combination_estimators, tau_spread
 
     imu = (out.diagnostics.get("noise") or {}).get("imu") if out is not res else None
     if imu is None or imu.get("tracking_noise") is None or problem.t is None:
@@ -237,7 +237,7 @@ def compare(run_path: str, noise_path: str) -> None:
     from car_drive import LEFT_OUT_STD, left_out_covariance
     from car_drive_windows import HORIZONTAL_AT_REST, INSTABILITY_AT_REST, SIX
 
-    from casep.workflows.imu_separate import relative_positive_part
+    from casep.workflows.row_estimators import relative_positive_part
     from casep.workflows.windows import consider_rows, window_consistency
 
     run = pickle.load(open(run_path, "rb"))

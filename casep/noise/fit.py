@@ -363,7 +363,7 @@ def tau_profile(problem, points: int = PROFILE_POINTS, level: float = PROFILE_LR
     restricted likelihood (``exp(-(-2 l_R - min) / 2)``, the weights of an axis summing to 1): the posterior of
     ``ln tau`` on that interval. A few hundred epochs hold tau to a factor of several (a 20 s record of tau 1 s:
     REML's tau from 0.14 to 9.5 s over 12 seeds), and a combination's variance can grow several times over that
-    range (:func:`casep.workflows.imu_separate.tau_spread`).
+    range (:func:`casep.workflows.row_estimators.tau_spread`).
 
     The search interval's top is the record length, and it caps the average: beyond it the record cannot tell a
     Gauss-Markov noise from a drift its coefficients absorb (the profile stays flat) while the scale REML gives it,

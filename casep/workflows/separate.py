@@ -245,13 +245,15 @@ def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
     strapdown telemetry's turn about the vertical: :func:`casep.workflows.telemetry_heading.judge_telemetry_heading`),
     with its model's record: the result, its problem, model and flight."""
     res, problem, model, flight = _fit_offset_if_found(flight, problem, model, spec, fit_time_offset)
-    from casep.workflows.telemetry_frame import judge_frame
+    from casep.workflows.telemetry_frame import applies, judge_frame
 
-    if isinstance(flight, FlightData) and isinstance(model, ErrorModel):
+    if applies(flight) and isinstance(model, ErrorModel):
         from casep.workflows.omitted_terms import judge_omitted
 
         # the richer model's terms beside the fit: before the frame's test, which takes terms the rows see beyond
-        # the model for a turned attitude (strapdown15_axial on sg_y = sg_z = 1000 ppm: named 11 deg apart)
+        # the model for a turned attitude (strapdown15_axial on sg_y = sg_z = 1000 ppm: named 11 deg apart); a
+        # pair's once the remainder's test keeps its linear result (iterate_if_curved), an iteration's on its last
+        # pass (casep.workflows.imu_separate._Run.finish)
         res = judge_omitted(res, flight, problem, model)
     # a dv axis's sign, the attitude's frame: before the misfit's failure, which they explain
     res = judge_frame(res, flight, problem, spec, LOCATING_FIT)

@@ -13,7 +13,7 @@ So the drift's column, per ppm, is ``1e-6 (a t - E)``. On a boost at steady thru
 accelerometers' part of ``E`` cancel: a tag-only model (the time offset split between the flight's halves,
 :func:`casep.checks.tracking_quality.offset_halves`) read 80 ppm as -13.2 +- 6.4 ppm and said a drift up to
 25.9 ppm would go unseen. The column is estimated beside the coefficients with the fit's own whitening and noise
-model (:func:`casep.workflows.imu_separate.column_estimates`, the rule every such test uses), so its std is that
+model (:func:`casep.workflows.row_estimators.column_estimates`, the rule every such test uses), so its std is that
 of the fit's noise (the halves' std was white noise times an AR(1) factor, 4-5x too small under Gauss-Markov plus
 white tracking noise: 34 +- 6.3 ppm on a clean flight). A drift given (``--clock-drift``) is taken out of both the
 tracking's tags and the telemetry's velocity (:func:`casep.io.files.read_flight_pair`); the test then measures
@@ -100,13 +100,13 @@ def drift_column(flight: FlightData, t: np.ndarray, offset: bool = False) -> np.
 def telemetry_clock_record(res: EstimateResult, flight: FlightData, problem: Any,
                            scales: dict | None = None) -> dict | None:
     """The drift beyond the one given, estimated as one more coefficient (:func:`drift_column`,
-    :func:`casep.workflows.imu_separate.column_estimates`): ``ppm`` (the clocks' drift the data point to),
+    :func:`casep.workflows.row_estimators.column_estimates`): ``ppm`` (the clocks' drift the data point to),
     ``std_ppm``, ``given_ppm``, ``beyond_given_ppm``, ``determined`` (the clock-drift rule on the drift beyond the
     given one), ``unseen_ppm`` (``|beyond| + 2 std``), ``warns_beyond_ppm`` (the rule's threshold), ``moves`` (what a
     drift that large, not modelled, does to the determined coefficients: :func:`_moves`, `scales` the model's
     declared magnitudes), ``on``; None where there is no column or no noise model to whiten with."""
     from casep.checks.tracking_quality import DRIFT_MIN_PPM, drift_determined
-    from casep.workflows.imu_separate import column_estimates
+    from casep.workflows.row_estimators import column_estimates
 
     if problem.y is None or problem.t is None:
         return None
@@ -138,11 +138,11 @@ def _moves(res: EstimateResult, problem: Any, col: np.ndarray, ppm: float, scale
     """The coefficients a drift of `ppm` not modelled moves most, in the fit's std (before the drift is carried,
     :func:`carry_telemetry_clock`; at most :data:`MOVES_SAID`, those
     beyond 1 std): the fit's estimator (its noise model's whitening: the rule of
-    :func:`casep.workflows.imu_separate.column_estimates`) on the rows the drift adds (`col` (N, 3) per ppm),
+    :func:`casep.workflows.row_estimators.column_estimates`) on the rows the drift adds (`col` (N, 3) per ppm),
     ``name``, ``shift`` (the coefficient's unit), ``z``; only coefficients the flight determines (std below their
     declared magnitude in `scales`, or without one: the time offset): an undetermined one's shift lies along what
     the rows cannot tell apart, and says nothing."""
-    from casep.workflows.imu_separate import _estimators
+    from casep.workflows.row_estimators import _estimators
 
     n = len(res.names)
     est = _estimators(np.eye(n), np.ones(n), res, problem)  # the fit's estimator: its whitening, on the raw rows

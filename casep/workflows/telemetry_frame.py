@@ -35,7 +35,7 @@ by the rotation found and the step estimated again, Gauss-Newton, until it is be
 rotation of degrees leaves a second-order remainder the first-order column does not take, and a noise model
 fitted over it absorbs the turn: 10 deg in azimuth estimated at 0.6 +- 0.9 in one step), then tested at the
 rotation located as the heading is (:func:`casep.workflows.imu_separate.heading_conflict`'s rule,
-:func:`casep.workflows.imu_separate.column_estimates`: the three columns with the noise refitted beside them,
+:func:`casep.workflows.row_estimators.column_estimates`: the three columns with the noise refitted beside them,
 :func:`casep.workflows.imu_separate.with_columns_noise`, S_V projected out, the fit's whitening): the rotation is
 the one located plus that last step, each axis's std that of its estimator. The frames are stated to agree, so the
 stated std is 0 and an axis beyond :data:`casep.estimators.rls.PRIOR_CONFLICT_Z` std is a rotation the data
@@ -246,7 +246,8 @@ def frame_record(res: EstimateResult, problem: Any, flight: FlightData, spec: An
     (:data:`casep.workflows.separate.LOCATING_FIT`, the time offset's)."""
     from casep.estimators.rls import PRIOR_CONFLICT_Z
     from casep.regression.problem import Problem
-    from casep.workflows.imu_separate import _quiet_fit, column_estimates, with_columns_noise
+    from casep.workflows.imu_separate import _quiet_fit, with_columns_noise
+    from casep.workflows.row_estimators import column_estimates
 
     y = np.asarray(problem.y, dtype=float)
     S = problem.sv()

@@ -15,7 +15,7 @@ frame's y axis (up at the launch point, the pad) is located by least squares as 
 (:mod:`casep.workflows.telemetry_frame`: Gauss-Newton, the rows and S_V turned back by the turn found, until a step
 is below a tenth of its std; the first-order column does not hold a turn of degrees over a boost of km/s), then
 tested there as the raw-IMU path's heading is (:func:`casep.workflows.imu_separate.heading_conflict`'s rule:
-:func:`casep.workflows.imu_separate.column_estimates`, the noise refitted beside the column, S_V projected out;
+:func:`casep.workflows.row_estimators.column_estimates`, the noise refitted beside the column, S_V projected out;
 ``z = |turn| / sqrt(stated std^2 + its std^2)`` against :data:`casep.estimators.rls.PRIOR_CONFLICT_Z`). The stated std
 is :data:`casep.workflows.imu_separate.HEADING_STD_DEG` where ``casep navigate``'s header says the heading was given,
 else 0 (the telemetry and the tracking stated in one frame). A model's own initial attitude error about the vertical

@@ -268,12 +268,12 @@ class _TelemetryRun(_Run):
             return flight
         return dataclasses.replace(flight, dv=flight.dv - _direct_velocity(model, flight, D))
 
-    def model(self, nav: Any, D: np.ndarray) -> ErrorModel:
+    def model(self, nav: Any, D: np.ndarray, source: Any = None) -> ErrorModel:
         """The model linearised about the correction at `D` (:func:`casep.model.strapdown.correction_errors`), with
-        ``dt_trk`` when fitted, set up."""
+        ``dt_trk`` when fitted, set up (`source`: :meth:`casep.workflows.imu_separate._Run.model`)."""
         from casep.model.loader import add_time_offset
 
-        m = self._linearised(D)
+        m = self._linearised(D, source)
         if self.fit_time_offset:
             add_time_offset(m)
         m.setup()
@@ -330,12 +330,17 @@ def iterate_if_curved(res: EstimateResult, flight: Any, problem: Any, model: Any
     # that stands carries its IMU's noise when it matters
     shift = linearisation_shift(run, res, problem, flight, model.scales)
     record = linearisation_record(shift)
+    from casep.workflows.omitted_terms import judge_omitted
+
+    # the richer model's terms beside a linear result that stands (after its IMU noise, whose refit sets the
+    # covariance anew); an iterated one's on its last pass (casep.workflows.imu_separate._Run.finish)
     if not iterate and (shift.std is None or shift.std <= LINEAR_OFFSET_SHARE):
         res = with_imu_noise_beyond(res, problem, flight, model.scales)
         res.diagnostics["linearisation"] = {**record, "iterated": False}
-        return res, False
+        return judge_omitted(res, flight, problem, model), False
     if iterate is False and shift.std is not None:
-        return one_pass_judged(with_imu_noise_beyond(res, problem, flight, model.scales), shift), False
+        res = one_pass_judged(with_imu_noise_beyond(res, problem, flight, model.scales), shift)
+        return judge_omitted(res, flight, problem, model), False
     out = run.iterate(True, ITERATE_TOL, MAX_ITERATIONS).result
     out.diagnostics["linearisation"] = {**record, "iterated": True}
     if shift.std is not None and shift.std > LINEAR_OFFSET_SHARE:

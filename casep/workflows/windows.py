@@ -171,6 +171,10 @@ def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fi
     v_en = np.column_stack([np.interp(nav.t, trk.t, trk.v_enu[:, c]) for c in (0, 1)])
     write_table(tel, {**nav.columns(), GROUND_SPEED_COLUMN: np.hypot(v_en[:, 0], v_en[:, 1])})
     flight = read_flight_pair(tel, trk.path, tracking_frame="geodetic", site=site)
+    from casep.workflows.omitted_terms import JUDGED_ELSEWHERE
+
+    # the terms a window's model leaves out: the windows' comparison carries them (separate_windows(consider=...))
+    flight.meta[JUDGED_ELSEWHERE] = "casep.workflows.windows"
     if imu_noise is not None:
         flight.meta[IMU_NOISE_AT_REST] = imu_noise
     if instability_tau is not None:

@@ -268,6 +268,9 @@ def test_seeded_monte_carlo_iterated_std_hold_under_gauss_markov_plus_white_nois
         imu, trk, D = noisy_flight(tmp_path, split_flight, seed)
         out = separate_default(imu, trk)
         assert out.success and out.result.diagnostics["iterations"]["converged"], out.message
+        # the omitted terms' test on the last pass (casep.workflows.omitted_terms): the truth is the model's own
+        assert out.result.diagnostics["omitted_terms"]["richer"] == "strapdown33"
+        assert out.result.diagnostics["omitted_terms"]["p_value"] > 1e-3
         z.append((out.result.estimate - D) / out.result.std)
     rms = float(np.sqrt(np.mean(np.concatenate(z) ** 2)))
     assert 0.50 <= rms <= 1.52, rms
@@ -573,6 +576,44 @@ def test_sv_of_a_pass_is_the_derivative_of_the_corrected_navigation(truth_flight
         h = 0.01 * abs(D[j])
         J = -(dv(D + h * np.eye(D.size)[j]) - dv(D - h * np.eye(D.size)[j])) / (2 * h)
         assert np.linalg.norm(J - S[:, :, j]) <= 0.01 * np.linalg.norm(S[:, :, j]), name
+
+
+def test_the_richer_models_columns_at_a_pass_are_the_derivative_of_the_corrected_navigation(truth_flight,
+                                                                                            misaligned_pass):
+    """The omitted terms' test of a raw IMU record (:mod:`casep.workflows.omitted_terms`, on the last pass) takes the
+    richer model's columns as the pass linearises it (``_Run.model`` with strapdown33's file, its further terms at 0):
+    its columns of the run's own terms are the pass's S_V, and a term the run's model lacks is the derivative of an
+    independent whole pass: the record corrected by strapdown33 at ``D`` with that term at ``+- h``
+    (:func:`corrected_imu`), levelled and navigated again, less the tracking (the rule of the test above, 1 %)."""
+    from casep.checks.flight import flight_problem
+    from casep.checks.tracking_quality import keep_screen
+    from casep.model.strapdown import corrected_imu
+
+    t, w, f, nav, model = truth_flight
+    run, _, problem, D = misaligned_pass
+    richer = casep.load_model("strapdown33")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # as the pass's own S_V
+        flight = keep_screen(run.flight(run.nav, D, run.model_k), run.screen)
+        rp = flight_problem(flight, run.model(run.nav, D, "strapdown33"))
+    assert np.array_equal(rp.t, problem.t)
+    S, Sr = problem.sv(), rp.sv()
+    own = [richer.names.index(n) for n in model.names]
+    assert np.allclose(Sr[:, :, own], S, rtol=0.0, atol=1e-9 * np.abs(S).max())
+    Dr = np.zeros(len(richer.names))
+    Dr[own] = D
+    rows = np.searchsorted(t, problem.t - 1e-9)
+
+    def dv(Dj):
+        fb, wb = corrected_imu(richer, nav.q, run.imu.f, run.imu.w, t - t[0], Dj)
+        v = navigate(ImuData(t, wb, fb), SITE, ALIGN, heading_deg=heading_of_x(), check_pad=False).v
+        return v[rows] - nav.v[rows]
+
+    for name in ("ma_xz", "sg_y"):
+        j = richer.names.index(name)
+        h = 100.0 * richer.scales[name]
+        J = -(dv(Dr + h * np.eye(Dr.size)[j]) - dv(Dr - h * np.eye(Dr.size)[j])) / (2 * h)
+        assert np.linalg.norm(J - Sr[:, :, j]) <= 0.01 * np.linalg.norm(Sr[:, :, j]), name
 
 
 def test_the_curvature_at_one_std_is_carried_by_the_std_and_said(misaligned_pass):

@@ -31,17 +31,19 @@ LIMITED = {"ba_x": 0.8, "sa_x": 250.0, "ba_y": -0.5, "ma_yx": 20.0, "ba_z": 0.6,
            "gg_zx": -0.2}
 
 
-def _judged(tmp_path_factory, name: str, seed: int, truth: dict | None, spec: FitSpec | None = None):
-    path = tmp_path_factory.mktemp("omitted") / f"{name}.csv"
-    sim = simulate_flight("strapdown-boost", seed=seed, rate=5.0, truth=truth)
-    write_simulation(sim, path)
+def _judged(tmp_path_factory, name: str, seed: int, truth: dict | None, spec: FitSpec | None = None,
+            model_name: str = MODEL, path=None):
+    if path is None:
+        path = tmp_path_factory.mktemp("omitted") / f"{name}.csv"
+        sim = simulate_flight("strapdown-boost", seed=seed, rate=5.0, truth=truth)
+        write_simulation(sim, path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        flight, problem, model = _problem(path, MODEL, False)
+        flight, problem, model = _problem(path, model_name, False)
         res = fit(problem, spec or FitSpec.build())
         out = omitted_terms.judge_omitted(res, flight, problem, model)
-    truth = json.loads(path.with_name(f"{name}.truth.json").read_text())["coefficients"]  # natural units
-    return res, out, (flight, problem), truth
+    truth = json.loads(path.with_name(f"{path.stem}.truth.json").read_text())["coefficients"]  # natural units
+    return res, out, (flight, problem, path), truth
 
 
 @pytest.fixture(scope="module")
@@ -87,8 +89,8 @@ def test_the_truth_limited_to_the_model_passes(tmp_path_factory, seed):
 def test_the_wald_chi_square_is_the_extra_sum_of_squares(tmp_path_factory):
     """White noise: the Wald chi-square of the determined combinations equals (RSS of the model - RSS with the
     richer model's columns) / sigma^2 of two numpy least-squares fits."""
-    res, out, (flight, problem), _ = _judged(tmp_path_factory, "white", 5, None,
-                                             FitSpec.build(noise="white", robust="none"))
+    res, out, (flight, problem, _), _ = _judged(tmp_path_factory, "white", 5, None,
+                                                FitSpec.build(noise="white", robust="none"))
     record = out.diagnostics["omitted_terms"]
     S = problem.sv().reshape(-1, len(res.names))
     cols = omitted_terms._extra_columns(res, problem, flight, load_model("strapdown33"))
@@ -98,3 +100,54 @@ def test_the_wald_chi_square_is_the_extra_sum_of_squares(tmp_path_factory):
     rss0 = np.sum((y - S @ np.linalg.lstsq(S, y, rcond=None)[0]) ** 2)
     rss1 = np.sum((y - both @ np.linalg.lstsq(both, y, rcond=1e-10)[0]) ** 2)
     assert record["chi2"] == pytest.approx((rss0 - rss1) / float(res.sigma) ** 2, rel=1e-3)
+
+
+@pytest.fixture(scope="module")
+def rank_deficient(tmp_path_factory, full):
+    """strapdown33 on the same flight (its truth strapdown33's): rank 21 of 33, its richer model strapdown42_extended's
+    9 further terms (ka2_*, phi0_*, l_*)."""
+    return _judged(tmp_path_factory, "full", 1, None, model_name="strapdown33", path=full[2][2])
+
+
+def test_a_rank_deficient_fit_tests_only_what_the_rows_determine_beside_it(rank_deficient):
+    """12 of strapdown33's 33 coefficients are exactly dependent on the boost; of strapdown42_extended's 9 further
+    terms the rows determine 7 combinations beside the fit (ka2_y and ka2_z act on a lateral specific force the boost
+    does not have: their columns are 1e-9 of the others, left out). The Wald chi-square of those 7 is the extra sum
+    of squares of the whitened rows (numpy least squares with and without the 7 columns, rank 21 and 28); the terms
+    are carried in the std of the 21 coefficients the fit states, the others keep no std; the message says so.
+    Before: no consider parameter at all (the fit's covariance is not finite), and nothing said."""
+    from casep.noise.model import NoiseModel, whiten
+
+    res, out, (flight, problem, _), _ = rank_deficient
+    record = out.diagnostics["omitted_terms"]
+    assert record["richer"] == "strapdown42_extended" and len(record["terms"]) == 9 and record["dof"] == 7
+    assert not any(nm in ("ka2_y", "ka2_z") for r in record["each"] for nm, *_ in r["terms"])
+    assert out.success and record["p_value"] > FAIL_P  # the truth has none of the 9 terms
+    stated = np.isfinite(np.asarray(res.std))
+    assert stated.sum() == 21 and np.array_equal(np.isfinite(np.asarray(out.std)), stated)
+    assert np.all(np.asarray(out.std)[stated] >= np.asarray(res.std)[stated])
+    assert "(in the std of the 21 of 33 coefficients the fit states)" in out.message
+    cols = omitted_terms._extra_columns(res, problem, flight, load_model("strapdown42_extended"))
+    assert cols is not None
+    keep = [j for j, nm in enumerate(cols[1]) if nm not in ("ka2_y", "ka2_z")]
+    S = problem.sv()
+    N, _, n = S.shape
+    both, yw = whiten(np.concatenate([S, (cols[0] * cols[3])[:, :, keep]], axis=2), np.asarray(problem.y),
+                      np.asarray(problem.t), NoiseModel.from_dict(res.diagnostics["noise"]))[:2]
+    B, y = both.reshape(3 * N, -1), yw.reshape(-1)
+    A = B[:, :n]
+    assert np.linalg.matrix_rank(A) == 21 and np.linalg.matrix_rank(B) == 28
+    rss0 = np.sum((y - A @ np.linalg.lstsq(A, y, rcond=1e-10)[0]) ** 2)
+    rss1 = np.sum((y - B @ np.linalg.lstsq(B, y, rcond=1e-10)[0]) ** 2)
+    assert record["chi2"] == pytest.approx((rss0 - rss1) / float(res.sigma) ** 2, rel=1e-6)
+
+
+def test_columns_in_the_designs_span_leave_nothing_to_test(rank_deficient):
+    """Columns that are combinations of the fit's own (here of strapdown33's S_V, rank-deficient) leave only the
+    projection's rounding beside it: no combination is determined (before: the share of the largest left, itself
+    rounding, kept rounding directions as determined)."""
+    res, _, (_, problem, _), _ = rank_deficient
+    S = problem.sv()
+    inside = np.einsum("ntk,kc->ntc", S, np.random.default_rng(0).normal(size=(S.shape[2], 2)))
+    V = omitted_terms._determined(res, problem, inside)
+    assert V is not None and V.shape == (2, 0)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from casep.workflows.imu_separate import relative_positive_part
+from casep.workflows.row_estimators import relative_positive_part
 
 
 def _pair(rng: np.random.Generator, lam: np.ndarray, m: int = 6) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -77,7 +77,7 @@ def test_a_record_too_short_to_bound_tau_says_so_and_its_spread_is_scipys_genera
     from casep.noise.fit import tau_kept, tau_profile
     from casep.noise.known import tracking_covariance_times
     from casep.regression.problem import Problem
-    from casep.workflows.imu_separate import tau_spread
+    from casep.workflows.row_estimators import tau_spread
 
     rng = np.random.default_rng(0)
     t = np.arange(16.0)

@@ -209,7 +209,7 @@ def test_column_estimates_of_three_columns_are_their_gls_coefficients():
     from types import SimpleNamespace
 
     from casep.noise.model import NoiseModel
-    from casep.workflows.imu_separate import column_estimates
+    from casep.workflows.row_estimators import column_estimates
 
     rng = np.random.default_rng(11)
     N, n, sigma = 60, 4, 0.05

@@ -92,6 +92,8 @@ def test_noisy_mems_flights_iterated_with_honest_std(tmp_path_factory, model):
             res = casep.separate(flight, model, noise="white", robust="none")
         assert res.success and res.diagnostics["linearisation"]["iterated"], res.message
         assert res.diagnostics["noise"]["imu"]["std_factor_max"] >= 1.0  # the INS's noise term (here: motion only)
+        # strapdown33's further terms tested on the last pass (casep.workflows.omitted_terms): the truth is the model's
+        assert res.diagnostics["omitted_terms"]["p_value"] > 1e-3
         z.extend((res.estimate - np.array([D[n] for n in model.names])) / res.std)
     z = np.array(z)
     assert np.abs(z).max() < 4.0 and 0.5 <= math.sqrt(np.mean(z**2)) <= 1.6, z.round(2)
@@ -106,6 +108,7 @@ def test_navigation_grade_telemetry_stays_linear_and_silent(tmp_path_factory, mo
         res = casep.separate(flight, model, noise="white", robust="none")
     lin = res.diagnostics["linearisation"]
     assert res.success and not lin["iterated"] and lin["shift_std"] < lin["tol"], lin
+    assert res.diagnostics["omitted_terms"]["p_value"] > 1e-3  # the linear result that stands: tested, silent
 
 
 def test_cli_no_iterate_on_telemetry_fails_the_curved_linear_pass(noise_free, capsys):
