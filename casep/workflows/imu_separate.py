@@ -174,6 +174,7 @@ from casep.workflows.row_estimators import (
     tau_spread,
     widened_std,
     with_consider,
+    with_extra_covariance,
     with_heading,
 )
 
@@ -2676,13 +2677,8 @@ def with_drift(res: EstimateResult, problem: Any, column: np.ndarray, carried: d
     if res.covariance is None:
         return res
     g = consider_estimators(res, problem) @ np.asarray(column, dtype=float).reshape(-1)
-    C = np.asarray(res.covariance)
-    extra = np.outer(g, g)
-    cov = np.where(np.isfinite(C), C + extra, np.nan)
-    std = widened_std(res, cov)
-    solution = res.solution
-    if solution is not None and solution.covariance is not None:
-        solution = dataclasses.replace(solution, covariance=solution.covariance + extra)
+    out = with_extra_covariance(res, np.outer(g, g))
+    std = out.std
     if std is not None and res.std is not None:
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.asarray(std, float) / np.asarray(res.std, float)
@@ -2690,7 +2686,7 @@ def with_drift(res: EstimateResult, problem: Any, column: np.ndarray, carried: d
         carried["std_factor"] = factors
         carried["widened"] = sorted(factors, key=lambda k: -factors[k])[:3]
     carried["shift_per_std"] = {nm: float(v) for nm, v in zip(res.names, g)}
-    return dataclasses.replace(res, covariance=cov, std=std, solution=solution)
+    return out
 
 
 def carried_said(carried: dict, clock: str = "an IMU clock drift") -> str:

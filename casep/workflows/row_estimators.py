@@ -128,9 +128,19 @@ def with_consider(res: EstimateResult, problem: Any, cols: np.ndarray) -> Estima
         return res
     a = consider_estimators(res, problem)
     g = a @ np.asarray(cols, dtype=float).reshape(a.shape[1], -1)
-    C_fit = np.asarray(res.covariance)
-    cov = np.where(np.isfinite(C_fit), C_fit + g @ g.T, np.nan)
-    return dataclasses.replace(res, covariance=cov, std=widened_std(res, cov))
+    return with_extra_covariance(res, g @ g.T)
+
+
+def with_extra_covariance(res: EstimateResult, extra: np.ndarray) -> EstimateResult:
+    """`res` whose covariance, its solution's and its std gain `extra` (natural units: a consider term's ``g g^T``),
+    ``C + extra`` where ``C`` is finite (:func:`widened_std`): the one place a consider term widens a result, so that
+    what reads the solution's covariance (the iteration's step) sees what the stated std do."""
+    C = np.asarray(res.covariance)
+    cov = np.where(np.isfinite(C), C + extra, np.nan)
+    solution = res.solution
+    if solution is not None and solution.covariance is not None:
+        solution = dataclasses.replace(solution, covariance=solution.covariance + extra)
+    return dataclasses.replace(res, covariance=cov, std=widened_std(res, cov), solution=solution)
 
 
 def column_estimates(res: EstimateResult, problem: Any, flight: FlightData, columns: np.ndarray | None,

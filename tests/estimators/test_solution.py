@@ -81,3 +81,20 @@ def test_impact_not_determined_is_a_failure(sim39, fit39):
     coef = _Coefficients(fit39.estimate, fit39.covariance, tuple("estimated" for _ in range(n)), {}, "")
     lin = _linear_miss(fit39, model.names, coef, G, [])
     assert lin.determined.tolist() == [False, True] and np.isnan(lin.miss[0]) and "phi0z" in lin.note
+
+
+def test_a_consider_term_widens_the_solution_as_the_stated_covariance(fit39):
+    """A consider term (:func:`casep.workflows.row_estimators.with_extra_covariance`) reaches the solution's
+    covariance, which the iteration's step reads, by the same ``g g^T`` as the stated covariance, and the
+    coefficients the fit does not determine stay without a std."""
+    from casep.workflows.row_estimators import with_extra_covariance
+
+    m = len(fit39.names)
+    g = np.linspace(0.5, 1.5, m) * np.sqrt(np.nan_to_num(np.diag(fit39.solution.covariance)))
+    out = with_extra_covariance(fit39, np.outer(g, g))
+    np.testing.assert_allclose(out.solution.covariance - fit39.solution.covariance, np.outer(g, g), rtol=1e-12)
+    finite = np.isfinite(fit39.covariance)
+    np.testing.assert_allclose(out.covariance[finite], (fit39.covariance + np.outer(g, g))[finite], rtol=1e-12)
+    assert np.array_equal(np.isnan(out.std), np.isnan(fit39.std))
+    own = np.isfinite(fit39.std)
+    np.testing.assert_allclose(out.std[own], np.sqrt(fit39.std[own] ** 2 + g[own] ** 2), rtol=1e-10)
