@@ -225,7 +225,7 @@ finally:
 SLOW_FILES_FIRST = (
     "noise/test_noise_model.py", "radar/test_radar.py", "radar/test_radar_setup.py", "docs/test_console_blocks.py",
     "montecarlo/test_montecarlo_dask.py", "test_examples.py", "design/test_design.py", "workflows/test_imu_separate.py",
-    "workflows/test_imu_separate_heading.py", "workflows/test_imu_separate_linear_reach.py",
+    "workflows/test_imu_separate_heading.py",
     "workflows/test_imu_clock_drift.py", "workflows/test_telemetry_frame.py", "workflows/test_flights.py",
     "reporting/test_report.py",
     "radar/test_radar_noise.py", "checks/test_setup_checks.py",

@@ -83,3 +83,65 @@ def test_rows_at_the_rounding_level_are_kept_whatever_their_rise():
     before = SimpleNamespace(y=np.full((100, 3), 1e-11))
     out = _fake_run(np.full((100, 3), 1e-10), data_scale=10.0).trial(np.zeros(2), None, before, 0.0)
     assert isinstance(out, tuple)
+
+
+def _pad_at_rest(directory):
+    """16 s at rest on the pad (45 N, 100 m), a quiet IMU at 5 Hz (white noise 1e-3 m/s^2, 1e-5 rad/s), geodetic
+    tracking at rest at 1 Hz (white noise 0.02 m/s): (imu, tracking, site)."""
+    from casep.frames import LaunchSite
+    from casep.gravity import normal_gravity
+    from casep.io.files import write_table
+    from casep.navigation import ImuData
+
+    T, lat, wE = 16.0, np.radians(45.0), 7.292115e-5
+    rng = np.random.default_rng(0)
+    t = np.arange(0, T, 0.2)
+    f = np.tile([0, 0, normal_gravity(45.0, 100.0)], (t.size, 1)) + rng.normal(0, 1e-3, (t.size, 3))
+    w = np.tile([0, wE * np.cos(lat), wE * np.sin(lat)], (t.size, 1)) + rng.normal(0, 1e-5, (t.size, 3))
+    tt = np.arange(0, T, 1.0)
+    v = rng.normal(0, 0.02, (tt.size, 3))
+    trk = directory / "trk.csv"
+    write_table(trk, {"t": tt, "lat": np.full(tt.size, 45.0), "lon": np.full(tt.size, 10.0),
+                      "h": np.full(tt.size, 100.0), "v_east": v[:, 0], "v_north": v[:, 1], "v_up": v[:, 2]})
+    return ImuData(t, w, f), trk, LaunchSite(45.0, 10.0, 100.0, 90.0, T / 2)
+
+
+@pytest.mark.parametrize("refused", ["halvings", "halvings + 1"])
+def test_a_white_pass_step_that_does_not_descend_is_halved_then_narrowed(tmp_path, monkeypatch, refused):
+    """A pad record at rest under ``strapdown12`` whose first white pass's step the test makes not descend (its
+    first `refused` trials, :data:`HALVINGS` or one more, said not to descend): the same step is tried at 1, 1/2, ...
+    of its size. Refused HALVINGS times, the step of ``1 / 2^HALVINGS`` is taken (``damped``) and the passes go on
+    to convergence; refused once more, the halving stops there and the pass steps again without its widest
+    combinations (``rejected``, the descent's reason), never a smaller fraction."""
+    import warnings
+
+    from casep.workflows.imu_separate import _NO_DESCENT, HALVINGS, separate_imu
+
+    refused_n = HALVINGS + (refused == "halvings + 1")
+    imu, trk, site = _pad_at_rest(tmp_path)
+    judged, trial = [], _Run.trial
+
+    def refusing(self, D, spec, before, bound=None):
+        if bound is None:  # not a white pass's judged step
+            return trial(self, D, spec, before, bound)
+        judged.append(np.array(D, dtype=float))
+        if len(judged) <= refused_n:
+            return f"{_NO_DESCENT}: said by the test"
+        return trial(self, D, spec, before, bound)
+
+    monkeypatch.setattr(_Run, "trial", refusing)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # what the pad leaves undetermined: said by the result
+        out = separate_imu(imu, trk, site, (0.0, 8.0), "strapdown12", heading_deg=90.0, tracking_frame="geodetic")
+    first = out.result.diagnostics["iterations"]["passes"][0]
+    step = judged[0]  # the first pass's full step from D = 0
+    assert np.linalg.norm(step) > 0
+    for k in range(HALVINGS + 1):  # the same step at 1, 1/2, ..., 1/2^HALVINGS
+        np.testing.assert_allclose(judged[k], step * 0.5**k, rtol=1e-12, atol=0)
+    if refused_n == HALVINGS:
+        assert first.get("damped") == 0.5**HALVINGS and "rejected" not in first, first
+        assert out.success and out.result.diagnostics["iterations"]["converged"], out.message
+    else:
+        assert "damped" not in first and len(first["rejected"]) == 1, first
+        assert first["rejected"][0]["why"] == f"{_NO_DESCENT}: said by the test"
+        assert not any(np.allclose(D, step * 0.5 ** (HALVINGS + 1)) for D in judged[HALVINGS + 1:])  # not halved again
