@@ -13,11 +13,11 @@ strapdown33").
 The test (:func:`telemetry_heading_record`) runs on a telemetry whose linear result failed, and on a success whose
 model has no initial attitude error about the vertical (:func:`vertical_attitude_terms`): with one, its ``phi0`` holds
 a small turn to first order and the coefficients stay right (``strapdown15_phi0``, ``casep navigate`` 0.5-3 deg off:
-the determined combinations' RMS z unchanged, 2.6 and 0.9 on seeds 11 and 12); without one, a turn of 0.5-2 deg was a
-plain success with bg_x 8-20 of its std off (a flight computer's telemetry, no alignment line, ``strapdown15_axial``,
-seeds 11-13 at 10 Hz; the determined combinations at RMS 19-80 std, 3.6-3.8 at the true heading), which the test
-names from 1 deg (z 5.7-10). It costs about 0.7 s of CPU at 10 Hz, an eighth of the separation. The turn about the
-launch
+the determined combinations' RMS z unchanged, 2.6 and 0.9 on seeds 11 and 12); without one (a flight computer's
+telemetry, no alignment line, ``strapdown15_axial``, seeds 11-13 at 10 Hz), a turn of 0.5-1 deg was a plain success on
+all three and 2 deg on one, bg_x 8-20 of its std off (the determined combinations at RMS 19-80 std, 3.6-3.8 at the
+true heading). The test names 2 deg on all three (z 10-10.5), 1 deg on two (z 5.7, 7.5) and 0.5 deg on none (z
+2.4-4.4); it costs about 0.7 s of CPU at 10 Hz, an eighth of the separation. The turn about the launch
 frame's y axis (up at the launch point, the pad) is located by least squares as the frame's rotation is
 (:mod:`casep.workflows.telemetry_frame`: Gauss-Newton, the rows and S_V turned back by the turn found, until a step
 is below a tenth of its std; the first-order column does not hold a turn of degrees over a boost of km/s), then
