@@ -14,6 +14,7 @@ import json
 import math
 import warnings
 
+import numpy as np
 import pytest
 
 from casep.cli import main
@@ -150,3 +151,21 @@ def test_a_drift_read_beside_a_named_turn_is_recorded_not_said(turned):
     line = [x for x in noise_lines(out.diagnostics) if x.startswith("tracking clock drift")]
     assert line == [halves_line(halves) + ("; read beside the turn about the vertical named above, whose misfit it "
                                            "may be: judge it once the turn is set right" if turned else "")]
+
+
+def test_the_profiles_minimum_is_located_to_its_tolerance_and_an_edge_is_not():
+    """:func:`_minimum` (the shared bounded Brent search between the scan's neighbours) on a profile whose minimum is
+    known: inside the scan within LOCATE_TOL_DEG of it and located; a profile still falling at the scan's edge gives
+    the edge's neighbourhood, not located (the rocket's rows: the record then holds no std, None, where the
+    likelihood's curvature there is not positive; an inf had stopped the JSON writer)."""
+    from casep.workflows.telemetry_heading import LOCATE_TOL_DEG, SCAN_STEP_DEG, _minimum
+
+    grid = np.arange(-30.0, 30.0 + SCAN_STEP_DEG / 2, SCAN_STEP_DEG)
+    for true in (-7.37, 0.004, 13.9):
+        def profile(d, true=true):
+            return (d - true) ** 2 + 0.01 * (d - true) ** 4
+
+        turn, located = _minimum(grid, np.array([profile(d) for d in grid]), profile)
+        assert located and abs(turn - true) < LOCATE_TOL_DEG, (true, turn)
+    turn, located = _minimum(grid, -grid, lambda d: -d)
+    assert not located and 27.0 <= turn <= 30.0 and abs(turn - 30.0) < LOCATE_TOL_DEG
