@@ -17,7 +17,8 @@ the determined combinations' RMS z unchanged, 2.6 and 0.9 on seeds 11 and 12); w
 telemetry, no alignment line, ``strapdown15_axial``, seeds 11-13 at 10 Hz), a turn of 0.5-1 deg was a plain success on
 all three and 2 deg on one, bg_x 8-20 of its std off (the determined combinations at RMS 19-80 std, 3.6-3.8 at the
 true heading). The test names 2 deg on all three (z 10-10.5), 1 deg on two (z 5.7, 7.5) and 0.5 deg on none (z
-2.4-4.4); it costs about 0.7 s of CPU at 10 Hz, an eighth of the separation. The turn about the launch
+2.4-4.4); on seeds 1-5, 2 deg on five, 1 deg on one, 0.5 deg on none (``benchmarks/telemetry_heading_mc.py``).
+It costs 0.7-1.1 s of CPU at 10 Hz, an eighth to a sixth of the separation. The turn about the launch
 frame's y axis (up at the launch point, the pad) is located by least squares as the frame's rotation is
 (:mod:`casep.workflows.telemetry_frame`: Gauss-Newton, the rows and S_V turned back by the turn found, until a step
 is below a tenth of its std; the first-order column does not hold a turn of degrees over a boost of km/s), then
