@@ -106,13 +106,16 @@ def noise_lines(diagnostics: Mapping[str, Any], joint: bool = False) -> list[str
         lines.append(f"tracking gaps: {len(gaps)} longer than 3 sample periods: {parts}"
                      f"{', ...' if len(gaps) > SHOWN else ''}")
     clock = diagnostics.get("clock_drift") or {}
+    # read beside a turn about the vertical named first: its misfit reads as a drift
+    beside = "; read beside the turn about the vertical named above, whose misfit it may be: judge it once the " \
+        "turn is set right" if "beside_turn" in clock else ""
     if clock.get("telemetry"):
         from casep.checks.tracking_quality import telemetry_clock_line
 
-        lines.append(telemetry_clock_line(clock["telemetry"], clock.get("carried")))
+        lines.append(telemetry_clock_line(clock["telemetry"], clock.get("carried")) + beside)
     halves = clock.get("halves")
     if halves:
         from casep.checks.tracking_quality import halves_line
 
-        lines.append(halves_line(halves))
+        lines.append(halves_line(halves) + beside)
     return lines
