@@ -494,6 +494,8 @@ class _Run:
     _steps: tuple | None = None
     #: (problem, noise request, rows, the warnings their preparation gave) of the last pass's fit (:meth:`pass_fit`)
     _rows: tuple | None = None
+    #: the IMU's white noise measured on the pad window (:func:`_pad_noise`; empty: not measurable), formed once
+    _pad_noise: dict | None = None
 
     def __init__(self, imu: ImuData, tracking: Any, nav_site: LaunchSite, site: LaunchSite, window: tuple,
                  base: ErrorModel, source: Any, spec: FitSpec, heading_deg: float | None, heading_axis: str,
@@ -546,6 +548,7 @@ class _Run:
 
     def flight(self, nav: NavigationResult, D: np.ndarray, model: ErrorModel | None) -> FlightData:
         """The navigation paired with the tracking, less the model's direct velocity terms at `D`."""
+        from casep.checks.tracking_quality import IMU_NOISE_PAD
         from casep.io.files import read_flight_pair
         from casep.io.tables import Table
 
@@ -559,6 +562,10 @@ class _Run:
             warnings.filterwarnings("ignore", category=SaturationWarning)
             flight = read_flight_pair(tel, self.tracking, **self.pair)
         flight.meta["saturation"] = _imu_saturation(self.imu)
+        if self._pad_noise is None:
+            self._pad_noise = _pad_noise(self.imu, self.window)
+        if self._pad_noise:  # the IMU's noise on the pad declared at rest, where the record's counts motion
+            flight.meta[IMU_NOISE_PAD] = self._pad_noise
         if self.clock_ppm:  # out of the IMU's own tags and steps (separate_imu), not the tracking's
             flight.meta["clock_drift_ppm"], flight.meta["clock_drift_of"] = self.clock_ppm, "imu"
         if self.heading_said is not None:  # found on the first pass's screened epochs (heading_check)
@@ -1641,6 +1648,19 @@ class _Run:
         return t, y
 
 
+def _pad_noise(imu: ImuData, window: tuple) -> dict:
+    """The IMU's white noise per sample on the pad `window` (:func:`casep.checks.tracking_quality.pad_white_std` of
+    the raw samples there: the vehicle at rest, no trajectory in their differences), as the flight's
+    ``meta[IMU_NOISE_PAD]``; empty when the window holds fewer than 20 samples (an Allan deviation needs them)."""
+    from casep.checks.tracking_quality import pad_white_std
+
+    pad = (imu.t >= window[0]) & (imu.t <= window[1])
+    if int(pad.sum()) < 20:
+        return {}
+    s, e = pad_white_std(np.column_stack([imu.f[pad], imu.w[pad]]), float(np.median(np.diff(imu.t[pad]))))
+    return {"std": s, "rel_error": e, "span": (float(window[0]), float(window[1]))}
+
+
 def _imu_saturation(imu: ImuData) -> dict | None:
     """``meta["saturation"]`` of a flight navigated from `imu` (:func:`casep.checks.saturation.screen_saturation`'s
     record): None when the record did not clip, else where it did, as :func:`casep.navigation.imu.check_imu` found it
@@ -2359,7 +2379,7 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     the record does not bound them). `estimators`: ``A`` when the caller formed it already
     (:func:`combination_estimators` of the identity on `res`).
     """
-    from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_noise_effect, imu_sample_noise, unresolved_noise
+    from casep.checks.tracking_quality import imu_noise_effect, imu_sample_noise
     from casep.noise.model import NoiseModel
 
     nd = res.diagnostics.get("noise")
@@ -2369,8 +2389,7 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     measured = imu_sample_noise(flight, t)
     if measured is None:
         return None
-    at_rest = isinstance(flight.meta, dict) and flight.meta.get(IMU_NOISE_AT_REST) is not None
-    unresolved = () if at_rest else tuple(unresolved_noise(flight, measured[0], measured[2]))
+    origin = _noise_origin(flight, t, measured)
     noise = NoiseModel.from_dict(nd)
     N, n = t.size, len(res.names)
     A = estimators if estimators is not None else combination_estimators(np.eye(n), np.ones(n), res, problem)
@@ -2383,15 +2402,14 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     AG = with_heading(AG, A, heading)
     C_imu = AG @ AG.T
     if refit is None:
-        return None, C_imu, _imu_account(res, measured, np.asarray(res.covariance), C_imu, refit, at_rest, unresolved,
-                                         flight)
+        return None, C_imu, _imu_account(res, measured, np.asarray(res.covariance), C_imu, refit, origin, flight)
     from casep.noise.known import tracking_covariance_times
 
     C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
     if profile is None:
-        return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, at_rest, unresolved, flight)
+        return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, origin, flight)
     spread = tau_spread(A, problem, profile)
-    account = _imu_account(res, measured, C_trk + spread, C_imu, refit, at_rest, unresolved, flight)
+    account = _imu_account(res, measured, C_trk + spread, C_imu, refit, origin, flight)
     account["tau_profile"] = _tau_record(res, t, profile, C_trk + C_imu, spread)
     return C_trk + spread, C_imu, account
 
@@ -3114,12 +3132,27 @@ def _instability_record(refit: Any, flight: FlightData) -> dict | None:
     return out
 
 
+def _noise_origin(flight: FlightData, t: np.ndarray, measured: tuple) -> dict:
+    """Where :func:`casep.checks.tracking_quality.imu_sample_noise` took the IMU's noise `measured` at the epochs `t`:
+    ``at_rest`` (a figure given at rest, ``meta[IMU_NOISE_AT_REST]``), ``on_pad`` (the columns taken from the pad,
+    :func:`casep.checks.tracking_quality.imu_noise_on_pad`) and the pad's span, ``unresolved`` (the columns whose
+    figure is at their samples' rounding, :func:`casep.checks.tracking_quality.unresolved_noise`: not measured)."""
+    from casep.checks.tracking_quality import IMU_NOISE_AT_REST, IMU_NOISE_PAD, imu_noise_on_pad, unresolved_noise
+
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    pad = meta.get(IMU_NOISE_PAD) or {}
+    return {"at_rest": meta.get(IMU_NOISE_AT_REST) is not None, "on_pad": imu_noise_on_pad(flight, t),
+            "pad_span": pad.get("span"), "unresolved": unresolved_noise(flight, measured[0], measured[2])}
+
+
 def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu: np.ndarray, refit: Any,
-                 at_rest: bool = False, unresolved: tuple = (), flight: FlightData | None = None) -> dict:
-    """What :func:`imu_noise_budget` used and found, for the result's noise record (`unresolved`: the columns whose
-    noise the record does not show, :func:`casep.checks.tracking_quality.unresolved_noise`: not measured; `flight`:
-    the record whose low-frequency IMU noise, when requested, is said)."""
+                 origin: dict | None = None, flight: FlightData | None = None) -> dict:
+    """What :func:`imu_noise_budget` used and found, for the result's noise record (`origin`: :func:`_noise_origin`,
+    where the noise was measured and which columns' noise the record does not show, not measured; `flight`: the
+    record whose low-frequency IMU noise, when requested, is said)."""
     s, h, _ = measured
+    origin = origin or {}
+    at_rest, unresolved, on_pad = origin.get("at_rest", False), origin.get("unresolved", []), origin.get("on_pad", [])
     C_fit = np.asarray(res.covariance)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.sqrt((np.diag(C_trk) + np.diag(C_imu)) / np.diag(C_fit))
@@ -3128,11 +3161,19 @@ def _imu_account(res: EstimateResult, measured: tuple, C_trk: np.ndarray, C_imu:
     how = ("the tracking noise model fitted again by REML with the IMU's noise a known term (its random walks and "
            "the levelling tilt as a linear state), Cov(x) = A Sigma_track A^T + (A G)(A G)^T" if refit is not None
            else "Cov(x) = fit covariance + (A G)(A G)^T (a white noise model: the solver's sigma)")
-    source = ("measured at rest: the Allan deviation at 1 s times sqrt(1 s / step), per sample "
-              "(casep.checks.tracking_quality.rest_white_std)" if at_rest else
-              "measured on the record: the scatter of second differences of consecutive samples (MAD / sqrt 6), "
-              "per sample")
-    return {"source": source,
+    record = ("the least over difference orders 2-6 of the scatter of the k-th differences of consecutive samples "
+              "over its noise gain (MAD / sqrt C(2k, k)), per sample (casep.checks.tracking_quality.white_sample_std)")
+    if at_rest:
+        source = ("measured at rest: the Allan deviation at 1 s times sqrt(1 s / step), per sample "
+                  "(casep.checks.tracking_quality.rest_white_std)")
+    elif on_pad:
+        a, b = origin["pad_span"]
+        source = (f"measured at rest on the pad {a:.6g}..{b:.6g} s for {', '.join(on_pad)} (where the record's own "
+                  "figure is above the pad's beyond their sampling errors: the record counts motion; "
+                  "casep.checks.tracking_quality.pad_white_std), on the record otherwise: " + record)
+    else:
+        source = "measured on the record: " + record
+    return {"source": source, "on_pad": list(on_pad), "pad_span_s": origin.get("pad_span") if on_pad else None,
             "accelerometer_m_s2": [float(v) for v in s[:3]], "gyro_rad_s": [float(v) for v in s[3:]],
             "not_measured": list(unresolved),
             "sample_step_s": h, "vrw_m_s_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[:3]],
@@ -3202,7 +3243,7 @@ def with_imu_noise_beyond(res: EstimateResult, problem: Any, flight: FlightData,
     (the iterated path's: the tracking noise refitted beside it), the account's ``carried`` True; below it `res` with
     the account (``carried`` False, the widening said). `res` itself when the flight does not hold the IMU's samples
     or the result has no finite covariance or noise model."""
-    from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_noise_effect, imu_sample_noise, unresolved_noise
+    from casep.checks.tracking_quality import imu_noise_effect, imu_sample_noise
 
     C, nd = res.covariance, res.diagnostics.get("noise")
     if C is None or problem.t is None or not isinstance(nd, dict) or "axes" not in nd:
@@ -3227,9 +3268,7 @@ def with_imu_noise_beyond(res: EstimateResult, problem: Any, flight: FlightData,
         if out is not res:
             out.diagnostics["noise"]["imu"].update(said)
         return out
-    at_rest = isinstance(flight.meta, dict) and flight.meta.get(IMU_NOISE_AT_REST) is not None
-    unresolved = () if at_rest else tuple(unresolved_noise(flight, measured[0], measured[2]))
-    account = {**_imu_account(res, measured, np.asarray(C), C_imu, None, at_rest, unresolved), **said}
+    account = {**_imu_account(res, measured, np.asarray(C), C_imu, None, _noise_origin(flight, t, measured)), **said}
     account["rule"] = ("not carried: the velocity and attitude random walks, carried to the estimate with the "
                        "tracking noise as fitted, widen no determined combination's std by more than share")
     return dataclasses.replace(res, diagnostics={**res.diagnostics, "noise": {**nd, "imu": account}})

@@ -261,26 +261,34 @@ def test_separate_states_a_linear_telemetrys_imu_noise(clean, tmp_path, form, no
     assert np.sqrt(np.mean(z_old**2)) > np.sqrt(chi2.ppf(1 - 1e-3, z_old.size) / z_old.size), z_old
 
 
-def test_a_noise_free_telemetry_keeps_its_std_without_the_refit(clean, tmp_path, monkeypatch):
-    """A telemetry navigated from a noise-free IMU (the same 20 Hz boost): the IMU's noise the record shows (its
-    motion's second differences) widens no determined combination by the share, so the std are the fit's, bit for
+#: An IMU noise the record shows (far above its samples' rounding) that widens no determined combination's std by the
+#: share: per sample, rad/s and m/s^2 (20 Hz).
+TINY_GYRO, TINY_ACC = 1e-6, 1e-5
+
+
+def test_a_telemetry_of_tiny_imu_noise_keeps_its_std_without_the_refit(clean, tmp_path, monkeypatch):
+    """A telemetry navigated from an IMU of tiny noise (the same 20 Hz boost, :data:`TINY_GYRO`, :data:`TINY_ACC`):
+    the IMU's noise the record shows widens no determined combination by the share, so the std are the fit's, bit for
     bit, the account says it was below the share, and the full term's REML refit is never run (the added time is
-    the estimators times the IMU noise's columns only)."""
+    the estimators times the IMU noise's columns only). (Noise-free, the record's differences up to the sixth order
+    read its rounding only, and the noise is "not measured"; the second differences alone read the boost's motion
+    as noise, which this test took for the noise below the share.)"""
     from casep.workflows import imu_separate, telemetry_iterate
 
-    res = _separated(clean, tmp_path, 3, "one file", gyro=0.0, acc=0.0)
+    tiny = {"gyro": TINY_GYRO, "acc": TINY_ACC}
+    res = _separated(clean, tmp_path, 3, "one file", **tiny)
     imu = res.diagnostics["noise"]["imu"]
     assert imu["carried"] is False and imu["determined_std_factor_max"] - 1 <= imu["share"], imu
-    assert "not in the std" in "\n".join(_lines(res))
+    assert imu["not_measured"] == [] and "not in the std" in "\n".join(_lines(res))
 
     def refit(*a, **k):
         raise AssertionError("the full term computed below the share")
 
     with monkeypatch.context() as mp:
         mp.setattr(imu_separate, "with_imu_noise", refit)
-        again = _separated(clean, tmp_path, 3, "one file", gyro=0.0, acc=0.0)
+        again = _separated(clean, tmp_path, 3, "one file", **tiny)
         mp.setattr(telemetry_iterate, "with_imu_noise_beyond", lambda res, *a, **k: res)
-        old = _separated(clean, tmp_path, 3, "one file", gyro=0.0, acc=0.0)
+        old = _separated(clean, tmp_path, 3, "one file", **tiny)
     np.testing.assert_array_equal(again.std, res.std)
     np.testing.assert_array_equal(old.std, res.std)
     np.testing.assert_array_equal(old.covariance, res.covariance)
