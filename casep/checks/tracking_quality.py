@@ -743,6 +743,11 @@ def imu_sample_noise(flight: FlightData, t_rows: np.ndarray) -> tuple[np.ndarray
     std of ``fb_x, fb_y, fb_z`` (m/s^2) and ``w_x, w_y, w_z`` (rad/s), ``h`` the sample step (s), ``samples`` the
     telemetry's own samples up to the last epoch of `t_rows`; None when the flight does not hold them.
 
+    ``s`` is ``meta[IMU_NOISE_AT_REST]`` when given; else :func:`white_sample_std` of the samples, per column the
+    pad's figure instead (``meta[IMU_NOISE_PAD]``, :func:`pad_white_std`, which ``casep separate --imu`` measures
+    on its pad window) where the record's is above it beyond their sampling errors (:func:`_with_pad`: the record
+    counts motion).
+
     A flight holds them when its velocity is a navigated telemetry's, ``v_tel``, integrated from its ``q, fb, w``
     (so it carries their noise): a telemetry paired with a tracking file (:func:`casep.io.pair.pair_flight`), or one
     file with ``v_tel_*`` and ``v_trk_*`` (:func:`casep.io.files.read_flight`: every row a telemetry sample). Not a
@@ -937,11 +942,12 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray
     ``fb_*``, ``w_*`` at its rows).
 
     The noise is the error model's own sensor error taken as white: per axis, a per-sample std ``s`` measured as
-    the scatter of the second differences of consecutive telemetry samples (MAD over sqrt 6: a motion linear over
-    three samples leaves none; first differences kept the motion's slope, and a noise-free 25 Hz record of a
-    rolling flight read as 0.015 rad/s of gyro noise, 3.6e-4 rad/s with second differences; a 100 Hz boost with
-    1e-4 rad/s, 2e-3 m/s^2 of noise read as 1.1-1.3e-4 and 2.0-2.6e-3 from first differences, 1.01e-4 and
-    2.03-2.10e-3 from second), at the sample step ``h``. Over a block ``j`` of :data:`IMU_NOISE_BLOCK_S` (``n_j``
+    the scatter of the differences of consecutive telemetry samples, the least over orders 2-6 of each order's
+    scatter over its noise gain (:func:`white_sample_std`; first differences kept the motion's slope, and a
+    noise-free 25 Hz record of a rolling flight read as 0.015 rad/s of gyro noise, 3.6e-4 rad/s with second
+    differences; a 100 Hz boost with 1e-4 rad/s, 2e-3 m/s^2 of noise read as 1.1-1.3e-4 and 2.0-2.6e-3 from first
+    differences, 1.01e-4 and 2.03-2.10e-3 from second), or the pad's figure where the record's counts motion
+    (:func:`imu_sample_noise`), at the sample step ``h``. Over a block ``j`` of :data:`IMU_NOISE_BLOCK_S` (``n_j``
     samples, mean attitude ``C_j``) it is a constant error of std ``s h sqrt(n_j)`` integrated, so after the block,
     with ``phidot = -C delta_w`` and ``dv_dot = C delta_f + f x phi``::
 

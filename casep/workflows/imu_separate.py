@@ -97,7 +97,7 @@ boost under ``strapdown33``: corrections of 1e9 declared magnitudes and stated c
 before). The std that leave a combination out are the ones its left-out correction is judged by
 (:func:`_outside_failure`) and the stop rule reads: the tracking's (the record's IMU noise is the same in every pass;
 a combination the tracking determines to 0.009 declared magnitudes is never left out because the record's noise,
-measured on a moving telemetry's second differences, puts its std at 1); the stated combinations' std carry the
+measured on a moving telemetry's differences, puts its std at 1); the stated combinations' std carry the
 record's own noise as the coefficients' do (:func:`combination_imu_noise`).
 
 Far from convergence the passes are solved by OLS under white noise, then as requested; once every
