@@ -456,7 +456,7 @@ def test_a_noise_the_samples_do_not_show_is_not_measured():
     per-sample std at its values' rounding (the second differences at rest are zero, the MAD takes them): every column
     is said not measured, beside its noisy twin (2e-3 m/s^2, 1e-4 rad/s: none), and the report says so instead of
     "measured on the record"; one column quantised beside white noise it does not hide is measured."""
-    from casep.checks.tracking_quality import imu_sample_noise, unresolved_noise
+    from casep.checks.tracking_quality import IMU_NOISE_COLUMNS, imu_sample_noise, unresolved_noise
     from casep.io.flight import FlightData
     from casep.reporting.noise_text import imu_noise_line
 
@@ -487,6 +487,11 @@ def test_a_noise_the_samples_do_not_show_is_not_measured():
     assert line.startswith("IMU noise not measured") and "measured on the record" not in line, line
     line = imu_noise_line({**account, "not_measured": ["w_x"]})
     assert "not measured on w_x" in line, line
+    pad = {**account, "on_pad": ["w_x", "w_y", "w_z"], "pad_span_s": (0.0, 29.0), "not_measured": []}
+    line = imu_noise_line(pad)
+    assert line.startswith("IMU noise (measured at rest on the pad 0..29 s for w_x, w_y, w_z, on the record else"), line
+    line = imu_noise_line({**pad, "on_pad": list(IMU_NOISE_COLUMNS), "not_measured": unseen})
+    assert line.startswith("IMU noise not measured (looked for at rest on the pad 0..29 s)"), line
 
 
 @pytest.mark.parametrize("levelled", [False, True])

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from test_imu_separate import ALIGN, MODEL, RATE, SITE, TRK_RATE, clean_record, heading_of_x
 
+from casep.checks.tracking_quality import IMU_NOISE_PAD, pad_white_std
 from casep.estimators.spec import FitSpec
 from casep.io.files import write_table
 from casep.navigation import ImuData, check_imu, navigate
@@ -87,7 +88,7 @@ def draws(clean, tmp_path_factory, budgets):
         return [one_pass(*noisy_imu_flight(d, clean, seed)) for seed in (1, 2)]
 
 
-def test_the_std_hold_the_imus_white_noise(draws):
+def test_the_std_hold_the_imus_white_noise(draws, budgets, clean):
     """30 z = estimate / std (truth 0) of two draws: RMS within 0.5-1.52 (the 15 z of one draw are correlated:
     wider than the 0.62-1.41 of 30 independent unit normals at 0.1 % each side); with the tracking noise alone
     (the std without the IMU's part, today's main) it is above 1.6 (12 draws: 1.97, coverage 0.63; with the
@@ -102,6 +103,16 @@ def test_the_std_hold_the_imus_white_noise(draws):
         gyro = np.array(imu["gyro_rad_s"]) / GYRO_NOISE  # the roll ramp's steps add to the scatter of x
         assert np.all((gyro > 0.85) & (gyro < 1.5)), gyro
         assert "IMU noise (measured on the record" in "\n".join(_lines(res)) and imu["not_measured"] == []
+        assert imu["on_pad"] == []  # the pad's figure (measured, below) agrees with the record's: the record's kept
+    for (_, _, flight, _), seed in zip(budgets, (1, 2)):  # the pad's figure: pad_white_std of the pad's raw samples
+        t, w, f, _ = clean
+        rng = np.random.default_rng(seed)  # the draws of noisy_imu_flight
+        wn, fn = w + GYRO_NOISE * rng.standard_normal(w.shape), f + ACC_NOISE * rng.standard_normal(f.shape)
+        on = (t >= ALIGN[0]) & (t <= ALIGN[1])
+        pad = flight.meta[IMU_NOISE_PAD]
+        assert pad["span"] == pytest.approx(ALIGN)
+        np.testing.assert_allclose(pad["std"], pad_white_std(np.column_stack([fn[on], wn[on]]), 1.0 / RATE)[0],
+                                   rtol=1e-6)
     rms = float(np.sqrt(np.mean(np.concatenate(z) ** 2)))
     rms_trk = float(np.sqrt(np.mean(np.concatenate(z_trk) ** 2)))
     assert 0.5 <= rms <= 1.52, (rms, rms_trk)
