@@ -785,7 +785,7 @@ def imu_noise_on_pad(flight: FlightData, t_rows: np.ndarray) -> list[str]:
     motion (:func:`_with_pad`); none without a pad's figure or with a figure given at rest."""
     meta = flight.meta if isinstance(flight.meta, dict) else {}
     pad = meta.get(IMU_NOISE_PAD)
-    if pad is None or meta.get(IMU_NOISE_AT_REST) is not None:
+    if not pad or meta.get(IMU_NOISE_AT_REST) is not None:
         return []
     got = imu_sample_noise(flight, t_rows)
     if got is None:
@@ -798,10 +798,11 @@ def _with_pad(record: np.ndarray, n: int, pad: dict | None) -> tuple[np.ndarray,
     """``(s, from the pad (6,) bool)``: per column the record's figure `record` (:func:`white_sample_std` of its `n`
     samples), or the pad's (``{"std", "rel_error"}``, :func:`pad_white_std`) where that is below the record's by
     more than :data:`NOISE_SWITCH_SIGMAS` of the two figures' relative sampling errors combined: there the record
-    counts motion the pad does not have (a smooth motion's differences fall with their order, the record's rises
-    above the pad's only through motion or a noise that changed in flight, a vibration the IMU measures
-    correctly among them); elsewhere the record's, from more samples."""
-    if pad is None:
+    counts motion the pad does not have (a smooth motion's differences fall with their order, so the record's rises
+    above the pad's through a motion rough up to the Nyquist frequency, a vibration the IMU measures correctly among
+    them, or through a noise that grew in flight: the differences cannot tell the two apart, and a sensor whose own
+    noise grows under vibration is then understated by the ratio); elsewhere the record's, from more samples."""
+    if not pad:
         return record, np.zeros(record.shape, dtype=bool)
     s_pad, e_pad = np.asarray(pad["std"], dtype=float), np.asarray(pad["rel_error"], dtype=float)
     e = np.hypot(e_pad, white_std_error(n))
