@@ -289,6 +289,7 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
         sc = dataclasses.replace(sc, model=sc.model if model is None else os.fspath(model),
                                  truth=sc.truth if truth is None else dict(truth))
     time_offset, lever = _check_tracking(time_offset, lever_arm)
+    every = tracking_step(sc.with_rate(rate).rate, tracking_rate)  # before the flight is flown
     if model is not None and truth is None:  # the scenario's truth is for its own model: say so when it does not fit
         names = load_model(sc.model).names
         other = [n for n in sc.truth if n not in names]
@@ -299,7 +300,6 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
                              "coefficients of this model (--truth FILE, truth=)")
     sc, traj, error_model, true_D = scenario_setup(sc, rate, rotating_earth=rotating_earth, site=site,
                                                    trajectory=trajectory)
-    every = tracking_step(sc.rate, tracking_rate)
     rng = np.random.default_rng(seed)
     if sc.roll is not None and time_offset and np.any(lever):  # the rolled attitude is known at the samples only
         raise ValueError("a strapdown scenario takes a tracking time offset or a lever arm, not both")
