@@ -14,7 +14,9 @@ finds, on a telemetry + tracking pair formed at the tracking times:
   than :data:`STALE_POSITION` plus :data:`STALE_MOTION` times the time since the fix (a cruising vehicle's repeated
   fix is metres off before its velocity is 0.5 m/s off). Both in one frame (:func:`casep.io.pair.stale_epochs`).
   The fix itself is kept (it was right at its time); its repeats are left out. On the pad a repeated fix of a
-  vehicle at rest is kept (a receiver's static hold: zero Earth-fixed velocity, one position).
+  vehicle at rest is kept (a receiver's static hold: zero Earth-fixed velocity, one position), and inside the
+  window the navigation was levelled over (:func:`rest_window`) a repeat is a fix: the vehicle stands there by the
+  levelling's premise while the first pass's INS, not yet corrected, drifts.
 - **impossible jumps** (the physics check): between consecutive remaining epochs, ``|d(dv)|`` above
   ``JUMP_TOL + JUMP_RATE dt`` (10 m/s, plus 2 m/s^2 = 200 mg of instrument error acceleration per
   second between them) is a tracking velocity change the IMU rules out. The epochs are cut into
@@ -75,8 +77,8 @@ from casep.regression.rows import GLITCH_GROSS
 if TYPE_CHECKING:
     from casep.regression.problem import Problem
 
-__all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "keep_screen", "clock_drift", "clock_drift_unmeasured",
-           "fit_clock_drift", "clock_drift_record",
+__all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "rest_window", "keep_screen", "clock_drift",
+           "clock_drift_unmeasured", "fit_clock_drift", "clock_drift_record",
            "offset_halves", "halves_line", "telemetry_clock_line",
            "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
@@ -232,7 +234,15 @@ def _stale(flight: FlightData, idx: np.ndarray, V: np.ndarray) -> np.ndarray:
     if "tracking_frozen" in meta and "tracking_position_gap" in meta:
         frozen = np.isin(rows, np.asarray(meta["tracking_frozen"], dtype=int))
         gap = np.asarray(meta["tracking_position_gap"], dtype=float)[rows]
-    return stale_epochs(flight.t[idx], V[idx], flight.dv[idx], is_rep, frozen, gap)
+    return stale_epochs(flight.t[idx], V[idx], flight.dv[idx], is_rep, frozen, gap, rest_window(meta))
+
+
+def rest_window(meta: dict) -> list[float] | None:
+    """Where the vehicle stood by the navigation's premise, ``[T1, T2]`` s of the flight's time: the window an IMU was
+    levelled over (``meta["rest_window_s"]``, :mod:`casep.workflows.imu_separate`'s ``--align``) or the one a
+    navigated telemetry's header names (``meta["levelled"]["window"]``); None when neither."""
+    window = meta.get("rest_window_s") or (meta.get("levelled") or {}).get("window")
+    return None if window is None else [float(window[0]), float(window[1])]
 
 
 def _impossible(t: np.ndarray, dv: np.ndarray, start: float | None = None) -> tuple[np.ndarray, float]:

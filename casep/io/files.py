@@ -301,7 +301,9 @@ def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray
         repeated[repeats] = True
         if frozen is not None:
             held[frozen] = True
-        fresh = fresh_epochs(t_tel, v_tel, t_trk, v_trk, repeated, held, r_trk)
+        levelled = levelling_record(tel)  # the telemetry at rest there: a repeat is a fix
+        fresh = fresh_epochs(t_tel, v_tel, t_trk, v_trk, repeated, held, r_trk,
+                             None if levelled is None else levelled["window"])
         stale = int((~fresh).sum())
         try:
             align = coarse_time_offset(t_tel, v_tel, t_trk[fresh], v_trk[fresh],

@@ -123,12 +123,14 @@ JUMP_RATE = 2.0
 
 
 def stale_epochs(t: np.ndarray, V: np.ndarray, dv: np.ndarray, repeated: np.ndarray,
-                 frozen: np.ndarray | None = None, gap: np.ndarray | None = None) -> np.ndarray:
+                 frozen: np.ndarray | None = None, gap: np.ndarray | None = None,
+                 rest: tuple[float, float] | list[float] | None = None) -> np.ndarray:
     """The stale tracking epochs (:mod:`casep.checks.tracking_quality`'s notes), (N,) bool: the repeats of a fix
     (`repeated`, the epochs whose file row repeats the previous one's velocity, :func:`repeated_rows`) while the
     telemetry moved by more than :data:`STALE_MOTION` since the fix, the repeats of a position (`frozen`, the epochs
     whose file row repeats the previous one's position) while the telemetry moved from it by more than
-    :data:`STALE_POSITION` plus :data:`STALE_MOTION` times the time since the fix, and the epochs of a velocity held
+    :data:`STALE_POSITION` plus :data:`STALE_MOTION` times the time since the fix (beyond the telemetry's own
+    velocity error at the fix, `dv` there, carried on), and the epochs of a velocity held
     with a jitter (:func:`held_epochs`). `t`: the epochs' times (s), `V`: the telemetry's velocity change there (m/s,
     any constant), `dv`: ``v_tel - v_trk`` there (m/s), `gap`: the telemetry's position less the tracking's there
     (m, any constant, :func:`position_gap`; NaN: not judged).
@@ -136,25 +138,33 @@ def stale_epochs(t: np.ndarray, V: np.ndarray, dv: np.ndarray, repeated: np.ndar
     Telemetry and tracking are compared in one frame: the velocity moved is the change of `dv` (the tracking turned
     into the telemetry's frame at each epoch's own time, :func:`casep.frames.ecef_to_launch`), not of `V`: a repeated
     Earth-fixed fix of a vehicle at rest is carried by the Earth's rotation as the telemetry is (0.02 m/s^2 in the
-    launch-inertial frame at 51 deg), and a frozen position likewise. The one rule of the screen
+    launch-inertial frame at 51 deg), and a frozen position likewise. `rest` ``(T1, T2)``, s: where the vehicle is
+    at rest by the navigation's own premise (the window it was levelled over, ``--align``): a repeat there is right
+    and is a fix the later repeats are judged from (an INS not yet corrected, a first pass, drifts over a long pad
+    while the vehicle stands: 1.45 m/s in 60 s with a tactical IMU). The one rule of the screen
     (:func:`casep.checks.tracking_quality.screen_tracking`) and of the coarse time alignment
     (:func:`casep.io.align.fresh_epochs`)."""
-    out = _departed(t, dv, repeated, STALE_MOTION, 0.0) | held_epochs(t, V, dv)
+    moving = np.ones(t.size, bool) if rest is None else ~((t >= rest[0]) & (t <= rest[1]))
+    out = _departed(t, dv, np.asarray(repeated, bool) & moving, STALE_MOTION, 0.0) | held_epochs(t, V, dv)
     if frozen is not None and gap is not None:
-        out |= _departed(t, gap, frozen, STALE_POSITION, STALE_MOTION)
+        out |= _departed(t, gap, np.asarray(frozen, bool) & moving, STALE_POSITION, STALE_MOTION, dv)
     return out
 
 
-def _departed(t: np.ndarray, x: np.ndarray, repeated: np.ndarray, limit: float, rate: float) -> np.ndarray:
+def _departed(t: np.ndarray, x: np.ndarray, repeated: np.ndarray, limit: float, rate: float,
+              slope: np.ndarray | None = None) -> np.ndarray:
     """The `repeated` epochs (the first epoch never is) at which `x` (N, k) moved from its value at the fix they
     repeat (the last epoch before them not repeated) by more than ``limit + rate (t - t_fix)``: :func:`stale_epochs`'
-    rule for a velocity and for a position."""
+    rule for a velocity and for a position. `slope` (N, k): `x` is expected to go on from the fix at ``slope`` there
+    (a position gap at the velocity gap ``dv`` of the fix: the telemetry's own velocity error then, which a vehicle
+    at rest under a held fix shows as well as a moving one)."""
     is_rep = np.asarray(repeated, bool).copy()
     if is_rep.size:
         is_rep[0] = False
     anchor = np.maximum.accumulate(np.where(~is_rep, np.arange(is_rep.size), 0))  # the fix each epoch repeats
-    moved = np.linalg.norm(x - x[anchor], axis=1)
-    return is_rep & (moved > limit + rate * (t - t[anchor]))
+    since = t - t[anchor]
+    moved = np.linalg.norm(x - x[anchor] - (0.0 if slope is None else slope[anchor] * since[:, None]), axis=1)
+    return is_rep & (moved > limit + rate * since)
 
 
 def position_gap(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, r_trk: np.ndarray) -> np.ndarray:

@@ -559,6 +559,7 @@ class _Run:
             warnings.filterwarnings("ignore", category=SaturationWarning)
             flight = read_flight_pair(tel, self.tracking, **self.pair)
         flight.meta["saturation"] = _imu_saturation(self.imu)
+        flight.meta["rest_window_s"] = [float(self.window[0]), float(self.window[1])]  # levelled there: at rest
         if self.clock_ppm:  # out of the IMU's own tags and steps (separate_imu), not the tracking's
             flight.meta["clock_drift_ppm"], flight.meta["clock_drift_of"] = self.clock_ppm, "imu"
         if self.heading_said is not None:  # found on the first pass's screened epochs (heading_check)

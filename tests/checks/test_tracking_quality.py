@@ -755,12 +755,13 @@ def test_a_repeated_velocity_beside_fresh_positions_is_a_repeat(tmp_path, frame)
     assert frozen == ([] if frame == "launch" else [12, 13, 14])
 
 
-def _earth_fixed_pair(tmp_path, speed: float, frozen: slice | None = None, frame: str = "ecef"):
+def _earth_fixed_pair(tmp_path, speed: float, frozen: slice | None = None, frame: str = "ecef", drift: float = 0.0):
     """A vehicle at 51 deg N at rest on the rotating Earth (`speed` 0) or driving north-east from `speed` m/s over the
     ground, 0.05 m/s^2 faster each second (a straight ECEF line), 40 s: telemetry at 100 Hz (its launch-inertial
     velocity, noise-free), Earth-fixed tracking at 10 Hz, exact (at rest: a receiver's static hold, velocity exactly
     0 and one position), the rows `frozen` repeating the fix before them bit for bit; read as a pair (the set-up of
-    the reviewer's pad: launch time 30 s)."""
+    the reviewer's pad: launch time 30 s). `drift`: the telemetry's velocity error grows by this many m/s per s
+    along x (an INS not yet corrected)."""
     import casep
     from casep.frames import LaunchSite, ecef_to_geodetic, ecef_to_launch
     from casep.io.files import write_table
@@ -774,7 +775,7 @@ def _earth_fixed_pair(tmp_path, speed: float, frozen: slice | None = None, frame
     def truth(t):  # ECEF position and velocity
         return site.r_site + (speed * t + 0.5 * acc * t**2)[:, None] * ne, (speed + acc * t)[:, None] * ne
 
-    v_tel = ecef_to_launch(site, t_tel, *truth(t_tel))[1]
+    v_tel = ecef_to_launch(site, t_tel, *truth(t_tel))[1] + np.outer(drift * t_tel, [1.0, 0.0, 0.0])
     r_e, v_e = truth(t_trk)
     if frozen is not None:
         r_e[frozen], v_e[frozen] = r_e[frozen.start - 1], v_e[frozen.start - 1]
@@ -800,6 +801,19 @@ def test_a_static_hold_on_the_pad_is_not_stale(tmp_path):
     screened = screen_tracking(fl)  # no warning: the suite makes one an error
     assert screened.meta["tracking_screen"]["stale"] == [] and np.array_equal(screened.observed, fl.observed)
     assert "stale_left_out" not in fl.meta["time_alignment"]
+
+
+def test_a_static_hold_inside_the_levelling_window_is_a_fix_however_the_ins_drifts(tmp_path):
+    """The static hold of the pad with an INS not yet corrected (its velocity 0.03 m/s further off each second: a
+    first pass's drift, 1.2 m/s in 40 s): judged against the first fix, the drift reads as motion (0.5 m/s after
+    17 s); where the navigation was levelled (the vehicle at rest by its premise: rest_window_s, the --align window
+    0..39 s) every repeat is a fix, so only the epochs after it are judged, from the fix at 39 s: all kept."""
+    fl = _earth_fixed_pair(tmp_path, 0.0, drift=0.03)
+    with pytest.warns(TrackingQualityWarning, match=r"stale tracking epochs .* t = 16\.\d\.\.40 s"):
+        screen_tracking(fl)
+    at_rest = dataclasses.replace(fl, meta={**fl.meta, "rest_window_s": [0.0, 39.0]})
+    screened = screen_tracking(at_rest)  # no warning: the suite makes one an error
+    assert screened.meta["tracking_screen"]["stale"] == [] and np.array_equal(screened.observed, fl.observed)
 
 
 @pytest.mark.parametrize("frame", ["ecef", "geodetic"])
