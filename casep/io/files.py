@@ -297,12 +297,12 @@ def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray
     align, stale = None, 0
     if time_offset is None or time_offset == "auto":
         # on the epochs the fit uses: a held (stale) velocity lags the vehicle and would read as late tags
-        repeated, held = np.zeros(t_trk.size, bool), np.zeros(t_trk.size, bool)
+        repeated, still = np.zeros(t_trk.size, bool), np.zeros(t_trk.size, bool)  # velocity, position repeated
         repeated[repeats] = True
         if frozen is not None:
-            held[frozen] = True
+            still[frozen] = True
         levelled = levelling_record(tel)  # the telemetry at rest there: a repeat is a fix
-        fresh = fresh_epochs(t_tel, v_tel, t_trk, v_trk, repeated, held, r_trk,
+        fresh = fresh_epochs(t_tel, v_tel, t_trk, v_trk, repeated, still, r_trk,
                              None if levelled is None else levelled["window"])
         stale = int((~fresh).sum())
         try:
