@@ -9,8 +9,14 @@ finds, on a telemetry + tracking pair formed at the tracking times:
 
 - **stale epochs**: a row whose velocity repeats the previous row's exactly (a repeated fix, or a velocity held
   while the positions go on; ``meta["tracking_repeats"]``, :func:`casep.io.pair.repeated_rows`) while the
-  telemetry moved by more than :data:`STALE_MOTION` since the fix it repeats. The fix itself is kept (it was
-  right at its time); its repeats are left out. On the pad a repeated fix of a vehicle at rest is kept.
+  telemetry moved by more than :data:`STALE_MOTION` since the fix it repeats, and an Earth-fixed file's row whose
+  position repeats the previous row's (``meta["tracking_frozen"]``) while the telemetry moved away from it by more
+  than :data:`STALE_POSITION` plus :data:`STALE_MOTION` times the time since the fix (a cruising vehicle's repeated
+  fix is metres off before its velocity is 0.5 m/s off). Both in one frame (:func:`casep.io.pair.stale_epochs`).
+  The fix itself is kept (it was right at its time); its repeats are left out. On the pad a repeated fix of a
+  vehicle at rest is kept (a receiver's static hold: zero Earth-fixed velocity, one position), and inside the
+  window the navigation was levelled over (:func:`rest_window`) a repeat is a fix: the vehicle stands there by the
+  levelling's premise while the first pass's INS, not yet corrected, drifts.
 - **impossible jumps** (the physics check): between consecutive remaining epochs, ``|d(dv)|`` above
   ``JUMP_TOL + JUMP_RATE dt`` (10 m/s, plus 2 m/s^2 = 200 mg of instrument error acceleration per
   second between them) is a tracking velocity change the IMU rules out. The epochs are cut into
@@ -62,7 +68,7 @@ from casep.checks.time_offset import kinematic_acceleration
 from casep.exceptions import TrackingQualityWarning
 from casep.io.files import ONE_FILE_TELEMETRY
 from casep.io.flight import FlightData
-from casep.io.pair import HELD_RUN_SHARE, HELD_SHARE, JUMP_RATE, STALE_MOTION, stale_epochs
+from casep.io.pair import HELD_RUN_SHARE, HELD_SHARE, JUMP_RATE, STALE_MOTION, STALE_POSITION, stale_epochs
 from casep.noise.model import whiten_blocks
 from casep.noise.robust import MAD_SIGMA, MIN_SEGMENT_S, stretches
 from casep.regression.linalg import analyze_rank, reduce_qr_blocks
@@ -71,8 +77,8 @@ from casep.regression.rows import GLITCH_GROSS
 if TYPE_CHECKING:
     from casep.regression.problem import Problem
 
-__all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "keep_screen", "clock_drift", "clock_drift_unmeasured",
-           "fit_clock_drift", "clock_drift_record",
+__all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "rest_window", "keep_screen", "clock_drift",
+           "clock_drift_unmeasured", "fit_clock_drift", "clock_drift_record",
            "offset_halves", "halves_line", "telemetry_clock_line",
            "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
@@ -80,8 +86,8 @@ __all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "keep_screen", "
            "imu_bias_effect", "IMU_INSTABILITY_TAU",
            "rest_white_std", "IMU_NOISE_AT_REST", "pad_white_std", "IMU_NOISE_PAD", "imu_noise_on_pad",
            "white_std_error", "allan_white_error", "NOISE_DIFF_ORDERS", "WHITE_STD_ERROR", "NOISE_SWITCH_SIGMAS",
-           "STALE_MOTION", "HELD_SHARE", "HELD_RUN_SHARE", "JUMP_TOL", "JUMP_RATE", "EXCURSION_SIGMAS",
-           "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
+           "STALE_MOTION", "STALE_POSITION", "HELD_SHARE", "HELD_RUN_SHARE", "JUMP_TOL", "JUMP_RATE",
+           "EXCURSION_SIGMAS", "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
 
 #: The physics check: a jump of dv between consecutive epochs above JUMP_TOL + JUMP_RATE dt (m/s, m/s^2) ...
 JUMP_TOL = 10.0
@@ -219,10 +225,25 @@ def _file_rows(flight: FlightData) -> np.ndarray:
 
 
 def _stale(flight: FlightData, idx: np.ndarray, V: np.ndarray) -> np.ndarray:
-    """Of the observed epochs `idx`: :func:`stale_epochs` (the file's repeated rows ``meta["tracking_repeats"]``)."""
+    """Of the observed epochs `idx`: :func:`stale_epochs` (the file's repeated rows ``meta["tracking_repeats"]``; an
+    Earth-fixed pair's rows of a repeated position ``meta["tracking_frozen"]`` and the telemetry's position less the
+    tracking's per row, ``meta["tracking_position_gap"]``, :func:`casep.io.pair.position_gap`)."""
+    meta = flight.meta
     rows = _file_rows(flight)[idx]
-    is_rep = np.isin(rows, np.asarray(flight.meta.get("tracking_repeats", []), dtype=int))
-    return stale_epochs(flight.t[idx], V[idx], flight.dv[idx], is_rep)
+    is_rep = np.isin(rows, np.asarray(meta.get("tracking_repeats", []), dtype=int))
+    frozen = gap = None
+    if "tracking_frozen" in meta and "tracking_position_gap" in meta:
+        frozen = np.isin(rows, np.asarray(meta["tracking_frozen"], dtype=int))
+        gap = np.asarray(meta["tracking_position_gap"], dtype=float)[rows]
+    return stale_epochs(flight.t[idx], V[idx], flight.dv[idx], is_rep, frozen, gap, rest_window(meta))
+
+
+def rest_window(meta: dict) -> list[float] | None:
+    """Where the vehicle stood by the navigation's premise, ``[T1, T2]`` s of the flight's time: the window an IMU was
+    levelled over (``meta["rest_window_s"]``, :mod:`casep.workflows.imu_separate`'s ``--align``) or the one a
+    navigated telemetry's header names (``meta["levelled"]["window"]``); None when neither."""
+    window = meta.get("rest_window_s") or (meta.get("levelled") or {}).get("window")
+    return None if window is None else [float(window[0]), float(window[1])]
 
 
 def _impossible(t: np.ndarray, dv: np.ndarray, start: float | None = None) -> tuple[np.ndarray, float]:
@@ -699,7 +720,9 @@ def _warn(source: str, s: TrackingScreen, stale: str, rejected: str, drift: bool
         warnings.warn(TrackingQualityWarning(
             f"{source}: {n} stale tracking epochs (a fix or its velocity repeated, or held within "
             f"{HELD_SHARE:g} of the telemetry's change, while the telemetry moved by more than {STALE_MOTION:g} m/s "
-            f"since it) left out, in {len(s.stale)} span(s): {stale}"), stacklevel=3)
+            f"since it, or a position repeated while the telemetry moved away from it by more than "
+            f"{STALE_POSITION:g} m + {STALE_MOTION:g} m/s x the time since it) left out, in {len(s.stale)} span(s): "
+            f"{stale}"), stacklevel=3)
     if s.rejected:
         n = _span_epochs(s.rejected)
         warnings.warn(TrackingQualityWarning(

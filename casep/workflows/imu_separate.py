@@ -579,6 +579,7 @@ class _Run:
             self._pad_noise = _pad_noise(self.imu, self.window)
         if self._pad_noise:  # the IMU's noise on the pad declared at rest, where the record's counts motion
             flight.meta[IMU_NOISE_PAD] = self._pad_noise
+        flight.meta["rest_window_s"] = [float(self.window[0]), float(self.window[1])]  # levelled there: at rest
         if self.clock_ppm:  # out of the IMU's own tags and steps (separate_imu), not the tracking's
             flight.meta["clock_drift_ppm"], flight.meta["clock_drift_of"] = self.clock_ppm, "imu"
         if self.heading_said is not None:  # found on the first pass's screened epochs (heading_check)

@@ -862,6 +862,84 @@ def test_a_repeated_velocity_beside_fresh_positions_is_a_repeat(tmp_path, frame)
     table = {"t": t, **{c: pos[:, i] for i, c in enumerate(cols[0])}, **{c: vel[:, i] for i, c in enumerate(cols[1])}}
     write_table(tmp_path / "trk.csv", table)
     assert repeated_rows(Table(tmp_path / "trk.csv"), frame).tolist() == [5, 6, 7, 8]
+    # the held position's rows are the file's frozen positions (judged by their own rule), a launch file has none
+    frozen = repeated_rows(Table(tmp_path / "trk.csv"), frame, part="position").tolist()
+    assert frozen == ([] if frame == "launch" else [12, 13, 14])
+
+
+def _earth_fixed_pair(tmp_path, speed: float, frozen: slice | None = None, frame: str = "ecef", drift: float = 0.0):
+    """A vehicle at 51 deg N at rest on the rotating Earth (`speed` 0) or driving north-east from `speed` m/s over the
+    ground, 0.05 m/s^2 faster each second (a straight ECEF line), 40 s: telemetry at 100 Hz (its launch-inertial
+    velocity, noise-free), Earth-fixed tracking at 10 Hz, exact (at rest: a receiver's static hold, velocity exactly
+    0 and one position), the rows `frozen` repeating the fix before them bit for bit; read as a pair (the set-up of
+    the reviewer's pad: launch time 30 s). `drift`: the telemetry's velocity error grows by this many m/s per s
+    along x (an INS not yet corrected)."""
+    import casep
+    from casep.frames import LaunchSite, ecef_to_geodetic, ecef_to_launch
+    from casep.io.files import write_table
+
+    site = LaunchSite(51.0, 0.0, 10.0, 0.0, 30.0)
+    lat = np.radians(site.lat_deg)
+    ne = np.array([-np.sin(lat), 1.0, np.cos(lat)]) / np.sqrt(2.0)  # north + east at longitude 0, unit
+    t_tel, t_trk = np.arange(0.0, 40.0 + 1e-9, 0.01), np.arange(0.0, 40.0 + 1e-9, 0.1)
+    acc = 0.05 if speed else 0.0  # m/s^2 along the track: no two fresh velocities alike
+
+    def truth(t):  # ECEF position and velocity
+        return site.r_site + (speed * t + 0.5 * acc * t**2)[:, None] * ne, (speed + acc * t)[:, None] * ne
+
+    v_tel = ecef_to_launch(site, t_tel, *truth(t_tel))[1] + np.outer(drift * t_tel, [1.0, 0.0, 0.0])
+    r_e, v_e = truth(t_trk)
+    if frozen is not None:
+        r_e[frozen], v_e[frozen] = r_e[frozen.start - 1], v_e[frozen.start - 1]
+    a = np.gradient(v_tel, t_tel, axis=0)
+    write_table(tmp_path / "tel.csv", {"t": t_tel, **{f"f_{c}": a[:, i] for i, c in enumerate("xyz")},
+                                       **{f"v_tel_{c}": v_tel[:, i] for i, c in enumerate("xyz")}})
+    if frame == "ecef":
+        trk = {f"r_ecef_{c}": r_e[:, i] for i, c in enumerate("xyz")} | {
+            f"v_ecef_{c}": v_e[:, i] for i, c in enumerate("xyz")}
+    else:
+        trk = dict(zip(("lat", "lon", "h", "v_east", "v_north", "v_up"), ecef_to_geodetic(r_e, v_e)))
+    write_table(tmp_path / "trk.csv", {"t": t_trk, **trk})
+    return casep.read_flight_pair(tmp_path / "tel.csv", tmp_path / "trk.csv", tracking_frame=frame, site=site)
+
+
+def test_a_static_hold_on_the_pad_is_not_stale(tmp_path):
+    """A receiver at rest on the pad holding its fix (Earth-fixed velocity exactly 0, one position, 400 repeats over
+    40 s): the Earth's rotation carries pad and telemetry alike (0.02 m/s^2 in the launch-inertial frame at 51 deg,
+    the 0.5 m/s of the velocity rule reached after 24 s when Earth-fixed tracking was compared with the inertial
+    telemetry): every epoch kept, none left out of the time alignment either, nothing said."""
+    fl = _earth_fixed_pair(tmp_path, 0.0)
+    assert len(fl.meta["tracking_repeats"]) == len(fl.meta["tracking_frozen"]) == 400
+    screened = screen_tracking(fl)  # no warning: the suite makes one an error
+    assert screened.meta["tracking_screen"]["stale"] == [] and np.array_equal(screened.observed, fl.observed)
+    assert "stale_left_out" not in fl.meta["time_alignment"]
+
+
+def test_a_static_hold_inside_the_levelling_window_is_a_fix_however_the_ins_drifts(tmp_path):
+    """The static hold of the pad with an INS not yet corrected (its velocity 0.03 m/s further off each second: a
+    first pass's drift, 1.2 m/s in 40 s): judged against the first fix, the drift reads as motion (0.5 m/s after
+    17 s); where the navigation was levelled (the vehicle at rest by its premise: rest_window_s, the --align window
+    0..39 s) every repeat is a fix, so only the epochs after it are judged, from the fix at 39 s: all kept."""
+    fl = _earth_fixed_pair(tmp_path, 0.0, drift=0.03)
+    with pytest.warns(TrackingQualityWarning, match=r"stale tracking epochs .* t = 16\.\d\.\.40 s"):
+        screen_tracking(fl)
+    at_rest = dataclasses.replace(fl, meta={**fl.meta, "rest_window_s": [0.0, 39.0]})
+    screened = screen_tracking(at_rest)  # no warning: the suite makes one an error
+    assert screened.meta["tracking_screen"]["stale"] == [] and np.array_equal(screened.observed, fl.observed)
+
+
+@pytest.mark.parametrize("frame", ["ecef", "geodetic"])
+def test_a_frozen_position_is_stale_from_its_first_repeat(tmp_path, frame):
+    """A receiver at 21 m/s over the ground repeating its fix of t = 20 s bit for bit (position and velocity) over
+    t = 20.1 .. 23 s: the velocity barely changes (the velocity rule's 0.5 m/s is not reached in the 3 s), but the
+    position is 2 m behind the vehicle at the first repeat (beyond 1 m + 0.5 m/s x 0.1 s): all 30 repeats left out
+    and listed, the fix itself kept, and the time alignment judges the same epochs."""
+    fl = _earth_fixed_pair(tmp_path, 20.0, frozen=slice(201, 231), frame=frame)
+    stale = r"30 stale tracking epochs .* in 1 span\(s\): lines 203\.\.232 of trk\.csv, t = 20\.1\.\.23 s \(30\)"
+    with pytest.warns(TrackingQualityWarning, match=stale):
+        screened = screen_tracking(fl)
+    assert screened.meta["tracking_screen"]["left_out_rows"] == list(range(201, 231))
+    assert fl.meta["time_alignment"]["stale_left_out"] == 30
 
 
 def _turning_record(rng):
