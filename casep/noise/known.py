@@ -297,9 +297,10 @@ def pool_parts(records, weights=None, *, xatol: float = 0.1, step: float = 0.7) 
     The search is in ``ln q_i`` within :data:`PART_RANGE` of the records' starts (their geometric mean, per unit
     weight); below the range a part is 0. It scans each part in turn over :data:`PART_GRID` points (the others at the
     best found so far), then runs the simplex to `xatol`. Each part's 95 % interval is where ``-2 l_R`` rises by
-    :data:`POOL_LEVEL` from its best along that part (steps of `step` in ``ln q``, then linear between the last
-    two), the other parts held at their best: with one part the profile-likelihood interval; with several, the
-    conditional one (no wider than the profile's)."""
+    :data:`POOL_LEVEL` from its best along that part (steps in ``ln q`` from `step` on, doubling, up to the search
+    range's end, which counts: within the level there, the interval reaches 0 or has no upper end; the crossing
+    bisected three times, then linear between its two points), the other parts held at their best: with one part
+    the profile-likelihood interval; with several, the conditional one (no wider than the profile's)."""
     from casep.noise.fit import nelder_mead
 
     records = list(records)
@@ -350,22 +351,34 @@ def pool_parts(records, weights=None, *, xatol: float = 0.1, step: float = 0.7) 
     best = value(x)
     interval = []
     for i in range(n):
+        def along(v: float, i: int = i) -> float:  # -2 l_R with part i at ln q = v, the others at their best
+            return value(np.where(np.arange(n) == i, v, x))
+
         ends = []
-        for sign in (-1.0, 1.0):
-            prev, v_prev = float(x[i]), best
-            end = None
+        for sign, bound in ((-1.0, low[i]), (1.0, high[i])):
+            inside, d = float(x[i]), step  # the last point within the level, and the next step (doubling)
             while True:
-                cur = prev + sign * step
-                if (sign < 0 and cur <= low[i]) or (sign > 0 and cur >= high[i]):
-                    end = 0.0 if sign < 0 else np.inf
+                cur = inside + sign * d
+                if sign * (cur - bound) >= 0:
+                    cur = float(bound)
+                if along(cur) - best >= POOL_LEVEL:
                     break
-                v = value(np.where(np.arange(n) == i, cur, x))
-                if v - best >= POOL_LEVEL:
-                    frac = (best + POOL_LEVEL - v_prev) / (v - v_prev) if v != v_prev else 1.0
-                    end = float(np.exp(prev + frac * (cur - prev)))
+                if cur == bound:  # the bound itself within the level: the rows do not bound the part there
                     break
-                prev, v_prev = cur, v
-            ends.append(end)
+                inside, d = cur, 2.0 * d
+            if cur == bound and along(cur) - best < POOL_LEVEL:
+                ends.append(0.0 if sign < 0 else np.inf)
+                continue
+            for _ in range(3):  # bisect the crossing, then linear between the two points left
+                mid = 0.5 * (inside + cur)
+                if along(mid) - best >= POOL_LEVEL:
+                    cur = mid
+                else:
+                    inside = mid
+            v_in, v_out = along(inside), along(cur)
+            frac = (best + POOL_LEVEL - v_in) / (v_out - v_in) if v_out > v_in else 1.0
+            edge = inside + frac * (cur - inside)
+            ends.append(0.0 if edge <= low[i] else float(np.exp(edge)))
         interval.append((ends[0] if x[i] > low[i] else 0.0, ends[1]))
     q = sizes(x)
     return PooledParts(tuple(float(v) for v in q), tuple(interval), best, value(low), tuple(float(v) for v in w),
