@@ -83,7 +83,7 @@ __all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "rest_window", "
            "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
            "imu_noise_effect", "imu_sample_noise", "white_sample_std", "unresolved_noise", "NOISE_RESOLUTION_SHARE",
-           "imu_bias_effect", "IMU_INSTABILITY_TAU",
+           "imu_bias_effect", "IMU_INSTABILITY_TAU", "IMU_INSTABILITY_SIZE", "IMU_REML_ROWS",
            "rest_white_std", "IMU_NOISE_AT_REST", "pad_white_std", "IMU_NOISE_PAD", "imu_noise_on_pad",
            "white_std_error", "allan_white_error", "NOISE_DIFF_ORDERS", "WHITE_STD_ERROR", "NOISE_SWITCH_SIGMAS",
            "STALE_MOTION", "STALE_POSITION", "HELD_SHARE", "HELD_RUN_SHARE", "JUMP_TOL", "JUMP_RATE",
@@ -1044,6 +1044,14 @@ def _seen_blocks(terms: "_ImuBlocks", t_rows: np.ndarray, W: np.ndarray, ga: np.
 #: size the tracking noise's refit beside the IMU's noise then fits (:func:`casep.noise.known.fit_tracking`); absent:
 #: the IMU's noise is white only.
 IMU_INSTABILITY_TAU = "imu_instability_tau_s"
+#: A flight's ``meta`` key: the two variances ``(q_a, q_g)`` ((m/s^2)^2, (rad/s)^2) of the bias instability of
+#: :data:`IMU_INSTABILITY_TAU`, given rather than fitted (a size pooled over a run's windows:
+#: :func:`casep.noise.known.pool_parts`); the tracking noise is then refitted beside the IMU's noise at them.
+IMU_INSTABILITY_SIZE = "imu_instability_variances"
+#: A flight's ``meta`` key: a list to which the tracking noise's refit beside the IMU's noise appends the rows of its
+#: restricted likelihood (:class:`casep.noise.known.RemlRows`: the IMU's known noise with the instability's parts
+#: unscaled), for a size pooled over several records (:func:`casep.noise.known.pool_parts`).
+IMU_REML_ROWS = "imu_reml_rows"
 
 
 def imu_bias_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray, tau: float

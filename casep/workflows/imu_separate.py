@@ -2929,10 +2929,10 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     accelerometers', the gyros') the same REML fits beside the tracking noise (:func:`_instability` reads them):
     started at the white noise's variance averaged over the correlation time, ``s^2 h / tau`` (the sensor's mean over
     its axes)."""
-    from casep.checks.tracking_quality import imu_noise_states, imu_sample_noise
+    from casep.checks.tracking_quality import IMU_REML_ROWS, imu_noise_states, imu_sample_noise
     from casep.estimators.solve import kept_samples
     from casep.noise.fit import Reml, estimable_basis
-    from casep.noise.known import fit_tracking
+    from casep.noise.known import RemlRows, fit_tracking
 
     if noise.sigma is None or not np.isfinite(noise.sigma) or problem.y is None:
         return None
@@ -2940,6 +2940,7 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     rows = problem if keep.all() else problem.subset(keep)
     t = np.asarray(rows.t, dtype=float)
     tau = instability_tau(flight)
+    given = instability_given(flight)
     known = imu_noise_states(flight, t, levelling, tau)
     if known is None:
         return None
@@ -2950,7 +2951,37 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
         s, h, _ = measured
         start = tuple(max(float(np.mean(s[k:k + 3] ** 2)) * h / tau, 1e-30) for k in (0, 3))
     X = np.stack(Reml(rows, estimable_basis(rows)).Z, axis=1)  # (N, 3, p + 1): [Z dv] per axis
-    return fit_tracking(X, t, noise, known, part_start=start)[0]
+    kept = flight.meta.get(IMU_REML_ROWS) if isinstance(flight.meta, dict) else None
+    if isinstance(kept, list):  # a size pooled over several records reads them (casep.noise.known.pool_parts)
+        kept.append(RemlRows(X, t, noise, known, start))
+    if given is None:
+        return fit_tracking(X, t, noise, known, part_start=start)[0]
+    refit = fit_tracking(X, t, noise, known.scaled(list(given)))[0]
+    refit.extra["known_scales"] = list(given)
+    refit.extra["known_given"] = True
+    return refit
+
+
+def instability_given(flight: FlightData) -> tuple[float, float] | None:
+    """The variances ``(q_a, q_g)`` of the IMU's bias instability given to the flight rather than fitted
+    (``meta[IMU_INSTABILITY_SIZE]``, :data:`casep.checks.tracking_quality.IMU_INSTABILITY_SIZE`; a size pooled over a
+    run's windows), None: fitted on the record (with :func:`instability_tau`). Two finite variances >= 0, and a
+    correlation time asked for, else an error naming them."""
+    from casep.checks.tracking_quality import IMU_INSTABILITY_SIZE
+
+    q = flight.meta.get(IMU_INSTABILITY_SIZE) if isinstance(flight.meta, dict) else None
+    if q is None:
+        return None
+    try:
+        q_a, q_g = (float(v) for v in q)
+    except (TypeError, ValueError):
+        raise ValueError(f"the IMU's bias instability's given size needs two variances (q_a, q_g), got {q!r}") from None
+    if not (math.isfinite(q_a) and math.isfinite(q_g) and q_a >= 0 and q_g >= 0):
+        raise ValueError(f"the IMU's bias instability's given variances must be finite and >= 0, got {q!r}")
+    if instability_tau(flight) is None:
+        raise ValueError("the IMU's bias instability's size is given without its correlation time "
+                         "(meta[IMU_INSTABILITY_TAU])")
+    return q_a, q_g
 
 
 def instability_tau(flight: FlightData) -> float | None:
@@ -2975,7 +3006,7 @@ def _instability(refit: Any, flight: FlightData) -> tuple[float, float, float, b
     if tau is None or refit is None or "known_scales" not in refit.extra:
         return None
     q_a, q_g = refit.extra["known_scales"]
-    return tau, float(q_a), float(q_g), True
+    return tau, float(q_a), float(q_g), not refit.extra.get("known_given", False)
 
 
 def _instability_record(refit: Any, flight: FlightData) -> dict | None:
@@ -2994,6 +3025,12 @@ def _instability_record(refit: Any, flight: FlightData) -> dict | None:
     if got is None:
         out["note"] = "not fitted: the tracking noise model is white (the solver's sigma); the term is left out"
         return out
+    if not got[3]:
+        out["given"] = True
+        out["rule"] = ("a first-order Gauss-Markov bias per body axis of the accelerometers and the gyros, correlation "
+                       "time and variances given (meta[IMU_INSTABILITY_SIZE]: a size pooled over a run's windows), the "
+                       "tracking noise refitted by the restricted likelihood beside it "
+                       "(casep.checks.tracking_quality.imu_bias_effect)")
     out["accelerometer_mg"] = math.sqrt(got[1]) / G0 * 1e3
     out["gyro_deg_h"] = math.degrees(math.sqrt(got[2])) * 3600.0
     return out
@@ -3112,9 +3149,11 @@ def with_imu_noise_beyond(res: EstimateResult, problem: Any, flight: FlightData,
     C_imu = AG @ AG.T
     share = IMU_NOISE_SHARE if share is None else share
     factor = imu_noise_widening(np.asarray(C), C_imu, np.array([scales.get(nm, 1.0) for nm in res.names]))
-    said = {"carried": factor - 1.0 > share, "determined_std_factor_max": factor, "share": share,
+    said = {"carried": factor - 1.0 > share or instability_tau(flight) is not None,
+            "determined_std_factor_max": factor, "share": share,
             "share_rule": "a linear telemetry result carries the IMU's noise when, carried with the tracking noise as "
-                          "fitted, it widens some determined combination's std by more than share"}
+                          "fitted, it widens some determined combination's std by more than share, or when the flight "
+                          "asks for the IMU's bias instability (which that widening does not hold)"}
     if said["carried"]:
         out = with_imu_noise(res, problem, flight, estimators=A, measured=measured)
         if out is not res:
