@@ -1052,9 +1052,13 @@ class _Run:
                 out = one_pass_judged(out, shift)
         if said and not iterate:  # after the judgement, whose failure message replaces a success's
             out = _with_line(out, said)
-        unchecked = heading_unchecked((out.diagnostics.get("heading") or {}).get("test"))
-        if unchecked:  # last: a failure's message replaces a success's
-            out = _with_line(out, unchecked)
+        heading = heading_said((out.diagnostics.get("heading") or {}).get("test"))
+        if heading is not None:  # last: a failure's message replaces a success's
+            if heading[1]:
+                from casep.exceptions import SetupWarning
+
+                warnings.warn(heading[0], SetupWarning, stacklevel=3)
+            out = _with_line(out, heading[0])
         out = heading_first(out)
         return ImuSeparation(_advice_first(out, SMALLER_MODELS.get(self.base.name)), nav, flight, passes)
 
@@ -2881,25 +2885,46 @@ def heading_first(res: EstimateResult) -> EstimateResult:
     return dataclasses.replace(res, status=STATUS_PRIOR_CONFLICT, success=False, message=message)
 
 
-def heading_unchecked(record: dict | None) -> str | None:
-    """What a result says when the record knows the given heading less well than its stated std
-    (:func:`heading_conflict`'s `record`: the data's own std of the heading's error above the stated std), or None
-    (no test, a conflict: said by the failure, or a record that checks the heading). On a rail launch the lateral
-    terms fit a heading error as well as the heading (``docs/guide/navigate.md``: the MEMS example's record knows it
-    to 44 deg): no test of the data can then see a wrong heading, and the result holds only as far as the heading is
-    within its stated std, which the message says."""
-    if record is None or record["conflict"] or not record["std_deg"] > record["stated_std_deg"]:
+def heading_said(record: dict | None) -> tuple[str, bool] | None:
+    """The one rule of what a result says of the given heading when the data do not contradict it
+    (:func:`heading_conflict`'s `record`), as ``(line, misfit)``, or None (no test, a conflict: said by the failure, the
+    data's own std of the heading's error equal to the stated std, or below it but beyond the small-angle reach).
+
+    Where the data know the heading less well than its stated std (their std above it), the line says how far the
+    record checks it: on a rail launch the lateral terms fit a heading error as well as the heading
+    (``docs/guide/navigate.md``: the MEMS example's record knows it to 44 deg): no test of the data can then see a
+    wrong heading, and the result holds only as far as the heading is within its stated std. Where they know it
+    better (their std below it), the line gives the data's own estimate of the heading's error and the heading they
+    point to: the stated std is carried as a consider parameter, so the estimates' std are as wide as a heading
+    known only that well makes them, and the rows keep the turn the data see. ``misfit`` is True where that turn is
+    beyond :data:`casep.estimators.rls.PRIOR_CONFLICT_Z` of the data's own std (within the stated std: no conflict):
+    the residuals hold it, and it is warned of (a heading 3 deg off given with --heading-std 5 read +2.91 +- 0.19
+    deg and left a vertical residual of 0.093 m/s against 0.024 on the other axes, said nowhere)."""
+    if record is None or record["conflict"]:
         return None
-    seen = record["limit_z"] * math.hypot(record["stated_std_deg"], record["std_deg"])
+    c, sd, st = record["estimate_deg"], record["std_deg"], record["stated_std_deg"]
     given = f"the heading given (--heading {record['heading_deg']:g} deg)"
-    if seen >= 180:
-        head, unseen = f"the record does not check {given}", "no error of the heading would show in it"
-    else:
-        head, unseen = f"the record checks {given} only to {seen:.3g} deg", "a smaller error would not show in it"
-    return (f"{head}: its own estimate of the heading's error, with the coefficients free, is "
-            f"{record['estimate_deg']:+.3g} +- {record['std_deg']:.3g} deg, and {unseen} (z {record['limit_z']:g}); "
-            f"the estimate and its std hold as far as the heading is within its stated std (--heading-std "
-            f"{record['stated_std_deg']:g} deg)")
+    own = (f"its own estimate of the heading's error, with the coefficients free, is {c:+.3g} +- {sd:.3g} deg")
+    if sd > st:
+        seen = record["limit_z"] * math.hypot(st, sd)
+        if seen >= 180:
+            head, unseen = f"the record does not check {given}", "no error of the heading would show in it"
+        else:
+            head, unseen = f"the record checks {given} only to {seen:.3g} deg", "a smaller error would not show in it"
+        return (f"{head}: {own}, and {unseen} (z {record['limit_z']:g}); the estimate and its std hold as far as the "
+                f"heading is within its stated std (--heading-std {st:g} deg)"), False
+    if not sd < st or not record.get("judged", True):
+        return None
+    z = abs(c) / sd if sd > 0 else (math.inf if c else 0.0)
+    misfit = bool(z > record["limit_z"])
+    line = (f"the record determines {given} better than its stated std (--heading-std {st:g} deg): {own} "
+            f"(z {z:.3g} against its own std, {record['z']:.2g} against the stated one and its own); the estimates' "
+            f"std carry the stated {st:g} deg as a consider parameter")
+    if misfit:
+        line += (f", and the rows keep the turn the data see (beyond {record['limit_z']:g} of its std: the residuals "
+                 "hold it)")
+    return (line + f": --heading {record['suggested_heading_deg']:.4g} --heading-std {sd:.2g} is what the data point "
+            "to (where nothing else turns the velocity: a frame, the tracking's axes)"), misfit
 
 
 def given_heading_std(heading_deg: float | None, heading_std_deg: float | None,
