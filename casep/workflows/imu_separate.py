@@ -1012,8 +1012,21 @@ class _Run:
         if failure is not None:
             gap = self.gap_clause(float(out.sigma)) or _late_tags_clause(flight)
             out = failed(out, STATUS_NOT_CONVERGED, failure.replace(_BLAME, gap) if gap else failure)
-        # the passes settled (the stop rule met: a success, or a combination left out after it) or stopped before
-        out = self.heading_judged(out, problem, flight, D, settled=_stopped(passes[-1], tol))
+        # rates in another unit (deg/s read as rad/s) turn the navigation from the tracking as no error model can:
+        # where the result misfits beyond the noise (judged or not yet), the other reading's one linear pass
+        # (casep.workflows.imu_units), named first
+        from casep.workflows.imu_units import rate_unit_reading
+
+        unit = rate_unit_reading(self, out, flight, _fast_spec(self.spec) or self.spec)
+        if unit is not None:
+            from casep.estimators.registry import STATUS_SETUP
+            from casep.exceptions import SetupWarning
+
+            out.diagnostics["rate_unit"] = unit
+            warnings.warn(unit["said"], SetupWarning, stacklevel=3)
+            out = failed(out, STATUS_SETUP, f"failed: {unit['said']}")
+        else:  # the passes settled (the stop rule met: a success, or a combination left out after it) or not
+            out = self.heading_judged(out, problem, flight, D, settled=_stopped(passes[-1], tol))
         test = (out.diagnostics.get("heading") or {}).get("test") or {}
         if test.get("conflict") and _BLAME in out.message:  # the step failed on the turn the heading leaves
             out = dataclasses.replace(out, message=out.message.replace(_BLAME, _heading_blame(test)))
@@ -1059,7 +1072,7 @@ class _Run:
 
                 warnings.warn(heading[0], SetupWarning, stacklevel=3)
             out = _with_line(out, heading[0])
-        out = heading_first(out)
+        out = unit_first(heading_first(out))
         return ImuSeparation(_advice_first(out, SMALLER_MODELS.get(self.base.name)), nav, flight, passes)
 
     def left_out_curvature(self, res: EstimateResult, last: dict, problem: Any, flight: FlightData,
@@ -2869,8 +2882,27 @@ def heading_first(res: EstimateResult) -> EstimateResult:
     said = test.get("said")
     if not test.get("conflict") or not test.get("first", True) or not said or said not in res.message:
         return res  # no conflict, or one read on passes stopped before settling: said after what stopped them
-    # every failure of the message (the first line's, and those appended after a later line: failed() adds to the
-    # message's end) but the heading's, in their order; the message's other lines kept
+    return named_first(res, said, STATUS_PRIOR_CONFLICT, "the turn named above (the heading, or the frames)")
+
+
+def unit_first(res: EstimateResult) -> EstimateResult:
+    """`res` with the rates' unit its separation points to (``diagnostics["rate_unit"]``:
+    :func:`casep.workflows.imu_units.rate_unit_reading`) named first, status ``STATUS_SETUP``, the other failures
+    after it as what rates read in the wrong unit leave (a turn the heading's test reads, a misfit, estimates beyond
+    the linear model); `res` unchanged without it."""
+    from casep.estimators.registry import STATUS_SETUP
+
+    unit = res.diagnostics.get("rate_unit") or {}
+    said = f"failed: {unit['said']}" if unit.get("said") else None
+    if said is None or said not in res.message:
+        return res
+    return named_first(res, said, STATUS_SETUP, "the unit named above")
+
+
+def named_first(res: EstimateResult, said: str, status: int, what: str) -> EstimateResult:
+    """`res` failed with `status` and the failure `said` (in its message) opening the message, every other failure
+    after it (the first line's, and those appended after a later line: ``failed`` adds to the message's end), in
+    their order, as what `what` may leave, to be judged once it is set right; the message's other lines kept."""
     fails, lines = [], []
     for i, line in enumerate(res.message.split("\n")):
         head, *more = line.split("; failed: ")
@@ -2879,10 +2911,10 @@ def heading_first(res: EstimateResult) -> EstimateResult:
         fails += [f for f in more if f and f != said.removeprefix("failed: ")]
         if head:
             lines.append(head)
-    others = ("\nwith the turn named above (the heading, or the frames), the other findings may be its consequences "
-              "(judge them once it is set right): " + "; ".join(fails)) if fails else ""
+    others = (f"\nwith {what}, the other findings may be its consequences (judge them once it is set right): "
+              + "; ".join(fails)) if fails else ""
     message = "\n".join([said + others, *lines])
-    return dataclasses.replace(res, status=STATUS_PRIOR_CONFLICT, success=False, message=message)
+    return dataclasses.replace(res, status=status, success=False, message=message)
 
 
 def heading_said(record: dict | None) -> tuple[str, bool] | None:
