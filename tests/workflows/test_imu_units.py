@@ -77,15 +77,19 @@ def test_rates_in_deg_s_the_pad_cannot_tell_are_named_first_by_the_tracking(flig
     assert any("the rates look like deg/s" in m for m in said), said
 
 
-def test_rates_in_rad_s_are_not_read_as_deg_s(flight):
-    """The same record in rad/s, its separation's residuals taken 1 m/s (a misfit far beyond the noise): the deg/s
-    reading's pass fits worse, and no unit is named."""
+@pytest.mark.parametrize("mems", [False, True])
+def test_rates_in_rad_s_are_not_read_as_deg_s(flight, mems):
+    """The same record in rad/s (with the tactical bias, or a consumer MEMS gyro's 0.19 deg/s, the real car drive's,
+    in its place), its separation's residuals taken 1 m/s (a misfit far beyond the noise): the deg/s reading's pass
+    fits worse, and no unit is named."""
     from types import SimpleNamespace
 
     import casep.workflows.imu_separate as sep
     from casep.workflows.imu_units import rate_unit_reading
 
     t, w, f, path = flight
+    if mems:
+        w = w - BIAS + np.radians(0.19) * np.array([0.6, -0.64, 0.48])
     runs = []
 
     def capture(self, *args):
