@@ -1040,8 +1040,21 @@ class _Run:
         if failure is not None:
             gap = self.gap_clause(float(out.sigma)) or _late_tags_clause(flight)
             out = failed(out, STATUS_NOT_CONVERGED, failure.replace(_BLAME, gap) if gap else failure)
-        # the passes settled (the stop rule met: a success, or a combination left out after it) or stopped before
-        out = self.heading_judged(out, problem, flight, D, settled=_stopped(passes[-1], tol))
+        # rates in another unit (deg/s read as rad/s) turn the navigation from the tracking as no error model can:
+        # where the result misfits beyond the noise (judged or not yet), the other reading's one linear pass
+        # (casep.workflows.imu_units), named first
+        from casep.workflows.imu_units import rate_unit_reading
+
+        unit = rate_unit_reading(self, out, flight, _fast_spec(self.spec) or self.spec)
+        if unit is not None:
+            from casep.estimators.registry import STATUS_SETUP
+            from casep.exceptions import SetupWarning
+
+            out.diagnostics["rate_unit"] = unit
+            warnings.warn(unit["said"], SetupWarning, stacklevel=3)
+            out = failed(out, STATUS_SETUP, f"failed: {unit['said']}")
+        else:  # the passes settled (the stop rule met: a success, or a combination left out after it) or not
+            out = self.heading_judged(out, problem, flight, D, settled=_stopped(passes[-1], tol))
         test = (out.diagnostics.get("heading") or {}).get("test") or {}
         if test.get("conflict") and _BLAME in out.message:  # the step failed on the turn the heading leaves
             out = dataclasses.replace(out, message=out.message.replace(_BLAME, _heading_blame(test)))
@@ -1084,10 +1097,14 @@ class _Run:
                 out = one_pass_judged(out, shift)
         if said and not iterate:  # after the judgement, whose failure message replaces a success's
             out = _with_line(out, said)
-        unchecked = heading_unchecked((out.diagnostics.get("heading") or {}).get("test"))
-        if unchecked:  # last: a failure's message replaces a success's
-            out = _with_line(out, unchecked)
-        out = heading_first(out)
+        heading = heading_said((out.diagnostics.get("heading") or {}).get("test"))
+        if heading is not None:  # last: a failure's message replaces a success's
+            if heading[1]:
+                from casep.exceptions import SetupWarning
+
+                warnings.warn(heading[0], SetupWarning, stacklevel=3)
+            out = _with_line(out, heading[0])
+        out = unit_first(heading_first(out))
         return ImuSeparation(_advice_first(out, SMALLER_MODELS.get(self.base.name)), nav, flight, passes)
 
     def left_out_curvature(self, res: EstimateResult, last: dict, problem: Any, flight: FlightData,
@@ -2810,8 +2827,27 @@ def heading_first(res: EstimateResult) -> EstimateResult:
     said = test.get("said")
     if not test.get("conflict") or not test.get("first", True) or not said or said not in res.message:
         return res  # no conflict, or one read on passes stopped before settling: said after what stopped them
-    # every failure of the message (the first line's, and those appended after a later line: failed() adds to the
-    # message's end) but the heading's, in their order; the message's other lines kept
+    return named_first(res, said, STATUS_PRIOR_CONFLICT, "the turn named above (the heading, or the frames)")
+
+
+def unit_first(res: EstimateResult) -> EstimateResult:
+    """`res` with the rates' unit its separation points to (``diagnostics["rate_unit"]``:
+    :func:`casep.workflows.imu_units.rate_unit_reading`) named first, status ``STATUS_SETUP``, the other failures
+    after it as what rates read in the wrong unit leave (a turn the heading's test reads, a misfit, estimates beyond
+    the linear model); `res` unchanged without it."""
+    from casep.estimators.registry import STATUS_SETUP
+
+    unit = res.diagnostics.get("rate_unit") or {}
+    said = f"failed: {unit['said']}" if unit.get("said") else None
+    if said is None or said not in res.message:
+        return res
+    return named_first(res, said, STATUS_SETUP, "the unit named above")
+
+
+def named_first(res: EstimateResult, said: str, status: int, what: str) -> EstimateResult:
+    """`res` failed with `status` and the failure `said` (in its message) opening the message, every other failure
+    after it (the first line's, and those appended after a later line: ``failed`` adds to the message's end), in
+    their order, as what `what` may leave, to be judged once it is set right; the message's other lines kept."""
     fails, lines = [], []
     for i, line in enumerate(res.message.split("\n")):
         head, *more = line.split("; failed: ")
@@ -2820,31 +2856,52 @@ def heading_first(res: EstimateResult) -> EstimateResult:
         fails += [f for f in more if f and f != said.removeprefix("failed: ")]
         if head:
             lines.append(head)
-    others = ("\nwith the turn named above (the heading, or the frames), the other findings may be its consequences "
-              "(judge them once it is set right): " + "; ".join(fails)) if fails else ""
+    others = (f"\nwith {what}, the other findings may be its consequences (judge them once it is set right): "
+              + "; ".join(fails)) if fails else ""
     message = "\n".join([said + others, *lines])
-    return dataclasses.replace(res, status=STATUS_PRIOR_CONFLICT, success=False, message=message)
+    return dataclasses.replace(res, status=status, success=False, message=message)
 
 
-def heading_unchecked(record: dict | None) -> str | None:
-    """What a result says when the record knows the given heading less well than its stated std
-    (:func:`heading_conflict`'s `record`: the data's own std of the heading's error above the stated std), or None
-    (no test, a conflict: said by the failure, or a record that checks the heading). On a rail launch the lateral
-    terms fit a heading error as well as the heading (``docs/guide/navigate.md``: the MEMS example's record knows it
-    to 44 deg): no test of the data can then see a wrong heading, and the result holds only as far as the heading is
-    within its stated std, which the message says."""
-    if record is None or record["conflict"] or not record["std_deg"] > record["stated_std_deg"]:
+def heading_said(record: dict | None) -> tuple[str, bool] | None:
+    """The one rule of what a result says of the given heading when the data do not contradict it
+    (:func:`heading_conflict`'s `record`), as ``(line, misfit)``, or None (no test, a conflict: said by the failure, the
+    data's own std of the heading's error equal to the stated std, or below it but beyond the small-angle reach).
+
+    Where the data know the heading less well than its stated std (their std above it), the line says how far the
+    record checks it: on a rail launch the lateral terms fit a heading error as well as the heading
+    (``docs/guide/navigate.md``: the MEMS example's record knows it to 44 deg): no test of the data can then see a
+    wrong heading, and the result holds only as far as the heading is within its stated std. Where they know it
+    better (their std below it), the line gives the data's own estimate of the heading's error and the heading they
+    point to: the stated std is carried as a consider parameter, so the estimates' std are as wide as a heading
+    known only that well makes them, and the rows keep the turn the data see. ``misfit`` is True where that turn is
+    beyond :data:`casep.estimators.rls.PRIOR_CONFLICT_Z` of the data's own std (within the stated std: no conflict):
+    the residuals hold it, and it is warned of (a heading 3 deg off given with --heading-std 5 read +2.91 +- 0.19
+    deg and left a vertical residual of 0.093 m/s against 0.024 on the other axes, said nowhere)."""
+    if record is None or record["conflict"]:
         return None
-    seen = record["limit_z"] * math.hypot(record["stated_std_deg"], record["std_deg"])
+    c, sd, st = record["estimate_deg"], record["std_deg"], record["stated_std_deg"]
     given = f"the heading given (--heading {record['heading_deg']:g} deg)"
-    if seen >= 180:
-        head, unseen = f"the record does not check {given}", "no error of the heading would show in it"
-    else:
-        head, unseen = f"the record checks {given} only to {seen:.3g} deg", "a smaller error would not show in it"
-    return (f"{head}: its own estimate of the heading's error, with the coefficients free, is "
-            f"{record['estimate_deg']:+.3g} +- {record['std_deg']:.3g} deg, and {unseen} (z {record['limit_z']:g}); "
-            f"the estimate and its std hold as far as the heading is within its stated std (--heading-std "
-            f"{record['stated_std_deg']:g} deg)")
+    own = (f"its own estimate of the heading's error, with the coefficients free, is {c:+.3g} +- {sd:.3g} deg")
+    if sd > st:
+        seen = record["limit_z"] * math.hypot(st, sd)
+        if seen >= 180:
+            head, unseen = f"the record does not check {given}", "no error of the heading would show in it"
+        else:
+            head, unseen = f"the record checks {given} only to {seen:.3g} deg", "a smaller error would not show in it"
+        return (f"{head}: {own}, and {unseen} (z {record['limit_z']:g}); the estimate and its std hold as far as the "
+                f"heading is within its stated std (--heading-std {st:g} deg)"), False
+    if not sd < st or not record.get("judged", True):
+        return None
+    z = abs(c) / sd if sd > 0 else (math.inf if c else 0.0)
+    misfit = bool(z > record["limit_z"])
+    line = (f"the record determines {given} better than its stated std (--heading-std {st:g} deg): {own} "
+            f"(z {z:.3g} against its own std, {record['z']:.2g} against the stated one and its own); the estimates' "
+            f"std carry the stated {st:g} deg as a consider parameter")
+    if misfit:
+        line += (f", and the rows keep the turn the data see (beyond {record['limit_z']:g} of its std: the residuals "
+                 "hold it)")
+    return (line + f": --heading {record['suggested_heading_deg']:.4g} --heading-std {sd:.2g} is what the data point "
+            "to (where nothing else turns the velocity: a frame, the tracking's axes)"), misfit
 
 
 def given_heading_std(heading_deg: float | None, heading_std_deg: float | None,

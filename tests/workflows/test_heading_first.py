@@ -20,7 +20,7 @@ import pytest
 from casep.estimators.registry import STATUS_MAGNITUDE, STATUS_NOT_CONVERGED, STATUS_PRIOR_CONFLICT, failed
 from casep.exceptions import SetupWarning
 from casep.workflows import imu_separate
-from casep.workflows.imu_separate import _Run, heading_first, heading_unchecked
+from casep.workflows.imu_separate import _Run, heading_first, heading_said
 
 
 @dataclasses.dataclass
@@ -70,7 +70,7 @@ def test_a_heading_beyond_the_limit_is_named_though_the_linear_test_does_not_set
     assert out.message.startswith("failed: the data contradict the heading given: at --heading 210.067 deg"), \
         out.message
     assert "+9.63 +- 0.55 deg off" in out.message and "200.4" in out.message and "approximate" in out.message
-    assert heading_unchecked(test) is None
+    assert heading_said(test) is None
 
 
 def test_a_heading_within_the_limit_is_not_named(monkeypatch):
@@ -80,7 +80,7 @@ def test_a_heading_within_the_limit_is_not_named(monkeypatch):
     out = _judged(monkeypatch, res, _record(9.4, 2.0), _record(0.0, 2.0))
     test = out.diagnostics["heading"]["test"]
     assert not test["conflict"] and out.success and out.message == "converged"
-    assert "only to 10 deg" in heading_unchecked(test)
+    assert "only to 10 deg" in heading_said(test)[0]
 
 
 @pytest.mark.parametrize("before", [None, ("failed: the correction of bg_y is 33.2 of its std ... leaves the linear "

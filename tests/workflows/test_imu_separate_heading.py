@@ -198,8 +198,8 @@ def test_the_heading_test_is_the_gls_coefficient_of_the_heading_column(c_true):
 def test_what_a_result_says_of_the_heading_test():
     """The failure's message (a conflict) gives the data's estimate and std, the stated std and both suggestions;
     a record that knows the heading less well than its stated std says that no error of it would show; one that knows
-    it better (and agrees) says nothing."""
-    from casep.workflows.imu_separate import heading_message, heading_unchecked
+    it better gives the data's own estimate and the heading they point to."""
+    from casep.workflows.imu_separate import heading_message, heading_said
 
     rec = {"heading_deg": 32.0, "stated_std_deg": 0.1, "estimate_deg": 2.04, "std_deg": 0.21, "z": 8.6,
            "limit_z": 5.0, "suggested_heading_deg": 29.96, "conflict": True}
@@ -207,13 +207,23 @@ def test_what_a_result_says_of_the_heading_test():
     for part in ("--heading 32 deg", "+2.04 +- 0.21 deg", "--heading-std 0.1 deg", "--heading 29.96",
                  "--heading-std 2"):
         assert part in said, said
-    assert heading_unchecked(rec) is None  # the failure says it
+    assert heading_said(rec) is None  # the failure says it
     loose = {**rec, "estimate_deg": -19.2, "std_deg": 55.5, "z": 0.35, "conflict": False}
     assert "the record does not check the heading given (--heading 32 deg): its own estimate of the heading's " \
-           "error, with the coefficients free, is -19.2 +- 55.5 deg" in heading_unchecked(loose)
+           "error, with the coefficients free, is -19.2 +- 55.5 deg" in heading_said(loose)[0]
     some = {**loose, "std_deg": 1.5}
-    assert "the record checks the heading given (--heading 32 deg) only to 7.52 deg" in heading_unchecked(some)
-    assert heading_unchecked({**loose, "std_deg": 0.05}) is None
+    assert "the record checks the heading given (--heading 32 deg) only to 7.52 deg" in heading_said(some)[0]
+    # known better than its stated std: the data's own estimate and the heading they point to, a turn within the
+    # stated std but beyond 5 of the data's std warned of (the residuals keep it: heading 3 deg off, --heading-std 5)
+    agrees = {**loose, "estimate_deg": 0.02, "std_deg": 0.05, "z": 0.18, "suggested_heading_deg": 31.98}
+    line, misfit = heading_said(agrees)
+    assert not misfit and "+0.02 +- 0.05 deg" in line and "--heading 31.98 --heading-std 0.05" in line, line
+    off = {**rec, "stated_std_deg": 5.0, "heading_deg": 3.0, "estimate_deg": 2.91, "std_deg": 0.19, "z": 0.58,
+           "suggested_heading_deg": 0.09, "conflict": False}
+    line, misfit = heading_said(off)
+    assert misfit and "+2.91 +- 0.19 deg (z 15.3 against its own std" in line and "--heading 0.09" in line, line
+    assert "better than its stated std (--heading-std 5 deg)" in line and "the residuals hold it" in line, line
+    assert heading_said({**off, "judged": False}) is None  # beyond the small-angle reach: the test says nothing
 
 
 def test_a_turn_beyond_the_linear_test_says_its_heading_is_approximate():
