@@ -8,9 +8,10 @@ separates with :func:`casep.workflows.imu_separate.separate_imu` in one pass: th
 (``--spec gmw``, the test's) or the default fit (``--spec auto``: OLS, the noise model chosen by REML). z =
 estimate / std over the 15 coefficients, with the std of the result (the IMU's random walks included and the
 tracking noise fitted again by REML beside them, :func:`casep.workflows.imu_separate.imu_noise_budget`) and with
-those of the fit's tracking noise alone. 12 runs: tau given RMS z 0.900, coverage 0.972; REML 0.956, 0.978 (the
-densities from second differences; from first differences: 0.906, 0.972 and 0.949, 0.983, and 40 runs: tau given
-0.937, 0.938; REML 0.908, 0.965).
+those of the fit's tracking noise alone. 12 runs: tau given RMS z 0.704, coverage 1.000; REML 0.716, 0.994
+(conservative: the std average over each axis's tau, ea59a78, and carry the steps between samples the record keeps
+since 1c94ff1, which this truth, the record's own navigation, does not hold: docs/guide/navigate.md; at a9fc540,
+before both, 0.906, 0.972 and 0.949, 0.983, and 40 runs: tau given 0.937, 0.938; REML 0.908, 0.965).
 
 Run:  OPENBLAS_NUM_THREADS=1 python benchmarks/mc_imu_noise.py [--runs 12] [--spec gmw|auto]
 """
