@@ -166,6 +166,7 @@ from casep.exceptions import GapWarning, SaturationWarning
 from casep.frames import LaunchSite
 from casep.navigation.imu import ImuData
 from casep.workflows.row_estimators import (
+    added_covariance,
     coefficient_estimators,
     column_estimates,
     combination_estimators,
@@ -173,6 +174,7 @@ from casep.workflows.row_estimators import (
     estimator_noise,
     tau_spread,
     widened_std,
+    with_added_variance,
     with_consider,
     with_extra_covariance,
     with_heading,
@@ -1024,9 +1026,6 @@ class _Run:
         self._steps = (problem, step_rows(getattr(self, "imu", None), nav, problem))
         out = self.with_noise(out, problem, flight)
         out = self.with_clock(out, problem, flight, D)
-        if passes[-1].get("determined"):  # the stated combinations' std carry the record's noise as the coefficients'
-            passes[-1]["determined"] = self.combinations_with_noise(passes[-1]["determined"], out, problem, flight,
-                                                                    model.scales)
         if iterate and failure is None and not _stopped(passes[-1], tol) and out.success:
             failure = f"failed: the iteration stopped at pass {len(passes)} before converging"
         if failure is not None:
@@ -1042,6 +1041,9 @@ class _Run:
 
         # the richer model's terms beside the last pass, its S_V that pass's (the richer model linearised alike)
         out = judge_omitted(out, flight, problem, model, lambda name: self.model(nav, D, name))
+        if passes[-1].get("determined"):  # the stated combinations' std carry the record's noise and every consider
+            passes[-1]["determined"] = self.combinations_with_noise(  # term as the coefficients' (the last above)
+                passes[-1]["determined"], out, problem, flight, model.scales)
         widen = None
         if iterate and failure is None:  # the combinations' curvature over what the flight does not determine
             def widen(combos: list[dict]) -> tuple[list[dict], str | None, dict | None]:
@@ -1432,22 +1434,26 @@ class _Run:
     def combinations_with_noise(self, combos: list[dict], res: EstimateResult, problem: Any, flight: FlightData,
                                 scales: dict[str, float]) -> list[dict]:
         """The combinations the passes stepped along (``passes[-1]["determined"]``) with the record's own noise in
-        their std, as :meth:`with_noise` puts it in the coefficients' (:func:`combination_imu_noise`; `res` the
-        result with it, its noise account holding the tracking noise refitted beside it). Each keeps its std without
-        it as ``std_tracking_noise_only``; unchanged when the flight does not hold the IMU's samples."""
+        their std, as :meth:`with_noise` puts it in the coefficients' (:func:`combination_imu_noise`, the given
+        heading and the steps between samples with it; `res` the result with it, its noise account holding the
+        tracking noise refitted beside it), and every consider term added on top of it
+        (:func:`casep.workflows.row_estimators.with_added_variance`: the clock drift, the richer model's terms, the
+        steps where the IMU's noise is not carried), as the coefficients' covariance holds them. Each keeps its std
+        without the IMU's noise as ``std_tracking_noise_only``."""
         scale = _scale_of(scales, res.names)
         W = np.array([c["weights"] for c in combos], dtype=float)
         heading = self.heading_effect(problem)
         a = combination_estimators(W, scale, res, problem)  # once: their noise (combination_imu_noise's rule) and
         var = None if a is None else estimator_noise(  # the heading's shift
             a, res, problem, flight, self.levelling(), self.tau_profile(problem),
-            consider_columns(heading, self.steps_effect(problem), self.drift_effect(problem)))
+            consider_columns(heading, self.steps_effect(problem)))
         if var is None:
-            return combos
+            total = with_added_variance(res, W, scale, np.array([c["std"] ** 2 for c in combos]))
+            return [{**c, "std": float(math.sqrt(v))} for c, v in zip(combos, total)]
         trk, imu = var
         trk = np.array([c["std"] ** 2 for c in combos]) if trk is None else trk
-        out = [{**c, "std_tracking_noise_only": c["std"], "std": float(math.sqrt(a + b))}
-               for c, a, b in zip(combos, trk, imu)]
+        total = with_added_variance(res, W, scale, np.asarray(trk, float) + np.asarray(imu, float))
+        out = [{**c, "std_tracking_noise_only": c["std"], "std": float(math.sqrt(v))} for c, v in zip(combos, total)]
         drift = self.drift_effect(problem)
         if drift is not None:
             assert a is not None  # var is not None
@@ -3010,12 +3016,16 @@ def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
     if "tau_profile" in account:
         warn_tau_unbounded(problem.source, account["tau_profile"])
     C_fit = np.asarray(res.covariance)
-    # the tracking part: refitted (the minimum-norm solution's, finite where the fit's is not), else the fit's own
-    cov = C_fit + C_imu if C_trk is None else np.where(np.isfinite(C_fit), C_trk + C_imu, np.nan)
+    # the tracking part: refitted (the minimum-norm solution's, finite where the fit's is not), else the fit's own;
+    # a refit sets the covariance anew, and the consider terms added on top of the fit's (with_extra_covariance: the
+    # omitted terms of a telemetry judged before its IMU noise) are added back
+    added = added_covariance(res) if C_trk is not None else None
+    C_new = None if C_trk is None else C_trk + C_imu + (0.0 if added is None else added)
+    cov = C_fit + C_imu if C_new is None else np.where(np.isfinite(C_fit), C_new, np.nan)
     std = widened_std(res, cov)
     solution = res.solution
     if solution is not None and solution.covariance is not None:
-        solution = dataclasses.replace(solution, covariance=(solution.covariance if C_trk is None else C_trk) + C_imu)
+        solution = dataclasses.replace(solution, covariance=solution.covariance + C_imu if C_new is None else C_new)
     diag = {**res.diagnostics, "noise": {**res.diagnostics["noise"], "imu": account}}
     return dataclasses.replace(res, covariance=cov, std=std, solution=solution, diagnostics=diag)
 
