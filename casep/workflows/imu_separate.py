@@ -1026,6 +1026,9 @@ class _Run:
         self._steps = (problem, step_rows(getattr(self, "imu", None), nav, problem))
         out = self.with_noise(out, problem, flight)
         out = self.with_clock(out, problem, flight, D)
+        if passes[-1].get("determined"):  # the stated combinations' std carry the record's noise as the coefficients'
+            passes[-1]["determined"] = self.combinations_with_noise(passes[-1]["determined"], out, problem, flight,
+                                                                    model.scales)
         if iterate and failure is None and not _stopped(passes[-1], tol) and out.success:
             failure = f"failed: the iteration stopped at pass {len(passes)} before converging"
         if failure is not None:
@@ -1041,9 +1044,6 @@ class _Run:
 
         # the richer model's terms beside the last pass, its S_V that pass's (the richer model linearised alike)
         out = judge_omitted(out, flight, problem, model, lambda name: self.model(nav, D, name))
-        if passes[-1].get("determined"):  # the stated combinations' std carry the record's noise and every consider
-            passes[-1]["determined"] = self.combinations_with_noise(  # term as the coefficients' (the last above)
-                passes[-1]["determined"], out, problem, flight, model.scales)
         widen = None
         if iterate and failure is None:  # the combinations' curvature over what the flight does not determine
             def widen(combos: list[dict]) -> tuple[list[dict], str | None, dict | None]:
@@ -1054,6 +1054,8 @@ class _Run:
                              tag_clock=getattr(self, "imu", None) is None)
         if iterate and out.success and passes[-1].get("determined") and not out.diagnostics.get("determined"):
             out = self.left_out_curvature(out, passes[-1], problem, flight, D)
+        if passes[-1].get("determined"):  # every consider term the coefficients carry (the last: the omitted terms)
+            passes[-1]["determined"] = _with_consider_std(passes[-1]["determined"], out, model.scales)
         if iterate and passes[-1].get("determined") and not out.diagnostics.get("determined"):
             out = _with_determined(out, passes[-1], model.scales)
         out.diagnostics["iterations"]["limit"] = float(self.limit) if np.isfinite(self.limit) else None
@@ -1436,10 +1438,10 @@ class _Run:
         """The combinations the passes stepped along (``passes[-1]["determined"]``) with the record's own noise in
         their std, as :meth:`with_noise` puts it in the coefficients' (:func:`combination_imu_noise`, the given
         heading and the steps between samples with it; `res` the result with it, its noise account holding the
-        tracking noise refitted beside it), and every consider term added on top of it
-        (:func:`casep.workflows.row_estimators.with_added_variance`: the clock drift, the richer model's terms, the
-        steps where the IMU's noise is not carried), as the coefficients' covariance holds them. Each keeps its std
-        without the IMU's noise as ``std_tracking_noise_only``."""
+        tracking noise refitted beside it). Each keeps its std without it as ``std_tracking_noise_only``; unchanged
+        when the flight does not hold the IMU's samples. The consider terms added on top (the clock drift, the
+        richer model's terms, the steps where the IMU's noise is not carried): :func:`_with_consider_std`, once the
+        coefficients hold them all."""
         scale = _scale_of(scales, res.names)
         W = np.array([c["weights"] for c in combos], dtype=float)
         heading = self.heading_effect(problem)
@@ -1448,12 +1450,11 @@ class _Run:
             a, res, problem, flight, self.levelling(), self.tau_profile(problem),
             consider_columns(heading, self.steps_effect(problem)))
         if var is None:
-            total = with_added_variance(res, W, scale, np.array([c["std"] ** 2 for c in combos]))
-            return [{**c, "std": float(math.sqrt(v))} for c, v in zip(combos, total)]
+            return combos
         trk, imu = var
         trk = np.array([c["std"] ** 2 for c in combos]) if trk is None else trk
-        total = with_added_variance(res, W, scale, np.asarray(trk, float) + np.asarray(imu, float))
-        out = [{**c, "std_tracking_noise_only": c["std"], "std": float(math.sqrt(v))} for c, v in zip(combos, total)]
+        out = [{**c, "std_tracking_noise_only": c["std"], "std": float(math.sqrt(a + b))}
+               for c, a, b in zip(combos, trk, imu)]
         drift = self.drift_effect(problem)
         if drift is not None:
             assert a is not None  # var is not None
@@ -2212,6 +2213,20 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str
             "not determine them. Their estimates are the last linear pass's, their std linear (not checked for "
             "curvature)" + (f"; with {why_smaller}, a smaller model ({smaller}) leaves less undetermined"
                             if smaller and why_smaller else ""))
+
+
+def _with_consider_std(combos: list[dict], res: EstimateResult, scales: dict[str, float]) -> list[dict]:
+    """The stated combinations `combos` (weights on ``D / scale``) with every consider term `res`'s covariance gained
+    on top of its noise's (:func:`casep.workflows.row_estimators.with_added_variance`: the IMU clock's drift, the
+    richer model's terms, the steps between samples where the IMU's noise is not carried) in their std, as the
+    coefficients have them; each keeps its std without them as ``std_without_consider``. After the curvature of what
+    the passes leave out (:meth:`_Run.left_out_curvature`), which is judged on the combinations' own std: the
+    consider terms are parameters beside the rows, not a distance the record is navigated over."""
+    if not combos:
+        return combos
+    W = np.array([c["weights"] for c in combos], dtype=float)
+    var = with_added_variance(res, W, _scale_of(scales, res.names), np.array([c["std"] ** 2 for c in combos]))
+    return [{**c, "std_without_consider": c["std"], "std": float(math.sqrt(v))} for c, v in zip(combos, var)]
 
 
 def _with_determined(res: EstimateResult, last: dict, scales: dict[str, float]) -> EstimateResult:
@@ -3078,7 +3093,9 @@ def with_imu_noise_beyond(res: EstimateResult, problem: Any, flight: FlightData,
         return res
     C_imu = AG @ AG.T
     share = IMU_NOISE_SHARE if share is None else share
-    factor = imu_noise_widening(np.asarray(C), C_imu, np.array([scales.get(nm, 1.0) for nm in res.names]))
+    added = added_covariance(res)  # the consider terms judged before (omitted terms): not the noise's std
+    own = np.asarray(C) if added is None else np.asarray(C) - added
+    factor = imu_noise_widening(own, C_imu, np.array([scales.get(nm, 1.0) for nm in res.names]))
     said = {"carried": factor - 1.0 > share, "determined_std_factor_max": factor, "share": share,
             "share_rule": "a linear telemetry result carries the IMU's noise when, carried with the tracking noise as "
                           "fitted, it widens some determined combination's std by more than share"}
