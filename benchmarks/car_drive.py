@@ -432,6 +432,12 @@ def main() -> None:
     ap.add_argument("--imu-instability", type=float, default=None, metavar="TAU_S",
                     help="each window's std with the IMU's bias instability of this correlation time, its size fitted "
                          "per window beside the tracking noise (separate_windows' imu_instability_tau)")
+    ap.add_argument("--pool-instability", action="store_true",
+                    help="with --imu-instability: one size for the run's windows, fitted by their summed restricted "
+                         "likelihood (separate_windows' imu_instability_pool)")
+    ap.add_argument("--instability-measure", default=None, choices=("vibration", "speed"),
+                    help="with --pool-instability: the variances scaled per window by this fit-free measure "
+                         "(separate_windows' imu_instability_measure)")
     args = ap.parse_args()
     if args.write_cut:  # the IMU file gzipped (-9), as the test suite holds it
         import gzip
@@ -483,7 +489,8 @@ def main() -> None:
         res = separate_windows(imu, trk_path, site, (0.0, moving - 5.0), length=args.length,
                                start=moving + 1.0 + args.offset, model=args.model, fit_options=options,
                                consider=None if args.consider == "none" else args.consider,
-                               imu_instability_tau=args.imu_instability)
+                               imu_instability_tau=args.imu_instability, imu_instability_pool=args.pool_instability,
+                               imu_instability_measure=args.instability_measure)
         cpu = time.process_time() - c0
     kinds: dict[str, int] = {}
     first: dict[str, str] = {}
@@ -507,6 +514,8 @@ def main() -> None:
         course = "" if w.heading_from_course_deg is None else f"{w.heading_from_course_deg:.1f}"
         print(f"{w.t_start:6.1f} {w.passes:4d} {course:>8s} {_rms(r):6.3f} {e['dt_trk']:6.1f}+-{s['dt_trk']:4.1f}  "
               + "  ".join(f"{e[n]:7.1f}+-{s[n]:5.1f}" for n in shown))
+    if res.instability is not None:
+        pooled_instability(res, imu, trk, (0.0, moving - 5.0))
     if args.imu_instability is not None:
         sizes = [((w.result.diagnostics.get("noise") or {}).get("imu") or {}).get("instability") or {}
                  for w in res.windows]
@@ -575,6 +584,43 @@ def main() -> None:
     if args.figures:
         for p in figures(res, args.figures):
             print("figure", p)
+
+
+def pooled_instability(res, imu, trk, pad: tuple[float, float]) -> None:
+    """Print the pooled instability's size, its interval, each window's measure, and what the size implies at the
+    stops (the measure there, beyond the pad's: the vibration at rest, or the speed, 0)."""
+    from casep.workflows.windows import vibration_power
+
+    ins = res.instability
+    got = ins.get("pooled")
+    if got is None:
+        print(f"pooled IMU bias instability: {ins.get('note')}")
+        return
+    lo_a, hi_a = ins["interval_mg_per_unit"]
+    lo_g, hi_g = ins["interval_deg_h_per_unit"]
+    print(f"pooled IMU bias instability (tau {ins['tau_s']:g} s, measure {ins['measure']} [{ins['measure_unit']}]): "
+          f"accelerometers {ins['accelerometer_mg_per_unit']:.3g} mg ({lo_a:.3g}-{hi_a:.3g}), gyros "
+          f"{ins['gyro_deg_h_per_unit']:.3g} deg/h ({lo_g:.3g}-{hi_g:.3g}) per unit measure (std per sqrt(measure)); "
+          f"-2 l_R {got['neg2_reml']:.1f} against {got['neg2_reml_without']:.1f} without; {got['evaluations']} "
+          f"evaluations; not pooled: {ins['not_pooled']}")
+    print("  per window, measure and size (mg / deg/h): " + ", ".join(
+        f"{w.t_start:.0f} s {m:.3g} ({ins['accelerometer_mg_per_unit'] * math.sqrt(m):.2g} / "
+        f"{ins['gyro_deg_h_per_unit'] * math.sqrt(m):.3g})" for w, m in zip(res.windows, ins["measures"])))
+    if ins["measure"] == "vibration":
+        t = np.asarray(trk.t, float)
+        speed = np.hypot(trk.v_east.to_numpy(), trk.v_north.to_numpy())
+        p0 = vibration_power(imu, *pad)
+        print(f"  the pad {pad[0]:.1f}-{pad[1]:.1f} s: in-band power {p0:.4g} (m/s^2)^2")
+        from car_drive_drift import stops
+
+        for a, b in stops(trk):
+            if b - a < 1.0 or b > imu.t[-1]:
+                continue
+            m = max(vibration_power(imu, a, b) - p0, 0.0)
+            print(f"  stop {a:.1f}-{b:.1f} s (speed below {np.max(speed[(t >= a) & (t <= b)]):.2f} m/s): in-band "
+                  f"power {vibration_power(imu, a, b):.4g}, beyond the pad's {m:.3g}: the pooled term there "
+                  f"{ins['accelerometer_mg_per_unit'] * math.sqrt(m):.3g} mg, "
+                  f"{ins['gyro_deg_h_per_unit'] * math.sqrt(m):.3g} deg/h")
 
 
 if __name__ == "__main__":

@@ -9,8 +9,14 @@ finds, on a telemetry + tracking pair formed at the tracking times:
 
 - **stale epochs**: a row whose velocity repeats the previous row's exactly (a repeated fix, or a velocity held
   while the positions go on; ``meta["tracking_repeats"]``, :func:`casep.io.pair.repeated_rows`) while the
-  telemetry moved by more than :data:`STALE_MOTION` since the fix it repeats. The fix itself is kept (it was
-  right at its time); its repeats are left out. On the pad a repeated fix of a vehicle at rest is kept.
+  telemetry moved by more than :data:`STALE_MOTION` since the fix it repeats, and an Earth-fixed file's row whose
+  position repeats the previous row's (``meta["tracking_frozen"]``) while the telemetry moved away from it by more
+  than :data:`STALE_POSITION` plus :data:`STALE_MOTION` times the time since the fix (a cruising vehicle's repeated
+  fix is metres off before its velocity is 0.5 m/s off). Both in one frame (:func:`casep.io.pair.stale_epochs`).
+  The fix itself is kept (it was right at its time); its repeats are left out. On the pad a repeated fix of a
+  vehicle at rest is kept (a receiver's static hold: zero Earth-fixed velocity, one position), and inside the
+  window the navigation was levelled over (:func:`rest_window`) a repeat is a fix: the vehicle stands there by the
+  levelling's premise while the first pass's INS, not yet corrected, drifts.
 - **impossible jumps** (the physics check): between consecutive remaining epochs, ``|d(dv)|`` above
   ``JUMP_TOL + JUMP_RATE dt`` (10 m/s, plus 2 m/s^2 = 200 mg of instrument error acceleration per
   second between them) is a tracking velocity change the IMU rules out. The epochs are cut into
@@ -62,7 +68,7 @@ from casep.checks.time_offset import kinematic_acceleration
 from casep.exceptions import TrackingQualityWarning
 from casep.io.files import ONE_FILE_TELEMETRY
 from casep.io.flight import FlightData
-from casep.io.pair import HELD_RUN_SHARE, HELD_SHARE, JUMP_RATE, STALE_MOTION, stale_epochs
+from casep.io.pair import HELD_RUN_SHARE, HELD_SHARE, JUMP_RATE, STALE_MOTION, STALE_POSITION, stale_epochs
 from casep.noise.model import whiten_blocks
 from casep.noise.robust import MAD_SIGMA, MIN_SEGMENT_S, stretches
 from casep.regression.linalg import analyze_rank, reduce_qr_blocks
@@ -71,16 +77,17 @@ from casep.regression.rows import GLITCH_GROSS
 if TYPE_CHECKING:
     from casep.regression.problem import Problem
 
-__all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "keep_screen", "clock_drift", "clock_drift_unmeasured",
-           "fit_clock_drift", "clock_drift_record",
+__all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "rest_window", "keep_screen", "clock_drift",
+           "clock_drift_unmeasured", "fit_clock_drift", "clock_drift_record",
            "offset_halves", "halves_line", "telemetry_clock_line",
            "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
            "imu_noise_effect", "imu_sample_noise", "white_sample_std", "unresolved_noise", "NOISE_RESOLUTION_SHARE",
-           "imu_bias_effect", "IMU_INSTABILITY_TAU",
-           "rest_white_std", "IMU_NOISE_AT_REST", "STALE_MOTION", "HELD_SHARE", "HELD_RUN_SHARE", "JUMP_TOL",
-           "JUMP_RATE", "EXCURSION_SIGMAS",
-           "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
+           "imu_bias_effect", "IMU_INSTABILITY_TAU", "IMU_INSTABILITY_SIZE", "IMU_REML_ROWS",
+           "rest_white_std", "IMU_NOISE_AT_REST", "pad_white_std", "IMU_NOISE_PAD", "imu_noise_on_pad",
+           "white_std_error", "allan_white_error", "NOISE_DIFF_ORDERS", "WHITE_STD_ERROR", "NOISE_SWITCH_SIGMAS",
+           "STALE_MOTION", "STALE_POSITION", "HELD_SHARE", "HELD_RUN_SHARE", "JUMP_TOL", "JUMP_RATE",
+           "EXCURSION_SIGMAS", "MIN_SEGMENT_S", "DRIFT_MIN_PPM", "NOISE_RATIO"]
 
 #: The physics check: a jump of dv between consecutive epochs above JUMP_TOL + JUMP_RATE dt (m/s, m/s^2) ...
 JUMP_TOL = 10.0
@@ -218,10 +225,25 @@ def _file_rows(flight: FlightData) -> np.ndarray:
 
 
 def _stale(flight: FlightData, idx: np.ndarray, V: np.ndarray) -> np.ndarray:
-    """Of the observed epochs `idx`: :func:`stale_epochs` (the file's repeated rows ``meta["tracking_repeats"]``)."""
+    """Of the observed epochs `idx`: :func:`stale_epochs` (the file's repeated rows ``meta["tracking_repeats"]``; an
+    Earth-fixed pair's rows of a repeated position ``meta["tracking_frozen"]`` and the telemetry's position less the
+    tracking's per row, ``meta["tracking_position_gap"]``, :func:`casep.io.pair.position_gap`)."""
+    meta = flight.meta
     rows = _file_rows(flight)[idx]
-    is_rep = np.isin(rows, np.asarray(flight.meta.get("tracking_repeats", []), dtype=int))
-    return stale_epochs(flight.t[idx], V[idx], flight.dv[idx], is_rep)
+    is_rep = np.isin(rows, np.asarray(meta.get("tracking_repeats", []), dtype=int))
+    frozen = gap = None
+    if "tracking_frozen" in meta and "tracking_position_gap" in meta:
+        frozen = np.isin(rows, np.asarray(meta["tracking_frozen"], dtype=int))
+        gap = np.asarray(meta["tracking_position_gap"], dtype=float)[rows]
+    return stale_epochs(flight.t[idx], V[idx], flight.dv[idx], is_rep, frozen, gap, rest_window(meta))
+
+
+def rest_window(meta: dict) -> list[float] | None:
+    """Where the vehicle stood by the navigation's premise, ``[T1, T2]`` s of the flight's time: the window an IMU was
+    levelled over (``meta["rest_window_s"]``, :mod:`casep.workflows.imu_separate`'s ``--align``) or the one a
+    navigated telemetry's header names (``meta["levelled"]["window"]``); None when neither."""
+    window = meta.get("rest_window_s") or (meta.get("levelled") or {}).get("window")
+    return None if window is None else [float(window[0]), float(window[1])]
 
 
 def _impossible(t: np.ndarray, dv: np.ndarray, start: float | None = None) -> tuple[np.ndarray, float]:
@@ -698,7 +720,9 @@ def _warn(source: str, s: TrackingScreen, stale: str, rejected: str, drift: bool
         warnings.warn(TrackingQualityWarning(
             f"{source}: {n} stale tracking epochs (a fix or its velocity repeated, or held within "
             f"{HELD_SHARE:g} of the telemetry's change, while the telemetry moved by more than {STALE_MOTION:g} m/s "
-            f"since it) left out, in {len(s.stale)} span(s): {stale}"), stacklevel=3)
+            f"since it, or a position repeated while the telemetry moved away from it by more than "
+            f"{STALE_POSITION:g} m + {STALE_MOTION:g} m/s x the time since it) left out, in {len(s.stale)} span(s): "
+            f"{stale}"), stacklevel=3)
     if s.rejected:
         n = _span_epochs(s.rejected)
         warnings.warn(TrackingQualityWarning(
@@ -744,6 +768,11 @@ def imu_sample_noise(flight: FlightData, t_rows: np.ndarray) -> tuple[np.ndarray
     std of ``fb_x, fb_y, fb_z`` (m/s^2) and ``w_x, w_y, w_z`` (rad/s), ``h`` the sample step (s), ``samples`` the
     telemetry's own samples up to the last epoch of `t_rows`; None when the flight does not hold them.
 
+    ``s`` is ``meta[IMU_NOISE_AT_REST]`` when given; else :func:`white_sample_std` of the samples, per column the
+    pad's figure instead (``meta[IMU_NOISE_PAD]``, :func:`pad_white_std`, which ``casep separate --imu`` measures
+    on its pad window) where the record's is above it beyond their sampling errors (:func:`_with_pad`: the record
+    counts motion).
+
     A flight holds them when its velocity is a navigated telemetry's, ``v_tel``, integrated from its ``q, fb, w``
     (so it carries their noise): a telemetry paired with a tracking file (:func:`casep.io.pair.pair_flight`), or one
     file with ``v_tel_*`` and ``v_trk_*`` (:func:`casep.io.files.read_flight`: every row a telemetry sample). Not a
@@ -772,7 +801,38 @@ def imu_sample_noise(flight: FlightData, t_rows: np.ndarray) -> tuple[np.ndarray
     if given is not None:
         return np.asarray(given, dtype=float), h, i
     raw = np.column_stack([sig[c][i] for c in IMU_NOISE_COLUMNS])
-    return white_sample_std(raw), h, i
+    return _with_pad(white_sample_std(raw), i.size, meta.get(IMU_NOISE_PAD))[0], h, i
+
+
+def imu_noise_on_pad(flight: FlightData, t_rows: np.ndarray) -> list[str]:
+    """The IMU columns whose per-sample std :func:`imu_sample_noise` took from the pad (``meta[IMU_NOISE_PAD]``,
+    :func:`pad_white_std`) rather than from the record's own samples: those where the record's figure counts
+    motion (:func:`_with_pad`); none without a pad's figure or with a figure given at rest."""
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    pad = meta.get(IMU_NOISE_PAD)
+    if not pad or meta.get(IMU_NOISE_AT_REST) is not None:
+        return []
+    got = imu_sample_noise(flight, t_rows)
+    if got is None:
+        return []
+    raw = np.column_stack([flight.signals[c][got[2]] for c in IMU_NOISE_COLUMNS])
+    return [c for c, p in zip(IMU_NOISE_COLUMNS, _with_pad(white_sample_std(raw), got[2].size, pad)[1]) if p]
+
+
+def _with_pad(record: np.ndarray, n: int, pad: dict | None) -> tuple[np.ndarray, np.ndarray]:
+    """``(s, from the pad (6,) bool)``: per column the record's figure `record` (:func:`white_sample_std` of its `n`
+    samples), or the pad's (``{"std", "rel_error"}``, :func:`pad_white_std`) where that is below the record's by
+    more than :data:`NOISE_SWITCH_SIGMAS` of the two figures' relative sampling errors combined: there the record
+    counts motion the pad does not have (a smooth motion's differences fall with their order, so the record's rises
+    above the pad's through a motion rough up to the Nyquist frequency, a vibration the IMU measures correctly among
+    them, or through a noise that grew in flight: the differences cannot tell the two apart, and a sensor whose own
+    noise grows under vibration is then understated by the ratio); elsewhere the record's, from more samples."""
+    if not pad:
+        return record, np.zeros(record.shape, dtype=bool)
+    s_pad, e_pad = np.asarray(pad["std"], dtype=float), np.asarray(pad["rel_error"], dtype=float)
+    e = np.hypot(e_pad, white_std_error(n))
+    below = s_pad < record * (1.0 - NOISE_SWITCH_SIGMAS * e)
+    return np.where(below, s_pad, record), below
 
 
 #: A per-sample std measured at or below this share of its column's largest magnitude is the samples' rounding, not
@@ -824,11 +884,79 @@ def rest_white_std(x: np.ndarray, h: float, tau: float = REST_TAU_S) -> np.ndarr
 
 
 def white_sample_std(x: np.ndarray) -> np.ndarray:
-    """Per-column std of the white noise on the samples `x` (n, k) beside a smooth motion: the robust scatter of
-    the second differences, ``MAD(d2) * 1.4826 / sqrt(6)`` (white noise of std s gives ``var(d2) = 6 s^2``; a
-    motion linear over three samples gives none)."""
-    d = np.diff(np.asarray(x, dtype=float), 2, axis=0)
-    return np.median(np.abs(d - np.median(d, axis=0)), axis=0) * MAD_SIGMA / math.sqrt(6)
+    """Per-column std of the white noise on the samples `x` (n, k) beside a motion: per difference order ``k`` in
+    :data:`NOISE_DIFF_ORDERS` the robust scatter of the k-th differences over their noise gain,
+    ``MAD(d_k) * 1.4826 / sqrt(C(2k, k))`` (white noise of std s gives ``var(d_k) = C(2k, k) s^2``: 6 s^2 for the
+    second), and of those the least.
+
+    Each order reads the noise plus what the motion leaves in its differences (an independent symmetric addition
+    never makes the scatter of a Gaussian smaller), so the least is the closest bound: the k-th difference of a
+    smooth motion is about ``h^k x^(k)``, a motion at frequency ``nu`` shrinks by ``2 sin(pi nu h)`` per order
+    against the noise's gain, so one well below the Nyquist frequency is gone by the sixth where it filled the
+    second (a 2 Hz, 1 rad/s roll rate at 100 Hz: 6e-3 rad/s in the second differences, 1e-7 in the sixth). On a
+    white noise every order reads alike (the least of the five: 1-1.5 % below the second's figure on 3000-24000
+    samples, within its sampling error, :func:`white_std_error`; 4.4 % below the noise on 181, against an error of
+    11 %). A motion as rough as the noise up to the Nyquist
+    frequency (broadband vibration the IMU measures correctly, an engine's, a road's, a profile's jitter sampled at
+    its own rate) falls no faster than the noise and stays in every order: it is read as noise (the std then too
+    large, not too small); only a record at rest tells it apart (:func:`pad_white_std`)."""
+    x = np.asarray(x, dtype=float)
+    out = np.full(x.shape[1:], np.inf)
+    for k in NOISE_DIFF_ORDERS:
+        if x.shape[0] <= k:
+            break
+        d = np.diff(x, k, axis=0)
+        out = np.minimum(out, np.median(np.abs(d - np.median(d, axis=0)), axis=0) * MAD_SIGMA
+                         / math.sqrt(math.comb(2 * k, k)))
+    return out
+
+
+#: The difference orders :func:`white_sample_std` reads the white noise on (the least of their figures).
+NOISE_DIFF_ORDERS = (2, 3, 4, 5, 6)
+#: Relative sampling error of :func:`white_sample_std` on a white noise, times ``sqrt(n)`` (simulated: 1.3-1.55 on
+#: 3000-24000 samples; the MAD's 1.17 on independent samples, more on the correlated differences).
+WHITE_STD_ERROR = 1.5
+#: A quieter figure (the pad's against the record's, the Allan deviation's against the differences') replaces the
+#: other when below it by more than this many of their combined relative sampling errors.
+NOISE_SWITCH_SIGMAS = 3.0
+#: A flight's ``meta`` key: the IMU's white noise per sample measured on the pad declared at rest
+#: (:func:`pad_white_std`: ``{"std": (6,), "rel_error": (6,), "span": (T1, T2)}``), which
+#: :func:`imu_sample_noise` takes per column where the record's own figure counts motion (:func:`_with_pad`).
+IMU_NOISE_PAD = "imu_white_std_pad"
+
+
+def white_std_error(n: int) -> float:
+    """The relative sampling error of :func:`white_sample_std` on `n` samples of a white noise
+    (:data:`WHITE_STD_ERROR` over ``sqrt(n)``)."""
+    return WHITE_STD_ERROR / math.sqrt(max(n, 1))
+
+
+def allan_white_error(n: int, h: float, tau: float = REST_TAU_S) -> float:
+    """The relative sampling error of :func:`rest_white_std` on `n` samples of step `h` of a white noise:
+    ``1 / sqrt(2 edf)``, ``edf = 3 (N - 1) / (2 m) - 2 (N - 2) / N`` (the overlapping Allan variance's equivalent
+    degrees of freedom for a white rate noise, ``N = n + 1`` points, ``m = tau / h``; simulated: 0.19-0.21 on
+    10 averaging times, 0.11 on 29; this formula: 0.196 and 0.110)."""
+    tau = float(min(tau, n * h / 10.0))
+    N, m = n + 1, max(tau / h, 1.0)
+    edf = max(3.0 * (N - 1) / (2.0 * m) - 2.0 * (N - 2) / N, 1.0)
+    return 1.0 / math.sqrt(2.0 * edf)
+
+
+def pad_white_std(x: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """The IMU's white noise per sample measured on samples `x` (n, 6) at rest on the pad (step `h`, s):
+    ``(std, relative sampling error)`` per column.
+
+    The pad has no trajectory, so its differences (:func:`white_sample_std`) read the sensors' noise, unless a
+    vibration is there (an engine running: motion the IMU measures correctly, zero-mean within a tenth of a
+    second): then the Allan deviation at :data:`REST_TAU_S` (:func:`rest_white_std`), which averages it out, lies
+    below them. Per column the differences' figure, more precise (1.5 / sqrt(n) against about
+    ``0.58 / sqrt(T / tau)``), unless the Allan deviation's is below it by more than :data:`NOISE_SWITCH_SIGMAS`
+    of their combined errors: there the Allan deviation's."""
+    x = np.asarray(x, dtype=float)
+    d, a = white_sample_std(x), rest_white_std(x, h)
+    e_d, e_a = white_std_error(x.shape[0]), allan_white_error(x.shape[0], h)
+    vib = a < d * (1.0 - NOISE_SWITCH_SIGMAS * math.hypot(e_d, e_a))
+    return np.where(vib, a, d), np.where(vib, e_a, e_d)
 
 
 def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray,
@@ -842,11 +970,12 @@ def imu_noise_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray
     ``fb_*``, ``w_*`` at its rows).
 
     The noise is the error model's own sensor error taken as white: per axis, a per-sample std ``s`` measured as
-    the scatter of the second differences of consecutive telemetry samples (MAD over sqrt 6: a motion linear over
-    three samples leaves none; first differences kept the motion's slope, and a noise-free 25 Hz record of a
-    rolling flight read as 0.015 rad/s of gyro noise, 3.6e-4 rad/s with second differences; a 100 Hz boost with
-    1e-4 rad/s, 2e-3 m/s^2 of noise read as 1.1-1.3e-4 and 2.0-2.6e-3 from first differences, 1.01e-4 and
-    2.03-2.10e-3 from second), at the sample step ``h``. Over a block ``j`` of :data:`IMU_NOISE_BLOCK_S` (``n_j``
+    the scatter of the differences of consecutive telemetry samples, the least over orders 2-6 of each order's
+    scatter over its noise gain (:func:`white_sample_std`; first differences kept the motion's slope, and a
+    noise-free 25 Hz record of a rolling flight read as 0.015 rad/s of gyro noise, 3.6e-4 rad/s with second
+    differences; a 100 Hz boost with 1e-4 rad/s, 2e-3 m/s^2 of noise read as 1.1-1.3e-4 and 2.0-2.6e-3 from first
+    differences, 1.01e-4 and 2.03-2.10e-3 from second), or the pad's figure where the record's counts motion
+    (:func:`imu_sample_noise`), at the sample step ``h``. Over a block ``j`` of :data:`IMU_NOISE_BLOCK_S` (``n_j``
     samples, mean attitude ``C_j``) it is a constant error of std ``s h sqrt(n_j)`` integrated, so after the block,
     with ``phidot = -C delta_w`` and ``dv_dot = C delta_f + f x phi``::
 
@@ -915,6 +1044,14 @@ def _seen_blocks(terms: "_ImuBlocks", t_rows: np.ndarray, W: np.ndarray, ga: np.
 #: size the tracking noise's refit beside the IMU's noise then fits (:func:`casep.noise.known.fit_tracking`); absent:
 #: the IMU's noise is white only.
 IMU_INSTABILITY_TAU = "imu_instability_tau_s"
+#: A flight's ``meta`` key: the two variances ``(q_a, q_g)`` ((m/s^2)^2, (rad/s)^2) of the bias instability of
+#: :data:`IMU_INSTABILITY_TAU`, given rather than fitted (a size pooled over a run's windows:
+#: :func:`casep.noise.known.pool_parts`); the tracking noise is then refitted beside the IMU's noise at them.
+IMU_INSTABILITY_SIZE = "imu_instability_variances"
+#: A flight's ``meta`` key: a list to which the tracking noise's refit beside the IMU's noise appends the rows of its
+#: restricted likelihood (:class:`casep.noise.known.RemlRows`: the IMU's known noise with the instability's parts
+#: unscaled), for a size pooled over several records (:func:`casep.noise.known.pool_parts`).
+IMU_REML_ROWS = "imu_reml_rows"
 
 
 def imu_bias_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray, tau: float

@@ -45,8 +45,8 @@ def add_parser(sub: Any) -> None:
                         "a_*; a strapdown scenario's t, dv_*, q_*, fb_*, w_*, raw IMU with --imu-output) and the "
                         "tracking in that frame (--tracking-output); default launch: the one-file flight")
     p.add_argument("--tracking-rate", type=rate, default=None, metavar="HZ",
-                   help="with --tracking-frame ecef|geodetic: tracking sample rate (default 20; a strapdown "
-                        "scenario's tracking is the flight's, at --rate)")
+                   help="tracking sample rate (with --tracking-frame ecef|geodetic default 20; otherwise, and for "
+                        "a strapdown scenario, the flight's --rate, which it must divide: every k-th sample tracked)")
     p.add_argument("--tracking-output", metavar="FILE", default=None,
                    help="with --tracking-frame ecef|geodetic: tracking file (default <stem>.tracking<suffix>)")
     add_imu_output(p)  # --imu-output, --imu-pad, the sensors' noise and full scales
@@ -105,12 +105,11 @@ def run(args: argparse.Namespace) -> int:
         if args.imu_output is not None:
             raise ValueError(f"--imu-output needs a strapdown scenario (strapdown-boost); `{args.scenario}` is not")
         return _earth_fixed(args, site, truth, scenario)
-    if strapdown and args.tracking_rate is not None:
-        raise ValueError("--tracking-rate: a strapdown scenario's tracking is the flight's, at --rate: leave it out")
     from casep.simulation.simulate import simulate_flight, write_simulation
 
     sim = simulate_flight(scenario, seed=args.seed, rate=args.rate, model=args.model, truth=truth,
                           time_offset=args.tracking_offset * 1e-3, lever_arm=args.lever_arm,  # ms -> s
+                          tracking_rate=args.tracking_rate,  # every k-th sample tracked
                           **({"rotating_earth": True, "site": site} if site is not None else {}))
     imu = {"imu": args.imu_output, "imu_pad": args.imu_pad, "imu_sensor": sensor}
     flight_path, side = write_simulation(sim, out, **imu) if args.tracking_frame == "launch" else \

@@ -136,14 +136,18 @@ def lateness_left(record: dict | None, offset_s: float | None, offset_std_s: flo
 
 
 def fresh_epochs(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk: np.ndarray,
-                 repeated: np.ndarray) -> np.ndarray:
+                 repeated: np.ndarray, frozen: np.ndarray | None = None,
+                 r_trk: np.ndarray | None = None, rest: list[float] | None = None) -> np.ndarray:
     """The tracking epochs not stale, (M,) bool: :func:`casep.io.pair.stale_epochs` (the screen's
     rule, with the telemetry's velocity change ``v_tel`` itself, a cubic spline at the tracking times) on the
-    unshifted tags; `repeated` (M,) bool: the epochs whose file row repeats the previous one's velocity. Epochs
-    outside the telemetry's span are kept (:func:`coarse_time_offset` does not use them)."""
+    unshifted tags; `repeated` (M,) bool: the epochs whose file row repeats the previous one's velocity; `frozen`
+    (M,) bool and `r_trk` (M, 3), an Earth-fixed file's: the epochs whose row repeats the previous one's position,
+    and the tracked launch-inertial positions (m; :func:`casep.io.pair.position_gap`); `rest` ``[T1, T2]`` s, the
+    window the telemetry was levelled over. Epochs outside the telemetry's span are kept
+    (:func:`coarse_time_offset` does not use them)."""
     from scipy.interpolate import CubicSpline
 
-    from casep.io.pair import stale_epochs
+    from casep.io.pair import position_gap, stale_epochs
 
     t_tel, t_trk = np.asarray(t_tel, dtype=float), np.asarray(t_trk, dtype=float)
     fresh = np.ones(t_trk.size, bool)
@@ -151,8 +155,10 @@ def fresh_epochs(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, v_trk:
     if inside.size < 3:
         return fresh
     V = CubicSpline(t_tel, np.asarray(v_tel, dtype=float), axis=0)(t_trk[inside])
+    gap = None if frozen is None or r_trk is None else position_gap(t_tel, v_tel, t_trk, r_trk)[inside]
     fresh[inside] = ~stale_epochs(t_trk[inside], V, V - np.asarray(v_trk, dtype=float)[inside],
-                                  np.asarray(repeated, bool)[inside])
+                                  np.asarray(repeated, bool)[inside],
+                                  None if gap is None else np.asarray(frozen, bool)[inside], gap, rest)
     return fresh
 
 

@@ -61,6 +61,7 @@ from casep.io.pair import (
     clock_drift_ppm,
     no_overlap_message,
     pair_flight,
+    position_gap,
     repeated_rows,
     telemetry_time,
     time_shift_seconds,
@@ -280,11 +281,13 @@ def read_flight(path: str | os.PathLike) -> FlightData:
 
 def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray,
                     v_trk: np.ndarray, time_offset: float | str | None,
-                    repeats: np.ndarray) -> tuple[float, dict[str, Any]]:
+                    repeats: np.ndarray, frozen: np.ndarray | None = None,
+                    r_trk: np.ndarray | None = None) -> tuple[float, dict[str, Any]]:
     """The shift of the tracking time tags :func:`read_flight_pair` applies, s, and its ``time_alignment`` record.
 
     ``"auto"``: the coarse offset that lines up the velocities of the epochs not stale
-    (:func:`casep.io.align.fresh_epochs`; `repeats`: the file's repeated rows, :func:`repeated_rows`; the record's
+    (:func:`casep.io.align.fresh_epochs`; `repeats`: the file's repeated rows, :func:`repeated_rows`, `frozen` its
+    rows of a repeated position and `r_trk` its launch-inertial positions, an Earth-fixed file's; the record's
     ``stale_left_out`` counts the others); None: none, with a warning when that
     offset exceeds a tracking sample period and explains the misfit; a number: that shift (a warning
     beyond :data:`MAX_TIME_OFFSET`).
@@ -294,9 +297,13 @@ def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray
     align, stale = None, 0
     if time_offset is None or time_offset == "auto":
         # on the epochs the fit uses: a held (stale) velocity lags the vehicle and would read as late tags
-        repeated = np.zeros(t_trk.size, bool)
+        repeated, still = np.zeros(t_trk.size, bool), np.zeros(t_trk.size, bool)  # velocity, position repeated
         repeated[repeats] = True
-        fresh = fresh_epochs(t_tel, v_tel, t_trk, v_trk, repeated)
+        if frozen is not None:
+            still[frozen] = True
+        levelled = levelling_record(tel)  # the telemetry at rest there: a repeat is a fix
+        fresh = fresh_epochs(t_tel, v_tel, t_trk, v_trk, repeated, still, r_trk,
+                             None if levelled is None else levelled["window"])
         stale = int((~fresh).sum())
         try:
             align = coarse_time_offset(t_tel, v_tel, t_trk[fresh], v_trk[fresh],
@@ -447,7 +454,7 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     t_raw = trk.time()  # the tracking file's own time scale (the launch time's)
     if site is not None:
         check_launch_time(trk, t_raw, site)
-    v_trk, r_ecef, v_ecef = tracking_velocity(trk, t_raw, tracking_frame, site)  # launch-inertial
+    v_trk, r_ecef, v_ecef, r_l = tracking_velocity(trk, t_raw, tracking_frame, site)  # launch-inertial (v, r_l)
     if t_raw.size < (4 if interpolation == "cubic" else 2):
         raise trk.error(f"{t_raw.size} tracking samples are too few for {interpolation} interpolation", "t", t_raw.size)
     shift_scale, drift = time_shift_seconds(time_shift), clock_drift_ppm(clock_drift)
@@ -460,6 +467,7 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     if inside.sum() < 2:
         raise tel.error(no_overlap_message(t_tel, t_raw, shift_scale), "t")
     repeats = repeated_rows(trk, tracking_frame)
+    frozen = repeated_rows(trk, tracking_frame, part="position") if r_l is not None else None
     signals = tel.signals()
     strapdown: dict[str, Any] = {}
     tel.strapdown_signals(signals, strapdown)
@@ -472,8 +480,10 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
             else None
         v_tel = v_tel + drift * 1e-6 * clock_stretch(t_tel, q, fb, w, v_tel, r_ins,
                                                      None if r_ins is None else launch_gravitation(gsite))
-    shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset, repeats)
+    shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset, repeats, frozen, r_l)
     extra: dict[str, Any] = {"time_alignment": alignment, "tracking_repeats": repeats, **strapdown}
+    if frozen is not None and r_l is not None:  # a frozen position judged by the telemetry's own (the screen)
+        extra.update(tracking_frozen=frozen, tracking_position_gap=position_gap(t_tel, v_tel, t_trk - shift, r_l))
     if not all(f"a_{a}" in signals for a in "xyz"):
         signals.update(acceleration_signals(t_tel, v_tel))
         extra["kinematic_acceleration"] = "a_x, a_y, a_z: d v_tel / dt (cubic spline of the telemetry velocity)"
@@ -518,11 +528,8 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
         flight.meta["start_frame_unnamed"] = False  # relative to the pad, from the Earth-fixed tracking
         flight.meta["tracking_frame"]["pad_velocity_m_s"] = ev["pad"]["pad_velocity_m_s"]
         flight.meta["setup"] = ev
-    if r_ecef is not None and not any(c in flight.signals for c in STATE_SIGNALS):  # Earth-fixed: the state
-        from casep.frames import ecef_to_launch
-
-        r_l, v_l = ecef_to_launch(site, t_raw, r_ecef, v_ecef)  # launch-inertial, at the file's own time tags
-        flight = with_tracked_state(flight, t_trk - shift, r_l, v_l)
+    if r_l is not None and not any(c in flight.signals for c in STATE_SIGNALS):  # Earth-fixed: the state
+        flight = with_tracked_state(flight, t_trk - shift, r_l, v_trk)
     return flight
 
 

@@ -24,7 +24,8 @@ __all__ = ["pair_flight", "PAIR_GRIDS", "STATE_SIGNALS", "GAP_FACTOR", "GAP_MIN_
            "check_launch_time", "no_overlap_message",
            "check_earth_fixed_units", "check_velocity_columns", "velocity_column_misfit", "COLUMN_WINDOW_S",
            "COLUMN_RATIO", "COLUMN_MISFIT_MIN", "fits_time_offset", "VALID_COLUMN", "repeated_rows",
-           "stale_epochs", "held_epochs", "STALE_MOTION", "JUMP_RATE", "HELD_SHARE", "HELD_RUN_SHARE", "PairInputs",
+           "stale_epochs", "held_epochs", "position_gap", "STALE_MOTION", "STALE_POSITION", "JUMP_RATE", "HELD_SHARE",
+           "HELD_RUN_SHARE", "PairInputs",
            "repaired", "offset_second_order"]
 
 #: The telemetry column marking the samples whose navigation solution is trusted (1) or not (0: after a clipped
@@ -82,13 +83,14 @@ def check_tracking_frame(tracking: str | os.PathLike, tracking_frame: str, site)
 
 
 def tracking_velocity(trk: Table, t_trk: np.ndarray, tracking_frame: str,
-                       site) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+                      site) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     """The tracking velocity in the launch-inertial frame, m/s (casep.frames), from the file's own time tags,
-    and (Earth-fixed frames) the tracked ECEF position and Earth-relative velocity (m, m/s; None for launch)."""
+    and (Earth-fixed frames) the tracked ECEF position and Earth-relative velocity and the launch-inertial position
+    (m, m/s, m; None for launch)."""
     from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS, ecef_to_launch, geodetic_to_ecef
 
     if tracking_frame == "launch":
-        return trk.vectors(VTRK_COLUMNS), None, None
+        return trk.vectors(VTRK_COLUMNS), None, None, None
     if tracking_frame == "ecef":
         r, v = trk.vectors(ECEF_COLUMNS[1:4]), trk.vectors(ECEF_COLUMNS[4:7])
     else:
@@ -104,30 +106,83 @@ def tracking_velocity(trk: Table, t_trk: np.ndarray, tracking_frame: str,
         check_velocity_columns(trk, t_trk, r, np.column_stack([ve, vn, vu]), tracking_frame, _enu_axes(lat, lon))
     else:
         check_velocity_columns(trk, t_trk, r, v, tracking_frame)
-    return ecef_to_launch(site, t_trk, r, v)[1], r, v
+    r_l, v_l = ecef_to_launch(site, t_trk, r, v)
+    return v_l, r, v, r_l
 
 
 #: A repeated fix is stale when the telemetry moved by more than this since the fix it repeats, m/s.
 STALE_MOTION = 0.5
+#: A repeated position is stale when the telemetry moved away from it by more than this plus :data:`STALE_MOTION` times
+#: the time since the fix it repeats, m. The repeat shares its fix's error (the metres of a code solution's, which
+#: change over minutes), so what a fresh fix would show is the movement against its noise between consecutive fixes:
+#: decimetres for a code solution, centimetres for a carrier-phase one; 1 m is beyond both. The time term is the
+#: velocity rule integrated: an INS whose velocity stays within :data:`STALE_MOTION` of the fix's moves by less.
+STALE_POSITION = 1.0
 #: The instrument errors' allowance of the physics check (:mod:`casep.checks.tracking_quality`, with its
 #: ``JUMP_TOL``) and of a held velocity's run, m/s^2.
 JUMP_RATE = 2.0
 
 
-def stale_epochs(t: np.ndarray, V: np.ndarray, dv: np.ndarray, repeated: np.ndarray) -> np.ndarray:
+def stale_epochs(t: np.ndarray, V: np.ndarray, dv: np.ndarray, repeated: np.ndarray,
+                 frozen: np.ndarray | None = None, gap: np.ndarray | None = None,
+                 rest: tuple[float, float] | list[float] | None = None) -> np.ndarray:
     """The stale tracking epochs (:mod:`casep.checks.tracking_quality`'s notes), (N,) bool: the repeats of a fix
     (`repeated`, the epochs whose file row repeats the previous one's velocity, :func:`repeated_rows`) while the
-    telemetry moved by more than :data:`STALE_MOTION` since the fix, and the epochs of a velocity held with a jitter
-    (:func:`held_epochs`). `t`: the epochs' times (s), `V`: the telemetry's velocity change there (m/s, any constant),
-    `dv`: ``v_tel - v_trk`` there (m/s). The one rule of the screen
+    telemetry moved by more than :data:`STALE_MOTION` since the fix, the repeats of a position (`frozen`, the epochs
+    whose file row repeats the previous one's position) while the telemetry moved from it by more than
+    :data:`STALE_POSITION` plus :data:`STALE_MOTION` times the time since the fix (beyond the telemetry's own
+    velocity error at the fix, `dv` there, carried on), and the epochs of a velocity held
+    with a jitter (:func:`held_epochs`). `t`: the epochs' times (s), `V`: the telemetry's velocity change there (m/s,
+    any constant), `dv`: ``v_tel - v_trk`` there (m/s), `gap`: the telemetry's position less the tracking's there
+    (m, any constant, :func:`position_gap`; NaN: not judged).
+
+    Telemetry and tracking are compared in one frame: the velocity moved is the change of `dv` (the tracking turned
+    into the telemetry's frame at each epoch's own time, :func:`casep.frames.ecef_to_launch`), not of `V`: a repeated
+    Earth-fixed fix of a vehicle at rest is carried by the Earth's rotation as the telemetry is (0.02 m/s^2 in the
+    launch-inertial frame at 51 deg), and a frozen position likewise. `rest` ``(T1, T2)``, s: where the vehicle is
+    at rest by the navigation's own premise (the window it was levelled over, ``--align``): a repeat there is right
+    and is a fix the later repeats are judged from (an INS not yet corrected, a first pass, drifts over a long pad
+    while the vehicle stands: 1.45 m/s in 60 s with a tactical IMU). The one rule of the screen
     (:func:`casep.checks.tracking_quality.screen_tracking`) and of the coarse time alignment
     (:func:`casep.io.align.fresh_epochs`)."""
+    moving = np.ones(t.size, bool) if rest is None else ~((t >= rest[0]) & (t <= rest[1]))
+    out = _departed(t, dv, np.asarray(repeated, bool) & moving, STALE_MOTION, 0.0) | held_epochs(t, V, dv)
+    if frozen is not None and gap is not None:
+        out |= _departed(t, gap, np.asarray(frozen, bool) & moving, STALE_POSITION, STALE_MOTION, dv)
+    return out
+
+
+def _departed(t: np.ndarray, x: np.ndarray, repeated: np.ndarray, limit: float, rate: float,
+              slope: np.ndarray | None = None) -> np.ndarray:
+    """The `repeated` epochs (the first epoch never is) at which `x` (N, k) moved from its value at the fix they
+    repeat (the last epoch before them not repeated) by more than ``limit + rate (t - t_fix)``: :func:`stale_epochs`'
+    rule for a velocity and for a position. `slope` (N, k): `x` is expected to go on from the fix at ``slope`` there
+    (a position gap at the velocity gap ``dv`` of the fix: the telemetry's own velocity error then, which a vehicle
+    at rest under a held fix shows as well as a moving one)."""
     is_rep = np.asarray(repeated, bool).copy()
     if is_rep.size:
         is_rep[0] = False
     anchor = np.maximum.accumulate(np.where(~is_rep, np.arange(is_rep.size), 0))  # the fix each epoch repeats
-    moved = np.linalg.norm(V - V[anchor], axis=1)
-    return (is_rep & (moved > STALE_MOTION)) | held_epochs(t, V, dv)
+    since = t - t[anchor]
+    moved = np.linalg.norm(x - x[anchor] - (0.0 if slope is None else slope[anchor] * since[:, None]), axis=1)
+    return is_rep & (moved > limit + rate * since)
+
+
+def position_gap(t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray, r_trk: np.ndarray) -> np.ndarray:
+    """The telemetry's position less the tracking's at the tracking times `t_trk`, (M, 3) m, up to a constant: the
+    telemetry velocity `v_tel` (launch-inertial, at `t_tel`) integrated from ``t_tel[0]`` (its cubic spline's
+    antiderivative, the spline the pair carries the velocity by) less `r_trk` (the tracked launch-inertial position,
+    :func:`casep.frames.ecef_to_launch` of the file's); NaN outside the telemetry's span. What
+    :func:`stale_epochs` judges a frozen position by."""
+    from scipy.interpolate import CubicSpline
+
+    t_trk = np.asarray(t_trk, dtype=float)
+    out = np.full((t_trk.size, 3), np.nan)
+    inside = (t_trk >= t_tel[0]) & (t_trk <= t_tel[-1])
+    if t_tel.size >= 2 and inside.any():
+        out[inside] = CubicSpline(t_tel, np.asarray(v_tel, dtype=float), axis=0).antiderivative()(t_trk[inside]) \
+            - np.asarray(r_trk, dtype=float)[inside]
+    return out
 
 
 #: A tracking velocity that changes between two epochs by at most this share of what the telemetry's velocity
@@ -169,16 +224,22 @@ def held_epochs(t: np.ndarray, V: np.ndarray, dv: np.ndarray) -> np.ndarray:
     return out
 
 
-def repeated_rows(trk: Table, tracking_frame: str, skip: np.ndarray | None = None) -> np.ndarray:
+def repeated_rows(trk: Table, tracking_frame: str, skip: np.ndarray | None = None,
+                  part: str = "velocity") -> np.ndarray:
     """The tracking rows (0-based) whose velocity columns repeat the previous row's exactly: a receiver that has
     lost lock and repeats its last fix, or its last velocity while its positions go on (the velocity is what the
     separation compares; a stale velocity beside fresh positions is as wrong as a repeated fix). A record of the
     file, not a judgement (:mod:`casep.checks.tracking_quality` judges them against the telemetry's motion). Rows
     `skip` (a boolean mask: rows without tracking) are left out; a row is compared with the previous row not
-    skipped."""
+    skipped. `part` ``"position"``: the rows whose position columns repeat (an Earth-fixed file's; none for the
+    launch frame's, which has none)."""
     from casep.frames import ECEF_COLUMNS, GEODETIC_COLUMNS
 
-    cols = {"launch": VTRK_COLUMNS, "ecef": ECEF_COLUMNS[4:], "geodetic": GEODETIC_COLUMNS[4:]}[tracking_frame]
+    if part == "position" and tracking_frame == "launch":
+        return np.zeros(0, int)
+    cols: tuple[str, ...] = {"launch": VTRK_COLUMNS, "ecef": ECEF_COLUMNS[4:], "geodetic": GEODETIC_COLUMNS[4:]}[
+        tracking_frame] if part != "position" else {"ecef": ECEF_COLUMNS[1:4], "geodetic": GEODETIC_COLUMNS[1:4]}[
+        tracking_frame]
     x = trk.vectors(tuple(cols), skip=skip)
     idx = np.arange(x.shape[0]) if skip is None else np.flatnonzero(~skip)
     x = x[idx]

@@ -52,7 +52,7 @@ from casep._kernels import ar1_terms, joint_filter
 from casep.noise.model import AXES, NoiseModel
 
 __all__ = ["KnownStates", "TrackingParameters", "joint_whiten", "restricted_likelihood", "fit_tracking",
-           "tracking_covariance_times", "PART_RANGE"]
+           "tracking_covariance_times", "PART_RANGE", "RemlRows", "PooledParts", "pool_parts", "POOL_LEVEL"]
 
 #: How far (natural logarithm, down and up) :func:`fit_tracking` moves a part's variance from its start: e^-25 is
 #: 1e-11 of the start (a part that small adds nothing a record tells from none: it is then 0), e^20 4.9e8 of it.
@@ -239,6 +239,150 @@ def fit_tracking(X: np.ndarray, t: np.ndarray, start: NoiseModel, known: KnownSt
     rule = ("REML" if free_tau else "tau given, REML") + " beside the IMU noise"
     extra = {"neg2_reml": val} if not known.parts else {"neg2_reml": val, "known_scales": scales(best)}
     return theta(best).model(start.kind, rule, **extra), val
+
+
+@dataclass(frozen=True)
+class RemlRows:
+    """One record's restricted likelihood beside a known term: the rows ``X = [Z dv]`` (M, 3, p + 1), their times
+    `t` (M,), the fitted tracking noise model `start` whose kinds the refit keeps, the known term `known` with its
+    `parts` unscaled (:class:`KnownStates`), and `part_start` (one start per part, > 0: the refit's
+    ``part_start``)."""
+
+    X: np.ndarray
+    t: np.ndarray
+    start: NoiseModel
+    known: KnownStates
+    part_start: tuple
+
+
+#: The rise of ``-2 l_R`` that bounds :func:`pool_parts`' 95 % interval of a part's variance (chi-square, 1 dof).
+POOL_LEVEL = 3.841
+
+
+@dataclass(frozen=True)
+class PooledParts:
+    """:func:`pool_parts`' answer: per part the variance ``q`` (per unit weight), its 95 % interval (``lo``, ``hi``;
+    ``hi`` inf when the rows do not bound it from above within the search range), the summed ``-2 l_R`` at it and
+    with every part 0, and each record's tracking noise refitted at its ``w_k q`` (``models``; None where the
+    record's weight is 0 and it has no part to scale: still refitted, at 0)."""
+
+    q: tuple
+    interval: tuple
+    neg2_reml: float
+    neg2_reml_none: float
+    weights: tuple
+    models: tuple
+    evaluations: int
+
+    def to_dict(self) -> dict:
+        return {"variances": list(self.q), "interval_95": [list(v) for v in self.interval],
+                "neg2_reml": self.neg2_reml, "neg2_reml_without": self.neg2_reml_none, "weights": list(self.weights),
+                "evaluations": self.evaluations,
+                "rule": "one variance per part of the known term, q_k = w_k q in record k, fitted by the restricted "
+                        "likelihood summed over the records, each record's tracking noise refitted at it "
+                        "(casep.noise.known.pool_parts); the interval: where -2 l_R rises by 3.84 along that part, "
+                        "the other parts held at their best"}
+
+
+def pool_parts(records, weights=None, *, xatol: float = 0.1, step: float = 0.7) -> PooledParts:
+    """One size for the parts of several records' known terms (:class:`RemlRows`), fitted jointly.
+
+    Record ``k``'s parts are at ``w_k q`` (`weights` ``w_k >= 0``, one per record, a measure of what drives the
+    term in that record; default 1 each): ``q`` maximises the restricted likelihood summed over the records, each
+    record's tracking noise profiled out (refitted at ``w_k q`` by :func:`fit_tracking`, from its own `start`, so
+    the sum does not depend on the search's path)::
+
+        -2 l_R(q) = sum_k  min_theta_k  -2 l_R,k(theta_k; w_k q)
+
+    The search is in ``ln q_i`` within :data:`PART_RANGE` of the records' starts (their geometric mean, per unit
+    weight); below the range a part is 0. It scans each part in turn over :data:`PART_GRID` points (the others at the
+    best found so far), then runs the simplex to `xatol`. Each part's 95 % interval is where ``-2 l_R`` rises by
+    :data:`POOL_LEVEL` from its best along that part (steps in ``ln q`` from `step` on, doubling, up to the search
+    range's end, which counts: within the level there, the interval reaches 0 or has no upper end; the crossing
+    bisected three times, then linear between its two points), the other parts held at their best: with one part
+    the profile-likelihood interval; with several, the conditional one (no wider than the profile's)."""
+    from casep.noise.fit import nelder_mead
+
+    records = list(records)
+    K = len(records)
+    if K == 0:
+        raise ValueError("pool_parts: no records")
+    n = len(records[0].known.parts)
+    if n == 0 or any(len(r.known.parts) != n or len(r.part_start) != n for r in records):
+        raise ValueError("pool_parts: every record needs the same number of parts (> 0) and one start per part")
+    w = np.ones(K) if weights is None else np.asarray(weights, dtype=float)
+    if w.shape != (K,) or not np.all(np.isfinite(w)) or np.any(w < 0) or not np.any(w > 0):
+        raise ValueError(f"pool_parts: one finite weight >= 0 per record ({K}), not all 0; got {weights!r}")
+    pos = w > 0
+    starts = np.array([r.part_start for r in records], dtype=float)
+    if np.any(~(starts > 0)):
+        raise ValueError("pool_parts: every part start must be > 0")
+    lq0 = np.mean(np.log(starts[pos] / w[pos, None]), axis=0)
+    low, high = lq0 - PART_RANGE[0], lq0 + PART_RANGE[1]
+    count = [0]
+    memo: dict = {}
+
+    def sizes(x: np.ndarray) -> np.ndarray:
+        xq = np.clip(x, low, high)
+        return np.where(xq <= low, 0.0, np.exp(xq))
+
+    def refit(x: np.ndarray) -> tuple[float, list]:
+        key = tuple(np.round(np.clip(x, low, high), 9))
+        if key not in memo:
+            q = sizes(np.array(key))
+            total, models = 0.0, []
+            for r, wk in zip(records, w):
+                model, val = fit_tracking(r.X, r.t, r.start, r.known.scaled(list(wk * q)))
+                total += val
+                models.append(model)
+            count[0] += 1
+            memo[key] = (total, models)
+        return memo[key]
+
+    def value(x: np.ndarray) -> float:
+        return refit(x)[0]
+
+    grid = np.linspace(0.0, 1.0, PART_GRID)
+    x = low.copy()
+    for i in range(n):
+        cands = [np.where(np.arange(n) == i, low[i] + g * (high[i] - low[i]), x) for g in grid]
+        x = cands[int(np.argmin([value(c) for c in cands]))]
+    x = np.clip(nelder_mead(value, x, np.full(n, 1.0), xatol, maxfun=40 * n + 20), low, high)
+    best = value(x)
+    interval = []
+    for i in range(n):
+        def along(v: float, i: int = i) -> float:  # -2 l_R with part i at ln q = v, the others at their best
+            return value(np.where(np.arange(n) == i, v, x))
+
+        ends = []
+        for sign, bound in ((-1.0, low[i]), (1.0, high[i])):
+            inside, d = float(x[i]), step  # the last point within the level, and the next step (doubling)
+            while True:
+                cur = inside + sign * d
+                if sign * (cur - bound) >= 0:
+                    cur = float(bound)
+                if along(cur) - best >= POOL_LEVEL:
+                    break
+                if cur == bound:  # the bound itself within the level: the rows do not bound the part there
+                    break
+                inside, d = cur, 2.0 * d
+            if cur == bound and along(cur) - best < POOL_LEVEL:
+                ends.append(0.0 if sign < 0 else np.inf)
+                continue
+            for _ in range(3):  # bisect the crossing, then linear between the two points left
+                mid = 0.5 * (inside + cur)
+                if along(mid) - best >= POOL_LEVEL:
+                    cur = mid
+                else:
+                    inside = mid
+            v_in, v_out = along(inside), along(cur)
+            frac = (best + POOL_LEVEL - v_in) / (v_out - v_in) if v_out > v_in else 1.0
+            edge = inside + frac * (cur - inside)
+            ends.append(0.0 if edge <= low[i] else float(np.exp(edge)))
+        interval.append((ends[0] if x[i] > low[i] else 0.0, ends[1]))
+    q = sizes(x)
+    return PooledParts(tuple(float(v) for v in q), tuple(interval), best, value(low), tuple(float(v) for v in w),
+                       tuple(refit(x)[1]), count[0])
 
 
 def tracking_covariance_times(V: np.ndarray, t: np.ndarray, noise: NoiseModel) -> np.ndarray:

@@ -46,12 +46,21 @@ def imu_noise_line(account: dict) -> str:
     acc, gyr = max(account["accelerometer_m_s2"]), max(account["gyro_rad_s"])
     factor = account["std_factor_max"]
     unseen = account.get("not_measured") or []
+    on_pad = account.get("on_pad") or []
+    if on_pad:
+        a, b = account["pad_span_s"]
+        where = f"measured at rest on the pad {a:.6g}..{b:.6g} s" + ("" if len(on_pad) == 6 else
+                                                                   f" for {', '.join(on_pad)}, on the record else")
+    else:
+        where = "measured at rest" if str(account.get("source", "")).startswith("measured at rest") else \
+            "measured on the record"
     if len(unseen) == 6:
-        return ("IMU noise not measured: the record's IMU samples show none above their rounding (per sample at "
+        looked = "" if where == "measured on the record" else f" (looked for {where.removeprefix('measured ')})"
+        return (f"IMU noise not measured{looked}: the IMU samples show none above their rounding (per sample at "
                 f"most {acc:.3g} m/s^2 and {gyr:.3g} rad/s: noise-free, held or smoothed samples), so the std carry "
                 "no IMU noise; an instrument's noise is stated as the flight's meta[IMU_NOISE_AT_REST] (Python: "
                 "casep.checks.tracking_quality, rest_white_std of a stationary record)")
-    head = (f"IMU noise (measured on the record, per sample up to {acc:.3g} m/s^2 and {gyr:.3g} rad/s at "
+    head = (f"IMU noise ({where}, per sample up to {acc:.3g} m/s^2 and {gyr:.3g} rad/s at "
             f"{account['sample_step_s']:.3g} s"
             + (f"; not measured on {', '.join(unseen)}: no noise above their samples' rounding, none carried"
                if unseen else "") + ")")
@@ -106,13 +115,16 @@ def noise_lines(diagnostics: Mapping[str, Any], joint: bool = False) -> list[str
         lines.append(f"tracking gaps: {len(gaps)} longer than 3 sample periods: {parts}"
                      f"{', ...' if len(gaps) > SHOWN else ''}")
     clock = diagnostics.get("clock_drift") or {}
+    # read beside a turn about the vertical named first: its misfit reads as a drift
+    beside = "; read beside the turn about the vertical named above, whose misfit it may be: judge it once the " \
+        "turn is set right" if "beside_turn" in clock else ""
     if clock.get("telemetry"):
         from casep.checks.tracking_quality import telemetry_clock_line
 
-        lines.append(telemetry_clock_line(clock["telemetry"], clock.get("carried")))
+        lines.append(telemetry_clock_line(clock["telemetry"], clock.get("carried")) + beside)
     halves = clock.get("halves")
     if halves:
         from casep.checks.tracking_quality import halves_line
 
-        lines.append(halves_line(halves))
+        lines.append(halves_line(halves) + beside)
     return lines

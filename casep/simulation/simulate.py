@@ -247,7 +247,8 @@ def check_seed(seed: int) -> int:
 def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: float | None = None,
                     model: str | os.PathLike | None = None, truth: dict | None = None,
                     time_offset: float = 0.0, lever_arm: np.ndarray | None = None, rotating_earth: bool = False,
-                    site=None, trajectory: BoostTrajectory | None = None) -> SimulatedFlight:
+                    site=None, trajectory: BoostTrajectory | None = None,
+                    tracking_rate: float | None = None) -> SimulatedFlight:
     """Simulate one flight of a scenario.
 
     Parameters
@@ -274,6 +275,10 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
         The scenario's vehicle flown at `rate` already, used instead of flying it again
         (:func:`casep.simulation.stored.stored_trajectory`: the demo's; one without dense output takes no
         `time_offset` or `lever_arm`).
+    tracking_rate : float, optional
+        Tracking rate, Hz, dividing the flight's `rate` (:func:`tracking_step`): the tracking (dv and the tracked
+        state ``r_*``, ``v_*``) at every ``rate / tracking_rate``-th sample from the first, the others untracked
+        (a GNSS receiver slower than the IMU of a strapdown flight); default every sample.
 
     Returns
     -------
@@ -285,6 +290,7 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
         sc = dataclasses.replace(sc, model=sc.model if model is None else os.fspath(model),
                                  truth=sc.truth if truth is None else dict(truth))
     time_offset, lever = _check_tracking(time_offset, lever_arm)
+    every = tracking_step(sc.with_rate(rate).rate, tracking_rate)  # before the flight is flown
     if model is not None and truth is None:  # the scenario's truth is for its own model: say so when it does not fit
         names = load_model(sc.model).names
         other = [n for n in sc.truth if n not in names]
@@ -307,7 +313,7 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
     noise = sc.noise.sample(traj.t, rng)
     # every telemetry sample stays (S_V integrates from lift-off, across the gaps); tracking exists outside the
     # gap windows only: dv and the tracked state r_*, v_* are NaN inside them, as a telemetry + tracking pair has them
-    keep = sc.noise.keep_mask(traj.t)
+    keep = sc.noise.keep_mask(traj.t) & (np.arange(traj.t.size) % every == 0)
     dv = np.where(keep[:, None], clean + noise, np.nan)
     for i, a in enumerate("xyz"):
         sig[f"v_{a}"] = tracked[:, i] - noise[:, i]  # tracked velocity as measured: v_tel = v_* + dv
@@ -321,8 +327,25 @@ def simulate_flight(scenario: str | Scenario = "paper", *, seed: int = 0, rate: 
     return SimulatedFlight(flight=flight, trajectory=traj, model=error_model, truth=true_D, noise=noise,
                            scenario=sc, seed=seed,
                            tracking={"time_offset_ms": time_offset * 1e3, "lever_arm_m": lever.tolist(),
+                                     **({} if tracking_rate is None else {"rate_hz": sc.rate / every}),
                                      **({"rotating_earth": True, "launch_site": traj.site.to_dict()}
                                         if traj.site is not None else {})})
+
+
+def tracking_step(rate: float, tracking_rate: float | None) -> int:
+    """Every how many samples of a flight at `rate` (Hz) its tracking at `tracking_rate` (Hz) is: ``rate /
+    tracking_rate``, a whole number (to 1e-9 relative), or ValueError; 1 when `tracking_rate` is None."""
+    if tracking_rate is None:
+        return 1
+    if isinstance(tracking_rate, bool) or not isinstance(tracking_rate, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(tracking_rate) or tracking_rate <= 0:
+        raise ValueError(f"`tracking_rate` must be a finite number of Hz > 0, got {tracking_rate!r}")
+    k = round(rate / tracking_rate)
+    if k < 1 or abs(k * tracking_rate - rate) > 1e-9 * rate:
+        raise ValueError(f"the tracking rate {tracking_rate:g} Hz must divide the flight's rate {rate:g} Hz (the "
+                         f"tracking is every k-th sample): {rate:g} / k Hz, e.g. "
+                         + ", ".join(f"{rate / j:g}" for j in (1, 2, 5, 10) if rate / j >= 1.0))
+    return k
 
 
 def truth_path(path: str | os.PathLike) -> Path:

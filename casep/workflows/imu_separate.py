@@ -97,7 +97,7 @@ boost under ``strapdown33``: corrections of 1e9 declared magnitudes and stated c
 before). The std that leave a combination out are the ones its left-out correction is judged by
 (:func:`_outside_failure`) and the stop rule reads: the tracking's (the record's IMU noise is the same in every pass;
 a combination the tracking determines to 0.009 declared magnitudes is never left out because the record's noise,
-measured on a moving telemetry's second differences, puts its std at 1); the stated combinations' std carry the
+measured on a moving telemetry's differences, puts its std at 1); the stated combinations' std carry the
 record's own noise as the coefficients' do (:func:`combination_imu_noise`).
 
 Far from convergence the passes are solved by OLS under white noise, then as requested; once every
@@ -509,6 +509,8 @@ class _Run:
     _steps: tuple | None = None
     #: (problem, noise request, rows, the warnings their preparation gave) of the last pass's fit (:meth:`pass_fit`)
     _rows: tuple | None = None
+    #: the IMU's white noise measured on the pad window (:func:`_pad_noise`; empty: not measurable), formed once
+    _pad_noise: dict | None = None
 
     def __init__(self, imu: ImuData, tracking: Any, nav_site: LaunchSite, site: LaunchSite, window: tuple,
                  base: ErrorModel, source: Any, spec: FitSpec, heading_deg: float | None, heading_axis: str,
@@ -561,6 +563,7 @@ class _Run:
 
     def flight(self, nav: NavigationResult, D: np.ndarray, model: ErrorModel | None) -> FlightData:
         """The navigation paired with the tracking, less the model's direct velocity terms at `D`."""
+        from casep.checks.tracking_quality import IMU_NOISE_PAD
         from casep.io.files import read_flight_pair
         from casep.io.tables import Table
 
@@ -574,6 +577,11 @@ class _Run:
             warnings.filterwarnings("ignore", category=SaturationWarning)
             flight = read_flight_pair(tel, self.tracking, **self.pair)
         flight.meta["saturation"] = _imu_saturation(self.imu)
+        if self._pad_noise is None:
+            self._pad_noise = _pad_noise(self.imu, self.window)
+        if self._pad_noise:  # the IMU's noise on the pad declared at rest, where the record's counts motion
+            flight.meta[IMU_NOISE_PAD] = self._pad_noise
+        flight.meta["rest_window_s"] = [float(self.window[0]), float(self.window[1])]  # levelled there: at rest
         if self.clock_ppm:  # out of the IMU's own tags and steps (separate_imu), not the tracking's
             flight.meta["clock_drift_ppm"], flight.meta["clock_drift_of"] = self.clock_ppm, "imu"
         if self.heading_said is not None:  # found on the first pass's screened epochs (heading_check)
@@ -1671,6 +1679,19 @@ class _Run:
         return t, y
 
 
+def _pad_noise(imu: ImuData, window: tuple) -> dict:
+    """The IMU's white noise per sample on the pad `window` (:func:`casep.checks.tracking_quality.pad_white_std` of
+    the raw samples there: the vehicle at rest, no trajectory in their differences), as the flight's
+    ``meta[IMU_NOISE_PAD]``; empty when the window holds fewer than 20 samples (an Allan deviation needs them)."""
+    from casep.checks.tracking_quality import pad_white_std
+
+    pad = (imu.t >= window[0]) & (imu.t <= window[1])
+    if int(pad.sum()) < 20:
+        return {}
+    s, e = pad_white_std(np.column_stack([imu.f[pad], imu.w[pad]]), float(np.median(np.diff(imu.t[pad]))))
+    return {"std": s, "rel_error": e, "span": (float(window[0]), float(window[1]))}
+
+
 def _imu_saturation(imu: ImuData) -> dict | None:
     """``meta["saturation"]`` of a flight navigated from `imu` (:func:`casep.checks.saturation.screen_saturation`'s
     record): None when the record did not clip, else where it did, as :func:`casep.navigation.imu.check_imu` found it
@@ -2373,23 +2394,36 @@ class ImuNoise(NamedTuple):
     """The IMU's white noise as the budget measures it (:func:`imu_noise_measured`): `sample` the ``(s, h, samples)``
     of :func:`casep.checks.tracking_quality.imu_sample_noise`, `at_rest` whether it is the one measured at rest
     (``meta[IMU_NOISE_AT_REST]``), `unresolved` the columns whose noise the record does not show
-    (:func:`casep.checks.tracking_quality.unresolved_noise`; none when measured at rest)."""
+    (:func:`casep.checks.tracking_quality.unresolved_noise`: not measured), `on_pad` the columns taken from the pad
+    (:func:`casep.checks.tracking_quality.imu_noise_on_pad`) and `pad_span` the pad's span (s)."""
 
     sample: tuple
     at_rest: bool
     unresolved: tuple
+    on_pad: tuple = ()
+    pad_span: tuple | None = None
 
 
 def imu_noise_measured(flight: FlightData, t: np.ndarray) -> ImuNoise | None:
     """The IMU's white noise of `flight` up to the last epoch of `t` (:class:`ImuNoise`), measured once for
     :func:`imu_noise_budget` and :func:`with_imu_noise_beyond`; None when the flight does not hold the IMU's samples."""
-    from casep.checks.tracking_quality import IMU_NOISE_AT_REST, imu_sample_noise, unresolved_noise
+    from casep.checks.tracking_quality import (
+        IMU_NOISE_AT_REST,
+        IMU_NOISE_PAD,
+        imu_noise_on_pad,
+        imu_sample_noise,
+        unresolved_noise,
+    )
 
     measured = imu_sample_noise(flight, t)
     if measured is None:
         return None
-    at_rest = isinstance(flight.meta, dict) and flight.meta.get(IMU_NOISE_AT_REST) is not None
-    return ImuNoise(measured, at_rest, () if at_rest else tuple(unresolved_noise(flight, measured[0], measured[2])))
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    pad = meta.get(IMU_NOISE_PAD) or {}
+    on_pad = tuple(imu_noise_on_pad(flight, t))
+    return ImuNoise(measured, meta.get(IMU_NOISE_AT_REST) is not None,
+                    tuple(unresolved_noise(flight, measured[0], measured[2])), on_pad,
+                    tuple(pad["span"]) if on_pad and pad.get("span") is not None else None)
 
 
 def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, levelling: tuple | None = None,
@@ -2916,10 +2950,10 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     accelerometers', the gyros') the same REML fits beside the tracking noise (:func:`_instability` reads them):
     started at the white noise's variance averaged over the correlation time, ``s^2 h / tau`` (the sensor's mean over
     its axes)."""
-    from casep.checks.tracking_quality import imu_noise_states, imu_sample_noise
+    from casep.checks.tracking_quality import IMU_REML_ROWS, imu_noise_states, imu_sample_noise
     from casep.estimators.solve import kept_samples
     from casep.noise.fit import Reml, estimable_basis
-    from casep.noise.known import fit_tracking
+    from casep.noise.known import RemlRows, fit_tracking
 
     if noise.sigma is None or not np.isfinite(noise.sigma) or problem.y is None:
         return None
@@ -2927,6 +2961,7 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     rows = problem if keep.all() else problem.subset(keep)
     t = np.asarray(rows.t, dtype=float)
     tau = instability_tau(flight)
+    given = instability_given(flight)
     known = imu_noise_states(flight, t, levelling, tau)
     if known is None:
         return None
@@ -2937,7 +2972,37 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
         s, h, _ = measured
         start = tuple(max(float(np.mean(s[k:k + 3] ** 2)) * h / tau, 1e-30) for k in (0, 3))
     X = np.stack(Reml(rows, estimable_basis(rows)).Z, axis=1)  # (N, 3, p + 1): [Z dv] per axis
-    return fit_tracking(X, t, noise, known, part_start=start)[0]
+    kept = flight.meta.get(IMU_REML_ROWS) if isinstance(flight.meta, dict) else None
+    if isinstance(kept, list):  # a size pooled over several records reads them (casep.noise.known.pool_parts)
+        kept.append(RemlRows(X, t, noise, known, start))
+    if given is None:
+        return fit_tracking(X, t, noise, known, part_start=start)[0]
+    refit = fit_tracking(X, t, noise, known.scaled(list(given)))[0]
+    refit.extra["known_scales"] = list(given)
+    refit.extra["known_given"] = True
+    return refit
+
+
+def instability_given(flight: FlightData) -> tuple[float, float] | None:
+    """The variances ``(q_a, q_g)`` of the IMU's bias instability given to the flight rather than fitted
+    (``meta[IMU_INSTABILITY_SIZE]``, :data:`casep.checks.tracking_quality.IMU_INSTABILITY_SIZE`; a size pooled over a
+    run's windows), None: fitted on the record (with :func:`instability_tau`). Two finite variances >= 0, and a
+    correlation time asked for, else an error naming them."""
+    from casep.checks.tracking_quality import IMU_INSTABILITY_SIZE
+
+    q = flight.meta.get(IMU_INSTABILITY_SIZE) if isinstance(flight.meta, dict) else None
+    if q is None:
+        return None
+    try:
+        q_a, q_g = (float(v) for v in q)
+    except (TypeError, ValueError):
+        raise ValueError(f"the IMU's bias instability's given size needs two variances (q_a, q_g), got {q!r}") from None
+    if not (math.isfinite(q_a) and math.isfinite(q_g) and q_a >= 0 and q_g >= 0):
+        raise ValueError(f"the IMU's bias instability's given variances must be finite and >= 0, got {q!r}")
+    if instability_tau(flight) is None:
+        raise ValueError("the IMU's bias instability's size is given without its correlation time "
+                         "(meta[IMU_INSTABILITY_TAU])")
+    return q_a, q_g
 
 
 def instability_tau(flight: FlightData) -> float | None:
@@ -2962,7 +3027,7 @@ def _instability(refit: Any, flight: FlightData) -> tuple[float, float, float, b
     if tau is None or refit is None or "known_scales" not in refit.extra:
         return None
     q_a, q_g = refit.extra["known_scales"]
-    return tau, float(q_a), float(q_g), True
+    return tau, float(q_a), float(q_g), not refit.extra.get("known_given", False)
 
 
 def _instability_record(refit: Any, flight: FlightData) -> dict | None:
@@ -2981,6 +3046,12 @@ def _instability_record(refit: Any, flight: FlightData) -> dict | None:
     if got is None:
         out["note"] = "not fitted: the tracking noise model is white (the solver's sigma); the term is left out"
         return out
+    if not got[3]:
+        out["given"] = True
+        out["rule"] = ("a first-order Gauss-Markov bias per body axis of the accelerometers and the gyros, correlation "
+                       "time and variances given (meta[IMU_INSTABILITY_SIZE]: a size pooled over a run's windows), the "
+                       "tracking noise refitted by the restricted likelihood beside it "
+                       "(casep.checks.tracking_quality.imu_bias_effect)")
     out["accelerometer_mg"] = math.sqrt(got[1]) / G0 * 1e3
     out["gyro_deg_h"] = math.degrees(math.sqrt(got[2])) * 3600.0
     return out
@@ -2988,9 +3059,10 @@ def _instability_record(refit: Any, flight: FlightData) -> dict | None:
 
 def _imu_account(res: EstimateResult, measured: ImuNoise, C_trk: np.ndarray, C_imu: np.ndarray, refit: Any,
                  flight: FlightData | None = None) -> dict:
-    """What :func:`imu_noise_budget` used and found, for the result's noise record (`measured`: the IMU's noise, its
-    columns not measured said; `flight`: the record whose low-frequency IMU noise, when requested, is said)."""
-    (s, h, _), at_rest, unresolved = measured
+    """What :func:`imu_noise_budget` used and found, for the result's noise record (`measured`: the IMU's noise, where
+    it was measured and its columns not measured said; `flight`: the record whose low-frequency IMU noise, when
+    requested, is said)."""
+    (s, h, _), at_rest, unresolved, on_pad, pad_span = measured
     C_fit = np.asarray(res.covariance)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.sqrt((np.diag(C_trk) + np.diag(C_imu)) / np.diag(C_fit))
@@ -2999,11 +3071,19 @@ def _imu_account(res: EstimateResult, measured: ImuNoise, C_trk: np.ndarray, C_i
     how = ("the tracking noise model fitted again by REML with the IMU's noise a known term (its random walks and "
            "the levelling tilt as a linear state), Cov(x) = A Sigma_track A^T + (A G)(A G)^T" if refit is not None
            else "Cov(x) = fit covariance + (A G)(A G)^T (a white noise model: the solver's sigma)")
-    source = ("measured at rest: the Allan deviation at 1 s times sqrt(1 s / step), per sample "
-              "(casep.checks.tracking_quality.rest_white_std)" if at_rest else
-              "measured on the record: the scatter of second differences of consecutive samples (MAD / sqrt 6), "
-              "per sample")
-    return {"source": source,
+    record = ("the least over difference orders 2-6 of the scatter of the k-th differences of consecutive samples "
+              "over its noise gain (MAD / sqrt C(2k, k)), per sample (casep.checks.tracking_quality.white_sample_std)")
+    if at_rest:
+        source = ("measured at rest: the Allan deviation at 1 s times sqrt(1 s / step), per sample "
+                  "(casep.checks.tracking_quality.rest_white_std)")
+    elif on_pad and pad_span is not None:
+        a, b = pad_span
+        source = (f"measured at rest on the pad {a:.6g}..{b:.6g} s for {', '.join(on_pad)} (where the record's own "
+                  "figure is above the pad's beyond their sampling errors: the record counts motion; "
+                  "casep.checks.tracking_quality.pad_white_std), on the record otherwise: " + record)
+    else:
+        source = "measured on the record: " + record
+    return {"source": source, "on_pad": list(on_pad), "pad_span_s": list(pad_span) if on_pad and pad_span else None,
             "accelerometer_m_s2": [float(v) for v in s[:3]], "gyro_rad_s": [float(v) for v in s[3:]],
             "not_measured": list(unresolved),
             "sample_step_s": h, "vrw_m_s_per_sqrt_s": [float(v * np.sqrt(h)) for v in s[:3]],
@@ -3096,9 +3176,11 @@ def with_imu_noise_beyond(res: EstimateResult, problem: Any, flight: FlightData,
     added = added_covariance(res)  # the consider terms judged before (omitted terms): not the noise's std
     own = np.asarray(C) if added is None else np.asarray(C) - added
     factor = imu_noise_widening(own, C_imu, np.array([scales.get(nm, 1.0) for nm in res.names]))
-    said = {"carried": factor - 1.0 > share, "determined_std_factor_max": factor, "share": share,
+    said = {"carried": factor - 1.0 > share or instability_tau(flight) is not None,
+            "determined_std_factor_max": factor, "share": share,
             "share_rule": "a linear telemetry result carries the IMU's noise when, carried with the tracking noise as "
-                          "fitted, it widens some determined combination's std by more than share"}
+                          "fitted, it widens some determined combination's std by more than share, or when the flight "
+                          "asks for the IMU's bias instability (which that widening does not hold)"}
     if said["carried"]:
         out = with_imu_noise(res, problem, flight, estimators=A, measured=measured)
         if out is not res:

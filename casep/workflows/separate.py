@@ -261,14 +261,18 @@ def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
                       noise_free=problem.is_noise_free())
     if isinstance(flight, FlightData) and isinstance(model, ErrorModel):
         from casep.workflows.telemetry_clock import judge_telemetry_clock
+        from casep.workflows.telemetry_heading import judge_telemetry_heading, said_unless_turned
 
-        # a strapdown telemetry's clock, its tags and steps
-        res = judge_telemetry_clock(res, flight, problem, model.scales, carry=False) or res  # carried: separate
-        res = judge_tracking(res, flight, problem, model.scales)
-        from casep.workflows.telemetry_heading import judge_telemetry_heading
+        def clocks(res: EstimateResult) -> EstimateResult:
+            # a strapdown telemetry's clock, its tags and steps (carried: separate); the tracking's on the residuals
+            res = judge_telemetry_clock(res, flight, problem, model.scales, carry=False) or res
+            return judge_tracking(res, flight, problem, model.scales)
 
+        # the drifts' warnings wait for the turn's test: a turn's misfit reads as a clock drift
+        res, drift_said = _recorded(lambda: clocks(res))
         # a strapdown telemetry turned about the vertical against its tracking: named before the failures it explains
         res = judge_telemetry_heading(res, flight, problem, model, spec, LOCATING_FIT)
+        res = said_unless_turned(res, drift_said)
     if not isinstance(flight, Problem) and isinstance(model, ErrorModel):
         from casep.model.loader import model_record
 

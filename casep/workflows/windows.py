@@ -39,7 +39,8 @@ import numpy as np
 from casep.frames import LaunchSite
 
 __all__ = ["Window", "WindowsResult", "separate_windows", "window_consistency", "consider_gain", "consider_rows",
-           "gain_rows", "NUISANCE_PREFIXES", "PHI0_LINEAR_RAD", "GROUND_SPEED_COLUMN"]
+           "gain_rows", "NUISANCE_PREFIXES", "PHI0_LINEAR_RAD", "GROUND_SPEED_COLUMN", "vibration_power",
+           "VIBRATION_BAND_HZ"]
 
 #: Coefficients that belong to one window only (not compared across windows): initial states, time offset.
 NUISANCE_PREFIXES = ("phi0_", "dv0_", "dt_trk")
@@ -73,6 +74,8 @@ class WindowsResult:
     windows: list[Window]
     names: tuple[str, ...]
     consistency: dict[str, Any]
+    #: With ``separate_windows(imu_instability_pool=True)``: the pooled instability's size and how it was found.
+    instability: dict[str, Any] | None = None
 
     @property
     def success(self) -> bool:
@@ -97,7 +100,7 @@ class WindowsResult:
     def to_dict(self) -> dict[str, Any]:
         """Plain data: the consistency and, per window, its span, passes and coefficients."""
         return {"success": self.success, "status": self.status, "message": self.message,
-                "consistency": self.consistency,
+                "consistency": self.consistency, "instability": self.instability,
                 "windows": [{"t_start": w.t_start, "t_end": w.t_end, "passes": w.passes,
                              "heading_from_course_deg": w.heading_from_course_deg, "success": w.result.success,
                              "names": list(w.result.names), "estimate": np.asarray(w.result.estimate).tolist(),
@@ -162,8 +165,14 @@ def _navigate_window(imu, trk: _Tracking, t_a: float, t_b: float, C_eb: np.ndarr
 
 
 def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fit_options: dict,
-                  imu_noise: np.ndarray | None = None, instability_tau: float | None = None):
-    from casep.checks.tracking_quality import IMU_INSTABILITY_TAU, IMU_NOISE_AT_REST
+                  imu_noise: np.ndarray | None = None, instability_tau: float | None = None,
+                  given: tuple[float, float] | None = None, reml_rows: list | None = None):
+    from casep.checks.tracking_quality import (
+        IMU_INSTABILITY_SIZE,
+        IMU_INSTABILITY_TAU,
+        IMU_NOISE_AT_REST,
+        IMU_REML_ROWS,
+    )
     from casep.io.files import read_flight_pair, write_table
     from casep.workflows.separate import separate
 
@@ -179,6 +188,10 @@ def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fi
         flight.meta[IMU_NOISE_AT_REST] = imu_noise
     if instability_tau is not None:
         flight.meta[IMU_INSTABILITY_TAU] = instability_tau
+    if given is not None:
+        flight.meta[IMU_INSTABILITY_SIZE] = given
+    if reml_rows is not None:
+        flight.meta[IMU_REML_ROWS] = reml_rows
     return flight, separate(flight, model, **fit_options)
 
 
@@ -199,7 +212,8 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
                      attitude_passes: int = 3, gyro_bias_from_pad: bool = True, imu_noise_from_pad: bool = True,
                      fit_options: dict | None = None, consider: str | None = None,
                      consider_terms: Sequence[str] | None = None,
-                     imu_instability_tau: float | None = None) -> WindowsResult:
+                     imu_instability_tau: float | None = None, imu_instability_pool: bool = False,
+                     imu_instability_measure: str | None = None) -> WindowsResult:
     """Align on the pad, cut the rest of `imu` into windows of `length` s and separate each (module docstring).
 
     Parameters
@@ -244,6 +258,20 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
         (:func:`casep.checks.tracking_quality.imu_bias_effect`): its size per sensor fitted on each window by the
         restricted likelihood beside the tracking noise (``diagnostics["noise"]["imu"]["instability"]``, mg and
         deg/h). Default: white IMU noise only.
+    imu_instability_pool : bool
+        With `imu_instability_tau`: one size of the instability for the run's windows instead of one per window
+        (a single record's restricted likelihood sizes it poorly when its tracking noise is itself correlated): the
+        accelerometers' and the gyros' variances ``(q_a, q_g)`` fitted by the restricted likelihood summed over the
+        windows, each window's tracking noise refitted at them (:func:`casep.noise.known.pool_parts`), then each
+        window separated again with its size given (``meta[IMU_INSTABILITY_SIZE]``: the one rule of the
+        instability's covariance). The result's :attr:`WindowsResult.instability` states the size, its interval
+        and the windows that hold no refit (a white tracking noise model: their std do not carry the term).
+    imu_instability_measure : str, optional
+        With `imu_instability_pool`: the instability's variances scaled per window by a fit-free measure of what
+        the vehicle does there, ``q_k = m_k q`` (one pooled ``q`` per sensor): ``"vibration"`` the accelerometers'
+        power in :data:`VIBRATION_BAND_HZ` beyond the pad's (:func:`vibration_power`, (m/s^2)^2: zero at rest
+        with the engine as on the pad), ``"speed"`` the window's mean tracked ground speed (m/s). Default: 1 per
+        window (one size for all).
 
     Returns
     -------
@@ -258,6 +286,12 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
     from casep.navigation.navigator import navigate
     from casep.navigation.strapdown import quat_from_rotvec, quat_to_dcm
 
+    if imu_instability_measure is not None and not imu_instability_pool:
+        raise ValueError("imu_instability_measure scales a pooled instability: give imu_instability_pool=True")
+    if imu_instability_pool and imu_instability_tau is None:
+        raise ValueError("imu_instability_pool needs the instability's correlation time (imu_instability_tau)")
+    if imu_instability_measure not in (None, "vibration", "speed"):
+        raise ValueError(f"imu_instability_measure: 'vibration', 'speed' or None, got {imu_instability_measure!r}")
     trk = _Tracking(tracking)
     base = load_model(model)
     extra = load_model(consider) if consider is not None else None  # built and set up once, for every window
@@ -275,6 +309,8 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
 
         pad = (imu.t >= align[0]) & (imu.t <= align[1])
         imu_noise = rest_white_std(np.column_stack([imu.f[pad], imu.w[pad]]), float(np.median(np.diff(imu.t[pad]))))
+    pad_power = vibration_power(imu, *align) if imu_instability_measure == "vibration" else 0.0
+    pooled: list[tuple] = []  # per window: (navigation, site, the refit's rows or None, measure)
     t_a = float(align[1] if start is None else start)
     j = int(np.searchsorted(nav0.t, t_a))
     t_a = float(nav0.t[j])
@@ -292,8 +328,9 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
                 course = math.degrees(psi)
             for passes in range(1, attitude_passes + 1):
                 site_k, nav = _navigate_window(imu, trk, t_a, t_b, C_eb)
+                kept: list | None = [] if imu_instability_pool else None
                 flight, res = _separate_nav(nav, site_k, trk, model, workdir, dict(fit_options or {}), imu_noise,
-                                            imu_instability_tau)
+                                            imu_instability_tau, (0.0, 0.0) if imu_instability_pool else None, kept)
                 est = dict(zip(res.names, res.estimate))
                 phi0 = base.numeric("phi0") @ np.array([est[n] for n in base.names])
                 if np.linalg.norm(phi0) <= PHI0_LINEAR_RAD or passes == attitude_passes:
@@ -307,12 +344,84 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
             if extra is not None:
                 windows[-1].consider_gain = consider_gain(flight, res, base, extra, terms)
                 windows[-1].consider_names = terms
+            if kept is not None:
+                m = 1.0 if imu_instability_measure is None else \
+                    max(vibration_power(imu, t_a, float(nav.t[-1])) - pad_power, 0.0) \
+                    if imu_instability_measure == "vibration" else \
+                    float(np.mean(np.hypot(*[np.interp(nav.t, trk.t, trk.v_enu[:, c]) for c in (0, 1)])))
+                pooled.append((nav, site_k, kept[-1] if kept else None, m))
             phi_end = _attitude_error_end(base, res, flight)
             t_a = float(nav.t[-1])
             C_lb = corrected_attitude(quat_to_dcm(nav.q[-1]), phi_end)
             C_eb = _launch_from_ecef(site_k, t_a).T @ C_lb
+        instability = None
+        if imu_instability_pool:
+            assert imu_instability_tau is not None  # checked above
+            instability = _pool_instability(windows, pooled, imu_instability_tau, imu_instability_measure,
+                                            lambda nav, site, given: _separate_nav(
+                                                nav, site, trk, model, workdir, dict(fit_options or {}), imu_noise,
+                                                imu_instability_tau, given)[1])
     names = tuple(n for n in base.names if not n.startswith(NUISANCE_PREFIXES))
-    return WindowsResult(windows, names, window_consistency(windows, names))
+    return WindowsResult(windows, names, window_consistency(windows, names), instability)
+
+
+#: The band (Hz) of :func:`vibration_power`: above a road vehicle's own motion (its manoeuvres, and its body on the
+#: springs, below a few Hz), up to 0.45 of the sampling rate (None).
+VIBRATION_BAND_HZ: tuple[float, float | None] = (10.0, None)
+
+
+def vibration_power(imu, t_a: float, t_b: float, band: tuple[float, float | None] = VIBRATION_BAND_HZ) -> float:
+    """The accelerometers' mean power in `band` over ``[t_a, t_b]``, summed over the three axes, (m/s^2)^2: the
+    specific force band-passed (Butterworth of order 4, forwards and backwards: no phase), its squares averaged.
+    White sensor noise of density ``s`` adds ``3 s^2 (f_hi - f_lo)`` (the pad's part is what a window's measure
+    takes away, :func:`separate_windows`' ``imu_instability_measure``)."""
+    from scipy.signal import butter, sosfiltfilt
+
+    sel = (imu.t >= t_a) & (imu.t <= t_b)
+    t = imu.t[sel]
+    if t.size < 64:
+        raise ValueError(f"vibration_power: {t.size} samples in {t_a:.3f}-{t_b:.3f} s, 64 at least")
+    rate = 1.0 / float(np.median(np.diff(t)))
+    lo, hi = band[0], 0.45 * rate if band[1] is None else band[1]
+    if not 0.0 < lo < hi < rate / 2.0:
+        raise ValueError(f"vibration_power: the band {lo:g}-{hi:g} Hz is not within 0-{rate / 2:g} Hz")
+    x = sosfiltfilt(butter(4, [lo, hi], "bandpass", fs=rate, output="sos"), imu.f[sel], axis=0)
+    return float(np.mean(np.sum(x**2, axis=1)))
+
+
+def _pool_instability(windows: list[Window], pooled: list[tuple], tau: float, measure: str | None,
+                      again) -> dict[str, Any]:
+    """Size the instability once for the windows (:func:`casep.noise.known.pool_parts` over the refits' rows kept in
+    `pooled`), then separate each window again at its size (`again(nav, site, given)`); the record of
+    :attr:`WindowsResult.instability`."""
+    from casep.noise.known import pool_parts
+    from casep.units import G0
+
+    have = [k for k, p in enumerate(pooled) if p[2] is not None and windows[k].result.success]
+    if not have or not any(pooled[k][3] > 0 for k in have):
+        return {"tau_s": tau, "measure": measure, "pooled": None,
+                "note": "no window holds a refit beside the IMU's noise with a measure above 0: nothing sized"}
+    got = pool_parts([pooled[k][2] for k in have], [pooled[k][3] for k in have])
+    q = np.array(got.q)
+    for k in have:
+        nav, site, _, m = pooled[k]
+        if m > 0 and np.any(q > 0):  # at 0 the window's first separation is the one at its size
+            windows[k].result = again(nav, site, tuple(float(v) for v in m * q))
+
+    def natural(v: float, i: int) -> float:
+        return math.sqrt(v) / G0 * 1e3 if i == 0 else math.degrees(math.sqrt(v)) * 3600.0
+
+    unit = {None: "1", "vibration": "(m/s^2)^2", "speed": "m/s"}[measure]
+    return {"tau_s": tau, "measure": measure, "measure_unit": unit,
+            "measures": [float(p[3]) for p in pooled], "pooled": got.to_dict(),
+            "accelerometer_mg_per_unit": natural(got.q[0], 0), "gyro_deg_h_per_unit": natural(got.q[1], 1),
+            "interval_mg_per_unit": [natural(v, 0) for v in got.interval[0]],
+            "interval_deg_h_per_unit": [natural(v, 1) for v in got.interval[1]],
+            "not_pooled": [windows[k].t_start for k in range(len(pooled)) if k not in have],
+            "rule": "a first-order Gauss-Markov bias per body axis of the accelerometers and the gyros, correlation "
+                    "time given, variances m_k (q_a, q_g) in window k, m_k the fit-free measure (1 without one), "
+                    "(q_a, q_g) fitted once by the restricted likelihood summed over the windows "
+                    "(casep.noise.known.pool_parts); each window separated again at its size"}
 
 
 def gain_rows(S_w: np.ndarray, S_c: np.ndarray, t: np.ndarray, noise: Any = None) -> np.ndarray:

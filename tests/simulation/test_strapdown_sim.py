@@ -225,8 +225,9 @@ def test_error_free_rotating_earth_imu_navigates_back_to_its_truth(rotating_imu)
 def test_strapdown_scenario_writes_earth_fixed_tracking(tmp_path, capsys):
     """--tracking-frame ecef with a strapdown scenario: the flight, its raw IMU and the tracking in ECEF, which
     casep.frames.ecef_to_launch turns back into the flight file's tracked r_*, v_* (a round trip through the
-    rotation by omega_E t and the launch triad: to 1e-6 m and m/s); --tracking-rate (the flight's own rate)
-    is refused before any file is written. Without --rotating-earth the raw IMU says it is of a non-rotating Earth."""
+    rotation by omega_E t and the launch triad: to 1e-6 m and m/s); --tracking-rate 2.5 (a GNSS slower than the
+    IMU) tracks every second sample, and a rate that does not divide the flight's (2 Hz) is refused before any file
+    is written. Without --rotating-earth the raw IMU says it is of a non-rotating Earth."""
     import pandas as pd
 
     from casep.cli.app import main
@@ -234,9 +235,10 @@ def test_strapdown_scenario_writes_earth_fixed_tracking(tmp_path, capsys):
 
     base = ["simulate", "--scenario", "strapdown-boost", "--rate", "5", "--rotating-earth", "--launch-site", "28.5",
             "-80.6", "3", "100", "--tracking-frame", "ecef", "-o", str(tmp_path / "t.csv")]
-    assert main(base + ["--tracking-rate", "5"]) == 2
-    assert "--tracking-rate" in capsys.readouterr().err and not list(tmp_path.iterdir())
-    assert main(base + ["--imu-output", str(tmp_path / "imu.csv")]) == 0
+    assert main(base + ["--tracking-rate", "2"]) == 2
+    assert "tracking rate 2 Hz must divide the flight's rate 5 Hz" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+    assert main(base + ["--imu-output", str(tmp_path / "imu.csv"), "--tracking-rate", "2.5"]) == 0
     assert "t.tracking.csv" in capsys.readouterr().out
     flight, trk = (pd.read_csv(tmp_path / name, comment="#") for name in ("t.csv", "t.tracking.csv"))
     t = trk["t"].to_numpy()
@@ -245,12 +247,34 @@ def test_strapdown_scenario_writes_earth_fixed_tracking(tmp_path, capsys):
     tf = flight["t"].to_numpy()
     rows = np.searchsorted(tf, t)
     assert t.size < tf.size and np.array_equal(tf[rows], t)  # the observed samples: from 6 s, not in the gap
+    assert np.all(rows % 2 == 0) and np.array_equal(np.flatnonzero(flight["dv_x"].notna()), rows)  # every 2nd
+    assert json.loads((tmp_path / "t.truth.json").read_text())["tracking"]["rate_hz"] == 2.5
     for p, got in (("r", r_l), ("v", v_l)):
         assert np.max(np.abs(got - flight[[f"{p}_{a}" for a in "xyz"]].to_numpy()[rows])) < 1e-6
     assert (tmp_path / "imu.csv").exists()
     assert main(["simulate", "--scenario", "strapdown-boost", "--rate", "5", "-o", str(tmp_path / "n.csv"),
                  "--imu-output", str(tmp_path / "n_imu.csv")]) == 0
     assert "non-rotating Earth" in capsys.readouterr().out
+
+
+def test_a_tracking_rate_dividing_the_flights_tracks_every_kth_sample_as_the_full_rate_would(sim):
+    """tracking_rate 5 Hz of a 20 Hz flight: the same flight (seed, model, truth) tracked at its samples 0, 4, 8, ...
+    (those the full-rate flight tracks there), dv and the tracked state exactly the full-rate flight's there, and
+    untracked (NaN) in between; the force is the full flight's at every sample."""
+    from casep.io.pair import STATE_SIGNALS
+
+    model = casep.load_model(AXIAL)
+    truth = {k: v for k, v in STRAPDOWN_TRUTH.items() if k in model.names}
+    slow = simulate_flight("strapdown-boost", seed=0, model=AXIAL, truth=truth, rate=RATE, tracking_rate=RATE / 4)
+    a, b = sim.flight, slow.flight
+    every = np.arange(a.t.size) % 4 == 0
+    assert np.array_equal(b.observed, a.observed & every) and b.observed.sum() > 0.2 * a.observed.sum()
+    assert np.array_equal(b.dv[b.observed], a.dv[b.observed]) and np.isnan(b.dv[~b.observed]).all()
+    for name in STATE_SIGNALS:
+        assert np.array_equal(b.signals[name][b.observed], a.signals[name][b.observed])
+    assert np.array_equal(b.f, a.f) and slow.truth_dict()["tracking"]["rate_hz"] == RATE / 4
+    with pytest.raises(ValueError, match="tracking rate 3 Hz must divide the flight's rate 20 Hz"):
+        simulate_flight("strapdown-boost", rate=RATE, tracking_rate=3.0)
 
 
 def test_with_drawn_errors_draws_declared_magnitudes_first_and_applies_strapdown12_by_hand():

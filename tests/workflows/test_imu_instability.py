@@ -15,7 +15,7 @@ import numpy as np
 from conftest import ins_telemetry
 
 import casep
-from casep.checks.tracking_quality import IMU_INSTABILITY_TAU
+from casep.checks.tracking_quality import IMU_INSTABILITY_SIZE, IMU_INSTABILITY_TAU
 from casep.io.files import write_table
 from casep.units import G0
 
@@ -24,9 +24,9 @@ MEMS = {"ba_x": 1.05, "ba_y": 1.78, "ba_z": -2.55, "sa_x": -41.0, "sa_y": 304.0,
 WANDER = (0.3e-3 * G0, math.radians(20.0 / 3600.0), 20.0)  # m/s^2, rad/s, s
 
 
-def _separate(tmp_path, seed: int, bias_noise, tau):
+def _separate(tmp_path, seed: int, bias_noise, tau, given=None):
     """One 30 s MEMS flight with tracking at 4 Hz (white, 0.02 m/s), separated with casep's defaults; `tau` the
-    instability term's correlation time (None: not asked for)."""
+    instability term's correlation time (None: not asked for), `given` its variances (None: fitted)."""
     tel, trk, D, _ = ins_telemetry(seed=seed, errors=MEMS, imu_noise=False, growth=0.0, noise=0.02, dur=30.0,
                                    trk_rate=4.0, bias_noise=bias_noise)
     write_table(tmp_path / "tel.csv", tel)
@@ -34,6 +34,8 @@ def _separate(tmp_path, seed: int, bias_noise, tau):
     flight = casep.read_flight_pair(tmp_path / "tel.csv", tmp_path / "trk.csv")
     if tau is not None:
         flight.meta[IMU_INSTABILITY_TAU] = tau
+    if given is not None:
+        flight.meta[IMU_INSTABILITY_SIZE] = given
     model = casep.load_model("strapdown12")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # MEMS estimates: 100s of their declared (navigation-grade) magnitudes
@@ -55,6 +57,13 @@ def test_a_wandering_bias_needs_the_instability_term_and_the_term_finds_its_size
     rms0, rms1 = (math.sqrt(np.mean(z**2)) for z in (z0, z1))
     assert rms0 > 1.6 and rms1 < rms0 / 1.5 and 0.6 <= rms1 <= 1.6, (rms0, rms1)
     assert 0.1 <= held["accelerometer_mg"] <= 0.9 and held["gyro_deg_h"] >= 0.0, held
+    # the size given back (as a size pooled over windows is: the one rule of the term's covariance), the tracking
+    # noise refitted at it: the same std, to the searches' tolerance, and the record says it was given
+    res2, _ = _separate(tmp_path, 5, WANDER, 20.0, tuple(held["variances"]))
+    given = res2.diagnostics["noise"]["imu"]["instability"]
+    assert given["given"] and given["variances"] == held["variances"] and "given" not in held
+    np.testing.assert_allclose(res2.std, res.std, rtol=0.01)
+    np.testing.assert_array_equal(res2.estimate, res.estimate)
 
 
 def test_a_white_only_imu_keeps_its_std_with_the_term(tmp_path):
@@ -83,3 +92,25 @@ def test_the_correlation_time_asked_for_is_checked():
     for bad in (0.0, -5.0, math.inf, "20"):
         with pytest.raises(ValueError, match="correlation time > 0 s"):
             instability_tau(flight(bad))
+
+
+def test_the_size_given_is_checked():
+    """The flight's ``meta[IMU_INSTABILITY_SIZE]``: two finite variances >= 0 with a correlation time, else an error;
+    absent: fitted."""
+    import pytest
+
+    from casep.io.flight import FlightData
+    from casep.workflows.imu_separate import instability_given
+
+    def flight(q, tau=20.0):
+        meta = {IMU_INSTABILITY_TAU: tau} if tau else {}
+        if q is not None:
+            meta[IMU_INSTABILITY_SIZE] = q
+        return FlightData(np.arange(3.0), np.zeros((3, 3)), np.zeros((3, 3)), meta=meta)
+
+    assert instability_given(flight(None)) is None and instability_given(flight((1e-6, 0))) == (1e-6, 0.0)
+    for bad, said in (((1.0,), "two variances"), ((-1.0, 0.0), ">= 0"), ((math.nan, 0.0), ">= 0"), ("ab", "two")):
+        with pytest.raises(ValueError, match=said):
+            instability_given(flight(bad))
+    with pytest.raises(ValueError, match="without its correlation time"):
+        instability_given(flight((1e-6, 1e-8), tau=None))

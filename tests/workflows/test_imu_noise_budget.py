@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from test_imu_separate import ALIGN, MODEL, RATE, SITE, TRK_RATE, clean_record, heading_of_x
 
+from casep.checks.tracking_quality import IMU_NOISE_PAD, pad_white_std
 from casep.estimators.spec import FitSpec
 from casep.io.files import write_table
 from casep.navigation import ImuData, check_imu, navigate
@@ -87,7 +88,7 @@ def draws(clean, tmp_path_factory, budgets):
         return [one_pass(*noisy_imu_flight(d, clean, seed)) for seed in (1, 2)]
 
 
-def test_the_std_hold_the_imus_white_noise(draws):
+def test_the_std_hold_the_imus_white_noise(draws, budgets, clean):
     """30 z = estimate / std (truth 0) of two draws: RMS within 0.5-1.52 (the 15 z of one draw are correlated:
     wider than the 0.62-1.41 of 30 independent unit normals at 0.1 % each side); with the tracking noise alone
     (the std without the IMU's part, today's main) it is above 1.6 (12 draws: 1.97, coverage 0.63; with the
@@ -102,6 +103,16 @@ def test_the_std_hold_the_imus_white_noise(draws):
         gyro = np.array(imu["gyro_rad_s"]) / GYRO_NOISE  # the roll ramp's steps add to the scatter of x
         assert np.all((gyro > 0.85) & (gyro < 1.5)), gyro
         assert "IMU noise (measured on the record" in "\n".join(_lines(res)) and imu["not_measured"] == []
+        assert imu["on_pad"] == []  # the pad's figure (measured, below) agrees with the record's: the record's kept
+    for (_, _, flight, _), seed in zip(budgets, (1, 2)):  # the pad's figure: pad_white_std of the pad's raw samples
+        t, w, f, _ = clean
+        rng = np.random.default_rng(seed)  # the draws of noisy_imu_flight
+        wn, fn = w + GYRO_NOISE * rng.standard_normal(w.shape), f + ACC_NOISE * rng.standard_normal(f.shape)
+        on = (t >= ALIGN[0]) & (t <= ALIGN[1])
+        pad = flight.meta[IMU_NOISE_PAD]
+        assert pad["span"] == pytest.approx(ALIGN)
+        np.testing.assert_allclose(pad["std"], pad_white_std(np.column_stack([fn[on], wn[on]]), 1.0 / RATE)[0],
+                                   rtol=1e-6)
     rms = float(np.sqrt(np.mean(np.concatenate(z) ** 2)))
     rms_trk = float(np.sqrt(np.mean(np.concatenate(z_trk) ** 2)))
     assert 0.5 <= rms <= 1.52, (rms, rms_trk)
@@ -285,12 +296,19 @@ def test_separate_states_a_linear_telemetrys_imu_noise(clean, tmp_path, form, no
     assert np.sqrt(np.mean(z_old**2)) > np.sqrt(chi2.ppf(1 - 1e-3, z_old.size) / z_old.size), z_old
 
 
-def test_a_noise_free_telemetry_keeps_its_std_without_the_refit(clean, tmp_path, monkeypatch):
-    """A telemetry navigated from a noise-free IMU (the same 20 Hz boost): the IMU's noise the record shows (its
-    motion's second differences) widens no determined combination by the share, so the std are the fit's, bit for
+#: An IMU noise the record shows (far above its samples' rounding) that widens no determined combination's std by the
+#: share: per sample, rad/s and m/s^2 (20 Hz).
+TINY_GYRO, TINY_ACC = 1e-6, 1e-5
+
+
+def test_a_telemetry_of_tiny_imu_noise_keeps_its_std_without_the_refit(clean, tmp_path, monkeypatch):
+    """A telemetry navigated from an IMU of tiny noise (the same 20 Hz boost, :data:`TINY_GYRO`, :data:`TINY_ACC`):
+    the IMU's noise the record shows widens no determined combination by the share, so the std are the fit's, bit for
     bit, the account says it was below the share, and the full term's REML refit is never run (the added time is
     the estimators times the IMU noise's columns only); the IMU's noise is measured once for the effect and the
-    account."""
+    account. (Noise-free, the record's differences up to the sixth order read its rounding only, and the noise is
+    "not measured"; the second differences alone read the boost's motion as noise, which this test took for the
+    noise below the share.)"""
     from casep.checks import tracking_quality
     from casep.workflows import imu_separate, telemetry_iterate
 
@@ -310,23 +328,24 @@ def test_a_noise_free_telemetry_keeps_its_std_without_the_refit(clean, tmp_path,
         return sample_noise(*a, **k)
 
     sample_noise = tracking_quality.imu_sample_noise
+    tiny = {"gyro": TINY_GYRO, "acc": TINY_ACC}
     with monkeypatch.context() as mp:
         mp.setattr(telemetry_iterate, "with_imu_noise_beyond", counted)
         mp.setattr(tracking_quality, "imu_sample_noise", measure)
-        res = _separated(clean, tmp_path, 3, "one file", gyro=0.0, acc=0.0)
+        res = _separated(clean, tmp_path, 3, "one file", **tiny)
     assert measured == [1]
     imu = res.diagnostics["noise"]["imu"]
     assert imu["carried"] is False and imu["determined_std_factor_max"] - 1 <= imu["share"], imu
-    assert "not in the std" in "\n".join(_lines(res))
+    assert imu["not_measured"] == [] and "not in the std" in "\n".join(_lines(res))
 
     def refit(*a, **k):
         raise AssertionError("the full term computed below the share")
 
     with monkeypatch.context() as mp:
         mp.setattr(imu_separate, "with_imu_noise", refit)
-        again = _separated(clean, tmp_path, 3, "one file", gyro=0.0, acc=0.0)
+        again = _separated(clean, tmp_path, 3, "one file", **tiny)
         mp.setattr(telemetry_iterate, "with_imu_noise_beyond", lambda res, *a, **k: res)
-        old = _separated(clean, tmp_path, 3, "one file", gyro=0.0, acc=0.0)
+        old = _separated(clean, tmp_path, 3, "one file", **tiny)
     np.testing.assert_array_equal(again.std, res.std)
     np.testing.assert_array_equal(old.std, res.std)
     np.testing.assert_array_equal(old.covariance, res.covariance)

@@ -260,3 +260,30 @@ def _consider_gains_of_a_car_window(car):
     assert [g.shape for g in gains] == [(3, 27)] * 2
     out = window_consistency(res.windows, names, consider=(gains, np.diag(np.full(27, 1e-6))))
     assert out["chi2"] == pytest.approx(window_consistency(res.windows, names)["chi2"], rel=1e-3)
+
+
+def test_vibration_power_is_the_band_s_share_of_the_specific_force():
+    """:func:`vibration_power` on 30 s at 100 Hz: a 25 Hz sine of amplitude 0.4 m/s^2 on x (in the band) gives its
+    power ``A^2 / 2`` = 0.08 (m/s^2)^2 to 2 %, a 2 Hz manoeuvre of 3 m/s^2 on y (below it) and gravity on z add less
+    than 1e-3 of it; too few samples, or a band beyond the rate, are errors. And the pooled instability's options
+    are checked before any work."""
+    from casep.navigation.imu import ImuData
+    from casep.workflows.windows import separate_windows, vibration_power
+
+    t = np.arange(3000) * 0.01
+    f = np.column_stack([0.4 * np.sin(2 * np.pi * 25.0 * t), 3.0 * np.sin(2 * np.pi * 2.0 * t), np.full(t.size, 9.81)])
+    imu = ImuData(t, np.zeros((t.size, 3)), f)
+    assert abs(vibration_power(imu, 0.0, 30.0) / 0.08 - 1.0) < 0.02
+    calm = ImuData(t, np.zeros((t.size, 3)), f * [0.0, 1.0, 1.0])
+    assert vibration_power(calm, 0.0, 30.0) < 0.08e-3
+    with pytest.raises(ValueError, match="samples"):
+        vibration_power(imu, 0.0, 0.3)
+    with pytest.raises(ValueError, match="band"):
+        vibration_power(imu, 0.0, 30.0, (10.0, 60.0))
+    site = LaunchSite(0.0, 0.0, 0.0, 0.0, 0.0)
+    for kw, said in (({"imu_instability_pool": True}, "correlation time"),
+                     ({"imu_instability_measure": "speed"}, "imu_instability_pool=True"),
+                     ({"imu_instability_tau": 20.0, "imu_instability_pool": True, "imu_instability_measure": "x"},
+                      "'vibration', 'speed'")):
+        with pytest.raises(ValueError, match=said):
+            separate_windows(imu, "no_such_file.csv", site, (0.0, 10.0), **kw)
