@@ -166,6 +166,7 @@ from casep.exceptions import GapWarning, SaturationWarning
 from casep.frames import LaunchSite
 from casep.navigation.imu import ImuData
 from casep.workflows.row_estimators import (
+    added_covariance,
     coefficient_estimators,
     column_estimates,
     combination_estimators,
@@ -173,6 +174,7 @@ from casep.workflows.row_estimators import (
     estimator_noise,
     tau_spread,
     widened_std,
+    with_added_variance,
     with_consider,
     with_extra_covariance,
     with_heading,
@@ -1073,6 +1075,8 @@ class _Run:
                              tag_clock=getattr(self, "imu", None) is None)
         if iterate and out.success and passes[-1].get("determined") and not out.diagnostics.get("determined"):
             out = self.left_out_curvature(out, passes[-1], problem, flight, D)
+        if passes[-1].get("determined"):  # every consider term the coefficients carry (the last: the omitted terms)
+            passes[-1]["determined"] = _with_consider_std(passes[-1]["determined"], out, model.scales)
         if iterate and passes[-1].get("determined") and not out.diagnostics.get("determined"):
             out = _with_determined(out, passes[-1], model.scales)
         out.diagnostics["iterations"]["limit"] = float(self.limit) if np.isfinite(self.limit) else None
@@ -1457,16 +1461,19 @@ class _Run:
     def combinations_with_noise(self, combos: list[dict], res: EstimateResult, problem: Any, flight: FlightData,
                                 scales: dict[str, float]) -> list[dict]:
         """The combinations the passes stepped along (``passes[-1]["determined"]``) with the record's own noise in
-        their std, as :meth:`with_noise` puts it in the coefficients' (:func:`combination_imu_noise`; `res` the
-        result with it, its noise account holding the tracking noise refitted beside it). Each keeps its std without
-        it as ``std_tracking_noise_only``; unchanged when the flight does not hold the IMU's samples."""
+        their std, as :meth:`with_noise` puts it in the coefficients' (:func:`combination_imu_noise`, the given
+        heading and the steps between samples with it; `res` the result with it, its noise account holding the
+        tracking noise refitted beside it). Each keeps its std without it as ``std_tracking_noise_only``; unchanged
+        when the flight does not hold the IMU's samples. The consider terms added on top (the clock drift, the
+        richer model's terms, the steps where the IMU's noise is not carried): :func:`_with_consider_std`, once the
+        coefficients hold them all."""
         scale = _scale_of(scales, res.names)
         W = np.array([c["weights"] for c in combos], dtype=float)
         heading = self.heading_effect(problem)
         a = combination_estimators(W, scale, res, problem)  # once: their noise (combination_imu_noise's rule) and
         var = None if a is None else estimator_noise(  # the heading's shift
             a, res, problem, flight, self.levelling(), self.tau_profile(problem),
-            consider_columns(heading, self.steps_effect(problem), self.drift_effect(problem)))
+            consider_columns(heading, self.steps_effect(problem)))
         if var is None:
             return combos
         trk, imu = var
@@ -2244,6 +2251,20 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str
             "not determine them. Their estimates are the last linear pass's, their std linear (not checked for "
             "curvature)" + (f"; with {why_smaller}, a smaller model ({smaller}) leaves less undetermined"
                             if smaller and why_smaller else ""))
+
+
+def _with_consider_std(combos: list[dict], res: EstimateResult, scales: dict[str, float]) -> list[dict]:
+    """The stated combinations `combos` (weights on ``D / scale``) with every consider term `res`'s covariance gained
+    on top of its noise's (:func:`casep.workflows.row_estimators.with_added_variance`: the IMU clock's drift, the
+    richer model's terms, the steps between samples where the IMU's noise is not carried) in their std, as the
+    coefficients have them; each keeps its std without them as ``std_without_consider``. After the curvature of what
+    the passes leave out (:meth:`_Run.left_out_curvature`), which is judged on the combinations' own std: the
+    consider terms are parameters beside the rows, not a distance the record is navigated over."""
+    if not combos:
+        return combos
+    W = np.array([c["weights"] for c in combos], dtype=float)
+    var = with_added_variance(res, W, _scale_of(scales, res.names), np.array([c["std"] ** 2 for c in combos]))
+    return [{**c, "std_without_consider": c["std"], "std": float(math.sqrt(v))} for c, v in zip(combos, var)]
 
 
 def _with_determined(res: EstimateResult, last: dict, scales: dict[str, float]) -> EstimateResult:
@@ -3147,12 +3168,16 @@ def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
     if "tau_profile" in account:
         warn_tau_unbounded(problem.source, account["tau_profile"])
     C_fit = np.asarray(res.covariance)
-    # the tracking part: refitted (the minimum-norm solution's, finite where the fit's is not), else the fit's own
-    cov = C_fit + C_imu if C_trk is None else np.where(np.isfinite(C_fit), C_trk + C_imu, np.nan)
+    # the tracking part: refitted (the minimum-norm solution's, finite where the fit's is not), else the fit's own;
+    # a refit sets the covariance anew, and the consider terms added on top of the fit's (with_extra_covariance: the
+    # omitted terms of a telemetry judged before its IMU noise) are added back
+    added = added_covariance(res) if C_trk is not None else None
+    C_new = None if C_trk is None else C_trk + C_imu + (0.0 if added is None else added)
+    cov = C_fit + C_imu if C_new is None else np.where(np.isfinite(C_fit), C_new, np.nan)
     std = widened_std(res, cov)
     solution = res.solution
     if solution is not None and solution.covariance is not None:
-        solution = dataclasses.replace(solution, covariance=(solution.covariance if C_trk is None else C_trk) + C_imu)
+        solution = dataclasses.replace(solution, covariance=solution.covariance + C_imu if C_new is None else C_new)
     diag = {**res.diagnostics, "noise": {**res.diagnostics["noise"], "imu": account}}
     return dataclasses.replace(res, covariance=cov, std=std, solution=solution, diagnostics=diag)
 
@@ -3205,7 +3230,9 @@ def with_imu_noise_beyond(res: EstimateResult, problem: Any, flight: FlightData,
         return res
     C_imu = AG @ AG.T
     share = IMU_NOISE_SHARE if share is None else share
-    factor = imu_noise_widening(np.asarray(C), C_imu, np.array([scales.get(nm, 1.0) for nm in res.names]))
+    added = added_covariance(res)  # the consider terms judged before (omitted terms): not the noise's std
+    own = np.asarray(C) if added is None else np.asarray(C) - added
+    factor = imu_noise_widening(own, C_imu, np.array([scales.get(nm, 1.0) for nm in res.names]))
     said = {"carried": factor - 1.0 > share or instability_tau(flight) is not None,
             "determined_std_factor_max": factor, "share": share,
             "share_rule": "a linear telemetry result carries the IMU's noise when, carried with the tracking noise as "

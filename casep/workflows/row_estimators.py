@@ -19,7 +19,8 @@ from casep.estimators.result import EstimateResult
 from casep.io.flight import FlightData
 
 __all__ = ["estimator_noise", "combination_estimators", "with_heading", "with_consider", "column_estimates",
-           "tau_spread", "relative_positive_part"]
+           "tau_spread", "relative_positive_part", "with_extra_covariance", "added_covariance", "with_added_variance",
+           "CONSIDER_KEY"]
 
 
 def estimator_noise(a: np.ndarray, res: EstimateResult, problem: Any, flight: FlightData,
@@ -131,16 +132,51 @@ def with_consider(res: EstimateResult, problem: Any, cols: np.ndarray) -> Estima
     return with_extra_covariance(res, g @ g.T)
 
 
+#: The key of a result's ``diagnostics`` that holds what :func:`with_extra_covariance` added to its covariance.
+CONSIDER_KEY = "consider"
+
+
 def with_extra_covariance(res: EstimateResult, extra: np.ndarray) -> EstimateResult:
     """`res` whose covariance, its solution's and its std gain `extra` (natural units: a consider term's ``g g^T``),
     ``C + extra`` where ``C`` is finite (:func:`widened_std`): the one place a consider term widens a result, so that
-    what reads the solution's covariance (the iteration's step) sees what the stated std do."""
+    what reads the solution's covariance (the iteration's step) sees what the stated std do. The sum of what was
+    added is kept in ``diagnostics["consider"]["covariance"]`` (:func:`added_covariance`): a later step that sets
+    the covariance anew (the IMU's noise with the tracking noise refitted:
+    :func:`casep.workflows.imu_separate.with_imu_noise`) adds it back, and the stated combinations' std gain
+    ``w^T E w`` of it (:func:`with_added_variance`)."""
     C = np.asarray(res.covariance)
+    extra = np.asarray(extra, dtype=float)
     cov = np.where(np.isfinite(C), C + extra, np.nan)
     solution = res.solution
     if solution is not None and solution.covariance is not None:
         solution = dataclasses.replace(solution, covariance=solution.covariance + extra)
-    return dataclasses.replace(res, covariance=cov, std=widened_std(res, cov), solution=solution)
+    before = added_covariance(res)
+    total = extra if before is None else before + extra
+    diag = {**res.diagnostics, CONSIDER_KEY: {
+        "covariance": total.tolist(), "names": list(res.names),
+        "rule": "the consider terms added on top of the noise's covariance (natural units): the omitted terms, the "
+                "clock drift, the steps between samples where the IMU's noise is not carried; kept through a "
+                "covariance set anew, and in the stated combinations' std (w^T E w)"}}
+    return dataclasses.replace(res, covariance=cov, std=widened_std(res, cov), solution=solution, diagnostics=diag)
+
+
+def added_covariance(res: EstimateResult) -> np.ndarray | None:
+    """What :func:`with_extra_covariance` added to `res`'s covariance, summed (n, n, natural units); None: nothing."""
+    got = (res.diagnostics.get(CONSIDER_KEY) or {}).get("covariance")
+    return None if got is None else np.asarray(got, dtype=float).reshape(len(res.names), len(res.names))
+
+
+def with_added_variance(res: EstimateResult, W: np.ndarray, scale: np.ndarray, var: np.ndarray) -> np.ndarray:
+    """The variances `var` (m,) of the combinations ``W (D / scale)`` (`W` (m, n)) with the consider terms
+    :func:`with_extra_covariance` added to the coefficients (:func:`added_covariance` ``E``): ``var + w_s^T E w_s``,
+    ``w_s = w / scale``. The one rule by which those terms reach a stated combination: for a combination the rows
+    determine (orthogonal to the fit's null space) its estimator is ``w_s^T`` times the coefficients' own, so its
+    consider variance is ``(w_s^T g)^2`` summed over the terms' ``g``, as the coefficients' ``g g^T``."""
+    E = added_covariance(res)
+    if E is None:
+        return np.asarray(var, dtype=float)
+    Ws = np.asarray(W, dtype=float) / np.asarray(scale, dtype=float)
+    return np.asarray(var, dtype=float) + np.einsum("ij,jk,ik->i", Ws, E, Ws)
 
 
 def column_estimates(res: EstimateResult, problem: Any, flight: FlightData, columns: np.ndarray | None,

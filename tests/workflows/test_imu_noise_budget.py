@@ -225,6 +225,30 @@ def test_a_one_file_telemetry_carries_the_imus_noise(clean, tmp_path):
     assert dv.meta["dv"] == "dv" and imu_sample_noise(dv, dv.t) is None
 
 
+def test_a_one_file_telemetrys_omitted_terms_survive_its_imu_noise(clean, tmp_path):
+    """A one-file telemetry's richer-model terms are carried (:func:`casep.workflows.omitted_terms.judge_omitted`, in
+    :func:`casep.workflows.separate._linear`) before its IMU noise (:func:`with_imu_noise_beyond`), whose refit of the
+    tracking noise sets the covariance anew: the final covariance is the IMU noise's on the fit alone plus the
+    consider term the judgement added, formed from the two pieces apart. Before, the refit dropped the term."""
+    from casep.estimators.solve import fit
+    from casep.workflows.imu_separate import with_imu_noise, with_imu_noise_beyond
+    from casep.workflows.omitted_terms import judge_omitted
+    from casep.workflows.separate import _problem
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a fit of zero errors: the magnitudes and conditioning said by the result
+        flight, problem, model = _problem(one_file_telemetry(tmp_path / "tel.csv", clean, 1), MODEL, None)
+        res = fit(problem, SPEC, checks=False)
+        judged = judge_omitted(res, flight, problem, model)
+        out = with_imu_noise_beyond(judged, problem, flight, model.scales)
+        alone = with_imu_noise(res, problem, flight)
+    assert judged.diagnostics["omitted_terms"]["alias"] and out.diagnostics["noise"]["imu"]["carried"]
+    consider = np.asarray(judged.covariance) - np.asarray(res.covariance)
+    C = np.asarray(alone.covariance)
+    assert np.max(np.diag(consider) / np.diag(C)) > 1e-3  # far above the tolerance below: a term dropped fails
+    np.testing.assert_allclose(out.covariance, C + consider, rtol=1e-9, atol=1e-12 * np.max(np.abs(C)))
+
+
 def _separated(clean, tmp_path, seed: int, form: str, **kw):
     """:func:`casep.separate` of :func:`one_file_telemetry`'s flight (`form` "one file" or "pair"), its model."""
     import casep
