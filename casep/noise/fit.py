@@ -159,6 +159,7 @@ class Reml:
         self.t = problem.t
         self.N = problem.n_samples
         self._cache: dict[tuple, tuple[np.ndarray, float]] = {}
+        self._fits: dict[tuple, tuple[float, tuple[float, float, float]]] = {}  # fit_scales' answers
         self.Z = self._project(problem)
         uniq, inv = np.unique(np.diff(self.t), return_inverse=True)  # the distinct spacings d
         self._lags: list[_LagProducts | None] = [None, None, None]
@@ -231,6 +232,19 @@ class Reml:
         """-2 l_R with the axis scales at their REML fixed point (or all 1 when not `free`)."""
         if not free:
             return self.evaluate(taus, (1.0, 1.0, 1.0), shares)[0], (1.0, 1.0, 1.0)
+        # a search asks the same point from the same start again (a polish from where the last search ended, a
+        # nested test's null): the same answer, kept (the evaluator's, one problem's rows; bounded as the Grams are)
+        key = (tuple(None if v is None else float(v) for v in taus),
+               None if scales is None else tuple(float(v) for v in scales), tuple(float(v) for v in shares))
+        if key not in self._fits:
+            self._fits[key] = self._fit_scales(taus, scales, shares)
+            if len(self._fits) > 4096:
+                self._fits.pop(next(iter(self._fits)))
+        return self._fits[key]
+
+    def _fit_scales(self, taus: Sequence[float | None], scales: Sequence[float] | None,
+                    shares: Sequence[float]) -> tuple[float, tuple[float, float, float]]:
+        """:meth:`fit_scales` with free scales, computed."""
         sc = np.ones(3) if scales is None else np.array(scales, dtype=float)
         gs = [self.gram(j, taus[j], shares[j]) for j in range(3)]
         Ms = np.stack([g[0] for g in gs])  # (3, p + 1, p + 1)
