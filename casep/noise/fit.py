@@ -80,7 +80,7 @@ def _lapack_kernels() -> tuple[Callable[..., np.ndarray], Callable[..., tuple[np
         from numpy.linalg import _umath_linalg as ul
 
         def upper_inv(a: np.ndarray) -> tuple[np.ndarray, int]:
-            if not np.all(np.diagonal(a)):
+            if not a.diagonal().all():
                 return a, 1
             return ul.inv(a, signature="d->d"), 0
 
@@ -159,6 +159,7 @@ class Reml:
         self.t = problem.t
         self.N = problem.n_samples
         self._cache: dict[tuple, tuple[np.ndarray, float]] = {}
+        self._fits: dict[tuple, tuple[float, tuple[float, float, float]]] = {}  # fit_scales' answers
         self.Z = self._project(problem)
         uniq, inv = np.unique(np.diff(self.t), return_inverse=True)  # the distinct spacings d
         self._lags: list[_LagProducts | None] = [None, None, None]
@@ -216,12 +217,12 @@ class Reml:
         T = self._factor(Ms, scales)
         if T is None:
             return np.inf, None
-        d = np.abs(np.diag(T)[: self.p])
+        d = np.abs(T.diagonal()[: self.p])
         rss = float(T[self.p, self.p] ** 2)
         m = 3 * self.N
-        if not rss > 0 or np.any(d == 0):
+        if not rss > 0 or (d == 0).any():
             return np.inf, None
-        val = ((m - self.p) * np.log(rss) + 2.0 * np.sum(np.log(d))
+        val = ((m - self.p) * np.log(rss) + 2.0 * np.log(d).sum()
                + sum(self.N * np.log(scales[j] ** 2) + logdets[j] for j in range(3)))
         return float(val), T
 
@@ -231,6 +232,19 @@ class Reml:
         """-2 l_R with the axis scales at their REML fixed point (or all 1 when not `free`)."""
         if not free:
             return self.evaluate(taus, (1.0, 1.0, 1.0), shares)[0], (1.0, 1.0, 1.0)
+        # a search asks the same point from the same start again (a polish from where the last search ended, a
+        # nested test's null): the same answer, kept (the evaluator's, one problem's rows; bounded as the Grams are)
+        key = (tuple(None if v is None else float(v) for v in taus),
+               None if scales is None else tuple(float(v) for v in scales), tuple(float(v) for v in shares))
+        if key not in self._fits:
+            self._fits[key] = self._fit_scales(taus, scales, shares)
+            if len(self._fits) > 4096:
+                self._fits.pop(next(iter(self._fits)))
+        return self._fits[key]
+
+    def _fit_scales(self, taus: Sequence[float | None], scales: Sequence[float] | None,
+                    shares: Sequence[float]) -> tuple[float, tuple[float, float, float]]:
+        """:meth:`fit_scales` with free scales, computed."""
         sc = np.ones(3) if scales is None else np.array(scales, dtype=float)
         gs = [self.gram(j, taus[j], shares[j]) for j in range(3)]
         Ms = np.stack([g[0] for g in gs])  # (3, p + 1, p + 1)
@@ -238,24 +252,35 @@ class Reml:
         Mflat = Ms.reshape(3, -1)  # G = sum_a M_a / r_a^2 as one dot
         Mpp = np.ascontiguousarray(Ms[:, :p, :p]).reshape(3, p * p)  # h_a = tr(M_a,pp Ginv) as one dot
         Myy = Ms[:, p, p]
+        with np.errstate(invalid="ignore"):  # not definite: NaN (numpy.linalg.cholesky would raise)
+            sc, ok = self._scale_steps(sc, Mflat, Mpp, Ms, Myy)
+        if not ok:
+            return np.inf, (float(sc[0]), float(sc[1]), float(sc[2]))
+        return self._value(Ms, [g[1] for g in gs], sc)[0], (float(sc[0]), float(sc[1]), float(sc[2]))
+
+    def _scale_steps(self, sc: np.ndarray, Mflat: np.ndarray, Mpp: np.ndarray, Ms: np.ndarray, Myy: np.ndarray
+                     ) -> tuple[np.ndarray, bool]:
+        """:meth:`fit_scales`' fixed-point steps from `sc`: (the scales, True) at convergence, (the scales of the
+        step that failed, False) where G is not definite or an axis' RSS vanishes. Called under
+        ``np.errstate(invalid="ignore")`` (a Cholesky failure is a NaN factor), set once for every step."""
+        p = self.p
         v = np.empty(p + 1)  # (beta, -1)
         v[p] = -1.0
         for _ in range(50):
-            with np.errstate(invalid="ignore"):  # not definite: NaN (numpy.linalg.cholesky would raise)
-                L = _cholesky(np.dot(sc ** -2, Mflat).reshape(p + 1, p + 1), signature="d->d")
+            L = _cholesky(np.dot(sc ** -2, Mflat).reshape(p + 1, p + 1), signature="d->d")
             if not np.isfinite(L[-1, -1]):
-                return np.inf, (float(sc[0]), float(sc[1]), float(sc[2]))
+                return sc, False
             T = L.T  # G = T^T T, T upper
             Ti, info = _upper_inv(T[:p, :p]) if p else (np.zeros((0, 0)), 0)  # T_p^-1 (upper)
             if info != 0:  # a zero on T_p's diagonal: not definite
-                return np.inf, (float(sc[0]), float(sc[1]), float(sc[2]))
+                return sc, False
             np.matmul(Ti, T[:p, p], out=v[:p])  # beta = T_p^-1 T[:p, p]
             Ginv = Ti @ Ti.T  # (Z_w^T Z_w)^-1 = (T_p^T T_p)^-1
             rss = np.maximum(np.matmul(Ms, v) @ v, 0.0)  # ||[Z_a y_a] (beta, -1)||^2
             h = (Mpp @ Ginv.ravel()) / sc ** 2  # leverage of each axis' rows (Ginv symmetric)
             new = np.sqrt(rss / np.maximum(self.N - h, 1.0))  # r_a^2 = RSS_a / (N - h_a)
             if not (new > 0).all():
-                return np.inf, (float(sc[0]), float(sc[1]), float(sc[2]))
+                return sc, False
             new /= new[0]
             # converged to 1e-7 in ln r, or to the rounding of RSS_a = v^T M_a v (relative eps M_a,pp / RSS_a):
             # below it the steps are rounding noise (residuals ~1e-8 of |dv|: ln r moves by O(1) at random)
@@ -264,7 +289,7 @@ class Reml:
             sc = new
             if done:
                 break
-        return self._value(Ms, [g[1] for g in gs], sc)[0], (float(sc[0]), float(sc[1]), float(sc[2]))
+        return sc, True
 
 
 def tau_search_bounds(t: np.ndarray) -> tuple[float, float]:
@@ -371,8 +396,8 @@ def tau_profile(problem, points: int = PROFILE_POINTS, level: float = PROFILE_LR
     not bound is no std. An axis whose kept interval reaches the record length has a tau the record does not bound
     from above (:func:`tau_kept` says which): the average there stops at the record length, and the caller says so.
     The bottom needs no such cap: a Gauss-Markov noise of tau below the sample spacing is white noise."""
-    base = fit_noise(problem, "gmw")
-    reml = Reml(problem, estimable_basis(problem))  # one evaluator for every point: its Gram matrices cached once
+    reml = Reml(problem, estimable_basis(problem))  # one evaluator for the fit and every point: Gram matrices once
+    base = fit_noise(problem, "gmw", reml=reml)
     lo, hi = tau_search_bounds(problem.t)
     grid = np.exp(np.linspace(lo, hi, int(points)))
     out: list[list[tuple[float, NoiseModel]]] = []

@@ -114,6 +114,26 @@ def test_reml_equals_the_dense_restricted_likelihood(rng):
         assert reml.evaluate(sets[0][0], (1.0, sc[1] * dy, sc[2]))[0] > val - 1e-9
 
 
+def test_reml_fit_scales_asked_again_gives_a_fresh_evaluators_answer(rng):
+    """Reml.fit_scales keeps its answer per point and start: asked again (the same taus, start scales and white
+    shares) the same numbers bit for bit as a new evaluator of the same rows computes; another start or share is
+    computed, not taken from a kept answer (its own fresh evaluator's numbers, the start moving the fixed point's
+    stopping place by rounding only)."""
+    N, n = 60, 4
+    t = _irregular_times(rng, N)
+    S = rng.normal(size=(N, 3, n))
+    truth = NoiseModel(kind="gm", tau=(0.8, 0.3, 1.5), scale=(1.0, 1.5, 0.7))
+    y = (S.reshape(-1, n) @ rng.normal(size=n) + np.linalg.cholesky(_dense_cov(t, truth)) @ rng.normal(size=3 * N))
+    pb = Problem.from_arrays(S, y.reshape(N, 3), t)
+    kept = Reml(pb, estimable_basis(pb))
+    asks = [((0.8, 0.3, 1.5), None, (0.0, 0.0, 0.0)), ((0.8, 0.3, 1.5), (1.0, 1.4, 0.8), (0.0, 0.0, 0.0)),
+            ((0.8, None, 1.5), None, (0.3, 0.0, 0.0)), ((0.8, 0.3, 1.5), None, (0.0, 0.0, 0.0))]
+    for taus, start, shares in asks + asks:
+        fresh = Reml(pb, estimable_basis(pb)).fit_scales(taus, start, shares=shares)
+        assert kept.fit_scales(taus, start, shares=shares) == fresh
+    assert kept.fit_scales(*asks[0][:2]) != kept.fit_scales(*asks[2][:2], shares=asks[2][2])
+
+
 def test_reml_factor_equals_numpy_and_says_not_definite_without_a_warning(rng):
     """The fixed point's Cholesky (numpy's LAPACK kernel without its wrapper): numpy.linalg.cholesky's factor bit
     for bit on a definite Gram matrix, None (no exception, no warning: warnings are errors here) on one that is not;
