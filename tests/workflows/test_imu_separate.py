@@ -655,25 +655,17 @@ def test_a_stationary_pad_record_is_iterated_only_along_what_it_determines(tmp_p
     what a linear error model describes (scale factors of 1e7 ppm) but not significantly so (their std exceed the
     limit, and none is beyond it by the test at LINEAR_ALPHA over them): the right model on the right data is no
     failure; the result says which coefficients the record does not determine and what it does determine."""
+    from test_imu_iterate_steps import _pad_at_rest
+
     from casep.exceptions import NonlinearityWarning
-    from casep.gravity import normal_gravity
     from casep.workflows.imu_separate import SIGNIFICANT
 
-    T, lat, wE = 16.0, np.radians(45.0), 7.292115e-5
-    rng = np.random.default_rng(0)
-    t = np.arange(0, T, 0.2)
-    f = np.tile([0, 0, normal_gravity(45.0, 100.0)], (t.size, 1)) + rng.normal(0, 1e-3, (t.size, 3))
-    w = np.tile([0, wE * np.cos(lat), wE * np.sin(lat)], (t.size, 1)) + rng.normal(0, 1e-5, (t.size, 3))
-    tt = np.arange(0, T, 1.0)
-    v = rng.normal(0, 0.02, (tt.size, 3))
-    trk = tmp_path / "trk.csv"
-    write_table(trk, {"t": tt, "lat": np.full(tt.size, 45.0), "lon": np.full(tt.size, 10.0),
-                      "h": np.full(tt.size, 100.0), "v_east": v[:, 0], "v_north": v[:, 1], "v_up": v[:, 2]})
+    imu, trk, site = _pad_at_rest(tmp_path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         with pytest.warns(NonlinearityWarning, match=r"the record determines \d+ of 13 combinations") as said:
-            out = separate_imu(ImuData(t, w, f), trk, LaunchSite(45.0, 10.0, 100.0, 90.0, T / 2), (0.0, T / 2),
-                               "strapdown12", heading_deg=90.0, tracking_frame="geodetic")
+            out = separate_imu(imu, trk, site, (0.0, site.t0), "strapdown12", heading_deg=90.0,
+                               tracking_frame="geodetic")
     res = out.result
     it = res.diagnostics["iterations"]
     assert out.success and it["converged"], out.message
