@@ -94,14 +94,21 @@ def _dense_neg2_reml(S2: np.ndarray, y: np.ndarray, C: np.ndarray) -> float:
     return (m - p) * np.log(rss) + 2 * np.sum(np.log(np.diag(L))) + np.linalg.slogdet(A.T @ A)[1]
 
 
-def test_reml_equals_the_dense_restricted_likelihood(rng):
-    """Differences of -2 l_R between parameter sets equal the dense computation's (constants cancel)."""
+def _gm_rows(rng):
+    """60 irregular epochs of 4 random columns with Gauss-Markov noise of known taus and scales, drawn densely:
+    (S, y, t, problem)."""
     N, n = 60, 4
     t = _irregular_times(rng, N)
     S = rng.normal(size=(N, 3, n))
     truth = NoiseModel(kind="gm", tau=(0.8, 0.3, 1.5), scale=(1.0, 1.5, 0.7))
     y = (S.reshape(-1, n) @ rng.normal(size=n) + np.linalg.cholesky(_dense_cov(t, truth)) @ rng.normal(size=3 * N))
-    pb = Problem.from_arrays(S, y.reshape(N, 3), t)
+    return S, y, t, Problem.from_arrays(S, y.reshape(N, 3), t)
+
+
+def test_reml_equals_the_dense_restricted_likelihood(rng):
+    """Differences of -2 l_R between parameter sets equal the dense computation's (constants cancel)."""
+    S, y, t, pb = _gm_rows(rng)
+    n = S.shape[2]
     reml = Reml(pb, estimable_basis(pb))
     sets = [((0.8, 0.3, 1.5), (1.0, 1.5, 0.7)), ((0.4, None, 3.0), (1.0, 1.0, 1.0)),
             ((None, None, None), (1.0, 2.0, 0.5))]
@@ -119,12 +126,7 @@ def test_reml_fit_scales_asked_again_gives_a_fresh_evaluators_answer(rng):
     shares) the same numbers bit for bit as a new evaluator of the same rows computes; another start or share is
     computed, not taken from a kept answer (its own fresh evaluator's numbers, the start moving the fixed point's
     stopping place by rounding only)."""
-    N, n = 60, 4
-    t = _irregular_times(rng, N)
-    S = rng.normal(size=(N, 3, n))
-    truth = NoiseModel(kind="gm", tau=(0.8, 0.3, 1.5), scale=(1.0, 1.5, 0.7))
-    y = (S.reshape(-1, n) @ rng.normal(size=n) + np.linalg.cholesky(_dense_cov(t, truth)) @ rng.normal(size=3 * N))
-    pb = Problem.from_arrays(S, y.reshape(N, 3), t)
+    _, _, _, pb = _gm_rows(rng)
     kept = Reml(pb, estimable_basis(pb))
     asks = [((0.8, 0.3, 1.5), None, (0.0, 0.0, 0.0)), ((0.8, 0.3, 1.5), (1.0, 1.4, 0.8), (0.0, 0.0, 0.0)),
             ((0.8, None, 1.5), None, (0.3, 0.0, 0.0)), ((0.8, 0.3, 1.5), None, (0.0, 0.0, 0.0))]
