@@ -4,7 +4,8 @@ units of :data:`casep.units.RATE_UNIT_MISTAKES` (deg/s in rad/s columns).
 A pad cannot always tell: a tactical gyro's bias of 10-20 deg/h is comparable to the Earth rate, so rates in deg/s
 read as rad/s miss the Earth-rate match of :func:`casep.navigation.alignment._check_pad_rate`, and their mean pad
 rate, 57.3 times the Earth rate plus that bias, is the size of a consumer MEMS gyro's bias read in rad/s (a
-reviewer's record: 0.0066 rad/s, 1.6 times the Earth rate in deg/s, where a MEMS bias lands with a chance of 34 %).
+tactical car record at 51 N written in deg/s, Groves' Profile_1 with its own errors: 0.0066 rad/s, 1.6 times the
+Earth rate in deg/s, where a MEMS bias lands with a chance of 34 %).
 The tracking can: the rates of a moving vehicle read 57.3 times too large turn the navigation far from it, and no
 linear error model takes that in (that record as read: the heading 35 deg off, estimates beyond the linear model,
 a residual RMS of 5.2 m/s after one linear pass; in deg/s: 0.027 m/s, the tracking's noise). Where a separation
@@ -25,7 +26,7 @@ import numpy as np
 __all__ = ["UNIT_READING_RATIO", "rate_unit_reading"]
 
 #: A reading of the rates in another unit is named the cause of a failed separation when its one linear pass leaves a
-#: residual RMS this many times below the separation's as read (the reviewer's deg/s record: 0.0271 against 7.64 m/s,
+#: residual RMS this many times below the separation's as read (that deg/s car record: 0.0271 against 7.64 m/s,
 #: 282 times; one pass each way 191 times; the same record in rad/s read as deg/s 24 times worse; the simulated rail
 #: launch of ``tests/workflows/test_imu_units.py``: the wrong reading 88 to 165 times worse, tactical or MEMS biases).
 UNIT_READING_RATIO = 10.0
