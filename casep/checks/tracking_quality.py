@@ -83,7 +83,7 @@ __all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "rest_window", "
            "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
            "imu_noise_effect", "imu_sample_noise", "white_sample_std", "unresolved_noise", "NOISE_RESOLUTION_SHARE",
-           "imu_bias_effect", "IMU_INSTABILITY_TAU", "IMU_INSTABILITY_SIZE", "IMU_REML_ROWS",
+           "imu_bias_effect", "IMU_INSTABILITY_TAU", "imu_noise_beside_bound", "IMU_INSTABILITY_SIZE", "IMU_REML_ROWS",
            "rest_white_std", "IMU_NOISE_AT_REST", "pad_white_std", "IMU_NOISE_PAD", "imu_noise_on_pad",
            "white_std_error", "allan_white_error", "NOISE_DIFF_ORDERS", "WHITE_STD_ERROR", "NOISE_SWITCH_SIGMAS",
            "STALE_MOTION", "STALE_POSITION", "HELD_SHARE", "HELD_RUN_SHARE", "JUMP_TOL", "JUMP_RATE",
@@ -841,6 +841,24 @@ def _with_pad(record: np.ndarray, n: int, pad: dict | None) -> tuple[np.ndarray,
 NOISE_RESOLUTION_SHARE = 1e-9
 #: The IMU columns of :func:`imu_sample_noise`'s ``s``, in its order.
 IMU_NOISE_COLUMNS = ("fb_x", "fb_y", "fb_z", "w_x", "w_y", "w_z")
+
+
+def imu_noise_beside_bound(flight: FlightData, t_rows: np.ndarray) -> str | None:
+    """What a bound of the tracking noise alone (``casep diagnose``) leaves out of a telemetry that holds its IMU's
+    samples: a line with the IMU's white noise as measured (:func:`imu_sample_noise`), which ``casep separate``
+    carries in its std (its velocity and attitude random walks); None without the samples or where the record shows
+    no IMU noise above its rounding (:func:`unresolved_noise`)."""
+    measured = imu_sample_noise(flight, t_rows)
+    if measured is None:
+        return None
+    s, _, samples = measured
+    shown = [c for c in IMU_NOISE_COLUMNS if c not in unresolved_noise(flight, s, samples)]
+    if not shown:
+        return None
+    acc, gyr = s[:3], s[3:]
+    return (f"the bound holds the tracking noise only: the IMU's own noise, measured on this telemetry's samples "
+            f"(per sample up to {float(np.max(acc)):.3g} m/s^2 and {float(np.max(gyr)):.3g} rad/s; "
+            f"{', '.join(shown)}), is not in it; `casep separate` carries it in its std, which can be larger")
 
 
 def unresolved_noise(flight: FlightData, s: np.ndarray, samples: np.ndarray) -> list[str]:

@@ -74,12 +74,18 @@ def run(args: argparse.Namespace) -> int:
         diag = diagnose(problem, sigma=args.sigma, tau=args.tau, **kw)
     else:  # the noise model separate fits by default
         diag = diagnose_noise(problem, args.noise, **kw)
+    from casep.checks.tracking_quality import imu_noise_beside_bound
+
+    beside = None if problem.t is None else imu_noise_beside_bound(flight, problem.t)
     if args.json:
         outputs.write_json({"casep_version": __version__, "model": model.name, "n_samples": flight.n_observed,
-                            "diagnostics": diag.to_dict(), "provenance": outputs.provenance(args, [flight])},
+                            "diagnostics": diag.to_dict(), "imu_noise_not_in_bound": beside,
+                            "provenance": outputs.provenance(args, [flight])},
                            args.json)
     print(f"model {model.name}, {flight.n_observed} samples")
     print(diag.text())
+    if beside:
+        print(beside)
     if args.figures:
         from casep.reporting.plots import plot_singular_values, plot_variance_decomposition
 

@@ -113,3 +113,29 @@ def test_the_refused_bound_is_wrong_and_the_one_named_is_not_optimistic(levelled
         naive, named = diagnose(p12, sigma=SIGMA).crlb_std, diagnose(p15, sigma=SIGMA).crlb_std[:12]
     assert naive[1] < 0.75 * own[1] and naive[2] > 1e4 * own[2], (naive[:3], own[:3])
     assert np.all(named >= own * (1.0 - 1e-6)), (named, own)
+
+
+def test_diagnose_says_the_imu_noise_its_bound_leaves_out(levelled, tmp_path, capsys):
+    """A telemetry navigated from a noisy IMU (white, 2e-3 m/s^2 and 2e-5 rad/s per sample): diagnose's bound holds
+    the tracking noise only, and it says so with the IMU's noise measured on the samples (each sensor's largest
+    within 15 % of the noise added: 500 samples), in its text and JSON; the noise-free telemetry gets no such line."""
+    import json
+    import re
+
+    tel, trk, ins, _ = levelled
+    assert main(["diagnose", str(tel), "--tracking", str(trk), "--model", "strapdown15_phi0",
+                 "--sigma", str(SIGMA)]) == 0
+    assert "bound holds the tracking noise only" not in capsys.readouterr().out
+    rng = np.random.default_rng(5)
+    acc, gyr = 2e-3, 2e-5
+    noisy = navigate(check_imu(ImuData(ins.t, ins.w + rng.normal(0, gyr, ins.w.shape),
+                                       ins.fb + rng.normal(0, acc, ins.fb.shape))), SITE, ALIGN, heading_deg=HEADING)
+    path = tmp_path / "noisy.csv"
+    write_table(path, noisy.columns(), comments=noisy.comments("imu.csv"))
+    assert main(["diagnose", str(path), "--tracking", str(trk), "--model", "strapdown15_phi0", "--sigma",
+                 str(SIGMA), "--json", str(tmp_path / "d.json")]) == 0
+    out = capsys.readouterr().out
+    said = json.loads((tmp_path / "d.json").read_text())["imu_noise_not_in_bound"]
+    assert said and said in out, out
+    a, g = (float(x) for x in re.search(r"up to ([0-9.e+-]+) m/s\^2 and ([0-9.e+-]+) rad/s", said).groups())
+    assert abs(a / acc - 1) < 0.15 and abs(g / gyr - 1) < 0.15, said
