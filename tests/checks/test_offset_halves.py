@@ -14,20 +14,27 @@ from casep.exceptions import TrackingQualityWarning
 from casep.regression.problem import Problem
 
 
-def _problem(ppm: float, seed: int = 0) -> Problem:
-    """Two boosts (a two-stage rocket: 0-6 s and 25-30 s at 10 g) and coasts at 10 Hz: dv = accelerometer bias ramp
-    + a(t) (tau + eps t) + white noise; the fit's columns: the bias (per axis, t) and dt_trk (a(t), per ms). Each
-    boost carries the offset of its time (on a coast alone the drift's ramp ``a eps t`` is a bias's)."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(0.0, 40.0, 0.1)
+def _two_boosts(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The two-boost flight's specific force ``a`` (m/s^2; 0-6 s and 25-30 s at 10 g, coasts between) at `t` and the
+    fit's columns ``S``: a bias per axis (``dv = b t``) and dt_trk (``a`` per ms)."""
     boost = (t < 6.0) | ((t >= 25.0) & (t < 30.0))
     a = np.zeros((t.size, 3))
     a[:, 2] = np.where(boost, 98.0, -9.8)
     a[:, 0] = np.where(boost, 10.0 * np.sin(t), -0.5)
     S = np.zeros((t.size, 3, 4))
     for i in range(3):
-        S[:, i, i] = t  # a bias per axis: dv = b t
-    S[:, :, 3] = a * 1e-3  # dt_trk, ms
+        S[:, i, i] = t
+    S[:, :, 3] = a * 1e-3
+    return a, S
+
+
+def _problem(ppm: float, seed: int = 0) -> Problem:
+    """Two boosts (a two-stage rocket: 0-6 s and 25-30 s at 10 g) and coasts at 10 Hz: dv = accelerometer bias ramp
+    + a(t) (tau + eps t) + white noise; the fit's columns: the bias (per axis, t) and dt_trk (a(t), per ms). Each
+    boost carries the offset of its time (on a coast alone the drift's ramp ``a eps t`` is a bias's)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 40.0, 0.1)
+    a, S = _two_boosts(t)
     tau = 1e-3 + ppm * 1e-6 * t  # s: 1 ms plus the drift
     y = S[:, :, :3] @ np.array([0.01, -0.02, 0.005]) + a * tau[:, None] + 0.002 * rng.standard_normal((t.size, 3))
     return Problem.from_arrays(S, y, t, names=("b_x", "b_y", "b_z", "dt_trk"), units=("m/s^2",) * 3 + ("ms",),
@@ -76,14 +83,7 @@ def test_under_gauss_markov_plus_white_noise_the_fits_noise_model_gives_the_std(
     from casep.simulation.noise import ar1_noise
 
     t = np.arange(0.0, 40.0, 0.02)
-    boost = (t < 6.0) | ((t >= 25.0) & (t < 30.0))
-    a = np.zeros((t.size, 3))
-    a[:, 2] = np.where(boost, 98.0, -9.8)
-    a[:, 0] = np.where(boost, 10.0 * np.sin(t), -0.5)
-    S = np.zeros((t.size, 3, 4))
-    for i in range(3):
-        S[:, i, i] = t
-    S[:, :, 3] = a * 1e-3
+    a, S = _two_boosts(t)
     share = 0.005**2 / (0.005**2 + 0.01**2)
     noise = NoiseModel(kind="gmw", tau=(1.0, 1.0, 1.0), share=(share,) * 3).to_dict()
     z_model, z_ar1 = [], []

@@ -503,12 +503,7 @@ def test_the_imu_noise_state_is_the_imu_noise_effect(levelled):
 
     from casep.checks.tracking_quality import imu_noise_effect, imu_noise_states
 
-    rng = np.random.default_rng(3)
-    flight = _turning_record(rng)
-    rows = np.array([0.5, 1.0, 1.3, 1.7, 2.0, 3.1, 3.3, 4.0, 5.5])
-    L = 0.01 * rng.normal(size=(3, 3))
-    L[:, 2] = 0.0
-    levelling = ((0.0, 2.0), L) if levelled else None
+    flight, rows, levelling = _turning_rows(levelled)
     G = imu_noise_effect(flight, rows, np.eye(3 * rows.size), levelling)
     known = imu_noise_states(flight, rows, levelling)
     assert known.T.shape[1] == (15 if levelled else 9)
@@ -523,12 +518,7 @@ def test_the_imu_bias_instability_state_is_its_effect(levelled):
     covariance)."""
     from casep.checks.tracking_quality import imu_noise_effect, imu_noise_states
 
-    rng = np.random.default_rng(3)
-    flight = _turning_record(rng)
-    rows = np.array([0.5, 1.0, 1.3, 1.7, 2.0, 3.1, 3.3, 4.0, 5.5])
-    L = 0.01 * rng.normal(size=(3, 3))
-    L[:, 2] = 0.0
-    levelling = ((0.0, 2.0), L) if levelled else None
+    flight, rows, levelling = _turning_rows(levelled)
     q = (4e-4, 3e-6)  # (m/s^2)^2, (rad/s)^2: of the white noise's size over a block
     known = imu_noise_states(flight, rows, levelling, instability_tau=2.5)
     assert known.T.shape[1] == (21 if levelled else 15) and len(known.parts) == 2
@@ -940,6 +930,17 @@ def test_a_frozen_position_is_stale_from_its_first_repeat(tmp_path, frame):
         screened = screen_tracking(fl)
     assert screened.meta["tracking_screen"]["left_out_rows"] == list(range(201, 231))
     assert fl.meta["time_alignment"]["stale_left_out"] == 30
+
+
+def _turning_rows(levelled: bool):
+    """The turning record (:func:`_turning_record`, seed 3), nine uneven epochs and, `levelled`, a levelling window over
+    the first 2 s with a Jacobian of rank 2 (as levelling alone gives): (flight, rows, levelling or None)."""
+    rng = np.random.default_rng(3)
+    flight = _turning_record(rng)
+    rows = np.array([0.5, 1.0, 1.3, 1.7, 2.0, 3.1, 3.3, 4.0, 5.5])
+    L = 0.01 * rng.normal(size=(3, 3))
+    L[:, 2] = 0.0
+    return flight, rows, ((0.0, 2.0), L) if levelled else None
 
 
 def _turning_record(rng):
