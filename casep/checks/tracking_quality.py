@@ -59,7 +59,7 @@ import dataclasses
 import math
 import warnings
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -82,7 +82,8 @@ __all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "rest_window", "
            "offset_halves", "halves_line", "telemetry_clock_line",
            "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
-           "imu_noise_effect", "imu_sample_noise", "white_sample_std", "unresolved_noise", "NOISE_RESOLUTION_SHARE",
+           "imu_noise_effect", "imu_sample_noise", "ImuNoise", "imu_noise_measured", "white_sample_std",
+           "unresolved_noise", "NOISE_RESOLUTION_SHARE",
            "imu_bias_effect", "IMU_INSTABILITY_TAU", "imu_noise_beside_bound", "IMU_INSTABILITY_SIZE", "IMU_REML_ROWS",
            "rest_white_std", "IMU_NOISE_AT_REST", "pad_white_std", "IMU_NOISE_PAD", "imu_noise_on_pad",
            "white_std_error", "allan_white_error", "NOISE_DIFF_ORDERS", "WHITE_STD_ERROR", "NOISE_SWITCH_SIGMAS",
@@ -845,16 +846,16 @@ IMU_NOISE_COLUMNS = ("fb_x", "fb_y", "fb_z", "w_x", "w_y", "w_z")
 
 def imu_noise_beside_bound(flight: FlightData, t_rows: np.ndarray) -> str | None:
     """What a bound of the tracking noise alone (``casep diagnose``) leaves out of a telemetry that holds its IMU's
-    samples: a line with the IMU's white noise as measured (:func:`imu_sample_noise`), which ``casep separate``
+    samples: a line with the IMU's white noise as ``casep separate`` measures it (:func:`imu_noise_measured`) and
     carries in its std (its velocity and attitude random walks); None without the samples or where the record shows
     no IMU noise above its rounding (:func:`unresolved_noise`)."""
-    measured = imu_sample_noise(flight, t_rows)
+    measured = imu_noise_measured(flight, t_rows)
     if measured is None:
         return None
-    s, _, samples = measured
-    shown = [c for c in IMU_NOISE_COLUMNS if c not in unresolved_noise(flight, s, samples)]
+    shown = [c for c in IMU_NOISE_COLUMNS if c not in measured.unresolved]
     if not shown:
         return None
+    s = measured.sample[0]
     acc, gyr = s[:3], s[3:]
     return (f"the bound holds the tracking noise only: the IMU's own noise, measured on this telemetry's samples "
             f"(per sample up to {float(np.max(acc)):.3g} m/s^2 and {float(np.max(gyr)):.3g} rad/s; "
@@ -868,6 +869,35 @@ def unresolved_noise(flight: FlightData, s: np.ndarray, samples: np.ndarray) -> 
     sig = flight.signals
     return [c for c, v in zip(IMU_NOISE_COLUMNS, s)
             if not v > NOISE_RESOLUTION_SHARE * float(np.max(np.abs(np.asarray(sig[c])[samples]), initial=0.0))]
+
+
+class ImuNoise(NamedTuple):
+    """The IMU's white noise as the budget measures it (:func:`imu_noise_measured`): `sample` the ``(s, h, samples)``
+    of :func:`imu_sample_noise`, `at_rest` whether it is the one measured at rest
+    (``meta[IMU_NOISE_AT_REST]``), `unresolved` the columns whose noise the record does not show
+    (:func:`unresolved_noise`: not measured), `on_pad` the columns taken from the pad
+    (:func:`imu_noise_on_pad`) and `pad_span` the pad's span (s)."""
+
+    sample: tuple
+    at_rest: bool
+    unresolved: tuple
+    on_pad: tuple = ()
+    pad_span: tuple | None = None
+
+
+def imu_noise_measured(flight: FlightData, t: np.ndarray) -> ImuNoise | None:
+    """The IMU's white noise of `flight` up to the last epoch of `t` (:class:`ImuNoise`), measured once for
+    :func:`casep.workflows.imu_separate.imu_noise_budget`, :func:`casep.workflows.imu_separate.with_imu_noise_beyond`
+    and :func:`imu_noise_beside_bound`; None when the flight does not hold the IMU's samples."""
+    measured = imu_sample_noise(flight, t)
+    if measured is None:
+        return None
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    pad = meta.get(IMU_NOISE_PAD) or {}
+    on_pad = tuple(imu_noise_on_pad(flight, t))
+    return ImuNoise(measured, meta.get(IMU_NOISE_AT_REST) is not None,
+                    tuple(unresolved_noise(flight, measured[0], measured[2])), on_pad,
+                    tuple(pad["span"]) if on_pad and pad.get("span") is not None else None)
 
 
 #: A flight's ``meta`` key: the IMU's white noise per sample (6: ``fb_x, fb_y, fb_z`` m/s^2, ``w_x, w_y, w_z``

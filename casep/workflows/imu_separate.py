@@ -181,6 +181,7 @@ from casep.workflows.row_estimators import (
 )
 
 if TYPE_CHECKING:
+    from casep.checks.tracking_quality import ImuNoise
     from casep.estimators.result import EstimateResult
     from casep.estimators.spec import FitSpec
     from casep.io.flight import FlightData
@@ -2407,42 +2408,6 @@ def _direct_velocity(model: ErrorModel, flight: FlightData, D: np.ndarray) -> np
     return evaluate_samples(fn, values, n)
 
 
-class ImuNoise(NamedTuple):
-    """The IMU's white noise as the budget measures it (:func:`imu_noise_measured`): `sample` the ``(s, h, samples)``
-    of :func:`casep.checks.tracking_quality.imu_sample_noise`, `at_rest` whether it is the one measured at rest
-    (``meta[IMU_NOISE_AT_REST]``), `unresolved` the columns whose noise the record does not show
-    (:func:`casep.checks.tracking_quality.unresolved_noise`: not measured), `on_pad` the columns taken from the pad
-    (:func:`casep.checks.tracking_quality.imu_noise_on_pad`) and `pad_span` the pad's span (s)."""
-
-    sample: tuple
-    at_rest: bool
-    unresolved: tuple
-    on_pad: tuple = ()
-    pad_span: tuple | None = None
-
-
-def imu_noise_measured(flight: FlightData, t: np.ndarray) -> ImuNoise | None:
-    """The IMU's white noise of `flight` up to the last epoch of `t` (:class:`ImuNoise`), measured once for
-    :func:`imu_noise_budget` and :func:`with_imu_noise_beyond`; None when the flight does not hold the IMU's samples."""
-    from casep.checks.tracking_quality import (
-        IMU_NOISE_AT_REST,
-        IMU_NOISE_PAD,
-        imu_noise_on_pad,
-        imu_sample_noise,
-        unresolved_noise,
-    )
-
-    measured = imu_sample_noise(flight, t)
-    if measured is None:
-        return None
-    meta = flight.meta if isinstance(flight.meta, dict) else {}
-    pad = meta.get(IMU_NOISE_PAD) or {}
-    on_pad = tuple(imu_noise_on_pad(flight, t))
-    return ImuNoise(measured, meta.get(IMU_NOISE_AT_REST) is not None,
-                    tuple(unresolved_noise(flight, measured[0], measured[2])), on_pad,
-                    tuple(pad["span"]) if on_pad and pad.get("span") is not None else None)
-
-
 def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, levelling: tuple | None = None,
                      profile: tuple | None = None, heading: np.ndarray | None = None,
                      estimators: np.ndarray | None = None,
@@ -2477,7 +2442,7 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     the record bounds them and by how much it raises the std (``tau_profile``: :func:`warn_tau_unbounded` says when
     the record does not bound them). `estimators`: ``A`` when the caller formed it already
     (:func:`combination_estimators` of the identity on `res`); `measured`: the IMU's noise when the caller measured
-    it already (:func:`imu_noise_measured` of `flight` and the problem's times).
+    it already (:func:`casep.checks.tracking_quality.imu_noise_measured` of `flight` and the problem's times).
     """
     from casep.checks.tracking_quality import imu_noise_effect
     from casep.noise.model import NoiseModel
@@ -2486,6 +2451,8 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     if res.covariance is None or problem.t is None or not isinstance(nd, dict) or "axes" not in nd:
         return None
     t = np.asarray(problem.t, dtype=float)
+    from casep.checks.tracking_quality import imu_noise_measured
+
     measured = imu_noise_measured(flight, t) if measured is None else measured
     if measured is None:
         return None
@@ -3221,6 +3188,8 @@ def with_imu_noise_beyond(res: EstimateResult, problem: Any, flight: FlightData,
     if C is None or problem.t is None or not isinstance(nd, dict) or "axes" not in nd:
         return res
     t = np.asarray(problem.t, dtype=float)
+    from casep.checks.tracking_quality import imu_noise_measured
+
     measured = imu_noise_measured(flight, t)  # once: the effect, the account and the full term's budget take it
     if measured is None or not np.all(np.isfinite(C)):
         return res if measured is None else with_imu_noise(res, problem, flight, measured=measured)
