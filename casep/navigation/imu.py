@@ -405,8 +405,9 @@ def _warn_gaps(imu: ImuData, lost: np.ndarray, h: np.ndarray, h_med: float) -> N
 
     def known(m: int) -> str:  # what the bridge of gap m (an index of br.steps) leaves unknown
         return (f"the velocity across it is known to about {br.velocity[m]:.3g} m/s only (any path of the specific "
-                f"force between the two sides of its {br.h[m]:.4g} s: {br.motion[m, 1]:.3g} m/s; the rest from its "
-                f"noise {br.noise[m, 1]:.3g} m/s^2), the attitude to about {br.attitude[m]:.3g} rad (gyro noise "
+                f"force between the two sides of its {br.h[m]:.4g} s: {br.motion[m, 1]:.3g} m/s; the rest, "
+                f"{br.velocity[m] - br.motion[m, 1]:.3g} m/s, from the samples' scatter about the bridge, "
+                f"{br.noise[m, 1]:.3g} m/s^2 per sample), the attitude to about {br.attitude[m]:.3g} rad (gyro noise "
                 f"{br.noise[m, 0]:.3g} rad/s included; after it a velocity error grows by up to "
                 f"{fmax * br.attitude[m]:.3g} m/s per s)")
 

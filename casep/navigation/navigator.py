@@ -138,7 +138,8 @@ def check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite, *, wa
         up = res.alignment.f_mean / np.linalg.norm(res.alignment.f_mean) if res.alignment is not None else None
         own = float(np.linalg.norm(b_rate - (b_rate @ up) * up)) if up is not None else 0.0
         tilt = g * own * T**2 / 2.0
-        why = (f"the pad's own mean horizontal rate less the Earth rate, {own:.3g} rad/s (a gyro bias of that size), "
+        why = (f"the pad's own mean horizontal rate less the Earth rate, {own:.3g} rad/s (a gyro bias of that size, "
+               f"{own / gyro_bias_allowance(site):.3g} x that allowance), "
                f"tilts it by {tilt:.2g} m/s x {PAD_BIAS_FACTOR:g}: the vehicle need not have moved; "
                "the solution drifts as t^2 from there (`casep separate --imu` estimates the gyro biases)"
                if drift <= PAD_NOISE_FACTOR * noise + PAD_BIAS_FACTOR * tilt + vertical else
@@ -147,7 +148,8 @@ def check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite, *, wa
         warnings.warn(f"--align {t1:g} {t2:g}: {imu.source}: the navigated speed reaches {drift:.3g} m/s within the "
                       f"{T:.3g} s window declared at rest, above the {allowed:.3g} m/s its sensors allow (the noise's "
                       f"random walks {noise:.2g} m/s x {PAD_NOISE_FACTOR:g}, a gyro bias of "
-                      f"{gyro_bias_allowance(site):.2g} rad/s tilting it {bias:.2g} m/s x {PAD_BIAS_FACTOR:g}"
+                      f"{gyro_bias_allowance(site):.2g} rad/s, the allowance of a gyro that finds north, tilting it "
+                      f"{bias:.2g} m/s x {PAD_BIAS_FACTOR:g}"
                       + (f", the vertical accelerometer bias {vertical:.2g} m/s" if vertical else "") + "); "
                       f"mean pad rate {rate:.3g} rad/s: {why}", AlignmentWarning, stacklevel=2)
 
@@ -173,6 +175,8 @@ def pad_state(imu: ImuData, site: LaunchSite, align_window: tuple[float, float],
     alignment = align(imu.t, imu.w, imu.f, align_window, site, heading_deg=heading_deg, heading_axis=heading_axis,
                       accel_bias_tolerance=tol, as_given=as_given, gyro_bias_tolerance=gyro_bias_tolerance,
                       rates_in=f"{imu.source}, columns {cols}")
+    if as_given:
+        _warn_outside_record(imu, align_window)
     t_s = imu.t[np.searchsorted(imu.t, align_window[0])][None]
     r0, v0 = ecef_to_launch(site, t_s, site.r_site[None, :], np.zeros((1, 3)))
     axes_e = (site.C @ alignment.C_tb).T  # rows: the body axes in ECEF at rest on the pad
@@ -253,3 +257,24 @@ def _bridged(inc, t: np.ndarray, w: np.ndarray, f: np.ndarray):
     new = increments_from_deltas(dtheta, dv)
     new.coning[0], new.sculling[0] = inc.coning[0], inc.sculling[0]  # the first step's own (no previous one)
     return Increments(new.dtheta, new.dv, new.coning, new.sculling)
+
+
+#: The share of the asked alignment window its samples must span before the window is said to lie partly outside the
+#: record (a window given a sample or two beyond the record's ends, as round numbers are, is not said).
+ALIGN_COVERED = 0.9
+
+
+def _warn_outside_record(imu: ImuData, window: tuple[float, float]) -> None:
+    """An :class:`~casep.exceptions.AlignmentWarning` when `window` (``--align``) reaches beyond the record so that its
+    samples span less than :data:`ALIGN_COVERED` of it: the levelling is then another window than the one asked (a
+    launch time after the record's end is not said: a pad-only record is navigated so)."""
+    from casep.exceptions import AlignmentWarning
+
+    t = imu.t
+    t1, t2 = float(window[0]), float(window[1])
+    held = t[(t >= t1) & (t <= t2)]
+    span = float(held[-1] - held[0]) if held.size else 0.0
+    if (t1 < t[0] or t2 > t[-1]) and span < ALIGN_COVERED * (t2 - t1):
+        warnings.warn(f"--align {t1:g} {t2:g}: {imu.source} holds {t[0]:.6g} .. {t[-1]:.6g} s, so the window's samples "
+                      f"span {span:.4g} s of the {t2 - t1:.4g} s asked: the levelling is the mean over them only",
+                      AlignmentWarning, stacklevel=3)

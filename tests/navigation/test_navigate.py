@@ -195,6 +195,34 @@ def test_lost_samples_are_integrated_across_and_counted():
     assert res.gaps == 2 and np.abs(res.earth_relative()[1]).max() < 1e-6
 
 
+def test_a_gap_warning_gives_the_velocity_bound_s_parts_in_their_units():
+    """The gap's velocity bound is the motion term plus the scatter's: the warning gives the scatter's part in m/s
+    (the bound less the motion term) beside the samples' scatter in m/s^2, not an acceleration as a velocity."""
+    t, w, f = _stationary(100.0, 30.0, np.random.default_rng(3), sigma_a=2e-3, sigma_g=1e-4)
+    keep = (t < 20.0) | (t > 20.5)
+    with pytest.warns(GapWarning) as rec:
+        check_imu(ImuData(t[keep], w[keep], f[keep]))
+    msg = str(rec[0].message)
+    total, motion, rest, scatter = (float(re.search(p, msg).group(1)) for p in (
+        r"known to about ([0-9.e+-]+) m/s only", r"s: ([0-9.e+-]+) m/s; the rest",
+        r"the rest, ([0-9.e+-]+) m/s, from", r"about the bridge, ([0-9.e+-]+) m/s\^2 per sample"))
+    assert rest == pytest.approx(total - motion, rel=0.02, abs=1e-3)
+    assert scatter == pytest.approx(2e-3, rel=0.2)  # the noise the pad was given, per sample
+
+
+def test_an_alignment_window_beyond_the_record_is_said():
+    """``--align 0 9`` on a record of 2.5 s levels over what the record holds: said with the record's span and the
+    window's; a window a sample beyond the record's end (round numbers) is not."""
+    t, w, f = _stationary(800.0, 2.5)
+    imu = check_imu(ImuData(t, w, f))
+    with pytest.warns(AlignmentWarning, match=r"--align 0 9: .* holds 0 .. 2\.49\d* s, so the window's samples span "
+                                              r"2\.49\d* s of the 9 s asked"):
+        navigate(imu, SITE, (0.0, 9.0), heading_deg=_heading_of_x())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AlignmentWarning)
+        navigate(imu, SITE, (0.0, 2.5), heading_deg=_heading_of_x())
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_long_gap_in_a_noisy_record_stays_within_what_the_warning_states(seed):
     """A pad IMU (gyro noise 1e-4 rad/s, accelerometer 2e-3 m/s^2, 100 Hz) loses 1 s: against the same record
@@ -658,6 +686,11 @@ def test_a_pad_that_drifts_beyond_its_sensors_is_warned_about():
     allowed = float(re.search(r"above the ([0-9.e+-]+) m/s its sensors allow", said[-1]).group(1))
     assert 3.0 < drift < 15.0 and allowed < 0.3
     assert "the vehicle need not have moved" in said[-1]  # the pad's own rate, 0.02 rad/s, explains it
+    # the allowance is a north-finding gyro's; the pad's own rate is said as the multiple of it that it is
+    allowance = float(re.search(r"a gyro bias of ([0-9.e+-]+) rad/s, the allowance of a gyro that finds north",
+                                said[-1]).group(1))
+    times = float(re.search(r"a gyro bias of that size, ([0-9.e+-]+) x that allowance", said[-1]).group(1))
+    assert times == pytest.approx(0.02 / allowance, rel=0.05)
     assert _alignment_warnings(check_imu(ImuData(t, w + [0.02, 0.0, 0.0], f)), check_pad=False) == []
 
 
