@@ -235,8 +235,8 @@ SLOW_FILES_FIRST = (
     "calibration/test_multiposition_review.py", "radar/test_radar_review.py", "workflows/test_demo.py",
     # then the other files over about 4 s (of a --durations run under load), longest first: alphabetical, the
     # workflows' long files came last, and the worker that took the last of them finished alone, seconds late
-    "workflows/test_imu_separate_linear_reach.py", "checks/test_saturation_telemetry.py",
-    "estimators/test_conformance.py", "cli/test_cli.py", "workflows/test_imu_separate_gmw.py",
+    "checks/test_saturation_telemetry.py", "estimators/test_conformance.py", "cli/test_cli.py",
+    "workflows/test_imu_separate_gmw.py",
     "simulation/test_strapdown_noise_free_default.py", "model/test_vehicle_window.py",
     "workflows/test_telemetry_clock.py", "io/test_range_io.py", "workflows/test_windows.py",
     "workflows/test_imu_instability.py", "simulation/test_strapdown_sim.py", "io/test_flight_io.py",
