@@ -8,7 +8,12 @@ noise model (``auto``: white / Gauss-Markov / Gauss-Markov plus white per statio
 and with white noise only. Printed per noise model: RMS of z = (estimate - truth) / std over the
 instrument coefficients, the coverage of their 95 % intervals, the largest |z|, and the successes.
 
-Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/mc_radar_noise.py --runs 20`` (about 15 CPU s a run).
+``--whitened``: also each draw's error whitened by its stated covariance (``tests/conftest.py``'s
+``whitened_error``; instrument terms, and all with the tracking ones): the RMS of w, the draws whose ``w^T w`` passes
+its chi2 95 % point, and the verdict of ``dishonest_whitened`` (band [0.80, 1.30], false alarm 1e-4). The full
+honesty check of the suite's reduced one: ``--runs 6 --rate 5 --whitened`` (seeds 100-105; the test runs 100-102).
+
+Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/mc_radar_noise.py --runs 20`` (about 15 CPU s a run at 10 Hz, 2 at 5).
 The test suite runs a reduced version (``tests/radar/test_radar_noise.py``).
 """
 
@@ -23,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "radar"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from test_radar import SITE, STATIONS, TRUTH  # noqa: E402
 
@@ -84,16 +90,41 @@ def main() -> None:
     ap.add_argument("--rate", type=float, default=10.0, help="telemetry and radar rate, Hz (default 10)")
     ap.add_argument("--tau", type=float, default=1.0, help="Gauss-Markov correlation time, s (default 1)")
     ap.add_argument("--seed", type=int, default=100, help="first seed (default 100)")
+    ap.add_argument("--whitened", action="store_true", help="also the errors whitened by the stated covariance")
     a = ap.parse_args()
     t0 = time.process_time()
-    res = run(range(a.seed, a.seed + a.runs), a.rate, a.tau)
+    seeds = range(a.seed, a.seed + a.runs)
+    runs: dict = {}
+    res = run(seeds, a.rate, a.tau, separations=runs)
     print(f"radar, 2 stations, {a.rate:g} Hz, GM tau {a.tau:g} s (3 m, 8 arcsec) + white (1.5 m, 4 arcsec), "
           f"{a.runs} seeded runs, instrument coefficients")
     print(f"{'noise':<8} {'RMS z':>7} {'coverage':>9} {'max |z|':>8} {'successes':>10}  warnings")
     for k, r in res.items():
         print(f"{k:<8} {r['rms_z']:7.3f} {r['coverage']:9.3f} {r['max_abs_z']:8.2f} "
               f"{r['successes']:>4}/{r['runs']:<5}  {', '.join(r['warnings']) or '-'}")
+    if a.whitened:
+        whitened(seeds, runs)
     print(f"CPU {time.process_time() - t0:.1f} s")
+
+
+def whitened(seeds, runs: dict) -> None:
+    """Print the whitened-error check of the noise-auto separations (the suite's reduced test, full size)."""
+    from conftest import dishonest_whitened, whitened_error
+    from scipy.stats import chi2
+
+    ws: dict[str, list] = {"all": [], "instrument": []}
+    for seed in seeds:
+        r, n = runs[seed, "auto"].result, runs[seed].model.n_coefficients
+        err = r.estimate - runs[seed].truth_vector()
+        ws["all"].append(whitened_error(err, r.covariance))
+        ws["instrument"].append(whitened_error(err[:n], r.covariance[:n, :n]))
+    bad = dishonest_whitened(ws, rms=(0.80, 1.30), false_alarm=1e-4)
+    print("noise auto, errors whitened by the stated covariance")
+    for k, w in ws.items():
+        q = [float(x @ x) for x in w]
+        over = sum(qk > chi2.ppf(0.95, x.size) for qk, x in zip(q, w))
+        print(f"{k:<11} RMS w {np.sqrt(sum(q) / sum(x.size for x in w)):.3f}  w^T w {' '.join(f'{v:.1f}' for v in q)}"
+              f"  over chi2 95 %: {over}/{len(w)}  {'DISHONEST ' + str(bad[k]) if k in bad else 'honest'}")
 
 
 if __name__ == "__main__":

@@ -233,6 +233,20 @@ SLOW_FILES_FIRST = (
     "estimators/test_gls.py", "workflows/test_noise_mixture_mc.py", "model/test_model_signals.py",
     "calibration/test_ferraris_auto.py", "calibration/test_multiposition.py", "checks/test_late_start.py",
     "calibration/test_multiposition_review.py", "radar/test_radar_review.py", "workflows/test_demo.py",
+    # then the other files over about 4 s (of a --durations run under load), longest first: alphabetical, the
+    # workflows' long files came last, and the worker that took the last of them finished alone, seconds late
+    "checks/test_saturation_telemetry.py", "estimators/test_conformance.py", "cli/test_cli.py",
+    "workflows/test_imu_separate_gmw.py",
+    "simulation/test_strapdown_noise_free_default.py", "model/test_vehicle_window.py",
+    "workflows/test_telemetry_clock.py", "io/test_range_io.py", "workflows/test_windows.py",
+    "workflows/test_imu_instability.py", "simulation/test_strapdown_sim.py", "io/test_flight_io.py",
+    "workflows/test_telemetry_iterate.py", "noise/test_denoise.py", "model/test_strapdown_models.py",
+    "reporting/test_plots.py", "workflows/test_imu_separate_rest.py", "workflows/test_rocket_separation.py",
+    "checks/test_tracking_quality.py", "io/test_velocity_columns.py", "workflows/test_telemetry_heading.py",
+    "test_frames.py", "estimators/test_fitspec.py", "io/test_files_run_no_code.py",
+    "workflows/test_imu_separate_correlated.py", "estimators/test_result_settings.py", "workflows/test_manifest.py",
+    "workflows/test_imu_separate_strapdown33.py", "io/test_strapdown_io.py", "checks/test_tracking_excursions.py",
+    "navigation/test_navigate.py", "workflows/test_imu_noise_budget.py",
 )
 
 

@@ -3,6 +3,7 @@ matrix against SciPy, the shipped models' names and units."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -32,23 +33,39 @@ def true_force(t):
 def sensitivities(names, fb, w):
     """Per natural unit of each coefficient, the accelerometer and gyro errors of strapdown33 written out
     from its docstring: (3, n) each, delta_f = Ea D, delta_w = Eg D (SI)."""
-    Ea, Eg = np.zeros((3, len(names))), np.zeros((3, len(names)))
+    gyro, row, k, s, source, axis = _layout(tuple(names))
+    signal = np.stack([np.ones(3), fb, w, fb / G0])  # what each kind multiplies: 1, fb, w, fb / g0
+    E = np.zeros((2, 3, len(names)))
+    E[gyro, row, k] = s * signal[source, axis]
+    return E[0], E[1]
+
+
+@functools.lru_cache
+def _layout(names: tuple):
+    """Where each coefficient's term goes (accelerometer 0 or gyro 1, the axis i it acts on, its column) and what it
+    multiplies (``ba``, ``bg``: 1; ``sa``: fb_i; ``ma``: fb_j; ``sg``: w_i; ``mg``: w_j; ``gg``: fb_j / g0), times
+    its natural unit in SI: the loop of the docstring's terms once, the products at each time step."""
+    rows = []
     for k, name in enumerate(names):
         kind, axes = name.split("_")
         i = "xyz".index(axes[0])
         j = "xyz".index(axes[1]) if len(axes) > 1 else i
-        s = SI[kind]
-        value = {"ba": 1.0, "sa": fb[i], "ma": fb[j], "bg": 1.0, "sg": w[i], "mg": w[j], "gg": fb[j] / G0}[kind]
-        (Ea if kind in ("ba", "sa", "ma") else Eg)[i, k] = s * value
-    return Ea, Eg
+        source, axis = {"ba": (0, i), "sa": (1, i), "ma": (1, j), "bg": (0, i), "sg": (2, i), "mg": (2, j),
+                        "gg": (3, j)}[kind]
+        rows.append((int(kind not in ("ba", "sa", "ma")), i, k, SI[kind], source, axis))
+    return tuple(np.array(c) for c in zip(*rows))
 
 
 def qmul(a, b):
     """Hamilton product, scalar first, broadcast over leading axes."""
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], -1)
+    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = aw * bw - ax * bx - ay * by - az * bz
+    out[..., 1] = aw * bx + ax * bw + ay * bz - az * by
+    out[..., 2] = aw * by - ax * bz + ay * bw + az * bx
+    out[..., 3] = aw * bz + ax * by - ay * bx + az * bw
+    return out
 
 
 def rotate(q, v):
