@@ -68,7 +68,15 @@ from casep.checks.time_offset import kinematic_acceleration
 from casep.exceptions import TrackingQualityWarning
 from casep.io.files import ONE_FILE_TELEMETRY
 from casep.io.flight import FlightData
-from casep.io.pair import HELD_RUN_SHARE, HELD_SHARE, JUMP_RATE, STALE_MOTION, STALE_POSITION, stale_epochs
+from casep.io.pair import (
+    HELD_RUN_SHARE,
+    HELD_SHARE,
+    JUMP_RATE,
+    STALE_MOTION,
+    STALE_POSITION,
+    rest_window,
+    stale_epochs,
+)
 from casep.noise.model import whiten_blocks
 from casep.noise.robust import MAD_SIGMA, MIN_SEGMENT_S, stretches
 from casep.regression.linalg import analyze_rank, reduce_qr_blocks
@@ -236,14 +244,6 @@ def _stale(flight: FlightData, idx: np.ndarray, V: np.ndarray) -> np.ndarray:
         frozen = np.isin(rows, np.asarray(meta["tracking_frozen"], dtype=int))
         gap = np.asarray(meta["tracking_position_gap"], dtype=float)[rows]
     return stale_epochs(flight.t[idx], V[idx], flight.dv[idx], is_rep, frozen, gap, rest_window(meta))
-
-
-def rest_window(meta: dict) -> list[float] | None:
-    """Where the vehicle stood by the navigation's premise, ``[T1, T2]`` s of the flight's time: the window an IMU was
-    levelled over (``meta["rest_window_s"]``, :mod:`casep.workflows.imu_separate`'s ``--align``) or the one a
-    navigated telemetry's header names (``meta["levelled"]["window"]``); None when neither."""
-    window = meta.get("rest_window_s") or (meta.get("levelled") or {}).get("window")
-    return None if window is None else [float(window[0]), float(window[1])]
 
 
 def _impossible(t: np.ndarray, dv: np.ndarray, start: float | None = None) -> tuple[np.ndarray, float]:
