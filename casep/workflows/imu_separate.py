@@ -1018,7 +1018,7 @@ class _Run:
         flight (set-up, magnitudes, the tracking's stretches: the combinations as totals), its warnings re-issued."""
         from casep.estimators.registry import failed
         from casep.model.loader import model_record
-        from casep.workflows.judging import judge_setup, judge_tracking
+        from casep.workflows.judging import judge_pad_hold, judge_setup, judge_tracking
 
         iterate, tol, max_iterations = rule
         total = D + res.fitted_coefficients()
@@ -1102,6 +1102,8 @@ class _Run:
                 out = one_pass_judged(out, shift)
         if said and not iterate:  # after the judgement, whose failure message replaces a success's
             out = _with_line(out, said)
+        # the static hold on the pad, out of the fit's rows: its zero-velocity check, with the covariance as stated
+        out = judge_pad_hold(out, flight, model, about=D)
         heading = heading_said((out.diagnostics.get("heading") or {}).get("test"))
         if heading is not None:  # last: a failure's message replaces a success's
             if heading[1]:
@@ -1170,7 +1172,7 @@ class _Run:
         the solution's covariance (what the iteration's step reads) gains it too, a coefficient without an estimate
         keeps its NaN, and the running total of the consider terms (``diagnostics["consider"]["covariance"]``) holds
         it, so that a covariance set anew later adds it back. ``diagnostics["rest_shift_std_factor"]``: each std
-        over the one before (NaN: no estimate)."""
+        over the one before (None: no estimate)."""
         extra, C = self.rest_shift, res.covariance
         if extra is None or C is None:
             return res
@@ -1179,7 +1181,8 @@ class _Run:
         after = np.sqrt(np.abs(np.diag(np.asarray(out.covariance, dtype=float))))
         with np.errstate(divide="ignore", invalid="ignore"):
             factor = np.where(before > 0, after / np.where(before > 0, before, 1.0), np.nan)
-        out.diagnostics["rest_shift_std_factor"] = {nm: float(v) for nm, v in zip(res.names, factor)}
+        out.diagnostics["rest_shift_std_factor"] = {nm: float(v) if np.isfinite(v) else None
+                                                    for nm, v in zip(res.names, factor)}
         out.diagnostics[REST_SHIFT_KEY] = np.asarray(extra, dtype=float).tolist()  # in the consider total: its part
         return out
 

@@ -112,6 +112,7 @@ def test_the_rest_shift_widens_the_solution_and_the_consider_total():
     np.testing.assert_allclose(out.std[own], np.sqrt(before.std[own] ** 2 + np.diag(R)[own]), rtol=1e-10)
     factor = out.diagnostics["rest_shift_std_factor"]
     np.testing.assert_allclose([factor[n] for n in np.array(fit.names)[own]], out.std[own] / before.std[own])
+    assert all(factor[n] is None for n in np.array(fit.names)[~own])  # JSON: null, not NaN
     # a stated combination (weights on D / scale) whose std hold the shift: only the earlier term is added
     scales = {n: 1.0 for n in fit.names}
     w = np.zeros(len(fit.names))
