@@ -142,10 +142,10 @@ def judge_pad_hold(res: EstimateResult, flight: FlightData, model: ErrorModel,
     (``STATUS_MISFIT``): the estimate contradicts the vehicle at rest (or the held velocity was not the vehicle's)."""
     import warnings
 
-    from casep.checks.flight import flight_problem
     from casep.checks.tracking_quality import _file_rows, imu_sample_noise, rest_window
     from casep.estimators.registry import STATUS_MISFIT, failed
     from casep.navigation.navigator import PAD_NOISE_FACTOR, pad_noise_speed
+    from casep.regression.problem import Problem
 
     screen = flight.meta.get("tracking_screen") if isinstance(flight.meta, dict) else None
     held = (screen or {}).get("static_hold_rows")
@@ -153,8 +153,8 @@ def judge_pad_hold(res: EstimateResult, flight: FlightData, model: ErrorModel,
         return res
     rows = _file_rows(flight)
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the flight's warnings were said with its fit
-        problem = flight_problem(dataclasses.replace(flight, observed=np.isin(rows, held) & (rows >= 0)), model)
+        warnings.simplefilter("ignore")  # the flight was checked, and its warnings said, with its fit
+        problem = Problem.from_flight(dataclasses.replace(flight, observed=np.isin(rows, held) & (rows >= 0)), model)
     S, y, t = problem.sv(), problem.y, problem.t
     if y is None or t is None or S.shape[2] != len(res.names):
         return res
