@@ -5,8 +5,8 @@ The flight is casep's simulator's (``casep simulate --scenario strapdown-boost -
 --imu-output IMU --imu-pad 60``, its Python twin at 10 Hz with the tracking at 0.5 Hz): ``strapdown33`` errors, tracking
 with Gauss-Markov plus white noise from 6 s, a gap at 110-115 s; the hold is the pad's tracking epochs before it. The
 hold carries no measurement noise: weighted as the flight's epochs (one noise level per axis) it broke the fit (the
-noise 611-fold between stretches, a failed result; a hold without the late start: runs of rejections). Now its epochs
-are out of the fit's rows and are the pad's zero-velocity check of the estimate
+noise 212-fold between stretches here, 611-fold with the tracking at 2 Hz: a failed result). Now its epochs are out
+of the fit's rows and are the pad's zero-velocity check of the estimate
 (:func:`casep.checks.tracking_quality.static_hold`, :func:`casep.workflows.judging.judge_pad_hold`).
 """
 
@@ -63,11 +63,11 @@ def test_a_static_hold_on_the_pad_is_the_zero_velocity_check_not_rows_of_the_fit
     _, _, truth = hold
     out = separated
     res = out.result
+    assert out.success, res.message
     screen = out.flight.meta["tracking_screen"]
     (a, b, n), = screen["static_hold"]
     assert (a, b, n) == (pytest.approx(-58.0), pytest.approx(-2.0), 29), screen["static_hold"]
     assert all(a >= 0.0 for a, _, _, _ in screen["stretches"]), screen["stretches"]  # the flight's stretches only
-    assert out.success, res.message
     check = res.diagnostics["pad_check"]
     assert check["passed"] and check["epochs"] == 29 and check["largest_std"] < 2.0, check
     assert "pad zero-velocity check: the static hold -58..-2 s (29 epochs" in res.message
