@@ -85,7 +85,8 @@ from casep.regression.rows import GLITCH_GROSS
 if TYPE_CHECKING:
     from casep.regression.problem import Problem
 
-__all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "rest_window", "static_hold", "keep_screen",
+__all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "rest_window", "static_hold", "static_hold_samples",
+           "keep_screen",
            "clock_drift", "clock_drift_unmeasured", "fit_clock_drift", "clock_drift_record",
            "offset_halves", "halves_line", "telemetry_clock_line",
            "drift_determined", "stretches", "stretch_noise", "noise_problem",
@@ -508,6 +509,15 @@ def screen_tracking(flight: FlightData, *, drift_warning: bool = True) -> Flight
     observed = flight.observed.copy()
     observed[idx[~keep | hold]] = False
     return dataclasses.replace(flight, observed=observed, meta={**meta, "tracking_screen": screen.to_dict()})
+
+
+def static_hold_samples(flight: FlightData) -> np.ndarray:
+    """The flight's samples of the static hold its screen took out of the fit (``meta["tracking_screen"]
+    ["static_hold_rows"]``, :func:`static_hold`), (N,) bool; all False when none."""
+    screen = flight.meta.get("tracking_screen") if isinstance(flight.meta, dict) else None
+    held = (screen or {}).get("static_hold_rows") or []
+    rows = _file_rows(flight)
+    return np.isin(rows, np.asarray(held, dtype=int)) & (rows >= 0)
 
 
 def static_hold(flight: FlightData, idx: np.ndarray, keep: np.ndarray) -> np.ndarray:

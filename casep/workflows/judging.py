@@ -142,19 +142,23 @@ def judge_pad_hold(res: EstimateResult, flight: FlightData, model: ErrorModel,
     (``STATUS_MISFIT``): the estimate contradicts the vehicle at rest (or the held velocity was not the vehicle's)."""
     import warnings
 
-    from casep.checks.tracking_quality import _file_rows, imu_sample_noise, rest_window
+    from casep.checks.flight import flight_problem
+    from casep.checks.tracking_quality import imu_sample_noise, rest_window, static_hold_samples
     from casep.estimators.registry import STATUS_MISFIT, failed
+    from casep.io.flight import FlightDataError
     from casep.navigation.navigator import PAD_NOISE_FACTOR, pad_noise_speed
-    from casep.regression.problem import Problem
 
-    screen = flight.meta.get("tracking_screen") if isinstance(flight.meta, dict) else None
-    held = (screen or {}).get("static_hold_rows")
-    if not held or res.covariance is None:
+    held = static_hold_samples(flight)
+    if not held.any() or res.covariance is None:
         return res
-    rows = _file_rows(flight)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the flight was checked, and its warnings said, with its fit
-        problem = Problem.from_flight(dataclasses.replace(flight, observed=np.isin(rows, held) & (rows >= 0)), model)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the flight's warnings were said with its fit
+            problem = flight_problem(dataclasses.replace(flight, observed=held), model)
+    except FlightDataError as exc:  # too few epochs for the model, or a dv exactly 0 (nothing to predict)
+        said = f"pad zero-velocity check of the static hold not made: {exc}"
+        return dataclasses.replace(res, message=f"{res.message}\n{said}",
+                                   diagnostics={**res.diagnostics, "pad_check": {"checked": False, "why": str(exc)}})
     S, y, t = problem.sv(), problem.y, problem.t
     if y is None or t is None or S.shape[2] != len(res.names):
         return res
@@ -174,7 +178,8 @@ def judge_pad_hold(res: EstimateResult, flight: FlightData, model: ErrorModel,
     sd = np.sqrt(np.maximum(var, 0.0) + noise[:, None] ** 2 + problem.rounding_floor() ** 2)
     z = np.where(judged, np.abs(r) / np.where(sd > 0, sd, np.inf), 0.0)
     k, axis = np.unravel_index(int(np.argmax(z)), z.shape)
-    record = {"span_s": [float(t[0]), float(t[-1])], "epochs": int(t.size), "not_judged": int((~judged).sum()),
+    record = {"checked": True, "span_s": [float(t[0]), float(t[-1])], "epochs": int(t.size),
+              "not_judged": int((~judged).sum()),
               "largest_m_s": float(np.max(np.abs(np.where(judged, r, 0.0)))), "at_s": float(t[k]),
               "axis": "xyz"[axis], "largest_std": float(z[k, axis]), "limit_std": PAD_NOISE_FACTOR,
               "passed": bool(z[k, axis] <= PAD_NOISE_FACTOR),
