@@ -17,6 +17,10 @@ finds, on a telemetry + tracking pair formed at the tracking times:
   vehicle at rest is kept (a receiver's static hold: zero Earth-fixed velocity, one position), and inside the
   window the navigation was levelled over (:func:`rest_window`) a repeat is a fix: the vehicle stands there by the
   levelling's premise while the first pass's INS, not yet corrected, drifts.
+- **the static hold** (:func:`static_hold`): the kept repeats of a velocity held exactly in that window (a receiver
+  at rest reporting zero velocity) carry no measurement noise; they are taken out of the fit's rows (and out of the
+  stretches' noise) and are the pad's zero-velocity check of the estimate
+  (:func:`casep.workflows.judging.judge_pad_hold`), recorded as ``static_hold`` and ``static_hold_rows``.
 - **impossible jumps** (the physics check): between consecutive remaining epochs, ``|d(dv)|`` above
   ``JUMP_TOL + JUMP_RATE dt`` (10 m/s, plus 2 m/s^2 = 200 mg of instrument error acceleration per
   second between them) is a tracking velocity change the IMU rules out. The epochs are cut into

@@ -168,9 +168,14 @@ def judge_pad_hold(res: EstimateResult, flight: FlightData, model: ErrorModel,
     C = np.nan_to_num(np.asarray(C, dtype=float))
     r = y - np.einsum("tij,j->ti", S, x)
     var = np.einsum("tij,jk,tik->ti", S, C, S)
-    judged = np.ones(r.shape, bool)
+    judged = np.isfinite(r)  # a dv the flight does not hold there: not judged
     if res.solution is not None:  # a prediction along the fit's null space is not determined: not judged
-        judged = res.solution.determined(S.reshape(-1, S.shape[2])).reshape(r.shape)
+        judged &= res.solution.determined(S.reshape(-1, S.shape[2])).reshape(r.shape)
+    if not judged.any():
+        why = "the fit determines none of its predicted values there"
+        said = f"pad zero-velocity check of the static hold not made: {why}"
+        return dataclasses.replace(res, message=f"{res.message}\n{said}",
+                                   diagnostics={**res.diagnostics, "pad_check": {"checked": False, "why": why}})
     window = rest_window(flight.meta) or [float(t[0]), float(t[-1])]
     measured = imu_sample_noise(flight, t)
     noise = np.zeros(t.size) if measured is None else pad_noise_speed(
