@@ -17,6 +17,10 @@ finds, on a telemetry + tracking pair formed at the tracking times:
   vehicle at rest is kept (a receiver's static hold: zero Earth-fixed velocity, one position), and inside the
   window the navigation was levelled over (:func:`rest_window`) a repeat is a fix: the vehicle stands there by the
   levelling's premise while the first pass's INS, not yet corrected, drifts.
+- **the static hold** (:func:`static_hold`): the kept repeats of a velocity held exactly in that window (a receiver
+  at rest reporting zero velocity) carry no measurement noise; they are taken out of the fit's rows (and out of the
+  stretches' noise) and are the pad's zero-velocity check of the estimate
+  (:func:`casep.workflows.judging.judge_pad_hold`), recorded as ``static_hold`` and ``static_hold_rows``.
 - **impossible jumps** (the physics check): between consecutive remaining epochs, ``|d(dv)|`` above
   ``JUMP_TOL + JUMP_RATE dt`` (10 m/s, plus 2 m/s^2 = 200 mg of instrument error acceleration per
   second between them) is a tracking velocity change the IMU rules out. The epochs are cut into
@@ -68,7 +72,15 @@ from casep.checks.time_offset import kinematic_acceleration
 from casep.exceptions import TrackingQualityWarning
 from casep.io.files import ONE_FILE_TELEMETRY
 from casep.io.flight import FlightData
-from casep.io.pair import HELD_RUN_SHARE, HELD_SHARE, JUMP_RATE, STALE_MOTION, STALE_POSITION, stale_epochs
+from casep.io.pair import (
+    HELD_RUN_SHARE,
+    HELD_SHARE,
+    JUMP_RATE,
+    STALE_MOTION,
+    STALE_POSITION,
+    rest_window,
+    stale_epochs,
+)
 from casep.noise.model import whiten_blocks
 from casep.noise.robust import MAD_SIGMA, MIN_SEGMENT_S, stretches
 from casep.regression.linalg import analyze_rank, reduce_qr_blocks
@@ -77,8 +89,9 @@ from casep.regression.rows import GLITCH_GROSS
 if TYPE_CHECKING:
     from casep.regression.problem import Problem
 
-__all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "rest_window", "keep_screen", "clock_drift",
-           "clock_drift_unmeasured", "fit_clock_drift", "clock_drift_record",
+__all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "rest_window", "static_hold", "static_hold_samples",
+           "keep_screen",
+           "clock_drift", "clock_drift_unmeasured", "fit_clock_drift", "clock_drift_record",
            "offset_halves", "halves_line", "telemetry_clock_line",
            "drift_determined", "stretches", "stretch_noise", "noise_problem",
            "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
@@ -129,6 +142,8 @@ class TrackingScreen:
     left_out_rows: list = field(default_factory=list)
     excursions: list = field(default_factory=list)
     largest_excursion_m_s: float = 0.0
+    static_hold: list = field(default_factory=list)
+    static_hold_rows: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
         """Plain data (JSON: NaN as null)."""
@@ -237,14 +252,6 @@ def _stale(flight: FlightData, idx: np.ndarray, V: np.ndarray) -> np.ndarray:
         frozen = np.isin(rows, np.asarray(meta["tracking_frozen"], dtype=int))
         gap = np.asarray(meta["tracking_position_gap"], dtype=float)[rows]
     return stale_epochs(flight.t[idx], V[idx], flight.dv[idx], is_rep, frozen, gap, rest_window(meta))
-
-
-def rest_window(meta: dict) -> list[float] | None:
-    """Where the vehicle stood by the navigation's premise, ``[T1, T2]`` s of the flight's time: the window an IMU was
-    levelled over (``meta["rest_window_s"]``, :mod:`casep.workflows.imu_separate`'s ``--align``) or the one a
-    navigated telemetry's header names (``meta["levelled"]["window"]``); None when neither."""
-    window = meta.get("rest_window_s") or (meta.get("levelled") or {}).get("window")
-    return None if window is None else [float(window[0]), float(window[1])]
 
 
 def _impossible(t: np.ndarray, dv: np.ndarray, start: float | None = None) -> tuple[np.ndarray, float]:
@@ -495,16 +502,58 @@ def screen_tracking(flight: FlightData, *, drift_warning: bool = True) -> Flight
         else (math.nan, math.nan)
     screen = TrackingScreen(_spans(t, stale), _spans(t, rejected), largest, drift, drift_std, int(idx.size),
                             int(keep.sum()), excursions=_spans(t, excursion), largest_excursion_m_s=largest_off)
-    screen.stretches = stretch_noise(t[keep], flight.dv[idx[keep]])
+    hold = static_hold(flight, idx, keep)  # the pad's check, not rows of the fit
+    screen.static_hold, screen.static_hold_rows = _spans(t, hold), [int(r) for r in _file_rows(flight)[idx[hold]]]
+    screen.stretches = stretch_noise(t[keep & ~hold], flight.dv[idx[keep & ~hold]])
     screen.left_out_rows = [int(r) for r in _file_rows(flight)[idx[~keep]]]
     _warn(flight.source, screen, _located(flight, idx, stale) if stale.any() else "",
           _located(flight, idx, rejected) if rejected.any() else "", drift_warning,
           _located(flight, idx, excursion) if excursion.any() else "")
-    if keep.all():
+    if keep.all() and not hold.any():
         return dataclasses.replace(flight, meta={**meta, "tracking_screen": screen.to_dict()})
     observed = flight.observed.copy()
-    observed[idx[~keep]] = False
+    observed[idx[~keep | hold]] = False
     return dataclasses.replace(flight, observed=observed, meta={**meta, "tracking_screen": screen.to_dict()})
+
+
+def static_hold_samples(flight: FlightData) -> np.ndarray:
+    """The flight's samples of the static hold its screen took out of the fit (``meta["tracking_screen"]
+    ["static_hold_rows"]``, :func:`static_hold`), (N,) bool; all False when none."""
+    screen = flight.meta.get("tracking_screen") if isinstance(flight.meta, dict) else None
+    held = (screen or {}).get("static_hold_rows") or []
+    rows = _file_rows(flight)
+    return np.isin(rows, np.asarray(held, dtype=int)) & (rows >= 0)
+
+
+def static_hold(flight: FlightData, idx: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """Of the observed epochs `idx`: the static hold on the pad, (M,) bool, the epochs :func:`screen_tracking` takes
+    out of the fit's rows and :func:`casep.workflows.judging.judge_pad_hold` checks the fit's estimate against.
+
+    A receiver at rest holding its solution (zero Earth-fixed velocity, reported exactly, epoch after epoch) gives a
+    velocity without measurement noise: each of its epochs repeats the previous one's velocity exactly
+    (``meta["tracking_repeats"]``, :func:`casep.io.pair.repeated_rows`). Where the vehicle stands by the navigation's
+    premise (the window it was levelled over, :func:`rest_window`) such a run is the pad's zero-velocity check: its
+    repeats kept by the screen (`keep`), the fix they repeat (when inside the window), and the repeats that follow
+    without a break after the window (judged from its last fix by the stale rule and kept: the vehicle still
+    stood). Weighted as the flight's noisy epochs are (one noise level per axis), thousands of epochs without noise
+    made the fit's robust step reject the flight's epochs as runs of misfit (a 60 s hold at 50 Hz), or its noise
+    differ by thousands between stretches: a long hold broke the fit it should check. A repeated velocity outside
+    that window, or without one, is not a hold (a cruising receiver's repeated fix carries the fix's error); nor is a
+    held position whose velocity varies (the velocity is what the fit compares). All False when the hold would be
+    every epoch kept (a pad record: nothing else to fit)."""
+    out = np.zeros(idx.size, bool)
+    window = rest_window(flight.meta)
+    if window is None or idx.size == 0:
+        return out
+    t = flight.t[idx]
+    rep = np.isin(_file_rows(flight)[idx], np.asarray(flight.meta.get("tracking_repeats", []), dtype=int)) & keep
+    inside = (t >= window[0]) & (t <= window[1])
+    for a, b in runs(rep):
+        if not inside[a:b].any():
+            continue
+        first = a - 1 if a > 0 and inside[a - 1] and keep[a - 1] else a  # the fix the run repeats
+        out[first:b] = True
+    return np.zeros(idx.size, bool) if (keep & ~out).sum() == 0 else out
 
 
 def keep_screen(flight: FlightData, screen: dict | None) -> FlightData:
@@ -523,7 +572,8 @@ def keep_screen(flight: FlightData, screen: dict | None) -> FlightData:
         return flight
     observed = flight.observed.copy()
     rows = _file_rows(flight)
-    observed[np.isin(rows, np.asarray(screen["left_out_rows"], dtype=int)) & (rows >= 0)] = False
+    out = np.asarray(list(screen["left_out_rows"]) + list(screen.get("static_hold_rows") or []), dtype=int)
+    observed[np.isin(rows, out) & (rows >= 0)] = False  # the static hold too: the pad's check, not the fit's rows
     return dataclasses.replace(flight, observed=observed, meta={**flight.meta, "tracking_screen": screen})
 
 

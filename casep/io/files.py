@@ -69,6 +69,9 @@ from casep.io.pair import (
     tracking_velocity,
     with_tracked_state,
 )
+from casep.io.pair import (
+    rest_window as pair_rest_window,
+)
 from casep.io.strapdown import STRAPDOWN_COLUMNS, clock_stretch
 from casep.io.tables import VTEL_COLUMNS, VTRK_COLUMNS, Table, apparent_velocity_to_force, table_force
 
@@ -282,13 +285,14 @@ def read_flight(path: str | os.PathLike) -> FlightData:
 def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray, t_trk: np.ndarray,
                     v_trk: np.ndarray, time_offset: float | str | None,
                     repeats: np.ndarray, frozen: np.ndarray | None = None,
-                    r_trk: np.ndarray | None = None) -> tuple[float, dict[str, Any]]:
+                    r_trk: np.ndarray | None = None, stood: dict | None = None) -> tuple[float, dict[str, Any]]:
     """The shift of the tracking time tags :func:`read_flight_pair` applies, s, and its ``time_alignment`` record.
 
     ``"auto"``: the coarse offset that lines up the velocities of the epochs not stale
     (:func:`casep.io.align.fresh_epochs`; `repeats`: the file's repeated rows, :func:`repeated_rows`, `frozen` its
-    rows of a repeated position and `r_trk` its launch-inertial positions, an Earth-fixed file's; the record's
-    ``stale_left_out`` counts the others); None: none, with a warning when that
+    rows of a repeated position and `r_trk` its launch-inertial positions, an Earth-fixed file's; `stood` where the
+    telemetry stood, :func:`_stood`, its window :func:`casep.io.pair.rest_window`'s; the record's ``stale_left_out``
+    counts the others); None: none, with a warning when that
     offset exceeds a tracking sample period and explains the misfit; a number: that shift (a warning
     beyond :data:`MAX_TIME_OFFSET`).
     """
@@ -301,9 +305,8 @@ def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray
         repeated[repeats] = True
         if frozen is not None:
             still[frozen] = True
-        levelled = levelling_record(tel)  # the telemetry at rest there: a repeat is a fix
-        fresh = fresh_epochs(t_tel, v_tel, t_trk, v_trk, repeated, still, r_trk,
-                             None if levelled is None else levelled["window"])
+        rest = pair_rest_window(stood or {})  # the telemetry at rest there: a repeat is a fix
+        fresh = fresh_epochs(t_tel, v_tel, t_trk, v_trk, repeated, still, r_trk, rest)
         stale = int((~fresh).sum())
         try:
             align = coarse_time_offset(t_tel, v_tel, t_trk[fresh], v_trk[fresh],
@@ -357,11 +360,19 @@ def _tracking_shift(tel: Table, trk: Table, t_tel: np.ndarray, v_tel: np.ndarray
                    "applied_s": shift, "mode": mode}
 
 
+def _stood(tel: Table, rest_window: tuple[float, float] | list[float] | None) -> dict[str, Any]:
+    """Where the telemetry stood, as a flight's ``meta`` records it: ``levelled`` (its header's levelling,
+    :func:`levelling_record`) and ``rest_window_s`` (the window given, :func:`read_flight_pair`), read by
+    :func:`casep.io.pair.rest_window`."""
+    given = {} if rest_window is None else {"rest_window_s": [float(rest_window[0]), float(rest_window[1])]}
+    return {"levelled": levelling_record(tel), **given}
+
+
 def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.PathLike, *,
                      interpolation: str = "cubic", grid: str = "tracking",
                      time_offset: float | str | None = None, tracking_frame: str = "launch",
                      site=None, time_shift: float = 0.0, clock_drift: float = 0.0,
-                     clock_drift_std: float | None = None) -> FlightData:
+                     clock_drift_std: float | None = None, rest_window: tuple | list | None = None) -> FlightData:
     """Combine a telemetry file and a tracking file recorded at different rates.
 
     Parameters
@@ -423,6 +434,11 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
         A strapdown telemetry's: the std of its clock's drift beyond `clock_drift`, ppm, carried into the
         separation's std (``meta["clock_drift_std_ppm"]``, checked there; the rule and its defaults:
         :func:`casep.workflows.imu_separate.given_clock_std`, the one of ``--imu``); 0: the rate exact.
+    rest_window : (T1, T2), optional
+        The window the telemetry was levelled over, s of its time (the vehicle at rest there by the navigation's
+        premise), where its header does not name one: a navigation held in memory (``--imu``'s ``--align``,
+        :mod:`casep.workflows.imu_separate`). ``meta["rest_window_s"]``; the tracking screen and the time alignment
+        (`time_offset` ``"auto"``) take a repeated fix there as a fix (:func:`casep.io.pair.rest_window`, one rule).
 
     Returns
     -------
@@ -480,7 +496,8 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
             else None
         v_tel = v_tel + drift * 1e-6 * clock_stretch(t_tel, q, fb, w, v_tel, r_ins,
                                                      None if r_ins is None else launch_gravitation(gsite))
-    shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset, repeats, frozen, r_l)
+    stood = _stood(tel, rest_window)  # meta's "levelled" and "rest_window_s"
+    shift, alignment = _tracking_shift(tel, trk, t_tel, v_tel, t_trk, v_trk, time_offset, repeats, frozen, r_l, stood)
     extra: dict[str, Any] = {"time_alignment": alignment, "tracking_repeats": repeats, **strapdown}
     if frozen is not None and r_l is not None:  # a frozen position judged by the telemetry's own (the screen)
         extra.update(tracking_frozen=frozen, tracking_position_gap=position_gap(t_tel, v_tel, t_trk - shift, r_l))
@@ -498,9 +515,7 @@ def read_flight_pair(telemetry: str | os.PathLike | Table, tracking: str | os.Pa
     flight.meta["start_frame_unnamed"] = frame_unnamed(tel)
     if nav_site is not None:  # the telemetry's own frame (its gravitation: casep.workflows.telemetry_iterate)
         flight.meta["telemetry_site"] = nav_site.to_dict()
-    flight.meta["levelled"] = levelling_record(tel)
-    if shift_scale:
-        flight.meta["time_shift_s"] = shift_scale
+    flight.meta.update({**stood, **({"time_shift_s": shift_scale} if shift_scale else {})})  # levelled, rest_window_s
     flight.meta.update({} if clock_drift_std is None else {"clock_drift_std_ppm": clock_drift_std})
     if drift:
         flight.meta["clock_drift_ppm"] = drift

@@ -24,8 +24,8 @@ __all__ = ["pair_flight", "PAIR_GRIDS", "STATE_SIGNALS", "GAP_FACTOR", "GAP_MIN_
            "check_launch_time", "no_overlap_message",
            "check_earth_fixed_units", "check_velocity_columns", "velocity_column_misfit", "COLUMN_WINDOW_S",
            "COLUMN_RATIO", "COLUMN_MISFIT_MIN", "fits_time_offset", "VALID_COLUMN", "repeated_rows",
-           "stale_epochs", "held_epochs", "position_gap", "STALE_MOTION", "STALE_POSITION", "JUMP_RATE", "HELD_SHARE",
-           "HELD_RUN_SHARE", "PairInputs",
+           "stale_epochs", "held_epochs", "position_gap", "rest_window", "STALE_MOTION", "STALE_POSITION", "JUMP_RATE",
+           "HELD_SHARE", "HELD_RUN_SHARE", "PairInputs",
            "repaired", "offset_second_order"]
 
 #: The telemetry column marking the samples whose navigation solution is trusted (1) or not (0: after a clipped
@@ -150,6 +150,18 @@ def stale_epochs(t: np.ndarray, V: np.ndarray, dv: np.ndarray, repeated: np.ndar
     if frozen is not None and gap is not None:
         out |= _departed(t, gap, np.asarray(frozen, bool) & moving, STALE_POSITION, STALE_MOTION, dv)
     return out
+
+
+def rest_window(meta: dict) -> list[float] | None:
+    """Where the vehicle stood by the navigation's premise, ``[T1, T2]`` s of the flight's time: the window an IMU was
+    levelled over (``meta["rest_window_s"]``: :func:`casep.io.files.read_flight_pair`'s `rest_window`, the ``--align``
+    of :mod:`casep.workflows.imu_separate`) or the one a navigated telemetry's header names
+    (``meta["levelled"]["window"]``); None when neither. The one rule of the tracking screen
+    (:func:`casep.checks.tracking_quality.screen_tracking`) and of the coarse time alignment
+    (:func:`casep.io.align.fresh_epochs`, :func:`casep.io.files.read_flight_pair`) for the window
+    :func:`stale_epochs` takes as `rest`."""
+    window = meta.get("rest_window_s") or (meta.get("levelled") or {}).get("window")
+    return None if window is None else [float(window[0]), float(window[1])]
 
 
 def _departed(t: np.ndarray, x: np.ndarray, repeated: np.ndarray, limit: float, rate: float,

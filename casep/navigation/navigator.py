@@ -19,7 +19,7 @@ from casep.navigation.alignment import Alignment
 from casep.navigation.imu import DTHETA_COLUMNS, RATE_COLUMNS, ImuData
 from casep.navigation.result import NavigationResult
 
-__all__ = ["navigate", "navigate_from", "pad_state", "check_pad_drift"]
+__all__ = ["navigate", "navigate_from", "pad_state", "check_pad_drift", "pad_noise_speed"]
 
 
 def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], *, heading_deg: float | None = None,
@@ -73,6 +73,18 @@ def navigate(imu: ImuData, site: LaunchSite, align_window: tuple[float, float], 
 PAD_NOISE_FACTOR, PAD_BIAS_FACTOR = 5.0, 3.0
 
 
+def pad_noise_speed(s_f: np.ndarray, s_w: np.ndarray, dt: float, T, g: float) -> np.ndarray:
+    """The speed a vehicle at rest navigates to after `T` s (scalar or array) from the sensors' white noise alone,
+    m/s: ``sqrt(sum_i s_f,i^2 dt T + g^2 s_w,i^2 dt T^3 / 3)``, the accelerometers' velocity random walk and the gyros'
+    angle random walk turned into a velocity by gravity (`s_f` (3,) m/s^2 and `s_w` (3,) rad/s per sample, step
+    `dt` s, gravity `g` m/s^2): the noise term of :func:`check_pad_drift` and of the static hold's pad check
+    (:func:`casep.workflows.judging.judge_pad_hold`)."""
+    T = np.asarray(T, dtype=float)
+    a = float(np.sum(np.asarray(s_f, dtype=float) ** 2)) * dt
+    w = g**2 * float(np.sum(np.asarray(s_w, dtype=float) ** 2)) * dt / 3.0
+    return np.sqrt(a * T + w * T**3)
+
+
 def check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite, *, warn: bool = True,
                     gyro_bias_tolerance: float | None = None) -> None:
     """Warn (:class:`casep.exceptions.AlignmentWarning`) when the navigated speed over the pad window exceeds what
@@ -108,8 +120,7 @@ def check_pad_drift(res: NavigationResult, imu: ImuData, site: LaunchSite, *, wa
         return
     T, dt = t2 - t1, float(np.median(np.diff(imu.t[sel])))
     g = res.alignment.g_pad if res.alignment is not None else 9.80665
-    s_f, s_w = white_sample_std(imu.f[sel]), white_sample_std(imu.w[sel])
-    noise = float(np.sqrt(np.sum(s_f**2 * dt * T + g**2 * s_w**2 * dt * T**3 / 3.0)))
+    noise = float(pad_noise_speed(white_sample_std(imu.f[sel]), white_sample_std(imu.w[sel]), dt, T, g))
     bias = g * gyro_bias_allowance(site) * T**2 / 2.0
     # the levelling cancels the accelerometers' mean across the vertical, not along it: |f| - g accepted by the
     # alignment (an accelerometer bias, casep.navigation.alignment.ACCEL_BIAS_TOLERANCE) drives the speed as b T

@@ -211,6 +211,8 @@ BACK_TO_PRIOR_P = 0.01
 #: ... and only the combinations further from it than this many times the plausible size: as a draw of
 #: ``N(0, rho^2)`` beyond 3 of its std, the first pass's value is no plausible one (:func:`_beyond_plausible`).
 BACK_BEYOND = 3.0
+#: ``diagnostics`` key of the rest's shift :meth:`_Run.with_rest_shift` added to the covariance (natural units, n x n)
+REST_SHIFT_KEY = "rest_shift_covariance"
 
 #: The curvature check: second-order shifts of the estimate above this (std, the largest over the combinations) are
 #: warned about (:meth:`_Run.curvature`).
@@ -576,13 +578,12 @@ class _Run:
         # say them twice more
         with warnings.catch_warnings():
             warnings.filterwarnings("ignore", category=SaturationWarning)
-            flight = read_flight_pair(tel, self.tracking, **self.pair)
+            flight = read_flight_pair(tel, self.tracking, **self.pair, rest_window=self.window)  # levelled: at rest
         flight.meta["saturation"] = _imu_saturation(self.imu)
         if self._pad_noise is None:
             self._pad_noise = _pad_noise(self.imu, self.window)
         if self._pad_noise:  # the IMU's noise on the pad declared at rest, where the record's counts motion
             flight.meta[IMU_NOISE_PAD] = self._pad_noise
-        flight.meta["rest_window_s"] = [float(self.window[0]), float(self.window[1])]  # levelled there: at rest
         if self.clock_ppm:  # out of the IMU's own tags and steps (separate_imu), not the tracking's
             flight.meta["clock_drift_ppm"], flight.meta["clock_drift_of"] = self.clock_ppm, "imu"
         if self.heading_said is not None:  # found on the first pass's screened epochs (heading_check)
@@ -1018,7 +1019,7 @@ class _Run:
         flight (set-up, magnitudes, the tracking's stretches: the combinations as totals), its warnings re-issued."""
         from casep.estimators.registry import failed
         from casep.model.loader import model_record
-        from casep.workflows.judging import judge_setup, judge_tracking
+        from casep.workflows.judging import judge_pad_hold, judge_setup, judge_tracking
 
         iterate, tol, max_iterations = rule
         total = D + res.fitted_coefficients()
@@ -1102,6 +1103,8 @@ class _Run:
                 out = one_pass_judged(out, shift)
         if said and not iterate:  # after the judgement, whose failure message replaces a success's
             out = _with_line(out, said)
+        # the static hold on the pad, out of the fit's rows: its zero-velocity check, with the covariance as stated
+        out = judge_pad_hold(out, flight, model, about=D)
         heading = heading_said((out.diagnostics.get("heading") or {}).get("test"))
         if heading is not None:  # last: a failure's message replaces a success's
             if heading[1]:
@@ -1165,14 +1168,24 @@ class _Run:
         rest made, ``C + mean(b b^T)`` (``b`` each draw's shift of the estimate, natural units): the truth is such a
         draw away, as :meth:`curvature` adds one std's. Without it the stated combinations carried the shift and
         the covariance did not (a MEMS rail launch, ``benchmarks/mems_rail_honesty.py`` seed 6: chi-square 254 on
-        the 6 directions of the covariance with std below their declared magnitudes)."""
+        the 6 directions of the covariance with std below their declared magnitudes). Added through
+        :func:`~casep.workflows.row_estimators.with_extra_covariance`, the one place a consider term widens a result:
+        the solution's covariance (what the iteration's step reads) gains it too, a coefficient without an estimate
+        keeps its NaN, and the running total of the consider terms (``diagnostics["consider"]["covariance"]``) holds
+        it, so that a covariance set anew later adds it back. ``diagnostics["rest_shift_std_factor"]``: each std
+        over the one before (None: no estimate)."""
         extra, C = self.rest_shift, res.covariance
-        if extra is None or C is None or not np.all(np.isfinite(C)):
+        if extra is None or C is None:
             return res
-        cov = C + extra
-        diag = dict(res.diagnostics)
-        diag["rest_shift_std_factor"] = {nm: float(v) for nm, v in zip(res.names, np.sqrt(np.diag(cov) / np.diag(C)))}
-        return dataclasses.replace(res, covariance=cov, std=np.sqrt(np.diag(cov)), diagnostics=diag)
+        before = np.sqrt(np.abs(np.diag(np.asarray(C, dtype=float))))
+        out = with_extra_covariance(res, extra)
+        after = np.sqrt(np.abs(np.diag(np.asarray(out.covariance, dtype=float))))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            factor = np.where(before > 0, after / np.where(before > 0, before, 1.0), np.nan)
+        out.diagnostics["rest_shift_std_factor"] = {nm: float(v) if np.isfinite(v) else None
+                                                    for nm, v in zip(res.names, factor)}
+        out.diagnostics[REST_SHIFT_KEY] = np.asarray(extra, dtype=float).tolist()  # in the consider total: its part
+        return out
 
     def with_noise(self, res: EstimateResult, problem: Any, flight: FlightData) -> EstimateResult:
         """`res` with the record's own noise in its std, the pad levelling's start tilt with it
@@ -2260,11 +2273,19 @@ def _with_consider_std(combos: list[dict], res: EstimateResult, scales: dict[str
     richer model's terms, the steps between samples where the IMU's noise is not carried) in their std, as the
     coefficients have them; each keeps its std without them as ``std_without_consider``. After the curvature of what
     the passes leave out (:meth:`_Run.left_out_curvature`), which is judged on the combinations' own std: the
-    consider terms are parameters beside the rows, not a distance the record is navigated over."""
+    consider terms are parameters beside the rows, not a distance the record is navigated over. The rest's shift
+    (:meth:`_Run.with_rest_shift`, in the consider total as the coefficients carry it) is not added again: the
+    combinations' std hold it already (``curvature_shift``, the same ``mean(b b^T)`` along ``w``)."""
     if not combos:
         return combos
     W = np.array([c["weights"] for c in combos], dtype=float)
-    var = with_added_variance(res, W, _scale_of(scales, res.names), np.array([c["std"] ** 2 for c in combos]))
+    scale = _scale_of(scales, res.names)
+    var = with_added_variance(res, W, scale, np.array([c["std"] ** 2 for c in combos]))
+    rest = res.diagnostics.get(REST_SHIFT_KEY)
+    if rest is not None:
+        Ws = W / scale
+        held = np.array(["curvature_shift" in c for c in combos])
+        var = var - held * np.einsum("ij,jk,ik->i", Ws, np.asarray(rest, dtype=float), Ws)
     return [{**c, "std_without_consider": c["std"], "std": float(math.sqrt(v))} for c, v in zip(combos, var)]
 
 

@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from casep.io.flight import FlightData
     from casep.regression.problem import Problem
 
-__all__ = ["judge_setup", "judge_tracking"]
+__all__ = ["judge_setup", "judge_tracking", "judge_pad_hold"]
 
 
 def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_free: bool = False) -> EstimateResult:
@@ -124,6 +124,82 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     if record is not None:
         res.diagnostics["determined"]["curvature"] = record
     return res
+
+
+def judge_pad_hold(res: EstimateResult, flight: FlightData, model: ErrorModel,
+                   about: np.ndarray | None = None) -> EstimateResult:
+    """`res` with the pad's zero-velocity check of the flight's static hold: the epochs the tracking screen took out
+    of the fit (``meta["tracking_screen"]["static_hold_rows"]``, :func:`casep.checks.tracking_quality.static_hold`: a
+    receiver holding zero velocity while the vehicle stood) hold ``dv = S_V D`` with no tracking noise, so the
+    estimate must predict them: ``r = dv - S_V x`` (``x`` the estimate, less `about` where the pass was linearised
+    there: an iterated pass's ``D``) within :data:`casep.navigation.navigator.PAD_NOISE_FACTOR` times its std at
+    every epoch and axis, ``sqrt(g C g^T + n(T)^2 + e^2)`` (``g`` the epoch's row of S_V, ``C`` the estimate's
+    covariance; ``n(T)`` the speed the IMU's white noise navigates to in the ``T`` s since the levelling window began,
+    :func:`casep.navigation.navigator.pad_noise_speed`, measured as :func:`casep.checks.tracking_quality.
+    imu_sample_noise` measures it, 0 where the flight holds no samples; ``e`` the rows' rounding floor). A row whose
+    prediction the fit does not determine (along the null space of its S_V) is not judged, and counted. Recorded in
+    ``diagnostics["pad_check"]`` and said on a line of the message; beyond the bound the result fails
+    (``STATUS_MISFIT``): the estimate contradicts the vehicle at rest (or the held velocity was not the vehicle's)."""
+    import warnings
+
+    from casep.checks.flight import flight_problem
+    from casep.checks.tracking_quality import imu_sample_noise, rest_window, static_hold_samples
+    from casep.estimators.registry import STATUS_MISFIT, failed
+    from casep.io.flight import FlightDataError
+    from casep.navigation.navigator import PAD_NOISE_FACTOR, pad_noise_speed
+
+    held = static_hold_samples(flight)
+    if not held.any() or res.covariance is None:
+        return res
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the flight's warnings were said with its fit
+            problem = flight_problem(dataclasses.replace(flight, observed=held), model)
+    except FlightDataError as exc:  # too few epochs for the model, or a dv exactly 0 (nothing to predict)
+        said = f"pad zero-velocity check of the static hold not made: {exc}"
+        return dataclasses.replace(res, message=f"{res.message}\n{said}",
+                                   diagnostics={**res.diagnostics, "pad_check": {"checked": False, "why": str(exc)}})
+    S, y, t = problem.sv(), problem.y, problem.t
+    if y is None or t is None or S.shape[2] != len(res.names):
+        return res
+    x = np.nan_to_num(res.fitted_coefficients()) - (0.0 if about is None else np.asarray(about, dtype=float))
+    C = res.solution.covariance if res.solution is not None and res.solution.covariance is not None \
+        else res.covariance
+    C = np.nan_to_num(np.asarray(C, dtype=float))
+    r = y - np.einsum("tij,j->ti", S, x)
+    var = np.einsum("tij,jk,tik->ti", S, C, S)
+    judged = np.isfinite(r)  # a dv the flight does not hold there: not judged
+    if res.solution is not None:  # a prediction along the fit's null space is not determined: not judged
+        judged &= res.solution.determined(S.reshape(-1, S.shape[2])).reshape(r.shape)
+    if not judged.any():
+        why = "the fit determines none of its predicted values there"
+        said = f"pad zero-velocity check of the static hold not made: {why}"
+        return dataclasses.replace(res, message=f"{res.message}\n{said}",
+                                   diagnostics={**res.diagnostics, "pad_check": {"checked": False, "why": why}})
+    window = rest_window(flight.meta) or [float(t[0]), float(t[-1])]
+    measured = imu_sample_noise(flight, t)
+    noise = np.zeros(t.size) if measured is None else pad_noise_speed(
+        measured[0][:3], measured[0][3:], measured[1], np.maximum(t - window[0], 0.0), 9.80665)
+    sd = np.sqrt(np.maximum(var, 0.0) + noise[:, None] ** 2 + problem.rounding_floor() ** 2)
+    z = np.where(judged, np.abs(r) / np.where(sd > 0, sd, np.inf), 0.0)
+    k, axis = np.unravel_index(int(np.argmax(z)), z.shape)
+    record = {"checked": True, "span_s": [float(t[0]), float(t[-1])], "epochs": int(t.size),
+              "not_judged": int((~judged).sum()),
+              "largest_m_s": float(np.max(np.abs(np.where(judged, r, 0.0)))), "at_s": float(t[k]),
+              "axis": "xyz"[axis], "largest_std": float(z[k, axis]), "limit_std": PAD_NOISE_FACTOR,
+              "passed": bool(z[k, axis] <= PAD_NOISE_FACTOR),
+              "rule": "dv - S_V x over the static hold within the limit times sqrt(g C g^T + the IMU's white noise "
+                      "navigated since the levelling window began + the rows' rounding floor), per epoch and axis"}
+    said = (f"pad zero-velocity check: the static hold {t[0]:.10g}..{t[-1]:.10g} s ({t.size} epochs, out of the fit: "
+            f"no measurement noise) is predicted by the estimate to {record['largest_m_s']:.3g} m/s at most "
+            f"({record['largest_std']:.3g} std at t = {t[k]:.10g} s, axis {'xyz'[axis]}; limit {PAD_NOISE_FACTOR:g})"
+            + (f", {record['not_judged']} of its values not determined by the fit" if record["not_judged"] else ""))
+    diag = {**res.diagnostics, "pad_check": record}
+    if record["passed"]:
+        return dataclasses.replace(res, message=f"{res.message}\n{said}", diagnostics=diag)
+    return failed(dataclasses.replace(res, diagnostics=diag), STATUS_MISFIT,
+                  f"failed: {flight.source}: {said}: beyond it, the estimate contradicts the vehicle at rest on the "
+                  "pad (or the velocity held there was not the vehicle's)")
 
 
 def _ins_clock_said(res: EstimateResult, flight: FlightData) -> EstimateResult:

@@ -273,6 +273,9 @@ def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
         # a strapdown telemetry turned about the vertical against its tracking: named before the failures it explains
         res = judge_telemetry_heading(res, flight, problem, model, spec, LOCATING_FIT)
         res = said_unless_turned(res, drift_said)
+        from casep.workflows.judging import judge_pad_hold
+
+        res = judge_pad_hold(res, flight, model)  # the static hold on the pad, out of the fit: its check
     if not isinstance(flight, Problem) and isinstance(model, ErrorModel):
         from casep.model.loader import model_record
 

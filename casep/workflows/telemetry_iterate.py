@@ -240,6 +240,7 @@ class _TelemetryRun(_Run):
     def flight(self, nav: Any, D: np.ndarray, model: ErrorModel | None) -> FlightData:
         """The corrected telemetry paired with the tracking as the flight was (same grid, same rows observed), less
         the model's direct velocity terms at `D`."""
+        from casep.checks.tracking_quality import static_hold_samples
         from casep.io.files import acceleration_signals
         from casep.io.pair import pair_flight
         from casep.io.strapdown import BODY_FORCE_COLUMNS, BODY_RATE_COLUMNS, QUATERNION_COLUMNS
@@ -261,8 +262,9 @@ class _TelemetryRun(_Run):
                 new = pair_flight(inp.t_tel, quat_rotate(nav.q, nav.fb), nav.v, inp.t_trk - shift, inp.v_trk,
                                   signals=sig, interpolation=inp.interpolation, grid=inp.grid, source=f0.source)
             observed = np.asarray(new.observed) & np.asarray(f0.observed)
+            held = observed | (np.asarray(new.observed) & static_hold_samples(f0))  # the pad check's dv too
             # the pair's other signals (the tracked state r_*, v_* of Earth-fixed tracking) on the same grid kept
-            flight = dataclasses.replace(f0, f=new.f, dv=np.where(observed[:, None], new.dv, np.nan),
+            flight = dataclasses.replace(f0, f=new.f, dv=np.where(held[:, None], new.dv, np.nan),
                                          signals={**f0.signals, **new.signals}, observed=observed)
         if model is None or not np.any(D):
             return flight

@@ -423,6 +423,58 @@ def test_stale_tracking_is_screened_once_and_left_out_of_every_pass(truth_flight
     assert np.abs(z[rest]).max() <= 0.01 and abs(z[res.names.index("sa_x")]) <= 0.025, z
 
 
+def _static_hold(directory, truth_flight):
+    """IMU and ECEF tracking files of the truth flight with TRUTH's errors, the tracking a receiver's static hold on
+    the pad (velocity exactly 0, one position, up to lift-off at 10 s), the flight's state after it."""
+    from casep.frames import launch_to_ecef
+
+    t, w, f, nav, model = truth_flight
+    imu, _, D = write_flight(directory, truth_flight)
+    k = slice(None, None, int(RATE / TRK_RATE))
+    r, v = launch_to_ecef(SITE, t[k], nav.r[k], nav.v[k])
+    pad = t[k] < PAD
+    r[pad], v[pad] = SITE.r_site, 0.0
+    trk = directory / "hold.csv"
+    write_table(trk, {"t": t[k], **{f"r_ecef_{a}": r[:, i] for i, a in enumerate("xyz")},
+                      **{f"v_ecef_{a}": v[:, i] for i, a in enumerate("xyz")}})
+    return imu, trk, D
+
+
+def test_the_time_alignment_of_the_raw_imu_path_takes_the_levelling_window_as_at_rest(truth_flight, tmp_path,
+                                                                                       monkeypatch):
+    """``--imu`` with ``--time-offset auto`` and a static hold on the pad: the first pass's INS, not yet corrected
+    (gyro biases of 150-250 deg/h), drifts while the receiver holds still. Inside the levelling window (``--align``)
+    the vehicle stands by the navigation's premise, and the coarse time alignment takes a repeat there as a fix, as
+    the tracking screen does (:func:`casep.io.pair.rest_window`, one rule): none of the 50 epochs of the hold is left
+    out of either. Before, the navigation held in memory named no window to the pairing, and the alignment left 38
+    of the hold's epochs out as stale while the screen kept them."""
+    from casep.checks.tracking_quality import screen_tracking
+    from casep.workflows import imu_separate
+
+    imu, trk, _ = _static_hold(tmp_path, truth_flight)
+    got = {}
+    first = imu_separate._Run.flight
+
+    class Paired(Exception):
+        pass
+
+    def paired(self, nav, D, model):  # the first pass's pair, then stop: what is tested is made there
+        got["flight"] = first(self, nav, D, model)
+        raise Paired
+
+    monkeypatch.setattr(imu_separate._Run, "flight", paired)
+    with warnings.catch_warnings(), pytest.raises(Paired):
+        warnings.simplefilter("ignore")  # the inputs' warnings: not what this tests
+        separate_imu(imu, trk, SITE, ALIGN, MODEL, heading_deg=heading_of_x(), tracking_frame="ecef",
+                     time_offset="auto")
+    flight = got["flight"]
+    assert flight.meta["rest_window_s"] == list(ALIGN)
+    align = flight.meta["time_alignment"]
+    assert align["mode"] == "auto" and "stale_left_out" not in align, align
+    assert len(flight.meta["tracking_repeats"]) == round(PAD * TRK_RATE) - 1  # the hold: 49 repeats of its fix
+    assert screen_tracking(flight).meta["tracking_screen"]["stale"] == []
+
+
 def test_an_imu_gap_is_named_by_the_failure_and_its_warnings_are_said_once(truth_flight, tmp_path):
     """A 1 s IMU gap in the roll ramp: said once, by the IMU's GapWarning (what the gap leaves unknown), not again
     by S_V of the navigated telemetry (integrated across the same gap) nor once per pass (the pair's warning that the

@@ -75,3 +75,49 @@ def test_what_the_passes_leave_undetermined_is_not_left_where_the_first_pass_put
     good = lam < 1.0  # the directions the covariance says are better than their declared magnitudes
     zc = V[:, good].T @ (res.estimate / scale - truth) / np.sqrt(lam[good])
     assert good.sum() >= 4 and np.all(np.abs(zc) < 3.5), zc
+
+
+def test_the_rest_shift_widens_the_solution_and_the_consider_total():
+    """``_Run.with_rest_shift`` adds the rest's mean square shift ``R`` through
+    :func:`casep.workflows.row_estimators.with_extra_covariance`, the one place a consider term widens a result: on a
+    fit with 9 coefficients exactly dependent (``platform39_misalignment``, 1 Hz), the solution's covariance (what
+    the iteration's step reads) gains ``R``, the coefficients without an estimate keep their NaN, the std the rest
+    ``sqrt(std^2 + R_ii)``, and the running total of the consider terms is the one added before plus ``R``. Before,
+    a covariance with a NaN was left as it was (no widening at all), and a finite one was widened beside the
+    solution's and the total, which a covariance set anew then lost. The stated combinations, whose std hold the
+    shift already (``curvature_shift``), gain the earlier consider term only, not ``R`` twice."""
+    from types import SimpleNamespace
+
+    from casep.simulation.simulate import simulate_flight
+    from casep.workflows.imu_separate import _Run, _with_consider_std
+    from casep.workflows.row_estimators import added_covariance, with_extra_covariance
+
+    truth = {"Kg0x": 3.0, "Ka0x": 1.2, "Ka1xy": 60.0, "Ka1yx": 40.0, "phi0z": 20.0, "phi0x": -10.0}
+    sim = simulate_flight("paper", seed=4, rate=1.0, model="platform39_misalignment", truth=truth)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # ill-conditioning: not what this tests
+        fit = casep.separate(sim.flight, sim.model)
+    assert np.isnan(fit.std).sum() == 9 and fit.solution is not None
+    sd = np.sqrt(np.nan_to_num(np.diag(fit.solution.covariance)))
+    g0 = 0.3 * sd
+    before = with_extra_covariance(fit, np.outer(g0, g0))  # a consider term added earlier (the omitted terms)
+    rng = np.random.default_rng(5)
+    B = rng.normal(size=(sd.size, 4)) * sd[:, None]  # four draws' shifts: R = mean(b b^T), rank 4
+    R = B @ B.T / 4
+    out = _Run.with_rest_shift(SimpleNamespace(rest_shift=R), before)
+    np.testing.assert_allclose(out.solution.covariance - before.solution.covariance, R, rtol=1e-12, atol=1e-300)
+    np.testing.assert_allclose(added_covariance(out), np.outer(g0, g0) + R, rtol=1e-12)
+    assert np.array_equal(np.isnan(out.std), np.isnan(fit.std))
+    own = np.isfinite(fit.std)
+    np.testing.assert_allclose(out.std[own], np.sqrt(before.std[own] ** 2 + np.diag(R)[own]), rtol=1e-10)
+    factor = out.diagnostics["rest_shift_std_factor"]
+    np.testing.assert_allclose([factor[n] for n in np.array(fit.names)[own]], out.std[own] / before.std[own])
+    assert all(factor[n] is None for n in np.array(fit.names)[~own])  # JSON: null, not NaN
+    # a stated combination (weights on D / scale) whose std hold the shift: only the earlier term is added
+    scales = {n: 1.0 for n in fit.names}
+    w = np.zeros(len(fit.names))
+    w[list(fit.names).index("Kg0x")] = 1.0
+    shift = float(np.sqrt(w @ R @ w))
+    combo = {"weights": w.tolist(), "std": float(np.hypot(0.01, shift)), "curvature_shift": shift}
+    got = _with_consider_std([combo], out, scales)[0]["std"]
+    assert got == pytest.approx(np.sqrt(combo["std"] ** 2 + (w @ g0) ** 2), rel=1e-12)
