@@ -509,11 +509,11 @@ def test_the_combinations_stretches_determine_carry_the_curvature_of_what_they_l
     curv = det["curvature"]
     assert curv["draws"] == curv["asked"] and curv["plausible_size"] > 10
     x = np.array([D[i] / det["scales"][n] for i, n in enumerate(it.result.names)])
-    every = det["combinations"] + curv["left_out"]
+    every = det["combinations"] + det["left_out"]
     z_linear = [(c["estimate"] - np.dot(c["weights"], x)) / c["std_linear"] for c in every]
     assert np.max(np.abs(z_linear)) > 5  # what the linear std say is wrong ...
     assert det["combinations"] and all(c["std"] < 1 for c in det["combinations"])
-    assert all(c["std"] >= 1 for c in curv["left_out"])
+    assert all(c["std"] >= 1 for c in det["left_out"])
     z = [(c["estimate"] - np.dot(c["weights"], x)) / c["std"] for c in det["combinations"]]
     assert np.max(np.abs(z)) < 3.5, z  # ... and the std carrying the curvature hold
     assert all(c["std"] > c["std_linear"] for c in every)
