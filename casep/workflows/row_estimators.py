@@ -187,7 +187,14 @@ def combinations_with_consider(combos: list[dict], res: EstimateResult, scales: 
     them; each keeps its std without them as ``std_without_consider`` (the same without such terms). One rule for
     every statement of what a flight determines: the combinations of a flight whose tracking noise differs between
     stretches (:func:`casep.workflows.judging.judge_tracking`) and those an iteration stepped along
-    (:meth:`casep.workflows.imu_separate._Run.finish`)."""
+    (:meth:`casep.workflows.imu_separate._Run.finish`).
+
+    The stretches' combinations are estimated with a weighting of their own (each stretch by its noise:
+    :func:`casep.checks.tracking_quality.determined`), not the fit's estimators the consider terms went through. For
+    the part of a term the fit's columns take (the absorbed part: on the strapdown boost almost all of it, module notes
+    of :mod:`casep.workflows.omitted_terms`) that is the same: any unbiased estimator of a combination the rows
+    determine moves alike. The part beyond the columns goes through each estimator differently; it is what the rows'
+    test of :func:`casep.workflows.omitted_terms.judge_omitted` sees and bounds."""
     if not combos:
         return combos
     W = np.array([c["weights"] for c in combos], dtype=float)
