@@ -94,7 +94,8 @@ __all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "rest_window", "
            "clock_drift", "clock_drift_unmeasured", "fit_clock_drift", "clock_drift_record",
            "offset_halves", "halves_line", "telemetry_clock_line",
            "drift_determined", "stretches", "stretch_noise", "noise_problem",
-           "determined", "determined_message", "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
+           "determined", "determined_message", "determined_split", "DETERMINED_STD", "WIDENINGS", "widened_said",
+           "plausible_size", "combination_terms", "stretch_sigma", "MAX_TERMS",
            "imu_noise_effect", "imu_sample_noise", "ImuNoise", "imu_noise_measured", "white_sample_std",
            "unresolved_noise", "NOISE_RESOLUTION_SHARE",
            "imu_bias_effect", "IMU_INSTABILITY_TAU", "imu_noise_beside_bound", "IMU_INSTABILITY_SIZE", "IMU_REML_ROWS",
@@ -1383,7 +1384,10 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
     stretch), coefficients scaled by their declared magnitudes (``z_j = x_j / scale_j``):
     ``A = U diag(s) V^T``; combination ``c_i = V_i . z`` is estimated as ``U_i . y_w / s_i`` with std
     ``k / s_i``, ``k = sqrt(max(1, chi2 / dof))`` of the weighted fit (noise larger than the scatter says:
-    the std grow with it). A combination is determined when its std is below 1 (its declared magnitude).
+    the std grow with it). A combination is kept when its std is below 1 (its declared magnitude,
+    :data:`DETERMINED_STD`); whether it is stated as determined is decided on its final std, once the curvature and
+    the consider terms have widened it (:func:`determined_split`, :func:`casep.workflows.judging.judge_tracking`):
+    widening only adds variance, so a combination left out here would be left out there.
 
     The scatter of changes sees only the fast part of a stretch's noise: a receiver's Gauss-Markov error (seconds
     of correlation time) or a constant lag barely changes from one epoch to the next, yet counts as one error
@@ -1408,7 +1412,8 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
         ``terms`` (name -> weight on ``x / scale``: the `top` largest and those that matter at the plausible
         size, :func:`combination_terms`), ``more`` (how many terms the text leaves out), ``weights`` (all, model
         order),
-        ``estimate``, ``std``, ``correction`` (the estimate less the combination of `about`); best first.
+        ``estimate``, ``std``, ``correction`` (the estimate less the combination of `about`), and with `imu`
+        ``std_tracking_noise_only`` (the std without the IMU's noise); best first.
     k : float
         The std factor.
     """
@@ -1427,15 +1432,63 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
     out = []
     for i in np.flatnonzero(keep):
         std = math.sqrt((k / sv[i]) ** 2 + extra[i])
-        if std >= 1.0:
+        if not std < DETERMINED_STD:
             continue
         sign = 1.0 if Vt[i, np.argmax(np.abs(Vt[i]))] >= 0 else -1.0
         out.append({"estimate": sign * float(base[i] + z[i]), "std": std, "weights": (sign * Vt[i]).tolist(),
                     "correction": sign * float(z[i])})
+        if seen is not None:
+            out[-1]["std_tracking_noise_only"] = k / float(sv[i])
     size = plausible_size(out)
     for c in out:
         c["terms"], c["more"] = combination_terms(problem.names, np.array(c["weights"]), c["std"], size, top)
     return out, k
+
+
+#: A combination is stated as determined when its std, every widening carried (the IMU's noise, the curvature of what
+#: the flight does not determine, the consider terms), is below this many declared magnitudes
+#: (:func:`determined_split`).
+DETERMINED_STD = 1.0
+
+#: The std a stated combination keeps from before each widening, in the order they are made: the key, what that std
+#: is, the widening made after it, and what that widening is.
+WIDENINGS = (("std_tracking_noise_only", "on the tracking noise", "the IMU's noise", "the IMU's own noise"),
+             ("std_linear", "linear", "the curvature", "the curvature of what the flight does not determine"),
+             ("std_without_consider", "without the consider terms", "the consider terms",
+              "the consider terms (the terms the model leaves out, a clock drift)"))
+
+
+def determined_split(combos: list[dict], size: float = DETERMINED_STD) -> tuple[list[dict], list[dict]]:
+    """The one rule by which a stated combination is determined: its ``std`` (declared magnitudes) below `size`
+    (:data:`DETERMINED_STD`; an iteration's combinations: the plausible size of what the record determines,
+    :func:`plausible_size`), decided on its final std, after every widening (:data:`WIDENINGS`: the IMU's noise, the
+    curvature, the consider terms), never before one: ``(determined, left out)``, each in the order given, the first
+    sorted best first (smallest std). A std that is not finite is not below `size`."""
+    kept = sorted((c for c in combos if c["std"] < size), key=lambda c: c["std"])
+    return kept, [c for c in combos if not c["std"] < size]
+
+
+def widened_said(left: list[dict], names: list[str], scales: dict[str, float], size: float = DETERMINED_STD) -> str:
+    """What a result says of the combinations :func:`determined_split` left out (`left`, weights over `names` in their
+    declared magnitudes `scales`): that their std reach `size` once widened, by what (:data:`WIDENINGS`), and each
+    one's std before and after each widening; "" when none."""
+    if not left:
+        return ""
+    each, by = [], []
+    for c in left[:4]:
+        w = np.asarray(c["weights"], dtype=float)
+        top = np.argsort(-np.abs(w))[:3]
+        have = [x for x in WIDENINGS if c.get(x[0]) is not None]
+        steps = [f"{c[have[0][0]]:.3g} {have[0][1]}"] if have else []
+        for (_, _, what, said), after in zip(have, [x[0] for x in have[1:]] + ["std"]):
+            steps.append(f"{c[after]:.3g} with {what}")
+            by += [said] if said not in by else []
+        each.append(" + ".join(f"{w[j]:.2g} {names[j]}/{scales.get(names[j], 1.0):g}" for j in top)
+                    + f" (std {c['std']:.3g}" + (f": {', '.join(steps)}" if steps else "") + ")")
+    return (f"{len(left)} more combination(s) are not stated as determined: their std reach {size:.3g} declared "
+            f"magnitude(s) once widened" + (f" by {' and '.join([', '.join(by[:-1]), by[-1]] if len(by) > 1 else by)}"
+                                            if by else "") + ": " + "; ".join(each)
+            + ("; ..." if len(left) > 4 else ""))
 
 
 #: A combination's text lists at most this many terms (:func:`combination_terms`); its weights are all in the JSON.
@@ -1497,13 +1550,16 @@ def _weighted_svd(S: np.ndarray, y: np.ndarray, sig: np.ndarray, scale: np.ndarr
     return U, sv, Vt, keep, z, yw - U[:, keep] @ (U[:, keep].T @ yw)
 
 
-def determined_message(why: str, combos: list[dict], k: float, n: int, scales: dict[str, float]) -> str:
+def determined_message(why: str, combos: list[dict], k: float, n: int, scales: dict[str, float],
+                       left: str = "") -> str:
     """The failure message of a flight whose tracking noise differs between stretches (`why`, :func:`noise_problem`):
-    what it determines (:func:`determined`: `combos`, std factor `k`) of its `n` coefficients."""
+    what it determines (:func:`determined`: `combos`, std factor `k`) of its `n` coefficients; `left`: what is said of
+    those its widened std leave out (:func:`widened_said`), after them."""
     said = "; ".join(" + ".join(f"{w:.2g} {nm}/{scales.get(nm, 1.0):g}" for nm, w in c["terms"].items())
                      + (f" (+ {c['more']} smaller terms)" if c.get("more") else "")
                      + f" = {c['estimate']:.3g} +- {c['std']:.2g}" for c in combos[:6])
     return (f"failed: {why}: one noise level per axis weights them alike, so the std of the coefficients are not "
             f"honest. Weighted by each stretch's own noise (std x {k:.3g} for the weighted fit's misfit), the flight "
             f"determines {len(combos)} of {n} combinations better than their declared magnitudes (coefficient / "
-            f"declared magnitude)" + (f": {said}" if said else "") + ("; ..." if len(combos) > 6 else ""))
+            f"declared magnitude)" + (f": {said}" if said else "") + ("; ..." if len(combos) > 6 else "")
+            + (f"; {left}" if left else ""))

@@ -55,10 +55,11 @@ that time; the figure of today's code is below).
 the passes step only along the few combinations the stretches' weighting determines, and the rest of the coefficients
 stays where the first pass put it; with MEMS errors its second order moves those combinations by tens of their linear
 std. :meth:`_Run.determined_curvature` navigates :data:`DETERMINED_DRAWS` seeded draws with the rest at its plausible
-size (:func:`casep.checks.tracking_quality.plausible_size`), carries the shift in each combination's std, says it,
-and leaves out those no longer determined. On three own MEMS rocket logs (800 Hz, gyro biases 150-750 deg/h) 11 of
-the 12 linear combinations were 19 to 58 std off; with the curvature all 12 are within 1.8 std (std 0.65 to 34
-declared magnitudes), and one is still stated.
+size (:func:`casep.checks.tracking_quality.plausible_size`), carries the shift in each combination's std and says it;
+those no longer determined once the consider terms widen them too are left out
+(:func:`casep.checks.tracking_quality.determined_split`, on the final std). On three own MEMS rocket logs (800 Hz, gyro
+biases 150-750 deg/h) 11 of the 12 linear combinations were 19 to 58 std off; with the curvature all 12 are within 1.8
+std (std 0.65 to 34 declared magnitudes), and one is still stated.
 
 **The curvature over what the passes leave out.** The same holds for the combinations the steps leave out
 (below): the stated ones are gradients about where the passes left the rest, hundreds of declared magnitudes from a
@@ -166,15 +167,16 @@ from casep.exceptions import GapWarning, SaturationWarning
 from casep.frames import LaunchSite
 from casep.navigation.imu import ImuData
 from casep.workflows.row_estimators import (
+    REST_SHIFT_KEY,
     added_covariance,
     coefficient_estimators,
     column_estimates,
     combination_estimators,
+    combinations_with_consider,
     consider_estimators,
     estimator_noise,
     tau_spread,
     widened_std,
-    with_added_variance,
     with_consider,
     with_extra_covariance,
     with_heading,
@@ -212,7 +214,6 @@ BACK_TO_PRIOR_P = 0.01
 #: ``N(0, rho^2)`` beyond 3 of its std, the first pass's value is no plausible one (:func:`_beyond_plausible`).
 BACK_BEYOND = 3.0
 #: ``diagnostics`` key of the rest's shift :meth:`_Run.with_rest_shift` added to the covariance (natural units, n x n)
-REST_SHIFT_KEY = "rest_shift_covariance"
 
 #: The curvature check: second-order shifts of the estimate above this (std, the largest over the combinations) are
 #: warned about (:meth:`_Run.curvature`).
@@ -1078,7 +1079,7 @@ class _Run:
         if iterate and out.success and passes[-1].get("determined") and not out.diagnostics.get("determined"):
             out = self.left_out_curvature(out, passes[-1], problem, flight, D)
         if passes[-1].get("determined"):  # every consider term the coefficients carry (the last: the omitted terms)
-            passes[-1]["determined"] = _with_consider_std(passes[-1]["determined"], out, model.scales)
+            _with_consider_stated(passes[-1], out, model.scales, stated=iterate)
         if iterate and passes[-1].get("determined") and not out.diagnostics.get("determined"):
             out = _with_determined(out, passes[-1], model.scales)
         out.diagnostics["iterations"]["limit"] = float(self.limit) if np.isfinite(self.limit) else None
@@ -1121,33 +1122,32 @@ class _Run:
         the last pass's record, its ``determined`` the combinations stepped along, their std with the record's noise;
         updated in place, the curvature's record in ``last["curvature"]``).
 
-        The combinations the steps leave out (:func:`determined_step`) stay where the passes put them, and the truth
-        is the instrument's plausible size away there. The stated combinations are gradients about that point, and
-        their linear std leave out the second order over that distance: on 4 seeded MEMS boosts under
-        ``strapdown33`` (``tests/workflows/test_imu_separate.py``) 3 were a success with the stated combinations 9
-        to 36 std RMS off the truth (up to 101), and the second-order remainder of the pass over the distance to the
-        truth was their whole error (RMS z 0.8 to 1.3 once taken off). :meth:`determined_curvature` draws the rest
-        at the plausible size ``rho`` of the stated combinations (:func:`casep.checks.tracking_quality.plausible_size`),
-        carries the shift in their std, says it, and leaves out those whose std reach ``rho`` (no longer determined:
-        :func:`_determined_size`'s rule); when it moves them by more than their linear std the message names the
-        smaller shipped models (:data:`SMALLER_MODELS`), which leave less undetermined. No draw that can be
-        navigated: the stated combinations cannot be checked, and the result fails (status ``STATUS_MISFIT``, as
-        :func:`one_pass_judged` fails a linear pass whose record does not invert at the estimate). It fails the same
-        way when some draws cannot be navigated and those that can move a combination by more than
-        :data:`CURVATURE_RELIABLE` times its linear std: the draws lost are the far ones, so the mean square of the
-        rest understates the shift, and the second order already outgrows the first (a reviewer's clean 800 Hz MEMS
-        rocket: 2 of 4 draws navigated, shift up to 13 std, the stated combinations 2.4 std RMS off the truth)."""
-        from casep.checks.tracking_quality import plausible_size
+        The combinations the steps leave out (:func:`determined_step`) stay where the passes put them, and the truth is
+        the instrument's plausible size away there. The stated combinations are gradients about that point, and their
+        linear std leave out the second order over that distance: on 4 seeded MEMS boosts under ``strapdown33``
+        (``tests/workflows/test_imu_separate.py``) 3 were a success with the stated combinations 9 to 36 std RMS off the
+        truth (up to 101), and the second-order remainder of the pass over the distance to the truth was their whole
+        error (RMS z 0.8 to 1.3 once taken off). :meth:`determined_curvature` draws the rest at the plausible size
+        ``rho`` of the stated combinations (:func:`casep.checks.tracking_quality.plausible_size`), carries the shift in
+        their std and says it (those whose std, the consider terms added, reach ``rho`` are no longer determined:
+        :func:`_determined_size`'s rule, decided in :meth:`finish`); when it moves them by more than their linear std
+        the message names the smaller shipped models (:data:`SMALLER_MODELS`), which leave less undetermined. No draw
+        that can be navigated: the stated combinations cannot be checked, and the result fails (status
+        ``STATUS_MISFIT``, as :func:`one_pass_judged` fails a linear pass whose record does not invert at the estimate).
+        It fails the same way when some draws cannot be navigated and those that can move a combination by more than
+        :data:`CURVATURE_RELIABLE` times its linear std: the draws lost are the far ones, so the mean square of the rest
+        understates the shift, and the second order already outgrows the first (a reviewer's clean 800 Hz MEMS rocket: 2
+        of 4 draws navigated, shift up to 13 std, the stated combinations 2.4 std RMS off the truth)."""
         from casep.estimators.registry import STATUS_MISFIT, failed
 
         combos = last["determined"]
-        kept, note, record = self.determined_curvature(combos, problem, flight, D, keep=plausible_size(combos))
+        kept, note, record = self.determined_curvature(combos, problem, flight, D)
         last["determined"], last["curvature"] = kept, record
         if note is None:
             return self.with_rest_shift(res)
         smaller = SMALLER_MODELS.get(self.base.name)
         if smaller:
-            note += (f"; the record determines {len(kept)} of {len(res.names)} combinations of `{self.base.name}`: "
+            note += (f"; the passes stepped along {len(kept)} of {len(res.names)} combinations of `{self.base.name}`: "
                      f"a smaller model ({smaller}) leaves less undetermined")
         if not record["checked"]:
             return failed(res, STATUS_MISFIT, f"failed: {note}, so whether the combinations stated are what the "
@@ -1479,8 +1479,8 @@ class _Run:
         heading and the steps between samples with it; `res` the result with it, its noise account holding the
         tracking noise refitted beside it). Each keeps its std without it as ``std_tracking_noise_only``; unchanged
         when the flight does not hold the IMU's samples. The consider terms added on top (the clock drift, the
-        richer model's terms, the steps where the IMU's noise is not carried): :func:`_with_consider_std`, once the
-        coefficients hold them all."""
+        richer model's terms, the steps where the IMU's noise is not carried):
+        :func:`~casep.workflows.row_estimators.combinations_with_consider`, once the coefficients hold them all."""
         scale = _scale_of(scales, res.names)
         W = np.array([c["weights"] for c in combos], dtype=float)
         heading = self.heading_effect(problem)
@@ -1595,7 +1595,7 @@ class _Run:
         return dataclasses.replace(res, covariance=cov, std=np.sqrt(np.diag(cov)), message=message, diagnostics=diag)
 
     def determined_curvature(self, combos: list[dict], problem: Any, flight: FlightData,
-                             D: np.ndarray, keep: float = 1.0) -> tuple[list[dict], str | None, dict]:
+                             D: np.ndarray) -> tuple[list[dict], str | None, dict]:
         """The combinations a flight with stretches of different tracking noise determines
         (:func:`casep.checks.tracking_quality.determined`, linearised about `D`) with the navigation's second order
         over what it does not determine in their std; what is said of it; the record.
@@ -1617,16 +1617,16 @@ class _Run:
             u = Q Q^T (D / scale)
             r = y(D + delta) - (y(D) - S_V delta),         beta = W A^+ (r / sigma)
 
-        give the pass's nonlinear remainder ``r`` (:meth:`rows`) and the shift ``beta`` of the combinations'
-        estimates it makes, weighted as :func:`~casep.checks.tracking_quality.determined` weights them (``sigma``
-        of :func:`~casep.checks.tracking_quality.stretch_sigma`, ``A = (S_V / sigma) scale``). Each variance gains
-        ``mean(beta_i^2)``; a shift above the linear std is said (:class:`~casep.exceptions.NonlinearityWarning`),
-        and a combination whose std grows to `keep` declared magnitudes or more is no longer determined (left out of
-        the list, kept in the record's ``left_out``): the stretches' rule, the declared magnitude (1); the iteration's
-        left-out combinations' (:meth:`finish`), the plausible size ``rho`` (:func:`_determined_size`'s rule). The
-        weighting ``sigma`` is 1 when no stretch has a scatter (noise-free tracking). The record holds ``shift_std``
-        (each shift over its linear std) and ``checked`` (whether any draw could be navigated).
-        """
+        give the pass's nonlinear remainder ``r`` (:meth:`rows`) and the shift ``beta`` of the combinations' estimates
+        it makes, weighted as :func:`~casep.checks.tracking_quality.determined` weights them (``sigma`` of
+        :func:`~casep.checks.tracking_quality.stretch_sigma`, ``A = (S_V / sigma) scale``). Each variance gains
+        ``mean(beta_i^2)`` (the std before it kept as ``std_linear``); a shift above the linear std is said
+        (:class:`~casep.exceptions.NonlinearityWarning`). Whether a combination whose std grows is still determined is
+        decided once its std carries every widening, the consider terms too
+        (:func:`casep.checks.tracking_quality.determined_split`: the stretches' rule, the declared magnitude (1), in
+        :func:`casep.workflows.judging.judge_tracking`; the iteration's, the plausible size ``rho``, in :meth:`finish`).
+        The weighting ``sigma`` is 1 when no stretch has a scatter (noise-free tracking). The record holds ``shift_std``
+        (each shift over its linear std) and ``checked`` (whether any draw could be navigated)."""
         from casep.checks.tracking_quality import combination_terms, plausible_size, stretch_sigma
         from casep.exceptions import NonlinearityWarning
 
@@ -1670,10 +1670,8 @@ class _Run:
         for c in out:  # the terms that matter against the std it now has
             c["terms"], c["more"] = combination_terms(names, np.array(c["weights"]), c["std"], rho)
         record["shift_std"] = [float(v) for v in shift / s]
-        kept = [c for c in out if c["std"] < keep]
-        record["left_out"] = [c for c in out if c["std"] >= keep]
         if not np.any(shift > s):
-            return kept, None, record
+            return out, None, record
         j = int(np.argmax(shift / s))
         note = (f"the navigation is not linear over what the flight does not determine: with those coefficients at "
                 f"their plausible size ({rho:.3g} declared magnitudes, the largest determined combination's"
@@ -1683,11 +1681,8 @@ class _Run:
                 f"than their linear std (up to {shift[j] / s[j]:.3g} times, {shift[j]:.3g} against {s[j]:.2g} "
                 f"declared magnitudes); their std include it, a second-order expansion that is not reliable this far "
                 f"beyond its linear std: check them against a simulation of the flight")
-        if len(kept) < m:
-            note += (f", and {m - len(kept)} " + ("no longer better than their declared magnitudes are left out"
-                                                   if keep == 1.0 else "whose std now reach that size are left out"))
         warnings.warn(note, NonlinearityWarning, stacklevel=5)
-        return kept, note, record
+        return out, note, record
 
     def rows(self, D: np.ndarray) -> np.ndarray:
         """A pass's rows at `D` (the record corrected, navigated and paired, the first pass's screen kept), about the
@@ -2223,8 +2218,8 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str
     no coefficient is determined on its own (`alone`, how many are: 0), the smaller shipped models to try
     (`smaller`, :data:`SMALLER_MODELS`; None: not said). The counts add up to the `n` combinations: those the
     last pass states (``determined``), those its step left out at the prior (``left_out``), those it stepped along
-    whose std with the record's noise and the curvature reach the plausible size
-    (:meth:`_Run.left_out_curvature`'s ``curvature["left_out"]``, named by the coefficient `names`) and the fit's
+    whose std with the record's noise, the curvature and the consider terms reach the plausible size (``widened_out``:
+    :meth:`_Run.finish`, named by the coefficient `names`) and the fit's
     null space (the rest).
     None when one of them is determined (:func:`_outside_failure`: std within the plausible `size`, correction above
     :data:`SIGNIFICANT` std): that is a failure, not a note."""
@@ -2236,16 +2231,17 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str
     near = [c["z"] for c in left if c["std"] <= size]
     names_left = "; ".join(c["combination"] for c in sorted(left, key=lambda c: c["std"])[:3])
     kept = len(passes[-1].get("determined") or [])
-    # stepped along but not stated: their std with the record's noise and the curvature reach the plausible size
-    curv = passes[-1].get("curvature")
-    late = (curv.get("left_out") or []) if isinstance(curv, dict) else []
+    # stepped along but not stated: their std with the record's noise, the curvature and the consider terms reach the
+    # plausible size
+    late = passes[-1].get("widened_out") or []
     null = max(n - kept - len(left) - len(late), 0)  # the rest of the n: the fit's null space
     why_smaller = "most of the combinations undetermined" if len(left) + len(late) > kept else \
         "no coefficient determined on its own" if alone == 0 else None
     rest = []
     if late:
         ls = sorted(late, key=lambda c: c["std"])
-        rest.append(f"{len(late)} stepped along, whose std with the record's noise and the curvature "
+        rest.append(f"{len(late)} stepped along, whose std with the record's noise, the curvature and the consider "
+                    "terms "
                     f"({ls[0]['std']:.3g}" + (f" to {ls[-1]['std']:.3g}" if len(ls) > 1 else "")
                     + " declared magnitudes: "
                     + "; ".join(_combination(list(names), np.array(c["weights"])) if names is not None and
@@ -2267,26 +2263,23 @@ def _outside_note(passes: list[dict], n: int, size: float = np.inf, smaller: str
                             if smaller and why_smaller else ""))
 
 
-def _with_consider_std(combos: list[dict], res: EstimateResult, scales: dict[str, float]) -> list[dict]:
-    """The stated combinations `combos` (weights on ``D / scale``) with every consider term `res`'s covariance gained
-    on top of its noise's (:func:`casep.workflows.row_estimators.with_added_variance`: the IMU clock's drift, the
-    richer model's terms, the steps between samples where the IMU's noise is not carried) in their std, as the
-    coefficients have them; each keeps its std without them as ``std_without_consider``. After the curvature of what
-    the passes leave out (:meth:`_Run.left_out_curvature`), which is judged on the combinations' own std: the
-    consider terms are parameters beside the rows, not a distance the record is navigated over. The rest's shift
-    (:meth:`_Run.with_rest_shift`, in the consider total as the coefficients carry it) is not added again: the
-    combinations' std hold it already (``curvature_shift``, the same ``mean(b b^T)`` along ``w``)."""
-    if not combos:
-        return combos
-    W = np.array([c["weights"] for c in combos], dtype=float)
-    scale = _scale_of(scales, res.names)
-    var = with_added_variance(res, W, scale, np.array([c["std"] ** 2 for c in combos]))
-    rest = res.diagnostics.get(REST_SHIFT_KEY)
-    if rest is not None:
-        Ws = W / scale
-        held = np.array(["curvature_shift" in c for c in combos])
-        var = var - held * np.einsum("ij,jk,ik->i", Ws, np.asarray(rest, dtype=float), Ws)
-    return [{**c, "std_without_consider": c["std"], "std": float(math.sqrt(v))} for c, v in zip(combos, var)]
+def _with_consider_stated(last: dict, res: EstimateResult, scales: dict[str, float], stated: bool) -> None:
+    """The combinations the last pass stepped along (``last["determined"]``, updated in place) with every consider
+    term `res`'s coefficients carry in their std (:func:`~casep.workflows.row_estimators.combinations_with_consider`:
+    the richer model's terms, the IMU clock's drift, the steps where the IMU's noise is not carried), after the
+    curvature of what the passes leave out (:meth:`_Run.left_out_curvature`), which is judged on their own std: the
+    consider terms are parameters beside the rows, not a distance the record is navigated over. Where they are
+    `stated` (an iteration's: :func:`_with_determined`) those still determined on that final std are kept
+    (:func:`casep.checks.tracking_quality.determined_split`, within the plausible size of what the record determines,
+    :func:`casep.checks.tracking_quality.plausible_size`), the others moved to ``last["widened_out"]`` (said by
+    :func:`_outside_note`)."""
+    from casep.checks.tracking_quality import determined_split, plausible_size
+
+    last["determined"] = combinations_with_consider(last["determined"], res, scales)
+    if stated:
+        last["determined"], late = determined_split(last["determined"], plausible_size(last["determined"]))
+        if late:
+            last["widened_out"] = late
 
 
 def _with_determined(res: EstimateResult, last: dict, scales: dict[str, float]) -> EstimateResult:

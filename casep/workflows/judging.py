@@ -75,27 +75,36 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
                    widen: Callable[[list[dict]], tuple[list[dict], str | None, dict | None]] | None = None,
                    tag_clock: bool = True) -> EstimateResult:
     """`res` failed (status ``STATUS_TRACKING``) when the flight's screened tracking noise differs between
-    stretches beyond :data:`casep.checks.tracking_quality.NOISE_RATIO`: its message says which combinations the
-    flight determines (:func:`casep.checks.tracking_quality.determined`) instead of each coefficient;
-    ``diagnostics["determined"]`` holds them (``combinations``, ``std_factor``, the ``scales`` they divide by);
-    `about`: the coefficients an iterated pass was linearised about (the combinations' estimates are totals);
-    `widen`: ``combos -> (combos, note, record)``, what the nonlinearity does to them (an iterated pass's
-    :meth:`casep.workflows.imu_separate._Run.determined_curvature`): the combinations said are its, `note` (or
-    None) follows them, `record` goes in ``diagnostics["determined"]["curvature"]``. The tracking clock's drift is
-    measured on the fit's residuals (:func:`casep.checks.tracking_quality.fit_clock_drift`) and, with ``dt_trk`` in
-    the fit, by that offset split between the flight's halves (:func:`casep.checks.tracking_quality.offset_halves`,
-    ``["halves"]``), warned beyond its threshold and recorded in ``diagnostics["clock_drift"]``
-    (:func:`casep.checks.tracking_quality.clock_drift_record`: where not measured, why); not with `tag_clock` False
-    (a separation from raw IMU data: its clock's drift stretches the steps too, which a late tag's model does not
-    hold; :meth:`casep.workflows.imu_separate._Run.clock_judged` tests it)."""
+    stretches beyond :data:`casep.checks.tracking_quality.NOISE_RATIO`: its message says which combinations the flight
+    determines (:func:`casep.checks.tracking_quality.determined`) instead of each coefficient;
+    ``diagnostics["determined"]`` holds them (``combinations``, ``std_factor``, the ``scales`` they divide by); `about`:
+    the coefficients an iterated pass was linearised about (the combinations' estimates are totals); `widen`: ``combos
+    -> (combos, note, record)``, what the nonlinearity does to them (an iterated pass's
+    :meth:`casep.workflows.imu_separate._Run.determined_curvature`): the combinations said are its, `note` (or None)
+    follows them, `record` goes in ``diagnostics["determined"]["curvature"]``. Their std carry the consider terms
+    `res`'s covariance holds (the terms the model leaves out, a clock drift:
+    :func:`casep.workflows.row_estimators.combinations_with_consider`, as the coefficients' std), and which are stated
+    as determined is decided on that final std (:func:`casep.checks.tracking_quality.determined_split`); those it leaves
+    out are said, with their std before each widening, and kept in ``diagnostics["determined"]["left_out"]``. The
+    tracking clock's drift is measured on the fit's residuals (:func:`casep.checks.tracking_quality.fit_clock_drift`)
+    and, with ``dt_trk`` in the fit, by that offset split between the flight's halves
+    (:func:`casep.checks.tracking_quality.offset_halves`, ``["halves"]``), warned beyond its threshold and recorded in
+    ``diagnostics["clock_drift"]`` (:func:`casep.checks.tracking_quality.clock_drift_record`: where not measured, why);
+    not with `tag_clock` False (a separation from raw IMU data: its clock's drift stretches the steps too, which a late
+    tag's model does not hold; :meth:`casep.workflows.imu_separate._Run.clock_judged` tests it)."""
     from casep.checks.tracking_quality import (
         clock_drift_record,
+        combination_terms,
         determined,
         determined_message,
+        determined_split,
         noise_problem,
         offset_halves,
+        plausible_size,
+        widened_said,
     )
     from casep.estimators.registry import STATUS_TRACKING, failed
+    from casep.workflows.row_estimators import combinations_with_consider
 
     # the clock drift, on the residuals: the raw dv's instrument errors fake one (not where a strapdown telemetry's
     # clock was tested with its exact effect, its tags and steps: casep.workflows.telemetry_clock)
@@ -117,9 +126,16 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     note, record = None, None
     if widen is not None and combos:
         combos, note, record = widen(combos)
-    said = determined_message(why, combos, k, len(problem.names), scales)
+    if list(res.names) == list(problem.names):  # the consider terms the coefficients carry, as theirs
+        combos = combinations_with_consider(combos, res, scales)
+    combos, left = determined_split(combos)  # on the final std: every widening made
+    size = plausible_size(combos)
+    for c in combos:  # the terms that matter against the std it now has (determined's rule)
+        c["terms"], c["more"] = combination_terms(list(problem.names), np.array(c["weights"]), c["std"], size)
+    said = determined_message(why, combos, k, len(problem.names), scales,
+                              widened_said(left, list(problem.names), scales))
     res = failed(res, STATUS_TRACKING, said if note is None else f"{said}; {note}")
-    res.diagnostics["determined"] = {"combinations": combos, "std_factor": k,
+    res.diagnostics["determined"] = {"combinations": combos, "std_factor": k, "left_out": left,
                                      "scales": {nm: scales.get(nm, 1.0) for nm in problem.names}}
     if record is not None:
         res.diagnostics["determined"]["curvature"] = record

@@ -20,7 +20,7 @@ from casep.io.flight import FlightData
 
 __all__ = ["estimator_noise", "combination_estimators", "with_heading", "with_consider", "column_estimates",
            "tau_spread", "relative_positive_part", "with_extra_covariance", "added_covariance", "with_added_variance",
-           "CONSIDER_KEY"]
+           "combinations_with_consider", "CONSIDER_KEY"]
 
 
 def estimator_noise(a: np.ndarray, res: EstimateResult, problem: Any, flight: FlightData,
@@ -134,6 +134,10 @@ def with_consider(res: EstimateResult, problem: Any, cols: np.ndarray) -> Estima
 
 #: The key of a result's ``diagnostics`` that holds what :func:`with_extra_covariance` added to its covariance.
 CONSIDER_KEY = "consider"
+#: A result's diagnostics key: the covariance the rest's shift added
+#: (:meth:`casep.workflows.imu_separate._Run.with_rest_shift`), part of the consider total, which the stated
+#: combinations' ``curvature_shift`` holds already.
+REST_SHIFT_KEY = "rest_shift_covariance"
 
 
 def with_extra_covariance(res: EstimateResult, extra: np.ndarray) -> EstimateResult:
@@ -177,6 +181,36 @@ def with_added_variance(res: EstimateResult, W: np.ndarray, scale: np.ndarray, v
         return np.asarray(var, dtype=float)
     Ws = np.asarray(W, dtype=float) / np.asarray(scale, dtype=float)
     return np.asarray(var, dtype=float) + np.einsum("ij,jk,ik->i", Ws, E, Ws)
+
+
+def combinations_with_consider(combos: list[dict], res: EstimateResult, scales: Any) -> list[dict]:
+    """The stated combinations `combos` (``weights`` on ``D / scale`` over `res`'s coefficients, ``std`` in declared
+    magnitudes; `scales` the declared magnitudes by name, 1 for a name without one) with every consider term `res`'s
+    covariance gained on top of its noise's in their std (:func:`with_added_variance`: the richer model's terms, the
+    IMU clock's drift, the steps between samples where the IMU's noise is not carried), as the coefficients have
+    them; each keeps its std without them as ``std_without_consider`` (the same without such terms). One rule for
+    every statement of what a flight determines: the combinations of a flight whose tracking noise differs between
+    stretches (:func:`casep.workflows.judging.judge_tracking`) and those an iteration stepped along
+    (:meth:`casep.workflows.imu_separate._Run.finish`).
+
+    The stretches' combinations are estimated with a weighting of their own (each stretch by its noise:
+    :func:`casep.checks.tracking_quality.determined`), not the fit's estimators the consider terms went through. For
+    the part of a term the fit's columns take (the absorbed part: on the strapdown boost almost all of it, module notes
+    of :mod:`casep.workflows.omitted_terms`) that is the same: any unbiased estimator of a combination the rows
+    determine moves alike. The part beyond the columns goes through each estimator differently; it is what the rows'
+    test of :func:`casep.workflows.omitted_terms.judge_omitted` sees and bounds."""
+    if not combos:
+        return combos
+    W = np.array([c["weights"] for c in combos], dtype=float)
+    scale = np.array([scales.get(nm, 1.0) for nm in res.names], dtype=float)
+    var = with_added_variance(res, W, scale, np.array([c["std"] ** 2 for c in combos]))
+    rest = res.diagnostics.get(REST_SHIFT_KEY)
+    if rest is not None:  # the rest's shift: in the consider total as the coefficients carry it, in the std of the
+        # combinations that hold ``curvature_shift`` already (the same ``mean(b b^T)`` along ``w``): not added again
+        Ws = W / scale
+        held = np.array(["curvature_shift" in c for c in combos])
+        var = var - held * np.einsum("ij,jk,ik->i", Ws, np.asarray(rest, dtype=float), Ws)
+    return [{**c, "std_without_consider": c["std"], "std": float(np.sqrt(v))} for c, v in zip(combos, var)]
 
 
 def column_estimates(res: EstimateResult, problem: Any, flight: FlightData, columns: np.ndarray | None,

@@ -90,9 +90,9 @@ def test_the_clipped_telemetry_iterates_along_what_its_tracking_determines(clipp
     left = it["passes"][-1].get("left_out") or []
     assert len(left) < 6 and all(c["std"] > 1.0 and c["z"] < SIGNIFICANT for c in left), left
     stated = it["passes"][-1]["determined"]
-    # the combinations whose std grow to the plausible size with the curvature of what the passes left out are no
-    # longer stated (imu_separate._Run.left_out_curvature): they are in its record
-    dropped = (it["passes"][-1].get("curvature") or {}).get("left_out") or []
+    # the combinations whose std grow to the plausible size with the curvature of what the passes left out and the
+    # consider terms are no longer stated (imu_separate._with_consider_stated): they are in the pass's record
+    dropped = it["passes"][-1].get("widened_out") or []
     assert len(stated) + len(left) + len(dropped) == 12 and min(c["std_tracking_noise_only"] for c in stated) < 0.02
     trk_only = res.diagnostics["noise"]["imu"]["std_tracking_noise_only"]
     z = {n: (res.estimate[i] - D[n]) / trk_only[n] for i, n in enumerate(res.names)}

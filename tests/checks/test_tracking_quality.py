@@ -971,3 +971,24 @@ def test_the_screen_summary_counts_the_epochs_of_every_span():
     said = screen_summary({"epochs": 12, "kept": 4, "stale": spans, "rejected": [(9.0, 9.0, 1)]}, top=2)
     assert said.startswith("the tracking screen left out 8 of its 12 epochs (stale (repeated fixes) 8 in 4 spans: "
                            "t = 0..0.5 s (2), t = 2..2 s (1) and 2 more; rejected by the physics check 1 in 1 span:")
+
+
+def test_a_stated_combination_is_determined_on_its_final_std_alone():
+    """determined_split: below the size (1 declared magnitude) on the std with every widening in it, whatever it was
+    before; a std that is not finite is not below it; the determined ones best first. widened_said gives each one
+    left out with its std before and after each widening it went through."""
+    from casep.checks.tracking_quality import DETERMINED_STD, determined_split, widened_said
+
+    a = {"std": 0.4, "weights": [1.0, 0.0], "std_tracking_noise_only": 0.1, "std_without_consider": 0.3}
+    b = {"std": 1.2, "weights": [0.0, 1.0], "std_tracking_noise_only": 0.2, "std_without_consider": 0.5}
+    c = {"std": 0.2, "weights": [0.6, 0.8]}
+    d = {"std": float("nan"), "weights": [0.8, -0.6]}
+    kept, left = determined_split([a, b, c, d])
+    assert DETERMINED_STD == 1.0 and kept == [c, a] and left == [b, d]
+    assert determined_split([a, b], size=1.5) == ([a, b], [])
+    said = widened_said([b], ["ba_x", "sg_x"], {"ba_x": 1.0, "sg_x": 100.0})
+    assert said.startswith("1 more combination(s) are not stated as determined: their std reach 1 declared "
+                           "magnitude(s) once widened by the IMU's own noise and the consider terms"), said
+    assert "1 sg_x/100 + 0 ba_x/1 (std 1.2: 0.2 on the tracking noise, 0.5 with the IMU's noise, 1.2 with the " \
+           "consider terms)" in said, said
+    assert widened_said([], ["ba_x"], {}) == ""

@@ -89,8 +89,8 @@ def test_the_rest_shift_widens_the_solution_and_the_consider_total():
     from types import SimpleNamespace
 
     from casep.simulation.simulate import simulate_flight
-    from casep.workflows.imu_separate import _Run, _with_consider_std
-    from casep.workflows.row_estimators import added_covariance, with_extra_covariance
+    from casep.workflows.imu_separate import _Run
+    from casep.workflows.row_estimators import added_covariance, combinations_with_consider, with_extra_covariance
 
     truth = {"Kg0x": 3.0, "Ka0x": 1.2, "Ka1xy": 60.0, "Ka1yx": 40.0, "phi0z": 20.0, "phi0x": -10.0}
     sim = simulate_flight("paper", seed=4, rate=1.0, model="platform39_misalignment", truth=truth)
@@ -119,5 +119,5 @@ def test_the_rest_shift_widens_the_solution_and_the_consider_total():
     w[list(fit.names).index("Kg0x")] = 1.0
     shift = float(np.sqrt(w @ R @ w))
     combo = {"weights": w.tolist(), "std": float(np.hypot(0.01, shift)), "curvature_shift": shift}
-    got = _with_consider_std([combo], out, scales)[0]["std"]
+    got = combinations_with_consider([combo], out, scales)[0]["std"]
     assert got == pytest.approx(np.sqrt(combo["std"] ** 2 + (w @ g0) ** 2), rel=1e-12)
