@@ -52,7 +52,8 @@ from casep._kernels import ar1_terms, joint_filter
 from casep.noise.model import AXES, NoiseModel
 
 __all__ = ["KnownStates", "TrackingParameters", "joint_whiten", "restricted_likelihood", "fit_tracking",
-           "tracking_covariance_times", "PART_RANGE", "RemlRows", "PooledParts", "pool_parts", "POOL_LEVEL"]
+           "tracking_covariance_times", "PART_RANGE", "RemlRows", "PooledParts", "pool_parts", "POOL_LEVEL",
+           "level_interval", "stated_tau_check"]
 
 #: How far (natural logarithm, down and up) :func:`fit_tracking` moves a part's variance from its start: e^-25 is
 #: 1e-11 of the start (a part that small adds nothing a record tells from none: it is then 0), e^20 4.9e8 of it.
@@ -354,35 +355,126 @@ def pool_parts(records, weights=None, *, xatol: float = 0.1, step: float = 0.7) 
         def along(v: float, i: int = i) -> float:  # -2 l_R with part i at ln q = v, the others at their best
             return value(np.where(np.arange(n) == i, v, x))
 
-        ends = []
-        for sign, bound in ((-1.0, low[i]), (1.0, high[i])):
-            inside, d = float(x[i]), step  # the last point within the level, and the next step (doubling)
-            while True:
-                cur = inside + sign * d
-                if sign * (cur - bound) >= 0:
-                    cur = float(bound)
-                if along(cur) - best >= POOL_LEVEL:
-                    break
-                if cur == bound:  # the bound itself within the level: the rows do not bound the part there
-                    break
-                inside, d = cur, 2.0 * d
-            if cur == bound and along(cur) - best < POOL_LEVEL:
-                ends.append(0.0 if sign < 0 else np.inf)
-                continue
-            for _ in range(3):  # bisect the crossing, then linear between the two points left
-                mid = 0.5 * (inside + cur)
-                if along(mid) - best >= POOL_LEVEL:
-                    cur = mid
-                else:
-                    inside = mid
-            v_in, v_out = along(inside), along(cur)
-            frac = (best + POOL_LEVEL - v_in) / (v_out - v_in) if v_out > v_in else 1.0
-            edge = inside + frac * (cur - inside)
-            ends.append(0.0 if edge <= low[i] else float(np.exp(edge)))
-        interval.append((ends[0] if x[i] > low[i] else 0.0, ends[1]))
+        lo_i, hi_i = level_interval(along, float(x[i]), best, float(low[i]), float(high[i]), POOL_LEVEL, step)
+        lo_e = 0.0 if lo_i is None or lo_i <= low[i] else float(np.exp(lo_i))
+        interval.append((lo_e if x[i] > low[i] else 0.0, np.inf if hi_i is None else float(np.exp(hi_i))))
     q = sizes(x)
     return PooledParts(tuple(float(v) for v in q), tuple(interval), best, value(low), tuple(float(v) for v in w),
                        tuple(refit(x)[1]), count[0])
+
+
+def level_interval(along, x: float, best: float, low: float, high: float, level: float, step: float,
+                   outside: dict | None = None) -> tuple[float | None, float | None]:
+    """The ends of ``{v: along(v) - best < level}`` around `x` (its best point) within ``[low, high]``: from `x`
+    steps of `step` on each side, doubling, up to the bound, which counts (within the level there: that end None,
+    the rows do not bound it); the crossing bisected three times, then linear between its two points. `outside`
+    (``{v: along(v)}``) holds points already known beyond the level: a side with one starts bracketed by the
+    nearest. The rule of :func:`pool_parts`' intervals and of :func:`stated_tau_check`'s."""
+    ends: list[float | None] = []
+    for sign, bound in ((-1.0, low), (1.0, high)):
+        known = sorted((v for v in (outside or {}) if sign * (v - x) > 0), key=lambda v: abs(v - x))
+        inside, d = x, step  # the last point within the level, and the next step (doubling)
+        if known:
+            cur = known[0]
+        else:
+            while True:
+                cur = inside + sign * d
+                if sign * (cur - bound) >= 0:
+                    cur = bound
+                if along(cur) - best >= level:
+                    break
+                if cur == bound:  # the bound itself within the level: the rows do not bound it there
+                    break
+                inside, d = cur, 2.0 * d
+            if cur == bound and along(cur) - best < level:
+                ends.append(None)
+                continue
+        for _ in range(3):  # bisect the crossing, then linear between the two points left
+            mid = 0.5 * (inside + cur)
+            if along(mid) - best >= level:
+                cur = mid
+            else:
+                inside = mid
+        v_in, v_out = along(inside), along(cur)
+        frac = (best + level - v_in) / (v_out - v_in) if v_out > v_in else 1.0
+        ends.append(inside + frac * (cur - inside))
+    return ends[0], ends[1]
+
+
+#: The white shares :func:`stated_tau_check` scans (with the profile's grid of tau) for its free fit's second start.
+SCAN_SHARES = (0.1, 0.3, 0.5, 0.7, 0.9)
+
+
+def stated_tau_check(X: np.ndarray, t: np.ndarray, fit: NoiseModel, known: KnownStates, stated, *,
+                     part_start: tuple = (), level: float | None = None) -> tuple[NoiseModel, list[dict]]:
+    """Stated correlation times of the tracking noise judged by the restricted likelihood beside the known term:
+    `fit` the tracking noise fitted at them (:func:`fit_tracking` from a model of rule ``"given"``, its
+    ``extra["neg2_reml"]``), `stated` the three taus (s), `known`, `part_start` as that fit's.
+
+    The free fit (tau by REML too, from `fit` and from the best taus of a scan) is the best point; per axis ``a``
+    the profile point at the stated tau holds that axis's tau there and the others' at the free fit's, every
+    variance refitted (the rule of :func:`casep.noise.fit.tau_profile`'s points, here beside the known term: the
+    IMU's random walks left in the rows read as a longer correlation time, and on a rail launch with MEMS noise the
+    true tau was outside the profile of the rows alone on 5 of 6 axes, 2 seeds). Its ``-2 l_R`` above the best (the
+    least of the free fit's, `fit`'s and the points') is the drop; within `level` (:data:`casep.noise.fit.PROFILE_LR`,
+    chi2_1 95 %) the stated tau is inside the profile's 95 % interval. Where it is not, the interval itself is found
+    along that axis (:func:`level_interval` in ``ln tau`` over :func:`casep.noise.fit.tau_search_bounds`, the stated
+    point bracketing its side).
+
+    Returns the free fit and per axis ``{"tau_s", "reml_tau_s", "drop", "within", "interval_s"}`` (``interval_s``
+    None where within; an end None where the search interval's bound is within the level)."""
+    from dataclasses import replace
+
+    from casep.noise.fit import PROFILE_LR, PROFILE_POINTS, tau_search_bounds
+
+    level = PROFILE_LR if level is None else float(level)
+    lo, hi = tau_search_bounds(np.asarray(t, dtype=float))
+    th_fit = TrackingParameters.of(fit)
+    # the free fit's simplex, started at the stated taus, stops in a local minimum near them (a stated 0.2 s on
+    # 1 s noise: 0.46 s, 10 below the maximum at 1.3 s); so it runs again from each axis's best tau and white share on
+    # a grid (tau: the profile's, evenly in ln tau over the search interval; the axis's variance at the stated fit's,
+    # the axes in turn), and the better of the two is the fit
+    fixed = known.scaled(list(fit.extra["known_scales"])) if known.parts else known
+    th = th_fit
+    grid = [(float(g), w) for g in np.exp(np.linspace(lo, hi, PROFILE_POINTS)) for w in SCAN_SHARES]
+    for j in range(3):
+        var = th.c[j] + th.d[j]
+
+        def at(g: float, w: float, j: int = j, var: float = var, th: TrackingParameters = th) -> TrackingParameters:
+            return TrackingParameters(*(tuple(new if k == j else old[k] for k in range(3)) for old, new in
+                                        ((th.c, var * (1.0 - w)), (th.tau, g), (th.d, var * w))))
+
+        th = at(*grid[int(np.argmin([restricted_likelihood(X, t, at(g, w), fixed) for g, w in grid]))])
+    scanned = th.model(fit.kind, "REML")
+    free = min((fit_tracking(X, t, start, known, part_start=part_start)[0] for start in
+                (replace(fit, rule="REML"), scanned)), key=lambda m: m.extra["neg2_reml"])
+    th_free = TrackingParameters.of(free)
+    memo: dict = {}
+
+    def point(j: int, v: float) -> float:  # -2 l_R with axis j's tau at e^v, the others' at the free fit's
+        if (j, v) not in memo:
+            c, tau, d = list(th_free.c), list(th_free.tau), list(th_free.d)
+            if tau[j] is None:  # a white axis in the free fit: its Gauss-Markov part starts at the stated fit's
+                c[j], d[j] = th_fit.c[j], th_fit.d[j]
+            tau[j] = float(np.exp(v))
+            start = TrackingParameters(tuple(c), tuple(tau), tuple(d)).model(fit.kind, "given")
+            memo[(j, v)] = fit_tracking(X, t, start, known, part_start=part_start)[1]
+        return memo[(j, v)]
+
+    vals = [point(j, float(np.log(stated[j]))) for j in range(3)]
+    best = min(free.extra["neg2_reml"], fit.extra["neg2_reml"], *vals)
+    out = []
+    for j in range(3):
+        v, drop = float(np.log(stated[j])), vals[j] - best
+        rec = {"tau_s": float(stated[j]), "reml_tau_s": free.tau[j], "drop": float(drop), "within": bool(drop < level),
+               "interval_s": None}
+        if not rec["within"] and free.tau[j] is not None:
+            x = float(np.clip(np.log(free.tau[j]), lo, hi))
+            ends = level_interval(lambda u, j=j: point(j, u), x, best, lo, hi, level, 0.7, {v: vals[j]})  # pool_parts'
+
+            rec["interval_s"] = [None if e is None else float(np.exp(e)) for e in ends]
+        out.append(rec)
+    return free, out
 
 
 def tracking_covariance_times(V: np.ndarray, t: np.ndarray, noise: NoiseModel) -> np.ndarray:
