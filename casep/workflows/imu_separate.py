@@ -3016,7 +3016,7 @@ def warn_tau_stated(source: Any, record: dict) -> str | None:
     from casep.exceptions import NoiseLevelWarning
 
     def s(v: float | None, none: str) -> str:
-        return none if v is None else f"{v:.3g}"
+        return none if v is None else f"{v:.3g} s"
 
     out = [(ax, v) for ax, v in record["axes"].items() if not v["within"]]
     if not out:
@@ -3026,12 +3026,13 @@ def warn_tau_stated(source: Any, record: dict) -> str | None:
             "on axes " + ", ".join(
                 f"{ax} (stated {v['tau_s']:.3g} s, interval "
                 + ("unknown" if v["interval_s"] is None else
-                   f"{s(v['interval_s'][0], '0')} to {s(v['interval_s'][1], 'the record length')} s")
-                + f", REML {s(v['reml_tau_s'], 'white')}{'' if v['reml_tau_s'] is None else ' s'}; "
+                   f"{s(v['interval_s'][0], '0 s')} to {s(v['interval_s'][1], 'the record length')}")
+                + f", REML {s(v['reml_tau_s'], 'white')}; "
                 f"-2 ln Lambda {v['drop']:.3g} > {record['level']:g})" for ax, v in out) + f" ({source})")
     short = factor is not None and factor > TAU_STATED_FACTOR
     tail = "" if factor is None else (f"; the std at the stated tau are {factor:.3g} x smaller than at REML's "
-                                      f"({record['std_factor_worst']})")
+                                      f"({record['std_factor_worst']})" if factor > 1.0 else
+                                      "; the std at the stated tau are not smaller than at REML's")
     warnings.warn(NoiseLevelWarning(said + tail + (f", beyond {TAU_STATED_FACTOR:g} x" if short else "")
                                     + ". Leave tau out to fit it (REML, its uncertainty in the std), or check it"),
                   stacklevel=3)
