@@ -2510,8 +2510,10 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     if profile is None:
         account = _imu_account(res, measured, C_trk, C_imu, refit, flight)
         if stated is not None:  # a stated tau: conditioned on, judged beside the IMU's noise
-            C_free = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, stated[0]).reshape(3 * N, n)
-            account["tau_stated"] = _tau_stated_record(res, stated, C_trk + C_imu, C_free + C_imu)
+            near = stated[2]
+            C_near = None if near is None else \
+                A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, near).reshape(3 * N, n) + C_imu
+            account["tau_stated"] = _tau_stated_record(res, stated, C_trk + C_imu, C_near)
         return C_trk, C_imu, account
     spread = tau_spread(A, problem, profile)
     account = _imu_account(res, measured, C_trk + spread, C_imu, refit, flight)
@@ -2977,32 +2979,37 @@ def _tau_record(res: EstimateResult, t: np.ndarray, profile: tuple, C: np.ndarra
                     "at the fit, its part that adds variance (casep.workflows.row_estimators.tau_spread)"}
 
 
-def _tau_stated_record(res: EstimateResult, stated: tuple, C: np.ndarray, C_free: np.ndarray) -> dict:
+def _tau_stated_record(res: EstimateResult, stated: tuple, C: np.ndarray, C_near: np.ndarray | None) -> dict:
     """The data's judgement of the stated correlation times for the noise account (``tau_stated``): per axis
-    :func:`casep.noise.known.stated_tau_check`'s record, and the largest factor by which the std at the stated tau
-    (covariance `C`) fall short of those at REML's (`C_free`, the tracking noise fitted freely beside the IMU's), over
-    the coefficients with a finite std (1 where none falls short)."""
+    :func:`casep.noise.known.stated_tau_check`'s record, and where some axis is outside its interval the largest
+    factor by which the std at the stated tau (covariance `C`) fall short of those at the closest taus the data accept
+    (`C_near`), over the coefficients with a finite std (1 where none falls short; None where every axis is within)."""
     from casep.noise.fit import PROFILE_LR
     from casep.noise.model import AXES
 
-    free, axes = stated
+    free, axes, near = stated
+    out = {"axes": dict(zip(AXES, axes)), "level": PROFILE_LR, "std_factor_max": None, "std_factor_worst": None,
+           "tracking_noise_reml": free.to_dict(),
+           "rule": "the std conditioned on the stated tau (no average over it); per axis the restricted likelihood "
+                   "beside the IMU's noise with that axis's tau at the stated value (the others' at REML's, every "
+                   "variance refitted) against the best, within the level: inside the profile's 95 % interval "
+                   "(casep.noise.known.stated_tau_check); the factor: the std at the closest taus the data accept "
+                   "(the nearer end of the interval) over those at the stated ones"}
+    if C_near is None:
+        return out
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.sqrt(np.diag(C_free) / np.diag(C))
+        ratio = np.sqrt(np.diag(C_near) / np.diag(C))
     ok = np.isfinite(ratio) & np.isfinite(np.asarray(res.covariance).diagonal())
     worst = int(np.argmax(np.where(ok, ratio, -np.inf))) if ok.any() else 0
-    return {"axes": dict(zip(AXES, axes)), "level": PROFILE_LR,
-            "std_factor_max": max(float(ratio[worst]), 1.0) if ok.any() else None, "std_factor_worst": res.names[worst],
-            "tracking_noise_reml": free.to_dict(),
-            "rule": "the std conditioned on the stated tau (no average over it); per axis the restricted likelihood "
-                    "beside the IMU's noise with that axis's tau at the stated value (the others' at REML's, every "
-                    "variance refitted) against the best, within the level: inside the profile's 95 % interval "
-                    "(casep.noise.known.stated_tau_check); the factor: the std at REML's tau over those at the "
-                    "stated one"}
+    out.update({"std_factor_max": max(float(ratio[worst]), 1.0) if ok.any() else None,
+                "std_factor_worst": res.names[worst], "tracking_noise_accepted": near.to_dict()})
+    return out
 
 
 #: A stated correlation time outside its profile likelihood's 95 % interval (:func:`_tau_stated_record`) whose std
-#: fall short of those at REML's tau by more than this fails the result (:func:`warn_tau_stated`). At 1.5 a nominal
-#: 95 % interval (1.96 std) covers 1.31 true std: 81 %, one estimate in five outside it instead of one in twenty.
+#: fall short of those at the closest tau the data accept by more than this fails the result (:func:`warn_tau_stated`).
+#: At 1.5 a nominal 95 % interval (1.96 std) covers 1.31 true std: 81 %, one estimate in five outside it instead of one
+#: in twenty.
 TAU_STATED_FACTOR = 1.5
 
 
@@ -3010,9 +3017,10 @@ def warn_tau_stated(source: Any, record: dict) -> str | None:
     """A :class:`~casep.exceptions.NoiseLevelWarning` when the data put a stated correlation time outside its profile
     likelihood's 95 % interval on some axis (`record` the noise account's ``tau_stated``, :func:`_tau_stated_record`):
     per such axis the stated tau, the interval, REML's tau and the likelihood drop against its level, and by how much
-    the std at the stated tau fall short of those at REML's. Returns the failure's message when that factor is above
-    :data:`TAU_STATED_FACTOR` (the caller fails the result, status ``STATUS_PRIOR_CONFLICT``: the data contradict
-    the stated tau and the std it gives are too small), else None."""
+    the std at the stated tau fall short of those at the closest taus the data accept (the nearer interval ends).
+    Returns the failure's message when that factor is above :data:`TAU_STATED_FACTOR` (the caller fails the result,
+    status ``STATUS_PRIOR_CONFLICT``: the data contradict the stated tau and the std it gives are too small), else
+    None."""
     from casep.exceptions import NoiseLevelWarning
 
     def s(v: float | None, none: str) -> str:
@@ -3030,9 +3038,10 @@ def warn_tau_stated(source: Any, record: dict) -> str | None:
                 + f", REML {s(v['reml_tau_s'], 'white')}; "
                 f"-2 ln Lambda {v['drop']:.3g} > {record['level']:g})" for ax, v in out) + f" ({source})")
     short = factor is not None and factor > TAU_STATED_FACTOR
-    tail = "" if factor is None else (f"; the std at the stated tau are {factor:.3g} x smaller than at REML's "
-                                      f"({record['std_factor_worst']})" if factor > 1.0 else
-                                      "; the std at the stated tau are not smaller than at REML's")
+    tail = "" if factor is None else (f"; the std at the stated tau are {factor:.3g} x smaller than at the closest "
+                                      f"tau the data accept ({record['std_factor_worst']})" if factor > 1.0 else
+                                      "; the std at the stated tau are not smaller than at the closest tau the data "
+                                      "accept")
     warnings.warn(NoiseLevelWarning(said + tail + (f", beyond {TAU_STATED_FACTOR:g} x" if short else "")
                                     + ". Leave tau out to fit it (REML, its uncertainty in the std), or check it"),
                   stacklevel=3)

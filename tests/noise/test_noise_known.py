@@ -279,7 +279,8 @@ def test_a_stated_tau_is_judged_by_the_profile_likelihood_fit_noise_gives_with_n
     truth), 5 s and 0.2 s: :func:`stated_tau_check`'s drops are those of :func:`casep.noise.fit.fit_noise`'s own
     restricted likelihood (sigma profiled out, its own search) at the same points, the other axes at its free fit's
     taus (0.1 in -2 l_R); the true tau is within the 95 % interval, the wrong ones are not, and at the ends of the
-    interval found for them fit_noise's drop is the level (0.2). The free fit is fit_noise's (3 % in tau), though the
+    interval found for them fit_noise's drop is the level (0.2); the closest taus the data accept are the stated one
+    and the nearer ends. The free fit is fit_noise's (3 % in tau), though the
     simplex started at the stated 0.2 s stops at 0.46 s on z, 10 below the maximum at 1.3 s."""
     from casep.noise.fit import PROFILE_LR
     from casep.noise.known import stated_tau_check
@@ -294,7 +295,7 @@ def test_a_stated_tau_is_judged_by_the_profile_likelihood_fit_noise_gives_with_n
     X = np.stack(Reml(pb, estimable_basis(pb)).Z, axis=1)
     stated = (1.0, 5.0, 0.2)
     fit, _ = fit_tracking(X, t, fit_noise(pb, "gmw", tau=stated), zero)
-    free, axes = stated_tau_check(X, t, fit, zero, stated)
+    free, axes, near = stated_tau_check(X, t, fit, zero, stated)
     base = fit_noise(pb, "gmw")
     np.testing.assert_allclose(free.tau, base.tau, rtol=0.03)
 
@@ -313,3 +314,5 @@ def test_a_stated_tau_is_judged_by_the_profile_likelihood_fit_noise_gives_with_n
         lo, hi = a["interval_s"]
         assert lo < 1.0 < hi and not lo <= stated[j] <= hi, a
         assert drop(j, lo) == pytest.approx(PROFILE_LR, abs=0.2) and drop(j, hi) == pytest.approx(PROFILE_LR, abs=0.2)
+    # the closest taus the data accept: the stated on x, the interval's upper end on y (5 s above it), lower on z
+    assert near.rule.startswith("tau given") and near.tau == (1.0, axes[1]["interval_s"][1], axes[2]["interval_s"][0])

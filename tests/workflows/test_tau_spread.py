@@ -135,8 +135,9 @@ def _stated(factor: float | None) -> dict:
 
 def test_a_stated_tau_the_data_reject_is_said_with_its_numbers_and_fails_when_its_std_fall_short():
     """The warning names each axis whose stated tau is outside its interval, with the stated tau, the interval, REML's
-    tau and the drop against the level, and the std factor; beyond TAU_STATED_FACTOR it returns the failure's message
-    (the caller fails the result), at or below it None; every axis within: nothing said."""
+    tau and the drop against the level, and the std factor (against the closest tau the data accept); beyond
+    TAU_STATED_FACTOR it returns the failure's message (the caller fails the result), at or below it None; every axis
+    within: nothing said."""
     import warnings
 
     from casep.exceptions import NoiseLevelWarning
@@ -144,15 +145,16 @@ def test_a_stated_tau_the_data_reject_is_said_with_its_numbers_and_fails_when_it
 
     said_y = r"y \(stated 0\.05 s, interval 0\.52 s to 11\.3 s, REML 1\.34 s; -2 ln Lambda 46\.9 > 3\.841\)"
     said_z = r"z \(stated 0\.05 s, interval 0\.24 s to the record length, REML 0\.99 s; -2 ln Lambda 30\.3 > 3\.841\)"
-    tail = r" \(rec\); the std at the stated tau are 1\.31 x smaller than at REML's \(bg_x\)\. Leave tau out"
+    tail = (r" \(rec\); the std at the stated tau are 1\.31 x smaller than at the closest tau the data accept "
+            r"\(bg_x\)\. Leave tau out")
     with pytest.warns(NoiseLevelWarning, match=f"on axes {said_y}, {said_z}{tail}") as said:
         assert warn_tau_stated("rec", _stated(1.31)) is None
     assert len(said) == 1 and "x (stated" not in str(said[0].message)
-    beyond = rf"2\.4 x smaller than at REML's \(bg_x\), beyond {TAU_STATED_FACTOR:g} x"
+    beyond = rf"2\.4 x smaller than at the closest tau the data accept \(bg_x\), beyond {TAU_STATED_FACTOR:g} x"
     with pytest.warns(NoiseLevelWarning, match=beyond):
         failure = warn_tau_stated("rec", _stated(2.4))
     assert failure is not None and failure.startswith("failed: the data put the stated") and "2.4 x" in failure
-    with pytest.warns(NoiseLevelWarning, match="not smaller than at REML's"):
+    with pytest.warns(NoiseLevelWarning, match="not smaller than at the closest tau the data accept"):
         assert warn_tau_stated("rec", _stated(1.0)) is None
     record = _stated(2.4)
     record["axes"] = {ax: {**v, "within": True} for ax, v in record["axes"].items()}
