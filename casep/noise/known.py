@@ -401,8 +401,10 @@ def level_interval(along, x: float, best: float, low: float, high: float, level:
     return ends[0], ends[1]
 
 
-#: The white shares :func:`stated_tau_check` scans (with the profile's grid of tau) for its free fit's second start.
+#: The white shares :func:`stated_tau_check` scans (with the profile's grid of tau) for its free fit's start, and (with
+#: these factors on the axis's variance) for an upper bound of a point's ``-2 l_R`` (below the level: no refit needed).
 SCAN_SHARES = (0.1, 0.3, 0.5, 0.7, 0.9)
+BOUND_SCALES = (0.6, 0.8, 1.0, 1.25, 1.6)
 
 
 def stated_tau_check(X: np.ndarray, t: np.ndarray, fit: NoiseModel, known: KnownStates, stated, *,
@@ -412,33 +414,34 @@ def stated_tau_check(X: np.ndarray, t: np.ndarray, fit: NoiseModel, known: Known
     `fit` the tracking noise fitted at them (:func:`fit_tracking` from a model of rule ``"given"``, its
     ``extra["neg2_reml"]``), `stated` the three taus (s), `known`, `part_start` as that fit's.
 
-    The free fit (tau by REML too, from `fit` and from the best taus of a scan) is the best point; per axis ``a``
+    The free fit (tau by REML too, from the best taus and white shares of a scan) is the best point; per axis ``a``
     the profile point at the stated tau holds that axis's tau there and the others' at the free fit's, every
     variance refitted (the rule of :func:`casep.noise.fit.tau_profile`'s points, here beside the known term: the
     IMU's random walks left in the rows read as a longer correlation time, and on a rail launch with MEMS noise the
     true tau was outside the profile of the rows alone on 5 of 6 axes, 2 seeds). Its ``-2 l_R`` above the best (the
-    least of the free fit's, `fit`'s and the points') is the drop; within `level` (:data:`casep.noise.fit.PROFILE_LR`,
+    least of the free fit's, `fit`'s and the points') is the drop (``drop_bound``: an upper bound of it, that
+    axis's variances on a grid, the rest held, where that bound is already below the level: no refit needed); within
+    `level` (:data:`casep.noise.fit.PROFILE_LR`,
     chi2_1 95 %) the stated tau is inside the profile's 95 % interval. Where it is not, the interval itself is found
     along that axis (:func:`level_interval` in ``ln tau`` over :func:`casep.noise.fit.tau_search_bounds`, the stated
     point bracketing its side).
 
-    Returns the free fit, per axis ``{"tau_s", "reml_tau_s", "drop", "within", "interval_s"}`` (``interval_s``
-    None where within; an end None where the search interval's bound is within the level), and, where some axis is
-    outside, the tracking noise fitted at the closest taus the data accept (the stated tau where within, else the
-    interval's end nearer to it; None when every axis is within): against it the std at the stated tau are judged
+    Returns the free fit, per axis ``{"tau_s", "reml_tau_s", "drop", "within", "drop_bound", "interval_s"}``
+    (``interval_s`` None where within; an end None where the search interval's bound is within the level), and,
+    where some axis is outside, the tracking noise fitted at the closest taus the data accept (the stated tau where
+    within, else the interval's end nearer to it; None when every axis is within): against it the std at the stated
+    tau are judged
     (:func:`casep.workflows.imu_separate.warn_tau_stated`). REML's tau is a poor yardstick there: on a rail launch
     whose tracking noise dominates, the std at REML's tau were 1.71 times those at the true tau in one of 12 runs."""
-    from dataclasses import replace
-
     from casep.noise.fit import PROFILE_LR, PROFILE_POINTS, tau_search_bounds
 
     level = PROFILE_LR if level is None else float(level)
     lo, hi = tau_search_bounds(np.asarray(t, dtype=float))
     th_fit = TrackingParameters.of(fit)
-    # the free fit's simplex, started at the stated taus, stops in a local minimum near them (a stated 0.2 s on
-    # 1 s noise: 0.46 s, 10 below the maximum at 1.3 s); so it runs again from each axis's best tau and white share on
-    # a grid (tau: the profile's, evenly in ln tau over the search interval; the axis's variance at the stated fit's,
-    # the axes in turn), and the better of the two is the fit
+    # the simplex started at the stated taus stops in a local minimum near them (a stated 0.2 s on 1 s noise: 0.46 s,
+    # 10 below the maximum at 1.3 s); so it starts from each axis's best tau and white share on a grid (tau: the
+    # profile's, evenly in ln tau over the search interval; the axis's variance at the stated fit's; the stated fit's
+    # own values among the candidates; the axes in turn)
     fixed = known.scaled(list(fit.extra["known_scales"])) if known.parts else known
     th = th_fit
     grid = [(float(g), w) for g in np.exp(np.linspace(lo, hi, PROFILE_POINTS)) for w in SCAN_SHARES]
@@ -449,33 +452,54 @@ def stated_tau_check(X: np.ndarray, t: np.ndarray, fit: NoiseModel, known: Known
             return TrackingParameters(*(tuple(new if k == j else old[k] for k in range(3)) for old, new in
                                         ((th.c, var * (1.0 - w)), (th.tau, g), (th.d, var * w))))
 
-        th = at(*grid[int(np.argmin([restricted_likelihood(X, t, at(g, w), fixed) for g, w in grid]))])
-    scanned = th.model(fit.kind, "REML")
-    free = min((fit_tracking(X, t, start, known, part_start=part_start)[0] for start in
-                (replace(fit, rule="REML"), scanned)), key=lambda m: m.extra["neg2_reml"])
+        cands = [*grid, (th.tau[j], th.d[j] / var)] if th.tau[j] is not None and var > 0 else grid
+        th = at(*cands[int(np.argmin([restricted_likelihood(X, t, at(g, w), fixed) for g, w in cands]))])
+    free = fit_tracking(X, t, th.model(fit.kind, "REML"), known, part_start=part_start)[0]
     th_free = TrackingParameters.of(free)
+    fixed = known.scaled(list(free.extra["known_scales"])) if known.parts else known
     memo: dict = {}
+
+    def moved(j: int, v: float) -> TrackingParameters:  # axis j's tau at e^v, the rest at the free fit's
+        c, tau, d = list(th_free.c), list(th_free.tau), list(th_free.d)
+        if tau[j] is None:  # a white axis in the free fit: its Gauss-Markov part starts at the stated fit's
+            c[j], d[j] = th_fit.c[j], th_fit.d[j]
+        tau[j] = float(np.exp(v))
+        return TrackingParameters(tuple(c), tuple(tau), tuple(d))
 
     def point(j: int, v: float) -> float:  # -2 l_R with axis j's tau at e^v, the others' at the free fit's
         if (j, v) not in memo:
-            c, tau, d = list(th_free.c), list(th_free.tau), list(th_free.d)
-            if tau[j] is None:  # a white axis in the free fit: its Gauss-Markov part starts at the stated fit's
-                c[j], d[j] = th_fit.c[j], th_fit.d[j]
-            tau[j] = float(np.exp(v))
-            start = TrackingParameters(tuple(c), tuple(tau), tuple(d)).model(fit.kind, "given")
-            memo[(j, v)] = fit_tracking(X, t, start, known, part_start=part_start)[1]
+            memo[(j, v)] = fit_tracking(X, t, moved(j, v).model(fit.kind, "given"), known, part_start=part_start)[1]
         return memo[(j, v)]
 
-    vals = [point(j, float(np.log(stated[j]))) for j in range(3)]
-    best = min(free.extra["neg2_reml"], fit.extra["neg2_reml"], *vals)
+    def bound(j: int, v: float) -> float:  # point's upper bound: axis j's variances on a grid, the rest held
+        th0 = moved(j, v)
+        var = th0.c[j] + th0.d[j]
+        return min(restricted_likelihood(X, t, TrackingParameters(*(
+            tuple(new if k == j else old[k] for k in range(3)) for old, new in
+            ((th0.c, var * sc * (1.0 - w)), (th0.tau, th0.tau[j]), (th0.d, var * sc * w)))), fixed)
+            for sc in BOUND_SCALES for w in SCAN_SHARES)
+
+    # each axis's drop: the refitted point where its bound is not already below the level (then it is within)
+    logs = [float(np.log(v)) for v in stated]
+    bounds = [bound(j, logs[j]) for j in range(3)]
+    vals: list[float | None] = [None, None, None]
+    best = min(free.extra["neg2_reml"], fit.extra["neg2_reml"])
+    while True:
+        for j in range(3):
+            if vals[j] is None and bounds[j] - best >= level:
+                vals[j] = point(j, logs[j])
+        lowest = min([best, *(v for v in vals if v is not None)])
+        if lowest == best:
+            break
+        best = lowest
     out = []
     for j in range(3):
-        v, drop = float(np.log(stated[j])), vals[j] - best
+        v, drop = logs[j], (bounds[j] if vals[j] is None else vals[j]) - best
         rec = {"tau_s": float(stated[j]), "reml_tau_s": free.tau[j], "drop": float(drop), "within": bool(drop < level),
-               "interval_s": None}
+               "drop_bound": vals[j] is None, "interval_s": None}
         if not rec["within"] and free.tau[j] is not None:
             x = float(np.clip(np.log(free.tau[j]), lo, hi))
-            ends = level_interval(lambda u, j=j: point(j, u), x, best, lo, hi, level, 0.7, {v: vals[j]})  # pool_parts'
+            ends = level_interval(lambda u, j=j: point(j, u), x, best, lo, hi, level, 0.7, {v: drop + best})  # pool's
             rec["interval_s"] = [None if e is None else float(np.exp(e)) for e in ends]
         out.append(rec)
     if all(rec["within"] for rec in out):
@@ -488,8 +512,8 @@ def stated_tau_check(X: np.ndarray, t: np.ndarray, fit: NoiseModel, known: Known
         edge = (rec["interval_s"] or [None, None])[0 if below else 1]
         near.append(rec["tau_s"] if rec["within"] else float(np.exp(lo if rec["reml_tau_s"] is None or below else hi))
                     if edge is None else edge)
-    start = TrackingParameters(th_free.c, tuple(near), th_free.d).model(fit.kind, "given")
-    return free, out, fit_tracking(X, t, start, known, part_start=part_start)[0]
+    accepted = TrackingParameters(th_free.c, tuple(near), th_free.d).model(fit.kind, "given")
+    return free, out, fit_tracking(X, t, accepted, known, part_start=part_start)[0]
 
 
 def tracking_covariance_times(V: np.ndarray, t: np.ndarray, noise: NoiseModel) -> np.ndarray:

@@ -2477,7 +2477,10 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     the tracking part gains what the uncertainty of the correlation times adds (:func:`tau_spread`, as the stated
     combinations' std do: :func:`combination_imu_noise`), and the account says over which correlation times, whether
     the record bounds them and by how much it raises the std (``tau_profile``: :func:`warn_tau_unbounded` says when
-    the record does not bound them). `estimators`: ``A`` when the caller formed it already
+    the record does not bound them). A fit whose correlation times the request stated (its noise model's rule
+    ``"given"``) is conditioned on them, no profile averaged over (:meth:`_Run.tau_profile`), and the data judge them
+    beside the IMU's noise (:func:`casep.noise.known.stated_tau_check`): the account's ``tau_stated``
+    (:func:`_tau_stated_record`, said by :func:`warn_tau_stated`). `estimators`: ``A`` when the caller formed it already
     (:func:`combination_estimators` of the identity on `res`); `measured`: the IMU's noise when the caller measured
     it already (:func:`imu_noise_measured` of `flight` and the problem's times).
     """
