@@ -432,7 +432,8 @@ def stated_tau_check(X: np.ndarray, t: np.ndarray, fit: NoiseModel, known: Known
     within, else the interval's end nearer to it; None when every axis is within): against it the std at the stated
     tau are judged
     (:func:`casep.workflows.imu_separate.warn_tau_stated`). REML's tau is a poor yardstick there: on a rail launch
-    whose tracking noise dominates, the std at REML's tau were 1.71 times those at the true tau in one of 12 runs."""
+    whose tracking noise dominates, the std at REML's tau were 1.71 times those at the true tau in one of 12 runs
+    (one of its axes outside by chance: failed)."""
     from casep.noise.fit import PROFILE_LR, PROFILE_POINTS, tau_search_bounds
 
     level = PROFILE_LR if level is None else float(level)
@@ -444,9 +445,11 @@ def stated_tau_check(X: np.ndarray, t: np.ndarray, fit: NoiseModel, known: Known
     # own values among the candidates; the axes in turn)
     fixed = known.scaled(list(fit.extra["known_scales"])) if known.parts else known
     th = th_fit
-    grid = [(float(g), w) for g in np.exp(np.linspace(lo, hi, PROFILE_POINTS)) for w in SCAN_SHARES]
+    taus = np.exp(np.linspace(lo, hi, PROFILE_POINTS))
     for j in range(3):
         var = th.c[j] + th.d[j]
+        shares = SCAN_SHARES if th.d[j] > 0 else (0.0,)  # a Gauss-Markov axis without white noise stays so
+        grid = [(float(g), w) for g in taus for w in shares]
 
         def at(g: float, w: float, j: int = j, var: float = var, th: TrackingParameters = th) -> TrackingParameters:
             return TrackingParameters(*(tuple(new if k == j else old[k] for k in range(3)) for old, new in
@@ -477,7 +480,7 @@ def stated_tau_check(X: np.ndarray, t: np.ndarray, fit: NoiseModel, known: Known
         return min(restricted_likelihood(X, t, TrackingParameters(*(
             tuple(new if k == j else old[k] for k in range(3)) for old, new in
             ((th0.c, var * sc * (1.0 - w)), (th0.tau, th0.tau[j]), (th0.d, var * sc * w)))), fixed)
-            for sc in BOUND_SCALES for w in SCAN_SHARES)
+            for sc in BOUND_SCALES for w in (SCAN_SHARES if th0.d[j] > 0 else (0.0,)))
 
     # each axis's drop: the refitted point where its bound is not already below the level (then it is within)
     logs = [float(np.log(v)) for v in stated]

@@ -92,7 +92,8 @@ def test_the_std_hold_the_imus_white_noise(draws, budgets, clean):
     """30 z = estimate / std (truth 0) of two draws: RMS within 0.5-1.52 (the 15 z of one draw are correlated:
     wider than the 0.62-1.41 of 30 independent unit normals at 0.1 % each side); with the tracking noise alone
     (the std without the IMU's part, today's main) it is above 1.6 (12 draws: 1.97, coverage 0.63; with the
-    IMU's part, the tracking noise refitted beside it, 0.70 and 1.00, conservative: ``benchmarks/mc_imu_noise.py``)."""
+    IMU's part, the tracking noise refitted beside it and the stated tau conditioned on, 0.77 and 1.00, conservative
+    by the steps between samples: ``benchmarks/mc_imu_noise.py``)."""
     z, z_trk = [], []
     for out in draws:
         res = out.result
