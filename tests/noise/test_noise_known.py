@@ -316,3 +316,30 @@ def test_a_stated_tau_is_judged_by_the_profile_likelihood_fit_noise_gives_with_n
         assert drop(j, lo) == pytest.approx(PROFILE_LR, abs=0.2) and drop(j, hi) == pytest.approx(PROFILE_LR, abs=0.2)
     # the closest taus the data accept: the stated on x, the interval's upper end on y (5 s above it), lower on z
     assert near.rule.startswith("tau given") and near.tau == (1.0, axes[1]["interval_s"][1], axes[2]["interval_s"][0])
+
+
+def test_a_stated_tau_of_gauss_markov_noise_without_white_is_judged_without_a_white_part():
+    """Noise ``gm`` with a stated tau (no white part: Gauss-Markov 1 s only, 200 epochs, seeded), stated 1, 3 and 0.3 s:
+    the free fit stays Gauss-Markov on every axis (a white part found in the scan would make the stated fit lose to a
+    richer model, not to another tau), its taus fit_noise's ``gm`` ones (1 %), and the drops of the axes outside are
+    fit_noise's ``gm`` profile's (0.1)."""
+    from casep.noise.known import stated_tau_check
+    from casep.simulation.noise import ar1_noise
+
+    rng = np.random.default_rng(7)
+    t = 0.2 * np.arange(200)
+    S = rng.normal(size=(t.size, 3, 2))
+    pb = Problem.from_arrays(S, S @ np.array([1.0, -2.0]) + ar1_noise(t, 0.03, 1.0, rng), t)
+    zero = KnownStates(np.ones((t.size, 1, 1)), np.zeros((t.size, 1, 1)), np.zeros((t.size, 3, 1)), np.zeros((1, 1)))
+    X = np.stack(Reml(pb, estimable_basis(pb)).Z, axis=1)
+    stated = (1.0, 3.0, 0.3)
+    free, axes, _ = stated_tau_check(X, t, fit_tracking(X, t, fit_noise(pb, "gm", tau=stated), zero)[0], zero, stated)
+    base = fit_noise(pb, "gm")
+    assert free.kind == "gm" and free.share == (0.0, 0.0, 0.0)
+    np.testing.assert_allclose(free.tau, base.tau, rtol=0.01)
+    assert [a["within"] for a in axes] == [True, False, False], axes
+    for j in (1, 2):
+        tt = list(base.tau)
+        tt[j] = stated[j]
+        want = fit_noise(pb, "gm", tau=tt).extra["neg2_reml"] - base.extra["neg2_reml"]
+        assert axes[j]["drop"] == pytest.approx(want, abs=0.1), (j, axes[j], want)
