@@ -57,7 +57,8 @@ class MagnitudeWarning(CasepWarning):
 
 
 class NoiseLevelWarning(CasepWarning):
-    """A given noise sigma (or a prior) that the residuals contradict: the message gives the ratio and the test."""
+    """A given noise sigma, correlation time (or a prior) that the residuals contradict: the message gives the
+    ratio or the interval, and the test."""
 
 
 class GapWarning(CasepWarning):

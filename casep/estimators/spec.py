@@ -152,6 +152,14 @@ class FitSpec:
         ns = NoiseSpec(noise, tau, robust, std, exclude_outliers, denoise, dict(wavelet_options or {}))
         return cls(method, all_opts, sigma, ns, outliers, keywords)
 
+    @property
+    def tau_given(self) -> tuple[float, float, float] | None:
+        """The correlation time per axis the request states, s (the noise model's or the method's own: who owns it,
+        :func:`_tau_owner`), None when it leaves tau to REML (:func:`casep.noise.model.check_tau`)."""
+        from casep.noise.model import check_tau
+
+        return check_tau(self.noise.tau if self.noise.tau is not None else self.options.get("tau"))
+
     def about(self, names: Any, at: Any) -> FitSpec:
         """The request for the correction ``x = D - at`` of a fit linearised at `at` (natural units, one value per name
         of `names`: an iteration's pass solves for the step from where the passes stand): a prior's means and the

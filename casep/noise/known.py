@@ -52,7 +52,8 @@ from casep._kernels import ar1_terms, joint_filter
 from casep.noise.model import AXES, NoiseModel
 
 __all__ = ["KnownStates", "TrackingParameters", "joint_whiten", "restricted_likelihood", "fit_tracking",
-           "tracking_covariance_times", "PART_RANGE", "RemlRows", "PooledParts", "pool_parts", "POOL_LEVEL"]
+           "tracking_covariance_times", "PART_RANGE", "RemlRows", "PooledParts", "pool_parts", "POOL_LEVEL",
+           "level_interval", "stated_tau_check"]
 
 #: How far (natural logarithm, down and up) :func:`fit_tracking` moves a part's variance from its start: e^-25 is
 #: 1e-11 of the start (a part that small adds nothing a record tells from none: it is then 0), e^20 4.9e8 of it.
@@ -354,35 +355,168 @@ def pool_parts(records, weights=None, *, xatol: float = 0.1, step: float = 0.7) 
         def along(v: float, i: int = i) -> float:  # -2 l_R with part i at ln q = v, the others at their best
             return value(np.where(np.arange(n) == i, v, x))
 
-        ends = []
-        for sign, bound in ((-1.0, low[i]), (1.0, high[i])):
-            inside, d = float(x[i]), step  # the last point within the level, and the next step (doubling)
-            while True:
-                cur = inside + sign * d
-                if sign * (cur - bound) >= 0:
-                    cur = float(bound)
-                if along(cur) - best >= POOL_LEVEL:
-                    break
-                if cur == bound:  # the bound itself within the level: the rows do not bound the part there
-                    break
-                inside, d = cur, 2.0 * d
-            if cur == bound and along(cur) - best < POOL_LEVEL:
-                ends.append(0.0 if sign < 0 else np.inf)
-                continue
-            for _ in range(3):  # bisect the crossing, then linear between the two points left
-                mid = 0.5 * (inside + cur)
-                if along(mid) - best >= POOL_LEVEL:
-                    cur = mid
-                else:
-                    inside = mid
-            v_in, v_out = along(inside), along(cur)
-            frac = (best + POOL_LEVEL - v_in) / (v_out - v_in) if v_out > v_in else 1.0
-            edge = inside + frac * (cur - inside)
-            ends.append(0.0 if edge <= low[i] else float(np.exp(edge)))
-        interval.append((ends[0] if x[i] > low[i] else 0.0, ends[1]))
+        lo_i, hi_i = level_interval(along, float(x[i]), best, float(low[i]), float(high[i]), POOL_LEVEL, step)
+        lo_e = 0.0 if lo_i is None or lo_i <= low[i] else float(np.exp(lo_i))
+        interval.append((lo_e if x[i] > low[i] else 0.0, np.inf if hi_i is None else float(np.exp(hi_i))))
     q = sizes(x)
     return PooledParts(tuple(float(v) for v in q), tuple(interval), best, value(low), tuple(float(v) for v in w),
                        tuple(refit(x)[1]), count[0])
+
+
+def level_interval(along, x: float, best: float, low: float, high: float, level: float, step: float,
+                   outside: dict | None = None) -> tuple[float | None, float | None]:
+    """The ends of ``{v: along(v) - best < level}`` around `x` (its best point) within ``[low, high]``: from `x`
+    steps of `step` on each side, doubling, up to the bound, which counts (within the level there: that end None,
+    the rows do not bound it); the crossing bisected three times, then linear between its two points. `outside`
+    (``{v: along(v)}``) holds points already known beyond the level: a side with one starts bracketed by the
+    nearest. The rule of :func:`pool_parts`' intervals and of :func:`stated_tau_check`'s."""
+    ends: list[float | None] = []
+    for sign, bound in ((-1.0, low), (1.0, high)):
+        known = sorted((v for v in (outside or {}) if sign * (v - x) > 0), key=lambda v: abs(v - x))
+        inside, d = x, step  # the last point within the level, and the next step (doubling)
+        if known:
+            cur = known[0]
+        else:
+            while True:
+                cur = inside + sign * d
+                if sign * (cur - bound) >= 0:
+                    cur = bound
+                if along(cur) - best >= level:
+                    break
+                if cur == bound:  # the bound itself within the level: the rows do not bound it there
+                    break
+                inside, d = cur, 2.0 * d
+            if cur == bound and along(cur) - best < level:
+                ends.append(None)
+                continue
+        for _ in range(3):  # bisect the crossing, then linear between the two points left
+            mid = 0.5 * (inside + cur)
+            if along(mid) - best >= level:
+                cur = mid
+            else:
+                inside = mid
+        v_in, v_out = along(inside), along(cur)
+        frac = (best + level - v_in) / (v_out - v_in) if v_out > v_in else 1.0
+        ends.append(inside + frac * (cur - inside))
+    return ends[0], ends[1]
+
+
+#: The white shares :func:`stated_tau_check` scans (with the profile's grid of tau) for its free fit's start, and (with
+#: these factors on the axis's variance) for an upper bound of a point's ``-2 l_R`` (below the level: no refit needed).
+SCAN_SHARES = (0.1, 0.3, 0.5, 0.7, 0.9)
+BOUND_SCALES = (0.6, 0.8, 1.0, 1.25, 1.6)
+
+
+def stated_tau_check(X: np.ndarray, t: np.ndarray, fit: NoiseModel, known: KnownStates, stated, *,
+                     part_start: tuple = (), level: float | None = None
+                     ) -> tuple[NoiseModel, list[dict], NoiseModel | None]:
+    """Stated correlation times of the tracking noise judged by the restricted likelihood beside the known term:
+    `fit` the tracking noise fitted at them (:func:`fit_tracking` from a model of rule ``"given"``, its
+    ``extra["neg2_reml"]``), `stated` the three taus (s), `known`, `part_start` as that fit's.
+
+    The free fit (tau by REML too, from the best taus and white shares of a scan) is the best point; per axis ``a``
+    the profile point at the stated tau holds that axis's tau there and the others' at the free fit's, every
+    variance refitted (the rule of :func:`casep.noise.fit.tau_profile`'s points, here beside the known term: the
+    IMU's random walks left in the rows read as a longer correlation time, and on a rail launch with MEMS noise the
+    true tau was outside the profile of the rows alone on 5 of 6 axes, 2 seeds). Its ``-2 l_R`` above the best (the
+    least of the free fit's, `fit`'s and the points') is the drop (``drop_bound``: an upper bound of it, that
+    axis's variances on a grid, the rest held, where that bound is already below the level: no refit needed); within
+    `level` (:data:`casep.noise.fit.PROFILE_LR`,
+    chi2_1 95 %) the stated tau is inside the profile's 95 % interval. Where it is not, the interval itself is found
+    along that axis (:func:`level_interval` in ``ln tau`` over :func:`casep.noise.fit.tau_search_bounds`, the stated
+    point bracketing its side).
+
+    Returns the free fit, per axis ``{"tau_s", "reml_tau_s", "drop", "within", "drop_bound", "interval_s"}``
+    (``interval_s`` None where within; an end None where the search interval's bound is within the level), and,
+    where some axis is outside, the tracking noise fitted at the closest taus the data accept (the stated tau where
+    within, else the interval's end nearer to it; None when every axis is within): against it the std at the stated
+    tau are judged
+    (:func:`casep.workflows.imu_separate.warn_tau_stated`). REML's tau is a poor yardstick there: on a rail launch
+    whose tracking noise dominates, the std at REML's tau were 1.71 times those at the true tau in one of 12 runs
+    (one of its axes outside by chance: failed)."""
+    from casep.noise.fit import PROFILE_LR, PROFILE_POINTS, tau_search_bounds
+
+    level = PROFILE_LR if level is None else float(level)
+    lo, hi = tau_search_bounds(np.asarray(t, dtype=float))
+    th_fit = TrackingParameters.of(fit)
+    # the simplex started at the stated taus stops in a local minimum near them (a stated 0.2 s on 1 s noise: 0.46 s,
+    # 10 below the maximum at 1.3 s); so it starts from each axis's best tau and white share on a grid (tau: the
+    # profile's, evenly in ln tau over the search interval; the axis's variance at the stated fit's; the stated fit's
+    # own values among the candidates; the axes in turn)
+    fixed = known.scaled(list(fit.extra["known_scales"])) if known.parts else known
+    th = th_fit
+    taus = np.exp(np.linspace(lo, hi, PROFILE_POINTS))
+    for j in range(3):
+        var = th.c[j] + th.d[j]
+        shares = SCAN_SHARES if th.d[j] > 0 else (0.0,)  # a Gauss-Markov axis without white noise stays so
+        grid = [(float(g), w) for g in taus for w in shares]
+
+        def at(g: float, w: float, j: int = j, var: float = var, th: TrackingParameters = th) -> TrackingParameters:
+            return TrackingParameters(*(tuple(new if k == j else old[k] for k in range(3)) for old, new in
+                                        ((th.c, var * (1.0 - w)), (th.tau, g), (th.d, var * w))))
+
+        cands = [*grid, (th.tau[j], th.d[j] / var)] if th.tau[j] is not None and var > 0 else grid
+        th = at(*cands[int(np.argmin([restricted_likelihood(X, t, at(g, w), fixed) for g, w in cands]))])
+    free = fit_tracking(X, t, th.model(fit.kind, "REML"), known, part_start=part_start)[0]
+    th_free = TrackingParameters.of(free)
+    fixed = known.scaled(list(free.extra["known_scales"])) if known.parts else known
+    memo: dict = {}
+
+    def moved(j: int, v: float) -> TrackingParameters:  # axis j's tau at e^v, the rest at the free fit's
+        c, tau, d = list(th_free.c), list(th_free.tau), list(th_free.d)
+        if tau[j] is None:  # a white axis in the free fit: its Gauss-Markov part starts at the stated fit's
+            c[j], d[j] = th_fit.c[j], th_fit.d[j]
+        tau[j] = float(np.exp(v))
+        return TrackingParameters(tuple(c), tuple(tau), tuple(d))
+
+    def point(j: int, v: float) -> float:  # -2 l_R with axis j's tau at e^v, the others' at the free fit's
+        if (j, v) not in memo:
+            memo[(j, v)] = fit_tracking(X, t, moved(j, v).model(fit.kind, "given"), known, part_start=part_start)[1]
+        return memo[(j, v)]
+
+    def bound(j: int, v: float) -> float:  # point's upper bound: axis j's variances on a grid, the rest held
+        th0 = moved(j, v)
+        var = th0.c[j] + th0.d[j]
+        return min(restricted_likelihood(X, t, TrackingParameters(*(
+            tuple(new if k == j else old[k] for k in range(3)) for old, new in
+            ((th0.c, var * sc * (1.0 - w)), (th0.tau, th0.tau[j]), (th0.d, var * sc * w)))), fixed)
+            for sc in BOUND_SCALES for w in (SCAN_SHARES if th0.d[j] > 0 else (0.0,)))
+
+    # each axis's drop: the refitted point where its bound is not already below the level (then it is within)
+    logs = [float(np.log(v)) for v in stated]
+    bounds = [bound(j, logs[j]) for j in range(3)]
+    vals: list[float | None] = [None, None, None]
+    best = min(free.extra["neg2_reml"], fit.extra["neg2_reml"])
+    while True:
+        for j in range(3):
+            if vals[j] is None and bounds[j] - best >= level:
+                vals[j] = point(j, logs[j])
+        lowest = min([best, *(v for v in vals if v is not None)])
+        if lowest == best:
+            break
+        best = lowest
+    out = []
+    for j in range(3):
+        v, drop = logs[j], (bounds[j] if vals[j] is None else vals[j]) - best
+        rec = {"tau_s": float(stated[j]), "reml_tau_s": free.tau[j], "drop": float(drop), "within": bool(drop < level),
+               "drop_bound": vals[j] is None, "interval_s": None}
+        if not rec["within"] and free.tau[j] is not None:
+            x = float(np.clip(np.log(free.tau[j]), lo, hi))
+            ends = level_interval(lambda u, j=j: point(j, u), x, best, lo, hi, level, 0.7, {v: drop + best})  # pool's
+            rec["interval_s"] = [None if e is None else float(np.exp(e)) for e in ends]
+        out.append(rec)
+    if all(rec["within"] for rec in out):
+        return free, out, None
+    # the closest taus the data accept: the stated where within, else the nearer end of the interval (the search
+    # interval's bound where the interval reaches it; its bottom where REML finds the axis white)
+    near = []
+    for rec in out:
+        below = rec["tau_s"] < (rec["reml_tau_s"] or 0.0)
+        edge = (rec["interval_s"] or [None, None])[0 if below else 1]
+        near.append(rec["tau_s"] if rec["within"] else float(np.exp(lo if rec["reml_tau_s"] is None or below else hi))
+                    if edge is None else edge)
+    accepted = TrackingParameters(th_free.c, tuple(near), th_free.d).model(fit.kind, "given")
+    return free, out, fit_tracking(X, t, accepted, known, part_start=part_start)[0]
 
 
 def tracking_covariance_times(V: np.ndarray, t: np.ndarray, noise: NoiseModel) -> np.ndarray:

@@ -197,7 +197,7 @@ __all__ = ["separate_imu", "ImuSeparation", "Step", "determined_step", "ITERATE_
            "combination_imu_noise", "with_imu_noise_beyond", "imu_noise_widening", "IMU_NOISE_SHARE",
            "linearisation_shift", "linearisation_record", "one_pass_judged", "Shift", "shift_said", "SMALLER_MODELS",
            "prior_fits_p", "HEADING_STD_DEG", "HEADING_STEP_DEG", "HEADING_SETTLED_Z", "given_heading_std",
-           "heading_first", "SMALL_ANGLE_REACH_DEG", "within_small_angle_reach"]
+           "heading_first", "SMALL_ANGLE_REACH_DEG", "within_small_angle_reach", "warn_tau_stated", "TAU_STATED_FACTOR"]
 
 #: The iteration stops when the correction of every determined combination is below this fraction of its std.
 ITERATE_TOL = 0.1
@@ -1450,14 +1450,16 @@ class _Run:
 
     def tau_profile(self, problem: Any) -> tuple | None:
         """:func:`casep.noise.fit.tau_profile` of `problem`'s rows (the last pass's, formed once; the coefficients'
-        and the stated combinations' std, one rule: :func:`tau_spread`); None without times or a finite
-        Gauss-Markov fit."""
+        and the stated combinations' std, one rule: :func:`tau_spread`). None when the request states the correlation
+        time (:attr:`casep.estimators.spec.FitSpec.tau_given`): the std are conditioned on it, nothing averaged, and
+        the data judge it beside the IMU's noise (:func:`casep.noise.known.stated_tau_check`, :func:`warn_tau_stated`);
+        None without times or a finite Gauss-Markov fit."""
         from casep.noise.fit import tau_profile
 
         if self._tau_profile is not None and self._tau_profile[0] is problem:
             return self._tau_profile[1]
         out = None
-        if problem.y is not None and problem.t is not None:
+        if problem.y is not None and problem.t is not None and self.spec.tau_given is None:
             try:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")  # the profile's fits: the chosen model's fit says what it finds
@@ -2454,7 +2456,10 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     the tracking part gains what the uncertainty of the correlation times adds (:func:`tau_spread`, as the stated
     combinations' std do: :func:`combination_imu_noise`), and the account says over which correlation times, whether
     the record bounds them and by how much it raises the std (``tau_profile``: :func:`warn_tau_unbounded` says when
-    the record does not bound them). `estimators`: ``A`` when the caller formed it already
+    the record does not bound them). A fit whose correlation times the request stated (its noise model's rule
+    ``"given"``) is conditioned on them, no profile averaged over (:meth:`_Run.tau_profile`), and the data judge them
+    beside the IMU's noise (:func:`casep.noise.known.stated_tau_check`): the account's ``tau_stated``
+    (:func:`_tau_stated_record`, said by :func:`warn_tau_stated`). `estimators`: ``A`` when the caller formed it already
     (:func:`combination_estimators` of the identity on `res`); `measured`: the IMU's noise when the caller measured
     it already (:func:`casep.checks.tracking_quality.imu_noise_measured` of `flight` and the problem's times).
     """
@@ -2474,7 +2479,7 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
     N, n = t.size, len(res.names)
     A = estimators if estimators is not None else coefficient_estimators(res, problem)
     assert A is not None  # (n, 3N), the coefficients' estimators: times and a noise model checked above
-    refit = _tracking_beside_imu(problem, flight, noise, levelling, res.diagnostics)
+    refit, stated = _tracking_beside_imu(problem, flight, noise, levelling, res.diagnostics)
     instability = _instability(refit, flight)
     AG = imu_noise_effect(flight, t, A, levelling, None if instability is None else instability[:3], measured.sample)
     if AG is None:
@@ -2487,7 +2492,13 @@ def imu_noise_budget(res: EstimateResult, problem: Any, flight: FlightData, leve
 
     C_trk = A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, refit).reshape(3 * N, n)
     if profile is None:
-        return C_trk, C_imu, _imu_account(res, measured, C_trk, C_imu, refit, flight)
+        account = _imu_account(res, measured, C_trk, C_imu, refit, flight)
+        if stated is not None:  # a stated tau: conditioned on, judged beside the IMU's noise
+            near = stated[2]
+            C_near = None if near is None else \
+                A @ tracking_covariance_times(A.T.reshape(N, 3, n), t, near).reshape(3 * N, n) + C_imu
+            account["tau_stated"] = _tau_stated_record(res, stated, C_trk + C_imu, C_near)
+        return C_trk, C_imu, account
     spread = tau_spread(A, problem, profile)
     account = _imu_account(res, measured, C_trk + spread, C_imu, refit, flight)
     account["tau_profile"] = _tau_record(res, t, profile, C_trk + C_imu, spread)
@@ -2952,6 +2963,75 @@ def _tau_record(res: EstimateResult, t: np.ndarray, profile: tuple, C: np.ndarra
                     "at the fit, its part that adds variance (casep.workflows.row_estimators.tau_spread)"}
 
 
+def _tau_stated_record(res: EstimateResult, stated: tuple, C: np.ndarray, C_near: np.ndarray | None) -> dict:
+    """The data's judgement of the stated correlation times for the noise account (``tau_stated``): per axis
+    :func:`casep.noise.known.stated_tau_check`'s record, and where some axis is outside its interval the largest
+    factor by which the std at the stated tau (covariance `C`) fall short of those at the closest taus the data accept
+    (`C_near`), over the coefficients with a finite std (1 where none falls short; None where every axis is within)."""
+    from casep.noise.fit import PROFILE_LR
+    from casep.noise.model import AXES
+
+    free, axes, near = stated
+    out = {"axes": dict(zip(AXES, axes)), "level": PROFILE_LR, "std_factor_max": None, "std_factor_worst": None,
+           "tracking_noise_reml": free.to_dict(),
+           "rule": "the std conditioned on the stated tau (no average over it); per axis the restricted likelihood "
+                   "beside the IMU's noise with that axis's tau at the stated value (the others' at REML's, every "
+                   "variance refitted) against the best, within the level: inside the profile's 95 % interval "
+                   "(casep.noise.known.stated_tau_check); the factor: the std at the closest taus the data accept "
+                   "(the nearer end of the interval) over those at the stated ones"}
+    if C_near is None:
+        return out
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.sqrt(np.diag(C_near) / np.diag(C))
+    ok = np.isfinite(ratio) & np.isfinite(np.asarray(res.covariance).diagonal())
+    worst = int(np.argmax(np.where(ok, ratio, -np.inf))) if ok.any() else 0
+    out.update({"std_factor_max": max(float(ratio[worst]), 1.0) if ok.any() else None,
+                "std_factor_worst": res.names[worst], "tracking_noise_accepted": near.to_dict()})
+    return out
+
+
+#: A stated correlation time outside its profile likelihood's 95 % interval (:func:`_tau_stated_record`) whose std
+#: fall short of those at the closest tau the data accept by more than this fails the result (:func:`warn_tau_stated`).
+#: At 1.5 a nominal 95 % interval (1.96 std) covers 1.31 true std: 81 %, one estimate in five outside it instead of one
+#: in twenty.
+TAU_STATED_FACTOR = 1.5
+
+
+def warn_tau_stated(source: Any, record: dict) -> str | None:
+    """A :class:`~casep.exceptions.NoiseLevelWarning` when the data put a stated correlation time outside its profile
+    likelihood's 95 % interval on some axis (`record` the noise account's ``tau_stated``, :func:`_tau_stated_record`):
+    per such axis the stated tau, the interval, REML's tau and the likelihood drop against its level, and by how much
+    the std at the stated tau fall short of those at the closest taus the data accept (the nearer interval ends).
+    Returns the failure's message when that factor is above :data:`TAU_STATED_FACTOR` (the caller fails the result,
+    status ``STATUS_PRIOR_CONFLICT``: the data contradict the stated tau and the std it gives are too small), else
+    None."""
+    from casep.exceptions import NoiseLevelWarning
+
+    def s(v: float | None, none: str) -> str:
+        return none if v is None else f"{v:.3g} s"
+
+    out = [(ax, v) for ax, v in record["axes"].items() if not v["within"]]
+    if not out:
+        return None
+    factor = record["std_factor_max"]
+    said = ("the data put the stated tracking-noise correlation time outside its profile likelihood's 95 % interval "
+            "on axes " + ", ".join(
+                f"{ax} (stated {v['tau_s']:.3g} s, interval "
+                + ("unknown" if v["interval_s"] is None else
+                   f"{s(v['interval_s'][0], '0 s')} to {s(v['interval_s'][1], 'the record length')}")
+                + f", REML {s(v['reml_tau_s'], 'white')}; "
+                f"-2 ln Lambda {v['drop']:.3g} > {record['level']:g})" for ax, v in out) + f" ({source})")
+    short = factor is not None and factor > TAU_STATED_FACTOR
+    tail = "" if factor is None else (f"; the std at the stated tau are {factor:.3g} x smaller than at the closest "
+                                      f"tau the data accept ({record['std_factor_worst']})" if factor > 1.0 else
+                                      "; the std at the stated tau are not smaller than at the closest tau the data "
+                                      "accept")
+    warnings.warn(NoiseLevelWarning(said + tail + (f", beyond {TAU_STATED_FACTOR:g} x" if short else "")
+                                    + ". Leave tau out to fit it (REML, its uncertainty in the std), or check it"),
+                  stacklevel=3)
+    return f"failed: {said}{tail}: the std are too small" if short else None
+
+
 def warn_tau_unbounded(source: Any, record: dict) -> None:
     """A :class:`~casep.exceptions.UndecidedNoiseWarning` when the record does not bound the tracking noise's
     correlation time on some axis (`record` the noise account's ``tau_profile``, :func:`_tau_record`): its numbers."""
@@ -2974,9 +3054,11 @@ def warn_tau_unbounded(source: Any, record: dict) -> None:
 
 
 def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling: tuple | None,
-                         diagnostics: dict | None = None) -> Any:
+                         diagnostics: dict | None = None) -> tuple[Any, Any]:
     """The tracking noise model fitted again by REML with the IMU's noise a known term
-    (:func:`casep.noise.known.fit_tracking`); None when the fit's model has no fitted sigma (white noise).
+    (:func:`casep.noise.known.fit_tracking`); None when the fit's model has no fitted sigma (white noise). With it,
+    where the fit's correlation times were stated (rule ``"given"``): the data's judgement of them beside the same
+    known term (:func:`casep.noise.known.stated_tau_check`: the free fit and per axis the drop), else None.
 
     On the samples the fit kept (`diagnostics` its result's: :func:`casep.estimators.solve.kept_samples`), as the
     noise model it refits was fitted: a robust fit's glitches and the excluded outliers left out. With them in, the
@@ -2991,10 +3073,10 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     from casep.checks.tracking_quality import IMU_REML_ROWS, imu_noise_states, imu_sample_noise
     from casep.estimators.solve import kept_samples
     from casep.noise.fit import Reml, estimable_basis
-    from casep.noise.known import RemlRows, fit_tracking
+    from casep.noise.known import RemlRows, fit_tracking, stated_tau_check
 
     if noise.sigma is None or not np.isfinite(noise.sigma) or problem.y is None:
-        return None
+        return None, None
     keep = kept_samples(diagnostics or {}, problem.n_samples)
     rows = problem if keep.all() else problem.subset(keep)
     t = np.asarray(rows.t, dtype=float)
@@ -3002,7 +3084,7 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     given = instability_given(flight)
     known = imu_noise_states(flight, t, levelling, tau)
     if known is None:
-        return None
+        return None, None
     start: tuple = ()
     if tau is not None:
         measured = imu_sample_noise(flight, t)
@@ -3013,12 +3095,15 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     kept = flight.meta.get(IMU_REML_ROWS) if isinstance(flight.meta, dict) else None
     if isinstance(kept, list):  # a size pooled over several records reads them (casep.noise.known.pool_parts)
         kept.append(RemlRows(X, t, noise, known, start))
-    if given is None:
-        return fit_tracking(X, t, noise, known, part_start=start)[0]
-    refit = fit_tracking(X, t, noise, known.scaled(list(given)))[0]
-    refit.extra["known_scales"] = list(given)
-    refit.extra["known_given"] = True
-    return refit
+    if given is not None:
+        known, start = known.scaled(list(given)), ()
+    refit = fit_tracking(X, t, noise, known, part_start=start)[0]
+    if given is not None:
+        refit.extra["known_scales"] = list(given)
+        refit.extra["known_given"] = True
+    if noise.rule != "given" or any(v is None for v in noise.tau) or not refit.extra.get("neg2_reml", np.nan) < np.inf:
+        return refit, None
+    return refit, stated_tau_check(X, t, refit, known, noise.tau, part_start=start)
 
 
 def instability_given(flight: FlightData) -> tuple[float, float] | None:
@@ -3146,8 +3231,11 @@ def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
     if budget is None:
         return res
     C_trk, C_imu, account = budget
+    conflict = None
     if "tau_profile" in account:
         warn_tau_unbounded(problem.source, account["tau_profile"])
+    if "tau_stated" in account:
+        conflict = warn_tau_stated(problem.source, account["tau_stated"])
     C_fit = np.asarray(res.covariance)
     # the tracking part: refitted (the minimum-norm solution's, finite where the fit's is not), else the fit's own;
     # a refit sets the covariance anew, and the consider terms added on top of the fit's (with_extra_covariance: the
@@ -3160,7 +3248,12 @@ def with_imu_noise(res: EstimateResult, problem: Any, flight: FlightData,
     if solution is not None and solution.covariance is not None:
         solution = dataclasses.replace(solution, covariance=solution.covariance + C_imu if C_new is None else C_new)
     diag = {**res.diagnostics, "noise": {**res.diagnostics["noise"], "imu": account}}
-    return dataclasses.replace(res, covariance=cov, std=std, solution=solution, diagnostics=diag)
+    out = dataclasses.replace(res, covariance=cov, std=std, solution=solution, diagnostics=diag)
+    if conflict is None:
+        return out
+    from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
+
+    return failed(out, STATUS_PRIOR_CONFLICT, conflict)
 
 
 #: A linear telemetry result (no iteration) carries the IMU's noise (:func:`with_imu_noise`, the tracking noise refitted

@@ -248,7 +248,7 @@ def column_estimates(res: EstimateResult, problem: Any, flight: FlightData, colu
 def tau_spread(a: np.ndarray, problem: Any, profile: tuple | None) -> np.ndarray:
     """The covariance (m, m) the uncertainty of the tracking noise's correlation times adds to the estimators `a`
     (m, 3N: rows on the raw rows of `problem`, axis-interleaved); `profile` :func:`casep.noise.fit.tau_profile`'s of
-    `problem` (:meth:`_Run.tau_profile`; None: zero).
+    `problem` (:meth:`_Run.tau_profile`; None: zero, as where the request states tau, which is conditioned on).
 
     The tracking noise's covariance of the estimators is ``a Sigma_track(theta) a^T`` at the fitted ``theta``; a
     short record holds each axis's tau only to a factor of several, and over that range the variance of a

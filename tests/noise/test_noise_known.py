@@ -272,3 +272,74 @@ def test_a_pooled_size_over_windows_recovers_the_instability_within_its_interval
     for bad in ([1.0, -1.0], [0.0, 0.0], [1.0]):
         with pytest.raises(ValueError, match="weight"):
             pool_parts([one, one], bad)
+
+
+def test_a_stated_tau_is_judged_by_the_profile_likelihood_fit_noise_gives_with_no_known_term():
+    """A known term of zero (Gauss-Markov 1 s plus white on every axis, 200 epochs, seeded), stated taus 1 s (the
+    truth), 5 s and 0.2 s: :func:`stated_tau_check`'s drops are those of :func:`casep.noise.fit.fit_noise`'s own
+    restricted likelihood (sigma profiled out, its own search) at the same points, the other axes at its free fit's
+    taus (0.1 in -2 l_R; on x an upper bound of it, below the level); the true tau is within the 95 % interval, the
+    wrong ones are not, and at the ends of the interval found for them fit_noise's drop is the level (0.2); the
+    closest taus the data accept are the stated one and the nearer ends. The free fit is fit_noise's (3 % in tau),
+    though a simplex started at the stated 0.2 s stopped at 0.46 s on z, 10 below the maximum at 1.3 s."""
+    from casep.noise.fit import PROFILE_LR
+    from casep.noise.known import stated_tau_check
+    from casep.simulation.noise import ar1_noise
+
+    rng = np.random.default_rng(4)
+    t = 0.2 * np.arange(200)
+    S = rng.normal(size=(t.size, 3, 2))
+    e = ar1_noise(t, 0.03, 1.0, rng) + 0.015 * rng.standard_normal((t.size, 3))
+    pb = Problem.from_arrays(S, S @ np.array([1.0, -2.0]) + e, t)
+    zero = KnownStates(np.ones((t.size, 1, 1)), np.zeros((t.size, 1, 1)), np.zeros((t.size, 3, 1)), np.zeros((1, 1)))
+    X = np.stack(Reml(pb, estimable_basis(pb)).Z, axis=1)
+    stated = (1.0, 5.0, 0.2)
+    fit, _ = fit_tracking(X, t, fit_noise(pb, "gmw", tau=stated), zero)
+    free, axes, near = stated_tau_check(X, t, fit, zero, stated)
+    base = fit_noise(pb, "gmw")
+    np.testing.assert_allclose(free.tau, base.tau, rtol=0.03)
+
+    def drop(j: int, tau: float) -> float:  # fit_noise's profile point: axis j at tau, the others at its fit's
+        tt = list(base.tau)
+        tt[j] = tau
+        return fit_noise(pb, "gmw", tau=tt).extra["neg2_reml"] - base.extra["neg2_reml"]
+
+    assert [a["within"] for a in axes] == [True, False, False], axes
+    for j, a in enumerate(axes):
+        assert a["tau_s"] == stated[j] and a["reml_tau_s"] == free.tau[j]
+        if a["within"]:  # an upper bound (the variances on a grid) already below the level: not refitted
+            assert a["drop_bound"] and drop(j, stated[j]) - 0.1 <= a["drop"] < PROFILE_LR and a["interval_s"] is None
+            continue
+        assert not a["drop_bound"] and a["drop"] == pytest.approx(drop(j, stated[j]), abs=0.1), (j, a)
+        lo, hi = a["interval_s"]
+        assert lo < 1.0 < hi and not lo <= stated[j] <= hi, a
+        assert drop(j, lo) == pytest.approx(PROFILE_LR, abs=0.2) and drop(j, hi) == pytest.approx(PROFILE_LR, abs=0.2)
+    # the closest taus the data accept: the stated on x, the interval's upper end on y (5 s above it), lower on z
+    assert near.rule.startswith("tau given") and near.tau == (1.0, axes[1]["interval_s"][1], axes[2]["interval_s"][0])
+
+
+def test_a_stated_tau_of_gauss_markov_noise_without_white_is_judged_without_a_white_part():
+    """Noise ``gm`` with a stated tau (no white part: Gauss-Markov 1 s only, 200 epochs, seeded), stated 1, 3 and 0.3 s:
+    the free fit stays Gauss-Markov on every axis (a white part found in the scan would make the stated fit lose to a
+    richer model, not to another tau), its taus fit_noise's ``gm`` ones (1 %), and the drops of the axes outside are
+    fit_noise's ``gm`` profile's (0.1)."""
+    from casep.noise.known import stated_tau_check
+    from casep.simulation.noise import ar1_noise
+
+    rng = np.random.default_rng(7)
+    t = 0.2 * np.arange(200)
+    S = rng.normal(size=(t.size, 3, 2))
+    pb = Problem.from_arrays(S, S @ np.array([1.0, -2.0]) + ar1_noise(t, 0.03, 1.0, rng), t)
+    zero = KnownStates(np.ones((t.size, 1, 1)), np.zeros((t.size, 1, 1)), np.zeros((t.size, 3, 1)), np.zeros((1, 1)))
+    X = np.stack(Reml(pb, estimable_basis(pb)).Z, axis=1)
+    stated = (1.0, 3.0, 0.3)
+    free, axes, _ = stated_tau_check(X, t, fit_tracking(X, t, fit_noise(pb, "gm", tau=stated), zero)[0], zero, stated)
+    base = fit_noise(pb, "gm")
+    assert free.kind == "gm" and free.share == (0.0, 0.0, 0.0)
+    np.testing.assert_allclose(free.tau, base.tau, rtol=0.01)
+    assert [a["within"] for a in axes] == [True, False, False], axes
+    for j in (1, 2):
+        tt = list(base.tau)
+        tt[j] = stated[j]
+        want = fit_noise(pb, "gm", tau=tt).extra["neg2_reml"] - base.extra["neg2_reml"]
+        assert axes[j]["drop"] == pytest.approx(want, abs=0.1), (j, axes[j], want)

@@ -120,3 +120,44 @@ def test_an_unbounded_correlation_time_is_said_with_its_numbers():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         warn_tau_unbounded("rec", record)
+
+
+def _stated(factor: float | None) -> dict:
+    """A noise account's ``tau_stated`` (:func:`casep.workflows.imu_separate._tau_stated_record`): x within, y and z
+    outside (y's interval closed, z's reaching the record length)."""
+    return {"level": 3.841, "std_factor_max": factor, "std_factor_worst": "bg_x",
+            "axes": {"x": {"tau_s": 1.0, "reml_tau_s": 1.12, "drop": 0.4, "within": True, "interval_s": None},
+                     "y": {"tau_s": 0.05, "reml_tau_s": 1.34, "drop": 46.9, "within": False,
+                           "interval_s": [0.52, 11.3]},
+                     "z": {"tau_s": 0.05, "reml_tau_s": 0.99, "drop": 30.3, "within": False,
+                           "interval_s": [0.24, None]}}}
+
+
+def test_a_stated_tau_the_data_reject_is_said_with_its_numbers_and_fails_when_its_std_fall_short():
+    """The warning names each axis whose stated tau is outside its interval, with the stated tau, the interval, REML's
+    tau and the drop against the level, and the std factor (against the closest tau the data accept); beyond
+    TAU_STATED_FACTOR it returns the failure's message (the caller fails the result), at or below it None; every axis
+    within: nothing said."""
+    import warnings
+
+    from casep.exceptions import NoiseLevelWarning
+    from casep.workflows.imu_separate import TAU_STATED_FACTOR, warn_tau_stated
+
+    said_y = r"y \(stated 0\.05 s, interval 0\.52 s to 11\.3 s, REML 1\.34 s; -2 ln Lambda 46\.9 > 3\.841\)"
+    said_z = r"z \(stated 0\.05 s, interval 0\.24 s to the record length, REML 0\.99 s; -2 ln Lambda 30\.3 > 3\.841\)"
+    tail = (r" \(rec\); the std at the stated tau are 1\.31 x smaller than at the closest tau the data accept "
+            r"\(bg_x\)\. Leave tau out")
+    with pytest.warns(NoiseLevelWarning, match=f"on axes {said_y}, {said_z}{tail}") as said:
+        assert warn_tau_stated("rec", _stated(1.31)) is None
+    assert len(said) == 1 and "x (stated" not in str(said[0].message)
+    beyond = rf"2\.4 x smaller than at the closest tau the data accept \(bg_x\), beyond {TAU_STATED_FACTOR:g} x"
+    with pytest.warns(NoiseLevelWarning, match=beyond):
+        failure = warn_tau_stated("rec", _stated(2.4))
+    assert failure is not None and failure.startswith("failed: the data put the stated") and "2.4 x" in failure
+    with pytest.warns(NoiseLevelWarning, match="not smaller than at the closest tau the data accept"):
+        assert warn_tau_stated("rec", _stated(1.0)) is None
+    record = _stated(2.4)
+    record["axes"] = {ax: {**v, "within": True} for ax, v in record["axes"].items()}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert warn_tau_stated("rec", record) is None
