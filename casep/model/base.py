@@ -277,8 +277,10 @@ class SymbolicModel:
     # Checks used by the subclasses' _build, each raising ModelDefinitionError "... Use: ...".
     def _check_foreign(self, slot: str, expr: ca.SX, allowed: Sequence[ca.SX], use: str) -> None:
         """Every symbol of `expr` is a coefficient or one of `allowed` (the model's inputs)."""
-        known = list(self._symbols) + list(allowed)
-        foreign = [s for s in ca.symvar(expr) if not any(ca.is_equal(s, a) for a in known)]
+        # known: one of the same nodes (``ca.is_equal`` at depth 0), by the nodes' hashes, each looked up once (an
+        # expression among `allowed` is no symbol: it never equals one)
+        known = {a.element_hash() for a in list(self._symbols) + list(allowed) if a.is_scalar() and a.is_symbolic()}
+        foreign = [s for s in ca.symvar(expr) if s.element_hash() not in known]
         if foreign:
             names = ", ".join(f"`{s.name()}`" for s in foreign)
             raise ModelDefinitionError(f"{self.KIND} `{self.name}`: {self._label(slot)} uses symbol(s) {names} "
