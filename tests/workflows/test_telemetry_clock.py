@@ -169,7 +169,8 @@ def test_a_drift_not_given_is_carried_in_the_std(pairs):
     """An IMU clock 80 ppm fast, not given, the tracking offset fitted (``time_offset="auto"``): the coefficients
     the record says a drift moves (``moves``) are off by up to 4.8 std with the rate taken as exact
     (``clock_drift_std=0``: the std before the carry) and within 3 std with the drift carried at the --imu path's
-    default (50 ppm: sa_x 4.78 -> 2.70 std, dt_trk 1.47 -> 0.32); the estimates themselves unchanged. The carry is
+    default (50 ppm: sa_x 4.78 -> 2.70 std, dt_trk 1.47 -> 0.62, its drift counted from the launch time); the
+    estimates themselves unchanged. The carry is
     the rank-one term of the drift's column: the covariances differ by ``g g^T`` (``g`` the record's shift per
     effective std). A clean record: the same estimates, and the record's drift not determined."""
     m = casep.load_model(MODEL)
