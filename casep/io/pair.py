@@ -21,6 +21,7 @@ from casep.io.tables import VTRK_COLUMNS, Table
 __all__ = ["pair_flight", "PAIR_GRIDS", "STATE_SIGNALS", "GAP_FACTOR", "GAP_MIN_S", "MAX_TIME_OFFSET",
            "MAX_LAUNCH_TIME_GAP", "check_tracking_frame", "tracking_velocity", "tracking_hint", "with_tracked_state",
            "time_shift_seconds", "MAX_CLOCK_DRIFT_PPM", "clock_drift_ppm", "telemetry_time", "tracking_time",
+           "drift_pivot",
            "check_launch_time", "no_overlap_message",
            "check_earth_fixed_units", "check_velocity_columns", "velocity_column_misfit", "COLUMN_WINDOW_S",
            "COLUMN_RATIO", "COLUMN_MISFIT_MIN", "fits_time_offset", "VALID_COLUMN", "repeated_rows",
@@ -498,6 +499,16 @@ def telemetry_time(T, shift: float = 0.0, drift_ppm: float = 0.0):
     late by ``eps t`` more at telemetry time ``t`` (``T - shift = t (1 + eps)``): the drift the clock-drift checks
     measure (:mod:`casep.checks.tracking_quality`, a late tag's ``dv = a eps t``), in the same sign."""
     return (np.asarray(T, dtype=float) - shift) / (1.0 + drift_ppm * 1e-6)
+
+
+def drift_pivot(launch_time: float, offset_free: bool) -> float:
+    """The telemetry time (s) about which a clock drift beyond the one given moves the tracking time tags (late by
+    ``eps (t - pivot)`` at telemetry time ``t``): the flight's `launch_time` where the time offset is the data's
+    (`offset_free`: a fitted ``dt_trk``, or one the pairing measured), which takes in what the drift does about any
+    other origin and then reads the offset at the flight; else 0, where :func:`telemetry_time` ties the two clocks.
+    About 0 with a fitted ``dt_trk``, a record tagged in GPS time of week (3e5 s) moved the offset under a drift of
+    50 ppm by 15 s, and its std 2560x."""
+    return float(launch_time) if offset_free else 0.0
 
 
 def tracking_time(t, shift: float = 0.0, drift_ppm: float = 0.0):

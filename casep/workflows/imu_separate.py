@@ -1373,8 +1373,11 @@ class _Run:
         time offset (``dt_trk``) takes in the difference. About the launch time alone, on a rail launch without
         ``dt_trk`` whose IMU clock tags 0 six seconds before lift-off, the test read a drift of 104 ppm as 185 +- 19
         and the rows moved under it twice as far as that derivative said (the offset of 6 s times the drift, 0.6 ms,
-        is 0.04 m/s at 6 g)."""
-        return float(self.nav_site.t0) if self.offset_measured else 0.0
+        is 0.04 m/s at 6 g). The rule: :func:`casep.io.pair.drift_pivot` (a fitted ``dt_trk`` takes the launch time
+        too)."""
+        from casep.io.pair import drift_pivot
+
+        return drift_pivot(self.nav_site.t0, self.offset_measured or bool(self.fit_time_offset))
 
     def rows_at_clock(self, D: np.ndarray, ppm: float) -> tuple[np.ndarray, np.ndarray]:
         """The epochs and :meth:`rows` at `D` with the IMU's tags and the pad window stretched by a drift `ppm` more

@@ -260,12 +260,16 @@ def _linear(flight: Any, problem: Problem, model: Any, spec: FitSpec,
     res = judge_setup(res, flight if isinstance(flight, FlightData) else None, model,
                       noise_free=problem.is_noise_free())
     if isinstance(flight, FlightData) and isinstance(model, ErrorModel):
+        from casep.checks.tracking_quality import noise_problem
         from casep.workflows.telemetry_clock import judge_telemetry_clock
         from casep.workflows.telemetry_heading import judge_telemetry_heading, said_unless_turned
 
         def clocks(res: EstimateResult) -> EstimateResult:
-            # a strapdown telemetry's clock, its tags and steps (carried: separate); the tracking's on the residuals
-            res = judge_telemetry_clock(res, flight, problem, model.scales, carry=False) or res
+            # a strapdown telemetry's clock, its tags and steps (carried: separate; here where the tracking's judgement
+            # states combinations from this result, their std with what its covariance carries, and no later step
+            # sets it anew); the tracking's on the residuals
+            stated = flight.meta.get("format") == "pair" and noise_problem(flight) is not None
+            res = judge_telemetry_clock(res, flight, problem, model.scales, carry=stated) or res
             return judge_tracking(res, flight, problem, model.scales)
 
         # the drifts' warnings wait for the turn's test: a turn's misfit reads as a clock drift

@@ -35,7 +35,7 @@ import numpy as np
 from casep.estimators.result import EstimateResult
 from casep.io.flight import FlightData
 
-__all__ = ["drift_column", "telemetry_clock_record", "judge_telemetry_clock", "carry_telemetry_clock",
+__all__ = ["drift_column", "launch_time", "telemetry_clock_record", "judge_telemetry_clock", "carry_telemetry_clock",
            "telemetry_gravitation", "MOVES_SAID"]
 
 #: The coefficients a drift at the edge of the test moves most, said at most this many (:func:`_moves`).
@@ -65,11 +65,33 @@ def telemetry_gravitation(flight: FlightData) -> Any:
     return G if not (shift or drift) else (lambda t, r: G(tracking_time(t, shift, drift), r))
 
 
-def drift_column(flight: FlightData, t: np.ndarray, offset: bool = False) -> np.ndarray | None:
+def launch_time(flight: FlightData, t_tel: np.ndarray) -> float:
+    """The launch time of a strapdown telemetry pair in the telemetry's time scale (s): its header's site
+    (``meta["telemetry_site"]``), else the one given with Earth-fixed tracking (:func:`casep.io.pair.telemetry_time`
+    of its launch time, with ``meta["time_shift_s"]`` and ``meta["clock_drift_ppm"]``), else the telemetry's first
+    time `t_tel` (its INS's start)."""
+    from casep.io.pair import telemetry_time
+
+    meta = flight.meta if isinstance(flight.meta, dict) else {}
+    site = meta.get("telemetry_site")
+    if isinstance(site, dict) and site.get("t0") is not None:
+        return float(site["t0"])
+    site = (meta.get("tracking_frame") or {}).get("site")
+    if isinstance(site, dict) and site.get("t0") is not None:
+        return float(telemetry_time(float(site["t0"]), float(meta.get("time_shift_s", 0.0)),
+                                    float(meta.get("clock_drift_ppm", 0.0))))
+    return float(t_tel[0])
+
+
+def drift_column(flight: FlightData, t: np.ndarray, offset: bool = False,
+                 offset_fitted: bool = False) -> np.ndarray | None:
     """The rows' change (N, 3), m/s per ppm of the drift ``eps`` (module notes), at the times `t` (s, the problem's
     rows) of a strapdown telemetry pair; with `offset`, (N, 3, 2): a late tag's ``a`` per ms beside it; None where the
-    flight is not one (no ``pair_inputs`` with the strapdown signals, no kinematic acceleration)."""
+    flight is not one (no ``pair_inputs`` with the strapdown signals, no kinematic acceleration). The tags' drift
+    counts from :func:`casep.io.pair.drift_pivot` (the launch time, :func:`launch_time`, where the fit has its time
+    offset, `offset_fitted`, or the pairing measured it; else 0)."""
     from casep.io.files import R_TEL_COLUMNS
+    from casep.io.pair import drift_pivot
     from casep.io.strapdown import clock_stretch
 
     meta = flight.meta if isinstance(flight.meta, dict) else {}
@@ -93,7 +115,10 @@ def drift_column(flight: FlightData, t: np.ndarray, offset: bool = False) -> np.
         return None
     a = np.column_stack([np.asarray(flight.signals[f"a_{k}"], dtype=float)[rows] for k in "xyz"])
     E_t = np.column_stack([np.interp(t, t_tel, E[:, j]) for j in range(3)])
-    col = 1e-6 * (a * t[:, None] - E_t)
+    align = meta.get("time_alignment")
+    pivot = drift_pivot(launch_time(flight, t_tel),
+                        offset_fitted or (isinstance(align, dict) and align.get("mode") == "auto"))
+    col = 1e-6 * (a * (t - pivot)[:, None] - E_t)
     return col if not offset else np.stack([col, 1e-3 * a], axis=2)  # and a time offset's, per ms
 
 
@@ -114,7 +139,7 @@ def telemetry_clock_record(res: EstimateResult, flight: FlightData, problem: Any
 
     # without the fit's own time offset, one beside the drift: the tags' drift counts from an origin it moves
     offset = TIME_OFFSET not in res.names
-    cols = drift_column(flight, np.asarray(problem.t, dtype=float), offset)
+    cols = drift_column(flight, np.asarray(problem.t, dtype=float), offset, not offset)
     if cols is None:
         return None
     col = cols[:, :, 0] if offset else cols
@@ -174,7 +199,10 @@ def carry_telemetry_clock(res: EstimateResult, flight: FlightData, problem: Any)
         return res
     meta = flight.meta if isinstance(flight.meta, dict) else {}
     std = given_clock_std(record["given_ppm"], meta.get("clock_drift_std_ppm"), "`clock_drift_std`")
-    col = drift_column(flight, np.asarray(problem.t, dtype=float)) if std > 0 else None
+    from casep.model.loader import TIME_OFFSET
+
+    col = drift_column(flight, np.asarray(problem.t, dtype=float), offset_fitted=TIME_OFFSET in res.names) \
+        if std > 0 else None
     if col is None:
         return res
     carried = clock_carried(record, std)

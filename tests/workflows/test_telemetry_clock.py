@@ -12,6 +12,7 @@ navigator on the IMU's tags ``t (1 + d)``, tracked in true time at 5 Hz with 0.0
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -28,6 +29,8 @@ from tests.workflows.test_imu_clock_drift import ALIGN, HEADING, MODEL, SITE, WH
 
 DRIFT = 104e-6
 DRIFT80 = 80e-6
+ORIGIN = 3e5  # s: a GPS time of week
+LOUD, LOUD_AFTER = 20.0, 25.0  # the tracking noise this many times larger after a 4 s gap about this time (s)
 
 
 def _nav(t, w, f, d):
@@ -52,8 +55,9 @@ def test_the_stretch_is_what_a_drifting_clock_does_to_the_navigation():
 
 @pytest.fixture(scope="module")
 def pairs(tmp_path_factory):
-    """``pairs(d, seed, given)``: the separation of the telemetry navigated on tags ``t (1 + d)``, paired with the
-    tracking of `seed`'s noise, `given` the drift stated (ppm)."""
+    """``pairs(d, seed, given, origin, loud)``: the separation of the telemetry navigated on tags ``t (1 + d)`` (all
+    times `origin` later: 80 ppm only), paired with the tracking of `seed`'s noise (`loud`: :data:`LOUD` times larger
+    after a gap about :data:`LOUD_AFTER`), `given` the drift stated (ppm)."""
     t, w, f = _truth()
     nav0 = _nav(t, w, f, 0.0)
     m = casep.load_model(MODEL)
@@ -63,21 +67,27 @@ def pairs(tmp_path_factory):
     tel = {}
     for d in (DRIFT, 0.0, DRIFT80):
         nav = _nav(t, w + dw, f + df, d)
-        tel[d] = directory / f"tel{d:+g}.csv"
-        write_table(tel[d], nav.columns(), comments=nav.comments("imu.csv"))
+        tel[d, 0.0] = directory / f"tel{d:+g}.csv"
+        write_table(tel[d, 0.0], nav.columns(), comments=nav.comments("imu.csv"))
+        if d == DRIFT80:  # the same flight tagged from the GPS week's start: its times and launch time later
+            late = dataclasses.replace(nav, t=nav.t + ORIGIN, site=dataclasses.replace(SITE, t0=SITE.t0 + ORIGIN))
+            tel[d, ORIGIN] = directory / f"tel{d:+g}_late.csv"
+            write_table(tel[d, ORIGIN], late.columns(), comments=late.comments("imu.csv"))
     done: dict = {}
 
-    def get(d: float, seed: int = 0, given: float = 0.0, **kw):
-        key = (d, seed, given, *sorted(kw.items()))
+    def get(d: float, seed: int = 0, given: float = 0.0, origin: float = 0.0, loud: bool = False, **kw):
+        key = (d, seed, given, origin, loud, *sorted(kw.items()))
         if key not in done:
-            trk = directory / f"trk{seed}.csv"
+            trk = directory / f"trk{seed}_{origin:g}{'_loud' if loud else ''}.csv"
             if not trk.exists():
                 k = slice(None, None, 2)
-                v = nav0.v[k] + white_noise(t[k].size, WHITE_STD, np.random.default_rng(100 + seed))
-                write_table(trk, {"t": t[k], **{f"v_trk_{a}": v[:, i] for i, a in enumerate("xyz")}})
+                v = nav0.v[k] + white_noise(t[k].size, WHITE_STD, np.random.default_rng(100 + seed)) \
+                    * np.where(loud & (t[k] > LOUD_AFTER), LOUD, 1.0)[:, None]
+                kept = (np.abs(t[k] - LOUD_AFTER) > 2.0) | (not loud)  # a 4 s gap between the two
+                write_table(trk, {"t": t[k][kept] + origin, **{f"v_trk_{a}": v[kept, i] for i, a in enumerate("xyz")}})
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # conditioning, what the record leaves undetermined: said by it
-                flight = read_flight_pair(tel[d], trk, clock_drift=given, **kw)
+                flight = read_flight_pair(tel[d, origin], trk, clock_drift=given, **kw)
                 done[key] = casep.separate(flight, MODEL, method="ols"), flight
         return done[key]
 
@@ -159,7 +169,8 @@ def test_a_drift_not_given_is_carried_in_the_std(pairs):
     """An IMU clock 80 ppm fast, not given, the tracking offset fitted (``time_offset="auto"``): the coefficients
     the record says a drift moves (``moves``) are off by up to 4.8 std with the rate taken as exact
     (``clock_drift_std=0``: the std before the carry) and within 3 std with the drift carried at the --imu path's
-    default (50 ppm: sa_x 4.78 -> 2.70 std, dt_trk 1.47 -> 0.32); the estimates themselves unchanged. The carry is
+    default (50 ppm: sa_x 4.78 -> 2.70 std, dt_trk 1.47 -> 0.62, its drift counted from the launch time); the
+    estimates themselves unchanged. The carry is
     the rank-one term of the drift's column: the covariances differ by ``g g^T`` (``g`` the record's shift per
     effective std). A clean record: the same estimates, and the record's drift not determined."""
     m = casep.load_model(MODEL)
@@ -195,6 +206,45 @@ def test_a_drift_not_given_is_carried_in_the_std(pairs):
     np.testing.assert_array_equal(clean.estimate, clean0.estimate)
     assert not clean.diagnostics["clock_drift"]["telemetry"]["determined"]
     assert np.all(clean.std[ok] >= clean0.std[ok])
+
+
+def test_the_drift_carried_counts_from_the_flight_not_the_clocks_zero(pairs):
+    """The carried drift's column counts the tags' drift from the launch time where the fit has its time offset
+    (:func:`casep.io.pair.drift_pivot`): the same flight tagged 3e5 s later (a GPS time of week) gives the same
+    carried shifts and std to 1e-6 (float rounding of the later tags is near 1e-11 s). Counted from 0, the later
+    flight's dt_trk widened 2560x under 50 ppm (its offset at the GPS week's start, 15 s)."""
+    res, _ = pairs(DRIFT80, time_offset="auto")
+    late, _ = pairs(DRIFT80, time_offset="auto", origin=ORIGIN)
+    assert "dt_trk" in res.names and late.names == res.names
+    a, b = res.diagnostics["clock_drift"]["carried"], late.diagnostics["clock_drift"]["carried"]
+    ok = np.isfinite(res.std) & (res.std > 0)
+    np.testing.assert_allclose(late.std[ok], res.std[ok], rtol=1e-6)
+    assert np.all(np.abs(late.estimate - res.estimate)[ok] <= 1e-6 * res.std[ok])
+    for k, nm in enumerate(res.names):
+        assert abs(b["shift_per_std"][nm] - a["shift_per_std"][nm]) <= 1e-6 * res.std[k], nm
+        assert b["std_factor"][nm] == pytest.approx(a["std_factor"][nm], rel=1e-6)
+
+
+def test_combinations_stated_from_a_result_that_carries_the_drift(pairs, monkeypatch):
+    """A pair whose tracking noise differs between stretches: the tracking's judgement states combinations from the
+    result it is given, their std with the consider terms its covariance holds; the telemetry clock's drift is carried
+    before it (not after, where the combinations stated missed it), once: the result's covariance is the one judged,
+    the carried record that of the clean stretch's pair's rule (:func:`carry_telemetry_clock`)."""
+    import casep.workflows.separate as separate_module
+    from casep.workflows.judging import judge_tracking
+
+    judged = []
+
+    def spy(res, *args, **kw):
+        judged.append(res)
+        return judge_tracking(res, *args, **kw)
+
+    monkeypatch.setattr(separate_module, "judge_tracking", spy)
+    res, _ = pairs(DRIFT80, time_offset="auto", loud=True)
+    assert "determined" in res.diagnostics and res.diagnostics["determined"]["combinations"]
+    assert len(judged) == 1 and "carried" in judged[0].diagnostics["clock_drift"]
+    np.testing.assert_array_equal(np.asarray(res.covariance), np.asarray(judged[0].covariance))
+    assert res.diagnostics["clock_drift"]["carried"] == judged[0].diagnostics["clock_drift"]["carried"]
 
 
 def test_the_command_line_takes_the_drift_std_for_a_telemetry(tmp_path, capsys):
