@@ -311,10 +311,12 @@ def _gapped(duration: float = 20.0):
 def test_a_gaps_rows_are_the_shift_its_bridge_makes():
     """:func:`gap_rows` against two navigations of the same true record, one with the samples of :data:`GAP` lost:
     at the epochs after the gap their difference (the bridge's guess across the thrust step, about 3 m/s) lies in the
-    span of the gap's six columns (a velocity and an attitude step) to 0.5 % of its size; an epoch inside the gap has
-    a column of its own."""
+    span of the gap's six columns (a velocity and an attitude step) to 0.1 % of its size, and so does the difference a
+    20 mrad turn of the attitude after the gap makes (to 1 %); an epoch inside the gap has columns of its own."""
     from types import SimpleNamespace
 
+    from casep.navigation.navigator import navigate_from
+    from casep.rotations import quat_from_rotvec, quat_multiply
     from casep.workflows.imu_separate import gap_rows
 
     t, w, f, kept = _gapped()
@@ -334,7 +336,17 @@ def test_a_gaps_rows_are_the_shift_its_bridge_makes():
     A = cols[after][:, :, :6].reshape(-1, 6)
     x, *_ = np.linalg.lstsq(A, diff.reshape(-1), rcond=None)
     assert np.abs(diff).max() > 1.0  # the bridge's guess is material
-    assert np.abs(A @ x - diff.reshape(-1)).max() < 5e-3 * np.abs(diff).max()
+    assert np.abs(A @ x - diff.reshape(-1)).max() < 1e-3 * np.abs(diff).max()  # measured 8.6e-6
+    # an attitude off by 20 mrad after the gap (the record navigated on from the sample after it, turned): in the span
+    i = int(np.flatnonzero(np.isclose(gapped.t, 16.3))[0])
+    turn = quat_from_rotvec(np.array([0.6, -0.3, 0.74]) * 2e-2)
+    on, off = (navigate_from(imu, SITE, q, gapped.r[i], gapped.v[i], t_start=16.3)
+               for q in (gapped.q[i], quat_multiply(turn, gapped.q[i])))
+    diff = off.v[np.isin(np.round(off.t, 6), np.round(epochs[after], 6))] - on.v[np.isin(
+        np.round(on.t, 6), np.round(epochs[after], 6))]
+    x, *_ = np.linalg.lstsq(A, diff.reshape(-1), rcond=None)
+    # measured 0.62 % (second order in the turn), 54 % with the velocity columns alone
+    assert np.abs(diff).max() > 0.05 and np.abs(A @ x - diff.reshape(-1)).max() < 1e-2 * np.abs(diff).max()
 
 
 def test_a_gap_is_not_read_as_a_clock_drift(tmp_path):
