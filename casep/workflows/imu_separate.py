@@ -511,6 +511,8 @@ class _Run:
     _heading: tuple | None = None
     #: (problem, the rows' shift for one std of each step between samples: :func:`step_rows`), formed by :meth:`finish`
     _steps: tuple | None = None
+    #: (problem, :func:`gap_rows`: the rows' shift for unit steps across the IMU's gaps, their times), by :meth:`finish`
+    _gaps: tuple | None = None
     #: (problem, noise request, rows, the warnings their preparation gave) of the last pass's fit (:meth:`pass_fit`)
     _rows: tuple | None = None
     #: the IMU's white noise measured on the pad window (:func:`_pad_noise`; empty: not measurable), formed once
@@ -1035,6 +1037,7 @@ class _Run:
         self._heading = (problem, self.heading_rows(D))
         # a telemetry's passes (casep.workflows.telemetry_iterate) have no raw record, and no steps between samples
         self._steps = (problem, step_rows(getattr(self, "imu", None), nav, problem))
+        self._gaps = (problem, gap_rows(getattr(self, "imu", None), nav, problem))
         out = self.with_noise(out, problem, flight)
         out = self.with_clock(out, problem, flight, D)
         if passes[-1].get("determined"):  # the stated combinations' std carry the record's noise as the coefficients'
@@ -1289,9 +1292,10 @@ class _Run:
         if self.at_rounding(rms) or problem.is_noise_free(rms):
             return res
         per_ppm = self.clock_rows(D, problem.t)
+        gaps = self._gaps[1] if self._gaps is not None and self._gaps[0] is problem else None
         record = clock_check(res, problem, flight, per_ppm, self.clock_ppm, self.levelling(),
                              self.tau_profile(problem),
-                             consider_columns(self.heading_effect(problem), self.steps_effect(problem)))
+                             consider_columns(self.heading_effect(problem), self.steps_effect(problem)), gaps)
         if record is None:
             return res
         column = None
@@ -2581,6 +2585,57 @@ def step_rows(imu: ImuData | None, nav: NavigationResult, problem: Any) -> np.nd
     return cols
 
 
+#: The IMU's gaps whose unknown steps the clock test estimates beside the drift, at most (the largest bounds of what
+#: each bridge leaves unknown; :func:`gap_rows`): six columns each, three more per epoch inside one.
+MAX_GAP_NUISANCE = 16
+
+
+def gap_rows(imu: ImuData | None, nav: NavigationResult, problem: Any) -> tuple[np.ndarray, list] | None:
+    """The rows' shift (N, 3, c) at `problem`'s epochs for a unit step across each of the G gaps in `imu`'s tags
+    (:func:`casep.io.flight.gap_steps`) that the navigation `nav` integrates across, and the gaps' ``(t_a, t_b)`` (s);
+    None without one.
+
+    A gap's bridge (:func:`casep.navigation.imu.bridge_gaps`) guesses the rate and specific force over it: the
+    velocity across it is off by an unknown ``u`` and the attitude by an unknown ``psi``, which turns the specific
+    force integrated since (``dv(t) = u + psi x int f dt`` from the gap's middle on, first order; the same shift as a
+    step between samples, :func:`step_rows`). Per gap, three columns of ``u`` (1 m/s along each launch axis) and
+    three of ``psi`` (1 rad about each), and three more for each epoch inside it (the bridge's guessed path, there
+    off by anything up to ``u``: such an epoch is left out): the clock test estimates them beside the drift
+    (:func:`clock_check`), so a gap's guess is never read as a clock's rate. At most :data:`MAX_GAP_NUISANCE` gaps
+    (the largest bounds of the bridge, velocity plus the attitude's turn of the specific force integrated to the
+    record's end)."""
+    from casep.io.flight import gap_steps
+    from casep.navigation.imu import bridge_gaps
+    from casep.rotations import quat_rotate
+
+    if imu is None or problem.t is None or nav.t.size < 2:
+        return None
+    k = gap_steps(imu.t)
+    if not k.size:
+        return None
+    i0 = int(np.searchsorted(imu.t, nav.t[0]))
+    j = k - i0
+    keep = (j >= 0) & (j < nav.t.size - 1)
+    if nav.valid is not None:  # clipped from there on: those rows are left out
+        keep &= np.concatenate([nav.valid, [False]])[np.clip(j + 1, 0, nav.t.size)]
+    if not np.any(keep):
+        return None
+    t = np.asarray(problem.t, dtype=float)
+    F = cumulative_trapezoid(quat_rotate(nav.q, nav.fb), nav.t)
+    Ft = np.column_stack([np.interp(t, nav.t, F[:, c]) for c in range(3)])
+    br = bridge_gaps(imu.t, imu.w, imu.f)
+    j, bound = j[keep], br.velocity[keep] + br.attitude[keep] * np.linalg.norm(F[-1] - F[j[keep]], axis=1)
+    j = np.sort(j[np.argsort(-bound)[:MAX_GAP_NUISANCE]])
+    cols = []
+    for g in j:
+        after = (t >= 0.5 * (nav.t[g] + nav.t[g + 1]))[:, None]
+        dF = Ft - 0.5 * (F[g] + F[g + 1])
+        cols += [np.eye(3)[i] * after for i in range(3)] + [np.cross(np.eye(3)[i], dF) * after for i in range(3)]
+        for e in np.flatnonzero((t > nav.t[g]) & (t < nav.t[g + 1])):  # an epoch inside: the guessed path itself
+            cols += [np.eye(3)[i] * (np.arange(t.size) == e)[:, None] for i in range(3)]
+    return np.stack(cols, axis=2), [(float(nav.t[g]), float(nav.t[g + 1])) for g in j]
+
+
 def with_steps(out: EstimateResult, before: EstimateResult, problem: Any, imu: ImuData | None) -> EstimateResult:
     """`out` (its covariance holding the steps between samples: :func:`step_rows`) with the steps said: in
     ``diagnostics["sampled_steps"]`` and a line of its message, with how much they raise the std (against
@@ -2683,7 +2738,7 @@ def with_columns_noise(res: EstimateResult, problem: Any, columns: np.ndarray, s
 
 def clock_check(res: EstimateResult, problem: Any, flight: FlightData, per_ppm: np.ndarray | None,
                 given_ppm: float, levelling: tuple | None = None, profile: tuple | None = None,
-                consider: np.ndarray | None = None) -> dict | None:
+                consider: np.ndarray | None = None, gaps: tuple | None = None) -> dict | None:
     """The data's own estimate of the IMU clock's drift beyond the one given (`given_ppm`, taken out of the IMU's
     tags: :func:`casep.navigation.imu.on_clock`), the record ``diagnostics["clock_drift"]`` of a separation from raw
     IMU data (None without the rows' derivative along the drift, `per_ppm`: :meth:`_Run.clock_rows`).
@@ -2697,18 +2752,36 @@ def clock_check(res: EstimateResult, problem: Any, flight: FlightData, per_ppm: 
     (:func:`casep.checks.tracking_quality.drift_determined`: the data see a drift, ``determined``); else the drift
     that may hide in the scale factors unseen, ``|estimate| + 2 std`` (``unseen_ppm``). Its std carry the `consider`
     columns (the given heading's, the steps between samples': where a thrust step fell in its interval moves the
-    rows as a late tag does)."""
-    from casep.checks.tracking_quality import drift_determined
+    rows as a late tag does). The IMU's gaps (`gaps`, :func:`gap_rows`: their columns and times) are estimated beside
+    it, a velocity and an attitude step across each: a bridge's guess shifts every row after it, and fitted by the
+    drift alone a gap at burn-out read as thousands of ppm (``gaps`` in the record: their times).
 
-    est = column_estimates(res, problem, flight, per_ppm, levelling, profile, consider)
+    A drift the data point to beyond a flight computer's crystal (``implausible``: the total drift ``ppm`` beyond
+    :data:`casep.estimators.rls.PRIOR_CONFLICT_Z` of ``sqrt(CLOCK_DRIFT_STD_PPM^2 + std^2)``, the prior predictive of
+    the crystal's :data:`CLOCK_DRIFT_STD_PPM`, as :func:`heading_conflict` tests a heading) is no value to state:
+    :func:`clock_message` names it implausible and the record's other causes (its gaps) instead."""
+    from casep.checks.tracking_quality import drift_determined
+    from casep.estimators.rls import PRIOR_CONFLICT_Z
+
+    columns = per_ppm
+    if per_ppm is not None and gaps is not None:
+        columns = np.concatenate([np.asarray(per_ppm, dtype=float).reshape(-1, 3, 1), gaps[0]], axis=2)
+    est = column_estimates(res, problem, flight, columns, levelling, profile, consider)
     if est is None:
         return None
     offset, std_c = float(est[0][0]), float(est[1][0])
-    return {"ppm": float(given_ppm) - offset, "std_ppm": std_c, "given_ppm": float(given_ppm),
+    ppm = float(given_ppm) - offset
+    crystal_z = abs(ppm) / math.hypot(CLOCK_DRIFT_STD_PPM, std_c)
+    return {"ppm": ppm, "std_ppm": std_c, "given_ppm": float(given_ppm),
             "beyond_given_ppm": -offset, "determined": bool(drift_determined(offset, std_c)),
             "indicated": bool(abs(offset) > CLOCK_HINT_Z * std_c),
             "unseen_ppm": abs(offset) + 2.0 * std_c, "on": "the IMU clock's rate as one more coefficient (the rows' "
-            "derivative along it, the fit's whitening, S_V projected out)"}
+            "derivative along it, the fit's whitening, S_V projected out)"
+            + (", a velocity and an attitude step across each of the IMU's gaps beside it" if gaps else ""),
+            "gaps": [] if gaps is None else [list(g) for g in gaps[1]],
+            "crystal_z": float(crystal_z), "implausible": bool(crystal_z > PRIOR_CONFLICT_Z),
+            "crystal_rule": f"|ppm| / sqrt({CLOCK_DRIFT_STD_PPM:g}^2 + std_ppm^2) beyond {PRIOR_CONFLICT_Z:g}: "
+                            "beyond a flight computer's crystal (its std, the +-100 ppm budget as two std)"}
 
 
 def clock_carried(record: dict, std_ppm: float) -> dict:
@@ -2773,6 +2846,27 @@ def carried_said(carried: dict, clock: str = "an IMU clock drift") -> str:
     return line
 
 
+def implausible_drift_said(record: dict, given: str) -> str:
+    """What a result says of a drift :func:`clock_check` finds beyond a flight computer's crystal (``implausible``):
+    not a value to state, and the other causes its record shows (the IMU's gaps, with their times)."""
+    from casep.estimators.rls import PRIOR_CONFLICT_Z
+
+    gaps = record.get("gaps") or []
+    listed = ", ".join(f"{a:.6g} .. {b:.6g} s" for a, b in gaps[:8]) + (f" and {len(gaps) - 8} more"
+                                                                          if len(gaps) > 8 else "")
+    held = (f"the IMU's {len(gaps)} gap(s) (t = {listed}; their bridges guess the motion, a velocity and an attitude "
+            "step across each estimated beside the drift, so what remains is not theirs alone)" if gaps
+            else "no IMU gap (none in the record's span)")
+    return (f"the rows do not fit at the IMU clock's rate: with {given}, a drift of "
+            f"{record['beyond_given_ppm']:+.4g} +- {record['std_ppm']:.2g} ppm more would explain them (estimated "
+            f"beside the coefficients), a total of {record['ppm']:+.4g} ppm, beyond what a flight computer's crystal "
+            f"drifts (z {record['crystal_z']:.3g} above {PRIOR_CONFLICT_Z:g} against its {CLOCK_DRIFT_STD_PPM:g} ppm "
+            f"std, the +-100 ppm budget as two std): implausible as a clock's drift, and no value to state. The record "
+            f"holds {held}; other causes: a misfit of the model (a missing term, instrument errors too large for the "
+            "linear model), wrong or lagged tracking epochs, time tags off. State a drift only as measured against a "
+            "reference clock (--clock-drift PPM)")
+
+
 def clock_message(record: dict) -> str:
     """What a result says of :func:`clock_check`'s `record`: a drift the data see beyond the one given (the failure),
     one they point to (beyond :data:`CLOCK_HINT_Z` std, a failure too), or how large a drift would hide in the scale
@@ -2786,6 +2880,8 @@ def clock_message(record: dict) -> str:
     covered = bool(carried) and carried["effective_std_ppm"] >= abs(record["beyond_given_ppm"])
     carry = (f"their std carry it at {carried['effective_std_ppm']:.3g} ppm (--clock-drift-std "
              f"{carried['std_ppm']:g}), as wide as a drift unknown to that std makes them" if covered else "")
+    if (record["determined"] or record["indicated"]) and record.get("implausible"):
+        return implausible_drift_said(record, given)
     if record["determined"]:
         return (f"the IMU clock's rate does not match the tracking's: with {given}, the rows hold a drift of "
                 f"{record['beyond_given_ppm']:+.4g} +- {record['std_ppm']:.2g} ppm more, estimated beside the "
