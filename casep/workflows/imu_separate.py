@@ -67,17 +67,18 @@ combinations' std (:meth:`_Run.determined_curvature`, the stated combinations' o
 the smaller shipped models (:data:`SMALLER_MODELS`), and fails the result when no draw can be navigated. On 4 seeded
 MEMS boosts under ``strapdown33`` the stated combinations were 36, 8.7, 0.75 and 14 std RMS off the truth, each a
 success; with the shift in their std 1.17, 0.19, 0.14 and 0.63 (the rest drawn at the plausible size along each of
-its directions); drawn at that length, 0.67, 0.25, 0.04 and 0.25 (1.31, 0.43, 0.28 and 0.56 over the std without the
-consider terms of omitted models; :meth:`_Run.determined_curvature`'s ``length``). Where the passes left the rest is
-no evidence of the truth (the first pass steps along everything, its estimates mostly linearisation error): the
-draws reach back to the prior as well (the rest's covariance ``rho^2 Q Q^T / (n - m) + u u^T``, ``u`` the estimate's
-part along it: the rest's length the plausible size, not each of its ``n - m`` directions' size,
-:meth:`_Run.determined_curvature`), their mean square shift enters the covariance as well as the stated std
-(:meth:`_Run.with_rest_shift`), and a part beyond :data:`BACK_BEYOND` times the plausible size is taken back to the
-prior where the record fits as well there (:meth:`_Run.back_to_prior`). On the MEMS rail launch of
-``benchmarks/mems_rail_honesty.py`` (6 seeds; the first pass put seed 6's ``bg_x`` at -9380 deg/h, the truth -120)
-the stated combinations went from RMS z 2.35 (largest 16.4) to 1.23 (largest 2.8), the chi-square per dof over the
-covariance's directions better than their declared magnitudes from 8.51 to 1.79.
+its directions; 0.57, 0.03, 0.03 and 0.23 re-run on 2026-11-29's main); drawn at that length, 0.67, 0.25, 0.04 and
+0.25 (1.31, 0.43, 0.28 and 0.56 over the std without the consider terms of omitted models;
+:meth:`_Run.determined_curvature`'s ``length``). Where the passes left the rest is no evidence of the truth (the
+first pass steps along everything, its estimates mostly linearisation error): the draws reach back to the prior as
+well (the rest's covariance ``rho^2 Q Q^T / (n - m) + u u^T``, ``u`` the estimate's part along it: the rest's length
+the plausible size, not each of its ``n - m`` directions' size, :meth:`_Run.determined_curvature`), their mean
+square shift enters the covariance as well as the stated std (:meth:`_Run.with_rest_shift`), and a part beyond
+:data:`BACK_BEYOND` times the plausible size is taken back to the prior where the record fits as well there
+(:meth:`_Run.back_to_prior`). On the MEMS rail launch of ``benchmarks/mems_rail_honesty.py`` (6 seeds; the first
+pass put seed 6's ``bg_x`` at -9380 deg/h, the truth -120) the stated combinations went from RMS z 2.35 (largest
+16.4) to 1.23 (largest 2.8), the chi-square per dof over the covariance's directions better than their declared
+magnitudes from 8.51 to 1.79.
 
 **The tracking screen** (:func:`casep.checks.tracking_quality.screen_tracking`: stale fixes, the physics
 check against the IMU, the noise per stretch) runs once, on the first pass, where its warnings are
