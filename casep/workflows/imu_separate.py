@@ -61,15 +61,19 @@ those no longer determined once the consider terms widen them too are left out
 biases 150-750 deg/h) 11 of the 12 linear combinations were 19 to 58 std off; with the curvature all 12 are within 1.8
 std (std 0.65 to 34 declared magnitudes), and one is still stated.
 
-**The curvature over what the passes leave out.** The same holds for the combinations the steps leave out
-(below): the stated ones are gradients about where the passes left the rest, hundreds of declared magnitudes from a
-MEMS unit's truth. :meth:`_Run.left_out_curvature` draws the rest at the plausible size, carries the shift in the
-stated combinations' std (:meth:`_Run.determined_curvature`, the stated combinations' own size their limit), says it
-with the smaller shipped models (:data:`SMALLER_MODELS`), and fails the result when no draw can be navigated. On 4
-seeded MEMS boosts under ``strapdown33`` the stated combinations were 36, 8.7, 0.75 and 14 std RMS off the truth, each
-a success; with the shift in their std 1.17, 0.19, 0.14 and 0.63. Where the passes left the rest is no evidence of
-the truth (the first pass steps along everything, its estimates mostly linearisation error): the draws reach back to
-the prior as well (the rest's covariance ``rho^2 Q Q^T + u u^T``, ``u`` the estimate's part along it), their mean
+**The curvature over what the passes leave out.** The same holds for the combinations the steps leave out (below):
+the stated ones are gradients about where the passes left the rest, hundreds of declared magnitudes from a MEMS
+unit's truth. :meth:`_Run.left_out_curvature` draws the rest at the plausible size, carries the shift in the stated
+combinations' std (:meth:`_Run.determined_curvature`, the stated combinations' own size their limit), says it with
+the smaller shipped models (:data:`SMALLER_MODELS`), and fails the result when no draw can be navigated. On 4 seeded
+MEMS boosts under ``strapdown33`` the stated combinations were 36, 8.7, 0.75 and 14 std RMS off the truth, each a
+success; with the shift in their std 1.17, 0.19, 0.14 and 0.63 (the rest drawn at the plausible size along each of
+its directions; 0.57, 0.03, 0.03 and 0.23 re-run on 2026-11-29's main); drawn at that length, 0.67, 0.25, 0.04 and
+0.25 (1.31, 0.43, 0.28 and 0.56 over the std without the consider terms of omitted models;
+:meth:`_Run.determined_curvature`'s ``length``). Where the passes left the rest is no evidence of the truth (the
+first pass steps along everything, its estimates mostly linearisation error): the draws reach back to the prior as
+well (the rest's covariance ``rho^2 Q Q^T / (n - m) + u u^T``, ``u`` the estimate's part along it: the rest's length
+the plausible size, not each of its ``n - m`` directions' size, :meth:`_Run.determined_curvature`), their mean
 square shift enters the covariance as well as the stated std (:meth:`_Run.with_rest_shift`), and a part beyond
 :data:`BACK_BEYOND` times the plausible size is taken back to the prior where the record fits as well there
 (:meth:`_Run.back_to_prior`). On the MEMS rail launch of ``benchmarks/mems_rail_honesty.py`` (6 seeds; the first
@@ -1144,7 +1148,7 @@ class _Run:
         from casep.estimators.registry import STATUS_MISFIT, failed
 
         combos = last["determined"]
-        kept, note, record = self.determined_curvature(combos, problem, flight, D)
+        kept, note, record = self.determined_curvature(combos, problem, flight, D, length=True)
         last["determined"], last["curvature"] = kept, record
         if note is None:
             return self.with_rest_shift(res)
@@ -1604,7 +1608,7 @@ class _Run:
         return dataclasses.replace(res, covariance=cov, std=np.sqrt(np.diag(cov)), message=message, diagnostics=diag)
 
     def determined_curvature(self, combos: list[dict], problem: Any, flight: FlightData,
-                             D: np.ndarray) -> tuple[list[dict], str | None, dict]:
+                             D: np.ndarray, length: bool = False) -> tuple[list[dict], str | None, dict]:
         """The combinations a flight with stretches of different tracking noise determines
         (:func:`casep.checks.tracking_quality.determined`, linearised about `D`) with the navigation's second order
         over what it does not determine in their std; what is said of it; the record.
@@ -1618,16 +1622,32 @@ class _Run:
         of a combination the flight does not determine (:func:`casep.checks.tracking_quality.plausible_size`) and
         ``u`` the part of `D` along the rest (where the passes left it: the first pass steps along everything, its
         estimates mostly linearisation error, and that value is no evidence of the truth, which may be at the prior
-        as well; the rest's covariance is ``rho^2 Q Q^T + u u^T``: on a MEMS rail launch the first pass put ``bg_x``
-        at -9380 deg/h, the truth -120, and drawn at ``rho`` alone the stated combinations were up to 16 std off),
-        :data:`DETERMINED_DRAWS` seeded draws::
+        as well; the rest's covariance is ``rho^2 Q Q^T / k + u u^T``: on a MEMS rail launch the first pass put
+        ``bg_x`` at -9380 deg/h, the truth -120, and drawn at ``rho`` alone the stated combinations were up to 16 std
+        off), :data:`DETERMINED_DRAWS` seeded draws::
 
-            delta = scale * (W^T (s * a) + rho Q b + g u),   a ~ N(0, I_m),  b ~ N(0, I_(n-m)),  g ~ N(0, 1)
+            delta = scale * (W^T (s * a) + rho Q b / sqrt(k) + g u),
+            a ~ N(0, I_m),  b ~ N(0, I_(n-m)),  g ~ N(0, 1)
             u = Q Q^T (D / scale)
             r = y(D + delta) - (y(D) - S_V delta),         beta = W A^+ (r / sigma)
 
-        give the pass's nonlinear remainder ``r`` (:meth:`rows`) and the shift ``beta`` of the combinations' estimates
-        it makes, weighted as :func:`~casep.checks.tracking_quality.determined` weights them (``sigma`` of
+        With `length` (the iteration's rule, :meth:`left_out_curvature`: ``k = n - m``) the rest's part is ``rho``
+        long (its mean square length ``rho^2``), not ``rho`` along each of its ``n - m`` directions: there the
+        combinations stated are every one the record resolves below ``rho``, the largest estimate among them is the
+        instrument's size the record shows (a unit combination of the coefficients: their vector is at least that
+        long), and the rest is what the record cannot resolve at that size. Drawn at ``rho`` per direction the rest
+        was ``sqrt(n - m)`` (4 to 5) times longer than the coefficients' vector, and the second order, quadratic in
+        it, about 20 times the truth's own: on a reviewer's 800 Hz MEMS rocket under ``strapdown33`` (errors of 10
+        mg, 2000 ppm, 600 arcsec, 300 deg/h) the 13 stated combinations were 0.1 of their std RMS off the truth (a
+        std of 0.24 against a linear 0.013), and on seed 1 of the 3 s MEMS boost of
+        ``tests/workflows/test_imu_separate.py`` the shift was 40 times the remainder at the truth and the stated
+        combinations 0.037 of their std RMS off (0.43 with the length). Without it (the stretches' rule, ``k = 1``)
+        ``rho`` is each direction's size: the stretches state only what the record resolves below the declared
+        magnitude, whose estimates need not show the instrument's size (the stretched MEMS flight of the tests: ``rho``
+        78, the truth's rest 440 long; drawn as a length its stated combinations were up to 22 std off).
+
+        They give the pass's nonlinear remainder ``r`` (:meth:`rows`) and the shift ``beta`` of the combinations'
+        estimates it makes, weighted as :func:`~casep.checks.tracking_quality.determined` weights them (``sigma`` of
         :func:`~casep.checks.tracking_quality.stretch_sigma`, ``A = (S_V / sigma) scale``). Each variance gains
         ``mean(beta_i^2)`` (the std before it kept as ``std_linear``); a shift above the linear std is said
         (:class:`~casep.exceptions.NonlinearityWarning`). Whether a combination whose std grows is still determined is
@@ -1652,11 +1672,12 @@ class _Run:
             if any(x[3] > 0 for x in stretches) else np.ones(problem.t.size)
         S = problem.sv()
         u = Q @ (Q.T @ (D / scale))  # where the passes left the rest, from the prior (declared magnitudes)
+        k_rest = np.sqrt(max(n - m, 1)) if length else 1.0  # rho the rest's length, or each of its directions' size
         R = []
         rng, back = np.random.default_rng(0), np.random.default_rng(1)
         for _ in range(DETERMINED_DRAWS):
             a, b, g = rng.standard_normal(m), rng.standard_normal(n - m), back.standard_normal()
-            delta = scale * (W.T @ (s * a) + rho * (Q @ b) + g * u)  # the rest ~ N(0, rho^2 Q Q^T + u u^T)
+            delta = scale * (W.T @ (s * a) + rho / k_rest * (Q @ b) + g * u)  # the rest ~ N(0, rho^2 Q Q^T / k + u u^T)
             try:
                 y = self.rows(D + delta)
             except ValueError:  # the record does not invert there

@@ -1003,10 +1003,14 @@ def test_the_combinations_stated_carry_the_curvature_of_what_the_passes_leave_ou
     of seeds 0-3 was a plain success, and 3 of the 4 stated combinations 36, 8.7 and 14 std RMS off the truth (up to
     101 std; the second-order remainder of the pass over the distance to the truth accounted for it: RMS 0.97, 0.82,
     1.34 once taken off), so at least one of the two seeds run here. With the rest drawn at its plausible size
-    (``_Run.left_out_curvature``) the shift is carried in their std: RMS z 0.98, 0.04, 0.14, 0.57 for seeds 0-3
-    (honest; conservative where the draws overstate the rest), the shift, 36-660 times the linear std, said in the
-    message with the smaller models. The pooled bound (RMS z at most 1.5) is each seed's too: every honest seed is
-    below it, every seed of the defect far above, whatever the number of seeds pooled."""
+    (``_Run.left_out_curvature``) the shift is carried in their std, said in the message with the smaller models. The
+    pooled bound (RMS z at most 1.5) is each seed's too: every honest seed is below it, every seed of the defect far
+    above, whatever the number of seeds pooled. Drawn at the plausible size along each of the rest's 24 directions
+    (4.9 times the length of the coefficients' vector) the shift was up to 660 linear std and the std 10 to 30 times
+    the error on seed 1 (RMS z 0.037 over the std without the consider terms, seeds 0-3: 0.85, 0.037, 0.12, 0.42);
+    drawn at that length (``_Run.determined_curvature``'s ``length``) RMS z 1.31, 0.43, 0.28 (its linear std alone:
+    0.30), 0.56, the largest 1.8, and the shift up to 8.6 (seed 0) and 17 (seed 1) linear std: the truth's own
+    remainder moves seed 0's by up to 13.8. Each seed's RMS z at least 0.25: std no more than 4 times the error."""
     z_all = []
     for seed in range(2):
         directory = tmp_path / str(seed)
@@ -1019,8 +1023,10 @@ def test_the_combinations_stated_carry_the_curvature_of_what_the_passes_leave_ou
         assert z.size >= 5, out.message
         assert np.all(np.abs(z) < 4.0), (seed, z)  # no stated combination off by more than its std can say
         z_all.append(z)
+        zw = stated_z(out, truth, "std_without_consider")  # the consider terms of omitted models: their own rule
+        assert np.sqrt(np.mean(zw**2)) >= 0.25, (seed, zw)  # the std not many times the error
         record = out.result.diagnostics["iterations"]["passes"][-1]["curvature"]
-        assert record["checked"] and max(record["shift_std"]) > 10.0, record
+        assert record["checked"] and max(record["shift_std"]) > 5.0, record
         assert "not linear over what the flight does not determine" in out.message, out.message
         assert "a smaller model (strapdown15_axial or strapdown12)" in out.message, out.message
     rms = float(np.sqrt(np.mean(np.concatenate(z_all) ** 2)))
