@@ -70,6 +70,7 @@ def _keeping_records() -> None:
 def flight(seed: int, rate: float, offsets: list[float], model: str, keep_header: bool, d: Path) -> list[dict]:
     """One simulated flight navigated at each offset of the heading and separated: one record per offset."""
     from casep.cli import main
+    from casep.simulation.scenarios import STRAPDOWN_TRUTH
 
     with contextlib.redirect_stdout(io.StringIO()), warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -91,7 +92,11 @@ def flight(seed: int, rate: float, offsets: list[float], model: str, keep_header
             r = json.loads(sep.read_text())
             t = RECORDS[-1] if RECORDS else {}
             RECORDS.clear()
-            out.append({"seed": seed, "rate": rate, "offset": off, "status": r["status"],
+            z = {n: (e - STRAPDOWN_TRUTH[n]) / sd for n, e, sd in zip(r["names"], r["estimates"], r["std"] or [])
+                 if n in STRAPDOWN_TRUTH and e is not None and sd}
+            consider = ((r["diagnostics"].get("heading") or {}).get("test") or {}).get("consider") or {}
+            out.append({"seed": seed, "rate": rate, "offset": off, "status": r["status"], "bg_x_z": z.get("bg_x"),
+                        "consider_factor": consider.get("std_factor_max"),
                         "tested": bool(t), "turn": t.get("turn_deg"), "std": t.get("std_deg"), "z": t.get("z"),
                         "conflict": bool(t.get("conflict")), "turned": t.get("turned"),
                         "test_cpu_s": t.get("cpu_s"), "separate_cpu_s": cpu})
@@ -130,9 +135,12 @@ def main() -> None:
         k = sum(r["status"] == -10 for r in at)
         lo, hi = clopper_pearson(k, len(at))
         zs = [r["z"] for r in at if r["z"] is not None]
+        bz = np.array([r["bg_x_z"] for r in at if r["status"] >= 0 and r["bg_x_z"] is not None])
         print(f"offset {off:g} deg: {k} of {len(at)} called turned (status -10; 95 % interval {lo:.3f}-{hi:.3f}); "
               f"tested {sum(r['tested'] for r in at)}; z median {np.median(zs) if zs else float('nan'):.2f}, "
-              f"max {max(zs) if zs else float('nan'):.2f}")
+              f"max {max(zs) if zs else float('nan'):.2f}; bg_x on the {bz.size} successes: RMS z "
+              f"{np.sqrt(np.mean(bz**2)) if bz.size else float('nan'):.2f}, max |z| "
+              f"{np.max(np.abs(bz)) if bz.size else float('nan'):.2f}")
 
 
 if __name__ == "__main__":
