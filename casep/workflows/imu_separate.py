@@ -511,6 +511,8 @@ class _Run:
     _rows: tuple | None = None
     #: the IMU's white noise measured on the pad window (:func:`_pad_noise`; empty: not measurable), formed once
     _pad_noise: dict | None = None
+    #: (fit, problem, flight, model) of the first pass, linear about no correction (:meth:`turn_judged`)
+    _first_pass: tuple | None = None
 
     def __init__(self, imu: ImuData, tracking: Any, nav_site: LaunchSite, site: LaunchSite, window: tuple,
                  base: ErrorModel, source: Any, spec: FitSpec, heading_deg: float | None, heading_axis: str,
@@ -926,6 +928,7 @@ class _Run:
         fast = _fast_spec(self.spec) if iterate else None
         spec = fast or self.spec
         res, nav, flight, model, problem = self.solve(None, spec)
+        self._first_pass = (res, problem, flight, model)
         from casep.checks.plausibility import setup_problems
 
         if setup_problems(flight):  # a set-up mistake (site, frame, times): passes would fit it, not the instrument
@@ -1057,6 +1060,7 @@ class _Run:
             out = failed(out, STATUS_SETUP, f"failed: {unit['said']}")
         else:  # the passes settled (the stop rule met: a success, or a combination left out after it) or not
             out = self.heading_judged(out, problem, flight, D, settled=_stopped(passes[-1], tol))
+            out = self.turn_judged(out)
         test = (out.diagnostics.get("heading") or {}).get("test") or {}
         if test.get("conflict") and _BLAME in out.message:  # the step failed on the turn the heading leaves
             out = dataclasses.replace(out, message=out.message.replace(_BLAME, _heading_blame(test)))
@@ -1255,6 +1259,46 @@ class _Run:
         record["said"] = f"failed: {said}"
         warnings.warn(said, SetupWarning, stacklevel=4)
         return failed(res, STATUS_PRIOR_CONFLICT, record["said"])
+
+    def turn_judged(self, res: EstimateResult) -> EstimateResult:
+        """A raw record's failed separation whose heading test named nothing (:meth:`heading_judged`), with its first
+        pass (linear about no correction, as a telemetry's fit) tested for a turn about the vertical against the
+        tracking as a telemetry is (:func:`casep.workflows.telemetry_heading.telemetry_heading_record`: the
+        telemetry's heading or the tracking's azimuth, the rows and S_V turned back, whichever the likelihood
+        prefers); a turn named fails `res` first (status ``STATUS_PRIOR_CONFLICT``, the record in
+        ``diagnostics["heading"]["turn"]``). The heading's column does not hold a tracking turned in azimuth (its
+        turn of the pad's inertial velocity, the Earth's rotation, is a constant the coefficients cannot take): with
+        the tracking turned 10 deg the passes stepped out of the linear model and the result failed as errors too
+        large for it (status -7), the heading read +4.7 +- 29 deg. A success, a heading named, a telemetry's passes
+        (tested on their linear fit before they iterate): `res` unchanged."""
+        from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
+        from casep.exceptions import SetupWarning
+        from casep.workflows.separate import LOCATING_FIT
+        from casep.workflows.telemetry_heading import telemetry_heading_message, telemetry_heading_record
+
+        test = (res.diagnostics.get("heading") or {}).get("test") or {}
+        if res.success or test.get("conflict") or self._first_pass is None or getattr(self, "imu", None) is None:
+            return res
+        first, problem, flight, _ = self._first_pass
+        if problem.is_noise_free():
+            return res
+        # no term left out of the test's design: the pass's phi0 is the levelling's, a function of the accelerometer
+        # terms (left out with it, the rows turned back misfit by 2.2 m/s)
+        record = telemetry_heading_record(first, problem, flight, None, self.spec, LOCATING_FIT)
+        if record is None:
+            return res
+        record["heading_deg"], record["heading_axis"] = self.heading["heading_deg"], self.heading["heading_axis"]
+        record["suggested_heading_deg"] = (None if record["turned"] != "telemetry" or record["heading_deg"] is None
+                                           else record["heading_deg"] + record["turn_deg"])
+        record["on_first_pass"] = True
+        res.diagnostics["heading"] = {**(res.diagnostics.get("heading") or {}), "turn": record}
+        if not record["conflict"]:
+            return res
+        said = telemetry_heading_message(record, flight.source, imu=True)
+        record["said"] = f"failed: {said}"
+        warnings.warn(said, SetupWarning, stacklevel=4)
+        return named_first(failed(res, STATUS_PRIOR_CONFLICT, record["said"]), record["said"], STATUS_PRIOR_CONFLICT,
+                           "the turn named above (the heading, or the frames)")
 
     def with_clock(self, res: EstimateResult, problem: Any, flight: FlightData, D: np.ndarray) -> EstimateResult:
         """`res` with the test of the IMU clock's rate against the data (:func:`clock_check`) in
