@@ -165,6 +165,14 @@ from casep.estimators.registry import STATUS_NOT_CONVERGED
 from casep.exceptions import GapWarning, SaturationWarning
 from casep.frames import LaunchSite
 from casep.navigation.imu import ImuData
+from casep.workflows.heading_rules import (
+    HEADING_STD_DEG,
+    SMALL_ANGLE_REACH_DEG,
+    heading_first,
+    named_first,
+    within_small_angle_reach,
+)
+from casep.workflows.heading_rules import quiet_fit as _quiet_fit
 from casep.workflows.row_estimators import (
     added_covariance,
     coefficient_estimators,
@@ -250,11 +258,6 @@ STALL = 0.1
 #: A combination left out whose correction exceeds this many of its std: the iteration fails (it is determined, and
 #: the model is not linear over its size); below it, the record does not determine it (said, not iterated).
 SIGNIFICANT = 4.0
-#: The std of a given heading when none is given, deg (:meth:`_Run.heading_rows`): a launcher rail's azimuth surveyed
-#: to a few hundredths of a degree, and the IMU's mounting on the rail about the vertical, which a bracket holds to a
-#: tenth of a degree at best; on a rail launch the lateral terms cannot tell the heading from the coefficients, and
-#: the MEMS example's stated combinations (``docs/guide/navigate.md``) move by up to 6 of their std per 0.1 deg.
-HEADING_STD_DEG = 0.1
 #: The heading's derivative: central differences of a pass navigated at the heading plus and minus this, deg.
 HEADING_STEP_DEG = 0.1
 #: The heading test's turn left at the heading it pointed to (the rows navigated there), in its std, beyond which
@@ -264,20 +267,6 @@ HEADING_STEP_DEG = 0.1
 #: test points to with the coefficients' correction held walked to 68.8 deg, past the true 70 (the correction
 #: absorbed part of the turn), so the rule says where the test stops being exact instead of searching.
 HEADING_SETTLED_Z = 3.0
-#: The reach of the small-angle tests, deg: a heading (or a frame's rotation about an axis) whose std times the
-#: test's limit exceeds it is not judged (:meth:`_Run.heading_judged`;
-#: :data:`casep.workflows.telemetry_frame.FRAME_LARGE_DEG` is this): beyond it the first-order column locates a local
-#: fit, not the turn (an iteration stopped two passes early read the heading -417 +- 34 deg off).
-SMALL_ANGLE_REACH_DEG = 30.0
-
-
-def within_small_angle_reach(std_deg, limit_z: float):
-    """Whether a small-angle test judges an angle of std `std_deg` (deg; a float or an array) at its limit `limit_z`:
-    ``std * limit <= SMALL_ANGLE_REACH_DEG`` (a rotation at the limit within the first-order column's reach). The one
-    rule of the heading (:meth:`_Run.heading_judged`), the attitude's frame
-    (:mod:`casep.workflows.telemetry_frame`) and a telemetry's turn about the vertical
-    (:mod:`casep.workflows.telemetry_heading`)."""
-    return np.asarray(std_deg) * limit_z <= SMALL_ANGLE_REACH_DEG
 #: The IMU clock drift's derivative: central differences of a pass navigated with its tags stretched by plus and minus
 #: this, ppm (the rows are linear in it to parts in 10^4 over a flight: a crystal's drift of tens of ppm).
 CLOCK_STEP_PPM = 100.0
@@ -1272,8 +1261,8 @@ class _Run:
         large for it (status -7), the heading read +4.7 +- 29 deg. A success, a heading named, a telemetry's passes
         (tested on their linear fit before they iterate): `res` unchanged."""
         from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
+        from casep.estimators.spec import FitSpec
         from casep.exceptions import SetupWarning
-        from casep.workflows.separate import LOCATING_FIT
         from casep.workflows.telemetry_heading import telemetry_heading_message, telemetry_heading_record
 
         test = (res.diagnostics.get("heading") or {}).get("test") or {}
@@ -1284,7 +1273,8 @@ class _Run:
             return res
         # no term left out of the test's design: the pass's phi0 is the levelling's, a function of the accelerometer
         # terms (left out with it, the rows turned back misfit by 2.2 m/s)
-        record = telemetry_heading_record(first, problem, flight, None, self.spec, LOCATING_FIT)
+        locating = _fast_spec(FitSpec.build())  # the passes' own far fit: OLS, white noise, no robust filter
+        record = telemetry_heading_record(first, problem, flight, None, self.spec, locating)
         if record is None:
             return res
         record["heading_deg"], record["heading_axis"] = self.heading["heading_deg"], self.heading["heading_axis"]
@@ -1892,15 +1882,6 @@ def _settings_on_coefficients(res: EstimateResult, D: np.ndarray) -> EstimateRes
     moved = {k: f(res.settings[k], back) for k, f in (("prior", shift_prior), ("bounds", shift_bounds))
              if isinstance(res.settings.get(k), Mapping)}
     return dataclasses.replace(res, settings={**res.settings, **moved}) if back and moved else res
-
-
-def _quiet_fit(problem: Any, spec: FitSpec) -> EstimateResult:
-    """The estimate and its std alone (``fit(checks=False)``), its warnings not shown."""
-    from casep.estimators.solve import fit
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return fit(problem, spec, checks=False)
 
 
 def _pass_record(k: int, res: EstimateResult, step: Step, total: np.ndarray, how: str, rounding: bool = False) -> dict:
@@ -2879,22 +2860,6 @@ def heading_message(record: dict, axis: str) -> str:
                    f"magnetic or grid); or state how well it is known (--heading-std {max(abs(c), sd):.2g} or more)")
 
 
-def heading_first(res: EstimateResult) -> EstimateResult:
-    """`res` with the heading the data contradict (``diagnostics["heading"]["test"]``, its ``conflict`` standing:
-    :meth:`_Run.heading_judged`) named first, whatever else failed before or after it: status
-    ``STATUS_PRIOR_CONFLICT``, the heading's failure (its ``said``) opening the message, the other failures after
-    it as what a wrong heading also leaves (a turn of the velocity the coefficients cannot take: a misfit,
-    estimates beyond the linear model, a step that leaves it, a drift the clock's column takes a share of), to be
-    judged once the heading is right. `res` unchanged without a conflict."""
-    from casep.estimators.registry import STATUS_PRIOR_CONFLICT
-
-    test = (res.diagnostics.get("heading") or {}).get("test") or {}
-    said = test.get("said")
-    if not test.get("conflict") or not test.get("first", True) or not said or said not in res.message:
-        return res  # no conflict, or one read on passes stopped before settling: said after what stopped them
-    return named_first(res, said, STATUS_PRIOR_CONFLICT, "the turn named above (the heading, or the frames)")
-
-
 def unit_first(res: EstimateResult) -> EstimateResult:
     """`res` with the rates' unit its separation points to (``diagnostics["rate_unit"]``:
     :func:`casep.workflows.imu_units.rate_unit_reading`) named first, status ``STATUS_SETUP``, the other failures
@@ -2907,24 +2872,6 @@ def unit_first(res: EstimateResult) -> EstimateResult:
     if said is None or said not in res.message:
         return res
     return named_first(res, said, STATUS_SETUP, "the unit named above")
-
-
-def named_first(res: EstimateResult, said: str, status: int, what: str) -> EstimateResult:
-    """`res` failed with `status` and the failure `said` (in its message) opening the message, every other failure
-    after it (the first line's, and those appended after a later line: ``failed`` adds to the message's end), in
-    their order, as what `what` may leave, to be judged once it is set right; the message's other lines kept."""
-    fails, lines = [], []
-    for i, line in enumerate(res.message.split("\n")):
-        head, *more = line.split("; failed: ")
-        if i == 0 and head.startswith("failed: "):
-            more, head = [head.removeprefix("failed: "), *more], ""
-        fails += [f for f in more if f and f != said.removeprefix("failed: ")]
-        if head:
-            lines.append(head)
-    others = (f"\nwith {what}, the other findings may be its consequences (judge them once it is set right): "
-              + "; ".join(fails)) if fails else ""
-    message = "\n".join([said + others, *lines])
-    return dataclasses.replace(res, status=status, success=False, message=message)
 
 
 def heading_said(record: dict | None) -> tuple[str, bool] | None:

@@ -60,7 +60,7 @@ __all__ = ["telemetry_heading_record", "telemetry_heading_message", "judge_telem
 
 #: The launch frame's axis up at the launch point (casep's launch-inertial frame: y up, x downrange).
 _UP = 1
-#: The turn is scanned over +-FRAME_LARGE_DEG in steps of this (deg), the least-squares residual's profile ...
+#: The turn is scanned over +-SMALL_ANGLE_REACH_DEG in steps of this (deg), the least-squares residual's profile ...
 SCAN_STEP_DEG = 3.0
 #: ... refined by golden section to this (deg) ...
 LOCATE_TOL_DEG = 0.01
@@ -146,8 +146,8 @@ def telemetry_heading_record(res: EstimateResult, problem: Any, flight: FlightDa
     from casep.estimators.rls import PRIOR_CONFLICT_Z
     from casep.noise.fit import fit_noise
     from casep.regression.problem import Problem
-    from casep.workflows.imu_separate import HEADING_STD_DEG, _quiet_fit, within_small_angle_reach
-    from casep.workflows.telemetry_frame import FRAME_LARGE_DEG
+    from casep.workflows.heading_rules import HEADING_STD_DEG, SMALL_ANGLE_REACH_DEG, within_small_angle_reach
+    from casep.workflows.heading_rules import quiet_fit as _quiet_fit
 
     meta = flight.meta if isinstance(flight.meta, dict) else {}
     turned = _turned_rows(problem, flight)
@@ -180,7 +180,7 @@ def telemetry_heading_record(res: EstimateResult, problem: Any, flight: FlightDa
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the hypotheses' fits: judged here, not said
-            grid = np.arange(-FRAME_LARGE_DEG, FRAME_LARGE_DEG + SCAN_STEP_DEG / 2, SCAN_STEP_DEG)
+            grid = np.arange(-SMALL_ANGLE_REACH_DEG, SMALL_ANGLE_REACH_DEG + SCAN_STEP_DEG / 2, SCAN_STEP_DEG)
             # each hypothesis located on its least-squares profile, then chosen by the restricted likelihood there
             # (the tracking turned instead: the hypothesis whose located turn the noise model finds likelier)
             hypotheses = ["telemetry"] + (["tracking"] if tracked is not None else [])
@@ -283,7 +283,7 @@ def judge_telemetry_heading(res: EstimateResult, flight: Any, problem: Any, mode
     from casep.checks.plausibility import setup_problems
     from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
     from casep.exceptions import SetupWarning
-    from casep.workflows.imu_separate import heading_first
+    from casep.workflows.heading_rules import heading_first
 
     named = (res.diagnostics.get("dv_signs") or {}).get("named") or (res.diagnostics.get("frame") or {}).get("conflict")
     if named or not isinstance(flight, FlightData) or problem.y is None or setup_problems(flight):
