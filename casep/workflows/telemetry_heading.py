@@ -21,8 +21,9 @@ true heading). The test names 2 deg on all three (z 10-10.5), 1 deg on two (z 5.
 3.7), 0.5 deg on none (z 2.4-3.2) (``benchmarks/telemetry_heading_mc.py``; the hypotheses chosen by least squares, 1
 deg was named on one: both coarse scans are smallest at 0 deg with one value, and the tie took the tracking at about
 -0.2 deg). A turn not named is carried in the std of such a success (:func:`turn_consider`): bg_x at RMS z 1.03 on the
-five seeds 0.5 deg off (10 std off without it), at the cost of bg_x's std 1.4-6.6 times wider on clean flights.
-It costs 0.7-1.1 s of CPU at 10 Hz, an eighth to a sixth of the separation. The turn about the launch
+five seeds 0.5 deg off (10 std off without it), at the cost of bg_x's std 3.6-12 times wider on clean flights (its
+RMS z 0.29 over seeds 1-15 at 10 and 20 Hz, where no flight was called turned: z largest 2.6). It costs 0.8-1.2 s of
+CPU at 10 Hz, an eighth to a sixth of the separation. The turn about the launch
 frame's y axis (up at the launch point, the pad) is located by least squares as the frame's rotation is
 (:mod:`casep.workflows.telemetry_frame`: Gauss-Newton, the rows and S_V turned back by the turn found, until a step
 is below a tenth of its std; the first-order column does not hold a turn of degrees over a boost of km/s), each
