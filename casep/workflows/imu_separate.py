@@ -1258,8 +1258,11 @@ class _Run:
         ``diagnostics["heading"]["turn"]``). The heading's column does not hold a tracking turned in azimuth (its
         turn of the pad's inertial velocity, the Earth's rotation, is a constant the coefficients cannot take): with
         the tracking turned 10 deg the passes stepped out of the linear model and the result failed as errors too
-        large for it (status -7), the heading read +4.7 +- 29 deg. A success, a heading named, a telemetry's passes
-        (tested on their linear fit before they iterate): `res` unchanged."""
+        large for it (status -7), the heading read +4.7 +- 29 deg. Only the tracking's turn is named here: the
+        telemetry's (the heading given) is the heading test's, and on the first pass the linear remainder of errors
+        the passes would take out reads as one (the noise-free flight stopped at two passes: -2.83 +- 0.18 deg, z
+        11.5). A success, a heading named, a telemetry's passes (tested on their linear fit before they iterate):
+        `res` unchanged."""
         from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
         from casep.estimators.spec import FitSpec
         from casep.exceptions import SetupWarning
@@ -1282,8 +1285,8 @@ class _Run:
                                            else record["heading_deg"] + record["turn_deg"])
         record["on_first_pass"] = True
         res.diagnostics["heading"] = {**(res.diagnostics.get("heading") or {}), "turn": record}
-        if not record["conflict"]:
-            return res
+        if not record["conflict"] or record["turned"] != "tracking":
+            return res  # the heading's own turn: its test (heading_judged), on the passes, not the first's remainder
         said = telemetry_heading_message(record, flight.source, imu=True)
         record["said"] = f"failed: {said}"
         warnings.warn(said, SetupWarning, stacklevel=4)
