@@ -170,6 +170,14 @@ from casep.estimators.registry import STATUS_NOT_CONVERGED
 from casep.exceptions import GapWarning, SaturationWarning
 from casep.frames import LaunchSite
 from casep.navigation.imu import ImuData
+from casep.workflows.heading_rules import (
+    HEADING_STD_DEG,
+    SMALL_ANGLE_REACH_DEG,
+    heading_first,
+    named_first,
+    within_small_angle_reach,
+)
+from casep.workflows.heading_rules import quiet_fit as _quiet_fit
 from casep.workflows.row_estimators import (
     REST_SHIFT_KEY,
     added_covariance,
@@ -258,11 +266,6 @@ STALL = 0.1
 #: A combination left out whose correction exceeds this many of its std: the iteration fails (it is determined, and
 #: the model is not linear over its size); below it, the record does not determine it (said, not iterated).
 SIGNIFICANT = 4.0
-#: The std of a given heading when none is given, deg (:meth:`_Run.heading_rows`): a launcher rail's azimuth surveyed
-#: to a few hundredths of a degree, and the IMU's mounting on the rail about the vertical, which a bracket holds to a
-#: tenth of a degree at best; on a rail launch the lateral terms cannot tell the heading from the coefficients, and
-#: the MEMS example's stated combinations (``docs/guide/navigate.md``) move by up to 6 of their std per 0.1 deg.
-HEADING_STD_DEG = 0.1
 #: The heading's derivative: central differences of a pass navigated at the heading plus and minus this, deg.
 HEADING_STEP_DEG = 0.1
 #: The heading test's turn left at the heading it pointed to (the rows navigated there), in its std, beyond which
@@ -272,20 +275,6 @@ HEADING_STEP_DEG = 0.1
 #: test points to with the coefficients' correction held walked to 68.8 deg, past the true 70 (the correction
 #: absorbed part of the turn), so the rule says where the test stops being exact instead of searching.
 HEADING_SETTLED_Z = 3.0
-#: The reach of the small-angle tests, deg: a heading (or a frame's rotation about an axis) whose std times the
-#: test's limit exceeds it is not judged (:meth:`_Run.heading_judged`;
-#: :data:`casep.workflows.telemetry_frame.FRAME_LARGE_DEG` is this): beyond it the first-order column locates a local
-#: fit, not the turn (an iteration stopped two passes early read the heading -417 +- 34 deg off).
-SMALL_ANGLE_REACH_DEG = 30.0
-
-
-def within_small_angle_reach(std_deg, limit_z: float):
-    """Whether a small-angle test judges an angle of std `std_deg` (deg; a float or an array) at its limit `limit_z`:
-    ``std * limit <= SMALL_ANGLE_REACH_DEG`` (a rotation at the limit within the first-order column's reach). The one
-    rule of the heading (:meth:`_Run.heading_judged`), the attitude's frame
-    (:mod:`casep.workflows.telemetry_frame`) and a telemetry's turn about the vertical
-    (:mod:`casep.workflows.telemetry_heading`)."""
-    return np.asarray(std_deg) * limit_z <= SMALL_ANGLE_REACH_DEG
 #: The IMU clock drift's derivative: central differences of a pass navigated with its tags stretched by plus and minus
 #: this, ppm (the rows are linear in it to parts in 10^4 over a flight: a crystal's drift of tens of ppm).
 CLOCK_STEP_PPM = 100.0
@@ -521,6 +510,8 @@ class _Run:
     _rows: tuple | None = None
     #: the IMU's white noise measured on the pad window (:func:`_pad_noise`; empty: not measurable), formed once
     _pad_noise: dict | None = None
+    #: (fit, problem, flight, model) of the first pass, linear about no correction (:meth:`turn_judged`)
+    _first_pass: tuple | None = None
 
     def __init__(self, imu: ImuData, tracking: Any, nav_site: LaunchSite, site: LaunchSite, window: tuple,
                  base: ErrorModel, source: Any, spec: FitSpec, heading_deg: float | None, heading_axis: str,
@@ -935,6 +926,7 @@ class _Run:
         fast = _fast_spec(self.spec) if iterate else None
         spec = fast or self.spec
         res, nav, flight, model, problem = self.solve(None, spec)
+        self._first_pass = (res, problem, flight, model)
         from casep.checks.plausibility import setup_problems
 
         if setup_problems(flight):  # a set-up mistake (site, frame, times): passes would fit it, not the instrument
@@ -1067,6 +1059,7 @@ class _Run:
             out = failed(out, STATUS_SETUP, f"failed: {unit['said']}")
         else:  # the passes settled (the stop rule met: a success, or a combination left out after it) or not
             out = self.heading_judged(out, problem, flight, D, settled=_stopped(passes[-1], tol))
+            out = self.turn_judged(out)
         test = (out.diagnostics.get("heading") or {}).get("test") or {}
         if test.get("conflict") and _BLAME in out.message:  # the step failed on the turn the heading leaves
             out = dataclasses.replace(out, message=out.message.replace(_BLAME, _heading_blame(test)))
@@ -1276,6 +1269,50 @@ class _Run:
         record["said"] = f"failed: {said}"
         warnings.warn(said, SetupWarning, stacklevel=4)
         return failed(res, STATUS_PRIOR_CONFLICT, record["said"])
+
+    def turn_judged(self, res: EstimateResult) -> EstimateResult:
+        """A raw record's failed separation whose heading test named nothing (:meth:`heading_judged`), with its first
+        pass (linear about no correction, as a telemetry's fit) tested for a turn about the vertical against the
+        tracking as a telemetry is (:func:`casep.workflows.telemetry_heading.telemetry_heading_record`: the
+        telemetry's heading or the tracking's azimuth, the rows and S_V turned back, whichever the likelihood
+        prefers); a turn named fails `res` first (status ``STATUS_PRIOR_CONFLICT``, the record in
+        ``diagnostics["heading"]["turn"]``). The heading's column does not hold a tracking turned in azimuth (its
+        turn of the pad's inertial velocity, the Earth's rotation, is a constant the coefficients cannot take): with
+        the tracking turned 10 deg the passes stepped out of the linear model and the result failed as errors too
+        large for it (status -7), the heading read +4.7 +- 29 deg. Only the tracking's turn is named here: the
+        telemetry's (the heading given) is the heading test's, and on the first pass the linear remainder of errors
+        the passes would take out reads as one (the noise-free flight stopped at two passes: -2.83 +- 0.18 deg, z
+        11.5). A success, a heading named, a telemetry's passes (tested on their linear fit before they iterate):
+        `res` unchanged."""
+        from casep.estimators.registry import STATUS_PRIOR_CONFLICT, failed
+        from casep.estimators.spec import FitSpec
+        from casep.exceptions import SetupWarning
+        from casep.workflows.telemetry_heading import telemetry_heading_message, telemetry_heading_record
+
+        test = (res.diagnostics.get("heading") or {}).get("test") or {}
+        if res.success or test.get("conflict") or self._first_pass is None or getattr(self, "imu", None) is None:
+            return res
+        first, problem, flight, _ = self._first_pass
+        if problem.is_noise_free():
+            return res
+        # no term left out of the test's design: the pass's phi0 is the levelling's, a function of the accelerometer
+        # terms (left out with it, the rows turned back misfit by 2.2 m/s)
+        locating = _fast_spec(FitSpec.build())  # the passes' own far fit: OLS, white noise, no robust filter
+        record = telemetry_heading_record(first, problem, flight, None, self.spec, locating)
+        if record is None:
+            return res
+        record["heading_deg"], record["heading_axis"] = self.heading["heading_deg"], self.heading["heading_axis"]
+        record["suggested_heading_deg"] = (None if record["turned"] != "telemetry" or record["heading_deg"] is None
+                                           else record["heading_deg"] + record["turn_deg"])
+        record["on_first_pass"] = True
+        res.diagnostics["heading"] = {**(res.diagnostics.get("heading") or {}), "turn": record}
+        if not record["conflict"] or record["turned"] != "tracking":
+            return res  # the heading's own turn: its test (heading_judged), on the passes, not the first's remainder
+        said = telemetry_heading_message(record, flight.source, imu=True)
+        record["said"] = f"failed: {said}"
+        warnings.warn(said, SetupWarning, stacklevel=4)
+        return named_first(failed(res, STATUS_PRIOR_CONFLICT, record["said"]), record["said"], STATUS_PRIOR_CONFLICT,
+                           "the turn named above (the heading, or the frames)")
 
     def with_clock(self, res: EstimateResult, problem: Any, flight: FlightData, D: np.ndarray) -> EstimateResult:
         """`res` with the test of the IMU clock's rate against the data (:func:`clock_check`) in
@@ -1887,15 +1924,6 @@ def _settings_on_coefficients(res: EstimateResult, D: np.ndarray) -> EstimateRes
     moved = {k: f(res.settings[k], back) for k, f in (("prior", shift_prior), ("bounds", shift_bounds))
              if isinstance(res.settings.get(k), Mapping)}
     return dataclasses.replace(res, settings={**res.settings, **moved}) if back and moved else res
-
-
-def _quiet_fit(problem: Any, spec: FitSpec) -> EstimateResult:
-    """The estimate and its std alone (``fit(checks=False)``), its warnings not shown."""
-    from casep.estimators.solve import fit
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return fit(problem, spec, checks=False)
 
 
 def _pass_record(k: int, res: EstimateResult, step: Step, total: np.ndarray, how: str, rounding: bool = False) -> dict:
@@ -2947,22 +2975,6 @@ def heading_message(record: dict, axis: str) -> str:
                    f"magnetic or grid); or state how well it is known (--heading-std {max(abs(c), sd):.2g} or more)")
 
 
-def heading_first(res: EstimateResult) -> EstimateResult:
-    """`res` with the heading the data contradict (``diagnostics["heading"]["test"]``, its ``conflict`` standing:
-    :meth:`_Run.heading_judged`) named first, whatever else failed before or after it: status
-    ``STATUS_PRIOR_CONFLICT``, the heading's failure (its ``said``) opening the message, the other failures after
-    it as what a wrong heading also leaves (a turn of the velocity the coefficients cannot take: a misfit,
-    estimates beyond the linear model, a step that leaves it, a drift the clock's column takes a share of), to be
-    judged once the heading is right. `res` unchanged without a conflict."""
-    from casep.estimators.registry import STATUS_PRIOR_CONFLICT
-
-    test = (res.diagnostics.get("heading") or {}).get("test") or {}
-    said = test.get("said")
-    if not test.get("conflict") or not test.get("first", True) or not said or said not in res.message:
-        return res  # no conflict, or one read on passes stopped before settling: said after what stopped them
-    return named_first(res, said, STATUS_PRIOR_CONFLICT, "the turn named above (the heading, or the frames)")
-
-
 def unit_first(res: EstimateResult) -> EstimateResult:
     """`res` with the rates' unit its separation points to (``diagnostics["rate_unit"]``:
     :func:`casep.workflows.imu_units.rate_unit_reading`) named first, status ``STATUS_SETUP``, the other failures
@@ -2975,24 +2987,6 @@ def unit_first(res: EstimateResult) -> EstimateResult:
     if said is None or said not in res.message:
         return res
     return named_first(res, said, STATUS_SETUP, "the unit named above")
-
-
-def named_first(res: EstimateResult, said: str, status: int, what: str) -> EstimateResult:
-    """`res` failed with `status` and the failure `said` (in its message) opening the message, every other failure
-    after it (the first line's, and those appended after a later line: ``failed`` adds to the message's end), in
-    their order, as what `what` may leave, to be judged once it is set right; the message's other lines kept."""
-    fails, lines = [], []
-    for i, line in enumerate(res.message.split("\n")):
-        head, *more = line.split("; failed: ")
-        if i == 0 and head.startswith("failed: "):
-            more, head = [head.removeprefix("failed: "), *more], ""
-        fails += [f for f in more if f and f != said.removeprefix("failed: ")]
-        if head:
-            lines.append(head)
-    others = (f"\nwith {what}, the other findings may be its consequences (judge them once it is set right): "
-              + "; ".join(fails)) if fails else ""
-    message = "\n".join([said + others, *lines])
-    return dataclasses.replace(res, status=status, success=False, message=message)
 
 
 def heading_said(record: dict | None) -> tuple[str, bool] | None:

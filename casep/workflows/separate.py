@@ -228,12 +228,18 @@ def separate(
     from casep.workflows.telemetry_iterate import iterate_if_curved
 
     (res, problem, model, flight), caught = _recorded(lambda: _linear(flight, problem, model, spec, fit_time_offset))
+    turn = (res.diagnostics.get("heading") or {}).get("test")  # the linear pass's turn about the vertical
     res, iterated = iterate_if_curved(res, flight, problem, model, spec, iterate)
     if not iterated and isinstance(flight, FlightData):
         from casep.workflows.telemetry_clock import carry_telemetry_clock
 
         # the telemetry clock's drift, after the IMU noise that sets the covariance anew (an iteration carries it)
         res = carry_telemetry_clock(res, flight, problem)
+    if turn is not None:
+        from casep.workflows.telemetry_heading import with_turn_considered
+
+        # a turn the test did not name, on a success whose model cannot take it: in the std, linear or iterated
+        res = with_turn_considered(res, turn)
     # the linear result's warnings are said with it; an iterated result says its own (the inputs' were said above)
     return res if iterated else _replayed(res, caught)
 
