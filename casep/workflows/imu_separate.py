@@ -3007,7 +3007,7 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     accelerometers', the gyros') the same REML fits beside the tracking noise (:func:`_instability` reads them):
     started at the white noise's variance averaged over the correlation time, ``s^2 h / tau`` (the sensor's mean over
     its axes)."""
-    from casep.checks.tracking_quality import IMU_REML_ROWS, imu_noise_states, imu_sample_noise
+    from casep.checks.tracking_quality import IMU_REML_ROWS, IMU_WHITE_PARTS, imu_noise_states, imu_sample_noise
     from casep.estimators.solve import kept_samples
     from casep.noise.fit import Reml, estimable_basis
     from casep.noise.known import RemlRows, fit_tracking
@@ -3031,7 +3031,12 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     X = np.stack(Reml(rows, estimable_basis(rows)).Z, axis=1)  # (N, 3, p + 1): [Z dv] per axis
     kept = flight.meta.get(IMU_REML_ROWS) if isinstance(flight.meta, dict) else None
     if isinstance(kept, list):  # a size pooled over several records reads them (casep.noise.known.pool_parts)
-        kept.append(RemlRows(X, t, noise, known, start))
+        if flight.meta.get(IMU_WHITE_PARTS):  # the white noise's two sizes too, from the density given (1, 1)
+            pooled = imu_noise_states(flight, t, levelling, tau, white_parts=True)
+            assert pooled is not None  # as `known`
+            kept.append(RemlRows(X, t, noise, pooled, (1.0, 1.0) + start))
+        else:
+            kept.append(RemlRows(X, t, noise, known, start))
     if given is None:
         return fit_tracking(X, t, noise, known, part_start=start)[0]
     refit = fit_tracking(X, t, noise, known.scaled(list(given)))[0]
