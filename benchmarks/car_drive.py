@@ -438,9 +438,10 @@ def main() -> None:
     ap.add_argument("--instability-measure", default=None, choices=("vibration", "speed"),
                     help="with --pool-instability: the variances scaled per window by this fit-free measure "
                          "(separate_windows' imu_instability_measure)")
-    ap.add_argument("--pool-white", action="store_true",
+    ap.add_argument("--pool-white", nargs="?", const="both", default=None, choices=("both", "gyro"),
                     help="the IMU's white noise in motion sized once for the run's windows, per sensor, against the "
-                         "density at rest (separate_windows' imu_white_pool; with --pool-instability jointly)")
+                         "density at rest (separate_windows' imu_white_pool; with --pool-instability jointly); "
+                         "'gyro': the gyros' only, the accelerometers' at the density at rest")
     args = ap.parse_args()
     if args.write_cut:  # the IMU file gzipped (-9), as the test suite holds it
         import gzip
@@ -493,7 +494,7 @@ def main() -> None:
                                start=moving + 1.0 + args.offset, model=args.model, fit_options=options,
                                consider=None if args.consider == "none" else args.consider,
                                imu_instability_tau=args.imu_instability, imu_instability_pool=args.pool_instability,
-                               imu_instability_measure=args.instability_measure, imu_white_pool=args.pool_white)
+                               imu_instability_measure=args.instability_measure, imu_white_pool={None: False, "both": True, "gyro": "gyro"}[args.pool_white])
         cpu = time.process_time() - c0
     kinds: dict[str, int] = {}
     first: dict[str, str] = {}

@@ -1073,7 +1073,8 @@ IMU_INSTABILITY_SIZE = "imu_instability_variances"
 IMU_REML_ROWS = "imu_reml_rows"
 #: A flight's ``meta`` key: True when the rows kept under :data:`IMU_REML_ROWS` carry the IMU's white noise as two parts
 #: of unknown size (:func:`imu_noise_states`' ``white_parts``: a density in motion pooled over a run's windows against
-#: the one at rest, :func:`casep.workflows.windows.separate_windows`' ``imu_white_pool``).
+#: the one at rest, :func:`casep.workflows.windows.separate_windows`' ``imu_white_pool``); ``"gyro"``: the gyros' only
+#: (the accelerometers' at the density given).
 IMU_WHITE_PARTS = "imu_white_parts"
 
 

@@ -3010,7 +3010,7 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     from casep.checks.tracking_quality import IMU_REML_ROWS, IMU_WHITE_PARTS, imu_noise_states, imu_sample_noise
     from casep.estimators.solve import kept_samples
     from casep.noise.fit import Reml, estimable_basis
-    from casep.noise.known import RemlRows, fit_tracking
+    from casep.noise.known import KnownStates, RemlRows, fit_tracking
 
     if noise.sigma is None or not np.isfinite(noise.sigma) or problem.y is None:
         return None
@@ -3031,10 +3031,14 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     X = np.stack(Reml(rows, estimable_basis(rows)).Z, axis=1)  # (N, 3, p + 1): [Z dv] per axis
     kept = flight.meta.get(IMU_REML_ROWS) if isinstance(flight.meta, dict) else None
     if isinstance(kept, list):  # a size pooled over several records reads them (casep.noise.known.pool_parts)
-        if flight.meta.get(IMU_WHITE_PARTS):  # the white noise's two sizes too, from the density given (1, 1)
+        sensors = flight.meta.get(IMU_WHITE_PARTS)
+        if sensors:  # the white noise's sizes too, from the density given (1); "gyro": the gyros' only
             pooled = imu_noise_states(flight, t, levelling, tau, white_parts=True)
             assert pooled is not None  # as `known`
-            kept.append(RemlRows(X, t, noise, pooled, (1.0, 1.0) + start))
+            if sensors == "gyro":  # the accelerometers' part back in the known noise, at the density given
+                (Q_a, P0_a), rest = pooled.parts[0], pooled.parts[1:]
+                pooled = KnownStates(pooled.T, pooled.Q + Q_a, pooled.H, pooled.P0 + P0_a, rest)
+            kept.append(RemlRows(X, t, noise, pooled, (1.0,) * (len(pooled.parts) - len(start)) + start))
         else:
             kept.append(RemlRows(X, t, noise, known, start))
     if given is None:

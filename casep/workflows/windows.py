@@ -168,7 +168,7 @@ def _navigate_window(imu, trk: _Tracking, t_a: float, t_b: float, C_eb: np.ndarr
 def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fit_options: dict,
                   imu_noise: np.ndarray | None = None, instability_tau: float | None = None,
                   given: tuple[float, float] | None = None, reml_rows: list | None = None,
-                  white_parts: bool = False):
+                  white_parts: bool | str = False):
     from casep.checks.tracking_quality import (
         IMU_INSTABILITY_SIZE,
         IMU_INSTABILITY_TAU,
@@ -196,7 +196,7 @@ def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fi
     if reml_rows is not None:
         flight.meta[IMU_REML_ROWS] = reml_rows
     if white_parts:
-        flight.meta[IMU_WHITE_PARTS] = True
+        flight.meta[IMU_WHITE_PARTS] = white_parts
     return flight, separate(flight, model, **fit_options)
 
 
@@ -218,7 +218,7 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
                      fit_options: dict | None = None, consider: str | None = None,
                      consider_terms: Sequence[str] | None = None,
                      imu_instability_tau: float | None = None, imu_instability_pool: bool = False,
-                     imu_instability_measure: str | None = None, imu_white_pool: bool = False) -> WindowsResult:
+                     imu_instability_measure: str | None = None, imu_white_pool: bool | str = False) -> WindowsResult:
     """Align on the pad, cut the rest of `imu` into windows of `length` s and separate each (module docstring).
 
     Parameters
@@ -277,13 +277,14 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
         power in :data:`VIBRATION_BAND_HZ` beyond the pad's (:func:`vibration_power`, (m/s^2)^2: zero at rest
         with the engine as on the pad), ``"speed"`` the window's mean tracked ground speed (m/s). Default: 1 per
         window (one size for all).
-    imu_white_pool : bool
+    imu_white_pool : bool or "gyro"
         With `imu_noise_from_pad`: the IMU's white noise in motion sized once for the run's windows, per sensor: the
         densities at rest times ``sqrt(k_a)`` (accelerometers) and ``sqrt(k_g)`` (gyros), ``(k_a, k_g)`` fitted by the
         restricted likelihood summed over the windows (:func:`casep.noise.known.pool_parts`, each window's tracking
         noise refitted at them; with `imu_instability_pool` jointly with the instability's variances), then each
         window separated again with its densities (``meta[IMU_NOISE_AT_REST]``). :attr:`WindowsResult.instability`
-        states the scales, their intervals and ``-2 l_R`` at the density at rest, ``(1, 1)``.
+        states the scales, their intervals and ``-2 l_R`` at the density at rest, ``(1, 1)``. ``"gyro"``: the gyros'
+        scale only, the accelerometers' density the one at rest (``k_a = 1``).
 
     Returns
     -------
@@ -302,6 +303,8 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
         raise ValueError("imu_instability_measure scales a pooled instability: give imu_instability_pool=True")
     if imu_instability_pool and imu_instability_tau is None:
         raise ValueError("imu_instability_pool needs the instability's correlation time (imu_instability_tau)")
+    if imu_white_pool not in (False, True, "gyro"):
+        raise ValueError(f"imu_white_pool: True, 'gyro' or False, got {imu_white_pool!r}")
     if imu_white_pool and not imu_noise_from_pad:
         raise ValueError("imu_white_pool scales the white noise measured at rest: give imu_noise_from_pad=True")
     if imu_white_pool and imu_instability_tau is not None and not imu_instability_pool:
@@ -378,7 +381,8 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
                                             lambda nav, site, given, noise: _separate_nav(
                                                 nav, site, trk, model, workdir, dict(fit_options or {}), noise,
                                                 imu_instability_tau, given)[1],
-                                            imu_noise if imu_white_pool else None)
+                                            imu_noise if imu_white_pool else None,
+                                            imu_white_pool == "gyro")
     names = tuple(n for n in base.names if not n.startswith(NUISANCE_PREFIXES))
     return WindowsResult(windows, names, window_consistency(windows, names), instability)
 
@@ -408,25 +412,26 @@ def vibration_power(imu, t_a: float, t_b: float, band: tuple[float, float | None
 
 
 def _pool_instability(windows: list[Window], pooled: list[tuple], tau: float | None, measure: str | None,
-                      again, white: np.ndarray | None = None) -> dict[str, Any]:
+                      again, white: np.ndarray | None = None, gyro_only: bool = False) -> dict[str, Any]:
     """Size the instability (correlation time `tau`; None: none) and, with `white` (the densities at rest, 6), the
     white noise's two scales once for the windows (:func:`casep.noise.known.pool_parts` over the refits' rows kept in
     `pooled`: the white scales first, weight 1, then the instability's variances, weight the window's measure), then
     separate each window again at its size (`again(nav, site, given, densities)`); the record of
-    :attr:`WindowsResult.instability`."""
+    :attr:`WindowsResult.instability`. `gyro_only`: the gyros' scale only (the rows hold one white part), the
+    accelerometers' 1."""
     from casep.noise.known import pool_parts
     from casep.units import G0
 
-    n_w, n_i = (0 if white is None else 2), (0 if tau is None else 2)
+    n_w, n_i = (0 if white is None else 1 if gyro_only else 2), (0 if tau is None else 2)
     have = [k for k, p in enumerate(pooled) if p[2] is not None and windows[k].result.success]
     if not have or (n_w == 0 and not any(pooled[k][3] > 0 for k in have)):
         return {"tau_s": tau, "measure": measure, "pooled": None,
                 "note": "no window holds a refit beside the IMU's noise with a measure above 0: nothing sized"}
     weights = [[1.0] * n_w + [pooled[k][3]] * n_i for k in have]
     got = pool_parts([pooled[k][2] for k in have], weights,
-                     reference=None if white is None else (1.0, 1.0) + (0.0,) * n_i)
+                     reference=None if white is None else (1.0,) * n_w + (0.0,) * n_i)
     q = np.array(got.q)
-    k_w, q_i = q[:n_w], q[n_w:]
+    k_w, q_i = (np.concatenate([[1.0], q[:1]]) if gyro_only else q[:n_w]), q[n_w:]
     scale = None if white is None else np.sqrt(np.repeat(k_w, 3))
     for k in range(len(pooled)):
         nav, site, _, m = pooled[k]
@@ -444,7 +449,8 @@ def _pool_instability(windows: list[Window], pooled: list[tuple], tau: float | N
                            "not_pooled": [windows[k].t_start for k in range(len(pooled)) if k not in have]}
     if white is not None:
         out.update({"white_variance_scale": [float(v) for v in k_w],
-                    "white_variance_scale_interval": [list(got.interval[i]) for i in range(2)],
+                    "white_variance_scale_interval": ([[1.0, 1.0]] if gyro_only else [])
+                    + [list(got.interval[i]) for i in range(n_w)],
                     "white_at_rest": [float(v) for v in white],
                     "neg2_reml_at_rest_density": got.reference[1] if got.reference else None})
     if tau is not None:

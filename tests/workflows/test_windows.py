@@ -323,8 +323,10 @@ def test_a_pooled_white_scale_separates_every_window_again_at_its_densities():
     whose 95 % intervals hold them (seeds 2-5 do, seed 1 misses the gyros' 0.5 with 0.76-2.8: the interval is the
     conditional one; seed 3 here), every window is separated again once, with the
     densities at rest times ``sqrt(k)`` per sensor and no instability, and the record states the scales, their
-    intervals and ``-2 l_R`` at the densities at rest (above the best); a window that failed is left as it was.
-    The options' errors are checked before any work."""
+    intervals and ``-2 l_R`` at the densities at rest (above the best); a window that failed is left as it was. The
+    gyros' scale alone (``imu_white_pool="gyro"``, the accelerometers' part in the known noise at the density given)
+    holds its truth too, with the accelerometers' density left as given. The options' errors are checked before any
+    work."""
     from casep.navigation.imu import ImuData
     from casep.workflows.windows import _pool_instability, separate_windows
 
@@ -351,9 +353,24 @@ def test_a_pooled_white_scale_separates_every_window_again_at_its_densities():
         np.testing.assert_array_equal(c[2], at_rest * np.sqrt(np.repeat(got, 3)))
     assert all(w.result.again for w in windows[:3]) and windows[3].result.success is False
     assert out["neg2_reml_at_rest_density"] > out["pooled"]["neg2_reml"] and out["not_pooled"] == [90.0]
+    # the gyros' scale only ("gyro"): the rows hold the accelerometers' part at the density given, the scale 1
+    from casep.noise.known import KnownStates, RemlRows
+
+    one = [RemlRows(r.X, r.t, r.start, KnownStates(r.known.T, r.known.Q + r.known.parts[0][0], r.known.H,
+                                                   r.known.P0, r.known.parts[1:]), (1.0,)) for r in rows]
+    calls.clear()
+    windows = [SimpleNamespace(result=ok, t_start=30.0 * j) for j in range(3)]
+    out = _pool_instability(windows, [(f"nav{j}", "s", r, 1.0) for j, r in enumerate(one)], None, None, again,
+                            at_rest, gyro_only=True)
+    k_g = out["white_variance_scale"][1]
+    assert out["white_variance_scale"][0] == 1.0 and out["white_variance_scale_interval"][0] == [1.0, 1.0]
+    lo, hi = out["white_variance_scale_interval"][1]
+    assert lo <= k[1] <= hi and len(calls) == 3, out
+    np.testing.assert_array_equal(calls[0][2], at_rest * np.sqrt([1.0] * 3 + [k_g] * 3))
     imu = ImuData(np.arange(100) * 0.01, np.zeros((100, 3)), np.zeros((100, 3)))
     site = LaunchSite(0.0, 0.0, 0.0, 0.0, 0.0)
-    for kw, said in (({"imu_white_pool": True, "imu_noise_from_pad": False}, "imu_noise_from_pad=True"),
+    for kw, said in (({"imu_white_pool": "accel"}, "'gyro' or False"),
+                     ({"imu_white_pool": True, "imu_noise_from_pad": False}, "imu_noise_from_pad=True"),
                      ({"imu_white_pool": True, "imu_instability_tau": 20.0}, "imu_instability_pool=True")):
         with pytest.raises(ValueError, match=said):
             separate_windows(imu, "no_such_file.csv", site, (0.0, 0.5), **kw)
