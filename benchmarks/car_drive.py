@@ -494,7 +494,8 @@ def main() -> None:
                                start=moving + 1.0 + args.offset, model=args.model, fit_options=options,
                                consider=None if args.consider == "none" else args.consider,
                                imu_instability_tau=args.imu_instability, imu_instability_pool=args.pool_instability,
-                               imu_instability_measure=args.instability_measure, imu_white_pool={None: False, "both": True, "gyro": "gyro"}[args.pool_white])
+                               imu_instability_measure=args.instability_measure,
+                               imu_white_pool={None: False, "both": True, "gyro": "gyro"}[args.pool_white])
         cpu = time.process_time() - c0
     kinds: dict[str, int] = {}
     first: dict[str, str] = {}
