@@ -438,6 +438,10 @@ def main() -> None:
     ap.add_argument("--instability-measure", default=None, choices=("vibration", "speed"),
                     help="with --pool-instability: the variances scaled per window by this fit-free measure "
                          "(separate_windows' imu_instability_measure)")
+    ap.add_argument("--pool-white", nargs="?", const="both", default=None, choices=("both", "gyro"),
+                    help="the IMU's white noise in motion sized once for the run's windows, per sensor, against the "
+                         "density at rest (separate_windows' imu_white_pool; with --pool-instability jointly); "
+                         "'gyro': the gyros' only, the accelerometers' at the density at rest")
     args = ap.parse_args()
     if args.write_cut:  # the IMU file gzipped (-9), as the test suite holds it
         import gzip
@@ -490,7 +494,8 @@ def main() -> None:
                                start=moving + 1.0 + args.offset, model=args.model, fit_options=options,
                                consider=None if args.consider == "none" else args.consider,
                                imu_instability_tau=args.imu_instability, imu_instability_pool=args.pool_instability,
-                               imu_instability_measure=args.instability_measure)
+                               imu_instability_measure=args.instability_measure,
+                               imu_white_pool={None: False, "both": True, "gyro": "gyro"}[args.pool_white])
         cpu = time.process_time() - c0
     kinds: dict[str, int] = {}
     first: dict[str, str] = {}
@@ -576,6 +581,14 @@ def main() -> None:
                   f"parameters{label}: chi2 {cc['chi2']:.1f} on {cc['dof']} dof, p = {cc['p_value']:.3g}, predictions "
                   f"within 1 std {cc['within_1_std']:.2f}, within 2 std {cc['within_2_std']:.2f}; per coefficient "
                   + ", ".join(f"{n} {v:.0f}" for n, v in cc["chi2_per_coefficient"].items()))
+            for part in ("ba_", "bg_"):  # each sensor's three biases alone, with their rows of the same gains
+                rows = [k for k, n in enumerate(res.names) if n.startswith(part)]
+                sub = tuple(res.names[k] for k in rows)
+                cp = window_consistency(res.windows, sub, instability=None if inst_k is None else
+                                        {n: v for n, v in inst_k.items() if n in sub},
+                                        consider=([g[rows] for g in gains], P_c))
+                print(f"    {part}* alone: chi2 {cp['chi2']:.1f} on {cp['dof']} dof, p = {cp['p_value']:.3g}, "
+                      f"predictions within 1 std {cp['within_1_std']:.2f}, within 2 std {cp['within_2_std']:.2f}")
     print(f"held-out prediction of dv at the window end ({c['prediction_pairs']} ordered pairs x 3 axes): "
           f"within 1 std {c['within_1_std']:.2f} (0.68 expected), within 2 std {c['within_2_std']:.2f} (0.95), "
           f"median |z| {c['median_abs_z']:.2f} (0.67)")
@@ -595,6 +608,14 @@ def pooled_instability(res, imu, trk, pad: tuple[float, float]) -> None:
     got = ins.get("pooled")
     if got is None:
         print(f"pooled IMU bias instability: {ins.get('note')}")
+        return
+    if "white_variance_scale" in ins:
+        (ka, kg), (ia, ig) = ins["white_variance_scale"], ins["white_variance_scale_interval"]
+        print(f"pooled IMU white noise in motion, variance scale against the pad's density: accelerometers {ka:.3g} "
+              f"({ia[0]:.3g}-{ia[1]:.3g}), gyros {kg:.3g} ({ig[0]:.3g}-{ig[1]:.3g}); -2 l_R {got['neg2_reml']:.1f} "
+              f"against {ins['neg2_reml_at_rest_density']:.1f} at the pad's density (1, 1)"
+              + ("" if ins["tau_s"] is not None else f"; {got['evaluations']} evaluations"))
+    if ins["tau_s"] is None:
         return
     lo_a, hi_a = ins["interval_mg_per_unit"]
     lo_g, hi_g = ins["interval_deg_h_per_unit"]

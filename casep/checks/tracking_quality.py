@@ -99,6 +99,7 @@ __all__ = ["TrackingScreen", "screen_tracking", "stale_epochs", "rest_window", "
            "imu_noise_effect", "imu_sample_noise", "ImuNoise", "imu_noise_measured", "white_sample_std",
            "unresolved_noise", "NOISE_RESOLUTION_SHARE",
            "imu_bias_effect", "IMU_INSTABILITY_TAU", "imu_noise_beside_bound", "IMU_INSTABILITY_SIZE", "IMU_REML_ROWS",
+           "IMU_WHITE_PARTS",
            "rest_white_std", "IMU_NOISE_AT_REST", "pad_white_std", "IMU_NOISE_PAD", "imu_noise_on_pad",
            "white_std_error", "allan_white_error", "NOISE_DIFF_ORDERS", "WHITE_STD_ERROR", "NOISE_SWITCH_SIGMAS",
            "STALE_MOTION", "STALE_POSITION", "HELD_SHARE", "HELD_RUN_SHARE", "JUMP_TOL", "JUMP_RATE",
@@ -1151,6 +1152,11 @@ IMU_INSTABILITY_SIZE = "imu_instability_variances"
 #: restricted likelihood (:class:`casep.noise.known.RemlRows`: the IMU's known noise with the instability's parts
 #: unscaled), for a size pooled over several records (:func:`casep.noise.known.pool_parts`).
 IMU_REML_ROWS = "imu_reml_rows"
+#: A flight's ``meta`` key: True when the rows kept under :data:`IMU_REML_ROWS` carry the IMU's white noise as two parts
+#: of unknown size (:func:`imu_noise_states`' ``white_parts``: a density in motion pooled over a run's windows against
+#: the one at rest, :func:`casep.workflows.windows.separate_windows`' ``imu_white_pool``); ``"gyro"``: the gyros' only
+#: (the accelerometers' at the density given).
+IMU_WHITE_PARTS = "imu_white_parts"
 
 
 def imu_bias_effect(flight: FlightData, t_rows: np.ndarray, weights: np.ndarray, tau: float
@@ -1254,7 +1260,7 @@ def _skew(v: np.ndarray) -> np.ndarray:
 
 
 def imu_noise_states(flight: FlightData, t_rows: np.ndarray, levelling: tuple | None = None,
-                     instability_tau: float | None = None):
+                     instability_tau: float | None = None, white_parts: bool = False):
     """The noise of :func:`imu_noise_effect` at the epochs `t_rows` as a linear state
     (:class:`casep.noise.known.KnownStates`; the same ``Cov = G G^T``, exactly); None when the flight does not hold
     the IMU's samples.
@@ -1284,9 +1290,18 @@ def imu_noise_states(flight: FlightData, t_rows: np.ndarray, levelling: tuple | 
     and then move on, ``b <- a_(j+1) b + w``. Their prior and noise are per unit variance, in the state's
     ``parts`` (``q_a``: the accelerometers', ``q_g``: the gyros'): :meth:`casep.noise.known.KnownStates.scaled`
     forms the covariance at given ``(q_a, q_g)``, exactly ``Sigma_white + q_a G_a G_a^T + q_g G_g G_g^T``.
+
+    With `white_parts` the white noise itself is two parts of unknown size, placed before the instability's: the
+    accelerometers' and the gyros' (``Q`` holds neither; at ``(k_a, k_g)`` the covariance is ``k_a Sigma_white,a + k_g
+    Sigma_white,g``, the densities measured times ``sqrt(k)``: a vehicle's noise in motion against the density at
+    rest). Not with `levelling`: the pad's start tilt is the accelerometer noise at rest, which no in-motion scale
+    holds.
     """
     from casep.noise.known import KnownStates
 
+    if white_parts and levelling is not None:
+        raise ValueError("imu_noise_states: the white noise as parts of unknown size is not for a levelled record "
+                         "(its start tilt is the accelerometer noise at rest)")
     terms = _imu_noise_blocks(flight, t_rows, levelling)
     if terms is None:
         return None
@@ -1308,6 +1323,7 @@ def imu_noise_states(flight: FlightData, t_rows: np.ndarray, levelling: tuple | 
         H[:, :, 9:12] = _skew(terms.F_rows - F0)
     T, Q = np.tile(np.eye(s), (M, 1, 1)), np.zeros((M, s, s))
     parts: list[tuple[np.ndarray, np.ndarray]] = []
+    white = [(np.zeros((M, s, s)), np.zeros((s, s))) for _ in range(2)] if white_parts else []
     if instability_tau is not None:
         a_b = np.append(_bias_transitions(terms.t_mid, instability_tau), 0.0)
         for k in range(2):  # the accelerometers' and the gyros' per unit variance: stationary prior, no noise yet
@@ -1340,12 +1356,17 @@ def imu_noise_states(flight: FlightData, t_rows: np.ndarray, levelling: tuple | 
         else:
             G[:3, :3] = terms.ga[j]
         T[r] = A @ T[r]
-        Q[r] = A @ Q[r] @ A.T + G @ G.T
+        if white:  # the accelerometers' columns (the first three of G) and the gyros' apart
+            for (Q_w, _), G_w in zip(white, (G[:, :3], G[:, 3:])):
+                Q_w[r] = A @ Q_w[r] @ A.T + G_w @ G_w.T
+            Q[r] = A @ Q[r] @ A.T
+        else:
+            Q[r] = A @ Q[r] @ A.T + G @ G.T
         for k, (Q_k, _) in enumerate(parts):
             w = np.zeros(s)
             w[s0 + 3 * k:s0 + 3 * k + 3] = 1.0 - a_b[j + 1] ** 2
             Q_k[r] = A @ Q_k[r] @ A.T + np.diag(w)
-    return KnownStates(T, Q, H, P0, tuple(parts))
+    return KnownStates(T, Q, H, P0, tuple(white + parts))
 
 
 def _block_samples(t: np.ndarray, counts: np.ndarray, used: np.ndarray, h: float) -> np.ndarray:

@@ -274,24 +274,29 @@ class PooledParts:
     weights: tuple
     models: tuple
     evaluations: int
+    #: ``(q, -2 l_R)`` at the variances asked for by :func:`pool_parts`' `reference` (None: not asked)
+    reference: tuple | None = None
 
     def to_dict(self) -> dict:
         return {"variances": list(self.q), "interval_95": [list(v) for v in self.interval],
                 "neg2_reml": self.neg2_reml, "neg2_reml_without": self.neg2_reml_none, "weights": list(self.weights),
                 "evaluations": self.evaluations,
+                "reference": None if self.reference is None else {"variances": list(self.reference[0]),
+                                                                  "neg2_reml": self.reference[1]},
                 "rule": "one variance per part of the known term, q_k = w_k q in record k, fitted by the restricted "
                         "likelihood summed over the records, each record's tracking noise refitted at it "
                         "(casep.noise.known.pool_parts); the interval: where -2 l_R rises by 3.84 along that part, "
                         "the other parts held at their best"}
 
 
-def pool_parts(records, weights=None, *, xatol: float = 0.1, step: float = 0.7) -> PooledParts:
+def pool_parts(records, weights=None, *, xatol: float = 0.1, step: float = 0.7,
+               reference: tuple | None = None) -> PooledParts:
     """One size for the parts of several records' known terms (:class:`RemlRows`), fitted jointly.
 
     Record ``k``'s parts are at ``w_k q`` (`weights` ``w_k >= 0``, one per record, a measure of what drives the
-    term in that record; default 1 each): ``q`` maximises the restricted likelihood summed over the records, each
-    record's tracking noise profiled out (refitted at ``w_k q`` by :func:`fit_tracking`, from its own `start`, so
-    the sum does not depend on the search's path)::
+    term in that record, or one per record and part, (K, n); default 1 each): ``q`` maximises the restricted
+    likelihood summed over the records, each record's tracking noise profiled out (refitted at ``w_k q`` by
+    :func:`fit_tracking`, from its own `start`, so the sum does not depend on the search's path)::
 
         -2 l_R(q) = sum_k  min_theta_k  -2 l_R,k(theta_k; w_k q)
 
@@ -301,7 +306,10 @@ def pool_parts(records, weights=None, *, xatol: float = 0.1, step: float = 0.7) 
     :data:`POOL_LEVEL` from its best along that part (steps in ``ln q`` from `step` on, doubling, up to the search
     range's end, which counts: within the level there, the interval reaches 0 or has no upper end; the crossing
     bisected three times, then linear between its two points), the other parts held at their best: with one part
-    the profile-likelihood interval; with several, the conditional one (no wider than the profile's)."""
+    the profile-likelihood interval; with several, the conditional one (no wider than the profile's).
+
+    `reference` (one variance per part, >= 0): ``-2 l_R`` there is also returned (a size given beforehand, to compare
+    the fitted one with: the white noise's density at rest, ``(1, 1)``)."""
     from casep.noise.fit import nelder_mead
 
     records = list(records)
@@ -312,13 +320,17 @@ def pool_parts(records, weights=None, *, xatol: float = 0.1, step: float = 0.7) 
     if n == 0 or any(len(r.known.parts) != n or len(r.part_start) != n for r in records):
         raise ValueError("pool_parts: every record needs the same number of parts (> 0) and one start per part")
     w = np.ones(K) if weights is None else np.asarray(weights, dtype=float)
-    if w.shape != (K,) or not np.all(np.isfinite(w)) or np.any(w < 0) or not np.any(w > 0):
-        raise ValueError(f"pool_parts: one finite weight >= 0 per record ({K}), not all 0; got {weights!r}")
-    pos = w > 0
+    if w.shape == (K,):
+        w = np.repeat(w[:, None], n, axis=1)
+    if w.shape != (K, n) or not np.all(np.isfinite(w)) or np.any(w < 0) or not np.all(np.any(w > 0, axis=0)):
+        raise ValueError(f"pool_parts: one finite weight >= 0 per record ({K}), or per record and part ({K} x {n}), "
+                         f"not all 0 for a part; got {weights!r}")
     starts = np.array([r.part_start for r in records], dtype=float)
     if np.any(~(starts > 0)):
         raise ValueError("pool_parts: every part start must be > 0")
-    lq0 = np.mean(np.log(starts[pos] / w[pos, None]), axis=0)
+    with np.errstate(divide="ignore"):
+        lq = np.log(starts / w)
+    lq0 = np.array([np.mean(lq[w[:, i] > 0, i]) for i in range(n)])
     low, high = lq0 - PART_RANGE[0], lq0 + PART_RANGE[1]
     count = [0]
     memo: dict = {}
@@ -333,7 +345,7 @@ def pool_parts(records, weights=None, *, xatol: float = 0.1, step: float = 0.7) 
             q = sizes(np.array(key))
             total, models = 0.0, []
             for r, wk in zip(records, w):
-                model, val = fit_tracking(r.X, r.t, r.start, r.known.scaled(list(wk * q)))
+                model, val = fit_tracking(r.X, r.t, r.start, r.known.scaled([float(v) for v in wk * q]))
                 total += val
                 models.append(model)
             count[0] += 1
@@ -359,8 +371,17 @@ def pool_parts(records, weights=None, *, xatol: float = 0.1, step: float = 0.7) 
         lo_e = 0.0 if lo_i is None or lo_i <= low[i] else float(np.exp(lo_i))
         interval.append((lo_e if x[i] > low[i] else 0.0, np.inf if hi_i is None else float(np.exp(hi_i))))
     q = sizes(x)
-    return PooledParts(tuple(float(v) for v in q), tuple(interval), best, value(low), tuple(float(v) for v in w),
-                       tuple(refit(x)[1]), count[0])
+    ref = None
+    if reference is not None:
+        r_q = np.asarray(reference, dtype=float)
+        if r_q.shape != (n,) or np.any(~(r_q >= 0)) or np.any(~np.isfinite(r_q)):
+            raise ValueError(f"pool_parts: the reference needs one finite variance >= 0 per part ({n}), got "
+                             f"{reference!r}")
+        with np.errstate(divide="ignore"):
+            ref = (tuple(float(v) for v in r_q), value(np.where(r_q > 0, np.log(r_q), low)))
+    weights_out = tuple(float(v[0]) if np.all(v == v[0]) else tuple(float(u) for u in v) for v in w)
+    return PooledParts(tuple(float(v) for v in q), tuple(interval), best, value(low), weights_out,
+                       tuple(refit(x)[1]), count[0], ref)
 
 
 def level_interval(along, x: float, best: float, low: float, high: float, level: float, step: float,

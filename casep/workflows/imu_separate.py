@@ -3184,10 +3184,10 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     accelerometers', the gyros') the same REML fits beside the tracking noise (:func:`_instability` reads them):
     started at the white noise's variance averaged over the correlation time, ``s^2 h / tau`` (the sensor's mean over
     its axes)."""
-    from casep.checks.tracking_quality import IMU_REML_ROWS, imu_noise_states, imu_sample_noise
+    from casep.checks.tracking_quality import IMU_REML_ROWS, IMU_WHITE_PARTS, imu_noise_states, imu_sample_noise
     from casep.estimators.solve import kept_samples
     from casep.noise.fit import Reml, estimable_basis
-    from casep.noise.known import RemlRows, fit_tracking, stated_tau_check
+    from casep.noise.known import KnownStates, RemlRows, fit_tracking, stated_tau_check
 
     if noise.sigma is None or not np.isfinite(noise.sigma) or problem.y is None:
         return None, None
@@ -3208,7 +3208,16 @@ def _tracking_beside_imu(problem: Any, flight: FlightData, noise: Any, levelling
     X = np.stack(Reml(rows, estimable_basis(rows)).Z, axis=1)  # (N, 3, p + 1): [Z dv] per axis
     kept = flight.meta.get(IMU_REML_ROWS) if isinstance(flight.meta, dict) else None
     if isinstance(kept, list):  # a size pooled over several records reads them (casep.noise.known.pool_parts)
-        kept.append(RemlRows(X, t, noise, known, start))
+        sensors = flight.meta.get(IMU_WHITE_PARTS)
+        if sensors:  # the white noise's sizes too, from the density given (1); "gyro": the gyros' only
+            pooled = imu_noise_states(flight, t, levelling, tau, white_parts=True)
+            assert pooled is not None  # as `known`
+            if sensors == "gyro":  # the accelerometers' part back in the known noise, at the density given
+                (Q_a, P0_a), rest = pooled.parts[0], pooled.parts[1:]
+                pooled = KnownStates(pooled.T, pooled.Q + Q_a, pooled.H, pooled.P0 + P0_a, rest)
+            kept.append(RemlRows(X, t, noise, pooled, (1.0,) * (len(pooled.parts) - len(start)) + start))
+        else:
+            kept.append(RemlRows(X, t, noise, known, start))
     if given is not None:
         known, start = known.scaled(list(given)), ()
     refit = fit_tracking(X, t, noise, known, part_start=start)[0]

@@ -74,7 +74,8 @@ class WindowsResult:
     windows: list[Window]
     names: tuple[str, ...]
     consistency: dict[str, Any]
-    #: With ``separate_windows(imu_instability_pool=True)``: the pooled instability's size and how it was found.
+    #: With ``separate_windows(imu_instability_pool=True)`` or ``imu_white_pool=True``: the pooled sizes (the
+    #: instability's, the white noise's scales) and how they were found.
     instability: dict[str, Any] | None = None
 
     @property
@@ -166,12 +167,14 @@ def _navigate_window(imu, trk: _Tracking, t_a: float, t_b: float, C_eb: np.ndarr
 
 def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fit_options: dict,
                   imu_noise: np.ndarray | None = None, instability_tau: float | None = None,
-                  given: tuple[float, float] | None = None, reml_rows: list | None = None):
+                  given: tuple[float, float] | None = None, reml_rows: list | None = None,
+                  white_parts: bool | str = False):
     from casep.checks.tracking_quality import (
         IMU_INSTABILITY_SIZE,
         IMU_INSTABILITY_TAU,
         IMU_NOISE_AT_REST,
         IMU_REML_ROWS,
+        IMU_WHITE_PARTS,
     )
     from casep.io.files import read_flight_pair, write_table
     from casep.workflows.separate import separate
@@ -192,6 +195,8 @@ def _separate_nav(nav, site: LaunchSite, trk: _Tracking, model, workdir: str, fi
         flight.meta[IMU_INSTABILITY_SIZE] = given
     if reml_rows is not None:
         flight.meta[IMU_REML_ROWS] = reml_rows
+    if white_parts:
+        flight.meta[IMU_WHITE_PARTS] = white_parts
     return flight, separate(flight, model, **fit_options)
 
 
@@ -213,7 +218,7 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
                      fit_options: dict | None = None, consider: str | None = None,
                      consider_terms: Sequence[str] | None = None,
                      imu_instability_tau: float | None = None, imu_instability_pool: bool = False,
-                     imu_instability_measure: str | None = None) -> WindowsResult:
+                     imu_instability_measure: str | None = None, imu_white_pool: bool | str = False) -> WindowsResult:
     """Align on the pad, cut the rest of `imu` into windows of `length` s and separate each (module docstring).
 
     Parameters
@@ -272,6 +277,14 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
         power in :data:`VIBRATION_BAND_HZ` beyond the pad's (:func:`vibration_power`, (m/s^2)^2: zero at rest
         with the engine as on the pad), ``"speed"`` the window's mean tracked ground speed (m/s). Default: 1 per
         window (one size for all).
+    imu_white_pool : bool or "gyro"
+        With `imu_noise_from_pad`: the IMU's white noise in motion sized once for the run's windows, per sensor: the
+        densities at rest times ``sqrt(k_a)`` (accelerometers) and ``sqrt(k_g)`` (gyros), ``(k_a, k_g)`` fitted by the
+        restricted likelihood summed over the windows (:func:`casep.noise.known.pool_parts`, each window's tracking
+        noise refitted at them; with `imu_instability_pool` jointly with the instability's variances), then each
+        window separated again with its densities (``meta[IMU_NOISE_AT_REST]``). :attr:`WindowsResult.instability`
+        states the scales, their intervals and ``-2 l_R`` at the density at rest, ``(1, 1)``. ``"gyro"``: the gyros'
+        scale only, the accelerometers' density the one at rest (``k_a = 1``).
 
     Returns
     -------
@@ -290,6 +303,13 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
         raise ValueError("imu_instability_measure scales a pooled instability: give imu_instability_pool=True")
     if imu_instability_pool and imu_instability_tau is None:
         raise ValueError("imu_instability_pool needs the instability's correlation time (imu_instability_tau)")
+    if imu_white_pool not in (False, True, "gyro"):
+        raise ValueError(f"imu_white_pool: True, 'gyro' or False, got {imu_white_pool!r}")
+    if imu_white_pool and not imu_noise_from_pad:
+        raise ValueError("imu_white_pool scales the white noise measured at rest: give imu_noise_from_pad=True")
+    if imu_white_pool and imu_instability_tau is not None and not imu_instability_pool:
+        raise ValueError("imu_white_pool with an instability pools both: give imu_instability_pool=True")
+    pool = imu_instability_pool or imu_white_pool
     if imu_instability_measure not in (None, "vibration", "speed"):
         raise ValueError(f"imu_instability_measure: 'vibration', 'speed' or None, got {imu_instability_measure!r}")
     trk = _Tracking(tracking)
@@ -328,9 +348,10 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
                 course = math.degrees(psi)
             for passes in range(1, attitude_passes + 1):
                 site_k, nav = _navigate_window(imu, trk, t_a, t_b, C_eb)
-                kept: list | None = [] if imu_instability_pool else None
+                kept: list | None = [] if pool else None
                 flight, res = _separate_nav(nav, site_k, trk, model, workdir, dict(fit_options or {}), imu_noise,
-                                            imu_instability_tau, (0.0, 0.0) if imu_instability_pool else None, kept)
+                                            imu_instability_tau, (0.0, 0.0) if imu_instability_pool else None, kept,
+                                            imu_white_pool)
                 est = dict(zip(res.names, res.estimate))
                 phi0 = base.numeric("phi0") @ np.array([est[n] for n in base.names])
                 if np.linalg.norm(phi0) <= PHI0_LINEAR_RAD or passes == attitude_passes:
@@ -355,12 +376,13 @@ def separate_windows(imu, tracking: str | os.PathLike, site: LaunchSite, align: 
             C_lb = corrected_attitude(quat_to_dcm(nav.q[-1]), phi_end)
             C_eb = _launch_from_ecef(site_k, t_a).T @ C_lb
         instability = None
-        if imu_instability_pool:
-            assert imu_instability_tau is not None  # checked above
+        if pool:
             instability = _pool_instability(windows, pooled, imu_instability_tau, imu_instability_measure,
-                                            lambda nav, site, given: _separate_nav(
-                                                nav, site, trk, model, workdir, dict(fit_options or {}), imu_noise,
-                                                imu_instability_tau, given)[1])
+                                            lambda nav, site, given, noise: _separate_nav(
+                                                nav, site, trk, model, workdir, dict(fit_options or {}), noise,
+                                                imu_instability_tau, given)[1],
+                                            imu_noise if imu_white_pool else None,
+                                            imu_white_pool == "gyro")
     names = tuple(n for n in base.names if not n.startswith(NUISANCE_PREFIXES))
     return WindowsResult(windows, names, window_consistency(windows, names), instability)
 
@@ -389,39 +411,63 @@ def vibration_power(imu, t_a: float, t_b: float, band: tuple[float, float | None
     return float(np.mean(np.sum(x**2, axis=1)))
 
 
-def _pool_instability(windows: list[Window], pooled: list[tuple], tau: float, measure: str | None,
-                      again) -> dict[str, Any]:
-    """Size the instability once for the windows (:func:`casep.noise.known.pool_parts` over the refits' rows kept in
-    `pooled`), then separate each window again at its size (`again(nav, site, given)`); the record of
-    :attr:`WindowsResult.instability`."""
+def _pool_instability(windows: list[Window], pooled: list[tuple], tau: float | None, measure: str | None,
+                      again, white: np.ndarray | None = None, gyro_only: bool = False) -> dict[str, Any]:
+    """Size the instability (correlation time `tau`; None: none) and, with `white` (the densities at rest, 6), the
+    white noise's two scales once for the windows (:func:`casep.noise.known.pool_parts` over the refits' rows kept in
+    `pooled`: the white scales first, weight 1, then the instability's variances, weight the window's measure), then
+    separate each window again at its size (`again(nav, site, given, densities)`); the record of
+    :attr:`WindowsResult.instability`. `gyro_only`: the gyros' scale only (the rows hold one white part), the
+    accelerometers' 1."""
     from casep.noise.known import pool_parts
     from casep.units import G0
 
+    n_w, n_i = (0 if white is None else 1 if gyro_only else 2), (0 if tau is None else 2)
     have = [k for k, p in enumerate(pooled) if p[2] is not None and windows[k].result.success]
-    if not have or not any(pooled[k][3] > 0 for k in have):
+    if not have or (n_w == 0 and not any(pooled[k][3] > 0 for k in have)):
         return {"tau_s": tau, "measure": measure, "pooled": None,
                 "note": "no window holds a refit beside the IMU's noise with a measure above 0: nothing sized"}
-    got = pool_parts([pooled[k][2] for k in have], [pooled[k][3] for k in have])
+    weights = [[1.0] * n_w + [pooled[k][3]] * n_i for k in have]
+    got = pool_parts([pooled[k][2] for k in have], weights,
+                     reference=None if white is None else (1.0,) * n_w + (0.0,) * n_i)
     q = np.array(got.q)
-    for k in have:
+    k_w, q_i = (np.concatenate([[1.0], q[:1]]) if gyro_only else q[:n_w]), q[n_w:]
+    scale = None if white is None else np.sqrt(np.repeat(k_w, 3))
+    for k in range(len(pooled)):
         nav, site, _, m = pooled[k]
-        if m > 0 and np.any(q > 0):  # at 0 the window's first separation is the one at its size
-            windows[k].result = again(nav, site, tuple(float(v) for v in m * q))
+        if not windows[k].result.success:
+            continue
+        if white is not None or (k in have and m > 0 and np.any(q_i > 0)):  # else its first separation stands
+            windows[k].result = again(nav, site, None if tau is None else tuple(float(v) for v in m * q_i),
+                                      None if white is None else white * scale)
 
     def natural(v: float, i: int) -> float:
         return math.sqrt(v) / G0 * 1e3 if i == 0 else math.degrees(math.sqrt(v)) * 3600.0
 
-    unit = {None: "1", "vibration": "(m/s^2)^2", "speed": "m/s"}[measure]
-    return {"tau_s": tau, "measure": measure, "measure_unit": unit,
-            "measures": [float(p[3]) for p in pooled], "pooled": got.to_dict(),
-            "accelerometer_mg_per_unit": natural(got.q[0], 0), "gyro_deg_h_per_unit": natural(got.q[1], 1),
-            "interval_mg_per_unit": [natural(v, 0) for v in got.interval[0]],
-            "interval_deg_h_per_unit": [natural(v, 1) for v in got.interval[1]],
-            "not_pooled": [windows[k].t_start for k in range(len(pooled)) if k not in have],
-            "rule": "a first-order Gauss-Markov bias per body axis of the accelerometers and the gyros, correlation "
-                    "time given, variances m_k (q_a, q_g) in window k, m_k the fit-free measure (1 without one), "
-                    "(q_a, q_g) fitted once by the restricted likelihood summed over the windows "
-                    "(casep.noise.known.pool_parts); each window separated again at its size"}
+    out: dict[str, Any] = {"tau_s": tau, "measure": measure, "pooled": got.to_dict(),
+                           "measures": [float(p[3]) for p in pooled],
+                           "not_pooled": [windows[k].t_start for k in range(len(pooled)) if k not in have]}
+    if white is not None:
+        out.update({"white_variance_scale": [float(v) for v in k_w],
+                    "white_variance_scale_interval": ([[1.0, 1.0]] if gyro_only else [])
+                    + [list(got.interval[i]) for i in range(n_w)],
+                    "white_at_rest": [float(v) for v in white],
+                    "neg2_reml_at_rest_density": got.reference[1] if got.reference else None})
+    if tau is not None:
+        unit = {None: "1", "vibration": "(m/s^2)^2", "speed": "m/s"}[measure]
+        out.update({"measure_unit": unit, "accelerometer_mg_per_unit": natural(q_i[0], 0),
+                    "gyro_deg_h_per_unit": natural(q_i[1], 1),
+                    "interval_mg_per_unit": [natural(v, 0) for v in got.interval[n_w]],
+                    "interval_deg_h_per_unit": [natural(v, 1) for v in got.interval[n_w + 1]]})
+    out["rule"] = ("one size for the windows, fitted by the restricted likelihood summed over them, each window's "
+                   "tracking noise refitted at it (casep.noise.known.pool_parts)"
+                   + ("; the white noise's densities in motion: those at rest times sqrt(k_a), sqrt(k_g)"
+                      if white is not None else "")
+                   + ("; a first-order Gauss-Markov bias per body axis of the accelerometers and the gyros, correlation"
+                      " time given, variances m_k (q_a, q_g) in window k, m_k the fit-free measure (1 without one)"
+                      if tau is not None else "")
+                   + "; each window separated again at its size")
+    return out
 
 
 def gain_rows(S_w: np.ndarray, S_c: np.ndarray, t: np.ndarray, noise: Any = None) -> np.ndarray:

@@ -531,6 +531,28 @@ def test_the_imu_bias_instability_state_is_its_effect(levelled):
                                atol=1e-12 * np.abs(white @ white.T).max())
 
 
+def test_the_imu_white_noise_as_two_parts_is_its_effect_at_scaled_densities():
+    """The white noise as two parts of unknown size (:func:`imu_noise_states` ``white_parts``, the instability's parts
+    after them): scaled to ``(k_a, k_g, q_a, q_g)`` the covariance is ``G G^T`` of :func:`imu_noise_effect` with the
+    accelerometers' densities times ``sqrt(k_a)``, the gyros' times ``sqrt(k_g)`` and the instability's columns, to
+    1e-11; at ``(1, 1, 0, 0)`` the white noise as measured; a levelled record is refused (its start tilt is the
+    noise at rest)."""
+    from casep.checks.tracking_quality import imu_noise_effect, imu_noise_states, imu_sample_noise
+
+    flight, rows, levelling = _turning_rows(False)
+    s, h, i = imu_sample_noise(flight, rows)
+    known = imu_noise_states(flight, rows, None, instability_tau=2.5, white_parts=True)
+    assert len(known.parts) == 4 and not np.any(known.Q) and known.T.shape[1] == 15
+    q = (4e-4, 3e-6)
+    for k_a, k_g, q_a, q_g in ((1.0, 1.0, 0.0, 0.0), (2.5, 0.4, 0.0, 0.0), (0.3, 3.0, *q)):
+        scaled = (s * np.sqrt(np.repeat([k_a, k_g], 3)), h, i)
+        G = imu_noise_effect(flight, rows, np.eye(3 * rows.size), None, (2.5, q_a, q_g), scaled)
+        np.testing.assert_allclose(known.scaled([k_a, k_g, q_a, q_g]).dense(), G @ G.T, rtol=0,
+                                   atol=1e-11 * np.abs(G @ G.T).max())
+    with pytest.raises(ValueError, match="levelled"):
+        imu_noise_states(*_turning_rows(True), white_parts=True)
+
+
 def test_the_imu_bias_effect_is_a_gauss_markov_bias_summed_by_definition():
     """:func:`imu_bias_effect` against its definition formed densely: the blocks' biases with ``Cov(b_j, b_l) = q
     exp(-|t_j - t_l| / tau)`` (block mean times), each acting at the epochs after its block as ``C_j h n_j b_a`` and
