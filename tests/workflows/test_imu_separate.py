@@ -448,6 +448,33 @@ def test_an_imu_gap_is_named_by_the_failure_and_its_warnings_are_said_once(truth
 
 
 
+def test_a_gap_while_the_body_spins_is_bridged_and_carried_in_the_std(noise_free):
+    """Samples lost over 0.55 s of the roll at 2 rad/s (the body turns by 63 deg across the gap, beyond the 44 deg
+    a telemetry's lost rows allow): the navigation bridges the gap (casep.navigation.imu.bridge_gaps), the S_V of the
+    navigated rows integrates across it, and what the bridge leaves unknown of the velocity and attitude is in the
+    std as consider parameters: a success whose estimates hold the truth within 3 std, the gap said with the bounds
+    the navigation states, not a set-up failure asking for rows a lost packet cannot give."""
+    from casep.navigation.imu import bridge_gaps
+
+    path, trk, D = noise_free
+    full = read_imu(path)
+    keep = ~((full.t > 20.0) & (full.t < 20.54))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        imu = check_imu(ImuData(full.t[keep], full.w[keep], full.f[keep]))
+    out = _separate(imu, trk, spec=NOISE_FREE)
+    res = out.result
+    assert out.success and res.diagnostics["iterations"]["converged"], out.message
+    assert "lost rows while the body turned" not in out.message
+    rec = res.diagnostics["imu_gaps"]
+    br = bridge_gaps(imu.t, imu.w, imu.f)
+    assert rec["count"] == 1 and rec["length_s"] == pytest.approx([0.55]) and rec["t_s"] == pytest.approx([20.0])
+    assert rec["velocity_bound_m_s"] == pytest.approx(br.velocity.tolist())
+    assert rec["std_factor_max"] > 1.0 and "gap(s)" in out.message
+    z = (res.estimate - D) / res.std
+    assert np.all(np.abs(z) < 3.0), z
+
+
 def test_a_clipped_gyro_is_said_once_by_the_imu_check(truth_flight, tmp_path):
     """The roll rate held at the nominal full scale of 1000 deg/s from 30 s on: the IMU check says it (a
     SaturationWarning naming the record's rows and that the separation leaves them out; the navigation marks
