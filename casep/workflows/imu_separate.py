@@ -2277,20 +2277,23 @@ def _with_determined(res: EstimateResult, last: dict, scales: dict[str, float]) 
     stating them, value and std: what the flight determines when its steps left combinations out and the
     coefficients one by one are not determined."""
     from casep.checks.tracking_quality import combination_terms, plausible_size
+    from casep.workflows.judging import untrusted
 
     names = list(res.names)
     combos = sorted(({**c} for c in last["determined"]), key=lambda c: c["std"])
     size = plausible_size(combos)
     for c in combos:
         c["terms"], c["more"] = combination_terms(names, np.array(c["weights"]), c["std"], size)
+    distrust = untrusted(res)
     diag = {**res.diagnostics, "determined": {"combinations": combos, "std_factor": None, "from": "iterations",
+                                              "untrusted": distrust,
                                               "scales": {nm: scales.get(nm, 1.0) for nm in names}}}
     said = "; ".join(" + ".join(f"{w:.2g} {nm}/{scales.get(nm, 1.0):g}" for nm, w in c["terms"].items())
                      + (f" (+ {c['more']} smaller terms)" if c.get("more") else "")
                      + f" = {c['estimate']:.4g} +- {c['std']:.2g}" for c in combos[:6])
     msg = (f"{res.message}\nthe iterated passes stepped along {len(combos)} combinations (coefficient / declared "
            f"magnitude) the flight determines: {said}" + ("; ..." if len(combos) > 6 else "")
-           + " (all in diagnostics.determined)")
+           + " (all in diagnostics.determined)" + ("" if distrust is None else f"; {distrust}"))
     return dataclasses.replace(res, diagnostics=diag, message=msg)
 
 

@@ -1065,6 +1065,26 @@ def test_the_combinations_stepped_along_are_stated_in_the_result(noisy_gyro_rest
     assert "combinations (coefficient / declared magnitude) the flight determines" in res.message
 
 
+def test_combinations_a_result_failed_on_an_absorbed_effect_states_are_said_not_to_be_trusted(noisy_gyro_rest):
+    """The combinations of :func:`test_the_combinations_stepped_along_are_stated_in_the_result` stated by a result
+    failed on an effect its estimates absorb (a set-up failure, a misfit, a prior the data contradict:
+    casep.workflows.judging.ABSORBED) are said not to be trusted, in the message and ``diagnostics["determined"]``;
+    by a success, or a result failed otherwise (not converged), not."""
+    from casep.estimators.registry import STATUS_MISFIT, STATUS_SETUP, failed
+    from casep.workflows.imu_separate import _with_determined
+
+    out, _ = noisy_gyro_rest[1]
+    res = out.result
+    last = res.diagnostics["iterations"]["passes"][-1]
+    scales = casep.load_model("strapdown12").scales
+    for status, distrusted in ((None, False), (STATUS_NOT_CONVERGED, False), (STATUS_SETUP, True),
+                               (STATUS_MISFIT, True)):
+        base = res if status is None else failed(res, status, "failed: the reason")
+        said = _with_determined(base, last, scales)
+        assert ("not to be trusted" in said.message.rpartition("\n")[2]) is distrusted, (status, said.message)
+        assert (said.diagnostics["determined"]["untrusted"] is not None) is distrusted
+
+
 def test_the_smaller_models_are_advised_when_no_coefficient_is_determined_on_its_own():
     """A record that determines 17 of strapdown33's combinations and leaves 7 out (a reviewer's raw boost: its
     stated combinations right, max |z| 0.31) determines no coefficient on its own: the smaller shipped models are
