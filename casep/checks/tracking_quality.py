@@ -1296,7 +1296,8 @@ def _levelling_noise(t: np.ndarray, F: np.ndarray, block: np.ndarray, blocks: tu
 
 
 def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
-               imu: FlightData | None = None, about: np.ndarray | None = None) -> tuple[list[dict], float]:
+               imu: FlightData | None = None, about: np.ndarray | None = None,
+               consider: np.ndarray | None = None) -> tuple[list[dict], float]:
     """The combinations of coefficients the flight determines when each stretch is weighted by its own noise.
 
     Rows weighted by ``1 / sigma_s`` (the stretch's scatter, :func:`stretch_noise`; the largest for rows in no
@@ -1315,7 +1316,10 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
     :func:`imu_noise_effect` at the epochs ``problem.t``). On the simulated sounding rocket both matter
     (``python benchmarks/rocket_rawlog.py``, 24 flights): white weighting gave RMS z 1.45 (coverage 0.83), and
     1.12 with the IMU's noise taken out of the simulation; both carried, 1.16 (0.91), the rest the linear
-    model's second order (biases / 10: 0.96, 0.97).
+    model's second order (biases / 10: 0.96, 0.97). With `consider` (N, 3, c: the rows' shift for one std of each
+    consider parameter beside the fit, :func:`casep.workflows.imu_separate.consider_columns`: the given heading, the
+    steps between samples and gaps of a raw IMU record, its clock's drift) each combination's variance gains
+    ``|| (U_i / (s_i sigma))^T K ||^2`` alike, as the coefficients' std have them.
 
     With `about` (natural units, the coefficients the problem was linearised about: the S_V and dv of an
     iterated pass, :mod:`casep.workflows.imu_separate`) ``problem.y`` is the residual left at `about`, so the
@@ -1343,6 +1347,10 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
     seen = None if imu is None else imu_noise_effect(imu, t, (U[:, keep] / np.repeat(sig, 3)[:, None]).T)
     if seen is not None:  # the IMU noise's variance of each combination's estimate (U_i . y_w / s_i)
         extra[keep] = np.sum(seen**2, axis=1) / sv[keep] ** 2
+    K = None if consider is None else np.asarray(consider, dtype=float)
+    if K is not None and K.shape[:2] == y.shape:  # the consider parameters' alike
+        shift = (U[:, keep] / np.repeat(sig, 3)[:, None]).T @ K.reshape(y.size, -1)
+        extra[keep] += np.sum(shift**2, axis=1) / sv[keep] ** 2
     base = np.zeros(n) if about is None else Vt @ (np.asarray(about, dtype=float) / scale)
     out = []
     for i in np.flatnonzero(keep):

@@ -1075,7 +1075,9 @@ class _Run:
         out = judge_setup(out, flight, model, noise_free=False)
         # the tracking clock's tests measure a late tag's drift, which is not a raw IMU clock's (clock_judged)
         out = judge_tracking(out, flight, problem, model.scales, about=D, widen=widen,
-                             tag_clock=getattr(self, "imu", None) is None)
+                             tag_clock=getattr(self, "imu", None) is None,
+                             consider=consider_columns(self.heading_effect(problem), self.steps_effect(problem),
+                                                       self.drift_effect(problem)))
         if iterate and out.success and passes[-1].get("determined") and not out.diagnostics.get("determined"):
             out = self.left_out_curvature(out, passes[-1], problem, flight, D)
         if passes[-1].get("determined"):  # every consider term the coefficients carry (the last: the omitted terms)

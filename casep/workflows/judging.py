@@ -92,7 +92,7 @@ def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_
 def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, scales: dict,
                    about: np.ndarray | None = None,
                    widen: Callable[[list[dict]], tuple[list[dict], str | None, dict | None]] | None = None,
-                   tag_clock: bool = True) -> EstimateResult:
+                   tag_clock: bool = True, consider: np.ndarray | None = None) -> EstimateResult:
     """`res` failed (status ``STATUS_TRACKING``) when the flight's screened tracking noise differs between
     stretches beyond :data:`casep.checks.tracking_quality.NOISE_RATIO`: its message says which combinations the
     flight determines (:func:`casep.checks.tracking_quality.determined`) instead of each coefficient;
@@ -106,7 +106,8 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     ``["halves"]``), warned beyond its threshold and recorded in ``diagnostics["clock_drift"]``
     (:func:`casep.checks.tracking_quality.clock_drift_record`: where not measured, why); not with `tag_clock` False
     (a separation from raw IMU data: its clock's drift stretches the steps too, which a late tag's model does not
-    hold; :meth:`casep.workflows.imu_separate._Run.clock_judged` tests it)."""
+    hold; :meth:`casep.workflows.imu_separate._Run.clock_judged` tests it). `consider`: the consider parameters'
+    rows (N, 3, c) the combinations' std carry (:func:`casep.checks.tracking_quality.determined`)."""
     from casep.checks.tracking_quality import (
         clock_drift_record,
         determined,
@@ -132,7 +133,8 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     why = noise_problem(flight)
     if why is None or problem.y is None or problem.t is None:
         return res
-    combos, k = determined(problem, flight.meta["tracking_screen"]["stretches"], scales, imu=flight, about=about)
+    combos, k = determined(problem, flight.meta["tracking_screen"]["stretches"], scales, imu=flight, about=about,
+                           consider=consider)
     note, record = None, None
     if widen is not None and combos:
         combos, note, record = widen(combos)

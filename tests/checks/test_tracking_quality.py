@@ -612,6 +612,33 @@ def test_a_correlated_stretch_is_weighted_by_its_long_run_variance():
     assert 0.9 <= np.mean(z_arr < 1.959964) <= 1.0
 
 
+def test_the_combinations_std_carry_the_consider_parameters_rows():
+    """A consider parameter's rows (one std of it, N x 3) widen each determined combination's variance by the square of
+    how far those rows, added to the data, move its estimate: checked by the fit itself, estimating again from the
+    rows with the consider shift added (a shift inside the coefficients' columns, so the residuals and the stretches'
+    weights stay as they were)."""
+    from casep.checks.tracking_quality import determined, stretch_noise
+    from casep.regression.problem import Problem
+
+    rng = np.random.default_rng(3)
+    n = 300
+    t = np.arange(n) * 0.1
+    S = rng.normal(0.0, 1.0, (n, 3, 2))
+    y = rng.normal(0.0, 0.05, (n, 3))
+    y[n // 2:] *= 4.0  # two stretches of different noise
+    scales = {"c0": 2.0, "c1": 0.5}
+    K = (0.03 * S[:, :, 0] + 0.01 * S[:, :, 1])[:, :, None]
+    stretches = stretch_noise(t, y)
+    plain, _ = determined(Problem.from_arrays(S, y, t), stretches, scales)
+    wide, _ = determined(Problem.from_arrays(S, y, t), stretches, scales, consider=K)
+    moved, _ = determined(Problem.from_arrays(S, y + K[:, :, 0], t), stretches, scales)
+    assert len(plain) == len(wide) == len(moved) == 2
+    for a, b, c in zip(plain, wide, moved):
+        assert b["estimate"] == a["estimate"]
+        assert b["std"] ** 2 - a["std"] ** 2 == pytest.approx((c["estimate"] - a["estimate"]) ** 2, rel=1e-6)
+        assert b["std"] > a["std"]
+
+
 def test_stale_tracking_inside_a_one_file_flight_is_left_out(tmp_path, rng):
     """The tracking columns of a one-file flight (v_tel_* beside v_trk_*) are screened as a tracking file is: rows
     repeating a fix while the vehicle accelerates at 20 m/s^2 are left out and listed by file line; the same rows
