@@ -1318,8 +1318,11 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
     1.12 with the IMU's noise taken out of the simulation; both carried, 1.16 (0.91), the rest the linear
     model's second order (biases / 10: 0.96, 0.97). With `consider` (N, 3, c: the rows' shift for one std of each
     consider parameter beside the fit, :func:`casep.workflows.imu_separate.consider_columns`: the given heading, the
-    steps between samples and gaps of a raw IMU record, its clock's drift) each combination's variance gains
-    ``|| (U_i / (s_i sigma))^T K ||^2`` alike, as the coefficients' std have them.
+    steps between samples and gaps of a raw IMU record, its clock's drift) each combination gains their variance
+    ``|| (U_i / (s_i sigma))^T K ||^2`` as ``consider_var``, kept apart from ``std``: which combinations the flight
+    determines, and their plausible size, are the record's (the consider terms are parameters beside the rows, as
+    :func:`casep.workflows.imu_separate._with_consider_std` has it for the iterated passes); the caller adds it to
+    the std stated (:func:`casep.workflows.judging.judge_tracking`).
 
     With `about` (natural units, the coefficients the problem was linearised about: the S_V and dv of an
     iterated pass, :mod:`casep.workflows.imu_separate`) ``problem.y`` is the residual left at `about`, so the
@@ -1347,10 +1350,12 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
     seen = None if imu is None else imu_noise_effect(imu, t, (U[:, keep] / np.repeat(sig, 3)[:, None]).T)
     if seen is not None:  # the IMU noise's variance of each combination's estimate (U_i . y_w / s_i)
         extra[keep] = np.sum(seen**2, axis=1) / sv[keep] ** 2
+    beside = None
     K = None if consider is None else np.asarray(consider, dtype=float)
-    if K is not None and K.shape[:2] == y.shape:  # the consider parameters' alike
+    if K is not None and K.shape[:2] == y.shape:  # the consider parameters' variance, kept apart
         shift = (U[:, keep] / np.repeat(sig, 3)[:, None]).T @ K.reshape(y.size, -1)
-        extra[keep] += np.sum(shift**2, axis=1) / sv[keep] ** 2
+        beside = np.zeros(sv.size)
+        beside[keep] = np.sum(shift**2, axis=1) / sv[keep] ** 2
     base = np.zeros(n) if about is None else Vt @ (np.asarray(about, dtype=float) / scale)
     out = []
     for i in np.flatnonzero(keep):
@@ -1360,6 +1365,8 @@ def determined(problem, stretches: list, scales: dict[str, float], top: int = 3,
         sign = 1.0 if Vt[i, np.argmax(np.abs(Vt[i]))] >= 0 else -1.0
         out.append({"estimate": sign * float(base[i] + z[i]), "std": std, "weights": (sign * Vt[i]).tolist(),
                     "correction": sign * float(z[i])})
+        if beside is not None:
+            out[-1]["consider_var"] = float(beside[i])
     size = plausible_size(out)
     for c in out:
         c["terms"], c["more"] = combination_terms(problem.names, np.array(c["weights"]), c["std"], size, top)

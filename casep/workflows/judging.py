@@ -138,6 +138,10 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
     note, record = None, None
     if widen is not None and combos:
         combos, note, record = widen(combos)
+    # the consider terms beside the rows, after what the record determines and its curvature were judged
+    combos = [c if "consider_var" not in c else
+              {**c, "std_without_consider": c["std"], "std": float(np.hypot(c["std"], np.sqrt(c["consider_var"])))}
+              for c in combos]
     said = determined_message(why, combos, k, len(problem.names), scales)
     distrust = untrusted(res)
     said = said if distrust is None else f"{said} ({distrust})"

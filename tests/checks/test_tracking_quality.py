@@ -613,10 +613,10 @@ def test_a_correlated_stretch_is_weighted_by_its_long_run_variance():
 
 
 def test_the_combinations_std_carry_the_consider_parameters_rows():
-    """A consider parameter's rows (one std of it, N x 3) widen each determined combination's variance by the square of
-    how far those rows, added to the data, move its estimate: checked by the fit itself, estimating again from the
-    rows with the consider shift added (a shift inside the coefficients' columns, so the residuals and the stretches'
-    weights stay as they were)."""
+    """A consider parameter's rows (one std of it, N x 3) give each determined combination a variance beside its std
+    (``consider_var``) the square of how far those rows, added to the data, move its estimate: checked by the fit
+    itself, estimating again from the rows with the consider shift added (a shift inside the coefficients' columns,
+    so the residuals and the stretches' weights stay as they were)."""
     from casep.checks.tracking_quality import determined, stretch_noise
     from casep.regression.problem import Problem
 
@@ -634,9 +634,9 @@ def test_the_combinations_std_carry_the_consider_parameters_rows():
     moved, _ = determined(Problem.from_arrays(S, y + K[:, :, 0], t), stretches, scales)
     assert len(plain) == len(wide) == len(moved) == 2
     for a, b, c in zip(plain, wide, moved):
-        assert b["estimate"] == a["estimate"]
-        assert b["std"] ** 2 - a["std"] ** 2 == pytest.approx((c["estimate"] - a["estimate"]) ** 2, rel=1e-6)
-        assert b["std"] > a["std"]
+        assert b["estimate"] == a["estimate"] and b["std"] == a["std"]  # what the record determines: its own
+        assert b["consider_var"] == pytest.approx((c["estimate"] - a["estimate"]) ** 2, rel=1e-6)
+        assert b["consider_var"] > 0.0
 
 
 def test_stale_tracking_inside_a_one_file_flight_is_left_out(tmp_path, rng):
