@@ -30,7 +30,7 @@ def untrusted(res: EstimateResult) -> str | None:
     """What a statement of the combinations `res` determines says when `res` has failed on an effect its estimates
     absorb (status in :data:`ABSORBED`, the first failure of its message): they are not to be trusted, neither their
     values nor their std, which do not hold that effect; None for a success or another failure (a tracking whose
-    noise differs between stretches, an iteration not converged: the combinations are their answer). One rule for
+    noise differs between stretches: the combinations are its answer; an iteration not converged says so). One rule for
     every place a failed result states combinations (:func:`judge_tracking`, the iterated passes':
     :func:`casep.workflows.imu_separate._with_determined`)."""
     if res.success or res.status not in ABSORBED:
