@@ -578,6 +578,9 @@ class _Run:
             warnings.filterwarnings("ignore", category=SaturationWarning)
             flight = read_flight_pair(tel, self.tracking, **self.pair, rest_window=self.window)  # levelled: at rest
         flight.meta["saturation"] = _imu_saturation(self.imu)
+        rows = flight.meta.get("strapdown")
+        if isinstance(rows, dict) and rows.get("lost_rows"):  # the record's own gaps: bridged, in the std (step_rows)
+            flight.meta["strapdown"] = {**rows, "lost_rows_bridged": True}
         if self._pad_noise is None:
             self._pad_noise = _pad_noise(self.imu, self.window)
         if self._pad_noise:  # the IMU's noise on the pad declared at rest, where the record's counts motion
@@ -2347,20 +2350,23 @@ def _with_determined(res: EstimateResult, last: dict, scales: dict[str, float]) 
     stating them, value and std: what the flight determines when its steps left combinations out and the
     coefficients one by one are not determined."""
     from casep.checks.tracking_quality import combination_terms, plausible_size
+    from casep.workflows.judging import untrusted
 
     names = list(res.names)
     combos = sorted(({**c} for c in last["determined"]), key=lambda c: c["std"])
     size = plausible_size(combos)
     for c in combos:
         c["terms"], c["more"] = combination_terms(names, np.array(c["weights"]), c["std"], size)
+    distrust = untrusted(res)
     diag = {**res.diagnostics, "determined": {"combinations": combos, "std_factor": None, "from": "iterations",
+                                              "untrusted": distrust,
                                               "scales": {nm: scales.get(nm, 1.0) for nm in names}}}
     said = "; ".join(" + ".join(f"{w:.2g} {nm}/{scales.get(nm, 1.0):g}" for nm, w in c["terms"].items())
                      + (f" (+ {c['more']} smaller terms)" if c.get("more") else "")
                      + f" = {c['estimate']:.4g} +- {c['std']:.2g}" for c in combos[:6])
     msg = (f"{res.message}\nthe iterated passes stepped along {len(combos)} combinations (coefficient / declared "
            f"magnitude) the flight determines: {said}" + ("; ..." if len(combos) > 6 else "")
-           + " (all in diagnostics.determined)")
+           + " (all in diagnostics.determined)" + ("" if distrust is None else f"; {distrust}"))
     return dataclasses.replace(res, diagnostics=diag, message=msg)
 
 
@@ -2604,34 +2610,89 @@ def step_rows(imu: ImuData | None, nav: NavigationResult, problem: Any) -> np.nd
     interval's middle on, and the attitude by ``psi = C dw h / 2``, which turns the specific force integrated since,
     ``dv(t) = u + psi x int f dt`` (first order; ``f = C fb``). Each step is a consider parameter, as the given heading
     is (:func:`with_heading`): not fitted, its uncertainty in the covariance. At most :data:`MAX_STEP_COLUMNS` (the
-    largest bounds of ``|dv|`` at the record's end)."""
+    largest bounds of ``|dv|`` at the record's end).
+
+    The record's gaps (:func:`casep.navigation.imu.bridge_gaps`, which the navigation integrates across) are such
+    events too (:func:`_gap_events`): what each bridge leaves unknown of the velocity and attitude across it is carried
+    the same way, never at the cap's mercy."""
     from casep.rotations import quat_rotate, quat_to_dcm
 
-    st = None if imu is None else imu.steps
-    if imu is None or st is None or not st.k.size or problem.t is None or nav.t.size < 2:
+    if imu is None or problem.t is None or nav.t.size < 2:
         return None
+    st = imu.steps
     i0 = int(np.searchsorted(imu.t, nav.t[0]))
-    keep = (st.k >= i0) & (st.k < i0 + nav.t.size - 1)
-    if nav.valid is not None:  # clipped from there on: those rows are left out
-        keep &= np.concatenate([nav.valid, [False]])[np.clip(st.k - i0 + 1, 0, nav.t.size)]
-    if not np.any(keep):
+    events = []  # (interval k of the record, launch-frame velocity u (E, 3), attitude psi (E, 3)), one std each
+    if st is not None and st.k.size:
+        C = quat_to_dcm(nav.q[np.clip(st.k - i0, 0, nav.t.size - 1)])
+        u = np.einsum("sij,sj->si", C, st.df) * (st.h / 2)[:, None] / math.sqrt(3.0)  # one std of the uniform s
+        psi = np.einsum("sij,sj->si", C, st.dw) * (st.h / 2)[:, None] / math.sqrt(3.0)
+        events.append((st.k, u, psi, False))
+    gaps = _gap_events(imu, nav, i0)
+    if gaps is not None:
+        events.append((*gaps, True))
+    if not events:
         return None
-    j = st.k[keep] - i0
     t = np.asarray(problem.t, dtype=float)
     fL = quat_rotate(nav.q, nav.fb)
     F = cumulative_trapezoid(fL, nav.t)
     Ft = np.column_stack([np.interp(t, nav.t, F[:, c]) for c in range(3)])
-    C = quat_to_dcm(nav.q[j])
-    u = np.einsum("sij,sj->si", C, st.df[keep]) * (st.h[keep] / 2)[:, None]
-    psi = np.einsum("sij,sj->si", C, st.dw[keep]) * (st.h[keep] / 2)[:, None]
-    ts = 0.5 * (nav.t[j] + nav.t[j + 1])
-    Fs = 0.5 * (F[j] + F[j + 1])
-    after = t[:, None] >= ts[None, :]  # (N, S)
-    cols = (u[None, :, :] + np.cross(psi[None, :, :], Ft[:, None, :] - Fs[None, :, :])) * after[:, :, None]
-    cols = np.transpose(cols, (0, 2, 1)) / math.sqrt(3.0)  # (N, 3, S), one std of the uniform s
-    if cols.shape[2] > MAX_STEP_COLUMNS:
-        cols = cols[:, :, np.argsort(-np.linalg.norm(cols[-1], axis=0))[:MAX_STEP_COLUMNS]]
-    return cols
+    out = []
+    for k, u, psi, whole in events:
+        keep = (k >= i0) & (k < i0 + nav.t.size - 1)
+        if nav.valid is not None:  # clipped from there on: those rows are left out
+            keep &= np.concatenate([nav.valid, [False]])[np.clip(k - i0 + 1, 0, nav.t.size)]
+        if not np.any(keep):
+            continue
+        j = k[keep] - i0
+        ts = 0.5 * (nav.t[j] + nav.t[j + 1])
+        Fs = 0.5 * (F[j] + F[j + 1])
+        after = t[:, None] >= ts[None, :]  # (N, S)
+        cols = (u[keep][None, :, :] + np.cross(psi[keep][None, :, :], Ft[:, None, :] - Fs[None, :, :])) \
+            * after[:, :, None]
+        cols = np.transpose(cols, (0, 2, 1))  # (N, 3, S)
+        if not whole and cols.shape[2] > MAX_STEP_COLUMNS:
+            cols = cols[:, :, np.argsort(-np.linalg.norm(cols[-1], axis=0))[:MAX_STEP_COLUMNS]]
+        out.append(cols)
+    return np.concatenate(out, axis=2) if out else None
+
+
+def _gap_events(imu: ImuData, nav: NavigationResult, i0: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The consider events (:func:`step_rows`) of the record's gaps: ``(k, u, psi)``, the interval ``t[k] -> t[k+1]``
+    of each gap repeated once per event, the launch-frame velocity (m/s) and attitude (rad) of one std of each; None
+    without a gap. A gap's bridge (:func:`casep.navigation.imu.bridge_gaps`) leaves unknown its motion term (any path
+    between the two sides: ``|x_b - x_a| h / 2``, the bound of a step between samples, carried as one: uniform,
+    std ``1 / sqrt 3`` of it, along the difference of the samples either side, for the velocity and for the attitude
+    alike) and its noise term (three times the std of the bridge's integral, summed over the axes: each launch axis
+    an event of std ``term / (3 sqrt 3)``), the bounds ``casep navigate`` states. ``C`` is the attitude at the gap's
+    start (first order: the direction of a term along the sides' difference turns with the body across the gap)."""
+    from casep.navigation.imu import bridge_gaps
+    from casep.rotations import quat_to_dcm
+
+    if not imu.gaps or imu.kind != "rates":
+        return None
+    br = bridge_gaps(imu.t, imu.w, imu.f)
+    if not br.steps.size:
+        return None
+    k = br.steps
+    C = quat_to_dcm(nav.q[np.clip(k - i0, 0, nav.t.size - 1)])
+
+    def along(x: np.ndarray, size: np.ndarray) -> np.ndarray:  # the motion term along the sides' difference
+        d = x[k + 1] - x[k]
+        n = np.linalg.norm(d, axis=1)
+        unit = np.divide(d, n[:, None], out=np.zeros_like(d), where=n[:, None] > 0)
+        return np.einsum("sij,sj->si", C, unit) * (size / math.sqrt(3.0))[:, None]
+
+    zero = np.zeros((k.size, 3))
+    ks, us, ps = [k, k], [along(imu.f, br.motion[:, 1]), zero], [zero, along(imu.w, br.motion[:, 0])]
+    noise_v = (br.velocity - br.motion[:, 1]) / (3.0 * math.sqrt(3.0))
+    noise_a = (br.attitude - br.motion[:, 0]) / (3.0 * math.sqrt(3.0))
+    for a in range(3):
+        e = np.zeros((k.size, 3))
+        e[:, a] = 1.0
+        ks += [k, k]
+        us += [e * noise_v[:, None], zero]
+        ps += [zero, e * noise_a[:, None]]
+    return np.concatenate(ks), np.concatenate(us), np.concatenate(ps)
 
 
 #: The IMU's gaps whose unknown steps the clock test estimates beside the drift, at most (the largest bounds of what
@@ -2686,29 +2747,52 @@ def gap_rows(imu: ImuData | None, nav: NavigationResult, problem: Any) -> tuple[
 
 
 def with_steps(out: EstimateResult, before: EstimateResult, problem: Any, imu: ImuData | None) -> EstimateResult:
-    """`out` (its covariance holding the steps between samples: :func:`step_rows`) with the steps said: in
-    ``diagnostics["sampled_steps"]`` and a line of its message, with how much they raise the std (against
-    `before`'s, the fit's)."""
-    st = None if imu is None else imu.steps
-    if imu is None or st is None or out.std is None or before.std is None:
+    """`out` (its covariance holding the steps between samples and the gaps: :func:`step_rows`) with them said: in
+    ``diagnostics["sampled_steps"]`` and ``diagnostics["imu_gaps"]`` and a line of its message each, with how much they
+    raise the std (against `before`'s, the fit's)."""
+    if imu is None or out.std is None or before.std is None:
         return out
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.asarray(out.std, float) / np.asarray(before.std, float)
     finite = np.isfinite(ratio)
     worst = int(np.argmax(np.where(finite, ratio, -np.inf))) if np.any(finite) else 0
-    big = int(np.argmax(st.velocity + st.attitude))
-    record = {"count": int(st.k.size), "t_s": [float(imu.t[k]) for k in st.k], "velocity_bound_m_s":
-              [float(v) for v in st.velocity], "attitude_bound_rad": [float(v) for v in st.attitude],
-              "rule": "each a velocity and attitude step at its interval's middle, uniform within +-(x_k+1 - x_k) h/2 "
-                      "(casep.workflows.imu_separate.step_rows), a consider parameter in the covariance"}
-    line = (f"the record's {st.k.size} step(s) between consecutive IMU samples (the largest at t = "
-            f"{imu.t[st.k[big]]:.6g} s: velocity unknown within +-{st.velocity[big]:.3g} m/s, attitude within "
-            f"+-{st.attitude[big]:.3g} rad) are in the std as consider parameters")
-    if np.any(finite):
-        record["std_factor_max"], record["std_factor_worst"] = float(ratio[worst]), out.names[worst]
-        line += f" (they and the IMU noise raise them by up to {ratio[worst]:.3g} x, {out.names[worst]})"
-    diag = {**out.diagnostics, "sampled_steps": record}
-    return _with_line(dataclasses.replace(out, diagnostics=diag), line)
+    raised = (f" (they and the IMU noise raise them by up to {ratio[worst]:.3g} x, {out.names[worst]})"
+              if np.any(finite) else "")
+    st, diag = imu.steps, dict(out.diagnostics)
+    if st is not None and st.k.size:
+        big = int(np.argmax(st.velocity + st.attitude))
+        record = {"count": int(st.k.size), "t_s": [float(imu.t[k]) for k in st.k], "velocity_bound_m_s":
+                  [float(v) for v in st.velocity], "attitude_bound_rad": [float(v) for v in st.attitude],
+                  "rule": "each a velocity and attitude step at its interval's middle, uniform within +-(x_k+1 - "
+                          "x_k) h/2 (casep.workflows.imu_separate.step_rows), a consider parameter in the covariance"}
+        out = _with_line(out, f"the record's {st.k.size} step(s) between consecutive IMU samples (the largest at t = "
+                              f"{imu.t[st.k[big]]:.6g} s: velocity unknown within +-{st.velocity[big]:.3g} m/s, "
+                              f"attitude within +-{st.attitude[big]:.3g} rad) are in the std as consider parameters"
+                              + raised)
+        if np.any(finite):
+            record["std_factor_max"], record["std_factor_worst"] = float(ratio[worst]), out.names[worst]
+        diag["sampled_steps"] = record
+    if imu.gaps and imu.kind == "rates":
+        from casep.navigation.imu import bridge_gaps
+
+        br = bridge_gaps(imu.t, imu.w, imu.f)
+        big = int(np.argmax(br.velocity))
+        record = {"count": int(br.steps.size), "t_s": [float(imu.t[k]) for k in br.steps],
+                  "length_s": [float(h) for h in br.h], "velocity_bound_m_s": [float(v) for v in br.velocity],
+                  "attitude_bound_rad": [float(v) for v in br.attitude],
+                  "rule": "each gap's bridge (casep.navigation.imu.bridge_gaps) leaves the velocity and attitude "
+                          "across it unknown within its bounds: the motion term a step at the gap's middle, uniform "
+                          "within +-(x_b - x_a) h/2, the noise term per launch axis of std bound / (3 sqrt 3) "
+                          "(casep.workflows.imu_separate.step_rows), consider parameters in the covariance"}
+        out = _with_line(out, f"the record's {br.steps.size} gap(s) (the largest velocity bound across the "
+                              f"{br.h[big]:.3g} s after t = {imu.t[br.steps[big]]:.10g} s: velocity unknown within "
+                              f"+-{br.velocity[big]:.3g} m/s, attitude within +-{br.attitude[big]:.3g} rad) are "
+                              "integrated across as casep navigate does and in the std as consider parameters"
+                              + raised)
+        if np.any(finite):
+            record["std_factor_max"], record["std_factor_worst"] = float(ratio[worst]), out.names[worst]
+        diag["imu_gaps"] = record
+    return dataclasses.replace(out, diagnostics=diag)
 
 
 def heading_record(heading_deg: float, std_deg: float, shift: np.ndarray, std: np.ndarray, names: list[str]) -> dict:

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 from casep.estimators.registry import METHODS as _REGISTRY
+from casep.estimators.registry import STATUS_MISFIT, STATUS_PRIOR_CONFLICT, STATUS_SETUP
 from casep.estimators.result import EstimateResult
 from casep.model.error_model import ErrorModel
 
@@ -17,7 +18,25 @@ if TYPE_CHECKING:
     from casep.io.flight import FlightData
     from casep.regression.problem import Problem
 
-__all__ = ["judge_setup", "judge_tracking", "judge_pad_hold"]
+__all__ = ["judge_setup", "judge_tracking", "judge_pad_hold", "untrusted", "ABSORBED"]
+
+#: The failures that say the estimates absorb an effect the model does not hold (a set-up problem: lost rows, the
+#: levelling, the heading; a misfit; a prior the data contradict: the IMU clock's drift, the heading given): the
+#: combinations a result failed so states are not to be trusted (:func:`untrusted`).
+ABSORBED = (STATUS_SETUP, STATUS_MISFIT, STATUS_PRIOR_CONFLICT)
+
+
+def untrusted(res: EstimateResult) -> str | None:
+    """What a statement of the combinations `res` determines says when `res` has failed on an effect its estimates
+    absorb (status in :data:`ABSORBED`, the first failure of its message): they are not to be trusted, neither their
+    values nor their std, which do not hold that effect; None for a success or another failure (a tracking whose
+    noise differs between stretches: the combinations are its answer; an iteration not converged says so). One rule for
+    every place a failed result states combinations (:func:`judge_tracking`, the iterated passes':
+    :func:`casep.workflows.imu_separate._with_determined`)."""
+    if res.success or res.status not in ABSORBED:
+        return None
+    return (f"not to be trusted: the result failed (status {res.status}) on an effect its estimates absorb (the first "
+            "failure above), which neither these values nor their std hold")
 
 
 def judge_setup(res: EstimateResult, flight: FlightData | None, model, *, noise_free: bool = False) -> EstimateResult:
@@ -134,8 +153,10 @@ def judge_tracking(res: EstimateResult, flight: FlightData, problem: Problem, sc
         c["terms"], c["more"] = combination_terms(list(problem.names), np.array(c["weights"]), c["std"], size)
     said = determined_message(why, combos, k, len(problem.names), scales,
                               widened_said(left, list(problem.names), scales))
+    distrust = untrusted(res)
+    said = said if distrust is None else f"{said} ({distrust})"
     res = failed(res, STATUS_TRACKING, said if note is None else f"{said}; {note}")
-    res.diagnostics["determined"] = {"combinations": combos, "std_factor": k, "left_out": left,
+    res.diagnostics["determined"] = {"combinations": combos, "std_factor": k, "left_out": left, "untrusted": distrust,
                                      "scales": {nm: scales.get(nm, 1.0) for nm in problem.names}}
     if record is not None:
         res.diagnostics["determined"]["curvature"] = record

@@ -159,8 +159,8 @@ def with_extra_covariance(res: EstimateResult, extra: np.ndarray) -> EstimateRes
     diag = {**res.diagnostics, CONSIDER_KEY: {
         "covariance": total.tolist(), "names": list(res.names),
         "rule": "the consider terms added on top of the noise's covariance (natural units): the omitted terms, the "
-                "clock drift, the steps between samples where the IMU's noise is not carried; kept through a "
-                "covariance set anew, and in the stated combinations' std (w^T E w)"}}
+                "clock drift, the steps between samples and the IMU record's gaps where the IMU's noise is not "
+                "carried; kept through a covariance set anew, and in the stated combinations' std (w^T E w)"}}
     return dataclasses.replace(res, covariance=cov, std=widened_std(res, cov), solution=solution, diagnostics=diag)
 
 

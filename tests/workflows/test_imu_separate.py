@@ -500,6 +500,33 @@ def test_an_imu_gap_is_named_by_the_failure_and_its_warnings_are_said_once(truth
 
 
 
+def test_a_gap_while_the_body_spins_is_bridged_and_carried_in_the_std(noise_free):
+    """Samples lost over 0.55 s of the roll at 2 rad/s (the body turns by 63 deg across the gap, beyond the 44 deg
+    a telemetry's lost rows allow): the navigation bridges the gap (casep.navigation.imu.bridge_gaps), the S_V of the
+    navigated rows integrates across it, and what the bridge leaves unknown of the velocity and attitude is in the
+    std as consider parameters: a success whose estimates hold the truth within 3 std, the gap said with the bounds
+    the navigation states, not a set-up failure asking for rows a lost packet cannot give."""
+    from casep.navigation.imu import bridge_gaps
+
+    path, trk, D = noise_free
+    full = read_imu(path)
+    keep = ~((full.t > 20.0) & (full.t < 20.54))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        imu = check_imu(ImuData(full.t[keep], full.w[keep], full.f[keep]))
+    out = _separate(imu, trk, spec=NOISE_FREE)
+    res = out.result
+    assert out.success and res.diagnostics["iterations"]["converged"], out.message
+    assert "lost rows while the body turned" not in out.message
+    rec = res.diagnostics["imu_gaps"]
+    br = bridge_gaps(imu.t, imu.w, imu.f)
+    assert rec["count"] == 1 and rec["length_s"] == pytest.approx([0.55]) and rec["t_s"] == pytest.approx([20.0])
+    assert rec["velocity_bound_m_s"] == pytest.approx(br.velocity.tolist())
+    assert rec["std_factor_max"] > 1.0 and "gap(s)" in out.message
+    z = (res.estimate - D) / res.std
+    assert np.all(np.abs(z) < 3.0), z
+
+
 def test_a_clipped_gyro_is_said_once_by_the_imu_check(truth_flight, tmp_path):
     """The roll rate held at the nominal full scale of 1000 deg/s from 30 s on: the IMU check says it (a
     SaturationWarning naming the record's rows and that the separation leaves them out; the navigation marks
@@ -1108,6 +1135,26 @@ def test_the_combinations_stepped_along_are_stated_in_the_result(noisy_gyro_rest
         assert abs(c["estimate"] - np.dot(c["weights"], T)) < 4.0 * c["std"], c
         assert f"= {c['estimate']:.4g} +- {c['std']:.2g}" in res.message
     assert "combinations (coefficient / declared magnitude) the flight determines" in res.message
+
+
+def test_combinations_a_result_failed_on_an_absorbed_effect_states_are_said_not_to_be_trusted(noisy_gyro_rest):
+    """The combinations of :func:`test_the_combinations_stepped_along_are_stated_in_the_result` stated by a result
+    failed on an effect its estimates absorb (a set-up failure, a misfit, a prior the data contradict:
+    casep.workflows.judging.ABSORBED) are said not to be trusted, in the message and ``diagnostics["determined"]``;
+    by a success, or a result failed otherwise (not converged), not."""
+    from casep.estimators.registry import STATUS_MISFIT, STATUS_SETUP, failed
+    from casep.workflows.imu_separate import _with_determined
+
+    out, _ = noisy_gyro_rest[1]
+    res = out.result
+    last = res.diagnostics["iterations"]["passes"][-1]
+    scales = casep.load_model("strapdown12").scales
+    for status, distrusted in ((None, False), (STATUS_NOT_CONVERGED, False), (STATUS_SETUP, True),
+                               (STATUS_MISFIT, True)):
+        base = res if status is None else failed(res, status, "failed: the reason")
+        said = _with_determined(base, last, scales)
+        assert ("not to be trusted" in said.message.rpartition("\n")[2]) is distrusted, (status, said.message)
+        assert (said.diagnostics["determined"]["untrusted"] is not None) is distrusted
 
 
 def test_the_smaller_models_are_advised_when_no_coefficient_is_determined_on_its_own():
