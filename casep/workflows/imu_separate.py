@@ -1047,22 +1047,7 @@ class _Run:
         if failure is not None:
             gap = self.gap_clause(float(out.sigma)) or _late_tags_clause(flight)
             out = failed(out, STATUS_NOT_CONVERGED, failure.replace(_BLAME, gap) if gap else failure)
-        # rates in another unit (deg/s read as rad/s) turn the navigation from the tracking as no error model can:
-        # where the result misfits beyond the noise (judged or not yet), the other reading's one linear pass
-        # (casep.workflows.imu_units), named first
-        from casep.workflows.imu_units import rate_unit_reading
-
-        unit = rate_unit_reading(self, out, flight, _fast_spec(self.spec) or self.spec)
-        if unit is not None:
-            from casep.estimators.registry import STATUS_SETUP
-            from casep.exceptions import SetupWarning
-
-            out.diagnostics["rate_unit"] = unit
-            warnings.warn(unit["said"], SetupWarning, stacklevel=3)
-            out = failed(out, STATUS_SETUP, f"failed: {unit['said']}")
-        else:  # the passes settled (the stop rule met: a success, or a combination left out after it) or not
-            out = self.heading_judged(out, problem, flight, D, settled=_stopped(passes[-1], tol))
-            out = self.turn_judged(out)
+        out = self.unit_or_heading_judged(out, problem, flight, D, settled=_stopped(passes[-1], tol))
         test = (out.diagnostics.get("heading") or {}).get("test") or {}
         if test.get("conflict") and _BLAME in out.message:  # the step failed on the turn the heading leaves
             out = dataclasses.replace(out, message=out.message.replace(_BLAME, _heading_blame(test)))
@@ -1118,6 +1103,28 @@ class _Run:
             out = _with_line(out, heading[0])
         out = unit_first(heading_first(out))
         return ImuSeparation(_advice_first(out, SMALLER_MODELS.get(self.base.name)), nav, flight, passes)
+
+    def unit_or_heading_judged(self, out: EstimateResult, problem: Any, flight: FlightData, D: np.ndarray,
+                               settled: bool) -> EstimateResult:
+        """`out` judged for rates in another unit, else for the heading and a turned tracking (:meth:`finish`).
+
+        Rates in another unit (deg/s read as rad/s) turn the navigation from the tracking as no error model can:
+        where the result misfits beyond the noise (judged or not yet), the other reading's one linear pass
+        (:mod:`casep.workflows.imu_units`) is named first (a failed set-up); otherwise the heading given is tested
+        (:meth:`heading_judged`; `settled`: the passes met the stop rule) and a turned tracking named
+        (:meth:`turn_judged`)."""
+        from casep.estimators.registry import failed
+        from casep.workflows.imu_units import rate_unit_reading
+
+        unit = rate_unit_reading(self, out, flight, _fast_spec(self.spec) or self.spec)
+        if unit is None:
+            return self.turn_judged(self.heading_judged(out, problem, flight, D, settled=settled))
+        from casep.estimators.registry import STATUS_SETUP
+        from casep.exceptions import SetupWarning
+
+        out.diagnostics["rate_unit"] = unit
+        warnings.warn(unit["said"], SetupWarning, stacklevel=4)
+        return failed(out, STATUS_SETUP, f"failed: {unit['said']}")
 
     def left_out_curvature(self, res: EstimateResult, last: dict, problem: Any, flight: FlightData,
                            D: np.ndarray) -> EstimateResult:
