@@ -10,7 +10,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["rels_ud", "sv_integrate_chunk", "all_pole_filter", "gmw_filter", "joint_filter"]
+__all__ = ["rels_ud", "sv_integrate_chunk", "all_pole_filter", "gmw_filter", "joint_filter", "reml_scale_fit"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -341,3 +341,117 @@ def joint_filter(X, T, Q, H, P0, a, qb, d, out):  # pragma: no cover
         _acc(W, nu, False, 1.0, m)
         _acc(W, W, True, -1.0, P)
     return logdet
+
+
+@numba.njit(cache=True, nogil=True)
+def _lower_cholesky(G, L, k):  # pragma: no cover
+    """``L L^T = G`` (lower, from `G`'s lower triangle) of the leading k x k block by the scalar loops of the
+    Cholesky-Banachiewicz order; False where a pivot is not positive (not definite, or NaN), as LAPACK's dpotrf."""
+    for i in range(k):
+        for j in range(i + 1):
+            v = G[i, j]
+            for m in range(j):
+                v -= L[i, m] * L[j, m]
+            if i == j:
+                if not v > 0.0:
+                    return False
+                L[i, i] = np.sqrt(v)
+            else:
+                L[i, j] = v / L[j, j]
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def reml_scale_fit(Ms, sc0, N, p, logdets):  # pragma: no cover
+    """The axis scales at their REML fixed point from `sc0` and ``-2 l_R`` there: ``(value, scales, ok)``
+    (:func:`casep._kernels.reml_scale_fit`: the equations); the steps of :meth:`casep.noise.fit.Reml._scale_steps`
+    and the value of :meth:`casep.noise.fit.Reml._value` by scalar loops."""
+    k = p + 1
+    sc = sc0.copy()
+    G = np.empty((k, k))
+    L = np.zeros((k, k))
+    U = np.zeros((p, p))  # T_p^-1, upper (T = L^T)
+    Ginv = np.empty((p, p))
+    v = np.empty(k)
+    v[p] = -1.0
+    rss = np.empty(3)
+    new = np.empty(3)
+    eps = np.finfo(np.float64).eps
+    for _ in range(50):
+        w0, w1, w2 = sc[0] ** -2, sc[1] ** -2, sc[2] ** -2
+        for i in range(k):
+            for j in range(i + 1):
+                G[i, j] = w0 * Ms[0, i, j] + w1 * Ms[1, i, j] + w2 * Ms[2, i, j]
+        if not _lower_cholesky(G, L, k) or not np.isfinite(L[k - 1, k - 1]):
+            return np.inf, sc, False
+        for j in range(p):  # U = T_p^-1 column by column (T[i, m] = L[m, i])
+            U[j, j] = 1.0 / L[j, j]
+            for i in range(j - 1, -1, -1):
+                s = 0.0
+                for m in range(i + 1, j + 1):
+                    s += L[m, i] * U[m, j]
+                U[i, j] = -s / L[i, i]
+        for i in range(p):  # beta = T_p^-1 T[:p, p]
+            s = 0.0
+            for m in range(i, p):
+                s += U[i, m] * L[p, m]
+            v[i] = s
+        for i in range(p):  # (Z_w^T Z_w)^-1 = U U^T
+            for j in range(i + 1):
+                s = 0.0
+                for m in range(i, p):
+                    s += U[i, m] * U[j, m]
+                Ginv[i, j] = s
+                Ginv[j, i] = s
+        worst = 0.0
+        for a in range(3):
+            r = 0.0  # ||[Z_a y_a] (beta, -1)||^2
+            for i in range(k):
+                s = 0.0
+                for j in range(k):
+                    s += Ms[a, i, j] * v[j]
+                r += v[i] * s
+            if r < 0.0:
+                r = 0.0
+            h = 0.0  # the leverage of the axis' rows
+            for i in range(p):
+                for j in range(p):
+                    h += Ms[a, i, j] * Ginv[i, j]
+            h /= sc[a] ** 2
+            den = N - h
+            if den < 1.0:
+                den = 1.0
+            rss[a] = r
+            new[a] = np.sqrt(r / den)  # r_a^2 = RSS_a / (N - h_a)
+        for a in range(3):
+            if not new[a] > 0.0:
+                return np.inf, sc, False
+        n0 = new[0]
+        for a in range(3):
+            new[a] /= n0
+            worst = max(worst, Ms[a, p, p] / max(rss[a], 1e-300))
+        tol = max(1e-7, 10.0 * eps * worst)
+        step = 0.0
+        for a in range(3):
+            step = max(step, abs(np.log(new[a] / sc[a])))
+        for a in range(3):
+            sc[a] = new[a]
+        if step < tol:
+            break
+    for i in range(k):  # -2 l_R at the scales (Reml._value)
+        for j in range(i + 1):
+            G[i, j] = Ms[0, i, j] / sc[0] ** 2 + Ms[1, i, j] / sc[1] ** 2 + Ms[2, i, j] / sc[2] ** 2
+    if not _lower_cholesky(G, L, k) or not np.isfinite(L[k - 1, k - 1]):
+        return np.inf, sc, True
+    r = L[p, p] ** 2
+    if not r > 0.0:
+        return np.inf, sc, True
+    val = (3 * N - p) * np.log(r)
+    for i in range(p):
+        d = abs(L[i, i])
+        if d == 0.0:
+            return np.inf, sc, True
+        val += 2.0 * np.log(d)
+    for a in range(3):
+        val += N * np.log(sc[a] ** 2) + logdets[a]
+    return val, sc, True

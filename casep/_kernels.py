@@ -22,10 +22,14 @@ longer than a short flight's whole computation. So:
 - :func:`gmw_filter`: the innovations (Kalman-filter) whitening of Gauss-Markov plus white noise, compiled
   (:func:`gmw_filter_numpy`: the same recursion as a plain loop, the reference of the tests);
 - :func:`joint_filter`: the same whitening with a known linear noise state beside it (the IMU's own noise),
-  compiled (:func:`joint_filter_numpy`: its reference).
+  compiled (:func:`joint_filter_numpy`: its reference);
+- :func:`reml_scale_fit`: the REML fixed point of the noise model's axis scales and ``-2 l_R`` there, compiled
+  (:meth:`casep.noise.fit.Reml._fit_scales` with numpy's LAPACK kernels: its reference).
 
-The callers (:mod:`casep.model.sv`, :mod:`casep.noise.robust`, :mod:`casep.estimators.rls`) validate
-every argument. ``tests/test_kernels.py`` checks each against the compiled loop, a plain loop or scipy, bit for bit.
+The callers (:mod:`casep.model.sv`, :mod:`casep.noise.robust`, :mod:`casep.estimators.rls`, :mod:`casep.noise.fit`)
+validate every argument. ``tests/test_kernels.py`` checks each against the compiled loop, a plain loop or scipy, bit
+for bit; the two with matrix factorisations (:func:`joint_filter`, :func:`reml_scale_fit`) against numpy's to the
+rounding (``tests/noise/test_noise_known.py``, ``tests/noise/test_reml_compiled.py``).
 """
 
 from __future__ import annotations
@@ -37,7 +41,7 @@ from typing import Callable, cast
 import numpy as np
 
 __all__ = ["ar1_long_run_factor", "ar1_terms", "cumulative_trapezoid", "runs", "gmw_filter", "gmw_filter_numpy",
-           "joint_filter", "joint_filter_numpy",
+           "joint_filter", "joint_filter_numpy", "reml_scale_fit",
            "robust_filter_keep", "sv_integrate_chunk", "sv_integrate_chunk_numpy", "rels_ud", "lfilter",
            "NUMPY_SAMPLES", "PYTHON_FILTER_STEPS", "all_pole_filter_python"]
 
@@ -147,6 +151,31 @@ def joint_filter(X: np.ndarray, T: np.ndarray, Q: np.ndarray, H: np.ndarray, P0:
     from casep._compiled import joint_filter as kernel
 
     return float(kernel(X, T, Q, H, P0, a, qb, d, out))
+
+
+def reml_scale_fit(Ms: np.ndarray, scales: np.ndarray, n_samples: int, p: int, logdets: np.ndarray
+                   ) -> tuple[float, tuple[float, float, float], bool]:
+    """The axis scales ``r_a`` at their REML fixed point, started from `scales` (3,), and ``-2 l_R`` there:
+    ``(value, scales, ok)`` (:mod:`casep.noise.fit`'s notes).
+
+    `Ms` (3, p + 1, p + 1) C-contiguous: each axis' Gram matrix ``[Z_w y_w]^T [Z_w y_w]`` at unit scale (`p` the
+    estimable combinations); `logdets` (3,): each axis' ``sum_k ln F_k``; `n_samples`: ``N`` per axis. Each step
+    factors ``G = sum_a M_a / r_a^2 = T^T T`` and sets ``r_a^2 = RSS_a / (N - h_a)`` (``h_a = tr(M_a,pp
+    (T_p^T T_p)^-1)``), normalised to ``r_x = 1``, until ``ln r`` moves less than ``max(1e-7, 10 eps
+    max_a M_a,yy / RSS_a)`` (at most 50 steps); the value is ``(3N - p) ln T_pp^2 + 2 sum_j ln T_jj + sum_a (N ln
+    r_a^2 + logdet_a)``. ``ok`` False: a step where ``G`` is not definite or an axis' RSS vanishes (its scales
+    returned, the value inf); the value is inf too where ``G`` at the scales found is not definite.
+
+    Compiled (:func:`casep._compiled.reml_scale_fit`: Cholesky, triangular inverse and products by scalar loops,
+    each step of :meth:`casep.noise.fit.Reml._scale_steps` and the value of :meth:`casep.noise.fit.Reml._value`);
+    those two with numpy's LAPACK kernels are its reference: the same steps, the numbers to the rounding of the
+    factorisations (a step that lands within that rounding of the stop rule's tolerance may take one step more or
+    less: scales within the tolerance, 1e-7 in ``ln r``).
+    """
+    from casep._compiled import reml_scale_fit as kernel
+
+    val, sc, ok = kernel(Ms, scales, int(n_samples), int(p), logdets)
+    return float(val), (float(sc[0]), float(sc[1]), float(sc[2])), bool(ok)
 
 
 def joint_filter_numpy(X, T, Q, H, P0, a, qb, d, out) -> float:

@@ -935,6 +935,9 @@ class _Run:
         if setup_problems(flight):  # a set-up mistake (site, frame, times): passes would fit it, not the instrument
             iterate = False  # one pass, which the set-up judgement fails (judge_setup, in finish)
         self.data_scale = float(np.max(np.abs(problem.y), initial=0.0)) if problem.y is not None else None
+        from casep.regression.problem import rounding_level
+
+        floor = 0.0 if self.data_scale is None else float(rounding_level(self.data_scale))  # the data's, every pass
         D = np.zeros(len(res.names))
         passes: list[dict] = []
         failure, last = None, None
@@ -944,7 +947,7 @@ class _Run:
         noise_factor = 1.0  # the white passes' std under the record's correlated noise (Step.noise_factor)
         history = [_ssr(problem.y)]  # the rows' sum of squares of every pass (m^2/s^2; DESCENT_MEMORY)
         while True:
-            step = determined_step(res, problem, flight, model.scales, limit, about=D)
+            step = determined_step(res, problem, flight, model.scales, limit, about=D, floor=floor)
             noise_factor = step.noise_factor if spec is fast else noise_factor
             how = "ols, white noise (while far)" if spec is fast else "as requested"
             # noise-free: the correction at the coefficients' rounding, or the rows at `D` at the data's and no longer
@@ -2008,7 +2011,7 @@ class Step:
 
 
 def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scales: dict[str, float],
-                    limit: float = np.inf, about: np.ndarray | None = None) -> Step:
+                    limit: float = np.inf, about: np.ndarray | None = None, floor: float = 0.0) -> Step:
     """The correction of one pass along the combinations the flight determines, and its size in their std.
 
     Two cases, one per statement the result makes of what the flight determines:
@@ -2065,6 +2068,16 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
     stated were 14 to 50 std off (the shipped MEMS example of ``docs/guide/navigate.md``: up to 152). So in a
     white-noise pass the std that judge the size are multiplied by the Gauss-Markov plus white fit's factor
     (:func:`casep.estimators.solve.richer_noise_factor`, the whiteness test's measure).
+
+    **The noise floor** (`floor`, m/s: :meth:`_Run.iterate` gives the rounding level of the first pass's rows,
+    :func:`casep.regression.problem.rounding_level`): a fit's noise ``res.sigma`` below it is rounding, and every std
+    here is taken at the floor instead (the covariance times ``(floor / sigma)^2``), so that no std, step or size is
+    measured against rounding (the rule of :func:`casep.regression.problem.rounding_level`). A later pass's rows are
+    residuals, whose own rounding is not the data's: on a noise-free pad record (rows of 0.13 m/s before the first
+    pass) the passes' noise, fitted to residuals of 1e-15 to 1e-11 m/s, set the std of a combination whose effect at
+    its declared magnitude is below the data's rounding (0.91 ``ba_y`` + 0.28 ``ba_z`` + 0.26 ``ma_yx``) to 6e-4 or
+    1e-3 declared magnitudes by how the last digits of that fit rounded, and with it whether the passes stepped along
+    it (and so whether they stated any combination as determined).
     """
     from casep.checks.tracking_quality import determined, noise_problem
 
@@ -2083,6 +2096,10 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
     x = res.fitted_coefficients()
     C = res.covariance if res.solution is None else res.solution.covariance
     std = res.std if res.std is not None else np.full(len(names), np.nan)
+    sigma = float(res.sigma) if res.sigma is not None else np.nan
+    if 0.0 < sigma < floor:  # rounding: the std at the data's rounding level (the noise floor above)
+        lift = floor / sigma
+        C, std, sigma = (None if C is None else C * lift**2), std * lift, floor
     P = np.eye(len(names))
     widest, beyond, kept, size, undetermined, factor = np.inf, [], [], np.inf, None, 1.0
     own = np.isfinite(std) & (std > 0)
@@ -2090,7 +2107,7 @@ def determined_step(res: EstimateResult, problem: Any, flight: FlightData, scale
     N = np.zeros((len(names), 0)) if res.solution is None else \
         np.asarray(res.solution.null_space, dtype=float).reshape(len(names), -1)
     if C is not None and np.all(np.isfinite(C)) and np.all(np.isfinite(x)):
-        sig, q = _scaled_spectrum(C, scale, problem, float(res.sigma), N.shape[1], res.diagnostics.get("noise"))
+        sig, q = _scaled_spectrum(C, scale, problem, sigma, N.shape[1], res.diagnostics.get("noise"))
         out = sig > limit
         if about is not None:  # what the record determines (the size: the IMU's noise in the std that judge it)
             imu = combination_imu_noise(q.T, scale, res, problem, flight)

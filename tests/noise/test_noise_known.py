@@ -156,8 +156,16 @@ def test_the_correlation_time_stays_within_the_records_span_as_in_fit_noise():
     """A velocity error that is a random walk plus white noise (a Gauss-Markov term slower than any record): the
     restricted likelihood grows with tau beyond the record's span, where ``c`` and ``tau`` trade (seen on car
     windows: tau 9e5 s, std 17 m/s). The search keeps ln tau within :func:`casep.noise.fit.tau_search_bounds`, as
-    fit_noise does, so with no known term both end at the upper bound with the same std (1 % in the std, 1e-9 in
-    tau), not beyond it."""
+    fit_noise does: neither ends beyond the upper bound (here an axis ends at it, the other two within it).
+
+    Where ``c`` and ``tau`` trade the likelihood is flat: where on it a search stops is the rounding's (one axis'
+    tau ended at the bound, or at 27.8 s, by the rounding of fit_noise's REML kernels, and fit_tracking's at 22.7
+    s), so tau and ``c`` are not compared. What the two agree on is what the rows determine: ``-2 l_R`` of both
+    answers under one evaluator (:func:`casep.noise.known.restricted_likelihood`) within 0.1, a likelihood ratio the
+    data cannot tell from none (a parameter's one std is a change of 1); fit_tracking, started at fit_noise's answer,
+    never ends above it; and the random walk's intensity ``c / tau`` within 5 %, a third of its own relative std
+    (at least ``sqrt(2 / 120)``, 13 %: a variance from 120 increments). Measured on seeds 1-8 with either REML path
+    (compiled, or ``Reml.COMPILED = False``): ``-2 l_R`` apart by at most 0.064, ``c / tau`` by 3.5 %."""
     from casep.noise.fit import tau_search_bounds
 
     rng = np.random.default_rng(1)
@@ -167,15 +175,16 @@ def test_the_correlation_time_stays_within_the_records_span_as_in_fit_noise():
     pb = Problem.from_arrays(S, S @ np.array([1.0, -2.0]) + e, t)
     reml = fit_noise(pb, "gmw")
     hi = np.exp(tau_search_bounds(t)[1])
-    assert reml.tau[1] == pytest.approx(hi, rel=1e-9) and reml.tau[2] == pytest.approx(hi, rel=1e-9)  # at its bound
     zero = KnownStates(np.ones((t.size, 1, 1)), np.zeros((t.size, 1, 1)), np.zeros((t.size, 3, 1)), np.zeros((1, 1)))
     X = np.stack(Reml(pb, estimable_basis(pb)).Z, axis=1)
     got, _ = fit_tracking(X, t, reml, zero, xatol=1e-3)
     a, b = TrackingParameters.of(got), TrackingParameters.of(reml)
-    assert all(x is not None and x <= hi * (1.0 + 1e-9) for x in a.tau)
-    np.testing.assert_allclose(a.tau, b.tau, rtol=1e-2)
-    np.testing.assert_allclose(np.sqrt(a.c), np.sqrt(b.c), rtol=1e-2)
-    np.testing.assert_allclose(np.sqrt(a.d), np.sqrt(b.d), rtol=1e-2)
+    for theta in (a, b):
+        assert all(x is not None and x <= hi * (1.0 + 1e-9) for x in theta.tau), theta.tau
+    assert max(b.tau) == pytest.approx(hi, rel=1e-9)  # an axis at the bound: the bound is what held it
+    la, lb = restricted_likelihood(X, t, a, zero), restricted_likelihood(X, t, b, zero)
+    assert la <= lb + 1e-9 * abs(lb) and lb - la <= 0.1, (la, lb)
+    np.testing.assert_allclose(np.divide(a.c, a.tau), np.divide(b.c, b.tau), rtol=5e-2)
 
 
 def test_a_part_of_unknown_size_is_scaled_exactly_and_fitted_by_the_reml(rng):
